@@ -1,0 +1,138 @@
+//! The sorted proxy grid: spheres binned into cubic cells and reordered by cell key.
+//!
+//! Cells are at least as large as the grid's `cell_size` (the caller passes 2·r_max in `mochi`
+//! mode, 4·r_max in `nns` mode), so every colliding pair lies in the same or in neighbouring
+//! cells. Keys are linear, `x + nx·(y + ny·z)`, over a grid with one empty cell of margin on every
+//! side, so the key of a neighbour is the key of the cell plus a constant: that is what lets the
+//! query walk the sorted keys with pointers that only move forward.
+
+use crate::spheres::SphereSet;
+use rayon::prelude::*;
+
+/// Most cells along one axis (margin included): 3 × 21 bits keep every key below 2⁶³.
+const MAX_AXIS_CELLS: u64 = 1 << 21;
+
+/// Relative padding of the cell size, far above the rounding of `f32` distances and of the
+/// `f64` cell coordinates, so that a pair the `f32` narrow phase accepts is never two cells apart.
+const CELL_PADDING: f64 = 1.0 / (1u64 << 20) as f64;
+
+/// Spheres sorted by cell.
+#[derive(Debug, Default)]
+pub(crate) struct SortedGrid {
+    /// Cell key of each sorted sphere (non-decreasing).
+    pub keys: Vec<u64>,
+    /// `[x, y, z, r]` of each sorted sphere.
+    pub spheres: Vec<[f32; 4]>,
+    /// Input index of each sorted sphere.
+    pub ids: Vec<u32>,
+    /// Cells along x and y, margin included.
+    dims: [u64; 2],
+    /// (key, input index) scratch for the sort, kept to avoid reallocation.
+    order: Vec<(u64, u32)>,
+}
+
+impl SortedGrid {
+    /// Bins `spheres` into cells of side at least `cell_size`.
+    pub fn bin(&mut self, spheres: &SphereSet, cell_size: f32) {
+        let centers = spheres.centers();
+        let n = centers.len();
+        if n == 0 {
+            self.keys.clear();
+            self.spheres.clear();
+            self.ids.clear();
+            return;
+        }
+        let (lo, hi) = bounds(centers);
+        let cells = cell_layout(lo, hi, cell_size);
+        let [nx, ny] = [cells.counts[0] + 2, cells.counts[1] + 2];
+        self.dims = [nx, ny];
+
+        centers
+            .par_iter()
+            .enumerate()
+            .map(|(i, c)| (cells.key(c, lo, nx, ny), i as u32))
+            .collect_into_vec(&mut self.order);
+        radsort::sort_by_key(&mut self.order, |e| e.0);
+
+        let radii = spheres.radii();
+        let order = &self.order;
+        order
+            .par_iter()
+            .map(|e| e.0)
+            .collect_into_vec(&mut self.keys);
+        order
+            .par_iter()
+            .map(|e| e.1)
+            .collect_into_vec(&mut self.ids);
+        order
+            .par_iter()
+            .map(|&(_, i)| {
+                let c = centers[i as usize];
+                [c[0], c[1], c[2], radii[i as usize]]
+            })
+            .collect_into_vec(&mut self.spheres);
+    }
+
+    /// Key distances from a cell to the first cell (x − 1) of its four forward neighbour rows:
+    /// (y+1, z), (y−1, z+1), (y, z+1), (y+1, z+1). Each row spans three keys from there.
+    pub fn forward_row_offsets(&self) -> [u64; 4] {
+        let [nx, ny] = self.dims;
+        let plane = nx * ny;
+        [nx - 1, plane - nx - 1, plane - 1, plane + nx - 1]
+    }
+}
+
+/// Component-wise bounds of the centres.
+fn bounds(centers: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    centers
+        .par_iter()
+        .fold(
+            || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+            |(lo, hi), c| {
+                (
+                    std::array::from_fn(|a| lo[a].min(c[a])),
+                    std::array::from_fn(|a| hi[a].max(c[a])),
+                )
+            },
+        )
+        .reduce(
+            || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+            |(l0, h0), (l1, h1)| {
+                (
+                    std::array::from_fn(|a| l0[a].min(l1[a])),
+                    std::array::from_fn(|a| h0[a].max(h1[a])),
+                )
+            },
+        )
+}
+
+/// Cell size and counts for centres within `lo..=hi`.
+struct CellLayout {
+    inv_size: f64,
+    /// Occupied-range cells per axis (margin excluded).
+    counts: [u64; 3],
+}
+
+impl CellLayout {
+    #[inline(always)]
+    fn key(&self, c: &[f32; 3], lo: [f32; 3], nx: u64, ny: u64) -> u64 {
+        let cell = |a: usize| {
+            let u = (c[a] as f64 - lo[a] as f64) * self.inv_size;
+            (u as u64).min(self.counts[a] - 1) + 1
+        };
+        cell(0) + nx * (cell(1) + ny * cell(2))
+    }
+}
+
+fn cell_layout(lo: [f32; 3], hi: [f32; 3], cell_size: f32) -> CellLayout {
+    let extent = std::array::from_fn::<f64, 3, _>(|a| hi[a] as f64 - lo[a] as f64);
+    let widest = extent.iter().copied().fold(0.0, f64::max);
+    let mut size = cell_size as f64 * (1.0 + CELL_PADDING);
+    // Larger cells stay exact (only slower); they keep the keys within 63 bits.
+    size = size.max(widest / (MAX_AXIS_CELLS - 3) as f64);
+    let counts = std::array::from_fn(|a| (extent[a] / size) as u64 + 1);
+    CellLayout {
+        inv_size: 1.0 / size,
+        counts,
+    }
+}

@@ -1,0 +1,102 @@
+//! Pair search over a [`SortedGrid`]: each unordered pair of neighbouring cells visited once.
+//!
+//! For the sphere at sorted position p in cell K the search covers the rest of its own cell and
+//! the next cell along x (one contiguous run of the sorted array), plus the three-cell runs of the
+//! four forward neighbour rows: 14 of the 27 cells, the other 13 being covered from the other side.
+//! So every candidate pair is seen exactly once and the narrow phase (rule 1 of the method) alone
+//! decides; rules 2–3 exist to deduplicate per-sphere rays, which this stencil never produces.
+//! Because the keys of the forward rows are K plus constants, the run boundaries are found by
+//! pointers that only move forward over the sorted keys: no cell table and no hashing, so memory
+//! stays O(n) however sparse the scene.
+
+use super::grid::SortedGrid;
+use crate::proxy::{collides, dist2};
+use rayon::prelude::*;
+
+/// Sorted spheres per parallel task; fixed so the output order does not depend on the threads.
+const CHUNK: usize = 2048;
+
+/// Receives the colliding pairs of one chunk (input indices, either order).
+pub(crate) trait PairSink {
+    fn pair(&mut self, a: u32, b: u32);
+}
+
+/// Runs the search in parallel chunks; returns each chunk's sink and candidate count, in order.
+pub(crate) fn search<S, F>(grid: &SortedGrid, new_sink: F) -> Vec<(S, u64)>
+where
+    S: PairSink + Send,
+    F: Fn() -> S + Sync,
+{
+    let n = grid.keys.len();
+    (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let mut sink = new_sink();
+            let candidates = search_chunk(grid, c * CHUNK..((c + 1) * CHUNK).min(n), &mut sink);
+            (sink, candidates)
+        })
+        .collect()
+}
+
+/// A run `[begin, end)` of the sorted array that moves forward as the key grows.
+#[derive(Clone, Copy)]
+struct Run {
+    begin: usize,
+    end: usize,
+}
+
+fn search_chunk<S: PairSink>(
+    grid: &SortedGrid,
+    range: std::ops::Range<usize>,
+    sink: &mut S,
+) -> u64 {
+    let keys = &grid.keys[..];
+    let spheres = &grid.spheres[..];
+    let ids = &grid.ids[..];
+    let n = keys.len();
+    let offsets = grid.forward_row_offsets();
+
+    let first = keys[range.start];
+    let mut own_end = keys.partition_point(|&k| k <= first + 1);
+    let mut rows = offsets.map(|o| Run {
+        begin: keys.partition_point(|&k| k < first + o),
+        end: keys.partition_point(|&k| k <= first + o + 2),
+    });
+    let mut current = first;
+    let mut candidates = 0u64;
+
+    for p in range {
+        let key = keys[p];
+        if key != current {
+            current = key;
+            while own_end < n && keys[own_end] <= key + 1 {
+                own_end += 1;
+            }
+            for (run, &o) in rows.iter_mut().zip(&offsets) {
+                let lo = key + o;
+                while run.begin < n && keys[run.begin] < lo {
+                    run.begin += 1;
+                }
+                run.end = run.end.max(run.begin);
+                while run.end < n && keys[run.end] <= lo + 2 {
+                    run.end += 1;
+                }
+            }
+        }
+        let s = spheres[p];
+        let (c_i, r_i, i) = ([s[0], s[1], s[2]], s[3], ids[p]);
+        let mut test = |q: usize| {
+            let t = spheres[q];
+            if collides(dist2(c_i, [t[0], t[1], t[2]]), r_i, t[3]) {
+                sink.pair(i, ids[q]);
+            }
+        };
+        (p + 1..own_end).for_each(&mut test);
+        candidates += (own_end - p - 1) as u64;
+        for run in &rows {
+            (run.begin..run.end).for_each(&mut test);
+            candidates += (run.end - run.begin) as u64;
+        }
+    }
+    candidates
+}

@@ -1,0 +1,151 @@
+//! The backend layer: one trait that every collision-detection backend implements, and a
+//! registry that says which backends can run on this machine.
+//!
+//! The contract of every backend: **exact** — after [`Backend::build`], [`Backend::find_pairs`]
+//! returns every pair {i, j} with |c_i − c_j| ≤ r_i + r_j (computed as [`crate::proxy::dist2`]
+//! against [`crate::proxy::collides`]), each exactly once with `i < j`, and nothing else. Boxes
+//! and cells are conservative (padded), so extra candidates are possible but missed pairs never.
+//! [`ProxyMode`] chooses the paper's proxy spheres or the older fixed-radius boxes; both modes
+//! find the same pairs and differ only in the work done.
+
+pub mod cpu;
+
+use crate::error::{Error, Result};
+use crate::proxy::ProxyMode;
+use crate::spheres::{Pair, SphereSet};
+
+/// What a backend is and what it can take.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BackendInfo {
+    /// Backend name, as on the command line (`cpu`, …).
+    pub name: &'static str,
+    /// The device it runs on, in words (adapter name, thread count).
+    pub device: String,
+    /// Largest number of spheres one build accepts.
+    pub max_spheres: u64,
+}
+
+/// Work counters of one detection.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct DetectStats {
+    /// Candidate pairs whose distance was tested (box or cell hits).
+    pub candidates: u64,
+    /// Colliding pairs found.
+    pub pairs: u64,
+}
+
+/// A collision-detection backend (see the module docs for the contract).
+///
+/// Call [`build`](Backend::build) once for a sphere set, [`update`](Backend::update) after the
+/// spheres moved, then any of the detection methods as often as needed.
+pub trait Backend: Send {
+    /// Name, device and limits.
+    fn info(&self) -> BackendInfo;
+
+    /// Builds the acceleration structure over `spheres` in `mode`.
+    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()>;
+
+    /// Brings the structure up to date after the spheres moved (same count and radii): a refit
+    /// where the backend can, else a rebuild.
+    fn update(&mut self, spheres: &SphereSet) -> Result<()>;
+
+    /// Every colliding pair, each once with `i < j`, in an order that is the same on every run.
+    fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)>;
+
+    /// Counts the colliding pairs without storing them.
+    fn count_pairs(&mut self) -> Result<DetectStats>;
+
+    /// Calls `visit` once for each colliding pair (possibly from several threads at once).
+    fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats>;
+}
+
+/// The backends this build of mochi knows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BackendKind {
+    /// Multi-threaded sorted proxy grid on the CPU; runs everywhere.
+    Cpu,
+}
+
+impl BackendKind {
+    /// Every backend, in the order `auto` prefers them.
+    pub const ALL: [BackendKind; 1] = [BackendKind::Cpu];
+
+    /// Name, as on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            BackendKind::Cpu => "cpu",
+        }
+    }
+
+    /// `Ok` when this backend can run here, else why not.
+    pub fn probe(self) -> Result<(), String> {
+        match self {
+            BackendKind::Cpu => Ok(()),
+        }
+    }
+
+    /// Opens the backend, or says why it cannot run here.
+    pub fn open(self) -> Result<Box<dyn Backend>> {
+        self.probe().map_err(|reason| Error::BackendUnavailable {
+            backend: self.name(),
+            reason,
+        })?;
+        Ok(match self {
+            BackendKind::Cpu => Box::new(cpu::CpuBackend::new()),
+        })
+    }
+}
+
+/// A backend named by the user, or `auto`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum BackendChoice {
+    /// The fastest backend that can run here.
+    #[default]
+    Auto,
+    /// Multi-threaded sorted proxy grid on the CPU.
+    Cpu,
+}
+
+/// An opened backend and, for `auto`, why it was picked.
+pub struct Opened {
+    /// The backend, ready for [`Backend::build`].
+    pub backend: Box<dyn Backend>,
+    /// For `auto`: one line naming the pick and why the faster ones were skipped.
+    pub reason: Option<String>,
+}
+
+/// Opens the backend the user chose; `auto` tries each in order of preference.
+pub fn open(choice: BackendChoice) -> Result<Opened> {
+    match choice {
+        BackendChoice::Cpu => Ok(Opened {
+            backend: BackendKind::Cpu.open()?,
+            reason: None,
+        }),
+        BackendChoice::Auto => open_auto(),
+    }
+}
+
+fn open_auto() -> Result<Opened> {
+    let mut skipped = Vec::new();
+    for kind in BackendKind::ALL {
+        match kind.open() {
+            Ok(backend) => {
+                let mut reason = format!("auto picked {}", kind.name());
+                if kind == BackendKind::Cpu && skipped.is_empty() {
+                    reason.push_str(" (no GPU backend is built into this version)");
+                }
+                for (name, why) in &skipped {
+                    reason.push_str(&format!("; skipped {name}: {why}"));
+                }
+                return Ok(Opened {
+                    backend,
+                    reason: Some(reason),
+                });
+            }
+            Err(e) => skipped.push((kind.name(), e.to_string())),
+        }
+    }
+    Err(Error::Usage(format!(
+        "no backend can run here: {skipped:?}"
+    )))
+}

@@ -1,0 +1,19 @@
+//! Command-line interface: argument definitions in [`args`], the commands in [`run`].
+
+mod args;
+mod run;
+
+use clap::Parser;
+use std::process::ExitCode;
+
+/// Parses the arguments, runs the command, prints any error as one line.
+pub fn main() -> ExitCode {
+    let cli = args::Cli::parse();
+    match run::run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,105 @@
+//! The commands.
+
+use super::args::{Cli, Command, DetectArgs, GenerateArgs, SceneArgs};
+use anyhow::Result;
+use mochi::backend::{self, BackendKind};
+use mochi::scenes::{self, Layout, SceneSpec};
+use mochi::{SphereSet, io};
+use std::time::Instant;
+
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Detect(args) => detect(args),
+        Command::Generate(args) => generate(args),
+        Command::Backends => {
+            list_backends();
+            Ok(())
+        }
+    }
+}
+
+fn scene(args: &SceneArgs, default_layout: Layout) -> Result<(SphereSet, String)> {
+    let spec = SceneSpec {
+        scene: args.scene,
+        n: args.n,
+        seed: args.seed,
+        layout: args.layout.unwrap_or(default_layout),
+    };
+    let spheres = scenes::generate(&spec)?;
+    let what = format!(
+        "scene {} ({:?} layout, seed {})",
+        spec.scene.name(),
+        spec.layout,
+        spec.seed
+    )
+    .to_lowercase();
+    Ok((spheres, what))
+}
+
+fn detect(args: DetectArgs) -> Result<()> {
+    let (spheres, source) = match &args.input {
+        Some(path) => (io::read_spheres(path)?, path.display().to_string()),
+        None => scene(&args.scene, Layout::Random)?,
+    };
+    let opened = backend::open(args.backend)?;
+    if let Some(reason) = &opened.reason {
+        eprintln!("{reason}");
+    }
+    let mut backend = opened.backend;
+    let info = backend.info();
+    if spheres.len() as u64 > info.max_spheres {
+        anyhow::bail!(
+            "{} spheres exceed the {} backend's limit of {}",
+            spheres.len(),
+            info.name,
+            info.max_spheres
+        );
+    }
+
+    let t = Instant::now();
+    backend.build(&spheres, args.mode)?;
+    let build_ms = ms(t);
+    let t = Instant::now();
+    let (pairs, stats) = backend.find_pairs()?;
+    let detect_ms = ms(t);
+
+    if let Some(path) = &args.output {
+        io::write_pairs(path, pairs)?;
+    }
+    let per_sphere = stats.candidates as f64 / spheres.len().max(1) as f64;
+    println!(
+        "{source}: spheres {} | pairs {} | candidates {} ({per_sphere:.2} per sphere) | \
+         build {build_ms:.3} ms | detect {detect_ms:.3} ms | backend {} ({}) | mode {}",
+        spheres.len(),
+        stats.pairs,
+        stats.candidates,
+        info.name,
+        info.device,
+        args.mode.name(),
+    );
+    Ok(())
+}
+
+fn generate(args: GenerateArgs) -> Result<()> {
+    let (spheres, what) = scene(&args.scene, Layout::Lattice)?;
+    io::write_spheres(&args.output, &spheres)?;
+    println!(
+        "{what}: wrote {} spheres to {}",
+        spheres.len(),
+        args.output.display()
+    );
+    Ok(())
+}
+
+fn list_backends() {
+    for kind in BackendKind::ALL {
+        match kind.probe() {
+            Ok(()) => println!("{:<14} available", kind.name()),
+            Err(why) => println!("{:<14} unavailable: {why}", kind.name()),
+        }
+    }
+}
+
+fn ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}

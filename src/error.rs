@@ -1,0 +1,59 @@
+//! The one error type of the library.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong in mochi, as a value (never a panic).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A sphere (or a set of spheres) breaks the rules of [`crate::SphereSet`].
+    #[error("sphere {index}: {reason}")]
+    InvalidSphere {
+        /// Index of the offending sphere (0-based, in input order).
+        index: usize,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A file could not be parsed; `line` is 1-based where the format has lines.
+    #[error("{}{}: {msg}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
+    Parse {
+        /// The file being read.
+        path: PathBuf,
+        /// 1-based line (CSV) or `None` (binary formats).
+        line: Option<u64>,
+        /// What is wrong.
+        msg: String,
+    },
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file involved.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A backend cannot run on this machine.
+    #[error("backend {backend} is unavailable: {reason}")]
+    BackendUnavailable {
+        /// Backend name, as on the command line.
+        backend: &'static str,
+        /// Why it cannot run.
+        reason: String,
+    },
+    /// The input is larger than a backend or a scene allows.
+    #[error("{what}: {got} exceeds the limit of {limit}")]
+    TooLarge {
+        /// What was counted.
+        what: String,
+        /// The requested amount.
+        got: u64,
+        /// The largest amount allowed.
+        limit: u64,
+    },
+    /// A call was made in the wrong order or with mismatched arguments.
+    #[error("{0}")]
+    Usage(String),
+}
+
+/// Shorthand for results in this crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

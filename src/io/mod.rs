@@ -1,0 +1,58 @@
+//! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4) and pairs (CSV `i,j`).
+//!
+//! Every reader names the file, the line (CSV) or row (`.npy`) and the problem in its error.
+//! Every writer goes through [`atomic`]: a failed write leaves no partial file behind.
+
+mod atomic;
+mod pairs;
+mod spheres;
+
+pub use atomic::write_atomically;
+pub use pairs::{read_pairs, write_pairs};
+pub use spheres::{read_spheres, write_spheres};
+
+use crate::error::Error;
+use std::path::Path;
+
+/// The sphere file formats, chosen by file extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Format {
+    Csv,
+    Npy,
+}
+
+impl Format {
+    fn of(path: &Path) -> Result<Self, Error> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("csv") => Ok(Format::Csv),
+            Some("npy") => Ok(Format::Npy),
+            other => Err(Error::Parse {
+                path: path.to_owned(),
+                line: None,
+                msg: format!(
+                    "unknown sphere file type {:?}: use .csv (header x,y,z,r) or .npy (float32, N×4)",
+                    other.unwrap_or("")
+                ),
+            }),
+        }
+    }
+}
+
+fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
+    move |source| Error::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
+fn parse_error(path: &Path, line: Option<u64>, msg: impl Into<String>) -> Error {
+    Error::Parse {
+        path: path.to_owned(),
+        line,
+        msg: msg.into(),
+    }
+}

@@ -1,0 +1,40 @@
+//! # mochi — every pair of touching spheres, fast
+//!
+//! mochi finds all colliding pairs in a set of spheres (discrete collision detection) with the
+//! proxy-sphere method of Mandarapu et al., "Rethinking Collision Detection on GPU Ray Tracing
+//! Architecture" (ICS '26): each sphere j gets a *proxy* of radius 2·r_j, the point ray of sphere
+//! i finds the proxies that contain c_i, and a symmetric rule ([`proxy::keep`]) keeps each
+//! colliding pair exactly once. Only the smaller sphere of a pair has to find it, so boxes follow
+//! each sphere's own size instead of the largest radius.
+//!
+//! - [`SphereSet`]: validated centres and radii (`f32`); [`Pair`]: `(i, j)` with `i < j`.
+//! - [`proxy`]: the rule, the one definition every backend mirrors; [`ProxyMode`] selects the
+//!   paper's proxies (`mochi`) or the older fixed-radius boxes (`nns`).
+//! - [`backend`]: the [`Backend`] trait, the registry and `auto`; [`backend::cpu`] runs anywhere.
+//! - [`oracle`]: brute force, for tests.
+//! - [`io`]: sphere files (CSV `x,y,z,r`, NumPy `.npy` N×4) and pair files (CSV `i,j`).
+//! - [`scenes`]: the paper's datasets, seeded and reproducible.
+//!
+//! ```
+//! use mochi::{SphereSet, ProxyMode, backend::BackendKind};
+//! let spheres = SphereSet::new(vec![[0.0; 3], [1.5, 0.0, 0.0], [9.0, 0.0, 0.0]], vec![1.0, 0.5, 1.0])?;
+//! let mut cpu = BackendKind::Cpu.open()?;
+//! cpu.build(&spheres, ProxyMode::Mochi)?;
+//! let (pairs, _stats) = cpu.find_pairs()?;
+//! assert_eq!(pairs, vec![mochi::Pair::new(0, 1)]);
+//! # Ok::<(), mochi::Error>(())
+//! ```
+#![deny(unsafe_code)]
+
+pub mod backend;
+mod error;
+pub mod io;
+pub mod oracle;
+pub mod proxy;
+pub mod scenes;
+mod spheres;
+
+pub use backend::{Backend, BackendInfo, DetectStats};
+pub use error::{Error, Result};
+pub use proxy::ProxyMode;
+pub use spheres::{MAX_MAGNITUDE, MAX_SPHERES, Pair, SphereSet};

@@ -1,0 +1,227 @@
+//! The paper's datasets (method.md), generated from a seed: the same seed gives the same spheres.
+//!
+//! Two layouts: `lattice` (the default) puts each sphere at a random place inside its own cell of
+//! a lattice, shrunk by its radius, so no two spheres overlap (a DEM start state); `random`
+//! places centres uniformly, overlaps included (a collision-detection workload).
+
+use crate::error::{Error, Result};
+use crate::spheres::SphereSet;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+
+/// A named scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Scene {
+    /// Paper dataset 1: radii U[0.0005, 0.0006] filling the unit cube.
+    Freefall,
+    /// Radii U[0.0005, 0.0006] on a lattice of spacing 2.2·r_max: a dense slab in the lower part
+    /// of the unit box, 0.8 wide, as many layers as needed.
+    Slab,
+    /// Paper dataset 2, r_max/r_min = 1.2: radii U[0.0005, 0.0006] in a 16-unit cube.
+    #[value(name = "poly1.2")]
+    Poly1_2,
+    /// Paper dataset 2, r_max/r_min = 12: radii U[0.0005, 0.006] in a 16-unit cube.
+    Poly12,
+    /// Paper dataset 2, r_max/r_min = 120: radii U[0.0005, 0.06] in a 16-unit cube.
+    Poly120,
+}
+
+/// Where the centres go.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Layout {
+    /// Jittered lattice, no overlaps.
+    #[default]
+    Lattice,
+    /// Uniformly random centres, overlaps allowed.
+    Random,
+}
+
+/// Everything that determines a generated sphere set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SceneSpec {
+    /// Which scene.
+    pub scene: Scene,
+    /// Number of spheres.
+    pub n: usize,
+    /// Seed of the random generator.
+    pub seed: u64,
+    /// Placement of the centres.
+    pub layout: Layout,
+}
+
+impl Scene {
+    /// Name, as on the command line.
+    pub fn name(self) -> String {
+        use clap::ValueEnum;
+        self.to_possible_value()
+            .expect("no scene is hidden from the command line")
+            .get_name()
+            .to_owned()
+    }
+
+    /// Range of the uniformly distributed radii [m].
+    pub fn radius_range(self) -> (f32, f32) {
+        match self {
+            Scene::Freefall | Scene::Slab | Scene::Poly1_2 => (0.0005, 0.0006),
+            Scene::Poly12 => (0.0005, 0.006),
+            Scene::Poly120 => (0.0005, 0.06),
+        }
+    }
+
+    /// Side of the cubic box the scene lives in [m].
+    pub fn box_side(self) -> f32 {
+        match self {
+            Scene::Freefall | Scene::Slab => 1.0,
+            Scene::Poly1_2 | Scene::Poly12 | Scene::Poly120 => 16.0,
+        }
+    }
+}
+
+/// Generates the spheres of `spec`.
+pub fn generate(spec: &SceneSpec) -> Result<SphereSet> {
+    let (r_min, r_max) = spec.scene.radius_range();
+    let lattice = Lattice::plan(spec.scene, spec.n)?;
+    if spec.layout == Layout::Lattice && lattice.spacing < 2.0 * r_max as f64 {
+        let fit = lattice.capacity_at_spacing(2.0 * r_max as f64);
+        return Err(Error::TooLarge {
+            what: format!("spheres in a non-overlapping {} lattice", spec.scene.name()),
+            got: spec.n as u64,
+            limit: fit,
+        });
+    }
+    let mut rng = Pcg64::seed_from_u64(spec.seed);
+    let mut centers = Vec::with_capacity(spec.n);
+    let mut radii = Vec::with_capacity(spec.n);
+    for k in 0..spec.n {
+        let r: f32 = rng.random_range(r_min..=r_max);
+        let c = match spec.layout {
+            Layout::Lattice => {
+                let cell = lattice.cell(k);
+                let room = lattice.spacing / 2.0 - r as f64;
+                std::array::from_fn(|a| (cell[a] + rng.random_range(-room..=room)) as f32)
+            }
+            Layout::Random => std::array::from_fn(|a| {
+                rng.random_range(lattice.lo[a] + r as f64..=lattice.hi(a) - r as f64) as f32
+            }),
+        };
+        centers.push(c);
+        radii.push(r);
+    }
+    SphereSet::new(centers, radii)
+}
+
+/// A box of lattice cells that the spheres fill in x, then y, then z order.
+struct Lattice {
+    lo: [f64; 3],
+    spacing: f64,
+    counts: [usize; 3],
+    side: f64,
+}
+
+impl Lattice {
+    fn plan(scene: Scene, n: usize) -> Result<Self> {
+        let side = scene.box_side() as f64;
+        if scene == Scene::Slab {
+            let spacing = 2.2 * scene.radius_range().1 as f64;
+            let width = 0.8 * side;
+            let per_row = (width / spacing) as usize;
+            let layers = n.div_ceil(per_row * per_row).max(1);
+            let lo = [0.1 * side, 0.1 * side, 0.1 * side];
+            let fit_layers = ((side - lo[2]) / spacing) as usize;
+            if layers > fit_layers {
+                return Err(Error::TooLarge {
+                    what: "spheres in the slab scene".into(),
+                    got: n as u64,
+                    limit: (fit_layers * per_row * per_row) as u64,
+                });
+            }
+            return Ok(Self {
+                lo,
+                spacing,
+                counts: [per_row, per_row, layers],
+                side: width,
+            });
+        }
+        let mut m = (n as f64).cbrt().round().max(1.0) as usize;
+        while m * m * m < n {
+            m += 1;
+        }
+        Ok(Self {
+            lo: [0.0; 3],
+            spacing: side / m as f64,
+            counts: [m, m, m],
+            side,
+        })
+    }
+
+    /// Centre of the cell of sphere `k`.
+    fn cell(&self, k: usize) -> [f64; 3] {
+        let [nx, ny, _] = self.counts;
+        let idx = [k % nx, (k / nx) % ny, k / (nx * ny)];
+        std::array::from_fn(|a| self.lo[a] + (idx[a] as f64 + 0.5) * self.spacing)
+    }
+
+    /// Upper bound of the filled box along axis `a`.
+    fn hi(&self, a: usize) -> f64 {
+        self.lo[a] + self.counts[a] as f64 * self.spacing
+    }
+
+    /// How many spheres a cubic lattice of this side holds at `spacing`.
+    fn capacity_at_spacing(&self, spacing: f64) -> u64 {
+        ((self.side / spacing) as u64).pow(3)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::oracle::brute_force_pairs;
+
+    fn spec(scene: Scene, n: usize, layout: Layout) -> SceneSpec {
+        SceneSpec {
+            scene,
+            n,
+            seed: 7,
+            layout,
+        }
+    }
+
+    #[test]
+    fn lattice_scenes_never_overlap_and_stay_in_their_box() {
+        for scene in [Scene::Freefall, Scene::Slab, Scene::Poly12, Scene::Poly120] {
+            let s = generate(&spec(scene, 3000, Layout::Lattice)).unwrap();
+            assert_eq!(s.len(), 3000);
+            assert!(brute_force_pairs(&s).is_empty(), "{scene:?} overlaps");
+            let (r_min, r_max) = scene.radius_range();
+            assert!(s.min_radius() >= r_min && s.max_radius() <= r_max);
+            let side = scene.box_side();
+            for (c, r) in s.centers().iter().zip(s.radii()) {
+                assert!(
+                    c.iter().all(|&x| x - r >= 0.0 && x + r <= side),
+                    "{scene:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn same_seed_same_spheres() {
+        let a = generate(&spec(Scene::Poly120, 500, Layout::Random)).unwrap();
+        let b = generate(&spec(Scene::Poly120, 500, Layout::Random)).unwrap();
+        let c = generate(&SceneSpec {
+            seed: 8,
+            ..spec(Scene::Poly120, 500, Layout::Random)
+        });
+        assert_eq!(a, b);
+        assert_ne!(a, c.unwrap());
+    }
+
+    #[test]
+    fn too_many_spheres_for_a_lattice_is_an_error() {
+        let e = generate(&spec(Scene::Poly120, 2_400_000, Layout::Lattice)).unwrap_err();
+        assert!(
+            matches!(e, Error::TooLarge { limit, .. } if limit == 133u64.pow(3)),
+            "{e}"
+        );
+    }
+}

@@ -1,0 +1,203 @@
+//! Validated sphere sets and the pairs reported for them.
+
+use crate::error::{Error, Result};
+
+/// Largest magnitude accepted for a coordinate or a radius.
+///
+/// Squared distances are computed in `f32`; with every input below this bound they stay finite
+/// (3·(2·10¹⁸)² ≈ 1.2·10³⁷ < `f32::MAX`), so no comparison ever sees an infinity.
+pub const MAX_MAGNITUDE: f32 = 1e18;
+
+/// Largest number of spheres in one set: indices are `u32` on every backend.
+pub const MAX_SPHERES: usize = u32::MAX as usize;
+
+/// A set of spheres whose every centre and radius has been checked.
+///
+/// Centres are finite with |x| ≤ [`MAX_MAGNITUDE`]; radii are finite, > 0 and ≤ [`MAX_MAGNITUDE`].
+/// Units are whatever the caller uses (SI metres in the scenes).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SphereSet {
+    centers: Vec<[f32; 3]>,
+    radii: Vec<f32>,
+    max_radius: f32,
+}
+
+impl SphereSet {
+    /// Checks and wraps centres and radii (same length).
+    pub fn new(centers: Vec<[f32; 3]>, radii: Vec<f32>) -> Result<Self> {
+        if centers.len() != radii.len() {
+            return Err(Error::Usage(format!(
+                "{} centres but {} radii",
+                centers.len(),
+                radii.len()
+            )));
+        }
+        if centers.len() > MAX_SPHERES {
+            return Err(Error::TooLarge {
+                what: "number of spheres".into(),
+                got: centers.len() as u64,
+                limit: MAX_SPHERES as u64,
+            });
+        }
+        for (index, (c, &r)) in centers.iter().zip(&radii).enumerate() {
+            check_sphere(c, r).map_err(|reason| Error::InvalidSphere { index, reason })?;
+        }
+        let max_radius = radii.iter().copied().fold(0.0, f32::max);
+        Ok(Self {
+            centers,
+            radii,
+            max_radius,
+        })
+    }
+
+    /// Builds a set from rows `[x, y, z, r]`.
+    pub fn from_xyzr(rows: &[[f32; 4]]) -> Result<Self> {
+        let centers = rows.iter().map(|s| [s[0], s[1], s[2]]).collect();
+        let radii = rows.iter().map(|s| s[3]).collect();
+        Self::new(centers, radii)
+    }
+
+    /// Number of spheres.
+    pub fn len(&self) -> usize {
+        self.radii.len()
+    }
+
+    /// True when the set holds no sphere.
+    pub fn is_empty(&self) -> bool {
+        self.radii.is_empty()
+    }
+
+    /// Centres, in input order.
+    pub fn centers(&self) -> &[[f32; 3]] {
+        &self.centers
+    }
+
+    /// Radii, in input order.
+    pub fn radii(&self) -> &[f32] {
+        &self.radii
+    }
+
+    /// Largest radius (0 for an empty set).
+    pub fn max_radius(&self) -> f32 {
+        self.max_radius
+    }
+
+    /// Smallest radius (0 for an empty set).
+    pub fn min_radius(&self) -> f32 {
+        self.radii.iter().copied().reduce(f32::min).unwrap_or(0.0)
+    }
+
+    /// Moves the spheres: replaces every centre, keeping the radii.
+    pub fn set_centers(&mut self, centers: Vec<[f32; 3]>) -> Result<()> {
+        if centers.len() != self.len() {
+            return Err(Error::Usage(format!(
+                "{} new centres for {} spheres",
+                centers.len(),
+                self.len()
+            )));
+        }
+        for (index, c) in centers.iter().enumerate() {
+            check_center(c).map_err(|reason| Error::InvalidSphere { index, reason })?;
+        }
+        self.centers = centers;
+        Ok(())
+    }
+
+    /// Rows `[x, y, z, r]`, in input order.
+    pub fn xyzr(&self) -> impl ExactSizeIterator<Item = [f32; 4]> + '_ {
+        self.centers
+            .iter()
+            .zip(&self.radii)
+            .map(|(c, &r)| [c[0], c[1], c[2], r])
+    }
+}
+
+fn check_center(c: &[f32; 3]) -> Result<(), String> {
+    for (axis, &x) in ["x", "y", "z"].iter().zip(c) {
+        if !x.is_finite() {
+            return Err(format!("{axis} is {x}, not a finite number"));
+        }
+        if x.abs() > MAX_MAGNITUDE {
+            return Err(format!("{axis} = {x} exceeds ±{MAX_MAGNITUDE:e}"));
+        }
+    }
+    Ok(())
+}
+
+/// Checks one sphere; the message names the problem (not the sphere).
+pub(crate) fn check_sphere(c: &[f32; 3], r: f32) -> Result<(), String> {
+    check_center(c)?;
+    if !r.is_finite() {
+        return Err(format!("radius is {r}, not a finite number"));
+    }
+    if r <= 0.0 {
+        return Err(format!("radius must be > 0 (got {r})"));
+    }
+    if r > MAX_MAGNITUDE {
+        return Err(format!("radius {r} exceeds {MAX_MAGNITUDE:e}"));
+    }
+    Ok(())
+}
+
+/// A colliding pair of spheres, by input index, always with `i < j`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Pair {
+    /// The smaller index.
+    pub i: u32,
+    /// The larger index.
+    pub j: u32,
+}
+
+impl Pair {
+    /// The pair of `a` and `b` in either order (`a != b`).
+    #[inline]
+    pub fn new(a: u32, b: u32) -> Self {
+        debug_assert_ne!(a, b, "a sphere never pairs with itself");
+        Self {
+            i: a.min(b),
+            j: a.max(b),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_bad_spheres_with_their_index() {
+        let ok = [0.0, 0.0, 0.0];
+        let cases = [
+            (
+                vec![ok, [f32::NAN, 0.0, 0.0]],
+                vec![1.0, 1.0],
+                1,
+                "not a finite",
+            ),
+            (vec![ok, ok], vec![1.0, f32::INFINITY], 1, "not a finite"),
+            (vec![ok], vec![0.0], 0, "> 0"),
+            (vec![ok], vec![-1.0], 0, "> 0"),
+            (vec![[2e18, 0.0, 0.0]], vec![1.0], 0, "exceeds"),
+        ];
+        for (centers, radii, want_index, want_text) in cases {
+            match SphereSet::new(centers, radii) {
+                Err(Error::InvalidSphere { index, reason }) => {
+                    assert_eq!(index, want_index);
+                    assert!(reason.contains(want_text), "{reason}");
+                }
+                other => panic!("expected InvalidSphere, got {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn tracks_radius_range_and_moves() {
+        let mut s = SphereSet::new(vec![[0.0; 3], [1.0; 3]], vec![0.5, 2.0]).unwrap();
+        assert_eq!((s.min_radius(), s.max_radius()), (0.5, 2.0));
+        assert!(s.set_centers(vec![[0.0; 3]]).is_err());
+        assert!(s.set_centers(vec![[0.0; 3], [f32::NAN; 3]]).is_err());
+        s.set_centers(vec![[3.0; 3], [4.0; 3]]).unwrap();
+        assert_eq!(s.centers()[1], [4.0; 3]);
+        assert_eq!(SphereSet::default().max_radius(), 0.0);
+    }
+}
