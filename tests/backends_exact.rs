@@ -1,0 +1,255 @@
+//! Every available backend against the brute-force oracle: exact pair sets, each pair once.
+
+use mochi::backend::BackendKind;
+use mochi::oracle::brute_force_pairs;
+use mochi::scenes::{Layout, Scene, SceneSpec, generate};
+use mochi::{Pair, ProxyMode, SphereSet};
+use proptest::prelude::*;
+use std::sync::Mutex;
+
+const MODES: [ProxyMode; 2] = [ProxyMode::Mochi, ProxyMode::Nns];
+
+fn backends() -> Vec<BackendKind> {
+    BackendKind::ALL
+        .into_iter()
+        .filter(|k| k.probe().is_ok())
+        .collect()
+}
+
+/// Runs every backend in both modes; checks pairs, count and visits against the oracle.
+fn check_exact(spheres: &SphereSet) -> Result<(), TestCaseError> {
+    let mut want = brute_force_pairs(spheres);
+    want.sort_unstable();
+    for kind in backends() {
+        let mut backend = kind.open().expect("a probed backend opens");
+        for mode in MODES {
+            let label = format!("{} {}", kind.name(), mode.name());
+            backend.build(spheres, mode).expect("build");
+            let (pairs, stats) = backend.find_pairs().expect("find_pairs");
+            assert_pairs_well_formed(&pairs, &label)?;
+            let mut got = pairs.clone();
+            got.sort_unstable();
+            prop_assert_eq!(&got, &want, "{}: pair set differs from the oracle", label);
+            prop_assert_eq!(stats.pairs, want.len() as u64, "{}: stats.pairs", label);
+            prop_assert!(
+                stats.candidates >= stats.pairs,
+                "{}: candidates < pairs",
+                label
+            );
+
+            let again = backend.find_pairs().expect("find_pairs").0;
+            prop_assert_eq!(&again, &pairs, "{}: order differs between runs", label);
+            let count = backend.count_pairs().expect("count_pairs");
+            prop_assert_eq!(count, stats, "{}: count_pairs", label);
+
+            let visited = Mutex::new(Vec::new());
+            let visit_stats = backend
+                .for_each_contact(&|p| visited.lock().unwrap().push(p))
+                .expect("for_each_contact");
+            let mut visited = visited.into_inner().unwrap();
+            visited.sort_unstable();
+            prop_assert_eq!(&visited, &want, "{}: for_each_contact", label);
+            prop_assert_eq!(visit_stats, stats, "{}: for_each_contact stats", label);
+        }
+    }
+    Ok(())
+}
+
+fn assert_pairs_well_formed(pairs: &[Pair], label: &str) -> Result<(), TestCaseError> {
+    let mut seen = std::collections::HashSet::new();
+    for p in pairs {
+        prop_assert!(p.i < p.j, "{}: pair {:?} not ordered", label, p);
+        prop_assert!(seen.insert(*p), "{}: pair {:?} reported twice", label, p);
+    }
+    Ok(())
+}
+
+fn exact(spheres: &SphereSet) {
+    check_exact(spheres).unwrap();
+}
+
+fn set(spheres: &[([f32; 3], f32)]) -> SphereSet {
+    SphereSet::new(
+        spheres.iter().map(|s| s.0).collect(),
+        spheres.iter().map(|s| s.1).collect(),
+    )
+    .unwrap()
+}
+
+/// Spheres with log-uniform radii over `ratio` and centres in a box sized for many contacts.
+fn polydisperse() -> impl Strategy<Value = SphereSet> {
+    (0usize..400, 1.0f32..1e4, 0.05f32..2.0, any::<u64>()).prop_map(|(n, ratio, density, seed)| {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        let r_max = 1.0f32;
+        let r_min = r_max / ratio;
+        let side = (n as f32 / density).cbrt().max(0.1) * r_max;
+        let offset = rng.random_range(-100.0f32..100.0);
+        let mut centers = Vec::with_capacity(n);
+        let mut radii = Vec::with_capacity(n);
+        for _ in 0..n {
+            let t: f32 = rng.random_range(0.0..=1.0);
+            radii.push(r_min * (r_max / r_min).powf(t));
+            centers.push(std::array::from_fn(|_| {
+                offset + rng.random_range(0.0..side)
+            }));
+        }
+        SphereSet::new(centers, radii).unwrap()
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+    #[test]
+    fn random_polydisperse_sets_match_the_oracle(spheres in polydisperse()) {
+        check_exact(&spheres)?;
+    }
+}
+
+#[test]
+fn empty_one_and_two_spheres() {
+    exact(&SphereSet::default());
+    exact(&set(&[([1.0, 2.0, 3.0], 0.5)]));
+    exact(&set(&[([0.0; 3], 1.0), ([2.0, 0.0, 0.0], 1.0)])); // touching
+    exact(&set(&[([0.0; 3], 1.0), ([2.5, 0.0, 0.0], 1.0)])); // apart
+}
+
+#[test]
+fn exactly_touching_spheres_in_every_direction() {
+    // Distances and radii are exact in binary, so d = r_i + r_j holds exactly.
+    let mut spheres = vec![([0.0f32; 3], 0.75f32)];
+    for dir in [
+        [1.0, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [-1.0, 0.0, 0.0],
+    ] {
+        spheres.push((dir.map(|d: f32| d * 1.0), 0.25));
+        spheres.push((dir.map(|d: f32| d * 1.75), 0.5)); // touches the small one
+    }
+    let s = set(&spheres);
+    assert_eq!(brute_force_pairs(&s).len(), 8);
+    exact(&s);
+}
+
+#[test]
+fn coincident_centres() {
+    let mut spheres: Vec<_> = (0..50).map(|k| ([3.0, 3.0, 3.0], 0.1 + k as f32)).collect();
+    spheres.push(([3.0, 3.0, 3.0 + 0.2], 0.15));
+    let s = set(&spheres);
+    assert_eq!(brute_force_pairs(&s).len(), 51 * 50 / 2);
+    exact(&s);
+}
+
+#[test]
+fn radius_ratio_ten_thousand() {
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+    let mut spheres = vec![([0.0; 3], 1.0f32)];
+    for _ in 0..3000 {
+        let c = std::array::from_fn(|_| rng.random_range(-1.2f32..1.2));
+        spheres.push((c, 1e-4));
+    }
+    exact(&set(&spheres));
+}
+
+#[test]
+fn touching_lattice() {
+    // Spacing 1, radius 0.5: every lattice neighbour touches exactly.
+    let mut spheres = Vec::new();
+    for z in 0..12 {
+        for y in 0..12 {
+            for x in 0..12 {
+                spheres.push(([x as f32, y as f32, z as f32], 0.5));
+            }
+        }
+    }
+    let s = set(&spheres);
+    assert_eq!(brute_force_pairs(&s).len(), 3 * 11 * 12 * 12);
+    exact(&s);
+}
+
+#[test]
+fn flat_and_far_apart_layouts() {
+    // All centres on a line, on a plane, and two clusters 1e15 apart (cells grow to fit the keys).
+    let line: Vec<_> = (0..500)
+        .map(|k| ([k as f32 * 0.3, 0.0, 0.0], 0.2))
+        .collect();
+    exact(&set(&line));
+    let plane: Vec<_> = (0..900)
+        .map(|k| ([(k % 30) as f32 * 0.45, 7.0, (k / 30) as f32 * 0.45], 0.25))
+        .collect();
+    exact(&set(&plane));
+    let mut far = plane.clone();
+    far.extend(
+        plane
+            .iter()
+            .map(|&(c, r)| ([c[0] + 1e15, c[1], c[2] - 1e15], r)),
+    );
+    exact(&set(&far));
+}
+
+#[test]
+fn scenes_of_twenty_thousand_spheres() {
+    for (scene, layout) in [
+        (Scene::Poly120, Layout::Random),
+        (Scene::Poly12, Layout::Random),
+        (Scene::Slab, Layout::Random),
+        (Scene::Freefall, Layout::Lattice),
+    ] {
+        let spec = SceneSpec {
+            scene,
+            n: 20_000,
+            seed: 11,
+            layout,
+        };
+        exact(&generate(&spec).unwrap());
+    }
+}
+
+#[test]
+fn update_after_moving_gives_the_new_exact_set() {
+    let spec = SceneSpec {
+        scene: Scene::Poly12,
+        n: 5000,
+        seed: 3,
+        layout: Layout::Random,
+    };
+    let mut spheres = generate(&spec).unwrap();
+    for kind in backends() {
+        let mut backend = kind.open().unwrap();
+        backend.build(&spheres, ProxyMode::Mochi).unwrap();
+        for step in 0..3 {
+            let moved = spheres
+                .centers()
+                .iter()
+                .enumerate()
+                .map(|(i, c)| {
+                    let shift = ((i * 7 + step) % 13) as f32 * 0.02 - 0.12;
+                    [c[0] + shift, c[1] - 0.5 * shift, c[2]]
+                })
+                .collect();
+            spheres.set_centers(moved).unwrap();
+            backend.update(&spheres).unwrap();
+            let mut got = backend.find_pairs().unwrap().0;
+            got.sort_unstable();
+            assert_eq!(
+                got,
+                brute_force_pairs(&spheres),
+                "{} step {step}",
+                kind.name()
+            );
+        }
+        let wrong_size = SphereSet::default();
+        assert!(backend.update(&wrong_size).is_err());
+    }
+}
+
+#[test]
+fn detection_before_build_is_an_error() {
+    for kind in backends() {
+        let mut backend = kind.open().unwrap();
+        assert!(backend.find_pairs().is_err());
+        assert!(backend.update(&SphereSet::default()).is_err());
+    }
+}
