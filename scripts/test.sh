@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
-# Runs every test of mochi: formatting, lints, unit, integration, property and doc tests.
-# Installs what the tests need first (today: nothing beyond a Rust toolchain, edition 2024).
+# Runs every test of mochi: formatting, lints, unit, integration, property, GPU and doc tests.
+# Installs what the tests need first: a Rust toolchain's rustfmt and clippy, and (on Debian or
+# Ubuntu, as root) Mesa's lavapipe Vulkan driver with ray queries (Mesa >= 25), so the GPU
+# backends are tested on the CPU when the machine has no GPU. With CI=true, GPU tests fail
+# rather than skip when no adapter is found.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -13,6 +16,32 @@ for component in rustfmt clippy; do
         rustup component add "$component"
     fi
 done
+
+# lavapipe with VK_KHR_ray_query: Mesa 25 or newer.
+mesa_version() { dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || echo 0; }
+if command -v dpkg >/dev/null && ! dpkg --compare-versions "$(mesa_version)" ge 25; then
+    if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then
+        echo "warning: cannot install lavapipe (needs root and apt-get); GPU tests need an adapter" >&2
+    else
+        echo "installing Mesa's lavapipe Vulkan driver for the GPU tests"
+        . /etc/os-release
+        suite=()
+        if [ "${VERSION_CODENAME:-}" = bookworm ]; then
+            # bookworm's Mesa 22 has no ray queries; bookworm-backports has Mesa 25.
+            cat > /etc/apt/sources.list.d/mochi-backports.sources <<SOURCES
+Types: deb
+URIs: http://deb.debian.org/debian
+Suites: bookworm-backports
+Components: main
+Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
+SOURCES
+            suite=(-t bookworm-backports)
+        fi
+        apt-get update -qq
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${suite[@]}" \
+            mesa-vulkan-drivers libvulkan1 >/dev/null
+    fi
+fi
 
 cargo fmt --all -- --check
 cargo clippy --all-targets --locked -- -D warnings

@@ -25,12 +25,12 @@ pub enum Error {
         msg: String,
     },
     /// A file could not be read or written.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     Io {
         /// The file involved.
         path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
+        /// The underlying error (shown in this error's message, so not chained as a source).
+        error: std::io::Error,
     },
     /// A backend cannot run on this machine.
     #[error("backend {backend} is unavailable: {reason}")]
@@ -50,6 +50,9 @@ pub enum Error {
         /// The largest amount allowed.
         limit: u64,
     },
+    /// The GPU failed: out of memory, a lost device, a rejected command.
+    #[error("GPU: {0}")]
+    Gpu(String),
     /// A call was made in the wrong order or with mismatched arguments.
     #[error("{0}")]
     Usage(String),

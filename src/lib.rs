@@ -28,6 +28,7 @@
 
 pub mod backend;
 mod error;
+pub mod gpu;
 pub mod io;
 pub mod oracle;
 pub mod proxy;

@@ -87,6 +87,24 @@ impl SphereSet {
         self.radii.iter().copied().reduce(f32::min).unwrap_or(0.0)
     }
 
+    /// Component-wise bounds `(lo, hi)` of the centres; `None` for an empty set.
+    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
+        use rayon::prelude::*;
+        let empty = || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        let merge = |(l0, h0): ([f32; 3], [f32; 3]), (l1, h1): ([f32; 3], [f32; 3])| {
+            (
+                std::array::from_fn(|a| l0[a].min(l1[a])),
+                std::array::from_fn(|a| h0[a].max(h1[a])),
+            )
+        };
+        (!self.is_empty()).then(|| {
+            self.centers
+                .par_iter()
+                .fold(empty, |acc, &c| merge(acc, (c, c)))
+                .reduce(empty, merge)
+        })
+    }
+
     /// Moves the spheres: replaces every centre, keeping the radii.
     pub fn set_centers(&mut self, centers: Vec<[f32; 3]>) -> Result<()> {
         if centers.len() != self.len() {

@@ -9,8 +9,10 @@
 //! find the same pairs and differ only in the work done.
 
 pub mod cpu;
+pub mod wgpu_rq;
 
 use crate::error::{Error, Result};
+use crate::gpu::{self, Need};
 use crate::proxy::ProxyMode;
 use crate::spheres::{Pair, SphereSet};
 
@@ -62,25 +64,45 @@ pub trait Backend: Send {
 /// The backends this build of mochi knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum BackendKind {
+    /// Proxy boxes in a hardware BVH, one point ray per sphere (WGSL ray queries).
+    #[value(name = "wgpu-rq")]
+    WgpuRq,
     /// Multi-threaded sorted proxy grid on the CPU; runs everywhere.
     Cpu,
 }
 
 impl BackendKind {
     /// Every backend, in the order `auto` prefers them.
-    pub const ALL: [BackendKind; 1] = [BackendKind::Cpu];
+    pub const ALL: [BackendKind; 2] = [BackendKind::WgpuRq, BackendKind::Cpu];
 
     /// Name, as on the command line.
     pub fn name(self) -> &'static str {
         match self {
+            BackendKind::WgpuRq => "wgpu-rq",
             BackendKind::Cpu => "cpu",
         }
     }
 
-    /// `Ok` when this backend can run here, else why not.
-    pub fn probe(self) -> Result<(), String> {
+    /// The device this backend would run on, or why it cannot run here.
+    pub fn probe(self) -> Result<String, String> {
         match self {
-            BackendKind::Cpu => Ok(()),
+            BackendKind::WgpuRq => gpu::probe(Need::RayQuery).map(|a| gpu::describe(&a)),
+            BackendKind::Cpu => Ok(format!("CPU, {} threads", rayon::current_num_threads())),
+        }
+    }
+
+    /// Why `auto` should pass over this backend although it can run (a software GPU is slower
+    /// than the cpu backend).
+    fn auto_skip(self) -> Option<String> {
+        match self {
+            BackendKind::WgpuRq => match gpu::probe(Need::RayQuery) {
+                Ok(a) if a.device_type == wgpu::DeviceType::Cpu => Some(format!(
+                    "{} is a software adapter, slower than the cpu backend",
+                    a.name
+                )),
+                _ => None,
+            },
+            BackendKind::Cpu => None,
         }
     }
 
@@ -91,6 +113,7 @@ impl BackendKind {
             reason,
         })?;
         Ok(match self {
+            BackendKind::WgpuRq => Box::new(wgpu_rq::WgpuRqBackend::new()?),
             BackendKind::Cpu => Box::new(cpu::CpuBackend::new()),
         })
     }
@@ -102,6 +125,9 @@ pub enum BackendChoice {
     /// The fastest backend that can run here.
     #[default]
     Auto,
+    /// Proxy boxes in a hardware BVH, WGSL ray queries.
+    #[value(name = "wgpu-rq")]
+    WgpuRq,
     /// Multi-threaded sorted proxy grid on the CPU.
     Cpu,
 }
@@ -116,24 +142,27 @@ pub struct Opened {
 
 /// Opens the backend the user chose; `auto` tries each in order of preference.
 pub fn open(choice: BackendChoice) -> Result<Opened> {
-    match choice {
-        BackendChoice::Cpu => Ok(Opened {
-            backend: BackendKind::Cpu.open()?,
-            reason: None,
-        }),
-        BackendChoice::Auto => open_auto(),
-    }
+    let kind = match choice {
+        BackendChoice::Auto => return open_auto(),
+        BackendChoice::WgpuRq => BackendKind::WgpuRq,
+        BackendChoice::Cpu => BackendKind::Cpu,
+    };
+    Ok(Opened {
+        backend: kind.open()?,
+        reason: None,
+    })
 }
 
 fn open_auto() -> Result<Opened> {
     let mut skipped = Vec::new();
     for kind in BackendKind::ALL {
+        if let Some(why) = kind.auto_skip() {
+            skipped.push((kind.name(), why));
+            continue;
+        }
         match kind.open() {
             Ok(backend) => {
                 let mut reason = format!("auto picked {}", kind.name());
-                if kind == BackendKind::Cpu && skipped.is_empty() {
-                    reason.push_str(" (no GPU backend is built into this version)");
-                }
                 for (name, why) in &skipped {
                     reason.push_str(&format!("; skipped {name}: {why}"));
                 }

@@ -94,7 +94,7 @@ fn generate(args: GenerateArgs) -> Result<()> {
 fn list_backends() {
     for kind in BackendKind::ALL {
         match kind.probe() {
-            Ok(()) => println!("{:<14} available", kind.name()),
+            Ok(device) => println!("{:<14} available on {device}", kind.name()),
             Err(why) => println!("{:<14} unavailable: {why}", kind.name()),
         }
     }

@@ -2,9 +2,10 @@
 //! accepted and rounded to float32).
 
 use super::{Format, io_error, parse_error, write_atomically};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::spheres::{SphereSet, check_sphere};
 use npyz::WriterBuilder;
+use std::io::BufRead;
 use std::path::Path;
 
 const COLUMNS: [&str; 4] = ["x", "y", "z", "r"];
@@ -42,64 +43,75 @@ pub fn write_spheres(path: &Path, spheres: &SphereSet) -> Result<()> {
 
 fn read_csv(path: &Path) -> Result<Vec<[f32; 4]>> {
     let file = std::fs::File::open(path).map_err(io_error(path))?;
-    let mut reader = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .from_reader(std::io::BufReader::with_capacity(1 << 20, file));
-    let mut records = reader.records();
-    let csv_error = |e: csv::Error| {
-        let line = e.position().map(|p| p.line());
-        match e.into_kind() {
-            csv::ErrorKind::Io(source) => Error::Io {
-                path: path.to_owned(),
-                source,
-            },
-            kind => parse_error(path, line, format!("{kind:?}")),
-        }
-    };
-    let header = match records.next() {
-        None => {
-            return Err(parse_error(
+    let mut lines = std::io::BufReader::with_capacity(1 << 20, file)
+        .split(b'\n')
+        .enumerate()
+        .map(|(k, line)| (k as u64 + 1, line));
+    let text = |line_no: u64, bytes: std::io::Result<Vec<u8>>| -> Result<String> {
+        let bytes = bytes.map_err(io_error(path))?;
+        String::from_utf8(bytes).map_err(|e| {
+            parse_error(
                 path,
-                None,
-                "empty file: expected the header x,y,z,r",
-            ));
-        }
-        Some(h) => h.map_err(csv_error)?,
+                Some(line_no),
+                format!(
+                    "not UTF-8 text (byte {} of the line)",
+                    e.utf8_error().valid_up_to() + 1
+                ),
+            )
+        })
     };
-    if !header.iter().map(str::to_ascii_lowercase).eq(COLUMNS) {
+    // The header is the first non-blank line.
+    let header = loop {
+        match lines.next() {
+            None => {
+                return Err(parse_error(
+                    path,
+                    None,
+                    "empty file: expected the header x,y,z,r",
+                ));
+            }
+            Some((no, bytes)) => {
+                let line = text(no, bytes)?;
+                if !line.trim().is_empty() {
+                    break (no, line);
+                }
+            }
+        }
+    };
+    let fields: Vec<String> = header
+        .1
+        .split(',')
+        .map(|f| f.trim().to_ascii_lowercase())
+        .collect();
+    if fields != COLUMNS {
         return Err(parse_error(
             path,
-            Some(1),
-            format!(
-                "the header must be x,y,z,r (found {:?})",
-                header.iter().collect::<Vec<_>>().join(",")
-            ),
+            Some(header.0),
+            format!("the header must be x,y,z,r (found {:?})", header.1.trim()),
         ));
     }
     let mut rows = Vec::new();
-    for record in records {
-        let record = record.map_err(csv_error)?;
-        let line = record.position().map(|p| p.line());
-        if record.len() != 4 {
-            return Err(parse_error(
-                path,
-                line,
-                format!("expected 4 columns (x,y,z,r), found {}", record.len()),
-            ));
+    for (no, bytes) in lines {
+        let line = text(no, bytes)?;
+        let line = line.trim();
+        if line.is_empty() {
+            continue;
+        }
+        let bad = |msg: String| parse_error(path, Some(no), msg);
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.len() != 4 {
+            return Err(bad(format!(
+                "expected 4 columns (x,y,z,r), found {}",
+                fields.len()
+            )));
         }
         let mut row = [0f32; 4];
-        for (k, (field, name)) in record.iter().zip(COLUMNS).enumerate() {
-            row[k] = field.parse().map_err(|_| {
-                parse_error(
-                    path,
-                    line,
-                    format!("column {name}: {field:?} is not a number"),
-                )
-            })?;
+        for (k, (field, name)) in fields.iter().zip(COLUMNS).enumerate() {
+            row[k] = field
+                .parse()
+                .map_err(|_| bad(format!("column {name}: {field:?} is not a number")))?;
         }
-        check_sphere(&[row[0], row[1], row[2]], row[3]).map_err(|m| parse_error(path, line, m))?;
+        check_sphere(&[row[0], row[1], row[2]], row[3]).map_err(bad)?;
         rows.push(row);
     }
     Ok(rows)
@@ -108,6 +120,7 @@ fn read_csv(path: &Path) -> Result<Vec<[f32; 4]>> {
 fn read_npy(path: &Path) -> Result<Vec<[f32; 4]>> {
     let bytes = std::fs::read(path).map_err(io_error(path))?;
     let bad = |msg: String| parse_error(path, None, msg);
+    check_npy_size(&bytes).map_err(bad)?;
     let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(format!("not a .npy file: {e}")))?;
     let shape = npy.shape().to_vec();
     if shape.len() != 2 || shape[1] != 4 {
@@ -144,4 +157,33 @@ fn read_npy(path: &Path) -> Result<Vec<[f32; 4]>> {
         rows.push(row);
     }
     Ok(rows)
+}
+
+/// Refuses a `.npy` whose header promises more data than the file holds, before the header's
+/// shape is multiplied out (a crafted shape would overflow).
+fn check_npy_size(bytes: &[u8]) -> Result<(), String> {
+    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]);
+    let Some(start) = head.find("'shape':") else {
+        return Ok(()); // not a header npyz will accept either; it reports the problem
+    };
+    let tuple = head[start + 8..]
+        .trim_start()
+        .trim_start_matches('(')
+        .split(')')
+        .next()
+        .unwrap_or("");
+    let mut total: u64 = 8; // bytes per value, at most (float64)
+    for dim in tuple.split(',').map(str::trim).filter(|d| !d.is_empty()) {
+        let dim: u64 = dim
+            .parse()
+            .map_err(|_| format!("bad shape entry {dim:?}"))?;
+        total = total.saturating_mul(dim);
+    }
+    if total / 2 > bytes.len() as u64 {
+        return Err(format!(
+            "truncated: the header's shape ({tuple}) needs more data than the file's {} bytes",
+            bytes.len()
+        ));
+    }
+    Ok(())
 }

@@ -35,14 +35,12 @@ impl SortedGrid {
     /// Bins `spheres` into cells of side at least `cell_size`.
     pub fn bin(&mut self, spheres: &SphereSet, cell_size: f32) {
         let centers = spheres.centers();
-        let n = centers.len();
-        if n == 0 {
+        let Some((lo, hi)) = spheres.bounds() else {
             self.keys.clear();
             self.spheres.clear();
             self.ids.clear();
             return;
-        }
-        let (lo, hi) = bounds(centers);
+        };
         let cells = cell_layout(lo, hi, cell_size);
         let [nx, ny] = [cells.counts[0] + 2, cells.counts[1] + 2];
         self.dims = [nx, ny];
@@ -80,30 +78,6 @@ impl SortedGrid {
         let plane = nx * ny;
         [nx - 1, plane - nx - 1, plane - 1, plane + nx - 1]
     }
-}
-
-/// Component-wise bounds of the centres.
-fn bounds(centers: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
-    centers
-        .par_iter()
-        .fold(
-            || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-            |(lo, hi), c| {
-                (
-                    std::array::from_fn(|a| lo[a].min(c[a])),
-                    std::array::from_fn(|a| hi[a].max(c[a])),
-                )
-            },
-        )
-        .reduce(
-            || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-            |(l0, h0), (l1, h1)| {
-                (
-                    std::array::from_fn(|a| l0[a].min(l1[a])),
-                    std::array::from_fn(|a| h0[a].max(h1[a])),
-                )
-            },
-        )
 }
 
 /// Cell size and counts for centres within `lo..=hi`.

@@ -1,0 +1,323 @@
+//! The `wgpu-rq` backend: proxy-sphere boxes in a BLAS of AABBs, one point ray per sphere through
+//! WGSL ray queries (Vulkan ray queries, DX12 DXR 1.1, Metal).
+//!
+//! Build: Morton keys of the centres, a GPU radix sort, the spheres reordered and their proxy
+//! boxes written (`wgsl/rq_build.wgsl`), then the BLAS (split into several when the adapter caps
+//! the primitives per BLAS) and a TLAS with one instance per BLAS; all in one submission.
+//! Detection: `wgsl/rq_pairs.wgsl` applies the rule of [`crate::proxy`] to every candidate.
+//! Pairs are counted while written, so a full output buffer is grown and the pass rerun: nothing
+//! is ever truncated. wgpu has no refit, so [`Backend::update`] rebuilds.
+
+mod accel;
+
+use super::{Backend, BackendInfo, DetectStats};
+use crate::error::{Error, Result};
+use crate::gpu::pair_output::PairOutput;
+use crate::gpu::radix_sort::RadixSort;
+use crate::gpu::{self, Gpu, Need};
+use crate::proxy::ProxyMode;
+use crate::spheres::{Pair, SphereSet};
+use accel::Accel;
+
+const BUILD_WGSL: &str = concat!(
+    include_str!("../../../wgsl/proxy.wgsl"),
+    include_str!("../../../wgsl/rq_build.wgsl")
+);
+const PAIRS_WGSL: &str = concat!(
+    include_str!("../../../wgsl/rq_pairs.wgsl"),
+    include_str!("../../../wgsl/proxy.wgsl"),
+    include_str!("../../../wgsl/pair_output.wgsl")
+);
+
+/// Every WGSL module of this backend, by label, exactly as the device gets it.
+pub const SHADERS: [(&str, &str); 2] = [("rq_build", BUILD_WGSL), ("rq_pairs", PAIRS_WGSL)];
+
+/// Workgroup sizes, as in the shaders.
+const BUILD_GROUP: u32 = 256;
+const PAIRS_GROUP: u32 = 64;
+
+/// Relative padding of the proxy boxes: a few ulps of f32, so the box test never rejects a point
+/// that the rule accepts.
+const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
+
+/// Bits of the Morton keys (10 per axis).
+const MORTON_BITS: u32 = 30;
+
+/// Keep in sync with `BuildParams` in `wgsl/rq_build.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct BuildParams {
+    lo: [f32; 3],
+    n: u32,
+    scale: [f32; 3],
+    mode: u32,
+    r_max: f32,
+    pad_rel: f32,
+    row: u32,
+    _pad0: u32,
+}
+const _: () = assert!(size_of::<BuildParams>() == 48);
+
+/// Keep in sync with `PairParams` in `wgsl/rq_pairs.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct PairParams {
+    n: u32,
+    capacity: u32,
+    mode: u32,
+    chunk: u32,
+    row: u32,
+    _pad: [u32; 3],
+}
+const _: () = assert!(size_of::<PairParams>() == 32);
+
+fn mode_code(mode: ProxyMode) -> u32 {
+    match mode {
+        ProxyMode::Mochi => 0,
+        ProxyMode::Nns => 1,
+    }
+}
+
+/// The wgpu ray-query backend.
+pub struct WgpuRqBackend {
+    gpu: Gpu,
+    sort: RadixSort,
+    morton_keys: wgpu::ComputePipeline,
+    proxy_boxes: wgpu::ComputePipeline,
+    find_pairs: wgpu::ComputePipeline,
+    /// Most primitives in one BLAS (the adapter's limit, or lower for tests).
+    blas_capacity: u32,
+    built: Option<Built>,
+}
+
+/// What one build leaves on the GPU.
+struct Built {
+    n: u32,
+    mode: ProxyMode,
+    /// `None` for an empty set.
+    accel: Option<Accel>,
+    output: PairOutput,
+}
+
+impl WgpuRqBackend {
+    /// Opens the best adapter with ray queries.
+    pub fn new() -> Result<Self> {
+        let gpu = Gpu::open(Need::RayQuery)?;
+        let build = gpu.module("mochi.rq.build", BUILD_WGSL);
+        let pairs = gpu.module("mochi.rq.pairs", PAIRS_WGSL);
+        Ok(Self {
+            sort: RadixSort::new(&gpu),
+            morton_keys: gpu.pipeline("mochi.rq.morton_keys", &build, "morton_keys"),
+            proxy_boxes: gpu.pipeline("mochi.rq.proxy_boxes", &build, "proxy_boxes"),
+            find_pairs: gpu.pipeline("mochi.rq.find_pairs", &pairs, "find_pairs"),
+            blas_capacity: gpu.limits.max_blas_primitive_count,
+            built: None,
+            gpu,
+        })
+    }
+
+    /// Caps the primitives per BLAS below the adapter's limit, so that splitting a scene over
+    /// several BLAS can be exercised on small inputs.
+    pub fn with_blas_capacity(mut self, primitives: u32) -> Self {
+        self.blas_capacity = primitives.clamp(1, self.gpu.limits.max_blas_primitive_count);
+        self
+    }
+
+    fn max_spheres(&self) -> u64 {
+        let l = &self.gpu.limits;
+        let by_binding = l.max_storage_buffer_binding_size / 24;
+        let by_buffer = l.max_buffer_size / 24;
+        let by_accel = self.blas_capacity as u64 * l.max_tlas_instance_count as u64;
+        by_binding.min(by_buffer).min(by_accel).min(u32::MAX as u64)
+    }
+
+    fn rebuild(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+        let n = spheres.len();
+        if n as u64 > self.max_spheres() {
+            return Err(Error::TooLarge {
+                what: format!("spheres for wgpu-rq on {}", self.gpu.info.name),
+                got: n as u64,
+                limit: self.max_spheres(),
+            });
+        }
+        let n = n as u32;
+        if n == 0 {
+            let output = PairOutput::new(&self.gpu, 1);
+            self.built = Some(Built {
+                n,
+                mode,
+                accel: None,
+                output,
+            });
+            return Ok(());
+        }
+        let gpu = &self.gpu;
+        let (accel, output) = match self.built.take() {
+            Some(Built {
+                accel: Some(a),
+                output,
+                ..
+            }) if a.n == n && a.chunk == self.blas_capacity.min(n) => (a, output),
+            _ => gpu.checked("allocating the wgpu-rq buffers", || {
+                let accel = Accel::new(gpu, n, self.blas_capacity.min(n));
+                (accel, PairOutput::new(gpu, n.max(1024)))
+            })?,
+        };
+        let (lo, hi) = spheres.bounds().expect("the set is not empty");
+        let (x, y) = gpu.grid(n, BUILD_GROUP);
+        let params = BuildParams {
+            lo,
+            n,
+            scale: std::array::from_fn(|a| {
+                let extent = hi[a] - lo[a];
+                if extent > 0.0 { 1023.0 / extent } else { 0.0 }
+            }),
+            mode: mode_code(mode),
+            r_max: spheres.max_radius(),
+            pad_rel: BOX_PADDING,
+            row: x * BUILD_GROUP,
+            _pad0: 0,
+        };
+        let rows: Vec<[f32; 4]> = spheres.xyzr().collect();
+        gpu.checked("building the wgpu-rq acceleration structure", || {
+            gpu.queue
+                .write_buffer(&accel.build_params, 0, bytemuck::bytes_of(&params));
+            gpu.queue
+                .write_buffer(&accel.spheres_in, 0, bytemuck::cast_slice(&rows));
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            let bind = gpu.bind(
+                "mochi.rq.morton_keys",
+                &self.morton_keys,
+                &[
+                    (0, &accel.build_params),
+                    (1, &accel.spheres_in),
+                    (2, &accel.keys),
+                    (3, &accel.ids),
+                ],
+            );
+            gpu.dispatch(
+                &mut encoder,
+                "mochi.rq.morton_keys",
+                &self.morton_keys,
+                &bind,
+                (x, y),
+            );
+            self.sort
+                .encode(gpu, &mut encoder, &accel.keys, &accel.ids, n, MORTON_BITS);
+            let bind = gpu.bind(
+                "mochi.rq.proxy_boxes",
+                &self.proxy_boxes,
+                &[
+                    (0, &accel.build_params),
+                    (1, &accel.spheres_in),
+                    (3, &accel.ids),
+                    (4, &accel.spheres),
+                    (5, &accel.boxes),
+                ],
+            );
+            gpu.dispatch(
+                &mut encoder,
+                "mochi.rq.proxy_boxes",
+                &self.proxy_boxes,
+                &bind,
+                (x, y),
+            );
+            accel.encode_build(&mut encoder);
+            gpu.queue.submit([encoder.finish()]);
+        })?;
+        // Finish here, so that a build's time is its own and its errors are reported by it.
+        gpu.wait()?;
+        self.built = Some(Built {
+            n,
+            mode,
+            accel: Some(accel),
+            output,
+        });
+        Ok(())
+    }
+
+    /// Runs the detection pass; with `collect`, grows the output until every pair fits.
+    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
+        let gpu = &self.gpu;
+        let built = self
+            .built
+            .as_mut()
+            .ok_or_else(|| Error::Usage("detection asked for before build".into()))?;
+        let Some(accel) = built.accel.as_ref() else {
+            return Ok((Vec::new(), DetectStats::default()));
+        };
+        let (x, y) = gpu.grid(built.n, PAIRS_GROUP);
+        let find_pairs = &self.find_pairs;
+        let (n, mode) = (built.n, built.mode);
+        let accel_ref = &*accel;
+        built.output.detect(gpu, collect, |output, capacity| {
+            let params = PairParams {
+                n,
+                capacity,
+                mode: mode_code(mode),
+                chunk: accel_ref.chunk,
+                row: x * PAIRS_GROUP,
+                _pad: [0; 3],
+            };
+            gpu.checked("running the wgpu-rq ray queries", || {
+                gpu.queue
+                    .write_buffer(&accel_ref.pair_params, 0, bytemuck::bytes_of(&params));
+                let bind = accel_ref.pairs_bind(gpu, find_pairs, output);
+                let mut encoder = gpu.device.create_command_encoder(&Default::default());
+                encoder.clear_buffer(&output.counters, 0, None);
+                gpu.dispatch(
+                    &mut encoder,
+                    "mochi.rq.find_pairs",
+                    find_pairs,
+                    &bind,
+                    (x, y),
+                );
+                gpu.queue.submit([encoder.finish()]);
+            })
+        })
+    }
+}
+
+impl Backend for WgpuRqBackend {
+    fn info(&self) -> BackendInfo {
+        BackendInfo {
+            name: "wgpu-rq",
+            device: gpu::describe(&self.gpu.info),
+            max_spheres: self.max_spheres(),
+        }
+    }
+
+    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+        self.rebuild(spheres, mode)
+    }
+
+    fn update(&mut self, spheres: &SphereSet) -> Result<()> {
+        let built = self
+            .built
+            .as_ref()
+            .ok_or_else(|| Error::Usage("update asked for before build".into()))?;
+        if spheres.len() != built.n as usize {
+            return Err(Error::Usage(format!(
+                "update with {} spheres, built with {}",
+                spheres.len(),
+                built.n
+            )));
+        }
+        let mode = built.mode;
+        self.rebuild(spheres, mode)
+    }
+
+    fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
+        self.detect(true)
+    }
+
+    fn count_pairs(&mut self) -> Result<DetectStats> {
+        Ok(self.detect(false)?.1)
+    }
+
+    fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats> {
+        let (pairs, stats) = self.detect(true)?;
+        pairs.into_iter().for_each(visit);
+        Ok(stats)
+    }
+}

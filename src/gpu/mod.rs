@@ -1,0 +1,295 @@
+//! Shared wgpu plumbing of the GPU backends: finding an adapter, opening a device, buffers,
+//! pipelines, dispatch sizes and read-back, with every GPU failure turned into an [`Error`].
+
+pub mod pair_output;
+pub mod radix_sort;
+
+use crate::error::{Error, Result};
+use std::sync::OnceLock;
+
+/// What a backend needs from an adapter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Need {
+    /// Compute shaders only.
+    Compute,
+    /// Compute shaders with ray queries over acceleration structures.
+    RayQuery,
+}
+
+impl Need {
+    fn features(self) -> wgpu::Features {
+        match self {
+            Need::Compute => wgpu::Features::empty(),
+            Need::RayQuery => wgpu::Features::EXPERIMENTAL_RAY_QUERY,
+        }
+    }
+}
+
+/// Optional features a backend uses when the adapter has them.
+const WANTED: wgpu::Features = wgpu::Features::SHADER_FLOAT32_ATOMIC
+    .union(wgpu::Features::TIMESTAMP_QUERY)
+    .union(wgpu::Features::SUBGROUP);
+
+/// An open device and what it offers.
+pub struct Gpu {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// Adapter name, driver and type.
+    pub info: wgpu::AdapterInfo,
+    /// Limits the device was opened with (all the adapter allows).
+    pub limits: wgpu::Limits,
+}
+
+fn instance() -> &'static wgpu::Instance {
+    static INSTANCE: OnceLock<wgpu::Instance> = OnceLock::new();
+    INSTANCE.get_or_init(|| {
+        wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::PRIMARY,
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        })
+    })
+}
+
+/// Adapters that can serve `need`, best first (discrete, integrated, virtual, other, CPU).
+fn adapters(need: Need) -> Vec<wgpu::Adapter> {
+    let mut found: Vec<_> =
+        pollster::block_on(instance().enumerate_adapters(wgpu::Backends::PRIMARY))
+            .into_iter()
+            .filter(|a| a.features().contains(need.features()))
+            .collect();
+    found.sort_by_key(|a| match a.get_info().device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    });
+    found
+}
+
+/// Describes an adapter in one line: name, backend, driver.
+pub fn describe(info: &wgpu::AdapterInfo) -> String {
+    let driver = if info.driver_info.is_empty() {
+        &info.driver
+    } else {
+        &info.driver_info
+    };
+    format!("{}, {:?}, {driver}", info.name, info.backend)
+}
+
+/// The adapter a backend with `need` would run on, or why there is none.
+pub fn probe(need: Need) -> Result<wgpu::AdapterInfo, String> {
+    match adapters(need).first() {
+        Some(a) => Ok(a.get_info()),
+        None => Err(match need {
+            Need::Compute => "no GPU adapter found (Vulkan, Metal or DX12)".into(),
+            Need::RayQuery => {
+                let others: Vec<_> = adapters(Need::Compute)
+                    .iter()
+                    .map(|a| a.get_info().name)
+                    .collect();
+                if others.is_empty() {
+                    "no GPU adapter found (Vulkan, Metal or DX12)".into()
+                } else {
+                    format!("no adapter has ray queries (found: {})", others.join(", "))
+                }
+            }
+        }),
+    }
+}
+
+impl Gpu {
+    /// Opens a device on the best adapter for `need`.
+    #[allow(unsafe_code)] // wgpu's opt-in to experimental features (ray queries)
+    pub fn open(need: Need) -> Result<Gpu> {
+        let unavailable = |reason: String| Error::Gpu(reason);
+        let adapter = adapters(need)
+            .into_iter()
+            .next()
+            .ok_or_else(|| unavailable(probe(need).err().unwrap_or_default()))?;
+        let features = need.features() | (adapter.features() & WANTED);
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("mochi"),
+            required_features: features,
+            required_limits: limits.clone(),
+            // SAFETY: the experimental feature requested is ray queries, used only through
+            // wgpu's validated API; wgpu documents these features as possibly buggy, not unsound
+            // for validated use.
+            experimental_features: unsafe { wgpu::ExperimentalFeatures::enabled() },
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| Error::Gpu(format!("cannot open {}: {e}", adapter.get_info().name)))?;
+        device.on_uncaptured_error(std::sync::Arc::new(|e| {
+            eprintln!("mochi: uncaptured GPU error: {e}");
+        }));
+        Ok(Gpu {
+            device,
+            queue,
+            info: adapter.get_info(),
+            limits,
+        })
+    }
+
+    /// Runs `work` and turns any out-of-memory or validation error it caused into an [`Error`].
+    pub fn checked<T>(&self, what: &str, work: impl FnOnce() -> T) -> Result<T> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = work();
+        let validation = pollster::block_on(validation.pop());
+        let oom = pollster::block_on(oom.pop());
+        match oom.or(validation) {
+            Some(e) => Err(Error::Gpu(format!("{what}: {e}"))),
+            None => Ok(out),
+        }
+    }
+
+    /// Blocks until the GPU has finished all submitted work.
+    pub fn wait(&self) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))
+    }
+
+    /// A storage buffer of `size` bytes (at least 16) with `extra` usages besides STORAGE.
+    pub fn storage(&self, label: &str, size: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: size.max(16).next_multiple_of(4),
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC
+                | extra,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// A compute pipeline for `entry` of the WGSL module `source` (bind groups laid out by wgpu).
+    pub fn pipeline(
+        &self,
+        label: &str,
+        module: &wgpu::ShaderModule,
+        entry: &str,
+    ) -> wgpu::ComputePipeline {
+        self.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: None,
+                module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+    }
+
+    /// Compiles a WGSL module.
+    pub fn module(&self, label: &str, source: &str) -> wgpu::ShaderModule {
+        self.device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            })
+    }
+
+    /// A bind group for `pipeline`'s group 0 with each buffer at its binding number.
+    pub fn bind(
+        &self,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[(u32, &wgpu::Buffer)],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<_> = buffers
+            .iter()
+            .map(|&(binding, b)| wgpu::BindGroupEntry {
+                binding,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        })
+    }
+
+    /// A uniform buffer holding `value`.
+    pub fn uniform<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: size_of::<T>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        self.queue
+            .write_buffer(&buffer, 0, bytemuck::bytes_of(value));
+        buffer
+    }
+
+    /// Records one compute pass of `pipeline` with `bind` at group 0 over the workgroups `(x, y)`.
+    pub fn dispatch(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        bind: &wgpu::BindGroup,
+        (x, y): (u32, u32),
+    ) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(label),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, bind, &[]);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+
+    /// Workgroups `(x, y)` for `n` invocations of `size` threads on this device (see [`workgroups`]).
+    pub fn grid(&self, n: u32, size: u32) -> (u32, u32) {
+        workgroups(n, size, self.limits.max_compute_workgroups_per_dimension)
+    }
+
+    /// Copies the first `count` values of `buffer` back to the host (waits for the GPU).
+    pub fn read<T: bytemuck::Pod>(&self, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
+        let bytes = (count * size_of::<T>()) as u64;
+        if bytes == 0 {
+            return Ok(Vec::new());
+        }
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("mochi.readback"),
+            size: bytes.next_multiple_of(4),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes.next_multiple_of(4));
+        self.queue.submit([encoder.finish()]);
+        let (tx, rx) = std::sync::mpsc::channel();
+        staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait()?;
+        rx.recv()
+            .map_err(|_| Error::Gpu("read-back was cancelled".into()))?
+            .map_err(|e| Error::Gpu(format!("read-back failed: {e}")))?;
+        let view = staging
+            .get_mapped_range(..)
+            .map_err(|e| Error::Gpu(format!("read-back failed: {e}")))?;
+        let values = bytemuck::cast_slice::<u8, T>(&view[..count * size_of::<T>()]).to_vec();
+        Ok(values)
+    }
+}
+
+/// Workgroup counts `(x, y)` covering `n` invocations of `size` threads, within the per-dimension
+/// limit; shaders rebuild the flat index as `id.x + id.y * x * size`.
+pub fn workgroups(n: u32, size: u32, max_per_dim: u32) -> (u32, u32) {
+    let groups = n.div_ceil(size).max(1);
+    if groups <= max_per_dim {
+        (groups, 1)
+    } else {
+        (max_per_dim, groups.div_ceil(max_per_dim))
+    }
+}

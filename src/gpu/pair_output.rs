@@ -1,0 +1,89 @@
+//! The pair output of the detection shaders (`wgsl/pair_output.wgsl`): a counter that counts
+//! every pair, a buffer that keeps as many as fit, and the host loop that grows the buffer and
+//! reruns until every pair fits. Nothing is ever truncated.
+
+use super::Gpu;
+use crate::backend::DetectStats;
+use crate::error::{Error, Result};
+use crate::spheres::Pair;
+use rayon::slice::ParallelSliceMut;
+
+/// Binding of the counters in every detection shader (`pair_output.wgsl`).
+pub const COUNTERS_BINDING: u32 = 3;
+/// Binding of the pair buffer in every detection shader.
+pub const PAIRS_BINDING: u32 = 4;
+
+/// GPU buffers receiving the pairs of one detection.
+pub struct PairOutput {
+    /// Pairs found, candidates (low word, high word), unused.
+    pub counters: wgpu::Buffer,
+    /// `vec2<u32>` pairs, room for `capacity`.
+    pub pairs: wgpu::Buffer,
+    /// Pairs that fit in `pairs`.
+    pub capacity: u32,
+}
+
+impl PairOutput {
+    /// Output with room for `capacity` pairs.
+    pub fn new(gpu: &Gpu, capacity: u32) -> Self {
+        PairOutput {
+            counters: gpu.storage("mochi.pairs.counters", 16, wgpu::BufferUsages::empty()),
+            pairs: gpu.storage(
+                "mochi.pairs.pairs",
+                capacity as u64 * 8,
+                wgpu::BufferUsages::empty(),
+            ),
+            capacity,
+        }
+    }
+
+    /// Runs a detection: `run(capacity)` must clear [`Self::counters`] and record the shader
+    /// with this output bound. With `collect`, grows the buffer until every pair fits and
+    /// returns the pairs sorted; without, only counts.
+    pub fn detect(
+        &mut self,
+        gpu: &Gpu,
+        collect: bool,
+        mut run: impl FnMut(&PairOutput, u32) -> Result<()>,
+    ) -> Result<(Vec<Pair>, DetectStats)> {
+        loop {
+            let capacity = if collect { self.capacity } else { 0 };
+            run(self, capacity)?;
+            let counters: Vec<u32> = gpu.read(&self.counters, 4)?;
+            let stats = DetectStats {
+                pairs: counters[0] as u64,
+                candidates: counters[1] as u64 | (counters[2] as u64) << 32,
+            };
+            if !collect {
+                return Ok((Vec::new(), stats));
+            }
+            if counters[0] > capacity {
+                self.grow(gpu, counters[0])?;
+                continue;
+            }
+            let raw: Vec<[u32; 2]> = gpu.read(&self.pairs, counters[0] as usize)?;
+            let mut pairs: Vec<Pair> = raw.into_iter().map(|[i, j]| Pair { i, j }).collect();
+            pairs.par_sort_unstable();
+            return Ok((pairs, stats));
+        }
+    }
+
+    /// Makes room for `needed` pairs (and some slack), within the adapter's limits.
+    fn grow(&mut self, gpu: &Gpu, needed: u32) -> Result<()> {
+        let limits = &gpu.limits;
+        let limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size)
+            / 8;
+        if needed as u64 > limit {
+            return Err(Error::TooLarge {
+                what: format!("pairs in one detection on {}", gpu.info.name),
+                got: needed as u64,
+                limit,
+            });
+        }
+        let capacity = (needed as u64 + needed as u64 / 8).min(limit) as u32;
+        *self = gpu.checked("growing the pair buffer", || PairOutput::new(gpu, capacity))?;
+        Ok(())
+    }
+}

@@ -1,0 +1,45 @@
+// Detection stage of the wgpu-rq backend: one zero-length point ray per sphere; every AABB
+// candidate is filtered by keep_in (proxy.wgsl) and written by emit_pair (pair_output.wgsl),
+// both appended to this file.
+enable wgpu_ray_query;
+
+// Keep in sync with PairParams in src/backend/wgpu_rq/mod.rs.
+struct PairParams {
+    n: u32,          // number of spheres
+    capacity: u32,   // room in `pairs`
+    mode: u32,       // MODE_MOCHI or MODE_NNS
+    chunk: u32,      // primitives per BLAS: sorted index = custom_data * chunk + primitive_index
+    row: u32,        // invocations per dispatch row (2-D dispatch)
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: PairParams;
+@group(0) @binding(1) var<storage, read> spheres: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> ids: array<u32>;
+@group(0) @binding(5) var tlas: acceleration_structure;
+
+@compute @workgroup_size(64)
+fn find_pairs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let p = gid.x + gid.y * params.row;
+    var tested = 0u;
+    if p < params.n {
+        let s = spheres[p];
+        var rq: ray_query;
+        rayQueryInitialize(&rq, tlas, RayDesc(0u, 0xffu, 0.0, 0.0, s.xyz, vec3(0.0, 0.0, 1.0)));
+        while rayQueryProceed(&rq) {
+            let hit = rayQueryGetCandidateIntersection(&rq);
+            if hit.kind != RAY_QUERY_INTERSECTION_AABB {
+                continue;
+            }
+            let q = hit.instance_custom_data * params.chunk + hit.primitive_index;
+            tested += 1u;
+            let t = spheres[q];
+            if keep_in(params.mode, p, s.xyz, s.w, q, t.xyz, t.w) {
+                emit_pair(ids[p], ids[q], params.capacity);
+            }
+        }
+    }
+    add_candidates(tested, lid);
+}
