@@ -29,9 +29,11 @@ fn backends() -> Vec<BackendKind> {
         .collect()
 }
 
+type OpenSlot = Mutex<Option<Box<dyn Backend>>>;
+
 /// Opened backends, one per kind, shared by the tests (opening a GPU device is slow). A static
 /// is never dropped, so no device is torn down while a test thread exits.
-static OPENED: LazyLock<Vec<(BackendKind, Mutex<Option<Box<dyn Backend>>>)>> =
+static OPENED: LazyLock<Vec<(BackendKind, OpenSlot)>> =
     LazyLock::new(|| BackendKind::ALL.map(|k| (k, Mutex::new(None))).into());
 
 /// Runs `f` on each available backend, opened once per test run.

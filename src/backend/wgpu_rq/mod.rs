@@ -249,20 +249,19 @@ impl WgpuRqBackend {
         let (x, y) = gpu.grid(built.n, PAIRS_GROUP);
         let find_pairs = &self.find_pairs;
         let (n, mode) = (built.n, built.mode);
-        let accel_ref = &*accel;
         built.output.detect(gpu, collect, |output, capacity| {
             let params = PairParams {
                 n,
                 capacity,
                 mode: mode_code(mode),
-                chunk: accel_ref.chunk,
+                chunk: accel.chunk,
                 row: x * PAIRS_GROUP,
                 _pad: [0; 3],
             };
             gpu.checked("running the wgpu-rq ray queries", || {
                 gpu.queue
-                    .write_buffer(&accel_ref.pair_params, 0, bytemuck::bytes_of(&params));
-                let bind = accel_ref.pairs_bind(gpu, find_pairs, output);
+                    .write_buffer(&accel.pair_params, 0, bytemuck::bytes_of(&params));
+                let bind = accel.pairs_bind(gpu, find_pairs, output);
                 let mut encoder = gpu.device.create_command_encoder(&Default::default());
                 encoder.clear_buffer(&output.counters, 0, None);
                 gpu.dispatch(

@@ -1,0 +1,469 @@
+//! GPU radix sort of (u32 key, u32 value) pairs, recorded into the caller's command encoder.
+//!
+//! An LSD radix sort with 4-bit digits (`ceil(key_bits / 4)` passes). Each pass runs, in one
+//! compute pass of the caller's encoder:
+//!
+//! 1. `histogram`: every sort block of [`BLOCK`] pairs (one workgroup of 128 threads, 16
+//!    consecutive pairs per thread) counts its digits;
+//! 2. `scan_blocks` / `scan_add`: an exclusive scan of those counts in (digit, block) order, in as
+//!    many levels of [`SCAN_BLOCK`] entries as needed (two levels up to 2^27 pairs);
+//! 3. `scatter`: every block ranks its pairs per digit with per-thread counters and a
+//!    workgroup-memory prefix sum (stable, no subgroup operations) and writes them to their place.
+//!
+//! Passes ping-pong between the caller's buffers and two scratch buffers; after an odd number of
+//! passes the result is copied back, so it always ends in the caller's buffers.
+//! The shader is `wgsl/radix_sort.wgsl`; its constants and `Params` mirror the ones here.
+
+use super::{Gpu, workgroups};
+use std::num::NonZeroU64;
+
+/// The shader, embedded.
+const SOURCE: &str = include_str!("../../wgsl/radix_sort.wgsl");
+
+/// Every WGSL module of the sort, by label, exactly as the device gets it.
+pub const SHADERS: [(&str, &str); 1] = [("radix_sort", SOURCE)];
+
+/// Bits per digit, i.e. per pass (keep in sync with `RADIX_BITS` in the shader).
+const RADIX_BITS: u32 = 4;
+/// Pairs per sort block, one workgroup each (keep in sync with `BLOCK` in the shader).
+pub const BLOCK: u32 = 2048;
+/// Entries per workgroup of the scan kernels (keep in sync with `SCAN_BLOCK` in the shader).
+pub const SCAN_BLOCK: u32 = 1024;
+
+/// Parameters of one dispatch. WGSL twin: `Params` in `wgsl/radix_sort.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    /// Number of pairs to sort.
+    n: u32,
+    /// Bit of the key where this pass's digit starts.
+    shift: u32,
+    /// Mask of the key bits that take part in the sort.
+    key_mask: u32,
+    /// Workgroups doing work in this dispatch (sort blocks, or scan blocks).
+    blocks: u32,
+    /// Scan kernels: entries of the level being scanned.
+    len: u32,
+    /// Scan kernels: offset of that level in the histogram buffer [u32].
+    src: u32,
+    /// Scan kernels: offset of the next level (block totals) in the histogram buffer [u32].
+    dst: u32,
+    _pad0: u32,
+}
+const _: () = assert!(size_of::<Params>() == 32);
+
+/// Size of [`Params`] [bytes].
+const PARAMS_SIZE: u64 = size_of::<Params>() as u64;
+
+/// One level of the multi-level scan: `len` entries at `offset` (in u32) in the histogram buffer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Level {
+    offset: u32,
+    len: u32,
+}
+
+/// The levels of the scan over `len0` digit counts: level 0 holds the counts, level k + 1 the
+/// totals of level k's blocks of [`SCAN_BLOCK`]; the last level has a single entry. Returns the
+/// levels and the total number of u32 they take.
+fn scan_levels(len0: u32) -> (Vec<Level>, u32) {
+    let mut levels = vec![Level {
+        offset: 0,
+        len: len0,
+    }];
+    let mut end = len0;
+    loop {
+        let len = levels[levels.len() - 1].len.div_ceil(SCAN_BLOCK);
+        levels.push(Level { offset: end, len });
+        end += len;
+        if len <= 1 {
+            return (levels, end);
+        }
+    }
+}
+
+/// The four kernels of a pass.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kernel {
+    Histogram,
+    ScanBlocks,
+    ScanAdd,
+    Scatter,
+}
+
+/// One recorded dispatch: which kernel, its parameters, its workgroup counts, and whether it
+/// reads the caller's buffers (`true`) or the scratch buffers.
+#[derive(Debug, Clone, Copy)]
+struct Dispatch {
+    kernel: Kernel,
+    params: Params,
+    groups: (u32, u32),
+    from_caller: bool,
+}
+
+/// Scratch space, grown on demand.
+struct Scratch {
+    /// Keys between passes (capacity `pairs`).
+    keys: wgpu::Buffer,
+    /// Values between passes (capacity `pairs`).
+    values: wgpu::Buffer,
+    /// Capacity of `keys` and `values` [pairs].
+    pairs: u32,
+    /// Digit counts and all scan levels.
+    hist: wgpu::Buffer,
+    /// Capacity of `hist` [u32].
+    hist_len: u32,
+}
+
+/// A reusable GPU radix sorter of (u32 key, u32 value) pairs: pipelines plus scratch buffers.
+///
+/// Sorting `n` pairs uses `8 n` bytes of scratch for keys and values and about `n / 128` u32
+/// for digit counts; the scratch grows to the largest `n` seen and is kept.
+pub struct RadixSort {
+    layout: wgpu::BindGroupLayout,
+    histogram: wgpu::ComputePipeline,
+    scan_blocks: wgpu::ComputePipeline,
+    scan_add: wgpu::ComputePipeline,
+    scatter: wgpu::ComputePipeline,
+    scratch: Option<Scratch>,
+}
+
+impl RadixSort {
+    /// Compiles the shader and builds the pipelines (no scratch yet).
+    pub fn new(gpu: &Gpu) -> Self {
+        let layout = bind_group_layout(gpu);
+        let pipeline_layout = gpu
+            .device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("mochi.sort.pipeline_layout"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+        let module = gpu.module("mochi.sort.module", SOURCE);
+        let make = |label, entry| pipeline(gpu, &pipeline_layout, &module, label, entry);
+        RadixSort {
+            histogram: make("mochi.sort.histogram", "histogram"),
+            scan_blocks: make("mochi.sort.scan_blocks", "scan_blocks"),
+            scan_add: make("mochi.sort.scan_add", "scan_add"),
+            scatter: make("mochi.sort.scatter", "scatter"),
+            layout,
+            scratch: None,
+        }
+    }
+
+    /// Records into `encoder` the commands that sort the first `n` (key, value) pairs of
+    /// `keys`/`values` (u32 each, STORAGE|COPY_SRC|COPY_DST usage) by the low `key_bits` bits of
+    /// the key, ascending and stable; afterwards the sorted pairs are in `keys`/`values` again.
+    /// Allocates or grows its scratch buffers as needed.
+    ///
+    /// - Bits of the keys above `key_bits` are ignored for ordering (masked in the shader) and
+    ///   kept: the keys come out as they went in, only reordered. `key_bits` above 32 counts as
+    ///   32; `key_bits == 0` or `n == 0` records nothing.
+    /// - Parameters go into a uniform buffer of this call, written with `queue.write_buffer`,
+    ///   so several calls may be recorded before one submit (into one encoder or several), as long
+    ///   as they run in the order recorded (they share the scratch buffers).
+    /// - `4 n` bytes must fit in `max_storage_buffer_binding_size` (128 MiB by default: 32 Mi
+    ///   pairs); otherwise wgpu reports a validation error.
+    ///
+    /// # Panics
+    /// If `keys` or `values` holds fewer than `n` u32 (a caller bug).
+    pub fn encode(
+        &mut self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        keys: &wgpu::Buffer,
+        values: &wgpu::Buffer,
+        n: u32,
+        key_bits: u32,
+    ) {
+        let bytes = u64::from(n) * 4;
+        assert!(
+            keys.size() >= bytes && values.size() >= bytes,
+            "mochi.sort: {n} pairs do not fit in keys ({} bytes) and values ({} bytes)",
+            keys.size(),
+            values.size()
+        );
+        let key_bits = key_bits.min(32);
+        if n == 0 || key_bits == 0 {
+            return;
+        }
+        let blocks = n.div_ceil(BLOCK);
+        let (levels, hist_len) = scan_levels(blocks * (1 << RADIX_BITS));
+        self.reserve(gpu, n, hist_len);
+        let Some(scratch) = &self.scratch else {
+            unreachable!("reserve() always leaves scratch allocated");
+        };
+
+        let dispatches = plan(gpu, n, key_bits, &levels);
+        let stride = param_stride(gpu);
+        let params = params_buffer(gpu, &dispatches, stride);
+        let from_caller = self.bind(
+            gpu,
+            "mochi.sort.bind.caller_to_scratch",
+            &params,
+            [keys, values, &scratch.keys, &scratch.values],
+            bytes,
+            &scratch.hist,
+        );
+        let from_scratch = self.bind(
+            gpu,
+            "mochi.sort.bind.scratch_to_caller",
+            &params,
+            [&scratch.keys, &scratch.values, keys, values],
+            bytes,
+            &scratch.hist,
+        );
+
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("mochi.sort.pass"),
+                timestamp_writes: None,
+            });
+            for (k, d) in dispatches.iter().enumerate() {
+                let offset = u32::try_from(k as u64 * stride)
+                    .expect("the params buffer of one sort is far below 4 GiB");
+                let bind = if d.from_caller {
+                    &from_caller
+                } else {
+                    &from_scratch
+                };
+                pass.set_pipeline(self.pipeline(d.kernel));
+                pass.set_bind_group(0, bind, &[offset]);
+                pass.dispatch_workgroups(d.groups.0, d.groups.1, 1);
+            }
+        }
+
+        let passes = key_bits.div_ceil(RADIX_BITS);
+        if passes % 2 == 1 {
+            encoder.copy_buffer_to_buffer(&scratch.keys, 0, keys, 0, bytes);
+            encoder.copy_buffer_to_buffer(&scratch.values, 0, values, 0, bytes);
+        }
+    }
+
+    /// The pipeline of `kernel`.
+    fn pipeline(&self, kernel: Kernel) -> &wgpu::ComputePipeline {
+        match kernel {
+            Kernel::Histogram => &self.histogram,
+            Kernel::ScanBlocks => &self.scan_blocks,
+            Kernel::ScanAdd => &self.scan_add,
+            Kernel::Scatter => &self.scatter,
+        }
+    }
+
+    /// Makes sure the scratch holds `pairs` pairs and `hist_len` u32 of counts.
+    fn reserve(&mut self, gpu: &Gpu, pairs: u32, hist_len: u32) {
+        let (have_pairs, have_hist) = self
+            .scratch
+            .as_ref()
+            .map_or((0, 0), |s| (s.pairs, s.hist_len));
+        if have_pairs >= pairs && have_hist >= hist_len {
+            return;
+        }
+        let pairs = pairs.max(have_pairs);
+        let hist_len = hist_len.max(have_hist);
+        let none = wgpu::BufferUsages::empty();
+        let bytes = u64::from(pairs) * 4;
+        self.scratch = Some(Scratch {
+            keys: gpu.storage("mochi.sort.scratch_keys", bytes, none),
+            values: gpu.storage("mochi.sort.scratch_values", bytes, none),
+            pairs,
+            hist: gpu.storage("mochi.sort.hist", u64::from(hist_len) * 4, none),
+            hist_len,
+        });
+    }
+
+    /// A bind group reading pairs from `io[0..2]` and writing them to `io[2..4]` (`bytes` of
+    /// each), with the params slots and the count buffer.
+    fn bind(
+        &self,
+        gpu: &Gpu,
+        label: &str,
+        params: &wgpu::Buffer,
+        io: [&wgpu::Buffer; 4],
+        bytes: u64,
+        hist: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        let sized = |buffer, size| {
+            wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer,
+                offset: 0,
+                size: NonZeroU64::new(size),
+            })
+        };
+        let mut entries = vec![wgpu::BindGroupEntry {
+            binding: 0,
+            resource: sized(params, PARAMS_SIZE),
+        }];
+        for (k, buffer) in io.into_iter().enumerate() {
+            entries.push(wgpu::BindGroupEntry {
+                binding: 1 + k as u32,
+                resource: sized(buffer, bytes),
+            });
+        }
+        entries.push(wgpu::BindGroupEntry {
+            binding: 5,
+            resource: hist.as_entire_binding(),
+        });
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout: &self.layout,
+            entries: &entries,
+        })
+    }
+}
+
+/// The bind-group layout all four kernels share; the shader's `@group(0)` bindings.
+fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
+    let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let params = wgpu::BindGroupLayoutEntry {
+        binding: 0,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: true,
+            min_binding_size: NonZeroU64::new(PARAMS_SIZE),
+        },
+        count: None,
+    };
+    gpu.device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("mochi.sort.bind_group_layout"),
+            entries: &[
+                params,
+                storage(1, true),  // keys_in
+                storage(2, true),  // values_in
+                storage(3, false), // keys_out
+                storage(4, false), // values_out
+                storage(5, false), // hist
+            ],
+        })
+}
+
+/// A compute pipeline for `entry` with the shared layout. Every kernel writes each workgroup
+/// variable before reading it, so wgpu's zero-initialisation of workgroup memory is skipped.
+fn pipeline(
+    gpu: &Gpu,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    label: &str,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    gpu.device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(layout),
+            module,
+            entry_point: Some(entry),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &[],
+                zero_initialize_workgroup_memory: false,
+            },
+            cache: None,
+        })
+}
+
+/// Distance between params slots [bytes]: the size of [`Params`] rounded up to the device's
+/// uniform offset alignment.
+fn param_stride(gpu: &Gpu) -> u64 {
+    let align = u64::from(gpu.limits.min_uniform_buffer_offset_alignment).max(1);
+    PARAMS_SIZE.next_multiple_of(align)
+}
+
+/// A uniform buffer of this call holding each dispatch's parameters at `k * stride`.
+fn params_buffer(gpu: &Gpu, dispatches: &[Dispatch], stride: u64) -> wgpu::Buffer {
+    let size = stride * dispatches.len() as u64;
+    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("mochi.sort.params"),
+        size,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut bytes = vec![0u8; size as usize];
+    for (k, d) in dispatches.iter().enumerate() {
+        let at = k * stride as usize;
+        bytes[at..at + PARAMS_SIZE as usize].copy_from_slice(bytemuck::bytes_of(&d.params));
+    }
+    gpu.queue.write_buffer(&buffer, 0, &bytes);
+    buffer
+}
+
+/// Every dispatch of a sort of `n` pairs by `key_bits` bits, in order: per pass a histogram,
+/// the scan levels up then down, and the scatter.
+fn plan(gpu: &Gpu, n: u32, key_bits: u32, levels: &[Level]) -> Vec<Dispatch> {
+    let max = gpu.limits.max_compute_workgroups_per_dimension;
+    let key_mask = if key_bits >= 32 {
+        u32::MAX
+    } else {
+        (1u32 << key_bits) - 1
+    };
+    let sort_groups = workgroups(n, BLOCK, max);
+    let mut out = Vec::new();
+    for pass in 0..key_bits.div_ceil(RADIX_BITS) {
+        let from_caller = pass % 2 == 0;
+        let base = Params {
+            n,
+            shift: pass * RADIX_BITS,
+            key_mask,
+            blocks: n.div_ceil(BLOCK),
+            ..Params::default()
+        };
+        let sort = |kernel| Dispatch {
+            kernel,
+            params: base,
+            groups: sort_groups,
+            from_caller,
+        };
+        let scan = |kernel, level: Level, next: Level| Dispatch {
+            kernel,
+            params: Params {
+                blocks: level.len.div_ceil(SCAN_BLOCK),
+                len: level.len,
+                src: level.offset,
+                dst: next.offset,
+                ..base
+            },
+            groups: workgroups(level.len, SCAN_BLOCK, max),
+            from_caller,
+        };
+        out.push(sort(Kernel::Histogram));
+        for w in levels.windows(2) {
+            out.push(scan(Kernel::ScanBlocks, w[0], w[1]));
+        }
+        // The last scanned level is a single block: nothing to add to it.
+        for w in levels.windows(2).rev().skip(1) {
+            out.push(scan(Kernel::ScanAdd, w[0], w[1]));
+        }
+        out.push(sort(Kernel::Scatter));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scan_levels_end_in_one_entry() {
+        let (levels, total) = scan_levels(16);
+        assert_eq!(
+            levels,
+            vec![Level { offset: 0, len: 16 }, Level { offset: 16, len: 1 }]
+        );
+        assert_eq!(total, 17);
+        let (levels, total) = scan_levels(16 * 8192);
+        let lens: Vec<u32> = levels.iter().map(|l| l.len).collect();
+        assert_eq!(lens, vec![131072, 128, 1]);
+        assert_eq!(total, 131072 + 128 + 1);
+        let (levels, _) = scan_levels(SCAN_BLOCK + 1);
+        let lens: Vec<u32> = levels.iter().map(|l| l.len).collect();
+        assert_eq!(lens, vec![SCAN_BLOCK + 1, 2, 1]);
+    }
+}
