@@ -5,6 +5,7 @@ use naga::valid::{Capabilities, ValidationFlags, Validator};
 
 fn all_shaders() -> Vec<(&'static str, &'static str)> {
     let mut all = mochi::backend::wgpu_rq::SHADERS.to_vec();
+    all.extend(mochi::backend::wgpu_compute::SHADERS);
     all.extend(mochi::gpu::radix_sort::SHADERS);
     all
 }

@@ -2,7 +2,7 @@
 // sorted position p scans the rest of its own cell and the next cell along x, then the three-cell
 // runs of its four forward neighbour rows: 14 of the 27 cells, each unordered pair of neighbour
 // cells visited once, so the narrow phase (collides, proxy.wgsl) alone decides and no pair is
-// seen twice. Needs grid_build.wgsl's GridParams, proxy.wgsl and pair_output.wgsl appended.
+// seen twice. Needs grid_params.wgsl prepended, proxy.wgsl and pair_output.wgsl appended.
 
 @group(0) @binding(0) var<uniform> params: GridParams;
 @group(0) @binding(1) var<storage, read> spheres: array<vec4<f32>>;

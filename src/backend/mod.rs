@@ -9,6 +9,7 @@
 //! find the same pairs and differ only in the work done.
 
 pub mod cpu;
+pub mod wgpu_compute;
 pub mod wgpu_rq;
 
 use crate::error::{Error, Result};
@@ -67,18 +68,26 @@ pub enum BackendKind {
     /// Proxy boxes in a hardware BVH, one point ray per sphere (WGSL ray queries).
     #[value(name = "wgpu-rq")]
     WgpuRq,
+    /// Sorted proxy grid in WGSL compute shaders, for GPUs without ray queries.
+    #[value(name = "wgpu-compute")]
+    WgpuCompute,
     /// Multi-threaded sorted proxy grid on the CPU; runs everywhere.
     Cpu,
 }
 
 impl BackendKind {
     /// Every backend, in the order `auto` prefers them.
-    pub const ALL: [BackendKind; 2] = [BackendKind::WgpuRq, BackendKind::Cpu];
+    pub const ALL: [BackendKind; 3] = [
+        BackendKind::WgpuRq,
+        BackendKind::WgpuCompute,
+        BackendKind::Cpu,
+    ];
 
     /// Name, as on the command line.
     pub fn name(self) -> &'static str {
         match self {
             BackendKind::WgpuRq => "wgpu-rq",
+            BackendKind::WgpuCompute => "wgpu-compute",
             BackendKind::Cpu => "cpu",
         }
     }
@@ -87,6 +96,7 @@ impl BackendKind {
     pub fn probe(self) -> Result<String, String> {
         match self {
             BackendKind::WgpuRq => gpu::probe(Need::RayQuery).map(|a| gpu::describe(&a)),
+            BackendKind::WgpuCompute => gpu::probe(Need::Compute).map(|a| gpu::describe(&a)),
             BackendKind::Cpu => Ok(format!("CPU, {} threads", rayon::current_num_threads())),
         }
     }
@@ -94,15 +104,17 @@ impl BackendKind {
     /// Why `auto` should pass over this backend although it can run (a software GPU is slower
     /// than the cpu backend).
     fn auto_skip(self) -> Option<String> {
-        match self {
-            BackendKind::WgpuRq => match gpu::probe(Need::RayQuery) {
-                Ok(a) if a.device_type == wgpu::DeviceType::Cpu => Some(format!(
-                    "{} is a software adapter, slower than the cpu backend",
-                    a.name
-                )),
-                _ => None,
-            },
-            BackendKind::Cpu => None,
+        let need = match self {
+            BackendKind::WgpuRq => Need::RayQuery,
+            BackendKind::WgpuCompute => Need::Compute,
+            BackendKind::Cpu => return None,
+        };
+        match gpu::probe(need) {
+            Ok(a) if a.device_type == wgpu::DeviceType::Cpu => Some(format!(
+                "{} is a software adapter, slower than the cpu backend",
+                a.name
+            )),
+            _ => None,
         }
     }
 
@@ -114,6 +126,7 @@ impl BackendKind {
         })?;
         Ok(match self {
             BackendKind::WgpuRq => Box::new(wgpu_rq::WgpuRqBackend::new()?),
+            BackendKind::WgpuCompute => Box::new(wgpu_compute::WgpuComputeBackend::new()?),
             BackendKind::Cpu => Box::new(cpu::CpuBackend::new()),
         })
     }
@@ -128,6 +141,9 @@ pub enum BackendChoice {
     /// Proxy boxes in a hardware BVH, WGSL ray queries.
     #[value(name = "wgpu-rq")]
     WgpuRq,
+    /// Sorted proxy grid in WGSL compute shaders.
+    #[value(name = "wgpu-compute")]
+    WgpuCompute,
     /// Multi-threaded sorted proxy grid on the CPU.
     Cpu,
 }
@@ -145,6 +161,7 @@ pub fn open(choice: BackendChoice) -> Result<Opened> {
     let kind = match choice {
         BackendChoice::Auto => return open_auto(),
         BackendChoice::WgpuRq => BackendKind::WgpuRq,
+        BackendChoice::WgpuCompute => BackendKind::WgpuCompute,
         BackendChoice::Cpu => BackendKind::Cpu,
     };
     Ok(Opened {

@@ -1,0 +1,373 @@
+//! The `wgpu-compute` backend: a sorted proxy grid built and searched in WGSL compute shaders,
+//! for adapters without ray queries or RT cores (where it beats software BVH traversal).
+//!
+//! Build, in one submission: cell keys (`wgsl/grid_build.wgsl`), the GPU radix sort, the spheres
+//! reordered by cell, and a dense table of where each cell's run starts. Cells are 2·r_max in
+//! `mochi` mode and 4·r_max in `nns` mode (the proxy of the largest sphere, or the fixed-radius
+//! box), padded a little; when the spheres are spread so thin that the table would not fit its
+//! budget, cells grow (still exact, only more candidates). Detection (`wgsl/grid_pairs.wgsl`)
+//! visits each unordered pair of neighbour cells once, like the cpu backend.
+
+use super::{Backend, BackendInfo, DetectStats};
+use crate::error::{Error, Result};
+use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
+use crate::gpu::radix_sort::RadixSort;
+use crate::gpu::{self, Gpu, Need};
+use crate::proxy::ProxyMode;
+use crate::spheres::{Pair, SphereSet};
+
+const BUILD_WGSL: &str = concat!(
+    include_str!("../../../wgsl/grid_params.wgsl"),
+    include_str!("../../../wgsl/grid_build.wgsl")
+);
+const PAIRS_WGSL: &str = concat!(
+    include_str!("../../../wgsl/grid_params.wgsl"),
+    include_str!("../../../wgsl/grid_pairs.wgsl"),
+    include_str!("../../../wgsl/proxy.wgsl"),
+    include_str!("../../../wgsl/pair_output.wgsl")
+);
+
+/// Every WGSL module of this backend, by label, exactly as the device gets it.
+pub const SHADERS: [(&str, &str); 2] = [("grid_build", BUILD_WGSL), ("grid_pairs", PAIRS_WGSL)];
+
+/// Workgroup sizes, as in the shaders.
+const BUILD_GROUP: u32 = 256;
+const PAIRS_GROUP: u32 = 64;
+
+/// Relative padding of the cell side: far above the `f32` rounding of the cell coordinates of
+/// up to [`MAX_AXIS_CELLS`] cells, so a pair the narrow phase accepts is never two cells apart.
+const CELL_PADDING: f32 = 1.0 / 256.0;
+
+/// Most cells along one axis, margin included (bounds the `f32` rounding above).
+const MAX_AXIS_CELLS: u64 = 4096;
+
+/// Cells of the dense table per sphere, at most (a table of at least 2^20 cells is always fine).
+const CELLS_PER_SPHERE: u64 = 8;
+
+/// Keep in sync with `GridParams` in `wgsl/grid_params.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct GridParams {
+    lo: [f32; 3],
+    n: u32,
+    inv_cell: f32,
+    nx: u32,
+    ny: u32,
+    nz: u32,
+    cells: u32,
+    row: u32,
+    capacity: u32,
+    _pad0: u32,
+}
+const _: () = assert!(size_of::<GridParams>() == 48);
+
+/// The wgpu compute (sorted grid) backend.
+pub struct WgpuComputeBackend {
+    gpu: Gpu,
+    sort: RadixSort,
+    cell_keys: wgpu::ComputePipeline,
+    reorder: wgpu::ComputePipeline,
+    cell_starts: wgpu::ComputePipeline,
+    find_pairs: wgpu::ComputePipeline,
+    built: Option<Built>,
+}
+
+/// What one build leaves on the GPU.
+struct Built {
+    n: u32,
+    mode: ProxyMode,
+    params: GridParams,
+    /// `None` for an empty set.
+    grid: Option<Grid>,
+    output: PairOutput,
+}
+
+/// GPU buffers of a grid over `n` spheres.
+struct Grid {
+    n: u32,
+    /// Cells the table has room for.
+    cell_capacity: u32,
+    params: wgpu::Buffer,
+    pair_params: wgpu::Buffer,
+    spheres_in: wgpu::Buffer,
+    keys: wgpu::Buffer,
+    ids: wgpu::Buffer,
+    spheres: wgpu::Buffer,
+    cell_start: wgpu::Buffer,
+}
+
+impl Grid {
+    fn new(gpu: &Gpu, n: u32, cells: u32) -> Grid {
+        let none = wgpu::BufferUsages::empty();
+        let n64 = n as u64;
+        Grid {
+            n,
+            cell_capacity: cells,
+            params: gpu.uniform("mochi.grid.params", &GridParams::default()),
+            pair_params: gpu.uniform("mochi.grid.pair_params", &GridParams::default()),
+            spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
+            keys: gpu.storage("mochi.grid.keys", n64 * 4, none),
+            ids: gpu.storage("mochi.grid.ids", n64 * 4, none),
+            spheres: gpu.storage("mochi.grid.spheres", n64 * 16, none),
+            cell_start: gpu.storage("mochi.grid.cell_start", (cells as u64 + 1) * 4, none),
+        }
+    }
+}
+
+impl WgpuComputeBackend {
+    /// Opens the best adapter with compute shaders.
+    pub fn new() -> Result<Self> {
+        let gpu = Gpu::open(Need::Compute)?;
+        let build = gpu.module("mochi.grid.build", BUILD_WGSL);
+        let pairs = gpu.module("mochi.grid.pairs", PAIRS_WGSL);
+        Ok(Self {
+            sort: RadixSort::new(&gpu),
+            cell_keys: gpu.pipeline("mochi.grid.cell_keys", &build, "cell_keys"),
+            reorder: gpu.pipeline("mochi.grid.reorder", &build, "reorder"),
+            cell_starts: gpu.pipeline("mochi.grid.cell_starts", &build, "cell_starts"),
+            find_pairs: gpu.pipeline("mochi.grid.find_pairs", &pairs, "find_pairs"),
+            built: None,
+            gpu,
+        })
+    }
+
+    fn max_spheres(&self) -> u64 {
+        let l = &self.gpu.limits;
+        (l.max_storage_buffer_binding_size.min(l.max_buffer_size) / 16).min(u32::MAX as u64)
+    }
+
+    /// Cell layout for `spheres`: the mode's cell size, grown until the table fits its budget.
+    fn layout(&self, spheres: &SphereSet, mode: ProxyMode) -> GridParams {
+        let (lo, hi) = spheres.bounds().expect("the set is not empty");
+        let n = spheres.len() as u64;
+        let table_limit = self.gpu.limits.max_storage_buffer_binding_size / 4 - 1;
+        let budget = (n * CELLS_PER_SPHERE).max(1 << 20).min(table_limit);
+        let mut size = mode.cell_size(spheres.max_radius()) as f64 * (1.0 + CELL_PADDING as f64);
+        let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as f64);
+        let counts =
+            |size: f64| -> [u64; 3] { std::array::from_fn(|a| (extent[a] / size) as u64 + 1 + 2) };
+        loop {
+            let c = counts(size);
+            let fits =
+                c.iter().all(|&k| k <= MAX_AXIS_CELLS) && c.iter().product::<u64>() <= budget;
+            if fits {
+                let [nx, ny, nz] = c.map(|k| k as u32);
+                return GridParams {
+                    lo,
+                    n: n as u32,
+                    inv_cell: (1.0 / size) as f32,
+                    nx,
+                    ny,
+                    nz,
+                    cells: nx * ny * nz,
+                    ..GridParams::default()
+                };
+            }
+            size *= 1.25;
+        }
+    }
+
+    fn rebuild(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+        let n = spheres.len();
+        if n as u64 > self.max_spheres() {
+            return Err(Error::TooLarge {
+                what: format!("spheres for wgpu-compute on {}", self.gpu.info.name),
+                got: n as u64,
+                limit: self.max_spheres(),
+            });
+        }
+        let n = n as u32;
+        if n == 0 {
+            let output = PairOutput::new(&self.gpu, 1);
+            let params = GridParams::default();
+            self.built = Some(Built {
+                n,
+                mode,
+                params,
+                grid: None,
+                output,
+            });
+            return Ok(());
+        }
+        let gpu = &self.gpu;
+        let (x, y) = gpu.grid(n, BUILD_GROUP);
+        let params = GridParams {
+            row: x * BUILD_GROUP,
+            ..self.layout(spheres, mode)
+        };
+        let (grid, output) = match self.built.take() {
+            Some(Built {
+                grid: Some(g),
+                output,
+                ..
+            }) if g.n == n && g.cell_capacity >= params.cells => (g, output),
+            _ => gpu.checked("allocating the wgpu-compute buffers", || {
+                (
+                    Grid::new(gpu, n, params.cells),
+                    PairOutput::new(gpu, n.max(1024)),
+                )
+            })?,
+        };
+        let key_bits = 32 - params.cells.leading_zeros();
+        let rows: Vec<[f32; 4]> = spheres.xyzr().collect();
+        gpu.checked("building the wgpu-compute grid", || {
+            gpu.queue
+                .write_buffer(&grid.params, 0, bytemuck::bytes_of(&params));
+            gpu.queue
+                .write_buffer(&grid.spheres_in, 0, bytemuck::cast_slice(&rows));
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            let g = &grid;
+            let keys_bind = gpu.bind(
+                "mochi.grid.cell_keys",
+                &self.cell_keys,
+                &[
+                    (0, &g.params),
+                    (1, &g.spheres_in),
+                    (2, &g.keys),
+                    (3, &g.ids),
+                ],
+            );
+            gpu.dispatch(
+                &mut encoder,
+                "mochi.grid.cell_keys",
+                &self.cell_keys,
+                &keys_bind,
+                (x, y),
+            );
+            self.sort
+                .encode(gpu, &mut encoder, &g.keys, &g.ids, n, key_bits);
+            let reorder_bind = gpu.bind(
+                "mochi.grid.reorder",
+                &self.reorder,
+                &[
+                    (0, &g.params),
+                    (1, &g.spheres_in),
+                    (3, &g.ids),
+                    (4, &g.spheres),
+                ],
+            );
+            gpu.dispatch(
+                &mut encoder,
+                "mochi.grid.reorder",
+                &self.reorder,
+                &reorder_bind,
+                (x, y),
+            );
+            let starts_bind = gpu.bind(
+                "mochi.grid.cell_starts",
+                &self.cell_starts,
+                &[(0, &g.params), (2, &g.keys), (5, &g.cell_start)],
+            );
+            gpu.dispatch(
+                &mut encoder,
+                "mochi.grid.cell_starts",
+                &self.cell_starts,
+                &starts_bind,
+                (x, y),
+            );
+            gpu.queue.submit([encoder.finish()]);
+        })?;
+        gpu.wait()?;
+        self.built = Some(Built {
+            n,
+            mode,
+            params,
+            grid: Some(grid),
+            output,
+        });
+        Ok(())
+    }
+
+    /// Runs the detection pass; with `collect`, grows the output until every pair fits.
+    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
+        let gpu = &self.gpu;
+        let built = self
+            .built
+            .as_mut()
+            .ok_or_else(|| Error::Usage("detection asked for before build".into()))?;
+        let Some(grid) = built.grid.as_ref() else {
+            return Ok((Vec::new(), DetectStats::default()));
+        };
+        let (x, y) = gpu.grid(built.n, PAIRS_GROUP);
+        let base = built.params;
+        let find_pairs = &self.find_pairs;
+        built.output.detect(gpu, collect, |output, capacity| {
+            let params = GridParams {
+                row: x * PAIRS_GROUP,
+                capacity,
+                ..base
+            };
+            gpu.checked("running the wgpu-compute grid search", || {
+                gpu.queue
+                    .write_buffer(&grid.pair_params, 0, bytemuck::bytes_of(&params));
+                let bind = gpu.bind(
+                    "mochi.grid.find_pairs",
+                    find_pairs,
+                    &[
+                        (0, &grid.pair_params),
+                        (1, &grid.spheres),
+                        (2, &grid.ids),
+                        (COUNTERS_BINDING, &output.counters),
+                        (PAIRS_BINDING, &output.pairs),
+                        (5, &grid.keys),
+                        (6, &grid.cell_start),
+                    ],
+                );
+                let mut encoder = gpu.device.create_command_encoder(&Default::default());
+                encoder.clear_buffer(&output.counters, 0, None);
+                gpu.dispatch(
+                    &mut encoder,
+                    "mochi.grid.find_pairs",
+                    find_pairs,
+                    &bind,
+                    (x, y),
+                );
+                gpu.queue.submit([encoder.finish()]);
+            })
+        })
+    }
+}
+
+impl Backend for WgpuComputeBackend {
+    fn info(&self) -> BackendInfo {
+        BackendInfo {
+            name: "wgpu-compute",
+            device: gpu::describe(&self.gpu.info),
+            max_spheres: self.max_spheres(),
+        }
+    }
+
+    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+        self.rebuild(spheres, mode)
+    }
+
+    fn update(&mut self, spheres: &SphereSet) -> Result<()> {
+        let built = self
+            .built
+            .as_ref()
+            .ok_or_else(|| Error::Usage("update asked for before build".into()))?;
+        if spheres.len() != built.n as usize {
+            return Err(Error::Usage(format!(
+                "update with {} spheres, built with {}",
+                spheres.len(),
+                built.n
+            )));
+        }
+        let mode = built.mode;
+        self.rebuild(spheres, mode)
+    }
+
+    fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
+        self.detect(true)
+    }
+
+    fn count_pairs(&mut self) -> Result<DetectStats> {
+        Ok(self.detect(false)?.1)
+    }
+
+    fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats> {
+        let (pairs, stats) = self.detect(true)?;
+        pairs.into_iter().for_each(visit);
+        Ok(stats)
+    }
+}
