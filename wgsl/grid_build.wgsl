@@ -35,24 +35,23 @@ fn reorder(@builtin(global_invocation_id) gid: vec3<u32>) {
     spheres[p] = spheres_in[order[p]];
 }
 
-// cell_start[c] = first sorted position whose key is >= c, for c in 0..=cells.
+// cell_start[c] = first sorted position whose key is >= c, for c in 0..=cells: one invocation
+// per cell, a binary search over the sorted keys (no serial fill of empty stretches).
 @compute @workgroup_size(256)
 fn cell_starts(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x + gid.y * params.row;
-    if p >= params.n {
+    let c = gid.x + gid.y * params.cell_row;
+    if c > params.cells {
         return;
     }
-    let k = keys[p];
-    var first = 0u;
-    if p > 0u {
-        first = keys[p - 1u] + 1u;
-    }
-    for (var c = first; c <= k; c += 1u) {
-        cell_start[c] = p;
-    }
-    if p == params.n - 1u {
-        for (var c = k + 1u; c <= params.cells; c += 1u) {
-            cell_start[c] = params.n;
+    var lo = 0u;
+    var hi = params.n;
+    while lo < hi {
+        let mid = (lo + hi) / 2u;
+        if keys[mid] < c {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
         }
     }
+    cell_start[c] = lo;
 }

@@ -37,6 +37,16 @@ pub struct DetectStats {
     pub pairs: u64,
 }
 
+/// Time the GPU itself spent in the last build and the last detection [ms], without uploads,
+/// submission and read-back; `None` where the backend or device has no GPU timestamps.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct GpuTimes {
+    /// The last build (or update).
+    pub build_ms: Option<f64>,
+    /// The last detection pass.
+    pub detect_ms: Option<f64>,
+}
+
 /// A collision-detection backend (see the module docs for the contract).
 ///
 /// Call [`build`](Backend::build) once for a sphere set, [`update`](Backend::update) after the
@@ -60,6 +70,11 @@ pub trait Backend: Send {
 
     /// Calls `visit` once for each colliding pair (possibly from several threads at once).
     fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats>;
+
+    /// GPU time of the last build and detection, where measured.
+    fn gpu_times(&self) -> GpuTimes {
+        GpuTimes::default()
+    }
 }
 
 /// The backends this build of mochi knows.

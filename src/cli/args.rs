@@ -41,6 +41,10 @@ pub struct DetectArgs {
     /// Write the pairs here (CSV i,j, sorted).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    /// Time build and detection this many more times after the first run and report the
+    /// median (the first run warms up shaders and buffers).
+    #[arg(long, default_value_t = 0)]
+    pub repeat: usize,
 }
 
 #[derive(Debug, Args)]

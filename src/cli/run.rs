@@ -58,21 +58,45 @@ fn detect(args: DetectArgs) -> Result<()> {
 
     let t = Instant::now();
     backend.build(&spheres, args.mode)?;
-    let build_ms = ms(t);
+    let mut build_ms = ms(t);
     let t = Instant::now();
     let (pairs, stats) = backend.find_pairs()?;
-    let detect_ms = ms(t);
+    let mut detect_ms = ms(t);
+    if args.repeat > 0 {
+        let mut builds = Vec::with_capacity(args.repeat);
+        let mut detects = Vec::with_capacity(args.repeat);
+        for _ in 0..args.repeat {
+            let t = Instant::now();
+            backend.build(&spheres, args.mode)?;
+            builds.push(ms(t));
+            let t = Instant::now();
+            backend.find_pairs()?;
+            detects.push(ms(t));
+        }
+        build_ms = median(&mut builds);
+        detect_ms = median(&mut detects);
+    }
 
+    let gpu = backend.gpu_times();
+    let gpu_note = match (gpu.build_ms, gpu.detect_ms) {
+        (Some(b), Some(d)) => format!(" | GPU time: build {b:.3} ms, detect {d:.3} ms"),
+        _ => String::new(),
+    };
     if let Some(path) = &args.output {
         io::write_pairs(path, pairs)?;
     }
     let per_sphere = stats.candidates as f64 / spheres.len().max(1) as f64;
     println!(
         "{source}: spheres {} | pairs {} | candidates {} ({per_sphere:.2} per sphere) | \
-         build {build_ms:.3} ms | detect {detect_ms:.3} ms | backend {} ({}) | mode {}",
+         build {build_ms:.3} ms | detect {detect_ms:.3} ms{}{gpu_note} | backend {} ({}) | mode {}",
         spheres.len(),
         stats.pairs,
         stats.candidates,
+        if args.repeat > 0 {
+            format!(" (median of {})", args.repeat)
+        } else {
+            String::new()
+        },
         info.name,
         info.device,
         args.mode.name(),
@@ -98,6 +122,11 @@ fn list_backends() {
             Err(why) => println!("{:<14} unavailable: {why}", kind.name()),
         }
     }
+}
+
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
 }
 
 fn ms(since: Instant) -> f64 {

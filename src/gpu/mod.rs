@@ -3,6 +3,7 @@
 
 pub mod pair_output;
 pub mod radix_sort;
+pub mod timer;
 
 use crate::error::{Error, Result};
 use std::sync::OnceLock;
@@ -28,6 +29,7 @@ impl Need {
 /// Optional features a backend uses when the adapter has them.
 const WANTED: wgpu::Features = wgpu::Features::SHADER_FLOAT32_ATOMIC
     .union(wgpu::Features::TIMESTAMP_QUERY)
+    .union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS)
     .union(wgpu::Features::SUBGROUP);
 
 /// An open device and what it offers.

@@ -8,10 +8,11 @@
 //! budget, cells grow (still exact, only more candidates). Detection (`wgsl/grid_pairs.wgsl`)
 //! visits each unordered pair of neighbour cells once, like the cpu backend.
 
-use super::{Backend, BackendInfo, DetectStats};
+use super::{Backend, BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
 use crate::gpu::radix_sort::RadixSort;
+use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
 use crate::spheres::{Pair, SphereSet};
@@ -29,6 +30,10 @@ const PAIRS_WGSL: &str = concat!(
 
 /// Every WGSL module of this backend, by label, exactly as the device gets it.
 pub const SHADERS: [(&str, &str); 2] = [("grid_build", BUILD_WGSL), ("grid_pairs", PAIRS_WGSL)];
+
+/// Timer spans of a build and of a detection pass.
+const BUILD_SPAN: Span = Span(0);
+const DETECT_SPAN: Span = Span(1);
 
 /// Workgroup sizes, as in the shaders.
 const BUILD_GROUP: u32 = 256;
@@ -57,7 +62,7 @@ struct GridParams {
     cells: u32,
     row: u32,
     capacity: u32,
-    _pad0: u32,
+    cell_row: u32,
 }
 const _: () = assert!(size_of::<GridParams>() == 48);
 
@@ -70,6 +75,8 @@ pub struct WgpuComputeBackend {
     cell_starts: wgpu::ComputePipeline,
     find_pairs: wgpu::ComputePipeline,
     built: Option<Built>,
+    timer: Option<GpuTimer>,
+    times: GpuTimes,
 }
 
 /// What one build leaves on the GPU.
@@ -127,6 +134,8 @@ impl WgpuComputeBackend {
             cell_starts: gpu.pipeline("mochi.grid.cell_starts", &build, "cell_starts"),
             find_pairs: gpu.pipeline("mochi.grid.find_pairs", &pairs, "find_pairs"),
             built: None,
+            timer: GpuTimer::new(&gpu, 2),
+            times: GpuTimes::default(),
             gpu,
         })
     }
@@ -191,9 +200,12 @@ impl WgpuComputeBackend {
         }
         let gpu = &self.gpu;
         let (x, y) = gpu.grid(n, BUILD_GROUP);
+        let layout = self.layout(spheres, mode);
+        let (cx, cy) = gpu.grid(layout.cells + 1, BUILD_GROUP);
         let params = GridParams {
             row: x * BUILD_GROUP,
-            ..self.layout(spheres, mode)
+            cell_row: cx * BUILD_GROUP,
+            ..layout
         };
         let (grid, output) = match self.built.take() {
             Some(Built {
@@ -216,6 +228,9 @@ impl WgpuComputeBackend {
             gpu.queue
                 .write_buffer(&grid.spheres_in, 0, bytemuck::cast_slice(&rows));
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            if let Some(t) = &self.timer {
+                t.start(&mut encoder, BUILD_SPAN);
+            }
             let g = &grid;
             let keys_bind = gpu.bind(
                 "mochi.grid.cell_keys",
@@ -263,11 +278,22 @@ impl WgpuComputeBackend {
                 "mochi.grid.cell_starts",
                 &self.cell_starts,
                 &starts_bind,
-                (x, y),
+                (cx, cy),
             );
+            if let Some(t) = &self.timer {
+                t.end(&mut encoder, BUILD_SPAN);
+            }
             gpu.queue.submit([encoder.finish()]);
         })?;
         gpu.wait()?;
+        self.times = GpuTimes {
+            build_ms: self
+                .timer
+                .as_ref()
+                .map(|t| t.read_ms(gpu, BUILD_SPAN))
+                .transpose()?,
+            detect_ms: None,
+        };
         self.built = Some(Built {
             n,
             mode,
@@ -291,7 +317,8 @@ impl WgpuComputeBackend {
         let (x, y) = gpu.grid(built.n, PAIRS_GROUP);
         let base = built.params;
         let find_pairs = &self.find_pairs;
-        built.output.detect(gpu, collect, |output, capacity| {
+        let timer = self.timer.as_ref();
+        let result = built.output.detect(gpu, collect, |output, capacity| {
             let params = GridParams {
                 row: x * PAIRS_GROUP,
                 capacity,
@@ -315,6 +342,9 @@ impl WgpuComputeBackend {
                 );
                 let mut encoder = gpu.device.create_command_encoder(&Default::default());
                 encoder.clear_buffer(&output.counters, 0, None);
+                if let Some(t) = timer {
+                    t.start(&mut encoder, DETECT_SPAN);
+                }
                 gpu.dispatch(
                     &mut encoder,
                     "mochi.grid.find_pairs",
@@ -322,9 +352,14 @@ impl WgpuComputeBackend {
                     &bind,
                     (x, y),
                 );
+                if let Some(t) = timer {
+                    t.end(&mut encoder, DETECT_SPAN);
+                }
                 gpu.queue.submit([encoder.finish()]);
             })
-        })
+        })?;
+        self.times.detect_ms = timer.map(|t| t.read_ms(gpu, DETECT_SPAN)).transpose()?;
+        Ok(result)
     }
 }
 
@@ -369,5 +404,9 @@ impl Backend for WgpuComputeBackend {
         let (pairs, stats) = self.detect(true)?;
         pairs.into_iter().for_each(visit);
         Ok(stats)
+    }
+
+    fn gpu_times(&self) -> GpuTimes {
+        self.times
     }
 }

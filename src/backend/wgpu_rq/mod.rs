@@ -10,10 +10,11 @@
 
 mod accel;
 
-use super::{Backend, BackendInfo, DetectStats};
+use super::{Backend, BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::PairOutput;
 use crate::gpu::radix_sort::RadixSort;
+use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
 use crate::spheres::{Pair, SphereSet};
@@ -31,6 +32,10 @@ const PAIRS_WGSL: &str = concat!(
 
 /// Every WGSL module of this backend, by label, exactly as the device gets it.
 pub const SHADERS: [(&str, &str); 2] = [("rq_build", BUILD_WGSL), ("rq_pairs", PAIRS_WGSL)];
+
+/// Timer spans of a build and of a detection pass.
+const BUILD_SPAN: Span = Span(0);
+const DETECT_SPAN: Span = Span(1);
 
 /// Workgroup sizes, as in the shaders.
 const BUILD_GROUP: u32 = 256;
@@ -88,6 +93,8 @@ pub struct WgpuRqBackend {
     /// Most primitives in one BLAS (the adapter's limit, or lower for tests).
     blas_capacity: u32,
     built: Option<Built>,
+    timer: Option<GpuTimer>,
+    times: GpuTimes,
 }
 
 /// What one build leaves on the GPU.
@@ -112,6 +119,8 @@ impl WgpuRqBackend {
             find_pairs: gpu.pipeline("mochi.rq.find_pairs", &pairs, "find_pairs"),
             blas_capacity: gpu.limits.max_blas_primitive_count,
             built: None,
+            timer: GpuTimer::new(&gpu, 2),
+            times: GpuTimes::default(),
             gpu,
         })
     }
@@ -185,6 +194,9 @@ impl WgpuRqBackend {
             gpu.queue
                 .write_buffer(&accel.spheres_in, 0, bytemuck::cast_slice(&rows));
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            if let Some(t) = &self.timer {
+                t.start(&mut encoder, BUILD_SPAN);
+            }
             let bind = gpu.bind(
                 "mochi.rq.morton_keys",
                 &self.morton_keys,
@@ -223,10 +235,21 @@ impl WgpuRqBackend {
                 (x, y),
             );
             accel.encode_build(&mut encoder);
+            if let Some(t) = &self.timer {
+                t.end(&mut encoder, BUILD_SPAN);
+            }
             gpu.queue.submit([encoder.finish()]);
         })?;
         // Finish here, so that a build's time is its own and its errors are reported by it.
         gpu.wait()?;
+        self.times = GpuTimes {
+            build_ms: self
+                .timer
+                .as_ref()
+                .map(|t| t.read_ms(gpu, BUILD_SPAN))
+                .transpose()?,
+            detect_ms: None,
+        };
         self.built = Some(Built {
             n,
             mode,
@@ -249,7 +272,8 @@ impl WgpuRqBackend {
         let (x, y) = gpu.grid(built.n, PAIRS_GROUP);
         let find_pairs = &self.find_pairs;
         let (n, mode) = (built.n, built.mode);
-        built.output.detect(gpu, collect, |output, capacity| {
+        let timer = self.timer.as_ref();
+        let result = built.output.detect(gpu, collect, |output, capacity| {
             let params = PairParams {
                 n,
                 capacity,
@@ -264,6 +288,9 @@ impl WgpuRqBackend {
                 let bind = accel.pairs_bind(gpu, find_pairs, output);
                 let mut encoder = gpu.device.create_command_encoder(&Default::default());
                 encoder.clear_buffer(&output.counters, 0, None);
+                if let Some(t) = timer {
+                    t.start(&mut encoder, DETECT_SPAN);
+                }
                 gpu.dispatch(
                     &mut encoder,
                     "mochi.rq.find_pairs",
@@ -271,9 +298,14 @@ impl WgpuRqBackend {
                     &bind,
                     (x, y),
                 );
+                if let Some(t) = timer {
+                    t.end(&mut encoder, DETECT_SPAN);
+                }
                 gpu.queue.submit([encoder.finish()]);
             })
-        })
+        })?;
+        self.times.detect_ms = timer.map(|t| t.read_ms(gpu, DETECT_SPAN)).transpose()?;
+        Ok(result)
     }
 }
 
@@ -318,5 +350,9 @@ impl Backend for WgpuRqBackend {
         let (pairs, stats) = self.detect(true)?;
         pairs.into_iter().for_each(visit);
         Ok(stats)
+    }
+
+    fn gpu_times(&self) -> GpuTimes {
+        self.times
     }
 }
