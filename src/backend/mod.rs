@@ -9,6 +9,7 @@
 //! find the same pairs and differ only in the work done.
 
 pub mod cpu;
+pub mod rebuilding;
 pub mod wgpu_compute;
 pub mod wgpu_rq;
 

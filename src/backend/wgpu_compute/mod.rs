@@ -8,7 +8,8 @@
 //! budget, cells grow (still exact, only more candidates). Detection (`wgsl/grid_pairs.wgsl`)
 //! visits each unordered pair of neighbour cells once, like the cpu backend.
 
-use super::{Backend, BackendInfo, DetectStats, GpuTimes};
+use super::rebuilding::RebuildingBackend;
+use super::{BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
 use crate::gpu::radix_sort::RadixSort;
@@ -363,7 +364,7 @@ impl WgpuComputeBackend {
     }
 }
 
-impl Backend for WgpuComputeBackend {
+impl RebuildingBackend for WgpuComputeBackend {
     fn info(&self) -> BackendInfo {
         BackendInfo {
             name: "wgpu-compute",
@@ -372,38 +373,16 @@ impl Backend for WgpuComputeBackend {
         }
     }
 
-    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+    fn rebuild(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
         self.rebuild(spheres, mode)
     }
 
-    fn update(&mut self, spheres: &SphereSet) -> Result<()> {
-        let built = self
-            .built
-            .as_ref()
-            .ok_or_else(|| Error::Usage("update asked for before build".into()))?;
-        if spheres.len() != built.n as usize {
-            return Err(Error::Usage(format!(
-                "update with {} spheres, built with {}",
-                spheres.len(),
-                built.n
-            )));
-        }
-        let mode = built.mode;
-        self.rebuild(spheres, mode)
+    fn built(&self) -> Option<(usize, ProxyMode)> {
+        self.built.as_ref().map(|b| (b.n as usize, b.mode))
     }
 
-    fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
-        self.detect(true)
-    }
-
-    fn count_pairs(&mut self) -> Result<DetectStats> {
-        Ok(self.detect(false)?.1)
-    }
-
-    fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats> {
-        let (pairs, stats) = self.detect(true)?;
-        pairs.into_iter().for_each(visit);
-        Ok(stats)
+    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
+        self.detect(collect)
     }
 
     fn gpu_times(&self) -> GpuTimes {

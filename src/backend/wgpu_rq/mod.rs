@@ -10,7 +10,8 @@
 
 mod accel;
 
-use super::{Backend, BackendInfo, DetectStats, GpuTimes};
+use super::rebuilding::RebuildingBackend;
+use super::{BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::PairOutput;
 use crate::gpu::radix_sort::RadixSort;
@@ -309,7 +310,7 @@ impl WgpuRqBackend {
     }
 }
 
-impl Backend for WgpuRqBackend {
+impl RebuildingBackend for WgpuRqBackend {
     fn info(&self) -> BackendInfo {
         BackendInfo {
             name: "wgpu-rq",
@@ -318,38 +319,16 @@ impl Backend for WgpuRqBackend {
         }
     }
 
-    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+    fn rebuild(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
         self.rebuild(spheres, mode)
     }
 
-    fn update(&mut self, spheres: &SphereSet) -> Result<()> {
-        let built = self
-            .built
-            .as_ref()
-            .ok_or_else(|| Error::Usage("update asked for before build".into()))?;
-        if spheres.len() != built.n as usize {
-            return Err(Error::Usage(format!(
-                "update with {} spheres, built with {}",
-                spheres.len(),
-                built.n
-            )));
-        }
-        let mode = built.mode;
-        self.rebuild(spheres, mode)
+    fn built(&self) -> Option<(usize, ProxyMode)> {
+        self.built.as_ref().map(|b| (b.n as usize, b.mode))
     }
 
-    fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
-        self.detect(true)
-    }
-
-    fn count_pairs(&mut self) -> Result<DetectStats> {
-        Ok(self.detect(false)?.1)
-    }
-
-    fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats> {
-        let (pairs, stats) = self.detect(true)?;
-        pairs.into_iter().for_each(visit);
-        Ok(stats)
+    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
+        self.detect(collect)
     }
 
     fn gpu_times(&self) -> GpuTimes {
