@@ -199,6 +199,12 @@ fn assert_rejected(dir: &Path, input: &Path, expect: Expect) -> String {
 }
 
 /// A CSV file in a fresh directory; returns (dir, path).
+/// Writes `content` to a CSV file and checks that `detect` rejects it as `expect` says.
+fn csv_rejected(content: &str, line: Option<u64>, problem: &[&str]) {
+    let (dir, path) = csv_case(content);
+    assert_rejected(dir.path(), &path, Expect { line, problem });
+}
+
 fn csv_case(content: &str) -> (TempDir, PathBuf) {
     let dir = TempDir::new().expect("tempdir");
     let path = dir.path().join("spheres.csv");
@@ -242,133 +248,73 @@ const SLAB_RANDOM: [&str; 8] = [
 
 #[test]
 fn csv_nan_coordinate_is_rejected_with_its_line() {
-    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\nNaN,0,0,1\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(3),
-            problem: &["x is NaN", "not a finite number"],
-        },
+    csv_rejected(
+        "x,y,z,r\n0,0,0,1\nNaN,0,0,1\n",
+        Some(3),
+        &["x is NaN", "not a finite number"],
     );
 }
 
 #[test]
 fn csv_inf_coordinate_is_rejected_with_its_line() {
-    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n1,2,3,1\n0,inf,0,1\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(4),
-            problem: &["y is inf", "not a finite number"],
-        },
+    csv_rejected(
+        "x,y,z,r\n0,0,0,1\n1,2,3,1\n0,inf,0,1\n",
+        Some(4),
+        &["y is inf", "not a finite number"],
     );
     // -inf too, and an overflowing literal that parses to inf.
-    let (dir, path) = csv_case("x,y,z,r\n0,0,-inf,1\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(2),
-            problem: &["z is -inf"],
-        },
-    );
-    let (dir, path) = csv_case("x,y,z,r\n1e39,0,0,1\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(2),
-            problem: &["not a finite number"],
-        },
-    );
+    csv_rejected("x,y,z,r\n0,0,-inf,1\n", Some(2), &["z is -inf"]);
+    csv_rejected("x,y,z,r\n1e39,0,0,1\n", Some(2), &["not a finite number"]);
 }
 
 #[test]
 fn csv_zero_radius_is_rejected_with_its_line() {
-    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n5,5,5,0\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(3),
-            problem: &["radius must be > 0"],
-        },
+    csv_rejected(
+        "x,y,z,r\n0,0,0,1\n5,5,5,0\n",
+        Some(3),
+        &["radius must be > 0"],
     );
 }
 
 #[test]
 fn csv_negative_radius_is_rejected_with_its_line() {
-    let (dir, path) = csv_case("x,y,z,r\n0,0,0,-0.5\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(2),
-            problem: &["radius must be > 0", "-0.5"],
-        },
+    csv_rejected(
+        "x,y,z,r\n0,0,0,-0.5\n",
+        Some(2),
+        &["radius must be > 0", "-0.5"],
     );
 }
 
 #[test]
 fn csv_nan_and_too_large_radius_are_rejected() {
-    let (dir, path) = csv_case("x,y,z,r\n0,0,0,nan\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(2),
-            problem: &["radius is NaN"],
-        },
-    );
-    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n0,0,0,1e19\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(3),
-            problem: &["exceeds"],
-        },
-    );
+    csv_rejected("x,y,z,r\n0,0,0,nan\n", Some(2), &["radius is NaN"]);
+    csv_rejected("x,y,z,r\n0,0,0,1\n0,0,0,1e19\n", Some(3), &["exceeds"]);
 }
 
 #[test]
 fn csv_three_columns_is_rejected_with_its_line() {
-    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n1,2,3\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(3),
-            problem: &["expected 4 columns", "found 3"],
-        },
+    csv_rejected(
+        "x,y,z,r\n0,0,0,1\n1,2,3\n",
+        Some(3),
+        &["expected 4 columns", "found 3"],
     );
 }
 
 #[test]
 fn csv_five_columns_is_rejected_with_its_line() {
-    let (dir, path) = csv_case("x,y,z,r\n1,2,3,4,5\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(2),
-            problem: &["expected 4 columns", "found 5"],
-        },
+    csv_rejected(
+        "x,y,z,r\n1,2,3,4,5\n",
+        Some(2),
+        &["expected 4 columns", "found 5"],
     );
 }
 
 #[test]
 fn csv_non_number_is_rejected_with_its_line_and_column() {
-    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n0,0,0,1\n1,abc,3,4\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(4),
-            problem: &["column y", "\"abc\"", "is not a number"],
-        },
+    csv_rejected(
+        "x,y,z,r\n0,0,0,1\n0,0,0,1\n1,abc,3,4\n",
+        Some(4),
+        &["column y", "\"abc\"", "is not a number"],
     );
 }
 
@@ -389,46 +335,22 @@ fn csv_invalid_utf8_is_rejected_with_its_line() {
 
 #[test]
 fn csv_empty_file_is_rejected() {
-    let (dir, path) = csv_case("");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: None,
-            problem: &["empty file", "x,y,z,r"],
-        },
-    );
+    csv_rejected("", None, &["empty file", "x,y,z,r"]);
 }
 
 #[test]
 fn csv_wrong_header_is_rejected_on_line_1() {
-    let (dir, path) = csv_case("a,b,c,d\n0,0,0,1\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(1),
-            problem: &["the header must be x,y,z,r", "a,b,c,d"],
-        },
+    csv_rejected(
+        "a,b,c,d\n0,0,0,1\n",
+        Some(1),
+        &["the header must be x,y,z,r", "a,b,c,d"],
     );
     // A header with 3 columns, and data where the header should be.
-    let (dir, path) = csv_case("x,y,z\n0,0,0\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(1),
-            problem: &["the header must be x,y,z,r"],
-        },
-    );
-    let (dir, path) = csv_case("0,0,0,1\n1,1,1,1\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(1),
-            problem: &["the header must be x,y,z,r"],
-        },
+    csv_rejected("x,y,z\n0,0,0\n", Some(1), &["the header must be x,y,z,r"]);
+    csv_rejected(
+        "0,0,0,1\n1,1,1,1\n",
+        Some(1),
+        &["the header must be x,y,z,r"],
     );
 }
 
@@ -698,42 +620,30 @@ fn npy_with_large_shape_but_no_data_is_rejected() {
 /// CSV errors must name the physical line, also with Windows line ends.
 #[test]
 fn csv_line_numbers_are_right_with_crlf() {
-    let (dir, path) = csv_case("x,y,z,r\r\n0,0,0,1\r\n0,0,0,nan\r\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(3),
-            problem: &["radius is NaN"],
-        },
+    csv_rejected(
+        "x,y,z,r\r\n0,0,0,1\r\n0,0,0,nan\r\n",
+        Some(3),
+        &["radius is NaN"],
     );
 }
 
 /// CSV errors must name the physical line, also right after a blank line.
 #[test]
 fn csv_line_numbers_are_right_after_blank_lines() {
-    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n\n0,0,0,nan\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(4),
-            problem: &["radius is NaN"],
-        },
+    csv_rejected(
+        "x,y,z,r\n0,0,0,1\n\n0,0,0,nan\n",
+        Some(4),
+        &["radius is NaN"],
     );
 }
 
 #[test]
 fn csv_quoted_fields_are_rejected_on_their_physical_line() {
     // Sphere files hold plain numbers: a quote is an error on the line where it stands.
-    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n\"1\",2,3,1\n");
-    assert_rejected(
-        dir.path(),
-        &path,
-        Expect {
-            line: Some(3),
-            problem: &["not a number"],
-        },
+    csv_rejected(
+        "x,y,z,r\n0,0,0,1\n\"1\",2,3,1\n",
+        Some(3),
+        &["not a number"],
     );
 }
 

@@ -249,6 +249,39 @@ impl Gpu {
         pass.dispatch_workgroups(x, y, 1);
     }
 
+    /// Records one compute pass of `pipeline` over the workgroups `groups`, with each buffer bound
+    /// at its binding number of group 0.
+    pub fn pass(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[(u32, &wgpu::Buffer)],
+        groups: (u32, u32),
+    ) {
+        let bind = self.bind(label, pipeline, buffers);
+        self.dispatch(encoder, label, pipeline, &bind, groups);
+    }
+
+    /// Records `record` into a new encoder, between the marks of `span` when there is a timer,
+    /// and submits it.
+    pub fn submit_timed(
+        &self,
+        timer: Option<&timer::GpuTimer>,
+        span: timer::Span,
+        record: impl FnOnce(&mut wgpu::CommandEncoder),
+    ) {
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        if let Some(t) = timer {
+            t.start(&mut encoder, span);
+        }
+        record(&mut encoder);
+        if let Some(t) = timer {
+            t.end(&mut encoder, span);
+        }
+        self.queue.submit([encoder.finish()]);
+    }
+
     /// Workgroups `(x, y)` for `n` invocations of `size` threads on this device (see [`workgroups`]).
     pub fn grid(&self, n: u32, size: u32) -> (u32, u32) {
         workgroups(n, size, self.limits.max_compute_workgroups_per_dimension)

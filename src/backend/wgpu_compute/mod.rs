@@ -176,6 +176,16 @@ impl WgpuComputeBackend {
             size *= 1.25;
         }
     }
+}
+
+impl RebuildingBackend for WgpuComputeBackend {
+    fn info(&self) -> BackendInfo {
+        BackendInfo {
+            name: "wgpu-compute",
+            device: gpu::describe(&self.gpu.info),
+            max_spheres: self.max_spheres(),
+        }
+    }
 
     fn rebuild(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
         let n = spheres.len();
@@ -228,63 +238,41 @@ impl WgpuComputeBackend {
                 .write_buffer(&grid.params, 0, bytemuck::bytes_of(&params));
             gpu.queue
                 .write_buffer(&grid.spheres_in, 0, bytemuck::cast_slice(&rows));
-            let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            if let Some(t) = &self.timer {
-                t.start(&mut encoder, BUILD_SPAN);
-            }
-            let g = &grid;
-            let keys_bind = gpu.bind(
-                "mochi.grid.cell_keys",
-                &self.cell_keys,
-                &[
-                    (0, &g.params),
-                    (1, &g.spheres_in),
-                    (2, &g.keys),
-                    (3, &g.ids),
-                ],
-            );
-            gpu.dispatch(
-                &mut encoder,
-                "mochi.grid.cell_keys",
-                &self.cell_keys,
-                &keys_bind,
-                (x, y),
-            );
-            self.sort
-                .encode(gpu, &mut encoder, &g.keys, &g.ids, n, key_bits);
-            let reorder_bind = gpu.bind(
-                "mochi.grid.reorder",
-                &self.reorder,
-                &[
-                    (0, &g.params),
-                    (1, &g.spheres_in),
-                    (3, &g.ids),
-                    (4, &g.spheres),
-                ],
-            );
-            gpu.dispatch(
-                &mut encoder,
-                "mochi.grid.reorder",
-                &self.reorder,
-                &reorder_bind,
-                (x, y),
-            );
-            let starts_bind = gpu.bind(
-                "mochi.grid.cell_starts",
-                &self.cell_starts,
-                &[(0, &g.params), (2, &g.keys), (5, &g.cell_start)],
-            );
-            gpu.dispatch(
-                &mut encoder,
-                "mochi.grid.cell_starts",
-                &self.cell_starts,
-                &starts_bind,
-                (cx, cy),
-            );
-            if let Some(t) = &self.timer {
-                t.end(&mut encoder, BUILD_SPAN);
-            }
-            gpu.queue.submit([encoder.finish()]);
+            gpu.submit_timed(self.timer.as_ref(), BUILD_SPAN, |encoder| {
+                let g = &grid;
+                gpu.pass(
+                    encoder,
+                    "mochi.grid.cell_keys",
+                    &self.cell_keys,
+                    &[
+                        (0, &g.params),
+                        (1, &g.spheres_in),
+                        (2, &g.keys),
+                        (3, &g.ids),
+                    ],
+                    (x, y),
+                );
+                self.sort.encode(gpu, encoder, &g.keys, &g.ids, n, key_bits);
+                gpu.pass(
+                    encoder,
+                    "mochi.grid.reorder",
+                    &self.reorder,
+                    &[
+                        (0, &g.params),
+                        (1, &g.spheres_in),
+                        (3, &g.ids),
+                        (4, &g.spheres),
+                    ],
+                    (x, y),
+                );
+                gpu.pass(
+                    encoder,
+                    "mochi.grid.cell_starts",
+                    &self.cell_starts,
+                    &[(0, &g.params), (2, &g.keys), (5, &g.cell_start)],
+                    (cx, cy),
+                );
+            });
         })?;
         gpu.wait()?;
         self.times = GpuTimes {
@@ -303,6 +291,10 @@ impl WgpuComputeBackend {
             output,
         });
         Ok(())
+    }
+
+    fn built(&self) -> Option<(usize, ProxyMode)> {
+        self.built.as_ref().map(|b| (b.n as usize, b.mode))
     }
 
     /// Runs the detection pass; with `collect`, grows the output until every pair fits.
@@ -341,48 +333,14 @@ impl WgpuComputeBackend {
                         (6, &grid.cell_start),
                     ],
                 );
-                let mut encoder = gpu.device.create_command_encoder(&Default::default());
-                encoder.clear_buffer(&output.counters, 0, None);
-                if let Some(t) = timer {
-                    t.start(&mut encoder, DETECT_SPAN);
-                }
-                gpu.dispatch(
-                    &mut encoder,
-                    "mochi.grid.find_pairs",
-                    find_pairs,
-                    &bind,
-                    (x, y),
-                );
-                if let Some(t) = timer {
-                    t.end(&mut encoder, DETECT_SPAN);
-                }
-                gpu.queue.submit([encoder.finish()]);
+                gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
+                    encoder.clear_buffer(&output.counters, 0, None);
+                    gpu.dispatch(encoder, "mochi.grid.find_pairs", find_pairs, &bind, (x, y));
+                });
             })
         })?;
         self.times.detect_ms = timer.map(|t| t.read_ms(gpu, DETECT_SPAN)).transpose()?;
         Ok(result)
-    }
-}
-
-impl RebuildingBackend for WgpuComputeBackend {
-    fn info(&self) -> BackendInfo {
-        BackendInfo {
-            name: "wgpu-compute",
-            device: gpu::describe(&self.gpu.info),
-            max_spheres: self.max_spheres(),
-        }
-    }
-
-    fn rebuild(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
-        self.rebuild(spheres, mode)
-    }
-
-    fn built(&self) -> Option<(usize, ProxyMode)> {
-        self.built.as_ref().map(|b| (b.n as usize, b.mode))
-    }
-
-    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
-        self.detect(collect)
     }
 
     fn gpu_times(&self) -> GpuTimes {

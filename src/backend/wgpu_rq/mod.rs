@@ -140,6 +140,16 @@ impl WgpuRqBackend {
         let by_accel = self.blas_capacity as u64 * l.max_tlas_instance_count as u64;
         by_binding.min(by_buffer).min(by_accel).min(u32::MAX as u64)
     }
+}
+
+impl RebuildingBackend for WgpuRqBackend {
+    fn info(&self) -> BackendInfo {
+        BackendInfo {
+            name: "wgpu-rq",
+            device: gpu::describe(&self.gpu.info),
+            max_spheres: self.max_spheres(),
+        }
+    }
 
     fn rebuild(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
         let n = spheres.len();
@@ -194,52 +204,36 @@ impl WgpuRqBackend {
                 .write_buffer(&accel.build_params, 0, bytemuck::bytes_of(&params));
             gpu.queue
                 .write_buffer(&accel.spheres_in, 0, bytemuck::cast_slice(&rows));
-            let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            if let Some(t) = &self.timer {
-                t.start(&mut encoder, BUILD_SPAN);
-            }
-            let bind = gpu.bind(
-                "mochi.rq.morton_keys",
-                &self.morton_keys,
-                &[
-                    (0, &accel.build_params),
-                    (1, &accel.spheres_in),
-                    (2, &accel.keys),
-                    (3, &accel.ids),
-                ],
-            );
-            gpu.dispatch(
-                &mut encoder,
-                "mochi.rq.morton_keys",
-                &self.morton_keys,
-                &bind,
-                (x, y),
-            );
-            self.sort
-                .encode(gpu, &mut encoder, &accel.keys, &accel.ids, n, MORTON_BITS);
-            let bind = gpu.bind(
-                "mochi.rq.proxy_boxes",
-                &self.proxy_boxes,
-                &[
-                    (0, &accel.build_params),
-                    (1, &accel.spheres_in),
-                    (3, &accel.ids),
-                    (4, &accel.spheres),
-                    (5, &accel.boxes),
-                ],
-            );
-            gpu.dispatch(
-                &mut encoder,
-                "mochi.rq.proxy_boxes",
-                &self.proxy_boxes,
-                &bind,
-                (x, y),
-            );
-            accel.encode_build(&mut encoder);
-            if let Some(t) = &self.timer {
-                t.end(&mut encoder, BUILD_SPAN);
-            }
-            gpu.queue.submit([encoder.finish()]);
+            gpu.submit_timed(self.timer.as_ref(), BUILD_SPAN, |encoder| {
+                gpu.pass(
+                    encoder,
+                    "mochi.rq.morton_keys",
+                    &self.morton_keys,
+                    &[
+                        (0, &accel.build_params),
+                        (1, &accel.spheres_in),
+                        (2, &accel.keys),
+                        (3, &accel.ids),
+                    ],
+                    (x, y),
+                );
+                self.sort
+                    .encode(gpu, encoder, &accel.keys, &accel.ids, n, MORTON_BITS);
+                gpu.pass(
+                    encoder,
+                    "mochi.rq.proxy_boxes",
+                    &self.proxy_boxes,
+                    &[
+                        (0, &accel.build_params),
+                        (1, &accel.spheres_in),
+                        (3, &accel.ids),
+                        (4, &accel.spheres),
+                        (5, &accel.boxes),
+                    ],
+                    (x, y),
+                );
+                accel.encode_build(encoder);
+            });
         })?;
         // Finish here, so that a build's time is its own and its errors are reported by it.
         gpu.wait()?;
@@ -258,6 +252,10 @@ impl WgpuRqBackend {
             output,
         });
         Ok(())
+    }
+
+    fn built(&self) -> Option<(usize, ProxyMode)> {
+        self.built.as_ref().map(|b| (b.n as usize, b.mode))
     }
 
     /// Runs the detection pass; with `collect`, grows the output until every pair fits.
@@ -287,48 +285,14 @@ impl WgpuRqBackend {
                 gpu.queue
                     .write_buffer(&accel.pair_params, 0, bytemuck::bytes_of(&params));
                 let bind = accel.pairs_bind(gpu, find_pairs, output);
-                let mut encoder = gpu.device.create_command_encoder(&Default::default());
-                encoder.clear_buffer(&output.counters, 0, None);
-                if let Some(t) = timer {
-                    t.start(&mut encoder, DETECT_SPAN);
-                }
-                gpu.dispatch(
-                    &mut encoder,
-                    "mochi.rq.find_pairs",
-                    find_pairs,
-                    &bind,
-                    (x, y),
-                );
-                if let Some(t) = timer {
-                    t.end(&mut encoder, DETECT_SPAN);
-                }
-                gpu.queue.submit([encoder.finish()]);
+                gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
+                    encoder.clear_buffer(&output.counters, 0, None);
+                    gpu.dispatch(encoder, "mochi.rq.find_pairs", find_pairs, &bind, (x, y));
+                });
             })
         })?;
         self.times.detect_ms = timer.map(|t| t.read_ms(gpu, DETECT_SPAN)).transpose()?;
         Ok(result)
-    }
-}
-
-impl RebuildingBackend for WgpuRqBackend {
-    fn info(&self) -> BackendInfo {
-        BackendInfo {
-            name: "wgpu-rq",
-            device: gpu::describe(&self.gpu.info),
-            max_spheres: self.max_spheres(),
-        }
-    }
-
-    fn rebuild(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
-        self.rebuild(spheres, mode)
-    }
-
-    fn built(&self) -> Option<(usize, ProxyMode)> {
-        self.built.as_ref().map(|b| (b.n as usize, b.mode))
-    }
-
-    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
-        self.detect(collect)
     }
 
     fn gpu_times(&self) -> GpuTimes {
