@@ -7,6 +7,7 @@ fn all_shaders() -> Vec<(&'static str, &'static str)> {
     let mut all = mochi::backend::wgpu_rq::SHADERS.to_vec();
     all.extend(mochi::backend::wgpu_compute::SHADERS);
     all.extend(mochi::gpu::radix_sort::SHADERS);
+    all.extend(mochi::gpu::scan::SHADERS);
     all
 }
 

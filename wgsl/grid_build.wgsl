@@ -1,13 +1,14 @@
-// Build stage of the wgpu-compute backend: each sphere's cell key, then (after the radix sort)
-// the spheres reordered by cell and the table of where each cell starts.
-// Keys are linear, x + nx·(y + ny·z), over a grid with one empty cell of margin on every side.
+// Build stage of the wgpu-compute backend: a counting sort of the spheres by cell.
+// count_cells gives every sphere its cell key and its rank among the spheres of that cell; the
+// host then scans the counts into cell_start (exclusive prefix sum over cells + 1 entries); and
+// scatter writes every sphere to cell_start[key] + rank. Keys are linear, x + nx·(y + ny·z),
+// over a grid with one empty cell of margin on every side. Needs grid_params.wgsl prepended.
 
 @group(0) @binding(0) var<uniform> params: GridParams;
 @group(0) @binding(1) var<storage, read> spheres_in: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read_write> keys: array<u32>;
-@group(0) @binding(3) var<storage, read_write> order: array<u32>;
-@group(0) @binding(4) var<storage, read_write> spheres: array<vec4<f32>>;
-@group(0) @binding(5) var<storage, read_write> cell_start: array<u32>;
+@group(0) @binding(2) var<storage, read_write> keys_in: array<u32>;
+@group(0) @binding(3) var<storage, read_write> ranks: array<u32>;
+@group(0) @binding(4) var<storage, read_write> counts: array<atomic<u32>>;
 
 fn cell_key(c: vec3<f32>) -> u32 {
     let u = max((c - params.lo) * params.inv_cell, vec3(0.0));
@@ -17,41 +18,31 @@ fn cell_key(c: vec3<f32>) -> u32 {
 }
 
 @compute @workgroup_size(256)
-fn cell_keys(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn count_cells(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x + gid.y * params.row;
     if i >= params.n {
         return;
     }
-    keys[i] = cell_key(spheres_in[i].xyz);
-    order[i] = i;
+    let key = cell_key(spheres_in[i].xyz);
+    keys_in[i] = key;
+    ranks[i] = atomicAdd(&counts[key], 1u);
 }
 
-@compute @workgroup_size(256)
-fn reorder(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x + gid.y * params.row;
-    if p >= params.n {
-        return;
-    }
-    spheres[p] = spheres_in[order[p]];
-}
+// Second entry point: reads bindings 1–3 and the scanned counts, writes the sorted arrays.
+@group(0) @binding(5) var<storage, read> cell_start: array<u32>;
+@group(0) @binding(6) var<storage, read_write> keys: array<u32>;
+@group(0) @binding(7) var<storage, read_write> ids: array<u32>;
+@group(0) @binding(8) var<storage, read_write> spheres: array<vec4<f32>>;
 
-// cell_start[c] = first sorted position whose key is >= c, for c in 0..=cells: one invocation
-// per cell, a binary search over the sorted keys (no serial fill of empty stretches).
 @compute @workgroup_size(256)
-fn cell_starts(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let c = gid.x + gid.y * params.cell_row;
-    if c > params.cells {
+fn scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x + gid.y * params.row;
+    if i >= params.n {
         return;
     }
-    var lo = 0u;
-    var hi = params.n;
-    while lo < hi {
-        let mid = (lo + hi) / 2u;
-        if keys[mid] < c {
-            lo = mid + 1u;
-        } else {
-            hi = mid;
-        }
-    }
-    cell_start[c] = lo;
+    let key = keys_in[i];
+    let p = cell_start[key] + ranks[i];
+    keys[p] = key;
+    ids[p] = i;
+    spheres[p] = spheres_in[i];
 }

@@ -10,5 +10,5 @@ struct GridParams {
     cells: u32,         // nx·ny·nz
     row: u32,           // invocations per dispatch row (2-D dispatch)
     capacity: u32,      // room in the pair buffer (detection only)
-    cell_row: u32,      // invocations per dispatch row of the per-cell kernel
+    _pad0: u32,
 }

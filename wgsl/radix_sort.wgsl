@@ -3,13 +3,13 @@
 //
 // A pass over the digit at bit `shift` runs:
 //   1. `histogram`: block b (BLOCK pairs) counts its digits into hist[d * blocks + b];
-//   2. `scan_blocks` / `scan_add`: an exclusive scan of hist in that (digit-major) order, in
-//      several levels of SCAN_BLOCK entries;
+//   2. an exclusive scan of hist in that (digit-major) order, by the scan of wgsl/scan.wgsl
+//      (src/gpu/scan.rs), recorded between the two kernels;
 //   3. `scatter`: block b ranks its pairs per digit (stable) and writes each to
 //      hist[d * blocks + b] + its rank among the block's pairs of digit d.
 // No subgroup operations: ranks come from per-thread counts and workgroup-memory prefix sums.
 
-// Parameters of one dispatch; 32 bytes, one slot per dispatch (dynamic uniform offset).
+// Parameters of one pass; 16 bytes, one slot per pass (dynamic uniform offset).
 // Keep in sync with `Params` in src/gpu/radix_sort.rs.
 struct Params {
     // Number of pairs to sort.
@@ -18,15 +18,8 @@ struct Params {
     shift: u32,
     // Mask of the key bits that take part in the sort (low `key_bits` bits).
     key_mask: u32,
-    // Workgroups doing work in this dispatch (sort blocks, or scan blocks).
+    // Sort blocks (workgroups doing work).
     blocks: u32,
-    // scan_blocks / scan_add: entries of the level being scanned.
-    len: u32,
-    // scan_blocks / scan_add: offset (in u32) of that level in `hist`.
-    src: u32,
-    // scan_blocks / scan_add: offset (in u32) of the next level (its block totals) in `hist`.
-    dst: u32,
-    _pad0: u32,
 }
 
 // Keep in sync with src/gpu/radix_sort.rs.
@@ -36,9 +29,6 @@ const WG: u32 = 128u;            // threads per workgroup of `histogram` and `sc
 const ITEMS: u32 = 16u;          // consecutive pairs per thread
 const BLOCK: u32 = 2048u;        // WG * ITEMS: pairs per sort block
 const CHUNKS: u32 = 8u;          // WG / RADIX: counter chunks of RADIX entries per digit row
-const SCAN_WG: u32 = 256u;       // threads per workgroup of `scan_blocks` and `scan_add`
-const SCAN_ITEMS: u32 = 4u;      // entries per thread
-const SCAN_BLOCK: u32 = 1024u;   // SCAN_WG * SCAN_ITEMS
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> keys_in: array<u32>;
@@ -55,8 +45,6 @@ var<workgroup> counts: array<u32, RADIX * WG + WG>;
 var<workgroup> partial: array<u32, WG>;
 // Per digit: global start of the block's run of that digit minus its start inside the block.
 var<workgroup> delta: array<u32, RADIX>;
-// One value per thread of the scan kernels.
-var<workgroup> scan_tmp: array<u32, SCAN_WG>;
 
 // Index in `counts` of the logical entry (digit d, thread t).
 fn slot(d: u32, t: u32) -> u32 {
@@ -138,72 +126,6 @@ fn histogram(
             total += partial[t * CHUNKS + c];
         }
         hist[t * params.blocks + block] = total;
-    }
-}
-
-// Step 2a: exclusive scan of hist[src .. src + len) within blocks of SCAN_BLOCK entries, in place;
-// each block's total goes to hist[dst + block].
-@compute @workgroup_size(256)
-fn scan_blocks(
-    @builtin(local_invocation_index) t: u32,
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-) {
-    let block = flat_group(wid, nwg);
-    if (block >= params.blocks) {
-        return;
-    }
-    let first = block * SCAN_BLOCK + t * SCAN_ITEMS;
-    var v: array<u32, 4>; // SCAN_ITEMS
-    var sum = 0u;
-    for (var i = 0u; i < SCAN_ITEMS; i++) {
-        var x = 0u;
-        if (first + i < params.len) {
-            x = hist[params.src + first + i];
-        }
-        v[i] = sum;
-        sum += x;
-    }
-    scan_tmp[t] = sum;
-    workgroupBarrier();
-    for (var off = 1u; off < SCAN_WG; off <<= 1u) {
-        var add = 0u;
-        if (t >= off) {
-            add = scan_tmp[t - off];
-        }
-        workgroupBarrier();
-        scan_tmp[t] += add;
-        workgroupBarrier();
-    }
-    let before = scan_tmp[t] - sum;
-    for (var i = 0u; i < SCAN_ITEMS; i++) {
-        if (first + i < params.len) {
-            hist[params.src + first + i] = before + v[i];
-        }
-    }
-    if (t == SCAN_WG - 1u) {
-        hist[params.dst + block] = scan_tmp[t];
-    }
-}
-
-// Step 2b: adds to each entry of hist[src .. src + len) the scanned total of the blocks before
-// its own (hist[dst + its block], already an exclusive scan).
-@compute @workgroup_size(256)
-fn scan_add(
-    @builtin(local_invocation_index) t: u32,
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-) {
-    let block = flat_group(wid, nwg);
-    if (block >= params.blocks) {
-        return;
-    }
-    let carry = hist[params.dst + block];
-    for (var i = 0u; i < SCAN_ITEMS; i++) {
-        let k = block * SCAN_BLOCK + i * SCAN_WG + t;
-        if (k < params.len) {
-            hist[params.src + k] += carry;
-        }
     }
 }
 

@@ -3,6 +3,7 @@
 
 pub mod pair_output;
 pub mod radix_sort;
+pub mod scan;
 pub mod timer;
 
 use crate::error::{Error, Result};

@@ -5,8 +5,8 @@
 //!
 //! 1. `histogram`: every sort block of [`BLOCK`] pairs (one workgroup of 128 threads, 16
 //!    consecutive pairs per thread) counts its digits;
-//! 2. `scan_blocks` / `scan_add`: an exclusive scan of those counts in (digit, block) order, in as
-//!    many levels of [`SCAN_BLOCK`] entries as needed (two levels up to 2^27 pairs);
+//! 2. an exclusive scan of those counts in (digit, block) order, by [`ExclusiveScan`] (prepared
+//!    once per sort and recorded into the same compute pass);
 //! 3. `scatter`: every block ranks its pairs per digit with per-thread counters and a
 //!    workgroup-memory prefix sum (stable, no subgroup operations) and writes them to their place.
 //!
@@ -14,6 +14,7 @@
 //! passes the result is copied back, so it always ends in the caller's buffers.
 //! The shader is `wgsl/radix_sort.wgsl`; its constants and `Params` mirror the ones here.
 
+use super::scan::ExclusiveScan;
 use super::{Gpu, workgroups};
 use std::num::NonZeroU64;
 
@@ -27,10 +28,9 @@ pub const SHADERS: [(&str, &str); 1] = [("radix_sort", SOURCE)];
 const RADIX_BITS: u32 = 4;
 /// Pairs per sort block, one workgroup each (keep in sync with `BLOCK` in the shader).
 pub const BLOCK: u32 = 2048;
-/// Entries per workgroup of the scan kernels (keep in sync with `SCAN_BLOCK` in the shader).
-pub const SCAN_BLOCK: u32 = 1024;
 
-/// Parameters of one dispatch. WGSL twin: `Params` in `wgsl/radix_sort.wgsl`.
+/// Parameters of one pass (its histogram and scatter). WGSL twin: `Params` in
+/// `wgsl/radix_sort.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct Params {
@@ -40,64 +40,19 @@ struct Params {
     shift: u32,
     /// Mask of the key bits that take part in the sort.
     key_mask: u32,
-    /// Workgroups doing work in this dispatch (sort blocks, or scan blocks).
+    /// Sort blocks (workgroups doing work).
     blocks: u32,
-    /// Scan kernels: entries of the level being scanned.
-    len: u32,
-    /// Scan kernels: offset of that level in the histogram buffer [u32].
-    src: u32,
-    /// Scan kernels: offset of the next level (block totals) in the histogram buffer [u32].
-    dst: u32,
-    _pad0: u32,
 }
-const _: () = assert!(size_of::<Params>() == 32);
+const _: () = assert!(size_of::<Params>() == 16);
 
 /// Size of [`Params`] [bytes].
 const PARAMS_SIZE: u64 = size_of::<Params>() as u64;
 
-/// One level of the multi-level scan: `len` entries at `offset` (in u32) in the histogram buffer.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct Level {
-    offset: u32,
-    len: u32,
-}
-
-/// The levels of the scan over `len0` digit counts: level 0 holds the counts, level k + 1 the
-/// totals of level k's blocks of [`SCAN_BLOCK`]; the last level has a single entry. Returns the
-/// levels and the total number of u32 they take.
-fn scan_levels(len0: u32) -> (Vec<Level>, u32) {
-    let mut levels = vec![Level {
-        offset: 0,
-        len: len0,
-    }];
-    let mut end = len0;
-    loop {
-        let len = levels[levels.len() - 1].len.div_ceil(SCAN_BLOCK);
-        levels.push(Level { offset: end, len });
-        end += len;
-        if len <= 1 {
-            return (levels, end);
-        }
-    }
-}
-
-/// The four kernels of a pass.
+/// The two sort kernels of a pass.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kernel {
     Histogram,
-    ScanBlocks,
-    ScanAdd,
     Scatter,
-}
-
-/// One recorded dispatch: which kernel, its parameters, its workgroup counts, and whether it
-/// reads the caller's buffers (`true`) or the scratch buffers.
-#[derive(Debug, Clone, Copy)]
-struct Dispatch {
-    kernel: Kernel,
-    params: Params,
-    groups: (u32, u32),
-    from_caller: bool,
 }
 
 /// Scratch space, grown on demand.
@@ -108,7 +63,7 @@ struct Scratch {
     values: wgpu::Buffer,
     /// Capacity of `keys` and `values` [pairs].
     pairs: u32,
-    /// Digit counts and all scan levels.
+    /// Digit counts, scanned in place.
     hist: wgpu::Buffer,
     /// Capacity of `hist` [u32].
     hist_len: u32,
@@ -117,13 +72,13 @@ struct Scratch {
 /// A reusable GPU radix sorter of (u32 key, u32 value) pairs: pipelines plus scratch buffers.
 ///
 /// Sorting `n` pairs uses `8 n` bytes of scratch for keys and values and about `n / 128` u32
-/// for digit counts; the scratch grows to the largest `n` seen and is kept.
+/// for digit counts (plus the scan's block sums); the scratch grows to the largest `n` seen and
+/// is kept.
 pub struct RadixSort {
     layout: wgpu::BindGroupLayout,
     histogram: wgpu::ComputePipeline,
-    scan_blocks: wgpu::ComputePipeline,
-    scan_add: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
+    scan: ExclusiveScan,
     scratch: Option<Scratch>,
 }
 
@@ -142,9 +97,8 @@ impl RadixSort {
         let make = |label, entry| pipeline(gpu, &pipeline_layout, &module, label, entry);
         RadixSort {
             histogram: make("mochi.sort.histogram", "histogram"),
-            scan_blocks: make("mochi.sort.scan_blocks", "scan_blocks"),
-            scan_add: make("mochi.sort.scan_add", "scan_add"),
             scatter: make("mochi.sort.scatter", "scatter"),
+            scan: ExclusiveScan::new(gpu),
             layout,
             scratch: None,
         }
@@ -186,16 +140,17 @@ impl RadixSort {
         if n == 0 || key_bits == 0 {
             return;
         }
-        let blocks = n.div_ceil(BLOCK);
-        let (levels, hist_len) = scan_levels(blocks * (1 << RADIX_BITS));
+        let hist_len = n.div_ceil(BLOCK) * (1 << RADIX_BITS);
         self.reserve(gpu, n, hist_len);
         let Some(scratch) = &self.scratch else {
             unreachable!("reserve() always leaves scratch allocated");
         };
+        // Every pass scans the same counts, so one prepared scan serves them all.
+        let scan = self.scan.prepare(gpu, &scratch.hist, 0, hist_len);
 
-        let dispatches = plan(gpu, n, key_bits, &levels);
+        let passes = plan(n, key_bits);
         let stride = param_stride(gpu);
-        let params = params_buffer(gpu, &dispatches, stride);
+        let params = params_buffer(gpu, &passes, stride);
         let from_caller = self.bind(
             gpu,
             "mochi.sort.bind.caller_to_scratch",
@@ -218,22 +173,28 @@ impl RadixSort {
                 label: Some("mochi.sort.pass"),
                 timestamp_writes: None,
             });
-            for (k, d) in dispatches.iter().enumerate() {
+            let groups = workgroups(n, BLOCK, gpu.limits.max_compute_workgroups_per_dimension);
+            for k in 0..passes.len() {
                 let offset = u32::try_from(k as u64 * stride)
                     .expect("the params buffer of one sort is far below 4 GiB");
-                let bind = if d.from_caller {
+                // Even passes read the caller's buffers, odd ones the scratch.
+                let bind = if k % 2 == 0 {
                     &from_caller
                 } else {
                     &from_scratch
                 };
-                pass.set_pipeline(self.pipeline(d.kernel));
-                pass.set_bind_group(0, bind, &[offset]);
-                pass.dispatch_workgroups(d.groups.0, d.groups.1, 1);
+                let sort = |pass: &mut wgpu::ComputePass<'_>, kernel| {
+                    pass.set_pipeline(self.pipeline(kernel));
+                    pass.set_bind_group(0, bind, &[offset]);
+                    pass.dispatch_workgroups(groups.0, groups.1, 1);
+                };
+                sort(&mut pass, Kernel::Histogram);
+                scan.record(&mut pass);
+                sort(&mut pass, Kernel::Scatter);
             }
         }
 
-        let passes = key_bits.div_ceil(RADIX_BITS);
-        if passes % 2 == 1 {
+        if passes.len() % 2 == 1 {
             encoder.copy_buffer_to_buffer(&scratch.keys, 0, keys, 0, bytes);
             encoder.copy_buffer_to_buffer(&scratch.values, 0, values, 0, bytes);
         }
@@ -243,8 +204,6 @@ impl RadixSort {
     fn pipeline(&self, kernel: Kernel) -> &wgpu::ComputePipeline {
         match kernel {
             Kernel::Histogram => &self.histogram,
-            Kernel::ScanBlocks => &self.scan_blocks,
-            Kernel::ScanAdd => &self.scan_add,
             Kernel::Scatter => &self.scatter,
         }
     }
@@ -311,7 +270,7 @@ impl RadixSort {
     }
 }
 
-/// The bind-group layout all four kernels share; the shader's `@group(0)` bindings.
+/// The bind-group layout both kernels share; the shader's `@group(0)` bindings.
 fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
         binding,
@@ -377,9 +336,9 @@ fn param_stride(gpu: &Gpu) -> u64 {
     PARAMS_SIZE.next_multiple_of(align)
 }
 
-/// A uniform buffer of this call holding each dispatch's parameters at `k * stride`.
-fn params_buffer(gpu: &Gpu, dispatches: &[Dispatch], stride: u64) -> wgpu::Buffer {
-    let size = stride * dispatches.len() as u64;
+/// A uniform buffer of this call holding each pass's parameters at `k * stride`.
+fn params_buffer(gpu: &Gpu, passes: &[Params], stride: u64) -> wgpu::Buffer {
+    let size = stride * passes.len() as u64;
     let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("mochi.sort.params"),
         size,
@@ -387,63 +346,30 @@ fn params_buffer(gpu: &Gpu, dispatches: &[Dispatch], stride: u64) -> wgpu::Buffe
         mapped_at_creation: false,
     });
     let mut bytes = vec![0u8; size as usize];
-    for (k, d) in dispatches.iter().enumerate() {
+    for (k, p) in passes.iter().enumerate() {
         let at = k * stride as usize;
-        bytes[at..at + PARAMS_SIZE as usize].copy_from_slice(bytemuck::bytes_of(&d.params));
+        bytes[at..at + PARAMS_SIZE as usize].copy_from_slice(bytemuck::bytes_of(p));
     }
     gpu.queue.write_buffer(&buffer, 0, &bytes);
     buffer
 }
 
-/// Every dispatch of a sort of `n` pairs by `key_bits` bits, in order: per pass a histogram,
-/// the scan levels up then down, and the scatter.
-fn plan(gpu: &Gpu, n: u32, key_bits: u32, levels: &[Level]) -> Vec<Dispatch> {
-    let max = gpu.limits.max_compute_workgroups_per_dimension;
+/// The parameters of each pass of a sort of `n` pairs by `key_bits` (1..=32) bits, in order;
+/// the histogram and the scatter of a pass share them.
+fn plan(n: u32, key_bits: u32) -> Vec<Params> {
     let key_mask = if key_bits >= 32 {
         u32::MAX
     } else {
         (1u32 << key_bits) - 1
     };
-    let sort_groups = workgroups(n, BLOCK, max);
-    let mut out = Vec::new();
-    for pass in 0..key_bits.div_ceil(RADIX_BITS) {
-        let from_caller = pass % 2 == 0;
-        let base = Params {
+    (0..key_bits.div_ceil(RADIX_BITS))
+        .map(|pass| Params {
             n,
             shift: pass * RADIX_BITS,
             key_mask,
             blocks: n.div_ceil(BLOCK),
-            ..Params::default()
-        };
-        let sort = |kernel| Dispatch {
-            kernel,
-            params: base,
-            groups: sort_groups,
-            from_caller,
-        };
-        let scan = |kernel, level: Level, next: Level| Dispatch {
-            kernel,
-            params: Params {
-                blocks: level.len.div_ceil(SCAN_BLOCK),
-                len: level.len,
-                src: level.offset,
-                dst: next.offset,
-                ..base
-            },
-            groups: workgroups(level.len, SCAN_BLOCK, max),
-            from_caller,
-        };
-        out.push(sort(Kernel::Histogram));
-        for w in levels.windows(2) {
-            out.push(scan(Kernel::ScanBlocks, w[0], w[1]));
-        }
-        // The last scanned level is a single block: nothing to add to it.
-        for w in levels.windows(2).rev().skip(1) {
-            out.push(scan(Kernel::ScanAdd, w[0], w[1]));
-        }
-        out.push(sort(Kernel::Scatter));
-    }
-    out
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -451,19 +377,16 @@ mod tests {
     use super::*;
 
     #[test]
-    fn scan_levels_end_in_one_entry() {
-        let (levels, total) = scan_levels(16);
-        assert_eq!(
-            levels,
-            vec![Level { offset: 0, len: 16 }, Level { offset: 16, len: 1 }]
+    fn one_pass_per_digit() {
+        let passes = plan(5000, 30);
+        let shifts: Vec<u32> = passes.iter().map(|p| p.shift).collect();
+        assert_eq!(shifts, vec![0, 4, 8, 12, 16, 20, 24, 28]);
+        assert!(
+            passes
+                .iter()
+                .all(|p| p.n == 5000 && p.blocks == 3 && p.key_mask == (1 << 30) - 1)
         );
-        assert_eq!(total, 17);
-        let (levels, total) = scan_levels(16 * 8192);
-        let lens: Vec<u32> = levels.iter().map(|l| l.len).collect();
-        assert_eq!(lens, vec![131072, 128, 1]);
-        assert_eq!(total, 131072 + 128 + 1);
-        let (levels, _) = scan_levels(SCAN_BLOCK + 1);
-        let lens: Vec<u32> = levels.iter().map(|l| l.len).collect();
-        assert_eq!(lens, vec![SCAN_BLOCK + 1, 2, 1]);
+        assert_eq!(plan(1, 32)[0].key_mask, u32::MAX);
+        assert_eq!(plan(1, 1).len(), 1);
     }
 }

@@ -1,8 +1,10 @@
 //! The `wgpu-compute` backend: a sorted proxy grid built and searched in WGSL compute shaders,
 //! for adapters without ray queries or RT cores (where it beats software BVH traversal).
 //!
-//! Build, in one submission: cell keys (`wgsl/grid_build.wgsl`), the GPU radix sort, the spheres
-//! reordered by cell, and a dense table of where each cell's run starts. Cells are 2·r_max in
+//! Build, in one submission, a counting sort by cell (`wgsl/grid_build.wgsl`): every sphere's cell
+//! key and rank within its cell (one atomic add), an exclusive scan of the cell counts into a
+//! dense table of where each cell's run starts, and the spheres scattered to their sorted
+//! places. No comparison or radix sort is needed: the table is the sort. Cells are 2·r_max in
 //! `mochi` mode and 4·r_max in `nns` mode (the proxy of the largest sphere, or the fixed-radius
 //! box), padded a little; when the spheres are spread so thin that the table would not fit its
 //! budget, cells grow (still exact, only more candidates). Detection (`wgsl/grid_pairs.wgsl`)
@@ -12,7 +14,7 @@ use super::rebuilding::RebuildingBackend;
 use super::{BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
-use crate::gpu::radix_sort::RadixSort;
+use crate::gpu::scan::ExclusiveScan;
 use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
@@ -63,17 +65,16 @@ struct GridParams {
     cells: u32,
     row: u32,
     capacity: u32,
-    cell_row: u32,
+    _pad0: u32,
 }
 const _: () = assert!(size_of::<GridParams>() == 48);
 
 /// The wgpu compute (sorted grid) backend.
 pub struct WgpuComputeBackend {
     gpu: Gpu,
-    sort: RadixSort,
-    cell_keys: wgpu::ComputePipeline,
-    reorder: wgpu::ComputePipeline,
-    cell_starts: wgpu::ComputePipeline,
+    scan: ExclusiveScan,
+    count_cells: wgpu::ComputePipeline,
+    scatter: wgpu::ComputePipeline,
     find_pairs: wgpu::ComputePipeline,
     built: Option<Built>,
     timer: Option<GpuTimer>,
@@ -97,10 +98,19 @@ struct Grid {
     cell_capacity: u32,
     params: wgpu::Buffer,
     pair_params: wgpu::Buffer,
+    /// `vec4(x, y, z, r)` in input order.
     spheres_in: wgpu::Buffer,
+    /// Cell key of each sphere, in input order.
+    keys_in: wgpu::Buffer,
+    /// Rank of each sphere among those of its cell, in input order.
+    ranks: wgpu::Buffer,
+    /// Cell key of each sorted sphere.
     keys: wgpu::Buffer,
+    /// Input index of each sorted sphere.
     ids: wgpu::Buffer,
+    /// `vec4(x, y, z, r)` in sorted order.
     spheres: wgpu::Buffer,
+    /// Cell counts, then (scanned) the first sorted position of each cell; `cells + 1` entries.
     cell_start: wgpu::Buffer,
 }
 
@@ -114,6 +124,8 @@ impl Grid {
             params: gpu.uniform("mochi.grid.params", &GridParams::default()),
             pair_params: gpu.uniform("mochi.grid.pair_params", &GridParams::default()),
             spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
+            keys_in: gpu.storage("mochi.grid.keys_in", n64 * 4, none),
+            ranks: gpu.storage("mochi.grid.ranks", n64 * 4, none),
             keys: gpu.storage("mochi.grid.keys", n64 * 4, none),
             ids: gpu.storage("mochi.grid.ids", n64 * 4, none),
             spheres: gpu.storage("mochi.grid.spheres", n64 * 16, none),
@@ -129,10 +141,9 @@ impl WgpuComputeBackend {
         let build = gpu.module("mochi.grid.build", BUILD_WGSL);
         let pairs = gpu.module("mochi.grid.pairs", PAIRS_WGSL);
         Ok(Self {
-            sort: RadixSort::new(&gpu),
-            cell_keys: gpu.pipeline("mochi.grid.cell_keys", &build, "cell_keys"),
-            reorder: gpu.pipeline("mochi.grid.reorder", &build, "reorder"),
-            cell_starts: gpu.pipeline("mochi.grid.cell_starts", &build, "cell_starts"),
+            scan: ExclusiveScan::new(&gpu),
+            count_cells: gpu.pipeline("mochi.grid.count_cells", &build, "count_cells"),
+            scatter: gpu.pipeline("mochi.grid.scatter", &build, "scatter"),
             find_pairs: gpu.pipeline("mochi.grid.find_pairs", &pairs, "find_pairs"),
             built: None,
             timer: GpuTimer::new(&gpu, 2),
@@ -211,12 +222,9 @@ impl RebuildingBackend for WgpuComputeBackend {
         }
         let gpu = &self.gpu;
         let (x, y) = gpu.grid(n, BUILD_GROUP);
-        let layout = self.layout(spheres, mode);
-        let (cx, cy) = gpu.grid(layout.cells + 1, BUILD_GROUP);
         let params = GridParams {
             row: x * BUILD_GROUP,
-            cell_row: cx * BUILD_GROUP,
-            ..layout
+            ..self.layout(spheres, mode)
         };
         let (grid, output) = match self.built.take() {
             Some(Built {
@@ -231,7 +239,6 @@ impl RebuildingBackend for WgpuComputeBackend {
                 )
             })?,
         };
-        let key_bits = 32 - params.cells.leading_zeros();
         let rows: Vec<[f32; 4]> = spheres.xyzr().collect();
         gpu.checked("building the wgpu-compute grid", || {
             gpu.queue
@@ -240,37 +247,38 @@ impl RebuildingBackend for WgpuComputeBackend {
                 .write_buffer(&grid.spheres_in, 0, bytemuck::cast_slice(&rows));
             gpu.submit_timed(self.timer.as_ref(), BUILD_SPAN, |encoder| {
                 let g = &grid;
+                let table_bytes = (params.cells as u64 + 1) * 4;
+                encoder.clear_buffer(&g.cell_start, 0, Some(table_bytes));
                 gpu.pass(
                     encoder,
-                    "mochi.grid.cell_keys",
-                    &self.cell_keys,
+                    "mochi.grid.count_cells",
+                    &self.count_cells,
                     &[
                         (0, &g.params),
                         (1, &g.spheres_in),
-                        (2, &g.keys),
-                        (3, &g.ids),
+                        (2, &g.keys_in),
+                        (3, &g.ranks),
+                        (4, &g.cell_start),
                     ],
                     (x, y),
                 );
-                self.sort.encode(gpu, encoder, &g.keys, &g.ids, n, key_bits);
+                self.scan
+                    .encode(gpu, encoder, &g.cell_start, params.cells + 1);
                 gpu.pass(
                     encoder,
-                    "mochi.grid.reorder",
-                    &self.reorder,
+                    "mochi.grid.scatter",
+                    &self.scatter,
                     &[
                         (0, &g.params),
                         (1, &g.spheres_in),
-                        (3, &g.ids),
-                        (4, &g.spheres),
+                        (2, &g.keys_in),
+                        (3, &g.ranks),
+                        (5, &g.cell_start),
+                        (6, &g.keys),
+                        (7, &g.ids),
+                        (8, &g.spheres),
                     ],
                     (x, y),
-                );
-                gpu.pass(
-                    encoder,
-                    "mochi.grid.cell_starts",
-                    &self.cell_starts,
-                    &[(0, &g.params), (2, &g.keys), (5, &g.cell_start)],
-                    (cx, cy),
                 );
             });
         })?;
