@@ -297,3 +297,38 @@ fn detection_before_build_is_an_error() {
         assert!(backend.update(&SphereSet::default()).is_err());
     }
 }
+
+#[test]
+fn far_away_outliers_keep_the_search_linear() {
+    // A dense cluster plus a few spheres a thousand units away (a million cells of the cluster's
+    // size): a dense grid over the bounding box would put the whole cluster in a few cells.
+    // Exact, and few candidates per sphere.
+    let cluster = generate(&SceneSpec {
+        scene: Scene::Slab,
+        n: 20_000,
+        seed: 5,
+        layout: Layout::Random,
+    })
+    .unwrap();
+    let mut centers = cluster.centers().to_vec();
+    let mut radii = cluster.radii().to_vec();
+    for k in 0..10 {
+        centers.push([1e3 + k as f32 * 1e-3, -1e3, 5e2]);
+        radii.push(0.0006);
+    }
+    let spheres = SphereSet::new(centers, radii).unwrap();
+    let mut want = brute_force_pairs(&spheres);
+    want.sort_unstable();
+    with_each_backend(|kind, backend| {
+        backend.build(&spheres, ProxyMode::Mochi).unwrap();
+        let (mut got, stats) = backend.find_pairs().unwrap();
+        got.sort_unstable();
+        assert_eq!(got, want, "{}", kind.name());
+        let per_sphere = stats.candidates as f64 / spheres.len() as f64;
+        assert!(
+            per_sphere < 40.0,
+            "{}: {per_sphere} candidates per sphere",
+            kind.name()
+        );
+    });
+}

@@ -1,21 +1,15 @@
 // Build stage of the wgpu-compute backend: a counting sort of the spheres by cell.
 // count_cells gives every sphere its cell key and its rank among the spheres of that cell; the
 // host then scans the counts into cell_start (exclusive prefix sum over cells + 1 entries); and
-// scatter writes every sphere to cell_start[key] + rank. Keys are linear, x + nx·(y + ny·z),
-// over a grid with one empty cell of margin on every side. Needs grid_params.wgsl prepended.
+// scatter writes every sphere to cell_start[key] + rank. Keys (cell_key, grid_params.wgsl) are
+// linear over a dense grid with one empty cell of margin on every side, or hashed buckets.
+// Needs grid_params.wgsl prepended.
 
 @group(0) @binding(0) var<uniform> params: GridParams;
 @group(0) @binding(1) var<storage, read> spheres_in: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> keys_in: array<u32>;
 @group(0) @binding(3) var<storage, read_write> ranks: array<u32>;
 @group(0) @binding(4) var<storage, read_write> counts: array<atomic<u32>>;
-
-fn cell_key(c: vec3<f32>) -> u32 {
-    let u = max((c - params.lo) * params.inv_cell, vec3(0.0));
-    let top = vec3(params.nx, params.ny, params.nz) - vec3(2u);
-    let cell = min(vec3<u32>(u), top - vec3(1u)) + vec3(1u);
-    return cell.x + params.nx * (cell.y + params.ny * cell.z);
-}
 
 @compute @workgroup_size(256)
 fn count_cells(@builtin(global_invocation_id) gid: vec3<u32>) {

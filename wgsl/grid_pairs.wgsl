@@ -1,8 +1,9 @@
 // Detection stage of the wgpu-compute backend (single-level sorted proxy grid). The sphere at
-// sorted position p scans the rest of its own cell and the next cell along x, then the three-cell
-// runs of its four forward neighbour rows: 14 of the 27 cells, each unordered pair of neighbour
-// cells visited once, so the narrow phase (collides, proxy.wgsl) alone decides and no pair is
-// seen twice. Needs grid_params.wgsl prepended, proxy.wgsl and pair_output.wgsl appended.
+// sorted position p scans the rest of its own cell and its 13 forward neighbour cells: 14 of the
+// 27, each unordered pair of neighbour cells visited once, so the narrow phase (collides,
+// proxy.wgsl) alone decides and no pair is seen twice. With a dense table the cells of a row are
+// contiguous: the rest of the own cell plus the next along x, then four three-cell row runs. With
+// a hashed table each cell is looked up in its bucket and filtered by its coordinates. Needs grid_params.wgsl prepended, proxy.wgsl and pair_output.wgsl appended.
 
 @group(0) @binding(0) var<uniform> params: GridParams;
 @group(0) @binding(1) var<storage, read> spheres: array<vec4<f32>>;
@@ -21,6 +22,32 @@ fn scan_run(s: vec4<f32>, id: u32, a: u32, b: u32) -> u32 {
     return select(0u, b - a, b > a);
 }
 
+// The 13 forward neighbours of a cell (the other 13 see this one as theirs).
+const FORWARD = array<vec3<i32>, 13>(
+    vec3(1, 0, 0), vec3(-1, 1, 0), vec3(0, 1, 0), vec3(1, 1, 0),
+    vec3(-1, -1, 1), vec3(0, -1, 1), vec3(1, -1, 1),
+    vec3(-1, 0, 1), vec3(0, 0, 1), vec3(1, 0, 1),
+    vec3(-1, 1, 1), vec3(0, 1, 1), vec3(1, 1, 1),
+);
+
+// Hashed table: tests sphere s (sorted position p, input index id) against the spheres of `cell`
+// found in its bucket (other cells sharing the bucket are skipped; in the own cell only q > p).
+fn scan_hashed_cell(s: vec4<f32>, p: u32, id: u32, cell: vec3<u32>, own: bool) -> u32 {
+    let b = hash_cell(cell);
+    var tested = 0u;
+    for (var q = cell_start[b]; q < cell_start[b + 1u]; q += 1u) {
+        let t = spheres[q];
+        if (own && q <= p) || any(cell_coords(t.xyz) != cell) {
+            continue;
+        }
+        tested += 1u;
+        if collides(dist2(s.xyz, t.xyz), s.w, t.w) {
+            emit_pair(id, ids[q], params.capacity);
+        }
+    }
+    return tested;
+}
+
 @compute @workgroup_size(64)
 fn find_pairs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let p = gid.x + gid.y * params.row;
@@ -28,13 +55,21 @@ fn find_pairs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
     if p < params.n {
         let s = spheres[p];
         let id = ids[p];
-        let k = keys[p];
-        tested += scan_run(s, id, p + 1u, cell_start[k + 2u]);
-        let plane = params.nx * params.ny;
-        let rows = array<u32, 4>(params.nx - 1u, plane - params.nx - 1u, plane - 1u, plane + params.nx - 1u);
-        for (var r = 0u; r < 4u; r += 1u) {
-            let first = k + rows[r];
-            tested += scan_run(s, id, cell_start[first], cell_start[first + 3u]);
+        if params.hashed != 0u {
+            let cell = cell_coords(s.xyz);
+            tested += scan_hashed_cell(s, p, id, cell, true);
+            for (var r = 0u; r < 13u; r += 1u) {
+                tested += scan_hashed_cell(s, p, id, cell + bitcast<vec3<u32>>(FORWARD[r]), false);
+            }
+        } else {
+            let k = keys[p];
+            tested += scan_run(s, id, p + 1u, cell_start[k + 2u]);
+            let plane = params.nx * params.ny;
+            let rows = array<u32, 4>(params.nx - 1u, plane - params.nx - 1u, plane - 1u, plane + params.nx - 1u);
+            for (var r = 0u; r < 4u; r += 1u) {
+                let first = k + rows[r];
+                tested += scan_run(s, id, cell_start[first], cell_start[first + 3u]);
+            }
         }
     }
     add_candidates(tested, lid);

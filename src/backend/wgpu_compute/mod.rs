@@ -6,8 +6,10 @@
 //! dense table of where each cell's run starts, and the spheres scattered to their sorted
 //! places. No comparison or radix sort is needed: the table is the sort. Cells are 2·r_max in
 //! `mochi` mode and 4·r_max in `nns` mode (the proxy of the largest sphere, or the fixed-radius
-//! box), padded a little; when the spheres are spread so thin that the table would not fit its
-//! budget, cells grow (still exact, only more candidates). Detection (`wgsl/grid_pairs.wgsl`)
+//! box), padded a little. The table is dense over the centres' bounding box while it fits a
+//! budget of 8 cells per sphere (cells may grow up to 2× for that: still exact, a few more
+//! candidates); when the spheres are spread thinner (far-away outliers, say) cells are hashed
+//! into 2n buckets instead, so the work never degenerates. Detection (`wgsl/grid_pairs.wgsl`)
 //! visits each unordered pair of neighbour cells once, like the cpu backend.
 
 use super::rebuilding::RebuildingBackend;
@@ -43,11 +45,15 @@ const BUILD_GROUP: u32 = 256;
 const PAIRS_GROUP: u32 = 64;
 
 /// Relative padding of the cell side: far above the `f32` rounding of the cell coordinates of
-/// up to [`MAX_AXIS_CELLS`] cells, so a pair the narrow phase accepts is never two cells apart.
-const CELL_PADDING: f32 = 1.0 / 256.0;
+/// up to [`MAX_AXIS_CELLS`] cells (about 2^-22 per cell of coordinate), so a pair the narrow phase
+/// accepts is never two cells apart.
+const CELL_PADDING: f64 = 1.0 / 256.0;
 
-/// Most cells along one axis, margin included (bounds the `f32` rounding above).
+/// Most cells along one axis of a dense table, margin included (bounds the rounding above).
 const MAX_AXIS_CELLS: u64 = 4096;
+
+/// Most cells along one axis of a hashed grid (coordinates stay exact in `u32` arithmetic).
+const MAX_HASHED_AXIS_CELLS: u64 = 1 << 21;
 
 /// Cells of the dense table per sphere, at most (a table of at least 2^20 cells is always fine).
 const CELLS_PER_SPHERE: u64 = 8;
@@ -65,7 +71,7 @@ struct GridParams {
     cells: u32,
     row: u32,
     capacity: u32,
-    _pad0: u32,
+    hashed: u32,
 }
 const _: () = assert!(size_of::<GridParams>() == 48);
 
@@ -157,35 +163,49 @@ impl WgpuComputeBackend {
         (l.max_storage_buffer_binding_size.min(l.max_buffer_size) / 16).min(u32::MAX as u64)
     }
 
-    /// Cell layout for `spheres`: the mode's cell size, grown until the table fits its budget.
+    /// Cell layout for `spheres`: a dense table at the mode's cell size, or with cells up to
+    /// twice as large where that is what makes it fit its budget; else a hashed table at the
+    /// mode's cell size (spheres spread thin, or far-away outliers).
     fn layout(&self, spheres: &SphereSet, mode: ProxyMode) -> GridParams {
         let (lo, hi) = spheres.bounds().expect("the set is not empty");
         let n = spheres.len() as u64;
         let table_limit = self.gpu.limits.max_storage_buffer_binding_size / 4 - 1;
         let budget = (n * CELLS_PER_SPHERE).max(1 << 20).min(table_limit);
-        let mut size = mode.cell_size(spheres.max_radius()) as f64 * (1.0 + CELL_PADDING as f64);
+        let base = mode.cell_size(spheres.max_radius()) as f64;
         let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as f64);
-        let counts =
-            |size: f64| -> [u64; 3] { std::array::from_fn(|a| (extent[a] / size) as u64 + 1 + 2) };
-        loop {
+        let widest = extent.iter().copied().fold(0.0, f64::max);
+        let counts = |size: f64| -> [u64; 3] { extent.map(|e| (e / size) as u64 + 1 + 2) };
+        let params = |size: f64, [nx, ny, nz]: [u64; 3], cells: u64, hashed: u32| GridParams {
+            lo,
+            n: n as u32,
+            inv_cell: (1.0 / size) as f32,
+            nx: nx as u32,
+            ny: ny as u32,
+            nz: nz as u32,
+            cells: cells as u32,
+            hashed,
+            ..GridParams::default()
+        };
+
+        let mut size = base * (1.0 + CELL_PADDING);
+        while size <= 2.0 * base * (1.0 + CELL_PADDING) {
             let c = counts(size);
-            let fits =
-                c.iter().all(|&k| k <= MAX_AXIS_CELLS) && c.iter().product::<u64>() <= budget;
-            if fits {
-                let [nx, ny, nz] = c.map(|k| k as u32);
-                return GridParams {
-                    lo,
-                    n: n as u32,
-                    inv_cell: (1.0 / size) as f32,
-                    nx,
-                    ny,
-                    nz,
-                    cells: nx * ny * nz,
-                    ..GridParams::default()
-                };
+            if c.iter().all(|&k| k <= MAX_AXIS_CELLS) {
+                let cells = c.iter().product::<u64>(); // ≤ 2^36: no overflow
+                if cells <= budget {
+                    return params(size, c, cells, 0);
+                }
             }
             size *= 1.25;
         }
+
+        // Cell coordinates of up to 2^21 per axis: pad the cells for their f32 rounding too.
+        let size = base.max(widest / (MAX_HASHED_AXIS_CELLS - 3) as f64);
+        let size = size * (1.0 + CELL_PADDING.max(widest / size / (1u64 << 20) as f64));
+        let buckets = (2 * n)
+            .next_power_of_two()
+            .clamp(1024, 1 << table_limit.ilog2());
+        params(size, counts(size), buckets, 1)
     }
 }
 
