@@ -7,9 +7,9 @@
 //! places. No comparison or radix sort is needed: the table is the sort. Cells are 2·r_max in
 //! `mochi` mode and 4·r_max in `nns` mode (the proxy of the largest sphere, or the fixed-radius
 //! box), padded a little. The table is dense over the centres' bounding box while it fits a
-//! budget of 8 cells per sphere (cells may grow up to 2× for that: still exact, a few more
-//! candidates); when the spheres are spread thinner (far-away outliers, say) cells are hashed
-//! into 2n buckets instead, so the work never degenerates. Detection (`wgsl/grid_pairs.wgsl`)
+//! budget of 8 cells per sphere; cells may grow for that (still exact, a few more candidates)
+//! as long as a sample shows them uncrowded. Otherwise (a cluster with far-away outliers, say)
+//! cells keep their size and are hashed into 2n buckets, so the work never degenerates. Detection (`wgsl/grid_pairs.wgsl`)
 //! visits each unordered pair of neighbour cells once, like the cpu backend.
 
 use super::rebuilding::RebuildingBackend;
@@ -51,6 +51,15 @@ const CELL_PADDING: f64 = 1.0 / 256.0;
 
 /// Most cells along one axis of a dense table, margin included (bounds the rounding above).
 const MAX_AXIS_CELLS: u64 = 4096;
+
+/// A dense table's cells may grow up to this factor over the mode's size to fit the budget.
+const MAX_DENSE_GROWTH: f64 = 16.0;
+
+/// Most other spheres expected in a sphere's own cell for a grown dense table; above it, hash.
+const MAX_CROWDING: f64 = 4.0;
+
+/// Spheres sampled to estimate [`crowding`].
+const CROWDING_SAMPLE: usize = 4096;
 
 /// Most cells along one axis of a hashed grid (coordinates stay exact in `u32` arithmetic).
 const MAX_HASHED_AXIS_CELLS: u64 = 1 << 21;
@@ -140,6 +149,25 @@ impl Grid {
     }
 }
 
+/// Estimated number of other spheres in a sphere's own cell, for cells of side `size` anchored at
+/// `lo`, from an evenly spread sample of the centres (n·P/m² with P the ordered same-cell pairs
+/// among m sampled spheres).
+fn crowding(centers: &[[f32; 3]], lo: [f32; 3], size: f64) -> f64 {
+    let step = centers.len().div_ceil(CROWDING_SAMPLE).max(1);
+    let mut cells: Vec<[u64; 3]> = centers
+        .iter()
+        .step_by(step)
+        .map(|c| std::array::from_fn(|a| ((c[a] as f64 - lo[a] as f64) / size) as u64))
+        .collect();
+    cells.sort_unstable();
+    let m = cells.len() as f64;
+    let same_cell_pairs: f64 = cells
+        .chunk_by(|a, b| a == b)
+        .map(|run| (run.len() * (run.len() - 1)) as f64)
+        .sum();
+    centers.len() as f64 * same_cell_pairs / (m * m)
+}
+
 impl WgpuComputeBackend {
     /// Opens the best adapter with compute shaders.
     pub fn new() -> Result<Self> {
@@ -163,9 +191,10 @@ impl WgpuComputeBackend {
         (l.max_storage_buffer_binding_size.min(l.max_buffer_size) / 16).min(u32::MAX as u64)
     }
 
-    /// Cell layout for `spheres`: a dense table at the mode's cell size, or with cells up to
-    /// twice as large where that is what makes it fit its budget; else a hashed table at the
-    /// mode's cell size (spheres spread thin, or far-away outliers).
+    /// Cell layout for `spheres`: a dense table at the mode's cell size, or with cells grown
+    /// (up to [`MAX_DENSE_GROWTH`]×) where that is what makes it fit its budget and the grown
+    /// cells are not crowded; else a hashed table at the mode's cell size (spheres spread thin,
+    /// far-away outliers).
     fn layout(&self, spheres: &SphereSet, mode: ProxyMode) -> GridParams {
         let (lo, hi) = spheres.bounds().expect("the set is not empty");
         let n = spheres.len() as u64;
@@ -187,13 +216,18 @@ impl WgpuComputeBackend {
             ..GridParams::default()
         };
 
+        // Dense: the smallest cells (from the mode's size, growing) whose table fits the budget,
+        // unless growing them crowds the cells (a cluster far from the rest, say).
         let mut size = base * (1.0 + CELL_PADDING);
-        while size <= 2.0 * base * (1.0 + CELL_PADDING) {
+        while size <= MAX_DENSE_GROWTH * base {
             let c = counts(size);
             if c.iter().all(|&k| k <= MAX_AXIS_CELLS) {
                 let cells = c.iter().product::<u64>(); // ≤ 2^36: no overflow
                 if cells <= budget {
-                    return params(size, c, cells, 0);
+                    if crowding(spheres.centers(), lo, size) <= MAX_CROWDING {
+                        return params(size, c, cells, 0);
+                    }
+                    break;
                 }
             }
             size *= 1.25;
