@@ -53,7 +53,12 @@ pub struct SceneArgs {
     #[arg(long, value_enum, default_value_t = Scene::Poly120)]
     pub scene: Scene,
     /// Number of spheres.
-    #[arg(short = 'n', long = "spheres", value_name = "N", default_value_t = 100_000)]
+    #[arg(
+        short = 'n',
+        long = "spheres",
+        value_name = "N",
+        default_value_t = 100_000
+    )]
     pub n: usize,
     /// Seed of the generator (same seed, same spheres).
     #[arg(long, default_value_t = 1)]
