@@ -136,7 +136,7 @@ fn wgsl_rule_matches_the_rust_rule() {
             if keep_in(mode, i, c_i, r_i, j, c_j, r_j) != (gpu_kept == 1) {
                 differ.push(format!(
                     "{case:?}: rust {} wgsl {}",
-                    !(gpu_kept == 1),
+                    gpu_kept != 1,
                     gpu_kept == 1
                 ));
             }
