@@ -1,6 +1,6 @@
 //! The brute-force oracle: every pair tested, O(n²). Tests trust it; fine up to ~20k spheres.
 
-use crate::proxy::{collides, dist2};
+use crate::proxy::{collides, dist2, near_boundary};
 use crate::spheres::{Pair, SphereSet};
 use rayon::prelude::*;
 
@@ -16,6 +16,26 @@ pub fn brute_force_pairs(spheres: &SphereSet) -> Vec<Pair> {
                 .map(move |j| Pair::new(i as u32, j as u32))
         })
         .collect()
+}
+
+/// Pairs in which `got` and the oracle's `want` differ, leaving out those within rounding of a
+/// threshold of the rule ([`crate::proxy::near_boundary`]), which a GPU that fuses multiply-adds
+/// may decide the other way. Empty means `got` is exact.
+pub fn differences_off_boundary(got: &[Pair], want: &[Pair], spheres: &SphereSet) -> Vec<Pair> {
+    use std::collections::HashSet;
+    let (c, r) = (spheres.centers(), spheres.radii());
+    let got: HashSet<_> = got.iter().copied().collect();
+    let want: HashSet<_> = want.iter().copied().collect();
+    let mut off: Vec<Pair> = got
+        .symmetric_difference(&want)
+        .copied()
+        .filter(|p| {
+            let (i, j) = (p.i as usize, p.j as usize);
+            !near_boundary(c[i], r[i], c[j], r[j])
+        })
+        .collect();
+    off.sort_unstable();
+    off
 }
 
 #[cfg(test)]

@@ -54,6 +54,25 @@ pub fn dist2(c_i: [f32; 3], c_j: [f32; 3]) -> f32 {
     dx * dx + dy * dy + dz * dz
 }
 
+/// Relative width of the rounding band of [`near_boundary`]: plain and fused evaluations of
+/// [`dist2`] differ by less than 6 ulps.
+const ROUNDING_BAND: f32 = 16.0 * f32::EPSILON;
+
+/// True when the squared distance of the two centres lies within rounding of a threshold of the
+/// rule: (r_i + r_j)², (2·r_i)² or (2·r_j)².
+///
+/// GPU compilers may fuse `a·b + c` into one rounding (WGSL cannot forbid it, and does not promise
+/// that `fma` is fused either), so devices may decide such a pair differently from this file, by
+/// an ulp. Every other pair is decided identically everywhere, and every backend reports each
+/// pair it keeps exactly once.
+pub fn near_boundary(c_i: [f32; 3], r_i: f32, c_j: [f32; 3], r_j: f32) -> bool {
+    let d2 = dist2(c_i, c_j);
+    let s = r_i + r_j;
+    [s * s, 4.0 * r_i * r_i, 4.0 * r_j * r_j]
+        .iter()
+        .any(|&t| (d2 - t).abs() <= t * ROUNDING_BAND)
+}
+
 /// Rule 1, the narrow phase: spheres at squared distance `d2` touch or overlap.
 #[inline(always)]
 pub fn collides(d2: f32, r_i: f32, r_j: f32) -> bool {
@@ -138,6 +157,17 @@ mod tests {
             !keep(3, [0.0; 3], 1.0, 3, [0.0; 3], 1.0),
             "never with itself"
         );
+    }
+
+    #[test]
+    fn near_boundary_flags_only_pairs_within_rounding_of_a_threshold() {
+        let touching = f32::from_bits(2.0f32.to_bits() + 1);
+        assert!(near_boundary([0.0; 3], 1.0, [touching, 0.0, 0.0], 1.0));
+        assert!(near_boundary([0.0; 3], 1.0, [2.0, 0.0, 0.0], 1.0));
+        assert!(!near_boundary([0.0; 3], 1.0, [1.9, 0.0, 0.0], 1.0));
+        assert!(!near_boundary([0.0; 3], 1.0, [5.0, 0.0, 0.0], 1.0));
+        // The proxy boundary of the larger sphere (d = 2·r_j) counts too.
+        assert!(near_boundary([0.0; 3], 0.1, [4.0, 0.0, 0.0], 2.0));
     }
 
     #[test]

@@ -1,11 +1,13 @@
 //! The rule of `src/proxy.rs` and its WGSL copy (`wgsl/proxy.wgsl`) agree on a table of boundary
 //! cases: touching to the ulp, proxy boundaries to the ulp, radius ratio 120, coincident centres,
-//! a sphere with itself. Runs the WGSL on any adapter (lavapipe in CI); under `CI=true` a missing
+//! a sphere with itself. Where the squared distance lies within rounding of a threshold
+//! (`proxy::near_boundary`) a GPU that fuses multiply-adds may differ; everywhere else, and on
+//! every axis-aligned case (exact in any arithmetic), they must agree. Runs the WGSL on any adapter (lavapipe in CI); under `CI=true` a missing
 //! adapter fails.
 
 use mochi::ProxyMode;
 use mochi::gpu::{Gpu, Need};
-use mochi::proxy::keep_in;
+use mochi::proxy::{keep_in, near_boundary};
 
 /// One candidate: (i, c_i, r_i, j, c_j, r_j).
 type Case = (u32, [f32; 3], f32, u32, [f32; 3], f32);
@@ -133,7 +135,9 @@ fn wgsl_rule_matches_the_rust_rule() {
         let mut differ = Vec::new();
         for (case, &gpu_kept) in cases.iter().zip(&kept) {
             let &(i, c_i, r_i, j, c_j, r_j) = case;
-            if keep_in(mode, i, c_i, r_i, j, c_j, r_j) != (gpu_kept == 1) {
+            let axis_aligned = (0..3).filter(|&a| c_i[a] != c_j[a]).count() <= 1;
+            let may_differ = !axis_aligned && near_boundary(c_i, r_i, c_j, r_j);
+            if keep_in(mode, i, c_i, r_i, j, c_j, r_j) != (gpu_kept == 1) && !may_differ {
                 differ.push(format!(
                     "{case:?}: rust {} wgsl {}",
                     gpu_kept != 1,
