@@ -17,7 +17,7 @@ fn count_cells(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= params.n {
         return;
     }
-    let key = cell_key(spheres_in[i].xyz);
+    let key = cell_key(spheres_in[i]);
     keys_in[i] = key;
     ranks[i] = atomicAdd(&counts[key], 1u);
 }

@@ -136,18 +136,32 @@ impl BackendKind {
         }
     }
 
-    /// Opens the backend, or says why it cannot run here.
+    /// Opens the backend with default options, or says why it cannot run here.
     pub fn open(self) -> Result<Box<dyn Backend>> {
+        self.open_with(&Options::default())
+    }
+
+    /// Opens the backend with `options`, or says why it cannot run here.
+    pub fn open_with(self, options: &Options) -> Result<Box<dyn Backend>> {
         self.probe().map_err(|reason| Error::BackendUnavailable {
             backend: self.name(),
             reason,
         })?;
         Ok(match self {
             BackendKind::WgpuRq => Box::new(wgpu_rq::WgpuRqBackend::new()?),
-            BackendKind::WgpuCompute => Box::new(wgpu_compute::WgpuComputeBackend::new()?),
+            BackendKind::WgpuCompute => {
+                Box::new(wgpu_compute::WgpuComputeBackend::new()?.with_structure(options.structure))
+            }
             BackendKind::Cpu => Box::new(cpu::CpuBackend::new()),
         })
     }
+}
+
+/// Settings of the backends that have any.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Options {
+    /// Grid structure of `wgpu-compute`.
+    pub structure: wgpu_compute::Structure,
 }
 
 /// A backend named by the user, or `auto`.
@@ -175,27 +189,27 @@ pub struct Opened {
 }
 
 /// Opens the backend the user chose; `auto` tries each in order of preference.
-pub fn open(choice: BackendChoice) -> Result<Opened> {
+pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
     let kind = match choice {
-        BackendChoice::Auto => return open_auto(),
+        BackendChoice::Auto => return open_auto(options),
         BackendChoice::WgpuRq => BackendKind::WgpuRq,
         BackendChoice::WgpuCompute => BackendKind::WgpuCompute,
         BackendChoice::Cpu => BackendKind::Cpu,
     };
     Ok(Opened {
-        backend: kind.open()?,
+        backend: kind.open_with(options)?,
         reason: None,
     })
 }
 
-fn open_auto() -> Result<Opened> {
+fn open_auto(options: &Options) -> Result<Opened> {
     let mut skipped = Vec::new();
     for kind in BackendKind::ALL {
         if let Some(why) = kind.auto_skip() {
             skipped.push((kind.name(), why));
             continue;
         }
-        match kind.open() {
+        match kind.open_with(options) {
             Ok(backend) => {
                 let mut reason = format!("auto picked {}", kind.name());
                 for (name, why) in &skipped {

@@ -3,6 +3,7 @@
 use clap::{Args, Parser, Subcommand};
 use mochi::ProxyMode;
 use mochi::backend::BackendChoice;
+use mochi::backend::wgpu_compute::Structure;
 use mochi::scenes::{Layout, Scene};
 use std::path::PathBuf;
 
@@ -41,6 +42,10 @@ pub struct DetectArgs {
     /// Write the pairs here (CSV i,j, sorted).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    /// Grid of the wgpu-compute backend: grid (single level), mlgrid (multi-level proxy grid,
+    /// mochi mode), auto (the single grid until the multi-level one measures faster).
+    #[arg(long, value_enum, default_value_t)]
+    pub structure: Structure,
     /// Time build and detection this many more times after the first run and report the
     /// median (the first run warms up shaders and buffers).
     #[arg(long, default_value_t = 0)]

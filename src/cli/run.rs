@@ -41,7 +41,10 @@ fn detect(args: DetectArgs) -> Result<()> {
         Some(path) => (io::read_spheres(path)?, path.display().to_string()),
         None => scene(&args.scene, Layout::Random)?,
     };
-    let opened = backend::open(args.backend)?;
+    let options = backend::Options {
+        structure: args.structure,
+    };
+    let opened = backend::open(args.backend, &options)?;
     if let Some(reason) = &opened.reason {
         eprintln!("{reason}");
     }

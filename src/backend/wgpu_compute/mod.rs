@@ -81,8 +81,28 @@ struct GridParams {
     row: u32,
     capacity: u32,
     hashed: u32,
+    levels: u32,
+    top_cell: f32,
+    level_pad: f32,
+    _pad0: u32,
 }
-const _: () = assert!(size_of::<GridParams>() == 48);
+const _: () = assert!(size_of::<GridParams>() == 64);
+
+/// Which grid the backend builds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Structure {
+    /// Pick by measurement: the single grid (the multi-level one has not yet measured faster).
+    #[default]
+    Auto,
+    /// One grid with cells of the largest proxy (2·r_max; 4·r_max in `nns` mode).
+    Grid,
+    /// Multi-level proxy grid (method.md): cells halve level by level and each sphere searches
+    /// from its own size upwards (`mochi` mode; `nns` mode keeps the single grid).
+    Mlgrid,
+}
+
+/// Most levels of a multi-level grid.
+const MAX_LEVELS: u32 = 8;
 
 /// The wgpu compute (sorted grid) backend.
 pub struct WgpuComputeBackend {
@@ -92,6 +112,7 @@ pub struct WgpuComputeBackend {
     scatter: wgpu::ComputePipeline,
     find_pairs: wgpu::ComputePipeline,
     built: Option<Built>,
+    structure: Structure,
     timer: Option<GpuTimer>,
     times: GpuTimes,
 }
@@ -180,10 +201,17 @@ impl WgpuComputeBackend {
             scatter: gpu.pipeline("mochi.grid.scatter", &build, "scatter"),
             find_pairs: gpu.pipeline("mochi.grid.find_pairs", &pairs, "find_pairs"),
             built: None,
+            structure: Structure::Auto,
             timer: GpuTimer::new(&gpu, 2),
             times: GpuTimes::default(),
             gpu,
         })
+    }
+
+    /// Builds `structure` from now on.
+    pub fn with_structure(mut self, structure: Structure) -> Self {
+        self.structure = structure;
+        self
     }
 
     fn max_spheres(&self) -> u64 {
@@ -213,13 +241,17 @@ impl WgpuComputeBackend {
             nz: nz as u32,
             cells: cells as u32,
             hashed,
+            levels: 1,
+            top_cell: size as f32,
+            level_pad: 1.0,
             ..GridParams::default()
         };
 
         // Dense: the smallest cells (from the mode's size, growing) whose table fits the budget,
         // unless growing them crowds the cells (a cluster far from the rest, say).
+        let multi_level = mode == ProxyMode::Mochi && self.structure == Structure::Mlgrid;
         let mut size = base * (1.0 + CELL_PADDING);
-        while size <= MAX_DENSE_GROWTH * base {
+        while !multi_level && size <= MAX_DENSE_GROWTH * base {
             let c = counts(size);
             if c.iter().all(|&k| k <= MAX_AXIS_CELLS) {
                 let cells = c.iter().product::<u64>(); // ≤ 2^36: no overflow
@@ -239,7 +271,28 @@ impl WgpuComputeBackend {
         let buckets = (2 * n)
             .next_power_of_two()
             .clamp(1024, 1 << table_limit.ilog2());
-        params(size, counts(size), buckets, 1)
+        let single = params(size, counts(size), buckets, 1);
+        if !multi_level {
+            return single;
+        }
+        // Multi-level: levels down to the smallest sphere's proxy, while the finest level's
+        // cells along an axis stay within the hashed limit.
+        let (r_min, r_max) = (spheres.min_radius() as f64, spheres.max_radius() as f64);
+        let by_radii = (r_max / r_min).log2().floor().max(0.0) as u32;
+        let by_extent = (MAX_HASHED_AXIS_CELLS as f64 * size / widest.max(size))
+            .log2()
+            .floor()
+            .max(0.0) as u32;
+        let levels = 1 + by_radii.min(by_extent).min(MAX_LEVELS - 1);
+        let finest = widest / (size / (1u64 << (levels - 1)) as f64);
+        let pad = CELL_PADDING.max(finest / (1u64 << 20) as f64);
+        GridParams {
+            levels,
+            level_pad: (1.0 + pad) as f32,
+            inv_cell: (1.0 / (size * (1.0 + pad))) as f32,
+            top_cell: (size * (1.0 + pad)) as f32,
+            ..single
+        }
     }
 }
 
