@@ -1,5 +1,5 @@
-//! GPU backends' binning (build) and detection on 10k, 100k and 1M spheres of `slab` and
-//! `poly120`, both modes. Criterion's time here is the **GPU time** from timestamps (build +
+//! GPU backends' binning (build) and detection on 10k, 100k and 1M spheres of `slab`, `poly120`
+//! and `polylog`, both modes. Criterion's time here is the **GPU time** from timestamps (build +
 //! detection pass, without uploads or read-back), the figure the paper's kernels compare to;
 //! backends or devices without timestamps are timed on the host instead.
 //!
@@ -50,6 +50,7 @@ fn bench(c: &mut Criterion) {
                 ("slab_lattice", scene(Scene::Slab, n, Layout::Lattice)),
                 ("slab_random", scene(Scene::Slab, n, Layout::Random)),
                 ("poly120_random", scene(Scene::Poly120, n, Layout::Random)),
+                ("polylog_random", scene(Scene::Polylog, n, Layout::Random)),
             ] {
                 let mut group = c.benchmark_group(format!("{}/{name}/{n}", kind.name()));
                 group
