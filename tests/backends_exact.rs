@@ -1,5 +1,7 @@
 //! Every available backend against the brute-force oracle: exact pair sets, each pair once.
 
+mod common;
+
 use mochi::backend::{Backend, BackendKind};
 use mochi::oracle::{brute_force_pairs, differences_off_boundary};
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
@@ -12,7 +14,7 @@ const MODES: [ProxyMode; 2] = [ProxyMode::Mochi, ProxyMode::Nns];
 /// The backends to test here. Under `CI=true` every backend CI can run (the wgpu ones run on
 /// lavapipe) must be available: a missing adapter fails the run instead of passing unnoticed.
 fn backends() -> Vec<BackendKind> {
-    let ci = std::env::var("CI").is_ok_and(|v| v == "true");
+    let ci = common::ci();
     BackendKind::ALL
         .into_iter()
         .filter(|kind| match kind.probe() {

@@ -2,25 +2,13 @@
 //!
 //! Without an adapter the tests print why and pass, except under `CI=true`, where they fail.
 
+mod common;
+
 use mochi::gpu::radix_sort::RadixSort;
-use mochi::gpu::{Gpu, Need};
+use mochi::gpu::Gpu;
 use rand::{Rng, RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use std::time::Instant;
-
-/// Opens the GPU, or says why not: `None` on a machine without one, a panic under `CI=true`.
-fn open_gpu() -> Option<Gpu> {
-    match Gpu::open(Need::Compute) {
-        Ok(gpu) => Some(gpu),
-        Err(e) if std::env::var("CI").as_deref() == Ok("true") => {
-            panic!("CI=true but no GPU adapter could be opened: {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping: no GPU adapter ({e})");
-            None
-        }
-    }
-}
 
 /// A pair buffer holding `data` (STORAGE | COPY_SRC | COPY_DST).
 fn upload(gpu: &Gpu, label: &str, data: &[u32]) -> wgpu::Buffer {
@@ -92,7 +80,9 @@ fn random_keys(n: usize, seed: u64) -> Vec<u32> {
 
 #[test]
 fn random_keys_small_and_medium() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU radix sort") else {
+        return;
+    };
     let mut sort = RadixSort::new(&gpu);
     for (seed, n) in [0usize, 1, 7, 256, 257, 2048, 2049, 4097, 100_000]
         .into_iter()
@@ -107,7 +97,9 @@ fn random_keys_small_and_medium() {
 
 #[test]
 fn random_keys_large() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU radix sort") else {
+        return;
+    };
     let mut sort = RadixSort::new(&gpu);
     let keys = random_keys(1_000_003, 42);
     for key_bits in [30, 32, 8] {
@@ -117,7 +109,9 @@ fn random_keys_large() {
 
 #[test]
 fn few_distinct_keys_are_stable() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU radix sort") else {
+        return;
+    };
     let mut sort = RadixSort::new(&gpu);
     let mut rng = Pcg64::seed_from_u64(7);
     let keys: Vec<u32> = (0..50_000)
@@ -145,7 +139,9 @@ fn few_distinct_keys_are_stable() {
 
 #[test]
 fn several_sorts_in_one_submit() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU radix sort") else {
+        return;
+    };
     let mut sort = RadixSort::new(&gpu);
     let a = random_keys(70_000, 1);
     let b = random_keys(5_000, 2);
@@ -207,7 +203,9 @@ fn assert_stable_sort_of(input: &[u32], keys: &[u32], values: &[u32], key_bits: 
 #[test]
 #[ignore = "needs a discrete GPU with a few GB free; run with --ignored"]
 fn large_sizes_on_a_discrete_gpu() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU radix sort") else {
+        return;
+    };
     eprintln!("adapter: {}", mochi::gpu::describe(&gpu.info));
     if gpu.info.device_type == wgpu::DeviceType::Cpu {
         eprintln!("skipping: CPU adapter");

@@ -2,25 +2,13 @@
 //!
 //! Without an adapter the tests print why and pass, except under `CI=true`, where they fail.
 
+mod common;
+
 use mochi::gpu::scan::ExclusiveScan;
-use mochi::gpu::{Gpu, Need};
+use mochi::gpu::Gpu;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use std::time::Instant;
-
-/// Opens the GPU, or says why not: `None` on a machine without one, a panic under `CI=true`.
-fn open_gpu() -> Option<Gpu> {
-    match Gpu::open(Need::Compute) {
-        Ok(gpu) => Some(gpu),
-        Err(e) if std::env::var("CI").as_deref() == Ok("true") => {
-            panic!("CI=true but no GPU adapter could be opened: {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping: no GPU adapter ({e})");
-            None
-        }
-    }
-}
 
 /// A buffer holding `data` (STORAGE | COPY_SRC | COPY_DST).
 fn upload(gpu: &Gpu, label: &str, data: &[u32]) -> wgpu::Buffer {
@@ -87,7 +75,9 @@ fn fits(gpu: &Gpu, len: usize) -> bool {
 
 #[test]
 fn random_values_small() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU scan") else {
+        return;
+    };
     let mut scan = ExclusiveScan::new(&gpu);
     for len in [0usize, 1, 7, 1023, 1024, 1025, 2047, 2049] {
         check(&gpu, &mut scan, "random", &random_values(len, len as u64));
@@ -96,7 +86,9 @@ fn random_values_small() {
 
 #[test]
 fn random_values_large() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU scan") else {
+        return;
+    };
     let mut scan = ExclusiveScan::new(&gpu);
     // Three levels, then (70M: over 65535 blocks) a 2-D grid on level 0.
     for len in [1024 * 1024 + 3, 5_000_000, 70_000_000] {
@@ -115,7 +107,9 @@ fn random_values_large() {
 
 #[test]
 fn all_zeros_and_all_ones() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU scan") else {
+        return;
+    };
     let mut scan = ExclusiveScan::new(&gpu);
     check(&gpu, &mut scan, "zeros", &vec![0; 300_001]);
     check(&gpu, &mut scan, "ones", &vec![1; 300_001]);
@@ -125,7 +119,9 @@ fn all_zeros_and_all_ones() {
 
 #[test]
 fn empty_scan_changes_nothing() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU scan") else {
+        return;
+    };
     let mut scan = ExclusiveScan::new(&gpu);
     let data = [5u32, 6, 7, 8];
     let buffer = gpu
@@ -143,7 +139,9 @@ fn empty_scan_changes_nothing() {
 
 #[test]
 fn two_scans_in_one_encoder() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU scan") else {
+        return;
+    };
     let mut scan = ExclusiveScan::new(&gpu);
     let a = random_values(2_000_000, 11);
     let b = random_values(3_000, 12);
@@ -173,7 +171,9 @@ fn two_scans_in_one_encoder() {
 
 #[test]
 fn ranges_leave_the_rest_alone() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU scan") else {
+        return;
+    };
     let mut scan = ExclusiveScan::new(&gpu);
     let total = 400_000;
     let data = random_values(total, 21);
@@ -225,7 +225,9 @@ fn warm_median_ms(runs: usize, mut run: impl FnMut()) -> f64 {
 #[test]
 #[ignore = "needs a discrete GPU with a few GB free; run with --ignored"]
 fn large_sizes_on_a_discrete_gpu() {
-    let Some(gpu) = open_gpu() else { return };
+    let Some(gpu) = common::open_gpu("the GPU scan") else {
+        return;
+    };
     eprintln!("adapter: {}", mochi::gpu::describe(&gpu.info));
     if gpu.info.device_type == wgpu::DeviceType::Cpu {
         eprintln!("skipping: CPU adapter");

@@ -5,8 +5,9 @@
 //! every axis-aligned case (exact in any arithmetic), they must agree. Runs the WGSL on any adapter (lavapipe in CI); under `CI=true` a missing
 //! adapter fails.
 
+mod common;
+
 use mochi::ProxyMode;
-use mochi::gpu::{Gpu, Need};
 use mochi::proxy::{keep_in, near_boundary};
 
 /// One candidate: (i, c_i, r_i, j, c_j, r_j).
@@ -67,16 +68,8 @@ fn cases() -> Vec<Case> {
 
 #[test]
 fn wgsl_rule_matches_the_rust_rule() {
-    let gpu = match Gpu::open(Need::Compute) {
-        Ok(gpu) => gpu,
-        Err(e) => {
-            assert!(
-                !std::env::var("CI").is_ok_and(|v| v == "true"),
-                "CI expects a GPU adapter: {e}"
-            );
-            eprintln!("note: the WGSL rule is not checked on this machine: {e}");
-            return;
-        }
+    let Some(gpu) = common::open_gpu("the WGSL rule") else {
+        return;
     };
     let source = format!("{}{KERNEL}", include_str!("../wgsl/proxy.wgsl"));
     let module = gpu.module("mochi.test.proxy_parity", &source);

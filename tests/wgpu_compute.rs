@@ -2,27 +2,20 @@
 //! random polydisperse sets and the scenes; the single grid is covered by backends_exact.rs.
 //! Runs on any adapter (lavapipe in CI); under `CI=true` a missing adapter fails.
 
+mod common;
+
 use mochi::backend::Backend;
 use mochi::backend::wgpu_compute::{Structure, WgpuComputeBackend};
-use mochi::gpu::{self, Need};
+use mochi::gpu::Need;
 use mochi::oracle::{brute_force_pairs, differences_off_boundary};
 use mochi::{ProxyMode, SphereSet};
 use rand::{RngExt, SeedableRng};
 
 fn open(structure: Structure) -> Option<WgpuComputeBackend> {
-    if let Err(why) = gpu::probe(Need::Compute) {
-        assert!(
-            !std::env::var("CI").is_ok_and(|v| v == "true"),
-            "CI expects a GPU adapter: {why}"
-        );
-        eprintln!("note: wgpu-compute is not tested on this machine: {why}");
-        return None;
-    }
-    Some(
-        WgpuComputeBackend::new()
-            .expect("a probed adapter opens")
-            .with_structure(structure),
-    )
+    common::adapter_for(Need::Compute, "wgpu-compute").then(|| {
+        let backend = WgpuComputeBackend::new().expect("a probed adapter opens");
+        backend.with_structure(structure)
+    })
 }
 
 /// Log-uniform radii over `ratio`, centres in a box sized for many contacts.

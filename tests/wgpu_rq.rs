@@ -2,25 +2,19 @@
 //! growing the pair buffer, and what it reports. Runs on any adapter with ray queries (lavapipe
 //! in CI); under `CI=true` a missing adapter fails.
 
+mod common;
+
 use mochi::backend::Backend;
 use mochi::backend::wgpu_rq::WgpuRqBackend;
-use mochi::gpu::{self, Need};
+use mochi::gpu::Need;
 use mochi::oracle::{brute_force_pairs, differences_off_boundary};
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
 use mochi::{ProxyMode, SphereSet};
 
-/// The backend, or `None` (with the reason printed) where no adapter has ray queries and CI
-/// does not expect one.
+/// The backend, or `None` where no adapter has ray queries (see `common::adapter_for`).
 fn open() -> Option<WgpuRqBackend> {
-    if let Err(why) = gpu::probe(Need::RayQuery) {
-        assert!(
-            !std::env::var("CI").is_ok_and(|v| v == "true"),
-            "CI expects an adapter with ray queries: {why}"
-        );
-        eprintln!("note: wgpu-rq is not tested on this machine: {why}");
-        return None;
-    }
-    Some(WgpuRqBackend::new().expect("a probed adapter opens"))
+    common::adapter_for(Need::RayQuery, "wgpu-rq")
+        .then(|| WgpuRqBackend::new().expect("a probed adapter opens"))
 }
 
 fn scene(scene: Scene, n: usize, layout: Layout) -> SphereSet {

@@ -1,0 +1,28 @@
+//! Shared by the GPU tests: CI runs them on lavapipe and must fail, not skip, without an adapter.
+#![allow(dead_code)] // each test file uses the part it needs
+
+use mochi::gpu::{self, Gpu, Need};
+
+/// True when running under CI (`CI=true`), where every GPU test must find an adapter.
+pub fn ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true")
+}
+
+/// Whether an adapter for `need` exists. Without one: a panic under CI, else a printed note
+/// saying that `what` is not tested on this machine, and `false`.
+pub fn adapter_for(need: Need, what: &str) -> bool {
+    match gpu::probe(need) {
+        Ok(_) => true,
+        Err(why) => {
+            assert!(!ci(), "CI expects a GPU adapter for {what}: {why}");
+            eprintln!("note: {what} is not tested on this machine: {why}");
+            false
+        }
+    }
+}
+
+/// An open compute device, or `None` as [`adapter_for`] decides.
+pub fn open_gpu(what: &str) -> Option<Gpu> {
+    adapter_for(Need::Compute, what)
+        .then(|| Gpu::open(Need::Compute).expect("a probed adapter opens"))
+}
