@@ -4,8 +4,8 @@
 
 mod common;
 
-use mochi::gpu::radix_sort::RadixSort;
 use mochi::gpu::Gpu;
+use mochi::gpu::radix_sort::RadixSort;
 use rand::{Rng, RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use std::time::Instant;
@@ -208,7 +208,7 @@ fn large_sizes_on_a_discrete_gpu() {
     };
     eprintln!("adapter: {}", mochi::gpu::describe(&gpu.info));
     if gpu.info.device_type == wgpu::DeviceType::Cpu {
-        eprintln!("skipping: CPU adapter");
+        eprintln!("note: large sizes are not run on a CPU adapter");
         return;
     }
     let mut sort = RadixSort::new(&gpu);
@@ -216,7 +216,7 @@ fn large_sizes_on_a_discrete_gpu() {
         let bytes = n as u64 * 4;
         if bytes > gpu.limits.max_storage_buffer_binding_size || bytes > gpu.limits.max_buffer_size
         {
-            eprintln!("skipping n = {n}: buffers over the device's limits");
+            eprintln!("note: n = {n} needs buffers over the device's limits, not run");
             continue;
         }
         let input = random_keys(n, n as u64);

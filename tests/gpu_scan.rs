@@ -4,8 +4,8 @@
 
 mod common;
 
-use mochi::gpu::scan::ExclusiveScan;
 use mochi::gpu::Gpu;
+use mochi::gpu::scan::ExclusiveScan;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use std::time::Instant;
@@ -230,13 +230,13 @@ fn large_sizes_on_a_discrete_gpu() {
     };
     eprintln!("adapter: {}", mochi::gpu::describe(&gpu.info));
     if gpu.info.device_type == wgpu::DeviceType::Cpu {
-        eprintln!("skipping: CPU adapter");
+        eprintln!("note: large sizes are not run on a CPU adapter");
         return;
     }
     let mut scan = ExclusiveScan::new(&gpu);
     for len in [1usize << 20, 16_000_000, 70_000_000, 1 << 27, 1 << 28] {
         if !fits(&gpu, len) {
-            eprintln!("skipping len = {len}: over the device's limits");
+            eprintln!("note: len = {len} is over the device's limits, not run");
             continue;
         }
         let input = random_values(len, len as u64);
