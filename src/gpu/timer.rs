@@ -67,3 +67,8 @@ impl GpuTimer {
         Ok(b.saturating_sub(a) as f64 * gpu.queue.get_timestamp_period() as f64 * 1e-6)
     }
 }
+
+/// Milliseconds of `span`, or `None` without a timer (call after the span's commands completed).
+pub fn read_ms(gpu: &Gpu, timer: Option<&GpuTimer>, span: Span) -> Result<Option<f64>> {
+    timer.map(|t| t.read_ms(gpu, span)).transpose()
+}

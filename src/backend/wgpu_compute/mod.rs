@@ -17,7 +17,7 @@ use super::{BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
 use crate::gpu::scan::ExclusiveScan;
-use crate::gpu::timer::{GpuTimer, Span};
+use crate::gpu::timer::{self, GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
 use crate::spheres::{Pair, SphereSet};
@@ -391,11 +391,7 @@ impl RebuildingBackend for WgpuComputeBackend {
         })?;
         gpu.wait()?;
         self.times = GpuTimes {
-            build_ms: self
-                .timer
-                .as_ref()
-                .map(|t| t.read_ms(gpu, BUILD_SPAN))
-                .transpose()?,
+            build_ms: timer::read_ms(gpu, self.timer.as_ref(), BUILD_SPAN)?,
             detect_ms: None,
         };
         self.built = Some(Built {
@@ -454,7 +450,7 @@ impl RebuildingBackend for WgpuComputeBackend {
                 });
             })
         })?;
-        self.times.detect_ms = timer.map(|t| t.read_ms(gpu, DETECT_SPAN)).transpose()?;
+        self.times.detect_ms = timer::read_ms(gpu, timer, DETECT_SPAN)?;
         Ok(result)
     }
 

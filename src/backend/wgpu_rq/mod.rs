@@ -15,7 +15,7 @@ use super::{BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::PairOutput;
 use crate::gpu::radix_sort::RadixSort;
-use crate::gpu::timer::{GpuTimer, Span};
+use crate::gpu::timer::{self, GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
 use crate::spheres::{Pair, SphereSet};
@@ -238,11 +238,7 @@ impl RebuildingBackend for WgpuRqBackend {
         // Finish here, so that a build's time is its own and its errors are reported by it.
         gpu.wait()?;
         self.times = GpuTimes {
-            build_ms: self
-                .timer
-                .as_ref()
-                .map(|t| t.read_ms(gpu, BUILD_SPAN))
-                .transpose()?,
+            build_ms: timer::read_ms(gpu, self.timer.as_ref(), BUILD_SPAN)?,
             detect_ms: None,
         };
         self.built = Some(Built {
@@ -291,7 +287,7 @@ impl RebuildingBackend for WgpuRqBackend {
                 });
             })
         })?;
-        self.times.detect_ms = timer.map(|t| t.read_ms(gpu, DETECT_SPAN)).transpose()?;
+        self.times.detect_ms = timer::read_ms(gpu, timer, DETECT_SPAN)?;
         Ok(result)
     }
 
