@@ -27,6 +27,7 @@
 #![deny(unsafe_code)]
 
 pub mod backend;
+pub mod dem;
 mod error;
 pub mod gpu;
 pub mod io;

@@ -3,11 +3,15 @@
 
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
-fn all_shaders() -> Vec<(&'static str, &'static str)> {
-    let mut all = mochi::backend::wgpu_rq::SHADERS.to_vec();
-    all.extend(mochi::backend::wgpu_compute::SHADERS);
-    all.extend(mochi::gpu::radix_sort::SHADERS);
-    all.extend(mochi::gpu::scan::SHADERS);
+fn all_shaders() -> Vec<(&'static str, String)> {
+    let mut all: Vec<(&'static str, String)> = mochi::backend::wgpu_rq::SHADERS
+        .iter()
+        .chain(&mochi::backend::wgpu_compute::SHADERS)
+        .chain(&mochi::gpu::radix_sort::SHADERS)
+        .chain(&mochi::gpu::scan::SHADERS)
+        .map(|&(name, source)| (name, source.to_owned()))
+        .collect();
+    all.extend(mochi::dem::wgpu_compute::shaders());
     all
 }
 
@@ -15,6 +19,7 @@ fn all_shaders() -> Vec<(&'static str, &'static str)> {
 fn every_shader_parses_and_validates() {
     let mut failures = Vec::new();
     for (name, source) in all_shaders() {
+        let source = source.as_str();
         let module = match naga::front::wgsl::parse_str(source) {
             Ok(m) => m,
             Err(e) => {

@@ -34,13 +34,24 @@ pub(crate) struct SortedGrid {
 impl SortedGrid {
     /// Bins `spheres` into cells of side at least `cell_size`.
     pub fn bin(&mut self, spheres: &SphereSet, cell_size: f32) {
-        let centers = spheres.centers();
-        let Some((lo, hi)) = spheres.bounds() else {
-            self.keys.clear();
-            self.spheres.clear();
-            self.ids.clear();
-            return;
-        };
+        match spheres.bounds() {
+            Some((lo, hi)) => {
+                self.bin_within(spheres.centers(), spheres.radii(), lo, hi, cell_size)
+            }
+            None => self.bin_within(&[], &[], [0.0; 3], [0.0; 3], cell_size),
+        }
+    }
+
+    /// Bins spheres whose centres lie within `lo..=hi` (finite; centres outside are clamped to
+    /// the nearest cell, which keeps the search exact, only slower).
+    pub fn bin_within(
+        &mut self,
+        centers: &[[f32; 3]],
+        radii: &[f32],
+        lo: [f32; 3],
+        hi: [f32; 3],
+        cell_size: f32,
+    ) {
         let cells = cell_layout(lo, hi, cell_size);
         let [nx, ny] = [cells.counts[0] + 2, cells.counts[1] + 2];
         self.dims = [nx, ny];
@@ -52,7 +63,6 @@ impl SortedGrid {
             .collect_into_vec(&mut self.order);
         radsort::sort_by_key(&mut self.order, |e| e.0);
 
-        let radii = spheres.radii();
         let order = &self.order;
         order
             .par_iter()
@@ -69,6 +79,18 @@ impl SortedGrid {
                 [c[0], c[1], c[2], radii[i as usize]]
             })
             .collect_into_vec(&mut self.spheres);
+    }
+
+    /// Key distances from a cell to the first cell (x − 1) of each of its nine neighbour rows
+    /// (y − 1 ..= y + 1, z − 1 ..= z + 1, its own included), as wrapping offsets: the margin
+    /// keeps every sum non-negative.
+    pub fn all_row_offsets(&self) -> [u64; 9] {
+        let [nx, ny] = self.dims;
+        let plane = nx * ny;
+        std::array::from_fn(|k| {
+            let (dy, dz) = ((k % 3) as u64, (k / 3) as u64);
+            (dy * nx + dz * plane).wrapping_sub(nx + plane + 1)
+        })
     }
 
     /// Key distances from a cell to the first cell (x − 1) of its four forward neighbour rows:

@@ -4,8 +4,8 @@
 //! them by cell; detection = the half-stencil search of [`query`]. `update` re-bins: sorting is
 //! cheap enough that a grid has nothing to refit.
 
-mod grid;
-mod query;
+pub(crate) mod grid;
+pub(crate) mod query;
 
 use super::{Backend, BackendInfo, DetectStats};
 use crate::error::{Error, Result};

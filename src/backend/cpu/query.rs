@@ -100,3 +100,47 @@ fn search_chunk<S: PairSink>(
     }
     candidates
 }
+
+/// Full-neighbourhood gather over a [`SortedGrid`], for the DEM: `out[p] = each(p, runs)` for
+/// every sorted position p (`out` has one slot per sphere), where `runs` are the nine runs of the
+/// sorted array that hold the 27 cells around p's cell (p itself included; the caller skips it).
+/// Each sphere sees each of its neighbours, so a pair is seen from both sides: what a
+/// deterministic, atomic-free force sum needs.
+pub(crate) fn gather<T, F>(grid: &SortedGrid, out: &mut [T], each: F)
+where
+    T: Send,
+    F: Fn(usize, &[std::ops::Range<usize>; 9]) -> T + Sync,
+{
+    let keys = &grid.keys[..];
+    let n = keys.len();
+    assert_eq!(out.len(), n, "one output slot per sphere");
+    let offsets = grid.all_row_offsets();
+    out.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(c, slots)| {
+            let start = c * CHUNK;
+            let first = keys[start];
+            let mut runs: [std::ops::Range<usize>; 9] = std::array::from_fn(|r| {
+                let lo = first.wrapping_add(offsets[r]);
+                keys.partition_point(|&k| k < lo)..keys.partition_point(|&k| k <= lo + 2)
+            });
+            let mut current = first;
+            for (p, slot) in (start..).zip(slots.iter_mut()) {
+                let key = keys[p];
+                if key != current {
+                    current = key;
+                    for (run, &o) in runs.iter_mut().zip(&offsets) {
+                        let lo = key.wrapping_add(o);
+                        while run.start < n && keys[run.start] < lo {
+                            run.start += 1;
+                        }
+                        run.end = run.end.max(run.start);
+                        while run.end < n && keys[run.end] <= lo + 2 {
+                            run.end += 1;
+                        }
+                    }
+                }
+                *slot = each(p, &runs);
+            }
+        });
+}

@@ -70,21 +70,21 @@ const CELLS_PER_SPHERE: u64 = 8;
 /// Keep in sync with `GridParams` in `wgsl/grid_params.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct GridParams {
-    lo: [f32; 3],
-    n: u32,
-    inv_cell: f32,
-    nx: u32,
-    ny: u32,
-    nz: u32,
-    cells: u32,
-    row: u32,
-    capacity: u32,
-    hashed: u32,
-    levels: u32,
-    top_cell: f32,
-    level_pad: f32,
-    _pad0: u32,
+pub(crate) struct GridParams {
+    pub lo: [f32; 3],
+    pub n: u32,
+    pub inv_cell: f32,
+    pub nx: u32,
+    pub ny: u32,
+    pub nz: u32,
+    pub cells: u32,
+    pub row: u32,
+    pub capacity: u32,
+    pub hashed: u32,
+    pub levels: u32,
+    pub top_cell: f32,
+    pub level_pad: f32,
+    pub _pad0: u32,
 }
 const _: () = assert!(size_of::<GridParams>() == 64);
 
@@ -222,61 +222,29 @@ impl WgpuComputeBackend {
     /// Cell layout for `spheres`: a dense table at the mode's cell size, or with cells grown
     /// (up to [`MAX_DENSE_GROWTH`]×) where that is what makes it fit its budget and the grown
     /// cells are not crowded; else a hashed table at the mode's cell size (spheres spread thin,
-    /// far-away outliers).
+    /// far-away outliers). The multi-level grid is always hashed.
     fn layout(&self, spheres: &SphereSet, mode: ProxyMode) -> GridParams {
         let (lo, hi) = spheres.bounds().expect("the set is not empty");
-        let n = spheres.len() as u64;
-        let table_limit = self.gpu.limits.max_storage_buffer_binding_size / 4 - 1;
-        let budget = (n * CELLS_PER_SPHERE).max(1 << 20).min(table_limit);
         let base = mode.cell_size(spheres.max_radius()) as f64;
-        let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as f64);
-        let widest = extent.iter().copied().fold(0.0, f64::max);
-        let counts = |size: f64| -> [u64; 3] { extent.map(|e| (e / size) as u64 + 1 + 2) };
-        let params = |size: f64, [nx, ny, nz]: [u64; 3], cells: u64, hashed: u32| GridParams {
-            lo,
-            n: n as u32,
-            inv_cell: (1.0 / size) as f32,
-            nx: nx as u32,
-            ny: ny as u32,
-            nz: nz as u32,
-            cells: cells as u32,
-            hashed,
-            levels: 1,
-            top_cell: size as f32,
-            level_pad: 1.0,
-            ..GridParams::default()
-        };
-
-        // Dense: the smallest cells (from the mode's size, growing) whose table fits the budget,
-        // unless growing them crowds the cells (a cluster far from the rest, say).
         let multi_level = mode == ProxyMode::Mochi && self.structure == Structure::Mlgrid;
-        let mut size = base * (1.0 + CELL_PADDING);
-        while !multi_level && size <= MAX_DENSE_GROWTH * base {
-            let c = counts(size);
-            if c.iter().all(|&k| k <= MAX_AXIS_CELLS) {
-                let cells = c.iter().product::<u64>(); // ≤ 2^36: no overflow
-                if cells <= budget {
-                    if crowding(spheres.centers(), lo, size) <= MAX_CROWDING {
-                        return params(size, c, cells, 0);
-                    }
-                    break;
-                }
-            }
-            size *= 1.25;
-        }
-
-        // Cell coordinates of up to 2^21 per axis: pad the cells for their f32 rounding too.
-        let size = base.max(widest / (MAX_HASHED_AXIS_CELLS - 3) as f64);
-        let size = size * (1.0 + CELL_PADDING.max(widest / size / (1u64 << 20) as f64));
-        let buckets = (2 * n)
-            .next_power_of_two()
-            .clamp(1024, 1 << table_limit.ilog2());
-        let single = params(size, counts(size), buckets, 1);
+        let uncrowded = |size: f64| crowding(spheres.centers(), lo, size) <= MAX_CROWDING;
+        let dense_check: Option<&dyn Fn(f64) -> bool> =
+            if multi_level { None } else { Some(&uncrowded) };
+        let single = grid_layout(
+            &self.gpu.limits,
+            lo,
+            hi,
+            spheres.len() as u64,
+            base,
+            dense_check,
+        );
         if !multi_level {
             return single;
         }
         // Multi-level: levels down to the smallest sphere's proxy, while the finest level's
         // cells along an axis stay within the hashed limit.
+        let widest = (0..3).map(|a| (hi[a] - lo[a]) as f64).fold(0.0, f64::max);
+        let size = single.top_cell as f64;
         let (r_min, r_max) = (spheres.min_radius() as f64, spheres.max_radius() as f64);
         let by_radii = (r_max / r_min).log2().floor().max(0.0) as u32;
         let by_extent = (MAX_HASHED_AXIS_CELLS as f64 * size / widest.max(size))
@@ -294,6 +262,67 @@ impl WgpuComputeBackend {
             ..single
         }
     }
+}
+
+/// Single-level cell layout for `n` centres within `lo..=hi` and cells of at least `base`: a
+/// dense table when one fits the budget of [`CELLS_PER_SPHERE`] (cells grown up to
+/// [`MAX_DENSE_GROWTH`]× for that while `dense_check` accepts the grown size), else a hashed
+/// table. `None` for `dense_check` means hashed always. Centres outside `lo..=hi` are clamped to
+/// the border cells by the shaders: still exact, only slower.
+pub(crate) fn grid_layout(
+    limits: &wgpu::Limits,
+    lo: [f32; 3],
+    hi: [f32; 3],
+    n: u64,
+    base: f64,
+    dense_check: Option<&dyn Fn(f64) -> bool>,
+) -> GridParams {
+    let table_limit = limits.max_storage_buffer_binding_size / 4 - 1;
+    let budget = (n * CELLS_PER_SPHERE).max(1 << 20).min(table_limit);
+    let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as f64);
+    let widest = extent.iter().copied().fold(0.0, f64::max);
+    let counts = |size: f64| -> [u64; 3] { extent.map(|e| (e / size) as u64 + 1 + 2) };
+    let params = |size: f64, [nx, ny, nz]: [u64; 3], cells: u64, hashed: u32| GridParams {
+        lo,
+        n: n as u32,
+        inv_cell: (1.0 / size) as f32,
+        nx: nx as u32,
+        ny: ny as u32,
+        nz: nz as u32,
+        cells: cells as u32,
+        hashed,
+        levels: 1,
+        top_cell: size as f32,
+        level_pad: 1.0,
+        ..GridParams::default()
+    };
+
+    // Dense: the smallest cells (from the mode's size, growing) whose table fits the budget,
+    // unless growing them crowds the cells (a cluster far from the rest, say).
+    if let Some(accept) = dense_check {
+        let mut size = base * (1.0 + CELL_PADDING);
+        while size <= MAX_DENSE_GROWTH * base {
+            let c = counts(size);
+            if c.iter().all(|&k| k <= MAX_AXIS_CELLS) {
+                let cells = c.iter().product::<u64>(); // ≤ 2^36: no overflow
+                if cells <= budget {
+                    if accept(size) {
+                        return params(size, c, cells, 0);
+                    }
+                    break;
+                }
+            }
+            size *= 1.25;
+        }
+    }
+
+    // Cell coordinates of up to 2^21 per axis: pad the cells for their f32 rounding too.
+    let size = base.max(widest / (MAX_HASHED_AXIS_CELLS - 3) as f64);
+    let size = size * (1.0 + CELL_PADDING.max(widest / size / (1u64 << 20) as f64));
+    let buckets = (2 * n)
+        .next_power_of_two()
+        .clamp(1024, 1 << table_limit.ilog2());
+    params(size, counts(size), buckets, 1)
 }
 
 impl RebuildingBackend for WgpuComputeBackend {

@@ -1,0 +1,14 @@
+//! The discrete-element simulation (method.md, "The DEM pipeline"): per time step (1) maintain
+//! the acceleration structure, (2) find every touching pair and resolve its contact force in the
+//! same pass, (3) walls, gravity and integration. [`model`] holds the physics; each backend has a
+//! [`Stepper`] that runs the steps where its data lives (the GPU for GPU backends).
+
+pub mod cpu;
+pub mod model;
+pub mod particles;
+pub mod stepper;
+pub mod wgpu_compute;
+
+pub use model::{Material, StepParams};
+pub use particles::Particles;
+pub use stepper::{Advance, Clock, StageTimes, Stepper, open_stepper};

@@ -1,0 +1,307 @@
+//! The physics of the DEM (method.md, "The DEM pipeline"): spheres of one density under gravity,
+//! a linear spring–dashpot normal contact between spheres and with the six walls of a box, and
+//! semi-implicit Euler integration. No friction, no rotation, as in the paper.
+//!
+//! The force on sphere i from a touching sphere j, with n the unit vector from c_i to c_j,
+//! overlap δ = r_i + r_j − |c_j − c_i| and normal relative velocity v_n = (v_j − v_i)·n, is
+//! F_i = −(k·δ − c·v_n)·n with c = 2ζ·√(k·m_eff), m_eff = m_i·m_j/(m_i + m_j), and ζ the damping
+//! ratio that gives the restitution coefficient e: ζ = −ln e / √(π² + ln² e). Walls act the same
+//! way with m_eff = m_i. Computed from j's side, every operation sees negated inputs, so
+//! F_j = −F_i exactly. `wgsl/dem_step.wgsl` follows [`contact_force`] and [`wall_force`] line by
+//! line.
+
+use crate::error::{Error, Result};
+use std::f64::consts::PI;
+
+/// Contact durations per time step that the default stiffness gives the lightest pair.
+pub const STEPS_PER_CONTACT: f64 = 10.0;
+
+/// Material and contact parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Material {
+    /// Density [kg/m³] (default 500).
+    pub density: f64,
+    /// Restitution coefficient of a head-on collision, in (0, 1] (default 0.5).
+    pub restitution: f64,
+    /// Normal stiffness k [N/m]; `None` derives it so that a collision of the two lightest
+    /// spheres lasts [`STEPS_PER_CONTACT`] time steps.
+    pub stiffness: Option<f64>,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self {
+            density: 500.0,
+            restitution: 0.5,
+            stiffness: None,
+        }
+    }
+}
+
+/// Everything a step needs besides the particles.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepParams {
+    /// Time step [s].
+    pub dt: f32,
+    /// Lower corner of the box [m].
+    pub box_lo: [f32; 3],
+    /// Upper corner of the box [m].
+    pub box_hi: [f32; 3],
+    /// Gravity at t = 0 [m/s²].
+    pub gravity: [f32; 3],
+    /// Angular velocity [rad/s] at which gravity turns about the y axis (in the XZ plane).
+    pub gravity_spin: f32,
+    /// Normal stiffness k [N/m].
+    pub stiffness: f32,
+    /// Damping ratio ζ of the contacts (from the restitution coefficient).
+    pub damping_ratio: f32,
+    /// Density [kg/m³].
+    pub density: f32,
+}
+
+/// Damping ratio ζ that gives restitution `e` to a linear spring–dashpot contact.
+pub fn damping_ratio(e: f64) -> f64 {
+    let l = e.ln();
+    -l / (PI * PI + l * l).sqrt()
+}
+
+/// Mass of a sphere of radius `r` [kg].
+pub fn mass(density: f32, r: f32) -> f32 {
+    density * (4.0 / 3.0 * std::f32::consts::PI) * r * r * r
+}
+
+/// Stiffness that makes a contact of effective mass `m_eff` with restitution `e` last `t_c` [s].
+pub fn stiffness_for_duration(m_eff: f64, e: f64, t_c: f64) -> f64 {
+    let l = e.ln();
+    m_eff * (PI * PI + l * l) / (t_c * t_c)
+}
+
+/// Largest stable time step of semi-implicit Euler for a contact of effective mass `m_eff`:
+/// ω·dt < 2(√(1 + ζ²) − ζ) with ω = √(k/m_eff).
+pub fn stable_dt(stiffness: f64, m_eff: f64, zeta: f64) -> f64 {
+    2.0 * ((1.0 + zeta * zeta).sqrt() - zeta) / (stiffness / m_eff).sqrt()
+}
+
+impl StepParams {
+    /// Checks and completes the parameters for spheres of radii within `r_min..=r_max`: derives
+    /// the stiffness when the material has none, and refuses a time step too large for it.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        material: &Material,
+        dt: f64,
+        box_lo: [f64; 3],
+        box_hi: [f64; 3],
+        gravity: [f64; 3],
+        gravity_spin: f64,
+        r_min: f32,
+    ) -> Result<Self> {
+        let bad = |what: &str| Err(Error::Usage(what.to_owned()));
+        let m = &material;
+        if !(m.density.is_finite() && m.density > 0.0) {
+            return bad(&format!(
+                "density must be positive and finite, got {}",
+                m.density
+            ));
+        }
+        if !(m.restitution > 0.0 && m.restitution <= 1.0) {
+            return bad(&format!(
+                "restitution must be in (0, 1], got {}",
+                m.restitution
+            ));
+        }
+        if !(dt.is_finite() && dt > 0.0) {
+            return bad(&format!("time step must be positive and finite, got {dt}"));
+        }
+        if gravity
+            .iter()
+            .chain([&gravity_spin])
+            .any(|g| !g.is_finite())
+        {
+            return bad("gravity and its spin must be finite");
+        }
+        if (0..3)
+            .any(|a| !(box_lo[a].is_finite() && box_hi[a].is_finite() && box_lo[a] < box_hi[a]))
+        {
+            return bad(&format!(
+                "the box must have finite corners with lo < hi on every axis, got {box_lo:?} .. {box_hi:?}"
+            ));
+        }
+        let zeta = damping_ratio(m.restitution);
+        let m_eff = mass(m.density as f32, r_min) as f64 / 2.0;
+        let stiffness = match m.stiffness {
+            Some(k) if k.is_finite() && k > 0.0 => k,
+            Some(k) => return bad(&format!("stiffness must be positive and finite, got {k}")),
+            None => stiffness_for_duration(m_eff, m.restitution, STEPS_PER_CONTACT * dt),
+        };
+        let limit = stable_dt(stiffness, m_eff, zeta);
+        if dt > limit {
+            return bad(&format!(
+                "time step {dt:e} s is too large for stiffness {stiffness:e} N/m and the lightest \
+                 spheres (r = {r_min:e} m, density {}): the stable limit is {limit:e} s",
+                m.density
+            ));
+        }
+        Ok(Self {
+            dt: dt as f32,
+            box_lo: box_lo.map(|x| x as f32),
+            box_hi: box_hi.map(|x| x as f32),
+            gravity: gravity.map(|x| x as f32),
+            gravity_spin: gravity_spin as f32,
+            stiffness: stiffness as f32,
+            damping_ratio: zeta as f32,
+            density: m.density as f32,
+        })
+    }
+
+    /// Gravity at step `step` (time `step · dt`), turned about the y axis by `gravity_spin · t`.
+    pub fn gravity_at(&self, step: u64) -> [f32; 3] {
+        let angle = self.gravity_spin * (step as f32 * self.dt);
+        let (s, c) = angle.sin_cos();
+        let [gx, gy, gz] = self.gravity;
+        [gx * c + gz * s, gy, gz * c - gx * s]
+    }
+}
+
+/// Force on sphere i (centre `c_i`, velocity `v_i`, radius `r_i`, mass `m_i`) from sphere j, or
+/// `None` when they do not touch (or their centres coincide: no normal, no force).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn contact_force(
+    p: &StepParams,
+    c_i: [f32; 3],
+    v_i: [f32; 3],
+    r_i: f32,
+    m_i: f32,
+    c_j: [f32; 3],
+    v_j: [f32; 3],
+    r_j: f32,
+    m_j: f32,
+) -> Option<[f32; 3]> {
+    let d = [c_j[0] - c_i[0], c_j[1] - c_i[1], c_j[2] - c_i[2]];
+    let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let reach = r_i + r_j;
+    if d2 > reach * reach || d2 == 0.0 {
+        return None;
+    }
+    let dist = d2.sqrt();
+    let n = [d[0] / dist, d[1] / dist, d[2] / dist];
+    let overlap = reach - dist;
+    let dv = [v_j[0] - v_i[0], v_j[1] - v_i[1], v_j[2] - v_i[2]];
+    let vn = dv[0] * n[0] + dv[1] * n[1] + dv[2] * n[2];
+    let m_eff = m_i * m_j / (m_i + m_j);
+    let c = 2.0 * p.damping_ratio * (p.stiffness * m_eff).sqrt();
+    let push = p.stiffness * overlap - c * vn;
+    Some([-push * n[0], -push * n[1], -push * n[2]])
+}
+
+/// Force of the box walls on a sphere at `c` with velocity `v`, radius `r` and mass `m`.
+#[inline(always)]
+pub fn wall_force(p: &StepParams, c: [f32; 3], v: [f32; 3], r: f32, m: f32) -> [f32; 3] {
+    let damping = 2.0 * p.damping_ratio * (p.stiffness * m).sqrt();
+    std::array::from_fn(|a| {
+        let mut f = 0.0;
+        let below = r - (c[a] - p.box_lo[a]);
+        if below > 0.0 {
+            f += p.stiffness * below - damping * v[a];
+        }
+        let above = r - (p.box_hi[a] - c[a]);
+        if above > 0.0 {
+            f -= p.stiffness * above + damping * v[a];
+        }
+        f
+    })
+}
+
+/// One semi-implicit Euler step of a sphere under `force` and gravity `g`: v += dt·(F/m + g),
+/// then c += dt·v.
+#[inline(always)]
+pub fn integrate(
+    dt: f32,
+    c: &mut [f32; 3],
+    v: &mut [f32; 3],
+    force: [f32; 3],
+    m: f32,
+    g: [f32; 3],
+) {
+    for a in 0..3 {
+        v[a] += dt * (force[a] / m + g[a]);
+        c[a] += dt * v[a];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> StepParams {
+        StepParams::new(
+            &Material::default(),
+            1e-4,
+            [0.0; 3],
+            [1.0; 3],
+            [0.0, 0.0, -9.81],
+            0.0,
+            0.0005,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn damping_ratio_matches_known_values() {
+        assert!((damping_ratio(1.0)).abs() < 1e-15);
+        assert!((damping_ratio(0.5) - 0.215_545).abs() < 1e-6);
+    }
+
+    #[test]
+    fn default_stiffness_gives_ten_step_contacts_and_is_stable() {
+        let p = params();
+        let m_eff = mass(500.0, 0.0005) as f64 / 2.0;
+        let zeta = p.damping_ratio as f64;
+        let omega_d = (p.stiffness as f64 / m_eff).sqrt() * (1.0 - zeta * zeta).sqrt();
+        let t_c = PI / omega_d;
+        assert!((t_c / 1e-4 - STEPS_PER_CONTACT).abs() < 1e-3, "{t_c}");
+        assert!(stable_dt(p.stiffness as f64, m_eff, zeta) > 1e-4);
+    }
+
+    #[test]
+    fn too_large_a_step_is_refused_with_the_limit() {
+        let stiff = Material {
+            stiffness: Some(1e6),
+            ..Material::default()
+        };
+        let err = StepParams::new(&stiff, 1e-4, [0.0; 3], [1.0; 3], [0.0; 3], 0.0, 0.0005)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("stable limit"), "{err}");
+    }
+
+    #[test]
+    fn contact_forces_are_equal_and_opposite_bit_for_bit() {
+        let p = params();
+        let (ci, vi, cj, vj) = (
+            [0.1, 0.2, 0.3],
+            [0.01, -0.3, 0.2],
+            [0.1007, 0.2003, 0.2996],
+            [-0.2, 0.1, 0.05],
+        );
+        let f = contact_force(&p, ci, vi, 0.0005, 2e-7, cj, vj, 0.0006, 3e-7).unwrap();
+        let g = contact_force(&p, cj, vj, 0.0006, 3e-7, ci, vi, 0.0005, 2e-7).unwrap();
+        assert_eq!(f, g.map(|x| -x));
+        // Repulsive: pushes i away from j.
+        assert!(f[0] < 0.0 && f[1] < 0.0 && f[2] > 0.0);
+    }
+
+    #[test]
+    fn rotating_gravity_turns_in_the_xz_plane() {
+        let p = StepParams {
+            gravity_spin: std::f32::consts::FRAC_PI_2,
+            dt: 0.5,
+            ..params()
+        };
+        let g = p.gravity_at(2); // a quarter turn
+        assert!(
+            (g[0] + 9.81).abs() < 1e-4 && g[1] == 0.0 && g[2].abs() < 1e-4,
+            "{g:?}"
+        );
+    }
+}

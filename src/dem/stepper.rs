@@ -1,0 +1,90 @@
+//! The [`Stepper`] trait that every backend's DEM step implements, and how to open one.
+
+use super::model::StepParams;
+use super::particles::Particles;
+use crate::backend::BackendKind;
+use crate::error::Result;
+use crate::proxy::ProxyMode;
+
+/// Time spent per phase of the step, summed over the steps of one [`Stepper::advance`] [ms].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimes {
+    /// Maintaining the acceleration structure (binning, sorting, building).
+    pub build_ms: f64,
+    /// Collision detection with the contact forces resolved in the same pass.
+    pub dcd_ms: f64,
+    /// Walls, gravity and integration.
+    pub update_ms: f64,
+}
+
+impl StageTimes {
+    /// All three phases.
+    pub fn total_ms(&self) -> f64 {
+        self.build_ms + self.dcd_ms + self.update_ms
+    }
+
+    /// Adds `other` to these sums.
+    pub fn add(&mut self, other: &StageTimes) {
+        self.build_ms += other.build_ms;
+        self.dcd_ms += other.dcd_ms;
+        self.update_ms += other.update_ms;
+    }
+}
+
+/// How the stage times were taken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Clock {
+    /// GPU timestamps: time on the device itself.
+    Gpu,
+    /// Host wall-clock time around each phase.
+    Wall,
+    /// Not measured (a GPU without timestamps).
+    None,
+}
+
+/// What one [`Stepper::advance`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Advance {
+    /// Steps taken.
+    pub steps: u32,
+    /// Touching pairs found in the last step.
+    pub contacts: u64,
+    /// Phase times summed over the steps.
+    pub times: StageTimes,
+    /// How `times` were measured.
+    pub clock: Clock,
+}
+
+/// One backend's DEM step: keeps the particles (on the GPU for GPU backends) and advances them.
+pub trait Stepper {
+    /// Backend name and device, in words.
+    fn describe(&self) -> String;
+
+    /// Takes `steps` time steps.
+    fn advance(&mut self, steps: u32) -> Result<Advance>;
+
+    /// The particles now, in input order (a read-back on GPU backends).
+    fn particles(&mut self) -> Result<Particles>;
+}
+
+/// Opens the DEM step of backend `kind` over `particles`.
+pub fn open_stepper(
+    kind: BackendKind,
+    particles: Particles,
+    params: StepParams,
+    mode: ProxyMode,
+) -> Result<Box<dyn Stepper>> {
+    particles.validate()?;
+    Ok(match kind {
+        BackendKind::Cpu => Box::new(super::cpu::CpuStepper::new(particles, params, mode)),
+        BackendKind::WgpuCompute => Box::new(super::wgpu_compute::GridStepper::new(
+            particles, params, mode,
+        )?),
+        BackendKind::WgpuRq => {
+            return Err(crate::error::Error::BackendUnavailable {
+                backend: "wgpu-rq",
+                reason: "its DEM step is not built yet: use wgpu-compute or cpu".into(),
+            });
+        }
+    })
+}

@@ -1,0 +1,258 @@
+//! The DEM step on every backend: physics checks against theory, conservation, a settled pile,
+//! long-run sanity, and the GPU steps against the cpu step on the same scene.
+
+mod common;
+
+use mochi::backend::BackendKind;
+use mochi::dem::model::{mass, stable_dt, stiffness_for_duration};
+use mochi::dem::wgpu_compute::{ForceAtomics, GridStepper};
+use mochi::dem::{Material, Particles, StepParams, Stepper, open_stepper};
+use mochi::gpu::Need;
+use mochi::proxy::ProxyMode;
+
+/// Each backend's stepper that runs here, with a label: cpu always, the GPU ones where an adapter
+/// exists (a panic under CI without one), including the compare-and-swap force path.
+fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn Stepper>)> {
+    let mut out: Vec<(String, Box<dyn Stepper>)> = vec![(
+        "cpu".into(),
+        open_stepper(
+            BackendKind::Cpu,
+            particles.clone(),
+            params,
+            ProxyMode::Mochi,
+        )
+        .unwrap(),
+    )];
+    if common::adapter_for(Need::Compute, "the wgpu-compute DEM step") {
+        for atomics in [ForceAtomics::Auto, ForceAtomics::CompareExchange] {
+            let s = GridStepper::with_atomics(particles.clone(), params, ProxyMode::Mochi, atomics)
+                .unwrap();
+            out.push((format!("wgpu-compute {atomics:?}"), Box::new(s)));
+        }
+    }
+    out
+}
+
+fn params(material: Material, dt: f64, side: f64, gravity: [f64; 3], r_min: f32) -> StepParams {
+    StepParams::new(&material, dt, [0.0; 3], [side; 3], gravity, 0.0, r_min).unwrap()
+}
+
+fn particles(positions: Vec<[f32; 3]>, velocities: Vec<[f32; 3]>, radii: Vec<f32>) -> Particles {
+    Particles {
+        positions,
+        velocities,
+        radii,
+        step: 0,
+    }
+}
+
+#[test]
+fn head_on_collision_reaches_the_configured_restitution() {
+    for e in [0.3, 0.5, 0.9] {
+        let r = 0.01f32;
+        // A contact resolved in 400 steps (semi-implicit Euler damps first-order in dt: at the default 10 steps per contact its own
+        // error lowers e by about 9%, at 100 steps by 2%).
+        let m_eff = mass(500.0, r) as f64 / 2.0;
+        let material = Material {
+            restitution: e,
+            stiffness: Some(stiffness_for_duration(m_eff, e, 400.0 * 1e-5)),
+            ..Material::default()
+        };
+        let v0 = 0.5f32;
+        let start = particles(
+            vec![[0.489, 0.5, 0.5], [0.511, 0.5, 0.5]],
+            vec![[v0, 0.0, 0.0], [-v0, 0.0, 0.0]],
+            vec![r, r],
+        );
+        let p = params(material, 1e-5, 1.0, [0.0; 3], r);
+        for (name, mut s) in steppers(&start, p) {
+            // Approach 2 mm at 1 m/s closing speed (200 steps), contact 400 steps.
+            s.advance(1000).unwrap();
+            let end = s.particles().unwrap();
+            let closing_after = end.velocities[1][0] - end.velocities[0][0];
+            let got = closing_after / (2.0 * v0);
+            assert!(
+                (got as f64 - e).abs() <= 0.02 * e,
+                "{name}: restitution {got}, configured {e}"
+            );
+            assert!(
+                end.velocities.iter().all(|v| v[1] == 0.0 && v[2] == 0.0),
+                "{name}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_free_cluster_conserves_momentum() {
+    // 300 spheres thrown together, no gravity, walls far away.
+    let mut positions = Vec::new();
+    let mut velocities = Vec::new();
+    let mut radii = Vec::new();
+    let mut seed = 12345u64;
+    let mut rand = move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 40) as f32) / (1u64 << 24) as f32
+    };
+    for k in 0..300 {
+        let (x, y, z) = ((k % 7) as f32, ((k / 7) % 7) as f32, (k / 49) as f32);
+        positions.push([5.0 + 0.021 * x, 5.0 + 0.021 * y, 5.0 + 0.021 * z]);
+        velocities.push([rand() - 0.5, rand() - 0.5, rand() - 0.5]);
+        radii.push(0.008 + 0.004 * rand());
+    }
+    let start = particles(positions, velocities, radii);
+    let p = params(Material::default(), 2e-5, 10.0, [0.0; 3], 0.008);
+    let momentum = |s: &Particles| {
+        let mut m = [0.0f64; 3];
+        for (v, &r) in s.velocities.iter().zip(&s.radii) {
+            for a in 0..3 {
+                m[a] += mass(500.0, r) as f64 * v[a] as f64;
+            }
+        }
+        m
+    };
+    let before = momentum(&start);
+    let scale: f64 = start
+        .velocities
+        .iter()
+        .zip(&start.radii)
+        .map(|(v, &r)| mass(500.0, r) as f64 * v.iter().map(|x| x.abs() as f64).sum::<f64>())
+        .sum();
+    for (name, mut s) in steppers(&start, p) {
+        let a = s.advance(500).unwrap();
+        assert!(
+            a.contacts > 0 || name != "cpu",
+            "the cluster should collide"
+        );
+        let after = momentum(&s.particles().unwrap());
+        for k in 0..3 {
+            assert!(
+                (after[k] - before[k]).abs() <= 1e-5 * scale,
+                "{name}: momentum {after:?} vs {before:?}"
+            );
+        }
+    }
+}
+
+/// A small random pile dropped into a box: spheres of radius 0.01 on a lattice of spacing 0.025.
+fn pile(n_side: usize) -> Particles {
+    let mut positions = Vec::new();
+    let mut radii = Vec::new();
+    for k in 0..n_side * n_side * n_side {
+        let idx = [k % n_side, (k / n_side) % n_side, k / (n_side * n_side)];
+        let jitter = ((k * 7919) % 11) as f32 * 0.0002;
+        positions.push(std::array::from_fn(|a| {
+            0.02 + 0.025 * idx[a] as f32 + if a == 0 { jitter } else { 0.0 }
+        }));
+        radii.push(0.01 - ((k * 31) % 5) as f32 * 0.0005);
+    }
+    let n = positions.len();
+    particles(positions, vec![[0.0; 3]; n], radii)
+}
+
+#[test]
+fn a_settled_pile_comes_to_rest_with_small_overlaps() {
+    let start = pile(6);
+    let material = Material {
+        stiffness: Some(2e4),
+        restitution: 0.3,
+        ..Material::default()
+    };
+    let r_min = start.radius_range().0;
+    let m_eff = mass(500.0, r_min) as f64 / 2.0;
+    let dt = (stable_dt(2e4, m_eff, 0.36) / 8.0).min(2e-4);
+    let p = params(material, dt, 0.2, [0.0, 0.0, -9.81], r_min);
+    let steps = (0.8 / dt) as u32;
+    for (name, mut s) in steppers(&start, p) {
+        s.advance(steps).unwrap();
+        let end = s.particles().unwrap();
+        let speed = end
+            .velocities
+            .iter()
+            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            .fold(0.0f32, f32::max);
+        assert!(speed < 0.01, "{name}: still moving at {speed} m/s");
+        let mut worst = 0.0f32;
+        for i in 0..end.len() {
+            for j in i + 1..end.len() {
+                let (a, b) = (end.positions[i], end.positions[j]);
+                let d =
+                    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+                let overlap = end.radii[i] + end.radii[j] - d;
+                worst = worst.max(overlap / end.radii[i].min(end.radii[j]));
+            }
+        }
+        assert!(
+            worst < 0.01,
+            "{name}: max overlap {:.3}% of r",
+            worst * 100.0
+        );
+    }
+}
+
+#[test]
+fn a_long_run_stays_finite_and_inside_the_box() {
+    let start = pile(5);
+    let r_min = start.radius_range().0;
+    let side = 0.2f32;
+    // Rotating gravity keeps the pile tumbling against every wall.
+    let p = StepParams::new(
+        &Material::default(),
+        1e-4,
+        [0.0; 3],
+        [side as f64; 3],
+        [0.0, 0.0, -9.81],
+        std::f64::consts::PI,
+        r_min,
+    )
+    .unwrap();
+    for (name, mut s) in steppers(&start, p) {
+        for _ in 0..10 {
+            s.advance(300).unwrap();
+            let now = s.particles().unwrap();
+            for (c, &r) in now.positions.iter().zip(&now.radii) {
+                assert!(
+                    c.iter().all(|&x| x.is_finite() && x > -r && x < side + r),
+                    "{name}: sphere at {c:?} left the box by step {}",
+                    now.step
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn gpu_steps_follow_the_cpu_step_on_the_same_scene() {
+    let start = pile(8);
+    let r_min = start.radius_range().0;
+    let p = params(Material::default(), 1e-4, 0.3, [0.0, 0.0, -9.81], r_min);
+    let mut all = steppers(&start, p);
+    let (_, mut cpu) = all.remove(0);
+    let mut reference = Vec::new();
+    for _ in 0..40 {
+        let a = cpu.advance(25).unwrap();
+        reference.push((a.contacts, cpu.particles().unwrap()));
+    }
+    for (name, mut s) in all {
+        for (k, (contacts, expected)) in reference.iter().enumerate() {
+            let a = s.advance(25).unwrap();
+            let got = s.particles().unwrap();
+            assert_eq!(got.step, expected.step, "{name}");
+            let worst = got
+                .positions
+                .iter()
+                .zip(&expected.positions)
+                .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f32::max))
+                .fold(0.0, f32::max);
+            assert!(
+                worst < 1e-5,
+                "{name}: {worst} m from the cpu step at step {}",
+                got.step
+            );
+            // Contacts only begin as the pile lands; then both must see the same ones.
+            assert_eq!(a.contacts, *contacts, "{name}: contacts at batch {k}");
+        }
+    }
+}
