@@ -121,7 +121,7 @@ impl BackendKind {
 
     /// Why `auto` should pass over this backend although it can run (a software GPU is slower
     /// than the cpu backend).
-    fn auto_skip(self) -> Option<String> {
+    pub(crate) fn auto_skip(self) -> Option<String> {
         let need = match self {
             BackendKind::WgpuRq => Need::RayQuery,
             BackendKind::WgpuCompute => Need::Compute,

@@ -6,9 +6,10 @@
 pub mod cpu;
 pub mod model;
 pub mod particles;
+pub mod scene;
 pub mod stepper;
 pub mod wgpu_compute;
 
 pub use model::{Material, StepParams};
 pub use particles::Particles;
-pub use stepper::{Advance, Clock, StageTimes, Stepper, open_stepper};
+pub use stepper::{Advance, Clock, StageTimes, Stepper, open_choice, open_stepper};

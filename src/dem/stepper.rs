@@ -2,7 +2,7 @@
 
 use super::model::StepParams;
 use super::particles::Particles;
-use crate::backend::BackendKind;
+use crate::backend::{BackendChoice, BackendKind};
 use crate::error::Result;
 use crate::proxy::ProxyMode;
 
@@ -87,4 +87,42 @@ pub fn open_stepper(
             });
         }
     })
+}
+
+/// Opens the DEM step the user chose; `auto` takes the first of wgpu-compute (on a hardware
+/// adapter) and cpu that opens, and says why it passed over the others.
+pub fn open_choice(
+    choice: BackendChoice,
+    particles: Particles,
+    params: StepParams,
+    mode: ProxyMode,
+) -> Result<(Box<dyn Stepper>, Option<String>)> {
+    let kind = match choice {
+        BackendChoice::Auto => None,
+        BackendChoice::WgpuRq => Some(BackendKind::WgpuRq),
+        BackendChoice::WgpuCompute => Some(BackendKind::WgpuCompute),
+        BackendChoice::Cpu => Some(BackendKind::Cpu),
+    };
+    if let Some(kind) = kind {
+        return Ok((open_stepper(kind, particles, params, mode)?, None));
+    }
+    let mut skipped = vec!["skipped wgpu-rq: its DEM step is not built yet".to_owned()];
+    for kind in [BackendKind::WgpuCompute, BackendKind::Cpu] {
+        let why = kind.auto_skip().or_else(|| kind.probe().err());
+        if let Some(why) = why {
+            skipped.push(format!("skipped {}: {why}", kind.name()));
+            continue;
+        }
+        match open_stepper(kind, particles.clone(), params, mode) {
+            Ok(s) => {
+                let reason = format!("auto picked {}; {}", kind.name(), skipped.join("; "));
+                return Ok((s, Some(reason)));
+            }
+            Err(e) if kind != BackendKind::Cpu => {
+                skipped.push(format!("skipped {}: {e}", kind.name()))
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Err(crate::error::Error::Usage(skipped.join("; ")))
 }

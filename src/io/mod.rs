@@ -4,10 +4,12 @@
 //! Every writer goes through [`atomic`]: a failed write leaves no partial file behind.
 
 mod atomic;
+mod checkpoint;
 mod pairs;
 mod spheres;
 
 pub use atomic::write_atomically;
+pub use checkpoint::{read_checkpoint, write_checkpoint};
 pub use pairs::{read_pairs, write_pairs};
 pub use spheres::{read_spheres, write_spheres};
 
