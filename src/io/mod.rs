@@ -1,15 +1,19 @@
-//! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4) and pairs (CSV `i,j`).
+//! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4), pairs (CSV `i,j`), simulation
+//! frames for ParaView (`.vtu` files indexed by a `.pvd` collection, see [`FrameSeries`]) and
+//! checkpoints.
 //!
 //! Every reader names the file, the line (CSV) or row (`.npy`) and the problem in its error.
 //! Every writer goes through [`atomic`]: a failed write leaves no partial file behind.
 
 mod atomic;
 mod checkpoint;
+mod frames;
 mod pairs;
 mod spheres;
 
 pub use atomic::write_atomically;
 pub use checkpoint::{read_checkpoint, write_checkpoint};
+pub use frames::{Frame, FrameSeries, SERIES_INDEX, SeriesEntry, write_frame_csv, write_vtu};
 pub use pairs::{read_pairs, write_pairs};
 pub use spheres::{read_spheres, write_spheres};
 
