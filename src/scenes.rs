@@ -14,8 +14,9 @@ use rand_pcg::Pcg64;
 pub enum Scene {
     /// Paper dataset 1: radii U[0.0005, 0.0006] filling the unit cube.
     Freefall,
-    /// Radii U[0.0005, 0.0006] on a lattice of spacing 2.2·r_max: a dense slab in the lower part
-    /// of the unit box, 0.8 wide, as many layers as needed.
+    /// Radii U[0.0005, 0.0006] on a lattice of spacing 2.2·r_max: a dense slab centred in the
+    /// lower part of the unit box (from z = 0.1), about 2.7 layers deep and as wide as that
+    /// takes, at most 0.8 (reached at a million spheres).
     Slab,
     /// Paper dataset 2, r_max/r_min = 1.2: radii U[0.0005, 0.0006] in a 16-unit cube.
     #[value(name = "poly1.2")]
@@ -169,10 +170,15 @@ impl Lattice {
         let side = scene.box_side(n, layout);
         if scene == Scene::Slab {
             let spacing = 2.2 * scene.radius_range().1 as f64;
-            let width = 0.8 * side;
-            let per_row = (width / spacing) as usize;
+            // At most 0.8 wide, narrower for fewer spheres so there are always about 2.7
+            // layers (a million spheres fill the 0.8 × 0.8 square).
+            let per_row = ((0.8 * side / spacing) as usize)
+                .min((n as f64 / 2.7).sqrt().ceil() as usize)
+                .max(1);
+            let width = per_row as f64 * spacing;
             let layers = n.div_ceil(per_row * per_row).max(1);
-            let lo = [0.1 * side, 0.1 * side, 0.1 * side];
+            let edge = (side - width) / 2.0;
+            let lo = [edge, edge, 0.1 * side];
             let fit_layers = ((side - lo[2]) / spacing) as usize;
             if layers > fit_layers {
                 return Err(Error::TooLarge {

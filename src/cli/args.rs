@@ -17,6 +17,9 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Run a DEM simulation (a built-in 50,000-sphere slab drop by default) and write frames
+    /// ParaView opens (VTK + .pvd).
+    Simulate(SimulateArgs),
     /// Find every colliding pair in a sphere file or a generated scene, and print a summary.
     Detect(DetectArgs),
     /// Write a generated scene to a sphere file (.csv or .npy).
@@ -81,4 +84,56 @@ pub struct GenerateArgs {
     /// Output file (.csv or .npy).
     #[arg(short, long)]
     pub output: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// Scene file (TOML; see `mochi::dem::scene`). Without it, the built-in default scene.
+    pub scene_file: Option<PathBuf>,
+    /// Scene: freefall, slab, poly1.2, poly12, poly120, polylog, rotating, input.
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Number of spheres of a generated scene.
+    #[arg(short = 'n', long = "spheres", value_name = "N")]
+    pub spheres: Option<usize>,
+    /// Seed of the scene generator.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Steps to run (in total, counting those before a --resume).
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Time step [s] (default: the scene's).
+    #[arg(long)]
+    pub dt: Option<f64>,
+    /// Start from a sphere file (CSV x,y,z,r or .npy N×4) instead of a generated scene.
+    #[arg(long)]
+    pub input: Option<PathBuf>,
+    /// Write a frame every M steps (0: none).
+    #[arg(long, value_name = "M")]
+    pub frame_every: Option<u64>,
+    /// Also write every frame as CSV (x,y,z,r,vx,vy,vz).
+    #[arg(long)]
+    pub csv: bool,
+    /// Grid cells of 2·r_max (mochi) or 4·r_max (nns).
+    #[arg(long, value_enum)]
+    pub mode: Option<ProxyMode>,
+    /// Set any scene field, as KEY=VALUE in TOML syntax (repeatable), e.g. --set restitution=0.8
+    /// --set 'gravity=[0, 0, -1.62]' --set stiffness=50.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Backend to run on; auto picks the fastest that runs here and says which.
+    #[arg(long, value_enum, default_value_t)]
+    pub backend: BackendChoice,
+    /// Output folder for frames, checkpoints and the summary.
+    #[arg(short, long, default_value = "mochi-out")]
+    pub out: PathBuf,
+    /// Save a checkpoint (OUT/checkpoint.bin) every N steps (0: only at the end).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub checkpoint_every: u64,
+    /// Continue the run saved in this checkpoint (its scene; --steps may extend it).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["scene_file", "scene", "spheres", "seed", "dt", "input", "mode"])]
+    pub resume: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
 }

@@ -2,6 +2,7 @@
 
 mod args;
 mod run;
+mod simulate;
 
 use clap::Parser;
 use std::process::ExitCode;

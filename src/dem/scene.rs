@@ -25,6 +25,7 @@ use super::particles::Particles;
 use crate::error::{Error, Result};
 use crate::proxy::ProxyMode;
 use crate::scenes::{self, Layout, Scene, SceneSpec};
+use crate::spheres::SphereSet;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -130,35 +131,50 @@ pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
 impl SceneConfig {
     /// Reads a scene file (`None`: the defaults) and applies `overrides` (`key=value`).
     pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Self> {
-        let mut table = match path {
+        let text = match path {
+            None => None,
+            Some(p) => Some(std::fs::read_to_string(p).map_err(|error| Error::Io {
+                path: p.to_owned(),
+                error,
+            })?),
+        };
+        Self::parse(text.as_deref(), path, overrides)
+    }
+
+    /// Parses scene TOML (`None`: the defaults) from `origin` (named in errors; relative input
+    /// paths are taken from its folder) and applies `overrides` (`key=value`).
+    pub fn parse(text: Option<&str>, origin: Option<&Path>, overrides: &[String]) -> Result<Self> {
+        let where_ = || origin.map_or_else(|| "command line".into(), Path::to_owned);
+        let mut table = match text {
             None => toml::Table::new(),
-            Some(p) => {
-                let text = std::fs::read_to_string(p).map_err(|error| Error::Io {
-                    path: p.to_owned(),
-                    error,
-                })?;
-                text.parse::<toml::Table>().map_err(|e| Error::Parse {
-                    path: p.to_owned(),
-                    line: None,
-                    msg: e.to_string().trim_end().to_owned(),
-                })?
-            }
+            Some(text) => text.parse::<toml::Table>().map_err(|e| Error::Parse {
+                path: where_(),
+                line: None,
+                msg: e.to_string().trim_end().to_owned(),
+            })?,
         };
         for o in overrides {
             apply_override(&mut table, o)?;
         }
-        let mut config: SceneConfig =
-            table
-                .try_into()
-                .map_err(|e: toml::de::Error| Error::Parse {
-                    path: path.map_or_else(|| "command line".into(), Path::to_owned),
-                    line: None,
-                    msg: e.message().trim_end().to_owned(),
-                })?;
-        if let (Some(input), Some(dir)) = (&config.input, path.and_then(Path::parent)) {
-            if input.is_relative() {
-                config.input = Some(dir.join(input));
+        // Deserialize from text, so that errors quote the offending line: the file's own text
+        // when nothing was overridden, else the merged table's.
+        let merged;
+        let source = match text {
+            Some(t) if overrides.is_empty() => t,
+            _ => {
+                merged = toml::to_string(&table).expect("a TOML table serializes");
+                merged.as_str()
             }
+        };
+        let mut config: SceneConfig = toml::from_str(source).map_err(|e| Error::Parse {
+            path: where_(),
+            line: None,
+            msg: e.to_string().trim_end().to_owned(),
+        })?;
+        if let (Some(input), Some(dir)) = (&config.input, origin.and_then(Path::parent))
+            && input.is_relative()
+        {
+            config.input = Some(dir.join(input));
         }
         Ok(config)
     }
@@ -191,9 +207,7 @@ impl SceneConfig {
 
     /// Builds the particles at t = 0 and the step parameters.
     pub fn build(&self) -> Result<Start> {
-        let mode = self.proxy_mode()?;
-        let generator = self.generator()?;
-        let spheres = match generator {
+        let spheres = match self.generator()? {
             Some(scene) => scenes::generate(&SceneSpec {
                 scene,
                 n: self.spheres,
@@ -207,16 +221,25 @@ impl SceneConfig {
                 crate::io::read_spheres(input)?
             }
         };
-        let particles = Particles::at_rest(&spheres);
+        self.start_from(Particles::at_rest(&spheres))
+    }
+
+    /// The step parameters for `particles` (at t = 0, or from a checkpoint of this scene).
+    pub fn start_from(&self, particles: Particles) -> Result<Start> {
+        let mode = self.proxy_mode()?;
+        let generator = self.generator()?;
+        let (r_min, r_max) = particles.radius_range();
         let (default_lo, default_hi) = match generator {
             Some(scene) => {
-                let side = scene.box_side(self.spheres, Layout::Lattice);
+                let side = scene.box_side(particles.len(), Layout::Lattice);
                 ([0.0; 3], [side; 3])
             }
-            None => match spheres.bounds() {
-                // A file: its bounds with a margin of two largest diameters.
+            // A file: its bounds with a margin of two largest diameters.
+            None => match SphereSet::new(particles.positions.clone(), particles.radii.clone())?
+                .bounds()
+            {
                 Some((lo, hi)) => {
-                    let m = 4.0 * spheres.max_radius() as f64;
+                    let m = 4.0 * r_max as f64;
                     (lo.map(|x| x as f64 - m), hi.map(|x| x as f64 + m))
                 }
                 None => ([0.0; 3], [1.0; 3]),
@@ -240,14 +263,10 @@ impl SceneConfig {
             self.box_lo.unwrap_or(default_lo),
             self.box_hi.unwrap_or(default_hi),
         );
-        let r_min = if spheres.is_empty() {
-            1.0
-        } else {
-            spheres.min_radius()
-        };
+        let r_min = if particles.is_empty() { 1.0 } else { r_min };
         let params = StepParams::new(&material, dt, lo, hi, self.gravity, spin, r_min)?;
-        if let Some(index) = spheres
-            .centers()
+        if let Some(index) = particles
+            .positions
             .iter()
             .position(|c| (0..3).any(|a| !(lo[a]..=hi[a]).contains(&(c[a] as f64))))
         {
@@ -255,7 +274,7 @@ impl SceneConfig {
                 index,
                 reason: format!(
                     "centre {:?} is outside the box {lo:?} .. {hi:?}",
-                    spheres.centers()[index]
+                    particles.positions[index]
                 ),
             });
         }
@@ -264,6 +283,20 @@ impl SceneConfig {
             params,
             mode,
         })
+    }
+
+    /// This scene with every derived value (time step, box, gravity spin, stiffness) written
+    /// out as `start` resolved it, so a checkpoint resumes with exactly the same parameters.
+    pub fn resolved(&self, start: &Start) -> SceneConfig {
+        let p = &start.params;
+        SceneConfig {
+            dt: Some(p.dt as f64),
+            box_lo: Some(p.box_lo.map(f64::from)),
+            box_hi: Some(p.box_hi.map(f64::from)),
+            gravity_spin: Some(p.gravity_spin as f64),
+            stiffness: Some(p.stiffness as f64),
+            ..self.clone()
+        }
     }
 }
 

@@ -1,0 +1,211 @@
+//! `mochi simulate`: runs a DEM scene with a progress bar, frames, checkpoints and a summary.
+
+use super::args::SimulateArgs;
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use mochi::dem::scene::SceneConfig;
+use mochi::dem::{Clock, StageTimes, Stepper, open_choice};
+use mochi::io::{self, Frame, FrameSeries};
+use std::time::Instant;
+
+/// Steps between two progress updates at most.
+const PROGRESS_EVERY: u64 = 100;
+
+/// The scene overrides the named flags stand for, then the --set ones.
+fn overrides(args: &SimulateArgs) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut set = |key: &str, value: Option<String>| {
+        if let Some(v) = value {
+            out.push(format!("{key}={v}"));
+        }
+    };
+    set("scene", args.scene.as_ref().map(|s| format!("{s:?}")));
+    set("spheres", args.spheres.map(|v| v.to_string()));
+    set("seed", args.seed.map(|v| v.to_string()));
+    set("steps", args.steps.map(|v| v.to_string()));
+    set("dt", args.dt.map(|v| format!("{v:e}")));
+    set("frame_every", args.frame_every.map(|v| v.to_string()));
+    if let Some(input) = &args.input {
+        set("scene", Some("\"input\"".into()));
+        set("input", Some(format!("{:?}", input.display().to_string())));
+    }
+    set("csv", args.csv.then(|| "true".into()));
+    set(
+        "mode",
+        args.mode
+            .map(|m| format!("{:?}", format!("{m:?}").to_lowercase())),
+    );
+    out.extend(args.set.iter().cloned());
+    out
+}
+
+pub fn simulate(args: SimulateArgs) -> Result<()> {
+    let overrides = overrides(&args);
+    let (config, start) = match &args.resume {
+        Some(path) => {
+            let (particles, scene) = io::read_checkpoint(path)?;
+            let config = SceneConfig::parse(Some(&scene), Some(path), &overrides)?;
+            let start = config.start_from(particles)?;
+            (config, start)
+        }
+        None => {
+            let config = SceneConfig::load(args.scene_file.as_deref(), &overrides)?;
+            let start = config.build()?;
+            (config.resolved(&start), start)
+        }
+    };
+    let total = config.steps;
+    let first = start.particles.step;
+    if first > total {
+        anyhow::bail!(
+            "the checkpoint is at step {first}, past the run's {total} steps: raise --steps"
+        );
+    }
+    let n = start.particles.len();
+    let p = start.params;
+    let (mut stepper, reason) = open_choice(args.backend, start.particles.clone(), p, start.mode)?;
+    if let Some(reason) = reason {
+        eprintln!("{reason}");
+    }
+    eprintln!(
+        "scene {} | {n} spheres | steps {first}..{total} | dt {:e} s | stiffness {:.4e} N/m | \
+         restitution {} | backend {}",
+        config.scene,
+        p.dt,
+        p.stiffness,
+        config.restitution,
+        stepper.describe()
+    );
+
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let scene_toml = config.to_toml();
+    io::write_atomically(&args.out.join("scene.toml"), |w| {
+        w.write_all(scene_toml.as_bytes())
+    })?;
+    let mut frames = if config.frame_every == 0 {
+        None
+    } else if args.resume.is_some() {
+        Some(FrameSeries::open_for_resume(&args.out, first)?)
+    } else {
+        Some(FrameSeries::create(&args.out)?)
+    };
+    let write_frame = |frames: &mut Option<FrameSeries>, stepper: &mut dyn Stepper| -> Result<()> {
+        if let Some(series) = frames {
+            let now = stepper.particles()?;
+            series.write(
+                &Frame {
+                    time: now.step as f64 * p.dt as f64,
+                    step: now.step,
+                    positions: &now.positions,
+                    radii: &now.radii,
+                    velocities: &now.velocities,
+                },
+                config.csv,
+            )?;
+        }
+        Ok(())
+    };
+    if args.resume.is_none() {
+        write_frame(&mut frames, stepper.as_mut())?;
+    }
+
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(total - first)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} steps | {per_sec} | ETA {eta} | {msg}")
+            .expect("a valid template"),
+    );
+    let checkpoint = args.out.join("checkpoint.bin");
+    let started = Instant::now();
+    let mut times = StageTimes::default();
+    let mut clock = Clock::Gpu;
+    let mut contacts = 0;
+    let mut step = first;
+    let due = |every: u64, s: u64| every > 0 && s.is_multiple_of(every);
+    while step < total {
+        let next_stop = [config.frame_every, args.checkpoint_every, PROGRESS_EVERY]
+            .into_iter()
+            .filter(|&e| e > 0)
+            .map(|e| (step / e + 1) * e)
+            .min()
+            .unwrap_or(total)
+            .min(total);
+        let advance = stepper.advance((next_stop - step) as u32)?;
+        step = next_stop;
+        times.add(&advance.times);
+        clock = advance.clock;
+        contacts = advance.contacts;
+        if due(config.frame_every, step) {
+            write_frame(&mut frames, stepper.as_mut())?;
+        }
+        if due(args.checkpoint_every, step) {
+            io::write_checkpoint(&checkpoint, &stepper.particles()?, &scene_toml)?;
+        }
+        bar.set_message(format!("{contacts} contacts"));
+        bar.set_position(step - first);
+    }
+    bar.finish_and_clear();
+    let wall = started.elapsed().as_secs_f64();
+    let end = stepper.particles()?;
+    io::write_checkpoint(&checkpoint, &end, &scene_toml)?;
+    summary(&SummaryLine {
+        backend: stepper.describe(),
+        n,
+        steps: total - first,
+        wall,
+        times,
+        clock,
+        contacts,
+    });
+    eprintln!(
+        "wrote {} (series.pvd opens in ParaView), checkpoint {}",
+        args.out.display(),
+        checkpoint.display()
+    );
+    Ok(())
+}
+
+struct SummaryLine {
+    backend: String,
+    n: usize,
+    steps: u64,
+    wall: f64,
+    times: StageTimes,
+    clock: Clock,
+    contacts: u64,
+}
+
+/// Prints the final table: throughput and the per-phase breakdown per step.
+fn summary(s: &SummaryLine) {
+    let per = |ms: f64| ms / s.steps.max(1) as f64;
+    let clock = match s.clock {
+        Clock::Gpu => "GPU timestamps",
+        Clock::Wall => "wall clock",
+        Clock::None => "not measured",
+    };
+    println!("| backend | spheres | steps | wall [s] | steps/s | contacts (last step) |");
+    println!("| --- | --- | --- | --- | --- | --- |");
+    println!(
+        "| {} | {} | {} | {:.2} | {:.1} | {} |",
+        s.backend,
+        s.n,
+        s.steps,
+        s.wall,
+        s.steps as f64 / s.wall.max(1e-9),
+        s.contacts
+    );
+    println!();
+    println!("| per step [ms] ({clock}) | build | DCD | update | total |");
+    println!("| --- | --- | --- | --- | --- |");
+    println!(
+        "| | {:.4} | {:.4} | {:.4} | {:.4} |",
+        per(s.times.build_ms),
+        per(s.times.dcd_ms),
+        per(s.times.update_ms),
+        per(s.times.total_ms())
+    );
+}

@@ -1,0 +1,162 @@
+//! `mochi simulate` end to end on the cpu backend: frames and the .pvd index, checkpoints that
+//! resume bit for bit, and clear errors for bad scenes.
+
+use mochi::io::read_checkpoint;
+use std::path::Path;
+use std::process::Command;
+
+const BIN: &str = env!("CARGO_BIN_EXE_mochi");
+
+fn mochi(args: &[&str], dir: &Path) -> (Option<i32>, String, String) {
+    let out = Command::new(BIN)
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the binary runs");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn ok(args: &[&str], dir: &Path) -> String {
+    let (code, stdout, stderr) = mochi(args, dir);
+    assert_eq!(code, Some(0), "{args:?}\n{stdout}\n{stderr}");
+    stdout
+}
+
+fn fails(args: &[&str], dir: &Path) -> String {
+    let (code, stdout, stderr) = mochi(args, dir);
+    assert_eq!(
+        code,
+        Some(1),
+        "{args:?} should fail cleanly\n{stdout}\n{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.starts_with("error: "), "{stderr}");
+    stderr
+}
+
+const SMALL: [&str; 9] = [
+    "simulate",
+    "--scene",
+    "slab",
+    "-n",
+    "1500",
+    "--backend",
+    "cpu",
+    "--quiet",
+    "--csv",
+];
+
+#[test]
+fn a_run_writes_frames_an_index_a_checkpoint_and_a_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = SMALL.to_vec();
+    args.extend(["--steps", "60", "--frame-every", "20", "-o", "out"]);
+    let stdout = ok(&args, dir.path());
+    assert!(stdout.contains("| build | DCD | update |"), "{stdout}");
+    let out = dir.path().join("out");
+    let pvd = std::fs::read_to_string(out.join("series.pvd")).unwrap();
+    for step in [0, 20, 40, 60] {
+        let name = format!("frame_{step:08}.vtu");
+        assert!(pvd.contains(&name), "{name} missing from\n{pvd}");
+        assert!(out.join(&name).is_file());
+        assert!(out.join(format!("frame_{step:08}.csv")).is_file());
+    }
+    let (particles, scene) = read_checkpoint(&out.join("checkpoint.bin")).unwrap();
+    assert_eq!(particles.step, 60);
+    assert_eq!(particles.len(), 1500);
+    assert!(
+        scene.contains("dt = "),
+        "the saved scene is resolved: {scene}"
+    );
+    // Under gravity the slab has moved down.
+    assert!(particles.velocities.iter().all(|v| v[2] < 0.0));
+}
+
+#[test]
+fn resuming_the_cpu_backend_continues_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut straight = SMALL.to_vec();
+    straight.extend(["--steps", "80", "--frame-every", "0", "-o", "straight"]);
+    ok(&straight, dir.path());
+    let mut first = SMALL.to_vec();
+    first.extend(["--steps", "30", "--frame-every", "10", "-o", "split"]);
+    ok(&first, dir.path());
+    ok(
+        &[
+            "simulate",
+            "--resume",
+            "split/checkpoint.bin",
+            "--steps",
+            "80",
+            "-o",
+            "split",
+            "--backend",
+            "cpu",
+            "-q",
+        ],
+        dir.path(),
+    );
+    let a = read_checkpoint(&dir.path().join("straight/checkpoint.bin"))
+        .unwrap()
+        .0;
+    let b = read_checkpoint(&dir.path().join("split/checkpoint.bin"))
+        .unwrap()
+        .0;
+    assert_eq!(a.step, 80);
+    assert!(a == b, "a resumed run differs from an uninterrupted one");
+    // The index keeps the frames before the resume and adds the later ones.
+    let pvd = std::fs::read_to_string(dir.path().join("split/series.pvd")).unwrap();
+    for step in [0, 10, 20, 30, 40, 80] {
+        assert!(pvd.contains(&format!("frame_{step:08}.vtu")), "{pvd}");
+    }
+}
+
+#[test]
+fn bad_scenes_give_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| std::fs::write(dir.path().join(name), text).unwrap();
+    write("typo.toml", "scene = \"slab\"\nsphers = 10\n");
+    assert!(fails(&["simulate", "typo.toml", "-q"], dir.path()).contains("sphers"));
+    write("broken.toml", "scene = \"slab\nspheres = 10\n");
+    assert!(fails(&["simulate", "broken.toml", "-q"], dir.path()).contains("broken.toml"));
+    write("type.toml", "spheres = \"many\"\n");
+    assert!(fails(&["simulate", "type.toml", "-q"], dir.path()).contains("spheres"));
+    let e = fails(
+        &[
+            "simulate",
+            "-n",
+            "100",
+            "--set",
+            "stiffness=1e9",
+            "--steps",
+            "1",
+            "-q",
+            "--backend",
+            "cpu",
+        ],
+        dir.path(),
+    );
+    assert!(e.contains("stable limit"), "{e}");
+    assert!(fails(&["simulate", "--scene", "teapot", "-q"], dir.path()).contains("teapot"));
+    assert!(fails(&["simulate", "missing.toml", "-q"], dir.path()).contains("missing.toml"));
+    write("junk.bin", "not a checkpoint");
+    assert!(fails(&["simulate", "--resume", "junk.bin", "-q"], dir.path()).contains("junk.bin"));
+    let e = fails(
+        &[
+            "simulate",
+            "--set",
+            "restitution=0",
+            "-n",
+            "100",
+            "-q",
+            "--backend",
+            "cpu",
+        ],
+        dir.path(),
+    );
+    assert!(e.contains("restitution"), "{e}");
+}
