@@ -5,8 +5,8 @@ mod common;
 
 use mochi::backend::BackendKind;
 use mochi::dem::model::{mass, stable_dt, stiffness_for_duration};
-use mochi::dem::wgpu_compute::{ForceAtomics, GridStepper};
-use mochi::dem::{Material, Particles, StepParams, Stepper, open_stepper};
+use mochi::dem::wgpu_compute::GridStepper;
+use mochi::dem::{ForceAtomics, Material, Particles, StepParams, Stepper, open_stepper};
 use mochi::gpu::Need;
 use mochi::proxy::ProxyMode;
 

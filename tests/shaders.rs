@@ -3,13 +3,13 @@
 
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
-fn all_shaders() -> Vec<(&'static str, String)> {
-    let mut all: Vec<(&'static str, String)> = mochi::backend::wgpu_rq::SHADERS
+fn all_shaders() -> Vec<(String, String)> {
+    let mut all: Vec<(String, String)> = mochi::backend::wgpu_rq::SHADERS
         .iter()
         .chain(&mochi::backend::wgpu_compute::SHADERS)
         .chain(&mochi::gpu::radix_sort::SHADERS)
         .chain(&mochi::gpu::scan::SHADERS)
-        .map(|&(name, source)| (name, source.to_owned()))
+        .map(|&(name, source)| (name.to_owned(), source.to_owned()))
         .collect();
     all.extend(mochi::dem::wgpu_compute::shaders());
     all

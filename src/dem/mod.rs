@@ -4,12 +4,14 @@
 //! [`Stepper`] that runs the steps where its data lives (the GPU for GPU backends).
 
 pub mod cpu;
+mod gpu_step;
 pub mod model;
 pub mod particles;
 pub mod scene;
 pub mod stepper;
 pub mod wgpu_compute;
 
+pub use gpu_step::ForceAtomics;
 pub use model::{Material, StepParams};
 pub use particles::Particles;
 pub use stepper::{Advance, Clock, StageTimes, Stepper, open_choice, open_stepper};

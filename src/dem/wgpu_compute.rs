@@ -10,7 +10,11 @@
 //! leave the layout's region are clamped into its border cells: exact, only slower.
 //! Float atomics add in no fixed order, so GPU runs are not bit-for-bit reproducible.
 
-use super::model::{StepParams, mass};
+use super::gpu_step::{
+    DemParams, FORCE_VARIANTS, ForceAtomics, GROUP, MAX_BATCH, PHYSICS_WGSL, StepTimer,
+    max_spheres, particles_from, rows,
+};
+use super::model::StepParams;
 use super::particles::Particles;
 use super::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::backend::wgpu_compute::{GridParams, grid_layout};
@@ -19,55 +23,26 @@ use crate::gpu::scan::{ExclusiveScan, PreparedScan};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
 
-const STEP_WGSL: &str = concat!(
+const GRID_WGSL: &str = concat!(
     include_str!("../../wgsl/grid_params.wgsl"),
-    include_str!("../../wgsl/dem_step.wgsl")
+    include_str!("../../wgsl/dem_grid.wgsl")
 );
-const FORCE_F32_WGSL: &str = include_str!("../../wgsl/dem_force_f32.wgsl");
-const FORCE_CAS_WGSL: &str = include_str!("../../wgsl/dem_force_cas.wgsl");
 
-/// Every WGSL module of the DEM step, by label, exactly as the device may get it.
-pub fn shaders() -> [(&'static str, String); 2] {
-    [
-        ("dem_step_f32", format!("{STEP_WGSL}{FORCE_F32_WGSL}")),
-        ("dem_step_cas", format!("{STEP_WGSL}{FORCE_CAS_WGSL}")),
-    ]
+/// Every WGSL module of this step, by label, exactly as the device may get it.
+pub fn shaders() -> Vec<(String, String)> {
+    FORCE_VARIANTS
+        .iter()
+        .map(|(name, force)| {
+            (
+                format!("dem_grid_{name}"),
+                format!("{GRID_WGSL}{PHYSICS_WGSL}{force}"),
+            )
+        })
+        .collect()
 }
-
-/// Workgroup size of every kernel of the step (as in the shader).
-const GROUP: u32 = 256;
 
 /// Steps between two re-derivations of the grid layout.
 pub const RELAYOUT_EVERY: u64 = 100;
-
-/// Most steps recorded into one submission (and timed by one query set).
-const MAX_BATCH: u32 = 200;
-
-/// Keep in sync with `DemParams` in `wgsl/dem_step.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct DemParams {
-    box_lo: [f32; 3],
-    n: u32,
-    box_hi: [f32; 3],
-    _pad0: u32,
-    gravity: [f32; 3],
-    dt: f32,
-    stiffness: f32,
-    damping_ratio: f32,
-    gravity_spin: f32,
-    _pad1: u32,
-}
-const _: () = assert!(size_of::<DemParams>() == 64);
-
-/// How forces are accumulated.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ForceAtomics {
-    /// Float atomics where the adapter has them, else compare-and-swap.
-    Auto,
-    /// Compare-and-swap loops on the bit patterns (any adapter).
-    CompareExchange,
-}
 
 /// One set of the ping-ponged state, in sorted order.
 struct StateSet {
@@ -91,12 +66,6 @@ struct Binds {
     resolve: wgpu::BindGroup,
     integrate: wgpu::BindGroup,
     reduce_bounds: wgpu::BindGroup,
-}
-
-/// Timestamps of up to [`MAX_BATCH`] steps: four per step (start, built, resolved, integrated).
-struct StepTimer {
-    queries: wgpu::QuerySet,
-    resolved: wgpu::Buffer,
 }
 
 /// The wgpu-compute DEM step.
@@ -146,12 +115,7 @@ impl GridStepper {
     ) -> Result<Self> {
         let gpu = Gpu::open(Need::Compute)?;
         let n64 = particles.len() as u64;
-        let max = (gpu
-            .limits
-            .max_storage_buffer_binding_size
-            .min(gpu.limits.max_buffer_size)
-            / 16)
-            .min(u32::MAX as u64 / 4);
+        let max = max_spheres(&gpu);
         if n64 > max {
             return Err(Error::TooLarge {
                 what: format!("spheres for the wgpu-compute DEM on {}", gpu.info.name),
@@ -160,17 +124,11 @@ impl GridStepper {
             });
         }
         let n = n64 as u32;
-        let float_atomics = atomics == ForceAtomics::Auto
-            && gpu
-                .device
-                .features()
-                .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
-        let (atomics, force_wgsl) = if float_atomics {
-            ("float atomics", FORCE_F32_WGSL)
-        } else {
-            ("compare-and-swap", FORCE_CAS_WGSL)
-        };
-        let module = gpu.module("mochi.dem.step", &format!("{STEP_WGSL}{force_wgsl}"));
+        let (atomics, force_wgsl) = atomics.pick(&gpu);
+        let module = gpu.module(
+            "mochi.dem.grid",
+            &format!("{GRID_WGSL}{PHYSICS_WGSL}{force_wgsl}"),
+        );
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.{entry}"), &module, entry);
         let pipelines = Pipelines {
             bin_count: pipeline("bin_count"),
@@ -188,25 +146,7 @@ impl GridStepper {
                 vel: make(&format!("mochi.dem.vel{k}"), n64 * 16),
                 ids: make(&format!("mochi.dem.ids{k}"), n64 * 4),
             };
-            let timer = gpu
-                .device
-                .features()
-                .contains(
-                    wgpu::Features::TIMESTAMP_QUERY
-                        | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS,
-                )
-                .then(|| StepTimer {
-                    queries: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-                        label: Some("mochi.dem.timer"),
-                        ty: wgpu::QueryType::Timestamp,
-                        count: 4 * MAX_BATCH,
-                    }),
-                    resolved: gpu.storage(
-                        "mochi.dem.timer.resolved",
-                        4 * MAX_BATCH as u64 * 8,
-                        wgpu::BufferUsages::QUERY_RESOLVE,
-                    ),
-                });
+            let timer = StepTimer::new(&gpu);
             GridStepper {
                 scan: ExclusiveScan::new(&gpu),
                 prepared: None,
@@ -243,32 +183,9 @@ impl GridStepper {
 
     /// Writes the particles (in input order) into the current set and the parameters.
     fn upload(&mut self, particles: &Particles) -> Result<()> {
-        let density = self.params.density;
-        let pos: Vec<[f32; 4]> = particles
-            .positions
-            .iter()
-            .zip(&particles.radii)
-            .map(|(c, &r)| [c[0], c[1], c[2], r])
-            .collect();
-        let vel: Vec<[f32; 4]> = particles
-            .velocities
-            .iter()
-            .zip(&particles.radii)
-            .map(|(v, &r)| [v[0], v[1], v[2], mass(density, r)])
-            .collect();
+        let (pos, vel) = rows(particles, self.params.density);
         let ids: Vec<u32> = (0..self.n).collect();
-        let p = &self.params;
-        let dem = DemParams {
-            box_lo: p.box_lo,
-            n: self.n,
-            box_hi: p.box_hi,
-            gravity: p.gravity,
-            dt: p.dt,
-            stiffness: p.stiffness,
-            damping_ratio: p.damping_ratio,
-            gravity_spin: p.gravity_spin,
-            ..DemParams::default()
-        };
+        let dem = DemParams::new(&self.params, self.n, self.groups.0 * GROUP);
         let q = &self.gpu.queue;
         let set = &self.sets[self.current];
         q.write_buffer(&set.pos, 0, bytemuck::cast_slice(&pos));
@@ -421,7 +338,6 @@ impl GridStepper {
                 "mochi.dem.integrate",
                 &p.integrate,
                 &[
-                    (0, &self.grid_uniform),
                     (1, &self.dem_uniform),
                     (10, &b.pos),
                     (11, &b.vel),
@@ -449,9 +365,7 @@ impl GridStepper {
         for s in 0..steps {
             let b = &binds[current];
             let mark = |encoder: &mut wgpu::CommandEncoder, k: u32| {
-                if let Some(t) = &self.timer {
-                    encoder.write_timestamp(&t.queries, 4 * s + k);
-                }
+                StepTimer::mark(self.timer.as_ref(), encoder, s, k)
             };
             mark(&mut encoder, 0);
             encoder.clear_buffer(&self.cell_table, 0, Some(table_bytes));
@@ -490,27 +404,17 @@ impl GridStepper {
             current = 1 - current;
         }
         if let Some(t) = &self.timer {
-            encoder.resolve_query_set(&t.queries, 0..4 * steps, &t.resolved, 0);
+            t.resolve(&mut encoder, steps);
         }
         gpu.checked("running DEM steps", || gpu.queue.submit([encoder.finish()]))?;
         self.current = current;
         self.step += steps as u64;
         let contacts = gpu.read::<u32>(&self.counters, 1)?[0] as u64;
-        let times = match &self.timer {
-            None => None,
-            Some(t) => {
-                let ticks: Vec<u64> = gpu.read(&t.resolved, 4 * steps as usize)?;
-                let period = gpu.queue.get_timestamp_period() as f64 * 1e-6;
-                let span = |a: u64, b: u64| b.saturating_sub(a) as f64 * period;
-                let mut times = StageTimes::default();
-                for t in ticks.chunks_exact(4) {
-                    times.build_ms += span(t[0], t[1]);
-                    times.dcd_ms += span(t[1], t[2]);
-                    times.update_ms += span(t[2], t[3]);
-                }
-                Some(times)
-            }
-        };
+        let times = self
+            .timer
+            .as_ref()
+            .map(|t| t.read(gpu, steps))
+            .transpose()?;
         Ok((contacts, times))
     }
 }
@@ -565,24 +469,6 @@ impl Stepper for GridStepper {
         let pos: Vec<[f32; 4]> = self.gpu.read(&set.pos, n)?;
         let vel: Vec<[f32; 4]> = self.gpu.read(&set.vel, n)?;
         let ids: Vec<u32> = self.gpu.read(&set.ids, n)?;
-        let mut out = Particles {
-            positions: vec![[0.0; 3]; n],
-            velocities: vec![[0.0; 3]; n],
-            radii: vec![0.0; n],
-            step: self.step,
-        };
-        for ((p, v), &i) in pos.iter().zip(&vel).zip(&ids) {
-            let i = i as usize;
-            out.positions[i] = [p[0], p[1], p[2]];
-            out.velocities[i] = [v[0], v[1], v[2]];
-            out.radii[i] = p[3];
-        }
-        out.validate().map_err(|e| {
-            Error::Gpu(format!(
-                "the simulation became unstable by step {} ({e}); try a smaller time step",
-                self.step
-            ))
-        })?;
-        Ok(out)
+        particles_from(&pos, &vel, Some(&ids), self.step)
     }
 }

@@ -1,27 +1,13 @@
-// DEM step of the wgpu-compute backend (method.md, "The DEM pipeline"): bin, resolve, integrate.
-// Needs grid_params.wgsl prepended and one of dem_force_f32.wgsl / dem_force_cas.wgsl appended.
+// DEM step of the wgpu-compute backend (method.md, "The DEM pipeline"): bin and resolve; the
+// integration is dem_physics.wgsl's. Needs grid_params.wgsl prepended, dem_physics.wgsl and one
+// of dem_force_f32.wgsl / dem_force_cas.wgsl appended.
 //
 // The state (pos, vel, ids) lives in sorted order and ping-pongs between two sets of buffers:
 // each step bins the previous step's sorted set (`*_a`, nearly sorted already, so the atomics of
 // the counting sort hit few cells at a time) into the other set, resolves every contact there
-// and integrates in place. Keep DemParams in sync with src/dem/wgpu_compute.rs and the force
-// formulas with src/dem/model.rs, line for line.
-
-struct DemParams {
-    box_lo: vec3<f32>,
-    n: u32,
-    box_hi: vec3<f32>,
-    _pad0: u32,
-    gravity: vec3<f32>,     // at t = 0
-    dt: f32,
-    stiffness: f32,
-    damping_ratio: f32,
-    gravity_spin: f32,      // rad/s about the y axis
-    _pad1: u32,
-}
+// and integrates in place.
 
 @group(0) @binding(0) var<uniform> params: GridParams;
-@group(0) @binding(1) var<uniform> dem: DemParams;
 @group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;   // x, y, z, r
 @group(0) @binding(3) var<storage, read> vel_a: array<vec4<f32>>;   // vx, vy, vz, mass
 @group(0) @binding(4) var<storage, read> ids_a: array<u32>;
@@ -30,16 +16,12 @@ struct DemParams {
 @group(0) @binding(7) var<storage, read_write> counts: array<atomic<u32>>;
 @group(0) @binding(8) var<storage, read> cell_start: array<u32>;
 @group(0) @binding(9) var<storage, read_write> keys: array<u32>;
-@group(0) @binding(10) var<storage, read_write> pos: array<vec4<f32>>;
-@group(0) @binding(11) var<storage, read_write> vel: array<vec4<f32>>;
 @group(0) @binding(12) var<storage, read_write> ids: array<u32>;
-// binding 13: force (dem_force_*.wgsl)
+// bindings 1 (dem), 10 (pos), 11 (vel), 16 (clock): dem_physics.wgsl; 13 (force): dem_force_*.wgsl
 // counters[0]: touching pairs found in the step
 @group(0) @binding(14) var<storage, read_write> counters: array<atomic<u32>, 4>;
 // bounds of the centres as order-preserving u32 keys: min x, y, z, max x, y, z
 @group(0) @binding(15) var<storage, read_write> bounds: array<atomic<u32>, 6>;
-// steps begun since t = 0
-@group(0) @binding(16) var<storage, read_write> clock: atomic<u32>;
 
 fn index(gid: vec3<u32>) -> u32 {
     return gid.x + gid.y * params.row;
@@ -73,26 +55,6 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     ids[p] = ids_a[i];
     pos[p] = pos_a[i];
     vel[p] = vel_a[i];
-}
-
-// Force on sphere i from sphere j (xyz) and 1 in w when they touch; zero otherwise.
-fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
-                 c_j: vec3<f32>, v_j: vec3<f32>, r_j: f32, m_j: f32) -> vec4<f32> {
-    let d = c_j - c_i;
-    let d2 = d.x * d.x + d.y * d.y + d.z * d.z;
-    let reach = r_i + r_j;
-    if d2 > reach * reach || d2 == 0.0 {
-        return vec4(0.0);
-    }
-    let dist = sqrt(d2);
-    let n = d / dist;
-    let overlap = reach - dist;
-    let dv = v_j - v_i;
-    let vn = dv.x * n.x + dv.y * n.y + dv.z * n.z;
-    let m_eff = m_i * m_j / (m_i + m_j);
-    let c = 2.0 * dem.damping_ratio * sqrt(dem.stiffness * m_eff);
-    let push = dem.stiffness * overlap - c * vn;
-    return vec4(-push * n, 1.0);
 }
 
 // Resolves sphere p against the sorted spheres a..b: adds each partner's share there and returns
@@ -175,49 +137,6 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
     if lid == 0u {
         atomicAdd(&counters[0], atomicLoad(&group_contacts));
     }
-}
-
-// Force of the box walls on a sphere at c with velocity v, radius r and mass m.
-fn wall_force(c: vec3<f32>, v: vec3<f32>, r: f32, m: f32) -> vec3<f32> {
-    let damping = 2.0 * dem.damping_ratio * sqrt(dem.stiffness * m);
-    var f = vec3(0.0);
-    for (var a = 0; a < 3; a += 1) {
-        let below = r - (c[a] - dem.box_lo[a]);
-        if below > 0.0 {
-            f[a] += dem.stiffness * below - damping * v[a];
-        }
-        let above = r - (dem.box_hi[a] - c[a]);
-        if above > 0.0 {
-            f[a] -= dem.stiffness * above + damping * v[a];
-        }
-    }
-    return f;
-}
-
-// Gravity at step `step`, turned about the y axis by gravity_spin · t.
-fn gravity_at(step: u32) -> vec3<f32> {
-    let angle = dem.gravity_spin * (f32(step) * dem.dt);
-    let s = sin(angle);
-    let c = cos(angle);
-    let g = dem.gravity;
-    return vec3(g.x * c + g.z * s, g.y, g.z * c - g.x * s);
-}
-
-// Walls, gravity and one semi-implicit Euler step, in place in the sorted set.
-@compute @workgroup_size(256)
-fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = index(gid);
-    if p >= params.n {
-        return;
-    }
-    let s = pos[p];
-    let v = vel[p];
-    let f = load_force(p) + wall_force(s.xyz, v.xyz, s.w, v.w);
-    let g = gravity_at(atomicLoad(&clock) - 1u);
-    let m = v.w;
-    let v_new = v.xyz + dem.dt * (f / m + g);
-    vel[p] = vec4(v_new, m);
-    pos[p] = vec4(s.xyz + dem.dt * v_new, s.w);
 }
 
 // Order-preserving u32 key of a float (for atomicMin / atomicMax).

@@ -1,0 +1,188 @@
+//! What the GPU DEM steps share: the parameter block of `wgsl/dem_physics.wgsl`, the choice of
+//! force atomics, per-phase timestamps, and moving particles to and from the GPU.
+
+use super::model::{StepParams, mass};
+use super::particles::Particles;
+use super::stepper::StageTimes;
+use crate::error::{Error, Result};
+use crate::gpu::Gpu;
+
+/// The physics shared by the GPU steps (integration kernel included).
+pub(crate) const PHYSICS_WGSL: &str = include_str!("../../wgsl/dem_physics.wgsl");
+const FORCE_F32_WGSL: &str = include_str!("../../wgsl/dem_force_f32.wgsl");
+const FORCE_CAS_WGSL: &str = include_str!("../../wgsl/dem_force_cas.wgsl");
+
+/// Both force accumulators, by label suffix.
+pub(crate) const FORCE_VARIANTS: [(&str, &str); 2] =
+    [("f32", FORCE_F32_WGSL), ("cas", FORCE_CAS_WGSL)];
+
+/// Workgroup size of every 256-wide kernel of the steps (as in the shaders).
+pub(crate) const GROUP: u32 = 256;
+
+/// Most steps recorded into one submission (and timed by one query set).
+pub(crate) const MAX_BATCH: u32 = 200;
+
+/// Keep in sync with `DemParams` in `wgsl/dem_physics.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct DemParams {
+    box_lo: [f32; 3],
+    n: u32,
+    box_hi: [f32; 3],
+    row: u32,
+    gravity: [f32; 3],
+    dt: f32,
+    stiffness: f32,
+    damping_ratio: f32,
+    gravity_spin: f32,
+    _pad1: u32,
+}
+const _: () = assert!(size_of::<DemParams>() == 64);
+
+impl DemParams {
+    /// The block for `n` spheres dispatched in rows of `row` invocations.
+    pub fn new(p: &StepParams, n: u32, row: u32) -> Self {
+        Self {
+            box_lo: p.box_lo,
+            n,
+            box_hi: p.box_hi,
+            row,
+            gravity: p.gravity,
+            dt: p.dt,
+            stiffness: p.stiffness,
+            damping_ratio: p.damping_ratio,
+            gravity_spin: p.gravity_spin,
+            _pad1: 0,
+        }
+    }
+}
+
+/// How forces are accumulated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ForceAtomics {
+    /// Float atomics where the adapter has them, else compare-and-swap.
+    Auto,
+    /// Compare-and-swap loops on the bit patterns (any adapter).
+    CompareExchange,
+}
+
+impl ForceAtomics {
+    /// The force WGSL for `gpu` and its name, in words.
+    pub(crate) fn pick(self, gpu: &Gpu) -> (&'static str, &'static str) {
+        let floats = gpu
+            .device
+            .features()
+            .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
+        if self == ForceAtomics::Auto && floats {
+            ("float atomics", FORCE_F32_WGSL)
+        } else {
+            ("compare-and-swap", FORCE_CAS_WGSL)
+        }
+    }
+}
+
+/// Timestamps of up to [`MAX_BATCH`] steps, four per step: start, built, resolved, integrated.
+pub(crate) struct StepTimer {
+    queries: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+}
+
+impl StepTimer {
+    /// A timer, or `None` where the device cannot write timestamps inside encoders.
+    pub fn new(gpu: &Gpu) -> Option<Self> {
+        let needed =
+            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
+        gpu.device.features().contains(needed).then(|| StepTimer {
+            queries: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("mochi.dem.timer"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 4 * MAX_BATCH,
+            }),
+            resolved: gpu.storage(
+                "mochi.dem.timer.resolved",
+                4 * MAX_BATCH as u64 * 8,
+                wgpu::BufferUsages::QUERY_RESOLVE,
+            ),
+        })
+    }
+
+    /// Marks phase boundary `k` (0..4) of step `s` of the batch.
+    pub fn mark(timer: Option<&Self>, encoder: &mut wgpu::CommandEncoder, s: u32, k: u32) {
+        if let Some(t) = timer {
+            encoder.write_timestamp(&t.queries, 4 * s + k);
+        }
+    }
+
+    /// Records the resolve of a batch of `steps` steps.
+    pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder, steps: u32) {
+        encoder.resolve_query_set(&self.queries, 0..4 * steps, &self.resolved, 0);
+    }
+
+    /// The phase times of the last batch of `steps` steps (after it completed).
+    pub fn read(&self, gpu: &Gpu, steps: u32) -> Result<StageTimes> {
+        let ticks: Vec<u64> = gpu.read(&self.resolved, 4 * steps as usize)?;
+        let period = gpu.queue.get_timestamp_period() as f64 * 1e-6;
+        let span = |a: u64, b: u64| b.saturating_sub(a) as f64 * period;
+        let mut times = StageTimes::default();
+        for t in ticks.chunks_exact(4) {
+            times.build_ms += span(t[0], t[1]);
+            times.dcd_ms += span(t[1], t[2]);
+            times.update_ms += span(t[2], t[3]);
+        }
+        Ok(times)
+    }
+}
+
+/// Most spheres a GPU step takes on `gpu` (16-byte rows in one binding, indices in u32).
+pub(crate) fn max_spheres(gpu: &Gpu) -> u64 {
+    (gpu.limits
+        .max_storage_buffer_binding_size
+        .min(gpu.limits.max_buffer_size)
+        / 16)
+        .min(u32::MAX as u64 / 4)
+}
+
+/// `vec4(x, y, z, r)` and `vec4(vx, vy, vz, mass)` rows of `particles`, in input order.
+pub(crate) fn rows(particles: &Particles, density: f32) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+    let pos = particles
+        .positions
+        .iter()
+        .zip(&particles.radii)
+        .map(|(c, &r)| [c[0], c[1], c[2], r])
+        .collect();
+    let vel = particles
+        .velocities
+        .iter()
+        .zip(&particles.radii)
+        .map(|(v, &r)| [v[0], v[1], v[2], mass(density, r)])
+        .collect();
+    (pos, vel)
+}
+
+/// Particles from rows read back in the order `ids` gives (`None`: input order).
+pub(crate) fn particles_from(
+    pos: &[[f32; 4]],
+    vel: &[[f32; 4]],
+    ids: Option<&[u32]>,
+    step: u64,
+) -> Result<Particles> {
+    let n = pos.len();
+    let mut out = Particles {
+        positions: vec![[0.0; 3]; n],
+        velocities: vec![[0.0; 3]; n],
+        radii: vec![0.0; n],
+        step,
+    };
+    for (k, (p, v)) in pos.iter().zip(vel).enumerate() {
+        let i = ids.map_or(k, |ids| ids[k] as usize);
+        out.positions[i] = [p[0], p[1], p[2]];
+        out.velocities[i] = [v[0], v[1], v[2]];
+        out.radii[i] = p[3];
+    }
+    out.validate().map_err(|e| {
+        Error::Gpu(format!(
+            "the simulation became unstable by step {step} ({e}); try a smaller time step"
+        ))
+    })?;
+    Ok(out)
+}

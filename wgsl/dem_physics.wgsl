@@ -1,0 +1,85 @@
+// The DEM physics shared by the GPU steps: parameters, the contact and wall forces and the
+// integration kernel. Keep DemParams in sync with src/dem/gpu_step.rs and the formulas with
+// src/dem/model.rs, line for line. Needs a dem_force_*.wgsl (add_force, load_force).
+
+struct DemParams {
+    box_lo: vec3<f32>,
+    n: u32,
+    box_hi: vec3<f32>,
+    row: u32,               // invocations per dispatch row of a 256-wide kernel
+    gravity: vec3<f32>,     // at t = 0
+    dt: f32,
+    stiffness: f32,
+    damping_ratio: f32,
+    gravity_spin: f32,      // rad/s about the y axis
+    _pad1: u32,
+}
+
+@group(0) @binding(1) var<uniform> dem: DemParams;
+@group(0) @binding(10) var<storage, read_write> pos: array<vec4<f32>>;   // x, y, z, r
+@group(0) @binding(11) var<storage, read_write> vel: array<vec4<f32>>;   // vx, vy, vz, mass
+// steps begun since t = 0
+@group(0) @binding(16) var<storage, read_write> clock: atomic<u32>;
+
+// Force on sphere i from sphere j (xyz) and 1 in w when they touch; zero otherwise.
+fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
+                 c_j: vec3<f32>, v_j: vec3<f32>, r_j: f32, m_j: f32) -> vec4<f32> {
+    let d = c_j - c_i;
+    let d2 = d.x * d.x + d.y * d.y + d.z * d.z;
+    let reach = r_i + r_j;
+    if d2 > reach * reach || d2 == 0.0 {
+        return vec4(0.0);
+    }
+    let dist = sqrt(d2);
+    let n = d / dist;
+    let overlap = reach - dist;
+    let dv = v_j - v_i;
+    let vn = dv.x * n.x + dv.y * n.y + dv.z * n.z;
+    let m_eff = m_i * m_j / (m_i + m_j);
+    let c = 2.0 * dem.damping_ratio * sqrt(dem.stiffness * m_eff);
+    let push = dem.stiffness * overlap - c * vn;
+    return vec4(-push * n, 1.0);
+}
+
+// Force of the box walls on a sphere at c with velocity v, radius r and mass m.
+fn wall_force(c: vec3<f32>, v: vec3<f32>, r: f32, m: f32) -> vec3<f32> {
+    let damping = 2.0 * dem.damping_ratio * sqrt(dem.stiffness * m);
+    var f = vec3(0.0);
+    for (var a = 0; a < 3; a += 1) {
+        let below = r - (c[a] - dem.box_lo[a]);
+        if below > 0.0 {
+            f[a] += dem.stiffness * below - damping * v[a];
+        }
+        let above = r - (dem.box_hi[a] - c[a]);
+        if above > 0.0 {
+            f[a] -= dem.stiffness * above + damping * v[a];
+        }
+    }
+    return f;
+}
+
+// Gravity at step `step`, turned about the y axis by gravity_spin · t.
+fn gravity_at(step: u32) -> vec3<f32> {
+    let angle = dem.gravity_spin * (f32(step) * dem.dt);
+    let s = sin(angle);
+    let c = cos(angle);
+    let g = dem.gravity;
+    return vec3(g.x * c + g.z * s, g.y, g.z * c - g.x * s);
+}
+
+// Walls, gravity and one semi-implicit Euler step, in place.
+@compute @workgroup_size(256)
+fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x + gid.y * dem.row;
+    if p >= dem.n {
+        return;
+    }
+    let s = pos[p];
+    let v = vel[p];
+    let f = load_force(p) + wall_force(s.xyz, v.xyz, s.w, v.w);
+    let g = gravity_at(atomicLoad(&clock) - 1u);
+    let m = v.w;
+    let v_new = v.xyz + dem.dt * (f / m + g);
+    vel[p] = vec4(v_new, m);
+    pos[p] = vec4(s.xyz + dem.dt * v_new, s.w);
+}
