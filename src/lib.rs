@@ -31,6 +31,7 @@ pub mod dem;
 mod error;
 pub mod gpu;
 pub mod io;
+pub mod mesh;
 pub mod oracle;
 pub mod proxy;
 pub mod scenes;
