@@ -12,6 +12,7 @@ fn all_shaders() -> Vec<(String, String)> {
         .map(|&(name, source)| (name.to_owned(), source.to_owned()))
         .collect();
     all.extend(mochi::dem::wgpu_compute::shaders());
+    all.extend(mochi::dem::wgpu_rq::shaders());
     all
 }
 

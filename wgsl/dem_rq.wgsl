@@ -5,11 +5,12 @@
 // dem_physics.wgsl, a dem_force_*.wgsl and proxy.wgsl appended.
 enable wgpu_ray_query;
 
+// Keep in sync with RqParams in src/dem/wgpu_rq.rs.
 struct RqParams {
     chunk: u32,      // primitives per BLAS: sphere index = custom_data * chunk + primitive_index
     pad_rel: f32,    // relative padding of the boxes
-    _pad0: u32,
-    _pad1: u32,
+    mode: u32,       // MODE_MOCHI or MODE_NNS
+    r_max: f32,      // largest radius
 }
 
 @group(0) @binding(0) var<uniform> rq: RqParams;
@@ -18,7 +19,8 @@ struct RqParams {
 // counters[0]: touching pairs found in the step
 @group(0) @binding(14) var<storage, read_write> counters: array<atomic<u32>, 4>;
 
-// The proxy box of every sphere (half-width 2·r, padded by a few ulps); starts the step's clock.
+// The proxy box of every sphere (half-width 2·r, or 2·r_max in nns mode, padded by a few ulps);
+// starts the step's clock.
 @compute @workgroup_size(256)
 fn proxy_boxes(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = gid.x + gid.y * dem.row;
@@ -29,7 +31,7 @@ fn proxy_boxes(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let s = pos[p];
-    let h = box_half_width(MODE_MOCHI, s.w, 0.0);
+    let h = box_half_width(rq.mode, s.w, rq.r_max);
     let pad = (max(max(abs(s.x), abs(s.y)), abs(s.z)) + h) * rq.pad_rel;
     for (var a = 0u; a < 3u; a += 1u) {
         boxes[6u * p + a] = s[a] - (h + pad);
@@ -56,7 +58,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
             }
             let q = hit.instance_custom_data * rq.chunk + hit.primitive_index;
             let t = pos[q];
-            if !keep(p, s.xyz, s.w, q, t.xyz, t.w) {
+            if !keep_in(rq.mode, p, s.xyz, s.w, q, t.xyz, t.w) {
                 continue;
             }
             let u = vel[q];

@@ -10,6 +10,7 @@ pub mod particles;
 pub mod scene;
 pub mod stepper;
 pub mod wgpu_compute;
+pub mod wgpu_rq;
 
 pub use gpu_step::ForceAtomics;
 pub use model::{Material, StepParams};

@@ -80,17 +80,12 @@ pub fn open_stepper(
         BackendKind::WgpuCompute => Box::new(super::wgpu_compute::GridStepper::new(
             particles, params, mode,
         )?),
-        BackendKind::WgpuRq => {
-            return Err(crate::error::Error::BackendUnavailable {
-                backend: "wgpu-rq",
-                reason: "its DEM step is not built yet: use wgpu-compute or cpu".into(),
-            });
-        }
+        BackendKind::WgpuRq => Box::new(super::wgpu_rq::RqStepper::new(particles, params, mode)?),
     })
 }
 
-/// Opens the DEM step the user chose; `auto` takes the first of wgpu-compute (on a hardware
-/// adapter) and cpu that opens, and says why it passed over the others.
+/// Opens the DEM step the user chose; `auto` takes the first of wgpu-rq, wgpu-compute (on a
+/// hardware adapter) and cpu that opens, and says why it passed over the others.
 pub fn open_choice(
     choice: BackendChoice,
     particles: Particles,
@@ -106,8 +101,8 @@ pub fn open_choice(
     if let Some(kind) = kind {
         return Ok((open_stepper(kind, particles, params, mode)?, None));
     }
-    let mut skipped = vec!["skipped wgpu-rq: its DEM step is not built yet".to_owned()];
-    for kind in [BackendKind::WgpuCompute, BackendKind::Cpu] {
+    let mut skipped = Vec::new();
+    for kind in BackendKind::ALL {
         let why = kind.auto_skip().or_else(|| kind.probe().err());
         if let Some(why) = why {
             skipped.push(format!("skipped {}: {why}", kind.name()));
@@ -115,7 +110,11 @@ pub fn open_choice(
         }
         match open_stepper(kind, particles.clone(), params, mode) {
             Ok(s) => {
-                let reason = format!("auto picked {}; {}", kind.name(), skipped.join("; "));
+                let mut reason = format!("auto picked {}", kind.name());
+                for why in &skipped {
+                    reason.push_str("; ");
+                    reason.push_str(why);
+                }
                 return Ok((s, Some(reason)));
             }
             Err(e) if kind != BackendKind::Cpu => {

@@ -7,7 +7,7 @@ use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
 const BOX_STRIDE: u64 = 24;
 
 /// The buffers, BLAS and TLAS of a build over `n` spheres.
-pub(super) struct Accel {
+pub(crate) struct Accel {
     /// Number of spheres.
     pub n: u32,
     /// Primitives per BLAS (the last one may hold fewer).
@@ -129,6 +129,11 @@ impl Accel {
             })
             .collect();
         encoder.build_acceleration_structures(&entries, [&self.tlas]);
+    }
+
+    /// The top-level acceleration structure (one instance per BLAS).
+    pub fn tlas(&self) -> &wgpu::Tlas {
+        &self.tlas
     }
 
     /// The bind group of the detection shader over this build and `output`.

@@ -8,7 +8,7 @@
 //! Pairs are counted while written, so a full output buffer is grown and the pass rerun: nothing
 //! is ever truncated. wgpu has no refit, so [`Backend::update`] rebuilds.
 
-mod accel;
+pub(crate) mod accel;
 
 use super::rebuilding::RebuildingBackend;
 use super::{BackendInfo, DetectStats, GpuTimes};
@@ -44,7 +44,7 @@ const PAIRS_GROUP: u32 = 64;
 
 /// Relative padding of the proxy boxes: a few ulps of f32, so the box test never rejects a point
 /// that the rule accepts.
-const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
+pub(crate) const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
 
 /// Bits of the Morton keys (10 per axis).
 const MORTON_BITS: u32 = 30;

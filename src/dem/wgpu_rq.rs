@@ -1,0 +1,327 @@
+//! The wgpu-rq backend's DEM step: the paper's pipeline on WGSL ray queries, resident on the GPU.
+//! Per step the proxy boxes of all spheres, a BLAS and TLAS rebuilt from them (wgpu has no refit,
+//! so "rebuild every step" is the only policy), one point ray per sphere that resolves every pair
+//! the proxy rule keeps (equal and opposite forces, atomics), then `dem_physics.wgsl`'s
+//! integration (`wgsl/dem_rq.wgsl`). The spheres stay in input order: the generated scenes are
+//! laid out along a lattice, so the BVH's primitives are already spatially coherent.
+
+use super::gpu_step::{
+    DemParams, FORCE_VARIANTS, ForceAtomics, GROUP, MAX_BATCH, PHYSICS_WGSL, StepTimer,
+    max_spheres, particles_from, rows,
+};
+use super::model::StepParams;
+use super::particles::Particles;
+use super::stepper::{Advance, Clock, StageTimes, Stepper};
+use crate::backend::wgpu_rq::BOX_PADDING;
+use crate::backend::wgpu_rq::accel::Accel;
+use crate::error::{Error, Result};
+use crate::gpu::{self, Gpu, Need};
+use crate::proxy::ProxyMode;
+
+const RQ_WGSL: &str = include_str!("../../wgsl/dem_rq.wgsl");
+const PROXY_WGSL: &str = include_str!("../../wgsl/proxy.wgsl");
+
+/// Every WGSL module of this step, by label, exactly as the device may get it.
+pub fn shaders() -> Vec<(String, String)> {
+    FORCE_VARIANTS
+        .iter()
+        .map(|(name, force)| (format!("dem_rq_{name}"), source(force)))
+        .collect()
+}
+
+fn source(force: &str) -> String {
+    format!("{RQ_WGSL}{PHYSICS_WGSL}{force}{PROXY_WGSL}")
+}
+
+/// Keep in sync with `RqParams` in `wgsl/dem_rq.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct RqParams {
+    chunk: u32,
+    pad_rel: f32,
+    mode: u32,
+    r_max: f32,
+}
+
+struct Pipelines {
+    proxy_boxes: wgpu::ComputePipeline,
+    resolve: wgpu::ComputePipeline,
+    integrate: wgpu::ComputePipeline,
+}
+
+struct Binds {
+    proxy_boxes: wgpu::BindGroup,
+    resolve: wgpu::BindGroup,
+    integrate: wgpu::BindGroup,
+}
+
+/// What a non-empty set of spheres keeps on the GPU.
+struct Resident {
+    accel: Accel,
+    force: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    binds: Binds,
+}
+
+/// The wgpu-rq DEM step.
+pub struct RqStepper {
+    gpu: Gpu,
+    pipelines: Pipelines,
+    n: u32,
+    step: u64,
+    groups: (u32, u32),
+    pos: wgpu::Buffer,
+    vel: wgpu::Buffer,
+    /// `None` for no spheres.
+    resident: Option<Resident>,
+    timer: Option<StepTimer>,
+    atomics: &'static str,
+}
+
+impl RqStepper {
+    /// Uploads `particles` to the best adapter with ray queries.
+    pub fn new(particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
+        Self::with_atomics(particles, params, mode, ForceAtomics::Auto)
+    }
+
+    /// As [`new`](Self::new), choosing how forces are accumulated.
+    pub fn with_atomics(
+        particles: Particles,
+        params: StepParams,
+        mode: ProxyMode,
+        atomics: ForceAtomics,
+    ) -> Result<Self> {
+        let gpu = Gpu::open(Need::RayQuery)?;
+        let n64 = particles.len() as u64;
+        let limit = max_spheres(&gpu).min(
+            gpu.limits.max_blas_primitive_count as u64 * gpu.limits.max_tlas_instance_count as u64,
+        );
+        if n64 > limit {
+            return Err(Error::TooLarge {
+                what: format!("spheres for the wgpu-rq DEM on {}", gpu.info.name),
+                got: n64,
+                limit,
+            });
+        }
+        let n = n64 as u32;
+        let (atomics, force_wgsl) = atomics.pick(&gpu);
+        let module = gpu.module("mochi.dem.rq", &source(force_wgsl));
+        let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.rq.{entry}"), &module, entry);
+        let pipelines = Pipelines {
+            proxy_boxes: pipeline("proxy_boxes"),
+            resolve: pipeline("resolve"),
+            integrate: pipeline("integrate"),
+        };
+        let groups = gpu.grid(n, GROUP);
+        let none = wgpu::BufferUsages::empty();
+        let (pos_rows, vel_rows) = rows(&particles, params.density);
+        let (_, r_max) = particles.radius_range();
+        let (pos, vel, resident) = gpu.checked("allocating the wgpu-rq DEM buffers", || {
+            let pos = gpu.storage("mochi.dem.rq.pos", n64 * 16, none);
+            let vel = gpu.storage("mochi.dem.rq.vel", n64 * 16, none);
+            let dem = gpu.uniform(
+                "mochi.dem.rq.params",
+                &DemParams::new(&params, n, groups.0 * GROUP),
+            );
+            let clock = gpu.storage("mochi.dem.rq.clock", 4, none);
+            gpu.queue
+                .write_buffer(&clock, 0, bytemuck::bytes_of(&(particles.step as u32)));
+            let resident = (n > 0).then(|| {
+                let chunk = gpu.limits.max_blas_primitive_count.min(n).max(1);
+                let accel = Accel::new(&gpu, n, chunk);
+                let rq = gpu.uniform(
+                    "mochi.dem.rq.rq_params",
+                    &RqParams {
+                        chunk,
+                        pad_rel: BOX_PADDING,
+                        mode: match mode {
+                            ProxyMode::Mochi => 0,
+                            ProxyMode::Nns => 1,
+                        },
+                        r_max,
+                    },
+                );
+                let force = gpu.storage("mochi.dem.rq.force", n64 * 12, none);
+                let counters = gpu.storage("mochi.dem.rq.counters", 16, none);
+                let p = &pipelines;
+                let binds = Binds {
+                    proxy_boxes: gpu.bind(
+                        "mochi.dem.rq.proxy_boxes",
+                        &p.proxy_boxes,
+                        &[
+                            (0, &rq),
+                            (1, &dem),
+                            (5, &accel.boxes),
+                            (10, &pos),
+                            (16, &clock),
+                        ],
+                    ),
+                    resolve: bind_with_tlas(
+                        &gpu,
+                        &p.resolve,
+                        &[
+                            (0, &rq),
+                            (1, &dem),
+                            (10, &pos),
+                            (11, &vel),
+                            (13, &force),
+                            (14, &counters),
+                        ],
+                        accel.tlas(),
+                    ),
+                    integrate: gpu.bind(
+                        "mochi.dem.rq.integrate",
+                        &p.integrate,
+                        &[
+                            (1, &dem),
+                            (10, &pos),
+                            (11, &vel),
+                            (13, &force),
+                            (16, &clock),
+                        ],
+                    ),
+                };
+                Resident {
+                    accel,
+                    force,
+                    counters,
+                    binds,
+                }
+            });
+            (pos, vel, resident)
+        })?;
+        gpu.queue
+            .write_buffer(&pos, 0, bytemuck::cast_slice(&pos_rows));
+        gpu.queue
+            .write_buffer(&vel, 0, bytemuck::cast_slice(&vel_rows));
+        Ok(RqStepper {
+            timer: StepTimer::new(&gpu),
+            pipelines,
+            n,
+            step: particles.step,
+            groups,
+            pos,
+            vel,
+            resident,
+            atomics,
+            gpu,
+        })
+    }
+
+    /// Records `steps` steps (≤ [`MAX_BATCH`]) into one submission and waits for it.
+    fn run_batch(&mut self, steps: u32) -> Result<(u64, Option<StageTimes>)> {
+        let gpu = &self.gpu;
+        let r = self.resident.as_ref().expect("spheres to step");
+        let p = &self.pipelines;
+        let timer = self.timer.as_ref();
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        for s in 0..steps {
+            StepTimer::mark(timer, &mut encoder, s, 0);
+            gpu.dispatch(
+                &mut encoder,
+                "mochi.dem.rq.proxy_boxes",
+                &p.proxy_boxes,
+                &r.binds.proxy_boxes,
+                self.groups,
+            );
+            r.accel.encode_build(&mut encoder);
+            StepTimer::mark(timer, &mut encoder, s, 1);
+            encoder.clear_buffer(&r.force, 0, None);
+            encoder.clear_buffer(&r.counters, 0, None);
+            gpu.dispatch(
+                &mut encoder,
+                "mochi.dem.rq.resolve",
+                &p.resolve,
+                &r.binds.resolve,
+                self.groups,
+            );
+            StepTimer::mark(timer, &mut encoder, s, 2);
+            gpu.dispatch(
+                &mut encoder,
+                "mochi.dem.rq.integrate",
+                &p.integrate,
+                &r.binds.integrate,
+                self.groups,
+            );
+            StepTimer::mark(timer, &mut encoder, s, 3);
+        }
+        if let Some(t) = timer {
+            t.resolve(&mut encoder, steps);
+        }
+        gpu.checked("running wgpu-rq DEM steps", || {
+            gpu.queue.submit([encoder.finish()])
+        })?;
+        self.step += steps as u64;
+        let contacts = gpu.read::<u32>(&r.counters, 1)?[0] as u64;
+        let times = timer.map(|t| t.read(gpu, steps)).transpose()?;
+        Ok((contacts, times))
+    }
+}
+
+/// A bind group of `pipeline`'s group 0 with `buffers` and the TLAS at binding 6.
+fn bind_with_tlas(
+    gpu: &Gpu,
+    pipeline: &wgpu::ComputePipeline,
+    buffers: &[(u32, &wgpu::Buffer)],
+    tlas: &wgpu::Tlas,
+) -> wgpu::BindGroup {
+    let mut entries: Vec<_> = buffers
+        .iter()
+        .map(|&(binding, b)| wgpu::BindGroupEntry {
+            binding,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    entries.push(wgpu::BindGroupEntry {
+        binding: 6,
+        resource: wgpu::BindingResource::AccelerationStructure(tlas),
+    });
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("mochi.dem.rq.resolve"),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &entries,
+    })
+}
+
+impl Stepper for RqStepper {
+    fn describe(&self) -> String {
+        format!(
+            "wgpu-rq ({}; {})",
+            gpu::describe(&self.gpu.info),
+            self.atomics
+        )
+    }
+
+    fn advance(&mut self, steps: u32) -> Result<Advance> {
+        let mut times = StageTimes::default();
+        let mut timed = self.timer.is_some();
+        let mut contacts = 0;
+        let mut left = if self.resident.is_some() { steps } else { 0 };
+        if self.resident.is_none() {
+            self.step += steps as u64;
+        }
+        while left > 0 {
+            let batch = left.min(MAX_BATCH);
+            let (c, t) = self.run_batch(batch)?;
+            contacts = c;
+            match t {
+                Some(t) => times.add(&t),
+                None => timed = false,
+            }
+            left -= batch;
+        }
+        Ok(Advance {
+            steps,
+            contacts,
+            times,
+            clock: if timed { Clock::Gpu } else { Clock::None },
+        })
+    }
+
+    fn particles(&mut self) -> Result<Particles> {
+        let n = self.n as usize;
+        let pos: Vec<[f32; 4]> = self.gpu.read(&self.pos, n)?;
+        let vel: Vec<[f32; 4]> = self.gpu.read(&self.vel, n)?;
+        particles_from(&pos, &vel, None, self.step)
+    }
+}
