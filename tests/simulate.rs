@@ -116,6 +116,42 @@ fn resuming_the_cpu_backend_continues_bit_for_bit() {
 }
 
 #[test]
+fn a_mesh_file_is_filled_and_dropped() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/box.obj");
+    let stdout = ok(
+        &[
+            "simulate",
+            "--mesh",
+            obj,
+            "--set",
+            "mesh_radius=0.02",
+            "--set",
+            "mesh_size=0.3",
+            "--steps",
+            "20",
+            "--frame-every",
+            "0",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "out",
+        ],
+        dir.path(),
+    );
+    assert!(stdout.contains("| cpu"), "{stdout}");
+    let (particles, scene) = read_checkpoint(&dir.path().join("out/checkpoint.bin")).unwrap();
+    // The box fitted into 0.3 at spacing 0.044: at most 7 lattice points per axis.
+    assert!(
+        (100..=343).contains(&particles.len()),
+        "{}",
+        particles.len()
+    );
+    assert!(scene.contains("scene = \"mesh\""), "{scene}");
+}
+
+#[test]
 fn bad_scenes_give_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, text: &str| std::fs::write(dir.path().join(name), text).unwrap();

@@ -90,7 +90,7 @@ pub struct GenerateArgs {
 pub struct SimulateArgs {
     /// Scene file (TOML; see `mochi::dem::scene`). Without it, the built-in default scene.
     pub scene_file: Option<PathBuf>,
-    /// Scene: freefall, slab, poly1.2, poly12, poly120, polylog, rotating, input.
+    /// Scene: freefall, slab, poly1.2, poly12, poly120, polylog, rotating, mesh, input.
     #[arg(long)]
     pub scene: Option<String>,
     /// Number of spheres of a generated scene.
@@ -108,6 +108,10 @@ pub struct SimulateArgs {
     /// Start from a sphere file (CSV x,y,z,r or .npy N×4) instead of a generated scene.
     #[arg(long)]
     pub input: Option<PathBuf>,
+    /// Fill this mesh (OBJ, PLY or STL) with spheres and drop it (scene `mesh`; see the
+    /// mesh_* fields for radius, size and copies).
+    #[arg(long, value_name = "FILE")]
+    pub mesh: Option<PathBuf>,
     /// Write a frame every M steps (0: none).
     #[arg(long, value_name = "M")]
     pub frame_every: Option<u64>,
@@ -131,7 +135,7 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub checkpoint_every: u64,
     /// Continue the run saved in this checkpoint (its scene; --steps may extend it).
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["scene_file", "scene", "spheres", "seed", "dt", "input", "mode"])]
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["scene_file", "scene", "spheres", "seed", "dt", "input", "mesh", "mode"])]
     pub resume: Option<PathBuf>,
     /// No progress bar.
     #[arg(short, long)]

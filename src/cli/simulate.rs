@@ -29,6 +29,10 @@ fn overrides(args: &SimulateArgs) -> Vec<String> {
         set("scene", Some("\"input\"".into()));
         set("input", Some(format!("{:?}", input.display().to_string())));
     }
+    if let Some(mesh) = &args.mesh {
+        set("scene", Some("\"mesh\"".into()));
+        set("mesh", Some(format!("{:?}", mesh.display().to_string())));
+    }
     set("csv", args.csv.then(|| "true".into()));
     set(
         "mode",

@@ -2,11 +2,11 @@
 //! `key=value` on the command line) that builds the particles at t = 0 and the step parameters.
 //!
 //! ```toml
-//! scene = "slab"         # freefall, slab, poly1.2, poly12, poly120, polylog, rotating, input
+//! scene = "slab"         # freefall, slab, poly1.2, poly12, poly120, polylog, rotating, mesh, input
 //! spheres = 50000
 //! seed = 1
 //! steps = 5000
-//! dt = 1e-4              # default: 1e-4 (freefall, slab, rotating), 5e-5 (poly*)
+//! dt = 1e-4              # default: 1e-4 (freefall, slab, rotating), 5e-5 (poly*), 2.5e-5 (mesh)
 //! box_lo = [0, 0, 0]     # default: the scene's box
 //! box_hi = [1, 1, 1]
 //! gravity = [0, 0, -9.81]
@@ -18,6 +18,11 @@
 //! frame_every = 250      # 0: no frames
 //! csv = false            # CSV frames beside the VTK ones
 //! input = "start.csv"    # scene = "input": any sphere file
+//! mesh = "bunny.obj"     # scene = "mesh": OBJ, PLY or STL (default: a torus)
+//! mesh_radius = 0.005    # spacing 2.2 times it
+//! mesh_mixed = false     # half of the spheres at mesh_radius / 2
+//! mesh_size = 0.818      # the mesh fitted into a cube of this side
+//! mesh_copies = 1        # copies side by side, in layers if needed
 //! ```
 
 use super::model::{Material, StepParams};
@@ -72,6 +77,18 @@ pub struct SceneConfig {
     /// Sphere file of scene `input` (CSV x,y,z,r or .npy N×4), relative to the scene file.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub input: Option<PathBuf>,
+    /// Mesh of scene `mesh` (OBJ, PLY or STL), relative to the scene file; `None`: a torus.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<PathBuf>,
+    /// Sphere radius of scene `mesh` [m]; the lattice spacing is 2.2 times it.
+    pub mesh_radius: f32,
+    /// Scene `mesh`: half of the spheres (at random) get radius `mesh_radius / 2`.
+    pub mesh_mixed: bool,
+    /// Scene `mesh`: side of the cube the mesh is fitted into [m] (0.818 holds the paper's
+    /// 82,337-sphere bunny at radius 0.005).
+    pub mesh_size: f64,
+    /// Scene `mesh`: copies dropped side by side (in layers when they do not fit one).
+    pub mesh_copies: u32,
 }
 
 impl Default for SceneConfig {
@@ -93,8 +110,21 @@ impl Default for SceneConfig {
             frame_every: 250,
             csv: false,
             input: None,
+            mesh: None,
+            mesh_radius: 0.005,
+            mesh_mixed: false,
+            mesh_size: 0.818,
+            mesh_copies: 1,
         }
     }
+}
+
+/// Where a scene's spheres come from.
+#[derive(Debug, Clone, Copy)]
+enum Source {
+    Generated(Scene),
+    Mesh,
+    Input,
 }
 
 /// Everything a run starts from.
@@ -171,10 +201,12 @@ impl SceneConfig {
             line: None,
             msg: e.to_string().trim_end().to_owned(),
         })?;
-        if let (Some(input), Some(dir)) = (&config.input, origin.and_then(Path::parent))
-            && input.is_relative()
-        {
-            config.input = Some(dir.join(input));
+        if let Some(dir) = origin.and_then(Path::parent) {
+            for path in [&mut config.input, &mut config.mesh].into_iter().flatten() {
+                if path.is_relative() {
+                    *path = dir.join(&*path);
+                }
+            }
         }
         Ok(config)
     }
@@ -190,31 +222,35 @@ impl SceneConfig {
             .map_err(|_| Error::Usage(format!("mode must be mochi or nns, got {:?}", self.mode)))
     }
 
-    /// The named generator behind `scene` (`rotating` is freefall).
-    fn generator(&self) -> Result<Option<Scene>> {
+    /// Where the spheres come from (`rotating` is freefall).
+    fn source(&self) -> Result<Source> {
         use clap::ValueEnum;
         match self.scene.as_str() {
-            "input" => Ok(None),
-            "rotating" => Ok(Some(Scene::Freefall)),
-            name => Scene::from_str(name, true).map(Some).map_err(|_| {
-                Error::Usage(format!(
-                    "unknown scene {name:?}: use freefall, slab, poly1.2, poly12, poly120, \
-                     polylog, rotating or input"
-                ))
-            }),
+            "input" => Ok(Source::Input),
+            "mesh" => Ok(Source::Mesh),
+            "rotating" => Ok(Source::Generated(Scene::Freefall)),
+            name => Scene::from_str(name, true)
+                .map(Source::Generated)
+                .map_err(|_| {
+                    Error::Usage(format!(
+                        "unknown scene {name:?}: use freefall, slab, poly1.2, poly12, poly120, \
+                     polylog, rotating, mesh or input"
+                    ))
+                }),
         }
     }
 
     /// Builds the particles at t = 0 and the step parameters.
     pub fn build(&self) -> Result<Start> {
-        let spheres = match self.generator()? {
-            Some(scene) => scenes::generate(&SceneSpec {
+        let spheres = match self.source()? {
+            Source::Generated(scene) => scenes::generate(&SceneSpec {
                 scene,
                 n: self.spheres,
                 seed: self.seed,
                 layout: Layout::Lattice,
             })?,
-            None => {
+            Source::Mesh => self.mesh_spheres()?,
+            Source::Input => {
                 let input = self.input.as_ref().ok_or_else(|| {
                     Error::Usage("scene \"input\" needs input = \"FILE\" (--input)".into())
                 })?;
@@ -224,29 +260,113 @@ impl SceneConfig {
         self.start_from(Particles::at_rest(&spheres))
     }
 
+    /// Copies per row and layers of the `mesh` scene, and the side of its cell per copy.
+    fn mesh_layout(&self) -> (u32, u32, f64) {
+        let copies = self.mesh_copies.max(1);
+        let per_row = (copies as f64).sqrt().ceil() as u32;
+        // Spheres reach past the mesh by up to their radius: keep 4.4 radii between copies.
+        let cell = self.mesh_size * 1.05 + 4.4 * self.mesh_radius as f64;
+        (per_row, copies.div_ceil(per_row * per_row), cell)
+    }
+
+    /// The `mesh` scene's box side: the unit cube, or larger to hold every copy.
+    fn mesh_box_side(&self) -> f64 {
+        let (per_row, layers, cell) = self.mesh_layout();
+        (per_row as f64 * cell)
+            .max(layers as f64 * cell + 2.2 * self.mesh_radius as f64)
+            .max(1.0)
+    }
+
+    /// Fills the mesh (or the torus) and places the copies on the floor of the box, side by side.
+    fn mesh_spheres(&self) -> Result<SphereSet> {
+        let r = self.mesh_radius;
+        if !(r.is_finite() && r > 0.0) || !(self.mesh_size.is_finite() && self.mesh_size > 0.0) {
+            return Err(Error::Usage(format!(
+                "mesh_radius and mesh_size must be positive, got {r} and {}",
+                self.mesh_size
+            )));
+        }
+        let mesh = match &self.mesh {
+            Some(path) => crate::mesh::load(path)?,
+            None => crate::mesh::torus(1.0, 0.4, 64, 32),
+        };
+        let size = self.mesh_size;
+        let shape = mesh.fitted([0.0; 3], [size; 3]);
+        let radii = if self.mesh_mixed {
+            vec![(r, 1.0), (r / 2.0, 1.0)]
+        } else {
+            vec![(r, 1.0)]
+        };
+        let spec = crate::mesh::FillSpec {
+            spacing: 2.2 * r as f64,
+            radii,
+            jitter: true,
+            seed: self.seed,
+        };
+        let (one_c, one_r) = crate::mesh::fill(&shape, &spec)?;
+        let (per_row, _, cell) = self.mesh_layout();
+        let side = self.mesh_box_side();
+        let edge = (side - per_row as f64 * cell) / 2.0 + (cell - size) / 2.0;
+        let copies = self.mesh_copies.max(1) as usize;
+        let total = one_c.len().saturating_mul(copies);
+        if total > crate::MAX_SPHERES {
+            return Err(Error::TooLarge {
+                what: format!("spheres in {copies} filled copies of the mesh"),
+                got: total as u64,
+                limit: crate::MAX_SPHERES as u64,
+            });
+        }
+        let mut centers = Vec::with_capacity(total);
+        let mut all_radii = Vec::with_capacity(total);
+        let per_row = per_row as usize;
+        for k in 0..copies {
+            let at = [
+                k % per_row,
+                (k / per_row) % per_row,
+                k / (per_row * per_row),
+            ];
+            let offset: [f64; 3] = std::array::from_fn(|a| {
+                let base = if a == 2 { 2.2 * r as f64 } else { edge };
+                base + at[a] as f64 * cell
+            });
+            centers.extend(
+                one_c
+                    .iter()
+                    .map(|c| std::array::from_fn(|a| (c[a] as f64 + offset[a]) as f32)),
+            );
+            all_radii.extend_from_slice(&one_r);
+        }
+        SphereSet::new(centers, all_radii)
+    }
+
     /// The step parameters for `particles` (at t = 0, or from a checkpoint of this scene).
     pub fn start_from(&self, particles: Particles) -> Result<Start> {
         let mode = self.proxy_mode()?;
-        let generator = self.generator()?;
+        let source = self.source()?;
         let (r_min, r_max) = particles.radius_range();
-        let (default_lo, default_hi) = match generator {
-            Some(scene) => {
+        let (default_lo, default_hi) = match source {
+            Source::Generated(scene) => {
                 let side = scene.box_side(particles.len(), Layout::Lattice);
                 ([0.0; 3], [side; 3])
             }
+            Source::Mesh => ([0.0; 3], [self.mesh_box_side(); 3]),
             // A file: its bounds with a margin of two largest diameters.
-            None => match SphereSet::new(particles.positions.clone(), particles.radii.clone())?
-                .bounds()
-            {
-                Some((lo, hi)) => {
-                    let m = 4.0 * r_max as f64;
-                    (lo.map(|x| x as f64 - m), hi.map(|x| x as f64 + m))
+            Source::Input => {
+                match SphereSet::new(particles.positions.clone(), particles.radii.clone())?.bounds()
+                {
+                    Some((lo, hi)) => {
+                        let m = 4.0 * r_max as f64;
+                        (lo.map(|x| x as f64 - m), hi.map(|x| x as f64 + m))
+                    }
+                    None => ([0.0; 3], [1.0; 3]),
                 }
-                None => ([0.0; 3], [1.0; 3]),
-            },
+            }
         };
-        let dt = self.dt.unwrap_or(match generator {
-            Some(Scene::Poly1_2 | Scene::Poly12 | Scene::Poly120 | Scene::Polylog) => 5e-5,
+        let dt = self.dt.unwrap_or(match source {
+            Source::Generated(Scene::Poly1_2 | Scene::Poly12 | Scene::Poly120 | Scene::Polylog) => {
+                5e-5
+            }
+            Source::Mesh => 2.5e-5,
             _ => 1e-4,
         });
         let spin = self.gravity_spin.unwrap_or(if self.scene == "rotating" {
@@ -346,6 +466,32 @@ mod tests {
         };
         let back: SceneConfig = toml::from_str(&c.to_toml()).unwrap();
         assert_eq!(back, c);
+    }
+
+    #[test]
+    fn the_mesh_scene_fills_copies_side_by_side_without_overlaps() {
+        let c = SceneConfig::load(
+            None,
+            &[
+                "scene=mesh".into(),
+                "mesh_radius=0.02".into(),
+                "mesh_size=0.5".into(),
+                "mesh_copies=3".into(),
+                "mesh_mixed=true".into(),
+            ],
+        )
+        .unwrap();
+        let s = c.build().unwrap();
+        let n = s.particles.len();
+        assert!(n > 300 && n % 3 == 0, "{n}");
+        let spheres =
+            SphereSet::new(s.particles.positions.clone(), s.particles.radii.clone()).unwrap();
+        assert!(crate::oracle::brute_force_pairs(&spheres).is_empty());
+        assert!(s.particles.radii.iter().any(|&r| r == 0.01));
+        assert_eq!(s.params.dt, 2.5e-5);
+        let bad =
+            SceneConfig::load(None, &["scene=mesh".into(), "mesh=\"nope.obj\"".into()]).unwrap();
+        assert!(bad.build().unwrap_err().to_string().contains("nope.obj"));
     }
 
     #[test]
