@@ -280,7 +280,7 @@ impl SceneConfig {
     /// Fills the mesh (or the torus) and places the copies on the floor of the box, side by side.
     fn mesh_spheres(&self) -> Result<SphereSet> {
         let r = self.mesh_radius;
-        if !(r.is_finite() && r > 0.0) || !(self.mesh_size.is_finite() && self.mesh_size > 0.0) {
+        if !(r.is_finite() && r > 0.0 && self.mesh_size.is_finite() && self.mesh_size > 0.0) {
             return Err(Error::Usage(format!(
                 "mesh_radius and mesh_size must be positive, got {r} and {}",
                 self.mesh_size
@@ -483,7 +483,7 @@ mod tests {
         .unwrap();
         let s = c.build().unwrap();
         let n = s.particles.len();
-        assert!(n > 300 && n % 3 == 0, "{n}");
+        assert!(n > 300 && n.is_multiple_of(3), "{n}");
         let spheres =
             SphereSet::new(s.particles.positions.clone(), s.particles.radii.clone()).unwrap();
         assert!(crate::oracle::brute_force_pairs(&spheres).is_empty());
