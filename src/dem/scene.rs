@@ -487,7 +487,7 @@ mod tests {
         let spheres =
             SphereSet::new(s.particles.positions.clone(), s.particles.radii.clone()).unwrap();
         assert!(crate::oracle::brute_force_pairs(&spheres).is_empty());
-        assert!(s.particles.radii.iter().any(|&r| r == 0.01));
+        assert!(s.particles.radii.contains(&0.01));
         assert_eq!(s.params.dt, 2.5e-5);
         let bad =
             SceneConfig::load(None, &["scene=mesh".into(), "mesh=\"nope.obj\"".into()]).unwrap();
