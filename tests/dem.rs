@@ -167,14 +167,16 @@ fn a_settled_pile_comes_to_rest_with_small_overlaps() {
     let start = pile(6, 0.025, 0.002);
     let material = Material {
         stiffness: Some(5e3),
-        restitution: 0.3,
+        restitution: 0.1,
         ..Material::default()
     };
     let r_min = start.radius_range().0;
     let m_eff = mass(500.0, r_min) as f64 / 2.0;
-    let dt = (stable_dt(5e3, m_eff, 0.36) / 5.0).min(2e-4);
+    let dt = (stable_dt(5e3, m_eff, 0.59) / 5.0).min(2e-4);
     // Frictionless spheres slide sideways for ever on an open floor: walls close around the
-    // pile so every motion ends in a (damped) normal contact.
+    // pile so every motion ends in a (damped) normal contact, and a low restitution damps
+    // the rattling of the top layer (the cpu step's exactly symmetric forces keep the lattice
+    // from rattling at all; a GPU's rounding does not).
     let p = StepParams::new(
         &material,
         dt,
@@ -185,7 +187,7 @@ fn a_settled_pile_comes_to_rest_with_small_overlaps() {
         r_min,
     )
     .unwrap();
-    let steps = (0.8 / dt) as u32;
+    let steps = (1.2 / dt) as u32;
     for (name, mut s) in steppers(&start, p) {
         s.advance(steps).unwrap();
         let end = s.particles().unwrap();
