@@ -116,6 +116,48 @@ fn resuming_the_cpu_backend_continues_bit_for_bit() {
 }
 
 #[test]
+fn a_csv_frame_restarts_a_run_with_its_velocities() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut first = SMALL.to_vec();
+    first.extend(["--steps", "40", "--frame-every", "40", "-o", "a"]);
+    ok(&first, dir.path());
+    let frame = dir.path().join("a/frame_00000040.csv");
+    let (spheres, velocities) = mochi::io::read_particles(&frame).unwrap();
+    let velocities = velocities.expect("frame CSVs carry velocities");
+    assert_eq!(spheres.len(), 1500);
+    // Same box as the slab (the file's own bounds would be the default).
+    ok(
+        &[
+            "simulate",
+            "--input",
+            "a/frame_00000040.csv",
+            "--set",
+            "box_lo=[0,0,0]",
+            "--set",
+            "box_hi=[1,1,1]",
+            "--steps",
+            "1",
+            "--frame-every",
+            "0",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "b",
+        ],
+        dir.path(),
+    );
+    let (after, _) = read_checkpoint(&dir.path().join("b/checkpoint.bin")).unwrap();
+    // One step of free fall from the frame's velocities: v = v0 - g dt.
+    for (v, v0) in after.velocities.iter().zip(&velocities) {
+        assert!(
+            (v[2] - (v0[2] - 9.81 * 1e-4)).abs() < 1e-6,
+            "{v:?} vs {v0:?}"
+        );
+    }
+}
+
+#[test]
 fn a_mesh_file_is_filled_and_dropped() {
     let dir = tempfile::tempdir().unwrap();
     let obj = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/box.obj");

@@ -17,7 +17,7 @@
 //! mode = "mochi"         # or "nns"
 //! frame_every = 250      # 0: no frames
 //! csv = false            # CSV frames beside the VTK ones
-//! input = "start.csv"    # scene = "input": any sphere file
+//! input = "start.csv"    # scene = "input": any sphere file (velocity columns optional)
 //! mesh = "bunny.obj"     # scene = "mesh": OBJ, PLY or STL (default: a torus)
 //! mesh_radius = 0.005    # spacing 2.2 times it
 //! mesh_mixed = false     # half of the spheres at mesh_radius / 2
@@ -254,7 +254,12 @@ impl SceneConfig {
                 let input = self.input.as_ref().ok_or_else(|| {
                     Error::Usage("scene \"input\" needs input = \"FILE\" (--input)".into())
                 })?;
-                crate::io::read_spheres(input)?
+                let (spheres, velocities) = crate::io::read_particles(input)?;
+                let mut particles = Particles::at_rest(&spheres);
+                if let Some(v) = velocities {
+                    particles.velocities = v;
+                }
+                return self.start_from(particles);
             }
         };
         self.start_from(Particles::at_rest(&spheres))

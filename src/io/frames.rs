@@ -316,8 +316,9 @@ impl<'o> Chunked<'o> {
 /// Writes `frame` as CSV with the header `x,y,z,r,vx,vy,vz`, one sphere per row, every number in
 /// its shortest round-trip form (as [`super::write_spheres`] writes), atomically.
 ///
-/// [`super::read_spheres`] takes exactly the columns `x,y,z,r`, so it refuses this file; the
-/// first four columns are a sphere file's.
+/// The file is a sphere file with velocities: [`super::read_particles`] reads it back (so
+/// `mochi simulate --input FRAME.csv` restarts from it) and [`super::read_spheres`] reads its
+/// spheres.
 pub fn write_frame_csv(path: &Path, frame: &Frame) -> Result<()> {
     frame.checked_len()?;
     write_atomically(path, |out| {

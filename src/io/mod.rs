@@ -15,7 +15,7 @@ pub use atomic::write_atomically;
 pub use checkpoint::{read_checkpoint, write_checkpoint};
 pub use frames::{Frame, FrameSeries, SERIES_INDEX, SeriesEntry, write_frame_csv, write_vtu};
 pub use pairs::{read_pairs, write_pairs};
-pub use spheres::{read_spheres, write_spheres};
+pub use spheres::{read_particles, read_spheres, write_spheres};
 
 use crate::error::Error;
 use std::path::Path;

@@ -1,5 +1,7 @@
 //! Sphere files: CSV with header `x,y,z,r`, or NumPy `.npy` of shape N×4 (float32; float64 is
-//! accepted and rounded to float32).
+//! accepted and rounded to float32). Both may carry velocities too: header `x,y,z,r,vx,vy,vz`
+//! (the frame CSVs of `mochi simulate`), shape N×7; [`read_spheres`] ignores them and
+//! [`read_particles`] returns them.
 
 use super::{Format, io_error, parse_error, write_atomically};
 use crate::error::Result;
@@ -9,14 +11,32 @@ use std::io::BufRead;
 use std::path::Path;
 
 const COLUMNS: [&str; 4] = ["x", "y", "z", "r"];
+const WITH_VELOCITY: [&str; 7] = ["x", "y", "z", "r", "vx", "vy", "vz"];
 
-/// Reads a sphere file (`.csv` or `.npy`, by extension) and validates every sphere.
+/// Rows of a sphere file: `x, y, z, r` and, if the file has them, velocities.
+type Rows = (Vec<[f32; 4]>, Option<Vec<[f32; 3]>>);
+
+/// Reads a sphere file (`.csv` or `.npy`, by extension) and validates every sphere (velocity
+/// columns, if any, are ignored).
 pub fn read_spheres(path: &Path) -> Result<SphereSet> {
-    let rows = match Format::of(path)? {
+    Ok(read_particles(path)?.0)
+}
+
+/// Reads a sphere file with its velocities, if it has them (`None` when it has only x,y,z,r).
+pub fn read_particles(path: &Path) -> Result<(SphereSet, Option<Vec<[f32; 3]>>)> {
+    let (rows, velocities) = match Format::of(path)? {
         Format::Csv => read_csv(path)?,
         Format::Npy => read_npy(path)?,
     };
-    SphereSet::from_xyzr(&rows)
+    Ok((SphereSet::from_xyzr(&rows)?, velocities))
+}
+
+/// Checks a velocity row.
+fn check_velocity(v: &[f32; 3]) -> std::result::Result<(), String> {
+    match v.iter().all(|x| x.is_finite()) {
+        true => Ok(()),
+        false => Err(format!("velocity {v:?} is not finite")),
+    }
 }
 
 /// Writes spheres as `.csv` or `.npy` (by extension), atomically.
@@ -41,7 +61,7 @@ pub fn write_spheres(path: &Path, spheres: &SphereSet) -> Result<()> {
     }
 }
 
-fn read_csv(path: &Path) -> Result<Vec<[f32; 4]>> {
+fn read_csv(path: &Path) -> Result<Rows> {
     let file = std::fs::File::open(path).map_err(io_error(path))?;
     let mut lines = std::io::BufReader::with_capacity(1 << 20, file)
         .split(b'\n')
@@ -83,14 +103,22 @@ fn read_csv(path: &Path) -> Result<Vec<[f32; 4]>> {
         .split(',')
         .map(|f| f.trim().to_ascii_lowercase())
         .collect();
-    if fields != COLUMNS {
+    let names: &[&str] = if fields == COLUMNS {
+        &COLUMNS
+    } else if fields == WITH_VELOCITY {
+        &WITH_VELOCITY
+    } else {
         return Err(parse_error(
             path,
             Some(header.0),
-            format!("the header must be x,y,z,r (found {:?})", header.1.trim()),
+            format!(
+                "the header must be x,y,z,r or x,y,z,r,vx,vy,vz (found {:?})",
+                header.1.trim()
+            ),
         ));
-    }
+    };
     let mut rows = Vec::new();
+    let mut velocities = Vec::new();
     for (no, bytes) in lines {
         let line = text(no, bytes)?;
         let line = line.trim();
@@ -99,35 +127,44 @@ fn read_csv(path: &Path) -> Result<Vec<[f32; 4]>> {
         }
         let bad = |msg: String| parse_error(path, Some(no), msg);
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if fields.len() != 4 {
+        if fields.len() != names.len() {
             return Err(bad(format!(
-                "expected 4 columns (x,y,z,r), found {}",
+                "expected {} columns ({}), found {}",
+                names.len(),
+                names.join(","),
                 fields.len()
             )));
         }
-        let mut row = [0f32; 4];
-        for (k, (field, name)) in fields.iter().zip(COLUMNS).enumerate() {
+        let mut row = [0f32; 7];
+        for (k, (field, name)) in fields.iter().zip(names).enumerate() {
             row[k] = field
                 .parse()
                 .map_err(|_| bad(format!("column {name}: {field:?} is not a number")))?;
         }
         check_sphere(&[row[0], row[1], row[2]], row[3]).map_err(bad)?;
-        rows.push(row);
+        rows.push([row[0], row[1], row[2], row[3]]);
+        if names.len() == 7 {
+            let v = [row[4], row[5], row[6]];
+            check_velocity(&v).map_err(bad)?;
+            velocities.push(v);
+        }
     }
-    Ok(rows)
+    Ok((rows, (names.len() == 7).then_some(velocities)))
 }
 
-fn read_npy(path: &Path) -> Result<Vec<[f32; 4]>> {
+fn read_npy(path: &Path) -> Result<Rows> {
     let bytes = std::fs::read(path).map_err(io_error(path))?;
     let bad = |msg: String| parse_error(path, None, msg);
     check_npy_size(&bytes).map_err(bad)?;
     let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(format!("not a .npy file: {e}")))?;
     let shape = npy.shape().to_vec();
-    if shape.len() != 2 || shape[1] != 4 {
+    if shape.len() != 2 || !(shape[1] == 4 || shape[1] == 7) {
         return Err(bad(format!(
-            "expected an array of shape N×4 (x, y, z, r), found shape {shape:?}"
+            "expected an array of shape N×4 (x, y, z, r) or N×7 (and vx, vy, vz), found shape \
+             {shape:?}"
         )));
     }
+    let columns = shape[1] as usize;
     let n = shape[0] as usize;
     let fortran = npy.order() == npyz::Order::Fortran;
     let dtype = match npy.dtype() {
@@ -143,20 +180,26 @@ fn read_npy(path: &Path) -> Result<Vec<[f32; 4]>> {
     }
     .map_err(|e| bad(format!("unreadable data ({e}); is the file truncated?")))?;
     let mut rows = Vec::with_capacity(n);
+    let mut velocities = Vec::new();
     for i in 0..n {
         let at = |k: usize| {
             if fortran {
                 values[k * n + i]
             } else {
-                values[i * 4 + k]
+                values[i * columns + k]
             }
         };
         let row = [at(0), at(1), at(2), at(3)];
         check_sphere(&[row[0], row[1], row[2]], row[3])
             .map_err(|m| bad(format!("row {i} (0-based): {m}")))?;
         rows.push(row);
+        if columns == 7 {
+            let v = [at(4), at(5), at(6)];
+            check_velocity(&v).map_err(|m| bad(format!("row {i} (0-based): {m}")))?;
+            velocities.push(v);
+        }
     }
-    Ok(rows)
+    Ok((rows, (columns == 7).then_some(velocities)))
 }
 
 /// Refuses a `.npy` whose header promises more data than the file holds, before the header's
