@@ -68,19 +68,24 @@ impl CpuStepper {
             let (c_i, v_i, m_i) = ([s[0], s[1], s[2]], velocities[i], masses[i]);
             let mut total = [0.0f32; 3];
             let mut touching = 0;
-            for q in runs.iter().flat_map(|r| r.clone()) {
-                if q == at {
-                    continue;
-                }
-                let t = grid.spheres[q];
-                let j = grid.ids[q] as usize;
-                let c_j = [t[0], t[1], t[2]];
-                if let Some(f) =
-                    contact_force(p, c_i, v_i, s[3], m_i, c_j, velocities[j], t[3], masses[j])
-                {
-                    touching += 1;
-                    for a in 0..3 {
-                        total[a] += f[a];
+            for run in runs {
+                for q in run.clone() {
+                    // Cheap rejection first: most candidates do not touch.
+                    let t = grid.spheres[q];
+                    let (dx, dy, dz) = (t[0] - s[0], t[1] - s[1], t[2] - s[2]);
+                    let reach = s[3] + t[3];
+                    if dx * dx + dy * dy + dz * dz > reach * reach || q == at {
+                        continue;
+                    }
+                    let j = grid.ids[q] as usize;
+                    let c_j = [t[0], t[1], t[2]];
+                    if let Some(f) =
+                        contact_force(p, c_i, v_i, s[3], m_i, c_j, velocities[j], t[3], masses[j])
+                    {
+                        touching += 1;
+                        for a in 0..3 {
+                            total[a] += f[a];
+                        }
                     }
                 }
             }
