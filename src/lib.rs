@@ -12,8 +12,12 @@
 //!   paper's proxies (`mochi`) or the older fixed-radius boxes (`nns`).
 //! - [`backend`]: the [`Backend`] trait, the registry and `auto`; [`backend::cpu`] runs anywhere.
 //! - [`oracle`]: brute force, for tests.
-//! - [`io`]: sphere files (CSV `x,y,z,r`, NumPy `.npy` N×4) and pair files (CSV `i,j`).
+//! - [`io`]: sphere files (CSV `x,y,z,r[,vx,vy,vz]`, NumPy `.npy` N×4 or N×7), pair files (CSV
+//!   `i,j`), simulation frames (VTK `.vtu` + `.pvd`) and checkpoints.
 //! - [`scenes`]: the paper's datasets, seeded and reproducible.
+//! - [`dem`]: the discrete-element simulation: the contact model, one [`dem::Stepper`] per
+//!   backend (GPU-resident on the GPU backends), scene files.
+//! - [`mesh`]: triangle meshes (OBJ, PLY, STL) filled with spheres, for the `mesh` scene.
 //!
 //! ```
 //! use mochi::{SphereSet, ProxyMode, backend::BackendKind};
