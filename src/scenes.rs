@@ -65,7 +65,7 @@ impl Scene {
             .to_owned()
     }
 
-    /// Range of the uniformly distributed radii [m].
+    /// Range of the uniformly distributed radii \[m\].
     pub fn radius_range(self) -> (f32, f32) {
         match self {
             Scene::Freefall | Scene::Slab | Scene::Poly1_2 => (0.0005, 0.0006),
@@ -74,7 +74,7 @@ impl Scene {
         }
     }
 
-    /// Side of the cubic box the scene lives in [m] (`polylog`'s depends on n and the layout).
+    /// Side of the cubic box the scene lives in \[m\] (`polylog`'s depends on n and the layout).
     pub fn box_side(self, n: usize, layout: Layout) -> f64 {
         match self {
             Scene::Freefall | Scene::Slab => 1.0,
@@ -91,7 +91,7 @@ impl Scene {
         self == Scene::Polylog
     }
 
-    /// Mean sphere volume of the radius distribution [m³].
+    /// Mean sphere volume of the radius distribution \[m³\].
     fn mean_volume(self) -> f64 {
         let (a, b) = self.radius_range();
         let (a, b) = (a as f64, b as f64);

@@ -40,7 +40,7 @@ pub struct DetectStats {
     pub pairs: u64,
 }
 
-/// Time the GPU itself spent in the last build and the last detection [ms], without uploads,
+/// Time the GPU itself spent in the last build and the last detection \[ms\], without uploads,
 /// submission and read-back; `None` where the backend or device has no GPU timestamps.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct GpuTimes {

@@ -102,7 +102,7 @@ pub struct SimulateArgs {
     /// Steps to run (in total, counting those before a --resume).
     #[arg(long)]
     pub steps: Option<u64>,
-    /// Time step [s] (default: the scene's).
+    /// Time step \[s\] (default: the scene's).
     #[arg(long)]
     pub dt: Option<f64>,
     /// Start from a sphere file (CSV x,y,z,r or .npy N×4) instead of a generated scene.

@@ -19,11 +19,11 @@ pub const STEPS_PER_CONTACT: f64 = 10.0;
 /// Material and contact parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Material {
-    /// Density [kg/m³] (default 500).
+    /// Density \[kg/m³\] (default 500).
     pub density: f64,
     /// Restitution coefficient of a head-on collision, in (0, 1] (default 0.5).
     pub restitution: f64,
-    /// Normal stiffness k [N/m]; `None` derives it so that a collision of the two lightest
+    /// Normal stiffness k \[N/m\]; `None` derives it so that a collision of the two lightest
     /// spheres lasts [`STEPS_PER_CONTACT`] time steps.
     pub stiffness: Option<f64>,
 }
@@ -41,21 +41,21 @@ impl Default for Material {
 /// Everything a step needs besides the particles.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepParams {
-    /// Time step [s].
+    /// Time step \[s\].
     pub dt: f32,
-    /// Lower corner of the box [m].
+    /// Lower corner of the box \[m\].
     pub box_lo: [f32; 3],
-    /// Upper corner of the box [m].
+    /// Upper corner of the box \[m\].
     pub box_hi: [f32; 3],
-    /// Gravity at t = 0 [m/s²].
+    /// Gravity at t = 0 \[m/s²\].
     pub gravity: [f32; 3],
-    /// Angular velocity [rad/s] at which gravity turns about the y axis (in the XZ plane).
+    /// Angular velocity \[rad/s\] at which gravity turns about the y axis (in the XZ plane).
     pub gravity_spin: f32,
-    /// Normal stiffness k [N/m].
+    /// Normal stiffness k \[N/m\].
     pub stiffness: f32,
     /// Damping ratio ζ of the contacts (from the restitution coefficient).
     pub damping_ratio: f32,
-    /// Density [kg/m³].
+    /// Density \[kg/m³\].
     pub density: f32,
 }
 
@@ -65,12 +65,12 @@ pub fn damping_ratio(e: f64) -> f64 {
     -l / (PI * PI + l * l).sqrt()
 }
 
-/// Mass of a sphere of radius `r` [kg].
+/// Mass of a sphere of radius `r` \[kg\].
 pub fn mass(density: f32, r: f32) -> f32 {
     density * (4.0 / 3.0 * std::f32::consts::PI) * r * r * r
 }
 
-/// Stiffness that makes a contact of effective mass `m_eff` with restitution `e` last `t_c` [s].
+/// Stiffness that makes a contact of effective mass `m_eff` with restitution `e` last `t_c` \[s\].
 pub fn stiffness_for_duration(m_eff: f64, e: f64, t_c: f64) -> f64 {
     let l = e.ln();
     m_eff * (PI * PI + l * l) / (t_c * t_c)

@@ -6,11 +6,11 @@ use crate::spheres::SphereSet;
 /// Spheres with velocities, in the order the user gave them, and the simulation clock.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Particles {
-    /// Centres [m].
+    /// Centres \[m\].
     pub positions: Vec<[f32; 3]>,
-    /// Velocities [m/s].
+    /// Velocities \[m/s\].
     pub velocities: Vec<[f32; 3]>,
-    /// Radii [m].
+    /// Radii \[m\].
     pub radii: Vec<f32>,
     /// Steps taken since t = 0 (the time is `step · dt`).
     pub step: u64,

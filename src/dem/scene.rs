@@ -47,25 +47,25 @@ pub struct SceneConfig {
     pub seed: u64,
     /// Steps to run.
     pub steps: u64,
-    /// Time step [s]; `None`: the scene's default.
+    /// Time step \[s\]; `None`: the scene's default.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dt: Option<f64>,
-    /// Lower corner of the box [m]; `None`: the scene's box.
+    /// Lower corner of the box \[m\]; `None`: the scene's box.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub box_lo: Option<[f64; 3]>,
-    /// Upper corner of the box [m]; `None`: the scene's box.
+    /// Upper corner of the box \[m\]; `None`: the scene's box.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub box_hi: Option<[f64; 3]>,
-    /// Gravity at t = 0 [m/s²].
+    /// Gravity at t = 0 \[m/s²\].
     pub gravity: [f64; 3],
-    /// Angular velocity of gravity about the y axis [rad/s]; `None`: 0, or 0.25π for `rotating`.
+    /// Angular velocity of gravity about the y axis \[rad/s\]; `None`: 0, or 0.25π for `rotating`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gravity_spin: Option<f64>,
-    /// Density [kg/m³].
+    /// Density \[kg/m³\].
     pub density: f64,
     /// Restitution coefficient, in (0, 1].
     pub restitution: f64,
-    /// Normal stiffness [N/m]; `None`: derived (a 10-step contact for the lightest pair).
+    /// Normal stiffness \[N/m\]; `None`: derived (a 10-step contact for the lightest pair).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stiffness: Option<f64>,
     /// `mochi` (cells of 2·r_max) or `nns` (4·r_max).
@@ -80,11 +80,11 @@ pub struct SceneConfig {
     /// Mesh of scene `mesh` (OBJ, PLY or STL), relative to the scene file; `None`: a torus.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mesh: Option<PathBuf>,
-    /// Sphere radius of scene `mesh` [m]; the lattice spacing is 2.2 times it.
+    /// Sphere radius of scene `mesh` \[m\]; the lattice spacing is 2.2 times it.
     pub mesh_radius: f32,
     /// Scene `mesh`: half of the spheres (at random) get radius `mesh_radius / 2`.
     pub mesh_mixed: bool,
-    /// Scene `mesh`: side of the cube the mesh is fitted into [m] (0.818 holds the paper's
+    /// Scene `mesh`: side of the cube the mesh is fitted into \[m\] (0.818 holds the paper's
     /// 82,337-sphere bunny at radius 0.005).
     pub mesh_size: f64,
     /// Scene `mesh`: copies dropped side by side (in layers when they do not fit one).

@@ -6,7 +6,7 @@ use crate::backend::{BackendChoice, BackendKind};
 use crate::error::Result;
 use crate::proxy::ProxyMode;
 
-/// Time spent per phase of the step, summed over the steps of one [`Stepper::advance`] [ms].
+/// Time spent per phase of the step, summed over the steps of one [`Stepper::advance`] \[ms\].
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimes {
     /// Maintaining the acceleration structure (binning, sorting, building).

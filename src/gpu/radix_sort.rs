@@ -45,7 +45,7 @@ struct Params {
 }
 const _: () = assert!(size_of::<Params>() == 16);
 
-/// Size of [`Params`] [bytes].
+/// Size of [`Params`] \[bytes\].
 const PARAMS_SIZE: u64 = size_of::<Params>() as u64;
 
 /// The two sort kernels of a pass.
@@ -65,7 +65,7 @@ struct Scratch {
     pairs: u32,
     /// Digit counts, scanned in place.
     hist: wgpu::Buffer,
-    /// Capacity of `hist` [u32].
+    /// Capacity of `hist` \[u32\].
     hist_len: u32,
 }
 
@@ -329,7 +329,7 @@ fn pipeline(
         })
 }
 
-/// Distance between params slots [bytes]: the size of [`Params`] rounded up to the device's
+/// Distance between params slots \[bytes\]: the size of [`Params`] rounded up to the device's
 /// uniform offset alignment.
 fn param_stride(gpu: &Gpu) -> u64 {
     let align = u64::from(gpu.limits.min_uniform_buffer_offset_alignment).max(1);

@@ -29,9 +29,9 @@ pub const SCAN_BLOCK: u32 = 1024;
 struct Params {
     /// Entries of the level.
     len: u32,
-    /// Offset of the level in its buffer [u32].
+    /// Offset of the level in its buffer \[u32\].
     src: u32,
-    /// Offset of the next level in the block-sum buffer [u32]: where `reduce` writes the block
+    /// Offset of the next level in the block-sum buffer \[u32\]: where `reduce` writes the block
     /// totals and `scan` reads the carries.
     dst: u32,
     /// Blocks of the level (workgroups doing work).
@@ -45,10 +45,10 @@ struct Params {
 }
 const _: () = assert!(size_of::<Params>() == 32);
 
-/// Size of [`Params`] [bytes].
+/// Size of [`Params`] \[bytes\].
 const PARAMS_SIZE: u64 = size_of::<Params>() as u64;
 
-/// One level of a scan: `len` entries at `offset` [u32] of the caller's range (level 0, offset
+/// One level of a scan: `len` entries at `offset` \[u32\] of the caller's range (level 0, offset
 /// relative to the bound range) or of the block-sum buffer (the others).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Level {
@@ -85,7 +85,7 @@ enum Kernel {
 #[derive(Debug, Clone, Copy)]
 struct Step {
     kernel: Kernel,
-    /// Dynamic offset of its params slot [bytes].
+    /// Dynamic offset of its params slot \[bytes\].
     offset: u32,
     groups: (u32, u32),
 }
@@ -135,7 +135,7 @@ pub struct ExclusiveScan {
     layout: wgpu::BindGroupLayout,
     reduce: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
-    /// Block sums of all levels but the first, and its capacity [u32].
+    /// Block sums of all levels but the first, and its capacity \[u32\].
     sums: Option<(wgpu::Buffer, u32)>,
 }
 
@@ -228,7 +228,7 @@ impl ExclusiveScan {
         self.encode_range(gpu, encoder, data, 0, len);
     }
 
-    /// As [`encode`](Self::encode), for the `len` u32 of `data` from `offset` [u32] on: only
+    /// As [`encode`](Self::encode), for the `len` u32 of `data` from `offset` \[u32\] on: only
     /// that range changes. Only the range (widened down to the device's storage offset
     /// alignment) is bound, so it is the range that must fit in `max_storage_buffer_binding_size`.
     ///
@@ -254,7 +254,7 @@ impl ExclusiveScan {
         prepared.record(&mut pass);
     }
 
-    /// Prepares a scan of the `len` u32 of `data` from `offset` [u32] on, for recording into
+    /// Prepares a scan of the `len` u32 of `data` from `offset` \[u32\] on, for recording into
     /// compute passes (several times if wanted, e.g. once per pass of a radix sort): writes its
     /// parameters with `queue.write_buffer`, grows the block-sum scratch if needed and makes its
     /// bind group. Same conditions and panics as [`encode_range`](Self::encode_range).

@@ -30,15 +30,15 @@ use std::path::{Path, PathBuf};
 /// `i` is `positions[i]`, `radii[i]`, `velocities[i]`.
 #[derive(Debug, Clone, Copy)]
 pub struct Frame<'a> {
-    /// Simulated time [s]; must be finite.
+    /// Simulated time \[s\]; must be finite.
     pub time: f64,
     /// Step number; names the frame's files (`frame_{step:08}.vtu`).
     pub step: u64,
-    /// Centres [m].
+    /// Centres \[m\].
     pub positions: &'a [[f32; 3]],
-    /// Radii [m].
+    /// Radii \[m\].
     pub radii: &'a [f32],
-    /// Velocities [m/s].
+    /// Velocities \[m/s\].
     pub velocities: &'a [[f32; 3]],
 }
 
@@ -347,7 +347,7 @@ pub const SERIES_INDEX: &str = "series.pvd";
 pub struct SeriesEntry {
     /// Step number.
     pub step: u64,
-    /// Simulated time [s].
+    /// Simulated time \[s\].
     pub time: f64,
 }
 

@@ -3,7 +3,7 @@
 //! checkpoints.
 //!
 //! Every reader names the file, the line (CSV) or row (`.npy`) and the problem in its error.
-//! Every writer goes through [`atomic`]: a failed write leaves no partial file behind.
+//! Every writer goes through [`write_atomically`]: a failed write leaves no partial file behind.
 
 mod atomic;
 mod checkpoint;

@@ -16,9 +16,9 @@ pub const MAX_LATTICE_POINTS: u64 = 1 << 27;
 #[derive(Debug, Clone, PartialEq)]
 pub struct FillSpec {
     /// Distance between neighbouring lattice points, the side of each sphere's own cubic cell
-    /// [m]; finite and > 0. The paper's bunny uses 2.2·r with r = 0.005.
+    /// \[m\]; finite and > 0. The paper's bunny uses 2.2·r with r = 0.005.
     pub spacing: f64,
-    /// The radius mix: `(radius [m], weight)` pairs; each sphere's radius is drawn with
+    /// The radius mix: `(radius \[m\], weight)` pairs; each sphere's radius is drawn with
     /// probability weight / Σ weights, e.g. `[(r, 1.0), (r / 2.0, 1.0)]`. Not empty; radii
     /// finite, > 0 and at most `spacing / 2` (compared in `f32`); weights finite and > 0.
     pub radii: Vec<(f32, f64)>,

@@ -1,7 +1,7 @@
 //! The `cpu` backend: a sorted proxy grid searched in parallel with rayon.
 //!
 //! Build = bin the spheres into cells of the mode's size ([`ProxyMode::cell_size`]) and sort
-//! them by cell; detection = the half-stencil search of [`query`]. `update` re-bins: sorting is
+//! them by cell; detection = the half-stencil search of `query`. `update` re-bins: sorting is
 //! cheap enough that a grid has nothing to refit.
 
 pub(crate) mod grid;

@@ -6,7 +6,7 @@
 //! the primitives per BLAS) and a TLAS with one instance per BLAS; all in one submission.
 //! Detection: `wgsl/rq_pairs.wgsl` applies the rule of [`crate::proxy`] to every candidate.
 //! Pairs are counted while written, so a full output buffer is grown and the pass rerun: nothing
-//! is ever truncated. wgpu has no refit, so [`Backend::update`] rebuilds.
+//! is ever truncated. wgpu has no refit, so [`Backend::update`](super::Backend::update) rebuilds.
 
 pub(crate) mod accel;
 
