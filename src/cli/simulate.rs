@@ -81,6 +81,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         stepper.describe()
     );
 
+    let (r_min, r_max) = start.particles.radius_range();
+    if let Some(warning) = p.overlap_warning(r_min, r_max) {
+        eprintln!("warning: {warning}");
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let scene_toml = config.to_toml();

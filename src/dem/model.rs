@@ -153,6 +153,36 @@ impl StepParams {
         })
     }
 
+    /// A warning when the heaviest sphere (radius `r_max`) resting on the floor would sink
+    /// deeper than a tenth of its radius (m·|g|/k): with one stiffness for all contacts, a wide
+    /// spread of masses needs a stiffness (and a time step) chosen for the heaviest sphere. Says
+    /// which stiffness keeps that overlap at 1% and the time step it then needs.
+    pub fn overlap_warning(&self, r_min: f32, r_max: f32) -> Option<String> {
+        let g = self
+            .gravity
+            .iter()
+            .map(|x| (x * x) as f64)
+            .sum::<f64>()
+            .sqrt();
+        let heavy = mass(self.density, r_max) as f64;
+        let sink = heavy * g / self.stiffness as f64;
+        if sink <= 0.1 * r_max as f64 {
+            return None;
+        }
+        let k = heavy * g / (0.01 * r_max as f64);
+        let m_eff = mass(self.density, r_min) as f64 / 2.0;
+        let zeta = self.damping_ratio as f64;
+        let t_c = PI / ((k / m_eff).sqrt() * (1.0 - zeta * zeta).sqrt());
+        Some(format!(
+            "the heaviest spheres (r = {r_max:e} m) would sink {:.0}% of their radius into what \
+             they rest on at stiffness {:e} N/m; for 1% use --set stiffness={k:.3e} with \
+             --dt {:.2e} (a 10-step contact for the lightest pair)",
+            100.0 * sink / r_max as f64,
+            self.stiffness,
+            t_c / STEPS_PER_CONTACT
+        ))
+    }
+
     /// Gravity at step `step` (time `step · dt`), turned about the y axis by `gravity_spin · t`.
     pub fn gravity_at(&self, step: u64) -> [f32; 3] {
         let angle = self.gravity_spin * (step as f32 * self.dt);
@@ -289,6 +319,21 @@ mod tests {
         assert_eq!(f, g.map(|x| -x));
         // Repulsive: pushes i away from j.
         assert!(f[0] < 0.0 && f[1] < 0.0 && f[2] > 0.0);
+    }
+
+    #[test]
+    fn soft_contacts_for_heavy_spheres_are_warned_about() {
+        let p = params();
+        assert_eq!(p.overlap_warning(0.0005, 0.0006), None);
+        assert!(
+            p.overlap_warning(0.0005, 0.06)
+                .is_some_and(|w| w.contains("stiffness="))
+        );
+        let stiff = StepParams {
+            stiffness: 1e4,
+            ..p
+        };
+        assert_eq!(stiff.overlap_warning(0.0005, 0.06), None);
     }
 
     #[test]
