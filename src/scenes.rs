@@ -8,6 +8,7 @@ use crate::error::{Error, Result};
 use crate::spheres::SphereSet;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
+use std::f64::consts::PI;
 
 /// A named scene.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -27,8 +28,9 @@ pub enum Scene {
     Poly120,
     /// Log-uniform radii over [0.0005, 0.06]: as many small spheres per octave as large ones.
     /// `random` packs them at a solid fraction of about 0.6 (counting overlaps) in a cube sized
-    /// for `n`; `lattice` spaces them 2·r_max apart (the start of a pour; the poured pile comes
-    /// from the DEM).
+    /// for `n`; `lattice` stacks them without overlaps in layers of like-sized spheres (each
+    /// layer a square lattice of spacing 2.1·its largest radius, the layers in random order)
+    /// filling the lower part of a cube only about twice the volume of the pile they pour into.
     Polylog,
 }
 
@@ -81,7 +83,16 @@ impl Scene {
             Scene::Poly1_2 | Scene::Poly12 | Scene::Poly120 => 16.0,
             Scene::Polylog => match layout {
                 Layout::Random => (n as f64 * self.mean_volume() / 0.6).cbrt(),
-                Layout::Lattice => cube_root_ceil(n) as f64 * 2.0 * self.radius_range().1 as f64,
+                // Twice the volume of the spheres' own layer cells (2.1·r)³; for up to a
+                // thousand spheres, room for a cubic lattice of largest-sphere cells, so that
+                // few spheres never run out of layers.
+                Layout::Lattice => {
+                    let cell = LAYER_SPACING.powi(3) * self.mean_volume() / (4.0 / 3.0 * PI);
+                    let few = cube_root_ceil(n.min(1000)) as f64;
+                    (2.0 * n as f64 * cell)
+                        .cbrt()
+                        .max(LAYER_SPACING * 1.01 * self.radius_range().1 as f64 * few)
+                }
             },
         }
     }
@@ -115,8 +126,14 @@ impl Scene {
     }
 }
 
+/// Lattice spacing of a `polylog` layer over its largest radius.
+const LAYER_SPACING: f64 = 2.1;
+
 /// Generates the spheres of `spec`.
 pub fn generate(spec: &SceneSpec) -> Result<SphereSet> {
+    if spec.scene == Scene::Polylog && spec.layout == Layout::Lattice {
+        return layered(spec);
+    }
     let r_max = spec.scene.radius_range().1;
     let lattice = Lattice::plan(spec.scene, spec.n, spec.layout)?;
     if spec.layout == Layout::Lattice && lattice.spacing < 2.0 * r_max as f64 {
@@ -146,6 +163,64 @@ pub fn generate(spec: &SceneSpec) -> Result<SphereSet> {
         radii.push(r);
     }
     SphereSet::new(centers, radii)
+}
+
+/// `polylog`'s lattice layout: radii sorted, cut into layers that each fill a square lattice of
+/// spacing 2.1·(their largest radius) across the box, stacked from the floor in a seeded random
+/// order, every sphere jittered inside its own cell. No two spheres overlap: within a layer cells
+/// are wider than the diameters, and layers are as far apart as their largest radii need.
+fn layered(spec: &SceneSpec) -> Result<SphereSet> {
+    let side = spec.scene.box_side(spec.n, Layout::Lattice);
+    let mut rng = Pcg64::seed_from_u64(spec.seed);
+    let mut radii: Vec<f32> = (0..spec.n)
+        .map(|_| spec.scene.sample_radius(&mut rng))
+        .collect();
+    radii.sort_unstable_by(|a, b| b.total_cmp(a));
+    // Layers of like-sized spheres: each takes as many as its lattice holds.
+    let mut layers: Vec<std::ops::Range<usize>> = Vec::new();
+    let mut start = 0;
+    while start < radii.len() {
+        let spacing = LAYER_SPACING * radii[start] as f64;
+        let per_row = ((side / spacing) as usize).max(1);
+        let end = (start + per_row * per_row).min(radii.len());
+        layers.push(start..end);
+        start = end;
+    }
+    // Shuffle the layers (Fisher–Yates), so sizes mix as the pile pours.
+    for k in (1..layers.len()).rev() {
+        let j = rng.random_range(0..=k);
+        layers.swap(k, j);
+    }
+    let mut centers = Vec::with_capacity(spec.n);
+    let mut out_radii = Vec::with_capacity(spec.n);
+    let mut z = 0.0f64;
+    let mut below = 0.0f64; // largest radius of the layer below (none under the first)
+    for layer in &layers {
+        let top = radii[layer.start] as f64;
+        let spacing = LAYER_SPACING * top;
+        z += below + top * 1.05;
+        if z + top > side {
+            return Err(Error::TooLarge {
+                what: "spheres in the polylog layers (the box is full)".into(),
+                got: spec.n as u64,
+                limit: centers.len() as u64,
+            });
+        }
+        let per_row = ((side / spacing) as usize).max(1);
+        for (k, &r) in radii[layer.clone()].iter().enumerate() {
+            let room = (spacing / 2.0 - r as f64).max(0.0);
+            let (ix, iy) = (k % per_row, k / per_row);
+            let c = [
+                (ix as f64 + 0.5) * spacing + rng.random_range(-room..=room),
+                (iy as f64 + 0.5) * spacing + rng.random_range(-room..=room),
+                z,
+            ];
+            centers.push(c.map(|x| x as f32));
+            out_radii.push(r);
+        }
+        below = top;
+    }
+    SphereSet::new(centers, out_radii)
 }
 
 /// The smallest m with m³ ≥ n (at least 1).
@@ -257,6 +332,41 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn the_polylog_pour_starts_dense_and_mixed() {
+        let s = generate(&spec(Scene::Polylog, 20_000, Layout::Lattice)).unwrap();
+        let side = Scene::Polylog.box_side(20_000, Layout::Lattice);
+        let top = s
+            .centers()
+            .iter()
+            .zip(s.radii())
+            .map(|(c, r)| c[2] + r)
+            .fold(0.0, f32::max);
+        let solid: f64 = s
+            .radii()
+            .iter()
+            .map(|&r| 4.0 / 3.0 * PI * (r as f64).powi(3))
+            .sum();
+        let fraction = solid / (side * side * top as f64);
+        assert!(
+            fraction > 0.2,
+            "solid fraction of the start column {fraction}"
+        );
+        assert!(
+            (top as f64) < 0.8 * side,
+            "the column must leave room above it"
+        );
+        // Layers in random order: the largest sphere is not always at the bottom.
+        let heaviest = s
+            .radii()
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .unwrap()
+            .0;
+        assert!(s.centers()[heaviest][2] > 2.0 * s.max_radius());
     }
 
     #[test]
