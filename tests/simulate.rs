@@ -194,6 +194,55 @@ fn a_mesh_file_is_filled_and_dropped() {
 }
 
 #[test]
+fn a_checkpoint_with_a_sphere_pushed_into_a_wall_still_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut first = SMALL.to_vec();
+    first.extend(["--steps", "10", "--frame-every", "0", "-o", "a"]);
+    ok(&first, dir.path());
+    let path = dir.path().join("a/checkpoint.bin");
+    let (mut particles, scene) = read_checkpoint(&path).unwrap();
+    particles.positions[0][2] = -0.0001; // through the floor, as a soft wall allows
+    mochi::io::write_checkpoint(&path, &particles, &scene).unwrap();
+    ok(
+        &[
+            "simulate",
+            "--resume",
+            "a/checkpoint.bin",
+            "--steps",
+            "20",
+            "-o",
+            "a",
+            "--backend",
+            "cpu",
+            "-q",
+        ],
+        dir.path(),
+    );
+    // At t = 0 the same sphere is refused.
+    std::fs::write(
+        dir.path().join("out.csv"),
+        "x,y,z,r\n0.5,0.5,-0.5,0.01\n0.5,0.5,0.5,0.01\n",
+    )
+    .unwrap();
+    let e = fails(
+        &[
+            "simulate",
+            "--input",
+            "out.csv",
+            "--set",
+            "box_lo=[0,0,0]",
+            "--set",
+            "box_hi=[1,1,1]",
+            "-q",
+            "--backend",
+            "cpu",
+        ],
+        dir.path(),
+    );
+    assert!(e.contains("outside the box"), "{e}");
+}
+
+#[test]
 fn bad_scenes_give_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, text: &str| std::fs::write(dir.path().join(name), text).unwrap();

@@ -259,10 +259,31 @@ impl SceneConfig {
                 if let Some(v) = velocities {
                     particles.velocities = v;
                 }
-                return self.start_from(particles);
+                return Self::inside_the_box(self.start_from(particles)?);
             }
         };
-        self.start_from(Particles::at_rest(&spheres))
+        Self::inside_the_box(self.start_from(Particles::at_rest(&spheres))?)
+    }
+
+    /// `start`, if every centre lies in its box (checked at t = 0 only: a running simulation
+    /// may push a sphere partly through a soft wall, and a checkpoint of it must still resume).
+    fn inside_the_box(start: Start) -> Result<Start> {
+        let (lo, hi) = (start.params.box_lo, start.params.box_hi);
+        let outside = start
+            .particles
+            .positions
+            .iter()
+            .position(|c| (0..3).any(|a| !(lo[a]..=hi[a]).contains(&c[a])));
+        if let Some(index) = outside {
+            return Err(Error::InvalidSphere {
+                index,
+                reason: format!(
+                    "centre {:?} is outside the box {lo:?} .. {hi:?}",
+                    start.particles.positions[index]
+                ),
+            });
+        }
+        Ok(start)
     }
 
     /// Copies per row and layers of the `mesh` scene, and the side of its cell per copy.
@@ -390,19 +411,6 @@ impl SceneConfig {
         );
         let r_min = if particles.is_empty() { 1.0 } else { r_min };
         let params = StepParams::new(&material, dt, lo, hi, self.gravity, spin, r_min)?;
-        if let Some(index) = particles
-            .positions
-            .iter()
-            .position(|c| (0..3).any(|a| !(lo[a]..=hi[a]).contains(&(c[a] as f64))))
-        {
-            return Err(Error::InvalidSphere {
-                index,
-                reason: format!(
-                    "centre {:?} is outside the box {lo:?} .. {hi:?}",
-                    particles.positions[index]
-                ),
-            });
-        }
         Ok(Start {
             particles,
             params,
