@@ -66,9 +66,12 @@ fn detect(args: DetectArgs) -> Result<()> {
     let t = Instant::now();
     let (pairs, stats) = backend.find_pairs()?;
     let mut detect_ms = ms(t);
+    let first_gpu = backend.gpu_times();
+    let mut gpu_times = (first_gpu.build_ms, first_gpu.detect_ms);
     if args.repeat > 0 {
         let mut builds = Vec::with_capacity(args.repeat);
         let mut detects = Vec::with_capacity(args.repeat);
+        let (mut gpu_builds, mut gpu_detects) = (Vec::new(), Vec::new());
         for _ in 0..args.repeat {
             let t = Instant::now();
             backend.build(&spheres, args.mode)?;
@@ -76,13 +79,21 @@ fn detect(args: DetectArgs) -> Result<()> {
             let t = Instant::now();
             backend.find_pairs()?;
             detects.push(ms(t));
+            let gpu = backend.gpu_times();
+            gpu_builds.extend(gpu.build_ms);
+            gpu_detects.extend(gpu.detect_ms);
         }
         build_ms = median(&mut builds);
         detect_ms = median(&mut detects);
+        if gpu_builds.len() == args.repeat && gpu_detects.len() == args.repeat {
+            gpu_times = (
+                Some(median(&mut gpu_builds)),
+                Some(median(&mut gpu_detects)),
+            );
+        }
     }
 
-    let gpu = backend.gpu_times();
-    let gpu_note = match (gpu.build_ms, gpu.detect_ms) {
+    let gpu_note = match gpu_times {
         (Some(b), Some(d)) => format!(" | GPU time: build {b:.3} ms, detect {d:.3} ms"),
         _ => String::new(),
     };
