@@ -95,5 +95,5 @@ fn find_pairs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
             }
         }
     }
-    add_candidates(tested, lid);
+    finish_pairs(tested, lid, params.capacity);
 }

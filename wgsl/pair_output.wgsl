@@ -2,30 +2,56 @@
 // Pairs are appended up to `capacity` while the counter keeps counting, so the host can grow the
 // buffer and rerun: nothing is silently lost.
 // counters[0]: pairs found; counters[1], counters[2]: candidates tested, low and high words.
+//
+// A thread keeps its first LOCAL_PAIRS pairs in registers; at the end (finish_pairs) the
+// workgroup reserves room for all of them with one global atomic and each thread writes its own
+// at its offset. One atomic per pair on a single counter was most of the detection time on
+// contact-heavy scenes. Pairs beyond LOCAL_PAIRS take a global atomic each.
 
 @group(0) @binding(3) var<storage, read_write> counters: array<atomic<u32>, 4>;
 @group(0) @binding(4) var<storage, read_write> pairs: array<vec2<u32>>;
 
+const LOCAL_PAIRS: u32 = 4u;
+
+var<private> local_pairs: array<vec2<u32>, LOCAL_PAIRS>;
+var<private> local_count: u32;
 var<workgroup> group_candidates: atomic<u32>;
+var<workgroup> group_pairs: atomic<u32>;
+var<workgroup> group_base: u32;
 
 // Records the pair of input indices a and b (either order).
 fn emit_pair(a: u32, b: u32, capacity: u32) {
+    let pair = vec2(min(a, b), max(a, b));
+    if local_count < LOCAL_PAIRS {
+        local_pairs[local_count] = pair;
+        local_count += 1u;
+        return;
+    }
     let slot = atomicAdd(&counters[0], 1u);
     if slot < capacity {
-        pairs[slot] = vec2(min(a, b), max(a, b));
+        pairs[slot] = pair;
     }
 }
 
-// Adds this invocation's candidate count to the 64-bit total. Call once per invocation, from
-// uniform control flow (it holds a workgroup barrier).
-fn add_candidates(tested: u32, local_index: u32) {
+// Writes the pairs kept in registers and adds this invocation's candidate count to the 64-bit
+// total. Call once per invocation, from uniform control flow (it holds workgroup barriers).
+fn finish_pairs(tested: u32, local_index: u32, capacity: u32) {
     atomicAdd(&group_candidates, tested);
+    let offset = atomicAdd(&group_pairs, local_count);
     workgroupBarrier();
     if local_index == 0u {
+        group_base = atomicAdd(&counters[0], atomicLoad(&group_pairs));
         let total = atomicLoad(&group_candidates);
         let old = atomicAdd(&counters[1], total);
         if old > 0xffffffffu - total {
             atomicAdd(&counters[2], 1u);
+        }
+    }
+    let base = workgroupUniformLoad(&group_base);
+    for (var k = 0u; k < local_count; k += 1u) {
+        let slot = base + offset + k;
+        if slot < capacity {
+            pairs[slot] = local_pairs[k];
         }
     }
 }
