@@ -3,7 +3,7 @@
 
 use super::model::{StepParams, mass};
 use super::particles::Particles;
-use super::stepper::StageTimes;
+use super::stepper::{Advance, Clock, StageTimes};
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
 
@@ -185,4 +185,32 @@ pub(crate) fn particles_from(
         ))
     })?;
     Ok(out)
+}
+
+/// Runs `steps` steps as batches: `batch(left)` runs some of the `left` steps and returns how
+/// many, the contacts of its last step and its phase times (`None` without timestamps).
+pub(crate) fn advance_in_batches(
+    steps: u32,
+    timed: bool,
+    mut batch: impl FnMut(u32) -> Result<(u32, u64, Option<StageTimes>)>,
+) -> Result<Advance> {
+    let mut times = StageTimes::default();
+    let mut timed = timed;
+    let mut contacts = 0;
+    let mut left = steps;
+    while left > 0 {
+        let (done, c, t) = batch(left)?;
+        contacts = c;
+        match t {
+            Some(t) => times.add(&t),
+            None => timed = false,
+        }
+        left -= done;
+    }
+    Ok(Advance {
+        steps,
+        contacts,
+        times,
+        clock: if timed { Clock::Gpu } else { Clock::None },
+    })
 }

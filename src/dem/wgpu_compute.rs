@@ -12,11 +12,11 @@
 
 use super::gpu_step::{
     DemParams, FORCE_VARIANTS, ForceAtomics, GROUP, MAX_BATCH, PHYSICS_WGSL, StepTimer,
-    max_spheres, particles_from, rows,
+    advance_in_batches, max_spheres, particles_from, rows,
 };
 use super::model::StepParams;
 use super::particles::Particles;
-use super::stepper::{Advance, Clock, StageTimes, Stepper};
+use super::stepper::{Advance, StageTimes, Stepper};
 use crate::backend::wgpu_compute::{GridParams, grid_layout};
 use crate::error::{Error, Result};
 use crate::gpu::scan::{ExclusiveScan, PreparedScan};
@@ -429,15 +429,14 @@ impl Stepper for GridStepper {
     }
 
     fn advance(&mut self, steps: u32) -> Result<Advance> {
-        let mut times = StageTimes::default();
-        let mut timed = self.timer.is_some();
-        let mut contacts = 0;
-        let mut left = steps;
         if self.n == 0 {
-            self.step += steps as u64;
-            left = 0;
+            // No spheres: only the clock moves.
+            return advance_in_batches(steps, false, |left| {
+                self.step += left as u64;
+                Ok((left, 0, None))
+            });
         }
-        while left > 0 {
+        advance_in_batches(steps, self.timer.is_some(), |left| {
             let due = match self.laid_out_at {
                 None => true,
                 Some(at) => self.step >= at + RELAYOUT_EVERY,
@@ -447,19 +446,8 @@ impl Stepper for GridStepper {
             }
             let until_relayout = self.laid_out_at.unwrap_or(self.step) + RELAYOUT_EVERY - self.step;
             let batch = left.min(MAX_BATCH).min(until_relayout.max(1) as u32);
-            let (c, t) = self.run_batch(batch)?;
-            contacts = c;
-            match t {
-                Some(t) => times.add(&t),
-                None => timed = false,
-            }
-            left -= batch;
-        }
-        Ok(Advance {
-            steps,
-            contacts,
-            times,
-            clock: if timed { Clock::Gpu } else { Clock::None },
+            let (contacts, times) = self.run_batch(batch)?;
+            Ok((batch, contacts, times))
         })
     }
 

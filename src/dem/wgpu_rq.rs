@@ -7,11 +7,11 @@
 
 use super::gpu_step::{
     DemParams, FORCE_VARIANTS, ForceAtomics, GROUP, MAX_BATCH, PHYSICS_WGSL, StepTimer,
-    max_spheres, particles_from, rows,
+    advance_in_batches, max_spheres, particles_from, rows,
 };
 use super::model::StepParams;
 use super::particles::Particles;
-use super::stepper::{Advance, Clock, StageTimes, Stepper};
+use super::stepper::{Advance, StageTimes, Stepper};
 use crate::backend::wgpu_rq::BOX_PADDING;
 use crate::backend::wgpu_rq::accel::Accel;
 use crate::error::{Error, Result};
@@ -156,8 +156,8 @@ impl RqStepper {
                             (16, &clock),
                         ],
                     ),
-                    resolve: bind_with_tlas(
-                        &gpu,
+                    resolve: gpu.bind_with_tlas(
+                        "mochi.dem.rq.resolve",
                         &p.resolve,
                         &[
                             (0, &rq),
@@ -167,7 +167,7 @@ impl RqStepper {
                             (13, &force),
                             (14, &counters),
                         ],
-                        accel.tlas(),
+                        (6, accel.tlas()),
                     ),
                     integrate: gpu.bind(
                         "mochi.dem.rq.integrate",
@@ -258,31 +258,6 @@ impl RqStepper {
     }
 }
 
-/// A bind group of `pipeline`'s group 0 with `buffers` and the TLAS at binding 6.
-fn bind_with_tlas(
-    gpu: &Gpu,
-    pipeline: &wgpu::ComputePipeline,
-    buffers: &[(u32, &wgpu::Buffer)],
-    tlas: &wgpu::Tlas,
-) -> wgpu::BindGroup {
-    let mut entries: Vec<_> = buffers
-        .iter()
-        .map(|&(binding, b)| wgpu::BindGroupEntry {
-            binding,
-            resource: b.as_entire_binding(),
-        })
-        .collect();
-    entries.push(wgpu::BindGroupEntry {
-        binding: 6,
-        resource: wgpu::BindingResource::AccelerationStructure(tlas),
-    });
-    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("mochi.dem.rq.resolve"),
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &entries,
-    })
-}
-
 impl Stepper for RqStepper {
     fn describe(&self) -> String {
         format!(
@@ -293,28 +268,17 @@ impl Stepper for RqStepper {
     }
 
     fn advance(&mut self, steps: u32) -> Result<Advance> {
-        let mut times = StageTimes::default();
-        let mut timed = self.timer.is_some();
-        let mut contacts = 0;
-        let mut left = if self.resident.is_some() { steps } else { 0 };
         if self.resident.is_none() {
-            self.step += steps as u64;
+            // No spheres: only the clock moves.
+            return advance_in_batches(steps, false, |left| {
+                self.step += left as u64;
+                Ok((left, 0, None))
+            });
         }
-        while left > 0 {
+        advance_in_batches(steps, self.timer.is_some(), |left| {
             let batch = left.min(MAX_BATCH);
-            let (c, t) = self.run_batch(batch)?;
-            contacts = c;
-            match t {
-                Some(t) => times.add(&t),
-                None => timed = false,
-            }
-            left -= batch;
-        }
-        Ok(Advance {
-            steps,
-            contacts,
-            times,
-            clock: if timed { Clock::Gpu } else { Clock::None },
+            let (contacts, times) = self.run_batch(batch)?;
+            Ok((batch, contacts, times))
         })
     }
 

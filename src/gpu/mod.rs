@@ -206,13 +206,40 @@ impl Gpu {
         pipeline: &wgpu::ComputePipeline,
         buffers: &[(u32, &wgpu::Buffer)],
     ) -> wgpu::BindGroup {
-        let entries: Vec<_> = buffers
+        self.bind_entries(label, pipeline, buffers, None)
+    }
+
+    /// As [`bind`](Self::bind), with the acceleration structure `tlas` at its binding number too.
+    pub fn bind_with_tlas(
+        &self,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[(u32, &wgpu::Buffer)],
+        tlas: (u32, &wgpu::Tlas),
+    ) -> wgpu::BindGroup {
+        self.bind_entries(label, pipeline, buffers, Some(tlas))
+    }
+
+    fn bind_entries(
+        &self,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[(u32, &wgpu::Buffer)],
+        tlas: Option<(u32, &wgpu::Tlas)>,
+    ) -> wgpu::BindGroup {
+        let mut entries: Vec<_> = buffers
             .iter()
             .map(|&(binding, b)| wgpu::BindGroupEntry {
                 binding,
                 resource: b.as_entire_binding(),
             })
             .collect();
+        if let Some((binding, tlas)) = tlas {
+            entries.push(wgpu::BindGroupEntry {
+                binding,
+                resource: wgpu::BindingResource::AccelerationStructure(tlas),
+            });
+        }
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(label),
             layout: &pipeline.get_bind_group_layout(0),

@@ -143,28 +143,17 @@ impl Accel {
         pipeline: &wgpu::ComputePipeline,
         output: &PairOutput,
     ) -> wgpu::BindGroup {
-        let buffers = [
-            (0, &self.pair_params),
-            (1, &self.spheres),
-            (2, &self.ids),
-            (COUNTERS_BINDING, &output.counters),
-            (PAIRS_BINDING, &output.pairs),
-        ];
-        let mut entries: Vec<_> = buffers
-            .iter()
-            .map(|&(binding, b)| wgpu::BindGroupEntry {
-                binding,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        entries.push(wgpu::BindGroupEntry {
-            binding: 5,
-            resource: wgpu::BindingResource::AccelerationStructure(&self.tlas),
-        });
-        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("mochi.rq.find_pairs"),
-            layout: &pipeline.get_bind_group_layout(0),
-            entries: &entries,
-        })
+        gpu.bind_with_tlas(
+            "mochi.rq.find_pairs",
+            pipeline,
+            &[
+                (0, &self.pair_params),
+                (1, &self.spheres),
+                (2, &self.ids),
+                (COUNTERS_BINDING, &output.counters),
+                (PAIRS_BINDING, &output.pairs),
+            ],
+            (5, &self.tlas),
+        )
     }
 }
