@@ -102,10 +102,11 @@ pub struct SimulateArgs {
     /// Steps to run (in total, counting those before a --resume).
     #[arg(long)]
     pub steps: Option<u64>,
-    /// Time step \[s\] (default: the scene's).
+    /// Time step [s] (default: the scene's).
     #[arg(long)]
     pub dt: Option<f64>,
-    /// Start from a sphere file (CSV x,y,z,r or .npy N×4) instead of a generated scene.
+    /// Start from a sphere file (CSV x,y,z,r or .npy N×4, optionally with vx,vy,vz: a frame
+    /// CSV restarts a run) instead of a generated scene.
     #[arg(long)]
     pub input: Option<PathBuf>,
     /// Fill this mesh (OBJ, PLY or STL) with spheres and drop it (scene `mesh`; see the
