@@ -4,6 +4,8 @@
 mod common;
 
 use mochi::backend::BackendKind;
+use mochi::backend::Options;
+use mochi::backend::wgpu_compute::Structure;
 use mochi::dem::model::{mass, stable_dt, stiffness_for_duration};
 use mochi::dem::wgpu_compute::GridStepper;
 use mochi::dem::wgpu_rq::RqStepper;
@@ -22,6 +24,7 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
             particles.clone(),
             params,
             ProxyMode::Mochi,
+            &Options::default(),
         )
         .unwrap(),
     )];
@@ -31,6 +34,10 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
                 .unwrap();
             out.push((format!("wgpu-compute {atomics:?}"), Box::new(s)));
         }
+        let s = GridStepper::new(particles.clone(), params, ProxyMode::Mochi)
+            .unwrap()
+            .with_structure(Structure::Mlgrid);
+        out.push(("wgpu-compute mlgrid".into(), Box::new(s)));
     }
     if common::adapter_for(Need::RayQuery, "the wgpu-rq DEM step") {
         for atomics in [ForceAtomics::Auto, ForceAtomics::CompareExchange] {
@@ -250,7 +257,26 @@ fn a_long_run_stays_finite_and_inside_the_box() {
 fn gpu_steps_follow_the_cpu_step_on_the_same_scene() {
     // A compressed lattice: every sphere touches its axis neighbours from step 0 (the closest
     // pair's distance is 0.0002 from its contact threshold, far from any rounding).
-    let start = pile(8, 0.0162, 0.0);
+    assert_gpu_steps_follow_the_cpu_step(pile(8, 0.0162, 0.0));
+}
+
+#[test]
+fn gpu_steps_follow_the_cpu_step_with_two_sizes_of_spheres() {
+    // A 3-D checkerboard of spheres of radius 0.01 and 0.005 (two levels of the multi-level
+    // grid) at spacing 0.0145: every sphere touches its axis neighbours, no two big ones touch,
+    // and every distance is at least 0.0005 from its contact threshold.
+    let n_side = 9;
+    let mut start = pile(n_side, 0.0145, 0.0);
+    for (k, r) in start.radii.iter_mut().enumerate() {
+        let parity = k % n_side + (k / n_side) % n_side + k / (n_side * n_side);
+        *r = if parity % 2 == 0 { 0.01 } else { 0.005 };
+    }
+    assert_gpu_steps_follow_the_cpu_step(start);
+}
+
+/// Every GPU stepper finds the cpu step's contacts and stays within 1e-6 m of its positions over
+/// the first 40 steps from `start` (which must start in contact).
+fn assert_gpu_steps_follow_the_cpu_step(start: Particles) {
     let r_min = start.radius_range().0;
     let p = params(Material::default(), 1e-4, 0.3, [0.0, 0.0, -9.81], r_min);
     let mut all = steppers(&start, p);

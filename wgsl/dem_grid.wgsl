@@ -73,18 +73,10 @@ fn resolve_run(p: u32, s: vec4<f32>, v: vec4<f32>, a: u32, b: u32) -> vec4<f32> 
     return total;
 }
 
-// The 13 forward neighbours of a cell (the other 13 see this one as theirs).
-const FORWARD = array<vec3<i32>, 13>(
-    vec3(1, 0, 0), vec3(-1, 1, 0), vec3(0, 1, 0), vec3(1, 1, 0),
-    vec3(-1, -1, 1), vec3(0, -1, 1), vec3(1, -1, 1),
-    vec3(-1, 0, 1), vec3(0, 0, 1), vec3(1, 0, 1),
-    vec3(-1, 1, 1), vec3(0, 1, 1), vec3(1, 1, 1),
-);
-
 // Hashed table: resolves sphere p against the spheres of `cell` found in its bucket (others
 // sharing the bucket skipped; in the own cell only q > p).
 fn resolve_bucket(p: u32, s: vec4<f32>, v: vec4<f32>, cell: vec3<u32>, own: bool) -> vec4<f32> {
-    let b = hash_cell(cell, 0u);
+    let b = hash_cell(cell);
     var total = vec4(0.0);
     for (var q = cell_start[b]; q < cell_start[b + 1u]; q += 1u) {
         let t = pos[q];
@@ -119,13 +111,11 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
                 total += resolve_bucket(p, s, v, cell + bitcast<vec3<u32>>(FORWARD[r]), false);
             }
         } else {
-            let k = keys[p];
-            total += resolve_run(p, s, v, p + 1u, cell_start[k + 2u]);
-            let plane = params.nx * params.ny;
-            let rows = array<u32, 4>(params.nx - 1u, plane - params.nx - 1u, plane - 1u, plane + params.nx - 1u);
-            for (var r = 0u; r < 4u; r += 1u) {
-                let first = k + rows[r];
-                total += resolve_run(p, s, v, cell_start[first], cell_start[first + 3u]);
+            let own = level_of(s.w);
+            let key = keys[p];
+            for (var r = 0u; r < neighbour_runs(own); r += 1u) {
+                let run = neighbour_run(s, own, p, key, r);
+                total += resolve_run(p, s, v, run.x, run.y);
             }
         }
         if total.w != 0.0 {

@@ -1,5 +1,11 @@
-// The grid's parameters and cell functions, shared by grid_build.wgsl and grid_pairs.wgsl.
-// Keep in sync with GridParams in src/backend/wgpu_compute/mod.rs.
+// The grid's parameters and cell functions, shared by grid_build.wgsl, grid_pairs.wgsl and
+// dem_grid.wgsl. Keep in sync with GridParams in src/backend/wgpu_compute/mod.rs.
+//
+// A grid has one level (cells of the largest proxy; its table dense or hashed) or several dense
+// levels (the multi-level proxy grid of method.md): level `levels - 1` is the top, with cells of
+// `top_cell`, and every level below halves them. A sphere lives at the finest level whose cells
+// hold its proxy (or the finest level there is) and meets its partners there (half stencil) and
+// at every coarser level (27 cells), where only it, the smaller sphere, looks for the pair.
 struct GridParams {
     lo: vec3<f32>,      // lower corner of the centres' bounding box
     n: u32,             // number of spheres
@@ -7,14 +13,15 @@ struct GridParams {
     nx: u32,            // top-level cells along x, margin included
     ny: u32,            // top-level cells along y, margin included
     nz: u32,            // top-level cells along z, margin included
-    cells: u32,         // dense: nx·ny·nz; hashed: number of buckets (a power of two)
+    cells: u32,         // dense: cells of all levels; hashed: number of buckets (a power of two)
     row: u32,           // invocations per dispatch row (2-D dispatch)
     capacity: u32,      // room in the pair buffer (detection only)
-    hashed: u32,        // 0: dense table over the grid; 1: cells hashed into `cells` buckets
-    levels: u32,        // 1: single grid; K + 1: multi-level grid (hashed), cells halving downwards
+    hashed: u32,        // 0: dense tables; 1: one level, cells hashed into `cells` buckets
+    levels: u32,        // 1: single grid; more: multi-level grid (dense), cells halving downwards
     top_cell: f32,      // cell side of the top level
     level_pad: f32,     // 1 + relative padding: sphere i lives where cell ≥ 2·r_i·level_pad
     _pad0: u32,
+    level_first: array<vec4<u32>, 2>, // dense: table index of each level's first cell
 }
 
 // Level of a sphere of radius r: the finest level whose cells are at least 2·r·level_pad (so a
@@ -35,28 +42,74 @@ fn level_of(r: f32) -> u32 {
     return u32(top - shift);
 }
 
+// Cells of `level` along each axis, margin included.
+fn level_dims(level: u32) -> vec3<u32> {
+    let shift = params.levels - 1u - level;
+    return ((vec3(params.nx, params.ny, params.nz) - vec3(2u)) << vec3(shift)) + vec3(2u);
+}
+
 // Cell of a centre at `level`, margin included (1 ..= n - 2 on each axis of that level).
 fn cell_coords(c: vec3<f32>, level: u32) -> vec3<u32> {
     let shift = params.levels - 1u - level;
     let u = max((c - params.lo) * ldexp(params.inv_cell, i32(shift)), vec3(0.0));
-    let top = ((vec3(params.nx, params.ny, params.nz) - vec3(2u)) << vec3(shift)) - vec3(1u);
-    return min(vec3<u32>(u), top) + vec3(1u);
+    return min(vec3<u32>(u), level_dims(level) - vec3(3u)) + vec3(1u);
 }
 
-// Bucket of a cell of `level` in the hashed table (coordinates may have wrapped: they then match
-// no sphere).
-fn hash_cell(cell: vec3<u32>, level: u32) -> u32 {
-    let h = (cell.x * 73856093u) ^ (cell.y * 19349663u) ^ (cell.z * 83492791u) ^ (level * 2654435761u);
+// Bucket of a cell in the hashed table (coordinates may have wrapped: they then match no sphere).
+fn hash_cell(cell: vec3<u32>) -> u32 {
+    let h = (cell.x * 73856093u) ^ (cell.y * 19349663u) ^ (cell.z * 83492791u);
     return h & (params.cells - 1u);
 }
 
-// Table entry of a sphere: linear key of its cell in the dense grid, or bucket of its cell and
-// level in the hashed one.
+// Table index of a cell of `level` in the dense tables.
+fn dense_key(cell: vec3<u32>, level: u32) -> u32 {
+    let dims = level_dims(level);
+    return params.level_first[level / 4u][level % 4u] + cell.x + dims.x * (cell.y + dims.y * cell.z);
+}
+
+// Table entry of a sphere: its cell in the dense tables, or the bucket of its cell.
 fn cell_key(s: vec4<f32>) -> u32 {
     let level = level_of(s.w);
     let cell = cell_coords(s.xyz, level);
     if params.hashed != 0u {
-        return hash_cell(cell, level);
+        return hash_cell(cell);
     }
-    return cell.x + params.nx * (cell.y + params.ny * cell.z);
+    return dense_key(cell, level);
+}
+
+// The 13 forward neighbours of a cell (the other 13 see this one as theirs).
+const FORWARD = array<vec3<i32>, 13>(
+    vec3(1, 0, 0), vec3(-1, 1, 0), vec3(0, 1, 0), vec3(1, 1, 0),
+    vec3(-1, -1, 1), vec3(0, -1, 1), vec3(1, -1, 1),
+    vec3(-1, 0, 1), vec3(0, 0, 1), vec3(1, 0, 1),
+    vec3(-1, 1, 1), vec3(0, 1, 1), vec3(1, 1, 1),
+);
+
+// Dense tables: the runs of sorted positions a sphere scans are `neighbour_run(s, own, p, key,
+// 0..neighbour_runs(own))` (each as `vec2(first, end)`), for the sphere s at sorted position p,
+// with table entry `key` and level `own`; together they hold each partner it alone must test. At its own level: the
+// rest of its cell and the next along x, then four three-cell rows (the 13 forward neighbours,
+// so each unordered pair of cells is visited once); at each coarser level, the nine three-cell
+// rows around it.
+fn neighbour_runs(own: u32) -> u32 {
+    return 5u + 9u * (params.levels - 1u - own);
+}
+
+fn neighbour_run(s: vec4<f32>, own: u32, p: u32, key: u32, run: u32) -> vec2<u32> {
+    if run == 0u {
+        return vec2(p + 1u, cell_start[key + 2u]);
+    }
+    if run < 5u {
+        let dims = level_dims(own);
+        let plane = dims.x * dims.y;
+        let rows = array<u32, 4>(dims.x - 1u, plane - dims.x - 1u, plane - 1u, plane + dims.x - 1u);
+        let first = key + rows[run - 1u];
+        return vec2(cell_start[first], cell_start[first + 3u]);
+    }
+    let level = own + 1u + (run - 5u) / 9u;
+    let row = (run - 5u) % 9u;
+    let corner = dense_key(cell_coords(s.xyz, level) - vec3(1u), level);
+    let dims = level_dims(level);
+    let first = corner + dims.x * (row % 3u + dims.y * (row / 3u));
+    return vec2(cell_start[first], cell_start[first + 3u]);
 }

@@ -46,7 +46,7 @@ pub struct DetectArgs {
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// Grid of the wgpu-compute backend: grid (single level), mlgrid (multi-level proxy grid,
-    /// mochi mode), auto (the single grid until the multi-level one measures faster).
+    /// mochi mode), auto (mlgrid where the radii span a factor of 4 or more).
     #[arg(long, value_enum, default_value_t)]
     pub structure: Structure,
     /// Time build and detection this many more times after the first run and report the
@@ -129,6 +129,10 @@ pub struct SimulateArgs {
     /// Backend to run on; auto picks the fastest that runs here and says which.
     #[arg(long, value_enum, default_value_t)]
     pub backend: BackendChoice,
+    /// Grid of the wgpu-compute backend: grid (single level), mlgrid (multi-level proxy grid,
+    /// mochi mode), auto (mlgrid where the radii span a factor of 4 or more).
+    #[arg(long, value_enum, default_value_t)]
+    pub structure: Structure,
     /// Output folder for frames, checkpoints and the summary.
     #[arg(short, long, default_value = "mochi-out")]
     pub out: PathBuf,

@@ -3,6 +3,7 @@
 use super::args::SimulateArgs;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use mochi::backend::Options;
 use mochi::dem::scene::SceneConfig;
 use mochi::dem::{Clock, StageTimes, Stepper, open_choice};
 use mochi::io::{self, Frame, FrameSeries};
@@ -67,7 +68,16 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     }
     let n = start.particles.len();
     let p = start.params;
-    let (mut stepper, reason) = open_choice(args.backend, start.particles.clone(), p, start.mode)?;
+    let options = Options {
+        structure: args.structure,
+    };
+    let (mut stepper, reason) = open_choice(
+        args.backend,
+        start.particles.clone(),
+        p,
+        start.mode,
+        &options,
+    )?;
     if let Some(reason) = reason {
         eprintln!("{reason}");
     }

@@ -2,7 +2,7 @@
 
 use super::model::StepParams;
 use super::particles::Particles;
-use crate::backend::{BackendChoice, BackendKind};
+use crate::backend::{BackendChoice, BackendKind, Options};
 use crate::error::Result;
 use crate::proxy::ProxyMode;
 
@@ -73,13 +73,15 @@ pub fn open_stepper(
     particles: Particles,
     params: StepParams,
     mode: ProxyMode,
+    options: &Options,
 ) -> Result<Box<dyn Stepper>> {
     particles.validate()?;
     Ok(match kind {
         BackendKind::Cpu => Box::new(super::cpu::CpuStepper::new(particles, params, mode)),
-        BackendKind::WgpuCompute => Box::new(super::wgpu_compute::GridStepper::new(
-            particles, params, mode,
-        )?),
+        BackendKind::WgpuCompute => Box::new(
+            super::wgpu_compute::GridStepper::new(particles, params, mode)?
+                .with_structure(options.structure),
+        ),
         BackendKind::WgpuRq => Box::new(super::wgpu_rq::RqStepper::new(particles, params, mode)?),
     })
 }
@@ -91,6 +93,7 @@ pub fn open_choice(
     particles: Particles,
     params: StepParams,
     mode: ProxyMode,
+    options: &Options,
 ) -> Result<(Box<dyn Stepper>, Option<String>)> {
     let kind = match choice {
         BackendChoice::Auto => None,
@@ -99,7 +102,7 @@ pub fn open_choice(
         BackendChoice::Cpu => Some(BackendKind::Cpu),
     };
     if let Some(kind) = kind {
-        return Ok((open_stepper(kind, particles, params, mode)?, None));
+        return Ok((open_stepper(kind, particles, params, mode, options)?, None));
     }
     let mut skipped = Vec::new();
     for kind in BackendKind::ALL {
@@ -108,7 +111,7 @@ pub fn open_choice(
             skipped.push(format!("skipped {}: {why}", kind.name()));
             continue;
         }
-        match open_stepper(kind, particles.clone(), params, mode) {
+        match open_stepper(kind, particles.clone(), params, mode, options) {
             Ok(s) => {
                 let mut reason = format!("auto picked {}", kind.name());
                 for why in &skipped {

@@ -17,7 +17,7 @@ use super::gpu_step::{
 use super::model::StepParams;
 use super::particles::Particles;
 use super::stepper::{Advance, StageTimes, Stepper};
-use crate::backend::wgpu_compute::{GridParams, grid_layout};
+use crate::backend::wgpu_compute::{GridParams, Levels, Structure, choose_layout};
 use crate::error::{Error, Result};
 use crate::gpu::scan::{ExclusiveScan, PreparedScan};
 use crate::gpu::{self, Gpu, Need};
@@ -75,7 +75,11 @@ pub struct GridStepper {
     scan: ExclusiveScan,
     prepared: Option<PreparedScan>,
     n: u32,
+    mode: ProxyMode,
     mode_cell: f64,
+    /// Smallest and largest radius.
+    radii: (f64, f64),
+    levels: Levels,
     params: StepParams,
     layout: GridParams,
     /// Step count at the last layout.
@@ -137,7 +141,7 @@ impl GridStepper {
             integrate: pipeline("integrate"),
             reduce_bounds: pipeline("reduce_bounds"),
         };
-        let (_, r_max) = particles.radius_range();
+        let (r_min, r_max) = particles.radius_range();
         let none = wgpu::BufferUsages::empty();
         let make = |label: &str, bytes: u64| gpu.storage(label, bytes, none);
         let stepper = gpu.checked("allocating the DEM buffers", || {
@@ -152,7 +156,10 @@ impl GridStepper {
                 prepared: None,
                 pipelines,
                 n,
+                mode,
                 mode_cell: mode.cell_size(r_max) as f64,
+                radii: (r_min as f64, r_max as f64),
+                levels: Structure::Auto.levels_for(mode, r_max as f64 / r_min as f64),
                 params,
                 layout: GridParams::default(),
                 laid_out_at: None,
@@ -179,6 +186,13 @@ impl GridStepper {
         let mut stepper = stepper;
         stepper.upload(&particles)?;
         Ok(stepper)
+    }
+
+    /// Bins into `structure` from the next step on.
+    pub fn with_structure(mut self, structure: Structure) -> Self {
+        self.levels = structure.levels_for(self.mode, self.radii.1 / self.radii.0);
+        self.laid_out_at = None;
+        self
     }
 
     /// Writes the particles (in input order) into the current set and the parameters.
@@ -258,13 +272,14 @@ impl GridStepper {
         let gpu = &self.gpu;
         let layout = GridParams {
             row: self.groups.0 * GROUP,
-            ..grid_layout(
+            ..choose_layout(
                 &gpu.limits,
-                lo,
-                hi,
+                self.levels,
+                (lo, hi),
                 self.n as u64,
                 self.mode_cell,
-                Some(&|_| true),
+                self.radii,
+                &|_| true,
             )
         };
         let table_bytes = (layout.cells as u64 + 1) * 4;

@@ -3,14 +3,18 @@
 //!
 //! Build, in one submission, a counting sort by cell (`wgsl/grid_build.wgsl`): every sphere's cell
 //! key and rank within its cell (one atomic add), an exclusive scan of the cell counts into a
-//! dense table of where each cell's run starts, and the spheres scattered to their sorted
-//! places. No comparison or radix sort is needed: the table is the sort. Cells are 2·r_max in
-//! `mochi` mode and 4·r_max in `nns` mode (the proxy of the largest sphere, or the fixed-radius
-//! box), padded a little. The table is dense over the centres' bounding box while it fits a
-//! budget of 8 cells per sphere; cells may grow for that (still exact, a few more candidates)
-//! as long as a sample shows them uncrowded. Otherwise (a cluster with far-away outliers, say)
-//! cells keep their size and are hashed into 2n buckets, so the work never degenerates. Detection (`wgsl/grid_pairs.wgsl`)
-//! visits each unordered pair of neighbour cells once, like the cpu backend.
+//! table of where each cell's run starts, and the spheres scattered to their sorted places. No
+//! comparison or radix sort is needed: the table is the sort.
+//!
+//! The single grid has cells of 2·r_max in `mochi` mode and 4·r_max in `nns` mode (the proxy of
+//! the largest sphere, or the fixed-radius box), padded a little. Its table is dense over the
+//! centres' bounding box while it fits a budget of 8 cells per sphere; cells may grow for that
+//! (still exact, a few more candidates) as long as a sample shows them uncrowded. Otherwise (a
+//! cluster with far-away outliers, say) cells keep their size and are hashed into 2n buckets, so
+//! the work never degenerates. The multi-level grid (method.md) stacks dense tables whose cells
+//! halve level by level, as many levels as the radii need and the same budget holds; each sphere
+//! is binned at its own size. Detection (`wgsl/grid_pairs.wgsl`, runs from
+//! `wgsl/grid_params.wgsl`) visits each pair once, like the cpu backend.
 
 use super::rebuilding::RebuildingBackend;
 use super::{BackendInfo, DetectStats, GpuTimes};
@@ -85,23 +89,52 @@ pub(crate) struct GridParams {
     pub top_cell: f32,
     pub level_pad: f32,
     pub _pad0: u32,
+    /// Dense tables: index of each level's first cell (level `k` at `[k / 4][k % 4]`).
+    pub level_first: [[u32; 4]; 2],
 }
-const _: () = assert!(size_of::<GridParams>() == 64);
+const _: () = assert!(size_of::<GridParams>() == 96);
 
 /// Which grid the backend builds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Structure {
-    /// Pick by measurement: the single grid (the multi-level one has not yet measured faster).
+    /// The multi-level grid where the radii span a factor of [`AUTO_MLGRID_RATIO`] or more (it
+    /// measured 1.9–3.6× faster on `polylog`), else the single grid.
     #[default]
     Auto,
     /// One grid with cells of the largest proxy (2·r_max; 4·r_max in `nns` mode).
     Grid,
-    /// Multi-level proxy grid (method.md): cells halve level by level and each sphere searches
-    /// from its own size upwards (`mochi` mode; `nns` mode keeps the single grid).
+    /// Multi-level proxy grid (method.md): cells halve level by level, each level a dense table,
+    /// and each sphere searches from its own size upwards (`mochi` mode; `nns` mode, and sets
+    /// whose levels would not fit [`CELLS_PER_SPHERE`] cells per sphere, keep the single grid).
     Mlgrid,
 }
 
-/// Most levels of a multi-level grid.
+/// Smallest r_max / r_min for which `auto` builds the multi-level grid.
+pub const AUTO_MLGRID_RATIO: f64 = 4.0;
+
+/// Levels a grid may have.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Levels {
+    /// One level.
+    One,
+    /// As many as the radii call for and the cell budget allows.
+    Many,
+}
+
+impl Structure {
+    /// The levels this structure builds in `mode` for radii spanning `radius_ratio`.
+    pub(crate) fn levels_for(self, mode: ProxyMode, radius_ratio: f64) -> Levels {
+        match (self, mode) {
+            (Structure::Mlgrid, ProxyMode::Mochi) => Levels::Many,
+            (Structure::Auto, ProxyMode::Mochi) if radius_ratio >= AUTO_MLGRID_RATIO => {
+                Levels::Many
+            }
+            _ => Levels::One,
+        }
+    }
+}
+
+/// Most levels of a multi-level grid (the shaders keep 8 table offsets).
 const MAX_LEVELS: u32 = 8;
 
 /// The wgpu compute (sorted grid) backend.
@@ -219,69 +252,135 @@ impl WgpuComputeBackend {
         (l.max_storage_buffer_binding_size.min(l.max_buffer_size) / 16).min(u32::MAX as u64)
     }
 
-    /// Cell layout for `spheres`: a dense table at the mode's cell size, or with cells grown
-    /// (up to [`MAX_DENSE_GROWTH`]×) where that is what makes it fit its budget and the grown
-    /// cells are not crowded; else a hashed table at the mode's cell size (spheres spread thin,
-    /// far-away outliers). The multi-level grid is always hashed.
+    /// Cell layout for `spheres` (see [`choose_layout`]).
     fn layout(&self, spheres: &SphereSet, mode: ProxyMode) -> GridParams {
         let (lo, hi) = spheres.bounds().expect("the set is not empty");
         let base = mode.cell_size(spheres.max_radius()) as f64;
-        let multi_level = mode == ProxyMode::Mochi && self.structure == Structure::Mlgrid;
         let uncrowded = |size: f64| crowding(spheres.centers(), lo, size) <= MAX_CROWDING;
-        let dense_check: Option<&dyn Fn(f64) -> bool> =
-            if multi_level { None } else { Some(&uncrowded) };
-        let single = grid_layout(
+        let radii = (spheres.min_radius() as f64, spheres.max_radius() as f64);
+        choose_layout(
             &self.gpu.limits,
-            lo,
-            hi,
+            self.structure.levels_for(mode, radii.1 / radii.0),
+            (lo, hi),
             spheres.len() as u64,
             base,
-            dense_check,
-        );
-        if !multi_level {
-            return single;
-        }
-        // Multi-level: levels down to the smallest sphere's proxy, while the finest level's
-        // cells along an axis stay within the hashed limit.
-        let widest = (0..3).map(|a| (hi[a] - lo[a]) as f64).fold(0.0, f64::max);
-        let size = single.top_cell as f64;
-        let (r_min, r_max) = (spheres.min_radius() as f64, spheres.max_radius() as f64);
-        let by_radii = (r_max / r_min).log2().floor().max(0.0) as u32;
-        let by_extent = (MAX_HASHED_AXIS_CELLS as f64 * size / widest.max(size))
-            .log2()
-            .floor()
-            .max(0.0) as u32;
-        let levels = 1 + by_radii.min(by_extent).min(MAX_LEVELS - 1);
-        let finest = widest / (size / (1u64 << (levels - 1)) as f64);
-        let pad = CELL_PADDING.max(finest / (1u64 << 20) as f64);
-        GridParams {
-            levels,
-            level_pad: (1.0 + pad) as f32,
-            inv_cell: (1.0 / (size * (1.0 + pad))) as f32,
-            top_cell: (size * (1.0 + pad)) as f32,
-            ..single
-        }
+            radii,
+            &uncrowded,
+        )
     }
+}
+
+/// Cells a dense table (all its levels together) may have for `n` spheres.
+fn cell_budget(limits: &wgpu::Limits, n: u64) -> u64 {
+    let table_limit = limits.max_storage_buffer_binding_size / 4 - 1;
+    (n * CELLS_PER_SPHERE).max(1 << 20).min(table_limit)
+}
+
+/// Cells along each axis, margin included, for cells of `size` over `extent`.
+fn axis_cells(extent: [f64; 3], size: f64) -> [u64; 3] {
+    extent.map(|e| (e / size) as u64 + 1 + 2)
+}
+
+/// Layout of `n` centres within `bounds` and cells of at least `base` (the mode's cell size):
+/// with `Levels::Many`, a multi-level grid of dense tables when one of at least two levels fits
+/// the budget ([`multi_level_layout`]); otherwise a single level ([`grid_layout`]).
+pub(crate) fn choose_layout(
+    limits: &wgpu::Limits,
+    levels: Levels,
+    (lo, hi): ([f32; 3], [f32; 3]),
+    n: u64,
+    base: f64,
+    (r_min, r_max): (f64, f64),
+    dense_check: &dyn Fn(f64) -> bool,
+) -> GridParams {
+    let multi = match levels {
+        Levels::One => None,
+        Levels::Many => multi_level_layout(limits, lo, hi, n, base, r_max / r_min),
+    };
+    multi.unwrap_or_else(|| grid_layout(limits, lo, hi, n, base, dense_check))
+}
+
+/// Multi-level layout: the top level's cells are `base` (padded), each level below halves them,
+/// down to the smallest proxy (`radius_ratio` = r_max / r_min) or to where the dense tables of
+/// all levels would outgrow [`CELLS_PER_SPHERE`] cells per sphere. `None` where fewer than two levels result.
+fn multi_level_layout(
+    limits: &wgpu::Limits,
+    lo: [f32; 3],
+    hi: [f32; 3],
+    n: u64,
+    base: f64,
+    radius_ratio: f64,
+) -> Option<GridParams> {
+    // Finer levels only within CELLS_PER_SPHERE (no floor: a small set gets a small table).
+    let budget = cell_budget(limits, n).min(n * CELLS_PER_SPHERE);
+    let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as f64);
+    let size = base * (1.0 + CELL_PADDING);
+    let top = axis_cells(extent, size);
+    let by_radii = radius_ratio
+        .log2()
+        .floor()
+        .clamp(0.0, (MAX_LEVELS - 1) as f64) as u32;
+    // Level sizes from the top down, while they fit: (cells per axis, cells).
+    let mut sizes: Vec<u64> = Vec::new();
+    let mut total = 0u64;
+    for shift in 0..=by_radii {
+        let dims = top.map(|c| ((c - 2) << shift) + 2);
+        if dims.iter().any(|&d| d > MAX_AXIS_CELLS) {
+            break;
+        }
+        let cells = dims.iter().product::<u64>();
+        if total + cells > budget {
+            break;
+        }
+        total += cells;
+        sizes.push(cells);
+    }
+    let levels = sizes.len() as u32;
+    if levels < 2 {
+        return None;
+    }
+    // Level `levels - 1` is the top; its table comes first.
+    let mut level_first = [[0u32; 4]; 2];
+    let mut first = 0u64;
+    for (shift, cells) in sizes.iter().enumerate() {
+        let level = levels as usize - 1 - shift;
+        level_first[level / 4][level % 4] = first as u32;
+        first += cells;
+    }
+    Some(GridParams {
+        lo,
+        n: n as u32,
+        inv_cell: (1.0 / size) as f32,
+        nx: top[0] as u32,
+        ny: top[1] as u32,
+        nz: top[2] as u32,
+        cells: total as u32,
+        levels,
+        top_cell: size as f32,
+        level_pad: (1.0 + CELL_PADDING) as f32,
+        level_first,
+        ..GridParams::default()
+    })
 }
 
 /// Single-level cell layout for `n` centres within `lo..=hi` and cells of at least `base`: a
 /// dense table when one fits the budget of [`CELLS_PER_SPHERE`] (cells grown up to
 /// [`MAX_DENSE_GROWTH`]× for that while `dense_check` accepts the grown size), else a hashed
-/// table. `None` for `dense_check` means hashed always. Centres outside `lo..=hi` are clamped to
-/// the border cells by the shaders: still exact, only slower.
+/// table. Centres outside `lo..=hi` are clamped to the border cells by the shaders: still exact,
+/// only slower.
 pub(crate) fn grid_layout(
     limits: &wgpu::Limits,
     lo: [f32; 3],
     hi: [f32; 3],
     n: u64,
     base: f64,
-    dense_check: Option<&dyn Fn(f64) -> bool>,
+    dense_check: &dyn Fn(f64) -> bool,
 ) -> GridParams {
     let table_limit = limits.max_storage_buffer_binding_size / 4 - 1;
-    let budget = (n * CELLS_PER_SPHERE).max(1 << 20).min(table_limit);
+    let budget = cell_budget(limits, n);
     let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as f64);
     let widest = extent.iter().copied().fold(0.0, f64::max);
-    let counts = |size: f64| -> [u64; 3] { extent.map(|e| (e / size) as u64 + 1 + 2) };
+    let counts = |size: f64| axis_cells(extent, size);
     let params = |size: f64, [nx, ny, nz]: [u64; 3], cells: u64, hashed: u32| GridParams {
         lo,
         n: n as u32,
@@ -299,21 +398,19 @@ pub(crate) fn grid_layout(
 
     // Dense: the smallest cells (from the mode's size, growing) whose table fits the budget,
     // unless growing them crowds the cells (a cluster far from the rest, say).
-    if let Some(accept) = dense_check {
-        let mut size = base * (1.0 + CELL_PADDING);
-        while size <= MAX_DENSE_GROWTH * base {
-            let c = counts(size);
-            if c.iter().all(|&k| k <= MAX_AXIS_CELLS) {
-                let cells = c.iter().product::<u64>(); // ≤ 2^36: no overflow
-                if cells <= budget {
-                    if accept(size) {
-                        return params(size, c, cells, 0);
-                    }
-                    break;
+    let mut size = base * (1.0 + CELL_PADDING);
+    while size <= MAX_DENSE_GROWTH * base {
+        let c = counts(size);
+        if c.iter().all(|&k| k <= MAX_AXIS_CELLS) {
+            let cells = c.iter().product::<u64>(); // ≤ 2^36: no overflow
+            if cells <= budget {
+                if dense_check(size) {
+                    return params(size, c, cells, 0);
                 }
+                break;
             }
-            size *= 1.25;
         }
+        size *= 1.25;
     }
 
     // Cell coordinates of up to 2^21 per axis: pad the cells for their f32 rounding too.
