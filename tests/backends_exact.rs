@@ -12,15 +12,19 @@ use std::sync::{LazyLock, Mutex};
 const MODES: [ProxyMode; 2] = [ProxyMode::Mochi, ProxyMode::Nns];
 
 /// The backends to test here. Under `CI=true` every backend CI can run (the wgpu ones run on
-/// lavapipe) must be available: a missing adapter fails the run instead of passing unnoticed.
+/// lavapipe) must be available, and optix where `MOCHI_EXPECT_OPTIX=1`: a missing one fails the
+/// run instead of passing unnoticed.
 fn backends() -> Vec<BackendKind> {
-    let ci = common::ci();
     BackendKind::ALL
         .into_iter()
         .filter(|kind| match kind.probe() {
             Ok(_) => true,
             Err(why) => {
-                assert!(!ci, "CI expects backend {} to run, but: {why}", kind.name());
+                assert!(
+                    !common::expected(*kind),
+                    "this run expects backend {} to run, but: {why}",
+                    kind.name()
+                );
                 eprintln!(
                     "note: backend {} is not tested on this machine: {why}",
                     kind.name()

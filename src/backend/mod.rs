@@ -11,6 +11,8 @@
 //! find the same pairs and differ only in the work done.
 
 pub mod cpu;
+#[cfg(feature = "optix")]
+pub mod optix;
 pub mod rebuilding;
 pub mod wgpu_compute;
 pub mod wgpu_rq;
@@ -83,6 +85,8 @@ pub trait Backend: Send {
 /// The backends this build of mochi knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum BackendKind {
+    /// Proxy boxes as OptiX custom primitives on NVIDIA GPUs (cargo feature `optix`).
+    Optix,
     /// Proxy boxes in a hardware BVH, one point ray per sphere (WGSL ray queries).
     #[value(name = "wgpu-rq")]
     WgpuRq,
@@ -95,7 +99,8 @@ pub enum BackendKind {
 
 impl BackendKind {
     /// Every backend, in the order `auto` prefers them.
-    pub const ALL: [BackendKind; 3] = [
+    pub const ALL: [BackendKind; 4] = [
+        BackendKind::Optix,
         BackendKind::WgpuRq,
         BackendKind::WgpuCompute,
         BackendKind::Cpu,
@@ -104,6 +109,7 @@ impl BackendKind {
     /// Name, as on the command line.
     pub fn name(self) -> &'static str {
         match self {
+            BackendKind::Optix => "optix",
             BackendKind::WgpuRq => "wgpu-rq",
             BackendKind::WgpuCompute => "wgpu-compute",
             BackendKind::Cpu => "cpu",
@@ -113,6 +119,7 @@ impl BackendKind {
     /// The device this backend would run on, or why it cannot run here.
     pub fn probe(self) -> Result<String, String> {
         match self {
+            BackendKind::Optix => probe_optix(),
             BackendKind::WgpuRq => gpu::probe(Need::RayQuery).map(|a| gpu::describe(&a)),
             BackendKind::WgpuCompute => gpu::probe(Need::Compute).map(|a| gpu::describe(&a)),
             BackendKind::Cpu => Ok(format!("CPU, {} threads", rayon::current_num_threads())),
@@ -120,9 +127,13 @@ impl BackendKind {
     }
 
     /// Why `auto` should pass over this backend although it can run (a software GPU is slower
-    /// than the cpu backend).
+    /// than the cpu backend; OptiX without RT cores is slower than wgpu-compute).
     pub(crate) fn auto_skip(self) -> Option<String> {
         let need = match self {
+            #[cfg(feature = "optix")]
+            BackendKind::Optix => return optix::auto_skip(),
+            #[cfg(not(feature = "optix"))]
+            BackendKind::Optix => return None,
             BackendKind::WgpuRq => Need::RayQuery,
             BackendKind::WgpuCompute => Need::Compute,
             BackendKind::Cpu => return None,
@@ -148,6 +159,15 @@ impl BackendKind {
             reason,
         })?;
         Ok(match self {
+            #[cfg(feature = "optix")]
+            BackendKind::Optix => Box::new(optix::OptixBackend::new()?),
+            #[cfg(not(feature = "optix"))]
+            BackendKind::Optix => {
+                return Err(Error::BackendUnavailable {
+                    backend: "optix",
+                    reason: NO_OPTIX_FEATURE.into(),
+                });
+            }
             BackendKind::WgpuRq => Box::new(wgpu_rq::WgpuRqBackend::new()?),
             BackendKind::WgpuCompute => {
                 Box::new(wgpu_compute::WgpuComputeBackend::new()?.with_structure(options.structure))
@@ -156,6 +176,19 @@ impl BackendKind {
         })
     }
 }
+
+/// Whether the optix backend can run here.
+fn probe_optix() -> Result<String, String> {
+    #[cfg(feature = "optix")]
+    return optix::probe();
+    #[cfg(not(feature = "optix"))]
+    Err(NO_OPTIX_FEATURE.into())
+}
+
+/// Why optix is unavailable in a build without its feature.
+#[cfg(not(feature = "optix"))]
+const NO_OPTIX_FEATURE: &str =
+    "this mochi was built without the `optix` feature (cargo build --release --features optix)";
 
 /// Settings of the backends that have any.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -170,6 +203,8 @@ pub enum BackendChoice {
     /// The fastest backend that can run here.
     #[default]
     Auto,
+    /// OptiX custom primitives on NVIDIA GPUs (cargo feature `optix`).
+    Optix,
     /// Proxy boxes in a hardware BVH, WGSL ray queries.
     #[value(name = "wgpu-rq")]
     WgpuRq,
@@ -192,6 +227,7 @@ pub struct Opened {
 pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
     let kind = match choice {
         BackendChoice::Auto => return open_auto(options),
+        BackendChoice::Optix => BackendKind::Optix,
         BackendChoice::WgpuRq => BackendKind::WgpuRq,
         BackendChoice::WgpuCompute => BackendKind::WgpuCompute,
         BackendChoice::Cpu => BackendKind::Cpu,

@@ -83,6 +83,12 @@ pub fn open_stepper(
                 .with_structure(options.structure),
         ),
         BackendKind::WgpuRq => Box::new(super::wgpu_rq::RqStepper::new(particles, params, mode)?),
+        BackendKind::Optix => {
+            return Err(crate::error::Error::BackendUnavailable {
+                backend: "optix",
+                reason: "its DEM step is not written yet (detection only): use wgpu-compute, wgpu-rq or cpu".into(),
+            });
+        }
     })
 }
 
@@ -97,6 +103,7 @@ pub fn open_choice(
 ) -> Result<(Box<dyn Stepper>, Option<String>)> {
     let kind = match choice {
         BackendChoice::Auto => None,
+        BackendChoice::Optix => Some(BackendKind::Optix),
         BackendChoice::WgpuRq => Some(BackendKind::WgpuRq),
         BackendChoice::WgpuCompute => Some(BackendKind::WgpuCompute),
         BackendChoice::Cpu => Some(BackendKind::Cpu),

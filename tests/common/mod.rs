@@ -8,6 +8,17 @@ pub fn ci() -> bool {
     std::env::var("CI").is_ok_and(|v| v == "true")
 }
 
+/// Whether this run must test backend `kind` (a missing one fails it): under CI every backend
+/// but optix (CI machines have no NVIDIA GPU); optix where `MOCHI_EXPECT_OPTIX=1`.
+pub fn expected(kind: mochi::backend::BackendKind) -> bool {
+    match kind {
+        mochi::backend::BackendKind::Optix => {
+            std::env::var("MOCHI_EXPECT_OPTIX").is_ok_and(|v| v == "1")
+        }
+        _ => ci(),
+    }
+}
+
 /// Whether an adapter for `need` exists. Without one: a panic under CI, else a printed note
 /// saying that `what` is not tested on this machine, and `false`.
 pub fn adapter_for(need: Need, what: &str) -> bool {

@@ -1,0 +1,90 @@
+// Device-side declarations shared by mochi's OptiX programs: the few OptiX intrinsics they call
+// (written from the documented ABI of the `_optix_*` calls, not from NVIDIA's headers) and the
+// proxy-sphere rule of method.md. NVRTC compiles this file prepended to each program file.
+
+// ---- OptiX intrinsics -------------------------------------------------------------------
+
+static __forceinline__ __device__ unsigned int mochi_launch_index() {
+    unsigned int u;
+    asm("call (%0), _optix_get_launch_index_x, ();" : "=r"(u) :);
+    return u;
+}
+
+static __forceinline__ __device__ unsigned int mochi_primitive_index() {
+    unsigned int u;
+    asm("call (%0), _optix_read_primitive_idx, ();" : "=r"(u) :);
+    return u;
+}
+
+static __forceinline__ __device__ unsigned int mochi_get_payload0() {
+    unsigned int u;
+    asm volatile("call (%0), _optix_get_payload, (%1);" : "=r"(u) : "r"(0));
+    return u;
+}
+
+static __forceinline__ __device__ void mochi_set_payload0(unsigned int p) {
+    asm volatile("call _optix_set_payload, (%0, %1);" : : "r"(0), "r"(p));
+}
+
+// Traces a point ray (zero length, any direction) from `o` with one payload word `p0`, any-hit
+// programs disabled; returns the payload word as the programs left it.
+static __forceinline__ __device__ unsigned int mochi_trace_point(
+    unsigned long long handle, float ox, float oy, float oz, unsigned int p0) {
+    const unsigned int flags = 1u;  // OPTIX_RAY_FLAG_DISABLE_ANYHIT
+    unsigned int r[32];
+    unsigned int z = 0u;
+    asm volatile(
+        "call"
+        "(%0,%1,%2,%3,%4,%5,%6,%7,%8,%9,%10,%11,%12,%13,%14,%15,%16,%17,%18,%19,%20,%21,%22,%23,"
+        "%24,%25,%26,%27,%28,%29,%30,%31),"
+        "_optix_trace_typed_32,"
+        "(%32,%33,%34,%35,%36,%37,%38,%39,%40,%41,%42,%43,%44,%45,%46,%47,%48,%49,%50,%51,%52,"
+        "%53,%54,%55,%56,%57,%58,%59,%60,%61,%62,%63,%64,%65,%66,%67,%68,%69,%70,%71,%72,%73,"
+        "%74,%75,%76,%77,%78,%79,%80);"
+        : "=r"(r[0]), "=r"(r[1]), "=r"(r[2]), "=r"(r[3]), "=r"(r[4]), "=r"(r[5]), "=r"(r[6]),
+          "=r"(r[7]), "=r"(r[8]), "=r"(r[9]), "=r"(r[10]), "=r"(r[11]), "=r"(r[12]), "=r"(r[13]),
+          "=r"(r[14]), "=r"(r[15]), "=r"(r[16]), "=r"(r[17]), "=r"(r[18]), "=r"(r[19]),
+          "=r"(r[20]), "=r"(r[21]), "=r"(r[22]), "=r"(r[23]), "=r"(r[24]), "=r"(r[25]),
+          "=r"(r[26]), "=r"(r[27]), "=r"(r[28]), "=r"(r[29]), "=r"(r[30]), "=r"(r[31])
+        : "r"(0u), "l"(handle), "f"(ox), "f"(oy), "f"(oz), "f"(0.0f), "f"(0.0f), "f"(1.0f),
+          "f"(0.0f), "f"(0.0f), "f"(0.0f), "r"(0xffu), "r"(flags), "r"(0u), "r"(1u), "r"(0u),
+          "r"(1u), "r"(p0), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z),
+          "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z),
+          "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z),
+          "r"(z));
+    return r[0];
+}
+
+// ---- The proxy-sphere rule (method.md rules 1-3). Keep in sync with src/proxy.rs. -----------
+// Rounded exactly as the Rust code: no fused multiply-adds (the __f*_rn intrinsics).
+
+#define MOCHI_MODE_MOCHI 0u
+#define MOCHI_MODE_NNS 1u
+
+static __forceinline__ __device__ float mochi_dist2(float4 a, float4 b) {
+    float dx = __fsub_rn(a.x, b.x);
+    float dy = __fsub_rn(a.y, b.y);
+    float dz = __fsub_rn(a.z, b.z);
+    return __fadd_rn(__fadd_rn(__fmul_rn(dx, dx), __fmul_rn(dy, dy)), __fmul_rn(dz, dz));
+}
+
+static __forceinline__ __device__ bool mochi_collides(float d2, float r_i, float r_j) {
+    float s = __fadd_rn(r_i, r_j);
+    return d2 <= __fmul_rn(s, s);
+}
+
+// Whether the ray of sphere i keeps its candidate j (spheres as x, y, z, r).
+static __forceinline__ __device__ bool mochi_keep(
+    unsigned int mode, unsigned int i, float4 a, unsigned int j, float4 b) {
+    if (i == j) {
+        return false;
+    }
+    float d2 = mochi_dist2(a, b);
+    if (mode == MOCHI_MODE_NNS) {
+        return j > i && mochi_collides(d2, a.w, b.w);
+    }
+    float proxy_j = 2.0f * b.w;
+    float proxy_i = 2.0f * a.w;
+    return mochi_collides(d2, a.w, b.w) && d2 <= __fmul_rn(proxy_j, proxy_j) &&
+           (j > i || d2 > __fmul_rn(proxy_i, proxy_i));
+}

@@ -1,0 +1,78 @@
+//! The device code in `optix/`, compiled to PTX by NVRTC at run time, once per process.
+
+use std::sync::OnceLock;
+
+const DEVICE_CUH: &str = include_str!("../../../optix/device.cuh");
+const DETECT_CU: &str = include_str!("../../../optix/detect.cu");
+const KERNELS_CU: &str = include_str!("../../../optix/kernels.cu");
+
+/// Virtual architecture of the PTX: Turing, the first GPUs with RT cores (the driver compiles
+/// it for the GPU at hand).
+const ARCH: &str = "compute_75";
+
+/// A compilation unit of the device code.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unit {
+    /// OptiX programs of detection (raygen + intersection).
+    Detect,
+    /// Plain CUDA kernels (proxy boxes).
+    Kernels,
+}
+
+impl Unit {
+    /// Every unit.
+    pub const ALL: [Unit; 2] = [Unit::Detect, Unit::Kernels];
+
+    /// File name, for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Unit::Detect => "optix/detect.cu",
+            Unit::Kernels => "optix/kernels.cu",
+        }
+    }
+
+    /// The full source NVRTC gets.
+    fn source(self) -> String {
+        match self {
+            Unit::Detect => format!("{DEVICE_CUH}\n{DETECT_CU}"),
+            Unit::Kernels => format!("{DEVICE_CUH}\n{KERNELS_CU}"),
+        }
+    }
+}
+
+/// Whether NVRTC (`libnvrtc.so.13`) can be loaded here.
+pub fn nvrtc_present() -> bool {
+    // SAFETY: only tries to open the library.
+    unsafe { cudarc::nvrtc::sys::is_culib_present() }
+}
+
+/// PTX of `unit`, compiled on first use (NVRTC is slow; OptiX caches its own compilation too).
+pub fn ptx(unit: Unit) -> Result<&'static str, String> {
+    static CACHE: [OnceLock<Result<String, String>>; 2] = [OnceLock::new(), OnceLock::new()];
+    let slot = &CACHE[Unit::ALL.iter().position(|&u| u == unit).unwrap_or(0)];
+    slot.get_or_init(|| compile(unit))
+        .as_deref()
+        .map_err(Clone::clone)
+}
+
+/// Compiles `unit` with NVRTC (no fused multiply-adds: the proxy rule rounds as the cpu does).
+pub fn compile(unit: Unit) -> Result<String, String> {
+    if !nvrtc_present() {
+        return Err("NVRTC (libnvrtc.so.13, from CUDA 13 or PyPI's nvidia-cuda-nvrtc) is not on the library path".into());
+    }
+    let mut options = vec!["--std=c++17".to_string()];
+    if unit == Unit::Detect {
+        // OptiX modules are relocatable device code.
+        options.push("-rdc=true".into());
+    }
+    let opts = cudarc::nvrtc::CompileOptions {
+        arch: Some(ARCH),
+        fmad: Some(false),
+        options,
+        name: Some(unit.name().into()),
+        ..Default::default()
+    };
+    cudarc::nvrtc::compile_ptx_with_opts(unit.source(), opts)
+        .map(|ptx| ptx.to_src())
+        .map_err(|e| format!("NVRTC could not compile {}: {e}", unit.name()))
+}
