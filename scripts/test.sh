@@ -3,7 +3,8 @@
 # Installs what the tests need first: a Rust toolchain's rustfmt and clippy, and (on Debian or
 # Ubuntu, as root) Mesa's lavapipe Vulkan driver with ray queries (Mesa >= 25), so the GPU
 # backends are tested on the CPU when the machine has no GPU. With CI=true, GPU tests fail
-# rather than skip when no adapter is found.
+# rather than skip when no adapter is found. Also installs NVRTC 13.0 from PyPI into target/nvrtc
+# and compiles the optix feature's device programs with it (no GPU needed).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -43,7 +44,24 @@ SOURCES
     fi
 fi
 
+# NVRTC 13.0 from PyPI, so the optix feature's device programs are compiled here too (no GPU
+# needed): a broken .cu cannot land.
+nvrtc_dir="$PWD/target/nvrtc"
+if [ ! -e "$nvrtc_dir/nvidia/cu13/lib/libnvrtc.so.13" ]; then
+    if ! python3 -m pip --version >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-pip >/dev/null
+    fi
+    echo "installing NVRTC 13.0 (PyPI nvidia-cuda-nvrtc) for the optix device-program check"
+    python3 -m pip install --quiet --disable-pip-version-check --break-system-packages \
+        --target "$nvrtc_dir" nvidia-cuda-nvrtc==13.0.88 ||
+        python3 -m pip install --quiet --disable-pip-version-check \
+            --target "$nvrtc_dir" nvidia-cuda-nvrtc==13.0.88
+fi
+export LD_LIBRARY_PATH="$nvrtc_dir/nvidia/cu13/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+
 cargo fmt --all -- --check
 cargo clippy --all-targets --locked -- -D warnings
+cargo clippy --all-targets --features optix --locked -- -D warnings
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --locked --quiet
 cargo test --locked
+cargo test --locked --features optix --test optix

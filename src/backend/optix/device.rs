@@ -31,6 +31,8 @@ pub struct Device {
     pub name: String,
     /// RT core generation (0: none, traversal runs in software).
     pub rtcore_version: u32,
+    /// Most primitives one acceleration structure takes.
+    pub max_primitives: u32,
 }
 
 // SAFETY: the OptiX context is a handle OptiX allows to be used from any thread; mochi only
@@ -60,26 +62,38 @@ impl Device {
             unsafe { (api.device_context_create)(cuda.cu_ctx().cast(), &options, &mut context) },
             "creating the device context",
         )?;
-        let mut rtcore_version = 0u32;
-        // SAFETY: the property is a u32 written into rtcore_version.
-        let status = unsafe {
-            (api.device_context_get_property)(
-                context,
-                ffi::DEVICE_PROPERTY_RTCORE_VERSION,
-                (&mut rtcore_version as *mut u32).cast(),
-                size_of::<u32>(),
-            )
-        };
-        let device = Device {
+        let mut device = Device {
             api,
             cuda,
             stream,
             context,
             name,
-            rtcore_version,
+            rtcore_version: 0,
+            max_primitives: 0,
         };
-        device.api.check(status, "reading the RT core version")?;
+        device.rtcore_version =
+            device.property(ffi::DEVICE_PROPERTY_RTCORE_VERSION, "the RT core version")?;
+        device.max_primitives = device.property(
+            ffi::DEVICE_PROPERTY_LIMIT_MAX_PRIMITIVES_PER_GAS,
+            "the primitive limit",
+        )?;
         Ok(device)
+    }
+
+    /// A u32 property of the device context.
+    fn property(&self, property: std::ffi::c_int, what: &str) -> Result<u32> {
+        let mut value = 0u32;
+        // SAFETY: the property is a u32 written into value.
+        let status = unsafe {
+            (self.api.device_context_get_property)(
+                self.context,
+                property,
+                (&mut value as *mut u32).cast(),
+                size_of::<u32>(),
+            )
+        };
+        self.api.check(status, &format!("reading {what}"))?;
+        Ok(value)
     }
 
     /// The raw device pointer of `slice`, for OptiX calls and launch parameters.

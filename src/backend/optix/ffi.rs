@@ -23,7 +23,8 @@ pub type CuContext = *mut c_void;
 pub type CuStream = *mut c_void;
 
 pub const SUCCESS: OptixResult = 0;
-pub const DEVICE_PROPERTY_RTCORE_VERSION: c_int = 0x2003;
+pub const DEVICE_PROPERTY_LIMIT_MAX_PRIMITIVES_PER_GAS: c_int = 0x2003;
+pub const DEVICE_PROPERTY_RTCORE_VERSION: c_int = 0x2005;
 pub const PROGRAM_GROUP_KIND_RAYGEN: c_int = 0x2421;
 pub const PROGRAM_GROUP_KIND_MISS: c_int = 0x2422;
 pub const PROGRAM_GROUP_KIND_HITGROUP: c_int = 0x2424;
@@ -270,6 +271,16 @@ pub struct Api {
     ) -> OptixResult,
 }
 
+/// A table slot as the function-pointer type `F` it holds.
+///
+/// # Safety
+/// `F` must be the slot's function-pointer type under [`ABI_VERSION`].
+unsafe fn typed<F: Copy>(slot: *const c_void) -> F {
+    const { assert!(size_of::<F>() == size_of::<*const c_void>()) };
+    // SAFETY: same size (checked above); the caller vouches for the type.
+    unsafe { std::mem::transmute_copy(&slot) }
+}
+
 // SAFETY: the table holds plain function pointers into the driver, which OptiX documents as
 // callable from any thread.
 unsafe impl Send for Api {}
@@ -308,22 +319,21 @@ impl Api {
         }
         // SAFETY: under ABI 105 these slots hold these functions (OptiX 9.0's table order).
         unsafe {
-            let slot = |k: usize| table[k];
             Ok(Api {
-                error_name: std::mem::transmute::<*const c_void, _>(slot(0)),
-                device_context_create: std::mem::transmute::<*const c_void, _>(slot(2)),
-                device_context_destroy: std::mem::transmute::<*const c_void, _>(slot(3)),
-                device_context_get_property: std::mem::transmute::<*const c_void, _>(slot(4)),
-                module_create: std::mem::transmute::<*const c_void, _>(slot(12)),
-                module_destroy: std::mem::transmute::<*const c_void, _>(slot(15)),
-                program_group_create: std::mem::transmute::<*const c_void, _>(slot(18)),
-                program_group_destroy: std::mem::transmute::<*const c_void, _>(slot(19)),
-                pipeline_create: std::mem::transmute::<*const c_void, _>(slot(21)),
-                pipeline_destroy: std::mem::transmute::<*const c_void, _>(slot(22)),
-                accel_compute_memory_usage: std::mem::transmute::<*const c_void, _>(slot(24)),
-                accel_build: std::mem::transmute::<*const c_void, _>(slot(25)),
-                sbt_record_pack_header: std::mem::transmute::<*const c_void, _>(slot(40)),
-                launch: std::mem::transmute::<*const c_void, _>(slot(41)),
+                error_name: typed(table[0]),
+                device_context_create: typed(table[2]),
+                device_context_destroy: typed(table[3]),
+                device_context_get_property: typed(table[4]),
+                module_create: typed(table[12]),
+                module_destroy: typed(table[15]),
+                program_group_create: typed(table[18]),
+                program_group_destroy: typed(table[19]),
+                pipeline_create: typed(table[21]),
+                pipeline_destroy: typed(table[22]),
+                accel_compute_memory_usage: typed(table[24]),
+                accel_build: typed(table[25]),
+                sbt_record_pack_header: typed(table[40]),
+                launch: typed(table[41]),
                 _library: library,
             })
         }

@@ -29,8 +29,14 @@ use std::sync::Arc;
 /// Relative padding of the proxy boxes (as the wgpu-rq backend's).
 const BOX_PADDING: f32 = super::wgpu_rq::BOX_PADDING;
 
-/// Most spheres one launch takes (OptiX's launch width limit is 2^30).
-const MAX_SPHERES: u64 = 1 << 30;
+/// Most spheres one launch takes (OptiX's launch width limit is 2^30; the acceleration
+/// structure's own limit, 2^29 on driver 580, is read from the device).
+const MAX_LAUNCH: u64 = 1 << 30;
+
+/// Largest |coordinate| + box half-width the backend accepts. Measured on the H100 (driver
+/// 580, OptiX 9.0): boxes out at 1e12 are found exactly, boxes at 1e14 are silently dropped by
+/// the traversal; beyond this bound the backend refuses the set instead.
+pub const MAX_COORDINATE: f32 = 1e12;
 
 /// Threads per block of the CUDA kernels.
 const BLOCK: u32 = 256;
@@ -136,6 +142,26 @@ impl OptixBackend {
             built: None,
             times: GpuTimes::default(),
         })
+    }
+
+    /// Refuses sets whose boxes reach beyond [`MAX_COORDINATE`].
+    fn check_extent(spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+        let r_max = spheres.max_radius();
+        let reach = spheres
+            .xyzr()
+            .map(|[x, y, z, r]| x.abs().max(y.abs()).max(z.abs()) + mode.box_half_width(r, r_max))
+            .fold(0.0f32, f32::max);
+        if reach > MAX_COORDINATE {
+            return Err(Error::Usage(format!(
+                "optix: a proxy box reaches coordinate {reach:e}, beyond the ±{MAX_COORDINATE:e} \
+                 OptiX traverses reliably; use another backend (wgpu-compute or cpu) for this set"
+            )));
+        }
+        Ok(())
+    }
+
+    fn max_spheres(&self) -> u64 {
+        (self.device.max_primitives as u64).min(MAX_LAUNCH)
     }
 
     /// Starts a GPU timing span on the stream.
@@ -295,19 +321,23 @@ impl Backend for OptixBackend {
         BackendInfo {
             name: "optix",
             device: describe(&self.device),
-            max_spheres: MAX_SPHERES,
+            max_spheres: self.max_spheres(),
         }
     }
 
     fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
         let n64 = spheres.len() as u64;
-        if n64 > MAX_SPHERES {
+        if n64 > self.max_spheres() {
             return Err(Error::TooLarge {
-                what: "spheres for one OptiX launch".into(),
+                what: format!(
+                    "spheres for one OptiX acceleration structure on {}",
+                    self.device.name
+                ),
                 got: n64,
-                limit: MAX_SPHERES,
+                limit: self.max_spheres(),
             });
         }
+        Self::check_extent(spheres, mode)?;
         let n = n64 as u32;
         let stream = self.device.stream.clone();
         let alloc_f32 = |len: usize| stream.alloc_zeros::<f32>(len.max(1)).map_err(gpu_error);
@@ -367,6 +397,7 @@ impl Backend for OptixBackend {
             if built.n == 0 {
                 return Ok(());
             }
+            Self::check_extent(spheres, built.mode)?;
             let start = self.mark()?;
             self.write_boxes(&mut built, spheres)?;
             if let Some(gas) = built.gas.as_mut() {
