@@ -105,7 +105,7 @@ pub enum Structure {
     Grid,
     /// Multi-level proxy grid (method.md): cells halve level by level, each level a dense table,
     /// and each sphere searches from its own size upwards (`mochi` mode; `nns` mode, and sets
-    /// whose levels would not fit [`CELLS_PER_SPHERE`] cells per sphere, keep the single grid).
+    /// whose levels would not fit 8 cells per sphere, keep the single grid).
     Mlgrid,
 }
 
