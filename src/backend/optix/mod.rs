@@ -6,7 +6,7 @@
 //! `update` refits the structure instead of rebuilding it.
 //!
 //! Everything NVIDIA is loaded at run time (CUDA driver and NVRTC through `cudarc`, OptiX
-//! through our own FFI of ABI 105, [`ffi`]), so the crate builds anywhere and a machine without
+//! through our own FFI of ABI 105 in `ffi.rs`), so the crate builds anywhere and a machine without
 //! the driver gets a clear "unavailable" instead of a crash. Spheres are launched in Morton
 //! order (coherent rays; measured 26–65% faster than random order on the H100).
 
