@@ -195,6 +195,46 @@ const NO_OPTIX_FEATURE: &str =
 pub struct Options {
     /// Grid structure of `wgpu-compute`.
     pub structure: wgpu_compute::Structure,
+    /// When a DEM step with a refittable BVH rebuilds it (grids re-bin and `wgpu-rq` rebuilds
+    /// every step whatever this says).
+    pub rebuild: RebuildPolicy,
+}
+
+/// When a DEM step whose acceleration structure can be refitted (the `optix` BVH) rebuilds it
+/// instead: refitting is cheaper, but the boxes of a refitted BVH grow apart as the spheres move
+/// and each ray meets more of them.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum RebuildPolicy {
+    /// Rebuild when refitting has made the rays meet clearly more boxes than just after the
+    /// last rebuild (candidates per ray grow), else refit.
+    #[default]
+    Auto,
+    /// Rebuild every `k` steps and refit in between (`1`: rebuild every step).
+    Every(u32),
+}
+
+impl std::str::FromStr for RebuildPolicy {
+    type Err = String;
+
+    /// `auto` or a positive step count.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        if s == "auto" {
+            return Ok(RebuildPolicy::Auto);
+        }
+        match s.parse::<u32>() {
+            Ok(k) if k > 0 => Ok(RebuildPolicy::Every(k)),
+            _ => Err(format!("expected `auto` or a positive number of steps, got `{s}`")),
+        }
+    }
+}
+
+impl std::fmt::Display for RebuildPolicy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RebuildPolicy::Auto => write!(f, "auto"),
+            RebuildPolicy::Every(k) => write!(f, "{k}"),
+        }
+    }
 }
 
 /// A backend named by the user, or `auto`.

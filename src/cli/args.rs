@@ -2,7 +2,7 @@
 
 use clap::{Args, Parser, Subcommand};
 use mochi::ProxyMode;
-use mochi::backend::BackendChoice;
+use mochi::backend::{BackendChoice, RebuildPolicy};
 use mochi::backend::wgpu_compute::Structure;
 use mochi::scenes::{Layout, Scene};
 use std::path::PathBuf;
@@ -133,6 +133,11 @@ pub struct SimulateArgs {
     /// mochi mode), auto (mlgrid where the radii span a factor of 4 or more).
     #[arg(long, value_enum, default_value_t)]
     pub structure: Structure,
+    /// When a refittable BVH (the optix step) is rebuilt: every K steps with refits between
+    /// (1: every step), or auto (rebuild when refits have made the rays meet clearly more
+    /// boxes). Grids re-bin and wgpu-rq rebuilds every step.
+    #[arg(long, value_name = "K|auto", default_value_t = RebuildPolicy::Auto)]
+    pub rebuild: RebuildPolicy,
     /// Output folder for frames, checkpoints and the summary.
     #[arg(short, long, default_value = "mochi-out")]
     pub out: PathBuf,

@@ -44,6 +44,7 @@ fn detect(args: DetectArgs) -> Result<()> {
     };
     let options = backend::Options {
         structure: args.structure,
+        ..Default::default()
     };
     let opened = backend::open(args.backend, &options)?;
     if let Some(reason) = &opened.reason {

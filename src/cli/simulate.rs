@@ -70,6 +70,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let p = start.params;
     let options = Options {
         structure: args.structure,
+        rebuild: args.rebuild,
     };
     let (mut stepper, reason) = open_choice(
         args.backend,
