@@ -24,14 +24,15 @@ extern "C" __global__ void __raygen__detect() {
         return;
     }
     float4 s = params.spheres[i];
-    unsigned int visited = mochi_trace_point(params.handle, s.x, s.y, s.z, 0u);
-    atomicAdd(&params.candidates[i & 255u], (unsigned long long)visited);
+    unsigned int payload[MOCHI_MAX_PAYLOADS] = {0u, 0u, 0u, 0u, 0u};
+    mochi_trace_point(params.handle, s.x, s.y, s.z, 1u, payload);
+    atomicAdd(&params.candidates[i & 255u], (unsigned long long)payload[0]);
 }
 
 extern "C" __global__ void __intersection__detect() {
     unsigned int i = mochi_launch_index();
     unsigned int j = mochi_primitive_index();
-    mochi_set_payload0(mochi_get_payload0() + 1u);
+    mochi_set_payload(0u, mochi_get_payload(0u) + 1u);
     if (mochi_keep(params.mode, i, params.spheres[i], j, params.spheres[j])) {
         unsigned int k = atomicAdd(params.pair_count, 1u);
         if (k < params.capacity) {

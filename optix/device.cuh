@@ -16,20 +16,26 @@ static __forceinline__ __device__ unsigned int mochi_primitive_index() {
     return u;
 }
 
-static __forceinline__ __device__ unsigned int mochi_get_payload0() {
+// Payload word k (0..MOCHI_MAX_PAYLOADS) of the ray being traced.
+static __forceinline__ __device__ unsigned int mochi_get_payload(unsigned int k) {
     unsigned int u;
-    asm volatile("call (%0), _optix_get_payload, (%1);" : "=r"(u) : "r"(0));
+    asm volatile("call (%0), _optix_get_payload, (%1);" : "=r"(u) : "r"(k));
     return u;
 }
 
-static __forceinline__ __device__ void mochi_set_payload0(unsigned int p) {
-    asm volatile("call _optix_set_payload, (%0, %1);" : : "r"(0), "r"(p));
+static __forceinline__ __device__ void mochi_set_payload(unsigned int k, unsigned int p) {
+    asm volatile("call _optix_set_payload, (%0, %1);" : : "r"(k), "r"(p));
 }
 
-// Traces a point ray (zero length, any direction) from `o` with one payload word `p0`, any-hit
-// programs disabled; returns the payload word as the programs left it.
-static __forceinline__ __device__ unsigned int mochi_trace_point(
-    unsigned long long handle, float ox, float oy, float oz, unsigned int p0) {
+// Most payload words a program here uses (the pipelines declare their own count).
+#define MOCHI_MAX_PAYLOADS 5
+
+// Traces a point ray (zero length, any direction) from `o` with `count` payload words `p`
+// (count <= MOCHI_MAX_PAYLOADS), any-hit programs disabled; `p` holds the words as the programs
+// left them.
+static __forceinline__ __device__ void mochi_trace_point(
+    unsigned long long handle, float ox, float oy, float oz, unsigned int count,
+    unsigned int (&p)[MOCHI_MAX_PAYLOADS]) {
     const unsigned int flags = 1u;  // OPTIX_RAY_FLAG_DISABLE_ANYHIT
     unsigned int r[32];
     unsigned int z = 0u;
@@ -48,11 +54,13 @@ static __forceinline__ __device__ unsigned int mochi_trace_point(
           "=r"(r[26]), "=r"(r[27]), "=r"(r[28]), "=r"(r[29]), "=r"(r[30]), "=r"(r[31])
         : "r"(0u), "l"(handle), "f"(ox), "f"(oy), "f"(oz), "f"(0.0f), "f"(0.0f), "f"(1.0f),
           "f"(0.0f), "f"(0.0f), "f"(0.0f), "r"(0xffu), "r"(flags), "r"(0u), "r"(1u), "r"(0u),
-          "r"(1u), "r"(p0), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z),
+          "r"(count), "r"(p[0]), "r"(p[1]), "r"(p[2]), "r"(p[3]), "r"(p[4]),
           "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z),
           "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z),
-          "r"(z));
-    return r[0];
+          "r"(z), "r"(z), "r"(z), "r"(z), "r"(z));
+    for (int k = 0; k < MOCHI_MAX_PAYLOADS; ++k) {
+        p[k] = r[k];
+    }
 }
 
 // ---- The proxy-sphere rule (method.md rules 1-3). Keep in sync with src/proxy.rs. -----------

@@ -1,9 +1,28 @@
-// Plain CUDA kernels of the optix backend. Needs device.cuh prepended.
+// Plain CUDA kernels of the optix backend. Needs device.cuh and physics.cuh prepended.
+
+// Half-width of the proxy box of a sphere of radius r (ProxyMode::box_half_width).
+static __forceinline__ __device__ float mochi_box_half_width(unsigned int mode, float r,
+                                                             float r_max) {
+    return mode == MOCHI_MODE_NNS ? 2.0f * r_max : 2.0f * r;
+}
+
+// Writes the proxy box of sphere s as 6 floats (min x, y, z, then max), padded by `pad_rel` of
+// the largest coordinate involved so the box test never rejects a point the rule accepts.
+static __forceinline__ __device__ void mochi_write_box(float* box, float4 s, unsigned int mode,
+                                                       float r_max, float pad_rel) {
+    float h = mochi_box_half_width(mode, s.w, r_max);
+    float pad = (fmaxf(fmaxf(fabsf(s.x), fabsf(s.y)), fabsf(s.z)) + h) * pad_rel;
+    float w = h + pad;
+    box[0] = s.x - w;
+    box[1] = s.y - w;
+    box[2] = s.z - w;
+    box[3] = s.x + w;
+    box[4] = s.y + w;
+    box[5] = s.z + w;
+}
 
 // Gathers the spheres into sorted order (`order[p]` is the input index of sorted position p) and
-// writes each one's proxy box (x, y, z min, then max): half-width 2·r in mochi mode, 2·r_max in
-// nns mode, padded by `pad_rel` of the largest coordinate involved so the box test never
-// rejects a point the rule accepts. Keep in sync with wgsl/rq_build.wgsl.
+// writes each one's proxy box (mochi_write_box). Keep in sync with wgsl/rq_build.wgsl.
 extern "C" __global__ void proxy_boxes(const float4* spheres_in, const unsigned int* order,
                                        float4* spheres, float* boxes, unsigned int n,
                                        unsigned int mode, float r_max, float pad_rel) {
@@ -13,13 +32,58 @@ extern "C" __global__ void proxy_boxes(const float4* spheres_in, const unsigned 
     }
     float4 s = spheres_in[order[p]];
     spheres[p] = s;
-    float h = mode == MOCHI_MODE_NNS ? 2.0f * r_max : 2.0f * s.w;
-    float pad = (fmaxf(fmaxf(fabsf(s.x), fabsf(s.y)), fabsf(s.z)) + h) * pad_rel;
-    float w = h + pad;
-    boxes[6 * p + 0] = s.x - w;
-    boxes[6 * p + 1] = s.y - w;
-    boxes[6 * p + 2] = s.z - w;
-    boxes[6 * p + 3] = s.x + w;
-    boxes[6 * p + 4] = s.y + w;
-    boxes[6 * p + 5] = s.z + w;
+    mochi_write_box(boxes + 6 * p, s, mode, r_max, pad_rel);
+}
+
+// ---- The DEM step (src/dem/optix.rs) ----------------------------------------------------------
+
+// The proxy box of every sphere of the state, in place.
+extern "C" __global__ void dem_boxes(const float4* pos, float* boxes, unsigned int n,
+                                     unsigned int mode, float r_max, float pad_rel) {
+    unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
+    if (p >= n) {
+        return;
+    }
+    mochi_write_box(boxes + 6 * p, pos[p], mode, r_max, pad_rel);
+}
+
+// Walls, gravity at step `step` and one semi-implicit Euler step, in place; clears the force
+// accumulator for the next step. Keep in sync with `integrate` in wgsl/dem_physics.wgsl.
+extern "C" __global__ void dem_integrate(float4* pos, float4* vel, float* force, DemParams dem,
+                                         unsigned int step) {
+    unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
+    if (p >= dem.n) {
+        return;
+    }
+    float4 s = pos[p];
+    float4 v = vel[p];
+    float3 w = mochi_wall_force(dem, s, v);
+    float3 g = mochi_gravity_at(dem, step);
+    float m = v.w;
+    float fx = force[3 * p] + w.x;
+    float fy = force[3 * p + 1] + w.y;
+    float fz = force[3 * p + 2] + w.z;
+    force[3 * p] = 0.0f;
+    force[3 * p + 1] = 0.0f;
+    force[3 * p + 2] = 0.0f;
+    float vx = v.x + dem.dt * (fx / m + g.x);
+    float vy = v.y + dem.dt * (fy / m + g.y);
+    float vz = v.z + dem.dt * (fz / m + g.z);
+    vel[p] = make_float4(vx, vy, vz, m);
+    pos[p] = make_float4(s.x + dem.dt * vx, s.y + dem.dt * vy, s.z + dem.dt * vz, s.w);
+}
+
+// Reorders the state: sorted position p takes the sphere at position `order[p]` of the input.
+extern "C" __global__ void dem_permute(const float4* pos_in, const float4* vel_in,
+                                       const unsigned int* ids_in, const unsigned int* order,
+                                       float4* pos, float4* vel, unsigned int* ids,
+                                       unsigned int n) {
+    unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
+    if (p >= n) {
+        return;
+    }
+    unsigned int k = order[p];
+    pos[p] = pos_in[k];
+    vel[p] = vel_in[k];
+    ids[p] = ids_in[k];
 }

@@ -4,8 +4,8 @@
 mod common;
 
 use mochi::backend::BackendKind;
-use mochi::backend::Options;
 use mochi::backend::wgpu_compute::Structure;
+use mochi::backend::{Options, RebuildPolicy};
 use mochi::dem::model::{mass, stable_dt, stiffness_for_duration};
 use mochi::dem::wgpu_compute::GridStepper;
 use mochi::dem::wgpu_rq::RqStepper;
@@ -38,6 +38,28 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
             .unwrap()
             .with_structure(Structure::Mlgrid);
         out.push(("wgpu-compute mlgrid".into(), Box::new(s)));
+    }
+    if common::expected(BackendKind::Optix) || BackendKind::Optix.probe().is_ok() {
+        for rebuild in [
+            RebuildPolicy::Every(1),
+            RebuildPolicy::Every(7),
+            RebuildPolicy::Auto,
+        ] {
+            let options = Options {
+                rebuild,
+                ..Options::default()
+            };
+            let s = open_stepper(
+                BackendKind::Optix,
+                particles.clone(),
+                params,
+                ProxyMode::Mochi,
+                &options,
+            )
+            .expect("optix is expected here (MOCHI_EXPECT_OPTIX=1)");
+            assert!(s.refits());
+            out.push((format!("optix rebuild {rebuild}"), s));
+        }
     }
     if common::adapter_for(Need::RayQuery, "the wgpu-rq DEM step") {
         for atomics in [ForceAtomics::Auto, ForceAtomics::CompareExchange] {

@@ -18,12 +18,19 @@ fn device_programs_compile_with_nvrtc() {
         eprintln!("note: NVRTC is not installed here; the device programs are not compiled");
         return;
     }
-    let entries: [(Unit, &[&str]); 2] = [
+    let entries: [(Unit, &[&str]); 3] = [
         (
             Unit::Detect,
             &["__raygen__detect", "__intersection__detect", "params"],
         ),
-        (Unit::Kernels, &["proxy_boxes"]),
+        (
+            Unit::Kernels,
+            &["proxy_boxes", "dem_boxes", "dem_integrate", "dem_permute"],
+        ),
+        (
+            Unit::Dem,
+            &["__raygen__dem", "__intersection__dem", "params"],
+        ),
     ];
     for (unit, names) in entries {
         let ptx = programs::compile(unit).unwrap_or_else(|e| panic!("{e}"));

@@ -113,9 +113,16 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
         } else {
             let own = level_of(s.w);
             let key = keys[p];
-            for (var r = 0u; r < neighbour_runs(own); r += 1u) {
-                let run = neighbour_run(s, own, p, key, r);
+            for (var r = 0u; r < OWN_RUNS; r += 1u) {
+                let run = own_run(own, p, key, r);
                 total += resolve_run(p, s, v, run.x, run.y);
+            }
+            for (var level = own + 1u; level < params.levels; level += 1u) {
+                let rows = coarse_rows(s, level);
+                for (var k = 0u; k < rows.count; k += 1u) {
+                    let run = coarse_row(rows, k);
+                    total += resolve_run(p, s, v, run.x, run.y);
+                }
             }
         }
         if total.w != 0.0 {

@@ -1,6 +1,6 @@
 // Detection stage of the wgpu-compute backend (sorted proxy grid, single- or multi-level; see
-// grid_params.wgsl). Each sphere scans the runs of sorted positions neighbour_run gives (dense
-// tables), or with a hashed table the rest of its own cell and its 13 forward neighbour cells,
+// grid_params.wgsl). Each sphere scans the runs of sorted positions own_run and coarse_rows give
+// (dense tables), or with a hashed table the rest of its own cell and its 13 forward neighbour cells,
 // each looked up in its bucket and filtered by its coordinates. Each pair is visited once, so the
 // narrow phase (collides, proxy.wgsl) alone decides. Needs grid_params.wgsl prepended, proxy.wgsl
 // and pair_output.wgsl appended.
@@ -57,9 +57,16 @@ fn find_pairs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
         } else {
             let own = level_of(s.w);
             let key = keys[p];
-            for (var r = 0u; r < neighbour_runs(own); r += 1u) {
-                let run = neighbour_run(s, own, p, key, r);
+            for (var r = 0u; r < OWN_RUNS; r += 1u) {
+                let run = own_run(own, p, key, r);
                 tested += scan_run(s, id, run.x, run.y);
+            }
+            for (var level = own + 1u; level < params.levels; level += 1u) {
+                let rows = coarse_rows(s, level);
+                for (var k = 0u; k < rows.count; k += 1u) {
+                    let run = coarse_row(rows, k);
+                    tested += scan_run(s, id, run.x, run.y);
+                }
             }
         }
     }

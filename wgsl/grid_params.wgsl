@@ -85,31 +85,47 @@ const FORWARD = array<vec3<i32>, 13>(
     vec3(-1, 1, 1), vec3(0, 1, 1), vec3(1, 1, 1),
 );
 
-// Dense tables: the runs of sorted positions a sphere scans are `neighbour_run(s, own, p, key,
-// 0..neighbour_runs(own))` (each as `vec2(first, end)`), for the sphere s at sorted position p,
-// with table entry `key` and level `own`; together they hold each partner it alone must test. At its own level: the
-// rest of its cell and the next along x, then four three-cell rows (the 13 forward neighbours,
-// so each unordered pair of cells is visited once); at each coarser level, the nine three-cell
-// rows around it.
-fn neighbour_runs(own: u32) -> u32 {
-    return 5u + 9u * (params.levels - 1u - own);
-}
+// Dense tables: the partners sphere s (sorted position p, table entry `key`, level `own`) alone
+// must test lie in runs of sorted positions. At its own level, `own_run(own, p, key, 0..OWN_RUNS)`
+// (each as `vec2(first, end)`): the rest of its cell and the next along x, then four three-cell
+// rows (the 13 forward neighbours, so each unordered pair of cells is visited once). At each
+// coarser level, the rows of `coarse_rows(s, level)`: only the cells a partner's centre can be in,
+// within r_i plus the level's largest radius (half its cell) of c_i: 2 or 3 cells per axis
+// rather than 27 cells in all.
+const OWN_RUNS: u32 = 5u;
 
-fn neighbour_run(s: vec4<f32>, own: u32, p: u32, key: u32, run: u32) -> vec2<u32> {
+fn own_run(own: u32, p: u32, key: u32, run: u32) -> vec2<u32> {
     if run == 0u {
         return vec2(p + 1u, cell_start[key + 2u]);
     }
-    if run < 5u {
-        let dims = level_dims(own);
-        let plane = dims.x * dims.y;
-        let rows = array<u32, 4>(dims.x - 1u, plane - dims.x - 1u, plane - 1u, plane + dims.x - 1u);
-        let first = key + rows[run - 1u];
-        return vec2(cell_start[first], cell_start[first + 3u]);
-    }
-    let level = own + 1u + (run - 5u) / 9u;
-    let row = (run - 5u) % 9u;
-    let corner = dense_key(cell_coords(s.xyz, level) - vec3(1u), level);
-    let dims = level_dims(level);
-    let first = corner + dims.x * (row % 3u + dims.y * (row / 3u));
+    let dims = level_dims(own);
+    let plane = dims.x * dims.y;
+    let rows = array<u32, 4>(dims.x - 1u, plane - dims.x - 1u, plane - 1u, plane + dims.x - 1u);
+    let first = key + rows[run - 1u];
     return vec2(cell_start[first], cell_start[first + 3u]);
+}
+
+// The rows of cells of a coarser level that sphere s searches.
+struct CoarseRows {
+    first: u32,   // table index of the first cell of the first row
+    width: u32,   // cells per row (along x)
+    ny: u32,      // rows along y
+    count: u32,   // rows in all
+    dims: vec3<u32>,
+}
+
+fn coarse_rows(s: vec4<f32>, level: u32) -> CoarseRows {
+    // A sphere at `level` has r_j·level_pad ≤ cell / 2: the reach below is padded by that factor,
+    // far above the rounding of the cell coordinates.
+    let cell = ldexp(params.top_cell, -i32(params.levels - 1u - level));
+    let reach = vec3(s.w + 0.5 * cell);
+    let lo = cell_coords(s.xyz - reach, level);
+    let hi = cell_coords(s.xyz + reach, level);
+    let span = hi - lo + vec3(1u);
+    return CoarseRows(dense_key(lo, level), span.x, span.y, span.y * span.z, level_dims(level));
+}
+
+fn coarse_row(rows: CoarseRows, k: u32) -> vec2<u32> {
+    let first = rows.first + rows.dims.x * (k % rows.ny + rows.dims.y * (k / rows.ny));
+    return vec2(cell_start[first], cell_start[first + rows.width]);
 }

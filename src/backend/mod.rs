@@ -80,6 +80,11 @@ pub trait Backend: Send {
     fn gpu_times(&self) -> GpuTimes {
         GpuTimes::default()
     }
+
+    /// The structure of the last build in words (cells, levels, table), where it varies.
+    fn structure(&self) -> Option<String> {
+        None
+    }
 }
 
 /// The backends this build of mochi knows.
@@ -187,7 +192,7 @@ fn probe_optix() -> Result<String, String> {
 
 /// Why optix is unavailable in a build without its feature.
 #[cfg(not(feature = "optix"))]
-const NO_OPTIX_FEATURE: &str =
+pub(crate) const NO_OPTIX_FEATURE: &str =
     "this mochi was built without the `optix` feature (cargo build --release --features optix)";
 
 /// Settings of the backends that have any.
@@ -223,7 +228,9 @@ impl std::str::FromStr for RebuildPolicy {
         }
         match s.parse::<u32>() {
             Ok(k) if k > 0 => Ok(RebuildPolicy::Every(k)),
-            _ => Err(format!("expected `auto` or a positive number of steps, got `{s}`")),
+            _ => Err(format!(
+                "expected `auto` or a positive number of steps, got `{s}`"
+            )),
         }
     }
 }

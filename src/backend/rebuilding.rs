@@ -18,6 +18,10 @@ pub trait RebuildingBackend: Send {
     fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)>;
     /// GPU time of the last build and detection, where measured.
     fn gpu_times(&self) -> GpuTimes;
+    /// The structure of the last build in words, where it varies.
+    fn structure(&self) -> Option<String> {
+        None
+    }
 }
 
 impl<T: RebuildingBackend> Backend for T {
@@ -58,5 +62,9 @@ impl<T: RebuildingBackend> Backend for T {
 
     fn gpu_times(&self) -> GpuTimes {
         RebuildingBackend::gpu_times(self)
+    }
+
+    fn structure(&self) -> Option<String> {
+        RebuildingBackend::structure(self)
     }
 }

@@ -94,6 +94,10 @@ fn detect(args: DetectArgs) -> Result<()> {
         }
     }
 
+    let structure = backend
+        .structure()
+        .map(|s| format!(" | {s}"))
+        .unwrap_or_default();
     let gpu_note = match gpu_times {
         (Some(b), Some(d)) => format!(" | GPU time: build {b:.3} ms, detect {d:.3} ms"),
         _ => String::new(),
@@ -104,7 +108,8 @@ fn detect(args: DetectArgs) -> Result<()> {
     let per_sphere = stats.candidates as f64 / spheres.len().max(1) as f64;
     println!(
         "{source}: spheres {} | pairs {} | candidates {} ({per_sphere:.2} per sphere) | \
-         build {build_ms:.3} ms | detect {detect_ms:.3} ms{}{gpu_note} | backend {} ({}) | mode {}",
+         build {build_ms:.3} ms | detect {detect_ms:.3} ms{}{gpu_note} | backend {} ({}) | mode {}\
+         {structure}",
         spheres.len(),
         stats.pairs,
         stats.candidates,

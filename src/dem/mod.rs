@@ -6,6 +6,8 @@
 pub mod cpu;
 mod gpu_step;
 pub mod model;
+#[cfg(feature = "optix")]
+pub mod optix;
 pub mod particles;
 pub mod scene;
 pub mod stepper;

@@ -65,6 +65,12 @@ pub trait Stepper {
 
     /// The particles now, in input order (a read-back on GPU backends).
     fn particles(&mut self) -> Result<Particles>;
+
+    /// Whether this step refits its acceleration structure between rebuilds, so that
+    /// [`Options::rebuild`] applies (else it rebuilds or re-bins every step).
+    fn refits(&self) -> bool {
+        false
+    }
 }
 
 /// Opens the DEM step of backend `kind` over `particles`.
@@ -83,10 +89,18 @@ pub fn open_stepper(
                 .with_structure(options.structure),
         ),
         BackendKind::WgpuRq => Box::new(super::wgpu_rq::RqStepper::new(particles, params, mode)?),
+        #[cfg(feature = "optix")]
+        BackendKind::Optix => Box::new(super::optix::OptixStepper::new(
+            particles,
+            params,
+            mode,
+            options.rebuild,
+        )?),
+        #[cfg(not(feature = "optix"))]
         BackendKind::Optix => {
             return Err(crate::error::Error::BackendUnavailable {
                 backend: "optix",
-                reason: "its DEM step is not written yet (detection only): use wgpu-compute, wgpu-rq or cpu".into(),
+                reason: crate::backend::NO_OPTIX_FEATURE.into(),
             });
         }
     })

@@ -388,12 +388,16 @@ impl FrameSeries {
     /// Goes on with the series in `dir` after a restart from step `resume_step`: reads its index,
     /// keeps the frames with `step <= resume_step`, and rewrites the index with only those. The
     /// files of the dropped frames stay on disk until frames of the same steps replace them.
+    /// A run that wrote no frames has no index: a new series starts then.
     pub fn open_for_resume(dir: &Path, resume_step: u64) -> Result<Self> {
         let series = Self {
             dir: dir.to_owned(),
             entries: Vec::new(),
         };
         let index = series.index_path();
+        if !index.exists() {
+            return Self::create(dir);
+        }
         let text = std::fs::read_to_string(&index).map_err(io_error(&index))?;
         let mut entries = parse_index(&index, &text)?;
         entries.retain(|e| e.step <= resume_step);

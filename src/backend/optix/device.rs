@@ -151,14 +151,14 @@ pub struct Pipeline {
 
 impl Pipeline {
     /// Builds the pipeline from `ptx` with entry points `__raygen__{name}` and
-    /// `__intersection__{name}`, launch parameters in `params`, one payload word.
-    pub fn new(device: &Arc<Device>, ptx: &str, name: &str) -> Result<Pipeline> {
+    /// `__intersection__{name}`, launch parameters in `params`, `payloads` payload words.
+    pub fn new(device: &Arc<Device>, ptx: &str, name: &str, payloads: i32) -> Result<Pipeline> {
         let api = &device.api;
         let params_name = CString::new("params").expect("no NUL");
         let compile = ffi::PipelineCompileOptions {
             uses_motion_blur: 0,
             traversable_graph_flags: ffi::TRAVERSABLE_GRAPH_FLAG_ALLOW_SINGLE_GAS,
-            num_payload_values: 1,
+            num_payload_values: payloads,
             num_attribute_values: 0,
             exception_flags: 0,
             pipeline_launch_params_variable_name: params_name.as_ptr(),

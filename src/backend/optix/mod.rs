@@ -13,7 +13,7 @@
 // The one place of the crate that calls foreign code: every unsafe block says why it holds.
 #![allow(unsafe_code)]
 
-mod device;
+pub(crate) mod device;
 mod ffi;
 pub mod programs;
 
@@ -27,7 +27,7 @@ use rayon::prelude::*;
 use std::sync::Arc;
 
 /// Relative padding of the proxy boxes (as the wgpu-rq backend's).
-const BOX_PADDING: f32 = super::wgpu_rq::BOX_PADDING;
+pub(crate) const BOX_PADDING: f32 = super::wgpu_rq::BOX_PADDING;
 
 /// Most spheres one launch takes (OptiX's launch width limit is 2^30; the acceleration
 /// structure's own limit, 2^29 on driver 580, is read from the device).
@@ -39,7 +39,7 @@ const MAX_LAUNCH: u64 = 1 << 30;
 pub const MAX_COORDINATE: f32 = 1e12;
 
 /// Threads per block of the CUDA kernels.
-const BLOCK: u32 = 256;
+pub(crate) const BLOCK: u32 = 256;
 
 /// Counters the intersection program spreads its candidate count over.
 const CANDIDATE_COUNTERS: usize = 256;
@@ -87,7 +87,7 @@ fn describe(device: &Device) -> String {
     format!("{}, OptiX ABI {}, {cores}", device.name, ffi::ABI_VERSION)
 }
 
-fn gpu_error(e: impl std::fmt::Display) -> Error {
+pub(crate) fn gpu_error(e: impl std::fmt::Display) -> Error {
     Error::Gpu(e.to_string())
 }
 
@@ -129,7 +129,7 @@ impl OptixBackend {
         let device = Arc::new(Device::open().map_err(unavailable)?);
         let detect = programs::ptx(programs::Unit::Detect).map_err(unavailable)?;
         let kernels = programs::ptx(programs::Unit::Kernels).map_err(unavailable)?;
-        let pipeline = Pipeline::new(&device, detect, "detect").map_err(gpu_error)?;
+        let pipeline = Pipeline::new(&device, detect, "detect", 1).map_err(gpu_error)?;
         let module = device
             .cuda
             .load_module(cudarc::nvrtc::Ptx::from_src(kernels))
@@ -287,9 +287,23 @@ fn mode_code(mode: ProxyMode) -> u32 {
 
 /// Input indices in Morton order of the centres (ties by index), for coherent rays.
 fn morton_order(spheres: &SphereSet) -> Vec<u32> {
-    let Some((lo, hi)) = spheres.bounds() else {
+    morton_order_of(spheres.centers())
+}
+
+/// Indices of `centers` in Morton order (ties by index).
+pub(crate) fn morton_order_of(centers: &[[f32; 3]]) -> Vec<u32> {
+    if centers.is_empty() {
         return Vec::new();
-    };
+    }
+    let (lo, hi) = centers.iter().fold(
+        ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+        |(lo, hi), c| {
+            (
+                std::array::from_fn(|a| lo[a].min(c[a])),
+                std::array::from_fn(|a| hi[a].max(c[a])),
+            )
+        },
+    );
     let scale: [f32; 3] = std::array::from_fn(|a| {
         let extent = hi[a] - lo[a];
         if extent > 0.0 { 1023.0 / extent } else { 0.0 }
@@ -299,8 +313,7 @@ fn morton_order(spheres: &SphereSet) -> Vec<u32> {
             acc | ((((v >> bit) & 1) as u64) << (3 * bit))
         })
     };
-    let mut keyed: Vec<(u64, u32)> = spheres
-        .centers()
+    let mut keyed: Vec<(u64, u32)> = centers
         .par_iter()
         .enumerate()
         .map(|(i, c)| {

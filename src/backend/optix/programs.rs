@@ -5,6 +5,8 @@ use std::sync::OnceLock;
 const DEVICE_CUH: &str = include_str!("../../../optix/device.cuh");
 const DETECT_CU: &str = include_str!("../../../optix/detect.cu");
 const KERNELS_CU: &str = include_str!("../../../optix/kernels.cu");
+const PHYSICS_CUH: &str = include_str!("../../../optix/physics.cuh");
+const DEM_CU: &str = include_str!("../../../optix/dem.cu");
 
 /// Virtual architecture of the PTX: Turing, the first GPUs with RT cores (the driver compiles
 /// it for the GPU at hand).
@@ -15,19 +17,22 @@ const ARCH: &str = "compute_75";
 pub enum Unit {
     /// OptiX programs of detection (raygen + intersection).
     Detect,
-    /// Plain CUDA kernels (proxy boxes).
+    /// Plain CUDA kernels (proxy boxes; the DEM step's boxes, integration and reordering).
     Kernels,
+    /// OptiX programs of the DEM step (raygen + intersection resolving contacts).
+    Dem,
 }
 
 impl Unit {
     /// Every unit.
-    pub const ALL: [Unit; 2] = [Unit::Detect, Unit::Kernels];
+    pub const ALL: [Unit; 3] = [Unit::Detect, Unit::Kernels, Unit::Dem];
 
     /// File name, for messages.
     pub fn name(self) -> &'static str {
         match self {
             Unit::Detect => "optix/detect.cu",
             Unit::Kernels => "optix/kernels.cu",
+            Unit::Dem => "optix/dem.cu",
         }
     }
 
@@ -35,7 +40,8 @@ impl Unit {
     fn source(self) -> String {
         match self {
             Unit::Detect => format!("{DEVICE_CUH}\n{DETECT_CU}"),
-            Unit::Kernels => format!("{DEVICE_CUH}\n{KERNELS_CU}"),
+            Unit::Kernels => format!("{DEVICE_CUH}\n{PHYSICS_CUH}\n{KERNELS_CU}"),
+            Unit::Dem => format!("{DEVICE_CUH}\n{PHYSICS_CUH}\n{DEM_CU}"),
         }
     }
 }
@@ -48,7 +54,8 @@ pub fn nvrtc_present() -> bool {
 
 /// PTX of `unit`, compiled on first use (NVRTC is slow; OptiX caches its own compilation too).
 pub fn ptx(unit: Unit) -> Result<&'static str, String> {
-    static CACHE: [OnceLock<Result<String, String>>; 2] = [OnceLock::new(), OnceLock::new()];
+    static CACHE: [OnceLock<Result<String, String>>; Unit::ALL.len()] =
+        [const { OnceLock::new() }; Unit::ALL.len()];
     let slot = &CACHE[Unit::ALL.iter().position(|&u| u == unit).unwrap_or(0)];
     slot.get_or_init(|| compile(unit))
         .as_deref()
@@ -61,7 +68,7 @@ pub fn compile(unit: Unit) -> Result<String, String> {
         return Err("NVRTC (libnvrtc.so.13, from CUDA 13 or PyPI's nvidia-cuda-nvrtc) is not on the library path".into());
     }
     let mut options = vec!["--std=c++17".to_string()];
-    if unit == Unit::Detect {
+    if unit != Unit::Kernels {
         // OptiX modules are relocatable device code.
         options.push("-rdc=true".into());
     }

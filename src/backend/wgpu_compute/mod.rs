@@ -203,6 +203,35 @@ impl Grid {
     }
 }
 
+/// Fraction of the centres that may lie outside [`core_bounds`] on each side of each axis.
+const OUTLIER_FRACTION: f64 = 1e-3;
+
+/// Centres sampled per axis for [`core_bounds`].
+const BOUNDS_SAMPLE: usize = 16384;
+
+/// Bounds of the bulk of the centres: per axis, from the [`OUTLIER_FRACTION`] quantile to the
+/// 1 − [`OUTLIER_FRACTION`] one of an even sample, widened by 1% of their span and kept within
+/// the true bounds. The shaders clamp the centres outside into the border cells (still exact),
+/// so a few spheres thrown far away (a bounce, a stray outlier) cannot stretch the table over
+/// empty space and coarsen the cells of all the others.
+fn core_bounds(spheres: &SphereSet) -> Option<([f32; 3], [f32; 3])> {
+    let (lo, hi) = spheres.bounds()?;
+    let centers = spheres.centers();
+    let step = centers.len().div_ceil(BOUNDS_SAMPLE).max(1);
+    let mut core_lo = lo;
+    let mut core_hi = hi;
+    for a in 0..3 {
+        let mut axis: Vec<f32> = centers.iter().step_by(step).map(|c| c[a]).collect();
+        axis.sort_unstable_by(f32::total_cmp);
+        let k = (axis.len() as f64 * OUTLIER_FRACTION) as usize;
+        let (q_lo, q_hi) = (axis[k], axis[axis.len() - 1 - k]);
+        let widen = 0.01 * (q_hi - q_lo);
+        core_lo[a] = (q_lo - widen).max(lo[a]);
+        core_hi[a] = (q_hi + widen).min(hi[a]);
+    }
+    Some((core_lo, core_hi))
+}
+
 /// Estimated number of other spheres in a sphere's own cell, for cells of side `size` anchored at
 /// `lo`, from an evenly spread sample of the centres (n·P/m² with P the ordered same-cell pairs
 /// among m sampled spheres).
@@ -252,9 +281,9 @@ impl WgpuComputeBackend {
         (l.max_storage_buffer_binding_size.min(l.max_buffer_size) / 16).min(u32::MAX as u64)
     }
 
-    /// Cell layout for `spheres` (see [`choose_layout`]).
+    /// Cell layout for `spheres` (see [`choose_layout`]) over their [`core_bounds`].
     fn layout(&self, spheres: &SphereSet, mode: ProxyMode) -> GridParams {
-        let (lo, hi) = spheres.bounds().expect("the set is not empty");
+        let (lo, hi) = core_bounds(spheres).expect("the set is not empty");
         let base = mode.cell_size(spheres.max_radius()) as f64;
         let uncrowded = |size: f64| crowding(spheres.centers(), lo, size) <= MAX_CROWDING;
         let radii = (spheres.min_radius() as f64, spheres.max_radius() as f64);
@@ -583,4 +612,27 @@ impl RebuildingBackend for WgpuComputeBackend {
     fn gpu_times(&self) -> GpuTimes {
         self.times
     }
+
+    fn structure(&self) -> Option<String> {
+        let built = self.built.as_ref()?;
+        built.grid.as_ref()?;
+        Some(describe_layout(&built.params))
+    }
+}
+
+/// A grid layout in words: table, levels, cells per axis and cell side.
+pub(crate) fn describe_layout(p: &GridParams) -> String {
+    let table = if p.hashed != 0 {
+        format!("hashed into {} buckets", p.cells)
+    } else {
+        format!("dense, {} cells", p.cells)
+    };
+    let levels = match p.levels {
+        1 => "1 level".to_string(),
+        k => format!("{k} levels"),
+    };
+    format!(
+        "grid {table}, {levels}, top level {}×{}×{} cells of {:.4e} m",
+        p.nx, p.ny, p.nz, p.top_cell
+    )
 }

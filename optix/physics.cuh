@@ -1,0 +1,70 @@
+// The DEM physics of the optix backend's step: parameters, contact and wall forces, gravity.
+// Keep DemParams in sync with src/dem/gpu_step.rs (and wgsl/dem_physics.wgsl) and the formulas
+// with src/dem/model.rs, line for line.
+
+struct DemParams {
+    float box_lo[3];
+    unsigned int n;
+    float box_hi[3];
+    unsigned int row;  // unused here (wgpu dispatch rows)
+    float gravity[3];  // at t = 0
+    float dt;
+    float stiffness;
+    float damping_ratio;
+    float gravity_spin;  // rad/s about the y axis
+    unsigned int _pad1;
+};
+
+// Force on sphere i from sphere j (x, y, z, r and vx, vy, vz, mass each) in xyz, and 1 in w
+// when they touch; zero otherwise.
+static __forceinline__ __device__ float4 mochi_contact_force(const DemParams& dem, float4 c_i,
+                                                             float4 v_i, float4 c_j, float4 v_j) {
+    float dx = c_j.x - c_i.x;
+    float dy = c_j.y - c_i.y;
+    float dz = c_j.z - c_i.z;
+    float d2 = dx * dx + dy * dy + dz * dz;
+    float reach = c_i.w + c_j.w;
+    if (d2 > reach * reach || d2 == 0.0f) {
+        return make_float4(0.0f, 0.0f, 0.0f, 0.0f);
+    }
+    float dist = sqrtf(d2);
+    float nx = dx / dist;
+    float ny = dy / dist;
+    float nz = dz / dist;
+    float overlap = reach - dist;
+    float vn = (v_j.x - v_i.x) * nx + (v_j.y - v_i.y) * ny + (v_j.z - v_i.z) * nz;
+    float m_eff = v_i.w * v_j.w / (v_i.w + v_j.w);
+    float c = 2.0f * dem.damping_ratio * sqrtf(dem.stiffness * m_eff);
+    float push = dem.stiffness * overlap - c * vn;
+    return make_float4(-push * nx, -push * ny, -push * nz, 1.0f);
+}
+
+// Force of the box walls on sphere s (x, y, z, r) with velocity and mass v.
+static __forceinline__ __device__ float3 mochi_wall_force(const DemParams& dem, float4 s,
+                                                          float4 v) {
+    float damping = 2.0f * dem.damping_ratio * sqrtf(dem.stiffness * v.w);
+    float c[3] = {s.x, s.y, s.z};
+    float u[3] = {v.x, v.y, v.z};
+    float f[3] = {0.0f, 0.0f, 0.0f};
+    for (int a = 0; a < 3; ++a) {
+        float below = s.w - (c[a] - dem.box_lo[a]);
+        if (below > 0.0f) {
+            f[a] += dem.stiffness * below - damping * u[a];
+        }
+        float above = s.w - (dem.box_hi[a] - c[a]);
+        if (above > 0.0f) {
+            f[a] -= dem.stiffness * above + damping * u[a];
+        }
+    }
+    return make_float3(f[0], f[1], f[2]);
+}
+
+// Gravity at step `step`, turned about the y axis by gravity_spin · t.
+static __forceinline__ __device__ float3 mochi_gravity_at(const DemParams& dem,
+                                                          unsigned int step) {
+    float angle = dem.gravity_spin * ((float)step * dem.dt);
+    float s = sinf(angle);
+    float c = cosf(angle);
+    const float* g = dem.gravity;
+    return make_float3(g[0] * c + g[2] * s, g[1], g[2] * c - g[0] * s);
+}

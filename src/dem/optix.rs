@@ -1,0 +1,489 @@
+//! The optix backend's DEM step (cargo feature `optix`), the paper's own pipeline: per step
+//! (1) the proxy boxes of the spheres (a CUDA kernel) and the acceleration structure refitted to
+//! them, or rebuilt as the [`RebuildPolicy`] says; (2) one point ray per sphere whose
+//! intersection program applies the proxy rule and resolves each kept contact at once, equal and
+//! opposite forces with atomics (`optix/dem.cu`); (3) walls, gravity and integration (a CUDA
+//! kernel). The state stays on the GPU, in Morton order (coherent rays); every
+//! [`RESORT_EVERY`] steps it is re-sorted (positions read back, the order computed on the host,
+//! the state permuted on the GPU) with a rebuild. Phases are timed with CUDA events.
+//!
+//! The `auto` policy refits while that pays: it rebuilds once the last steps cost more (refit
+//! plus detection) than the average step since the last rebuild, the rebuild's own cost
+//! included. Refitting leaves the leaf boxes exact, so candidates per ray do not change with it;
+//! what decays is the traversal's cost, and that is what the policy watches.
+// The stepper drives OptiX and CUDA through raw launches: every unsafe block says why it holds.
+#![allow(unsafe_code)]
+
+use super::gpu_step::{DemParams, advance_in_batches, particles_from, rows};
+use super::model::StepParams;
+use super::particles::Particles;
+use super::stepper::{Advance, StageTimes, Stepper};
+use crate::backend::RebuildPolicy;
+use crate::backend::optix::device::{AccelOp, Device, Gas, Pipeline};
+use crate::backend::optix::{
+    BLOCK, BOX_PADDING, MAX_COORDINATE, gpu_error, morton_order_of, programs,
+};
+use crate::error::{Error, Result};
+use crate::proxy::ProxyMode;
+use cudarc::driver::{
+    CudaEvent, CudaFunction, CudaSlice, DeviceRepr, LaunchConfig, PushKernelArg, sys::CUevent_flags,
+};
+use std::sync::Arc;
+
+/// Steps recorded between two reads of the counters and timers.
+const BATCH: u32 = 50;
+
+/// Steps between two checks of the `auto` policy.
+const AUTO_CHECK: u32 = 10;
+
+/// The `auto` policy rebuilds when the last steps cost this much more than the cycle's average.
+const AUTO_MARGIN: f64 = 1.01;
+
+/// Steps after which the state is re-sorted in Morton order (with a rebuild).
+pub const RESORT_EVERY: u64 = 2000;
+
+/// Counters the programs spread their contact and candidate counts over.
+const COUNTERS: usize = 256;
+
+/// Launch parameters of `optix/dem.cu`; keep in sync with `DemLaunch` there.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct DemLaunch {
+    pos: u64,
+    vel: u64,
+    force: u64,
+    contacts: u64,
+    candidates: u64,
+    handle: u64,
+    n: u32,
+    mode: u32,
+    _pad: [u32; 2],
+    dem: DemParams,
+}
+const _: () = assert!(size_of::<DemLaunch>() == 128);
+
+// SAFETY: DemParams is `#[repr(C)]` plain data laid out as `DemParams` in optix/physics.cuh.
+unsafe impl DeviceRepr for DemParams {}
+
+/// The CUDA kernels of the step.
+struct Kernels {
+    boxes: CudaFunction,
+    integrate: CudaFunction,
+    permute: CudaFunction,
+}
+
+/// The state on the GPU, in the order of the acceleration structure's primitives.
+struct State {
+    /// x, y, z, r.
+    pos: CudaSlice<f32>,
+    /// vx, vy, vz, mass.
+    vel: CudaSlice<f32>,
+    /// Input index of each position.
+    ids: CudaSlice<u32>,
+}
+
+/// Rebuilds and refits since the start, and the cost of the current rebuild cycle.
+#[derive(Debug, Clone, Copy, Default)]
+struct Maintenance {
+    rebuilds: u64,
+    refits: u64,
+    /// Steps since the last rebuild (that step included).
+    cycle_steps: u64,
+    /// Build plus detection time of those steps \[ms\].
+    cycle_ms: f64,
+    /// A rebuild is due at the next step.
+    rebuild_due: bool,
+    /// Step of the last Morton re-sort.
+    sorted_at: u64,
+}
+
+/// The optix DEM step.
+pub struct OptixStepper {
+    device: Arc<Device>,
+    pipeline: Pipeline,
+    kernels: Kernels,
+    n: u32,
+    mode: ProxyMode,
+    r_max: f32,
+    policy: RebuildPolicy,
+    dem: DemParams,
+    step: u64,
+    state: State,
+    spare: State,
+    boxes: CudaSlice<f32>,
+    force: CudaSlice<f32>,
+    contacts: CudaSlice<u32>,
+    candidates: CudaSlice<u64>,
+    launch: CudaSlice<u8>,
+    gas: Option<Gas>,
+    maintenance: Maintenance,
+    /// Candidates per ray of the last step.
+    last_candidates: f64,
+}
+
+impl OptixStepper {
+    /// Uploads `particles` to GPU 0 (in Morton order) and builds the acceleration structure.
+    pub fn new(
+        particles: Particles,
+        params: StepParams,
+        mode: ProxyMode,
+        policy: RebuildPolicy,
+    ) -> Result<Self> {
+        let unavailable = |reason: String| Error::BackendUnavailable {
+            backend: "optix",
+            reason,
+        };
+        let device = Arc::new(Device::open().map_err(unavailable)?);
+        let dem_ptx = programs::ptx(programs::Unit::Dem).map_err(unavailable)?;
+        let kernels_ptx = programs::ptx(programs::Unit::Kernels).map_err(unavailable)?;
+        let pipeline = Pipeline::new(&device, dem_ptx, "dem", 5).map_err(gpu_error)?;
+        let module = device
+            .cuda
+            .load_module(cudarc::nvrtc::Ptx::from_src(kernels_ptx))
+            .map_err(gpu_error)?;
+        let function = |name: &str| module.load_function(name).map_err(gpu_error);
+        let kernels = Kernels {
+            boxes: function("dem_boxes")?,
+            integrate: function("dem_integrate")?,
+            permute: function("dem_permute")?,
+        };
+        let n64 = particles.len() as u64;
+        let limit = (device.max_primitives as u64).min(u32::MAX as u64 / 6);
+        if n64 > limit {
+            return Err(Error::TooLarge {
+                what: format!("spheres for the optix DEM step on {}", device.name),
+                got: n64,
+                limit,
+            });
+        }
+        let n = n64 as u32;
+        let r_max = particles.radius_range().1;
+        let reach = params
+            .box_lo
+            .iter()
+            .chain(&params.box_hi)
+            .fold(0.0f32, |m, x| m.max(x.abs()))
+            + 2.0 * r_max;
+        if reach > MAX_COORDINATE / 2.0 {
+            return Err(Error::Usage(format!(
+                "optix: the box reaches coordinate {reach:e}; OptiX traverses reliably only \
+                 within ±{MAX_COORDINATE:e}: use wgpu-compute or cpu for this scene"
+            )));
+        }
+        let stream = device.stream.clone();
+        let (pos, vel) = rows(&particles, params.density);
+        let order = morton_order_of(&particles.positions);
+        let pick = |rows: &[[f32; 4]]| -> Vec<f32> {
+            order.iter().flat_map(|&i| rows[i as usize]).collect()
+        };
+        let upload = |host: &[f32]| {
+            if host.is_empty() {
+                stream.alloc_zeros::<f32>(4)
+            } else {
+                stream.clone_htod(host)
+            }
+            .map_err(gpu_error)
+        };
+        let zeros_f32 = |len: usize| stream.alloc_zeros::<f32>(len.max(4)).map_err(gpu_error);
+        let zeros_u32 = |len: usize| stream.alloc_zeros::<u32>(len.max(1)).map_err(gpu_error);
+        let ids = if order.is_empty() {
+            zeros_u32(1)?
+        } else {
+            stream.clone_htod(&order).map_err(gpu_error)?
+        };
+        let len = n as usize;
+        let mut stepper = OptixStepper {
+            pipeline,
+            kernels,
+            n,
+            mode,
+            r_max,
+            policy,
+            dem: DemParams::new(&params, n, 0),
+            step: particles.step,
+            state: State {
+                pos: upload(&pick(&pos))?,
+                vel: upload(&pick(&vel))?,
+                ids,
+            },
+            spare: State {
+                pos: zeros_f32(4 * len)?,
+                vel: zeros_f32(4 * len)?,
+                ids: zeros_u32(len)?,
+            },
+            boxes: zeros_f32(6 * len)?,
+            force: zeros_f32(3 * len)?,
+            contacts: stream.alloc_zeros::<u32>(COUNTERS).map_err(gpu_error)?,
+            candidates: stream.alloc_zeros::<u64>(COUNTERS).map_err(gpu_error)?,
+            launch: device.bytes(size_of::<DemLaunch>()).map_err(gpu_error)?,
+            gas: None,
+            maintenance: Maintenance {
+                sorted_at: particles.step,
+                // The first step rebuilds (timed like every other).
+                rebuild_due: true,
+                cycle_steps: u64::MAX,
+                ..Maintenance::default()
+            },
+            last_candidates: 0.0,
+            device,
+        };
+        if n > 0 {
+            stepper.write_boxes()?;
+            let gas = Gas::build(&stepper.device, &stepper.boxes, n).map_err(gpu_error)?;
+            stepper.gas = Some(gas);
+            stepper.write_launch()?;
+        }
+        Ok(stepper)
+    }
+
+    fn config(&self) -> LaunchConfig {
+        LaunchConfig {
+            grid_dim: (self.n.div_ceil(BLOCK), 1, 1),
+            block_dim: (BLOCK, 1, 1),
+            shared_mem_bytes: 0,
+        }
+    }
+
+    fn event(&self) -> Result<CudaEvent> {
+        self.device
+            .stream
+            .record_event(Some(CUevent_flags::CU_EVENT_DEFAULT))
+            .map_err(gpu_error)
+    }
+
+    /// The proxy boxes of the current state.
+    fn write_boxes(&mut self) -> Result<()> {
+        let mode = mode_code(self.mode);
+        let config = self.config();
+        let mut launch = self.device.stream.launch_builder(&self.kernels.boxes);
+        launch
+            .arg(&self.state.pos)
+            .arg(&mut self.boxes)
+            .arg(&self.n)
+            .arg(&mode)
+            .arg(&self.r_max)
+            .arg(&BOX_PADDING);
+        // SAFETY: the arguments match dem_boxes' signature; pos holds n spheres, boxes 6n floats.
+        unsafe { launch.launch(config) }.map_err(gpu_error)?;
+        Ok(())
+    }
+
+    /// Writes the launch parameters (after a build: the handle may change).
+    fn write_launch(&mut self) -> Result<()> {
+        let device = &self.device;
+        let handle = self.gas.as_ref().map_or(0, |g| g.handle);
+        let launch = DemLaunch {
+            pos: device.ptr(&self.state.pos),
+            vel: device.ptr(&self.state.vel),
+            force: device.ptr_mut(&mut self.force),
+            contacts: device.ptr_mut(&mut self.contacts),
+            candidates: device.ptr_mut(&mut self.candidates),
+            handle,
+            n: self.n,
+            mode: mode_code(self.mode),
+            _pad: [0; 2],
+            dem: self.dem,
+        };
+        device
+            .stream
+            .memcpy_htod(bytemuck::bytes_of(&launch), &mut self.launch)
+            .map_err(gpu_error)
+    }
+
+    /// Re-sorts the state in Morton order of the current positions (the caller rebuilds).
+    fn resort(&mut self) -> Result<()> {
+        let stream = self.device.stream.clone();
+        let pos = stream.clone_dtoh(&self.state.pos).map_err(gpu_error)?;
+        let centers: Vec<[f32; 3]> = pos.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect();
+        let order = stream
+            .clone_htod(&morton_order_of(&centers))
+            .map_err(gpu_error)?;
+        let config = self.config();
+        let mut launch = stream.launch_builder(&self.kernels.permute);
+        launch
+            .arg(&self.state.pos)
+            .arg(&self.state.vel)
+            .arg(&self.state.ids)
+            .arg(&order)
+            .arg(&mut self.spare.pos)
+            .arg(&mut self.spare.vel)
+            .arg(&mut self.spare.ids)
+            .arg(&self.n);
+        // SAFETY: the arguments match dem_permute's signature; every buffer holds n entries.
+        unsafe { launch.launch(config) }.map_err(gpu_error)?;
+        std::mem::swap(&mut self.state, &mut self.spare);
+        self.maintenance.sorted_at = self.step;
+        Ok(())
+    }
+
+    /// Whether the next step rebuilds (else it refits).
+    fn rebuilds_now(&self) -> bool {
+        let m = &self.maintenance;
+        match self.policy {
+            RebuildPolicy::Every(k) => m.cycle_steps >= k as u64,
+            RebuildPolicy::Auto => m.rebuild_due,
+        }
+    }
+
+    /// Records one step; returns its four events (start, built, resolved, integrated).
+    fn record_step(&mut self, rebuild: bool) -> Result<[CudaEvent; 4]> {
+        let stream = self.device.stream.clone();
+        let start = self.event()?;
+        self.write_boxes()?;
+        let op = if rebuild {
+            AccelOp::Build
+        } else {
+            AccelOp::Update
+        };
+        let gas = self.gas.as_mut().expect("built for n > 0");
+        gas.run(&self.device, &self.boxes, op).map_err(gpu_error)?;
+        if rebuild {
+            self.write_launch()?;
+        }
+        let built = self.event()?;
+        stream.memset_zeros(&mut self.contacts).map_err(gpu_error)?;
+        stream
+            .memset_zeros(&mut self.candidates)
+            .map_err(gpu_error)?;
+        self.pipeline
+            .launch(&self.launch, self.n)
+            .map_err(gpu_error)?;
+        let resolved = self.event()?;
+        let step = self.step as u32;
+        let config = self.config();
+        let mut launch = stream.launch_builder(&self.kernels.integrate);
+        launch
+            .arg(&mut self.state.pos)
+            .arg(&mut self.state.vel)
+            .arg(&mut self.force)
+            .arg(&self.dem)
+            .arg(&step);
+        // SAFETY: the arguments match dem_integrate's signature; pos, vel hold n rows, force 3n.
+        unsafe { launch.launch(config) }.map_err(gpu_error)?;
+        let integrated = self.event()?;
+        self.step += 1;
+        Ok([start, built, resolved, integrated])
+    }
+
+    /// Runs up to `steps` steps (at most one batch); returns how many, the contacts of the last
+    /// and the phase times.
+    fn run_batch(&mut self, steps: u32) -> Result<(u32, u64, StageTimes)> {
+        if self.step >= self.maintenance.sorted_at + RESORT_EVERY {
+            self.resort()?;
+            self.maintenance.rebuild_due = true;
+            self.maintenance.cycle_steps = u64::MAX; // any policy rebuilds now
+        }
+        let mut steps = steps.min(BATCH);
+        if self.policy == RebuildPolicy::Auto {
+            // A rebuild step runs alone, so the cycle's first refits are measured apart.
+            steps = if self.maintenance.rebuild_due {
+                1
+            } else {
+                steps.min(AUTO_CHECK)
+            };
+        }
+        let mut events = Vec::with_capacity(steps as usize);
+        let mut rebuilt = Vec::with_capacity(steps as usize);
+        for _ in 0..steps {
+            let rebuild = self.rebuilds_now();
+            events.push(self.record_step(rebuild)?);
+            rebuilt.push(rebuild);
+            let m = &mut self.maintenance;
+            if rebuild {
+                m.rebuilds += 1;
+                m.cycle_steps = 0;
+                m.cycle_ms = 0.0;
+                m.rebuild_due = false;
+            } else {
+                m.refits += 1;
+            }
+            m.cycle_steps += 1;
+        }
+        let stream = &self.device.stream;
+        let contacts: u64 = stream
+            .clone_dtoh(&self.contacts)
+            .map_err(gpu_error)?
+            .iter()
+            .map(|&c| c as u64)
+            .sum();
+        let candidates: u64 = stream
+            .clone_dtoh(&self.candidates)
+            .map_err(gpu_error)?
+            .iter()
+            .sum();
+        self.last_candidates = candidates as f64 / self.n.max(1) as f64;
+        let ms = |a: &CudaEvent, b: &CudaEvent| a.elapsed_ms(b).map(f64::from).map_err(gpu_error);
+        let mut times = StageTimes::default();
+        let mut refit_ms = 0.0;
+        for ([start, built, resolved, integrated], rebuild) in events.iter().zip(&rebuilt) {
+            let step = StageTimes {
+                build_ms: ms(start, built)?,
+                dcd_ms: ms(built, resolved)?,
+                update_ms: ms(resolved, integrated)?,
+            };
+            let cost = step.build_ms + step.dcd_ms;
+            self.maintenance.cycle_ms += cost;
+            if !rebuild {
+                refit_ms += cost;
+            }
+            times.add(&step);
+        }
+        let refits = rebuilt.iter().filter(|&&r| !r).count();
+        if self.policy == RebuildPolicy::Auto && refits > 0 {
+            let m = &mut self.maintenance;
+            let average = m.cycle_ms / m.cycle_steps as f64;
+            m.rebuild_due = refit_ms / refits as f64 > AUTO_MARGIN * average;
+        }
+        Ok((steps, contacts, times))
+    }
+}
+
+fn mode_code(mode: ProxyMode) -> u32 {
+    match mode {
+        ProxyMode::Mochi => 0,
+        ProxyMode::Nns => 1,
+    }
+}
+
+impl Stepper for OptixStepper {
+    fn describe(&self) -> String {
+        let m = &self.maintenance;
+        format!(
+            "optix ({}; rebuild {}: {} rebuilds, {} refits; {:.2} candidates per ray)",
+            self.device.name, self.policy, m.rebuilds, m.refits, self.last_candidates
+        )
+    }
+
+    fn advance(&mut self, steps: u32) -> Result<Advance> {
+        if self.n == 0 {
+            return advance_in_batches(steps, false, |left| {
+                self.step += left as u64;
+                Ok((left, 0, None))
+            });
+        }
+        advance_in_batches(steps, true, |left| {
+            let (done, contacts, times) = self.run_batch(left)?;
+            Ok((done, contacts, Some(times)))
+        })
+    }
+
+    fn particles(&mut self) -> Result<Particles> {
+        let stream = &self.device.stream;
+        let n = self.n as usize;
+        let rows4 = |flat: Vec<f32>| -> Vec<[f32; 4]> {
+            flat.chunks_exact(4)
+                .take(n)
+                .map(|r| [r[0], r[1], r[2], r[3]])
+                .collect()
+        };
+        let pos = rows4(stream.clone_dtoh(&self.state.pos).map_err(gpu_error)?);
+        let vel = rows4(stream.clone_dtoh(&self.state.vel).map_err(gpu_error)?);
+        let mut ids = stream.clone_dtoh(&self.state.ids).map_err(gpu_error)?;
+        ids.truncate(n);
+        particles_from(&pos, &vel, Some(&ids), self.step)
+    }
+
+    fn refits(&self) -> bool {
+        true
+    }
+}
