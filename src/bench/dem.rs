@@ -1,0 +1,154 @@
+//! Experiments 2–5: the DEM step, timed per phase.
+
+use super::plan::{Experiment, Plan, REBUILD_INTERVALS};
+use super::report::DemRow;
+use super::stats::Spread;
+use super::{Outcome, value_name};
+use crate::backend::{BackendKind, Options, RebuildPolicy};
+use crate::dem::scene::{SceneConfig, Start};
+use crate::dem::{Clock, Stepper, open_stepper};
+use crate::error::Result;
+
+/// The start of a DEM scene (`freefall` or `rotating`) of `n` spheres: the scene's lattice
+/// layout, its default time step and material.
+pub fn start(scene: &str, n: usize, seed: u64) -> Result<Start> {
+    SceneConfig {
+        scene: scene.to_owned(),
+        spheres: n,
+        seed,
+        frame_every: 0,
+        ..SceneConfig::default()
+    }
+    .build()
+}
+
+/// One DEM measurement to make.
+pub struct Case<'a> {
+    /// The experiment it belongs to.
+    pub experiment: Experiment,
+    /// Scene name.
+    pub scene: &'a str,
+    /// Its start.
+    pub start: &'a Start,
+}
+
+/// Runs `case` on backend `kind`: one row, or for experiment 4 on a step that refits, one row
+/// per rebuild interval and one for `auto`.
+pub fn run(
+    plan: &Plan,
+    kind: BackendKind,
+    case: &Case,
+    progress: &mut dyn FnMut(&str),
+) -> Vec<Outcome<DemRow>> {
+    let what = format!(
+        "{} {} n={}",
+        kind.name(),
+        case.scene,
+        case.start.particles.len()
+    );
+    let open = |rebuild| {
+        let options = Options {
+            structure: plan.structure,
+            rebuild,
+        };
+        let s = case.start;
+        open_stepper(kind, s.particles.clone(), s.params, s.mode, &options)
+    };
+    let first = RebuildPolicy::Every(REBUILD_INTERVALS[0]);
+    let stepper = match open(first) {
+        Ok(s) => s,
+        Err(e) => return vec![Outcome::Skipped(what, e.to_string())],
+    };
+    if case.experiment != Experiment::Rebuild || !stepper.refits() {
+        progress(&what);
+        let policy = if stepper.refits() {
+            RebuildPolicy::Auto.to_string()
+        } else {
+            "every step".to_owned()
+        };
+        return vec![measure_or_skip(plan, kind, case, stepper, &policy, &what)];
+    }
+    drop(stepper);
+    let policies = REBUILD_INTERVALS
+        .into_iter()
+        .map(RebuildPolicy::Every)
+        .chain([RebuildPolicy::Auto]);
+    policies
+        .map(|policy| {
+            let what = format!("{what} rebuild {policy}");
+            progress(&what);
+            match open(policy) {
+                Ok(s) => measure_or_skip(plan, kind, case, s, &policy.to_string(), &what),
+                Err(e) => Outcome::Skipped(what, e.to_string()),
+            }
+        })
+        .collect()
+}
+
+fn measure_or_skip(
+    plan: &Plan,
+    kind: BackendKind,
+    case: &Case,
+    stepper: Box<dyn Stepper>,
+    policy: &str,
+    what: &str,
+) -> Outcome<DemRow> {
+    match measure(plan, kind, case, stepper, policy) {
+        Ok(row) => Outcome::Row(row),
+        Err(e) => Outcome::Skipped(what.to_owned(), e.to_string()),
+    }
+}
+
+/// Warm-up advances, then `repeats` timed advances of `steps` steps each, continuing one run.
+fn measure(
+    plan: &Plan,
+    kind: BackendKind,
+    case: &Case,
+    mut stepper: Box<dyn Stepper>,
+    policy: &str,
+) -> Result<DemRow> {
+    for _ in 0..plan.warmup {
+        stepper.advance(plan.steps)?;
+    }
+    let mut runs = Vec::with_capacity(plan.repeats);
+    for _ in 0..plan.repeats {
+        runs.push(stepper.advance(plan.steps)?);
+    }
+    let last = *runs.last().expect("a plan has at least one repeat");
+    // Timestamps can be missing on a GPU without them: then nothing was measured.
+    let clock = if runs.iter().all(|r| r.clock == last.clock) {
+        last.clock
+    } else {
+        Clock::None
+    };
+    let per_step = |f: &dyn Fn(&crate::dem::StageTimes) -> f64| {
+        let values: Vec<f64> = runs.iter().map(|r| f(&r.times) / r.steps as f64).collect();
+        Spread::of(&values).expect("a plan has at least one repeat")
+    };
+    // `describe` is "name (device)".
+    let described = stepper.describe();
+    let device = described
+        .strip_prefix(kind.name())
+        .map(|d| d.trim().trim_start_matches('(').trim_end_matches(')'))
+        .unwrap_or(&described)
+        .to_owned();
+    Ok(DemRow {
+        experiment: case.experiment,
+        backend: kind.name().to_owned(),
+        device,
+        scene: case.scene.to_owned(),
+        n: case.start.particles.len(),
+        mode: case.start.mode.name().to_owned(),
+        structure: value_name(plan.structure),
+        rebuild: policy.to_owned(),
+        refits: stepper.refits(),
+        steps: plan.steps,
+        contacts: last.contacts,
+        clock,
+        build_ms: per_step(&|t| t.build_ms),
+        dcd_ms: per_step(&|t| t.dcd_ms),
+        update_ms: per_step(&|t| t.update_ms),
+        total_ms: per_step(&|t| t.total_ms()),
+        speedup_vs_cpu: None,
+    })
+}

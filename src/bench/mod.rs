@@ -1,0 +1,126 @@
+//! `mochi bench`: the paper's experiments (method.md) on every backend, measured the same way
+//! every time.
+//!
+//! 1. detection only, `mochi` vs `nns` mode at radius ratios 1.2, 12 and 120 ([`detect`]);
+//! 2. the DEM step on dataset 1 falling freely, build / DCD / update per step;
+//! 3. the same under rotating gravity;
+//! 4. the DEM step against the rebuild interval of steps that refit (others are reported once,
+//!    "every step");
+//! 5. the DEM step from 1,000 spheres up, ×10 each time ([`dem`] runs 2–5).
+//!
+//! Every measurement runs `warmup` untimed times, then `repeats` timed times, and reports the
+//! median and spread ([`stats::Spread`]) on GPU timestamps where the backend has them, else on
+//! the wall clock, and says which ([`crate::dem::Clock`]). A [`report::Report`] holds the rows;
+//! [`markdown`] prints it and [`plot`] draws it as SVG.
+
+pub mod dem;
+pub mod detect;
+pub mod markdown;
+pub mod plan;
+pub mod plot;
+pub mod report;
+pub mod stats;
+
+use crate::error::Result;
+use plan::{BackendStatus, Experiment, Plan};
+use report::{Machine, Report, SCHEMA_VERSION, Settings, Skipped, utc_now};
+
+/// A measurement made, or why it could not be.
+pub enum Outcome<T> {
+    /// The row.
+    Row(T),
+    /// What was to be measured, and why it was not.
+    Skipped(String, String),
+}
+
+/// The command-line name of a value (`poly1.2`, `random`, `mlgrid`).
+pub fn value_name<T: clap::ValueEnum>(value: T) -> String {
+    value
+        .to_possible_value()
+        .map_or_else(String::new, |v| v.get_name().to_owned())
+}
+
+/// Runs `plan`, calling `progress` before each measurement; `backends` (from
+/// [`plan::BackendSelection::resolve`]) and `command` go into the report as they are.
+pub fn run(
+    plan: &Plan,
+    backends: Vec<BackendStatus>,
+    command: String,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Report> {
+    plan.validate()?;
+    let mut report = Report {
+        schema_version: SCHEMA_VERSION,
+        mochi_version: env!("CARGO_PKG_VERSION").to_owned(),
+        date: utc_now(),
+        command,
+        machine: Machine::here(),
+        settings: Settings {
+            experiments: plan.experiments.clone(),
+            spheres: plan.spheres,
+            max_spheres: plan.max_spheres,
+            steps: plan.steps,
+            repeats: plan.repeats,
+            warmup: plan.warmup,
+            structure: value_name(plan.structure),
+            seed: plan.seed,
+        },
+        backends,
+        detect: Vec::new(),
+        dem: Vec::new(),
+        skipped: Vec::new(),
+    };
+    for &experiment in &plan.experiments {
+        let mut skip = |backend: &str, (what, reason): (String, String)| {
+            report.skipped.push(Skipped {
+                experiment,
+                backend: backend.to_owned(),
+                what,
+                reason,
+            })
+        };
+        match experiment {
+            Experiment::Dcd => {
+                let sets = detect::scenes(plan)?;
+                for &kind in &plan.backends {
+                    for outcome in detect::run(plan, kind, &sets, progress) {
+                        match outcome {
+                            Outcome::Row(row) => report.detect.push(row),
+                            Outcome::Skipped(what, why) => skip(kind.name(), (what, why)),
+                        }
+                    }
+                }
+            }
+            _ => {
+                let scene = if experiment == Experiment::Rotating {
+                    "rotating"
+                } else {
+                    "freefall"
+                };
+                let sizes = if experiment == Experiment::Scaling {
+                    plan.scaling_sizes()
+                } else {
+                    vec![plan.spheres]
+                };
+                for n in sizes {
+                    let start = dem::start(scene, n, plan.seed)?;
+                    let case = dem::Case {
+                        experiment,
+                        scene,
+                        start: &start,
+                    };
+                    for &kind in &plan.backends {
+                        for outcome in dem::run(plan, kind, &case, progress) {
+                            match outcome {
+                                Outcome::Row(row) => report.dem.push(row),
+                                Outcome::Skipped(what, why) => skip(kind.name(), (what, why)),
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    report.fill_speedups();
+    Ok(report)
+}
