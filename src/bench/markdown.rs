@@ -151,16 +151,24 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
 
 /// A time with about three significant digits.
 pub fn time(ms: f64) -> String {
+    let places = decimals(ms);
+    format!("{ms:.places$}")
+}
+
+/// Decimal places that give `ms` about three significant digits.
+fn decimals(ms: f64) -> usize {
     match ms.abs() {
-        t if t >= 100.0 => format!("{ms:.0}"),
-        t if t >= 10.0 => format!("{ms:.1}"),
-        t if t >= 1.0 => format!("{ms:.2}"),
-        _ => format!("{ms:.3}"),
+        t if t >= 100.0 => 0,
+        t if t >= 10.0 => 1,
+        t if t >= 1.0 => 2,
+        _ => 3,
     }
 }
 
+/// Median (min–max), all three to the median's decimal places.
 fn spread(s: &Spread) -> String {
-    format!("{} ({}–{})", time(s.median), time(s.min), time(s.max))
+    let p = decimals(s.median);
+    format!("{:.p$} ({:.p$}–{:.p$})", s.median, s.min, s.max)
 }
 
 fn clock(c: Clock) -> &'static str {

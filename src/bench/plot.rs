@@ -140,10 +140,10 @@ fn dcd(area: &Area, title: &str, report: &Report) -> Drawn {
             groups.push((name, Vec::new()));
         }
         let key = usize::from(row.mode != "mochi");
-        let label = match row.detect_speedup_vs_nns {
-            Some(s) => speedup(Some(s)),
-            None => time(row.detect_ms.median),
-        };
+        let mut label = format!("{} ms", time(row.detect_ms.median));
+        if let Some(s) = row.detect_speedup_vs_nns {
+            label.push_str(&format!(" ({})", speedup(Some(s))));
+        }
         if let Some((_, bars)) = groups.last_mut() {
             bars.push(Bar {
                 segments: vec![(key, row.detect_ms.median)],
@@ -198,7 +198,10 @@ fn curves(area: &Area, title: &str, x_desc: &str, series: &[(String, Vec<(f64, f
         if lo > hi {
             (0.1, 10.0)
         } else {
-            (lo / 2.0, hi * 2.0)
+            // Whole decades, at least one, so that the axes have labelled ticks.
+            let lo = 10f64.powf(lo.log10().floor());
+            let hi = 10f64.powf(hi.log10().ceil()).max(lo * 10.0);
+            (lo, hi)
         }
     };
     let (x, y) = (span(|p| p.0), span(|p| p.1));
@@ -212,6 +215,8 @@ fn curves(area: &Area, title: &str, x_desc: &str, series: &[(String, Vec<(f64, f
         .configure_mesh()
         .x_desc(x_desc)
         .y_desc("ms per step")
+        .x_label_formatter(&|v| log_label(*v, &[1.0]))
+        .y_label_formatter(&|v| log_label(*v, &[1.0, 2.0, 5.0]))
         .draw()?;
     for (i, (name, line)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
@@ -228,6 +233,21 @@ fn curves(area: &Area, title: &str, x_desc: &str, series: &[(String, Vec<(f64, f
         .position(SeriesLabelPosition::UpperLeft)
         .draw()?;
     Ok(())
+}
+
+/// A tick label on a log axis: `v` when its leading digit is one of `mantissas` (1k, 20, 0.5),
+/// else nothing, so that the minor ticks stay unlabelled.
+fn log_label(v: f64, mantissas: &[f64]) -> String {
+    let decade = 10f64.powf(v.log10().floor());
+    let lead = v / decade;
+    if !mantissas.iter().any(|m| (lead - m).abs() < 1e-6) {
+        return String::new();
+    }
+    match v {
+        v if v >= 1e6 => format!("{}M", v / 1e6),
+        v if v >= 1e3 => format!("{}k", v / 1e3),
+        v => format!("{}", (v * 1e6).round() / 1e6),
+    }
 }
 
 /// Experiment 4: time per step against the rebuild interval; steps that rebuild every step
