@@ -113,7 +113,7 @@ pub struct DetectRow {
     pub candidates_per_sphere: f64,
     /// Colliding pairs found.
     pub pairs: u64,
-    /// FNV-1a hash of the sorted pair list (equal digests: equal pairs).
+    /// [`pairs_digest`] of the pairs found (equal digests: equal pairs).
     pub pairs_digest: String,
     /// The clock of `build_ms`, `detect_ms` and `total_ms`: GPU timestamps where every repeat
     /// had them, else wall clock.
@@ -224,10 +224,13 @@ fn ratio(a: f64, b: f64) -> f64 {
     if b > 0.0 { a / b } else { f64::INFINITY }
 }
 
-/// FNV-1a (64-bit) of the pairs in order, as 16 hex digits.
+/// FNV-1a (64-bit) of the pairs in sorted order, as 16 hex digits: equal pair sets, equal
+/// digests, whatever order a backend returns them in.
 pub fn pairs_digest(pairs: &[crate::Pair]) -> String {
+    let mut sorted = pairs.to_vec();
+    sorted.sort_unstable();
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for p in pairs {
+    for p in &sorted {
         for byte in p.i.to_le_bytes().into_iter().chain(p.j.to_le_bytes()) {
             h ^= byte as u64;
             h = h.wrapping_mul(0x0100_0000_01b3);
@@ -280,6 +283,6 @@ mod tests {
         let a = [crate::Pair::new(0, 1), crate::Pair::new(2, 5)];
         let b = [crate::Pair::new(0, 1), crate::Pair::new(2, 6)];
         assert_ne!(pairs_digest(&a), pairs_digest(&b));
-        assert_eq!(pairs_digest(&a), pairs_digest(&a.clone()));
+        assert_eq!(pairs_digest(&a), pairs_digest(&[a[1], a[0]]));
     }
 }
