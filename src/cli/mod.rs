@@ -1,5 +1,5 @@
 //! Command-line interface: argument definitions in [`args`], the commands in [`run`] (and
-//! [`simulate`], [`bench`]).
+//! [`simulate`], [`bench`](mod@bench)).
 
 mod args;
 mod bench;
