@@ -4,10 +4,11 @@ use super::plan::{Experiment, Plan, REBUILD_INTERVALS};
 use super::report::DemRow;
 use super::stats::Spread;
 use super::{Outcome, value_name};
+use crate::backend::wgpu_compute::Structure;
 use crate::backend::{BackendKind, Options, RebuildPolicy};
 use crate::dem::scene::{SceneConfig, Start};
 use crate::dem::{Clock, Stepper, open_stepper};
-use crate::error::Result;
+use crate::error::{Error, Result};
 
 /// The start of a DEM scene (`freefall` or `rotating`) of `n` spheres: the scene's lattice
 /// layout, its default time step and material.
@@ -30,6 +31,35 @@ pub struct Case<'a> {
     pub scene: &'a str,
     /// Its start.
     pub start: &'a Start,
+    /// Grid structure of `wgpu-compute`.
+    pub structure: Structure,
+}
+
+/// `start` after `plan.settle` untimed steps on the first of the plan's backends whose DEM
+/// step opens (the others' reasons in the error when none does).
+pub fn settle(plan: &Plan, start: &Start) -> Result<Start> {
+    let mut why = Vec::new();
+    for &kind in &plan.backends {
+        let options = Options {
+            structure: plan.structure,
+            ..Options::default()
+        };
+        let s = start.clone();
+        match open_stepper(kind, s.particles, s.params, s.mode, &options) {
+            Ok(mut stepper) => {
+                stepper.advance(plan.settle)?;
+                return Ok(Start {
+                    particles: stepper.particles()?,
+                    ..start.clone()
+                });
+            }
+            Err(e) => why.push(format!("{}: {e}", kind.name())),
+        }
+    }
+    Err(Error::Usage(format!(
+        "no backend could settle the scene: {}",
+        why.join("; ")
+    )))
 }
 
 /// Runs `case` on backend `kind`: one row, or for experiment 4 on a step that refits, one row
@@ -48,7 +78,7 @@ pub fn run(
     );
     let open = |rebuild| {
         let options = Options {
-            structure: plan.structure,
+            structure: case.structure,
             rebuild,
         };
         let s = case.start;
@@ -139,7 +169,7 @@ fn measure(
         scene: case.scene.to_owned(),
         n: case.start.particles.len(),
         mode: case.start.mode.name().to_owned(),
-        structure: value_name(plan.structure),
+        structure: value_name(case.structure),
         rebuild: policy.to_owned(),
         refits: stepper.refits(),
         steps: plan.steps,

@@ -29,6 +29,19 @@ pub fn render(report: &Report) -> String {
             dem_table(&mut out, &rows, experiment == Experiment::Rebuild);
         }
     }
+    if !report.targets.is_empty() {
+        out.push_str(
+            "\n## Targets (issue 7)\n\n| target | measured | met |\n| --- | --- | --- |\n",
+        );
+        for t in &report.targets {
+            let met = match t.met {
+                Some(true) => "yes",
+                Some(false) => "**no**",
+                None => "–",
+            };
+            let _ = writeln!(out, "| {} | {} | {met} |", t.target, t.measured);
+        }
+    }
     if !report.skipped.is_empty() {
         out.push_str("\n## Not measured\n\n| experiment | backend | what | why |\n| --- | --- | --- | --- |\n");
         for s in &report.skipped {

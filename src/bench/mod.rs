@@ -6,7 +6,9 @@
 //! 3. the same under rotating gravity;
 //! 4. the DEM step against the rebuild interval of steps that refit (others are reported once,
 //!    "every step");
-//! 5. the DEM step from 1,000 spheres up, ×10 each time ([`dem`] runs 2–5).
+//! 5. the DEM step from 1,000 spheres up, ×10 each time;
+//! 6. the DEM steps issue 7 sets targets for: the landed `slab`, and `polylog` with the single
+//!    and the multi-level grid side by side ([`dem`] runs 2–6; [`targets`] checks them).
 //!
 //! Every measurement runs `warmup` untimed times, then `repeats` timed times, and reports the
 //! median and spread ([`stats::Spread`]) on GPU timestamps where the backend has them, else on
@@ -20,7 +22,11 @@ pub mod plan;
 pub mod plot;
 pub mod report;
 pub mod stats;
+pub mod targets;
 
+use crate::backend::BackendKind;
+use crate::backend::wgpu_compute::Structure;
+use crate::dem::scene::Start;
 use crate::error::Result;
 use plan::{BackendStatus, Experiment, Plan};
 use report::{Machine, Report, SCHEMA_VERSION, Settings, Skipped, utc_now};
@@ -60,6 +66,7 @@ pub fn run(
             spheres: plan.spheres,
             max_spheres: plan.max_spheres,
             steps: plan.steps,
+            settle: plan.settle,
             repeats: plan.repeats,
             warmup: plan.warmup,
             structure: value_name(plan.structure),
@@ -69,6 +76,7 @@ pub fn run(
         detect: Vec::new(),
         dem: Vec::new(),
         skipped: Vec::new(),
+        targets: Vec::new(),
     };
     for &experiment in &plan.experiments {
         let mut skip = |backend: &str, (what, reason): (String, String)| {
@@ -92,28 +100,20 @@ pub fn run(
                 }
             }
             _ => {
-                let scene = if experiment == Experiment::Rotating {
-                    "rotating"
-                } else {
-                    "freefall"
-                };
-                let sizes = if experiment == Experiment::Scaling {
-                    plan.scaling_sizes()
-                } else {
-                    vec![plan.spheres]
-                };
-                for n in sizes {
-                    let start = dem::start(scene, n, plan.seed)?;
-                    let case = dem::Case {
-                        experiment,
-                        scene,
-                        start: &start,
-                    };
+                for (scene, start) in dem_starts(plan, experiment, progress)? {
                     for &kind in &plan.backends {
-                        for outcome in dem::run(plan, kind, &case, progress) {
-                            match outcome {
-                                Outcome::Row(row) => report.dem.push(row),
-                                Outcome::Skipped(what, why) => skip(kind.name(), (what, why)),
+                        for structure in structures(plan, experiment, scene, kind) {
+                            let case = dem::Case {
+                                experiment,
+                                scene,
+                                start: &start,
+                                structure,
+                            };
+                            for outcome in dem::run(plan, kind, &case, progress) {
+                                match outcome {
+                                    Outcome::Row(row) => report.dem.push(row),
+                                    Outcome::Skipped(what, why) => skip(kind.name(), (what, why)),
+                                }
                             }
                         }
                     }
@@ -122,5 +122,50 @@ pub fn run(
         }
     }
     report.fill_speedups();
+    report.targets = targets::check(&report);
     Ok(report)
+}
+
+/// The scenes of DEM experiment `experiment`, by name, with their starts.
+fn dem_starts(
+    plan: &Plan,
+    experiment: Experiment,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<(&'static str, Start)>> {
+    let n = plan.spheres;
+    Ok(match experiment {
+        Experiment::Targets => {
+            let mut slab = dem::start("slab", n, plan.seed)?;
+            if plan.settle > 0 {
+                progress(&format!("letting the slab land ({} steps)", plan.settle));
+                slab = dem::settle(plan, &slab)?;
+            }
+            vec![
+                ("slab", slab),
+                ("polylog", dem::start("polylog", n, plan.seed)?),
+            ]
+        }
+        Experiment::Scaling => plan
+            .scaling_sizes()
+            .into_iter()
+            .map(|n| Ok(("freefall", dem::start("freefall", n, plan.seed)?)))
+            .collect::<Result<_>>()?,
+        Experiment::Rotating => vec![("rotating", dem::start("rotating", n, plan.seed)?)],
+        _ => vec![("freefall", dem::start("freefall", n, plan.seed)?)],
+    })
+}
+
+/// The `wgpu-compute` structures to measure `scene` with: for `polylog` in experiment 6 the
+/// single and the multi-level grid side by side, else the plan's (other backends have one).
+fn structures(
+    plan: &Plan,
+    experiment: Experiment,
+    scene: &str,
+    kind: BackendKind,
+) -> Vec<Structure> {
+    if experiment == Experiment::Targets && scene == "polylog" && kind == BackendKind::WgpuCompute {
+        vec![Structure::Grid, Structure::Mlgrid]
+    } else {
+        vec![plan.structure]
+    }
 }

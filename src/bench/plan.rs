@@ -31,19 +31,23 @@ pub enum Experiment {
     Rebuild,
     /// 5: the DEM step from 1,000 spheres up in steps of ×10.
     Scaling,
+    /// 6: the DEM steps issue 7 sets targets for: the landed slab, and `polylog` with the
+    /// single and the multi-level grid side by side.
+    Targets,
 }
 
 impl Experiment {
     /// Every experiment, in order.
-    pub const ALL: [Experiment; 5] = [
+    pub const ALL: [Experiment; 6] = [
         Experiment::Dcd,
         Experiment::Freefall,
         Experiment::Rotating,
         Experiment::Rebuild,
         Experiment::Scaling,
+        Experiment::Targets,
     ];
 
-    /// Number in issue 7 (1–5).
+    /// Number in issue 7 (1–5; 6 for the targets).
     pub fn number(self) -> u8 {
         self as u8 + 1
     }
@@ -56,6 +60,7 @@ impl Experiment {
             Experiment::Rotating => "rotating",
             Experiment::Rebuild => "rebuild",
             Experiment::Scaling => "scaling",
+            Experiment::Targets => "targets",
         }
     }
 
@@ -67,6 +72,7 @@ impl Experiment {
             Experiment::Rotating => "DEM under rotating gravity (0.25π rad/s), time per step",
             Experiment::Rebuild => "DEM step against the rebuild interval",
             Experiment::Scaling => "DEM step from 1k spheres up, ×10 each",
+            Experiment::Targets => "DEM steps with targets: landed slab, polylog (grid vs mlgrid)",
         }
     }
 
@@ -78,7 +84,8 @@ impl Experiment {
             .find(|e| e.name().eq_ignore_ascii_case(s) || e.number().to_string() == s)
             .ok_or_else(|| {
                 format!(
-                    "unknown experiment `{s}`: use 1-5 or dcd, freefall, rotating, rebuild, scaling"
+                    "unknown experiment `{s}`: use 1-6 or dcd, freefall, rotating, rebuild, \
+                     scaling, targets"
                 )
             })
     }
@@ -214,6 +221,9 @@ pub struct Plan {
     pub max_spheres: usize,
     /// Timed DEM steps per repeat.
     pub steps: u32,
+    /// Untimed steps that let the slab of experiment 6 land before it is timed (run once, on
+    /// the first backend with a DEM step; every backend then starts from that state).
+    pub settle: u32,
     /// Timed repeats per measurement (at least 1).
     pub repeats: usize,
     /// Untimed runs before the timed ones.
@@ -266,6 +276,7 @@ impl Plan {
                 Experiment::Freefall | Experiment::Rotating => 1,
                 Experiment::Rebuild => REBUILD_INTERVALS.len() + 1,
                 Experiment::Scaling => self.scaling_sizes().len(),
+                Experiment::Targets => 3,
             })
             .sum();
         (per_backend * self.backends.len()) as u64
@@ -302,6 +313,7 @@ mod tests {
             spheres: 10,
             max_spheres: 250_000,
             steps: 1,
+            settle: 0,
             repeats: 1,
             warmup: 0,
             structure: Structure::Auto,

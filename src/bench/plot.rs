@@ -33,7 +33,9 @@ pub fn draw(report: &Report) -> Result<Vec<(String, String)>> {
         let title = format!("{}. {}", experiment.number(), experiment.title());
         let svg = match experiment {
             Experiment::Dcd if !report.detect.is_empty() => svg(&name, |a| dcd(a, &title, report)),
-            Experiment::Freefall | Experiment::Rotating if !rows.is_empty() => {
+            Experiment::Freefall | Experiment::Rotating | Experiment::Targets
+                if !rows.is_empty() =>
+            {
                 svg(&name, |a| phases(a, &title, &rows))
             }
             Experiment::Rebuild if !rows.is_empty() => svg(&name, |a| rebuild(a, &title, &rows)),
@@ -159,7 +161,7 @@ fn dcd(area: &Area, title: &str, report: &Report) -> Drawn {
     )
 }
 
-/// Experiments 2 and 3: one stacked bar of the phases per backend and mode.
+/// Experiments 2, 3 and 6: one stacked bar of the phases per backend (and scene, structure).
 fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
     let groups: Vec<(String, Vec<Bar>)> = rows
         .iter()
@@ -176,7 +178,12 @@ fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
                 ],
                 label,
             };
-            (format!("{} (n={})", r.backend, r.n), vec![bar])
+            let name = if r.experiment == Experiment::Targets {
+                format!("{} {} {}", r.backend, r.scene, r.structure)
+            } else {
+                format!("{} (n={})", r.backend, r.n)
+            };
+            (name, vec![bar])
         })
         .collect();
     bars(

@@ -3,6 +3,7 @@
 
 use super::plan::{BackendStatus, Experiment};
 use super::stats::Spread;
+use super::targets::Check;
 use crate::dem::Clock;
 use serde::{Deserialize, Serialize};
 
@@ -28,10 +29,12 @@ pub struct Report {
     pub backends: Vec<BackendStatus>,
     /// Detection rows (experiment 1).
     pub detect: Vec<DetectRow>,
-    /// DEM rows (experiments 2–5).
+    /// DEM rows (experiments 2–6).
     pub dem: Vec<DemRow>,
     /// Measurements a backend could not make, and why.
     pub skipped: Vec<Skipped>,
+    /// Issue 7's targets, checked against the rows.
+    pub targets: Vec<Check>,
 }
 
 /// The host that ran the benchmark.
@@ -78,6 +81,8 @@ pub struct Settings {
     pub max_spheres: usize,
     /// Timed DEM steps per repeat.
     pub steps: u32,
+    /// Untimed steps the slab of experiment 6 settled for before it was timed.
+    pub settle: u32,
     /// Timed repeats per measurement.
     pub repeats: usize,
     /// Untimed warm-up runs before them.
@@ -135,13 +140,13 @@ pub struct DetectRow {
 /// One DEM measurement: the same stepper advanced `steps` steps per repeat.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DemRow {
-    /// Experiment 2–5.
+    /// Experiment 2–6.
     pub experiment: Experiment,
     /// Backend name.
     pub backend: String,
     /// Its device, in words.
     pub device: String,
-    /// Scene name (`freefall`, `rotating`).
+    /// Scene name (`freefall`, `rotating`, `slab`, `polylog`).
     pub scene: String,
     /// Spheres.
     pub n: usize,

@@ -25,8 +25,9 @@ pub struct BenchArgs {
     /// no software adapters, no OptiX without RT cores), or a list such as cpu,wgpu-compute.
     #[arg(long, default_value = "all")]
     pub backends: BackendSelection,
-    /// Experiments, by number or name: 1 dcd, 2 freefall, 3 rotating, 4 rebuild, 5 scaling.
-    #[arg(long, value_delimiter = ',', value_parser = Experiment::parse, default_value = "1,2,3,4,5")]
+    /// Experiments, by number or name: 1 dcd, 2 freefall, 3 rotating, 4 rebuild, 5 scaling,
+    /// 6 targets (landed slab, polylog grid vs mlgrid).
+    #[arg(long, value_delimiter = ',', value_parser = Experiment::parse, default_value = "1,2,3,4,5,6")]
     pub experiments: Vec<Experiment>,
     /// Timed runs per measurement (their median and spread are reported).
     #[arg(long, default_value_t = 5)]
@@ -37,6 +38,10 @@ pub struct BenchArgs {
     /// Timed DEM steps per run (default: the scale's).
     #[arg(long)]
     pub steps: Option<u32>,
+    /// Untimed steps that let the slab of experiment 6 land before it is timed (once, on the
+    /// first backend; every backend then starts from the landed state).
+    #[arg(long, default_value_t = 3000)]
+    pub settle: u32,
     /// Grid of the wgpu-compute backend: auto, grid or mlgrid.
     #[arg(long, value_enum, default_value_t)]
     pub structure: Structure,
@@ -63,6 +68,7 @@ pub fn bench(args: BenchArgs) -> Result<()> {
         spheres,
         max_spheres: args.max_spheres.unwrap_or(args.scale.spheres()),
         steps: args.steps.unwrap_or(args.scale.steps()),
+        settle: args.settle,
         repeats: args.repeats,
         warmup: args.warmup,
         structure: args.structure,
