@@ -20,7 +20,7 @@ const BIN: &str = env!("CARGO_BIN_EXE_mochi");
 /// Spheres of experiments 1–4: enough for poly120 to have a few pairs, few for the oracle.
 const N: usize = 10_000;
 const REPEATS: usize = 2;
-const STEPS: u32 = 4;
+const STEPS: u32 = 2;
 
 fn mochi(args: &[&str]) -> (Option<i32>, String, String) {
     let out = Command::new(BIN)
@@ -127,6 +127,7 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
                     .unwrap_or_else(|| panic!("no row for {what}"));
                 count += 1;
                 assert_eq!(row.scene, scene, "{what}");
+                assert_eq!(row.mode, "mochi", "{what}");
                 assert_eq!(row.steps, STEPS, "{what}");
                 // No backend here refits (only a future OptiX step will): one row each.
                 assert!(!row.refits, "{what}");
@@ -142,6 +143,46 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
                 }
             }
         }
+    }
+    // Experiment 6: the landed slab, polylog in mochi mode (grid and mlgrid side by side on
+    // wgpu-compute) and in nns mode.
+    for backend in backends {
+        let of = |scene: &str, mode: &str| -> Vec<&DemRow> {
+            rows.iter()
+                .filter(|r| {
+                    r.experiment == Experiment::Targets
+                        && r.backend == *backend
+                        && r.scene == scene
+                        && r.mode == mode
+                })
+                .collect()
+        };
+        assert_eq!(of("slab", "mochi").len(), 1, "{backend}");
+        assert_eq!(of("polylog", "nns").len(), 1, "{backend}");
+        let structures: Vec<&str> = of("polylog", "mochi")
+            .iter()
+            .map(|r| r.structure.as_str())
+            .collect();
+        if *backend == "wgpu-compute" {
+            assert_eq!(structures, ["grid", "mlgrid"]);
+        } else {
+            assert_eq!(structures.len(), 1, "{backend}");
+        }
+        count += 2 + structures.len();
+    }
+    for r in rows.iter().filter(|r| r.backend != "cpu") {
+        let cpu = rows
+            .iter()
+            .find(|c| {
+                c.backend == "cpu"
+                    && c.experiment == r.experiment
+                    && c.scene == r.scene
+                    && c.n == r.n
+                    && c.mode == r.mode
+            })
+            .expect("a cpu row for every row");
+        let want = cpu.total_ms.median / r.total_ms.median;
+        assert!((r.speedup_vs_cpu.unwrap() - want).abs() < 1e-9, "{r:?}");
     }
     assert_eq!(
         rows.len(),
@@ -183,6 +224,8 @@ fn bench_small_reports_every_experiment_as_markdown_json_and_svg() {
         "1",
         "--steps",
         &steps,
+        "--settle",
+        "10",
         "--quiet",
         "-o",
         out.to_str().unwrap(),
@@ -224,6 +267,16 @@ fn bench_small_reports_every_experiment_as_markdown_json_and_svg() {
     check_detect(&report.detect, &backends);
     check_dem(&report.dem, &backends);
     assert!(report.skipped.is_empty(), "{:?}", report.skipped);
+    assert_eq!(report.settings.settle, 10);
+    // Every target is reported; at this size only the 2-core cpu one could be judged.
+    assert_eq!(report.targets.len(), 6);
+    for t in &report.targets {
+        assert!(!t.measured.is_empty(), "{t:?}");
+        if !t.target.starts_with("cpu backend") {
+            assert_eq!(t.met, None, "{t:?}");
+        }
+    }
+    assert!(stdout.contains("## Targets (issue 7)"), "{stdout}");
 
     for e in Experiment::ALL {
         check_svg(&out.join(format!("{}.svg", e.name())), e.title());

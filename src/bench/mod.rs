@@ -28,6 +28,7 @@ use crate::backend::BackendKind;
 use crate::backend::wgpu_compute::Structure;
 use crate::dem::scene::Start;
 use crate::error::Result;
+use crate::proxy::ProxyMode;
 use plan::{BackendStatus, Experiment, Plan};
 use report::{Machine, Report, SCHEMA_VERSION, Settings, Skipped, utc_now};
 
@@ -102,7 +103,7 @@ pub fn run(
             _ => {
                 for (scene, start) in dem_starts(plan, experiment, progress)? {
                     for &kind in &plan.backends {
-                        for structure in structures(plan, experiment, scene, kind) {
+                        for structure in structures(plan, experiment, scene, &start, kind) {
                             let case = dem::Case {
                                 experiment,
                                 scene,
@@ -140,10 +141,13 @@ fn dem_starts(
                 progress(&format!("letting the slab land ({} steps)", plan.settle));
                 slab = dem::settle(plan, &slab)?;
             }
-            vec![
-                ("slab", slab),
-                ("polylog", dem::start("polylog", n, plan.seed)?),
-            ]
+            let polylog = dem::start("polylog", n, plan.seed)?;
+            // nns mode too: the DCD phase at radius ratio 120 in both modes.
+            let nns = Start {
+                mode: ProxyMode::Nns,
+                ..polylog.clone()
+            };
+            vec![("slab", slab), ("polylog", polylog), ("polylog", nns)]
         }
         Experiment::Scaling => plan
             .scaling_sizes()
@@ -155,15 +159,21 @@ fn dem_starts(
     })
 }
 
-/// The `wgpu-compute` structures to measure `scene` with: for `polylog` in experiment 6 the
-/// single and the multi-level grid side by side, else the plan's (other backends have one).
+/// The `wgpu-compute` structures to measure `scene` with: for `polylog` in `mochi` mode in
+/// experiment 6 the single and the multi-level grid side by side, else the plan's (other
+/// backends have one structure, and `nns` mode has only the single grid).
 fn structures(
     plan: &Plan,
     experiment: Experiment,
     scene: &str,
+    start: &Start,
     kind: BackendKind,
 ) -> Vec<Structure> {
-    if experiment == Experiment::Targets && scene == "polylog" && kind == BackendKind::WgpuCompute {
+    if experiment == Experiment::Targets
+        && scene == "polylog"
+        && start.mode == ProxyMode::Mochi
+        && kind == BackendKind::WgpuCompute
+    {
         vec![Structure::Grid, Structure::Mlgrid]
     } else {
         vec![plan.structure]

@@ -276,7 +276,8 @@ impl Plan {
                 Experiment::Freefall | Experiment::Rotating => 1,
                 Experiment::Rebuild => REBUILD_INTERVALS.len() + 1,
                 Experiment::Scaling => self.scaling_sizes().len(),
-                Experiment::Targets => 3,
+                // Settling, slab, polylog with two structures, polylog in nns mode.
+                Experiment::Targets => 5,
             })
             .sum();
         (per_backend * self.backends.len()) as u64

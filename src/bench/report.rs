@@ -172,7 +172,8 @@ pub struct DemRow {
     pub update_ms: Spread,
     /// The whole step \[ms\].
     pub total_ms: Spread,
-    /// The cpu backend's total median over this row's (same experiment, scene, n, policy).
+    /// The cpu backend's total median over this row's (same experiment, scene, n, mode;
+    /// the cpu step never refits, so its one row serves every rebuild policy).
     pub speedup_vs_cpu: Option<f64>,
 }
 
@@ -216,6 +217,7 @@ impl Report {
                         && o.experiment == row.experiment
                         && o.scene == row.scene
                         && o.n == row.n
+                        && o.mode == row.mode
                         && (o.rebuild == row.rebuild || !o.refits)
                 })
                 .filter(|_| row.backend != "cpu")
