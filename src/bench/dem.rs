@@ -9,6 +9,7 @@ use crate::backend::{BackendKind, Options, RebuildPolicy};
 use crate::dem::scene::{SceneConfig, Start};
 use crate::dem::{Clock, Stepper, open_stepper};
 use crate::error::{Error, Result};
+use std::time::Instant;
 
 /// The start of a DEM scene (`freefall` or `rotating`) of `n` spheres: the scene's lattice
 /// layout, its default time step and material.
@@ -70,12 +71,6 @@ pub fn run(
     case: &Case,
     progress: &mut dyn FnMut(&str),
 ) -> Vec<Outcome<DemRow>> {
-    let what = format!(
-        "{} {} n={}",
-        kind.name(),
-        case.scene,
-        case.start.particles.len()
-    );
     let open = |rebuild| {
         let options = Options {
             structure: case.structure,
@@ -84,8 +79,24 @@ pub fn run(
         let s = case.start;
         open_stepper(kind, s.particles.clone(), s.params, s.mode, &options)
     };
-    let first = RebuildPolicy::Every(REBUILD_INTERVALS[0]);
-    let stepper = match open(first) {
+    run_with(plan, kind, case, &open, progress)
+}
+
+/// [`run`] with the steppers from `open` (given the rebuild policy).
+fn run_with(
+    plan: &Plan,
+    kind: BackendKind,
+    case: &Case,
+    open: &dyn Fn(RebuildPolicy) -> Result<Box<dyn Stepper>>,
+    progress: &mut dyn FnMut(&str),
+) -> Vec<Outcome<DemRow>> {
+    let what = format!(
+        "{} {} n={}",
+        kind.name(),
+        case.scene,
+        case.start.particles.len()
+    );
+    let stepper = match open(RebuildPolicy::Auto) {
         Ok(s) => s,
         Err(e) => return vec![Outcome::Skipped(what, e.to_string())],
     };
@@ -141,8 +152,11 @@ fn measure(
         stepper.advance(plan.steps)?;
     }
     let mut runs = Vec::with_capacity(plan.repeats);
+    let mut walls = Vec::with_capacity(plan.repeats);
     for _ in 0..plan.repeats {
+        let t = Instant::now();
         runs.push(stepper.advance(plan.steps)?);
+        walls.push(t.elapsed().as_secs_f64() * 1e3 / plan.steps as f64);
     }
     let last = *runs.last().expect("a plan has at least one repeat");
     // Timestamps can be missing on a GPU without them: then nothing was measured.
@@ -179,6 +193,103 @@ fn measure(
         dcd_ms: per_step(&|t| t.dcd_ms),
         update_ms: per_step(&|t| t.update_ms),
         total_ms: per_step(&|t| t.total_ms()),
+        wall_ms: Spread::of(&walls).expect("a plan has at least one repeat"),
         speedup_vs_cpu: None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dem::{Advance, Particles, StageTimes};
+
+    /// A step that takes 1 ms per phase and refits or not.
+    struct Fake {
+        refits: bool,
+        particles: Particles,
+    }
+
+    impl Stepper for Fake {
+        fn describe(&self) -> String {
+            "cpu (fake)".into()
+        }
+
+        fn advance(&mut self, steps: u32) -> Result<Advance> {
+            let ms = steps as f64;
+            Ok(Advance {
+                steps,
+                contacts: 7,
+                times: StageTimes {
+                    build_ms: ms,
+                    dcd_ms: ms,
+                    update_ms: ms,
+                },
+                clock: crate::dem::Clock::Gpu,
+            })
+        }
+
+        fn particles(&mut self) -> Result<Particles> {
+            Ok(self.particles.clone())
+        }
+
+        fn refits(&self) -> bool {
+            self.refits
+        }
+    }
+
+    fn rows(refits: bool, experiment: Experiment) -> Vec<DemRow> {
+        let plan = Plan {
+            experiments: vec![experiment],
+            backends: vec![BackendKind::Cpu],
+            spheres: 100,
+            max_spheres: 1000,
+            steps: 4,
+            settle: 0,
+            repeats: 3,
+            warmup: 1,
+            structure: Structure::Auto,
+            seed: 1,
+        };
+        let start = start("freefall", 100, 1).unwrap();
+        let case = Case {
+            experiment,
+            scene: "freefall",
+            start: &start,
+            structure: Structure::Auto,
+        };
+        let open = |_| -> Result<Box<dyn Stepper>> {
+            Ok(Box::new(Fake {
+                refits,
+                particles: start.particles.clone(),
+            }))
+        };
+        run_with(&plan, BackendKind::Cpu, &case, &open, &mut |_| {})
+            .into_iter()
+            .map(|o| match o {
+                Outcome::Row(r) => r,
+                Outcome::Skipped(what, why) => panic!("{what}: {why}"),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn steps_that_refit_are_swept_over_rebuild_intervals() {
+        let swept = rows(true, Experiment::Rebuild);
+        let policies: Vec<&str> = swept.iter().map(|r| r.rebuild.as_str()).collect();
+        assert_eq!(policies, ["1", "5", "10", "25", "50", "100", "auto"]);
+        assert!(swept.iter().all(|r| r.refits && r.total_ms.median == 3.0));
+        assert_eq!(swept[0].build_ms.samples, 3);
+        assert_eq!(swept[0].device, "fake");
+    }
+
+    #[test]
+    fn steps_that_never_refit_get_one_row() {
+        let once = rows(false, Experiment::Rebuild);
+        assert_eq!(once.len(), 1);
+        assert_eq!(once[0].rebuild, "every step");
+        let refitting = rows(true, Experiment::Freefall);
+        assert_eq!(refitting.len(), 1);
+        assert_eq!(refitting[0].rebuild, "auto");
+        assert_eq!(refitting[0].contacts, 7);
+    }
 }

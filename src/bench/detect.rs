@@ -45,7 +45,10 @@ pub fn run(
     };
     let mut backend = match kind.open_with(&options) {
         Ok(b) => b,
-        Err(e) => return vec![Outcome::Skipped("open".into(), e.to_string())],
+        Err(e) => {
+            let what = format!("{} detection", kind.name());
+            return vec![Outcome::Skipped(what, e.to_string())];
+        }
     };
     let mut out = Vec::new();
     for (spec, spheres) in sets {

@@ -134,8 +134,8 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
     let _ = writeln!(
         out,
         "| backend | scene | n | mode | structure |{rebuild_head} contacts | build | DCD | update | \
-         total [ms/step] | clock | vs cpu |\n\
-         | --- | --- | --- | --- | --- |{rebuild_rule} --- | --- | --- | --- | --- | --- | --- |"
+         total [ms/step] | clock | wall [ms/step] | vs cpu |\n\
+         | --- | --- | --- | --- | --- |{rebuild_rule} --- | --- | --- | --- | --- | --- | --- | --- |"
     );
     for r in rows {
         let rebuild = if with_rebuild {
@@ -145,7 +145,7 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
         };
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} |{rebuild} {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} |{rebuild} {} | {} | {} | {} | {} | {} | {} | {} |",
             r.backend,
             r.scene,
             r.n,
@@ -157,6 +157,7 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
             spread(&r.update_ms),
             spread(&r.total_ms),
             clock(r.clock),
+            spread(&r.wall_ms),
             speedup(r.speedup_vs_cpu),
         );
     }

@@ -293,7 +293,8 @@ mod tests {
         assert_eq!(Experiment::parse("1"), Ok(Experiment::Dcd));
         assert_eq!(Experiment::parse("Rebuild"), Ok(Experiment::Rebuild));
         assert_eq!(Experiment::parse("5"), Ok(Experiment::Scaling));
-        assert!(Experiment::parse("6").unwrap_err().contains("unknown"));
+        assert_eq!(Experiment::parse("6"), Ok(Experiment::Targets));
+        assert!(Experiment::parse("7").unwrap_err().contains("unknown"));
     }
 
     #[test]

@@ -172,6 +172,9 @@ pub struct DemRow {
     pub update_ms: Spread,
     /// The whole step \[ms\].
     pub total_ms: Spread,
+    /// The whole step on the host's wall clock \[ms\], submissions and read-backs included
+    /// (the only time of a GPU without timestamps).
+    pub wall_ms: Spread,
     /// The cpu backend's total median over this row's (same experiment, scene, n, mode;
     /// the cpu step never refits, so its one row serves every rebuild policy).
     pub speedup_vs_cpu: Option<f64>,
