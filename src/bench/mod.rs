@@ -80,7 +80,7 @@ pub fn run(
         targets: Vec::new(),
     };
     for &experiment in &plan.experiments {
-        let mut skip = |backend: &str, (what, reason): (String, String)| {
+        let mut skip = |backend: &str, what: String, reason: String| {
             report.skipped.push(Skipped {
                 experiment,
                 backend: backend.to_owned(),
@@ -95,7 +95,7 @@ pub fn run(
                     for outcome in detect::run(plan, kind, &sets, progress) {
                         match outcome {
                             Outcome::Row(row) => report.detect.push(row),
-                            Outcome::Skipped(what, why) => skip(kind.name(), (what, why)),
+                            Outcome::Skipped(what, why) => skip(kind.name(), what, why),
                         }
                     }
                 }
@@ -113,7 +113,7 @@ pub fn run(
                             for outcome in dem::run(plan, kind, &case, progress) {
                                 match outcome {
                                     Outcome::Row(row) => report.dem.push(row),
-                                    Outcome::Skipped(what, why) => skip(kind.name(), (what, why)),
+                                    Outcome::Skipped(what, why) => skip(kind.name(), what, why),
                                 }
                             }
                         }

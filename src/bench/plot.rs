@@ -11,7 +11,12 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 type Drawn = std::result::Result<(), Box<dyn std::error::Error>>;
 
+/// Size of a plot \[px\]; bar charts widen to give each group [`GROUP_WIDTH`].
 const SIZE: (u32, u32) = (1000, 560);
+/// Width of one group of bars \[px\].
+const GROUP_WIDTH: u32 = 170;
+/// Height of a line of label text \[px\].
+const LINE: i32 = 15;
 const FONT: &str = "sans-serif";
 /// Colours of the phases (build, DCD/detect, update) and of the legend keys of bar charts.
 const KEYS: [RGBColor; 3] = [
@@ -32,14 +37,23 @@ pub fn draw(report: &Report) -> Result<Vec<(String, String)>> {
         let name = format!("{}.svg", experiment.name());
         let title = format!("{}. {}", experiment.number(), experiment.title());
         let svg = match experiment {
-            Experiment::Dcd if !report.detect.is_empty() => svg(&name, |a| dcd(a, &title, report)),
+            Experiment::Dcd if !report.detect.is_empty() => {
+                let width = bar_chart_width(report.detect.len() / 2);
+                svg(&name, width, |a| dcd(a, &title, report))
+            }
             Experiment::Freefall | Experiment::Rotating | Experiment::Targets
                 if !rows.is_empty() =>
             {
-                svg(&name, |a| phases(a, &title, &rows))
+                svg(&name, bar_chart_width(rows.len()), |a| {
+                    phases(a, &title, &rows)
+                })
             }
-            Experiment::Rebuild if !rows.is_empty() => svg(&name, |a| rebuild(a, &title, &rows)),
-            Experiment::Scaling if !rows.is_empty() => svg(&name, |a| scaling(a, &title, &rows)),
+            Experiment::Rebuild if !rows.is_empty() => {
+                svg(&name, SIZE.0, |a| rebuild(a, &title, &rows))
+            }
+            Experiment::Scaling if !rows.is_empty() => {
+                svg(&name, SIZE.0, |a| scaling(a, &title, &rows))
+            }
             _ => continue,
         }?;
         out.push((name, svg));
@@ -49,11 +63,16 @@ pub fn draw(report: &Report) -> Result<Vec<(String, String)>> {
 
 type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
 
-/// Runs `draw` on a blank SVG and returns its text.
-fn svg(name: &str, draw: impl FnOnce(&Area) -> Drawn) -> Result<String> {
+/// Width of a bar chart of `groups` groups \[px\].
+fn bar_chart_width(groups: usize) -> u32 {
+    SIZE.0.max(90 + GROUP_WIDTH * groups as u32)
+}
+
+/// Runs `draw` on a blank SVG `width` pixels wide and returns its text.
+fn svg(name: &str, width: u32, draw: impl FnOnce(&Area) -> Drawn) -> Result<String> {
     let mut text = String::new();
     {
-        let area = SVGBackend::with_string(&mut text, SIZE).into_drawing_area();
+        let area = SVGBackend::with_string(&mut text, (width, SIZE.1)).into_drawing_area();
         let drawn = area
             .fill(&WHITE)
             .map_err(Into::into)
@@ -67,24 +86,25 @@ fn svg(name: &str, draw: impl FnOnce(&Area) -> Drawn) -> Result<String> {
     Ok(text)
 }
 
-/// One bar: stacked segments (legend key, value) and a label above it.
+/// One bar: stacked segments (legend key, value) and a label above it (lines split at `\n`).
 struct Bar {
     segments: Vec<(usize, f64)>,
     label: String,
 }
 
-/// Bars in groups along x, each group named below the axis; `legend` names the keys.
+/// Bars in groups along x, each group named below the axis (lines split at `\n`); `legend`
+/// names the keys.
 fn bars(area: &Area, title: &str, legend: &[&str], groups: &[(String, Vec<Bar>)]) -> Drawn {
     let top = groups
         .iter()
         .flat_map(|(_, bars)| bars)
         .map(|b| b.segments.iter().map(|s| s.1).sum::<f64>())
         .fold(0.0, f64::max);
-    let top = if top > 0.0 { top * 1.2 } else { 1.0 };
+    let top = if top > 0.0 { top * 1.3 } else { 1.0 };
     let mut chart = ChartBuilder::on(area)
         .caption(title, (FONT, 20))
         .margin(15)
-        .x_label_area_size(45)
+        .x_label_area_size(50)
         .y_label_area_size(70)
         .build_cartesian_2d(0f64..groups.len() as f64, 0f64..top)?;
     chart
@@ -111,18 +131,24 @@ fn bars(area: &Area, title: &str, legend: &[&str], groups: &[(String, Vec<Bar>)]
                 chart.draw_series([Rectangle::new([(x0, y), (x1, y + value)], color.filled())])?;
                 y += value;
             }
-            chart.draw_series([Text::new(
-                bar.label.clone(),
-                ((x0 + x1) / 2.0, y),
-                TextStyle::from((FONT, 12)).pos(Pos::new(HPos::Center, VPos::Bottom)),
-            )])?;
+            let (px, py) = chart.backend_coord(&((x0 + x1) / 2.0, y));
+            // The last line sits on the bar, the ones before it above.
+            let lines: Vec<&str> = bar.label.lines().collect();
+            for (i, line) in lines.iter().enumerate() {
+                let up = (lines.len() - 1 - i) as i32 * LINE;
+                let style = TextStyle::from((FONT, 12)).pos(Pos::new(HPos::Center, VPos::Bottom));
+                area.draw(&Text::new(line.to_string(), (px, py - 2 - up), style))?;
+            }
         }
         let (px, py) = chart.backend_coord(&(g as f64 + 0.5, 0.0));
-        area.draw(&Text::new(
-            name.clone(),
-            (px, py + 8),
-            TextStyle::from((FONT, 13)).pos(Pos::new(HPos::Center, VPos::Top)),
-        ))?;
+        for (i, line) in name.lines().enumerate() {
+            let style = TextStyle::from((FONT, 13)).pos(Pos::new(HPos::Center, VPos::Top));
+            area.draw(&Text::new(
+                line.to_string(),
+                (px, py + 8 + i as i32 * LINE),
+                style,
+            ))?;
+        }
     }
     chart
         .configure_series_labels()
@@ -137,14 +163,14 @@ fn bars(area: &Area, title: &str, legend: &[&str], groups: &[(String, Vec<Bar>)]
 fn dcd(area: &Area, title: &str, report: &Report) -> Drawn {
     let mut groups: Vec<(String, Vec<Bar>)> = Vec::new();
     for row in &report.detect {
-        let name = format!("{} {}", row.backend, row.scene);
+        let name = format!("{}\n{}", row.backend, row.scene);
         if groups.last().is_none_or(|(g, _)| *g != name) {
             groups.push((name, Vec::new()));
         }
         let key = usize::from(row.mode != "mochi");
         let mut label = format!("{} ms", time(row.detect_ms.median));
         if let Some(s) = row.detect_speedup_vs_nns {
-            label.push_str(&format!(" ({})", speedup(Some(s))));
+            label = format!("{}\n{label}", speedup(Some(s)));
         }
         if let Some((_, bars)) = groups.last_mut() {
             bars.push(Bar {
@@ -168,7 +194,7 @@ fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
         .map(|r| {
             let mut label = format!("{} ms", time(r.total_ms.median));
             if let Some(s) = r.speedup_vs_cpu {
-                label.push_str(&format!(", {} vs cpu", speedup(Some(s))));
+                label = format!("{} vs cpu\n{label}", speedup(Some(s)));
             }
             let bar = Bar {
                 segments: vec![
@@ -179,9 +205,9 @@ fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
                 label,
             };
             let name = if r.experiment == Experiment::Targets {
-                format!("{} {} {}", r.backend, r.scene, r.structure)
+                format!("{}\n{} {} {}", r.backend, r.scene, r.mode, r.structure)
             } else {
-                format!("{} (n={})", r.backend, r.n)
+                format!("{}\nn={}", r.backend, r.n)
             };
             (name, vec![bar])
         })
