@@ -104,7 +104,7 @@ pub enum Scale {
 }
 
 impl Scale {
-    /// Spheres of experiments 1–4.
+    /// Spheres of every experiment but scaling.
     pub fn spheres(self) -> usize {
         match self {
             Scale::Small => 10_000,
@@ -215,7 +215,7 @@ pub struct Plan {
     pub experiments: Vec<Experiment>,
     /// Backends to run them on.
     pub backends: Vec<BackendKind>,
-    /// Spheres of experiments 1–4.
+    /// Spheres of every experiment but scaling.
     pub spheres: usize,
     /// Largest sphere count of the scaling experiment (from 1,000 up, ×10).
     pub max_spheres: usize,

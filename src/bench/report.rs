@@ -75,7 +75,7 @@ impl Machine {
 pub struct Settings {
     /// Experiments run.
     pub experiments: Vec<Experiment>,
-    /// Spheres of experiments 1–4.
+    /// Spheres of every experiment but scaling.
     pub spheres: usize,
     /// Largest sphere count of the scaling experiment.
     pub max_spheres: usize,

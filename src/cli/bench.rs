@@ -15,7 +15,7 @@ pub struct BenchArgs {
     /// paper (1M, 1k-1M, 200 steps).
     #[arg(long, value_enum, default_value_t)]
     pub scale: Scale,
-    /// Spheres of experiments 1-4 (default: the scale's).
+    /// Spheres of every experiment but scaling (default: the scale's).
     #[arg(short = 'n', long, value_name = "N")]
     pub spheres: Option<usize>,
     /// Largest sphere count of the scaling experiment (default: the scale's).
