@@ -1,5 +1,7 @@
 //! The cpu backend's build (binning), update and detection, on the reference workloads:
-//! 100k `poly120` spheres and 1M `freefall` spheres, both modes.
+//! 100k `poly120` spheres and 1M `freefall` spheres, both modes. `update` is the refit path of
+//! [`Backend::update`] after every sphere moved a little, as in one DEM step (the cpu backend
+//! re-bins; a BVH backend would refit).
 //!
 //! Run: `cargo bench --bench cpu` (add `-- poly120` to pick a group).
 
@@ -41,8 +43,20 @@ fn workloads() -> Vec<(&'static str, SphereSet)> {
     ]
 }
 
+/// `spheres` with every centre moved by `dx` along x, as after a small time step.
+fn moved(spheres: &SphereSet, dx: f32) -> SphereSet {
+    let centers = spheres
+        .centers()
+        .iter()
+        .map(|c| [c[0] + dx, c[1], c[2]])
+        .collect();
+    SphereSet::new(centers, spheres.radii().to_vec()).expect("moved spheres stay valid")
+}
+
 fn bench(c: &mut Criterion) {
     for (name, spheres) in workloads() {
+        // Two states a tenth of the smallest radius apart: each update sees moved spheres.
+        let states = [moved(&spheres, 5e-5), spheres.clone()];
         let mut group = c.benchmark_group(format!("cpu/{name}"));
         group
             .sample_size(20)
@@ -58,6 +72,13 @@ fn bench(c: &mut Criterion) {
             });
             group.bench_function(format!("{}/build", mode.name()), |b| {
                 b.iter(|| cpu.build(&spheres, mode).unwrap())
+            });
+            let mut next = 0;
+            group.bench_function(format!("{}/update", mode.name()), |b| {
+                b.iter(|| {
+                    next = 1 - next;
+                    cpu.update(&states[next]).unwrap()
+                })
             });
             group.bench_function(format!("{}/find_pairs", mode.name()), |b| {
                 b.iter_batched(

@@ -56,6 +56,14 @@ pub enum Error {
     /// A call was made in the wrong order or with mismatched arguments.
     #[error("{0}")]
     Usage(String),
+    /// A benchmark plot could not be drawn.
+    #[error("plot {name}: {msg}")]
+    Plot {
+        /// The plot.
+        name: String,
+        /// What went wrong.
+        msg: String,
+    },
 }
 
 /// Shorthand for results in this crate.

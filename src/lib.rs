@@ -18,6 +18,7 @@
 //! - [`dem`]: the discrete-element simulation: the contact model, one [`dem::Stepper`] per
 //!   backend (GPU-resident on the GPU backends), scene files.
 //! - [`mesh`]: triangle meshes (OBJ, PLY, STL) filled with spheres, for the `mesh` scene.
+//! - [`bench`](mod@bench): the paper's experiments on every backend (`mochi bench`): tables, JSON, plots.
 //!
 //! ```
 //! use mochi::{SphereSet, ProxyMode, backend::BackendKind};
@@ -31,6 +32,7 @@
 #![deny(unsafe_code)]
 
 pub mod backend;
+pub mod bench;
 pub mod dem;
 mod error;
 pub mod gpu;

@@ -26,6 +26,9 @@ pub enum Command {
     Generate(GenerateArgs),
     /// List the backends and whether each can run on this machine.
     Backends,
+    /// Run the paper's experiments on every backend: a Markdown table on stdout, JSON and SVG
+    /// plots in --out.
+    Bench(super::bench::BenchArgs),
 }
 
 #[derive(Debug, Args)]

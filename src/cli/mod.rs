@@ -1,6 +1,8 @@
-//! Command-line interface: argument definitions in [`args`], the commands in [`run`].
+//! Command-line interface: argument definitions in [`args`], the commands in [`run`] (and
+//! [`simulate`], [`bench`](mod@bench)).
 
 mod args;
+mod bench;
 mod run;
 mod simulate;
 

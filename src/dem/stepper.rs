@@ -32,7 +32,8 @@ impl StageTimes {
 }
 
 /// How the stage times were taken.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Clock {
     /// GPU timestamps: time on the device itself.
     Gpu,
@@ -66,8 +67,8 @@ pub trait Stepper {
     /// The particles now, in input order (a read-back on GPU backends).
     fn particles(&mut self) -> Result<Particles>;
 
-    /// Whether this step refits its acceleration structure between rebuilds, so that
-    /// [`Options::rebuild`] applies (else it rebuilds or re-bins every step).
+    /// Whether this step refits its acceleration structure between rebuilds, and so obeys
+    /// [`Options::rebuild`] (default: no; grids re-bin and `wgpu-rq` rebuilds every step).
     fn refits(&self) -> bool {
         false
     }

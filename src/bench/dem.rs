@@ -1,0 +1,295 @@
+//! Experiments 2–5: the DEM step, timed per phase.
+
+use super::plan::{Experiment, Plan, REBUILD_INTERVALS};
+use super::report::DemRow;
+use super::stats::Spread;
+use super::{Outcome, value_name};
+use crate::backend::wgpu_compute::Structure;
+use crate::backend::{BackendKind, Options, RebuildPolicy};
+use crate::dem::scene::{SceneConfig, Start};
+use crate::dem::{Clock, Stepper, open_stepper};
+use crate::error::{Error, Result};
+use std::time::Instant;
+
+/// The start of a DEM scene (`freefall` or `rotating`) of `n` spheres: the scene's lattice
+/// layout, its default time step and material.
+pub fn start(scene: &str, n: usize, seed: u64) -> Result<Start> {
+    SceneConfig {
+        scene: scene.to_owned(),
+        spheres: n,
+        seed,
+        frame_every: 0,
+        ..SceneConfig::default()
+    }
+    .build()
+}
+
+/// One DEM measurement to make.
+pub struct Case<'a> {
+    /// The experiment it belongs to.
+    pub experiment: Experiment,
+    /// Scene name.
+    pub scene: &'a str,
+    /// Its start.
+    pub start: &'a Start,
+    /// Grid structure of `wgpu-compute`.
+    pub structure: Structure,
+}
+
+/// `start` after `plan.settle` untimed steps on the first of the plan's backends whose DEM
+/// step opens (the others' reasons in the error when none does).
+pub fn settle(plan: &Plan, start: &Start) -> Result<Start> {
+    let mut why = Vec::new();
+    for &kind in &plan.backends {
+        let options = Options {
+            structure: plan.structure,
+            ..Options::default()
+        };
+        let s = start.clone();
+        match open_stepper(kind, s.particles, s.params, s.mode, &options) {
+            Ok(mut stepper) => {
+                stepper.advance(plan.settle)?;
+                return Ok(Start {
+                    particles: stepper.particles()?,
+                    ..start.clone()
+                });
+            }
+            Err(e) => why.push(format!("{}: {e}", kind.name())),
+        }
+    }
+    Err(Error::Usage(format!(
+        "no backend could settle the scene: {}",
+        why.join("; ")
+    )))
+}
+
+/// Runs `case` on backend `kind`: one row, or for experiment 4 on a step that refits, one row
+/// per rebuild interval and one for `auto`.
+pub fn run(
+    plan: &Plan,
+    kind: BackendKind,
+    case: &Case,
+    progress: &mut dyn FnMut(&str),
+) -> Vec<Outcome<DemRow>> {
+    let open = |rebuild| {
+        let options = Options {
+            structure: case.structure,
+            rebuild,
+        };
+        let s = case.start;
+        open_stepper(kind, s.particles.clone(), s.params, s.mode, &options)
+    };
+    run_with(plan, kind, case, &open, progress)
+}
+
+/// [`run`] with the steppers from `open` (given the rebuild policy).
+fn run_with(
+    plan: &Plan,
+    kind: BackendKind,
+    case: &Case,
+    open: &dyn Fn(RebuildPolicy) -> Result<Box<dyn Stepper>>,
+    progress: &mut dyn FnMut(&str),
+) -> Vec<Outcome<DemRow>> {
+    let what = format!(
+        "{} {} n={}",
+        kind.name(),
+        case.scene,
+        case.start.particles.len()
+    );
+    let stepper = match open(RebuildPolicy::Auto) {
+        Ok(s) => s,
+        Err(e) => return vec![Outcome::Skipped(what, e.to_string())],
+    };
+    if case.experiment != Experiment::Rebuild || !stepper.refits() {
+        progress(&what);
+        let policy = if stepper.refits() {
+            RebuildPolicy::Auto.to_string()
+        } else {
+            "every step".to_owned()
+        };
+        return vec![measure_or_skip(plan, kind, case, stepper, &policy, &what)];
+    }
+    drop(stepper);
+    let policies = REBUILD_INTERVALS
+        .into_iter()
+        .map(RebuildPolicy::Every)
+        .chain([RebuildPolicy::Auto]);
+    policies
+        .map(|policy| {
+            let what = format!("{what} rebuild {policy}");
+            progress(&what);
+            match open(policy) {
+                Ok(s) => measure_or_skip(plan, kind, case, s, &policy.to_string(), &what),
+                Err(e) => Outcome::Skipped(what, e.to_string()),
+            }
+        })
+        .collect()
+}
+
+fn measure_or_skip(
+    plan: &Plan,
+    kind: BackendKind,
+    case: &Case,
+    stepper: Box<dyn Stepper>,
+    policy: &str,
+    what: &str,
+) -> Outcome<DemRow> {
+    match measure(plan, kind, case, stepper, policy) {
+        Ok(row) => Outcome::Row(row),
+        Err(e) => Outcome::Skipped(what.to_owned(), e.to_string()),
+    }
+}
+
+/// Warm-up advances, then `repeats` timed advances of `steps` steps each, continuing one run.
+fn measure(
+    plan: &Plan,
+    kind: BackendKind,
+    case: &Case,
+    mut stepper: Box<dyn Stepper>,
+    policy: &str,
+) -> Result<DemRow> {
+    for _ in 0..plan.warmup {
+        stepper.advance(plan.steps)?;
+    }
+    let mut runs = Vec::with_capacity(plan.repeats);
+    let mut walls = Vec::with_capacity(plan.repeats);
+    for _ in 0..plan.repeats {
+        let t = Instant::now();
+        runs.push(stepper.advance(plan.steps)?);
+        walls.push(t.elapsed().as_secs_f64() * 1e3 / plan.steps as f64);
+    }
+    let last = *runs.last().expect("a plan has at least one repeat");
+    // Timestamps can be missing on a GPU without them: then nothing was measured.
+    let clock = if runs.iter().all(|r| r.clock == last.clock) {
+        last.clock
+    } else {
+        Clock::None
+    };
+    let per_step = |f: &dyn Fn(&crate::dem::StageTimes) -> f64| {
+        let values: Vec<f64> = runs.iter().map(|r| f(&r.times) / r.steps as f64).collect();
+        Spread::of(&values).expect("a plan has at least one repeat")
+    };
+    // `describe` is "name (device)".
+    let described = stepper.describe();
+    let device = described
+        .strip_prefix(kind.name())
+        .map(|d| d.trim().trim_start_matches('(').trim_end_matches(')'))
+        .unwrap_or(&described)
+        .to_owned();
+    Ok(DemRow {
+        experiment: case.experiment,
+        backend: kind.name().to_owned(),
+        device,
+        scene: case.scene.to_owned(),
+        n: case.start.particles.len(),
+        mode: case.start.mode.name().to_owned(),
+        structure: value_name(case.structure),
+        rebuild: policy.to_owned(),
+        refits: stepper.refits(),
+        steps: plan.steps,
+        contacts: last.contacts,
+        clock,
+        build_ms: per_step(&|t| t.build_ms),
+        dcd_ms: per_step(&|t| t.dcd_ms),
+        update_ms: per_step(&|t| t.update_ms),
+        total_ms: per_step(&|t| t.total_ms()),
+        wall_ms: Spread::of(&walls).expect("a plan has at least one repeat"),
+        speedup_vs_cpu: None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dem::{Advance, Particles, StageTimes};
+
+    /// A step that takes 1 ms per phase and refits or not.
+    struct Fake {
+        refits: bool,
+        particles: Particles,
+    }
+
+    impl Stepper for Fake {
+        fn describe(&self) -> String {
+            "cpu (fake)".into()
+        }
+
+        fn advance(&mut self, steps: u32) -> Result<Advance> {
+            let ms = steps as f64;
+            Ok(Advance {
+                steps,
+                contacts: 7,
+                times: StageTimes {
+                    build_ms: ms,
+                    dcd_ms: ms,
+                    update_ms: ms,
+                },
+                clock: crate::dem::Clock::Gpu,
+            })
+        }
+
+        fn particles(&mut self) -> Result<Particles> {
+            Ok(self.particles.clone())
+        }
+
+        fn refits(&self) -> bool {
+            self.refits
+        }
+    }
+
+    fn rows(refits: bool, experiment: Experiment) -> Vec<DemRow> {
+        let plan = Plan {
+            experiments: vec![experiment],
+            backends: vec![BackendKind::Cpu],
+            spheres: 100,
+            max_spheres: 1000,
+            steps: 4,
+            settle: 0,
+            repeats: 3,
+            warmup: 1,
+            structure: Structure::Auto,
+            seed: 1,
+        };
+        let start = start("freefall", 100, 1).unwrap();
+        let case = Case {
+            experiment,
+            scene: "freefall",
+            start: &start,
+            structure: Structure::Auto,
+        };
+        let open = |_| -> Result<Box<dyn Stepper>> {
+            Ok(Box::new(Fake {
+                refits,
+                particles: start.particles.clone(),
+            }))
+        };
+        run_with(&plan, BackendKind::Cpu, &case, &open, &mut |_| {})
+            .into_iter()
+            .map(|o| match o {
+                Outcome::Row(r) => r,
+                Outcome::Skipped(what, why) => panic!("{what}: {why}"),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn steps_that_refit_are_swept_over_rebuild_intervals() {
+        let swept = rows(true, Experiment::Rebuild);
+        let policies: Vec<&str> = swept.iter().map(|r| r.rebuild.as_str()).collect();
+        assert_eq!(policies, ["1", "5", "10", "25", "50", "100", "auto"]);
+        assert!(swept.iter().all(|r| r.refits && r.total_ms.median == 3.0));
+        assert_eq!(swept[0].build_ms.samples, 3);
+        assert_eq!(swept[0].device, "fake");
+    }
+
+    #[test]
+    fn steps_that_never_refit_get_one_row() {
+        let once = rows(false, Experiment::Rebuild);
+        assert_eq!(once.len(), 1);
+        assert_eq!(once[0].rebuild, "every step");
+        let refitting = rows(true, Experiment::Freefall);
+        assert_eq!(refitting.len(), 1);
+        assert_eq!(refitting[0].rebuild, "auto");
+        assert_eq!(refitting[0].contacts, 7);
+    }
+}

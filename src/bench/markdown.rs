@@ -1,0 +1,199 @@
+//! The report as Markdown: a header (date, command, machine, backends) and one table per
+//! experiment.
+
+use super::plan::Experiment;
+use super::report::{DemRow, DetectRow, Report};
+use super::stats::Spread;
+use crate::dem::Clock;
+use std::fmt::Write;
+
+/// The whole report as Markdown.
+pub fn render(report: &Report) -> String {
+    let mut out = String::new();
+    header(&mut out, report);
+    for &experiment in &report.settings.experiments {
+        let _ = writeln!(
+            out,
+            "\n## {}. {}\n",
+            experiment.number(),
+            experiment.title()
+        );
+        if experiment == Experiment::Dcd {
+            detect_table(&mut out, &report.detect);
+        } else {
+            let rows: Vec<&DemRow> = report
+                .dem
+                .iter()
+                .filter(|r| r.experiment == experiment)
+                .collect();
+            dem_table(&mut out, &rows, experiment == Experiment::Rebuild);
+        }
+    }
+    if !report.targets.is_empty() {
+        out.push_str(
+            "\n## Targets (issue 7)\n\n| target | measured | met |\n| --- | --- | --- |\n",
+        );
+        for t in &report.targets {
+            let met = match t.met {
+                Some(true) => "yes",
+                Some(false) => "**no**",
+                None => "–",
+            };
+            let _ = writeln!(out, "| {} | {} | {met} |", t.target, t.measured);
+        }
+    }
+    if !report.skipped.is_empty() {
+        out.push_str("\n## Not measured\n\n| experiment | backend | what | why |\n| --- | --- | --- | --- |\n");
+        for s in &report.skipped {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {} |",
+                s.experiment.number(),
+                s.backend,
+                s.what,
+                s.reason.replace('|', "/")
+            );
+        }
+    }
+    out
+}
+
+fn header(out: &mut String, r: &Report) {
+    let s = &r.settings;
+    let m = &r.machine;
+    let _ = writeln!(out, "# mochi bench\n");
+    let _ = writeln!(out, "- date: {} (mochi {})", r.date, r.mochi_version);
+    let _ = writeln!(out, "- command: `{}`", r.command);
+    let _ = writeln!(
+        out,
+        "- machine: {} {}, {}, {} threads",
+        m.os,
+        m.arch,
+        m.cpu.as_deref().unwrap_or("unknown CPU"),
+        m.threads
+    );
+    for b in &r.backends {
+        match (&b.device, &b.left_out) {
+            (_, Some(why)) => {
+                let _ = writeln!(out, "- {}: left out ({why})", b.name);
+            }
+            (Some(device), None) => {
+                let _ = writeln!(out, "- {}: {device}", b.name);
+            }
+            (None, None) => {
+                let _ = writeln!(out, "- {}", b.name);
+            }
+        }
+    }
+    let _ = writeln!(
+        out,
+        "\nTimes: median (min–max) of {} timed runs after {} warm-up runs, in ms; the clock column \
+         says whether they are GPU timestamps or wall clock. DEM rows: per step, {} steps per run.",
+        s.repeats, s.warmup, s.steps
+    );
+}
+
+fn detect_table(out: &mut String, rows: &[DetectRow]) {
+    if rows.is_empty() {
+        out.push_str("No rows (see \"Not measured\").\n");
+        return;
+    }
+    out.push_str(
+        "| backend | scene | n | mode | structure | candidates/sphere | pairs | build | detect | \
+         build + detect | clock | mochi vs nns (detect) | vs cpu |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {:.2} | {} | {} | {} | {} | {} | {} | {} |",
+            r.backend,
+            r.scene,
+            r.n,
+            r.mode,
+            r.structure,
+            r.candidates_per_sphere,
+            r.pairs,
+            spread(&r.build_ms),
+            spread(&r.detect_ms),
+            spread(&r.total_ms),
+            clock(r.clock),
+            speedup(r.detect_speedup_vs_nns),
+            speedup(r.speedup_vs_cpu),
+        );
+    }
+}
+
+fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
+    if rows.is_empty() {
+        out.push_str("No rows (see \"Not measured\").\n");
+        return;
+    }
+    let rebuild_head = if with_rebuild { " rebuild |" } else { "" };
+    let rebuild_rule = if with_rebuild { " --- |" } else { "" };
+    let _ = writeln!(
+        out,
+        "| backend | scene | n | mode | structure |{rebuild_head} contacts | build | DCD | update | \
+         total [ms/step] | clock | wall [ms/step] | vs cpu |\n\
+         | --- | --- | --- | --- | --- |{rebuild_rule} --- | --- | --- | --- | --- | --- | --- | --- |"
+    );
+    for r in rows {
+        let rebuild = if with_rebuild {
+            format!(" {} |", r.rebuild)
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} |{rebuild} {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.backend,
+            r.scene,
+            r.n,
+            r.mode,
+            r.structure,
+            r.contacts,
+            spread(&r.build_ms),
+            spread(&r.dcd_ms),
+            spread(&r.update_ms),
+            spread(&r.total_ms),
+            clock(r.clock),
+            spread(&r.wall_ms),
+            speedup(r.speedup_vs_cpu),
+        );
+    }
+}
+
+/// A time with about three significant digits.
+pub fn time(ms: f64) -> String {
+    let places = decimals(ms);
+    format!("{ms:.places$}")
+}
+
+/// Decimal places that give `ms` about three significant digits.
+fn decimals(ms: f64) -> usize {
+    match ms.abs() {
+        t if t >= 100.0 => 0,
+        t if t >= 10.0 => 1,
+        t if t >= 1.0 => 2,
+        _ => 3,
+    }
+}
+
+/// Median (min–max), all three to the median's decimal places.
+fn spread(s: &Spread) -> String {
+    let p = decimals(s.median);
+    format!("{:.p$} ({:.p$}–{:.p$})", s.median, s.min, s.max)
+}
+
+fn clock(c: Clock) -> &'static str {
+    match c {
+        Clock::Gpu => "GPU",
+        Clock::Wall => "wall",
+        Clock::None => "none",
+    }
+}
+
+/// A speed-up as `3.2×`, or `–`.
+pub fn speedup(s: Option<f64>) -> String {
+    s.map_or_else(|| "–".to_owned(), |x| format!("{x:.2}×"))
+}

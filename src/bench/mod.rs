@@ -1,0 +1,181 @@
+//! `mochi bench`: the paper's experiments (method.md) on every backend, measured the same way
+//! every time.
+//!
+//! 1. detection only, `mochi` vs `nns` mode at radius ratios 1.2, 12 and 120 ([`detect`]);
+//! 2. the DEM step on dataset 1 falling freely, build / DCD / update per step;
+//! 3. the same under rotating gravity;
+//! 4. the DEM step against the rebuild interval of steps that refit (others are reported once,
+//!    "every step");
+//! 5. the DEM step from 1,000 spheres up, ×10 each time;
+//! 6. the DEM steps issue 7 sets targets for: the landed `slab`, and `polylog` with the single
+//!    and the multi-level grid side by side ([`dem`] runs 2–6; [`targets`] checks them).
+//!
+//! Every measurement runs `warmup` untimed times, then `repeats` timed times, and reports the
+//! median and spread ([`stats::Spread`]) on GPU timestamps where the backend has them, else on
+//! the wall clock, and says which ([`crate::dem::Clock`]). A [`report::Report`] holds the rows;
+//! [`markdown`] prints it and [`plot`] draws it as SVG.
+
+pub mod dem;
+pub mod detect;
+pub mod markdown;
+pub mod plan;
+pub mod plot;
+pub mod report;
+pub mod stats;
+pub mod targets;
+
+use crate::backend::BackendKind;
+use crate::backend::wgpu_compute::Structure;
+use crate::dem::scene::Start;
+use crate::error::Result;
+use crate::proxy::ProxyMode;
+use plan::{BackendStatus, Experiment, Plan};
+use report::{Machine, Report, SCHEMA_VERSION, Settings, Skipped, utc_now};
+
+/// A measurement made, or why it could not be.
+pub enum Outcome<T> {
+    /// The row.
+    Row(T),
+    /// What was to be measured, and why it was not.
+    Skipped(String, String),
+}
+
+/// The command-line name of a value (`poly1.2`, `random`, `mlgrid`).
+pub fn value_name<T: clap::ValueEnum>(value: T) -> String {
+    value
+        .to_possible_value()
+        .map_or_else(String::new, |v| v.get_name().to_owned())
+}
+
+/// Runs `plan`, calling `progress` before each measurement; `backends` (from
+/// [`plan::BackendSelection::resolve`]) and `command` go into the report as they are.
+pub fn run(
+    plan: &Plan,
+    backends: Vec<BackendStatus>,
+    command: String,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Report> {
+    plan.validate()?;
+    let mut report = Report {
+        schema_version: SCHEMA_VERSION,
+        mochi_version: env!("CARGO_PKG_VERSION").to_owned(),
+        date: utc_now(),
+        command,
+        machine: Machine::here(),
+        settings: Settings {
+            experiments: plan.experiments.clone(),
+            spheres: plan.spheres,
+            max_spheres: plan.max_spheres,
+            steps: plan.steps,
+            settle: plan.settle,
+            repeats: plan.repeats,
+            warmup: plan.warmup,
+            structure: value_name(plan.structure),
+            seed: plan.seed,
+        },
+        backends,
+        detect: Vec::new(),
+        dem: Vec::new(),
+        skipped: Vec::new(),
+        targets: Vec::new(),
+    };
+    for &experiment in &plan.experiments {
+        let mut skip = |backend: &str, what: String, reason: String| {
+            report.skipped.push(Skipped {
+                experiment,
+                backend: backend.to_owned(),
+                what,
+                reason,
+            })
+        };
+        match experiment {
+            Experiment::Dcd => {
+                let sets = detect::scenes(plan)?;
+                for &kind in &plan.backends {
+                    for outcome in detect::run(plan, kind, &sets, progress) {
+                        match outcome {
+                            Outcome::Row(row) => report.detect.push(row),
+                            Outcome::Skipped(what, why) => skip(kind.name(), what, why),
+                        }
+                    }
+                }
+            }
+            _ => {
+                for (scene, start) in dem_starts(plan, experiment, progress)? {
+                    for &kind in &plan.backends {
+                        for structure in structures(plan, experiment, scene, &start, kind) {
+                            let case = dem::Case {
+                                experiment,
+                                scene,
+                                start: &start,
+                                structure,
+                            };
+                            for outcome in dem::run(plan, kind, &case, progress) {
+                                match outcome {
+                                    Outcome::Row(row) => report.dem.push(row),
+                                    Outcome::Skipped(what, why) => skip(kind.name(), what, why),
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    report.fill_speedups();
+    report.targets = targets::check(&report);
+    Ok(report)
+}
+
+/// The scenes of DEM experiment `experiment`, by name, with their starts.
+fn dem_starts(
+    plan: &Plan,
+    experiment: Experiment,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<(&'static str, Start)>> {
+    let n = plan.spheres;
+    Ok(match experiment {
+        Experiment::Targets => {
+            let mut slab = dem::start("slab", n, plan.seed)?;
+            if plan.settle > 0 {
+                progress(&format!("letting the slab land ({} steps)", plan.settle));
+                slab = dem::settle(plan, &slab)?;
+            }
+            let polylog = dem::start("polylog", n, plan.seed)?;
+            // nns mode too: the DCD phase at radius ratio 120 in both modes.
+            let nns = Start {
+                mode: ProxyMode::Nns,
+                ..polylog.clone()
+            };
+            vec![("slab", slab), ("polylog", polylog), ("polylog", nns)]
+        }
+        Experiment::Scaling => plan
+            .scaling_sizes()
+            .into_iter()
+            .map(|n| Ok(("freefall", dem::start("freefall", n, plan.seed)?)))
+            .collect::<Result<_>>()?,
+        Experiment::Rotating => vec![("rotating", dem::start("rotating", n, plan.seed)?)],
+        _ => vec![("freefall", dem::start("freefall", n, plan.seed)?)],
+    })
+}
+
+/// The `wgpu-compute` structures to measure `scene` with: for `polylog` in `mochi` mode in
+/// experiment 6 the single and the multi-level grid side by side, else the plan's (other
+/// backends have one structure, and `nns` mode has only the single grid).
+fn structures(
+    plan: &Plan,
+    experiment: Experiment,
+    scene: &str,
+    start: &Start,
+    kind: BackendKind,
+) -> Vec<Structure> {
+    if experiment == Experiment::Targets
+        && scene == "polylog"
+        && start.mode == ProxyMode::Mochi
+        && kind == BackendKind::WgpuCompute
+    {
+        vec![Structure::Grid, Structure::Mlgrid]
+    } else {
+        vec![plan.structure]
+    }
+}

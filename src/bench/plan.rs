@@ -1,0 +1,327 @@
+//! What a benchmark run measures: the experiments, the scale, the backends and the repeats.
+
+use crate::backend::BackendKind;
+use crate::backend::wgpu_compute::Structure;
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// One of the paper's experiments (method.md), numbered as in issue 7.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    PartialOrd,
+    Ord,
+    Hash,
+    Serialize,
+    Deserialize,
+    clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Experiment {
+    /// 1: detection only, `mochi` against `nns` mode, radius ratios 1.2, 12 and 120.
+    Dcd,
+    /// 2: the DEM step on dataset 1 falling freely: build, DCD and update per step.
+    Freefall,
+    /// 3: the same under gravity rotating at 0.25π rad/s.
+    Rotating,
+    /// 4: the DEM step against the rebuild interval of a refitted BVH.
+    Rebuild,
+    /// 5: the DEM step from 1,000 spheres up in steps of ×10.
+    Scaling,
+    /// 6: the DEM steps issue 7 sets targets for: the landed slab, and `polylog` with the
+    /// single and the multi-level grid side by side.
+    Targets,
+}
+
+impl Experiment {
+    /// Every experiment, in order.
+    pub const ALL: [Experiment; 6] = [
+        Experiment::Dcd,
+        Experiment::Freefall,
+        Experiment::Rotating,
+        Experiment::Rebuild,
+        Experiment::Scaling,
+        Experiment::Targets,
+    ];
+
+    /// Number in issue 7 (1–5; 6 for the targets).
+    pub fn number(self) -> u8 {
+        self as u8 + 1
+    }
+
+    /// Name, as on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Experiment::Dcd => "dcd",
+            Experiment::Freefall => "freefall",
+            Experiment::Rotating => "rotating",
+            Experiment::Rebuild => "rebuild",
+            Experiment::Scaling => "scaling",
+            Experiment::Targets => "targets",
+        }
+    }
+
+    /// A heading for reports.
+    pub fn title(self) -> &'static str {
+        match self {
+            Experiment::Dcd => "DCD only, mochi vs nns mode, radius ratio 1.2 / 12 / 120",
+            Experiment::Freefall => "DEM freefall (dataset 1), time per step by phase",
+            Experiment::Rotating => "DEM under rotating gravity (0.25π rad/s), time per step",
+            Experiment::Rebuild => "DEM step against the rebuild interval",
+            Experiment::Scaling => "DEM step from 1k spheres up, ×10 each",
+            Experiment::Targets => "DEM steps with targets: landed slab, polylog (grid vs mlgrid)",
+        }
+    }
+
+    /// Parses a name (`dcd`, …) or a number (`1`–`5`).
+    pub fn parse(s: &str) -> std::result::Result<Self, String> {
+        let s = s.trim();
+        Experiment::ALL
+            .into_iter()
+            .find(|e| e.name().eq_ignore_ascii_case(s) || e.number().to_string() == s)
+            .ok_or_else(|| {
+                format!(
+                    "unknown experiment `{s}`: use 1-6 or dcd, freefall, rotating, rebuild, \
+                     scaling, targets"
+                )
+            })
+    }
+}
+
+/// Preset sizes of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Scale {
+    /// 10,000 spheres, scaling 1k–10k, 20 steps: a quick look (seconds on a laptop CPU).
+    #[default]
+    Small,
+    /// 100,000 spheres, scaling 1k–100k, 100 steps.
+    Medium,
+    /// The paper's 1,000,000 spheres, scaling 1k–1M, 200 steps.
+    Paper,
+}
+
+impl Scale {
+    /// Spheres of every experiment but scaling.
+    pub fn spheres(self) -> usize {
+        match self {
+            Scale::Small => 10_000,
+            Scale::Medium => 100_000,
+            Scale::Paper => 1_000_000,
+        }
+    }
+
+    /// Timed DEM steps per repeat.
+    pub fn steps(self) -> u32 {
+        match self {
+            Scale::Small => 20,
+            Scale::Medium => 100,
+            Scale::Paper => 200,
+        }
+    }
+}
+
+/// Which backends to run.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum BackendSelection {
+    /// Those `auto` would consider: every backend that runs here except software adapters and
+    /// OptiX without RT cores.
+    Auto,
+    /// Every backend that runs here.
+    All,
+    /// These backends; one that cannot run here is an error.
+    List(Vec<BackendKind>),
+}
+
+impl std::str::FromStr for BackendSelection {
+    type Err = String;
+
+    /// `auto`, `all`, or a comma-separated list of backend names.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        use clap::ValueEnum;
+        match s.trim() {
+            "auto" => Ok(BackendSelection::Auto),
+            "all" => Ok(BackendSelection::All),
+            list => list
+                .split(',')
+                .map(|name| {
+                    BackendKind::from_str(name.trim(), true).map_err(|_| {
+                        format!(
+                            "unknown backend `{}`: use auto, all, or names from optix, \
+                             wgpu-rq, wgpu-compute, cpu",
+                            name.trim()
+                        )
+                    })
+                })
+                .collect::<std::result::Result<Vec<_>, _>>()
+                .map(BackendSelection::List),
+        }
+    }
+}
+
+/// A backend that was left out, and why.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BackendStatus {
+    /// Backend name.
+    pub name: String,
+    /// The device it runs on, when it runs.
+    pub device: Option<String>,
+    /// Why it was left out, when it was.
+    pub left_out: Option<String>,
+}
+
+impl BackendSelection {
+    /// The backends to run, and the status of every backend this build knows.
+    pub fn resolve(&self) -> Result<(Vec<BackendKind>, Vec<BackendStatus>)> {
+        let mut chosen = Vec::new();
+        let mut status = Vec::new();
+        for kind in BackendKind::ALL {
+            let wanted = match self {
+                BackendSelection::List(list) => list.contains(&kind),
+                _ => true,
+            };
+            let probe = kind.probe();
+            let left_out = match (&probe, self) {
+                _ if !wanted => Some("not selected".to_owned()),
+                (Err(why), BackendSelection::List(_)) => {
+                    return Err(Error::BackendUnavailable {
+                        backend: kind.name(),
+                        reason: why.clone(),
+                    });
+                }
+                (Err(why), _) => Some(why.clone()),
+                (Ok(_), BackendSelection::Auto) => kind.auto_skip(),
+                (Ok(_), _) => None,
+            };
+            if left_out.is_none() {
+                chosen.push(kind);
+            }
+            status.push(BackendStatus {
+                name: kind.name().to_owned(),
+                device: probe.ok(),
+                left_out,
+            });
+        }
+        Ok((chosen, status))
+    }
+}
+
+/// Everything one benchmark run does.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// Experiments to run, in order.
+    pub experiments: Vec<Experiment>,
+    /// Backends to run them on.
+    pub backends: Vec<BackendKind>,
+    /// Spheres of every experiment but scaling.
+    pub spheres: usize,
+    /// Largest sphere count of the scaling experiment (from 1,000 up, ×10).
+    pub max_spheres: usize,
+    /// Timed DEM steps per repeat.
+    pub steps: u32,
+    /// Untimed steps that let the slab of experiment 6 land before it is timed (run once, on
+    /// the first backend with a DEM step; every backend then starts from that state).
+    pub settle: u32,
+    /// Timed repeats per measurement (at least 1).
+    pub repeats: usize,
+    /// Untimed runs before the timed ones.
+    pub warmup: usize,
+    /// Grid structure of `wgpu-compute`.
+    pub structure: Structure,
+    /// Seed of the generated scenes.
+    pub seed: u64,
+}
+
+/// Rebuild intervals swept on steps that refit (experiment 4), before `auto`.
+pub const REBUILD_INTERVALS: [u32; 6] = [1, 5, 10, 25, 50, 100];
+
+impl Plan {
+    /// Rejects plans that would measure nothing.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |msg: &str| Err(Error::Usage(msg.to_owned()));
+        if self.repeats == 0 {
+            return bad("--repeats must be at least 1");
+        }
+        if self.steps == 0 {
+            return bad("--steps must be at least 1");
+        }
+        if self.spheres < 2 {
+            return bad("--spheres must be at least 2");
+        }
+        if self.experiments.contains(&Experiment::Scaling) && self.max_spheres < 1000 {
+            return bad("--max-spheres must be at least 1000 (scaling starts at 1,000)");
+        }
+        if self.backends.is_empty() {
+            return bad("no backend to run");
+        }
+        Ok(())
+    }
+
+    /// Sphere counts of the scaling experiment: 1,000, 10,000, … up to `max_spheres`.
+    pub fn scaling_sizes(&self) -> Vec<usize> {
+        std::iter::successors(Some(1000usize), |n| n.checked_mul(10))
+            .take_while(|&n| n <= self.max_spheres)
+            .collect()
+    }
+
+    /// Measurements the plan makes (rows, at most), for a progress bar.
+    pub fn units(&self) -> u64 {
+        let per_backend: usize = self
+            .experiments
+            .iter()
+            .map(|e| match e {
+                Experiment::Dcd => 6,
+                Experiment::Freefall | Experiment::Rotating => 1,
+                Experiment::Rebuild => REBUILD_INTERVALS.len() + 1,
+                Experiment::Scaling => self.scaling_sizes().len(),
+                // Settling, slab, polylog with two structures, polylog in nns mode.
+                Experiment::Targets => 5,
+            })
+            .sum();
+        (per_backend * self.backends.len()) as u64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn experiments_parse_by_name_and_number() {
+        assert_eq!(Experiment::parse("1"), Ok(Experiment::Dcd));
+        assert_eq!(Experiment::parse("Rebuild"), Ok(Experiment::Rebuild));
+        assert_eq!(Experiment::parse("5"), Ok(Experiment::Scaling));
+        assert_eq!(Experiment::parse("6"), Ok(Experiment::Targets));
+        assert!(Experiment::parse("7").unwrap_err().contains("unknown"));
+    }
+
+    #[test]
+    fn backend_lists_parse() {
+        let s: BackendSelection = "cpu, wgpu-compute".parse().unwrap();
+        assert_eq!(
+            s,
+            BackendSelection::List(vec![BackendKind::Cpu, BackendKind::WgpuCompute])
+        );
+        assert!("cpu,gpu".parse::<BackendSelection>().is_err());
+    }
+
+    #[test]
+    fn scaling_goes_up_tenfold_to_the_maximum() {
+        let plan = Plan {
+            experiments: vec![Experiment::Scaling],
+            backends: vec![BackendKind::Cpu],
+            spheres: 10,
+            max_spheres: 250_000,
+            steps: 1,
+            settle: 0,
+            repeats: 1,
+            warmup: 0,
+            structure: Structure::Auto,
+            seed: 1,
+        };
+        assert_eq!(plan.scaling_sizes(), vec![1000, 10_000, 100_000]);
+        assert_eq!(plan.units(), 3);
+    }
+}

@@ -1,0 +1,298 @@
+//! What a benchmark run found: one row per measurement, with the machine, the date and the
+//! command, serialized as JSON (see [`SCHEMA_VERSION`]).
+
+use super::plan::{BackendStatus, Experiment};
+use super::stats::Spread;
+use super::targets::Check;
+use crate::dem::Clock;
+use serde::{Deserialize, Serialize};
+
+/// Version of the JSON layout; raised whenever a field changes meaning or goes away.
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// A whole benchmark run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    /// [`SCHEMA_VERSION`] of the writer.
+    pub schema_version: u32,
+    /// Version of mochi that measured.
+    pub mochi_version: String,
+    /// When the run started, UTC, ISO 8601.
+    pub date: String,
+    /// The command line, as typed.
+    pub command: String,
+    /// The host.
+    pub machine: Machine,
+    /// The settings of the run.
+    pub settings: Settings,
+    /// Every backend this build knows: its device, or why it was left out.
+    pub backends: Vec<BackendStatus>,
+    /// Detection rows (experiment 1).
+    pub detect: Vec<DetectRow>,
+    /// DEM rows (experiments 2–6).
+    pub dem: Vec<DemRow>,
+    /// Measurements a backend could not make, and why.
+    pub skipped: Vec<Skipped>,
+    /// Issue 7's targets, checked against the rows.
+    pub targets: Vec<Check>,
+}
+
+/// The host that ran the benchmark.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Machine {
+    /// Operating system.
+    pub os: String,
+    /// CPU architecture.
+    pub arch: String,
+    /// CPU model, where the OS says.
+    pub cpu: Option<String>,
+    /// Threads the cpu backend uses.
+    pub threads: usize,
+}
+
+impl Machine {
+    /// This machine.
+    pub fn here() -> Machine {
+        let cpu = std::fs::read_to_string("/proc/cpuinfo")
+            .ok()
+            .and_then(|info| {
+                info.lines()
+                    .find_map(|l| l.strip_prefix("model name"))
+                    .and_then(|l| l.split_once(':'))
+                    .map(|(_, model)| model.trim().to_owned())
+            });
+        Machine {
+            os: std::env::consts::OS.to_owned(),
+            arch: std::env::consts::ARCH.to_owned(),
+            cpu,
+            threads: rayon::current_num_threads(),
+        }
+    }
+}
+
+/// The settings a run used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Settings {
+    /// Experiments run.
+    pub experiments: Vec<Experiment>,
+    /// Spheres of every experiment but scaling.
+    pub spheres: usize,
+    /// Largest sphere count of the scaling experiment.
+    pub max_spheres: usize,
+    /// Timed DEM steps per repeat.
+    pub steps: u32,
+    /// Untimed steps the slab of experiment 6 settled for before it was timed.
+    pub settle: u32,
+    /// Timed repeats per measurement.
+    pub repeats: usize,
+    /// Untimed warm-up runs before them.
+    pub warmup: usize,
+    /// Grid structure asked of `wgpu-compute`.
+    pub structure: String,
+    /// Seed of the scenes.
+    pub seed: u64,
+}
+
+/// One detection measurement: build and find every pair, repeated.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectRow {
+    /// Always [`Experiment::Dcd`].
+    pub experiment: Experiment,
+    /// Backend name.
+    pub backend: String,
+    /// Its device, in words.
+    pub device: String,
+    /// Scene name.
+    pub scene: String,
+    /// Layout of the centres (`random`: overlaps allowed).
+    pub layout: String,
+    /// Spheres.
+    pub n: usize,
+    /// `mochi` or `nns`.
+    pub mode: String,
+    /// Structure asked for (`wgpu-compute`'s grid; the others have one).
+    pub structure: String,
+    /// Candidate pairs tested (box or cell hits) in one detection.
+    pub candidates: u64,
+    /// Candidates per sphere (per ray).
+    pub candidates_per_sphere: f64,
+    /// Colliding pairs found.
+    pub pairs: u64,
+    /// [`pairs_digest`] of the pairs found (equal digests: equal pairs).
+    pub pairs_digest: String,
+    /// The clock of `build_ms`, `detect_ms` and `total_ms`: GPU timestamps where every repeat
+    /// had them, else wall clock.
+    pub clock: Clock,
+    /// Build \[ms\].
+    pub build_ms: Spread,
+    /// Detection (finding and returning every pair) \[ms\].
+    pub detect_ms: Spread,
+    /// Build + detection \[ms\].
+    pub total_ms: Spread,
+    /// Build + detection on the host's wall clock \[ms\] (uploads and read-backs included).
+    pub wall_total_ms: Spread,
+    /// `nns` detection median over this row's (rows in `mochi` mode).
+    pub detect_speedup_vs_nns: Option<f64>,
+    /// The cpu backend's total median over this row's (same scene, n and mode).
+    pub speedup_vs_cpu: Option<f64>,
+}
+
+/// One DEM measurement: the same stepper advanced `steps` steps per repeat.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DemRow {
+    /// Experiment 2–6.
+    pub experiment: Experiment,
+    /// Backend name.
+    pub backend: String,
+    /// Its device, in words.
+    pub device: String,
+    /// Scene name (`freefall`, `rotating`, `slab`, `polylog`).
+    pub scene: String,
+    /// Spheres.
+    pub n: usize,
+    /// `mochi` or `nns`.
+    pub mode: String,
+    /// Structure asked for (`wgpu-compute`'s grid).
+    pub structure: String,
+    /// Rebuild policy: `auto`, an interval in steps, or `every step` for steps that never refit.
+    pub rebuild: String,
+    /// Whether the step refits between rebuilds.
+    pub refits: bool,
+    /// Timed steps per repeat.
+    pub steps: u32,
+    /// Touching pairs in the last step.
+    pub contacts: u64,
+    /// The clock of the times.
+    pub clock: Clock,
+    /// Structure maintenance per step \[ms\].
+    pub build_ms: Spread,
+    /// Detection with contact forces per step \[ms\].
+    pub dcd_ms: Spread,
+    /// Walls, gravity, integration per step \[ms\].
+    pub update_ms: Spread,
+    /// The whole step \[ms\].
+    pub total_ms: Spread,
+    /// The whole step on the host's wall clock \[ms\], submissions and read-backs included
+    /// (the only time of a GPU without timestamps).
+    pub wall_ms: Spread,
+    /// The cpu backend's total median over this row's (same experiment, scene, n, mode;
+    /// the cpu step never refits, so its one row serves every rebuild policy).
+    pub speedup_vs_cpu: Option<f64>,
+}
+
+/// A measurement a backend could not make.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Skipped {
+    /// The experiment.
+    pub experiment: Experiment,
+    /// Backend name.
+    pub backend: String,
+    /// What was to be measured.
+    pub what: String,
+    /// Why it was not.
+    pub reason: String,
+}
+
+impl Report {
+    /// Fills in the speed-ups (mochi vs nns, backend vs cpu) from the medians of the rows.
+    pub fn fill_speedups(&mut self) {
+        let detect = self.detect.clone();
+        for row in &mut self.detect {
+            let peer = |backend: &str, mode: &str| {
+                detect.iter().find(|o| {
+                    o.backend == backend && o.mode == mode && o.scene == row.scene && o.n == row.n
+                })
+            };
+            row.detect_speedup_vs_nns = (row.mode == "mochi")
+                .then(|| peer(&row.backend, "nns"))
+                .flatten()
+                .map(|nns| ratio(nns.detect_ms.median, row.detect_ms.median));
+            row.speedup_vs_cpu = peer("cpu", &row.mode)
+                .filter(|_| row.backend != "cpu")
+                .map(|cpu| ratio(cpu.total_ms.median, row.total_ms.median));
+        }
+        let dem = self.dem.clone();
+        for row in &mut self.dem {
+            row.speedup_vs_cpu = dem
+                .iter()
+                .find(|o| {
+                    o.backend == "cpu"
+                        && o.experiment == row.experiment
+                        && o.scene == row.scene
+                        && o.n == row.n
+                        && o.mode == row.mode
+                        && (o.rebuild == row.rebuild || !o.refits)
+                })
+                .filter(|_| row.backend != "cpu")
+                .map(|cpu| ratio(cpu.total_ms.median, row.total_ms.median));
+        }
+    }
+}
+
+/// `a / b`, or infinity when `b` is not positive.
+fn ratio(a: f64, b: f64) -> f64 {
+    if b > 0.0 { a / b } else { f64::INFINITY }
+}
+
+/// FNV-1a (64-bit) of the pairs in sorted order, as 16 hex digits: equal pair sets, equal
+/// digests, whatever order a backend returns them in.
+pub fn pairs_digest(pairs: &[crate::Pair]) -> String {
+    let mut sorted = pairs.to_vec();
+    sorted.sort_unstable();
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for p in &sorted {
+        for byte in p.i.to_le_bytes().into_iter().chain(p.j.to_le_bytes()) {
+            h ^= byte as u64;
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    format!("{h:016x}")
+}
+
+/// Now, UTC, as `YYYY-MM-DDTHH:MM:SSZ`.
+pub fn utc_now() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let (days, rest) = (secs / 86_400, secs % 86_400);
+    let (y, m, d) = civil_from_days(days as i64);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        rest / 3600,
+        rest / 60 % 60,
+        rest % 60
+    )
+}
+
+/// Year, month and day of the `days`-th day after 1970-01-01 (H. Hinnant's algorithm).
+fn civil_from_days(days: i64) -> (i64, u32, u32) {
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
+    (yoe + era * 400 + i64::from(m <= 2), m, d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn civil_dates() {
+        assert_eq!(civil_from_days(0), (1970, 1, 1));
+        assert_eq!(civil_from_days(20_779), (2026, 11, 22));
+        assert_eq!(civil_from_days(11_016), (2000, 2, 29));
+    }
+
+    #[test]
+    fn the_digest_depends_on_every_pair() {
+        let a = [crate::Pair::new(0, 1), crate::Pair::new(2, 5)];
+        let b = [crate::Pair::new(0, 1), crate::Pair::new(2, 6)];
+        assert_ne!(pairs_digest(&a), pairs_digest(&b));
+        assert_eq!(pairs_digest(&a), pairs_digest(&[a[1], a[0]]));
+    }
+}

@@ -1,0 +1,259 @@
+//! Issue 7's targets, checked against the rows of a report. A target is judged only where the
+//! report measured what it names (its scene at its size); otherwise it says what to run.
+
+use super::plan::Experiment;
+use super::report::{DemRow, Report};
+use serde::{Deserialize, Serialize};
+
+/// One target and how the report meets it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Check {
+    /// The target, in words.
+    pub target: String,
+    /// What was measured (backend, value, size).
+    pub measured: String,
+    /// Met, missed, or `None` where the report has no measurement at the target's size.
+    pub met: Option<bool>,
+}
+
+/// Spheres of the DEM targets.
+const MILLION: usize = 1_000_000;
+
+/// Every target of issue 7, checked against `report`.
+pub fn check(report: &Report) -> Vec<Check> {
+    vec![
+        dem_target(
+            report,
+            "slab",
+            "landed slab 1M: full DEM step ≤ 0.45 ms on the fastest backend",
+            0.45,
+            // Only a slab that had steps to land is the landed slab.
+            report.settings.settle > 0,
+        ),
+        dem_target(
+            report,
+            "polylog",
+            "polylog 1M: full DEM step ≤ 0.5 ms (grid and mlgrid side by side)",
+            0.5,
+            true,
+        ),
+        five_million(report),
+        detect_ratio_120(report),
+        dem_dcd_ratio_120(report),
+        cpu_poly120(report),
+    ]
+}
+
+/// The fastest experiment-6 row of `scene` at 1M spheres against `limit_ms` (judged only where
+/// `judged`).
+fn dem_target(report: &Report, scene: &str, target: &str, limit_ms: f64, judged: bool) -> Check {
+    let rows: Vec<&DemRow> = report
+        .dem
+        .iter()
+        .filter(|r| r.experiment == Experiment::Targets && r.scene == scene && r.mode == "mochi")
+        .collect();
+    let listed = rows
+        .iter()
+        .map(|r| {
+            format!(
+                "{} {} n={}: {:.3} ms",
+                r.backend, r.structure, r.n, r.total_ms.median
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ");
+    let fastest = rows
+        .iter()
+        .filter(|r| r.n == MILLION)
+        .map(|r| r.total_ms.median)
+        .min_by(f64::total_cmp);
+    Check {
+        target: target.to_owned(),
+        measured: if listed.is_empty() {
+            "not measured (experiment 6)".to_owned()
+        } else {
+            listed
+        },
+        met: fastest.filter(|_| judged).map(|t| t <= limit_ms),
+    }
+}
+
+/// Whether a DEM run of 5M or more spheres completed.
+fn five_million(report: &Report) -> Check {
+    let ran = report.dem.iter().find(|r| r.n >= 5 * MILLION);
+    Check {
+        target: "5M spheres fit and run".to_owned(),
+        measured: ran.map_or_else(
+            || "not run (e.g. --spheres 5000000 --experiments freefall)".to_owned(),
+            |r| format!("{} n={}: {:.3} ms/step", r.backend, r.n, r.total_ms.median),
+        ),
+        met: ran.map(|_| true),
+    }
+}
+
+/// "mochi ≥ 3× faster than nns at radius ratio 120, every backend", judged at 1M spheres on
+/// `speedups` (backend, size, speed-up).
+fn at_ratio_120(target: &str, missing: &str, speedups: &[(String, usize, f64)]) -> Check {
+    let at_million: Vec<f64> = speedups
+        .iter()
+        .filter(|(_, n, _)| *n == MILLION)
+        .map(|s| s.2)
+        .collect();
+    Check {
+        target: target.to_owned(),
+        measured: if speedups.is_empty() {
+            missing.to_owned()
+        } else {
+            speedups
+                .iter()
+                .map(|(b, n, s)| format!("{b} n={n}: {s:.2}×"))
+                .collect::<Vec<_>>()
+                .join("; ")
+        },
+        met: (!at_million.is_empty()).then(|| at_million.iter().all(|s| *s >= 3.0)),
+    }
+}
+
+/// Experiment 1, `poly120`: the detection of mochi mode against nns mode.
+fn detect_ratio_120(report: &Report) -> Check {
+    let speedups: Vec<(String, usize, f64)> = report
+        .detect
+        .iter()
+        .filter(|r| r.scene == "poly120")
+        .filter_map(|r| Some((r.backend.clone(), r.n, r.detect_speedup_vs_nns?)))
+        .collect();
+    at_ratio_120(
+        "detection in mochi mode ≥ 3× faster than nns at radius ratio 120 (poly120), every backend",
+        "not measured (experiment 1)",
+        &speedups,
+    )
+}
+
+/// Experiment 6, `polylog` (radius ratio 120): the DEM step's DCD phase, the fastest mochi
+/// structure of each backend against its nns row.
+fn dem_dcd_ratio_120(report: &Report) -> Check {
+    let polylog = |mode: &'static str| {
+        report.dem.iter().filter(move |r| {
+            r.experiment == Experiment::Targets && r.scene == "polylog" && r.mode == mode
+        })
+    };
+    let speedups: Vec<(String, usize, f64)> = polylog("nns")
+        .filter_map(|nns| {
+            let mochi = polylog("mochi")
+                .filter(|m| m.backend == nns.backend && m.n == nns.n)
+                .map(|m| m.dcd_ms.median)
+                .min_by(f64::total_cmp)?;
+            Some((nns.backend.clone(), nns.n, nns.dcd_ms.median / mochi))
+        })
+        .collect();
+    at_ratio_120(
+        "DEM DCD phase in mochi mode ≥ 3× faster than nns at radius ratio 120 (polylog), every \
+         backend",
+        "not measured (experiment 6)",
+        &speedups,
+    )
+}
+
+/// Experiment 1 on the cpu backend: 100k poly120 spheres built and detected in ≤ 7 ms (the
+/// target is for 2 cores; the row says how many threads ran).
+fn cpu_poly120(report: &Report) -> Check {
+    let row = report
+        .detect
+        .iter()
+        .find(|r| r.backend == "cpu" && r.scene == "poly120" && r.mode == "mochi");
+    Check {
+        target: "cpu backend, 2 cores, 100k poly120: build + detect ≤ 7 ms".to_owned(),
+        measured: row.map_or_else(
+            || "not measured (experiment 1 on cpu)".to_owned(),
+            |r| {
+                format!(
+                    "n={}, {} threads: {:.2} ms",
+                    r.n, report.machine.threads, r.total_ms.median
+                )
+            },
+        ),
+        met: row
+            .filter(|r| r.n == 100_000 && report.machine.threads == 2)
+            .map(|r| r.total_ms.median <= 7.0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bench::plan::BackendStatus;
+    use crate::bench::report::{Machine, SCHEMA_VERSION, Settings};
+    use crate::bench::stats::Spread;
+    use crate::dem::Clock;
+
+    fn ms(v: f64) -> Spread {
+        Spread::of(&[v]).unwrap()
+    }
+
+    fn row(scene: &str, mode: &str, structure: &str, dcd: f64, total: f64) -> DemRow {
+        DemRow {
+            experiment: Experiment::Targets,
+            backend: "wgpu-compute".into(),
+            device: "GPU".into(),
+            scene: scene.into(),
+            n: MILLION,
+            mode: mode.into(),
+            structure: structure.into(),
+            rebuild: "every step".into(),
+            refits: false,
+            steps: 10,
+            contacts: 0,
+            clock: Clock::Gpu,
+            build_ms: ms(total - dcd),
+            dcd_ms: ms(dcd),
+            update_ms: ms(0.0),
+            total_ms: ms(total),
+            wall_ms: ms(total),
+            speedup_vs_cpu: None,
+        }
+    }
+
+    fn report(settle: u32) -> Report {
+        Report {
+            schema_version: SCHEMA_VERSION,
+            mochi_version: "0".into(),
+            date: "2026-11-22T00:00:00Z".into(),
+            command: "mochi bench".into(),
+            machine: Machine::here(),
+            settings: Settings {
+                experiments: vec![Experiment::Targets],
+                spheres: MILLION,
+                max_spheres: MILLION,
+                steps: 10,
+                settle,
+                repeats: 1,
+                warmup: 0,
+                structure: "auto".into(),
+                seed: 1,
+            },
+            backends: Vec::<BackendStatus>::new(),
+            detect: Vec::new(),
+            dem: vec![
+                row("slab", "mochi", "auto", 0.2, 0.4),
+                row("polylog", "mochi", "grid", 1.7, 1.9),
+                row("polylog", "mochi", "mlgrid", 0.3, 0.55),
+                row("polylog", "nns", "grid", 6.9, 7.0),
+            ],
+            skipped: Vec::new(),
+            targets: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn targets_are_judged_on_the_fastest_row_at_their_size() {
+        let checks = check(&report(3000));
+        let met: Vec<Option<bool>> = checks.iter().map(|c| c.met).collect();
+        // slab met, polylog missed (mlgrid 0.55 > 0.5), no 5M, no detection rows, DEM DCD
+        // 6.9 / 0.3 = 23× met, no cpu row.
+        assert_eq!(met, [Some(true), Some(false), None, None, Some(true), None]);
+        assert!(checks[1].measured.contains("mlgrid"), "{:?}", checks[1]);
+        assert!(checks[4].measured.contains("23.00×"), "{:?}", checks[4]);
+        // A slab that never had steps to land is not judged.
+        assert_eq!(check(&report(0))[0].met, None);
+    }
+}

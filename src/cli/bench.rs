@@ -1,0 +1,125 @@
+//! `mochi bench`: runs the paper's experiments, prints Markdown, writes JSON and SVG plots.
+
+use anyhow::{Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use mochi::backend::wgpu_compute::Structure;
+use mochi::bench::plan::{BackendSelection, Experiment, Plan, Scale};
+use mochi::bench::{self, markdown, plot};
+use mochi::io;
+use std::path::PathBuf;
+
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// Sizes: small (10k spheres, scaling 1k-10k, 20 steps), medium (100k, 1k-100k, 100 steps),
+    /// paper (1M, 1k-1M, 200 steps).
+    #[arg(long, value_enum, default_value_t)]
+    pub scale: Scale,
+    /// Spheres of every experiment but scaling (default: the scale's).
+    #[arg(short = 'n', long, value_name = "N")]
+    pub spheres: Option<usize>,
+    /// Largest sphere count of the scaling experiment (default: the scale's).
+    #[arg(long, value_name = "N")]
+    pub max_spheres: Option<usize>,
+    /// Backends: all (every one that runs here), auto (those `--backend auto` would consider:
+    /// no software adapters, no OptiX without RT cores), or a list such as cpu,wgpu-compute.
+    #[arg(long, default_value = "all")]
+    pub backends: BackendSelection,
+    /// Experiments, by number or name: 1 dcd, 2 freefall, 3 rotating, 4 rebuild, 5 scaling,
+    /// 6 targets (landed slab, polylog grid vs mlgrid).
+    #[arg(long, value_delimiter = ',', value_parser = Experiment::parse, default_value = "1,2,3,4,5,6")]
+    pub experiments: Vec<Experiment>,
+    /// Timed runs per measurement (their median and spread are reported).
+    #[arg(long, default_value_t = 5)]
+    pub repeats: usize,
+    /// Untimed runs before the timed ones.
+    #[arg(long, default_value_t = 1)]
+    pub warmup: usize,
+    /// Timed DEM steps per run (default: the scale's).
+    #[arg(long)]
+    pub steps: Option<u32>,
+    /// Untimed steps that let the slab of experiment 6 land before it is timed (once, on the
+    /// first backend; every backend then starts from the landed state).
+    #[arg(long, default_value_t = 3000)]
+    pub settle: u32,
+    /// Grid of the wgpu-compute backend: auto, grid or mlgrid.
+    #[arg(long, value_enum, default_value_t)]
+    pub structure: Structure,
+    /// Seed of the generated scenes.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Folder for bench.json, bench.md and the SVG plots.
+    #[arg(short, long, default_value = "mochi-bench")]
+    pub out: PathBuf,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+pub fn bench(args: BenchArgs) -> Result<()> {
+    let (backends, status) = args.backends.resolve()?;
+    let spheres = args.spheres.unwrap_or(args.scale.spheres());
+    let mut experiments = args.experiments.clone();
+    experiments.sort();
+    experiments.dedup();
+    let plan = Plan {
+        experiments,
+        backends,
+        spheres,
+        max_spheres: args.max_spheres.unwrap_or(args.scale.spheres()),
+        steps: args.steps.unwrap_or(args.scale.steps()),
+        settle: args.settle,
+        repeats: args.repeats,
+        warmup: args.warmup,
+        structure: args.structure,
+        seed: args.seed,
+    };
+    plan.validate()?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(plan.units())
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} | {elapsed} | {msg}")
+            .expect("a valid template"),
+    );
+    let mut progress = |what: &str| {
+        bar.set_message(what.to_owned());
+        bar.inc(1);
+    };
+    let report = bench::run(&plan, status, command_line(), &mut progress)?;
+    bar.finish_and_clear();
+
+    let text = markdown::render(&report);
+    print!("{text}");
+    let json = serde_json::to_string_pretty(&report).context("serializing the report")?;
+    let mut written = vec!["bench.json".to_owned(), "bench.md".to_owned()];
+    io::write_atomically(&args.out.join("bench.json"), |w| {
+        w.write_all(json.as_bytes())
+    })?;
+    io::write_atomically(&args.out.join("bench.md"), |w| w.write_all(text.as_bytes()))?;
+    for (name, svg) in plot::draw(&report)? {
+        io::write_atomically(&args.out.join(&name), |w| w.write_all(svg.as_bytes()))?;
+        written.push(name);
+    }
+    eprintln!("wrote {} in {}", written.join(", "), args.out.display());
+    Ok(())
+}
+
+/// The command line as typed, arguments with spaces quoted.
+fn command_line() -> String {
+    std::env::args()
+        .map(|a| {
+            if a.is_empty() || a.contains(char::is_whitespace) {
+                format!("{a:?}")
+            } else {
+                a
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}

@@ -1,0 +1,309 @@
+//! `mochi bench` end to end at a tiny scale: every experiment gets a Markdown table, the JSON
+//! parses back with numbers that agree with each other and with the brute-force oracle, and the
+//! SVG plots are written. On the cpu backend, and on wgpu-compute where an adapter exists
+//! (lavapipe in CI, where a missing adapter fails). No timing assertions: speed belongs in
+//! benchmarks.
+
+mod common;
+
+use mochi::bench::plan::Experiment;
+use mochi::bench::report::{DemRow, DetectRow, Report, SCHEMA_VERSION, pairs_digest};
+use mochi::bench::stats::Spread;
+use mochi::dem::Clock;
+use mochi::gpu::Need;
+use mochi::oracle::brute_force_pairs;
+use mochi::scenes::{Layout, Scene, SceneSpec, generate};
+use std::path::Path;
+use std::process::Command;
+
+const BIN: &str = env!("CARGO_BIN_EXE_mochi");
+/// Spheres of experiments 1–4: enough for poly120 to have a few pairs, few for the oracle.
+const N: usize = 10_000;
+const REPEATS: usize = 2;
+const STEPS: u32 = 2;
+
+fn mochi(args: &[&str]) -> (Option<i32>, String, String) {
+    let out = Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("the binary runs");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn assert_spread(s: &Spread, what: &str) {
+    assert_eq!(s.samples, REPEATS, "{what}");
+    assert!(
+        s.min >= 0.0 && s.min <= s.q1 && s.q1 <= s.median && s.median <= s.q3 && s.q3 <= s.max,
+        "{what}: {s:?}"
+    );
+}
+
+fn scene_of(name: &str) -> Scene {
+    use clap::ValueEnum;
+    Scene::from_str(name, false).expect("a scene name from the report")
+}
+
+fn check_detect(rows: &[DetectRow], backends: &[&str]) {
+    assert_eq!(
+        rows.len(),
+        6 * backends.len(),
+        "3 scenes × 2 modes per backend"
+    );
+    let mut pairs_seen = 0;
+    for scene in ["poly1.2", "poly12", "poly120"] {
+        let spheres = generate(&SceneSpec {
+            scene: scene_of(scene),
+            n: N,
+            seed: 1,
+            layout: Layout::Random,
+        })
+        .unwrap();
+        let oracle = brute_force_pairs(&spheres);
+        pairs_seen += oracle.len();
+        for backend in backends {
+            let of = |mode: &str| {
+                rows.iter()
+                    .find(|r| r.backend == *backend && r.scene == scene && r.mode == mode)
+                    .unwrap_or_else(|| panic!("no {backend} {scene} {mode} row"))
+            };
+            let (mochi, nns) = (of("mochi"), of("nns"));
+            for row in [mochi, nns] {
+                let what = format!("{backend} {scene} {}", row.mode);
+                assert_eq!(row.n, N, "{what}");
+                assert_eq!(row.layout, "random", "{what}");
+                assert_eq!(row.pairs, oracle.len() as u64, "{what}: pairs = oracle");
+                assert_eq!(
+                    row.pairs_digest,
+                    pairs_digest(&oracle),
+                    "{what}: same pairs"
+                );
+                assert!(row.candidates >= row.pairs, "{what}");
+                let per = row.candidates as f64 / N as f64;
+                assert!((row.candidates_per_sphere - per).abs() < 1e-9, "{what}");
+                for (s, part) in [(&row.build_ms, "build"), (&row.detect_ms, "detect")] {
+                    assert_spread(s, &format!("{what} {part}"));
+                }
+                assert_spread(&row.total_ms, &what);
+                assert_spread(&row.wall_total_ms, &what);
+                if *backend == "cpu" {
+                    assert_eq!(row.clock, Clock::Wall, "{what}");
+                    assert_eq!(row.speedup_vs_cpu, None, "{what}");
+                } else {
+                    let cpu = rows
+                        .iter()
+                        .find(|r| r.backend == "cpu" && r.scene == scene && r.mode == row.mode)
+                        .expect("a cpu row");
+                    let want = cpu.total_ms.median / row.total_ms.median;
+                    assert!((row.speedup_vs_cpu.unwrap() - want).abs() < 1e-9, "{what}");
+                }
+            }
+            let want = nns.detect_ms.median / mochi.detect_ms.median;
+            assert!((mochi.detect_speedup_vs_nns.unwrap() - want).abs() < 1e-9);
+            assert_eq!(nns.detect_speedup_vs_nns, None);
+        }
+    }
+    assert!(pairs_seen > 0, "the scenes should have pairs to check");
+}
+
+fn check_dem(rows: &[DemRow], backends: &[&str]) {
+    let expect = [
+        (Experiment::Freefall, "freefall", vec![N]),
+        (Experiment::Rotating, "rotating", vec![N]),
+        (Experiment::Rebuild, "freefall", vec![N]),
+        (Experiment::Scaling, "freefall", vec![1000, 10_000]),
+    ];
+    let mut count = 0;
+    for (experiment, scene, sizes) in expect {
+        for backend in backends {
+            for &n in &sizes {
+                let what = format!("{experiment:?} {backend} n={n}");
+                let row = rows
+                    .iter()
+                    .find(|r| r.experiment == experiment && r.backend == *backend && r.n == n)
+                    .unwrap_or_else(|| panic!("no row for {what}"));
+                count += 1;
+                assert_eq!(row.scene, scene, "{what}");
+                assert_eq!(row.mode, "mochi", "{what}");
+                assert_eq!(row.steps, STEPS, "{what}");
+                // No backend here refits (only a future OptiX step will): one row each.
+                assert!(!row.refits, "{what}");
+                assert_eq!(row.rebuild, "every step", "{what}");
+                for s in [&row.build_ms, &row.dcd_ms, &row.update_ms, &row.total_ms] {
+                    assert_spread(s, &what);
+                }
+                assert!(row.total_ms.median > 0.0, "{what}");
+                if *backend == "cpu" {
+                    assert_eq!(row.clock, Clock::Wall, "{what}");
+                } else {
+                    assert!(row.speedup_vs_cpu.is_some(), "{what}");
+                }
+            }
+        }
+    }
+    // Experiment 6: the landed slab, polylog in mochi mode (grid and mlgrid side by side on
+    // wgpu-compute) and in nns mode.
+    for backend in backends {
+        let of = |scene: &str, mode: &str| -> Vec<&DemRow> {
+            rows.iter()
+                .filter(|r| {
+                    r.experiment == Experiment::Targets
+                        && r.backend == *backend
+                        && r.scene == scene
+                        && r.mode == mode
+                })
+                .collect()
+        };
+        assert_eq!(of("slab", "mochi").len(), 1, "{backend}");
+        assert_eq!(of("polylog", "nns").len(), 1, "{backend}");
+        let structures: Vec<&str> = of("polylog", "mochi")
+            .iter()
+            .map(|r| r.structure.as_str())
+            .collect();
+        if *backend == "wgpu-compute" {
+            assert_eq!(structures, ["grid", "mlgrid"]);
+        } else {
+            assert_eq!(structures.len(), 1, "{backend}");
+        }
+        count += 2 + structures.len();
+    }
+    for r in rows.iter().filter(|r| r.backend != "cpu") {
+        let cpu = rows
+            .iter()
+            .find(|c| {
+                c.backend == "cpu"
+                    && c.experiment == r.experiment
+                    && c.scene == r.scene
+                    && c.n == r.n
+                    && c.mode == r.mode
+            })
+            .expect("a cpu row for every row");
+        let want = cpu.total_ms.median / r.total_ms.median;
+        assert!((r.speedup_vs_cpu.unwrap() - want).abs() < 1e-9, "{r:?}");
+    }
+    assert_eq!(
+        rows.len(),
+        count,
+        "one row per experiment, backend and size"
+    );
+}
+
+fn check_svg(path: &Path, title: &str) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    assert_eq!(doc.root_element().tag_name().name(), "svg", "{path:?}");
+    assert!(text.contains(title), "{path:?} should be titled {title:?}");
+}
+
+#[test]
+fn bench_small_reports_every_experiment_as_markdown_json_and_svg() {
+    let mut backends = vec!["cpu"];
+    if common::adapter_for(Need::Compute, "mochi bench on wgpu-compute") {
+        backends.insert(0, "wgpu-compute");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bench");
+    let list = backends.join(",");
+    let (n, steps, repeats) = (N.to_string(), STEPS.to_string(), REPEATS.to_string());
+    let args = [
+        "bench",
+        "--scale",
+        "small",
+        "--spheres",
+        &n,
+        "--max-spheres",
+        "10000",
+        "--backends",
+        &list,
+        "--repeats",
+        &repeats,
+        "--warmup",
+        "1",
+        "--steps",
+        &steps,
+        "--settle",
+        "10",
+        "--quiet",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    let (code, stdout, stderr) = mochi(&args);
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+
+    for e in Experiment::ALL {
+        let heading = format!("## {}. {}", e.number(), e.title());
+        let at = stdout
+            .find(&heading)
+            .unwrap_or_else(|| panic!("no section {heading:?}\n{stdout}"));
+        let table = stdout[at..].lines().nth(2).unwrap_or_default();
+        assert!(table.starts_with("| backend |"), "{heading}: {table}");
+    }
+    assert!(!stdout.contains("Not measured"), "{stdout}");
+    let md = std::fs::read_to_string(out.join("bench.md")).unwrap();
+    assert_eq!(md, stdout);
+
+    let json = std::fs::read_to_string(out.join("bench.json")).unwrap();
+    let report: Report = serde_json::from_str(&json).unwrap();
+    assert_eq!(report.schema_version, SCHEMA_VERSION);
+    assert!(
+        report.command.contains("bench --scale small"),
+        "{}",
+        report.command
+    );
+    assert!(report.date.starts_with("20") && report.date.ends_with('Z'));
+    assert_eq!(report.settings.experiments, Experiment::ALL.to_vec());
+    assert_eq!(
+        (report.settings.repeats, report.settings.steps),
+        (REPEATS, STEPS)
+    );
+    for b in &report.backends {
+        let chosen = backends.contains(&b.name.as_str());
+        assert_eq!(b.left_out.is_none(), chosen, "{b:?}");
+        assert!(!chosen || b.device.is_some(), "{b:?}");
+    }
+    check_detect(&report.detect, &backends);
+    check_dem(&report.dem, &backends);
+    assert!(report.skipped.is_empty(), "{:?}", report.skipped);
+    assert_eq!(report.settings.settle, 10);
+    // Every target is reported; at this size only the 2-core cpu one could be judged.
+    assert_eq!(report.targets.len(), 6);
+    for t in &report.targets {
+        assert!(!t.measured.is_empty(), "{t:?}");
+        if !t.target.starts_with("cpu backend") {
+            assert_eq!(t.met, None, "{t:?}");
+        }
+    }
+    assert!(stdout.contains("## Targets (issue 7)"), "{stdout}");
+
+    for e in Experiment::ALL {
+        check_svg(&out.join(format!("{}.svg", e.name())), e.title());
+    }
+}
+
+#[test]
+fn bad_bench_arguments_fail_cleanly() {
+    for (args, says) in [
+        (&["bench", "--experiments", "1,7"][..], "unknown experiment"),
+        (&["bench", "--backends", "cpu,gpu"][..], "unknown backend"),
+        (
+            &["bench", "--backends", "cpu", "--repeats", "0"][..],
+            "--repeats",
+        ),
+        (
+            &["bench", "--backends", "cpu", "--max-spheres", "10"][..],
+            "--max-spheres",
+        ),
+    ] {
+        let (code, _, stderr) = mochi(args);
+        assert_eq!(
+            code.map(|c| c != 0 && c != 101),
+            Some(true),
+            "{args:?}: {stderr}"
+        );
+        assert!(stderr.contains(says), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
