@@ -18,6 +18,8 @@
 //! - [`dem`]: the discrete-element simulation: the contact model, one [`dem::Stepper`] per
 //!   backend (GPU-resident on the GPU backends), scene files.
 //! - [`mesh`]: triangle meshes (OBJ, PLY, STL) filled with spheres, for the `mesh` scene.
+//! - [`render`]: pictures of spheres, ray traced on the GPU (ray queries or our own BVH) or the
+//!   CPU, with a colour legend, as PNG frames or an animated GIF.
 //!
 //! ```
 //! use mochi::{SphereSet, ProxyMode, backend::BackendKind};
@@ -38,6 +40,7 @@ pub mod io;
 pub mod mesh;
 pub mod oracle;
 pub mod proxy;
+pub mod render;
 pub mod scenes;
 mod spheres;
 

@@ -223,7 +223,9 @@ impl std::str::FromStr for RebuildPolicy {
         }
         match s.parse::<u32>() {
             Ok(k) if k > 0 => Ok(RebuildPolicy::Every(k)),
-            _ => Err(format!("expected `auto` or a positive number of steps, got `{s}`")),
+            _ => Err(format!(
+                "expected `auto` or a positive number of steps, got `{s}`"
+            )),
         }
     }
 }

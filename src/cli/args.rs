@@ -2,8 +2,8 @@
 
 use clap::{Args, Parser, Subcommand};
 use mochi::ProxyMode;
-use mochi::backend::{BackendChoice, RebuildPolicy};
 use mochi::backend::wgpu_compute::Structure;
+use mochi::backend::{BackendChoice, RebuildPolicy};
 use mochi::scenes::{Layout, Scene};
 use std::path::PathBuf;
 
