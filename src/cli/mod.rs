@@ -1,6 +1,7 @@
 //! Command-line interface: argument definitions in [`args`], the commands in [`run`].
 
 mod args;
+mod render;
 mod run;
 mod simulate;
 

@@ -12,6 +12,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Simulate(args) => super::simulate::simulate(args),
         Command::Detect(args) => detect(args),
         Command::Generate(args) => generate(args),
+        Command::Render(args) => super::render::render(args),
         Command::Backends => {
             list_backends();
             Ok(())

@@ -87,6 +87,18 @@ impl Image {
         }
     }
 
+    /// Writes `text` at the top left (letters the font lacks show as boxes). Pictures smaller
+    /// than 96×64 get no caption.
+    pub fn draw_caption(&mut self, text: &str) {
+        if self.width < 96 || self.height < 64 {
+            return;
+        }
+        let scale = (self.height / 240).clamp(1, 4);
+        let ink = pack([0.08, 0.08, 0.1]);
+        let at = (4 * scale) as i64;
+        draw_text(text, (at, at), scale, |x, y| self.set(x, y, ink));
+    }
+
     /// Writes the picture as an 8-bit RGB PNG, atomically.
     pub fn write_png(&self, path: &Path) -> Result<()> {
         let rgb: Vec<u8> = self
@@ -244,9 +256,21 @@ mod tests {
         let near = |p: [u8; 3], want: [f32; 3]| {
             (0..3).all(|k| (p[k] as f32 - want[k] * 255.0).abs() <= 16.0)
         };
-        assert!(near(image.rgb(192, 26), viridis(1.0)), "{:?}", image.rgb(192, 26));
-        assert!(near(image.rgb(192, 73), viridis(0.0)), "{:?}", image.rgb(192, 73));
-        let ink = image.pixels.iter().filter(|&&p| p == pack([0.08, 0.08, 0.1])).count();
+        assert!(
+            near(image.rgb(192, 26), viridis(1.0)),
+            "{:?}",
+            image.rgb(192, 26)
+        );
+        assert!(
+            near(image.rgb(192, 73), viridis(0.0)),
+            "{:?}",
+            image.rgb(192, 73)
+        );
+        let ink = image
+            .pixels
+            .iter()
+            .filter(|&&p| p == pack([0.08, 0.08, 0.1]))
+            .count();
         assert!(ink > 200, "{ink} pixels of text and frame");
     }
 }
