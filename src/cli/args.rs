@@ -20,7 +20,7 @@ pub struct Cli {
 pub enum Command {
     /// Run a DEM simulation (a built-in 50,000-sphere slab drop by default) and write frames
     /// ParaView opens (VTK + .pvd).
-    Simulate(SimulateArgs),
+    Simulate(Box<SimulateArgs>),
     /// Find every colliding pair in a sphere file or a generated scene, and print a summary.
     Detect(DetectArgs),
     /// Write a generated scene to a sphere file (.csv or .npy).

@@ -16,69 +16,27 @@ const GIF_DELAY_CS: u16 = 10;
 /// Draws frames one after another with one renderer and one set of options.
 pub struct FrameRenderer {
     renderer: Renderer,
+    view: View,
     color_by: ColorBy,
     range: Option<(f32, f32)>,
+    legend: bool,
+    gif: Option<(PathBuf, Gif)>,
+}
+
+/// Where the camera stands and what the picture is like.
+struct View {
     size: (u32, u32),
     eye: Option<[f64; 3]>,
     look_at: Option<[f64; 3]>,
     fov: f64,
     samples: u32,
     shadows: bool,
-    legend: bool,
     /// The simulation box, when known and the camera frames it.
     frame_box: Option<([f64; 3], [f64; 3])>,
-    gif: Option<(PathBuf, Gif)>,
 }
 
-/// One frame's spheres.
-pub struct FrameData<'a> {
-    pub step: Option<u64>,
-    pub positions: &'a [[f32; 3]],
-    pub radii: &'a [f32],
-    pub velocities: &'a [[f32; 3]],
-}
-
-impl FrameRenderer {
-    /// Checks the options and opens the render path (saying which one auto picked). `sim_box`
-    /// is the simulation box, if known.
-    pub fn new(args: &RenderArgs, sim_box: Option<([f64; 3], [f64; 3])>) -> Result<Self> {
-        let size = parse_size(&args.size)?;
-        let range = args.range.as_deref().map(parse_range).transpose()?;
-        let eye = args.eye.as_deref().map(parse_point).transpose()?;
-        let look_at = args.look_at.as_deref().map(parse_point).transpose()?;
-        let (renderer, reason) = Renderer::open(args.renderer)?;
-        if let Some(reason) = reason {
-            eprintln!("{reason}");
-        }
-        let this = Self {
-            renderer,
-            color_by: args.color_by,
-            range,
-            size,
-            eye,
-            look_at,
-            fov: args.fov,
-            samples: args.samples,
-            shadows: !args.no_shadows,
-            legend: !args.no_legend,
-            frame_box: sim_box.filter(|_| args.fit == Fit::Box),
-            gif: args.gif.clone().map(|path| (path, Gif::default())),
-        };
-        // Catch a bad camera or sample count before any work.
-        this.picture(([0.0; 3], [1.0; 3])).validate()?;
-        Ok(this)
-    }
-
-    /// The render path, in one line.
-    pub fn describe(&self) -> String {
-        self.renderer.describe()
-    }
-
-    /// Uses `range` for the colours of every later frame (unless `--range` fixed one).
-    pub fn set_range(&mut self, range: (f32, f32)) {
-        self.range.get_or_insert(range);
-    }
-
+impl View {
+    /// The picture of a frame whose spheres lie in `bounds`.
     fn picture(&self, bounds: ([f64; 3], [f64; 3])) -> Picture {
         let (lo, hi) = self.frame_box.unwrap_or(bounds);
         let aspect = self.size.0 as f64 / self.size.1 as f64;
@@ -95,6 +53,55 @@ impl FrameRenderer {
             ..Picture::new(self.size.0, self.size.1, camera)
         }
     }
+}
+
+/// One frame's spheres.
+pub struct FrameData<'a> {
+    pub step: Option<u64>,
+    pub positions: &'a [[f32; 3]],
+    pub radii: &'a [f32],
+    pub velocities: &'a [[f32; 3]],
+}
+
+impl FrameRenderer {
+    /// Checks the options and opens the render path (saying which one auto picked). `sim_box`
+    /// is the simulation box, if known.
+    pub fn new(args: &RenderArgs, sim_box: Option<([f64; 3], [f64; 3])>) -> Result<Self> {
+        let range = args.range.as_deref().map(parse_range).transpose()?;
+        let view = View {
+            size: parse_size(&args.size)?,
+            eye: args.eye.as_deref().map(parse_point).transpose()?,
+            look_at: args.look_at.as_deref().map(parse_point).transpose()?,
+            fov: args.fov,
+            samples: args.samples,
+            shadows: !args.no_shadows,
+            frame_box: sim_box.filter(|_| args.fit == Fit::Box),
+        };
+        // Catch a bad camera or sample count before any work.
+        view.picture(([0.0; 3], [1.0; 3])).validate()?;
+        let (renderer, reason) = Renderer::open(args.renderer)?;
+        if let Some(reason) = reason {
+            eprintln!("{reason}");
+        }
+        Ok(Self {
+            renderer,
+            view,
+            color_by: args.color_by,
+            range,
+            legend: !args.no_legend,
+            gif: args.gif.clone().map(|path| (path, Gif::default())),
+        })
+    }
+
+    /// The render path, in one line.
+    pub fn describe(&self) -> String {
+        self.renderer.describe()
+    }
+
+    /// Uses `range` for the colours of every later frame (unless `--range` fixed one).
+    pub fn set_range(&mut self, range: (f32, f32)) {
+        self.range.get_or_insert(range);
+    }
 
     /// Renders `frame` into the PNG `out` (and the GIF, if any).
     pub fn render(&mut self, frame: &FrameData, out: &Path) -> Result<()> {
@@ -102,7 +109,7 @@ impl FrameRenderer {
         let range = self.range.unwrap_or_else(|| value_range(&values));
         let scene = Scene::new(frame.positions, frame.radii, &values, range)?;
         let bounds = scene.bounds().unwrap_or(([-1.0; 3], [1.0; 3]));
-        let picture = self.picture(bounds);
+        let picture = self.view.picture(bounds);
         let mut image = self.renderer.render(&scene, &picture)?;
         if self.legend {
             image.draw_legend(&Legend {

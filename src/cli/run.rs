@@ -9,7 +9,7 @@ use std::time::Instant;
 
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Simulate(args) => super::simulate::simulate(args),
+        Command::Simulate(args) => super::simulate::simulate(*args),
         Command::Detect(args) => detect(args),
         Command::Generate(args) => generate(args),
         Command::Render(args) => super::render::render(args),

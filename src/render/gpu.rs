@@ -78,7 +78,7 @@ impl GpuRenderer {
     pub fn render(&self, scene: &Scene, picture: &Picture) -> Result<Vec<u32>> {
         let n = scene.len() as u32;
         let pixels_len = picture.width as u64 * picture.height as u64;
-        let limit = self.gpu.limits.max_storage_buffer_binding_size as u64;
+        let limit = self.gpu.limits.max_storage_buffer_binding_size;
         for (what, bytes) in [
             ("pixels", pixels_len * 4),
             ("spheres", n as u64 * 16),

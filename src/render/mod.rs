@@ -132,7 +132,7 @@ pub struct Renderer {
 
 enum Path {
     Gpu {
-        renderer: gpu::GpuRenderer,
+        renderer: Box<gpu::GpuRenderer>,
         choice: RenderChoice,
     },
     Cpu,
@@ -153,7 +153,7 @@ impl Renderer {
                         reason: e.to_string(),
                     })?;
                 let path = Path::Gpu {
-                    renderer,
+                    renderer: Box::new(renderer),
                     choice: gpu_choice,
                 };
                 Ok((Renderer { path }, None))
