@@ -200,7 +200,7 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
     Ok(())
 }
 
-/// Every frame of a folder, with one colour range over all of them.
+/// Every frame of a folder, with one colour range over all of them (unless `--range` gives one).
 fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()> {
     let files = frames_in(dir)?;
     if files.is_empty() {
@@ -209,22 +209,24 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
     let out = out.unwrap_or(dir);
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut renderer = FrameRenderer::new(args, box_of(dir))?;
-    let frames = files
-        .iter()
-        .map(|f| io::read_frame(f))
-        .collect::<Result<Vec<_>, _>>()?;
-    let mut lo = f32::INFINITY;
-    let mut hi = f32::NEG_INFINITY;
-    for frame in &frames {
-        let (a, b) = value_range(&args.color_by.values(&frame.radii, &frame.velocities));
-        lo = lo.min(a);
-        hi = hi.max(b);
+    if args.range.is_none() {
+        // A first pass for one colour range over the whole run (frames are read one at a time).
+        let mut lo = f32::INFINITY;
+        let mut hi = f32::NEG_INFINITY;
+        for file in &files {
+            let frame = io::read_frame(file)?;
+            let (a, b) = value_range(&args.color_by.values(&frame.radii, &frame.velocities));
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        if lo <= hi {
+            renderer.set_range((lo, hi));
+        }
     }
-    if lo <= hi {
-        renderer.set_range((lo, hi));
-    }
-    for (k, (frame, file)) in frames.iter().zip(&files).enumerate() {
+    for (k, file) in files.iter().enumerate() {
+        let frame = io::read_frame(file)?;
         let step = frame.step.unwrap_or(k as u64);
+        let png = png_name(out, step);
         renderer.render(
             &FrameData {
                 step: Some(step),
@@ -232,13 +234,13 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
                 radii: &frame.radii,
                 velocities: &frame.velocities,
             },
-            &png_name(out, step),
+            &png,
         )?;
-        eprintln!("{} -> {}", file.display(), png_name(out, step).display());
+        eprintln!("{} -> {}", file.display(), png.display());
     }
     println!(
         "{} frames of {} drawn into {} with {}",
-        frames.len(),
+        files.len(),
         dir.display(),
         out.display(),
         renderer.describe()

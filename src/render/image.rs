@@ -31,6 +31,10 @@ pub struct Legend {
 
 impl Image {
     /// The colour of pixel `(x, y)` as `[r, g, b]` bytes.
+    ///
+    /// # Panics
+    ///
+    /// If `(x, y)` lies outside the picture.
     pub fn rgb(&self, x: u32, y: u32) -> [u8; 3] {
         let p = self.pixels[(y * self.width + x) as usize];
         [p as u8, (p >> 8) as u8, (p >> 16) as u8]
