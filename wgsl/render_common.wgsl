@@ -15,6 +15,10 @@ struct View {
     shadows: u32,    // 1: cast shadow rays
     light: vec3<f32>,
     n: u32,          // number of spheres
+    floor_lo: vec3<f32>,
+    floor_on: u32,   // 1: draw the floor z = floor_lo.z over floor_lo.xy .. floor_hi.xy
+    floor_hi: vec3<f32>,
+    _pad0: u32,
 }
 
 struct Hit {
@@ -30,6 +34,10 @@ const DIFFUSE: f32 = 0.65;
 const SPECULAR: f32 = 0.3;
 const SHININESS: f32 = 40.0;
 const SHADOW_LIFT: f32 = 0.02;
+const FLOOR_LIGHT: vec3<f32> = vec3(0.86, 0.86, 0.84);
+const FLOOR_DARK: vec3<f32> = vec3(0.74, 0.74, 0.72);
+const FLOOR_CELLS: f32 = 10.0;
+const FLOOR_LIFT: f32 = 1e-5;
 const SKY_TOP: vec3<f32> = vec3(0.95, 0.96, 0.97);
 const SKY_BOTTOM: vec3<f32> = vec3(0.78, 0.80, 0.84);
 
@@ -53,6 +61,23 @@ fn hit_sphere(o: vec3<f32>, d: vec3<f32>, s: vec4<f32>) -> f32 {
     }
     let far = -b + root;
     return select(INF, far, far > 0.0);
+}
+
+fn hit_floor(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> f32 {
+    if d.z == 0.0 {
+        return INF;
+    }
+    let t = (view.floor_lo.z - o.z) / d.z;
+    let p = o + d * t;
+    let inside = p.x >= view.floor_lo.x && p.x <= view.floor_hi.x && p.y >= view.floor_lo.y && p.y <= view.floor_hi.y;
+    return select(INF, t, t > 0.0 && t < t_max && inside);
+}
+
+fn floor_colour(p: vec3<f32>) -> vec3<f32> {
+    let u = floor((p.x - view.floor_lo.x) / (view.floor_hi.x - view.floor_lo.x) * FLOOR_CELLS);
+    let v = floor((p.y - view.floor_lo.y) / (view.floor_hi.y - view.floor_lo.y) * FLOOR_CELLS);
+    let w = u + v;
+    return select(FLOOR_DARK, FLOOR_LIGHT, w - 2.0 * floor(w / 2.0) < 0.5);
 }
 
 fn shade(base: vec3<f32>, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, lit: f32) -> vec3<f32> {
@@ -81,8 +106,24 @@ fn render(@builtin(global_invocation_id) gid: vec3<u32>) {
             let fy = f32(gid.y) + (f32(sy) + 0.5) / f32(ss);
             let d = normalize(view.corner + view.right * fx + view.down * fy);
             let hit = trace(view.eye, d, INF, false);
+            var t_floor = INF;
+            if view.floor_on != 0u {
+                t_floor = hit_floor(view.eye, d, hit.t);
+            }
             var c: vec3<f32>;
-            if hit.k == NONE {
+            if t_floor < INF {
+                let p = view.eye + d * t_floor;
+                let n = vec3(0.0, 0.0, select(-1.0, 1.0, d.z < 0.0));
+                var lit = 1.0;
+                if view.shadows != 0u && dot(n, view.light) > 0.0 {
+                    let lift = FLOOR_LIFT * (view.floor_hi.x - view.floor_lo.x + view.floor_hi.y - view.floor_lo.y);
+                    let start = p + n * lift;
+                    if trace(start, view.light, INF, true).k != NONE {
+                        lit = 0.0;
+                    }
+                }
+                c = shade(floor_colour(p), n, -d, view.light, lit);
+            } else if hit.k == NONE {
                 c = background(fy / f32(view.height));
             } else {
                 let s = spheres[hit.k];

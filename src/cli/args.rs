@@ -80,6 +80,9 @@ pub struct RenderArgs {
     /// No shadow rays.
     #[arg(long)]
     pub no_shadows: bool,
+    /// No floor (drawn where the simulation box is known: a checker at its bottom).
+    #[arg(long)]
+    pub no_floor: bool,
     /// No colour legend and step caption.
     #[arg(long)]
     pub no_legend: bool,

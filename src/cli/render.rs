@@ -33,6 +33,8 @@ struct View {
     shadows: bool,
     /// The simulation box, when known and the camera frames it.
     frame_box: Option<([f64; 3], [f64; 3])>,
+    /// The box whose bottom is drawn as the floor.
+    floor: Option<([f64; 3], [f64; 3])>,
 }
 
 impl View {
@@ -50,6 +52,7 @@ impl View {
         Picture {
             samples: self.samples,
             shadows: self.shadows,
+            floor: self.floor,
             ..Picture::new(self.size.0, self.size.1, camera)
         }
     }
@@ -76,6 +79,7 @@ impl FrameRenderer {
             samples: args.samples,
             shadows: !args.no_shadows,
             frame_box: sim_box.filter(|_| args.fit == Fit::Box),
+            floor: sim_box.filter(|_| !args.no_floor),
         };
         // Catch a bad camera or sample count before any work.
         view.picture(([0.0; 3], [1.0; 3])).validate()?;

@@ -10,6 +10,7 @@ use rayon::prelude::*;
 /// The pixels of `picture` of `scene`, row by row.
 pub(crate) fn render(scene: &Scene, picture: &Picture) -> Vec<u32> {
     let grid = picture.camera.grid(picture.width, picture.height);
+    let floor = picture.floor();
     let mut pixels = vec![0u32; picture.width as usize * picture.height as usize];
     pixels
         .par_chunks_mut(picture.width as usize)
@@ -21,6 +22,7 @@ pub(crate) fn render(scene: &Scene, picture: &Picture) -> Vec<u32> {
                     (x as u32, y as u32),
                     (picture.samples, picture.height),
                     picture.shadows,
+                    floor.as_ref(),
                     &scene.spheres,
                     &scene.colours,
                     |o, d, t_max, first| trace(&scene.nodes, &scene.spheres, o, d, t_max, first),

@@ -39,8 +39,12 @@ struct ViewUniform {
     shadows: u32,
     light: [f32; 3],
     n: u32,
+    floor_lo: [f32; 3],
+    floor_on: u32,
+    floor_hi: [f32; 3],
+    _pad0: u32,
 }
-const _: () = assert!(size_of::<ViewUniform>() == 80);
+const _: () = assert!(size_of::<ViewUniform>() == 112);
 
 /// A GPU render path on an open device.
 pub(crate) struct GpuRenderer {
@@ -100,6 +104,7 @@ impl GpuRenderer {
             });
         }
         let grid = picture.camera.grid(picture.width, picture.height);
+        let floor = picture.floor();
         let view = ViewUniform {
             eye: grid.eye,
             width: picture.width,
@@ -111,6 +116,10 @@ impl GpuRenderer {
             shadows: picture.shadows as u32,
             light: grid.light,
             n,
+            floor_lo: floor.map_or([0.0; 3], |f| f.lo),
+            floor_on: floor.is_some() as u32,
+            floor_hi: floor.map_or([0.0; 3], |f| f.hi),
+            _pad0: 0,
         };
         let gpu = &self.gpu;
         let pixels = gpu.checked("rendering", || {

@@ -16,7 +16,8 @@
 //!
 //! Each pixel averages `samples`² camera rays; a hit is shaded with ambient, a soft headlight,
 //! Lambert and Blinn–Phong terms of one directional light, and optionally a shadow ray towards
-//! it. Misses show a light vertical gradient. The shaders are `wgsl/render_*.wgsl`; their CPU
+//! it. An optional floor (the simulation box's) is a grey checker that receives the spheres'
+//! shadows. Misses show a light vertical gradient. The shaders are `wgsl/render_*.wgsl`; their CPU
 //! twin is `shade.rs` and `bvh.rs` in this module.
 //!
 //! ```
@@ -68,6 +69,10 @@ pub struct Picture {
     pub samples: u32,
     /// Cast a shadow ray from every lit point towards the light (default: false).
     pub shadows: bool,
+    /// A floor to draw under the spheres, usually the simulation box's: the rectangle at
+    /// `z = lo[2]` over `lo[0]..hi[0]` × `lo[1]..hi[1]` \[m\], a grey checker of 10×10 cells
+    /// that receives shadows (default: none).
+    pub floor: Option<([f64; 3], [f64; 3])>,
 }
 
 impl Picture {
@@ -79,13 +84,32 @@ impl Picture {
             camera,
             samples: 1,
             shadows: false,
+            floor: None,
         }
+    }
+
+    /// The floor in `f32`, as the shaders get it.
+    fn floor(&self) -> Option<shade::Floor> {
+        self.floor.map(|(lo, hi)| shade::Floor {
+            lo: lo.map(|x| x as f32),
+            hi: hi.map(|x| x as f32),
+        })
     }
 
     /// Checks the size, the camera and the samples.
     pub fn validate(&self) -> Result<()> {
         check_size(self.width, self.height)?;
         self.camera.validate()?;
+        if let Some((lo, hi)) = self.floor {
+            let ok = (0..3).all(|k| lo[k].is_finite() && hi[k].is_finite() && lo[k] <= hi[k])
+                && lo[0] < hi[0]
+                && lo[1] < hi[1];
+            if !ok {
+                return Err(Error::Usage(format!(
+                    "floor {lo:?}..{hi:?}: must be finite with lo < hi in x and y"
+                )));
+            }
+        }
         if !(1..=MAX_SAMPLES).contains(&self.samples) {
             return Err(Error::Usage(format!(
                 "samples {}: rays per pixel side must be in 1..={MAX_SAMPLES}",

@@ -20,6 +20,13 @@ const SHININESS: f32 = 40.0;
 /// The shadow ray starts this far outside the sphere, relative to its radius.
 const SHADOW_LIFT: f32 = 0.02;
 
+/// The floor's two checker greys and its cells per side.
+const FLOOR_LIGHT: [f32; 3] = [0.86, 0.86, 0.84];
+const FLOOR_DARK: [f32; 3] = [0.74, 0.74, 0.72];
+const FLOOR_CELLS: f32 = 10.0;
+/// Shadow rays from the floor start this far above it, relative to the floor's size.
+const FLOOR_LIFT: f32 = 1e-5;
+
 /// Background at the top and the bottom of the picture (a vertical gradient).
 const SKY_TOP: [f32; 3] = [0.95, 0.96, 0.97];
 const SKY_BOTTOM: [f32; 3] = [0.78, 0.80, 0.84];
@@ -47,13 +54,49 @@ pub(crate) fn hit_sphere(o: [f32; 3], d: [f32; 3], s: [f32; 4]) -> f32 {
     if far > 0.0 { far } else { INF }
 }
 
+/// A horizontal rectangle under the spheres: `z = lo[2]`, `lo[0]..hi[0]` × `lo[1]..hi[1]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Floor {
+    pub lo: [f32; 3],
+    pub hi: [f32; 3],
+}
+
+/// Where the ray `o + t·d` meets the floor for `0 < t < t_max`, or [`INF`].
+fn hit_floor(floor: &Floor, o: [f32; 3], d: [f32; 3], t_max: f32) -> f32 {
+    if d[2] == 0.0 {
+        return INF;
+    }
+    let t = (floor.lo[2] - o[2]) / d[2];
+    let p = add(o, scale(d, t));
+    let inside =
+        p[0] >= floor.lo[0] && p[0] <= floor.hi[0] && p[1] >= floor.lo[1] && p[1] <= floor.hi[1];
+    if t > 0.0 && t < t_max && inside {
+        t
+    } else {
+        INF
+    }
+}
+
+/// The checker grey of the floor at `p`.
+fn floor_colour(floor: &Floor, p: [f32; 3]) -> [f32; 3] {
+    let u = ((p[0] - floor.lo[0]) / (floor.hi[0] - floor.lo[0]) * FLOOR_CELLS).floor();
+    let v = ((p[1] - floor.lo[1]) / (floor.hi[1] - floor.lo[1]) * FLOOR_CELLS).floor();
+    if (u + v).rem_euclid(2.0) < 0.5 {
+        FLOOR_LIGHT
+    } else {
+        FLOOR_DARK
+    }
+}
+
 /// The colour of a pixel: the mean of `samples`×`samples` rays on a regular grid inside it;
 /// `trace(o, d, t_max, first)` is the path's nearest-hit search (see [`super::bvh::trace`]).
+#[allow(clippy::too_many_arguments)] // the shader's inputs, one by one
 pub(crate) fn pixel(
     grid: &Grid,
     (x, y): (u32, u32),
     (samples, height): (u32, u32),
     shadows: bool,
+    floor: Option<&Floor>,
     spheres: &[[f32; 4]],
     colours: &[u32],
     trace: impl Fn([f32; 3], [f32; 3], f32, bool) -> (f32, u32),
@@ -68,7 +111,23 @@ pub(crate) fn pixel(
                 scale(grid.down, fy),
             ));
             let (t, k) = trace(grid.eye, d, INF, false);
-            let c = if k == u32::MAX {
+            let t_floor = match floor {
+                Some(f) => hit_floor(f, grid.eye, d, t),
+                None => INF,
+            };
+            let c = if let (Some(f), true) = (floor, t_floor < INF) {
+                let p = add(grid.eye, scale(d, t_floor));
+                let n = [0.0, 0.0, if d[2] < 0.0 { 1.0 } else { -1.0 }];
+                let mut lit = 1.0;
+                if shadows && dot(n, grid.light) > 0.0 {
+                    let lift = FLOOR_LIFT * (f.hi[0] - f.lo[0] + f.hi[1] - f.lo[1]);
+                    let start = add(p, scale(n, lift));
+                    if trace(start, grid.light, INF, true).1 != u32::MAX {
+                        lit = 0.0;
+                    }
+                }
+                shade(floor_colour(f, p), n, scale(d, -1.0), grid.light, lit)
+            } else if k == u32::MAX {
                 background(fy / height as f32)
             } else {
                 let s = spheres[k as usize];
