@@ -110,6 +110,10 @@ fn gpu_paths_draw_the_cpu_picture() {
     let picture = Picture {
         samples: 2,
         shadows: true,
+        floor: Some((
+            [lo[0] - 1.0, lo[1] - 1.0, lo[2]],
+            [hi[0] + 1.0, hi[1] + 1.0, hi[2]],
+        )),
         ..Picture::new(64, 48, Camera::framing(lo, hi, 64.0 / 48.0, 40.0))
     };
     let mut all = renderers().into_iter();
@@ -133,6 +137,45 @@ fn gpu_paths_draw_the_cpu_picture() {
             "{}: only {close} of {} pixels match the cpu path",
             renderer.name(),
             64 * 48
+        );
+    }
+}
+
+#[test]
+fn a_sphere_casts_its_shadow_on_the_floor() {
+    // Looking straight down on a sphere above a floor: with shadow rays a patch of floor gets
+    // darker, and nothing gets lighter.
+    let scene = Scene::new(&[[0.0, 0.0, 0.5]], &[0.4], &[0.5], (0.0, 1.0)).unwrap();
+    let camera = Camera {
+        eye: [0.0, 0.0, 6.0],
+        look_at: [0.0; 3],
+        fov_deg: 50.0,
+    };
+    let picture = |shadows| Picture {
+        shadows,
+        floor: Some(([-4.0, -4.0, 0.0], [4.0, 4.0, 0.0])),
+        ..Picture::new(48, 48, camera)
+    };
+    for mut renderer in renderers() {
+        let plain = renderer.render(&scene, &picture(false)).unwrap();
+        let shadowed = renderer.render(&scene, &picture(true)).unwrap();
+        let mut darker = 0;
+        for y in 0..48 {
+            for x in 0..48 {
+                let (a, b) = (rgb(&plain, x, y), rgb(&shadowed, x, y));
+                let change = b.iter().sum::<f32>() - a.iter().sum::<f32>();
+                assert!(
+                    change <= 0.01,
+                    "{}: ({x}, {y}) got lighter",
+                    renderer.name()
+                );
+                darker += usize::from(change < -0.3);
+            }
+        }
+        assert!(
+            darker > 20,
+            "{}: {darker} pixels in shadow",
+            renderer.name()
         );
     }
 }
