@@ -1,7 +1,13 @@
-//! A 3×5 bitmap font of our own, just large enough for legends: digits, `.`, `+`, `-`, `e`,
-//! brackets, `/` and the lower-case letters of the labels.
+//! A 3×5 bitmap font of our own (`m` is 5 wide), just large enough for legends: digits, `.`,
+//! `+`, `-`, `e`, brackets, `/` and the lower-case letters of the labels.
 
-/// Each glyph: five rows from the top, three bits each (the high bit is the left column).
+/// Width in columns of a glyph.
+fn glyph_width(c: char) -> u32 {
+    if c == 'm' { 5 } else { 3 }
+}
+
+/// Each glyph: five rows from the top, [`glyph_width`] bits each (the high bit is the left
+/// column).
 fn glyph(c: char) -> Option<[u8; 5]> {
     Some(match c {
         '0' => [0b111, 0b101, 0b101, 0b101, 0b111],
@@ -25,7 +31,7 @@ fn glyph(c: char) -> Option<[u8; 5]> {
         'd' => [0b001, 0b011, 0b101, 0b101, 0b011],
         'e' => [0b000, 0b011, 0b111, 0b100, 0b011],
         'i' => [0b010, 0b000, 0b010, 0b010, 0b010],
-        'm' => [0b000, 0b110, 0b111, 0b101, 0b101],
+        'm' => [0b00000, 0b11110, 0b10101, 0b10101, 0b10101],
         'n' => [0b000, 0b110, 0b101, 0b101, 0b101],
         'o' => [0b000, 0b010, 0b101, 0b101, 0b010],
         'p' => [0b000, 0b110, 0b101, 0b110, 0b100],
@@ -37,9 +43,10 @@ fn glyph(c: char) -> Option<[u8; 5]> {
     })
 }
 
-/// Width of `text` in pixels at `scale` (each glyph 3 wide plus a gap of 1, times `scale`).
+/// Width of `text` in pixels at `scale` (each glyph plus a gap of 1, times `scale`).
 pub(crate) fn text_width(text: &str, scale: u32) -> u32 {
-    (text.chars().count() as u32 * 4).saturating_sub(1) * scale
+    let columns: u32 = text.chars().map(|c| glyph_width(c) + 1).sum();
+    columns.saturating_sub(1) * scale
 }
 
 /// Height of a line of text in pixels at `scale`.
@@ -56,12 +63,15 @@ pub(crate) fn draw_text(
     mut set: impl FnMut(i64, i64),
 ) {
     let scale = scale as i64;
-    for (k, c) in text.chars().enumerate() {
-        let rows = glyph(c).unwrap_or([0b111, 0b101, 0b101, 0b101, 0b111]);
-        let left = x0 + k as i64 * 4 * scale;
+    let mut left = x0;
+    for c in text.chars() {
+        let (rows, width) = match glyph(c) {
+            Some(rows) => (rows, glyph_width(c) as i64),
+            None => ([0b111, 0b101, 0b101, 0b101, 0b111], 3),
+        };
         for (row, bits) in rows.iter().enumerate() {
-            for col in 0..3 {
-                if bits & (0b100 >> col) == 0 {
+            for col in 0..width {
+                if bits & (1 << (width - 1 - col)) == 0 {
                     continue;
                 }
                 for dy in 0..scale {
@@ -71,6 +81,7 @@ pub(crate) fn draw_text(
                 }
             }
         }
+        left += (width + 1) * scale;
     }
 }
 
@@ -117,5 +128,6 @@ mod tests {
         draw_text("8", (0, 0), 2, |_, _| lit += 1);
         assert_eq!(lit, 13 * 4);
         assert_eq!(text_width("ab", 2), 14);
+        assert_eq!(text_width("m", 1), 5);
     }
 }
