@@ -18,6 +18,14 @@ pub struct Image {
     pub pixels: Vec<u32>,
 }
 
+/// How far [`Image::veil`] lightens what lies under the legend (0: not at all, 1: white).
+const VEIL: f32 = 0.7;
+
+/// Pixels per font pixel for a picture `height` pixels high.
+fn text_scale(height: u32) -> u32 {
+    (height / 180).clamp(1, 4)
+}
+
 /// What a colour legend shows: a label and the values at both ends of the colour map.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Legend {
@@ -51,13 +59,25 @@ impl Image {
         }
     }
 
-    /// Draws `legend` at the right edge: the label, the maximum, a vertical colour bar and the
-    /// minimum. Pictures smaller than 96×64 get no legend (it would hide the spheres).
+    /// Lightens the rectangle `x0..x1` × `y0..y1` (clipped), so that text on it stays legible.
+    fn veil(&mut self, (x0, y0): (i64, i64), (x1, y1): (i64, i64)) {
+        for y in y0.max(0)..y1.min(self.height as i64) {
+            for x in x0.max(0)..x1.min(self.width as i64) {
+                let i = (y as u32 * self.width + x as u32) as usize;
+                let c = unpack(self.pixels[i]);
+                self.pixels[i] = pack(c.map(|v| v + (0.97 - v) * VEIL));
+            }
+        }
+    }
+
+    /// Draws `legend` at the right edge on a light veil: the label, the maximum, a vertical
+    /// colour bar and the minimum. Pictures smaller than 96×64 get no legend (it would hide the
+    /// spheres).
     pub fn draw_legend(&mut self, legend: &Legend) {
         if self.width < 96 || self.height < 64 {
             return;
         }
-        let scale = (self.height / 240).clamp(1, 4);
+        let scale = text_scale(self.height);
         let margin = (4 * scale) as i64;
         let line = (text_height(scale) + 2 * scale) as i64;
         let bar_w = (6 * scale) as i64;
@@ -65,17 +85,24 @@ impl Image {
         let right = self.width as i64 - margin;
         let ink = pack([0.08, 0.08, 0.1]);
         let top = (self.height as i64 - bar_h) / 2;
+        let (max, min) = (format_value(legend.max), format_value(legend.min));
+        let widest = [&legend.label, &max, &min]
+            .iter()
+            .map(|s| text_width(s, scale))
+            .max()
+            .unwrap_or(0) as i64;
+        let pad = 2 * scale as i64;
+        self.veil(
+            (right - widest - pad, top - 2 * line - pad),
+            (right + pad, top + bar_h + line + pad),
+        );
         let text = |image: &mut Image, s: &str, y: i64| {
             let x = right - text_width(s, scale) as i64;
             draw_text(s, (x, y), scale, |px, py| image.set(px, py, ink));
         };
         text(self, &legend.label, top - 2 * line);
-        text(self, &format_value(legend.max), top - line);
-        text(
-            self,
-            &format_value(legend.min),
-            top + bar_h + 2 * scale as i64,
-        );
+        text(self, &max, top - line);
+        text(self, &min, top + bar_h + 2 * scale as i64);
         for dy in 0..bar_h {
             let u = 1.0 - dy as f32 / (bar_h - 1).max(1) as f32;
             let value = legend.min + (legend.max - legend.min) * u;
@@ -91,15 +118,23 @@ impl Image {
         }
     }
 
-    /// Writes `text` at the top left (letters the font lacks show as boxes). Pictures smaller
-    /// than 96×64 get no caption.
+    /// Writes `text` at the top left on a light veil (letters the font lacks show as boxes).
+    /// Pictures smaller than 96×64 get no caption.
     pub fn draw_caption(&mut self, text: &str) {
         if self.width < 96 || self.height < 64 {
             return;
         }
-        let scale = (self.height / 240).clamp(1, 4);
+        let scale = text_scale(self.height);
         let ink = pack([0.08, 0.08, 0.1]);
         let at = (4 * scale) as i64;
+        let pad = 2 * scale as i64;
+        self.veil(
+            (at - pad, at - pad),
+            (
+                at + text_width(text, scale) as i64 + pad,
+                at + text_height(scale) as i64 + pad,
+            ),
+        );
         draw_text(text, (at, at), scale, |x, y| self.set(x, y, ink));
     }
 
