@@ -58,11 +58,15 @@ impl View {
     }
 }
 
-/// One frame's spheres.
+/// One frame's spheres (parallel slices).
 pub struct FrameData<'a> {
+    /// Step number, shown at the top left when known.
     pub step: Option<u64>,
+    /// Centres [m].
     pub positions: &'a [[f32; 3]],
+    /// Radii [m].
     pub radii: &'a [f32],
+    /// Velocities [m/s].
     pub velocities: &'a [[f32; 3]],
 }
 
