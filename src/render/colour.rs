@@ -6,10 +6,10 @@ use super::shade::pack;
 /// What a sphere's colour shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum ColorBy {
-    /// Radius \[m\].
+    /// The radius, in m.
     #[default]
     Radius,
-    /// Speed |v| \[m/s\].
+    /// The speed |v|, in m/s.
     Speed,
 }
 
