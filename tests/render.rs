@@ -331,6 +331,8 @@ fn simulate_renders_frames_that_are_not_blank_and_render_redraws_them() {
             "0.5,-2,1",
             "--look-at",
             "0.5,0.5,0.1",
+            "--gif",
+            "pictures/run.gif",
         ],
         d,
     );
@@ -339,6 +341,8 @@ fn simulate_renders_frames_that_are_not_blank_and_render_redraws_them() {
     for step in [0, 10, 20] {
         assert!(d.join(format!("pictures/frame_{step:08}.png")).is_file());
     }
+    let gif = std::fs::read(d.join("pictures/run.gif")).unwrap();
+    assert!(gif.starts_with(b"GIF89a"));
 }
 
 #[test]
