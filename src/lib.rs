@@ -19,6 +19,8 @@
 //!   backend (GPU-resident on the GPU backends), scene files.
 //! - [`mesh`]: triangle meshes (OBJ, PLY, STL) filled with spheres, for the `mesh` scene.
 //! - [`bench`](mod@bench): the paper's experiments on every backend (`mochi bench`): tables, JSON, plots.
+//! - [`render`]: pictures of spheres, ray traced on the GPU (ray queries or our own BVH) or the
+//!   CPU, with a colour legend, as PNG frames or an animated GIF.
 //!
 //! ```
 //! use mochi::{SphereSet, ProxyMode, backend::BackendKind};
@@ -40,6 +42,7 @@ pub mod io;
 pub mod mesh;
 pub mod oracle;
 pub mod proxy;
+pub mod render;
 pub mod scenes;
 mod spheres;
 

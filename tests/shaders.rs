@@ -9,6 +9,7 @@ fn all_shaders() -> Vec<(String, String)> {
         .chain(&mochi::backend::wgpu_compute::SHADERS)
         .chain(&mochi::gpu::radix_sort::SHADERS)
         .chain(&mochi::gpu::scan::SHADERS)
+        .chain(&mochi::render::SHADERS)
         .map(|&(name, source)| (name.to_owned(), source.to_owned()))
         .collect();
     all.extend(mochi::dem::wgpu_compute::shaders());

@@ -4,6 +4,7 @@ use clap::{Args, Parser, Subcommand};
 use mochi::ProxyMode;
 use mochi::backend::wgpu_compute::Structure;
 use mochi::backend::{BackendChoice, RebuildPolicy};
+use mochi::render::{ColorBy, RenderChoice};
 use mochi::scenes::{Layout, Scene};
 use std::path::PathBuf;
 
@@ -19,16 +20,88 @@ pub struct Cli {
 pub enum Command {
     /// Run a DEM simulation (a built-in 50,000-sphere slab drop by default) and write frames
     /// ParaView opens (VTK + .pvd).
-    Simulate(SimulateArgs),
+    Simulate(Box<SimulateArgs>),
     /// Find every colliding pair in a sphere file or a generated scene, and print a summary.
     Detect(DetectArgs),
     /// Write a generated scene to a sphere file (.csv or .npy).
     Generate(GenerateArgs),
+    /// Ray trace frames of a simulation (a .vtu or .csv frame, or a folder of them) into PNG
+    /// pictures, on the GPU where there is one.
+    Render(RenderCommandArgs),
     /// List the backends and whether each can run on this machine.
     Backends,
     /// Run the paper's experiments on every backend: a Markdown table on stdout, JSON and SVG
     /// plots in --out.
     Bench(super::bench::BenchArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct RenderCommandArgs {
+    /// A frame (.vtu as `mochi simulate` writes, or .csv/.npy spheres with or without
+    /// velocities), or a folder: every frame of its series.pvd (else its frame_*.vtu files).
+    pub input: PathBuf,
+    /// Output: the PNG of a single frame (default: next to it, .png), or the folder of the
+    /// pictures of a folder (default: the same folder), named frame_<step>.png.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    #[command(flatten)]
+    pub render: RenderArgs,
+}
+
+/// How pictures are drawn (shared by `render` and `simulate --render-every`).
+#[derive(Debug, Clone, Args)]
+pub struct RenderArgs {
+    /// Render path: auto picks the fastest that runs here and says which.
+    #[arg(long, value_enum, default_value_t)]
+    pub renderer: RenderChoice,
+    /// Picture size in pixels, WxH.
+    #[arg(long, value_name = "WxH", default_value = "960x720")]
+    pub size: String,
+    /// Colour the spheres by radius or speed.
+    #[arg(long, value_enum, default_value_t)]
+    pub color_by: ColorBy,
+    /// Values at both ends of the colour map, MIN,MAX (default: the values' own range; over all
+    /// frames when rendering a folder).
+    #[arg(long, value_name = "MIN,MAX", allow_hyphen_values = true)]
+    pub range: Option<String>,
+    /// Camera position x,y,z [m] (default: a 3/4 view from the front left, framing the box).
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub eye: Option<String>,
+    /// The point at the picture's centre, x,y,z [m] (default: the centre of the box).
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub look_at: Option<String>,
+    /// Vertical field of view [degrees].
+    #[arg(long, default_value_t = mochi::render::DEFAULT_FOV_DEG)]
+    pub fov: f64,
+    /// What the default camera frames: the simulation box (from scene.toml next to the frames,
+    /// else the spheres) or the spheres alone.
+    #[arg(long, value_enum, default_value_t)]
+    pub fit: Fit,
+    /// Rays per pixel side (1-4): 2 gives 4 rays per pixel, smoother edges.
+    #[arg(long, default_value_t = 2)]
+    pub samples: u32,
+    /// No shadow rays.
+    #[arg(long)]
+    pub no_shadows: bool,
+    /// No floor (drawn where the simulation box is known: a checker at its bottom).
+    #[arg(long)]
+    pub no_floor: bool,
+    /// No colour legend and step caption.
+    #[arg(long)]
+    pub no_legend: bool,
+    /// Also write every picture into this animated GIF.
+    #[arg(long, value_name = "FILE")]
+    pub gif: Option<PathBuf>,
+}
+
+/// What the default camera frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Fit {
+    /// The simulation box.
+    #[default]
+    Box,
+    /// The spheres of each frame.
+    Spheres,
 }
 
 #[derive(Debug, Args)]
@@ -122,6 +195,12 @@ pub struct SimulateArgs {
     /// Also write every frame as CSV (x,y,z,r,vx,vy,vz).
     #[arg(long)]
     pub csv: bool,
+    /// Ray trace a PNG picture (OUT/frame_<step>.png) every M steps (0: none); see the
+    /// picture options below.
+    #[arg(long, value_name = "M", default_value_t = 0)]
+    pub render_every: u64,
+    #[command(flatten)]
+    pub render: RenderArgs,
     /// Grid cells of 2·r_max (mochi) or 4·r_max (nns).
     #[arg(long, value_enum)]
     pub mode: Option<ProxyMode>,

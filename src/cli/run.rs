@@ -9,10 +9,11 @@ use std::time::Instant;
 
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Simulate(args) => super::simulate::simulate(args),
+        Command::Simulate(args) => super::simulate::simulate(*args),
         Command::Detect(args) => detect(args),
         Command::Generate(args) => generate(args),
         Command::Bench(args) => super::bench::bench(args),
+        Command::Render(args) => super::render::render(args),
         Command::Backends => {
             list_backends();
             Ok(())

@@ -1,12 +1,14 @@
 //! `mochi simulate`: runs a DEM scene with a progress bar, frames, checkpoints and a summary.
 
 use super::args::SimulateArgs;
+use super::render::{FrameData, FrameRenderer, png_name};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::backend::Options;
 use mochi::dem::scene::SceneConfig;
 use mochi::dem::{Clock, StageTimes, Stepper, open_choice};
 use mochi::io::{self, Frame, FrameSeries};
+use mochi::render::ColorBy;
 use std::time::Instant;
 
 /// Steps between two progress updates at most.
@@ -125,8 +127,37 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         }
         Ok(())
     };
+    let mut pictures = if args.render_every == 0 {
+        None
+    } else {
+        let sim_box = config.box_lo.zip(config.box_hi);
+        let mut pictures = FrameRenderer::new(&args.render, sim_box)?;
+        if args.render.color_by == ColorBy::Radius {
+            pictures.set_range(start.particles.radius_range());
+        }
+        eprintln!(
+            "pictures every {} steps with {}",
+            args.render_every,
+            pictures.describe()
+        );
+        Some(pictures)
+    };
+    let draw = |pictures: &mut Option<FrameRenderer>, stepper: &mut dyn Stepper| -> Result<()> {
+        if let Some(pictures) = pictures {
+            let now = stepper.particles()?;
+            let frame = FrameData {
+                step: Some(now.step),
+                positions: &now.positions,
+                radii: &now.radii,
+                velocities: &now.velocities,
+            };
+            pictures.render(&frame, &png_name(&args.out, now.step))?;
+        }
+        Ok(())
+    };
     if args.resume.is_none() {
         write_frame(&mut frames, stepper.as_mut())?;
+        draw(&mut pictures, stepper.as_mut())?;
     }
 
     let bar = if args.quiet {
@@ -146,13 +177,18 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let mut step = first;
     let due = |every: u64, s: u64| every > 0 && s.is_multiple_of(every);
     while step < total {
-        let next_stop = [config.frame_every, args.checkpoint_every, PROGRESS_EVERY]
-            .into_iter()
-            .filter(|&e| e > 0)
-            .map(|e| (step / e + 1) * e)
-            .min()
-            .unwrap_or(total)
-            .min(total);
+        let next_stop = [
+            config.frame_every,
+            args.checkpoint_every,
+            args.render_every,
+            PROGRESS_EVERY,
+        ]
+        .into_iter()
+        .filter(|&e| e > 0)
+        .map(|e| (step / e + 1) * e)
+        .min()
+        .unwrap_or(total)
+        .min(total);
         let advance = stepper.advance((next_stop - step) as u32)?;
         step = next_stop;
         times.add(&advance.times);
@@ -160,6 +196,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         contacts = advance.contacts;
         if due(config.frame_every, step) {
             write_frame(&mut frames, stepper.as_mut())?;
+        }
+        if due(args.render_every, step) {
+            draw(&mut pictures, stepper.as_mut())?;
         }
         if due(args.checkpoint_every, step) {
             io::write_checkpoint(&checkpoint, &stepper.particles()?, &scene_toml)?;
@@ -185,6 +224,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         args.out.display(),
         checkpoint.display()
     );
+    if let Some(gif) = pictures.map(FrameRenderer::finish).transpose()?.flatten() {
+        eprintln!("wrote {}", gif.display());
+    }
     Ok(())
 }
 

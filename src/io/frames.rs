@@ -465,6 +465,12 @@ fn write_index(path: &Path, entries: &[SeriesEntry]) -> Result<()> {
     })
 }
 
+/// Reads the frames listed in a series index ([`SERIES_INDEX`]) this module wrote, in its order.
+pub fn read_series_index(path: &Path) -> Result<Vec<SeriesEntry>> {
+    let text = std::fs::read_to_string(path).map_err(io_error(path))?;
+    parse_index(path, &text)
+}
+
 /// Reads the `<DataSet timestep=".." file="frame_N.vtu"/>` entries of an index this module wrote
 /// (the step comes from the file name).
 fn parse_index(path: &Path, text: &str) -> Result<Vec<SeriesEntry>> {

@@ -7,13 +7,17 @@
 
 mod atomic;
 mod checkpoint;
+mod frame_read;
 mod frames;
 mod pairs;
 mod spheres;
 
 pub use atomic::write_atomically;
 pub use checkpoint::{read_checkpoint, write_checkpoint};
-pub use frames::{Frame, FrameSeries, SERIES_INDEX, SeriesEntry, write_frame_csv, write_vtu};
+pub use frame_read::{OwnedFrame, read_frame, read_vtu};
+pub use frames::{
+    Frame, FrameSeries, SERIES_INDEX, SeriesEntry, read_series_index, write_frame_csv, write_vtu,
+};
 pub use pairs::{read_pairs, write_pairs};
 pub use spheres::{read_particles, read_spheres, write_spheres};
 

@@ -1,0 +1,289 @@
+//! `mochi render` and the pictures of `mochi simulate --render-every`: frames in, PNG (and an
+//! optional animated GIF) out.
+
+use super::args::{Fit, RenderArgs, RenderCommandArgs};
+use anyhow::{Context, Result, bail};
+use mochi::dem::scene::SceneConfig;
+use mochi::io::{self, SERIES_INDEX};
+use mochi::render::{
+    Camera, ColorBy, Gif, Legend, Picture, Renderer, Scene, parse_point, parse_size, value_range,
+};
+use std::path::{Path, PathBuf};
+
+/// GIF frame delay [1/100 s].
+const GIF_DELAY_CS: u16 = 10;
+
+/// Draws frames one after another with one renderer and one set of options.
+pub struct FrameRenderer {
+    renderer: Renderer,
+    view: View,
+    color_by: ColorBy,
+    range: Option<(f32, f32)>,
+    legend: bool,
+    gif: Option<(PathBuf, Gif)>,
+}
+
+/// Where the camera stands and what the picture is like.
+struct View {
+    size: (u32, u32),
+    eye: Option<[f64; 3]>,
+    look_at: Option<[f64; 3]>,
+    fov: f64,
+    samples: u32,
+    shadows: bool,
+    /// The simulation box, when known and the camera frames it.
+    frame_box: Option<([f64; 3], [f64; 3])>,
+    /// The box whose bottom is drawn as the floor.
+    floor: Option<([f64; 3], [f64; 3])>,
+}
+
+impl View {
+    /// The picture of a frame whose spheres lie in `bounds`.
+    fn picture(&self, bounds: ([f64; 3], [f64; 3])) -> Picture {
+        let (lo, hi) = self.frame_box.unwrap_or(bounds);
+        let aspect = self.size.0 as f64 / self.size.1 as f64;
+        let mut camera = Camera::framing(lo, hi, aspect, self.fov);
+        if let Some(look_at) = self.look_at {
+            camera.look_at = look_at;
+        }
+        if let Some(eye) = self.eye {
+            camera.eye = eye;
+        }
+        Picture {
+            samples: self.samples,
+            shadows: self.shadows,
+            floor: self.floor,
+            ..Picture::new(self.size.0, self.size.1, camera)
+        }
+    }
+}
+
+/// One frame's spheres (parallel slices).
+pub struct FrameData<'a> {
+    /// Step number, shown at the top left when known.
+    pub step: Option<u64>,
+    /// Centres [m].
+    pub positions: &'a [[f32; 3]],
+    /// Radii [m].
+    pub radii: &'a [f32],
+    /// Velocities [m/s].
+    pub velocities: &'a [[f32; 3]],
+}
+
+impl FrameRenderer {
+    /// Checks the options and opens the render path (saying which one auto picked). `sim_box`
+    /// is the simulation box, if known.
+    pub fn new(args: &RenderArgs, sim_box: Option<([f64; 3], [f64; 3])>) -> Result<Self> {
+        let range = args.range.as_deref().map(parse_range).transpose()?;
+        let view = View {
+            size: parse_size(&args.size)?,
+            eye: args.eye.as_deref().map(parse_point).transpose()?,
+            look_at: args.look_at.as_deref().map(parse_point).transpose()?,
+            fov: args.fov,
+            samples: args.samples,
+            shadows: !args.no_shadows,
+            frame_box: sim_box.filter(|_| args.fit == Fit::Box),
+            floor: sim_box.filter(|_| !args.no_floor),
+        };
+        // Catch a bad camera or sample count before any work.
+        view.picture(([0.0; 3], [1.0; 3])).validate()?;
+        let (renderer, reason) = Renderer::open(args.renderer)?;
+        if let Some(reason) = reason {
+            eprintln!("{reason}");
+        }
+        Ok(Self {
+            renderer,
+            view,
+            color_by: args.color_by,
+            range,
+            legend: !args.no_legend,
+            gif: args.gif.clone().map(|path| (path, Gif::default())),
+        })
+    }
+
+    /// The render path, in one line.
+    pub fn describe(&self) -> String {
+        self.renderer.describe()
+    }
+
+    /// Uses `range` for the colours of every later frame (unless `--range` fixed one).
+    pub fn set_range(&mut self, range: (f32, f32)) {
+        self.range.get_or_insert(range);
+    }
+
+    /// Renders `frame` into the PNG `out` (and the GIF, if any).
+    pub fn render(&mut self, frame: &FrameData, out: &Path) -> Result<()> {
+        let values = self.color_by.values(frame.radii, frame.velocities);
+        let range = self.range.unwrap_or_else(|| value_range(&values));
+        let scene = Scene::new(frame.positions, frame.radii, &values, range)?;
+        let bounds = scene.bounds().unwrap_or(([-1.0; 3], [1.0; 3]));
+        let picture = self.view.picture(bounds);
+        let mut image = self.renderer.render(&scene, &picture)?;
+        if self.legend {
+            image.draw_legend(&Legend {
+                label: self.color_by.label().into(),
+                min: range.0,
+                max: range.1,
+            });
+            if let Some(step) = frame.step {
+                image.draw_caption(&format!("step {step}"));
+            }
+        }
+        image.write_png(out)?;
+        if let Some((_, gif)) = &mut self.gif {
+            gif.add(&image, GIF_DELAY_CS)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the GIF, if one was asked for; returns its path.
+    pub fn finish(self) -> Result<Option<PathBuf>> {
+        match self.gif {
+            Some((path, gif)) if !gif.is_empty() => {
+                gif.write(&path)?;
+                Ok(Some(path))
+            }
+            _ => Ok(None),
+        }
+    }
+}
+
+/// Parses `MIN,MAX` (finite, MIN ≤ MAX).
+fn parse_range(text: &str) -> Result<(f32, f32)> {
+    let parsed = text.split_once(',').and_then(|(a, b)| {
+        let a: f32 = a.trim().parse().ok()?;
+        let b: f32 = b.trim().parse().ok()?;
+        (a.is_finite() && b.is_finite() && a <= b).then_some((a, b))
+    });
+    parsed.with_context(|| format!("range {text:?}: expected MIN,MAX with MIN <= MAX"))
+}
+
+/// The simulation box in the `scene.toml` of `dir`, if there is one that says.
+pub fn box_of(dir: &Path) -> Option<([f64; 3], [f64; 3])> {
+    let path = dir.join("scene.toml");
+    if !path.is_file() {
+        return None;
+    }
+    let config = SceneConfig::load(Some(&path), &[]).ok()?;
+    Some((config.box_lo?, config.box_hi?))
+}
+
+/// The PNG of the frame of `step` in `dir`.
+pub fn png_name(dir: &Path, step: u64) -> PathBuf {
+    dir.join(format!("frame_{step:08}.png"))
+}
+
+/// `mochi render`.
+pub fn render(args: RenderCommandArgs) -> Result<()> {
+    let input = &args.input;
+    if input.is_dir() {
+        return render_folder(input, args.output.as_deref(), &args.render);
+    }
+    let frame = io::read_frame(input)?;
+    let parent = input.parent().unwrap_or(Path::new("."));
+    let mut renderer = FrameRenderer::new(&args.render, box_of(parent))?;
+    let out = args
+        .output
+        .clone()
+        .unwrap_or_else(|| input.with_extension("png"));
+    renderer.render(
+        &FrameData {
+            step: frame.step,
+            positions: &frame.positions,
+            radii: &frame.radii,
+            velocities: &frame.velocities,
+        },
+        &out,
+    )?;
+    println!(
+        "{}: {} spheres drawn into {} with {}",
+        input.display(),
+        frame.radii.len(),
+        out.display(),
+        renderer.describe()
+    );
+    if let Some(gif) = renderer.finish()? {
+        println!("wrote {}", gif.display());
+    }
+    Ok(())
+}
+
+/// Every frame of a folder, with one colour range over all of them (unless `--range` gives one).
+fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()> {
+    let files = frames_in(dir)?;
+    if files.is_empty() {
+        bail!("{}: no frames (frame_*.vtu or frame_*.csv)", dir.display());
+    }
+    let out = out.unwrap_or(dir);
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let mut renderer = FrameRenderer::new(args, box_of(dir))?;
+    if args.range.is_none() {
+        // A first pass for one colour range over the whole run (frames are read one at a time).
+        let mut lo = f32::INFINITY;
+        let mut hi = f32::NEG_INFINITY;
+        for file in &files {
+            let frame = io::read_frame(file)?;
+            let (a, b) = value_range(&args.color_by.values(&frame.radii, &frame.velocities));
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        if lo <= hi {
+            renderer.set_range((lo, hi));
+        }
+    }
+    for (k, file) in files.iter().enumerate() {
+        let frame = io::read_frame(file)?;
+        let step = frame.step.unwrap_or(k as u64);
+        let png = png_name(out, step);
+        renderer.render(
+            &FrameData {
+                step: Some(step),
+                positions: &frame.positions,
+                radii: &frame.radii,
+                velocities: &frame.velocities,
+            },
+            &png,
+        )?;
+        eprintln!("{} -> {}", file.display(), png.display());
+    }
+    println!(
+        "{} frames of {} drawn into {} with {}",
+        files.len(),
+        dir.display(),
+        out.display(),
+        renderer.describe()
+    );
+    if let Some(gif) = renderer.finish()? {
+        println!("wrote {}", gif.display());
+    }
+    Ok(())
+}
+
+/// The frames of a folder: those its index lists, else its `frame_*.vtu` files, else its
+/// `frame_*.csv` files, in name (= step) order.
+fn frames_in(dir: &Path) -> Result<Vec<PathBuf>> {
+    let index = dir.join(SERIES_INDEX);
+    if index.is_file() {
+        let entries = io::read_series_index(&index)?;
+        return Ok(entries.iter().map(|e| dir.join(e.file_name())).collect());
+    }
+    let listing = std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))?;
+    let mut names: Vec<PathBuf> = Vec::new();
+    for entry in listing {
+        let path = entry
+            .with_context(|| format!("reading {}", dir.display()))?
+            .path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if name.starts_with("frame_") && (name.ends_with(".vtu") || name.ends_with(".csv")) {
+            names.push(path);
+        }
+    }
+    names.sort();
+    let has_vtu = names
+        .iter()
+        .any(|p| p.extension().is_some_and(|e| e == "vtu"));
+    if has_vtu {
+        names.retain(|p| p.extension().is_some_and(|e| e == "vtu"));
+    }
+    Ok(names)
+}

@@ -1,0 +1,212 @@
+//! Reading simulation frames back: the `.vtu` files [`super::write_vtu`] writes (raw appended
+//! binary, `UInt64` block headers) and the frame CSVs (`x,y,z,r,vx,vy,vz`, or any sphere file).
+
+use super::{Format, io_error, parse_error, read_particles};
+use crate::error::Result;
+use std::path::Path;
+
+/// One frame read from a file, owning its data. The three vectors are parallel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OwnedFrame {
+    /// Step number, from the file (`.vtu`) or its name (`frame_{step}.csv`), when known.
+    pub step: Option<u64>,
+    /// Simulated time \[s\], when the file has it (`.vtu`).
+    pub time: Option<f64>,
+    /// Centres \[m\].
+    pub positions: Vec<[f32; 3]>,
+    /// Radii \[m\].
+    pub radii: Vec<f32>,
+    /// Velocities \[m/s\] (zero when the file has none).
+    pub velocities: Vec<[f32; 3]>,
+}
+
+/// Reads a frame: a `.vtu` written by [`super::write_vtu`], or a sphere file (`.csv`, `.npy`)
+/// with or without velocities. Every problem is an error naming the file.
+pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
+    let is_vtu = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("vtu"));
+    if is_vtu {
+        return read_vtu(path);
+    }
+    Format::of(path)?;
+    let (spheres, velocities) = read_particles(path)?;
+    let n = spheres.len();
+    let step = path
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .and_then(|s| s.strip_prefix("frame_"))
+        .and_then(|digits| digits.parse().ok());
+    Ok(OwnedFrame {
+        step,
+        time: None,
+        positions: spheres.centers().to_vec(),
+        radii: spheres.radii().to_vec(),
+        velocities: velocities.unwrap_or_else(|| vec![[0.0; 3]; n]),
+    })
+}
+
+/// Marks the start of the raw data in our `.vtu` files.
+const APPENDED: &[u8] = b"<AppendedData encoding=\"raw\">";
+
+/// Reads the arrays `Points`, `radius` and `velocity` (all `Float32`) of a `.vtu`.
+pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
+    let bytes = std::fs::read(path).map_err(io_error(path))?;
+    let bad = |msg: String| parse_error(path, None, msg);
+    let at = find(&bytes, APPENDED)
+        .ok_or_else(|| bad("not a .vtu with raw appended data (as mochi writes)".into()))?;
+    let underscore = bytes[at..]
+        .iter()
+        .position(|&b| b == b'_')
+        .ok_or_else(|| bad("no '_' opening the appended data".into()))?;
+    let data = &bytes[at + underscore + 1..];
+    let header =
+        std::str::from_utf8(&bytes[..at]).map_err(|_| bad("the XML header is not UTF-8".into()))?;
+    if !header.contains(r#"header_type="UInt64""#) {
+        return Err(bad("only header_type=\"UInt64\" is read".into()));
+    }
+    let n: usize = attribute_after(header, "<Piece", "NumberOfPoints")
+        .and_then(|v| v.parse().ok())
+        .ok_or_else(|| bad("no NumberOfPoints in <Piece>".into()))?;
+    let array = |name: &str, components: usize| -> Result<Vec<f32>> {
+        let element =
+            data_array(header, name).ok_or_else(|| bad(format!("no DataArray named {name:?}")))?;
+        if attribute(element, "type") != Some("Float32") {
+            return Err(bad(format!("{name}: only Float32 is read")));
+        }
+        let offset: usize = attribute(element, "offset")
+            .and_then(|v| v.parse().ok())
+            .ok_or_else(|| bad(format!("{name}: no offset")))?;
+        let want = n
+            .checked_mul(components * 4)
+            .ok_or_else(|| bad(format!("{name}: {n} points is too many")))?;
+        let block = offset
+            .checked_add(8)
+            .and_then(|start| data.get(offset..start))
+            .ok_or_else(|| bad(format!("{name}: the data ends before its block")))?;
+        let len = u64::from_le_bytes(block.try_into().expect("8 bytes"));
+        if len != want as u64 {
+            return Err(bad(format!("{name}: {len} bytes, expected {want}")));
+        }
+        let values = data
+            .get(offset + 8..offset + 8 + want)
+            .ok_or_else(|| bad(format!("{name}: the file ends inside the block")))?;
+        Ok(values
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes(b.try_into().expect("4 bytes")))
+            .collect())
+    };
+    let points = array("Points", 3)?;
+    let radii = array("radius", 1)?;
+    let velocity = array("velocity", 3)?;
+    let triples =
+        |v: Vec<f32>| -> Vec<[f32; 3]> { v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() };
+    let field = |name: &str| {
+        let start = header.find(&format!(r#"Name="{name}""#))?;
+        let open = start + header[start..].find('>')? + 1;
+        let close = open + header[open..].find('<')?;
+        Some(header[open..close].trim())
+    };
+    Ok(OwnedFrame {
+        step: field("step").and_then(|v| v.parse().ok()),
+        time: field("TimeValue").and_then(|v| v.parse().ok()),
+        positions: triples(points),
+        radii,
+        velocities: triples(velocity),
+    })
+}
+
+fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
+    haystack.windows(needle.len()).position(|w| w == needle)
+}
+
+/// The attributes of the `<DataArray .. Name="name" ../>` element.
+fn data_array<'h>(header: &'h str, name: &str) -> Option<&'h str> {
+    let key = format!(r#"Name="{name}""#);
+    let mut rest = 0;
+    while let Some(found) = header[rest..].find("<DataArray") {
+        let start = rest + found;
+        let end = start + header[start..].find('>')?;
+        let element = &header[start + "<DataArray".len()..end];
+        if element.contains(&key) {
+            return Some(element);
+        }
+        rest = end;
+    }
+    None
+}
+
+/// The value of attribute `name` of the first element opening with `tag`.
+fn attribute_after<'h>(header: &'h str, tag: &str, name: &str) -> Option<&'h str> {
+    let start = header.find(tag)?;
+    let end = start + header[start..].find('>')?;
+    attribute(&header[start + tag.len()..end], name)
+}
+
+/// The value of `name="value"` among an element's attributes.
+fn attribute<'e>(element: &'e str, name: &str) -> Option<&'e str> {
+    let key = format!(" {name}=\"");
+    let start = element.find(&key)? + key.len();
+    let len = element[start..].find('"')?;
+    Some(&element[start..start + len])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::{Frame, write_frame_csv, write_vtu};
+
+    fn frame() -> (Vec<[f32; 3]>, Vec<f32>, Vec<[f32; 3]>) {
+        (
+            vec![[0.0, 1.0, 2.0], [3.5, -4.0, 5.0]],
+            vec![0.25, 0.5],
+            vec![[1.0, 0.0, 0.0], [0.0, -2.0, 0.5]],
+        )
+    }
+
+    #[test]
+    fn vtu_and_csv_frames_read_back() {
+        let (p, r, v) = frame();
+        let f = Frame {
+            time: 0.125,
+            step: 42,
+            positions: &p,
+            radii: &r,
+            velocities: &v,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let vtu = dir.path().join("frame_00000042.vtu");
+        write_vtu(&vtu, &f).unwrap();
+        let got = read_frame(&vtu).unwrap();
+        assert_eq!((got.step, got.time), (Some(42), Some(0.125)));
+        assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
+        let csv = dir.path().join("frame_00000042.csv");
+        write_frame_csv(&csv, &f).unwrap();
+        let got = read_frame(&csv).unwrap();
+        assert_eq!((got.step, got.time), (Some(42), None));
+        assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
+    }
+
+    #[test]
+    fn broken_vtu_files_are_errors() {
+        let (p, r, v) = frame();
+        let f = Frame {
+            time: 0.0,
+            step: 1,
+            positions: &p,
+            radii: &r,
+            velocities: &v,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let vtu = dir.path().join("a.vtu");
+        write_vtu(&vtu, &f).unwrap();
+        let bytes = std::fs::read(&vtu).unwrap();
+        let data = find(&bytes, APPENDED).unwrap() + APPENDED.len() + 5;
+        std::fs::write(&vtu, &bytes[..data + 20]).unwrap();
+        assert!(read_frame(&vtu).is_err());
+        std::fs::write(&vtu, b"<VTKFile>").unwrap();
+        assert!(read_frame(&vtu).is_err());
+        assert!(read_frame(&dir.path().join("missing.vtu")).is_err());
+    }
+}

@@ -1,0 +1,194 @@
+//! The pinhole camera: where it stands, what it looks at, and the rays of each pixel.
+
+use crate::error::{Error, Result};
+
+/// World "up" of every default view: +z (gravity points along -z in the built-in scenes).
+const UP: [f64; 3] = [0.0, 0.0, 1.0];
+
+/// The default viewing direction, from the target towards the eye: a 3/4 view from the front
+/// left, above.
+const VIEW_FROM: [f64; 3] = [-0.55, -1.0, 0.75];
+
+/// Largest image side in pixels.
+pub const MAX_SIDE: u32 = 8192;
+
+/// A perspective camera.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Eye position \[m\].
+    pub eye: [f64; 3],
+    /// The point at the centre of the picture \[m\].
+    pub look_at: [f64; 3],
+    /// Vertical field of view \[degrees\], in (0, 180) (default: 40).
+    pub fov_deg: f64,
+}
+
+/// Default vertical field of view \[degrees\].
+pub const DEFAULT_FOV_DEG: f64 = 40.0;
+
+impl Camera {
+    /// The default 3/4 view of the box `lo..hi`, from the front left and above, far enough that
+    /// the box's bounding sphere fits the picture of aspect `width / height`.
+    pub fn framing(lo: [f64; 3], hi: [f64; 3], aspect: f64, fov_deg: f64) -> Camera {
+        let center = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
+        let radius = 0.5 * norm(sub(hi, lo)).max(f64::MIN_POSITIVE);
+        let half_v = 0.5 * fov_deg.to_radians();
+        let half_h = (half_v.tan() * aspect.min(1.0)).atan();
+        let distance = 1.02 * radius / half_v.min(half_h).sin();
+        let dir = normalize(VIEW_FROM);
+        Camera {
+            eye: [0, 1, 2].map(|k| center[k] + distance * dir[k]),
+            look_at: center,
+            fov_deg,
+        }
+    }
+
+    /// Checks that the camera can form a picture.
+    pub fn validate(&self) -> Result<()> {
+        let finite = self.eye.iter().chain(&self.look_at).all(|x| x.is_finite());
+        if !finite {
+            return Err(Error::Usage(
+                "camera: eye and look-at must be finite".into(),
+            ));
+        }
+        if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
+            return Err(Error::Usage(format!(
+                "camera: field of view {}° is not in (0, 180)",
+                self.fov_deg
+            )));
+        }
+        if norm(sub(self.look_at, self.eye)) == 0.0 {
+            return Err(Error::Usage("camera: eye and look-at coincide".into()));
+        }
+        Ok(())
+    }
+
+    /// The pixel grid of a `width`×`height` picture: ray `(x, y)` (pixel units, y down) has the
+    /// direction `corner + x·right + y·down` from the eye.
+    pub(crate) fn grid(&self, width: u32, height: u32) -> Grid {
+        let forward = normalize(sub(self.look_at, self.eye));
+        // Looking straight up or down: take +y as the picture's up instead.
+        let up = if cross(forward, UP).iter().all(|c| c.abs() < 1e-9) {
+            [0.0, 1.0, 0.0]
+        } else {
+            UP
+        };
+        let right = normalize(cross(forward, up));
+        let true_up = cross(right, forward);
+        let pixel = 2.0 * (0.5 * self.fov_deg.to_radians()).tan() / height as f64;
+        let (w, h) = (width as f64, height as f64);
+        let corner = [0, 1, 2]
+            .map(|k| forward[k] - 0.5 * w * pixel * right[k] + 0.5 * h * pixel * true_up[k]);
+        Grid {
+            eye: self.eye.map(|x| x as f32),
+            corner: corner.map(|x| x as f32),
+            right: right.map(|x| (x * pixel) as f32),
+            down: true_up.map(|x| (-x * pixel) as f32),
+            // Key light from the upper left, slightly behind the viewer.
+            light: normalize([0, 1, 2].map(|k| 0.8 * up[k] - 0.5 * right[k] - 0.4 * forward[k]))
+                .map(|x| x as f32),
+        }
+    }
+}
+
+/// A camera's pixel grid in `f32`, as the shaders get it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Grid {
+    pub eye: [f32; 3],
+    pub corner: [f32; 3],
+    pub right: [f32; 3],
+    pub down: [f32; 3],
+    /// Unit vector towards the (directional) light.
+    pub light: [f32; 3],
+}
+
+/// Parses `WxH` (e.g. `960x720`) into an image size, each side in 1..=[`MAX_SIDE`].
+pub fn parse_size(text: &str) -> Result<(u32, u32)> {
+    let bad = || Error::Usage(format!("size {text:?}: expected WxH such as 960x720"));
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
+    let w: u32 = w.trim().parse().map_err(|_| bad())?;
+    let h: u32 = h.trim().parse().map_err(|_| bad())?;
+    check_size(w, h)?;
+    Ok((w, h))
+}
+
+/// Checks an image size: each side in 1..=[`MAX_SIDE`].
+pub fn check_size(width: u32, height: u32) -> Result<()> {
+    if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
+        return Err(Error::Usage(format!(
+            "image size {width}x{height}: each side must be in 1..={MAX_SIDE}"
+        )));
+    }
+    Ok(())
+}
+
+/// Parses `x,y,z` into a point.
+pub fn parse_point(text: &str) -> Result<[f64; 3]> {
+    let bad = || Error::Usage(format!("point {text:?}: expected x,y,z such as 0.5,-1,2"));
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(bad)?;
+    <[f64; 3]>::try_from(values).map_err(|_| bad())
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let n = norm(a);
+    a.map(|x| x / n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_centre_ray_points_at_the_target() {
+        let cam = Camera {
+            eye: [0.0, -5.0, 0.0],
+            look_at: [0.0; 3],
+            fov_deg: 40.0,
+        };
+        let g = cam.grid(4, 2);
+        let d: Vec<f32> = (0..3)
+            .map(|k| g.corner[k] + 2.0 * g.right[k] + 1.0 * g.down[k])
+            .collect();
+        assert!(
+            d[0].abs() < 1e-6 && d[2].abs() < 1e-6 && d[1] > 0.99,
+            "{d:?}"
+        );
+    }
+
+    #[test]
+    fn sizes_and_points_parse_or_fail() {
+        assert_eq!(parse_size("960x720").unwrap(), (960, 720));
+        assert!(parse_size("0x5").is_err() && parse_size("abc").is_err());
+        assert!(parse_size("9000x10").is_err());
+        assert_eq!(parse_point("1,2.5,-3").unwrap(), [1.0, 2.5, -3.0]);
+        assert!(parse_point("1,2").is_err() && parse_point("1,x,2").is_err());
+    }
+
+    #[test]
+    fn the_framing_sees_the_whole_box() {
+        let cam = Camera::framing([0.0; 3], [1.0; 3], 4.0 / 3.0, 40.0);
+        let d = norm(sub(cam.eye, cam.look_at));
+        assert!(d > 0.5 * 3f64.sqrt() / 20f64.to_radians().sin());
+        assert_eq!(cam.look_at, [0.5; 3]);
+    }
+}

@@ -1,0 +1,229 @@
+//! The GPU render paths: `wgpu-rq` (ray queries over a BLAS of the spheres' boxes) and
+//! `wgpu-compute` (our own BVH, traversed in WGSL); both share `wgsl/render_common.wgsl` and
+//! differ only in `trace`.
+
+use super::Picture;
+use super::scene::Scene;
+use crate::error::{Error, Result};
+use crate::gpu::{self, Gpu, Need};
+
+const RQ_WGSL: &str = concat!(
+    include_str!("../../wgsl/render_rq.wgsl"),
+    include_str!("../../wgsl/render_common.wgsl")
+);
+const BVH_WGSL: &str = concat!(
+    include_str!("../../wgsl/render_bvh.wgsl"),
+    include_str!("../../wgsl/render_common.wgsl")
+);
+
+/// Every WGSL module of the render paths, by label, exactly as the device gets it.
+pub const SHADERS: [(&str, &str); 2] = [("render_rq", RQ_WGSL), ("render_bvh", BVH_WGSL)];
+
+/// Workgroup side, as in `wgsl/render_common.wgsl` (8×8 pixels).
+const GROUP: u32 = 8;
+
+/// Bytes of one AABB in the BLAS input: two `vec3<f32>`.
+const BOX_STRIDE: u64 = 24;
+
+/// Keep in sync with `View` in `wgsl/render_common.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ViewUniform {
+    eye: [f32; 3],
+    width: u32,
+    corner: [f32; 3],
+    height: u32,
+    right: [f32; 3],
+    samples: u32,
+    down: [f32; 3],
+    shadows: u32,
+    light: [f32; 3],
+    n: u32,
+    floor_lo: [f32; 3],
+    floor_on: u32,
+    floor_hi: [f32; 3],
+    _pad0: u32,
+}
+const _: () = assert!(size_of::<ViewUniform>() == 112);
+
+/// A GPU render path on an open device.
+pub(crate) struct GpuRenderer {
+    gpu: Gpu,
+    pipeline: wgpu::ComputePipeline,
+    ray_query: bool,
+}
+
+impl GpuRenderer {
+    /// Opens the best adapter for the path: with ray queries (`ray_query`), or any.
+    pub fn open(ray_query: bool) -> Result<Self> {
+        let (need, source, label) = if ray_query {
+            (Need::RayQuery, RQ_WGSL, "mochi.render.rq")
+        } else {
+            (Need::Compute, BVH_WGSL, "mochi.render.bvh")
+        };
+        let gpu = Gpu::open(need)?;
+        let pipeline = gpu.checked("compiling the render shader", || {
+            let module = gpu.module(label, source);
+            gpu.pipeline(label, &module, "render")
+        })?;
+        Ok(Self {
+            gpu,
+            pipeline,
+            ray_query,
+        })
+    }
+
+    /// The adapter, in one line.
+    pub fn device(&self) -> String {
+        gpu::describe(&self.gpu.info)
+    }
+
+    /// The pixels of `picture` of `scene` (not empty), row by row.
+    pub fn render(&self, scene: &Scene, picture: &Picture) -> Result<Vec<u32>> {
+        let n = scene.len() as u32;
+        let pixels_len = picture.width as u64 * picture.height as u64;
+        let limit = self.gpu.limits.max_storage_buffer_binding_size;
+        for (what, bytes) in [
+            ("pixels", pixels_len * 4),
+            ("spheres", n as u64 * 16),
+            ("tree nodes", scene.nodes.len() as u64 * 32),
+        ] {
+            if bytes > limit {
+                return Err(Error::TooLarge {
+                    what: format!("bytes of {what} in one GPU buffer"),
+                    got: bytes,
+                    limit,
+                });
+            }
+        }
+        if self.ray_query && n > self.gpu.limits.max_blas_primitive_count {
+            return Err(Error::TooLarge {
+                what: "spheres in one BLAS".into(),
+                got: n as u64,
+                limit: self.gpu.limits.max_blas_primitive_count as u64,
+            });
+        }
+        let grid = picture.camera.grid(picture.width, picture.height);
+        let floor = picture.floor();
+        let view = ViewUniform {
+            eye: grid.eye,
+            width: picture.width,
+            corner: grid.corner,
+            height: picture.height,
+            right: grid.right,
+            samples: picture.samples,
+            down: grid.down,
+            shadows: picture.shadows as u32,
+            light: grid.light,
+            n,
+            floor_lo: floor.map_or([0.0; 3], |f| f.lo),
+            floor_on: floor.is_some() as u32,
+            floor_hi: floor.map_or([0.0; 3], |f| f.hi),
+            _pad0: 0,
+        };
+        let gpu = &self.gpu;
+        let pixels = gpu.checked("rendering", || {
+            let upload = |label: &str, bytes: &[u8], extra| {
+                let buffer = gpu.storage(label, bytes.len() as u64, extra);
+                gpu.queue.write_buffer(&buffer, 0, bytes);
+                buffer
+            };
+            let none = wgpu::BufferUsages::empty();
+            let view = gpu.uniform("mochi.render.view", &view);
+            let spheres = upload(
+                "mochi.render.spheres",
+                bytemuck::cast_slice(&scene.spheres),
+                none,
+            );
+            let colours = upload(
+                "mochi.render.colours",
+                bytemuck::cast_slice(&scene.colours),
+                none,
+            );
+            let pixels = gpu.storage("mochi.render.pixels", pixels_len * 4, none);
+            let buffers = [(0, &view), (1, &spheres), (2, &colours), (3, &pixels)];
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            let bind = if self.ray_query {
+                let tlas = self.build_accel(scene, &mut encoder);
+                gpu.bind_with_tlas("mochi.render.rq", &self.pipeline, &buffers, (5, &tlas))
+            } else {
+                let nodes = upload(
+                    "mochi.render.nodes",
+                    bytemuck::cast_slice(&scene.nodes),
+                    none,
+                );
+                let mut all = buffers.to_vec();
+                all.push((4, &nodes));
+                gpu.bind("mochi.render.bvh", &self.pipeline, &all)
+            };
+            let groups = (
+                picture.width.div_ceil(GROUP),
+                picture.height.div_ceil(GROUP),
+            );
+            gpu.dispatch(&mut encoder, "mochi.render", &self.pipeline, &bind, groups);
+            gpu.queue.submit([encoder.finish()]);
+            pixels
+        })?;
+        gpu.read(&pixels, pixels_len as usize)
+    }
+
+    /// Records the build of one BLAS over the spheres' boxes (Morton order, as lavapipe's
+    /// builder needs for speed) and a TLAS with one instance of it.
+    fn build_accel(&self, scene: &Scene, encoder: &mut wgpu::CommandEncoder) -> wgpu::Tlas {
+        let gpu = &self.gpu;
+        let boxes: Vec<[f32; 6]> = scene
+            .spheres
+            .iter()
+            .map(|s| {
+                [
+                    s[0] - s[3],
+                    s[1] - s[3],
+                    s[2] - s[3],
+                    s[0] + s[3],
+                    s[1] + s[3],
+                    s[2] + s[3],
+                ]
+            })
+            .collect();
+        let buffer = gpu.storage(
+            "mochi.render.boxes",
+            boxes.len() as u64 * BOX_STRIDE,
+            wgpu::BufferUsages::BLAS_INPUT,
+        );
+        gpu.queue
+            .write_buffer(&buffer, 0, bytemuck::cast_slice(&boxes));
+        let size = wgpu::BlasAABBGeometrySizeDescriptor {
+            primitive_count: scene.len() as u32,
+            flags: wgpu::AccelerationStructureGeometryFlags::empty(),
+        };
+        let blas = gpu.device.create_blas(
+            &wgpu::CreateBlasDescriptor {
+                label: Some("mochi.render.blas"),
+                flags: wgpu::AccelerationStructureFlags::PREFER_FAST_TRACE,
+                update_mode: wgpu::AccelerationStructureUpdateMode::Build,
+            },
+            wgpu::BlasGeometrySizeDescriptors::AABBs {
+                descriptors: vec![size.clone()],
+            },
+        );
+        let mut tlas = gpu.device.create_tlas(&wgpu::CreateTlasDescriptor {
+            label: Some("mochi.render.tlas"),
+            max_instances: 1,
+            flags: wgpu::AccelerationStructureFlags::PREFER_FAST_TRACE,
+            update_mode: wgpu::AccelerationStructureUpdateMode::Build,
+        });
+        const IDENTITY: [f32; 12] = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        tlas[0] = Some(wgpu::TlasInstance::new(&blas, IDENTITY, 0, 0xff));
+        let entry = wgpu::BlasBuildEntry {
+            blas: &blas,
+            geometry: wgpu::BlasGeometries::AabbGeometries(vec![wgpu::BlasAabbGeometry {
+                size: &size,
+                stride: BOX_STRIDE,
+                aabb_buffer: &buffer,
+                primitive_offset: 0,
+            }]),
+        };
+        encoder.build_acceleration_structures(&[entry], [&tlas]);
+        tlas
+    }
+}

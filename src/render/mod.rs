@@ -1,0 +1,250 @@
+//! Pictures of spheres: ray traced, headless, on the GPU or the CPU.
+//!
+//! A [`Scene`] holds the spheres with a colour each (by radius or speed, [`ColorBy`], through
+//! the viridis map); a [`Picture`] says what to draw (size, [`Camera`], samples per pixel,
+//! shadows); a [`Renderer`] draws it into an [`Image`], which gets a colour [`Legend`] and is
+//! written as PNG (or collected into an animated [`Gif`]).
+//!
+//! Three render paths give the same picture up to rounding, picked like the detection
+//! backends ([`RenderChoice::Auto`] says which it took and why it passed over the others):
+//!
+//! | path | how |
+//! | --- | --- |
+//! | `wgpu-rq` | a BLAS of the spheres' boxes; a WGSL ray query per ray tests each candidate sphere and commits the nearest with `rayQueryGenerateIntersection` |
+//! | `wgpu-compute` | our own BVH (Morton-ordered LBVH built on the CPU), traversed nearest child first in WGSL; any adapter (the NVIDIA H100 has no ray queries) |
+//! | `cpu` | the same BVH and shading in Rust, one row per rayon task |
+//!
+//! Each pixel averages `samples`² camera rays; a hit is shaded with ambient, a soft headlight,
+//! Lambert and Blinn–Phong terms of one directional light, and optionally a shadow ray towards
+//! it. An optional floor (the simulation box's) is a grey checker that receives the spheres'
+//! shadows. Misses show a light vertical gradient. The shaders are `wgsl/render_*.wgsl`; their CPU
+//! twin is `shade.rs` and `bvh.rs` in this module.
+//!
+//! ```
+//! use mochi::render::{Camera, ColorBy, Picture, RenderChoice, Renderer, Scene};
+//! let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
+//! let radii = [0.5, 0.3];
+//! let values = ColorBy::Radius.values(&radii, &[]);
+//! let scene = Scene::new(&positions, &radii, &values, (0.3, 0.5))?;
+//! let (lo, hi) = scene.bounds().expect("not empty");
+//! let picture = Picture::new(64, 48, Camera::framing(lo, hi, 64.0 / 48.0, 40.0));
+//! let (mut renderer, _why) = Renderer::open(RenderChoice::Cpu)?;
+//! let image = renderer.render(&scene, &picture)?;
+//! assert_eq!(image.pixels.len(), 64 * 48);
+//! # Ok::<(), mochi::Error>(())
+//! ```
+
+mod bvh;
+mod camera;
+mod colour;
+mod cpu;
+mod font;
+mod gpu;
+mod image;
+mod scene;
+mod shade;
+
+pub use camera::{Camera, DEFAULT_FOV_DEG, MAX_SIDE, check_size, parse_point, parse_size};
+pub use colour::{ColorBy, unit, value_range, viridis};
+pub use gpu::SHADERS;
+pub use image::{Gif, Image, Legend, read_png};
+pub use scene::Scene;
+
+use crate::error::{Error, Result};
+use crate::gpu::{Need, probe};
+
+/// Most rays per pixel side.
+pub const MAX_SAMPLES: u32 = 4;
+
+/// What to draw: the picture's size, the camera, the rays per pixel and whether to cast shadows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Picture {
+    /// Width in pixels, 1..=[`MAX_SIDE`].
+    pub width: u32,
+    /// Height in pixels, 1..=[`MAX_SIDE`].
+    pub height: u32,
+    /// The camera.
+    pub camera: Camera,
+    /// Rays per pixel side, 1..=[`MAX_SAMPLES`] (`samples`² rays per pixel; default: 1).
+    pub samples: u32,
+    /// Cast a shadow ray from every lit point towards the light (default: false).
+    pub shadows: bool,
+    /// A floor to draw under the spheres, usually the simulation box's: the rectangle at
+    /// `z = lo[2]` over `lo[0]..hi[0]` × `lo[1]..hi[1]` \[m\], a grey checker of 10×10 cells
+    /// that receives shadows (default: none).
+    pub floor: Option<([f64; 3], [f64; 3])>,
+}
+
+impl Picture {
+    /// A picture of `width`×`height` pixels through `camera`, one ray per pixel, no shadows.
+    pub fn new(width: u32, height: u32, camera: Camera) -> Picture {
+        Picture {
+            width,
+            height,
+            camera,
+            samples: 1,
+            shadows: false,
+            floor: None,
+        }
+    }
+
+    /// The floor in `f32`, as the shaders get it.
+    fn floor(&self) -> Option<shade::Floor> {
+        self.floor.map(|(lo, hi)| shade::Floor {
+            lo: lo.map(|x| x as f32),
+            hi: hi.map(|x| x as f32),
+        })
+    }
+
+    /// Checks the size, the camera and the samples.
+    pub fn validate(&self) -> Result<()> {
+        check_size(self.width, self.height)?;
+        self.camera.validate()?;
+        if let Some((lo, hi)) = self.floor {
+            let ok = (0..3).all(|k| lo[k].is_finite() && hi[k].is_finite() && lo[k] <= hi[k])
+                && lo[0] < hi[0]
+                && lo[1] < hi[1];
+            if !ok {
+                return Err(Error::Usage(format!(
+                    "floor {lo:?}..{hi:?}: must be finite with lo < hi in x and y"
+                )));
+            }
+        }
+        if !(1..=MAX_SAMPLES).contains(&self.samples) {
+            return Err(Error::Usage(format!(
+                "samples {}: rays per pixel side must be in 1..={MAX_SAMPLES}",
+                self.samples
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Which render path to use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum RenderChoice {
+    /// The fastest path that runs here: wgpu-rq, then wgpu-compute, then cpu, passing over
+    /// software adapters (slower than the cpu path).
+    #[default]
+    Auto,
+    /// Ray queries over a BLAS of the spheres' boxes.
+    #[value(name = "wgpu-rq")]
+    WgpuRq,
+    /// Our own BVH traversed in a WGSL compute shader.
+    #[value(name = "wgpu-compute")]
+    WgpuCompute,
+    /// The same BVH on the CPU (rayon).
+    Cpu,
+}
+
+impl RenderChoice {
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            RenderChoice::Auto => "auto",
+            RenderChoice::WgpuRq => "wgpu-rq",
+            RenderChoice::WgpuCompute => "wgpu-compute",
+            RenderChoice::Cpu => "cpu",
+        }
+    }
+}
+
+/// An open render path.
+pub struct Renderer {
+    path: Path,
+}
+
+enum Path {
+    Gpu {
+        renderer: Box<gpu::GpuRenderer>,
+        choice: RenderChoice,
+    },
+    Cpu,
+}
+
+impl Renderer {
+    /// Opens the path `choice`, or says why it cannot run here. For `auto`, also returns which
+    /// path it picked and why it passed over the faster ones.
+    pub fn open(choice: RenderChoice) -> Result<(Renderer, Option<String>)> {
+        match choice {
+            RenderChoice::Auto => Ok(Self::open_auto()),
+            RenderChoice::Cpu => Ok((Renderer { path: Path::Cpu }, None)),
+            gpu_choice => {
+                let ray_query = gpu_choice == RenderChoice::WgpuRq;
+                let renderer =
+                    gpu::GpuRenderer::open(ray_query).map_err(|e| Error::BackendUnavailable {
+                        backend: gpu_choice.name(),
+                        reason: e.to_string(),
+                    })?;
+                let path = Path::Gpu {
+                    renderer: Box::new(renderer),
+                    choice: gpu_choice,
+                };
+                Ok((Renderer { path }, None))
+            }
+        }
+    }
+
+    fn open_auto() -> (Renderer, Option<String>) {
+        let mut skipped = Vec::new();
+        for (choice, need) in [
+            (RenderChoice::WgpuRq, Need::RayQuery),
+            (RenderChoice::WgpuCompute, Need::Compute),
+        ] {
+            let why = match probe(need) {
+                Ok(a) if a.device_type == wgpu::DeviceType::Cpu => {
+                    format!("{} is a software adapter, slower than the cpu path", a.name)
+                }
+                Ok(_) => match Self::open(choice) {
+                    Ok((renderer, _)) => {
+                        return (renderer, Some(auto_reason(choice, &skipped)));
+                    }
+                    Err(e) => e.to_string(),
+                },
+                Err(why) => why,
+            };
+            skipped.push((choice.name(), why));
+        }
+        let reason = auto_reason(RenderChoice::Cpu, &skipped);
+        (Renderer { path: Path::Cpu }, Some(reason))
+    }
+
+    /// The path's name (`wgpu-rq`, `wgpu-compute` or `cpu`).
+    pub fn name(&self) -> &'static str {
+        match &self.path {
+            Path::Gpu { choice, .. } => choice.name(),
+            Path::Cpu => RenderChoice::Cpu.name(),
+        }
+    }
+
+    /// The path and where it runs, in one line.
+    pub fn describe(&self) -> String {
+        match &self.path {
+            Path::Gpu { renderer, choice } => format!("{} ({})", choice.name(), renderer.device()),
+            Path::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),
+        }
+    }
+
+    /// Draws `scene` as `picture` says. An empty scene is background only (drawn on the CPU
+    /// whatever the path: there is nothing to trace).
+    pub fn render(&mut self, scene: &Scene, picture: &Picture) -> Result<Image> {
+        picture.validate()?;
+        let pixels = match &self.path {
+            Path::Gpu { renderer, .. } if !scene.is_empty() => renderer.render(scene, picture)?,
+            _ => cpu::render(scene, picture),
+        };
+        Ok(Image {
+            width: picture.width,
+            height: picture.height,
+            pixels,
+        })
+    }
+}
+
+fn auto_reason(picked: RenderChoice, skipped: &[(&str, String)]) -> String {
+    let mut reason = format!("render: auto picked {}", picked.name());
+    for (name, why) in skipped {
+        reason.push_str(&format!("; skipped {name}: {why}"));
+    }
+    reason
+}

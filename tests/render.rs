@@ -1,0 +1,386 @@
+//! Pictures: known scenes give the expected pixels on every render path, the GPU paths agree with
+//! the cpu path, a simulation frame is not blank, and `mochi render` / `simulate --render-every`
+//! write PNG frames (and fail cleanly on bad input). The GPU paths run on any adapter (lavapipe
+//! in CI); under `CI=true` a missing adapter fails.
+
+mod common;
+
+use mochi::gpu::Need;
+use mochi::render::{
+    Camera, ColorBy, Image, Picture, RenderChoice, Renderer, Scene, read_png, viridis,
+};
+use mochi::scenes::{Layout, Scene as Dataset, SceneSpec, generate};
+use std::path::Path;
+use std::process::Command;
+
+const BIN: &str = env!("CARGO_BIN_EXE_mochi");
+
+/// Every path that can be tested here: cpu always, the GPU paths where an adapter has them
+/// (a missing one fails under CI).
+fn renderers() -> Vec<Renderer> {
+    let mut all = vec![Renderer::open(RenderChoice::Cpu).unwrap().0];
+    for (choice, need) in [
+        (RenderChoice::WgpuCompute, Need::Compute),
+        (RenderChoice::WgpuRq, Need::RayQuery),
+    ] {
+        if common::adapter_for(need, choice.name()) {
+            all.push(Renderer::open(choice).expect("a probed adapter opens").0);
+        }
+    }
+    all
+}
+
+/// Looking along +y at the origin from y = -5.
+fn axis_camera() -> Camera {
+    Camera {
+        eye: [0.0, -5.0, 0.0],
+        look_at: [0.0; 3],
+        fov_deg: 30.0,
+    }
+}
+
+fn rgb(image: &Image, x: u32, y: u32) -> [f32; 3] {
+    image.rgb(x, y).map(|c| c as f32 / 255.0)
+}
+
+/// Whether `c` is a shade of `base` (the same colour, lighter or darker): each channel's share
+/// of the sum within 0.06.
+fn shade_of(c: [f32; 3], base: [f32; 3]) -> bool {
+    let (sc, sb) = (c.iter().sum::<f32>(), base.iter().sum::<f32>());
+    (0..3).all(|k| (c[k] / sc - base[k] / sb).abs() < 0.06)
+}
+
+/// A light grey: the background.
+fn is_background(c: [f32; 3]) -> bool {
+    c.iter().all(|&x| x > 0.7) && (c[0] - c[2]).abs() < 0.08
+}
+
+#[test]
+fn a_single_sphere_fills_the_centre_with_its_colour() {
+    let scene = Scene::new(&[[0.0; 3]], &[0.6], &[1.0], (0.0, 1.0)).unwrap();
+    let picture = Picture::new(40, 30, axis_camera());
+    for mut renderer in renderers() {
+        let image = renderer.render(&scene, &picture).unwrap();
+        let name = renderer.name();
+        for (x, y) in [(19, 14), (20, 15), (19, 15), (20, 14)] {
+            let c = rgb(&image, x, y);
+            assert!(shade_of(c, viridis(1.0)), "{name}: centre {c:?}");
+        }
+        for (x, y) in [(0, 0), (39, 0), (0, 29), (39, 29)] {
+            let c = rgb(&image, x, y);
+            assert!(is_background(c), "{name}: corner {c:?}");
+        }
+    }
+}
+
+#[test]
+fn the_nearer_of_two_spheres_on_the_view_axis_wins() {
+    // Yellow (value 1) in front, a larger purple one (value 0) behind it.
+    let positions = [[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]];
+    let scene = Scene::new(&positions, &[1.0, 0.3], &[0.0, 1.0], (0.0, 1.0)).unwrap();
+    let picture = Picture::new(40, 30, axis_camera());
+    for mut renderer in renderers() {
+        let image = renderer.render(&scene, &picture).unwrap();
+        let name = renderer.name();
+        let centre = rgb(&image, 20, 15);
+        assert!(shade_of(centre, viridis(1.0)), "{name}: centre {centre:?}");
+        // Beside the small front sphere, still on the big one behind it.
+        let side = rgb(&image, 20, 7);
+        assert!(
+            shade_of(side, viridis(0.0)),
+            "{name}: above the centre {side:?}"
+        );
+    }
+}
+
+#[test]
+fn gpu_paths_draw_the_cpu_picture() {
+    let spheres = generate(&SceneSpec {
+        scene: Dataset::Poly12,
+        n: 300,
+        seed: 5,
+        layout: Layout::Random,
+    })
+    .unwrap();
+    let radii: Vec<f32> = spheres.radii().iter().map(|r| r * 60.0).collect();
+    let values = ColorBy::Radius.values(&radii, &[]);
+    let range = mochi::render::value_range(&values);
+    let scene = Scene::new(spheres.centers(), &radii, &values, range).unwrap();
+    let (lo, hi) = scene.bounds().unwrap();
+    let picture = Picture {
+        samples: 2,
+        shadows: true,
+        floor: Some((
+            [lo[0] - 1.0, lo[1] - 1.0, lo[2]],
+            [hi[0] + 1.0, hi[1] + 1.0, hi[2]],
+        )),
+        ..Picture::new(64, 48, Camera::framing(lo, hi, 64.0 / 48.0, 40.0))
+    };
+    let mut all = renderers().into_iter();
+    let want = all.next().unwrap().render(&scene, &picture).unwrap();
+    let background = want.pixels.iter().filter(|&&p| p == want.pixels[0]).count();
+    assert!(
+        background < want.pixels.len() / 2,
+        "the spheres fill the picture"
+    );
+    for mut renderer in all {
+        let got = renderer.render(&scene, &picture).unwrap();
+        let close = (0..48)
+            .flat_map(|y| (0..64).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                let (a, b) = (want.rgb(x, y), got.rgb(x, y));
+                (0..3).all(|k| a[k].abs_diff(b[k]) <= 3)
+            })
+            .count();
+        assert!(
+            close * 100 >= 99 * 64 * 48,
+            "{}: only {close} of {} pixels match the cpu path",
+            renderer.name(),
+            64 * 48
+        );
+    }
+}
+
+#[test]
+fn a_sphere_casts_its_shadow_on_the_floor() {
+    // Looking straight down on a sphere above a floor: with shadow rays a patch of floor gets
+    // darker, and nothing gets lighter.
+    let scene = Scene::new(&[[0.0, 0.0, 0.5]], &[0.4], &[0.5], (0.0, 1.0)).unwrap();
+    let camera = Camera {
+        eye: [0.0, 0.0, 6.0],
+        look_at: [0.0; 3],
+        fov_deg: 50.0,
+    };
+    let picture = |shadows| Picture {
+        shadows,
+        floor: Some(([-4.0, -4.0, 0.0], [4.0, 4.0, 0.0])),
+        ..Picture::new(48, 48, camera)
+    };
+    for mut renderer in renderers() {
+        let plain = renderer.render(&scene, &picture(false)).unwrap();
+        let shadowed = renderer.render(&scene, &picture(true)).unwrap();
+        let mut darker = 0;
+        for y in 0..48 {
+            for x in 0..48 {
+                let (a, b) = (rgb(&plain, x, y), rgb(&shadowed, x, y));
+                let change = b.iter().sum::<f32>() - a.iter().sum::<f32>();
+                assert!(
+                    change <= 0.01,
+                    "{}: ({x}, {y}) got lighter",
+                    renderer.name()
+                );
+                darker += usize::from(change < -0.3);
+            }
+        }
+        assert!(
+            darker > 20,
+            "{}: {darker} pixels in shadow",
+            renderer.name()
+        );
+    }
+}
+
+#[test]
+fn an_empty_scene_is_background_and_bad_pictures_are_errors() {
+    let scene = Scene::new(&[], &[], &[], (0.0, 1.0)).unwrap();
+    for mut renderer in renderers() {
+        let image = renderer
+            .render(&scene, &Picture::new(8, 6, axis_camera()))
+            .unwrap();
+        assert!(
+            image
+                .pixels
+                .chunks(8)
+                .all(|row| row.iter().all(|&p| p == row[0]))
+        );
+        assert!(is_background(rgb(&image, 0, 0)));
+        for bad in [
+            Picture::new(0, 6, axis_camera()),
+            Picture {
+                samples: 9,
+                ..Picture::new(8, 6, axis_camera())
+            },
+            Picture::new(
+                8,
+                6,
+                Camera {
+                    fov_deg: 0.0,
+                    ..axis_camera()
+                },
+            ),
+            Picture::new(
+                8,
+                6,
+                Camera {
+                    look_at: [0.0, -5.0, 0.0],
+                    ..axis_camera()
+                },
+            ),
+        ] {
+            assert!(renderer.render(&scene, &bad).is_err(), "{bad:?}");
+        }
+    }
+    assert!(Scene::new(&[[0.0; 3]], &[-1.0], &[0.0], (0.0, 1.0)).is_err());
+    assert!(Scene::new(&[[f32::NAN; 3]], &[1.0], &[0.0], (0.0, 1.0)).is_err());
+    assert!(Scene::new(&[[0.0; 3]], &[1.0, 2.0], &[0.0], (0.0, 1.0)).is_err());
+}
+
+// ----------------------------------------------------------------------------------------------
+// The command line
+// ----------------------------------------------------------------------------------------------
+
+fn mochi(args: &[&str], dir: &Path) -> (Option<i32>, String, String) {
+    let out = Command::new(BIN)
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
+}
+
+/// Share of pixels that are not the background's light grey.
+fn not_background(image: &Image) -> f64 {
+    let n = (0..image.height)
+        .flat_map(|y| (0..image.width).map(move |x| (x, y)))
+        .filter(|&(x, y)| !is_background(rgb(image, x, y)))
+        .count();
+    n as f64 / image.pixels.len() as f64
+}
+
+#[test]
+fn simulate_renders_frames_that_are_not_blank_and_render_redraws_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = mochi(
+        &[
+            "simulate",
+            "--scene",
+            "slab",
+            "-n",
+            "400",
+            "--steps",
+            "20",
+            "--frame-every",
+            "10",
+            "--render-every",
+            "10",
+            "--size",
+            "96x72",
+            "--samples",
+            "1",
+            "--fit",
+            "spheres",
+            "--renderer",
+            "cpu",
+            "--gif",
+            "run.gif",
+            "-q",
+            "-o",
+            "out",
+        ],
+        d,
+    );
+    assert_eq!(run.0, Some(0), "{run:?}");
+    for step in [0, 10, 20] {
+        let png = d.join(format!("out/frame_{step:08}.png"));
+        let image = read_png(&png).unwrap();
+        assert_eq!((image.width, image.height), (96, 72));
+        let share = not_background(&image);
+        assert!(
+            share > 0.1,
+            "{}: {share} of the pixels drawn",
+            png.display()
+        );
+    }
+    assert!(d.join("run.gif").metadata().unwrap().len() > 100);
+
+    // One frame, then the whole folder with the speed colours.
+    let run = mochi(
+        &[
+            "render",
+            "out/frame_00000020.vtu",
+            "-o",
+            "one.png",
+            "--size",
+            "80x60",
+            "--renderer",
+            "cpu",
+        ],
+        d,
+    );
+    assert_eq!(run.0, Some(0), "{run:?}");
+    assert_eq!(read_png(&d.join("one.png")).unwrap().width, 80);
+    let run = mochi(
+        &[
+            "render",
+            "out",
+            "-o",
+            "pictures",
+            "--size",
+            "64x48",
+            "--color-by",
+            "speed",
+            "--samples",
+            "1",
+            "--no-shadows",
+            "--eye",
+            "0.5,-2,1",
+            "--look-at",
+            "0.5,0.5,0.1",
+            "--gif",
+            "pictures/run.gif",
+        ],
+        d,
+    );
+    assert_eq!(run.0, Some(0), "{run:?}");
+    assert!(run.2.contains("render: auto picked"), "{}", run.2);
+    for step in [0, 10, 20] {
+        assert!(d.join(format!("pictures/frame_{step:08}.png")).is_file());
+    }
+    let gif = std::fs::read(d.join("pictures/run.gif")).unwrap();
+    assert!(gif.starts_with(b"GIF89a"));
+}
+
+#[test]
+fn render_fails_cleanly_on_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("bad.vtu"), b"<VTKFile>not a frame").unwrap();
+    std::fs::write(d.join("spheres.csv"), "x,y,z,r\n0,0,0,1\n").unwrap();
+    std::fs::create_dir(d.join("empty")).unwrap();
+    for args in [
+        &["render", "missing.vtu"][..],
+        &["render", "bad.vtu"],
+        &["render", "empty"],
+        &["render", "spheres.csv", "--size", "0x10"],
+        &["render", "spheres.csv", "--size", "ten"],
+        &["render", "spheres.csv", "--eye", "1,2"],
+        &["render", "spheres.csv", "--range", "2,1"],
+        &["render", "spheres.csv", "--samples", "7"],
+    ] {
+        let (code, _, stderr) = mochi(args, d);
+        assert_eq!(code, Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.starts_with("error:") && !stderr.contains("panicked"),
+            "{args:?}: {stderr}"
+        );
+    }
+    assert!(!d.join("spheres.png").exists() && !d.join("bad.png").exists());
+    let (code, out, err) = mochi(
+        &[
+            "render",
+            "spheres.csv",
+            "--size",
+            "32x24",
+            "--renderer",
+            "cpu",
+        ],
+        d,
+    );
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert!(d.join("spheres.png").is_file());
+}
