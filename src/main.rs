@@ -3,5 +3,19 @@
 mod cli;
 
 fn main() -> std::process::ExitCode {
+    restore_sigpipe();
     cli::main()
 }
+
+/// Lets a closed pipe end the process quietly, as it does other Unix tools (`mochi backends |
+/// head -1`): Rust ignores SIGPIPE by default, so printing into a closed pipe would panic.
+#[cfg(unix)]
+fn restore_sigpipe() {
+    // SAFETY: called first thing in main, before any thread exists; SIG_DFL is a valid handler.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
+#[cfg(not(unix))]
+fn restore_sigpipe() {}

@@ -426,14 +426,16 @@ pub(crate) fn grid_layout(
     };
 
     // Dense: the smallest cells (from the mode's size, growing) whose table fits the budget,
-    // unless growing them crowds the cells (a cluster far from the rest, say).
-    let mut size = base * (1.0 + CELL_PADDING);
+    // unless growing them crowds the cells (a cluster far from the rest, say). Cells of the
+    // mode's own size are never grown, so however crowded they are, hashing would not thin them.
+    let smallest = base * (1.0 + CELL_PADDING);
+    let mut size = smallest;
     while size <= MAX_DENSE_GROWTH * base {
         let c = counts(size);
         if c.iter().all(|&k| k <= MAX_AXIS_CELLS) {
             let cells = c.iter().product::<u64>(); // ≤ 2^36: no overflow
             if cells <= budget {
-                if dense_check(size) {
+                if size == smallest || dense_check(size) {
                     return params(size, c, cells, 0);
                 }
                 break;
@@ -635,4 +637,27 @@ pub(crate) fn describe_layout(p: &GridParams) -> String {
         "grid {table}, {levels}, top level {}×{}×{} cells of {:.4e} m",
         p.nx, p.ny, p.nz, p.top_cell
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crowded_cells_of_the_modes_size_stay_dense() {
+        // A dense pile of small spheres around a few big ones: every cell of 2·r_max holds many
+        // spheres, but the table fits at that size, so it stays dense (hashing cannot help).
+        let limits = wgpu::Limits::default();
+        let crowded = |_: f64| false;
+        let p = grid_layout(&limits, [0.0; 3], [1.0; 3], 100_000, 0.1, &crowded);
+        assert_eq!(p.hashed, 0);
+        assert!((p.top_cell as f64 - 0.1 * (1.0 + CELL_PADDING)).abs() < 1e-7);
+        // Grown cells are checked: too big a box for the budget at the mode's size hashes when
+        // the grown cells would be crowded, and grows them when not.
+        let p = grid_layout(&limits, [0.0; 3], [100.0; 3], 1000, 0.1, &crowded);
+        assert_eq!(p.hashed, 1);
+        let p = grid_layout(&limits, [0.0; 3], [20.0; 3], 1000, 0.1, &|_| true);
+        assert_eq!(p.hashed, 0);
+        assert!(p.top_cell as f64 > 0.1);
+    }
 }
