@@ -150,6 +150,11 @@ fn bars(area: &Area, title: &str, legend: &[&str], groups: &[(String, Vec<Bar>)]
             ))?;
         }
     }
+    draw_legend(&mut chart)
+}
+
+/// Draws the series labels of `chart` in its upper left corner.
+fn draw_legend<'a, CT: CoordTranslate>(chart: &mut ChartContext<'a, SVGBackend<'a>, CT>) -> Drawn {
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.9))
@@ -259,13 +264,7 @@ fn curves(area: &Area, title: &str, x_desc: &str, series: &[(String, Vec<(f64, f
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color.stroke_width(2)));
         chart.draw_series(line.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()?;
-    Ok(())
+    draw_legend(&mut chart)
 }
 
 /// A tick label on a log axis: `v` when its leading digit is one of `mantissas` (1k, 20, 0.5),

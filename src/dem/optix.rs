@@ -21,7 +21,7 @@ use super::stepper::{Advance, StageTimes, Stepper};
 use crate::backend::RebuildPolicy;
 use crate::backend::optix::device::{AccelOp, Device, Gas, Pipeline};
 use crate::backend::optix::{
-    BLOCK, BOX_PADDING, MAX_COORDINATE, gpu_error, morton_order_of, programs,
+    BLOCK, BOX_PADDING, MAX_COORDINATE, gpu_error, morton_order_of, open_programs, programs,
 };
 use crate::error::{Error, Result};
 use crate::proxy::ProxyMode;
@@ -129,18 +129,7 @@ impl OptixStepper {
         mode: ProxyMode,
         policy: RebuildPolicy,
     ) -> Result<Self> {
-        let unavailable = |reason: String| Error::BackendUnavailable {
-            backend: "optix",
-            reason,
-        };
-        let device = Arc::new(Device::open().map_err(unavailable)?);
-        let dem_ptx = programs::ptx(programs::Unit::Dem).map_err(unavailable)?;
-        let kernels_ptx = programs::ptx(programs::Unit::Kernels).map_err(unavailable)?;
-        let pipeline = Pipeline::new(&device, dem_ptx, "dem", 5).map_err(gpu_error)?;
-        let module = device
-            .cuda
-            .load_module(cudarc::nvrtc::Ptx::from_src(kernels_ptx))
-            .map_err(gpu_error)?;
+        let (device, pipeline, module) = open_programs(programs::Unit::Dem, "dem", 5)?;
         let function = |name: &str| module.load_function(name).map_err(gpu_error);
         let kernels = Kernels {
             boxes: function("dem_boxes")?,

@@ -21,7 +21,9 @@ use super::{Backend, BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::proxy::ProxyMode;
 use crate::spheres::{Pair, SphereSet};
-use cudarc::driver::{CudaFunction, CudaSlice, LaunchConfig, PushKernelArg, sys::CUevent_flags};
+use cudarc::driver::{
+    CudaFunction, CudaModule, CudaSlice, LaunchConfig, PushKernelArg, sys::CUevent_flags,
+};
 use device::{AccelOp, Device, Gas, Pipeline};
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -91,6 +93,29 @@ pub(crate) fn gpu_error(e: impl std::fmt::Display) -> Error {
     Error::Gpu(e.to_string())
 }
 
+/// Opens GPU 0 with the pipeline of `unit` (entry points `__raygen__{name}` and
+/// `__intersection__{name}`, `payloads` payload words) and the module of the CUDA kernels
+/// (`optix/kernels.cu`), compiling both with NVRTC on first use.
+pub(crate) fn open_programs(
+    unit: programs::Unit,
+    name: &str,
+    payloads: i32,
+) -> Result<(Arc<Device>, Pipeline, Arc<CudaModule>)> {
+    let unavailable = |reason: String| Error::BackendUnavailable {
+        backend: "optix",
+        reason,
+    };
+    let device = Arc::new(Device::open().map_err(unavailable)?);
+    let programs_ptx = programs::ptx(unit).map_err(unavailable)?;
+    let kernels_ptx = programs::ptx(programs::Unit::Kernels).map_err(unavailable)?;
+    let pipeline = Pipeline::new(&device, programs_ptx, name, payloads).map_err(gpu_error)?;
+    let module = device
+        .cuda
+        .load_module(cudarc::nvrtc::Ptx::from_src(kernels_ptx))
+        .map_err(gpu_error)?;
+    Ok((device, pipeline, module))
+}
+
 /// The OptiX backend.
 pub struct OptixBackend {
     device: Arc<Device>,
@@ -122,18 +147,7 @@ struct Built {
 impl OptixBackend {
     /// Opens GPU 0 and compiles the programs (NVRTC, cached for the process).
     pub fn new() -> Result<Self> {
-        let unavailable = |reason: String| Error::BackendUnavailable {
-            backend: "optix",
-            reason,
-        };
-        let device = Arc::new(Device::open().map_err(unavailable)?);
-        let detect = programs::ptx(programs::Unit::Detect).map_err(unavailable)?;
-        let kernels = programs::ptx(programs::Unit::Kernels).map_err(unavailable)?;
-        let pipeline = Pipeline::new(&device, detect, "detect", 1).map_err(gpu_error)?;
-        let module = device
-            .cuda
-            .load_module(cudarc::nvrtc::Ptx::from_src(kernels))
-            .map_err(gpu_error)?;
+        let (device, pipeline, module) = open_programs(programs::Unit::Detect, "detect", 1)?;
         let proxy_boxes = module.load_function("proxy_boxes").map_err(gpu_error)?;
         Ok(Self {
             device,

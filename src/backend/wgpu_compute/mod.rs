@@ -97,8 +97,8 @@ const _: () = assert!(size_of::<GridParams>() == 96);
 /// Which grid the backend builds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Structure {
-    /// The multi-level grid where the radii span a factor of [`AUTO_MLGRID_RATIO`] or more (it
-    /// measured 1.9–3.6× faster on `polylog`), else the single grid.
+    /// The multi-level grid where the radii span a factor of 4 or more (`AUTO_MLGRID_RATIO`; it
+    /// measured 2–3.6× faster on `polylog`), else the single grid.
     #[default]
     Auto,
     /// One grid with cells of the largest proxy (2·r_max; 4·r_max in `nns` mode).
