@@ -15,7 +15,6 @@
 @group(0) @binding(6) var<storage, read_write> ranks: array<u32>;
 @group(0) @binding(7) var<storage, read_write> counts: array<atomic<u32>>;
 @group(0) @binding(8) var<storage, read> cell_start: array<u32>;
-@group(0) @binding(9) var<storage, read_write> keys: array<u32>;
 @group(0) @binding(12) var<storage, read_write> ids: array<u32>;
 // bindings 1 (dem), 10 (pos), 11 (vel), 16 (clock): dem_physics.wgsl; 13 (force): dem_force_*.wgsl
 // counters[0]: touching pairs found in the step
@@ -51,7 +50,6 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let key = keys_in[i];
     let p = cell_start[key] + ranks[i];
-    keys[p] = key;
     ids[p] = ids_a[i];
     pos[p] = pos_a[i];
     vel[p] = vel_a[i];
@@ -112,7 +110,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
             }
         } else {
             let own = level_of(s.w);
-            let key = keys[p];
+            let key = dense_key(cell_coords(s.xyz, own), own);
             for (var r = 0u; r < OWN_RUNS; r += 1u) {
                 let run = own_run(own, p, key, r);
                 total += resolve_run(p, s, v, run.x, run.y);

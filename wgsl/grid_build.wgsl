@@ -24,7 +24,6 @@ fn count_cells(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // Second entry point: reads bindings 1–3 and the scanned counts, writes the sorted arrays.
 @group(0) @binding(5) var<storage, read> cell_start: array<u32>;
-@group(0) @binding(6) var<storage, read_write> keys: array<u32>;
 @group(0) @binding(7) var<storage, read_write> ids: array<u32>;
 @group(0) @binding(8) var<storage, read_write> spheres: array<vec4<f32>>;
 
@@ -36,7 +35,6 @@ fn scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let key = keys_in[i];
     let p = cell_start[key] + ranks[i];
-    keys[p] = key;
     ids[p] = i;
     spheres[p] = spheres_in[i];
 }

@@ -8,7 +8,6 @@
 @group(0) @binding(0) var<uniform> params: GridParams;
 @group(0) @binding(1) var<storage, read> spheres: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> ids: array<u32>;
-@group(0) @binding(5) var<storage, read> keys: array<u32>;
 @group(0) @binding(6) var<storage, read> cell_start: array<u32>;
 
 // Tests sphere s (input index id) against sorted positions a..b; returns how many were tested.
@@ -56,7 +55,7 @@ fn find_pairs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
             }
         } else {
             let own = level_of(s.w);
-            let key = keys[p];
+            let key = dense_key(cell_coords(s.xyz, own), own);
             for (var r = 0u; r < OWN_RUNS; r += 1u) {
                 let run = own_run(own, p, key, r);
                 tested += scan_run(s, id, run.x, run.y);

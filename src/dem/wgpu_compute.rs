@@ -17,7 +17,9 @@ use super::gpu_step::{
 use super::model::StepParams;
 use super::particles::Particles;
 use super::stepper::{Advance, StageTimes, Stepper};
-use crate::backend::wgpu_compute::{GridParams, Levels, Structure, choose_layout};
+use crate::backend::wgpu_compute::{
+    Budget, DEM_CELLS_PER_SPHERE, GridParams, Levels, Structure, choose_layout,
+};
 use crate::error::{Error, Result};
 use crate::gpu::scan::{ExclusiveScan, PreparedScan};
 use crate::gpu::{self, Gpu, Need};
@@ -93,7 +95,6 @@ pub struct GridStepper {
     current: usize,
     keys_in: wgpu::Buffer,
     ranks: wgpu::Buffer,
-    keys: wgpu::Buffer,
     cell_table: wgpu::Buffer,
     force: wgpu::Buffer,
     counters: wgpu::Buffer,
@@ -171,7 +172,6 @@ impl GridStepper {
                 current: 0,
                 keys_in: make("mochi.dem.keys_in", n64 * 4),
                 ranks: make("mochi.dem.ranks", n64 * 4),
-                keys: make("mochi.dem.keys", n64 * 4),
                 cell_table: make("mochi.dem.cells", 16),
                 force: make("mochi.dem.force", n64 * 12),
                 counters: make("mochi.dem.counters", 16),
@@ -276,7 +276,10 @@ impl GridStepper {
                 &gpu.limits,
                 self.levels,
                 (lo, hi),
-                self.n as u64,
+                Budget {
+                    spheres: self.n as u64,
+                    cells_per_sphere: DEM_CELLS_PER_SPHERE,
+                },
                 self.mode_cell,
                 self.radii,
                 &|_| true,
@@ -329,7 +332,6 @@ impl GridStepper {
                     (5, &self.keys_in),
                     (6, &self.ranks),
                     (8, &self.cell_table),
-                    (9, &self.keys),
                     (10, &b.pos),
                     (11, &b.vel),
                     (12, &b.ids),
@@ -342,7 +344,6 @@ impl GridStepper {
                     (0, &self.grid_uniform),
                     (1, &self.dem_uniform),
                     (8, &self.cell_table),
-                    (9, &self.keys),
                     (10, &b.pos),
                     (11, &b.vel),
                     (13, &self.force),

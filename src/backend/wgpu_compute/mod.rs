@@ -8,9 +8,11 @@
 //!
 //! The single grid has cells of 2·r_max in `mochi` mode and 4·r_max in `nns` mode (the proxy of
 //! the largest sphere, or the fixed-radius box), padded a little. Its table is dense over the
-//! centres' bounding box while it fits a budget of 8 cells per sphere; cells may grow for that
-//! (still exact, a few more candidates) as long as a sample shows them uncrowded. Otherwise (a
-//! cluster with far-away outliers, say) cells keep their size and are hashed into 2n buckets, so
+//! bulk of the centres (their 0.1% to 99.9% quantiles: a few far outliers are clamped into the
+//! border cells) while it fits a budget of [`DETECT_CELLS_PER_SPHERE`] cells per sphere
+//! ([`DEM_CELLS_PER_SPHERE`] in the DEM step); cells may grow for that (still exact, a few more
+//! candidates) as long as a sample shows them uncrowded. Otherwise (a cluster with far-away
+//! outliers, say) cells keep their size and are hashed into 2n buckets, so
 //! the work never degenerates. The multi-level grid (method.md) stacks dense tables whose cells
 //! halve level by level, as many levels as the radii need and the same budget holds; each sphere
 //! is binned at its own size. Detection (`wgsl/grid_pairs.wgsl`, runs from
@@ -68,8 +70,23 @@ const CROWDING_SAMPLE: usize = 4096;
 /// Most cells along one axis of a hashed grid (coordinates stay exact in `u32` arithmetic).
 const MAX_HASHED_AXIS_CELLS: u64 = 1 << 21;
 
-/// Cells of the dense table per sphere, at most (a table of at least 2^20 cells is always fine).
-const CELLS_PER_SPHERE: u64 = 8;
+/// Cells of the dense tables per sphere, at most, for detection (a table of at least 2^20 cells is
+/// always fine). Measured on the H200 (1M spheres): against 8, it saves a third of the build of
+/// `polylog`'s multi-level grid (two levels instead of three; 0.397 → 0.326 ms of build + detect)
+/// and of the settled slab's (0.266 → 0.240 ms), and changes nothing where the table is smaller.
+pub const DETECT_CELLS_PER_SPHERE: u64 = 4;
+
+/// Cells of the dense tables per sphere, at most, for the DEM step, whose detection pass also
+/// resolves contacts, so fewer candidates pay for a larger table: measured on the H200 (1M),
+/// `polylog` 0.598 ms per step at 4, 0.403 ms at 8 (a third level); the landed slab 0.303 / 0.299.
+pub const DEM_CELLS_PER_SPHERE: u64 = 8;
+
+/// What a layout may spend on its dense tables: `spheres` × `cells_per_sphere` cells.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Budget {
+    pub spheres: u64,
+    pub cells_per_sphere: u64,
+}
 
 /// Keep in sync with `GridParams` in `wgsl/grid_params.wgsl`.
 #[repr(C)]
@@ -105,7 +122,7 @@ pub enum Structure {
     Grid,
     /// Multi-level proxy grid (method.md): cells halve level by level, each level a dense table,
     /// and each sphere searches from its own size upwards (`mochi` mode; `nns` mode, and sets
-    /// whose levels would not fit 8 cells per sphere, keep the single grid).
+    /// whose levels would not fit the budget of cells per sphere, keep the single grid).
     Mlgrid,
 }
 
@@ -173,8 +190,6 @@ struct Grid {
     keys_in: wgpu::Buffer,
     /// Rank of each sphere among those of its cell, in input order.
     ranks: wgpu::Buffer,
-    /// Cell key of each sorted sphere.
-    keys: wgpu::Buffer,
     /// Input index of each sorted sphere.
     ids: wgpu::Buffer,
     /// `vec4(x, y, z, r)` in sorted order.
@@ -195,7 +210,6 @@ impl Grid {
             spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
             keys_in: gpu.storage("mochi.grid.keys_in", n64 * 4, none),
             ranks: gpu.storage("mochi.grid.ranks", n64 * 4, none),
-            keys: gpu.storage("mochi.grid.keys", n64 * 4, none),
             ids: gpu.storage("mochi.grid.ids", n64 * 4, none),
             spheres: gpu.storage("mochi.grid.spheres", n64 * 16, none),
             cell_start: gpu.storage("mochi.grid.cell_start", (cells as u64 + 1) * 4, none),
@@ -287,11 +301,15 @@ impl WgpuComputeBackend {
         let base = mode.cell_size(spheres.max_radius()) as f64;
         let uncrowded = |size: f64| crowding(spheres.centers(), lo, size) <= MAX_CROWDING;
         let radii = (spheres.min_radius() as f64, spheres.max_radius() as f64);
+        let budget = Budget {
+            spheres: spheres.len() as u64,
+            cells_per_sphere: DETECT_CELLS_PER_SPHERE,
+        };
         choose_layout(
             &self.gpu.limits,
             self.structure.levels_for(mode, radii.1 / radii.0),
             (lo, hi),
-            spheres.len() as u64,
+            budget,
             base,
             radii,
             &uncrowded,
@@ -299,10 +317,13 @@ impl WgpuComputeBackend {
     }
 }
 
-/// Cells a dense table (all its levels together) may have for `n` spheres.
-fn cell_budget(limits: &wgpu::Limits, n: u64) -> u64 {
+/// Cells a dense table (all its levels together) may have: the budget's, at least 2^20, within
+/// the adapter's binding size.
+fn cell_budget(limits: &wgpu::Limits, budget: Budget) -> u64 {
     let table_limit = limits.max_storage_buffer_binding_size / 4 - 1;
-    (n * CELLS_PER_SPHERE).max(1 << 20).min(table_limit)
+    (budget.spheres * budget.cells_per_sphere)
+        .max(1 << 20)
+        .min(table_limit)
 }
 
 /// Cells along each axis, margin included, for cells of `size` over `extent`.
@@ -310,38 +331,41 @@ fn axis_cells(extent: [f64; 3], size: f64) -> [u64; 3] {
     extent.map(|e| (e / size) as u64 + 1 + 2)
 }
 
-/// Layout of `n` centres within `bounds` and cells of at least `base` (the mode's cell size):
+/// Layout of `budget.spheres` centres within `bounds` and cells of at least `base` (the mode's
+/// cell size):
 /// with `Levels::Many`, a multi-level grid of dense tables when one of at least two levels fits
 /// the budget ([`multi_level_layout`]); otherwise a single level ([`grid_layout`]).
 pub(crate) fn choose_layout(
     limits: &wgpu::Limits,
     levels: Levels,
     (lo, hi): ([f32; 3], [f32; 3]),
-    n: u64,
+    budget: Budget,
     base: f64,
     (r_min, r_max): (f64, f64),
     dense_check: &dyn Fn(f64) -> bool,
 ) -> GridParams {
     let multi = match levels {
         Levels::One => None,
-        Levels::Many => multi_level_layout(limits, lo, hi, n, base, r_max / r_min),
+        Levels::Many => multi_level_layout(limits, lo, hi, budget, base, r_max / r_min),
     };
-    multi.unwrap_or_else(|| grid_layout(limits, lo, hi, n, base, dense_check))
+    multi.unwrap_or_else(|| grid_layout(limits, lo, hi, budget, base, dense_check))
 }
 
 /// Multi-level layout: the top level's cells are `base` (padded), each level below halves them,
 /// down to the smallest proxy (`radius_ratio` = r_max / r_min) or to where the dense tables of
-/// all levels would outgrow [`CELLS_PER_SPHERE`] cells per sphere. `None` where fewer than two levels result.
+/// all levels would outgrow the budget's cells per sphere. `None` where fewer than two levels
+/// result.
 fn multi_level_layout(
     limits: &wgpu::Limits,
     lo: [f32; 3],
     hi: [f32; 3],
-    n: u64,
+    budget: Budget,
     base: f64,
     radius_ratio: f64,
 ) -> Option<GridParams> {
-    // Finer levels only within CELLS_PER_SPHERE (no floor: a small set gets a small table).
-    let budget = cell_budget(limits, n).min(n * CELLS_PER_SPHERE);
+    let n = budget.spheres;
+    // Finer levels only within the cells per sphere (no floor: a small set gets a small table).
+    let budget = cell_budget(limits, budget).min(n * budget.cells_per_sphere);
     let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as f64);
     let size = base * (1.0 + CELL_PADDING);
     let top = axis_cells(extent, size);
@@ -393,7 +417,7 @@ fn multi_level_layout(
 }
 
 /// Single-level cell layout for `n` centres within `lo..=hi` and cells of at least `base`: a
-/// dense table when one fits the budget of [`CELLS_PER_SPHERE`] (cells grown up to
+/// dense table when one fits the budget (cells grown up to
 /// [`MAX_DENSE_GROWTH`]× for that while `dense_check` accepts the grown size), else a hashed
 /// table. Centres outside `lo..=hi` are clamped to the border cells by the shaders: still exact,
 /// only slower.
@@ -401,12 +425,13 @@ pub(crate) fn grid_layout(
     limits: &wgpu::Limits,
     lo: [f32; 3],
     hi: [f32; 3],
-    n: u64,
+    budget: Budget,
     base: f64,
     dense_check: &dyn Fn(f64) -> bool,
 ) -> GridParams {
+    let n = budget.spheres;
     let table_limit = limits.max_storage_buffer_binding_size / 4 - 1;
-    let budget = cell_budget(limits, n);
+    let budget = cell_budget(limits, budget);
     let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as f64);
     let widest = extent.iter().copied().fold(0.0, f64::max);
     let counts = |size: f64| axis_cells(extent, size);
@@ -538,7 +563,6 @@ impl RebuildingBackend for WgpuComputeBackend {
                         (2, &g.keys_in),
                         (3, &g.ranks),
                         (5, &g.cell_start),
-                        (6, &g.keys),
                         (7, &g.ids),
                         (8, &g.spheres),
                     ],
@@ -597,7 +621,6 @@ impl RebuildingBackend for WgpuComputeBackend {
                         (2, &grid.ids),
                         (COUNTERS_BINDING, &output.counters),
                         (PAIRS_BINDING, &output.pairs),
-                        (5, &grid.keys),
                         (6, &grid.cell_start),
                     ],
                 );
@@ -643,20 +666,27 @@ pub(crate) fn describe_layout(p: &GridParams) -> String {
 mod tests {
     use super::*;
 
+    fn budget(spheres: u64) -> Budget {
+        Budget {
+            spheres,
+            cells_per_sphere: DETECT_CELLS_PER_SPHERE,
+        }
+    }
+
     #[test]
     fn crowded_cells_of_the_modes_size_stay_dense() {
         // A dense pile of small spheres around a few big ones: every cell of 2·r_max holds many
         // spheres, but the table fits at that size, so it stays dense (hashing cannot help).
         let limits = wgpu::Limits::default();
         let crowded = |_: f64| false;
-        let p = grid_layout(&limits, [0.0; 3], [1.0; 3], 100_000, 0.1, &crowded);
+        let p = grid_layout(&limits, [0.0; 3], [1.0; 3], budget(100_000), 0.1, &crowded);
         assert_eq!(p.hashed, 0);
         assert!((p.top_cell as f64 - 0.1 * (1.0 + CELL_PADDING)).abs() < 1e-7);
         // Grown cells are checked: too big a box for the budget at the mode's size hashes when
         // the grown cells would be crowded, and grows them when not.
-        let p = grid_layout(&limits, [0.0; 3], [100.0; 3], 1000, 0.1, &crowded);
+        let p = grid_layout(&limits, [0.0; 3], [100.0; 3], budget(1000), 0.1, &crowded);
         assert_eq!(p.hashed, 1);
-        let p = grid_layout(&limits, [0.0; 3], [20.0; 3], 1000, 0.1, &|_| true);
+        let p = grid_layout(&limits, [0.0; 3], [20.0; 3], budget(1000), 0.1, &|_| true);
         assert_eq!(p.hashed, 0);
         assert!(p.top_cell as f64 > 0.1);
     }
