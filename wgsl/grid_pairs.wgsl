@@ -40,7 +40,7 @@ fn scan_bucket(s: vec4<f32>, p: u32, id: u32, cell: vec3<u32>, own: bool) -> u32
     return tested;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(256)
 fn find_pairs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let p = gid.x + gid.y * params.row;
     var tested = 0u;

@@ -48,7 +48,7 @@ const DETECT_SPAN: Span = Span(1);
 
 /// Workgroup sizes, as in the shaders.
 const BUILD_GROUP: u32 = 256;
-const PAIRS_GROUP: u32 = 64;
+const PAIRS_GROUP: u32 = 256;
 
 /// Relative padding of the cell side: far above the `f32` rounding of the cell coordinates of
 /// up to [`MAX_AXIS_CELLS`] cells (about 2^-22 per cell of coordinate), so a pair the narrow phase
