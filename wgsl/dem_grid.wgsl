@@ -11,7 +11,6 @@
 @group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;   // x, y, z, r
 @group(0) @binding(3) var<storage, read> vel_a: array<vec4<f32>>;   // vx, vy, vz, mass
 @group(0) @binding(4) var<storage, read> ids_a: array<u32>;
-@group(0) @binding(5) var<storage, read_write> keys_in: array<u32>;
 @group(0) @binding(6) var<storage, read_write> ranks: array<u32>;
 @group(0) @binding(7) var<storage, read_write> counts: array<atomic<u32>>;
 @group(0) @binding(8) var<storage, read> cell_start: array<u32>;
@@ -26,7 +25,7 @@ fn index(gid: vec3<u32>) -> u32 {
     return gid.x + gid.y * params.row;
 }
 
-// Counting sort, first half: cell key and rank within the cell of every sphere of set a.
+// Counting sort, first half: the rank within its cell of every sphere of set a.
 @compute @workgroup_size(256)
 fn bin_count(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index(gid);
@@ -36,9 +35,7 @@ fn bin_count(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= params.n {
         return;
     }
-    let key = cell_key(pos_a[i]);
-    keys_in[i] = key;
-    ranks[i] = atomicAdd(&counts[key], 1u);
+    ranks[i] = atomicAdd(&counts[cell_key(pos_a[i])], 1u);
 }
 
 // Counting sort, second half (after the scan of the counts): set a → sorted set.
@@ -48,10 +45,10 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= params.n {
         return;
     }
-    let key = keys_in[i];
-    let p = cell_start[key] + ranks[i];
+    let s = pos_a[i];
+    let p = cell_start[cell_key(s)] + ranks[i];
     ids[p] = ids_a[i];
-    pos[p] = pos_a[i];
+    pos[p] = s;
     vel[p] = vel_a[i];
 }
 

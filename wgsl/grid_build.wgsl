@@ -1,13 +1,12 @@
 // Build stage of the wgpu-compute backend: a counting sort of the spheres by cell.
-// count_cells gives every sphere its cell key and its rank among the spheres of that cell; the
-// host then scans the counts into cell_start (exclusive prefix sum over cells + 1 entries); and
-// scatter writes every sphere to cell_start[key] + rank. Keys (cell_key, grid_params.wgsl) are
+// count_cells gives every sphere its rank among the spheres of its cell; the host then scans the
+// counts into cell_start (exclusive prefix sum over cells + 1 entries); and scatter writes every
+// sphere to cell_start[key] + rank, recomputing its key (cheaper than storing and reading it). Keys (cell_key, grid_params.wgsl) are
 // linear over a dense grid with one empty cell of margin on every side, or hashed buckets.
 // Needs grid_params.wgsl prepended.
 
 @group(0) @binding(0) var<uniform> params: GridParams;
 @group(0) @binding(1) var<storage, read> spheres_in: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read_write> keys_in: array<u32>;
 @group(0) @binding(3) var<storage, read_write> ranks: array<u32>;
 @group(0) @binding(4) var<storage, read_write> counts: array<atomic<u32>>;
 
@@ -17,12 +16,10 @@ fn count_cells(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= params.n {
         return;
     }
-    let key = cell_key(spheres_in[i]);
-    keys_in[i] = key;
-    ranks[i] = atomicAdd(&counts[key], 1u);
+    ranks[i] = atomicAdd(&counts[cell_key(spheres_in[i])], 1u);
 }
 
-// Second entry point: reads bindings 1–3 and the scanned counts, writes the sorted arrays.
+// Second entry point: reads bindings 1 and 3 and the scanned counts, writes the sorted arrays.
 @group(0) @binding(5) var<storage, read> cell_start: array<u32>;
 @group(0) @binding(7) var<storage, read_write> ids: array<u32>;
 @group(0) @binding(8) var<storage, read_write> spheres: array<vec4<f32>>;
@@ -33,8 +30,8 @@ fn scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= params.n {
         return;
     }
-    let key = keys_in[i];
-    let p = cell_start[key] + ranks[i];
+    let s = spheres_in[i];
+    let p = cell_start[cell_key(s)] + ranks[i];
     ids[p] = i;
-    spheres[p] = spheres_in[i];
+    spheres[p] = s;
 }

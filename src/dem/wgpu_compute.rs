@@ -93,7 +93,6 @@ pub struct GridStepper {
     sets: [StateSet; 2],
     /// Which set the next step bins from.
     current: usize,
-    keys_in: wgpu::Buffer,
     ranks: wgpu::Buffer,
     cell_table: wgpu::Buffer,
     force: wgpu::Buffer,
@@ -170,7 +169,6 @@ impl GridStepper {
                 dem_uniform: gpu.uniform("mochi.dem.params", &DemParams::default()),
                 sets: [set(0), set(1)],
                 current: 0,
-                keys_in: make("mochi.dem.keys_in", n64 * 4),
                 ranks: make("mochi.dem.ranks", n64 * 4),
                 cell_table: make("mochi.dem.cells", 16),
                 force: make("mochi.dem.force", n64 * 12),
@@ -315,7 +313,6 @@ impl GridStepper {
                 &[
                     (0, &self.grid_uniform),
                     (2, &a.pos),
-                    (5, &self.keys_in),
                     (6, &self.ranks),
                     (7, &self.cell_table),
                     (16, &self.clock),
@@ -329,7 +326,6 @@ impl GridStepper {
                     (2, &a.pos),
                     (3, &a.vel),
                     (4, &a.ids),
-                    (5, &self.keys_in),
                     (6, &self.ranks),
                     (8, &self.cell_table),
                     (10, &b.pos),

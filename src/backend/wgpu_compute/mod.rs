@@ -186,8 +186,6 @@ struct Grid {
     pair_params: wgpu::Buffer,
     /// `vec4(x, y, z, r)` in input order.
     spheres_in: wgpu::Buffer,
-    /// Cell key of each sphere, in input order.
-    keys_in: wgpu::Buffer,
     /// Rank of each sphere among those of its cell, in input order.
     ranks: wgpu::Buffer,
     /// Input index of each sorted sphere.
@@ -208,7 +206,6 @@ impl Grid {
             params: gpu.uniform("mochi.grid.params", &GridParams::default()),
             pair_params: gpu.uniform("mochi.grid.pair_params", &GridParams::default()),
             spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
-            keys_in: gpu.storage("mochi.grid.keys_in", n64 * 4, none),
             ranks: gpu.storage("mochi.grid.ranks", n64 * 4, none),
             ids: gpu.storage("mochi.grid.ids", n64 * 4, none),
             spheres: gpu.storage("mochi.grid.spheres", n64 * 16, none),
@@ -545,7 +542,6 @@ impl RebuildingBackend for WgpuComputeBackend {
                     &[
                         (0, &g.params),
                         (1, &g.spheres_in),
-                        (2, &g.keys_in),
                         (3, &g.ranks),
                         (4, &g.cell_start),
                     ],
@@ -560,7 +556,6 @@ impl RebuildingBackend for WgpuComputeBackend {
                     &[
                         (0, &g.params),
                         (1, &g.spheres_in),
-                        (2, &g.keys_in),
                         (3, &g.ranks),
                         (5, &g.cell_start),
                         (7, &g.ids),
