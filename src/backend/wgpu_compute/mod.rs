@@ -3,8 +3,9 @@
 //!
 //! Build, in one submission, a counting sort by cell (`wgsl/grid_build.wgsl`): every sphere's cell
 //! key and rank within its cell (one atomic add), an exclusive scan of the cell counts into a
-//! table of where each cell's run starts, and the spheres scattered to their sorted places. No
-//! comparison or radix sort is needed: the table is the sort.
+//! table of where each cell's run starts, each sphere's index scattered to its sorted place, and
+//! the spheres gathered in that order. No comparison or radix sort is needed: the table is the
+//! sort.
 //!
 //! The single grid has cells of 2·r_max in `mochi` mode and 4·r_max in `nns` mode (the proxy of
 //! the largest sphere, or the fixed-radius box), padded a little. Its table is dense over the
@@ -160,6 +161,7 @@ pub struct WgpuComputeBackend {
     scan: ExclusiveScan,
     count_cells: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
+    gather: wgpu::ComputePipeline,
     find_pairs: wgpu::ComputePipeline,
     built: Option<Built>,
     structure: Structure,
@@ -272,6 +274,7 @@ impl WgpuComputeBackend {
             scan: ExclusiveScan::new(&gpu),
             count_cells: gpu.pipeline("mochi.grid.count_cells", &build, "count_cells"),
             scatter: gpu.pipeline("mochi.grid.scatter", &build, "scatter"),
+            gather: gpu.pipeline("mochi.grid.gather", &build, "gather"),
             find_pairs: gpu.pipeline("mochi.grid.find_pairs", &pairs, "find_pairs"),
             built: None,
             structure: Structure::Auto,
@@ -558,6 +561,17 @@ impl RebuildingBackend for WgpuComputeBackend {
                         (1, &g.spheres_in),
                         (3, &g.ranks),
                         (5, &g.cell_start),
+                        (7, &g.ids),
+                    ],
+                    (x, y),
+                );
+                gpu.pass(
+                    encoder,
+                    "mochi.grid.gather",
+                    &self.gather,
+                    &[
+                        (0, &g.params),
+                        (1, &g.spheres_in),
                         (7, &g.ids),
                         (8, &g.spheres),
                     ],
