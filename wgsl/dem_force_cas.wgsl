@@ -20,6 +20,13 @@ fn add_force(i: u32, f: vec3<f32>) {
     add_component(3u * i + 2u, f.z);
 }
 
+// Zeroes sphere i's accumulator (for a step that did not clear the whole buffer).
+fn clear_force(i: u32) {
+    atomicStore(&force[3u * i], 0u);
+    atomicStore(&force[3u * i + 1u], 0u);
+    atomicStore(&force[3u * i + 2u], 0u);
+}
+
 fn load_force(i: u32) -> vec3<f32> {
     return vec3(
         bitcast<f32>(atomicLoad(&force[3u * i])),

@@ -1,6 +1,6 @@
 // DEM step of the wgpu-compute backend (method.md, "The DEM pipeline"): bin and resolve; the
-// integration is dem_physics.wgsl's. Needs grid_params.wgsl prepended, dem_physics.wgsl and one
-// of dem_force_f32.wgsl / dem_force_cas.wgsl appended.
+// integration is dem_physics.wgsl's. Needs grid_params.wgsl and grid_stencil.wgsl prepended,
+// dem_physics.wgsl and one of dem_force_f32.wgsl / dem_force_cas.wgsl appended.
 //
 // The state (pos, vel, ids) lives in sorted order and ping-pongs between two sets of buffers:
 // each step bins the previous step's sorted set (`*_a`, nearly sorted already, so the atomics of
@@ -25,12 +25,14 @@ fn index(gid: vec3<u32>) -> u32 {
     return gid.x + gid.y * params.row;
 }
 
-// Counting sort, first half: the rank within its cell of every sphere of set a.
+// Counting sort, first pass: the rank within its cell of every sphere of set a (then
+// cell_scan.wgsl scans the counts into cell_start and zeroes them).
 @compute @workgroup_size(256)
 fn bin_count(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index(gid);
     if i == 0u {
         atomicAdd(&clock, 1u);
+        atomicStore(&counters[0], 0u);
     }
     if i >= params.n {
         return;
@@ -38,7 +40,8 @@ fn bin_count(@builtin(global_invocation_id) gid: vec3<u32>) {
     ranks[i] = atomicAdd(&counts[cell_key(pos_a[i])], 1u);
 }
 
-// Counting sort, second half (after the scan of the counts): set a → sorted set.
+// Counting sort, last pass (after the scan): set a → sorted set, with its force accumulators
+// zeroed (no clear of the whole buffer).
 @compute @workgroup_size(256)
 fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index(gid);
@@ -48,6 +51,7 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s = pos_a[i];
     let p = cell_start[cell_key(s)] + ranks[i];
     ids[p] = ids_a[i];
+    clear_force(p);
     pos[p] = s;
     vel[p] = vel_a[i];
 }
@@ -107,15 +111,15 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
             }
         } else {
             let own = level_of(s.w);
-            let key = dense_key(cell_coords(s.xyz, own), own);
-            for (var r = 0u; r < OWN_RUNS; r += 1u) {
-                let run = own_run(own, p, key, r);
-                total += resolve_run(p, s, v, run.x, run.y);
+            let w = window(s, own);
+            for (var k = w.own_row; k < w.count; k += 1u) {
+                let run = window_row(w, k);
+                total += resolve_run(p, s, v, max(run.x, p + 1u), run.y);
             }
             for (var level = own + 1u; level < params.levels; level += 1u) {
-                let rows = coarse_rows(s, level);
-                for (var k = 0u; k < rows.count; k += 1u) {
-                    let run = coarse_row(rows, k);
+                let w = window(s, level);
+                for (var k = 0u; k < w.count; k += 1u) {
+                    let run = window_row(w, k);
                     total += resolve_run(p, s, v, run.x, run.y);
                 }
             }

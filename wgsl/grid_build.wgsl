@@ -1,8 +1,8 @@
 // Build stage of the wgpu-compute backend: a counting sort of the spheres by cell.
-// count_cells gives every sphere its rank among the spheres of its cell; the host then scans the
-// counts into cell_start (exclusive prefix sum over cells + 1 entries); scatter writes every
-// sphere's input index to its sorted place, cell_start[key] + rank (recomputing its key: cheaper
-// than storing and reading it); and gather fetches the spheres into sorted order. Spheres in
+// count_cells gives every sphere its rank among the spheres of its cell; cell_scan.wgsl scans the
+// counts into cell_start (exclusive prefix sum over cells + 1 entries) and zeroes them; scatter
+// writes every sphere's input index to its sorted place, cell_start[key] + rank (recomputing its
+// key: cheaper than storing and reading it); and gather fetches the spheres into sorted order. Spheres in
 // arbitrary input order land in random places: writing only their 4-byte indices there and
 // reading the 16-byte spheres back in sorted order costs less than writing the spheres there
 // (measured on the H200: scattering the spheres was most of the build). Keys (cell_key, grid_params.wgsl) are

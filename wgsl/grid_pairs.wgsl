@@ -1,9 +1,9 @@
 // Detection stage of the wgpu-compute backend (sorted proxy grid, single- or multi-level; see
-// grid_params.wgsl). Each sphere scans the runs of sorted positions own_run and coarse_rows give
-// (dense tables), or with a hashed table the rest of its own cell and its 13 forward neighbour cells,
-// each looked up in its bucket and filtered by its coordinates. Each pair is visited once, so the
-// narrow phase (collides, proxy.wgsl) alone decides. Needs grid_params.wgsl prepended, proxy.wgsl
-// and pair_output.wgsl appended.
+// grid_params.wgsl and grid_stencil.wgsl). Each sphere scans the rows of its windows (dense
+// tables), or with a hashed table the rest of its own cell and its 13
+// forward neighbour cells, each looked up in its bucket and filtered by its coordinates. Each pair
+// is visited once, so the narrow phase (collides, proxy.wgsl) alone decides. Needs
+// grid_params.wgsl and grid_stencil.wgsl prepended, proxy.wgsl and pair_output.wgsl appended.
 
 @group(0) @binding(0) var<uniform> params: GridParams;
 @group(0) @binding(1) var<storage, read> spheres: array<vec4<f32>>;
@@ -55,15 +55,15 @@ fn find_pairs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
             }
         } else {
             let own = level_of(s.w);
-            let key = dense_key(cell_coords(s.xyz, own), own);
-            for (var r = 0u; r < OWN_RUNS; r += 1u) {
-                let run = own_run(own, p, key, r);
-                tested += scan_run(s, id, run.x, run.y);
+            let w = window(s, own);
+            for (var k = w.own_row; k < w.count; k += 1u) {
+                let run = window_row(w, k);
+                tested += scan_run(s, id, max(run.x, p + 1u), run.y);
             }
             for (var level = own + 1u; level < params.levels; level += 1u) {
-                let rows = coarse_rows(s, level);
-                for (var k = 0u; k < rows.count; k += 1u) {
-                    let run = coarse_row(rows, k);
+                let w = window(s, level);
+                for (var k = 0u; k < w.count; k += 1u) {
+                    let run = window_row(w, k);
                     tested += scan_run(s, id, run.x, run.y);
                 }
             }

@@ -1,5 +1,6 @@
-// The grid's parameters and cell functions, shared by grid_build.wgsl, grid_pairs.wgsl and
-// dem_grid.wgsl. Keep in sync with GridParams in src/backend/wgpu_compute/mod.rs.
+// The grid's parameters and cell functions, shared by grid_build.wgsl, cell_scan.wgsl,
+// grid_pairs.wgsl and dem_grid.wgsl (the last two with grid_stencil.wgsl, which searches the
+// cells). Keep in sync with GridParams in src/backend/wgpu_compute/mod.rs.
 //
 // A grid has one level (cells of the largest proxy; its table dense or hashed) or several dense
 // levels (the multi-level proxy grid of method.md): level `levels - 1` is the top, with cells of
@@ -20,7 +21,11 @@ struct GridParams {
     levels: u32,        // 1: single grid; more: multi-level grid (dense), cells halving downwards
     top_cell: f32,      // cell side of the top level
     level_pad: f32,     // 1 + relative padding: sphere i lives where cell ≥ 2·r_i·level_pad
+    block_shift: u32,   // the table's blocks for the scan (cell_scan.wgsl): 1 << block_shift entries
+    max_radius: f32,    // largest radius, padded (grid_stencil.wgsl's windows)
     _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
     level_first: array<vec4<u32>, 2>, // dense: table index of each level's first cell
 }
 
@@ -75,57 +80,4 @@ fn cell_key(s: vec4<f32>) -> u32 {
         return hash_cell(cell);
     }
     return dense_key(cell, level);
-}
-
-// The 13 forward neighbours of a cell (the other 13 see this one as theirs).
-const FORWARD = array<vec3<i32>, 13>(
-    vec3(1, 0, 0), vec3(-1, 1, 0), vec3(0, 1, 0), vec3(1, 1, 0),
-    vec3(-1, -1, 1), vec3(0, -1, 1), vec3(1, -1, 1),
-    vec3(-1, 0, 1), vec3(0, 0, 1), vec3(1, 0, 1),
-    vec3(-1, 1, 1), vec3(0, 1, 1), vec3(1, 1, 1),
-);
-
-// Dense tables: the partners sphere s (sorted position p, table entry `key`, level `own`) alone
-// must test lie in runs of sorted positions. At its own level, `own_run(own, p, key, 0..OWN_RUNS)`
-// (each as `vec2(first, end)`): the rest of its cell and the next along x, then four three-cell
-// rows (the 13 forward neighbours, so each unordered pair of cells is visited once). At each
-// coarser level, the rows of `coarse_rows(s, level)`: only the cells a partner's centre can be in,
-// within r_i plus the level's largest radius (half its cell) of c_i: 2 or 3 cells per axis
-// rather than 27 cells in all.
-const OWN_RUNS: u32 = 5u;
-
-fn own_run(own: u32, p: u32, key: u32, run: u32) -> vec2<u32> {
-    if run == 0u {
-        return vec2(p + 1u, cell_start[key + 2u]);
-    }
-    let dims = level_dims(own);
-    let plane = dims.x * dims.y;
-    let rows = array<u32, 4>(dims.x - 1u, plane - dims.x - 1u, plane - 1u, plane + dims.x - 1u);
-    let first = key + rows[run - 1u];
-    return vec2(cell_start[first], cell_start[first + 3u]);
-}
-
-// The rows of cells of a coarser level that sphere s searches.
-struct CoarseRows {
-    first: u32,   // table index of the first cell of the first row
-    width: u32,   // cells per row (along x)
-    ny: u32,      // rows along y
-    count: u32,   // rows in all
-    dims: vec3<u32>,
-}
-
-fn coarse_rows(s: vec4<f32>, level: u32) -> CoarseRows {
-    // A sphere at `level` has r_j·level_pad ≤ cell / 2: the reach below is padded by that factor,
-    // far above the rounding of the cell coordinates.
-    let cell = ldexp(params.top_cell, -i32(params.levels - 1u - level));
-    let reach = vec3(s.w + 0.5 * cell);
-    let lo = cell_coords(s.xyz - reach, level);
-    let hi = cell_coords(s.xyz + reach, level);
-    let span = hi - lo + vec3(1u);
-    return CoarseRows(dense_key(lo, level), span.x, span.y, span.y * span.z, level_dims(level));
-}
-
-fn coarse_row(rows: CoarseRows, k: u32) -> vec2<u32> {
-    let first = rows.first + rows.dims.x * (k % rows.ny + rows.dims.y * (k / rows.ny));
-    return vec2(cell_start[first], cell_start[first + rows.width]);
 }

@@ -17,16 +17,17 @@ use super::gpu_step::{
 use super::model::StepParams;
 use super::particles::Particles;
 use super::stepper::{Advance, StageTimes, Stepper};
+use crate::backend::wgpu_compute::cell_table::{CellScan, CellScanBinds, CellTable};
 use crate::backend::wgpu_compute::{
     Budget, DEM_CELLS_PER_SPHERE, GridParams, Levels, Structure, choose_layout,
 };
 use crate::error::{Error, Result};
-use crate::gpu::scan::{ExclusiveScan, PreparedScan};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
 
 const GRID_WGSL: &str = concat!(
     include_str!("../../wgsl/grid_params.wgsl"),
+    include_str!("../../wgsl/grid_stencil.wgsl"),
     include_str!("../../wgsl/dem_grid.wgsl")
 );
 
@@ -74,8 +75,9 @@ struct Binds {
 pub struct GridStepper {
     gpu: Gpu,
     pipelines: Pipelines,
-    scan: ExclusiveScan,
-    prepared: Option<PreparedScan>,
+    scan: CellScan,
+    /// The scan bound to the current cell table.
+    scan_bind: Option<CellScanBinds>,
     n: u32,
     mode: ProxyMode,
     mode_cell: f64,
@@ -94,7 +96,7 @@ pub struct GridStepper {
     /// Which set the next step bins from.
     current: usize,
     ranks: wgpu::Buffer,
-    cell_table: wgpu::Buffer,
+    cell_table: CellTable,
     force: wgpu::Buffer,
     counters: wgpu::Buffer,
     bounds: wgpu::Buffer,
@@ -152,8 +154,8 @@ impl GridStepper {
             };
             let timer = StepTimer::new(&gpu);
             GridStepper {
-                scan: ExclusiveScan::new(&gpu),
-                prepared: None,
+                scan: CellScan::new(&gpu),
+                scan_bind: None,
                 pipelines,
                 n,
                 mode,
@@ -170,7 +172,7 @@ impl GridStepper {
                 sets: [set(0), set(1)],
                 current: 0,
                 ranks: make("mochi.dem.ranks", n64 * 4),
-                cell_table: make("mochi.dem.cells", 16),
+                cell_table: CellTable::new(&gpu, 1),
                 force: make("mochi.dem.force", n64 * 12),
                 counters: make("mochi.dem.counters", 16),
                 bounds: make("mochi.dem.bounds", 24),
@@ -283,17 +285,13 @@ impl GridStepper {
                 &|_| true,
             )
         };
-        let table_bytes = (layout.cells as u64 + 1) * 4;
-        if self.cell_table.size() < table_bytes || self.binds.is_none() {
+        if self.cell_table.capacity < layout.cells || self.binds.is_none() {
             self.cell_table = gpu.checked("allocating the DEM cell table", || {
-                gpu.storage("mochi.dem.cells", table_bytes, wgpu::BufferUsages::empty())
+                CellTable::new(gpu, layout.cells)
             })?;
             self.binds = Some([self.make_binds(0), self.make_binds(1)]);
+            self.scan_bind = Some(self.scan.bind(gpu, &self.grid_uniform, &self.cell_table));
         }
-        self.prepared = Some(
-            self.scan
-                .prepare(gpu, &self.cell_table, 0, layout.cells + 1),
-        );
         gpu.queue
             .write_buffer(&self.grid_uniform, 0, bytemuck::bytes_of(&layout));
         self.layout = layout;
@@ -314,7 +312,8 @@ impl GridStepper {
                     (0, &self.grid_uniform),
                     (2, &a.pos),
                     (6, &self.ranks),
-                    (7, &self.cell_table),
+                    (7, &self.cell_table.counts),
+                    (14, &self.counters),
                     (16, &self.clock),
                 ],
             ),
@@ -327,10 +326,11 @@ impl GridStepper {
                     (3, &a.vel),
                     (4, &a.ids),
                     (6, &self.ranks),
-                    (8, &self.cell_table),
+                    (8, &self.cell_table.cell_start),
                     (10, &b.pos),
                     (11, &b.vel),
                     (12, &b.ids),
+                    (13, &self.force),
                 ],
             ),
             resolve: gpu.bind(
@@ -339,7 +339,7 @@ impl GridStepper {
                 &[
                     (0, &self.grid_uniform),
                     (1, &self.dem_uniform),
-                    (8, &self.cell_table),
+                    (8, &self.cell_table.cell_start),
                     (10, &b.pos),
                     (11, &b.vel),
                     (13, &self.force),
@@ -369,9 +369,8 @@ impl GridStepper {
     fn run_batch(&mut self, steps: u32) -> Result<(u64, Option<StageTimes>)> {
         let gpu = &self.gpu;
         let binds = self.binds.as_ref().expect("laid out");
-        let prepared = self.prepared.as_ref().expect("laid out");
+        let scan_bind = self.scan_bind.as_ref().expect("laid out");
         let p = &self.pipelines;
-        let table_bytes = (self.layout.cells as u64 + 1) * 4;
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         let mut current = self.current;
         for s in 0..steps {
@@ -380,7 +379,6 @@ impl GridStepper {
                 StepTimer::mark(self.timer.as_ref(), encoder, s, k)
             };
             mark(&mut encoder, 0);
-            encoder.clear_buffer(&self.cell_table, 0, Some(table_bytes));
             {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("mochi.dem.build"),
@@ -389,14 +387,12 @@ impl GridStepper {
                 pass.set_pipeline(&p.bin_count);
                 pass.set_bind_group(0, &b.bin_count, &[]);
                 pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
-                prepared.record(&mut pass);
+                self.scan.record(&mut pass, scan_bind, &self.layout);
                 pass.set_pipeline(&p.bin_scatter);
                 pass.set_bind_group(0, &b.bin_scatter, &[]);
                 pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
             }
             mark(&mut encoder, 1);
-            encoder.clear_buffer(&self.force, 0, None);
-            encoder.clear_buffer(&self.counters, 0, None);
             gpu.dispatch(
                 &mut encoder,
                 "mochi.dem.resolve",

@@ -37,9 +37,10 @@ impl PairOutput {
         }
     }
 
-    /// Runs a detection: `run(capacity)` must clear [`Self::counters`] and record the shader
-    /// with this output bound. With `collect`, grows the buffer until every pair fits and
-    /// returns the pairs sorted; without, only counts.
+    /// Runs a detection: zeroes [`Self::counters`] (an upload, ahead of the commands submitted
+    /// next, so no clear is recorded into the timed work) and calls `run(capacity)`, which must
+    /// submit the shader with this output bound. With `collect`, grows the buffer until every
+    /// pair fits and returns the pairs sorted; without, only counts.
     pub fn detect(
         &mut self,
         gpu: &Gpu,
@@ -48,6 +49,7 @@ impl PairOutput {
     ) -> Result<(Vec<Pair>, DetectStats)> {
         loop {
             let capacity = if collect { self.capacity } else { 0 };
+            gpu.queue.write_buffer(&self.counters, 0, &[0; 16]);
             run(self, capacity)?;
             let counters: Vec<u32> = gpu.read(&self.counters, 4)?;
             let stats = DetectStats {

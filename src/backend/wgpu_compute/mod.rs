@@ -17,13 +17,16 @@
 //! the work never degenerates. The multi-level grid (method.md) stacks dense tables whose cells
 //! halve level by level, as many levels as the radii need and the same budget holds; each sphere
 //! is binned at its own size. Detection (`wgsl/grid_pairs.wgsl`, runs from
-//! `wgsl/grid_params.wgsl`) visits each pair once, like the cpu backend.
+//! `wgsl/grid_stencil.wgsl`) visits each pair once, like the cpu backend.
+
+pub(crate) mod cell_table;
+
+use cell_table::{CellScan, CellTable};
 
 use super::rebuilding::RebuildingBackend;
 use super::{BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
-use crate::gpu::scan::ExclusiveScan;
 use crate::gpu::timer::{self, GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
@@ -35,13 +38,18 @@ const BUILD_WGSL: &str = concat!(
 );
 const PAIRS_WGSL: &str = concat!(
     include_str!("../../../wgsl/grid_params.wgsl"),
+    include_str!("../../../wgsl/grid_stencil.wgsl"),
     include_str!("../../../wgsl/grid_pairs.wgsl"),
     include_str!("../../../wgsl/proxy.wgsl"),
     include_str!("../../../wgsl/pair_output.wgsl")
 );
 
 /// Every WGSL module of this backend, by label, exactly as the device gets it.
-pub const SHADERS: [(&str, &str); 2] = [("grid_build", BUILD_WGSL), ("grid_pairs", PAIRS_WGSL)];
+pub const SHADERS: [(&str, &str); 3] = [
+    ("grid_build", BUILD_WGSL),
+    ("grid_pairs", PAIRS_WGSL),
+    cell_table::SHADER,
+];
 
 /// Timer spans of a build and of a detection pass.
 const BUILD_SPAN: Span = Span(0);
@@ -106,11 +114,15 @@ pub(crate) struct GridParams {
     pub levels: u32,
     pub top_cell: f32,
     pub level_pad: f32,
-    pub _pad0: u32,
+    /// Log2 of the table entries per block of the scan ([`cell_table::block_shift`]).
+    pub block_shift: u32,
+    /// Largest radius, padded by [`CELL_PADDING`] (the search windows' reach).
+    pub max_radius: f32,
+    pub _pad0: [u32; 3],
     /// Dense tables: index of each level's first cell (level `k` at `[k / 4][k % 4]`).
     pub level_first: [[u32; 4]; 2],
 }
-const _: () = assert!(size_of::<GridParams>() == 96);
+const _: () = assert!(size_of::<GridParams>() == 112);
 
 /// Which grid the backend builds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -158,7 +170,7 @@ const MAX_LEVELS: u32 = 8;
 /// The wgpu compute (sorted grid) backend.
 pub struct WgpuComputeBackend {
     gpu: Gpu,
-    scan: ExclusiveScan,
+    scan: CellScan,
     count_cells: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
     gather: wgpu::ComputePipeline,
@@ -182,8 +194,6 @@ struct Built {
 /// GPU buffers of a grid over `n` spheres.
 struct Grid {
     n: u32,
-    /// Cells the table has room for.
-    cell_capacity: u32,
     params: wgpu::Buffer,
     pair_params: wgpu::Buffer,
     /// `vec4(x, y, z, r)` in input order.
@@ -194,8 +204,7 @@ struct Grid {
     ids: wgpu::Buffer,
     /// `vec4(x, y, z, r)` in sorted order.
     spheres: wgpu::Buffer,
-    /// Cell counts, then (scanned) the first sorted position of each cell; `cells + 1` entries.
-    cell_start: wgpu::Buffer,
+    table: CellTable,
 }
 
 impl Grid {
@@ -204,14 +213,13 @@ impl Grid {
         let n64 = n as u64;
         Grid {
             n,
-            cell_capacity: cells,
             params: gpu.uniform("mochi.grid.params", &GridParams::default()),
             pair_params: gpu.uniform("mochi.grid.pair_params", &GridParams::default()),
             spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
             ranks: gpu.storage("mochi.grid.ranks", n64 * 4, none),
             ids: gpu.storage("mochi.grid.ids", n64 * 4, none),
             spheres: gpu.storage("mochi.grid.spheres", n64 * 16, none),
-            cell_start: gpu.storage("mochi.grid.cell_start", (cells as u64 + 1) * 4, none),
+            table: CellTable::new(gpu, cells),
         }
     }
 }
@@ -271,7 +279,7 @@ impl WgpuComputeBackend {
         let build = gpu.module("mochi.grid.build", BUILD_WGSL);
         let pairs = gpu.module("mochi.grid.pairs", PAIRS_WGSL);
         Ok(Self {
-            scan: ExclusiveScan::new(&gpu),
+            scan: CellScan::new(&gpu),
             count_cells: gpu.pipeline("mochi.grid.count_cells", &build, "count_cells"),
             scatter: gpu.pipeline("mochi.grid.scatter", &build, "scatter"),
             gather: gpu.pipeline("mochi.grid.gather", &build, "gather"),
@@ -348,7 +356,12 @@ pub(crate) fn choose_layout(
         Levels::One => None,
         Levels::Many => multi_level_layout(limits, lo, hi, budget, base, r_max / r_min),
     };
-    multi.unwrap_or_else(|| grid_layout(limits, lo, hi, budget, base, dense_check))
+    let params = multi.unwrap_or_else(|| grid_layout(limits, lo, hi, budget, base, dense_check));
+    GridParams {
+        block_shift: cell_table::block_shift(params.cells),
+        max_radius: (r_max * (1.0 + CELL_PADDING)) as f32,
+        ..params
+    }
 }
 
 /// Multi-level layout: the top level's cells are `base` (padded), each level below halves them,
@@ -520,7 +533,7 @@ impl RebuildingBackend for WgpuComputeBackend {
                 grid: Some(g),
                 output,
                 ..
-            }) if g.n == n && g.cell_capacity >= params.cells => (g, output),
+            }) if g.n == n && g.table.capacity >= params.cells => (g, output),
             _ => gpu.checked("allocating the wgpu-compute buffers", || {
                 (
                     Grid::new(gpu, n, params.cells),
@@ -534,10 +547,9 @@ impl RebuildingBackend for WgpuComputeBackend {
                 .write_buffer(&grid.params, 0, bytemuck::bytes_of(&params));
             gpu.queue
                 .write_buffer(&grid.spheres_in, 0, bytemuck::cast_slice(&rows));
+            let g = &grid;
+            let scan = self.scan.bind(gpu, &g.params, &g.table);
             gpu.submit_timed(self.timer.as_ref(), BUILD_SPAN, |encoder| {
-                let g = &grid;
-                let table_bytes = (params.cells as u64 + 1) * 4;
-                encoder.clear_buffer(&g.cell_start, 0, Some(table_bytes));
                 gpu.pass(
                     encoder,
                     "mochi.grid.count_cells",
@@ -546,12 +558,16 @@ impl RebuildingBackend for WgpuComputeBackend {
                         (0, &g.params),
                         (1, &g.spheres_in),
                         (3, &g.ranks),
-                        (4, &g.cell_start),
+                        (4, &g.table.counts),
                     ],
                     (x, y),
                 );
-                self.scan
-                    .encode(gpu, encoder, &g.cell_start, params.cells + 1);
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("mochi.grid.scan_cells"),
+                    timestamp_writes: None,
+                });
+                self.scan.record(&mut pass, &scan, &params);
+                drop(pass);
                 gpu.pass(
                     encoder,
                     "mochi.grid.scatter",
@@ -560,7 +576,7 @@ impl RebuildingBackend for WgpuComputeBackend {
                         (0, &g.params),
                         (1, &g.spheres_in),
                         (3, &g.ranks),
-                        (5, &g.cell_start),
+                        (5, &g.table.cell_start),
                         (7, &g.ids),
                     ],
                     (x, y),
@@ -630,11 +646,10 @@ impl RebuildingBackend for WgpuComputeBackend {
                         (2, &grid.ids),
                         (COUNTERS_BINDING, &output.counters),
                         (PAIRS_BINDING, &output.pairs),
-                        (6, &grid.cell_start),
+                        (6, &grid.table.cell_start),
                     ],
                 );
                 gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
-                    encoder.clear_buffer(&output.counters, 0, None);
                     gpu.dispatch(encoder, "mochi.grid.find_pairs", find_pairs, &bind, (x, y));
                 });
             })

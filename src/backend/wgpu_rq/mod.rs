@@ -282,7 +282,6 @@ impl RebuildingBackend for WgpuRqBackend {
                     .write_buffer(&accel.pair_params, 0, bytemuck::bytes_of(&params));
                 let bind = accel.pairs_bind(gpu, find_pairs, output);
                 gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
-                    encoder.clear_buffer(&output.counters, 0, None);
                     gpu.dispatch(encoder, "mochi.rq.find_pairs", find_pairs, &bind, (x, y));
                 });
             })

@@ -1,0 +1,89 @@
+// The middle step of the grids' counting sort: the cell counts scanned into the cell table, in two
+// dispatches. Host side: src/backend/wgpu_compute/cell_table.rs. Needs grid_params.wgsl prepended.
+//
+// The table's cells + 1 entries are cut into blocks of `1 << params.block_shift` entries (at most
+// MAX_BLOCKS blocks, each a whole number of TILEs). `reduce_blocks` sums each block's counts;
+// `scan_cells` has workgroup b add up the sums of the blocks before it and scan its own block
+// tile by tile: cell_start[k] = spheres in the cells before k (the last entry is n). It zeroes the
+// counts it reads, so the next build needs no clear. Both move the table as vec4 (the buffers hold
+// a multiple of 4 entries; entries past cells + 1 are zero counts and unused starts).
+
+@group(0) @binding(0) var<uniform> params: GridParams;
+@group(0) @binding(1) var<storage, read_write> counts: array<vec4<u32>>;
+@group(0) @binding(2) var<storage, read_write> block_sums: array<u32>;
+@group(0) @binding(3) var<storage, read_write> cell_start: array<vec4<u32>>;
+
+const WG: u32 = 256u;        // threads per workgroup
+const TILE: u32 = 1024u;     // entries per tile: one vec4 per thread
+
+// Ping-pong halves for the scan across threads.
+var<workgroup> part: array<u32, 512>; // 2 * WG
+
+// Inclusive scan of x over the workgroup's threads (Hillis-Steele, one barrier per step):
+// returns (inclusive prefix of thread t, workgroup total). Call from uniform control flow.
+fn workgroup_scan(t: u32, x: u32) -> vec2<u32> {
+    part[t] = x;
+    workgroupBarrier();
+    var cur = 0u;
+    for (var off = 1u; off < WG; off <<= 1u) {
+        var y = part[cur + t];
+        if t >= off {
+            y += part[cur + t - off];
+        }
+        cur = WG - cur;
+        part[cur + t] = y;
+        workgroupBarrier();
+    }
+    let result = vec2(part[cur + t], part[cur + WG - 1u]);
+    // Nobody writes `part` again before every thread has read its result.
+    workgroupBarrier();
+    return result;
+}
+
+// Table entries of `block`, in vec4 units: (first, end).
+fn block_range(block: u32) -> vec2<u32> {
+    let len4 = (params.cells + 4u) / 4u; // cells + 1 entries, rounded up
+    let first = (block << params.block_shift) / 4u;
+    return vec2(first, min(first + (1u << params.block_shift) / 4u, len4));
+}
+
+@compute @workgroup_size(256)
+fn reduce_blocks(@builtin(local_invocation_index) t: u32, @builtin(workgroup_id) wid: vec3<u32>) {
+    let range = block_range(wid.x);
+    var sum = 0u;
+    for (var k = range.x + t; k < range.y; k += WG) {
+        let c = counts[k];
+        sum += c.x + c.y + c.z + c.w;
+    }
+    let total = workgroup_scan(t, sum).y;
+    if t == 0u {
+        block_sums[wid.x] = total;
+    }
+}
+
+@compute @workgroup_size(256)
+fn scan_cells(@builtin(local_invocation_index) t: u32, @builtin(workgroup_id) wid: vec3<u32>) {
+    let block = wid.x;
+    var carried = 0u;
+    for (var k = t; k < block; k += WG) {
+        carried += block_sums[k];
+    }
+    var base = workgroup_scan(t, carried).y;
+
+    let range = block_range(block);
+    for (var tile = range.x; tile < range.y; tile += WG) {
+        let k = tile + t;
+        var c = vec4(0u);
+        if k < range.y {
+            c = counts[k];
+            counts[k] = vec4(0u);
+        }
+        let before = vec4(0u, c.x, c.x + c.y, c.x + c.y + c.z);
+        let sum = before.w + c.w;
+        let scanned = workgroup_scan(t, sum);
+        if k < range.y {
+            cell_start[k] = vec4(base + scanned.x - sum) + before;
+        }
+        base += scanned.y;
+    }
+}
