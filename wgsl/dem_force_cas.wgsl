@@ -1,5 +1,5 @@
 // Force accumulators as u32 bit patterns added by compare-and-swap loops, for adapters without
-// float atomics; appended to dem_step.wgsl. Twin: dem_force_f32.wgsl.
+// float atomics; appended to dem_physics.wgsl. Twin: dem_force_f32.wgsl.
 
 @group(0) @binding(13) var<storage, read_write> force: array<atomic<u32>>;
 

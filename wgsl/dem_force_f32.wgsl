@@ -1,4 +1,4 @@
-// Force accumulators with float atomics (SHADER_FLOAT32_ATOMIC); appended to dem_step.wgsl.
+// Force accumulators with float atomics (SHADER_FLOAT32_ATOMIC); appended to dem_physics.wgsl.
 // Twin: dem_force_cas.wgsl, for adapters without them.
 
 @group(0) @binding(13) var<storage, read_write> force: array<atomic<f32>>;

@@ -7,7 +7,7 @@
 //! F_i = −(k·δ − c·v_n)·n with c = 2ζ·√(k·m_eff), m_eff = m_i·m_j/(m_i + m_j), and ζ the damping
 //! ratio that gives the restitution coefficient e: ζ = −ln e / √(π² + ln² e). Walls act the same
 //! way with m_eff = m_i. Computed from j's side, every operation sees negated inputs, so
-//! F_j = −F_i exactly. `wgsl/dem_step.wgsl` follows [`contact_force`] and [`wall_force`] line by
+//! F_j = −F_i exactly. `wgsl/dem_physics.wgsl` follows [`contact_force`] and [`wall_force`] line by
 //! line.
 
 use crate::error::{Error, Result};

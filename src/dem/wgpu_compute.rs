@@ -2,7 +2,9 @@
 //! spheres by cell (the backend's sorted proxy grid, re-binned every step), one pass that finds
 //! every touching pair once and adds equal and opposite forces to both spheres (float atomics,
 //! or compare-and-swap loops where the adapter has none), and one pass for walls, gravity and
-//! integration (`wgsl/dem_step.wgsl`). Many steps go into one submission; the host reads back
+//! integration (`wgsl/dem_grid.wgsl`, `wgsl/dem_physics.wgsl`). The step's own passes zero
+//! what the next step accumulates into (the cell counts in the scan, the forces in the scatter,
+//! the contact counter in the count), so no buffer is cleared. Many steps go into one submission; the host reads back
 //! only the contact count and timestamps per batch, and the particles when asked.
 //!
 //! The grid's layout (cell size, dense or hashed table over the centres' bounds) is re-derived

@@ -2,10 +2,10 @@
 //! for adapters without ray queries or RT cores (where it beats software BVH traversal).
 //!
 //! Build, in one submission, a counting sort by cell (`wgsl/grid_build.wgsl`): every sphere's cell
-//! key and rank within its cell (one atomic add), an exclusive scan of the cell counts into a
-//! table of where each cell's run starts, each sphere's index scattered to its sorted place, and
-//! the spheres gathered in that order. No comparison or radix sort is needed: the table is the
-//! sort.
+//! key and rank within its cell (one atomic add), the cell counts scanned into a table of where
+//! each cell's run starts ([`cell_table`]: two dispatches, which leave the counts zeroed for the
+//! next build), each sphere's index scattered to its sorted place, and the spheres gathered in
+//! that order. No comparison or radix sort is needed: the table is the sort.
 //!
 //! The single grid has cells of 2·r_max in `mochi` mode and 4·r_max in `nns` mode (the proxy of
 //! the largest sphere, or the fixed-radius box), padded a little. Its table is dense over the
@@ -16,8 +16,9 @@
 //! outliers, say) cells keep their size and are hashed into 2n buckets, so
 //! the work never degenerates. The multi-level grid (method.md) stacks dense tables whose cells
 //! halve level by level, as many levels as the radii need and the same budget holds; each sphere
-//! is binned at its own size. Detection (`wgsl/grid_pairs.wgsl`, runs from
-//! `wgsl/grid_stencil.wgsl`) visits each pair once, like the cpu backend.
+//! is binned at its own size. Detection (`wgsl/grid_pairs.wgsl`, windows from
+//! `wgsl/grid_stencil.wgsl`) searches the cells within r_i + r_max of each centre and visits each
+//! pair once, like the cpu backend.
 
 pub(crate) mod cell_table;
 
