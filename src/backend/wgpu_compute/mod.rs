@@ -3,7 +3,7 @@
 //!
 //! Build, in one submission, a counting sort by cell (`wgsl/grid_build.wgsl`): every sphere's cell
 //! key and rank within its cell (one atomic add), the cell counts scanned into a table of where
-//! each cell's run starts ([`cell_table`]: two dispatches, which leave the counts zeroed for the
+//! each cell's run starts (`cell_table.rs`: two dispatches, which leave the counts zeroed for the
 //! next build), each sphere's index scattered to its sorted place, and the spheres gathered in
 //! that order. No comparison or radix sort is needed: the table is the sort.
 //!
