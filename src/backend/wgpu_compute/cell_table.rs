@@ -10,7 +10,7 @@ use super::GridParams;
 use crate::gpu::Gpu;
 
 /// Most blocks a table is cut into for the scan (each scan workgroup sums the blocks before it).
-pub(crate) const MAX_BLOCKS: u32 = 4096;
+const MAX_BLOCKS: u32 = 4096;
 
 /// Smallest block: one tile of a scan workgroup (`TILE` in the shader).
 const MIN_BLOCK_SHIFT: u32 = 10;
