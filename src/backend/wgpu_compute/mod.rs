@@ -550,50 +550,46 @@ impl RebuildingBackend for WgpuComputeBackend {
                 .write_buffer(&grid.spheres_in, 0, bytemuck::cast_slice(&rows));
             let g = &grid;
             let scan = self.scan.bind(gpu, &g.params, &g.table);
+            let count = gpu.bind(
+                "mochi.grid.count_cells",
+                &self.count_cells,
+                &[
+                    (0, &g.params),
+                    (1, &g.spheres_in),
+                    (3, &g.ranks),
+                    (4, &g.table.counts),
+                ],
+            );
+            let scatter = gpu.bind(
+                "mochi.grid.scatter",
+                &self.scatter,
+                &[
+                    (0, &g.params),
+                    (1, &g.spheres_in),
+                    (3, &g.ranks),
+                    (5, &g.table.cell_start),
+                    (7, &g.ids),
+                ],
+            );
+            let gather = gpu.bind(
+                "mochi.grid.gather",
+                &self.gather,
+                &[
+                    (0, &g.params),
+                    (1, &g.spheres_in),
+                    (7, &g.ids),
+                    (8, &g.spheres),
+                ],
+            );
             gpu.submit_timed(self.timer.as_ref(), BUILD_SPAN, |encoder| {
-                gpu.pass(
-                    encoder,
-                    "mochi.grid.count_cells",
-                    &self.count_cells,
-                    &[
-                        (0, &g.params),
-                        (1, &g.spheres_in),
-                        (3, &g.ranks),
-                        (4, &g.table.counts),
-                    ],
-                    (x, y),
-                );
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("mochi.grid.scan_cells"),
+                    label: Some("mochi.grid.build"),
                     timestamp_writes: None,
                 });
+                gpu::record(&mut pass, &self.count_cells, &count, (x, y));
                 self.scan.record(&mut pass, &scan, &params);
-                drop(pass);
-                gpu.pass(
-                    encoder,
-                    "mochi.grid.scatter",
-                    &self.scatter,
-                    &[
-                        (0, &g.params),
-                        (1, &g.spheres_in),
-                        (3, &g.ranks),
-                        (5, &g.table.cell_start),
-                        (7, &g.ids),
-                    ],
-                    (x, y),
-                );
-                gpu.pass(
-                    encoder,
-                    "mochi.grid.gather",
-                    &self.gather,
-                    &[
-                        (0, &g.params),
-                        (1, &g.spheres_in),
-                        (7, &g.ids),
-                        (8, &g.spheres),
-                    ],
-                    (x, y),
-                );
+                gpu::record(&mut pass, &self.scatter, &scatter, (x, y));
+                gpu::record(&mut pass, &self.gather, &gather, (x, y));
             });
         })?;
         gpu.wait()?;
