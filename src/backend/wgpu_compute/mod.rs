@@ -1,11 +1,12 @@
 //! The `wgpu-compute` backend: a sorted proxy grid built and searched in WGSL compute shaders,
 //! for adapters without ray queries or RT cores (where it beats software BVH traversal).
 //!
-//! Build, in one submission, a counting sort by cell (`wgsl/grid_build.wgsl`): every sphere's cell
-//! key and rank within its cell (one atomic add), the cell counts scanned into a table of where
-//! each cell's run starts (`cell_table.rs`: two dispatches, which leave the counts zeroed for the
-//! next build), each sphere's index scattered to its sorted place, and the spheres gathered in
-//! that order. No comparison or radix sort is needed: the table is the sort.
+//! Build, in one submission and one compute pass, a counting sort by cell
+//! (`wgsl/grid_build.wgsl`): every sphere's cell key and rank within its cell (one atomic add),
+//! the cell counts scanned into a table of where each cell's run starts (`cell_table.rs`: two
+//! dispatches, which leave the counts zeroed for the next build), each sphere's index scattered
+//! to its sorted place, and the spheres gathered in that order. No comparison or radix sort is
+//! needed: the table is the sort.
 //!
 //! The single grid has cells of 2·r_max in `mochi` mode and 4·r_max in `nns` mode (the proxy of
 //! the largest sphere, or the fixed-radius box), padded a little. Its table is dense over the
