@@ -4,8 +4,9 @@
 //! or compare-and-swap loops where the adapter has none), and one pass for walls, gravity and
 //! integration (`wgsl/dem_grid.wgsl`, `wgsl/dem_physics.wgsl`). The step's own passes zero
 //! what the next step accumulates into (the cell counts in the scan, the forces in the scatter,
-//! the contact counter in the count), so no buffer is cleared. Many steps go into one submission; the host reads back
-//! only the contact count and timestamps per batch, and the particles when asked.
+//! the contact counter in the count), so no buffer is cleared. Many steps go into one submission
+//! and one compute pass (the first one phase by phase when timed, see `StepTimer`); the host
+//! reads back only the contact count and timestamps per batch, and the particles when asked.
 //!
 //! The grid's layout (cell size, dense or hashed table over the centres' bounds) is re-derived
 //! from a GPU reduction of the bounds every [`RELAYOUT_EVERY`] steps. Between, spheres that
@@ -367,65 +368,89 @@ impl GridStepper {
         }
     }
 
-    /// Records `steps` steps (≤ [`MAX_BATCH`]) into one submission and waits for it.
+    /// Records one phase of a step binning from set `current` into `pass`.
+    fn record_phase(&self, pass: &mut wgpu::ComputePass, current: usize, phase: Phase) {
+        let b = &self.binds.as_ref().expect("laid out")[current];
+        let p = &self.pipelines;
+        match phase {
+            Phase::Build => {
+                gpu::record(pass, &p.bin_count, &b.bin_count, self.groups);
+                let scan_bind = self.scan_bind.as_ref().expect("laid out");
+                self.scan.record(pass, scan_bind, &self.layout);
+                gpu::record(pass, &p.bin_scatter, &b.bin_scatter, self.groups);
+            }
+            Phase::Resolve => gpu::record(pass, &p.resolve, &b.resolve, self.groups),
+            Phase::Integrate => gpu::record(pass, &p.integrate, &b.integrate, self.groups),
+        }
+    }
+
+    /// Records `steps` steps (≤ [`MAX_BATCH`]) into one submission and waits for it. With a
+    /// timer, the first step is recorded phase by phase between timestamps (see [`StepTimer`]);
+    /// the others share one compute pass.
     fn run_batch(&mut self, steps: u32) -> Result<(u64, Option<StageTimes>)> {
         let gpu = &self.gpu;
-        let binds = self.binds.as_ref().expect("laid out");
-        let scan_bind = self.scan_bind.as_ref().expect("laid out");
-        let p = &self.pipelines;
+        let timer = self.timer.as_ref();
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         let mut current = self.current;
-        for s in 0..steps {
-            let b = &binds[current];
-            let mark = |encoder: &mut wgpu::CommandEncoder, k: u32| {
-                StepTimer::mark(self.timer.as_ref(), encoder, s, k)
-            };
-            mark(&mut encoder, 0);
-            {
+        let mut profiled = 0;
+        if timer.is_some() {
+            StepTimer::mark(timer, &mut encoder, 0, 0);
+            for (k, phase) in Phase::ALL.into_iter().enumerate() {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("mochi.dem.build"),
+                    label: Some(phase.label()),
                     timestamp_writes: None,
                 });
-                pass.set_pipeline(&p.bin_count);
-                pass.set_bind_group(0, &b.bin_count, &[]);
-                pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
-                self.scan.record(&mut pass, scan_bind, &self.layout);
-                pass.set_pipeline(&p.bin_scatter);
-                pass.set_bind_group(0, &b.bin_scatter, &[]);
-                pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
+                self.record_phase(&mut pass, current, phase);
+                drop(pass);
+                StepTimer::mark(timer, &mut encoder, 0, k as u32 + 1);
             }
-            mark(&mut encoder, 1);
-            gpu.dispatch(
-                &mut encoder,
-                "mochi.dem.resolve",
-                &p.resolve,
-                &b.resolve,
-                self.groups,
-            );
-            mark(&mut encoder, 2);
-            gpu.dispatch(
-                &mut encoder,
-                "mochi.dem.integrate",
-                &p.integrate,
-                &b.integrate,
-                self.groups,
-            );
-            mark(&mut encoder, 3);
             current = 1 - current;
+            profiled = 1;
         }
-        if let Some(t) = &self.timer {
-            t.resolve(&mut encoder, steps);
+        if profiled < steps {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("mochi.dem.steps"),
+                timestamp_writes: None,
+            });
+            for _ in profiled..steps {
+                for phase in Phase::ALL {
+                    self.record_phase(&mut pass, current, phase);
+                }
+                current = 1 - current;
+            }
+        }
+        if let Some(t) = timer {
+            t.end(&mut encoder, profiled);
         }
         gpu.checked("running DEM steps", || gpu.queue.submit([encoder.finish()]))?;
         self.current = current;
         self.step += steps as u64;
         let contacts = gpu.read::<u32>(&self.counters, 1)?[0] as u64;
-        let times = self
-            .timer
-            .as_ref()
-            .map(|t| t.read(gpu, steps))
-            .transpose()?;
+        let times = timer.map(|t| t.read(gpu, profiled)).transpose()?;
         Ok((contacts, times))
+    }
+}
+
+/// The phases of a step, in order.
+#[derive(Debug, Clone, Copy)]
+enum Phase {
+    /// Counting sort of the spheres by cell.
+    Build,
+    /// Detection with the contact forces.
+    Resolve,
+    /// Walls, gravity and integration.
+    Integrate,
+}
+
+impl Phase {
+    const ALL: [Phase; 3] = [Phase::Build, Phase::Resolve, Phase::Integrate];
+
+    fn label(self) -> &'static str {
+        match self {
+            Phase::Build => "mochi.dem.build",
+            Phase::Resolve => "mochi.dem.resolve",
+            Phase::Integrate => "mochi.dem.integrate",
+        }
     }
 }
 

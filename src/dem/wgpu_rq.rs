@@ -246,7 +246,7 @@ impl RqStepper {
             StepTimer::mark(timer, &mut encoder, s, 3);
         }
         if let Some(t) = timer {
-            t.resolve(&mut encoder, steps);
+            t.end(&mut encoder, steps);
         }
         gpu.checked("running wgpu-rq DEM steps", || {
             gpu.queue.submit([encoder.finish()])
