@@ -1,5 +1,7 @@
 // The middle step of the grids' counting sort: the cell counts scanned into the cell table, in two
-// dispatches. Host side: src/backend/wgpu_compute/cell_table.rs. Needs grid_params.wgsl prepended.
+// dispatches. Host side: src/backend/wgpu_compute/cell_table.rs. Needs grid_params.wgsl prepended
+// and one of workgroup_scan_plain.wgsl or workgroup_scan_subgroups.wgsl (`SubgroupLanes`,
+// `scan_kind`, `workgroup_scan`) appended, then workgroup_scan.wgsl.
 //
 // The table's cells + 1 entries are cut into blocks of `1 << params.block_shift` entries (at most
 // MAX_BLOCKS blocks, each a whole number of TILEs). `reduce_blocks` sums each block's counts;
@@ -16,30 +18,6 @@
 const WG: u32 = 256u;        // threads per workgroup
 const TILE: u32 = 1024u;     // entries per tile: one vec4 per thread
 
-// Ping-pong halves for the scan across threads.
-var<workgroup> part: array<u32, 512>; // 2 * WG
-
-// Inclusive scan of x over the workgroup's threads (Hillis-Steele, one barrier per step):
-// returns (inclusive prefix of thread t, workgroup total). Call from uniform control flow.
-fn workgroup_scan(t: u32, x: u32) -> vec2<u32> {
-    part[t] = x;
-    workgroupBarrier();
-    var cur = 0u;
-    for (var off = 1u; off < WG; off <<= 1u) {
-        var y = part[cur + t];
-        if t >= off {
-            y += part[cur + t - off];
-        }
-        cur = WG - cur;
-        part[cur + t] = y;
-        workgroupBarrier();
-    }
-    let result = vec2(part[cur + t], part[cur + WG - 1u]);
-    // Nobody writes `part` again before every thread has read its result.
-    workgroupBarrier();
-    return result;
-}
-
 // Table entries of `block`, in vec4 units: (first, end).
 fn block_range(block: u32) -> vec2<u32> {
     let len4 = (params.cells + 4u) / 4u; // cells + 1 entries, rounded up
@@ -48,27 +26,37 @@ fn block_range(block: u32) -> vec2<u32> {
 }
 
 @compute @workgroup_size(256)
-fn reduce_blocks(@builtin(local_invocation_index) t: u32, @builtin(workgroup_id) wid: vec3<u32>) {
+fn reduce_blocks(
+    @builtin(local_invocation_index) t: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    lanes: SubgroupLanes,
+) {
+    let scan = scan_kind(t, lanes);
     let range = block_range(wid.x);
     var sum = 0u;
     for (var k = range.x + t; k < range.y; k += WG) {
         let c = counts[k];
         sum += c.x + c.y + c.z + c.w;
     }
-    let total = workgroup_scan(t, sum).y;
+    let total = workgroup_scan(t, sum, lanes, scan).y;
     if t == 0u {
         block_sums[wid.x] = total;
     }
 }
 
 @compute @workgroup_size(256)
-fn scan_cells(@builtin(local_invocation_index) t: u32, @builtin(workgroup_id) wid: vec3<u32>) {
+fn scan_cells(
+    @builtin(local_invocation_index) t: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    lanes: SubgroupLanes,
+) {
+    let scan = scan_kind(t, lanes);
     let block = wid.x;
     var carried = 0u;
     for (var k = t; k < block; k += WG) {
         carried += block_sums[k];
     }
-    var base = workgroup_scan(t, carried).y;
+    var base = workgroup_scan(t, carried, lanes, scan).y;
 
     let range = block_range(block);
     for (var tile = range.x; tile < range.y; tile += WG) {
@@ -80,7 +68,7 @@ fn scan_cells(@builtin(local_invocation_index) t: u32, @builtin(workgroup_id) wi
         }
         let before = vec4(0u, c.x, c.x + c.y, c.x + c.y + c.z);
         let sum = before.w + c.w;
-        let scanned = workgroup_scan(t, sum);
+        let scanned = workgroup_scan(t, sum, lanes, scan);
         if k < range.y {
             cell_start[k] = vec4(base + scanned.x - sum) + before;
         }

@@ -18,13 +18,27 @@ const MAX_BLOCKS: u32 = 1024;
 /// Smallest block: one tile of a scan workgroup (`TILE` in the shader).
 const MIN_BLOCK_SHIFT: u32 = 10;
 
-const SOURCE: &str = concat!(
+/// The scan on adapters without subgroup operations.
+const PLAIN_SOURCE: &str = concat!(
     include_str!("../../../wgsl/grid_params.wgsl"),
-    include_str!("../../../wgsl/cell_scan.wgsl")
+    include_str!("../../../wgsl/cell_scan.wgsl"),
+    include_str!("../../../wgsl/workgroup_scan_plain.wgsl"),
+    include_str!("../../../wgsl/workgroup_scan.wgsl")
 );
 
-/// The WGSL module, by label, exactly as the device gets it.
-pub const SHADER: (&str, &str) = ("cell_scan", SOURCE);
+/// The scan on adapters with subgroup operations (wgpu's `SUBGROUP` feature).
+const SUBGROUP_SOURCE: &str = concat!(
+    include_str!("../../../wgsl/grid_params.wgsl"),
+    include_str!("../../../wgsl/cell_scan.wgsl"),
+    include_str!("../../../wgsl/workgroup_scan_subgroups.wgsl"),
+    include_str!("../../../wgsl/workgroup_scan.wgsl")
+);
+
+/// The WGSL modules, by label, exactly as the device gets them.
+pub const SHADERS: [(&str, &str); 2] = [
+    ("cell_scan_plain", PLAIN_SOURCE),
+    ("cell_scan_subgroups", SUBGROUP_SOURCE),
+];
 
 /// Log2 of the entries per block for a table of `cells` cells (`cells + 1` entries): the
 /// smallest block of at least one tile that cuts the table into at most [`MAX_BLOCKS`].
@@ -75,8 +89,20 @@ pub(crate) struct CellScan {
 }
 
 impl CellScan {
+    /// The scan on subgroup operations where the device has them, else in workgroup memory.
     pub fn new(gpu: &Gpu) -> CellScan {
-        let module = gpu.module("mochi.cells.scan", SOURCE);
+        let subgroups = gpu.device.features().contains(wgpu::Features::SUBGROUP);
+        Self::with_subgroups(gpu, subgroups)
+    }
+
+    /// The scan on subgroup operations (the device must have them) or in workgroup memory.
+    pub fn with_subgroups(gpu: &Gpu, subgroups: bool) -> CellScan {
+        let source = if subgroups {
+            SUBGROUP_SOURCE
+        } else {
+            PLAIN_SOURCE
+        };
+        let module = gpu.module("mochi.cells.scan", source);
         CellScan {
             reduce_blocks: gpu.pipeline("mochi.cells.reduce_blocks", &module, "reduce_blocks"),
             scan_cells: gpu.pipeline("mochi.cells.scan_cells", &module, "scan_cells"),
@@ -122,9 +148,9 @@ mod tests {
     use crate::gpu::Need;
     use rand::{RngExt, SeedableRng};
 
-    /// Scans `counts` as a table of `counts.len() - 1` cells on `gpu`; checks the starts against
-    /// the host's scan and that the counts were zeroed.
-    fn check_scan(gpu: &Gpu, counts: &[u32]) {
+    /// Scans `counts` as a table of `counts.len() - 1` cells on `gpu` with `scan`; checks the
+    /// starts against the host's scan and that the counts were zeroed.
+    fn check_scan(gpu: &Gpu, (name, scan): &(&str, CellScan), counts: &[u32]) {
         let cells = counts.len() as u32 - 1;
         let table = CellTable::new(gpu, cells);
         let params = GridParams {
@@ -135,7 +161,6 @@ mod tests {
         let uniform = gpu.uniform("test.params", &params);
         gpu.queue
             .write_buffer(&table.counts, 0, bytemuck::cast_slice(counts));
-        let scan = CellScan::new(gpu);
         let binds = scan.bind(gpu, &uniform, &table);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         {
@@ -146,13 +171,13 @@ mod tests {
         let starts: Vec<u32> = gpu.read(&table.cell_start, counts.len()).unwrap();
         let mut want = 0u32;
         for (k, (&got, &count)) in starts.iter().zip(counts).enumerate() {
-            assert_eq!(got, want, "{cells} cells: start of cell {k}");
+            assert_eq!(got, want, "{name}, {cells} cells: start of cell {k}");
             want += count;
         }
         let left: Vec<u32> = gpu.read(&table.counts, counts.len()).unwrap();
         assert!(
             left.iter().all(|&c| c == 0),
-            "{cells} cells: counts not zeroed"
+            "{name}, {cells} cells: counts not zeroed"
         );
     }
 
@@ -167,6 +192,19 @@ mod tests {
                 return;
             }
         };
+        let ci = std::env::var("CI").is_ok_and(|v| v == "true");
+        let subgroups = gpu.device.features().contains(wgpu::Features::SUBGROUP);
+        // CI's lavapipe has subgroup operations: both scans are tested there.
+        assert!(
+            !ci || subgroups,
+            "CI expects subgroup operations (lavapipe has them)"
+        );
+        let mut scans = vec![("plain", CellScan::with_subgroups(&gpu, false))];
+        if subgroups {
+            scans.push(("subgroups", CellScan::with_subgroups(&gpu, true)));
+        } else {
+            eprintln!("note: no subgroup operations here: only the plain scan is tested");
+        }
         let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
         // One tile per block (and a partial last tile), then 4, 8 and 16 tiles per block.
         for len in [1, 2, 1025, 3_000_001, 5_000_001, 9_000_003] {
@@ -179,7 +217,9 @@ mod tests {
                     }
                 })
                 .collect();
-            check_scan(&gpu, &counts);
+            for scan in &scans {
+                check_scan(&gpu, scan, &counts);
+            }
         }
     }
 

@@ -47,10 +47,11 @@ const PAIRS_WGSL: &str = concat!(
 );
 
 /// Every WGSL module of this backend, by label, exactly as the device gets it.
-pub const SHADERS: [(&str, &str); 3] = [
+pub const SHADERS: [(&str, &str); 4] = [
     ("grid_build", BUILD_WGSL),
     ("grid_pairs", PAIRS_WGSL),
-    cell_table::SHADER,
+    cell_table::SHADERS[0],
+    cell_table::SHADERS[1],
 ];
 
 /// Timer spans of a build and of a detection pass.
@@ -200,8 +201,8 @@ struct Grid {
     pair_params: wgpu::Buffer,
     /// `vec4(x, y, z, r)` in input order.
     spheres_in: wgpu::Buffer,
-    /// Rank of each sphere among those of its cell, in input order.
-    ranks: wgpu::Buffer,
+    /// Cell key and rank among the spheres of that cell of each sphere, in input order.
+    slots: wgpu::Buffer,
     /// Input index of each sorted sphere.
     ids: wgpu::Buffer,
     /// `vec4(x, y, z, r)` in sorted order.
@@ -218,7 +219,7 @@ impl Grid {
             params: gpu.uniform("mochi.grid.params", &GridParams::default()),
             pair_params: gpu.uniform("mochi.grid.pair_params", &GridParams::default()),
             spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
-            ranks: gpu.storage("mochi.grid.ranks", n64 * 4, none),
+            slots: gpu.storage("mochi.grid.slots", n64 * 8, none),
             ids: gpu.storage("mochi.grid.ids", n64 * 4, none),
             spheres: gpu.storage("mochi.grid.spheres", n64 * 16, none),
             table: CellTable::new(gpu, cells),
@@ -557,7 +558,7 @@ impl RebuildingBackend for WgpuComputeBackend {
                 &[
                     (0, &g.params),
                     (1, &g.spheres_in),
-                    (3, &g.ranks),
+                    (3, &g.slots),
                     (4, &g.table.counts),
                 ],
             );
@@ -566,8 +567,7 @@ impl RebuildingBackend for WgpuComputeBackend {
                 &self.scatter,
                 &[
                     (0, &g.params),
-                    (1, &g.spheres_in),
-                    (3, &g.ranks),
+                    (3, &g.slots),
                     (5, &g.table.cell_start),
                     (7, &g.ids),
                 ],
