@@ -15,7 +15,7 @@ fn scan_run(s: vec4<f32>, id: u32, a: u32, b: u32) -> u32 {
     for (var q = a; q < b; q += 1u) {
         let t = spheres[q];
         if collides(dist2(s.xyz, t.xyz), s.w, t.w) {
-            emit_pair(id, ids[q], params.capacity);
+            emit_pair(id, q, params.capacity);
         }
     }
     return select(0u, b - a, b > a);
@@ -34,7 +34,7 @@ fn scan_bucket(s: vec4<f32>, p: u32, id: u32, cell: vec3<u32>, own: bool) -> u32
         }
         tested += 1u;
         if collides(dist2(s.xyz, t.xyz), s.w, t.w) {
-            emit_pair(id, ids[q], params.capacity);
+            emit_pair(id, q, params.capacity);
         }
     }
     return tested;

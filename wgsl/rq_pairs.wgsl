@@ -37,7 +37,7 @@ fn find_pairs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invo
             tested += 1u;
             let t = spheres[q];
             if keep_in(params.mode, p, s.xyz, s.w, q, t.xyz, t.w) {
-                emit_pair(ids[p], ids[q], params.capacity);
+                emit_pair(ids[p], q, params.capacity);
             }
         }
     }
