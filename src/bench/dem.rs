@@ -36,19 +36,19 @@ pub struct Case<'a> {
     pub structure: Structure,
 }
 
-/// `start` after `plan.settle` untimed steps on the first of the plan's backends whose DEM
+/// `start` after `plan.settings.settle` untimed steps on the first of the plan's backends whose DEM
 /// step opens (the others' reasons in the error when none does).
 pub fn settle(plan: &Plan, start: &Start) -> Result<Start> {
     let mut why = Vec::new();
     for &kind in &plan.backends {
         let options = Options {
-            structure: plan.structure,
+            structure: plan.settings.structure,
             ..Options::default()
         };
         let s = start.clone();
         match open_stepper(kind, s.particles, s.params, s.mode, &options) {
             Ok(mut stepper) => {
-                stepper.advance(plan.settle)?;
+                stepper.advance(plan.settings.settle)?;
                 return Ok(Start {
                     particles: stepper.particles()?,
                     ..start.clone()
@@ -148,15 +148,15 @@ fn measure(
     mut stepper: Box<dyn Stepper>,
     policy: &str,
 ) -> Result<DemRow> {
-    for _ in 0..plan.warmup {
-        stepper.advance(plan.steps)?;
+    for _ in 0..plan.settings.warmup {
+        stepper.advance(plan.settings.steps)?;
     }
-    let mut runs = Vec::with_capacity(plan.repeats);
-    let mut walls = Vec::with_capacity(plan.repeats);
-    for _ in 0..plan.repeats {
+    let mut runs = Vec::with_capacity(plan.settings.repeats);
+    let mut walls = Vec::with_capacity(plan.settings.repeats);
+    for _ in 0..plan.settings.repeats {
         let t = Instant::now();
-        runs.push(stepper.advance(plan.steps)?);
-        walls.push(t.elapsed().as_secs_f64() * 1e3 / plan.steps as f64);
+        runs.push(stepper.advance(plan.settings.steps)?);
+        walls.push(t.elapsed().as_secs_f64() * 1e3 / plan.settings.steps as f64);
     }
     let last = *runs.last().expect("a plan has at least one repeat");
     // Timestamps can be missing on a GPU without them: then nothing was measured.
@@ -186,7 +186,7 @@ fn measure(
         structure: value_name(case.structure),
         rebuild: policy.to_owned(),
         refits: stepper.refits(),
-        steps: plan.steps,
+        steps: plan.settings.steps,
         contacts: last.contacts,
         clock,
         build_ms: per_step(&|t| t.build_ms),
@@ -201,6 +201,7 @@ fn measure(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bench::plan::Settings;
     use crate::dem::{Advance, Particles, StageTimes};
 
     /// A step that takes 1 ms per phase and refits or not.
@@ -239,16 +240,18 @@ mod tests {
 
     fn rows(refits: bool, experiment: Experiment) -> Vec<DemRow> {
         let plan = Plan {
-            experiments: vec![experiment],
             backends: vec![BackendKind::Cpu],
-            spheres: 100,
-            max_spheres: 1000,
-            steps: 4,
-            settle: 0,
-            repeats: 3,
-            warmup: 1,
-            structure: Structure::Auto,
-            seed: 1,
+            settings: Settings {
+                experiments: vec![experiment],
+                spheres: 100,
+                max_spheres: 1000,
+                steps: 4,
+                settle: 0,
+                repeats: 3,
+                warmup: 1,
+                structure: Structure::Auto,
+                seed: 1,
+            },
         };
         let start = start("freefall", 100, 1).unwrap();
         let case = Case {

@@ -23,8 +23,8 @@ pub fn scenes(plan: &Plan) -> Result<Vec<(SceneSpec, SphereSet)>> {
         .map(|scene| {
             let spec = SceneSpec {
                 scene,
-                n: plan.spheres,
-                seed: plan.seed,
+                n: plan.settings.spheres,
+                seed: plan.settings.seed,
                 layout: Layout::Random,
             };
             Ok((spec, scenes::generate(&spec)?))
@@ -40,7 +40,7 @@ pub fn run(
     progress: &mut dyn FnMut(&str),
 ) -> Vec<Outcome<DetectRow>> {
     let options = Options {
-        structure: plan.structure,
+        structure: plan.settings.structure,
         ..Options::default()
     };
     let mut backend = match kind.open_with(&options) {
@@ -116,11 +116,11 @@ fn measure(
         )));
     }
     let mut found = None;
-    let mut samples = Vec::with_capacity(plan.repeats);
-    for run in 0..plan.warmup + plan.repeats {
+    let mut samples = Vec::with_capacity(plan.settings.repeats);
+    for run in 0..plan.settings.warmup + plan.settings.repeats {
         let (sample, pairs, stats) = once(backend, spheres, mode)?;
         found.get_or_insert((pairs, stats));
-        if run >= plan.warmup {
+        if run >= plan.settings.warmup {
             samples.push(sample);
         }
     }
@@ -145,7 +145,7 @@ fn measure(
         layout: value_name(spec.layout),
         n: spheres.len(),
         mode: mode.name().to_owned(),
-        structure: value_name(plan.structure),
+        structure: value_name(plan.settings.structure),
         candidates: stats.candidates,
         candidates_per_sphere: stats.candidates as f64 / spheres.len().max(1) as f64,
         pairs: stats.pairs,

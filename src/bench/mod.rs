@@ -30,7 +30,7 @@ use crate::dem::scene::Start;
 use crate::error::Result;
 use crate::proxy::ProxyMode;
 use plan::{BackendStatus, Experiment, Plan};
-use report::{Machine, Report, SCHEMA_VERSION, Settings, Skipped, utc_now};
+use report::{Machine, Report, SCHEMA_VERSION, Skipped, utc_now};
 
 /// A measurement made, or why it could not be.
 pub enum Outcome<T> {
@@ -62,24 +62,14 @@ pub fn run(
         date: utc_now(),
         command,
         machine: Machine::here(),
-        settings: Settings {
-            experiments: plan.experiments.clone(),
-            spheres: plan.spheres,
-            max_spheres: plan.max_spheres,
-            steps: plan.steps,
-            settle: plan.settle,
-            repeats: plan.repeats,
-            warmup: plan.warmup,
-            structure: value_name(plan.structure),
-            seed: plan.seed,
-        },
+        settings: plan.settings.clone(),
         backends,
         detect: Vec::new(),
         dem: Vec::new(),
         skipped: Vec::new(),
         targets: Vec::new(),
     };
-    for &experiment in &plan.experiments {
+    for &experiment in &plan.settings.experiments {
         let mut skip = |backend: &str, what: String, reason: String| {
             report.skipped.push(Skipped {
                 experiment,
@@ -133,15 +123,18 @@ fn dem_starts(
     experiment: Experiment,
     progress: &mut dyn FnMut(&str),
 ) -> Result<Vec<(&'static str, Start)>> {
-    let n = plan.spheres;
+    let n = plan.settings.spheres;
     Ok(match experiment {
         Experiment::Targets => {
-            let mut slab = dem::start("slab", n, plan.seed)?;
-            if plan.settle > 0 {
-                progress(&format!("letting the slab land ({} steps)", plan.settle));
+            let mut slab = dem::start("slab", n, plan.settings.seed)?;
+            if plan.settings.settle > 0 {
+                progress(&format!(
+                    "letting the slab land ({} steps)",
+                    plan.settings.settle
+                ));
                 slab = dem::settle(plan, &slab)?;
             }
-            let polylog = dem::start("polylog", n, plan.seed)?;
+            let polylog = dem::start("polylog", n, plan.settings.seed)?;
             // nns mode too: the DCD phase at radius ratio 120 in both modes.
             let nns = Start {
                 mode: ProxyMode::Nns,
@@ -152,10 +145,10 @@ fn dem_starts(
         Experiment::Scaling => plan
             .scaling_sizes()
             .into_iter()
-            .map(|n| Ok(("freefall", dem::start("freefall", n, plan.seed)?)))
+            .map(|n| Ok(("freefall", dem::start("freefall", n, plan.settings.seed)?)))
             .collect::<Result<_>>()?,
-        Experiment::Rotating => vec![("rotating", dem::start("rotating", n, plan.seed)?)],
-        _ => vec![("freefall", dem::start("freefall", n, plan.seed)?)],
+        Experiment::Rotating => vec![("rotating", dem::start("rotating", n, plan.settings.seed)?)],
+        _ => vec![("freefall", dem::start("freefall", n, plan.settings.seed)?)],
     })
 }
 
@@ -176,6 +169,6 @@ fn structures(
     {
         vec![Structure::Grid, Structure::Mlgrid]
     } else {
-        vec![plan.structure]
+        vec![plan.settings.structure]
     }
 }

@@ -208,13 +208,11 @@ impl BackendSelection {
     }
 }
 
-/// Everything one benchmark run does.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Plan {
+/// The settings of a run: what it measures and how often (the report records them as used).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Settings {
     /// Experiments to run, in order.
     pub experiments: Vec<Experiment>,
-    /// Backends to run them on.
-    pub backends: Vec<BackendKind>,
     /// Spheres of every experiment but scaling.
     pub spheres: usize,
     /// Largest sphere count of the scaling experiment (from 1,000 up, ×10).
@@ -234,6 +232,15 @@ pub struct Plan {
     pub seed: u64,
 }
 
+/// Everything one benchmark run does.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// Backends to run it on.
+    pub backends: Vec<BackendKind>,
+    /// What to measure and how often.
+    pub settings: Settings,
+}
+
 /// Rebuild intervals swept on steps that refit (experiment 4), before `auto`.
 pub const REBUILD_INTERVALS: [u32; 6] = [1, 5, 10, 25, 50, 100];
 
@@ -241,16 +248,18 @@ impl Plan {
     /// Rejects plans that would measure nothing.
     pub fn validate(&self) -> Result<()> {
         let bad = |msg: &str| Err(Error::Usage(msg.to_owned()));
-        if self.repeats == 0 {
+        if self.settings.repeats == 0 {
             return bad("--repeats must be at least 1");
         }
-        if self.steps == 0 {
+        if self.settings.steps == 0 {
             return bad("--steps must be at least 1");
         }
-        if self.spheres < 2 {
+        if self.settings.spheres < 2 {
             return bad("--spheres must be at least 2");
         }
-        if self.experiments.contains(&Experiment::Scaling) && self.max_spheres < 1000 {
+        if self.settings.experiments.contains(&Experiment::Scaling)
+            && self.settings.max_spheres < 1000
+        {
             return bad("--max-spheres must be at least 1000 (scaling starts at 1,000)");
         }
         if self.backends.is_empty() {
@@ -262,13 +271,14 @@ impl Plan {
     /// Sphere counts of the scaling experiment: 1,000, 10,000, … up to `max_spheres`.
     pub fn scaling_sizes(&self) -> Vec<usize> {
         std::iter::successors(Some(1000usize), |n| n.checked_mul(10))
-            .take_while(|&n| n <= self.max_spheres)
+            .take_while(|&n| n <= self.settings.max_spheres)
             .collect()
     }
 
     /// Measurements the plan makes (rows, at most), for a progress bar.
     pub fn units(&self) -> u64 {
         let per_backend: usize = self
+            .settings
             .experiments
             .iter()
             .map(|e| match e {
@@ -310,16 +320,18 @@ mod tests {
     #[test]
     fn scaling_goes_up_tenfold_to_the_maximum() {
         let plan = Plan {
-            experiments: vec![Experiment::Scaling],
             backends: vec![BackendKind::Cpu],
-            spheres: 10,
-            max_spheres: 250_000,
-            steps: 1,
-            settle: 0,
-            repeats: 1,
-            warmup: 0,
-            structure: Structure::Auto,
-            seed: 1,
+            settings: Settings {
+                experiments: vec![Experiment::Scaling],
+                spheres: 10,
+                max_spheres: 250_000,
+                steps: 1,
+                settle: 0,
+                repeats: 1,
+                warmup: 0,
+                structure: Structure::Auto,
+                seed: 1,
+            },
         };
         assert_eq!(plan.scaling_sizes(), vec![1000, 10_000, 100_000]);
         assert_eq!(plan.units(), 3);

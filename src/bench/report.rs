@@ -1,7 +1,7 @@
 //! What a benchmark run found: one row per measurement, with the machine, the date and the
 //! command, serialized as JSON (see [`SCHEMA_VERSION`]).
 
-use super::plan::{BackendStatus, Experiment};
+use super::plan::{BackendStatus, Experiment, Settings};
 use super::stats::Spread;
 use super::targets::Check;
 use crate::dem::Clock;
@@ -68,29 +68,6 @@ impl Machine {
             threads: rayon::current_num_threads(),
         }
     }
-}
-
-/// The settings a run used.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Settings {
-    /// Experiments run.
-    pub experiments: Vec<Experiment>,
-    /// Spheres of every experiment but scaling.
-    pub spheres: usize,
-    /// Largest sphere count of the scaling experiment.
-    pub max_spheres: usize,
-    /// Timed DEM steps per repeat.
-    pub steps: u32,
-    /// Untimed steps the slab of experiment 6 settled for before it was timed.
-    pub settle: u32,
-    /// Timed repeats per measurement.
-    pub repeats: usize,
-    /// Untimed warm-up runs before them.
-    pub warmup: usize,
-    /// Grid structure asked of `wgpu-compute`.
-    pub structure: String,
-    /// Seed of the scenes.
-    pub seed: u64,
 }
 
 /// One detection measurement: build and find every pair, repeated.

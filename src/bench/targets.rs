@@ -181,8 +181,9 @@ fn cpu_poly120(report: &Report) -> Check {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::plan::BackendStatus;
-    use crate::bench::report::{Machine, SCHEMA_VERSION, Settings};
+    use crate::backend::wgpu_compute::Structure;
+    use crate::bench::plan::{BackendStatus, Settings};
+    use crate::bench::report::{Machine, SCHEMA_VERSION};
     use crate::bench::stats::Spread;
     use crate::dem::Clock;
 
@@ -228,7 +229,7 @@ mod tests {
                 settle,
                 repeats: 1,
                 warmup: 0,
-                structure: "auto".into(),
+                structure: Structure::Auto,
                 seed: 1,
             },
             backends: Vec::<BackendStatus>::new(),

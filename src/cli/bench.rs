@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::backend::wgpu_compute::Structure;
-use mochi::bench::plan::{BackendSelection, Experiment, Plan, Scale};
+use mochi::bench::plan::{BackendSelection, Experiment, Plan, Scale, Settings};
 use mochi::bench::{self, markdown, plot};
 use mochi::io;
 use std::path::PathBuf;
@@ -63,16 +63,18 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     experiments.sort();
     experiments.dedup();
     let plan = Plan {
-        experiments,
         backends,
-        spheres,
-        max_spheres: args.max_spheres.unwrap_or(args.scale.spheres()),
-        steps: args.steps.unwrap_or(args.scale.steps()),
-        settle: args.settle,
-        repeats: args.repeats,
-        warmup: args.warmup,
-        structure: args.structure,
-        seed: args.seed,
+        settings: Settings {
+            experiments,
+            spheres,
+            max_spheres: args.max_spheres.unwrap_or(args.scale.spheres()),
+            steps: args.steps.unwrap_or(args.scale.steps()),
+            settle: args.settle,
+            repeats: args.repeats,
+            warmup: args.warmup,
+            structure: args.structure,
+            seed: args.seed,
+        },
     };
     plan.validate()?;
     std::fs::create_dir_all(&args.out)

@@ -128,7 +128,18 @@ pub(crate) struct GridParams {
 const _: () = assert!(size_of::<GridParams>() == 112);
 
 /// Which grid the backend builds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    clap::ValueEnum,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
 pub enum Structure {
     /// The multi-level grid where the radii span a factor of 4 or more (`AUTO_MLGRID_RATIO`; it
     /// measured 2–3.6× faster on `polylog`), else the single grid.
