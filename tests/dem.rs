@@ -9,7 +9,7 @@ use mochi::backend::{Options, RebuildPolicy};
 use mochi::dem::model::{mass, stable_dt, stiffness_for_duration};
 use mochi::dem::wgpu_compute::GridStepper;
 use mochi::dem::wgpu_rq::RqStepper;
-use mochi::dem::{ForceAtomics, Material, Particles, StepParams, Stepper, open_stepper};
+use mochi::dem::{Clock, ForceAtomics, Material, Particles, StepParams, Stepper, open_stepper};
 use mochi::gpu::Need;
 use mochi::proxy::ProxyMode;
 
@@ -272,6 +272,36 @@ fn a_long_run_stays_finite_and_inside_the_box() {
                 );
             }
         }
+    }
+}
+
+#[test]
+fn every_step_times_its_phases_within_the_wall_clock() {
+    // A GPU step times each batch as a whole and splits it in the proportions of the batch's
+    // first step: every phase must take time, and all of them no longer than the host waited.
+    let start = pile(6, 0.025, 0.002);
+    let p = params(Material::default(), 1e-4, 0.3, [0.0, 0.0, -9.81], 0.008);
+    for (name, mut s) in steppers(&start, p) {
+        let clock = std::time::Instant::now();
+        let advance = s.advance(250).unwrap();
+        let wall_ms = clock.elapsed().as_secs_f64() * 1e3;
+        let t = advance.times;
+        if advance.clock == Clock::None {
+            eprintln!("note: {name} has no GPU timestamps here: its phases are not timed");
+            continue;
+        }
+        for (phase, ms) in [
+            ("build", t.build_ms),
+            ("DCD", t.dcd_ms),
+            ("update", t.update_ms),
+        ] {
+            assert!(ms.is_finite() && ms > 0.0, "{name}: {phase} took {ms} ms");
+        }
+        assert!(
+            t.total_ms() <= wall_ms,
+            "{name}: {} ms of phases in {wall_ms} ms of wall clock",
+            t.total_ms()
+        );
     }
 }
 
