@@ -82,7 +82,7 @@ impl ForceAtomics {
 }
 
 /// GPU timestamps of a batch of steps: the four phase boundaries (start, built, resolved,
-/// integrated) of each of its first *profiled* steps, and the batch's end. A step's phases are
+/// integrated) of each of its first *profiled* steps, then the batch's end. A step's phases are
 /// told apart only by recording them in passes of their own between timestamps, which costs:
 /// on the H200 every pass boundary adds about 4.6 µs and every timestamp about 2 µs. So a
 /// stepper may profile only its batch's first step and record the others in one compute pass;
@@ -91,9 +91,6 @@ pub(crate) struct StepTimer {
     queries: wgpu::QuerySet,
     resolved: wgpu::Buffer,
 }
-
-/// Query slot of the batch's end, after the phase marks of up to [`MAX_BATCH`] steps.
-const BATCH_END: u32 = 4 * MAX_BATCH;
 
 impl StepTimer {
     /// A timer, or `None` where the device cannot write timestamps inside encoders.
@@ -104,11 +101,11 @@ impl StepTimer {
             queries: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("mochi.dem.timer"),
                 ty: wgpu::QueryType::Timestamp,
-                count: BATCH_END + 1,
+                count: 4 * MAX_BATCH + 1,
             }),
             resolved: gpu.storage(
                 "mochi.dem.timer.resolved",
-                (BATCH_END as u64 + 1) * 8,
+                (4 * MAX_BATCH as u64 + 1) * 8,
                 wgpu::BufferUsages::QUERY_RESOLVE,
             ),
         })
@@ -121,32 +118,27 @@ impl StepTimer {
         }
     }
 
-    /// Marks the end of a batch whose first `profiled` steps were marked, and records the
-    /// resolve of its timestamps.
+    /// Marks the end of a batch whose first `profiled` steps (at least one) were marked, in
+    /// the slot after theirs, and records the resolve of its timestamps.
     pub fn end(&self, encoder: &mut wgpu::CommandEncoder, profiled: u32) {
-        encoder.write_timestamp(&self.queries, BATCH_END);
-        encoder.resolve_query_set(&self.queries, 0..4 * profiled, &self.resolved, 0);
-        encoder.resolve_query_set(
-            &self.queries,
-            BATCH_END..BATCH_END + 1,
-            &self.resolved,
-            BATCH_END as u64 * 8,
-        );
+        encoder.write_timestamp(&self.queries, 4 * profiled);
+        encoder.resolve_query_set(&self.queries, 0..4 * profiled + 1, &self.resolved, 0);
     }
 
     /// The phase times of the last batch (after it completed): its whole time, from the first
     /// step's start to its end, split in the proportions of its `profiled` steps' phases.
     pub fn read(&self, gpu: &Gpu, profiled: u32) -> Result<StageTimes> {
-        let ticks: Vec<u64> = gpu.read(&self.resolved, BATCH_END as usize + 1)?;
+        let marks = 4 * profiled as usize;
+        let ticks: Vec<u64> = gpu.read(&self.resolved, marks + 1)?;
         let period = gpu.queue.get_timestamp_period() as f64 * 1e-6;
         let span = |a: u64, b: u64| b.saturating_sub(a) as f64 * period;
         let mut phases = StageTimes::default();
-        for t in ticks[..4 * profiled as usize].chunks_exact(4) {
+        for t in ticks[..marks].chunks_exact(4) {
             phases.build_ms += span(t[0], t[1]);
             phases.dcd_ms += span(t[1], t[2]);
             phases.update_ms += span(t[2], t[3]);
         }
-        let whole = span(ticks[0], ticks[BATCH_END as usize]);
+        let whole = span(ticks[0], ticks[marks]);
         let scale = whole / phases.total_ms().max(f64::MIN_POSITIVE);
         Ok(StageTimes {
             build_ms: phases.build_ms * scale,
