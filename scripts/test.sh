@@ -18,6 +18,23 @@ for component in rustfmt clippy; do
     fi
 done
 
+# The archive URI that this machine's apt configuration uses for the suite $1 (deb822 .sources
+# files first, then one-line sources.list entries); empty when none names it.
+debian_archive() {
+    local suite=$1 f
+    for f in /etc/apt/sources.list.d/*.sources; do
+        [ -e "$f" ] || continue
+        awk -v suite="$suite" '
+            /^[[:space:]]*$/ { if (uri != "" && hit) { print uri; exit } uri = ""; hit = 0; next }
+            /^URIs:/ { uri = $2 }
+            /^Suites:/ { for (i = 2; i <= NF; i++) if ($i == suite) hit = 1 }
+            END { if (uri != "" && hit) print uri }' "$f"
+    done | head -n 1 | grep . && return
+    grep -hE "^deb[[:space:]]+(\[[^]]*\][[:space:]]+)?[a-z]+://[^[:space:]]+[[:space:]]+$suite[[:space:]]" \
+        /etc/apt/sources.list /etc/apt/sources.list.d/*.list 2>/dev/null |
+        sed -E 's/^deb[[:space:]]+(\[[^]]*\][[:space:]]+)?//' | awk '{ print $1; exit }'
+}
+
 # lavapipe with VK_KHR_ray_query: Mesa 25 or newer.
 mesa_version() { dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || echo 0; }
 if command -v dpkg >/dev/null && ! dpkg --compare-versions "$(mesa_version)" ge 25; then
@@ -28,10 +45,16 @@ if command -v dpkg >/dev/null && ! dpkg --compare-versions "$(mesa_version)" ge 
         . /etc/os-release
         suite=()
         if [ "${VERSION_CODENAME:-}" = bookworm ]; then
-            # bookworm's Mesa 22 has no ray queries; bookworm-backports has Mesa 25.
+            # bookworm's Mesa 22 has no ray queries; bookworm-backports has Mesa 25. The
+            # backports source reuses the archive this machine's apt configuration already names.
+            archive=$(debian_archive bookworm)
+            if [ -z "$archive" ]; then
+                echo "error: no apt source for bookworm found under /etc/apt to add bookworm-backports from" >&2
+                exit 1
+            fi
             cat > /etc/apt/sources.list.d/mochi-backports.sources <<SOURCES
 Types: deb
-URIs: http://deb.debian.org/debian
+URIs: $archive
 Suites: bookworm-backports
 Components: main
 Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
