@@ -287,3 +287,148 @@ fn bad_scenes_give_clear_errors() {
     );
     assert!(e.contains("restitution"), "{e}");
 }
+
+#[test]
+fn a_damaged_checkpoint_is_refused_by_its_checksum() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut first = SMALL.to_vec();
+    first.extend(["--steps", "10", "--frame-every", "0", "-o", "a"]);
+    ok(&first, dir.path());
+    let path = dir.path().join("a/checkpoint.bin");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let middle = bytes.len() / 2; // inside the positions
+    bytes[middle] ^= 0x01;
+    std::fs::write(&path, &bytes).unwrap();
+    let resume = [
+        "simulate",
+        "--resume",
+        "a/checkpoint.bin",
+        "--steps",
+        "20",
+        "-o",
+        "a",
+        "--backend",
+        "cpu",
+        "-q",
+    ];
+    let e = fails(&resume, dir.path());
+    assert!(
+        e.contains("checkpoint.bin") && e.contains("checksum mismatch"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_resumed_state_is_checked_like_a_fresh_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut first = SMALL.to_vec();
+    first.extend(["--steps", "10", "--frame-every", "0", "-o", "a"]);
+    ok(&first, dir.path());
+    let path = dir.path().join("a/checkpoint.bin");
+    let (particles, scene) = read_checkpoint(&path).unwrap();
+    let resume = [
+        "simulate",
+        "--resume",
+        "a/checkpoint.bin",
+        "--steps",
+        "20",
+        "-o",
+        "a",
+        "--backend",
+        "cpu",
+        "-q",
+    ];
+    // A centre far outside the unit box, though the file is intact.
+    let mut far = particles.clone();
+    far.positions[3][0] = 5.0;
+    mochi::io::write_checkpoint(&path, &far, &scene).unwrap();
+    let e = fails(&resume, dir.path());
+    assert!(
+        e.contains("sphere 3") && e.contains("outside the box"),
+        "{e}"
+    );
+    // A radius no sphere file may hold.
+    let mut flat = particles.clone();
+    flat.radii[7] = 0.0;
+    mochi::io::write_checkpoint(&path, &flat, &scene).unwrap();
+    let e = fails(&resume, dir.path());
+    assert!(e.contains("sphere 7"), "{e}");
+    // Parameters a fresh run refuses.
+    let soft = scene.replace("restitution = 0.5", "restitution = 0.0");
+    assert_ne!(soft, scene);
+    mochi::io::write_checkpoint(&path, &particles, &soft).unwrap();
+    let e = fails(&resume, dir.path());
+    assert!(e.contains("restitution"), "{e}");
+}
+
+#[test]
+fn resume_refuses_overrides_that_change_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut first = SMALL.to_vec();
+    first.extend(["--steps", "10", "--frame-every", "5", "-o", "a"]);
+    ok(&first, dir.path());
+    let scene_toml = std::fs::read(dir.path().join("a/scene.toml")).unwrap();
+    let checkpoint = std::fs::read(dir.path().join("a/checkpoint.bin")).unwrap();
+    for (set, key) in [
+        ("dt=2e-4", "dt"),
+        ("box_hi=[0.1, 0.1, 0.1]", "box_hi"),
+        ("scene=\"poly120\"", "scene"),
+        ("gravity=[0, 0, -1.62]", "gravity"),
+        ("seed=9", "seed"),
+    ] {
+        let e = fails(
+            &[
+                "simulate",
+                "--resume",
+                "a/checkpoint.bin",
+                "--steps",
+                "20",
+                "--set",
+                set,
+                "-o",
+                "a",
+                "--backend",
+                "cpu",
+                "-q",
+            ],
+            dir.path(),
+        );
+        assert!(
+            e.contains(&format!("--set {key}:")) && e.contains("--resume"),
+            "{set}: {e}"
+        );
+        assert_eq!(
+            std::fs::read(dir.path().join("a/scene.toml")).unwrap(),
+            scene_toml,
+            "{set} rewrote scene.toml"
+        );
+        assert_eq!(
+            std::fs::read(dir.path().join("a/checkpoint.bin")).unwrap(),
+            checkpoint
+        );
+    }
+    // What a resume may change: how far it runs and what it writes; a value equal to the
+    // checkpoint's is no change.
+    ok(
+        &[
+            "simulate",
+            "--resume",
+            "a/checkpoint.bin",
+            "--steps",
+            "20",
+            "--frame-every",
+            "10",
+            "--set",
+            "restitution=0.5",
+            "-o",
+            "a",
+            "--backend",
+            "cpu",
+            "-q",
+        ],
+        dir.path(),
+    );
+    let (_, scene) = read_checkpoint(&dir.path().join("a/checkpoint.bin")).unwrap();
+    assert!(scene.contains("scene = \"slab\""), "{scene}");
+    assert!(scene.contains("steps = 20"), "{scene}");
+}

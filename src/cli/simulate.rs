@@ -51,8 +51,11 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let (config, start) = match &args.resume {
         Some(path) => {
             let (particles, scene) = io::read_checkpoint(path)?;
-            let config = SceneConfig::parse(Some(&scene), Some(path), &overrides)?;
-            let start = config.start_from(particles)?;
+            let config = SceneConfig::resume(&scene, path, &overrides)
+                .with_context(|| format!("resuming {}", path.display()))?;
+            let start = config
+                .resume_from(particles)
+                .with_context(|| format!("resuming {}", path.display()))?;
             (config, start)
         }
         None => {

@@ -119,6 +119,10 @@ impl Default for SceneConfig {
     }
 }
 
+/// The fields a resumed run may change: how far it runs and what it writes. Every other field
+/// is part of the run's identity and stays as its checkpoint saved it.
+pub const RESUMABLE: [&str; 3] = ["steps", "frame_every", "csv"];
+
 /// Where a scene's spheres come from.
 #[derive(Debug, Clone, Copy)]
 enum Source {
@@ -174,6 +178,23 @@ impl SceneConfig {
     /// Parses scene TOML (`None`: the defaults) from `origin` (named in errors; relative input
     /// paths are taken from its folder) and applies `overrides` (`key=value`).
     pub fn parse(text: Option<&str>, origin: Option<&Path>, overrides: &[String]) -> Result<Self> {
+        let (mut config, _) = Self::parse_table(text, origin, overrides)?;
+        if let Some(dir) = origin.and_then(Path::parent) {
+            for path in [&mut config.input, &mut config.mesh].into_iter().flatten() {
+                if path.is_relative() {
+                    *path = dir.join(&*path);
+                }
+            }
+        }
+        Ok(config)
+    }
+
+    /// The scene and the table of the fields the text and the overrides give.
+    fn parse_table(
+        text: Option<&str>,
+        origin: Option<&Path>,
+        overrides: &[String],
+    ) -> Result<(Self, toml::Table)> {
         let where_ = || origin.map_or_else(|| "command line".into(), Path::to_owned);
         let mut table = match text {
             None => toml::Table::new(),
@@ -196,19 +217,36 @@ impl SceneConfig {
                 merged.as_str()
             }
         };
-        let mut config: SceneConfig = toml::from_str(source).map_err(|e| Error::Parse {
+        let config: SceneConfig = toml::from_str(source).map_err(|e| Error::Parse {
             path: where_(),
             line: None,
             msg: e.to_string().trim_end().to_owned(),
         })?;
-        if let Some(dir) = origin.and_then(Path::parent) {
-            for path in [&mut config.input, &mut config.mesh].into_iter().flatten() {
-                if path.is_relative() {
-                    *path = dir.join(&*path);
-                }
-            }
+        Ok((config, table))
+    }
+
+    /// The scene saved in the checkpoint `origin` (`saved`, its TOML) with `overrides` applied.
+    /// A resumed run keeps its identity: only the fields of [`RESUMABLE`] may change; any other
+    /// override that changes a value is refused, naming the field. Paths stay as saved.
+    pub fn resume(saved: &str, origin: &Path, overrides: &[String]) -> Result<Self> {
+        let (before, _) = Self::parse_table(Some(saved), Some(origin), &[])?;
+        let (after, _) = Self::parse_table(Some(saved), Some(origin), overrides)?;
+        let fields = |c: &SceneConfig| toml::Table::try_from(c).expect("a scene serializes");
+        let (was, now) = (fields(&before), fields(&after));
+        let mut keys = was
+            .keys()
+            .chain(now.keys().filter(|k| !was.contains_key(*k)));
+        let changed = keys.find(|k| !RESUMABLE.contains(&k.as_str()) && was.get(*k) != now.get(*k));
+        if let Some(key) = changed {
+            let saved = was.get(key).map_or("unset".into(), ToString::to_string);
+            return Err(Error::Usage(format!(
+                "--set {key}: a resumed run keeps the scene of its checkpoint ({key} = {saved}); \
+                 only {} may change on --resume. To change {key}, start a new run from the last \
+                 frame (--input OUT/frame_<step>.csv)",
+                RESUMABLE.join(", ")
+            )));
         }
-        Ok(config)
+        Ok(after)
     }
 
     /// This scene as TOML (saved in checkpoints).
@@ -259,26 +297,45 @@ impl SceneConfig {
                 if let Some(v) = velocities {
                     particles.velocities = v;
                 }
-                return Self::inside_the_box(self.start_from(particles)?);
+                return Self::inside_the_box(self.start_from(particles)?, 0.0);
             }
         };
-        Self::inside_the_box(self.start_from(Particles::at_rest(&spheres))?)
+        Self::inside_the_box(self.start_from(Particles::at_rest(&spheres))?, 0.0)
     }
 
-    /// `start`, if every centre lies in its box (checked at t = 0 only: a running simulation
-    /// may push a sphere partly through a soft wall, and a checkpoint of it must still resume).
-    fn inside_the_box(start: Start) -> Result<Start> {
+    /// The start of a run resumed from a checkpoint of this scene: `particles` pass the checks
+    /// of a fresh run's input (finite values, valid radii, the size limits) and the parameters
+    /// those of a fresh run. A centre may lie outside the box, as soft walls let spheres sink
+    /// into them (with a soft stiffness, by more than a radius), but by no more than the box's
+    /// own extent along that axis.
+    pub fn resume_from(&self, particles: Particles) -> Result<Start> {
+        particles.validate()?;
+        SphereSet::new(particles.positions.clone(), particles.radii.clone())?;
+        Self::inside_the_box(self.start_from(particles)?, 1.0)
+    }
+
+    /// `start`, if every centre lies in its box widened by `slack` times its extent on every
+    /// side (0 at t = 0).
+    fn inside_the_box(start: Start, slack: f32) -> Result<Start> {
         let (lo, hi) = (start.params.box_lo, start.params.box_hi);
+        let grown: [(f32, f32); 3] = std::array::from_fn(|a| {
+            let margin = slack * (hi[a] - lo[a]);
+            (lo[a] - margin, hi[a] + margin)
+        });
         let outside = start
             .particles
             .positions
             .iter()
-            .position(|c| (0..3).any(|a| !(lo[a]..=hi[a]).contains(&c[a])));
+            .position(|c| (0..3).any(|a| !(grown[a].0..=grown[a].1).contains(&c[a])));
         if let Some(index) = outside {
+            let far = match slack > 0.0 {
+                true => ", farther than the box's own size (the walls cannot have put it there)",
+                false => "",
+            };
             return Err(Error::InvalidSphere {
                 index,
                 reason: format!(
-                    "centre {:?} is outside the box {lo:?} .. {hi:?}",
+                    "centre {:?} is outside the box {lo:?} .. {hi:?}{far}",
                     start.particles.positions[index]
                 ),
             });
