@@ -432,3 +432,30 @@ fn resume_refuses_overrides_that_change_the_run() {
     assert!(scene.contains("scene = \"slab\""), "{scene}");
     assert!(scene.contains("steps = 20"), "{scene}");
 }
+
+#[test]
+fn absurd_parameters_are_refused_up_front_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "simulate",
+            "-n",
+            "100",
+            "--steps",
+            "20",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "out",
+        ];
+        args.extend(extra);
+        fails(&args, dir.path())
+    };
+    let e = run(&["--dt", "1e-30"]);
+    assert!(e.contains("derived stiffness") && e.contains("f32"), "{e}");
+    let e = run(&["--set", "gravity=[0, 0, 1e30]"]);
+    assert!(e.contains("gravity") && e.contains("single step"), "{e}");
+    // Refused before anything is written.
+    assert!(!dir.path().join("out").exists());
+}
