@@ -459,3 +459,68 @@ fn absurd_parameters_are_refused_up_front_with_the_reason() {
     // Refused before anything is written.
     assert!(!dir.path().join("out").exists());
 }
+
+#[test]
+fn conflicting_options_are_errors_naming_both() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("good.csv"), "x,y,z,r\n0.5,0.5,0.5,0.01\n").unwrap();
+    let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/box.obj");
+    let cases: [(&[&str], [&str; 2]); 8] = [
+        (
+            &["--input", "good.csv", "--scene", "slab"],
+            ["--input", "--scene"],
+        ),
+        (
+            &["--input", "good.csv", "-n", "100"],
+            ["--input", "--spheres"],
+        ),
+        (
+            &["--input", "good.csv", "--seed", "3"],
+            ["--input", "--seed"],
+        ),
+        (&["--mesh", mesh, "--scene", "slab"], ["--mesh", "--scene"]),
+        (&["--mesh", mesh, "-n", "100"], ["--mesh", "--spheres"]),
+        (&["--set", "input=\"good.csv\""], ["--set input", "--scene"]),
+        (
+            &["--set", "mesh_copies=2"],
+            ["--set mesh_copies", "--scene"],
+        ),
+        (&["--set", "scene=\"mesh\"", "-n", "100"], ["-n", "--mesh"]),
+    ];
+    for (extra, [a, b]) in cases {
+        let mut args = vec![
+            "simulate",
+            "--steps",
+            "1",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "out",
+        ];
+        args.extend(extra);
+        let (code, _, stderr) = mochi(&args, dir.path());
+        assert!(matches!(code, Some(1 | 2)), "{extra:?}: {code:?} {stderr}");
+        assert!(stderr.starts_with("error: "), "{extra:?}: {stderr}");
+        assert!(
+            stderr.contains(a) && stderr.contains(b),
+            "{extra:?}: {stderr}"
+        );
+        assert!(!dir.path().join("out").exists(), "{extra:?} wrote output");
+    }
+    // mesh_copies of the mesh scene must be at least 1.
+    let e = fails(
+        &[
+            "simulate",
+            "--mesh",
+            mesh,
+            "--set",
+            "mesh_copies=0",
+            "-q",
+            "-o",
+            "out",
+        ],
+        dir.path(),
+    );
+    assert!(e.contains("mesh_copies must be at least 1"), "{e}");
+}

@@ -183,11 +183,11 @@ pub struct SimulateArgs {
     pub dt: Option<f64>,
     /// Start from a sphere file (CSV x,y,z,r or .npy N×4, optionally with vx,vy,vz: a frame
     /// CSV restarts a run) instead of a generated scene.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["scene", "spheres", "seed", "mesh"])]
     pub input: Option<PathBuf>,
     /// Fill this mesh (OBJ, PLY or STL) with spheres and drop it (scene `mesh`; see the
     /// mesh_* fields for radius, size and copies).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["scene", "spheres"])]
     pub mesh: Option<PathBuf>,
     /// Write a frame every M steps (0: none).
     #[arg(long, value_name = "M")]

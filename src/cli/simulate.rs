@@ -59,7 +59,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             (config, start)
         }
         None => {
-            let config = SceneConfig::load(args.scene_file.as_deref(), &overrides)?;
+            let config = SceneConfig::load_new(args.scene_file.as_deref(), &overrides)?;
             let start = config.build()?;
             (config.resolved(&start), start)
         }

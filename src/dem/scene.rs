@@ -162,31 +162,79 @@ pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
     Ok(())
 }
 
+/// The text of a scene file (`None`: no file).
+fn read_scene_file(path: Option<&Path>) -> Result<Option<String>> {
+    path.map(|p| {
+        std::fs::read_to_string(p).map_err(|error| Error::Io {
+            path: p.to_owned(),
+            error,
+        })
+    })
+    .transpose()
+}
+
 impl SceneConfig {
     /// Reads a scene file (`None`: the defaults) and applies `overrides` (`key=value`).
     pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Self> {
-        let text = match path {
-            None => None,
-            Some(p) => Some(std::fs::read_to_string(p).map_err(|error| Error::Io {
-                path: p.to_owned(),
-                error,
-            })?),
+        Self::parse(read_scene_file(path)?.as_deref(), path, overrides)
+    }
+
+    /// Reads the scene of a new run: [`Self::load`], refusing fields given (in the file or by
+    /// an override) that the chosen scene does not use, such as `spheres` or `input` with a
+    /// `mesh` scene: each would be silently ignored.
+    pub fn load_new(path: Option<&Path>, overrides: &[String]) -> Result<Self> {
+        let text = read_scene_file(path)?;
+        let (mut config, given) = Self::parse_table(text.as_deref(), path, overrides)?;
+        config.rebase(path);
+        let source = config.source()?;
+        let scene_option = match source {
+            Source::Input => "--input/--scene",
+            Source::Mesh => "--mesh/--scene",
+            Source::Generated(_) => "--scene",
         };
-        Self::parse(text.as_deref(), path, overrides)
+        for (key, value) in &given {
+            let (used, flag) = match key.as_str() {
+                "spheres" => (matches!(source, Source::Generated(_)), "-n"),
+                "seed" => (!matches!(source, Source::Input), "--seed"),
+                "input" => (matches!(source, Source::Input), "--input"),
+                "mesh" => (matches!(source, Source::Mesh), "--mesh"),
+                k => (
+                    !k.starts_with("mesh_") || matches!(source, Source::Mesh),
+                    "",
+                ),
+            };
+            let option = match flag {
+                "" => format!("--set {key}"),
+                flag => format!("{flag}/--set {key}"),
+            };
+            if !used {
+                return Err(Error::Usage(format!(
+                    "{key} = {value} ({option}) conflicts with scene {:?} ({scene_option}): that \
+                     scene does not use {key}; give one or the other",
+                    config.scene
+                )));
+            }
+        }
+        Ok(config)
     }
 
     /// Parses scene TOML (`None`: the defaults) from `origin` (named in errors; relative input
     /// paths are taken from its folder) and applies `overrides` (`key=value`).
     pub fn parse(text: Option<&str>, origin: Option<&Path>, overrides: &[String]) -> Result<Self> {
         let (mut config, _) = Self::parse_table(text, origin, overrides)?;
+        config.rebase(origin);
+        Ok(config)
+    }
+
+    /// Takes relative input and mesh paths from the folder of `origin`.
+    fn rebase(&mut self, origin: Option<&Path>) {
         if let Some(dir) = origin.and_then(Path::parent) {
-            for path in [&mut config.input, &mut config.mesh].into_iter().flatten() {
+            for path in [&mut self.input, &mut self.mesh].into_iter().flatten() {
                 if path.is_relative() {
                     *path = dir.join(&*path);
                 }
             }
         }
-        Ok(config)
     }
 
     /// The scene and the table of the fields the text and the overrides give.
@@ -344,20 +392,23 @@ impl SceneConfig {
     }
 
     /// Copies per row and layers of the `mesh` scene, and the side of its cell per copy.
-    fn mesh_layout(&self) -> (u32, u32, f64) {
-        let copies = self.mesh_copies.max(1);
+    fn mesh_layout(&self) -> Result<(u32, u32, f64)> {
+        let copies = self.mesh_copies;
+        if copies == 0 {
+            return Err(Error::Usage("mesh_copies must be at least 1, got 0".into()));
+        }
         let per_row = (copies as f64).sqrt().ceil() as u32;
         // Spheres reach past the mesh by up to their radius: keep 4.4 radii between copies.
         let cell = self.mesh_size * 1.05 + 4.4 * self.mesh_radius as f64;
-        (per_row, copies.div_ceil(per_row * per_row), cell)
+        Ok((per_row, copies.div_ceil(per_row * per_row), cell))
     }
 
     /// The `mesh` scene's box side: the unit cube, or larger to hold every copy.
-    fn mesh_box_side(&self) -> f64 {
-        let (per_row, layers, cell) = self.mesh_layout();
-        (per_row as f64 * cell)
+    fn mesh_box_side(&self) -> Result<f64> {
+        let (per_row, layers, cell) = self.mesh_layout()?;
+        Ok((per_row as f64 * cell)
             .max(layers as f64 * cell + 2.2 * self.mesh_radius as f64)
-            .max(1.0)
+            .max(1.0))
     }
 
     /// Fills the mesh (or the torus) and places the copies on the floor of the box, side by side.
@@ -369,6 +420,7 @@ impl SceneConfig {
                 self.mesh_size
             )));
         }
+        let (per_row, _, cell) = self.mesh_layout()?;
         let mesh = match &self.mesh {
             Some(path) => crate::mesh::load(path)?,
             None => crate::mesh::torus(1.0, 0.4, 64, 32),
@@ -387,10 +439,9 @@ impl SceneConfig {
             seed: self.seed,
         };
         let (one_c, one_r) = crate::mesh::fill(&shape, &spec)?;
-        let (per_row, _, cell) = self.mesh_layout();
-        let side = self.mesh_box_side();
+        let side = self.mesh_box_side()?;
         let edge = (side - per_row as f64 * cell) / 2.0 + (cell - size) / 2.0;
-        let copies = self.mesh_copies.max(1) as usize;
+        let copies = self.mesh_copies as usize;
         let total = one_c.len().saturating_mul(copies);
         if total > crate::MAX_SPHERES {
             return Err(Error::TooLarge {
@@ -432,7 +483,7 @@ impl SceneConfig {
                 let side = scene.box_side(particles.len(), Layout::Lattice);
                 ([0.0; 3], [side; 3])
             }
-            Source::Mesh => ([0.0; 3], [self.mesh_box_side(); 3]),
+            Source::Mesh => ([0.0; 3], [self.mesh_box_side()?; 3]),
             // A file: its bounds with a margin of two largest diameters.
             Source::Input => {
                 match SphereSet::new(particles.positions.clone(), particles.radii.clone())?.bounds()
