@@ -524,3 +524,48 @@ fn conflicting_options_are_errors_naming_both() {
     );
     assert!(e.contains("mesh_copies must be at least 1"), "{e}");
 }
+
+#[test]
+fn step_counts_beyond_the_scene_range_get_a_range_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, _, stderr) = mochi(
+        &[
+            "simulate",
+            "--steps",
+            "18446744073709551615",
+            "-q",
+            "-o",
+            "out",
+        ],
+        dir.path(),
+    );
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("0..=9223372036854775807"), "{stderr}");
+    assert!(!stderr.contains("TOML"), "{stderr}");
+    let e = fails(
+        &[
+            "simulate",
+            "--set",
+            "steps=18446744073709551615",
+            "-q",
+            "-o",
+            "out",
+        ],
+        dir.path(),
+    );
+    assert!(
+        e.contains("outside the range") && !e.contains("TOML"),
+        "{e}"
+    );
+    assert!(!dir.path().join("out").exists());
+}
+
+#[test]
+fn a_run_of_zero_steps_claims_no_clock() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = SMALL.to_vec();
+    args.extend(["--steps", "0", "-o", "out"]);
+    let stdout = ok(&args, dir.path());
+    assert!(stdout.contains("(not measured)"), "{stdout}");
+    assert!(!stdout.contains("GPU timestamps"), "{stdout}");
+}

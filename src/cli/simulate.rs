@@ -175,7 +175,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let checkpoint = args.out.join("checkpoint.bin");
     let started = Instant::now();
     let mut times = StageTimes::default();
-    let mut clock = Clock::Gpu;
+    let mut clock = Clock::None;
     let mut contacts = 0;
     let mut step = first;
     let due = |every: u64, s: u64| every > 0 && s.is_multiple_of(every);

@@ -156,6 +156,13 @@ pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
     let value = value.trim();
     let parsed: toml::Value = match format!("v = {value}").parse::<toml::Table>() {
         Ok(mut t) => t.remove("v").expect("parsed the key v"),
+        Err(_) if is_integer(value) => {
+            return Err(bad(format!(
+                "{value} is outside the range of a scene integer ({} ..= {})",
+                i64::MIN,
+                i64::MAX
+            )));
+        }
         Err(_) => toml::Value::String(value.to_owned()),
     };
     table.insert(key.to_owned(), parsed);
@@ -171,6 +178,12 @@ fn read_scene_file(path: Option<&Path>) -> Result<Option<String>> {
         })
     })
     .transpose()
+}
+
+/// Whether `text` is an integer numeral (digits after an optional sign).
+fn is_integer(text: &str) -> bool {
+    let digits = text.strip_prefix(['+', '-']).unwrap_or(text);
+    !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
 }
 
 impl SceneConfig {
@@ -572,6 +585,8 @@ mod tests {
             e.to_string().contains("spheres") || e.to_string().contains("-3"),
             "{e}"
         );
+        let e = SceneConfig::load(None, &["steps=18446744073709551615".into()]).unwrap_err();
+        assert!(e.to_string().contains("outside the range"), "{e}");
         let e = SceneConfig::load(None, &["no equals sign".into()]).unwrap_err();
         assert!(e.to_string().contains("key=value"), "{e}");
         let c = SceneConfig::load(None, &["scene=teapot".into()]).unwrap();
