@@ -390,7 +390,7 @@ impl SceneConfig {
             .position(|c| (0..3).any(|a| !(grown[a].0..=grown[a].1).contains(&c[a])));
         if let Some(index) = outside {
             let far = match slack > 0.0 {
-                true => ", farther than the box's own size (the walls cannot have put it there)",
+                true => ", farther out than the box's own size",
                 false => "",
             };
             return Err(Error::InvalidSphere {
