@@ -1070,3 +1070,72 @@ fn write_atomically_leaves_nothing_on_failure() {
     assert_eq!(read(&out), b"old");
     assert_eq!(leftover_temp_files(dir.path()), Vec::<String>::new());
 }
+
+// ----------------------------------------------------------------------------------------------
+// Odd but valid files, and messages that name the real problem
+// ----------------------------------------------------------------------------------------------
+
+/// Spreadsheet programs open a UTF-8 CSV with a byte-order mark: it is not part of the header.
+#[test]
+fn csv_with_a_utf8_byte_order_mark_is_read() {
+    let (dir, path) = csv_case("\u{feff}x,y,z,r\n0,0,0,1\n1.5,0,0,1\n9,9,9,1\n");
+    let out = dir.path().join("pairs.csv");
+    detect(&path, &out, &["--backend", "cpu"]);
+    assert_eq!(read(&out), b"i,j\n0,1\n");
+}
+
+/// A `.vtu` frame with a NaN radius: the error names the file and the point.
+#[test]
+fn render_of_a_frame_with_a_nan_radius_names_the_file() {
+    let dir = TempDir::new().unwrap();
+    let vtu = dir.path().join("frame_00000003.vtu");
+    let positions = [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0]];
+    let velocities = [[0.0f32; 3]; 2];
+    mochi::io::write_vtu(
+        &vtu,
+        &mochi::io::Frame {
+            time: 0.0,
+            step: 3,
+            positions: &positions,
+            radii: &[0.1, f32::NAN],
+            velocities: &velocities,
+        },
+    )
+    .unwrap();
+    let png = dir.path().join("out.png");
+    let run = mochi([
+        OsStr::new("render"),
+        p(&vtu),
+        OsStr::new("-o"),
+        p(&png),
+        OsStr::new("--renderer"),
+        OsStr::new("cpu"),
+    ]);
+    run.assert_failure();
+    let line = run.single_error_line();
+    assert!(
+        line.contains("frame_00000003.vtu") && line.contains("point 1"),
+        "{line}"
+    );
+    assert!(!png.exists());
+}
+
+/// `--fov 0` is reported as a field of view out of range (not as a camera at infinity).
+#[test]
+fn render_with_a_zero_field_of_view_says_so() {
+    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n");
+    let png = dir.path().join("out.png");
+    let run = mochi([
+        OsStr::new("render"),
+        p(&path),
+        OsStr::new("-o"),
+        p(&png),
+        OsStr::new("--renderer"),
+        OsStr::new("cpu"),
+        OsStr::new("--fov"),
+        OsStr::new("0"),
+    ]);
+    run.assert_failure();
+    let line = run.single_error_line();
+    assert!(line.contains("field of view"), "{line}");
+}

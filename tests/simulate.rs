@@ -287,3 +287,285 @@ fn bad_scenes_give_clear_errors() {
     );
     assert!(e.contains("restitution"), "{e}");
 }
+
+#[test]
+fn a_damaged_checkpoint_is_refused_by_its_checksum() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut first = SMALL.to_vec();
+    first.extend(["--steps", "10", "--frame-every", "0", "-o", "a"]);
+    ok(&first, dir.path());
+    let path = dir.path().join("a/checkpoint.bin");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let middle = bytes.len() / 2; // inside the positions
+    bytes[middle] ^= 0x01;
+    std::fs::write(&path, &bytes).unwrap();
+    let resume = [
+        "simulate",
+        "--resume",
+        "a/checkpoint.bin",
+        "--steps",
+        "20",
+        "-o",
+        "a",
+        "--backend",
+        "cpu",
+        "-q",
+    ];
+    let e = fails(&resume, dir.path());
+    assert!(
+        e.contains("checkpoint.bin") && e.contains("checksum mismatch"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_resumed_state_is_checked_like_a_fresh_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut first = SMALL.to_vec();
+    first.extend(["--steps", "10", "--frame-every", "0", "-o", "a"]);
+    ok(&first, dir.path());
+    let path = dir.path().join("a/checkpoint.bin");
+    let (particles, scene) = read_checkpoint(&path).unwrap();
+    let resume = [
+        "simulate",
+        "--resume",
+        "a/checkpoint.bin",
+        "--steps",
+        "20",
+        "-o",
+        "a",
+        "--backend",
+        "cpu",
+        "-q",
+    ];
+    // A centre far outside the unit box, though the file is intact.
+    let mut far = particles.clone();
+    far.positions[3][0] = 5.0;
+    mochi::io::write_checkpoint(&path, &far, &scene).unwrap();
+    let e = fails(&resume, dir.path());
+    assert!(
+        e.contains("sphere 3") && e.contains("outside the box"),
+        "{e}"
+    );
+    // A radius no sphere file may hold.
+    let mut flat = particles.clone();
+    flat.radii[7] = 0.0;
+    mochi::io::write_checkpoint(&path, &flat, &scene).unwrap();
+    let e = fails(&resume, dir.path());
+    assert!(e.contains("sphere 7"), "{e}");
+    // Parameters a fresh run refuses.
+    let soft = scene.replace("restitution = 0.5", "restitution = 0.0");
+    assert_ne!(soft, scene);
+    mochi::io::write_checkpoint(&path, &particles, &soft).unwrap();
+    let e = fails(&resume, dir.path());
+    assert!(e.contains("restitution"), "{e}");
+}
+
+#[test]
+fn resume_refuses_overrides_that_change_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut first = SMALL.to_vec();
+    first.extend(["--steps", "10", "--frame-every", "5", "-o", "a"]);
+    ok(&first, dir.path());
+    let scene_toml = std::fs::read(dir.path().join("a/scene.toml")).unwrap();
+    let checkpoint = std::fs::read(dir.path().join("a/checkpoint.bin")).unwrap();
+    for (set, key) in [
+        ("dt=2e-4", "dt"),
+        ("box_hi=[0.1, 0.1, 0.1]", "box_hi"),
+        ("scene=\"poly120\"", "scene"),
+        ("gravity=[0, 0, -1.62]", "gravity"),
+        ("seed=9", "seed"),
+    ] {
+        let e = fails(
+            &[
+                "simulate",
+                "--resume",
+                "a/checkpoint.bin",
+                "--steps",
+                "20",
+                "--set",
+                set,
+                "-o",
+                "a",
+                "--backend",
+                "cpu",
+                "-q",
+            ],
+            dir.path(),
+        );
+        assert!(
+            e.contains(&format!("--set {key}:")) && e.contains("--resume"),
+            "{set}: {e}"
+        );
+        assert_eq!(
+            std::fs::read(dir.path().join("a/scene.toml")).unwrap(),
+            scene_toml,
+            "{set} rewrote scene.toml"
+        );
+        assert_eq!(
+            std::fs::read(dir.path().join("a/checkpoint.bin")).unwrap(),
+            checkpoint
+        );
+    }
+    // What a resume may change: how far it runs and what it writes; a value equal to the
+    // checkpoint's is no change.
+    ok(
+        &[
+            "simulate",
+            "--resume",
+            "a/checkpoint.bin",
+            "--steps",
+            "20",
+            "--frame-every",
+            "10",
+            "--set",
+            "restitution=0.5",
+            "-o",
+            "a",
+            "--backend",
+            "cpu",
+            "-q",
+        ],
+        dir.path(),
+    );
+    let (_, scene) = read_checkpoint(&dir.path().join("a/checkpoint.bin")).unwrap();
+    assert!(scene.contains("scene = \"slab\""), "{scene}");
+    assert!(scene.contains("steps = 20"), "{scene}");
+}
+
+#[test]
+fn absurd_parameters_are_refused_up_front_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "simulate",
+            "-n",
+            "100",
+            "--steps",
+            "20",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "out",
+        ];
+        args.extend(extra);
+        fails(&args, dir.path())
+    };
+    let e = run(&["--dt", "1e-30"]);
+    assert!(e.contains("derived stiffness") && e.contains("f32"), "{e}");
+    let e = run(&["--set", "gravity=[0, 0, 1e30]"]);
+    assert!(e.contains("gravity") && e.contains("single step"), "{e}");
+    // Refused before anything is written.
+    assert!(!dir.path().join("out").exists());
+}
+
+#[test]
+fn conflicting_options_are_errors_naming_both() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("good.csv"), "x,y,z,r\n0.5,0.5,0.5,0.01\n").unwrap();
+    let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/box.obj");
+    let cases: [(&[&str], [&str; 2]); 8] = [
+        (
+            &["--input", "good.csv", "--scene", "slab"],
+            ["--input", "--scene"],
+        ),
+        (
+            &["--input", "good.csv", "-n", "100"],
+            ["--input", "--spheres"],
+        ),
+        (
+            &["--input", "good.csv", "--seed", "3"],
+            ["--input", "--seed"],
+        ),
+        (&["--mesh", mesh, "--scene", "slab"], ["--mesh", "--scene"]),
+        (&["--mesh", mesh, "-n", "100"], ["--mesh", "--spheres"]),
+        (&["--set", "input=\"good.csv\""], ["--set input", "--scene"]),
+        (
+            &["--set", "mesh_copies=2"],
+            ["--set mesh_copies", "--scene"],
+        ),
+        (&["--set", "scene=\"mesh\"", "-n", "100"], ["-n", "--mesh"]),
+    ];
+    for (extra, [a, b]) in cases {
+        let mut args = vec![
+            "simulate",
+            "--steps",
+            "1",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "out",
+        ];
+        args.extend(extra);
+        let (code, _, stderr) = mochi(&args, dir.path());
+        assert!(matches!(code, Some(1 | 2)), "{extra:?}: {code:?} {stderr}");
+        assert!(stderr.starts_with("error: "), "{extra:?}: {stderr}");
+        assert!(
+            stderr.contains(a) && stderr.contains(b),
+            "{extra:?}: {stderr}"
+        );
+        assert!(!dir.path().join("out").exists(), "{extra:?} wrote output");
+    }
+    // mesh_copies of the mesh scene must be at least 1.
+    let e = fails(
+        &[
+            "simulate",
+            "--mesh",
+            mesh,
+            "--set",
+            "mesh_copies=0",
+            "-q",
+            "-o",
+            "out",
+        ],
+        dir.path(),
+    );
+    assert!(e.contains("mesh_copies must be at least 1"), "{e}");
+}
+
+#[test]
+fn step_counts_beyond_the_scene_range_get_a_range_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, _, stderr) = mochi(
+        &[
+            "simulate",
+            "--steps",
+            "18446744073709551615",
+            "-q",
+            "-o",
+            "out",
+        ],
+        dir.path(),
+    );
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("0..=9223372036854775807"), "{stderr}");
+    assert!(!stderr.contains("TOML"), "{stderr}");
+    let e = fails(
+        &[
+            "simulate",
+            "--set",
+            "steps=18446744073709551615",
+            "-q",
+            "-o",
+            "out",
+        ],
+        dir.path(),
+    );
+    assert!(
+        e.contains("outside the range") && !e.contains("TOML"),
+        "{e}"
+    );
+    assert!(!dir.path().join("out").exists());
+}
+
+#[test]
+fn a_run_of_zero_steps_claims_no_clock() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = SMALL.to_vec();
+    args.extend(["--steps", "0", "-o", "out"]);
+    let stdout = ok(&args, dir.path());
+    assert!(stdout.contains("(not measured)"), "{stdout}");
+    assert!(!stdout.contains("GPU timestamps"), "{stdout}");
+}

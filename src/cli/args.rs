@@ -162,6 +162,11 @@ pub struct GenerateArgs {
     pub output: PathBuf,
 }
 
+/// A count the scene (TOML, whose integers are i64) can hold: 0 ..= i64::MAX.
+fn toml_integer() -> clap::builder::RangedU64ValueParser {
+    clap::value_parser!(u64).range(..=i64::MAX as u64)
+}
+
 #[derive(Debug, Args)]
 pub struct SimulateArgs {
     /// Scene file (TOML; see `mochi::dem::scene`). Without it, the built-in default scene.
@@ -170,27 +175,27 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub scene: Option<String>,
     /// Number of spheres of a generated scene.
-    #[arg(short = 'n', long = "spheres", value_name = "N")]
-    pub spheres: Option<usize>,
+    #[arg(short = 'n', long = "spheres", value_name = "N", value_parser = toml_integer())]
+    pub spheres: Option<u64>,
     /// Seed of the scene generator.
-    #[arg(long)]
+    #[arg(long, value_parser = toml_integer())]
     pub seed: Option<u64>,
     /// Steps to run (in total, counting those before a --resume).
-    #[arg(long)]
+    #[arg(long, value_parser = toml_integer())]
     pub steps: Option<u64>,
     /// Time step [s] (default: the scene's).
     #[arg(long)]
     pub dt: Option<f64>,
     /// Start from a sphere file (CSV x,y,z,r or .npy N×4, optionally with vx,vy,vz: a frame
     /// CSV restarts a run) instead of a generated scene.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["scene", "spheres", "seed", "mesh"])]
     pub input: Option<PathBuf>,
     /// Fill this mesh (OBJ, PLY or STL) with spheres and drop it (scene `mesh`; see the
     /// mesh_* fields for radius, size and copies).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["scene", "spheres"])]
     pub mesh: Option<PathBuf>,
     /// Write a frame every M steps (0: none).
-    #[arg(long, value_name = "M")]
+    #[arg(long, value_name = "M", value_parser = toml_integer())]
     pub frame_every: Option<u64>,
     /// Also write every frame as CSV (x,y,z,r,vx,vy,vz).
     #[arg(long)]

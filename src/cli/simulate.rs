@@ -51,12 +51,15 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let (config, start) = match &args.resume {
         Some(path) => {
             let (particles, scene) = io::read_checkpoint(path)?;
-            let config = SceneConfig::parse(Some(&scene), Some(path), &overrides)?;
-            let start = config.start_from(particles)?;
+            let config = SceneConfig::resume(&scene, path, &overrides)
+                .with_context(|| format!("resuming {}", path.display()))?;
+            let start = config
+                .resume_from(particles)
+                .with_context(|| format!("resuming {}", path.display()))?;
             (config, start)
         }
         None => {
-            let config = SceneConfig::load(args.scene_file.as_deref(), &overrides)?;
+            let config = SceneConfig::load_new(args.scene_file.as_deref(), &overrides)?;
             let start = config.build()?;
             (config.resolved(&start), start)
         }
@@ -172,7 +175,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let checkpoint = args.out.join("checkpoint.bin");
     let started = Instant::now();
     let mut times = StageTimes::default();
-    let mut clock = Clock::Gpu;
+    let mut clock = Clock::None;
     let mut contacts = 0;
     let mut step = first;
     let due = |every: u64, s: u64| every > 0 && s.is_multiple_of(every);

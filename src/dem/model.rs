@@ -97,41 +97,70 @@ impl StepParams {
     ) -> Result<Self> {
         let bad = |what: &str| Err(Error::Usage(what.to_owned()));
         let m = &material;
-        if !(m.density.is_finite() && m.density > 0.0) {
-            return bad(&format!(
-                "density must be positive and finite, got {}",
-                m.density
-            ));
-        }
         if !(m.restitution > 0.0 && m.restitution <= 1.0) {
             return bad(&format!(
                 "restitution must be in (0, 1], got {}",
                 m.restitution
             ));
         }
-        if !(dt.is_finite() && dt > 0.0) {
-            return bad(&format!("time step must be positive and finite, got {dt}"));
+        // Every parameter is used as an f32: each must be a normal f32 number (no overflow to
+        // inf, no underflow to 0).
+        let normal = |x: f64| x > 0.0 && (x as f32).is_normal();
+        if !normal(dt) {
+            return bad(&format!(
+                "time step must be positive and within f32's range ({:e} .. {:e} s), got {dt:e}",
+                f32::MIN_POSITIVE,
+                f32::MAX
+            ));
+        }
+        if !normal(m.density) {
+            return bad(&format!(
+                "density must be positive and within f32's range, got {:e}",
+                m.density
+            ));
         }
         if gravity
             .iter()
             .chain([&gravity_spin])
-            .any(|g| !g.is_finite())
+            .any(|&g| !(g as f32).is_finite())
         {
-            return bad("gravity and its spin must be finite");
+            return bad("gravity and its spin must be finite (in f32)");
         }
-        if (0..3)
-            .any(|a| !(box_lo[a].is_finite() && box_hi[a].is_finite() && box_lo[a] < box_hi[a]))
-        {
+        let (lo32, hi32) = (box_lo.map(|x| x as f32), box_hi.map(|x| x as f32));
+        if (0..3).any(|a| !(lo32[a].is_finite() && hi32[a].is_finite() && lo32[a] < hi32[a])) {
             return bad(&format!(
-                "the box must have finite corners with lo < hi on every axis, got {box_lo:?} .. {box_hi:?}"
+                "the box must have finite corners with lo < hi on every axis (in f32), got \
+                 {box_lo:?} .. {box_hi:?}"
             ));
         }
         let zeta = damping_ratio(m.restitution);
         let m_eff = mass(m.density as f32, r_min) as f64 / 2.0;
+        if !normal(m_eff) {
+            return bad(&format!(
+                "the lightest spheres (r = {r_min:e} m, density {:e} kg/m³) have mass {:e} kg, \
+                 outside f32's range",
+                m.density,
+                2.0 * m_eff
+            ));
+        }
         let stiffness = match m.stiffness {
-            Some(k) if k.is_finite() && k > 0.0 => k,
-            Some(k) => return bad(&format!("stiffness must be positive and finite, got {k}")),
-            None => stiffness_for_duration(m_eff, m.restitution, STEPS_PER_CONTACT * dt),
+            Some(k) if normal(k) => k,
+            Some(k) => {
+                return bad(&format!(
+                    "stiffness must be positive and within f32's range, got {k:e}"
+                ));
+            }
+            None => {
+                let k = stiffness_for_duration(m_eff, m.restitution, STEPS_PER_CONTACT * dt);
+                if !normal(k) {
+                    return bad(&format!(
+                        "the derived stiffness {k:e} N/m (a {STEPS_PER_CONTACT}-step contact at \
+                         dt {dt:e} s for spheres of r = {r_min:e} m) is outside f32's range: \
+                         choose a larger dt, or give a stiffness"
+                    ));
+                }
+                k
+            }
         };
         let limit = stable_dt(stiffness, m_eff, zeta);
         if dt > limit {
@@ -141,10 +170,19 @@ impl StepParams {
                 m.density
             ));
         }
+        let g = gravity.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if g * dt * dt > r_min as f64 {
+            return bad(&format!(
+                "gravity of {g:e} m/s² moves a sphere {:e} m in a single step of {dt:e} s, more \
+                 than the smallest radius ({r_min:e} m): no contact or wall could hold it; lower \
+                 the gravity or the time step",
+                g * dt * dt
+            ));
+        }
         Ok(Self {
             dt: dt as f32,
-            box_lo: box_lo.map(|x| x as f32),
-            box_hi: box_hi.map(|x| x as f32),
+            box_lo: lo32,
+            box_hi: hi32,
             gravity: gravity.map(|x| x as f32),
             gravity_spin: gravity_spin as f32,
             stiffness: stiffness as f32,
@@ -161,25 +199,36 @@ impl StepParams {
         let g = self
             .gravity
             .iter()
-            .map(|x| (x * x) as f64)
+            .map(|&x| x as f64 * x as f64)
             .sum::<f64>()
             .sqrt();
-        let heavy = mass(self.density, r_max) as f64;
+        let volume = |r: f32| 4.0 / 3.0 * PI * (r as f64).powi(3);
+        let heavy = self.density as f64 * volume(r_max);
         let sink = heavy * g / self.stiffness as f64;
         if sink <= 0.1 * r_max as f64 {
             return None;
         }
         let k = heavy * g / (0.01 * r_max as f64);
-        let m_eff = mass(self.density, r_min) as f64 / 2.0;
+        let m_eff = self.density as f64 * volume(r_min) / 2.0;
         let zeta = self.damping_ratio as f64;
         let t_c = PI / ((k / m_eff).sqrt() * (1.0 - zeta * zeta).sqrt());
+        let dt = t_c / STEPS_PER_CONTACT;
+        // Advice only where f32 holds it.
+        let advice = if (k as f32).is_normal() && (dt as f32).is_normal() {
+            format!(
+                "for 1% use --set stiffness={k:.3e} with --dt {dt:.2e} (a 10-step contact for the lightest pair)"
+            )
+        } else {
+            format!(
+                "no stiffness and time step within f32's range keep it at 1% (that needs \
+                 stiffness {k:.3e} N/m at dt {dt:.2e} s): lower the gravity or the spread of radii"
+            )
+        };
         Some(format!(
             "the heaviest spheres (r = {r_max:e} m) would sink {:.0}% of their radius into what \
-             they rest on at stiffness {:e} N/m; for 1% use --set stiffness={k:.3e} with \
-             --dt {:.2e} (a 10-step contact for the lightest pair)",
+             they rest on at stiffness {:e} N/m; {advice}",
             100.0 * sink / r_max as f64,
             self.stiffness,
-            t_c / STEPS_PER_CONTACT
         ))
     }
 
@@ -334,6 +383,55 @@ mod tests {
             ..p
         };
         assert_eq!(stiff.overlap_warning(0.0005, 0.06), None);
+    }
+
+    #[test]
+    fn parameters_outside_f32_or_beyond_any_contact_are_refused() {
+        let m = Material::default();
+        let new = |dt: f64, lo: f64, hi: f64, g: f64, r: f32| {
+            StepParams::new(&m, dt, [lo; 3], [hi; 3], [0.0, 0.0, g], 0.0, r)
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        };
+        assert_eq!(new(1e-4, 0.0, 1.0, -9.81, 0.0005), Ok(()));
+        // A derived stiffness of about 1e52 N/m.
+        let e = new(1e-30, 0.0, 1.0, -9.81, 0.0005).unwrap_err();
+        assert!(e.contains("derived stiffness") && e.contains("f32"), "{e}");
+        let e = new(1e-50, 0.0, 1.0, -9.81, 0.0005).unwrap_err();
+        assert!(e.contains("time step"), "{e}");
+        let e = new(1e-4, 0.0, 1e39, -9.81, 0.0005).unwrap_err();
+        assert!(e.contains("box"), "{e}");
+        let e = new(1e-4, 0.0, 1.0, 1e30, 0.0005).unwrap_err();
+        assert!(e.contains("gravity") && e.contains("single step"), "{e}");
+        let e = new(1e-4, 0.0, 1.0, -9.81, 1e-20).unwrap_err();
+        assert!(e.contains("mass"), "{e}");
+        let given = Material {
+            stiffness: Some(1e40),
+            ..m
+        };
+        let e = StepParams::new(&given, 1e-4, [0.0; 3], [1.0; 3], [0.0; 3], 0.0, 0.0005)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("stiffness"), "{e}");
+    }
+
+    #[test]
+    fn the_soft_contact_advice_never_names_inf_or_a_zero_step() {
+        let under = |g: f32| {
+            let p = StepParams {
+                gravity: [0.0, 0.0, g],
+                ..params()
+            };
+            let w = p.overlap_warning(0.0005, 0.06).unwrap();
+            assert!(!w.contains("inf") && !w.contains("--dt 0"), "{w}");
+            w
+        };
+        // |g|² overflows f32, not the advice.
+        assert!(under(-1e30).contains("--set stiffness="));
+        // The stiffness for 1% overflows f32: no advice to set it.
+        let w = under(-1e37);
+        assert!(w.contains("no stiffness and time step within f32"), "{w}");
+        assert!(!w.contains("--set stiffness"), "{w}");
     }
 
     #[test]

@@ -119,6 +119,10 @@ impl Default for SceneConfig {
     }
 }
 
+/// The fields a resumed run may change: how far it runs and what it writes. Every other field
+/// is part of the run's identity and stays as its checkpoint saved it.
+pub const RESUMABLE: [&str; 3] = ["steps", "frame_every", "csv"];
+
 /// Where a scene's spheres come from.
 #[derive(Debug, Clone, Copy)]
 enum Source {
@@ -152,28 +156,106 @@ pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
     let value = value.trim();
     let parsed: toml::Value = match format!("v = {value}").parse::<toml::Table>() {
         Ok(mut t) => t.remove("v").expect("parsed the key v"),
+        Err(_) if is_integer(value) => {
+            return Err(bad(format!(
+                "{value} is outside the range of a scene integer ({} ..= {})",
+                i64::MIN,
+                i64::MAX
+            )));
+        }
         Err(_) => toml::Value::String(value.to_owned()),
     };
     table.insert(key.to_owned(), parsed);
     Ok(())
 }
 
+/// The text of a scene file (`None`: no file).
+fn read_scene_file(path: Option<&Path>) -> Result<Option<String>> {
+    path.map(|p| {
+        std::fs::read_to_string(p).map_err(|error| Error::Io {
+            path: p.to_owned(),
+            error,
+        })
+    })
+    .transpose()
+}
+
+/// Whether `text` is an integer numeral (digits after an optional sign).
+fn is_integer(text: &str) -> bool {
+    let digits = text.strip_prefix(['+', '-']).unwrap_or(text);
+    !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
+}
+
 impl SceneConfig {
     /// Reads a scene file (`None`: the defaults) and applies `overrides` (`key=value`).
     pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Self> {
-        let text = match path {
-            None => None,
-            Some(p) => Some(std::fs::read_to_string(p).map_err(|error| Error::Io {
-                path: p.to_owned(),
-                error,
-            })?),
+        Self::parse(read_scene_file(path)?.as_deref(), path, overrides)
+    }
+
+    /// Reads the scene of a new run: [`Self::load`], refusing fields given (in the file or by
+    /// an override) that the chosen scene does not use, such as `spheres` or `input` with a
+    /// `mesh` scene: each would be silently ignored.
+    pub fn load_new(path: Option<&Path>, overrides: &[String]) -> Result<Self> {
+        let text = read_scene_file(path)?;
+        let (mut config, given) = Self::parse_table(text.as_deref(), path, overrides)?;
+        config.rebase(path);
+        let source = config.source()?;
+        let scene_option = match source {
+            Source::Input => "--input/--scene",
+            Source::Mesh => "--mesh/--scene",
+            Source::Generated(_) => "--scene",
         };
-        Self::parse(text.as_deref(), path, overrides)
+        for (key, value) in &given {
+            let (used, flag) = match key.as_str() {
+                "spheres" => (matches!(source, Source::Generated(_)), "-n"),
+                "seed" => (!matches!(source, Source::Input), "--seed"),
+                "input" => (matches!(source, Source::Input), "--input"),
+                "mesh" => (matches!(source, Source::Mesh), "--mesh"),
+                k => (
+                    !k.starts_with("mesh_") || matches!(source, Source::Mesh),
+                    "",
+                ),
+            };
+            let option = match flag {
+                "" => format!("--set {key}"),
+                flag => format!("{flag}/--set {key}"),
+            };
+            if !used {
+                return Err(Error::Usage(format!(
+                    "{key} = {value} ({option}) conflicts with scene {:?} ({scene_option}): that \
+                     scene does not use {key}; give one or the other",
+                    config.scene
+                )));
+            }
+        }
+        Ok(config)
     }
 
     /// Parses scene TOML (`None`: the defaults) from `origin` (named in errors; relative input
     /// paths are taken from its folder) and applies `overrides` (`key=value`).
     pub fn parse(text: Option<&str>, origin: Option<&Path>, overrides: &[String]) -> Result<Self> {
+        let (mut config, _) = Self::parse_table(text, origin, overrides)?;
+        config.rebase(origin);
+        Ok(config)
+    }
+
+    /// Takes relative input and mesh paths from the folder of `origin`.
+    fn rebase(&mut self, origin: Option<&Path>) {
+        if let Some(dir) = origin.and_then(Path::parent) {
+            for path in [&mut self.input, &mut self.mesh].into_iter().flatten() {
+                if path.is_relative() {
+                    *path = dir.join(&*path);
+                }
+            }
+        }
+    }
+
+    /// The scene and the table of the fields the text and the overrides give.
+    fn parse_table(
+        text: Option<&str>,
+        origin: Option<&Path>,
+        overrides: &[String],
+    ) -> Result<(Self, toml::Table)> {
         let where_ = || origin.map_or_else(|| "command line".into(), Path::to_owned);
         let mut table = match text {
             None => toml::Table::new(),
@@ -196,19 +278,36 @@ impl SceneConfig {
                 merged.as_str()
             }
         };
-        let mut config: SceneConfig = toml::from_str(source).map_err(|e| Error::Parse {
+        let config: SceneConfig = toml::from_str(source).map_err(|e| Error::Parse {
             path: where_(),
             line: None,
             msg: e.to_string().trim_end().to_owned(),
         })?;
-        if let Some(dir) = origin.and_then(Path::parent) {
-            for path in [&mut config.input, &mut config.mesh].into_iter().flatten() {
-                if path.is_relative() {
-                    *path = dir.join(&*path);
-                }
-            }
+        Ok((config, table))
+    }
+
+    /// The scene saved in the checkpoint `origin` (`saved`, its TOML) with `overrides` applied.
+    /// A resumed run keeps its identity: only the fields of [`RESUMABLE`] may change; any other
+    /// override that changes a value is refused, naming the field. Paths stay as saved.
+    pub fn resume(saved: &str, origin: &Path, overrides: &[String]) -> Result<Self> {
+        let (before, _) = Self::parse_table(Some(saved), Some(origin), &[])?;
+        let (after, _) = Self::parse_table(Some(saved), Some(origin), overrides)?;
+        let fields = |c: &SceneConfig| toml::Table::try_from(c).expect("a scene serializes");
+        let (was, now) = (fields(&before), fields(&after));
+        let mut keys = was
+            .keys()
+            .chain(now.keys().filter(|k| !was.contains_key(*k)));
+        let changed = keys.find(|k| !RESUMABLE.contains(&k.as_str()) && was.get(*k) != now.get(*k));
+        if let Some(key) = changed {
+            let saved = was.get(key).map_or("unset".into(), ToString::to_string);
+            return Err(Error::Usage(format!(
+                "--set {key}: a resumed run keeps the scene of its checkpoint ({key} = {saved}); \
+                 only {} may change on --resume. To change {key}, start a new run from the last \
+                 frame (--input OUT/frame_<step>.csv)",
+                RESUMABLE.join(", ")
+            )));
         }
-        Ok(config)
+        Ok(after)
     }
 
     /// This scene as TOML (saved in checkpoints).
@@ -259,26 +358,45 @@ impl SceneConfig {
                 if let Some(v) = velocities {
                     particles.velocities = v;
                 }
-                return Self::inside_the_box(self.start_from(particles)?);
+                return Self::inside_the_box(self.start_from(particles)?, 0.0);
             }
         };
-        Self::inside_the_box(self.start_from(Particles::at_rest(&spheres))?)
+        Self::inside_the_box(self.start_from(Particles::at_rest(&spheres))?, 0.0)
     }
 
-    /// `start`, if every centre lies in its box (checked at t = 0 only: a running simulation
-    /// may push a sphere partly through a soft wall, and a checkpoint of it must still resume).
-    fn inside_the_box(start: Start) -> Result<Start> {
+    /// The start of a run resumed from a checkpoint of this scene: `particles` pass the checks
+    /// of a fresh run's input (finite values, valid radii, the size limits) and the parameters
+    /// those of a fresh run. A centre may lie outside the box, as soft walls let spheres sink
+    /// into them (with a soft stiffness, by more than a radius), but by no more than the box's
+    /// own extent along that axis.
+    pub fn resume_from(&self, particles: Particles) -> Result<Start> {
+        particles.validate()?;
+        SphereSet::new(particles.positions.clone(), particles.radii.clone())?;
+        Self::inside_the_box(self.start_from(particles)?, 1.0)
+    }
+
+    /// `start`, if every centre lies in its box widened by `slack` times its extent on every
+    /// side (0 at t = 0).
+    fn inside_the_box(start: Start, slack: f32) -> Result<Start> {
         let (lo, hi) = (start.params.box_lo, start.params.box_hi);
+        let grown: [(f32, f32); 3] = std::array::from_fn(|a| {
+            let margin = slack * (hi[a] - lo[a]);
+            (lo[a] - margin, hi[a] + margin)
+        });
         let outside = start
             .particles
             .positions
             .iter()
-            .position(|c| (0..3).any(|a| !(lo[a]..=hi[a]).contains(&c[a])));
+            .position(|c| (0..3).any(|a| !(grown[a].0..=grown[a].1).contains(&c[a])));
         if let Some(index) = outside {
+            let far = match slack > 0.0 {
+                true => ", farther out than the box's own size",
+                false => "",
+            };
             return Err(Error::InvalidSphere {
                 index,
                 reason: format!(
-                    "centre {:?} is outside the box {lo:?} .. {hi:?}",
+                    "centre {:?} is outside the box {lo:?} .. {hi:?}{far}",
                     start.particles.positions[index]
                 ),
             });
@@ -287,20 +405,23 @@ impl SceneConfig {
     }
 
     /// Copies per row and layers of the `mesh` scene, and the side of its cell per copy.
-    fn mesh_layout(&self) -> (u32, u32, f64) {
-        let copies = self.mesh_copies.max(1);
+    fn mesh_layout(&self) -> Result<(u32, u32, f64)> {
+        let copies = self.mesh_copies;
+        if copies == 0 {
+            return Err(Error::Usage("mesh_copies must be at least 1, got 0".into()));
+        }
         let per_row = (copies as f64).sqrt().ceil() as u32;
         // Spheres reach past the mesh by up to their radius: keep 4.4 radii between copies.
         let cell = self.mesh_size * 1.05 + 4.4 * self.mesh_radius as f64;
-        (per_row, copies.div_ceil(per_row * per_row), cell)
+        Ok((per_row, copies.div_ceil(per_row * per_row), cell))
     }
 
     /// The `mesh` scene's box side: the unit cube, or larger to hold every copy.
-    fn mesh_box_side(&self) -> f64 {
-        let (per_row, layers, cell) = self.mesh_layout();
-        (per_row as f64 * cell)
+    fn mesh_box_side(&self) -> Result<f64> {
+        let (per_row, layers, cell) = self.mesh_layout()?;
+        Ok((per_row as f64 * cell)
             .max(layers as f64 * cell + 2.2 * self.mesh_radius as f64)
-            .max(1.0)
+            .max(1.0))
     }
 
     /// Fills the mesh (or the torus) and places the copies on the floor of the box, side by side.
@@ -312,6 +433,7 @@ impl SceneConfig {
                 self.mesh_size
             )));
         }
+        let (per_row, _, cell) = self.mesh_layout()?;
         let mesh = match &self.mesh {
             Some(path) => crate::mesh::load(path)?,
             None => crate::mesh::torus(1.0, 0.4, 64, 32),
@@ -330,10 +452,9 @@ impl SceneConfig {
             seed: self.seed,
         };
         let (one_c, one_r) = crate::mesh::fill(&shape, &spec)?;
-        let (per_row, _, cell) = self.mesh_layout();
-        let side = self.mesh_box_side();
+        let side = self.mesh_box_side()?;
         let edge = (side - per_row as f64 * cell) / 2.0 + (cell - size) / 2.0;
-        let copies = self.mesh_copies.max(1) as usize;
+        let copies = self.mesh_copies as usize;
         let total = one_c.len().saturating_mul(copies);
         if total > crate::MAX_SPHERES {
             return Err(Error::TooLarge {
@@ -375,7 +496,7 @@ impl SceneConfig {
                 let side = scene.box_side(particles.len(), Layout::Lattice);
                 ([0.0; 3], [side; 3])
             }
-            Source::Mesh => ([0.0; 3], [self.mesh_box_side(); 3]),
+            Source::Mesh => ([0.0; 3], [self.mesh_box_side()?; 3]),
             // A file: its bounds with a margin of two largest diameters.
             Source::Input => {
                 match SphereSet::new(particles.positions.clone(), particles.radii.clone())?.bounds()
@@ -464,6 +585,8 @@ mod tests {
             e.to_string().contains("spheres") || e.to_string().contains("-3"),
             "{e}"
         );
+        let e = SceneConfig::load(None, &["steps=18446744073709551615".into()]).unwrap_err();
+        assert!(e.to_string().contains("outside the range"), "{e}");
         let e = SceneConfig::load(None, &["no equals sign".into()]).unwrap_err();
         assert!(e.to_string().contains("key=value"), "{e}");
         let c = SceneConfig::load(None, &["scene=teapot".into()]).unwrap();

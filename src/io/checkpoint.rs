@@ -1,8 +1,9 @@
 //! Checkpoints: the particles, the step count and the scene (as TOML) in one little-endian
 //! binary file, written atomically so the file on disk is always a whole checkpoint.
 //!
-//! Layout: `MOCHICKP`, version u32 (1), step u64, n u64, scene length u64, scene TOML (UTF-8),
-//! then n·3 f32 positions, n·3 f32 velocities, n f32 radii.
+//! Layout: `MOCHICKP`, version u32 (2), step u64, n u64, scene length u64, scene TOML (UTF-8),
+//! then n·3 f32 positions, n·3 f32 velocities, n f32 radii, and last the CRC-32 (u32) of every
+//! byte before it: a damaged file is refused rather than resumed.
 
 use super::{io_error, write_atomically};
 use crate::dem::Particles;
@@ -10,26 +11,27 @@ use crate::error::{Error, Result};
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"MOCHICKP";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 
 /// Writes `particles` and `scene` (TOML) to `path`, atomically.
 pub fn write_checkpoint(path: &Path, particles: &Particles, scene: &str) -> Result<()> {
-    write_atomically(path, |out| {
-        out.write_all(MAGIC)?;
-        out.write_all(&VERSION.to_le_bytes())?;
-        out.write_all(&particles.step.to_le_bytes())?;
-        out.write_all(&(particles.len() as u64).to_le_bytes())?;
-        out.write_all(&(scene.len() as u64).to_le_bytes())?;
-        out.write_all(scene.as_bytes())?;
-        let floats = particles
-            .positions
-            .iter()
-            .flatten()
-            .chain(particles.velocities.iter().flatten())
-            .chain(&particles.radii);
-        let bytes: Vec<u8> = floats.flat_map(|x| x.to_le_bytes()).collect();
-        out.write_all(&bytes)
-    })
+    let floats = particles
+        .positions
+        .iter()
+        .flatten()
+        .chain(particles.velocities.iter().flatten())
+        .chain(&particles.radii);
+    let mut bytes = Vec::with_capacity(40 + scene.len() + 28 * particles.len() + 4);
+    bytes.extend_from_slice(MAGIC);
+    bytes.extend_from_slice(&VERSION.to_le_bytes());
+    bytes.extend_from_slice(&particles.step.to_le_bytes());
+    bytes.extend_from_slice(&(particles.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(&(scene.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(scene.as_bytes());
+    bytes.extend(floats.flat_map(|x| x.to_le_bytes()));
+    let crc = crc32fast::hash(&bytes);
+    bytes.extend_from_slice(&crc.to_le_bytes());
+    write_atomically(path, |out| out.write_all(&bytes))
 }
 
 /// Reads a checkpoint: the particles and the scene TOML it was saved with.
@@ -56,28 +58,40 @@ pub fn read_checkpoint(path: &Path) -> Result<(Particles, String)> {
     let u64_at = |s: &[u8]| u64::from_le_bytes(s.try_into().expect("8 bytes"));
     let version = u32::from_le_bytes(take(4, "version")?.try_into().expect("4 bytes"));
     if version != VERSION {
+        let age = if version < VERSION {
+            "an older"
+        } else {
+            "a newer"
+        };
         return Err(bad(format!(
-            "checkpoint version {version}; this mochi reads version {VERSION}"
+            "checkpoint version {version} is from {age} mochi; this one reads version {VERSION} \
+             (restart from the run's last frame with --input)"
         )));
     }
     let step = u64_at(take(8, "step")?);
     let n = u64_at(take(8, "sphere count")?);
     let scene_len = u64_at(take(8, "scene length")?);
     let scene = take(scene_len.try_into().unwrap_or(usize::MAX), "scene")?;
-    let scene = std::str::from_utf8(scene)
-        .map_err(|_| bad("the scene is not UTF-8".into()))?
-        .to_owned();
     let floats = n
         .checked_mul(7 * 4)
         .and_then(|b| usize::try_from(b).ok())
         .ok_or_else(|| bad(format!("{n} spheres cannot fit in memory")))?;
     let data = take(floats, "sphere data")?;
+    let stored = u32::from_le_bytes(take(4, "checksum")?.try_into().expect("4 bytes"));
     if at != bytes.len() {
         return Err(bad(format!(
             "{} unexpected bytes at the end",
             bytes.len() - at
         )));
     }
+    if crc32fast::hash(&bytes[..at - 4]) != stored {
+        return Err(bad(
+            "checksum mismatch: the checkpoint is damaged (resume from an intact copy)".into(),
+        ));
+    }
+    let scene = std::str::from_utf8(scene)
+        .map_err(|_| bad("the scene is not UTF-8".into()))?
+        .to_owned();
     let values: Vec<f32> = data
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
@@ -147,10 +161,43 @@ mod tests {
                 .to_string()
                 .contains("unexpected")
         );
-        let mut nan = whole;
-        let at = nan.len() - 4 * 9; // first velocity component of sphere 0... a position
-        nan[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        // A NaN with a valid checksum: refused by the value checks.
+        let mut nan = whole[..whole.len() - 4].to_vec();
+        let first_position = nan.len() - 4 * 14;
+        nan[first_position..first_position + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        let crc = crc32fast::hash(&nan);
+        nan.extend_from_slice(&crc.to_le_bytes());
         std::fs::write(&path, &nan).unwrap();
-        assert!(read_checkpoint(&path).is_err());
+        let e = read_checkpoint(&path).unwrap_err().to_string();
+        assert!(e.contains("non-finite"), "{e}");
+    }
+
+    #[test]
+    fn a_flipped_bit_anywhere_is_caught_by_the_checksum() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        write_checkpoint(&path, &sample(), "scene = \"slab\"\n").unwrap();
+        let whole = std::fs::read(&path).unwrap();
+        // The step, the scene and the data (damage to the magic, version or a length reads as
+        // a foreign, older or truncated file).
+        for at in (12..20).chain(36..whole.len()) {
+            let mut flipped = whole.clone();
+            flipped[at] ^= 0x10;
+            std::fs::write(&path, &flipped).unwrap();
+            let e = read_checkpoint(&path).unwrap_err().to_string();
+            assert!(e.contains("checksum mismatch"), "byte {at}: {e}");
+        }
+    }
+
+    #[test]
+    fn an_older_checkpoint_version_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        write_checkpoint(&path, &sample(), "x").unwrap();
+        let mut old = std::fs::read(&path).unwrap();
+        old[8..12].copy_from_slice(&1u32.to_le_bytes());
+        std::fs::write(&path, &old).unwrap();
+        let e = read_checkpoint(&path).unwrap_err().to_string();
+        assert!(e.contains("version 1 is from an older mochi"), "{e}");
     }
 }

@@ -1,8 +1,10 @@
 //! Reading simulation frames back: the `.vtu` files [`super::write_vtu`] writes (raw appended
 //! binary, `UInt64` block headers) and the frame CSVs (`x,y,z,r,vx,vy,vz`, or any sphere file).
 
+use super::spheres::check_velocity;
 use super::{Format, io_error, parse_error, read_particles};
 use crate::error::Result;
+use crate::spheres::check_sphere;
 use std::path::Path;
 
 /// One frame read from a file, owning its data. The three vectors are parallel.
@@ -66,6 +68,19 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     if !header.contains(r#"header_type="UInt64""#) {
         return Err(bad("only header_type=\"UInt64\" is read".into()));
     }
+    let big_endian = match attribute_after(header, "<VTKFile", "byte_order") {
+        Some("LittleEndian") | None => false,
+        Some("BigEndian") => true,
+        Some(other) => return Err(bad(format!("unknown byte_order {other:?}"))),
+    };
+    let u64_of = |b: [u8; 8]| match big_endian {
+        true => u64::from_be_bytes(b),
+        false => u64::from_le_bytes(b),
+    };
+    let f32_of = |b: [u8; 4]| match big_endian {
+        true => f32::from_be_bytes(b),
+        false => f32::from_le_bytes(b),
+    };
     let n: usize = attribute_after(header, "<Piece", "NumberOfPoints")
         .and_then(|v| v.parse().ok())
         .ok_or_else(|| bad("no NumberOfPoints in <Piece>".into()))?;
@@ -85,7 +100,7 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
             .checked_add(8)
             .and_then(|start| data.get(offset..start))
             .ok_or_else(|| bad(format!("{name}: the data ends before its block")))?;
-        let len = u64::from_le_bytes(block.try_into().expect("8 bytes"));
+        let len = u64_of(block.try_into().expect("8 bytes"));
         if len != want as u64 {
             return Err(bad(format!("{name}: {len} bytes, expected {want}")));
         }
@@ -94,7 +109,7 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
             .ok_or_else(|| bad(format!("{name}: the file ends inside the block")))?;
         Ok(values
             .chunks_exact(4)
-            .map(|b| f32::from_le_bytes(b.try_into().expect("4 bytes")))
+            .map(|b| f32_of(b.try_into().expect("4 bytes")))
             .collect())
     };
     let points = array("Points", 3)?;
@@ -102,6 +117,13 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     let velocity = array("velocity", 3)?;
     let triples =
         |v: Vec<f32>| -> Vec<[f32; 3]> { v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() };
+    let (points, velocity) = (triples(points), triples(velocity));
+    // The rules of a sphere file, so that every reader of a frame gets valid spheres.
+    for (i, ((c, &r), v)) in points.iter().zip(&radii).zip(&velocity).enumerate() {
+        check_sphere(c, r)
+            .and_then(|()| check_velocity(v))
+            .map_err(|m| bad(format!("point {i} (0-based): {m}")))?;
+    }
     let field = |name: &str| {
         let start = header.find(&format!(r#"Name="{name}""#))?;
         let open = start + header[start..].find('>')? + 1;
@@ -111,9 +133,9 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     Ok(OwnedFrame {
         step: field("step").and_then(|v| v.parse().ok()),
         time: field("TimeValue").and_then(|v| v.parse().ok()),
-        positions: triples(points),
+        positions: points,
         radii,
-        velocities: triples(velocity),
+        velocities: velocity,
     })
 }
 
@@ -186,6 +208,92 @@ mod tests {
         let got = read_frame(&csv).unwrap();
         assert_eq!((got.step, got.time), (Some(42), None));
         assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
+    }
+
+    /// `bytes` (a little-endian `.vtu` of [`write_vtu`]) with every appended block and its
+    /// length in big-endian order, as `byte_order="BigEndian"` declares.
+    fn to_big_endian(bytes: &[u8]) -> Vec<u8> {
+        let at = find(bytes, APPENDED).unwrap();
+        let header = std::str::from_utf8(&bytes[..at]).unwrap();
+        let data_start = at + bytes[at..].iter().position(|&b| b == b'_').unwrap() + 1;
+        let mut out = bytes.to_vec();
+        let mut rest = 0;
+        while let Some(found) = header[rest..].find("<DataArray") {
+            let start = rest + found;
+            let end = start + header[start..].find('>').unwrap();
+            let element = &header[start + "<DataArray".len()..end];
+            rest = end;
+            let Some(offset) = attribute(element, "offset") else {
+                continue; // an ascii array
+            };
+            let size = match attribute(element, "type").unwrap() {
+                "Float32" | "Int32" | "UInt32" => 4,
+                "Float64" | "Int64" | "UInt64" => 8,
+                "UInt8" | "Int8" => 1,
+                other => panic!("type {other}"),
+            };
+            let block = data_start + offset.parse::<usize>().unwrap();
+            let len = u64::from_le_bytes(bytes[block..block + 8].try_into().unwrap()) as usize;
+            out[block..block + 8].reverse();
+            for value in out[block + 8..block + 8 + len].chunks_exact_mut(size) {
+                value.reverse();
+            }
+        }
+        with_byte_order(&out, "BigEndian")
+    }
+
+    /// `bytes` (a `.vtu` of [`write_vtu`]) declaring `byte_order="{order}"`.
+    fn with_byte_order(bytes: &[u8], order: &str) -> Vec<u8> {
+        let at = find(bytes, APPENDED).unwrap();
+        let header = std::str::from_utf8(&bytes[..at]).unwrap();
+        let changed = header.replacen(
+            r#"byte_order="LittleEndian""#,
+            &format!(r#"byte_order="{order}""#),
+            1,
+        );
+        assert_ne!(changed, header);
+        [changed.as_bytes(), &bytes[at..]].concat()
+    }
+
+    #[test]
+    fn a_big_endian_vtu_reads_the_same_values() {
+        let (p, r, v) = frame();
+        let f = Frame {
+            time: 0.5,
+            step: 7,
+            positions: &p,
+            radii: &r,
+            velocities: &v,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let vtu = dir.path().join("le.vtu");
+        write_vtu(&vtu, &f).unwrap();
+        let big = dir.path().join("be.vtu");
+        std::fs::write(&big, to_big_endian(&std::fs::read(&vtu).unwrap())).unwrap();
+        let got = read_frame(&big).unwrap();
+        assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
+        let odd = with_byte_order(&std::fs::read(&vtu).unwrap(), "MiddleEndian");
+        std::fs::write(&vtu, odd).unwrap();
+        let e = read_frame(&vtu).unwrap_err().to_string();
+        assert!(e.contains("byte_order"), "{e}");
+    }
+
+    #[test]
+    fn a_vtu_with_a_bad_sphere_is_an_error_naming_the_file_and_point() {
+        let (p, mut r, v) = frame();
+        r[1] = f32::NAN;
+        let f = Frame {
+            time: 0.0,
+            step: 1,
+            positions: &p,
+            radii: &r,
+            velocities: &v,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let vtu = dir.path().join("nan.vtu");
+        write_vtu(&vtu, &f).unwrap();
+        let e = read_frame(&vtu).unwrap_err().to_string();
+        assert!(e.contains("nan.vtu") && e.contains("point 1"), "{e}");
     }
 
     #[test]

@@ -32,7 +32,7 @@ pub fn read_particles(path: &Path) -> Result<(SphereSet, Option<Vec<[f32; 3]>>)>
 }
 
 /// Checks a velocity row.
-fn check_velocity(v: &[f32; 3]) -> std::result::Result<(), String> {
+pub(super) fn check_velocity(v: &[f32; 3]) -> std::result::Result<(), String> {
     match v.iter().all(|x| x.is_finite()) {
         true => Ok(()),
         false => Err(format!("velocity {v:?} is not finite")),
@@ -98,6 +98,8 @@ fn read_csv(path: &Path) -> Result<Rows> {
             }
         }
     };
+    // A byte-order mark (as spreadsheet programs write) opens the text, not the header.
+    let header = (header.0, header.1.trim_start_matches('\u{feff}').to_owned());
     let fields: Vec<String> = header
         .1
         .split(',')

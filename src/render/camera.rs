@@ -45,17 +45,18 @@ impl Camera {
 
     /// Checks that the camera can form a picture.
     pub fn validate(&self) -> Result<()> {
-        let finite = self.eye.iter().chain(&self.look_at).all(|x| x.is_finite());
-        if !finite {
-            return Err(Error::Usage(
-                "camera: eye and look-at must be finite".into(),
-            ));
-        }
+        // The field of view first: the default eye stands at a distance derived from it.
         if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
             return Err(Error::Usage(format!(
                 "camera: field of view {}° is not in (0, 180)",
                 self.fov_deg
             )));
+        }
+        let finite = self.eye.iter().chain(&self.look_at).all(|x| x.is_finite());
+        if !finite {
+            return Err(Error::Usage(
+                "camera: eye and look-at must be finite".into(),
+            ));
         }
         if norm(sub(self.look_at, self.eye)) == 0.0 {
             return Err(Error::Usage("camera: eye and look-at coincide".into()));
@@ -182,6 +183,17 @@ mod tests {
         assert!(parse_size("9000x10").is_err());
         assert_eq!(parse_point("1,2.5,-3").unwrap(), [1.0, 2.5, -3.0]);
         assert!(parse_point("1,2").is_err() && parse_point("1,x,2").is_err());
+    }
+
+    #[test]
+    fn a_field_of_view_out_of_range_is_named_as_such() {
+        for fov in [0.0, 180.0, -5.0, f64::NAN] {
+            let e = Camera::framing([0.0; 3], [1.0; 3], 4.0 / 3.0, fov)
+                .validate()
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("field of view"), "{fov}: {e}");
+        }
     }
 
     #[test]
