@@ -1097,7 +1097,13 @@ fn output_through_a_symlink_replaces_the_file_it_names() {
     let dangling = d.join("dangling.csv");
     std::os::unix::fs::symlink(d.join("real/new.csv"), &dangling).unwrap();
     detect(&input, &dangling, &["--backend", "cpu"]);
-    assert!(dangling.symlink_metadata().unwrap().file_type().is_symlink());
+    assert!(
+        dangling
+            .symlink_metadata()
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
     assert_eq!(read(&d.join("real/new.csv")), b"i,j\n0,1\n");
     assert_eq!(leftover_temp_files(d), Vec::<String>::new());
     assert_eq!(leftover_temp_files(&d.join("real")), Vec::<String>::new());
@@ -1154,6 +1160,76 @@ fn output_to_a_device_is_written_through() {
     };
     detect(&input, &device, &["--backend", "cpu"]);
     let kind = device.symlink_metadata().unwrap().file_type();
-    assert!(kind.is_char_device(), "{} is now {kind:?}", device.display());
+    assert!(
+        kind.is_char_device(),
+        "{} is now {kind:?}",
+        device.display()
+    );
     assert_eq!(leftover_temp_files(d), Vec::<String>::new());
+}
+
+/// An output that is the input (by another spelling or through a link) is refused before
+/// anything is written, and the input is kept.
+#[test]
+fn an_output_that_is_an_input_is_refused() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let input = d.join("same.csv");
+    write_file(&input, TWO_TOUCHING);
+    let rdir = d.join("rdir");
+    std::fs::create_dir(&rdir).unwrap();
+    let frame = rdir.join("frame_00000000.csv");
+    write_file(&frame, TWO_TOUCHING);
+    let respelled = d.join("rdir/../same.csv");
+    let cases: Vec<Vec<&OsStr>> = vec![
+        vec![OsStr::new("detect"), p(&input), OsStr::new("-o"), p(&input)],
+        vec![
+            OsStr::new("detect"),
+            p(&input),
+            OsStr::new("-o"),
+            p(&respelled),
+        ],
+        vec![
+            OsStr::new("render"),
+            p(&input),
+            OsStr::new("-o"),
+            p(&respelled),
+        ],
+        vec![
+            OsStr::new("render"),
+            p(&input),
+            OsStr::new("--gif"),
+            p(&input),
+        ],
+        vec![
+            OsStr::new("render"),
+            p(&rdir),
+            OsStr::new("--gif"),
+            p(&frame),
+        ],
+    ];
+    for mut args in cases {
+        args.extend(["--renderer", "cpu", "--size", "16x12"].map(OsStr::new));
+        if args[0] == "detect" {
+            args.truncate(4);
+            args.extend(["--backend", "cpu"].map(OsStr::new));
+        }
+        let run = mochi(&args);
+        run.assert_failure();
+        let line = run.single_error_line();
+        assert!(line.contains("is the input file"), "{args:?}: {line}");
+        assert_eq!(read(&input), TWO_TOUCHING, "{args:?}");
+        assert_eq!(read(&frame), TWO_TOUCHING, "{args:?}");
+        assert_eq!(leftover_temp_files(d), Vec::<String>::new());
+        assert_eq!(leftover_temp_files(&rdir), Vec::<String>::new());
+    }
+    #[cfg(unix)]
+    {
+        let link = d.join("link.csv");
+        std::os::unix::fs::symlink("same.csv", &link).unwrap();
+        let run = mochi([OsStr::new("detect"), p(&input), OsStr::new("-o"), p(&link)]);
+        run.assert_failure();
+        assert!(run.single_error_line().contains("is the input file"));
+        assert_eq!(read(&input), TWO_TOUCHING);
+    }
 }

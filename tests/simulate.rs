@@ -287,3 +287,267 @@ fn bad_scenes_give_clear_errors() {
     );
     assert!(e.contains("restitution"), "{e}");
 }
+
+// ----------------------------------------------------------------------------------------------
+// The output folder: nothing of an earlier run or of an input is lost
+// ----------------------------------------------------------------------------------------------
+
+/// Every file in `dir` (not the lock file) with its contents, in name order.
+fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap())
+        .filter(|e| e.file_name() != mochi::io::LOCK_FILE)
+        .map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            (name, std::fs::read(e.path()).unwrap())
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// A short run of 300 spheres into `out` with frames every 10 steps (as CSV too).
+fn short_run(out: &str, extra: &[&str]) -> Vec<String> {
+    let mut args = vec![
+        "simulate",
+        "--scene",
+        "slab",
+        "-n",
+        "300",
+        "--steps",
+        "20",
+        "--frame-every",
+        "10",
+        "--csv",
+        "--backend",
+        "cpu",
+        "-q",
+        "-o",
+        out,
+    ];
+    args.extend(extra);
+    args.into_iter().map(String::from).collect()
+}
+
+fn strs(args: &[String]) -> Vec<&str> {
+    args.iter().map(String::as_str).collect()
+}
+
+#[test]
+fn a_folder_holding_a_run_is_refused_unless_overwrite_which_removes_only_its_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&strs(&short_run("prev", &[])), d);
+    std::fs::write(d.join("prev/notes.txt"), "mine").unwrap();
+    let before = snapshot(&d.join("prev"));
+
+    // A run that fails its checks (a bad picture size) changes nothing.
+    for extra in [&[][..], &["--overwrite"]] {
+        let mut bad = short_run("prev", &["--render-every", "5", "--size", "0x0"]);
+        bad.extend(extra.iter().map(|a| a.to_string()));
+        let e = fails(&strs(&bad), d);
+        assert!(e.contains("0x0"), "{e}");
+        assert_eq!(snapshot(&d.join("prev")), before, "{extra:?}");
+    }
+
+    // A valid run into the folder is refused: it holds a run.
+    let again = short_run("prev", &["--seed", "2"]);
+    let e = fails(&strs(&again), d);
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(
+        e.contains("prev holds an earlier run") && e.contains("--overwrite"),
+        "{e}"
+    );
+    assert_eq!(snapshot(&d.join("prev")), before);
+
+    // --overwrite: the old run's files go (frame 10 and the CSVs are not written again), the
+    // other files stay.
+    let mut overwrite = again.clone();
+    overwrite.retain(|a| a != "--csv");
+    let every = overwrite.iter().position(|a| a == "--frame-every").unwrap();
+    overwrite[every + 1] = "20".into();
+    overwrite.push("--overwrite".into());
+    ok(&strs(&overwrite), d);
+    let names: Vec<String> = snapshot(&d.join("prev")).into_iter().map(|f| f.0).collect();
+    assert_eq!(
+        names,
+        [
+            "checkpoint.bin",
+            "frame_00000000.vtu",
+            "frame_00000020.vtu",
+            "notes.txt",
+            "scene.toml",
+            "series.pvd"
+        ]
+    );
+    assert_eq!(std::fs::read(d.join("prev/notes.txt")).unwrap(), b"mine");
+    let (code, _, e) = mochi(
+        &["simulate", "--overwrite", "--resume", "prev/checkpoint.bin"],
+        d,
+    );
+    assert_eq!(code, Some(2), "a resumed run keeps its files: {e}");
+}
+
+#[test]
+fn an_input_among_the_files_a_run_writes_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&strs(&short_run("ow", &[])), d);
+    let before = snapshot(&d.join("ow"));
+    for extra in [&[][..], &["--overwrite"]] {
+        let mut args: Vec<&str> = vec![
+            "simulate",
+            "--input",
+            "ow/frame_00000010.csv",
+            "--set",
+            "box_lo=[0,0,0]",
+            "--set",
+            "box_hi=[1,1,1]",
+            "--steps",
+            "10",
+            "--csv",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "./ow/",
+        ];
+        args.extend(extra);
+        let e = fails(&args, d);
+        assert_eq!(e.lines().count(), 1, "{e}");
+        assert!(
+            e.contains("ow/frame_00000010.csv lies in the output folder"),
+            "{e}"
+        );
+        assert_eq!(snapshot(&d.join("ow")), before, "{extra:?}");
+    }
+    // A GIF may not take the place of an input either.
+    std::fs::copy(d.join("ow/frame_00000010.csv"), d.join("start.csv")).unwrap();
+    let e = fails(
+        &[
+            "simulate",
+            "--input",
+            "start.csv",
+            "--set",
+            "box_lo=[0,0,0]",
+            "--set",
+            "box_hi=[1,1,1]",
+            "--steps",
+            "10",
+            "--render-every",
+            "10",
+            "--size",
+            "16x12",
+            "--renderer",
+            "cpu",
+            "--gif",
+            "start.csv",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "new",
+        ],
+        d,
+    );
+    assert!(e.contains("--gif start.csv is the input file"), "{e}");
+    assert!(!d.join("new").exists());
+}
+
+#[test]
+fn a_folder_another_run_holds_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let other = mochi::io::RunFolder::lock(&d.join("busy")).unwrap();
+    let e = fails(&strs(&short_run("busy", &[])), d);
+    assert!(
+        e.contains("busy: another mochi run is writing into this folder"),
+        "{e}"
+    );
+    assert!(snapshot(&d.join("busy")).is_empty());
+    drop(other);
+    ok(&strs(&short_run("busy", &[])), d);
+    // The run's lock ended with it.
+    mochi::io::RunFolder::lock(&d.join("busy")).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn temporary_files_of_killed_writers_are_removed_when_a_run_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("out")).unwrap();
+    // A child that has exited and been reaped: its pid names no process.
+    let mut child = Command::new("true").spawn().unwrap();
+    let gone = child.id();
+    child.wait().unwrap();
+    let stale = format!(".mochi-{gone}-a1b2c3");
+    let live = format!(".mochi-{}-d4e5f6", std::process::id());
+    for name in [&stale, &live] {
+        std::fs::write(d.join("out").join(name), "partial").unwrap();
+        std::fs::write(d.join(name), "partial").unwrap();
+    }
+    ok(&strs(&short_run("out", &[])), d);
+    assert!(!d.join("out").join(&stale).exists());
+    assert!(
+        d.join("out").join(&live).exists(),
+        "a live writer's file was removed"
+    );
+    // `generate` cleans its output's folder too.
+    ok(&["generate", "-n", "10", "-o", "spheres.csv"], d);
+    assert!(!d.join(&stale).exists());
+    assert!(d.join(&live).exists());
+}
+
+#[test]
+fn gif_problems_are_found_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let e = fails(
+        &strs(&short_run(
+            "out",
+            &[
+                "--render-every",
+                "10",
+                "--size",
+                "16x12",
+                "--renderer",
+                "cpu",
+                "--gif",
+                "missing/run.gif",
+            ],
+        )),
+        d,
+    );
+    assert!(
+        e.contains("--gif missing/run.gif: the folder missing does not exist"),
+        "{e}"
+    );
+    assert!(!d.join("out").exists());
+    let e = fails(&strs(&short_run("out", &["--gif", "run.gif"])), d);
+    assert!(e.contains("--gif run.gif needs --render-every"), "{e}");
+    assert!(!d.join("out").exists());
+    // In the output folder, which the run creates, a GIF is fine.
+    ok(
+        &strs(&short_run(
+            "out",
+            &[
+                "--render-every",
+                "10",
+                "--size",
+                "16x12",
+                "--renderer",
+                "cpu",
+                "--gif",
+                "out/run.gif",
+            ],
+        )),
+        d,
+    );
+    assert!(
+        std::fs::read(d.join("out/run.gif"))
+            .unwrap()
+            .starts_with(b"GIF89a")
+    );
+}

@@ -243,7 +243,9 @@ mod tests {
         let gone = child.id();
         child.wait().unwrap();
         let stale = dir.path().join(format!(".mochi-{gone}-aaaaaa"));
-        let live = dir.path().join(format!(".mochi-{}-bbbbbb", std::process::id()));
+        let live = dir
+            .path()
+            .join(format!(".mochi-{}-bbbbbb", std::process::id()));
         let legacy = dir.path().join(".mochi-cccccc");
         let foreign = dir.path().join("frame_00000000.vtu");
         for path in [&stale, &live, &legacy, &foreign] {
