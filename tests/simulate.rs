@@ -456,6 +456,34 @@ fn an_input_among_the_files_a_run_writes_is_refused() {
 }
 
 #[test]
+fn a_resume_with_a_broken_index_changes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&strs(&short_run("run", &[])), d);
+    std::fs::write(d.join("run/series.pvd"), "<VTKFile>not an index").unwrap();
+    let before = snapshot(&d.join("run"));
+    let e = fails(
+        &[
+            "simulate",
+            "--resume",
+            "run/checkpoint.bin",
+            "--steps",
+            "40",
+            "--set",
+            "restitution=0.7",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "run",
+        ],
+        d,
+    );
+    assert!(e.contains("series.pvd"), "{e}");
+    assert_eq!(snapshot(&d.join("run")), before);
+}
+
+#[test]
 fn a_folder_another_run_holds_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

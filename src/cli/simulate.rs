@@ -120,6 +120,14 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     if let Some(pictures) = &mut pictures {
         pictures.start_gif()?;
     }
+    // The index first: on a resume it is read, and may be refused, before anything is written.
+    let mut frames = if config.frame_every == 0 {
+        None
+    } else if args.resume.is_some() {
+        Some(FrameSeries::open_for_resume(&args.out, first)?)
+    } else {
+        Some(FrameSeries::create(&args.out)?)
+    };
     eprintln!(
         "scene {} | {n} spheres | steps {first}..{total} | dt {:e} s | stiffness {:.4e} N/m | \
          restitution {} | backend {}",
@@ -142,16 +150,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         );
     }
     let scene_toml = config.to_toml();
-    io::write_atomically(&args.out.join("scene.toml"), |w| {
+    io::write_atomically(&args.out.join(io::SCENE_FILE), |w| {
         w.write_all(scene_toml.as_bytes())
     })?;
-    let mut frames = if config.frame_every == 0 {
-        None
-    } else if args.resume.is_some() {
-        Some(FrameSeries::open_for_resume(&args.out, first)?)
-    } else {
-        Some(FrameSeries::create(&args.out)?)
-    };
     let write_frame = |frames: &mut Option<FrameSeries>, stepper: &mut dyn Stepper| -> Result<()> {
         if let Some(series) = frames {
             let now = stepper.particles()?;
