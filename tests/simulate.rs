@@ -453,6 +453,34 @@ fn an_input_among_the_files_a_run_writes_is_refused() {
     );
     assert!(e.contains("--gif start.csv is the input file"), "{e}");
     assert!(!d.join("new").exists());
+    std::fs::copy(d.join("ow/checkpoint.bin"), d.join("saved.bin")).unwrap();
+    let saved = std::fs::read(d.join("saved.bin")).unwrap();
+    let e = fails(
+        &[
+            "simulate",
+            "--resume",
+            "saved.bin",
+            "--steps",
+            "30",
+            "--render-every",
+            "10",
+            "--size",
+            "16x12",
+            "--renderer",
+            "cpu",
+            "--gif",
+            "saved.bin",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "ow",
+        ],
+        d,
+    );
+    assert!(e.contains("--gif saved.bin is the input file"), "{e}");
+    assert_eq!(std::fs::read(d.join("saved.bin")).unwrap(), saved);
+    assert_eq!(snapshot(&d.join("ow")), before);
 }
 
 #[test]

@@ -114,6 +114,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     output::check_run_outputs(&args.out, &inputs, gif)?;
     if let Some(gif) = gif {
         output::check_gif_folder(gif, Some(&args.out))?;
+        if let Some(checkpoint) = &args.resume {
+            output::refuse_same_file(checkpoint, gif, "--gif")?;
+        }
     }
     // Everything is checked: from here on the run writes.
     let _folder = output::claim_run_folder(&args.out, args.resume.is_some(), args.overwrite)?;
