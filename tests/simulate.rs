@@ -596,7 +596,7 @@ fn gif_problems_are_found_before_the_run() {
                 "--renderer",
                 "cpu",
                 "--gif",
-                "out/run.gif",
+                "./out/run.gif",
             ],
         )),
         d,

@@ -3,7 +3,7 @@
 
 use anyhow::{Result, bail};
 use mochi::io::{self, RunFolder};
-use std::path::Path;
+use std::path::{Component, Path};
 
 /// The folder a file is in (`.` for a bare name).
 pub fn folder_of(path: &Path) -> &Path {
@@ -26,11 +26,17 @@ pub fn refuse_same_file(input: &Path, output: &Path, option: &str) -> Result<()>
     Ok(())
 }
 
+/// Whether `a` and `b` spell the same path, but for `.` components.
+fn same_spelling(a: &Path, b: &Path) -> bool {
+    let plain = |p| Path::components(p).filter(|c| *c != Component::CurDir);
+    plain(a).eq(plain(b))
+}
+
 /// Refuses a `--gif` whose folder does not exist (and is not `created`, a folder the command
 /// creates before it starts the GIF).
 pub fn check_gif_folder(gif: &Path, created: Option<&Path>) -> Result<()> {
     let folder = folder_of(gif);
-    if !folder.is_dir() && created != Some(folder) {
+    if !folder.is_dir() && !created.is_some_and(|c| same_spelling(c, folder)) {
         bail!(
             "--gif {}: the folder {} does not exist",
             gif.display(),
@@ -61,7 +67,7 @@ pub fn check_run_outputs(out: &Path, inputs: &[&Path], gif: Option<&Path>) -> Re
             .file_name()
             .and_then(|n| n.to_str())
             .is_some_and(io::is_run_file_name)
-            && (folder_of(gif) == out || io::same_file(folder_of(gif), out))
+            && (same_spelling(folder_of(gif), out) || io::same_file(folder_of(gif), out))
         {
             bail!(
                 "--gif {} has the name of a file the run writes into {}: choose another name",

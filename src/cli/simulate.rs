@@ -123,7 +123,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     if let Some(pictures) = &mut pictures {
         pictures.start_gif()?;
     }
-    // The index first: on a resume it is read, and may be refused, before anything is written.
+    // The index first: on a resume it is read, and may be refused, before the run writes a file.
     let mut frames = if config.frame_every == 0 {
         None
     } else if args.resume.is_some() {
