@@ -342,12 +342,13 @@ fn a_folder_holding_a_run_is_refused_unless_overwrite_which_removes_only_its_fil
     std::fs::write(d.join("prev/notes.txt"), "mine").unwrap();
     let before = snapshot(&d.join("prev"));
 
-    // A run that fails its checks (a bad picture size) changes nothing.
-    for extra in [&[][..], &["--overwrite"]] {
+    // A run that fails its checks (a bad picture size) changes nothing, not even with
+    // --overwrite (without it, the folder is refused first).
+    for (extra, problem) in [(None, "holds an earlier run"), (Some("--overwrite"), "0x0")] {
         let mut bad = short_run("prev", &["--render-every", "5", "--size", "0x0"]);
-        bad.extend(extra.iter().map(|a| a.to_string()));
+        bad.extend(extra.map(String::from));
         let e = fails(&strs(&bad), d);
-        assert!(e.contains("0x0"), "{e}");
+        assert!(e.contains(problem), "{e}");
         assert_eq!(snapshot(&d.join("prev")), before, "{extra:?}");
     }
 
@@ -395,7 +396,14 @@ fn an_input_among_the_files_a_run_writes_is_refused() {
     let d = dir.path();
     ok(&strs(&short_run("ow", &[])), d);
     let before = snapshot(&d.join("ow"));
-    for extra in [&[][..], &["--overwrite"]] {
+    let problems = [
+        (None, "ow/ holds an earlier run"),
+        (
+            Some("--overwrite"),
+            "ow/frame_00000010.csv lies in the output folder",
+        ),
+    ];
+    for (extra, problem) in problems {
         let mut args: Vec<&str> = vec![
             "simulate",
             "--input",
@@ -416,10 +424,7 @@ fn an_input_among_the_files_a_run_writes_is_refused() {
         args.extend(extra);
         let e = fails(&args, d);
         assert_eq!(e.lines().count(), 1, "{e}");
-        assert!(
-            e.contains("ow/frame_00000010.csv lies in the output folder"),
-            "{e}"
-        );
+        assert!(e.contains(problem), "{e}");
         assert_eq!(snapshot(&d.join("ow")), before, "{extra:?}");
     }
     // A GIF may not take the place of an input either.

@@ -79,36 +79,40 @@ pub fn check_run_outputs(out: &Path, inputs: &[&Path], gif: Option<&Path>) -> Re
     Ok(())
 }
 
+/// Refuses the folder `out` when it holds the files of an earlier run.
+pub fn refuse_earlier_run(out: &Path) -> Result<()> {
+    let earlier = io::run_files_in(out)?;
+    if earlier.is_empty() {
+        return Ok(());
+    }
+    let names: Vec<String> = earlier
+        .iter()
+        .take(3)
+        .filter_map(|f| f.file_name())
+        .map(|n| n.to_string_lossy().into_owned())
+        .collect();
+    let more = match earlier.len() - names.len() {
+        0 => String::new(),
+        n => format!(" and {n} more"),
+    };
+    bail!(
+        "{} holds an earlier run ({}{more}): --overwrite replaces it, --resume {} continues it, \
+         or choose another folder with -o",
+        out.display(),
+        names.join(", "),
+        out.join(io::CHECKPOINT_FILE).display()
+    );
+}
+
 /// Locks the simulation folder `out` (created if needed) for this run. A folder that holds the
 /// files of an earlier run is refused, unless the run resumes it (`resume`), or `overwrite`:
 /// then those files (and only those) are removed first.
 pub fn claim_run_folder(out: &Path, resume: bool, overwrite: bool) -> Result<RunFolder> {
     let folder = RunFolder::lock(out)?;
-    if resume {
-        return Ok(folder);
-    }
-    let earlier = folder.run_files()?;
-    if !earlier.is_empty() {
-        if !overwrite {
-            let names: Vec<String> = earlier
-                .iter()
-                .take(3)
-                .filter_map(|f| f.file_name())
-                .map(|n| n.to_string_lossy().into_owned())
-                .collect();
-            let more = match earlier.len() - names.len() {
-                0 => String::new(),
-                n => format!(" and {n} more"),
-            };
-            bail!(
-                "{} holds an earlier run ({}{more}): --overwrite replaces it, --resume {} \
-                 continues it, or choose another folder with -o",
-                out.display(),
-                names.join(", "),
-                out.join(io::CHECKPOINT_FILE).display()
-            );
-        }
+    if overwrite {
         folder.clear()?;
+    } else if !resume {
+        refuse_earlier_run(out)?;
     }
     Ok(folder)
 }

@@ -55,6 +55,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             gif.display()
         );
     }
+    if args.resume.is_none() && !args.overwrite {
+        // Checked again once the folder is locked; here before the scene is built.
+        output::refuse_earlier_run(&args.out)?;
+    }
     let overrides = overrides(&args);
     let (config, start) = match &args.resume {
         Some(path) => {

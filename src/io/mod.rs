@@ -22,7 +22,8 @@ pub use frames::{
 };
 pub use pairs::{read_pairs, write_pairs};
 pub use run_folder::{
-    CHECKPOINT_FILE, LOCK_FILE, RunFolder, SCENE_FILE, is_run_file_name, is_run_file_of, same_file,
+    CHECKPOINT_FILE, LOCK_FILE, RunFolder, SCENE_FILE, is_run_file_name, is_run_file_of,
+    run_files_in, same_file,
 };
 pub use spheres::{read_particles, read_spheres, write_spheres};
 

@@ -65,6 +65,26 @@ pub fn is_run_file_of(file: &Path, dir: &Path) -> bool {
     named && same_file(parent, dir)
 }
 
+/// The run files ([`is_run_file_name`]) in the folder `dir`, in name order; none where `dir`
+/// does not exist.
+pub fn run_files_in(dir: &Path) -> Result<Vec<PathBuf>> {
+    let listing = match std::fs::read_dir(dir) {
+        Ok(listing) => listing,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(io_error(dir)(e)),
+    };
+    let mut files = Vec::new();
+    for entry in listing {
+        let entry = entry.map_err(io_error(dir))?;
+        let is_run_file = entry.file_name().to_str().is_some_and(is_run_file_name);
+        if is_run_file && !entry.file_type().is_ok_and(|t| t.is_dir()) {
+            files.push(entry.path());
+        }
+    }
+    files.sort();
+    Ok(files)
+}
+
 /// A run's output folder, locked for as long as this value lives.
 #[derive(Debug)]
 pub struct RunFolder {
@@ -108,19 +128,9 @@ impl RunFolder {
         &self.dir
     }
 
-    /// The run files ([`is_run_file_name`]) in the folder, in name order.
+    /// The run files in the folder, in name order (see [`run_files_in`]).
     pub fn run_files(&self) -> Result<Vec<PathBuf>> {
-        let listing = std::fs::read_dir(&self.dir).map_err(io_error(&self.dir))?;
-        let mut files = Vec::new();
-        for entry in listing {
-            let entry = entry.map_err(io_error(&self.dir))?;
-            let is_run_file = entry.file_name().to_str().is_some_and(is_run_file_name);
-            if is_run_file && !entry.file_type().is_ok_and(|t| t.is_dir()) {
-                files.push(entry.path());
-            }
-        }
-        files.sort();
-        Ok(files)
+        run_files_in(&self.dir)
     }
 
     /// Removes the run files of an earlier run (every other file stays); returns how many.
