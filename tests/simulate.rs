@@ -612,3 +612,63 @@ fn gif_problems_are_found_before_the_run() {
             .starts_with(b"GIF89a")
     );
 }
+
+/// A run killed while it writes leaves no GIF (only its temporary file), and the next run into
+/// the folder removes that file.
+#[cfg(unix)]
+#[test]
+fn a_killed_run_leaves_no_gif_and_its_temporary_file_is_removed_by_the_next() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let temp_files = || -> Vec<String> {
+        std::fs::read_dir(d.join("out"))
+            .map(|listing| {
+                listing
+                    .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.starts_with(".mochi-"))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let mut args = short_run(
+        "out",
+        &[
+            "--render-every",
+            "10",
+            "--size",
+            "16x12",
+            "--renderer",
+            "cpu",
+            "--gif",
+            "out/run.gif",
+        ],
+    );
+    let steps = args.iter().position(|a| a == "--steps").unwrap();
+    args[steps + 1] = "100000000".into();
+    let mut child = Command::new(BIN)
+        .args(&args)
+        .current_dir(d)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Wait until pictures are being drawn into the GIF (a guard against a hang, not a timing).
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    while !d.join("out/frame_00000020.png").exists() {
+        assert!(std::time::Instant::now() < deadline, "no pictures drawn");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!d.join("out/run.gif").exists(), "a killed run left a GIF");
+    let left = temp_files();
+    assert!(
+        left.iter()
+            .any(|n| n.starts_with(&format!(".mochi-{}-", child.id()))),
+        "{left:?}"
+    );
+    let mut again = short_run("out", &["--overwrite"]);
+    again.retain(|a| a != "--csv");
+    ok(&strs(&again), d);
+    assert_eq!(temp_files(), Vec::<String>::new());
+}
