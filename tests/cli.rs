@@ -1139,3 +1139,166 @@ fn render_with_a_zero_field_of_view_says_so() {
     let line = run.single_error_line();
     assert!(line.contains("field of view"), "{line}");
 }
+
+// ----------------------------------------------------------------------------------------------
+// Output targets that are links, devices or pipes; outputs that name an input
+// ----------------------------------------------------------------------------------------------
+
+const TWO_TOUCHING: &[u8] = b"x,y,z,r\n0,0,0,1\n1,0,0,1\n";
+
+/// A link is written through: the file it names gets the output, the link stays a link; a
+/// dangling link gets its file created.
+#[cfg(unix)]
+#[test]
+fn output_through_a_symlink_replaces_the_file_it_names() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let input = d.join("spheres.csv");
+    write_file(&input, TWO_TOUCHING);
+    std::fs::create_dir(d.join("real")).unwrap();
+    write_file(&d.join("real/pairs.csv"), b"old");
+    let link = d.join("link.csv");
+    std::os::unix::fs::symlink("real/pairs.csv", &link).unwrap();
+    detect(&input, &link, &["--backend", "cpu"]);
+    assert!(link.symlink_metadata().unwrap().file_type().is_symlink());
+    assert_eq!(read(&d.join("real/pairs.csv")), b"i,j\n0,1\n");
+
+    let dangling = d.join("dangling.csv");
+    std::os::unix::fs::symlink(d.join("real/new.csv"), &dangling).unwrap();
+    detect(&input, &dangling, &["--backend", "cpu"]);
+    assert!(
+        dangling
+            .symlink_metadata()
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert_eq!(read(&d.join("real/new.csv")), b"i,j\n0,1\n");
+    assert_eq!(leftover_temp_files(d), Vec::<String>::new());
+    assert_eq!(leftover_temp_files(&d.join("real")), Vec::<String>::new());
+}
+
+/// A FIFO is written to, not replaced: its reader gets the pairs and it stays a FIFO.
+#[cfg(unix)]
+#[test]
+fn output_to_a_fifo_reaches_its_reader() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let input = d.join("spheres.csv");
+    write_file(&input, TWO_TOUCHING);
+    let fifo = d.join("pairs.fifo");
+    let name = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+    // SAFETY: a NUL-terminated path that outlives the call.
+    assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o600) }, 0);
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(fifo).unwrap())
+    };
+    detect(&input, &fifo, &["--backend", "cpu"]);
+    let kind = fifo.symlink_metadata().unwrap().file_type();
+    assert!(kind.is_fifo(), "the FIFO was replaced by {kind:?}");
+    assert_eq!(reader.join().unwrap(), b"i,j\n0,1\n");
+    assert_eq!(leftover_temp_files(d), Vec::<String>::new());
+}
+
+/// A character device is written to, not replaced. Run on a device node of our own (a copy of
+/// /dev/null, where this user may create one), else on /dev/null itself where this user cannot
+/// replace it (not root): never where a failure could replace the system's /dev/null.
+#[cfg(unix)]
+#[test]
+fn output_to_a_device_is_written_through() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let input = d.join("spheres.csv");
+    write_file(&input, TWO_TOUCHING);
+    let own = d.join("null");
+    let name = std::ffi::CString::new(own.to_str().unwrap()).unwrap();
+    // SAFETY: a NUL-terminated path that outlives the call; /dev/null's numbers (1, 3).
+    let made = unsafe { libc::mknod(name.as_ptr(), libc::S_IFCHR | 0o666, libc::makedev(1, 3)) };
+    // SAFETY: no arguments.
+    let root = unsafe { libc::geteuid() } == 0;
+    let device = if made == 0 {
+        own
+    } else if !root {
+        PathBuf::from("/dev/null")
+    } else {
+        eprintln!("no device node of our own can be made and /dev/null is not safe as root");
+        return;
+    };
+    detect(&input, &device, &["--backend", "cpu"]);
+    let kind = device.symlink_metadata().unwrap().file_type();
+    assert!(
+        kind.is_char_device(),
+        "{} is now {kind:?}",
+        device.display()
+    );
+    assert_eq!(leftover_temp_files(d), Vec::<String>::new());
+}
+
+/// An output that is the input (by another spelling or through a link) is refused before
+/// anything is written, and the input is kept.
+#[test]
+fn an_output_that_is_an_input_is_refused() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let input = d.join("same.csv");
+    write_file(&input, TWO_TOUCHING);
+    let rdir = d.join("rdir");
+    std::fs::create_dir(&rdir).unwrap();
+    let frame = rdir.join("frame_00000000.csv");
+    write_file(&frame, TWO_TOUCHING);
+    let respelled = d.join("rdir/../same.csv");
+    let cases: Vec<Vec<&OsStr>> = vec![
+        vec![OsStr::new("detect"), p(&input), OsStr::new("-o"), p(&input)],
+        vec![
+            OsStr::new("detect"),
+            p(&input),
+            OsStr::new("-o"),
+            p(&respelled),
+        ],
+        vec![
+            OsStr::new("render"),
+            p(&input),
+            OsStr::new("-o"),
+            p(&respelled),
+        ],
+        vec![
+            OsStr::new("render"),
+            p(&input),
+            OsStr::new("--gif"),
+            p(&input),
+        ],
+        vec![
+            OsStr::new("render"),
+            p(&rdir),
+            OsStr::new("--gif"),
+            p(&frame),
+        ],
+    ];
+    for mut args in cases {
+        args.extend(["--renderer", "cpu", "--size", "16x12"].map(OsStr::new));
+        if args[0] == "detect" {
+            args.truncate(4);
+            args.extend(["--backend", "cpu"].map(OsStr::new));
+        }
+        let run = mochi(&args);
+        run.assert_failure();
+        let line = run.single_error_line();
+        assert!(line.contains("is the input file"), "{args:?}: {line}");
+        assert_eq!(read(&input), TWO_TOUCHING, "{args:?}");
+        assert_eq!(read(&frame), TWO_TOUCHING, "{args:?}");
+        assert_eq!(leftover_temp_files(d), Vec::<String>::new());
+        assert_eq!(leftover_temp_files(&rdir), Vec::<String>::new());
+    }
+    #[cfg(unix)]
+    {
+        let link = d.join("link.csv");
+        std::os::unix::fs::symlink("same.csv", &link).unwrap();
+        let run = mochi([OsStr::new("detect"), p(&input), OsStr::new("-o"), p(&link)]);
+        run.assert_failure();
+        assert!(run.single_error_line().contains("is the input file"));
+        assert_eq!(read(&input), TWO_TOUCHING);
+    }
+}

@@ -569,3 +569,388 @@ fn a_run_of_zero_steps_claims_no_clock() {
     assert!(stdout.contains("(not measured)"), "{stdout}");
     assert!(!stdout.contains("GPU timestamps"), "{stdout}");
 }
+
+// ----------------------------------------------------------------------------------------------
+// The output folder: nothing of an earlier run or of an input is lost
+// ----------------------------------------------------------------------------------------------
+
+/// Every file in `dir` (not the lock file) with its contents, in name order.
+fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap())
+        .filter(|e| e.file_name() != mochi::io::LOCK_FILE)
+        .map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            (name, std::fs::read(e.path()).unwrap())
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// A short run of 300 spheres into `out` with frames every 10 steps (as CSV too).
+fn short_run(out: &str, extra: &[&str]) -> Vec<String> {
+    let mut args = vec![
+        "simulate",
+        "--scene",
+        "slab",
+        "-n",
+        "300",
+        "--steps",
+        "20",
+        "--frame-every",
+        "10",
+        "--csv",
+        "--backend",
+        "cpu",
+        "-q",
+        "-o",
+        out,
+    ];
+    args.extend(extra);
+    args.into_iter().map(String::from).collect()
+}
+
+fn strs(args: &[String]) -> Vec<&str> {
+    args.iter().map(String::as_str).collect()
+}
+
+#[test]
+fn a_folder_holding_a_run_is_refused_unless_overwrite_which_removes_only_its_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&strs(&short_run("prev", &[])), d);
+    std::fs::write(d.join("prev/notes.txt"), "mine").unwrap();
+    let before = snapshot(&d.join("prev"));
+
+    // A run that fails its checks (a bad picture size) changes nothing, not even with
+    // --overwrite (without it, the folder is refused first).
+    for (extra, problem) in [(None, "holds an earlier run"), (Some("--overwrite"), "0x0")] {
+        let mut bad = short_run("prev", &["--render-every", "5", "--size", "0x0"]);
+        bad.extend(extra.map(String::from));
+        let e = fails(&strs(&bad), d);
+        assert!(e.contains(problem), "{e}");
+        assert_eq!(snapshot(&d.join("prev")), before, "{extra:?}");
+    }
+
+    // A valid run into the folder is refused: it holds a run.
+    let again = short_run("prev", &["--seed", "2"]);
+    let e = fails(&strs(&again), d);
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(
+        e.contains("prev holds an earlier run") && e.contains("--overwrite"),
+        "{e}"
+    );
+    assert_eq!(snapshot(&d.join("prev")), before);
+
+    // --overwrite: the old run's files go (frame 10 and the CSVs are not written again), the
+    // other files stay.
+    let mut overwrite = again.clone();
+    overwrite.retain(|a| a != "--csv");
+    let every = overwrite.iter().position(|a| a == "--frame-every").unwrap();
+    overwrite[every + 1] = "20".into();
+    overwrite.push("--overwrite".into());
+    ok(&strs(&overwrite), d);
+    let names: Vec<String> = snapshot(&d.join("prev")).into_iter().map(|f| f.0).collect();
+    assert_eq!(
+        names,
+        [
+            "checkpoint.bin",
+            "frame_00000000.vtu",
+            "frame_00000020.vtu",
+            "notes.txt",
+            "scene.toml",
+            "series.pvd"
+        ]
+    );
+    assert_eq!(std::fs::read(d.join("prev/notes.txt")).unwrap(), b"mine");
+    let (code, _, e) = mochi(
+        &["simulate", "--overwrite", "--resume", "prev/checkpoint.bin"],
+        d,
+    );
+    assert_eq!(code, Some(2), "a resumed run keeps its files: {e}");
+}
+
+#[test]
+fn an_input_among_the_files_a_run_writes_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&strs(&short_run("ow", &[])), d);
+    let before = snapshot(&d.join("ow"));
+    let problems = [
+        (None, "ow/ holds an earlier run"),
+        (
+            Some("--overwrite"),
+            "ow/frame_00000010.csv lies in the output folder",
+        ),
+    ];
+    for (extra, problem) in problems {
+        let mut args: Vec<&str> = vec![
+            "simulate",
+            "--input",
+            "ow/frame_00000010.csv",
+            "--set",
+            "box_lo=[0,0,0]",
+            "--set",
+            "box_hi=[1,1,1]",
+            "--steps",
+            "10",
+            "--csv",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "./ow/",
+        ];
+        args.extend(extra);
+        let e = fails(&args, d);
+        assert_eq!(e.lines().count(), 1, "{e}");
+        assert!(e.contains(problem), "{e}");
+        assert_eq!(snapshot(&d.join("ow")), before, "{extra:?}");
+    }
+    // A GIF may not take the place of an input either.
+    std::fs::copy(d.join("ow/frame_00000010.csv"), d.join("start.csv")).unwrap();
+    let e = fails(
+        &[
+            "simulate",
+            "--input",
+            "start.csv",
+            "--set",
+            "box_lo=[0,0,0]",
+            "--set",
+            "box_hi=[1,1,1]",
+            "--steps",
+            "10",
+            "--render-every",
+            "10",
+            "--size",
+            "16x12",
+            "--renderer",
+            "cpu",
+            "--gif",
+            "start.csv",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "new",
+        ],
+        d,
+    );
+    assert!(e.contains("--gif start.csv is the input file"), "{e}");
+    assert!(!d.join("new").exists());
+    std::fs::copy(d.join("ow/checkpoint.bin"), d.join("saved.bin")).unwrap();
+    let saved = std::fs::read(d.join("saved.bin")).unwrap();
+    let e = fails(
+        &[
+            "simulate",
+            "--resume",
+            "saved.bin",
+            "--steps",
+            "30",
+            "--render-every",
+            "10",
+            "--size",
+            "16x12",
+            "--renderer",
+            "cpu",
+            "--gif",
+            "saved.bin",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "ow",
+        ],
+        d,
+    );
+    assert!(e.contains("--gif saved.bin is the input file"), "{e}");
+    assert_eq!(std::fs::read(d.join("saved.bin")).unwrap(), saved);
+    assert_eq!(snapshot(&d.join("ow")), before);
+}
+
+#[test]
+fn a_resume_with_a_broken_index_changes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&strs(&short_run("run", &[])), d);
+    std::fs::write(d.join("run/series.pvd"), "<VTKFile>not an index").unwrap();
+    let before = snapshot(&d.join("run"));
+    let e = fails(
+        &[
+            "simulate",
+            "--resume",
+            "run/checkpoint.bin",
+            "--steps",
+            "40",
+            "--set",
+            "csv=true",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "run",
+        ],
+        d,
+    );
+    assert!(e.contains("series.pvd"), "{e}");
+    assert_eq!(snapshot(&d.join("run")), before);
+}
+
+#[test]
+fn a_folder_another_run_holds_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let other = mochi::io::RunFolder::lock(&d.join("busy")).unwrap();
+    let e = fails(&strs(&short_run("busy", &[])), d);
+    assert!(
+        e.contains("busy: another mochi run is writing into this folder"),
+        "{e}"
+    );
+    assert!(snapshot(&d.join("busy")).is_empty());
+    drop(other);
+    ok(&strs(&short_run("busy", &[])), d);
+    // The run's lock ended with it.
+    mochi::io::RunFolder::lock(&d.join("busy")).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn temporary_files_of_killed_writers_are_removed_when_a_run_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("out")).unwrap();
+    // A child that has exited and been reaped: its pid names no process.
+    let mut child = Command::new("true").spawn().unwrap();
+    let gone = child.id();
+    child.wait().unwrap();
+    let stale = format!(".mochi-{gone}-a1b2c3");
+    let live = format!(".mochi-{}-d4e5f6", std::process::id());
+    for name in [&stale, &live] {
+        std::fs::write(d.join("out").join(name), "partial").unwrap();
+        std::fs::write(d.join(name), "partial").unwrap();
+    }
+    ok(&strs(&short_run("out", &[])), d);
+    assert!(!d.join("out").join(&stale).exists());
+    assert!(
+        d.join("out").join(&live).exists(),
+        "a live writer's file was removed"
+    );
+    // `generate` cleans its output's folder too.
+    ok(&["generate", "-n", "10", "-o", "spheres.csv"], d);
+    assert!(!d.join(&stale).exists());
+    assert!(d.join(&live).exists());
+}
+
+#[test]
+fn gif_problems_are_found_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let e = fails(
+        &strs(&short_run(
+            "out",
+            &[
+                "--render-every",
+                "10",
+                "--size",
+                "16x12",
+                "--renderer",
+                "cpu",
+                "--gif",
+                "missing/run.gif",
+            ],
+        )),
+        d,
+    );
+    assert!(
+        e.contains("--gif missing/run.gif: the folder missing does not exist"),
+        "{e}"
+    );
+    assert!(!d.join("out").exists());
+    let e = fails(&strs(&short_run("out", &["--gif", "run.gif"])), d);
+    assert!(e.contains("--gif run.gif needs --render-every"), "{e}");
+    assert!(!d.join("out").exists());
+    // In the output folder, which the run creates, a GIF is fine.
+    ok(
+        &strs(&short_run(
+            "out",
+            &[
+                "--render-every",
+                "10",
+                "--size",
+                "16x12",
+                "--renderer",
+                "cpu",
+                "--gif",
+                "./out/run.gif",
+            ],
+        )),
+        d,
+    );
+    assert!(
+        std::fs::read(d.join("out/run.gif"))
+            .unwrap()
+            .starts_with(b"GIF89a")
+    );
+}
+
+/// A run killed while it writes leaves no GIF (only its temporary file), and the next run into
+/// the folder removes that file.
+#[cfg(unix)]
+#[test]
+fn a_killed_run_leaves_no_gif_and_its_temporary_file_is_removed_by_the_next() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let temp_files = || -> Vec<String> {
+        std::fs::read_dir(d.join("out"))
+            .map(|listing| {
+                listing
+                    .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.starts_with(".mochi-"))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let mut args = short_run(
+        "out",
+        &[
+            "--render-every",
+            "10",
+            "--size",
+            "16x12",
+            "--renderer",
+            "cpu",
+            "--gif",
+            "out/run.gif",
+        ],
+    );
+    let steps = args.iter().position(|a| a == "--steps").unwrap();
+    args[steps + 1] = "100000000".into();
+    let mut child = Command::new(BIN)
+        .args(&args)
+        .current_dir(d)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Wait until pictures are being drawn into the GIF (a guard against a hang, not a timing).
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    while !d.join("out/frame_00000020.png").exists() {
+        assert!(std::time::Instant::now() < deadline, "no pictures drawn");
+        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!d.join("out/run.gif").exists(), "a killed run left a GIF");
+    let left = temp_files();
+    assert!(
+        left.iter()
+            .any(|n| n.starts_with(&format!(".mochi-{}-", child.id()))),
+        "{left:?}"
+    );
+    let mut again = short_run("out", &["--overwrite"]);
+    again.retain(|a| a != "--csv");
+    ok(&strs(&again), d);
+    assert_eq!(temp_files(), Vec::<String>::new());
+}

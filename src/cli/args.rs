@@ -225,9 +225,15 @@ pub struct SimulateArgs {
     /// boxes). Grids re-bin and wgpu-rq rebuilds every step.
     #[arg(long, value_name = "K|auto", default_value_t = RebuildPolicy::Auto)]
     pub rebuild: RebuildPolicy,
-    /// Output folder for frames, checkpoints and the summary.
+    /// Output folder for frames, checkpoints and the summary. A folder that holds another run
+    /// (series.pvd, scene.toml, checkpoint.bin, frame_* files) is refused unless --overwrite or
+    /// --resume; a folder another run is writing into is refused.
     #[arg(short, long, default_value = "mochi-out")]
     pub out: PathBuf,
+    /// Replace the run in --out: first remove its files (series.pvd, scene.toml,
+    /// checkpoint.bin, frame_*.vtu/.csv/.png); other files in the folder stay.
+    #[arg(long, conflicts_with = "resume")]
+    pub overwrite: bool,
     /// Save a checkpoint (OUT/checkpoint.bin) every N steps (0: only at the end).
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub checkpoint_every: u64,

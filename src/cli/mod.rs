@@ -3,6 +3,7 @@
 
 mod args;
 mod bench;
+mod output;
 mod render;
 mod run;
 mod simulate;

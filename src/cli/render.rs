@@ -2,6 +2,7 @@
 //! optional animated GIF) out.
 
 use super::args::{Fit, RenderArgs, RenderCommandArgs};
+use super::output::{check_gif_folder, folder_of, refuse_same_file};
 use anyhow::{Context, Result, bail};
 use mochi::dem::scene::SceneConfig;
 use mochi::io::{self, SERIES_INDEX};
@@ -20,7 +21,10 @@ pub struct FrameRenderer {
     color_by: ColorBy,
     range: Option<(f32, f32)>,
     legend: bool,
-    gif: Option<(PathBuf, Gif)>,
+    /// Where `--gif` asked for the animation.
+    gif_path: Option<PathBuf>,
+    /// The animation, once [`FrameRenderer::start_gif`] has started it.
+    gif: Option<Gif>,
 }
 
 /// Where the camera stands and what the picture is like.
@@ -87,6 +91,15 @@ impl FrameRenderer {
         };
         // Catch a bad camera or sample count before any work.
         view.picture(([0.0; 3], [1.0; 3])).validate()?;
+        if let Some(gif) = &args.gif
+            && (view.size.0 > u16::MAX.into() || view.size.1 > u16::MAX.into())
+        {
+            bail!(
+                "--gif {}: a GIF is at most 65535 pixels per side, not {}",
+                gif.display(),
+                args.size
+            );
+        }
         let (renderer, reason) = Renderer::open(args.renderer)?;
         if let Some(reason) = reason {
             eprintln!("{reason}");
@@ -97,8 +110,18 @@ impl FrameRenderer {
             color_by: args.color_by,
             range,
             legend: !args.no_legend,
-            gif: args.gif.clone().map(|path| (path, Gif::default())),
+            gif_path: args.gif.clone(),
+            gif: None,
         })
+    }
+
+    /// Starts the GIF `--gif` asked for, if any: from now on every picture is added to it.
+    pub fn start_gif(&mut self) -> Result<()> {
+        if let Some(path) = &self.gif_path {
+            io::remove_stale_temp_files(folder_of(path));
+            self.gif = Some(Gif::create(path, self.view.size.0, self.view.size.1)?);
+        }
+        Ok(())
     }
 
     /// The render path, in one line.
@@ -130,17 +153,18 @@ impl FrameRenderer {
             }
         }
         image.write_png(out)?;
-        if let Some((_, gif)) = &mut self.gif {
+        if let Some(gif) = &mut self.gif {
             gif.add(&image, GIF_DELAY_CS)?;
         }
         Ok(())
     }
 
-    /// Writes the GIF, if one was asked for; returns its path.
+    /// Puts the GIF in place, if one was started and got pictures; returns its path.
     pub fn finish(self) -> Result<Option<PathBuf>> {
         match self.gif {
-            Some((path, gif)) if !gif.is_empty() => {
-                gif.write(&path)?;
+            Some(gif) if !gif.is_empty() => {
+                let path = gif.path().to_owned();
+                gif.finish()?;
                 Ok(Some(path))
             }
             _ => Ok(None),
@@ -186,6 +210,13 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
         .output
         .clone()
         .unwrap_or_else(|| input.with_extension("png"));
+    refuse_same_file(input, &out, "-o")?;
+    if let Some(gif) = &args.render.gif {
+        refuse_same_file(input, gif, "--gif")?;
+        check_gif_folder(gif, None)?;
+    }
+    io::remove_stale_temp_files(folder_of(&out));
+    renderer.start_gif()?;
     renderer.render(
         &FrameData {
             step: frame.step,
@@ -215,8 +246,16 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
         bail!("{}: no frames (frame_*.vtu or frame_*.csv)", dir.display());
     }
     let out = out.unwrap_or(dir);
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut renderer = FrameRenderer::new(args, box_of(dir))?;
+    if let Some(gif) = &args.gif {
+        for input in files.iter().chain([&dir.join(SERIES_INDEX)]) {
+            refuse_same_file(input, gif, "--gif")?;
+        }
+        check_gif_folder(gif, Some(out))?;
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    io::remove_stale_temp_files(out);
+    renderer.start_gif()?;
     if args.range.is_none() {
         // A first pass for one colour range over the whole run (frames are read one at a time).
         let mut lo = f32::INFINITY;

@@ -1,6 +1,7 @@
 //! The commands.
 
 use super::args::{Cli, Command, DetectArgs, GenerateArgs, SceneArgs};
+use super::output::{folder_of, refuse_same_file};
 use anyhow::Result;
 use mochi::backend::{self, BackendKind};
 use mochi::scenes::{self, Layout, SceneSpec};
@@ -40,6 +41,9 @@ fn scene(args: &SceneArgs, default_layout: Layout) -> Result<(SphereSet, String)
 }
 
 fn detect(args: DetectArgs) -> Result<()> {
+    if let (Some(input), Some(out)) = (&args.input, &args.output) {
+        refuse_same_file(input, out, "-o")?;
+    }
     let (spheres, source) = match &args.input {
         Some(path) => (io::read_spheres(path)?, path.display().to_string()),
         None => scene(&args.scene, Layout::Random)?,
@@ -105,6 +109,7 @@ fn detect(args: DetectArgs) -> Result<()> {
         _ => String::new(),
     };
     if let Some(path) = &args.output {
+        io::remove_stale_temp_files(folder_of(path));
         io::write_pairs(path, pairs)?;
     }
     let per_sphere = stats.candidates as f64 / spheres.len().max(1) as f64;
@@ -129,6 +134,7 @@ fn detect(args: DetectArgs) -> Result<()> {
 
 fn generate(args: GenerateArgs) -> Result<()> {
     let (spheres, what) = scene(&args.scene, Layout::Lattice)?;
+    io::remove_stale_temp_files(folder_of(&args.output));
     io::write_spheres(&args.output, &spheres)?;
     println!(
         "{what}: wrote {} spheres to {}",

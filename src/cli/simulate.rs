@@ -1,6 +1,7 @@
 //! `mochi simulate`: runs a DEM scene with a progress bar, frames, checkpoints and a summary.
 
 use super::args::SimulateArgs;
+use super::output;
 use super::render::{FrameData, FrameRenderer, png_name};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -9,6 +10,7 @@ use mochi::dem::scene::SceneConfig;
 use mochi::dem::{Clock, StageTimes, Stepper, open_choice};
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::render::ColorBy;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Steps between two progress updates at most.
@@ -47,6 +49,16 @@ fn overrides(args: &SimulateArgs) -> Vec<String> {
 }
 
 pub fn simulate(args: SimulateArgs) -> Result<()> {
+    if let (Some(gif), 0) = (&args.render.gif, args.render_every) {
+        anyhow::bail!(
+            "--gif {} needs --render-every M: the GIF is made of the pictures",
+            gif.display()
+        );
+    }
+    if args.resume.is_none() && !args.overwrite {
+        // Checked again once the folder is locked; here before the scene is built.
+        output::refuse_earlier_run(&args.out)?;
+    }
     let overrides = overrides(&args);
     let (config, start) = match &args.resume {
         Some(path) => {
@@ -87,6 +99,45 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     if let Some(reason) = reason {
         eprintln!("{reason}");
     }
+    let mut pictures = if args.render_every == 0 {
+        None
+    } else {
+        let sim_box = config.box_lo.zip(config.box_hi);
+        let mut pictures = FrameRenderer::new(&args.render, sim_box)?;
+        if args.render.color_by == ColorBy::Radius {
+            pictures.set_range(start.particles.radius_range());
+        }
+        Some(pictures)
+    };
+    let inputs: Vec<&Path> = match args.resume {
+        Some(_) => Vec::new(),
+        None => [&args.scene_file, &config.input, &config.mesh]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path)
+            .collect(),
+    };
+    let gif = args.render.gif.as_deref();
+    output::check_run_outputs(&args.out, &inputs, gif)?;
+    if let Some(gif) = gif {
+        output::check_gif_folder(gif, Some(&args.out))?;
+        if let Some(checkpoint) = &args.resume {
+            output::refuse_same_file(checkpoint, gif, "--gif")?;
+        }
+    }
+    // Everything is checked: from here on the run writes.
+    let _folder = output::claim_run_folder(&args.out, args.resume.is_some(), args.overwrite)?;
+    if let Some(pictures) = &mut pictures {
+        pictures.start_gif()?;
+    }
+    // The index first: on a resume it is read, and may be refused, before the run writes a file.
+    let mut frames = if config.frame_every == 0 {
+        None
+    } else if args.resume.is_some() {
+        Some(FrameSeries::open_for_resume(&args.out, first)?)
+    } else {
+        Some(FrameSeries::create(&args.out)?)
+    };
     eprintln!(
         "scene {} | {n} spheres | steps {first}..{total} | dt {:e} s | stiffness {:.4e} N/m | \
          restitution {} | backend {}",
@@ -101,19 +152,17 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     if let Some(warning) = p.overlap_warning(r_min, r_max) {
         eprintln!("warning: {warning}");
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    if let Some(pictures) = &pictures {
+        eprintln!(
+            "pictures every {} steps with {}",
+            args.render_every,
+            pictures.describe()
+        );
+    }
     let scene_toml = config.to_toml();
-    io::write_atomically(&args.out.join("scene.toml"), |w| {
+    io::write_atomically(&args.out.join(io::SCENE_FILE), |w| {
         w.write_all(scene_toml.as_bytes())
     })?;
-    let mut frames = if config.frame_every == 0 {
-        None
-    } else if args.resume.is_some() {
-        Some(FrameSeries::open_for_resume(&args.out, first)?)
-    } else {
-        Some(FrameSeries::create(&args.out)?)
-    };
     let write_frame = |frames: &mut Option<FrameSeries>, stepper: &mut dyn Stepper| -> Result<()> {
         if let Some(series) = frames {
             let now = stepper.particles()?;
@@ -129,21 +178,6 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             )?;
         }
         Ok(())
-    };
-    let mut pictures = if args.render_every == 0 {
-        None
-    } else {
-        let sim_box = config.box_lo.zip(config.box_hi);
-        let mut pictures = FrameRenderer::new(&args.render, sim_box)?;
-        if args.render.color_by == ColorBy::Radius {
-            pictures.set_range(start.particles.radius_range());
-        }
-        eprintln!(
-            "pictures every {} steps with {}",
-            args.render_every,
-            pictures.describe()
-        );
-        Some(pictures)
     };
     let draw = |pictures: &mut Option<FrameRenderer>, stepper: &mut dyn Stepper| -> Result<()> {
         if let Some(pictures) = pictures {

@@ -3,22 +3,28 @@
 //! checkpoints.
 //!
 //! Every reader names the file, the line (CSV) or row (`.npy`) and the problem in its error.
-//! Every writer goes through [`write_atomically`]: a failed write leaves no partial file behind.
+//! Every writer goes through [`write_atomically`] (or [`AtomicFile`]): a failed write leaves no
+//! partial file behind.
 
 mod atomic;
 mod checkpoint;
 mod frame_read;
 mod frames;
 mod pairs;
+mod run_folder;
 mod spheres;
 
-pub use atomic::write_atomically;
+pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};
 pub use checkpoint::{read_checkpoint, write_checkpoint};
 pub use frame_read::{OwnedFrame, read_frame, read_vtu};
 pub use frames::{
     Frame, FrameSeries, SERIES_INDEX, SeriesEntry, read_series_index, write_frame_csv, write_vtu,
 };
 pub use pairs::{read_pairs, write_pairs};
+pub use run_folder::{
+    CHECKPOINT_FILE, LOCK_FILE, RunFolder, SCENE_FILE, is_run_file_name, is_run_file_of,
+    run_files_in, same_file,
+};
 pub use spheres::{read_particles, read_spheres, write_spheres};
 
 use crate::error::Error;

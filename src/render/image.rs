@@ -4,8 +4,9 @@ use super::colour::{unit, viridis};
 use super::font::{draw_text, format_value, text_height, text_width};
 use super::shade::{pack, unpack};
 use crate::error::{Error, Result};
-use crate::io::write_atomically;
-use std::path::Path;
+use crate::io::{AtomicFile, write_atomically};
+use std::io::Write;
+use std::path::{Path, PathBuf};
 
 /// An 8-bit RGBA picture, rows from the top.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -196,62 +197,94 @@ pub fn read_png(path: &Path) -> Result<Image> {
     })
 }
 
-/// An animated GIF built frame by frame: each frame is quantised to its own 256-colour palette
-/// as it is added, and the file is written by [`Gif::write`].
-#[derive(Default)]
+/// An animated GIF (looping forever) written frame by frame: each frame is quantised to its own
+/// 256-colour palette and written out as it is added, so memory does not grow with the number of
+/// frames. The file is written through an [`AtomicFile`]: it appears, whole, at
+/// [`Gif::finish`]; dropped before that (an error, a killed run), it leaves no file.
 pub struct Gif {
-    frames: Vec<gif::Frame<'static>>,
-    size: Option<(u16, u16)>,
+    path: PathBuf,
+    encoder: gif::Encoder<AtomicFile>,
+    size: (u16, u16),
+    frames: usize,
 }
 
 impl Gif {
-    /// Adds `image` as the next frame, shown for `delay_cs` hundredths of a second. Every frame
-    /// must have the size of the first, at most 65535 per side.
-    pub fn add(&mut self, image: &Image, delay_cs: u16) -> Result<()> {
-        let (w, h) = match (u16::try_from(image.width), u16::try_from(image.height)) {
-            (Ok(w), Ok(h)) => (w, h),
-            _ => {
-                return Err(Error::Usage(
-                    "a GIF frame is at most 65535 pixels wide".into(),
-                ));
-            }
-        };
-        if *self.size.get_or_insert((w, h)) != (w, h) {
+    /// Starts the GIF `path` of frames `width`×`height` pixels (at most 65535 per side). Fails,
+    /// naming `path`, where its folder is missing or not writable.
+    pub fn create(path: &Path, width: u32, height: u32) -> Result<Self> {
+        let (Ok(w), Ok(h)) = (u16::try_from(width), u16::try_from(height)) else {
             return Err(Error::Usage(format!(
-                "GIF frames must share one size: {w}x{h} after {:?}",
-                self.size
+                "{}: a GIF is at most 65535 pixels per side, not {width}x{height}",
+                path.display()
+            )));
+        };
+        let gif_error = |e: gif::EncodingError| Error::Io {
+            path: path.to_owned(),
+            error: std::io::Error::other(e),
+        };
+        let file = AtomicFile::create(path)?;
+        let mut encoder = gif::Encoder::new(file, w, h, &[]).map_err(gif_error)?;
+        encoder
+            .set_repeat(gif::Repeat::Infinite)
+            .map_err(gif_error)?;
+        Ok(Self {
+            path: path.to_owned(),
+            encoder,
+            size: (w, h),
+            frames: 0,
+        })
+    }
+
+    /// Adds `image` as the next frame, shown for `delay_cs` hundredths of a second; it must have
+    /// the size the GIF was created with. The frame is on disk (in the unfinished file) when this
+    /// returns.
+    pub fn add(&mut self, image: &Image, delay_cs: u16) -> Result<()> {
+        let (w, h) = self.size;
+        if (image.width, image.height) != (w.into(), h.into()) {
+            return Err(Error::Usage(format!(
+                "{}: GIF frames must share one size: {}x{} in a {w}x{h} GIF",
+                self.path.display(),
+                image.width,
+                image.height
             )));
         }
         let mut rgba = image.rgba_bytes();
         let mut frame = gif::Frame::from_rgba_speed(w, h, &mut rgba, 10);
         frame.delay = delay_cs;
-        self.frames.push(frame);
+        let io = |error| Error::Io {
+            path: self.path.clone(),
+            error,
+        };
+        self.encoder
+            .write_frame(&frame)
+            .map_err(|e| io(std::io::Error::other(e)))?;
+        self.encoder.get_mut().flush().map_err(io)?;
+        self.frames += 1;
         Ok(())
     }
 
     /// The number of frames added.
     pub fn len(&self) -> usize {
-        self.frames.len()
+        self.frames
     }
 
     /// Whether no frame was added.
     pub fn is_empty(&self) -> bool {
-        self.frames.is_empty()
+        self.frames == 0
     }
 
-    /// Writes the animation (looping forever), atomically.
-    pub fn write(&self, path: &Path) -> Result<()> {
-        let (w, h) = self.size.unwrap_or((1, 1));
-        write_atomically(path, |out| {
-            let mut encoder = gif::Encoder::new(out, w, h, &[]).map_err(std::io::Error::other)?;
-            encoder
-                .set_repeat(gif::Repeat::Infinite)
-                .map_err(std::io::Error::other)?;
-            for frame in &self.frames {
-                encoder.write_frame(frame).map_err(std::io::Error::other)?;
-            }
-            Ok(())
-        })
+    /// The file the GIF becomes.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Ends the animation and puts the file in place.
+    pub fn finish(self) -> Result<()> {
+        let file = self.encoder.into_inner().map_err(|e| Error::Io {
+            path: self.path.clone(),
+            error: std::io::Error::other(e),
+        })?;
+        file.commit()
     }
 }
 
@@ -311,5 +344,62 @@ mod tests {
             .filter(|&&p| p == pack([0.08, 0.08, 0.1]))
             .count();
         assert!(ink > 200, "{ink} pixels of text and frame");
+    }
+
+    #[test]
+    fn a_gif_is_written_frame_by_frame_and_appears_only_when_finished() {
+        let dir = tempfile::tempdir().unwrap();
+        let temp_size = || -> u64 {
+            let temps: Vec<u64> = std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap())
+                .filter(|e| e.file_name().to_string_lossy().starts_with(".mochi-"))
+                .map(|e| e.metadata().unwrap().len())
+                .collect();
+            assert_eq!(temps.len(), 1, "one unfinished GIF");
+            temps[0]
+        };
+        let image = |shade: f32, width: u32| Image {
+            width,
+            height: 8,
+            pixels: (0..width * 8)
+                .map(|i| pack([i as f32 / (width * 8) as f32, shade, 0.5]))
+                .collect(),
+        };
+        let path = dir.path().join("run.gif");
+        let mut gif = Gif::create(&path, 16, 8).unwrap();
+        let mut sizes = vec![temp_size()];
+        for k in 0..3 {
+            gif.add(&image(k as f32 / 3.0, 16), 10).unwrap();
+            sizes.push(temp_size());
+        }
+        assert!(
+            sizes.windows(2).all(|w| w[1] > w[0]),
+            "every frame is on disk once added: {sizes:?}"
+        );
+        assert!(!path.exists());
+        assert!(gif.add(&image(0.0, 8), 10).is_err());
+        gif.finish().unwrap();
+        let mut decoder = gif::DecodeOptions::new()
+            .read_info(std::fs::File::open(&path).unwrap())
+            .unwrap();
+        let mut frames = 0;
+        while decoder.read_next_frame().unwrap().is_some() {
+            frames += 1;
+        }
+        assert_eq!(frames, 3);
+
+        // Dropped unfinished: no file, no temporary file.
+        let other = dir.path().join("other.gif");
+        let mut gif = Gif::create(&other, 16, 8).unwrap();
+        gif.add(&image(0.5, 16), 10).unwrap();
+        drop(gif);
+        assert!(!other.exists());
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["run.gif"]);
+        assert!(Gif::create(&dir.path().join("missing/run.gif"), 16, 8).is_err());
     }
 }
