@@ -8,12 +8,21 @@ use crate::error::{Error, Result};
 /// (3·(2·10¹⁸)² ≈ 1.2·10³⁷ < `f32::MAX`), so no comparison ever sees an infinity.
 pub const MAX_MAGNITUDE: f32 = 1e18;
 
+/// Smallest radius accepted.
+///
+/// The rule ([`crate::proxy::within`]) scales every comparison, so no square underflows at any
+/// radius; this bound keeps the subnormal numbers that GPUs may flush to zero out of every
+/// decision: a coordinate difference below `f32::MIN_POSITIVE` (about 1.2·10⁻³⁸) then counts for
+/// less than 2^-27 of the smallest threshold r_i + r_j, too little to change a rounded result.
+pub const MIN_RADIUS: f32 = 1e-30;
+
 /// Largest number of spheres in one set: indices are `u32` on every backend.
 pub const MAX_SPHERES: usize = u32::MAX as usize;
 
 /// A set of spheres whose every centre and radius has been checked.
 ///
-/// Centres are finite with |x| ≤ [`MAX_MAGNITUDE`]; radii are finite, > 0 and ≤ [`MAX_MAGNITUDE`].
+/// Centres are finite with |x| ≤ [`MAX_MAGNITUDE`]; radii are finite, in
+/// [[`MIN_RADIUS`], [`MAX_MAGNITUDE`]].
 /// Units are whatever the caller uses (SI metres in the scenes).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SphereSet {
@@ -151,6 +160,11 @@ pub(crate) fn check_sphere(c: &[f32; 3], r: f32) -> Result<(), String> {
     if r <= 0.0 {
         return Err(format!("radius must be > 0 (got {r})"));
     }
+    if r < MIN_RADIUS {
+        return Err(format!(
+            "radius {r:e} is below the smallest radius, {MIN_RADIUS:e}"
+        ));
+    }
     if r > MAX_MAGNITUDE {
         return Err(format!("radius {r} exceeds {MAX_MAGNITUDE:e}"));
     }
@@ -196,6 +210,7 @@ mod tests {
             (vec![ok], vec![0.0], 0, "> 0"),
             (vec![ok], vec![-1.0], 0, "> 0"),
             (vec![[2e18, 0.0, 0.0]], vec![1.0], 0, "exceeds"),
+            (vec![ok, ok], vec![1.0, 9e-31], 1, "smallest radius"),
         ];
         for (centers, radii, want_index, want_text) in cases {
             match SphereSet::new(centers, radii) {
@@ -217,5 +232,6 @@ mod tests {
         s.set_centers(vec![[3.0; 3], [4.0; 3]]).unwrap();
         assert_eq!(s.centers()[1], [4.0; 3]);
         assert_eq!(SphereSet::default().max_radius(), 0.0);
+        assert!(SphereSet::new(vec![[0.0; 3]], vec![MIN_RADIUS]).is_ok());
     }
 }

@@ -1,6 +1,8 @@
 //! Shared by the GPU tests: CI runs them on lavapipe and must fail, not skip, without an adapter.
 #![allow(dead_code)] // each test file uses the part it needs
 
+pub mod rule_cases;
+
 use mochi::gpu::{self, Gpu, Need};
 
 /// True when running under CI (`CI=true`), where every GPU test must find an adapter.
