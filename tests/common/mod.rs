@@ -39,3 +39,14 @@ pub fn open_gpu(what: &str) -> Option<Gpu> {
     adapter_for(Need::Compute, what)
         .then(|| Gpu::open(Need::Compute).expect("a probed adapter opens"))
 }
+
+/// Like [`open_gpu`], with the device's `max_compute_workgroups_per_dimension` lowered to `max`
+/// (the device then rejects any dispatch wider than that).
+pub fn open_gpu_lowered(what: &str, max: u32) -> Option<Gpu> {
+    adapter_for(Need::Compute, what).then(|| {
+        Gpu::open_limited(Need::Compute, |limits| {
+            limits.max_compute_workgroups_per_dimension = max;
+        })
+        .expect("a probed adapter opens")
+    })
+}
