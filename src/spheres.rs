@@ -171,6 +171,37 @@ pub(crate) fn check_sphere(c: &[f32; 3], r: f32) -> Result<(), String> {
     Ok(())
 }
 
+/// Coarsest `f32` spacing of a centre coordinate, as a fraction of its sphere's radius, that
+/// [`coarse_coordinates`] accepts without a warning: 2^-10.
+///
+/// Centres are held in `f32`; near |x| the representable values lie ulp(x) apart (2^-23·|x| or
+/// so), so a centre read from a finer file moves by up to half that, and every distance the rule
+/// computes carries errors of that size. Above this bound a pair within a few thousandths of a
+/// radius of touching may be decided either way; the exactness guarantees hold for the `f32`
+/// values, not for the file's digits.
+pub const MAX_SPACING_PER_RADIUS: f32 = 1.0 / 1024.0;
+
+/// A warning (one line, naming the first such sphere and how many there are) when the `f32`
+/// spacing of some centre coordinate exceeds [`MAX_SPACING_PER_RADIUS`] of its radius: the
+/// input's coordinates are too large for `f32` to place spheres of its radii; `None` otherwise.
+pub fn coarse_coordinates(centers: &[[f32; 3]], radii: &[f32]) -> Option<String> {
+    let spacing = |x: f32| x.abs().next_up() - x.abs();
+    let coarse = |(c, &r): (&[f32; 3], &f32)| {
+        let axis = (0..3).max_by(|&a, &b| c[a].abs().total_cmp(&c[b].abs()))?;
+        (spacing(c[axis]) > r * MAX_SPACING_PER_RADIUS).then_some((axis, c[axis], r))
+    };
+    let mut rows = centers.iter().zip(radii).enumerate();
+    let (index, (axis, x, r)) = rows.find_map(|(k, row)| Some((k, coarse(row)?)))?;
+    let more = rows.filter(|(_, row)| coarse(*row).is_some()).count();
+    Some(format!(
+        "sphere {index} (0-based): {} = {x:e} is held in 32-bit floats only to within {:e}, \
+         more than 1/1024 of its radius {r:e} ({more} more spheres like it): pairs that close \
+         to touching may be decided either way",
+        ["x", "y", "z"][axis],
+        spacing(x)
+    ))
+}
+
 /// A colliding pair of spheres, by input index, always with `i < j`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Pair {
@@ -221,6 +252,30 @@ mod tests {
                 other => panic!("expected InvalidSphere, got {other:?}"),
             }
         }
+    }
+
+    #[test]
+    fn coordinates_too_coarse_for_the_radii_are_named() {
+        // 1e17 is held to within 2^33: far more than a radius of 1.
+        let centers = [
+            [0.0, 0.0, 0.0],
+            [1e17, 0.0, 0.0],
+            [0.0, -3e16, 0.0],
+            [5.0; 3],
+        ];
+        let radii = [1.0, 1.0, 1.0, 1e-3];
+        let warning = coarse_coordinates(&centers, &radii).expect("a warning");
+        assert!(
+            warning.starts_with("sphere 1 (0-based): x = 1e17"),
+            "{warning}"
+        );
+        assert!(warning.contains("(1 more spheres"), "{warning}");
+        assert!(warning.contains("8.589935e9"), "{warning}");
+        // At the bound: 1024 has spacing 2^-13 = 2^-10 of a radius 2^-3, and is accepted.
+        assert_eq!(coarse_coordinates(&[[1024.0, 0.0, -1.0]], &[0.125]), None);
+        let warning = coarse_coordinates(&[[1.0, 0.0, -1024.0]], &[0.12]).expect("a warning");
+        assert!(warning.contains("z = -1.024e3"), "{warning}");
+        assert_eq!(coarse_coordinates(&centers[..1], &radii[..1]), None);
     }
 
     #[test]

@@ -301,6 +301,37 @@ fn csv_radius_below_the_smallest_is_rejected_with_its_line() {
 }
 
 #[test]
+fn coordinates_f32_cannot_place_at_the_radii_get_a_warning_naming_the_sphere() {
+    // A true gap of 3 > 2, but both centres round to the same f32: reported touching, with a
+    // warning that names the first sphere too coarse for its radius.
+    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n1e17,0,0,1\n1.00000000000000003e17,0,0,1\n");
+    let out = dir.path().join("pairs.csv");
+    let run = detect(&path, &out, &["--backend", "cpu"]);
+    let warnings: Vec<&str> = run
+        .stderr
+        .lines()
+        .filter(|l| l.starts_with("warning:"))
+        .collect();
+    assert_eq!(warnings.len(), 1, "{}", run.describe());
+    for words in [
+        &path.display().to_string(),
+        "sphere 1 (0-based)",
+        "x = 1e17",
+        "1 more",
+    ] {
+        assert!(
+            warnings[0].contains(words),
+            "{words:?} missing\n{}",
+            run.describe()
+        );
+    }
+    // Fine coordinates get none.
+    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n1e3,0,0,1\n");
+    let run = detect(&path, &dir.path().join("pairs.csv"), &["--backend", "cpu"]);
+    assert!(!run.stderr.contains("warning"), "{}", run.describe());
+}
+
+#[test]
 fn csv_three_columns_is_rejected_with_its_line() {
     csv_rejected(
         "x,y,z,r\n0,0,0,1\n1,2,3\n",

@@ -98,6 +98,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     if let Some(warning) = p.overlap_warning(r_min, r_max) {
         eprintln!("warning: {warning}");
     }
+    let particles = &start.particles;
+    if let Some(warning) = mochi::coarse_coordinates(&particles.positions, &particles.radii) {
+        eprintln!("warning: {warning}");
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let scene_toml = config.to_toml();
