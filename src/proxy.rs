@@ -52,11 +52,12 @@ pub fn diff(c_i: [f32; 3], c_j: [f32; 3]) -> [f32; 3] {
     [c_i[0] - c_j[0], c_i[1] - c_j[1], c_i[2] - c_j[2]]
 }
 
-/// The power of two that brings `t` (finite, > 0) into [1, 2); 2^127 for every `t` below 2^-126
-/// (which brings it to at least 2^-22).
+/// The power of two that brings `t` (0 < t < 2^127) into [1, 2); 2^127 for every `t` below
+/// 2^-126 (which brings it to at least 2^-22).
 ///
-/// Built from the exponent bits: `t` ≤ 4·10¹⁸ has a biased exponent ≤ 188, so the result's
-/// exponent 254 − e lies in 66..=254 (a normal, finite power of two).
+/// Built from the biased exponent e of `t` (0..=253 here), as the float of exponent 254 − e: a
+/// normal, finite power of two. The rule's thresholds, sums and doubles of radii of at most
+/// [`crate::MAX_MAGNITUDE`], stay below 4·10¹⁸ (e ≤ 188).
 #[inline(always)]
 pub fn unit_scale(t: f32) -> f32 {
     f32::from_bits((254 - (t.to_bits() >> 23)) << 23)
@@ -149,10 +150,6 @@ pub fn keep_in(
 mod tests {
     use super::*;
 
-    fn next_up(x: f32) -> f32 {
-        f32::from_bits(x.to_bits() + 1)
-    }
-
     fn reports(a: ([f32; 3], f32), b: ([f32; 3], f32)) -> (bool, bool) {
         (
             keep(0, a.0, a.1, 1, b.0, b.1),
@@ -179,7 +176,7 @@ mod tests {
         // Coincident centres.
         assert_eq!(reports(([1.0; 3], 0.5), ([1.0; 3], 3.0)), (true, false));
         // Apart by one ulp more than touching.
-        let gap = next_up(2.0);
+        let gap = 2.0f32.next_up();
         assert_eq!(
             reports(([0.0; 3], 1.0), ([gap, 0.0, 0.0], 1.0)),
             (false, false)
@@ -192,14 +189,19 @@ mod tests {
 
     #[test]
     fn near_boundary_flags_only_pairs_within_rounding_of_a_threshold() {
-        let touching = next_up(1.6);
+        let touching = 1.6f32.next_up();
         assert!(near_boundary([0.0; 3], 1.0, [touching, 1.2, 0.0], 1.0));
         assert!(near_boundary([0.0; 3], 1.0, [1.6, 1.2, 0.0], 1.0));
         assert!(!near_boundary([0.0; 3], 1.0, [1.5, 1.2, 0.0], 1.0));
         assert!(!near_boundary([0.0; 3], 1.0, [5.0, 1.2, 0.0], 1.0));
         // On an axis nothing is fused: no allowance.
         assert!(!near_boundary([0.0; 3], 1.0, [2.0, 0.0, 0.0], 1.0));
-        assert!(!near_boundary([0.0; 3], 1.0, [0.0, 0.0, next_up(2.0)], 1.0));
+        assert!(!near_boundary(
+            [0.0; 3],
+            1.0,
+            [0.0, 0.0, 2.0f32.next_up()],
+            1.0
+        ));
         // The proxy boundary of the larger sphere (d = 2·r_j) counts too.
         assert!(near_boundary([0.0; 3], 0.1, [2.4, 3.2, 0.0], 2.0));
         // Tiny radii: nothing underflows to a band around zero.
@@ -222,12 +224,12 @@ mod tests {
         for r in [2f32.powi(-100), f32::from_bits(1)] {
             let d = r + r;
             assert!(collides([0.0; 3], r, [0.0, d, 0.0], r), "{r:e}");
-            assert!(!collides([0.0; 3], r, [0.0, next_up(d), 0.0], r), "{r:e}");
+            assert!(!collides([0.0; 3], r, [0.0, d.next_up(), 0.0], r), "{r:e}");
         }
         // A proxy boundary far below the larger radius: only the small sphere's proxy decides.
         let (small, big) = (2f32.powi(-90), 1.0);
         let inside = ([0.0, 0.0, 2.0 * small], small);
-        let outside = ([0.0, 0.0, next_up(2.0 * small)], small);
+        let outside = ([0.0, 0.0, (2.0 * small).next_up()], small);
         assert_eq!(reports(([0.0; 3], big), inside), (true, false));
         assert_eq!(reports(([0.0; 3], big), outside), (false, true));
         // At the coordinate limit: no overflow to infinity, touching is still touching.

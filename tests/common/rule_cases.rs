@@ -9,14 +9,6 @@ use mochi::proxy::{keep_in, near_boundary};
 /// One candidate: (i, c_i, r_i, j, c_j, r_j).
 pub type Case = (u32, [f32; 3], f32, u32, [f32; 3], f32);
 
-fn next_up(x: f32) -> f32 {
-    f32::from_bits(x.to_bits() + 1)
-}
-
-fn next_down(x: f32) -> f32 {
-    f32::from_bits(x.to_bits() - 1)
-}
-
 /// Every case, both orders of each pair.
 pub fn cases() -> Vec<Case> {
     let mut cases = Vec::new();
@@ -41,7 +33,7 @@ pub fn cases() -> Vec<Case> {
             [0.6, 0.8, 0.0],
         ] {
             for d in [r_i + r_j, 2.0 * r_j, 2.0 * r_i] {
-                for d in [next_down(d), d, next_up(d)] {
+                for d in [d.next_down(), d, d.next_up()] {
                     let c_j = std::array::from_fn(|a| origin[a] + dir[a] * d);
                     cases.push((3, origin, r_i, 7, c_j, r_j));
                     cases.push((7, c_j, r_j, 3, origin, r_i));
