@@ -325,6 +325,30 @@ fn coordinates_f32_cannot_place_at_the_radii_get_a_warning_naming_the_sphere() {
             run.describe()
         );
     }
+    assert_eq!(read_pairs(&out).unwrap(), vec![mochi::Pair::new(1, 2)]);
+    // simulate reads its input the same way and warns the same way.
+    let sim = dir.path().join("run");
+    let run = mochi([
+        OsStr::new("simulate"),
+        OsStr::new("--input"),
+        p(&path),
+        OsStr::new("--steps"),
+        OsStr::new("1"),
+        OsStr::new("--backend"),
+        OsStr::new("cpu"),
+        OsStr::new("-o"),
+        p(&sim),
+    ]);
+    run.assert_success();
+    let warning = run
+        .stderr
+        .lines()
+        .find(|l| l.starts_with("warning: sphere 1 (0-based)"));
+    assert!(
+        warning.is_some_and(|w| w.contains("x = 1e17")),
+        "{}",
+        run.describe()
+    );
     // Fine coordinates get none.
     let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n1e3,0,0,1\n");
     let run = detect(&path, &dir.path().join("pairs.csv"), &["--backend", "cpu"]);
