@@ -69,16 +69,21 @@ static __forceinline__ __device__ void mochi_trace_point(
 #define MOCHI_MODE_MOCHI 0u
 #define MOCHI_MODE_NNS 1u
 
-static __forceinline__ __device__ float mochi_dist2(float4 a, float4 b) {
-    float dx = __fsub_rn(a.x, b.x);
-    float dy = __fsub_rn(a.y, b.y);
-    float dz = __fsub_rn(a.z, b.z);
-    return __fadd_rn(__fadd_rn(__fmul_rn(dx, dx), __fmul_rn(dy, dy)), __fmul_rn(dz, dz));
+// The power of two that brings t (finite, > 0) into [1, 2); 2^127 below 2^-126.
+static __forceinline__ __device__ float mochi_unit_scale(float t) {
+    return __uint_as_float((254u - (__float_as_uint(t) >> 23)) << 23);
 }
 
-static __forceinline__ __device__ bool mochi_collides(float d2, float r_i, float r_j) {
-    float s = __fadd_rn(r_i, r_j);
-    return d2 <= __fmul_rn(s, s);
+// |d| <= t, both sides scaled by mochi_unit_scale(t) before squaring: exact, and nothing
+// underflows.
+static __forceinline__ __device__ bool mochi_within(float dx, float dy, float dz, float t) {
+    float k = mochi_unit_scale(t);
+    float x = __fmul_rn(dx, k);
+    float y = __fmul_rn(dy, k);
+    float z = __fmul_rn(dz, k);
+    float u = __fmul_rn(t, k);
+    return __fadd_rn(__fadd_rn(__fmul_rn(x, x), __fmul_rn(y, y)), __fmul_rn(z, z)) <=
+           __fmul_rn(u, u);
 }
 
 // Whether the ray of sphere i keeps its candidate j (spheres as x, y, z, r).
@@ -87,12 +92,13 @@ static __forceinline__ __device__ bool mochi_keep(
     if (i == j) {
         return false;
     }
-    float d2 = mochi_dist2(a, b);
+    float dx = __fsub_rn(a.x, b.x);
+    float dy = __fsub_rn(a.y, b.y);
+    float dz = __fsub_rn(a.z, b.z);
+    bool collides = mochi_within(dx, dy, dz, __fadd_rn(a.w, b.w));
     if (mode == MOCHI_MODE_NNS) {
-        return j > i && mochi_collides(d2, a.w, b.w);
+        return j > i && collides;
     }
-    float proxy_j = 2.0f * b.w;
-    float proxy_i = 2.0f * a.w;
-    return mochi_collides(d2, a.w, b.w) && d2 <= __fmul_rn(proxy_j, proxy_j) &&
-           (j > i || d2 > __fmul_rn(proxy_i, proxy_i));
+    return collides && mochi_within(dx, dy, dz, 2.0f * b.w) &&
+           (j > i || !mochi_within(dx, dy, dz, 2.0f * a.w));
 }

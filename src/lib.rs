@@ -49,4 +49,7 @@ mod spheres;
 pub use backend::{Backend, BackendInfo, DetectStats};
 pub use error::{Error, Result};
 pub use proxy::ProxyMode;
-pub use spheres::{MAX_MAGNITUDE, MAX_SPHERES, Pair, SphereSet};
+pub use spheres::{
+    MAX_MAGNITUDE, MAX_SPACING_PER_RADIUS, MAX_SPHERES, MIN_RADIUS, Pair, SphereSet,
+    coarse_coordinates,
+};

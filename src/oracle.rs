@@ -1,6 +1,6 @@
 //! The brute-force oracle: every pair tested, O(n²). Tests trust it; fine up to ~20k spheres.
 
-use crate::proxy::{collides, dist2, near_boundary};
+use crate::proxy::{collides, near_boundary};
 use crate::spheres::{Pair, SphereSet};
 use rayon::prelude::*;
 
@@ -12,16 +12,17 @@ pub fn brute_force_pairs(spheres: &SphereSet) -> Vec<Pair> {
         .into_par_iter()
         .flat_map_iter(|i| {
             (i + 1..spheres.len())
-                .filter(move |&j| collides(dist2(c[i], c[j]), r[i], r[j]))
+                .filter(move |&j| collides(c[i], r[i], c[j], r[j]))
                 .map(move |j| Pair::new(i as u32, j as u32))
         })
         .collect()
 }
 
-/// Pairs in which `got` and the oracle's `want` differ, leaving out those within rounding of a
-/// threshold of the rule ([`crate::proxy::near_boundary`]), which a GPU that fuses multiply-adds
-/// may decide the other way. Empty means `got` is exact.
-pub fn differences_off_boundary(got: &[Pair], want: &[Pair], spheres: &SphereSet) -> Vec<Pair> {
+/// Pairs in which `got` and the oracle's `want` differ. With `fused` (a backend whose device
+/// compiler may fuse multiply-adds: the wgpu ones), pairs within rounding of a threshold of the
+/// rule off the axes ([`crate::proxy::near_boundary`]) are left out: such a GPU may decide them
+/// the other way. Without it, every difference counts. Empty means `got` is exact.
+pub fn differences(got: &[Pair], want: &[Pair], spheres: &SphereSet, fused: bool) -> Vec<Pair> {
     use std::collections::HashSet;
     let (c, r) = (spheres.centers(), spheres.radii());
     let got: HashSet<_> = got.iter().copied().collect();
@@ -31,7 +32,7 @@ pub fn differences_off_boundary(got: &[Pair], want: &[Pair], spheres: &SphereSet
         .copied()
         .filter(|p| {
             let (i, j) = (p.i as usize, p.j as usize);
-            !near_boundary(c[i], r[i], c[j], r[j])
+            !(fused && near_boundary(c[i], r[i], c[j], r[j]))
         })
         .collect();
     off.sort_unstable();
@@ -52,6 +53,31 @@ mod tests {
         assert_eq!(
             brute_force_pairs(&s),
             vec![Pair::new(0, 1), Pair::new(0, 3)]
+        );
+    }
+
+    #[test]
+    fn differences_allow_only_fused_rounding_off_the_axes() {
+        // 0–1 touch along x (exact in any arithmetic); 2–3 touch to rounding on a diagonal.
+        let s = SphereSet::new(
+            vec![
+                [0.0; 3],
+                [2.0, 0.0, 0.0],
+                [10.0, 0.0, 0.0],
+                [11.2, 1.6, 0.0],
+            ],
+            vec![1.0, 1.0, 1.0, 1.0],
+        )
+        .unwrap();
+        let want = brute_force_pairs(&s);
+        assert_eq!(want, vec![Pair::new(0, 1), Pair::new(2, 3)]);
+        for fused in [false, true] {
+            assert_eq!(differences(&want, &want, &s, fused), vec![]);
+            assert_eq!(differences(&[], &want, &s, fused).len(), 2 - fused as usize);
+        }
+        assert_eq!(
+            differences(&[Pair::new(0, 2)], &[], &s, true),
+            vec![Pair::new(0, 2)]
         );
     }
 }

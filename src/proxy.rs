@@ -1,8 +1,9 @@
 //! The proxy-sphere rule of the method (docs: `../shared/docs/method.md`), on `f32`.
 //!
 //! This file is the reference: the WGSL and CUDA versions of the rule copy it line for line
-//! (keep them in sync with it). Distances are compared squared, and `d2` is computed the same way
-//! for both orders of a pair, so the rule is symmetric bit for bit.
+//! (keep them in sync with it). Distances are compared squared after scaling both sides by a
+//! power of two (exact, and no square underflows), computed the same way for both orders of a
+//! pair, so the rule is symmetric bit for bit.
 
 /// How large the box of each sphere is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -43,41 +44,70 @@ impl ProxyMode {
     }
 }
 
-/// Squared distance between two centres, as a dot product of their difference.
+/// Difference of two centres, `c_i − c_j`.
 ///
-/// Negating the difference is exact, so `dist2(a, b) == dist2(b, a)` bit for bit.
+/// Negating it is exact, so every rule below decides `(a, b)` and `(b, a)` on the same numbers.
 #[inline(always)]
-pub fn dist2(c_i: [f32; 3], c_j: [f32; 3]) -> f32 {
-    let dx = c_i[0] - c_j[0];
-    let dy = c_i[1] - c_j[1];
-    let dz = c_i[2] - c_j[2];
-    dx * dx + dy * dy + dz * dz
+pub fn diff(c_i: [f32; 3], c_j: [f32; 3]) -> [f32; 3] {
+    [c_i[0] - c_j[0], c_i[1] - c_j[1], c_i[2] - c_j[2]]
+}
+
+/// The power of two that brings `t` (0 < t < 2^127) into [1, 2); 2^127 for every `t` below
+/// 2^-126 (which brings it to at least 2^-22).
+///
+/// Built from the biased exponent e of `t` (0..=253 here), as the float of exponent 254 − e: a
+/// normal, finite power of two. The rule's thresholds, sums and doubles of radii of at most
+/// [`crate::MAX_MAGNITUDE`], stay below 4·10¹⁸ (e ≤ 188).
+#[inline(always)]
+pub fn unit_scale(t: f32) -> f32 {
+    f32::from_bits((254 - (t.to_bits() >> 23)) << 23)
+}
+
+/// Whether a difference `d` of centres is at most `t` (> 0) long: |d|² ≤ t², both sides scaled
+/// by the same power of two ([`unit_scale`] of `t`) before squaring.
+///
+/// Scaling by a power of two is exact, so this decides as unscaled `f32` arithmetic without
+/// underflow would: squares of radii down to the smallest subnormal never vanish, and a
+/// component that does underflow after scaling is below 2^-126·t, too small to change the
+/// rounded sum near t². A component that overflows makes the left side infinite: far apart,
+/// correctly. Symmetric bit for bit: `d` and `−d` give the same squares.
+#[inline(always)]
+pub fn within(d: [f32; 3], t: f32) -> bool {
+    let k = unit_scale(t);
+    let (x, y, z, u) = (d[0] * k, d[1] * k, d[2] * k, t * k);
+    x * x + y * y + z * z <= u * u
 }
 
 /// Relative width of the rounding band of [`near_boundary`]: plain and fused evaluations of
-/// [`dist2`] differ by less than 6 ulps.
-const ROUNDING_BAND: f32 = 16.0 * f32::EPSILON;
+/// [`within`] differ by less than 6 ulps.
+const ROUNDING_BAND: f64 = 16.0 * f32::EPSILON as f64;
 
-/// True when the squared distance of the two centres lies within rounding of a threshold of the
-/// rule: (r_i + r_j)², (2·r_i)² or (2·r_j)².
+/// True when the centres differ in more than one coordinate and their distance lies within
+/// rounding of a threshold of the rule: r_i + r_j, 2·r_i or 2·r_j (compared squared, in `f64`,
+/// which neither underflows nor overflows here).
 ///
 /// GPU compilers may fuse `a·b + c` into one rounding (WGSL cannot forbid it, and does not promise
 /// that `fma` is fused either), so devices may decide such a pair differently from this file, by
-/// an ulp. Every other pair is decided identically everywhere, and every backend reports each
-/// pair it keeps exactly once.
+/// an ulp. With one nonzero component there is nothing to fuse (x·x + 0 rounds once either way).
+/// Every other pair is decided identically everywhere, and every backend reports each pair it
+/// keeps exactly once.
 pub fn near_boundary(c_i: [f32; 3], r_i: f32, c_j: [f32; 3], r_j: f32) -> bool {
-    let d2 = dist2(c_i, c_j);
-    let s = r_i + r_j;
-    [s * s, 4.0 * r_i * r_i, 4.0 * r_j * r_j]
+    let d = diff(c_i, c_j);
+    if d.iter().filter(|&&x| x != 0.0).count() <= 1 {
+        return false;
+    }
+    let d2: f64 = d.iter().map(|&x| (x as f64).powi(2)).sum();
+    let s = (r_i + r_j) as f64;
+    let (p_i, p_j) = (2.0 * r_i as f64, 2.0 * r_j as f64);
+    [s * s, p_i * p_i, p_j * p_j]
         .iter()
         .any(|&t| (d2 - t).abs() <= t * ROUNDING_BAND)
 }
 
-/// Rule 1, the narrow phase: spheres at squared distance `d2` touch or overlap.
+/// Rule 1, the narrow phase: the spheres touch or overlap (|c_i − c_j| ≤ r_i + r_j).
 #[inline(always)]
-pub fn collides(d2: f32, r_i: f32, r_j: f32) -> bool {
-    let s = r_i + r_j;
-    d2 <= s * s
+pub fn collides(c_i: [f32; 3], r_i: f32, c_j: [f32; 3], r_j: f32) -> bool {
+    within(diff(c_i, c_j), r_i + r_j)
 }
 
 /// The whole filter of a candidate found by the point ray of sphere `i` in the box of sphere `j`
@@ -88,17 +118,15 @@ pub fn keep(i: u32, c_i: [f32; 3], r_i: f32, j: u32, c_j: [f32; 3], r_j: f32) ->
     if i == j {
         return false;
     }
-    let d2 = dist2(c_i, c_j);
-    let proxy_j = 2.0 * r_j;
-    let proxy_i = 2.0 * r_i;
-    collides(d2, r_i, r_j) && d2 <= proxy_j * proxy_j && (j > i || d2 > proxy_i * proxy_i)
+    let d = diff(c_i, c_j);
+    within(d, r_i + r_j) && within(d, 2.0 * r_j) && (j > i || !within(d, 2.0 * r_i))
 }
 
 /// The filter of `nns` mode: every box has the same size, so both rays see the pair and the
 /// smaller index keeps it.
 #[inline(always)]
 pub fn keep_nns(i: u32, c_i: [f32; 3], r_i: f32, j: u32, c_j: [f32; 3], r_j: f32) -> bool {
-    j > i && collides(dist2(c_i, c_j), r_i, r_j)
+    j > i && collides(c_i, r_i, c_j, r_j)
 }
 
 /// The filter of `mode` (see [`keep`] and [`keep_nns`]).
@@ -148,7 +176,7 @@ mod tests {
         // Coincident centres.
         assert_eq!(reports(([1.0; 3], 0.5), ([1.0; 3], 3.0)), (true, false));
         // Apart by one ulp more than touching.
-        let gap = f32::from_bits(2.0f32.to_bits() + 1);
+        let gap = 2.0f32.next_up();
         assert_eq!(
             reports(([0.0; 3], 1.0), ([gap, 0.0, 0.0], 1.0)),
             (false, false)
@@ -161,13 +189,100 @@ mod tests {
 
     #[test]
     fn near_boundary_flags_only_pairs_within_rounding_of_a_threshold() {
-        let touching = f32::from_bits(2.0f32.to_bits() + 1);
-        assert!(near_boundary([0.0; 3], 1.0, [touching, 0.0, 0.0], 1.0));
-        assert!(near_boundary([0.0; 3], 1.0, [2.0, 0.0, 0.0], 1.0));
-        assert!(!near_boundary([0.0; 3], 1.0, [1.9, 0.0, 0.0], 1.0));
-        assert!(!near_boundary([0.0; 3], 1.0, [5.0, 0.0, 0.0], 1.0));
+        let touching = 1.6f32.next_up();
+        assert!(near_boundary([0.0; 3], 1.0, [touching, 1.2, 0.0], 1.0));
+        assert!(near_boundary([0.0; 3], 1.0, [1.6, 1.2, 0.0], 1.0));
+        assert!(!near_boundary([0.0; 3], 1.0, [1.5, 1.2, 0.0], 1.0));
+        assert!(!near_boundary([0.0; 3], 1.0, [5.0, 1.2, 0.0], 1.0));
+        // On an axis nothing is fused: no allowance.
+        assert!(!near_boundary([0.0; 3], 1.0, [2.0, 0.0, 0.0], 1.0));
+        assert!(!near_boundary(
+            [0.0; 3],
+            1.0,
+            [0.0, 0.0, 2.0f32.next_up()],
+            1.0
+        ));
         // The proxy boundary of the larger sphere (d = 2·r_j) counts too.
-        assert!(near_boundary([0.0; 3], 0.1, [4.0, 0.0, 0.0], 2.0));
+        assert!(near_boundary([0.0; 3], 0.1, [2.4, 3.2, 0.0], 2.0));
+        // Tiny radii: nothing underflows to a band around zero.
+        assert!(near_boundary(
+            [0.0; 3],
+            1e-30,
+            [1.2e-30, 1.6e-30, 0.0],
+            1e-30
+        ));
+        assert!(!near_boundary([0.0; 3], 1e-30, [1e-25, 1e-25, 0.0], 1e-30));
+    }
+
+    #[test]
+    fn tiny_and_huge_radii_decide_as_without_underflow() {
+        // A gap of 10^5 radii: the squares (1e-50, 4e-60) underflow unscaled.
+        let (a, b) = (([0.0; 3], 1e-30), ([1e-25, 0.0, 0.0], 1e-30));
+        assert_eq!(reports(a, b), (false, false));
+        assert!(!collides(a.0, a.1, b.0, b.1));
+        // Touching to the ulp at 2^-100 and at the smallest subnormal radius.
+        for r in [2f32.powi(-100), f32::from_bits(1)] {
+            let d = r + r;
+            assert!(collides([0.0; 3], r, [0.0, d, 0.0], r), "{r:e}");
+            assert!(!collides([0.0; 3], r, [0.0, d.next_up(), 0.0], r), "{r:e}");
+        }
+        // A proxy boundary far below the larger radius: only the small sphere's proxy decides.
+        let (small, big) = (2f32.powi(-90), 1.0);
+        let inside = ([0.0, 0.0, 2.0 * small], small);
+        let outside = ([0.0, 0.0, (2.0 * small).next_up()], small);
+        assert_eq!(reports(([0.0; 3], big), inside), (true, false));
+        assert_eq!(reports(([0.0; 3], big), outside), (false, true));
+        // At the coordinate limit: no overflow to infinity, touching is still touching.
+        let m = crate::spheres::MAX_MAGNITUDE;
+        assert_eq!(
+            reports(([-m, 0.0, 0.0], m), ([m, 0.0, 0.0], m)),
+            (true, false)
+        );
+        assert!(!collides([-m; 3], 1e-30, [m; 3], 1e-30));
+    }
+
+    #[test]
+    fn unit_scale_brings_every_threshold_near_one() {
+        for t in [
+            f32::from_bits(1),
+            1e-40,
+            1.2e-38,
+            1e-30,
+            0.75,
+            1.0,
+            3.0,
+            4e18,
+        ] {
+            let u = t * unit_scale(t);
+            assert!((2f32.powi(-22)..2.0).contains(&u), "{t:e} scaled to {u:e}");
+            if t >= f32::MIN_POSITIVE {
+                assert!(u >= 1.0, "{t:e} scaled to {u:e}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_rule_is_symmetric_bit_for_bit() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
+        for _ in 0..10_000 {
+            let scale = 10f32.powi(rng.random_range(-35..15));
+            let c = |rng: &mut rand_pcg::Pcg64| {
+                std::array::from_fn(|_| rng.random_range(-scale..scale))
+            };
+            let (a, b): ([f32; 3], [f32; 3]) = (c(&mut rng), c(&mut rng));
+            let (r_a, r_b) = (
+                rng.random_range(0.01..1.0) * scale,
+                rng.random_range(0.01..1.0) * scale,
+            );
+            assert_eq!(collides(a, r_a, b, r_b), collides(b, r_b, a, r_a));
+            let d = diff(a, b);
+            assert_eq!(d.map(|x| -x), diff(b, a));
+            if collides(a, r_a, b, r_b) {
+                let (ab, ba) = (keep(0, a, r_a, 1, b, r_b), keep(1, b, r_b, 0, a, r_a));
+                assert!(ab != ba, "{a:?} {r_a:e} {b:?} {r_b:e}");
+            }
+        }
     }
 
     #[test]

@@ -8,12 +8,21 @@ use crate::error::{Error, Result};
 /// (3·(2·10¹⁸)² ≈ 1.2·10³⁷ < `f32::MAX`), so no comparison ever sees an infinity.
 pub const MAX_MAGNITUDE: f32 = 1e18;
 
+/// Smallest radius accepted.
+///
+/// The rule ([`crate::proxy::within`]) scales every comparison, so no square underflows at any
+/// radius; this bound keeps the subnormal numbers that GPUs may flush to zero out of every
+/// decision: a coordinate difference below `f32::MIN_POSITIVE` (about 1.2·10⁻³⁸) then counts for
+/// less than 2^-27 of the smallest threshold r_i + r_j, too little to change a rounded result.
+pub const MIN_RADIUS: f32 = 1e-30;
+
 /// Largest number of spheres in one set: indices are `u32` on every backend.
 pub const MAX_SPHERES: usize = u32::MAX as usize;
 
 /// A set of spheres whose every centre and radius has been checked.
 ///
-/// Centres are finite with |x| ≤ [`MAX_MAGNITUDE`]; radii are finite, > 0 and ≤ [`MAX_MAGNITUDE`].
+/// Centres are finite with |x| ≤ [`MAX_MAGNITUDE`]; radii are finite, in
+/// [[`MIN_RADIUS`], [`MAX_MAGNITUDE`]].
 /// Units are whatever the caller uses (SI metres in the scenes).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SphereSet {
@@ -151,10 +160,46 @@ pub(crate) fn check_sphere(c: &[f32; 3], r: f32) -> Result<(), String> {
     if r <= 0.0 {
         return Err(format!("radius must be > 0 (got {r})"));
     }
+    if r < MIN_RADIUS {
+        return Err(format!(
+            "radius {r:e} is below the smallest radius, {MIN_RADIUS:e}"
+        ));
+    }
     if r > MAX_MAGNITUDE {
         return Err(format!("radius {r} exceeds {MAX_MAGNITUDE:e}"));
     }
     Ok(())
+}
+
+/// Coarsest `f32` spacing of a centre coordinate, as a fraction of its sphere's radius, that
+/// [`coarse_coordinates`] accepts without a warning: 2^-10.
+///
+/// Centres are held in `f32`; near |x| the representable values lie ulp(x) apart (2^-23·|x| or
+/// so), so a centre read from a finer file moves by up to half that, and every distance the rule
+/// computes carries errors of that size. Above this bound a pair within a few thousandths of a
+/// radius of touching may be decided either way; the exactness guarantees hold for the `f32`
+/// values, not for the file's digits.
+pub const MAX_SPACING_PER_RADIUS: f32 = 1.0 / 1024.0;
+
+/// A warning (one line, naming the first such sphere and how many there are) when the `f32`
+/// spacing of some centre coordinate exceeds [`MAX_SPACING_PER_RADIUS`] of its radius: the
+/// input's coordinates are too large for `f32` to place spheres of its radii; `None` otherwise.
+pub fn coarse_coordinates(centers: &[[f32; 3]], radii: &[f32]) -> Option<String> {
+    let spacing = |x: f32| x.abs().next_up() - x.abs();
+    let coarse = |(c, &r): (&[f32; 3], &f32)| {
+        let axis = (0..3).max_by(|&a, &b| c[a].abs().total_cmp(&c[b].abs()))?;
+        (spacing(c[axis]) > r * MAX_SPACING_PER_RADIUS).then_some((axis, c[axis], r))
+    };
+    let mut rows = centers.iter().zip(radii).enumerate();
+    let (index, (axis, x, r)) = rows.find_map(|(k, row)| Some((k, coarse(row)?)))?;
+    let more = rows.filter(|(_, row)| coarse(*row).is_some()).count();
+    Some(format!(
+        "sphere {index} (0-based): {} = {x:e} is held in 32-bit floats only to within {:e}, \
+         more than 1/1024 of its radius {r:e} ({more} more spheres like it): pairs that close \
+         to touching may be decided either way",
+        ["x", "y", "z"][axis],
+        spacing(x)
+    ))
 }
 
 /// A colliding pair of spheres, by input index, always with `i < j`.
@@ -196,6 +241,7 @@ mod tests {
             (vec![ok], vec![0.0], 0, "> 0"),
             (vec![ok], vec![-1.0], 0, "> 0"),
             (vec![[2e18, 0.0, 0.0]], vec![1.0], 0, "exceeds"),
+            (vec![ok, ok], vec![1.0, 9e-31], 1, "smallest radius"),
         ];
         for (centers, radii, want_index, want_text) in cases {
             match SphereSet::new(centers, radii) {
@@ -209,6 +255,30 @@ mod tests {
     }
 
     #[test]
+    fn coordinates_too_coarse_for_the_radii_are_named() {
+        // 1e17 is held to within 2^33: far more than a radius of 1.
+        let centers = [
+            [0.0, 0.0, 0.0],
+            [1e17, 0.0, 0.0],
+            [0.0, -3e16, 0.0],
+            [5.0; 3],
+        ];
+        let radii = [1.0, 1.0, 1.0, 1e-3];
+        let warning = coarse_coordinates(&centers, &radii).expect("a warning");
+        assert!(
+            warning.starts_with("sphere 1 (0-based): x = 1e17"),
+            "{warning}"
+        );
+        assert!(warning.contains("(1 more spheres"), "{warning}");
+        assert!(warning.contains("8.589935e9"), "{warning}");
+        // At the bound: 1024 has spacing 2^-13 = 2^-10 of a radius 2^-3, and is accepted.
+        assert_eq!(coarse_coordinates(&[[1024.0, 0.0, -1.0]], &[0.125]), None);
+        let warning = coarse_coordinates(&[[1.0, 0.0, -1024.0]], &[0.12]).expect("a warning");
+        assert!(warning.contains("z = -1.024e3"), "{warning}");
+        assert_eq!(coarse_coordinates(&centers[..1], &radii[..1]), None);
+    }
+
+    #[test]
     fn tracks_radius_range_and_moves() {
         let mut s = SphereSet::new(vec![[0.0; 3], [1.0; 3]], vec![0.5, 2.0]).unwrap();
         assert_eq!((s.min_radius(), s.max_radius()), (0.5, 2.0));
@@ -217,5 +287,6 @@ mod tests {
         s.set_centers(vec![[3.0; 3], [4.0; 3]]).unwrap();
         assert_eq!(s.centers()[1], [4.0; 3]);
         assert_eq!(SphereSet::default().max_radius(), 0.0);
+        assert!(SphereSet::new(vec![[0.0; 3]], vec![MIN_RADIUS]).is_ok());
     }
 }

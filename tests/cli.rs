@@ -292,6 +292,70 @@ fn csv_nan_and_too_large_radius_are_rejected() {
 }
 
 #[test]
+fn csv_radius_below_the_smallest_is_rejected_with_its_line() {
+    csv_rejected(
+        "x,y,z,r\n0,0,0,1e-30\n0,0,0,9e-31\n",
+        Some(3),
+        &["below the smallest radius", "1e-30"],
+    );
+}
+
+#[test]
+fn coordinates_f32_cannot_place_at_the_radii_get_a_warning_naming_the_sphere() {
+    // A true gap of 3 > 2, but both centres round to the same f32: reported touching, with a
+    // warning that names the first sphere too coarse for its radius.
+    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n1e17,0,0,1\n1.00000000000000003e17,0,0,1\n");
+    let out = dir.path().join("pairs.csv");
+    let run = detect(&path, &out, &["--backend", "cpu"]);
+    let warnings: Vec<&str> = run
+        .stderr
+        .lines()
+        .filter(|l| l.starts_with("warning:"))
+        .collect();
+    assert_eq!(warnings.len(), 1, "{}", run.describe());
+    for words in [
+        &path.display().to_string(),
+        "sphere 1 (0-based)",
+        "x = 1e17",
+        "1 more",
+    ] {
+        assert!(
+            warnings[0].contains(words),
+            "{words:?} missing\n{}",
+            run.describe()
+        );
+    }
+    assert_eq!(read_pairs(&out).unwrap(), vec![mochi::Pair::new(1, 2)]);
+    // simulate reads its input the same way and warns the same way.
+    let sim = dir.path().join("run");
+    let run = mochi([
+        OsStr::new("simulate"),
+        OsStr::new("--input"),
+        p(&path),
+        OsStr::new("--steps"),
+        OsStr::new("1"),
+        OsStr::new("--backend"),
+        OsStr::new("cpu"),
+        OsStr::new("-o"),
+        p(&sim),
+    ]);
+    run.assert_success();
+    let warning = run
+        .stderr
+        .lines()
+        .find(|l| l.starts_with("warning: sphere 1 (0-based)"));
+    assert!(
+        warning.is_some_and(|w| w.contains("x = 1e17")),
+        "{}",
+        run.describe()
+    );
+    // Fine coordinates get none.
+    let (dir, path) = csv_case("x,y,z,r\n0,0,0,1\n1e3,0,0,1\n");
+    let run = detect(&path, &dir.path().join("pairs.csv"), &["--backend", "cpu"]);
+    assert!(!run.stderr.contains("warning"), "{}", run.describe());
+}
+
+#[test]
 fn csv_three_columns_is_rejected_with_its_line() {
     csv_rejected(
         "x,y,z,r\n0,0,0,1\n1,2,3\n",

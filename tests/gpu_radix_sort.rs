@@ -5,7 +5,7 @@
 mod common;
 
 use mochi::gpu::Gpu;
-use mochi::gpu::radix_sort::RadixSort;
+use mochi::gpu::radix_sort::{BLOCK, RadixSort};
 use rand::{Rng, RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use std::time::Instant;
@@ -47,6 +47,22 @@ fn gpu_sort(gpu: &Gpu, sort: &mut RadixSort, keys: &[u32], key_bits: u32) -> (Ve
     let k = gpu.read::<u32>(&k, keys.len()).expect("read keys");
     let v = gpu.read::<u32>(&v, keys.len()).expect("read values");
     (k, v)
+}
+
+/// Sorts `n` zero keys, which this device cannot: the sort must report an error.
+fn check_refused(gpu: &Gpu, sort: &mut RadixSort, n: usize) {
+    let result = gpu.checked("radix sort", || {
+        let k = upload(gpu, "test.keys", &vec![0; n]);
+        let v = upload(gpu, "test.values", &vec![0; n]);
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        sort.encode(gpu, &mut encoder, &k, &v, n as u32, 32);
+        gpu.queue.submit([encoder.finish()]);
+    });
+    assert!(
+        result.is_err(),
+        "n = {n} is over this device's limits, yet no error"
+    );
+    eprintln!("n = {n}: refused ({})", result.err().unwrap());
 }
 
 /// Sorts on both sides and compares keys and values exactly (values prove stability).
@@ -93,6 +109,28 @@ fn random_keys_small_and_medium() {
             check(&gpu, &mut sort, "random", &keys, key_bits);
         }
     }
+}
+
+/// Workgroups per dimension of the device of [`two_d_grids_within_a_lowered_limit`].
+const LOWERED: u32 = 64;
+
+#[test]
+fn two_d_grids_within_a_lowered_limit() {
+    let Some(gpu) = common::open_gpu_lowered("the GPU radix sort's 2-D grids", LOWERED) else {
+        return;
+    };
+    assert_eq!(gpu.limits.max_compute_workgroups_per_dimension, LOWERED);
+    let mut sort = RadixSort::new(&gpu);
+    // 65 and 147 blocks: rows of 64 workgroups (the device rejects a wider dispatch, so a 1-D
+    // one would fail).
+    for n in [64 * BLOCK as usize + 1, 300_007] {
+        let keys = random_keys(n, n as u64);
+        for key_bits in [32, 8] {
+            check(&gpu, &mut sort, "2-D", &keys, key_bits);
+        }
+    }
+    // 64 × 64 blocks are the most one dispatch takes here; one key more is an error.
+    check_refused(&gpu, &mut sort, (LOWERED * LOWERED * BLOCK) as usize + 1);
 }
 
 #[test]
@@ -216,7 +254,7 @@ fn large_sizes_on_a_discrete_gpu() {
         let bytes = n as u64 * 4;
         if bytes > gpu.limits.max_storage_buffer_binding_size || bytes > gpu.limits.max_buffer_size
         {
-            eprintln!("note: n = {n} needs buffers over the device's limits, not run");
+            check_refused(&gpu, &mut sort, n);
             continue;
         }
         let input = random_keys(n, n as u64);

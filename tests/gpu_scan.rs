@@ -5,7 +5,7 @@
 mod common;
 
 use mochi::gpu::Gpu;
-use mochi::gpu::scan::ExclusiveScan;
+use mochi::gpu::scan::{ExclusiveScan, SCAN_BLOCK};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use std::time::Instant;
@@ -67,6 +67,21 @@ fn check(gpu: &Gpu, scan: &mut ExclusiveScan, what: &str, data: &[u32]) {
     eprintln!("{what}: len = {len}: ok in {took:.2?} (upload, scan, read-back)");
 }
 
+/// Scans `len` zeros, which this device cannot: the scan must report an error.
+fn check_refused(gpu: &Gpu, scan: &mut ExclusiveScan, len: usize) {
+    let result = gpu.checked("scan", || {
+        let buffer = upload(gpu, "test.data", &vec![0; len]);
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        scan.encode(gpu, &mut encoder, &buffer, len as u32);
+        gpu.queue.submit([encoder.finish()]);
+    });
+    assert!(
+        result.is_err(),
+        "len = {len} is over this device's limits, yet no error"
+    );
+    eprintln!("len = {len}: refused ({})", result.err().unwrap());
+}
+
 /// Whether `len` u32 fit in one storage binding and one buffer of this device.
 fn fits(gpu: &Gpu, len: usize) -> bool {
     let bytes = len as u64 * 4;
@@ -90,19 +105,35 @@ fn random_values_large() {
         return;
     };
     let mut scan = ExclusiveScan::new(&gpu);
-    // Three levels, then (70M: over 65535 blocks) a 2-D grid on level 0.
+    // Three levels, then (70M: over 65535 blocks) a 2-D grid on level 0, or an error where
+    // the device cannot hold it.
     for len in [1024 * 1024 + 3, 5_000_000, 70_000_000] {
-        if !fits(&gpu, len) {
-            eprintln!(
-                "skipping len = {len}: {} bytes exceed this device's storage binding limit \
-                 ({} bytes)",
-                len * 4,
-                gpu.limits.max_storage_buffer_binding_size
-            );
-            continue;
+        if fits(&gpu, len) {
+            check(&gpu, &mut scan, "random", &random_values(len, len as u64));
+        } else {
+            check_refused(&gpu, &mut scan, len);
         }
-        check(&gpu, &mut scan, "random", &random_values(len, len as u64));
     }
+}
+
+/// Workgroups per dimension of the device of [`two_d_grids_within_a_lowered_limit`].
+const LOWERED: u32 = 64;
+
+#[test]
+fn two_d_grids_within_a_lowered_limit() {
+    let Some(gpu) = common::open_gpu_lowered("the GPU scan's 2-D grids", LOWERED) else {
+        return;
+    };
+    assert_eq!(gpu.limits.max_compute_workgroups_per_dimension, LOWERED);
+    let mut scan = ExclusiveScan::new(&gpu);
+    // Level 0 of 65 and 98 blocks, then of 64 × 64, the most one dispatch takes here: rows of
+    // 64 workgroups (the device rejects a wider dispatch, so a 1-D one would fail).
+    let most = (LOWERED * LOWERED * SCAN_BLOCK) as usize;
+    for len in [64 * 1024 + 1, 100_003, most] {
+        check(&gpu, &mut scan, "2-D", &random_values(len, len as u64));
+    }
+    // One entry more needs a 65th row: an error, never a wrong or skipped scan.
+    check_refused(&gpu, &mut scan, most + 1);
 }
 
 #[test]
@@ -236,7 +267,7 @@ fn large_sizes_on_a_discrete_gpu() {
     let mut scan = ExclusiveScan::new(&gpu);
     for len in [1usize << 20, 16_000_000, 70_000_000, 1 << 27, 1 << 28] {
         if !fits(&gpu, len) {
-            eprintln!("note: len = {len} is over the device's limits, not run");
+            check_refused(&gpu, &mut scan, len);
             continue;
         }
         let input = random_values(len, len as u64);

@@ -1,12 +1,89 @@
 //! The optix backend's device programs compile with NVRTC 13.0 (CI installs it from PyPI, so a
 //! broken `.cu` cannot land), and a machine without an NVIDIA driver gets a reason, not a
-//! panic. Its exactness is tested with every other backend in backends_exact.rs.
+//! panic. The CUDA copy of the proxy rule (`optix/device.cuh`) decides the boundary cases of
+//! `common/rule_cases.rs` exactly as `src/proxy.rs` does (it rounds every step as the cpu:
+//! no fused multiply-adds). Its exactness is tested with every other backend in
+//! backends_exact.rs.
 #![cfg(feature = "optix")]
 
 mod common;
 
+use common::rule_cases::{cases, differences, records};
+use cudarc::driver::{CudaContext, LaunchConfig, PushKernelArg};
+use mochi::ProxyMode;
 use mochi::backend::BackendKind;
 use mochi::backend::optix::programs::{self, Unit};
+
+/// Runs `mochi_keep` of `optix/device.cuh` on each case record (`common::rule_cases::records`).
+const RULE_KERNEL: &str = r#"
+struct MochiCase { float4 a; float4 b; unsigned int i, j, mode, pad; };
+extern "C" __global__ void rule_cases(const MochiCase* cases, unsigned int* kept, unsigned int n) {
+    unsigned int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= n) {
+        return;
+    }
+    MochiCase c = cases[k];
+    kept[k] = mochi_keep(c.mode, c.i, c.a, c.j, c.b) ? 1u : 0u;
+}
+"#;
+
+/// A CUDA context on GPU 0, or why there is none.
+fn cuda_context() -> Result<std::sync::Arc<CudaContext>, String> {
+    // SAFETY: only tries to open the library.
+    if !unsafe { cudarc::driver::sys::is_culib_present() } {
+        return Err("no NVIDIA driver (libcuda.so) found".into());
+    }
+    CudaContext::new(0).map_err(|e| format!("opening GPU 0: {e}"))
+}
+
+#[test]
+fn cuda_rule_matches_the_rust_rule() {
+    let ptx = match programs::compile_with_rule("rule_cases.cu", RULE_KERNEL) {
+        Ok(ptx) => ptx,
+        Err(why) if !programs::nvrtc_present() => {
+            assert!(!common::ci(), "CI expects NVRTC: {why}");
+            eprintln!("note: the CUDA rule is not tested on this machine: {why}");
+            return;
+        }
+        Err(why) => panic!("{why}"),
+    };
+    let context = match cuda_context() {
+        Ok(context) => context,
+        Err(why) => {
+            assert!(
+                !common::expected(BackendKind::Optix),
+                "optix expected here, but the CUDA rule cannot run: {why}"
+            );
+            eprintln!("note: the CUDA rule is not run on this machine: {why}");
+            return;
+        }
+    };
+    let stream = context.default_stream();
+    let module = context
+        .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
+        .unwrap();
+    let function = module.load_function("rule_cases").unwrap();
+    let cases = cases();
+    let n = cases.len() as u32;
+    for mode in [ProxyMode::Mochi, ProxyMode::Nns] {
+        let input = stream.clone_htod(&records(&cases, mode)).unwrap();
+        let mut output = stream.alloc_zeros::<u32>(cases.len()).unwrap();
+        let mut launch = stream.launch_builder(&function);
+        launch.arg(&input).arg(&mut output).arg(&n);
+        // SAFETY: the kernel reads n records of 12 words from `input` and writes n words.
+        unsafe { launch.launch(LaunchConfig::for_num_elems(n)) }.unwrap();
+        let kept = stream.clone_dtoh(&output).unwrap();
+        // No fused multiply-adds: every case, on the boundary or not, as the cpu decides it.
+        let differ = differences(mode, &cases, &kept, false);
+        assert!(
+            differ.is_empty(),
+            "{mode:?}: {} of {} cases differ:\n{}",
+            differ.len(),
+            cases.len(),
+            differ.join("\n")
+        );
+    }
+}
 
 #[test]
 fn device_programs_compile_with_nvrtc() {

@@ -7,7 +7,7 @@ mod common;
 use mochi::backend::Backend;
 use mochi::backend::wgpu_compute::{Structure, WgpuComputeBackend};
 use mochi::gpu::Need;
-use mochi::oracle::{brute_force_pairs, differences_off_boundary};
+use mochi::oracle::{brute_force_pairs, differences};
 use mochi::{ProxyMode, SphereSet};
 use rand::{RngExt, SeedableRng};
 
@@ -41,7 +41,7 @@ fn assert_exact(backend: &mut WgpuComputeBackend, spheres: &SphereSet, label: &s
         got.iter().all(|p| p.i < p.j && seen.insert(*p)),
         "{label}: duplicates"
     );
-    let off = differences_off_boundary(&got, &want, spheres);
+    let off = differences(&got, &want, spheres, true);
     assert!(off.is_empty(), "{label}: differs from the oracle: {off:?}");
     stats.candidates
 }

@@ -7,7 +7,7 @@ mod common;
 use mochi::backend::Backend;
 use mochi::backend::wgpu_rq::WgpuRqBackend;
 use mochi::gpu::Need;
-use mochi::oracle::{brute_force_pairs, differences_off_boundary};
+use mochi::oracle::{brute_force_pairs, differences};
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
 use mochi::{ProxyMode, SphereSet};
 
@@ -37,7 +37,7 @@ fn scenes_split_over_several_blas_stay_exact() {
     for mode in [ProxyMode::Mochi, ProxyMode::Nns] {
         backend.build(&spheres, mode).unwrap();
         let (got, stats) = backend.find_pairs().unwrap();
-        let off = differences_off_boundary(&got, &want, &spheres);
+        let off = differences(&got, &want, &spheres, true);
         assert!(off.is_empty(), "{mode:?}: differs from the oracle: {off:?}");
         assert_eq!(stats.pairs, want.len() as u64);
     }
@@ -54,7 +54,7 @@ fn a_dense_scene_grows_the_pair_buffer() {
     assert!(want.len() > 4 * spheres.len(), "{} pairs", want.len());
     backend.build(&spheres, ProxyMode::Mochi).unwrap();
     let got = backend.find_pairs().unwrap().0;
-    assert!(differences_off_boundary(&got, &want, &spheres).is_empty());
+    assert!(differences(&got, &want, &spheres, true).is_empty());
 }
 
 #[test]

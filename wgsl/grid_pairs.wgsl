@@ -14,7 +14,7 @@
 fn scan_run(s: vec4<f32>, id: u32, a: u32, b: u32) -> u32 {
     for (var q = a; q < b; q += 1u) {
         let t = spheres[q];
-        if collides(dist2(s.xyz, t.xyz), s.w, t.w) {
+        if collides(s.xyz, s.w, t.xyz, t.w) {
             emit_pair(id, q, params.capacity);
         }
     }
@@ -33,7 +33,7 @@ fn scan_bucket(s: vec4<f32>, p: u32, id: u32, cell: vec3<u32>, own: bool) -> u32
             continue;
         }
         tested += 1u;
-        if collides(dist2(s.xyz, t.xyz), s.w, t.w) {
+        if collides(s.xyz, s.w, t.xyz, t.w) {
             emit_pair(id, q, params.capacity);
         }
     }

@@ -4,30 +4,35 @@
 const MODE_MOCHI: u32 = 0u;
 const MODE_NNS: u32 = 1u;
 
-fn dist2(c_i: vec3<f32>, c_j: vec3<f32>) -> f32 {
-    let dx = c_i.x - c_j.x;
-    let dy = c_i.y - c_j.y;
-    let dz = c_i.z - c_j.z;
-    return dx * dx + dy * dy + dz * dz;
+// The power of two that brings t (finite, > 0) into [1, 2); 2^127 below 2^-126.
+fn unit_scale(t: f32) -> f32 {
+    return bitcast<f32>((254u - (bitcast<u32>(t) >> 23u)) << 23u);
 }
 
-fn collides(d2: f32, r_i: f32, r_j: f32) -> bool {
-    let s = r_i + r_j;
-    return d2 <= s * s;
+// |d| <= t, both sides scaled by unit_scale(t) before squaring: exact, and nothing underflows.
+fn within(d: vec3<f32>, t: f32) -> bool {
+    let k = unit_scale(t);
+    let x = d.x * k;
+    let y = d.y * k;
+    let z = d.z * k;
+    let u = t * k;
+    return x * x + y * y + z * z <= u * u;
+}
+
+fn collides(c_i: vec3<f32>, r_i: f32, c_j: vec3<f32>, r_j: f32) -> bool {
+    return within(c_i - c_j, r_i + r_j);
 }
 
 fn keep(i: u32, c_i: vec3<f32>, r_i: f32, j: u32, c_j: vec3<f32>, r_j: f32) -> bool {
     if i == j {
         return false;
     }
-    let d2 = dist2(c_i, c_j);
-    let proxy_j = 2.0 * r_j;
-    let proxy_i = 2.0 * r_i;
-    return collides(d2, r_i, r_j) && d2 <= proxy_j * proxy_j && (j > i || d2 > proxy_i * proxy_i);
+    let d = c_i - c_j;
+    return within(d, r_i + r_j) && within(d, 2.0 * r_j) && (j > i || !within(d, 2.0 * r_i));
 }
 
 fn keep_nns(i: u32, c_i: vec3<f32>, r_i: f32, j: u32, c_j: vec3<f32>, r_j: f32) -> bool {
-    return j > i && collides(dist2(c_i, c_j), r_i, r_j);
+    return j > i && collides(c_i, r_i, c_j, r_j);
 }
 
 fn keep_in(mode: u32, i: u32, c_i: vec3<f32>, r_i: f32, j: u32, c_j: vec3<f32>, r_j: f32) -> bool {

@@ -2,11 +2,11 @@
 //! registry that says which backends can run on this machine.
 //!
 //! The contract of every backend: **exact** — after [`Backend::build`], [`Backend::find_pairs`]
-//! returns every pair {i, j} with |c_i − c_j| ≤ r_i + r_j (computed as [`crate::proxy::dist2`]
-//! against [`crate::proxy::collides`]), each exactly once with `i < j`, and nothing else. Boxes
+//! returns every pair {i, j} with |c_i − c_j| ≤ r_i + r_j (decided by
+//! [`crate::proxy::collides`]), each exactly once with `i < j`, and nothing else. Boxes
 //! and cells are conservative (padded), so extra candidates are possible but missed pairs never.
 //! One caveat of floating point: a GPU may decide a pair whose squared distance is within an ulp
-//! or two of (r_i + r_j)² the other way ([`crate::proxy::near_boundary`]).
+//! or two of a threshold of the rule the other way ([`crate::proxy::near_boundary`]).
 //! [`ProxyMode`] chooses the paper's proxy spheres or the older fixed-radius boxes; both modes
 //! find the same pairs and differ only in the work done.
 

@@ -48,6 +48,9 @@ fn detect(args: DetectArgs) -> Result<()> {
         Some(path) => (io::read_spheres(path)?, path.display().to_string()),
         None => scene(&args.scene, Layout::Random)?,
     };
+    if let Some(warning) = mochi::coarse_coordinates(spheres.centers(), spheres.radii()) {
+        eprintln!("warning: {source}: {warning}");
+    }
     let options = backend::Options {
         structure: args.structure,
         ..Default::default()

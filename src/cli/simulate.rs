@@ -159,6 +159,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             pictures.describe()
         );
     }
+    let particles = &start.particles;
+    if let Some(warning) = mochi::coarse_coordinates(&particles.positions, &particles.radii) {
+        eprintln!("warning: {warning}");
+    }
     let scene_toml = config.to_toml();
     io::write_atomically(&args.out.join(io::SCENE_FILE), |w| {
         w.write_all(scene_toml.as_bytes())

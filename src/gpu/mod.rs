@@ -105,16 +105,25 @@ pub fn probe(need: Need) -> Result<wgpu::AdapterInfo, String> {
 }
 
 impl Gpu {
-    /// Opens a device on the best adapter for `need`.
-    #[allow(unsafe_code)] // wgpu's opt-in to experimental features (ray queries)
+    /// Opens a device on the best adapter for `need`, with all the adapter's limits.
     pub fn open(need: Need) -> Result<Gpu> {
+        Self::open_limited(need, |_| {})
+    }
+
+    /// Opens a device on the best adapter for `need`, with the adapter's limits as `lower`
+    /// changes them (it may only lower them). Everything sized by the device reads its limits
+    /// from [`Gpu::limits`], so a test can, say, lower `max_compute_workgroups_per_dimension` to
+    /// run the 2-D dispatch paths at small sizes.
+    #[allow(unsafe_code)] // wgpu's opt-in to experimental features (ray queries)
+    pub fn open_limited(need: Need, lower: impl FnOnce(&mut wgpu::Limits)) -> Result<Gpu> {
         let unavailable = |reason: String| Error::Gpu(reason);
         let adapter = adapters(need)
             .into_iter()
             .next()
             .ok_or_else(|| unavailable(probe(need).err().unwrap_or_default()))?;
         let features = need.features() | (adapter.features() & WANTED);
-        let limits = adapter.limits();
+        let mut limits = adapter.limits();
+        lower(&mut limits);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("mochi"),
             required_features: features,

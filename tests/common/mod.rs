@@ -1,6 +1,8 @@
 //! Shared by the GPU tests: CI runs them on lavapipe and must fail, not skip, without an adapter.
 #![allow(dead_code)] // each test file uses the part it needs
 
+pub mod rule_cases;
+
 use mochi::gpu::{self, Gpu, Need};
 
 /// True when running under CI (`CI=true`), where every GPU test must find an adapter.
@@ -36,4 +38,15 @@ pub fn adapter_for(need: Need, what: &str) -> bool {
 pub fn open_gpu(what: &str) -> Option<Gpu> {
     adapter_for(Need::Compute, what)
         .then(|| Gpu::open(Need::Compute).expect("a probed adapter opens"))
+}
+
+/// Like [`open_gpu`], with the device's `max_compute_workgroups_per_dimension` lowered to `max`
+/// (the device then rejects any dispatch wider than that).
+pub fn open_gpu_lowered(what: &str, max: u32) -> Option<Gpu> {
+    adapter_for(Need::Compute, what).then(|| {
+        Gpu::open_limited(Need::Compute, |limits| {
+            limits.max_compute_workgroups_per_dimension = max;
+        })
+        .expect("a probed adapter opens")
+    })
 }

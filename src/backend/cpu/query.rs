@@ -10,7 +10,7 @@
 //! stays O(n) however sparse the scene.
 
 use super::grid::SortedGrid;
-use crate::proxy::{collides, dist2};
+use crate::proxy::collides;
 use rayon::prelude::*;
 
 /// Sorted spheres per parallel task; fixed so the output order does not depend on the threads.
@@ -87,7 +87,7 @@ fn search_chunk<S: PairSink>(
         let (c_i, r_i, i) = ([s[0], s[1], s[2]], s[3], ids[p]);
         let mut test = |q: usize| {
             let t = spheres[q];
-            if collides(dist2(c_i, [t[0], t[1], t[2]]), r_i, t[3]) {
+            if collides(c_i, r_i, [t[0], t[1], t[2]], t[3]) {
                 sink.pair(i, ids[q]);
             }
         };

@@ -64,22 +64,33 @@ pub fn ptx(unit: Unit) -> Result<&'static str, String> {
 
 /// Compiles `unit` with NVRTC (no fused multiply-adds: the proxy rule rounds as the cpu does).
 pub fn compile(unit: Unit) -> Result<String, String> {
+    compile_source(unit.name(), unit.source(), unit != Unit::Kernels)
+}
+
+/// Compiles plain CUDA kernels `body` (named `name` in messages) with `optix/device.cuh`
+/// prepended, as [`compile`] compiles the device programs: the parity test runs the proxy rule
+/// through this.
+pub fn compile_with_rule(name: &str, body: &str) -> Result<String, String> {
+    compile_source(name, format!("{DEVICE_CUH}\n{body}"), false)
+}
+
+/// Compiles `source` with NVRTC, as relocatable device code (OptiX modules) where `rdc`.
+fn compile_source(name: &str, source: String, rdc: bool) -> Result<String, String> {
     if !nvrtc_present() {
         return Err("NVRTC (libnvrtc.so.13, from CUDA 13 or PyPI's nvidia-cuda-nvrtc) is not on the library path".into());
     }
     let mut options = vec!["--std=c++17".to_string()];
-    if unit != Unit::Kernels {
-        // OptiX modules are relocatable device code.
+    if rdc {
         options.push("-rdc=true".into());
     }
     let opts = cudarc::nvrtc::CompileOptions {
         arch: Some(ARCH),
         fmad: Some(false),
         options,
-        name: Some(unit.name().into()),
+        name: Some(name.into()),
         ..Default::default()
     };
-    cudarc::nvrtc::compile_ptx_with_opts(unit.source(), opts)
+    cudarc::nvrtc::compile_ptx_with_opts(source, opts)
         .map(|ptx| ptx.to_src())
-        .map_err(|e| format!("NVRTC could not compile {}: {e}", unit.name()))
+        .map_err(|e| format!("NVRTC could not compile {name}: {e}"))
 }

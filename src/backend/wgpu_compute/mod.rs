@@ -348,9 +348,11 @@ fn cell_budget(limits: &wgpu::Limits, budget: Budget) -> u64 {
         .min(table_limit)
 }
 
-/// Cells along each axis, margin included, for cells of `size` over `extent`.
+/// Cells along each axis, margin included, for cells of `size` over `extent`; an axis of more
+/// than 2^32 cells counts as 2^32 + 3, far beyond what any table takes, so the count never
+/// overflows (callers compare it with [`MAX_AXIS_CELLS`] or [`MAX_HASHED_AXIS_CELLS`]).
 fn axis_cells(extent: [f64; 3], size: f64) -> [u64; 3] {
-    extent.map(|e| (e / size) as u64 + 1 + 2)
+    extent.map(|e| (e / size).min(u32::MAX as f64) as u64 + 1 + 2)
 }
 
 /// Layout of `budget.spheres` centres within `bounds` and cells of at least `base` (the mode's
@@ -722,5 +724,32 @@ mod tests {
         let p = grid_layout(&limits, [0.0; 3], [20.0; 3], budget(1000), 0.1, &|_| true);
         assert_eq!(p.hashed, 0);
         assert!(p.top_cell as f64 > 0.1);
+    }
+
+    #[test]
+    fn spans_of_far_more_cells_than_u64_counts_hash() {
+        // 2e17 m in cells of 2e-3 m is 10^20 cells, more than a u64 counts: the layout still
+        // hashes cells that cover the span (no count wraps into a tiny dense table).
+        let limits = wgpu::Limits::default();
+        for levels in [Levels::One, Levels::Many] {
+            let (lo, hi) = ([-1e17, 0.0, 0.0], [1e17, 0.0, 0.0]);
+            let p = choose_layout(
+                &limits,
+                levels,
+                (lo, hi),
+                budget(4),
+                2e-3,
+                (1e-5, 1e-3),
+                &|_| true,
+            );
+            assert_eq!((p.hashed, p.levels), (1, 1));
+            let cells = (2e17 / p.top_cell as f64) as u64 + 3;
+            assert!(
+                cells <= p.nx as u64 && p.nx as u64 <= MAX_HASHED_AXIS_CELLS,
+                "{}",
+                p.nx
+            );
+        }
+        assert_eq!(axis_cells([1e30, 0.0, 1.0], 1e-3)[0], u32::MAX as u64 + 3);
     }
 }
