@@ -63,16 +63,38 @@ pub fn unit_scale(t: f32) -> f32 {
     f32::from_bits((254 - (t.to_bits() >> 23)) << 23)
 }
 
-/// Whether a difference `d` of centres is at most `t` (> 0) long: |d|² ≤ t², both sides scaled
-/// by the same power of two ([`unit_scale`] of `t`) before squaring.
+/// Thresholds from this one up are compared unscaled ([`within`]): 2^-40.
+///
+/// Their squares (at least 2^-80) are normal, and so is every square that can matter next to
+/// them: a component square that underflows is below 2^-126, less than half an ulp of any partial
+/// sum it meets near t², so it changes no decision; radii of at most [`crate::MAX_MAGNITUDE`] keep
+/// every square far below `f32::MAX`. Below it the squares may leave the normal range, and
+/// [`within_scaled`] scales them back first.
+pub const UNSCALED_FROM: f32 = 9.094_947e-13;
+
+/// Whether a difference `d` of centres is at most `t` (> 0) long: |d|² ≤ t², compared as plain
+/// `f32` squares where `t` ≥ [`UNSCALED_FROM`] (nearly always: one branch, uniform across a GPU's
+/// threads), else by [`within_scaled`]. Both forms decide alike wherever both are defined.
+/// Symmetric bit for bit: `d` and `−d` give the same squares.
+#[inline(always)]
+pub fn within(d: [f32; 3], t: f32) -> bool {
+    if t >= UNSCALED_FROM {
+        d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= t * t
+    } else {
+        within_scaled(d, t)
+    }
+}
+
+/// [`within`] with both sides scaled by the same power of two ([`unit_scale`] of `t`) before
+/// squaring.
 ///
 /// Scaling by a power of two is exact, so this decides as unscaled `f32` arithmetic without
 /// underflow would: squares of radii down to the smallest subnormal never vanish, and a
 /// component that does underflow after scaling is below 2^-126·t, too small to change the
 /// rounded sum near t². A component that overflows makes the left side infinite: far apart,
-/// correctly. Symmetric bit for bit: `d` and `−d` give the same squares.
+/// correctly.
 #[inline(always)]
-pub fn within(d: [f32; 3], t: f32) -> bool {
+pub fn within_scaled(d: [f32; 3], t: f32) -> bool {
     let k = unit_scale(t);
     let (x, y, z, u) = (d[0] * k, d[1] * k, d[2] * k, t * k);
     x * x + y * y + z * z <= u * u
@@ -259,6 +281,34 @@ mod tests {
                 assert!(u >= 1.0, "{t:e} scaled to {u:e}");
             }
         }
+    }
+
+    #[test]
+    fn the_unscaled_threshold_is_two_to_the_minus_forty() {
+        assert_eq!(UNSCALED_FROM, 2f32.powi(-40));
+    }
+
+    #[test]
+    fn unscaled_and_scaled_comparisons_decide_alike_from_the_threshold_up() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let mut near = 0;
+        for _ in 0..200_000 {
+            // Thresholds from 2^-40 to 2^62, differences around them (some on the boundary).
+            let t =
+                UNSCALED_FROM * 2f32.powi(rng.random_range(0..102)) * rng.random_range(1.0..2.0);
+            let mut d: [f32; 3] = std::array::from_fn(|_| rng.random_range(-1.2..1.2) * t);
+            if rng.random_bool(0.3) {
+                // A tiny component beside large ones: its square may underflow unscaled.
+                d[rng.random_range(0..3)] = rng.random_range(-1.0..1.0) * 1e-25 * t;
+            }
+            if rng.random_bool(0.2) {
+                d = [t, 0.0, 0.0];
+            }
+            near += usize::from(within_scaled(d, t));
+            assert_eq!(within(d, t), within_scaled(d, t), "{d:?} {t:e}");
+        }
+        assert!(near > 50_000, "{near}");
     }
 
     #[test]

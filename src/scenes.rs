@@ -311,6 +311,18 @@ mod tests {
     }
 
     #[test]
+    fn no_scene_is_too_coarse_for_f32() {
+        use clap::ValueEnum;
+        for &scene in Scene::value_variants() {
+            for layout in [Layout::Lattice, Layout::Random] {
+                let s = generate(&spec(scene, 20_000, layout)).unwrap();
+                let warning = crate::spheres::coarse_coordinates(s.centers(), s.radii());
+                assert_eq!(warning, None, "{scene:?} {layout:?}");
+            }
+        }
+    }
+
+    #[test]
     fn lattice_scenes_never_overlap_and_stay_in_their_box() {
         for scene in [
             Scene::Freefall,

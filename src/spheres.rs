@@ -172,14 +172,16 @@ pub(crate) fn check_sphere(c: &[f32; 3], r: f32) -> Result<(), String> {
 }
 
 /// Coarsest `f32` spacing of a centre coordinate, as a fraction of its sphere's radius, that
-/// [`coarse_coordinates`] accepts without a warning: 2^-10.
+/// [`coarse_coordinates`] accepts without a warning: 2^-6.
 ///
 /// Centres are held in `f32`; near |x| the representable values lie ulp(x) apart (2^-23·|x| or
 /// so), so a centre read from a finer file moves by up to half that, and every distance the rule
-/// computes carries errors of that size. Above this bound a pair within a few thousandths of a
-/// radius of touching may be decided either way; the exactness guarantees hold for the `f32`
-/// values, not for the file's digits.
-pub const MAX_SPACING_PER_RADIUS: f32 = 1.0 / 1024.0;
+/// computes carries errors of that size. Above this bound a pair within a few hundredths of a
+/// radius of touching may be decided either way (and a DEM contact's overlap, typically about a
+/// hundredth of a radius, is lost in rounding); the exactness guarantees hold for the `f32`
+/// values, not for the file's digits. The built-in scenes stay far below it (the 16-unit cube of
+/// `poly120` with radii from 0.0005 at 2^-8 of a radius).
+pub const MAX_SPACING_PER_RADIUS: f32 = 1.0 / 64.0;
 
 /// A warning (one line, naming the first such sphere and how many there are) when the `f32`
 /// spacing of some centre coordinate exceeds [`MAX_SPACING_PER_RADIUS`] of its radius: the
@@ -195,10 +197,11 @@ pub fn coarse_coordinates(centers: &[[f32; 3]], radii: &[f32]) -> Option<String>
     let more = rows.filter(|(_, row)| coarse(*row).is_some()).count();
     Some(format!(
         "sphere {index} (0-based): {} = {x:e} is held in 32-bit floats only to within {:e}, \
-         more than 1/1024 of its radius {r:e} ({more} more spheres like it): pairs that close \
+         more than 1/{} of its radius {r:e} ({more} more spheres like it): pairs that close \
          to touching may be decided either way",
         ["x", "y", "z"][axis],
-        spacing(x)
+        spacing(x),
+        MAX_SPACING_PER_RADIUS.recip()
     ))
 }
 
@@ -271,9 +274,16 @@ mod tests {
         );
         assert!(warning.contains("(1 more spheres"), "{warning}");
         assert!(warning.contains("8.589935e9"), "{warning}");
-        // At the bound: 1024 has spacing 2^-13 = 2^-10 of a radius 2^-3, and is accepted.
-        assert_eq!(coarse_coordinates(&[[1024.0, 0.0, -1.0]], &[0.125]), None);
-        let warning = coarse_coordinates(&[[1.0, 0.0, -1024.0]], &[0.12]).expect("a warning");
+        // At the bound: 1024 has spacing 2^-13 = 2^-6 of a radius 2^-7, and is accepted.
+        assert_eq!(
+            coarse_coordinates(&[[1024.0, 0.0, -1.0]], &[0.0078125]),
+            None
+        );
+        let warning = coarse_coordinates(&[[1.0, 0.0, -1024.0]], &[0.0078]).expect("a warning");
+        assert!(
+            warning.contains("more than 1/64 of its radius"),
+            "{warning}"
+        );
         assert!(warning.contains("z = -1.024e3"), "{warning}");
         assert_eq!(coarse_coordinates(&centers[..1], &radii[..1]), None);
     }

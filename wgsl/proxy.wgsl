@@ -9,8 +9,19 @@ fn unit_scale(t: f32) -> f32 {
     return bitcast<f32>((254u - (bitcast<u32>(t) >> 23u)) << 23u);
 }
 
-// |d| <= t, both sides scaled by unit_scale(t) before squaring: exact, and nothing underflows.
+// Thresholds from this one up (2^-40) are compared unscaled (UNSCALED_FROM in src/proxy.rs).
+const UNSCALED_FROM: f32 = 0x1p-40f;
+
+// |d| <= t: plain squares from UNSCALED_FROM up, else within_scaled.
 fn within(d: vec3<f32>, t: f32) -> bool {
+    if t >= UNSCALED_FROM {
+        return d.x * d.x + d.y * d.y + d.z * d.z <= t * t;
+    }
+    return within_scaled(d, t);
+}
+
+// |d| <= t, both sides scaled by unit_scale(t) before squaring: exact, and nothing underflows.
+fn within_scaled(d: vec3<f32>, t: f32) -> bool {
     let k = unit_scale(t);
     let x = d.x * k;
     let y = d.y * k;

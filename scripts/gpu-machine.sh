@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Runs mochi's GPU checks on a lent GPU machine that has no Rust: binaries built elsewhere are
+# carried in .bin/ (made by `scripts/gpu-machine.sh pack` on the build machine), Vulkan's loader
+# and glvnd as .deb files in .gl/. Usage there: `bash scripts/gpu-machine.sh run [TEST...]`.
+#   pack   build the release binary and the named test binaries (--features optix) into .bin/
+#   run    unpack the loaders, then run each carried test binary with every GPU expected
+set -euo pipefail
+cd "$(dirname "$0")/.."
+tests=(backends_exact dem simulate optix proxy_parity wgpu_compute)
+case "${1:-}" in
+pack)
+    shift
+    [ $# -gt 0 ] && tests=("$@")
+    cargo build --release --locked --features optix
+    mkdir -p .bin
+    cp target/release/mochi .bin/mochi
+    for t in "${tests[@]}"; do
+        exe=$(cargo test --release --locked --features optix --test "$t" --no-run \
+            --message-format=json 2>/dev/null |
+            python3 -c 'import json,sys
+for l in sys.stdin:
+    m = json.loads(l)
+    if m.get("reason") == "compiler-artifact" and m.get("executable"): print(m["executable"])' | tail -n 1)
+        cp "$exe" ".bin/test-$t"
+    done
+    strip .bin/* 2>/dev/null || true
+    echo "built into .bin/ ($(du -sh .bin | cut -f1)); the build root was $PWD"
+    echo "$PWD" > .bin/build-root
+    ;;
+run)
+    shift
+    [ $# -gt 0 ] && tests=("$@")
+    for f in .gl/*.deb; do dpkg -x "$f" /; done
+    ldconfig
+    export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+    export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+    # The test binaries name the build machine's paths (the binary, tests/data): make them here.
+    root=$(cat .bin/build-root)
+    if [ "$root" != "$PWD" ] && [ ! -e "$root" ]; then
+        mkdir -p "$(dirname "$root")"
+        ln -s "$PWD" "$root"
+    fi
+    mkdir -p target/release
+    cp .bin/mochi target/release/mochi
+    export CI=true MOCHI_EXPECT_OPTIX=1
+    nvrtc=$(python3 -c 'import nvidia.cuda_nvrtc, os; print(os.path.dirname(nvidia.cuda_nvrtc.__file__))' 2>/dev/null || true)
+    [ -n "$nvrtc" ] && export LD_LIBRARY_PATH="$nvrtc/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+    status=0
+    for t in "${tests[@]}"; do
+        echo "== $t"
+        (cd "$root" && "$PWD/.bin/test-$t" --test-threads 1) || status=1
+    done
+    exit $status
+    ;;
+*)
+    echo "usage: $0 pack [TEST...] | run [TEST...]" >&2
+    exit 2
+    ;;
+esac
