@@ -4,10 +4,10 @@
 //! [`read_particles`] returns them.
 
 use super::{Format, io_error, parse_error, write_atomically};
-use crate::error::Result;
-use crate::spheres::{SphereSet, check_sphere};
+use crate::error::{Result, try_push, try_vec};
+use crate::spheres::{SphereSet, check_count, check_sphere};
 use npyz::WriterBuilder;
-use std::io::BufRead;
+use std::io::{BufRead, Read};
 use std::path::Path;
 
 const COLUMNS: [&str; 4] = ["x", "y", "z", "r"];
@@ -61,28 +61,64 @@ pub fn write_spheres(path: &Path, spheres: &SphereSet) -> Result<()> {
     }
 }
 
-fn read_csv(path: &Path) -> Result<Rows> {
-    let file = std::fs::File::open(path).map_err(io_error(path))?;
-    let mut lines = std::io::BufReader::with_capacity(1 << 20, file)
-        .split(b'\n')
-        .enumerate()
-        .map(|(k, line)| (k as u64 + 1, line));
-    let text = |line_no: u64, bytes: std::io::Result<Vec<u8>>| -> Result<String> {
-        let bytes = bytes.map_err(io_error(path))?;
-        String::from_utf8(bytes).map_err(|e| {
+/// Longest line a sphere CSV may have, in bytes (a row of seven numbers needs a few hundred).
+pub const MAX_LINE: usize = 4096;
+
+/// The lines of a sphere CSV as text, numbered from 1, each at most [`MAX_LINE`] bytes.
+struct Lines<'a> {
+    reader: std::io::BufReader<std::fs::File>,
+    path: &'a Path,
+    buf: Vec<u8>,
+    no: u64,
+}
+
+impl Lines<'_> {
+    /// The next line (without its end), or `None` at the end of the file.
+    fn next(&mut self) -> Result<Option<(u64, &str)>> {
+        self.buf.clear();
+        self.no += 1;
+        let limit = MAX_LINE as u64 + 1;
+        let read = (&mut self.reader)
+            .take(limit)
+            .read_until(b'\n', &mut self.buf)
+            .map_err(io_error(self.path))?;
+        if read == 0 {
+            return Ok(None);
+        }
+        if self.buf.last() == Some(&b'\n') {
+            self.buf.pop();
+        } else if read as u64 == limit {
+            return Err(parse_error(
+                self.path,
+                Some(self.no),
+                format!("line longer than the limit of {MAX_LINE} bytes"),
+            ));
+        }
+        let text = std::str::from_utf8(&self.buf).map_err(|e| {
             parse_error(
-                path,
-                Some(line_no),
+                self.path,
+                Some(self.no),
                 format!(
                     "not UTF-8 text (byte {} of the line)",
-                    e.utf8_error().valid_up_to() + 1
+                    e.valid_up_to() + 1
                 ),
             )
-        })
+        })?;
+        Ok(Some((self.no, text)))
+    }
+}
+
+fn read_csv(path: &Path) -> Result<Rows> {
+    let file = std::fs::File::open(path).map_err(io_error(path))?;
+    let mut lines = Lines {
+        reader: std::io::BufReader::with_capacity(1 << 20, file),
+        path,
+        buf: Vec::new(),
+        no: 0,
     };
     // The header is the first non-blank line.
-    let header = loop {
-        match lines.next() {
+    let (header_no, fields, header) = loop {
+        match lines.next()? {
             None => {
                 return Err(parse_error(
                     path,
@@ -90,19 +126,16 @@ fn read_csv(path: &Path) -> Result<Rows> {
                     "empty file: expected the header x,y,z,r",
                 ));
             }
-            Some((no, bytes)) => {
-                let line = text(no, bytes)?;
-                if !line.trim().is_empty() {
-                    break (no, line);
-                }
+            Some((no, line)) if !line.trim().is_empty() => {
+                let fields: Vec<String> = line
+                    .split(',')
+                    .map(|f| f.trim().to_ascii_lowercase())
+                    .collect();
+                break (no, fields, line.trim().to_owned());
             }
+            Some(_) => {}
         }
     };
-    let fields: Vec<String> = header
-        .1
-        .split(',')
-        .map(|f| f.trim().to_ascii_lowercase())
-        .collect();
     let names: &[&str] = if fields == COLUMNS {
         &COLUMNS
     } else if fields == WITH_VELOCITY {
@@ -110,17 +143,13 @@ fn read_csv(path: &Path) -> Result<Rows> {
     } else {
         return Err(parse_error(
             path,
-            Some(header.0),
-            format!(
-                "the header must be x,y,z,r or x,y,z,r,vx,vy,vz (found {:?})",
-                header.1.trim()
-            ),
+            Some(header_no),
+            format!("the header must be x,y,z,r or x,y,z,r,vx,vy,vz (found {header:?})"),
         ));
     };
     let mut rows = Vec::new();
     let mut velocities = Vec::new();
-    for (no, bytes) in lines {
-        let line = text(no, bytes)?;
+    while let Some((no, line)) = lines.next()? {
         let line = line.trim();
         if line.is_empty() {
             continue;
@@ -142,11 +171,14 @@ fn read_csv(path: &Path) -> Result<Rows> {
                 .map_err(|_| bad(format!("column {name}: {field:?} is not a number")))?;
         }
         check_sphere(&[row[0], row[1], row[2]], row[3]).map_err(bad)?;
-        rows.push([row[0], row[1], row[2], row[3]]);
+        let count = rows.len() + 1;
+        check_count(count)?;
+        let what = || format!("{count} rows of {}", path.display());
+        try_push(&mut rows, [row[0], row[1], row[2], row[3]], what)?;
         if names.len() == 7 {
             let v = [row[4], row[5], row[6]];
             check_velocity(&v).map_err(bad)?;
-            velocities.push(v);
+            try_push(&mut velocities, v, what)?;
         }
     }
     Ok((rows, (names.len() == 7).then_some(velocities)))
@@ -166,6 +198,7 @@ fn read_npy(path: &Path) -> Result<Rows> {
     }
     let columns = shape[1] as usize;
     let n = shape[0] as usize;
+    check_count(n)?;
     let fortran = npy.order() == npyz::Order::Fortran;
     let dtype = match npy.dtype() {
         npyz::DType::Plain(t) => t.to_string(),
@@ -179,8 +212,9 @@ fn read_npy(path: &Path) -> Result<Rows> {
         other => return Err(bad(format!("expected float32 values, found dtype {other}"))),
     }
     .map_err(|e| bad(format!("unreadable data ({e}); is the file truncated?")))?;
-    let mut rows = Vec::with_capacity(n);
-    let mut velocities = Vec::new();
+    let what = || format!("{n} rows of {}", path.display());
+    let mut rows = try_vec(n, what)?;
+    let mut velocities = try_vec(if columns == 7 { n } else { 0 }, what)?;
     for i in 0..n {
         let at = |k: usize| {
             if fortran {
@@ -202,9 +236,25 @@ fn read_npy(path: &Path) -> Result<Rows> {
     Ok((rows, (columns == 7).then_some(velocities)))
 }
 
-/// Refuses a `.npy` whose header promises more data than the file holds, before the header's
-/// shape is multiplied out (a crafted shape would overflow).
+/// Refuses a `.npy` whose header, or the data its shape promises, is longer than the file,
+/// before either is allocated (a crafted length or shape would ask for any amount of memory).
 fn check_npy_size(bytes: &[u8]) -> Result<(), String> {
+    // Magic (6 bytes), version (2), then the header length: 2 bytes in version 1, 4 after.
+    if bytes.len() >= 12 && bytes.starts_with(b"\x93NUMPY") {
+        let (len, at) = match bytes[6] {
+            1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as u64, 10),
+            _ => (
+                u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as u64,
+                12,
+            ),
+        };
+        if at + len > bytes.len() as u64 {
+            return Err(format!(
+                "truncated: the header declares {len} bytes, more than the file's {}",
+                bytes.len()
+            ));
+        }
+    }
     let head = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]);
     let Some(start) = head.find("'shape':") else {
         return Ok(()); // not a header npyz will accept either; it reports the problem
