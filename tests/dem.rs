@@ -398,3 +398,29 @@ fn largest_gap(a: &Particles, b: &Particles) -> f32 {
         .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).abs()).fold(0.0, f32::max))
         .fold(0.0, f32::max)
 }
+
+#[test]
+fn coincident_spheres_are_pushed_apart() {
+    // Five spheres at one point and a pair at another, no gravity: no contact normal at distance
+    // 0, so each pair is pushed along the direction its indices give.
+    let r = 0.01f32;
+    let mut positions = vec![[0.5f32; 3]; 5];
+    positions.extend([[0.3, 0.6, 0.4]; 2]);
+    let n = positions.len();
+    let start = particles(positions, vec![[0.0; 3]; n], vec![r; n]);
+    let p = params(Material::default(), 1e-4, 1.0, [0.0; 3], r);
+    for (name, mut s) in steppers(&start, p) {
+        let first = s.advance(1).unwrap();
+        assert_eq!(first.contacts, 10 + 1, "{name}: every coincident pair touches");
+        // Two contact durations: every pair has come apart.
+        s.advance(20).unwrap();
+        let end = s.particles().unwrap();
+        for i in 0..n {
+            for j in i + 1..n {
+                let (a, b) = (end.positions[i], end.positions[j]);
+                let d = (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f32>().sqrt();
+                assert!(d > 2.0 * r, "{name}: spheres {i} and {j} still {d} m apart");
+            }
+        }
+    }
+}

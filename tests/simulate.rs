@@ -287,3 +287,47 @@ fn bad_scenes_give_clear_errors() {
     );
     assert!(e.contains("restitution"), "{e}");
 }
+
+#[test]
+fn coincident_spheres_are_warned_about_and_pushed_apart() {
+    let dir = tempfile::tempdir().unwrap();
+    // Three spheres at one point (three pairs), one elsewhere.
+    let csv = "x,y,z,r\n0.5,0.5,0.5,0.01\n0.5,0.5,0.5,0.01\n0.5,0.5,0.5,0.01\n0.2,0.2,0.2,0.01\n";
+    std::fs::write(dir.path().join("same.csv"), csv).unwrap();
+    let args = [
+        "simulate",
+        "--input",
+        "same.csv",
+        "--set",
+        "box_lo=[0,0,0]",
+        "--set",
+        "box_hi=[1,1,1]",
+        "--set",
+        "gravity=[0,0,0]",
+        "--steps",
+        "20",
+        "--frame-every",
+        "0",
+        "--backend",
+        "cpu",
+        "-q",
+        "-o",
+        "out",
+    ];
+    let (code, stdout, stderr) = mochi(&args, dir.path());
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    let warnings: Vec<&str> = stderr.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(warnings.len(), 1, "{stderr}");
+    assert!(
+        warnings[0].contains("3 pairs of spheres share their centre"),
+        "{stderr}"
+    );
+    let (end, _) = read_checkpoint(&dir.path().join("out/checkpoint.bin")).unwrap();
+    for i in 0..3 {
+        for j in i + 1..3 {
+            let (a, b) = (end.positions[i], end.positions[j]);
+            let d = (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f32>().sqrt();
+            assert!(d > 0.02, "spheres {i} and {j} {d} m apart: {end:?}");
+        }
+    }
+}

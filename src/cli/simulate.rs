@@ -98,6 +98,13 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     if let Some(warning) = p.overlap_warning(r_min, r_max) {
         eprintln!("warning: {warning}");
     }
+    match start.particles.coincident_pairs() {
+        0 => {}
+        pairs => eprintln!(
+            "warning: {pairs} pairs of spheres share their centre: each pair is pushed apart along \
+             a direction drawn from the two spheres' indices"
+        ),
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let scene_toml = config.to_toml();

@@ -77,10 +77,11 @@ impl CpuStepper {
                     if dx * dx + dy * dy + dz * dz > reach * reach || q == at {
                         continue;
                     }
-                    let j = grid.ids[q] as usize;
+                    let j = grid.ids[q];
                     let c_j = [t[0], t[1], t[2]];
-                    if let Some(f) =
-                        contact_force(p, c_i, v_i, s[3], m_i, c_j, velocities[j], t[3], masses[j])
+                    let (v_j, m_j) = (velocities[j as usize], masses[j as usize]);
+                    let i = grid.ids[at];
+                    if let Some(f) = contact_force(p, i, c_i, v_i, s[3], m_i, j, c_j, v_j, t[3], m_j)
                     {
                         touching += 1;
                         for a in 0..3 {

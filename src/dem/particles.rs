@@ -64,6 +64,22 @@ impl Particles {
         }
     }
 
+    /// Pairs of spheres whose centres coincide: they have no contact normal, so the step pushes
+    /// each such pair apart along [`super::model::coincident_direction`].
+    pub fn coincident_pairs(&self) -> u64 {
+        use rayon::slice::ParallelSliceMut;
+        // Bits of the centre, with −0 read as +0 (they are the same point).
+        let mut keys: Vec<[u32; 3]> = self
+            .positions
+            .iter()
+            .map(|c| c.map(|x| (x + 0.0).to_bits()))
+            .collect();
+        keys.par_sort_unstable();
+        keys.chunk_by(|a, b| a == b)
+            .map(|same| (same.len() as u64) * (same.len() as u64 - 1) / 2)
+            .sum()
+    }
+
     /// Smallest and largest radius (0 for no spheres).
     pub fn radius_range(&self) -> (f32, f32) {
         self.radii
@@ -72,5 +88,22 @@ impl Particles {
                 Some(acc.map_or((r, r), |(a, b)| (a.min(r), b.max(r))))
             })
             .unwrap_or((0.0, 0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coincident_pairs_are_counted_per_shared_centre() {
+        let mut p = Particles {
+            positions: vec![[1.0, 2.0, 3.0], [0.0; 3], [1.0, 2.0, 3.0], [-0.0, 0.0, 0.0]],
+            ..Particles::default()
+        };
+        p.positions.extend([[1.0, 2.0, 3.0], [5.0; 3]]);
+        assert_eq!(p.coincident_pairs(), 3 + 1);
+        p.positions.truncate(2);
+        assert_eq!(p.coincident_pairs(), 0);
     }
 }
