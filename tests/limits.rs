@@ -64,9 +64,24 @@ fn sphere_counts_beyond_the_index_limit_are_refused_up_front() {
     let dir = TempDir::new().unwrap();
     let limit = "exceeds the limit of 4294967295";
     for args in [
-        &["generate", "--layout", "random", "-n", "10000000000", "-o", "g.csv"][..],
+        &[
+            "generate",
+            "--layout",
+            "random",
+            "-n",
+            "10000000000",
+            "-o",
+            "g.csv",
+        ][..],
         &["detect", "--backend", "cpu", "-n", "10000000000"],
-        &["bench", "--backends", "cpu", "--spheres", "10000000000", "-q"],
+        &[
+            "bench",
+            "--backends",
+            "cpu",
+            "--spheres",
+            "10000000000",
+            "-q",
+        ],
     ] {
         assert_contains(&capped_error(args, dir.path()), limit);
     }
@@ -99,7 +114,10 @@ fn npy_header_longer_than_the_file_is_refused_before_allocation() {
     bytes.extend(dict);
     std::fs::write(dir.path().join("big.npy"), bytes).unwrap();
     let line = capped_error(&["detect", "--backend", "cpu", "big.npy"], dir.path());
-    assert_contains(&line, "big.npy: truncated: the header declares 4294967280 bytes");
+    assert_contains(
+        &line,
+        "big.npy: truncated: the header declares 4294967280 bytes",
+    );
 }
 
 #[test]
@@ -111,7 +129,10 @@ fn csv_line_longer_than_the_limit_is_refused_without_reading_it() {
     let file = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
     file.set_len(1_500_000_000).unwrap();
     let line = capped_error(&["detect", "--backend", "cpu", "long.csv"], dir.path());
-    assert_contains(&line, "long.csv:2: line longer than the limit of 4096 bytes");
+    assert_contains(
+        &line,
+        "long.csv:2: line longer than the limit of 4096 bytes",
+    );
 }
 
 #[test]

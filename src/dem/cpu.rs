@@ -81,7 +81,8 @@ impl CpuStepper {
                     let c_j = [t[0], t[1], t[2]];
                     let (v_j, m_j) = (velocities[j as usize], masses[j as usize]);
                     let i = grid.ids[at];
-                    if let Some(f) = contact_force(p, i, c_i, v_i, s[3], m_i, j, c_j, v_j, t[3], m_j)
+                    if let Some(f) =
+                        contact_force(p, i, c_i, v_i, s[3], m_i, j, c_j, v_j, t[3], m_j)
                     {
                         touching += 1;
                         for a in 0..3 {

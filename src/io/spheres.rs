@@ -98,10 +98,7 @@ impl Lines<'_> {
             parse_error(
                 self.path,
                 Some(self.no),
-                format!(
-                    "not UTF-8 text (byte {} of the line)",
-                    e.valid_up_to() + 1
-                ),
+                format!("not UTF-8 text (byte {} of the line)", e.valid_up_to() + 1),
             )
         })?;
         Ok(Some((self.no, text)))

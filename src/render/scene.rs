@@ -143,7 +143,11 @@ mod tests {
         assert_eq!(scene.len(), 3);
         // The tree over three spheres is one leaf: no ray visits more than one node.
         assert_eq!(scene.nodes.len(), 1);
-        let at_origin = scene.spheres.iter().position(|s| s[..3] == [0.0; 3]).unwrap();
+        let at_origin = scene
+            .spheres
+            .iter()
+            .position(|s| s[..3] == [0.0; 3])
+            .unwrap();
         assert_eq!(scene.spheres[at_origin][3], 0.5);
         let colour_of_4000 = colours(&values, (0.0, (n + 1) as f32))[4000];
         assert_eq!(scene.colours[at_origin], colour_of_4000);
