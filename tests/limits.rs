@@ -116,7 +116,7 @@ fn npy_header_longer_than_the_file_is_refused_before_allocation() {
     let line = capped_error(&["detect", "--backend", "cpu", "big.npy"], dir.path());
     assert_contains(
         &line,
-        "big.npy: truncated: the header declares 4294967280 bytes",
+        "big.npy: not a .npy file: its header declares 4294967280 bytes",
     );
 }
 

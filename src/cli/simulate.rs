@@ -74,13 +74,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         structure: args.structure,
         rebuild: args.rebuild,
     };
-    let (mut stepper, reason) = open_choice(
-        args.backend,
-        start.particles.clone(),
-        p,
-        start.mode,
-        &options,
-    )?;
+    let (r_min, r_max) = start.particles.radius_range();
+    let coincident = start.particles.coincident_pairs()?;
+    let (mut stepper, reason) =
+        open_choice(args.backend, start.particles, p, start.mode, &options)?;
     if let Some(reason) = reason {
         eprintln!("{reason}");
     }
@@ -94,11 +91,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         stepper.describe()
     );
 
-    let (r_min, r_max) = start.particles.radius_range();
     if let Some(warning) = p.overlap_warning(r_min, r_max) {
         eprintln!("warning: {warning}");
     }
-    match start.particles.coincident_pairs() {
+    match coincident {
         0 => {}
         pairs => eprintln!(
             "warning: {pairs} pairs of spheres share their centre: each pair is pushed apart along \
@@ -140,7 +136,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         let sim_box = config.box_lo.zip(config.box_hi);
         let mut pictures = FrameRenderer::new(&args.render, sim_box)?;
         if args.render.color_by == ColorBy::Radius {
-            pictures.set_range(start.particles.radius_range());
+            pictures.set_range((r_min, r_max));
         }
         eprintln!(
             "pictures every {} steps with {}",

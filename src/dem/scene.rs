@@ -255,14 +255,14 @@ impl SceneConfig {
                     Error::Usage("scene \"input\" needs input = \"FILE\" (--input)".into())
                 })?;
                 let (spheres, velocities) = crate::io::read_particles(input)?;
-                let mut particles = Particles::at_rest(&spheres);
+                let mut particles = Particles::at_rest(&spheres)?;
                 if let Some(v) = velocities {
                     particles.velocities = v;
                 }
                 return Self::inside_the_box(self.start_from(particles)?);
             }
         };
-        Self::inside_the_box(self.start_from(Particles::at_rest(&spheres))?)
+        Self::inside_the_box(self.start_from(Particles::at_rest(&spheres)?)?)
     }
 
     /// `start`, if every centre lies in its box (checked at t = 0 only: a running simulation

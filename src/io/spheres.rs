@@ -247,7 +247,7 @@ fn check_npy_size(bytes: &[u8]) -> Result<(), String> {
         };
         if at + len > bytes.len() as u64 {
             return Err(format!(
-                "truncated: the header declares {len} bytes, more than the file's {}",
+                "not a .npy file: its header declares {len} bytes, more than the file's {}",
                 bytes.len()
             ));
         }
