@@ -151,3 +151,23 @@ fn pairs_that_do_not_fit_in_memory_stop_with_their_count() {
     );
     assert!(!dir.path().join("pairs.csv").exists());
 }
+
+#[test]
+fn npy_data_larger_than_memory_is_refused() {
+    let dir = TempDir::new().unwrap();
+    // 37.5 million rows of float32: 600 MB of data (a sparse file), twice that to hold.
+    let mut dict = "{'descr': '<f4', 'fortran_order': False, 'shape': (37500000, 4), }".to_owned();
+    while (10 + dict.len() + 1) % 64 != 0 {
+        dict.push(' ');
+    }
+    dict.push('\n');
+    let mut header = b"\x93NUMPY\x01\x00".to_vec();
+    header.extend((dict.len() as u16).to_le_bytes());
+    header.extend(dict.as_bytes());
+    let path = dir.path().join("rows.npy");
+    std::fs::write(&path, &header).unwrap();
+    let file = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    file.set_len(header.len() as u64 + 600_000_000).unwrap();
+    let line = capped_error(&["detect", "--backend", "cpu", "rows.npy"], dir.path());
+    assert_contains(&line, "37500000 rows of rows.npy: out of memory");
+}

@@ -7,7 +7,7 @@ use super::{Format, io_error, parse_error, write_atomically};
 use crate::error::{Result, try_push, try_vec};
 use crate::spheres::{SphereSet, check_count, check_sphere};
 use npyz::WriterBuilder;
-use std::io::{BufRead, Read};
+use std::io::{BufRead, Read, Seek};
 use std::path::Path;
 
 const COLUMNS: [&str; 4] = ["x", "y", "z", "r"];
@@ -182,10 +182,21 @@ fn read_csv(path: &Path) -> Result<Rows> {
 }
 
 fn read_npy(path: &Path) -> Result<Rows> {
-    let bytes = std::fs::read(path).map_err(io_error(path))?;
     let bad = |msg: String| parse_error(path, None, msg);
-    check_npy_size(&bytes).map_err(bad)?;
-    let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(format!("not a .npy file: {e}")))?;
+    // The header is checked against the file's length before npyz parses it; the data is then
+    // read in blocks into a fallibly allocated array.
+    let mut file = std::fs::File::open(path).map_err(io_error(path))?;
+    let size = file.metadata().map_err(io_error(path))?.len();
+    let mut head = Vec::new();
+    (&mut file)
+        .take(4096)
+        .read_to_end(&mut head)
+        .map_err(io_error(path))?;
+    let data_at = check_npy_size(&head, size).map_err(bad)?;
+    file.seek(std::io::SeekFrom::Start(0))
+        .map_err(io_error(path))?;
+    let npy = npyz::NpyFile::new(std::io::BufReader::new(&mut file))
+        .map_err(|e| bad(format!("not a .npy file: {e}")))?;
     let shape = npy.shape().to_vec();
     if shape.len() != 2 || !(shape[1] == 4 || shape[1] == 7) {
         return Err(bad(format!(
@@ -201,17 +212,33 @@ fn read_npy(path: &Path) -> Result<Rows> {
         npyz::DType::Plain(t) => t.to_string(),
         other => other.descr(),
     };
-    let values: Vec<f32> = match dtype.as_str() {
-        "<f4" | ">f4" => npy.into_vec::<f32>(),
-        "<f8" | ">f8" => npy
-            .into_vec::<f64>()
-            .map(|v| v.into_iter().map(|x| x as f32).collect()),
+    let decode: fn(&[u8]) -> f32 = match dtype.as_str() {
+        "<f4" => |b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+        ">f4" => |b| f32::from_be_bytes([b[0], b[1], b[2], b[3]]),
+        "<f8" => |b| f64::from_le_bytes(std::array::from_fn(|k| b[k])) as f32,
+        ">f8" => |b| f64::from_be_bytes(std::array::from_fn(|k| b[k])) as f32,
         other => return Err(bad(format!("expected float32 values, found dtype {other}"))),
-    }
-    .map_err(|e| bad(format!("unreadable data ({e}); is the file truncated?")))?;
+    };
+    let item = if dtype.ends_with('4') { 4 } else { 8 };
     let what = || format!("{n} rows of {}", path.display());
+    let total = n * columns;
+    let mut values: Vec<f32> = try_vec(total, what)?;
     let mut rows = try_vec(n, what)?;
     let mut velocities = try_vec(if columns == 7 { n } else { 0 }, what)?;
+    let mut data = std::io::BufReader::new(file);
+    data.seek(std::io::SeekFrom::Start(data_at))
+        .map_err(io_error(path))?;
+    let mut block = vec![0u8; item << 14];
+    while values.len() < total {
+        let bytes = &mut block[..item * (total - values.len()).min(1 << 14)];
+        data.read_exact(bytes).map_err(|e| {
+            bad(format!(
+                "unreadable data ({e} after {} of {total} values); is the file truncated?",
+                values.len()
+            ))
+        })?;
+        values.extend(bytes.chunks_exact(item).map(decode));
+    }
     for i in 0..n {
         let at = |k: usize| {
             if fortran {
@@ -235,8 +262,11 @@ fn read_npy(path: &Path) -> Result<Rows> {
 
 /// Refuses a `.npy` whose header, or the data its shape promises, is longer than the file,
 /// before either is allocated (a crafted length or shape would ask for any amount of memory).
-fn check_npy_size(bytes: &[u8]) -> Result<(), String> {
-    // Magic (6 bytes), version (2), then the header length: 2 bytes in version 1, 4 after.
+/// `bytes` are the file's first bytes; returns where the data starts.
+fn check_npy_size(bytes: &[u8], file_len: u64) -> Result<u64, String> {
+    // Magic (6 bytes), version (2), then the header length: 2 bytes in version 1, 4 after; the
+    // data follows the header. Without the magic, npyz refuses the file.
+    let mut data_at = 0;
     if bytes.len() >= 12 && bytes.starts_with(b"\x93NUMPY") {
         let (len, at) = match bytes[6] {
             1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as u64, 10),
@@ -245,16 +275,16 @@ fn check_npy_size(bytes: &[u8]) -> Result<(), String> {
                 12,
             ),
         };
-        if at + len > bytes.len() as u64 {
+        if at + len > file_len {
             return Err(format!(
-                "not a .npy file: its header declares {len} bytes, more than the file's {}",
-                bytes.len()
+                "not a .npy file: its header declares {len} bytes, more than the file's {file_len}"
             ));
         }
+        data_at = at + len;
     }
     let head = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]);
     let Some(start) = head.find("'shape':") else {
-        return Ok(()); // not a header npyz will accept either; it reports the problem
+        return Ok(data_at); // not a header npyz will accept either; it reports the problem
     };
     let tuple = head[start + 8..]
         .trim_start()
@@ -269,11 +299,69 @@ fn check_npy_size(bytes: &[u8]) -> Result<(), String> {
             .map_err(|_| format!("bad shape entry {dim:?}"))?;
         total = total.saturating_mul(dim);
     }
-    if total / 2 > bytes.len() as u64 {
+    if total / 2 > file_len {
         return Err(format!(
-            "truncated: the header's shape ({tuple}) needs more data than the file's {} bytes",
-            bytes.len()
+            "truncated: the header's shape ({tuple}) needs more data than the file's {file_len} \
+             bytes"
         ));
     }
-    Ok(())
+    Ok(data_at)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A version-1 `.npy` of `descr` and `shape`, header padded to 64 bytes, then `data`.
+    fn npy(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
+        let mut dict =
+            format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+        while (10 + dict.len() + 1) % 64 != 0 {
+            dict.push(' ');
+        }
+        dict.push('\n');
+        let mut out = b"\x93NUMPY\x01\x00".to_vec();
+        out.extend((dict.len() as u16).to_le_bytes());
+        out.extend(dict.as_bytes());
+        out.extend(data);
+        out
+    }
+
+    #[test]
+    fn npy_of_either_byte_order_and_width_reads_the_same() {
+        let rows = [[1.5f32, -2.0, 3.25, 0.5], [0.0, 1e-3, -7.0, 2.0]];
+        let values: Vec<f32> = rows.iter().flatten().copied().collect();
+        let dir = tempfile::tempdir().unwrap();
+        let cases: [(&str, Vec<u8>); 4] = [
+            ("<f4", values.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            (">f4", values.iter().flat_map(|x| x.to_be_bytes()).collect()),
+            (
+                "<f8",
+                values
+                    .iter()
+                    .flat_map(|&x| f64::from(x).to_le_bytes())
+                    .collect(),
+            ),
+            (
+                ">f8",
+                values
+                    .iter()
+                    .flat_map(|&x| f64::from(x).to_be_bytes())
+                    .collect(),
+            ),
+        ];
+        for (descr, data) in cases {
+            let path = dir.path().join("s.npy");
+            std::fs::write(&path, npy(descr, "(2, 4)", &data)).unwrap();
+            let spheres = read_spheres(&path).unwrap();
+            assert_eq!(spheres.xyzr().collect::<Vec<_>>(), rows, "{descr}");
+            // One byte short: refused.
+            std::fs::write(&path, npy(descr, "(2, 4)", &data[..data.len() - 1])).unwrap();
+            let err = read_spheres(&path).unwrap_err().to_string();
+            assert!(
+                err.contains("of 8 values); is the file truncated?"),
+                "{descr}: {err}"
+            );
+        }
+    }
 }
