@@ -62,7 +62,7 @@ pub fn write_spheres(path: &Path, spheres: &SphereSet) -> Result<()> {
 }
 
 /// Longest line a sphere CSV may have, in bytes (a row of seven numbers needs a few hundred).
-pub const MAX_LINE: usize = 4096;
+const MAX_LINE: usize = 4096;
 
 /// The lines of a sphere CSV as text, numbered from 1, each at most [`MAX_LINE`] bytes.
 struct Lines<'a> {
