@@ -157,7 +157,7 @@ fn npy_data_larger_than_memory_is_refused() {
     let dir = TempDir::new().unwrap();
     // 37.5 million rows of float32: 600 MB of data (a sparse file), twice that to hold.
     let mut dict = "{'descr': '<f4', 'fortran_order': False, 'shape': (37500000, 4), }".to_owned();
-    while (10 + dict.len() + 1) % 64 != 0 {
+    while !(10 + dict.len() + 1).is_multiple_of(64) {
         dict.push(' ');
     }
     dict.push('\n');
