@@ -82,10 +82,20 @@ fn sphere_counts_beyond_the_index_limit_are_refused_up_front() {
             "10000000000",
             "-q",
         ],
+        &[
+            "simulate",
+            "--backend",
+            "cpu",
+            "-n",
+            "10000000000",
+            "-o",
+            "s",
+        ],
     ] {
         assert_contains(&capped_error(args, dir.path()), limit);
     }
     assert!(!dir.path().join("g.csv").exists());
+    assert!(!dir.path().join("s").exists());
 }
 
 #[test]
