@@ -4,6 +4,7 @@
 use super::bvh::{self, Node};
 use super::colour::colours;
 use crate::error::{Error, Result};
+use rayon::slice::ParallelSliceMut;
 
 /// Spheres to render, each with the colour of its value.
 #[derive(Debug, Clone)]
@@ -109,7 +110,7 @@ fn outermost(positions: &[[f32; 3]], radii: &[f32]) -> Vec<u32> {
     // Centre bits with −0 read as +0 (the same point).
     let centre = |i: u32| positions[i as usize].map(|x| (x + 0.0).to_bits());
     let mut by_centre: Vec<u32> = (0..positions.len() as u32).collect();
-    by_centre.sort_unstable_by(|&a, &b| {
+    by_centre.par_sort_unstable_by(|&a, &b| {
         centre(a)
             .cmp(&centre(b))
             .then(radii[b as usize].total_cmp(&radii[a as usize]))
@@ -119,7 +120,7 @@ fn outermost(positions: &[[f32; 3]], radii: &[f32]) -> Vec<u32> {
         .chunk_by(|&a, &b| centre(a) == centre(b))
         .map(|group| group[0])
         .collect();
-    shown.sort_unstable();
+    shown.par_sort_unstable();
     shown
 }
 
