@@ -70,13 +70,13 @@ impl Scene {
             })
             .collect();
         let (order, keys) = bvh::morton_order(&xyzr);
-        let spheres: Vec<_> = order.iter().map(|&k| xyzr[k as usize]).collect();
         let all_colours = colours(values, range);
-        let colours = order
+        let mut items: Vec<([f32; 4], u32)> = order
             .iter()
-            .map(|&k| all_colours[shown[k as usize] as usize])
+            .map(|&k| (xyzr[k as usize], all_colours[shown[k as usize] as usize]))
             .collect();
-        let nodes = bvh::build(&spheres, &keys);
+        let nodes = bvh::build(&mut items, &keys);
+        let (spheres, colours) = items.into_iter().unzip();
         let bounds = nodes
             .first()
             .map(|root| (root.lo.map(f64::from), root.hi.map(f64::from)));
