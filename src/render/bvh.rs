@@ -1,7 +1,8 @@
 //! The bounding-volume hierarchy of the `wgpu-compute` and `cpu` render paths: built on the CPU
 //! over the spheres in Morton order (a top-down LBVH: each range splits where its highest
 //! differing Morton bit flips, a range of equal keys at the median of its widest axis),
-//! flattened depth first, and traversed nearest child first with a small stack. [`trace`] is the CPU twin of `trace` in `wgsl/render_bvh.wgsl`.
+//! flattened depth first, and traversed nearest child first with a small stack. [`trace`] is the
+//! CPU twin of `trace` in `wgsl/render_bvh.wgsl`.
 
 use super::shade::{INF, hit_sphere};
 
