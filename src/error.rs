@@ -50,6 +50,14 @@ pub enum Error {
         /// The largest amount allowed.
         limit: u64,
     },
+    /// Memory for something whose size comes from the input could not be had.
+    #[error("{what}: out of memory ({bytes} bytes needed)")]
+    OutOfMemory {
+        /// What the memory was for, with its count.
+        what: String,
+        /// Bytes asked for.
+        bytes: u64,
+    },
     /// The GPU failed: out of memory, a lost device, a rejected command.
     #[error("GPU: {0}")]
     Gpu(String),
@@ -68,3 +76,27 @@ pub enum Error {
 
 /// Shorthand for results in this crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// An empty vector with room for `n` items, or [`Error::OutOfMemory`] naming `what` (a count
+/// taken from the input must never abort the process).
+pub(crate) fn try_vec<T>(n: usize, what: impl FnOnce() -> String) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| Error::OutOfMemory {
+        what: what(),
+        bytes: (n as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+    })?;
+    Ok(v)
+}
+
+/// Pushes `item`, growing `v` fallibly (see [`try_vec`]).
+pub(crate) fn try_push<T>(v: &mut Vec<T>, item: T, what: impl FnOnce() -> String) -> Result<()> {
+    if v.len() == v.capacity() {
+        let more = v.capacity().max(16);
+        v.try_reserve(more).map_err(|_| Error::OutOfMemory {
+            what: what(),
+            bytes: ((v.len() + more) as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+        })?;
+    }
+    v.push(item);
+    Ok(())
+}

@@ -4,8 +4,8 @@
 //! a lattice, shrunk by its radius, so no two spheres overlap (a DEM start state); `random`
 //! places centres uniformly, overlaps included (a collision-detection workload).
 
-use crate::error::{Error, Result};
-use crate::spheres::SphereSet;
+use crate::error::{Error, Result, try_vec};
+use crate::spheres::{SphereSet, check_count};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use std::f64::consts::PI;
@@ -131,6 +131,7 @@ const LAYER_SPACING: f64 = 2.1;
 
 /// Generates the spheres of `spec`.
 pub fn generate(spec: &SceneSpec) -> Result<SphereSet> {
+    check_count(spec.n)?;
     if spec.scene == Scene::Polylog && spec.layout == Layout::Lattice {
         return layered(spec);
     }
@@ -145,8 +146,8 @@ pub fn generate(spec: &SceneSpec) -> Result<SphereSet> {
         });
     }
     let mut rng = Pcg64::seed_from_u64(spec.seed);
-    let mut centers = Vec::with_capacity(spec.n);
-    let mut radii = Vec::with_capacity(spec.n);
+    let mut centers = try_vec(spec.n, || spheres_of(spec))?;
+    let mut radii = try_vec(spec.n, || spheres_of(spec))?;
     for k in 0..spec.n {
         let r = spec.scene.sample_radius(&mut rng);
         let c = match spec.layout {
@@ -165,6 +166,11 @@ pub fn generate(spec: &SceneSpec) -> Result<SphereSet> {
     SphereSet::new(centers, radii)
 }
 
+/// What the generated arrays hold, for an out-of-memory error.
+fn spheres_of(spec: &SceneSpec) -> String {
+    format!("{} spheres of scene {}", spec.n, spec.scene.name())
+}
+
 /// `polylog`'s lattice layout: radii sorted, cut into layers that each fill a square lattice of
 /// spacing 2.1·(their largest radius) across the box, stacked from the floor in a seeded random
 /// order, every sphere jittered inside its own cell. No two spheres overlap: within a layer cells
@@ -172,9 +178,8 @@ pub fn generate(spec: &SceneSpec) -> Result<SphereSet> {
 fn layered(spec: &SceneSpec) -> Result<SphereSet> {
     let side = spec.scene.box_side(spec.n, Layout::Lattice);
     let mut rng = Pcg64::seed_from_u64(spec.seed);
-    let mut radii: Vec<f32> = (0..spec.n)
-        .map(|_| spec.scene.sample_radius(&mut rng))
-        .collect();
+    let mut radii: Vec<f32> = try_vec(spec.n, || spheres_of(spec))?;
+    radii.extend((0..spec.n).map(|_| spec.scene.sample_radius(&mut rng)));
     radii.sort_unstable_by(|a, b| b.total_cmp(a));
     // Layers of like-sized spheres: each takes as many as its lattice holds.
     let mut layers: Vec<std::ops::Range<usize>> = Vec::new();
@@ -191,8 +196,8 @@ fn layered(spec: &SceneSpec) -> Result<SphereSet> {
         let j = rng.random_range(0..=k);
         layers.swap(k, j);
     }
-    let mut centers = Vec::with_capacity(spec.n);
-    let mut out_radii = Vec::with_capacity(spec.n);
+    let mut centers = try_vec(spec.n, || spheres_of(spec))?;
+    let mut out_radii = try_vec(spec.n, || spheres_of(spec))?;
     let mut z = 0.0f64;
     let mut below = 0.0f64; // largest radius of the layer below (none under the first)
     for layer in &layers {

@@ -1,6 +1,6 @@
 //! Validated sphere sets and the pairs reported for them.
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, try_vec};
 
 /// Largest magnitude accepted for a coordinate or a radius.
 ///
@@ -41,13 +41,7 @@ impl SphereSet {
                 radii.len()
             )));
         }
-        if centers.len() > MAX_SPHERES {
-            return Err(Error::TooLarge {
-                what: "number of spheres".into(),
-                got: centers.len() as u64,
-                limit: MAX_SPHERES as u64,
-            });
-        }
+        check_count(centers.len())?;
         for (index, (c, &r)) in centers.iter().zip(&radii).enumerate() {
             check_sphere(c, r).map_err(|reason| Error::InvalidSphere { index, reason })?;
         }
@@ -61,8 +55,12 @@ impl SphereSet {
 
     /// Builds a set from rows `[x, y, z, r]`.
     pub fn from_xyzr(rows: &[[f32; 4]]) -> Result<Self> {
-        let centers = rows.iter().map(|s| [s[0], s[1], s[2]]).collect();
-        let radii = rows.iter().map(|s| s[3]).collect();
+        check_count(rows.len())?;
+        let what = || format!("{} spheres", rows.len());
+        let mut centers = try_vec(rows.len(), what)?;
+        let mut radii = try_vec(rows.len(), what)?;
+        centers.extend(rows.iter().map(|s| [s[0], s[1], s[2]]));
+        radii.extend(rows.iter().map(|s| s[3]));
         Self::new(centers, radii)
     }
 
@@ -136,6 +134,18 @@ impl SphereSet {
             .iter()
             .zip(&self.radii)
             .map(|(c, &r)| [c[0], c[1], c[2], r])
+    }
+}
+
+/// Refuses more than [`MAX_SPHERES`] spheres.
+pub fn check_count(n: usize) -> Result<()> {
+    match n <= MAX_SPHERES {
+        true => Ok(()),
+        false => Err(Error::TooLarge {
+            what: "number of spheres".into(),
+            got: n as u64,
+            limit: MAX_SPHERES as u64,
+        }),
     }
 }
 

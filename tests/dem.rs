@@ -1,5 +1,8 @@
-//! The DEM step on every backend: physics checks against theory, conservation, a settled pile,
-//! long-run sanity, and the GPU steps against the cpu step on the same scene.
+//! The DEM step on every backend: physics checks against theory, conservation, a settled pile
+//! (resting on the floor, which carries its weight), a long tumbling run (inside the box, where
+//! gravity points), coincident spheres, and the GPU steps against the cpu step on the same scene,
+//! also under rotating gravity resumed at a later step. Every check fails for a step that does
+//! nothing.
 
 mod common;
 
@@ -159,11 +162,10 @@ fn a_free_cluster_conserves_momentum() {
         .map(|(v, &r)| mass(500.0, r) as f64 * v.iter().map(|x| x.abs() as f64).sum::<f64>())
         .sum();
     for (name, mut s) in steppers(&start, p) {
-        let a = s.advance(500).unwrap();
-        assert!(
-            a.contacts > 0 || name != "cpu",
-            "the cluster should collide"
-        );
+        // Neighbours overlap from the start.
+        let first = s.advance(1).unwrap();
+        assert!(first.contacts > 0, "{name}: the cluster should collide");
+        s.advance(499).unwrap();
         let after = momentum(&s.particles().unwrap());
         for k in 0..3 {
             assert!(
@@ -241,6 +243,32 @@ fn a_settled_pile_comes_to_rest_with_small_overlaps() {
             "{name}: max overlap {:.3}% of r",
             worst * 100.0
         );
+        // The pile fell: a layer of at least its 36 columns rests on the floor (the columns
+        // topple into a denser one), each sphere pressed in by about its own weight over k or
+        // more (neighbours lean on it) but not by much more than its column's, and the floor
+        // carries the whole pile (the side walls are frictionless: they carry none of it).
+        let (k, g) = (p.stiffness, 9.81f32);
+        let heaviest = mass(p.density, 0.01);
+        let bottom: Vec<usize> = (0..end.len())
+            .filter(|&i| end.positions[i][2] < 0.015)
+            .collect();
+        assert!(bottom.len() >= 36, "{name}: {} on the floor", bottom.len());
+        for &i in &bottom {
+            let (z, r) = (end.positions[i][2], end.radii[i]);
+            let own = mass(p.density, r) * g / k;
+            assert!(
+                z <= r - 0.5 * own && z >= r - 20.0 * heaviest * g / k,
+                "{name}: sphere {i} of radius {r} rests at z = {z}"
+            );
+        }
+        let floor: f32 = (0..end.len())
+            .map(|i| k * (end.radii[i] - end.positions[i][2]).max(0.0))
+            .sum();
+        let weight: f32 = end.radii.iter().map(|&r| mass(p.density, r) * g).sum();
+        assert!(
+            (floor - weight).abs() <= 1e-3 * weight,
+            "{name}: the floor carries {floor} N of the pile's {weight} N"
+        );
     }
 }
 
@@ -260,18 +288,35 @@ fn a_long_run_stays_finite_and_inside_the_box() {
         r_min,
     )
     .unwrap();
+    let centroid = |s: &Particles| {
+        let n = s.len() as f32;
+        [0, 1, 2].map(|a| s.positions.iter().map(|c| c[a]).sum::<f32>() / n)
+    };
     for (name, mut s) in steppers(&start, p) {
+        let mut contacts = 0;
         for _ in 0..10 {
-            s.advance(300).unwrap();
+            contacts = s.advance(300).unwrap().contacts;
             let now = s.particles().unwrap();
+            // Every centre stays in the box, no sphere pressed into a wall by half its radius.
             for (c, &r) in now.positions.iter().zip(&now.radii) {
                 assert!(
-                    c.iter().all(|&x| x.is_finite() && x > -r && x < side + r),
-                    "{name}: sphere at {c:?} left the box by step {}",
+                    c.iter()
+                        .all(|&x| x.is_finite() && x >= r / 2.0 && x <= side - r / 2.0),
+                    "{name}: sphere of radius {r} at {c:?} is in a wall by step {}",
                     now.step
                 );
             }
         }
+        let end = s.particles().unwrap();
+        assert!(contacts > 0, "{name}: the pile lies in a heap");
+        // The pile has gone where gravity points now: down and, turned by 0.3π, towards x = 0.
+        let (before, after) = (centroid(&start), centroid(&end));
+        let g = p.gravity_at(end.step);
+        let along: f32 = (0..3).map(|a| (after[a] - before[a]) * g[a] / 9.81).sum();
+        assert!(
+            along > 0.02,
+            "{name}: the centroid moved {along} m along gravity"
+        );
     }
 }
 
@@ -287,6 +332,10 @@ fn every_step_times_its_phases_within_the_wall_clock() {
         let wall_ms = clock.elapsed().as_secs_f64() * 1e3;
         let t = advance.times;
         if advance.clock == Clock::None {
+            assert!(
+                !common::ci(),
+                "{name}: CI's adapter has GPU timestamps, so every phase must be timed"
+            );
             eprintln!("note: {name} has no GPU timestamps here: its phases are not timed");
             continue;
         }
@@ -326,11 +375,36 @@ fn gpu_steps_follow_the_cpu_step_with_two_sizes_of_spheres() {
     assert_gpu_steps_follow_the_cpu_step(start);
 }
 
+#[test]
+fn gpu_steps_follow_the_cpu_step_under_rotating_gravity_from_a_later_step() {
+    // Resumed at step 12,000 (1.2 s) of gravity turning at 2 rad/s: it points 2.4 rad away from
+    // -z, so a step that took its phase from step 0 would pull the wrong way.
+    let mut start = pile(8, 0.0162, 0.0);
+    start.step = 12_000;
+    let r_min = start.radius_range().0;
+    let p = StepParams::new(
+        &Material::default(),
+        1e-4,
+        [0.0; 3],
+        [0.3; 3],
+        [0.0, 0.0, -9.81],
+        2.0,
+        r_min,
+    )
+    .unwrap();
+    assert_gpu_steps_follow_the_cpu_step_with(start, p);
+}
+
 /// Every GPU stepper finds the cpu step's contacts and stays within 1e-6 m of its positions over
 /// the first 40 steps from `start` (which must start in contact).
 fn assert_gpu_steps_follow_the_cpu_step(start: Particles) {
     let r_min = start.radius_range().0;
     let p = params(Material::default(), 1e-4, 0.3, [0.0, 0.0, -9.81], r_min);
+    assert_gpu_steps_follow_the_cpu_step_with(start, p);
+}
+
+/// [`assert_gpu_steps_follow_the_cpu_step`] with the step parameters `p`.
+fn assert_gpu_steps_follow_the_cpu_step_with(start: Particles, p: StepParams) {
     let mut all = steppers(&start, p);
     let (_, mut cpu) = all.remove(0);
     let mut reference = Vec::new();
@@ -397,4 +471,34 @@ fn largest_gap(a: &Particles, b: &Particles) -> f32 {
         .zip(&b.positions)
         .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).abs()).fold(0.0, f32::max))
         .fold(0.0, f32::max)
+}
+
+#[test]
+fn coincident_spheres_are_pushed_apart() {
+    // Five spheres at one point and a pair at another, no gravity: no contact normal at distance
+    // 0, so each pair is pushed along the direction its indices give.
+    let r = 0.01f32;
+    let mut positions = vec![[0.5f32; 3]; 5];
+    positions.extend([[0.3, 0.6, 0.4]; 2]);
+    let n = positions.len();
+    let start = particles(positions, vec![[0.0; 3]; n], vec![r; n]);
+    let p = params(Material::default(), 1e-4, 1.0, [0.0; 3], r);
+    for (name, mut s) in steppers(&start, p) {
+        let first = s.advance(1).unwrap();
+        assert_eq!(
+            first.contacts,
+            10 + 1,
+            "{name}: every coincident pair touches"
+        );
+        // Two contact durations: every pair has come apart.
+        s.advance(20).unwrap();
+        let end = s.particles().unwrap();
+        for i in 0..n {
+            for j in i + 1..n {
+                let (a, b) = (end.positions[i], end.positions[j]);
+                let d = (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f32>().sqrt();
+                assert!(d > 2.0 * r, "{name}: spheres {i} and {j} still {d} m apart");
+            }
+        }
+    }
 }

@@ -166,7 +166,9 @@ fn jittered_mixed_fill_has_no_overlaps_and_follows_the_weights() {
     let m = ring();
     let mix = vec![(0.048, 1.0), (0.024, 3.0)];
     let (centers, radii) = fill(&m, &spec(0.1, mix.clone(), true, 42)).unwrap();
-    assert!(centers.len() > 2500, "{}", centers.len());
+    // Neither jitter nor the radius mix changes which lattice points are inside.
+    let (points, _) = fill(&m, &spec(0.1, vec![(0.048, 1.0)], false, 7)).unwrap();
+    assert_eq!(centers.len(), points.len());
     let small = radii.iter().filter(|&&x| x == 0.024).count() as f64 / radii.len() as f64;
     assert!((small - 0.75).abs() < 0.03, "small fraction {small}");
     let set = SphereSet::new(centers.clone(), radii.clone()).unwrap();

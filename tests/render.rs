@@ -384,3 +384,19 @@ fn render_fails_cleanly_on_bad_input() {
     assert_eq!(code, Some(0), "{out}{err}");
     assert!(d.join("spheres.png").is_file());
 }
+
+#[test]
+fn coincident_spheres_draw_as_their_largest() {
+    // 5,000 spheres at the origin of radii up to 0.6: every path draws the one of radius 0.6.
+    let n = 5000;
+    let radii: Vec<f32> = (0..n).map(|k| 0.6 - (k % 10) as f32 * 0.05).collect();
+    let coincident = Scene::new(&vec![[0.0; 3]; n], &radii, &vec![1.0; n], (0.0, 1.0)).unwrap();
+    let single = Scene::new(&[[0.0; 3]], &[0.6], &[1.0], (0.0, 1.0)).unwrap();
+    assert_eq!(coincident.len(), 1);
+    let picture = Picture::new(40, 30, axis_camera());
+    for mut renderer in renderers() {
+        let want = renderer.render(&single, &picture).unwrap();
+        let got = renderer.render(&coincident, &picture).unwrap();
+        assert!(got.pixels == want.pixels, "{}", renderer.name());
+    }
+}

@@ -1,6 +1,11 @@
-//! `mochi simulate` end to end on the cpu backend: frames and the .pvd index, checkpoints that
-//! resume bit for bit, and clear errors for bad scenes.
+//! `mochi simulate` end to end: frames and the .pvd index, checkpoints that resume bit for bit
+//! on the cpu backend and within rounding on the GPU backends, and clear errors for bad scenes.
 
+mod common;
+
+use mochi::backend::BackendKind;
+use mochi::dem::Particles;
+use mochi::gpu::Need;
 use mochi::io::read_checkpoint;
 use std::path::Path;
 use std::process::Command;
@@ -184,12 +189,10 @@ fn a_mesh_file_is_filled_and_dropped() {
     );
     assert!(stdout.contains("| cpu"), "{stdout}");
     let (particles, scene) = read_checkpoint(&dir.path().join("out/checkpoint.bin")).unwrap();
-    // The box fitted into 0.3 at spacing 0.044: at most 7 lattice points per axis.
-    assert!(
-        (100..=343).contains(&particles.len()),
-        "{}",
-        particles.len()
-    );
+    // The box (1.75 × 2 × 0.75) fitted into 0.3 is scaled by 0.15 to 0.2625 × 0.3 × 0.1125;
+    // the lattice of spacing 2.2 · 0.02 = 0.044 centred on it has ⌈extent / 0.044⌉ = 6 × 7 × 3
+    // points, every one at least 0.012 inside a face.
+    assert_eq!(particles.len(), 6 * 7 * 3);
     assert!(scene.contains("scene = \"mesh\""), "{scene}");
 }
 
@@ -953,4 +956,174 @@ fn a_killed_run_leaves_no_gif_and_its_temporary_file_is_removed_by_the_next() {
     again.retain(|a| a != "--csv");
     ok(&strs(&again), d);
     assert_eq!(temp_files(), Vec::<String>::new());
+}
+
+#[test]
+fn coincident_spheres_are_warned_about_and_pushed_apart() {
+    let dir = tempfile::tempdir().unwrap();
+    // Three spheres at one point (three pairs), one elsewhere.
+    let csv = "x,y,z,r\n0.5,0.5,0.5,0.01\n0.5,0.5,0.5,0.01\n0.5,0.5,0.5,0.01\n0.2,0.2,0.2,0.01\n";
+    std::fs::write(dir.path().join("same.csv"), csv).unwrap();
+    let args = [
+        "simulate",
+        "--input",
+        "same.csv",
+        "--set",
+        "box_lo=[0,0,0]",
+        "--set",
+        "box_hi=[1,1,1]",
+        "--set",
+        "gravity=[0,0,0]",
+        "--steps",
+        "20",
+        "--frame-every",
+        "0",
+        "--backend",
+        "cpu",
+        "-q",
+        "-o",
+        "out",
+    ];
+    let (code, stdout, stderr) = mochi(&args, dir.path());
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    let warnings: Vec<&str> = stderr.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(warnings.len(), 1, "{stderr}");
+    assert!(
+        warnings[0].contains("3 pairs of spheres share their centre"),
+        "{stderr}"
+    );
+    let (end, _) = read_checkpoint(&dir.path().join("out/checkpoint.bin")).unwrap();
+    for i in 0..3 {
+        for j in i + 1..3 {
+            let (a, b) = (end.positions[i], end.positions[j]);
+            let d = (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f32>().sqrt();
+            assert!(d > 0.02, "spheres {i} and {j} {d} m apart: {end:?}");
+        }
+    }
+}
+
+/// The GPU backends whose `simulate` runs here: wgpu-compute and wgpu-rq wherever an adapter
+/// exists (a panic under CI without one), optix where it runs or is expected.
+fn gpu_backends() -> Vec<&'static str> {
+    let mut out: Vec<&str> = [("wgpu-compute", Need::Compute), ("wgpu-rq", Need::RayQuery)]
+        .into_iter()
+        .filter(|(name, need)| common::adapter_for(*need, &format!("simulate --backend {name}")))
+        .map(|(name, _)| name)
+        .collect();
+    if common::expected(BackendKind::Optix) || BackendKind::Optix.probe().is_ok() {
+        out.push("optix");
+    }
+    out
+}
+
+/// `SMALL` on `backend`.
+fn small_on(backend: &str) -> Vec<&str> {
+    let mut args = SMALL.to_vec();
+    args[6] = backend;
+    args
+}
+
+fn checkpoint(dir: &Path, run: &str) -> Particles {
+    read_checkpoint(&dir.join(run).join("checkpoint.bin"))
+        .unwrap()
+        .0
+}
+
+/// The largest difference of one coordinate between the same sphere in `a` and in `b` [m].
+fn largest_gap(a: &Particles, b: &Particles) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.positions
+        .iter()
+        .zip(&b.positions)
+        .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).abs()).fold(0.0, f32::max))
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn gpu_backends_run_simulate_end_to_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = ["--steps", "40", "--frame-every", "20", "-o"];
+    let mut cpu = SMALL.to_vec();
+    cpu.extend(run);
+    cpu.push("cpu");
+    ok(&cpu, dir.path());
+    let expected = checkpoint(dir.path(), "cpu");
+    for backend in gpu_backends() {
+        let mut args = small_on(backend);
+        args.extend(run);
+        args.push(backend);
+        let stdout = ok(&args, dir.path());
+        assert!(stdout.contains(&format!("| {backend}")), "{stdout}");
+        let out = dir.path().join(backend);
+        let pvd = std::fs::read_to_string(out.join("series.pvd")).unwrap();
+        for step in [0, 20, 40] {
+            let name = format!("frame_{step:08}.vtu");
+            assert!(
+                pvd.contains(&name) && out.join(&name).is_file(),
+                "{backend}: {name}"
+            );
+            assert!(out.join(format!("frame_{step:08}.csv")).is_file());
+        }
+        // In input order, where the cpu run put the same spheres (the slab falls without
+        // contacts, so only the rounding of fused multiply-adds differs).
+        let got = checkpoint(dir.path(), backend);
+        assert_eq!(got.step, 40, "{backend}");
+        assert!(
+            got.radii == expected.radii,
+            "{backend}: radii not in input order"
+        );
+        let gap = largest_gap(&got, &expected);
+        assert!(gap < 1e-6, "{backend}: {gap} m from the cpu run");
+        assert!(
+            got.velocities.iter().all(|v| v[2] < 0.0),
+            "{backend}: falling"
+        );
+    }
+}
+
+#[test]
+fn gpu_runs_resume_from_a_checkpoint() {
+    // Gravity turning at 50 rad/s has turned 0.75 rad by the resume at step 150: a resume that
+    // lost the phase (or the step counter, or wrote the GPU's sorted order back) would pull
+    // the spheres millimetres away from the uninterrupted run.
+    let dir = tempfile::tempdir().unwrap();
+    for backend in gpu_backends() {
+        let (straight, split) = (format!("{backend}-straight"), format!("{backend}-split"));
+        let spin = ["--set", "gravity_spin=50", "--frame-every", "0", "--steps"];
+        let mut args = small_on(backend);
+        args.extend(spin);
+        args.extend(["300", "-o", &straight]);
+        ok(&args, dir.path());
+        let mut args = small_on(backend);
+        args.extend(spin);
+        args.extend(["150", "-o", &split]);
+        ok(&args, dir.path());
+        let resume = format!("{split}/checkpoint.bin");
+        ok(
+            &[
+                "simulate",
+                "--resume",
+                &resume,
+                "--steps",
+                "300",
+                "-o",
+                &split,
+                "--backend",
+                backend,
+                "-q",
+            ],
+            dir.path(),
+        );
+        let (a, b) = (
+            checkpoint(dir.path(), &straight),
+            checkpoint(dir.path(), &split),
+        );
+        assert_eq!((a.step, b.step), (300, 300), "{backend}");
+        assert!(a.radii == b.radii, "{backend}: radii not in input order");
+        let gap = largest_gap(&a, &b);
+        assert!(
+            gap < 1e-6,
+            "{backend}: the resumed run is {gap} m from the uninterrupted one"
+        );
+    }
 }

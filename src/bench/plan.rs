@@ -257,6 +257,8 @@ impl Plan {
         if self.settings.spheres < 2 {
             return bad("--spheres must be at least 2");
         }
+        crate::spheres::check_count(self.settings.spheres)?;
+        crate::spheres::check_count(self.settings.max_spheres)?;
         if self.settings.experiments.contains(&Experiment::Scaling)
             && self.settings.max_spheres < 1000
         {

@@ -89,13 +89,11 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         structure: args.structure,
         rebuild: args.rebuild,
     };
-    let (mut stepper, reason) = open_choice(
-        args.backend,
-        start.particles.clone(),
-        p,
-        start.mode,
-        &options,
-    )?;
+    let (r_min, r_max) = start.particles.radius_range();
+    let coincident = start.particles.coincident_pairs()?;
+    let coarse = mochi::coarse_coordinates(&start.particles.positions, &start.particles.radii);
+    let (mut stepper, reason) =
+        open_choice(args.backend, start.particles, p, start.mode, &options)?;
     if let Some(reason) = reason {
         eprintln!("{reason}");
     }
@@ -105,7 +103,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         let sim_box = config.box_lo.zip(config.box_hi);
         let mut pictures = FrameRenderer::new(&args.render, sim_box)?;
         if args.render.color_by == ColorBy::Radius {
-            pictures.set_range(start.particles.radius_range());
+            pictures.set_range((r_min, r_max));
         }
         Some(pictures)
     };
@@ -148,7 +146,6 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         stepper.describe()
     );
 
-    let (r_min, r_max) = start.particles.radius_range();
     if let Some(warning) = p.overlap_warning(r_min, r_max) {
         eprintln!("warning: {warning}");
     }
@@ -159,9 +156,15 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             pictures.describe()
         );
     }
-    let particles = &start.particles;
-    if let Some(warning) = mochi::coarse_coordinates(&particles.positions, &particles.radii) {
+    if let Some(warning) = coarse {
         eprintln!("warning: {warning}");
+    }
+    match coincident {
+        0 => {}
+        pairs => eprintln!(
+            "warning: {pairs} pairs of spheres share their centre: each pair is pushed apart along \
+             a direction drawn from the two spheres' indices"
+        ),
     }
     let scene_toml = config.to_toml();
     io::write_atomically(&args.out.join(io::SCENE_FILE), |w| {

@@ -10,7 +10,7 @@ use super::particles::Particles;
 use super::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::backend::cpu::grid::SortedGrid;
 use crate::backend::cpu::query::gather;
-use crate::error::Result;
+use crate::error::{Result, try_vec};
 use crate::proxy::ProxyMode;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -32,7 +32,7 @@ pub struct CpuStepper {
 
 impl CpuStepper {
     /// A stepper over `particles` (validated by the caller).
-    pub fn new(particles: Particles, params: StepParams, mode: ProxyMode) -> Self {
+    pub fn new(particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
         let (_, r_max) = particles.radius_range();
         let cell_size = mode.cell_size(r_max);
         let margin = cell_size;
@@ -40,12 +40,10 @@ impl CpuStepper {
             params.box_lo.map(|x| x - margin),
             params.box_hi.map(|x| x + margin),
         );
-        let masses = particles
-            .radii
-            .iter()
-            .map(|&r| mass(params.density, r))
-            .collect();
-        Self {
+        let n = particles.len();
+        let mut masses = try_vec(n, || format!("the masses of {n} spheres"))?;
+        masses.extend(particles.radii.iter().map(|&r| mass(params.density, r)));
+        Ok(Self {
             masses,
             cell_size,
             region,
@@ -54,7 +52,7 @@ impl CpuStepper {
             forces: Vec::new(),
             params,
             particles,
-        }
+        })
     }
 
     /// Sums every sorted sphere's contact forces; returns the number of touching pairs.
@@ -77,10 +75,12 @@ impl CpuStepper {
                     if dx * dx + dy * dy + dz * dz > reach * reach || q == at {
                         continue;
                     }
-                    let j = grid.ids[q] as usize;
+                    let j = grid.ids[q];
                     let c_j = [t[0], t[1], t[2]];
+                    let (v_j, m_j) = (velocities[j as usize], masses[j as usize]);
+                    let i = grid.ids[at];
                     if let Some(f) =
-                        contact_force(p, c_i, v_i, s[3], m_i, c_j, velocities[j], t[3], masses[j])
+                        contact_force(p, i, c_i, v_i, s[3], m_i, j, c_j, v_j, t[3], m_j)
                     {
                         touching += 1;
                         for a in 0..3 {

@@ -1,6 +1,6 @@
 //! The simulation state: what a checkpoint saves and a frame shows.
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
 
 /// Spheres with velocities, in the order the user gave them, and the simulation clock.
@@ -17,14 +17,21 @@ pub struct Particles {
 }
 
 impl Particles {
-    /// Spheres at rest at step 0.
-    pub fn at_rest(spheres: &SphereSet) -> Self {
-        Self {
-            positions: spheres.centers().to_vec(),
-            velocities: vec![[0.0; 3]; spheres.len()],
-            radii: spheres.radii().to_vec(),
+    /// Spheres at rest at step 0 ([`Error::OutOfMemory`] when their state does not fit).
+    pub fn at_rest(spheres: &SphereSet) -> Result<Self> {
+        let what = || format!("the state of {} spheres", spheres.len());
+        let mut positions = try_vec(spheres.len(), what)?;
+        let mut velocities = try_vec(spheres.len(), what)?;
+        let mut radii = try_vec(spheres.len(), what)?;
+        positions.extend_from_slice(spheres.centers());
+        velocities.resize(spheres.len(), [0.0; 3]);
+        radii.extend_from_slice(spheres.radii());
+        Ok(Self {
+            positions,
+            velocities,
+            radii,
             step: 0,
-        }
+        })
     }
 
     /// Number of spheres.
@@ -64,6 +71,25 @@ impl Particles {
         }
     }
 
+    /// Pairs of spheres whose centres coincide: they have no contact normal, so the step pushes
+    /// each such pair apart along [`super::model::coincident_direction`].
+    pub fn coincident_pairs(&self) -> Result<u64> {
+        use rayon::slice::ParallelSliceMut;
+        let n = self.positions.len();
+        let mut keys: Vec<[u32; 3]> = try_vec(n, || format!("the centres of {n} spheres"))?;
+        // Bits of the centre, with −0 read as +0 (they are the same point).
+        keys.extend(
+            self.positions
+                .iter()
+                .map(|c| c.map(|x| (x + 0.0).to_bits())),
+        );
+        keys.par_sort_unstable();
+        Ok(keys
+            .chunk_by(|a, b| a == b)
+            .map(|same| (same.len() as u64) * (same.len() as u64 - 1) / 2)
+            .sum())
+    }
+
     /// Smallest and largest radius (0 for no spheres).
     pub fn radius_range(&self) -> (f32, f32) {
         self.radii
@@ -72,5 +98,22 @@ impl Particles {
                 Some(acc.map_or((r, r), |(a, b)| (a.min(r), b.max(r))))
             })
             .unwrap_or((0.0, 0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coincident_pairs_are_counted_per_shared_centre() {
+        let mut p = Particles {
+            positions: vec![[1.0, 2.0, 3.0], [0.0; 3], [1.0, 2.0, 3.0], [-0.0, 0.0, 0.0]],
+            ..Particles::default()
+        };
+        p.positions.extend([[1.0, 2.0, 3.0], [5.0; 3]]);
+        assert_eq!(p.coincident_pairs().unwrap(), 3 + 1);
+        p.positions.truncate(2);
+        assert_eq!(p.coincident_pairs().unwrap(), 0);
     }
 }

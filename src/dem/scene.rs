@@ -354,14 +354,14 @@ impl SceneConfig {
                     Error::Usage("scene \"input\" needs input = \"FILE\" (--input)".into())
                 })?;
                 let (spheres, velocities) = crate::io::read_particles(input)?;
-                let mut particles = Particles::at_rest(&spheres);
+                let mut particles = Particles::at_rest(&spheres)?;
                 if let Some(v) = velocities {
                     particles.velocities = v;
                 }
                 return Self::inside_the_box(self.start_from(particles)?, 0.0);
             }
         };
-        Self::inside_the_box(self.start_from(Particles::at_rest(&spheres))?, 0.0)
+        Self::inside_the_box(self.start_from(Particles::at_rest(&spheres)?)?, 0.0)
     }
 
     /// The start of a run resumed from a checkpoint of this scene: `particles` pass the checks

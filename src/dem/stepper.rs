@@ -84,7 +84,7 @@ pub fn open_stepper(
 ) -> Result<Box<dyn Stepper>> {
     particles.validate()?;
     Ok(match kind {
-        BackendKind::Cpu => Box::new(super::cpu::CpuStepper::new(particles, params, mode)),
+        BackendKind::Cpu => Box::new(super::cpu::CpuStepper::new(particles, params, mode)?),
         BackendKind::WgpuCompute => Box::new(
             super::wgpu_compute::GridStepper::new(particles, params, mode)?
                 .with_structure(options.structure),

@@ -4,10 +4,10 @@
 //! [`read_particles`] returns them.
 
 use super::{Format, io_error, parse_error, write_atomically};
-use crate::error::Result;
-use crate::spheres::{SphereSet, check_sphere};
+use crate::error::{Result, try_push, try_vec};
+use crate::spheres::{SphereSet, check_count, check_sphere};
 use npyz::WriterBuilder;
-use std::io::BufRead;
+use std::io::{BufRead, Read, Seek};
 use std::path::Path;
 
 const COLUMNS: [&str; 4] = ["x", "y", "z", "r"];
@@ -61,28 +61,61 @@ pub fn write_spheres(path: &Path, spheres: &SphereSet) -> Result<()> {
     }
 }
 
+/// Longest line a sphere CSV may have, in bytes (a row of seven numbers needs a few hundred).
+const MAX_LINE: usize = 4096;
+
+/// The lines of a sphere CSV as text, numbered from 1, each at most [`MAX_LINE`] bytes.
+struct Lines<'a> {
+    reader: std::io::BufReader<std::fs::File>,
+    path: &'a Path,
+    buf: Vec<u8>,
+    no: u64,
+}
+
+impl Lines<'_> {
+    /// The next line (without its end), or `None` at the end of the file.
+    fn next(&mut self) -> Result<Option<(u64, &str)>> {
+        self.buf.clear();
+        self.no += 1;
+        let limit = MAX_LINE as u64 + 1;
+        let read = (&mut self.reader)
+            .take(limit)
+            .read_until(b'\n', &mut self.buf)
+            .map_err(io_error(self.path))?;
+        if read == 0 {
+            return Ok(None);
+        }
+        if self.buf.last() == Some(&b'\n') {
+            self.buf.pop();
+        } else if read as u64 == limit {
+            return Err(parse_error(
+                self.path,
+                Some(self.no),
+                format!("line longer than the limit of {MAX_LINE} bytes"),
+            ));
+        }
+        let text = std::str::from_utf8(&self.buf).map_err(|e| {
+            parse_error(
+                self.path,
+                Some(self.no),
+                format!("not UTF-8 text (byte {} of the line)", e.valid_up_to() + 1),
+            )
+        })?;
+        Ok(Some((self.no, text)))
+    }
+}
+
 fn read_csv(path: &Path) -> Result<Rows> {
     let file = std::fs::File::open(path).map_err(io_error(path))?;
-    let mut lines = std::io::BufReader::with_capacity(1 << 20, file)
-        .split(b'\n')
-        .enumerate()
-        .map(|(k, line)| (k as u64 + 1, line));
-    let text = |line_no: u64, bytes: std::io::Result<Vec<u8>>| -> Result<String> {
-        let bytes = bytes.map_err(io_error(path))?;
-        String::from_utf8(bytes).map_err(|e| {
-            parse_error(
-                path,
-                Some(line_no),
-                format!(
-                    "not UTF-8 text (byte {} of the line)",
-                    e.utf8_error().valid_up_to() + 1
-                ),
-            )
-        })
+    let mut lines = Lines {
+        reader: std::io::BufReader::with_capacity(1 << 20, file),
+        path,
+        buf: Vec::new(),
+        no: 0,
     };
     // The header is the first non-blank line.
-    let header = loop {
-        match lines.next() {
+    let (header_no, fields, header) = loop {
+        match lines.next()? {
             None => {
                 return Err(parse_error(
                     path,
@@ -90,21 +123,21 @@ fn read_csv(path: &Path) -> Result<Rows> {
                     "empty file: expected the header x,y,z,r",
                 ));
             }
-            Some((no, bytes)) => {
-                let line = text(no, bytes)?;
-                if !line.trim().is_empty() {
-                    break (no, line);
-                }
+            Some((no, line)) if !line.trim().is_empty() => {
+                // A byte-order mark (as spreadsheet programs write) opens the text, not the header.
+                let line = match no {
+                    1 => line.trim_start_matches('\u{feff}'),
+                    _ => line,
+                };
+                let fields: Vec<String> = line
+                    .split(',')
+                    .map(|f| f.trim().to_ascii_lowercase())
+                    .collect();
+                break (no, fields, line.trim().to_owned());
             }
+            Some(_) => {}
         }
     };
-    // A byte-order mark (as spreadsheet programs write) opens the text, not the header.
-    let header = (header.0, header.1.trim_start_matches('\u{feff}').to_owned());
-    let fields: Vec<String> = header
-        .1
-        .split(',')
-        .map(|f| f.trim().to_ascii_lowercase())
-        .collect();
     let names: &[&str] = if fields == COLUMNS {
         &COLUMNS
     } else if fields == WITH_VELOCITY {
@@ -112,17 +145,13 @@ fn read_csv(path: &Path) -> Result<Rows> {
     } else {
         return Err(parse_error(
             path,
-            Some(header.0),
-            format!(
-                "the header must be x,y,z,r or x,y,z,r,vx,vy,vz (found {:?})",
-                header.1.trim()
-            ),
+            Some(header_no),
+            format!("the header must be x,y,z,r or x,y,z,r,vx,vy,vz (found {header:?})"),
         ));
     };
     let mut rows = Vec::new();
     let mut velocities = Vec::new();
-    for (no, bytes) in lines {
-        let line = text(no, bytes)?;
+    while let Some((no, line)) = lines.next()? {
         let line = line.trim();
         if line.is_empty() {
             continue;
@@ -144,21 +173,35 @@ fn read_csv(path: &Path) -> Result<Rows> {
                 .map_err(|_| bad(format!("column {name}: {field:?} is not a number")))?;
         }
         check_sphere(&[row[0], row[1], row[2]], row[3]).map_err(bad)?;
-        rows.push([row[0], row[1], row[2], row[3]]);
+        let count = rows.len() + 1;
+        check_count(count)?;
+        let what = || format!("{count} rows of {}", path.display());
+        try_push(&mut rows, [row[0], row[1], row[2], row[3]], what)?;
         if names.len() == 7 {
             let v = [row[4], row[5], row[6]];
             check_velocity(&v).map_err(bad)?;
-            velocities.push(v);
+            try_push(&mut velocities, v, what)?;
         }
     }
     Ok((rows, (names.len() == 7).then_some(velocities)))
 }
 
 fn read_npy(path: &Path) -> Result<Rows> {
-    let bytes = std::fs::read(path).map_err(io_error(path))?;
     let bad = |msg: String| parse_error(path, None, msg);
-    check_npy_size(&bytes).map_err(bad)?;
-    let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(format!("not a .npy file: {e}")))?;
+    // The header is checked against the file's length before npyz parses it; the data is then
+    // read in blocks into a fallibly allocated array.
+    let mut file = std::fs::File::open(path).map_err(io_error(path))?;
+    let size = file.metadata().map_err(io_error(path))?.len();
+    let mut head = Vec::new();
+    (&mut file)
+        .take(4096)
+        .read_to_end(&mut head)
+        .map_err(io_error(path))?;
+    let data_at = check_npy_size(&head, size).map_err(bad)?;
+    file.seek(std::io::SeekFrom::Start(0))
+        .map_err(io_error(path))?;
+    let npy = npyz::NpyFile::new(std::io::BufReader::new(&mut file))
+        .map_err(|e| bad(format!("not a .npy file: {e}")))?;
     let shape = npy.shape().to_vec();
     if shape.len() != 2 || !(shape[1] == 4 || shape[1] == 7) {
         return Err(bad(format!(
@@ -168,21 +211,39 @@ fn read_npy(path: &Path) -> Result<Rows> {
     }
     let columns = shape[1] as usize;
     let n = shape[0] as usize;
+    check_count(n)?;
     let fortran = npy.order() == npyz::Order::Fortran;
     let dtype = match npy.dtype() {
         npyz::DType::Plain(t) => t.to_string(),
         other => other.descr(),
     };
-    let values: Vec<f32> = match dtype.as_str() {
-        "<f4" | ">f4" => npy.into_vec::<f32>(),
-        "<f8" | ">f8" => npy
-            .into_vec::<f64>()
-            .map(|v| v.into_iter().map(|x| x as f32).collect()),
+    let decode: fn(&[u8]) -> f32 = match dtype.as_str() {
+        "<f4" => |b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+        ">f4" => |b| f32::from_be_bytes([b[0], b[1], b[2], b[3]]),
+        "<f8" => |b| f64::from_le_bytes(std::array::from_fn(|k| b[k])) as f32,
+        ">f8" => |b| f64::from_be_bytes(std::array::from_fn(|k| b[k])) as f32,
         other => return Err(bad(format!("expected float32 values, found dtype {other}"))),
+    };
+    let item = if dtype.ends_with('4') { 4 } else { 8 };
+    let what = || format!("{n} rows of {}", path.display());
+    let total = n * columns;
+    let mut values: Vec<f32> = try_vec(total, what)?;
+    let mut rows = try_vec(n, what)?;
+    let mut velocities = try_vec(if columns == 7 { n } else { 0 }, what)?;
+    let mut data = std::io::BufReader::new(file);
+    data.seek(std::io::SeekFrom::Start(data_at))
+        .map_err(io_error(path))?;
+    let mut block = vec![0u8; item << 14];
+    while values.len() < total {
+        let bytes = &mut block[..item * (total - values.len()).min(1 << 14)];
+        data.read_exact(bytes).map_err(|e| {
+            bad(format!(
+                "unreadable data ({e} after {} of {total} values); is the file truncated?",
+                values.len()
+            ))
+        })?;
+        values.extend(bytes.chunks_exact(item).map(decode));
     }
-    .map_err(|e| bad(format!("unreadable data ({e}); is the file truncated?")))?;
-    let mut rows = Vec::with_capacity(n);
-    let mut velocities = Vec::new();
     for i in 0..n {
         let at = |k: usize| {
             if fortran {
@@ -204,12 +265,31 @@ fn read_npy(path: &Path) -> Result<Rows> {
     Ok((rows, (columns == 7).then_some(velocities)))
 }
 
-/// Refuses a `.npy` whose header promises more data than the file holds, before the header's
-/// shape is multiplied out (a crafted shape would overflow).
-fn check_npy_size(bytes: &[u8]) -> Result<(), String> {
+/// Refuses a `.npy` whose header, or the data its shape promises, is longer than the file,
+/// before either is allocated (a crafted length or shape would ask for any amount of memory).
+/// `bytes` are the file's first bytes; returns where the data starts.
+fn check_npy_size(bytes: &[u8], file_len: u64) -> Result<u64, String> {
+    // Magic (6 bytes), version (2), then the header length: 2 bytes in version 1, 4 after; the
+    // data follows the header. Without the magic, npyz refuses the file.
+    let mut data_at = 0;
+    if bytes.len() >= 12 && bytes.starts_with(b"\x93NUMPY") {
+        let (len, at) = match bytes[6] {
+            1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as u64, 10),
+            _ => (
+                u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as u64,
+                12,
+            ),
+        };
+        if at + len > file_len {
+            return Err(format!(
+                "not a .npy file: its header declares {len} bytes, more than the file's {file_len}"
+            ));
+        }
+        data_at = at + len;
+    }
     let head = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]);
     let Some(start) = head.find("'shape':") else {
-        return Ok(()); // not a header npyz will accept either; it reports the problem
+        return Ok(data_at); // not a header npyz will accept either; it reports the problem
     };
     let tuple = head[start + 8..]
         .trim_start()
@@ -224,11 +304,69 @@ fn check_npy_size(bytes: &[u8]) -> Result<(), String> {
             .map_err(|_| format!("bad shape entry {dim:?}"))?;
         total = total.saturating_mul(dim);
     }
-    if total / 2 > bytes.len() as u64 {
+    if total / 2 > file_len {
         return Err(format!(
-            "truncated: the header's shape ({tuple}) needs more data than the file's {} bytes",
-            bytes.len()
+            "truncated: the header's shape ({tuple}) needs more data than the file's {file_len} \
+             bytes"
         ));
     }
-    Ok(())
+    Ok(data_at)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A version-1 `.npy` of `descr` and `shape`, header padded to 64 bytes, then `data`.
+    fn npy(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
+        let mut dict =
+            format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+        while !(10 + dict.len() + 1).is_multiple_of(64) {
+            dict.push(' ');
+        }
+        dict.push('\n');
+        let mut out = b"\x93NUMPY\x01\x00".to_vec();
+        out.extend((dict.len() as u16).to_le_bytes());
+        out.extend(dict.as_bytes());
+        out.extend(data);
+        out
+    }
+
+    #[test]
+    fn npy_of_either_byte_order_and_width_reads_the_same() {
+        let rows = [[1.5f32, -2.0, 3.25, 0.5], [0.0, 1e-3, -7.0, 2.0]];
+        let values: Vec<f32> = rows.iter().flatten().copied().collect();
+        let dir = tempfile::tempdir().unwrap();
+        let cases: [(&str, Vec<u8>); 4] = [
+            ("<f4", values.iter().flat_map(|x| x.to_le_bytes()).collect()),
+            (">f4", values.iter().flat_map(|x| x.to_be_bytes()).collect()),
+            (
+                "<f8",
+                values
+                    .iter()
+                    .flat_map(|&x| f64::from(x).to_le_bytes())
+                    .collect(),
+            ),
+            (
+                ">f8",
+                values
+                    .iter()
+                    .flat_map(|&x| f64::from(x).to_be_bytes())
+                    .collect(),
+            ),
+        ];
+        for (descr, data) in cases {
+            let path = dir.path().join("s.npy");
+            std::fs::write(&path, npy(descr, "(2, 4)", &data)).unwrap();
+            let spheres = read_spheres(&path).unwrap();
+            assert_eq!(spheres.xyzr().collect::<Vec<_>>(), rows, "{descr}");
+            // One byte short: refused.
+            std::fs::write(&path, npy(descr, "(2, 4)", &data[..data.len() - 1])).unwrap();
+            let err = read_spheres(&path).unwrap_err().to_string();
+            assert!(
+                err.contains("of 8 values); is the file truncated?"),
+                "{descr}: {err}"
+            );
+        }
+    }
 }

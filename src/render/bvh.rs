@@ -1,7 +1,8 @@
 //! The bounding-volume hierarchy of the `wgpu-compute` and `cpu` render paths: built on the CPU
 //! over the spheres in Morton order (a top-down LBVH: each range splits where its highest
-//! differing Morton bit flips), flattened depth first, and traversed nearest child first with a
-//! small stack. [`trace`] is the CPU twin of `trace` in `wgsl/render_bvh.wgsl`.
+//! differing Morton bit flips, a range of equal keys at the median of its widest axis),
+//! flattened depth first, and traversed nearest child first with a small stack. [`trace`] is the
+//! CPU twin of `trace` in `wgsl/render_bvh.wgsl`.
 
 use super::shade::{INF, hit_sphere};
 
@@ -70,20 +71,28 @@ fn spread(v: u32) -> u32 {
     (v | (v << 2)) & 0x09249249
 }
 
-/// Builds the tree over `spheres` already in Morton order (`keys` their sorted keys). An empty
-/// set gives an empty tree. The depth stays below [`STACK`]: at most 30 Morton splits, then
-/// halving ranges of equal keys.
-pub(crate) fn build(spheres: &[[f32; 4]], keys: &[u32]) -> Vec<Node> {
-    let mut nodes = Vec::with_capacity(2 * spheres.len() / LEAF_SIZE + 1);
-    if !spheres.is_empty() {
-        build_range(spheres, keys, 0, spheres.len(), &mut nodes);
+/// Builds the tree over `items` (a sphere `x, y, z, r` and its payload) already in Morton order
+/// (`keys` their sorted keys). An empty set gives an empty tree. A range of equal keys (a
+/// cluster finer than the Morton grid) is split at the median of its widest axis, which
+/// reorders `items` within it, so ranges stay spatially compact at any scale. The depth stays
+/// below [`STACK`]: at most 30 Morton splits, then halving ranges.
+pub(crate) fn build<T>(items: &mut [([f32; 4], T)], keys: &[u32]) -> Vec<Node> {
+    let mut nodes = Vec::with_capacity(2 * items.len() / LEAF_SIZE + 1);
+    if !items.is_empty() {
+        build_range(items, keys, 0, items.len(), &mut nodes);
     }
     nodes
 }
 
-fn build_range(spheres: &[[f32; 4]], keys: &[u32], lo: usize, hi: usize, nodes: &mut Vec<Node>) {
+fn build_range<T>(
+    items: &mut [([f32; 4], T)],
+    keys: &[u32],
+    lo: usize,
+    hi: usize,
+    nodes: &mut Vec<Node>,
+) {
     let at = nodes.len();
-    let (bmin, bmax) = bounds(&spheres[lo..hi]);
+    let (bmin, bmax) = bounds(items[lo..hi].iter().map(|item| &item.0));
     nodes.push(Node {
         lo: bmin,
         a: lo as u32,
@@ -95,19 +104,37 @@ fn build_range(spheres: &[[f32; 4]], keys: &[u32], lo: usize, hi: usize, nodes: 
     }
     let (first, last) = (keys[lo], keys[hi - 1]);
     let split = if first == last {
-        (lo + hi) / 2
+        let mid = (lo + hi) / 2;
+        let axis = widest_axis(&items[lo..hi]);
+        items[lo..hi].select_nth_unstable_by(mid - lo, |a, b| a.0[axis].total_cmp(&b.0[axis]));
+        mid
     } else {
         let bit = 31 - (first ^ last).leading_zeros();
         lo + keys[lo..hi].partition_point(|k| k & (1 << bit) == 0)
     };
-    build_range(spheres, keys, lo, split, nodes);
+    build_range(items, keys, lo, split, nodes);
     let right = nodes.len() as u32;
-    build_range(spheres, keys, split, hi, nodes);
+    build_range(items, keys, split, hi, nodes);
     nodes[at].a = right;
     nodes[at].count = 0;
 }
 
-fn bounds(spheres: &[[f32; 4]]) -> ([f32; 3], [f32; 3]) {
+/// The axis along which the centres of `items` spread the most.
+fn widest_axis<T>(items: &[([f32; 4], T)]) -> usize {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for (s, _) in items {
+        for k in 0..3 {
+            lo[k] = lo[k].min(s[k]);
+            hi[k] = hi[k].max(s[k]);
+        }
+    }
+    (0..3)
+        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+        .unwrap_or(0)
+}
+
+fn bounds<'a>(spheres: impl Iterator<Item = &'a [f32; 4]>) -> ([f32; 3], [f32; 3]) {
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
     for s in spheres {
@@ -218,6 +245,54 @@ mod tests {
         best
     }
 
+    /// The tree over `spheres` and the spheres in its order.
+    fn tree(spheres: &[[f32; 4]]) -> (Vec<Node>, Vec<[f32; 4]>) {
+        let (order, keys) = morton_order(spheres);
+        let mut items: Vec<_> = order.iter().map(|&i| (spheres[i as usize], ())).collect();
+        let nodes = build(&mut items, &keys);
+        (nodes, items.into_iter().map(|(s, _)| s).collect())
+    }
+
+    #[test]
+    fn a_cluster_finer_than_the_morton_grid_is_split_in_space() {
+        // 4,096 small spheres in a 0.01 cube, one far away: the cluster's keys are all equal.
+        let mut spheres: Vec<[f32; 4]> = (0..4096u32)
+            .map(|i| {
+                let f = |m: u32| {
+                    let h = i.wrapping_mul(0x9E37_79B9) ^ m.wrapping_mul(0x85EB_CA6B);
+                    let h = (h ^ (h >> 15)).wrapping_mul(0x2C1B_3C6D);
+                    ((h ^ (h >> 12)) % 1009) as f32 / 1009.0 * 0.01
+                };
+                [f(13), f(29), f(53), 1e-4]
+            })
+            .collect();
+        spheres.push([1e4, 1e4, 1e4, 1.0]);
+        let (nodes, sorted) = tree(&spheres);
+        // Index order would give each leaf a box spanning much of the cluster (together hundreds
+        // of times its volume); split in space, the leaves' boxes tile it.
+        let volume = |n: &Node| (0..3).map(|k| n.hi[k] - n.lo[k]).product::<f32>();
+        let leaves: f32 = nodes
+            .iter()
+            .filter(|n| n.count > 0 && n.hi[0] < 1.0)
+            .map(volume)
+            .sum();
+        assert!(leaves < 0.0102f32.powi(3), "leaf volume {leaves}");
+        for j in 0..100u32 {
+            let a = j as f32 * 0.61;
+            let d = [a.cos() * 0.6, a.sin() * 0.6, 0.8];
+            let o = [
+                0.005 - 0.05 * d[0],
+                0.005 - 0.05 * d[1],
+                0.005 - 0.05 * d[2],
+            ];
+            assert_eq!(
+                trace(&nodes, &sorted, o, d, INF, false),
+                brute(&sorted, o, d),
+                "ray {j}"
+            );
+        }
+    }
+
     #[test]
     fn the_tree_finds_the_same_nearest_sphere_as_brute_force() {
         let mut spheres = Vec::new();
@@ -225,9 +300,7 @@ mod tests {
             let f = |m: u32| ((i * m) % 97) as f32 / 97.0;
             spheres.push([f(13), f(29), f(53), 0.01 + 0.02 * f(7)]);
         }
-        let (order, keys) = morton_order(&spheres);
-        let sorted: Vec<_> = order.iter().map(|&i| spheres[i as usize]).collect();
-        let nodes = build(&sorted, &keys);
+        let (nodes, sorted) = tree(&spheres);
         for j in 0..200u32 {
             let a = j as f32 * 0.37;
             let d = {
@@ -244,7 +317,7 @@ mod tests {
 
     #[test]
     fn an_empty_tree_hits_nothing() {
-        assert!(build(&[], &[]).is_empty());
+        assert!(build::<()>(&mut [], &[]).is_empty());
         assert_eq!(
             trace(&[], &[], [0.0; 3], [1.0, 0.0, 0.0], INF, false).1,
             u32::MAX

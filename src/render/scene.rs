@@ -4,6 +4,7 @@
 use super::bvh::{self, Node};
 use super::colour::colours;
 use crate::error::{Error, Result};
+use rayon::slice::ParallelSliceMut;
 
 /// Spheres to render, each with the colour of its value.
 #[derive(Debug, Clone)]
@@ -22,7 +23,9 @@ impl Scene {
     /// entry of `values` falls in `range` (viridis; values outside are clamped).
     ///
     /// Slices of different lengths, non-finite coordinates or radii that are not finite and
-    /// positive are an [`Error`]; no spheres is a valid, empty scene.
+    /// positive are an [`Error`]; no spheres is a valid, empty scene. Of spheres sharing a centre
+    /// only the largest (the first in input order among equals) is drawn: the others lie inside
+    /// it, and identical boxes would make every ray through them visit each one.
     pub fn new(
         positions: &[[f32; 3]],
         radii: &[f32],
@@ -58,16 +61,22 @@ impl Scene {
                 });
             }
         }
-        let xyzr: Vec<[f32; 4]> = positions
+        let shown = outermost(positions, radii);
+        let xyzr: Vec<[f32; 4]> = shown
             .iter()
-            .zip(radii)
-            .map(|(p, &r)| [p[0], p[1], p[2], r])
+            .map(|&i| {
+                let (p, r) = (positions[i as usize], radii[i as usize]);
+                [p[0], p[1], p[2], r]
+            })
             .collect();
         let (order, keys) = bvh::morton_order(&xyzr);
-        let spheres: Vec<_> = order.iter().map(|&i| xyzr[i as usize]).collect();
         let all_colours = colours(values, range);
-        let colours = order.iter().map(|&i| all_colours[i as usize]).collect();
-        let nodes = bvh::build(&spheres, &keys);
+        let mut items: Vec<([f32; 4], u32)> = order
+            .iter()
+            .map(|&k| (xyzr[k as usize], all_colours[shown[k as usize] as usize]))
+            .collect();
+        let nodes = bvh::build(&mut items, &keys);
+        let (spheres, colours) = items.into_iter().unzip();
         let bounds = nodes
             .first()
             .map(|root| (root.lo.map(f64::from), root.hi.map(f64::from)));
@@ -79,7 +88,7 @@ impl Scene {
         })
     }
 
-    /// The number of spheres.
+    /// The number of spheres drawn (see [`Scene::new`] for those left out).
     pub fn len(&self) -> usize {
         self.spheres.len()
     }
@@ -92,5 +101,56 @@ impl Scene {
     /// The box around every sphere (`None` for an empty scene).
     pub fn bounds(&self) -> Option<([f64; 3], [f64; 3])> {
         self.bounds
+    }
+}
+
+/// Input indices (ascending) of the spheres drawn: of each group sharing a centre, the largest,
+/// the first in input order among equal radii.
+fn outermost(positions: &[[f32; 3]], radii: &[f32]) -> Vec<u32> {
+    // Centre bits with −0 read as +0 (the same point).
+    let centre = |i: u32| positions[i as usize].map(|x| (x + 0.0).to_bits());
+    let mut by_centre: Vec<u32> = (0..positions.len() as u32).collect();
+    by_centre.par_sort_unstable_by(|&a, &b| {
+        centre(a)
+            .cmp(&centre(b))
+            .then(radii[b as usize].total_cmp(&radii[a as usize]))
+            .then(a.cmp(&b))
+    });
+    let mut shown: Vec<u32> = by_centre
+        .chunk_by(|&a, &b| centre(a) == centre(b))
+        .map(|group| group[0])
+        .collect();
+    shown.par_sort_unstable();
+    shown
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spheres_sharing_a_centre_are_drawn_once_as_the_largest() {
+        // 10,000 spheres at the origin (the largest, 0.5, twice), two elsewhere.
+        let n = 10_000;
+        let mut positions = vec![[0.0f32; 3]; n];
+        let mut radii: Vec<f32> = (0..n).map(|k| 0.1 + (k % 7) as f32 * 0.05).collect();
+        radii[4000] = 0.5;
+        radii[6000] = 0.5;
+        positions[5] = [-0.0, 0.0, 0.0];
+        positions.extend([[2.0, 0.0, 0.0], [0.0, 2.0, 0.0]]);
+        radii.extend([0.1, 0.1]);
+        let values: Vec<f32> = (0..n + 2).map(|k| k as f32).collect();
+        let scene = Scene::new(&positions, &radii, &values, (0.0, (n + 1) as f32)).unwrap();
+        assert_eq!(scene.len(), 3);
+        // The tree over three spheres is one leaf: no ray visits more than one node.
+        assert_eq!(scene.nodes.len(), 1);
+        let at_origin = scene
+            .spheres
+            .iter()
+            .position(|s| s[..3] == [0.0; 3])
+            .unwrap();
+        assert_eq!(scene.spheres[at_origin][3], 0.5);
+        let colour_of_4000 = colours(&values, (0.0, (n + 1) as f32))[4000];
+        assert_eq!(scene.colours[at_origin], colour_of_4000);
     }
 }

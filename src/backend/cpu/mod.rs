@@ -8,7 +8,7 @@ pub(crate) mod grid;
 pub(crate) mod query;
 
 use super::{Backend, BackendInfo, DetectStats};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, try_push, try_vec};
 use crate::proxy::ProxyMode;
 use crate::spheres::{MAX_SPHERES, Pair, SphereSet};
 use grid::SortedGrid;
@@ -36,11 +36,19 @@ impl CpuBackend {
     }
 }
 
-struct Collect(Vec<Pair>);
+/// Collects pairs until memory runs out, then only counts them.
+#[derive(Default)]
+struct Collect {
+    pairs: Vec<Pair>,
+    /// Pairs that found no memory.
+    lost: u64,
+}
 impl PairSink for Collect {
     #[inline(always)]
     fn pair(&mut self, a: u32, b: u32) {
-        self.0.push(Pair::new(a, b));
+        if self.lost > 0 || try_push(&mut self.pairs, Pair::new(a, b), String::new).is_err() {
+            self.lost += 1;
+        }
     }
 }
 
@@ -91,12 +99,25 @@ impl Backend for CpuBackend {
     }
 
     fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
-        let chunks = search(self.built()?, || Collect(Vec::new()));
+        let chunks = search(self.built()?, Collect::default);
         let candidates = chunks.iter().map(|c| c.1).sum();
-        let pairs: Vec<Pair> = chunks.into_iter().flat_map(|c| c.0.0).collect();
+        let kept: usize = chunks.iter().map(|c| c.0.pairs.len()).sum();
+        let lost: u64 = chunks.iter().map(|c| c.0.lost).sum();
+        let found = kept as u64 + lost;
+        let too_many = || Error::OutOfMemory {
+            what: format!("{found} colliding pairs"),
+            bytes: found.saturating_mul(std::mem::size_of::<Pair>() as u64),
+        };
+        if lost > 0 {
+            return Err(too_many());
+        }
+        let mut pairs = try_vec(kept, String::new).map_err(|_| too_many())?;
+        for (chunk, _) in chunks {
+            pairs.extend(chunk.pairs);
+        }
         let stats = DetectStats {
             candidates,
-            pairs: pairs.len() as u64,
+            pairs: found,
         };
         Ok((pairs, stats))
     }
