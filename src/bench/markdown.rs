@@ -4,6 +4,7 @@
 use super::plan::Experiment;
 use super::report::{DemRow, DetectRow, Report};
 use super::stats::Spread;
+use super::value_name;
 use crate::dem::Clock;
 use std::fmt::Write;
 
@@ -110,8 +111,8 @@ fn detect_table(out: &mut String, rows: &[DetectRow]) {
             r.backend,
             r.scene,
             r.n,
-            r.mode,
-            r.structure,
+            r.mode.name(),
+            value_name(r.structure),
             r.candidates_per_sphere,
             r.pairs,
             spread(&r.build_ms),
@@ -149,8 +150,8 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
             r.backend,
             r.scene,
             r.n,
-            r.mode,
-            r.structure,
+            r.mode.name(),
+            value_name(r.structure),
             r.contacts,
             spread(&r.build_ms),
             spread(&r.dcd_ms),

@@ -26,11 +26,15 @@ pub mod targets;
 
 use crate::backend::BackendKind;
 use crate::backend::wgpu_compute::Structure;
-use crate::dem::scene::Start;
+use crate::dem::scene::{SceneKind, Start};
 use crate::error::Result;
 use crate::proxy::ProxyMode;
+use crate::scenes::Scene;
 use plan::{BackendStatus, Experiment, Plan};
 use report::{Machine, Report, SCHEMA_VERSION, Skipped, utc_now};
+
+/// The scene of experiment 6 measured with the single and the multi-level grid.
+const POLYLOG: SceneKind = SceneKind::Generated(Scene::Polylog);
 
 /// A measurement made, or why it could not be.
 pub enum Outcome<T> {
@@ -117,16 +121,19 @@ pub fn run(
     Ok(report)
 }
 
-/// The scenes of DEM experiment `experiment`, by name, with their starts.
+/// The scenes of DEM experiment `experiment`, with their starts.
 fn dem_starts(
     plan: &Plan,
     experiment: Experiment,
     progress: &mut dyn FnMut(&str),
-) -> Result<Vec<(&'static str, Start)>> {
+) -> Result<Vec<(SceneKind, Start)>> {
     let n = plan.settings.spheres;
+    let seed = plan.settings.seed;
+    let freefall = SceneKind::Generated(Scene::Freefall);
     Ok(match experiment {
         Experiment::Targets => {
-            let mut slab = dem::start("slab", n, plan.settings.seed)?;
+            let slab_scene = SceneKind::Generated(Scene::Slab);
+            let mut slab = dem::start(slab_scene, n, seed)?;
             if plan.settings.settle > 0 {
                 progress(&format!(
                     "letting the slab land ({} steps)",
@@ -134,21 +141,24 @@ fn dem_starts(
                 ));
                 slab = dem::settle(plan, &slab)?;
             }
-            let polylog = dem::start("polylog", n, plan.settings.seed)?;
+            let polylog = dem::start(POLYLOG, n, seed)?;
             // nns mode too: the DCD phase at radius ratio 120 in both modes.
             let nns = Start {
                 mode: ProxyMode::Nns,
                 ..polylog.clone()
             };
-            vec![("slab", slab), ("polylog", polylog), ("polylog", nns)]
+            vec![(slab_scene, slab), (POLYLOG, polylog), (POLYLOG, nns)]
         }
         Experiment::Scaling => plan
             .scaling_sizes()
             .into_iter()
-            .map(|n| Ok(("freefall", dem::start("freefall", n, plan.settings.seed)?)))
+            .map(|n| Ok((freefall, dem::start(freefall, n, seed)?)))
             .collect::<Result<_>>()?,
-        Experiment::Rotating => vec![("rotating", dem::start("rotating", n, plan.settings.seed)?)],
-        _ => vec![("freefall", dem::start("freefall", n, plan.settings.seed)?)],
+        Experiment::Rotating => {
+            let rotating = SceneKind::Rotating;
+            vec![(rotating, dem::start(rotating, n, seed)?)]
+        }
+        _ => vec![(freefall, dem::start(freefall, n, seed)?)],
     })
 }
 
@@ -158,12 +168,12 @@ fn dem_starts(
 fn structures(
     plan: &Plan,
     experiment: Experiment,
-    scene: &str,
+    scene: SceneKind,
     start: &Start,
     kind: BackendKind,
 ) -> Vec<Structure> {
     if experiment == Experiment::Targets
-        && scene == "polylog"
+        && scene == POLYLOG
         && start.mode == ProxyMode::Mochi
         && kind == BackendKind::WgpuCompute
     {

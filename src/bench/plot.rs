@@ -5,7 +5,9 @@
 use super::markdown::{speedup, time};
 use super::plan::Experiment;
 use super::report::{DemRow, Report};
+use super::value_name;
 use crate::error::{Error, Result};
+use crate::proxy::ProxyMode;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
@@ -172,7 +174,7 @@ fn dcd(area: &Area, title: &str, report: &Report) -> Drawn {
         if groups.last().is_none_or(|(g, _)| *g != name) {
             groups.push((name, Vec::new()));
         }
-        let key = usize::from(row.mode != "mochi");
+        let key = usize::from(row.mode != ProxyMode::Mochi);
         let mut label = format!("{} ms", time(row.detect_ms.median));
         if let Some(s) = row.detect_speedup_vs_nns {
             label = format!("{}\n{label}", speedup(Some(s)));
@@ -187,7 +189,7 @@ fn dcd(area: &Area, title: &str, report: &Report) -> Drawn {
     bars(
         area,
         &format!("{title} (detect; label: mochi vs nns)"),
-        &["mochi", "nns"],
+        &[ProxyMode::Mochi.name(), ProxyMode::Nns.name()],
         &groups,
     )
 }
@@ -210,7 +212,13 @@ fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
                 label,
             };
             let name = if r.experiment == Experiment::Targets {
-                format!("{}\n{} {} {}", r.backend, r.scene, r.mode, r.structure)
+                format!(
+                    "{}\n{} {} {}",
+                    r.backend,
+                    r.scene,
+                    r.mode.name(),
+                    value_name(r.structure)
+                )
             } else {
                 format!("{}\nn={}", r.backend, r.n)
             };
