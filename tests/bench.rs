@@ -69,7 +69,9 @@ fn check_detect(rows: &[DetectRow], backends: &[&str]) {
             let of = |mode: &str| {
                 rows.iter()
                     .find(|r| {
-                        r.backend == *backend && r.scene.name() == scene && r.mode.name() == mode
+                        r.backend.name() == *backend
+                            && r.scene.name() == scene
+                            && r.mode.name() == mode
                     })
                     .unwrap_or_else(|| panic!("no {backend} {scene} {mode} row"))
             };
@@ -99,7 +101,9 @@ fn check_detect(rows: &[DetectRow], backends: &[&str]) {
                     let cpu = rows
                         .iter()
                         .find(|r| {
-                            r.backend == "cpu" && r.scene.name() == scene && r.mode == row.mode
+                            r.backend.name() == "cpu"
+                                && r.scene.name() == scene
+                                && r.mode == row.mode
                         })
                         .expect("a cpu row");
                     let want = cpu.total_ms.median / row.total_ms.median;
@@ -128,7 +132,9 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
                 let what = format!("{experiment:?} {backend} n={n}");
                 let row = rows
                     .iter()
-                    .find(|r| r.experiment == experiment && r.backend == *backend && r.n == n)
+                    .find(|r| {
+                        r.experiment == experiment && r.backend.name() == *backend && r.n == n
+                    })
                     .unwrap_or_else(|| panic!("no row for {what}"));
                 count += 1;
                 assert_eq!(row.scene.name(), scene, "{what}");
@@ -156,7 +162,7 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
             rows.iter()
                 .filter(|r| {
                     r.experiment == Experiment::Targets
-                        && r.backend == *backend
+                        && r.backend.name() == *backend
                         && r.scene.name() == scene
                         && r.mode.name() == mode
                 })
@@ -175,11 +181,11 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
         }
         count += 2 + structures.len();
     }
-    for r in rows.iter().filter(|r| r.backend != "cpu") {
+    for r in rows.iter().filter(|r| r.backend.name() != "cpu") {
         let cpu = rows
             .iter()
             .find(|c| {
-                c.backend == "cpu"
+                c.backend.name() == "cpu"
                     && c.experiment == r.experiment
                     && c.scene == r.scene
                     && c.n == r.n
@@ -265,7 +271,7 @@ fn bench_small_reports_every_experiment_as_markdown_json_and_svg() {
         (REPEATS, STEPS)
     );
     for b in &report.backends {
-        let chosen = backends.contains(&b.name.as_str());
+        let chosen = backends.contains(&b.name.name());
         assert_eq!(b.left_out.is_none(), chosen, "{b:?}");
         assert!(!chosen || b.device.is_some(), "{b:?}");
     }

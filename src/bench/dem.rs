@@ -178,7 +178,7 @@ fn measure(
         .to_owned();
     Ok(DemRow {
         experiment: case.experiment,
-        backend: kind.name().to_owned(),
+        backend: kind,
         device,
         scene: case.scene,
         n: case.start.particles.len(),

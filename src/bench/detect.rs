@@ -62,10 +62,12 @@ pub fn run(
                 mode.name()
             );
             progress(&what);
-            out.push(match measure(plan, backend.as_mut(), spec, spheres, mode) {
-                Ok(row) => Outcome::Row(row),
-                Err(e) => Outcome::Skipped(what, e.to_string()),
-            });
+            out.push(
+                match measure(plan, kind, backend.as_mut(), spec, spheres, mode) {
+                    Ok(row) => Outcome::Row(row),
+                    Err(e) => Outcome::Skipped(what, e.to_string()),
+                },
+            );
         }
     }
     out
@@ -103,6 +105,7 @@ fn once(
 
 fn measure(
     plan: &Plan,
+    kind: BackendKind,
     backend: &mut dyn Backend,
     spec: &SceneSpec,
     spheres: &SphereSet,
@@ -140,7 +143,7 @@ fn measure(
     let spread = |values: Vec<f64>| Spread::of(&values).expect("a plan has at least one repeat");
     Ok(DetectRow {
         experiment: Experiment::Dcd,
-        backend: info.name.to_owned(),
+        backend: kind,
         device: info.device,
         scene: SceneKind::Generated(spec.scene),
         layout: spec.layout,

@@ -50,7 +50,7 @@ pub fn render(report: &Report) -> String {
                 out,
                 "| {} | {} | {} | {} |",
                 s.experiment.number(),
-                s.backend,
+                s.backend.name(),
                 s.what,
                 s.reason.replace('|', "/")
             );
@@ -76,13 +76,13 @@ fn header(out: &mut String, r: &Report) {
     for b in &r.backends {
         match (&b.device, &b.left_out) {
             (_, Some(why)) => {
-                let _ = writeln!(out, "- {}: left out ({why})", b.name);
+                let _ = writeln!(out, "- {}: left out ({why})", b.name.name());
             }
             (Some(device), None) => {
-                let _ = writeln!(out, "- {}: {device}", b.name);
+                let _ = writeln!(out, "- {}: {device}", b.name.name());
             }
             (None, None) => {
-                let _ = writeln!(out, "- {}", b.name);
+                let _ = writeln!(out, "- {}", b.name.name());
             }
         }
     }
@@ -108,7 +108,7 @@ fn detect_table(out: &mut String, rows: &[DetectRow]) {
         let _ = writeln!(
             out,
             "| {} | {} | {} | {} | {} | {:.2} | {} | {} | {} | {} | {} | {} | {} |",
-            r.backend,
+            r.backend.name(),
             r.scene,
             r.n,
             r.mode.name(),
@@ -147,7 +147,7 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
         let _ = writeln!(
             out,
             "| {} | {} | {} | {} | {} |{rebuild} {} | {} | {} | {} | {} | {} | {} | {} |",
-            r.backend,
+            r.backend.name(),
             r.scene,
             r.n,
             r.mode.name(),

@@ -51,6 +51,33 @@ pub fn value_name<T: clap::ValueEnum>(value: T) -> String {
         .map_or_else(String::new, |v| v.get_name().to_owned())
 }
 
+/// Serde of a [`clap::ValueEnum`] by its command-line name, for a type that has no serde of
+/// its own (`#[serde(with = "crate::bench::by_name")]`).
+pub mod by_name {
+    use serde::de::Error as _;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    /// Writes the name of `value`.
+    pub fn serialize<T: clap::ValueEnum, S: Serializer>(
+        value: &T,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&super::value_name(value.clone()))
+    }
+
+    /// Reads a name, refusing any other than those of `T`, which the error lists.
+    pub fn deserialize<'de, T: clap::ValueEnum, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
+        let name = String::deserialize(d)?;
+        T::from_str(&name, false).map_err(|_| {
+            let names: Vec<String> = T::value_variants()
+                .iter()
+                .map(|v| super::value_name(v.clone()))
+                .collect();
+            D::Error::custom(format!("unknown name {name:?}: use {}", names.join(", ")))
+        })
+    }
+}
+
 /// Runs `plan`, calling `progress` before each measurement; `backends` (from
 /// [`plan::BackendSelection::resolve`]) and `command` go into the report as they are.
 pub fn run(
@@ -74,10 +101,10 @@ pub fn run(
         targets: Vec::new(),
     };
     for &experiment in &plan.settings.experiments {
-        let mut skip = |backend: &str, what: String, reason: String| {
+        let mut skip = |backend: BackendKind, what: String, reason: String| {
             report.skipped.push(Skipped {
                 experiment,
-                backend: backend.to_owned(),
+                backend,
                 what,
                 reason,
             })
@@ -89,7 +116,7 @@ pub fn run(
                     for outcome in detect::run(plan, kind, &sets, progress) {
                         match outcome {
                             Outcome::Row(row) => report.detect.push(row),
-                            Outcome::Skipped(what, why) => skip(kind.name(), what, why),
+                            Outcome::Skipped(what, why) => skip(kind, what, why),
                         }
                     }
                 }
@@ -107,7 +134,7 @@ pub fn run(
                             for outcome in dem::run(plan, kind, &case, progress) {
                                 match outcome {
                                     Outcome::Row(row) => report.dem.push(row),
-                                    Outcome::Skipped(what, why) => skip(kind.name(), what, why),
+                                    Outcome::Skipped(what, why) => skip(kind, what, why),
                                 }
                             }
                         }
@@ -180,5 +207,31 @@ fn structures(
         vec![Structure::Grid, Structure::Mlgrid]
     } else {
         vec![plan.settings.structure]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+    struct Row {
+        #[serde(with = "by_name")]
+        backend: BackendKind,
+    }
+
+    #[test]
+    fn backends_are_written_and_read_by_their_names() {
+        for backend in BackendKind::ALL {
+            let json = serde_json::to_string(&Row { backend }).unwrap();
+            assert_eq!(json, format!("{{\"backend\":\"{}\"}}", backend.name()));
+            assert_eq!(serde_json::from_str::<Row>(&json).unwrap(), Row { backend });
+        }
+        let e = serde_json::from_str::<Row>(r#"{"backend":"gpu"}"#).unwrap_err();
+        let e = e.to_string();
+        assert!(
+            e.contains("\"gpu\"") && e.contains("wgpu-rq, wgpu-compute, cpu"),
+            "{e}"
+        );
     }
 }

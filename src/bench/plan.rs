@@ -164,8 +164,9 @@ impl std::str::FromStr for BackendSelection {
 /// A backend that was left out, and why.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct BackendStatus {
-    /// Backend name.
-    pub name: String,
+    /// The backend.
+    #[serde(with = "super::by_name")]
+    pub name: BackendKind,
     /// The device it runs on, when it runs.
     pub device: Option<String>,
     /// Why it was left out, when it was.
@@ -199,7 +200,7 @@ impl BackendSelection {
                 chosen.push(kind);
             }
             status.push(BackendStatus {
-                name: kind.name().to_owned(),
+                name: kind,
                 device: probe.ok(),
                 left_out,
             });

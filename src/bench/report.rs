@@ -4,6 +4,7 @@
 use super::plan::{BackendStatus, Experiment, Settings};
 use super::stats::Spread;
 use super::targets::Check;
+use crate::backend::BackendKind;
 use crate::backend::wgpu_compute::Structure;
 use crate::dem::Clock;
 use crate::dem::scene::SceneKind;
@@ -79,8 +80,9 @@ impl Machine {
 pub struct DetectRow {
     /// Always [`Experiment::Dcd`].
     pub experiment: Experiment,
-    /// Backend name.
-    pub backend: String,
+    /// The backend.
+    #[serde(with = "super::by_name")]
+    pub backend: BackendKind,
     /// Its device, in words.
     pub device: String,
     /// The scene.
@@ -123,8 +125,9 @@ pub struct DetectRow {
 pub struct DemRow {
     /// Experiment 2–6.
     pub experiment: Experiment,
-    /// Backend name.
-    pub backend: String,
+    /// The backend.
+    #[serde(with = "super::by_name")]
+    pub backend: BackendKind,
     /// Its device, in words.
     pub device: String,
     /// The scene (`freefall`, `rotating`, `slab`, `polylog`).
@@ -166,8 +169,9 @@ pub struct DemRow {
 pub struct Skipped {
     /// The experiment.
     pub experiment: Experiment,
-    /// Backend name.
-    pub backend: String,
+    /// The backend.
+    #[serde(with = "super::by_name")]
+    pub backend: BackendKind,
     /// What was to be measured.
     pub what: String,
     /// Why it was not.
@@ -179,17 +183,17 @@ impl Report {
     pub fn fill_speedups(&mut self) {
         let detect = self.detect.clone();
         for row in &mut self.detect {
-            let peer = |backend: &str, mode: ProxyMode| {
+            let peer = |backend: BackendKind, mode: ProxyMode| {
                 detect.iter().find(|o| {
                     o.backend == backend && o.mode == mode && o.scene == row.scene && o.n == row.n
                 })
             };
             row.detect_speedup_vs_nns = (row.mode == ProxyMode::Mochi)
-                .then(|| peer(&row.backend, ProxyMode::Nns))
+                .then(|| peer(row.backend, ProxyMode::Nns))
                 .flatten()
                 .map(|nns| ratio(nns.detect_ms.median, row.detect_ms.median));
-            row.speedup_vs_cpu = peer("cpu", row.mode)
-                .filter(|_| row.backend != "cpu")
+            row.speedup_vs_cpu = peer(BackendKind::Cpu, row.mode)
+                .filter(|_| row.backend != BackendKind::Cpu)
                 .map(|cpu| ratio(cpu.total_ms.median, row.total_ms.median));
         }
         let dem = self.dem.clone();
@@ -197,14 +201,14 @@ impl Report {
             row.speedup_vs_cpu = dem
                 .iter()
                 .find(|o| {
-                    o.backend == "cpu"
+                    o.backend == BackendKind::Cpu
                         && o.experiment == row.experiment
                         && o.scene == row.scene
                         && o.n == row.n
                         && o.mode == row.mode
                         && (o.rebuild == row.rebuild || !o.refits)
                 })
-                .filter(|_| row.backend != "cpu")
+                .filter(|_| row.backend != BackendKind::Cpu)
                 .map(|cpu| ratio(cpu.total_ms.median, row.total_ms.median));
         }
     }

@@ -4,6 +4,7 @@
 use super::plan::Experiment;
 use super::report::{DemRow, Report};
 use super::value_name;
+use crate::backend::BackendKind;
 use crate::dem::scene::SceneKind;
 use crate::proxy::ProxyMode;
 use crate::scenes::Scene;
@@ -74,7 +75,7 @@ fn dem_target(
         .map(|r| {
             format!(
                 "{} {} n={}: {:.3} ms",
-                r.backend,
+                r.backend.name(),
                 value_name(r.structure),
                 r.n,
                 r.total_ms.median
@@ -105,7 +106,14 @@ fn five_million(report: &Report) -> Check {
         target: "5M spheres fit and run".to_owned(),
         measured: ran.map_or_else(
             || "not run (e.g. --spheres 5000000 --experiments freefall)".to_owned(),
-            |r| format!("{} n={}: {:.3} ms/step", r.backend, r.n, r.total_ms.median),
+            |r| {
+                format!(
+                    "{} n={}: {:.3} ms/step",
+                    r.backend.name(),
+                    r.n,
+                    r.total_ms.median
+                )
+            },
         ),
         met: ran.map(|_| true),
     }
@@ -113,7 +121,7 @@ fn five_million(report: &Report) -> Check {
 
 /// "mochi ≥ 3× faster than nns at radius ratio 120, every backend", judged at 1M spheres on
 /// `speedups` (backend, size, speed-up).
-fn at_ratio_120(target: &str, missing: &str, speedups: &[(String, usize, f64)]) -> Check {
+fn at_ratio_120(target: &str, missing: &str, speedups: &[(&str, usize, f64)]) -> Check {
     let at_million: Vec<f64> = speedups
         .iter()
         .filter(|(_, n, _)| *n == MILLION)
@@ -136,11 +144,11 @@ fn at_ratio_120(target: &str, missing: &str, speedups: &[(String, usize, f64)]) 
 
 /// Experiment 1, `poly120`: the detection of mochi mode against nns mode.
 fn detect_ratio_120(report: &Report) -> Check {
-    let speedups: Vec<(String, usize, f64)> = report
+    let speedups: Vec<(&str, usize, f64)> = report
         .detect
         .iter()
         .filter(|r| r.scene == POLY120)
-        .filter_map(|r| Some((r.backend.clone(), r.n, r.detect_speedup_vs_nns?)))
+        .filter_map(|r| Some((r.backend.name(), r.n, r.detect_speedup_vs_nns?)))
         .collect();
     at_ratio_120(
         "detection in mochi mode ≥ 3× faster than nns at radius ratio 120 (poly120), every backend",
@@ -157,13 +165,13 @@ fn dem_dcd_ratio_120(report: &Report) -> Check {
             r.experiment == Experiment::Targets && r.scene == POLYLOG && r.mode == mode
         })
     };
-    let speedups: Vec<(String, usize, f64)> = polylog(ProxyMode::Nns)
+    let speedups: Vec<(&str, usize, f64)> = polylog(ProxyMode::Nns)
         .filter_map(|nns| {
             let mochi = polylog(ProxyMode::Mochi)
                 .filter(|m| m.backend == nns.backend && m.n == nns.n)
                 .map(|m| m.dcd_ms.median)
                 .min_by(f64::total_cmp)?;
-            Some((nns.backend.clone(), nns.n, nns.dcd_ms.median / mochi))
+            Some((nns.backend.name(), nns.n, nns.dcd_ms.median / mochi))
         })
         .collect();
     at_ratio_120(
@@ -177,10 +185,9 @@ fn dem_dcd_ratio_120(report: &Report) -> Check {
 /// Experiment 1 on the cpu backend: 100k poly120 spheres built and detected in ≤ 7 ms (the
 /// target is for 2 cores; the row says how many threads ran).
 fn cpu_poly120(report: &Report) -> Check {
-    let row = report
-        .detect
-        .iter()
-        .find(|r| r.backend == "cpu" && r.scene == POLY120 && r.mode == ProxyMode::Mochi);
+    let row = report.detect.iter().find(|r| {
+        r.backend == BackendKind::Cpu && r.scene == POLY120 && r.mode == ProxyMode::Mochi
+    });
     Check {
         target: "cpu backend, 2 cores, 100k poly120: build + detect ≤ 7 ms".to_owned(),
         measured: row.map_or_else(
@@ -215,7 +222,7 @@ mod tests {
     fn row(scene: &str, mode: &str, structure: &str, dcd: f64, total: f64) -> DemRow {
         DemRow {
             experiment: Experiment::Targets,
-            backend: "wgpu-compute".into(),
+            backend: BackendKind::WgpuCompute,
             device: "GPU".into(),
             scene: scene.parse().unwrap(),
             n: MILLION,
