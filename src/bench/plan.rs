@@ -148,9 +148,9 @@ impl std::str::FromStr for BackendSelection {
                 .split(',')
                 .map(|name| {
                     BackendKind::from_str(name.trim(), true).map_err(|_| {
+                        let names = BackendKind::ALL.map(BackendKind::name).join(", ");
                         format!(
-                            "unknown backend `{}`: use auto, all, or names from optix, \
-                             wgpu-rq, wgpu-compute, cpu",
+                            "unknown backend `{}`: use auto, all, or names from {names}",
                             name.trim()
                         )
                     })
@@ -316,6 +316,11 @@ mod tests {
             BackendSelection::List(vec![BackendKind::Cpu, BackendKind::WgpuCompute])
         );
         assert!("cpu,gpu".parse::<BackendSelection>().is_err());
+        let e = "cpu,gpu".parse::<BackendSelection>().unwrap_err();
+        assert!(
+            e.contains("`gpu`: use auto, all, or names from optix, wgpu-rq, wgpu-compute, cpu"),
+            "{e}"
+        );
     }
 
     #[test]

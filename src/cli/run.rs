@@ -31,12 +31,11 @@ fn scene(args: &SceneArgs, default_layout: Layout) -> Result<(SphereSet, String)
     };
     let spheres = scenes::generate(&spec)?;
     let what = format!(
-        "scene {} ({:?} layout, seed {})",
+        "scene {} ({} layout, seed {})",
         spec.scene.name(),
-        spec.layout,
+        mochi::bench::value_name(spec.layout),
         spec.seed
-    )
-    .to_lowercase();
+    );
     Ok((spheres, what))
 }
 
