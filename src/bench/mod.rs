@@ -51,33 +51,6 @@ pub fn value_name<T: clap::ValueEnum>(value: T) -> String {
         .map_or_else(String::new, |v| v.get_name().to_owned())
 }
 
-/// Serde of a [`clap::ValueEnum`] by its command-line name, for a type that has no serde of
-/// its own (`#[serde(with = "crate::bench::by_name")]`).
-pub mod by_name {
-    use serde::de::Error as _;
-    use serde::{Deserialize, Deserializer, Serializer};
-
-    /// Writes the name of `value`.
-    pub fn serialize<T: clap::ValueEnum, S: Serializer>(
-        value: &T,
-        s: S,
-    ) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&super::value_name(value.clone()))
-    }
-
-    /// Reads a name, refusing any other than those of `T`, which the error lists.
-    pub fn deserialize<'de, T: clap::ValueEnum, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
-        let name = String::deserialize(d)?;
-        T::from_str(&name, false).map_err(|_| {
-            let names: Vec<String> = T::value_variants()
-                .iter()
-                .map(|v| super::value_name(v.clone()))
-                .collect();
-            D::Error::custom(format!("unknown name {name:?}: use {}", names.join(", ")))
-        })
-    }
-}
-
 /// Runs `plan`, calling `progress` before each measurement; `backends` (from
 /// [`plan::BackendSelection::resolve`]) and `command` go into the report as they are.
 pub fn run(
@@ -213,6 +186,7 @@ fn structures(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dem::scene::by_name;
 
     #[derive(Debug, PartialEq, serde::Serialize, serde::Deserialize)]
     struct Row {
@@ -230,7 +204,7 @@ mod tests {
         let e = serde_json::from_str::<Row>(r#"{"backend":"gpu"}"#).unwrap_err();
         let e = e.to_string();
         assert!(
-            e.contains("\"gpu\"") && e.contains("wgpu-rq, wgpu-compute, cpu"),
+            e.contains("\"gpu\"") && e.contains("optix, wgpu-rq, wgpu-compute or cpu"),
             "{e}"
         );
     }

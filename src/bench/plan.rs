@@ -165,7 +165,7 @@ impl std::str::FromStr for BackendSelection {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct BackendStatus {
     /// The backend.
-    #[serde(with = "super::by_name")]
+    #[serde(with = "crate::dem::scene::by_name")]
     pub name: BackendKind,
     /// The device it runs on, when it runs.
     pub device: Option<String>,

@@ -81,7 +81,7 @@ pub struct DetectRow {
     /// Always [`Experiment::Dcd`].
     pub experiment: Experiment,
     /// The backend.
-    #[serde(with = "super::by_name")]
+    #[serde(with = "crate::dem::scene::by_name")]
     pub backend: BackendKind,
     /// Its device, in words.
     pub device: String,
@@ -126,7 +126,7 @@ pub struct DemRow {
     /// Experiment 2–6.
     pub experiment: Experiment,
     /// The backend.
-    #[serde(with = "super::by_name")]
+    #[serde(with = "crate::dem::scene::by_name")]
     pub backend: BackendKind,
     /// Its device, in words.
     pub device: String,
@@ -170,7 +170,7 @@ pub struct Skipped {
     /// The experiment.
     pub experiment: Experiment,
     /// The backend.
-    #[serde(with = "super::by_name")]
+    #[serde(with = "crate::dem::scene::by_name")]
     pub backend: BackendKind,
     /// What was to be measured.
     pub what: String,

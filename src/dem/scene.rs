@@ -34,6 +34,46 @@ use crate::spheres::SphereSet;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+/// Serde of a [`clap::ValueEnum`] by its command-line name, read in any case (as scene files
+/// always were), for a type that has no serde of its own or a field read in any case
+/// (`#[serde(with = "crate::dem::scene::by_name")]`).
+pub mod by_name {
+    use serde::de::Error as _;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    /// Writes the name of `value`.
+    pub fn serialize<T: clap::ValueEnum, S: Serializer>(
+        value: &T,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&super::name_of(value))
+    }
+
+    /// Reads a name, refusing any other than those of `T`, which the error lists.
+    pub fn deserialize<'de, T: clap::ValueEnum, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
+        let name = String::deserialize(d)?;
+        super::parse_name(&name, "value").map_err(D::Error::custom)
+    }
+}
+
+/// The command-line name of `value`.
+fn name_of<T: clap::ValueEnum>(value: &T) -> String {
+    value
+        .to_possible_value()
+        .expect("no value is hidden from the command line")
+        .get_name()
+        .to_owned()
+}
+
+/// The value of `T` named `name` in any case, or an error naming `what` and listing the names.
+fn parse_name<T: clap::ValueEnum>(name: &str, what: &str) -> std::result::Result<T, String> {
+    T::from_str(name, true).map_err(|_| {
+        let names: Vec<String> = T::value_variants().iter().map(name_of).collect();
+        let (last, rest) = names.split_last().expect("an enum has values");
+        format!("unknown {what} {name:?}: use {} or {last}", rest.join(", "))
+    })
+}
+
 /// What the `scene` field names: a generated scene of [`Scene`], `rotating` (freefall under
 /// rotating gravity), `mesh` (a filled mesh) or `input` (a sphere file). Its names are those of
 /// [`clap::ValueEnum`], in TOML and on the command line alike.
@@ -66,11 +106,7 @@ impl SceneKind {
 
     /// Name, as in TOML and on the command line.
     pub fn name(self) -> String {
-        use clap::ValueEnum;
-        self.to_possible_value()
-            .expect("every scene has a name")
-            .get_name()
-            .to_owned()
+        name_of(&self)
     }
 
     /// Where the spheres come from (`rotating` is freefall).
@@ -112,12 +148,9 @@ impl clap::ValueEnum for SceneKind {
 impl std::str::FromStr for SceneKind {
     type Err = String;
 
+    /// `name` in any case.
     fn from_str(name: &str) -> std::result::Result<Self, String> {
-        <Self as clap::ValueEnum>::from_str(name, false).map_err(|_| {
-            let names: Vec<String> = Self::ALL.iter().map(|s| s.name()).collect();
-            let (last, rest) = names.split_last().expect("there are scenes");
-            format!("unknown scene {name:?}: use {} or {last}", rest.join(", "))
-        })
+        parse_name(name, "scene")
     }
 }
 
@@ -201,6 +234,7 @@ pub struct SceneConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stiffness: Option<f64>,
     /// `mochi` (cells of 2·r_max) or `nns` (4·r_max).
+    #[serde(with = "by_name")]
     pub mode: ProxyMode,
     /// Steps between frames (0: none).
     pub frame_every: u64,
@@ -722,7 +756,10 @@ mod tests {
         );
         let e = SceneConfig::load(None, &["mode=fast".into()]).unwrap_err();
         let e = e.to_string();
-        assert!(e.contains("fast") && e.contains("`mochi` or `nns`"), "{e}");
+        assert!(
+            e.contains("unknown value \"fast\": use mochi or nns"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -741,6 +778,7 @@ mod tests {
         for &mode in ProxyMode::value_variants() {
             let name = mode.to_possible_value().unwrap().get_name().to_owned();
             assert_eq!(name, mode.name());
+            assert_eq!(serde_json::to_string(&mode).unwrap(), format!("\"{name}\""));
             let c = SceneConfig::load(None, &[format!("mode={name}")]).unwrap();
             assert_eq!(c.mode, mode);
             assert!(c.to_toml().contains(&format!("mode = \"{name}\"")));
@@ -786,6 +824,12 @@ mod tests {
             SceneConfig::resume(saved, Path::new("c.bin"), &SceneFlags::default(), &[]).unwrap();
         assert_eq!((c.scene, c.mode), (SceneKind::Rotating, ProxyMode::Nns));
         assert_eq!(c.to_toml(), saved);
+        // Names were always read in any case.
+        let c = SceneConfig::parse(Some("scene = \"Poly1.2\"\nmode = \"NNS\""), None, &[]).unwrap();
+        assert_eq!(
+            (c.scene, c.mode),
+            (SceneKind::Generated(Scene::Poly1_2), ProxyMode::Nns)
+        );
     }
 
     #[test]
