@@ -9,8 +9,8 @@ mod common;
 use mochi::bench::plan::Experiment;
 use mochi::bench::report::{DemRow, DetectRow, Report, SCHEMA_VERSION, pairs_digest};
 use mochi::bench::stats::Spread;
-use mochi::bench::value_name;
 use mochi::dem::Clock;
+use mochi::dem::scene::by_name;
 use mochi::gpu::Need;
 use mochi::oracle::brute_force_pairs;
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
@@ -172,7 +172,7 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
         assert_eq!(of("polylog", "nns").len(), 1, "{backend}");
         let structures: Vec<String> = of("polylog", "mochi")
             .iter()
-            .map(|r| value_name(r.structure))
+            .map(|r| by_name::name(&r.structure))
             .collect();
         if *backend == "wgpu-compute" {
             assert_eq!(structures, ["grid", "mlgrid"]);

@@ -4,8 +4,8 @@
 use super::plan::Experiment;
 use super::report::{DemRow, DetectRow, Report};
 use super::stats::Spread;
-use super::value_name;
 use crate::dem::Clock;
+use crate::dem::scene::by_name;
 use std::fmt::Write;
 
 /// The whole report as Markdown.
@@ -112,7 +112,7 @@ fn detect_table(out: &mut String, rows: &[DetectRow]) {
             r.scene,
             r.n,
             r.mode.name(),
-            value_name(r.structure),
+            by_name::name(&r.structure),
             r.candidates_per_sphere,
             r.pairs,
             spread(&r.build_ms),
@@ -151,7 +151,7 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
             r.scene,
             r.n,
             r.mode.name(),
-            value_name(r.structure),
+            by_name::name(&r.structure),
             r.contacts,
             spread(&r.build_ms),
             spread(&r.dcd_ms),

@@ -44,13 +44,6 @@ pub enum Outcome<T> {
     Skipped(String, String),
 }
 
-/// The command-line name of a value (`poly1.2`, `random`, `mlgrid`).
-pub fn value_name<T: clap::ValueEnum>(value: T) -> String {
-    value
-        .to_possible_value()
-        .map_or_else(String::new, |v| v.get_name().to_owned())
-}
-
 /// Runs `plan`, calling `progress` before each measurement; `backends` (from
 /// [`plan::BackendSelection::resolve`]) and `command` go into the report as they are.
 pub fn run(

@@ -5,7 +5,7 @@
 use super::markdown::{speedup, time};
 use super::plan::Experiment;
 use super::report::{DemRow, Report};
-use super::value_name;
+use crate::dem::scene::by_name;
 use crate::error::{Error, Result};
 use crate::proxy::ProxyMode;
 use plotters::prelude::*;
@@ -217,7 +217,7 @@ fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
                     r.backend.name(),
                     r.scene,
                     r.mode.name(),
-                    value_name(r.structure)
+                    by_name::name(&r.structure)
                 )
             } else {
                 format!("{}\nn={}", r.backend.name(), r.n)

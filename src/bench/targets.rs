@@ -3,9 +3,9 @@
 
 use super::plan::Experiment;
 use super::report::{DemRow, Report};
-use super::value_name;
 use crate::backend::BackendKind;
 use crate::dem::scene::SceneKind;
+use crate::dem::scene::by_name;
 use crate::proxy::ProxyMode;
 use crate::scenes::Scene;
 use serde::{Deserialize, Serialize};
@@ -76,7 +76,7 @@ fn dem_target(
             format!(
                 "{} {} n={}: {:.3} ms",
                 r.backend.name(),
-                value_name(r.structure),
+                by_name::name(&r.structure),
                 r.n,
                 r.total_ms.median
             )

@@ -34,44 +34,45 @@ use crate::spheres::SphereSet;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// Serde of a [`clap::ValueEnum`] by its command-line name, read in any case (as scene files
-/// always were), for a type that has no serde of its own or a field read in any case
-/// (`#[serde(with = "crate::dem::scene::by_name")]`).
+/// The names of [`clap::ValueEnum`] values: on the command line, in TOML and in reports alike.
+/// As a serde module (`#[serde(with = "crate::dem::scene::by_name")]`) it serves types that
+/// have no serde of their own and fields read in any case (as scene files always were).
 pub mod by_name {
     use serde::de::Error as _;
     use serde::{Deserialize, Deserializer, Serializer};
+
+    /// The command-line name of `value`.
+    pub fn name<T: clap::ValueEnum>(value: &T) -> String {
+        value
+            .to_possible_value()
+            .expect("no value is hidden from the command line")
+            .get_name()
+            .to_owned()
+    }
+
+    /// The value of `T` named `name` in any case, or an error naming `what` and listing the
+    /// names.
+    pub fn parse<T: clap::ValueEnum>(name: &str, what: &str) -> Result<T, String> {
+        T::from_str(name, true).map_err(|_| {
+            let names: Vec<String> = T::value_variants().iter().map(self::name).collect();
+            let (last, rest) = names.split_last().expect("an enum has values");
+            format!("unknown {what} {name:?}: use {} or {last}", rest.join(", "))
+        })
+    }
 
     /// Writes the name of `value`.
     pub fn serialize<T: clap::ValueEnum, S: Serializer>(
         value: &T,
         s: S,
     ) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&super::name_of(value))
+        s.serialize_str(&name(value))
     }
 
-    /// Reads a name, refusing any other than those of `T`, which the error lists.
+    /// Reads a name in any case, refusing any other than those of `T`, which the error lists.
     pub fn deserialize<'de, T: clap::ValueEnum, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
         let name = String::deserialize(d)?;
-        super::parse_name(&name, "value").map_err(D::Error::custom)
+        parse(&name, "value").map_err(D::Error::custom)
     }
-}
-
-/// The command-line name of `value`.
-fn name_of<T: clap::ValueEnum>(value: &T) -> String {
-    value
-        .to_possible_value()
-        .expect("no value is hidden from the command line")
-        .get_name()
-        .to_owned()
-}
-
-/// The value of `T` named `name` in any case, or an error naming `what` and listing the names.
-fn parse_name<T: clap::ValueEnum>(name: &str, what: &str) -> std::result::Result<T, String> {
-    T::from_str(name, true).map_err(|_| {
-        let names: Vec<String> = T::value_variants().iter().map(name_of).collect();
-        let (last, rest) = names.split_last().expect("an enum has values");
-        format!("unknown {what} {name:?}: use {} or {last}", rest.join(", "))
-    })
 }
 
 /// What the `scene` field names: a generated scene of [`Scene`], `rotating` (freefall under
@@ -106,7 +107,7 @@ impl SceneKind {
 
     /// Name, as in TOML and on the command line.
     pub fn name(self) -> String {
-        name_of(&self)
+        by_name::name(&self)
     }
 
     /// Where the spheres come from (`rotating` is freefall).
@@ -150,7 +151,7 @@ impl std::str::FromStr for SceneKind {
 
     /// `name` in any case.
     fn from_str(name: &str) -> std::result::Result<Self, String> {
-        parse_name(name, "scene")
+        by_name::parse(name, "scene")
     }
 }
 
