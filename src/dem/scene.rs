@@ -813,6 +813,22 @@ mod tests {
         assert!(e.to_string().contains("-n/--set spheres"), "{e}");
     }
 
+    #[cfg(unix)]
+    #[test]
+    fn a_path_toml_cannot_hold_is_a_clear_error() {
+        use std::os::unix::ffi::OsStrExt;
+        let flags = SceneFlags {
+            scene: Some(SceneKind::Input),
+            input: Some(std::ffi::OsStr::from_bytes(b"bad\xff.csv").into()),
+            ..SceneFlags::default()
+        };
+        let e = SceneConfig::load_new(None, &flags, &[]).unwrap_err();
+        assert!(
+            e.to_string().contains("cannot be written in TOML: path"),
+            "{e}"
+        );
+    }
+
     #[test]
     fn a_checkpoint_scene_of_this_format_reads_as_saved() {
         let saved = "scene = \"rotating\"\nspheres = 64\nseed = 3\nsteps = 10\ndt = 0.0001\n\
