@@ -6,7 +6,18 @@
 //! pair, so the rule is symmetric bit for bit.
 
 /// How large the box of each sphere is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    clap::ValueEnum,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
 pub enum ProxyMode {
     /// The paper's proxy spheres: the box of sphere j has half-width 2·r_j.
     #[default]

@@ -10,6 +10,7 @@ use mochi::bench::plan::Experiment;
 use mochi::bench::report::{DemRow, DetectRow, Report, SCHEMA_VERSION, pairs_digest};
 use mochi::bench::stats::Spread;
 use mochi::dem::Clock;
+use mochi::dem::scene::by_name;
 use mochi::gpu::Need;
 use mochi::oracle::brute_force_pairs;
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
@@ -67,14 +68,18 @@ fn check_detect(rows: &[DetectRow], backends: &[&str]) {
         for backend in backends {
             let of = |mode: &str| {
                 rows.iter()
-                    .find(|r| r.backend == *backend && r.scene == scene && r.mode == mode)
+                    .find(|r| {
+                        r.backend.name() == *backend
+                            && r.scene.name() == scene
+                            && r.mode.name() == mode
+                    })
                     .unwrap_or_else(|| panic!("no {backend} {scene} {mode} row"))
             };
             let (mochi, nns) = (of("mochi"), of("nns"));
             for row in [mochi, nns] {
-                let what = format!("{backend} {scene} {}", row.mode);
+                let what = format!("{backend} {scene} {}", row.mode.name());
                 assert_eq!(row.n, N, "{what}");
-                assert_eq!(row.layout, "random", "{what}");
+                assert_eq!(row.layout, Layout::Random, "{what}");
                 assert_eq!(row.pairs, oracle.len() as u64, "{what}: pairs = oracle");
                 assert_eq!(
                     row.pairs_digest,
@@ -95,7 +100,11 @@ fn check_detect(rows: &[DetectRow], backends: &[&str]) {
                 } else {
                     let cpu = rows
                         .iter()
-                        .find(|r| r.backend == "cpu" && r.scene == scene && r.mode == row.mode)
+                        .find(|r| {
+                            r.backend.name() == "cpu"
+                                && r.scene.name() == scene
+                                && r.mode == row.mode
+                        })
                         .expect("a cpu row");
                     let want = cpu.total_ms.median / row.total_ms.median;
                     assert!((row.speedup_vs_cpu.unwrap() - want).abs() < 1e-9, "{what}");
@@ -123,11 +132,13 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
                 let what = format!("{experiment:?} {backend} n={n}");
                 let row = rows
                     .iter()
-                    .find(|r| r.experiment == experiment && r.backend == *backend && r.n == n)
+                    .find(|r| {
+                        r.experiment == experiment && r.backend.name() == *backend && r.n == n
+                    })
                     .unwrap_or_else(|| panic!("no row for {what}"));
                 count += 1;
-                assert_eq!(row.scene, scene, "{what}");
-                assert_eq!(row.mode, "mochi", "{what}");
+                assert_eq!(row.scene.name(), scene, "{what}");
+                assert_eq!(row.mode.name(), "mochi", "{what}");
                 assert_eq!(row.steps, STEPS, "{what}");
                 // No backend here refits (only a future OptiX step will): one row each.
                 assert!(!row.refits, "{what}");
@@ -151,17 +162,17 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
             rows.iter()
                 .filter(|r| {
                     r.experiment == Experiment::Targets
-                        && r.backend == *backend
-                        && r.scene == scene
-                        && r.mode == mode
+                        && r.backend.name() == *backend
+                        && r.scene.name() == scene
+                        && r.mode.name() == mode
                 })
                 .collect()
         };
         assert_eq!(of("slab", "mochi").len(), 1, "{backend}");
         assert_eq!(of("polylog", "nns").len(), 1, "{backend}");
-        let structures: Vec<&str> = of("polylog", "mochi")
+        let structures: Vec<String> = of("polylog", "mochi")
             .iter()
-            .map(|r| r.structure.as_str())
+            .map(|r| by_name::name(&r.structure))
             .collect();
         if *backend == "wgpu-compute" {
             assert_eq!(structures, ["grid", "mlgrid"]);
@@ -170,11 +181,11 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
         }
         count += 2 + structures.len();
     }
-    for r in rows.iter().filter(|r| r.backend != "cpu") {
+    for r in rows.iter().filter(|r| r.backend.name() != "cpu") {
         let cpu = rows
             .iter()
             .find(|c| {
-                c.backend == "cpu"
+                c.backend.name() == "cpu"
                     && c.experiment == r.experiment
                     && c.scene == r.scene
                     && c.n == r.n
@@ -260,7 +271,7 @@ fn bench_small_reports_every_experiment_as_markdown_json_and_svg() {
         (REPEATS, STEPS)
     );
     for b in &report.backends {
-        let chosen = backends.contains(&b.name.as_str());
+        let chosen = backends.contains(&b.name.name());
         assert_eq!(b.left_out.is_none(), chosen, "{b:?}");
         assert!(!chosen || b.device.is_some(), "{b:?}");
     }

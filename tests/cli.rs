@@ -942,6 +942,21 @@ fn npy_in_fortran_order_and_float64_read_like_c_order_float32() {
 // ----------------------------------------------------------------------------------------------
 
 #[test]
+fn generate_names_the_scene_and_layout_as_the_command_line_does() {
+    let dir = TempDir::new().unwrap();
+    let args = [
+        "--scene", "poly1.2", "-n", "50", "--layout", "random", "--seed", "3",
+    ];
+    let run = generate(&args, &dir.path().join("s.csv"));
+    assert!(
+        run.stdout
+            .contains("scene poly1.2 (random layout, seed 3): wrote 50 spheres"),
+        "{}",
+        run.stdout
+    );
+}
+
+#[test]
 fn same_seed_same_file_other_seed_other_file() {
     let dir = TempDir::new().unwrap();
     let d = dir.path();

@@ -246,6 +246,50 @@ fn a_checkpoint_with_a_sphere_pushed_into_a_wall_still_resumes() {
 }
 
 #[test]
+fn named_options_set_the_scene_and_set_overrides_them() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("s.toml"), "scene = \"poly12\"\nseed = 5\n").unwrap();
+    let args = [
+        "simulate",
+        "s.toml",
+        "--scene",
+        "rotating",
+        "-n",
+        "200",
+        "--mode",
+        "nns",
+        "--dt",
+        "2e-5",
+        "--csv",
+        "--steps",
+        "1",
+        "--set",
+        "spheres=100",
+        "--backend",
+        "cpu",
+        "-q",
+        "-o",
+        "out",
+    ];
+    ok(&args, dir.path());
+    let scene = std::fs::read_to_string(dir.path().join("out/scene.toml")).unwrap();
+    for line in [
+        "scene = \"rotating\"",
+        "spheres = 100",
+        "seed = 5",
+        "mode = \"nns\"",
+        // The time step as f32 resolved it.
+        "dt = 0.0000199999",
+        "csv = true",
+    ] {
+        assert!(
+            scene.lines().any(|l| l.starts_with(line)),
+            "{line} in\n{scene}"
+        );
+    }
+}
+
+#[test]
 fn bad_scenes_give_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, text: &str| std::fs::write(dir.path().join(name), text).unwrap();

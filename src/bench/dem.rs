@@ -1,21 +1,21 @@
 //! Experiments 2–5: the DEM step, timed per phase.
 
+use super::Outcome;
 use super::plan::{Experiment, Plan, REBUILD_INTERVALS};
 use super::report::DemRow;
 use super::stats::Spread;
-use super::{Outcome, value_name};
 use crate::backend::wgpu_compute::Structure;
 use crate::backend::{BackendKind, Options, RebuildPolicy};
-use crate::dem::scene::{SceneConfig, Start};
+use crate::dem::scene::{SceneConfig, SceneKind, Start};
 use crate::dem::{Clock, Stepper, open_stepper};
 use crate::error::{Error, Result};
 use std::time::Instant;
 
-/// The start of a DEM scene (`freefall` or `rotating`) of `n` spheres: the scene's lattice
-/// layout, its default time step and material.
-pub fn start(scene: &str, n: usize, seed: u64) -> Result<Start> {
+/// The start of a generated DEM scene (`freefall`, `rotating`, `slab`, `polylog`) of `n`
+/// spheres: the scene's lattice layout, its default time step and material.
+pub fn start(scene: SceneKind, n: usize, seed: u64) -> Result<Start> {
     SceneConfig {
-        scene: scene.to_owned(),
+        scene,
         spheres: n,
         seed,
         frame_every: 0,
@@ -28,8 +28,8 @@ pub fn start(scene: &str, n: usize, seed: u64) -> Result<Start> {
 pub struct Case<'a> {
     /// The experiment it belongs to.
     pub experiment: Experiment,
-    /// Scene name.
-    pub scene: &'a str,
+    /// The scene.
+    pub scene: SceneKind,
     /// Its start.
     pub start: &'a Start,
     /// Grid structure of `wgpu-compute`.
@@ -178,12 +178,12 @@ fn measure(
         .to_owned();
     Ok(DemRow {
         experiment: case.experiment,
-        backend: kind.name().to_owned(),
+        backend: kind,
         device,
-        scene: case.scene.to_owned(),
+        scene: case.scene,
         n: case.start.particles.len(),
-        mode: case.start.mode.name().to_owned(),
-        structure: value_name(case.structure),
+        mode: case.start.mode,
+        structure: case.structure,
         rebuild: policy.to_owned(),
         refits: stepper.refits(),
         steps: plan.settings.steps,
@@ -203,6 +203,7 @@ mod tests {
     use super::*;
     use crate::bench::plan::Settings;
     use crate::dem::{Advance, Particles, StageTimes};
+    use crate::scenes::Scene;
 
     /// A step that takes 1 ms per phase and refits or not.
     struct Fake {
@@ -253,10 +254,11 @@ mod tests {
                 seed: 1,
             },
         };
-        let start = start("freefall", 100, 1).unwrap();
+        let freefall = SceneKind::Generated(Scene::Freefall);
+        let start = start(freefall, 100, 1).unwrap();
         let case = Case {
             experiment,
-            scene: "freefall",
+            scene: freefall,
             start: &start,
             structure: Structure::Auto,
         };

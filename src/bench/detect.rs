@@ -1,11 +1,12 @@
 //! Experiment 1: detection only, each radius ratio in both proxy modes.
 
+use super::Outcome;
 use super::plan::{Experiment, Plan};
 use super::report::{DetectRow, pairs_digest};
 use super::stats::Spread;
-use super::{Outcome, value_name};
 use crate::backend::{Backend, BackendKind, Options};
 use crate::dem::Clock;
+use crate::dem::scene::SceneKind;
 use crate::error::Result;
 use crate::proxy::ProxyMode;
 use crate::scenes::{self, Layout, Scene, SceneSpec};
@@ -61,10 +62,12 @@ pub fn run(
                 mode.name()
             );
             progress(&what);
-            out.push(match measure(plan, backend.as_mut(), spec, spheres, mode) {
-                Ok(row) => Outcome::Row(row),
-                Err(e) => Outcome::Skipped(what, e.to_string()),
-            });
+            out.push(
+                match measure(plan, kind, backend.as_mut(), spec, spheres, mode) {
+                    Ok(row) => Outcome::Row(row),
+                    Err(e) => Outcome::Skipped(what, e.to_string()),
+                },
+            );
         }
     }
     out
@@ -102,6 +105,7 @@ fn once(
 
 fn measure(
     plan: &Plan,
+    kind: BackendKind,
     backend: &mut dyn Backend,
     spec: &SceneSpec,
     spheres: &SphereSet,
@@ -139,13 +143,13 @@ fn measure(
     let spread = |values: Vec<f64>| Spread::of(&values).expect("a plan has at least one repeat");
     Ok(DetectRow {
         experiment: Experiment::Dcd,
-        backend: info.name.to_owned(),
+        backend: kind,
         device: info.device,
-        scene: spec.scene.name(),
-        layout: value_name(spec.layout),
+        scene: SceneKind::Generated(spec.scene),
+        layout: spec.layout,
         n: spheres.len(),
-        mode: mode.name().to_owned(),
-        structure: value_name(plan.settings.structure),
+        mode,
+        structure: plan.settings.structure,
         candidates: stats.candidates,
         candidates_per_sphere: stats.candidates as f64 / spheres.len().max(1) as f64,
         pairs: stats.pairs,

@@ -5,6 +5,7 @@ use super::plan::Experiment;
 use super::report::{DemRow, DetectRow, Report};
 use super::stats::Spread;
 use crate::dem::Clock;
+use crate::dem::scene::by_name;
 use std::fmt::Write;
 
 /// The whole report as Markdown.
@@ -49,7 +50,7 @@ pub fn render(report: &Report) -> String {
                 out,
                 "| {} | {} | {} | {} |",
                 s.experiment.number(),
-                s.backend,
+                s.backend.name(),
                 s.what,
                 s.reason.replace('|', "/")
             );
@@ -75,13 +76,13 @@ fn header(out: &mut String, r: &Report) {
     for b in &r.backends {
         match (&b.device, &b.left_out) {
             (_, Some(why)) => {
-                let _ = writeln!(out, "- {}: left out ({why})", b.name);
+                let _ = writeln!(out, "- {}: left out ({why})", b.name.name());
             }
             (Some(device), None) => {
-                let _ = writeln!(out, "- {}: {device}", b.name);
+                let _ = writeln!(out, "- {}: {device}", b.name.name());
             }
             (None, None) => {
-                let _ = writeln!(out, "- {}", b.name);
+                let _ = writeln!(out, "- {}", b.name.name());
             }
         }
     }
@@ -107,11 +108,11 @@ fn detect_table(out: &mut String, rows: &[DetectRow]) {
         let _ = writeln!(
             out,
             "| {} | {} | {} | {} | {} | {:.2} | {} | {} | {} | {} | {} | {} | {} |",
-            r.backend,
+            r.backend.name(),
             r.scene,
             r.n,
-            r.mode,
-            r.structure,
+            r.mode.name(),
+            by_name::name(&r.structure),
             r.candidates_per_sphere,
             r.pairs,
             spread(&r.build_ms),
@@ -146,11 +147,11 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
         let _ = writeln!(
             out,
             "| {} | {} | {} | {} | {} |{rebuild} {} | {} | {} | {} | {} | {} | {} | {} |",
-            r.backend,
+            r.backend.name(),
             r.scene,
             r.n,
-            r.mode,
-            r.structure,
+            r.mode.name(),
+            by_name::name(&r.structure),
             r.contacts,
             spread(&r.build_ms),
             spread(&r.dcd_ms),

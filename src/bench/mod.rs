@@ -26,11 +26,15 @@ pub mod targets;
 
 use crate::backend::BackendKind;
 use crate::backend::wgpu_compute::Structure;
-use crate::dem::scene::Start;
+use crate::dem::scene::{SceneKind, Start};
 use crate::error::Result;
 use crate::proxy::ProxyMode;
+use crate::scenes::Scene;
 use plan::{BackendStatus, Experiment, Plan};
 use report::{Machine, Report, SCHEMA_VERSION, Skipped, utc_now};
+
+/// The scene of experiment 6 measured with the single and the multi-level grid.
+const POLYLOG: SceneKind = SceneKind::Generated(Scene::Polylog);
 
 /// A measurement made, or why it could not be.
 pub enum Outcome<T> {
@@ -38,13 +42,6 @@ pub enum Outcome<T> {
     Row(T),
     /// What was to be measured, and why it was not.
     Skipped(String, String),
-}
-
-/// The command-line name of a value (`poly1.2`, `random`, `mlgrid`).
-pub fn value_name<T: clap::ValueEnum>(value: T) -> String {
-    value
-        .to_possible_value()
-        .map_or_else(String::new, |v| v.get_name().to_owned())
 }
 
 /// Runs `plan`, calling `progress` before each measurement; `backends` (from
@@ -70,10 +67,10 @@ pub fn run(
         targets: Vec::new(),
     };
     for &experiment in &plan.settings.experiments {
-        let mut skip = |backend: &str, what: String, reason: String| {
+        let mut skip = |backend: BackendKind, what: String, reason: String| {
             report.skipped.push(Skipped {
                 experiment,
-                backend: backend.to_owned(),
+                backend,
                 what,
                 reason,
             })
@@ -85,7 +82,7 @@ pub fn run(
                     for outcome in detect::run(plan, kind, &sets, progress) {
                         match outcome {
                             Outcome::Row(row) => report.detect.push(row),
-                            Outcome::Skipped(what, why) => skip(kind.name(), what, why),
+                            Outcome::Skipped(what, why) => skip(kind, what, why),
                         }
                     }
                 }
@@ -103,7 +100,7 @@ pub fn run(
                             for outcome in dem::run(plan, kind, &case, progress) {
                                 match outcome {
                                     Outcome::Row(row) => report.dem.push(row),
-                                    Outcome::Skipped(what, why) => skip(kind.name(), what, why),
+                                    Outcome::Skipped(what, why) => skip(kind, what, why),
                                 }
                             }
                         }
@@ -117,16 +114,19 @@ pub fn run(
     Ok(report)
 }
 
-/// The scenes of DEM experiment `experiment`, by name, with their starts.
+/// The scenes of DEM experiment `experiment`, with their starts.
 fn dem_starts(
     plan: &Plan,
     experiment: Experiment,
     progress: &mut dyn FnMut(&str),
-) -> Result<Vec<(&'static str, Start)>> {
+) -> Result<Vec<(SceneKind, Start)>> {
     let n = plan.settings.spheres;
+    let seed = plan.settings.seed;
+    let freefall = SceneKind::Generated(Scene::Freefall);
     Ok(match experiment {
         Experiment::Targets => {
-            let mut slab = dem::start("slab", n, plan.settings.seed)?;
+            let slab_scene = SceneKind::Generated(Scene::Slab);
+            let mut slab = dem::start(slab_scene, n, seed)?;
             if plan.settings.settle > 0 {
                 progress(&format!(
                     "letting the slab land ({} steps)",
@@ -134,21 +134,24 @@ fn dem_starts(
                 ));
                 slab = dem::settle(plan, &slab)?;
             }
-            let polylog = dem::start("polylog", n, plan.settings.seed)?;
+            let polylog = dem::start(POLYLOG, n, seed)?;
             // nns mode too: the DCD phase at radius ratio 120 in both modes.
             let nns = Start {
                 mode: ProxyMode::Nns,
                 ..polylog.clone()
             };
-            vec![("slab", slab), ("polylog", polylog), ("polylog", nns)]
+            vec![(slab_scene, slab), (POLYLOG, polylog), (POLYLOG, nns)]
         }
         Experiment::Scaling => plan
             .scaling_sizes()
             .into_iter()
-            .map(|n| Ok(("freefall", dem::start("freefall", n, plan.settings.seed)?)))
+            .map(|n| Ok((freefall, dem::start(freefall, n, seed)?)))
             .collect::<Result<_>>()?,
-        Experiment::Rotating => vec![("rotating", dem::start("rotating", n, plan.settings.seed)?)],
-        _ => vec![("freefall", dem::start("freefall", n, plan.settings.seed)?)],
+        Experiment::Rotating => {
+            let rotating = SceneKind::Rotating;
+            vec![(rotating, dem::start(rotating, n, seed)?)]
+        }
+        _ => vec![(freefall, dem::start(freefall, n, seed)?)],
     })
 }
 
@@ -158,17 +161,44 @@ fn dem_starts(
 fn structures(
     plan: &Plan,
     experiment: Experiment,
-    scene: &str,
+    scene: SceneKind,
     start: &Start,
     kind: BackendKind,
 ) -> Vec<Structure> {
     if experiment == Experiment::Targets
-        && scene == "polylog"
+        && scene == POLYLOG
         && start.mode == ProxyMode::Mochi
         && kind == BackendKind::WgpuCompute
     {
         vec![Structure::Grid, Structure::Mlgrid]
     } else {
         vec![plan.settings.structure]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dem::scene::by_name;
+
+    #[derive(Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+    struct Row {
+        #[serde(with = "by_name")]
+        backend: BackendKind,
+    }
+
+    #[test]
+    fn backends_are_written_and_read_by_their_names() {
+        for backend in BackendKind::ALL {
+            let json = serde_json::to_string(&Row { backend }).unwrap();
+            assert_eq!(json, format!("{{\"backend\":\"{}\"}}", backend.name()));
+            assert_eq!(serde_json::from_str::<Row>(&json).unwrap(), Row { backend });
+        }
+        let e = serde_json::from_str::<Row>(r#"{"backend":"gpu"}"#).unwrap_err();
+        let e = e.to_string();
+        assert!(
+            e.contains("\"gpu\"") && e.contains("optix, wgpu-rq, wgpu-compute or cpu"),
+            "{e}"
+        );
     }
 }

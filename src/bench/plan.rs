@@ -148,9 +148,9 @@ impl std::str::FromStr for BackendSelection {
                 .split(',')
                 .map(|name| {
                     BackendKind::from_str(name.trim(), true).map_err(|_| {
+                        let names = BackendKind::ALL.map(BackendKind::name).join(", ");
                         format!(
-                            "unknown backend `{}`: use auto, all, or names from optix, \
-                             wgpu-rq, wgpu-compute, cpu",
+                            "unknown backend `{}`: use auto, all, or names from {names}",
                             name.trim()
                         )
                     })
@@ -164,8 +164,9 @@ impl std::str::FromStr for BackendSelection {
 /// A backend that was left out, and why.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct BackendStatus {
-    /// Backend name.
-    pub name: String,
+    /// The backend.
+    #[serde(with = "crate::dem::scene::by_name")]
+    pub name: BackendKind,
     /// The device it runs on, when it runs.
     pub device: Option<String>,
     /// Why it was left out, when it was.
@@ -199,7 +200,7 @@ impl BackendSelection {
                 chosen.push(kind);
             }
             status.push(BackendStatus {
-                name: kind.name().to_owned(),
+                name: kind,
                 device: probe.ok(),
                 left_out,
             });
@@ -317,6 +318,11 @@ mod tests {
             BackendSelection::List(vec![BackendKind::Cpu, BackendKind::WgpuCompute])
         );
         assert!("cpu,gpu".parse::<BackendSelection>().is_err());
+        let e = "cpu,gpu".parse::<BackendSelection>().unwrap_err();
+        assert!(
+            e.contains("`gpu`: use auto, all, or names from optix, wgpu-rq, wgpu-compute, cpu"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -5,7 +5,9 @@
 use super::markdown::{speedup, time};
 use super::plan::Experiment;
 use super::report::{DemRow, Report};
+use crate::dem::scene::by_name;
 use crate::error::{Error, Result};
+use crate::proxy::ProxyMode;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
@@ -168,11 +170,11 @@ fn draw_legend<'a, CT: CoordTranslate>(chart: &mut ChartContext<'a, SVGBackend<'
 fn dcd(area: &Area, title: &str, report: &Report) -> Drawn {
     let mut groups: Vec<(String, Vec<Bar>)> = Vec::new();
     for row in &report.detect {
-        let name = format!("{}\n{}", row.backend, row.scene);
+        let name = format!("{}\n{}", row.backend.name(), row.scene);
         if groups.last().is_none_or(|(g, _)| *g != name) {
             groups.push((name, Vec::new()));
         }
-        let key = usize::from(row.mode != "mochi");
+        let key = usize::from(row.mode != ProxyMode::Mochi);
         let mut label = format!("{} ms", time(row.detect_ms.median));
         if let Some(s) = row.detect_speedup_vs_nns {
             label = format!("{}\n{label}", speedup(Some(s)));
@@ -187,7 +189,7 @@ fn dcd(area: &Area, title: &str, report: &Report) -> Drawn {
     bars(
         area,
         &format!("{title} (detect; label: mochi vs nns)"),
-        &["mochi", "nns"],
+        &[ProxyMode::Mochi.name(), ProxyMode::Nns.name()],
         &groups,
     )
 }
@@ -210,9 +212,15 @@ fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
                 label,
             };
             let name = if r.experiment == Experiment::Targets {
-                format!("{}\n{} {} {}", r.backend, r.scene, r.mode, r.structure)
+                format!(
+                    "{}\n{} {} {}",
+                    r.backend.name(),
+                    r.scene,
+                    r.mode.name(),
+                    by_name::name(&r.structure)
+                )
             } else {
-                format!("{}\nn={}", r.backend, r.n)
+                format!("{}\nn={}", r.backend.name(), r.n)
             };
             (name, vec![bar])
         })
@@ -296,10 +304,13 @@ fn rebuild(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
     for r in rows {
         let t = r.total_ms.median;
         let (name, points) = match r.rebuild.parse::<f64>() {
-            Ok(k) => (r.backend.clone(), vec![(k, t)]),
-            Err(_) if r.refits => (format!("{} (auto)", r.backend), vec![(lo, t), (hi, t)]),
+            Ok(k) => (r.backend.name().to_owned(), vec![(k, t)]),
+            Err(_) if r.refits => (
+                format!("{} (auto)", r.backend.name()),
+                vec![(lo, t), (hi, t)],
+            ),
             Err(_) => (
-                format!("{} (rebuilds every step)", r.backend),
+                format!("{} (rebuilds every step)", r.backend.name()),
                 vec![(lo, t), (hi, t)],
             ),
         };
@@ -316,9 +327,10 @@ fn scaling(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
     let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for r in rows {
         let point = (r.n as f64, r.total_ms.median);
-        match series.iter_mut().find(|(n, _)| *n == r.backend) {
+        let name = r.backend.name();
+        match series.iter_mut().find(|(n, _)| n == name) {
             Some((_, line)) => line.push(point),
-            None => series.push((r.backend.clone(), vec![point])),
+            None => series.push((name.to_owned(), vec![point])),
         }
     }
     curves(area, title, "spheres", &series)

@@ -4,7 +4,12 @@
 use super::plan::{BackendStatus, Experiment, Settings};
 use super::stats::Spread;
 use super::targets::Check;
+use crate::backend::BackendKind;
+use crate::backend::wgpu_compute::Structure;
 use crate::dem::Clock;
+use crate::dem::scene::SceneKind;
+use crate::proxy::ProxyMode;
+use crate::scenes::Layout;
 use serde::{Deserialize, Serialize};
 
 /// Version of the JSON layout; raised whenever a field changes meaning or goes away.
@@ -75,20 +80,21 @@ impl Machine {
 pub struct DetectRow {
     /// Always [`Experiment::Dcd`].
     pub experiment: Experiment,
-    /// Backend name.
-    pub backend: String,
+    /// The backend.
+    #[serde(with = "crate::dem::scene::by_name")]
+    pub backend: BackendKind,
     /// Its device, in words.
     pub device: String,
-    /// Scene name.
-    pub scene: String,
+    /// The scene.
+    pub scene: SceneKind,
     /// Layout of the centres (`random`: overlaps allowed).
-    pub layout: String,
+    pub layout: Layout,
     /// Spheres.
     pub n: usize,
-    /// `mochi` or `nns`.
-    pub mode: String,
+    /// Proxy mode.
+    pub mode: ProxyMode,
     /// Structure asked for (`wgpu-compute`'s grid; the others have one).
-    pub structure: String,
+    pub structure: Structure,
     /// Candidate pairs tested (box or cell hits) in one detection.
     pub candidates: u64,
     /// Candidates per sphere (per ray).
@@ -119,18 +125,19 @@ pub struct DetectRow {
 pub struct DemRow {
     /// Experiment 2–6.
     pub experiment: Experiment,
-    /// Backend name.
-    pub backend: String,
+    /// The backend.
+    #[serde(with = "crate::dem::scene::by_name")]
+    pub backend: BackendKind,
     /// Its device, in words.
     pub device: String,
-    /// Scene name (`freefall`, `rotating`, `slab`, `polylog`).
-    pub scene: String,
+    /// The scene (`freefall`, `rotating`, `slab`, `polylog`).
+    pub scene: SceneKind,
     /// Spheres.
     pub n: usize,
-    /// `mochi` or `nns`.
-    pub mode: String,
+    /// Proxy mode.
+    pub mode: ProxyMode,
     /// Structure asked for (`wgpu-compute`'s grid).
-    pub structure: String,
+    pub structure: Structure,
     /// Rebuild policy: `auto`, an interval in steps, or `every step` for steps that never refit.
     pub rebuild: String,
     /// Whether the step refits between rebuilds.
@@ -162,8 +169,9 @@ pub struct DemRow {
 pub struct Skipped {
     /// The experiment.
     pub experiment: Experiment,
-    /// Backend name.
-    pub backend: String,
+    /// The backend.
+    #[serde(with = "crate::dem::scene::by_name")]
+    pub backend: BackendKind,
     /// What was to be measured.
     pub what: String,
     /// Why it was not.
@@ -175,17 +183,17 @@ impl Report {
     pub fn fill_speedups(&mut self) {
         let detect = self.detect.clone();
         for row in &mut self.detect {
-            let peer = |backend: &str, mode: &str| {
+            let peer = |backend: BackendKind, mode: ProxyMode| {
                 detect.iter().find(|o| {
                     o.backend == backend && o.mode == mode && o.scene == row.scene && o.n == row.n
                 })
             };
-            row.detect_speedup_vs_nns = (row.mode == "mochi")
-                .then(|| peer(&row.backend, "nns"))
+            row.detect_speedup_vs_nns = (row.mode == ProxyMode::Mochi)
+                .then(|| peer(row.backend, ProxyMode::Nns))
                 .flatten()
                 .map(|nns| ratio(nns.detect_ms.median, row.detect_ms.median));
-            row.speedup_vs_cpu = peer("cpu", &row.mode)
-                .filter(|_| row.backend != "cpu")
+            row.speedup_vs_cpu = peer(BackendKind::Cpu, row.mode)
+                .filter(|_| row.backend != BackendKind::Cpu)
                 .map(|cpu| ratio(cpu.total_ms.median, row.total_ms.median));
         }
         let dem = self.dem.clone();
@@ -193,14 +201,14 @@ impl Report {
             row.speedup_vs_cpu = dem
                 .iter()
                 .find(|o| {
-                    o.backend == "cpu"
+                    o.backend == BackendKind::Cpu
                         && o.experiment == row.experiment
                         && o.scene == row.scene
                         && o.n == row.n
                         && o.mode == row.mode
                         && (o.rebuild == row.rebuild || !o.refits)
                 })
-                .filter(|_| row.backend != "cpu")
+                .filter(|_| row.backend != BackendKind::Cpu)
                 .map(|cpu| ratio(cpu.total_ms.median, row.total_ms.median));
         }
     }

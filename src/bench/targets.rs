@@ -3,6 +3,11 @@
 
 use super::plan::Experiment;
 use super::report::{DemRow, Report};
+use crate::backend::BackendKind;
+use crate::dem::scene::SceneKind;
+use crate::dem::scene::by_name;
+use crate::proxy::ProxyMode;
+use crate::scenes::Scene;
 use serde::{Deserialize, Serialize};
 
 /// One target and how the report meets it.
@@ -16,6 +21,11 @@ pub struct Check {
     pub met: Option<bool>,
 }
 
+/// The scenes the targets name.
+const SLAB: SceneKind = SceneKind::Generated(Scene::Slab);
+const POLYLOG: SceneKind = SceneKind::Generated(Scene::Polylog);
+const POLY120: SceneKind = SceneKind::Generated(Scene::Poly120);
+
 /// Spheres of the DEM targets.
 const MILLION: usize = 1_000_000;
 
@@ -24,7 +34,7 @@ pub fn check(report: &Report) -> Vec<Check> {
     vec![
         dem_target(
             report,
-            "slab",
+            SLAB,
             "landed slab 1M: full DEM step ≤ 0.45 ms on the fastest backend",
             0.45,
             // Only a slab that had steps to land is the landed slab.
@@ -32,7 +42,7 @@ pub fn check(report: &Report) -> Vec<Check> {
         ),
         dem_target(
             report,
-            "polylog",
+            POLYLOG,
             "polylog 1M: full DEM step ≤ 0.5 ms (grid and mlgrid side by side)",
             0.5,
             true,
@@ -46,18 +56,29 @@ pub fn check(report: &Report) -> Vec<Check> {
 
 /// The fastest experiment-6 row of `scene` at 1M spheres against `limit_ms` (judged only where
 /// `judged`).
-fn dem_target(report: &Report, scene: &str, target: &str, limit_ms: f64, judged: bool) -> Check {
+fn dem_target(
+    report: &Report,
+    scene: SceneKind,
+    target: &str,
+    limit_ms: f64,
+    judged: bool,
+) -> Check {
     let rows: Vec<&DemRow> = report
         .dem
         .iter()
-        .filter(|r| r.experiment == Experiment::Targets && r.scene == scene && r.mode == "mochi")
+        .filter(|r| {
+            r.experiment == Experiment::Targets && r.scene == scene && r.mode == ProxyMode::Mochi
+        })
         .collect();
     let listed = rows
         .iter()
         .map(|r| {
             format!(
                 "{} {} n={}: {:.3} ms",
-                r.backend, r.structure, r.n, r.total_ms.median
+                r.backend.name(),
+                by_name::name(&r.structure),
+                r.n,
+                r.total_ms.median
             )
         })
         .collect::<Vec<_>>()
@@ -85,7 +106,14 @@ fn five_million(report: &Report) -> Check {
         target: "5M spheres fit and run".to_owned(),
         measured: ran.map_or_else(
             || "not run (e.g. --spheres 5000000 --experiments freefall)".to_owned(),
-            |r| format!("{} n={}: {:.3} ms/step", r.backend, r.n, r.total_ms.median),
+            |r| {
+                format!(
+                    "{} n={}: {:.3} ms/step",
+                    r.backend.name(),
+                    r.n,
+                    r.total_ms.median
+                )
+            },
         ),
         met: ran.map(|_| true),
     }
@@ -93,7 +121,7 @@ fn five_million(report: &Report) -> Check {
 
 /// "mochi ≥ 3× faster than nns at radius ratio 120, every backend", judged at 1M spheres on
 /// `speedups` (backend, size, speed-up).
-fn at_ratio_120(target: &str, missing: &str, speedups: &[(String, usize, f64)]) -> Check {
+fn at_ratio_120(target: &str, missing: &str, speedups: &[(&str, usize, f64)]) -> Check {
     let at_million: Vec<f64> = speedups
         .iter()
         .filter(|(_, n, _)| *n == MILLION)
@@ -116,11 +144,11 @@ fn at_ratio_120(target: &str, missing: &str, speedups: &[(String, usize, f64)]) 
 
 /// Experiment 1, `poly120`: the detection of mochi mode against nns mode.
 fn detect_ratio_120(report: &Report) -> Check {
-    let speedups: Vec<(String, usize, f64)> = report
+    let speedups: Vec<(&str, usize, f64)> = report
         .detect
         .iter()
-        .filter(|r| r.scene == "poly120")
-        .filter_map(|r| Some((r.backend.clone(), r.n, r.detect_speedup_vs_nns?)))
+        .filter(|r| r.scene == POLY120)
+        .filter_map(|r| Some((r.backend.name(), r.n, r.detect_speedup_vs_nns?)))
         .collect();
     at_ratio_120(
         "detection in mochi mode ≥ 3× faster than nns at radius ratio 120 (poly120), every backend",
@@ -132,18 +160,18 @@ fn detect_ratio_120(report: &Report) -> Check {
 /// Experiment 6, `polylog` (radius ratio 120): the DEM step's DCD phase, the fastest mochi
 /// structure of each backend against its nns row.
 fn dem_dcd_ratio_120(report: &Report) -> Check {
-    let polylog = |mode: &'static str| {
+    let polylog = |mode: ProxyMode| {
         report.dem.iter().filter(move |r| {
-            r.experiment == Experiment::Targets && r.scene == "polylog" && r.mode == mode
+            r.experiment == Experiment::Targets && r.scene == POLYLOG && r.mode == mode
         })
     };
-    let speedups: Vec<(String, usize, f64)> = polylog("nns")
+    let speedups: Vec<(&str, usize, f64)> = polylog(ProxyMode::Nns)
         .filter_map(|nns| {
-            let mochi = polylog("mochi")
+            let mochi = polylog(ProxyMode::Mochi)
                 .filter(|m| m.backend == nns.backend && m.n == nns.n)
                 .map(|m| m.dcd_ms.median)
                 .min_by(f64::total_cmp)?;
-            Some((nns.backend.clone(), nns.n, nns.dcd_ms.median / mochi))
+            Some((nns.backend.name(), nns.n, nns.dcd_ms.median / mochi))
         })
         .collect();
     at_ratio_120(
@@ -157,10 +185,9 @@ fn dem_dcd_ratio_120(report: &Report) -> Check {
 /// Experiment 1 on the cpu backend: 100k poly120 spheres built and detected in ≤ 7 ms (the
 /// target is for 2 cores; the row says how many threads ran).
 fn cpu_poly120(report: &Report) -> Check {
-    let row = report
-        .detect
-        .iter()
-        .find(|r| r.backend == "cpu" && r.scene == "poly120" && r.mode == "mochi");
+    let row = report.detect.iter().find(|r| {
+        r.backend == BackendKind::Cpu && r.scene == POLY120 && r.mode == ProxyMode::Mochi
+    });
     Check {
         target: "cpu backend, 2 cores, 100k poly120: build + detect ≤ 7 ms".to_owned(),
         measured: row.map_or_else(
@@ -186,6 +213,7 @@ mod tests {
     use crate::bench::report::{Machine, SCHEMA_VERSION};
     use crate::bench::stats::Spread;
     use crate::dem::Clock;
+    use clap::ValueEnum;
 
     fn ms(v: f64) -> Spread {
         Spread::of(&[v]).unwrap()
@@ -194,12 +222,12 @@ mod tests {
     fn row(scene: &str, mode: &str, structure: &str, dcd: f64, total: f64) -> DemRow {
         DemRow {
             experiment: Experiment::Targets,
-            backend: "wgpu-compute".into(),
+            backend: BackendKind::WgpuCompute,
             device: "GPU".into(),
-            scene: scene.into(),
+            scene: scene.parse().unwrap(),
             n: MILLION,
-            mode: mode.into(),
-            structure: structure.into(),
+            mode: ProxyMode::from_str(mode, false).unwrap(),
+            structure: Structure::from_str(structure, false).unwrap(),
             rebuild: "every step".into(),
             refits: false,
             steps: 10,

@@ -4,6 +4,7 @@ use super::args::{Cli, Command, DetectArgs, GenerateArgs, SceneArgs};
 use super::output::{folder_of, refuse_same_file};
 use anyhow::Result;
 use mochi::backend::{self, BackendKind};
+use mochi::dem::scene::by_name;
 use mochi::scenes::{self, Layout, SceneSpec};
 use mochi::{SphereSet, io};
 use std::time::Instant;
@@ -31,12 +32,11 @@ fn scene(args: &SceneArgs, default_layout: Layout) -> Result<(SphereSet, String)
     };
     let spheres = scenes::generate(&spec)?;
     let what = format!(
-        "scene {} ({:?} layout, seed {})",
+        "scene {} ({} layout, seed {})",
         spec.scene.name(),
-        spec.layout,
+        by_name::name(&spec.layout),
         spec.seed
-    )
-    .to_lowercase();
+    );
     Ok((spheres, what))
 }
 

@@ -6,7 +6,7 @@ use super::render::{FrameData, FrameRenderer, png_name};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::backend::Options;
-use mochi::dem::scene::SceneConfig;
+use mochi::dem::scene::{SceneConfig, SceneFlags, SceneKind};
 use mochi::dem::{Clock, StageTimes, Stepper, open_choice};
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::render::ColorBy;
@@ -16,36 +16,26 @@ use std::time::Instant;
 /// Steps between two progress updates at most.
 const PROGRESS_EVERY: u64 = 100;
 
-/// The scene overrides the named flags stand for, then the --set ones.
-fn overrides(args: &SimulateArgs) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut set = |key: &str, value: Option<String>| {
-        if let Some(v) = value {
-            out.push(format!("{key}={v}"));
-        }
+/// The scene fields the named flags give.
+fn flags(args: &SimulateArgs) -> Result<SceneFlags> {
+    let scene = match (&args.input, &args.mesh, &args.scene) {
+        (Some(_), _, _) => Some(SceneKind::Input),
+        (_, Some(_), _) => Some(SceneKind::Mesh),
+        (_, _, Some(name)) => Some(name.parse().map_err(anyhow::Error::msg)?),
+        _ => None,
     };
-    set("scene", args.scene.as_ref().map(|s| format!("{s:?}")));
-    set("spheres", args.spheres.map(|v| v.to_string()));
-    set("seed", args.seed.map(|v| v.to_string()));
-    set("steps", args.steps.map(|v| v.to_string()));
-    set("dt", args.dt.map(|v| format!("{v:e}")));
-    set("frame_every", args.frame_every.map(|v| v.to_string()));
-    if let Some(input) = &args.input {
-        set("scene", Some("\"input\"".into()));
-        set("input", Some(format!("{:?}", input.display().to_string())));
-    }
-    if let Some(mesh) = &args.mesh {
-        set("scene", Some("\"mesh\"".into()));
-        set("mesh", Some(format!("{:?}", mesh.display().to_string())));
-    }
-    set("csv", args.csv.then(|| "true".into()));
-    set(
-        "mode",
-        args.mode
-            .map(|m| format!("{:?}", format!("{m:?}").to_lowercase())),
-    );
-    out.extend(args.set.iter().cloned());
-    out
+    Ok(SceneFlags {
+        scene,
+        spheres: args.spheres,
+        seed: args.seed,
+        steps: args.steps,
+        dt: args.dt,
+        frame_every: args.frame_every,
+        csv: args.csv.then_some(true),
+        input: args.input.clone(),
+        mesh: args.mesh.clone(),
+        mode: args.mode,
+    })
 }
 
 pub fn simulate(args: SimulateArgs) -> Result<()> {
@@ -59,11 +49,11 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         // Checked again once the folder is locked; here before the scene is built.
         output::refuse_earlier_run(&args.out)?;
     }
-    let overrides = overrides(&args);
+    let flags = flags(&args)?;
     let (config, start) = match &args.resume {
         Some(path) => {
             let (particles, scene) = io::read_checkpoint(path)?;
-            let config = SceneConfig::resume(&scene, path, &overrides)
+            let config = SceneConfig::resume(&scene, path, &flags, &args.set)
                 .with_context(|| format!("resuming {}", path.display()))?;
             let start = config
                 .resume_from(particles)
@@ -71,7 +61,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             (config, start)
         }
         None => {
-            let config = SceneConfig::load_new(args.scene_file.as_deref(), &overrides)?;
+            let config = SceneConfig::load_new(args.scene_file.as_deref(), &flags, &args.set)?;
             let start = config.build()?;
             (config.resolved(&start), start)
         }

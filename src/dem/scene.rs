@@ -34,13 +34,179 @@ use crate::spheres::SphereSet;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+/// The names of [`clap::ValueEnum`] values: on the command line, in TOML and in reports alike.
+/// As a serde module (`#[serde(with = "crate::dem::scene::by_name")]`) it serves types that
+/// have no serde of their own and fields read in any case (as scene files always were).
+pub mod by_name {
+    use serde::de::Error as _;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    /// The command-line name of `value`.
+    pub fn name<T: clap::ValueEnum>(value: &T) -> String {
+        value
+            .to_possible_value()
+            .expect("no value is hidden from the command line")
+            .get_name()
+            .to_owned()
+    }
+
+    /// The value of `T` named `name` in any case, or an error naming `what` and listing the
+    /// names.
+    pub fn parse<T: clap::ValueEnum>(name: &str, what: &str) -> Result<T, String> {
+        T::from_str(name, true).map_err(|_| {
+            let names: Vec<String> = T::value_variants().iter().map(self::name).collect();
+            let (last, rest) = names.split_last().expect("an enum has values");
+            format!("unknown {what} {name:?}: use {} or {last}", rest.join(", "))
+        })
+    }
+
+    /// Writes the name of `value`.
+    pub fn serialize<T: clap::ValueEnum, S: Serializer>(
+        value: &T,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&name(value))
+    }
+
+    /// Reads a name in any case, refusing any other than those of `T`, which the error lists.
+    pub fn deserialize<'de, T: clap::ValueEnum, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
+        let name = String::deserialize(d)?;
+        parse(&name, "value").map_err(D::Error::custom)
+    }
+}
+
+/// What the `scene` field names: a generated scene of [`Scene`], `rotating` (freefall under
+/// rotating gravity), `mesh` (a filled mesh) or `input` (a sphere file). Its names are those of
+/// [`clap::ValueEnum`], in TOML and on the command line alike.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum SceneKind {
+    /// A generated scene.
+    Generated(Scene),
+    /// `freefall` under gravity rotating about the y axis.
+    Rotating,
+    /// A mesh filled with spheres.
+    Mesh,
+    /// The spheres of a file.
+    Input,
+}
+
+impl SceneKind {
+    /// Every scene, in the order errors list them.
+    pub const ALL: [SceneKind; 9] = [
+        SceneKind::Generated(Scene::Freefall),
+        SceneKind::Generated(Scene::Slab),
+        SceneKind::Generated(Scene::Poly1_2),
+        SceneKind::Generated(Scene::Poly12),
+        SceneKind::Generated(Scene::Poly120),
+        SceneKind::Generated(Scene::Polylog),
+        SceneKind::Rotating,
+        SceneKind::Mesh,
+        SceneKind::Input,
+    ];
+
+    /// Name, as in TOML and on the command line.
+    pub fn name(self) -> String {
+        by_name::name(&self)
+    }
+
+    /// Where the spheres come from (`rotating` is freefall).
+    fn source(self) -> Source {
+        match self {
+            SceneKind::Generated(scene) => Source::Generated(scene),
+            SceneKind::Rotating => Source::Generated(Scene::Freefall),
+            SceneKind::Mesh => Source::Mesh,
+            SceneKind::Input => Source::Input,
+        }
+    }
+}
+
+/// Where a scene's spheres come from.
+#[derive(Debug, Clone, Copy)]
+enum Source {
+    Generated(Scene),
+    Mesh,
+    Input,
+}
+
+impl clap::ValueEnum for SceneKind {
+    fn value_variants<'a>() -> &'a [Self] {
+        &Self::ALL
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        use clap::builder::PossibleValue;
+        Some(match self {
+            SceneKind::Generated(scene) => return scene.to_possible_value(),
+            SceneKind::Rotating => PossibleValue::new("rotating")
+                .help("freefall under gravity rotating about y (gravity_spin 0.25π rad/s)"),
+            SceneKind::Mesh => PossibleValue::new("mesh").help("a mesh (mesh = FILE) filled"),
+            SceneKind::Input => PossibleValue::new("input").help("the spheres of input = FILE"),
+        })
+    }
+}
+
+impl std::str::FromStr for SceneKind {
+    type Err = String;
+
+    /// `name` in any case.
+    fn from_str(name: &str) -> std::result::Result<Self, String> {
+        by_name::parse(name, "scene")
+    }
+}
+
+impl TryFrom<String> for SceneKind {
+    type Error = String;
+
+    fn try_from(name: String) -> std::result::Result<Self, String> {
+        name.parse()
+    }
+}
+
+impl From<SceneKind> for String {
+    fn from(scene: SceneKind) -> String {
+        scene.name()
+    }
+}
+
+impl std::fmt::Display for SceneKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.name())
+    }
+}
+
+/// The scene fields named command-line options give (`None`: not given). They apply over the
+/// scene file, and `--set` overrides apply over them.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct SceneFlags {
+    /// `--scene`, `--input` (scene `input`) or `--mesh` (scene `mesh`).
+    pub scene: Option<SceneKind>,
+    /// `-n`.
+    pub spheres: Option<u64>,
+    /// `--seed`.
+    pub seed: Option<u64>,
+    /// `--steps`.
+    pub steps: Option<u64>,
+    /// `--dt`.
+    pub dt: Option<f64>,
+    /// `--frame-every`.
+    pub frame_every: Option<u64>,
+    /// `--csv` (given only as `true`).
+    pub csv: Option<bool>,
+    /// `--input`.
+    pub input: Option<PathBuf>,
+    /// `--mesh`.
+    pub mesh: Option<PathBuf>,
+    /// `--mode`.
+    pub mode: Option<ProxyMode>,
+}
+
 /// A DEM scene (see the module docs for the file format).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SceneConfig {
-    /// Generator: a named scene of [`Scene`], `rotating` (freefall under rotating gravity) or
-    /// `input` (the sphere file `input`).
-    pub scene: String,
+    /// Where the spheres come from.
+    pub scene: SceneKind,
     /// Number of spheres (generated scenes).
     pub spheres: usize,
     /// Seed of the generator.
@@ -69,7 +235,8 @@ pub struct SceneConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stiffness: Option<f64>,
     /// `mochi` (cells of 2·r_max) or `nns` (4·r_max).
-    pub mode: String,
+    #[serde(with = "by_name")]
+    pub mode: ProxyMode,
     /// Steps between frames (0: none).
     pub frame_every: u64,
     /// Also write each frame as CSV.
@@ -94,7 +261,7 @@ pub struct SceneConfig {
 impl Default for SceneConfig {
     fn default() -> Self {
         Self {
-            scene: "slab".into(),
+            scene: SceneKind::Generated(Scene::Slab),
             spheres: 50_000,
             seed: 1,
             steps: 5_000,
@@ -106,7 +273,7 @@ impl Default for SceneConfig {
             density: 500.0,
             restitution: 0.5,
             stiffness: None,
-            mode: "mochi".into(),
+            mode: ProxyMode::Mochi,
             frame_every: 250,
             csv: false,
             input: None,
@@ -122,14 +289,6 @@ impl Default for SceneConfig {
 /// The fields a resumed run may change: how far it runs and what it writes. Every other field
 /// is part of the run's identity and stays as its checkpoint saved it.
 pub const RESUMABLE: [&str; 3] = ["steps", "frame_every", "csv"];
-
-/// Where a scene's spheres come from.
-#[derive(Debug, Clone, Copy)]
-enum Source {
-    Generated(Scene),
-    Mesh,
-    Input,
-}
 
 /// Everything a run starts from.
 #[derive(Debug, Clone)]
@@ -192,14 +351,15 @@ impl SceneConfig {
         Self::parse(read_scene_file(path)?.as_deref(), path, overrides)
     }
 
-    /// Reads the scene of a new run: [`Self::load`], refusing fields given (in the file or by
-    /// an override) that the chosen scene does not use, such as `spheres` or `input` with a
-    /// `mesh` scene: each would be silently ignored.
-    pub fn load_new(path: Option<&Path>, overrides: &[String]) -> Result<Self> {
+    /// Reads the scene of a new run: the file (`None`: the defaults), then `flags`, then
+    /// `overrides`, refusing fields given (in the file, by a flag or by an override) that the
+    /// chosen scene does not use, such as `spheres` or `input` with a `mesh` scene: each would
+    /// be silently ignored.
+    pub fn load_new(path: Option<&Path>, flags: &SceneFlags, overrides: &[String]) -> Result<Self> {
         let text = read_scene_file(path)?;
-        let (mut config, given) = Self::parse_table(text.as_deref(), path, overrides)?;
+        let (mut config, given) = Self::parse_table(text.as_deref(), path, flags, overrides)?;
         config.rebase(path);
-        let source = config.source()?;
+        let source = config.scene.source();
         let scene_option = match source {
             Source::Input => "--input/--scene",
             Source::Mesh => "--mesh/--scene",
@@ -224,7 +384,7 @@ impl SceneConfig {
                 return Err(Error::Usage(format!(
                     "{key} = {value} ({option}) conflicts with scene {:?} ({scene_option}): that \
                      scene does not use {key}; give one or the other",
-                    config.scene
+                    config.scene.name()
                 )));
             }
         }
@@ -234,7 +394,8 @@ impl SceneConfig {
     /// Parses scene TOML (`None`: the defaults) from `origin` (named in errors; relative input
     /// paths are taken from its folder) and applies `overrides` (`key=value`).
     pub fn parse(text: Option<&str>, origin: Option<&Path>, overrides: &[String]) -> Result<Self> {
-        let (mut config, _) = Self::parse_table(text, origin, overrides)?;
+        let flags = SceneFlags::default();
+        let (mut config, _) = Self::parse_table(text, origin, &flags, overrides)?;
         config.rebase(origin);
         Ok(config)
     }
@@ -250,10 +411,11 @@ impl SceneConfig {
         }
     }
 
-    /// The scene and the table of the fields the text and the overrides give.
+    /// The scene and the table of the fields the text, the flags and the overrides give.
     fn parse_table(
         text: Option<&str>,
         origin: Option<&Path>,
+        flags: &SceneFlags,
         overrides: &[String],
     ) -> Result<(Self, toml::Table)> {
         let where_ = || origin.map_or_else(|| "command line".into(), Path::to_owned);
@@ -265,6 +427,11 @@ impl SceneConfig {
                 msg: e.to_string().trim_end().to_owned(),
             })?,
         };
+        // Fields left `None` are left out of the table.
+        let flagged = toml::Table::try_from(flags)
+            .map_err(|e| Error::Usage(format!("a scene option cannot be written in TOML: {e}")))?;
+        let overridden = !flagged.is_empty() || !overrides.is_empty();
+        table.extend(flagged);
         for o in overrides {
             apply_override(&mut table, o)?;
         }
@@ -272,7 +439,7 @@ impl SceneConfig {
         // when nothing was overridden, else the merged table's.
         let merged;
         let source = match text {
-            Some(t) if overrides.is_empty() => t,
+            Some(t) if !overridden => t,
             _ => {
                 merged = toml::to_string(&table).expect("a TOML table serializes");
                 merged.as_str()
@@ -286,12 +453,19 @@ impl SceneConfig {
         Ok((config, table))
     }
 
-    /// The scene saved in the checkpoint `origin` (`saved`, its TOML) with `overrides` applied.
-    /// A resumed run keeps its identity: only the fields of [`RESUMABLE`] may change; any other
-    /// override that changes a value is refused, naming the field. Paths stay as saved.
-    pub fn resume(saved: &str, origin: &Path, overrides: &[String]) -> Result<Self> {
-        let (before, _) = Self::parse_table(Some(saved), Some(origin), &[])?;
-        let (after, _) = Self::parse_table(Some(saved), Some(origin), overrides)?;
+    /// The scene saved in the checkpoint `origin` (`saved`, its TOML) with `flags`, then
+    /// `overrides`, applied. A resumed run keeps its identity: only the fields of [`RESUMABLE`]
+    /// may change; any other flag or override that changes a value is refused, naming the
+    /// field. Paths stay as saved.
+    pub fn resume(
+        saved: &str,
+        origin: &Path,
+        flags: &SceneFlags,
+        overrides: &[String],
+    ) -> Result<Self> {
+        let none = SceneFlags::default();
+        let (before, _) = Self::parse_table(Some(saved), Some(origin), &none, &[])?;
+        let (after, _) = Self::parse_table(Some(saved), Some(origin), flags, overrides)?;
         let fields = |c: &SceneConfig| toml::Table::try_from(c).expect("a scene serializes");
         let (was, now) = (fields(&before), fields(&after));
         let mut keys = was
@@ -315,33 +489,9 @@ impl SceneConfig {
         toml::to_string(self).expect("a scene always serializes")
     }
 
-    fn proxy_mode(&self) -> Result<ProxyMode> {
-        use clap::ValueEnum;
-        ProxyMode::from_str(&self.mode, true)
-            .map_err(|_| Error::Usage(format!("mode must be mochi or nns, got {:?}", self.mode)))
-    }
-
-    /// Where the spheres come from (`rotating` is freefall).
-    fn source(&self) -> Result<Source> {
-        use clap::ValueEnum;
-        match self.scene.as_str() {
-            "input" => Ok(Source::Input),
-            "mesh" => Ok(Source::Mesh),
-            "rotating" => Ok(Source::Generated(Scene::Freefall)),
-            name => Scene::from_str(name, true)
-                .map(Source::Generated)
-                .map_err(|_| {
-                    Error::Usage(format!(
-                        "unknown scene {name:?}: use freefall, slab, poly1.2, poly12, poly120, \
-                     polylog, rotating, mesh or input"
-                    ))
-                }),
-        }
-    }
-
     /// Builds the particles at t = 0 and the step parameters.
     pub fn build(&self) -> Result<Start> {
-        let spheres = match self.source()? {
+        let spheres = match self.scene.source() {
             Source::Generated(scene) => scenes::generate(&SceneSpec {
                 scene,
                 n: self.spheres,
@@ -488,9 +638,8 @@ impl SceneConfig {
 
     /// The step parameters for `particles` (at t = 0, or from a checkpoint of this scene).
     pub fn start_from(&self, particles: Particles) -> Result<Start> {
-        let mode = self.proxy_mode()?;
-        let source = self.source()?;
         let (r_min, r_max) = particles.radius_range();
+        let source = self.scene.source();
         let (default_lo, default_hi) = match source {
             Source::Generated(scene) => {
                 let side = scene.box_side(particles.len(), Layout::Lattice);
@@ -516,11 +665,13 @@ impl SceneConfig {
             Source::Mesh => 2.5e-5,
             _ => 1e-4,
         });
-        let spin = self.gravity_spin.unwrap_or(if self.scene == "rotating" {
-            0.25 * std::f64::consts::PI
-        } else {
-            0.0
-        });
+        let spin = self
+            .gravity_spin
+            .unwrap_or(if self.scene == SceneKind::Rotating {
+                0.25 * std::f64::consts::PI
+            } else {
+                0.0
+            });
         let material = Material {
             density: self.density,
             restitution: self.restitution,
@@ -535,7 +686,7 @@ impl SceneConfig {
         Ok(Start {
             particles,
             params,
-            mode,
+            mode: self.mode,
         })
     }
 
@@ -570,7 +721,7 @@ mod tests {
             ],
         )
         .unwrap();
-        assert_eq!(c.scene, "poly12");
+        assert_eq!(c.scene.name(), "poly12");
         assert_eq!(c.spheres, 2000);
         assert_eq!(c.gravity, [0.0, -9.81, 0.0]);
         assert_eq!(c.stiffness, Some(3.5));
@@ -589,8 +740,113 @@ mod tests {
         assert!(e.to_string().contains("outside the range"), "{e}");
         let e = SceneConfig::load(None, &["no equals sign".into()]).unwrap_err();
         assert!(e.to_string().contains("key=value"), "{e}");
-        let c = SceneConfig::load(None, &["scene=teapot".into()]).unwrap();
-        assert!(c.build().unwrap_err().to_string().contains("teapot"));
+        let e = SceneConfig::load(None, &["scene=teapot".into()]).unwrap_err();
+        assert!(e.to_string().contains("teapot"), "{e}");
+    }
+
+    #[test]
+    fn unknown_scenes_and_modes_are_errors_listing_the_names() {
+        let e = SceneConfig::parse(Some("scene = \"teapot\""), None, &[]).unwrap_err();
+        let e = e.to_string();
+        assert!(
+            e.contains(
+                "unknown scene \"teapot\": use freefall, slab, poly1.2, poly12, poly120, \
+                 polylog, rotating, mesh or input"
+            ),
+            "{e}"
+        );
+        let e = SceneConfig::load(None, &["mode=fast".into()]).unwrap_err();
+        let e = e.to_string();
+        assert!(
+            e.contains("unknown value \"fast\": use mochi or nns"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn each_scene_and_mode_has_one_name_in_toml_and_on_the_command_line() {
+        use clap::ValueEnum;
+        for scene in SceneKind::ALL {
+            let c = SceneConfig::load(None, &[format!("scene={}", scene.name())]).unwrap();
+            assert_eq!(c.scene, scene);
+            assert!(c.to_toml().contains(&format!("scene = \"{scene}\"")));
+        }
+        let generated = SceneKind::ALL.iter().filter_map(|s| match s {
+            SceneKind::Generated(scene) => Some(*scene),
+            _ => None,
+        });
+        assert!(generated.eq(Scene::value_variants().iter().copied()));
+        for &mode in ProxyMode::value_variants() {
+            let name = mode.to_possible_value().unwrap().get_name().to_owned();
+            assert_eq!(name, mode.name());
+            assert_eq!(serde_json::to_string(&mode).unwrap(), format!("\"{name}\""));
+            let c = SceneConfig::load(None, &[format!("mode={name}")]).unwrap();
+            assert_eq!(c.mode, mode);
+            assert!(c.to_toml().contains(&format!("mode = \"{name}\"")));
+        }
+    }
+
+    #[test]
+    fn flags_apply_over_the_file_and_set_over_the_flags() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("s.toml");
+        std::fs::write(&file, "scene = \"poly12\"\nspheres = 300\nsteps = 7\n").unwrap();
+        let flags = SceneFlags {
+            scene: Some(SceneKind::Rotating),
+            spheres: Some(200),
+            mode: Some(ProxyMode::Nns),
+            ..SceneFlags::default()
+        };
+        let c = SceneConfig::load_new(Some(&file), &flags, &["spheres=100".into()]).unwrap();
+        assert_eq!(
+            (c.scene, c.spheres, c.steps, c.mode),
+            (SceneKind::Rotating, 100, 7, ProxyMode::Nns)
+        );
+        // A flag the scene does not use is refused, naming the flag.
+        let flags = SceneFlags {
+            spheres: Some(200),
+            mesh: Some("m.obj".into()),
+            scene: Some(SceneKind::Mesh),
+            ..SceneFlags::default()
+        };
+        let e = SceneConfig::load_new(None, &flags, &[]).unwrap_err();
+        assert!(e.to_string().contains("-n/--set spheres"), "{e}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_path_toml_cannot_hold_is_a_clear_error() {
+        use std::os::unix::ffi::OsStrExt;
+        let flags = SceneFlags {
+            scene: Some(SceneKind::Input),
+            input: Some(std::ffi::OsStr::from_bytes(b"bad\xff.csv").into()),
+            ..SceneFlags::default()
+        };
+        let e = SceneConfig::load_new(None, &flags, &[]).unwrap_err();
+        assert!(
+            e.to_string().contains("cannot be written in TOML: path"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_checkpoint_scene_of_this_format_reads_as_saved() {
+        let saved = "scene = \"rotating\"\nspheres = 64\nseed = 3\nsteps = 10\ndt = 0.0001\n\
+                     box_lo = [0.0, 0.0, 0.0]\nbox_hi = [1.0, 1.0, 1.0]\n\
+                     gravity = [0.0, 0.0, -9.81]\ngravity_spin = 0.7853981852531433\n\
+                     density = 500.0\nrestitution = 0.5\nstiffness = 2.0\nmode = \"nns\"\n\
+                     frame_every = 5\ncsv = false\nmesh_radius = 0.005\n\
+                     mesh_mixed = false\nmesh_size = 0.818\nmesh_copies = 1\n";
+        let c =
+            SceneConfig::resume(saved, Path::new("c.bin"), &SceneFlags::default(), &[]).unwrap();
+        assert_eq!((c.scene, c.mode), (SceneKind::Rotating, ProxyMode::Nns));
+        assert_eq!(c.to_toml(), saved);
+        // Names were always read in any case.
+        let c = SceneConfig::parse(Some("scene = \"Poly1.2\"\nmode = \"NNS\""), None, &[]).unwrap();
+        assert_eq!(
+            (c.scene, c.mode),
+            (SceneKind::Generated(Scene::Poly1_2), ProxyMode::Nns)
+        );
     }
 
     #[test]
