@@ -47,7 +47,7 @@ extern "C" __global__ void __intersection__dem() {
     if (!mochi_keep(params.mode, i, s, j, t)) {
         return;
     }
-    float4 f = mochi_contact_force(params.dem, i, s, params.vel[i], j, t, params.vel[j]);
+    float4 f = mochi_contact_force(params.dem, s, params.vel[i], t, params.vel[j]);
     if (f.w == 0.0f) {
         return;
     }

@@ -69,33 +69,11 @@ static __forceinline__ __device__ void mochi_trace_point(
 #define MOCHI_MODE_MOCHI 0u
 #define MOCHI_MODE_NNS 1u
 
-// The power of two that brings t (finite, > 0) into [1, 2); 2^127 below 2^-126.
-static __forceinline__ __device__ float mochi_unit_scale(float t) {
-    return __uint_as_float((254u - (__float_as_uint(t) >> 23)) << 23);
-}
-
-// |d| <= t, both sides scaled by mochi_unit_scale(t) before squaring: exact, and nothing
-// underflows.
-static __forceinline__ __device__ bool mochi_within_scaled(float dx, float dy, float dz, float t) {
-    float k = mochi_unit_scale(t);
-    float x = __fmul_rn(dx, k);
-    float y = __fmul_rn(dy, k);
-    float z = __fmul_rn(dz, k);
-    float u = __fmul_rn(t, k);
-    return __fadd_rn(__fadd_rn(__fmul_rn(x, x), __fmul_rn(y, y)), __fmul_rn(z, z)) <=
-           __fmul_rn(u, u);
-}
-
-// Thresholds from this one up (2^-40) are compared unscaled (UNSCALED_FROM in src/proxy.rs).
-#define MOCHI_UNSCALED_FROM 0x1p-40f
-
-// |d| <= t: plain squares from MOCHI_UNSCALED_FROM up, else mochi_within_scaled.
+// |d| <= t in plain squares (src/proxy.rs `within`: the accepted radii keep every threshold's
+// square normal).
 static __forceinline__ __device__ bool mochi_within(float dx, float dy, float dz, float t) {
-    if (t >= MOCHI_UNSCALED_FROM) {
-        return __fadd_rn(__fadd_rn(__fmul_rn(dx, dx), __fmul_rn(dy, dy)), __fmul_rn(dz, dz)) <=
-               __fmul_rn(t, t);
-    }
-    return mochi_within_scaled(dx, dy, dz, t);
+    return __fadd_rn(__fadd_rn(__fmul_rn(dx, dx), __fmul_rn(dy, dy)), __fmul_rn(dz, dz)) <=
+           __fmul_rn(t, t);
 }
 
 // Whether the ray of sphere i keeps its candidate j (spheres as x, y, z, r).

@@ -15,47 +15,22 @@ struct DemParams {
     unsigned int _pad1;
 };
 
-// Unit vector along which coincident spheres lo < hi are pushed apart (hi along it).
-static __forceinline__ __device__ float3 mochi_coincident_direction(unsigned int lo,
-                                                                    unsigned int hi) {
-    unsigned int h = (lo * 0x9E3779B9u) ^ (hi * 0x85EBCA6Bu);
-    h ^= h >> 16;
-    h *= 0x7FEB352Du;
-    h ^= h >> 15;
-    float x = (float)(h & 1023u) - 511.5f;
-    float y = (float)((h >> 10) & 1023u) - 511.5f;
-    float z = (float)((h >> 20) & 1023u) - 511.5f;
-    float len = sqrtf(x * x + y * y + z * z);
-    return make_float3(x / len, y / len, z / len);
-}
-
 // Force on sphere i from sphere j (x, y, z, r and vx, vy, vz, mass each) in xyz, and 1 in w
-// when they touch; zero otherwise. The indices only orient a coincident pair.
-static __forceinline__ __device__ float4 mochi_contact_force(const DemParams& dem,
-                                                             unsigned int i, float4 c_i,
-                                                             float4 v_i, unsigned int j,
-                                                             float4 c_j, float4 v_j) {
+// when they touch; zero otherwise.
+static __forceinline__ __device__ float4 mochi_contact_force(const DemParams& dem, float4 c_i,
+                                                             float4 v_i, float4 c_j, float4 v_j) {
     float dx = c_j.x - c_i.x;
     float dy = c_j.y - c_i.y;
     float dz = c_j.z - c_i.z;
     float d2 = dx * dx + dy * dy + dz * dz;
     float reach = c_i.w + c_j.w;
-    if (d2 > reach * reach) {
+    if (d2 > reach * reach || d2 == 0.0f) {
         return make_float4(0.0f, 0.0f, 0.0f, 0.0f);
     }
     float dist = sqrtf(d2);
-    float nx, ny, nz;
-    if (d2 == 0.0f) {
-        float3 u = mochi_coincident_direction(min(i, j), max(i, j));
-        float sign = i < j ? 1.0f : -1.0f;
-        nx = sign * u.x;
-        ny = sign * u.y;
-        nz = sign * u.z;
-    } else {
-        nx = dx / dist;
-        ny = dy / dist;
-        nz = dz / dist;
-    }
+    float nx = dx / dist;
+    float ny = dy / dist;
+    float nz = dz / dist;
     float overlap = reach - dist;
     float vn = (v_j.x - v_i.x) * nx + (v_j.y - v_i.y) * ny + (v_j.z - v_i.z) * nz;
     float m_eff = v_i.w * v_j.w / (v_i.w + v_j.w);

@@ -1,9 +1,10 @@
 //! The proxy-sphere rule of the method (docs: `../shared/docs/method.md`), on `f32`.
 //!
 //! This file is the reference: the WGSL and CUDA versions of the rule copy it line for line
-//! (keep them in sync with it). Distances are compared squared after scaling both sides by a
-//! power of two (exact, and no square underflows), computed the same way for both orders of a
-//! pair, so the rule is symmetric bit for bit.
+//! (keep them in sync with it). Distances are compared squared, computed the same way for both
+//! orders of a pair, so the rule is symmetric bit for bit. The accepted radii
+//! ([`crate::MIN_RADIUS`] up to [`crate::MAX_MAGNITUDE`]) keep every threshold's square a normal
+//! `f32`, so no square that can change a decision underflows or overflows.
 
 /// How large the box of each sphere is.
 #[derive(
@@ -63,52 +64,16 @@ pub fn diff(c_i: [f32; 3], c_j: [f32; 3]) -> [f32; 3] {
     [c_i[0] - c_j[0], c_i[1] - c_j[1], c_i[2] - c_j[2]]
 }
 
-/// The power of two that brings `t` (0 < t < 2^127) into [1, 2); 2^127 for every `t` below
-/// 2^-126 (which brings it to at least 2^-22).
+/// Whether a difference `d` of centres is at most `t` long: |d|² ≤ t² in `f32`.
 ///
-/// Built from the biased exponent e of `t` (0..=253 here), as the float of exponent 254 − e: a
-/// normal, finite power of two. The rule's thresholds, sums and doubles of radii of at most
-/// [`crate::MAX_MAGNITUDE`], stay below 4·10¹⁸ (e ≤ 188).
-#[inline(always)]
-pub fn unit_scale(t: f32) -> f32 {
-    f32::from_bits((254 - (t.to_bits() >> 23)) << 23)
-}
-
-/// Thresholds from this one up are compared unscaled ([`within`]): 2^-40.
-///
-/// Their squares (at least 2^-80) are normal, and so is every square that can matter next to
-/// them: a component square that underflows is below 2^-126, less than half an ulp of any partial
-/// sum it meets near t², so it changes no decision; radii of at most [`crate::MAX_MAGNITUDE`] keep
-/// every square far below `f32::MAX`. Below it the squares may leave the normal range, and
-/// [`within_scaled`] scales them back first.
-pub const UNSCALED_FROM: f32 = 9.094_947e-13;
-
-/// Whether a difference `d` of centres is at most `t` (> 0) long: |d|² ≤ t², compared as plain
-/// `f32` squares where `t` ≥ [`UNSCALED_FROM`] (nearly always: one branch, uniform across a GPU's
-/// threads), else by [`within_scaled`]. Both forms decide alike wherever both are defined.
-/// Symmetric bit for bit: `d` and `−d` give the same squares.
+/// Every threshold of the rule is at least 2·[`crate::MIN_RADIUS`], so t² is a normal number far
+/// above `f32::MIN_POSITIVE`; a component whose square underflows (or that a GPU flushes to zero)
+/// counts for less than 2^-70 of t², far below rounding. Thresholds and differences of at most
+/// 2·[`crate::MAX_MAGNITUDE`] keep every square finite. Symmetric bit for bit: `d` and `−d` give
+/// the same squares.
 #[inline(always)]
 pub fn within(d: [f32; 3], t: f32) -> bool {
-    if t >= UNSCALED_FROM {
-        d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= t * t
-    } else {
-        within_scaled(d, t)
-    }
-}
-
-/// [`within`] with both sides scaled by the same power of two ([`unit_scale`] of `t`) before
-/// squaring.
-///
-/// Scaling by a power of two is exact, so this decides as unscaled `f32` arithmetic without
-/// underflow would: squares of radii down to the smallest subnormal never vanish, and a
-/// component that does underflow after scaling is below 2^-126·t, too small to change the
-/// rounded sum near t². A component that overflows makes the left side infinite: far apart,
-/// correctly.
-#[inline(always)]
-pub fn within_scaled(d: [f32; 3], t: f32) -> bool {
-    let k = unit_scale(t);
-    let (x, y, z, u) = (d[0] * k, d[1] * k, d[2] * k, t * k);
-    x * x + y * y + z * z <= u * u
+    d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= t * t
 }
 
 /// Relative width of the rounding band of [`near_boundary`]: plain and fused evaluations of
@@ -237,89 +202,40 @@ mod tests {
         ));
         // The proxy boundary of the larger sphere (d = 2·r_j) counts too.
         assert!(near_boundary([0.0; 3], 0.1, [2.4, 3.2, 0.0], 2.0));
-        // Tiny radii: nothing underflows to a band around zero.
-        assert!(near_boundary(
-            [0.0; 3],
-            1e-30,
-            [1.2e-30, 1.6e-30, 0.0],
-            1e-30
-        ));
-        assert!(!near_boundary([0.0; 3], 1e-30, [1e-25, 1e-25, 0.0], 1e-30));
+        // The smallest radii: nothing underflows to a band around zero.
+        let r = crate::MIN_RADIUS;
+        assert!(near_boundary([0.0; 3], r, [1.2 * r, 1.6 * r, 0.0], r));
+        assert!(!near_boundary([0.0; 3], r, [1e5 * r, 1e5 * r, 0.0], r));
     }
 
     #[test]
-    fn tiny_and_huge_radii_decide_as_without_underflow() {
-        // A gap of 10^5 radii: the squares (1e-50, 4e-60) underflow unscaled.
-        let (a, b) = (([0.0; 3], 1e-30), ([1e-25, 0.0, 0.0], 1e-30));
+    fn radii_at_both_ends_of_the_range_decide_exactly() {
+        let r = crate::MIN_RADIUS;
+        // A gap of 10^5 radii is no contact (with radii of 1e-30 its square would underflow to 0).
+        let (a, b) = (([0.0; 3], r), ([1e5 * r, 0.0, 0.0], r));
         assert_eq!(reports(a, b), (false, false));
-        assert!(!collides(a.0, a.1, b.0, b.1));
-        // Touching to the ulp at 2^-100 and at the smallest subnormal radius.
-        for r in [2f32.powi(-100), f32::from_bits(1)] {
-            let d = r + r;
-            assert!(collides([0.0; 3], r, [0.0, d, 0.0], r), "{r:e}");
-            assert!(!collides([0.0; 3], r, [0.0, d.next_up(), 0.0], r), "{r:e}");
-        }
+        // Touching to the ulp at the smallest radius, along an axis and off it.
+        let d = r + r;
+        assert!(collides([0.0; 3], r, [0.0, d, 0.0], r));
+        assert!(!collides([0.0; 3], r, [0.0, d.next_up(), 0.0], r));
+        assert!(collides(
+            [0.0; 3],
+            r,
+            [0.6 * d, 0.8 * d, 0.0].map(|x| x * 0.999),
+            r
+        ));
         // A proxy boundary far below the larger radius: only the small sphere's proxy decides.
-        let (small, big) = (2f32.powi(-90), 1.0);
-        let inside = ([0.0, 0.0, 2.0 * small], small);
-        let outside = ([0.0, 0.0, (2.0 * small).next_up()], small);
-        assert_eq!(reports(([0.0; 3], big), inside), (true, false));
-        assert_eq!(reports(([0.0; 3], big), outside), (false, true));
+        let inside = ([0.0, 0.0, 2.0 * r], r);
+        let outside = ([0.0, 0.0, (2.0 * r).next_up()], r);
+        assert_eq!(reports(([0.0; 3], 1.0), inside), (true, false));
+        assert_eq!(reports(([0.0; 3], 1.0), outside), (false, true));
         // At the coordinate limit: no overflow to infinity, touching is still touching.
         let m = crate::spheres::MAX_MAGNITUDE;
         assert_eq!(
             reports(([-m, 0.0, 0.0], m), ([m, 0.0, 0.0], m)),
             (true, false)
         );
-        assert!(!collides([-m; 3], 1e-30, [m; 3], 1e-30));
-    }
-
-    #[test]
-    fn unit_scale_brings_every_threshold_near_one() {
-        for t in [
-            f32::from_bits(1),
-            1e-40,
-            1.2e-38,
-            1e-30,
-            0.75,
-            1.0,
-            3.0,
-            4e18,
-        ] {
-            let u = t * unit_scale(t);
-            assert!((2f32.powi(-22)..2.0).contains(&u), "{t:e} scaled to {u:e}");
-            if t >= f32::MIN_POSITIVE {
-                assert!(u >= 1.0, "{t:e} scaled to {u:e}");
-            }
-        }
-    }
-
-    #[test]
-    fn the_unscaled_threshold_is_two_to_the_minus_forty() {
-        assert_eq!(UNSCALED_FROM, 2f32.powi(-40));
-    }
-
-    #[test]
-    fn unscaled_and_scaled_comparisons_decide_alike_from_the_threshold_up() {
-        use rand::{RngExt, SeedableRng};
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
-        let mut near = 0;
-        for _ in 0..200_000 {
-            // Thresholds from 2^-40 to 2^62, differences around them (some on the boundary).
-            let t =
-                UNSCALED_FROM * 2f32.powi(rng.random_range(0..102)) * rng.random_range(1.0..2.0);
-            let mut d: [f32; 3] = std::array::from_fn(|_| rng.random_range(-1.2..1.2) * t);
-            if rng.random_bool(0.3) {
-                // A tiny component beside large ones: its square may underflow unscaled.
-                d[rng.random_range(0..3)] = rng.random_range(-1.0..1.0) * 1e-25 * t;
-            }
-            if rng.random_bool(0.2) {
-                d = [t, 0.0, 0.0];
-            }
-            near += usize::from(within_scaled(d, t));
-            assert_eq!(within(d, t), within_scaled(d, t), "{d:?} {t:e}");
-        }
-        assert!(near > 50_000, "{near}");
+        assert!(!collides([-m; 3], r, [m; 3], r));
     }
 
     #[test]
@@ -327,7 +243,7 @@ mod tests {
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
         for _ in 0..10_000 {
-            let scale = 10f32.powi(rng.random_range(-35..15));
+            let scale = 10f32.powi(rng.random_range(-11..15));
             let c = |rng: &mut rand_pcg::Pcg64| {
                 std::array::from_fn(|_| rng.random_range(-scale..scale))
             };

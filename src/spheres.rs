@@ -8,13 +8,14 @@ use crate::error::{Error, Result, try_vec};
 /// (3·(2·10¹⁸)² ≈ 1.2·10³⁷ < `f32::MAX`), so no comparison ever sees an infinity.
 pub const MAX_MAGNITUDE: f32 = 1e18;
 
-/// Smallest radius accepted.
+/// Smallest radius accepted: 10⁻¹² (a picometre in SI units).
 ///
-/// The rule ([`crate::proxy::within`]) scales every comparison, so no square underflows at any
-/// radius; this bound keeps the subnormal numbers that GPUs may flush to zero out of every
-/// decision: a coordinate difference below `f32::MIN_POSITIVE` (about 1.2·10⁻³⁸) then counts for
-/// less than 2^-27 of the smallest threshold r_i + r_j, too little to change a rounded result.
-pub const MIN_RADIUS: f32 = 1e-30;
+/// The rule ([`crate::proxy::within`]) compares plain `f32` squares. From this radius up every
+/// threshold's square is a normal number (at least 4·10⁻²⁴), so a square that underflows, or
+/// that a GPU flushes to zero, counts for less than 2^-70 of it and changes no decision. Smaller
+/// radii (10⁻³⁰, say) would put the squares of whole gaps below `f32`'s range and report spheres
+/// 10⁵ radii apart as touching.
+pub const MIN_RADIUS: f32 = 1e-12;
 
 /// Largest number of spheres in one set: indices are `u32` on every backend.
 pub const MAX_SPHERES: usize = u32::MAX as usize;

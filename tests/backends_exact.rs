@@ -331,20 +331,21 @@ fn pairs_in_f64(spheres: &SphereSet) -> usize {
 }
 
 #[test]
-fn tiny_radii_do_not_underflow() {
-    // A gap of 10^5 radii, whose square (1e-50) and threshold (4e-60) underflow unscaled.
+fn the_smallest_radii_do_not_underflow() {
+    // A gap of 10^5 radii (at radii of 1e-30 its square underflowed to 0: reported touching).
+    let r = mochi::MIN_RADIUS;
     let s = set(&[
-        ([0.0; 3], 1e-30),
-        ([1e-25, 0.0, 0.0], 1e-30),
+        ([0.0; 3], r),
+        ([1e5 * r, 0.0, 0.0], r),
         ([10.0, 10.0, 10.0], 1.0),
     ]);
     assert_eq!(brute_force_pairs(&s), vec![]);
     exact(&s);
-    // 2,000 tiny spheres in a cube of 100 radii (a few dozen touch), inside one giant.
+    // 2,000 of the smallest spheres in a cube of 100 radii (a few dozen touch), inside one giant.
     use rand::{RngExt, SeedableRng};
     let mut rng = rand_pcg::Pcg64::seed_from_u64(16);
     let mut spheres: Vec<_> = (0..2000)
-        .map(|_| (std::array::from_fn(|_| rng.random_range(0.0..1e-28)), 1e-30))
+        .map(|_| (std::array::from_fn(|_| rng.random_range(0.0..100.0 * r)), r))
         .collect();
     spheres.push(([0.5, 0.0, 0.0], 1.0));
     let s = set(&spheres);

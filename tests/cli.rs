@@ -294,9 +294,9 @@ fn csv_nan_and_too_large_radius_are_rejected() {
 #[test]
 fn csv_radius_below_the_smallest_is_rejected_with_its_line() {
     csv_rejected(
-        "x,y,z,r\n0,0,0,1e-30\n0,0,0,9e-31\n",
+        "x,y,z,r\n0,0,0,1e-12\n0,0,0,9e-13\n",
         Some(3),
-        &["below the smallest radius", "1e-30"],
+        &["below the smallest radius", "1e-12"],
     );
 }
 

@@ -476,7 +476,8 @@ fn largest_gap(a: &Particles, b: &Particles) -> f32 {
 #[test]
 fn coincident_spheres_are_pushed_apart() {
     // Five spheres at one point and a pair at another, no gravity: no contact normal at distance
-    // 0, so each pair is pushed along the direction its indices give.
+    // 0, so every stepper first moves them apart along directions their indices give, and their
+    // contacts push them apart.
     let r = 0.01f32;
     let mut positions = vec![[0.5f32; 3]; 5];
     positions.extend([[0.3, 0.6, 0.4]; 2]);

@@ -63,7 +63,7 @@ fn resolve_run(p: u32, s: vec4<f32>, v: vec4<f32>, a: u32, b: u32) -> vec4<f32> 
     for (var q = a; q < b; q += 1u) {
         let t = pos[q];
         let u = vel[q];
-        let f = contact_force(p, s.xyz, v.xyz, s.w, v.w, q, t.xyz, u.xyz, t.w, u.w);
+        let f = contact_force(s.xyz, v.xyz, s.w, v.w, t.xyz, u.xyz, t.w, u.w);
         if f.w != 0.0 {
             add_force(q, -f.xyz);
             total += f;
@@ -83,7 +83,7 @@ fn resolve_bucket(p: u32, s: vec4<f32>, v: vec4<f32>, cell: vec3<u32>, own: bool
             continue;
         }
         let u = vel[q];
-        let f = contact_force(p, s.xyz, v.xyz, s.w, v.w, q, t.xyz, u.xyz, t.w, u.w);
+        let f = contact_force(s.xyz, v.xyz, s.w, v.w, t.xyz, u.xyz, t.w, u.w);
         if f.w != 0.0 {
             add_force(q, -f.xyz);
             total += f;

@@ -21,34 +21,17 @@ struct DemParams {
 // steps begun since t = 0
 @group(0) @binding(16) var<storage, read_write> clock: atomic<u32>;
 
-// Unit vector along which coincident spheres lo < hi are pushed apart (hi along it).
-fn coincident_direction(lo: u32, hi: u32) -> vec3<f32> {
-    var h = (lo * 0x9E3779B9u) ^ (hi * 0x85EBCA6Bu);
-    h ^= h >> 16u;
-    h *= 0x7FEB352Du;
-    h ^= h >> 15u;
-    let d = vec3(f32(h & 1023u), f32((h >> 10u) & 1023u), f32((h >> 20u) & 1023u)) - 511.5;
-    return d / sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-}
-
-// Force on sphere i from sphere j (xyz) and 1 in w when they touch; zero otherwise. The indices
-// only orient a coincident pair.
-fn contact_force(i: u32, c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
-                 j: u32, c_j: vec3<f32>, v_j: vec3<f32>, r_j: f32, m_j: f32) -> vec4<f32> {
+// Force on sphere i from sphere j (xyz) and 1 in w when they touch; zero otherwise.
+fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
+                 c_j: vec3<f32>, v_j: vec3<f32>, r_j: f32, m_j: f32) -> vec4<f32> {
     let d = c_j - c_i;
     let d2 = d.x * d.x + d.y * d.y + d.z * d.z;
     let reach = r_i + r_j;
-    if d2 > reach * reach {
+    if d2 > reach * reach || d2 == 0.0 {
         return vec4(0.0);
     }
     let dist = sqrt(d2);
-    var n = d / dist;
-    if d2 == 0.0 {
-        n = coincident_direction(min(i, j), max(i, j));
-        if i > j {
-            n = -n;
-        }
-    }
+    let n = d / dist;
     let overlap = reach - dist;
     let dv = v_j - v_i;
     let vn = dv.x * n.x + dv.y * n.y + dv.z * n.z;

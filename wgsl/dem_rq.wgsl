@@ -62,7 +62,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
                 continue;
             }
             let u = vel[q];
-            let f = contact_force(p, s.xyz, v.xyz, s.w, v.w, q, t.xyz, u.xyz, t.w, u.w);
+            let f = contact_force(s.xyz, v.xyz, s.w, v.w, t.xyz, u.xyz, t.w, u.w);
             if f.w != 0.0 {
                 add_force(q, -f.xyz);
                 total += f;

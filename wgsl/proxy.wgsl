@@ -4,30 +4,10 @@
 const MODE_MOCHI: u32 = 0u;
 const MODE_NNS: u32 = 1u;
 
-// The power of two that brings t (finite, > 0) into [1, 2); 2^127 below 2^-126.
-fn unit_scale(t: f32) -> f32 {
-    return bitcast<f32>((254u - (bitcast<u32>(t) >> 23u)) << 23u);
-}
-
-// Thresholds from this one up (2^-40) are compared unscaled (UNSCALED_FROM in src/proxy.rs).
-const UNSCALED_FROM: f32 = 0x1p-40f;
-
-// |d| <= t: plain squares from UNSCALED_FROM up, else within_scaled.
+// |d| <= t in plain squares (src/proxy.rs `within`: the accepted radii keep every threshold's
+// square normal).
 fn within(d: vec3<f32>, t: f32) -> bool {
-    if t >= UNSCALED_FROM {
-        return d.x * d.x + d.y * d.y + d.z * d.z <= t * t;
-    }
-    return within_scaled(d, t);
-}
-
-// |d| <= t, both sides scaled by unit_scale(t) before squaring: exact, and nothing underflows.
-fn within_scaled(d: vec3<f32>, t: f32) -> bool {
-    let k = unit_scale(t);
-    let x = d.x * k;
-    let y = d.y * k;
-    let z = d.z * k;
-    let u = t * k;
-    return x * x + y * y + z * z <= u * u;
+    return d.x * d.x + d.y * d.y + d.z * d.z <= t * t;
 }
 
 fn collides(c_i: vec3<f32>, r_i: f32, c_j: vec3<f32>, r_j: f32) -> bool {

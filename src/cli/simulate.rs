@@ -152,8 +152,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     match coincident {
         0 => {}
         pairs => eprintln!(
-            "warning: {pairs} pairs of spheres share their centre: each pair is pushed apart along \
-             a direction drawn from the two spheres' indices"
+            "warning: {pairs} pairs of spheres share their centre: each sphere after the first of \
+             such a group starts a thousandth of a radius away, in a direction drawn from the \
+             indices, and their contacts push them apart"
         ),
     }
     let scene_toml = config.to_toml();

@@ -32,7 +32,8 @@ pub struct CpuStepper {
 
 impl CpuStepper {
     /// A stepper over `particles` (validated by the caller).
-    pub fn new(particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
+    pub fn new(mut particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
+        particles.separate_coincident()?;
         let (_, r_max) = particles.radius_range();
         let cell_size = mode.cell_size(r_max);
         let margin = cell_size;
@@ -75,12 +76,10 @@ impl CpuStepper {
                     if dx * dx + dy * dy + dz * dz > reach * reach || q == at {
                         continue;
                     }
-                    let j = grid.ids[q];
+                    let j = grid.ids[q] as usize;
                     let c_j = [t[0], t[1], t[2]];
-                    let (v_j, m_j) = (velocities[j as usize], masses[j as usize]);
-                    let i = grid.ids[at];
                     if let Some(f) =
-                        contact_force(p, i, c_i, v_i, s[3], m_i, j, c_j, v_j, t[3], m_j)
+                        contact_force(p, c_i, v_i, s[3], m_i, c_j, velocities[j], t[3], masses[j])
                     {
                         touching += 1;
                         for a in 0..3 {

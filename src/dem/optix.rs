@@ -124,11 +124,12 @@ pub struct OptixStepper {
 impl OptixStepper {
     /// Uploads `particles` to GPU 0 (in Morton order) and builds the acceleration structure.
     pub fn new(
-        particles: Particles,
+        mut particles: Particles,
         params: StepParams,
         mode: ProxyMode,
         policy: RebuildPolicy,
     ) -> Result<Self> {
+        particles.separate_coincident()?;
         let (device, pipeline, module) = open_programs(programs::Unit::Dem, "dem", 5)?;
         let function = |name: &str| module.load_function(name).map_err(gpu_error);
         let kernels = Kernels {

@@ -71,8 +71,8 @@ impl Particles {
         }
     }
 
-    /// Pairs of spheres whose centres coincide: they have no contact normal, so the step pushes
-    /// each such pair apart along [`super::model::coincident_direction`].
+    /// Pairs of spheres whose centres coincide: they have no contact normal, so every stepper
+    /// moves them apart first ([`Self::separate_coincident`]).
     pub fn coincident_pairs(&self) -> Result<u64> {
         use rayon::slice::ParallelSliceMut;
         let n = self.positions.len();
@@ -88,6 +88,45 @@ impl Particles {
             .chunk_by(|a, b| a == b)
             .map(|same| (same.len() as u64) * (same.len() as u64 - 1) / 2)
             .sum())
+    }
+
+    /// Moves apart spheres whose centres coincide, so that every touching pair has a contact
+    /// normal: of each group sharing a centre, the sphere of the smallest index stays and every
+    /// other sphere k moves by a thousandth of the group's smallest radius (at least a few `f32`
+    /// steps of the centre's coordinates) along [`coincident_direction`](super::model::coincident_direction)
+    /// of the two indices. The contact forces then push the group apart radially. Deterministic,
+    /// and a no-op where no centres coincide. Returns how many pairs coincided.
+    pub fn separate_coincident(&mut self) -> Result<u64> {
+        use rayon::slice::ParallelSliceMut;
+        let n = self.positions.len();
+        let mut keys: Vec<([u32; 3], u32)> = try_vec(n, || format!("the centres of {n} spheres"))?;
+        keys.extend(
+            self.positions
+                .iter()
+                .enumerate()
+                .map(|(k, c)| (c.map(|x| (x + 0.0).to_bits()), k as u32)),
+        );
+        keys.par_sort_unstable();
+        let mut pairs = 0;
+        for group in keys.chunk_by(|a, b| a.0 == b.0).filter(|g| g.len() > 1) {
+            pairs += (group.len() as u64) * (group.len() as u64 - 1) / 2;
+            let first = group[0].1;
+            let centre = self.positions[first as usize];
+            let r = group
+                .iter()
+                .map(|&(_, k)| self.radii[k as usize])
+                .fold(f32::INFINITY, f32::min);
+            let coarsest = centre
+                .iter()
+                .map(|x| x.abs().next_up() - x.abs())
+                .fold(0.0f32, f32::max);
+            let step = (1e-3 * r).max(8.0 * coarsest);
+            for &(_, k) in &group[1..] {
+                let u = super::model::coincident_direction(first, k);
+                self.positions[k as usize] = std::array::from_fn(|a| centre[a] + step * u[a]);
+            }
+        }
+        Ok(pairs)
     }
 
     /// Smallest and largest radius (0 for no spheres).
@@ -115,5 +154,35 @@ mod tests {
         assert_eq!(p.coincident_pairs().unwrap(), 3 + 1);
         p.positions.truncate(2);
         assert_eq!(p.coincident_pairs().unwrap(), 0);
+    }
+
+    #[test]
+    fn coincident_spheres_are_separated_and_nothing_else_moves() {
+        let mut p = Particles {
+            positions: vec![[1.0, 2.0, 3.0], [0.0; 3], [1.0, 2.0, 3.0], [-0.0, 0.0, 0.0]],
+            radii: vec![0.5, 0.25, 0.1, 0.25],
+            ..Particles::default()
+        };
+        p.positions.extend([[1.0, 2.0, 3.0], [5.0; 3]]);
+        p.radii.extend([0.3, 1.0]);
+        let before = p.positions.clone();
+        assert_eq!(p.separate_coincident().unwrap(), 3 + 1);
+        assert_eq!(p.coincident_pairs().unwrap(), 0);
+        // The smallest index of each group and the lone sphere stay.
+        for k in [0, 1, 5] {
+            assert_eq!(p.positions[k], before[k]);
+        }
+        // The others moved a thousandth of their group's smallest radius, each its own way.
+        for (k, r) in [(2, 0.1f32), (4, 0.1), (3, 0.25)] {
+            let d = (0..3)
+                .map(|a| (p.positions[k][a] - before[k][a]).powi(2))
+                .sum::<f32>();
+            assert!((d.sqrt() - 1e-3 * r).abs() < 1e-6 * r, "{k}: {}", d.sqrt());
+        }
+        assert_ne!(p.positions[2], p.positions[4]);
+        // Deterministic, and a no-op once apart.
+        let once = p.positions.clone();
+        assert_eq!(p.separate_coincident().unwrap(), 0);
+        assert_eq!(p.positions, once);
     }
 }

@@ -117,11 +117,12 @@ impl GridStepper {
 
     /// As [`new`](Self::new), choosing how forces are accumulated.
     pub fn with_atomics(
-        particles: Particles,
+        mut particles: Particles,
         params: StepParams,
         mode: ProxyMode,
         atomics: ForceAtomics,
     ) -> Result<Self> {
+        particles.separate_coincident()?;
         let gpu = Gpu::open(Need::Compute)?;
         let n64 = particles.len() as u64;
         let max = max_spheres(&gpu);

@@ -86,11 +86,12 @@ impl RqStepper {
 
     /// As [`new`](Self::new), choosing how forces are accumulated.
     pub fn with_atomics(
-        particles: Particles,
+        mut particles: Particles,
         params: StepParams,
         mode: ProxyMode,
         atomics: ForceAtomics,
     ) -> Result<Self> {
+        particles.separate_coincident()?;
         let gpu = Gpu::open(Need::RayQuery)?;
         let n64 = particles.len() as u64;
         let limit = max_spheres(&gpu).min(

@@ -1,6 +1,6 @@
 //! Boundary cases of the proxy rule, for the parity tests of its WGSL and CUDA copies against
 //! `src/proxy.rs`: touching to the ulp, proxy boundaries to the ulp, radius ratio 120, radii at
-//! both ends of the accepted range (where unscaled squares would underflow or overflow),
+//! both ends of the accepted range (`MIN_RADIUS` and `MAX_MAGNITUDE`),
 //! coincident centres, a sphere with itself.
 
 use mochi::ProxyMode;
@@ -18,9 +18,9 @@ pub fn cases() -> Vec<Case> {
         (0.0005, 0.06),
         (0.3, 0.7),
         (1e-4, 1.0),
-        (1e-30, 1e-30),
-        (1e-30, 3e-30),
-        (1e-30, 1.0),
+        (1e-12, 1e-12),
+        (1e-12, 3e-12),
+        (1e-12, 1.0),
         (2.5e17, 1e18),
     ] {
         // Near the spheres' own scale, so the differences keep their bits.
@@ -44,9 +44,9 @@ pub fn cases() -> Vec<Case> {
         cases.push((2, origin, r_j, 1, origin, r_i));
         cases.push((5, origin, r_i, 5, origin, r_i)); // a sphere with itself
     }
-    // Gaps of 10^5 radii, whose squares underflow unscaled.
-    cases.push((0, [0.0; 3], 1e-30, 1, [1e-25, 0.0, 0.0], 1e-30));
-    cases.push((1, [1e-25, 0.0, 0.0], 1e-30, 0, [0.0; 3], 1e-30));
+    // Gaps of 10^5 of the smallest radii (whose squares underflowed at radii of 1e-30).
+    cases.push((0, [0.0; 3], 1e-12, 1, [1e-7, 0.0, 0.0], 1e-12));
+    cases.push((1, [1e-7, 0.0, 0.0], 1e-12, 0, [0.0; 3], 1e-12));
     cases
 }
 
