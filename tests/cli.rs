@@ -1381,3 +1381,46 @@ fn an_output_that_is_an_input_is_refused() {
         assert_eq!(read(&input), TWO_TOUCHING);
     }
 }
+
+/// An output in a folder that does not exist is refused before any work: the error names the
+/// folder, and nothing is written anywhere.
+#[test]
+fn an_output_in_a_missing_folder_is_refused_before_the_work() {
+    let dir = TempDir::new().unwrap();
+    let d = dir.path();
+    let input = d.join("in.csv");
+    write_file(&input, TWO_TOUCHING);
+    let missing = d.join("missing");
+    let out = missing.join("out.csv");
+    let png = missing.join("out.png");
+    let cases: Vec<Vec<&OsStr>> = vec![
+        vec![OsStr::new("detect"), p(&input), OsStr::new("-o"), p(&out)],
+        vec![
+            OsStr::new("generate"),
+            OsStr::new("--scene"),
+            OsStr::new("slab"),
+            OsStr::new("-n"),
+            OsStr::new("100"),
+            OsStr::new("-o"),
+            p(&out),
+        ],
+        vec![
+            OsStr::new("render"),
+            p(&input),
+            OsStr::new("-o"),
+            p(&png),
+            OsStr::new("--renderer"),
+            OsStr::new("cpu"),
+        ],
+    ];
+    for args in cases {
+        let run = mochi(args);
+        run.assert_failure();
+        let line = run.single_error_line();
+        assert!(
+            line.contains("-o") && line.contains("does not exist") && line.contains("missing"),
+            "{line}"
+        );
+        assert!(!missing.exists());
+    }
+}

@@ -1,5 +1,5 @@
-//! Where the commands write: checks made before anything is written (no output names an input,
-//! the `--gif` folder exists) and the claim on a simulation's output folder.
+//! Where the commands write: checks made before anything is written or computed (no output names
+//! an input, every output's folder exists) and the claim on a simulation's output folder.
 
 use anyhow::{Result, bail};
 use mochi::io::{self, RunFolder};
@@ -32,18 +32,26 @@ fn same_spelling(a: &Path, b: &Path) -> bool {
     plain(a).eq(plain(b))
 }
 
-/// Refuses a `--gif` whose folder does not exist (and is not `created`, a folder the command
-/// creates before it starts the GIF).
-pub fn check_gif_folder(gif: &Path, created: Option<&Path>) -> Result<()> {
-    let folder = folder_of(gif);
-    if !folder.is_dir() && !created.is_some_and(|c| same_spelling(c, folder)) {
-        bail!(
-            "--gif {}: the folder {} does not exist",
-            gif.display(),
-            folder.display()
-        );
+/// Refuses an output file (`option` names it) whose folder does not exist (and is not `created`,
+/// a folder the command creates before it writes there), before any work is done.
+pub fn check_output_folder(path: &Path, option: &str, created: Option<&Path>) -> Result<()> {
+    let folder = folder_of(path);
+    if created.is_some_and(|c| same_spelling(c, folder)) {
+        return Ok(());
     }
-    Ok(())
+    match std::fs::metadata(folder) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Ok(_) => bail!(
+            "{option} {}: {} is not a folder",
+            path.display(),
+            folder.display()
+        ),
+        Err(e) => bail!(
+            "{option} {}: the folder {} does not exist: {e}",
+            path.display(),
+            folder.display()
+        ),
+    }
 }
 
 /// Refuses a simulation whose output folder `out` would take the place of one of its `inputs`

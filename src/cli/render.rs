@@ -2,7 +2,7 @@
 //! optional animated GIF) out.
 
 use super::args::{Fit, RenderArgs, RenderCommandArgs};
-use super::output::{check_gif_folder, folder_of, refuse_same_file};
+use super::output::{check_output_folder, folder_of, refuse_same_file};
 use anyhow::{Context, Result, bail};
 use mochi::dem::scene::SceneConfig;
 use mochi::io::{self, SERIES_INDEX};
@@ -211,9 +211,10 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| input.with_extension("png"));
     refuse_same_file(input, &out, "-o")?;
+    check_output_folder(&out, "-o", None)?;
     if let Some(gif) = &args.render.gif {
         refuse_same_file(input, gif, "--gif")?;
-        check_gif_folder(gif, None)?;
+        check_output_folder(gif, "--gif", None)?;
     }
     io::remove_stale_temp_files(folder_of(&out));
     renderer.start_gif()?;
@@ -251,7 +252,7 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
         for input in files.iter().chain([&dir.join(SERIES_INDEX)]) {
             refuse_same_file(input, gif, "--gif")?;
         }
-        check_gif_folder(gif, Some(out))?;
+        check_output_folder(gif, "--gif", Some(out))?;
     }
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     io::remove_stale_temp_files(out);

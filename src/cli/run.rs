@@ -1,7 +1,7 @@
 //! The commands.
 
 use super::args::{Cli, Command, DetectArgs, GenerateArgs, SceneArgs};
-use super::output::{folder_of, refuse_same_file};
+use super::output::{check_output_folder, folder_of, refuse_same_file};
 use anyhow::Result;
 use mochi::backend::{self, BackendKind};
 use mochi::dem::scene::by_name;
@@ -43,6 +43,9 @@ fn scene(args: &SceneArgs, default_layout: Layout) -> Result<(SphereSet, String)
 fn detect(args: DetectArgs) -> Result<()> {
     if let (Some(input), Some(out)) = (&args.input, &args.output) {
         refuse_same_file(input, out, "-o")?;
+    }
+    if let Some(out) = &args.output {
+        check_output_folder(out, "-o", None)?;
     }
     let (spheres, source) = match &args.input {
         Some(path) => (io::read_spheres(path)?, path.display().to_string()),
@@ -136,6 +139,7 @@ fn detect(args: DetectArgs) -> Result<()> {
 }
 
 fn generate(args: GenerateArgs) -> Result<()> {
+    check_output_folder(&args.output, "-o", None)?;
     let (spheres, what) = scene(&args.scene, Layout::Lattice)?;
     io::remove_stale_temp_files(folder_of(&args.output));
     io::write_spheres(&args.output, &spheres)?;

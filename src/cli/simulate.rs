@@ -108,7 +108,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let gif = args.render.gif.as_deref();
     output::check_run_outputs(&args.out, &inputs, gif)?;
     if let Some(gif) = gif {
-        output::check_gif_folder(gif, Some(&args.out))?;
+        output::check_output_folder(gif, "--gif", Some(&args.out))?;
         if let Some(checkpoint) = &args.resume {
             output::refuse_same_file(checkpoint, gif, "--gif")?;
         }
