@@ -266,7 +266,7 @@ mod tests {
         assert_eq!(reports(([0.0; 3], big), inside), (true, false));
         assert_eq!(reports(([0.0; 3], big), outside), (false, true));
         // At the coordinate limit: no overflow to infinity, touching is still touching.
-        let m = crate::spheres::MAX_MAGNITUDE;
+        let m = crate::MAX_MAGNITUDE;
         assert_eq!(
             reports(([-m, 0.0, 0.0], m), ([m, 0.0, 0.0], m)),
             (true, false)

@@ -20,7 +20,9 @@ pub mod wgpu_rq;
 use crate::error::{Error, Result};
 use crate::gpu::{self, Need};
 use crate::proxy::ProxyMode;
-use crate::spheres::{Pair, SphereSet};
+use crate::spheres::SphereSet;
+use crate::types::Pair;
+pub use crate::types::{DetectStats, GpuTimes};
 
 /// What a backend is and what it can take.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -31,25 +33,6 @@ pub struct BackendInfo {
     pub device: String,
     /// Largest number of spheres one build accepts.
     pub max_spheres: u64,
-}
-
-/// Work counters of one detection.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct DetectStats {
-    /// Candidate pairs whose distance was tested (box or cell hits).
-    pub candidates: u64,
-    /// Colliding pairs found.
-    pub pairs: u64,
-}
-
-/// Time the GPU itself spent in the last build and the last detection \[ms\], without uploads,
-/// submission and read-back; `None` where the backend or device has no GPU timestamps.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct GpuTimes {
-    /// The last build (or update).
-    pub build_ms: Option<f64>,
-    /// The last detection pass.
-    pub detect_ms: Option<f64>,
 }
 
 /// A collision-detection backend (see the module docs for the contract).

@@ -8,13 +8,12 @@ mod gpu_step;
 pub mod model;
 #[cfg(feature = "optix")]
 pub mod optix;
-pub mod particles;
 pub mod scene;
 pub mod stepper;
 pub mod wgpu_compute;
 pub mod wgpu_rq;
 
+pub use crate::particles::Particles;
 pub use gpu_step::ForceAtomics;
 pub use model::{Material, StepParams};
-pub use particles::Particles;
 pub use stepper::{Advance, Clock, StageTimes, Stepper, open_choice, open_stepper};

@@ -1,9 +1,9 @@
 //! The [`Stepper`] trait that every backend's DEM step implements, and how to open one.
 
 use super::model::StepParams;
-use super::particles::Particles;
 use crate::backend::{BackendChoice, BackendKind, Options};
 use crate::error::Result;
+use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
 /// Time spent per phase of the step, summed over the steps of one [`Stepper::advance`] \[ms\].

@@ -20,7 +20,8 @@ pub mod programs;
 use super::{Backend, BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::proxy::ProxyMode;
-use crate::spheres::{Pair, SphereSet};
+use crate::spheres::SphereSet;
+use crate::types::Pair;
 use cudarc::driver::{
     CudaFunction, CudaModule, CudaSlice, LaunchConfig, PushKernelArg, sys::CUevent_flags,
 };

@@ -18,7 +18,8 @@ use crate::gpu::radix_sort::RadixSort;
 use crate::gpu::timer::{self, GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
-use crate::spheres::{Pair, SphereSet};
+use crate::spheres::SphereSet;
+use crate::types::Pair;
 use accel::Accel;
 
 const BUILD_WGSL: &str = concat!(
