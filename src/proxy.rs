@@ -74,6 +74,10 @@ pub fn unit_scale(t: f32) -> f32 {
     f32::from_bits((254 - (t.to_bits() >> 23)) << 23)
 }
 
+/// Relative padding of every backend's proxy boxes: a few ulps of f32, so a box test never
+/// rejects a point that the rule accepts.
+pub(crate) const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
+
 /// Thresholds from this one up are compared unscaled ([`within`]): 2^-40.
 ///
 /// Their squares (at least 2^-80) are normal, and so is every square that can matter next to

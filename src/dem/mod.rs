@@ -6,6 +6,7 @@
 pub mod cpu;
 mod gpu_step;
 pub mod model;
+mod open;
 #[cfg(feature = "optix")]
 pub mod optix;
 pub mod scene;
@@ -16,4 +17,5 @@ pub mod wgpu_rq;
 pub use crate::particles::Particles;
 pub use gpu_step::ForceAtomics;
 pub use model::{Material, StepParams};
-pub use stepper::{Advance, Clock, StageTimes, Stepper, open_choice, open_stepper};
+pub use open::{open_choice, open_stepper};
+pub use stepper::{Advance, Clock, StageTimes, Stepper};

@@ -11,11 +11,11 @@ use super::gpu_step::{
 };
 use super::model::StepParams;
 use super::stepper::{Advance, StageTimes, Stepper};
-use crate::backend::wgpu_rq::BOX_PADDING;
 use crate::backend::wgpu_rq::accel::Accel;
 use crate::error::{Error, Result};
 use crate::gpu::{self, Gpu, Need};
 use crate::particles::Particles;
+use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 
 const RQ_WGSL: &str = include_str!("../../wgsl/dem_rq.wgsl");
