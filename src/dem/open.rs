@@ -3,7 +3,7 @@
 use super::model::StepParams;
 use super::stepper::Stepper;
 use crate::backend::{BackendChoice, BackendKind, Options};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
@@ -49,37 +49,13 @@ pub fn open_choice(
     mode: ProxyMode,
     options: &Options,
 ) -> Result<(Box<dyn Stepper>, Option<String>)> {
-    let kind = match choice {
-        BackendChoice::Auto => None,
-        BackendChoice::Optix => Some(BackendKind::Optix),
-        BackendChoice::WgpuRq => Some(BackendKind::WgpuRq),
-        BackendChoice::WgpuCompute => Some(BackendKind::WgpuCompute),
-        BackendChoice::Cpu => Some(BackendKind::Cpu),
-    };
-    if let Some(kind) = kind {
+    if let Some(kind) = choice.kind() {
         return Ok((open_stepper(kind, particles, params, mode, options)?, None));
     }
-    let mut skipped = Vec::new();
-    for kind in BackendKind::ALL {
-        let why = kind.auto_skip().or_else(|| kind.probe().err());
-        if let Some(why) = why {
-            skipped.push(format!("skipped {}: {why}", kind.name()));
-            continue;
-        }
-        match open_stepper(kind, particles.clone(), params, mode, options) {
-            Ok(s) => {
-                let mut reason = format!("auto picked {}", kind.name());
-                for why in &skipped {
-                    reason.push_str("; ");
-                    reason.push_str(why);
-                }
-                return Ok((s, Some(reason)));
-            }
-            Err(e) if kind != BackendKind::Cpu => {
-                skipped.push(format!("skipped {}: {e}", kind.name()))
-            }
-            Err(e) => return Err(e),
-        }
-    }
-    Err(crate::error::Error::Usage(skipped.join("; ")))
+    let (stepper, reason) = crate::backend::open_auto(|kind| {
+        // A backend that cannot run here is skipped with the probe's own words.
+        kind.probe().map_err(Error::Usage)?;
+        open_stepper(kind, particles.clone(), params, mode, options)
+    })?;
+    Ok((stepper, Some(reason)))
 }
