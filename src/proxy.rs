@@ -1,4 +1,4 @@
-//! The proxy-sphere rule of the method (docs: `../shared/docs/method.md`), on `f32`.
+//! The proxy-sphere rule of the method (docs/method.md, "Proxy spheres and the rule"), on `f32`.
 //!
 //! This file is the reference: the WGSL and CUDA versions of the rule copy it line for line
 //! (keep them in sync with it). Distances are compared squared after scaling both sides by a

@@ -1,4 +1,4 @@
-//! The discrete-element simulation (method.md, "The DEM pipeline"): per time step (1) maintain
+//! The discrete-element simulation (docs/method.md, "The DEM step"): per time step (1) maintain
 //! the acceleration structure, (2) find every touching pair and resolve its contact force in the
 //! same pass, (3) walls, gravity and integration. [`model`] holds the physics; each backend has a
 //! [`Stepper`] that runs the steps where its data lives (the GPU for GPU backends).
