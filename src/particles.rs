@@ -72,7 +72,7 @@ impl Particles {
     }
 
     /// Pairs of spheres whose centres coincide: they have no contact normal, so the step pushes
-    /// each such pair apart along [`super::model::coincident_direction`].
+    /// each such pair apart along the direction of `dem::model::coincident_direction`.
     pub fn coincident_pairs(&self) -> Result<u64> {
         use rayon::slice::ParallelSliceMut;
         let n = self.positions.len();
