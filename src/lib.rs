@@ -41,15 +41,17 @@ pub mod gpu;
 pub mod io;
 pub mod mesh;
 pub mod oracle;
+mod particles;
 pub mod proxy;
 pub mod render;
 pub mod scenes;
 mod spheres;
+mod types;
 
-pub use backend::{Backend, BackendInfo, DetectStats};
+pub use backend::{Backend, BackendInfo};
 pub use error::{Error, Result};
 pub use proxy::ProxyMode;
 pub use spheres::{
-    MAX_MAGNITUDE, MAX_SPACING_PER_RADIUS, MAX_SPHERES, MIN_RADIUS, Pair, SphereSet,
-    coarse_coordinates,
+    MAX_MAGNITUDE, MAX_SPACING_PER_RADIUS, MAX_SPHERES, MIN_RADIUS, SphereSet, coarse_coordinates,
 };
+pub use types::{DetectStats, Pair};

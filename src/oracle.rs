@@ -1,7 +1,8 @@
 //! The brute-force oracle: every pair tested, O(n²). Tests trust it; fine up to ~20k spheres.
 
 use crate::proxy::{collides, near_boundary};
-use crate::spheres::{Pair, SphereSet};
+use crate::spheres::SphereSet;
+use crate::types::Pair;
 use rayon::prelude::*;
 
 /// Every colliding pair of `spheres`, sorted, each once with `i < j`.

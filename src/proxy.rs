@@ -1,4 +1,4 @@
-//! The proxy-sphere rule of the method (docs: `../shared/docs/method.md`), on `f32`.
+//! The proxy-sphere rule of the method (docs/method.md, "Proxy spheres and the rule"), on `f32`.
 //!
 //! This file is the reference: the WGSL and CUDA versions of the rule copy it line for line
 //! (keep them in sync with it). Distances are compared squared, computed the same way for both
@@ -63,6 +63,10 @@ impl ProxyMode {
 pub fn diff(c_i: [f32; 3], c_j: [f32; 3]) -> [f32; 3] {
     [c_i[0] - c_j[0], c_i[1] - c_j[1], c_i[2] - c_j[2]]
 }
+
+/// Relative padding of every backend's proxy boxes: a few ulps of f32, so a box test never
+/// rejects a point that the rule accepts.
+pub(crate) const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
 
 /// Whether a difference `d` of centres is at most `t` long: |d|² ≤ t² in `f32`.
 ///
@@ -230,7 +234,7 @@ mod tests {
         assert_eq!(reports(([0.0; 3], 1.0), inside), (true, false));
         assert_eq!(reports(([0.0; 3], 1.0), outside), (false, true));
         // At the coordinate limit: no overflow to infinity, touching is still touching.
-        let m = crate::spheres::MAX_MAGNITUDE;
+        let m = crate::MAX_MAGNITUDE;
         assert_eq!(
             reports(([-m, 0.0, 0.0], m), ([m, 0.0, 0.0], m)),
             (true, false)

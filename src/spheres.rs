@@ -216,27 +216,6 @@ pub fn coarse_coordinates(centers: &[[f32; 3]], radii: &[f32]) -> Option<String>
     ))
 }
 
-/// A colliding pair of spheres, by input index, always with `i < j`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct Pair {
-    /// The smaller index.
-    pub i: u32,
-    /// The larger index.
-    pub j: u32,
-}
-
-impl Pair {
-    /// The pair of `a` and `b` in either order (`a != b`).
-    #[inline]
-    pub fn new(a: u32, b: u32) -> Self {
-        debug_assert_ne!(a, b, "a sphere never pairs with itself");
-        Self {
-            i: a.min(b),
-            j: a.max(b),
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -20,7 +20,9 @@ pub mod wgpu_rq;
 use crate::error::{Error, Result};
 use crate::gpu::{self, Need};
 use crate::proxy::ProxyMode;
-use crate::spheres::{Pair, SphereSet};
+use crate::spheres::SphereSet;
+use crate::types::Pair;
+pub use crate::types::{DetectStats, GpuTimes};
 
 /// What a backend is and what it can take.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -31,25 +33,6 @@ pub struct BackendInfo {
     pub device: String,
     /// Largest number of spheres one build accepts.
     pub max_spheres: u64,
-}
-
-/// Work counters of one detection.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct DetectStats {
-    /// Candidate pairs whose distance was tested (box or cell hits).
-    pub candidates: u64,
-    /// Colliding pairs found.
-    pub pairs: u64,
-}
-
-/// Time the GPU itself spent in the last build and the last detection \[ms\], without uploads,
-/// submission and read-back; `None` where the backend or device has no GPU timestamps.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct GpuTimes {
-    /// The last build (or update).
-    pub build_ms: Option<f64>,
-    /// The last detection pass.
-    pub detect_ms: Option<f64>,
 }
 
 /// A collision-detection backend (see the module docs for the contract).
@@ -270,14 +253,27 @@ pub struct Opened {
     pub reason: Option<String>,
 }
 
+impl BackendChoice {
+    /// The backend named, or `None` for `auto`.
+    pub fn kind(self) -> Option<BackendKind> {
+        match self {
+            BackendChoice::Auto => None,
+            BackendChoice::Optix => Some(BackendKind::Optix),
+            BackendChoice::WgpuRq => Some(BackendKind::WgpuRq),
+            BackendChoice::WgpuCompute => Some(BackendKind::WgpuCompute),
+            BackendChoice::Cpu => Some(BackendKind::Cpu),
+        }
+    }
+}
+
 /// Opens the backend the user chose; `auto` tries each in order of preference.
 pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
-    let kind = match choice {
-        BackendChoice::Auto => return open_auto(options),
-        BackendChoice::Optix => BackendKind::Optix,
-        BackendChoice::WgpuRq => BackendKind::WgpuRq,
-        BackendChoice::WgpuCompute => BackendKind::WgpuCompute,
-        BackendChoice::Cpu => BackendKind::Cpu,
+    let Some(kind) = choice.kind() else {
+        let (backend, reason) = open_auto(|kind| kind.open_with(options))?;
+        return Ok(Opened {
+            backend,
+            reason: Some(reason),
+        });
     };
     Ok(Opened {
         backend: kind.open_with(options)?,
@@ -285,28 +281,61 @@ pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
     })
 }
 
-fn open_auto(options: &Options) -> Result<Opened> {
+/// The one `auto` rule of detection and simulation: the first backend of [`BackendKind::ALL`]
+/// that [`BackendKind::auto_skip`] keeps and `open` opens, with one line naming the pick and why
+/// each faster one was passed over. The last backend (cpu) runs everywhere, so its error is the
+/// result rather than a reason to go on.
+pub(crate) fn open_auto<T>(mut open: impl FnMut(BackendKind) -> Result<T>) -> Result<(T, String)> {
     let mut skipped = Vec::new();
-    for kind in BackendKind::ALL {
+    let (last, faster) = BackendKind::ALL.split_last().expect("ALL names backends");
+    for &kind in faster {
         if let Some(why) = kind.auto_skip() {
             skipped.push((kind.name(), why));
             continue;
         }
-        match kind.open_with(options) {
-            Ok(backend) => {
-                let mut reason = format!("auto picked {}", kind.name());
-                for (name, why) in &skipped {
-                    reason.push_str(&format!("; skipped {name}: {why}"));
-                }
-                return Ok(Opened {
-                    backend,
-                    reason: Some(reason),
-                });
-            }
+        match open(kind) {
+            Ok(opened) => return Ok((opened, auto_reason(kind, &skipped))),
             Err(e) => skipped.push((kind.name(), e.to_string())),
         }
     }
-    Err(Error::Usage(format!(
-        "no backend can run here: {skipped:?}"
-    )))
+    Ok((open(*last)?, auto_reason(*last, &skipped)))
+}
+
+/// "auto picked {kind}; skipped {name}: {why}; …".
+fn auto_reason(kind: BackendKind, skipped: &[(&str, String)]) -> String {
+    let mut reason = format!("auto picked {}", kind.name());
+    for (name, why) in skipped {
+        reason.push_str(&format!("; skipped {name}: {why}"));
+    }
+    reason
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn auto_names_every_backend_it_passed_over_and_returns_the_last_ones_error() {
+        let only_cpu = |kind| match kind {
+            BackendKind::Cpu => Ok(kind),
+            _ => Err(Error::Usage(format!("no {}", kind.name()))),
+        };
+        let (picked, reason) = open_auto(only_cpu).expect("cpu opens");
+        assert_eq!(picked, BackendKind::Cpu);
+        assert!(
+            reason.starts_with("auto picked cpu; skipped optix: "),
+            "{reason}"
+        );
+        for kind in &BackendKind::ALL[1..3] {
+            assert!(
+                reason.contains(&format!("skipped {}: ", kind.name())),
+                "{reason}"
+            );
+        }
+        let none = open_auto::<()>(|kind| Err(Error::Usage(format!("no {}", kind.name()))));
+        assert_eq!(
+            none.err().map(|e| e.to_string()),
+            Some("no cpu".to_string())
+        );
+    }
 }

@@ -4,7 +4,8 @@
 use super::{Backend, BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
 use crate::proxy::ProxyMode;
-use crate::spheres::{Pair, SphereSet};
+use crate::spheres::SphereSet;
+use crate::types::Pair;
 
 /// A backend that builds from scratch and detects in one pass; [`Backend`] follows from it.
 pub trait RebuildingBackend: Send {

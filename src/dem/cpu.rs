@@ -6,11 +6,11 @@
 //! number of threads.
 
 use super::model::{StepParams, contact_force, integrate, mass, wall_force};
-use super::particles::Particles;
 use super::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::backend::cpu::grid::SortedGrid;
 use crate::backend::cpu::query::gather;
 use crate::error::{Result, try_vec};
+use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 use rayon::prelude::*;
 use std::time::Instant;

@@ -2,10 +2,10 @@
 //! force atomics, per-phase timestamps, and moving particles to and from the GPU.
 
 use super::model::{StepParams, mass};
-use super::particles::Particles;
 use super::stepper::{Advance, Clock, StageTimes};
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
+use crate::particles::Particles;
 
 /// The physics shared by the GPU steps (integration kernel included).
 pub(crate) const PHYSICS_WGSL: &str = include_str!("../../wgsl/dem_physics.wgsl");

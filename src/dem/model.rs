@@ -8,8 +8,8 @@
 //! ratio that gives the restitution coefficient e: ζ = −ln e / √(π² + ln² e). Walls act the same
 //! way with m_eff = m_i. Computed from j's side, every operation sees negated inputs, so
 //! F_j = −F_i exactly. Coincident centres (distance 0) have no contact normal and get no force:
-//! the steppers never see them, as [`Particles::separate_coincident`](super::Particles::separate_coincident)
-//! moves such spheres apart when a stepper is made. `wgsl/dem_physics.wgsl` follows
+//! the steppers never see them, as `Particles::separate_coincident` moves such spheres apart
+//! when a stepper is made. `wgsl/dem_physics.wgsl` follows
 //! [`contact_force`] and [`wall_force`] line by line.
 
 use crate::error::{Error, Result};
@@ -243,22 +243,6 @@ impl StepParams {
     }
 }
 
-/// A unit vector picked by a hash of two sphere indices `lo < hi`: the direction in which
-/// [`Particles::separate_coincident`](super::Particles::separate_coincident) moves sphere `hi`
-/// away from the sphere `lo` whose centre it shares. Different pairs take different directions,
-/// the same pair always the same.
-#[inline]
-pub fn coincident_direction(lo: u32, hi: u32) -> [f32; 3] {
-    let mut h = lo.wrapping_mul(0x9E37_79B9) ^ hi.wrapping_mul(0x85EB_CA6B);
-    h ^= h >> 16;
-    h = h.wrapping_mul(0x7FEB_352D);
-    h ^= h >> 15;
-    // Components (k − 511.5) for k in 0..1024: never all zero.
-    let d = [0, 10, 20].map(|shift| ((h >> shift) & 1023) as f32 - 511.5);
-    let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-    d.map(|x| x / len)
-}
-
 /// Force on sphere i (centre `c_i`, velocity `v_i`, radius `r_i`, mass `m_i`) from sphere j, or
 /// `None` when they do not touch (or their centres coincide: no normal, no force).
 #[allow(clippy::too_many_arguments)]
@@ -386,14 +370,6 @@ mod tests {
         assert_eq!(f, g.map(|x| -x));
         // Repulsive: pushes i away from j.
         assert!(f[0] < 0.0 && f[1] < 0.0 && f[2] > 0.0);
-    }
-
-    #[test]
-    fn coincident_directions_are_unit_and_differ_by_pair() {
-        let u = coincident_direction(3, 7);
-        assert!((u.iter().map(|x| x * x).sum::<f32>() - 1.0).abs() < 1e-6);
-        assert_ne!(u, coincident_direction(3, 8));
-        assert_eq!(u, coincident_direction(3, 7));
     }
 
     #[test]

@@ -16,14 +16,15 @@
 
 use super::gpu_step::{DemParams, advance_in_batches, particles_from, rows};
 use super::model::StepParams;
-use super::particles::Particles;
 use super::stepper::{Advance, StageTimes, Stepper};
 use crate::backend::RebuildPolicy;
 use crate::backend::optix::device::{AccelOp, Device, Gas, Pipeline};
 use crate::backend::optix::{
-    BLOCK, BOX_PADDING, MAX_COORDINATE, gpu_error, morton_order_of, open_programs, programs,
+    BLOCK, MAX_COORDINATE, gpu_error, morton_order_of, open_programs, programs,
 };
 use crate::error::{Error, Result};
+use crate::particles::Particles;
+use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 use cudarc::driver::{
     CudaEvent, CudaFunction, CudaSlice, DeviceRepr, LaunchConfig, PushKernelArg, sys::CUevent_flags,

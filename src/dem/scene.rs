@@ -26,8 +26,8 @@
 //! ```
 
 use super::model::{Material, StepParams};
-use super::particles::Particles;
 use crate::error::{Error, Result};
+use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 use crate::scenes::{self, Layout, Scene, SceneSpec};
 use crate::spheres::SphereSet;

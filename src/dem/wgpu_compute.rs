@@ -18,7 +18,6 @@ use super::gpu_step::{
     advance_in_batches, max_spheres, particles_from, rows,
 };
 use super::model::StepParams;
-use super::particles::Particles;
 use super::stepper::{Advance, StageTimes, Stepper};
 use crate::backend::wgpu_compute::cell_table::{CellScan, CellScanBinds, CellTable};
 use crate::backend::wgpu_compute::{
@@ -26,6 +25,7 @@ use crate::backend::wgpu_compute::{
 };
 use crate::error::{Error, Result};
 use crate::gpu::{self, Gpu, Need};
+use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
 const GRID_WGSL: &str = concat!(

@@ -10,12 +10,12 @@ use super::gpu_step::{
     advance_in_batches, max_spheres, particles_from, rows,
 };
 use super::model::StepParams;
-use super::particles::Particles;
 use super::stepper::{Advance, StageTimes, Stepper};
-use crate::backend::wgpu_rq::BOX_PADDING;
 use crate::backend::wgpu_rq::accel::Accel;
 use crate::error::{Error, Result};
 use crate::gpu::{self, Gpu, Need};
+use crate::particles::Particles;
+use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 
 const RQ_WGSL: &str = include_str!("../../wgsl/dem_rq.wgsl");

@@ -3,9 +3,9 @@
 //! reruns until every pair fits. Nothing is ever truncated.
 
 use super::Gpu;
-use crate::backend::DetectStats;
 use crate::error::{Error, Result};
-use crate::spheres::Pair;
+use crate::types::DetectStats;
+use crate::types::Pair;
 use rayon::slice::ParallelSliceMut;
 
 /// Binding of the counters in every detection shader (`pair_output.wgsl`).

@@ -6,8 +6,8 @@
 //! byte before it: a damaged file is refused rather than resumed.
 
 use super::{io_error, write_atomically};
-use crate::dem::Particles;
 use crate::error::{Error, Result};
+use crate::particles::Particles;
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"MOCHICKP";

@@ -2,7 +2,7 @@
 
 use super::{io_error, parse_error, write_atomically};
 use crate::error::Result;
-use crate::spheres::Pair;
+use crate::types::Pair;
 use rayon::slice::ParallelSliceMut;
 use std::io::BufRead;
 use std::path::Path;

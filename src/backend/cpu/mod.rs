@@ -10,7 +10,8 @@ pub(crate) mod query;
 use super::{Backend, BackendInfo, DetectStats};
 use crate::error::{Error, Result, try_push, try_vec};
 use crate::proxy::ProxyMode;
-use crate::spheres::{MAX_SPHERES, Pair, SphereSet};
+use crate::spheres::{MAX_SPHERES, SphereSet};
+use crate::types::Pair;
 use grid::SortedGrid;
 use query::{PairSink, search};
 

@@ -19,17 +19,16 @@ pub mod programs;
 
 use super::{Backend, BackendInfo, DetectStats, GpuTimes};
 use crate::error::{Error, Result};
+use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
-use crate::spheres::{Pair, SphereSet};
+use crate::spheres::SphereSet;
+use crate::types::Pair;
 use cudarc::driver::{
     CudaFunction, CudaModule, CudaSlice, LaunchConfig, PushKernelArg, sys::CUevent_flags,
 };
 use device::{AccelOp, Device, Gas, Pipeline};
 use rayon::prelude::*;
 use std::sync::Arc;
-
-/// Relative padding of the proxy boxes (as the wgpu-rq backend's).
-pub(crate) const BOX_PADDING: f32 = super::wgpu_rq::BOX_PADDING;
 
 /// Most spheres one launch takes (OptiX's launch width limit is 2^30; the acceleration
 /// structure's own limit, 2^29 on driver 580, is read from the device).

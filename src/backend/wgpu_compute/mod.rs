@@ -32,7 +32,8 @@ use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
 use crate::gpu::timer::{self, GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
-use crate::spheres::{Pair, SphereSet};
+use crate::spheres::SphereSet;
+use crate::types::Pair;
 
 const BUILD_WGSL: &str = concat!(
     include_str!("../../../wgsl/grid_params.wgsl"),

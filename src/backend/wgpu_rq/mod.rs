@@ -17,8 +17,10 @@ use crate::gpu::pair_output::PairOutput;
 use crate::gpu::radix_sort::RadixSort;
 use crate::gpu::timer::{self, GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
+use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
-use crate::spheres::{Pair, SphereSet};
+use crate::spheres::SphereSet;
+use crate::types::Pair;
 use accel::Accel;
 
 const BUILD_WGSL: &str = concat!(
@@ -41,10 +43,6 @@ const DETECT_SPAN: Span = Span(1);
 /// Workgroup sizes, as in the shaders.
 const BUILD_GROUP: u32 = 256;
 const PAIRS_GROUP: u32 = 64;
-
-/// Relative padding of the proxy boxes: a few ulps of f32, so the box test never rejects a point
-/// that the rule accepts.
-pub(crate) const BOX_PADDING: f32 = 4.0 * f32::EPSILON;
 
 /// Bits of the Morton keys (10 per axis).
 const MORTON_BITS: u32 = 30;

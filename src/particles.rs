@@ -93,7 +93,7 @@ impl Particles {
     /// Moves apart spheres whose centres coincide, so that every touching pair has a contact
     /// normal: of each group sharing a centre, the sphere of the smallest index stays and every
     /// other sphere k moves by a thousandth of the group's smallest radius (at least a few `f32`
-    /// steps of the centre's coordinates) along [`coincident_direction`](super::model::coincident_direction)
+    /// steps of the centre's coordinates) along `coincident_direction`
     /// of the two indices. The contact forces then push the group apart radially. Deterministic,
     /// and a no-op where no centres coincide. Returns how many pairs coincided.
     pub fn separate_coincident(&mut self) -> Result<u64> {
@@ -122,7 +122,7 @@ impl Particles {
                 .fold(0.0f32, f32::max);
             let step = (1e-3 * r).max(8.0 * coarsest);
             for &(_, k) in &group[1..] {
-                let u = super::model::coincident_direction(first, k);
+                let u = coincident_direction(first, k);
                 self.positions[k as usize] = std::array::from_fn(|a| centre[a] + step * u[a]);
             }
         }
@@ -138,6 +138,22 @@ impl Particles {
             })
             .unwrap_or((0.0, 0.0))
     }
+}
+
+/// A unit vector picked by a hash of two sphere indices `lo < hi`: the direction in which
+/// [`Particles::separate_coincident`] moves sphere `hi`
+/// away from the sphere `lo` whose centre it shares. Different pairs take different directions,
+/// the same pair always the same.
+#[inline]
+fn coincident_direction(lo: u32, hi: u32) -> [f32; 3] {
+    let mut h = lo.wrapping_mul(0x9E37_79B9) ^ hi.wrapping_mul(0x85EB_CA6B);
+    h ^= h >> 16;
+    h = h.wrapping_mul(0x7FEB_352D);
+    h ^= h >> 15;
+    // Components (k − 511.5) for k in 0..1024: never all zero.
+    let d = [0, 10, 20].map(|shift| ((h >> shift) & 1023) as f32 - 511.5);
+    let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    d.map(|x| x / len)
 }
 
 #[cfg(test)]
@@ -184,5 +200,13 @@ mod tests {
         let once = p.positions.clone();
         assert_eq!(p.separate_coincident().unwrap(), 0);
         assert_eq!(p.positions, once);
+    }
+
+    #[test]
+    fn coincident_directions_are_unit_and_differ_by_pair() {
+        let u = coincident_direction(3, 7);
+        assert!((u.iter().map(|x| x * x).sum::<f32>() - 1.0).abs() < 1e-6);
+        assert_ne!(u, coincident_direction(3, 8));
+        assert_eq!(u, coincident_direction(3, 7));
     }
 }

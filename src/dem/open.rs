@@ -1,0 +1,61 @@
+//! Opening a backend's [`Stepper`]: the one place that knows every backend's DEM step.
+
+use super::model::StepParams;
+use super::stepper::Stepper;
+use crate::backend::{BackendChoice, BackendKind, Options};
+use crate::error::{Error, Result};
+use crate::particles::Particles;
+use crate::proxy::ProxyMode;
+
+/// Opens the DEM step of backend `kind` over `particles`.
+pub fn open_stepper(
+    kind: BackendKind,
+    particles: Particles,
+    params: StepParams,
+    mode: ProxyMode,
+    options: &Options,
+) -> Result<Box<dyn Stepper>> {
+    particles.validate()?;
+    Ok(match kind {
+        BackendKind::Cpu => Box::new(super::cpu::CpuStepper::new(particles, params, mode)?),
+        BackendKind::WgpuCompute => Box::new(
+            super::wgpu_compute::GridStepper::new(particles, params, mode)?
+                .with_structure(options.structure),
+        ),
+        BackendKind::WgpuRq => Box::new(super::wgpu_rq::RqStepper::new(particles, params, mode)?),
+        #[cfg(feature = "optix")]
+        BackendKind::Optix => Box::new(super::optix::OptixStepper::new(
+            particles,
+            params,
+            mode,
+            options.rebuild,
+        )?),
+        #[cfg(not(feature = "optix"))]
+        BackendKind::Optix => {
+            return Err(crate::error::Error::BackendUnavailable {
+                backend: "optix",
+                reason: crate::backend::NO_OPTIX_FEATURE.into(),
+            });
+        }
+    })
+}
+
+/// Opens the DEM step the user chose; `auto` takes the first of wgpu-rq, wgpu-compute (on a
+/// hardware adapter) and cpu that opens, and says why it passed over the others.
+pub fn open_choice(
+    choice: BackendChoice,
+    particles: Particles,
+    params: StepParams,
+    mode: ProxyMode,
+    options: &Options,
+) -> Result<(Box<dyn Stepper>, Option<String>)> {
+    if let Some(kind) = choice.kind() {
+        return Ok((open_stepper(kind, particles, params, mode, options)?, None));
+    }
+    let (stepper, reason) = crate::backend::open_auto(|kind| {
+        // A backend that cannot run here is skipped with the probe's own words.
+        kind.probe().map_err(Error::Usage)?;
+        open_stepper(kind, particles.clone(), params, mode, options)
+    })?;
+    Ok((stepper, Some(reason)))
+}
