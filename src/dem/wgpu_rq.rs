@@ -134,10 +134,7 @@ impl RqStepper {
                     &RqParams {
                         chunk,
                         pad_rel: BOX_PADDING,
-                        mode: match mode {
-                            ProxyMode::Mochi => 0,
-                            ProxyMode::Nns => 1,
-                        },
+                        mode: mode.code(),
                         r_max,
                     },
                 );

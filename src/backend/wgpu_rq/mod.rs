@@ -77,13 +77,6 @@ struct PairParams {
 }
 const _: () = assert!(size_of::<PairParams>() == 32);
 
-fn mode_code(mode: ProxyMode) -> u32 {
-    match mode {
-        ProxyMode::Mochi => 0,
-        ProxyMode::Nns => 1,
-    }
-}
-
 /// The wgpu ray-query backend.
 pub struct WgpuRqBackend {
     gpu: Gpu,
@@ -192,7 +185,7 @@ impl RebuildingBackend for WgpuRqBackend {
                 let extent = hi[a] - lo[a];
                 if extent > 0.0 { 1023.0 / extent } else { 0.0 }
             }),
-            mode: mode_code(mode),
+            mode: mode.code(),
             r_max: spheres.max_radius(),
             pad_rel: BOX_PADDING,
             row: x * BUILD_GROUP,
@@ -272,7 +265,7 @@ impl RebuildingBackend for WgpuRqBackend {
             let params = PairParams {
                 n,
                 capacity,
-                mode: mode_code(mode),
+                mode: mode.code(),
                 chunk: accel.chunk,
                 row: x * PAIRS_GROUP,
                 _pad: [0; 3],
