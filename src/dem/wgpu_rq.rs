@@ -18,7 +18,10 @@ use crate::error::{Error, Result};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
 
-const RQ_WGSL: &str = include_str!("../../wgsl/dem_rq.wgsl");
+const RQ_WGSL: &str = concat!(
+    include_str!("../../wgsl/dem_rq.wgsl"),
+    include_str!("../../wgsl/rq_walk.wgsl")
+);
 const PROXY_WGSL: &str = include_str!("../../wgsl/proxy.wgsl");
 
 /// Every WGSL module of this step, by label, exactly as the device may get it.

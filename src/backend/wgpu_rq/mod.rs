@@ -27,6 +27,7 @@ const BUILD_WGSL: &str = concat!(
 );
 const PAIRS_WGSL: &str = concat!(
     include_str!("../../../wgsl/rq_pairs.wgsl"),
+    include_str!("../../../wgsl/rq_walk.wgsl"),
     include_str!("../../../wgsl/proxy.wgsl"),
     include_str!("../../../wgsl/pair_output.wgsl")
 );
