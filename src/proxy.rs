@@ -36,6 +36,16 @@ impl ProxyMode {
         }
     }
 
+    /// The value of `mode` in the device programs: `MODE_MOCHI`/`MODE_NNS` of `wgsl/proxy.wgsl`
+    /// and `MOCHI_MODE_MOCHI`/`MOCHI_MODE_NNS` of `optix/device.cuh` (checked by
+    /// `tests/shaders.rs`).
+    pub fn code(self) -> u32 {
+        match self {
+            ProxyMode::Mochi => 0,
+            ProxyMode::Nns => 1,
+        }
+    }
+
     /// Half-width of the box of a sphere of radius `r_j` in a set whose largest radius is `r_max`.
     #[inline]
     pub fn box_half_width(self, r_j: f32, r_max: f32) -> f32 {

@@ -139,3 +139,34 @@ fn optix_is_available_or_says_why() {
         }
     }
 }
+
+/// Every counter index of the device programs (`i & MASKu`) masks to `COUNTER_SLOTS`, the
+/// length of the counter buffers the host allocates.
+#[test]
+fn counter_masks_match_the_counter_buffers() {
+    use mochi::backend::optix::COUNTER_SLOTS;
+    assert!(COUNTER_SLOTS.is_power_of_two());
+    for (name, source) in [
+        ("detect.cu", include_str!("../optix/detect.cu")),
+        ("dem.cu", include_str!("../optix/dem.cu")),
+    ] {
+        let masks: Vec<usize> = source
+            .split("& ")
+            .skip(1)
+            .filter_map(|rest| {
+                let digits =
+                    rest.len() - rest.trim_start_matches(|c: char| c.is_ascii_digit()).len();
+                (digits > 0 && rest[digits..].starts_with('u'))
+                    .then(|| rest[..digits].parse().unwrap())
+            })
+            .collect();
+        assert!(!masks.is_empty(), "{name}: no counter index");
+        for mask in masks {
+            assert_eq!(
+                mask,
+                COUNTER_SLOTS - 1,
+                "{name}: a counter index masked by {mask}"
+            );
+        }
+    }
+}

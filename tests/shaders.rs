@@ -37,3 +37,46 @@ fn every_shader_parses_and_validates() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// The `u32` value of the WGSL constant `name` (a literal) in `module`.
+fn wgsl_u32(module: &naga::Module, name: &str) -> u32 {
+    let (_, constant) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no constant {name}"));
+    match module.global_expressions[constant.init] {
+        naga::Expression::Literal(naga::Literal::U32(v)) => v,
+        ref e => panic!("{name} is not a u32 literal: {e:?}"),
+    }
+}
+
+/// The value of `#define name <n>u` in a CUDA source.
+fn cuda_define(source: &str, name: &str) -> u32 {
+    let line = source
+        .lines()
+        .find_map(|l| {
+            l.strip_prefix("#define ")?
+                .strip_prefix(name)?
+                .strip_prefix(' ')
+        })
+        .unwrap_or_else(|| panic!("no #define {name}"));
+    line.trim()
+        .trim_end_matches('u')
+        .parse()
+        .unwrap_or_else(|e| panic!("#define {name} {line}: {e}"))
+}
+
+#[test]
+fn mode_codes_agree_with_the_device_programs() {
+    use mochi::ProxyMode;
+    let wgsl = naga::front::wgsl::parse_str(include_str!("../wgsl/proxy.wgsl")).unwrap();
+    let cuda = include_str!("../optix/device.cuh");
+    for (mode, wgsl_name, cuda_name) in [
+        (ProxyMode::Mochi, "MODE_MOCHI", "MOCHI_MODE_MOCHI"),
+        (ProxyMode::Nns, "MODE_NNS", "MOCHI_MODE_NNS"),
+    ] {
+        assert_eq!(wgsl_u32(&wgsl, wgsl_name), mode.code(), "{wgsl_name}");
+        assert_eq!(cuda_define(cuda, cuda_name), mode.code(), "{cuda_name}");
+    }
+}

@@ -1,6 +1,6 @@
 // DEM step of the wgpu-compute backend (method.md, "The DEM pipeline"): bin and resolve; the
 // integration is dem_physics.wgsl's. Needs grid_params.wgsl and grid_stencil.wgsl prepended,
-// dem_physics.wgsl and one of dem_force_f32.wgsl / dem_force_cas.wgsl appended.
+// grid_walk.wgsl, dem_physics.wgsl and one of dem_force_f32.wgsl / dem_force_cas.wgsl appended.
 //
 // The state (pos, vel, ids) lives in sorted order and ping-pongs between two sets of buffers:
 // each step bins the previous step's sorted set (`*_a`, nearly sorted already, so the atomics of
@@ -56,78 +56,53 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     vel[p] = vel_a[i];
 }
 
-// Resolves sphere p against the sorted spheres a..b: adds each partner's share there and returns
-// p's (xyz) and the number of contacts (w).
-fn resolve_run(p: u32, s: vec4<f32>, v: vec4<f32>, a: u32, b: u32) -> vec4<f32> {
-    var total = vec4(0.0);
-    for (var q = a; q < b; q += 1u) {
-        let t = pos[q];
-        let u = vel[q];
-        let f = contact_force(s.xyz, v.xyz, s.w, v.w, t.xyz, u.xyz, t.w, u.w);
-        if f.w != 0.0 {
-            add_force(q, -f.xyz);
-            total += f;
-        }
-    }
-    return total;
+struct Walker {
+    p: u32,
+    s: vec4<f32>,
+    v: vec4<f32>,      // velocity and mass of sphere p
+    run: vec4<f32>,    // p's force (xyz) and contacts (w) in the current run or bucket
+    total: vec4<f32>,  // the sum of the runs' and buckets' (in this order)
 }
 
-// Hashed table: resolves sphere p against the spheres of `cell` found in its bucket (others
-// sharing the bucket skipped; in the own cell only q > p).
-fn resolve_bucket(p: u32, s: vec4<f32>, v: vec4<f32>, cell: vec3<u32>, own: bool) -> vec4<f32> {
-    let b = hash_cell(cell);
-    var total = vec4(0.0);
-    for (var q = cell_start[b]; q < cell_start[b + 1u]; q += 1u) {
-        let t = pos[q];
-        if (own && q <= p) || any(cell_coords(t.xyz, 0u) != cell) {
-            continue;
-        }
-        let u = vel[q];
-        let f = contact_force(s.xyz, v.xyz, s.w, v.w, t.xyz, u.xyz, t.w, u.w);
-        if f.w != 0.0 {
-            add_force(q, -f.xyz);
-            total += f;
-        }
+fn walk_sphere(q: u32) -> vec4<f32> {
+    return pos[q];
+}
+
+// Resolves sphere p against q: adds q's share there and p's to the current run.
+fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
+    let s = (*w).s;
+    let v = (*w).v;
+    let u = vel[q];
+    let f = contact_force(s.xyz, v.xyz, s.w, v.w, t.xyz, u.xyz, t.w, u.w);
+    if f.w != 0.0 {
+        add_force(q, -f.xyz);
+        (*w).run += f;
     }
-    return total;
+}
+
+fn walked(w: ptr<function, Walker>, n: u32) {
+    (*w).total += (*w).run;
+    (*w).run = vec4(0.0);
 }
 
 var<workgroup> group_contacts: atomic<u32>;
 
-// Detection and contact resolution in one pass: every pair is found once (half stencil, as in
-// grid_pairs.wgsl) by the thread of one of its spheres, which adds equal and opposite forces.
+// Detection and contact resolution in one pass: every pair is found once (grid_walk.wgsl's
+// stencil walk, as in grid_pairs.wgsl) by the thread of one of its spheres, which adds equal and
+// opposite forces.
 @compute @workgroup_size(256)
 fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let p = index(gid);
-    var total = vec4(0.0);
+    var w = Walker(p, vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
     if p < params.n {
-        let s = pos[p];
-        let v = vel[p];
-        if params.hashed != 0u {
-            let cell = cell_coords(s.xyz, 0u);
-            total += resolve_bucket(p, s, v, cell, true);
-            for (var r = 0u; r < 13u; r += 1u) {
-                total += resolve_bucket(p, s, v, cell + bitcast<vec3<u32>>(FORWARD[r]), false);
-            }
-        } else {
-            let own = level_of(s.w);
-            let w = window(s, own);
-            for (var k = w.own_row; k < w.count; k += 1u) {
-                let run = window_row(w, k);
-                total += resolve_run(p, s, v, max(run.x, p + 1u), run.y);
-            }
-            for (var level = own + 1u; level < params.levels; level += 1u) {
-                let w = window(s, level);
-                for (var k = 0u; k < w.count; k += 1u) {
-                    let run = window_row(w, k);
-                    total += resolve_run(p, s, v, run.x, run.y);
-                }
-            }
-        }
-        if total.w != 0.0 {
-            add_force(p, total.xyz);
+        w.s = pos[p];
+        w.v = vel[p];
+        stencil_walk(&w);
+        if w.total.w != 0.0 {
+            add_force(p, w.total.xyz);
         }
     }
+    let total = w.total;
     atomicAdd(&group_contacts, u32(total.w));
     workgroupBarrier();
     if lid == 0u {

@@ -2,7 +2,7 @@
 // of the spheres (in input order; the BLAS and TLAS are rebuilt from them by the host's encoder),
 // then one zero-length ray per sphere whose candidates pass the proxy rule (proxy.wgsl) and have
 // their contact resolved at once: equal and opposite forces on both spheres. Needs
-// dem_physics.wgsl, a dem_force_*.wgsl and proxy.wgsl appended.
+// rq_walk.wgsl, dem_physics.wgsl, a dem_force_*.wgsl and proxy.wgsl appended.
 enable wgpu_ray_query;
 
 // Keep in sync with RqParams in src/dem/wgpu_rq.rs.
@@ -41,37 +41,50 @@ fn proxy_boxes(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 var<workgroup> group_contacts: atomic<u32>;
 
-// One point ray per sphere; each pair the rule keeps is resolved by the ray that found it.
+struct Walker {
+    p: u32,
+    s: vec4<f32>,
+    v: vec4<f32>,      // velocity and mass of sphere p
+    total: vec4<f32>,  // p's force (xyz) and number of contacts (w)
+}
+
+fn walk_chunk() -> u32 {
+    return rq.chunk;
+}
+
+// Resolves sphere p against candidate q if the rule keeps the pair: adds q's share there and
+// p's to the walker.
+fn visit(w: ptr<function, Walker>, q: u32) {
+    let p = (*w).p;
+    let s = (*w).s;
+    let v = (*w).v;
+    let t = pos[q];
+    if !keep_in(rq.mode, p, s.xyz, s.w, q, t.xyz, t.w) {
+        return;
+    }
+    let u = vel[q];
+    let f = contact_force(s.xyz, v.xyz, s.w, v.w, t.xyz, u.xyz, t.w, u.w);
+    if f.w != 0.0 {
+        add_force(q, -f.xyz);
+        (*w).total += f;
+    }
+}
+
+// One point ray per sphere (rq_walk.wgsl); each pair the rule keeps is resolved by the ray that
+// found it.
 @compute @workgroup_size(256)
 fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let p = gid.x + gid.y * dem.row;
-    var total = vec4(0.0);
+    var w = Walker(p, vec4(0.0), vec4(0.0), vec4(0.0));
     if p < dem.n {
-        let s = pos[p];
-        let v = vel[p];
-        var query: ray_query;
-        rayQueryInitialize(&query, tlas, RayDesc(0u, 0xffu, 0.0, 0.0, s.xyz, vec3(0.0, 0.0, 1.0)));
-        while rayQueryProceed(&query) {
-            let hit = rayQueryGetCandidateIntersection(&query);
-            if hit.kind != RAY_QUERY_INTERSECTION_AABB {
-                continue;
-            }
-            let q = hit.instance_custom_data * rq.chunk + hit.primitive_index;
-            let t = pos[q];
-            if !keep_in(rq.mode, p, s.xyz, s.w, q, t.xyz, t.w) {
-                continue;
-            }
-            let u = vel[q];
-            let f = contact_force(s.xyz, v.xyz, s.w, v.w, t.xyz, u.xyz, t.w, u.w);
-            if f.w != 0.0 {
-                add_force(q, -f.xyz);
-                total += f;
-            }
-        }
-        if total.w != 0.0 {
-            add_force(p, total.xyz);
+        w.s = pos[p];
+        w.v = vel[p];
+        rq_walk(&w);
+        if w.total.w != 0.0 {
+            add_force(p, w.total.xyz);
         }
     }
+    let total = w.total;
     atomicAdd(&group_contacts, u32(total.w));
     workgroupBarrier();
     if lid == 0u {

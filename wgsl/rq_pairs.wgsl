@@ -1,6 +1,6 @@
-// Detection stage of the wgpu-rq backend: one zero-length point ray per sphere; every AABB
-// candidate is filtered by keep_in (proxy.wgsl) and written by emit_pair (pair_output.wgsl),
-// both appended to this file.
+// Detection stage of the wgpu-rq backend: one zero-length point ray per sphere (rq_walk.wgsl);
+// every AABB candidate is filtered by keep_in (proxy.wgsl) and written by emit_pair
+// (pair_output.wgsl), the three appended to this file.
 enable wgpu_ray_query;
 
 // Keep in sync with PairParams in src/backend/wgpu_rq/mod.rs.
@@ -20,26 +20,33 @@ struct PairParams {
 @group(0) @binding(2) var<storage, read> ids: array<u32>;
 @group(0) @binding(5) var tlas: acceleration_structure;
 
+struct Walker {
+    p: u32,
+    s: vec4<f32>,
+    tested: u32,  // candidates tested
+}
+
+fn walk_chunk() -> u32 {
+    return params.chunk;
+}
+
+fn visit(w: ptr<function, Walker>, q: u32) {
+    let p = (*w).p;
+    let s = (*w).s;
+    (*w).tested += 1u;
+    let t = spheres[q];
+    if keep_in(params.mode, p, s.xyz, s.w, q, t.xyz, t.w) {
+        emit_pair(ids[p], q, params.capacity);
+    }
+}
+
 @compute @workgroup_size(64)
 fn find_pairs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let p = gid.x + gid.y * params.row;
-    var tested = 0u;
+    var w = Walker(p, vec4(0.0), 0u);
     if p < params.n {
-        let s = spheres[p];
-        var rq: ray_query;
-        rayQueryInitialize(&rq, tlas, RayDesc(0u, 0xffu, 0.0, 0.0, s.xyz, vec3(0.0, 0.0, 1.0)));
-        while rayQueryProceed(&rq) {
-            let hit = rayQueryGetCandidateIntersection(&rq);
-            if hit.kind != RAY_QUERY_INTERSECTION_AABB {
-                continue;
-            }
-            let q = hit.instance_custom_data * params.chunk + hit.primitive_index;
-            tested += 1u;
-            let t = spheres[q];
-            if keep_in(params.mode, p, s.xyz, s.w, q, t.xyz, t.w) {
-                emit_pair(ids[p], q, params.capacity);
-            }
-        }
+        w.s = spheres[p];
+        rq_walk(&w);
     }
-    finish_pairs(tested, lid, params.capacity);
+    finish_pairs(w.tested, lid, params.capacity);
 }

@@ -20,7 +20,7 @@ use super::stepper::{Advance, StageTimes, Stepper};
 use crate::backend::RebuildPolicy;
 use crate::backend::optix::device::{AccelOp, Device, Gas, Pipeline};
 use crate::backend::optix::{
-    BLOCK, MAX_COORDINATE, gpu_error, morton_order_of, open_programs, programs,
+    BLOCK, COUNTER_SLOTS, MAX_COORDINATE, gpu_error, morton_order_of, open_programs, programs,
 };
 use crate::error::{Error, Result};
 use crate::particles::Particles;
@@ -42,9 +42,6 @@ const AUTO_MARGIN: f64 = 1.01;
 
 /// Steps after which the state is re-sorted in Morton order (with a rebuild).
 pub const RESORT_EVERY: u64 = 2000;
-
-/// Counters the programs spread their contact and candidate counts over.
-const COUNTERS: usize = 256;
 
 /// Launch parameters of `optix/dem.cu`; keep in sync with `DemLaunch` there.
 #[repr(C)]
@@ -204,8 +201,12 @@ impl OptixStepper {
             },
             boxes: zeros_f32(6 * len)?,
             force: zeros_f32(3 * len)?,
-            contacts: stream.alloc_zeros::<u32>(COUNTERS).map_err(gpu_error)?,
-            candidates: stream.alloc_zeros::<u64>(COUNTERS).map_err(gpu_error)?,
+            contacts: stream
+                .alloc_zeros::<u32>(COUNTER_SLOTS)
+                .map_err(gpu_error)?,
+            candidates: stream
+                .alloc_zeros::<u64>(COUNTER_SLOTS)
+                .map_err(gpu_error)?,
             launch: device.bytes(size_of::<DemLaunch>()).map_err(gpu_error)?,
             gas: None,
             maintenance: Maintenance {
@@ -244,7 +245,7 @@ impl OptixStepper {
 
     /// The proxy boxes of the current state.
     fn write_boxes(&mut self) -> Result<()> {
-        let mode = mode_code(self.mode);
+        let mode = self.mode.code();
         let config = self.config();
         let mut launch = self.device.stream.launch_builder(&self.kernels.boxes);
         launch
@@ -271,7 +272,7 @@ impl OptixStepper {
             candidates: device.ptr_mut(&mut self.candidates),
             handle,
             n: self.n,
-            mode: mode_code(self.mode),
+            mode: self.mode.code(),
             _pad: [0; 2],
             dem: self.dem,
         };
@@ -426,13 +427,6 @@ impl OptixStepper {
             m.rebuild_due = refit_ms / refits as f64 > AUTO_MARGIN * average;
         }
         Ok((steps, contacts, times))
-    }
-}
-
-fn mode_code(mode: ProxyMode) -> u32 {
-    match mode {
-        ProxyMode::Mochi => 0,
-        ProxyMode::Nns => 1,
     }
 }
 

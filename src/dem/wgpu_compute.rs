@@ -31,7 +31,8 @@ use crate::proxy::ProxyMode;
 const GRID_WGSL: &str = concat!(
     include_str!("../../wgsl/grid_params.wgsl"),
     include_str!("../../wgsl/grid_stencil.wgsl"),
-    include_str!("../../wgsl/dem_grid.wgsl")
+    include_str!("../../wgsl/dem_grid.wgsl"),
+    include_str!("../../wgsl/grid_walk.wgsl")
 );
 
 /// Every WGSL module of this step, by label, exactly as the device may get it.

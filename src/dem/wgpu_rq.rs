@@ -18,7 +18,10 @@ use crate::particles::Particles;
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 
-const RQ_WGSL: &str = include_str!("../../wgsl/dem_rq.wgsl");
+const RQ_WGSL: &str = concat!(
+    include_str!("../../wgsl/dem_rq.wgsl"),
+    include_str!("../../wgsl/rq_walk.wgsl")
+);
 const PROXY_WGSL: &str = include_str!("../../wgsl/proxy.wgsl");
 
 /// Every WGSL module of this step, by label, exactly as the device may get it.
@@ -135,10 +138,7 @@ impl RqStepper {
                     &RqParams {
                         chunk,
                         pad_rel: BOX_PADDING,
-                        mode: match mode {
-                            ProxyMode::Mochi => 0,
-                            ProxyMode::Nns => 1,
-                        },
+                        mode: mode.code(),
                         r_max,
                     },
                 );

@@ -50,14 +50,6 @@ pub fn cases() -> Vec<Case> {
     cases
 }
 
-/// The code of `mode` in the kernels' case records.
-pub fn mode_code(mode: ProxyMode) -> u32 {
-    match mode {
-        ProxyMode::Mochi => 0,
-        ProxyMode::Nns => 1,
-    }
-}
-
 /// The cases as records of 12 words: c_i, r_i, c_j, r_j (as bits), i, j, mode, padding.
 pub fn records(cases: &[Case], mode: ProxyMode) -> Vec<u32> {
     cases
@@ -75,7 +67,7 @@ pub fn records(cases: &[Case], mode: ProxyMode) -> Vec<u32> {
                 f(r_j),
                 i,
                 j,
-                mode_code(mode),
+                mode.code(),
                 0,
             ]
         })

@@ -42,8 +42,10 @@ pub const MAX_COORDINATE: f32 = 1e12;
 /// Threads per block of the CUDA kernels.
 pub(crate) const BLOCK: u32 = 256;
 
-/// Counters the intersection program spreads its candidate count over.
-const CANDIDATE_COUNTERS: usize = 256;
+/// Counters the device programs spread their candidate (and contact) counts over: a power of
+/// two, indexed by `i & (COUNTER_SLOTS - 1)` (the `& 255u` of `optix/detect.cu` and
+/// `optix/dem.cu`, checked by `tests/optix.rs`).
+pub const COUNTER_SLOTS: usize = 256;
 
 /// Launch parameters of `optix/detect.cu`; keep in sync with `DetectParams` there.
 #[repr(C)]
@@ -192,7 +194,7 @@ impl OptixBackend {
         stream
             .memcpy_htod(&rows, &mut built.spheres_in)
             .map_err(gpu_error)?;
-        let mode = mode_code(built.mode);
+        let mode = built.mode.code();
         let config = LaunchConfig {
             grid_dim: (built.n.div_ceil(BLOCK), 1, 1),
             block_dim: (BLOCK, 1, 1),
@@ -245,7 +247,7 @@ impl OptixBackend {
                 handle: gas.handle,
                 n: built.n,
                 capacity,
-                mode: mode_code(built.mode),
+                mode: built.mode.code(),
                 _pad: 0,
             };
             stream
@@ -288,13 +290,6 @@ impl OptixBackend {
             pairs.par_sort_unstable();
             return Ok((pairs, stats));
         }
-    }
-}
-
-fn mode_code(mode: ProxyMode) -> u32 {
-    match mode {
-        ProxyMode::Mochi => 0,
-        ProxyMode::Nns => 1,
     }
 }
 
@@ -388,7 +383,7 @@ impl Backend for OptixBackend {
                 .map_err(gpu_error)?,
             pair_count: stream.alloc_zeros::<u32>(1).map_err(gpu_error)?,
             candidates: stream
-                .alloc_zeros::<u64>(CANDIDATE_COUNTERS)
+                .alloc_zeros::<u64>(COUNTER_SLOTS)
                 .map_err(gpu_error)?,
             params: stream
                 .alloc_zeros::<u8>(size_of::<DetectParams>())

@@ -43,6 +43,7 @@ const PAIRS_WGSL: &str = concat!(
     include_str!("../../../wgsl/grid_params.wgsl"),
     include_str!("../../../wgsl/grid_stencil.wgsl"),
     include_str!("../../../wgsl/grid_pairs.wgsl"),
+    include_str!("../../../wgsl/grid_walk.wgsl"),
     include_str!("../../../wgsl/proxy.wgsl"),
     include_str!("../../../wgsl/pair_output.wgsl")
 );

@@ -29,6 +29,7 @@ const BUILD_WGSL: &str = concat!(
 );
 const PAIRS_WGSL: &str = concat!(
     include_str!("../../../wgsl/rq_pairs.wgsl"),
+    include_str!("../../../wgsl/rq_walk.wgsl"),
     include_str!("../../../wgsl/proxy.wgsl"),
     include_str!("../../../wgsl/pair_output.wgsl")
 );
@@ -74,13 +75,6 @@ struct PairParams {
     _pad: [u32; 3],
 }
 const _: () = assert!(size_of::<PairParams>() == 32);
-
-fn mode_code(mode: ProxyMode) -> u32 {
-    match mode {
-        ProxyMode::Mochi => 0,
-        ProxyMode::Nns => 1,
-    }
-}
 
 /// The wgpu ray-query backend.
 pub struct WgpuRqBackend {
@@ -190,7 +184,7 @@ impl RebuildingBackend for WgpuRqBackend {
                 let extent = hi[a] - lo[a];
                 if extent > 0.0 { 1023.0 / extent } else { 0.0 }
             }),
-            mode: mode_code(mode),
+            mode: mode.code(),
             r_max: spheres.max_radius(),
             pad_rel: BOX_PADDING,
             row: x * BUILD_GROUP,
@@ -270,7 +264,7 @@ impl RebuildingBackend for WgpuRqBackend {
             let params = PairParams {
                 n,
                 capacity,
-                mode: mode_code(mode),
+                mode: mode.code(),
                 chunk: accel.chunk,
                 row: x * PAIRS_GROUP,
                 _pad: [0; 3],

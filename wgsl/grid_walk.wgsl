@@ -1,0 +1,62 @@
+// The stencil walk of the sorted proxy grid, shared by detection (grid_pairs.wgsl) and the DEM
+// step (dem_grid.wgsl): sphere p visits every sphere q that may touch it exactly once over all
+// threads. Dense tables: the rest of its own window row (q > p) and the rows of its own level's
+// window after that row, then the full windows of every coarser level (grid_stencil.wgsl).
+// Hashed table: the rest of its own cell (q > p) and its 13 forward neighbour cells, each looked
+// up in its bucket and filtered by its coordinates (spheres of other cells sharing the bucket are
+// skipped). Needs grid_params.wgsl and grid_stencil.wgsl prepended and `cell_start` bound; the
+// including shader defines
+//   struct Walker { p: u32, s: vec4<f32>, ... }   sphere p (sorted position), s = pos/radius,
+//                                                  and whatever its visits accumulate
+//   fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>)   one candidate q, t = its sphere
+//   fn walked(w: ptr<function, Walker>, n: u32)    a run or bucket is done; n candidates visited
+//   fn walk_sphere(q: u32) -> vec4<f32>                        sorted sphere q (centre, radius)
+
+// Visits the sorted spheres a..b.
+fn walk_run(w: ptr<function, Walker>, a: u32, b: u32) {
+    for (var q = a; q < b; q += 1u) {
+        visit(w, q, walk_sphere(q));
+    }
+    walked(w, select(0u, b - a, b > a));
+}
+
+// Hashed table: visits the spheres of `cell` found in its bucket (in the own cell only q > p).
+fn walk_bucket(w: ptr<function, Walker>, cell: vec3<u32>, own: bool) {
+    let b = hash_cell(cell);
+    var n = 0u;
+    for (var q = cell_start[b]; q < cell_start[b + 1u]; q += 1u) {
+        let t = walk_sphere(q);
+        if (own && q <= (*w).p) || any(cell_coords(t.xyz, 0u) != cell) {
+            continue;
+        }
+        n += 1u;
+        visit(w, q, t);
+    }
+    walked(w, n);
+}
+
+fn stencil_walk(w: ptr<function, Walker>) {
+    let p = (*w).p;
+    let s = (*w).s;
+    if params.hashed != 0u {
+        let cell = cell_coords(s.xyz, 0u);
+        walk_bucket(w, cell, true);
+        for (var r = 0u; r < 13u; r += 1u) {
+            walk_bucket(w, cell + bitcast<vec3<u32>>(FORWARD[r]), false);
+        }
+    } else {
+        let own = level_of(s.w);
+        let win = window(s, own);
+        for (var k = win.own_row; k < win.count; k += 1u) {
+            let run = window_row(win, k);
+            walk_run(w, max(run.x, p + 1u), run.y);
+        }
+        for (var level = own + 1u; level < params.levels; level += 1u) {
+            let win = window(s, level);
+            for (var k = 0u; k < win.count; k += 1u) {
+                let run = window_row(win, k);
+                walk_run(w, run.x, run.y);
+            }
+        }
+    }
+}
