@@ -1,4 +1,4 @@
-// OptiX programs of the DEM step (method.md, "The DEM pipeline"): one point ray per sphere from
+// OptiX programs of the DEM step (docs/method.md, "The DEM step"): one point ray per sphere from
 // its centre; the intersection program applies the proxy-sphere rule to every box the point lies
 // in and resolves each kept contact at once: the partner's share of the force goes to it with
 // atomics, this sphere's share is summed in the payload and added once by the raygen program.

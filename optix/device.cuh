@@ -1,6 +1,6 @@
 // Device-side declarations shared by mochi's OptiX programs: the few OptiX intrinsics they call
 // (written from the documented ABI of the `_optix_*` calls, not from NVIDIA's headers) and the
-// proxy-sphere rule of method.md. NVRTC compiles this file prepended to each program file.
+// proxy-sphere rule of docs/method.md. NVRTC compiles this file prepended to each program file.
 
 // ---- OptiX intrinsics -------------------------------------------------------------------
 
@@ -63,7 +63,7 @@ static __forceinline__ __device__ void mochi_trace_point(
     }
 }
 
-// ---- The proxy-sphere rule (method.md rules 1-3). Keep in sync with src/proxy.rs. -----------
+// ---- The proxy-sphere rule (docs/method.md rules 1-3). Keep in sync with src/proxy.rs. -----------
 // Rounded exactly as the Rust code: no fused multiply-adds (the __f*_rn intrinsics).
 
 #define MOCHI_MODE_MOCHI 0u

@@ -1,4 +1,4 @@
-// DEM step of the wgpu-compute backend (method.md, "The DEM pipeline"): bin and resolve; the
+// DEM step of the wgpu-compute backend (docs/method.md, "The DEM step"): bin and resolve; the
 // integration is dem_physics.wgsl's. Needs grid_params.wgsl and grid_stencil.wgsl prepended,
 // grid_walk.wgsl, dem_physics.wgsl and one of dem_force_f32.wgsl / dem_force_cas.wgsl appended.
 //

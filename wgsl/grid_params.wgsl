@@ -3,7 +3,7 @@
 // cells). Keep in sync with GridParams in src/backend/wgpu_compute/mod.rs.
 //
 // A grid has one level (cells of the largest proxy; its table dense or hashed) or several dense
-// levels (the multi-level proxy grid of method.md): level `levels - 1` is the top, with cells of
+// levels (the multi-level proxy grid of docs/method.md): level `levels - 1` is the top, with cells of
 // `top_cell`, and every level below halves them. A sphere lives at the finest level whose cells
 // hold its proxy (or the finest level there is) and meets its partners there (half stencil) and
 // at every coarser level (27 cells), where only it, the smaller sphere, looks for the pair.

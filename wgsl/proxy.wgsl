@@ -1,4 +1,4 @@
-// The proxy-sphere rule (method.md rules 1–3). Keep in sync with src/proxy.rs, line for line.
+// The proxy-sphere rule (docs/method.md, rules 1–3). Keep in sync with src/proxy.rs, line for line.
 // Prepended to every shader that filters candidates.
 
 const MODE_MOCHI: u32 = 0u;

@@ -1,4 +1,4 @@
-//! `mochi bench`: the paper's experiments (method.md) on every backend, measured the same way
+//! `mochi bench`: the paper's experiments (docs/method.md, "The paper's workloads") on every backend, measured the same way
 //! every time.
 //!
 //! 1. detection only, `mochi` vs `nns` mode at radius ratios 1.2, 12 and 120 ([`detect`]);

@@ -5,7 +5,7 @@ use crate::backend::wgpu_compute::Structure;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
-/// One of the paper's experiments (method.md), numbered as in issue 7.
+/// One of the paper's experiments (docs/method.md), numbered as in issue 7.
 #[derive(
     Debug,
     Clone,

@@ -1,4 +1,4 @@
-//! The physics of the DEM (method.md, "The DEM pipeline"): spheres of one density under gravity,
+//! The physics of the DEM (docs/method.md, "The DEM step"): spheres of one density under gravity,
 //! a linear spring–dashpot normal contact between spheres and with the six walls of a box, and
 //! semi-implicit Euler integration. No friction, no rotation, as in the paper.
 //!

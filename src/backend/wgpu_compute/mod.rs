@@ -15,7 +15,7 @@
 //! ([`DEM_CELLS_PER_SPHERE`] in the DEM step); cells may grow for that (still exact, a few more
 //! candidates) as long as a sample shows them uncrowded. Otherwise (a cluster with far-away
 //! outliers, say) cells keep their size and are hashed into 2n buckets, so
-//! the work never degenerates. The multi-level grid (method.md) stacks dense tables whose cells
+//! the work never degenerates. The multi-level grid (docs/method.md, "Grids") stacks dense tables whose cells
 //! halve level by level, as many levels as the radii need and the same budget holds; each sphere
 //! is binned at its own size. Detection (`wgsl/grid_pairs.wgsl`, windows from
 //! `wgsl/grid_stencil.wgsl`) searches the cells within r_i + r_max of each centre and visits each
@@ -149,7 +149,7 @@ pub enum Structure {
     Auto,
     /// One grid with cells of the largest proxy (2·r_max; 4·r_max in `nns` mode).
     Grid,
-    /// Multi-level proxy grid (method.md): cells halve level by level, each level a dense table,
+    /// Multi-level proxy grid (docs/method.md, "Grids"): cells halve level by level, each level a dense table,
     /// and each sphere searches from its own size upwards (`mochi` mode; `nns` mode, and sets
     /// whose levels would not fit the budget of cells per sphere, keep the single grid).
     Mlgrid,
