@@ -346,19 +346,8 @@ fn a_damaged_checkpoint_is_refused_by_its_checksum() {
     let middle = bytes.len() / 2; // inside the positions
     bytes[middle] ^= 0x01;
     std::fs::write(&path, &bytes).unwrap();
-    let resume = [
-        "simulate",
-        "--resume",
-        "a/checkpoint.bin",
-        "--steps",
-        "20",
-        "-o",
-        "a",
-        "--backend",
-        "cpu",
-        "-q",
-    ];
-    let e = fails(&resume, dir.path());
+    let resume = resume_run("a", "20", &[]);
+    let e = fails(&strs(&resume), dir.path());
     assert!(
         e.contains("checkpoint.bin") && e.contains("checksum mismatch"),
         "{e}"
@@ -373,23 +362,12 @@ fn a_resumed_state_is_checked_like_a_fresh_one() {
     ok(&first, dir.path());
     let path = dir.path().join("a/checkpoint.bin");
     let (particles, scene) = read_checkpoint(&path).unwrap();
-    let resume = [
-        "simulate",
-        "--resume",
-        "a/checkpoint.bin",
-        "--steps",
-        "20",
-        "-o",
-        "a",
-        "--backend",
-        "cpu",
-        "-q",
-    ];
+    let resume = resume_run("a", "20", &[]);
     // A centre far outside the unit box, though the file is intact.
     let mut far = particles.clone();
     far.positions[3][0] = 5.0;
     mochi::io::write_checkpoint(&path, &far, &scene).unwrap();
-    let e = fails(&resume, dir.path());
+    let e = fails(&strs(&resume), dir.path());
     assert!(
         e.contains("sphere 3") && e.contains("outside the box"),
         "{e}"
@@ -398,13 +376,13 @@ fn a_resumed_state_is_checked_like_a_fresh_one() {
     let mut flat = particles.clone();
     flat.radii[7] = 0.0;
     mochi::io::write_checkpoint(&path, &flat, &scene).unwrap();
-    let e = fails(&resume, dir.path());
+    let e = fails(&strs(&resume), dir.path());
     assert!(e.contains("sphere 7"), "{e}");
     // Parameters a fresh run refuses.
     let soft = scene.replace("restitution = 0.5", "restitution = 0.0");
     assert_ne!(soft, scene);
     mochi::io::write_checkpoint(&path, &particles, &soft).unwrap();
-    let e = fails(&resume, dir.path());
+    let e = fails(&strs(&resume), dir.path());
     assert!(e.contains("restitution"), "{e}");
 }
 
@@ -423,23 +401,7 @@ fn resume_refuses_overrides_that_change_the_run() {
         ("gravity=[0, 0, -1.62]", "gravity"),
         ("seed=9", "seed"),
     ] {
-        let e = fails(
-            &[
-                "simulate",
-                "--resume",
-                "a/checkpoint.bin",
-                "--steps",
-                "20",
-                "--set",
-                set,
-                "-o",
-                "a",
-                "--backend",
-                "cpu",
-                "-q",
-            ],
-            dir.path(),
-        );
+        let e = fails(&strs(&resume_run("a", "20", &["--set", set])), dir.path());
         assert!(
             e.contains(&format!("--set {key}:")) && e.contains("--resume"),
             "{set}: {e}"
@@ -659,6 +621,16 @@ fn short_run(out: &str, extra: &[&str]) -> Vec<String> {
     args.into_iter().map(String::from).collect()
 }
 
+/// Resumes the checkpoint of the run in `out` up to `steps`, into `out`, on the cpu backend,
+/// quietly, with `extra` options.
+fn resume_run(out: &str, steps: &str, extra: &[&str]) -> Vec<String> {
+    let checkpoint = format!("{out}/checkpoint.bin");
+    let mut args = vec!["simulate", "--resume", &checkpoint, "--steps", steps];
+    args.extend(extra);
+    args.extend(["--backend", "cpu", "-q", "-o", out]);
+    args.into_iter().map(String::from).collect()
+}
+
 fn strs(args: &[String]) -> Vec<&str> {
     args.iter().map(String::as_str).collect()
 }
@@ -824,23 +796,7 @@ fn a_resume_with_a_broken_index_changes_nothing() {
     ok(&strs(&short_run("run", &[])), d);
     std::fs::write(d.join("run/series.pvd"), "<VTKFile>not an index").unwrap();
     let before = snapshot(&d.join("run"));
-    let e = fails(
-        &[
-            "simulate",
-            "--resume",
-            "run/checkpoint.bin",
-            "--steps",
-            "40",
-            "--set",
-            "csv=true",
-            "--backend",
-            "cpu",
-            "-q",
-            "-o",
-            "run",
-        ],
-        d,
-    );
+    let e = fails(&strs(&resume_run("run", "40", &["--set", "csv=true"])), d);
     assert!(e.contains("series.pvd"), "{e}");
     assert_eq!(snapshot(&d.join("run")), before);
 }
