@@ -7,8 +7,8 @@
 // A thread keeps the sorted positions of its first LOCAL_PAIRS partners; at the end
 // (finish_pairs) the workgroup reserves room for all their pairs with one global atomic and each
 // thread looks its partners' input indices up and writes its pairs at its offset. One atomic per
-// pair on a single counter was most of the detection time on contact-heavy scenes; looking the
-// indices up at the end rather than in the search saved 2–4 µs per 1M spheres on the H200.
+// pair on a single counter was most of the detection time on contact-heavy scenes; the indices
+// are looked up at the end rather than in the search (docs/PERFORMANCE.md).
 // Pairs beyond LOCAL_PAIRS take a global atomic each.
 
 @group(0) @binding(3) var<storage, read_write> counters: array<atomic<u32>, 4>;

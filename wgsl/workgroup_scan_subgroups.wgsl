@@ -1,7 +1,7 @@
 // Scan across a workgroup of WG threads on subgroup operations (adapters with wgpu's SUBGROUP
 // feature; workgroup_scan_plain.wgsl otherwise): each subgroup scans its own values, one subgroup
-// scans the subgroups' totals, three barriers in all instead of log2(WG) + 2. Measured on the H200:
-// the cell scan's two dispatches 3–5 µs faster per build. It needs every subgroup to be a full run
+// scans the subgroups' totals, three barriers in all instead of log2(WG) + 2 (docs/PERFORMANCE.md
+// has what it saves). It needs every subgroup to be a full run
 // of consecutive local indices in lane order, as on every driver we know, but neither Vulkan nor
 // WebGPU promises it: a workgroup that finds otherwise (scan_kind) scans in workgroup memory, so
 // the result is right on any adapter. Needs workgroup_scan.wgsl appended.

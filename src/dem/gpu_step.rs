@@ -83,8 +83,8 @@ impl ForceAtomics {
 
 /// GPU timestamps of a batch of steps: the four phase boundaries (start, built, resolved,
 /// integrated) of each of its first *profiled* steps, then the batch's end. A step's phases are
-/// told apart only by recording them in passes of their own between timestamps, which costs:
-/// on the H200 every pass boundary adds about 4.6 µs and every timestamp about 2 µs. So a
+/// told apart only by recording them in passes of their own between timestamps, and every pass
+/// boundary and timestamp costs the GPU time (docs/PERFORMANCE.md). So a
 /// stepper may profile only its batch's first step and record the others in one compute pass;
 /// [`read`](Self::read) then splits the batch's whole time in the profiled steps' proportions.
 pub(crate) struct StepTimer {

@@ -355,8 +355,8 @@ impl Gpu {
 }
 
 /// Records a dispatch of `pipeline` with `bind` at group 0 over the workgroups `(x, y)` into an
-/// open pass. Dependent dispatches recorded in one pass cost less than one pass each: measured on
-/// the H200 (Vulkan), every pass boundary adds about 4.6 µs.
+/// open pass. Dependent dispatches recorded in one pass cost less than one pass each (every pass
+/// boundary costs the GPU time: docs/PERFORMANCE.md).
 pub fn record(
     pass: &mut wgpu::ComputePass,
     pipeline: &wgpu::ComputePipeline,

@@ -15,8 +15,8 @@
 //! (a third larger, and encoded), never as raw appended data; it wants every array copied into
 //! its own owned model first, serialises through serde and quick-xml, and by default pulls in
 //! three compression libraries. A frame needs only a fixed header and eight byte blocks, which
-//! this file writes straight from the caller's slices: 45 MB for a million spheres, in about
-//! 35 ms (release build, to the page cache).
+//! this file writes straight from the caller's slices (45 MB for a million spheres), with no
+//! copy of the state.
 //!
 //! Every file is written through [`write_atomically`]: a killed run leaves each frame and the
 //! index either whole or as it was, and a frame is always written before the index that names it.

@@ -8,7 +8,7 @@
 //! Everything NVIDIA is loaded at run time (CUDA driver and NVRTC through `cudarc`, OptiX
 //! through our own FFI of ABI 105 in `ffi.rs`), so the crate builds anywhere and a machine without
 //! the driver gets a clear "unavailable" instead of a crash. Spheres are launched in Morton
-//! order (coherent rays; measured 26–65% faster than random order on the H100).
+//! order (coherent rays: faster than random order, docs/PERFORMANCE.md).
 
 // The one place of the crate that calls foreign code: every unsafe block says why it holds.
 #![allow(unsafe_code)]

@@ -10,9 +10,8 @@ use super::GridParams;
 use crate::gpu::Gpu;
 
 /// Most blocks a table is cut into for the scan (each scan workgroup sums the blocks before it).
-/// Measured on the H200 (1M spheres, tables of 0.6M–2.7M cells; 5M spheres): 1024 beats 2048
-/// (fewer sums to add up: settled slab build 0.083 → 0.079 ms, 5M freefall 0.306 → 0.298) and
-/// 512 or fewer (too few workgroups, each scanning more tiles in a row: 5M freefall 0.346 ms).
+/// More blocks mean more block sums to add up, fewer mean too few workgroups, each scanning more
+/// tiles in a row; 1024 measured best (docs/PERFORMANCE.md, issue 4).
 const MAX_BLOCKS: u32 = 1024;
 
 /// Smallest block: one tile of a scan workgroup (`TILE` in the shader).

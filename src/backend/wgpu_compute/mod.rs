@@ -85,14 +85,12 @@ const CROWDING_SAMPLE: usize = 4096;
 const MAX_HASHED_AXIS_CELLS: u64 = 1 << 21;
 
 /// Cells of the dense tables per sphere, at most, for detection (a table of at least 2^20 cells is
-/// always fine). Measured on the H200 (1M spheres): against 8, it saves a third of the build of
-/// `polylog`'s multi-level grid (two levels instead of three; 0.397 → 0.326 ms of build + detect)
-/// and of the settled slab's (0.266 → 0.240 ms), and changes nothing where the table is smaller.
+/// always fine). Fewer cells per sphere mean fewer levels and a cheaper build, paid for with a
+/// few more candidates; for detection alone the build weighs more (docs/PERFORMANCE.md, issue 4).
 pub const DETECT_CELLS_PER_SPHERE: u64 = 4;
 
 /// Cells of the dense tables per sphere, at most, for the DEM step, whose detection pass also
-/// resolves contacts, so fewer candidates pay for a larger table: measured on the H200 (1M),
-/// `polylog` 0.598 ms per step at 4, 0.403 ms at 8 (a third level); the landed slab 0.303 / 0.299.
+/// resolves contacts, so fewer candidates pay for a larger table (docs/PERFORMANCE.md, issue 4).
 pub const DEM_CELLS_PER_SPHERE: u64 = 8;
 
 /// What a layout may spend on its dense tables: `spheres` × `cells_per_sphere` cells.
@@ -143,8 +141,8 @@ const _: () = assert!(size_of::<GridParams>() == 112);
 )]
 #[serde(rename_all = "lowercase")]
 pub enum Structure {
-    /// The multi-level grid where the radii span a factor of 4 or more (`AUTO_MLGRID_RATIO`; it
-    /// measured 2–3.6× faster on `polylog`), else the single grid.
+    /// The multi-level grid where the radii span a factor of 4 or more (`AUTO_MLGRID_RATIO`;
+    /// docs/PERFORMANCE.md has the comparison), else the single grid.
     #[default]
     Auto,
     /// One grid with cells of the largest proxy (2·r_max; 4·r_max in `nns` mode).
