@@ -420,7 +420,7 @@ fn assert_gpu_steps_follow_the_cpu_step_with(start: Particles, p: StepParams) {
             assert_eq!(got.step, expected.step, "{name}");
             assert_eq!(a.contacts, *contacts, "{name}: contacts at batch {k}");
             // GPUs fuse multiply-adds and add forces in any order: close, not identical.
-            let worst = largest_gap(&got, expected);
+            let worst = common::largest_gap(&got, expected);
             assert!(
                 worst < 1e-6,
                 "{name}: {worst} m from the cpu step at step {}",
@@ -459,18 +459,9 @@ fn refitting_steps_follow_the_cpu_step_past_a_morton_resort() {
         let a = s.advance(steps).unwrap();
         assert_eq!(a.contacts, 0, "{name}");
         let got = s.particles().unwrap();
-        let worst = largest_gap(&got, &expected);
+        let worst = common::largest_gap(&got, &expected);
         assert!(worst < 1e-4, "{name}: {worst} m from the cpu step");
     }
-}
-
-/// The largest difference of one coordinate between the same sphere in `a` and in `b` [m].
-fn largest_gap(a: &Particles, b: &Particles) -> f32 {
-    a.positions
-        .iter()
-        .zip(&b.positions)
-        .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).abs()).fold(0.0, f32::max))
-        .fold(0.0, f32::max)
 }
 
 #[test]

@@ -1029,16 +1029,6 @@ fn checkpoint(dir: &Path, run: &str) -> Particles {
         .0
 }
 
-/// The largest difference of one coordinate between the same sphere in `a` and in `b` [m].
-fn largest_gap(a: &Particles, b: &Particles) -> f32 {
-    assert_eq!(a.len(), b.len());
-    a.positions
-        .iter()
-        .zip(&b.positions)
-        .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).abs()).fold(0.0, f32::max))
-        .fold(0.0, f32::max)
-}
-
 #[test]
 fn gpu_backends_run_simulate_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
@@ -1072,7 +1062,7 @@ fn gpu_backends_run_simulate_end_to_end() {
             got.radii == expected.radii,
             "{backend}: radii not in input order"
         );
-        let gap = largest_gap(&got, &expected);
+        let gap = common::largest_gap(&got, &expected);
         assert!(gap < 1e-6, "{backend}: {gap} m from the cpu run");
         assert!(
             got.velocities.iter().all(|v| v[2] < 0.0),
@@ -1120,7 +1110,7 @@ fn gpu_runs_resume_from_a_checkpoint() {
         );
         assert_eq!((a.step, b.step), (300, 300), "{backend}");
         assert!(a.radii == b.radii, "{backend}: radii not in input order");
-        let gap = largest_gap(&a, &b);
+        let gap = common::largest_gap(&a, &b);
         assert!(
             gap < 1e-6,
             "{backend}: the resumed run is {gap} m from the uninterrupted one"

@@ -50,3 +50,13 @@ pub fn open_gpu_lowered(what: &str, max: u32) -> Option<Gpu> {
         .expect("a probed adapter opens")
     })
 }
+
+/// The largest difference of one coordinate between the same sphere in `a` and in `b` [m].
+pub fn largest_gap(a: &mochi::dem::Particles, b: &mochi::dem::Particles) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.positions
+        .iter()
+        .zip(&b.positions)
+        .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).abs()).fold(0.0, f32::max))
+        .fold(0.0, f32::max)
+}

@@ -93,3 +93,16 @@ pub fn differences(mode: ProxyMode, cases: &[Case], kept: &[u32], fused: bool) -
     }
     differ
 }
+
+/// Asserts that a device's decisions `kept` match `src/proxy.rs` on every case of `mode`, as
+/// [`differences`] judges them, listing the cases that differ.
+pub fn assert_same_decisions(mode: ProxyMode, cases: &[Case], kept: &[u32], fused: bool) {
+    let differ = differences(mode, cases, kept, fused);
+    assert!(
+        differ.is_empty(),
+        "{mode:?}: {} of {} cases differ:\n{}",
+        differ.len(),
+        cases.len(),
+        differ.join("\n")
+    );
+}
