@@ -6,7 +6,8 @@
 //! Run: `cargo bench --bench cpu` (add `-- poly120` to pick a group).
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
-use mochi::backend::{Backend, cpu::CpuBackend};
+use mochi::Backend;
+use mochi::engines::cpu::CpuBackend;
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
 use mochi::{ProxyMode, SphereSet};
 use std::hint::black_box;

@@ -6,7 +6,8 @@
 //! Run: `cargo bench --bench gpu` (needs an adapter; lists what it skipped and why).
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use mochi::backend::{Backend, BackendKind};
+use mochi::Backend;
+use mochi::engines::BackendKind;
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
 use mochi::{ProxyMode, SphereSet};
 use std::time::{Duration, Instant};

@@ -35,7 +35,7 @@ extern "C" __global__ void proxy_boxes(const float4* spheres_in, const unsigned 
     mochi_write_box(boxes + 6 * p, s, mode, r_max, pad_rel);
 }
 
-// ---- The DEM step (src/dem/optix.rs) ----------------------------------------------------------
+// ---- The DEM step (src/engines/optix/dem.rs) ----------------------------------------------------------
 
 // The proxy box of every sphere of the state, in place.
 extern "C" __global__ void dem_boxes(const float4* pos, float* boxes, unsigned int n,

@@ -1,5 +1,5 @@
 // The DEM physics of the optix backend's step: parameters, contact and wall forces, gravity.
-// Keep DemParams in sync with src/dem/gpu_step.rs (and wgsl/dem_physics.wgsl) and the formulas
+// Keep DemParams in sync with src/engines/gpu_step.rs (and wgsl/dem_physics.wgsl) and the formulas
 // with src/dem/model.rs, line for line.
 
 struct DemParams {

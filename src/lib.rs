@@ -10,20 +10,21 @@
 //! - [`SphereSet`]: validated centres and radii (`f32`); [`Pair`]: `(i, j)` with `i < j`.
 //! - [`proxy`]: the rule, the one definition every backend mirrors; [`ProxyMode`] selects the
 //!   paper's proxies (`mochi`) or the older fixed-radius boxes (`nns`).
-//! - [`backend`]: the [`Backend`] trait, the registry and `auto`; [`backend::cpu`] runs anywhere.
+//! - [`Backend`]: the detection trait; [`engines`]: one engine per backend (detection and DEM
+//!   step over the same device state), the registry and `auto`; [`engines::cpu`] runs anywhere.
 //! - [`oracle`]: brute force, for tests.
 //! - [`io`]: sphere files (CSV `x,y,z,r[,vx,vy,vz]`, NumPy `.npy` N×4 or N×7), pair files (CSV
 //!   `i,j`), simulation frames (VTK `.vtu` + `.pvd`) and checkpoints.
 //! - [`scenes`]: the paper's datasets, seeded and reproducible.
-//! - [`dem`]: the discrete-element simulation: the contact model, one [`dem::Stepper`] per
-//!   backend (GPU-resident on the GPU backends), scene files.
+//! - [`dem`]: the discrete-element simulation: the contact model, scene files and the
+//!   [`dem::Stepper`] trait each engine implements (GPU-resident on the GPU engines).
 //! - [`mesh`]: triangle meshes (OBJ, PLY, STL) filled with spheres, for the `mesh` scene.
 //! - [`bench`](mod@bench): the paper's experiments on every backend (`mochi bench`): tables, JSON, plots.
 //! - [`render`]: pictures of spheres, ray traced on the GPU (ray queries or our own BVH) or the
 //!   CPU, with a colour legend, as PNG frames or an animated GIF.
 //!
 //! ```
-//! use mochi::{SphereSet, ProxyMode, backend::BackendKind};
+//! use mochi::{SphereSet, ProxyMode, engines::BackendKind};
 //! let spheres = SphereSet::new(vec![[0.0; 3], [1.5, 0.0, 0.0], [9.0, 0.0, 0.0]], vec![1.0, 0.5, 1.0])?;
 //! let mut cpu = BackendKind::Cpu.open()?;
 //! cpu.build(&spheres, ProxyMode::Mochi)?;
@@ -33,9 +34,10 @@
 //! ```
 #![deny(unsafe_code)]
 
-pub mod backend;
 pub mod bench;
 pub mod dem;
+mod detect;
+pub mod engines;
 mod error;
 pub mod gpu;
 pub mod io;
@@ -48,7 +50,7 @@ pub mod scenes;
 mod spheres;
 mod types;
 
-pub use backend::{Backend, BackendInfo};
+pub use detect::{Backend, BackendInfo};
 pub use error::{Error, Result};
 pub use proxy::ProxyMode;
 pub use spheres::{

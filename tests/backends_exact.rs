@@ -8,7 +8,8 @@
 
 mod common;
 
-use mochi::backend::{Backend, BackendKind};
+use mochi::Backend;
+use mochi::engines::BackendKind;
 use mochi::oracle::{brute_force_pairs, differences};
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
 use mochi::{Pair, ProxyMode, SphereSet};
@@ -143,7 +144,7 @@ fn fused(kind: BackendKind) -> bool {
 fn beyond_optix_reach(spheres: &SphereSet) -> bool {
     let r_max = spheres.max_radius();
     spheres.xyzr().any(|[x, y, z, _]| {
-        x.abs().max(y.abs()).max(z.abs()) + 4.0 * r_max > mochi::backend::optix::MAX_COORDINATE
+        x.abs().max(y.abs()).max(z.abs()) + 4.0 * r_max > mochi::engines::optix::MAX_COORDINATE
     })
 }
 

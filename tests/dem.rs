@@ -6,13 +6,14 @@
 
 mod common;
 
-use mochi::backend::BackendKind;
-use mochi::backend::wgpu_compute::Structure;
-use mochi::backend::{Options, RebuildPolicy};
 use mochi::dem::model::{mass, stable_dt, stiffness_for_duration};
-use mochi::dem::wgpu_compute::GridStepper;
-use mochi::dem::wgpu_rq::RqStepper;
-use mochi::dem::{Clock, ForceAtomics, Material, Particles, StepParams, Stepper, open_stepper};
+use mochi::dem::{Clock, Material, Particles, StepParams, Stepper};
+use mochi::engines::BackendKind;
+use mochi::engines::wgpu_compute::GridStepper;
+use mochi::engines::wgpu_compute::Structure;
+use mochi::engines::wgpu_rq::RqStepper;
+use mochi::engines::{ForceAtomics, open_stepper};
+use mochi::engines::{Options, RebuildPolicy};
 use mochi::gpu::Need;
 use mochi::proxy::ProxyMode;
 

@@ -11,8 +11,8 @@ mod common;
 use common::rule_cases::{assert_same_decisions, cases, records};
 use cudarc::driver::{CudaContext, LaunchConfig, PushKernelArg};
 use mochi::ProxyMode;
-use mochi::backend::BackendKind;
-use mochi::backend::optix::programs::{self, Unit};
+use mochi::engines::BackendKind;
+use mochi::engines::optix::programs::{self, Unit};
 
 /// Runs `mochi_keep` of `optix/device.cuh` on each case record (`common::rule_cases::records`).
 const RULE_KERNEL: &str = r#"
@@ -137,7 +137,7 @@ fn optix_is_available_or_says_why() {
 /// length of the counter buffers the host allocates.
 #[test]
 fn counter_masks_match_the_counter_buffers() {
-    use mochi::backend::optix::COUNTER_SLOTS;
+    use mochi::engines::optix::COUNTER_SLOTS;
     assert!(COUNTER_SLOTS.is_power_of_two());
     for (name, source) in [
         ("detect.cu", include_str!("../optix/detect.cu")),

@@ -4,16 +4,14 @@
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
 fn all_shaders() -> Vec<(String, String)> {
-    let mut all: Vec<(String, String)> = mochi::backend::wgpu_rq::SHADERS
+    let mut all: Vec<(String, String)> = mochi::gpu::radix_sort::SHADERS
         .iter()
-        .chain(&mochi::backend::wgpu_compute::SHADERS)
-        .chain(&mochi::gpu::radix_sort::SHADERS)
         .chain(&mochi::gpu::scan::SHADERS)
         .chain(&mochi::render::SHADERS)
         .map(|&(name, source)| (name.to_owned(), source.to_owned()))
         .collect();
-    all.extend(mochi::dem::wgpu_compute::shaders());
-    all.extend(mochi::dem::wgpu_rq::shaders());
+    all.extend(mochi::engines::wgpu_compute::shaders());
+    all.extend(mochi::engines::wgpu_rq::shaders());
     all
 }
 

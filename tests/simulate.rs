@@ -3,8 +3,8 @@
 
 mod common;
 
-use mochi::backend::BackendKind;
 use mochi::dem::Particles;
+use mochi::engines::BackendKind;
 use mochi::gpu::Need;
 use mochi::io::read_checkpoint;
 use std::path::Path;

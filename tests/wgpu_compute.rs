@@ -4,8 +4,8 @@
 
 mod common;
 
-use mochi::backend::Backend;
-use mochi::backend::wgpu_compute::{Structure, WgpuComputeBackend};
+use mochi::Backend;
+use mochi::engines::wgpu_compute::{Structure, WgpuComputeBackend};
 use mochi::gpu::Need;
 use mochi::oracle::{brute_force_pairs, differences};
 use mochi::{ProxyMode, SphereSet};

@@ -4,8 +4,8 @@
 
 mod common;
 
-use mochi::backend::Backend;
-use mochi::backend::wgpu_rq::WgpuRqBackend;
+use mochi::Backend;
+use mochi::engines::wgpu_rq::WgpuRqBackend;
 use mochi::gpu::Need;
 use mochi::oracle::{brute_force_pairs, differences};
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};

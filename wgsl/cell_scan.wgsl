@@ -1,5 +1,5 @@
 // The middle step of the grids' counting sort: the cell counts scanned into the cell table, in two
-// dispatches. Host side: src/backend/wgpu_compute/cell_table.rs. Needs grid_params.wgsl prepended
+// dispatches. Host side: src/engines/wgpu_compute/cell_table.rs. Needs grid_params.wgsl prepended
 // and one of workgroup_scan_plain.wgsl or workgroup_scan_subgroups.wgsl (`SubgroupLanes`,
 // `scan_kind`, `workgroup_scan`) appended, then workgroup_scan.wgsl.
 //

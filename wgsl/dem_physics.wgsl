@@ -1,5 +1,5 @@
 // The DEM physics shared by the GPU steps: parameters, the contact and wall forces and the
-// integration kernel. Keep DemParams in sync with src/dem/gpu_step.rs and the formulas with
+// integration kernel. Keep DemParams in sync with src/engines/gpu_step.rs and the formulas with
 // src/dem/model.rs, line for line. Needs a dem_force_*.wgsl (add_force, load_force).
 
 struct DemParams {

@@ -1,6 +1,6 @@
 // The grid's parameters and cell functions, shared by grid_build.wgsl, cell_scan.wgsl,
 // grid_pairs.wgsl and dem_grid.wgsl (the last two with grid_stencil.wgsl, which searches the
-// cells). Keep in sync with GridParams in src/backend/wgpu_compute/mod.rs.
+// cells). Keep in sync with GridParams in src/engines/wgpu_compute/layout.rs.
 //
 // A grid has one level (cells of the largest proxy; its table dense or hashed) or several dense
 // levels (the multi-level proxy grid of docs/method.md): level `levels - 1` is the top, with cells of

@@ -1,7 +1,7 @@
 // Build stage of the wgpu-rq backend: Morton keys of the centres, then the spheres reordered by
 // key and their proxy boxes. Needs proxy.wgsl prepended.
 
-// Keep in sync with BuildParams in src/backend/wgpu_rq/mod.rs.
+// Keep in sync with BuildParams in src/engines/wgpu_rq/detect.rs.
 struct BuildParams {
     lo: vec3<f32>,      // lower corner of the centres' bounding box
     n: u32,             // number of spheres

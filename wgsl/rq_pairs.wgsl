@@ -3,7 +3,7 @@
 // (pair_output.wgsl), the three appended to this file.
 enable wgpu_ray_query;
 
-// Keep in sync with PairParams in src/backend/wgpu_rq/mod.rs.
+// Keep in sync with PairParams in src/engines/wgpu_rq/detect.rs.
 struct PairParams {
     n: u32,          // number of spheres
     capacity: u32,   // room in `pairs`

@@ -4,10 +4,11 @@ use super::Outcome;
 use super::plan::{Experiment, Plan, REBUILD_INTERVALS};
 use super::report::DemRow;
 use super::stats::Spread;
-use crate::backend::wgpu_compute::Structure;
-use crate::backend::{BackendKind, Options, RebuildPolicy};
 use crate::dem::scene::{SceneConfig, SceneKind, Start};
-use crate::dem::{Clock, Stepper, open_stepper};
+use crate::dem::{Clock, Stepper};
+use crate::engines::open_stepper;
+use crate::engines::wgpu_compute::Structure;
+use crate::engines::{BackendKind, Options, RebuildPolicy};
 use crate::error::{Error, Result};
 use std::time::Instant;
 

@@ -24,9 +24,9 @@ pub mod report;
 pub mod stats;
 pub mod targets;
 
-use crate::backend::BackendKind;
-use crate::backend::wgpu_compute::Structure;
 use crate::dem::scene::{SceneKind, Start};
+use crate::engines::BackendKind;
+use crate::engines::wgpu_compute::Structure;
 use crate::error::Result;
 use crate::proxy::ProxyMode;
 use crate::scenes::Scene;

@@ -1,7 +1,7 @@
 //! What a benchmark run measures: the experiments, the scale, the backends and the repeats.
 
-use crate::backend::BackendKind;
-use crate::backend::wgpu_compute::Structure;
+use crate::engines::BackendKind;
+use crate::engines::wgpu_compute::Structure;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 

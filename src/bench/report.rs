@@ -4,10 +4,10 @@
 use super::plan::{BackendStatus, Experiment, Settings};
 use super::stats::Spread;
 use super::targets::Check;
-use crate::backend::BackendKind;
-use crate::backend::wgpu_compute::Structure;
 use crate::dem::Clock;
 use crate::dem::scene::SceneKind;
+use crate::engines::BackendKind;
+use crate::engines::wgpu_compute::Structure;
 use crate::proxy::ProxyMode;
 use crate::scenes::Layout;
 use serde::{Deserialize, Serialize};

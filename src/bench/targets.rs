@@ -3,9 +3,9 @@
 
 use super::plan::Experiment;
 use super::report::{DemRow, Report};
-use crate::backend::BackendKind;
 use crate::dem::scene::SceneKind;
 use crate::dem::scene::by_name;
+use crate::engines::BackendKind;
 use crate::proxy::ProxyMode;
 use crate::scenes::Scene;
 use serde::{Deserialize, Serialize};
@@ -208,11 +208,11 @@ fn cpu_poly120(report: &Report) -> Check {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::backend::wgpu_compute::Structure;
     use crate::bench::plan::{BackendStatus, Settings};
     use crate::bench::report::{Machine, SCHEMA_VERSION};
     use crate::bench::stats::Spread;
     use crate::dem::Clock;
+    use crate::engines::wgpu_compute::Structure;
     use clap::ValueEnum;
 
     fn ms(v: f64) -> Spread {

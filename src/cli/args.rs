@@ -2,8 +2,8 @@
 
 use clap::{Args, Parser, Subcommand};
 use mochi::ProxyMode;
-use mochi::backend::wgpu_compute::Structure;
-use mochi::backend::{BackendChoice, RebuildPolicy};
+use mochi::engines::wgpu_compute::Structure;
+use mochi::engines::{BackendChoice, RebuildPolicy};
 use mochi::render::{ColorBy, RenderChoice};
 use mochi::scenes::{Layout, Scene};
 use std::path::PathBuf;

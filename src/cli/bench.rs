@@ -3,9 +3,9 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use mochi::backend::wgpu_compute::Structure;
 use mochi::bench::plan::{BackendSelection, Experiment, Plan, Scale, Settings};
 use mochi::bench::{self, markdown, plot};
+use mochi::engines::wgpu_compute::Structure;
 use mochi::io;
 use std::path::PathBuf;
 

@@ -3,8 +3,8 @@
 use super::args::{Cli, Command, DetectArgs, GenerateArgs, SceneArgs};
 use super::output::{check_output_folder, folder_of, refuse_same_file};
 use anyhow::Result;
-use mochi::backend::{self, BackendKind};
 use mochi::dem::scene::by_name;
+use mochi::engines::{self, BackendKind};
 use mochi::scenes::{self, Layout, SceneSpec};
 use mochi::{SphereSet, io};
 use std::time::Instant;
@@ -54,11 +54,11 @@ fn detect(args: DetectArgs) -> Result<()> {
     if let Some(warning) = mochi::coarse_coordinates(spheres.centers(), spheres.radii()) {
         eprintln!("warning: {source}: {warning}");
     }
-    let options = backend::Options {
+    let options = engines::Options {
         structure: args.structure,
         ..Default::default()
     };
-    let opened = backend::open(args.backend, &options)?;
+    let opened = engines::open(args.backend, &options)?;
     if let Some(reason) = &opened.reason {
         eprintln!("{reason}");
     }

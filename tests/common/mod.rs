@@ -12,9 +12,9 @@ pub fn ci() -> bool {
 
 /// Whether this run must test backend `kind` (a missing one fails it): under CI every backend
 /// but optix (CI machines have no NVIDIA GPU); optix where `MOCHI_EXPECT_OPTIX=1`.
-pub fn expected(kind: mochi::backend::BackendKind) -> bool {
+pub fn expected(kind: mochi::engines::BackendKind) -> bool {
     match kind {
-        mochi::backend::BackendKind::Optix => {
+        mochi::engines::BackendKind::Optix => {
             std::env::var("MOCHI_EXPECT_OPTIX").is_ok_and(|v| v == "1")
         }
         _ => ci(),

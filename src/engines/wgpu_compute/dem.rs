@@ -13,15 +13,15 @@
 //! leave the layout's region are clamped into its border cells: exact, only slower.
 //! Float atomics add in no fixed order, so GPU runs are not bit-for-bit reproducible.
 
-use super::gpu_step::{
+use super::cell_table::{CellScan, CellScanBinds, CellTable};
+use super::layout::{
+    Budget, DEM_CELLS_PER_SPHERE, GridParams, LayoutRequest, Levels, Structure, choose_layout,
+};
+use crate::dem::model::StepParams;
+use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::engines::gpu_step::{
     DemParams, FORCE_VARIANTS, ForceAtomics, GROUP, MAX_BATCH, PHYSICS_WGSL, StepTimer,
     advance_in_batches, max_spheres, particles_from, rows,
-};
-use super::model::StepParams;
-use super::stepper::{Advance, StageTimes, Stepper};
-use crate::backend::wgpu_compute::cell_table::{CellScan, CellScanBinds, CellTable};
-use crate::backend::wgpu_compute::{
-    Budget, DEM_CELLS_PER_SPHERE, GridParams, Levels, Structure, choose_layout,
 };
 use crate::error::{Error, Result};
 use crate::gpu::{self, Gpu, Need};
@@ -29,14 +29,14 @@ use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
 const GRID_WGSL: &str = concat!(
-    include_str!("../../wgsl/grid_params.wgsl"),
-    include_str!("../../wgsl/grid_stencil.wgsl"),
-    include_str!("../../wgsl/dem_grid.wgsl"),
-    include_str!("../../wgsl/grid_walk.wgsl")
+    include_str!("../../../wgsl/grid_params.wgsl"),
+    include_str!("../../../wgsl/grid_stencil.wgsl"),
+    include_str!("../../../wgsl/dem_grid.wgsl"),
+    include_str!("../../../wgsl/grid_walk.wgsl")
 );
 
 /// Every WGSL module of this step, by label, exactly as the device may get it.
-pub fn shaders() -> Vec<(String, String)> {
+pub(crate) fn shaders() -> Vec<(String, String)> {
     FORCE_VARIANTS
         .iter()
         .map(|(name, force)| {
@@ -279,15 +279,17 @@ impl GridStepper {
             row: self.groups.0 * GROUP,
             ..choose_layout(
                 &gpu.limits,
-                self.levels,
-                (lo, hi),
-                Budget {
-                    spheres: self.n as u64,
-                    cells_per_sphere: DEM_CELLS_PER_SPHERE,
+                &LayoutRequest {
+                    levels: self.levels,
+                    bounds: (lo, hi),
+                    budget: Budget {
+                        spheres: self.n as u64,
+                        cells_per_sphere: DEM_CELLS_PER_SPHERE,
+                    },
+                    base_cell: self.mode_cell,
+                    radii: self.radii,
+                    dense_check: &|_| true,
                 },
-                self.mode_cell,
-                self.radii,
-                &|_| true,
             )
         };
         if self.cell_table.capacity < layout.cells || self.binds.is_none() {

@@ -1,8 +1,8 @@
 //! Opening a backend's [`Stepper`]: the one place that knows every backend's DEM step.
 
-use super::model::StepParams;
-use super::stepper::Stepper;
-use crate::backend::{BackendChoice, BackendKind, Options};
+use super::registry::{BackendChoice, BackendKind, Options};
+use crate::dem::model::StepParams;
+use crate::dem::stepper::Stepper;
 use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
@@ -34,7 +34,7 @@ pub fn open_stepper(
         BackendKind::Optix => {
             return Err(crate::error::Error::BackendUnavailable {
                 backend: "optix",
-                reason: crate::backend::NO_OPTIX_FEATURE.into(),
+                reason: super::registry::NO_OPTIX_FEATURE.into(),
             });
         }
     })
@@ -52,7 +52,7 @@ pub fn open_choice(
     if let Some(kind) = choice.kind() {
         return Ok((open_stepper(kind, particles, params, mode, options)?, None));
     }
-    let (stepper, reason) = crate::backend::open_auto(|kind| {
+    let (stepper, reason) = super::registry::open_auto(|kind| {
         // A backend that cannot run here is skipped with the probe's own words.
         kind.probe().map_err(Error::Usage)?;
         open_stepper(kind, particles.clone(), params, mode, options)

@@ -1,19 +1,13 @@
-//! The `cpu` backend: a sorted proxy grid searched in parallel with rayon.
-//!
-//! Build = bin the spheres into cells of the mode's size ([`ProxyMode::cell_size`]) and sort
-//! them by cell; detection = the half-stencil search of `query`. `update` re-bins: sorting is
-//! cheap enough that a grid has nothing to refit.
+//! Detection on the cpu engine: [`CpuBackend`] implements [`crate::Backend`].
 
-pub(crate) mod grid;
-pub(crate) mod query;
-
-use super::{Backend, BackendInfo, DetectStats};
+use super::grid::SortedGrid;
+use super::query::{PairSink, search};
+use crate::detect::{Backend, BackendInfo};
 use crate::error::{Error, Result, try_push, try_vec};
 use crate::proxy::ProxyMode;
 use crate::spheres::{MAX_SPHERES, SphereSet};
+use crate::types::DetectStats;
 use crate::types::Pair;
-use grid::SortedGrid;
-use query::{PairSink, search};
 
 /// The multi-threaded CPU backend.
 #[derive(Debug, Default)]

@@ -1,11 +1,12 @@
 //! The part of [`Backend`] that every GPU backend shares: they rebuild on `update` (wgpu has no
 //! refit) and detect through one pass that either collects or counts the pairs.
 
-use super::{Backend, BackendInfo, DetectStats, GpuTimes};
+use crate::detect::{Backend, BackendInfo};
 use crate::error::{Error, Result};
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
 use crate::types::Pair;
+use crate::types::{DetectStats, GpuTimes};
 
 /// A backend that builds from scratch and detects in one pass; [`Backend`] follows from it.
 pub trait RebuildingBackend: Send {

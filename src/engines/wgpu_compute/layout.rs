@@ -1,68 +1,10 @@
-//! The `wgpu-compute` backend: a sorted proxy grid built and searched in WGSL compute shaders,
-//! for adapters without ray queries or RT cores (where it beats software BVH traversal).
-//!
-//! Build, in one submission and one compute pass, a counting sort by cell
-//! (`wgsl/grid_build.wgsl`): every sphere's cell key and rank within its cell (one atomic add),
-//! the cell counts scanned into a table of where each cell's run starts (`cell_table.rs`: two
-//! dispatches, which leave the counts zeroed for the next build), each sphere's index scattered
-//! to its sorted place, and the spheres gathered in that order. No comparison or radix sort is
-//! needed: the table is the sort.
-//!
-//! The single grid has cells of 2·r_max in `mochi` mode and 4·r_max in `nns` mode (the proxy of
-//! the largest sphere, or the fixed-radius box), padded a little. Its table is dense over the
-//! bulk of the centres (their 0.1% to 99.9% quantiles: a few far outliers are clamped into the
-//! border cells) while it fits a budget of [`DETECT_CELLS_PER_SPHERE`] cells per sphere
-//! ([`DEM_CELLS_PER_SPHERE`] in the DEM step); cells may grow for that (still exact, a few more
-//! candidates) as long as a sample shows them uncrowded. Otherwise (a cluster with far-away
-//! outliers, say) cells keep their size and are hashed into 2n buckets, so
-//! the work never degenerates. The multi-level grid (docs/method.md, "Grids") stacks dense tables whose cells
-//! halve level by level, as many levels as the radii need and the same budget holds; each sphere
-//! is binned at its own size. Detection (`wgsl/grid_pairs.wgsl`, windows from
-//! `wgsl/grid_stencil.wgsl`) searches the cells within r_i + r_max of each centre and visits each
-//! pair once, like the cpu backend.
+//! The wgpu-compute engine's layout policy, pure (no GPU): which grid (single or multi-level,
+//! dense or hashed) and which cells a sphere set gets within a budget of table cells per sphere
+//! (docs/method.md, "Grids"). [`GridParams`] is its result and the shaders' uniform.
 
-pub(crate) mod cell_table;
-
-use cell_table::{CellScan, CellTable};
-
-use super::rebuilding::RebuildingBackend;
-use super::{BackendInfo, DetectStats, GpuTimes};
-use crate::error::{Error, Result};
-use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
-use crate::gpu::timer::{self, GpuTimer, Span};
-use crate::gpu::{self, Gpu, Need};
+use super::cell_table;
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
-use crate::types::Pair;
-
-const BUILD_WGSL: &str = concat!(
-    include_str!("../../../wgsl/grid_params.wgsl"),
-    include_str!("../../../wgsl/grid_build.wgsl")
-);
-const PAIRS_WGSL: &str = concat!(
-    include_str!("../../../wgsl/grid_params.wgsl"),
-    include_str!("../../../wgsl/grid_stencil.wgsl"),
-    include_str!("../../../wgsl/grid_pairs.wgsl"),
-    include_str!("../../../wgsl/grid_walk.wgsl"),
-    include_str!("../../../wgsl/proxy.wgsl"),
-    include_str!("../../../wgsl/pair_output.wgsl")
-);
-
-/// Every WGSL module of this backend, by label, exactly as the device gets it.
-pub const SHADERS: [(&str, &str); 4] = [
-    ("grid_build", BUILD_WGSL),
-    ("grid_pairs", PAIRS_WGSL),
-    cell_table::SHADERS[0],
-    cell_table::SHADERS[1],
-];
-
-/// Timer spans of a build and of a detection pass.
-const BUILD_SPAN: Span = Span(0);
-const DETECT_SPAN: Span = Span(1);
-
-/// Workgroup sizes, as in the shaders.
-const BUILD_GROUP: u32 = 256;
-const PAIRS_GROUP: u32 = 256;
 
 /// Relative padding of the cell side: far above the `f32` rounding of the cell coordinates of
 /// up to [`MAX_AXIS_CELLS`] cells (about 2^-22 per cell of coordinate), so a pair the narrow phase
@@ -76,7 +18,7 @@ const MAX_AXIS_CELLS: u64 = 4096;
 const MAX_DENSE_GROWTH: f64 = 16.0;
 
 /// Most other spheres expected in a sphere's own cell for a grown dense table; above it, hash.
-const MAX_CROWDING: f64 = 4.0;
+pub(crate) const MAX_CROWDING: f64 = 4.0;
 
 /// Spheres sampled to estimate [`crowding`].
 const CROWDING_SAMPLE: usize = 4096;
@@ -181,63 +123,6 @@ impl Structure {
 /// Most levels of a multi-level grid (the shaders keep 8 table offsets).
 const MAX_LEVELS: u32 = 8;
 
-/// The wgpu compute (sorted grid) backend.
-pub struct WgpuComputeBackend {
-    gpu: Gpu,
-    scan: CellScan,
-    count_cells: wgpu::ComputePipeline,
-    scatter: wgpu::ComputePipeline,
-    gather: wgpu::ComputePipeline,
-    find_pairs: wgpu::ComputePipeline,
-    built: Option<Built>,
-    structure: Structure,
-    timer: Option<GpuTimer>,
-    times: GpuTimes,
-}
-
-/// What one build leaves on the GPU.
-struct Built {
-    n: u32,
-    mode: ProxyMode,
-    params: GridParams,
-    /// `None` for an empty set.
-    grid: Option<Grid>,
-    output: PairOutput,
-}
-
-/// GPU buffers of a grid over `n` spheres.
-struct Grid {
-    n: u32,
-    params: wgpu::Buffer,
-    pair_params: wgpu::Buffer,
-    /// `vec4(x, y, z, r)` in input order.
-    spheres_in: wgpu::Buffer,
-    /// Cell key and rank among the spheres of that cell of each sphere, in input order.
-    slots: wgpu::Buffer,
-    /// Input index of each sorted sphere.
-    ids: wgpu::Buffer,
-    /// `vec4(x, y, z, r)` in sorted order.
-    spheres: wgpu::Buffer,
-    table: CellTable,
-}
-
-impl Grid {
-    fn new(gpu: &Gpu, n: u32, cells: u32) -> Grid {
-        let none = wgpu::BufferUsages::empty();
-        let n64 = n as u64;
-        Grid {
-            n,
-            params: gpu.uniform("mochi.grid.params", &GridParams::default()),
-            pair_params: gpu.uniform("mochi.grid.pair_params", &GridParams::default()),
-            spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
-            slots: gpu.storage("mochi.grid.slots", n64 * 8, none),
-            ids: gpu.storage("mochi.grid.ids", n64 * 4, none),
-            spheres: gpu.storage("mochi.grid.spheres", n64 * 16, none),
-            table: CellTable::new(gpu, cells),
-        }
-    }
-}
-
 /// Fraction of the centres that may lie outside [`core_bounds`] on each side of each axis.
 const OUTLIER_FRACTION: f64 = 1e-3;
 
@@ -249,7 +134,7 @@ const BOUNDS_SAMPLE: usize = 16384;
 /// the true bounds. The shaders clamp the centres outside into the border cells (still exact),
 /// so a few spheres thrown far away (a bounce, a stray outlier) cannot stretch the table over
 /// empty space and coarsen the cells of all the others.
-fn core_bounds(spheres: &SphereSet) -> Option<([f32; 3], [f32; 3])> {
+pub(crate) fn core_bounds(spheres: &SphereSet) -> Option<([f32; 3], [f32; 3])> {
     let (lo, hi) = spheres.bounds()?;
     let centers = spheres.centers();
     let step = centers.len().div_ceil(BOUNDS_SAMPLE).max(1);
@@ -270,7 +155,7 @@ fn core_bounds(spheres: &SphereSet) -> Option<([f32; 3], [f32; 3])> {
 /// Estimated number of other spheres in a sphere's own cell, for cells of side `size` anchored at
 /// `lo`, from an evenly spread sample of the centres (n·P/m² with P the ordered same-cell pairs
 /// among m sampled spheres).
-fn crowding(centers: &[[f32; 3]], lo: [f32; 3], size: f64) -> f64 {
+pub(crate) fn crowding(centers: &[[f32; 3]], lo: [f32; 3], size: f64) -> f64 {
     let step = centers.len().div_ceil(CROWDING_SAMPLE).max(1);
     let mut cells: Vec<[u64; 3]> = centers
         .iter()
@@ -284,59 +169,6 @@ fn crowding(centers: &[[f32; 3]], lo: [f32; 3], size: f64) -> f64 {
         .map(|run| (run.len() * (run.len() - 1)) as f64)
         .sum();
     centers.len() as f64 * same_cell_pairs / (m * m)
-}
-
-impl WgpuComputeBackend {
-    /// Opens the best adapter with compute shaders.
-    pub fn new() -> Result<Self> {
-        let gpu = Gpu::open(Need::Compute)?;
-        let build = gpu.module("mochi.grid.build", BUILD_WGSL);
-        let pairs = gpu.module("mochi.grid.pairs", PAIRS_WGSL);
-        Ok(Self {
-            scan: CellScan::new(&gpu),
-            count_cells: gpu.pipeline("mochi.grid.count_cells", &build, "count_cells"),
-            scatter: gpu.pipeline("mochi.grid.scatter", &build, "scatter"),
-            gather: gpu.pipeline("mochi.grid.gather", &build, "gather"),
-            find_pairs: gpu.pipeline("mochi.grid.find_pairs", &pairs, "find_pairs"),
-            built: None,
-            structure: Structure::Auto,
-            timer: GpuTimer::new(&gpu, 2),
-            times: GpuTimes::default(),
-            gpu,
-        })
-    }
-
-    /// Builds `structure` from now on.
-    pub fn with_structure(mut self, structure: Structure) -> Self {
-        self.structure = structure;
-        self
-    }
-
-    fn max_spheres(&self) -> u64 {
-        let l = &self.gpu.limits;
-        (l.max_storage_buffer_binding_size.min(l.max_buffer_size) / 16).min(u32::MAX as u64)
-    }
-
-    /// Cell layout for `spheres` (see [`choose_layout`]) over their [`core_bounds`].
-    fn layout(&self, spheres: &SphereSet, mode: ProxyMode) -> GridParams {
-        let (lo, hi) = core_bounds(spheres).expect("the set is not empty");
-        let base = mode.cell_size(spheres.max_radius()) as f64;
-        let uncrowded = |size: f64| crowding(spheres.centers(), lo, size) <= MAX_CROWDING;
-        let radii = (spheres.min_radius() as f64, spheres.max_radius() as f64);
-        let budget = Budget {
-            spheres: spheres.len() as u64,
-            cells_per_sphere: DETECT_CELLS_PER_SPHERE,
-        };
-        choose_layout(
-            &self.gpu.limits,
-            self.structure.levels_for(mode, radii.1 / radii.0),
-            (lo, hi),
-            budget,
-            base,
-            radii,
-            &uncrowded,
-        )
-    }
 }
 
 /// Cells a dense table (all its levels together) may have: the budget's, at least 2^20, within
@@ -355,24 +187,34 @@ fn axis_cells(extent: [f64; 3], size: f64) -> [u64; 3] {
     extent.map(|e| (e / size).min(u32::MAX as f64) as u64 + 1 + 2)
 }
 
-/// Layout of `budget.spheres` centres within `bounds` and cells of at least `base` (the mode's
-/// cell size):
-/// with `Levels::Many`, a multi-level grid of dense tables when one of at least two levels fits
-/// the budget ([`multi_level_layout`]); otherwise a single level ([`grid_layout`]).
-pub(crate) fn choose_layout(
-    limits: &wgpu::Limits,
-    levels: Levels,
-    (lo, hi): ([f32; 3], [f32; 3]),
-    budget: Budget,
-    base: f64,
-    (r_min, r_max): (f64, f64),
-    dense_check: &dyn Fn(f64) -> bool,
-) -> GridParams {
-    let multi = match levels {
+/// What a layout is chosen for: `budget.spheres` centres within `bounds`, cells of at least
+/// `base_cell` (the mode's cell size), radii from `radii.0` to `radii.1`.
+pub(crate) struct LayoutRequest<'a> {
+    /// One level, or as many as the radii call for.
+    pub levels: Levels,
+    /// Lower and upper corner of the centres the tables cover (others clamp to the border cells).
+    pub bounds: ([f32; 3], [f32; 3]),
+    pub budget: Budget,
+    pub base_cell: f64,
+    /// Smallest and largest radius.
+    pub radii: (f64, f64),
+    /// Whether grown dense cells of this side stay uncrowded ([`crowding`]).
+    pub dense_check: &'a dyn Fn(f64) -> bool,
+}
+
+/// The layout for `request`: with `Levels::Many`, a multi-level grid of dense tables when one of
+/// at least two levels fits the budget ([`multi_level_layout`]); otherwise a single level
+/// ([`grid_layout`]).
+pub(crate) fn choose_layout(limits: &wgpu::Limits, request: &LayoutRequest) -> GridParams {
+    let (lo, hi) = request.bounds;
+    let (r_min, r_max) = request.radii;
+    let (budget, base) = (request.budget, request.base_cell);
+    let multi = match request.levels {
         Levels::One => None,
         Levels::Many => multi_level_layout(limits, lo, hi, budget, base, r_max / r_min),
     };
-    let params = multi.unwrap_or_else(|| grid_layout(limits, lo, hi, budget, base, dense_check));
+    let params =
+        multi.unwrap_or_else(|| grid_layout(limits, lo, hi, budget, base, request.dense_check));
     GridParams {
         block_shift: cell_table::block_shift(params.cells),
         max_radius: (r_max * (1.0 + CELL_PADDING)) as f32,
@@ -507,179 +349,6 @@ pub(crate) fn grid_layout(
     params(size, counts(size), buckets, 1)
 }
 
-impl RebuildingBackend for WgpuComputeBackend {
-    fn info(&self) -> BackendInfo {
-        BackendInfo {
-            name: "wgpu-compute",
-            device: gpu::describe(&self.gpu.info),
-            max_spheres: self.max_spheres(),
-        }
-    }
-
-    fn rebuild(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
-        let n = spheres.len();
-        if n as u64 > self.max_spheres() {
-            return Err(Error::TooLarge {
-                what: format!("spheres for wgpu-compute on {}", self.gpu.info.name),
-                got: n as u64,
-                limit: self.max_spheres(),
-            });
-        }
-        let n = n as u32;
-        if n == 0 {
-            let output = PairOutput::new(&self.gpu, 1);
-            let params = GridParams::default();
-            self.built = Some(Built {
-                n,
-                mode,
-                params,
-                grid: None,
-                output,
-            });
-            return Ok(());
-        }
-        let gpu = &self.gpu;
-        let (x, y) = gpu.grid(n, BUILD_GROUP);
-        let params = GridParams {
-            row: x * BUILD_GROUP,
-            ..self.layout(spheres, mode)
-        };
-        let (grid, output) = match self.built.take() {
-            Some(Built {
-                grid: Some(g),
-                output,
-                ..
-            }) if g.n == n && g.table.capacity >= params.cells => (g, output),
-            _ => gpu.checked("allocating the wgpu-compute buffers", || {
-                (
-                    Grid::new(gpu, n, params.cells),
-                    PairOutput::new(gpu, n.max(1024)),
-                )
-            })?,
-        };
-        let rows: Vec<[f32; 4]> = spheres.xyzr().collect();
-        gpu.checked("building the wgpu-compute grid", || {
-            gpu.queue
-                .write_buffer(&grid.params, 0, bytemuck::bytes_of(&params));
-            gpu.queue
-                .write_buffer(&grid.spheres_in, 0, bytemuck::cast_slice(&rows));
-            let g = &grid;
-            let scan = self.scan.bind(gpu, &g.params, &g.table);
-            let count = gpu.bind(
-                "mochi.grid.count_cells",
-                &self.count_cells,
-                &[
-                    (0, &g.params),
-                    (1, &g.spheres_in),
-                    (3, &g.slots),
-                    (4, &g.table.counts),
-                ],
-            );
-            let scatter = gpu.bind(
-                "mochi.grid.scatter",
-                &self.scatter,
-                &[
-                    (0, &g.params),
-                    (3, &g.slots),
-                    (5, &g.table.cell_start),
-                    (7, &g.ids),
-                ],
-            );
-            let gather = gpu.bind(
-                "mochi.grid.gather",
-                &self.gather,
-                &[
-                    (0, &g.params),
-                    (1, &g.spheres_in),
-                    (7, &g.ids),
-                    (8, &g.spheres),
-                ],
-            );
-            gpu.submit_timed(self.timer.as_ref(), BUILD_SPAN, |encoder| {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("mochi.grid.build"),
-                    timestamp_writes: None,
-                });
-                gpu::record(&mut pass, &self.count_cells, &count, (x, y));
-                self.scan.record(&mut pass, &scan, &params);
-                gpu::record(&mut pass, &self.scatter, &scatter, (x, y));
-                gpu::record(&mut pass, &self.gather, &gather, (x, y));
-            });
-        })?;
-        gpu.wait()?;
-        self.times = GpuTimes {
-            build_ms: timer::read_ms(gpu, self.timer.as_ref(), BUILD_SPAN)?,
-            detect_ms: None,
-        };
-        self.built = Some(Built {
-            n,
-            mode,
-            params,
-            grid: Some(grid),
-            output,
-        });
-        Ok(())
-    }
-
-    fn built(&self) -> Option<(usize, ProxyMode)> {
-        self.built.as_ref().map(|b| (b.n as usize, b.mode))
-    }
-
-    /// Runs the detection pass; with `collect`, grows the output until every pair fits.
-    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
-        let gpu = &self.gpu;
-        let built = self
-            .built
-            .as_mut()
-            .ok_or_else(|| Error::Usage("detection asked for before build".into()))?;
-        let Some(grid) = built.grid.as_ref() else {
-            return Ok((Vec::new(), DetectStats::default()));
-        };
-        let (x, y) = gpu.grid(built.n, PAIRS_GROUP);
-        let base = built.params;
-        let find_pairs = &self.find_pairs;
-        let timer = self.timer.as_ref();
-        let result = built.output.detect(gpu, collect, |output, capacity| {
-            let params = GridParams {
-                row: x * PAIRS_GROUP,
-                capacity,
-                ..base
-            };
-            gpu.checked("running the wgpu-compute grid search", || {
-                gpu.queue
-                    .write_buffer(&grid.pair_params, 0, bytemuck::bytes_of(&params));
-                let bind = gpu.bind(
-                    "mochi.grid.find_pairs",
-                    find_pairs,
-                    &[
-                        (0, &grid.pair_params),
-                        (1, &grid.spheres),
-                        (2, &grid.ids),
-                        (COUNTERS_BINDING, &output.counters),
-                        (PAIRS_BINDING, &output.pairs),
-                        (6, &grid.table.cell_start),
-                    ],
-                );
-                gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
-                    gpu.dispatch(encoder, "mochi.grid.find_pairs", find_pairs, &bind, (x, y));
-                });
-            })
-        })?;
-        self.times.detect_ms = timer::read_ms(gpu, timer, DETECT_SPAN)?;
-        Ok(result)
-    }
-
-    fn gpu_times(&self) -> GpuTimes {
-        self.times
-    }
-
-    fn structure(&self) -> Option<String> {
-        let built = self.built.as_ref()?;
-        built.grid.as_ref()?;
-        Some(describe_layout(&built.params))
-    }
-}
-
 /// A grid layout in words: table, levels, cells per axis and cell side.
 pub(crate) fn describe_layout(p: &GridParams) -> String {
     let table = if p.hashed != 0 {
@@ -732,16 +401,15 @@ mod tests {
         // hashes cells that cover the span (no count wraps into a tiny dense table).
         let limits = wgpu::Limits::default();
         for levels in [Levels::One, Levels::Many] {
-            let (lo, hi) = ([-1e17, 0.0, 0.0], [1e17, 0.0, 0.0]);
-            let p = choose_layout(
-                &limits,
+            let request = LayoutRequest {
                 levels,
-                (lo, hi),
-                budget(4),
-                2e-3,
-                (1e-5, 1e-3),
-                &|_| true,
-            );
+                bounds: ([-1e17, 0.0, 0.0], [1e17, 0.0, 0.0]),
+                budget: budget(4),
+                base_cell: 2e-3,
+                radii: (1e-5, 1e-3),
+                dense_check: &|_| true,
+            };
+            let p = choose_layout(&limits, &request);
             assert_eq!((p.hashed, p.levels), (1, 1));
             let cells = (2e17 / p.top_cell as f64) as u64 + 3;
             assert!(

@@ -1,17 +1,8 @@
-//! The `wgpu-rq` backend: proxy-sphere boxes in a BLAS of AABBs, one point ray per sphere through
-//! WGSL ray queries (Vulkan ray queries, DX12 DXR 1.1, Metal).
-//!
-//! Build: Morton keys of the centres, a GPU radix sort, the spheres reordered and their proxy
-//! boxes written (`wgsl/rq_build.wgsl`), then the BLAS (split into several when the adapter caps
-//! the primitives per BLAS) and a TLAS with one instance per BLAS; all in one submission.
-//! Detection: `wgsl/rq_pairs.wgsl` applies the rule of [`crate::proxy`] to every candidate.
-//! Pairs are counted while written, so a full output buffer is grown and the pass rerun: nothing
-//! is ever truncated. wgpu has no refit, so [`Backend::update`](super::Backend::update) rebuilds.
+//! Detection on the wgpu-rq engine: [`WgpuRqBackend`] implements [`crate::Backend`].
 
-pub(crate) mod accel;
-
-use super::rebuilding::RebuildingBackend;
-use super::{BackendInfo, DetectStats, GpuTimes};
+use super::accel::Accel;
+use crate::detect::BackendInfo;
+use crate::engines::rebuilding::RebuildingBackend;
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::PairOutput;
 use crate::gpu::radix_sort::RadixSort;
@@ -21,7 +12,7 @@ use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
 use crate::types::Pair;
-use accel::Accel;
+use crate::types::{DetectStats, GpuTimes};
 
 const BUILD_WGSL: &str = concat!(
     include_str!("../../../wgsl/proxy.wgsl"),
@@ -35,7 +26,7 @@ const PAIRS_WGSL: &str = concat!(
 );
 
 /// Every WGSL module of this backend, by label, exactly as the device gets it.
-pub const SHADERS: [(&str, &str); 2] = [("rq_build", BUILD_WGSL), ("rq_pairs", PAIRS_WGSL)];
+pub(crate) const SHADERS: [(&str, &str); 2] = [("rq_build", BUILD_WGSL), ("rq_pairs", PAIRS_WGSL)];
 
 /// Timer spans of a build and of a detection pass.
 const BUILD_SPAN: Span = Span(0);

@@ -6,7 +6,7 @@
 //! has each workgroup add up the blocks before its own and scan its block. It also zeroes the
 //! counts, so they are zero between builds and no clear is recorded.
 
-use super::GridParams;
+use super::layout::GridParams;
 use crate::gpu::Gpu;
 
 /// Most blocks a table is cut into for the scan (each scan workgroup sums the blocks before it).

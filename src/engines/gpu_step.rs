@@ -1,8 +1,8 @@
 //! What the GPU DEM steps share: the parameter block of `wgsl/dem_physics.wgsl`, the choice of
 //! force atomics, per-phase timestamps, and moving particles to and from the GPU.
 
-use super::model::{StepParams, mass};
-use super::stepper::{Advance, Clock, StageTimes};
+use crate::dem::model::{StepParams, mass};
+use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
 use crate::particles::Particles;

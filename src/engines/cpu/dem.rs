@@ -1,14 +1,14 @@
-//! The cpu backend's DEM step: the sorted proxy grid of [`crate::backend::cpu`], re-binned every
+//! The cpu backend's DEM step: the sorted proxy grid of [`crate::engines::cpu`], re-binned every
 //! step, and a full-neighbourhood gather in which every sphere sums the forces of its own
 //! contacts. Each pair is computed from both sides (twice the narrow phase of a one-sided
 //! search) but no sphere is written by two threads: no atomics, no locks, and a force sum whose
 //! order depends only on the state, so a run is bit-for-bit reproducible (and resumable) on any
 //! number of threads.
 
-use super::model::{StepParams, contact_force, integrate, mass, wall_force};
-use super::stepper::{Advance, Clock, StageTimes, Stepper};
-use crate::backend::cpu::grid::SortedGrid;
-use crate::backend::cpu::query::gather;
+use super::grid::SortedGrid;
+use super::query::gather;
+use crate::dem::model::{StepParams, contact_force, integrate, mass, wall_force};
+use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::error::{Result, try_vec};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;

@@ -11,17 +11,16 @@
 //! plus detection) than the average step since the last rebuild, the rebuild's own cost
 //! included. Refitting leaves the leaf boxes exact, so candidates per ray do not change with it;
 //! what decays is the traversal's cost, and that is what the policy watches.
-// The stepper drives OptiX and CUDA through raw launches: every unsafe block says why it holds.
-#![allow(unsafe_code)]
 
-use super::gpu_step::{DemParams, advance_in_batches, particles_from, rows};
-use super::model::StepParams;
-use super::stepper::{Advance, StageTimes, Stepper};
-use crate::backend::RebuildPolicy;
-use crate::backend::optix::device::{AccelOp, Device, Gas, Pipeline};
-use crate::backend::optix::{
-    BLOCK, COUNTER_SLOTS, MAX_COORDINATE, gpu_error, morton_order_of, open_programs, programs,
+use super::device::{AccelOp, Device, Gas, Pipeline};
+use super::engine::{
+    BLOCK, COUNTER_SLOTS, MAX_COORDINATE, gpu_error, morton_order_of, open_programs,
 };
+use super::programs;
+use crate::dem::model::StepParams;
+use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::engines::RebuildPolicy;
+use crate::engines::gpu_step::{DemParams, advance_in_batches, particles_from, rows};
 use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::BOX_PADDING;

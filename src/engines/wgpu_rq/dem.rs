@@ -5,13 +5,13 @@
 //! integration (`wgsl/dem_rq.wgsl`). The spheres stay in input order: the generated scenes are
 //! laid out along a lattice, so the BVH's primitives are already spatially coherent.
 
-use super::gpu_step::{
+use super::accel::Accel;
+use crate::dem::model::StepParams;
+use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::engines::gpu_step::{
     DemParams, FORCE_VARIANTS, ForceAtomics, GROUP, MAX_BATCH, PHYSICS_WGSL, StepTimer,
     advance_in_batches, max_spheres, particles_from, rows,
 };
-use super::model::StepParams;
-use super::stepper::{Advance, StageTimes, Stepper};
-use crate::backend::wgpu_rq::accel::Accel;
 use crate::error::{Error, Result};
 use crate::gpu::{self, Gpu, Need};
 use crate::particles::Particles;
@@ -19,13 +19,13 @@ use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 
 const RQ_WGSL: &str = concat!(
-    include_str!("../../wgsl/dem_rq.wgsl"),
-    include_str!("../../wgsl/rq_walk.wgsl")
+    include_str!("../../../wgsl/dem_rq.wgsl"),
+    include_str!("../../../wgsl/rq_walk.wgsl")
 );
-const PROXY_WGSL: &str = include_str!("../../wgsl/proxy.wgsl");
+const PROXY_WGSL: &str = include_str!("../../../wgsl/proxy.wgsl");
 
 /// Every WGSL module of this step, by label, exactly as the device may get it.
-pub fn shaders() -> Vec<(String, String)> {
+pub(crate) fn shaders() -> Vec<(String, String)> {
     FORCE_VARIANTS
         .iter()
         .map(|(name, force)| (format!("dem_rq_{name}"), source(force)))

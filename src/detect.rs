@@ -1,0 +1,62 @@
+//! Collision detection: the [`Backend`] trait every engine implements (the registry that opens
+//! one is [`crate::engines`]).
+//!
+//! The contract of every backend: **exact** — after [`Backend::build`], [`Backend::find_pairs`]
+//! returns every pair {i, j} with |c_i − c_j| ≤ r_i + r_j (decided by
+//! [`crate::proxy::collides`]), each exactly once with `i < j`, and nothing else. Boxes
+//! and cells are conservative (padded), so extra candidates are possible but missed pairs never.
+//! One caveat of floating point: a GPU may decide a pair whose squared distance is within an ulp
+//! or two of a threshold of the rule the other way ([`crate::proxy::near_boundary`]).
+//! [`ProxyMode`] chooses the paper's proxy spheres or the older fixed-radius boxes; both modes
+//! find the same pairs and differ only in the work done.
+
+use crate::error::Result;
+use crate::proxy::ProxyMode;
+use crate::spheres::SphereSet;
+use crate::types::{DetectStats, GpuTimes, Pair};
+
+/// What a backend is and what it can take.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BackendInfo {
+    /// Backend name, as on the command line (`cpu`, …).
+    pub name: &'static str,
+    /// The device it runs on, in words (adapter name, thread count).
+    pub device: String,
+    /// Largest number of spheres one build accepts.
+    pub max_spheres: u64,
+}
+
+/// A collision-detection backend (see the module docs for the contract).
+///
+/// Call [`build`](Backend::build) once for a sphere set, [`update`](Backend::update) after the
+/// spheres moved, then any of the detection methods as often as needed.
+pub trait Backend: Send {
+    /// Name, device and limits.
+    fn info(&self) -> BackendInfo;
+
+    /// Builds the acceleration structure over `spheres` in `mode`.
+    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()>;
+
+    /// Brings the structure up to date after the spheres moved (same count and radii): a refit
+    /// where the backend can, else a rebuild.
+    fn update(&mut self, spheres: &SphereSet) -> Result<()>;
+
+    /// Every colliding pair, each once with `i < j`, in an order that is the same on every run.
+    fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)>;
+
+    /// Counts the colliding pairs without storing them.
+    fn count_pairs(&mut self) -> Result<DetectStats>;
+
+    /// Calls `visit` once for each colliding pair (possibly from several threads at once).
+    fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats>;
+
+    /// GPU time of the last build and detection, where measured.
+    fn gpu_times(&self) -> GpuTimes {
+        GpuTimes::default()
+    }
+
+    /// The structure of the last build in words (cells, levels, table), where it varies.
+    fn structure(&self) -> Option<String> {
+        None
+    }
+}

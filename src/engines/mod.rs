@@ -1,0 +1,18 @@
+//! The engines: one folder per backend holding its device-resident state (buffers, structure
+//! build, shaders and their binding constants), with detection ([`crate::Backend`]) and the DEM
+//! step ([`crate::dem::Stepper`]) as thin layers over it; and the registry that knows which
+//! engines this build has, which can run here, and the one `auto` rule (docs/ARCHITECTURE.md).
+
+pub mod cpu;
+mod gpu_step;
+mod open;
+#[cfg(feature = "optix")]
+pub mod optix;
+mod rebuilding;
+mod registry;
+pub mod wgpu_compute;
+pub mod wgpu_rq;
+
+pub use gpu_step::ForceAtomics;
+pub use open::{open_choice, open_stepper};
+pub use registry::{BackendChoice, BackendKind, Opened, Options, RebuildPolicy, open};

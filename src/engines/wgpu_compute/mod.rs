@@ -1,0 +1,41 @@
+//! The `wgpu-compute` backend: a sorted proxy grid built and searched in WGSL compute shaders,
+//! for adapters without ray queries or RT cores (where it beats software BVH traversal).
+//!
+//! Build, in one submission and one compute pass, a counting sort by cell
+//! (`wgsl/grid_build.wgsl`): every sphere's cell key and rank within its cell (one atomic add),
+//! the cell counts scanned into a table of where each cell's run starts (`cell_table.rs`: two
+//! dispatches, which leave the counts zeroed for the next build), each sphere's index scattered
+//! to its sorted place, and the spheres gathered in that order. No comparison or radix sort is
+//! needed: the table is the sort.
+//!
+//! The single grid has cells of 2·r_max in `mochi` mode and 4·r_max in `nns` mode (the proxy of
+//! the largest sphere, or the fixed-radius box), padded a little. Its table is dense over the
+//! bulk of the centres (their 0.1% to 99.9% quantiles: a few far outliers are clamped into the
+//! border cells) while it fits a budget of [`DETECT_CELLS_PER_SPHERE`] cells per sphere
+//! ([`DEM_CELLS_PER_SPHERE`] in the DEM step); cells may grow for that (still exact, a few more
+//! candidates) as long as a sample shows them uncrowded. Otherwise (a cluster with far-away
+//! outliers, say) cells keep their size and are hashed into 2n buckets, so
+//! the work never degenerates. The multi-level grid (docs/method.md, "Grids") stacks dense tables whose cells
+//! halve level by level, as many levels as the radii need and the same budget holds; each sphere
+//! is binned at its own size. Detection (`wgsl/grid_pairs.wgsl`, windows from
+//! `wgsl/grid_stencil.wgsl`) searches the cells within r_i + r_max of each centre and visits each
+//! pair once, like the cpu backend.
+
+pub(crate) mod cell_table;
+mod dem;
+mod detect;
+pub(crate) mod layout;
+
+pub use dem::GridStepper;
+pub use detect::WgpuComputeBackend;
+pub use layout::{AUTO_MLGRID_RATIO, DEM_CELLS_PER_SPHERE, DETECT_CELLS_PER_SPHERE, Structure};
+
+/// Every WGSL module of this engine (detection and DEM step), by label, exactly as the device
+/// gets it (`tests/shaders.rs` validates each with naga).
+pub fn shaders() -> Vec<(String, String)> {
+    detect::SHADERS
+        .iter()
+        .map(|&(label, source)| (label.to_owned(), source.to_owned()))
+        .chain(dem::shaders())
+        .collect()
+}
