@@ -65,7 +65,7 @@ pub trait Stepper {
     fn particles(&mut self) -> Result<Particles>;
 
     /// Whether this step refits its acceleration structure between rebuilds, and so obeys
-    /// [`Options::rebuild`](crate::engines::Options::rebuild) (default: no; grids re-bin and `wgpu-rq` rebuilds every step).
+    /// the engines' `Options::rebuild` (default: no; grids re-bin and `wgpu-rq` rebuilds every step).
     fn refits(&self) -> bool {
         false
     }
