@@ -108,6 +108,17 @@ pub enum Error {
     },
 }
 
+impl Error {
+    /// This error as the reason a backend was passed over: a [`Error::BackendUnavailable`]'s own
+    /// reason (the backend is named beside it), else the whole message.
+    pub(crate) fn into_reason(self) -> String {
+        match self {
+            Error::BackendUnavailable { reason, .. } => reason,
+            e => e.to_string(),
+        }
+    }
+}
+
 /// "name: reason; name: reason".
 fn list_reasons(reasons: &[(&'static str, String)]) -> String {
     let parts: Vec<String> = reasons
