@@ -1,6 +1,6 @@
 // The DEM physics of the optix backend's step: parameters, contact and wall forces, gravity.
-// Keep DemParams in sync with src/engines/gpu_step.rs (and wgsl/dem_physics.wgsl) and the formulas
-// with src/dem/model.rs, line for line.
+// Keep DemParams in sync with `DemParams` in src/engines/optix/device.rs (laid out as the WGSL one
+// of wgsl/dem_physics.wgsl) and the formulas with src/dem/model.rs, line for line.
 
 struct DemParams {
     float box_lo[3];

@@ -51,6 +51,8 @@ mod spheres;
 mod types;
 
 pub use detect::{Backend, BackendInfo};
+#[cfg(feature = "optix")]
+pub use error::OptixError;
 pub use error::{Error, Result};
 pub use proxy::ProxyMode;
 pub use spheres::{

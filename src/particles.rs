@@ -71,6 +71,27 @@ impl Particles {
         }
     }
 
+    /// Checks a state a stepper computed: [`Error::Unstable`] names the first sphere (in the
+    /// order of these particles, the input order) whose position or velocity is not finite.
+    pub fn check_stable(&self) -> Result<()> {
+        let bad = self
+            .positions
+            .iter()
+            .zip(&self.velocities)
+            .position(|(c, v)| c.iter().chain(v).any(|x| !x.is_finite()));
+        match bad {
+            Some(sphere) => Err(Error::Unstable {
+                step: self.step,
+                sphere,
+                what: format!(
+                    "has position {:?} and velocity {:?}",
+                    self.positions[sphere], self.velocities[sphere]
+                ),
+            }),
+            None => Ok(()),
+        }
+    }
+
     /// Pairs of spheres whose centres coincide: they have no contact normal, so every stepper
     /// moves them apart first ([`Self::separate_coincident`]).
     pub fn coincident_pairs(&self) -> Result<u64> {

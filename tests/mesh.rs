@@ -235,7 +235,10 @@ fn fill_refuses_bad_specs_with_errors() {
     ];
     for s in &bad {
         match fill(&m, s) {
-            Err(Error::Usage(msg)) => assert!(!msg.is_empty()),
+            Err(Error::InvalidConfig { what, reason }) => {
+                assert_eq!(what, "mesh fill");
+                assert!(!reason.is_empty());
+            }
             other => panic!("{s:?}: {other:?}"),
         }
     }
@@ -255,17 +258,17 @@ fn fill_refuses_bad_specs_with_errors() {
     broken.triangles.push([0, 1, 999_999]);
     assert!(matches!(
         fill(&broken, &spec(0.1, vec![(0.01, 1.0)], true, 0)),
-        Err(Error::Usage(_))
+        Err(Error::InvalidConfig { .. })
     ));
     broken = m.clone();
     broken.vertices[5][1] = f64::NAN;
     assert!(matches!(
         fill(&broken, &spec(0.1, vec![(0.01, 1.0)], true, 0)),
-        Err(Error::Usage(_))
+        Err(Error::InvalidConfig { .. })
     ));
     assert!(matches!(
         fill(&Mesh::default(), &spec(0.1, vec![(0.01, 1.0)], true, 0)),
-        Err(Error::Usage(_))
+        Err(Error::InvalidConfig { .. })
     ));
 }
 

@@ -163,3 +163,31 @@ fn counter_masks_match_the_counter_buffers() {
         }
     }
 }
+
+/// An NVRTC failure is a typed compile error carrying the compiler's log, and converts into the
+/// crate's one OptiX/CUDA variant; a missing NVRTC is an unavailable backend instead.
+#[test]
+fn compile_errors_carry_the_nvrtc_log() {
+    use mochi::{Error, OptixError};
+    let broken = r#"extern "C" __global__ void broken() { undeclared_name = 1; }"#;
+    let err = programs::compile_with_rule("broken.cu", broken).expect_err("does not compile");
+    if !programs::nvrtc_present() {
+        assert!(!common::ci(), "CI expects NVRTC: {err}");
+        assert!(matches!(
+            Error::from(err),
+            Error::BackendUnavailable {
+                backend: "optix",
+                ..
+            }
+        ));
+        return;
+    }
+    match &err {
+        OptixError::Compile { unit, log } => {
+            assert_eq!(unit, "broken.cu");
+            assert!(log.contains("undeclared_name"), "{log}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(matches!(Error::from(err), Error::Optix(_)));
+}

@@ -40,7 +40,7 @@ pub struct Case<'a> {
 /// `start` after `plan.settings.settle` untimed steps on the first of the plan's backends whose DEM
 /// step opens (the others' reasons in the error when none does).
 pub fn settle(plan: &Plan, start: &Start) -> Result<Start> {
-    let mut why = Vec::new();
+    let mut reasons = Vec::new();
     for &kind in &plan.backends {
         let options = Options {
             structure: plan.settings.structure,
@@ -55,13 +55,10 @@ pub fn settle(plan: &Plan, start: &Start) -> Result<Start> {
                     ..start.clone()
                 });
             }
-            Err(e) => why.push(format!("{}: {e}", kind.name())),
+            Err(e) => reasons.push((kind.name(), e.into_reason())),
         }
     }
-    Err(Error::Usage(format!(
-        "no backend could settle the scene: {}",
-        why.join("; ")
-    )))
+    Err(Error::NoBackend { reasons })
 }
 
 /// Runs `case` on backend `kind`: one row, or for experiment 4 on a step that refits, one row

@@ -114,11 +114,11 @@ fn measure(
 ) -> Result<DetectRow> {
     let info = backend.info();
     if spheres.len() as u64 > info.max_spheres {
-        return Err(crate::Error::Usage(format!(
-            "{} spheres exceed the backend's limit of {}",
-            spheres.len(),
-            info.max_spheres
-        )));
+        return Err(crate::Error::TooLarge {
+            what: format!("spheres for backend {}", info.name),
+            got: spheres.len() as u64,
+            limit: info.max_spheres,
+        });
     }
     let mut found = None;
     let mut samples = Vec::with_capacity(plan.settings.repeats);

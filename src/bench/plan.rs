@@ -248,7 +248,12 @@ pub const REBUILD_INTERVALS: [u32; 6] = [1, 5, 10, 25, 50, 100];
 impl Plan {
     /// Rejects plans that would measure nothing.
     pub fn validate(&self) -> Result<()> {
-        let bad = |msg: &str| Err(Error::Usage(msg.to_owned()));
+        let bad = |reason: &str| {
+            Err(Error::InvalidConfig {
+                what: "bench".into(),
+                reason: reason.to_owned(),
+            })
+        };
         if self.settings.repeats == 0 {
             return bad("--repeats must be at least 1");
         }

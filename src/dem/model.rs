@@ -97,7 +97,12 @@ impl StepParams {
         gravity_spin: f64,
         r_min: f32,
     ) -> Result<Self> {
-        let bad = |what: &str| Err(Error::Usage(what.to_owned()));
+        let bad = |reason: &str| {
+            Err(Error::InvalidConfig {
+                what: "scene".into(),
+                reason: reason.to_owned(),
+            })
+        };
         let m = &material;
         if !(m.restitution > 0.0 && m.restitution <= 1.0) {
             return bad(&format!(

@@ -304,7 +304,10 @@ pub struct Start {
 /// Parses a `key=value` override into `table` (`value` in TOML syntax; a bare word is taken as
 /// a string, so `scene=slab` works).
 pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
-    let bad = |msg: String| Error::Usage(format!("--set {assignment:?}: {msg}"));
+    let bad = |reason: String| Error::InvalidConfig {
+        what: format!("--set {assignment:?}"),
+        reason,
+    };
     let (key, value) = assignment
         .split_once('=')
         .ok_or_else(|| bad("expected key=value".into()))?;
@@ -381,11 +384,14 @@ impl SceneConfig {
                 flag => format!("{flag}/--set {key}"),
             };
             if !used {
-                return Err(Error::Usage(format!(
-                    "{key} = {value} ({option}) conflicts with scene {:?} ({scene_option}): that \
-                     scene does not use {key}; give one or the other",
-                    config.scene.name()
-                )));
+                return Err(Error::InvalidConfig {
+                    what: format!("{key} = {value} ({option})"),
+                    reason: format!(
+                        "conflicts with scene {:?} ({scene_option}): that scene does not use \
+                         {key}; give one or the other",
+                        config.scene.name()
+                    ),
+                });
             }
         }
         Ok(config)
@@ -428,8 +434,10 @@ impl SceneConfig {
             })?,
         };
         // Fields left `None` are left out of the table.
-        let flagged = toml::Table::try_from(flags)
-            .map_err(|e| Error::Usage(format!("a scene option cannot be written in TOML: {e}")))?;
+        let flagged = toml::Table::try_from(flags).map_err(|e| Error::InvalidConfig {
+            what: "scene options".into(),
+            reason: format!("cannot be written in TOML: {e}"),
+        })?;
         let overridden = !flagged.is_empty() || !overrides.is_empty();
         table.extend(flagged);
         for o in overrides {
@@ -474,12 +482,15 @@ impl SceneConfig {
         let changed = keys.find(|k| !RESUMABLE.contains(&k.as_str()) && was.get(*k) != now.get(*k));
         if let Some(key) = changed {
             let saved = was.get(key).map_or("unset".into(), ToString::to_string);
-            return Err(Error::Usage(format!(
-                "--set {key}: a resumed run keeps the scene of its checkpoint ({key} = {saved}); \
-                 only {} may change on --resume. To change {key}, start a new run from the last \
-                 frame (--input OUT/frame_<step>.csv)",
-                RESUMABLE.join(", ")
-            )));
+            return Err(Error::InvalidConfig {
+                what: format!("--set {key}"),
+                reason: format!(
+                    "a resumed run keeps the scene of its checkpoint ({key} = {saved}); only {} \
+                     may change on --resume. To change {key}, start a new run from the last \
+                     frame (--input OUT/frame_<step>.csv)",
+                    RESUMABLE.join(", ")
+                ),
+            });
         }
         Ok(after)
     }
@@ -500,8 +511,9 @@ impl SceneConfig {
             })?,
             Source::Mesh => self.mesh_spheres()?,
             Source::Input => {
-                let input = self.input.as_ref().ok_or_else(|| {
-                    Error::Usage("scene \"input\" needs input = \"FILE\" (--input)".into())
+                let input = self.input.as_ref().ok_or_else(|| Error::InvalidConfig {
+                    what: "scene \"input\"".into(),
+                    reason: "needs input = \"FILE\" (--input)".into(),
                 })?;
                 let (spheres, velocities) = crate::io::read_particles(input)?;
                 let mut particles = Particles::at_rest(&spheres)?;
@@ -558,7 +570,10 @@ impl SceneConfig {
     fn mesh_layout(&self) -> Result<(u32, u32, f64)> {
         let copies = self.mesh_copies;
         if copies == 0 {
-            return Err(Error::Usage("mesh_copies must be at least 1, got 0".into()));
+            return Err(Error::InvalidConfig {
+                what: "scene".into(),
+                reason: "mesh_copies must be at least 1, got 0".into(),
+            });
         }
         let per_row = (copies as f64).sqrt().ceil() as u32;
         // Spheres reach past the mesh by up to their radius: keep 4.4 radii between copies.
@@ -578,10 +593,13 @@ impl SceneConfig {
     fn mesh_spheres(&self) -> Result<SphereSet> {
         let r = self.mesh_radius;
         if !(r.is_finite() && r > 0.0 && self.mesh_size.is_finite() && self.mesh_size > 0.0) {
-            return Err(Error::Usage(format!(
-                "mesh_radius and mesh_size must be positive, got {r} and {}",
-                self.mesh_size
-            )));
+            return Err(Error::InvalidConfig {
+                what: "scene".into(),
+                reason: format!(
+                    "mesh_radius and mesh_size must be positive, got {r} and {}",
+                    self.mesh_size
+                ),
+            });
         }
         let (per_row, _, cell) = self.mesh_layout()?;
         let mesh = match &self.mesh {

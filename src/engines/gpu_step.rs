@@ -3,7 +3,7 @@
 
 use crate::dem::model::{StepParams, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::gpu::Gpu;
 use crate::particles::Particles;
 
@@ -194,11 +194,7 @@ pub(crate) fn particles_from(
         out.velocities[i] = [v[0], v[1], v[2]];
         out.radii[i] = p[3];
     }
-    out.validate().map_err(|e| {
-        Error::Gpu(format!(
-            "the simulation became unstable by step {step} ({e}); try a smaller time step"
-        ))
-    })?;
+    out.check_stable()?;
     Ok(out)
 }
 

@@ -54,7 +54,10 @@ pub fn open_choice(
     }
     let (stepper, reason) = super::registry::open_auto(|kind| {
         // A backend that cannot run here is skipped with the probe's own words.
-        kind.probe().map_err(Error::Usage)?;
+        kind.probe().map_err(|reason| Error::BackendUnavailable {
+            backend: kind.name(),
+            reason,
+        })?;
         open_stepper(kind, particles.clone(), params, mode, options)
     })?;
     Ok((stepper, Some(reason)))

@@ -221,8 +221,9 @@ pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
 
 /// The one `auto` rule of detection and simulation: the first backend of [`BackendKind::ALL`]
 /// that [`BackendKind::auto_skip`] keeps and `open` opens, with one line naming the pick and why
-/// each faster one was passed over. The last backend (cpu) runs everywhere, so its error is the
-/// result rather than a reason to go on.
+/// each faster one was passed over. The last backend (cpu) runs everywhere, so an error of its
+/// about the input is the result rather than a reason to go on; if it cannot run either, the
+/// result is [`Error::NoBackend`] with every backend's reason.
 pub(crate) fn open_auto<T>(mut open: impl FnMut(BackendKind) -> Result<T>) -> Result<(T, String)> {
     let mut skipped = Vec::new();
     let (last, faster) = BackendKind::ALL.split_last().expect("ALL names backends");
@@ -233,10 +234,17 @@ pub(crate) fn open_auto<T>(mut open: impl FnMut(BackendKind) -> Result<T>) -> Re
         }
         match open(kind) {
             Ok(opened) => return Ok((opened, auto_reason(kind, &skipped))),
-            Err(e) => skipped.push((kind.name(), e.to_string())),
+            Err(e) => skipped.push((kind.name(), e.into_reason())),
         }
     }
-    Ok((open(*last)?, auto_reason(*last, &skipped)))
+    match open(*last) {
+        Ok(opened) => Ok((opened, auto_reason(*last, &skipped))),
+        Err(e @ Error::BackendUnavailable { .. }) => {
+            skipped.push((last.name(), e.into_reason()));
+            Err(Error::NoBackend { reasons: skipped })
+        }
+        Err(e) => Err(e),
+    }
 }
 
 /// "auto picked {kind}; skipped {name}: {why}; …".
@@ -252,11 +260,18 @@ fn auto_reason(kind: BackendKind, skipped: &[(&str, String)]) -> String {
 mod tests {
     use super::*;
 
+    fn unavailable(kind: BackendKind) -> Error {
+        Error::BackendUnavailable {
+            backend: kind.name(),
+            reason: format!("no {}", kind.name()),
+        }
+    }
+
     #[test]
     fn auto_names_every_backend_it_passed_over_and_returns_the_last_ones_error() {
         let only_cpu = |kind| match kind {
             BackendKind::Cpu => Ok(kind),
-            _ => Err(Error::Usage(format!("no {}", kind.name()))),
+            _ => Err(unavailable(kind)),
         };
         let (picked, reason) = open_auto(only_cpu).expect("cpu opens");
         assert_eq!(picked, BackendKind::Cpu);
@@ -270,10 +285,37 @@ mod tests {
                 "{reason}"
             );
         }
-        let none = open_auto::<()>(|kind| Err(Error::Usage(format!("no {}", kind.name()))));
-        assert_eq!(
-            none.err().map(|e| e.to_string()),
-            Some("no cpu".to_string())
+        // An error about the input, not the machine, is the last backend's result as it is.
+        let refused = open_auto::<()>(|kind| match kind {
+            BackendKind::Cpu => Err(Error::InvalidConfig {
+                what: "scene".into(),
+                reason: "no cpu".into(),
+            }),
+            _ => Err(unavailable(kind)),
+        });
+        assert!(
+            matches!(&refused, Err(Error::InvalidConfig { reason, .. }) if reason == "no cpu"),
+            "{:?}",
+            refused.err()
         );
+    }
+
+    #[test]
+    fn auto_without_any_backend_is_no_backend_with_every_reason() {
+        let none = open_auto::<()>(|kind| Err(unavailable(kind)));
+        let Err(Error::NoBackend { reasons }) = &none else {
+            panic!("{:?}", none.err());
+        };
+        // optix may be passed over by auto_skip (no RT cores) with its own words.
+        let names: Vec<&str> = reasons.iter().map(|(name, _)| *name).collect();
+        let all: Vec<&str> = BackendKind::ALL.iter().map(|k| k.name()).collect();
+        assert_eq!(names, all);
+        assert_eq!(reasons.last(), Some(&("cpu", "no cpu".to_string())));
+        let message = none.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(
+            message.starts_with("no backend can run here: optix: "),
+            "{message}"
+        );
+        assert!(message.ends_with("; cpu: no cpu"), "{message}");
     }
 }

@@ -108,11 +108,17 @@ impl RunFolder {
         match file.try_lock() {
             Ok(()) => {}
             Err(TryLockError::WouldBlock) => {
-                return Err(Error::Usage(format!(
-                    "{}: another mochi run is writing into this folder (it holds {LOCK_FILE}); \
-                     wait for it to end or choose another folder with -o",
-                    dir.display()
-                )));
+                // The folder is busy: an I/O condition of the folder, named as the folder.
+                return Err(Error::Io {
+                    path: dir.to_owned(),
+                    error: std::io::Error::new(
+                        std::io::ErrorKind::WouldBlock,
+                        format!(
+                            "another mochi run is writing into this folder (it holds \
+                             {LOCK_FILE}); wait for it to end or choose another folder with -o"
+                        ),
+                    ),
+                });
             }
             Err(TryLockError::Error(error)) => return Err(Error::Io { path, error }),
         }

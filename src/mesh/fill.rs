@@ -30,40 +30,48 @@ pub struct FillSpec {
     pub seed: u64,
 }
 
+/// [`Error::InvalidConfig`] of the mesh fill.
+fn fill_error(reason: String) -> Error {
+    Error::InvalidConfig {
+        what: "mesh fill".into(),
+        reason,
+    }
+}
+
 impl FillSpec {
-    /// Checks the spec; errors are [`Error::Usage`] naming the offending value.
+    /// Checks the spec; errors are [`Error::InvalidConfig`] naming the offending value.
     pub fn validate(&self) -> Result<()> {
         let s = self.spacing;
         if !(s.is_finite() && s > 0.0) {
-            return Err(Error::Usage(format!(
+            return Err(fill_error(format!(
                 "fill spacing must be finite and > 0, got {s}"
             )));
         }
         if self.radii.is_empty() {
-            return Err(Error::Usage("fill radius mix is empty".into()));
+            return Err(fill_error("fill radius mix is empty".into()));
         }
         for &(r, w) in &self.radii {
             if !(r.is_finite() && r > 0.0) {
-                return Err(Error::Usage(format!(
+                return Err(fill_error(format!(
                     "fill radius must be finite and > 0, got {r}"
                 )));
             }
             // Compared in f32, the radii's precision: r = 0.05 fits a spacing of 0.1.
             if 2.0 * r > s as f32 {
-                return Err(Error::Usage(format!(
+                return Err(fill_error(format!(
                     "fill radius {r} does not fit its lattice cell: 2·r = {} > spacing {s}",
                     2.0 * r
                 )));
             }
             if !(w.is_finite() && w > 0.0) {
-                return Err(Error::Usage(format!(
+                return Err(fill_error(format!(
                     "weight of fill radius {r} must be finite and > 0, got {w}"
                 )));
             }
         }
         let total: f64 = self.radii.iter().map(|&(_, w)| w).sum();
         if !total.is_finite() {
-            return Err(Error::Usage(format!(
+            return Err(fill_error(format!(
                 "fill radius weights must have a finite sum, got {total}"
             )));
         }
@@ -100,7 +108,7 @@ impl Lattice {
             .flat_map(|a| [lattice.origin[a], lattice.origin[a] + counts[a] * spacing])
             .fold(0.0, |m: f64, x| m.max(x.abs()));
         if far > f64::from(MAX_MAGNITUDE) {
-            return Err(Error::Usage(format!(
+            return Err(fill_error(format!(
                 "mesh coordinates reach {far:e}, beyond the limit of {MAX_MAGNITUDE:e} for \
                  sphere centres"
             )));
@@ -124,7 +132,7 @@ impl Lattice {
 /// The inside test is decided at the lattice point, before the offset: a sphere near the
 /// surface may stick out of the mesh by up to its cell's half-diagonal.
 ///
-/// Errors: [`Error::Usage`] for an invalid spec ([`FillSpec::validate`]) or mesh
+/// Errors: [`Error::InvalidConfig`] for an invalid spec ([`FillSpec::validate`]) or mesh
 /// ([`Mesh::validate`]) or one whose coordinates exceed [`crate::MAX_MAGNITUDE`];
 /// [`Error::TooLarge`] when the lattice over the bounding box would have more than
 /// [`MAX_LATTICE_POINTS`] points.

@@ -96,11 +96,14 @@ impl Mesh {
     }
 
     /// Checks that the mesh can be filled: at least one triangle, every index in range, every
-    /// coordinate finite. Errors are [`Error::Usage`].
+    /// coordinate finite. Errors are [`Error::InvalidConfig`].
     pub fn validate(&self) -> Result<()> {
         match self.problem() {
             None => Ok(()),
-            Some(p) => Err(Error::Usage(format!("invalid mesh: {}", p.describe()))),
+            Some(p) => Err(Error::InvalidConfig {
+                what: "mesh".into(),
+                reason: p.describe(),
+            }),
         }
     }
 

@@ -26,6 +26,14 @@ pub struct Camera {
 /// Default vertical field of view \[degrees\].
 pub const DEFAULT_FOV_DEG: f64 = 40.0;
 
+/// [`Error::InvalidConfig`] of the camera.
+fn camera_error(reason: String) -> Error {
+    Error::InvalidConfig {
+        what: "camera".into(),
+        reason,
+    }
+}
+
 impl Camera {
     /// The default 3/4 view of the box `lo..hi`, from the front left and above, far enough that
     /// the box's bounding sphere fits the picture of aspect `width / height`.
@@ -47,19 +55,17 @@ impl Camera {
     pub fn validate(&self) -> Result<()> {
         // The field of view first: the default eye stands at a distance derived from it.
         if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
-            return Err(Error::Usage(format!(
-                "camera: field of view {}° is not in (0, 180)",
+            return Err(camera_error(format!(
+                "field of view {}° is not in (0, 180)",
                 self.fov_deg
             )));
         }
         let finite = self.eye.iter().chain(&self.look_at).all(|x| x.is_finite());
         if !finite {
-            return Err(Error::Usage(
-                "camera: eye and look-at must be finite".into(),
-            ));
+            return Err(camera_error("eye and look-at must be finite".into()));
         }
         if norm(sub(self.look_at, self.eye)) == 0.0 {
-            return Err(Error::Usage("camera: eye and look-at coincide".into()));
+            return Err(camera_error("eye and look-at coincide".into()));
         }
         Ok(())
     }
@@ -105,7 +111,10 @@ pub(crate) struct Grid {
 
 /// Parses `WxH` (e.g. `960x720`) into an image size, each side in 1..=[`MAX_SIDE`].
 pub fn parse_size(text: &str) -> Result<(u32, u32)> {
-    let bad = || Error::Usage(format!("size {text:?}: expected WxH such as 960x720"));
+    let bad = || Error::InvalidConfig {
+        what: format!("size {text:?}"),
+        reason: "expected WxH such as 960x720".into(),
+    };
     let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
     let w: u32 = w.trim().parse().map_err(|_| bad())?;
     let h: u32 = h.trim().parse().map_err(|_| bad())?;
@@ -116,16 +125,20 @@ pub fn parse_size(text: &str) -> Result<(u32, u32)> {
 /// Checks an image size: each side in 1..=[`MAX_SIDE`].
 pub fn check_size(width: u32, height: u32) -> Result<()> {
     if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
-        return Err(Error::Usage(format!(
-            "image size {width}x{height}: each side must be in 1..={MAX_SIDE}"
-        )));
+        return Err(Error::InvalidConfig {
+            what: format!("image size {width}x{height}"),
+            reason: format!("each side must be in 1..={MAX_SIDE}"),
+        });
     }
     Ok(())
 }
 
 /// Parses `x,y,z` into a point.
 pub fn parse_point(text: &str) -> Result<[f64; 3]> {
-    let bad = || Error::Usage(format!("point {text:?}: expected x,y,z such as 0.5,-1,2"));
+    let bad = || Error::InvalidConfig {
+        what: format!("point {text:?}"),
+        reason: "expected x,y,z such as 0.5,-1,2".into(),
+    };
     let values: Vec<f64> = text
         .split(',')
         .map(|v| v.trim().parse::<f64>().ok().filter(|x| x.is_finite()))

@@ -213,10 +213,10 @@ impl Gif {
     /// naming `path`, where its folder is missing or not writable.
     pub fn create(path: &Path, width: u32, height: u32) -> Result<Self> {
         let (Ok(w), Ok(h)) = (u16::try_from(width), u16::try_from(height)) else {
-            return Err(Error::Usage(format!(
-                "{}: a GIF is at most 65535 pixels per side, not {width}x{height}",
-                path.display()
-            )));
+            return Err(Error::InvalidConfig {
+                what: path.display().to_string(),
+                reason: format!("a GIF is at most 65535 pixels per side, not {width}x{height}"),
+            });
         };
         let gif_error = |e: gif::EncodingError| Error::Io {
             path: path.to_owned(),

@@ -105,16 +105,17 @@ impl Picture {
                 && lo[0] < hi[0]
                 && lo[1] < hi[1];
             if !ok {
-                return Err(Error::Usage(format!(
-                    "floor {lo:?}..{hi:?}: must be finite with lo < hi in x and y"
-                )));
+                return Err(Error::InvalidConfig {
+                    what: format!("floor {lo:?}..{hi:?}"),
+                    reason: "must be finite with lo < hi in x and y".into(),
+                });
             }
         }
         if !(1..=MAX_SAMPLES).contains(&self.samples) {
-            return Err(Error::Usage(format!(
-                "samples {}: rays per pixel side must be in 1..={MAX_SAMPLES}",
-                self.samples
-            )));
+            return Err(Error::InvalidConfig {
+                what: format!("samples {}", self.samples),
+                reason: format!("rays per pixel side must be in 1..={MAX_SAMPLES}"),
+            });
         }
         Ok(())
     }

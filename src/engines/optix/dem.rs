@@ -12,22 +12,20 @@
 //! included. Refitting leaves the leaf boxes exact, so candidates per ray do not change with it;
 //! what decays is the traversal's cost, and that is what the policy watches.
 
-use super::device::{AccelOp, Device, Gas, Pipeline};
-use super::engine::{
-    BLOCK, COUNTER_SLOTS, MAX_COORDINATE, gpu_error, morton_order_of, open_programs,
+use super::device::{
+    AccelOp, COUNTER_SLOTS, DemBuffers, DemParams, DemProgram, Device, Gas, Kernels, Order, State,
+    cuda,
 };
-use super::programs;
+use super::engine::{MAX_COORDINATE, morton_order_of, open_device};
 use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::engines::RebuildPolicy;
-use crate::engines::gpu_step::{DemParams, advance_in_batches, particles_from, rows};
-use crate::error::{Error, Result};
+use crate::engines::gpu_step::{advance_in_batches, particles_from, rows};
+use crate::error::{Error, OptixError, Result};
 use crate::particles::Particles;
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
-use cudarc::driver::{
-    CudaEvent, CudaFunction, CudaSlice, DeviceRepr, LaunchConfig, PushKernelArg, sys::CUevent_flags,
-};
+use cudarc::driver::{CudaEvent, CudaSlice, sys::CUevent_flags};
 use std::sync::Arc;
 
 /// Steps recorded between two reads of the counters and timers.
@@ -41,43 +39,6 @@ const AUTO_MARGIN: f64 = 1.01;
 
 /// Steps after which the state is re-sorted in Morton order (with a rebuild).
 pub const RESORT_EVERY: u64 = 2000;
-
-/// Launch parameters of `optix/dem.cu`; keep in sync with `DemLaunch` there.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct DemLaunch {
-    pos: u64,
-    vel: u64,
-    force: u64,
-    contacts: u64,
-    candidates: u64,
-    handle: u64,
-    n: u32,
-    mode: u32,
-    _pad: [u32; 2],
-    dem: DemParams,
-}
-const _: () = assert!(size_of::<DemLaunch>() == 128);
-
-// SAFETY: DemParams is `#[repr(C)]` plain data laid out as `DemParams` in optix/physics.cuh.
-unsafe impl DeviceRepr for DemParams {}
-
-/// The CUDA kernels of the step.
-struct Kernels {
-    boxes: CudaFunction,
-    integrate: CudaFunction,
-    permute: CudaFunction,
-}
-
-/// The state on the GPU, in the order of the acceleration structure's primitives.
-struct State {
-    /// x, y, z, r.
-    pos: CudaSlice<f32>,
-    /// vx, vy, vz, mass.
-    vel: CudaSlice<f32>,
-    /// Input index of each position.
-    ids: CudaSlice<u32>,
-}
 
 /// Rebuilds and refits since the start, and the cost of the current rebuild cycle.
 #[derive(Debug, Clone, Copy, Default)]
@@ -97,7 +58,7 @@ struct Maintenance {
 /// The optix DEM step.
 pub struct OptixStepper {
     device: Arc<Device>,
-    pipeline: Pipeline,
+    program: DemProgram,
     kernels: Kernels,
     n: u32,
     mode: ProxyMode,
@@ -111,7 +72,6 @@ pub struct OptixStepper {
     force: CudaSlice<f32>,
     contacts: CudaSlice<u32>,
     candidates: CudaSlice<u64>,
-    launch: CudaSlice<u8>,
     gas: Option<Gas>,
     maintenance: Maintenance,
     /// Candidates per ray of the last step.
@@ -127,13 +87,9 @@ impl OptixStepper {
         policy: RebuildPolicy,
     ) -> Result<Self> {
         particles.separate_coincident()?;
-        let (device, pipeline, module) = open_programs(programs::Unit::Dem, "dem", 5)?;
-        let function = |name: &str| module.load_function(name).map_err(gpu_error);
-        let kernels = Kernels {
-            boxes: function("dem_boxes")?,
-            integrate: function("dem_integrate")?,
-            permute: function("dem_permute")?,
-        };
+        let device = open_device()?;
+        let program = DemProgram::new(&device)?;
+        let kernels = Kernels::load(&device)?;
         let n64 = particles.len() as u64;
         let limit = (device.max_primitives as u64).min(u32::MAX as u64 / 6);
         if n64 > limit {
@@ -152,10 +108,13 @@ impl OptixStepper {
             .fold(0.0f32, |m, x| m.max(x.abs()))
             + 2.0 * r_max;
         if reach > MAX_COORDINATE / 2.0 {
-            return Err(Error::Usage(format!(
-                "optix: the box reaches coordinate {reach:e}; OptiX traverses reliably only \
-                 within ±{MAX_COORDINATE:e}: use wgpu-compute or cpu for this scene"
-            )));
+            return Err(Error::InvalidConfig {
+                what: "optix".into(),
+                reason: format!(
+                    "the box reaches coordinate {reach:e}; OptiX traverses reliably only within \
+                     ±{MAX_COORDINATE:e}: use wgpu-compute or cpu for this scene"
+                ),
+            });
         }
         let stream = device.stream.clone();
         let (pos, vel) = rows(&particles, params.density);
@@ -163,30 +122,31 @@ impl OptixStepper {
         let pick = |rows: &[[f32; 4]]| -> Vec<f32> {
             order.iter().flat_map(|&i| rows[i as usize]).collect()
         };
+        let alloc = cuda("allocating the state");
         let upload = |host: &[f32]| {
             if host.is_empty() {
                 stream.alloc_zeros::<f32>(4)
             } else {
                 stream.clone_htod(host)
             }
-            .map_err(gpu_error)
+            .map_err(&alloc)
         };
-        let zeros_f32 = |len: usize| stream.alloc_zeros::<f32>(len.max(4)).map_err(gpu_error);
-        let zeros_u32 = |len: usize| stream.alloc_zeros::<u32>(len.max(1)).map_err(gpu_error);
+        let zeros_f32 = |len: usize| stream.alloc_zeros::<f32>(len.max(4)).map_err(&alloc);
+        let zeros_u32 = |len: usize| stream.alloc_zeros::<u32>(len.max(1)).map_err(&alloc);
         let ids = if order.is_empty() {
             zeros_u32(1)?
         } else {
-            stream.clone_htod(&order).map_err(gpu_error)?
+            stream.clone_htod(&order).map_err(&alloc)?
         };
         let len = n as usize;
         let mut stepper = OptixStepper {
-            pipeline,
+            program,
             kernels,
             n,
             mode,
             r_max,
             policy,
-            dem: DemParams::new(&params, n, 0),
+            dem: DemParams::new(&params, n),
             step: particles.step,
             state: State {
                 pos: upload(&pick(&pos))?,
@@ -200,13 +160,8 @@ impl OptixStepper {
             },
             boxes: zeros_f32(6 * len)?,
             force: zeros_f32(3 * len)?,
-            contacts: stream
-                .alloc_zeros::<u32>(COUNTER_SLOTS)
-                .map_err(gpu_error)?,
-            candidates: stream
-                .alloc_zeros::<u64>(COUNTER_SLOTS)
-                .map_err(gpu_error)?,
-            launch: device.bytes(size_of::<DemLaunch>()).map_err(gpu_error)?,
+            contacts: stream.alloc_zeros::<u32>(COUNTER_SLOTS).map_err(&alloc)?,
+            candidates: stream.alloc_zeros::<u64>(COUNTER_SLOTS).map_err(&alloc)?,
             gas: None,
             maintenance: Maintenance {
                 sorted_at: particles.step,
@@ -220,88 +175,46 @@ impl OptixStepper {
         };
         if n > 0 {
             stepper.write_boxes()?;
-            let gas = Gas::build(&stepper.device, &stepper.boxes, n).map_err(gpu_error)?;
+            let gas = Gas::build(&stepper.device, &stepper.boxes, n)?;
             stepper.gas = Some(gas);
-            stepper.write_launch()?;
         }
         Ok(stepper)
     }
 
-    fn config(&self) -> LaunchConfig {
-        LaunchConfig {
-            grid_dim: (self.n.div_ceil(BLOCK), 1, 1),
-            block_dim: (BLOCK, 1, 1),
-            shared_mem_bytes: 0,
-        }
-    }
-
-    fn event(&self) -> Result<CudaEvent> {
+    fn event(&self) -> std::result::Result<CudaEvent, OptixError> {
         self.device
             .stream
             .record_event(Some(CUevent_flags::CU_EVENT_DEFAULT))
-            .map_err(gpu_error)
+            .map_err(cuda("recording an event"))
     }
 
     /// The proxy boxes of the current state.
     fn write_boxes(&mut self) -> Result<()> {
-        let mode = self.mode.code();
-        let config = self.config();
-        let mut launch = self.device.stream.launch_builder(&self.kernels.boxes);
-        launch
-            .arg(&self.state.pos)
-            .arg(&mut self.boxes)
-            .arg(&self.n)
-            .arg(&mode)
-            .arg(&self.r_max)
-            .arg(&BOX_PADDING);
-        // SAFETY: the arguments match dem_boxes' signature; pos holds n spheres, boxes 6n floats.
-        unsafe { launch.launch(config) }.map_err(gpu_error)?;
+        self.kernels.dem_boxes(
+            &self.state.pos,
+            &mut self.boxes,
+            self.n,
+            self.mode,
+            self.r_max,
+            BOX_PADDING,
+        )?;
         Ok(())
-    }
-
-    /// Writes the launch parameters (after a build: the handle may change).
-    fn write_launch(&mut self) -> Result<()> {
-        let device = &self.device;
-        let handle = self.gas.as_ref().map_or(0, |g| g.handle);
-        let launch = DemLaunch {
-            pos: device.ptr(&self.state.pos),
-            vel: device.ptr(&self.state.vel),
-            force: device.ptr_mut(&mut self.force),
-            contacts: device.ptr_mut(&mut self.contacts),
-            candidates: device.ptr_mut(&mut self.candidates),
-            handle,
-            n: self.n,
-            mode: self.mode.code(),
-            _pad: [0; 2],
-            dem: self.dem,
-        };
-        device
-            .stream
-            .memcpy_htod(bytemuck::bytes_of(&launch), &mut self.launch)
-            .map_err(gpu_error)
     }
 
     /// Re-sorts the state in Morton order of the current positions (the caller rebuilds).
     fn resort(&mut self) -> Result<()> {
         let stream = self.device.stream.clone();
-        let pos = stream.clone_dtoh(&self.state.pos).map_err(gpu_error)?;
-        let centers: Vec<[f32; 3]> = pos.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect();
-        let order = stream
-            .clone_htod(&morton_order_of(&centers))
-            .map_err(gpu_error)?;
-        let config = self.config();
-        let mut launch = stream.launch_builder(&self.kernels.permute);
-        launch
-            .arg(&self.state.pos)
-            .arg(&self.state.vel)
-            .arg(&self.state.ids)
-            .arg(&order)
-            .arg(&mut self.spare.pos)
-            .arg(&mut self.spare.vel)
-            .arg(&mut self.spare.ids)
-            .arg(&self.n);
-        // SAFETY: the arguments match dem_permute's signature; every buffer holds n entries.
-        unsafe { launch.launch(config) }.map_err(gpu_error)?;
+        let pos = stream
+            .clone_dtoh(&self.state.pos)
+            .map_err(cuda("reading the positions back"))?;
+        let centers: Vec<[f32; 3]> = pos
+            .chunks_exact(4)
+            .take(self.n as usize)
+            .map(|p| [p[0], p[1], p[2]])
+            .collect();
+        let order = Order::upload(&stream, &morton_order_of(&centers))?;
+        self.kernels
+            .dem_permute(&self.state, &order, &mut self.spare, self.n)?;
         std::mem::swap(&mut self.state, &mut self.spare);
         self.maintenance.sorted_at = self.step;
         Ok(())
@@ -327,30 +240,28 @@ impl OptixStepper {
             AccelOp::Update
         };
         let gas = self.gas.as_mut().expect("built for n > 0");
-        gas.run(&self.device, &self.boxes, op).map_err(gpu_error)?;
-        if rebuild {
-            self.write_launch()?;
-        }
+        gas.run(&self.device, &self.boxes, op)?;
         let built = self.event()?;
-        stream.memset_zeros(&mut self.contacts).map_err(gpu_error)?;
-        stream
-            .memset_zeros(&mut self.candidates)
-            .map_err(gpu_error)?;
-        self.pipeline
-            .launch(&self.launch, self.n)
-            .map_err(gpu_error)?;
+        let gas = self.gas.as_ref().expect("built for n > 0");
+        let clear = cuda("clearing the counters");
+        stream.memset_zeros(&mut self.contacts).map_err(&clear)?;
+        stream.memset_zeros(&mut self.candidates).map_err(&clear)?;
+        let buffers = DemBuffers {
+            pos: &self.state.pos,
+            vel: &self.state.vel,
+            force: &mut self.force,
+            contacts: &mut self.contacts,
+            candidates: &mut self.candidates,
+        };
+        self.program.launch(gas, self.mode, self.dem, buffers)?;
         let resolved = self.event()?;
-        let step = self.step as u32;
-        let config = self.config();
-        let mut launch = stream.launch_builder(&self.kernels.integrate);
-        launch
-            .arg(&mut self.state.pos)
-            .arg(&mut self.state.vel)
-            .arg(&mut self.force)
-            .arg(&self.dem)
-            .arg(&step);
-        // SAFETY: the arguments match dem_integrate's signature; pos, vel hold n rows, force 3n.
-        unsafe { launch.launch(config) }.map_err(gpu_error)?;
+        self.kernels.dem_integrate(
+            &mut self.state.pos,
+            &mut self.state.vel,
+            &mut self.force,
+            &self.dem,
+            self.step as u32,
+        )?;
         let integrated = self.event()?;
         self.step += 1;
         Ok([start, built, resolved, integrated])
@@ -391,19 +302,24 @@ impl OptixStepper {
             m.cycle_steps += 1;
         }
         let stream = &self.device.stream;
+        let read = cuda("reading the counters back");
         let contacts: u64 = stream
             .clone_dtoh(&self.contacts)
-            .map_err(gpu_error)?
+            .map_err(&read)?
             .iter()
             .map(|&c| c as u64)
             .sum();
         let candidates: u64 = stream
             .clone_dtoh(&self.candidates)
-            .map_err(gpu_error)?
+            .map_err(&read)?
             .iter()
             .sum();
         self.last_candidates = candidates as f64 / self.n.max(1) as f64;
-        let ms = |a: &CudaEvent, b: &CudaEvent| a.elapsed_ms(b).map(f64::from).map_err(gpu_error);
+        let ms = |a: &CudaEvent, b: &CudaEvent| {
+            a.elapsed_ms(b)
+                .map(f64::from)
+                .map_err(cuda("reading the GPU timers"))
+        };
         let mut times = StageTimes::default();
         let mut refit_ms = 0.0;
         for ([start, built, resolved, integrated], rebuild) in events.iter().zip(&rebuilt) {
@@ -460,9 +376,10 @@ impl Stepper for OptixStepper {
                 .map(|r| [r[0], r[1], r[2], r[3]])
                 .collect()
         };
-        let pos = rows4(stream.clone_dtoh(&self.state.pos).map_err(gpu_error)?);
-        let vel = rows4(stream.clone_dtoh(&self.state.vel).map_err(gpu_error)?);
-        let mut ids = stream.clone_dtoh(&self.state.ids).map_err(gpu_error)?;
+        let read = cuda("reading the state back");
+        let pos = rows4(stream.clone_dtoh(&self.state.pos).map_err(&read)?);
+        let vel = rows4(stream.clone_dtoh(&self.state.vel).map_err(&read)?);
+        let mut ids = stream.clone_dtoh(&self.state.ids).map_err(&read)?;
         ids.truncate(n);
         particles_from(&pos, &vel, Some(&ids), self.step)
     }

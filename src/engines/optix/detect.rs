@@ -1,44 +1,25 @@
 //! Detection on the optix engine: [`OptixBackend`] implements [`crate::Backend`].
 
-use super::device::{AccelOp, Device, Gas, Pipeline};
-use super::engine::{
-    BLOCK, COUNTER_SLOTS, MAX_COORDINATE, MAX_LAUNCH, describe, gpu_error, morton_order_of,
-    open_programs,
+use super::device::{
+    AccelOp, COUNTER_SLOTS, DetectBuffers, DetectProgram, Device, Gas, Kernels, Order, cuda,
 };
-use super::programs;
+use super::engine::{MAX_COORDINATE, MAX_LAUNCH, describe, morton_order_of, open_device};
 use crate::detect::{Backend, BackendInfo};
-use crate::error::{Error, Result};
+use crate::error::{Error, OptixError, Result};
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
 use crate::types::Pair;
 use crate::types::{DetectStats, GpuTimes};
-use cudarc::driver::{CudaFunction, CudaSlice, LaunchConfig, PushKernelArg, sys::CUevent_flags};
+use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, sys::CUevent_flags};
 use rayon::prelude::*;
 use std::sync::Arc;
-
-/// Launch parameters of `optix/detect.cu`; keep in sync with `DetectParams` there.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct DetectParams {
-    spheres: u64,
-    ids: u64,
-    pairs: u64,
-    pair_count: u64,
-    candidates: u64,
-    handle: u64,
-    n: u32,
-    capacity: u32,
-    mode: u32,
-    _pad: u32,
-}
-const _: () = assert!(size_of::<DetectParams>() == 64);
 
 /// The OptiX backend.
 pub struct OptixBackend {
     device: Arc<Device>,
-    pipeline: Pipeline,
-    proxy_boxes: CudaFunction,
+    program: DetectProgram,
+    kernels: Kernels,
     built: Option<Built>,
     times: GpuTimes,
 }
@@ -49,7 +30,7 @@ struct Built {
     mode: ProxyMode,
     r_max: f32,
     /// Input index of each sorted position.
-    order: CudaSlice<u32>,
+    order: Order,
     /// x, y, z, r per sphere, input order (the upload) and sorted order.
     spheres_in: CudaSlice<f32>,
     spheres: CudaSlice<f32>,
@@ -59,18 +40,16 @@ struct Built {
     pairs: CudaSlice<u32>,
     pair_count: CudaSlice<u32>,
     candidates: CudaSlice<u64>,
-    params: CudaSlice<u8>,
 }
 
 impl OptixBackend {
     /// Opens GPU 0 and compiles the programs (NVRTC, cached for the process).
     pub fn new() -> Result<Self> {
-        let (device, pipeline, module) = open_programs(programs::Unit::Detect, "detect", 1)?;
-        let proxy_boxes = module.load_function("proxy_boxes").map_err(gpu_error)?;
+        let device = open_device()?;
         Ok(Self {
+            program: DetectProgram::new(&device)?,
+            kernels: Kernels::load(&device)?,
             device,
-            pipeline,
-            proxy_boxes,
             built: None,
             times: GpuTimes::default(),
         })
@@ -84,10 +63,14 @@ impl OptixBackend {
             .map(|[x, y, z, r]| x.abs().max(y.abs()).max(z.abs()) + mode.box_half_width(r, r_max))
             .fold(0.0f32, f32::max);
         if reach > MAX_COORDINATE {
-            return Err(Error::Usage(format!(
-                "optix: a proxy box reaches coordinate {reach:e}, beyond the ±{MAX_COORDINATE:e} \
-                 OptiX traverses reliably; use another backend (wgpu-compute or cpu) for this set"
-            )));
+            return Err(Error::InvalidConfig {
+                what: "optix".into(),
+                reason: format!(
+                    "a proxy box reaches coordinate {reach:e}, beyond the ±{MAX_COORDINATE:e} \
+                     OptiX traverses reliably; use another backend (wgpu-compute or cpu) for \
+                     this set"
+                ),
+            });
         }
         Ok(())
     }
@@ -96,39 +79,23 @@ impl OptixBackend {
         (self.device.max_primitives as u64).min(MAX_LAUNCH)
     }
 
-    /// Starts a GPU timing span on the stream.
-    fn mark(&self) -> Result<cudarc::driver::CudaEvent> {
-        self.device
-            .stream
-            .record_event(Some(CUevent_flags::CU_EVENT_DEFAULT))
-            .map_err(gpu_error)
-    }
-
     /// Writes the input spheres and gathers them into sorted order with their boxes.
     fn write_boxes(&self, built: &mut Built, spheres: &SphereSet) -> Result<()> {
         let stream = &self.device.stream;
         let rows: Vec<f32> = spheres.xyzr().flatten().collect();
         stream
             .memcpy_htod(&rows, &mut built.spheres_in)
-            .map_err(gpu_error)?;
-        let mode = built.mode.code();
-        let config = LaunchConfig {
-            grid_dim: (built.n.div_ceil(BLOCK), 1, 1),
-            block_dim: (BLOCK, 1, 1),
-            shared_mem_bytes: 0,
-        };
-        let mut launch = stream.launch_builder(&self.proxy_boxes);
-        launch
-            .arg(&built.spheres_in)
-            .arg(&built.order)
-            .arg(&mut built.spheres)
-            .arg(&mut built.boxes)
-            .arg(&built.n)
-            .arg(&mode)
-            .arg(&built.r_max)
-            .arg(&BOX_PADDING);
-        // SAFETY: the arguments match proxy_boxes' signature; buffers hold n spheres and boxes.
-        unsafe { launch.launch(config) }.map_err(gpu_error)?;
+            .map_err(cuda("uploading the spheres"))?;
+        self.kernels.proxy_boxes(
+            &built.spheres_in,
+            &built.order,
+            &mut built.spheres,
+            &mut built.boxes,
+            built.n,
+            built.mode,
+            built.r_max,
+            BOX_PADDING,
+        )?;
         Ok(())
     }
 
@@ -151,41 +118,28 @@ impl OptixBackend {
             };
             stream
                 .memset_zeros(&mut built.pair_count)
-                .map_err(gpu_error)?;
+                .map_err(cuda("clearing the pair count"))?;
             stream
                 .memset_zeros(&mut built.candidates)
-                .map_err(gpu_error)?;
-            let params = DetectParams {
-                spheres: device.ptr(&built.spheres),
-                ids: device.ptr(&built.order),
-                pairs: device.ptr_mut(&mut built.pairs),
-                pair_count: device.ptr_mut(&mut built.pair_count),
-                candidates: device.ptr_mut(&mut built.candidates),
-                handle: gas.handle,
-                n: built.n,
-                capacity,
-                mode: built.mode.code(),
-                _pad: 0,
+                .map_err(cuda("clearing the candidate counters"))?;
+            let start = mark(stream)?;
+            let buffers = DetectBuffers {
+                spheres: &built.spheres,
+                ids: built.order.entries(),
+                pairs: &mut built.pairs,
+                pair_count: &mut built.pair_count,
+                candidates: &mut built.candidates,
             };
-            stream
-                .memcpy_htod(bytemuck::bytes_of(&params), &mut built.params)
-                .map_err(gpu_error)?;
-            let start = stream
-                .record_event(Some(CUevent_flags::CU_EVENT_DEFAULT))
-                .map_err(gpu_error)?;
-            self.pipeline
-                .launch(&built.params, built.n)
-                .map_err(gpu_error)?;
-            let end = stream
-                .record_event(Some(CUevent_flags::CU_EVENT_DEFAULT))
-                .map_err(gpu_error)?;
-            let found = stream.clone_dtoh(&built.pair_count).map_err(gpu_error)?[0];
+            self.program.launch(gas, built.mode, capacity, buffers)?;
+            let end = mark(stream)?;
+            let read = cuda("reading the counters back");
+            let found = stream.clone_dtoh(&built.pair_count).map_err(&read)?[0];
             let candidates: u64 = stream
                 .clone_dtoh(&built.candidates)
-                .map_err(gpu_error)?
+                .map_err(&read)?
                 .iter()
                 .sum();
-            self.times.detect_ms = Some(start.elapsed_ms(&end).map_err(gpu_error)? as f64);
+            self.times.detect_ms = Some(elapsed_ms(&start, &end)?);
             let stats = DetectStats {
                 candidates,
                 pairs: found as u64,
@@ -196,10 +150,12 @@ impl OptixBackend {
             if found > capacity {
                 built.pairs = stream
                     .alloc_zeros::<u32>(2 * (found as usize).next_power_of_two())
-                    .map_err(gpu_error)?;
+                    .map_err(cuda("growing the pair buffer"))?;
                 continue;
             }
-            let flat = stream.clone_dtoh(&built.pairs).map_err(gpu_error)?;
+            let flat = stream
+                .clone_dtoh(&built.pairs)
+                .map_err(cuda("reading the pairs back"))?;
             let mut pairs: Vec<Pair> = flat[..2 * found as usize]
                 .chunks_exact(2)
                 .map(|p| Pair { i: p[0], j: p[1] })
@@ -208,6 +164,20 @@ impl OptixBackend {
             return Ok((pairs, stats));
         }
     }
+}
+
+/// Records an event on `stream` (the start or end of a timed span).
+fn mark(stream: &CudaStream) -> std::result::Result<CudaEvent, OptixError> {
+    stream
+        .record_event(Some(CUevent_flags::CU_EVENT_DEFAULT))
+        .map_err(cuda("recording an event"))
+}
+
+/// Milliseconds between two recorded events.
+fn elapsed_ms(start: &CudaEvent, end: &CudaEvent) -> std::result::Result<f64, OptixError> {
+    Ok(start
+        .elapsed_ms(end)
+        .map_err(cuda("reading the GPU timers"))? as f64)
 }
 
 /// Input indices in Morton order of the centres (ties by index), for coherent rays.
@@ -239,41 +209,30 @@ impl Backend for OptixBackend {
         Self::check_extent(spheres, mode)?;
         let n = n64 as u32;
         let stream = self.device.stream.clone();
-        let alloc_f32 = |len: usize| stream.alloc_zeros::<f32>(len.max(1)).map_err(gpu_error);
-        let order = morton_order(spheres);
-        let order = if order.is_empty() {
-            stream.alloc_zeros::<u32>(1)
-        } else {
-            stream.clone_htod(&order)
-        }
-        .map_err(gpu_error)?;
+        let alloc = cuda("allocating the structure's buffers");
+        let alloc_f32 = |len: usize| stream.alloc_zeros::<f32>(len.max(1)).map_err(&alloc);
         let mut built = Built {
             n,
             mode,
             r_max: spheres.max_radius(),
-            order,
+            order: Order::upload(&stream, &morton_order(spheres))?,
             spheres_in: alloc_f32(4 * n as usize)?,
             spheres: alloc_f32(4 * n as usize)?,
             boxes: alloc_f32(6 * n as usize)?,
             gas: None,
             pairs: stream
                 .alloc_zeros::<u32>(2 * (n as usize).max(1024))
-                .map_err(gpu_error)?,
-            pair_count: stream.alloc_zeros::<u32>(1).map_err(gpu_error)?,
-            candidates: stream
-                .alloc_zeros::<u64>(COUNTER_SLOTS)
-                .map_err(gpu_error)?,
-            params: stream
-                .alloc_zeros::<u8>(size_of::<DetectParams>())
-                .map_err(gpu_error)?,
+                .map_err(&alloc)?,
+            pair_count: stream.alloc_zeros::<u32>(1).map_err(&alloc)?,
+            candidates: stream.alloc_zeros::<u64>(COUNTER_SLOTS).map_err(&alloc)?,
         };
         self.times = GpuTimes::default();
         if n > 0 {
-            let start = self.mark()?;
+            let start = mark(&self.device.stream)?;
             self.write_boxes(&mut built, spheres)?;
-            built.gas = Some(Gas::build(&self.device, &built.boxes, n).map_err(gpu_error)?);
-            let end = self.mark()?;
-            self.times.build_ms = Some(start.elapsed_ms(&end).map_err(gpu_error)? as f64);
+            built.gas = Some(Gas::build(&self.device, &built.boxes, n)?);
+            let end = mark(&self.device.stream)?;
+            self.times.build_ms = Some(elapsed_ms(&start, &end)?);
         }
         self.built = Some(built);
         Ok(())
@@ -297,14 +256,13 @@ impl Backend for OptixBackend {
                 return Ok(());
             }
             Self::check_extent(spheres, built.mode)?;
-            let start = self.mark()?;
+            let start = mark(&self.device.stream)?;
             self.write_boxes(&mut built, spheres)?;
             if let Some(gas) = built.gas.as_mut() {
-                gas.run(&self.device, &built.boxes, AccelOp::Update)
-                    .map_err(gpu_error)?;
+                gas.run(&self.device, &built.boxes, AccelOp::Update)?;
             }
-            let end = self.mark()?;
-            self.times.build_ms = Some(start.elapsed_ms(&end).map_err(gpu_error)? as f64);
+            let end = mark(&self.device.stream)?;
+            self.times.build_ms = Some(elapsed_ms(&start, &end)?);
             Ok(())
         })();
         self.built = Some(built);

@@ -1,32 +1,71 @@
-//! Safe owners of the OptiX objects mochi uses: the device (CUDA context, stream, OptiX
-//! context), a pipeline of one raygen and one intersection program with its shader binding
-//! table, and a geometry acceleration structure (GAS) of custom primitives (AABBs) that can be
-//! built and updated (refit). Each frees what it created when dropped.
+//! The safe layer over OptiX (`sys.rs`) and the CUDA kernels: owners of the OptiX objects mochi
+//! uses (the device with its CUDA and OptiX contexts, the pipelines of the device programs, a
+//! geometry acceleration structure of custom primitives that can be built and refitted), each
+//! freeing what it created when dropped, and one typed launch function per device program and
+//! CUDA kernel. A launch function takes the typed buffers, checks their lengths against the count
+//! the device code indexes, builds the launch parameters from them and launches; nothing outside
+//! this file holds a raw device pointer.
+//!
+//! Every launch and build is enqueued on the device's one stream, and `cudarc` frees a buffer on
+//! that stream too: a buffer dropped after a launch is freed only after the GPU is done with it,
+//! which is what makes the asynchronous launches below sound.
 
-use super::ffi::{self, Api};
-use cudarc::driver::{CudaContext, CudaSlice, CudaStream, DevicePtr, DevicePtrMut};
+use super::programs::{self, Unit};
+use super::sys::{self, Api};
+use crate::dem::model::StepParams;
+use crate::error::OptixError;
+use crate::proxy::ProxyMode;
+use cudarc::driver::{
+    CudaContext, CudaFunction, CudaSlice, CudaStream, DevicePtr, DevicePtrMut, DeviceRepr,
+    LaunchConfig, PushKernelArg,
+};
 use std::ffi::{CString, c_char, c_void};
 use std::sync::Arc;
 
-/// Result of this layer: errors are messages.
-pub type Result<T> = std::result::Result<T, String>;
+/// Result of this layer.
+pub type Result<T> = std::result::Result<T, OptixError>;
 
-fn cuda_error(what: &str) -> impl Fn(cudarc::driver::DriverError) -> String + '_ {
-    move |e| format!("CUDA {what}: {e}")
+/// Counters the device programs spread their candidate (and contact) counts over: a power of
+/// two, indexed by `i & (COUNTER_SLOTS - 1)` (the `& 255u` of `optix/detect.cu` and
+/// `optix/dem.cu`, checked by `tests/optix.rs`).
+pub const COUNTER_SLOTS: usize = 256;
+
+/// Threads per block of the CUDA kernels.
+const BLOCK: u32 = 256;
+
+/// Bytes between two proxy boxes (6 floats: min x, y, z, then max), as the kernels write them.
+const BOX_STRIDE: u32 = 6 * size_of::<f32>() as u32;
+
+/// Maps a CUDA driver error of `call` into [`OptixError::Cuda`].
+pub fn cuda(call: &'static str) -> impl Fn(cudarc::driver::DriverError) -> OptixError {
+    move |error| OptixError::Cuda { call, error }
 }
 
-/// Whether the CUDA driver library can be loaded here.
-pub fn cuda_present() -> bool {
-    // SAFETY: only tries to open the library.
-    unsafe { cudarc::driver::sys::is_culib_present() }
+/// `Ok` if `buffer` of `launch` holds at least `needed` elements.
+fn check_len<T>(
+    launch: &'static str,
+    buffer: &'static str,
+    slice: &CudaSlice<T>,
+    needed: usize,
+) -> Result<()> {
+    if slice.len() >= needed {
+        return Ok(());
+    }
+    Err(OptixError::BufferTooShort {
+        launch,
+        buffer,
+        len: slice.len(),
+        needed,
+    })
 }
 
 /// The GPU with its CUDA context, stream and OptiX context.
 pub struct Device {
-    pub api: Api,
-    pub cuda: Arc<CudaContext>,
+    api: &'static Api,
+    cuda: Arc<CudaContext>,
+    /// The one stream every copy, launch and build of the engine is ordered on.
     pub stream: Arc<CudaStream>,
-    context: ffi::DeviceContext,
+    context: sys::DeviceContext,
     /// GPU name.
     pub name: String,
     /// RT core generation (0: none, traversal runs in software).
@@ -38,19 +77,22 @@ pub struct Device {
 // SAFETY: the OptiX context is a handle OptiX allows to be used from any thread; mochi only
 // makes calls on it that OptiX documents as thread-safe (creating objects, building, launching).
 unsafe impl Send for Device {}
+// SAFETY: as for Send; `&Device` offers no call that mutates the context.
 unsafe impl Sync for Device {}
 
 impl Device {
-    /// Opens GPU 0, or says why it cannot.
+    /// Opens GPU 0, or says why it cannot ([`OptixError::Unavailable`] without a driver).
     pub fn open() -> Result<Device> {
-        if !cuda_present() {
-            return Err("no NVIDIA driver (libcuda.so) found".into());
+        if !sys::cuda_present() {
+            return Err(OptixError::Unavailable(
+                "no NVIDIA driver (libcuda.so) found".into(),
+            ));
         }
-        let api = Api::load()?;
-        let cuda = CudaContext::new(0).map_err(cuda_error("opening GPU 0"))?;
-        let name = cuda.name().map_err(cuda_error("reading the GPU name"))?;
-        let stream = cuda.default_stream();
-        let options = ffi::DeviceContextOptions {
+        let api = Api::get()?;
+        let context_cuda = CudaContext::new(0).map_err(cuda("opening GPU 0"))?;
+        let name = context_cuda.name().map_err(cuda("reading the GPU name"))?;
+        let stream = context_cuda.default_stream();
+        let options = sys::DeviceContextOptions {
             log_callback: None,
             log_callback_data: std::ptr::null_mut(),
             log_callback_level: 0,
@@ -58,32 +100,34 @@ impl Device {
         };
         let mut context = std::ptr::null_mut();
         // SAFETY: a live CUDA context, options and out-pointer valid for the call.
-        api.check(
-            unsafe { (api.device_context_create)(cuda.cu_ctx().cast(), &options, &mut context) },
-            "creating the device context",
-        )?;
+        let status = unsafe {
+            (api.device_context_create)(context_cuda.cu_ctx().cast(), &options, &mut context)
+        };
+        api.check(status, "creating the device context", "")?;
         let mut device = Device {
             api,
-            cuda,
+            cuda: context_cuda,
             stream,
             context,
             name,
             rtcore_version: 0,
             max_primitives: 0,
         };
-        device.rtcore_version =
-            device.property(ffi::DEVICE_PROPERTY_RTCORE_VERSION, "the RT core version")?;
+        device.rtcore_version = device.property(
+            sys::DEVICE_PROPERTY_RTCORE_VERSION,
+            "reading the RT core version",
+        )?;
         device.max_primitives = device.property(
-            ffi::DEVICE_PROPERTY_LIMIT_MAX_PRIMITIVES_PER_GAS,
-            "the primitive limit",
+            sys::DEVICE_PROPERTY_LIMIT_MAX_PRIMITIVES_PER_GAS,
+            "reading the primitive limit",
         )?;
         Ok(device)
     }
 
     /// A u32 property of the device context.
-    fn property(&self, property: std::ffi::c_int, what: &str) -> Result<u32> {
+    fn property(&self, property: std::ffi::c_int, call: &'static str) -> Result<u32> {
         let mut value = 0u32;
-        // SAFETY: the property is a u32 written into value.
+        // SAFETY: the property is a u32 written into value, which has room for it.
         let status = unsafe {
             (self.api.device_context_get_property)(
                 self.context,
@@ -92,26 +136,26 @@ impl Device {
                 size_of::<u32>(),
             )
         };
-        self.api.check(status, &format!("reading {what}"))?;
+        self.api.check(status, call, "")?;
         Ok(value)
-    }
-
-    /// The raw device pointer of `slice`, for OptiX calls and launch parameters.
-    pub fn ptr<T>(&self, slice: &CudaSlice<T>) -> ffi::DevicePtr {
-        slice.device_ptr(&self.stream).0
-    }
-
-    /// The raw device pointer of `slice`, which the GPU will write.
-    pub fn ptr_mut<T>(&self, slice: &mut CudaSlice<T>) -> ffi::DevicePtr {
-        slice.device_ptr_mut(&self.stream).0
     }
 
     /// A zeroed device buffer of `len` bytes (OptiX's alignment holds: CUDA allocations are
     /// 256-byte aligned).
-    pub fn bytes(&self, len: usize) -> Result<CudaSlice<u8>> {
+    fn bytes(&self, len: usize) -> Result<CudaSlice<u8>> {
         self.stream
             .alloc_zeros::<u8>(len.max(1))
-            .map_err(cuda_error("allocating device memory"))
+            .map_err(cuda("allocating device memory"))
+    }
+
+    /// The raw device pointer of `slice`, for OptiX calls and launch parameters.
+    fn ptr<T>(&self, slice: &CudaSlice<T>) -> sys::DevicePtr {
+        slice.device_ptr(&self.stream).0
+    }
+
+    /// The raw device pointer of `slice`, which the GPU will write.
+    fn ptr_mut<T>(&self, slice: &mut CudaSlice<T>) -> sys::DevicePtr {
+        slice.device_ptr_mut(&self.stream).0
     }
 }
 
@@ -123,50 +167,48 @@ impl Drop for Device {
     }
 }
 
-/// Runs an OptiX call that writes a log, and appends the log to its error.
+/// Runs an OptiX call that writes a log, and puts the log in its error.
 fn with_log(
     api: &Api,
-    what: &str,
-    call: impl FnOnce(*mut c_char, *mut usize) -> ffi::OptixResult,
+    call: &'static str,
+    run: impl FnOnce(*mut c_char, *mut usize) -> sys::OptixResult,
 ) -> Result<()> {
     let mut log = vec![0u8; 4096];
     let mut len = log.len();
-    let status = call(log.as_mut_ptr().cast(), &mut len);
-    api.check(status, what).map_err(|e| {
-        let text = String::from_utf8_lossy(&log[..len.min(log.len())]);
-        format!("{e}: {}", text.trim_end_matches('\0').trim())
-    })
+    let status = run(log.as_mut_ptr().cast(), &mut len);
+    let text = String::from_utf8_lossy(&log[..len.min(log.len())]);
+    api.check(status, call, &text)
 }
 
 /// A pipeline of one raygen and one intersection-only hit group (no miss program), with its
 /// shader binding table: records of headers only.
-pub struct Pipeline {
+struct Pipeline {
     device: Arc<Device>,
-    module: ffi::Module,
-    groups: [ffi::ProgramGroup; 3],
-    pipeline: ffi::Pipeline,
-    sbt: ffi::ShaderBindingTable,
+    module: sys::Module,
+    groups: [sys::ProgramGroup; 3],
+    pipeline: sys::Pipeline,
+    sbt: sys::ShaderBindingTable,
     _records: CudaSlice<u8>,
 }
 
 impl Pipeline {
     /// Builds the pipeline from `ptx` with entry points `__raygen__{name}` and
     /// `__intersection__{name}`, launch parameters in `params`, `payloads` payload words.
-    pub fn new(device: &Arc<Device>, ptx: &str, name: &str, payloads: i32) -> Result<Pipeline> {
-        let api = &device.api;
+    fn new(device: &Arc<Device>, ptx: &str, name: &str, payloads: i32) -> Result<Pipeline> {
+        let api = device.api;
         let params_name = CString::new("params").expect("no NUL");
-        let compile = ffi::PipelineCompileOptions {
+        let compile = sys::PipelineCompileOptions {
             uses_motion_blur: 0,
-            traversable_graph_flags: ffi::TRAVERSABLE_GRAPH_FLAG_ALLOW_SINGLE_GAS,
+            traversable_graph_flags: sys::TRAVERSABLE_GRAPH_FLAG_ALLOW_SINGLE_GAS,
             num_payload_values: payloads,
             num_attribute_values: 0,
             exception_flags: 0,
             pipeline_launch_params_variable_name: params_name.as_ptr(),
-            uses_primitive_type_flags: ffi::PRIMITIVE_TYPE_FLAGS_CUSTOM,
+            uses_primitive_type_flags: sys::PRIMITIVE_TYPE_FLAGS_CUSTOM,
             allow_opacity_micromaps: 0,
             allow_clustered_geometry: 0,
         };
-        let module_options = ffi::ModuleCompileOptions {
+        let module_options = sys::ModuleCompileOptions {
             max_register_count: 0,
             opt_level: 0,
             debug_level: 0,
@@ -196,37 +238,37 @@ impl Pipeline {
             module,
             groups: [std::ptr::null_mut(); 3],
             pipeline: std::ptr::null_mut(),
-            sbt: ffi::ShaderBindingTable::default(),
+            sbt: sys::ShaderBindingTable::default(),
             _records: device.bytes(1)?,
         };
         let raygen = CString::new(format!("__raygen__{name}")).expect("no NUL");
         let intersection = CString::new(format!("__intersection__{name}")).expect("no NUL");
-        let none = ffi::ProgramEntry {
+        let none = sys::ProgramEntry {
             module: std::ptr::null_mut(),
             entry_function_name: std::ptr::null(),
         };
-        let entry = |name: &CString| ffi::ProgramEntry {
+        let entry = |name: &CString| sys::ProgramEntry {
             module,
             entry_function_name: name.as_ptr(),
         };
         let descs = [
-            ffi::ProgramGroupDesc {
-                kind: ffi::PROGRAM_GROUP_KIND_RAYGEN,
+            sys::ProgramGroupDesc {
+                kind: sys::PROGRAM_GROUP_KIND_RAYGEN,
                 flags: 0,
                 entries: [entry(&raygen), none, none],
             },
-            ffi::ProgramGroupDesc {
-                kind: ffi::PROGRAM_GROUP_KIND_MISS,
+            sys::ProgramGroupDesc {
+                kind: sys::PROGRAM_GROUP_KIND_MISS,
                 flags: 0,
                 entries: [none, none, none],
             },
-            ffi::ProgramGroupDesc {
-                kind: ffi::PROGRAM_GROUP_KIND_HITGROUP,
+            sys::ProgramGroupDesc {
+                kind: sys::PROGRAM_GROUP_KIND_HITGROUP,
                 flags: 0,
                 entries: [none, none, entry(&intersection)],
             },
         ];
-        let group_options = ffi::ProgramGroupOptions {
+        let group_options = sys::ProgramGroupOptions {
             payload_type: std::ptr::null(),
         };
         for (k, desc) in descs.iter().enumerate() {
@@ -247,7 +289,7 @@ impl Pipeline {
             })?;
             pipeline.groups[k] = group;
         }
-        let link = ffi::PipelineLinkOptions { max_trace_depth: 1 };
+        let link = sys::PipelineLinkOptions { max_trace_depth: 1 };
         let mut raw = std::ptr::null_mut();
         with_log(api, "linking the pipeline", |log, len| {
             // SAFETY: the groups were created above and are valid.
@@ -267,7 +309,7 @@ impl Pipeline {
         pipeline.pipeline = raw;
 
         // One header-only record per group, each padded to the record alignment.
-        let stride = ffi::SBT_RECORD_HEADER_SIZE.next_multiple_of(ffi::SBT_RECORD_ALIGNMENT);
+        let stride = sys::SBT_RECORD_HEADER_SIZE.next_multiple_of(sys::SBT_RECORD_ALIGNMENT);
         let mut records = vec![0u8; stride * 3];
         for (k, &group) in pipeline.groups.iter().enumerate() {
             // SAFETY: the header pointer has SBT_RECORD_HEADER_SIZE bytes of room.
@@ -277,14 +319,14 @@ impl Pipeline {
                     records[k * stride..].as_mut_ptr().cast::<c_void>(),
                 )
             };
-            api.check(status, "packing a shader-binding-table record")?;
+            api.check(status, "packing a shader-binding-table record", "")?;
         }
         let records = device
             .stream
             .clone_htod(&records)
-            .map_err(cuda_error("uploading the shader binding table"))?;
+            .map_err(cuda("uploading the shader binding table"))?;
         let base = device.ptr(&records);
-        pipeline.sbt = ffi::ShaderBindingTable {
+        pipeline.sbt = sys::ShaderBindingTable {
             raygen_record: base,
             miss_record_base: base + stride as u64,
             miss_record_stride_in_bytes: stride as u32,
@@ -298,15 +340,20 @@ impl Pipeline {
         Ok(pipeline)
     }
 
-    /// Launches `width` raygen invocations with launch parameters `params` (on the device).
-    pub fn launch(&self, params: &CudaSlice<u8>, width: u32) -> Result<()> {
+    /// Launches `width` raygen invocations reading launch parameters `params` (on the device).
+    ///
+    /// # Safety
+    /// `params` must hold the launch parameters of this pipeline's programs, every pointer in
+    /// them to a live buffer on the device's stream as large as the programs index for `width`
+    /// invocations.
+    unsafe fn launch(&self, params: &CudaSlice<u8>, width: u32) -> Result<()> {
         if width == 0 {
             return Ok(());
         }
         let device = &self.device;
-        let api = &device.api;
-        // SAFETY: pipeline, SBT and parameter buffer are alive until the stream is done (their
-        // owners outlive the launch, and readers synchronise the stream).
+        let api = device.api;
+        // SAFETY: pipeline and SBT live as long as self (freed after the stream's work, see the
+        // module doc); the caller vouches for the parameters.
         let status = unsafe {
             (api.launch)(
                 self.pipeline,
@@ -319,7 +366,7 @@ impl Pipeline {
                 1,
             )
         };
-        api.check(status, "launching the point rays")
+        api.check(status, "launching the point rays", "")
     }
 }
 
@@ -328,7 +375,7 @@ unsafe impl Send for Pipeline {}
 
 impl Drop for Pipeline {
     fn drop(&mut self) {
-        let api = &self.device.api;
+        let api = self.device.api;
         // SAFETY: each object was created by this pipeline (or is null) and is destroyed once.
         unsafe {
             if !self.pipeline.is_null() {
@@ -344,6 +391,242 @@ impl Drop for Pipeline {
     }
 }
 
+/// A pipeline's launch parameters on the device, uploaded again only when they change (a DEM
+/// step's stay the same between rebuilds).
+struct LaunchParams<P: bytemuck::Pod> {
+    on_device: CudaSlice<u8>,
+    last: Option<P>,
+}
+
+impl<P: bytemuck::Pod> LaunchParams<P> {
+    fn new(device: &Device) -> Result<Self> {
+        Ok(Self {
+            on_device: device.bytes(size_of::<P>())?,
+            last: None,
+        })
+    }
+
+    /// Makes the buffer hold `params` (a copy ordered on the stream, only if they differ from
+    /// the last ones).
+    fn set(&mut self, stream: &Arc<CudaStream>, params: P) -> Result<&CudaSlice<u8>> {
+        let bytes = bytemuck::bytes_of(&params);
+        if self.last.as_ref().map(bytemuck::bytes_of) != Some(bytes) {
+            stream
+                .memcpy_htod(bytes, &mut self.on_device)
+                .map_err(cuda("uploading launch parameters"))?;
+            self.last = Some(params);
+        }
+        Ok(&self.on_device)
+    }
+}
+
+/// Launch parameters of `optix/detect.cu`; keep in sync with `DetectParams` there.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct DetectParams {
+    spheres: u64,
+    ids: u64,
+    pairs: u64,
+    pair_count: u64,
+    candidates: u64,
+    handle: u64,
+    n: u32,
+    capacity: u32,
+    mode: u32,
+    _pad: u32,
+}
+const _: () = assert!(size_of::<DetectParams>() == 64);
+
+/// The buffers of one detection launch.
+pub struct DetectBuffers<'a> {
+    /// x, y, z, r per sphere, in the order of the structure's primitives.
+    pub spheres: &'a CudaSlice<f32>,
+    /// Input index of each sorted sphere.
+    pub ids: &'a CudaSlice<u32>,
+    /// Kept pairs, 2 words each; the launch writes at most `capacity` of them.
+    pub pairs: &'a mut CudaSlice<u32>,
+    /// Pairs found (may exceed the capacity).
+    pub pair_count: &'a mut CudaSlice<u32>,
+    /// Boxes visited, spread over [`COUNTER_SLOTS`] counters.
+    pub candidates: &'a mut CudaSlice<u64>,
+}
+
+/// The detection programs of `optix/detect.cu`: one point ray per sphere that writes the kept
+/// pairs.
+pub struct DetectProgram {
+    pipeline: Pipeline,
+    params: LaunchParams<DetectParams>,
+}
+
+impl DetectProgram {
+    /// Compiles (NVRTC, once per process) and links the programs on `device`.
+    pub fn new(device: &Arc<Device>) -> Result<Self> {
+        let ptx = programs::ptx(Unit::Detect)?;
+        Ok(Self {
+            pipeline: Pipeline::new(device, ptx, "detect", 1)?,
+            params: LaunchParams::new(device)?,
+        })
+    }
+
+    /// One point ray for each of the `n` spheres of `gas` in `mode`, writing up to `capacity`
+    /// pairs (0: count only).
+    pub fn launch(
+        &mut self,
+        gas: &Gas,
+        mode: ProxyMode,
+        capacity: u32,
+        b: DetectBuffers<'_>,
+    ) -> Result<()> {
+        const LAUNCH: &str = "optix/detect.cu";
+        let n = gas.primitives;
+        check_len(LAUNCH, "spheres", b.spheres, 4 * n as usize)?;
+        check_len(LAUNCH, "ids", b.ids, n as usize)?;
+        check_len(LAUNCH, "pairs", b.pairs, 2 * capacity as usize)?;
+        check_len(LAUNCH, "pair_count", b.pair_count, 1)?;
+        check_len(LAUNCH, "candidates", b.candidates, COUNTER_SLOTS)?;
+        let device = &self.pipeline.device;
+        let params = DetectParams {
+            spheres: device.ptr(b.spheres),
+            ids: device.ptr(b.ids),
+            pairs: device.ptr_mut(b.pairs),
+            pair_count: device.ptr_mut(b.pair_count),
+            candidates: device.ptr_mut(b.candidates),
+            handle: gas.handle,
+            n,
+            capacity,
+            mode: mode.code(),
+            _pad: 0,
+        };
+        let on_device = self.params.set(&device.stream, params)?;
+        // SAFETY: the parameters were built just now from the borrowed buffers, whose lengths
+        // cover what detect.cu indexes for n rays over n primitives (spheres and ids by ray and
+        // primitive index < n, pairs below capacity, counters & 255).
+        unsafe { self.pipeline.launch(on_device, n) }
+    }
+}
+
+/// The CUDA twin of `DemParams` in `optix/physics.cuh` (keep the two in sync): the step's
+/// parameters as the DEM kernels and programs read them.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct DemParams {
+    box_lo: [f32; 3],
+    n: u32,
+    box_hi: [f32; 3],
+    row: u32,
+    gravity: [f32; 3],
+    dt: f32,
+    stiffness: f32,
+    damping_ratio: f32,
+    gravity_spin: f32,
+    _pad1: u32,
+}
+const _: () = assert!(size_of::<DemParams>() == 64);
+
+// SAFETY: `#[repr(C)]` plain data laid out as `DemParams` in optix/physics.cuh.
+unsafe impl DeviceRepr for DemParams {}
+
+impl DemParams {
+    /// The parameters of a step over `n` spheres.
+    pub fn new(p: &StepParams, n: u32) -> Self {
+        Self {
+            box_lo: p.box_lo,
+            n,
+            box_hi: p.box_hi,
+            row: 0,
+            gravity: p.gravity,
+            dt: p.dt,
+            stiffness: p.stiffness,
+            damping_ratio: p.damping_ratio,
+            gravity_spin: p.gravity_spin,
+            _pad1: 0,
+        }
+    }
+}
+
+/// Launch parameters of `optix/dem.cu`; keep in sync with `DemLaunch` there.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct DemLaunch {
+    pos: u64,
+    vel: u64,
+    force: u64,
+    contacts: u64,
+    candidates: u64,
+    handle: u64,
+    n: u32,
+    mode: u32,
+    _pad: [u32; 2],
+    dem: DemParams,
+}
+const _: () = assert!(size_of::<DemLaunch>() == 128);
+
+/// The buffers of one DEM contact launch.
+pub struct DemBuffers<'a> {
+    /// x, y, z, r per sphere, in the order of the structure's primitives.
+    pub pos: &'a CudaSlice<f32>,
+    /// vx, vy, vz, mass per sphere.
+    pub vel: &'a CudaSlice<f32>,
+    /// 3 floats per sphere, summed with atomics.
+    pub force: &'a mut CudaSlice<f32>,
+    /// Touching pairs, spread over [`COUNTER_SLOTS`] counters.
+    pub contacts: &'a mut CudaSlice<u32>,
+    /// Boxes visited, spread over [`COUNTER_SLOTS`] counters.
+    pub candidates: &'a mut CudaSlice<u64>,
+}
+
+/// The DEM programs of `optix/dem.cu`: one point ray per sphere that resolves its contacts.
+pub struct DemProgram {
+    pipeline: Pipeline,
+    params: LaunchParams<DemLaunch>,
+}
+
+impl DemProgram {
+    /// Compiles (NVRTC, once per process) and links the programs on `device`.
+    pub fn new(device: &Arc<Device>) -> Result<Self> {
+        let ptx = programs::ptx(Unit::Dem)?;
+        Ok(Self {
+            pipeline: Pipeline::new(device, ptx, "dem", 5)?,
+            params: LaunchParams::new(device)?,
+        })
+    }
+
+    /// One point ray for each of the `n` spheres of `gas` in `mode`, adding contact forces.
+    pub fn launch(
+        &mut self,
+        gas: &Gas,
+        mode: ProxyMode,
+        dem: DemParams,
+        b: DemBuffers<'_>,
+    ) -> Result<()> {
+        const LAUNCH: &str = "optix/dem.cu";
+        let n = gas.primitives;
+        check_len(LAUNCH, "pos", b.pos, 4 * n as usize)?;
+        check_len(LAUNCH, "vel", b.vel, 4 * n as usize)?;
+        check_len(LAUNCH, "force", b.force, 3 * n as usize)?;
+        check_len(LAUNCH, "contacts", b.contacts, COUNTER_SLOTS)?;
+        check_len(LAUNCH, "candidates", b.candidates, COUNTER_SLOTS)?;
+        let device = &self.pipeline.device;
+        let params = DemLaunch {
+            pos: device.ptr(b.pos),
+            vel: device.ptr(b.vel),
+            force: device.ptr_mut(b.force),
+            contacts: device.ptr_mut(b.contacts),
+            candidates: device.ptr_mut(b.candidates),
+            handle: gas.handle,
+            n,
+            mode: mode.code(),
+            _pad: [0; 2],
+            dem,
+        };
+        let on_device = self.params.set(&device.stream, params)?;
+        // SAFETY: the parameters were built just now from the borrowed buffers, whose lengths
+        // cover what dem.cu indexes for n rays over n primitives (rows by ray and primitive
+        // index < n, counters & 255).
+        unsafe { self.pipeline.launch(on_device, n) }
+    }
+}
+
 /// How a GAS is brought up to date.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum AccelOp {
@@ -355,20 +638,20 @@ pub enum AccelOp {
 
 /// A geometry acceleration structure over custom primitives (one AABB per sphere).
 pub struct Gas {
-    pub handle: ffi::TraversableHandle,
+    handle: sys::TraversableHandle,
     primitives: u32,
     output: CudaSlice<u8>,
     temp: CudaSlice<u8>,
 }
 
 impl Gas {
-    fn input(boxes: &ffi::DevicePtr, primitives: u32, flags: &u32) -> ffi::BuildInput {
-        ffi::BuildInput {
-            kind: ffi::BUILD_INPUT_TYPE_CUSTOM_PRIMITIVES,
-            custom: ffi::BuildInputCustomPrimitiveArray {
+    fn input(boxes: &sys::DevicePtr, primitives: u32, flags: &u32) -> sys::BuildInput {
+        sys::BuildInput {
+            kind: sys::BUILD_INPUT_TYPE_CUSTOM_PRIMITIVES,
+            custom: sys::BuildInputCustomPrimitiveArray {
                 aabb_buffers: boxes,
                 num_primitives: primitives,
-                stride_in_bytes: 24,
+                stride_in_bytes: BOX_STRIDE,
                 flags,
                 num_sbt_records: 1,
                 sbt_index_offset_buffer: 0,
@@ -376,18 +659,18 @@ impl Gas {
                 sbt_index_offset_stride_in_bytes: 0,
                 primitive_index_offset: 0,
             },
-            _rest_of_union: [0; 1024 - size_of::<ffi::BuildInputCustomPrimitiveArray>()],
+            _rest_of_union: [0; 1024 - size_of::<sys::BuildInputCustomPrimitiveArray>()],
         }
     }
 
-    fn options(op: AccelOp) -> ffi::AccelBuildOptions {
-        ffi::AccelBuildOptions {
-            build_flags: ffi::BUILD_FLAG_ALLOW_UPDATE | ffi::BUILD_FLAG_PREFER_FAST_BUILD,
+    fn options(op: AccelOp) -> sys::AccelBuildOptions {
+        sys::AccelBuildOptions {
+            build_flags: sys::BUILD_FLAG_ALLOW_UPDATE | sys::BUILD_FLAG_PREFER_FAST_BUILD,
             operation: match op {
-                AccelOp::Build => ffi::BUILD_OPERATION_BUILD,
-                AccelOp::Update => ffi::BUILD_OPERATION_UPDATE,
+                AccelOp::Build => sys::BUILD_OPERATION_BUILD,
+                AccelOp::Update => sys::BUILD_OPERATION_UPDATE,
             },
-            motion_options: ffi::MotionOptions {
+            motion_options: sys::MotionOptions {
                 num_keys: 0,
                 flags: 0,
                 time_begin: 0.0,
@@ -398,24 +681,23 @@ impl Gas {
 
     /// Builds a GAS over `primitives` boxes (6 floats each) in `boxes`.
     pub fn build(device: &Device, boxes: &CudaSlice<f32>, primitives: u32) -> Result<Gas> {
-        let api = &device.api;
+        check_len("building the GAS", "boxes", boxes, 6 * primitives as usize)?;
+        let api = device.api;
         let pointer = device.ptr(boxes);
-        let flags = ffi::GEOMETRY_FLAG_DISABLE_ANYHIT;
+        let flags = sys::GEOMETRY_FLAG_DISABLE_ANYHIT;
         let input = Gas::input(&pointer, primitives, &flags);
-        let mut sizes = ffi::AccelBufferSizes::default();
+        let mut sizes = sys::AccelBufferSizes::default();
         // SAFETY: options, input and out-struct valid for the call.
-        api.check(
-            unsafe {
-                (api.accel_compute_memory_usage)(
-                    device.context,
-                    &Gas::options(AccelOp::Build),
-                    &input,
-                    1,
-                    &mut sizes,
-                )
-            },
-            "sizing the acceleration structure",
-        )?;
+        let status = unsafe {
+            (api.accel_compute_memory_usage)(
+                device.context,
+                &Gas::options(AccelOp::Build),
+                &input,
+                1,
+                &mut sizes,
+            )
+        };
+        api.check(status, "sizing the acceleration structure", "")?;
         let mut gas = Gas {
             handle: 0,
             primitives,
@@ -432,32 +714,262 @@ impl Gas {
 
     /// Rebuilds or refits from `boxes` (same primitive count as the build).
     pub fn run(&mut self, device: &Device, boxes: &CudaSlice<f32>, op: AccelOp) -> Result<()> {
-        let api = &device.api;
+        check_len(
+            "building the GAS",
+            "boxes",
+            boxes,
+            6 * self.primitives as usize,
+        )?;
+        let api = device.api;
         let pointer = device.ptr(boxes);
-        let flags = ffi::GEOMETRY_FLAG_DISABLE_ANYHIT;
+        let flags = sys::GEOMETRY_FLAG_DISABLE_ANYHIT;
         let input = Gas::input(&pointer, self.primitives, &flags);
         let temp = device.ptr_mut(&mut self.temp);
         let output = device.ptr_mut(&mut self.output);
-        // SAFETY: buffers sized by accel_compute_memory_usage for this input; the stream orders
-        // the build after the boxes were written and before any launch that reads it.
-        api.check(
-            unsafe {
-                (api.accel_build)(
-                    device.context,
-                    device.stream.cu_stream().cast(),
-                    &Gas::options(op),
-                    &input,
-                    1,
-                    temp,
-                    self.temp.len(),
-                    output,
-                    self.output.len(),
-                    &mut self.handle,
-                    std::ptr::null(),
-                    0,
-                )
-            },
-            "building the acceleration structure",
-        )
+        // SAFETY: buffers sized by accel_compute_memory_usage for this input (same primitive
+        // count), boxes as long as the input says (checked above); the stream orders the build
+        // after the boxes were written and before any launch that reads it.
+        let status = unsafe {
+            (api.accel_build)(
+                device.context,
+                device.stream.cu_stream().cast(),
+                &Gas::options(op),
+                &input,
+                1,
+                temp,
+                self.temp.len(),
+                output,
+                self.output.len(),
+                &mut self.handle,
+                std::ptr::null(),
+                0,
+            )
+        };
+        api.check(status, "building the acceleration structure", "")
+    }
+}
+
+/// The CUDA kernels of `optix/kernels.cu`, each behind a typed, length-checked launch.
+pub struct Kernels {
+    stream: Arc<CudaStream>,
+    proxy_boxes: CudaFunction,
+    dem_boxes: CudaFunction,
+    dem_integrate: CudaFunction,
+    dem_permute: CudaFunction,
+}
+
+/// The DEM state of `n` spheres on the device.
+pub struct State {
+    /// x, y, z, r per sphere.
+    pub pos: CudaSlice<f32>,
+    /// vx, vy, vz, mass per sphere.
+    pub vel: CudaSlice<f32>,
+    /// Input index of each sphere.
+    pub ids: CudaSlice<u32>,
+}
+
+/// An order of `n` spheres on the device: entry p is the position (below n) of the sphere that
+/// goes to sorted position p. The kernels read rows through it, so every entry is checked.
+pub struct Order {
+    entries: CudaSlice<u32>,
+    len: usize,
+}
+
+impl Order {
+    /// Uploads `order`, refusing an entry that is not below its length.
+    pub fn upload(stream: &Arc<CudaStream>, order: &[u32]) -> Result<Self> {
+        if let Some(&index) = order.iter().find(|&&p| p as usize >= order.len()) {
+            return Err(OptixError::IndexOutOfRange {
+                buffer: "order",
+                index: index as u64,
+                len: order.len(),
+            });
+        }
+        let entries = if order.is_empty() {
+            stream.alloc_zeros::<u32>(1)
+        } else {
+            stream.clone_htod(order)
+        }
+        .map_err(cuda("uploading an order"))?;
+        Ok(Self {
+            entries,
+            len: order.len(),
+        })
+    }
+
+    /// The entries, for a launch that reads them as plain data.
+    pub fn entries(&self) -> &CudaSlice<u32> {
+        &self.entries
+    }
+
+    /// `Ok` if the order covers `n` spheres.
+    fn check(&self, launch: &'static str, n: u32) -> Result<()> {
+        if self.len == n as usize {
+            return Ok(());
+        }
+        Err(OptixError::BufferTooShort {
+            launch,
+            buffer: "order",
+            len: self.len,
+            needed: n as usize,
+        })
+    }
+}
+
+/// The grid of one thread per sphere.
+fn per_sphere(n: u32) -> LaunchConfig {
+    LaunchConfig {
+        grid_dim: (n.div_ceil(BLOCK), 1, 1),
+        block_dim: (BLOCK, 1, 1),
+        shared_mem_bytes: 0,
+    }
+}
+
+impl Kernels {
+    /// Compiles (NVRTC, once per process) and loads the kernels on `device`.
+    pub fn load(device: &Device) -> Result<Self> {
+        let ptx = programs::ptx(Unit::Kernels)?;
+        let module = device
+            .cuda
+            .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
+            .map_err(cuda("loading optix/kernels.cu"))?;
+        let function = |name| {
+            module
+                .load_function(name)
+                .map_err(cuda("loading a kernel of optix/kernels.cu"))
+        };
+        Ok(Self {
+            stream: device.stream.clone(),
+            proxy_boxes: function("proxy_boxes")?,
+            dem_boxes: function("dem_boxes")?,
+            dem_integrate: function("dem_integrate")?,
+            dem_permute: function("dem_permute")?,
+        })
+    }
+
+    /// Gathers `n` spheres into sorted order (`order[p]`: input index of sorted position p)
+    /// and writes each one's proxy box in `mode`, padded by `pad_rel`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn proxy_boxes(
+        &self,
+        spheres_in: &CudaSlice<f32>,
+        order: &Order,
+        spheres: &mut CudaSlice<f32>,
+        boxes: &mut CudaSlice<f32>,
+        n: u32,
+        mode: ProxyMode,
+        r_max: f32,
+        pad_rel: f32,
+    ) -> Result<()> {
+        const LAUNCH: &str = "proxy_boxes";
+        if n == 0 {
+            return Ok(());
+        }
+        check_len(LAUNCH, "spheres_in", spheres_in, 4 * n as usize)?;
+        order.check(LAUNCH, n)?;
+        check_len(LAUNCH, "spheres", spheres, 4 * n as usize)?;
+        check_len(LAUNCH, "boxes", boxes, 6 * n as usize)?;
+        let mode = mode.code();
+        let mut launch = self.stream.launch_builder(&self.proxy_boxes);
+        launch
+            .arg(spheres_in)
+            .arg(&order.entries)
+            .arg(spheres)
+            .arg(boxes)
+            .arg(&n)
+            .arg(&mode)
+            .arg(&r_max)
+            .arg(&pad_rel);
+        // SAFETY: the arguments match proxy_boxes' signature; the buffers hold n spheres and
+        // boxes, the order n entries below n (checked above and in Order::upload).
+        unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching proxy_boxes"))?;
+        Ok(())
+    }
+
+    /// Writes the proxy box of each of the `n` spheres of `pos` in `mode`, padded by `pad_rel`.
+    pub fn dem_boxes(
+        &self,
+        pos: &CudaSlice<f32>,
+        boxes: &mut CudaSlice<f32>,
+        n: u32,
+        mode: ProxyMode,
+        r_max: f32,
+        pad_rel: f32,
+    ) -> Result<()> {
+        const LAUNCH: &str = "dem_boxes";
+        if n == 0 {
+            return Ok(());
+        }
+        check_len(LAUNCH, "pos", pos, 4 * n as usize)?;
+        check_len(LAUNCH, "boxes", boxes, 6 * n as usize)?;
+        let mode = mode.code();
+        let mut launch = self.stream.launch_builder(&self.dem_boxes);
+        launch
+            .arg(pos)
+            .arg(boxes)
+            .arg(&n)
+            .arg(&mode)
+            .arg(&r_max)
+            .arg(&pad_rel);
+        // SAFETY: the arguments match dem_boxes' signature; pos holds n rows, boxes 6n floats.
+        unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching dem_boxes"))?;
+        Ok(())
+    }
+
+    /// Walls, gravity at `step` and one integration step of the `dem.n` spheres, in place;
+    /// clears `force` for the next step.
+    pub fn dem_integrate(
+        &self,
+        pos: &mut CudaSlice<f32>,
+        vel: &mut CudaSlice<f32>,
+        force: &mut CudaSlice<f32>,
+        dem: &DemParams,
+        step: u32,
+    ) -> Result<()> {
+        const LAUNCH: &str = "dem_integrate";
+        let n = dem.n;
+        if n == 0 {
+            return Ok(());
+        }
+        check_len(LAUNCH, "pos", pos, 4 * n as usize)?;
+        check_len(LAUNCH, "vel", vel, 4 * n as usize)?;
+        check_len(LAUNCH, "force", force, 3 * n as usize)?;
+        let mut launch = self.stream.launch_builder(&self.dem_integrate);
+        launch.arg(pos).arg(vel).arg(force).arg(dem).arg(&step);
+        // SAFETY: the arguments match dem_integrate's signature; pos and vel hold dem.n rows,
+        // force 3·dem.n floats (checked above).
+        unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching dem_integrate"))?;
+        Ok(())
+    }
+
+    /// Reorders the `n` spheres of `from` into `to`: sorted position p takes the sphere at
+    /// position `order[p]` of `from`.
+    pub fn dem_permute(&self, from: &State, order: &Order, to: &mut State, n: u32) -> Result<()> {
+        const LAUNCH: &str = "dem_permute";
+        if n == 0 {
+            return Ok(());
+        }
+        let rows = 4 * n as usize;
+        check_len(LAUNCH, "pos_in", &from.pos, rows)?;
+        check_len(LAUNCH, "vel_in", &from.vel, rows)?;
+        check_len(LAUNCH, "ids_in", &from.ids, n as usize)?;
+        order.check(LAUNCH, n)?;
+        check_len(LAUNCH, "pos", &to.pos, rows)?;
+        check_len(LAUNCH, "vel", &to.vel, rows)?;
+        check_len(LAUNCH, "ids", &to.ids, n as usize)?;
+        let mut launch = self.stream.launch_builder(&self.dem_permute);
+        launch
+            .arg(&from.pos)
+            .arg(&from.vel)
+            .arg(&from.ids)
+            .arg(&order.entries)
+            .arg(&mut to.pos)
+            .arg(&mut to.vel)
+            .arg(&mut to.ids)
+            .arg(&n);
+        // SAFETY: the arguments match dem_permute's signature; every buffer holds n entries and
+        // the order n entries below n (checked above and in Order::upload).
+        unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching dem_permute"))?;
+        Ok(())
     }
 }

@@ -1,12 +1,12 @@
-//! The optix engine's shared ground (cargo feature `optix`): opening the GPU with a compiled
-//! pipeline, the limits both layers obey, and the Morton order of the launches.
+//! The optix engine's shared ground (cargo feature `optix`): the one opened GPU (probed once
+//! per process, reused by every open), the limits both layers obey, and the Morton order of the
+//! launches.
 
-use super::device::{Device, Pipeline};
-use super::{ffi, programs};
-use crate::error::{Error, Result};
-use cudarc::driver::CudaModule;
+use super::device::Device;
+use super::sys;
+use crate::error::{Error, OptixError, Result};
 use rayon::prelude::*;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// Most spheres one launch takes (OptiX's launch width limit is 2^30; the acceleration
 /// structure's own limit, 2^29 on driver 580, is read from the device).
@@ -17,23 +17,22 @@ pub(crate) const MAX_LAUNCH: u64 = 1 << 30;
 /// the traversal; beyond this bound the backend refuses the set instead.
 pub const MAX_COORDINATE: f32 = 1e12;
 
-/// Threads per block of the CUDA kernels.
-pub(crate) const BLOCK: u32 = 256;
-
-/// Counters the device programs spread their candidate (and contact) counts over: a power of
-/// two, indexed by `i & (COUNTER_SLOTS - 1)` (the `& 255u` of `optix/detect.cu` and
-/// `optix/dem.cu`, checked by `tests/optix.rs`).
-pub const COUNTER_SLOTS: usize = 256;
+/// GPU 0 with its CUDA and OptiX contexts, opened on first use: the probe, `auto`'s check for RT
+/// cores and every backend and stepper share it (and its one stream), so a process creates one
+/// context. A failure is kept too: the machine does not change while mochi runs.
+pub(crate) fn device() -> std::result::Result<Arc<Device>, OptixError> {
+    static DEVICE: OnceLock<std::result::Result<Arc<Device>, OptixError>> = OnceLock::new();
+    DEVICE.get_or_init(|| Device::open().map(Arc::new)).clone()
+}
 
 /// Why the optix backend cannot run here, if it cannot; else the GPU, in words.
 pub fn probe() -> std::result::Result<String, String> {
-    let device = Device::open()?;
-    Ok(describe(&device))
+    device().map(|d| describe(&d)).map_err(|e| e.to_string())
 }
 
 /// Why `auto` should prefer another backend on this GPU (no RT cores), if it should.
 pub fn auto_skip() -> Option<String> {
-    let device = Device::open().ok()?;
+    let device = device().ok()?;
     (device.rtcore_version == 0).then(|| {
         format!(
             "{} has no RT cores: OptiX traverses in software there, slower than wgpu-compute's grid",
@@ -48,34 +47,16 @@ pub(crate) fn describe(device: &Device) -> String {
     } else {
         format!("RT cores v{}", device.rtcore_version)
     };
-    format!("{}, OptiX ABI {}, {cores}", device.name, ffi::ABI_VERSION)
+    format!("{}, OptiX ABI {}, {cores}", device.name, sys::ABI_VERSION)
 }
 
-pub(crate) fn gpu_error(e: impl std::fmt::Display) -> Error {
-    Error::Gpu(e.to_string())
-}
-
-/// Opens GPU 0 with the pipeline of `unit` (entry points `__raygen__{name}` and
-/// `__intersection__{name}`, `payloads` payload words) and the module of the CUDA kernels
-/// (`optix/kernels.cu`), compiling both with NVRTC on first use.
-pub(crate) fn open_programs(
-    unit: programs::Unit,
-    name: &str,
-    payloads: i32,
-) -> Result<(Arc<Device>, Pipeline, Arc<CudaModule>)> {
-    let unavailable = |reason: String| Error::BackendUnavailable {
+/// The shared device, or why the backend cannot run here ([`Error::BackendUnavailable`]: no
+/// driver, no OptiX of our ABI, or GPU 0 would not open).
+pub(crate) fn open_device() -> Result<Arc<Device>> {
+    device().map_err(|e| Error::BackendUnavailable {
         backend: "optix",
-        reason,
-    };
-    let device = Arc::new(Device::open().map_err(unavailable)?);
-    let programs_ptx = programs::ptx(unit).map_err(unavailable)?;
-    let kernels_ptx = programs::ptx(programs::Unit::Kernels).map_err(unavailable)?;
-    let pipeline = Pipeline::new(&device, programs_ptx, name, payloads).map_err(gpu_error)?;
-    let module = device
-        .cuda
-        .load_module(cudarc::nvrtc::Ptx::from_src(kernels_ptx))
-        .map_err(gpu_error)?;
-    Ok((device, pipeline, module))
+        reason: e.to_string(),
+    })
 }
 
 /// Indices of `centers` in Morton order (ties by index).

@@ -6,20 +6,28 @@
 //! `update` refits the structure instead of rebuilding it.
 //!
 //! Everything NVIDIA is loaded at run time (CUDA driver and NVRTC through `cudarc`, OptiX
-//! through our own FFI of ABI 105 in `ffi.rs`), so the crate builds anywhere and a machine without
-//! the driver gets a clear "unavailable" instead of a crash. Spheres are launched in Morton
-//! order (coherent rays: faster than random order, docs/PERFORMANCE.md).
-
-// The one place of the crate that calls foreign code: every unsafe block says why it holds.
-#![allow(unsafe_code)]
+//! through our own FFI of ABI 105), so the crate builds anywhere and a machine without the
+//! driver gets a clear "unavailable" instead of a crash. Spheres are launched in Morton order
+//! (coherent rays: faster than random order, docs/PERFORMANCE.md).
+//!
+//! Layers, as cudarc's: `sys.rs` is the raw OptiX ABI (structs, constants, the function table by
+//! named slot, loaded once); `device.rs` the safe layer (owning types, one typed, length-checked
+//! launch per device program and CUDA kernel); `engine.rs` (the one probe and opened device,
+//! limits, Morton order), `detect.rs` (`impl Backend`) and `dem.rs` (`impl Stepper`) are safe
+//! code over it. Only `sys.rs` and `device.rs` may use `unsafe`, each block with its reason.
 
 mod dem;
 mod detect;
-pub(crate) mod device;
+#[allow(unsafe_code)]
+#[deny(clippy::undocumented_unsafe_blocks)]
+mod device;
 mod engine;
-mod ffi;
 pub mod programs;
+#[allow(unsafe_code)]
+#[deny(clippy::undocumented_unsafe_blocks)]
+mod sys;
 
 pub use dem::OptixStepper;
 pub use detect::OptixBackend;
-pub use engine::{COUNTER_SLOTS, MAX_COORDINATE, auto_skip, probe};
+pub use device::COUNTER_SLOTS;
+pub use engine::{MAX_COORDINATE, auto_skip, probe};

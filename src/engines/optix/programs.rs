@@ -1,5 +1,7 @@
 //! The device code in `optix/`, compiled to PTX by NVRTC at run time, once per process.
 
+pub use super::sys::nvrtc_present;
+use crate::error::OptixError;
 use std::sync::OnceLock;
 
 const DEVICE_CUH: &str = include_str!("../../../optix/device.cuh");
@@ -46,15 +48,9 @@ impl Unit {
     }
 }
 
-/// Whether NVRTC (`libnvrtc.so.13`) can be loaded here.
-pub fn nvrtc_present() -> bool {
-    // SAFETY: only tries to open the library.
-    unsafe { cudarc::nvrtc::sys::is_culib_present() }
-}
-
 /// PTX of `unit`, compiled on first use (NVRTC is slow; OptiX caches its own compilation too).
-pub fn ptx(unit: Unit) -> Result<&'static str, String> {
-    static CACHE: [OnceLock<Result<String, String>>; Unit::ALL.len()] =
+pub fn ptx(unit: Unit) -> Result<&'static str, OptixError> {
+    static CACHE: [OnceLock<Result<String, OptixError>>; Unit::ALL.len()] =
         [const { OnceLock::new() }; Unit::ALL.len()];
     let slot = &CACHE[Unit::ALL.iter().position(|&u| u == unit).unwrap_or(0)];
     slot.get_or_init(|| compile(unit))
@@ -63,21 +59,23 @@ pub fn ptx(unit: Unit) -> Result<&'static str, String> {
 }
 
 /// Compiles `unit` with NVRTC (no fused multiply-adds: the proxy rule rounds as the cpu does).
-pub fn compile(unit: Unit) -> Result<String, String> {
+pub fn compile(unit: Unit) -> Result<String, OptixError> {
     compile_source(unit.name(), unit.source(), unit != Unit::Kernels)
 }
 
 /// Compiles plain CUDA kernels `body` (named `name` in messages) with `optix/device.cuh`
 /// prepended, as [`compile`] compiles the device programs: the parity test runs the proxy rule
 /// through this.
-pub fn compile_with_rule(name: &str, body: &str) -> Result<String, String> {
+pub fn compile_with_rule(name: &str, body: &str) -> Result<String, OptixError> {
     compile_source(name, format!("{DEVICE_CUH}\n{body}"), false)
 }
 
 /// Compiles `source` with NVRTC, as relocatable device code (OptiX modules) where `rdc`.
-fn compile_source(name: &str, source: String, rdc: bool) -> Result<String, String> {
+fn compile_source(name: &str, source: String, rdc: bool) -> Result<String, OptixError> {
     if !nvrtc_present() {
-        return Err("NVRTC (libnvrtc.so.13, from CUDA 13 or PyPI's nvidia-cuda-nvrtc) is not on the library path".into());
+        return Err(OptixError::Unavailable(
+            "NVRTC (libnvrtc.so.13, from CUDA 13 or PyPI's nvidia-cuda-nvrtc) is not on the library path".into(),
+        ));
     }
     let mut options = vec!["--std=c++17".to_string()];
     if rdc {
@@ -92,5 +90,13 @@ fn compile_source(name: &str, source: String, rdc: bool) -> Result<String, Strin
     };
     cudarc::nvrtc::compile_ptx_with_opts(source, opts)
         .map(|ptx| ptx.to_src())
-        .map_err(|e| format!("NVRTC could not compile {name}: {e}"))
+        .map_err(|e| OptixError::Compile {
+            unit: name.into(),
+            log: match e {
+                cudarc::nvrtc::CompileError::CompileError { log, .. } => {
+                    log.to_string_lossy().trim().to_owned()
+                }
+                e => e.to_string(),
+            },
+        })
 }

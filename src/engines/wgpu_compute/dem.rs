@@ -215,6 +215,16 @@ impl GridStepper {
         Ok(())
     }
 
+    /// The state read back in input order ([`Error::Unstable`] if it is not finite).
+    fn state(&self) -> Result<Particles> {
+        let n = self.n as usize;
+        let set = &self.sets[self.current];
+        let pos: Vec<[f32; 4]> = self.gpu.read(&set.pos, n)?;
+        let vel: Vec<[f32; 4]> = self.gpu.read(&set.vel, n)?;
+        let ids: Vec<u32> = self.gpu.read(&set.ids, n)?;
+        particles_from(&pos, &vel, Some(&ids), self.step)
+    }
+
     /// The centres' bounds now (a GPU reduction), or `None` for no spheres.
     fn bounds(&self) -> Result<Option<([f32; 3], [f32; 3])>> {
         if self.n == 0 {
@@ -245,9 +255,10 @@ impl GridStepper {
         let lo = [value(keys[0]), value(keys[1]), value(keys[2])];
         let hi = [value(keys[3]), value(keys[4]), value(keys[5])];
         if lo.iter().chain(&hi).any(|x| !x.is_finite()) {
+            // A position is not finite: the state read back names the sphere (Error::Unstable).
+            self.state()?;
             return Err(Error::Gpu(format!(
-                "the simulation became unstable by step {}: a sphere has a non-finite position \
-                 (try a smaller time step or a softer stiffness)",
+                "the bounds at step {} are not finite, yet every sphere is",
                 self.step
             )));
         }
@@ -491,11 +502,6 @@ impl Stepper for GridStepper {
     }
 
     fn particles(&mut self) -> Result<Particles> {
-        let n = self.n as usize;
-        let set = &self.sets[self.current];
-        let pos: Vec<[f32; 4]> = self.gpu.read(&set.pos, n)?;
-        let vel: Vec<[f32; 4]> = self.gpu.read(&set.vel, n)?;
-        let ids: Vec<u32> = self.gpu.read(&set.ids, n)?;
-        particles_from(&pos, &vel, Some(&ids), self.step)
+        self.state()
     }
 }

@@ -1,16 +1,41 @@
-//! The few parts of the OptiX 9.0 host API (ABI 105) that mochi calls, declared from the
-//! documented ABI (no NVIDIA header is used or shipped). The driver's `libnvoptix.so.1` hands
-//! out a table of function pointers; [`Api::load`] fetches it and [`Api`] calls through it.
-//! Every struct's size is checked at compile time against the ABI.
+//! The raw layer of the OptiX 9.0 host API (ABI 105): the few structs, constants and functions
+//! mochi calls, declared from the documented ABI (no NVIDIA header is used or shipped). The
+//! driver's `libnvoptix.so.1` hands out a table of function pointers; [`Api::get`] loads it once
+//! per process and [`Api`] holds the entries, typed, by their [`slot`] in the table. Every
+//! struct's size is checked at compile time against the ABI. Nothing here is safe to call on its
+//! own: `device.rs` is the safe layer over it.
 
 #![allow(missing_docs)]
 
+use crate::error::OptixError;
 use std::ffi::{c_char, c_int, c_uint, c_void};
+use std::sync::OnceLock;
 
 /// The OptiX ABI this FFI speaks (OptiX 9.0); driver 580 accepts up to 105.
 pub const ABI_VERSION: c_int = 105;
-/// Bytes of the function table under [`ABI_VERSION`].
+/// Entries of the function table under [`ABI_VERSION`].
 const TABLE_SLOTS: usize = 52;
+
+/// Indices into the function table of [`ABI_VERSION`] (OptiX 9.0's order) of the functions
+/// mochi calls.
+pub mod slot {
+    pub const GET_ERROR_NAME: usize = 0;
+    pub const DEVICE_CONTEXT_CREATE: usize = 2;
+    pub const DEVICE_CONTEXT_DESTROY: usize = 3;
+    pub const DEVICE_CONTEXT_GET_PROPERTY: usize = 4;
+    pub const MODULE_CREATE: usize = 12;
+    pub const MODULE_DESTROY: usize = 15;
+    pub const PROGRAM_GROUP_CREATE: usize = 18;
+    pub const PROGRAM_GROUP_DESTROY: usize = 19;
+    pub const PIPELINE_CREATE: usize = 21;
+    pub const PIPELINE_DESTROY: usize = 22;
+    pub const ACCEL_COMPUTE_MEMORY_USAGE: usize = 24;
+    pub const ACCEL_BUILD: usize = 25;
+    pub const SBT_RECORD_PACK_HEADER: usize = 40;
+    pub const LAUNCH: usize = 41;
+    /// Slots up to here must be filled (every one above is below it).
+    pub const USED: usize = LAUNCH + 1;
+}
 
 pub type OptixResult = c_int;
 pub type DeviceContext = *mut c_void;
@@ -183,6 +208,18 @@ const _: () = {
     assert!(size_of::<[*const c_void; TABLE_SLOTS]>() == 416);
 };
 
+/// Whether the CUDA driver library (`libcuda.so`) can be loaded here.
+pub fn cuda_present() -> bool {
+    // SAFETY: only tries to open the library.
+    unsafe { cudarc::driver::sys::is_culib_present() }
+}
+
+/// Whether NVRTC (`libnvrtc.so.13`) can be loaded here.
+pub fn nvrtc_present() -> bool {
+    // SAFETY: only tries to open the library.
+    unsafe { cudarc::nvrtc::sys::is_culib_present() }
+}
+
 type QueryFunctionTable = unsafe extern "C" fn(
     abi: c_int,
     num_options: c_uint,
@@ -284,11 +321,20 @@ unsafe fn typed<F: Copy>(slot: *const c_void) -> F {
 // SAFETY: the table holds plain function pointers into the driver, which OptiX documents as
 // callable from any thread.
 unsafe impl Send for Api {}
+// SAFETY: as for Send; the table is never written after loading.
 unsafe impl Sync for Api {}
 
 impl Api {
+    /// The driver's OptiX, loaded on first use (once per process), or why it cannot be used.
+    pub fn get() -> Result<&'static Api, OptixError> {
+        static API: OnceLock<Result<Api, String>> = OnceLock::new();
+        API.get_or_init(Api::load)
+            .as_ref()
+            .map_err(|why| OptixError::Unavailable(why.clone()))
+    }
+
     /// Opens the driver's OptiX and fetches its function table, or says why it cannot.
-    pub fn load() -> Result<Api, String> {
+    fn load() -> Result<Api, String> {
         // SAFETY: loading the driver's own library runs its initialisers, as any OptiX program does.
         let library = unsafe { libloading::Library::new("libnvoptix.so.1") }.map_err(|e| {
             format!("the NVIDIA driver's OptiX library (libnvoptix.so.1) did not load: {e}")
@@ -314,41 +360,49 @@ impl Api {
                 "the driver's OptiX does not offer ABI {ABI_VERSION} (OptiX 9.0; error {status}): update the NVIDIA driver (580 or newer)"
             ));
         }
-        if table.iter().take(42).any(|p| p.is_null()) {
+        if table.iter().take(slot::USED).any(|p| p.is_null()) {
             return Err("the driver's OptiX function table is incomplete".into());
         }
-        // SAFETY: under ABI 105 these slots hold these functions (OptiX 9.0's table order).
+        // SAFETY: under ABI 105 the slots of `slot` hold these functions (OptiX 9.0's table
+        // order), none null (checked above).
         unsafe {
             Ok(Api {
-                error_name: typed(table[0]),
-                device_context_create: typed(table[2]),
-                device_context_destroy: typed(table[3]),
-                device_context_get_property: typed(table[4]),
-                module_create: typed(table[12]),
-                module_destroy: typed(table[15]),
-                program_group_create: typed(table[18]),
-                program_group_destroy: typed(table[19]),
-                pipeline_create: typed(table[21]),
-                pipeline_destroy: typed(table[22]),
-                accel_compute_memory_usage: typed(table[24]),
-                accel_build: typed(table[25]),
-                sbt_record_pack_header: typed(table[40]),
-                launch: typed(table[41]),
+                error_name: typed(table[slot::GET_ERROR_NAME]),
+                device_context_create: typed(table[slot::DEVICE_CONTEXT_CREATE]),
+                device_context_destroy: typed(table[slot::DEVICE_CONTEXT_DESTROY]),
+                device_context_get_property: typed(table[slot::DEVICE_CONTEXT_GET_PROPERTY]),
+                module_create: typed(table[slot::MODULE_CREATE]),
+                module_destroy: typed(table[slot::MODULE_DESTROY]),
+                program_group_create: typed(table[slot::PROGRAM_GROUP_CREATE]),
+                program_group_destroy: typed(table[slot::PROGRAM_GROUP_DESTROY]),
+                pipeline_create: typed(table[slot::PIPELINE_CREATE]),
+                pipeline_destroy: typed(table[slot::PIPELINE_DESTROY]),
+                accel_compute_memory_usage: typed(table[slot::ACCEL_COMPUTE_MEMORY_USAGE]),
+                accel_build: typed(table[slot::ACCEL_BUILD]),
+                sbt_record_pack_header: typed(table[slot::SBT_RECORD_PACK_HEADER]),
+                launch: typed(table[slot::LAUNCH]),
                 _library: library,
             })
         }
     }
 
-    /// `Ok` for success, else the error's name and `what` was being done.
-    pub fn check(&self, status: OptixResult, what: &str) -> Result<(), String> {
+    /// `Ok` for success, else [`OptixError::Call`] naming `call` and carrying `log`.
+    pub fn check(
+        &self,
+        status: OptixResult,
+        call: &'static str,
+        log: &str,
+    ) -> Result<(), OptixError> {
         if status == SUCCESS {
             return Ok(());
         }
-        // SAFETY: OptiX returns a static string for any result code.
+        // SAFETY: OptiX returns a static NUL-terminated string for any result code.
         let name = unsafe { std::ffi::CStr::from_ptr((self.error_name)(status)) };
-        Err(format!(
-            "OptiX {what}: {} ({status})",
-            name.to_string_lossy()
-        ))
+        Err(OptixError::Call {
+            call,
+            code: status,
+            name: name.to_string_lossy().into_owned(),
+            log: log.to_owned(),
+        })
     }
 }
