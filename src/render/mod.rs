@@ -94,8 +94,8 @@ impl Picture {
     /// The floor in `f32`, as the shaders get it.
     fn floor(&self) -> Option<shade::Floor> {
         self.floor.map(|(lo, hi)| shade::Floor {
-            lo: lo.map(|x| x as f32),
-            hi: hi.map(|x| x as f32),
+            lo: glam::DVec3::from(lo).as_vec3(),
+            hi: glam::DVec3::from(hi).as_vec3(),
         })
     }
 
