@@ -52,8 +52,7 @@ pub use gpu::SHADERS;
 pub use image::{Gif, Image, Legend, read_png};
 pub use scene::Scene;
 
-use crate::engines::BackendKind;
-use crate::engines::open_auto;
+use crate::engines::{BackendKind, open_auto};
 use crate::error::{Error, Result};
 
 /// Most rays per pixel side.
