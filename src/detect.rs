@@ -1,5 +1,5 @@
 //! Collision detection: the [`Backend`] trait every engine implements (the registry that opens
-//! one is [`crate::engines`]).
+//! one is the `engines` module, above this one).
 //!
 //! The contract of every backend: **exact** — after [`Backend::build`], [`Backend::find_pairs`]
 //! returns every pair {i, j} with |c_i − c_j| ≤ r_i + r_j (decided by

@@ -2,7 +2,7 @@
 //! time step (1) maintain the acceleration structure, (2) find every touching pair and resolve
 //! its contact force in the same pass, (3) walls, gravity and integration. [`model`] holds the
 //! physics, [`scene`] the scene files, [`Stepper`] the step every engine implements
-//! ([`crate::engines`] opens one, where the backend's data lives).
+//! (the `engines` module, above this one, opens one where the backend's data lives).
 
 pub mod model;
 pub mod scene;
