@@ -2,6 +2,7 @@
 
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
+use glam::Vec3;
 
 /// Spheres with velocities, in the order the user gave them, and the simulation clock.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -144,7 +145,7 @@ impl Particles {
             let step = (1e-3 * r).max(8.0 * coarsest);
             for &(_, k) in &group[1..] {
                 let u = coincident_direction(first, k);
-                self.positions[k as usize] = std::array::from_fn(|a| centre[a] + step * u[a]);
+                self.positions[k as usize] = (Vec3::from(centre) + step * u).to_array();
             }
         }
         Ok(pairs)
@@ -166,15 +167,14 @@ impl Particles {
 /// away from the sphere `lo` whose centre it shares. Different pairs take different directions,
 /// the same pair always the same.
 #[inline]
-fn coincident_direction(lo: u32, hi: u32) -> [f32; 3] {
+fn coincident_direction(lo: u32, hi: u32) -> Vec3 {
     let mut h = lo.wrapping_mul(0x9E37_79B9) ^ hi.wrapping_mul(0x85EB_CA6B);
     h ^= h >> 16;
     h = h.wrapping_mul(0x7FEB_352D);
     h ^= h >> 15;
     // Components (k − 511.5) for k in 0..1024: never all zero.
-    let d = [0, 10, 20].map(|shift| ((h >> shift) & 1023) as f32 - 511.5);
-    let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-    d.map(|x| x / len)
+    let d = Vec3::from([0, 10, 20].map(|shift| ((h >> shift) & 1023) as f32 - 511.5));
+    d / d.length()
 }
 
 #[cfg(test)]
@@ -226,7 +226,7 @@ mod tests {
     #[test]
     fn coincident_directions_are_unit_and_differ_by_pair() {
         let u = coincident_direction(3, 7);
-        assert!((u.iter().map(|x| x * x).sum::<f32>() - 1.0).abs() < 1e-6);
+        assert!((u.length_squared() - 1.0).abs() < 1e-6);
         assert_ne!(u, coincident_direction(3, 8));
         assert_eq!(u, coincident_direction(3, 7));
     }

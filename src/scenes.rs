@@ -6,8 +6,10 @@
 
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::{SphereSet, check_count};
+use glam::DVec3;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
+use std::array::from_fn;
 use std::f64::consts::PI;
 
 /// A named scene.
@@ -161,17 +163,18 @@ pub fn generate(spec: &SceneSpec) -> Result<SphereSet> {
     let mut radii = try_vec(spec.n, || spheres_of(spec))?;
     for k in 0..spec.n {
         let r = spec.scene.sample_radius(&mut rng);
+        // Per axis x, then y, then z: the order the seed's draws are taken in.
         let c = match spec.layout {
             Layout::Lattice => {
-                let cell = lattice.cell(k);
                 let room = lattice.spacing / 2.0 - r as f64;
-                std::array::from_fn(|a| (cell[a] + rng.random_range(-room..=room)) as f32)
+                lattice.cell(k) + DVec3::from_array(from_fn(|_| rng.random_range(-room..=room)))
             }
-            Layout::Random => std::array::from_fn(|a| {
-                rng.random_range(lattice.lo[a] + r as f64..=lattice.hi(a) - r as f64) as f32
-            }),
+            Layout::Random => {
+                let (lo, hi) = (lattice.lo + r as f64, lattice.hi() - r as f64);
+                DVec3::from_array(from_fn(|a| rng.random_range(lo[a]..=hi[a])))
+            }
         };
-        centers.push(c);
+        centers.push(c.as_vec3().to_array());
         radii.push(r);
     }
     SphereSet::new(centers, radii)
@@ -226,12 +229,12 @@ fn layered(spec: &SceneSpec) -> Result<SphereSet> {
         for (k, &r) in radii[layer.clone()].iter().enumerate() {
             let room = (spacing / 2.0 - r as f64).max(0.0);
             let (ix, iy) = (k % per_row, k / per_row);
-            let c = [
+            let c = DVec3::new(
                 (ix as f64 + 0.5) * spacing + rng.random_range(-room..=room),
                 (iy as f64 + 0.5) * spacing + rng.random_range(-room..=room),
                 z,
-            ];
-            centers.push(c.map(|x| x as f32));
+            );
+            centers.push(c.as_vec3().to_array());
             out_radii.push(r);
         }
         below = top;
@@ -250,7 +253,7 @@ fn cube_root_ceil(n: usize) -> usize {
 
 /// A box of lattice cells that the spheres fill in x, then y, then z order.
 struct Lattice {
-    lo: [f64; 3],
+    lo: DVec3,
     spacing: f64,
     counts: [usize; 3],
     side: f64,
@@ -269,8 +272,8 @@ impl Lattice {
             let width = per_row as f64 * spacing;
             let layers = n.div_ceil(per_row * per_row).max(1);
             let edge = (side - width) / 2.0;
-            let lo = [edge, edge, 0.1 * side];
-            let fit_layers = ((side - lo[2]) / spacing) as usize;
+            let lo = DVec3::new(edge, edge, 0.1 * side);
+            let fit_layers = ((side - lo.z) / spacing) as usize;
             if layers > fit_layers {
                 return Err(Error::TooLarge {
                     what: "spheres in the slab scene".into(),
@@ -287,7 +290,7 @@ impl Lattice {
         }
         let m = cube_root_ceil(n);
         Ok(Self {
-            lo: [0.0; 3],
+            lo: DVec3::ZERO,
             spacing: side / m as f64,
             counts: [m, m, m],
             side,
@@ -295,15 +298,15 @@ impl Lattice {
     }
 
     /// Centre of the cell of sphere `k`.
-    fn cell(&self, k: usize) -> [f64; 3] {
+    fn cell(&self, k: usize) -> DVec3 {
         let [nx, ny, _] = self.counts;
-        let idx = [k % nx, (k / nx) % ny, k / (nx * ny)];
-        std::array::from_fn(|a| self.lo[a] + (idx[a] as f64 + 0.5) * self.spacing)
+        let index = [k % nx, (k / nx) % ny, k / (nx * ny)].map(|i| i as f64);
+        self.lo + (DVec3::from(index) + 0.5) * self.spacing
     }
 
-    /// Upper bound of the filled box along axis `a`.
-    fn hi(&self, a: usize) -> f64 {
-        self.lo[a] + self.counts[a] as f64 * self.spacing
+    /// Upper corner of the filled box.
+    fn hi(&self) -> DVec3 {
+        self.lo + DVec3::from(self.counts.map(|c| c as f64)) * self.spacing
     }
 
     /// How many spheres a cubic lattice of this side holds at `spacing`.

@@ -64,8 +64,9 @@ pub trait Stepper {
     /// The particles now, in input order (a read-back on GPU backends).
     fn particles(&mut self) -> Result<Particles>;
 
-    /// Whether this step refits its acceleration structure between rebuilds, and so obeys
-    /// the engines' `Options::rebuild` (default: no; grids re-bin and `wgpu-rq` rebuilds every step).
+    /// Whether this step refits its acceleration structure between rebuilds, and so obeys the
+    /// engines' `Options::rebuild` (default: no; grids re-bin and `wgpu-rq` rebuilds every
+    /// step).
     fn refits(&self) -> bool {
         false
     }

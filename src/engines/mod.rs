@@ -1,7 +1,8 @@
 //! The engines: one folder per backend holding its device-resident state (buffers, structure
 //! build, shaders and their binding constants), with detection ([`crate::Backend`]) and the DEM
 //! step ([`crate::dem::Stepper`]) as thin layers over it; and the registry that knows which
-//! engines this build has, which can run here, and the one `auto` rule (docs/ARCHITECTURE.md).
+//! engines this build has, which can run here, and the one `auto` rule that detection,
+//! simulation and rendering share (docs/ARCHITECTURE.md).
 
 pub mod cpu;
 mod gpu_step;
@@ -15,4 +16,5 @@ pub mod wgpu_rq;
 
 pub use gpu_step::ForceAtomics;
 pub use open::{open_choice, open_stepper};
+pub(crate) use registry::open_auto;
 pub use registry::{BackendChoice, BackendKind, Opened, Options, RebuildPolicy, open};

@@ -3,7 +3,7 @@
 use super::registry::{BackendChoice, BackendKind, Options};
 use crate::dem::model::StepParams;
 use crate::dem::stepper::Stepper;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
@@ -40,8 +40,8 @@ pub fn open_stepper(
     })
 }
 
-/// Opens the DEM step the user chose; `auto` takes the first of wgpu-rq, wgpu-compute (on a
-/// hardware adapter) and cpu that opens, and says why it passed over the others.
+/// Opens the DEM step the user chose; `auto` follows the registry's one rule
+/// (`open_auto` in the registry) and says why it passed over the faster backends.
 pub fn open_choice(
     choice: BackendChoice,
     particles: Particles,
@@ -52,12 +52,7 @@ pub fn open_choice(
     if let Some(kind) = choice.kind() {
         return Ok((open_stepper(kind, particles, params, mode, options)?, None));
     }
-    let (stepper, reason) = super::registry::open_auto(|kind| {
-        // A backend that cannot run here is skipped with the probe's own words.
-        kind.probe().map_err(|reason| Error::BackendUnavailable {
-            backend: kind.name(),
-            reason,
-        })?;
+    let (stepper, reason) = super::registry::open_auto(&BackendKind::ALL, |kind| {
         open_stepper(kind, particles.clone(), params, mode, options)
     })?;
     Ok((stepper, Some(reason)))

@@ -8,18 +8,27 @@ use crate::detect::Backend;
 use crate::error::{Error, Result};
 use crate::gpu::{self, Need};
 
-/// The backends this build of mochi knows.
+/// The backends this build of mochi knows. The first paragraph of each variant's doc is its
+/// help on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum BackendKind {
-    /// Proxy boxes as OptiX custom primitives on NVIDIA GPUs (cargo feature `optix`).
+    /// OptiX custom primitives on NVIDIA GPUs (cargo feature `optix`).
+    ///
+    /// Each sphere's proxy box is a custom primitive of one OptiX acceleration structure.
     Optix,
-    /// Proxy boxes in a hardware BVH, one point ray per sphere (WGSL ray queries).
+    /// Proxy boxes in a hardware BVH, WGSL ray queries.
+    ///
+    /// One point ray per sphere.
     #[value(name = "wgpu-rq")]
     WgpuRq,
-    /// Sorted proxy grid in WGSL compute shaders, for GPUs without ray queries.
+    /// Sorted proxy grid in WGSL compute shaders.
+    ///
+    /// For GPUs without ray queries.
     #[value(name = "wgpu-compute")]
     WgpuCompute,
-    /// Multi-threaded sorted proxy grid on the CPU; runs everywhere.
+    /// Multi-threaded sorted proxy grid on the CPU.
+    ///
+    /// Runs everywhere.
     Cpu,
 }
 
@@ -165,24 +174,6 @@ impl std::fmt::Display for RebuildPolicy {
     }
 }
 
-/// A backend named by the user, or `auto`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum BackendChoice {
-    /// The fastest backend that can run here.
-    #[default]
-    Auto,
-    /// OptiX custom primitives on NVIDIA GPUs (cargo feature `optix`).
-    Optix,
-    /// Proxy boxes in a hardware BVH, WGSL ray queries.
-    #[value(name = "wgpu-rq")]
-    WgpuRq,
-    /// Sorted proxy grid in WGSL compute shaders.
-    #[value(name = "wgpu-compute")]
-    WgpuCompute,
-    /// Multi-threaded sorted proxy grid on the CPU.
-    Cpu,
-}
-
 /// An opened backend and, for `auto`, why it was picked.
 pub struct Opened {
     /// The backend, ready for [`Backend::build`].
@@ -191,23 +182,94 @@ pub struct Opened {
     pub reason: Option<String>,
 }
 
+/// A backend named by the user, or `auto`; spelt `auto` or a backend's [`BackendKind::name`]
+/// on the command line and in files alike (any case is read).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum BackendChoice {
+    /// The fastest backend that can run here (the registry's one `auto` rule, as [`open`]
+    /// applies it).
+    #[default]
+    Auto,
+    /// This backend.
+    Named(BackendKind),
+}
+
 impl BackendChoice {
+    /// `auto`, then every backend of [`BackendKind::ALL`]: the values the command line lists.
+    const ALL: [BackendChoice; BackendKind::ALL.len() + 1] = {
+        let mut all = [BackendChoice::Auto; BackendKind::ALL.len() + 1];
+        let mut k = 0;
+        while k < BackendKind::ALL.len() {
+            all[k + 1] = BackendChoice::Named(BackendKind::ALL[k]);
+            k += 1;
+        }
+        all
+    };
+
     /// The backend named, or `None` for `auto`.
     pub fn kind(self) -> Option<BackendKind> {
         match self {
             BackendChoice::Auto => None,
-            BackendChoice::Optix => Some(BackendKind::Optix),
-            BackendChoice::WgpuRq => Some(BackendKind::WgpuRq),
-            BackendChoice::WgpuCompute => Some(BackendKind::WgpuCompute),
-            BackendChoice::Cpu => Some(BackendKind::Cpu),
+            BackendChoice::Named(kind) => Some(kind),
         }
+    }
+
+    /// Name, as on the command line.
+    pub fn name(self) -> &'static str {
+        self.kind().map_or("auto", BackendKind::name)
+    }
+}
+
+impl clap::ValueEnum for BackendChoice {
+    fn value_variants<'a>() -> &'a [Self] {
+        &Self::ALL
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        match self {
+            BackendChoice::Auto => Some(
+                clap::builder::PossibleValue::new("auto")
+                    .help("The fastest backend that can run here"),
+            ),
+            BackendChoice::Named(kind) => kind.to_possible_value(),
+        }
+    }
+}
+
+impl std::str::FromStr for BackendChoice {
+    type Err = String;
+
+    /// `auto` or a backend's name, in any case.
+    fn from_str(name: &str) -> std::result::Result<Self, String> {
+        crate::dem::scene::by_name::parse(name, "backend")
+    }
+}
+
+impl TryFrom<String> for BackendChoice {
+    type Error = String;
+
+    fn try_from(name: String) -> std::result::Result<Self, String> {
+        name.parse()
+    }
+}
+
+impl From<BackendChoice> for String {
+    fn from(choice: BackendChoice) -> String {
+        choice.name().to_owned()
+    }
+}
+
+impl std::fmt::Display for BackendChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 
 /// Opens the backend the user chose; `auto` tries each in order of preference.
 pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
     let Some(kind) = choice.kind() else {
-        let (backend, reason) = open_auto(|kind| kind.open_with(options))?;
+        let (backend, reason) = open_auto(&BackendKind::ALL, |kind| kind.open_with(options))?;
         return Ok(Opened {
             backend,
             reason: Some(reason),
@@ -219,16 +281,22 @@ pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
     })
 }
 
-/// The one `auto` rule of detection and simulation: the first backend of [`BackendKind::ALL`]
-/// that [`BackendKind::auto_skip`] keeps and `open` opens, with one line naming the pick and why
-/// each faster one was passed over. The last backend (cpu) runs everywhere, so an error of its
-/// about the input is the result rather than a reason to go on; if it cannot run either, the
-/// result is [`Error::NoBackend`] with every backend's reason.
-pub(crate) fn open_auto<T>(mut open: impl FnMut(BackendKind) -> Result<T>) -> Result<(T, String)> {
+/// The one `auto` rule of detection, simulation and rendering: the first of `candidates` (not
+/// empty, in the order of [`BackendKind::ALL`]) that probes ([`BackendKind::probe`]), that
+/// [`BackendKind::auto_skip`] keeps and that `open` opens, with one line naming the pick and why
+/// each faster one was passed over. The last candidate (cpu) runs everywhere, so it is opened
+/// without asking, and an error of its about the input is the result rather than a reason to go
+/// on; if it cannot run either, the result is [`Error::NoBackend`] with every candidate's reason.
+pub(crate) fn open_auto<T>(
+    candidates: &[BackendKind],
+    mut open: impl FnMut(BackendKind) -> Result<T>,
+) -> Result<(T, String)> {
     let mut skipped = Vec::new();
-    let (last, faster) = BackendKind::ALL.split_last().expect("ALL names backends");
+    let (last, faster) = candidates
+        .split_last()
+        .expect("every caller offers at least the cpu");
     for &kind in faster {
-        if let Some(why) = kind.auto_skip() {
+        if let Some(why) = kind.probe().err().or_else(|| kind.auto_skip()) {
             skipped.push((kind.name(), why));
             continue;
         }
@@ -273,7 +341,7 @@ mod tests {
             BackendKind::Cpu => Ok(kind),
             _ => Err(unavailable(kind)),
         };
-        let (picked, reason) = open_auto(only_cpu).expect("cpu opens");
+        let (picked, reason) = open_auto(&BackendKind::ALL, only_cpu).expect("cpu opens");
         assert_eq!(picked, BackendKind::Cpu);
         assert!(
             reason.starts_with("auto picked cpu; skipped optix: "),
@@ -286,7 +354,7 @@ mod tests {
             );
         }
         // An error about the input, not the machine, is the last backend's result as it is.
-        let refused = open_auto::<()>(|kind| match kind {
+        let refused = open_auto::<()>(&BackendKind::ALL, |kind| match kind {
             BackendKind::Cpu => Err(Error::InvalidConfig {
                 what: "scene".into(),
                 reason: "no cpu".into(),
@@ -302,7 +370,7 @@ mod tests {
 
     #[test]
     fn auto_without_any_backend_is_no_backend_with_every_reason() {
-        let none = open_auto::<()>(|kind| Err(unavailable(kind)));
+        let none = open_auto::<()>(&BackendKind::ALL, |kind| Err(unavailable(kind)));
         let Err(Error::NoBackend { reasons }) = &none else {
             panic!("{:?}", none.err());
         };
@@ -317,5 +385,78 @@ mod tests {
             "{message}"
         );
         assert!(message.ends_with("; cpu: no cpu"), "{message}");
+    }
+
+    #[test]
+    fn the_choices_are_auto_then_every_backend_by_its_name() {
+        use clap::ValueEnum;
+        let names: Vec<String> = BackendChoice::value_variants()
+            .iter()
+            .map(crate::dem::scene::by_name::name)
+            .collect();
+        let mut want = vec!["auto".to_owned()];
+        want.extend(BackendKind::ALL.map(|kind| kind.name().to_owned()));
+        assert_eq!(names, want);
+        for &choice in BackendChoice::value_variants() {
+            let name = choice.to_string();
+            assert_eq!(name.parse(), Ok(choice));
+            assert_eq!(name.to_uppercase().parse(), Ok(choice));
+            let json = serde_json::to_string(&choice).unwrap();
+            assert_eq!(json, format!("\"{name}\""));
+            assert_eq!(
+                serde_json::from_str::<BackendChoice>(&json).unwrap(),
+                choice
+            );
+        }
+        let wrong = "gpu".parse::<BackendChoice>().unwrap_err();
+        assert!(wrong.contains("unknown backend \"gpu\""), "{wrong}");
+        assert!(serde_json::from_str::<BackendChoice>("\"gpu\"").is_err());
+    }
+
+    #[test]
+    fn auto_considers_only_its_candidates() {
+        let mut asked = Vec::new();
+        let (picked, reason) = open_auto(&[BackendKind::WgpuCompute, BackendKind::Cpu], |kind| {
+            asked.push(kind);
+            match kind {
+                BackendKind::Cpu => Ok(kind),
+                _ => Err(unavailable(kind)),
+            }
+        })
+        .expect("cpu opens");
+        assert_eq!(picked, BackendKind::Cpu);
+        assert_eq!(asked.last(), Some(&BackendKind::Cpu));
+        assert!(
+            asked
+                .iter()
+                .all(|&k| k != BackendKind::Optix && k != BackendKind::WgpuRq)
+        );
+        assert!(
+            reason.starts_with("auto picked cpu; skipped wgpu-compute: "),
+            "{reason}"
+        );
+        assert!(
+            !reason.contains("optix") && !reason.contains("wgpu-rq"),
+            "{reason}"
+        );
+    }
+
+    #[cfg(not(feature = "optix"))]
+    #[test]
+    fn auto_passes_over_a_backend_whose_probe_fails_without_opening_it() {
+        let mut asked = Vec::new();
+        let (_, reason) = open_auto(&BackendKind::ALL, |kind| {
+            asked.push(kind);
+            match kind {
+                BackendKind::Cpu => Ok(()),
+                _ => Err(unavailable(kind)),
+            }
+        })
+        .expect("cpu opens");
+        assert!(!asked.contains(&BackendKind::Optix), "{asked:?}");
+        assert!(
+            reason.contains(&format!("skipped optix: {NO_OPTIX_FEATURE}")),
+            "{reason}"
+        );
     }
 }

@@ -56,21 +56,29 @@ fn instance() -> &'static wgpu::Instance {
     })
 }
 
-/// Adapters that can serve `need`, best first (discrete, integrated, virtual, other, CPU).
-fn adapters(need: Need) -> Vec<wgpu::Adapter> {
-    let mut found: Vec<_> =
-        pollster::block_on(instance().enumerate_adapters(wgpu::Backends::PRIMARY))
-            .into_iter()
-            .filter(|a| a.features().contains(need.features()))
-            .collect();
-    found.sort_by_key(|a| match a.get_info().device_type {
-        wgpu::DeviceType::DiscreteGpu => 0,
-        wgpu::DeviceType::IntegratedGpu => 1,
-        wgpu::DeviceType::VirtualGpu => 2,
-        wgpu::DeviceType::Other => 3,
-        wgpu::DeviceType::Cpu => 4,
-    });
-    found
+/// Every adapter of this machine, best first (discrete, integrated, virtual, other, CPU).
+/// Enumerated once per process: probing a backend, `auto` and opening a device all read this
+/// list, so none of them asks the drivers again (an adapter that appears later is not seen).
+fn all_adapters() -> &'static [wgpu::Adapter] {
+    static ADAPTERS: OnceLock<Vec<wgpu::Adapter>> = OnceLock::new();
+    ADAPTERS.get_or_init(|| {
+        let mut found = pollster::block_on(instance().enumerate_adapters(wgpu::Backends::PRIMARY));
+        found.sort_by_key(|a| match a.get_info().device_type {
+            wgpu::DeviceType::DiscreteGpu => 0,
+            wgpu::DeviceType::IntegratedGpu => 1,
+            wgpu::DeviceType::VirtualGpu => 2,
+            wgpu::DeviceType::Other => 3,
+            wgpu::DeviceType::Cpu => 4,
+        });
+        found
+    })
+}
+
+/// Adapters that can serve `need`, best first.
+fn adapters(need: Need) -> impl Iterator<Item = &'static wgpu::Adapter> {
+    all_adapters()
+        .iter()
+        .filter(move |a| a.features().contains(need.features()))
 }
 
 /// Describes an adapter in one line: name, backend, driver.
@@ -85,15 +93,12 @@ pub fn describe(info: &wgpu::AdapterInfo) -> String {
 
 /// The adapter a backend with `need` would run on, or why there is none.
 pub fn probe(need: Need) -> Result<wgpu::AdapterInfo, String> {
-    match adapters(need).first() {
+    match adapters(need).next() {
         Some(a) => Ok(a.get_info()),
         None => Err(match need {
             Need::Compute => "no GPU adapter found (Vulkan, Metal or DX12)".into(),
             Need::RayQuery => {
-                let others: Vec<_> = adapters(Need::Compute)
-                    .iter()
-                    .map(|a| a.get_info().name)
-                    .collect();
+                let others: Vec<_> = adapters(Need::Compute).map(|a| a.get_info().name).collect();
                 if others.is_empty() {
                     "no GPU adapter found (Vulkan, Metal or DX12)".into()
                 } else {
@@ -118,7 +123,6 @@ impl Gpu {
     pub fn open_limited(need: Need, lower: impl FnOnce(&mut wgpu::Limits)) -> Result<Gpu> {
         let unavailable = |reason: String| Error::Gpu(reason);
         let adapter = adapters(need)
-            .into_iter()
             .next()
             .ok_or_else(|| unavailable(probe(need).err().unwrap_or_default()))?;
         let features = need.features() | (adapter.features() & WANTED);

@@ -74,8 +74,7 @@ impl Frame<'_> {
 
 /// Speed |v| of a velocity, computed in `f64` and rounded once to `f32` (the `speed` array).
 fn speed(v: [f32; 3]) -> f32 {
-    let [x, y, z] = v.map(f64::from);
-    (x * x + y * y + z * z).sqrt() as f32
+    glam::Vec3::from(v).as_dvec3().length() as f32
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 use super::{Mesh, WindingTree};
 use crate::error::{Error, Result};
 use crate::spheres::MAX_MAGNITUDE;
+use glam::DVec3;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
@@ -81,32 +82,33 @@ impl FillSpec {
 
 /// The lattice over the mesh's bounding box: `n` points per axis, centred on the box.
 struct Lattice {
-    origin: [f64; 3],
+    origin: DVec3,
     spacing: f64,
     n: [usize; 3],
 }
 
 impl Lattice {
-    fn over(lo: [f64; 3], hi: [f64; 3], spacing: f64) -> Result<Self> {
-        let counts: [f64; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / spacing).ceil().max(1.0));
-        let total = counts[0] * counts[1] * counts[2];
+    fn over(lo: DVec3, hi: DVec3, spacing: f64) -> Result<Self> {
+        let counts = ((hi - lo) / spacing).ceil().max(DVec3::ONE);
+        let total = counts.x * counts.y * counts.z;
         if total > MAX_LATTICE_POINTS as f64 {
             return Err(Error::TooLarge {
                 what: format!(
                     "lattice points of a mesh fill at spacing {spacing} (a {} × {} × {} lattice; \
                      raise the spacing)",
-                    counts[0], counts[1], counts[2]
+                    counts.x, counts.y, counts.z
                 ),
                 got: total as u64,
                 limit: MAX_LATTICE_POINTS,
             });
         }
-        let n = counts.map(|c| c as usize);
-        let origin = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]) - 0.5 * counts[a] * spacing);
+        let n = counts.to_array().map(|c| c as usize);
+        let origin = 0.5 * (lo + hi) - 0.5 * counts * spacing;
         let lattice = Self { origin, spacing, n };
-        let far = (0..3)
-            .flat_map(|a| [lattice.origin[a], lattice.origin[a] + counts[a] * spacing])
-            .fold(0.0, |m: f64, x| m.max(x.abs()));
+        let far = origin
+            .abs()
+            .max((origin + counts * spacing).abs())
+            .max_element();
         if far > f64::from(MAX_MAGNITUDE) {
             return Err(fill_error(format!(
                 "mesh coordinates reach {far:e}, beyond the limit of {MAX_MAGNITUDE:e} for \
@@ -116,9 +118,9 @@ impl Lattice {
         Ok(lattice)
     }
 
-    fn point(&self, i: usize, j: usize, k: usize) -> [f64; 3] {
-        let idx = [i, j, k];
-        std::array::from_fn(|a| self.origin[a] + (idx[a] as f64 + 0.5) * self.spacing)
+    fn point(&self, i: usize, j: usize, k: usize) -> DVec3 {
+        let index = DVec3::new(i as f64, j as f64, k as f64);
+        self.origin + (index + 0.5) * self.spacing
     }
 }
 
@@ -142,7 +144,7 @@ pub fn fill(mesh: &Mesh, spec: &FillSpec) -> Result<(Vec<[f32; 3]>, Vec<f32>)> {
     let Some((lo, hi)) = mesh.bounds() else {
         return Ok((Vec::new(), Vec::new()));
     };
-    let lattice = Lattice::over(lo, hi, spec.spacing)?;
+    let lattice = Lattice::over(lo.into(), hi.into(), spec.spacing)?;
     let tree = WindingTree::new(mesh);
     let [nx, ny, nz] = lattice.n;
     // One row of x per task: indices of the inside points, in order.
@@ -151,7 +153,7 @@ pub fn fill(mesh: &Mesh, spec: &FillSpec) -> Result<(Vec<[f32; 3]>, Vec<f32>)> {
         .map(|row| {
             let (j, k) = (row % ny, row / ny);
             (0..nx)
-                .filter(|&i| tree.contains(lattice.point(i, j, k)))
+                .filter(|&i| tree.contains(lattice.point(i, j, k).to_array()))
                 .map(|i| i as u32)
                 .collect()
         })
@@ -185,12 +187,13 @@ pub fn fill(mesh: &Mesh, spec: &FillSpec) -> Result<(Vec<[f32; 3]>, Vec<f32>)> {
             };
             let p = lattice.point(i as usize, j, k);
             let room = (0.5 * spec.spacing - f64::from(r)).max(0.0);
-            let c: [f32; 3] = if spec.jitter && room > 0.0 {
-                std::array::from_fn(|a| (p[a] + rng.random_range(-room..=room)) as f32)
+            let c = if spec.jitter && room > 0.0 {
+                // x, then y, then z: the order the seed's draws are taken in.
+                p + DVec3::from_array(std::array::from_fn(|_| rng.random_range(-room..=room)))
             } else {
-                p.map(|x| x as f32)
+                p
             };
-            centers.push(c);
+            centers.push(c.as_vec3().to_array());
             radii.push(r);
         }
     }

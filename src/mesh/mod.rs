@@ -29,6 +29,7 @@ pub use load::{load, load_bytes};
 pub use winding::{WindingTree, winding_number};
 
 use crate::error::{Error, Result};
+use glam::DVec3;
 use std::f64::consts::TAU;
 
 /// A triangle mesh: vertex positions and triangles as triples of vertex indices.
@@ -78,18 +79,21 @@ impl Mesh {
         let Some((m_lo, m_hi)) = self.bounds() else {
             return self.clone();
         };
+        let (m_lo, m_hi) = (DVec3::from(m_lo), DVec3::from(m_hi));
+        let (lo, hi) = (DVec3::from(lo), DVec3::from(hi));
+        let (size, extent) = ((hi - lo).max(DVec3::ZERO), m_hi - m_lo);
         let scale = (0..3)
-            .filter(|&a| m_hi[a] > m_lo[a])
-            .map(|a| (hi[a] - lo[a]).max(0.0) / (m_hi[a] - m_lo[a]))
+            .filter(|&a| extent[a] > 0.0)
+            .map(|a| size[a] / extent[a])
             .fold(f64::INFINITY, f64::min);
         let scale = if scale.is_finite() { scale } else { 1.0 };
-        let from: [f64; 3] = std::array::from_fn(|a| 0.5 * (m_lo[a] + m_hi[a]));
-        let to: [f64; 3] = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
+        let from = 0.5 * (m_lo + m_hi);
+        let to = 0.5 * (lo + hi);
         Mesh {
             vertices: self
                 .vertices
                 .iter()
-                .map(|v| std::array::from_fn(|a| to[a] + scale * (v[a] - from[a])))
+                .map(|&v| (to + scale * (DVec3::from(v) - from)).to_array())
                 .collect(),
             triangles: self.triangles.clone(),
         }

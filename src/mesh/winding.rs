@@ -19,38 +19,17 @@
 //! number instead varies continuously across a hole, and each point is decided on its own value.
 
 use super::Mesh;
+use glam::DVec3;
 use std::f64::consts::PI;
-
-type V3 = [f64; 3];
-
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot(a: V3, b: V3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: V3, b: V3) -> V3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn norm(a: V3) -> f64 {
-    dot(a, a).sqrt()
-}
 
 /// Signed solid angle of the triangle (a, b, c) seen from p (Van Oosterom–Strackee): positive
 /// when the triangle's counter-clockwise normal points away from p. Zero when p lies on the
 /// triangle's plane, and finite (never NaN) for any finite input.
-fn solid_angle(p: V3, a: V3, b: V3, c: V3) -> f64 {
-    let (a, b, c) = (sub(a, p), sub(b, p), sub(c, p));
-    let (la, lb, lc) = (norm(a), norm(b), norm(c));
-    let det = dot(a, cross(b, c));
-    let div = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la;
+fn solid_angle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let (a, b, c) = (a - p, b - p, c - p);
+    let (la, lb, lc) = (a.length(), b.length(), c.length());
+    let det = a.dot(b.cross(c));
+    let div = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
     2.0 * det.atan2(div)
 }
 
@@ -60,34 +39,35 @@ fn solid_angle(p: V3, a: V3, b: V3, c: V3) -> f64 {
 ///
 /// Triangles with an index out of range are skipped (see [`Mesh::validate`]).
 pub fn winding_number(mesh: &Mesh, p: [f64; 3]) -> f64 {
-    let v = &mesh.vertices;
-    let total: f64 = mesh
-        .triangles
-        .iter()
-        .filter_map(|t| {
-            Some((
-                v.get(t[0] as usize)?,
-                v.get(t[1] as usize)?,
-                v.get(t[2] as usize)?,
-            ))
-        })
-        .map(|(a, b, c)| solid_angle(p, *a, *b, *c))
-        .sum();
+    let p = DVec3::from(p);
+    let total: f64 = corners(mesh).map(|[a, b, c]| solid_angle(p, a, b, c)).sum();
     total / (4.0 * PI)
+}
+
+/// The corners of each triangle of `mesh`, leaving out those with an index out of range.
+fn corners(mesh: &Mesh) -> impl Iterator<Item = [DVec3; 3]> + '_ {
+    let v = &mesh.vertices;
+    mesh.triangles.iter().filter_map(|t| {
+        Some([
+            DVec3::from(*v.get(t[0] as usize)?),
+            DVec3::from(*v.get(t[1] as usize)?),
+            DVec3::from(*v.get(t[2] as usize)?),
+        ])
+    })
 }
 
 /// One node of the tree.
 #[derive(Debug, Clone, Copy)]
 struct Node {
     /// Area-weighted centroid of the node's triangles (their plain mean if they have no area).
-    center: V3,
+    center: DVec3,
     /// Largest distance from `center` to a vertex of the node's triangles.
     radius: f64,
     /// Sum of the triangles' area vectors A_t = ½ (b − a) × (c − a).
-    area: V3,
-    /// First moment of the normals about `center`: M_ij = Σ_t A_t,i (x̄_t − center)_j, with
-    /// x̄_t the centroid of triangle t.
-    moment: [V3; 3],
+    area: DVec3,
+    /// First moment of the normals about `center`, by rows: M_ij = Σ_t A_t,i (x̄_t − center)_j,
+    /// with x̄_t the centroid of triangle t.
+    moment: [DVec3; 3],
     /// First triangle (leaves) or index of the second child (inner nodes; the first child
     /// follows the node directly).
     first_or_right: u32,
@@ -108,7 +88,7 @@ struct Node {
 #[derive(Debug, Clone)]
 pub struct WindingTree {
     /// Triangle corners, in tree order.
-    triangles: Vec<[V3; 3]>,
+    triangles: Vec<[DVec3; 3]>,
     /// Nodes in depth-first order; node 0 is the root.
     nodes: Vec<Node>,
     /// Opening distance, in node radii.
@@ -133,18 +113,7 @@ impl WindingTree {
     /// (default [`WindingTree::BETA`]): larger is more accurate and slower. Values below 1 are
     /// raised to 1 (a node is never replaced by its expansion from inside its own sphere).
     pub fn with_beta(mesh: &Mesh, beta: f64) -> Self {
-        let v = &mesh.vertices;
-        let mut triangles: Vec<[V3; 3]> = mesh
-            .triangles
-            .iter()
-            .filter_map(|t| {
-                Some([
-                    *v.get(t[0] as usize)?,
-                    *v.get(t[1] as usize)?,
-                    *v.get(t[2] as usize)?,
-                ])
-            })
-            .collect();
+        let mut triangles: Vec<[DVec3; 3]> = corners(mesh).collect();
         let mut nodes = Vec::with_capacity(2 * triangles.len() / LEAF_SIZE + 1);
         if !triangles.is_empty() {
             let n = triangles.len();
@@ -163,6 +132,7 @@ impl WindingTree {
         if self.nodes.is_empty() {
             return 0.0;
         }
+        let p = DVec3::from(p);
         let beta2 = self.beta * self.beta;
         let mut total = 0.0;
         // Depth-first with an explicit stack. Median splits halve the triangle count at every
@@ -172,8 +142,8 @@ impl WindingTree {
         while top > 0 {
             top -= 1;
             let node = &self.nodes[stack[top] as usize];
-            let d = sub(node.center, p);
-            let d2 = dot(d, d);
+            let d = node.center - p;
+            let d2 = d.dot(d);
             if d2 > beta2 * node.radius * node.radius {
                 total += far_field(node, d, d2);
             } else if node.count > 0 {
@@ -203,55 +173,53 @@ impl WindingTree {
 /// terms of the Taylor expansion of ∫ n·(x − p)/|x − p|³ dA about the node's centre. With
 /// K(y) = y/|y|³ and its Jacobian J(y) = I/|y|³ − 3 y yᵀ/|y|⁵, the terms are A·K(d) and
 /// Σ_ij J_ij(d) M_ij = tr M/|d|³ − 3 dᵀ M d/|d|⁵.
-fn far_field(node: &Node, d: V3, d2: f64) -> f64 {
+fn far_field(node: &Node, d: DVec3, d2: f64) -> f64 {
     let inv = 1.0 / d2.sqrt();
     let inv3 = inv * inv * inv;
     let m = &node.moment;
-    let md = [dot(m[0], d), dot(m[1], d), dot(m[2], d)];
-    let trace = m[0][0] + m[1][1] + m[2][2];
-    dot(node.area, d) * inv3 + trace * inv3 - 3.0 * dot(d, md) * inv3 / d2
+    let md = DVec3::new(m[0].dot(d), m[1].dot(d), m[2].dot(d));
+    let trace = m[0].x + m[1].y + m[2].z;
+    node.area.dot(d) * inv3 + trace * inv3 - 3.0 * d.dot(md) * inv3 / d2
 }
 
 /// Builds the subtree of `triangles[lo..hi]` (reordering them), appending its nodes in
 /// depth-first order; returns nothing, the subtree's root is the first node appended.
-fn build(triangles: &mut [[V3; 3]], lo: usize, hi: usize, nodes: &mut Vec<Node>) {
+fn build(triangles: &mut [[DVec3; 3]], lo: usize, hi: usize, nodes: &mut Vec<Node>) {
     let slice = &triangles[lo..hi];
-    let mut area = [0.0; 3];
-    let mut weighted = [0.0; 3];
+    let mut area = DVec3::ZERO;
+    let mut weighted = DVec3::ZERO;
     let mut total_area = 0.0;
-    let mut mean = [0.0; 3];
-    let (mut c_lo, mut c_hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for [a, b, c] in slice {
-        let n = cross(sub(*b, *a), sub(*c, *a));
-        let w = 0.5 * norm(n);
-        for k in 0..3 {
-            let centroid = (a[k] + b[k] + c[k]) / 3.0;
-            area[k] += 0.5 * n[k];
-            weighted[k] += w * centroid;
-            mean[k] += centroid;
-            c_lo[k] = c_lo[k].min(centroid);
-            c_hi[k] = c_hi[k].max(centroid);
-        }
+    let mut mean = DVec3::ZERO;
+    let (mut c_lo, mut c_hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for &[a, b, c] in slice {
+        let n = (b - a).cross(c - a);
+        let w = 0.5 * n.length();
+        let centroid = (a + b + c) / 3.0;
+        area += 0.5 * n;
+        weighted += w * centroid;
+        mean += centroid;
+        // A NaN centroid (a mesh not validated) leaves the bounds as they are.
+        c_lo = centroid.min(c_lo);
+        c_hi = centroid.max(c_hi);
         total_area += w;
     }
     let count = slice.len() as f64;
-    let center: V3 = if total_area > 0.0 {
-        std::array::from_fn(|k| weighted[k] / total_area)
+    let center = if total_area > 0.0 {
+        weighted / total_area
     } else {
-        std::array::from_fn(|k| mean[k] / count)
+        mean / count
     };
     let radius = slice
         .iter()
         .flatten()
-        .map(|v| norm(sub(*v, center)))
+        .map(|&v| (v - center).length())
         .fold(0.0, f64::max);
-    let mut moment = [[0.0; 3]; 3];
-    for [a, b, c] in slice {
-        let n = cross(sub(*b, *a), sub(*c, *a));
+    let mut moment = [DVec3::ZERO; 3];
+    for &[a, b, c] in slice {
+        let n = (b - a).cross(c - a);
+        let offset = (a + b + c) / 3.0 - center;
         for i in 0..3 {
-            for j in 0..3 {
-                moment[i][j] += 0.5 * n[i] * ((a[j] + b[j] + c[j]) / 3.0 - center[j]);
-            }
+            moment[i] += 0.5 * n[i] * offset;
         }
     }
     let me = nodes.len();
@@ -267,11 +235,12 @@ fn build(triangles: &mut [[V3; 3]], lo: usize, hi: usize, nodes: &mut Vec<Node>)
         return;
     }
     // Split at the median centroid along the axis where the centroids spread most.
+    let spread = c_hi - c_lo;
     let axis = (0..3)
-        .max_by(|&x, &y| (c_hi[x] - c_lo[x]).total_cmp(&(c_hi[y] - c_lo[y])))
+        .max_by(|&x, &y| spread[x].total_cmp(&spread[y]))
         .unwrap_or(0);
     let mid = lo + (hi - lo) / 2;
-    let key = |t: &[V3; 3]| t[0][axis] + t[1][axis] + t[2][axis];
+    let key = |t: &[DVec3; 3]| t[0][axis] + t[1][axis] + t[2][axis];
     triangles[lo..hi].select_nth_unstable_by(mid - lo, |s, t| key(s).total_cmp(&key(t)));
     build(triangles, lo, mid, nodes);
     let right = nodes.len() as u32;
@@ -288,12 +257,12 @@ mod tests {
     fn a_cube_face_seen_from_the_centre_covers_a_sixth_of_the_sphere() {
         // The top face of the cube [-1, 1]³ is seen from the centre under 4π/6.
         let (a, b, c, d) = (
-            [-1.0, -1.0, 1.0],
-            [1.0, -1.0, 1.0],
-            [1.0, 1.0, 1.0],
-            [-1.0, 1.0, 1.0],
+            DVec3::new(-1.0, -1.0, 1.0),
+            DVec3::new(1.0, -1.0, 1.0),
+            DVec3::new(1.0, 1.0, 1.0),
+            DVec3::new(-1.0, 1.0, 1.0),
         );
-        let p = [0.0; 3];
+        let p = DVec3::ZERO;
         let omega = solid_angle(p, a, b, c) + solid_angle(p, a, c, d);
         assert!((omega - 4.0 * PI / 6.0).abs() < 1e-12, "{omega}");
         // Reversed, the sign flips.
@@ -302,8 +271,8 @@ mod tests {
 
     #[test]
     fn degenerate_input_gives_zero_not_nan() {
-        let p = [1.0, 2.0, 3.0];
+        let p = DVec3::new(1.0, 2.0, 3.0);
         assert_eq!(solid_angle(p, p, p, p), 0.0);
-        assert_eq!(solid_angle(p, p, [0.0; 3], [1.0, 0.0, 0.0]), 0.0);
+        assert_eq!(solid_angle(p, p, DVec3::ZERO, DVec3::X), 0.0);
     }
 }

@@ -5,6 +5,7 @@
 //! CPU twin of `trace` in `wgsl/render_bvh.wgsl`.
 
 use super::shade::{INF, hit_sphere};
+use glam::{DVec3, UVec3, Vec3};
 
 /// Most spheres in one leaf.
 const LEAF_SIZE: usize = 4;
@@ -32,34 +33,38 @@ const MORTON_AXIS_BITS: u32 = 10;
 /// The order of `spheres` (`x, y, z, r`) along the Morton curve of their centres, with each
 /// sphere's key.
 pub(crate) fn morton_order(spheres: &[[f32; 4]]) -> (Vec<u32>, Vec<u32>) {
-    let mut lo = [f32::INFINITY; 3];
-    let mut hi = [f32::NEG_INFINITY; 3];
-    for s in spheres {
-        for k in 0..3 {
-            lo[k] = lo[k].min(s[k]);
-            hi[k] = hi[k].max(s[k]);
-        }
-    }
+    let (lo, hi) = centre_bounds(spheres);
     let cells = (1u32 << MORTON_AXIS_BITS) as f64;
-    let scale = [0, 1, 2].map(|k| {
-        let extent = (hi[k] - lo[k]) as f64;
-        if extent > 0.0 {
-            (cells - 1.0) / extent
-        } else {
-            0.0
-        }
-    });
+    let extent = (hi - lo).as_dvec3();
+    let scale = DVec3::select(
+        extent.cmpgt(DVec3::ZERO),
+        (cells - 1.0) / extent,
+        DVec3::ZERO,
+    );
     let key = |s: &[f32; 4]| {
-        (0..3).fold(0u32, |key, k| {
-            let cell = ((s[k] - lo[k]) as f64 * scale[k]) as u32;
-            key | spread(cell.min((1 << MORTON_AXIS_BITS) - 1)) << (2 - k)
-        })
+        let cell = ((centre(s) - lo).as_dvec3() * scale).as_uvec3();
+        let cell = cell.min(UVec3::splat((1 << MORTON_AXIS_BITS) - 1));
+        spread(cell.x) << 2 | spread(cell.y) << 1 | spread(cell.z)
     };
     let mut order: Vec<u32> = (0..spheres.len() as u32).collect();
     let keys: Vec<u32> = spheres.iter().map(key).collect();
     radsort::sort_by_key(&mut order, |&i| keys[i as usize]);
     let sorted_keys = order.iter().map(|&i| keys[i as usize]).collect();
     (order, sorted_keys)
+}
+
+/// The centre of the sphere `x, y, z, r`.
+fn centre(s: &[f32; 4]) -> Vec3 {
+    Vec3::new(s[0], s[1], s[2])
+}
+
+/// The box around the centres of `spheres` (inverted, ∞ to −∞, for none).
+fn centre_bounds<'a>(spheres: impl IntoIterator<Item = &'a [f32; 4]>) -> (Vec3, Vec3) {
+    spheres
+        .into_iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), s| {
+            (lo.min(centre(s)), hi.max(centre(s)))
+        })
 }
 
 /// Spreads the low 10 bits of `v` to every third bit.
@@ -94,9 +99,9 @@ fn build_range<T>(
     let at = nodes.len();
     let (bmin, bmax) = bounds(items[lo..hi].iter().map(|item| &item.0));
     nodes.push(Node {
-        lo: bmin,
+        lo: bmin.to_array(),
         a: lo as u32,
-        hi: bmax,
+        hi: bmax.to_array(),
         count: (hi - lo) as u32,
     });
     if hi - lo <= LEAF_SIZE {
@@ -121,29 +126,18 @@ fn build_range<T>(
 
 /// The axis along which the centres of `items` spread the most.
 fn widest_axis<T>(items: &[([f32; 4], T)]) -> usize {
-    let mut lo = [f32::INFINITY; 3];
-    let mut hi = [f32::NEG_INFINITY; 3];
-    for (s, _) in items {
-        for k in 0..3 {
-            lo[k] = lo[k].min(s[k]);
-            hi[k] = hi[k].max(s[k]);
-        }
-    }
+    let (lo, hi) = centre_bounds(items.iter().map(|(s, _)| s));
+    let extent = hi - lo;
     (0..3)
-        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
+        .max_by(|&a, &b| extent[a].total_cmp(&extent[b]))
         .unwrap_or(0)
 }
 
-fn bounds<'a>(spheres: impl Iterator<Item = &'a [f32; 4]>) -> ([f32; 3], [f32; 3]) {
-    let mut lo = [f32::INFINITY; 3];
-    let mut hi = [f32::NEG_INFINITY; 3];
-    for s in spheres {
-        for k in 0..3 {
-            lo[k] = lo[k].min(s[k] - s[3]);
-            hi[k] = hi[k].max(s[k] + s[3]);
-        }
-    }
-    (lo, hi)
+/// The box around `spheres` (`x, y, z, r`).
+fn bounds<'a>(spheres: impl Iterator<Item = &'a [f32; 4]>) -> (Vec3, Vec3) {
+    spheres.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), s| {
+        (lo.min(centre(s) - s[3]), hi.max(centre(s) + s[3]))
+    })
 }
 
 /// The nearest sphere the ray `o + t·d` (`d` a unit vector, `inv` its reciprocal) hits with
@@ -152,8 +146,8 @@ fn bounds<'a>(spheres: impl Iterator<Item = &'a [f32; 4]>) -> ([f32; 3], [f32; 3
 pub(crate) fn trace(
     nodes: &[Node],
     spheres: &[[f32; 4]],
-    o: [f32; 3],
-    d: [f32; 3],
+    o: Vec3,
+    d: Vec3,
     t_max: f32,
     first: bool,
 ) -> (f32, u32) {
@@ -161,7 +155,7 @@ pub(crate) fn trace(
     if nodes.is_empty() {
         return best;
     }
-    let inv = d.map(|x| 1.0 / safe(x));
+    let inv = d.map(safe).recip();
     let mut stack = [(0u32, 0f32); STACK];
     let mut sp = 0;
     let t_root = enter(&nodes[0], o, inv, best.0);
@@ -218,15 +212,11 @@ pub(crate) fn safe(x: f32) -> f32 {
 
 /// Where the ray enters the node's box (0 when it starts inside), or [`INF`] when it misses it
 /// or enters at or beyond `t_max`.
-fn enter(node: &Node, o: [f32; 3], inv: [f32; 3], t_max: f32) -> f32 {
-    let mut t0 = 0f32;
-    let mut t1 = t_max;
-    for k in 0..3 {
-        let a = (node.lo[k] - o[k]) * inv[k];
-        let b = (node.hi[k] - o[k]) * inv[k];
-        t0 = t0.max(a.min(b));
-        t1 = t1.min(a.max(b));
-    }
+fn enter(node: &Node, o: Vec3, inv: Vec3, t_max: f32) -> f32 {
+    let a = (Vec3::from(node.lo) - o) * inv;
+    let b = (Vec3::from(node.hi) - o) * inv;
+    let t0 = a.min(b).max_element().max(0.0);
+    let t1 = a.max(b).min_element().min(t_max);
     if t0 <= t1 && t0 < t_max { t0 } else { INF }
 }
 
@@ -234,7 +224,7 @@ fn enter(node: &Node, o: [f32; 3], inv: [f32; 3], t_max: f32) -> f32 {
 mod tests {
     use super::*;
 
-    fn brute(spheres: &[[f32; 4]], o: [f32; 3], d: [f32; 3]) -> (f32, u32) {
+    fn brute(spheres: &[[f32; 4]], o: Vec3, d: Vec3) -> (f32, u32) {
         let mut best = (INF, u32::MAX);
         for (k, &s) in spheres.iter().enumerate() {
             let t = hit_sphere(o, d, s);
@@ -279,12 +269,8 @@ mod tests {
         assert!(leaves < 0.0102f32.powi(3), "leaf volume {leaves}");
         for j in 0..100u32 {
             let a = j as f32 * 0.61;
-            let d = [a.cos() * 0.6, a.sin() * 0.6, 0.8];
-            let o = [
-                0.005 - 0.05 * d[0],
-                0.005 - 0.05 * d[1],
-                0.005 - 0.05 * d[2],
-            ];
+            let d = Vec3::new(a.cos() * 0.6, a.sin() * 0.6, 0.8);
+            let o = 0.005 - 0.05 * d;
             assert_eq!(
                 trace(&nodes, &sorted, o, d, INF, false),
                 brute(&sorted, o, d),
@@ -303,12 +289,9 @@ mod tests {
         let (nodes, sorted) = tree(&spheres);
         for j in 0..200u32 {
             let a = j as f32 * 0.37;
-            let d = {
-                let v = [a.cos(), a.sin(), 0.3 * (a * 1.7).sin()];
-                let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                v.map(|x| x / n)
-            };
-            let o = [0.5 - 2.0 * d[0], 0.5 - 2.0 * d[1], 0.5 - 2.0 * d[2]];
+            let v = Vec3::new(a.cos(), a.sin(), 0.3 * (a * 1.7).sin());
+            let d = v / v.length();
+            let o = 0.5 - 2.0 * d;
             let got = trace(&nodes, &sorted, o, d, INF, false);
             let want = brute(&sorted, o, d);
             assert_eq!(got, want, "ray {j}");
@@ -318,9 +301,6 @@ mod tests {
     #[test]
     fn an_empty_tree_hits_nothing() {
         assert!(build::<()>(&mut [], &[]).is_empty());
-        assert_eq!(
-            trace(&[], &[], [0.0; 3], [1.0, 0.0, 0.0], INF, false).1,
-            u32::MAX
-        );
+        assert_eq!(trace(&[], &[], Vec3::ZERO, Vec3::X, INF, false).1, u32::MAX);
     }
 }

@@ -1,13 +1,14 @@
 //! The pinhole camera: where it stands, what it looks at, and the rays of each pixel.
 
 use crate::error::{Error, Result};
+use glam::{DVec3, Vec3};
 
 /// World "up" of every default view: +z (gravity points along -z in the built-in scenes).
-const UP: [f64; 3] = [0.0, 0.0, 1.0];
+const UP: DVec3 = DVec3::Z;
 
 /// The default viewing direction, from the target towards the eye: a 3/4 view from the front
 /// left, above.
-const VIEW_FROM: [f64; 3] = [-0.55, -1.0, 0.75];
+const VIEW_FROM: DVec3 = DVec3::new(-0.55, -1.0, 0.75);
 
 /// Largest image side in pixels.
 pub const MAX_SIDE: u32 = 8192;
@@ -38,15 +39,16 @@ impl Camera {
     /// The default 3/4 view of the box `lo..hi`, from the front left and above, far enough that
     /// the box's bounding sphere fits the picture of aspect `width / height`.
     pub fn framing(lo: [f64; 3], hi: [f64; 3], aspect: f64, fov_deg: f64) -> Camera {
-        let center = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
-        let radius = 0.5 * norm(sub(hi, lo)).max(f64::MIN_POSITIVE);
+        let (lo, hi) = (DVec3::from(lo), DVec3::from(hi));
+        let center = 0.5 * (lo + hi);
+        let radius = 0.5 * (hi - lo).length().max(f64::MIN_POSITIVE);
         let half_v = 0.5 * fov_deg.to_radians();
         let half_h = (half_v.tan() * aspect.min(1.0)).atan();
         let distance = 1.02 * radius / half_v.min(half_h).sin();
-        let dir = normalize(VIEW_FROM);
+        let dir = unit(VIEW_FROM);
         Camera {
-            eye: [0, 1, 2].map(|k| center[k] + distance * dir[k]),
-            look_at: center,
+            eye: (center + distance * dir).to_array(),
+            look_at: center.to_array(),
             fov_deg,
         }
     }
@@ -64,7 +66,7 @@ impl Camera {
         if !finite {
             return Err(camera_error("eye and look-at must be finite".into()));
         }
-        if norm(sub(self.look_at, self.eye)) == 0.0 {
+        if DVec3::from(self.look_at).distance(DVec3::from(self.eye)) == 0.0 {
             return Err(camera_error("eye and look-at coincide".into()));
         }
         Ok(())
@@ -73,40 +75,45 @@ impl Camera {
     /// The pixel grid of a `width`×`height` picture: ray `(x, y)` (pixel units, y down) has the
     /// direction `corner + x·right + y·down` from the eye.
     pub(crate) fn grid(&self, width: u32, height: u32) -> Grid {
-        let forward = normalize(sub(self.look_at, self.eye));
+        let eye = DVec3::from(self.eye);
+        let forward = unit(DVec3::from(self.look_at) - eye);
         // Looking straight up or down: take +y as the picture's up instead.
-        let up = if cross(forward, UP).iter().all(|c| c.abs() < 1e-9) {
-            [0.0, 1.0, 0.0]
+        let up = if forward.cross(UP).abs().max_element() < 1e-9 {
+            DVec3::Y
         } else {
             UP
         };
-        let right = normalize(cross(forward, up));
-        let true_up = cross(right, forward);
+        let right = unit(forward.cross(up));
+        let true_up = right.cross(forward);
         let pixel = 2.0 * (0.5 * self.fov_deg.to_radians()).tan() / height as f64;
         let (w, h) = (width as f64, height as f64);
-        let corner = [0, 1, 2]
-            .map(|k| forward[k] - 0.5 * w * pixel * right[k] + 0.5 * h * pixel * true_up[k]);
+        let corner = forward - 0.5 * w * pixel * right + 0.5 * h * pixel * true_up;
         Grid {
-            eye: self.eye.map(|x| x as f32),
-            corner: corner.map(|x| x as f32),
-            right: right.map(|x| (x * pixel) as f32),
-            down: true_up.map(|x| (-x * pixel) as f32),
+            eye: eye.as_vec3(),
+            corner: corner.as_vec3(),
+            right: (right * pixel).as_vec3(),
+            down: (-true_up * pixel).as_vec3(),
             // Key light from the upper left, slightly behind the viewer.
-            light: normalize([0, 1, 2].map(|k| 0.8 * up[k] - 0.5 * right[k] - 0.4 * forward[k]))
-                .map(|x| x as f32),
+            light: unit(0.8 * up - 0.5 * right - 0.4 * forward).as_vec3(),
         }
     }
+}
+
+/// `v` scaled to unit length by dividing each component by the length (not multiplying by its
+/// reciprocal, as `DVec3::normalize` does: the rays stay bit for bit what they were).
+fn unit(v: DVec3) -> DVec3 {
+    v / v.length()
 }
 
 /// A camera's pixel grid in `f32`, as the shaders get it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Grid {
-    pub eye: [f32; 3],
-    pub corner: [f32; 3],
-    pub right: [f32; 3],
-    pub down: [f32; 3],
+    pub eye: Vec3,
+    pub corner: Vec3,
+    pub right: Vec3,
+    pub down: Vec3,
     /// Unit vector towards the (directional) light.
-    pub light: [f32; 3],
+    pub light: Vec3,
 }
 
 /// Parses `WxH` (e.g. `960x720`) into an image size, each side in 1..=[`MAX_SIDE`].
@@ -147,27 +154,6 @@ pub fn parse_point(text: &str) -> Result<[f64; 3]> {
     <[f64; 3]>::try_from(values).map_err(|_| bad())
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
-}
-
-fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let n = norm(a);
-    a.map(|x| x / n)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -180,13 +166,8 @@ mod tests {
             fov_deg: 40.0,
         };
         let g = cam.grid(4, 2);
-        let d: Vec<f32> = (0..3)
-            .map(|k| g.corner[k] + 2.0 * g.right[k] + 1.0 * g.down[k])
-            .collect();
-        assert!(
-            d[0].abs() < 1e-6 && d[2].abs() < 1e-6 && d[1] > 0.99,
-            "{d:?}"
-        );
+        let d = g.corner + 2.0 * g.right + 1.0 * g.down;
+        assert!(d.x.abs() < 1e-6 && d.z.abs() < 1e-6 && d.y > 0.99, "{d:?}");
     }
 
     #[test]
@@ -212,7 +193,7 @@ mod tests {
     #[test]
     fn the_framing_sees_the_whole_box() {
         let cam = Camera::framing([0.0; 3], [1.0; 3], 4.0 / 3.0, 40.0);
-        let d = norm(sub(cam.eye, cam.look_at));
+        let d = DVec3::from(cam.eye).distance(DVec3::from(cam.look_at));
         assert!(d > 0.5 * 3f64.sqrt() / 20f64.to_radians().sin());
         assert_eq!(cam.look_at, [0.5; 3]);
     }

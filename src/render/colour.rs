@@ -30,7 +30,7 @@ impl ColorBy {
             ColorBy::Speed if velocities.is_empty() => vec![0.0; radii.len()],
             ColorBy::Speed => velocities
                 .iter()
-                .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+                .map(|&v| glam::Vec3::from(v).length())
                 .collect(),
         }
     }

@@ -106,19 +106,19 @@ impl GpuRenderer {
         let grid = picture.camera.grid(picture.width, picture.height);
         let floor = picture.floor();
         let view = ViewUniform {
-            eye: grid.eye,
+            eye: grid.eye.to_array(),
             width: picture.width,
-            corner: grid.corner,
+            corner: grid.corner.to_array(),
             height: picture.height,
-            right: grid.right,
+            right: grid.right.to_array(),
             samples: picture.samples,
-            down: grid.down,
+            down: grid.down.to_array(),
             shadows: picture.shadows as u32,
-            light: grid.light,
+            light: grid.light.to_array(),
             n,
-            floor_lo: floor.map_or([0.0; 3], |f| f.lo),
+            floor_lo: floor.map_or([0.0; 3], |f| f.lo.to_array()),
             floor_on: floor.is_some() as u32,
-            floor_hi: floor.map_or([0.0; 3], |f| f.hi),
+            floor_hi: floor.map_or([0.0; 3], |f| f.hi.to_array()),
             _pad0: 0,
         };
         let gpu = &self.gpu;

@@ -5,8 +5,10 @@
 //! shadows); a [`Renderer`] draws it into an [`Image`], which gets a colour [`Legend`] and is
 //! written as PNG (or collected into an animated [`Gif`]).
 //!
-//! Three render paths give the same picture up to rounding, picked like the detection
-//! backends ([`RenderChoice::Auto`] says which it took and why it passed over the others):
+//! Three render paths give the same picture up to rounding. Each runs on the hardware of one
+//! detection backend, whose name it takes, and is picked through the same registry
+//! ([`RenderChoice::backend`]; [`RenderChoice::Auto`] says which it took and why it passed over
+//! the others):
 //!
 //! | path | how |
 //! | --- | --- |
@@ -50,8 +52,8 @@ pub use gpu::SHADERS;
 pub use image::{Gif, Image, Legend, read_png};
 pub use scene::Scene;
 
+use crate::engines::{BackendKind, open_auto};
 use crate::error::{Error, Result};
-use crate::gpu::{Need, probe};
 
 /// Most rays per pixel side.
 pub const MAX_SAMPLES: u32 = 4;
@@ -91,8 +93,8 @@ impl Picture {
     /// The floor in `f32`, as the shaders get it.
     fn floor(&self) -> Option<shade::Floor> {
         self.floor.map(|(lo, hi)| shade::Floor {
-            lo: lo.map(|x| x as f32),
-            hi: hi.map(|x| x as f32),
+            lo: glam::DVec3::from(lo).as_vec3(),
+            hi: glam::DVec3::from(hi).as_vec3(),
         })
     }
 
@@ -121,7 +123,9 @@ impl Picture {
     }
 }
 
-/// Which render path to use.
+/// Which render path to use. Each path needs the hardware of one detection backend and is
+/// chosen through the registry like it ([`RenderChoice::backend`]): `auto` is the registry's one
+/// rule over the backends that have a path, with their probes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum RenderChoice {
     /// The fastest path that runs here: wgpu-rq, then wgpu-compute, then cpu, passing over
@@ -139,15 +143,35 @@ pub enum RenderChoice {
 }
 
 impl RenderChoice {
-    /// The name on the command line.
-    pub fn name(self) -> &'static str {
+    /// The backend whose hardware the path needs, `None` for `auto`: ray queries need an
+    /// adapter with ray queries (`wgpu-rq`), our own BVH only compute shaders
+    /// (`wgpu-compute`), the cpu path nothing (`cpu`). `optix` has no render path.
+    pub fn backend(self) -> Option<BackendKind> {
         match self {
-            RenderChoice::Auto => "auto",
-            RenderChoice::WgpuRq => "wgpu-rq",
-            RenderChoice::WgpuCompute => "wgpu-compute",
-            RenderChoice::Cpu => "cpu",
+            RenderChoice::Auto => None,
+            RenderChoice::WgpuRq => Some(BackendKind::WgpuRq),
+            RenderChoice::WgpuCompute => Some(BackendKind::WgpuCompute),
+            RenderChoice::Cpu => Some(BackendKind::Cpu),
         }
     }
+
+    /// The name on the command line (that of its backend).
+    pub fn name(self) -> &'static str {
+        self.backend().map_or("auto", BackendKind::name)
+    }
+}
+
+/// The backends that have a render path, in the order `auto` prefers them.
+fn render_backends() -> Vec<BackendKind> {
+    use clap::ValueEnum;
+    let paths: Vec<BackendKind> = RenderChoice::value_variants()
+        .iter()
+        .filter_map(|choice| choice.backend())
+        .collect();
+    BackendKind::ALL
+        .into_iter()
+        .filter(|kind| paths.contains(kind))
+        .collect()
 }
 
 /// An open render path.
@@ -158,7 +182,7 @@ pub struct Renderer {
 enum Path {
     Gpu {
         renderer: Box<gpu::GpuRenderer>,
-        choice: RenderChoice,
+        backend: BackendKind,
     },
     Cpu,
 }
@@ -167,61 +191,55 @@ impl Renderer {
     /// Opens the path `choice`, or says why it cannot run here. For `auto`, also returns which
     /// path it picked and why it passed over the faster ones.
     pub fn open(choice: RenderChoice) -> Result<(Renderer, Option<String>)> {
-        match choice {
-            RenderChoice::Auto => Ok(Self::open_auto()),
-            RenderChoice::Cpu => Ok((Renderer { path: Path::Cpu }, None)),
-            gpu_choice => {
-                let ray_query = gpu_choice == RenderChoice::WgpuRq;
-                let renderer =
-                    gpu::GpuRenderer::open(ray_query).map_err(|e| Error::BackendUnavailable {
-                        backend: gpu_choice.name(),
-                        reason: e.to_string(),
-                    })?;
-                let path = Path::Gpu {
-                    renderer: Box::new(renderer),
-                    choice: gpu_choice,
-                };
-                Ok((Renderer { path }, None))
+        match choice.backend() {
+            Some(backend) => Ok((Self::open_on(backend)?, None)),
+            None => {
+                let (renderer, reason) = open_auto(&render_backends(), Self::open_on)?;
+                Ok((renderer, Some(format!("render: {reason}"))))
             }
         }
     }
 
-    fn open_auto() -> (Renderer, Option<String>) {
-        let mut skipped = Vec::new();
-        for (choice, need) in [
-            (RenderChoice::WgpuRq, Need::RayQuery),
-            (RenderChoice::WgpuCompute, Need::Compute),
-        ] {
-            let why = match probe(need) {
-                Ok(a) if a.device_type == wgpu::DeviceType::Cpu => {
-                    format!("{} is a software adapter, slower than the cpu path", a.name)
-                }
-                Ok(_) => match Self::open(choice) {
-                    Ok((renderer, _)) => {
-                        return (renderer, Some(auto_reason(choice, &skipped)));
-                    }
-                    Err(e) => e.to_string(),
-                },
-                Err(why) => why,
-            };
-            skipped.push((choice.name(), why));
-        }
-        let reason = auto_reason(RenderChoice::Cpu, &skipped);
-        (Renderer { path: Path::Cpu }, Some(reason))
+    /// Opens the render path of `backend` (see [`RenderChoice::backend`]).
+    fn open_on(backend: BackendKind) -> Result<Renderer> {
+        let ray_query = match backend {
+            BackendKind::Cpu => return Ok(Renderer { path: Path::Cpu }),
+            BackendKind::WgpuRq => true,
+            BackendKind::WgpuCompute => false,
+            BackendKind::Optix => {
+                return Err(Error::BackendUnavailable {
+                    backend: backend.name(),
+                    reason: "it has no render path".into(),
+                });
+            }
+        };
+        let unavailable = |reason: String| Error::BackendUnavailable {
+            backend: backend.name(),
+            reason,
+        };
+        backend.probe().map_err(unavailable)?;
+        let renderer = gpu::GpuRenderer::open(ray_query).map_err(|e| unavailable(e.to_string()))?;
+        let path = Path::Gpu {
+            renderer: Box::new(renderer),
+            backend,
+        };
+        Ok(Renderer { path })
     }
 
     /// The path's name (`wgpu-rq`, `wgpu-compute` or `cpu`).
     pub fn name(&self) -> &'static str {
         match &self.path {
-            Path::Gpu { choice, .. } => choice.name(),
-            Path::Cpu => RenderChoice::Cpu.name(),
+            Path::Gpu { backend, .. } => backend.name(),
+            Path::Cpu => BackendKind::Cpu.name(),
         }
     }
 
     /// The path and where it runs, in one line.
     pub fn describe(&self) -> String {
         match &self.path {
-            Path::Gpu { renderer, choice } => format!("{} ({})", choice.name(), renderer.device()),
+            Path::Gpu { renderer, backend } => {
+                format!("{} ({})", backend.name(), renderer.device())
+            }
             Path::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),
         }
     }
@@ -242,10 +260,35 @@ impl Renderer {
     }
 }
 
-fn auto_reason(picked: RenderChoice, skipped: &[(&str, String)]) -> String {
-    let mut reason = format!("render: auto picked {}", picked.name());
-    for (name, why) in skipped {
-        reason.push_str(&format!("; skipped {name}: {why}"));
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::ValueEnum;
+
+    #[test]
+    fn each_render_path_is_named_and_chosen_as_its_backend() {
+        assert_eq!(
+            render_backends(),
+            [
+                BackendKind::WgpuRq,
+                BackendKind::WgpuCompute,
+                BackendKind::Cpu
+            ]
+        );
+        for choice in RenderChoice::value_variants() {
+            let value = choice.to_possible_value().expect("not hidden");
+            assert_eq!(value.get_name(), choice.name());
+        }
     }
-    reason
+
+    #[test]
+    fn auto_says_which_path_it_picked_among_those_that_exist() {
+        let (renderer, reason) = Renderer::open(RenderChoice::Auto).expect("cpu opens");
+        let reason = reason.expect("auto says why");
+        let picked = format!("render: auto picked {}", renderer.name());
+        assert!(reason.starts_with(&picked), "{reason}");
+        assert!(!reason.contains("optix"), "{reason}");
+        let (_, named) = Renderer::open(RenderChoice::Cpu).expect("cpu opens");
+        assert_eq!(named, None);
+    }
 }
