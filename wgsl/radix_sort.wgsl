@@ -10,7 +10,7 @@
 // No subgroup operations: ranks come from per-thread counts and workgroup-memory prefix sums.
 
 // Parameters of one pass; 16 bytes, one slot per pass (dynamic uniform offset).
-// Keep in sync with `Params` in src/gpu/radix_sort.rs.
+// Twin of `Params` in src/gpu/radix_sort.rs (tests/bindings.rs compares the layouts).
 struct Params {
     // Number of pairs to sort.
     n: u32,

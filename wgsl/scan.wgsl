@@ -10,7 +10,7 @@
 // Level 0 is read twice and written once. No subgroup operations.
 
 // Parameters of one dispatch; 32 bytes, one slot per dispatch (dynamic uniform offset).
-// Keep in sync with `Params` in src/gpu/scan.rs.
+// Twin of `Params` in src/gpu/scan.rs (tests/bindings.rs compares the layouts).
 struct Params {
     // Entries of the level.
     len: u32,
@@ -25,8 +25,6 @@ struct Params {
     in_data: u32,
     // `scan`: 1 to add the carries of the next level; 0 for the last level.
     has_carry: u32,
-    _pad0: u32,
-    _pad1: u32,
 }
 
 // Keep in sync with src/gpu/scan.rs.

@@ -5,16 +5,30 @@ use crate::dem::model::{StepParams, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
+use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
 use crate::particles::Particles;
 
-/// The physics shared by the GPU steps (integration kernel included).
-pub(crate) const PHYSICS_WGSL: &str = include_str!("../../wgsl/dem_physics.wgsl");
-const FORCE_F32_WGSL: &str = include_str!("../../wgsl/dem_force_f32.wgsl");
-const FORCE_CAS_WGSL: &str = include_str!("../../wgsl/dem_force_cas.wgsl");
+/// The physics shared by the GPU steps (`wgsl/dem_physics.wgsl`, integration kernel included)
+/// and its force accumulators: the bindings it adds to the step module it ends.
+pub(crate) mod physics {
+    use crate::gpu::shader::Binding;
 
-/// Both force accumulators, by label suffix.
-pub(crate) const FORCE_VARIANTS: [(&str, &str); 2] =
-    [("f32", FORCE_F32_WGSL), ("cas", FORCE_CAS_WGSL)];
+    /// `wgsl/dem_physics.wgsl`.
+    pub const SOURCE: &str = include_str!("../../wgsl/dem_physics.wgsl");
+    pub(super) const FORCE_F32: &str = include_str!("../../wgsl/dem_force_f32.wgsl");
+    pub(super) const FORCE_CAS: &str = include_str!("../../wgsl/dem_force_cas.wgsl");
+
+    /// Both force accumulators, by label suffix.
+    pub const FORCE_VARIANTS: [(&str, &str); 2] = [("f32", FORCE_F32), ("cas", FORCE_CAS)];
+
+    pub const DEM: Binding = Binding::uniform(1, "dem");
+    pub const POS: Binding = Binding::read_write(10, "pos");
+    pub const VEL: Binding = Binding::read_write(11, "vel");
+    /// Declared by the force accumulator (`dem_force_*.wgsl`).
+    pub const FORCE: Binding = Binding::read_write(13, "force");
+    pub const CLOCK: Binding = Binding::read_write(16, "clock");
+    pub const BINDINGS: &[Binding] = &[DEM, POS, VEL, FORCE, CLOCK];
+}
 
 /// Workgroup size of every 256-wide kernel of the steps (as in the shaders).
 pub(crate) const GROUP: u32 = 256;
@@ -22,32 +36,55 @@ pub(crate) const GROUP: u32 = 256;
 /// Most steps recorded into one submission (and timed by one query set).
 pub(crate) const MAX_BATCH: u32 = 200;
 
-/// Keep in sync with `DemParams` in `wgsl/dem_physics.wgsl`.
+/// The step's parameters; twins: `DemParams` in `wgsl/dem_physics.wgsl` (laid out by `encase`,
+/// checked by `tests/bindings.rs`) and in `optix/physics.cuh`, which the OptiX step passes by
+/// value as plain `#[repr(C)]` data: for that twin alone the struct is `Pod` and spells out its
+/// 4-byte tail (`_pad1`), which the WGSL struct declares too so both layouts stay one.
 #[repr(C)]
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable, encase::ShaderType)]
 pub(crate) struct DemParams {
-    box_lo: [f32; 3],
+    box_lo: Vec3f,
     n: u32,
-    box_hi: [f32; 3],
+    box_hi: Vec3f,
+    /// Invocations per dispatch row of a 256-wide kernel.
     row: u32,
-    gravity: [f32; 3],
+    gravity: Vec3f,
     dt: f32,
     stiffness: f32,
     damping_ratio: f32,
     gravity_spin: f32,
     _pad1: u32,
 }
-const _: () = assert!(size_of::<DemParams>() == 64);
+const _: () = assert!(size_of::<DemParams>() == 64, "the CUDA twin's size");
+
+/// [`DemParams`] as a [`SharedStruct`].
+pub(crate) fn dem_params() -> SharedStruct {
+    shared_struct!(
+        "DemParams",
+        DemParams {
+            box_lo,
+            n,
+            box_hi,
+            row,
+            gravity,
+            dt,
+            stiffness,
+            damping_ratio,
+            gravity_spin,
+            _pad1,
+        }
+    )
+}
 
 impl DemParams {
     /// The block for `n` spheres dispatched in rows of `row` invocations.
     pub fn new(p: &StepParams, n: u32, row: u32) -> Self {
         Self {
-            box_lo: p.box_lo,
+            box_lo: p.box_lo.into(),
             n,
-            box_hi: p.box_hi,
+            box_hi: p.box_hi.into(),
             row,
-            gravity: p.gravity,
+            gravity: p.gravity.into(),
             dt: p.dt,
             stiffness: p.stiffness,
             damping_ratio: p.damping_ratio,
@@ -74,9 +111,9 @@ impl ForceAtomics {
             .features()
             .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
         if self == ForceAtomics::Auto && floats {
-            ("float atomics", FORCE_F32_WGSL)
+            ("float atomics", physics::FORCE_F32)
         } else {
-            ("compare-and-swap", FORCE_CAS_WGSL)
+            ("compare-and-swap", physics::FORCE_CAS)
         }
     }
 }

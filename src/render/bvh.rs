@@ -5,6 +5,7 @@
 //! CPU twin of `trace` in `wgsl/render_bvh.wgsl`.
 
 use super::shade::{INF, hit_sphere};
+use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
 
 /// Most spheres in one leaf.
 const LEAF_SIZE: usize = 4;
@@ -15,16 +16,19 @@ pub(crate) const STACK: usize = 64;
 /// One node of the flattened tree. An interior node (`count == 0`) has its left child right
 /// after it and its right child at `a`; a leaf holds the spheres `a..a + count`.
 ///
-/// Keep in sync with `Node` in `wgsl/render_bvh.wgsl`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+/// WGSL twin: `Node` in `wgsl/render_bvh.wgsl` (uploaded as a storage array).
+#[derive(Debug, Clone, Copy, PartialEq, encase::ShaderType)]
 pub(crate) struct Node {
-    pub lo: [f32; 3],
+    pub lo: Vec3f,
     pub a: u32,
-    pub hi: [f32; 3],
+    pub hi: Vec3f,
     pub count: u32,
 }
-const _: () = assert!(size_of::<Node>() == 32);
+
+/// [`Node`] as a [`SharedStruct`].
+pub(crate) fn node() -> SharedStruct {
+    shared_struct!("Node", Node { lo, a, hi, count })
+}
 
 /// Bits of a Morton key per axis.
 const MORTON_AXIS_BITS: u32 = 10;
@@ -94,9 +98,9 @@ fn build_range<T>(
     let at = nodes.len();
     let (bmin, bmax) = bounds(items[lo..hi].iter().map(|item| &item.0));
     nodes.push(Node {
-        lo: bmin,
+        lo: bmin.into(),
         a: lo as u32,
-        hi: bmax,
+        hi: bmax.into(),
         count: (hi - lo) as u32,
     });
     if hi - lo <= LEAF_SIZE {
