@@ -1,11 +1,13 @@
-//! What the GPU DEM steps share: the parameter block of `wgsl/dem_physics.wgsl`, the choice of
-//! force atomics, per-phase timestamps, and moving particles to and from the GPU.
+//! What the GPU DEM steps share: the physics module `wgsl/dem_physics.wgsl` (its bindings and
+//! parameter block), the choice of force atomics, per-phase timestamps, and moving particles to
+//! and from the GPU.
 
 use crate::dem::model::{StepParams, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
 use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
+use crate::gpu::timer::GpuTimer;
 use crate::particles::Particles;
 
 /// The physics shared by the GPU steps (`wgsl/dem_physics.wgsl`, integration kernel included)
@@ -119,55 +121,40 @@ impl ForceAtomics {
 }
 
 /// GPU timestamps of a batch of steps: the four phase boundaries (start, built, resolved,
-/// integrated) of each of its first *profiled* steps, then the batch's end. A step's phases are
-/// told apart only by recording them in passes of their own between timestamps, and every pass
-/// boundary and timestamp costs the GPU time (docs/PERFORMANCE.md). So a
-/// stepper may profile only its batch's first step and record the others in one compute pass;
-/// [`read`](Self::read) then splits the batch's whole time in the profiled steps' proportions.
-pub(crate) struct StepTimer {
-    queries: wgpu::QuerySet,
-    resolved: wgpu::Buffer,
-}
+/// integrated) of each of its first *profiled* steps, then the batch's end, in the slots of one
+/// [`GpuTimer`]. A step's phases are told apart only by recording them in passes of their own
+/// between timestamps, and every pass boundary and timestamp costs the GPU time
+/// (docs/PERFORMANCE.md). So a stepper may profile only its batch's first step and record the
+/// others in one compute pass; [`read`](Self::read) then splits the batch's whole time in the
+/// profiled steps' proportions.
+pub(crate) struct StepTimer(GpuTimer);
 
 impl StepTimer {
     /// A timer, or `None` where the device cannot write timestamps inside encoders.
     pub fn new(gpu: &Gpu) -> Option<Self> {
-        let needed =
-            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
-        gpu.device.features().contains(needed).then(|| StepTimer {
-            queries: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("mochi.dem.timer"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 4 * MAX_BATCH + 1,
-            }),
-            resolved: gpu.storage(
-                "mochi.dem.timer.resolved",
-                (4 * MAX_BATCH as u64 + 1) * 8,
-                wgpu::BufferUsages::QUERY_RESOLVE,
-            ),
-        })
+        GpuTimer::with_slots(gpu, "mochi.dem.timer", 4 * MAX_BATCH + 1).map(StepTimer)
     }
 
     /// Marks phase boundary `k` (0..4) of profiled step `s` of the batch (step 0 first).
     pub fn mark(timer: Option<&Self>, encoder: &mut wgpu::CommandEncoder, s: u32, k: u32) {
         if let Some(t) = timer {
-            encoder.write_timestamp(&t.queries, 4 * s + k);
+            t.0.mark(encoder, 4 * s + k);
         }
     }
 
     /// Marks the end of a batch whose first `profiled` steps (at least one) were marked, in
     /// the slot after theirs, and records the resolve of its timestamps.
     pub fn end(&self, encoder: &mut wgpu::CommandEncoder, profiled: u32) {
-        encoder.write_timestamp(&self.queries, 4 * profiled);
-        encoder.resolve_query_set(&self.queries, 0..4 * profiled + 1, &self.resolved, 0);
+        self.0.mark(encoder, 4 * profiled);
+        self.0.resolve(encoder, 0..4 * profiled + 1);
     }
 
     /// The phase times of the last batch (after it completed): its whole time, from the first
     /// step's start to its end, split in the proportions of its `profiled` steps' phases.
     pub fn read(&self, gpu: &Gpu, profiled: u32) -> Result<StageTimes> {
         let marks = 4 * profiled as usize;
-        let ticks: Vec<u64> = gpu.read(&self.resolved, marks + 1)?;
-        let period = gpu.queue.get_timestamp_period() as f64 * 1e-6;
+        let ticks = self.0.ticks(gpu, 0..4 * profiled + 1)?;
+        let period = GpuTimer::ms_per_tick(gpu);
         let span = |a: u64, b: u64| b.saturating_sub(a) as f64 * period;
         let mut phases = StageTimes::default();
         for t in ticks[..marks].chunks_exact(4) {
