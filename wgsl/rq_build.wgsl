@@ -17,6 +17,7 @@ struct BuildParams {
 @group(0) @binding(2) var<storage, read_write> keys: array<u32>;
 @group(0) @binding(3) var<storage, read_write> order: array<u32>;
 
+// The GPU twin of src/morton.rs (`spread`, `key`, `Grid::key`): the same keys.
 fn spread_bits(v: u32) -> u32 {
     var x = v & 0x3ffu;
     x = (x | (x << 16u)) & 0x030000ffu;

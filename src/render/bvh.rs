@@ -6,6 +6,7 @@
 
 use super::shade::{INF, hit_sphere};
 use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
+use crate::morton;
 
 /// Most spheres in one leaf.
 const LEAF_SIZE: usize = 4;
@@ -30,49 +31,11 @@ pub(crate) fn node() -> SharedStruct {
     shared_struct!("Node", Node { lo, a, hi, count })
 }
 
-/// Bits of a Morton key per axis.
-const MORTON_AXIS_BITS: u32 = 10;
-
-/// The order of `spheres` (`x, y, z, r`) along the Morton curve of their centres, with each
-/// sphere's key.
+/// The order of `spheres` (`x, y, z, r`) along the Morton curve of their centres
+/// ([`morton::order`]), with each sphere's key in that order.
 pub(crate) fn morton_order(spheres: &[[f32; 4]]) -> (Vec<u32>, Vec<u32>) {
-    let mut lo = [f32::INFINITY; 3];
-    let mut hi = [f32::NEG_INFINITY; 3];
-    for s in spheres {
-        for k in 0..3 {
-            lo[k] = lo[k].min(s[k]);
-            hi[k] = hi[k].max(s[k]);
-        }
-    }
-    let cells = (1u32 << MORTON_AXIS_BITS) as f64;
-    let scale = [0, 1, 2].map(|k| {
-        let extent = (hi[k] - lo[k]) as f64;
-        if extent > 0.0 {
-            (cells - 1.0) / extent
-        } else {
-            0.0
-        }
-    });
-    let key = |s: &[f32; 4]| {
-        (0..3).fold(0u32, |key, k| {
-            let cell = ((s[k] - lo[k]) as f64 * scale[k]) as u32;
-            key | spread(cell.min((1 << MORTON_AXIS_BITS) - 1)) << (2 - k)
-        })
-    };
-    let mut order: Vec<u32> = (0..spheres.len() as u32).collect();
-    let keys: Vec<u32> = spheres.iter().map(key).collect();
-    radsort::sort_by_key(&mut order, |&i| keys[i as usize]);
-    let sorted_keys = order.iter().map(|&i| keys[i as usize]).collect();
-    (order, sorted_keys)
-}
-
-/// Spreads the low 10 bits of `v` to every third bit.
-fn spread(v: u32) -> u32 {
-    let mut v = v & 0x3ff;
-    v = (v | (v << 16)) & 0x030000ff;
-    v = (v | (v << 8)) & 0x0300f00f;
-    v = (v | (v << 4)) & 0x030c30c3;
-    (v | (v << 2)) & 0x09249249
+    let centres: Vec<[f32; 3]> = spheres.iter().map(|s| [s[0], s[1], s[2]]).collect();
+    morton::order(&centres)
 }
 
 /// Builds the tree over `items` (a sphere `x, y, z, r` and its payload) already in Morton order

@@ -11,6 +11,7 @@ use crate::gpu::pair_output::PairOutput;
 use crate::gpu::radix_sort::RadixSort;
 use crate::gpu::timer::{self, GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
+use crate::morton;
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
@@ -24,9 +25,6 @@ const DETECT_SPAN: Span = Span(1);
 /// Workgroup sizes, as in the shaders.
 const BUILD_GROUP: u32 = 256;
 const PAIRS_GROUP: u32 = 64;
-
-/// Bits of the Morton keys (10 per axis).
-const MORTON_BITS: u32 = 30;
 
 /// The wgpu ray-query backend.
 pub struct WgpuRqBackend {
@@ -129,14 +127,11 @@ impl RebuildingBackend for WgpuRqBackend {
         };
         let (lo, hi) = spheres.bounds().expect("the set is not empty");
         let (x, y) = gpu.grid(n, BUILD_GROUP);
-        let scale: [f32; 3] = std::array::from_fn(|a| {
-            let extent = hi[a] - lo[a];
-            if extent > 0.0 { 1023.0 / extent } else { 0.0 }
-        });
+        let morton = morton::Grid::over(lo, hi);
         let params = BuildParams {
-            lo: lo.into(),
+            lo: morton.lo.into(),
             n,
-            scale: scale.into(),
+            scale: morton.scale.into(),
             mode: mode.code(),
             r_max: spheres.max_radius(),
             pad_rel: BOX_PADDING,
@@ -161,7 +156,7 @@ impl RebuildingBackend for WgpuRqBackend {
                     (x, y),
                 );
                 self.sort
-                    .encode(gpu, encoder, &accel.keys, &accel.ids, n, MORTON_BITS);
+                    .encode(gpu, encoder, &accel.keys, &accel.ids, n, morton::KEY_BITS);
                 gpu.pass(
                     encoder,
                     "mochi.rq.proxy_boxes",

@@ -34,7 +34,7 @@ pub(crate) mod rq_build {
         pub lo: Vec3f,
         /// Number of spheres.
         pub n: u32,
-        /// 1023 / extent per axis (0 where the extent is 0).
+        /// Morton cells per unit along each axis ([`morton::Grid`](crate::morton::Grid)).
         pub scale: Vec3f,
         /// [`ProxyMode::code`](crate::proxy::ProxyMode::code).
         pub mode: u32,
@@ -198,4 +198,68 @@ pub fn modules() -> Vec<WgslModule> {
         });
     }
     all
+}
+
+#[cfg(test)]
+mod tests {
+    use super::rq_build::{self, BuildParams};
+    use crate::gpu::{Gpu, Need};
+    use crate::morton;
+
+    #[test]
+    fn the_wgsl_morton_keys_are_the_host_ones() {
+        let gpu = match Gpu::open(Need::Compute) {
+            Ok(gpu) => gpu,
+            Err(why) => {
+                let ci = std::env::var("CI").is_ok_and(|v| v == "true");
+                assert!(!ci, "CI expects a GPU adapter for the Morton keys: {why}");
+                eprintln!("note: the WGSL Morton keys are not tested on this machine: {why}");
+                return;
+            }
+        };
+        // Corners, a flat axis, points between cells and on their borders.
+        let rows: Vec<[f32; 4]> = (0..1000u32)
+            .map(|i| {
+                let f = |m: u32, s: f32| ((i * m) % 997) as f32 * s - 3.0;
+                [f(7, 0.013), f(13, 1.0 / 1023.0), 2.5, 0.1]
+            })
+            .collect();
+        let centres: Vec<[f32; 3]> = rows.iter().map(|r| [r[0], r[1], r[2]]).collect();
+        let grid = morton::Grid::of(&centres);
+        let n = rows.len() as u32;
+        let params = BuildParams {
+            lo: grid.lo.into(),
+            n,
+            scale: grid.scale.into(),
+            row: 256 * n.div_ceil(256),
+            ..BuildParams::default()
+        };
+        let none = wgpu::BufferUsages::empty();
+        let uniform = gpu.uniform("test.morton.params", &params);
+        let spheres = gpu.storage("test.morton.spheres", u64::from(n) * 16, none);
+        let keys = gpu.storage("test.morton.keys", u64::from(n) * 4, none);
+        let order = gpu.storage("test.morton.order", u64::from(n) * 4, none);
+        gpu.queue
+            .write_buffer(&spheres, 0, bytemuck::cast_slice(&rows));
+        let module = gpu.module("test.morton", rq_build::SOURCE);
+        let pipeline = gpu.pipeline("test.morton", &module, "morton_keys");
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        gpu.pass(
+            &mut encoder,
+            "test.morton",
+            &pipeline,
+            &[
+                (rq_build::PARAMS, &uniform),
+                (rq_build::SPHERES_IN, &spheres),
+                (rq_build::KEYS, &keys),
+                (rq_build::ORDER, &order),
+            ],
+            (n.div_ceil(256), 1),
+        );
+        gpu.queue.submit([encoder.finish()]);
+        let got: Vec<u32> = gpu.read(&keys, rows.len()).unwrap();
+        for (i, (&key, &c)) in got.iter().zip(&centres).enumerate() {
+            assert_eq!(key, grid.key(c), "sphere {i} at {c:?}");
+        }
+    }
 }
