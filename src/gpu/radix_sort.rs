@@ -22,7 +22,10 @@ use encase::{DynamicUniformBuffer, ShaderSize};
 use std::num::NonZeroU64;
 
 /// The shader, embedded.
-const SOURCE: &str = include_str!("../../wgsl/radix_sort.wgsl");
+const SOURCE: &str = concat!(
+    include_str!("../../wgsl/radix_sort.wgsl"),
+    include_str!("../../wgsl/workgroup_scan.wgsl")
+);
 const ENTRY_POINTS: &[&str] = &["histogram", "scatter"];
 
 const PARAMS: Binding = Binding::uniform(0, "params");

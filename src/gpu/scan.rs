@@ -18,7 +18,10 @@ use encase::{DynamicUniformBuffer, ShaderSize};
 use std::num::NonZeroU64;
 
 /// The shader, embedded.
-const SOURCE: &str = include_str!("../../wgsl/scan.wgsl");
+const SOURCE: &str = concat!(
+    include_str!("../../wgsl/scan.wgsl"),
+    include_str!("../../wgsl/workgroup_scan.wgsl")
+);
 const ENTRY_POINTS: &[&str] = &["reduce", "scan"];
 
 const PARAMS: Binding = Binding::uniform(0, "params");
