@@ -42,6 +42,7 @@ mod error;
 pub mod gpu;
 pub mod io;
 pub mod mesh;
+mod morton;
 pub mod oracle;
 mod particles;
 pub mod proxy;

@@ -9,6 +9,11 @@ mod common;
 
 use common::rule_cases::{assert_same_decisions, cases, records};
 use mochi::ProxyMode;
+use mochi::gpu::shader::Binding;
+
+/// The test kernel's bindings.
+const CASES: Binding = Binding::read(0, "cases");
+const KEPT: Binding = Binding::read_write(1, "kept");
 
 const KERNEL: &str = r#"
 struct Case { c_i: vec3<f32>, r_i: f32, c_j: vec3<f32>, r_j: f32, i: u32, j: u32, mode: u32, _pad: u32 }
@@ -52,7 +57,7 @@ fn wgsl_rule_matches_the_rust_rule() {
                 &mut encoder,
                 "mochi.test.proxy_parity",
                 &pipeline,
-                &[(0, &input), (1, &output)],
+                &[(CASES, &input), (KEPT, &output)],
                 ((cases.len() as u32).div_ceil(64), 1),
             );
             gpu.queue.submit([encoder.finish()]);

@@ -4,15 +4,13 @@
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
 fn all_shaders() -> Vec<(String, String)> {
-    let mut all: Vec<(String, String)> = mochi::gpu::radix_sort::SHADERS
-        .iter()
-        .chain(&mochi::gpu::scan::SHADERS)
-        .chain(&mochi::render::SHADERS)
-        .map(|&(name, source)| (name.to_owned(), source.to_owned()))
-        .collect();
-    all.extend(mochi::engines::wgpu_compute::shaders());
-    all.extend(mochi::engines::wgpu_rq::shaders());
-    all
+    mochi::gpu::shaders()
+        .into_iter()
+        .chain(mochi::render::shaders())
+        .chain(mochi::engines::wgpu_compute::shaders())
+        .chain(mochi::engines::wgpu_rq::shaders())
+        .map(|m| (m.label, m.source))
+        .collect()
 }
 
 #[test]

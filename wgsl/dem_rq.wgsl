@@ -5,7 +5,7 @@
 // rq_walk.wgsl, dem_physics.wgsl, a dem_force_*.wgsl and proxy.wgsl appended.
 enable wgpu_ray_query;
 
-// Keep in sync with RqParams in src/engines/wgpu_rq/dem.rs.
+// Twin of RqParams in src/engines/wgpu_rq/shaders.rs (tests/bindings.rs compares the layouts).
 struct RqParams {
     chunk: u32,      // primitives per BLAS: sphere index = custom_data * chunk + primitive_index
     pad_rel: f32,    // relative padding of the boxes

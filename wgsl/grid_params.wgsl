@@ -1,6 +1,7 @@
 // The grid's parameters and cell functions, shared by grid_build.wgsl, cell_scan.wgsl,
 // grid_pairs.wgsl and dem_grid.wgsl (the last two with grid_stencil.wgsl, which searches the
-// cells). Keep in sync with GridParams in src/engines/wgpu_compute/layout.rs.
+// cells). Twin of GridParams in src/engines/wgpu_compute/layout.rs (tests/bindings.rs compares
+// the layouts).
 //
 // A grid has one level (cells of the largest proxy; its table dense or hashed) or several dense
 // levels (the multi-level proxy grid of docs/method.md): level `levels - 1` is the top, with cells of
@@ -23,9 +24,6 @@ struct GridParams {
     level_pad: f32,     // 1 + relative padding: sphere i lives where cell ≥ 2·r_i·level_pad
     block_shift: u32,   // the table's blocks for the scan (cell_scan.wgsl): 1 << block_shift entries
     max_radius: f32,    // largest radius, padded (grid_stencil.wgsl's windows)
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
     level_first: array<vec4<u32>, 2>, // dense: table index of each level's first cell
 }
 

@@ -8,9 +8,10 @@
 //   3. `scatter`: block b ranks its pairs per digit (stable) and writes each to
 //      hist[d * blocks + b] + its rank among the block's pairs of digit d.
 // No subgroup operations: ranks come from per-thread counts and workgroup-memory prefix sums.
+// Needs workgroup_scan.wgsl appended (the scan across the workgroup's threads).
 
 // Parameters of one pass; 16 bytes, one slot per pass (dynamic uniform offset).
-// Keep in sync with `Params` in src/gpu/radix_sort.rs.
+// Twin of `Params` in src/gpu/radix_sort.rs (tests/bindings.rs compares the layouts).
 struct Params {
     // Number of pairs to sort.
     n: u32,
@@ -41,7 +42,7 @@ const CHUNKS: u32 = 8u;          // WG / RADIX: counter chunks of RADIX entries 
 // stored with one pad word after every RADIX entries so that a thread walking its own RADIX
 // consecutive entries does not hit the same bank as its neighbours.
 var<workgroup> counts: array<u32, RADIX * WG + WG>;
-// One value per thread, for block-wide scans and reductions.
+// One value per thread, for the block-wide sums of `histogram`.
 var<workgroup> partial: array<u32, WG>;
 // Per digit: global start of the block's run of that digit minus its start inside the block.
 var<workgroup> delta: array<u32, RADIX>;
@@ -92,19 +93,6 @@ fn chunk_sum(t: u32) -> u32 {
     return sum;
 }
 
-// Inclusive scan of `partial` (WG entries), Hillis-Steele; all threads must call it.
-fn scan_partial(t: u32) {
-    for (var off = 1u; off < WG; off <<= 1u) {
-        var add = 0u;
-        if (t >= off) {
-            add = partial[t - off];
-        }
-        workgroupBarrier();
-        partial[t] += add;
-        workgroupBarrier();
-    }
-}
-
 // Step 1: hist[d * blocks + b] = number of pairs of digit d in sort block b.
 @compute @workgroup_size(128)
 fn histogram(
@@ -146,10 +134,7 @@ fn scatter(
     // Exclusive scan of `counts` in digit-major order: each thread its chunk of RADIX entries,
     // then the chunk totals across threads.
     let sum = chunk_sum(t);
-    partial[t] = sum;
-    workgroupBarrier();
-    scan_partial(t);
-    var run = partial[t] - sum;
+    var run = shared_scan(t, sum).x - sum;
     for (var j = 0u; j < RADIX; j++) {
         let s = slot_flat(t * RADIX + j);
         let c = counts[s];

@@ -2,7 +2,7 @@
 // nearest child first, with a fixed stack. render_common.wgsl is appended to this file.
 // Keep in sync, line for line, with `trace` in src/render/bvh.rs.
 
-// Keep in sync with Node in src/render/bvh.rs. Interior (count == 0): left child at index + 1,
+// Twin of Node in src/render/bvh.rs (tests/bindings.rs compares the layouts). Interior (count == 0): left child at index + 1,
 // right child at `a`; leaf: spheres a .. a + count.
 struct Node {
     lo: vec3<f32>,

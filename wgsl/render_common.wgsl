@@ -3,7 +3,7 @@
 // first and defines `fn trace(o, d, t_max, first) -> Hit`.
 // Keep in sync, line for line, with src/render/shade.rs (the CPU twin).
 
-// Keep in sync with ViewUniform in src/render/gpu.rs.
+// Twin of View in src/render/shaders.rs (tests/bindings.rs compares the layouts).
 struct View {
     eye: vec3<f32>,
     width: u32,      // picture width [pixels]
@@ -18,7 +18,6 @@ struct View {
     floor_lo: vec3<f32>,
     floor_on: u32,   // 1: draw the floor z = floor_lo.z over floor_lo.xy .. floor_hi.xy
     floor_hi: vec3<f32>,
-    _pad0: u32,
 }
 
 struct Hit {

@@ -1,7 +1,7 @@
 // Build stage of the wgpu-rq backend: Morton keys of the centres, then the spheres reordered by
 // key and their proxy boxes. Needs proxy.wgsl prepended.
 
-// Keep in sync with BuildParams in src/engines/wgpu_rq/detect.rs.
+// Twin of BuildParams in src/engines/wgpu_rq/shaders.rs (tests/bindings.rs compares the layouts).
 struct BuildParams {
     lo: vec3<f32>,      // lower corner of the centres' bounding box
     n: u32,             // number of spheres
@@ -10,7 +10,6 @@ struct BuildParams {
     r_max: f32,         // largest radius
     pad_rel: f32,       // relative padding of the boxes
     row: u32,           // invocations per dispatch row (2-D dispatch)
-    _pad0: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: BuildParams;
@@ -18,6 +17,7 @@ struct BuildParams {
 @group(0) @binding(2) var<storage, read_write> keys: array<u32>;
 @group(0) @binding(3) var<storage, read_write> order: array<u32>;
 
+// The GPU twin of src/morton.rs (`spread`, `key`, `Grid::key`): the same keys.
 fn spread_bits(v: u32) -> u32 {
     var x = v & 0x3ffu;
     x = (x | (x << 16u)) & 0x030000ffu;

@@ -3,16 +3,13 @@
 // (pair_output.wgsl), the three appended to this file.
 enable wgpu_ray_query;
 
-// Keep in sync with PairParams in src/engines/wgpu_rq/detect.rs.
+// Twin of PairParams in src/engines/wgpu_rq/shaders.rs (tests/bindings.rs compares the layouts).
 struct PairParams {
     n: u32,          // number of spheres
     capacity: u32,   // room in `pairs`
     mode: u32,       // MODE_MOCHI or MODE_NNS
     chunk: u32,      // primitives per BLAS: sorted index = custom_data * chunk + primitive_index
     row: u32,        // invocations per dispatch row (2-D dispatch)
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: PairParams;

@@ -7,10 +7,11 @@
 //   2. `scan` on every level, top down: block b scans its entries in place and adds the scanned
 //      total of the blocks before it (entry b of the next level, already scanned; the last level
 //      has none).
-// Level 0 is read twice and written once. No subgroup operations.
+// Level 0 is read twice and written once. No subgroup operations. Needs workgroup_scan.wgsl
+// appended (the scan across the workgroup's threads, and its `part` array).
 
-// Parameters of one dispatch; 32 bytes, one slot per dispatch (dynamic uniform offset).
-// Keep in sync with `Params` in src/gpu/scan.rs.
+// Parameters of one dispatch; one slot per dispatch (dynamic uniform offset).
+// Twin of `Params` in src/gpu/scan.rs (tests/bindings.rs compares the layouts).
 struct Params {
     // Entries of the level.
     len: u32,
@@ -25,8 +26,6 @@ struct Params {
     in_data: u32,
     // `scan`: 1 to add the carries of the next level; 0 for the last level.
     has_carry: u32,
-    _pad0: u32,
-    _pad1: u32,
 }
 
 // Keep in sync with src/gpu/scan.rs.
@@ -42,8 +41,7 @@ const TILE: u32 = 1056u;   // BLOCK + BLOCK / 32: one pad word per 32 entries
 // The block's entries, with a pad word after every 32 so that thread t reading its ITEMS
 // consecutive entries avoids the banks of its neighbours.
 var<workgroup> tile: array<u32, TILE>;
-// Per-thread totals, ping-pong halves of WG entries for the scan across threads.
-var<workgroup> part: array<u32, 2u * WG>;
+// `part` (workgroup_scan.wgsl): per-thread totals; `reduce` sums them in its first WG entries.
 
 fn pad(k: u32) -> u32 {
     return k + (k >> 5u);
@@ -134,25 +132,12 @@ fn scan(
         sum += x;
     }
 
-    // Inclusive scan of the thread totals (Hillis-Steele, ping-pong: one barrier per step).
-    part[t] = sum;
-    workgroupBarrier();
-    var cur = 0u;
-    for (var off = 1u; off < WG; off <<= 1u) {
-        var x = part[cur + t];
-        if (t >= off) {
-            x += part[cur + t - off];
-        }
-        cur = WG - cur;
-        part[cur + t] = x;
-        workgroupBarrier();
-    }
-
-    var before = part[cur + t] - sum;
+    // Exclusive scan of the thread totals.
+    var before = shared_scan(t, sum).x - sum;
     if (params.has_carry != 0u) {
         before += sums[params.dst + block];
     }
-    // Only thread t read these slots, before the barriers above.
+    // Only thread t read these slots, before the barriers of the scan.
     for (var j = 0u; j < ITEMS; j++) {
         tile[pad(t * ITEMS + j)] = before + v[j];
     }

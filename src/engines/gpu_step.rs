@@ -1,20 +1,36 @@
-//! What the GPU DEM steps share: the parameter block of `wgsl/dem_physics.wgsl`, the choice of
-//! force atomics, per-phase timestamps, and moving particles to and from the GPU.
+//! What the GPU DEM steps share: the physics module `wgsl/dem_physics.wgsl` (its bindings and
+//! parameter block), the choice of force atomics, per-phase timestamps, and moving particles to
+//! and from the GPU.
 
 use crate::dem::model::{StepParams, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::error::Result;
 use crate::gpu::Gpu;
+use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
+use crate::gpu::timer::GpuTimer;
 use crate::particles::Particles;
 
-/// The physics shared by the GPU steps (integration kernel included).
-pub(crate) const PHYSICS_WGSL: &str = include_str!("../../wgsl/dem_physics.wgsl");
-const FORCE_F32_WGSL: &str = include_str!("../../wgsl/dem_force_f32.wgsl");
-const FORCE_CAS_WGSL: &str = include_str!("../../wgsl/dem_force_cas.wgsl");
+/// The physics shared by the GPU steps (`wgsl/dem_physics.wgsl`, integration kernel included)
+/// and its force accumulators: the bindings it adds to the step module it ends.
+pub(crate) mod physics {
+    use crate::gpu::shader::Binding;
 
-/// Both force accumulators, by label suffix.
-pub(crate) const FORCE_VARIANTS: [(&str, &str); 2] =
-    [("f32", FORCE_F32_WGSL), ("cas", FORCE_CAS_WGSL)];
+    /// `wgsl/dem_physics.wgsl`.
+    pub const SOURCE: &str = include_str!("../../wgsl/dem_physics.wgsl");
+    pub(super) const FORCE_F32: &str = include_str!("../../wgsl/dem_force_f32.wgsl");
+    pub(super) const FORCE_CAS: &str = include_str!("../../wgsl/dem_force_cas.wgsl");
+
+    /// Both force accumulators, by label suffix.
+    pub const FORCE_VARIANTS: [(&str, &str); 2] = [("f32", FORCE_F32), ("cas", FORCE_CAS)];
+
+    pub const DEM: Binding = Binding::uniform(1, "dem");
+    pub const POS: Binding = Binding::read_write(10, "pos");
+    pub const VEL: Binding = Binding::read_write(11, "vel");
+    /// Declared by the force accumulator (`dem_force_*.wgsl`).
+    pub const FORCE: Binding = Binding::read_write(13, "force");
+    pub const CLOCK: Binding = Binding::read_write(16, "clock");
+    pub const BINDINGS: &[Binding] = &[DEM, POS, VEL, FORCE, CLOCK];
+}
 
 /// Workgroup size of every 256-wide kernel of the steps (as in the shaders).
 pub(crate) const GROUP: u32 = 256;
@@ -22,32 +38,55 @@ pub(crate) const GROUP: u32 = 256;
 /// Most steps recorded into one submission (and timed by one query set).
 pub(crate) const MAX_BATCH: u32 = 200;
 
-/// Keep in sync with `DemParams` in `wgsl/dem_physics.wgsl`.
+/// The step's parameters; twins: `DemParams` in `wgsl/dem_physics.wgsl` (laid out by `encase`,
+/// checked by `tests/bindings.rs`) and in `optix/physics.cuh`, which the OptiX step passes by
+/// value as plain `#[repr(C)]` data: for that twin alone the struct is `Pod` and spells out its
+/// 4-byte tail (`_pad1`), which the WGSL struct declares too so both layouts stay one.
 #[repr(C)]
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable, encase::ShaderType)]
 pub(crate) struct DemParams {
-    box_lo: [f32; 3],
+    box_lo: Vec3f,
     n: u32,
-    box_hi: [f32; 3],
+    box_hi: Vec3f,
+    /// Invocations per dispatch row of a 256-wide kernel.
     row: u32,
-    gravity: [f32; 3],
+    gravity: Vec3f,
     dt: f32,
     stiffness: f32,
     damping_ratio: f32,
     gravity_spin: f32,
     _pad1: u32,
 }
-const _: () = assert!(size_of::<DemParams>() == 64);
+const _: () = assert!(size_of::<DemParams>() == 64, "the CUDA twin's size");
+
+/// [`DemParams`] as a [`SharedStruct`].
+pub(crate) fn dem_params() -> SharedStruct {
+    shared_struct!(
+        "DemParams",
+        DemParams {
+            box_lo,
+            n,
+            box_hi,
+            row,
+            gravity,
+            dt,
+            stiffness,
+            damping_ratio,
+            gravity_spin,
+            _pad1,
+        }
+    )
+}
 
 impl DemParams {
     /// The block for `n` spheres dispatched in rows of `row` invocations.
     pub fn new(p: &StepParams, n: u32, row: u32) -> Self {
         Self {
-            box_lo: p.box_lo,
+            box_lo: p.box_lo.into(),
             n,
-            box_hi: p.box_hi,
+            box_hi: p.box_hi.into(),
             row,
-            gravity: p.gravity,
+            gravity: p.gravity.into(),
             dt: p.dt,
             stiffness: p.stiffness,
             damping_ratio: p.damping_ratio,
@@ -74,63 +113,48 @@ impl ForceAtomics {
             .features()
             .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
         if self == ForceAtomics::Auto && floats {
-            ("float atomics", FORCE_F32_WGSL)
+            ("float atomics", physics::FORCE_F32)
         } else {
-            ("compare-and-swap", FORCE_CAS_WGSL)
+            ("compare-and-swap", physics::FORCE_CAS)
         }
     }
 }
 
 /// GPU timestamps of a batch of steps: the four phase boundaries (start, built, resolved,
-/// integrated) of each of its first *profiled* steps, then the batch's end. A step's phases are
-/// told apart only by recording them in passes of their own between timestamps, and every pass
-/// boundary and timestamp costs the GPU time (docs/PERFORMANCE.md). So a
-/// stepper may profile only its batch's first step and record the others in one compute pass;
-/// [`read`](Self::read) then splits the batch's whole time in the profiled steps' proportions.
-pub(crate) struct StepTimer {
-    queries: wgpu::QuerySet,
-    resolved: wgpu::Buffer,
-}
+/// integrated) of each of its first *profiled* steps, then the batch's end, in the slots of one
+/// [`GpuTimer`]. A step's phases are told apart only by recording them in passes of their own
+/// between timestamps, and every pass boundary and timestamp costs the GPU time
+/// (docs/PERFORMANCE.md). So a stepper may profile only its batch's first step and record the
+/// others in one compute pass; [`read`](Self::read) then splits the batch's whole time in the
+/// profiled steps' proportions.
+pub(crate) struct StepTimer(GpuTimer);
 
 impl StepTimer {
     /// A timer, or `None` where the device cannot write timestamps inside encoders.
     pub fn new(gpu: &Gpu) -> Option<Self> {
-        let needed =
-            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
-        gpu.device.features().contains(needed).then(|| StepTimer {
-            queries: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("mochi.dem.timer"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 4 * MAX_BATCH + 1,
-            }),
-            resolved: gpu.storage(
-                "mochi.dem.timer.resolved",
-                (4 * MAX_BATCH as u64 + 1) * 8,
-                wgpu::BufferUsages::QUERY_RESOLVE,
-            ),
-        })
+        GpuTimer::with_slots(gpu, "mochi.dem.timer", 4 * MAX_BATCH + 1).map(StepTimer)
     }
 
     /// Marks phase boundary `k` (0..4) of profiled step `s` of the batch (step 0 first).
     pub fn mark(timer: Option<&Self>, encoder: &mut wgpu::CommandEncoder, s: u32, k: u32) {
         if let Some(t) = timer {
-            encoder.write_timestamp(&t.queries, 4 * s + k);
+            t.0.mark(encoder, 4 * s + k);
         }
     }
 
     /// Marks the end of a batch whose first `profiled` steps (at least one) were marked, in
     /// the slot after theirs, and records the resolve of its timestamps.
     pub fn end(&self, encoder: &mut wgpu::CommandEncoder, profiled: u32) {
-        encoder.write_timestamp(&self.queries, 4 * profiled);
-        encoder.resolve_query_set(&self.queries, 0..4 * profiled + 1, &self.resolved, 0);
+        self.0.mark(encoder, 4 * profiled);
+        self.0.resolve(encoder, 0..4 * profiled + 1);
     }
 
     /// The phase times of the last batch (after it completed): its whole time, from the first
     /// step's start to its end, split in the proportions of its `profiled` steps' phases.
     pub fn read(&self, gpu: &Gpu, profiled: u32) -> Result<StageTimes> {
         let marks = 4 * profiled as usize;
-        let ticks: Vec<u64> = gpu.read(&self.resolved, marks + 1)?;
-        let period = gpu.queue.get_timestamp_period() as f64 * 1e-6;
+        let ticks = self.0.ticks(gpu, 0..4 * profiled + 1)?;
+        let period = GpuTimer::ms_per_tick(gpu);
         let span = |a: u64, b: u64| b.saturating_sub(a) as f64 * period;
         let mut phases = StageTimes::default();
         for t in ticks[..marks].chunks_exact(4) {

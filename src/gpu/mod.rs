@@ -4,10 +4,22 @@
 pub mod pair_output;
 pub mod radix_sort;
 pub mod scan;
+pub mod shader;
 pub mod timer;
 
 use crate::error::{Error, Result};
+use shader::Binding;
+use shader::WgslModule;
 use std::sync::OnceLock;
+
+/// The WGSL modules of the shared plumbing (scan and radix sort), exactly as the device gets them.
+pub fn shaders() -> Vec<WgslModule> {
+    vec![scan::module(), radix_sort::module()]
+}
+
+/// Bytes of one box in a BLAS's AABB input: two `vec3<f32>`, min then max (as
+/// `wgsl/rq_build.wgsl` and `wgsl/dem_rq.wgsl` write them: 6 floats per box).
+pub const AABB_STRIDE: u64 = 24;
 
 /// What a backend needs from an adapter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -212,23 +224,23 @@ impl Gpu {
             })
     }
 
-    /// A bind group for `pipeline`'s group 0 with each buffer at its binding number.
+    /// A bind group for `pipeline`'s group 0 with each buffer at its binding.
     pub fn bind(
         &self,
         label: &str,
         pipeline: &wgpu::ComputePipeline,
-        buffers: &[(u32, &wgpu::Buffer)],
+        buffers: &[(Binding, &wgpu::Buffer)],
     ) -> wgpu::BindGroup {
         self.bind_entries(label, pipeline, buffers, None)
     }
 
-    /// As [`bind`](Self::bind), with the acceleration structure `tlas` at its binding number too.
+    /// As [`bind`](Self::bind), with the acceleration structure `tlas` at its binding too.
     pub fn bind_with_tlas(
         &self,
         label: &str,
         pipeline: &wgpu::ComputePipeline,
-        buffers: &[(u32, &wgpu::Buffer)],
-        tlas: (u32, &wgpu::Tlas),
+        buffers: &[(Binding, &wgpu::Buffer)],
+        tlas: (Binding, &wgpu::Tlas),
     ) -> wgpu::BindGroup {
         self.bind_entries(label, pipeline, buffers, Some(tlas))
     }
@@ -237,19 +249,22 @@ impl Gpu {
         &self,
         label: &str,
         pipeline: &wgpu::ComputePipeline,
-        buffers: &[(u32, &wgpu::Buffer)],
-        tlas: Option<(u32, &wgpu::Tlas)>,
+        buffers: &[(Binding, &wgpu::Buffer)],
+        tlas: Option<(Binding, &wgpu::Tlas)>,
     ) -> wgpu::BindGroup {
         let mut entries: Vec<_> = buffers
             .iter()
-            .map(|&(binding, b)| wgpu::BindGroupEntry {
-                binding,
-                resource: b.as_entire_binding(),
+            .map(|&(at, b)| {
+                debug_assert_eq!(at.group, 0, "{label}: {} is not in group 0", at.name);
+                wgpu::BindGroupEntry {
+                    binding: at.binding,
+                    resource: b.as_entire_binding(),
+                }
             })
             .collect();
-        if let Some((binding, tlas)) = tlas {
+        if let Some((at, tlas)) = tlas {
             entries.push(wgpu::BindGroupEntry {
-                binding,
+                binding: at.binding,
                 resource: wgpu::BindingResource::AccelerationStructure(tlas),
             });
         }
@@ -260,17 +275,29 @@ impl Gpu {
         })
     }
 
-    /// A uniform buffer holding `value`.
-    pub fn uniform<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
+    /// A uniform buffer holding `value` (laid out by `encase`), its size rounded up to 16 bytes.
+    pub fn uniform<T>(&self, label: &str, value: &T) -> wgpu::Buffer
+    where
+        T: encase::ShaderType + encase::ShaderSize + encase::internal::WriteInto,
+    {
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
-            size: size_of::<T>() as u64,
+            size: T::SHADER_SIZE.get().next_multiple_of(16),
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        self.queue
-            .write_buffer(&buffer, 0, bytemuck::bytes_of(value));
+        self.write_uniform(&buffer, value);
         buffer
+    }
+
+    /// Writes `value` into the uniform buffer `buffer` (made by [`uniform`](Self::uniform) for
+    /// its type), ahead of the commands submitted next.
+    pub fn write_uniform<T>(&self, buffer: &wgpu::Buffer, value: &T)
+    where
+        T: encase::ShaderType + encase::ShaderSize + encase::internal::WriteInto,
+    {
+        self.queue
+            .write_buffer(buffer, 0, &shader::uniform_bytes(value));
     }
 
     /// Records one compute pass of `pipeline` with `bind` at group 0 over the workgroups `(x, y)`.
@@ -296,7 +323,7 @@ impl Gpu {
         encoder: &mut wgpu::CommandEncoder,
         label: &str,
         pipeline: &wgpu::ComputePipeline,
-        buffers: &[(u32, &wgpu::Buffer)],
+        buffers: &[(Binding, &wgpu::Buffer)],
         groups: (u32, u32),
     ) {
         let bind = self.bind(label, pipeline, buffers);

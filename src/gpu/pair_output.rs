@@ -3,15 +3,16 @@
 //! reruns until every pair fits. Nothing is ever truncated.
 
 use super::Gpu;
+use super::shader::Binding;
 use crate::error::{Error, Result};
 use crate::types::DetectStats;
 use crate::types::Pair;
 use rayon::slice::ParallelSliceMut;
 
-/// Binding of the counters in every detection shader (`pair_output.wgsl`).
-pub const COUNTERS_BINDING: u32 = 3;
-/// Binding of the pair buffer in every detection shader.
-pub const PAIRS_BINDING: u32 = 4;
+/// The counters in every detection shader (`pair_output.wgsl`).
+pub const COUNTERS: Binding = Binding::read_write(3, "counters");
+/// The pair buffer in every detection shader.
+pub const PAIRS: Binding = Binding::read_write(4, "pairs");
 
 /// GPU buffers receiving the pairs of one detection.
 pub struct PairOutput {

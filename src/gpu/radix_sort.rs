@@ -12,17 +12,48 @@
 //!
 //! Passes ping-pong between the caller's buffers and two scratch buffers; after an odd number of
 //! passes the result is copied back, so it always ends in the caller's buffers.
-//! The shader is `wgsl/radix_sort.wgsl`; its constants and `Params` mirror the ones here.
+//! The shader is `wgsl/radix_sort.wgsl`; its constants mirror the ones here, and its bindings
+//! and `Params` are [`module`]'s (checked by `tests/bindings.rs`).
 
 use super::scan::ExclusiveScan;
+use super::shader::{Binding, WgslModule, shared_struct};
 use super::{Gpu, workgroups};
+use encase::{DynamicUniformBuffer, ShaderSize};
 use std::num::NonZeroU64;
 
 /// The shader, embedded.
-const SOURCE: &str = include_str!("../../wgsl/radix_sort.wgsl");
+const SOURCE: &str = concat!(
+    include_str!("../../wgsl/radix_sort.wgsl"),
+    include_str!("../../wgsl/workgroup_scan.wgsl")
+);
+const ENTRY_POINTS: &[&str] = &["histogram", "scatter"];
 
-/// Every WGSL module of the sort, by label, exactly as the device gets it.
-pub const SHADERS: [(&str, &str); 1] = [("radix_sort", SOURCE)];
+const PARAMS: Binding = Binding::uniform(0, "params");
+/// A pass reads the pairs from `KEYS_IN`/`VALUES_IN` and writes them to `KEYS_OUT`/`VALUES_OUT`.
+const KEYS_IN: Binding = Binding::read(1, "keys_in");
+const VALUES_IN: Binding = Binding::read(2, "values_in");
+const KEYS_OUT: Binding = Binding::read_write(3, "keys_out");
+const VALUES_OUT: Binding = Binding::read_write(4, "values_out");
+const HIST: Binding = Binding::read_write(5, "hist");
+
+/// The sort's WGSL module, exactly as the device gets it.
+pub fn module() -> WgslModule {
+    WgslModule {
+        label: "radix_sort".into(),
+        source: SOURCE.into(),
+        entry_points: ENTRY_POINTS,
+        bindings: vec![PARAMS, KEYS_IN, VALUES_IN, KEYS_OUT, VALUES_OUT, HIST],
+        structs: vec![shared_struct!(
+            "Params",
+            Params {
+                n,
+                shift,
+                key_mask,
+                blocks,
+            }
+        )],
+    }
+}
 
 /// Bits per digit, i.e. per pass (keep in sync with `RADIX_BITS` in the shader).
 const RADIX_BITS: u32 = 4;
@@ -31,8 +62,7 @@ pub const BLOCK: u32 = 2048;
 
 /// Parameters of one pass (its histogram and scatter). WGSL twin: `Params` in
 /// `wgsl/radix_sort.wgsl`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Debug, Clone, Copy, Default, encase::ShaderType)]
 struct Params {
     /// Number of pairs to sort.
     n: u32,
@@ -43,10 +73,9 @@ struct Params {
     /// Sort blocks (workgroups doing work).
     blocks: u32,
 }
-const _: () = assert!(size_of::<Params>() == 16);
 
 /// Size of [`Params`] \[bytes\].
-const PARAMS_SIZE: u64 = size_of::<Params>() as u64;
+const PARAMS_SIZE: u64 = Params::SHADER_SIZE.get();
 
 /// The two sort kernels of a pass.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -149,8 +178,7 @@ impl RadixSort {
         let scan = self.scan.prepare(gpu, &scratch.hist, 0, hist_len);
 
         let passes = plan(n, key_bits);
-        let stride = param_stride(gpu);
-        let params = params_buffer(gpu, &passes, stride);
+        let (params, offsets) = params_buffer(gpu, &passes);
         let from_caller = self.bind(
             gpu,
             "mochi.sort.bind.caller_to_scratch",
@@ -174,9 +202,7 @@ impl RadixSort {
                 timestamp_writes: None,
             });
             let groups = workgroups(n, BLOCK, gpu.limits.max_compute_workgroups_per_dimension);
-            for k in 0..passes.len() {
-                let offset = u32::try_from(k as u64 * stride)
-                    .expect("the params buffer of one sort is far below 4 GiB");
+            for (k, &offset) in offsets.iter().enumerate() {
                 // Even passes read the caller's buffers, odd ones the scratch.
                 let bind = if k % 2 == 0 {
                     &from_caller
@@ -249,17 +275,20 @@ impl RadixSort {
             })
         };
         let mut entries = vec![wgpu::BindGroupEntry {
-            binding: 0,
+            binding: PARAMS.binding,
             resource: sized(params, PARAMS_SIZE),
         }];
-        for (k, buffer) in io.into_iter().enumerate() {
+        for (at, buffer) in [KEYS_IN, VALUES_IN, KEYS_OUT, VALUES_OUT]
+            .into_iter()
+            .zip(io)
+        {
             entries.push(wgpu::BindGroupEntry {
-                binding: 1 + k as u32,
+                binding: at.binding,
                 resource: sized(buffer, bytes),
             });
         }
         entries.push(wgpu::BindGroupEntry {
-            binding: 5,
+            binding: HIST.binding,
             resource: hist.as_entire_binding(),
         });
         gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -272,36 +301,17 @@ impl RadixSort {
 
 /// The bind-group layout both kernels share; the shader's `@group(0)` bindings.
 fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
-    let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    };
-    let params = wgpu::BindGroupLayoutEntry {
-        binding: 0,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: true,
-            min_binding_size: NonZeroU64::new(PARAMS_SIZE),
-        },
-        count: None,
-    };
+    let storage = |at: Binding| at.layout_entry(false, None);
     gpu.device
         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("mochi.sort.bind_group_layout"),
             entries: &[
-                params,
-                storage(1, true),  // keys_in
-                storage(2, true),  // values_in
-                storage(3, false), // keys_out
-                storage(4, false), // values_out
-                storage(5, false), // hist
+                PARAMS.layout_entry(true, NonZeroU64::new(PARAMS_SIZE)),
+                storage(KEYS_IN),
+                storage(VALUES_IN),
+                storage(KEYS_OUT),
+                storage(VALUES_OUT),
+                storage(HIST),
             ],
         })
 }
@@ -329,29 +339,27 @@ fn pipeline(
         })
 }
 
-/// Distance between params slots \[bytes\]: the size of [`Params`] rounded up to the device's
-/// uniform offset alignment.
-fn param_stride(gpu: &Gpu) -> u64 {
+/// A uniform buffer of this call holding each pass's parameters, each at its dynamic offset
+/// (aligned to the device's uniform offset alignment), and those offsets.
+fn params_buffer(gpu: &Gpu, passes: &[Params]) -> (wgpu::Buffer, Vec<u32>) {
     let align = u64::from(gpu.limits.min_uniform_buffer_offset_alignment).max(1);
-    PARAMS_SIZE.next_multiple_of(align)
-}
-
-/// A uniform buffer of this call holding each pass's parameters at `k * stride`.
-fn params_buffer(gpu: &Gpu, passes: &[Params], stride: u64) -> wgpu::Buffer {
-    let size = stride * passes.len() as u64;
+    let mut slots = DynamicUniformBuffer::new_with_alignment(Vec::new(), align);
+    let offsets = passes
+        .iter()
+        .map(|p| {
+            let at = slots.write(p).expect("a Vec grows to any number of slots");
+            u32::try_from(at).expect("the params buffer of one sort is far below 4 GiB")
+        })
+        .collect();
+    let bytes = slots.into_inner();
     let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("mochi.sort.params"),
-        size,
+        size: bytes.len() as u64,
         usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    let mut bytes = vec![0u8; size as usize];
-    for (k, p) in passes.iter().enumerate() {
-        let at = k * stride as usize;
-        bytes[at..at + PARAMS_SIZE as usize].copy_from_slice(bytemuck::bytes_of(p));
-    }
     gpu.queue.write_buffer(&buffer, 0, &bytes);
-    buffer
+    (buffer, offsets)
 }
 
 /// The parameters of each pass of a sort of `n` pairs by `key_bits` (1..=32) bits, in order;

@@ -9,23 +9,51 @@
 //! level). Level 0 is read twice and written once; two levels cover 2^20 entries, three 2^30.
 //! Levels of more than 65535 blocks use a 2-D dispatch.
 //!
-//! The shader is `wgsl/scan.wgsl`; its constants and `Params` mirror the ones here.
+//! The shader is `wgsl/scan.wgsl`; its constants mirror the ones here, and its bindings and
+//! `Params` are [`module`]'s (checked by `tests/bindings.rs`).
 
+use super::shader::{Binding, WgslModule, shared_struct};
 use super::{Gpu, workgroups};
+use encase::{DynamicUniformBuffer, ShaderSize};
 use std::num::NonZeroU64;
 
 /// The shader, embedded.
-const SOURCE: &str = include_str!("../../wgsl/scan.wgsl");
+const SOURCE: &str = concat!(
+    include_str!("../../wgsl/scan.wgsl"),
+    include_str!("../../wgsl/workgroup_scan.wgsl")
+);
+const ENTRY_POINTS: &[&str] = &["reduce", "scan"];
 
-/// Every WGSL module of the scan, by label, exactly as the device gets it.
-pub const SHADERS: [(&str, &str); 1] = [("scan", SOURCE)];
+const PARAMS: Binding = Binding::uniform(0, "params");
+const DATA: Binding = Binding::read_write(1, "data");
+const SUMS: Binding = Binding::read_write(2, "sums");
+
+/// The scan's WGSL module, exactly as the device gets it.
+pub fn module() -> WgslModule {
+    WgslModule {
+        label: "scan".into(),
+        source: SOURCE.into(),
+        entry_points: ENTRY_POINTS,
+        bindings: vec![PARAMS, DATA, SUMS],
+        structs: vec![shared_struct!(
+            "Params",
+            Params {
+                len,
+                src,
+                dst,
+                blocks,
+                in_data,
+                has_carry,
+            }
+        )],
+    }
+}
 
 /// Entries per workgroup (keep in sync with `BLOCK` in the shader).
 pub const SCAN_BLOCK: u32 = 1024;
 
 /// Parameters of one dispatch. WGSL twin: `Params` in `wgsl/scan.wgsl`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, encase::ShaderType)]
 struct Params {
     /// Entries of the level.
     len: u32,
@@ -40,13 +68,10 @@ struct Params {
     in_data: u32,
     /// `scan`: 1 to add the carries of the next level, 0 on the last level.
     has_carry: u32,
-    _pad0: u32,
-    _pad1: u32,
 }
-const _: () = assert!(size_of::<Params>() == 32);
 
 /// Size of [`Params`] \[bytes\].
-const PARAMS_SIZE: u64 = size_of::<Params>() as u64;
+const PARAMS_SIZE: u64 = Params::SHADER_SIZE.get();
 
 /// One level of a scan: `len` entries at `offset` \[u32\] of the caller's range (level 0, offset
 /// relative to the bound range) or of the block-sum buffer (the others).
@@ -293,22 +318,22 @@ impl ExclusiveScan {
         let sums = self.reserve(gpu, sums_len);
 
         let dispatches = plan(&levels, gpu.limits.max_compute_workgroups_per_dimension);
-        let stride = {
-            let align = u64::from(gpu.limits.min_uniform_buffer_offset_alignment).max(1);
-            PARAMS_SIZE.next_multiple_of(align)
-        };
-        let size = stride * dispatches.len() as u64;
+        let align = u64::from(gpu.limits.min_uniform_buffer_offset_alignment).max(1);
+        let mut slots = DynamicUniformBuffer::new_with_alignment(Vec::new(), align);
+        let offsets: Vec<u32> = dispatches
+            .iter()
+            .map(|(_, p, _)| {
+                let at = slots.write(p).expect("a Vec grows to any number of slots");
+                u32::try_from(at).expect("the params buffer of one scan is far below 4 GiB")
+            })
+            .collect();
+        let bytes = slots.into_inner();
         let params = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("mochi.scan.params"),
-            size,
+            size: bytes.len() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut bytes = vec![0u8; size as usize];
-        for (k, (_, p, _)) in dispatches.iter().enumerate() {
-            let at = k * stride as usize;
-            bytes[at..at + PARAMS_SIZE as usize].copy_from_slice(bytemuck::bytes_of(p));
-        }
         gpu.queue.write_buffer(&params, 0, &bytes);
 
         let binding = |buffer, offset, size| {
@@ -323,26 +348,25 @@ impl ExclusiveScan {
             layout: &self.layout,
             entries: &[
                 wgpu::BindGroupEntry {
-                    binding: 0,
+                    binding: PARAMS.binding,
                     resource: binding(&params, 0, PARAMS_SIZE),
                 },
                 wgpu::BindGroupEntry {
-                    binding: 1,
+                    binding: DATA.binding,
                     resource: binding(data, bind_at, end * 4 - bind_at),
                 },
                 wgpu::BindGroupEntry {
-                    binding: 2,
+                    binding: SUMS.binding,
                     resource: sums.as_entire_binding(),
                 },
             ],
         }));
         prepared.steps = dispatches
             .iter()
-            .enumerate()
-            .map(|(k, &(kernel, _, groups))| Step {
+            .zip(offsets)
+            .map(|(&(kernel, _, groups), offset)| Step {
                 kernel,
-                offset: u32::try_from(k as u64 * stride)
-                    .expect("the params buffer of one scan is far below 4 GiB"),
+                offset,
                 groups,
             })
             .collect();
@@ -370,30 +394,14 @@ impl ExclusiveScan {
 
 /// The bind-group layout of both kernels; the shader's `@group(0)` bindings.
 fn bind_group_layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
-    let storage = |binding| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: false },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    };
-    let params = wgpu::BindGroupLayoutEntry {
-        binding: 0,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: true,
-            min_binding_size: NonZeroU64::new(PARAMS_SIZE),
-        },
-        count: None,
-    };
     gpu.device
         .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("mochi.scan.bind_group_layout"),
-            entries: &[params, storage(1), storage(2)],
+            entries: &[
+                PARAMS.layout_entry(true, NonZeroU64::new(PARAMS_SIZE)),
+                DATA.layout_entry(false, None),
+                SUMS.layout_entry(false, None),
+            ],
         })
 }
 

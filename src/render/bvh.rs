@@ -5,7 +5,9 @@
 //! CPU twin of `trace` in `wgsl/render_bvh.wgsl`.
 
 use super::shade::{INF, hit_sphere};
-use glam::{DVec3, UVec3, Vec3};
+use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
+use crate::morton;
+use glam::Vec3;
 
 /// Most spheres in one leaf.
 const LEAF_SIZE: usize = 4;
@@ -16,41 +18,25 @@ pub(crate) const STACK: usize = 64;
 /// One node of the flattened tree. An interior node (`count == 0`) has its left child right
 /// after it and its right child at `a`; a leaf holds the spheres `a..a + count`.
 ///
-/// Keep in sync with `Node` in `wgsl/render_bvh.wgsl`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+/// WGSL twin: `Node` in `wgsl/render_bvh.wgsl` (uploaded as a storage array).
+#[derive(Debug, Clone, Copy, PartialEq, encase::ShaderType)]
 pub(crate) struct Node {
-    pub lo: [f32; 3],
+    pub lo: Vec3f,
     pub a: u32,
-    pub hi: [f32; 3],
+    pub hi: Vec3f,
     pub count: u32,
 }
-const _: () = assert!(size_of::<Node>() == 32);
 
-/// Bits of a Morton key per axis.
-const MORTON_AXIS_BITS: u32 = 10;
+/// [`Node`] as a [`SharedStruct`].
+pub(crate) fn node() -> SharedStruct {
+    shared_struct!("Node", Node { lo, a, hi, count })
+}
 
-/// The order of `spheres` (`x, y, z, r`) along the Morton curve of their centres, with each
-/// sphere's key.
+/// The order of `spheres` (`x, y, z, r`) along the Morton curve of their centres
+/// ([`morton::order`]), with each sphere's key in that order.
 pub(crate) fn morton_order(spheres: &[[f32; 4]]) -> (Vec<u32>, Vec<u32>) {
-    let (lo, hi) = centre_bounds(spheres);
-    let cells = (1u32 << MORTON_AXIS_BITS) as f64;
-    let extent = (hi - lo).as_dvec3();
-    let scale = DVec3::select(
-        extent.cmpgt(DVec3::ZERO),
-        (cells - 1.0) / extent,
-        DVec3::ZERO,
-    );
-    let key = |s: &[f32; 4]| {
-        let cell = ((centre(s) - lo).as_dvec3() * scale).as_uvec3();
-        let cell = cell.min(UVec3::splat((1 << MORTON_AXIS_BITS) - 1));
-        spread(cell.x) << 2 | spread(cell.y) << 1 | spread(cell.z)
-    };
-    let mut order: Vec<u32> = (0..spheres.len() as u32).collect();
-    let keys: Vec<u32> = spheres.iter().map(key).collect();
-    radsort::sort_by_key(&mut order, |&i| keys[i as usize]);
-    let sorted_keys = order.iter().map(|&i| keys[i as usize]).collect();
-    (order, sorted_keys)
+    let centres: Vec<[f32; 3]> = spheres.iter().map(|s| [s[0], s[1], s[2]]).collect();
+    morton::order(&centres)
 }
 
 /// The centre of the sphere `x, y, z, r`.
@@ -65,15 +51,6 @@ fn centre_bounds<'a>(spheres: impl IntoIterator<Item = &'a [f32; 4]>) -> (Vec3, 
         .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), s| {
             (lo.min(centre(s)), hi.max(centre(s)))
         })
-}
-
-/// Spreads the low 10 bits of `v` to every third bit.
-fn spread(v: u32) -> u32 {
-    let mut v = v & 0x3ff;
-    v = (v | (v << 16)) & 0x030000ff;
-    v = (v | (v << 8)) & 0x0300f00f;
-    v = (v | (v << 4)) & 0x030c30c3;
-    (v | (v << 2)) & 0x09249249
 }
 
 /// Builds the tree over `items` (a sphere `x, y, z, r` and its payload) already in Morton order
@@ -99,9 +76,9 @@ fn build_range<T>(
     let at = nodes.len();
     let (bmin, bmax) = bounds(items[lo..hi].iter().map(|item| &item.0));
     nodes.push(Node {
-        lo: bmin.to_array(),
+        lo: bmin.into(),
         a: lo as u32,
-        hi: bmax.to_array(),
+        hi: bmax.into(),
         count: (hi - lo) as u32,
     });
     if hi - lo <= LEAF_SIZE {

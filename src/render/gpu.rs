@@ -3,48 +3,19 @@
 //! differ only in `trace`.
 
 use super::Picture;
+use super::bvh::Node;
 use super::scene::Scene;
+use super::shaders::{
+    BVH_SOURCE, COLOURS, ENTRY_POINT, NODES, PIXELS, RQ_SOURCE, SPHERES, TLAS, VIEW, View,
+};
 use crate::error::{Error, Result};
+use crate::gpu::AABB_STRIDE;
+use crate::gpu::shader::storage_bytes;
 use crate::gpu::{self, Gpu, Need};
-
-const RQ_WGSL: &str = concat!(
-    include_str!("../../wgsl/render_rq.wgsl"),
-    include_str!("../../wgsl/render_common.wgsl")
-);
-const BVH_WGSL: &str = concat!(
-    include_str!("../../wgsl/render_bvh.wgsl"),
-    include_str!("../../wgsl/render_common.wgsl")
-);
-
-/// Every WGSL module of the render paths, by label, exactly as the device gets it.
-pub const SHADERS: [(&str, &str); 2] = [("render_rq", RQ_WGSL), ("render_bvh", BVH_WGSL)];
+use encase::ShaderSize;
 
 /// Workgroup side, as in `wgsl/render_common.wgsl` (8×8 pixels).
 const GROUP: u32 = 8;
-
-/// Bytes of one AABB in the BLAS input: two `vec3<f32>`.
-const BOX_STRIDE: u64 = 24;
-
-/// Keep in sync with `View` in `wgsl/render_common.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct ViewUniform {
-    eye: [f32; 3],
-    width: u32,
-    corner: [f32; 3],
-    height: u32,
-    right: [f32; 3],
-    samples: u32,
-    down: [f32; 3],
-    shadows: u32,
-    light: [f32; 3],
-    n: u32,
-    floor_lo: [f32; 3],
-    floor_on: u32,
-    floor_hi: [f32; 3],
-    _pad0: u32,
-}
-const _: () = assert!(size_of::<ViewUniform>() == 112);
 
 /// A GPU render path on an open device.
 pub(crate) struct GpuRenderer {
@@ -57,14 +28,14 @@ impl GpuRenderer {
     /// Opens the best adapter for the path: with ray queries (`ray_query`), or any.
     pub fn open(ray_query: bool) -> Result<Self> {
         let (need, source, label) = if ray_query {
-            (Need::RayQuery, RQ_WGSL, "mochi.render.rq")
+            (Need::RayQuery, RQ_SOURCE, "mochi.render.rq")
         } else {
-            (Need::Compute, BVH_WGSL, "mochi.render.bvh")
+            (Need::Compute, BVH_SOURCE, "mochi.render.bvh")
         };
         let gpu = Gpu::open(need)?;
         let pipeline = gpu.checked("compiling the render shader", || {
             let module = gpu.module(label, source);
-            gpu.pipeline(label, &module, "render")
+            gpu.pipeline(label, &module, ENTRY_POINT)
         })?;
         Ok(Self {
             gpu,
@@ -86,7 +57,10 @@ impl GpuRenderer {
         for (what, bytes) in [
             ("pixels", pixels_len * 4),
             ("spheres", n as u64 * 16),
-            ("tree nodes", scene.nodes.len() as u64 * 32),
+            (
+                "tree nodes",
+                scene.nodes.len() as u64 * Node::SHADER_SIZE.get(),
+            ),
         ] {
             if bytes > limit {
                 return Err(Error::TooLarge {
@@ -105,21 +79,20 @@ impl GpuRenderer {
         }
         let grid = picture.camera.grid(picture.width, picture.height);
         let floor = picture.floor();
-        let view = ViewUniform {
-            eye: grid.eye.to_array(),
+        let view = View {
+            eye: grid.eye.into(),
             width: picture.width,
-            corner: grid.corner.to_array(),
+            corner: grid.corner.into(),
             height: picture.height,
-            right: grid.right.to_array(),
+            right: grid.right.into(),
             samples: picture.samples,
-            down: grid.down.to_array(),
+            down: grid.down.into(),
             shadows: picture.shadows as u32,
-            light: grid.light.to_array(),
+            light: grid.light.into(),
             n,
-            floor_lo: floor.map_or([0.0; 3], |f| f.lo.to_array()),
+            floor_lo: floor.map_or([0.0; 3], |f| f.lo.to_array()).into(),
             floor_on: floor.is_some() as u32,
-            floor_hi: floor.map_or([0.0; 3], |f| f.hi.to_array()),
-            _pad0: 0,
+            floor_hi: floor.map_or([0.0; 3], |f| f.hi.to_array()).into(),
         };
         let gpu = &self.gpu;
         let pixels = gpu.checked("rendering", || {
@@ -141,19 +114,20 @@ impl GpuRenderer {
                 none,
             );
             let pixels = gpu.storage("mochi.render.pixels", pixels_len * 4, none);
-            let buffers = [(0, &view), (1, &spheres), (2, &colours), (3, &pixels)];
+            let buffers = [
+                (VIEW, &view),
+                (SPHERES, &spheres),
+                (COLOURS, &colours),
+                (PIXELS, &pixels),
+            ];
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             let bind = if self.ray_query {
                 let tlas = self.build_accel(scene, &mut encoder);
-                gpu.bind_with_tlas("mochi.render.rq", &self.pipeline, &buffers, (5, &tlas))
+                gpu.bind_with_tlas("mochi.render.rq", &self.pipeline, &buffers, (TLAS, &tlas))
             } else {
-                let nodes = upload(
-                    "mochi.render.nodes",
-                    bytemuck::cast_slice(&scene.nodes),
-                    none,
-                );
+                let nodes = upload("mochi.render.nodes", &storage_bytes(&scene.nodes), none);
                 let mut all = buffers.to_vec();
-                all.push((4, &nodes));
+                all.push((NODES, &nodes));
                 gpu.bind("mochi.render.bvh", &self.pipeline, &all)
             };
             let groups = (
@@ -187,7 +161,7 @@ impl GpuRenderer {
             .collect();
         let buffer = gpu.storage(
             "mochi.render.boxes",
-            boxes.len() as u64 * BOX_STRIDE,
+            boxes.len() as u64 * AABB_STRIDE,
             wgpu::BufferUsages::BLAS_INPUT,
         );
         gpu.queue
@@ -218,7 +192,7 @@ impl GpuRenderer {
             blas: &blas,
             geometry: wgpu::BlasGeometries::AabbGeometries(vec![wgpu::BlasAabbGeometry {
                 size: &size,
-                stride: BOX_STRIDE,
+                stride: AABB_STRIDE,
                 aabb_buffer: &buffer,
                 primitive_offset: 0,
             }]),

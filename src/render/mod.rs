@@ -45,12 +45,13 @@ mod gpu;
 mod image;
 mod scene;
 mod shade;
+mod shaders;
 
 pub use camera::{Camera, DEFAULT_FOV_DEG, MAX_SIDE, check_size, parse_point, parse_size};
 pub use colour::{ColorBy, unit, value_range, viridis};
-pub use gpu::SHADERS;
 pub use image::{Gif, Image, Legend, read_png};
 pub use scene::Scene;
+pub use shaders::modules as shaders;
 
 use crate::engines::{BackendKind, open_auto};
 use crate::error::{Error, Result};

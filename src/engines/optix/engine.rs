@@ -5,7 +5,7 @@
 use super::device::Device;
 use super::sys;
 use crate::error::{Error, OptixError, Result};
-use rayon::prelude::*;
+use crate::morton;
 use std::sync::{Arc, OnceLock};
 
 /// Most spheres one launch takes (OptiX's launch width limit is 2^30; the acceleration
@@ -61,39 +61,5 @@ pub(crate) fn open_device() -> Result<Arc<Device>> {
 
 /// Indices of `centers` in Morton order (ties by index).
 pub(crate) fn morton_order_of(centers: &[[f32; 3]]) -> Vec<u32> {
-    if centers.is_empty() {
-        return Vec::new();
-    }
-    let (lo, hi) = centers.iter().fold(
-        ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-        |(lo, hi), c| {
-            (
-                std::array::from_fn(|a| lo[a].min(c[a])),
-                std::array::from_fn(|a| hi[a].max(c[a])),
-            )
-        },
-    );
-    let scale: [f32; 3] = std::array::from_fn(|a| {
-        let extent = hi[a] - lo[a];
-        if extent > 0.0 { 1023.0 / extent } else { 0.0 }
-    });
-    let spread = |v: u32| -> u64 {
-        (0..10).fold(0u64, |acc, bit| {
-            acc | ((((v >> bit) & 1) as u64) << (3 * bit))
-        })
-    };
-    let mut keyed: Vec<(u64, u32)> = centers
-        .par_iter()
-        .enumerate()
-        .map(|(i, c)| {
-            let q: [u32; 3] =
-                std::array::from_fn(|a| ((c[a] - lo[a]) * scale[a]).clamp(0.0, 1023.0) as u32);
-            (
-                spread(q[0]) | spread(q[1]) << 1 | spread(q[2]) << 2,
-                i as u32,
-            )
-        })
-        .collect();
-    keyed.par_sort_unstable();
-    keyed.into_iter().map(|(_, i)| i).collect()
+    morton::order(centers).0
 }

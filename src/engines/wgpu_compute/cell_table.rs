@@ -7,6 +7,7 @@
 //! counts, so they are zero between builds and no clear is recorded.
 
 use super::layout::GridParams;
+use super::shaders::cell_scan::{self, BLOCK_SUMS, CELL_START, COUNTS, PARAMS};
 use crate::gpu::Gpu;
 
 /// Most blocks a table is cut into for the scan (each scan workgroup sums the blocks before it).
@@ -16,28 +17,6 @@ const MAX_BLOCKS: u32 = 1024;
 
 /// Smallest block: one tile of a scan workgroup (`TILE` in the shader).
 const MIN_BLOCK_SHIFT: u32 = 10;
-
-/// The scan on adapters without subgroup operations.
-const PLAIN_SOURCE: &str = concat!(
-    include_str!("../../../wgsl/grid_params.wgsl"),
-    include_str!("../../../wgsl/cell_scan.wgsl"),
-    include_str!("../../../wgsl/workgroup_scan_plain.wgsl"),
-    include_str!("../../../wgsl/workgroup_scan.wgsl")
-);
-
-/// The scan on adapters with subgroup operations (wgpu's `SUBGROUP` feature).
-const SUBGROUP_SOURCE: &str = concat!(
-    include_str!("../../../wgsl/grid_params.wgsl"),
-    include_str!("../../../wgsl/cell_scan.wgsl"),
-    include_str!("../../../wgsl/workgroup_scan_subgroups.wgsl"),
-    include_str!("../../../wgsl/workgroup_scan.wgsl")
-);
-
-/// The WGSL modules, by label, exactly as the device gets them.
-pub const SHADERS: [(&str, &str); 2] = [
-    ("cell_scan_plain", PLAIN_SOURCE),
-    ("cell_scan_subgroups", SUBGROUP_SOURCE),
-];
 
 /// Log2 of the entries per block for a table of `cells` cells (`cells + 1` entries): the
 /// smallest block of at least one tile that cuts the table into at most [`MAX_BLOCKS`].
@@ -97,9 +76,9 @@ impl CellScan {
     /// The scan on subgroup operations (the device must have them) or in workgroup memory.
     pub fn with_subgroups(gpu: &Gpu, subgroups: bool) -> CellScan {
         let source = if subgroups {
-            SUBGROUP_SOURCE
+            cell_scan::SUBGROUP_SOURCE
         } else {
-            PLAIN_SOURCE
+            cell_scan::PLAIN_SOURCE
         };
         let module = gpu.module("mochi.cells.scan", source);
         CellScan {
@@ -110,12 +89,16 @@ impl CellScan {
 
     /// Bind groups scanning `table` laid out by the `GridParams` in `params`.
     pub fn bind(&self, gpu: &Gpu, params: &wgpu::Buffer, table: &CellTable) -> CellScanBinds {
-        let sums = [(0, params), (1, &table.counts), (2, &table.block_sums)];
+        let sums = [
+            (PARAMS, params),
+            (COUNTS, &table.counts),
+            (BLOCK_SUMS, &table.block_sums),
+        ];
         let scan = [
-            (0, params),
-            (1, &table.counts),
-            (2, &table.block_sums),
-            (3, &table.cell_start),
+            (PARAMS, params),
+            (COUNTS, &table.counts),
+            (BLOCK_SUMS, &table.block_sums),
+            (CELL_START, &table.cell_start),
         ];
         CellScanBinds {
             reduce_blocks: gpu.bind("mochi.cells.reduce_blocks", &self.reduce_blocks, &sums),

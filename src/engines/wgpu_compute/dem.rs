@@ -17,36 +17,20 @@ use super::cell_table::{CellScan, CellScanBinds, CellTable};
 use super::layout::{
     Budget, DEM_CELLS_PER_SPHERE, GridParams, LayoutRequest, Levels, Structure, choose_layout,
 };
+use super::shaders::dem_grid::{
+    self, BOUNDS, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, PARAMS, POS_A, RANKS, VEL_A,
+};
 use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemParams, FORCE_VARIANTS, ForceAtomics, GROUP, MAX_BATCH, PHYSICS_WGSL, StepTimer,
-    advance_in_batches, max_spheres, particles_from, rows,
+    DemParams, ForceAtomics, GROUP, MAX_BATCH, StepTimer, advance_in_batches, max_spheres,
+    particles_from, rows,
 };
 use crate::error::{Error, Result};
 use crate::gpu::{self, Gpu, Need};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
-
-const GRID_WGSL: &str = concat!(
-    include_str!("../../../wgsl/grid_params.wgsl"),
-    include_str!("../../../wgsl/grid_stencil.wgsl"),
-    include_str!("../../../wgsl/dem_grid.wgsl"),
-    include_str!("../../../wgsl/grid_walk.wgsl")
-);
-
-/// Every WGSL module of this step, by label, exactly as the device may get it.
-pub(crate) fn shaders() -> Vec<(String, String)> {
-    FORCE_VARIANTS
-        .iter()
-        .map(|(name, force)| {
-            (
-                format!("dem_grid_{name}"),
-                format!("{GRID_WGSL}{PHYSICS_WGSL}{force}"),
-            )
-        })
-        .collect()
-}
 
 /// Steps between two re-derivations of the grid layout.
 pub const RELAYOUT_EVERY: u64 = 100;
@@ -136,10 +120,7 @@ impl GridStepper {
         }
         let n = n64 as u32;
         let (atomics, force_wgsl) = atomics.pick(&gpu);
-        let module = gpu.module(
-            "mochi.dem.grid",
-            &format!("{GRID_WGSL}{PHYSICS_WGSL}{force_wgsl}"),
-        );
+        let module = gpu.module("mochi.dem.grid", &dem_grid::source(force_wgsl));
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.{entry}"), &module, entry);
         let pipelines = Pipelines {
             bin_count: pipeline("bin_count"),
@@ -210,7 +191,7 @@ impl GridStepper {
         q.write_buffer(&set.pos, 0, bytemuck::cast_slice(&pos));
         q.write_buffer(&set.vel, 0, bytemuck::cast_slice(&vel));
         q.write_buffer(&set.ids, 0, bytemuck::cast_slice(&ids));
-        q.write_buffer(&self.dem_uniform, 0, bytemuck::bytes_of(&dem));
+        self.gpu.write_uniform(&self.dem_uniform, &dem);
         q.write_buffer(&self.clock, 0, bytemuck::bytes_of(&(self.step as u32)));
         Ok(())
     }
@@ -310,8 +291,7 @@ impl GridStepper {
             self.binds = Some([self.make_binds(0), self.make_binds(1)]);
             self.scan_bind = Some(self.scan.bind(gpu, &self.grid_uniform, &self.cell_table));
         }
-        gpu.queue
-            .write_buffer(&self.grid_uniform, 0, bytemuck::bytes_of(&layout));
+        gpu.write_uniform(&self.grid_uniform, &layout);
         self.layout = layout;
         self.laid_out_at = Some(self.step);
         Ok(())
@@ -327,58 +307,62 @@ impl GridStepper {
                 "mochi.dem.bin_count",
                 &p.bin_count,
                 &[
-                    (0, &self.grid_uniform),
-                    (2, &a.pos),
-                    (6, &self.ranks),
-                    (7, &self.cell_table.counts),
-                    (14, &self.counters),
-                    (16, &self.clock),
+                    (PARAMS, &self.grid_uniform),
+                    (POS_A, &a.pos),
+                    (RANKS, &self.ranks),
+                    (COUNTS, &self.cell_table.counts),
+                    (COUNTERS, &self.counters),
+                    (CLOCK, &self.clock),
                 ],
             ),
             bin_scatter: gpu.bind(
                 "mochi.dem.bin_scatter",
                 &p.bin_scatter,
                 &[
-                    (0, &self.grid_uniform),
-                    (2, &a.pos),
-                    (3, &a.vel),
-                    (4, &a.ids),
-                    (6, &self.ranks),
-                    (8, &self.cell_table.cell_start),
-                    (10, &b.pos),
-                    (11, &b.vel),
-                    (12, &b.ids),
-                    (13, &self.force),
+                    (PARAMS, &self.grid_uniform),
+                    (POS_A, &a.pos),
+                    (VEL_A, &a.vel),
+                    (IDS_A, &a.ids),
+                    (RANKS, &self.ranks),
+                    (CELL_START, &self.cell_table.cell_start),
+                    (POS, &b.pos),
+                    (VEL, &b.vel),
+                    (IDS, &b.ids),
+                    (FORCE, &self.force),
                 ],
             ),
             resolve: gpu.bind(
                 "mochi.dem.resolve",
                 &p.resolve,
                 &[
-                    (0, &self.grid_uniform),
-                    (1, &self.dem_uniform),
-                    (8, &self.cell_table.cell_start),
-                    (10, &b.pos),
-                    (11, &b.vel),
-                    (13, &self.force),
-                    (14, &self.counters),
+                    (PARAMS, &self.grid_uniform),
+                    (DEM, &self.dem_uniform),
+                    (CELL_START, &self.cell_table.cell_start),
+                    (POS, &b.pos),
+                    (VEL, &b.vel),
+                    (FORCE, &self.force),
+                    (COUNTERS, &self.counters),
                 ],
             ),
             integrate: gpu.bind(
                 "mochi.dem.integrate",
                 &p.integrate,
                 &[
-                    (1, &self.dem_uniform),
-                    (10, &b.pos),
-                    (11, &b.vel),
-                    (13, &self.force),
-                    (16, &self.clock),
+                    (DEM, &self.dem_uniform),
+                    (POS, &b.pos),
+                    (VEL, &b.vel),
+                    (FORCE, &self.force),
+                    (CLOCK, &self.clock),
                 ],
             ),
             reduce_bounds: gpu.bind(
                 "mochi.dem.reduce_bounds",
                 &p.reduce_bounds,
-                &[(0, &self.grid_uniform), (2, &a.pos), (15, &self.bounds)],
+                &[
+                    (PARAMS, &self.grid_uniform),
+                    (POS_A, &a.pos),
+                    (BOUNDS, &self.bounds),
+                ],
             ),
         }
     }

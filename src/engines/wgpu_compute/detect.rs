@@ -1,42 +1,22 @@
 //! Detection on the wgpu-compute engine: [`WgpuComputeBackend`] implements [`crate::Backend`].
 
-use super::cell_table::{self, CellScan, CellTable};
+use super::cell_table::{CellScan, CellTable};
 use super::layout::{
     Budget, DETECT_CELLS_PER_SPHERE, GridParams, LayoutRequest, MAX_CROWDING, Structure,
     choose_layout, core_bounds, crowding, describe_layout,
 };
 
+use super::shaders::{grid_build, grid_pairs};
 use crate::detect::BackendInfo;
 use crate::engines::rebuilding::RebuildingBackend;
 use crate::error::{Error, Result};
-use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
+use crate::gpu::pair_output::{self, PairOutput};
 use crate::gpu::timer::{self, GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
 use crate::types::Pair;
 use crate::types::{DetectStats, GpuTimes};
-
-const BUILD_WGSL: &str = concat!(
-    include_str!("../../../wgsl/grid_params.wgsl"),
-    include_str!("../../../wgsl/grid_build.wgsl")
-);
-const PAIRS_WGSL: &str = concat!(
-    include_str!("../../../wgsl/grid_params.wgsl"),
-    include_str!("../../../wgsl/grid_stencil.wgsl"),
-    include_str!("../../../wgsl/grid_pairs.wgsl"),
-    include_str!("../../../wgsl/grid_walk.wgsl"),
-    include_str!("../../../wgsl/proxy.wgsl"),
-    include_str!("../../../wgsl/pair_output.wgsl")
-);
-
-/// Every WGSL module of this backend, by label, exactly as the device gets it.
-pub(crate) const SHADERS: [(&str, &str); 4] = [
-    ("grid_build", BUILD_WGSL),
-    ("grid_pairs", PAIRS_WGSL),
-    cell_table::SHADERS[0],
-    cell_table::SHADERS[1],
-];
 
 /// Timer spans of a build and of a detection pass.
 const BUILD_SPAN: Span = Span(0);
@@ -107,8 +87,8 @@ impl WgpuComputeBackend {
     /// Opens the best adapter with compute shaders.
     pub fn new() -> Result<Self> {
         let gpu = Gpu::open(Need::Compute)?;
-        let build = gpu.module("mochi.grid.build", BUILD_WGSL);
-        let pairs = gpu.module("mochi.grid.pairs", PAIRS_WGSL);
+        let build = gpu.module("mochi.grid.build", grid_build::SOURCE);
+        let pairs = gpu.module("mochi.grid.pairs", grid_pairs::SOURCE);
         Ok(Self {
             scan: CellScan::new(&gpu),
             count_cells: gpu.pipeline("mochi.grid.count_cells", &build, "count_cells"),
@@ -208,8 +188,7 @@ impl RebuildingBackend for WgpuComputeBackend {
         };
         let rows: Vec<[f32; 4]> = spheres.xyzr().collect();
         gpu.checked("building the wgpu-compute grid", || {
-            gpu.queue
-                .write_buffer(&grid.params, 0, bytemuck::bytes_of(&params));
+            gpu.write_uniform(&grid.params, &params);
             gpu.queue
                 .write_buffer(&grid.spheres_in, 0, bytemuck::cast_slice(&rows));
             let g = &grid;
@@ -218,30 +197,30 @@ impl RebuildingBackend for WgpuComputeBackend {
                 "mochi.grid.count_cells",
                 &self.count_cells,
                 &[
-                    (0, &g.params),
-                    (1, &g.spheres_in),
-                    (3, &g.slots),
-                    (4, &g.table.counts),
+                    (grid_build::PARAMS, &g.params),
+                    (grid_build::SPHERES_IN, &g.spheres_in),
+                    (grid_build::SLOTS, &g.slots),
+                    (grid_build::COUNTS, &g.table.counts),
                 ],
             );
             let scatter = gpu.bind(
                 "mochi.grid.scatter",
                 &self.scatter,
                 &[
-                    (0, &g.params),
-                    (3, &g.slots),
-                    (5, &g.table.cell_start),
-                    (7, &g.ids),
+                    (grid_build::PARAMS, &g.params),
+                    (grid_build::SLOTS, &g.slots),
+                    (grid_build::CELL_START, &g.table.cell_start),
+                    (grid_build::IDS, &g.ids),
                 ],
             );
             let gather = gpu.bind(
                 "mochi.grid.gather",
                 &self.gather,
                 &[
-                    (0, &g.params),
-                    (1, &g.spheres_in),
-                    (7, &g.ids),
-                    (8, &g.spheres),
+                    (grid_build::PARAMS, &g.params),
+                    (grid_build::SPHERES_IN, &g.spheres_in),
+                    (grid_build::IDS, &g.ids),
+                    (grid_build::SPHERES, &g.spheres),
                 ],
             );
             gpu.submit_timed(self.timer.as_ref(), BUILD_SPAN, |encoder| {
@@ -295,18 +274,17 @@ impl RebuildingBackend for WgpuComputeBackend {
                 ..base
             };
             gpu.checked("running the wgpu-compute grid search", || {
-                gpu.queue
-                    .write_buffer(&grid.pair_params, 0, bytemuck::bytes_of(&params));
+                gpu.write_uniform(&grid.pair_params, &params);
                 let bind = gpu.bind(
                     "mochi.grid.find_pairs",
                     find_pairs,
                     &[
-                        (0, &grid.pair_params),
-                        (1, &grid.spheres),
-                        (2, &grid.ids),
-                        (COUNTERS_BINDING, &output.counters),
-                        (PAIRS_BINDING, &output.pairs),
-                        (6, &grid.table.cell_start),
+                        (grid_pairs::PARAMS, &grid.pair_params),
+                        (grid_pairs::SPHERES, &grid.spheres),
+                        (grid_pairs::IDS, &grid.ids),
+                        (pair_output::COUNTERS, &output.counters),
+                        (pair_output::PAIRS, &output.pairs),
+                        (grid_pairs::CELL_START, &grid.table.cell_start),
                     ],
                 );
                 gpu.submit_timed(timer, DETECT_SPAN, |encoder| {

@@ -3,6 +3,7 @@
 //! (docs/method.md, "Grids"). [`GridParams`] is its result and the shaders' uniform.
 
 use super::cell_table;
+use crate::gpu::shader::{Vec3f, Vec4u};
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
 
@@ -42,11 +43,11 @@ pub(crate) struct Budget {
     pub cells_per_sphere: u64,
 }
 
-/// Keep in sync with `GridParams` in `wgsl/grid_params.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+/// The grids' uniform; WGSL twin: `GridParams` in `wgsl/grid_params.wgsl` (`tests/bindings.rs`
+/// checks that both lay it out alike).
+#[derive(Clone, Copy, Default, encase::ShaderType)]
 pub(crate) struct GridParams {
-    pub lo: [f32; 3],
+    pub lo: Vec3f,
     pub n: u32,
     pub inv_cell: f32,
     pub nx: u32,
@@ -63,11 +64,9 @@ pub(crate) struct GridParams {
     pub block_shift: u32,
     /// Largest radius, padded by [`CELL_PADDING`] (the search windows' reach).
     pub max_radius: f32,
-    pub _pad0: [u32; 3],
-    /// Dense tables: index of each level's first cell (level `k` at `[k / 4][k % 4]`).
-    pub level_first: [[u32; 4]; 2],
+    /// Dense tables: index of each level's first cell (level `k` at `[k / 4].0[k % 4]`).
+    pub level_first: [Vec4u; 2],
 }
-const _: () = assert!(size_of::<GridParams>() == 112);
 
 /// Which grid the backend builds.
 #[derive(
@@ -264,15 +263,15 @@ fn multi_level_layout(
         return None;
     }
     // Level `levels - 1` is the top; its table comes first.
-    let mut level_first = [[0u32; 4]; 2];
+    let mut level_first = [Vec4u::default(); 2];
     let mut first = 0u64;
     for (shift, cells) in sizes.iter().enumerate() {
         let level = levels as usize - 1 - shift;
-        level_first[level / 4][level % 4] = first as u32;
+        level_first[level / 4].0[level % 4] = first as u32;
         first += cells;
     }
     Some(GridParams {
-        lo,
+        lo: lo.into(),
         n: n as u32,
         inv_cell: (1.0 / size) as f32,
         nx: top[0] as u32,
@@ -307,7 +306,7 @@ pub(crate) fn grid_layout(
     let widest = extent.iter().copied().fold(0.0, f64::max);
     let counts = |size: f64| axis_cells(extent, size);
     let params = |size: f64, [nx, ny, nz]: [u64; 3], cells: u64, hashed: u32| GridParams {
-        lo,
+        lo: lo.into(),
         n: n as u32,
         inv_cell: (1.0 / size) as f32,
         nx: nx as u32,

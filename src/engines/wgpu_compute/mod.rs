@@ -25,17 +25,9 @@ pub(crate) mod cell_table;
 mod dem;
 mod detect;
 pub(crate) mod layout;
+mod shaders;
 
 pub use dem::GridStepper;
 pub use detect::WgpuComputeBackend;
 pub use layout::{AUTO_MLGRID_RATIO, DEM_CELLS_PER_SPHERE, DETECT_CELLS_PER_SPHERE, Structure};
-
-/// Every WGSL module of this engine (detection and DEM step), by label, exactly as the device
-/// gets it (`tests/shaders.rs` validates each with naga).
-pub fn shaders() -> Vec<(String, String)> {
-    detect::SHADERS
-        .iter()
-        .map(|&(label, source)| (label.to_owned(), source.to_owned()))
-        .chain(dem::shaders())
-        .collect()
-}
+pub use shaders::modules as shaders;

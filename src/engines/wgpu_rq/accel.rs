@@ -1,10 +1,10 @@
 //! GPU buffers and acceleration structures of one `wgpu-rq` build.
 
+use super::shaders::rq_build::BuildParams;
+use super::shaders::rq_pairs::{self, PairParams};
+use crate::gpu::AABB_STRIDE;
 use crate::gpu::Gpu;
-use crate::gpu::pair_output::{COUNTERS_BINDING, PAIRS_BINDING, PairOutput};
-
-/// AABB stride in the BLAS input: two `vec3<f32>`.
-const BOX_STRIDE: u64 = 24;
+use crate::gpu::pair_output::{self, PairOutput};
 
 /// The buffers, BLAS and TLAS of a build over `n` spheres.
 pub(crate) struct Accel {
@@ -37,12 +37,12 @@ impl Accel {
         use wgpu::BufferUsages as U;
         let n64 = n as u64;
         let chunks = n.div_ceil(chunk);
-        let boxes = gpu.storage("mochi.rq.boxes", n64 * BOX_STRIDE, U::BLAS_INPUT);
+        let boxes = gpu.storage("mochi.rq.boxes", n64 * AABB_STRIDE, U::BLAS_INPUT);
         let chunk_boxes = if chunks > 1 {
             (0..chunks)
                 .map(|k| {
                     let len = chunk.min(n - k * chunk) as u64;
-                    gpu.storage("mochi.rq.chunk_boxes", len * BOX_STRIDE, U::BLAS_INPUT)
+                    gpu.storage("mochi.rq.chunk_boxes", len * AABB_STRIDE, U::BLAS_INPUT)
                 })
                 .collect()
         } else {
@@ -82,8 +82,8 @@ impl Accel {
         Accel {
             n,
             chunk,
-            build_params: gpu.uniform("mochi.rq.build_params", &[0u32; 12]),
-            pair_params: gpu.uniform("mochi.rq.pair_params", &[0u32; 8]),
+            build_params: gpu.uniform("mochi.rq.build_params", &BuildParams::default()),
+            pair_params: gpu.uniform("mochi.rq.pair_params", &PairParams::default()),
             spheres_in: gpu.storage("mochi.rq.spheres_in", n64 * 16, U::empty()),
             keys: gpu.storage("mochi.rq.keys", n64 * 4, U::empty()),
             ids: gpu.storage("mochi.rq.ids", n64 * 4, U::empty()),
@@ -99,7 +99,7 @@ impl Accel {
     /// Records the copies into the per-BLAS box buffers and the BLAS and TLAS builds.
     pub fn encode_build(&self, encoder: &mut wgpu::CommandEncoder) {
         for (k, dst) in self.chunk_boxes.iter().enumerate() {
-            let offset = k as u64 * self.chunk as u64 * BOX_STRIDE;
+            let offset = k as u64 * self.chunk as u64 * AABB_STRIDE;
             encoder.copy_buffer_to_buffer(
                 &self.boxes,
                 offset,
@@ -122,7 +122,7 @@ impl Accel {
                 blas,
                 geometry: wgpu::BlasGeometries::AabbGeometries(vec![wgpu::BlasAabbGeometry {
                     size,
-                    stride: BOX_STRIDE,
+                    stride: AABB_STRIDE,
                     aabb_buffer,
                     primitive_offset: 0,
                 }]),
@@ -147,13 +147,13 @@ impl Accel {
             "mochi.rq.find_pairs",
             pipeline,
             &[
-                (0, &self.pair_params),
-                (1, &self.spheres),
-                (2, &self.ids),
-                (COUNTERS_BINDING, &output.counters),
-                (PAIRS_BINDING, &output.pairs),
+                (rq_pairs::PARAMS, &self.pair_params),
+                (rq_pairs::SPHERES, &self.spheres),
+                (rq_pairs::IDS, &self.ids),
+                (pair_output::COUNTERS, &output.counters),
+                (pair_output::PAIRS, &output.pairs),
             ],
-            (5, &self.tlas),
+            (rq_pairs::TLAS, &self.tlas),
         )
     }
 }

@@ -6,45 +6,19 @@
 //! laid out along a lattice, so the BVH's primitives are already spatially coherent.
 
 use super::accel::Accel;
+use super::shaders::dem_rq::{self, BOXES, COUNTERS, RQ_PARAMS, RqParams, TLAS};
 use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemParams, FORCE_VARIANTS, ForceAtomics, GROUP, MAX_BATCH, PHYSICS_WGSL, StepTimer,
-    advance_in_batches, max_spheres, particles_from, rows,
+    DemParams, ForceAtomics, GROUP, MAX_BATCH, StepTimer, advance_in_batches, max_spheres,
+    particles_from, rows,
 };
 use crate::error::{Error, Result};
 use crate::gpu::{self, Gpu, Need};
 use crate::particles::Particles;
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
-
-const RQ_WGSL: &str = concat!(
-    include_str!("../../../wgsl/dem_rq.wgsl"),
-    include_str!("../../../wgsl/rq_walk.wgsl")
-);
-const PROXY_WGSL: &str = include_str!("../../../wgsl/proxy.wgsl");
-
-/// Every WGSL module of this step, by label, exactly as the device may get it.
-pub(crate) fn shaders() -> Vec<(String, String)> {
-    FORCE_VARIANTS
-        .iter()
-        .map(|(name, force)| (format!("dem_rq_{name}"), source(force)))
-        .collect()
-}
-
-fn source(force: &str) -> String {
-    format!("{RQ_WGSL}{PHYSICS_WGSL}{force}{PROXY_WGSL}")
-}
-
-/// Keep in sync with `RqParams` in `wgsl/dem_rq.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct RqParams {
-    chunk: u32,
-    pad_rel: f32,
-    mode: u32,
-    r_max: f32,
-}
 
 struct Pipelines {
     proxy_boxes: wgpu::ComputePipeline,
@@ -109,7 +83,7 @@ impl RqStepper {
         }
         let n = n64 as u32;
         let (atomics, force_wgsl) = atomics.pick(&gpu);
-        let module = gpu.module("mochi.dem.rq", &source(force_wgsl));
+        let module = gpu.module("mochi.dem.rq", &dem_rq::source(force_wgsl));
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.rq.{entry}"), &module, entry);
         let pipelines = Pipelines {
             proxy_boxes: pipeline("proxy_boxes"),
@@ -150,35 +124,35 @@ impl RqStepper {
                         "mochi.dem.rq.proxy_boxes",
                         &p.proxy_boxes,
                         &[
-                            (0, &rq),
-                            (1, &dem),
-                            (5, &accel.boxes),
-                            (10, &pos),
-                            (16, &clock),
+                            (RQ_PARAMS, &rq),
+                            (DEM, &dem),
+                            (BOXES, &accel.boxes),
+                            (POS, &pos),
+                            (CLOCK, &clock),
                         ],
                     ),
                     resolve: gpu.bind_with_tlas(
                         "mochi.dem.rq.resolve",
                         &p.resolve,
                         &[
-                            (0, &rq),
-                            (1, &dem),
-                            (10, &pos),
-                            (11, &vel),
-                            (13, &force),
-                            (14, &counters),
+                            (RQ_PARAMS, &rq),
+                            (DEM, &dem),
+                            (POS, &pos),
+                            (VEL, &vel),
+                            (FORCE, &force),
+                            (COUNTERS, &counters),
                         ],
-                        (6, accel.tlas()),
+                        (TLAS, accel.tlas()),
                     ),
                     integrate: gpu.bind(
                         "mochi.dem.rq.integrate",
                         &p.integrate,
                         &[
-                            (1, &dem),
-                            (10, &pos),
-                            (11, &vel),
-                            (13, &force),
-                            (16, &clock),
+                            (DEM, &dem),
+                            (POS, &pos),
+                            (VEL, &vel),
+                            (FORCE, &force),
+                            (CLOCK, &clock),
                         ],
                     ),
                 };

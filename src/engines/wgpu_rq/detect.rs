@@ -1,32 +1,22 @@
 //! Detection on the wgpu-rq engine: [`WgpuRqBackend`] implements [`crate::Backend`].
 
 use super::accel::Accel;
+use super::shaders::rq_build::{self, BuildParams};
+use super::shaders::rq_pairs::{self, PairParams};
 use crate::detect::BackendInfo;
 use crate::engines::rebuilding::RebuildingBackend;
 use crate::error::{Error, Result};
+use crate::gpu::AABB_STRIDE;
 use crate::gpu::pair_output::PairOutput;
 use crate::gpu::radix_sort::RadixSort;
 use crate::gpu::timer::{self, GpuTimer, Span};
 use crate::gpu::{self, Gpu, Need};
+use crate::morton;
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
 use crate::types::Pair;
 use crate::types::{DetectStats, GpuTimes};
-
-const BUILD_WGSL: &str = concat!(
-    include_str!("../../../wgsl/proxy.wgsl"),
-    include_str!("../../../wgsl/rq_build.wgsl")
-);
-const PAIRS_WGSL: &str = concat!(
-    include_str!("../../../wgsl/rq_pairs.wgsl"),
-    include_str!("../../../wgsl/rq_walk.wgsl"),
-    include_str!("../../../wgsl/proxy.wgsl"),
-    include_str!("../../../wgsl/pair_output.wgsl")
-);
-
-/// Every WGSL module of this backend, by label, exactly as the device gets it.
-pub(crate) const SHADERS: [(&str, &str); 2] = [("rq_build", BUILD_WGSL), ("rq_pairs", PAIRS_WGSL)];
 
 /// Timer spans of a build and of a detection pass.
 const BUILD_SPAN: Span = Span(0);
@@ -35,37 +25,6 @@ const DETECT_SPAN: Span = Span(1);
 /// Workgroup sizes, as in the shaders.
 const BUILD_GROUP: u32 = 256;
 const PAIRS_GROUP: u32 = 64;
-
-/// Bits of the Morton keys (10 per axis).
-const MORTON_BITS: u32 = 30;
-
-/// Keep in sync with `BuildParams` in `wgsl/rq_build.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct BuildParams {
-    lo: [f32; 3],
-    n: u32,
-    scale: [f32; 3],
-    mode: u32,
-    r_max: f32,
-    pad_rel: f32,
-    row: u32,
-    _pad0: u32,
-}
-const _: () = assert!(size_of::<BuildParams>() == 48);
-
-/// Keep in sync with `PairParams` in `wgsl/rq_pairs.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct PairParams {
-    n: u32,
-    capacity: u32,
-    mode: u32,
-    chunk: u32,
-    row: u32,
-    _pad: [u32; 3],
-}
-const _: () = assert!(size_of::<PairParams>() == 32);
 
 /// The wgpu ray-query backend.
 pub struct WgpuRqBackend {
@@ -94,8 +53,8 @@ impl WgpuRqBackend {
     /// Opens the best adapter with ray queries.
     pub fn new() -> Result<Self> {
         let gpu = Gpu::open(Need::RayQuery)?;
-        let build = gpu.module("mochi.rq.build", BUILD_WGSL);
-        let pairs = gpu.module("mochi.rq.pairs", PAIRS_WGSL);
+        let build = gpu.module("mochi.rq.build", rq_build::SOURCE);
+        let pairs = gpu.module("mochi.rq.pairs", rq_pairs::SOURCE);
         Ok(Self {
             sort: RadixSort::new(&gpu),
             morton_keys: gpu.pipeline("mochi.rq.morton_keys", &build, "morton_keys"),
@@ -118,8 +77,8 @@ impl WgpuRqBackend {
 
     fn max_spheres(&self) -> u64 {
         let l = &self.gpu.limits;
-        let by_binding = l.max_storage_buffer_binding_size / 24;
-        let by_buffer = l.max_buffer_size / 24;
+        let by_binding = l.max_storage_buffer_binding_size / AABB_STRIDE;
+        let by_buffer = l.max_buffer_size / AABB_STRIDE;
         let by_accel = self.blas_capacity as u64 * l.max_tlas_instance_count as u64;
         by_binding.min(by_buffer).min(by_accel).min(u32::MAX as u64)
     }
@@ -168,23 +127,19 @@ impl RebuildingBackend for WgpuRqBackend {
         };
         let (lo, hi) = spheres.bounds().expect("the set is not empty");
         let (x, y) = gpu.grid(n, BUILD_GROUP);
+        let morton = morton::Grid::over(lo, hi);
         let params = BuildParams {
-            lo,
+            lo: morton.lo.into(),
             n,
-            scale: std::array::from_fn(|a| {
-                let extent = hi[a] - lo[a];
-                if extent > 0.0 { 1023.0 / extent } else { 0.0 }
-            }),
+            scale: morton.scale.into(),
             mode: mode.code(),
             r_max: spheres.max_radius(),
             pad_rel: BOX_PADDING,
             row: x * BUILD_GROUP,
-            _pad0: 0,
         };
         let rows: Vec<[f32; 4]> = spheres.xyzr().collect();
         gpu.checked("building the wgpu-rq acceleration structure", || {
-            gpu.queue
-                .write_buffer(&accel.build_params, 0, bytemuck::bytes_of(&params));
+            gpu.write_uniform(&accel.build_params, &params);
             gpu.queue
                 .write_buffer(&accel.spheres_in, 0, bytemuck::cast_slice(&rows));
             gpu.submit_timed(self.timer.as_ref(), BUILD_SPAN, |encoder| {
@@ -193,25 +148,25 @@ impl RebuildingBackend for WgpuRqBackend {
                     "mochi.rq.morton_keys",
                     &self.morton_keys,
                     &[
-                        (0, &accel.build_params),
-                        (1, &accel.spheres_in),
-                        (2, &accel.keys),
-                        (3, &accel.ids),
+                        (rq_build::PARAMS, &accel.build_params),
+                        (rq_build::SPHERES_IN, &accel.spheres_in),
+                        (rq_build::KEYS, &accel.keys),
+                        (rq_build::ORDER, &accel.ids),
                     ],
                     (x, y),
                 );
                 self.sort
-                    .encode(gpu, encoder, &accel.keys, &accel.ids, n, MORTON_BITS);
+                    .encode(gpu, encoder, &accel.keys, &accel.ids, n, morton::KEY_BITS);
                 gpu.pass(
                     encoder,
                     "mochi.rq.proxy_boxes",
                     &self.proxy_boxes,
                     &[
-                        (0, &accel.build_params),
-                        (1, &accel.spheres_in),
-                        (3, &accel.ids),
-                        (4, &accel.spheres),
-                        (5, &accel.boxes),
+                        (rq_build::PARAMS, &accel.build_params),
+                        (rq_build::SPHERES_IN, &accel.spheres_in),
+                        (rq_build::ORDER, &accel.ids),
+                        (rq_build::SPHERES_SORTED, &accel.spheres),
+                        (rq_build::BOXES, &accel.boxes),
                     ],
                     (x, y),
                 );
@@ -258,11 +213,9 @@ impl RebuildingBackend for WgpuRqBackend {
                 mode: mode.code(),
                 chunk: accel.chunk,
                 row: x * PAIRS_GROUP,
-                _pad: [0; 3],
             };
             gpu.checked("running the wgpu-rq ray queries", || {
-                gpu.queue
-                    .write_buffer(&accel.pair_params, 0, bytemuck::bytes_of(&params));
+                gpu.write_uniform(&accel.pair_params, &params);
                 let bind = accel.pairs_bind(gpu, find_pairs, output);
                 gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
                     gpu.dispatch(encoder, "mochi.rq.find_pairs", find_pairs, &bind, (x, y));

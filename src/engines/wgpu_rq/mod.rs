@@ -11,16 +11,8 @@
 pub(crate) mod accel;
 mod dem;
 mod detect;
+mod shaders;
 
 pub use dem::RqStepper;
 pub use detect::WgpuRqBackend;
-
-/// Every WGSL module of this engine (detection and DEM step), by label, exactly as the device
-/// gets it (`tests/shaders.rs` validates each with naga).
-pub fn shaders() -> Vec<(String, String)> {
-    detect::SHADERS
-        .iter()
-        .map(|&(label, source)| (label.to_owned(), source.to_owned()))
-        .chain(dem::shaders())
-        .collect()
-}
+pub use shaders::modules as shaders;

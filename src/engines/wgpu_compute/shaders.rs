@@ -1,0 +1,205 @@
+//! The wgpu-compute engine's WGSL modules: each one's composed source, entry points and
+//! bindings, named once for the bind-group code and checked against the WGSL by
+//! `tests/bindings.rs`.
+
+use super::layout::GridParams;
+use crate::engines::gpu_step::{self, physics};
+use crate::gpu::pair_output;
+use crate::gpu::shader::{Binding, SharedStruct, WgslModule, shared_struct};
+
+macro_rules! wgsl {
+    ($($file:literal),+) => {
+        concat!($(include_str!(concat!("../../../wgsl/", $file))),+)
+    };
+}
+
+/// [`GridParams`], the uniform of every module here.
+fn grid_params() -> SharedStruct {
+    shared_struct!(
+        "GridParams",
+        GridParams {
+            lo,
+            n,
+            inv_cell,
+            nx,
+            ny,
+            nz,
+            cells,
+            row,
+            capacity,
+            hashed,
+            levels,
+            top_cell,
+            level_pad,
+            block_shift,
+            max_radius,
+            level_first,
+        }
+    )
+}
+
+/// The counting sort by cell of a detection build (`wgsl/grid_build.wgsl`).
+pub(crate) mod grid_build {
+    use super::Binding;
+
+    pub const SOURCE: &str = wgsl!("grid_params.wgsl", "grid_build.wgsl");
+    pub const ENTRY_POINTS: &[&str] = &["count_cells", "scatter", "gather"];
+
+    pub const PARAMS: Binding = Binding::uniform(0, "params");
+    pub const SPHERES_IN: Binding = Binding::read(1, "spheres_in");
+    pub const SLOTS: Binding = Binding::read_write(3, "slots");
+    pub const COUNTS: Binding = Binding::read_write(4, "counts");
+    pub const CELL_START: Binding = Binding::read(5, "cell_start");
+    pub const IDS: Binding = Binding::read_write(7, "ids");
+    pub const SPHERES: Binding = Binding::read_write(8, "spheres");
+    pub const BINDINGS: &[Binding] = &[PARAMS, SPHERES_IN, SLOTS, COUNTS, CELL_START, IDS, SPHERES];
+}
+
+/// Detection over a built grid (`wgsl/grid_pairs.wgsl`).
+pub(crate) mod grid_pairs {
+    use super::{Binding, pair_output};
+
+    pub const SOURCE: &str = wgsl!(
+        "grid_params.wgsl",
+        "grid_stencil.wgsl",
+        "grid_pairs.wgsl",
+        "grid_walk.wgsl",
+        "proxy.wgsl",
+        "pair_output.wgsl"
+    );
+    pub const ENTRY_POINTS: &[&str] = &["find_pairs"];
+
+    pub const PARAMS: Binding = Binding::uniform(0, "params");
+    pub const SPHERES: Binding = Binding::read(1, "spheres");
+    pub const IDS: Binding = Binding::read(2, "ids");
+    pub const CELL_START: Binding = Binding::read(6, "cell_start");
+    pub const BINDINGS: &[Binding] = &[
+        PARAMS,
+        SPHERES,
+        IDS,
+        CELL_START,
+        pair_output::COUNTERS,
+        pair_output::PAIRS,
+    ];
+}
+
+/// The scan of the cell counts into the cell table (`wgsl/cell_scan.wgsl`), in two variants:
+/// on subgroup operations where the adapter has them, else in workgroup memory.
+pub(crate) mod cell_scan {
+    use super::Binding;
+
+    pub const PLAIN_SOURCE: &str = wgsl!(
+        "grid_params.wgsl",
+        "cell_scan.wgsl",
+        "workgroup_scan_plain.wgsl",
+        "workgroup_scan.wgsl"
+    );
+    pub const SUBGROUP_SOURCE: &str = wgsl!(
+        "grid_params.wgsl",
+        "cell_scan.wgsl",
+        "workgroup_scan_subgroups.wgsl",
+        "workgroup_scan.wgsl"
+    );
+    pub const ENTRY_POINTS: &[&str] = &["reduce_blocks", "scan_cells"];
+
+    pub const PARAMS: Binding = Binding::uniform(0, "params");
+    pub const COUNTS: Binding = Binding::read_write(1, "counts");
+    pub const BLOCK_SUMS: Binding = Binding::read_write(2, "block_sums");
+    pub const CELL_START: Binding = Binding::read_write(3, "cell_start");
+    pub const BINDINGS: &[Binding] = &[PARAMS, COUNTS, BLOCK_SUMS, CELL_START];
+}
+
+/// The DEM step's binning and contact resolution (`wgsl/dem_grid.wgsl`), followed by the
+/// shared physics ([`physics`]).
+pub(crate) mod dem_grid {
+    use super::{Binding, physics};
+
+    const GRID: &str = wgsl!(
+        "grid_params.wgsl",
+        "grid_stencil.wgsl",
+        "dem_grid.wgsl",
+        "grid_walk.wgsl"
+    );
+
+    /// The module with the force accumulation `force` (one of [`physics::FORCE_VARIANTS`]).
+    pub fn source(force: &str) -> String {
+        format!("{GRID}{}{force}", physics::SOURCE)
+    }
+
+    pub const ENTRY_POINTS: &[&str] = &[
+        "bin_count",
+        "bin_scatter",
+        "resolve",
+        "reduce_bounds",
+        "integrate",
+    ];
+
+    pub const PARAMS: Binding = Binding::uniform(0, "params");
+    pub const POS_A: Binding = Binding::read(2, "pos_a");
+    pub const VEL_A: Binding = Binding::read(3, "vel_a");
+    pub const IDS_A: Binding = Binding::read(4, "ids_a");
+    pub const RANKS: Binding = Binding::read_write(6, "ranks");
+    pub const COUNTS: Binding = Binding::read_write(7, "counts");
+    pub const CELL_START: Binding = Binding::read(8, "cell_start");
+    pub const IDS: Binding = Binding::read_write(12, "ids");
+    pub const COUNTERS: Binding = Binding::read_write(14, "counters");
+    pub const BOUNDS: Binding = Binding::read_write(15, "bounds");
+
+    /// Every binding, the physics' included.
+    pub fn bindings() -> Vec<Binding> {
+        let own = [
+            PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS,
+        ];
+        own.into_iter()
+            .chain(physics::BINDINGS.iter().copied())
+            .collect()
+    }
+}
+
+/// Every WGSL module of this engine (detection and DEM step), exactly as the device may get it.
+pub fn modules() -> Vec<WgslModule> {
+    let module = |label: &str, source: String, entry_points, bindings: &[Binding]| WgslModule {
+        label: label.to_owned(),
+        source,
+        entry_points,
+        bindings: bindings.to_vec(),
+        structs: vec![grid_params()],
+    };
+    let mut all = vec![
+        module(
+            "grid_build",
+            grid_build::SOURCE.into(),
+            grid_build::ENTRY_POINTS,
+            grid_build::BINDINGS,
+        ),
+        module(
+            "grid_pairs",
+            grid_pairs::SOURCE.into(),
+            grid_pairs::ENTRY_POINTS,
+            grid_pairs::BINDINGS,
+        ),
+        module(
+            "cell_scan_plain",
+            cell_scan::PLAIN_SOURCE.into(),
+            cell_scan::ENTRY_POINTS,
+            cell_scan::BINDINGS,
+        ),
+        module(
+            "cell_scan_subgroups",
+            cell_scan::SUBGROUP_SOURCE.into(),
+            cell_scan::ENTRY_POINTS,
+            cell_scan::BINDINGS,
+        ),
+    ];
+    for (name, force) in physics::FORCE_VARIANTS {
+        let mut dem = module(
+            &format!("dem_grid_{name}"),
+            dem_grid::source(force),
+            dem_grid::ENTRY_POINTS,
+            &dem_grid::bindings(),
+        );
+        dem.structs.push(gpu_step::dem_params());
+        all.push(dem);
+    }
+    all
+}
