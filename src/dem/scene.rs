@@ -676,6 +676,7 @@ impl SceneConfig {
             density: self.density,
             restitution: self.restitution,
             stiffness: self.stiffness,
+            ..Material::default()
         };
         let (lo, hi) = (
             self.box_lo.unwrap_or(default_lo),
