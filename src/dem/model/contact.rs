@@ -122,7 +122,7 @@ fn normal_force(
                 stiffness: p.stiffness,
             }
         }
-        NormalLaw::LinearPerPair { rate } => {
+        NormalLaw::LinearPerPair { rate, .. } => {
             let k = m_eff * rate;
             let c = 2.0 * p.damping_ratio * (k * m_eff).sqrt();
             Normal {

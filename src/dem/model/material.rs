@@ -93,6 +93,8 @@ pub enum NormalLaw {
     LinearPerPair {
         /// k/m* of every contact \[1/s²\].
         rate: f32,
+        /// The contact duration it gives \[s\].
+        contact_time: f32,
     },
     /// Hertz–Mindlin with the effective moduli of a sphere pair and of a sphere on a wall.
     Hertz {
@@ -253,7 +255,10 @@ impl Material {
                     ));
                 }
                 Ok(ResolvedLaw {
-                    law: NormalLaw::LinearPerPair { rate: rate as f32 },
+                    law: NormalLaw::LinearPerPair {
+                        rate: rate as f32,
+                        contact_time: t_c as f32,
+                    },
                     stiffness: 0.0,
                     dt_limit: stable_dt(rate, 1.0, zeta),
                     limited_by: format!("a per-pair stiffness with contact time {t_c:e} s"),
@@ -293,7 +298,7 @@ impl Material {
                     limited_by: format!(
                         "Hertz–Mindlin with E = {young_modulus:e} Pa, ν = {poisson_ratio}, \
                          density {} and the smallest spheres (r = {r_min:e} m, Rayleigh time \
-                         {t_r:e} s; the limit is {RAYLEIGH_LIMIT} of it)",
+                         {t_r:.4e} s; the limit is {RAYLEIGH_LIMIT} of it)",
                         self.density
                     ),
                     rayleigh_time: Some(t_r),

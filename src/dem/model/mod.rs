@@ -200,6 +200,44 @@ impl StepParams {
         ))
     }
 
+    /// The time step and the contact law in words, for a run's summary line: the stiffness or
+    /// the Rayleigh time the step follows from, and the friction where there is any.
+    pub fn describe(&self) -> String {
+        let dt = self.dt as f64;
+        let law = match self.law {
+            NormalLaw::Linear => format!(
+                "dt {dt:e} s (stable limit {:.3e} s) | stiffness {:.4e} N/m",
+                self.dt_limit, self.stiffness
+            ),
+            NormalLaw::LinearPerPair { contact_time, .. } => format!(
+                "dt {dt:e} s (stable limit {:.3e} s) | per-pair stiffness, contact time \
+                 {contact_time:.3e} s",
+                self.dt_limit,
+            ),
+            NormalLaw::Hertz { .. } => {
+                let t_r = self.rayleigh_time.unwrap_or(f32::NAN) as f64;
+                format!(
+                    "dt {dt:e} s = {:.3} Rayleigh time of the smallest sphere ({t_r:.3e} s; \
+                     limit {:.3e} s) | hertz-mindlin",
+                    dt / t_r,
+                    self.dt_limit
+                )
+            }
+        };
+        let f = &self.friction;
+        if !f.turns() {
+            return law;
+        }
+        let model = match f.rolling_model {
+            RollingModel::Epsd => "epsd",
+            RollingModel::ConstantTorque => "constant-torque",
+        };
+        format!(
+            "{law} | friction {} (walls {}), rolling {} ({model})",
+            f.sliding, f.wall_sliding, f.rolling
+        )
+    }
+
     /// Gravity at step `step` (time `step · dt`), turned about the y axis by `gravity_spin · t`.
     pub fn gravity_at(&self, step: u64) -> [f32; 3] {
         let angle = self.gravity_spin * (step as f32 * self.dt);
