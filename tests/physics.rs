@@ -384,8 +384,8 @@ fn hertz_energy(p: &Particles, side: f32) -> f64 {
                 sum += stored(e_star(false), (r * s / (r + s)) as f64, overlap);
             }
         }
-        for a in 0..3 {
-            for overlap in [r - c[a], r - (side - c[a])] {
+        for &x in c {
+            for overlap in [r - x, r - (side - x)] {
                 if overlap > 0.0 {
                     sum += stored(e_star(true), r as f64, overlap as f64);
                 }
@@ -536,4 +536,48 @@ fn a_frictional_heap_keeps_its_slope_where_a_frictionless_one_spreads_flat() {
         heap.0,
         later.0
     );
+}
+
+#[test]
+fn a_sphere_with_more_contacts_than_history_slots_keeps_every_one() {
+    // A 3 cm sphere touched by 40 spheres of 5 mm (more than the 16 slots a run starts with),
+    // spread over its surface on a Fibonacci spiral so they do not touch each other, each
+    // sliding along it.
+    let (big, small) = (0.03f32, 0.005f32);
+    let centre = [0.5f32; 3];
+    let mut c = vec![centre];
+    let mut v = vec![[0.0f32; 3]];
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    for k in 0..40 {
+        let z = 1.0 - 2.0 * (k as f32 + 0.5) / 40.0;
+        let (s, t) = ((1.0 - z * z).sqrt(), golden * k as f32);
+        let u = [s * t.cos(), s * t.sin(), z];
+        let d = big + small - 1e-4;
+        c.push(std::array::from_fn(|a| centre[a] + d * u[a]));
+        // Along the surface: u × z (or x at the poles).
+        let w = [u[1], -u[0], 0.0];
+        let len = (w[0] * w[0] + w[1] * w[1]).sqrt().max(1e-3);
+        v.push(w.map(|x| 0.05 * x / len));
+    }
+    let mut r = vec![big];
+    r.extend([small; 40]);
+    let p = params(&hertz(0.5, 0.5), 1e-6, 1.0, [0.0; 3], small);
+    let mut s = cpu(spheres(c, v, r), p);
+    s.advance(5).unwrap();
+    let end = s.particles().unwrap();
+    let held = end.history.of(0);
+    assert_eq!(
+        held.len(),
+        40,
+        "the big sphere kept {} of its 40 contacts",
+        held.len()
+    );
+    // Each small sphere keeps the same contact, its springs the exact negatives.
+    for e in held {
+        let back = end.history.of(e.partner as usize);
+        assert_eq!(back.len(), 1);
+        assert_eq!(back[0].partner, 0);
+        assert_eq!(back[0].tangential, e.tangential.map(|x| -x));
+        assert!(e.tangential.iter().any(|&x| x != 0.0));
+    }
 }

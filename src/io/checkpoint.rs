@@ -263,6 +263,34 @@ mod tests {
     }
 
     #[test]
+    fn a_version_2_checkpoint_reads_as_spheres_without_spin_or_history() {
+        let p = sample();
+        let mut bytes = MAGIC.to_vec();
+        bytes.extend_from_slice(&2u32.to_le_bytes());
+        bytes.extend_from_slice(&p.step.to_le_bytes());
+        bytes.extend_from_slice(&2u64.to_le_bytes());
+        bytes.extend_from_slice(&1u64.to_le_bytes());
+        bytes.push(b'x');
+        let floats = p.positions.iter().flatten().chain(p.velocities.iter().flatten());
+        for x in floats.chain(&p.radii) {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+        let crc = crc32fast::hash(&bytes);
+        bytes.extend_from_slice(&crc.to_le_bytes());
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        std::fs::write(&path, &bytes).unwrap();
+        let (read, scene) = read_checkpoint(&path).unwrap();
+        assert_eq!(scene, "x");
+        let expected = Particles {
+            angular_velocities: vec![[0.0; 3]; 2],
+            history: ContactHistory::default(),
+            ..p
+        };
+        assert_eq!(read, expected);
+    }
+
+    #[test]
     fn an_older_checkpoint_version_is_refused_by_name() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
