@@ -271,7 +271,11 @@ mod tests {
         bytes.extend_from_slice(&2u64.to_le_bytes());
         bytes.extend_from_slice(&1u64.to_le_bytes());
         bytes.push(b'x');
-        let floats = p.positions.iter().flatten().chain(p.velocities.iter().flatten());
+        let floats = p
+            .positions
+            .iter()
+            .flatten()
+            .chain(p.velocities.iter().flatten());
         for x in floats.chain(&p.radii) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }

@@ -12,11 +12,11 @@ use serde::{Deserialize, Serialize};
 pub enum ContactLaw {
     /// Linear spring–dashpot with one stiffness for every contact: [`Material::stiffness`], or
     /// derived so that the lightest pair's contact lasts
-    /// [`STEPS_PER_CONTACT`](super::STEPS_PER_CONTACT) steps (the paper's model).
+    /// [`STEPS_PER_CONTACT`] steps (the paper's model).
     Linear,
     /// Linear spring–dashpot whose stiffness follows each contact's effective mass,
     /// k = m*·(π² + ln² e)/t_c², so every contact lasts `contact_time` t_c \[s\]
-    /// (`None`: [`STEPS_PER_CONTACT`](super::STEPS_PER_CONTACT) time steps).
+    /// (`None`: [`STEPS_PER_CONTACT`] time steps).
     LinearPerPair {
         /// Contact duration t_c \[s\].
         contact_time: Option<f64>,
@@ -55,7 +55,7 @@ pub struct Material {
     pub restitution: f64,
     /// Normal stiffness k \[N/m\] of [`ContactLaw::Linear`]; `None` derives it so that a
     /// collision of the two lightest spheres lasts
-    /// [`STEPS_PER_CONTACT`](super::STEPS_PER_CONTACT) time steps. Only for that law.
+    /// [`STEPS_PER_CONTACT`] time steps. Only for that law.
     pub stiffness: Option<f64>,
     /// The normal law (default: [`ContactLaw::Linear`]).
     pub contact: ContactLaw,
