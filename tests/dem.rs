@@ -81,10 +81,11 @@ fn params(material: Material, dt: f64, side: f64, gravity: [f64; 3], r_min: f32)
 
 fn particles(positions: Vec<[f32; 3]>, velocities: Vec<[f32; 3]>, radii: Vec<f32>) -> Particles {
     Particles {
+        angular_velocities: vec![[0.0; 3]; radii.len()],
         positions,
         velocities,
         radii,
-        step: 0,
+        ..Particles::default()
     }
 }
 

@@ -128,11 +128,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         Some(FrameSeries::create(&args.out)?)
     };
     eprintln!(
-        "scene {} | {n} spheres | steps {first}..{total} | dt {:e} s | stiffness {:.4e} N/m | \
-         restitution {} | backend {}",
+        "scene {} | {n} spheres | steps {first}..{total} | {} | restitution {} | backend {}",
         config.scene,
-        p.dt,
-        p.stiffness,
+        p.describe(),
         config.restitution,
         stepper.describe()
     );

@@ -13,7 +13,16 @@
 //! gravity_spin = 0.0     # rad/s about y; rotating: 0.25π
 //! density = 500
 //! restitution = 0.5
-//! stiffness = 2.0        # N/m; default: a 10-step contact for the two lightest spheres
+//! contact = "linear"     # or "hertz-mindlin" (default "linear" until the GPU engines have it)
+//! stiffness = 2.0        # linear: N/m, default a 10-step contact for the two lightest spheres;
+//!                        # or "per-pair": k = m*·(π² + ln² e)/contact_time² for each contact
+//! contact_time = 1e-3    # s, with stiffness = "per-pair" (default: 10·dt)
+//! young_modulus = 1e7    # Pa, hertz-mindlin (default 1e7: soft, as is usual, for larger steps)
+//! poisson_ratio = 0.3    # hertz-mindlin, in (−1, 0.5)
+//! friction = 0.5         # μ; default 0 (linear), 0.5 (hertz-mindlin)
+//! wall_friction = 0.5    # μ with the walls; default: friction
+//! rolling_friction = 0.1 # μ_r; default 0 (linear), 0.1 (hertz-mindlin)
+//! rolling_model = "epsd" # or "constant-torque"
 //! mode = "mochi"         # or "nns"
 //! frame_every = 250      # 0: no frames
 //! csv = false            # CSV frames beside the VTK ones
@@ -25,7 +34,8 @@
 //! mesh_copies = 1        # copies side by side, in layers if needed
 //! ```
 
-use super::model::{Material, StepParams};
+use super::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
+use super::model::{ContactLaw, Material, RollingModel, StepParams};
 use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
@@ -175,6 +185,76 @@ impl std::fmt::Display for SceneKind {
     }
 }
 
+/// The normal contact law of a scene (`contact = ...`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ContactKind {
+    /// Linear spring–dashpot (the paper's model; the default while the GPU engines have only
+    /// it).
+    #[default]
+    Linear,
+    /// Hertz–Mindlin with Tsuji damping.
+    HertzMindlin,
+}
+
+impl ContactKind {
+    fn is_linear(&self) -> bool {
+        *self == ContactKind::Linear
+    }
+}
+
+/// Young's modulus of `hertz-mindlin` when the scene gives none \[Pa\]: soft, as practitioners
+/// choose it (1e6–1e8 Pa rather than GPa) so that the time step, which grows with 1/√E, stays
+/// affordable.
+pub const DEFAULT_YOUNG_MODULUS: f64 = 1e7;
+/// Poisson's ratio of `hertz-mindlin` when the scene gives none.
+pub const DEFAULT_POISSON_RATIO: f64 = 0.3;
+/// Friction coefficient μ of `hertz-mindlin` when the scene gives none.
+pub const DEFAULT_FRICTION: f64 = 0.5;
+/// Rolling friction coefficient μ_r of `hertz-mindlin` when the scene gives none.
+pub const DEFAULT_ROLLING_FRICTION: f64 = 0.1;
+
+/// The `stiffness` of a `linear` scene: a number in N/m, or `"per-pair"`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "StiffnessText", into = "StiffnessText")]
+pub enum Stiffness {
+    /// One stiffness for every contact \[N/m\].
+    Fixed(f64),
+    /// k = m*·(π² + ln² e)/t_c² for each contact, t_c = `contact_time`.
+    PerPair,
+}
+
+/// How [`Stiffness`] is written in TOML.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(untagged)]
+enum StiffnessText {
+    Number(f64),
+    Word(String),
+}
+
+impl TryFrom<StiffnessText> for Stiffness {
+    type Error = String;
+
+    fn try_from(text: StiffnessText) -> std::result::Result<Self, String> {
+        match text {
+            StiffnessText::Number(k) => Ok(Stiffness::Fixed(k)),
+            StiffnessText::Word(w) if w == "per-pair" => Ok(Stiffness::PerPair),
+            StiffnessText::Word(w) => Err(format!(
+                "stiffness must be a number (N/m) or \"per-pair\", got {w:?}"
+            )),
+        }
+    }
+}
+
+impl From<Stiffness> for StiffnessText {
+    fn from(k: Stiffness) -> Self {
+        match k {
+            Stiffness::Fixed(k) => StiffnessText::Number(k),
+            Stiffness::PerPair => StiffnessText::Word("per-pair".into()),
+        }
+    }
+}
+
 /// The scene fields named command-line options give (`None`: not given). They apply over the
 /// scene file, and `--set` overrides apply over them.
 #[derive(Debug, Clone, Default, Serialize)]
@@ -229,11 +309,40 @@ pub struct SceneConfig {
     pub gravity_spin: Option<f64>,
     /// Density \[kg/m³\].
     pub density: f64,
-    /// Restitution coefficient, in (0, 1].
+    /// Restitution coefficient, in (0, 1] (default 0.5).
     pub restitution: f64,
-    /// Normal stiffness \[N/m\]; `None`: derived (a 10-step contact for the lightest pair).
+    /// Normal contact law (default `linear`, which the GPU engines run; `hertz-mindlin` runs
+    /// on the cpu backend).
+    #[serde(skip_serializing_if = "ContactKind::is_linear")]
+    pub contact: ContactKind,
+    /// `linear`: stiffness \[N/m\] or `"per-pair"`; `None`: derived (a 10-step contact for
+    /// the lightest pair).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub stiffness: Option<f64>,
+    pub stiffness: Option<Stiffness>,
+    /// Contact duration of `stiffness = "per-pair"` \[s\]; `None`: 10 time steps.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact_time: Option<f64>,
+    /// Young's modulus of `hertz-mindlin` \[Pa\]; `None`: [`DEFAULT_YOUNG_MODULUS`] (1e7).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub young_modulus: Option<f64>,
+    /// Poisson's ratio of `hertz-mindlin`, in (−1, 0.5); `None`: [`DEFAULT_POISSON_RATIO`]
+    /// (0.3).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub poisson_ratio: Option<f64>,
+    /// Sliding friction coefficient μ, ≥ 0; `None`: 0 (`linear`) or [`DEFAULT_FRICTION`]
+    /// (0.5, `hertz-mindlin`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
+    /// Sliding friction coefficient with the walls, ≥ 0; `None`: `friction`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wall_friction: Option<f64>,
+    /// Rolling friction coefficient μ_r, ≥ 0; `None`: 0 (`linear`) or
+    /// [`DEFAULT_ROLLING_FRICTION`] (0.1, `hertz-mindlin`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rolling_friction: Option<f64>,
+    /// Rolling resistance model, `epsd` or `constant-torque`; `None`: `epsd`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rolling_model: Option<RollingModel>,
     /// `mochi` (cells of 2·r_max) or `nns` (4·r_max).
     #[serde(with = "by_name")]
     pub mode: ProxyMode,
@@ -272,7 +381,15 @@ impl Default for SceneConfig {
             gravity_spin: None,
             density: 500.0,
             restitution: 0.5,
+            contact: ContactKind::Linear,
             stiffness: None,
+            contact_time: None,
+            young_modulus: None,
+            poisson_ratio: None,
+            friction: None,
+            wall_friction: None,
+            rolling_friction: None,
+            rolling_model: None,
             mode: ProxyMode::Mochi,
             frame_every: 250,
             csv: false,
@@ -676,13 +793,31 @@ impl SceneConfig {
                 }
             }
         };
-        let dt = self.dt.unwrap_or(match source {
-            Source::Generated(Scene::Poly1_2 | Scene::Poly12 | Scene::Poly120 | Scene::Polylog) => {
-                5e-5
+        let material = self.material()?;
+        let r_min = if particles.is_empty() { 1.0 } else { r_min };
+        let dt = match (self.dt, material.contact) {
+            (Some(dt), _) => dt,
+            // The Rayleigh rule where the parameters make sense (else `StepParams::new` says
+            // what is wrong with them).
+            (
+                None,
+                ContactLaw::HertzMindlin {
+                    young_modulus,
+                    poisson_ratio,
+                },
+            ) if young_modulus > 0.0 && poisson_ratio > -1.0 && poisson_ratio < 0.5 => {
+                let t_r =
+                    rayleigh_time(r_min as f64, material.density, young_modulus, poisson_ratio);
+                RAYLEIGH_FRACTION * t_r
             }
-            Source::Mesh => 2.5e-5,
-            _ => 1e-4,
-        });
+            (None, _) => match source {
+                Source::Generated(
+                    Scene::Poly1_2 | Scene::Poly12 | Scene::Poly120 | Scene::Polylog,
+                ) => 5e-5,
+                Source::Mesh => 2.5e-5,
+                _ => 1e-4,
+            },
+        };
         let spin = self
             .gravity_spin
             .unwrap_or(if self.scene == SceneKind::Rotating {
@@ -690,16 +825,10 @@ impl SceneConfig {
             } else {
                 0.0
             });
-        let material = Material {
-            density: self.density,
-            restitution: self.restitution,
-            stiffness: self.stiffness,
-        };
         let (lo, hi) = (
             self.box_lo.unwrap_or(default_lo),
             self.box_hi.unwrap_or(default_hi),
         );
-        let r_min = if particles.is_empty() { 1.0 } else { r_min };
         let params = StepParams::new(&material, dt, lo, hi, self.gravity, spin, r_min)?;
         Ok(Start {
             particles,
@@ -708,16 +837,109 @@ impl SceneConfig {
         })
     }
 
-    /// This scene with every derived value (time step, box, gravity spin, stiffness) written
-    /// out as `start` resolved it, so a checkpoint resumes with exactly the same parameters.
+    /// The material the scene describes, its defaults filled in; refuses keys that do not
+    /// apply to its contact law (each would be silently ignored).
+    pub fn material(&self) -> Result<Material> {
+        let hertz = self.contact == ContactKind::HertzMindlin;
+        let refuse = |key: &str, law: &str| {
+            Err(Error::InvalidConfig {
+                what: format!("scene key {key}"),
+                reason: format!(
+                    "applies to contact = \"{law}\" only, and this scene's contact is \"{}\"",
+                    if hertz { "hertz-mindlin" } else { "linear" }
+                ),
+            })
+        };
+        let contact = if hertz {
+            if self.stiffness.is_some() {
+                return refuse("stiffness", "linear");
+            }
+            if self.contact_time.is_some() {
+                return refuse("contact_time", "linear");
+            }
+            ContactLaw::HertzMindlin {
+                young_modulus: self.young_modulus.unwrap_or(DEFAULT_YOUNG_MODULUS),
+                poisson_ratio: self.poisson_ratio.unwrap_or(DEFAULT_POISSON_RATIO),
+            }
+        } else {
+            if self.young_modulus.is_some() {
+                return refuse("young_modulus", "hertz-mindlin");
+            }
+            if self.poisson_ratio.is_some() {
+                return refuse("poisson_ratio", "hertz-mindlin");
+            }
+            match self.stiffness {
+                Some(Stiffness::PerPair) => ContactLaw::LinearPerPair {
+                    contact_time: self.contact_time,
+                },
+                _ if self.contact_time.is_some() => {
+                    return Err(Error::InvalidConfig {
+                        what: "scene key contact_time".into(),
+                        reason: "applies to stiffness = \"per-pair\" only".into(),
+                    });
+                }
+                _ => ContactLaw::Linear,
+            }
+        };
+        let stiffness = match self.stiffness {
+            Some(Stiffness::Fixed(k)) => Some(k),
+            _ => None,
+        };
+        let (friction, rolling) = match hertz {
+            true => (DEFAULT_FRICTION, DEFAULT_ROLLING_FRICTION),
+            false => (0.0, 0.0),
+        };
+        Ok(Material {
+            density: self.density,
+            restitution: self.restitution,
+            stiffness,
+            contact,
+            friction: self.friction.unwrap_or(friction),
+            wall_friction: self.wall_friction,
+            rolling_friction: self.rolling_friction.unwrap_or(rolling),
+            rolling_model: self.rolling_model.unwrap_or_default(),
+        })
+    }
+
+    /// This scene with every derived value (time step, box, gravity spin, stiffness, the
+    /// material's defaults) written out as `start` resolved it, so a checkpoint resumes with
+    /// exactly the same parameters.
     pub fn resolved(&self, start: &Start) -> SceneConfig {
         let p = &start.params;
+        // `start` was built from this scene, so its material is valid.
+        let m = self
+            .material()
+            .expect("the scene of a start has a valid material");
+        let (young_modulus, poisson_ratio) = match m.contact {
+            ContactLaw::HertzMindlin {
+                young_modulus,
+                poisson_ratio,
+            } => (Some(young_modulus), Some(poisson_ratio)),
+            _ => (None, None),
+        };
+        // Friction written out where it acts (a frictionless linear scene stays as it was).
+        let acting = |given: Option<f64>, value: f64| match p.friction.turns() {
+            true => Some(value),
+            false => given,
+        };
         SceneConfig {
             dt: Some(p.dt as f64),
             box_lo: Some(p.box_lo.map(f64::from)),
             box_hi: Some(p.box_hi.map(f64::from)),
             gravity_spin: Some(p.gravity_spin as f64),
-            stiffness: Some(p.stiffness as f64),
+            stiffness: match m.contact {
+                ContactLaw::Linear => Some(Stiffness::Fixed(p.stiffness as f64)),
+                _ => self.stiffness,
+            },
+            young_modulus,
+            poisson_ratio,
+            friction: acting(self.friction, m.friction),
+            wall_friction: acting(self.wall_friction, m.wall_friction.unwrap_or(m.friction)),
+            rolling_friction: acting(self.rolling_friction, m.rolling_friction),
+            rolling_model: match p.friction.turns() {
+                true => Some(m.rolling_model),
+                false => self.rolling_model,
+            },
             ..self.clone()
         }
     }
@@ -742,7 +964,7 @@ mod tests {
         assert_eq!(c.scene.name(), "poly12");
         assert_eq!(c.spheres, 2000);
         assert_eq!(c.gravity, [0.0, -9.81, 0.0]);
-        assert_eq!(c.stiffness, Some(3.5));
+        assert_eq!(c.stiffness, Some(Stiffness::Fixed(3.5)));
     }
 
     #[test]
@@ -871,7 +1093,7 @@ mod tests {
     fn a_scene_round_trips_through_toml() {
         let c = SceneConfig {
             dt: Some(2e-5),
-            stiffness: Some(10.0),
+            stiffness: Some(Stiffness::Fixed(10.0)),
             ..SceneConfig::default()
         };
         let back: SceneConfig = toml::from_str(&c.to_toml()).unwrap();

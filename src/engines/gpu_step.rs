@@ -206,10 +206,13 @@ pub(crate) fn particles_from(
     step: u64,
 ) -> Result<Particles> {
     let n = pos.len();
+    // The GPU steps have no rotation yet: `open_stepper` gives them no spinning spheres.
     let mut out = Particles {
         positions: vec![[0.0; 3]; n],
         velocities: vec![[0.0; 3]; n],
+        angular_velocities: vec![[0.0; 3]; n],
         radii: vec![0.0; n],
+        history: Default::default(),
         step,
     };
     for (k, (p, v)) in pos.iter().zip(vel).enumerate() {

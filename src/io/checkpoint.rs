@@ -1,17 +1,25 @@
-//! Checkpoints: the particles, the step count and the scene (as TOML) in one little-endian
-//! binary file, written atomically so the file on disk is always a whole checkpoint.
+//! Checkpoints: the particles, their contact history, the step count and the scene (as TOML)
+//! in one little-endian binary file, written atomically so the file on disk is always a whole
+//! checkpoint.
 //!
-//! Layout: `MOCHICKP`, version u32 (2), step u64, n u64, scene length u64, scene TOML (UTF-8),
-//! then n·3 f32 positions, n·3 f32 velocities, n f32 radii, and last the CRC-32 (u32) of every
-//! byte before it: a damaged file is refused rather than resumed.
+//! Layout (version 3): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
+//! (UTF-8), then n·3 f32 positions, n·3 f32 velocities, n·3 f32 angular velocities, n f32
+//! radii, the number of history entries u64 and each entry as owner u32, partner u32, 3 f32
+//! tangential spring, 3 f32 rolling spring (owners in order), and last the CRC-32 (u32) of
+//! every byte before it: a damaged file is refused rather than resumed. Version 2 (no angular
+//! velocities, no history) is still read, as spheres at rest in rotation without history.
 
 use super::{io_error, write_atomically};
 use crate::error::{Error, Result};
-use crate::particles::Particles;
+use crate::particles::{ContactHistory, HistoryEntry, Particles};
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"MOCHICKP";
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
+/// The oldest version this mochi reads.
+const OLDEST: u32 = 2;
+/// Bytes of one history entry: owner, partner and six f32.
+const ENTRY_BYTES: usize = 32;
 
 /// Writes `particles` and `scene` (TOML) to `path`, atomically.
 pub fn write_checkpoint(path: &Path, particles: &Particles, scene: &str) -> Result<()> {
@@ -20,8 +28,12 @@ pub fn write_checkpoint(path: &Path, particles: &Particles, scene: &str) -> Resu
         .iter()
         .flatten()
         .chain(particles.velocities.iter().flatten())
+        .chain(particles.angular_velocities.iter().flatten())
         .chain(&particles.radii);
-    let mut bytes = Vec::with_capacity(40 + scene.len() + 28 * particles.len() + 4);
+    let history = &particles.history;
+    let mut bytes = Vec::with_capacity(
+        48 + scene.len() + 40 * particles.len() + ENTRY_BYTES * history.len() + 4,
+    );
     bytes.extend_from_slice(MAGIC);
     bytes.extend_from_slice(&VERSION.to_le_bytes());
     bytes.extend_from_slice(&particles.step.to_le_bytes());
@@ -29,6 +41,14 @@ pub fn write_checkpoint(path: &Path, particles: &Particles, scene: &str) -> Resu
     bytes.extend_from_slice(&(scene.len() as u64).to_le_bytes());
     bytes.extend_from_slice(scene.as_bytes());
     bytes.extend(floats.flat_map(|x| x.to_le_bytes()));
+    bytes.extend_from_slice(&(history.len() as u64).to_le_bytes());
+    for (owner, e) in history.contacts() {
+        bytes.extend_from_slice(&owner.to_le_bytes());
+        bytes.extend_from_slice(&e.partner.to_le_bytes());
+        for x in e.tangential.iter().chain(&e.rolling) {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+    }
     let crc = crc32fast::hash(&bytes);
     bytes.extend_from_slice(&crc.to_le_bytes());
     write_atomically(path, |out| out.write_all(&bytes))
@@ -57,26 +77,38 @@ pub fn read_checkpoint(path: &Path) -> Result<(Particles, String)> {
     }
     let u64_at = |s: &[u8]| u64::from_le_bytes(s.try_into().expect("8 bytes"));
     let version = u32::from_le_bytes(take(4, "version")?.try_into().expect("4 bytes"));
-    if version != VERSION {
+    if !(OLDEST..=VERSION).contains(&version) {
         let age = if version < VERSION {
             "an older"
         } else {
             "a newer"
         };
         return Err(bad(format!(
-            "checkpoint version {version} is from {age} mochi; this one reads version {VERSION} \
-             (restart from the run's last frame with --input)"
+            "checkpoint version {version} is from {age} mochi; this one reads versions \
+             {OLDEST} to {VERSION} (restart from the run's last frame with --input)"
         )));
     }
+    let spins = version >= 3;
     let step = u64_at(take(8, "step")?);
     let n = u64_at(take(8, "sphere count")?);
     let scene_len = u64_at(take(8, "scene length")?);
     let scene = take(scene_len.try_into().unwrap_or(usize::MAX), "scene")?;
+    let per_sphere = if spins { 10 } else { 7 };
     let floats = n
-        .checked_mul(7 * 4)
+        .checked_mul(per_sphere * 4)
         .and_then(|b| usize::try_from(b).ok())
         .ok_or_else(|| bad(format!("{n} spheres cannot fit in memory")))?;
     let data = take(floats, "sphere data")?;
+    let (history_len, history) = if spins {
+        let len = u64_at(take(8, "history length")?);
+        let size = len
+            .checked_mul(ENTRY_BYTES as u64)
+            .and_then(|b| usize::try_from(b).ok())
+            .ok_or_else(|| bad(format!("{len} history entries cannot fit in memory")))?;
+        (len as usize, take(size, "contact history")?)
+    } else {
+        (0, &[][..])
+    };
     let stored = u32::from_le_bytes(take(4, "checksum")?.try_into().expect("4 bytes"));
     if at != bytes.len() {
         return Err(bad(format!(
@@ -92,16 +124,35 @@ pub fn read_checkpoint(path: &Path) -> Result<(Particles, String)> {
     let scene = std::str::from_utf8(scene)
         .map_err(|_| bad("the scene is not UTF-8".into()))?
         .to_owned();
-    let values: Vec<f32> = data
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
-        .collect();
+    let f32_at = |c: &[u8]| f32::from_le_bytes(c.try_into().expect("4 bytes"));
+    let u32_at = |c: &[u8]| u32::from_le_bytes(c.try_into().expect("4 bytes"));
+    let values: Vec<f32> = data.chunks_exact(4).map(f32_at).collect();
     let n = n as usize;
     let triples = |s: &[f32]| s.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let (angular_velocities, radii) = if spins {
+        (triples(&values[6 * n..9 * n]), values[9 * n..].to_vec())
+    } else {
+        (vec![[0.0; 3]; n], values[6 * n..].to_vec())
+    };
+    let contacts: Vec<(u32, HistoryEntry)> = history
+        .chunks_exact(ENTRY_BYTES)
+        .map(|e| {
+            let f: Vec<f32> = e[8..].chunks_exact(4).map(f32_at).collect();
+            let entry = HistoryEntry {
+                partner: u32_at(&e[4..8]),
+                tangential: [f[0], f[1], f[2]],
+                rolling: [f[3], f[4], f[5]],
+            };
+            (u32_at(&e[..4]), entry)
+        })
+        .collect();
+    debug_assert_eq!(contacts.len(), history_len);
     let particles = Particles {
         positions: triples(&values[..3 * n]),
         velocities: triples(&values[3 * n..6 * n]),
-        radii: values[6 * n..].to_vec(),
+        angular_velocities,
+        radii,
+        history: ContactHistory::from_contacts(n, &contacts).map_err(|e| bad(e.to_string()))?,
         step,
     };
     particles.validate().map_err(|e| bad(e.to_string()))?;
@@ -118,12 +169,31 @@ pub fn read_checkpoint(path: &Path) -> Result<(Particles, String)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::particles::FIRST_WALL;
+
+    fn contact(partner: u32, x: f32) -> HistoryEntry {
+        HistoryEntry {
+            partner,
+            tangential: [x, -x, 0.5 * x],
+            rolling: [0.0, x, 0.0],
+        }
+    }
 
     fn sample() -> Particles {
         Particles {
             positions: vec![[0.1, 0.2, 0.3], [1.0, -2.0, 3.5]],
             velocities: vec![[0.0, -1.5, 2.0], [1e-9, 0.0, -0.0]],
+            angular_velocities: vec![[3.0, 0.0, -1.0], [0.0, 2e-7, 0.0]],
             radii: vec![0.01, 0.002],
+            history: ContactHistory::from_contacts(
+                2,
+                &[
+                    (0, contact(1, 1e-6)),
+                    (1, contact(0, -1e-6)),
+                    (1, contact(FIRST_WALL + 4, 2e-5)),
+                ],
+            )
+            .unwrap(),
             step: 1234,
         }
     }
@@ -163,7 +233,7 @@ mod tests {
         );
         // A NaN with a valid checksum: refused by the value checks.
         let mut nan = whole[..whole.len() - 4].to_vec();
-        let first_position = nan.len() - 4 * 14;
+        let first_position = nan.len() - 4 * 20 - 8 - 3 * ENTRY_BYTES;
         nan[first_position..first_position + 4].copy_from_slice(&f32::NAN.to_le_bytes());
         let crc = crc32fast::hash(&nan);
         nan.extend_from_slice(&crc.to_le_bytes());
@@ -176,17 +246,52 @@ mod tests {
     fn a_flipped_bit_anywhere_is_caught_by_the_checksum() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
-        write_checkpoint(&path, &sample(), "scene = \"slab\"\n").unwrap();
+        let scene = "scene = \"slab\"\n";
+        write_checkpoint(&path, &sample(), scene).unwrap();
         let whole = std::fs::read(&path).unwrap();
-        // The step, the scene and the data (damage to the magic, version or a length reads as
-        // a foreign, older or truncated file).
-        for at in (12..20).chain(36..whole.len()) {
+        // The step, the scene, the sphere data and the history (damage to the magic, version
+        // or a length reads as a foreign, older or truncated file).
+        let history_length = 36 + scene.len() + 40 * sample().len();
+        let data = (36..history_length).chain(history_length + 8..whole.len());
+        for at in (12..20).chain(data) {
             let mut flipped = whole.clone();
             flipped[at] ^= 0x10;
             std::fs::write(&path, &flipped).unwrap();
             let e = read_checkpoint(&path).unwrap_err().to_string();
             assert!(e.contains("checksum mismatch"), "byte {at}: {e}");
         }
+    }
+
+    #[test]
+    fn a_version_2_checkpoint_reads_as_spheres_without_spin_or_history() {
+        let p = sample();
+        let mut bytes = MAGIC.to_vec();
+        bytes.extend_from_slice(&2u32.to_le_bytes());
+        bytes.extend_from_slice(&p.step.to_le_bytes());
+        bytes.extend_from_slice(&2u64.to_le_bytes());
+        bytes.extend_from_slice(&1u64.to_le_bytes());
+        bytes.push(b'x');
+        let floats = p
+            .positions
+            .iter()
+            .flatten()
+            .chain(p.velocities.iter().flatten());
+        for x in floats.chain(&p.radii) {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+        let crc = crc32fast::hash(&bytes);
+        bytes.extend_from_slice(&crc.to_le_bytes());
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        std::fs::write(&path, &bytes).unwrap();
+        let (read, scene) = read_checkpoint(&path).unwrap();
+        assert_eq!(scene, "x");
+        let expected = Particles {
+            angular_velocities: vec![[0.0; 3]; 2],
+            history: ContactHistory::default(),
+            ..p
+        };
+        assert_eq!(read, expected);
     }
 
     #[test]

@@ -6,14 +6,35 @@
 //! number of threads.
 
 use super::grid::SortedGrid;
-use super::query::gather;
-use crate::dem::model::{StepParams, contact_force, integrate, mass, wall_force};
+use super::query::{gather, gather_with_side};
+use crate::dem::model::contact::{
+    Body, Springs, integrate_rotation, moment_of_inertia, pair_contact, wall_contacts,
+};
+use crate::dem::model::{StepParams, integrate, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
-use crate::error::{Result, try_vec};
-use crate::particles::Particles;
+use crate::error::{Error, Result, try_vec};
+use crate::particles::{FIRST_WALL, HistoryEntry, Particles};
 use crate::proxy::ProxyMode;
+use glam::Vec3;
 use rayon::prelude::*;
 use std::time::Instant;
+
+/// History slots per sphere a frictional run starts with (a dense monodisperse packing has
+/// 12 neighbours, plus up to 3 walls); more are added when a sphere needs them.
+const FIRST_SLOTS: usize = 16;
+
+/// What the contacts of one sphere sum to.
+#[derive(Debug, Clone, Copy, Default)]
+struct SphereSum {
+    /// Force \[N\].
+    force: Vec3,
+    /// Torque about the centre \[N·m\].
+    torque: Vec3,
+    /// Touching spheres.
+    touching: u32,
+    /// Contacts with history (spheres and walls): how many slots the sphere needs.
+    held: u32,
+}
 
 /// The cpu DEM step.
 pub struct CpuStepper {
@@ -24,10 +45,16 @@ pub struct CpuStepper {
     /// Region the grid covers: the box and a margin of one cell.
     region: ([f32; 3], [f32; 3]),
     grid: SortedGrid,
-    /// Force and contact count of each sorted sphere.
-    sorted_forces: Vec<([f32; 3], u32)>,
+    /// Contact sums of each sorted sphere.
+    sums: Vec<SphereSum>,
+    /// History slots per sphere while resolving contacts (0 without history).
+    slots: usize,
+    /// The new contact history of each sorted sphere, `slots` entries each.
+    sorted_history: Vec<HistoryEntry>,
     /// Force of each sphere, in input order.
     forces: Vec<[f32; 3]>,
+    /// Torque of each sphere, in input order (empty when nothing turns).
+    torques: Vec<[f32; 3]>,
 }
 
 impl CpuStepper {
@@ -42,64 +69,102 @@ impl CpuStepper {
             params.box_hi.map(|x| x + margin),
         );
         let n = particles.len();
+        if params.friction.has_history() && n > FIRST_WALL as usize {
+            return Err(Error::TooLarge {
+                what: "spheres of a run with contact history (ids above are the walls')".into(),
+                got: n as u64,
+                limit: FIRST_WALL as u64,
+            });
+        }
         let mut masses = try_vec(n, || format!("the masses of {n} spheres"))?;
         masses.extend(particles.radii.iter().map(|&r| mass(params.density, r)));
+        let slots = match params.friction.has_history() {
+            true => FIRST_SLOTS.max(particles.history.most()),
+            false => 0,
+        };
         Ok(Self {
             masses,
             cell_size,
             region,
             grid: SortedGrid::default(),
-            sorted_forces: Vec::new(),
+            sums: Vec::new(),
+            slots,
+            sorted_history: Vec::new(),
             forces: Vec::new(),
+            torques: Vec::new(),
             params,
             particles,
         })
     }
 
-    /// Sums every sorted sphere's contact forces; returns the number of touching pairs.
-    fn resolve_contacts(&mut self) -> u64 {
-        let grid = &self.grid;
-        let (velocities, masses, p) = (&self.particles.velocities, &self.masses, &self.params);
-        self.sorted_forces.resize(grid.keys.len(), ([0.0; 3], 0));
-        gather(grid, &mut self.sorted_forces, |at, runs| {
-            let s = grid.spheres[at];
-            let i = grid.ids[at] as usize;
-            let (c_i, v_i, m_i) = ([s[0], s[1], s[2]], velocities[i], masses[i]);
-            let mut total = [0.0f32; 3];
-            let mut touching = 0;
-            for run in runs {
-                for q in run.clone() {
-                    // Cheap rejection first: most candidates do not touch.
-                    let t = grid.spheres[q];
-                    let (dx, dy, dz) = (t[0] - s[0], t[1] - s[1], t[2] - s[2]);
-                    let reach = s[3] + t[3];
-                    if dx * dx + dy * dy + dz * dz > reach * reach || q == at {
-                        continue;
-                    }
-                    let j = grid.ids[q] as usize;
-                    let c_j = [t[0], t[1], t[2]];
-                    if let Some(f) =
-                        contact_force(p, c_i, v_i, s[3], m_i, c_j, velocities[j], t[3], masses[j])
-                    {
-                        touching += 1;
-                        for a in 0..3 {
-                            total[a] += f[a];
-                        }
-                    }
+    /// Sums every sorted sphere's contact forces and torques and writes the new contact
+    /// history; returns the number of touching pairs. When a sphere has more contacts with
+    /// history than there are slots, grows the slots and resolves the step again (the old
+    /// history is only read, so the redo sees the same state).
+    fn resolve_contacts(&mut self) -> Result<u64> {
+        let n = self.grid.keys.len();
+        self.sums.resize(n, SphereSum::default());
+        let pass = ContactPass {
+            grid: &self.grid,
+            params: &self.params,
+            particles: &self.particles,
+            masses: &self.masses,
+        };
+        if !self.params.friction.has_history() {
+            gather(&self.grid, &mut self.sums, |at, runs| {
+                pass.sphere(at, runs, &mut [])
+            });
+        } else {
+            loop {
+                let slots = self.slots;
+                let entries = n.checked_mul(slots).ok_or_else(|| Error::TooLarge {
+                    what: format!("contact history slots of {n} spheres"),
+                    got: slots as u64,
+                    limit: (usize::MAX / n.max(1)) as u64,
+                })?;
+                self.sorted_history.clear();
+                self.sorted_history
+                    .try_reserve(entries)
+                    .map_err(|_| Error::OutOfMemory {
+                        what: format!("the contact history of {n} spheres ({slots} contacts each)"),
+                        bytes: (entries * std::mem::size_of::<HistoryEntry>()) as u64,
+                    })?;
+                self.sorted_history.resize(entries, HistoryEntry::default());
+                let (sums, side) = (&mut self.sums, &mut self.sorted_history);
+                gather_with_side(&self.grid, sums, side, slots, |at, runs, held| {
+                    pass.sphere(at, runs, held)
+                });
+                let most = self.sums.iter().map(|s| s.held).max().unwrap_or(0) as usize;
+                if most <= slots {
+                    break;
                 }
+                // Room for this sphere and some more, rather than a redo per extra contact.
+                self.slots = most + most / 4;
             }
-            (total, touching)
-        });
-        let mut pairs_twice = 0u64;
-        self.forces.resize(self.sorted_forces.len(), [0.0; 3]);
-        for (&(f, k), &id) in self.sorted_forces.iter().zip(&grid.ids) {
-            self.forces[id as usize] = f;
-            pairs_twice += k as u64;
+            let counts: Vec<u32> = self.sums.iter().map(|s| s.held).collect();
+            self.particles.history.scatter_from(
+                &self.grid.ids,
+                self.slots,
+                &counts,
+                &self.sorted_history,
+            )?;
         }
-        pairs_twice / 2
+        let mut pairs_twice = 0u64;
+        self.forces.resize(n, [0.0; 3]);
+        let turns = self.params.friction.turns();
+        self.torques.resize(if turns { n } else { 0 }, [0.0; 3]);
+        for (s, &id) in self.sums.iter().zip(&self.grid.ids) {
+            self.forces[id as usize] = s.force.to_array();
+            if turns {
+                self.torques[id as usize] = s.torque.to_array();
+            }
+            pairs_twice += s.touching as u64;
+        }
+        Ok(pairs_twice / 2)
     }
 
-    /// Walls, gravity and one semi-implicit Euler step for every sphere.
+    /// Gravity and one semi-implicit Euler step for every sphere (positions, and angular
+    /// velocities where contacts exert torques).
     fn integrate_all(&mut self) {
         let p = &self.params;
         let g = p.gravity_at(self.particles.step);
@@ -109,14 +174,119 @@ impl CpuStepper {
             .positions
             .par_iter_mut()
             .zip(parts.velocities.par_iter_mut())
-            .zip(parts.radii.par_iter())
             .zip(forces.par_iter().zip(masses.par_iter()))
-            .for_each(|(((c, v), &r), (f, &m))| {
-                let w = wall_force(p, *c, *v, r, m);
-                let total = [f[0] + w[0], f[1] + w[1], f[2] + w[2]];
-                integrate(p.dt, c, v, total, m, g);
-            });
+            .for_each(|((c, v), (&f, &m))| integrate(p.dt, c, v, f, m, g));
+        if p.friction.turns() {
+            parts
+                .angular_velocities
+                .par_iter_mut()
+                .zip(&self.torques)
+                .zip(parts.radii.par_iter().zip(masses.par_iter()))
+                .for_each(|((w, t), (&r, &m))| {
+                    integrate_rotation(p.dt, w, Vec3::from_array(*t), moment_of_inertia(m, r))
+                });
+        }
         parts.step += 1;
+    }
+}
+
+/// What one sphere's contacts read: the grid, the parameters, the state before the step.
+struct ContactPass<'a> {
+    grid: &'a SortedGrid,
+    params: &'a StepParams,
+    particles: &'a Particles,
+    masses: &'a [f32],
+}
+
+impl ContactPass<'_> {
+    /// The contacts of the sphere at sorted position `at` with the spheres of `runs` and the
+    /// walls; writes those with history to `held` (as many as fit) and counts them all.
+    #[inline(always)]
+    fn sphere(
+        &self,
+        at: usize,
+        runs: &[std::ops::Range<usize>; 9],
+        held: &mut [HistoryEntry],
+    ) -> SphereSum {
+        let (grid, p, parts) = (self.grid, self.params, self.particles);
+        let keeps = p.friction.has_history();
+        let body = |q: usize| {
+            let s = grid.spheres[q];
+            let id = grid.ids[q] as usize;
+            Body {
+                c: Vec3::new(s[0], s[1], s[2]),
+                v: Vec3::from_array(parts.velocities[id]),
+                w: Vec3::from_array(parts.angular_velocities[id]),
+                r: s[3],
+                m: self.masses[id],
+            }
+        };
+        let s = grid.spheres[at];
+        let i = grid.ids[at] as usize;
+        let me = body(at);
+        let kept = parts.history.of(i);
+        let old = |partner: u32| -> Springs {
+            match kept.iter().find(|e| e.partner == partner) {
+                Some(e) => Springs {
+                    tangential: Vec3::from_array(e.tangential),
+                    rolling: Vec3::from_array(e.rolling),
+                },
+                None => Springs::default(),
+            }
+        };
+        let mut count = 0u32;
+        let mut keep = |partner: u32, springs: Springs| {
+            if let Some(slot) = held.get_mut(count as usize) {
+                *slot = HistoryEntry {
+                    partner,
+                    tangential: springs.tangential.to_array(),
+                    rolling: springs.rolling.to_array(),
+                };
+            }
+            count += 1;
+        };
+        let mut force = Vec3::ZERO;
+        let mut torque = Vec3::ZERO;
+        let mut touching = 0;
+        for run in runs {
+            for q in run.clone() {
+                // Cheap rejection first: most candidates do not touch.
+                let t = grid.spheres[q];
+                let (dx, dy, dz) = (t[0] - s[0], t[1] - s[1], t[2] - s[2]);
+                let reach = s[3] + t[3];
+                if dx * dx + dy * dy + dz * dz > reach * reach || q == at {
+                    continue;
+                }
+                let j = grid.ids[q];
+                let springs = if keeps { old(j) } else { Springs::default() };
+                if let Some(c) = pair_contact(p, &me, &body(q), springs) {
+                    touching += 1;
+                    force += c.force;
+                    torque += c.torque;
+                    if keeps {
+                        keep(j, c.springs);
+                    }
+                }
+            }
+        }
+        let walls = wall_contacts(
+            p,
+            &me,
+            |w| old(FIRST_WALL + w),
+            |w, springs| keep(FIRST_WALL + w, springs),
+        );
+        // The paper's law sums exactly as its GPU twins: pairs, then walls.
+        force += walls.normal;
+        if p.friction.turns() {
+            force += walls.tangential;
+            torque += walls.torque;
+        }
+        SphereSum {
+            force,
+            torque,
+            touching,
+            held: count,
+        }
     }
 }
 
@@ -137,7 +307,7 @@ impl Stepper for CpuStepper {
                 .bin_within(&parts.positions, &parts.radii, lo, hi, self.cell_size);
             times.build_ms += ms(t);
             let t = Instant::now();
-            contacts = self.resolve_contacts();
+            contacts = self.resolve_contacts()?;
             times.dcd_ms += ms(t);
             let t = Instant::now();
             self.integrate_all();

@@ -111,36 +111,80 @@ where
     T: Send,
     F: Fn(usize, &[std::ops::Range<usize>; 9]) -> T + Sync,
 {
-    let keys = &grid.keys[..];
-    let n = keys.len();
-    assert_eq!(out.len(), n, "one output slot per sphere");
-    let offsets = grid.all_row_offsets();
+    assert_eq!(out.len(), grid.keys.len(), "one output slot per sphere");
     out.par_chunks_mut(CHUNK)
         .enumerate()
         .for_each(|(c, slots)| {
-            let start = c * CHUNK;
-            let first = keys[start];
-            let mut runs: [std::ops::Range<usize>; 9] = std::array::from_fn(|r| {
-                let lo = first.wrapping_add(offsets[r]);
-                keys.partition_point(|&k| k < lo)..keys.partition_point(|&k| k <= lo + 2)
+            let len = slots.len();
+            let mut outs = slots.iter_mut();
+            walk_chunk(grid, c * CHUNK, len, |p, runs| {
+                *outs.next().expect("one slot per sphere") = each(p, runs);
             });
-            let mut current = first;
-            for (p, slot) in (start..).zip(slots.iter_mut()) {
-                let key = keys[p];
-                if key != current {
-                    current = key;
-                    for (run, &o) in runs.iter_mut().zip(&offsets) {
-                        let lo = key.wrapping_add(o);
-                        while run.start < n && keys[run.start] < lo {
-                            run.start += 1;
-                        }
-                        run.end = run.end.max(run.start);
-                        while run.end < n && keys[run.end] <= lo + 2 {
-                            run.end += 1;
-                        }
-                    }
-                }
-                *slot = each(p, &runs);
-            }
         });
+}
+
+/// [`gather`] that also hands `each` the `width` entries of `side[p·width ..]` to write: the
+/// contact history of sphere p (`side` has `width` entries per sphere, `width` ≥ 1).
+pub(crate) fn gather_with_side<T, S, F>(
+    grid: &SortedGrid,
+    out: &mut [T],
+    side: &mut [S],
+    width: usize,
+    each: F,
+) where
+    T: Send,
+    S: Send,
+    F: Fn(usize, &[std::ops::Range<usize>; 9], &mut [S]) -> T + Sync,
+{
+    let n = grid.keys.len();
+    assert_eq!(out.len(), n, "one output slot per sphere");
+    assert_eq!(side.len(), n * width, "`width` side entries per sphere");
+    out.par_chunks_mut(CHUNK)
+        .zip(side.par_chunks_mut(CHUNK * width))
+        .enumerate()
+        .for_each(|(c, (slots, sides))| {
+            let len = slots.len();
+            let mut outs = slots.iter_mut().zip(sides.chunks_mut(width));
+            walk_chunk(grid, c * CHUNK, len, |p, runs| {
+                let (slot, side) = outs.next().expect("one slot per sphere");
+                *slot = each(p, runs, side);
+            });
+        });
+}
+
+/// Calls `visit(p, runs)` for the `len` sorted positions from `start` on, in order, with the
+/// nine runs of the 27 cells around p's cell.
+#[inline(always)]
+fn walk_chunk(
+    grid: &SortedGrid,
+    start: usize,
+    len: usize,
+    mut visit: impl FnMut(usize, &[std::ops::Range<usize>; 9]),
+) {
+    let keys = &grid.keys[..];
+    let n = keys.len();
+    let offsets = grid.all_row_offsets();
+    let first = keys[start];
+    let mut runs: [std::ops::Range<usize>; 9] = std::array::from_fn(|r| {
+        let lo = first.wrapping_add(offsets[r]);
+        keys.partition_point(|&k| k < lo)..keys.partition_point(|&k| k <= lo + 2)
+    });
+    let mut current = first;
+    for p in start..start + len {
+        let key = keys[p];
+        if key != current {
+            current = key;
+            for (run, &o) in runs.iter_mut().zip(&offsets) {
+                let lo = key.wrapping_add(o);
+                while run.start < n && keys[run.start] < lo {
+                    run.start += 1;
+                }
+                run.end = run.end.max(run.start);
+                while run.end < n && keys[run.end] <= lo + 2 {
+                    run.end += 1;
+                }
+            }
+        }
+        visit(p, &runs);
+    }
 }

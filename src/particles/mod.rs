@@ -1,18 +1,26 @@
 //! The simulation state: what a checkpoint saves and a frame shows.
 
+pub mod history;
+
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
 use glam::Vec3;
+pub use history::{ContactHistory, FIRST_WALL, HistoryEntry};
 
-/// Spheres with velocities, in the order the user gave them, and the simulation clock.
+/// Spheres with velocities, in the order the user gave them, their contact history and the
+/// simulation clock.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Particles {
     /// Centres \[m\].
     pub positions: Vec<[f32; 3]>,
     /// Velocities \[m/s\].
     pub velocities: Vec<[f32; 3]>,
+    /// Angular velocities \[rad/s\].
+    pub angular_velocities: Vec<[f32; 3]>,
     /// Radii \[m\].
     pub radii: Vec<f32>,
+    /// The springs of the contacts that have friction or rolling resistance (empty without).
+    pub history: ContactHistory,
     /// Steps taken since t = 0 (the time is `step · dt`).
     pub step: u64,
 }
@@ -23,14 +31,18 @@ impl Particles {
         let what = || format!("the state of {} spheres", spheres.len());
         let mut positions = try_vec(spheres.len(), what)?;
         let mut velocities = try_vec(spheres.len(), what)?;
+        let mut angular_velocities = try_vec(spheres.len(), what)?;
         let mut radii = try_vec(spheres.len(), what)?;
         positions.extend_from_slice(spheres.centers());
         velocities.resize(spheres.len(), [0.0; 3]);
+        angular_velocities.resize(spheres.len(), [0.0; 3]);
         radii.extend_from_slice(spheres.radii());
         Ok(Self {
             positions,
             velocities,
+            angular_velocities,
             radii,
+            history: ContactHistory::default(),
             step: 0,
         })
     }
@@ -47,11 +59,15 @@ impl Particles {
 
     /// Checks that every value is finite and the lengths agree; names the first bad sphere.
     pub fn validate(&self) -> Result<()> {
-        if self.positions.len() != self.len() || self.velocities.len() != self.len() {
+        if self.positions.len() != self.len()
+            || self.velocities.len() != self.len()
+            || self.angular_velocities.len() != self.len()
+        {
             return Err(Error::Usage(format!(
-                "particles: {} positions, {} velocities, {} radii",
+                "particles: {} positions, {} velocities, {} angular velocities, {} radii",
                 self.positions.len(),
                 self.velocities.len(),
+                self.angular_velocities.len(),
                 self.len()
             )));
         }
@@ -59,38 +75,53 @@ impl Particles {
             .positions
             .iter()
             .zip(&self.velocities)
-            .position(|(c, v)| c.iter().chain(v).any(|x| !x.is_finite()));
+            .zip(&self.angular_velocities)
+            .position(|((c, v), w)| c.iter().chain(v).chain(w).any(|x| !x.is_finite()));
         match bad {
             Some(index) => Err(Error::InvalidSphere {
                 index,
                 reason: format!(
-                    "non-finite position {:?} or velocity {:?} at step {}",
-                    self.positions[index], self.velocities[index], self.step
+                    "non-finite position {:?}, velocity {:?} or angular velocity {:?} at step {}",
+                    self.positions[index],
+                    self.velocities[index],
+                    self.angular_velocities[index],
+                    self.step
+                ),
+            }),
+            None => self.history.validate(self.len()),
+        }
+    }
+
+    /// Checks a state a stepper computed: [`Error::Unstable`] names the first sphere (in the
+    /// order of these particles, the input order) whose position, velocity or angular velocity is
+    /// not finite.
+    pub fn check_stable(&self) -> Result<()> {
+        let finite = |v: &[f32; 3]| v.iter().all(|x| x.is_finite());
+        let bad = (0..self.len()).find(|&i| {
+            !(finite(&self.positions[i])
+                && finite(&self.velocities[i])
+                && finite(&self.angular_velocities[i]))
+        });
+        match bad {
+            Some(sphere) => Err(Error::Unstable {
+                step: self.step,
+                sphere,
+                what: format!(
+                    "has position {:?}, velocity {:?} and angular velocity {:?}",
+                    self.positions[sphere],
+                    self.velocities[sphere],
+                    self.angular_velocities[sphere]
                 ),
             }),
             None => Ok(()),
         }
     }
 
-    /// Checks a state a stepper computed: [`Error::Unstable`] names the first sphere (in the
-    /// order of these particles, the input order) whose position or velocity is not finite.
-    pub fn check_stable(&self) -> Result<()> {
-        let bad = self
-            .positions
+    /// Whether any sphere turns.
+    pub fn spin(&self) -> bool {
+        self.angular_velocities
             .iter()
-            .zip(&self.velocities)
-            .position(|(c, v)| c.iter().chain(v).any(|x| !x.is_finite()));
-        match bad {
-            Some(sphere) => Err(Error::Unstable {
-                step: self.step,
-                sphere,
-                what: format!(
-                    "has position {:?} and velocity {:?}",
-                    self.positions[sphere], self.velocities[sphere]
-                ),
-            }),
-            None => Ok(()),
-        }
+            .any(|w| w.iter().any(|&x| x != 0.0))
     }
 
     /// Pairs of spheres whose centres coincide: they have no contact normal, so every stepper

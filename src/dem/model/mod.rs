@@ -1,44 +1,26 @@
-//! The physics of the DEM (docs/method.md, "The DEM step"): spheres of one density under gravity,
-//! a linear spring–dashpot normal contact between spheres and with the six walls of a box, and
-//! semi-implicit Euler integration. No friction, no rotation, as in the paper.
+//! The physics of the DEM (docs/method.md, "The DEM step"): spheres of one material under
+//! gravity in a box with six walls, a contact law between spheres and with the walls, and
+//! semi-implicit Euler integration of positions and angular velocities.
 //!
-//! The force on sphere i from a touching sphere j, with n the unit vector from c_i to c_j,
-//! overlap δ = r_i + r_j − |c_j − c_i| and normal relative velocity v_n = (v_j − v_i)·n, is
-//! F_i = −(k·δ − c·v_n)·n with c = 2ζ·√(k·m_eff), m_eff = m_i·m_j/(m_i + m_j), and ζ the damping
-//! ratio that gives the restitution coefficient e: ζ = −ln e / √(π² + ln² e). Walls act the same
-//! way with m_eff = m_i. Computed from j's side, every operation sees negated inputs, so
-//! F_j = −F_i exactly. Coincident centres (distance 0) have no contact normal and get no force:
-//! the steppers never see them, as `Particles::separate_coincident` moves such spheres apart
-//! when a stepper is made. `wgsl/dem_physics.wgsl` follows
-//! [`contact_force`] and [`wall_force`] line by line.
+//! - [`linear`]: the paper's law (linear spring–dashpot, no friction), the reference the GPU
+//!   engines follow line by line.
+//! - [`contact`]: the whole contact of the cpu step: linear or Hertz–Mindlin normal force,
+//!   tangential spring with history and Coulomb cap, torque, rolling resistance.
+//! - [`material`]: what a material says and the coefficients the step makes of it.
+//! - [`time_step`]: the Rayleigh time and the Hertz impact formulas.
+
+pub mod contact;
+pub mod linear;
+pub mod material;
+pub mod time_step;
+
+pub use linear::{
+    STEPS_PER_CONTACT, contact_force, damping_ratio, stable_dt, stiffness_for_duration, wall_force,
+};
+pub use material::{ContactLaw, Elastic, Friction, Material, NormalLaw, RollingModel};
 
 use crate::error::{Error, Result};
 use std::f64::consts::PI;
-
-/// Contact durations per time step that the default stiffness gives the lightest pair.
-pub const STEPS_PER_CONTACT: f64 = 10.0;
-
-/// Material and contact parameters.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Material {
-    /// Density \[kg/m³\] (default 500).
-    pub density: f64,
-    /// Restitution coefficient of a head-on collision, in (0, 1] (default 0.5).
-    pub restitution: f64,
-    /// Normal stiffness k \[N/m\]; `None` derives it so that a collision of the two lightest
-    /// spheres lasts [`STEPS_PER_CONTACT`] time steps.
-    pub stiffness: Option<f64>,
-}
-
-impl Default for Material {
-    fn default() -> Self {
-        Self {
-            density: 500.0,
-            restitution: 0.5,
-            stiffness: None,
-        }
-    }
-}
 
 /// Everything a step needs besides the particles.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,29 +41,19 @@ pub struct StepParams {
     pub damping_ratio: f32,
     /// Density \[kg/m³\].
     pub density: f32,
+    /// The normal law; with [`NormalLaw::Linear`], `stiffness` is its k (with the others,
+    /// `stiffness` is 0).
+    pub law: NormalLaw,
+    /// Friction coefficients (all 0: no tangential force, no torque).
+    pub friction: Friction,
+    /// The largest stable time step for these contacts and the lightest spheres \[s\].
+    pub dt_limit: f32,
+    /// Rayleigh time of the smallest sphere \[s\] (Hertz–Mindlin only).
+    pub rayleigh_time: Option<f32>,
 }
-
-/// Damping ratio ζ that gives restitution `e` to a linear spring–dashpot contact.
-pub fn damping_ratio(e: f64) -> f64 {
-    let l = e.ln();
-    -l / (PI * PI + l * l).sqrt()
-}
-
 /// Mass of a sphere of radius `r` \[kg\].
 pub fn mass(density: f32, r: f32) -> f32 {
     density * (4.0 / 3.0 * std::f32::consts::PI) * r * r * r
-}
-
-/// Stiffness that makes a contact of effective mass `m_eff` with restitution `e` last `t_c` \[s\].
-pub fn stiffness_for_duration(m_eff: f64, e: f64, t_c: f64) -> f64 {
-    let l = e.ln();
-    m_eff * (PI * PI + l * l) / (t_c * t_c)
-}
-
-/// Largest stable time step of semi-implicit Euler for a contact of effective mass `m_eff`:
-/// ω·dt < 2(√(1 + ζ²) − ζ) with ω = √(k/m_eff).
-pub fn stable_dt(stiffness: f64, m_eff: f64, zeta: f64) -> f64 {
-    2.0 * ((1.0 + zeta * zeta).sqrt() - zeta) / (stiffness / m_eff).sqrt()
 }
 
 impl StepParams {
@@ -150,31 +122,12 @@ impl StepParams {
                 2.0 * m_eff
             ));
         }
-        let stiffness = match m.stiffness {
-            Some(k) if normal(k) => k,
-            Some(k) => {
-                return bad(&format!(
-                    "stiffness must be positive and within f32's range, got {k:e}"
-                ));
-            }
-            None => {
-                let k = stiffness_for_duration(m_eff, m.restitution, STEPS_PER_CONTACT * dt);
-                if !normal(k) {
-                    return bad(&format!(
-                        "the derived stiffness {k:e} N/m (a {STEPS_PER_CONTACT}-step contact at \
-                         dt {dt:e} s for spheres of r = {r_min:e} m) is outside f32's range: \
-                         choose a larger dt, or give a stiffness"
-                    ));
-                }
-                k
-            }
-        };
-        let limit = stable_dt(stiffness, m_eff, zeta);
-        if dt > limit {
+        m.check_friction()?;
+        let law = m.law(dt, r_min, m_eff, zeta)?;
+        if dt > law.dt_limit {
             return bad(&format!(
-                "time step {dt:e} s is too large for stiffness {stiffness:e} N/m and the lightest \
-                 spheres (r = {r_min:e} m, density {}): the stable limit is {limit:e} s",
-                m.density
+                "time step {dt:e} s is too large for {}: the stable limit is {:e} s",
+                law.limited_by, law.dt_limit
             ));
         }
         let g = gravity.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -192,9 +145,18 @@ impl StepParams {
             box_hi: hi32,
             gravity: gravity.map(|x| x as f32),
             gravity_spin: gravity_spin as f32,
-            stiffness: stiffness as f32,
+            stiffness: law.stiffness as f32,
             damping_ratio: zeta as f32,
             density: m.density as f32,
+            law: law.law,
+            friction: Friction {
+                sliding: m.friction as f32,
+                wall_sliding: m.wall_friction.unwrap_or(m.friction) as f32,
+                rolling: m.rolling_friction as f32,
+                rolling_model: m.rolling_model,
+            },
+            dt_limit: law.dt_limit as f32,
+            rayleigh_time: law.rayleigh_time.map(|t| t as f32),
         })
     }
 
@@ -203,6 +165,10 @@ impl StepParams {
     /// spread of masses needs a stiffness (and a time step) chosen for the heaviest sphere. Says
     /// which stiffness keeps that overlap at 1% and the time step it then needs.
     pub fn overlap_warning(&self, r_min: f32, r_max: f32) -> Option<String> {
+        if self.law != NormalLaw::Linear {
+            // Stiffness follows each contact's masses (or the Hertz law's radii).
+            return None;
+        }
         let g = self
             .gravity
             .iter()
@@ -239,6 +205,44 @@ impl StepParams {
         ))
     }
 
+    /// The time step and the contact law in words, for a run's summary line: the stiffness or
+    /// the Rayleigh time the step follows from, and the friction where there is any.
+    pub fn describe(&self) -> String {
+        let dt = self.dt as f64;
+        let law = match self.law {
+            NormalLaw::Linear => format!(
+                "dt {dt:e} s (stable limit {:.3e} s) | stiffness {:.4e} N/m",
+                self.dt_limit, self.stiffness
+            ),
+            NormalLaw::LinearPerPair { contact_time, .. } => format!(
+                "dt {dt:e} s (stable limit {:.3e} s) | per-pair stiffness, contact time \
+                 {contact_time:.3e} s",
+                self.dt_limit,
+            ),
+            NormalLaw::Hertz { .. } => {
+                let t_r = self.rayleigh_time.unwrap_or(f32::NAN) as f64;
+                format!(
+                    "dt {dt:e} s = {:.3} Rayleigh time of the smallest sphere ({t_r:.3e} s; \
+                     limit {:.3e} s) | hertz-mindlin",
+                    dt / t_r,
+                    self.dt_limit
+                )
+            }
+        };
+        let f = &self.friction;
+        if !f.turns() {
+            return law;
+        }
+        let model = match f.rolling_model {
+            RollingModel::Epsd => "epsd",
+            RollingModel::ConstantTorque => "constant-torque",
+        };
+        format!(
+            "{law} | friction {} (walls {}), rolling {} ({model})",
+            f.sliding, f.wall_sliding, f.rolling
+        )
+    }
+
     /// Gravity at step `step` (time `step · dt`), turned about the y axis by `gravity_spin · t`.
     pub fn gravity_at(&self, step: u64) -> [f32; 3] {
         let angle = self.gravity_spin * (step as f32 * self.dt);
@@ -246,56 +250,6 @@ impl StepParams {
         let [gx, gy, gz] = self.gravity;
         [gx * c + gz * s, gy, gz * c - gx * s]
     }
-}
-
-/// Force on sphere i (centre `c_i`, velocity `v_i`, radius `r_i`, mass `m_i`) from sphere j, or
-/// `None` when they do not touch (or their centres coincide: no normal, no force).
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-pub fn contact_force(
-    p: &StepParams,
-    c_i: [f32; 3],
-    v_i: [f32; 3],
-    r_i: f32,
-    m_i: f32,
-    c_j: [f32; 3],
-    v_j: [f32; 3],
-    r_j: f32,
-    m_j: f32,
-) -> Option<[f32; 3]> {
-    let d = [c_j[0] - c_i[0], c_j[1] - c_i[1], c_j[2] - c_i[2]];
-    let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    let reach = r_i + r_j;
-    if d2 > reach * reach || d2 == 0.0 {
-        return None;
-    }
-    let dist = d2.sqrt();
-    let n = [d[0] / dist, d[1] / dist, d[2] / dist];
-    let overlap = reach - dist;
-    let dv = [v_j[0] - v_i[0], v_j[1] - v_i[1], v_j[2] - v_i[2]];
-    let vn = dv[0] * n[0] + dv[1] * n[1] + dv[2] * n[2];
-    let m_eff = m_i * m_j / (m_i + m_j);
-    let c = 2.0 * p.damping_ratio * (p.stiffness * m_eff).sqrt();
-    let push = p.stiffness * overlap - c * vn;
-    Some([-push * n[0], -push * n[1], -push * n[2]])
-}
-
-/// Force of the box walls on a sphere at `c` with velocity `v`, radius `r` and mass `m`.
-#[inline(always)]
-pub fn wall_force(p: &StepParams, c: [f32; 3], v: [f32; 3], r: f32, m: f32) -> [f32; 3] {
-    let damping = 2.0 * p.damping_ratio * (p.stiffness * m).sqrt();
-    std::array::from_fn(|a| {
-        let mut f = 0.0;
-        let below = r - (c[a] - p.box_lo[a]);
-        if below > 0.0 {
-            f += p.stiffness * below - damping * v[a];
-        }
-        let above = r - (p.box_hi[a] - c[a]);
-        if above > 0.0 {
-            f -= p.stiffness * above + damping * v[a];
-        }
-        f
-    })
 }
 
 /// One semi-implicit Euler step of a sphere under `force` and gravity `g`: v += dt·(F/m + g),

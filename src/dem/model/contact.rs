@@ -1,0 +1,356 @@
+//! The whole contact of the cpu step (docs/method.md, "The DEM step"): a normal force by the
+//! scene's law, and where the material has friction a tangential spring with history and a
+//! Coulomb cap, the torque it exerts, and rolling resistance.
+//!
+//! Notation of `docs/method.md`: for sphere i touching j (or a wall), n is the unit normal from
+//! c_i towards j, δ the overlap, m* and R* the effective mass and radius. The normal force on i
+//! is −push·n with push = F_el(δ) − c_n·v_n, v_n = (v_j − v_i)·n:
+//! - linear: F_el = k·δ, c_n = 2ζ√(k·m*) (k fixed, or m*·rate per contact);
+//! - Hertz: S_n = 2E*√(R*δ), F_el = ⅔·S_n·δ = 4/3·E*·√R*·δ^{3/2}, c_n = 2√(5/6)·ζ·√(S_n·m*)
+//!   (Tsuji et al. 1992; ζ = −β of the restitution).
+//!
+//! The tangential spring ξ (what i keeps of the contact) is first turned into the current
+//! tangent plane (its normal part removed, its length kept), then grows by v_t·dt with v_t the
+//! tangential velocity of i's surface relative to j's at the contact point; the force is
+//! F_t = −k_t·ξ − c_t·v_t with k_t = 2/7·k (linear) or S_t = 8G*√(R*δ) (Mindlin 1949). When
+//! |F_t| > μ·max(push, 0) the contact slides: F_t is scaled to the cap and ξ = −F_t/k_t, so
+//! history never holds more than the cap. The torque on i is (r_i·n) × F_t. Rolling resistance
+//! acts on the rolling part of ω_i − ω_j (its component along n, twisting, is not resisted).
+//!
+//! Computed from j's side every operation sees negated inputs (n, v_rel, ω_rel and, by
+//! induction, j's springs are the exact negatives of i's), so the forces and the rolling
+//! torques are equal and opposite bit for bit. For the linear law without friction, the normal
+//! force takes the operations of [`super::contact_force`] and [`super::wall_force`] in the same
+//! order, so the step gives the same bits as the GPU engines' reference.
+
+use super::StepParams;
+use super::material::{NormalLaw, RollingModel};
+use glam::Vec3;
+
+/// 2·√(5/6): Tsuji's damping coefficient over ζ·√(S·m*).
+const TSUJI: f32 = 1.825_741_9;
+
+/// A sphere as its contacts see it.
+#[derive(Debug, Clone, Copy)]
+pub struct Body {
+    /// Centre \[m\].
+    pub c: Vec3,
+    /// Velocity \[m/s\].
+    pub v: Vec3,
+    /// Angular velocity \[rad/s\].
+    pub w: Vec3,
+    /// Radius \[m\].
+    pub r: f32,
+    /// Mass \[kg\].
+    pub m: f32,
+}
+
+impl Body {
+    /// Moment of inertia of the solid sphere, 2/5·m·r² \[kg·m²\].
+    pub fn inertia(&self) -> f32 {
+        moment_of_inertia(self.m, self.r)
+    }
+}
+
+/// Moment of inertia of a solid sphere of mass `m` and radius `r`: 2/5·m·r² \[kg·m²\].
+pub fn moment_of_inertia(m: f32, r: f32) -> f32 {
+    0.4 * m * r * r
+}
+
+/// What a contact carries from one step to the next, as the sphere holding it sees it (its
+/// partner holds the exact negatives). Zero for a new contact.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Springs {
+    /// Tangential spring ξ \[m\].
+    pub tangential: Vec3,
+    /// Rolling spring torque of the EPSD model \[N·m\].
+    pub rolling: Vec3,
+}
+
+/// What one contact does to the sphere computing it.
+#[derive(Debug, Clone, Copy)]
+pub struct Contact {
+    /// Force on the sphere \[N\].
+    pub force: Vec3,
+    /// Torque on the sphere about its centre \[N·m\].
+    pub torque: Vec3,
+    /// Springs to keep for the next step.
+    pub springs: Springs,
+}
+
+/// The normal force's magnitude (positive pushes the bodies apart) and the normal stiffness.
+#[derive(Debug, Clone, Copy)]
+struct Normal {
+    push: f32,
+    stiffness: f32,
+}
+
+/// A touching contact from sphere i's side, as friction needs it.
+struct Touch {
+    /// Unit normal from i towards its partner.
+    n: Vec3,
+    overlap: f32,
+    normal: Normal,
+    m_eff: f32,
+    r_eff: f32,
+    /// Effective moment of inertia I_i·I_j/(I_i + I_j) (I_i on a wall).
+    i_eff: f32,
+    /// Distance from i's centre to the contact point.
+    lever: f32,
+    /// Velocity of i's surface relative to the partner's at the contact point.
+    v_rel: Vec3,
+    /// ω_i − ω_j (ω_i on a wall).
+    w_rel: Vec3,
+    on_wall: bool,
+}
+
+/// The normal force of a contact with overlap `overlap` > 0 and normal relative velocity `vn`.
+#[inline(always)]
+fn normal_force(
+    p: &StepParams,
+    on_wall: bool,
+    overlap: f32,
+    vn: f32,
+    m_eff: f32,
+    r_eff: f32,
+) -> Normal {
+    match p.law {
+        NormalLaw::Linear => {
+            let c = 2.0 * p.damping_ratio * (p.stiffness * m_eff).sqrt();
+            Normal {
+                push: p.stiffness * overlap - c * vn,
+                stiffness: p.stiffness,
+            }
+        }
+        NormalLaw::LinearPerPair { rate, .. } => {
+            let k = m_eff * rate;
+            let c = 2.0 * p.damping_ratio * (k * m_eff).sqrt();
+            Normal {
+                push: k * overlap - c * vn,
+                stiffness: k,
+            }
+        }
+        NormalLaw::Hertz { pair, wall } => {
+            let e_star = if on_wall { wall.e_star } else { pair.e_star };
+            let s_n = 2.0 * e_star * (r_eff * overlap).sqrt();
+            let c = TSUJI * p.damping_ratio * (s_n * m_eff).sqrt();
+            Normal {
+                push: 2.0 / 3.0 * s_n * overlap - c * vn,
+                stiffness: s_n,
+            }
+        }
+    }
+}
+
+/// The contact of sphere `i` with sphere `j`, from i's side, given the springs i kept of it
+/// (`old`), or `None` when they do not touch (or their centres coincide: no normal, no force).
+#[inline(always)]
+pub fn pair_contact(p: &StepParams, i: &Body, j: &Body, old: Springs) -> Option<Contact> {
+    let d = j.c - i.c;
+    let d2 = d.dot(d);
+    let reach = i.r + j.r;
+    if d2 > reach * reach || d2 == 0.0 {
+        return None;
+    }
+    let dist = d2.sqrt();
+    let n = d / dist;
+    let overlap = reach - dist;
+    let vn = (j.v - i.v).dot(n);
+    let m_eff = i.m * j.m / (i.m + j.m);
+    let r_eff = i.r * j.r / (i.r + j.r);
+    let normal = normal_force(p, false, overlap, vn, m_eff, r_eff);
+    let force = -normal.push * n;
+    if !p.friction.turns() {
+        return Some(Contact {
+            force,
+            torque: Vec3::ZERO,
+            springs: Springs::default(),
+        });
+    }
+    let (inertia_i, inertia_j) = (i.inertia(), j.inertia());
+    let touch = Touch {
+        n,
+        overlap,
+        normal,
+        m_eff,
+        r_eff,
+        i_eff: inertia_i * inertia_j / (inertia_i + inertia_j),
+        lever: i.r,
+        v_rel: (i.v + i.w.cross(i.r * n)) - (j.v - j.w.cross(j.r * n)),
+        w_rel: i.w - j.w,
+        on_wall: false,
+    };
+    let (f_t, torque, springs) = friction(p, &touch, p.friction.sliding, old);
+    Some(Contact {
+        force: force + f_t,
+        torque,
+        springs,
+    })
+}
+
+/// Partner id of wall `w` in the contact history: walls 0..6 are the low and high walls of x,
+/// y and z (`2·axis + side`).
+pub const WALLS: u32 = 6;
+
+/// What the six walls of the box do to one sphere.
+#[derive(Debug, Clone, Copy)]
+pub struct WallContacts {
+    /// Normal forces, summed per axis low wall first, as [`super::wall_force`] does \[N\].
+    pub normal: Vec3,
+    /// Tangential forces \[N\].
+    pub tangential: Vec3,
+    /// Torque about the centre \[N·m\].
+    pub torque: Vec3,
+}
+
+/// The walls touching sphere `b`: `old(w)` gives the springs it kept of wall `w` (zero for none)
+/// and `keep(w, springs)` receives those to keep, for each touching wall in order, where the
+/// material has history.
+#[inline(always)]
+pub fn wall_contacts(
+    p: &StepParams,
+    b: &Body,
+    old: impl Fn(u32) -> Springs,
+    mut keep: impl FnMut(u32, Springs),
+) -> WallContacts {
+    let turns = p.friction.turns();
+    let keeps = p.friction.has_history();
+    let (c, v) = (b.c.to_array(), b.v.to_array());
+    let mut normal = [0.0f32; 3];
+    let mut tangential = Vec3::ZERO;
+    let mut torque = Vec3::ZERO;
+    for a in 0..3 {
+        let mut f = 0.0;
+        // Low wall (normal −e_a from the centre, v_n = v_a), then high wall (+e_a, v_n = −v_a).
+        let below = b.r - (c[a] - p.box_lo[a]);
+        let above = b.r - (p.box_hi[a] - c[a]);
+        for (side, overlap, vn) in [(0, below, v[a]), (1, above, -v[a])] {
+            if overlap <= 0.0 {
+                continue;
+            }
+            let nf = normal_force(p, true, overlap, vn, b.m, b.r);
+            match side {
+                0 => f += nf.push,
+                _ => f -= nf.push,
+            }
+            if turns {
+                let n = if side == 0 {
+                    -Vec3::AXES[a]
+                } else {
+                    Vec3::AXES[a]
+                };
+                let wall = 2 * a as u32 + side;
+                let touch = Touch {
+                    n,
+                    overlap,
+                    normal: nf,
+                    m_eff: b.m,
+                    r_eff: b.r,
+                    i_eff: b.inertia(),
+                    lever: b.r,
+                    v_rel: b.v + b.w.cross(b.r * n),
+                    w_rel: b.w,
+                    on_wall: true,
+                };
+                let (f_t, t, springs) = friction(p, &touch, p.friction.wall_sliding, old(wall));
+                tangential += f_t;
+                torque += t;
+                if keeps {
+                    keep(wall, springs);
+                }
+            }
+        }
+        normal[a] = f;
+    }
+    WallContacts {
+        normal: Vec3::from_array(normal),
+        tangential,
+        torque,
+    }
+}
+
+/// `x` turned into the plane normal to `n`: its normal part removed, its length kept.
+#[inline(always)]
+fn into_plane(x: Vec3, n: Vec3) -> Vec3 {
+    let t = x - x.dot(n) * n;
+    let len2 = t.length_squared();
+    if len2 > 0.0 {
+        t * (x.length() / len2.sqrt())
+    } else {
+        t
+    }
+}
+
+/// Tangential force with sliding coefficient `mu`, the torque on i (from it and from rolling
+/// resistance) and the springs to keep.
+#[inline(always)]
+fn friction(p: &StepParams, t: &Touch, mu: f32, old: Springs) -> (Vec3, Vec3, Springs) {
+    let n = t.n;
+    let pressing = t.normal.push.max(0.0);
+    let mut force = Vec3::ZERO;
+    let mut torque = Vec3::ZERO;
+    let mut springs = Springs::default();
+    if mu > 0.0 {
+        let (k_t, c_t) = match p.law {
+            NormalLaw::Linear | NormalLaw::LinearPerPair { .. } => {
+                let k_t = 2.0 / 7.0 * t.normal.stiffness;
+                (k_t, 2.0 * p.damping_ratio * (k_t * t.m_eff).sqrt())
+            }
+            NormalLaw::Hertz { pair, wall } => {
+                let g_star = if t.on_wall { wall.g_star } else { pair.g_star };
+                let s_t = 8.0 * g_star * (t.r_eff * t.overlap).sqrt();
+                (s_t, TSUJI * p.damping_ratio * (s_t * t.m_eff).sqrt())
+            }
+        };
+        let v_t = t.v_rel - t.v_rel.dot(n) * n;
+        let mut xi = into_plane(old.tangential, n) + v_t * p.dt;
+        let mut f_t = -k_t * xi - c_t * v_t;
+        let cap = mu * pressing;
+        let f2 = f_t.length_squared();
+        if f2 > cap * cap {
+            f_t *= cap / f2.sqrt();
+            xi = -f_t / k_t;
+        }
+        force = f_t;
+        torque = (t.lever * n).cross(f_t);
+        springs.tangential = xi;
+    }
+    let mu_r = p.friction.rolling;
+    if mu_r > 0.0 {
+        let w_roll = t.w_rel - t.w_rel.dot(n) * n;
+        let cap = mu_r * t.r_eff * pressing;
+        let rolling = match p.friction.rolling_model {
+            RollingModel::Epsd => {
+                let k_r = 2.25 * t.normal.stiffness * mu_r * mu_r * t.r_eff * t.r_eff;
+                let mut m = into_plane(old.rolling, n) - k_r * p.dt * w_roll;
+                let m2 = m.length_squared();
+                if m2 > cap * cap {
+                    m *= cap / m2.sqrt();
+                }
+                springs.rolling = m;
+                m
+            }
+            RollingModel::ConstantTorque => {
+                let speed = w_roll.length();
+                if speed > 0.0 {
+                    // Never more than stops the relative rolling within the step.
+                    let size = cap.min(t.i_eff * speed / p.dt);
+                    w_roll * (-size / speed)
+                } else {
+                    Vec3::ZERO
+                }
+            }
+        };
+        torque += rolling;
+    }
+    (force, torque, springs)
+}
+
+/// One semi-implicit Euler step of a sphere's rotation: ω += dt·τ/I.
+#[inline(always)]
+pub fn integrate_rotation(dt: f32, w: &mut [f32; 3], torque: Vec3, inertia: f32) {
+    let t = torque.to_array();
+    for a in 0..3 {
+        w[a] += dt * (t[a] / inertia);
+    }
+}

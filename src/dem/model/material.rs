@@ -1,0 +1,315 @@
+//! What a scene's material says (in SI units, as the user gives it) and what the step makes of
+//! it (f32 coefficients): the normal law, the effective elastic moduli of Hertz–Mindlin, and the
+//! friction coefficients.
+
+use super::linear::{STEPS_PER_CONTACT, stable_dt, stiffness_for_duration};
+use super::time_step::{RAYLEIGH_LIMIT, rayleigh_time};
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// The normal contact law and where its stiffness comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ContactLaw {
+    /// Linear spring–dashpot with one stiffness for every contact: [`Material::stiffness`], or
+    /// derived so that the lightest pair's contact lasts
+    /// [`STEPS_PER_CONTACT`] steps (the paper's model).
+    Linear,
+    /// Linear spring–dashpot whose stiffness follows each contact's effective mass,
+    /// k = m*·(π² + ln² e)/t_c², so every contact lasts `contact_time` t_c \[s\]
+    /// (`None`: [`STEPS_PER_CONTACT`] time steps).
+    LinearPerPair {
+        /// Contact duration t_c \[s\].
+        contact_time: Option<f64>,
+    },
+    /// Hertz normal force and Mindlin tangential spring, Tsuji damping (Hertz 1882, Mindlin
+    /// 1949, Tsuji et al. 1992).
+    HertzMindlin {
+        /// Young's modulus E \[Pa\]; soft values (1e6–1e8 Pa instead of GPa) are usual practice,
+        /// as the time step grows with 1/√E.
+        young_modulus: f64,
+        /// Poisson's ratio ν, in (−1, 0.5).
+        poisson_ratio: f64,
+    },
+}
+
+/// How rolling is resisted (Ai et al., Powder Technology 206 (2011) 269–282).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RollingModel {
+    /// Elastic–plastic spring (Ai et al.'s type C, LIGGGHTS `epsd2`): a rolling spring of
+    /// stiffness 2.25·S_n·μ_r²·R*² accumulates torque, capped at μ_r·R*·|F_n|. Holds a heap's
+    /// slope at rest.
+    #[default]
+    Epsd,
+    /// Constant torque μ_r·R*·|F_n| against the relative rolling (Ai et al.'s type A, EDEM's
+    /// default), clipped so it never reverses the rolling within a step.
+    ConstantTorque,
+}
+
+/// A material and its contact law, as the user describes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Material {
+    /// Density \[kg/m³\] (default 500).
+    pub density: f64,
+    /// Restitution coefficient of a head-on collision, in (0, 1] (default 0.5).
+    pub restitution: f64,
+    /// Normal stiffness k \[N/m\] of [`ContactLaw::Linear`]; `None` derives it so that a
+    /// collision of the two lightest spheres lasts
+    /// [`STEPS_PER_CONTACT`] time steps. Only for that law.
+    pub stiffness: Option<f64>,
+    /// The normal law (default: [`ContactLaw::Linear`]).
+    pub contact: ContactLaw,
+    /// Sliding friction coefficient μ between spheres, ≥ 0 (default 0: no tangential force).
+    pub friction: f64,
+    /// Sliding friction coefficient with the walls, ≥ 0 (`None`: `friction`).
+    pub wall_friction: Option<f64>,
+    /// Rolling friction coefficient μ_r, ≥ 0 (default 0: no rolling resistance).
+    pub rolling_friction: f64,
+    /// Rolling resistance model (default: EPSD).
+    pub rolling_model: RollingModel,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self {
+            density: 500.0,
+            restitution: 0.5,
+            stiffness: None,
+            contact: ContactLaw::Linear,
+            friction: 0.0,
+            wall_friction: None,
+            rolling_friction: 0.0,
+            rolling_model: RollingModel::Epsd,
+        }
+    }
+}
+
+/// The normal law as the step computes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NormalLaw {
+    /// k = [`StepParams::stiffness`](super::StepParams::stiffness) for every contact.
+    Linear,
+    /// k = m*·`rate` for each contact \[1/s²\] (`rate` = (π² + ln² e)/t_c²).
+    LinearPerPair {
+        /// k/m* of every contact \[1/s²\].
+        rate: f32,
+        /// The contact duration it gives \[s\].
+        contact_time: f32,
+    },
+    /// Hertz–Mindlin with the effective moduli of a sphere pair and of a sphere on a wall.
+    Hertz {
+        /// Two spheres of the material.
+        pair: Elastic,
+        /// A sphere on a rigid wall.
+        wall: Elastic,
+    },
+}
+
+/// Effective moduli of a contact (physics notation: E*, G*).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Elastic {
+    /// E* \[Pa\]: 1/E* = Σ (1 − ν²)/E over the two bodies (a rigid wall adds nothing).
+    pub e_star: f32,
+    /// G* \[Pa\]: 1/G* = Σ 2(2 − ν)(1 + ν)/E over the two bodies (a rigid wall adds nothing).
+    pub g_star: f32,
+}
+
+impl Elastic {
+    /// Two spheres of modulus `young_modulus` and Poisson's ratio `nu`.
+    pub fn pair(young_modulus: f64, nu: f64) -> Self {
+        Self::of_bodies(young_modulus, nu, 2.0)
+    }
+
+    /// A sphere on a rigid wall.
+    pub fn wall(young_modulus: f64, nu: f64) -> Self {
+        Self::of_bodies(young_modulus, nu, 1.0)
+    }
+
+    fn of_bodies(e: f64, nu: f64, bodies: f64) -> Self {
+        Self {
+            e_star: (e / (bodies * (1.0 - nu * nu))) as f32,
+            g_star: (e / (bodies * 2.0 * (2.0 - nu) * (1.0 + nu))) as f32,
+        }
+    }
+}
+
+/// Friction coefficients as the step uses them.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Friction {
+    /// μ between spheres.
+    pub sliding: f32,
+    /// μ with the walls.
+    pub wall_sliding: f32,
+    /// μ_r, between spheres and with the walls.
+    pub rolling: f32,
+    /// How rolling is resisted.
+    pub rolling_model: RollingModel,
+}
+
+impl Friction {
+    /// Whether any contact has a tangential force or a rolling torque: the spheres then turn.
+    pub fn turns(&self) -> bool {
+        self.sliding > 0.0 || self.wall_sliding > 0.0 || self.rolling > 0.0
+    }
+
+    /// Whether contacts carry springs from one step to the next (tangential, or EPSD rolling).
+    pub fn has_history(&self) -> bool {
+        self.sliding > 0.0
+            || self.wall_sliding > 0.0
+            || (self.rolling > 0.0 && self.rolling_model == RollingModel::Epsd)
+    }
+}
+
+/// The normal law a material resolves to for a time step and the lightest spheres.
+#[derive(Debug, Clone)]
+pub(super) struct ResolvedLaw {
+    pub law: NormalLaw,
+    /// k of [`NormalLaw::Linear`] \[N/m\] (0 for the other laws).
+    pub stiffness: f64,
+    /// The largest stable time step \[s\].
+    pub dt_limit: f64,
+    /// What sets `dt_limit`, in words.
+    pub limited_by: String,
+    /// Rayleigh time of the smallest sphere \[s\] (Hertz–Mindlin).
+    pub rayleigh_time: Option<f64>,
+}
+
+/// Whether `x` is positive and a normal f32 (the step computes in f32).
+fn normal_f32(x: f64) -> bool {
+    x > 0.0 && (x as f32).is_normal()
+}
+
+impl Material {
+    /// Refuses friction coefficients that are negative or not finite.
+    pub(super) fn check_friction(&self) -> Result<()> {
+        let coefficients = [
+            ("friction", self.friction),
+            ("wall_friction", self.wall_friction.unwrap_or(self.friction)),
+            ("rolling_friction", self.rolling_friction),
+        ];
+        for (name, mu) in coefficients {
+            if !(mu >= 0.0 && (mu as f32).is_finite()) {
+                return Err(Error::InvalidConfig {
+                    what: format!("material {name}"),
+                    reason: format!("must be a finite coefficient ≥ 0, got {mu}"),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The normal law for time step `dt` and lightest spheres of radius `r_min` (effective mass
+    /// `m_eff` of two of them), damping ratio `zeta`; refuses impossible values.
+    pub(super) fn law(&self, dt: f64, r_min: f32, m_eff: f64, zeta: f64) -> Result<ResolvedLaw> {
+        let bad = |reason: String| {
+            Err(Error::InvalidConfig {
+                what: "material".into(),
+                reason,
+            })
+        };
+        if self.stiffness.is_some() && self.contact != ContactLaw::Linear {
+            return bad(
+                "a stiffness in N/m is for contact = \"linear\" with one stiffness only".into(),
+            );
+        }
+        match self.contact {
+            ContactLaw::Linear => {
+                let stiffness = match self.stiffness {
+                    Some(k) if normal_f32(k) => k,
+                    Some(k) => {
+                        return bad(format!(
+                            "stiffness must be positive and within f32's range, got {k:e}"
+                        ));
+                    }
+                    None => {
+                        let k =
+                            stiffness_for_duration(m_eff, self.restitution, STEPS_PER_CONTACT * dt);
+                        if !normal_f32(k) {
+                            return bad(format!(
+                                "the derived stiffness {k:e} N/m (a {STEPS_PER_CONTACT}-step \
+                                 contact at dt {dt:e} s for spheres of r = {r_min:e} m) is \
+                                 outside f32's range: choose a larger dt, or give a stiffness"
+                            ));
+                        }
+                        k
+                    }
+                };
+                Ok(ResolvedLaw {
+                    law: NormalLaw::Linear,
+                    stiffness,
+                    dt_limit: stable_dt(stiffness, m_eff, zeta),
+                    limited_by: format!(
+                        "stiffness {stiffness:e} N/m and the lightest spheres (r = {r_min:e} m, \
+                         density {})",
+                        self.density
+                    ),
+                    rayleigh_time: None,
+                })
+            }
+            ContactLaw::LinearPerPair { contact_time } => {
+                let t_c = contact_time.unwrap_or(STEPS_PER_CONTACT * dt);
+                if !normal_f32(t_c) {
+                    return bad(format!(
+                        "contact_time must be positive and within f32's range, got {t_c:e} s"
+                    ));
+                }
+                // k/m* is the same for every contact.
+                let rate = stiffness_for_duration(1.0, self.restitution, t_c);
+                if !normal_f32(rate) {
+                    return bad(format!(
+                        "contact_time {t_c:e} s gives k/m* = {rate:e} 1/s², outside f32's range"
+                    ));
+                }
+                Ok(ResolvedLaw {
+                    law: NormalLaw::LinearPerPair {
+                        rate: rate as f32,
+                        contact_time: t_c as f32,
+                    },
+                    stiffness: 0.0,
+                    dt_limit: stable_dt(rate, 1.0, zeta),
+                    limited_by: format!("a per-pair stiffness with contact time {t_c:e} s"),
+                    rayleigh_time: None,
+                })
+            }
+            ContactLaw::HertzMindlin {
+                young_modulus,
+                poisson_ratio,
+            } => {
+                if !normal_f32(young_modulus) {
+                    return bad(format!(
+                        "young_modulus must be positive and within f32's range, got \
+                         {young_modulus:e} Pa"
+                    ));
+                }
+                if !(poisson_ratio > -1.0 && poisson_ratio < 0.5) {
+                    return bad(format!(
+                        "poisson_ratio must be in (−1, 0.5), got {poisson_ratio}"
+                    ));
+                }
+                let t_r = rayleigh_time(r_min as f64, self.density, young_modulus, poisson_ratio);
+                let (pair, wall) = (
+                    Elastic::pair(young_modulus, poisson_ratio),
+                    Elastic::wall(young_modulus, poisson_ratio),
+                );
+                if !(pair.e_star.is_normal() && wall.g_star.is_normal()) {
+                    return bad(format!(
+                        "young_modulus {young_modulus:e} Pa gives effective moduli outside \
+                         f32's range"
+                    ));
+                }
+                Ok(ResolvedLaw {
+                    law: NormalLaw::Hertz { pair, wall },
+                    stiffness: 0.0,
+                    dt_limit: RAYLEIGH_LIMIT * t_r,
+                    limited_by: format!(
+                        "Hertz–Mindlin with E = {young_modulus:e} Pa, ν = {poisson_ratio}, \
+                         density {} and the smallest spheres (r = {r_min:e} m, Rayleigh time \
+                         {t_r:.4e} s; the limit is {RAYLEIGH_LIMIT} of it)",
+                        self.density
+                    ),
+                    rayleigh_time: Some(t_r),
+                })
+            }
+        }
+    }
+}

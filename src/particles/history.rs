@@ -1,0 +1,235 @@
+//! Contact history: what each sphere keeps of its contacts from one step to the next (the
+//! tangential spring and the rolling spring), keyed by the partner's stable id, its index in
+//! input order, so that no re-sort of the spheres can mix contacts up.
+//!
+//! Layout (docs/method.md, "Contact history"): K slots per sphere, sphere i's contacts in
+//! `entries[i·K .. i·K + counts[i]]`. Both spheres of a pair keep the contact, each in its own
+//! slots (the partner's springs are the exact negatives), so a step that computes every sphere's
+//! contacts from its own side reads and writes only its own slots. K grows when a sphere has
+//! more contacts than slots (the step counts them, grows K and redoes the step): no contact is
+//! ever dropped.
+
+use crate::error::{Error, Result, try_vec};
+
+/// Partner ids from here on name the six walls of the box: `FIRST_WALL + 2·axis + side`
+/// (side 0 the low wall). Sphere ids stay below it.
+pub const FIRST_WALL: u32 = u32::MAX - 5;
+
+/// One contact as one of its spheres keeps it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct HistoryEntry {
+    /// The other sphere's index in input order, or a wall (from [`FIRST_WALL`] on).
+    pub partner: u32,
+    /// Tangential spring ξ \[m\].
+    pub tangential: [f32; 3],
+    /// Rolling spring torque \[N·m\] (EPSD rolling resistance).
+    pub rolling: [f32; 3],
+}
+
+/// Every sphere's contacts with history, in per-sphere slots.
+#[derive(Debug, Clone, Default)]
+pub struct ContactHistory {
+    /// Slots per sphere (K).
+    slots: usize,
+    /// Contacts held per sphere (none at all: no sphere has any).
+    counts: Vec<u32>,
+    /// `slots` entries per sphere, the first `counts[i]` in use.
+    entries: Vec<HistoryEntry>,
+}
+
+impl ContactHistory {
+    /// No contacts for `n` spheres, with `slots` slots each.
+    pub fn with_slots(n: usize, slots: usize) -> Result<Self> {
+        let what = || format!("the contact history of {n} spheres ({slots} contacts each)");
+        let total = n.checked_mul(slots).ok_or_else(|| Error::TooLarge {
+            what: what(),
+            got: u64::MAX,
+            limit: usize::MAX as u64,
+        })?;
+        let mut counts = try_vec(n, what)?;
+        counts.resize(n, 0);
+        let mut entries = try_vec(total, what)?;
+        entries.resize(total, HistoryEntry::default());
+        Ok(Self {
+            slots,
+            counts,
+            entries,
+        })
+    }
+
+    /// The history of `n` spheres holding `contacts` (owner, entry), in any order of owners;
+    /// each owner's entries keep their order. Refuses owners or partners out of range.
+    pub fn from_contacts(n: usize, contacts: &[(u32, HistoryEntry)]) -> Result<Self> {
+        let mut per = vec![0usize; n];
+        for &(owner, entry) in contacts {
+            check_entry(n, owner as usize, &entry)?;
+            per[owner as usize] += 1;
+        }
+        let slots = per.iter().copied().max().unwrap_or(0);
+        let mut out = Self::with_slots(n, slots)?;
+        for &(owner, entry) in contacts {
+            let i = owner as usize;
+            let k = out.counts[i] as usize;
+            out.entries[i * slots + k] = entry;
+            out.counts[i] += 1;
+        }
+        Ok(out)
+    }
+
+    /// Slots per sphere.
+    pub fn slots(&self) -> usize {
+        self.slots
+    }
+
+    /// Contacts held, over all spheres (each pair twice, once per sphere).
+    pub fn len(&self) -> usize {
+        self.counts.iter().map(|&c| c as usize).sum()
+    }
+
+    /// Whether no sphere holds a contact.
+    pub fn is_empty(&self) -> bool {
+        self.counts.iter().all(|&c| c == 0)
+    }
+
+    /// The contacts sphere `i` holds (none when the history is empty).
+    #[inline]
+    pub fn of(&self, i: usize) -> &[HistoryEntry] {
+        match self.counts.get(i) {
+            Some(&c) => &self.entries[i * self.slots..i * self.slots + c as usize],
+            None => &[],
+        }
+    }
+
+    /// Every contact as (owner, entry), owners in order.
+    pub fn contacts(&self) -> impl Iterator<Item = (u32, &HistoryEntry)> {
+        (0..self.counts.len()).flat_map(move |i| self.of(i).iter().map(move |e| (i as u32, e)))
+    }
+
+    /// The most contacts any sphere holds.
+    pub fn most(&self) -> usize {
+        self.counts.iter().copied().max().unwrap_or(0) as usize
+    }
+
+    /// Replaces the history with one written in another order: sphere `ids[p]` holds
+    /// `entries[p·slots .. p·slots + counts[p]]`.
+    pub fn scatter_from(
+        &mut self,
+        ids: &[u32],
+        slots: usize,
+        counts: &[u32],
+        entries: &[HistoryEntry],
+    ) -> Result<()> {
+        let n = ids.len();
+        if self.counts.len() != n || self.slots != slots {
+            *self = Self::with_slots(n, slots)?;
+        }
+        for (p, &id) in ids.iter().enumerate() {
+            let (i, c) = (id as usize, counts[p] as usize);
+            self.entries[i * slots..i * slots + c]
+                .copy_from_slice(&entries[p * slots..p * slots + c]);
+            self.counts[i] = counts[p];
+        }
+        Ok(())
+    }
+
+    /// Checks the history against `n` spheres: owners and partners in range, no sphere its own
+    /// partner, finite springs.
+    pub fn validate(&self, n: usize) -> Result<()> {
+        if !self.counts.is_empty() && self.counts.len() != n {
+            return Err(Error::Usage(format!(
+                "contact history of {} spheres for {n} spheres",
+                self.counts.len()
+            )));
+        }
+        for (owner, entry) in self.contacts() {
+            check_entry(n, owner as usize, entry)?;
+        }
+        Ok(())
+    }
+}
+
+/// Checks one entry of sphere `owner` among `n`.
+fn check_entry(n: usize, owner: usize, e: &HistoryEntry) -> Result<()> {
+    let bad = |reason: String| {
+        Err(Error::InvalidSphere {
+            index: owner,
+            reason,
+        })
+    };
+    if owner >= n {
+        return bad(format!("contact history for sphere {owner} of {n}"));
+    }
+    let partner = e.partner as usize;
+    if e.partner < FIRST_WALL && (partner >= n || partner == owner) {
+        return bad(format!("contact history names partner {partner} of {n}"));
+    }
+    if e.tangential
+        .iter()
+        .chain(&e.rolling)
+        .any(|x| !x.is_finite())
+    {
+        return bad(format!("non-finite contact history {e:?}"));
+    }
+    Ok(())
+}
+
+/// Equal when every sphere holds the same contacts in the same order, whatever the slots.
+impl PartialEq for ContactHistory {
+    fn eq(&self, other: &Self) -> bool {
+        let n = self.counts.len().max(other.counts.len());
+        (0..n).all(|i| self.of(i) == other.of(i))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(partner: u32, x: f32) -> HistoryEntry {
+        HistoryEntry {
+            partner,
+            tangential: [x, 0.0, 0.0],
+            rolling: [0.0; 3],
+        }
+    }
+
+    #[test]
+    fn contacts_round_trip_through_slots_of_any_size() {
+        let contacts = [
+            (2, entry(0, 1.0)),
+            (0, entry(2, -1.0)),
+            (2, entry(FIRST_WALL, 3.0)),
+        ];
+        let h = ContactHistory::from_contacts(3, &contacts).unwrap();
+        assert_eq!(h.slots(), 2);
+        assert_eq!(h.of(2), &[entry(0, 1.0), entry(FIRST_WALL, 3.0)]);
+        assert_eq!(h.of(1), &[]);
+        assert_eq!(h.len(), 3);
+        // Written sorted (sphere 2 first, then 0, then 1) with 4 slots: the same history.
+        let mut sorted = vec![HistoryEntry::default(); 12];
+        sorted[0] = entry(0, 1.0);
+        sorted[1] = entry(FIRST_WALL, 3.0);
+        sorted[4] = entry(2, -1.0);
+        let mut g = ContactHistory::default();
+        g.scatter_from(&[2, 0, 1], 4, &[2, 1, 0], &sorted).unwrap();
+        assert_eq!(g.slots(), 4);
+        assert_eq!(g, h);
+        assert_ne!(g, ContactHistory::default());
+        assert_eq!(
+            ContactHistory::with_slots(3, 5).unwrap(),
+            ContactHistory::default()
+        );
+    }
+
+    #[test]
+    fn bad_partners_are_refused() {
+        for e in [entry(3, 0.0), entry(1, 0.0), entry(0, f32::NAN)] {
+            assert!(
+                ContactHistory::from_contacts(3, &[(1, e)]).is_err(),
+                "{e:?}"
+            );
+        }
+        assert!(ContactHistory::from_contacts(3, &[(3, entry(0, 0.0))]).is_err());
+    }
+}

@@ -1,0 +1,583 @@
+//! The whole cpu step against analytic results of contact mechanics (docs/method.md, "The DEM
+//! step"; the list of `physics.md`): elastic Hertz impacts on a wall and between two spheres,
+//! restitution, an oblique impact in gross sliding, a sphere sliding into rolling and then
+//! slowed by rolling resistance, energy in a dense gas, and a heap that friction holds up. Each
+//! runs through `open_stepper(BackendKind::Cpu, ..)` and `advance`, and states its tolerance in
+//! terms of the time step.
+
+use mochi::dem::model::contact::moment_of_inertia;
+use mochi::dem::model::time_step::{hertz_contact_time, hertz_peak_overlap};
+use mochi::dem::model::{ContactLaw, Material, RollingModel, mass};
+use mochi::dem::{Particles, StepParams, Stepper};
+use mochi::engines::{BackendKind, Options, open_stepper};
+use mochi::proxy::ProxyMode;
+
+const E: f64 = 1e7;
+const NU: f64 = 0.3;
+const RHO: f64 = 2500.0;
+
+/// Soft glass-like spheres with Hertz–Mindlin contacts.
+fn hertz(restitution: f64, friction: f64) -> Material {
+    Material {
+        density: RHO,
+        restitution,
+        contact: ContactLaw::HertzMindlin {
+            young_modulus: E,
+            poisson_ratio: NU,
+        },
+        friction,
+        ..Material::default()
+    }
+}
+
+/// E* of two spheres, and of a sphere on a rigid wall.
+fn e_star(on_wall: bool) -> f64 {
+    let bodies = if on_wall { 1.0 } else { 2.0 };
+    E / (bodies * (1.0 - NU * NU))
+}
+
+fn params(material: &Material, dt: f64, side: f64, gravity: [f64; 3], r_min: f32) -> StepParams {
+    StepParams::new(material, dt, [0.0; 3], [side; 3], gravity, 0.0, r_min).unwrap()
+}
+
+fn spheres(positions: Vec<[f32; 3]>, velocities: Vec<[f32; 3]>, radii: Vec<f32>) -> Particles {
+    Particles {
+        angular_velocities: vec![[0.0; 3]; radii.len()],
+        positions,
+        velocities,
+        radii,
+        ..Particles::default()
+    }
+}
+
+fn cpu(particles: Particles, p: StepParams) -> Box<dyn Stepper> {
+    open_stepper(
+        BackendKind::Cpu,
+        particles,
+        p,
+        ProxyMode::Mochi,
+        &Options::default(),
+    )
+    .unwrap()
+}
+
+/// What one impact did, sampled every step.
+struct Impact {
+    /// Steps with an overlap.
+    steps_in_contact: u32,
+    /// Deepest overlap \[m\].
+    peak_overlap: f64,
+    /// The particles once apart again.
+    after: Particles,
+}
+
+/// Steps until the contact that `overlap` measures has begun and ended.
+fn impact(s: &mut dyn Stepper, overlap: impl Fn(&Particles) -> f64) -> Impact {
+    let (mut steps_in_contact, mut peak) = (0, 0.0f64);
+    for _ in 0..100_000 {
+        s.advance(1).unwrap();
+        let now = s.particles().unwrap();
+        let d = overlap(&now);
+        if d > 0.0 {
+            steps_in_contact += 1;
+            peak = peak.max(d);
+        } else if steps_in_contact > 0 {
+            return Impact {
+                steps_in_contact,
+                peak_overlap: peak,
+                after: now,
+            };
+        }
+    }
+    panic!("the contact never ended");
+}
+
+/// A sphere of radius `r` a little above the floor of a 1 m box, moving at `v`.
+fn above_the_floor(r: f32, v: [f32; 3]) -> Particles {
+    spheres(vec![[0.5, 0.5, r + 2e-4]], vec![v], vec![r])
+}
+
+fn floor_overlap(p: &Particles) -> f64 {
+    (p.radii[0] - p.positions[0][2]) as f64
+}
+
+#[test]
+fn an_elastic_impact_on_a_wall_lasts_and_sinks_as_hertz_says() {
+    let (r, v) = (0.01f32, 1.0f64);
+    let m = mass(RHO as f32, r) as f64;
+    let t_c = hertz_contact_time(m, r as f64, e_star(true), v);
+    let d_max = hertz_peak_overlap(m, r as f64, e_star(true), v);
+    // 400 steps per contact.
+    let dt = t_c / 400.0;
+    let p = params(&hertz(1.0, 0.0), dt, 1.0, [0.0; 3], r);
+    let mut s = cpu(above_the_floor(r, [0.0, 0.0, -v as f32]), p);
+    let hit = impact(s.as_mut(), floor_overlap);
+    // Contact begins and ends within a step of the sampled ones (2·dt), and the 2.87 of the
+    // fitted formula is 0.06% above Johnson's exact 2.943·δ_max/v.
+    let duration = hit.steps_in_contact as f64 * dt;
+    assert!(
+        (duration - t_c).abs() <= 2.0 * dt + 1e-3 * t_c,
+        "contact lasted {duration:e} s, Hertz: {t_c:e} s (dt {dt:e})"
+    );
+    // The deepest sample lies within half a step of the peak, where the overlap changes by
+    // about a·(dt/2)²/2 ≪ 0.1%; semi-implicit Euler's own error is O(dt/t_c) = 0.25%.
+    assert!(
+        (hit.peak_overlap / d_max - 1.0).abs() <= 2.5e-3,
+        "peak overlap {:e} m, Hertz: {d_max:e} m",
+        hit.peak_overlap
+    );
+    let rebound = hit.after.velocities[0][2] as f64;
+    assert!(
+        (rebound / v - 1.0).abs() <= 2.5e-3,
+        "rebound speed {rebound}, impact {v}"
+    );
+}
+
+#[test]
+fn an_elastic_head_on_impact_of_two_spheres_lasts_and_sinks_as_hertz_says() {
+    let (r, v) = (0.01f32, 1.0f64);
+    let m_eff = mass(RHO as f32, r) as f64 / 2.0;
+    let r_eff = r as f64 / 2.0;
+    let t_c = hertz_contact_time(m_eff, r_eff, e_star(false), v);
+    let d_max = hertz_peak_overlap(m_eff, r_eff, e_star(false), v);
+    let dt = t_c / 400.0;
+    let p = params(&hertz(1.0, 0.0), dt, 1.0, [0.0; 3], r);
+    let half = (v / 2.0) as f32;
+    let start = spheres(
+        vec![[0.5 - r - 1e-4, 0.5, 0.5], [0.5 + r + 1e-4, 0.5, 0.5]],
+        vec![[half, 0.0, 0.0], [-half, 0.0, 0.0]],
+        vec![r, r],
+    );
+    let mut s = cpu(start, p);
+    let overlap = |p: &Particles| (2.0 * r - (p.positions[1][0] - p.positions[0][0])) as f64;
+    let hit = impact(s.as_mut(), overlap);
+    // Tolerances as on the wall.
+    let duration = hit.steps_in_contact as f64 * dt;
+    assert!(
+        (duration - t_c).abs() <= 2.0 * dt + 1e-3 * t_c,
+        "contact lasted {duration:e} s, Hertz: {t_c:e} s"
+    );
+    assert!(
+        (hit.peak_overlap / d_max - 1.0).abs() <= 2.5e-3,
+        "peak overlap {:e} m, Hertz: {d_max:e} m",
+        hit.peak_overlap
+    );
+    let parting = (hit.after.velocities[1][0] - hit.after.velocities[0][0]) as f64;
+    assert!(
+        (parting / v - 1.0).abs() <= 2.5e-3,
+        "parting speed {parting}, closing {v}"
+    );
+    // Equal and opposite forces: the centre of mass stays at rest.
+    assert_eq!(hit.after.velocities[0][0], -hit.after.velocities[1][0]);
+}
+
+/// Rebound over impact speed of a sphere dropped on the floor with restitution `e`.
+fn measured_restitution(material: &Material, dt: f64, r: f32) -> f64 {
+    let v = 1.0f32;
+    let p = params(material, dt, 1.0, [0.0; 3], r);
+    let mut s = cpu(above_the_floor(r, [0.0, 0.0, -v]), p);
+    let hit = impact(s.as_mut(), floor_overlap);
+    (hit.after.velocities[0][2] / v) as f64
+}
+
+#[test]
+fn the_linear_law_rebounds_at_its_restitution() {
+    let r = 0.01f32;
+    for e in [0.3, 0.5, 0.9] {
+        // Every contact lasts 400 steps: semi-implicit Euler's error in e is O(dt/t_c).
+        let dt = 1e-5;
+        let material = Material {
+            density: RHO,
+            restitution: e,
+            contact: ContactLaw::LinearPerPair {
+                contact_time: Some(400.0 * dt),
+            },
+            ..Material::default()
+        };
+        let got = measured_restitution(&material, dt, r);
+        // Within π·dt/t_c (0.8%) of e.
+        assert!(
+            (got - e).abs() <= std::f64::consts::PI / 400.0 * e,
+            "restitution {got}, configured {e}"
+        );
+    }
+}
+
+#[test]
+fn tsuji_damping_rebounds_near_its_restitution() {
+    // Tsuji's coefficient 2·√(5/6)·β·√(S_n·m*) on the Hertz spring: measured here at 400
+    // steps per contact, 0.3 → 0.2996, 0.5 → 0.5000, 0.9 → 0.9000 (docs/method.md). Within
+    // 0.5% of e, as the linear law at this resolution (π·dt/t_c = 0.8%).
+    let r = 0.01f32;
+    let m = mass(RHO as f32, r) as f64;
+    let t_c = hertz_contact_time(m, r as f64, e_star(true), 1.0);
+    for e in [0.3, 0.5, 0.9] {
+        let got = measured_restitution(&hertz(e, 0.0), t_c / 400.0, r);
+        assert!((got - e).abs() <= 5e-3 * e, "restitution {got} for e = {e}");
+    }
+}
+
+#[test]
+fn an_oblique_impact_in_gross_sliding_trades_speed_for_spin() {
+    let (r, mu, e) = (0.01f32, 0.2, 0.8);
+    let (v_n, v_t0) = (1.0f32, 3.0f32);
+    let m = mass(RHO as f32, r) as f64;
+    let t_c = hertz_contact_time(m, r as f64, e_star(true), v_n as f64);
+    let dt = t_c / 400.0;
+    let p = params(&hertz(e, mu), dt, 1.0, [0.0; 3], r);
+    let mut s = cpu(above_the_floor(r, [v_t0, 0.0, -v_n]), p);
+    let hit = impact(s.as_mut(), floor_overlap);
+    let v = hit.after.velocities[0];
+    let w = hit.after.angular_velocities[0];
+    // The sphere slides throughout (v_t0 > 3.5·μ·(1 + e)·v_n), so the tangential impulse is μ
+    // times the normal one, m·(1 + e′)·v_n with e′ the rebound measured.
+    let e_got = (v[2] / v_n) as f64;
+    let impulse = mu * (1.0 + e_got) * v_n as f64;
+    assert!(v_t0 as f64 > 3.5 * impulse);
+    let v_t = v[0] as f64;
+    let expected_v_t = v_t0 as f64 - impulse;
+    // Friction acts on max(F_n, 0) while the normal impulse includes the damping's pull at
+    // the end of the contact: within 1% of the change of speed.
+    assert!(
+        (v_t - expected_v_t).abs() <= 1e-2 * impulse,
+        "v_t after {v_t}, expected {expected_v_t}"
+    );
+    let spin = 5.0 * impulse / (2.0 * r as f64);
+    assert!(
+        (w[1] as f64 - spin).abs() <= 1e-2 * spin,
+        "spin after {w:?}, expected {spin} about +y"
+    );
+    assert!(w[0] == 0.0 && w[2] == 0.0 && v[1] == 0.0, "{w:?} {v:?}");
+}
+
+/// A sphere resting on the floor of a 1 m box under gravity `g`, set moving along x at `v0`.
+fn set_on_the_floor(material: &Material, r: f32, v0: f32, g: f64) -> (Box<dyn Stepper>, f64) {
+    let m = mass(RHO as f32, r) as f64;
+    // Resting overlap m·g = 4/3·E*·√r·δ^{3/2}.
+    let rest = (3.0 * m * g / (4.0 * e_star(true) * (r as f64).sqrt())).powf(2.0 / 3.0);
+    let t_r = mochi::dem::model::time_step::rayleigh_time(r as f64, RHO, E, NU);
+    let dt = 0.2 * t_r;
+    let p = params(material, dt, 1.0, [0.0, 0.0, -g], r);
+    let start = spheres(
+        vec![[0.1, 0.5, r - rest as f32]],
+        vec![[v0, 0.0, 0.0]],
+        vec![r],
+    );
+    (cpu(start, p), dt)
+}
+
+#[test]
+fn a_sliding_sphere_rolls_at_five_sevenths_of_its_speed_from_t_star_on() {
+    let (r, v0, mu, g) = (0.01f32, 0.5f32, 0.3, 9.81);
+    let material = hertz(0.5, mu);
+    let (mut s, dt) = set_on_the_floor(&material, r, v0, g);
+    let t_star = 2.0 * v0 as f64 / (7.0 * mu * g);
+    let steps = |t: f64| (t / dt).round() as u32;
+    // Halfway through the sliding: decelerating at μ·g.
+    s.advance(steps(t_star / 2.0)).unwrap();
+    let now = s.particles().unwrap();
+    let t = now.step as f64 * dt;
+    let sliding = v0 as f64 - mu * g * t;
+    let v = now.velocities[0][0] as f64;
+    // Within one step of deceleration, and 1% of the change.
+    assert!(
+        (v - sliding).abs() <= mu * g * dt + 1e-2 * (v0 as f64 - sliding),
+        "v {v} at t {t}, sliding predicts {sliding}"
+    );
+    // Past t*: rolling without slip at 5/7·v0, for good.
+    for t in [1.2 * t_star, 3.0 * t_star] {
+        let done = s.particles().unwrap().step as u32;
+        s.advance(steps(t) - done).unwrap();
+        let now = s.particles().unwrap();
+        let (v, w) = (
+            now.velocities[0][0] as f64,
+            now.angular_velocities[0][1] as f64,
+        );
+        let rolling = 5.0 / 7.0 * v0 as f64;
+        assert!(
+            (v - rolling).abs() <= 2e-3 * rolling,
+            "v {v} at {t:e} s, rolling predicts {rolling}"
+        );
+        assert!(
+            (w * r as f64 - v).abs() <= 2e-3 * v,
+            "ω·r {} and v {v} differ: still slipping",
+            w * r as f64
+        );
+    }
+}
+
+#[test]
+fn constant_torque_rolling_resistance_slows_a_rolling_sphere_at_five_sevenths_mu_r_g() {
+    let (r, v0, mu, mu_r, g) = (0.01f32, 0.5f32, 0.3, 0.05, 9.81);
+    let material = Material {
+        rolling_friction: mu_r,
+        rolling_model: RollingModel::ConstantTorque,
+        ..hertz(0.5, mu)
+    };
+    let (mut s, dt) = set_on_the_floor(&material, r, v0, g);
+    let t_star = 2.0 * v0 as f64 / (7.0 * mu * g);
+    // Rolling by 2·t*; then 0.2 s of rolling, slowing by 5/7·μ_r·g.
+    s.advance((2.0 * t_star / dt) as u32).unwrap();
+    let a = s.particles().unwrap();
+    let span = (0.2 / dt) as u32;
+    s.advance(span).unwrap();
+    let b = s.particles().unwrap();
+    let slowing = (a.velocities[0][0] - b.velocities[0][0]) as f64 / (span as f64 * dt);
+    let expected = 5.0 / 7.0 * mu_r * g;
+    // The resting overlap shortens the lever of the torque (r − δ against r): ≪ 1%.
+    assert!(
+        (slowing / expected - 1.0).abs() <= 1e-2,
+        "slowing {slowing} m/s², expected {expected}"
+    );
+    let (v, w) = (b.velocities[0][0], b.angular_velocities[0][1]);
+    assert!(
+        (w * r - v).abs() <= 2e-3 * v,
+        "slipping: ω·r {} v {v}",
+        w * r
+    );
+}
+
+/// `n`³ spheres of radius `r` on a lattice filling most of a box of side `side`, with random
+/// velocities of about `speed` (a fixed seed).
+fn gas(n: usize, r: f32, side: f32, speed: f32) -> Particles {
+    let mut seed = 7u64;
+    let mut rand = move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
+    };
+    let spacing = side / n as f32;
+    let (mut c, mut v) = (Vec::new(), Vec::new());
+    for k in 0..n * n * n {
+        let at = [k % n, (k / n) % n, k / (n * n)];
+        c.push(at.map(|i| (i as f32 + 0.5) * spacing));
+        v.push([0; 3].map(|_| 2.0 * speed * rand()));
+    }
+    spheres(c, v, vec![r; n * n * n])
+}
+
+/// Kinetic energy of translation and rotation \[J\].
+fn kinetic(p: &Particles) -> f64 {
+    let sq = |v: &[f32; 3]| v.iter().map(|&x| x as f64 * x as f64).sum::<f64>();
+    p.velocities
+        .iter()
+        .zip(&p.angular_velocities)
+        .zip(&p.radii)
+        .map(|((v, w), &r)| {
+            let m = mass(RHO as f32, r);
+            0.5 * m as f64 * sq(v) + 0.5 * moment_of_inertia(m, r) as f64 * sq(w)
+        })
+        .sum()
+}
+
+/// Elastic energy of the Hertz contacts between spheres and with the walls of `[0, side]³`:
+/// 8/15·E*·√R*·δ^{5/2} each \[J\].
+fn hertz_energy(p: &Particles, side: f32) -> f64 {
+    let stored = |e_star: f64, r_eff: f64, d: f64| 8.0 / 15.0 * e_star * r_eff.sqrt() * d.powf(2.5);
+    let mut sum = 0.0;
+    for (i, (c, &r)) in p.positions.iter().zip(&p.radii).enumerate() {
+        for (d, &s) in p.positions[i + 1..].iter().zip(&p.radii[i + 1..]) {
+            let dist = (0..3).map(|a| (d[a] - c[a]).powi(2)).sum::<f32>().sqrt();
+            let overlap = (r + s - dist) as f64;
+            if overlap > 0.0 {
+                sum += stored(e_star(false), (r * s / (r + s)) as f64, overlap);
+            }
+        }
+        for &x in c {
+            for overlap in [r - x, r - (side - x)] {
+                if overlap > 0.0 {
+                    sum += stored(e_star(true), r as f64, overlap as f64);
+                }
+            }
+        }
+    }
+    sum
+}
+
+#[test]
+fn a_dense_elastic_gas_without_friction_keeps_its_energy() {
+    // 216 spheres filling 12% of the box, e = 1, μ = 0, no gravity, 10⁴ steps.
+    let (r, side, speed) = (0.01f32, 0.2f32, 1.0f32);
+    let start = gas(6, r, side, speed);
+    let m = mass(RHO as f32, r) as f64;
+    let t_c = hertz_contact_time(m / 2.0, r as f64 / 2.0, e_star(false), 2.0 * speed as f64);
+    let dt = t_c / 40.0;
+    let p = params(&hertz(1.0, 0.0), dt, side as f64, [0.0; 3], r);
+    let energy = |p: &Particles| kinetic(p) + hertz_energy(p, side);
+    let e0 = energy(&start);
+    let mut s = cpu(start, p);
+    let mut contacts = 0;
+    for _ in 0..10 {
+        contacts += s.advance(1000).unwrap().contacts;
+        let now = s.particles().unwrap();
+        // Semi-implicit Euler keeps a shadow energy within O((dt/t_c)²) of the true one per
+        // contact and does not drift: 0.5% over 10⁴ steps of 40-step contacts.
+        let e = energy(&now);
+        assert!(
+            (e / e0 - 1.0).abs() <= 5e-3,
+            "energy {e:e} J at step {}, {e0:e} J at the start",
+            now.step
+        );
+    }
+    assert!(contacts > 0, "the gas never collided");
+}
+
+#[test]
+fn with_friction_the_energy_of_a_gas_only_decreases() {
+    let (r, side, speed) = (0.01f32, 0.2f32, 1.0f32);
+    let start = gas(6, r, side, speed);
+    let m = mass(RHO as f32, r) as f64;
+    let t_c = hertz_contact_time(m / 2.0, r as f64 / 2.0, e_star(false), 2.0 * speed as f64);
+    let dt = t_c / 40.0;
+    // Elastic in the normal direction: only friction (sliding and rolling) takes energy.
+    let material = Material {
+        rolling_friction: 0.05,
+        ..hertz(1.0, 0.5)
+    };
+    let p = params(&material, dt, side as f64, [0.0; 3], r);
+    // Energy held in the tangential springs is not counted: it is bounded by the Coulomb
+    // cap, so a sample may exceed the one before by the springs' share, which the tolerance
+    // of the elastic gas (0.5%) covers.
+    let energy = |p: &Particles| kinetic(p) + hertz_energy(p, side);
+    let e0 = energy(&start);
+    let mut before = e0;
+    let mut s = cpu(start, p);
+    for _ in 0..10 {
+        s.advance(1000).unwrap();
+        let now = s.particles().unwrap();
+        let e = energy(&now);
+        assert!(
+            e <= before + 5e-3 * e0,
+            "energy rose from {before:e} J to {e:e} J by step {}",
+            now.step
+        );
+        before = e;
+    }
+    assert!(
+        before < 0.9 * e0,
+        "friction took too little: {before:e} of {e0:e} J"
+    );
+}
+
+/// A square pyramid of 55 spheres (layers of 5×5, 4×4, 3×3, 2×2 and 1, each resting in the
+/// hollows of the one below, a slope of 45° along its edges) of radius `r` in the middle of the
+/// floor of a box of side `side`, a hair apart so that it settles under gravity.
+fn pyramid(r: f32, side: f32) -> Particles {
+    let gap = 1.0 + 1e-3;
+    let mut c = Vec::new();
+    for layer in 0..5 {
+        let w = 5 - layer;
+        for k in 0..w * w {
+            let (i, j) = ((k % w) as f32, (k / w) as f32);
+            let offset = (w as f32 - 1.0) / 2.0;
+            c.push([
+                side / 2.0 + (i - offset) * 2.0 * r * gap,
+                side / 2.0 + (j - offset) * 2.0 * r * gap,
+                r * gap + layer as f32 * std::f32::consts::SQRT_2 * r * gap,
+            ]);
+        }
+    }
+    let n = c.len();
+    spheres(c, vec![[0.0; 3]; n], vec![r; n])
+}
+
+/// Height of the highest sphere top \[m\] and the number of spheres off the floor (centres
+/// above 1.5·r), after `seconds` of a pyramid of spheres of radius `r` under gravity with
+/// `material`, then again 0.5 s later.
+fn settle_pyramid(material: &Material, r: f32, seconds: f64) -> [(f32, usize); 2] {
+    let side = 0.3f32;
+    let t_r = mochi::dem::model::time_step::rayleigh_time(r as f64, RHO, 1e6, NU);
+    let dt = 0.2 * t_r;
+    let p = params(material, dt, side as f64, [0.0, 0.0, -9.81], r);
+    let mut s = cpu(pyramid(r, side), p);
+    [seconds, 0.5].map(|t| {
+        s.advance((t / dt) as u32).unwrap();
+        let end = s.particles().unwrap();
+        let top = end
+            .positions
+            .iter()
+            .map(|c| c[2] + r)
+            .fold(0.0f32, f32::max);
+        let raised = end.positions.iter().filter(|c| c[2] > 1.5 * r).count();
+        (top, raised)
+    })
+}
+
+#[test]
+fn a_frictional_heap_keeps_its_slope_where_a_frictionless_one_spreads_flat() {
+    let soft = |friction: f64, rolling: f64| Material {
+        contact: ContactLaw::HertzMindlin {
+            young_modulus: 1e6,
+            poisson_ratio: NU,
+        },
+        rolling_friction: rolling,
+        ..hertz(0.3, friction)
+    };
+    let r = 0.005f32;
+    // After 1 s both have settled (measured: the frictionless pyramid is one layer from 1 s
+    // on; the frictional one slumps from its 45° edges to a heap of 14 raised spheres, 4.5·r
+    // high, by 1 s and then stays).
+    let [_, flat] = settle_pyramid(&soft(0.0, 0.0), r, 1.0);
+    let [heap, later] = settle_pyramid(&soft(0.5, 0.1), r, 1.0);
+    assert_eq!(flat.1, 0, "frictionless: spheres off the floor at the end");
+    assert!(flat.0 <= 2.0 * r * 1.01, "frictionless top at {} m", flat.0);
+    assert!(
+        heap.1 >= 10 && heap.0 >= 4.0 * r,
+        "frictional: {} spheres off the floor, top at {} m",
+        heap.1,
+        heap.0
+    );
+    // Static: half a second later the same heap (within a thousandth of a radius).
+    assert_eq!(later.1, heap.1);
+    assert!(
+        (later.0 - heap.0).abs() <= 1e-3 * r,
+        "the heap moved: top {} m, then {} m",
+        heap.0,
+        later.0
+    );
+}
+
+#[test]
+fn a_sphere_with_more_contacts_than_history_slots_keeps_every_one() {
+    // A 3 cm sphere touched by 40 spheres of 5 mm (more than the 16 slots a run starts with),
+    // spread over its surface on a Fibonacci spiral so they do not touch each other, each
+    // sliding along it.
+    let (big, small) = (0.03f32, 0.005f32);
+    let centre = [0.5f32; 3];
+    let mut c = vec![centre];
+    let mut v = vec![[0.0f32; 3]];
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    for k in 0..40 {
+        let z = 1.0 - 2.0 * (k as f32 + 0.5) / 40.0;
+        let (s, t) = ((1.0 - z * z).sqrt(), golden * k as f32);
+        let u = [s * t.cos(), s * t.sin(), z];
+        let d = big + small - 1e-4;
+        c.push(std::array::from_fn(|a| centre[a] + d * u[a]));
+        // Along the surface: u × z (or x at the poles).
+        let w = [u[1], -u[0], 0.0];
+        let len = (w[0] * w[0] + w[1] * w[1]).sqrt().max(1e-3);
+        v.push(w.map(|x| 0.05 * x / len));
+    }
+    let mut r = vec![big];
+    r.extend([small; 40]);
+    let p = params(&hertz(0.5, 0.5), 1e-6, 1.0, [0.0; 3], small);
+    let mut s = cpu(spheres(c, v, r), p);
+    s.advance(5).unwrap();
+    let end = s.particles().unwrap();
+    let held = end.history.of(0);
+    assert_eq!(
+        held.len(),
+        40,
+        "the big sphere kept {} of its 40 contacts",
+        held.len()
+    );
+    // Each small sphere keeps the same contact, its springs the exact negatives.
+    for e in held {
+        let back = end.history.of(e.partner as usize);
+        assert_eq!(back.len(), 1);
+        assert_eq!(back[0].partner, 0);
+        assert_eq!(back[0].tangential, e.tangential.map(|x| -x));
+        assert!(e.tangential.iter().any(|&x| x != 0.0));
+    }
+}
