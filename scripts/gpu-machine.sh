@@ -3,6 +3,7 @@
 # carried in .bin/ (made by `scripts/gpu-machine.sh pack` on the build machine), Vulkan's loader
 # and glvnd as .deb files in .gl/. Usage there: `bash scripts/gpu-machine.sh run [TEST...]`.
 #   pack   build the release binary and the named test binaries (--features optix) into .bin/
+#          (in $CARGO_TARGET_DIR where set)
 #   run    unpack the loaders, then run each carried test binary with optix expected
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,7 +14,7 @@ pack)
     [ $# -gt 0 ] && tests=("$@")
     cargo build --release --locked --features optix
     mkdir -p .bin
-    cp target/release/mochi .bin/mochi
+    cp "${CARGO_TARGET_DIR:-target}/release/mochi" .bin/mochi
     for t in "${tests[@]}"; do
         exe=$(cargo test --release --locked --features optix --test "$t" --no-run \
             --message-format=json 2>/dev/null |
