@@ -197,19 +197,13 @@ pub fn modules() -> Vec<WgslModule> {
 #[cfg(test)]
 mod tests {
     use super::rq_build::{self, BuildParams};
-    use crate::gpu::{Gpu, Need};
+    use crate::gpu;
     use crate::morton;
 
     #[test]
     fn the_wgsl_morton_keys_are_the_host_ones() {
-        let gpu = match Gpu::open(Need::Compute) {
-            Ok(gpu) => gpu,
-            Err(why) => {
-                let ci = std::env::var("CI").is_ok_and(|v| v == "true");
-                assert!(!ci, "CI expects a GPU adapter for the Morton keys: {why}");
-                eprintln!("note: the WGSL Morton keys are not tested on this machine: {why}");
-                return;
-            }
+        let Some(gpu) = gpu::test_gpu("the WGSL Morton keys") else {
+            return;
         };
         // Corners, a flat axis, points between cells and on their borders.
         let rows: Vec<[f32; 4]> = (0..1000u32)
