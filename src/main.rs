@@ -1,4 +1,5 @@
 //! The `mochi` command-line tool; everything it does is in [`cli`].
+#![deny(unsafe_code)]
 
 mod cli;
 
@@ -10,6 +11,7 @@ fn main() -> std::process::ExitCode {
 /// Lets a closed pipe end the process quietly, as it does other Unix tools (`mochi backends |
 /// head -1`): Rust ignores SIGPIPE by default, so printing into a closed pipe would panic.
 #[cfg(unix)]
+#[allow(unsafe_code)] // stable Rust has no safe way to set a signal's action
 fn restore_sigpipe() {
     // SAFETY: called first thing in main, before any thread exists; SIG_DFL is a valid handler.
     unsafe {

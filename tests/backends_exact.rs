@@ -12,7 +12,7 @@ use mochi::Backend;
 use mochi::engines::BackendKind;
 use mochi::oracle::{brute_force_pairs, differences};
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
-use mochi::{Pair, ProxyMode, SphereSet};
+use mochi::{Error, Pair, ProxyMode, SphereSet};
 use proptest::prelude::*;
 use std::sync::{LazyLock, Mutex};
 
@@ -407,8 +407,10 @@ fn update_after_moving_gives_the_new_exact_set() {
                 kind.name()
             );
         }
+        // Misuse of the library, not bad input: Usage.
         let wrong_size = SphereSet::default();
-        assert!(backend.update(&wrong_size).is_err());
+        let result = backend.update(&wrong_size);
+        assert!(matches!(result, Err(Error::Usage(_))), "{result:?}");
     });
 }
 
@@ -416,8 +418,24 @@ fn update_after_moving_gives_the_new_exact_set() {
 fn detection_before_build_is_an_error() {
     for kind in backends() {
         let mut backend = kind.open().unwrap();
-        assert!(backend.find_pairs().is_err());
-        assert!(backend.update(&SphereSet::default()).is_err());
+        let found = backend.find_pairs();
+        assert!(
+            matches!(found, Err(Error::Usage(_))),
+            "{}: {found:?}",
+            kind.name()
+        );
+        let counted = backend.count_pairs();
+        assert!(
+            matches!(counted, Err(Error::Usage(_))),
+            "{}: {counted:?}",
+            kind.name()
+        );
+        let updated = backend.update(&SphereSet::default());
+        assert!(
+            matches!(updated, Err(Error::Usage(_))),
+            "{}: {updated:?}",
+            kind.name()
+        );
     }
 }
 

@@ -9,84 +9,85 @@ mod common;
 use mochi::dem::model::{mass, stable_dt, stiffness_for_duration};
 use mochi::dem::{Clock, Material, Particles, StepParams, Stepper};
 use mochi::engines::BackendKind;
+use mochi::engines::ForceAtomics;
 use mochi::engines::wgpu_compute::GridStepper;
 use mochi::engines::wgpu_compute::Structure;
 use mochi::engines::wgpu_rq::RqStepper;
-use mochi::engines::{ForceAtomics, open_stepper};
 use mochi::engines::{Options, RebuildPolicy};
-use mochi::gpu::Need;
 use mochi::proxy::ProxyMode;
 
-/// Each backend's stepper that runs here, with a label: cpu always, the GPU ones where an adapter
-/// exists (a panic under CI without one; wgpu-rq needs ray queries, which lavapipe has), each
-/// also with the compare-and-swap force path.
+use common::particles;
+
+/// Each backend's stepper that runs here ([`common::dem_runs_here`]), with a label: the GPU
+/// ones also with the compare-and-swap force path, wgpu-compute also on the multi-level grid,
+/// optix under each rebuild policy.
 fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn Stepper>)> {
-    let mut out: Vec<(String, Box<dyn Stepper>)> = vec![(
-        "cpu".into(),
-        open_stepper(
-            BackendKind::Cpu,
-            particles.clone(),
-            params,
-            ProxyMode::Mochi,
-            &Options::default(),
-        )
-        .unwrap(),
-    )];
-    if common::adapter_for(Need::Compute, "the wgpu-compute DEM step") {
-        for atomics in [ForceAtomics::Auto, ForceAtomics::CompareExchange] {
-            let s = GridStepper::with_atomics(particles.clone(), params, ProxyMode::Mochi, atomics)
-                .unwrap();
-            out.push((format!("wgpu-compute {atomics:?}"), Box::new(s)));
+    let mut out: Vec<(String, Box<dyn Stepper>)> = Vec::new();
+    for kind in common::DEM_BACKENDS {
+        if !common::dem_runs_here(kind) {
+            continue;
         }
-        let s = GridStepper::new(particles.clone(), params, ProxyMode::Mochi)
-            .unwrap()
-            .with_structure(Structure::Mlgrid);
-        out.push(("wgpu-compute mlgrid".into(), Box::new(s)));
-    }
-    if common::expected(BackendKind::Optix) || BackendKind::Optix.probe().is_ok() {
-        for rebuild in [
-            RebuildPolicy::Every(1),
-            RebuildPolicy::Every(7),
-            RebuildPolicy::Auto,
-        ] {
-            let options = Options {
-                rebuild,
-                ..Options::default()
-            };
-            let s = open_stepper(
-                BackendKind::Optix,
-                particles.clone(),
-                params,
-                ProxyMode::Mochi,
-                &options,
-            )
-            .expect("optix is expected here (MOCHI_EXPECT_OPTIX=1)");
-            assert!(s.refits());
-            out.push((format!("optix rebuild {rebuild}"), s));
-        }
-    }
-    if common::adapter_for(Need::RayQuery, "the wgpu-rq DEM step") {
-        for atomics in [ForceAtomics::Auto, ForceAtomics::CompareExchange] {
-            let s = RqStepper::with_atomics(particles.clone(), params, ProxyMode::Mochi, atomics)
-                .unwrap();
-            out.push((format!("wgpu-rq {atomics:?}"), Box::new(s)));
+        match kind {
+            BackendKind::Cpu => {
+                out.push((
+                    "cpu".into(),
+                    common::open_dem(kind, particles, params, &Options::default()),
+                ));
+            }
+            BackendKind::WgpuCompute => {
+                for atomics in [ForceAtomics::Auto, ForceAtomics::CompareExchange] {
+                    let s = GridStepper::with_atomics(
+                        particles.clone(),
+                        params,
+                        ProxyMode::Mochi,
+                        atomics,
+                    )
+                    .unwrap();
+                    out.push((format!("wgpu-compute {atomics:?}"), Box::new(s)));
+                }
+                let options = Options {
+                    structure: Structure::Mlgrid,
+                    ..Options::default()
+                };
+                out.push((
+                    "wgpu-compute mlgrid".into(),
+                    common::open_dem(kind, particles, params, &options),
+                ));
+            }
+            BackendKind::Optix => {
+                for rebuild in [
+                    RebuildPolicy::Every(1),
+                    RebuildPolicy::Every(7),
+                    RebuildPolicy::Auto,
+                ] {
+                    let options = Options {
+                        rebuild,
+                        ..Options::default()
+                    };
+                    let s = common::open_dem(kind, particles, params, &options);
+                    assert!(s.refits());
+                    out.push((format!("optix rebuild {rebuild}"), s));
+                }
+            }
+            BackendKind::WgpuRq => {
+                for atomics in [ForceAtomics::Auto, ForceAtomics::CompareExchange] {
+                    let s = RqStepper::with_atomics(
+                        particles.clone(),
+                        params,
+                        ProxyMode::Mochi,
+                        atomics,
+                    )
+                    .unwrap();
+                    out.push((format!("wgpu-rq {atomics:?}"), Box::new(s)));
+                }
+            }
         }
     }
     out
 }
 
 fn params(material: Material, dt: f64, side: f64, gravity: [f64; 3], r_min: f32) -> StepParams {
-    StepParams::new(&material, dt, [0.0; 3], [side; 3], gravity, 0.0, r_min).unwrap()
-}
-
-fn particles(positions: Vec<[f32; 3]>, velocities: Vec<[f32; 3]>, radii: Vec<f32>) -> Particles {
-    Particles {
-        angular_velocities: vec![[0.0; 3]; radii.len()],
-        positions,
-        velocities,
-        radii,
-        ..Particles::default()
-    }
+    common::step_params(&material, dt, side, gravity, r_min)
 }
 
 #[test]

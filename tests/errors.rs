@@ -7,11 +7,8 @@ mod common;
 
 use mochi::dem::scene::apply_override;
 use mochi::dem::{Material, Particles, StepParams};
-use mochi::engines::wgpu_compute::GridStepper;
-use mochi::engines::{BackendKind, Options, open_stepper};
-use mochi::gpu::Need;
 use mochi::render::parse_size;
-use mochi::{Error, ProxyMode, SphereSet};
+use mochi::{Error, SphereSet};
 
 #[test]
 fn bad_settings_are_invalid_config_naming_the_setting() {
@@ -66,59 +63,14 @@ fn exploding() -> (Particles, StepParams) {
     // Finite, so the state is valid input; beyond any sphere set's bounds, so no file gives it.
     particles.positions[BLOWN][2] = -1e34;
     particles.step = 7;
-    let params = StepParams::new(
-        &Material::default(),
-        1e-4,
-        [0.0; 3],
-        [1.0; 3],
-        [0.0, 0.0, -9.81],
-        0.0,
-        0.01,
-    )
-    .unwrap();
+    let params = common::step_params(&Material::default(), 1e-4, 1.0, [0.0, 0.0, -9.81], 0.01);
     (particles, params)
 }
 
 #[test]
 fn an_exploding_simulation_is_unstable_with_its_step_and_sphere() {
     let (particles, params) = exploding();
-    let mut steppers = vec![(
-        "cpu",
-        open_stepper(
-            BackendKind::Cpu,
-            particles.clone(),
-            params,
-            ProxyMode::Mochi,
-            &Options::default(),
-        )
-        .unwrap(),
-    )];
-    if common::adapter_for(Need::Compute, "the wgpu-compute DEM step") {
-        let s = GridStepper::new(particles.clone(), params, ProxyMode::Mochi).unwrap();
-        steppers.push(("wgpu-compute", Box::new(s)));
-    }
-    if common::expected(BackendKind::Optix) || BackendKind::Optix.probe().is_ok() {
-        let s = open_stepper(
-            BackendKind::Optix,
-            particles.clone(),
-            params,
-            ProxyMode::Mochi,
-            &Options::default(),
-        )
-        .expect("optix is expected here (MOCHI_EXPECT_OPTIX=1)");
-        steppers.push(("optix", s));
-    }
-    if common::adapter_for(Need::RayQuery, "the wgpu-rq DEM step") {
-        let s = open_stepper(
-            BackendKind::WgpuRq,
-            particles.clone(),
-            params,
-            ProxyMode::Mochi,
-            &Options::default(),
-        )
-        .unwrap();
-        steppers.push(("wgpu-rq", s));
-    }
+    let steppers = common::default_steppers(&particles, params);
     for (name, mut stepper) in steppers {
         // A stepper checks its state where it reads it: after the steps (cpu), at a re-layout
         // (wgpu-compute) or when the particles are read back (every backend).

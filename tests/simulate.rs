@@ -105,12 +105,8 @@ fn resuming_the_cpu_backend_continues_bit_for_bit() {
         ],
         dir.path(),
     );
-    let a = read_checkpoint(&dir.path().join("straight/checkpoint.bin"))
-        .unwrap()
-        .0;
-    let b = read_checkpoint(&dir.path().join("split/checkpoint.bin"))
-        .unwrap()
-        .0;
+    let a = checkpoint(dir.path(), "straight");
+    let b = checkpoint(dir.path(), "split");
     assert_eq!(a.step, 80);
     assert!(a == b, "a resumed run differs from an uninterrupted one");
     // The index keeps the frames before the resume and adds the later ones.
@@ -167,12 +163,8 @@ fn resuming_a_frictional_cpu_run_continues_bit_for_bit() {
     run("straight", "120");
     run("split", "50");
     ok(&strs(&resume_run("split", "120", &[])), dir.path());
-    let a = read_checkpoint(&dir.path().join("straight/checkpoint.bin"))
-        .unwrap()
-        .0;
-    let b = read_checkpoint(&dir.path().join("split/checkpoint.bin"))
-        .unwrap()
-        .0;
+    let a = checkpoint(dir.path(), "straight");
+    let b = checkpoint(dir.path(), "split");
     assert_eq!(a.step, 120);
     assert!(
         a.history.len() > 100,

@@ -5,11 +5,11 @@
 //! simulation and rendering share (docs/ARCHITECTURE.md).
 
 pub mod cpu;
+mod gpu_detect;
 mod gpu_step;
 mod open;
 #[cfg(feature = "optix")]
 pub mod optix;
-mod rebuilding;
 mod registry;
 pub mod wgpu_compute;
 pub mod wgpu_rq;

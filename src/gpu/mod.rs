@@ -409,3 +409,23 @@ pub fn workgroups(n: u32, size: u32, max_per_dim: u32) -> (u32, u32) {
         (max_per_dim, groups.div_ceil(max_per_dim))
     }
 }
+
+/// Whether this is a CI run (`CI=true`), where every GPU test must find an adapter.
+#[cfg(test)]
+pub(crate) fn under_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true")
+}
+
+/// For unit tests: an open compute device; without an adapter a panic under CI, else a printed
+/// note that `what` is not tested on this machine, and `None`.
+#[cfg(test)]
+pub(crate) fn test_gpu(what: &str) -> Option<Gpu> {
+    match Gpu::open(Need::Compute) {
+        Ok(gpu) => Some(gpu),
+        Err(why) => {
+            assert!(!under_ci(), "CI expects a GPU adapter for {what}: {why}");
+            eprintln!("note: {what} is not tested on this machine: {why}");
+            None
+        }
+    }
+}

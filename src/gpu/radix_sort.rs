@@ -16,16 +16,13 @@
 //! and `Params` are [`module`]'s (checked by `tests/bindings.rs`).
 
 use super::scan::ExclusiveScan;
-use super::shader::{Binding, WgslModule, shared_struct};
+use super::shader::{Binding, WgslModule, shared_struct, wgsl};
 use super::{Gpu, workgroups};
 use encase::{DynamicUniformBuffer, ShaderSize};
 use std::num::NonZeroU64;
 
 /// The shader, embedded.
-const SOURCE: &str = concat!(
-    include_str!("../../wgsl/radix_sort.wgsl"),
-    include_str!("../../wgsl/workgroup_scan.wgsl")
-);
+const SOURCE: &str = wgsl!("radix_sort.wgsl", "workgroup_scan.wgsl");
 const ENTRY_POINTS: &[&str] = &["histogram", "scatter"];
 
 const PARAMS: Binding = Binding::uniform(0, "params");
@@ -38,12 +35,12 @@ const HIST: Binding = Binding::read_write(5, "hist");
 
 /// The sort's WGSL module, exactly as the device gets it.
 pub fn module() -> WgslModule {
-    WgslModule {
-        label: "radix_sort".into(),
-        source: SOURCE.into(),
-        entry_points: ENTRY_POINTS,
-        bindings: vec![PARAMS, KEYS_IN, VALUES_IN, KEYS_OUT, VALUES_OUT, HIST],
-        structs: vec![shared_struct!(
+    WgslModule::new(
+        "radix_sort",
+        SOURCE,
+        ENTRY_POINTS,
+        &[PARAMS, KEYS_IN, VALUES_IN, KEYS_OUT, VALUES_OUT, HIST],
+        vec![shared_struct!(
             "Params",
             Params {
                 n,
@@ -52,7 +49,7 @@ pub fn module() -> WgslModule {
                 blocks,
             }
         )],
-    }
+    )
 }
 
 /// Bits per digit, i.e. per pass (keep in sync with `RADIX_BITS` in the shader).

@@ -12,16 +12,13 @@
 //! The shader is `wgsl/scan.wgsl`; its constants mirror the ones here, and its bindings and
 //! `Params` are [`module`]'s (checked by `tests/bindings.rs`).
 
-use super::shader::{Binding, WgslModule, shared_struct};
+use super::shader::{Binding, WgslModule, shared_struct, wgsl};
 use super::{Gpu, workgroups};
 use encase::{DynamicUniformBuffer, ShaderSize};
 use std::num::NonZeroU64;
 
 /// The shader, embedded.
-const SOURCE: &str = concat!(
-    include_str!("../../wgsl/scan.wgsl"),
-    include_str!("../../wgsl/workgroup_scan.wgsl")
-);
+const SOURCE: &str = wgsl!("scan.wgsl", "workgroup_scan.wgsl");
 const ENTRY_POINTS: &[&str] = &["reduce", "scan"];
 
 const PARAMS: Binding = Binding::uniform(0, "params");
@@ -30,12 +27,12 @@ const SUMS: Binding = Binding::read_write(2, "sums");
 
 /// The scan's WGSL module, exactly as the device gets it.
 pub fn module() -> WgslModule {
-    WgslModule {
-        label: "scan".into(),
-        source: SOURCE.into(),
-        entry_points: ENTRY_POINTS,
-        bindings: vec![PARAMS, DATA, SUMS],
-        structs: vec![shared_struct!(
+    WgslModule::new(
+        "scan",
+        SOURCE,
+        ENTRY_POINTS,
+        &[PARAMS, DATA, SUMS],
+        vec![shared_struct!(
             "Params",
             Params {
                 len,
@@ -46,7 +43,7 @@ pub fn module() -> WgslModule {
                 has_carry,
             }
         )],
-    }
+    )
 }
 
 /// Entries per workgroup (keep in sync with `BLOCK` in the shader).

@@ -128,6 +128,35 @@ pub struct WgslModule {
     pub structs: Vec<SharedStruct>,
 }
 
+impl WgslModule {
+    /// The module `label` of `source` with the given interface.
+    pub fn new(
+        label: impl Into<String>,
+        source: impl Into<String>,
+        entry_points: &'static [&'static str],
+        bindings: &[Binding],
+        structs: Vec<SharedStruct>,
+    ) -> WgslModule {
+        WgslModule {
+            label: label.into(),
+            source: source.into(),
+            entry_points,
+            bindings: bindings.to_vec(),
+            structs,
+        }
+    }
+}
+
+/// The files of the repository's `wgsl/` folder, concatenated in the order given and embedded
+/// at compile time (a `&'static str`): `wgsl!("grid_params.wgsl", "grid_build.wgsl")`. A
+/// module's later files use what its earlier ones declare.
+macro_rules! wgsl {
+    ($($file:literal),+ $(,)?) => {
+        concat!($(include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/wgsl/", $file))),+)
+    };
+}
+pub(crate) use wgsl;
+
 /// A WGSL `vec3<f32>` (16-byte aligned; a `u32` or `f32` may follow in its last 4 bytes). As
 /// plain `#[repr(C)]` data (a CUDA twin) it is three floats.
 #[repr(transparent)]

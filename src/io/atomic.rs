@@ -202,17 +202,16 @@ fn writer_pid(name: &str) -> Option<u32> {
 
 /// Whether process `pid` may be running (anything but a definite "no such process" counts).
 #[cfg(unix)]
-#[allow(unsafe_code)] // one libc call, no pointers
 fn process_alive(pid: u32) -> bool {
-    let Ok(pid) = libc::pid_t::try_from(pid) else {
+    // Only a positive pid names one process (0 and negative ones name process groups).
+    let Some(pid) = i32::try_from(pid)
+        .ok()
+        .and_then(rustix::process::Pid::from_raw)
+    else {
         return true;
     };
-    if pid <= 0 {
-        return true;
-    }
-    // SAFETY: kill with signal 0 sends nothing; it only checks that the process exists.
-    let found = unsafe { libc::kill(pid, 0) } == 0;
-    found || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
+    // Signal 0 sends nothing; it only checks that the process exists.
+    rustix::process::test_kill_process(pid) != Err(rustix::io::Errno::SRCH)
 }
 
 #[cfg(not(unix))]

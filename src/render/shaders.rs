@@ -3,18 +3,12 @@
 //! `tests/bindings.rs`.
 
 use super::bvh;
-use crate::gpu::shader::{Binding, SharedStruct, Vec3f, WgslModule, shared_struct};
+use crate::gpu::shader::{Binding, SharedStruct, Vec3f, WgslModule, shared_struct, wgsl};
 
 /// Ray queries over a BLAS of the spheres' boxes (`wgsl/render_rq.wgsl`).
-pub(crate) const RQ_SOURCE: &str = concat!(
-    include_str!("../../wgsl/render_rq.wgsl"),
-    include_str!("../../wgsl/render_common.wgsl")
-);
+pub(crate) const RQ_SOURCE: &str = wgsl!("render_rq.wgsl", "render_common.wgsl");
 /// Our own BVH traversed in WGSL (`wgsl/render_bvh.wgsl`).
-pub(crate) const BVH_SOURCE: &str = concat!(
-    include_str!("../../wgsl/render_bvh.wgsl"),
-    include_str!("../../wgsl/render_common.wgsl")
-);
+pub(crate) const BVH_SOURCE: &str = wgsl!("render_bvh.wgsl", "render_common.wgsl");
 /// The one entry point of both modules.
 pub(crate) const ENTRY_POINT: &str = "render";
 
@@ -76,19 +70,19 @@ fn view() -> SharedStruct {
 pub fn modules() -> Vec<WgslModule> {
     const COMMON: [Binding; 4] = [VIEW, SPHERES, COLOURS, PIXELS];
     vec![
-        WgslModule {
-            label: "render_rq".into(),
-            source: RQ_SOURCE.into(),
-            entry_points: &[ENTRY_POINT],
-            bindings: [&COMMON[..], &[TLAS]].concat(),
-            structs: vec![view()],
-        },
-        WgslModule {
-            label: "render_bvh".into(),
-            source: BVH_SOURCE.into(),
-            entry_points: &[ENTRY_POINT],
-            bindings: [&COMMON[..], &[NODES]].concat(),
-            structs: vec![view(), bvh::node()],
-        },
+        WgslModule::new(
+            "render_rq",
+            RQ_SOURCE,
+            &[ENTRY_POINT],
+            &[&COMMON[..], &[TLAS]].concat(),
+            vec![view()],
+        ),
+        WgslModule::new(
+            "render_bvh",
+            BVH_SOURCE,
+            &[ENTRY_POINT],
+            &[&COMMON[..], &[NODES]].concat(),
+            vec![view(), bvh::node()],
+        ),
     ]
 }

@@ -1,8 +1,12 @@
-//! Shared by the GPU tests: CI runs them on lavapipe and must fail, not skip, without an adapter.
+//! Shared by the tests: which GPU tests run (CI runs them on lavapipe and must fail, not skip,
+//! without an adapter), the steppers of the backends that run here, and small scene builders.
 #![allow(dead_code)] // each test file uses the part it needs
 
 pub mod rule_cases;
 
+use mochi::ProxyMode;
+use mochi::dem::{Material, Particles, StepParams, Stepper};
+use mochi::engines::{BackendKind, Options, open_stepper};
 use mochi::gpu::{self, Gpu, Need};
 
 /// True when running under CI (`CI=true`), where every GPU test must find an adapter.
@@ -12,11 +16,9 @@ pub fn ci() -> bool {
 
 /// Whether this run must test backend `kind` (a missing one fails it): under CI every backend
 /// but optix (CI machines have no NVIDIA GPU); optix where `MOCHI_EXPECT_OPTIX=1`.
-pub fn expected(kind: mochi::engines::BackendKind) -> bool {
+pub fn expected(kind: BackendKind) -> bool {
     match kind {
-        mochi::engines::BackendKind::Optix => {
-            std::env::var("MOCHI_EXPECT_OPTIX").is_ok_and(|v| v == "1")
-        }
+        BackendKind::Optix => std::env::var("MOCHI_EXPECT_OPTIX").is_ok_and(|v| v == "1"),
         _ => ci(),
     }
 }
@@ -59,4 +61,78 @@ pub fn largest_gap(a: &mochi::dem::Particles, b: &mochi::dem::Particles) -> f32 
         .zip(&b.positions)
         .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).abs()).fold(0.0, f32::max))
         .fold(0.0, f32::max)
+}
+
+/// The backends whose DEM step the tests run, in the order they are reported.
+pub const DEM_BACKENDS: [BackendKind; 4] = [
+    BackendKind::Cpu,
+    BackendKind::WgpuCompute,
+    BackendKind::Optix,
+    BackendKind::WgpuRq,
+];
+
+/// Whether this run tests the DEM step of `kind`: cpu always; a wgpu backend where its adapter
+/// exists (as [`adapter_for`] decides; wgpu-rq needs ray queries, which lavapipe has); optix
+/// where it is [`expected`] or probes.
+pub fn dem_runs_here(kind: BackendKind) -> bool {
+    match kind {
+        BackendKind::Cpu => true,
+        BackendKind::WgpuCompute => adapter_for(Need::Compute, "the wgpu-compute DEM step"),
+        BackendKind::WgpuRq => adapter_for(Need::RayQuery, "the wgpu-rq DEM step"),
+        BackendKind::Optix => expected(kind) || kind.probe().is_ok(),
+    }
+}
+
+/// `kind`'s stepper over `particles` in proxy mode mochi (a backend [`dem_runs_here`] opens).
+pub fn open_dem(
+    kind: BackendKind,
+    particles: &Particles,
+    params: StepParams,
+    options: &Options,
+) -> Box<dyn Stepper> {
+    open_stepper(kind, particles.clone(), params, ProxyMode::Mochi, options)
+        .unwrap_or_else(|e| panic!("{} runs here but does not open: {e}", kind.name()))
+}
+
+/// One stepper with default options per backend that [`dem_runs_here`], named as on the
+/// command line.
+pub fn default_steppers(
+    particles: &Particles,
+    params: StepParams,
+) -> Vec<(&'static str, Box<dyn Stepper>)> {
+    DEM_BACKENDS
+        .into_iter()
+        .filter(|&kind| dem_runs_here(kind))
+        .map(|kind| {
+            let stepper = open_dem(kind, particles, params, &Options::default());
+            (kind.name(), stepper)
+        })
+        .collect()
+}
+
+/// Step parameters of `material` in the box `[0, side]³` with `gravity`, no gravity spin and
+/// smallest radius `r_min`.
+pub fn step_params(
+    material: &Material,
+    dt: f64,
+    side: f64,
+    gravity: [f64; 3],
+    r_min: f32,
+) -> StepParams {
+    StepParams::new(material, dt, [0.0; 3], [side; 3], gravity, 0.0, r_min).unwrap()
+}
+
+/// Non-rotating spheres at `positions` with `velocities` and `radii`, at step 0.
+pub fn particles(
+    positions: Vec<[f32; 3]>,
+    velocities: Vec<[f32; 3]>,
+    radii: Vec<f32>,
+) -> Particles {
+    Particles {
+        angular_velocities: vec![[0.0; 3]; radii.len()],
+        positions,
+        velocities,
+        radii,
+        ..Particles::default()
+    }
 }

@@ -4,7 +4,8 @@ use super::device::{
     AccelOp, COUNTER_SLOTS, DetectBuffers, DetectProgram, Device, Gas, Kernels, Order, cuda,
 };
 use super::engine::{MAX_COORDINATE, MAX_LAUNCH, describe, morton_order_of, open_device};
-use crate::detect::{Backend, BackendInfo};
+use crate::detect::BackendInfo;
+use crate::engines::gpu_detect::GpuBackend;
 use crate::error::{Error, OptixError, Result};
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
@@ -12,7 +13,7 @@ use crate::spheres::SphereSet;
 use crate::types::Pair;
 use crate::types::{DetectStats, GpuTimes};
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, sys::CUevent_flags};
-use rayon::prelude::*;
+use rayon::slice::ParallelSliceMut;
 use std::sync::Arc;
 
 /// The OptiX backend.
@@ -100,7 +101,7 @@ impl OptixBackend {
     }
 
     /// Runs the point rays; with `collect`, grows the pair buffer until every pair fits.
-    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
+    fn run_detection(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
         let built = self
             .built
             .as_mut()
@@ -185,7 +186,7 @@ fn morton_order(spheres: &SphereSet) -> Vec<u32> {
     morton_order_of(spheres.centers())
 }
 
-impl Backend for OptixBackend {
+impl GpuBackend for OptixBackend {
     fn info(&self) -> BackendInfo {
         BackendInfo {
             name: "optix",
@@ -238,24 +239,21 @@ impl Backend for OptixBackend {
         Ok(())
     }
 
-    fn update(&mut self, spheres: &SphereSet) -> Result<()> {
+    fn built(&self) -> Option<(usize, ProxyMode)> {
+        self.built.as_ref().map(|b| (b.n as usize, b.mode))
+    }
+
+    /// Refits: the boxes are rewritten and the structure updated in place.
+    fn refresh(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
         let mut built = self
             .built
             .take()
             .ok_or_else(|| Error::Usage("update asked for before build".into()))?;
-        if spheres.len() != built.n as usize {
-            let n = built.n;
-            self.built = Some(built);
-            return Err(Error::Usage(format!(
-                "update with {} spheres, built with {n}",
-                spheres.len()
-            )));
-        }
         let result = (|| {
             if built.n == 0 {
                 return Ok(());
             }
-            Self::check_extent(spheres, built.mode)?;
+            Self::check_extent(spheres, mode)?;
             let start = mark(&self.device.stream)?;
             self.write_boxes(&mut built, spheres)?;
             if let Some(gas) = built.gas.as_mut() {
@@ -269,18 +267,8 @@ impl Backend for OptixBackend {
         result
     }
 
-    fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
-        self.detect(true)
-    }
-
-    fn count_pairs(&mut self) -> Result<DetectStats> {
-        Ok(self.detect(false)?.1)
-    }
-
-    fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats> {
-        let (pairs, stats) = self.detect(true)?;
-        pairs.into_par_iter().for_each(visit);
-        Ok(stats)
+    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
+        self.run_detection(collect)
     }
 
     fn gpu_times(&self) -> GpuTimes {

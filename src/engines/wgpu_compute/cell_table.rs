@@ -127,7 +127,7 @@ pub(crate) struct CellScanBinds {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gpu::Need;
+    use crate::gpu;
     use rand::{RngExt, SeedableRng};
 
     /// Scans `counts` as a table of `counts.len() - 1` cells on `gpu` with `scan`; checks the
@@ -165,20 +165,13 @@ mod tests {
 
     #[test]
     fn scans_tables_of_one_and_of_many_tiles_per_block() {
-        let gpu = match Gpu::open(Need::Compute) {
-            Ok(gpu) => gpu,
-            Err(why) => {
-                let ci = std::env::var("CI").is_ok_and(|v| v == "true");
-                assert!(!ci, "CI expects a GPU adapter for the cell scan: {why}");
-                eprintln!("note: the cell scan is not tested on this machine: {why}");
-                return;
-            }
+        let Some(gpu) = gpu::test_gpu("the cell scan") else {
+            return;
         };
-        let ci = std::env::var("CI").is_ok_and(|v| v == "true");
         let subgroups = gpu.device.features().contains(wgpu::Features::SUBGROUP);
         // CI's lavapipe has subgroup operations: both scans are tested there.
         assert!(
-            !ci || subgroups,
+            !gpu::under_ci() || subgroups,
             "CI expects subgroup operations (lavapipe has them)"
         );
         let mut scans = vec![("plain", CellScan::with_subgroups(&gpu, false))];

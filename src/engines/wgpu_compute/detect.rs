@@ -8,51 +8,37 @@ use super::layout::{
 
 use super::shaders::{grid_build, grid_pairs};
 use crate::detect::BackendInfo;
-use crate::engines::rebuilding::RebuildingBackend;
-use crate::error::{Error, Result};
-use crate::gpu::pair_output::{self, PairOutput};
-use crate::gpu::timer::{self, GpuTimer, Span};
+use crate::engines::gpu_detect::{DetectKernel, GpuBackend, WgpuDetection};
+use crate::error::Result;
+use crate::gpu::pair_output;
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
 use crate::types::Pair;
 use crate::types::{DetectStats, GpuTimes};
 
-/// Timer spans of a build and of a detection pass.
-const BUILD_SPAN: Span = Span(0);
-const DETECT_SPAN: Span = Span(1);
-
 /// Workgroup sizes, as in the shaders.
 const BUILD_GROUP: u32 = 256;
 const PAIRS_GROUP: u32 = 256;
 
+/// Label of the detection pipeline, its bind group and pass.
+const FIND_PAIRS: &str = "mochi.grid.find_pairs";
+
 /// The wgpu compute (sorted grid) backend.
 pub struct WgpuComputeBackend {
-    gpu: Gpu,
+    detection: WgpuDetection<Grid>,
     scan: CellScan,
     count_cells: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
     gather: wgpu::ComputePipeline,
     find_pairs: wgpu::ComputePipeline,
-    built: Option<Built>,
     structure: Structure,
-    timer: Option<GpuTimer>,
-    times: GpuTimes,
 }
 
-/// What one build leaves on the GPU.
-struct Built {
-    n: u32,
-    mode: ProxyMode,
-    params: GridParams,
-    /// `None` for an empty set.
-    grid: Option<Grid>,
-    output: PairOutput,
-}
-
-/// GPU buffers of a grid over `n` spheres.
+/// GPU buffers of a grid over `n` spheres, and the layout of its last build.
 struct Grid {
     n: u32,
+    layout: GridParams,
     params: wgpu::Buffer,
     pair_params: wgpu::Buffer,
     /// `vec4(x, y, z, r)` in input order.
@@ -72,6 +58,7 @@ impl Grid {
         let n64 = n as u64;
         Grid {
             n,
+            layout: GridParams::default(),
             params: gpu.uniform("mochi.grid.params", &GridParams::default()),
             pair_params: gpu.uniform("mochi.grid.pair_params", &GridParams::default()),
             spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
@@ -94,12 +81,9 @@ impl WgpuComputeBackend {
             count_cells: gpu.pipeline("mochi.grid.count_cells", &build, "count_cells"),
             scatter: gpu.pipeline("mochi.grid.scatter", &build, "scatter"),
             gather: gpu.pipeline("mochi.grid.gather", &build, "gather"),
-            find_pairs: gpu.pipeline("mochi.grid.find_pairs", &pairs, "find_pairs"),
-            built: None,
+            find_pairs: gpu.pipeline(FIND_PAIRS, &pairs, "find_pairs"),
             structure: Structure::Auto,
-            timer: GpuTimer::new(&gpu, 2),
-            times: GpuTimes::default(),
-            gpu,
+            detection: WgpuDetection::new("wgpu-compute", gpu),
         })
     }
 
@@ -110,7 +94,7 @@ impl WgpuComputeBackend {
     }
 
     fn max_spheres(&self) -> u64 {
-        let l = &self.gpu.limits;
+        let l = &self.detection.gpu.limits;
         (l.max_storage_buffer_binding_size.min(l.max_buffer_size) / 16).min(u32::MAX as u64)
     }
 
@@ -132,66 +116,37 @@ impl WgpuComputeBackend {
             radii,
             dense_check: &uncrowded,
         };
-        choose_layout(&self.gpu.limits, &request)
+        choose_layout(&self.detection.gpu.limits, &request)
     }
 }
 
-impl RebuildingBackend for WgpuComputeBackend {
+impl GpuBackend for WgpuComputeBackend {
     fn info(&self) -> BackendInfo {
-        BackendInfo {
-            name: "wgpu-compute",
-            device: gpu::describe(&self.gpu.info),
-            max_spheres: self.max_spheres(),
-        }
+        self.detection.info(self.max_spheres())
     }
 
-    fn rebuild(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
-        let n = spheres.len();
-        if n as u64 > self.max_spheres() {
-            return Err(Error::TooLarge {
-                what: format!("spheres for wgpu-compute on {}", self.gpu.info.name),
-                got: n as u64,
-                limit: self.max_spheres(),
-            });
-        }
-        let n = n as u32;
-        if n == 0 {
-            let output = PairOutput::new(&self.gpu, 1);
-            let params = GridParams::default();
-            self.built = Some(Built {
-                n,
-                mode,
-                params,
-                grid: None,
-                output,
-            });
+    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+        let max_spheres = self.max_spheres();
+        let Some(n) = self.detection.begin_build(spheres, mode, max_spheres)? else {
             return Ok(());
-        }
-        let gpu = &self.gpu;
-        let (x, y) = gpu.grid(n, BUILD_GROUP);
-        let params = GridParams {
+        };
+        let (x, y) = self.detection.gpu.grid(n, BUILD_GROUP);
+        let layout = GridParams {
             row: x * BUILD_GROUP,
             ..self.layout(spheres, mode)
         };
-        let (grid, output) = match self.built.take() {
-            Some(Built {
-                grid: Some(g),
-                output,
-                ..
-            }) if g.n == n && g.table.capacity >= params.cells => (g, output),
-            _ => gpu.checked("allocating the wgpu-compute buffers", || {
-                (
-                    Grid::new(gpu, n, params.cells),
-                    PairOutput::new(gpu, n.max(1024)),
-                )
-            })?,
-        };
+        let (mut grid, output) = self.detection.reuse_or_allocate(
+            n,
+            |g: &Grid| g.n == n && g.table.capacity >= layout.cells,
+            |gpu| Grid::new(gpu, n, layout.cells),
+        )?;
+        grid.layout = layout;
         let rows: Vec<[f32; 4]> = spheres.xyzr().collect();
-        gpu.checked("building the wgpu-compute grid", || {
-            gpu.write_uniform(&grid.params, &params);
+        let what = "building the wgpu-compute grid";
+        let record = |gpu: &Gpu, g: &Grid, encoder: &mut wgpu::CommandEncoder| {
+            gpu.write_uniform(&g.params, &g.layout);
             gpu.queue
-                .write_buffer(&grid.spheres_in, 0, bytemuck::cast_slice(&rows));
-            let g = &grid;
+                .write_buffer(&g.spheres_in, 0, bytemuck::cast_slice(&rows));
             let scan = self.scan.bind(gpu, &g.params, &g.table);
             let count = gpu.bind(
                 "mochi.grid.count_cells",
@@ -223,61 +178,41 @@ impl RebuildingBackend for WgpuComputeBackend {
                     (grid_build::SPHERES, &g.spheres),
                 ],
             );
-            gpu.submit_timed(self.timer.as_ref(), BUILD_SPAN, |encoder| {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("mochi.grid.build"),
-                    timestamp_writes: None,
-                });
-                gpu::record(&mut pass, &self.count_cells, &count, (x, y));
-                self.scan.record(&mut pass, &scan, &params);
-                gpu::record(&mut pass, &self.scatter, &scatter, (x, y));
-                gpu::record(&mut pass, &self.gather, &gather, (x, y));
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("mochi.grid.build"),
+                timestamp_writes: None,
             });
-        })?;
-        gpu.wait()?;
-        self.times = GpuTimes {
-            build_ms: timer::read_ms(gpu, self.timer.as_ref(), BUILD_SPAN)?,
-            detect_ms: None,
+            gpu::record(&mut pass, &self.count_cells, &count, (x, y));
+            self.scan.record(&mut pass, &scan, &g.layout);
+            gpu::record(&mut pass, &self.scatter, &scatter, (x, y));
+            gpu::record(&mut pass, &self.gather, &gather, (x, y));
         };
-        self.built = Some(Built {
-            n,
-            mode,
-            params,
-            grid: Some(grid),
-            output,
-        });
-        Ok(())
+        self.detection
+            .finish_build(what, (n, mode), (grid, output), record)
     }
 
     fn built(&self) -> Option<(usize, ProxyMode)> {
-        self.built.as_ref().map(|b| (b.n as usize, b.mode))
+        self.detection.built()
     }
 
-    /// Runs the detection pass; with `collect`, grows the output until every pair fits.
     fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
-        let gpu = &self.gpu;
-        let built = self
-            .built
-            .as_mut()
-            .ok_or_else(|| Error::Usage("detection asked for before build".into()))?;
-        let Some(grid) = built.grid.as_ref() else {
-            return Ok((Vec::new(), DetectStats::default()));
+        let kernel = DetectKernel {
+            label: FIND_PAIRS,
+            pipeline: &self.find_pairs,
+            group: PAIRS_GROUP,
+            what: "running the wgpu-compute grid search",
         };
-        let (x, y) = gpu.grid(built.n, PAIRS_GROUP);
-        let base = built.params;
-        let find_pairs = &self.find_pairs;
-        let timer = self.timer.as_ref();
-        let result = built.output.detect(gpu, collect, |output, capacity| {
-            let params = GridParams {
-                row: x * PAIRS_GROUP,
-                capacity,
-                ..base
-            };
-            gpu.checked("running the wgpu-compute grid search", || {
+        self.detection
+            .detect(collect, kernel, |gpu, grid, output, run| {
+                let params = GridParams {
+                    row: run.row,
+                    capacity: run.capacity,
+                    ..grid.layout
+                };
                 gpu.write_uniform(&grid.pair_params, &params);
-                let bind = gpu.bind(
-                    "mochi.grid.find_pairs",
-                    find_pairs,
+                gpu.bind(
+                    FIND_PAIRS,
+                    &self.find_pairs,
                     &[
                         (grid_pairs::PARAMS, &grid.pair_params),
                         (grid_pairs::SPHERES, &grid.spheres),
@@ -286,23 +221,15 @@ impl RebuildingBackend for WgpuComputeBackend {
                         (pair_output::PAIRS, &output.pairs),
                         (grid_pairs::CELL_START, &grid.table.cell_start),
                     ],
-                );
-                gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
-                    gpu.dispatch(encoder, "mochi.grid.find_pairs", find_pairs, &bind, (x, y));
-                });
+                )
             })
-        })?;
-        self.times.detect_ms = timer::read_ms(gpu, timer, DETECT_SPAN)?;
-        Ok(result)
     }
 
     fn gpu_times(&self) -> GpuTimes {
-        self.times
+        self.detection.gpu_times()
     }
 
     fn structure(&self) -> Option<String> {
-        let built = self.built.as_ref()?;
-        built.grid.as_ref()?;
-        Some(describe_layout(&built.params))
+        Some(describe_layout(&self.detection.structure()?.layout))
     }
 }

@@ -5,13 +5,7 @@
 use super::layout::GridParams;
 use crate::engines::gpu_step::{self, physics};
 use crate::gpu::pair_output;
-use crate::gpu::shader::{Binding, SharedStruct, WgslModule, shared_struct};
-
-macro_rules! wgsl {
-    ($($file:literal),+) => {
-        concat!($(include_str!(concat!("../../../wgsl/", $file))),+)
-    };
-}
+use crate::gpu::shader::{Binding, SharedStruct, WgslModule, shared_struct, wgsl};
 
 /// [`GridParams`], the uniform of every module here.
 fn grid_params() -> SharedStruct {
@@ -40,7 +34,7 @@ fn grid_params() -> SharedStruct {
 
 /// The counting sort by cell of a detection build (`wgsl/grid_build.wgsl`).
 pub(crate) mod grid_build {
-    use super::Binding;
+    use super::{Binding, wgsl};
 
     pub const SOURCE: &str = wgsl!("grid_params.wgsl", "grid_build.wgsl");
     pub const ENTRY_POINTS: &[&str] = &["count_cells", "scatter", "gather"];
@@ -57,7 +51,7 @@ pub(crate) mod grid_build {
 
 /// Detection over a built grid (`wgsl/grid_pairs.wgsl`).
 pub(crate) mod grid_pairs {
-    use super::{Binding, pair_output};
+    use super::{Binding, pair_output, wgsl};
 
     pub const SOURCE: &str = wgsl!(
         "grid_params.wgsl",
@@ -86,7 +80,7 @@ pub(crate) mod grid_pairs {
 /// The scan of the cell counts into the cell table (`wgsl/cell_scan.wgsl`), in two variants:
 /// on subgroup operations where the adapter has them, else in workgroup memory.
 pub(crate) mod cell_scan {
-    use super::Binding;
+    use super::{Binding, wgsl};
 
     pub const PLAIN_SOURCE: &str = wgsl!(
         "grid_params.wgsl",
@@ -112,7 +106,7 @@ pub(crate) mod cell_scan {
 /// The DEM step's binning and contact resolution (`wgsl/dem_grid.wgsl`), followed by the
 /// shared physics ([`physics`]).
 pub(crate) mod dem_grid {
-    use super::{Binding, physics};
+    use super::{Binding, physics, wgsl};
 
     const GRID: &str = wgsl!(
         "grid_params.wgsl",
@@ -158,34 +152,30 @@ pub(crate) mod dem_grid {
 
 /// Every WGSL module of this engine (detection and DEM step), exactly as the device may get it.
 pub fn modules() -> Vec<WgslModule> {
-    let module = |label: &str, source: String, entry_points, bindings: &[Binding]| WgslModule {
-        label: label.to_owned(),
-        source,
-        entry_points,
-        bindings: bindings.to_vec(),
-        structs: vec![grid_params()],
+    let module = |label: String, source: String, entry_points, bindings: &[Binding]| {
+        WgslModule::new(label, source, entry_points, bindings, vec![grid_params()])
     };
     let mut all = vec![
         module(
-            "grid_build",
+            "grid_build".into(),
             grid_build::SOURCE.into(),
             grid_build::ENTRY_POINTS,
             grid_build::BINDINGS,
         ),
         module(
-            "grid_pairs",
+            "grid_pairs".into(),
             grid_pairs::SOURCE.into(),
             grid_pairs::ENTRY_POINTS,
             grid_pairs::BINDINGS,
         ),
         module(
-            "cell_scan_plain",
+            "cell_scan_plain".into(),
             cell_scan::PLAIN_SOURCE.into(),
             cell_scan::ENTRY_POINTS,
             cell_scan::BINDINGS,
         ),
         module(
-            "cell_scan_subgroups",
+            "cell_scan_subgroups".into(),
             cell_scan::SUBGROUP_SOURCE.into(),
             cell_scan::ENTRY_POINTS,
             cell_scan::BINDINGS,
@@ -193,7 +183,7 @@ pub fn modules() -> Vec<WgslModule> {
     ];
     for (name, force) in physics::FORCE_VARIANTS {
         let mut dem = module(
-            &format!("dem_grid_{name}"),
+            format!("dem_grid_{name}"),
             dem_grid::source(force),
             dem_grid::ENTRY_POINTS,
             &dem_grid::bindings(),

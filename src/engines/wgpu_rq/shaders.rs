@@ -4,17 +4,11 @@
 
 use crate::engines::gpu_step::{self, physics};
 use crate::gpu::pair_output;
-use crate::gpu::shader::{Binding, SharedStruct, Vec3f, WgslModule, shared_struct};
-
-macro_rules! wgsl {
-    ($($file:literal),+) => {
-        concat!($(include_str!(concat!("../../../wgsl/", $file))),+)
-    };
-}
+use crate::gpu::shader::{Binding, SharedStruct, Vec3f, WgslModule, shared_struct, wgsl};
 
 /// Morton keys and proxy boxes of a detection build (`wgsl/rq_build.wgsl`).
 pub(crate) mod rq_build {
-    use super::{Binding, SharedStruct, Vec3f, shared_struct};
+    use super::{Binding, SharedStruct, Vec3f, shared_struct, wgsl};
 
     pub const SOURCE: &str = wgsl!("proxy.wgsl", "rq_build.wgsl");
     pub const ENTRY_POINTS: &[&str] = &["morton_keys", "proxy_boxes"];
@@ -64,7 +58,7 @@ pub(crate) mod rq_build {
 
 /// Detection by ray queries (`wgsl/rq_pairs.wgsl`).
 pub(crate) mod rq_pairs {
-    use super::{Binding, SharedStruct, pair_output, shared_struct};
+    use super::{Binding, SharedStruct, pair_output, shared_struct, wgsl};
 
     pub const SOURCE: &str = wgsl!(
         "rq_pairs.wgsl",
@@ -119,7 +113,7 @@ pub(crate) mod rq_pairs {
 /// The DEM step's proxy boxes and contact resolution (`wgsl/dem_rq.wgsl`), followed by the
 /// shared physics ([`physics`]).
 pub(crate) mod dem_rq {
-    use super::{Binding, SharedStruct, physics, shared_struct};
+    use super::{Binding, SharedStruct, physics, shared_struct, wgsl};
 
     const RQ: &str = wgsl!("dem_rq.wgsl", "rq_walk.wgsl");
     const PROXY: &str = wgsl!("proxy.wgsl");
@@ -173,29 +167,29 @@ pub(crate) mod dem_rq {
 /// Every WGSL module of this engine (detection and DEM step), exactly as the device may get it.
 pub fn modules() -> Vec<WgslModule> {
     let mut all = vec![
-        WgslModule {
-            label: "rq_build".into(),
-            source: rq_build::SOURCE.into(),
-            entry_points: rq_build::ENTRY_POINTS,
-            bindings: rq_build::BINDINGS.to_vec(),
-            structs: vec![rq_build::build_params()],
-        },
-        WgslModule {
-            label: "rq_pairs".into(),
-            source: rq_pairs::SOURCE.into(),
-            entry_points: rq_pairs::ENTRY_POINTS,
-            bindings: rq_pairs::BINDINGS.to_vec(),
-            structs: vec![rq_pairs::pair_params()],
-        },
+        WgslModule::new(
+            "rq_build",
+            rq_build::SOURCE,
+            rq_build::ENTRY_POINTS,
+            rq_build::BINDINGS,
+            vec![rq_build::build_params()],
+        ),
+        WgslModule::new(
+            "rq_pairs",
+            rq_pairs::SOURCE,
+            rq_pairs::ENTRY_POINTS,
+            rq_pairs::BINDINGS,
+            vec![rq_pairs::pair_params()],
+        ),
     ];
     for (name, force) in physics::FORCE_VARIANTS {
-        all.push(WgslModule {
-            label: format!("dem_rq_{name}"),
-            source: dem_rq::source(force),
-            entry_points: dem_rq::ENTRY_POINTS,
-            bindings: dem_rq::bindings(),
-            structs: vec![dem_rq::rq_params(), gpu_step::dem_params()],
-        });
+        all.push(WgslModule::new(
+            format!("dem_rq_{name}"),
+            dem_rq::source(force),
+            dem_rq::ENTRY_POINTS,
+            &dem_rq::bindings(),
+            vec![dem_rq::rq_params(), gpu_step::dem_params()],
+        ));
     }
     all
 }
@@ -203,19 +197,13 @@ pub fn modules() -> Vec<WgslModule> {
 #[cfg(test)]
 mod tests {
     use super::rq_build::{self, BuildParams};
-    use crate::gpu::{Gpu, Need};
+    use crate::gpu;
     use crate::morton;
 
     #[test]
     fn the_wgsl_morton_keys_are_the_host_ones() {
-        let gpu = match Gpu::open(Need::Compute) {
-            Ok(gpu) => gpu,
-            Err(why) => {
-                let ci = std::env::var("CI").is_ok_and(|v| v == "true");
-                assert!(!ci, "CI expects a GPU adapter for the Morton keys: {why}");
-                eprintln!("note: the WGSL Morton keys are not tested on this machine: {why}");
-                return;
-            }
+        let Some(gpu) = gpu::test_gpu("the WGSL Morton keys") else {
+            return;
         };
         // Corners, a flat axis, points between cells and on their borders.
         let rows: Vec<[f32; 4]> = (0..1000u32)

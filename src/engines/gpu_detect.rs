@@ -1,0 +1,288 @@
+//! What the GPU engines' detection layers share: [`GpuBackend`], one pass that either collects or
+//! counts the pairs, from which [`Backend`] follows (the update checks, the three detection
+//! methods); and [`WgpuDetection`], the build, pair output and timing of the two wgpu engines,
+//! which differ only in the structure they build and the shader they search it with.
+
+use crate::detect::{Backend, BackendInfo};
+use crate::error::{Error, Result};
+use crate::gpu::pair_output::PairOutput;
+use crate::gpu::timer::{self, GpuTimer, Span};
+use crate::gpu::{self, Gpu};
+use crate::proxy::ProxyMode;
+use crate::spheres::SphereSet;
+use crate::types::Pair;
+use crate::types::{DetectStats, GpuTimes};
+use rayon::prelude::*;
+
+/// A backend that detects in one pass over its current build; [`Backend`] follows from it.
+pub(crate) trait GpuBackend: Send {
+    /// Name, device and limits.
+    fn info(&self) -> BackendInfo;
+    /// Builds over `spheres` in `mode`, replacing any earlier build.
+    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()>;
+    /// Sphere count and mode of the current build, if any.
+    fn built(&self) -> Option<(usize, ProxyMode)>;
+    /// Brings the current build up to date after the spheres moved; `spheres` has the build's
+    /// count. A rebuild unless the engine can refit (wgpu cannot).
+    fn refresh(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+        self.build(spheres, mode)
+    }
+    /// Runs detection: with `collect` the pairs (sorted) and counters, without only counters.
+    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)>;
+    /// GPU time of the last build and detection, where measured.
+    fn gpu_times(&self) -> GpuTimes;
+    /// The structure of the last build in words, where it varies.
+    fn structure(&self) -> Option<String> {
+        None
+    }
+}
+
+impl<T: GpuBackend> Backend for T {
+    fn info(&self) -> BackendInfo {
+        GpuBackend::info(self)
+    }
+
+    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+        GpuBackend::build(self, spheres, mode)
+    }
+
+    fn update(&mut self, spheres: &SphereSet) -> Result<()> {
+        let (n, mode) = self
+            .built()
+            .ok_or_else(|| Error::Usage("update asked for before build".into()))?;
+        if spheres.len() != n {
+            return Err(Error::Usage(format!(
+                "update with {} spheres, built with {n}",
+                spheres.len()
+            )));
+        }
+        self.refresh(spheres, mode)
+    }
+
+    fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
+        self.detect(true)
+    }
+
+    fn count_pairs(&mut self) -> Result<DetectStats> {
+        Ok(self.detect(false)?.1)
+    }
+
+    fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats> {
+        let (pairs, stats) = self.detect(true)?;
+        pairs.into_par_iter().for_each(visit);
+        Ok(stats)
+    }
+
+    fn gpu_times(&self) -> GpuTimes {
+        GpuBackend::gpu_times(self)
+    }
+
+    fn structure(&self) -> Option<String> {
+        GpuBackend::structure(self)
+    }
+}
+
+/// Timer spans of a build and of a detection pass.
+const BUILD_SPAN: Span = Span(0);
+const DETECT_SPAN: Span = Span(1);
+
+/// A wgpu engine's detection state around its structure `S`: the device, the last build, and
+/// the timer of builds and detections with the times it read.
+pub(crate) struct WgpuDetection<S> {
+    pub gpu: Gpu,
+    /// Backend name, as in [`BackendInfo::name`] (for messages).
+    name: &'static str,
+    built: Option<Built<S>>,
+    timer: Option<GpuTimer>,
+    times: GpuTimes,
+}
+
+/// What one build leaves on the GPU.
+struct Built<S> {
+    n: u32,
+    mode: ProxyMode,
+    /// `None` for an empty set.
+    structure: Option<S>,
+    output: PairOutput,
+}
+
+/// The detection shader of an engine, dispatched once per sphere.
+pub(crate) struct DetectKernel<'a> {
+    /// Label of the pipeline, its bind group and its pass.
+    pub label: &'a str,
+    pub pipeline: &'a wgpu::ComputePipeline,
+    /// Workgroup size, as in the shader.
+    pub group: u32,
+    /// What a failure interrupted, in words.
+    pub what: &'a str,
+}
+
+/// What one run of the detection shader is given.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct DetectRun {
+    /// Spheres and mode of the build.
+    pub n: u32,
+    pub mode: ProxyMode,
+    /// Pairs the output has room for (0 when only counting).
+    pub capacity: u32,
+    /// Invocations per dispatch row (2-D dispatch).
+    pub row: u32,
+}
+
+impl<S> WgpuDetection<S> {
+    /// No build yet; timed where `gpu` has timestamps inside encoders.
+    pub fn new(name: &'static str, gpu: Gpu) -> Self {
+        WgpuDetection {
+            timer: GpuTimer::new(&gpu, 2),
+            gpu,
+            name,
+            built: None,
+            times: GpuTimes::default(),
+        }
+    }
+
+    /// [`BackendInfo`] of this device with `max_spheres`.
+    pub fn info(&self, max_spheres: u64) -> BackendInfo {
+        BackendInfo {
+            name: self.name,
+            device: gpu::describe(&self.gpu.info),
+            max_spheres,
+        }
+    }
+
+    /// Starts a build of `spheres`: refuses more than `max_spheres`; records an empty set's
+    /// build and returns `None` for it, else the sphere count.
+    pub fn begin_build(
+        &mut self,
+        spheres: &SphereSet,
+        mode: ProxyMode,
+        max_spheres: u64,
+    ) -> Result<Option<u32>> {
+        let n = spheres.len() as u64;
+        if n > max_spheres {
+            return Err(Error::TooLarge {
+                what: format!("spheres for {} on {}", self.name, self.gpu.info.name),
+                got: n,
+                limit: max_spheres,
+            });
+        }
+        if n == 0 {
+            self.built = Some(Built {
+                n: 0,
+                mode,
+                structure: None,
+                output: PairOutput::new(&self.gpu, 1),
+            });
+            return Ok(None);
+        }
+        Ok(Some(n as u32))
+    }
+
+    /// The last build's structure and output where `fits` accepts that structure, else new ones
+    /// (the structure from `allocate`, room for `n` pairs or 1024).
+    pub fn reuse_or_allocate(
+        &mut self,
+        n: u32,
+        fits: impl FnOnce(&S) -> bool,
+        allocate: impl FnOnce(&Gpu) -> S,
+    ) -> Result<(S, PairOutput)> {
+        match self.built.take() {
+            Some(Built {
+                structure: Some(s),
+                output,
+                ..
+            }) if fits(&s) => Ok((s, output)),
+            _ => {
+                let gpu = &self.gpu;
+                gpu.checked(&format!("allocating the {} buffers", self.name), || {
+                    (allocate(gpu), PairOutput::new(gpu, n.max(1024)))
+                })
+            }
+        }
+    }
+
+    /// Records the build of `structure` over `n` spheres in `mode` with `record` (which may also
+    /// upload), submits it timed, waits for it (so that a build's time and errors are its own)
+    /// and keeps it as the current build.
+    pub fn finish_build(
+        &mut self,
+        what: &str,
+        (n, mode): (u32, ProxyMode),
+        (structure, output): (S, PairOutput),
+        record: impl FnOnce(&Gpu, &S, &mut wgpu::CommandEncoder),
+    ) -> Result<()> {
+        let gpu = &self.gpu;
+        let timer = self.timer.as_ref();
+        gpu.checked(what, || {
+            gpu.submit_timed(timer, BUILD_SPAN, |encoder| {
+                record(gpu, &structure, encoder)
+            });
+        })?;
+        gpu.wait()?;
+        self.times = GpuTimes {
+            build_ms: timer::read_ms(gpu, timer, BUILD_SPAN)?,
+            detect_ms: None,
+        };
+        self.built = Some(Built {
+            n,
+            mode,
+            structure: Some(structure),
+            output,
+        });
+        Ok(())
+    }
+
+    /// Sphere count and mode of the current build, if any.
+    pub fn built(&self) -> Option<(usize, ProxyMode)> {
+        self.built.as_ref().map(|b| (b.n as usize, b.mode))
+    }
+
+    /// The current build's structure (`None` before a build and for an empty set).
+    pub fn structure(&self) -> Option<&S> {
+        self.built.as_ref()?.structure.as_ref()
+    }
+
+    /// Runs `kernel` over the current build; with `collect`, grows the output until every pair
+    /// fits. `bind` writes the run's uniform and returns the kernel's bind group (the output's
+    /// [`COUNTERS`](crate::gpu::pair_output::COUNTERS) and
+    /// [`PAIRS`](crate::gpu::pair_output::PAIRS) included).
+    pub fn detect(
+        &mut self,
+        collect: bool,
+        kernel: DetectKernel,
+        bind: impl Fn(&Gpu, &S, &PairOutput, DetectRun) -> wgpu::BindGroup,
+    ) -> Result<(Vec<Pair>, DetectStats)> {
+        let gpu = &self.gpu;
+        let built = self
+            .built
+            .as_mut()
+            .ok_or_else(|| Error::Usage("detection asked for before build".into()))?;
+        let Some(structure) = built.structure.as_ref() else {
+            return Ok((Vec::new(), DetectStats::default()));
+        };
+        let (x, y) = gpu.grid(built.n, kernel.group);
+        let (n, mode) = (built.n, built.mode);
+        let timer = self.timer.as_ref();
+        let result = built.output.detect(gpu, collect, |output, capacity| {
+            let run = DetectRun {
+                n,
+                mode,
+                capacity,
+                row: x * kernel.group,
+            };
+            gpu.checked(kernel.what, || {
+                let group = bind(gpu, structure, output, run);
+                gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
+                    gpu.dispatch(encoder, kernel.label, kernel.pipeline, &group, (x, y));
+                });
+            })
+        })?;
+        self.times.detect_ms = timer::read_ms(gpu, timer, DETECT_SPAN)?;
+        Ok(result)
+    }
+
+    /// GPU time of the last build and detection, where measured.
+    pub fn gpu_times(&self) -> GpuTimes {
+        self.times
+    }
+}
