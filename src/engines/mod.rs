@@ -5,6 +5,7 @@
 //! simulation and rendering share (docs/ARCHITECTURE.md).
 
 pub mod cpu;
+mod gpu_granular;
 mod gpu_step;
 mod open;
 #[cfg(feature = "optix")]
