@@ -707,10 +707,9 @@ fn worst(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
         .fold(0.0, f32::max)
 }
 
-#[test]
-fn every_gpu_step_follows_the_cpu_step_of_a_frictional_pile_with_history() {
-    let n = 4;
-    let start = frictional_pile(n);
+/// The frictional pile's step: Hertz–Mindlin with friction (0.3 on the walls) and EPSD
+/// rolling resistance, at 0.2 Rayleigh times, under gravity, in a box of 5 cm.
+fn frictional_pile_params(start: &Particles) -> StepParams {
     let material = Material {
         wall_friction: Some(0.3),
         rolling_friction: 0.1,
@@ -718,13 +717,18 @@ fn every_gpu_step_follows_the_cpu_step_of_a_frictional_pile_with_history() {
     };
     let r_min = start.radius_range().0;
     let t_r = mochi::dem::model::time_step::rayleigh_time(r_min as f64, RHO, E, NU);
-    let p = params(&material, 0.2 * t_r, 0.05, [0.0, 0.0, -9.81], r_min);
-    let steps = 20;
-    let mut cpu = open(BackendKind::Cpu, start.clone(), p);
-    cpu.advance(steps).unwrap();
-    let expected = cpu.particles().unwrap();
-    assert!(expected.history.len() > 150, "the pile holds contacts");
-    // Scales of the state, for tolerances relative to them.
+    params(&material, 0.2 * t_r, 0.05, [0.0, 0.0, -9.81], r_min)
+}
+
+/// Asserts that `got` (20 steps of a GPU step, or of a run resumed across backends) follows the
+/// cpu step's `expected`: the same contacts, and positions, velocities, spins and springs close.
+///
+/// The GPUs round in another order (fused multiply-adds, forces and torques added by atomics in
+/// any order): relative differences of an ulp or so per step (1e-7), which the stiff contacts
+/// amplify over 20 steps (measured on lavapipe: 4e-9 m, 1e-6 of v_max, 2e-5 of ω_max, 1e-5 of
+/// the largest spring). Tolerances: 1e-7 m for positions (a millionth of the box, 2e-5·r) and
+/// 1e-4 of each quantity's largest value.
+fn assert_follows(what: &str, got: &Particles, expected: &Particles) {
     let largest = |x: &[[f32; 3]]| worst(x, &vec![[0.0; 3]; x.len()]);
     let (tangential, rolling): (Vec<[f32; 3]>, Vec<[f32; 3]>) = expected
         .history
@@ -736,52 +740,107 @@ fn every_gpu_step_follows_the_cpu_step_of_a_frictional_pile_with_history() {
         largest(&expected.angular_velocities),
     );
     let (xi_max, roll_max) = (largest(&tangential), largest(&rolling));
-    for kind in backends().into_iter().filter(|&k| k != BackendKind::Cpu) {
-        let mut s = open(kind, start.clone(), p);
-        s.advance(steps).unwrap();
-        let got = s.particles().unwrap();
-        let name = kind.name();
-        // The GPUs round in another order (fused multiply-adds, forces and torques added by
-        // atomics in any order): relative differences of an ulp or so per step (1e-7), which the
-        // stiff contacts amplify over the 20 steps (measured on lavapipe: 3e-9 m, 1e-6 of v_max,
-        // 2e-5 of ω_max, 1e-5 of the largest spring). Tolerances: 1e-7 m for positions (a
-        // millionth of the box, 2e-5·r) and 1e-4 of each quantity's largest value.
-        let x_gap = worst(&got.positions, &expected.positions);
-        assert!(x_gap <= 1e-7, "{name}: positions {x_gap} m from the cpu's");
-        let v_gap = worst(&got.velocities, &expected.velocities);
-        assert!(
-            v_gap <= 1e-4 * v_max,
-            "{name}: velocities {v_gap} m/s from the cpu's"
-        );
-        let w_gap = worst(&got.angular_velocities, &expected.angular_velocities);
-        assert!(
-            w_gap <= 1e-4 * w_max,
-            "{name}: spins {w_gap} rad/s from the cpu's (of {w_max})"
-        );
-        // The same contacts with the same springs, on both sides of each pair.
-        for i in 0..start.len() {
-            let mut a = got.history.of(i).to_vec();
-            let mut b = expected.history.of(i).to_vec();
-            a.sort_by_key(|e| e.partner);
-            b.sort_by_key(|e| e.partner);
-            let got_partners: Vec<u32> = a.iter().map(|e| e.partner).collect();
-            let partners: Vec<u32> = b.iter().map(|e| e.partner).collect();
-            assert_eq!(got_partners, partners, "{name}: the contacts of sphere {i}");
-            for (x, y) in a.iter().zip(&b) {
-                let pairs = [
-                    (x.tangential, y.tangential, xi_max),
-                    (x.rolling, y.rolling, roll_max),
-                ];
-                for (got, expected, scale) in pairs {
-                    let gap = worst(&[got], &[expected]);
-                    assert!(
-                        gap <= 1e-4 * scale,
-                        "{name}: sphere {i}'s springs with {}: {got:?}, cpu {expected:?}",
-                        x.partner
-                    );
-                }
+    assert_eq!(got.step, expected.step, "{what}");
+    let x_gap = worst(&got.positions, &expected.positions);
+    assert!(x_gap <= 1e-7, "{what}: positions {x_gap} m from the cpu's");
+    let v_gap = worst(&got.velocities, &expected.velocities);
+    assert!(
+        v_gap <= 1e-4 * v_max,
+        "{what}: velocities {v_gap} m/s from the cpu's"
+    );
+    let w_gap = worst(&got.angular_velocities, &expected.angular_velocities);
+    assert!(
+        w_gap <= 1e-4 * w_max,
+        "{what}: spins {w_gap} rad/s from the cpu's (of {w_max})"
+    );
+    // The same contacts with the same springs, on both sides of each pair.
+    for i in 0..expected.len() {
+        let mut a = got.history.of(i).to_vec();
+        let mut b = expected.history.of(i).to_vec();
+        a.sort_by_key(|e| e.partner);
+        b.sort_by_key(|e| e.partner);
+        let got_partners: Vec<u32> = a.iter().map(|e| e.partner).collect();
+        let partners: Vec<u32> = b.iter().map(|e| e.partner).collect();
+        assert_eq!(got_partners, partners, "{what}: the contacts of sphere {i}");
+        for (x, y) in a.iter().zip(&b) {
+            let pairs = [
+                (x.tangential, y.tangential, xi_max),
+                (x.rolling, y.rolling, roll_max),
+            ];
+            for (got, expected, scale) in pairs {
+                let gap = worst(&[got], &[expected]);
+                assert!(
+                    gap <= 1e-4 * scale,
+                    "{what}: sphere {i}'s springs with {}: {got:?}, cpu {expected:?}",
+                    x.partner
+                );
             }
         }
+    }
+}
+
+#[test]
+fn every_gpu_step_follows_the_cpu_step_of_a_frictional_pile_with_history() {
+    let start = frictional_pile(4);
+    // Hertz–Mindlin with EPSD rolling resistance, and the linear law (one stiffness, for a
+    // 10-step contact at dt = 2e-5 s) with friction and constant-torque rolling resistance.
+    let linear = Material {
+        density: RHO,
+        friction: 0.5,
+        rolling_friction: 0.1,
+        rolling_model: RollingModel::ConstantTorque,
+        ..Material::default()
+    };
+    let r_min = start.radius_range().0;
+    let laws = [
+        ("hertz-mindlin", frictional_pile_params(&start)),
+        (
+            "linear",
+            params(&linear, 2e-5, 0.05, [0.0, 0.0, -9.81], r_min),
+        ),
+    ];
+    for (law, p) in laws {
+        let steps = 20;
+        let mut cpu = open(BackendKind::Cpu, start.clone(), p);
+        cpu.advance(steps).unwrap();
+        let expected = cpu.particles().unwrap();
+        assert!(
+            expected.history.len() > 150,
+            "{law}: the pile holds contacts"
+        );
+        for kind in backends().into_iter().filter(|&k| k != BackendKind::Cpu) {
+            let mut s = open(kind, start.clone(), p);
+            s.advance(steps).unwrap();
+            let what = format!("{law} on {}", kind.name());
+            assert_follows(&what, &s.particles().unwrap(), &expected);
+        }
+    }
+}
+
+#[test]
+fn a_frictional_state_moves_between_the_cpu_and_the_gpus_with_its_history() {
+    // 10 steps on one backend, the state read back (as a checkpoint saves it) and 10 more on
+    // another: angular velocities and springs go both ways (the cpu's history holds both sides
+    // of each pair, a GPU's only the owner's), so each run follows the cpu's 20 steps.
+    let start = frictional_pile(4);
+    let p = frictional_pile_params(&start);
+    let mut cpu = open(BackendKind::Cpu, start.clone(), p);
+    cpu.advance(10).unwrap();
+    let halfway = cpu.particles().unwrap();
+    cpu.advance(10).unwrap();
+    let expected = cpu.particles().unwrap();
+    for kind in backends().into_iter().filter(|&k| k != BackendKind::Cpu) {
+        let name = kind.name();
+        let mut gpu = open(kind, halfway.clone(), p);
+        gpu.advance(10).unwrap();
+        let what = format!("cpu, then {name}");
+        assert_follows(&what, &gpu.particles().unwrap(), &expected);
+        let mut gpu = open(kind, start.clone(), p);
+        gpu.advance(10).unwrap();
+        let mut cpu = open(BackendKind::Cpu, gpu.particles().unwrap(), p);
+        cpu.advance(10).unwrap();
+        let what = format!("{name}, then cpu");
+        assert_follows(&what, &cpu.particles().unwrap(), &expected);
     }
 }
 
