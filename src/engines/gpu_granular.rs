@@ -20,6 +20,10 @@ use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, Particles};
 /// has 12 neighbours, plus up to 3 walls).
 const FIRST_SLOTS: u32 = 16;
 
+/// Storage buffers the granular resolve kernel binds (wgpu-compute's: the state, the cell
+/// table, the ids, forces, counters, spins, torques, two histories and their counts, the need).
+const STORAGE_BUFFERS: u32 = 13;
+
 /// What the granular step adds to the particles a GPU step reads back.
 pub(crate) struct Rotation {
     /// Angular velocities, in input order \[rad/s\].
@@ -50,6 +54,8 @@ pub(crate) struct Granular {
     /// step does).
     given: ContactHistory,
     n: u32,
+    /// The engine's backend name, for labels and errors.
+    engine: &'static str,
 }
 
 impl Granular {
@@ -62,15 +68,30 @@ impl Granular {
             || !particles.history.is_empty()
     }
 
-    /// The buffers for `particles` on `gpu`, their history uploaded as the old history of a
+    /// The buffers for `particles` on `gpu` for the engine named `engine` (its backend's name),
+    /// their history uploaded as the old history of a
     /// step of parity 0 (the cpu's layout, both sides of each pair, is usable as it is: each
     /// owner finds its own entry first).
     pub fn new(
         gpu: &Gpu,
         particles: &Particles,
         params: &StepParams,
-        engine: &str,
+        engine: &'static str,
     ) -> Result<Self> {
+        let stage = gpu.limits.max_storage_buffers_per_shader_stage;
+        if stage < STORAGE_BUFFERS {
+            return Err(Error::BackendUnavailable {
+                backend: if engine == "rq" {
+                    "wgpu-rq"
+                } else {
+                    "wgpu-compute"
+                },
+                reason: format!(
+                    "its granular DEM step binds {STORAGE_BUFFERS} storage buffers, {} allows {stage}",
+                    gpu.info.name
+                ),
+            });
+        }
         let n64 = particles.len() as u64;
         let f = &params.friction;
         let keeps = f.has_history();
@@ -134,6 +155,7 @@ impl Granular {
                 particles.history.clone()
             },
             n,
+            engine,
         })?;
         let omega: Vec<[f32; 4]> = particles
             .angular_velocities
@@ -209,7 +231,7 @@ impl Granular {
                 .iter()
                 .enumerate()
                 .map(|(k, b)| {
-                    let label = format!("mochi.dem.saved{k}");
+                    let label = format!("mochi.dem.{}.saved{k}", self.engine);
                     gpu.storage(&label, b.size(), wgpu::BufferUsages::empty())
                 })
                 .collect();
@@ -239,8 +261,8 @@ impl Granular {
         parity: usize,
         state: &[&wgpu::Buffer],
         need: u32,
-        engine: &str,
     ) -> Result<()> {
+        let engine = self.engine;
         let (n, old_k) = (self.n as usize, self.params.slots as usize);
         let slots = need.saturating_add(need / 4);
         let bytes = history_bytes(gpu, self.n, slots, engine)?;

@@ -67,7 +67,7 @@ pub(crate) const GROUP: u32 = 256;
 /// Most steps recorded into one submission (and timed by one query set).
 pub(crate) const MAX_BATCH: u32 = 200;
 
-/// The step's parameters; twins: `DemParams` in `wgsl/dem_physics.wgsl` (laid out by `encase`,
+/// The step's parameters; twins: `DemParams` in `wgsl/dem_params.wgsl` (laid out by `encase`,
 /// checked by `tests/bindings.rs`) and in `optix/physics.cuh`, which the OptiX step passes by
 /// value as plain `#[repr(C)]` data: for that twin alone the struct is `Pod` and spells out its
 /// 4-byte tail (`_pad1`), which the WGSL struct declares too so both layouts stay one.

@@ -130,7 +130,7 @@ impl GridStepper {
         let n = n64 as u32;
         let (atomics, accumulators) = atomics.pick(&gpu);
         let granular = Granular::needed(&particles, &params)
-            .then(|| Granular::new(&gpu, &particles, &params, "grid"))
+            .then(|| Granular::new(&gpu, &particles, &params, "wgpu-compute"))
             .transpose()?;
         let source = match granular {
             Some(_) => dem_grid::granular_source(accumulators),
@@ -441,7 +441,7 @@ impl GridStepper {
             self.current = (self.current + steps as usize) % 2;
             let set = &self.sets[self.current];
             let state = [&set.pos, &set.vel, &set.ids, &self.clock];
-            g.restore_grown(&self.gpu, self.current, &state, need, "grid")?;
+            g.restore_grown(&self.gpu, self.current, &state, need)?;
             self.binds = Some([self.make_binds(0), self.make_binds(1)]);
         }
     }

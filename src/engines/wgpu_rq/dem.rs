@@ -99,7 +99,7 @@ impl RqStepper {
         let n = n64 as u32;
         let (atomics, accumulators) = atomics.pick(&gpu);
         let granular = Granular::needed(&particles, &params)
-            .then(|| Granular::new(&gpu, &particles, &params, "rq"))
+            .then(|| Granular::new(&gpu, &particles, &params, "wgpu-rq"))
             .transpose()?;
         let source = match granular {
             Some(_) => dem_rq::granular_source(accumulators),
@@ -206,7 +206,7 @@ impl RqStepper {
             self.parity = (self.parity + steps as usize) % 2;
             let r = self.resident.as_mut().expect("spheres to step");
             let state = [&self.pos, &self.vel, &r.clock];
-            g.restore_grown(&self.gpu, self.parity, &state, need, "rq")?;
+            g.restore_grown(&self.gpu, self.parity, &state, need)?;
             let buffers = (
                 &self.pos,
                 &self.vel,
