@@ -1,6 +1,8 @@
-// DEM step of the wgpu-compute backend (docs/method.md, "The DEM step"): bin and resolve; the
-// integration is dem_physics.wgsl's. Needs grid_params.wgsl and grid_stencil.wgsl prepended,
-// grid_walk.wgsl, dem_physics.wgsl and one of dem_force_f32.wgsl / dem_force_cas.wgsl appended.
+// DEM step of the wgpu-compute backend (docs/method.md, "The DEM step"): the binning of both
+// variants of the step; its resolve kernel is dem_grid_frictionless.wgsl's (the paper's law) or
+// dem_grid_granular.wgsl's. Needs grid_params.wgsl and grid_stencil.wgsl prepended, one resolve
+// file, grid_walk.wgsl, dem_params.wgsl, the physics of the variant and one of
+// dem_force_f32.wgsl / dem_force_cas.wgsl appended.
 //
 // The state (pos, vel, ids) lives in sorted order and ping-pongs between two sets of buffers:
 // each step bins the previous step's sorted set (`*_a`, nearly sorted already, so the atomics of
@@ -15,7 +17,7 @@
 @group(0) @binding(7) var<storage, read_write> counts: array<atomic<u32>>;
 @group(0) @binding(8) var<storage, read> cell_start: array<u32>;
 @group(0) @binding(12) var<storage, read_write> ids: array<u32>;
-// bindings 1 (dem), 10 (pos), 11 (vel), 16 (clock): dem_physics.wgsl; 13 (force): dem_force_*.wgsl
+// bindings 1 (dem), 10 (pos), 11 (vel), 16 (clock): dem_params.wgsl; 13 (force): dem_force_*.wgsl
 // counters[0]: touching pairs found in the step
 @group(0) @binding(14) var<storage, read_write> counters: array<atomic<u32>, 4>;
 // bounds of the centres as order-preserving u32 keys: min x, y, z, max x, y, z
@@ -54,60 +56,6 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     clear_force(p);
     pos[p] = s;
     vel[p] = vel_a[i];
-}
-
-struct Walker {
-    p: u32,
-    s: vec4<f32>,
-    v: vec4<f32>,      // velocity and mass of sphere p
-    run: vec4<f32>,    // p's force (xyz) and contacts (w) in the current run or bucket
-    total: vec4<f32>,  // the sum of the runs' and buckets' (in this order)
-}
-
-fn walk_sphere(q: u32) -> vec4<f32> {
-    return pos[q];
-}
-
-// Resolves sphere p against q: adds q's share there and p's to the current run.
-fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
-    let s = (*w).s;
-    let v = (*w).v;
-    let u = vel[q];
-    let f = contact_force(s.xyz, v.xyz, s.w, v.w, t.xyz, u.xyz, t.w, u.w);
-    if f.w != 0.0 {
-        add_force(q, -f.xyz);
-        (*w).run += f;
-    }
-}
-
-fn walked(w: ptr<function, Walker>, n: u32) {
-    (*w).total += (*w).run;
-    (*w).run = vec4(0.0);
-}
-
-var<workgroup> group_contacts: atomic<u32>;
-
-// Detection and contact resolution in one pass: every pair is found once (grid_walk.wgsl's
-// stencil walk, as in grid_pairs.wgsl) by the thread of one of its spheres, which adds equal and
-// opposite forces.
-@compute @workgroup_size(256)
-fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    let p = index(gid);
-    var w = Walker(p, vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
-    if p < params.n {
-        w.s = pos[p];
-        w.v = vel[p];
-        stencil_walk(&w);
-        if w.total.w != 0.0 {
-            add_force(p, w.total.xyz);
-        }
-    }
-    let total = w.total;
-    atomicAdd(&group_contacts, u32(total.w));
-    workgroupBarrier();
-    if lid == 0u {
-        atomicAdd(&counters[0], atomicLoad(&group_contacts));
-    }
 }
 
 // Order-preserving u32 key of a float (for atomicMin / atomicMax).

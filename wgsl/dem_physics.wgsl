@@ -1,25 +1,7 @@
-// The DEM physics shared by the GPU steps: parameters, the contact and wall forces and the
-// integration kernel. Keep DemParams in sync with src/engines/gpu_step.rs and the formulas with
-// src/dem/model.rs, line for line. Needs a dem_force_*.wgsl (add_force, load_force).
-
-struct DemParams {
-    box_lo: vec3<f32>,
-    n: u32,
-    box_hi: vec3<f32>,
-    row: u32,               // invocations per dispatch row of a 256-wide kernel
-    gravity: vec3<f32>,     // at t = 0
-    dt: f32,
-    stiffness: f32,
-    damping_ratio: f32,
-    gravity_spin: f32,      // rad/s about the y axis
-    _pad1: u32,
-}
-
-@group(0) @binding(1) var<uniform> dem: DemParams;
-@group(0) @binding(10) var<storage, read_write> pos: array<vec4<f32>>;   // x, y, z, r
-@group(0) @binding(11) var<storage, read_write> vel: array<vec4<f32>>;   // vx, vy, vz, mass
-// steps begun since t = 0
-@group(0) @binding(16) var<storage, read_write> clock: atomic<u32>;
+// The paper's DEM physics (linear spring-dashpot, no friction) shared by the GPU steps: the
+// contact and wall forces and the integration kernel. Keep the formulas in sync with
+// src/dem/model/linear.rs, line for line. Needs dem_params.wgsl prepended and a
+// dem_force_*.wgsl (add_force, load_force).
 
 // Force on sphere i from sphere j (xyz) and 1 in w when they touch; zero otherwise.
 fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
@@ -56,15 +38,6 @@ fn wall_force(c: vec3<f32>, v: vec3<f32>, r: f32, m: f32) -> vec3<f32> {
         }
     }
     return f;
-}
-
-// Gravity at step `step`, turned about the y axis by gravity_spin · t.
-fn gravity_at(step: u32) -> vec3<f32> {
-    let angle = dem.gravity_spin * (f32(step) * dem.dt);
-    let s = sin(angle);
-    let c = cos(angle);
-    let g = dem.gravity;
-    return vec3(g.x * c + g.z * s, g.y, g.z * c - g.x * s);
 }
 
 // Walls, gravity and one semi-implicit Euler step, in place.

@@ -1,7 +1,9 @@
-//! What the GPU DEM steps share: the physics module `wgsl/dem_physics.wgsl` (its bindings and
-//! parameter block), the choice of force atomics, per-phase timestamps, and moving particles to
-//! and from the GPU.
+//! What the GPU DEM steps share: the physics modules (`wgsl/dem_params.wgsl`, its bindings and
+//! parameter block, and the physics of the step's two variants: the paper's law,
+//! `wgsl/dem_physics.wgsl`, or the granular step's, [`granular`]), the choice of force atomics,
+//! per-phase timestamps, and moving particles to and from the GPU.
 
+pub(crate) use super::gpu_granular::{Granular, Rotation};
 use crate::dem::model::{StepParams, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::error::Result;
@@ -10,18 +12,45 @@ use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
 use crate::gpu::timer::GpuTimer;
 use crate::particles::Particles;
 
-/// The physics shared by the GPU steps (`wgsl/dem_physics.wgsl`, integration kernel included)
-/// and its force accumulators: the bindings it adds to the step module it ends.
+/// The physics shared by the GPU steps (`wgsl/dem_params.wgsl` and, for the paper's law,
+/// `wgsl/dem_physics.wgsl`, integration kernel included) and its force accumulators: the
+/// bindings it adds to the step module it ends.
 pub(crate) mod physics {
+    use super::Accumulators;
     use crate::gpu::shader::Binding;
 
-    /// `wgsl/dem_physics.wgsl`.
-    pub const SOURCE: &str = include_str!("../../wgsl/dem_physics.wgsl");
-    pub(super) const FORCE_F32: &str = include_str!("../../wgsl/dem_force_f32.wgsl");
-    pub(super) const FORCE_CAS: &str = include_str!("../../wgsl/dem_force_cas.wgsl");
+    /// `wgsl/dem_params.wgsl`: parameters, state bindings and gravity, for both variants.
+    pub const PARAMS: &str = include_str!("../../wgsl/dem_params.wgsl");
+    /// `wgsl/dem_physics.wgsl`: the paper's law and its integration kernel.
+    pub const LINEAR: &str = include_str!("../../wgsl/dem_physics.wgsl");
 
-    /// Both force accumulators, by label suffix.
-    pub const FORCE_VARIANTS: [(&str, &str); 2] = [("f32", FORCE_F32), ("cas", FORCE_CAS)];
+    /// Float atomics (SHADER_FLOAT32_ATOMIC).
+    pub(super) const F32: Accumulators = Accumulators {
+        force: include_str!("../../wgsl/dem_force_f32.wgsl"),
+        torque: include_str!("../../wgsl/dem_torque_f32.wgsl"),
+    };
+    /// Compare-and-swap loops on the bit patterns.
+    pub(super) const CAS: Accumulators = Accumulators {
+        force: include_str!("../../wgsl/dem_force_cas.wgsl"),
+        torque: include_str!("../../wgsl/dem_torque_cas.wgsl"),
+    };
+
+    /// Both kinds of accumulators, by label suffix.
+    pub const FORCE_VARIANTS: [(&str, Accumulators); 2] = [("f32", F32), ("cas", CAS)];
+
+    /// The physics that ends the paper's step module, with the accumulators `atomics`.
+    pub fn frictionless(atomics: Accumulators) -> String {
+        format!("{PARAMS}{LINEAR}{}", atomics.force)
+    }
+
+    /// The physics that ends the granular step module, with the accumulators `atomics`.
+    pub fn granular(atomics: Accumulators) -> String {
+        let (contact, state) = (super::granular::CONTACT, super::granular::STATE);
+        format!(
+            "{PARAMS}{contact}{state}{}{}",
+            atomics.force, atomics.torque
+        )
+    }
 
     pub const DEM: Binding = Binding::uniform(1, "dem");
     pub const POS: Binding = Binding::read_write(10, "pos");
@@ -38,7 +67,7 @@ pub(crate) const GROUP: u32 = 256;
 /// Most steps recorded into one submission (and timed by one query set).
 pub(crate) const MAX_BATCH: u32 = 200;
 
-/// The step's parameters; twins: `DemParams` in `wgsl/dem_physics.wgsl` (laid out by `encase`,
+/// The step's parameters; twins: `DemParams` in `wgsl/dem_params.wgsl` (laid out by `encase`,
 /// checked by `tests/bindings.rs`) and in `optix/physics.cuh`, which the OptiX step passes by
 /// value as plain `#[repr(C)]` data: for that twin alone the struct is `Pod` and spells out its
 /// 4-byte tail (`_pad1`), which the WGSL struct declares too so both layouts stay one.
@@ -96,6 +125,121 @@ impl DemParams {
     }
 }
 
+/// The WGSL of one kind of force and torque accumulators.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Accumulators {
+    /// `wgsl/dem_force_*.wgsl`.
+    pub force: &'static str,
+    /// `wgsl/dem_torque_*.wgsl` (granular step only).
+    pub torque: &'static str,
+}
+
+/// What the granular step adds to the paper's (`wgsl/dem_contact.wgsl`, the contact law, and
+/// `wgsl/dem_granular.wgsl`, angular velocities, torques, contact history and integration):
+/// sources, bindings and the structs shared with Rust.
+pub(crate) mod granular {
+    use crate::gpu::shader::{Binding, SharedStruct, shared_struct};
+    use crate::particles::HistoryEntry;
+
+    /// `wgsl/dem_contact.wgsl`.
+    pub const CONTACT: &str = include_str!("../../wgsl/dem_contact.wgsl");
+    /// `wgsl/dem_granular.wgsl`.
+    pub const STATE: &str = include_str!("../../wgsl/dem_granular.wgsl");
+
+    pub const GRANULAR: Binding = Binding::uniform(17, "granular");
+    pub const OMEGA: Binding = Binding::read_write(18, "omega");
+    /// Declared by the torque accumulator (`dem_torque_*.wgsl`).
+    pub const TORQUE: Binding = Binding::read_write(19, "torque");
+    pub const HISTORY_OLD: Binding = Binding::read(20, "history_old");
+    pub const HELD_OLD: Binding = Binding::read(21, "held_old");
+    pub const HISTORY_NEW: Binding = Binding::read_write(22, "history_new");
+    pub const HELD_NEW: Binding = Binding::read_write(23, "held_new");
+    pub const HISTORY_NEED: Binding = Binding::read_write(24, "history_need");
+    pub const BINDINGS: &[Binding] = &[
+        GRANULAR,
+        OMEGA,
+        TORQUE,
+        HISTORY_OLD,
+        HELD_OLD,
+        HISTORY_NEW,
+        HELD_NEW,
+        HISTORY_NEED,
+    ];
+
+    /// The granular step's parameters beyond [`super::DemParams`]; twin: `GranularParams` in
+    /// `wgsl/dem_contact.wgsl` (checked by `tests/bindings.rs`).
+    #[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
+    pub struct GranularParams {
+        /// `LAW_*` of the WGSL: 0 linear, 1 linear per pair, 2 Hertz.
+        pub law: u32,
+        /// k/m* of the per-pair linear law \[1/s²\].
+        pub rate: f32,
+        /// E* of two spheres \[Pa\].
+        pub pair_e_star: f32,
+        /// G* of two spheres \[Pa\].
+        pub pair_g_star: f32,
+        /// E* of a sphere on a wall \[Pa\].
+        pub wall_e_star: f32,
+        /// G* of a sphere on a wall \[Pa\].
+        pub wall_g_star: f32,
+        /// μ between spheres.
+        pub sliding: f32,
+        /// μ with the walls.
+        pub wall_sliding: f32,
+        /// μ_r.
+        pub rolling: f32,
+        /// `ROLLING_*` of the WGSL: 0 EPSD, 1 constant torque.
+        pub rolling_model: u32,
+        /// 1 where any contact exerts a torque.
+        pub turns: u32,
+        /// History slots per sphere (0: contacts keep no springs).
+        pub slots: u32,
+    }
+
+    /// [`GranularParams`] as a [`SharedStruct`].
+    pub fn granular_params() -> SharedStruct {
+        shared_struct!(
+            "GranularParams",
+            GranularParams {
+                law,
+                rate,
+                pair_e_star,
+                pair_g_star,
+                wall_e_star,
+                wall_g_star,
+                sliding,
+                wall_sliding,
+                rolling,
+                rolling_model,
+                turns,
+                slots,
+            }
+        )
+    }
+
+    /// The layout of one history slot on the GPU: [`HistoryEntry`], whose bytes are uploaded
+    /// as they are; twin: `HistoryEntry` in `wgsl/dem_granular.wgsl`.
+    #[derive(Clone, Copy, Default, encase::ShaderType)]
+    pub struct HistoryRow {
+        partner: u32,
+        tangential: [f32; 3],
+        rolling: [f32; 3],
+    }
+    const _: () = assert!(size_of::<HistoryEntry>() == 28, "HistoryRow's size");
+
+    /// [`HistoryRow`] as a [`SharedStruct`].
+    pub fn history_row() -> SharedStruct {
+        shared_struct!(
+            "HistoryEntry",
+            HistoryRow {
+                partner,
+                tangential,
+                rolling,
+            }
+        )
+    }
+}
+
 /// How forces are accumulated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ForceAtomics {
@@ -106,16 +250,16 @@ pub enum ForceAtomics {
 }
 
 impl ForceAtomics {
-    /// The force WGSL for `gpu` and its name, in words.
-    pub(crate) fn pick(self, gpu: &Gpu) -> (&'static str, &'static str) {
+    /// The accumulators' WGSL for `gpu` and their name, in words.
+    pub(crate) fn pick(self, gpu: &Gpu) -> (&'static str, Accumulators) {
         let floats = gpu
             .device
             .features()
             .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
         if self == ForceAtomics::Auto && floats {
-            ("float atomics", physics::FORCE_F32)
+            ("float atomics", physics::F32)
         } else {
-            ("compare-and-swap", physics::FORCE_CAS)
+            ("compare-and-swap", physics::CAS)
         }
     }
 }
@@ -198,21 +342,38 @@ pub(crate) fn rows(particles: &Particles, density: f32) -> (Vec<[f32; 4]>, Vec<[
     (pos, vel)
 }
 
-/// Particles from rows read back in the order `ids` gives (`None`: input order).
+/// Particles from rows read back in the order `ids` gives (`None`: input order), of the paper's
+/// step (no rotation, no history): the optix step's.
+#[cfg(feature = "optix")]
 pub(crate) fn particles_from(
     pos: &[[f32; 4]],
     vel: &[[f32; 4]],
     ids: Option<&[u32]>,
     step: u64,
 ) -> Result<Particles> {
+    particles_with(pos, vel, ids, step, None)
+}
+
+/// As [`particles_from`], with the angular velocities and contact history of a granular step
+/// (`None`: the paper's step).
+pub(crate) fn particles_with(
+    pos: &[[f32; 4]],
+    vel: &[[f32; 4]],
+    ids: Option<&[u32]>,
+    step: u64,
+    rotation: Option<Rotation>,
+) -> Result<Particles> {
     let n = pos.len();
-    // The GPU steps have no rotation yet: `open_stepper` gives them no spinning spheres.
+    let rotation = rotation.unwrap_or_else(|| Rotation {
+        angular_velocities: vec![[0.0; 3]; n],
+        history: Default::default(),
+    });
     let mut out = Particles {
         positions: vec![[0.0; 3]; n],
         velocities: vec![[0.0; 3]; n],
-        angular_velocities: vec![[0.0; 3]; n],
+        angular_velocities: rotation.angular_velocities,
         radii: vec![0.0; n],
-        history: Default::default(),
+        history: rotation.history,
         step,
     };
     for (k, (p, v)) in pos.iter().zip(vel).enumerate() {

@@ -16,8 +16,8 @@ pub fn open_stepper(
     options: &Options,
 ) -> Result<Box<dyn Stepper>> {
     particles.validate()?;
-    if kind != BackendKind::Cpu
-        && let Some(missing) = beyond_the_gpu_steps(&particles, &params)
+    if kind == BackendKind::Optix
+        && let Some(missing) = beyond_the_optix_step(&particles, &params)
     {
         return Err(Error::BackendUnavailable {
             backend: kind.name(),
@@ -48,10 +48,10 @@ pub fn open_stepper(
     })
 }
 
-/// What a run needs that the GPU engines' DEM step does not have yet (their step is the paper's
-/// linear law with one stiffness, no friction, no rotation), in words; `None` when they can run
-/// it.
-fn beyond_the_gpu_steps(particles: &Particles, params: &StepParams) -> Option<String> {
+/// What a run needs that the optix engine's DEM step does not have yet (its step is the paper's
+/// linear law with one stiffness, no friction, no rotation), in words; `None` when it can run
+/// it. The cpu and wgpu engines run every law.
+fn beyond_the_optix_step(particles: &Particles, params: &StepParams) -> Option<String> {
     let mut missing = Vec::new();
     match params.law {
         NormalLaw::Linear => {}

@@ -12,6 +12,12 @@
 //! from a GPU reduction of the bounds every [`RELAYOUT_EVERY`] steps. Between, spheres that
 //! leave the layout's region are clamped into its border cells: exact, only slower.
 //! Float atomics add in no fixed order, so GPU runs are not bit-for-bit reproducible.
+//!
+//! A scene with friction, rolling resistance, rotation or another law than the paper's runs the
+//! granular variant of the step (`wgsl/dem_grid_granular.wgsl`, [`Granular`]): its own module
+//! and pipelines, with angular velocities, torques and the contact history bound besides; the
+//! walls are resolved in the contact pass, where their history lives. The paper's scenes run
+//! the paper's kernels as before.
 
 use super::cell_table::{CellScan, CellScanBinds, CellTable};
 use super::layout::{
@@ -24,10 +30,11 @@ use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemParams, ForceAtomics, GROUP, MAX_BATCH, StepTimer, advance_in_batches, max_spheres,
-    particles_from, rows,
+    DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, StepTimer, advance_in_batches,
+    max_spheres, particles_with, rows,
 };
 use crate::error::{Error, Result};
+use crate::gpu::shader::Binding;
 use crate::gpu::{self, Gpu, Need};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
@@ -92,6 +99,8 @@ pub struct GridStepper {
     binds: Option<[Binds; 2]>,
     timer: Option<StepTimer>,
     atomics: &'static str,
+    /// The granular step's state (`None`: the paper's step).
+    granular: Option<Granular>,
 }
 
 impl GridStepper {
@@ -119,8 +128,15 @@ impl GridStepper {
             });
         }
         let n = n64 as u32;
-        let (atomics, force_wgsl) = atomics.pick(&gpu);
-        let module = gpu.module("mochi.dem.grid", &dem_grid::source(force_wgsl));
+        let (atomics, accumulators) = atomics.pick(&gpu);
+        let granular = Granular::needed(&particles, &params)
+            .then(|| Granular::new(&gpu, &particles, &params, "wgpu-compute"))
+            .transpose()?;
+        let source = match granular {
+            Some(_) => dem_grid::granular_source(accumulators),
+            None => dem_grid::source(accumulators),
+        };
+        let module = gpu.module("mochi.dem.grid", &source);
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.{entry}"), &module, entry);
         let pipelines = Pipelines {
             bin_count: pipeline("bin_count"),
@@ -166,6 +182,7 @@ impl GridStepper {
                 binds: None,
                 timer,
                 atomics,
+                granular,
                 gpu: gpu.clone(),
             }
         })?;
@@ -203,7 +220,11 @@ impl GridStepper {
         let pos: Vec<[f32; 4]> = self.gpu.read(&set.pos, n)?;
         let vel: Vec<[f32; 4]> = self.gpu.read(&set.vel, n)?;
         let ids: Vec<u32> = self.gpu.read(&set.ids, n)?;
-        particles_from(&pos, &vel, Some(&ids), self.step)
+        let rotation = match &self.granular {
+            Some(g) => Some(g.read(&self.gpu, self.current)?),
+            None => None,
+        };
+        particles_with(&pos, &vel, Some(&ids), self.step, rotation)
     }
 
     /// The centres' bounds now (a GPU reduction), or `None` for no spheres.
@@ -297,11 +318,19 @@ impl GridStepper {
         Ok(())
     }
 
-    /// Bind groups for binning from set `from` into the other.
+    /// Bind groups for binning from set `from` into the other (and, in the granular step,
+    /// reading the history of parity `from`).
     fn make_binds(&self, from: usize) -> Binds {
         let (a, b) = (&self.sets[from], &self.sets[1 - from]);
         let p = &self.pipelines;
         let gpu = &self.gpu;
+        let (resolve_more, integrate_more) = match &self.granular {
+            Some(g) => (
+                [&g.resolve_bindings(from)[..], &[(IDS, &b.ids)]].concat(),
+                [&g.integrate_bindings()[..], &[(IDS, &b.ids)]].concat(),
+            ),
+            None => (Vec::new(), Vec::new()),
+        };
         Binds {
             bin_count: gpu.bind(
                 "mochi.dem.bin_count",
@@ -334,26 +363,32 @@ impl GridStepper {
             resolve: gpu.bind(
                 "mochi.dem.resolve",
                 &p.resolve,
-                &[
-                    (PARAMS, &self.grid_uniform),
-                    (DEM, &self.dem_uniform),
-                    (CELL_START, &self.cell_table.cell_start),
-                    (POS, &b.pos),
-                    (VEL, &b.vel),
-                    (FORCE, &self.force),
-                    (COUNTERS, &self.counters),
-                ],
+                &joined(
+                    &[
+                        (PARAMS, &self.grid_uniform),
+                        (DEM, &self.dem_uniform),
+                        (CELL_START, &self.cell_table.cell_start),
+                        (POS, &b.pos),
+                        (VEL, &b.vel),
+                        (FORCE, &self.force),
+                        (COUNTERS, &self.counters),
+                    ],
+                    &resolve_more,
+                ),
             ),
             integrate: gpu.bind(
                 "mochi.dem.integrate",
                 &p.integrate,
-                &[
-                    (DEM, &self.dem_uniform),
-                    (POS, &b.pos),
-                    (VEL, &b.vel),
-                    (FORCE, &self.force),
-                    (CLOCK, &self.clock),
-                ],
+                &joined(
+                    &[
+                        (DEM, &self.dem_uniform),
+                        (POS, &b.pos),
+                        (VEL, &b.vel),
+                        (FORCE, &self.force),
+                        (CLOCK, &self.clock),
+                    ],
+                    &integrate_more,
+                ),
             ),
             reduce_bounds: gpu.bind(
                 "mochi.dem.reduce_bounds",
@@ -383,13 +418,44 @@ impl GridStepper {
         }
     }
 
-    /// Records `steps` steps (≤ [`MAX_BATCH`]) into one submission and waits for it. With a
-    /// timer, the first step is recorded phase by phase between timestamps (see [`StepTimer`]);
-    /// the others share one compute pass.
+    /// Records `steps` steps (≤ [`MAX_BATCH`]) into one submission and waits for it; in the
+    /// granular step, redoes them with more history slots from the state they began from
+    /// while some sphere had more contacts than slots.
     fn run_batch(&mut self, steps: u32) -> Result<(u64, Option<StageTimes>)> {
+        loop {
+            let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+            let set = &self.sets[self.current];
+            let state = [&set.pos, &set.vel, &set.ids, &self.clock];
+            if let Some(g) = self.granular.as_mut() {
+                g.begin_batch(&self.gpu, &mut encoder, self.current, &state);
+            }
+            let done = self.record_batch(encoder, steps)?;
+            let Some(g) = self.granular.as_mut() else {
+                return Ok(done);
+            };
+            let Some(need) = g.overflow(&self.gpu)? else {
+                return Ok(done);
+            };
+            // The batch's steps are undone: back to the set and step it began from.
+            self.step -= steps as u64;
+            self.current = (self.current + steps as usize) % 2;
+            let set = &self.sets[self.current];
+            let state = [&set.pos, &set.vel, &set.ids, &self.clock];
+            g.restore_grown(&self.gpu, self.current, &state, need)?;
+            self.binds = Some([self.make_binds(0), self.make_binds(1)]);
+        }
+    }
+
+    /// Records `steps` steps (≤ [`MAX_BATCH`]) into `encoder`, submits it and waits for it.
+    /// With a timer, the first step is recorded phase by phase between timestamps (see
+    /// [`StepTimer`]); the others share one compute pass.
+    fn record_batch(
+        &mut self,
+        mut encoder: wgpu::CommandEncoder,
+        steps: u32,
+    ) -> Result<(u64, Option<StageTimes>)> {
         let gpu = &self.gpu;
         let timer = self.timer.as_ref();
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
         let mut current = self.current;
         let mut profiled = 0;
         if timer.is_some() {
@@ -428,6 +494,14 @@ impl GridStepper {
         let times = timer.map(|t| t.read(gpu, profiled)).transpose()?;
         Ok((contacts, times))
     }
+}
+
+/// `own` bindings and `more` (the granular step's).
+fn joined<'a>(
+    own: &[(Binding, &'a wgpu::Buffer)],
+    more: &[(Binding, &'a wgpu::Buffer)],
+) -> Vec<(Binding, &'a wgpu::Buffer)> {
+    [own, more].concat()
 }
 
 /// The phases of a step, in order.

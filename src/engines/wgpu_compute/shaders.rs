@@ -3,7 +3,7 @@
 //! `tests/bindings.rs`.
 
 use super::layout::GridParams;
-use crate::engines::gpu_step::{self, physics};
+use crate::engines::gpu_step::{self, granular, physics};
 use crate::gpu::pair_output;
 use crate::gpu::shader::{Binding, SharedStruct, WgslModule, shared_struct, wgsl};
 
@@ -104,22 +104,27 @@ pub(crate) mod cell_scan {
 }
 
 /// The DEM step's binning and contact resolution (`wgsl/dem_grid.wgsl`), followed by the
-/// shared physics ([`physics`]).
+/// shared physics ([`physics`]), in two variants: the paper's law (`wgsl/dem_grid_frictionless.wgsl`)
+/// and the granular step (`wgsl/dem_grid_granular.wgsl`, [`granular`]).
 pub(crate) mod dem_grid {
-    use super::{Binding, physics, wgsl};
+    use super::{Binding, granular, physics, wgsl};
+    use crate::engines::gpu_step::Accumulators;
 
-    const GRID: &str = wgsl!(
-        "grid_params.wgsl",
-        "grid_stencil.wgsl",
-        "dem_grid.wgsl",
-        "grid_walk.wgsl"
-    );
+    const GRID: &str = wgsl!("grid_params.wgsl", "grid_stencil.wgsl", "dem_grid.wgsl");
+    const FRICTIONLESS: &str = wgsl!("dem_grid_frictionless.wgsl", "grid_walk.wgsl");
+    const GRANULAR: &str = wgsl!("dem_grid_granular.wgsl", "grid_walk.wgsl");
 
-    /// The module with the force accumulation `force` (one of [`physics::FORCE_VARIANTS`]).
-    pub fn source(force: &str) -> String {
-        format!("{GRID}{}{force}", physics::SOURCE)
+    /// The paper's step with the accumulators `atomics` (one of [`physics::FORCE_VARIANTS`]).
+    pub fn source(atomics: Accumulators) -> String {
+        format!("{GRID}{FRICTIONLESS}{}", physics::frictionless(atomics))
     }
 
+    /// The granular step with the accumulators `atomics`.
+    pub fn granular_source(atomics: Accumulators) -> String {
+        format!("{GRID}{GRANULAR}{}", physics::granular(atomics))
+    }
+
+    /// The entry points of both variants.
     pub const ENTRY_POINTS: &[&str] = &[
         "bin_count",
         "bin_scatter",
@@ -139,13 +144,22 @@ pub(crate) mod dem_grid {
     pub const COUNTERS: Binding = Binding::read_write(14, "counters");
     pub const BOUNDS: Binding = Binding::read_write(15, "bounds");
 
-    /// Every binding, the physics' included.
+    const OWN: [Binding; 10] = [
+        PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS,
+    ];
+
+    /// Every binding of the paper's step, the physics' included.
     pub fn bindings() -> Vec<Binding> {
-        let own = [
-            PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS,
-        ];
-        own.into_iter()
+        OWN.into_iter()
             .chain(physics::BINDINGS.iter().copied())
+            .collect()
+    }
+
+    /// Every binding of the granular step.
+    pub fn granular_bindings() -> Vec<Binding> {
+        bindings()
+            .into_iter()
+            .chain(granular::BINDINGS.iter().copied())
             .collect()
     }
 }
@@ -181,14 +195,26 @@ pub fn modules() -> Vec<WgslModule> {
             cell_scan::BINDINGS,
         ),
     ];
-    for (name, force) in physics::FORCE_VARIANTS {
+    for (name, atomics) in physics::FORCE_VARIANTS {
         let mut dem = module(
             format!("dem_grid_{name}"),
-            dem_grid::source(force),
+            dem_grid::source(atomics),
             dem_grid::ENTRY_POINTS,
             &dem_grid::bindings(),
         );
         dem.structs.push(gpu_step::dem_params());
+        all.push(dem);
+        let mut dem = module(
+            format!("dem_grid_granular_{name}"),
+            dem_grid::granular_source(atomics),
+            dem_grid::ENTRY_POINTS,
+            &dem_grid::granular_bindings(),
+        );
+        dem.structs.extend([
+            gpu_step::dem_params(),
+            granular::granular_params(),
+            granular::history_row(),
+        ]);
         all.push(dem);
     }
     all

@@ -4,6 +4,12 @@
 //! the proxy rule keeps (equal and opposite forces, atomics), then `dem_physics.wgsl`'s
 //! integration (`wgsl/dem_rq.wgsl`). The spheres stay in input order: the generated scenes are
 //! laid out along a lattice, so the BVH's primitives are already spatially coherent.
+//!
+//! A scene with friction, rolling resistance, rotation or another law than the paper's runs the
+//! granular variant of the step (`wgsl/dem_rq_granular.wgsl`, [`Granular`]): its own module and
+//! pipelines, with angular velocities, torques and the contact history bound besides (a
+//! sphere's index is its stable id); the walls are resolved in the contact pass, where their
+//! history lives. The paper's scenes run the paper's kernels as before.
 
 use super::accel::Accel;
 use super::shaders::dem_rq::{self, BOXES, COUNTERS, RQ_PARAMS, RqParams, TLAS};
@@ -11,8 +17,8 @@ use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemParams, ForceAtomics, GROUP, MAX_BATCH, StepTimer, advance_in_batches, max_spheres,
-    particles_from, rows,
+    DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, StepTimer, advance_in_batches,
+    max_spheres, particles_with, rows,
 };
 use crate::error::{Error, Result};
 use crate::gpu::{self, Gpu, Need};
@@ -28,13 +34,18 @@ struct Pipelines {
 
 struct Binds {
     proxy_boxes: wgpu::BindGroup,
-    resolve: wgpu::BindGroup,
+    /// For the steps of each parity (which history they read, in the granular step; the same
+    /// in the paper's).
+    resolve: [wgpu::BindGroup; 2],
     integrate: wgpu::BindGroup,
 }
 
 /// What a non-empty set of spheres keeps on the GPU.
 struct Resident {
     accel: Accel,
+    rq: wgpu::Buffer,
+    dem: wgpu::Buffer,
+    clock: wgpu::Buffer,
     force: wgpu::Buffer,
     counters: wgpu::Buffer,
     binds: Binds,
@@ -53,6 +64,10 @@ pub struct RqStepper {
     resident: Option<Resident>,
     timer: Option<StepTimer>,
     atomics: &'static str,
+    /// The granular step's state (`None`: the paper's step).
+    granular: Option<Granular>,
+    /// Parity of the next step (which history buffer it reads).
+    parity: usize,
 }
 
 impl RqStepper {
@@ -82,8 +97,15 @@ impl RqStepper {
             });
         }
         let n = n64 as u32;
-        let (atomics, force_wgsl) = atomics.pick(&gpu);
-        let module = gpu.module("mochi.dem.rq", &dem_rq::source(force_wgsl));
+        let (atomics, accumulators) = atomics.pick(&gpu);
+        let granular = Granular::needed(&particles, &params)
+            .then(|| Granular::new(&gpu, &particles, &params, "wgpu-rq"))
+            .transpose()?;
+        let source = match granular {
+            Some(_) => dem_rq::granular_source(accumulators),
+            None => dem_rq::source(accumulators),
+        };
+        let module = gpu.module("mochi.dem.rq", &source);
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.rq.{entry}"), &module, entry);
         let pipelines = Pipelines {
             proxy_boxes: pipeline("proxy_boxes"),
@@ -118,46 +140,22 @@ impl RqStepper {
                 );
                 let force = gpu.storage("mochi.dem.rq.force", n64 * 12, none);
                 let counters = gpu.storage("mochi.dem.rq.counters", 16, none);
-                let p = &pipelines;
-                let binds = Binds {
-                    proxy_boxes: gpu.bind(
-                        "mochi.dem.rq.proxy_boxes",
-                        &p.proxy_boxes,
-                        &[
-                            (RQ_PARAMS, &rq),
-                            (DEM, &dem),
-                            (BOXES, &accel.boxes),
-                            (POS, &pos),
-                            (CLOCK, &clock),
-                        ],
-                    ),
-                    resolve: gpu.bind_with_tlas(
-                        "mochi.dem.rq.resolve",
-                        &p.resolve,
-                        &[
-                            (RQ_PARAMS, &rq),
-                            (DEM, &dem),
-                            (POS, &pos),
-                            (VEL, &vel),
-                            (FORCE, &force),
-                            (COUNTERS, &counters),
-                        ],
-                        (TLAS, accel.tlas()),
-                    ),
-                    integrate: gpu.bind(
-                        "mochi.dem.rq.integrate",
-                        &p.integrate,
-                        &[
-                            (DEM, &dem),
-                            (POS, &pos),
-                            (VEL, &vel),
-                            (FORCE, &force),
-                            (CLOCK, &clock),
-                        ],
-                    ),
-                };
+                let buffers = (
+                    &pos,
+                    &vel,
+                    &rq,
+                    &dem,
+                    &clock,
+                    &accel.boxes,
+                    &force,
+                    &counters,
+                );
+                let binds = bind(&gpu, &pipelines, buffers, accel.tlas(), granular.as_ref());
                 Resident {
                     accel,
+                    rq,
+                    dem,
+                    clock,
                     force,
                     counters,
                     binds,
@@ -179,17 +177,67 @@ impl RqStepper {
             vel,
             resident,
             atomics,
+            granular,
+            parity: 0,
             gpu,
         })
     }
 
-    /// Records `steps` steps (≤ [`MAX_BATCH`]) into one submission and waits for it.
+    /// Records `steps` steps (≤ [`MAX_BATCH`]) into one submission and waits for it; in the
+    /// granular step, redoes them with more history slots from the state they began from
+    /// while some sphere had more contacts than slots.
     fn run_batch(&mut self, steps: u32) -> Result<(u64, Option<StageTimes>)> {
+        loop {
+            let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+            let r = self.resident.as_ref().expect("spheres to step");
+            let state = [&self.pos, &self.vel, &r.clock];
+            if let Some(g) = self.granular.as_mut() {
+                g.begin_batch(&self.gpu, &mut encoder, self.parity, &state);
+            }
+            let done = self.record_batch(encoder, steps)?;
+            let Some(g) = self.granular.as_mut() else {
+                return Ok(done);
+            };
+            let Some(need) = g.overflow(&self.gpu)? else {
+                return Ok(done);
+            };
+            // The batch's steps are undone: back to the state and step it began from.
+            self.step -= steps as u64;
+            self.parity = (self.parity + steps as usize) % 2;
+            let r = self.resident.as_mut().expect("spheres to step");
+            let state = [&self.pos, &self.vel, &r.clock];
+            g.restore_grown(&self.gpu, self.parity, &state, need)?;
+            let buffers = (
+                &self.pos,
+                &self.vel,
+                &r.rq,
+                &r.dem,
+                &r.clock,
+                &r.accel.boxes,
+                &r.force,
+                &r.counters,
+            );
+            r.binds = bind(
+                &self.gpu,
+                &self.pipelines,
+                buffers,
+                r.accel.tlas(),
+                Some(&*g),
+            );
+        }
+    }
+
+    /// Records `steps` steps (≤ [`MAX_BATCH`]) into `encoder`, submits it and waits for it.
+    fn record_batch(
+        &mut self,
+        mut encoder: wgpu::CommandEncoder,
+        steps: u32,
+    ) -> Result<(u64, Option<StageTimes>)> {
         let gpu = &self.gpu;
         let r = self.resident.as_ref().expect("spheres to step");
         let p = &self.pipelines;
         let timer = self.timer.as_ref();
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        let mut parity = self.parity;
         for s in 0..steps {
             StepTimer::mark(timer, &mut encoder, s, 0);
             gpu.dispatch(
@@ -207,9 +255,10 @@ impl RqStepper {
                 &mut encoder,
                 "mochi.dem.rq.resolve",
                 &p.resolve,
-                &r.binds.resolve,
+                &r.binds.resolve[parity],
                 self.groups,
             );
+            parity = 1 - parity;
             StepTimer::mark(timer, &mut encoder, s, 2);
             gpu.dispatch(
                 &mut encoder,
@@ -227,6 +276,7 @@ impl RqStepper {
             gpu.queue.submit([encoder.finish()])
         })?;
         self.step += steps as u64;
+        self.parity = parity;
         let contacts = gpu.read::<u32>(&r.counters, 1)?[0] as u64;
         let times = timer.map(|t| t.read(gpu, steps)).transpose()?;
         Ok((contacts, times))
@@ -261,6 +311,74 @@ impl Stepper for RqStepper {
         let n = self.n as usize;
         let pos: Vec<[f32; 4]> = self.gpu.read(&self.pos, n)?;
         let vel: Vec<[f32; 4]> = self.gpu.read(&self.vel, n)?;
-        particles_from(&pos, &vel, None, self.step)
+        let rotation = match &self.granular {
+            Some(g) => Some(g.read(&self.gpu, self.parity)?),
+            None => None,
+        };
+        particles_with(&pos, &vel, None, self.step, rotation)
+    }
+}
+
+/// The step's buffers: positions, velocities, the ray-query and step uniforms, the clock, the
+/// proxy boxes, the force accumulators and the counters.
+type StepBuffers<'a> = (
+    &'a wgpu::Buffer,
+    &'a wgpu::Buffer,
+    &'a wgpu::Buffer,
+    &'a wgpu::Buffer,
+    &'a wgpu::Buffer,
+    &'a wgpu::Buffer,
+    &'a wgpu::Buffer,
+    &'a wgpu::Buffer,
+);
+
+/// The bind groups of the step over `buffers` and `tlas`, with the granular step's where it
+/// has one.
+fn bind(
+    gpu: &Gpu,
+    p: &Pipelines,
+    buffers: StepBuffers,
+    tlas: &wgpu::Tlas,
+    granular: Option<&Granular>,
+) -> Binds {
+    let (pos, vel, rq, dem, clock, boxes, force, counters) = buffers;
+    let resolve = |parity: usize| {
+        let mut all = vec![
+            (RQ_PARAMS, rq),
+            (DEM, dem),
+            (POS, pos),
+            (VEL, vel),
+            (FORCE, force),
+            (COUNTERS, counters),
+        ];
+        if let Some(g) = granular {
+            all.extend(g.resolve_bindings(parity));
+        }
+        gpu.bind_with_tlas("mochi.dem.rq.resolve", &p.resolve, &all, (TLAS, tlas))
+    };
+    let mut integrate = vec![
+        (DEM, dem),
+        (POS, pos),
+        (VEL, vel),
+        (FORCE, force),
+        (CLOCK, clock),
+    ];
+    if let Some(g) = granular {
+        integrate.extend(g.integrate_bindings());
+    }
+    Binds {
+        proxy_boxes: gpu.bind(
+            "mochi.dem.rq.proxy_boxes",
+            &p.proxy_boxes,
+            &[
+                (RQ_PARAMS, rq),
+                (DEM, dem),
+                (BOXES, boxes),
+                (POS, pos),
+                (CLOCK, clock),
+            ],
+        ),
+        resolve: [resolve(0), resolve(1)],
+        integrate: gpu.bind("mochi.dem.rq.integrate", &p.integrate, &integrate),
     }
 }

@@ -2,7 +2,7 @@
 //! uniform, named once for the bind-group code and checked against the WGSL by
 //! `tests/bindings.rs`.
 
-use crate::engines::gpu_step::{self, physics};
+use crate::engines::gpu_step::{self, granular, physics};
 use crate::gpu::pair_output;
 use crate::gpu::shader::{Binding, SharedStruct, Vec3f, WgslModule, shared_struct, wgsl};
 
@@ -111,18 +111,27 @@ pub(crate) mod rq_pairs {
 }
 
 /// The DEM step's proxy boxes and contact resolution (`wgsl/dem_rq.wgsl`), followed by the
-/// shared physics ([`physics`]).
+/// shared physics ([`physics`]), in two variants: the paper's law (`wgsl/dem_rq_frictionless.wgsl`)
+/// and the granular step (`wgsl/dem_rq_granular.wgsl`, [`granular`]).
 pub(crate) mod dem_rq {
-    use super::{Binding, SharedStruct, physics, shared_struct, wgsl};
+    use super::{Binding, SharedStruct, granular, physics, shared_struct, wgsl};
+    use crate::engines::gpu_step::Accumulators;
 
-    const RQ: &str = wgsl!("dem_rq.wgsl", "rq_walk.wgsl");
+    const FRICTIONLESS: &str = wgsl!("dem_rq.wgsl", "dem_rq_frictionless.wgsl", "rq_walk.wgsl");
+    const GRANULAR: &str = wgsl!("dem_rq.wgsl", "dem_rq_granular.wgsl", "rq_walk.wgsl");
     const PROXY: &str = wgsl!("proxy.wgsl");
 
-    /// The module with the force accumulation `force` (one of [`physics::FORCE_VARIANTS`]).
-    pub fn source(force: &str) -> String {
-        format!("{RQ}{}{force}{PROXY}", physics::SOURCE)
+    /// The paper's step with the accumulators `atomics` (one of [`physics::FORCE_VARIANTS`]).
+    pub fn source(atomics: Accumulators) -> String {
+        format!("{FRICTIONLESS}{}{PROXY}", physics::frictionless(atomics))
     }
 
+    /// The granular step with the accumulators `atomics`.
+    pub fn granular_source(atomics: Accumulators) -> String {
+        format!("{GRANULAR}{}{PROXY}", physics::granular(atomics))
+    }
+
+    /// The entry points of both variants.
     pub const ENTRY_POINTS: &[&str] = &["proxy_boxes", "resolve", "integrate"];
 
     pub const RQ_PARAMS: Binding = Binding::uniform(0, "rq");
@@ -130,11 +139,19 @@ pub(crate) mod dem_rq {
     pub const TLAS: Binding = Binding::acceleration_structure(6, "tlas");
     pub const COUNTERS: Binding = Binding::read_write(14, "counters");
 
-    /// Every binding, the physics' included.
+    /// Every binding of the paper's step, the physics' included.
     pub fn bindings() -> Vec<Binding> {
         [RQ_PARAMS, BOXES, TLAS, COUNTERS]
             .into_iter()
             .chain(physics::BINDINGS.iter().copied())
+            .collect()
+    }
+
+    /// Every binding of the granular step.
+    pub fn granular_bindings() -> Vec<Binding> {
+        bindings()
+            .into_iter()
+            .chain(granular::BINDINGS.iter().copied())
             .collect()
     }
 
@@ -182,14 +199,26 @@ pub fn modules() -> Vec<WgslModule> {
             vec![rq_pairs::pair_params()],
         ),
     ];
-    for (name, force) in physics::FORCE_VARIANTS {
-        all.push(WgslModule::new(
-            format!("dem_rq_{name}"),
-            dem_rq::source(force),
-            dem_rq::ENTRY_POINTS,
-            &dem_rq::bindings(),
-            vec![dem_rq::rq_params(), gpu_step::dem_params()],
-        ));
+    for (name, atomics) in physics::FORCE_VARIANTS {
+        all.push(WgslModule {
+            label: format!("dem_rq_{name}"),
+            source: dem_rq::source(atomics),
+            entry_points: dem_rq::ENTRY_POINTS,
+            bindings: dem_rq::bindings(),
+            structs: vec![dem_rq::rq_params(), gpu_step::dem_params()],
+        });
+        all.push(WgslModule {
+            label: format!("dem_rq_granular_{name}"),
+            source: dem_rq::granular_source(atomics),
+            entry_points: dem_rq::ENTRY_POINTS,
+            bindings: dem_rq::granular_bindings(),
+            structs: vec![
+                dem_rq::rq_params(),
+                gpu_step::dem_params(),
+                granular::granular_params(),
+                granular::history_row(),
+            ],
+        });
     }
     all
 }

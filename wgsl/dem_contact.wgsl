@@ -1,0 +1,257 @@
+// The contact law of the granular GPU step (docs/method.md, "Contact laws", "Friction, rotation
+// and rolling resistance"): linear (one stiffness or per pair) or Hertz normal force, tangential
+// spring with Coulomb cap, torque, rolling resistance (EPSD or constant torque). Keep in sync with
+// src/dem/model/contact.rs, line for line: the same formulas in the same order, in f32. Needs
+// dem_params.wgsl prepended. Unlike the cpu step, which computes a pair from both sides, the GPU
+// steps compute it once, from its owner's side, and give the partner the negated force and its
+// own torque (what the cpu computes from the partner's side: its operations see exactly negated
+// inputs).
+
+// Twin of GranularParams in src/engines/gpu_step.rs (tests/bindings.rs compares the layouts).
+struct GranularParams {
+    law: u32,             // LAW_*
+    rate: f32,            // k/m* of LAW_PER_PAIR [1/s²]
+    pair_e_star: f32,     // E* and G* of two spheres (LAW_HERTZ) [Pa]
+    pair_g_star: f32,
+    wall_e_star: f32,     // and of a sphere on a wall
+    wall_g_star: f32,
+    sliding: f32,         // μ between spheres
+    wall_sliding: f32,    // μ with the walls
+    rolling: f32,         // μ_r
+    rolling_model: u32,   // ROLLING_*
+    turns: u32,           // 1 where any contact exerts a torque
+    slots: u32,           // history slots per sphere (0: contacts keep no springs)
+}
+
+@group(0) @binding(17) var<uniform> granular: GranularParams;
+
+const LAW_LINEAR: u32 = 0u;
+const LAW_PER_PAIR: u32 = 1u;
+const LAW_HERTZ: u32 = 2u;
+const ROLLING_EPSD: u32 = 0u;
+const ROLLING_CONSTANT_TORQUE: u32 = 1u;
+
+// 2·√(5/6): Tsuji's damping coefficient over ζ·√(S·m*).
+const TSUJI: f32 = 1.8257419;
+
+// A sphere as its contacts see it.
+struct Body {
+    c: vec3<f32>,
+    v: vec3<f32>,
+    w: vec3<f32>,   // angular velocity
+    r: f32,
+    m: f32,
+}
+
+// What a contact carries from one step to the next, as the sphere holding it sees it.
+struct Springs {
+    tangential: vec3<f32>,
+    rolling: vec3<f32>,
+}
+
+// The normal force's magnitude (positive pushes apart) and the normal stiffness.
+struct Normal {
+    push: f32,
+    stiffness: f32,
+}
+
+// A touching contact from its owner i's side, as friction needs it.
+struct Touch {
+    n: vec3<f32>,       // unit normal from i towards its partner
+    overlap: f32,
+    normal: Normal,
+    m_eff: f32,
+    r_eff: f32,
+    i_eff: f32,         // I_i·I_j/(I_i + I_j) (I_i on a wall)
+    lever: f32,         // distance from i's centre to the contact point
+    v_rel: vec3<f32>,   // velocity of i's surface relative to the partner's at the contact point
+    w_rel: vec3<f32>,   // ω_i − ω_j (ω_i on a wall)
+    on_wall: bool,
+}
+
+// What friction does: the tangential force on i, the rolling torque on i (the partner gets
+// its negative) and the springs i keeps.
+struct Friction {
+    force: vec3<f32>,
+    rolling: vec3<f32>,
+    springs: Springs,
+}
+
+// What one contact does: the force on i (its partner gets the negative), the torques on i and
+// on its partner j, the springs i keeps; `touching` false for no contact (all else zero).
+struct Contact {
+    touching: bool,
+    force: vec3<f32>,
+    torque_i: vec3<f32>,
+    torque_j: vec3<f32>,
+    springs: Springs,
+}
+
+fn moment_of_inertia(m: f32, r: f32) -> f32 {
+    return 0.4 * m * r * r;
+}
+
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+
+// The normal force of a contact with overlap `overlap` > 0 and normal relative velocity `vn`.
+fn normal_force(on_wall: bool, overlap: f32, vn: f32, m_eff: f32, r_eff: f32) -> Normal {
+    if granular.law == LAW_LINEAR {
+        let c = 2.0 * dem.damping_ratio * sqrt(dem.stiffness * m_eff);
+        return Normal(dem.stiffness * overlap - c * vn, dem.stiffness);
+    }
+    if granular.law == LAW_PER_PAIR {
+        let k = m_eff * granular.rate;
+        let c = 2.0 * dem.damping_ratio * sqrt(k * m_eff);
+        return Normal(k * overlap - c * vn, k);
+    }
+    let e_star = select(granular.pair_e_star, granular.wall_e_star, on_wall);
+    let s_n = 2.0 * e_star * sqrt(r_eff * overlap);
+    let c = TSUJI * dem.damping_ratio * sqrt(s_n * m_eff);
+    return Normal(2.0 / 3.0 * s_n * overlap - c * vn, s_n);
+}
+
+// `x` turned into the plane normal to `n`: its normal part removed, its length kept.
+fn into_plane(x: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let t = x - dot3(x, n) * n;
+    let len2 = dot3(t, t);
+    if len2 > 0.0 {
+        return t * (sqrt(dot3(x, x)) / sqrt(len2));
+    }
+    return t;
+}
+
+// Tangential force with sliding coefficient `mu`, rolling torque and the springs to keep.
+fn friction(t: Touch, mu: f32, old: Springs) -> Friction {
+    let n = t.n;
+    let pressing = max(t.normal.push, 0.0);
+    var out = Friction(vec3(0.0), vec3(0.0), Springs(vec3(0.0), vec3(0.0)));
+    if mu > 0.0 {
+        var k_t: f32;
+        var c_t: f32;
+        if granular.law == LAW_HERTZ {
+            let g_star = select(granular.pair_g_star, granular.wall_g_star, t.on_wall);
+            k_t = 8.0 * g_star * sqrt(t.r_eff * t.overlap);
+            c_t = TSUJI * dem.damping_ratio * sqrt(k_t * t.m_eff);
+        } else {
+            k_t = 2.0 / 7.0 * t.normal.stiffness;
+            c_t = 2.0 * dem.damping_ratio * sqrt(k_t * t.m_eff);
+        }
+        let v_t = t.v_rel - dot3(t.v_rel, n) * n;
+        var xi = into_plane(old.tangential, n) + v_t * dem.dt;
+        var f_t = -k_t * xi - c_t * v_t;
+        let cap = mu * pressing;
+        let f2 = dot3(f_t, f_t);
+        if f2 > cap * cap {
+            f_t *= cap / sqrt(f2);
+            xi = -f_t / k_t;
+        }
+        out.force = f_t;
+        out.springs.tangential = xi;
+    }
+    let mu_r = granular.rolling;
+    if mu_r > 0.0 {
+        let w_roll = t.w_rel - dot3(t.w_rel, n) * n;
+        let cap = mu_r * t.r_eff * pressing;
+        if granular.rolling_model == ROLLING_EPSD {
+            let k_r = 2.25 * t.normal.stiffness * mu_r * mu_r * t.r_eff * t.r_eff;
+            var m = into_plane(old.rolling, n) - k_r * dem.dt * w_roll;
+            let m2 = dot3(m, m);
+            if m2 > cap * cap {
+                m *= cap / sqrt(m2);
+            }
+            out.springs.rolling = m;
+            out.rolling = m;
+        } else {
+            let speed = sqrt(dot3(w_roll, w_roll));
+            if speed > 0.0 {
+                // Never more than stops the relative rolling within the step.
+                let size = min(cap, t.i_eff * speed / dem.dt);
+                out.rolling = w_roll * (-size / speed);
+            }
+        }
+    }
+    return out;
+}
+
+// The contact of sphere i with sphere j from i's side, given the springs i kept of it (`old`).
+fn pair_contact(i: Body, j: Body, old: Springs) -> Contact {
+    var out = Contact(false, vec3(0.0), vec3(0.0), vec3(0.0), Springs(vec3(0.0), vec3(0.0)));
+    let d = j.c - i.c;
+    let d2 = d.x * d.x + d.y * d.y + d.z * d.z;
+    let reach = i.r + j.r;
+    if d2 > reach * reach || d2 == 0.0 {
+        return out;
+    }
+    let dist = sqrt(d2);
+    let n = d / dist;
+    let overlap = reach - dist;
+    let vn = dot3(j.v - i.v, n);
+    let m_eff = i.m * j.m / (i.m + j.m);
+    let r_eff = i.r * j.r / (i.r + j.r);
+    let normal = normal_force(false, overlap, vn, m_eff, r_eff);
+    out.touching = true;
+    out.force = -normal.push * n;
+    if granular.turns == 0u {
+        return out;
+    }
+    let inertia_i = moment_of_inertia(i.m, i.r);
+    let inertia_j = moment_of_inertia(j.m, j.r);
+    let touch = Touch(
+        n,
+        overlap,
+        normal,
+        m_eff,
+        r_eff,
+        inertia_i * inertia_j / (inertia_i + inertia_j),
+        i.r,
+        (i.v + cross(i.w, i.r * n)) - (j.v - cross(j.w, j.r * n)),
+        i.w - j.w,
+        false,
+    );
+    let f = friction(touch, granular.sliding, old);
+    out.force += f.force;
+    out.torque_i = cross(i.r * n, f.force) + f.rolling;
+    // From j's side: lever r_j along −n, force −F_t, rolling torque −M.
+    out.torque_j = cross(j.r * n, f.force) - f.rolling;
+    out.springs = f.springs;
+    return out;
+}
+
+// What one wall does to the sphere touching it.
+struct WallContact {
+    push: f32,          // the normal force's magnitude (positive pushes b off the wall)
+    tangential: vec3<f32>,
+    torque: vec3<f32>,
+    springs: Springs,
+}
+
+// Wall `wall` (2·axis + side, side 0 the low wall) touching b with overlap `overlap` > 0 and
+// normal relative velocity `vn`; friction only where spheres turn.
+fn wall_contact(b: Body, wall: u32, overlap: f32, vn: f32, old: Springs) -> WallContact {
+    let nf = normal_force(true, overlap, vn, b.m, b.r);
+    var out = WallContact(nf.push, vec3(0.0), vec3(0.0), Springs(vec3(0.0), vec3(0.0)));
+    if granular.turns == 0u {
+        return out;
+    }
+    var n = vec3(0.0);
+    n[wall / 2u] = select(-1.0, 1.0, (wall & 1u) == 1u);
+    let touch = Touch(
+        n,
+        overlap,
+        nf,
+        b.m,
+        b.r,
+        moment_of_inertia(b.m, b.r),
+        b.r,
+        b.v + cross(b.w, b.r * n),
+        b.w,
+        true,
+    );
+    let f = friction(touch, granular.wall_sliding, old);
+    out.tangential = f.force;
+    out.torque = cross(b.r * n, f.force) + f.rolling;
+    out.springs = f.springs;
+    return out;
+}

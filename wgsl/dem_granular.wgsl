@@ -1,0 +1,194 @@
+// The granular GPU step's state beyond the paper's (docs/method.md, "Contact history"): angular
+// velocities, torque accumulators (dem_torque_*.wgsl), the contact history, the owner's walk of
+// its contacts and the integration kernel. Needs dem_params.wgsl and dem_contact.wgsl, a
+// dem_force_*.wgsl and a dem_torque_*.wgsl; the including shader defines
+//   fn stable_id(p: u32) -> u32    the input index of the sphere at state index p
+//
+// History: K = granular.slots slots per sphere, indexed by stable id (a re-sort never moves
+// them), in two buffers that swap roles every step (old: read, new: written). A pair is resolved
+// once, by its owner (the sphere whose thread finds it); the owner looks the pair up in its own
+// old slots, then in the partner's (whose springs are the negatives: the owner of a pair changes
+// when the order or the proxy rule's case changes, and an uploaded history holds both sides), and
+// writes it to its own new slots. Only the owner writes its slots: no atomics. Every contact is
+// counted, also those that do not fit, and history_need keeps the most any sphere needed: the
+// host grows K and redoes the steps when it exceeds K.
+
+// Twin of HistoryRow in src/engines/gpu_step.rs and of mochi::particles::HistoryEntry.
+struct HistoryEntry {
+    partner: u32,                  // stable id of the partner, or FIRST_WALL + wall
+    tangential: array<f32, 3>,     // tangential spring ξ [m]
+    rolling: array<f32, 3>,        // rolling spring torque [N·m]
+}
+
+// Partner ids from here on name the walls (src/particles/history.rs).
+const FIRST_WALL: u32 = 0xfffffffau;
+
+// by stable id
+@group(0) @binding(18) var<storage, read_write> omega: array<vec4<f32>>;   // ωx, ωy, ωz, 0
+@group(0) @binding(20) var<storage, read> history_old: array<HistoryEntry>;
+@group(0) @binding(21) var<storage, read> held_old: array<u32>;
+@group(0) @binding(22) var<storage, read_write> history_new: array<HistoryEntry>;
+@group(0) @binding(23) var<storage, read_write> held_new: array<u32>;
+// The most contacts with history any sphere had since the host cleared it.
+@group(0) @binding(24) var<storage, read_write> history_need: atomic<u32>;
+
+// Sphere p resolving its contacts.
+struct Walker {
+    p: u32,              // state index
+    s: vec4<f32>,        // centre, radius
+    a: u32,              // stable id
+    me: Body,
+    force: vec3<f32>,
+    torque: vec3<f32>,
+    touching: u32,       // touching spheres it resolved
+    held: u32,           // contacts with history (spheres it owns and walls)
+}
+
+fn walker(p: u32) -> Walker {
+    let a = stable_id(p);
+    let s = pos[p];
+    let v = vel[p];
+    let me = Body(s.xyz, v.xyz, omega[a].xyz, s.w, v.w);
+    return Walker(p, s, a, me, vec3(0.0), vec3(0.0), 0u, 0u);
+}
+
+fn springs_of(e: HistoryEntry, sign: f32) -> Springs {
+    return Springs(
+        sign * vec3(e.tangential[0], e.tangential[1], e.tangential[2]),
+        sign * vec3(e.rolling[0], e.rolling[1], e.rolling[2]),
+    );
+}
+
+// The springs sphere a kept of its contact with `partner` (a sphere's stable id or a wall),
+// from a's old slots, else from the partner's (negated); zero for a new contact.
+fn old_springs(a: u32, partner: u32) -> Springs {
+    let k = granular.slots;
+    for (var s = 0u; s < held_old[a]; s += 1u) {
+        let e = history_old[a * k + s];
+        if e.partner == partner {
+            return springs_of(e, 1.0);
+        }
+    }
+    if partner < FIRST_WALL {
+        for (var s = 0u; s < held_old[partner]; s += 1u) {
+            let e = history_old[partner * k + s];
+            if e.partner == a {
+                return springs_of(e, -1.0);
+            }
+        }
+    }
+    return Springs(vec3(0.0), vec3(0.0));
+}
+
+// Keeps the contact with `partner` in the walker's next slot, where there is one; counts it.
+fn keep_springs(w: ptr<function, Walker>, partner: u32, s: Springs) {
+    let k = granular.slots;
+    if (*w).held < k {
+        history_new[(*w).a * k + (*w).held] = HistoryEntry(
+            partner,
+            array(s.tangential.x, s.tangential.y, s.tangential.z),
+            array(s.rolling.x, s.rolling.y, s.rolling.z),
+        );
+    }
+    (*w).held += 1u;
+}
+
+// Resolves the walker's sphere against sphere q (state index; stable id b; t = its centre and
+// radius): adds q's force and torque there and the walker's to the walker.
+fn meet(w: ptr<function, Walker>, q: u32, b: u32, t: vec4<f32>) {
+    // Cheap rejection first: most candidates do not touch.
+    let d = t.xyz - (*w).s.xyz;
+    let reach = (*w).s.w + t.w;
+    if d.x * d.x + d.y * d.y + d.z * d.z > reach * reach {
+        return;
+    }
+    let u = vel[q];
+    let other = Body(t.xyz, u.xyz, omega[b].xyz, t.w, u.w);
+    var old = Springs(vec3(0.0), vec3(0.0));
+    if granular.slots > 0u {
+        old = old_springs((*w).a, b);
+    }
+    let c = pair_contact((*w).me, other, old);
+    if !c.touching {
+        return;
+    }
+    add_force(q, -c.force);
+    (*w).force += c.force;
+    (*w).touching += 1u;
+    if granular.turns != 0u {
+        add_torque(b, c.torque_j);
+        (*w).torque += c.torque_i;
+    }
+    if granular.slots > 0u {
+        keep_springs(w, b, c.springs);
+    }
+}
+
+// The walls touching the walker's sphere (each axis low wall first, as the cpu step), then its
+// force and torque into the accumulators and its history count.
+fn finish(w: ptr<function, Walker>) {
+    let b = (*w).me;
+    var normal = vec3(0.0);
+    var tangential = vec3(0.0);
+    var torque = vec3(0.0);
+    for (var axis = 0u; axis < 3u; axis += 1u) {
+        var f = 0.0;
+        let below = b.r - (b.c[axis] - dem.box_lo[axis]);
+        let above = b.r - (dem.box_hi[axis] - b.c[axis]);
+        for (var side = 0u; side < 2u; side += 1u) {
+            let overlap = select(below, above, side == 1u);
+            if overlap <= 0.0 {
+                continue;
+            }
+            let wall = 2u * axis + side;
+            var old = Springs(vec3(0.0), vec3(0.0));
+            if granular.slots > 0u {
+                old = old_springs((*w).a, FIRST_WALL + wall);
+            }
+            let vn = select(b.v[axis], -b.v[axis], side == 1u);
+            let c = wall_contact(b, wall, overlap, vn, old);
+            f += select(c.push, -c.push, side == 1u);
+            tangential += c.tangential;
+            torque += c.torque;
+            if granular.slots > 0u {
+                keep_springs(w, FIRST_WALL + wall, c.springs);
+            }
+        }
+        normal[axis] = f;
+    }
+    (*w).force += normal;
+    (*w).force += tangential;
+    (*w).torque += torque;
+    add_force((*w).p, (*w).force);
+    if granular.turns != 0u {
+        add_torque((*w).a, (*w).torque);
+    }
+    if granular.slots > 0u {
+        held_new[(*w).a] = min((*w).held, granular.slots);
+        atomicMax(&history_need, (*w).held);
+    }
+}
+
+// Gravity and one semi-implicit Euler step of positions and angular velocities, in place (the
+// walls' forces are in the accumulators already); zeroes the torque accumulators.
+@compute @workgroup_size(256)
+fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x + gid.y * dem.row;
+    if p >= dem.n {
+        return;
+    }
+    let s = pos[p];
+    let v = vel[p];
+    let f = load_force(p);
+    let g = gravity_at(atomicLoad(&clock) - 1u);
+    let m = v.w;
+    let v_new = v.xyz + dem.dt * (f / m + g);
+    vel[p] = vec4(v_new, m);
+    pos[p] = vec4(s.xyz + dem.dt * v_new, s.w);
+    if granular.turns != 0u {
+        let a = stable_id(p);
+        let inertia = moment_of_inertia(m, s.w);
+        omega[a] = vec4(omega[a].xyz + dem.dt * (load_torque(a) / inertia), 0.0);
+        clear_torque(a);
+    }
+}

@@ -1,0 +1,37 @@
+// The resolve kernel of the wgpu-compute DEM step with the granular contact law
+// (dem_contact.wgsl, dem_granular.wgsl): part of the module dem_grid.wgsl describes. The stencil
+// walk finds every pair once, by the thread of its owner p; the walls are resolved by each
+// sphere's own thread in the same pass (they keep history in its slots).
+
+fn stable_id(p: u32) -> u32 {
+    return ids[p];
+}
+
+fn walk_sphere(q: u32) -> vec4<f32> {
+    return pos[q];
+}
+
+fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
+    meet(w, q, ids[q], t);
+}
+
+fn walked(w: ptr<function, Walker>, n: u32) {}
+
+var<workgroup> group_contacts: atomic<u32>;
+
+@compute @workgroup_size(256)
+fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let p = index(gid);
+    var touching = 0u;
+    if p < params.n {
+        var w = walker(p);
+        stencil_walk(&w);
+        finish(&w);
+        touching = w.touching;
+    }
+    atomicAdd(&group_contacts, touching);
+    workgroupBarrier();
+    if lid == 0u {
+        atomicAdd(&counters[0], atomicLoad(&group_contacts));
+    }
+}
