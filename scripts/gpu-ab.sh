@@ -24,7 +24,7 @@ for round in $(seq "$rounds"); do
             for scene in slab polylog; do
                 echo "== round $round $b detect $scene"
                 "$m" detect --scene "$scene" -n 1000000 --layout random --backend wgpu-compute \
-                    --repeat 30 -o "$out/pairs-$b-$scene.csv" 2>&1 | grep -o "build .*median[^)]*)"
+                    --repeat 30 -o "$out/pairs-$b-$scene.csv" 2>&1 | grep -oE "GPU time: [^|]*"
             done
         fi
         if want dem; then

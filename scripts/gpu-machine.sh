@@ -28,6 +28,8 @@ for l in sys.stdin:
     strip .bin/* 2>/dev/null || true
     echo "built into .bin/ ($(du -sh .bin | cut -f1)); the build root was $PWD"
     echo "$PWD" > .bin/build-root
+    # The test binaries name the mochi binary under the target folder they were built in.
+    realpath "${CARGO_TARGET_DIR:-target}" > .bin/target-dir
     ;;
 run)
     shift
@@ -42,8 +44,9 @@ run)
         mkdir -p "$(dirname "$root")"
         ln -s "$PWD" "$root"
     fi
-    mkdir -p target/release
-    cp .bin/mochi target/release/mochi
+    target=$(cat .bin/target-dir 2>/dev/null || echo "$root/target")
+    mkdir -p "$target/release"
+    cp .bin/mochi "$target/release/mochi"
     # Not CI=true: that expects wgpu-rq, which needs ray queries (lavapipe has them, the H100 not).
     export MOCHI_EXPECT_OPTIX=1
     nvrtc=$(python3 -c 'import nvidia.cuda_nvrtc, os; print(os.path.dirname(nvidia.cuda_nvrtc.__file__))' 2>/dev/null || true)
