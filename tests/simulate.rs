@@ -211,9 +211,13 @@ fn a_csv_frame_restarts_a_run_with_its_velocities() {
     first.extend(["--steps", "40", "--frame-every", "40", "-o", "a"]);
     ok(&first, dir.path());
     let frame = dir.path().join("a/frame_00000040.csv");
-    let (spheres, velocities) = mochi::io::read_particles(&frame).unwrap();
-    let velocities = velocities.expect("frame CSVs carry velocities");
-    assert_eq!(spheres.len(), 1500);
+    let particles = mochi::io::read_particles(&frame).unwrap();
+    let velocities = particles.velocities.clone();
+    assert!(
+        velocities.iter().any(|v| *v != [0.0; 3]),
+        "frame CSVs carry velocities"
+    );
+    assert_eq!(particles.len(), 1500);
     // Same box as the slab (the file's own bounds would be the default).
     ok(
         &[

@@ -186,8 +186,8 @@ pub struct SimulateArgs {
     /// Time step [s] (default: the scene's).
     #[arg(long)]
     pub dt: Option<f64>,
-    /// Start from a sphere file (CSV x,y,z,r or .npy N×4, optionally with vx,vy,vz: a frame
-    /// CSV restarts a run) instead of a generated scene.
+    /// Start from a sphere file (CSV x,y,z,r or .npy N×4, optionally with vx,vy,vz and then
+    /// wx,wy,wz, N×7 or N×10: a frame CSV restarts a run) instead of a generated scene.
     #[arg(long, conflicts_with_all = ["scene", "spheres", "seed", "mesh"])]
     pub input: Option<PathBuf>,
     /// Fill this mesh (OBJ, PLY or STL) with spheres and drop it (scene `mesh`; see the
@@ -197,7 +197,7 @@ pub struct SimulateArgs {
     /// Write a frame every M steps (0: none).
     #[arg(long, value_name = "M", value_parser = toml_integer())]
     pub frame_every: Option<u64>,
-    /// Also write every frame as CSV (x,y,z,r,vx,vy,vz).
+    /// Also write every frame as CSV (x,y,z,r,vx,vy,vz,wx,wy,wz).
     #[arg(long)]
     pub csv: bool,
     /// Ray trace a PNG picture (OUT/frame_<step>.png) every M steps (0: none); see the

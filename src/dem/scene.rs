@@ -632,11 +632,7 @@ impl SceneConfig {
                     what: "scene \"input\"".into(),
                     reason: "needs input = \"FILE\" (--input)".into(),
                 })?;
-                let (spheres, velocities) = crate::io::read_particles(input)?;
-                let mut particles = Particles::at_rest(&spheres)?;
-                if let Some(v) = velocities {
-                    particles.velocities = v;
-                }
+                let particles = crate::io::read_particles(input)?;
                 return Self::inside_the_box(self.start_from(particles)?, 0.0);
             }
         };
