@@ -43,7 +43,8 @@ fn fails(args: &[&str], dir: &Path) -> String {
     stderr
 }
 
-const SMALL: [&str; 9] = [
+/// The paper's slab with its law (`linear`, frictionless), which every backend runs.
+const SMALL: [&str; 11] = [
     "simulate",
     "--scene",
     "slab",
@@ -53,6 +54,8 @@ const SMALL: [&str; 9] = [
     "cpu",
     "--quiet",
     "--csv",
+    "--set",
+    "contact=linear",
 ];
 
 #[test]
@@ -225,6 +228,8 @@ fn a_csv_frame_restarts_a_run_with_its_velocities() {
             "--input",
             "a/frame_00000040.csv",
             "--set",
+            "contact=linear",
+            "--set",
             "box_lo=[0,0,0]",
             "--set",
             "box_hi=[1,1,1]",
@@ -353,6 +358,8 @@ fn named_options_set_the_scene_and_set_overrides_them() {
         "1",
         "--set",
         "spheres=100",
+        "--set",
+        "contact=linear",
         "--backend",
         "cpu",
         "-q",
@@ -392,6 +399,8 @@ fn bad_scenes_give_clear_errors() {
             "simulate",
             "-n",
             "100",
+            "--set",
+            "contact=linear",
             "--set",
             "stiffness=1e9",
             "--steps",
@@ -538,6 +547,8 @@ fn absurd_parameters_are_refused_up_front_with_the_reason() {
             "simulate",
             "-n",
             "100",
+            "--set",
+            "contact=linear",
             "--steps",
             "20",
             "--backend",
@@ -686,12 +697,15 @@ fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
     files
 }
 
-/// A short run of 300 spheres into `out` with frames every 10 steps (as CSV too).
+/// A short run of 300 spheres of the paper's slab (`linear`) into `out` with frames every 10
+/// steps (as CSV too).
 fn short_run(out: &str, extra: &[&str]) -> Vec<String> {
     let mut args = vec![
         "simulate",
         "--scene",
         "slab",
+        "--set",
+        "contact=linear",
         "-n",
         "300",
         "--steps",

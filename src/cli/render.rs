@@ -14,6 +14,10 @@ use std::path::{Path, PathBuf};
 /// GIF frame delay [1/100 s].
 const GIF_DELAY_CS: u16 = 10;
 
+/// `--fit auto` frames the spheres rather than the box where their bounds' diagonal is less
+/// than this share of the box's.
+const AUTO_FIT_SHARE: f64 = 0.5;
+
 /// Draws frames one after another with one renderer and one set of options.
 pub struct FrameRenderer {
     renderer: Renderer,
@@ -35,8 +39,10 @@ struct View {
     fov: f64,
     samples: u32,
     shadows: bool,
-    /// The simulation box, when known and the camera frames it.
+    /// The simulation box, when known and the camera may frame it.
     frame_box: Option<([f64; 3], [f64; 3])>,
+    /// Whether the camera frames the spheres instead where they fill little of the box.
+    fit_auto: bool,
     /// The box whose bottom is drawn as the floor.
     floor: Option<([f64; 3], [f64; 3])>,
 }
@@ -44,7 +50,14 @@ struct View {
 impl View {
     /// The picture of a frame whose spheres lie in `bounds`.
     fn picture(&self, bounds: ([f64; 3], [f64; 3])) -> Picture {
-        let (lo, hi) = self.frame_box.unwrap_or(bounds);
+        let diagonal = |(lo, hi): ([f64; 3], [f64; 3])| {
+            (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
+        };
+        let (lo, hi) = match self.frame_box {
+            Some(b) if self.fit_auto && diagonal(bounds) < AUTO_FIT_SHARE * diagonal(b) => bounds,
+            Some(b) => b,
+            None => bounds,
+        };
         let aspect = self.size.0 as f64 / self.size.1 as f64;
         let mut camera = Camera::framing(lo, hi, aspect, self.fov);
         if let Some(look_at) = self.look_at {
@@ -86,7 +99,8 @@ impl FrameRenderer {
             fov: args.fov,
             samples: args.samples,
             shadows: !args.no_shadows,
-            frame_box: sim_box.filter(|_| args.fit == Fit::Box),
+            frame_box: sim_box.filter(|_| args.fit != Fit::Spheres),
+            fit_auto: args.fit == Fit::Auto,
             floor: sim_box.filter(|_| !args.no_floor),
         };
         // Catch a bad camera or sample count before any work.
