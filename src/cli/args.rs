@@ -74,8 +74,9 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = mochi::render::DEFAULT_FOV_DEG)]
     pub fov: f64,
     /// What the default camera frames: auto (the simulation box, from scene.toml next to the
-    /// frames, unless the spheres span less than half of its diagonal, as a heap on a wide
-    /// floor does: then the spheres), the box, or the spheres alone.
+    /// frames, unless most spheres, the 1st to 99th percentile of the centres on each axis,
+    /// span less than half of its diagonal, as a heap on a wide floor does: then those), the
+    /// box, or the spheres alone.
     #[arg(long, value_enum, default_value_t)]
     pub fit: Fit,
     /// Rays per pixel side (1-4): 2 gives 4 rays per pixel, smoother edges.
@@ -98,7 +99,8 @@ pub struct RenderArgs {
 /// What the default camera frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Fit {
-    /// The simulation box, or the spheres where they span less than half of its diagonal.
+    /// The simulation box, or most spheres (the 1st to 99th percentile of the centres on each
+    /// axis) where they span less than half of its diagonal.
     #[default]
     Auto,
     /// The simulation box.

@@ -14,9 +14,36 @@ use std::path::{Path, PathBuf};
 /// GIF frame delay [1/100 s].
 const GIF_DELAY_CS: u16 = 10;
 
-/// `--fit auto` frames the spheres rather than the box where their bounds' diagonal is less
-/// than this share of the box's.
+/// `--fit auto` frames the spheres rather than the box where the diagonal of their
+/// [`core_bounds`] is less than this share of the box's.
 const AUTO_FIT_SHARE: f64 = 0.5;
+
+/// Share of the centres, on each side of each axis, that [`core_bounds`] leaves out.
+const CORE_TAIL: f64 = 0.01;
+
+/// Lower and upper corners \[m\].
+type Bounds = ([f64; 3], [f64; 3]);
+
+/// Where most spheres are: on each axis, the centres from the 1st to the 99th percentile,
+/// widened by the largest radius (`None` for no spheres). A heap on a floor with a few spheres
+/// rolled far away is framed by its heap.
+fn core_bounds(positions: &[[f32; 3]], radii: &[f32]) -> Option<Bounds> {
+    let n = positions.len();
+    let r_max = radii.iter().copied().fold(0.0f32, f32::max) as f64;
+    let (lo_at, hi_at) = ((CORE_TAIL * n as f64) as usize, n.checked_sub(1)?);
+    let hi_at = hi_at - lo_at;
+    let mut bounds = ([0.0; 3], [0.0; 3]);
+    let mut axis: Vec<f32> = Vec::with_capacity(n);
+    for a in 0..3 {
+        axis.clear();
+        axis.extend(positions.iter().map(|c| c[a]));
+        let lo = *axis.select_nth_unstable_by(lo_at, f32::total_cmp).1;
+        let hi = *axis.select_nth_unstable_by(hi_at, f32::total_cmp).1;
+        bounds.0[a] = lo as f64 - r_max;
+        bounds.1[a] = hi as f64 + r_max;
+    }
+    Some(bounds)
+}
 
 /// Draws frames one after another with one renderer and one set of options.
 pub struct FrameRenderer {
@@ -48,13 +75,13 @@ struct View {
 }
 
 impl View {
-    /// The picture of a frame whose spheres lie in `bounds`.
-    fn picture(&self, bounds: ([f64; 3], [f64; 3])) -> Picture {
-        let diagonal = |(lo, hi): ([f64; 3], [f64; 3])| {
-            (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
-        };
+    /// The picture of a frame whose spheres lie in `bounds`, most of them in `core` (see
+    /// [`core_bounds`]).
+    fn picture(&self, bounds: Bounds, core: Bounds) -> Picture {
+        let diagonal =
+            |(lo, hi): Bounds| (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
         let (lo, hi) = match self.frame_box {
-            Some(b) if self.fit_auto && diagonal(bounds) < AUTO_FIT_SHARE * diagonal(b) => bounds,
+            Some(b) if self.fit_auto && diagonal(core) < AUTO_FIT_SHARE * diagonal(b) => core,
             Some(b) => b,
             None => bounds,
         };
@@ -104,7 +131,8 @@ impl FrameRenderer {
             floor: sim_box.filter(|_| !args.no_floor),
         };
         // Catch a bad camera or sample count before any work.
-        view.picture(([0.0; 3], [1.0; 3])).validate()?;
+        view.picture(([0.0; 3], [1.0; 3]), ([0.0; 3], [1.0; 3]))
+            .validate()?;
         if let Some(gif) = &args.gif
             && (view.size.0 > u16::MAX.into() || view.size.1 > u16::MAX.into())
         {
@@ -154,7 +182,8 @@ impl FrameRenderer {
         let range = self.range.unwrap_or_else(|| value_range(&values));
         let scene = Scene::new(frame.positions, frame.radii, &values, range)?;
         let bounds = scene.bounds().unwrap_or(([-1.0; 3], [1.0; 3]));
-        let picture = self.view.picture(bounds);
+        let core = core_bounds(frame.positions, frame.radii).unwrap_or(bounds);
+        let picture = self.view.picture(bounds, core);
         let mut image = self.renderer.render(&scene, &picture)?;
         if self.legend {
             image.draw_legend(&Legend {
