@@ -180,7 +180,8 @@ pub struct HistorySize {
 }
 
 impl HistorySize {
-    /// The size of `history`, held for `n` spheres.
+    /// What `history` holds, and its bytes per sphere in the layout of
+    /// [`ContactHistory`](crate::dem::ContactHistory) (an engine's own copy may differ).
     pub fn of(history: &crate::dem::ContactHistory) -> Self {
         let entry = std::mem::size_of::<crate::dem::HistoryEntry>();
         Self {

@@ -18,7 +18,7 @@
 //! (a third larger, and encoded), never as raw appended data; it wants every array copied into
 //! its own owned model first, serialises through serde and quick-xml, and by default pulls in
 //! three compression libraries. A frame needs only a fixed header and ten byte blocks, which
-//! this file writes straight from the caller's slices (45 MB for a million spheres), with no
+//! this file writes straight from the caller's slices (61 MB for a million spheres), with no
 //! copy of the state.
 //!
 //! Every file is written through [`write_atomically`]: a killed run leaves each frame and the
