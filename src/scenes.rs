@@ -1,4 +1,5 @@
-//! The paper's datasets (docs/method.md, "The paper's workloads"), generated from a seed: the same seed gives the same spheres.
+//! The paper's datasets (docs/method.md, "The paper's workloads") and the default DEM scene, `pour`,
+//! generated from a seed: the same seed gives the same spheres.
 //!
 //! Two layouts: `lattice` (the default) puts each sphere at a random place inside its own cell of
 //! a lattice, shrunk by its radius, so no two spheres overlap (a DEM start state); `random`
