@@ -31,7 +31,7 @@ for round in $(seq "$rounds"); do
             for scene in freefall polylog; do
                 echo "== round $round $b dem $scene"
                 "$m" simulate --scene "$scene" -n 1000000 --steps 1000 --backend wgpu-compute \
-                    --set frame_every=0 --overwrite -o "$out/sim-$b-$scene" 2>&1 | grep -A2 "per step" | tail -1
+                    --set frame_every=0 --set contact=linear --overwrite -o "$out/sim-$b-$scene" 2>&1 | grep -A2 "per step" | tail -1
             done
         fi
     done

@@ -13,8 +13,8 @@
 //! - [`Backend`]: the detection trait; [`engines`]: one engine per backend (detection and DEM
 //!   step over the same device state), the registry and `auto`; [`engines::cpu`] runs anywhere.
 //! - [`oracle`]: brute force, for tests.
-//! - [`io`]: sphere files (CSV `x,y,z,r[,vx,vy,vz]`, NumPy `.npy` N×4 or N×7), pair files (CSV
-//!   `i,j`), simulation frames (VTK `.vtu` + `.pvd`) and checkpoints.
+//! - [`io`]: sphere files (CSV `x,y,z,r[,vx,vy,vz[,wx,wy,wz]]`, NumPy `.npy` N×4, N×7 or
+//!   N×10), pair files (CSV `i,j`), simulation frames (VTK `.vtu` + `.pvd`) and checkpoints.
 //! - [`scenes`]: the paper's datasets, seeded and reproducible.
 //! - [`dem`]: the discrete-element simulation: the contact model, scene files and the
 //!   [`dem::Stepper`] trait each engine implements (GPU-resident on the GPU engines).

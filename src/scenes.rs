@@ -1,4 +1,5 @@
-//! The paper's datasets (docs/method.md, "The paper's workloads"), generated from a seed: the same seed gives the same spheres.
+//! The paper's datasets (docs/method.md, "The paper's workloads") and the default DEM scene, `pour`,
+//! generated from a seed: the same seed gives the same spheres.
 //!
 //! Two layouts: `lattice` (the default) puts each sphere at a random place inside its own cell of
 //! a lattice, shrunk by its radius, so no two spheres overlap (a DEM start state); `random`
@@ -34,7 +35,23 @@ pub enum Scene {
     /// layer a square lattice of spacing 2.1·its largest radius, the layers in random order)
     /// filling the lower part of a cube only about twice the volume of the pile they pour into.
     Polylog,
+    /// A polydisperse pour onto a floor (the default DEM scene): radii U[0.003, 0.006] in a
+    /// loose column of layers of like-sized spheres (as `polylog`'s, 2.1·the layer's largest
+    /// radius apart, in random order) standing on the middle of the floor, about half as tall
+    /// as it is wide; it collapses and spreads into a heap. The column's width grows with
+    /// n^(1/3) (0.2 m at 4,000 spheres) and the box is 4 times as wide.
+    Pour,
 }
+
+/// Width of the `pour` column at [`POUR_SPHERES`] spheres \[m\].
+const POUR_WIDTH: f64 = 0.2;
+/// The number of spheres the `pour` column is [`POUR_WIDTH`] wide for.
+const POUR_SPHERES: f64 = 4000.0;
+/// Side of the `pour` box over the column's width.
+const POUR_BOX: f64 = 4.0;
+
+/// Height of the underside of the `slab` lattice over the box's side.
+pub const SLAB_BASE: f64 = 0.1;
 
 /// Where the centres go.
 #[derive(
@@ -85,6 +102,7 @@ impl Scene {
         match self {
             Scene::Freefall | Scene::Slab | Scene::Poly1_2 => (0.0005, 0.0006),
             Scene::Poly12 => (0.0005, 0.006),
+            Scene::Pour => (0.003, 0.006),
             Scene::Poly120 | Scene::Polylog => (0.0005, 0.06),
         }
     }
@@ -94,6 +112,7 @@ impl Scene {
         match self {
             Scene::Freefall | Scene::Slab => 1.0,
             Scene::Poly1_2 | Scene::Poly12 | Scene::Poly120 => 16.0,
+            Scene::Pour => POUR_BOX * pour_width(n),
             Scene::Polylog => match layout {
                 Layout::Random => (n as f64 * self.mean_volume() / 0.6).cbrt(),
                 // Twice the volume of the spheres' own layer cells (2.1·r)³; for up to a
@@ -139,14 +158,25 @@ impl Scene {
     }
 }
 
-/// Lattice spacing of a `polylog` layer over its largest radius.
+/// Lattice spacing of a `polylog` or `pour` layer over its largest radius.
 const LAYER_SPACING: f64 = 2.1;
+
+/// Width of the `pour` column of `n` spheres \[m\]: [`POUR_WIDTH`] at [`POUR_SPHERES`], as
+/// n^(1/3), and at least four cells of the largest spheres.
+fn pour_width(n: usize) -> f64 {
+    let r_max = Scene::Pour.radius_range().1 as f64;
+    (POUR_WIDTH * (n as f64 / POUR_SPHERES).cbrt()).max(4.0 * LAYER_SPACING * r_max)
+}
 
 /// Generates the spheres of `spec`.
 pub fn generate(spec: &SceneSpec) -> Result<SphereSet> {
     check_count(spec.n)?;
-    if spec.scene == Scene::Polylog && spec.layout == Layout::Lattice {
-        return layered(spec);
+    if spec.layout == Layout::Lattice {
+        match spec.scene {
+            Scene::Polylog => return layered(spec, Scene::Polylog.box_side(spec.n, spec.layout)),
+            Scene::Pour => return layered(spec, pour_width(spec.n)),
+            _ => {}
+        }
     }
     let r_max = spec.scene.radius_range().1;
     let lattice = Lattice::plan(spec.scene, spec.n, spec.layout)?;
@@ -185,11 +215,12 @@ fn spheres_of(spec: &SceneSpec) -> String {
     format!("{} spheres of scene {}", spec.n, spec.scene.name())
 }
 
-/// `polylog`'s lattice layout: radii sorted, cut into layers that each fill a square lattice of
-/// spacing 2.1·(their largest radius) across the box, stacked from the floor in a seeded random
+/// The lattice layout of `polylog` and `pour`: radii sorted, cut into layers that each fill a
+/// square lattice of spacing 2.1·(their largest radius) across `width` (`polylog`: the box from
+/// its corner; `pour`: a column centred on the floor), stacked from the floor in a seeded random
 /// order, every sphere jittered inside its own cell. No two spheres overlap: within a layer cells
 /// are wider than the diameters, and layers are as far apart as their largest radii need.
-fn layered(spec: &SceneSpec) -> Result<SphereSet> {
+fn layered(spec: &SceneSpec, width: f64) -> Result<SphereSet> {
     let side = spec.scene.box_side(spec.n, Layout::Lattice);
     let mut rng = Pcg64::seed_from_u64(spec.seed);
     let mut radii: Vec<f32> = try_vec(spec.n, || spheres_of(spec))?;
@@ -200,7 +231,7 @@ fn layered(spec: &SceneSpec) -> Result<SphereSet> {
     let mut start = 0;
     while start < radii.len() {
         let spacing = LAYER_SPACING * radii[start] as f64;
-        let per_row = ((side / spacing) as usize).max(1);
+        let per_row = ((width / spacing) as usize).max(1);
         let end = (start + per_row * per_row).min(radii.len());
         layers.push(start..end);
         start = end;
@@ -220,18 +251,26 @@ fn layered(spec: &SceneSpec) -> Result<SphereSet> {
         z += below + top * 1.05;
         if z + top > side {
             return Err(Error::TooLarge {
-                what: "spheres in the polylog layers (the box is full)".into(),
+                what: format!(
+                    "spheres in the {} layers (the box is full)",
+                    spec.scene.name()
+                ),
                 got: spec.n as u64,
                 limit: centers.len() as u64,
             });
         }
-        let per_row = ((side / spacing) as usize).max(1);
+        let per_row = ((width / spacing) as usize).max(1);
+        // `pour` centres each layer on the floor; `polylog`'s fill the box from its corner.
+        let edge = match spec.scene {
+            Scene::Pour => (side - per_row as f64 * spacing) / 2.0,
+            _ => 0.0,
+        };
         for (k, &r) in radii[layer.clone()].iter().enumerate() {
             let room = (spacing / 2.0 - r as f64).max(0.0);
             let (ix, iy) = (k % per_row, k / per_row);
             let c = DVec3::new(
-                (ix as f64 + 0.5) * spacing + rng.random_range(-room..=room),
-                (iy as f64 + 0.5) * spacing + rng.random_range(-room..=room),
+                edge + (ix as f64 + 0.5) * spacing + rng.random_range(-room..=room),
+                edge + (iy as f64 + 0.5) * spacing + rng.random_range(-room..=room),
                 z,
             );
             centers.push(c.as_vec3().to_array());
@@ -272,7 +311,7 @@ impl Lattice {
             let width = per_row as f64 * spacing;
             let layers = n.div_ceil(per_row * per_row).max(1);
             let edge = (side - width) / 2.0;
-            let lo = DVec3::new(edge, edge, 0.1 * side);
+            let lo = DVec3::new(edge, edge, SLAB_BASE * side);
             let fit_layers = ((side - lo.z) / spacing) as usize;
             if layers > fit_layers {
                 return Err(Error::TooLarge {
@@ -349,6 +388,7 @@ mod tests {
             Scene::Poly12,
             Scene::Poly120,
             Scene::Polylog,
+            Scene::Pour,
         ] {
             let s = generate(&spec(scene, 3000, Layout::Lattice)).unwrap();
             assert_eq!(s.len(), 3000);
@@ -398,6 +438,31 @@ mod tests {
             .unwrap()
             .0;
         assert!(s.centers()[heaviest][2] > 2.0 * s.max_radius());
+    }
+
+    #[test]
+    fn the_pour_column_stands_on_the_middle_of_the_floor() {
+        let s = generate(&spec(Scene::Pour, 4000, Layout::Lattice)).unwrap();
+        let side = Scene::Pour.box_side(4000, Layout::Lattice);
+        assert!((side - 0.8).abs() < 1e-9, "{side}");
+        let (lo, hi) = s.bounds().unwrap();
+        for a in 0..2 {
+            let (from, to) = (lo[a] as f64, hi[a] as f64);
+            assert!(to - from <= POUR_WIDTH, "axis {a}: {from}..{to}");
+            assert!(
+                ((from + to) / 2.0 - side / 2.0).abs() < 0.01,
+                "axis {a} centred"
+            );
+        }
+        // On the floor, and about half as tall as wide.
+        let bottom = (0..s.len())
+            .map(|k| s.centers()[k][2] - s.radii()[k])
+            .fold(f32::INFINITY, f32::min);
+        assert!((0.0..0.001).contains(&bottom), "{bottom}");
+        assert!(
+            (0.3..0.7).contains(&((hi[2] as f64) / POUR_WIDTH)),
+            "{hi:?}"
+        );
     }
 
     #[test]

@@ -1178,6 +1178,8 @@ fn render_of_a_frame_with_a_nan_radius_names_the_file() {
             positions: &positions,
             radii: &[0.1, f32::NAN],
             velocities: &velocities,
+            angular_velocities: &velocities,
+            contacts: None,
         },
     )
     .unwrap();

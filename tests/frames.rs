@@ -4,6 +4,7 @@
 //! leaves no temporary file.
 
 use mochi::Error;
+use mochi::dem::{ContactHistory, FIRST_WALL, HistoryEntry};
 use mochi::io::{Frame, FrameSeries, SERIES_INDEX, SeriesEntry, write_frame_csv, write_vtu};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -18,6 +19,9 @@ struct Spheres {
     positions: Vec<[f32; 3]>,
     radii: Vec<f32>,
     velocities: Vec<[f32; 3]>,
+    angular_velocities: Vec<[f32; 3]>,
+    /// The contact history of a frictional run (`None`: a run without one).
+    history: Option<ContactHistory>,
 }
 
 impl Spheres {
@@ -55,12 +59,47 @@ impl Spheres {
         let velocities = (0..n)
             .map(|i| [value(i + 3), value(i), value(i + 4)])
             .collect();
+        let angular_velocities = (0..n)
+            .map(|i| [value(i + 2), value(i + 4), value(i + 1)])
+            .collect();
         let radii = (0..n).map(|i| value(i).abs().max(1e-6)).collect();
         Self {
             positions,
             radii,
             velocities,
+            angular_velocities,
+            history: None,
         }
+    }
+
+    /// `self` with a contact history: sphere i touches its successor (both keep the pair), and
+    /// every third sphere the floor.
+    fn with_history(mut self) -> Self {
+        let n = self.radii.len() as u32;
+        let entry = |partner| HistoryEntry {
+            partner,
+            ..HistoryEntry::default()
+        };
+        let mut contacts = Vec::new();
+        for i in 0..n {
+            if i + 1 < n {
+                contacts.push((i, entry(i + 1)));
+                contacts.push((i + 1, entry(i)));
+            }
+            if i % 3 == 0 {
+                contacts.push((i, entry(FIRST_WALL + 4)));
+            }
+        }
+        self.history = Some(ContactHistory::from_contacts(n as usize, &contacts).unwrap());
+        self
+    }
+
+    /// Contacts per sphere in [`Self::with_history`].
+    fn contact_counts(&self) -> Vec<i64> {
+        let n = self.radii.len();
+        (0..n)
+            .map(|i| (i > 0) as i64 + (i + 1 < n) as i64 + (i % 3 == 0) as i64)
+            .collect()
     }
 
     fn frame(&self, step: u64, time: f64) -> Frame<'_> {
@@ -70,6 +109,8 @@ impl Spheres {
             positions: &self.positions,
             radii: &self.radii,
             velocities: &self.velocities,
+            angular_velocities: &self.angular_velocities,
+            contacts: self.history.as_ref(),
         }
     }
 }
@@ -243,6 +284,18 @@ fn check_vtu(path: &Path, spheres: &Spheres, step: u64, time: f64) {
         .map(|&v| speed(v).to_bits())
         .collect();
     assert_eq!(a["speed"].f32_bits(), speeds);
+    assert_eq!(a["angular_velocity"].components, 3);
+    assert_eq!(
+        a["angular_velocity"].f32_bits(),
+        bits3(&spheres.angular_velocities)
+    );
+    match &spheres.history {
+        Some(_) => {
+            assert_eq!(a["contacts"].vtk_type, "UInt32");
+            assert_eq!(a["contacts"].integers(), spheres.contact_counts());
+        }
+        None => assert!(!a.contains_key("contacts"), "contacts without a history"),
+    }
     assert!(["Int32", "UInt32"].contains(&a["id"].vtk_type.as_str()));
     assert_eq!(a["id"].integers(), (0..n as i64).collect::<Vec<_>>());
 
@@ -312,6 +365,15 @@ fn vtu_holds_every_array_bit_exactly() {
 }
 
 #[test]
+fn vtu_holds_the_contact_count_of_each_sphere() {
+    let dir = TempDir::new().unwrap();
+    let spheres = Spheres::new(17, 9).with_history();
+    let path = dir.path().join("f.vtu");
+    write_vtu(&path, &spheres.frame(3, 0.5)).unwrap();
+    check_vtu(&path, &spheres, 3, 0.5);
+}
+
+#[test]
 fn an_empty_frame_is_a_valid_file() {
     let dir = TempDir::new().unwrap();
     let spheres = Spheres::new(0, 1);
@@ -320,7 +382,10 @@ fn an_empty_frame_is_a_valid_file() {
     check_vtu(&path, &spheres, 0, 0.0);
     let csv = dir.path().join("empty.csv");
     write_frame_csv(&csv, &spheres.frame(0, 0.0)).unwrap();
-    assert_eq!(std::fs::read_to_string(&csv).unwrap(), "x,y,z,r,vx,vy,vz\n");
+    assert_eq!(
+        std::fs::read_to_string(&csv).unwrap(),
+        "x,y,z,r,vx,vy,vz,wx,wy,wz\n"
+    );
 }
 
 #[test]
@@ -331,7 +396,7 @@ fn csv_rows_parse_back_to_the_same_floats() {
     write_frame_csv(&path, &spheres.frame(5, 1.5)).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("x,y,z,r,vx,vy,vz"));
+    assert_eq!(lines.next(), Some("x,y,z,r,vx,vy,vz,wx,wy,wz"));
     let rows: Vec<Vec<u32>> = lines
         .map(|l| {
             l.split(',')
@@ -343,7 +408,8 @@ fn csv_rows_parse_back_to_the_same_floats() {
     for (i, row) in rows.iter().enumerate() {
         let [x, y, z] = spheres.positions[i];
         let [vx, vy, vz] = spheres.velocities[i];
-        let want: Vec<u32> = [x, y, z, spheres.radii[i], vx, vy, vz]
+        let [wx, wy, wz] = spheres.angular_velocities[i];
+        let want: Vec<u32> = [x, y, z, spheres.radii[i], vx, vy, vz, wx, wy, wz]
             .iter()
             .map(|v| v.to_bits())
             .collect();
@@ -356,7 +422,16 @@ fn mismatched_lengths_and_bad_times_are_usage_errors_and_write_nothing() {
     let dir = TempDir::new().unwrap();
     let spheres = Spheres::new(4, 2);
     let short = &spheres.radii[..3];
+    let other = Spheres::new(5, 2).with_history();
     let frames = [
+        Frame {
+            angular_velocities: &spheres.angular_velocities[1..],
+            ..spheres.frame(1, 0.1)
+        },
+        Frame {
+            contacts: other.history.as_ref(),
+            ..spheres.frame(1, 0.1)
+        },
         Frame {
             radii: short,
             ..spheres.frame(1, 0.1)
@@ -610,4 +685,115 @@ fn a_million_sphere_frame_writes_fast() {
         "1M spheres CSV: {:.1} ms",
         start.elapsed().as_secs_f64() * 1e3
     );
+}
+
+// ----------------------------------------------------------------------------------------------
+// Sphere files with motion
+// ----------------------------------------------------------------------------------------------
+
+/// A `.npy` of `rows` (float32, C order), as NumPy writes it.
+fn write_npy(path: &Path, rows: &[Vec<f32>]) {
+    use npyz::WriterBuilder;
+    let columns = rows.first().map_or(4, Vec::len) as u64;
+    let file = std::fs::File::create(path).unwrap();
+    let mut npy = npyz::WriteOptions::new()
+        .default_dtype()
+        .shape(&[rows.len() as u64, columns])
+        .writer(std::io::BufWriter::new(file))
+        .begin_nd()
+        .unwrap();
+    npy.extend(rows.iter().flatten().copied()).unwrap();
+    npy.finish().unwrap();
+}
+
+#[test]
+fn sphere_files_of_4_7_and_10_columns_read_back_their_motion() {
+    let dir = TempDir::new().unwrap();
+    let spheres = Spheres::new(23, 5);
+    let finite = |v: [f32; 3]| v.map(|x| if x.abs() < 1e30 { x } else { 1.0 });
+    let rows: Vec<Vec<f32>> = (0..23)
+        .map(|i| {
+            let [x, y, z] = finite(spheres.positions[i]);
+            let r = spheres.radii[i].clamp(1e-6, 1e6);
+            let [vx, vy, vz] = spheres.velocities[i];
+            let [wx, wy, wz] = spheres.angular_velocities[i];
+            vec![x, y, z, r, vx, vy, vz, wx, wy, wz]
+        })
+        .collect();
+    for columns in [4, 7, 10] {
+        let cut: Vec<Vec<f32>> = rows.iter().map(|r| r[..columns].to_vec()).collect();
+        let header = ["x", "y", "z", "r", "vx", "vy", "vz", "wx", "wy", "wz"][..columns].join(",");
+        let csv = dir.path().join(format!("s{columns}.csv"));
+        let text: String = cut
+            .iter()
+            .map(|r| r.iter().map(f32::to_string).collect::<Vec<_>>().join(",") + "\n")
+            .collect();
+        std::fs::write(&csv, format!("{header}\n{text}")).unwrap();
+        let npy = dir.path().join(format!("s{columns}.npy"));
+        write_npy(&npy, &cut);
+        for path in [&csv, &npy] {
+            let p = mochi::io::read_particles(path).unwrap();
+            for (i, row) in rows.iter().enumerate() {
+                let at = |k: usize| [row[k], row[k + 1], row[k + 2]];
+                assert_eq!(p.positions[i], at(0), "{path:?} row {i}");
+                assert_eq!(p.radii[i], row[3]);
+                let v = if columns >= 7 { at(4) } else { [0.0; 3] };
+                let w = if columns == 10 { at(7) } else { [0.0; 3] };
+                assert_eq!((p.velocities[i], p.angular_velocities[i]), (v, w));
+            }
+            assert!(p.history.is_empty() && p.step == 0);
+        }
+    }
+    // A frame CSV is such a file: its angular velocities come back bit for bit.
+    let frame = dir.path().join("frame.csv");
+    let rowed = Spheres {
+        positions: rows.iter().map(|r| [r[0], r[1], r[2]]).collect(),
+        radii: rows.iter().map(|r| r[3]).collect(),
+        ..Spheres::new(23, 5)
+    };
+    write_frame_csv(&frame, &rowed.frame(1, 0.1)).unwrap();
+    let p = mochi::io::read_particles(&frame).unwrap();
+    assert_eq!(p.angular_velocities, rowed.angular_velocities);
+    assert_eq!(p.velocities, rowed.velocities);
+}
+
+#[test]
+fn sphere_files_with_bad_motion_columns_are_one_clear_error() {
+    let dir = TempDir::new().unwrap();
+    let error = |name: &str, text: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        mochi::io::read_particles(&path).unwrap_err().to_string()
+    };
+    // A header of another width: the error lists the three accepted ones.
+    let e = error("a.csv", "x,y,z,r,vx,vy,vz,wx\n0,0,0,1,0,0,0,0\n");
+    assert!(
+        e.contains("a.csv") && e.contains("x,y,z,r, x,y,z,r,vx,vy,vz or x,y,z,r,vx,vy,vz,wx,wy,wz"),
+        "{e}"
+    );
+    // A row short of the header's columns, and a non-finite angular velocity: file and line.
+    let e = error("b.csv", "x,y,z,r,vx,vy,vz,wx,wy,wz\n0,0,0,1,0,0,0,0,0\n");
+    assert!(e.contains("b.csv:2:") && e.contains("expected 10"), "{e}");
+    let e = error(
+        "c.csv",
+        "x,y,z,r,vx,vy,vz,wx,wy,wz\n0,0,0,1,0,0,0,0,inf,0\n",
+    );
+    assert!(
+        e.contains("c.csv:2:") && e.contains("angular velocity"),
+        "{e}"
+    );
+    // A .npy of another width: the error names the three shapes.
+    let npy = dir.path().join("d.npy");
+    write_npy(&npy, &[vec![0.0, 0.0, 0.0, 1.0, 0.0]]);
+    let e = mochi::io::read_particles(&npy).unwrap_err().to_string();
+    assert!(
+        e.contains("N×4") && e.contains("N×7") && e.contains("N×10"),
+        "{e}"
+    );
+    write_npy(
+        &npy,
+        &[vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, f32::NAN, 0.0]],
+    );
+    let e = mochi::io::read_particles(&npy).unwrap_err().to_string();
+    assert!(e.contains("row 0") && e.contains("angular velocity"), "{e}");
 }

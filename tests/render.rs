@@ -400,3 +400,71 @@ fn coincident_spheres_draw_as_their_largest() {
         assert!(got.pixels == want.pixels, "{}", renderer.name());
     }
 }
+
+/// Share of the pixels of `image` in the colours of the spheres (viridis greens and blues, far
+/// from the grey floor, the white-blue background and the legend's panel).
+fn sphere_share(image: &Image) -> f64 {
+    let mut n = 0;
+    for y in 0..image.height {
+        for x in 0..image.width {
+            let [r, g, b] = rgb(image, x, y);
+            let grey = (r - g).abs() < 0.08 && (g - b).abs() < 0.08;
+            if !grey && !is_background([r, g, b]) {
+                n += 1;
+            }
+        }
+    }
+    n as f64 / (image.width * image.height) as f64
+}
+
+#[test]
+fn the_default_framing_closes_in_on_a_heap_in_a_large_box_but_not_on_strays() {
+    // A heap of 400 spheres on the floor of a 1 m box, and two spheres rolled off to corners.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("scene.toml"),
+        "box_lo = [0.0, 0.0, 0.0]\nbox_hi = [1.0, 1.0, 1.0]\n",
+    )
+    .unwrap();
+    let mut rows = String::from("x,y,z,r\n");
+    for k in 0..400 {
+        let (i, j, l) = (k % 10, (k / 10) % 10, k / 100);
+        let at = [
+            0.45 + 0.01 * i as f32,
+            0.45 + 0.01 * j as f32,
+            0.005 + 0.01 * l as f32,
+        ];
+        rows += &format!("{},{},{},0.005\n", at[0], at[1], at[2]);
+    }
+    rows += "0.02,0.02,0.005,0.005\n0.98,0.97,0.005,0.005\n";
+    std::fs::write(d.join("frame_00000007.csv"), rows).unwrap();
+    let share = |fit: &str| {
+        let png = format!("{fit}.png");
+        let run = mochi(
+            &[
+                "render",
+                "frame_00000007.csv",
+                "-o",
+                &png,
+                "--size",
+                "96x72",
+                "--samples",
+                "1",
+                "--renderer",
+                "cpu",
+                "--no-legend",
+                "--fit",
+                fit,
+            ],
+            d,
+        );
+        assert_eq!(run.0, Some(0), "{run:?}");
+        sphere_share(&read_png(&d.join(png)).unwrap())
+    };
+    let (auto, whole_box, spheres) = (share("auto"), share("box"), share("spheres"));
+    // The box's framing shows the heap small; the spheres' framing, stretched to the strays,
+    // little larger; auto frames the heap itself.
+    assert!(auto > 4.0 * whole_box, "auto {auto}, box {whole_box}");
+    assert!(auto > 2.0 * spheres, "auto {auto}, spheres {spheres}");
+}

@@ -43,7 +43,8 @@ fn fails(args: &[&str], dir: &Path) -> String {
     stderr
 }
 
-const SMALL: [&str; 9] = [
+/// The paper's slab with its law (`linear`, frictionless), which every backend runs.
+const SMALL: [&str; 11] = [
     "simulate",
     "--scene",
     "slab",
@@ -53,6 +54,8 @@ const SMALL: [&str; 9] = [
     "cpu",
     "--quiet",
     "--csv",
+    "--set",
+    "contact=linear",
 ];
 
 #[test]
@@ -203,15 +206,21 @@ fn a_csv_frame_restarts_a_run_with_its_velocities() {
     first.extend(["--steps", "40", "--frame-every", "40", "-o", "a"]);
     ok(&first, dir.path());
     let frame = dir.path().join("a/frame_00000040.csv");
-    let (spheres, velocities) = mochi::io::read_particles(&frame).unwrap();
-    let velocities = velocities.expect("frame CSVs carry velocities");
-    assert_eq!(spheres.len(), 1500);
+    let particles = mochi::io::read_particles(&frame).unwrap();
+    let velocities = particles.velocities.clone();
+    assert!(
+        velocities.iter().any(|v| *v != [0.0; 3]),
+        "frame CSVs carry velocities"
+    );
+    assert_eq!(particles.len(), 1500);
     // Same box as the slab (the file's own bounds would be the default).
     ok(
         &[
             "simulate",
             "--input",
             "a/frame_00000040.csv",
+            "--set",
+            "contact=linear",
             "--set",
             "box_lo=[0,0,0]",
             "--set",
@@ -341,6 +350,8 @@ fn named_options_set_the_scene_and_set_overrides_them() {
         "1",
         "--set",
         "spheres=100",
+        "--set",
+        "contact=linear",
         "--backend",
         "cpu",
         "-q",
@@ -380,6 +391,8 @@ fn bad_scenes_give_clear_errors() {
             "simulate",
             "-n",
             "100",
+            "--set",
+            "contact=linear",
             "--set",
             "stiffness=1e9",
             "--steps",
@@ -526,6 +539,8 @@ fn absurd_parameters_are_refused_up_front_with_the_reason() {
             "simulate",
             "-n",
             "100",
+            "--set",
+            "contact=linear",
             "--steps",
             "20",
             "--backend",
@@ -674,12 +689,15 @@ fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
     files
 }
 
-/// A short run of 300 spheres into `out` with frames every 10 steps (as CSV too).
+/// A short run of 300 spheres of the paper's slab (`linear`) into `out` with frames every 10
+/// steps (as CSV too).
 fn short_run(out: &str, extra: &[&str]) -> Vec<String> {
     let mut args = vec![
         "simulate",
         "--scene",
         "slab",
+        "--set",
+        "contact=linear",
         "-n",
         "300",
         "--steps",

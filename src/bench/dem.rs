@@ -2,24 +2,43 @@
 
 use super::Outcome;
 use super::plan::{Experiment, Plan, REBUILD_INTERVALS};
-use super::report::DemRow;
+use super::report::{DemRow, HistorySize};
 use super::stats::Spread;
-use crate::dem::scene::{SceneConfig, SceneKind, Start};
+use crate::dem::scene::{ContactKind, SceneConfig, SceneKind, Start};
 use crate::dem::{Clock, Stepper};
 use crate::engines::open_stepper;
 use crate::engines::wgpu_compute::Structure;
 use crate::engines::{BackendKind, Options, RebuildPolicy};
 use crate::error::{Error, Result};
+use crate::scenes::{SLAB_BASE, Scene};
 use std::time::Instant;
 
 /// The start of a generated DEM scene (`freefall`, `rotating`, `slab`, `polylog`) of `n`
-/// spheres: the scene's lattice layout, its default time step and material.
+/// spheres: the scene's lattice layout and the paper's law (`linear`, frictionless, its default
+/// time step and derived stiffness), as the paper's experiments run it.
 pub fn start(scene: SceneKind, n: usize, seed: u64) -> Result<Start> {
     SceneConfig {
         scene,
         spheres: n,
         seed,
         frame_every: 0,
+        contact: ContactKind::Linear,
+        ..SceneConfig::default()
+    }
+    .build()
+}
+
+/// The start of experiment 7: the `slab` of `n` spheres under Hertz–Mindlin with the default
+/// material (friction, EPSD rolling resistance, its Rayleigh time step), with the floor raised
+/// to the slab's underside so that it lands within the settling steps.
+pub fn friction_start(n: usize, seed: u64) -> Result<Start> {
+    SceneConfig {
+        scene: SceneKind::Generated(Scene::Slab),
+        spheres: n,
+        seed,
+        frame_every: 0,
+        contact: ContactKind::HertzMindlin,
+        box_lo: Some([0.0, 0.0, SLAB_BASE]),
         ..SceneConfig::default()
     }
     .build()
@@ -167,6 +186,10 @@ fn measure(
         let values: Vec<f64> = runs.iter().map(|r| f(&r.times) / r.steps as f64).collect();
         Spread::of(&values).expect("a plan has at least one repeat")
     };
+    let history = match case.start.params.friction.has_history() {
+        true => Some(HistorySize::of(&stepper.particles()?.history)),
+        false => None,
+    };
     // `describe` is "name (device)".
     let described = stepper.describe();
     let device = described
@@ -193,6 +216,7 @@ fn measure(
         total_ms: per_step(&|t| t.total_ms()),
         wall_ms: Spread::of(&walls).expect("a plan has at least one repeat"),
         speedup_vs_cpu: None,
+        history,
     })
 }
 

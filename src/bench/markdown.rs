@@ -28,6 +28,9 @@ pub fn render(report: &Report) -> String {
                 .filter(|r| r.experiment == experiment)
                 .collect();
             dem_table(&mut out, &rows, experiment == Experiment::Rebuild);
+            if experiment == Experiment::Friction {
+                history_table(&mut out, &rows);
+            }
         }
     }
     if !report.targets.is_empty() {
@@ -160,6 +163,33 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
             clock(r.clock),
             spread(&r.wall_ms),
             speedup(r.speedup_vs_cpu),
+        );
+    }
+}
+
+/// The contact history of the rows that keep one (experiment 7).
+fn history_table(out: &mut String, rows: &[&DemRow]) {
+    let kept: Vec<_> = rows
+        .iter()
+        .filter_map(|r| r.history.map(|h| (r, h)))
+        .collect();
+    if kept.is_empty() {
+        return;
+    }
+    out.push_str(
+        "\n| backend | n | contacts (pairs) | held in history | slots per sphere | history \
+         [bytes/sphere] |\n| --- | --- | --- | --- | --- | --- |\n",
+    );
+    for (r, h) in kept {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} |",
+            r.backend.name(),
+            r.n,
+            r.contacts,
+            h.entries,
+            h.slots,
+            h.bytes_per_sphere
         );
     }
 }

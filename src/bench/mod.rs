@@ -8,7 +8,10 @@
 //!    "every step");
 //! 5. the DEM step from 1,000 spheres up, ×10 each time;
 //! 6. the DEM steps issue 7 sets targets for: the landed `slab`, and `polylog` with the single
-//!    and the multi-level grid side by side ([`dem`] runs 2–6; [`targets`] checks them).
+//!    and the multi-level grid side by side ([`dem`] runs 2–7; [`targets`] checks them);
+//! 7. the Hertz–Mindlin step of issue 18 (friction with contact history, rotation, EPSD rolling
+//!    resistance) on the landed `slab`, with its contacts and the bytes per sphere of its
+//!    history ([`report::HistorySize`]); a backend whose step does not run it yet reports why.
 //!
 //! Every measurement runs `warmup` untimed times, then `repeats` timed times, and reports the
 //! median and spread ([`stats::Spread`]) on GPU timestamps where the backend has them, else on
@@ -141,6 +144,18 @@ fn dem_starts(
                 ..polylog.clone()
             };
             vec![(slab_scene, slab), (POLYLOG, polylog), (POLYLOG, nns)]
+        }
+        Experiment::Friction => {
+            let slab = SceneKind::Generated(Scene::Slab);
+            let mut pile = dem::friction_start(n, seed)?;
+            if plan.settings.settle > 0 {
+                progress(&format!(
+                    "letting the frictional slab land ({} steps)",
+                    plan.settings.settle
+                ));
+                pile = dem::settle(plan, &pile)?;
+            }
+            vec![(slab, pile)]
         }
         Experiment::Scaling => plan
             .scaling_sizes()

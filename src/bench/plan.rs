@@ -34,20 +34,24 @@ pub enum Experiment {
     /// 6: the DEM steps issue 7 sets targets for: the landed slab, and `polylog` with the
     /// single and the multi-level grid side by side.
     Targets,
+    /// 7: the Hertz–Mindlin step (friction with contact history, rotation, EPSD rolling
+    /// resistance) on the settled slab, with its contacts and the size of the history.
+    Friction,
 }
 
 impl Experiment {
     /// Every experiment, in order.
-    pub const ALL: [Experiment; 6] = [
+    pub const ALL: [Experiment; 7] = [
         Experiment::Dcd,
         Experiment::Freefall,
         Experiment::Rotating,
         Experiment::Rebuild,
         Experiment::Scaling,
         Experiment::Targets,
+        Experiment::Friction,
     ];
 
-    /// Number in issue 7 (1–5; 6 for the targets).
+    /// Number in issue 7 (1–5; 6 for the targets; 7 for friction, of issue 18).
     pub fn number(self) -> u8 {
         self as u8 + 1
     }
@@ -61,6 +65,7 @@ impl Experiment {
             Experiment::Rebuild => "rebuild",
             Experiment::Scaling => "scaling",
             Experiment::Targets => "targets",
+            Experiment::Friction => "friction",
         }
     }
 
@@ -73,10 +78,13 @@ impl Experiment {
             Experiment::Rebuild => "DEM step against the rebuild interval",
             Experiment::Scaling => "DEM step from 1k spheres up, ×10 each",
             Experiment::Targets => "DEM steps with targets: landed slab, polylog (grid vs mlgrid)",
+            Experiment::Friction => {
+                "Hertz–Mindlin step (friction, rotation, EPSD rolling) on the settled slab"
+            }
         }
     }
 
-    /// Parses a name (`dcd`, …) or a number (`1`–`5`).
+    /// Parses a name (`dcd`, …) or a number (`1`–`7`).
     pub fn parse(s: &str) -> std::result::Result<Self, String> {
         let s = s.trim();
         Experiment::ALL
@@ -84,8 +92,8 @@ impl Experiment {
             .find(|e| e.name().eq_ignore_ascii_case(s) || e.number().to_string() == s)
             .ok_or_else(|| {
                 format!(
-                    "unknown experiment `{s}`: use 1-6 or dcd, freefall, rotating, rebuild, \
-                     scaling, targets"
+                    "unknown experiment `{s}`: use 1-7 or dcd, freefall, rotating, rebuild, \
+                     scaling, targets, friction"
                 )
             })
     }
@@ -220,8 +228,9 @@ pub struct Settings {
     pub max_spheres: usize,
     /// Timed DEM steps per repeat.
     pub steps: u32,
-    /// Untimed steps that let the slab of experiment 6 land before it is timed (run once, on
-    /// the first backend with a DEM step; every backend then starts from that state).
+    /// Untimed steps that let the slab of experiments 6 and 7 land before it is timed (run once
+    /// per experiment, on the first backend whose DEM step runs it; every backend then starts
+    /// from that state).
     pub settle: u32,
     /// Timed repeats per measurement (at least 1).
     pub repeats: usize,
@@ -296,6 +305,8 @@ impl Plan {
                 Experiment::Scaling => self.scaling_sizes().len(),
                 // Settling, slab, polylog with two structures, polylog in nns mode.
                 Experiment::Targets => 5,
+                // Settling, the pile.
+                Experiment::Friction => 2,
             })
             .sum();
         (per_backend * self.backends.len()) as u64
@@ -312,7 +323,9 @@ mod tests {
         assert_eq!(Experiment::parse("Rebuild"), Ok(Experiment::Rebuild));
         assert_eq!(Experiment::parse("5"), Ok(Experiment::Scaling));
         assert_eq!(Experiment::parse("6"), Ok(Experiment::Targets));
-        assert!(Experiment::parse("7").unwrap_err().contains("unknown"));
+        assert_eq!(Experiment::parse("friction"), Ok(Experiment::Friction));
+        assert_eq!(Experiment::parse("7"), Ok(Experiment::Friction));
+        assert!(Experiment::parse("8").unwrap_err().contains("unknown"));
     }
 
     #[test]

@@ -43,7 +43,10 @@ pub fn draw(report: &Report) -> Result<Vec<(String, String)>> {
                 let width = bar_chart_width(report.detect.len() / 2);
                 svg(&name, width, |a| dcd(a, &title, report))
             }
-            Experiment::Freefall | Experiment::Rotating | Experiment::Targets
+            Experiment::Freefall
+            | Experiment::Rotating
+            | Experiment::Targets
+            | Experiment::Friction
                 if !rows.is_empty() =>
             {
                 svg(&name, bar_chart_width(rows.len()), |a| {
@@ -194,7 +197,7 @@ fn dcd(area: &Area, title: &str, report: &Report) -> Drawn {
     )
 }
 
-/// Experiments 2, 3 and 6: one stacked bar of the phases per backend (and scene, structure).
+/// Experiments 2, 3, 6 and 7: one stacked bar of the phases per backend (and scene, structure).
 fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
     let groups: Vec<(String, Vec<Bar>)> = rows
         .iter()

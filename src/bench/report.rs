@@ -162,6 +162,34 @@ pub struct DemRow {
     /// The cpu backend's total median over this row's (same experiment, scene, n, mode;
     /// the cpu step never refits, so its one row serves every rebuild policy).
     pub speedup_vs_cpu: Option<f64>,
+    /// The contact history after the timed steps (experiment 7; `None` for steps that keep
+    /// none).
+    #[serde(default)]
+    pub history: Option<HistorySize>,
+}
+
+/// What the contact history of a frictional step holds, and its size.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct HistorySize {
+    /// Contacts held, each pair once per sphere and each wall contact once.
+    pub entries: u64,
+    /// Slots per sphere (K, grown to the most contacts any sphere needed).
+    pub slots: usize,
+    /// Bytes per sphere of the per-sphere slots: K entries and a count.
+    pub bytes_per_sphere: usize,
+}
+
+impl HistorySize {
+    /// What `history` holds, and its bytes per sphere in the layout of
+    /// [`ContactHistory`](crate::dem::ContactHistory) (an engine's own copy may differ).
+    pub fn of(history: &crate::dem::ContactHistory) -> Self {
+        let entry = std::mem::size_of::<crate::dem::HistoryEntry>();
+        Self {
+            entries: history.len() as u64,
+            slots: history.slots(),
+            bytes_per_sphere: history.slots() * entry + std::mem::size_of::<u32>(),
+        }
+    }
 }
 
 /// A measurement a backend could not make.

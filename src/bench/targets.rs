@@ -239,6 +239,7 @@ mod tests {
             total_ms: ms(total),
             wall_ms: ms(total),
             speedup_vs_cpu: None,
+            history: None,
         }
     }
 

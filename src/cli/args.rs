@@ -73,8 +73,10 @@ pub struct RenderArgs {
     /// Vertical field of view [degrees].
     #[arg(long, default_value_t = mochi::render::DEFAULT_FOV_DEG)]
     pub fov: f64,
-    /// What the default camera frames: the simulation box (from scene.toml next to the frames,
-    /// else the spheres) or the spheres alone.
+    /// What the default camera frames: auto (the simulation box, from scene.toml next to the
+    /// frames, unless most spheres, the 1st to 99th percentile of the centres on each axis,
+    /// span less than half of its diagonal, as a heap on a wide floor does: then those), the
+    /// box, or the spheres alone.
     #[arg(long, value_enum, default_value_t)]
     pub fit: Fit,
     /// Rays per pixel side (1-4): 2 gives 4 rays per pixel, smoother edges.
@@ -97,8 +99,11 @@ pub struct RenderArgs {
 /// What the default camera frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Fit {
-    /// The simulation box.
+    /// The simulation box, or most spheres (the 1st to 99th percentile of the centres on each
+    /// axis) where they span less than half of its diagonal.
     #[default]
+    Auto,
+    /// The simulation box.
     Box,
     /// The spheres of each frame.
     Spheres,
@@ -171,7 +176,8 @@ fn toml_integer() -> clap::builder::RangedU64ValueParser {
 pub struct SimulateArgs {
     /// Scene file (TOML; see `mochi::dem::scene`). Without it, the built-in default scene.
     pub scene_file: Option<PathBuf>,
-    /// Scene: freefall, slab, poly1.2, poly12, poly120, polylog, rotating, mesh, input.
+    /// Scene: pour (the default: a polydisperse column collapsing into a heap), freefall, slab,
+    /// poly1.2, poly12, poly120, polylog, rotating, mesh, input.
     #[arg(long)]
     pub scene: Option<String>,
     /// Number of spheres of a generated scene.
@@ -186,8 +192,8 @@ pub struct SimulateArgs {
     /// Time step [s] (default: the scene's).
     #[arg(long)]
     pub dt: Option<f64>,
-    /// Start from a sphere file (CSV x,y,z,r or .npy N×4, optionally with vx,vy,vz: a frame
-    /// CSV restarts a run) instead of a generated scene.
+    /// Start from a sphere file (CSV x,y,z,r or .npy N×4, optionally with vx,vy,vz and then
+    /// wx,wy,wz, N×7 or N×10: a frame CSV restarts a run) instead of a generated scene.
     #[arg(long, conflicts_with_all = ["scene", "spheres", "seed", "mesh"])]
     pub input: Option<PathBuf>,
     /// Fill this mesh (OBJ, PLY or STL) with spheres and drop it (scene `mesh`; see the
@@ -197,7 +203,7 @@ pub struct SimulateArgs {
     /// Write a frame every M steps (0: none).
     #[arg(long, value_name = "M", value_parser = toml_integer())]
     pub frame_every: Option<u64>,
-    /// Also write every frame as CSV (x,y,z,r,vx,vy,vz).
+    /// Also write every frame as CSV (x,y,z,r,vx,vy,vz,wx,wy,wz).
     #[arg(long)]
     pub csv: bool,
     /// Ray trace a PNG picture (OUT/frame_<step>.png) every M steps (0: none); see the
@@ -210,7 +216,19 @@ pub struct SimulateArgs {
     #[arg(long, value_enum)]
     pub mode: Option<ProxyMode>,
     /// Set any scene field, as KEY=VALUE in TOML syntax (repeatable), e.g. --set restitution=0.8
-    /// --set 'gravity=[0, 0, -1.62]' --set stiffness=50.
+    /// --set 'gravity=[0, 0, -1.62]' --set contact=linear.
+    ///
+    /// Contact and material keys (SI units): contact = "hertz-mindlin" (default) or "linear"
+    /// (the paper's law); density [kg/m³] (500); restitution (0.5); young_modulus [Pa] (1e7: a
+    /// soft E, as is normal practice in DEM, since the time step grows as 1/√E) and
+    /// poisson_ratio (0.3), hertz-mindlin only; stiffness [N/m] (derived: a 10-step contact of
+    /// the two lightest spheres) or "per-pair" with contact_time [s] (10·dt), linear only;
+    /// friction μ (0.5 hertz-mindlin, 0 linear); wall_friction (= friction); rolling_friction
+    /// μ_r (0.1 hertz-mindlin, 0 linear); rolling_model = "epsd" (default) or
+    /// "constant-torque"; dt [s] (hertz-mindlin: 0.2 × the Rayleigh time of the smallest
+    /// sphere). The other keys: scene, spheres, seed, steps, box_lo, box_hi [m], gravity
+    /// [m/s²], gravity_spin [rad/s], mode, frame_every, csv, input, mesh, mesh_radius [m],
+    /// mesh_mixed, mesh_size [m], mesh_copies (see mochi::dem::scene).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// Backend to run on; auto picks the fastest that runs here and says which.

@@ -26,8 +26,9 @@ pub struct BenchArgs {
     #[arg(long, default_value = "all")]
     pub backends: BackendSelection,
     /// Experiments, by number or name: 1 dcd, 2 freefall, 3 rotating, 4 rebuild, 5 scaling,
-    /// 6 targets (landed slab, polylog grid vs mlgrid).
-    #[arg(long, value_delimiter = ',', value_parser = Experiment::parse, default_value = "1,2,3,4,5,6")]
+    /// 6 targets (landed slab, polylog grid vs mlgrid), 7 friction (the Hertz–Mindlin step on
+    /// the settled slab, with its contact history).
+    #[arg(long, value_delimiter = ',', value_parser = Experiment::parse, default_value = "1,2,3,4,5,6,7")]
     pub experiments: Vec<Experiment>,
     /// Timed runs per measurement (their median and spread are reported).
     #[arg(long, default_value_t = 5)]
@@ -38,8 +39,9 @@ pub struct BenchArgs {
     /// Timed DEM steps per run (default: the scale's).
     #[arg(long)]
     pub steps: Option<u32>,
-    /// Untimed steps that let the slab of experiment 6 land before it is timed (once, on the
-    /// first backend; every backend then starts from the landed state).
+    /// Untimed steps that let the slab of experiments 6 and 7 land before it is timed (once per
+    /// experiment, on the first backend that runs its step; every backend then starts from the
+    /// landed state).
     #[arg(long, default_value_t = 3000)]
     pub settle: u32,
     /// Grid of the wgpu-compute backend: auto, grid or mlgrid.

@@ -14,6 +14,37 @@ use std::path::{Path, PathBuf};
 /// GIF frame delay [1/100 s].
 const GIF_DELAY_CS: u16 = 10;
 
+/// `--fit auto` frames the spheres rather than the box where the diagonal of their
+/// [`core_bounds`] is less than this share of the box's.
+const AUTO_FIT_SHARE: f64 = 0.5;
+
+/// Share of the centres, on each side of each axis, that [`core_bounds`] leaves out.
+const CORE_TAIL: f64 = 0.01;
+
+/// Lower and upper corners \[m\].
+type Bounds = ([f64; 3], [f64; 3]);
+
+/// Where most spheres are: on each axis, the centres from the 1st to the 99th percentile,
+/// widened by the largest radius (`None` for no spheres). A heap on a floor with a few spheres
+/// rolled far away is framed by its heap.
+fn core_bounds(positions: &[[f32; 3]], radii: &[f32]) -> Option<Bounds> {
+    let n = positions.len();
+    let r_max = radii.iter().copied().fold(0.0f32, f32::max) as f64;
+    let (lo_at, hi_at) = ((CORE_TAIL * n as f64) as usize, n.checked_sub(1)?);
+    let hi_at = hi_at - lo_at;
+    let mut bounds = ([0.0; 3], [0.0; 3]);
+    let mut axis: Vec<f32> = Vec::with_capacity(n);
+    for a in 0..3 {
+        axis.clear();
+        axis.extend(positions.iter().map(|c| c[a]));
+        let lo = *axis.select_nth_unstable_by(lo_at, f32::total_cmp).1;
+        let hi = *axis.select_nth_unstable_by(hi_at, f32::total_cmp).1;
+        bounds.0[a] = lo as f64 - r_max;
+        bounds.1[a] = hi as f64 + r_max;
+    }
+    Some(bounds)
+}
+
 /// Draws frames one after another with one renderer and one set of options.
 pub struct FrameRenderer {
     renderer: Renderer,
@@ -35,16 +66,25 @@ struct View {
     fov: f64,
     samples: u32,
     shadows: bool,
-    /// The simulation box, when known and the camera frames it.
+    /// The simulation box, when known and the camera may frame it.
     frame_box: Option<([f64; 3], [f64; 3])>,
+    /// Whether the camera frames the spheres instead where they fill little of the box.
+    fit_auto: bool,
     /// The box whose bottom is drawn as the floor.
     floor: Option<([f64; 3], [f64; 3])>,
 }
 
 impl View {
-    /// The picture of a frame whose spheres lie in `bounds`.
-    fn picture(&self, bounds: ([f64; 3], [f64; 3])) -> Picture {
-        let (lo, hi) = self.frame_box.unwrap_or(bounds);
+    /// The picture of a frame whose spheres lie in `bounds`, most of them in `core` (see
+    /// [`core_bounds`]).
+    fn picture(&self, bounds: Bounds, core: Bounds) -> Picture {
+        let diagonal =
+            |(lo, hi): Bounds| (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
+        let (lo, hi) = match self.frame_box {
+            Some(b) if self.fit_auto && diagonal(core) < AUTO_FIT_SHARE * diagonal(b) => core,
+            Some(b) => b,
+            None => bounds,
+        };
         let aspect = self.size.0 as f64 / self.size.1 as f64;
         let mut camera = Camera::framing(lo, hi, aspect, self.fov);
         if let Some(look_at) = self.look_at {
@@ -86,11 +126,13 @@ impl FrameRenderer {
             fov: args.fov,
             samples: args.samples,
             shadows: !args.no_shadows,
-            frame_box: sim_box.filter(|_| args.fit == Fit::Box),
+            frame_box: sim_box.filter(|_| args.fit != Fit::Spheres),
+            fit_auto: args.fit == Fit::Auto,
             floor: sim_box.filter(|_| !args.no_floor),
         };
         // Catch a bad camera or sample count before any work.
-        view.picture(([0.0; 3], [1.0; 3])).validate()?;
+        view.picture(([0.0; 3], [1.0; 3]), ([0.0; 3], [1.0; 3]))
+            .validate()?;
         if let Some(gif) = &args.gif
             && (view.size.0 > u16::MAX.into() || view.size.1 > u16::MAX.into())
         {
@@ -140,7 +182,8 @@ impl FrameRenderer {
         let range = self.range.unwrap_or_else(|| value_range(&values));
         let scene = Scene::new(frame.positions, frame.radii, &values, range)?;
         let bounds = scene.bounds().unwrap_or(([-1.0; 3], [1.0; 3]));
-        let picture = self.view.picture(bounds);
+        let core = core_bounds(frame.positions, frame.radii).unwrap_or(bounds);
+        let picture = self.view.picture(bounds, core);
         let mut image = self.renderer.render(&scene, &picture)?;
         if self.legend {
             image.draw_legend(&Legend {

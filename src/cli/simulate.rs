@@ -163,16 +163,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let write_frame = |frames: &mut Option<FrameSeries>, stepper: &mut dyn Stepper| -> Result<()> {
         if let Some(series) = frames {
             let now = stepper.particles()?;
-            series.write(
-                &Frame {
-                    time: now.step as f64 * p.dt as f64,
-                    step: now.step,
-                    positions: &now.positions,
-                    radii: &now.radii,
-                    velocities: &now.velocities,
-                },
-                config.csv,
-            )?;
+            series.write(&Frame::of(&now, p.dt, p.friction.has_history()), config.csv)?;
         }
         Ok(())
     };

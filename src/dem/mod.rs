@@ -8,6 +8,6 @@ pub mod model;
 pub mod scene;
 pub mod stepper;
 
-pub use crate::particles::Particles;
+pub use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, Particles};
 pub use model::{Material, StepParams};
 pub use stepper::{Advance, Clock, StageTimes, Stepper};

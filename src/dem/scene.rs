@@ -2,29 +2,33 @@
 //! `key=value` on the command line) that builds the particles at t = 0 and the step parameters.
 //!
 //! ```toml
-//! scene = "slab"         # freefall, slab, poly1.2, poly12, poly120, polylog, rotating, mesh, input
-//! spheres = 50000
+//! scene = "pour"         # freefall, slab, poly1.2, poly12, poly120, polylog, pour, rotating,
+//!                        # mesh, input
+//! spheres = 4000
 //! seed = 1
-//! steps = 5000
-//! dt = 1e-4              # default: 1e-4 (freefall, slab, rotating), 5e-5 (poly*), 2.5e-5 (mesh)
+//! steps = 20000
+//! dt = 1e-4              # default, hertz-mindlin: 0.2 × the Rayleigh time of the smallest sphere;
+//!                        # linear: 1e-4 (freefall, slab, rotating), 5e-5 (poly*), 2.5e-5 (mesh)
 //! box_lo = [0, 0, 0]     # default: the scene's box
 //! box_hi = [1, 1, 1]
 //! gravity = [0, 0, -9.81]
 //! gravity_spin = 0.0     # rad/s about y; rotating: 0.25π
 //! density = 500
 //! restitution = 0.5
-//! contact = "linear"     # or "hertz-mindlin" (default "linear" until the GPU engines have it)
+//! contact = "hertz-mindlin" # the default; or "linear" (the paper's law, which the paper's
+//!                        # experiments and `mochi bench` name)
+//! young_modulus = 1e7    # Pa, hertz-mindlin (default 1e7: a soft E, as is normal practice in DEM,
+//!                        # since the time step grows as 1/√E; the bulk behaves much the same)
+//! poisson_ratio = 0.3    # hertz-mindlin, in (−1, 0.5) (default 0.3)
 //! stiffness = 2.0        # linear: N/m, default a 10-step contact for the two lightest spheres;
 //!                        # or "per-pair": k = m*·(π² + ln² e)/contact_time² for each contact
 //! contact_time = 1e-3    # s, with stiffness = "per-pair" (default: 10·dt)
-//! young_modulus = 1e7    # Pa, hertz-mindlin (default 1e7: soft, as is usual, for larger steps)
-//! poisson_ratio = 0.3    # hertz-mindlin, in (−1, 0.5)
-//! friction = 0.5         # μ; default 0 (linear), 0.5 (hertz-mindlin)
+//! friction = 0.5         # μ; default 0.5 (hertz-mindlin), 0 (linear)
 //! wall_friction = 0.5    # μ with the walls; default: friction
-//! rolling_friction = 0.1 # μ_r; default 0 (linear), 0.1 (hertz-mindlin)
-//! rolling_model = "epsd" # or "constant-torque"
+//! rolling_friction = 0.1 # μ_r; default 0.1 (hertz-mindlin), 0 (linear)
+//! rolling_model = "epsd" # or "constant-torque" (default epsd)
 //! mode = "mochi"         # or "nns"
-//! frame_every = 250      # 0: no frames
+//! frame_every = 1000     # 0: no frames
 //! csv = false            # CSV frames beside the VTK ones
 //! input = "start.csv"    # scene = "input": any sphere file (velocity columns optional)
 //! mesh = "bunny.obj"     # scene = "mesh": OBJ, PLY or STL (default: a torus)
@@ -103,13 +107,14 @@ pub enum SceneKind {
 
 impl SceneKind {
     /// Every scene, in the order errors list them.
-    pub const ALL: [SceneKind; 9] = [
+    pub const ALL: [SceneKind; 10] = [
         SceneKind::Generated(Scene::Freefall),
         SceneKind::Generated(Scene::Slab),
         SceneKind::Generated(Scene::Poly1_2),
         SceneKind::Generated(Scene::Poly12),
         SceneKind::Generated(Scene::Poly120),
         SceneKind::Generated(Scene::Polylog),
+        SceneKind::Generated(Scene::Pour),
         SceneKind::Rotating,
         SceneKind::Mesh,
         SceneKind::Input,
@@ -189,19 +194,16 @@ impl std::fmt::Display for SceneKind {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ContactKind {
-    /// Linear spring–dashpot (the paper's model; the default while the GPU engines have only
-    /// it).
-    #[default]
+    /// Linear spring–dashpot (the paper's model: its experiments and `mochi bench` name it).
     Linear,
-    /// Hertz–Mindlin with Tsuji damping.
+    /// Hertz–Mindlin with Tsuji damping, friction and rolling resistance (the default).
+    #[default]
     HertzMindlin,
 }
 
-impl ContactKind {
-    fn is_linear(&self) -> bool {
-        *self == ContactKind::Linear
-    }
-}
+/// The `contact` of a saved scene that names none: scenes were saved without it while
+/// `linear` was the default, and only then.
+const SAVED_CONTACT_DEFAULT: &str = "contact = \"linear\"";
 
 /// Young's modulus of `hertz-mindlin` when the scene gives none \[Pa\]: soft, as practitioners
 /// choose it (1e6–1e8 Pa rather than GPa) so that the time step, which grows with 1/√E, stays
@@ -311,9 +313,8 @@ pub struct SceneConfig {
     pub density: f64,
     /// Restitution coefficient, in (0, 1] (default 0.5).
     pub restitution: f64,
-    /// Normal contact law (default `linear`, which the GPU engines run; `hertz-mindlin` runs
-    /// on the cpu backend).
-    #[serde(skip_serializing_if = "ContactKind::is_linear")]
+    /// Normal contact law (default `hertz-mindlin`; `linear` is the paper's law). Always
+    /// written, so that a saved scene keeps its law whatever the default.
     pub contact: ContactKind,
     /// `linear`: stiffness \[N/m\] or `"per-pair"`; `None`: derived (a 10-step contact for
     /// the lightest pair).
@@ -370,10 +371,10 @@ pub struct SceneConfig {
 impl Default for SceneConfig {
     fn default() -> Self {
         Self {
-            scene: SceneKind::Generated(Scene::Slab),
-            spheres: 50_000,
+            scene: SceneKind::Generated(Scene::Pour),
+            spheres: 4_000,
             seed: 1,
-            steps: 5_000,
+            steps: 20_000,
             dt: None,
             box_lo: None,
             box_hi: None,
@@ -381,7 +382,7 @@ impl Default for SceneConfig {
             gravity_spin: None,
             density: 500.0,
             restitution: 0.5,
-            contact: ContactKind::Linear,
+            contact: ContactKind::HertzMindlin,
             stiffness: None,
             contact_time: None,
             young_modulus: None,
@@ -391,7 +392,7 @@ impl Default for SceneConfig {
             rolling_friction: None,
             rolling_model: None,
             mode: ProxyMode::Mochi,
-            frame_every: 250,
+            frame_every: 1_000,
             csv: false,
             input: None,
             mesh: None,
@@ -457,6 +458,15 @@ fn read_scene_file(path: Option<&Path>) -> Result<Option<String>> {
         })
     })
     .transpose()
+}
+
+/// `saved` (a scene from a checkpoint) with its contact law named: one saved without it is
+/// `linear` ([`SAVED_CONTACT_DEFAULT`]), whatever today's default.
+fn with_saved_contact(saved: &str) -> String {
+    match saved.parse::<toml::Table>() {
+        Ok(table) if !table.contains_key("contact") => format!("{SAVED_CONTACT_DEFAULT}\n{saved}"),
+        _ => saved.to_owned(),
+    }
 }
 
 /// Whether `text` is an integer numeral (digits after an optional sign).
@@ -589,6 +599,7 @@ impl SceneConfig {
         overrides: &[String],
     ) -> Result<Self> {
         let none = SceneFlags::default();
+        let saved = &with_saved_contact(saved);
         let (before, _) = Self::parse_table(Some(saved), Some(origin), &none, &[])?;
         let (after, _) = Self::parse_table(Some(saved), Some(origin), flags, overrides)?;
         let fields = |c: &SceneConfig| toml::Table::try_from(c).expect("a scene serializes");
@@ -632,11 +643,7 @@ impl SceneConfig {
                     what: "scene \"input\"".into(),
                     reason: "needs input = \"FILE\" (--input)".into(),
                 })?;
-                let (spheres, velocities) = crate::io::read_particles(input)?;
-                let mut particles = Particles::at_rest(&spheres)?;
-                if let Some(v) = velocities {
-                    particles.velocities = v;
-                }
+                let particles = crate::io::read_particles(input)?;
                 return Self::inside_the_box(self.start_from(particles)?, 0.0);
             }
         };
@@ -991,7 +998,7 @@ mod tests {
         assert!(
             e.contains(
                 "unknown scene \"teapot\": use freefall, slab, poly1.2, poly12, poly120, \
-                 polylog, rotating, mesh or input"
+                 polylog, pour, rotating, mesh or input"
             ),
             "{e}"
         );
@@ -1080,7 +1087,17 @@ mod tests {
         let c =
             SceneConfig::resume(saved, Path::new("c.bin"), &SceneFlags::default(), &[]).unwrap();
         assert_eq!((c.scene, c.mode), (SceneKind::Rotating, ProxyMode::Nns));
-        assert_eq!(c.to_toml(), saved);
+        // Saved before hertz-mindlin became the default, without a contact law: linear, and
+        // written out from now on.
+        assert_eq!(c.contact, ContactKind::Linear);
+        let named = saved.replace(
+            "restitution = 0.5\n",
+            "restitution = 0.5\ncontact = \"linear\"\n",
+        );
+        assert_eq!(c.to_toml(), named);
+        let again =
+            SceneConfig::resume(&named, Path::new("c.bin"), &SceneFlags::default(), &[]).unwrap();
+        assert_eq!(again, c);
         // Names were always read in any case.
         let c = SceneConfig::parse(Some("scene = \"Poly1.2\"\nmode = \"NNS\""), None, &[]).unwrap();
         assert_eq!(
@@ -1106,6 +1123,7 @@ mod tests {
             None,
             &[
                 "scene=mesh".into(),
+                "contact=linear".into(),
                 "mesh_radius=0.02".into(),
                 "mesh_size=0.5".into(),
                 "mesh_copies=3".into(),
@@ -1124,6 +1142,40 @@ mod tests {
         let bad =
             SceneConfig::load(None, &["scene=mesh".into(), "mesh=\"nope.obj\"".into()]).unwrap();
         assert!(bad.build().unwrap_err().to_string().contains("nope.obj"));
+    }
+
+    #[test]
+    fn new_scenes_are_hertz_mindlin_with_the_documented_material() {
+        let c = SceneConfig::load(None, &[]).unwrap();
+        assert_eq!(c.scene, SceneKind::Generated(Scene::Pour));
+        let m = c.material().unwrap();
+        assert_eq!(
+            m.contact,
+            ContactLaw::HertzMindlin {
+                young_modulus: 1e7,
+                poisson_ratio: 0.3
+            }
+        );
+        assert_eq!((m.friction, m.wall_friction), (0.5, None));
+        assert_eq!(
+            (m.rolling_friction, m.rolling_model),
+            (0.1, RollingModel::Epsd)
+        );
+        // A scene file without `contact` is Hertz–Mindlin too, and says so when saved.
+        let c = SceneConfig::parse(Some("scene = \"slab\""), None, &[]).unwrap();
+        assert!(
+            c.to_toml().contains("contact = \"hertz-mindlin\""),
+            "{}",
+            c.to_toml()
+        );
+        let saved = SceneConfig::resume(
+            &c.to_toml(),
+            Path::new("c.bin"),
+            &SceneFlags::default(),
+            &[],
+        )
+        .unwrap();
+        assert_eq!(saved.contact, ContactKind::HertzMindlin);
     }
 
     #[test]

@@ -1,13 +1,14 @@
 //! Reading simulation frames back: the `.vtu` files [`super::write_vtu`] writes (raw appended
-//! binary, `UInt64` block headers) and the frame CSVs (`x,y,z,r,vx,vy,vz`, or any sphere file).
+//! binary, `UInt64` block headers) and the frame CSVs (`x,y,z,r,vx,vy,vz,wx,wy,wz`, or any
+//! sphere file).
 
-use super::spheres::check_velocity;
+use super::spheres::{check_finite, check_velocity};
 use super::{Format, io_error, parse_error, read_particles};
 use crate::error::Result;
 use crate::spheres::check_sphere;
 use std::path::Path;
 
-/// One frame read from a file, owning its data. The three vectors are parallel.
+/// One frame read from a file, owning its data. The vectors are parallel.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OwnedFrame {
     /// Step number, from the file (`.vtu`) or its name (`frame_{step}.csv`), when known.
@@ -20,6 +21,9 @@ pub struct OwnedFrame {
     pub radii: Vec<f32>,
     /// Velocities \[m/s\] (zero when the file has none).
     pub velocities: Vec<[f32; 3]>,
+    /// Angular velocities \[rad/s\] (zero when the file has none, as frames of mochi before
+    /// rotation have not).
+    pub angular_velocities: Vec<[f32; 3]>,
 }
 
 /// Reads a frame: a `.vtu` written by [`super::write_vtu`], or a sphere file (`.csv`, `.npy`)
@@ -33,8 +37,7 @@ pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
         return read_vtu(path);
     }
     Format::of(path)?;
-    let (spheres, velocities) = read_particles(path)?;
-    let n = spheres.len();
+    let particles = read_particles(path)?;
     let step = path
         .file_stem()
         .and_then(|s| s.to_str())
@@ -43,16 +46,18 @@ pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
     Ok(OwnedFrame {
         step,
         time: None,
-        positions: spheres.centers().to_vec(),
-        radii: spheres.radii().to_vec(),
-        velocities: velocities.unwrap_or_else(|| vec![[0.0; 3]; n]),
+        positions: particles.positions,
+        radii: particles.radii,
+        velocities: particles.velocities,
+        angular_velocities: particles.angular_velocities,
     })
 }
 
 /// Marks the start of the raw data in our `.vtu` files.
 const APPENDED: &[u8] = b"<AppendedData encoding=\"raw\">";
 
-/// Reads the arrays `Points`, `radius` and `velocity` (all `Float32`) of a `.vtu`.
+/// Reads the arrays `Points`, `radius`, `velocity` and, where the file has it,
+/// `angular_velocity` (all `Float32`) of a `.vtu`.
 pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     let bytes = std::fs::read(path).map_err(io_error(path))?;
     let bad = |msg: String| parse_error(path, None, msg);
@@ -115,13 +120,24 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     let points = array("Points", 3)?;
     let radii = array("radius", 1)?;
     let velocity = array("velocity", 3)?;
+    let angular = match data_array(header, "angular_velocity") {
+        Some(_) => array("angular_velocity", 3)?,
+        None => vec![0.0; 3 * n],
+    };
     let triples =
         |v: Vec<f32>| -> Vec<[f32; 3]> { v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() };
-    let (points, velocity) = (triples(points), triples(velocity));
+    let (points, velocity, angular) = (triples(points), triples(velocity), triples(angular));
     // The rules of a sphere file, so that every reader of a frame gets valid spheres.
-    for (i, ((c, &r), v)) in points.iter().zip(&radii).zip(&velocity).enumerate() {
+    for (i, (((c, &r), v), w)) in points
+        .iter()
+        .zip(&radii)
+        .zip(&velocity)
+        .zip(&angular)
+        .enumerate()
+    {
         check_sphere(c, r)
             .and_then(|()| check_velocity(v))
+            .and_then(|()| check_finite("angular velocity", w))
             .map_err(|m| bad(format!("point {i} (0-based): {m}")))?;
     }
     let field = |name: &str| {
@@ -136,6 +152,7 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
         positions: points,
         radii,
         velocities: velocity,
+        angular_velocities: angular,
     })
 }
 
@@ -179,6 +196,9 @@ mod tests {
     use super::*;
     use crate::io::{Frame, write_frame_csv, write_vtu};
 
+    /// Angular velocities of the two spheres of [`frame`].
+    const SPIN: [[f32; 3]; 2] = [[0.5, -1.0, 2.0], [0.0, 0.0, -3.0e-7]];
+
     fn frame() -> (Vec<[f32; 3]>, Vec<f32>, Vec<[f32; 3]>) {
         (
             vec![[0.0, 1.0, 2.0], [3.5, -4.0, 5.0]],
@@ -196,6 +216,8 @@ mod tests {
             positions: &p,
             radii: &r,
             velocities: &v,
+            angular_velocities: &SPIN,
+            contacts: None,
         };
         let dir = tempfile::tempdir().unwrap();
         let vtu = dir.path().join("frame_00000042.vtu");
@@ -203,11 +225,13 @@ mod tests {
         let got = read_frame(&vtu).unwrap();
         assert_eq!((got.step, got.time), (Some(42), Some(0.125)));
         assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
+        assert_eq!(got.angular_velocities, SPIN);
         let csv = dir.path().join("frame_00000042.csv");
         write_frame_csv(&csv, &f).unwrap();
         let got = read_frame(&csv).unwrap();
         assert_eq!((got.step, got.time), (Some(42), None));
         assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
+        assert_eq!(got.angular_velocities, SPIN);
     }
 
     /// `bytes` (a little-endian `.vtu` of [`write_vtu`]) with every appended block and its
@@ -264,6 +288,8 @@ mod tests {
             positions: &p,
             radii: &r,
             velocities: &v,
+            angular_velocities: &SPIN,
+            contacts: None,
         };
         let dir = tempfile::tempdir().unwrap();
         let vtu = dir.path().join("le.vtu");
@@ -272,6 +298,7 @@ mod tests {
         std::fs::write(&big, to_big_endian(&std::fs::read(&vtu).unwrap())).unwrap();
         let got = read_frame(&big).unwrap();
         assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
+        assert_eq!(got.angular_velocities, SPIN);
         let odd = with_byte_order(&std::fs::read(&vtu).unwrap(), "MiddleEndian");
         std::fs::write(&vtu, odd).unwrap();
         let e = read_frame(&vtu).unwrap_err().to_string();
@@ -288,6 +315,8 @@ mod tests {
             positions: &p,
             radii: &r,
             velocities: &v,
+            angular_velocities: &SPIN,
+            contacts: None,
         };
         let dir = tempfile::tempdir().unwrap();
         let vtu = dir.path().join("nan.vtu");
@@ -305,6 +334,8 @@ mod tests {
             positions: &p,
             radii: &r,
             velocities: &v,
+            angular_velocities: &SPIN,
+            contacts: None,
         };
         let dir = tempfile::tempdir().unwrap();
         let vtu = dir.path().join("a.vtu");

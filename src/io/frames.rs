@@ -1,10 +1,13 @@
 //! Simulation frames for ParaView: one VTK XML UnstructuredGrid file (`.vtu`) per frame, an
-//! optional CSV twin (`x,y,z,r,vx,vy,vz`), and a ParaView collection (`series.pvd`) that lists
-//! the frames with their times.
+//! optional CSV twin (`x,y,z,r,vx,vy,vz,wx,wy,wz`), and a ParaView collection (`series.pvd`) that
+//! lists the frames with their times.
 //!
 //! A `.vtu` frame holds one `VTK_VERTEX` cell per sphere, the centres as `Float32` points and the
-//! point arrays `radius`, `velocity` (3 components), `speed` (all `Float32`) and `id` (`UInt32`,
-//! the sphere's index), plus the field data `TimeValue` (`Float64`) and `step` (`UInt64`). The
+//! point arrays `radius`, `velocity` (3 components), `speed`, `angular_velocity` (3 components;
+//! all `Float32`) and `id` (`UInt32`, the sphere's index), and, when the run keeps contact
+//! history (friction or EPSD rolling resistance), `contacts` (`UInt32`: the contacts each sphere
+//! holds in that history, walls included), plus the field data `TimeValue` (`Float64`) and `step`
+//! (`UInt64`). The
 //! arrays are stored as raw little-endian binary in one `<AppendedData encoding="raw">` block, each
 //! preceded by its length in bytes as a `UInt64` (`header_type="UInt64"`). In ParaView, open
 //! `series.pvd` and show the spheres with a Glyph (sphere, scale by `radius`, factor 2) or the
@@ -14,8 +17,8 @@
 //! only as release candidates, 0.7.0-rc2 checked) writes XML binary data only as inline base64
 //! (a third larger, and encoded), never as raw appended data; it wants every array copied into
 //! its own owned model first, serialises through serde and quick-xml, and by default pulls in
-//! three compression libraries. A frame needs only a fixed header and eight byte blocks, which
-//! this file writes straight from the caller's slices (45 MB for a million spheres), with no
+//! three compression libraries. A frame needs only a fixed header and ten byte blocks, which
+//! this file writes straight from the caller's slices (61 MB for a million spheres), with no
 //! copy of the state.
 //!
 //! Every file is written through [`write_atomically`]: a killed run leaves each frame and the
@@ -23,11 +26,12 @@
 
 use super::{io_error, parse_error, write_atomically};
 use crate::error::{Error, Result};
+use crate::particles::{ContactHistory, Particles};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-/// The state of every sphere at one step of a simulation. The three slices are parallel: sphere
-/// `i` is `positions[i]`, `radii[i]`, `velocities[i]`.
+/// The state of every sphere at one step of a simulation. The slices are parallel: sphere `i` is
+/// `positions[i]`, `radii[i]`, `velocities[i]`, `angular_velocities[i]`.
 #[derive(Debug, Clone, Copy)]
 pub struct Frame<'a> {
     /// Simulated time \[s\]; must be finite.
@@ -40,20 +44,51 @@ pub struct Frame<'a> {
     pub radii: &'a [f32],
     /// Velocities \[m/s\].
     pub velocities: &'a [[f32; 3]],
+    /// Angular velocities \[rad/s\].
+    pub angular_velocities: &'a [[f32; 3]],
+    /// The contact history of a run that keeps one: the `.vtu` then holds each sphere's number
+    /// of contacts in it (`None`: a run without friction keeps none, and the array is left out).
+    pub contacts: Option<&'a ContactHistory>,
+}
+
+impl<'a> Frame<'a> {
+    /// The frame of `particles` at time `step · dt`, with the contact counts of their history
+    /// when `keeps_history` (the step's contacts carry springs: friction or EPSD rolling
+    /// resistance).
+    pub fn of(particles: &'a Particles, dt: f32, keeps_history: bool) -> Self {
+        Self {
+            time: particles.step as f64 * dt as f64,
+            step: particles.step,
+            positions: &particles.positions,
+            radii: &particles.radii,
+            velocities: &particles.velocities,
+            angular_velocities: &particles.angular_velocities,
+            contacts: keeps_history.then_some(&particles.history),
+        }
+    }
 }
 
 impl Frame<'_> {
-    /// The number of spheres, once the slices are known to agree and the time to be finite.
+    /// The number of spheres, once the slices and the history are known to agree and the time
+    /// to be finite.
     fn checked_len(&self) -> Result<usize> {
         let n = self.positions.len();
-        if self.radii.len() != n || self.velocities.len() != n {
+        if self.radii.len() != n || self.velocities.len() != n || self.angular_velocities.len() != n
+        {
             return Err(Error::Usage(format!(
-                "frame at step {}: {} positions, {} radii and {} velocities (must be equal)",
+                "frame at step {}: {} positions, {} radii, {} velocities and {} angular \
+                 velocities (must be equal)",
                 self.step,
                 n,
                 self.radii.len(),
-                self.velocities.len()
+                self.velocities.len(),
+                self.angular_velocities.len()
             )));
+        }
+        if let Some(history) = self.contacts {
+            history
+                .validate(n)
+                .map_err(|e| Error::Usage(format!("frame at step {}: {e}", self.step)))?;
         }
         if !self.time.is_finite() {
             return Err(Error::Usage(format!(
@@ -84,36 +119,50 @@ fn speed(v: [f32; 3]) -> f32 {
 /// VTK's cell type code of a single point (`VTK_VERTEX`).
 const VTK_VERTEX: u8 = 1;
 
-/// The appended arrays, in the order their blocks are written.
-#[derive(Debug, Clone, Copy)]
+/// The appended arrays.
+#[derive(Debug, Clone, Copy, PartialEq)]
 enum Block {
     Radius,
     Velocity,
     Speed,
+    AngularVelocity,
     Id,
+    Contacts,
     Points,
     Connectivity,
     Offsets,
     Types,
 }
 
-const BLOCKS: [Block; 8] = [
-    Block::Radius,
-    Block::Velocity,
-    Block::Speed,
-    Block::Id,
-    Block::Points,
-    Block::Connectivity,
-    Block::Offsets,
-    Block::Types,
-];
+/// The blocks of `frame`, in the order they are written (`contacts` only with a history).
+fn blocks(frame: &Frame) -> Vec<Block> {
+    [
+        Block::Radius,
+        Block::Velocity,
+        Block::Speed,
+        Block::AngularVelocity,
+        Block::Id,
+        Block::Contacts,
+        Block::Points,
+        Block::Connectivity,
+        Block::Offsets,
+        Block::Types,
+    ]
+    .into_iter()
+    .filter(|&b| b != Block::Contacts || frame.contacts.is_some())
+    .collect()
+}
 
 impl Block {
     /// `wide`: cell indices need 64 bits (more than `i32::MAX` spheres).
     fn vtk_type(self, wide: bool) -> &'static str {
         match self {
-            Block::Radius | Block::Velocity | Block::Speed | Block::Points => "Float32",
-            Block::Id => "UInt32",
+            Block::Radius
+            | Block::Velocity
+            | Block::Speed
+            | Block::AngularVelocity
+            | Block::Points => "Float32",
+            Block::Id | Block::Contacts => "UInt32",
             Block::Connectivity | Block::Offsets if wide => "Int64",
             Block::Connectivity | Block::Offsets => "Int32",
             Block::Types => "UInt8",
@@ -125,7 +174,9 @@ impl Block {
             Block::Radius => "radius",
             Block::Velocity => "velocity",
             Block::Speed => "speed",
+            Block::AngularVelocity => "angular_velocity",
             Block::Id => "id",
+            Block::Contacts => "contacts",
             Block::Points => "Points",
             Block::Connectivity => "connectivity",
             Block::Offsets => "offsets",
@@ -136,7 +187,12 @@ impl Block {
     /// The element of the `<Piece>` that lists the array.
     fn section(self) -> &'static str {
         match self {
-            Block::Radius | Block::Velocity | Block::Speed | Block::Id => "PointData",
+            Block::Radius
+            | Block::Velocity
+            | Block::Speed
+            | Block::AngularVelocity
+            | Block::Id
+            | Block::Contacts => "PointData",
             Block::Points => "Points",
             Block::Connectivity | Block::Offsets | Block::Types => "Cells",
         }
@@ -144,7 +200,7 @@ impl Block {
 
     fn components(self) -> usize {
         match self {
-            Block::Velocity | Block::Points => 3,
+            Block::Velocity | Block::AngularVelocity | Block::Points => 3,
             _ => 1,
         }
     }
@@ -171,10 +227,11 @@ impl Block {
 pub fn write_vtu(path: &Path, frame: &Frame) -> Result<()> {
     let n = frame.checked_len()?;
     let wide = n > i32::MAX as usize;
-    let header = vtu_header(frame, n, wide);
+    let blocks = blocks(frame);
+    let header = vtu_header(frame, &blocks, n, wide);
     write_atomically(path, |out| {
         out.write_all(header.as_bytes())?;
-        for block in BLOCKS {
+        for &block in &blocks {
             out.write_all(&block.data_bytes(n, wide).to_le_bytes())?;
             write_block(out, block, frame, wide)?;
         }
@@ -183,10 +240,10 @@ pub fn write_vtu(path: &Path, frame: &Frame) -> Result<()> {
 }
 
 /// The XML up to and including the `_` that opens the appended data.
-fn vtu_header(frame: &Frame, n: usize, wide: bool) -> String {
-    let mut offsets = [0u64; BLOCKS.len()];
+fn vtu_header(frame: &Frame, blocks: &[Block], n: usize, wide: bool) -> String {
+    let mut offsets = vec![0u64; blocks.len()];
     let mut at = 0;
-    for (k, block) in BLOCKS.iter().enumerate() {
+    for (k, block) in blocks.iter().enumerate() {
         offsets[k] = at;
         at += 8 + block.data_bytes(n, wide);
     }
@@ -210,7 +267,7 @@ fn vtu_header(frame: &Frame, n: usize, wide: bool) -> String {
     ];
     for (section, attributes) in sections {
         xml += &format!("      <{section}{attributes}>\n");
-        for (k, block) in BLOCKS.iter().enumerate() {
+        for (k, block) in blocks.iter().enumerate() {
             if block.section() != section {
                 continue;
             }
@@ -263,7 +320,16 @@ fn write_block(
             .velocities
             .iter()
             .try_for_each(|&v| out.put(speed(v).to_le_bytes()))?,
+        Block::AngularVelocity => frame
+            .angular_velocities
+            .iter()
+            .flatten()
+            .try_for_each(|x| out.put(x.to_le_bytes()))?,
         Block::Id => (0..n as u32).try_for_each(|i| out.put(i.to_le_bytes()))?,
+        Block::Contacts => {
+            let history = frame.contacts.expect("the block is written with a history");
+            (0..n).try_for_each(|i| out.put((history.of(i).len() as u32).to_le_bytes()))?
+        }
         Block::Points => frame
             .positions
             .iter()
@@ -312,23 +378,25 @@ impl<'o> Chunked<'o> {
 // .csv
 // ---------------------------------------------------------------------------------------------
 
-/// Writes `frame` as CSV with the header `x,y,z,r,vx,vy,vz`, one sphere per row, every number in
-/// its shortest round-trip form (as [`super::write_spheres`] writes), atomically.
+/// Writes `frame` as CSV with the header `x,y,z,r,vx,vy,vz,wx,wy,wz`, one sphere per row, every
+/// number in its shortest round-trip form (as [`super::write_spheres`] writes), atomically.
 ///
-/// The file is a sphere file with velocities: [`super::read_particles`] reads it back (so
-/// `mochi simulate --input FRAME.csv` restarts from it) and [`super::read_spheres`] reads its
-/// spheres.
+/// The file is a sphere file with velocities and angular velocities: [`super::read_particles`]
+/// reads it back (so `mochi simulate --input FRAME.csv` restarts from it) and
+/// [`super::read_spheres`] reads its spheres. (The contact history is not in it: a restart
+/// from a frame starts every contact's springs from zero; a checkpoint keeps them.)
 pub fn write_frame_csv(path: &Path, frame: &Frame) -> Result<()> {
     frame.checked_len()?;
     write_atomically(path, |out| {
-        writeln!(out, "x,y,z,r,vx,vy,vz")?;
-        for ((&[x, y, z], r), &[vx, vy, vz]) in frame
+        writeln!(out, "x,y,z,r,vx,vy,vz,wx,wy,wz")?;
+        for (((&[x, y, z], r), &[vx, vy, vz]), &[wx, wy, wz]) in frame
             .positions
             .iter()
             .zip(frame.radii)
             .zip(frame.velocities)
+            .zip(frame.angular_velocities)
         {
-            writeln!(out, "{x},{y},{z},{r},{vx},{vy},{vz}")?;
+            writeln!(out, "{x},{y},{z},{r},{vx},{vy},{vz},{wx},{wy},{wz}")?;
         }
         Ok(())
     })

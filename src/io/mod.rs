@@ -1,4 +1,5 @@
-//! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4), pairs (CSV `i,j`), simulation
+//! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4, optionally with velocities and
+//! angular velocities), pairs (CSV `i,j`), simulation
 //! frames for ParaView (`.vtu` files indexed by a `.pvd` collection, see [`FrameSeries`]) and
 //! checkpoints.
 //!
@@ -50,7 +51,8 @@ impl Format {
                 path: path.to_owned(),
                 line: None,
                 msg: format!(
-                    "unknown sphere file type {:?}: use .csv (header x,y,z,r) or .npy (float32, N×4)",
+                    "unknown sphere file type {:?}: use .csv (header x,y,z,r, optionally with \
+                     vx,vy,vz and wx,wy,wz) or .npy (float32, N×4, N×7 or N×10)",
                     other.unwrap_or("")
                 ),
             }),

@@ -1,41 +1,111 @@
 //! Sphere files: CSV with header `x,y,z,r`, or NumPy `.npy` of shape N×4 (float32; float64 is
-//! accepted and rounded to float32). Both may carry velocities too: header `x,y,z,r,vx,vy,vz`
-//! (the frame CSVs of `mochi simulate`), shape N×7; [`read_spheres`] ignores them and
-//! [`read_particles`] returns them.
+//! accepted and rounded to float32). Both may carry velocities, header `x,y,z,r,vx,vy,vz` or shape
+//! N×7, and angular velocities after them, header `x,y,z,r,vx,vy,vz,wx,wy,wz` or shape N×10 (the
+//! frame CSVs of `mochi simulate`). [`read_spheres`] ignores the motion; [`read_particles`]
+//! returns it.
 
 use super::{Format, io_error, parse_error, write_atomically};
 use crate::error::{Result, try_push, try_vec};
+use crate::particles::Particles;
 use crate::spheres::{SphereSet, check_count, check_sphere};
 use npyz::WriterBuilder;
 use std::io::{BufRead, Read, Seek};
 use std::path::Path;
 
-const COLUMNS: [&str; 4] = ["x", "y", "z", "r"];
-const WITH_VELOCITY: [&str; 7] = ["x", "y", "z", "r", "vx", "vy", "vz"];
+/// Every column a sphere file may have, in order; a file has the first 4, 7 or 10 of them.
+const COLUMNS: [&str; 10] = ["x", "y", "z", "r", "vx", "vy", "vz", "wx", "wy", "wz"];
+/// The column counts a file may have: the sphere, with velocities, and with angular velocities.
+const WIDTHS: [usize; 3] = [4, 7, 10];
 
-/// Rows of a sphere file: `x, y, z, r` and, if the file has them, velocities.
-type Rows = (Vec<[f32; 4]>, Option<Vec<[f32; 3]>>);
+/// The headers a sphere CSV may have, as errors list them.
+fn accepted_headers() -> String {
+    let all: Vec<String> = WIDTHS.iter().map(|&w| COLUMNS[..w].join(",")).collect();
+    format!("{}, {} or {}", all[0], all[1], all[2])
+}
+
+/// Rows of a sphere file: `x, y, z, r`, and the velocities and angular velocities where the file
+/// has them (`None` where it does not).
+struct Rows {
+    spheres: Vec<[f32; 4]>,
+    velocities: Option<Vec<[f32; 3]>>,
+    angular_velocities: Option<Vec<[f32; 3]>>,
+}
+
+impl Rows {
+    /// Room for `n` rows of `columns` (4, 7 or 10) values.
+    fn with_capacity(n: usize, columns: usize, what: impl Fn() -> String) -> Result<Self> {
+        let motion = |from: usize| -> Result<Option<Vec<[f32; 3]>>> {
+            (columns >= from).then(|| try_vec(n, &what)).transpose()
+        };
+        Ok(Self {
+            spheres: try_vec(n, &what)?,
+            velocities: motion(7)?,
+            angular_velocities: motion(10)?,
+        })
+    }
+
+    /// Checks one row of values (as many as the file's columns) and appends it; the error is
+    /// the problem, for the caller to place.
+    fn push(&mut self, row: &[f32], what: impl Fn() -> String) -> Result<(), RowError> {
+        check_sphere(&[row[0], row[1], row[2]], row[3]).map_err(RowError::Bad)?;
+        let triple = |at: usize| [row[at], row[at + 1], row[at + 2]];
+        let pushes = [(&mut self.velocities, 4), (&mut self.angular_velocities, 7)];
+        for (name, (column, at)) in ["velocity", "angular velocity"].into_iter().zip(pushes) {
+            if let Some(column) = column {
+                let v = triple(at);
+                check_finite(name, &v).map_err(RowError::Bad)?;
+                try_push(column, v, &what).map_err(RowError::Fatal)?;
+            }
+        }
+        try_push(&mut self.spheres, [row[0], row[1], row[2], row[3]], &what)
+            .map_err(RowError::Fatal)
+    }
+}
+
+/// Why a row was not taken: a bad value (placed by the caller) or an error of its own.
+enum RowError {
+    Bad(String),
+    Fatal(crate::error::Error),
+}
 
 /// Reads a sphere file (`.csv` or `.npy`, by extension) and validates every sphere (velocity
 /// columns, if any, are ignored).
 pub fn read_spheres(path: &Path) -> Result<SphereSet> {
-    Ok(read_particles(path)?.0)
+    let rows = read_rows(path)?;
+    SphereSet::from_xyzr(&rows.spheres)
 }
 
-/// Reads a sphere file with its velocities, if it has them (`None` when it has only x,y,z,r).
-pub fn read_particles(path: &Path) -> Result<(SphereSet, Option<Vec<[f32; 3]>>)> {
-    let (rows, velocities) = match Format::of(path)? {
-        Format::Csv => read_csv(path)?,
-        Format::Npy => read_npy(path)?,
-    };
-    Ok((SphereSet::from_xyzr(&rows)?, velocities))
+/// Reads a sphere file into particles at step 0: its velocities and angular velocities where
+/// it has them, zero where it does not; no contact history.
+pub fn read_particles(path: &Path) -> Result<Particles> {
+    let rows = read_rows(path)?;
+    let mut particles = Particles::at_rest(&SphereSet::from_xyzr(&rows.spheres)?)?;
+    if let Some(v) = rows.velocities {
+        particles.velocities = v;
+    }
+    if let Some(w) = rows.angular_velocities {
+        particles.angular_velocities = w;
+    }
+    Ok(particles)
+}
+
+fn read_rows(path: &Path) -> Result<Rows> {
+    match Format::of(path)? {
+        Format::Csv => read_csv(path),
+        Format::Npy => read_npy(path),
+    }
 }
 
 /// Checks a velocity row.
 pub(super) fn check_velocity(v: &[f32; 3]) -> std::result::Result<(), String> {
+    check_finite("velocity", v)
+}
+
+/// Checks that the vector `name` is finite.
+pub(super) fn check_finite(name: &str, v: &[f32; 3]) -> std::result::Result<(), String> {
     match v.iter().all(|x| x.is_finite()) {
         true => Ok(()),
-        false => Err(format!("velocity {v:?} is not finite")),
+        false => Err(format!("{name} {v:?} is not finite")),
     }
 }
 
@@ -43,7 +113,7 @@ pub(super) fn check_velocity(v: &[f32; 3]) -> std::result::Result<(), String> {
 pub fn write_spheres(path: &Path, spheres: &SphereSet) -> Result<()> {
     match Format::of(path)? {
         Format::Csv => write_atomically(path, |out| {
-            writeln!(out, "{}", COLUMNS.join(","))?;
+            writeln!(out, "{}", COLUMNS[..4].join(","))?;
             for [x, y, z, r] in spheres.xyzr() {
                 writeln!(out, "{x},{y},{z},{r}")?;
             }
@@ -61,7 +131,7 @@ pub fn write_spheres(path: &Path, spheres: &SphereSet) -> Result<()> {
     }
 }
 
-/// Longest line a sphere CSV may have, in bytes (a row of seven numbers needs a few hundred).
+/// Longest line a sphere CSV may have, in bytes (a row of ten numbers needs a few hundred).
 const MAX_LINE: usize = 4096;
 
 /// The lines of a sphere CSV as text, numbered from 1, each at most [`MAX_LINE`] bytes.
@@ -120,7 +190,7 @@ fn read_csv(path: &Path) -> Result<Rows> {
                 return Err(parse_error(
                     path,
                     None,
-                    "empty file: expected the header x,y,z,r",
+                    format!("empty file: expected the header {}", accepted_headers()),
                 ));
             }
             Some((no, line)) if !line.trim().is_empty() => {
@@ -138,19 +208,21 @@ fn read_csv(path: &Path) -> Result<Rows> {
             Some(_) => {}
         }
     };
-    let names: &[&str] = if fields == COLUMNS {
-        &COLUMNS
-    } else if fields == WITH_VELOCITY {
-        &WITH_VELOCITY
-    } else {
+    let Some(names) = WIDTHS
+        .iter()
+        .map(|&w| &COLUMNS[..w])
+        .find(|names| fields == *names)
+    else {
         return Err(parse_error(
             path,
             Some(header_no),
-            format!("the header must be x,y,z,r or x,y,z,r,vx,vy,vz (found {header:?})"),
+            format!(
+                "the header must be {} (found {header:?})",
+                accepted_headers()
+            ),
         ));
     };
-    let mut rows = Vec::new();
-    let mut velocities = Vec::new();
+    let mut rows = Rows::with_capacity(0, names.len(), String::new)?;
     while let Some((no, line)) = lines.next()? {
         let line = line.trim();
         if line.is_empty() {
@@ -166,24 +238,21 @@ fn read_csv(path: &Path) -> Result<Rows> {
                 fields.len()
             )));
         }
-        let mut row = [0f32; 7];
+        let mut row = [0f32; COLUMNS.len()];
         for (k, (field, name)) in fields.iter().zip(names).enumerate() {
             row[k] = field
                 .parse()
                 .map_err(|_| bad(format!("column {name}: {field:?} is not a number")))?;
         }
-        check_sphere(&[row[0], row[1], row[2]], row[3]).map_err(bad)?;
-        let count = rows.len() + 1;
+        let count = rows.spheres.len() + 1;
         check_count(count)?;
         let what = || format!("{count} rows of {}", path.display());
-        try_push(&mut rows, [row[0], row[1], row[2], row[3]], what)?;
-        if names.len() == 7 {
-            let v = [row[4], row[5], row[6]];
-            check_velocity(&v).map_err(bad)?;
-            try_push(&mut velocities, v, what)?;
-        }
+        rows.push(&row[..names.len()], what).map_err(|e| match e {
+            RowError::Bad(msg) => bad(msg),
+            RowError::Fatal(e) => e,
+        })?;
     }
-    Ok((rows, (names.len() == 7).then_some(velocities)))
+    Ok(rows)
 }
 
 fn read_npy(path: &Path) -> Result<Rows> {
@@ -203,10 +272,10 @@ fn read_npy(path: &Path) -> Result<Rows> {
     let npy = npyz::NpyFile::new(std::io::BufReader::new(&mut file))
         .map_err(|e| bad(format!("not a .npy file: {e}")))?;
     let shape = npy.shape().to_vec();
-    if shape.len() != 2 || !(shape[1] == 4 || shape[1] == 7) {
+    if shape.len() != 2 || !WIDTHS.iter().any(|&w| shape[1] == w as u64) {
         return Err(bad(format!(
-            "expected an array of shape N×4 (x, y, z, r) or N×7 (and vx, vy, vz), found shape \
-             {shape:?}"
+            "expected an array of shape N×4 (x, y, z, r), N×7 (and vx, vy, vz) or N×10 (and wx, \
+             wy, wz), found shape {shape:?}"
         )));
     }
     let columns = shape[1] as usize;
@@ -228,8 +297,7 @@ fn read_npy(path: &Path) -> Result<Rows> {
     let what = || format!("{n} rows of {}", path.display());
     let total = n * columns;
     let mut values: Vec<f32> = try_vec(total, what)?;
-    let mut rows = try_vec(n, what)?;
-    let mut velocities = try_vec(if columns == 7 { n } else { 0 }, what)?;
+    let mut rows = Rows::with_capacity(n, columns, what)?;
     let mut data = std::io::BufReader::new(file);
     data.seek(std::io::SeekFrom::Start(data_at))
         .map_err(io_error(path))?;
@@ -244,25 +312,20 @@ fn read_npy(path: &Path) -> Result<Rows> {
         })?;
         values.extend(bytes.chunks_exact(item).map(decode));
     }
+    let mut row = [0f32; COLUMNS.len()];
     for i in 0..n {
-        let at = |k: usize| {
-            if fortran {
-                values[k * n + i]
-            } else {
-                values[i * columns + k]
-            }
-        };
-        let row = [at(0), at(1), at(2), at(3)];
-        check_sphere(&[row[0], row[1], row[2]], row[3])
-            .map_err(|m| bad(format!("row {i} (0-based): {m}")))?;
-        rows.push(row);
-        if columns == 7 {
-            let v = [at(4), at(5), at(6)];
-            check_velocity(&v).map_err(|m| bad(format!("row {i} (0-based): {m}")))?;
-            velocities.push(v);
+        for (k, value) in row[..columns].iter_mut().enumerate() {
+            *value = match fortran {
+                true => values[k * n + i],
+                false => values[i * columns + k],
+            };
         }
+        rows.push(&row[..columns], what).map_err(|e| match e {
+            RowError::Bad(m) => bad(format!("row {i} (0-based): {m}")),
+            RowError::Fatal(e) => e,
+        })?;
     }
-    Ok((rows, (columns == 7).then_some(velocities)))
+    Ok(rows)
 }
 
 /// Refuses a `.npy` whose header, or the data its shape promises, is longer than the file,
