@@ -11,10 +11,60 @@ use super::gpu_step::granular::{
     TORQUE,
 };
 use crate::dem::model::{NormalLaw, RollingModel, StepParams};
+use crate::dem::stepper::StageTimes;
 use crate::error::{Error, Result, try_vec};
 use crate::gpu::Gpu;
 use crate::gpu::shader::Binding;
 use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, Particles};
+
+/// A wgpu engine's DEM step as [`run_batch`] drives it.
+pub(crate) trait RedoableBatch {
+    /// The GPU, the granular state (`None`: the paper's step), the parity of the next step and
+    /// the engine's buffers a batch begins from (restored when it is redone).
+    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, usize, Vec<&wgpu::Buffer>);
+
+    /// Records `steps` steps into `encoder`, submits it and waits for it: the contacts of the
+    /// last step and the phase times.
+    fn record_batch(
+        &mut self,
+        encoder: wgpu::CommandEncoder,
+        steps: u32,
+    ) -> Result<(u64, Option<StageTimes>)>;
+
+    /// Moves the clock and the parity back by `steps` steps (their state is restored apart).
+    fn rewind(&mut self, steps: u32);
+
+    /// Binds the granular state's buffers again (the history buffers are new after a growth).
+    fn rebind(&mut self);
+}
+
+/// Records `steps` steps (≤ the engine's batch) into one submission and waits for it; in the
+/// granular step, redoes them with more history slots from the state they began from while
+/// some sphere had more contacts than slots.
+pub(crate) fn run_batch(
+    step: &mut impl RedoableBatch,
+    steps: u32,
+) -> Result<(u64, Option<StageTimes>)> {
+    loop {
+        let (gpu, granular, parity, state) = step.batch_parts();
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        if let Some(g) = granular {
+            g.begin_batch(gpu, &mut encoder, parity, &state);
+        }
+        let done = step.record_batch(encoder, steps)?;
+        let (gpu, granular, ..) = step.batch_parts();
+        let Some(need) = granular.map(|g| g.overflow(gpu)).transpose()?.flatten() else {
+            return Ok(done);
+        };
+        // The batch's steps are undone: back to the state and step it began from.
+        step.rewind(steps);
+        let (gpu, granular, parity, state) = step.batch_parts();
+        if let Some(g) = granular {
+            g.restore_grown(gpu, parity, &state, need)?;
+        }
+        step.rebind();
+    }
+}
 
 /// History slots per sphere a run starts with, as the cpu step's (a dense monodisperse packing
 /// has 12 neighbours, plus up to 3 walls).
@@ -81,11 +131,7 @@ impl Granular {
         let stage = gpu.limits.max_storage_buffers_per_shader_stage;
         if stage < STORAGE_BUFFERS {
             return Err(Error::BackendUnavailable {
-                backend: if engine == "rq" {
-                    "wgpu-rq"
-                } else {
-                    "wgpu-compute"
-                },
+                backend: engine,
                 reason: format!(
                     "its granular DEM step binds {STORAGE_BUFFERS} storage buffers, {} allows {stage}",
                     gpu.info.name

@@ -3,10 +3,10 @@
 //! `wgsl/dem_physics.wgsl`, or the granular step's, [`granular`]), the choice of force atomics,
 //! per-phase timestamps, and moving particles to and from the GPU.
 
-pub(crate) use super::gpu_granular::{Granular, Rotation};
+pub(crate) use super::gpu_granular::{Granular, RedoableBatch, Rotation, run_batch};
 use crate::dem::model::{StepParams, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::gpu::Gpu;
 use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
 use crate::gpu::timer::GpuTimer;
@@ -312,6 +312,52 @@ impl StepTimer {
             build_ms: phases.build_ms * scale,
             dcd_ms: phases.dcd_ms * scale,
             update_ms: phases.update_ms * scale,
+        })
+    }
+}
+
+/// What opening a wgpu engine's DEM step compiles: the accumulators chosen, the granular
+/// step's state where the scene needs it, and the step's module in the matching variant.
+pub(crate) struct DemModule {
+    /// The accumulators, in words (for `describe`).
+    pub atomics: &'static str,
+    /// The granular step's state (`None`: the paper's step).
+    pub granular: Option<Granular>,
+    /// The step's WGSL, compiled.
+    pub module: wgpu::ShaderModule,
+}
+
+impl DemModule {
+    /// Refuses more than `limit` spheres ([`Error::TooLarge`], naming `backend` and the
+    /// adapter), picks the accumulators, opens the granular state where
+    /// [`Granular::needed`] and compiles `source(accumulators, granular)`.
+    pub fn open(
+        gpu: &Gpu,
+        backend: &'static str,
+        particles: &Particles,
+        params: &StepParams,
+        limit: u64,
+        atomics: ForceAtomics,
+        source: impl FnOnce(Accumulators, bool) -> String,
+    ) -> Result<Self> {
+        let n = particles.len() as u64;
+        if n > limit {
+            return Err(Error::TooLarge {
+                what: format!("spheres for the {backend} DEM on {}", gpu.info.name),
+                got: n,
+                limit,
+            });
+        }
+        let (atomics, accumulators) = atomics.pick(gpu);
+        let granular = Granular::needed(particles, params)
+            .then(|| Granular::new(gpu, particles, params, backend))
+            .transpose()?;
+        let source = source(accumulators, granular.is_some());
+        let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
+        Ok(DemModule {
+            atomics,
+            granular,
+            module,
         })
     }
 }

@@ -30,8 +30,8 @@ use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, StepTimer, advance_in_batches,
-    max_spheres, particles_with, rows,
+    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, RedoableBatch, StepTimer,
+    advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
 use crate::error::{Error, Result};
 use crate::gpu::shader::Binding;
@@ -118,25 +118,24 @@ impl GridStepper {
     ) -> Result<Self> {
         particles.separate_coincident()?;
         let gpu = Gpu::open(Need::Compute)?;
+        let DemModule {
+            atomics,
+            granular,
+            module,
+        } = DemModule::open(
+            &gpu,
+            "wgpu-compute",
+            &particles,
+            &params,
+            max_spheres(&gpu),
+            atomics,
+            |accumulators, granular| match granular {
+                true => dem_grid::granular_source(accumulators),
+                false => dem_grid::source(accumulators),
+            },
+        )?;
         let n64 = particles.len() as u64;
-        let max = max_spheres(&gpu);
-        if n64 > max {
-            return Err(Error::TooLarge {
-                what: format!("spheres for the wgpu-compute DEM on {}", gpu.info.name),
-                got: n64,
-                limit: max,
-            });
-        }
         let n = n64 as u32;
-        let (atomics, accumulators) = atomics.pick(&gpu);
-        let granular = Granular::needed(&particles, &params)
-            .then(|| Granular::new(&gpu, &particles, &params, "wgpu-compute"))
-            .transpose()?;
-        let source = match granular {
-            Some(_) => dem_grid::granular_source(accumulators),
-            None => dem_grid::source(accumulators),
-        };
-        let module = gpu.module("mochi.dem.grid", &source);
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.{entry}"), &module, entry);
         let pipelines = Pipelines {
             bin_count: pipeline("bin_count"),
@@ -417,36 +416,15 @@ impl GridStepper {
             Phase::Integrate => gpu::record(pass, &p.integrate, &b.integrate, self.groups),
         }
     }
+}
 
-    /// Records `steps` steps (≤ [`MAX_BATCH`]) into one submission and waits for it; in the
-    /// granular step, redoes them with more history slots from the state they began from
-    /// while some sphere had more contacts than slots.
-    fn run_batch(&mut self, steps: u32) -> Result<(u64, Option<StageTimes>)> {
-        loop {
-            let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
-            let set = &self.sets[self.current];
-            let state = [&set.pos, &set.vel, &set.ids, &self.clock];
-            if let Some(g) = self.granular.as_mut() {
-                g.begin_batch(&self.gpu, &mut encoder, self.current, &state);
-            }
-            let done = self.record_batch(encoder, steps)?;
-            let Some(g) = self.granular.as_mut() else {
-                return Ok(done);
-            };
-            let Some(need) = g.overflow(&self.gpu)? else {
-                return Ok(done);
-            };
-            // The batch's steps are undone: back to the set and step it began from.
-            self.step -= steps as u64;
-            self.current = (self.current + steps as usize) % 2;
-            let set = &self.sets[self.current];
-            let state = [&set.pos, &set.vel, &set.ids, &self.clock];
-            g.restore_grown(&self.gpu, self.current, &state, need)?;
-            self.binds = Some([self.make_binds(0), self.make_binds(1)]);
-        }
+impl RedoableBatch for GridStepper {
+    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, usize, Vec<&wgpu::Buffer>) {
+        let set = &self.sets[self.current];
+        let state = vec![&set.pos, &set.vel, &set.ids, &self.clock];
+        (&self.gpu, self.granular.as_mut(), self.current, state)
     }
 
-    /// Records `steps` steps (≤ [`MAX_BATCH`]) into `encoder`, submits it and waits for it.
     /// With a timer, the first step is recorded phase by phase between timestamps (see
     /// [`StepTimer`]); the others share one compute pass.
     fn record_batch(
@@ -493,6 +471,15 @@ impl GridStepper {
         let contacts = gpu.read::<u32>(&self.counters, 1)?[0] as u64;
         let times = timer.map(|t| t.read(gpu, profiled)).transpose()?;
         Ok((contacts, times))
+    }
+
+    fn rewind(&mut self, steps: u32) {
+        self.step -= steps as u64;
+        self.current = (self.current + steps as usize) % 2;
+    }
+
+    fn rebind(&mut self) {
+        self.binds = Some([self.make_binds(0), self.make_binds(1)]);
     }
 }
 
@@ -554,7 +541,7 @@ impl Stepper for GridStepper {
             }
             let until_relayout = self.laid_out_at.unwrap_or(self.step) + RELAYOUT_EVERY - self.step;
             let batch = left.min(MAX_BATCH).min(until_relayout.max(1) as u32);
-            let (contacts, times) = self.run_batch(batch)?;
+            let (contacts, times) = run_batch(self, batch)?;
             Ok((batch, contacts, times))
         })
     }

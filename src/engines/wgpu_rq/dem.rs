@@ -17,10 +17,10 @@ use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, StepTimer, advance_in_batches,
-    max_spheres, particles_with, rows,
+    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, RedoableBatch, StepTimer,
+    advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::gpu::{self, Gpu, Need};
 use crate::particles::Particles;
 use crate::proxy::BOX_PADDING;
@@ -85,27 +85,27 @@ impl RqStepper {
     ) -> Result<Self> {
         particles.separate_coincident()?;
         let gpu = Gpu::open(Need::RayQuery)?;
-        let n64 = particles.len() as u64;
         let limit = max_spheres(&gpu).min(
             gpu.limits.max_blas_primitive_count as u64 * gpu.limits.max_tlas_instance_count as u64,
         );
-        if n64 > limit {
-            return Err(Error::TooLarge {
-                what: format!("spheres for the wgpu-rq DEM on {}", gpu.info.name),
-                got: n64,
-                limit,
-            });
-        }
+        let DemModule {
+            atomics,
+            granular,
+            module,
+        } = DemModule::open(
+            &gpu,
+            "wgpu-rq",
+            &particles,
+            &params,
+            limit,
+            atomics,
+            |accumulators, granular| match granular {
+                true => dem_rq::granular_source(accumulators),
+                false => dem_rq::source(accumulators),
+            },
+        )?;
+        let n64 = particles.len() as u64;
         let n = n64 as u32;
-        let (atomics, accumulators) = atomics.pick(&gpu);
-        let granular = Granular::needed(&particles, &params)
-            .then(|| Granular::new(&gpu, &particles, &params, "wgpu-rq"))
-            .transpose()?;
-        let source = match granular {
-            Some(_) => dem_rq::granular_source(accumulators),
-            None => dem_rq::source(accumulators),
-        };
-        let module = gpu.module("mochi.dem.rq", &source);
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.rq.{entry}"), &module, entry);
         let pipelines = Pipelines {
             proxy_boxes: pipeline("proxy_boxes"),
@@ -182,52 +182,15 @@ impl RqStepper {
             gpu,
         })
     }
+}
 
-    /// Records `steps` steps (≤ [`MAX_BATCH`]) into one submission and waits for it; in the
-    /// granular step, redoes them with more history slots from the state they began from
-    /// while some sphere had more contacts than slots.
-    fn run_batch(&mut self, steps: u32) -> Result<(u64, Option<StageTimes>)> {
-        loop {
-            let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
-            let r = self.resident.as_ref().expect("spheres to step");
-            let state = [&self.pos, &self.vel, &r.clock];
-            if let Some(g) = self.granular.as_mut() {
-                g.begin_batch(&self.gpu, &mut encoder, self.parity, &state);
-            }
-            let done = self.record_batch(encoder, steps)?;
-            let Some(g) = self.granular.as_mut() else {
-                return Ok(done);
-            };
-            let Some(need) = g.overflow(&self.gpu)? else {
-                return Ok(done);
-            };
-            // The batch's steps are undone: back to the state and step it began from.
-            self.step -= steps as u64;
-            self.parity = (self.parity + steps as usize) % 2;
-            let r = self.resident.as_mut().expect("spheres to step");
-            let state = [&self.pos, &self.vel, &r.clock];
-            g.restore_grown(&self.gpu, self.parity, &state, need)?;
-            let buffers = (
-                &self.pos,
-                &self.vel,
-                &r.rq,
-                &r.dem,
-                &r.clock,
-                &r.accel.boxes,
-                &r.force,
-                &r.counters,
-            );
-            r.binds = bind(
-                &self.gpu,
-                &self.pipelines,
-                buffers,
-                r.accel.tlas(),
-                Some(&*g),
-            );
-        }
+impl RedoableBatch for RqStepper {
+    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, usize, Vec<&wgpu::Buffer>) {
+        let r = self.resident.as_ref().expect("spheres to step");
+        let state = vec![&self.pos, &self.vel, &r.clock];
+        (&self.gpu, self.granular.as_mut(), self.parity, state)
     }
 
-    /// Records `steps` steps (≤ [`MAX_BATCH`]) into `encoder`, submits it and waits for it.
     fn record_batch(
         &mut self,
         mut encoder: wgpu::CommandEncoder,
@@ -281,6 +244,32 @@ impl RqStepper {
         let times = timer.map(|t| t.read(gpu, steps)).transpose()?;
         Ok((contacts, times))
     }
+
+    fn rewind(&mut self, steps: u32) {
+        self.step -= steps as u64;
+        self.parity = (self.parity + steps as usize) % 2;
+    }
+
+    fn rebind(&mut self) {
+        let r = self.resident.as_mut().expect("spheres to step");
+        let buffers = (
+            &self.pos,
+            &self.vel,
+            &r.rq,
+            &r.dem,
+            &r.clock,
+            &r.accel.boxes,
+            &r.force,
+            &r.counters,
+        );
+        r.binds = bind(
+            &self.gpu,
+            &self.pipelines,
+            buffers,
+            r.accel.tlas(),
+            self.granular.as_ref(),
+        );
+    }
 }
 
 impl Stepper for RqStepper {
@@ -302,7 +291,7 @@ impl Stepper for RqStepper {
         }
         advance_in_batches(steps, self.timer.is_some(), |left| {
             let batch = left.min(MAX_BATCH);
-            let (contacts, times) = self.run_batch(batch)?;
+            let (contacts, times) = run_batch(self, batch)?;
             Ok((batch, contacts, times))
         })
     }
