@@ -730,6 +730,29 @@ fn strs(args: &[String]) -> Vec<&str> {
 }
 
 #[test]
+fn a_resume_without_out_continues_in_the_checkpoints_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&strs(&short_run("run", &[])), d);
+    let checkpoint = "run/checkpoint.bin";
+    let args = [
+        "simulate",
+        "--resume",
+        checkpoint,
+        "--steps",
+        "30",
+        "--backend",
+        "cpu",
+        "-q",
+    ];
+    let stdout = ok(&args, d);
+    assert!(d.join("run/frame_00000030.vtu").is_file(), "{stdout}");
+    assert!(!d.join("mochi-out").exists(), "{stdout}");
+    let (particles, _) = mochi::io::read_checkpoint(&d.join(checkpoint)).unwrap();
+    assert_eq!(particles.step, 30);
+}
+
+#[test]
 fn a_folder_holding_a_run_is_refused_unless_overwrite_which_removes_only_its_files() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

@@ -243,11 +243,12 @@ pub struct SimulateArgs {
     /// boxes). Grids re-bin and wgpu-rq rebuilds every step.
     #[arg(long, value_name = "K|auto", default_value_t = RebuildPolicy::Auto)]
     pub rebuild: RebuildPolicy,
-    /// Output folder for frames, checkpoints and the summary. A folder that holds another run
-    /// (series.pvd, scene.toml, checkpoint.bin, frame_* files) is refused unless --overwrite or
-    /// --resume; a folder another run is writing into is refused.
-    #[arg(short, long, default_value = "mochi-out")]
-    pub out: PathBuf,
+    /// Output folder for frames, checkpoints and the summary (default: mochi-out, or with
+    /// --resume the checkpoint's folder). A folder that holds another run (series.pvd,
+    /// scene.toml, checkpoint.bin, frame_* files) is refused unless --overwrite or --resume; a
+    /// folder another run is writing into is refused.
+    #[arg(short, long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
     /// Replace the run in --out: first remove its files (series.pvd, scene.toml,
     /// checkpoint.bin, frame_*.vtu/.csv/.png); other files in the folder stay.
     #[arg(long, conflicts_with = "resume")]

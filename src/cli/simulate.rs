@@ -40,6 +40,7 @@ fn flags(args: &SimulateArgs) -> Result<SceneFlags> {
 }
 
 pub fn simulate(args: SimulateArgs) -> Result<()> {
+    let out = run_folder(&args);
     if let (Some(gif), 0) = (&args.render.gif, args.render_every) {
         anyhow::bail!(
             "--gif {} needs --render-every M: the GIF is made of the pictures",
@@ -48,7 +49,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     }
     if args.resume.is_none() && !args.overwrite {
         // Checked again once the folder is locked; here before the scene is built.
-        output::refuse_earlier_run(&args.out)?;
+        output::refuse_earlier_run(&out)?;
     }
     let flags = flags(&args)?;
     let (config, start) = match &args.resume {
@@ -107,15 +108,15 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             .collect(),
     };
     let gif = args.render.gif.as_deref();
-    output::check_run_outputs(&args.out, &inputs, gif)?;
+    output::check_run_outputs(&out, &inputs, gif)?;
     if let Some(gif) = gif {
-        output::check_output_folder(gif, "--gif", Some(&args.out))?;
+        output::check_output_folder(gif, "--gif", Some(&out))?;
         if let Some(checkpoint) = &args.resume {
             output::refuse_same_file(checkpoint, gif, "--gif")?;
         }
     }
     // Everything is checked: from here on the run writes.
-    let _folder = output::claim_run_folder(&args.out, args.resume.is_some(), args.overwrite)?;
+    let _folder = output::claim_run_folder(&out, args.resume.is_some(), args.overwrite)?;
     if let Some(pictures) = &mut pictures {
         pictures.start_gif()?;
     }
@@ -123,9 +124,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let mut frames = if config.frame_every == 0 {
         None
     } else if args.resume.is_some() {
-        Some(FrameSeries::open_for_resume(&args.out, first)?)
+        Some(FrameSeries::open_for_resume(&out, first)?)
     } else {
-        Some(FrameSeries::create(&args.out)?)
+        Some(FrameSeries::create(&out)?)
     };
     eprintln!(
         "scene {} | {n} spheres | steps {first}..{total} | {} | restitution {} | backend {}",
@@ -157,7 +158,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         ),
     }
     let scene_toml = config.to_toml();
-    io::write_atomically(&args.out.join(io::SCENE_FILE), |w| {
+    io::write_atomically(&out.join(io::SCENE_FILE), |w| {
         w.write_all(scene_toml.as_bytes())
     })?;
     let write_frame = |frames: &mut Option<FrameSeries>, stepper: &mut dyn Stepper| -> Result<()> {
@@ -176,7 +177,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
                 radii: &now.radii,
                 velocities: &now.velocities,
             };
-            pictures.render(&frame, &png_name(&args.out, now.step))?;
+            pictures.render(&frame, &png_name(&out, now.step))?;
         }
         Ok(())
     };
@@ -194,7 +195,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         ProgressStyle::with_template("{bar:30} {pos}/{len} steps | {per_sec} | ETA {eta} | {msg}")
             .expect("a valid template"),
     );
-    let checkpoint = args.out.join("checkpoint.bin");
+    let checkpoint = out.join("checkpoint.bin");
     let started = Instant::now();
     let mut times = StageTimes::default();
     let mut clock = Clock::None;
@@ -246,7 +247,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     });
     eprintln!(
         "wrote {} (series.pvd opens in ParaView), checkpoint {}",
-        args.out.display(),
+        out.display(),
         checkpoint.display()
     );
     if let Some(gif) = pictures.map(FrameRenderer::finish).transpose()?.flatten() {
@@ -294,4 +295,17 @@ fn summary(s: &SummaryLine) {
         per(s.times.update_ms),
         per(s.times.total_ms())
     );
+}
+
+/// Where the run writes: `--out`, else the folder of the checkpoint it resumes, else
+/// `mochi-out`.
+fn run_folder(args: &SimulateArgs) -> PathBuf {
+    match (&args.out, &args.resume) {
+        (Some(out), _) => out.clone(),
+        (None, Some(checkpoint)) => match checkpoint.parent() {
+            Some(folder) if !folder.as_os_str().is_empty() => folder.to_path_buf(),
+            _ => PathBuf::from("."),
+        },
+        (None, None) => PathBuf::from("mochi-out"),
+    }
 }
