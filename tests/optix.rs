@@ -88,7 +88,7 @@ fn device_programs_compile_with_nvrtc() {
         eprintln!("note: NVRTC is not installed here; the device programs are not compiled");
         return;
     }
-    let entries: [(Unit, &[&str]); 3] = [
+    let entries: [(Unit, &[&str]); 5] = [
         (
             Unit::Detect,
             &["__raygen__detect", "__intersection__detect", "params"],
@@ -101,6 +101,14 @@ fn device_programs_compile_with_nvrtc() {
             Unit::Dem,
             &["__raygen__dem", "__intersection__dem", "params"],
         ),
+        (
+            Unit::Granular,
+            &["__raygen__granular", "__intersection__granular", "params"],
+        ),
+        (
+            Unit::GranularKernels,
+            &["granular_integrate", "permute_rows"],
+        ),
     ];
     for (unit, names) in entries {
         let ptx = programs::compile(unit).unwrap_or_else(|e| panic!("{e}"));
@@ -108,6 +116,30 @@ fn device_programs_compile_with_nvrtc() {
             assert!(ptx.contains(name), "{}: no {name} in the PTX", unit.name());
         }
     }
+}
+
+/// Every launch-parameter struct (and history entry) that the host hands the device code has,
+/// in CUDA, the size and field offsets of its Rust twin: NVRTC compiles each unit followed by
+/// `static_assert`s that the host writes from `offset_of!`.
+#[test]
+fn shared_structs_lie_where_the_device_code_reads_them() {
+    if !programs::nvrtc_present() {
+        assert!(!common::ci(), "CI expects NVRTC on the library path");
+        eprintln!("note: NVRTC is not installed here; the layouts are not compared");
+        return;
+    }
+    for unit in Unit::ALL {
+        let checks = programs::layout_checks(unit);
+        assert!(checks.contains("static_assert(sizeof("), "{}", unit.name());
+        programs::compile_with_checks(unit, &checks).unwrap_or_else(|e| panic!("{e}"));
+    }
+    // A wrong offset is caught.
+    let wrong = programs::layout_checks(Unit::Granular).replace(
+        "GranularLaunch, slots) == ",
+        "GranularLaunch, slots) == 4 + ",
+    );
+    let err = programs::compile_with_checks(Unit::Granular, &wrong).expect_err("a wrong offset");
+    assert!(err.to_string().contains("GranularLaunch.slots"), "{err}");
 }
 
 #[test]
@@ -142,6 +174,7 @@ fn counter_masks_match_the_counter_buffers() {
     for (name, source) in [
         ("detect.cu", include_str!("../optix/detect.cu")),
         ("dem.cu", include_str!("../optix/dem.cu")),
+        ("granular.cu", include_str!("../optix/granular.cu")),
     ] {
         let masks: Vec<usize> = source
             .split("& ")

@@ -16,7 +16,8 @@ pub fn open_stepper(
     options: &Options,
 ) -> Result<Box<dyn Stepper>> {
     particles.validate()?;
-    if kind != BackendKind::Cpu
+    // The optix step runs the granular physics too (engines/optix/granular.rs).
+    if !matches!(kind, BackendKind::Cpu | BackendKind::Optix)
         && let Some(missing) = beyond_the_gpu_steps(&particles, &params)
     {
         return Err(Error::BackendUnavailable {
