@@ -430,6 +430,47 @@ impl<P: bytemuck::Pod> LaunchParams<P> {
     }
 }
 
+/// Launch parameters of a pipeline that alternates between a few sets (the granular step's
+/// history buffers take turns): each set stays on the device in a buffer of its own, so that
+/// a launch uploads parameters only when they are new.
+struct LaunchParamSets<P: bytemuck::Pod> {
+    sets: Vec<LaunchParams<P>>,
+    /// The set replaced next once all are in use.
+    next: usize,
+}
+
+impl<P: bytemuck::Pod> Default for LaunchParamSets<P> {
+    fn default() -> Self {
+        Self {
+            sets: Vec::new(),
+            next: 0,
+        }
+    }
+}
+
+impl<P: bytemuck::Pod> LaunchParamSets<P> {
+    /// Sets kept on the device (the granular step's three history buffers make six pairs).
+    const SETS: usize = 8;
+
+    /// A buffer holding `params`.
+    fn set(&mut self, device: &Device, params: P) -> Result<&CudaSlice<u8>> {
+        let bytes = bytemuck::bytes_of(&params);
+        let held = |p: &LaunchParams<P>| p.last.as_ref().map(bytemuck::bytes_of) == Some(bytes);
+        let k = match self.sets.iter().position(held) {
+            Some(k) => k,
+            None if self.sets.len() < Self::SETS => {
+                self.sets.push(LaunchParams::new(device)?);
+                self.sets.len() - 1
+            }
+            None => {
+                self.next = (self.next + 1) % Self::SETS;
+                self.next
+            }
+        };
+        self.sets[k].set(&device.stream, params)
+    }
+}
+
 /// Launch parameters of `optix/detect.cu`; keep in sync with `DetectParams` there.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -860,7 +901,7 @@ pub struct GranularBuffers<'a> {
 /// its contacts with friction, history and rolling resistance.
 pub struct GranularProgram {
     pipeline: Pipeline,
-    params: LaunchParams<GranularLaunch>,
+    params: LaunchParamSets<GranularLaunch>,
 }
 
 impl GranularProgram {
@@ -869,7 +910,7 @@ impl GranularProgram {
         let ptx = programs::ptx(Unit::Granular)?;
         Ok(Self {
             pipeline: Pipeline::new(device, ptx, "granular", 9)?,
-            params: LaunchParams::new(device)?,
+            params: LaunchParamSets::default(),
         })
     }
 
@@ -918,7 +959,7 @@ impl GranularProgram {
             _pad: 0,
             g,
         };
-        let on_device = self.params.set(&device.stream, params)?;
+        let on_device = self.params.set(device, params)?;
         // SAFETY: the parameters were built just now from the borrowed buffers, whose lengths
         // cover what granular.cu indexes for n rays over n primitives (rows by ray and
         // primitive index < n, history by stable id < n with `slots` entries each where g
