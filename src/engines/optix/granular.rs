@@ -492,6 +492,61 @@ mod tests {
     }
 
     #[test]
+    fn only_the_papers_law_runs_the_frictionless_programs() {
+        use crate::dem::model::{ContactLaw, Material};
+        let params = |m: Material| {
+            StepParams::new(&m, 1e-6, [0.0; 3], [1.0; 3], [0.0, 0.0, -9.81], 0.0, 5e-4).unwrap()
+        };
+        let still = Particles {
+            positions: vec![[0.5; 3]],
+            velocities: vec![[0.0; 3]],
+            angular_velocities: vec![[0.0; 3]],
+            radii: vec![5e-4],
+            ..Particles::default()
+        };
+        let paper = params(Material::default());
+        assert!(!needed(&still, &paper));
+        let more = [
+            Material {
+                friction: 0.5,
+                ..Material::default()
+            },
+            Material {
+                wall_friction: Some(0.5),
+                ..Material::default()
+            },
+            Material {
+                rolling_friction: 0.1,
+                ..Material::default()
+            },
+            Material {
+                contact: ContactLaw::LinearPerPair { contact_time: None },
+                ..Material::default()
+            },
+            Material {
+                contact: ContactLaw::HertzMindlin {
+                    young_modulus: 1e7,
+                    poisson_ratio: 0.3,
+                },
+                ..Material::default()
+            },
+        ];
+        for m in more {
+            assert!(needed(&still, &params(m)), "{m:?}");
+        }
+        let spinning = Particles {
+            angular_velocities: vec![[0.0, 1.0, 0.0]],
+            ..still.clone()
+        };
+        assert!(needed(&spinning, &paper));
+        let remembering = Particles {
+            history: ContactHistory::from_contacts(1, &[(0, entry(FIRST_WALL, 1.0))]).unwrap(),
+            ..still
+        };
+        assert!(needed(&remembering, &paper));
+    }
+
+    #[test]
     fn a_partner_out_of_range_is_refused() {
         assert!(both_sides(&[1], &[entry(5, 1.0)], 1).is_err());
     }
