@@ -27,18 +27,26 @@ static __forceinline__ __device__ void mochi_set_payload(unsigned int k, unsigne
     asm volatile("call _optix_set_payload, (%0, %1);" : : "r"(k), "r"(p));
 }
 
-// Most payload words a program here uses (the pipelines declare their own count).
+// Payload words of the detection and frictionless DEM programs (the pipelines declare their own
+// count; the granular step's programs use more).
 #define MOCHI_MAX_PAYLOADS 5
 
+// Word k of the payload array `p` as the trace call passes it: 0 past its end.
+template <unsigned int N>
+static __forceinline__ __device__ unsigned int mochi_payload_word(const unsigned int (&p)[N],
+                                                                  unsigned int k) {
+    return k < N ? p[k < N ? k : 0u] : 0u;
+}
+
 // Traces a point ray (zero length, any direction) from `o` with `count` payload words `p`
-// (count <= MOCHI_MAX_PAYLOADS), any-hit programs disabled; `p` holds the words as the programs
-// left them.
-static __forceinline__ __device__ void mochi_trace_point(
-    unsigned long long handle, float ox, float oy, float oz, unsigned int count,
-    unsigned int (&p)[MOCHI_MAX_PAYLOADS]) {
+// (count <= N <= 32), any-hit programs disabled; `p` holds the words as the programs left them.
+template <unsigned int N>
+static __forceinline__ __device__ void mochi_trace_point(unsigned long long handle, float ox,
+                                                         float oy, float oz, unsigned int count,
+                                                         unsigned int (&p)[N]) {
+    static_assert(N <= 32u, "OptiX passes at most 32 payload words");
     const unsigned int flags = 1u;  // OPTIX_RAY_FLAG_DISABLE_ANYHIT
     unsigned int r[32];
-    unsigned int z = 0u;
     asm volatile(
         "call"
         "(%0,%1,%2,%3,%4,%5,%6,%7,%8,%9,%10,%11,%12,%13,%14,%15,%16,%17,%18,%19,%20,%21,%22,%23,"
@@ -54,11 +62,23 @@ static __forceinline__ __device__ void mochi_trace_point(
           "=r"(r[26]), "=r"(r[27]), "=r"(r[28]), "=r"(r[29]), "=r"(r[30]), "=r"(r[31])
         : "r"(0u), "l"(handle), "f"(ox), "f"(oy), "f"(oz), "f"(0.0f), "f"(0.0f), "f"(1.0f),
           "f"(0.0f), "f"(0.0f), "f"(0.0f), "r"(0xffu), "r"(flags), "r"(0u), "r"(1u), "r"(0u),
-          "r"(count), "r"(p[0]), "r"(p[1]), "r"(p[2]), "r"(p[3]), "r"(p[4]),
-          "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z),
-          "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z), "r"(z),
-          "r"(z), "r"(z), "r"(z), "r"(z), "r"(z));
-    for (int k = 0; k < MOCHI_MAX_PAYLOADS; ++k) {
+          "r"(count), "r"(mochi_payload_word(p, 0u)), "r"(mochi_payload_word(p, 1u)),
+          "r"(mochi_payload_word(p, 2u)), "r"(mochi_payload_word(p, 3u)),
+          "r"(mochi_payload_word(p, 4u)), "r"(mochi_payload_word(p, 5u)),
+          "r"(mochi_payload_word(p, 6u)), "r"(mochi_payload_word(p, 7u)),
+          "r"(mochi_payload_word(p, 8u)), "r"(mochi_payload_word(p, 9u)),
+          "r"(mochi_payload_word(p, 10u)), "r"(mochi_payload_word(p, 11u)),
+          "r"(mochi_payload_word(p, 12u)), "r"(mochi_payload_word(p, 13u)),
+          "r"(mochi_payload_word(p, 14u)), "r"(mochi_payload_word(p, 15u)),
+          "r"(mochi_payload_word(p, 16u)), "r"(mochi_payload_word(p, 17u)),
+          "r"(mochi_payload_word(p, 18u)), "r"(mochi_payload_word(p, 19u)),
+          "r"(mochi_payload_word(p, 20u)), "r"(mochi_payload_word(p, 21u)),
+          "r"(mochi_payload_word(p, 22u)), "r"(mochi_payload_word(p, 23u)),
+          "r"(mochi_payload_word(p, 24u)), "r"(mochi_payload_word(p, 25u)),
+          "r"(mochi_payload_word(p, 26u)), "r"(mochi_payload_word(p, 27u)),
+          "r"(mochi_payload_word(p, 28u)), "r"(mochi_payload_word(p, 29u)),
+          "r"(mochi_payload_word(p, 30u)), "r"(mochi_payload_word(p, 31u)));
+    for (unsigned int k = 0; k < N; ++k) {
         p[k] = r[k];
     }
 }

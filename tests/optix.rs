@@ -88,7 +88,7 @@ fn device_programs_compile_with_nvrtc() {
         eprintln!("note: NVRTC is not installed here; the device programs are not compiled");
         return;
     }
-    let entries: [(Unit, &[&str]); 3] = [
+    let entries: [(Unit, &[&str]); 5] = [
         (
             Unit::Detect,
             &["__raygen__detect", "__intersection__detect", "params"],
@@ -101,6 +101,14 @@ fn device_programs_compile_with_nvrtc() {
             Unit::Dem,
             &["__raygen__dem", "__intersection__dem", "params"],
         ),
+        (
+            Unit::Granular,
+            &["__raygen__granular", "__intersection__granular", "params"],
+        ),
+        (
+            Unit::GranularKernels,
+            &["granular_integrate", "permute_rows"],
+        ),
     ];
     for (unit, names) in entries {
         let ptx = programs::compile(unit).unwrap_or_else(|e| panic!("{e}"));
@@ -108,6 +116,30 @@ fn device_programs_compile_with_nvrtc() {
             assert!(ptx.contains(name), "{}: no {name} in the PTX", unit.name());
         }
     }
+}
+
+/// Every launch-parameter struct (and history entry) that the host hands the device code has,
+/// in CUDA, the size and field offsets of its Rust twin: NVRTC compiles each unit followed by
+/// `static_assert`s that the host writes from `offset_of!`.
+#[test]
+fn shared_structs_lie_where_the_device_code_reads_them() {
+    if !programs::nvrtc_present() {
+        assert!(!common::ci(), "CI expects NVRTC on the library path");
+        eprintln!("note: NVRTC is not installed here; the layouts are not compared");
+        return;
+    }
+    for unit in Unit::ALL {
+        let checks = programs::layout_checks(unit);
+        assert!(checks.contains("static_assert(sizeof("), "{}", unit.name());
+        programs::compile_with_checks(unit, &checks).unwrap_or_else(|e| panic!("{e}"));
+    }
+    // A wrong offset is caught.
+    let wrong = programs::layout_checks(Unit::Granular).replace(
+        "GranularLaunch, slots) == ",
+        "GranularLaunch, slots) == 4 + ",
+    );
+    let err = programs::compile_with_checks(Unit::Granular, &wrong).expect_err("a wrong offset");
+    assert!(err.to_string().contains("GranularLaunch.slots"), "{err}");
 }
 
 #[test]
@@ -142,6 +174,7 @@ fn counter_masks_match_the_counter_buffers() {
     for (name, source) in [
         ("detect.cu", include_str!("../optix/detect.cu")),
         ("dem.cu", include_str!("../optix/dem.cu")),
+        ("granular.cu", include_str!("../optix/granular.cu")),
     ] {
         let masks: Vec<usize> = source
             .split("& ")
@@ -190,4 +223,254 @@ fn compile_errors_carry_the_nvrtc_log() {
         other => panic!("{other:?}"),
     }
     assert!(matches!(Error::from(err), Error::Optix(_)));
+}
+
+// ---- The granular step (GPU only: each test says why it skips without one) -------------------
+
+use mochi::dem::model::time_step::rayleigh_time;
+use mochi::dem::model::{ContactLaw, Material, RollingModel};
+use mochi::dem::{Particles, StepParams, Stepper};
+use mochi::engines::{Options, open_stepper};
+
+const E: f64 = 1e7;
+const RHO: f64 = 2500.0;
+
+/// The step of `backend` over `particles`, or `None` (with a note) where optix does not run
+/// here and is not expected.
+fn stepper(backend: BackendKind, particles: &Particles, p: StepParams) -> Option<Box<dyn Stepper>> {
+    if backend == BackendKind::Optix
+        && let Err(why) = BackendKind::Optix.probe()
+    {
+        assert!(
+            !common::expected(BackendKind::Optix),
+            "optix expected here: {why}"
+        );
+        eprintln!("note: the optix granular step is not run here: {why}");
+        return None;
+    }
+    let options = Options::default();
+    Some(open_stepper(backend, particles.clone(), p, ProxyMode::Mochi, &options).unwrap())
+}
+
+/// A material with friction `mu` and rolling resistance `mu_r` of `model` under `contact`.
+fn frictional(contact: ContactLaw, mu: f64, mu_r: f64, model: RollingModel) -> Material {
+    Material {
+        density: RHO,
+        restitution: 0.5,
+        contact,
+        friction: mu,
+        rolling_friction: mu_r,
+        rolling_model: model,
+        ..Material::default()
+    }
+}
+
+/// A seeded source of numbers in [−0.5, 0.5).
+fn noise(seed: u64) -> impl FnMut() -> f32 {
+    let mut seed = seed;
+    move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
+    }
+}
+
+/// 48 spheres of radius `r` in 3 layers of 4 × 4, a little closer than touching (1.96·r apart,
+/// jittered by 0.05·r) on the floor of the middle of a box of side `side`, moving and
+/// turning at random (a fixed seed).
+fn pressed_layers(r: f32, side: f32) -> Particles {
+    let mut rand = noise(11);
+    let spacing = 1.96 * r;
+    let mut p = Particles::default();
+    for k in 0..48 {
+        let at = [k % 4, (k / 4) % 4, k / 16].map(|i| i as f32);
+        let x = side / 2.0 + (at[0] - 1.5) * spacing + 0.05 * r * rand();
+        let y = side / 2.0 + (at[1] - 1.5) * spacing + 0.05 * r * rand();
+        let z = 0.98 * r + at[2] * spacing + 0.05 * r * rand();
+        p.positions.push([x, y, z]);
+        p.velocities.push([0; 3].map(|_| 0.2 * rand()));
+        p.angular_velocities.push([0; 3].map(|_| 20.0 * rand()));
+        p.radii.push(r);
+    }
+    p
+}
+
+/// `n` spheres of radius `r` whose centres lie within half a radius of one another (every
+/// pair overlaps) in the middle of a box of side `side`, moving at random.
+fn clump(n: usize, r: f32, side: f32) -> Particles {
+    let mut rand = noise(5);
+    let mut p = Particles::default();
+    for k in 0..n {
+        let t = k as f32 * 2.4;
+        let h = 0.4 * r * (k as f32 / n as f32 - 0.5);
+        p.positions.push([
+            side / 2.0 + 0.3 * r * t.cos(),
+            side / 2.0 + 0.3 * r * t.sin(),
+            side / 2.0 + h,
+        ]);
+        p.velocities.push([0; 3].map(|_| 0.2 * rand()));
+        p.angular_velocities.push([0.0; 3]);
+        p.radii.push(r);
+    }
+    p
+}
+
+/// Largest difference of `of` between the same sphere of `a` and `b`.
+fn gap(a: &Particles, b: &Particles, of: impl Fn(&Particles, usize) -> [f32; 3]) -> f32 {
+    (0..a.len())
+        .flat_map(|i| {
+            let (x, y) = (of(a, i), of(b, i));
+            (0..3).map(move |k| (x[k] - y[k]).abs())
+        })
+        .fold(0.0, f32::max)
+}
+
+/// Largest magnitude of a component of `of` over the spheres of `a`.
+fn largest(a: &Particles, of: impl Fn(&Particles, usize) -> [f32; 3]) -> f32 {
+    (0..a.len())
+        .flat_map(|i| of(a, i))
+        .fold(0.0, |m, x| m.max(x.abs()))
+}
+
+/// The history of `p` as sorted (owner, partner) pairs with their springs.
+fn contacts(p: &Particles) -> Vec<(u32, u32, [f32; 6])> {
+    let mut out: Vec<_> = p
+        .history
+        .contacts()
+        .map(|(owner, e)| {
+            let [a, b, c] = e.tangential;
+            let [d, f, g] = e.rolling;
+            (owner, e.partner, [a, b, c, d, f, g])
+        })
+        .collect();
+    out.sort_by_key(|&(o, q, _)| (o, q));
+    out
+}
+
+/// Runs `particles` for `steps` steps on the cpu and on optix and compares positions,
+/// velocities, angular velocities and the contact history (both sides); returns both ends.
+fn compare_with_cpu(particles: &Particles, p: StepParams, steps: u32) -> Option<[Particles; 2]> {
+    let mut gpu = stepper(BackendKind::Optix, particles, p)?;
+    let mut cpu = stepper(BackendKind::Cpu, particles, p).unwrap();
+    cpu.advance(steps).unwrap();
+    gpu.advance(steps).unwrap();
+    let (a, b) = (cpu.particles().unwrap(), gpu.particles().unwrap());
+    let r = particles.radius_range().0;
+    // The two differ only in the order of the force sums (atomics on the GPU): f32 rounding,
+    // far below a millionth of a radius over a few steps.
+    let dx = gap(&a, &b, |p, i| p.positions[i]);
+    assert!(dx <= 1e-5 * r, "positions differ by {dx:e} m");
+    let v = largest(&a, |p, i| p.velocities[i]);
+    let dv = gap(&a, &b, |p, i| p.velocities[i]);
+    assert!(dv <= 1e-3 * v.max(1e-3), "velocities differ by {dv:e} m/s");
+    let w = largest(&a, |p, i| p.angular_velocities[i]);
+    let dw = gap(&a, &b, |p, i| p.angular_velocities[i]);
+    assert!(
+        dw <= 1e-3 * w.max(1e-3),
+        "angular velocities differ by {dw:e} rad/s"
+    );
+    let (ca, cb) = (contacts(&a), contacts(&b));
+    let pairs = |c: &[(u32, u32, [f32; 6])]| c.iter().map(|&(o, q, _)| (o, q)).collect::<Vec<_>>();
+    assert_eq!(pairs(&ca), pairs(&cb), "the two hold different contacts");
+    let largest = ca
+        .iter()
+        .flat_map(|c| c.2)
+        .fold(0.0f32, |m, x| m.max(x.abs()));
+    for ((o, q, x), (_, _, y)) in ca.iter().zip(&cb) {
+        for k in 0..6 {
+            assert!(
+                (x[k] - y[k]).abs() <= 1e-3 * largest,
+                "springs of {o} with {q}: cpu {x:?}, optix {y:?}"
+            );
+        }
+    }
+    Some([a, b])
+}
+
+#[test]
+fn the_granular_step_follows_the_cpu_step() {
+    let r = 0.005f32;
+    let hertz = ContactLaw::HertzMindlin {
+        young_modulus: E,
+        poisson_ratio: 0.3,
+    };
+    let dt = 0.2 * rayleigh_time(r as f64, RHO, E, 0.3);
+    let per_pair = ContactLaw::LinearPerPair {
+        contact_time: Some(20.0 * dt),
+    };
+    let start = pressed_layers(r, 0.1);
+    for material in [
+        frictional(hertz, 0.5, 0.1, RollingModel::Epsd),
+        frictional(hertz, 0.3, 0.05, RollingModel::ConstantTorque),
+        frictional(per_pair, 0.4, 0.0, RollingModel::Epsd),
+        // No friction: the granular programs for the Hertz law alone.
+        frictional(hertz, 0.0, 0.0, RollingModel::Epsd),
+    ] {
+        let p =
+            StepParams::new(&material, dt, [0.0; 3], [0.1; 3], [0.0, 0.0, -9.81], 0.0, r).unwrap();
+        let Some([cpu, _]) = compare_with_cpu(&start, p, 20) else {
+            return;
+        };
+        assert_eq!(cpu.history.is_empty(), material.friction == 0.0);
+    }
+}
+
+#[test]
+fn a_clump_with_more_contacts_than_history_slots_keeps_every_one() {
+    // 24 spheres all overlapping one another: whichever ray owns a pair, some sphere owns more
+    // contacts than the 16 slots a run starts with, so the first batch starts over with more.
+    let r = 0.005f32;
+    let start = clump(24, r, 0.1);
+    let material = frictional(
+        ContactLaw::HertzMindlin {
+            young_modulus: E,
+            poisson_ratio: 0.3,
+        },
+        0.5,
+        0.1,
+        RollingModel::Epsd,
+    );
+    let dt = 0.02 * rayleigh_time(r as f64, RHO, E, 0.3);
+    let p = StepParams::new(&material, dt, [0.0; 3], [0.1; 3], [0.0; 3], 0.0, r).unwrap();
+    let Some([cpu, gpu]) = compare_with_cpu(&start, p, 3) else {
+        return;
+    };
+    for (i, held) in (0..24).map(|i| (i, gpu.history.of(i))) {
+        assert_eq!(held.len(), 23, "sphere {i} holds {} contacts", held.len());
+    }
+    assert_eq!(contacts(&cpu).len(), 24 * 23);
+    let mut s = stepper(BackendKind::Optix, &start, p).unwrap();
+    s.advance(1).unwrap();
+    assert!(
+        !s.describe().contains("granular step, 16 history slots"),
+        "{}",
+        s.describe()
+    );
+}
+
+#[test]
+fn a_granular_state_reads_back_as_it_went_up() {
+    // A cpu run's state, springs (both sides) and spins included, read back from optix before
+    // any step is the same state: it resumes on any backend.
+    let r = 0.005f32;
+    let material = frictional(
+        ContactLaw::HertzMindlin {
+            young_modulus: E,
+            poisson_ratio: 0.3,
+        },
+        0.5,
+        0.1,
+        RollingModel::Epsd,
+    );
+    let dt = 0.2 * rayleigh_time(r as f64, RHO, E, 0.3);
+    let p = StepParams::new(&material, dt, [0.0; 3], [0.1; 3], [0.0, 0.0, -9.81], 0.0, r).unwrap();
+    let mut cpu = stepper(BackendKind::Cpu, &pressed_layers(r, 0.1), p).unwrap();
+    cpu.advance(10).unwrap();
+    let state = cpu.particles().unwrap();
+    assert!(!state.history.is_empty() && state.spin());
+    let Some(mut gpu) = stepper(BackendKind::Optix, &state, p) else {
+        return;
+    };
+    assert_eq!(gpu.particles().unwrap(), state);
 }

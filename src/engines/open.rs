@@ -1,9 +1,9 @@
 //! Opening a backend's [`Stepper`]: the one place that knows every backend's DEM step.
 
 use super::registry::{BackendChoice, BackendKind, Options};
-use crate::dem::model::{NormalLaw, StepParams};
+use crate::dem::model::StepParams;
 use crate::dem::stepper::Stepper;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
@@ -16,14 +16,6 @@ pub fn open_stepper(
     options: &Options,
 ) -> Result<Box<dyn Stepper>> {
     particles.validate()?;
-    if kind == BackendKind::Optix
-        && let Some(missing) = beyond_the_optix_step(&particles, &params)
-    {
-        return Err(Error::BackendUnavailable {
-            backend: kind.name(),
-            reason: format!("its DEM step has no {missing} yet (the cpu backend has)"),
-        });
-    }
     Ok(match kind {
         BackendKind::Cpu => Box::new(super::cpu::CpuStepper::new(particles, params, mode)?),
         BackendKind::WgpuCompute => Box::new(
@@ -40,42 +32,12 @@ pub fn open_stepper(
         )?),
         #[cfg(not(feature = "optix"))]
         BackendKind::Optix => {
-            return Err(Error::BackendUnavailable {
+            return Err(crate::error::Error::BackendUnavailable {
                 backend: "optix",
                 reason: super::registry::NO_OPTIX_FEATURE.into(),
             });
         }
     })
-}
-
-/// What a run needs that the optix engine's DEM step does not have yet (its step is the paper's
-/// linear law with one stiffness, no friction, no rotation), in words; `None` when it can run
-/// it. The cpu and wgpu engines run every law.
-fn beyond_the_optix_step(particles: &Particles, params: &StepParams) -> Option<String> {
-    let mut missing = Vec::new();
-    match params.law {
-        NormalLaw::Linear => {}
-        NormalLaw::LinearPerPair { .. } => missing.push("per-pair stiffness"),
-        NormalLaw::Hertz { .. } => missing.push("Hertz–Mindlin contact"),
-    }
-    let f = &params.friction;
-    if f.sliding > 0.0 || f.wall_sliding > 0.0 {
-        missing.push("friction");
-    }
-    if f.rolling > 0.0 {
-        missing.push("rolling resistance");
-    }
-    if particles.spin() {
-        missing.push("rotation (spheres with angular velocities)");
-    }
-    if !particles.history.is_empty() {
-        missing.push("contact history");
-    }
-    match missing.split_last() {
-        None => None,
-        Some((last, [])) => Some(last.to_string()),
-        Some((last, rest)) => Some(format!("{} or {last}", rest.join(", "))),
-    }
 }
 
 /// Opens the DEM step the user chose; `auto` follows the registry's one rule

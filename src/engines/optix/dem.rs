@@ -7,6 +7,11 @@
 //! [`RESORT_EVERY`] steps it is re-sorted (positions read back, the order computed on the host,
 //! the state permuted on the GPU) with a rebuild. Phases are timed with CUDA events.
 //!
+//! A run that needs more than the paper's law (Hertz–Mindlin or per-pair contacts, friction,
+//! rolling resistance, spinning spheres, contact history) runs the granular programs instead
+//! (`granular.rs`) over the same structure maintenance and batches; such a batch starts over
+//! with more history slots where a sphere had more contacts than slots.
+//!
 //! The `auto` policy refits while that pays: it rebuilds once the last steps cost more (refit
 //! plus detection) than the average step since the last rebuild, the rebuild's own cost
 //! included. Refitting leaves the leaf boxes exact, so candidates per ray do not change with it;
@@ -17,6 +22,7 @@ use super::device::{
     cuda,
 };
 use super::engine::{MAX_COORDINATE, morton_order_of, open_device};
+use super::granular::{self, Granular};
 use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::engines::RebuildPolicy;
@@ -55,16 +61,25 @@ struct Maintenance {
     sorted_at: u64,
 }
 
+/// How a step resolves contacts and integrates (one per stepper: the variants' sizes do not
+/// matter).
+#[allow(clippy::large_enum_variant)]
+enum Physics {
+    /// The paper's law (`optix/dem.cu` and `dem_integrate`).
+    Frictionless { program: DemProgram, dem: DemParams },
+    /// Everything else (`optix/granular.cu` and `optix/granular_kernels.cu`).
+    Granular(Granular),
+}
+
 /// The optix DEM step.
 pub struct OptixStepper {
     device: Arc<Device>,
-    program: DemProgram,
+    physics: Physics,
     kernels: Kernels,
     n: u32,
     mode: ProxyMode,
     r_max: f32,
     policy: RebuildPolicy,
-    dem: DemParams,
     step: u64,
     state: State,
     spare: State,
@@ -88,7 +103,6 @@ impl OptixStepper {
     ) -> Result<Self> {
         particles.separate_coincident()?;
         let device = open_device()?;
-        let program = DemProgram::new(&device)?;
         let kernels = Kernels::load(&device)?;
         let n64 = particles.len() as u64;
         let limit = (device.max_primitives as u64).min(u32::MAX as u64 / 6);
@@ -139,14 +153,21 @@ impl OptixStepper {
             stream.clone_htod(&order).map_err(&alloc)?
         };
         let len = n as usize;
+        let physics = if granular::needed(&particles, &params) {
+            Physics::Granular(Granular::new(&device, &particles, &params, &order)?)
+        } else {
+            Physics::Frictionless {
+                program: DemProgram::new(&device)?,
+                dem: DemParams::new(&params, n),
+            }
+        };
         let mut stepper = OptixStepper {
-            program,
+            physics,
             kernels,
             n,
             mode,
             r_max,
             policy,
-            dem: DemParams::new(&params, n),
             step: particles.step,
             state: State {
                 pos: upload(&pick(&pos))?,
@@ -182,10 +203,7 @@ impl OptixStepper {
     }
 
     fn event(&self) -> std::result::Result<CudaEvent, OptixError> {
-        self.device
-            .stream
-            .record_event(Some(CUevent_flags::CU_EVENT_DEFAULT))
-            .map_err(cuda("recording an event"))
+        record_event(&self.device)
     }
 
     /// The proxy boxes of the current state.
@@ -216,6 +234,9 @@ impl OptixStepper {
         self.kernels
             .dem_permute(&self.state, &order, &mut self.spare, self.n)?;
         std::mem::swap(&mut self.state, &mut self.spare);
+        if let Physics::Granular(g) = &mut self.physics {
+            g.permute(&order)?;
+        }
         self.maintenance.sorted_at = self.step;
         Ok(())
     }
@@ -246,44 +267,49 @@ impl OptixStepper {
         let clear = cuda("clearing the counters");
         stream.memset_zeros(&mut self.contacts).map_err(&clear)?;
         stream.memset_zeros(&mut self.candidates).map_err(&clear)?;
-        let buffers = DemBuffers {
-            pos: &self.state.pos,
-            vel: &self.state.vel,
-            force: &mut self.force,
-            contacts: &mut self.contacts,
-            candidates: &mut self.candidates,
+        let resolved = match &mut self.physics {
+            Physics::Frictionless { program, dem } => {
+                let buffers = DemBuffers {
+                    pos: &self.state.pos,
+                    vel: &self.state.vel,
+                    force: &mut self.force,
+                    contacts: &mut self.contacts,
+                    candidates: &mut self.candidates,
+                };
+                program.launch(gas, self.mode, *dem, buffers)?;
+                let resolved = record_event(&self.device)?;
+                self.kernels.dem_integrate(
+                    &mut self.state.pos,
+                    &mut self.state.vel,
+                    &mut self.force,
+                    dem,
+                    self.step as u32,
+                )?;
+                resolved
+            }
+            Physics::Granular(g) => {
+                g.resolve(
+                    gas,
+                    self.mode,
+                    &self.state,
+                    &mut self.force,
+                    &mut self.contacts,
+                    &mut self.candidates,
+                )?;
+                let resolved = record_event(&self.device)?;
+                g.integrate(&mut self.state, &mut self.force, self.step as u32)?;
+                resolved
+            }
         };
-        self.program.launch(gas, self.mode, self.dem, buffers)?;
-        let resolved = self.event()?;
-        self.kernels.dem_integrate(
-            &mut self.state.pos,
-            &mut self.state.vel,
-            &mut self.force,
-            &self.dem,
-            self.step as u32,
-        )?;
         let integrated = self.event()?;
         self.step += 1;
         Ok([start, built, resolved, integrated])
     }
 
-    /// Runs up to `steps` steps (at most one batch); returns how many, the contacts of the last
-    /// and the phase times.
-    fn run_batch(&mut self, steps: u32) -> Result<(u32, u64, StageTimes)> {
-        if self.step >= self.maintenance.sorted_at + RESORT_EVERY {
-            self.resort()?;
-            self.maintenance.rebuild_due = true;
-            self.maintenance.cycle_steps = u64::MAX; // any policy rebuilds now
-        }
-        let mut steps = steps.min(BATCH);
-        if self.policy == RebuildPolicy::Auto {
-            // A rebuild step runs alone, so the cycle's first refits are measured apart.
-            steps = if self.maintenance.rebuild_due {
-                1
-            } else {
-                steps.min(AUTO_CHECK)
-            };
-        }
+    /// Records `steps` steps and reads their counters back; returns each step's events, whether
+    /// it rebuilt, and the contacts of the last.
+    #[allow(clippy::type_complexity)]
+    fn record_batch(&mut self, steps: u32) -> Result<(Vec<[CudaEvent; 4]>, Vec<bool>, u64)> {
         let mut events = Vec::with_capacity(steps as usize);
         let mut rebuilt = Vec::with_capacity(steps as usize);
         for _ in 0..steps {
@@ -315,6 +341,47 @@ impl OptixStepper {
             .iter()
             .sum();
         self.last_candidates = candidates as f64 / self.n.max(1) as f64;
+        Ok((events, rebuilt, contacts))
+    }
+
+    /// Runs up to `steps` steps (at most one batch); returns how many, the contacts of the last
+    /// and the phase times.
+    fn run_batch(&mut self, steps: u32) -> Result<(u32, u64, StageTimes)> {
+        if self.step >= self.maintenance.sorted_at + RESORT_EVERY {
+            self.resort()?;
+            self.maintenance.rebuild_due = true;
+            self.maintenance.cycle_steps = u64::MAX; // any policy rebuilds now
+        }
+        let mut steps = steps.min(BATCH);
+        if self.policy == RebuildPolicy::Auto {
+            // A rebuild step runs alone, so the cycle's first refits are measured apart.
+            steps = if self.maintenance.rebuild_due {
+                1
+            } else {
+                steps.min(AUTO_CHECK)
+            };
+        }
+        let (events, rebuilt, contacts) = loop {
+            let at_start = (self.step, self.maintenance);
+            if let Physics::Granular(g) = &mut self.physics
+                && g.may_start_over()
+            {
+                g.begin_batch(&self.device.stream, &self.state, &mut self.spare)?;
+            }
+            let (events, rebuilt, contacts) = self.record_batch(steps)?;
+            if let Physics::Granular(g) = &mut self.physics {
+                if g.may_start_over()
+                    && let Some(need) = g.overflow(&self.device.stream)?
+                {
+                    // A sphere had more contacts than slots: from the batch's start again.
+                    g.start_over(&self.device, &mut self.state, &self.spare, need)?;
+                    (self.step, self.maintenance) = at_start;
+                    continue;
+                }
+                g.end_batch();
+            }
+            break (events, rebuilt, contacts);
+        };
         let ms = |a: &CudaEvent, b: &CudaEvent| {
             a.elapsed_ms(b)
                 .map(f64::from)
@@ -348,8 +415,12 @@ impl OptixStepper {
 impl Stepper for OptixStepper {
     fn describe(&self) -> String {
         let m = &self.maintenance;
+        let granular = match &self.physics {
+            Physics::Frictionless { .. } => String::new(),
+            Physics::Granular(g) => format!("; granular step, {} history slots", g.slots()),
+        };
         format!(
-            "optix ({}; rebuild {}: {} rebuilds, {} refits; {:.2} candidates per ray)",
+            "optix ({}; rebuild {}: {} rebuilds, {} refits; {:.2} candidates per ray{granular})",
             self.device.name, self.policy, m.rebuilds, m.refits, self.last_candidates
         )
     }
@@ -381,10 +452,25 @@ impl Stepper for OptixStepper {
         let vel = rows4(stream.clone_dtoh(&self.state.vel).map_err(&read)?);
         let mut ids = stream.clone_dtoh(&self.state.ids).map_err(&read)?;
         ids.truncate(n);
-        particles_from(&pos, &vel, Some(&ids), self.step)
+        let mut out = particles_from(&pos, &vel, Some(&ids), self.step)?;
+        if let Physics::Granular(g) = &self.physics {
+            let (angular_velocities, history) = g.read_back(stream, &ids)?;
+            out.angular_velocities = angular_velocities;
+            out.check_stable()?;
+            out.history = history;
+        }
+        Ok(out)
     }
 
     fn refits(&self) -> bool {
         true
     }
+}
+
+/// An event recorded on `device`'s stream now.
+fn record_event(device: &Device) -> std::result::Result<CudaEvent, OptixError> {
+    device
+        .stream
+        .record_event(Some(CUevent_flags::CU_EVENT_DEFAULT))
+        .map_err(cuda("recording an event"))
 }

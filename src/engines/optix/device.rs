@@ -12,8 +12,9 @@
 
 use super::programs::{self, Unit};
 use super::sys::{self, Api};
-use crate::dem::model::StepParams;
+use crate::dem::model::{Elastic, NormalLaw, RollingModel, StepParams};
 use crate::error::OptixError;
+use crate::particles::HistoryEntry;
 use crate::proxy::ProxyMode;
 use cudarc::driver::{
     CudaContext, CudaFunction, CudaSlice, CudaStream, DevicePtr, DevicePtrMut, DeviceRepr,
@@ -122,6 +123,15 @@ impl Device {
             "reading the primitive limit",
         )?;
         Ok(device)
+    }
+
+    /// Free memory of the GPU \[bytes\].
+    pub fn free_memory(&self) -> Result<u64> {
+        let (free, _total) = self
+            .cuda
+            .mem_get_info()
+            .map_err(cuda("reading the free memory"))?;
+        Ok(free as u64)
     }
 
     /// A u32 property of the device context.
@@ -420,6 +430,47 @@ impl<P: bytemuck::Pod> LaunchParams<P> {
     }
 }
 
+/// Launch parameters of a pipeline that alternates between a few sets (the granular step's
+/// history buffers take turns): each set stays on the device in a buffer of its own, so that
+/// a launch uploads parameters only when they are new.
+struct LaunchParamSets<P: bytemuck::Pod> {
+    sets: Vec<LaunchParams<P>>,
+    /// The set replaced next once all are in use.
+    next: usize,
+}
+
+impl<P: bytemuck::Pod> Default for LaunchParamSets<P> {
+    fn default() -> Self {
+        Self {
+            sets: Vec::new(),
+            next: 0,
+        }
+    }
+}
+
+impl<P: bytemuck::Pod> LaunchParamSets<P> {
+    /// Sets kept on the device (the granular step's three history buffers make six pairs).
+    const SETS: usize = 8;
+
+    /// A buffer holding `params`.
+    fn set(&mut self, device: &Device, params: P) -> Result<&CudaSlice<u8>> {
+        let bytes = bytemuck::bytes_of(&params);
+        let held = |p: &LaunchParams<P>| p.last.as_ref().map(bytemuck::bytes_of) == Some(bytes);
+        let k = match self.sets.iter().position(held) {
+            Some(k) => k,
+            None if self.sets.len() < Self::SETS => {
+                self.sets.push(LaunchParams::new(device)?);
+                self.sets.len() - 1
+            }
+            None => {
+                self.next = (self.next + 1) % Self::SETS;
+                self.next
+            }
+        };
+        self.sets[k].set(&device.stream, params)
+    }
+}
+
 /// Launch parameters of `optix/detect.cu`; keep in sync with `DetectParams` there.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -625,6 +676,559 @@ impl DemProgram {
         // index < n, counters & 255).
         unsafe { self.pipeline.launch(on_device, n) }
     }
+}
+
+/// The twin of `GranularParams` in `optix/contact.cuh` (keep the two in sync): the granular
+/// step's parameters, the contact law's included, as its programs and kernels read them.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GranularParams {
+    dem: DemParams,
+    law: u32,
+    rate: f32,
+    pair_e_star: f32,
+    pair_g_star: f32,
+    wall_e_star: f32,
+    wall_g_star: f32,
+    sliding: f32,
+    wall_sliding: f32,
+    rolling: f32,
+    rolling_model: u32,
+    turns: u32,
+    keeps: u32,
+}
+const _: () = assert!(size_of::<GranularParams>() == 112);
+
+// SAFETY: `#[repr(C)]` plain data laid out as `GranularParams` in optix/contact.cuh.
+unsafe impl DeviceRepr for GranularParams {}
+
+impl GranularParams {
+    /// The parameters of a step over `n` spheres.
+    pub fn new(p: &StepParams, n: u32) -> Self {
+        let none = Elastic {
+            e_star: 0.0,
+            g_star: 0.0,
+        };
+        let (law, rate, pair, wall) = match p.law {
+            NormalLaw::Linear => (0, 0.0, none, none),
+            NormalLaw::LinearPerPair { rate, .. } => (1, rate, none, none),
+            NormalLaw::Hertz { pair, wall } => (2, 0.0, pair, wall),
+        };
+        let f = &p.friction;
+        Self {
+            dem: DemParams::new(p, n),
+            law,
+            rate,
+            pair_e_star: pair.e_star,
+            pair_g_star: pair.g_star,
+            wall_e_star: wall.e_star,
+            wall_g_star: wall.g_star,
+            sliding: f.sliding,
+            wall_sliding: f.wall_sliding,
+            rolling: f.rolling,
+            rolling_model: match f.rolling_model {
+                RollingModel::Epsd => 0,
+                RollingModel::ConstantTorque => 1,
+            },
+            turns: f.turns() as u32,
+            keeps: f.has_history() as u32,
+        }
+    }
+
+    /// Spheres stepped.
+    pub fn n(&self) -> u32 {
+        self.dem.n
+    }
+
+    /// Whether contacts carry springs from one step to the next (a contact history).
+    pub fn keeps(&self) -> bool {
+        self.keeps != 0
+    }
+}
+
+/// Words of one history entry on the device ([`HistoryEntry`], `MochiHistoryEntry` in
+/// `optix/history.cuh`).
+const ENTRY_WORDS: usize = size_of::<HistoryEntry>() / size_of::<u32>();
+const _: () = assert!(ENTRY_WORDS == 7);
+
+/// One contact history buffer on the device (`MochiSlots` in `optix/history.cuh`): for each of
+/// `n` spheres by stable id, a count and `slots` entries of [`HistoryEntry`]'s words.
+pub struct HistorySlots {
+    counts: CudaSlice<u32>,
+    entries: CudaSlice<u32>,
+    n: u32,
+    slots: u32,
+}
+
+impl HistorySlots {
+    /// Bytes of a buffer of `n` spheres with `slots` slots each.
+    pub fn bytes(n: u32, slots: u32) -> u64 {
+        n as u64 * (4 + slots as u64 * size_of::<HistoryEntry>() as u64)
+    }
+
+    /// A buffer holding, for each of the `counts.len()` spheres, `counts[i]` entries of
+    /// `entries[i·slots..]`.
+    pub fn upload(
+        stream: &Arc<CudaStream>,
+        slots: u32,
+        counts: &[u32],
+        entries: &[HistoryEntry],
+    ) -> Result<Self> {
+        let n = counts.len();
+        if entries.len() != n * slots as usize {
+            return Err(OptixError::BufferTooShort {
+                launch: "uploading the contact history",
+                buffer: "entries",
+                len: entries.len(),
+                needed: n * slots as usize,
+            });
+        }
+        if let Some(&count) = counts.iter().find(|&&c| c > slots) {
+            return Err(OptixError::IndexOutOfRange {
+                buffer: "history counts",
+                index: count as u64,
+                len: slots as usize,
+            });
+        }
+        let upload = |words: &[u32]| {
+            if words.is_empty() {
+                stream.alloc_zeros::<u32>(1)
+            } else {
+                stream.clone_htod(words)
+            }
+            .map_err(cuda("uploading the contact history"))
+        };
+        Ok(Self {
+            counts: upload(counts)?,
+            entries: upload(bytemuck::cast_slice(entries))?,
+            n: n as u32,
+            slots,
+        })
+    }
+
+    /// An empty buffer for `n` spheres with `slots` slots each.
+    pub fn empty(stream: &Arc<CudaStream>, n: u32, slots: u32) -> Result<Self> {
+        let entries = n as usize * slots as usize * ENTRY_WORDS;
+        let zeros = |len: usize| {
+            stream
+                .alloc_zeros::<u32>(len.max(1))
+                .map_err(cuda("allocating the contact history"))
+        };
+        Ok(Self {
+            counts: zeros(n as usize)?,
+            entries: zeros(entries)?,
+            n,
+            slots,
+        })
+    }
+
+    /// Slots per sphere.
+    pub fn slots(&self) -> u32 {
+        self.slots
+    }
+
+    /// The counts and the entries (`slots` per sphere), read back.
+    pub fn read(&self, stream: &Arc<CudaStream>) -> Result<(Vec<u32>, Vec<HistoryEntry>)> {
+        let read = cuda("reading the contact history back");
+        let mut counts = stream.clone_dtoh(&self.counts).map_err(&read)?;
+        counts.truncate(self.n as usize);
+        let mut words = stream.clone_dtoh(&self.entries).map_err(&read)?;
+        words.truncate(self.n as usize * self.slots as usize * ENTRY_WORDS);
+        Ok((counts, bytemuck::cast_slice(&words).to_vec()))
+    }
+
+    /// `Ok` if the buffer covers `n` spheres with `slots` slots each.
+    fn check(&self, launch: &'static str, n: u32, slots: u32) -> Result<()> {
+        let needed = n as usize * slots as usize;
+        if self.n >= n && self.slots == slots {
+            return Ok(());
+        }
+        Err(OptixError::BufferTooShort {
+            launch,
+            buffer: "history",
+            len: self.n as usize * self.slots as usize,
+            needed,
+        })
+    }
+}
+
+/// Launch parameters of `optix/granular.cu`; keep in sync with `GranularLaunch` there.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct GranularLaunch {
+    pos: u64,
+    vel: u64,
+    ang: u64,
+    ids: u64,
+    force: u64,
+    torque: u64,
+    contacts: u64,
+    candidates: u64,
+    old_count: u64,
+    old_entries: u64,
+    new_count: u64,
+    new_entries: u64,
+    handle: u64,
+    n: u32,
+    mode: u32,
+    slots: u32,
+    _pad: u32,
+    g: GranularParams,
+}
+const _: () = assert!(size_of::<GranularLaunch>() == 232);
+
+/// The buffers of one granular contact launch.
+pub struct GranularBuffers<'a> {
+    /// Positions, velocities and stable ids, in the order of the structure's primitives.
+    pub state: &'a State,
+    /// wx, wy, wz, 0 per sphere.
+    pub ang: &'a CudaSlice<f32>,
+    /// 3 floats per sphere, summed with atomics.
+    pub force: &'a mut CudaSlice<f32>,
+    /// 3 floats per sphere, summed with atomics.
+    pub torque: &'a mut CudaSlice<f32>,
+    /// Touching pairs, spread over [`COUNTER_SLOTS`] counters.
+    pub contacts: &'a mut CudaSlice<u32>,
+    /// Boxes visited, spread over [`COUNTER_SLOTS`] counters.
+    pub candidates: &'a mut CudaSlice<u64>,
+    /// The last step's contact history.
+    pub old: &'a HistorySlots,
+    /// This step's, written by the owners of the pairs.
+    pub new: &'a mut HistorySlots,
+}
+
+/// The granular DEM programs of `optix/granular.cu`: one point ray per sphere that resolves
+/// its contacts with friction, history and rolling resistance.
+pub struct GranularProgram {
+    pipeline: Pipeline,
+    params: LaunchParamSets<GranularLaunch>,
+}
+
+impl GranularProgram {
+    /// Compiles (NVRTC, once per process) and links the programs on `device`.
+    pub fn new(device: &Arc<Device>) -> Result<Self> {
+        let ptx = programs::ptx(Unit::Granular)?;
+        Ok(Self {
+            pipeline: Pipeline::new(device, ptx, "granular", 9)?,
+            params: LaunchParamSets::default(),
+        })
+    }
+
+    /// One point ray for each of the `n` spheres of `gas` in `mode`, adding contact forces and
+    /// torques and writing the pairs' new history (`slots` per sphere where `g` keeps springs).
+    pub fn launch(
+        &mut self,
+        gas: &Gas,
+        mode: ProxyMode,
+        g: GranularParams,
+        slots: u32,
+        b: GranularBuffers<'_>,
+    ) -> Result<()> {
+        const LAUNCH: &str = "optix/granular.cu";
+        let n = gas.primitives;
+        let rows = 4 * n as usize;
+        check_len(LAUNCH, "pos", &b.state.pos, rows)?;
+        check_len(LAUNCH, "vel", &b.state.vel, rows)?;
+        check_len(LAUNCH, "ids", &b.state.ids, n as usize)?;
+        check_len(LAUNCH, "ang", b.ang, rows)?;
+        check_len(LAUNCH, "force", b.force, 3 * n as usize)?;
+        check_len(LAUNCH, "torque", b.torque, 3 * n as usize)?;
+        check_len(LAUNCH, "contacts", b.contacts, COUNTER_SLOTS)?;
+        check_len(LAUNCH, "candidates", b.candidates, COUNTER_SLOTS)?;
+        let history_n = if g.keeps() { n } else { 0 };
+        b.old.check(LAUNCH, history_n, slots)?;
+        b.new.check(LAUNCH, history_n, slots)?;
+        let device = &self.pipeline.device;
+        let params = GranularLaunch {
+            pos: device.ptr(&b.state.pos),
+            vel: device.ptr(&b.state.vel),
+            ang: device.ptr(b.ang),
+            ids: device.ptr(&b.state.ids),
+            force: device.ptr_mut(b.force),
+            torque: device.ptr_mut(b.torque),
+            contacts: device.ptr_mut(b.contacts),
+            candidates: device.ptr_mut(b.candidates),
+            old_count: device.ptr(&b.old.counts),
+            old_entries: device.ptr(&b.old.entries),
+            new_count: device.ptr_mut(&mut b.new.counts),
+            new_entries: device.ptr_mut(&mut b.new.entries),
+            handle: gas.handle,
+            n,
+            mode: mode.code(),
+            slots,
+            _pad: 0,
+            g,
+        };
+        let on_device = self.params.set(device, params)?;
+        // SAFETY: the parameters were built just now from the borrowed buffers, whose lengths
+        // cover what granular.cu indexes for n rays over n primitives (rows by ray and
+        // primitive index < n, history by stable id < n with `slots` entries each where g
+        // keeps springs, counters & 255).
+        unsafe { self.pipeline.launch(on_device, n) }
+    }
+}
+
+/// The CUDA kernels of `optix/granular_kernels.cu`, each behind a typed, length-checked launch.
+pub struct GranularKernels {
+    stream: Arc<CudaStream>,
+    integrate: CudaFunction,
+    permute_rows: CudaFunction,
+}
+
+/// What one integration of the granular step reads and writes besides the state.
+pub struct GranularIntegration<'a> {
+    /// wx, wy, wz, 0 per sphere, integrated in place.
+    pub ang: &'a mut CudaSlice<f32>,
+    /// Contact forces of the step (3 floats per sphere), cleared.
+    pub force: &'a mut CudaSlice<f32>,
+    /// Contact torques of the step (3 floats per sphere), cleared.
+    pub torque: &'a mut CudaSlice<f32>,
+    /// The last step's contact history (the walls' springs).
+    pub old: &'a HistorySlots,
+    /// This step's: the walls' entries are appended to the pairs'.
+    pub new: &'a mut HistorySlots,
+    /// Raised to the most contacts a sphere holds where that exceeds the slots.
+    pub need: &'a mut CudaSlice<u32>,
+}
+
+impl GranularKernels {
+    /// Compiles (NVRTC, once per process) and loads the kernels on `device`.
+    pub fn load(device: &Device) -> Result<Self> {
+        let ptx = programs::ptx(Unit::GranularKernels)?;
+        let module = device
+            .cuda
+            .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
+            .map_err(cuda("loading optix/granular_kernels.cu"))?;
+        let function = |name| {
+            module
+                .load_function(name)
+                .map_err(cuda("loading a kernel of optix/granular_kernels.cu"))
+        };
+        Ok(Self {
+            stream: device.stream.clone(),
+            integrate: function("granular_integrate")?,
+            permute_rows: function("permute_rows")?,
+        })
+    }
+
+    /// Walls, gravity at `step` and one integration step (rotation included) of the `g.n()`
+    /// spheres of `state`, in place; clears the accumulators and completes the new history.
+    pub fn integrate(
+        &self,
+        state: &mut State,
+        b: GranularIntegration<'_>,
+        g: &GranularParams,
+        slots: u32,
+        step: u32,
+    ) -> Result<()> {
+        const LAUNCH: &str = "granular_integrate";
+        let n = g.n();
+        if n == 0 {
+            return Ok(());
+        }
+        let rows = 4 * n as usize;
+        check_len(LAUNCH, "pos", &state.pos, rows)?;
+        check_len(LAUNCH, "vel", &state.vel, rows)?;
+        check_len(LAUNCH, "ids", &state.ids, n as usize)?;
+        check_len(LAUNCH, "ang", b.ang, rows)?;
+        check_len(LAUNCH, "force", b.force, 3 * n as usize)?;
+        check_len(LAUNCH, "torque", b.torque, 3 * n as usize)?;
+        check_len(LAUNCH, "need", b.need, 1)?;
+        let history_n = if g.keeps() { n } else { 0 };
+        b.old.check(LAUNCH, history_n, slots)?;
+        b.new.check(LAUNCH, history_n, slots)?;
+        let mut launch = self.stream.launch_builder(&self.integrate);
+        launch
+            .arg(&mut state.pos)
+            .arg(&mut state.vel)
+            .arg(b.ang)
+            .arg(b.force)
+            .arg(b.torque)
+            .arg(&state.ids)
+            .arg(&b.old.counts)
+            .arg(&b.old.entries)
+            .arg(&mut b.new.counts)
+            .arg(&mut b.new.entries)
+            .arg(b.need)
+            .arg(&slots)
+            .arg(g)
+            .arg(&step);
+        // SAFETY: the arguments match granular_integrate's signature; the state, ang, force
+        // and torque hold g.n() rows, ids g.n() entries below n (a permutation of the input
+        // indices), the history buffers g.n() spheres of `slots` entries where g keeps springs
+        // (checked above; the kernel reads them only then), need one word.
+        unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching granular_integrate"))?;
+        Ok(())
+    }
+
+    /// Reorders `n` rows of 4 floats of `from` into `to`: sorted position p takes row
+    /// `order[p]`.
+    pub fn permute_rows(
+        &self,
+        from: &CudaSlice<f32>,
+        order: &Order,
+        to: &mut CudaSlice<f32>,
+        n: u32,
+    ) -> Result<()> {
+        const LAUNCH: &str = "permute_rows";
+        if n == 0 {
+            return Ok(());
+        }
+        check_len(LAUNCH, "rows_in", from, 4 * n as usize)?;
+        order.check(LAUNCH, n)?;
+        check_len(LAUNCH, "rows", to, 4 * n as usize)?;
+        let mut launch = self.stream.launch_builder(&self.permute_rows);
+        launch.arg(from).arg(&order.entries).arg(to).arg(&n);
+        // SAFETY: the arguments match permute_rows' signature; both buffers hold n rows and the
+        // order n entries below n (checked above and in Order::upload).
+        unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching permute_rows"))?;
+        Ok(())
+    }
+}
+
+/// `static_assert`s of one CUDA struct's size and field offsets against its Rust twin's.
+macro_rules! cuda_layout {
+    ($cuda:literal, $ty:ty { $($field:ident),* $(,)? }) => {{
+        let mut checks = format!(
+            "static_assert(sizeof({}) == {}, \"{} has the size of its Rust twin\");\n",
+            $cuda,
+            size_of::<$ty>(),
+            $cuda
+        );
+        $(
+            checks += &format!(
+                "static_assert(MOCHI_OFFSET_OF({}, {}) == {}, \"{}.{} lies where Rust has it\");\n",
+                $cuda,
+                stringify!($field),
+                std::mem::offset_of!($ty, $field),
+                $cuda,
+                stringify!($field)
+            );
+        )*
+        checks
+    }};
+}
+
+/// CUDA `static_assert`s that every struct of `unit` shared with the host has the size and
+/// field offsets of its Rust twin: compiled after the unit (`programs::compile_with_checks`),
+/// they need NVRTC but no GPU.
+pub fn layout_checks(unit: Unit) -> String {
+    let dem_params = || {
+        cuda_layout!(
+            "DemParams",
+            DemParams {
+                box_lo,
+                n,
+                box_hi,
+                row,
+                gravity,
+                dt,
+                stiffness,
+                damping_ratio,
+                gravity_spin,
+                _pad1
+            }
+        )
+    };
+    let granular_params = || {
+        cuda_layout!(
+            "GranularParams",
+            GranularParams {
+                dem,
+                law,
+                rate,
+                pair_e_star,
+                pair_g_star,
+                wall_e_star,
+                wall_g_star,
+                sliding,
+                wall_sliding,
+                rolling,
+                rolling_model,
+                turns,
+                keeps
+            }
+        )
+    };
+    let entry = || {
+        cuda_layout!(
+            "MochiHistoryEntry",
+            HistoryEntry {
+                partner,
+                tangential,
+                rolling
+            }
+        )
+    };
+    // NVRTC has no offsetof; its front end's __INTADDR__ folds the address to a constant.
+    let offset_of =
+        "#define MOCHI_OFFSET_OF(T, m) ((unsigned long long)__INTADDR__(&(((T*)0)->m)))\n";
+    let checks = match unit {
+        Unit::Detect => cuda_layout!(
+            "DetectParams",
+            DetectParams {
+                spheres,
+                ids,
+                pairs,
+                pair_count,
+                candidates,
+                handle,
+                n,
+                capacity,
+                mode,
+                _pad
+            }
+        ),
+        Unit::Kernels => dem_params(),
+        Unit::Dem => {
+            dem_params()
+                + &cuda_layout!(
+                    "DemLaunch",
+                    DemLaunch {
+                        pos,
+                        vel,
+                        force,
+                        contacts,
+                        candidates,
+                        handle,
+                        n,
+                        mode,
+                        _pad,
+                        dem
+                    }
+                )
+        }
+        Unit::Granular => {
+            dem_params()
+                + &granular_params()
+                + &entry()
+                + &cuda_layout!(
+                    "GranularLaunch",
+                    GranularLaunch {
+                        pos,
+                        vel,
+                        ang,
+                        ids,
+                        force,
+                        torque,
+                        contacts,
+                        candidates,
+                        old_count,
+                        old_entries,
+                        new_count,
+                        new_entries,
+                        handle,
+                        n,
+                        mode,
+                        slots,
+                        _pad,
+                        g
+                    }
+                )
+        }
+        Unit::GranularKernels => dem_params() + &granular_params() + &entry(),
+    };
+    format!("{offset_of}{checks}")
 }
 
 /// How a GAS is brought up to date.

@@ -22,6 +22,7 @@ mod detect;
 #[deny(clippy::undocumented_unsafe_blocks)]
 mod device;
 mod engine;
+mod granular;
 pub mod programs;
 #[allow(unsafe_code)]
 #[deny(clippy::undocumented_unsafe_blocks)]

@@ -9,6 +9,10 @@ const DETECT_CU: &str = include_str!("../../../optix/detect.cu");
 const KERNELS_CU: &str = include_str!("../../../optix/kernels.cu");
 const PHYSICS_CUH: &str = include_str!("../../../optix/physics.cuh");
 const DEM_CU: &str = include_str!("../../../optix/dem.cu");
+const CONTACT_CUH: &str = include_str!("../../../optix/contact.cuh");
+const HISTORY_CUH: &str = include_str!("../../../optix/history.cuh");
+const GRANULAR_CU: &str = include_str!("../../../optix/granular.cu");
+const GRANULAR_KERNELS_CU: &str = include_str!("../../../optix/granular_kernels.cu");
 
 /// Virtual architecture of the PTX: Turing, the first GPUs with RT cores (the driver compiles
 /// it for the GPU at hand).
@@ -21,13 +25,24 @@ pub enum Unit {
     Detect,
     /// Plain CUDA kernels (proxy boxes; the DEM step's boxes, integration and reordering).
     Kernels,
-    /// OptiX programs of the DEM step (raygen + intersection resolving contacts).
+    /// OptiX programs of the frictionless DEM step (raygen + intersection resolving contacts).
     Dem,
+    /// OptiX programs of the granular DEM step (contacts with friction, history and rolling
+    /// resistance).
+    Granular,
+    /// Plain CUDA kernels of the granular DEM step (walls, integration with rotation).
+    GranularKernels,
 }
 
 impl Unit {
     /// Every unit.
-    pub const ALL: [Unit; 3] = [Unit::Detect, Unit::Kernels, Unit::Dem];
+    pub const ALL: [Unit; 5] = [
+        Unit::Detect,
+        Unit::Kernels,
+        Unit::Dem,
+        Unit::Granular,
+        Unit::GranularKernels,
+    ];
 
     /// File name, for messages.
     pub fn name(self) -> &'static str {
@@ -35,7 +50,14 @@ impl Unit {
             Unit::Detect => "optix/detect.cu",
             Unit::Kernels => "optix/kernels.cu",
             Unit::Dem => "optix/dem.cu",
+            Unit::Granular => "optix/granular.cu",
+            Unit::GranularKernels => "optix/granular_kernels.cu",
         }
+    }
+
+    /// Whether the unit is an OptiX module (relocatable device code) rather than plain kernels.
+    fn is_optix_module(self) -> bool {
+        !matches!(self, Unit::Kernels | Unit::GranularKernels)
     }
 
     /// The full source NVRTC gets.
@@ -44,6 +66,12 @@ impl Unit {
             Unit::Detect => format!("{DEVICE_CUH}\n{DETECT_CU}"),
             Unit::Kernels => format!("{DEVICE_CUH}\n{PHYSICS_CUH}\n{KERNELS_CU}"),
             Unit::Dem => format!("{DEVICE_CUH}\n{PHYSICS_CUH}\n{DEM_CU}"),
+            Unit::Granular => {
+                format!("{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{GRANULAR_CU}")
+            }
+            Unit::GranularKernels => format!(
+                "{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{GRANULAR_KERNELS_CU}"
+            ),
         }
     }
 }
@@ -60,7 +88,23 @@ pub fn ptx(unit: Unit) -> Result<&'static str, OptixError> {
 
 /// Compiles `unit` with NVRTC (no fused multiply-adds: the proxy rule rounds as the cpu does).
 pub fn compile(unit: Unit) -> Result<String, OptixError> {
-    compile_source(unit.name(), unit.source(), unit != Unit::Kernels)
+    compile_source(unit.name(), unit.source(), unit.is_optix_module())
+}
+
+/// CUDA `static_assert`s that every struct of `unit` shared with the host has the size and
+/// field offsets of its Rust twin (for [`compile_with_checks`]).
+pub fn layout_checks(unit: Unit) -> String {
+    super::device::layout_checks(unit)
+}
+
+/// Compiles `unit` followed by `checks` (CUDA `static_assert`s over its types, which emit no
+/// code): the layout test compiles each launch-parameter struct against its Rust twin this way.
+pub fn compile_with_checks(unit: Unit, checks: &str) -> Result<String, OptixError> {
+    compile_source(
+        unit.name(),
+        format!("{}\n{checks}", unit.source()),
+        unit.is_optix_module(),
+    )
 }
 
 /// Compiles plain CUDA kernels `body` (named `name` in messages) with `optix/device.cuh`

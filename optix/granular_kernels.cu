@@ -1,0 +1,92 @@
+// Plain CUDA kernels of the optix granular step (src/engines/optix/granular.rs). Needs
+// device.cuh, physics.cuh, contact.cuh and history.cuh prepended.
+
+// Walls (with their springs), gravity at step `step` and one semi-implicit Euler step of
+// positions and angular velocities, in place (src/engines/cpu/dem.rs: pairs, then the walls'
+// normal and tangential forces); clears the force and torque accumulators for the next step.
+// Appends the walls' springs to the sphere's new history after those its ray wrote, and where a
+// sphere holds more contacts than `slots`, raises `need` to its count (the host then grows
+// the slots and redoes the steps).
+extern "C" __global__ void granular_integrate(float4* pos, float4* vel, float4* ang,
+                                              float* force, float* torque,
+                                              const unsigned int* ids,
+                                              const unsigned int* old_count,
+                                              const MochiHistoryEntry* old_entries,
+                                              unsigned int* new_count,
+                                              MochiHistoryEntry* new_entries, unsigned int* need,
+                                              unsigned int slots, GranularParams g,
+                                              unsigned int step) {
+    unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
+    if (p >= g.dem.n) {
+        return;
+    }
+    float4 s = pos[p];
+    float4 v = vel[p];
+    float4 w = ang[p];
+    MochiBody b;
+    b.c = mochi_v3(s.x, s.y, s.z);
+    b.v = mochi_v3(v.x, v.y, v.z);
+    b.w = mochi_v3(w.x, w.y, w.z);
+    b.r = s.w;
+    b.m = v.w;
+    unsigned int id = ids[p];
+    unsigned int held = g.keeps ? new_count[id] : 0u;
+    MochiHistoryEntry* kept = new_entries + (unsigned long long)id * slots;
+    MochiSlots old_slots = {old_count, old_entries, slots};
+    MochiWalls walls = mochi_wall_contacts(
+        g, b,
+        [&](unsigned int wall) {
+            // Only where contacts carry springs (old_slots are empty otherwise).
+            MochiSprings springs = mochi_no_springs();
+            if (g.keeps) {
+                mochi_find(old_slots, id, MOCHI_FIRST_WALL + wall, springs);
+            }
+            return springs;
+        },
+        [&](unsigned int wall, MochiSprings springs) {
+            if (held < slots) {
+                kept[held] = mochi_entry(MOCHI_FIRST_WALL + wall, springs);
+            }
+            held += 1u;
+        });
+    if (g.keeps) {
+        new_count[id] = min(held, slots);
+        if (held > slots) {
+            atomicMax(need, held);
+        }
+    }
+    float3 f = mochi_add(mochi_v3(force[3 * p], force[3 * p + 1], force[3 * p + 2]), walls.normal);
+    force[3 * p] = 0.0f;
+    force[3 * p + 1] = 0.0f;
+    force[3 * p + 2] = 0.0f;
+    float3 g_now = mochi_gravity_at(g.dem, step);
+    float m = v.w;
+    float dt = g.dem.dt;
+    if (g.turns) {
+        f = mochi_add(f, walls.tangential);
+        float3 t = mochi_add(mochi_v3(torque[3 * p], torque[3 * p + 1], torque[3 * p + 2]),
+                             walls.torque);
+        torque[3 * p] = 0.0f;
+        torque[3 * p + 1] = 0.0f;
+        torque[3 * p + 2] = 0.0f;
+        float inertia = mochi_inertia(m, s.w);
+        ang[p] = make_float4(w.x + dt * (t.x / inertia), w.y + dt * (t.y / inertia),
+                             w.z + dt * (t.z / inertia), w.w);
+    }
+    float vx = v.x + dt * (f.x / m + g_now.x);
+    float vy = v.y + dt * (f.y / m + g_now.y);
+    float vz = v.z + dt * (f.z / m + g_now.z);
+    vel[p] = make_float4(vx, vy, vz, m);
+    pos[p] = make_float4(s.x + dt * vx, s.y + dt * vy, s.z + dt * vz, s.w);
+}
+
+// Reorders rows of 4 floats: sorted position p takes row `order[p]` of the input (the angular
+// velocities, beside dem_permute's state).
+extern "C" __global__ void permute_rows(const float4* rows_in, const unsigned int* order,
+                                        float4* rows, unsigned int n) {
+    unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
+    if (p >= n) {
+        return;
+    }
+    rows[p] = rows_in[order[p]];
+}

@@ -1,0 +1,74 @@
+// Contact history of the optix granular step (docs/method.md, "The optix granular step"): K
+// slots per sphere, indexed by the sphere's stable id (its index in input order), each an entry
+// (partner's stable id or a wall, springs). A pair's contact is written by its owner only, the
+// sphere whose ray reports it; where the owner changed since the last step (the state was
+// re-sorted, or the proxy rule's choice moved with the distance), the contact is found in the
+// partner's slots with its springs negated. Needs contact.cuh prepended.
+
+// Partner id of the low x wall; the six walls are MOCHI_FIRST_WALL + 2·axis + side (FIRST_WALL
+// in src/particles/history.rs).
+#define MOCHI_FIRST_WALL 0xFFFFFFFAu
+
+// One contact as its holder keeps it. Keep in sync with HistoryEntry in
+// src/particles/history.rs (7 words: the host uploads and reads its entries as they are).
+struct MochiHistoryEntry {
+    unsigned int partner;
+    float tangential[3];
+    float rolling[3];
+};
+
+// Slots of one history buffer: `count[id]` entries in use of sphere `id`'s `slots` from
+// `entries + id·slots` on.
+struct MochiSlots {
+    const unsigned int* count;
+    const MochiHistoryEntry* entries;
+    unsigned int slots;
+};
+
+static __forceinline__ __device__ MochiSprings mochi_springs_of(const MochiHistoryEntry& e) {
+    MochiSprings s;
+    s.tangential = mochi_v3(e.tangential[0], e.tangential[1], e.tangential[2]);
+    s.rolling = mochi_v3(e.rolling[0], e.rolling[1], e.rolling[2]);
+    return s;
+}
+
+static __forceinline__ __device__ MochiHistoryEntry mochi_entry(unsigned int partner,
+                                                                MochiSprings s) {
+    MochiHistoryEntry e;
+    e.partner = partner;
+    e.tangential[0] = s.tangential.x;
+    e.tangential[1] = s.tangential.y;
+    e.tangential[2] = s.tangential.z;
+    e.rolling[0] = s.rolling.x;
+    e.rolling[1] = s.rolling.y;
+    e.rolling[2] = s.rolling.z;
+    return e;
+}
+
+// Whether sphere `holder` kept a contact with `partner` in `h`; its springs into `out`.
+static __forceinline__ __device__ bool mochi_find(const MochiSlots& h, unsigned int holder,
+                                                  unsigned int partner, MochiSprings& out) {
+    const MochiHistoryEntry* e = h.entries + (unsigned long long)holder * h.slots;
+    unsigned int count = h.count[holder];
+    for (unsigned int k = 0; k < count; ++k) {
+        if (e[k].partner == partner) {
+            out = mochi_springs_of(e[k]);
+            return true;
+        }
+    }
+    return false;
+}
+
+// The springs sphere `i` had of its contact with sphere `j` (stable ids) at the last step: its
+// own entry, else j's negated, else none (a new contact).
+static __forceinline__ __device__ MochiSprings mochi_old_springs(const MochiSlots& h,
+                                                                 unsigned int i, unsigned int j) {
+    MochiSprings s;
+    if (mochi_find(h, i, j, s)) {
+        return s;
+    }
+    if (mochi_find(h, j, i, s)) {
+        return mochi_negated(s);
+    }
+    return mochi_no_springs();
+}

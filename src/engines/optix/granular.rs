@@ -1,0 +1,553 @@
+//! The granular part of the optix DEM step (docs/method.md, "The optix granular step"): what a
+//! run with Hertz–Mindlin or per-pair contacts, friction, rolling resistance or spinning spheres
+//! keeps on the GPU besides the frictionless step's state, and how it moves to and from the
+//! host. The contacts are resolved by `optix/granular.cu` (the law of `optix/contact.cuh`, twin
+//! of `dem::model::contact`), the walls and the integration by `optix/granular_kernels.cu`.
+//!
+//! Contact history lives in three buffers of `slots` entries per sphere, indexed by stable id
+//! (the input index), so the Morton re-sort never moves it. A step reads one and writes
+//! another; the third holds the history of the batch's start, untouched until the batch is
+//! known good. Each pair is written by its owner only (the sphere whose ray reports it); the
+//! host reads owner-only entries back as both sides (the partner's springs negated), the layout
+//! of [`ContactHistory`], and uploads both-sided entries as they are (the owner finds its own).
+//! Every sphere's contacts are counted even where they do not fit: if any sphere needed more
+//! than `slots`, the batch is redone from its start with more slots.
+
+use super::device::{
+    Device, Gas, GranularBuffers, GranularIntegration, GranularKernels, GranularParams,
+    GranularProgram, HistorySlots, Order, State, cuda,
+};
+use crate::dem::model::{NormalLaw, StepParams};
+use crate::error::{Error, OptixError, Result};
+use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, Particles};
+use crate::proxy::ProxyMode;
+use cudarc::driver::{CudaSlice, CudaStream, DriverError, sys::CUresult};
+use std::sync::Arc;
+
+/// History slots per sphere a run starts with, as the cpu step (a dense monodisperse packing
+/// has 12 neighbours, plus up to 3 walls; a pair is held by one of its spheres only here).
+const FIRST_SLOTS: u32 = 16;
+
+/// Whether a run needs the granular step: anything beyond the paper's law (linear, one
+/// stiffness, no friction, no rolling resistance, no spin, no history).
+pub(super) fn needed(particles: &Particles, params: &StepParams) -> bool {
+    params.law != NormalLaw::Linear
+        || params.friction.turns()
+        || particles.spin()
+        || !particles.history.is_empty()
+}
+
+/// The granular step's programs, parameters and buffers.
+pub(super) struct Granular {
+    program: GranularProgram,
+    kernels: GranularKernels,
+    params: GranularParams,
+    /// wx, wy, wz, 0 per sphere, in the state's order.
+    ang: CudaSlice<f32>,
+    /// The angular velocities at the batch's start (and the re-sort's scratch).
+    ang_spare: CudaSlice<f32>,
+    /// Contact torques of the current step, 3 floats per sphere.
+    torque: CudaSlice<f32>,
+    history: History,
+}
+
+/// The contact history on the GPU: three buffers, of which a step reads `current` and writes
+/// another, while `start` holds the batch's start until the batch is known good.
+struct History {
+    buffers: [HistorySlots; 3],
+    start: usize,
+    current: usize,
+    /// The most contacts a sphere held where that exceeded the slots (0: none did).
+    need: CudaSlice<u32>,
+    /// Where no contact carries springs: the buffers are empty, and the particles' history
+    /// (if any) is given back as it came, as the cpu step does.
+    idle: Option<ContactHistory>,
+}
+
+impl History {
+    /// The buffer the next step writes: neither the one it reads nor the batch's start.
+    fn next(&self) -> usize {
+        if self.current == self.start {
+            (self.start + 1) % 3
+        } else {
+            3 - self.current - self.start
+        }
+    }
+
+    /// The buffer the next step reads, the one it writes and the overflow counter.
+    fn step_buffers(&mut self) -> (&HistorySlots, &mut HistorySlots, &mut CudaSlice<u32>) {
+        let (read, write) = (self.current, self.next());
+        let [old, new] = self
+            .buffers
+            .get_disjoint_mut([read, write])
+            .expect("a step reads and writes different buffers");
+        (old, new, &mut self.need)
+    }
+
+    fn slots(&self) -> u32 {
+        self.buffers[0].slots()
+    }
+}
+
+impl Granular {
+    /// Uploads the angular velocities and the contact history of `particles` (`order`: the
+    /// input index of each state position) for a step with `params`.
+    pub fn new(
+        device: &Arc<Device>,
+        particles: &Particles,
+        params: &StepParams,
+        order: &[u32],
+    ) -> Result<Self> {
+        let n = order.len() as u32;
+        let stream = &device.stream;
+        let alloc = cuda("allocating the granular state");
+        let ang_rows: Vec<f32> = order
+            .iter()
+            .flat_map(|&i| {
+                let [x, y, z] = particles.angular_velocities[i as usize];
+                [x, y, z, 0.0]
+            })
+            .collect();
+        let ang = if ang_rows.is_empty() {
+            stream.alloc_zeros::<f32>(4)
+        } else {
+            stream.clone_htod(&ang_rows)
+        }
+        .map_err(&alloc)?;
+        let zeros = |len: usize| stream.alloc_zeros::<f32>(len.max(4)).map_err(&alloc);
+        let params = GranularParams::new(params, n);
+        let history = if params.keeps() {
+            upload_history(device, &particles.history, n)?
+        } else {
+            History {
+                idle: Some(particles.history.clone()),
+                ..History::on_device(device, three(|| HistorySlots::empty(stream, 0, 0))?)?
+            }
+        };
+        Ok(Self {
+            program: GranularProgram::new(device)?,
+            kernels: GranularKernels::load(device)?,
+            params,
+            ang_spare: zeros(4 * n as usize)?,
+            torque: zeros(3 * n as usize)?,
+            ang,
+            history,
+        })
+    }
+
+    /// History slots per sphere (0 where no contact carries springs).
+    pub fn slots(&self) -> u32 {
+        self.history.slots()
+    }
+
+    /// Resolves every contact of `state` (forces into `force`, torques into the step's torque
+    /// accumulator, the pairs' new history).
+    pub fn resolve(
+        &mut self,
+        gas: &Gas,
+        mode: ProxyMode,
+        state: &State,
+        force: &mut CudaSlice<f32>,
+        contacts: &mut CudaSlice<u32>,
+        candidates: &mut CudaSlice<u64>,
+    ) -> Result<()> {
+        let slots = self.slots();
+        let (old, new, _) = self.history.step_buffers();
+        let buffers = GranularBuffers {
+            state,
+            ang: &self.ang,
+            force,
+            torque: &mut self.torque,
+            contacts,
+            candidates,
+            old,
+            new,
+        };
+        self.program
+            .launch(gas, mode, self.params, slots, buffers)?;
+        Ok(())
+    }
+
+    /// Walls, gravity at `step` and one integration step of `state` and the angular
+    /// velocities; completes the new history, which the next step reads.
+    pub fn integrate(
+        &mut self,
+        state: &mut State,
+        force: &mut CudaSlice<f32>,
+        step: u32,
+    ) -> Result<()> {
+        let slots = self.slots();
+        let written = self.history.next();
+        let (old, new, need) = self.history.step_buffers();
+        let b = GranularIntegration {
+            ang: &mut self.ang,
+            force,
+            torque: &mut self.torque,
+            old,
+            new,
+            need,
+        };
+        self.kernels
+            .integrate(state, b, &self.params, slots, step)?;
+        self.history.current = written;
+        Ok(())
+    }
+
+    /// Reorders the angular velocities as the state (`order[p]`: the position whose sphere
+    /// goes to p).
+    pub fn permute(&mut self, order: &Order) -> Result<()> {
+        let n = self.params.n();
+        self.kernels
+            .permute_rows(&self.ang, order, &mut self.ang_spare, n)?;
+        std::mem::swap(&mut self.ang, &mut self.ang_spare);
+        Ok(())
+    }
+
+    /// Whether a batch can overflow the history slots, so that it must be able to start over.
+    pub fn may_start_over(&self) -> bool {
+        self.history.idle.is_none()
+    }
+
+    /// Starts a batch from `state`, which [`Self::start_over`] can go back to: keeps a copy of
+    /// it in `spare` and of the angular velocities, and clears the overflow counter.
+    pub fn begin_batch(
+        &mut self,
+        stream: &Arc<CudaStream>,
+        state: &State,
+        spare: &mut State,
+    ) -> Result<()> {
+        let copy = cuda("keeping the batch's start");
+        stream
+            .memcpy_dtod(&state.pos, &mut spare.pos)
+            .map_err(&copy)?;
+        stream
+            .memcpy_dtod(&state.vel, &mut spare.vel)
+            .map_err(&copy)?;
+        stream
+            .memcpy_dtod(&self.ang, &mut self.ang_spare)
+            .map_err(&copy)?;
+        stream.memset_zeros(&mut self.history.need).map_err(&copy)?;
+        self.history.start = self.history.current;
+        Ok(())
+    }
+
+    /// After a batch: the most contacts a sphere needed, where that exceeded the slots.
+    pub fn overflow(&self, stream: &Arc<CudaStream>) -> Result<Option<u32>> {
+        let need = stream
+            .clone_dtoh(&self.history.need)
+            .map_err(cuda("reading the history counter"))?[0];
+        Ok((need > self.slots()).then_some(need))
+    }
+
+    /// Goes back to the batch's start (`spare`, as [`Self::begin_batch`] kept it) with room
+    /// for `need` contacts per sphere and a quarter more; [`Error::TooLarge`] where the GPU's
+    /// memory cannot hold that.
+    pub fn start_over(
+        &mut self,
+        device: &Device,
+        state: &mut State,
+        spare: &State,
+        need: u32,
+    ) -> Result<()> {
+        let stream = &device.stream;
+        let copy = cuda("going back to the batch's start");
+        stream
+            .memcpy_dtod(&spare.pos, &mut state.pos)
+            .map_err(&copy)?;
+        stream
+            .memcpy_dtod(&spare.vel, &mut state.vel)
+            .map_err(&copy)?;
+        stream
+            .memcpy_dtod(&self.ang_spare, &mut self.ang)
+            .map_err(&copy)?;
+        let h = &mut self.history;
+        let old_slots = h.slots();
+        let (counts, entries) = h.buffers[h.start].read(stream)?;
+        let n = counts.len() as u32;
+        // Room for this sphere and some more, rather than a redo per extra contact.
+        let slots = need.saturating_add(need / 4);
+        let entries = relayout(&entries, old_slots as usize, slots as usize);
+        // The old buffers go first, their memory back to the GPU (freed on the stream), as it
+        // is the new ones' too.
+        h.buffers = three(|| HistorySlots::empty(stream, 0, 0))?;
+        stream
+            .synchronize()
+            .map_err(cuda("freeing the contact history"))?;
+        self.history = upload(device, n, slots, &counts, &entries)?;
+        Ok(())
+    }
+
+    /// Ends a batch that did not overflow: its last history is the next batch's start.
+    pub fn end_batch(&mut self) {
+        self.history.start = self.history.current;
+    }
+
+    /// The angular velocities (in input order, `ids[p]` the input index of state position p)
+    /// and the contact history, both sides of each pair.
+    pub fn read_back(
+        &self,
+        stream: &Arc<CudaStream>,
+        ids: &[u32],
+    ) -> Result<(Vec<[f32; 3]>, ContactHistory)> {
+        let read = cuda("reading the angular velocities back");
+        let rows = stream.clone_dtoh(&self.ang).map_err(&read)?;
+        let mut w = vec![[0.0f32; 3]; ids.len()];
+        for (row, &id) in rows.chunks_exact(4).zip(ids) {
+            w[id as usize] = [row[0], row[1], row[2]];
+        }
+        let h = &self.history;
+        let history = match &h.idle {
+            Some(given) => given.clone(),
+            None => {
+                let (counts, entries) = h.buffers[h.current].read(stream)?;
+                both_sides(&counts, &entries, h.slots() as usize)?
+            }
+        };
+        Ok((w, history))
+    }
+}
+
+impl History {
+    /// Buffers `buffers` (the first holding the history) with a cleared overflow counter.
+    fn on_device(device: &Device, buffers: [HistorySlots; 3]) -> Result<Self> {
+        let need = device
+            .stream
+            .alloc_zeros::<u32>(1)
+            .map_err(cuda("allocating the history counter"))?;
+        Ok(Self {
+            buffers,
+            start: 0,
+            current: 0,
+            need,
+            idle: None,
+        })
+    }
+}
+
+/// Three buffers made by `make`.
+fn three(
+    make: impl Fn() -> std::result::Result<HistorySlots, OptixError>,
+) -> std::result::Result<[HistorySlots; 3], OptixError> {
+    Ok([make()?, make()?, make()?])
+}
+
+/// `history` (by stable id, both sides of each pair, as the cpu step keeps it) on the GPU for
+/// `n` spheres, with the slots it needs and at least [`FIRST_SLOTS`].
+fn upload_history(device: &Device, history: &ContactHistory, n: u32) -> Result<History> {
+    let slots = FIRST_SLOTS.max(history.most() as u32);
+    if history.is_empty() {
+        check_room(device, n, slots)?;
+        let empty = || HistorySlots::empty(&device.stream, n, slots);
+        let buffers = three(empty).map_err(|e| out_of_room(device, e, n, slots))?;
+        return History::on_device(device, buffers);
+    }
+    let (counts, entries) = layout(history, n as usize, slots as usize);
+    upload(device, n, slots, &counts, &entries)
+}
+
+/// History `counts` and `entries` (`slots` per sphere) of `n` spheres on the GPU.
+fn upload(
+    device: &Device,
+    n: u32,
+    slots: u32,
+    counts: &[u32],
+    entries: &[HistoryEntry],
+) -> Result<History> {
+    check_room(device, n, slots)?;
+    let stream = &device.stream;
+    let room = |e| out_of_room(device, e, n, slots);
+    let start = HistorySlots::upload(stream, slots, counts, entries).map_err(room)?;
+    let empty = || HistorySlots::empty(stream, n, slots);
+    let [a, b] = [empty().map_err(room)?, empty().map_err(room)?];
+    History::on_device(device, [start, a, b])
+}
+
+/// [`Error::TooLarge`] unless the GPU has room for the three history buffers of `n` spheres
+/// with `slots` slots each.
+fn check_room(device: &Device, n: u32, slots: u32) -> Result<()> {
+    let needed = 3 * HistorySlots::bytes(n, slots);
+    let free = device.free_memory()?;
+    if needed <= free {
+        return Ok(());
+    }
+    Err(too_large(device, n, slots, needed, free))
+}
+
+fn too_large(device: &Device, n: u32, slots: u32, needed: u64, free: u64) -> Error {
+    Error::TooLarge {
+        what: format!(
+            "bytes of GPU memory for the contact history of {n} spheres with {slots} contacts \
+             each (three buffers) on {}, whose free memory is the limit",
+            device.name
+        ),
+        got: needed,
+        limit: free,
+    }
+}
+
+/// An allocation that failed for want of memory as [`Error::TooLarge`]; other errors as they
+/// are.
+fn out_of_room(device: &Device, e: OptixError, n: u32, slots: u32) -> Error {
+    match e {
+        OptixError::Cuda {
+            error: DriverError(CUresult::CUDA_ERROR_OUT_OF_MEMORY),
+            ..
+        } => too_large(
+            device,
+            n,
+            slots,
+            3 * HistorySlots::bytes(n, slots),
+            device.free_memory().unwrap_or(0),
+        ),
+        e => e.into(),
+    }
+}
+
+/// The counts and the entries (`slots` per sphere, which must hold the most any sphere has) of
+/// `history` for `n` spheres.
+fn layout(history: &ContactHistory, n: usize, slots: usize) -> (Vec<u32>, Vec<HistoryEntry>) {
+    let mut counts = vec![0u32; n];
+    let mut entries = vec![HistoryEntry::default(); n * slots];
+    for (i, count) in counts.iter_mut().enumerate() {
+        let held = history.of(i);
+        entries[i * slots..i * slots + held.len()].copy_from_slice(held);
+        *count = held.len() as u32;
+    }
+    (counts, entries)
+}
+
+/// `entries` of `from` slots per sphere in `to` ≥ `from` slots per sphere.
+fn relayout(entries: &[HistoryEntry], from: usize, to: usize) -> Vec<HistoryEntry> {
+    let n = entries.len() / from.max(1);
+    let mut out = vec![HistoryEntry::default(); n * to];
+    for (i, held) in entries.chunks_exact(from.max(1)).enumerate() {
+        out[i * to..i * to + from].copy_from_slice(held);
+    }
+    out
+}
+
+/// The history of spheres holding `counts[i]` entries of `entries[i·slots..]`, with every
+/// contact a sphere holds of a partner that does not hold it back added to the partner, springs
+/// negated (the partner's view): the GPU's owner-only entries as both sides, as
+/// [`ContactHistory`] keeps them; entries already both-sided stay as they are.
+fn both_sides(counts: &[u32], entries: &[HistoryEntry], slots: usize) -> Result<ContactHistory> {
+    let n = counts.len();
+    let own = |i: usize| &entries[i * slots..i * slots + (counts[i] as usize).min(slots)];
+    let mut contacts: Vec<(u32, HistoryEntry)> = (0..n)
+        .flat_map(|i| own(i).iter().map(move |&e| (i as u32, e)))
+        .collect();
+    for i in 0..n {
+        for e in own(i) {
+            let j = e.partner as usize;
+            // A partner out of range is refused by from_contacts with the owner's entry.
+            if e.partner < FIRST_WALL && j < n && !own(j).iter().any(|b| b.partner == i as u32) {
+                let back = HistoryEntry {
+                    partner: i as u32,
+                    tangential: e.tangential.map(|x| -x),
+                    rolling: e.rolling.map(|x| -x),
+                };
+                contacts.push((e.partner, back));
+            }
+        }
+    }
+    ContactHistory::from_contacts(n, &contacts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(partner: u32, x: f32) -> HistoryEntry {
+        HistoryEntry {
+            partner,
+            tangential: [x, 0.0, -x],
+            rolling: [0.0, x, 0.0],
+        }
+    }
+
+    #[test]
+    fn owner_only_entries_read_back_as_both_sides() {
+        // Sphere 0 owns its contacts with 1 and 2, sphere 2 holds a wall; 2 slots each.
+        let e = HistoryEntry::default();
+        let entries = [
+            entry(1, 1.0),
+            entry(2, 2.0),
+            e,
+            e,
+            entry(FIRST_WALL + 4, 3.0),
+            e,
+        ];
+        let h = both_sides(&[2, 0, 1], &entries, 2).unwrap();
+        assert_eq!(h.of(0), &[entry(1, 1.0), entry(2, 2.0)]);
+        assert_eq!(h.of(1), &[entry(0, -1.0)]);
+        assert_eq!(h.of(2), &[entry(FIRST_WALL + 4, 3.0), entry(0, -2.0)]);
+        // Both-sided already (an upload read back before any step): nothing is doubled.
+        let (counts, entries) = layout(&h, 3, 4);
+        assert_eq!(counts, [2, 1, 2]);
+        assert_eq!(both_sides(&counts, &entries, 4).unwrap(), h);
+        // More slots: the same history.
+        let wider = relayout(&entries, 4, 7);
+        assert_eq!(wider.len(), 21);
+        assert_eq!(both_sides(&counts, &wider, 7).unwrap(), h);
+    }
+
+    #[test]
+    fn only_the_papers_law_runs_the_frictionless_programs() {
+        use crate::dem::model::{ContactLaw, Material};
+        let params = |m: Material| {
+            StepParams::new(&m, 1e-6, [0.0; 3], [1.0; 3], [0.0, 0.0, -9.81], 0.0, 5e-4).unwrap()
+        };
+        let still = Particles {
+            positions: vec![[0.5; 3]],
+            velocities: vec![[0.0; 3]],
+            angular_velocities: vec![[0.0; 3]],
+            radii: vec![5e-4],
+            ..Particles::default()
+        };
+        let paper = params(Material::default());
+        assert!(!needed(&still, &paper));
+        let more = [
+            Material {
+                friction: 0.5,
+                ..Material::default()
+            },
+            Material {
+                wall_friction: Some(0.5),
+                ..Material::default()
+            },
+            Material {
+                rolling_friction: 0.1,
+                ..Material::default()
+            },
+            Material {
+                contact: ContactLaw::LinearPerPair { contact_time: None },
+                ..Material::default()
+            },
+            Material {
+                contact: ContactLaw::HertzMindlin {
+                    young_modulus: 1e7,
+                    poisson_ratio: 0.3,
+                },
+                ..Material::default()
+            },
+        ];
+        for m in more {
+            assert!(needed(&still, &params(m)), "{m:?}");
+        }
+        let spinning = Particles {
+            angular_velocities: vec![[0.0, 1.0, 0.0]],
+            ..still.clone()
+        };
+        assert!(needed(&spinning, &paper));
+        let remembering = Particles {
+            history: ContactHistory::from_contacts(1, &[(0, entry(FIRST_WALL, 1.0))]).unwrap(),
+            ..still
+        };
+        assert!(needed(&remembering, &paper));
+    }
+
+    #[test]
+    fn a_partner_out_of_range_is_refused() {
+        assert!(both_sides(&[1], &[entry(5, 1.0)], 1).is_err());
+    }
+}

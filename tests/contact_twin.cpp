@@ -1,0 +1,173 @@
+// optix/contact.cuh compiled as host C++ by tests/contact_twin.rs: reads the case table that
+// test writes (one case a line, f32 values as hex bits, sections split by '|') and prints one
+// line per value whose bits differ from what src/dem/model/contact.rs computed (the first 20),
+// then a summary.
+// ±0 count as equal (the partner's negated zero springs).
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+// CUDA's qualifiers and vector types, as the host sees them.
+#define __forceinline__ inline
+#define __device__
+struct float3 {
+    float x, y, z;
+};
+struct float4 {
+    float x, y, z, w;
+};
+inline float3 make_float3(float x, float y, float z) { return {x, y, z}; }
+inline float4 make_float4(float x, float y, float z, float w) { return {x, y, z, w}; }
+
+#include "physics.cuh"
+#include "contact.cuh"
+
+static float from_bits(const std::string& s) {
+    uint32_t u = (uint32_t)std::stoul(s, nullptr, 16);
+    float f;
+    std::memcpy(&f, &u, 4);
+    return f;
+}
+
+static std::vector<std::string> words(const std::string& section) {
+    std::vector<std::string> out;
+    std::stringstream s(section);
+    std::string w;
+    while (s >> w) out.push_back(w);
+    return out;
+}
+
+static int differences = 0;
+static int line_number = 0;
+
+static void check(const char* what, float got, const std::string& want) {
+    float w = from_bits(want);
+    uint32_t a, b;
+    std::memcpy(&a, &got, 4);
+    std::memcpy(&b, &w, 4);
+    if (a != b && !(got == 0.0f && w == 0.0f) && ++differences <= 20) {
+        std::printf("case %d %s: got %08x (%g), contact.rs %s (%g)\n", line_number, what, a, got,
+                    want.c_str(), w);
+    }
+}
+
+static void check3(const char* what, float3 got, const std::vector<std::string>& want, size_t at) {
+    check(what, got.x, want[at]);
+    check(what, got.y, want[at + 1]);
+    check(what, got.z, want[at + 2]);
+}
+
+static float3 vec(const std::vector<std::string>& w, size_t at) {
+    return make_float3(from_bits(w[at]), from_bits(w[at + 1]), from_bits(w[at + 2]));
+}
+
+static MochiBody body(const std::vector<std::string>& w) {
+    MochiBody b;
+    b.c = vec(w, 0);
+    b.v = vec(w, 3);
+    b.w = vec(w, 6);
+    b.r = from_bits(w[9]);
+    b.m = from_bits(w[10]);
+    return b;
+}
+
+int main() {
+    std::string line;
+    while (std::getline(std::cin, line)) {
+        ++line_number;
+        std::vector<std::vector<std::string>> s;
+        std::stringstream ss(line);
+        std::string section;
+        while (std::getline(ss, section, '|')) s.push_back(words(section));
+        // Parameters: law, rate, E* and G* of pairs and walls, μ, μ_wall, μ_r, rolling model,
+        // turns, keeps, dt, ζ, k, box.
+        const std::vector<std::string>& h = s[0];
+        GranularParams g{};
+        g.law = std::stoul(h[0]);
+        g.rate = from_bits(h[1]);
+        g.pair_e_star = from_bits(h[2]);
+        g.pair_g_star = from_bits(h[3]);
+        g.wall_e_star = from_bits(h[4]);
+        g.wall_g_star = from_bits(h[5]);
+        g.sliding = from_bits(h[6]);
+        g.wall_sliding = from_bits(h[7]);
+        g.rolling = from_bits(h[8]);
+        g.rolling_model = std::stoul(h[9]);
+        g.turns = std::stoul(h[10]);
+        g.keeps = std::stoul(h[11]);
+        g.dem.dt = from_bits(h[12]);
+        g.dem.damping_ratio = from_bits(h[13]);
+        g.dem.stiffness = from_bits(h[14]);
+        for (int a = 0; a < 3; ++a) {
+            g.dem.box_lo[a] = from_bits(h[15 + a]);
+            g.dem.box_hi[a] = from_bits(h[18 + a]);
+        }
+        MochiBody i = body(s[1]);
+        MochiBody j = body(s[2]);
+        MochiSprings old;
+        old.tangential = vec(s[3], 0);
+        old.rolling = vec(s[3], 3);
+        // From i's side: touching, then force, torque, springs; from j's side the same.
+        const std::vector<std::string>& from_i = s[4];
+        const std::vector<std::string>& from_j = s[5];
+        MochiPairContact c;
+        bool touching = mochi_pair_contact(g, i, j, old, c);
+        if (touching != (from_i[0] == "1") || touching != (from_j[0] == "1")) {
+            std::printf("case %d: touching %d, contact.rs %s and %s\n", line_number, touching,
+                        from_i[0].c_str(), from_j[0].c_str());
+            ++differences;
+        } else if (touching) {
+            check3("force", c.force, from_i, 1);
+            check3("torque", c.torque, from_i, 4);
+            check3("tangential spring", c.springs.tangential, from_i, 7);
+            check3("rolling spring", c.springs.rolling, from_i, 10);
+            check3("partner's force", mochi_neg(c.force), from_j, 1);
+            float3 t = g.turns ? mochi_partner_torque(g, j.r, c) : mochi_zero3();
+            check3("partner's torque", t, from_j, 4);
+            MochiSprings back = mochi_negated(c.springs);
+            check3("partner's tangential spring", back.tangential, from_j, 7);
+            check3("partner's rolling spring", back.rolling, from_j, 10);
+        }
+        // Walls: normal, tangential, torque, then (wall, springs) kept and their count. The
+        // springs kept of wall w are (w, w, w)·1e-6 and the rolling one their negative.
+        const std::vector<std::string>& walls = s[6];
+        std::vector<std::pair<unsigned int, MochiSprings>> kept;
+        MochiWalls w = mochi_wall_contacts(
+            g, i,
+            [](unsigned int wall) {
+                float x = (float)wall * 1e-6f;
+                MochiSprings k;
+                k.tangential = make_float3(x, x, x);
+                k.rolling = make_float3(-x, -x, -x);
+                return k;
+            },
+            [&](unsigned int wall, MochiSprings springs) { kept.push_back({wall, springs}); });
+        check3("walls' normal force", w.normal, walls, 0);
+        check3("walls' tangential force", w.tangential, walls, 3);
+        check3("walls' torque", w.torque, walls, 6);
+        size_t count = std::stoul(walls.back());
+        if (count != kept.size()) {
+            std::printf("case %d: %zu walls kept, contact.rs %zu\n", line_number, kept.size(),
+                        count);
+            ++differences;
+            continue;
+        }
+        for (size_t k = 0; k < count; ++k) {
+            size_t at = 9 + 7 * k;
+            if (std::to_string(kept[k].first) != walls[at]) {
+                std::printf("case %d: wall %u kept, contact.rs %s\n", line_number, kept[k].first,
+                            walls[at].c_str());
+                ++differences;
+            }
+            check3("wall's tangential spring", kept[k].second.tangential, walls, at + 1);
+            check3("wall's rolling spring", kept[k].second.rolling, walls, at + 4);
+        }
+    }
+    std::printf("%d cases, %d differences\n", line_number, differences);
+    return 0;
+}

@@ -1,0 +1,250 @@
+//! The optix granular step's contact law, `optix/contact.cuh`, is the twin of
+//! `src/dem/model/contact.rs` bit for bit: compiled as host C++ (`tests/contact_twin.cpp`
+//! supplies CUDA's vector types; no fused multiply-adds, as NVRTC compiles it for the GPU), it
+//! computes the same forces, torques and springs as the Rust law on a table of random contacts
+//! of every law and rolling model: a sphere pair from one side, the partner's share as the
+//! partner's own side computes it (what the GPU's owner adds to the partner), and the six
+//! walls with their springs. Needs a C++17 compiler (`c++`) and no GPU; skips with a note
+//! without one (CI has one).
+
+mod common;
+
+use glam::Vec3;
+use mochi::dem::model::contact::{Body, Contact, Springs, pair_contact, wall_contacts};
+use mochi::dem::model::{ContactLaw, Material, NormalLaw, RollingModel, StepParams, mass};
+use std::fmt::Write;
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+const DENSITY: f64 = 2500.0;
+
+fn bits(x: f32) -> String {
+    format!("{:08x}", x.to_bits())
+}
+
+fn vec3(v: Vec3) -> String {
+    format!("{} {} {}", bits(v.x), bits(v.y), bits(v.z))
+}
+
+/// The parameters' section of a case (the order `contact_twin.cpp` reads).
+fn params_section(p: &StepParams) -> String {
+    let (law, rate, pair, wall) = match p.law {
+        NormalLaw::Linear => (0, 0.0, (0.0, 0.0), (0.0, 0.0)),
+        NormalLaw::LinearPerPair { rate, .. } => (1, rate, (0.0, 0.0), (0.0, 0.0)),
+        NormalLaw::Hertz { pair, wall } => (
+            2,
+            0.0,
+            (pair.e_star, pair.g_star),
+            (wall.e_star, wall.g_star),
+        ),
+    };
+    let f = p.friction;
+    let model = match f.rolling_model {
+        RollingModel::Epsd => 0,
+        RollingModel::ConstantTorque => 1,
+    };
+    let floats = [
+        rate,
+        pair.0,
+        pair.1,
+        wall.0,
+        wall.1,
+        f.sliding,
+        f.wall_sliding,
+        f.rolling,
+    ];
+    let floats: Vec<String> = floats.into_iter().map(bits).collect();
+    format!(
+        "{law} {} {model} {} {} {} {} {} {} {}",
+        floats.join(" "),
+        f.turns() as u32,
+        f.has_history() as u32,
+        bits(p.dt),
+        bits(p.damping_ratio),
+        bits(p.stiffness),
+        vec3(Vec3::from_array(p.box_lo)),
+        vec3(Vec3::from_array(p.box_hi)),
+    )
+}
+
+fn body_section(b: &Body) -> String {
+    format!(
+        "{} {} {} {} {}",
+        vec3(b.c),
+        vec3(b.v),
+        vec3(b.w),
+        bits(b.r),
+        bits(b.m)
+    )
+}
+
+fn contact_section(c: Option<Contact>) -> String {
+    match c {
+        Some(c) => format!(
+            "1 {} {} {} {}",
+            vec3(c.force),
+            vec3(c.torque),
+            vec3(c.springs.tangential),
+            vec3(c.springs.rolling)
+        ),
+        None => "0".into(),
+    }
+}
+
+/// Cases of one material: pairs at about touching distance (some apart), spinning, with old
+/// springs, near the walls of a 0.1 m box.
+fn cases(material: &Material, dt: f64, rand: &mut impl FnMut() -> f32, out: &mut String) {
+    let p = StepParams::new(
+        material,
+        dt,
+        [0.0; 3],
+        [0.1; 3],
+        [0.0, 0.0, -9.81],
+        0.0,
+        0.004,
+    )
+    .unwrap();
+    let params = params_section(&p);
+    let body = |c: Vec3, rand: &mut dyn FnMut() -> f32| {
+        let r = 0.005 + 0.002 * rand();
+        let v = Vec3::new(rand(), rand(), rand());
+        let w = 50.0 * Vec3::new(rand(), rand(), rand());
+        Body {
+            c,
+            v,
+            w,
+            r,
+            m: mass(DENSITY as f32, r),
+        }
+    };
+    for _ in 0..200 {
+        let c = Vec3::new(rand(), rand(), rand()) * 0.1 + Vec3::splat(0.05);
+        let i = body(c.clamp(Vec3::splat(0.003), Vec3::splat(0.097)), rand);
+        let towards = Vec3::new(rand(), rand(), rand()).normalize();
+        let at = i.c + towards * (0.0095 + 0.002 * rand());
+        let j = body(at, rand);
+        let old = Springs {
+            tangential: 1e-5 * Vec3::new(rand(), rand(), rand()),
+            rolling: 1e-5 * Vec3::new(rand(), rand(), rand()),
+        };
+        let back = Springs {
+            tangential: -old.tangential,
+            rolling: -old.rolling,
+        };
+        let mut kept = String::new();
+        let mut count = 0;
+        let walls = wall_contacts(
+            &p,
+            &i,
+            |w| {
+                let x = w as f32 * 1e-6;
+                Springs {
+                    tangential: Vec3::splat(x),
+                    rolling: Vec3::splat(-x),
+                }
+            },
+            |w, s| {
+                count += 1;
+                write!(kept, "{w} {} {} ", vec3(s.tangential), vec3(s.rolling)).unwrap();
+            },
+        );
+        writeln!(
+            out,
+            "{params} | {} | {} | {} {} | {} | {} | {} {} {} {kept}{count}",
+            body_section(&i),
+            body_section(&j),
+            vec3(old.tangential),
+            vec3(old.rolling),
+            contact_section(pair_contact(&p, &i, &j, old)),
+            contact_section(pair_contact(&p, &j, &i, back)),
+            vec3(walls.normal),
+            vec3(walls.tangential),
+            vec3(walls.torque),
+        )
+        .unwrap();
+    }
+}
+
+#[test]
+fn the_cuda_contact_law_computes_the_bits_of_the_rust_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let binary = dir.path().join("contact_twin");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let compiled = Command::new("c++")
+        .args(["-std=c++17", "-O2", "-ffp-contract=off", "-I"])
+        .arg(root.join("optix"))
+        .arg(root.join("tests/contact_twin.cpp"))
+        .arg("-o")
+        .arg(&binary)
+        .output();
+    match compiled {
+        Err(why) => {
+            assert!(!common::ci(), "CI expects a C++ compiler (c++): {why}");
+            eprintln!("note: no C++ compiler here ({why}); the CUDA contact law is not compared");
+            return;
+        }
+        Ok(out) => assert!(
+            out.status.success(),
+            "optix/contact.cuh does not compile as C++:\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        ),
+    }
+    let mut seed = 3u64;
+    let mut rand = move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
+    };
+    let hertz = ContactLaw::HertzMindlin {
+        young_modulus: 1e7,
+        poisson_ratio: 0.3,
+    };
+    let per_pair = ContactLaw::LinearPerPair {
+        contact_time: Some(1e-4),
+    };
+    let mut table = String::new();
+    for (contact, mu, mu_r, rolling_model, dt) in [
+        (hertz, 0.5, 0.1, RollingModel::Epsd, 1e-6),
+        (hertz, 0.3, 0.05, RollingModel::ConstantTorque, 1e-6),
+        (hertz, 0.0, 0.0, RollingModel::Epsd, 1e-6),
+        (per_pair, 0.4, 0.1, RollingModel::Epsd, 1e-6),
+        (
+            ContactLaw::Linear,
+            0.4,
+            0.1,
+            RollingModel::ConstantTorque,
+            1e-5,
+        ),
+        (ContactLaw::Linear, 0.0, 0.1, RollingModel::Epsd, 1e-5),
+    ] {
+        let material = Material {
+            density: DENSITY,
+            contact,
+            friction: mu,
+            rolling_friction: mu_r,
+            rolling_model,
+            ..Material::default()
+        };
+        cases(&material, dt, &mut rand, &mut table);
+    }
+    let mut run = Command::new(&binary)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::io::Write::write_all(&mut run.stdin.take().unwrap(), table.as_bytes()).unwrap();
+    let out = run.wait_with_output().unwrap();
+    let report = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{report}");
+    assert!(
+        report.trim_end().ends_with("1200 cases, 0 differences"),
+        "{report}"
+    );
+    // Most cases touch (the rest check that apart is apart).
+    let touching = table
+        .lines()
+        .filter(|l| l.split('|').nth(4) != Some(" 0 "))
+        .count();
+    assert!(touching > 600, "only {touching} cases touch");
+}
