@@ -1,0 +1,231 @@
+//! Python bindings of mochi: `mochi.detect`, `mochi.Detector` and `mochi.backends`.
+//!
+//! Invariants: no Rust panic crosses into Python (every library call returns `Result`, mapped
+//! by [`to_py_err`]); the GIL is released while the library works; arrays are read through
+//! NumPy views (any dtype of f32/f64, any memory order), never element by element in Python.
+#![deny(unsafe_code)]
+
+use mochi::engines::{BackendChoice, BackendKind, Options, open};
+use mochi::{Backend, Pair, ProxyMode, SphereSet};
+use numpy::ndarray::{Array2, ArrayView1, ArrayView2};
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::sync::{Mutex, PoisonError};
+
+create_exception!(
+    _mochi,
+    MochiError,
+    PyRuntimeError,
+    "A device or library failure of mochi (bad input raises ValueError instead)."
+);
+
+/// Maps a library error to `ValueError` (the caller's input) or `MochiError` (everything else).
+fn to_py_err(error: mochi::Error) -> PyErr {
+    match error {
+        mochi::Error::InvalidSphere { .. } | mochi::Error::InvalidConfig { .. } => {
+            PyValueError::new_err(error.to_string())
+        }
+        other => MochiError::new_err(other.to_string()),
+    }
+}
+
+/// The centres of an `(N, 3)` float32/float64 array, as `f32` (what the library stores).
+fn read_centres(centres: &Bound<'_, PyAny>) -> PyResult<Vec<[f32; 3]>> {
+    fn rows<T: Copy + Into<f64>>(view: ArrayView2<'_, T>) -> PyResult<Vec<[f32; 3]>> {
+        if view.ncols() != 3 {
+            return Err(PyValueError::new_err(format!(
+                "centres must have shape (N, 3), not {:?}",
+                view.shape()
+            )));
+        }
+        Ok(view
+            .rows()
+            .into_iter()
+            .map(|r| [r[0].into() as f32, r[1].into() as f32, r[2].into() as f32])
+            .collect())
+    }
+    if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f32>>() {
+        return rows(a.as_array());
+    }
+    if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f64>>() {
+        return rows(a.as_array());
+    }
+    Err(PyValueError::new_err(
+        "centres must be a NumPy array of shape (N, 3) and dtype float32 or float64",
+    ))
+}
+
+/// The radii of an `(N,)` float32/float64 array, as `f32`.
+fn read_radii(radii: &Bound<'_, PyAny>) -> PyResult<Vec<f32>> {
+    fn values<T: Copy + Into<f64>>(view: ArrayView1<'_, T>) -> Vec<f32> {
+        view.iter().map(|&r| r.into() as f32).collect()
+    }
+    if let Ok(a) = radii.extract::<PyReadonlyArray1<'_, f32>>() {
+        return Ok(values(a.as_array()));
+    }
+    if let Ok(a) = radii.extract::<PyReadonlyArray1<'_, f64>>() {
+        return Ok(values(a.as_array()));
+    }
+    Err(PyValueError::new_err(
+        "radii must be a NumPy array of shape (N,) and dtype float32 or float64",
+    ))
+}
+
+/// A validated sphere set; every complaint about the arrays (row and reason) is a `ValueError`.
+fn sphere_set(centres: Vec<[f32; 3]>, radii: Vec<f32>) -> PyResult<SphereSet> {
+    SphereSet::new(centres, radii).map_err(|error| match error {
+        mochi::Error::Usage(msg) => PyValueError::new_err(msg),
+        other => to_py_err(other),
+    })
+}
+
+fn parse_backend(name: &str) -> PyResult<BackendChoice> {
+    name.parse().map_err(PyValueError::new_err)
+}
+
+fn parse_mode(name: &str) -> PyResult<ProxyMode> {
+    match name.to_ascii_lowercase().as_str() {
+        "mochi" => Ok(ProxyMode::Mochi),
+        "nns" => Ok(ProxyMode::Nns),
+        _ => Err(PyValueError::new_err(format!(
+            "mode must be \"mochi\" or \"nns\", not {name:?}"
+        ))),
+    }
+}
+
+/// Pairs as a `(P, 2)` int64 array, rows sorted.
+fn pairs_array(py: Python<'_>, mut pairs: Vec<Pair>) -> Bound<'_, PyArray2<i64>> {
+    pairs.sort_unstable_by_key(|p| (p.i, p.j));
+    let flat: Vec<i64> = pairs
+        .iter()
+        .flat_map(|p| [i64::from(p.i), i64::from(p.j)])
+        .collect();
+    Array2::from_shape_vec((pairs.len(), 2), flat)
+        .expect("two values per pair")
+        .into_pyarray(py)
+}
+
+/// A detection backend kept open between calls.
+#[pyclass(module = "mochi")]
+struct Detector {
+    /// Only ever reached through `&mut self` (`Mutex::get_mut`, no locking): the mutex only
+    /// makes the class `Sync`, as pyo3 requires.
+    backend: Mutex<Box<dyn Backend>>,
+    mode: ProxyMode,
+    /// The radii of the last `build`; `None` before the first.
+    radii: Option<Vec<f32>>,
+}
+
+impl Detector {
+    fn backend_mut(&mut self) -> &mut Box<dyn Backend> {
+        self.backend
+            .get_mut()
+            .unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+#[pymethods]
+impl Detector {
+    #[new]
+    #[pyo3(signature = (backend = "auto", mode = "mochi"))]
+    fn new(py: Python<'_>, backend: &str, mode: &str) -> PyResult<Self> {
+        let choice = parse_backend(backend)?;
+        let mode = parse_mode(mode)?;
+        let opened = py
+            .detach(|| open(choice, &Options::default()))
+            .map_err(to_py_err)?;
+        Ok(Detector {
+            backend: Mutex::new(opened.backend),
+            mode,
+            radii: None,
+        })
+    }
+
+    /// The backend's name (`cpu`, `wgpu-rq`, …).
+    #[getter]
+    fn backend(&mut self) -> &'static str {
+        self.backend_mut().info().name
+    }
+
+    fn build(
+        &mut self,
+        py: Python<'_>,
+        centres: &Bound<'_, PyAny>,
+        radii: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let radii = read_radii(radii)?;
+        let spheres = sphere_set(read_centres(centres)?, radii.clone())?;
+        let mode = self.mode;
+        let backend = self.backend_mut();
+        py.detach(|| backend.build(&spheres, mode))
+            .map_err(to_py_err)?;
+        self.radii = Some(radii);
+        Ok(())
+    }
+
+    fn update(&mut self, py: Python<'_>, centres: &Bound<'_, PyAny>) -> PyResult<()> {
+        let Some(radii) = &self.radii else {
+            return Err(MochiError::new_err("update() before build()"));
+        };
+        let spheres = sphere_set(read_centres(centres)?, radii.clone())?;
+        let backend = self.backend_mut();
+        py.detach(|| backend.update(&spheres)).map_err(to_py_err)
+    }
+
+    fn pairs<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
+        if self.radii.is_none() {
+            return Err(MochiError::new_err("pairs() before build()"));
+        }
+        let backend = self.backend_mut();
+        let (pairs, _stats) = py.detach(|| backend.find_pairs()).map_err(to_py_err)?;
+        Ok(pairs_array(py, pairs))
+    }
+}
+
+/// Every colliding pair `(i, j)`, `i < j`, of the spheres, as a sorted `(P, 2)` int64 array.
+#[pyfunction]
+#[pyo3(signature = (centres, radii, backend = "auto", mode = "mochi"))]
+fn detect<'py>(
+    py: Python<'py>,
+    centres: &Bound<'py, PyAny>,
+    radii: &Bound<'py, PyAny>,
+    backend: &str,
+    mode: &str,
+) -> PyResult<Bound<'py, PyArray2<i64>>> {
+    let mut detector = Detector::new(py, backend, mode)?;
+    detector.build(py, centres, radii)?;
+    detector.pairs(py)
+}
+
+/// Every backend this build knows: name, whether it can run here, and the device or the reason.
+#[pyfunction]
+fn backends(py: Python<'_>) -> PyResult<Vec<Bound<'_, PyDict>>> {
+    let probes: Vec<_> = py.detach(|| {
+        BackendKind::ALL
+            .iter()
+            .map(|&kind| (kind.name(), kind.probe()))
+            .collect()
+    });
+    probes
+        .into_iter()
+        .map(|(name, probe)| {
+            let entry = PyDict::new(py);
+            entry.set_item("name", name)?;
+            entry.set_item("available", probe.is_ok())?;
+            entry.set_item("reason", probe.unwrap_or_else(|why| why))?;
+            Ok(entry)
+        })
+        .collect()
+}
+
+#[pymodule]
+fn _mochi(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("MochiError", m.py().get_type::<MochiError>())?;
+    m.add_function(wrap_pyfunction!(detect, m)?)?;
+    m.add_function(wrap_pyfunction!(backends, m)?)?;
+    m.add_class::<Detector>()?;
+    Ok(())
+}

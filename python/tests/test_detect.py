@@ -1,0 +1,110 @@
+"""mochi.detect, mochi.Detector and mochi.backends against a brute-force NumPy oracle."""
+
+import numpy as np
+import pytest
+
+import mochi
+
+
+def oracle(centres, radii):
+    """Every pair whose spheres touch, computed the way the library does (float32)."""
+    c = np.asarray(centres, dtype=np.float32)
+    r = np.asarray(radii, dtype=np.float32)
+    d = c[:, None, :] - c[None, :, :]
+    dist2 = np.einsum("ijk,ijk->ij", d, d)
+    reach = r[:, None] + r[None, :]
+    i, j = np.nonzero(np.triu(dist2 <= reach * reach, k=1))
+    return np.stack([i, j], axis=1).astype(np.int64).reshape(-1, 2)
+
+
+def random_set(seed, n=400, box=20.0):
+    rng = np.random.default_rng(seed)
+    centres = rng.uniform(0.0, box, size=(n, 3))
+    radii = rng.uniform(0.1, 1.0, size=n) ** 2 + 0.05
+    return centres, radii
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_random_polydisperse_matches_oracle(seed):
+    centres, radii = random_set(seed)
+    pairs = mochi.detect(centres, radii, backend="cpu")
+    assert pairs.dtype == np.int64 and pairs.shape[1] == 2
+    np.testing.assert_array_equal(pairs, oracle(centres, radii))
+
+
+def test_nns_mode_finds_the_same_pairs():
+    centres, radii = random_set(3)
+    np.testing.assert_array_equal(
+        mochi.detect(centres, radii, backend="cpu", mode="nns"), oracle(centres, radii)
+    )
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_dtypes_and_orders(dtype, order):
+    centres, radii = random_set(4, n=200)
+    c = np.asarray(centres, dtype=dtype, order=order)
+    r = np.asarray(radii, dtype=dtype)
+    np.testing.assert_array_equal(mochi.detect(c, r, backend="cpu"), oracle(c, r))
+
+
+def test_empty_and_single():
+    assert mochi.detect(np.zeros((0, 3)), np.zeros(0), backend="cpu").shape == (0, 2)
+    assert mochi.detect(np.zeros((1, 3)), np.ones(1), backend="cpu").shape == (0, 2)
+
+
+def test_touching_exactly_and_duplicates():
+    centres = np.array([[0.0, 0, 0], [2.0, 0, 0], [2.0, 0, 0], [10.0, 0, 0]])
+    radii = np.array([1.0, 1.0, 1.0, 1.0])
+    pairs = mochi.detect(centres, radii, backend="cpu")
+    np.testing.assert_array_equal(pairs, [[0, 1], [0, 2], [1, 2]])
+
+
+@pytest.mark.parametrize(
+    "centres, radii, words",
+    [
+        (np.zeros((3, 2)), np.ones(3), "shape"),
+        (np.zeros((3, 3), dtype=np.int32), np.ones(3), "dtype"),
+        (np.zeros((3, 3)), np.ones(2), "3 centres but 2 radii"),
+        (np.array([[0.0, 0, 0], [np.nan, 0, 0]]), np.ones(2), "sphere 1"),
+        (np.zeros((2, 3)), np.array([1.0, -1.0]), "sphere 1"),
+    ],
+)
+def test_bad_input_is_value_error(centres, radii, words):
+    with pytest.raises(ValueError, match=words):
+        mochi.detect(centres, radii, backend="cpu")
+
+
+def test_bad_backend_and_mode():
+    with pytest.raises(ValueError):
+        mochi.detect(np.zeros((1, 3)), np.ones(1), backend="nope")
+    with pytest.raises(ValueError):
+        mochi.detect(np.zeros((1, 3)), np.ones(1), mode="nope")
+
+
+def test_detector_update_loop_equals_fresh_detect():
+    centres, radii = random_set(5)
+    rng = np.random.default_rng(6)
+    detector = mochi.Detector(backend="cpu")
+    detector.build(centres, radii)
+    for _ in range(5):
+        centres = centres + rng.normal(0.0, 0.2, size=centres.shape)
+        detector.update(centres)
+        np.testing.assert_array_equal(
+            detector.pairs(), mochi.detect(centres, radii, backend="cpu")
+        )
+
+
+def test_detector_before_build_is_mochi_error():
+    with pytest.raises(mochi.MochiError):
+        mochi.Detector(backend="cpu").pairs()
+    assert issubclass(mochi.MochiError, RuntimeError)
+
+
+def test_backends():
+    entries = mochi.backends()
+    names = [e["name"] for e in entries]
+    assert names == ["optix", "wgpu-rq", "wgpu-compute", "cpu"]
+    cpu = entries[-1]
+    assert cpu["available"] is True and "CPU" in cpu["reason"]
+    assert all(isinstance(e["reason"], str) and e["reason"] for e in entries)
