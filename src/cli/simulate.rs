@@ -12,10 +12,23 @@ use mochi::engines::open_choice;
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::render::ColorBy;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
-/// Steps between two progress updates at most.
-const PROGRESS_EVERY: u64 = 100;
+/// Wall-clock time between two progress updates the run aims at: the steps between them go to
+/// the backend as one call, which a GPU backend keeps busy without gaps.
+const PROGRESS_PERIOD: Duration = Duration::from_millis(250);
+
+/// Steps before the first progress update (from there the step's measured time sets them).
+const FIRST_PROGRESS_STEPS: u64 = 10;
+
+/// Steps between two progress updates: enough for [`PROGRESS_PERIOD`] at the rate of the
+/// last `steps` steps, which took `took` (counted as at least a nanosecond per step, so at most
+/// 2.5e8: a backend call's `u32`), growing at most fourfold per update.
+fn progress_steps(steps: u64, took: Duration) -> u64 {
+    let per_step = took.as_secs_f64() / steps.max(1) as f64;
+    let fit = (PROGRESS_PERIOD.as_secs_f64() / per_step.max(1e-9)).round() as u64;
+    fit.clamp(1, 4 * steps.max(1))
+}
 
 /// The scene fields the named flags give.
 fn flags(args: &SimulateArgs) -> Result<SceneFlags> {
@@ -202,20 +215,18 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let mut contacts = 0;
     let mut step = first;
     let due = |every: u64, s: u64| every > 0 && s.is_multiple_of(every);
+    let mut progress_every = FIRST_PROGRESS_STEPS;
     while step < total {
-        let next_stop = [
-            config.frame_every,
-            args.checkpoint_every,
-            args.render_every,
-            PROGRESS_EVERY,
-        ]
-        .into_iter()
-        .filter(|&e| e > 0)
-        .map(|e| (step / e + 1) * e)
-        .min()
-        .unwrap_or(total)
-        .min(total);
+        let next_stop = [config.frame_every, args.checkpoint_every, args.render_every]
+            .into_iter()
+            .filter(|&e| e > 0)
+            .map(|e| (step / e + 1) * e)
+            .chain([step + progress_every, total])
+            .min()
+            .expect("a stop");
+        let advanced_at = Instant::now();
         let advance = stepper.advance((next_stop - step) as u32)?;
+        progress_every = progress_steps(next_stop - step, advanced_at.elapsed());
         step = next_stop;
         times.add(&advance.times);
         clock = advance.clock;
@@ -307,5 +318,23 @@ fn run_folder(args: &SimulateArgs) -> PathBuf {
             _ => PathBuf::from("."),
         },
         (None, None) => PathBuf::from("mochi-out"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn progress_updates_come_about_every_period_and_grow_at_most_fourfold() {
+        // 10 steps in 1 ms: a quarter second holds 2,500, but the next call grows only to 40.
+        assert_eq!(progress_steps(10, Duration::from_millis(1)), 40);
+        // 1,000 steps in a second: 250 fit.
+        assert_eq!(progress_steps(1000, Duration::from_secs(1)), 250);
+        // A step slower than the period: one step per update.
+        assert_eq!(progress_steps(3, Duration::from_secs(3)), 1);
+        // No measurable time: bounded by the growth, then by a nanosecond per step.
+        assert_eq!(progress_steps(10, Duration::ZERO), 40);
+        assert_eq!(progress_steps(1 << 31, Duration::ZERO), 250_000_000);
     }
 }

@@ -293,11 +293,33 @@ impl StepTimer {
         self.0.resolve(encoder, 0..4 * profiled + 1);
     }
 
-    /// The phase times of the last batch (after it completed): its whole time, from the first
-    /// step's start to its end, split in the proportions of its `profiled` steps' phases.
+    /// The phase times of the last batch (after it completed): see [`phases`](Self::phases).
     pub fn read(&self, gpu: &Gpu, profiled: u32) -> Result<StageTimes> {
-        let marks = 4 * profiled as usize;
         let ticks = self.0.ticks(gpu, 0..4 * profiled + 1)?;
+        Ok(Self::phases(gpu, &ticks, profiled))
+    }
+
+    /// Records a copy of a batch's ticks (after [`end`](Self::end)) into `dst` at `offset`:
+    /// [`ticks_bytes`](Self::ticks_bytes) bytes for [`phases`](Self::phases).
+    pub fn copy_ticks(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        profiled: u32,
+        dst: &wgpu::Buffer,
+        offset: u64,
+    ) {
+        self.0.copy_ticks(encoder, 0..4 * profiled + 1, dst, offset);
+    }
+
+    /// Bytes of the ticks of a batch with `profiled` marked steps.
+    pub const fn ticks_bytes(profiled: u32) -> u64 {
+        (4 * profiled as u64 + 1) * 8
+    }
+
+    /// The phase times of a batch from its `ticks`: its whole time, from the first step's
+    /// start to its end, split in the proportions of its `profiled` steps' phases.
+    pub fn phases(gpu: &Gpu, ticks: &[u64], profiled: u32) -> StageTimes {
+        let marks = 4 * profiled as usize;
         let period = GpuTimer::ms_per_tick(gpu);
         let span = |a: u64, b: u64| b.saturating_sub(a) as f64 * period;
         let mut phases = StageTimes::default();
@@ -308,11 +330,11 @@ impl StepTimer {
         }
         let whole = span(ticks[0], ticks[marks]);
         let scale = whole / phases.total_ms().max(f64::MIN_POSITIVE);
-        Ok(StageTimes {
+        StageTimes {
             build_ms: phases.build_ms * scale,
             dcd_ms: phases.dcd_ms * scale,
             update_ms: phases.update_ms * scale,
-        })
+        }
     }
 }
 

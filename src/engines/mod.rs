@@ -7,6 +7,7 @@
 pub mod cpu;
 mod gpu_detect;
 mod gpu_granular;
+mod gpu_readback;
 mod gpu_step;
 mod open;
 #[cfg(feature = "optix")]

@@ -65,6 +65,25 @@ impl GpuTimer {
         encoder.resolve_query_set(&self.queries, slots, &self.resolved, offset);
     }
 
+    /// Records a copy of the resolved ticks of `slots` into `dst` at byte `offset` (a multiple
+    /// of 4), to be read back with other results of the same submission.
+    pub fn copy_ticks(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        slots: Range<u32>,
+        dst: &wgpu::Buffer,
+        offset: u64,
+    ) {
+        let bytes = u64::from(slots.end - slots.start) * 8;
+        encoder.copy_buffer_to_buffer(
+            &self.resolved,
+            u64::from(slots.start) * 8,
+            dst,
+            offset,
+            bytes,
+        );
+    }
+
     /// The resolved ticks of `slots` (after their commands completed).
     pub fn ticks(&self, gpu: &Gpu, slots: Range<u32>) -> Result<Vec<u64>> {
         let all: Vec<u64> = gpu.read(&self.resolved, slots.end as usize)?;

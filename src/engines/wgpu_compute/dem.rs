@@ -27,7 +27,9 @@ use super::shaders::dem_grid::{
     self, BOUNDS, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, PARAMS, POS_A, RANKS, VEL_A,
 };
 use crate::dem::model::StepParams;
+use crate::dem::stepper::Clock;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::engines::gpu_readback::{BatchReadback, InFlight};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
     DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, RedoableBatch, StepTimer,
@@ -98,6 +100,10 @@ pub struct GridStepper {
     clock: wgpu::Buffer,
     binds: Option<[Binds; 2]>,
     timer: Option<StepTimer>,
+    /// Where the paper's step's batches leave their results (see `advance_paper`).
+    readback: BatchReadback,
+    /// The bounds' keys at the end of the last batch that finished (paper's step).
+    last_bounds: Option<[u32; 6]>,
     atomics: &'static str,
     /// The granular step's state (`None`: the paper's step).
     granular: Option<Granular>,
@@ -180,6 +186,8 @@ impl GridStepper {
                 clock: make("mochi.dem.clock", 4),
                 binds: None,
                 timer,
+                readback: BatchReadback::new(&gpu),
+                last_bounds: None,
                 atomics,
                 granular,
                 gpu: gpu.clone(),
@@ -231,21 +239,34 @@ impl GridStepper {
         if self.n == 0 {
             return Ok(None);
         }
+        let gpu = &self.gpu;
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        self.record_bounds(&mut encoder);
+        gpu.queue.submit([encoder.finish()]);
+        let keys: Vec<u32> = gpu.read(&self.bounds, 6)?;
+        self.decode_bounds(&keys).map(Some)
+    }
+
+    /// Records the reduction of the current state's bounds into `self.bounds` (its reset is
+    /// queued to run before the submission `encoder` goes into).
+    fn record_bounds(&self, encoder: &mut wgpu::CommandEncoder) {
         let empty: [u32; 6] = [u32::MAX, u32::MAX, u32::MAX, 0, 0, 0];
         let gpu = &self.gpu;
         gpu.queue
             .write_buffer(&self.bounds, 0, bytemuck::cast_slice(&empty));
         let binds = self.binds.as_ref().expect("laid out");
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
         gpu.dispatch(
-            &mut encoder,
+            encoder,
             "mochi.dem.reduce_bounds",
             &self.pipelines.reduce_bounds,
             &binds[self.current].reduce_bounds,
             self.groups,
         );
-        gpu.queue.submit([encoder.finish()]);
-        let keys: Vec<u32> = gpu.read(&self.bounds, 6)?;
+    }
+
+    /// The bounds from the reduction's keys ([`Error::Unstable`] naming a sphere if they are
+    /// not finite).
+    fn decode_bounds(&self, keys: &[u32]) -> Result<([f32; 3], [f32; 3])> {
         let value = |k: u32| {
             f32::from_bits(if k & 0x8000_0000 != 0 {
                 k & 0x7fff_ffff
@@ -263,7 +284,7 @@ impl GridStepper {
                 self.step
             )));
         }
-        Ok(Some((lo, hi)))
+        Ok((lo, hi))
     }
 
     /// Re-derives the grid layout from the current bounds (clipped to the box and a margin:
@@ -278,6 +299,11 @@ impl GridStepper {
             self.laid_out_at = Some(self.step);
             return Ok(());
         };
+        self.layout_over(lo, hi)
+    }
+
+    /// Lays the grid out over the bounds `lo`..`hi` clipped to the box and a margin.
+    fn layout_over(&mut self, lo: [f32; 3], hi: [f32; 3]) -> Result<()> {
         let margin = self.mode_cell as f32;
         let lo: [f32; 3] = std::array::from_fn(|a| lo[a].max(self.params.box_lo[a] - margin));
         let hi: [f32; 3] =
@@ -425,19 +451,41 @@ impl RedoableBatch for GridStepper {
         (&self.gpu, self.granular.as_mut(), self.current, state)
     }
 
-    /// With a timer, the first step is recorded phase by phase between timestamps (see
-    /// [`StepTimer`]); the others share one compute pass.
     fn record_batch(
         &mut self,
         mut encoder: wgpu::CommandEncoder,
         steps: u32,
     ) -> Result<(u64, Option<StageTimes>)> {
+        let profiled = self.encode_steps(&mut encoder, steps);
         let gpu = &self.gpu;
+        let timer = self.timer.as_ref();
+        gpu.checked("running DEM steps", || gpu.queue.submit([encoder.finish()]))?;
+        let contacts = gpu.read::<u32>(&self.counters, 1)?[0] as u64;
+        let times = timer.map(|t| t.read(gpu, profiled)).transpose()?;
+        Ok((contacts, times))
+    }
+
+    fn rewind(&mut self, steps: u32) {
+        self.step -= steps as u64;
+        self.current = (self.current + steps as usize) % 2;
+    }
+
+    fn rebind(&mut self) {
+        self.binds = Some([self.make_binds(0), self.make_binds(1)]);
+    }
+}
+
+impl GridStepper {
+    /// Records `steps` steps into `encoder` and moves the clock past them; returns how many
+    /// were marked phase by phase. With a timer, the first step is recorded phase by phase
+    /// between timestamps (see [`StepTimer`]), the others share one compute pass, and the
+    /// batch's end is marked and resolved.
+    fn encode_steps(&mut self, encoder: &mut wgpu::CommandEncoder, steps: u32) -> u32 {
         let timer = self.timer.as_ref();
         let mut current = self.current;
         let mut profiled = 0;
         if timer.is_some() {
-            StepTimer::mark(timer, &mut encoder, 0, 0);
+            StepTimer::mark(timer, encoder, 0, 0);
             for (k, phase) in Phase::ALL.into_iter().enumerate() {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some(phase.label()),
@@ -445,7 +493,7 @@ impl RedoableBatch for GridStepper {
                 });
                 self.record_phase(&mut pass, current, phase);
                 drop(pass);
-                StepTimer::mark(timer, &mut encoder, 0, k as u32 + 1);
+                StepTimer::mark(timer, encoder, 0, k as u32 + 1);
             }
             current = 1 - current;
             profiled = 1;
@@ -463,23 +511,74 @@ impl RedoableBatch for GridStepper {
             }
         }
         if let Some(t) = timer {
-            t.end(&mut encoder, profiled);
+            t.end(encoder, profiled);
         }
-        gpu.checked("running DEM steps", || gpu.queue.submit([encoder.finish()]))?;
         self.current = current;
         self.step += steps as u64;
-        let contacts = gpu.read::<u32>(&self.counters, 1)?[0] as u64;
-        let times = timer.map(|t| t.read(gpu, profiled)).transpose()?;
-        Ok((contacts, times))
+        profiled
     }
 
-    fn rewind(&mut self, steps: u32) {
-        self.step -= steps as u64;
-        self.current = (self.current + steps as usize) % 2;
+    /// Records a batch of `steps` steps of the paper's step that ends by reducing its bounds
+    /// and copying its results for the host, and submits it.
+    fn submit_batch(&mut self, steps: u32) -> Result<InFlight> {
+        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        let profiled = self.encode_steps(&mut encoder, steps);
+        self.record_bounds(&mut encoder);
+        let timer = self.timer.as_ref().map(|t| (t, profiled));
+        self.readback
+            .record(&mut encoder, &self.counters, Some(&self.bounds), timer);
+        self.readback.submit(&self.gpu, encoder, profiled)
     }
 
-    fn rebind(&mut self) {
-        self.binds = Some([self.make_binds(0), self.make_binds(1)]);
+    /// The paper's step, `steps` steps in batches kept in flight: batch k + 1 is recorded and
+    /// submitted before the host waits for batch k. A layout falls due at a batch's start; it
+    /// is made from the bounds of the last batch that finished (one batch old while another
+    /// runs: spheres outside a layout are clamped into its border cells, exact, so a layout
+    /// need not be fresh).
+    fn advance_paper(&mut self, steps: u32) -> Result<Advance> {
+        if self.laid_out_at.is_none() {
+            self.relayout()?;
+        }
+        let mut times = StageTimes::default();
+        let mut timed = self.timer.is_some();
+        let mut contacts = 0;
+        let mut left = steps;
+        let mut in_flight: Option<InFlight> = None;
+        loop {
+            let next = if left > 0 {
+                let laid_out_at = self.laid_out_at.unwrap_or(self.step);
+                if self.step >= laid_out_at + RELAYOUT_EVERY
+                    && let Some(keys) = self.last_bounds.take()
+                {
+                    let (lo, hi) = self.decode_bounds(&keys)?;
+                    self.layout_over(lo, hi)?;
+                }
+                let batch = left.min(MAX_BATCH).min(RELAYOUT_EVERY as u32);
+                left -= batch;
+                Some(self.submit_batch(batch)?)
+            } else {
+                None
+            };
+            if let Some(done) = in_flight.take() {
+                let results = self.readback.finish(&self.gpu, done)?;
+                contacts = results.contacts;
+                self.last_bounds = Some(results.bounds);
+                match results.times {
+                    Some(t) => times.add(&t),
+                    None => timed = false,
+                }
+            }
+            match next {
+                Some(batch) => in_flight = Some(batch),
+                None => break,
+            }
+        }
+        Ok(Advance {
+            steps,
+            contacts,
+            times,
+            clock: if timed { Clock::Gpu } else { Clock::None },
+        })
     }
 }
 
@@ -530,6 +629,9 @@ impl Stepper for GridStepper {
                 self.step += left as u64;
                 Ok((left, 0, None))
             });
+        }
+        if self.granular.is_none() {
+            return self.advance_paper(steps);
         }
         advance_in_batches(steps, self.timer.is_some(), |left| {
             let due = match self.laid_out_at {
