@@ -1,4 +1,5 @@
-//! Python bindings of mochi: `mochi.detect`, `mochi.Detector` and `mochi.backends`.
+//! Python bindings of mochi: `mochi.detect`, `mochi.Detector`, `mochi.backends`, and
+//! `mochi.Simulation` and `mochi.read_frame` (in [`simulation`]).
 //!
 //! Invariants: no Rust panic crosses into Python (every library call returns `Result`, mapped
 //! by [`to_py_err`]); the GIL is released while the library works; arrays are read through
@@ -10,10 +11,12 @@ use mochi::{Backend, Pair, ProxyMode, SphereSet};
 use numpy::ndarray::{Array2, ArrayView1, ArrayView2};
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::{Mutex, PoisonError};
+
+mod simulation;
 
 create_exception!(
     _mochi,
@@ -22,13 +25,21 @@ create_exception!(
     "A device or library failure of mochi (bad input raises ValueError instead)."
 );
 
-/// Maps a library error to `ValueError` (the caller's input) or `MochiError` (everything else).
-fn to_py_err(error: mochi::Error) -> PyErr {
-    match error {
-        mochi::Error::InvalidSphere { .. } | mochi::Error::InvalidConfig { .. } => {
-            PyValueError::new_err(error.to_string())
-        }
-        other => MochiError::new_err(other.to_string()),
+/// Maps a library error to `ValueError` (the caller's input: spheres, sizes, scenes and their
+/// files), `OSError` (a file that cannot be read or written) or `MochiError` (everything
+/// else). A resumed checkpoint's error is classed by its cause.
+pub(crate) fn to_py_err(error: mochi::Error) -> PyErr {
+    let class = match &error {
+        mochi::Error::Resuming { error, .. } => error,
+        other => other,
+    };
+    match class {
+        mochi::Error::InvalidSphere { .. }
+        | mochi::Error::InvalidConfig { .. }
+        | mochi::Error::Parse { .. }
+        | mochi::Error::TooLarge { .. } => PyValueError::new_err(error.to_string()),
+        mochi::Error::Io { .. } => PyOSError::new_err(error.to_string()),
+        _ => MochiError::new_err(error.to_string()),
     }
 }
 
@@ -227,5 +238,7 @@ fn _mochi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(detect, m)?)?;
     m.add_function(wrap_pyfunction!(backends, m)?)?;
     m.add_class::<Detector>()?;
+    m.add_class::<simulation::Simulation>()?;
+    m.add_function(wrap_pyfunction!(simulation::read_frame, m)?)?;
     Ok(())
 }
