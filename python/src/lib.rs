@@ -14,6 +14,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rayon::prelude::*;
 use std::sync::{Mutex, PoisonError};
 
 mod simulation;
@@ -43,20 +44,26 @@ pub(crate) fn to_py_err(error: mochi::Error) -> PyErr {
     }
 }
 
-/// The centres of an `(N, 3)` float32/float64 array, as `f32` (what the library stores).
+/// The centres of an `(N, 3)` float32/float64 array, as `f32` (what the library stores): one
+/// copy, on the rayon pool for a C-ordered array (with the GIL held: Python may not write the
+/// array meanwhile).
 fn read_centres(centres: &Bound<'_, PyAny>) -> PyResult<Vec<[f32; 3]>> {
-    fn rows<T: Copy + Into<f64>>(view: ArrayView2<'_, T>) -> PyResult<Vec<[f32; 3]>> {
+    fn rows<T: Copy + Into<f64> + Sync>(view: ArrayView2<'_, T>) -> PyResult<Vec<[f32; 3]>> {
         if view.ncols() != 3 {
             return Err(PyValueError::new_err(format!(
                 "centres must have shape (N, 3), not {:?}",
                 view.shape()
             )));
         }
-        Ok(view
-            .rows()
-            .into_iter()
-            .map(|r| [r[0].into() as f32, r[1].into() as f32, r[2].into() as f32])
-            .collect())
+        let row = |r: &[T]| [r[0].into() as f32, r[1].into() as f32, r[2].into() as f32];
+        Ok(match view.as_slice() {
+            Some(flat) => flat.par_chunks_exact(3).map(row).collect(),
+            None => view
+                .rows()
+                .into_iter()
+                .map(|r| [r[0].into() as f32, r[1].into() as f32, r[2].into() as f32])
+                .collect(),
+        })
     }
     if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f32>>() {
         return rows(a.as_array());
@@ -71,8 +78,12 @@ fn read_centres(centres: &Bound<'_, PyAny>) -> PyResult<Vec<[f32; 3]>> {
 
 /// The radii of an `(N,)` float32/float64 array, as `f32`.
 fn read_radii(radii: &Bound<'_, PyAny>) -> PyResult<Vec<f32>> {
-    fn values<T: Copy + Into<f64>>(view: ArrayView1<'_, T>) -> Vec<f32> {
-        view.iter().map(|&r| r.into() as f32).collect()
+    fn values<T: Copy + Into<f64> + Sync>(view: ArrayView1<'_, T>) -> Vec<f32> {
+        let value = |&r: &T| r.into() as f32;
+        match view.as_slice() {
+            Some(flat) => flat.par_iter().map(value).collect(),
+            None => view.iter().map(value).collect(),
+        }
     }
     if let Ok(a) = radii.extract::<PyReadonlyArray1<'_, f32>>() {
         return Ok(values(a.as_array()));
@@ -86,11 +97,12 @@ fn read_radii(radii: &Bound<'_, PyAny>) -> PyResult<Vec<f32>> {
 }
 
 /// A validated sphere set; every complaint about the arrays (row and reason) is a `ValueError`.
-fn sphere_set(centres: Vec<[f32; 3]>, radii: Vec<f32>) -> PyResult<SphereSet> {
-    SphereSet::new(centres, radii).map_err(|error| match error {
-        mochi::Error::Usage(msg) => PyValueError::new_err(msg),
-        other => to_py_err(other),
-    })
+fn sphere_set(py: Python<'_>, centres: Vec<[f32; 3]>, radii: Vec<f32>) -> PyResult<SphereSet> {
+    py.detach(|| SphereSet::new(centres, radii))
+        .map_err(|error| match error {
+            mochi::Error::Usage(msg) => PyValueError::new_err(msg),
+            other => to_py_err(other),
+        })
 }
 
 fn parse_backend(name: &str) -> PyResult<BackendChoice> {
@@ -107,14 +119,23 @@ fn parse_mode(name: &str) -> PyResult<ProxyMode> {
     }
 }
 
-/// Pairs as a `(P, 2)` int64 array, rows sorted.
-fn pairs_array(py: Python<'_>, mut pairs: Vec<Pair>) -> Bound<'_, PyArray2<i64>> {
-    pairs.sort_unstable_by_key(|p| (p.i, p.j));
-    let flat: Vec<i64> = pairs
-        .iter()
-        .flat_map(|p| [i64::from(p.i), i64::from(p.j)])
-        .collect();
-    Array2::from_shape_vec((pairs.len(), 2), flat)
+/// Pairs as the rows `i, j` of a `(P, 2)` array, sorted; on the rayon pool (the GIL released by
+/// the caller), one pass to sort and one to write.
+fn sorted_rows(mut pairs: Vec<Pair>) -> Vec<i64> {
+    pairs.par_sort_unstable();
+    let mut rows = vec![0_i64; 2 * pairs.len()];
+    rows.par_chunks_exact_mut(2)
+        .zip(&pairs)
+        .for_each(|(row, pair)| {
+            row[0] = i64::from(pair.i);
+            row[1] = i64::from(pair.j);
+        });
+    rows
+}
+
+/// `rows` (of [`sorted_rows`]) as a `(P, 2)` int64 array, without a copy.
+fn pairs_array(py: Python<'_>, rows: Vec<i64>) -> Bound<'_, PyArray2<i64>> {
+    Array2::from_shape_vec((rows.len() / 2, 2), rows)
         .expect("two values per pair")
         .into_pyarray(py)
 }
@@ -168,7 +189,7 @@ impl Detector {
         radii: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let radii = read_radii(radii)?;
-        let spheres = sphere_set(read_centres(centres)?, radii.clone())?;
+        let spheres = sphere_set(py, read_centres(centres)?, radii.clone())?;
         let mode = self.mode;
         let backend = self.backend_mut();
         py.detach(|| backend.build(&spheres, mode))
@@ -181,7 +202,7 @@ impl Detector {
         let Some(radii) = &self.radii else {
             return Err(MochiError::new_err("update() before build()"));
         };
-        let spheres = sphere_set(read_centres(centres)?, radii.clone())?;
+        let spheres = sphere_set(py, read_centres(centres)?, radii.clone())?;
         let backend = self.backend_mut();
         py.detach(|| backend.update(&spheres)).map_err(to_py_err)
     }
@@ -191,8 +212,10 @@ impl Detector {
             return Err(MochiError::new_err("pairs() before build()"));
         }
         let backend = self.backend_mut();
-        let (pairs, _stats) = py.detach(|| backend.find_pairs()).map_err(to_py_err)?;
-        Ok(pairs_array(py, pairs))
+        let rows = py
+            .detach(|| backend.find_pairs().map(|(pairs, _)| sorted_rows(pairs)))
+            .map_err(to_py_err)?;
+        Ok(pairs_array(py, rows))
     }
 }
 
