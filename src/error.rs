@@ -94,6 +94,14 @@ pub enum Error {
     #[cfg(feature = "optix")]
     #[error(transparent)]
     Optix(OptixError),
+    /// A checkpoint's scene or particles do not pass the checks of a resumed run.
+    #[error("resuming {}: {error}", checkpoint.display())]
+    Resuming {
+        /// The checkpoint.
+        checkpoint: PathBuf,
+        /// What is wrong with its scene or particles.
+        error: Box<Error>,
+    },
     /// A library call was made in the wrong order or with mismatched arguments (a bug in the
     /// caller, never the user's input).
     #[error("{0}")]

@@ -47,6 +47,7 @@ pub mod oracle;
 mod particles;
 pub mod proxy;
 pub mod render;
+pub mod run;
 pub mod scenes;
 mod spheres;
 mod types;

@@ -1,6 +1,7 @@
 //! Validated sphere sets and the pairs reported for them.
 
 use crate::error::{Error, Result, try_vec};
+use rayon::prelude::*;
 
 /// Largest magnitude accepted for a coordinate or a radius.
 ///
@@ -19,6 +20,9 @@ pub const MIN_RADIUS: f32 = 1e-12;
 
 /// Largest number of spheres in one set: indices are `u32` on every backend.
 pub const MAX_SPHERES: usize = u32::MAX as usize;
+
+/// Spheres one rayon task checks at least (fewer tasks would cost more than the checks).
+const CHECKS_PER_TASK: usize = 4096;
 
 /// A set of spheres whose every centre and radius has been checked.
 ///
@@ -43,10 +47,21 @@ impl SphereSet {
             )));
         }
         check_count(centers.len())?;
-        for (index, (c, &r)) in centers.iter().zip(&radii).enumerate() {
-            check_sphere(c, r).map_err(|reason| Error::InvalidSphere { index, reason })?;
+        // On the rayon pool; the error names the first bad sphere, as a loop in order would.
+        let bad = centers
+            .par_iter()
+            .zip(&radii)
+            .enumerate()
+            .with_min_len(CHECKS_PER_TASK)
+            .find_map_first(|(index, (c, &r))| check_sphere(c, r).err().map(|e| (index, e)));
+        if let Some((index, reason)) = bad {
+            return Err(Error::InvalidSphere { index, reason });
         }
-        let max_radius = radii.iter().copied().fold(0.0, f32::max);
+        let max_radius = radii
+            .par_iter()
+            .with_min_len(CHECKS_PER_TASK)
+            .copied()
+            .reduce(|| 0.0, f32::max);
         Ok(Self {
             centers,
             radii,

@@ -2,8 +2,12 @@
 //! detection. A leaf: it imports nothing of this crate, so any module may use it without
 //! creating an import cycle (`tests/modules.rs` checks the whole tree).
 
-/// A colliding pair of spheres, by input index, always with `i < j`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+/// A colliding pair of spheres, by input index, always with `i < j`. Laid out as the GPU
+/// writes pairs (`vec2<u32>`, `uint2`), so a read-back is a cast.
+#[repr(C)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, bytemuck::Pod, bytemuck::Zeroable,
+)]
 pub struct Pair {
     /// The smaller index.
     pub i: u32,

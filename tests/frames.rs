@@ -5,7 +5,9 @@
 
 use mochi::Error;
 use mochi::dem::{ContactHistory, FIRST_WALL, HistoryEntry};
-use mochi::io::{Frame, FrameSeries, SERIES_INDEX, SeriesEntry, write_frame_csv, write_vtu};
+use mochi::io::{
+    Frame, FrameSeries, SERIES_INDEX, SeriesEntry, write_frame, write_frame_csv, write_vtu,
+};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use tempfile::TempDir;
@@ -415,6 +417,53 @@ fn csv_rows_parse_back_to_the_same_floats() {
             .collect();
         assert_eq!(row, &want, "row {i}");
     }
+}
+
+#[test]
+fn npy_frames_hold_the_csv_columns_bit_exactly() {
+    let dir = TempDir::new().unwrap();
+    let spheres = Spheres::new(37, 4);
+    let path = dir.path().join("f.npy");
+    write_frame(&path, &spheres.frame(5, 1.5)).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
+    assert_eq!(npy.shape(), &[37, 10]);
+    let values: Vec<f32> = npy.into_vec().unwrap();
+    for (i, row) in values.chunks_exact(10).enumerate() {
+        let [x, y, z] = spheres.positions[i];
+        let [vx, vy, vz] = spheres.velocities[i];
+        let [wx, wy, wz] = spheres.angular_velocities[i];
+        let want = [x, y, z, spheres.radii[i], vx, vy, vz, wx, wy, wz].map(f32::to_bits);
+        assert_eq!(
+            row.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            want,
+            "row {i}"
+        );
+    }
+    assert_eq!(leftovers(dir.path()), Vec::<String>::new());
+}
+
+#[test]
+fn write_frame_picks_the_writer_by_extension_and_refuses_others() {
+    let dir = TempDir::new().unwrap();
+    let spheres = Spheres::new(9, 5);
+    let frame = spheres.frame(2, 0.5);
+    for ext in ["vtu", "CSV", "npy"] {
+        write_frame(&dir.path().join(format!("f.{ext}")), &frame).unwrap();
+    }
+    check_vtu(&dir.path().join("f.vtu"), &spheres, 2, 0.5);
+    let csv = dir.path().join("f.csv");
+    write_frame_csv(&csv, &frame).unwrap();
+    assert_eq!(
+        std::fs::read(&csv).unwrap(),
+        std::fs::read(dir.path().join("f.CSV")).unwrap()
+    );
+    let error = write_frame(&dir.path().join("f.txt"), &frame).unwrap_err();
+    assert!(
+        matches!(&error, Error::Parse { msg, .. } if msg.contains("frame file type")),
+        "{error}"
+    );
+    assert!(!dir.path().join("f.txt").exists());
 }
 
 #[test]

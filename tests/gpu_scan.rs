@@ -1,4 +1,5 @@
-//! The GPU exclusive scan against a CPU wrapping prefix sum, on a real adapter (lavapipe in CI).
+//! The GPU exclusive scan against a CPU wrapping prefix sum, on a real adapter (lavapipe in CI);
+//! and read-backs through one kept staging buffer.
 //!
 //! Without an adapter the tests print why and pass, except under `CI=true`, where they fail.
 
@@ -306,5 +307,21 @@ fn large_sizes_on_a_discrete_gpu() {
              ({:.1} Gentries/s)",
             len as f64 / ms / 1e6
         );
+    }
+}
+
+/// `Gpu::read_through` reuses its staging buffer across read-backs of any size (smaller, then
+/// larger than the one it holds) and reads the right values each time.
+#[test]
+fn read_backs_through_one_staging_buffer_read_the_right_values() {
+    let Some(gpu) = common::open_gpu("GPU read-back") else {
+        return;
+    };
+    let data = random_values(5000, 11);
+    let buffer = upload(&gpu, "mochi.test.readback", &data);
+    let mut staging = mochi::gpu::Staging::default();
+    for count in [1000, 10, 1000, 5000, 0, 3, 4999] {
+        let got: Vec<u32> = gpu.read_through(&mut staging, &buffer, count).unwrap();
+        assert_same(&format!("{count} values"), &got, &data[..count]);
     }
 }

@@ -1,8 +1,9 @@
 """mochi: every pair of touching spheres, fast (proxy-sphere collision detection).
 
-See ``mochi.detect``, ``mochi.Detector`` and ``mochi.backends``.
+See ``mochi.detect``, ``mochi.Detector``, ``mochi.backends``, ``mochi.Simulation`` and
+``mochi.read_frame``.
 """
 
-from ._mochi import Detector, MochiError, backends, detect
+from ._mochi import Detector, MochiError, Simulation, backends, detect, read_frame
 
-__all__ = ["Detector", "MochiError", "backends", "detect"]
+__all__ = ["Detector", "MochiError", "Simulation", "backends", "detect", "read_frame"]

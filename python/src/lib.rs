@@ -1,4 +1,5 @@
-//! Python bindings of mochi: `mochi.detect`, `mochi.Detector` and `mochi.backends`.
+//! Python bindings of mochi: `mochi.detect`, `mochi.Detector`, `mochi.backends`, and
+//! `mochi.Simulation` and `mochi.read_frame` (in [`simulation`]).
 //!
 //! Invariants: no Rust panic crosses into Python (every library call returns `Result`, mapped
 //! by [`to_py_err`]); the GIL is released while the library works; arrays are read through
@@ -10,10 +11,13 @@ use mochi::{Backend, Pair, ProxyMode, SphereSet};
 use numpy::ndarray::{Array2, ArrayView1, ArrayView2};
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rayon::prelude::*;
 use std::sync::{Mutex, PoisonError};
+
+mod simulation;
 
 create_exception!(
     _mochi,
@@ -22,30 +26,44 @@ create_exception!(
     "A device or library failure of mochi (bad input raises ValueError instead)."
 );
 
-/// Maps a library error to `ValueError` (the caller's input) or `MochiError` (everything else).
-fn to_py_err(error: mochi::Error) -> PyErr {
-    match error {
-        mochi::Error::InvalidSphere { .. } | mochi::Error::InvalidConfig { .. } => {
-            PyValueError::new_err(error.to_string())
-        }
-        other => MochiError::new_err(other.to_string()),
+/// Maps a library error to `ValueError` (the caller's input: spheres, sizes, scenes and their
+/// files), `OSError` (a file that cannot be read or written) or `MochiError` (everything
+/// else). A resumed checkpoint's error is classed by its cause.
+pub(crate) fn to_py_err(error: mochi::Error) -> PyErr {
+    let class = match &error {
+        mochi::Error::Resuming { error, .. } => error,
+        other => other,
+    };
+    match class {
+        mochi::Error::InvalidSphere { .. }
+        | mochi::Error::InvalidConfig { .. }
+        | mochi::Error::Parse { .. }
+        | mochi::Error::TooLarge { .. } => PyValueError::new_err(error.to_string()),
+        mochi::Error::Io { .. } => PyOSError::new_err(error.to_string()),
+        _ => MochiError::new_err(error.to_string()),
     }
 }
 
-/// The centres of an `(N, 3)` float32/float64 array, as `f32` (what the library stores).
+/// The centres of an `(N, 3)` float32/float64 array, as `f32` (what the library stores): one
+/// copy, on the rayon pool for a C-ordered array (with the GIL held: Python may not write the
+/// array meanwhile).
 fn read_centres(centres: &Bound<'_, PyAny>) -> PyResult<Vec<[f32; 3]>> {
-    fn rows<T: Copy + Into<f64>>(view: ArrayView2<'_, T>) -> PyResult<Vec<[f32; 3]>> {
+    fn rows<T: Copy + Into<f64> + Sync>(view: ArrayView2<'_, T>) -> PyResult<Vec<[f32; 3]>> {
         if view.ncols() != 3 {
             return Err(PyValueError::new_err(format!(
                 "centres must have shape (N, 3), not {:?}",
                 view.shape()
             )));
         }
-        Ok(view
-            .rows()
-            .into_iter()
-            .map(|r| [r[0].into() as f32, r[1].into() as f32, r[2].into() as f32])
-            .collect())
+        let row = |r: &[T]| [r[0].into() as f32, r[1].into() as f32, r[2].into() as f32];
+        Ok(match view.as_slice() {
+            Some(flat) => flat.par_chunks_exact(3).map(row).collect(),
+            None => view
+                .rows()
+                .into_iter()
+                .map(|r| [r[0].into() as f32, r[1].into() as f32, r[2].into() as f32])
+                .collect(),
+        })
     }
     if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f32>>() {
         return rows(a.as_array());
@@ -60,8 +78,12 @@ fn read_centres(centres: &Bound<'_, PyAny>) -> PyResult<Vec<[f32; 3]>> {
 
 /// The radii of an `(N,)` float32/float64 array, as `f32`.
 fn read_radii(radii: &Bound<'_, PyAny>) -> PyResult<Vec<f32>> {
-    fn values<T: Copy + Into<f64>>(view: ArrayView1<'_, T>) -> Vec<f32> {
-        view.iter().map(|&r| r.into() as f32).collect()
+    fn values<T: Copy + Into<f64> + Sync>(view: ArrayView1<'_, T>) -> Vec<f32> {
+        let value = |&r: &T| r.into() as f32;
+        match view.as_slice() {
+            Some(flat) => flat.par_iter().map(value).collect(),
+            None => view.iter().map(value).collect(),
+        }
     }
     if let Ok(a) = radii.extract::<PyReadonlyArray1<'_, f32>>() {
         return Ok(values(a.as_array()));
@@ -75,11 +97,12 @@ fn read_radii(radii: &Bound<'_, PyAny>) -> PyResult<Vec<f32>> {
 }
 
 /// A validated sphere set; every complaint about the arrays (row and reason) is a `ValueError`.
-fn sphere_set(centres: Vec<[f32; 3]>, radii: Vec<f32>) -> PyResult<SphereSet> {
-    SphereSet::new(centres, radii).map_err(|error| match error {
-        mochi::Error::Usage(msg) => PyValueError::new_err(msg),
-        other => to_py_err(other),
-    })
+fn sphere_set(py: Python<'_>, centres: Vec<[f32; 3]>, radii: Vec<f32>) -> PyResult<SphereSet> {
+    py.detach(|| SphereSet::new(centres, radii))
+        .map_err(|error| match error {
+            mochi::Error::Usage(msg) => PyValueError::new_err(msg),
+            other => to_py_err(other),
+        })
 }
 
 fn parse_backend(name: &str) -> PyResult<BackendChoice> {
@@ -96,14 +119,23 @@ fn parse_mode(name: &str) -> PyResult<ProxyMode> {
     }
 }
 
-/// Pairs as a `(P, 2)` int64 array, rows sorted.
-fn pairs_array(py: Python<'_>, mut pairs: Vec<Pair>) -> Bound<'_, PyArray2<i64>> {
-    pairs.sort_unstable_by_key(|p| (p.i, p.j));
-    let flat: Vec<i64> = pairs
-        .iter()
-        .flat_map(|p| [i64::from(p.i), i64::from(p.j)])
-        .collect();
-    Array2::from_shape_vec((pairs.len(), 2), flat)
+/// Pairs as the rows `i, j` of a `(P, 2)` array, sorted; on the rayon pool (the GIL released by
+/// the caller), one pass to sort and one to write.
+fn sorted_rows(mut pairs: Vec<Pair>) -> Vec<i64> {
+    pairs.par_sort_unstable();
+    let mut rows = vec![0_i64; 2 * pairs.len()];
+    rows.par_chunks_exact_mut(2)
+        .zip(&pairs)
+        .for_each(|(row, pair)| {
+            row[0] = i64::from(pair.i);
+            row[1] = i64::from(pair.j);
+        });
+    rows
+}
+
+/// `rows` (of [`sorted_rows`]) as a `(P, 2)` int64 array, without a copy.
+fn pairs_array(py: Python<'_>, rows: Vec<i64>) -> Bound<'_, PyArray2<i64>> {
+    Array2::from_shape_vec((rows.len() / 2, 2), rows)
         .expect("two values per pair")
         .into_pyarray(py)
 }
@@ -157,7 +189,7 @@ impl Detector {
         radii: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let radii = read_radii(radii)?;
-        let spheres = sphere_set(read_centres(centres)?, radii.clone())?;
+        let spheres = sphere_set(py, read_centres(centres)?, radii.clone())?;
         let mode = self.mode;
         let backend = self.backend_mut();
         py.detach(|| backend.build(&spheres, mode))
@@ -170,7 +202,7 @@ impl Detector {
         let Some(radii) = &self.radii else {
             return Err(MochiError::new_err("update() before build()"));
         };
-        let spheres = sphere_set(read_centres(centres)?, radii.clone())?;
+        let spheres = sphere_set(py, read_centres(centres)?, radii.clone())?;
         let backend = self.backend_mut();
         py.detach(|| backend.update(&spheres)).map_err(to_py_err)
     }
@@ -180,8 +212,10 @@ impl Detector {
             return Err(MochiError::new_err("pairs() before build()"));
         }
         let backend = self.backend_mut();
-        let (pairs, _stats) = py.detach(|| backend.find_pairs()).map_err(to_py_err)?;
-        Ok(pairs_array(py, pairs))
+        let rows = py
+            .detach(|| backend.find_pairs().map(|(pairs, _)| sorted_rows(pairs)))
+            .map_err(to_py_err)?;
+        Ok(pairs_array(py, rows))
     }
 }
 
@@ -227,5 +261,7 @@ fn _mochi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(detect, m)?)?;
     m.add_function(wrap_pyfunction!(backends, m)?)?;
     m.add_class::<Detector>()?;
+    m.add_class::<simulation::Simulation>()?;
+    m.add_function(wrap_pyfunction!(simulation::read_frame, m)?)?;
     Ok(())
 }

@@ -3,14 +3,14 @@
 use super::args::SimulateArgs;
 use super::output;
 use super::render::{FrameData, FrameRenderer, png_name};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use indicatif::{ProgressBar, ProgressStyle};
-use mochi::dem::scene::{SceneConfig, SceneFlags, SceneKind};
+use mochi::dem::scene::{SceneFlags, SceneKind};
 use mochi::dem::{Clock, StageTimes, Stepper};
 use mochi::engines::Options;
-use mochi::engines::open_choice;
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::render::ColorBy;
+use mochi::run::{Run, RunStart};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -65,43 +65,36 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         output::refuse_earlier_run(&out)?;
     }
     let flags = flags(&args)?;
-    let (config, start) = match &args.resume {
-        Some(path) => {
-            let (particles, scene) = io::read_checkpoint(path)?;
-            let config = SceneConfig::resume(&scene, path, &flags, &args.set)
-                .with_context(|| format!("resuming {}", path.display()))?;
-            let start = config
-                .resume_from(particles)
-                .with_context(|| format!("resuming {}", path.display()))?;
-            (config, start)
-        }
-        None => {
-            let config = SceneConfig::load_new(args.scene_file.as_deref(), &flags, &args.set)?;
-            let start = config.build()?;
-            (config.resolved(&start), start)
-        }
+    let run_start = match &args.resume {
+        Some(path) => RunStart::resume(path, &flags, &args.set)?,
+        None => RunStart::new(args.scene_file.as_deref(), &flags, &args.set)?,
     };
-    let total = config.steps;
-    let first = start.particles.step;
+    let total = run_start.config.steps;
+    let first = run_start.start.particles.step;
     if first > total {
         anyhow::bail!(
             "the checkpoint is at step {first}, past the run's {total} steps: raise --steps"
         );
     }
-    let n = start.particles.len();
-    let p = start.params;
     let options = Options {
         structure: args.structure,
         rebuild: args.rebuild,
     };
-    let (r_min, r_max) = start.particles.radius_range();
-    let coincident = start.particles.coincident_pairs()?;
-    let coarse = mochi::coarse_coordinates(&start.particles.positions, &start.particles.radii);
-    let (mut stepper, reason) =
-        open_choice(args.backend, start.particles, p, start.mode, &options)?;
-    if let Some(reason) = reason {
+    let run = run_start.open(args.backend, &options)?;
+    if let Some(reason) = &run.auto_reason {
         eprintln!("{reason}");
     }
+    let overlap_warning = run.overlap_warning();
+    let coincident_warning = run.coincident_warning();
+    let Run {
+        config,
+        params: p,
+        mut stepper,
+        spheres: n,
+        radius_range: (r_min, r_max),
+        coarse_warning,
+        ..
+    } = run;
     let mut pictures = if args.render_every == 0 {
         None
     } else {
@@ -149,7 +142,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         stepper.describe()
     );
 
-    if let Some(warning) = p.overlap_warning(r_min, r_max) {
+    if let Some(warning) = &overlap_warning {
         eprintln!("warning: {warning}");
     }
     if let Some(pictures) = &pictures {
@@ -159,16 +152,8 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             pictures.describe()
         );
     }
-    if let Some(warning) = coarse {
+    for warning in [coarse_warning, coincident_warning].into_iter().flatten() {
         eprintln!("warning: {warning}");
-    }
-    match coincident {
-        0 => {}
-        pairs => eprintln!(
-            "warning: {pairs} pairs of spheres share their centre: each sphere after the first of \
-             such a group starts a thousandth of a radius away, in a direction drawn from the \
-             indices, and their contacts push them apart"
-        ),
     }
     let scene_toml = config.to_toml();
     io::write_atomically(&out.join(io::SCENE_FILE), |w| {

@@ -54,7 +54,9 @@ pub struct Advance {
 }
 
 /// One backend's DEM step: keeps the particles (on the GPU for GPU backends) and advances them.
-pub trait Stepper {
+/// `Send`, as the detection `Backend` is, so that a caller may step it on another thread (Python
+/// releases its interpreter lock while it steps).
+pub trait Stepper: Send {
     /// Backend name and device, in words.
     fn describe(&self) -> String;
 

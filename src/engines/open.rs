@@ -40,20 +40,25 @@ pub fn open_stepper(
     })
 }
 
-/// Opens the DEM step the user chose; `auto` follows the registry's one rule
-/// (`open_auto` in the registry) and says why it passed over the faster backends.
+/// Opens the DEM step the user chose, and names the backend it runs on; `auto` follows the
+/// registry's one rule (`open_auto` in the registry) and says why it passed over the faster
+/// backends.
 pub fn open_choice(
     choice: BackendChoice,
     particles: Particles,
     params: StepParams,
     mode: ProxyMode,
     options: &Options,
-) -> Result<(Box<dyn Stepper>, Option<String>)> {
+) -> Result<(Box<dyn Stepper>, BackendKind, Option<String>)> {
     if let Some(kind) = choice.kind() {
-        return Ok((open_stepper(kind, particles, params, mode, options)?, None));
+        let stepper = open_stepper(kind, particles, params, mode, options)?;
+        return Ok((stepper, kind, None));
     }
-    let (stepper, reason) = super::registry::open_auto(&BackendKind::ALL, |kind| {
-        open_stepper(kind, particles.clone(), params, mode, options)
+    let ((stepper, kind), reason) = super::registry::open_auto(&BackendKind::ALL, |kind| {
+        Ok((
+            open_stepper(kind, particles.clone(), params, mode, options)?,
+            kind,
+        ))
     })?;
-    Ok((stepper, Some(reason)))
+    Ok((stepper, kind, Some(reason)))
 }

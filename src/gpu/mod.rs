@@ -356,34 +356,74 @@ impl Gpu {
 
     /// Copies the first `count` values of `buffer` back to the host (waits for the GPU).
     pub fn read<T: bytemuck::Pod>(&self, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
+        self.read_through(&mut Staging::default(), buffer, count)
+    }
+
+    /// [`Gpu::read`] through `staging`, which is reused where it is large enough (else
+    /// replaced by one that is): repeated read-backs allocate no buffer once warm.
+    pub fn read_through<T: bytemuck::Pod>(
+        &self,
+        staging: &mut Staging,
+        buffer: &wgpu::Buffer,
+        count: usize,
+    ) -> Result<Vec<T>> {
         let bytes = (count * size_of::<T>()) as u64;
         if bytes == 0 {
             return Ok(Vec::new());
         }
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("mochi.readback"),
-            size: bytes.next_multiple_of(4),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let size = bytes.next_multiple_of(4);
+        // Taken out while in use: a read-back that fails leaves no buffer behind in a mapping.
+        let kept = staging.0.take();
+        let buffer_back = match kept {
+            Some(b) if b.size() >= size => b,
+            _ => self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("mochi.readback"),
+                size,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        };
+        let values = self.read_via(&buffer_back, buffer, size, bytes)?;
+        staging.0 = Some(buffer_back);
+        Ok(values)
+    }
+
+    /// Copies `size` bytes of `buffer` into `staging`, maps it and returns the first `bytes`
+    /// as values, unmapping it again.
+    fn read_via<T: bytemuck::Pod>(
+        &self,
+        staging: &wgpu::Buffer,
+        buffer: &wgpu::Buffer,
+        size: u64,
+        bytes: u64,
+    ) -> Result<Vec<T>> {
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes.next_multiple_of(4));
+        encoder.copy_buffer_to_buffer(buffer, 0, staging, 0, size);
         self.queue.submit([encoder.finish()]);
         let (tx, rx) = std::sync::mpsc::channel();
-        staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
+        staging
+            .slice(..size)
+            .map_async(wgpu::MapMode::Read, move |r| {
+                let _ = tx.send(r);
+            });
         self.wait()?;
         rx.recv()
             .map_err(|_| Error::Gpu("read-back was cancelled".into()))?
             .map_err(|e| Error::Gpu(format!("read-back failed: {e}")))?;
-        let view = staging
-            .get_mapped_range(..)
-            .map_err(|e| Error::Gpu(format!("read-back failed: {e}")))?;
-        let values = bytemuck::cast_slice::<u8, T>(&view[..count * size_of::<T>()]).to_vec();
+        let values = {
+            let view = staging
+                .get_mapped_range(..size)
+                .map_err(|e| Error::Gpu(format!("read-back failed: {e}")))?;
+            bytemuck::cast_slice::<u8, T>(&view[..bytes as usize]).to_vec()
+        };
+        staging.unmap();
         Ok(values)
     }
 }
+
+/// A host-readable buffer kept between read-backs ([`Gpu::read_through`]); empty at first.
+#[derive(Debug, Default)]
+pub struct Staging(Option<wgpu::Buffer>);
 
 /// Records a dispatch of `pipeline` with `bind` at group 0 over the workgroups `(x, y)` into an
 /// open pass. Dependent dispatches recorded in one pass cost less than one pass each (every pass

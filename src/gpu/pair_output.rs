@@ -2,8 +2,8 @@
 //! every pair, a buffer that keeps as many as fit, and the host loop that grows the buffer and
 //! reruns until every pair fits. Nothing is ever truncated.
 
-use super::Gpu;
 use super::shader::Binding;
+use super::{Gpu, Staging};
 use crate::error::{Error, Result};
 use crate::types::DetectStats;
 use crate::types::Pair;
@@ -22,6 +22,9 @@ pub struct PairOutput {
     pub pairs: wgpu::Buffer,
     /// Pairs that fit in `pairs`.
     pub capacity: u32,
+    /// Host-readable copies of the counters and of the pairs, kept between detections.
+    counters_back: Staging,
+    pairs_back: Staging,
 }
 
 impl PairOutput {
@@ -35,6 +38,8 @@ impl PairOutput {
                 wgpu::BufferUsages::empty(),
             ),
             capacity,
+            counters_back: Staging::default(),
+            pairs_back: Staging::default(),
         }
     }
 
@@ -52,7 +57,8 @@ impl PairOutput {
             let capacity = if collect { self.capacity } else { 0 };
             gpu.queue.write_buffer(&self.counters, 0, &[0; 16]);
             run(self, capacity)?;
-            let counters: Vec<u32> = gpu.read(&self.counters, 4)?;
+            let counters: Vec<u32> =
+                gpu.read_through(&mut self.counters_back, &self.counters, 4)?;
             let stats = DetectStats {
                 pairs: counters[0] as u64,
                 candidates: counters[1] as u64 | (counters[2] as u64) << 32,
@@ -64,8 +70,8 @@ impl PairOutput {
                 self.grow(gpu, counters[0])?;
                 continue;
             }
-            let raw: Vec<[u32; 2]> = gpu.read(&self.pairs, counters[0] as usize)?;
-            let mut pairs: Vec<Pair> = raw.into_iter().map(|[i, j]| Pair { i, j }).collect();
+            let mut pairs: Vec<Pair> =
+                gpu.read_through(&mut self.pairs_back, &self.pairs, counters[0] as usize)?;
             pairs.par_sort_unstable();
             return Ok((pairs, stats));
         }
@@ -86,7 +92,9 @@ impl PairOutput {
             });
         }
         let capacity = (needed as u64 + needed as u64 / 8).min(limit) as u32;
+        let counters_back = std::mem::take(&mut self.counters_back);
         *self = gpu.checked("growing the pair buffer", || PairOutput::new(gpu, capacity))?;
+        self.counters_back = counters_back;
         Ok(())
     }
 }

@@ -27,6 +27,7 @@
 use super::{io_error, parse_error, write_atomically};
 use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, Particles};
+use npyz::WriterBuilder;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -400,6 +401,52 @@ pub fn write_frame_csv(path: &Path, frame: &Frame) -> Result<()> {
         }
         Ok(())
     })
+}
+
+/// Writes `frame` as NumPy `.npy`, float32 of shape N×10 (the columns of
+/// [`write_frame_csv`]), atomically. [`super::read_particles`] and [`super::read_frame`] read it
+/// back, as does `numpy.load`.
+pub fn write_frame_npy(path: &Path, frame: &Frame) -> Result<()> {
+    let n = frame.checked_len()?;
+    write_atomically(path, |out| {
+        let mut npy = npyz::WriteOptions::<f32>::new()
+            .default_dtype()
+            .shape(&[n as u64, 10])
+            .writer(out)
+            .begin_nd()?;
+        for (((&[x, y, z], &r), &[vx, vy, vz]), &[wx, wy, wz]) in frame
+            .positions
+            .iter()
+            .zip(frame.radii)
+            .zip(frame.velocities)
+            .zip(frame.angular_velocities)
+        {
+            npy.extend([x, y, z, r, vx, vy, vz, wx, wy, wz])?;
+        }
+        npy.finish()
+    })
+}
+
+/// Writes `frame` by the extension of `path`: `.vtu` ([`write_vtu`]), `.csv`
+/// ([`write_frame_csv`]) or `.npy` ([`write_frame_npy`]); any other is an error naming the file.
+pub fn write_frame(path: &Path, frame: &Frame) -> Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("vtu") => write_vtu(path, frame),
+        Some("csv") => write_frame_csv(path, frame),
+        Some("npy") => write_frame_npy(path, frame),
+        other => Err(Error::Parse {
+            path: path.to_owned(),
+            line: None,
+            msg: format!(
+                "unknown frame file type {:?}: use .vtu, .csv or .npy",
+                other.unwrap_or("")
+            ),
+        }),
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -19,7 +19,8 @@ pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};
 pub use checkpoint::{read_checkpoint, write_checkpoint};
 pub use frame_read::{OwnedFrame, read_frame, read_vtu};
 pub use frames::{
-    Frame, FrameSeries, SERIES_INDEX, SeriesEntry, read_series_index, write_frame_csv, write_vtu,
+    Frame, FrameSeries, SERIES_INDEX, SeriesEntry, read_series_index, write_frame, write_frame_csv,
+    write_frame_npy, write_vtu,
 };
 pub use pairs::{read_pairs, write_pairs};
 pub use run_folder::{

@@ -1,0 +1,204 @@
+"""mochi.Simulation on the cpu backend: free fall against the closed form, a small pile's energy,
+checkpoint and resume bit for bit, bad scenes, progress and Ctrl-C, frames read back."""
+
+import _thread
+import math
+import threading
+
+import numpy as np
+import pytest
+
+import mochi
+
+GRAVITY = 9.81
+DENSITY = 500.0
+
+
+def one_sphere_scene(tmp_path, x0, v0, r=0.05):
+    """A single sphere far from the walls of a large box, from a frame CSV."""
+    start = tmp_path / "start.csv"
+    start.write_text("x,y,z,r,vx,vy,vz\n" + ",".join(map(str, [*x0, r, *v0])) + "\n")
+    return {
+        "scene": "input",
+        "input": start,
+        "box_lo": [-100.0, -100.0, -100.0],
+        "box_hi": [100.0, 100.0, 100.0],
+        "gravity": [0.0, 0.0, -GRAVITY],
+        "density": DENSITY,
+    }
+
+
+def test_a_falling_sphere_follows_the_closed_form(tmp_path):
+    x0 = np.array([0.5, -0.25, 2.0])
+    v0 = np.array([0.3, 0.0, 1.5])
+    sim = mochi.Simulation(one_sphere_scene(tmp_path, x0, v0), backend="cpu")
+    assert sim.backend == "cpu" and len(sim) == 1 and sim.step_count == 0
+    n = 2000
+    sim.step(n)
+    dt = np.float32(sim.dt)
+    t = n * float(dt)
+    assert sim.step_count == n and sim.time == pytest.approx(t, rel=1e-12)
+    g = np.array([0.0, 0.0, -GRAVITY])
+    exact = x0 + v0 * t + g * t * t / 2
+    # Semi-implicit Euler (v += g dt, then x += v dt) is ahead of the closed form by g t dt / 2;
+    # float32 adds a rounding of the position per step.
+    lead = g * t * float(dt) / 2
+    rounding = n * np.finfo(np.float32).eps * np.abs(exact).max()
+    position = sim.positions[0].astype(np.float64)
+    np.testing.assert_allclose(position, exact, rtol=0, atol=np.abs(lead).max() + rounding)
+    np.testing.assert_allclose(position - exact, lead, rtol=0, atol=rounding)
+    np.testing.assert_allclose(sim.velocities[0], v0 + g * t, rtol=0, atol=1e-4)
+    np.testing.assert_array_equal(sim.angular_velocities, np.zeros((1, 3), np.float32))
+    assert sim.contacts == 0
+
+
+def energy(sim):
+    """Kinetic (translation and rotation) plus gravitational energy of the spheres."""
+    r = sim.radii.astype(np.float64)
+    m = DENSITY * 4.0 / 3.0 * math.pi * r**3
+    v = sim.velocities.astype(np.float64)
+    w = sim.angular_velocities.astype(np.float64)
+    z = sim.positions[:, 2].astype(np.float64)
+    inertia = 0.4 * m * r * r
+    return (
+        0.5 * (m * (v * v).sum(1)).sum()
+        + 0.5 * (inertia * (w * w).sum(1)).sum()
+        + (m * GRAVITY * z).sum()
+    )
+
+
+def test_a_small_pile_settles_without_gaining_energy():
+    sim = mochi.Simulation(
+        {"scene": "pour", "spheres": 300, "density": DENSITY}, backend="cpu"
+    )
+    start = energy(sim)
+    lo, hi = sim.positions.min(0), sim.positions.max(0)
+    before = start
+    for _ in range(5):
+        sim.step(400)
+        now = energy(sim)
+        # Contacts and walls only take energy out (the springs' own energy is not counted).
+        assert now <= before + 1e-6 * abs(start)
+        before = now
+    assert now < start
+    assert sim.contacts > 0
+    assert np.isfinite(sim.positions).all() and np.isfinite(sim.velocities).all()
+    assert sim.positions[:, 2].min() > 0.0
+    assert (sim.positions.max(0) - sim.positions.min(0) >= (hi - lo) * 0.5).all()
+
+
+def test_checkpoint_and_resume_continue_bit_for_bit(tmp_path):
+    scene = {"scene": "pour", "spheres": 300, "seed": 7}
+    straight = mochi.Simulation(scene, backend="cpu")
+    straight.step(1200)
+
+    first = mochi.Simulation(scene, backend="cpu")
+    first.step(800)
+    assert first.contacts > 0  # the checkpoint holds a contact history
+    first.checkpoint(tmp_path / "run.bin")
+    resumed = mochi.Simulation.resume(tmp_path / "run.bin", backend="cpu")
+    assert resumed.step_count == 800 and resumed.dt == first.dt
+    resumed.step(400)
+
+    assert resumed.step_count == straight.step_count == 1200
+    assert resumed.time == straight.time
+    assert resumed.contacts == straight.contacts
+    for name in ["positions", "velocities", "angular_velocities", "radii"]:
+        np.testing.assert_array_equal(getattr(resumed, name), getattr(straight, name), name)
+
+
+@pytest.mark.parametrize(
+    "scene, words",
+    [
+        ({"spherez": 10}, "spherez"),
+        ({"spheres": "many"}, "spheres"),
+        ({"spheres": -1}, "spheres"),
+        ({"scene": "nowhere"}, "nowhere"),
+        ({"restitution": [1, 2]}, "restitution"),
+        ({"contact_time": 1e-3}, "contact_time"),
+        ({"scene": "freefall", "dt": 1.0}, "time step"),
+        ({"spheres": 10**30}, "spheres"),
+        ({"spheres": None}, "spheres"),
+        ({"bad key": 1}, "bad key"),
+        ({"scene": "mesh", "spheres": 10}, "spheres"),
+    ],
+)
+def test_bad_scene_keys_and_values_are_value_errors_naming_them(scene, words):
+    with pytest.raises(ValueError, match=words):
+        mochi.Simulation(scene, backend="cpu")
+
+
+def test_bad_arguments_are_errors():
+    with pytest.raises(ValueError, match="backend"):
+        mochi.Simulation({"scene": "freefall", "spheres": 10}, backend="abacus")
+    with pytest.raises(TypeError):
+        mochi.Simulation(42)
+    with pytest.raises(OSError):
+        mochi.Simulation("/nonexistent/scene.toml")
+    with pytest.raises(OSError):
+        mochi.Simulation.resume("/nonexistent/run.bin", backend="cpu")
+
+
+def test_a_scene_file_gives_the_same_run_as_its_dict(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text('scene = "freefall"\nspheres = 50\nseed = 3\n')
+    from_file = mochi.Simulation(path, backend="cpu")
+    from_dict = mochi.Simulation({"scene": "freefall", "spheres": 50, "seed": 3}, backend="cpu")
+    for sim in (from_file, from_dict):
+        sim.step(30)
+    np.testing.assert_array_equal(from_file.positions, from_dict.positions)
+    assert from_file.dt == from_dict.dt
+
+
+def test_progress_gets_the_increments():
+    sim = mochi.Simulation({"scene": "freefall", "spheres": 20}, backend="cpu")
+    calls = []
+    sim.step(250, progress=calls.append)
+    assert calls == [100, 100, 50]
+    sim.step(0, progress=calls.append)
+    assert calls == [100, 100, 50] and sim.step_count == 250
+
+
+def test_ctrl_c_stops_between_batches():
+    sim = mochi.Simulation({"scene": "freefall", "spheres": 20}, backend="cpu")
+    n = 10**6
+    ctrl_c = threading.Timer(0.5, _thread.interrupt_main)
+    ctrl_c.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            sim.step(n)
+    finally:
+        ctrl_c.cancel()
+    assert 0 < sim.step_count < n and sim.step_count % 100 == 0
+
+
+@pytest.mark.parametrize("ext", ["vtu", "csv", "npy"])
+def test_frames_read_back_as_written(tmp_path, ext):
+    sim = mochi.Simulation({"scene": "pour", "spheres": 200}, backend="cpu")
+    sim.step(900)
+    path = tmp_path / f"frame.{ext}"
+    sim.write_frame(path)
+    frame = mochi.read_frame(path)
+    for name in ["positions", "velocities", "angular_velocities", "radii"]:
+        np.testing.assert_array_equal(frame[name], getattr(sim, name), name)
+    if ext == "vtu":
+        assert frame["step"] == 900 and frame["time"] == pytest.approx(sim.time)
+    if ext == "npy":
+        table = np.load(path)
+        assert table.dtype == np.float32 and table.shape == (200, 10)
+        np.testing.assert_array_equal(table[:, :3], sim.positions)
+        np.testing.assert_array_equal(table[:, 3], sim.radii)
+        np.testing.assert_array_equal(table[:, 4:7], sim.velocities)
+        np.testing.assert_array_equal(table[:, 7:], sim.angular_velocities)
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary left
+
+
+def test_a_frame_of_unknown_type_is_refused(tmp_path):
+    sim = mochi.Simulation({"scene": "freefall", "spheres": 10}, backend="cpu")
+    with pytest.raises(ValueError, match="frame file type"):
+        sim.write_frame(tmp_path / "frame.txt")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_default_scene_is_pour():
+    assert "pour" in repr(mochi.Simulation(backend="cpu"))

@@ -1,0 +1,153 @@
+//! Setting a simulation run up: the scene (a new one, or the one a checkpoint saved), the
+//! particles and step parameters it starts from, and the opened DEM step. `mochi simulate` and
+//! the Python `mochi.Simulation` both start their runs here, so the two cannot drift apart.
+//!
+//! ```no_run
+//! use mochi::dem::scene::SceneFlags;
+//! use mochi::engines::{BackendChoice, Options};
+//! use mochi::run::RunStart;
+//!
+//! let overrides = ["scene=freefall".to_owned(), "spheres=100".to_owned()];
+//! let start = RunStart::new(None, &SceneFlags::default(), &overrides)?;
+//! let mut run = start.open("cpu".parse::<BackendChoice>().unwrap(), &Options::default())?;
+//! run.stepper.advance(10)?;
+//! # Ok::<(), mochi::Error>(())
+//! ```
+
+use crate::dem::model::StepParams;
+use crate::dem::scene::{SceneConfig, SceneFlags, Start};
+use crate::dem::stepper::Stepper;
+use crate::engines::{BackendChoice, BackendKind, Options, open_choice};
+use crate::error::{Error, Result};
+use crate::io::{self, Frame};
+use crate::particles::Particles;
+use std::path::Path;
+
+/// A run's scene and the state it starts from, before a backend is opened.
+#[derive(Debug, Clone)]
+pub struct RunStart {
+    /// The scene with every derived value written out (time step, box, material), as a
+    /// checkpoint saves it: resuming from it gives exactly the same parameters.
+    pub config: SceneConfig,
+    /// The particles, step parameters and proxy mode.
+    pub start: Start,
+}
+
+impl RunStart {
+    /// A new run: the scene file (`None`: the default scene), then `flags`, then `overrides`
+    /// (`key=value`, as `--set` gives them), built into particles at step 0. Refuses fields the
+    /// chosen scene does not use, and a time step the contact law cannot keep stable.
+    pub fn new(
+        scene_file: Option<&Path>,
+        flags: &SceneFlags,
+        overrides: &[String],
+    ) -> Result<Self> {
+        let config = SceneConfig::load_new(scene_file, flags, overrides)?;
+        let start = config.build()?;
+        Ok(Self {
+            config: config.resolved(&start),
+            start,
+        })
+    }
+
+    /// A run resumed from `checkpoint`: its particles, and its saved scene with `flags` and
+    /// `overrides` applied (only the fields of [`crate::dem::scene::RESUMABLE`] may change).
+    /// A checkpoint that cannot be read is an error of its own; a scene or particles that do
+    /// not pass are an [`Error::Resuming`] naming the checkpoint.
+    pub fn resume(checkpoint: &Path, flags: &SceneFlags, overrides: &[String]) -> Result<Self> {
+        let (particles, scene) = io::read_checkpoint(checkpoint)?;
+        let resuming = |error| Error::Resuming {
+            checkpoint: checkpoint.to_owned(),
+            error: Box::new(error),
+        };
+        let config = SceneConfig::resume(&scene, checkpoint, flags, overrides).map_err(resuming)?;
+        let start = config.resume_from(particles).map_err(resuming)?;
+        Ok(Self { config, start })
+    }
+
+    /// Opens the DEM step of `choice` over the particles (`auto`: the registry's one rule, with
+    /// the reason it passed over faster backends in [`Run::auto_reason`]). Spheres that share a
+    /// centre are counted here; the backend moves them apart as it opens.
+    pub fn open(self, choice: BackendChoice, options: &Options) -> Result<Run> {
+        let particles = self.start.particles;
+        let spheres = particles.len();
+        let first_step = particles.step;
+        let radius_range = particles.radius_range();
+        let coincident_pairs = particles.coincident_pairs()?;
+        let coarse_warning = crate::coarse_coordinates(&particles.positions, &particles.radii);
+        let params = self.start.params;
+        let (stepper, backend, auto_reason) =
+            open_choice(choice, particles, params, self.start.mode, options)?;
+        Ok(Run {
+            config: self.config,
+            params,
+            stepper,
+            backend,
+            auto_reason,
+            spheres,
+            first_step,
+            radius_range,
+            coarse_warning,
+            coincident_pairs,
+        })
+    }
+}
+
+/// An opened run: its scene, its step parameters and the backend's DEM step.
+pub struct Run {
+    /// The resolved scene (see [`RunStart::config`]).
+    pub config: SceneConfig,
+    /// The step parameters.
+    pub params: StepParams,
+    /// The backend's DEM step, holding the particles.
+    pub stepper: Box<dyn Stepper>,
+    /// The backend it runs on.
+    pub backend: BackendKind,
+    /// Why `auto` passed over the faster backends (`None` for a named backend).
+    pub auto_reason: Option<String>,
+    /// Number of spheres.
+    pub spheres: usize,
+    /// The step the run starts from (0, or the checkpoint's).
+    pub first_step: u64,
+    /// The smallest and largest radius.
+    pub radius_range: (f32, f32),
+    /// The warning of [`crate::coarse_coordinates`] for the starting centres, if any.
+    pub coarse_warning: Option<String>,
+    /// Pairs of spheres that shared their centre at the start.
+    pub coincident_pairs: u64,
+}
+
+impl Run {
+    /// The warning about spheres that shared their centre at the start, if any did.
+    pub fn coincident_warning(&self) -> Option<String> {
+        (self.coincident_pairs > 0).then(|| {
+            format!(
+                "{} pairs of spheres share their centre: each sphere after the first of such a \
+                 group starts a thousandth of a radius away, in a direction drawn from the \
+                 indices, and their contacts push them apart",
+                self.coincident_pairs
+            )
+        })
+    }
+
+    /// The warning of [`StepParams::overlap_warning`] for this run's radii, if any.
+    pub fn overlap_warning(&self) -> Option<String> {
+        let (r_min, r_max) = self.radius_range;
+        self.params.overlap_warning(r_min, r_max)
+    }
+
+    /// The resolved scene as TOML, as checkpoints save it.
+    pub fn scene_toml(&self) -> String {
+        self.config.to_toml()
+    }
+
+    /// `particles` (of this run) as a frame: its time from the step and the time step, and the
+    /// contact counts where the run keeps a contact history.
+    pub fn frame<'a>(&self, particles: &'a Particles) -> Frame<'a> {
+        Frame::of(
+            particles,
+            self.params.dt,
+            self.params.friction.has_history(),
+        )
+    }
+}
