@@ -3,6 +3,13 @@
 // walk finds every pair once, by the thread of its owner p; the walls are resolved by each
 // sphere's own thread in the same pass (they keep history in its slots).
 
+// ω of set a, by its index (dem_grid.wgsl)
+@group(0) @binding(25) var<storage, read> omega_a: array<vec4<f32>>;
+
+fn carry(i: u32, p: u32) {
+    omega[p] = omega_a[i];
+}
+
 fn stable_id(p: u32) -> u32 {
     return ids[p];
 }

@@ -139,7 +139,6 @@ pub(crate) struct Accumulators {
 /// sources, bindings and the structs shared with Rust.
 pub(crate) mod granular {
     use crate::gpu::shader::{Binding, SharedStruct, shared_struct};
-    use crate::particles::HistoryEntry;
 
     /// `wgsl/dem_contact.wgsl`.
     pub const CONTACT: &str = include_str!("../../wgsl/dem_contact.wgsl");
@@ -150,21 +149,48 @@ pub(crate) mod granular {
     pub const OMEGA: Binding = Binding::read_write(18, "omega");
     /// Declared by the torque accumulator (`dem_torque_*.wgsl`).
     pub const TORQUE: Binding = Binding::read_write(19, "torque");
-    pub const HISTORY_OLD: Binding = Binding::read(20, "history_old");
+    pub const PARTNERS_OLD: Binding = Binding::read(20, "partners_old");
     pub const HELD_OLD: Binding = Binding::read(21, "held_old");
-    pub const HISTORY_NEW: Binding = Binding::read_write(22, "history_new");
+    pub const PARTNERS_NEW: Binding = Binding::read_write(22, "partners_new");
     pub const HELD_NEW: Binding = Binding::read_write(23, "held_new");
     pub const HISTORY_NEED: Binding = Binding::read_write(24, "history_need");
-    pub const BINDINGS: &[Binding] = &[
-        GRANULAR,
-        OMEGA,
-        TORQUE,
-        HISTORY_OLD,
-        HELD_OLD,
-        HISTORY_NEW,
-        HELD_NEW,
-        HISTORY_NEED,
+    /// The old springs' components, one array each: ξ x, y, z, then the rolling torque's x,
+    /// y, z.
+    pub const SPRINGS_OLD: [Binding; 6] = [
+        Binding::read(26, "xi_x_old"),
+        Binding::read(27, "xi_y_old"),
+        Binding::read(28, "xi_z_old"),
+        Binding::read(29, "roll_x_old"),
+        Binding::read(30, "roll_y_old"),
+        Binding::read(31, "roll_z_old"),
     ];
+    /// The new springs' components, as [`SPRINGS_OLD`].
+    pub const SPRINGS_NEW: [Binding; 6] = [
+        Binding::read_write(32, "xi_x_new"),
+        Binding::read_write(33, "xi_y_new"),
+        Binding::read_write(34, "xi_z_new"),
+        Binding::read_write(35, "roll_x_new"),
+        Binding::read_write(36, "roll_y_new"),
+        Binding::read_write(37, "roll_z_new"),
+    ];
+
+    /// Every binding of `wgsl/dem_granular.wgsl` and its accumulators.
+    pub fn bindings() -> Vec<Binding> {
+        [
+            GRANULAR,
+            OMEGA,
+            TORQUE,
+            PARTNERS_OLD,
+            HELD_OLD,
+            PARTNERS_NEW,
+            HELD_NEW,
+            HISTORY_NEED,
+        ]
+        .into_iter()
+        .chain(SPRINGS_OLD)
+        .chain(SPRINGS_NEW)
+        .collect()
+    }
 
     /// The granular step's parameters beyond [`super::DemParams`]; twin: `GranularParams` in
     /// `wgsl/dem_contact.wgsl` (checked by `tests/bindings.rs`).
@@ -213,28 +239,6 @@ pub(crate) mod granular {
                 rolling_model,
                 turns,
                 slots,
-            }
-        )
-    }
-
-    /// The layout of one history slot on the GPU: [`HistoryEntry`], whose bytes are uploaded
-    /// as they are; twin: `HistoryEntry` in `wgsl/dem_granular.wgsl`.
-    #[derive(Clone, Copy, Default, encase::ShaderType)]
-    pub struct HistoryRow {
-        partner: u32,
-        tangential: [f32; 3],
-        rolling: [f32; 3],
-    }
-    const _: () = assert!(size_of::<HistoryEntry>() == 28, "HistoryRow's size");
-
-    /// [`HistoryRow`] as a [`SharedStruct`].
-    pub fn history_row() -> SharedStruct {
-        shared_struct!(
-            "HistoryEntry",
-            HistoryRow {
-                partner,
-                tangential,
-                rolling,
             }
         )
     }
@@ -330,13 +334,16 @@ pub(crate) struct DemModule {
 impl DemModule {
     /// Refuses more than `limit` spheres ([`Error::TooLarge`], naming `backend` and the
     /// adapter), picks the accumulators, opens the granular state where
-    /// [`Granular::needed`] and compiles `source(accumulators, granular)`.
+    /// [`Granular::needed`] (for an engine with `sets` state sets, see [`Granular::new`]) and
+    /// compiles `source(accumulators, granular)`.
+    #[allow(clippy::too_many_arguments)]
     pub fn open(
         gpu: &Gpu,
         backend: &'static str,
         particles: &Particles,
         params: &StepParams,
         limit: u64,
+        sets: usize,
         atomics: ForceAtomics,
         source: impl FnOnce(Accumulators, bool) -> String,
     ) -> Result<Self> {
@@ -350,7 +357,7 @@ impl DemModule {
         }
         let (atomics, accumulators) = atomics.pick(gpu);
         let granular = Granular::needed(particles, params)
-            .then(|| Granular::new(gpu, particles, params, backend))
+            .then(|| Granular::new(gpu, particles, params, backend, sets))
             .transpose()?;
         let source = source(accumulators, granular.is_some());
         let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
@@ -400,8 +407,8 @@ pub(crate) fn particles_from(
     particles_with(pos, vel, ids, step, None)
 }
 
-/// As [`particles_from`], with the angular velocities and contact history of a granular step
-/// (`None`: the paper's step).
+/// As [`particles_from`], with the angular velocities (in the rows' order) and contact history
+/// of a granular step (`None`: the paper's step).
 pub(crate) fn particles_with(
     pos: &[[f32; 4]],
     vel: &[[f32; 4]],
@@ -417,15 +424,17 @@ pub(crate) fn particles_with(
     let mut out = Particles {
         positions: vec![[0.0; 3]; n],
         velocities: vec![[0.0; 3]; n],
-        angular_velocities: rotation.angular_velocities,
+        angular_velocities: vec![[0.0; 3]; n],
         radii: vec![0.0; n],
         history: rotation.history,
         step,
     };
-    for (k, (p, v)) in pos.iter().zip(vel).enumerate() {
+    let spins = rotation.angular_velocities;
+    for (k, ((p, v), w)) in pos.iter().zip(vel).zip(spins).enumerate() {
         let i = ids.map_or(k, |ids| ids[k] as usize);
         out.positions[i] = [p[0], p[1], p[2]];
         out.velocities[i] = [v[0], v[1], v[2]];
+        out.angular_velocities[i] = w;
         out.radii[i] = p[3];
     }
     out.check_stable()?;

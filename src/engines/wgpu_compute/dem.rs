@@ -24,10 +24,11 @@ use super::layout::{
     Budget, DEM_CELLS_PER_SPHERE, GridParams, LayoutRequest, Levels, Structure, choose_layout,
 };
 use super::shaders::dem_grid::{
-    self, BOUNDS, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, PARAMS, POS_A, RANKS, VEL_A,
+    self, BOUNDS, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, OMEGA_A, PARAMS, POS_A, RANKS, VEL_A,
 };
 use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::engines::gpu_step::granular::OMEGA;
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
     DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, RedoableBatch, StepTimer,
@@ -128,6 +129,8 @@ impl GridStepper {
             &particles,
             &params,
             max_spheres(&gpu),
+            // The two sets of the ping-ponged state.
+            2,
             atomics,
             |accumulators, granular| match granular {
                 true => dem_grid::granular_source(accumulators),
@@ -318,17 +321,21 @@ impl GridStepper {
     }
 
     /// Bind groups for binning from set `from` into the other (and, in the granular step,
-    /// reading the history of parity `from`).
+    /// moving the angular velocities with the state and reading the history of parity `from`).
     fn make_binds(&self, from: usize) -> Binds {
         let (a, b) = (&self.sets[from], &self.sets[1 - from]);
         let p = &self.pipelines;
         let gpu = &self.gpu;
-        let (resolve_more, integrate_more) = match &self.granular {
-            Some(g) => (
-                [&g.resolve_bindings(from)[..], &[(IDS, &b.ids)]].concat(),
-                [&g.integrate_bindings()[..], &[(IDS, &b.ids)]].concat(),
-            ),
-            None => (Vec::new(), Vec::new()),
+        let (scatter_more, resolve_more, integrate_more) = match &self.granular {
+            Some(g) => {
+                let [omega_a, omega] = g.sorted_omega(from);
+                (
+                    vec![(OMEGA_A, omega_a), (OMEGA, omega)],
+                    [&g.resolve_bindings(from)[..], &[(IDS, &b.ids)]].concat(),
+                    g.integrate_bindings(from).to_vec(),
+                )
+            }
+            None => (Vec::new(), Vec::new(), Vec::new()),
         };
         Binds {
             bin_count: gpu.bind(
@@ -346,18 +353,21 @@ impl GridStepper {
             bin_scatter: gpu.bind(
                 "mochi.dem.bin_scatter",
                 &p.bin_scatter,
-                &[
-                    (PARAMS, &self.grid_uniform),
-                    (POS_A, &a.pos),
-                    (VEL_A, &a.vel),
-                    (IDS_A, &a.ids),
-                    (RANKS, &self.ranks),
-                    (CELL_START, &self.cell_table.cell_start),
-                    (POS, &b.pos),
-                    (VEL, &b.vel),
-                    (IDS, &b.ids),
-                    (FORCE, &self.force),
-                ],
+                &joined(
+                    &[
+                        (PARAMS, &self.grid_uniform),
+                        (POS_A, &a.pos),
+                        (VEL_A, &a.vel),
+                        (IDS_A, &a.ids),
+                        (RANKS, &self.ranks),
+                        (CELL_START, &self.cell_table.cell_start),
+                        (POS, &b.pos),
+                        (VEL, &b.vel),
+                        (IDS, &b.ids),
+                        (FORCE, &self.force),
+                    ],
+                    &scatter_more,
+                ),
             ),
             resolve: gpu.bind(
                 "mochi.dem.resolve",

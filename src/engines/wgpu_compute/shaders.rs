@@ -143,6 +143,8 @@ pub(crate) mod dem_grid {
     pub const IDS: Binding = Binding::read_write(12, "ids");
     pub const COUNTERS: Binding = Binding::read_write(14, "counters");
     pub const BOUNDS: Binding = Binding::read_write(15, "bounds");
+    /// The granular step's angular velocities of set a (`wgsl/dem_grid_granular.wgsl`).
+    pub const OMEGA_A: Binding = Binding::read(25, "omega_a");
 
     const OWN: [Binding; 10] = [
         PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS,
@@ -159,7 +161,8 @@ pub(crate) mod dem_grid {
     pub fn granular_bindings() -> Vec<Binding> {
         bindings()
             .into_iter()
-            .chain(granular::BINDINGS.iter().copied())
+            .chain(granular::bindings())
+            .chain([OMEGA_A])
             .collect()
     }
 }
@@ -210,11 +213,8 @@ pub fn modules() -> Vec<WgslModule> {
             dem_grid::ENTRY_POINTS,
             &dem_grid::granular_bindings(),
         );
-        dem.structs.extend([
-            gpu_step::dem_params(),
-            granular::granular_params(),
-            granular::history_row(),
-        ]);
+        dem.structs
+            .extend([gpu_step::dem_params(), granular::granular_params()]);
         all.push(dem);
     }
     all

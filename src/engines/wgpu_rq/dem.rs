@@ -98,6 +98,8 @@ impl RqStepper {
             &particles,
             &params,
             limit,
+            // One state set, in input order.
+            1,
             atomics,
             |accumulators, granular| match granular {
                 true => dem_rq::granular_source(accumulators),
@@ -353,7 +355,8 @@ fn bind(
         (CLOCK, clock),
     ];
     if let Some(g) = granular {
-        integrate.extend(g.integrate_bindings());
+        // One state set: every parity integrates the same ω.
+        integrate.extend(g.integrate_bindings(0));
     }
     Binds {
         proxy_boxes: gpu.bind(

@@ -149,10 +149,7 @@ pub(crate) mod dem_rq {
 
     /// Every binding of the granular step.
     pub fn granular_bindings() -> Vec<Binding> {
-        bindings()
-            .into_iter()
-            .chain(granular::BINDINGS.iter().copied())
-            .collect()
+        bindings().into_iter().chain(granular::bindings()).collect()
     }
 
     /// The step's ray-query uniform; WGSL twin: `RqParams`.
@@ -216,7 +213,6 @@ pub fn modules() -> Vec<WgslModule> {
                 dem_rq::rq_params(),
                 gpu_step::dem_params(),
                 granular::granular_params(),
-                granular::history_row(),
             ],
         });
     }
