@@ -4,11 +4,11 @@
 //! per-phase timestamps, and moving particles to and from the GPU.
 
 pub(crate) use super::gpu_granular::{Granular, RedoableBatch, Rotation, run_batch};
-use crate::dem::model::{StepParams, mass};
+use crate::dem::model::{NormalLaw, StepParams, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
-use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
+use crate::gpu::shader::{Binding, SharedStruct, Vec3f, shared_struct};
 use crate::gpu::timer::GpuTimer;
 use crate::particles::Particles;
 
@@ -21,8 +21,12 @@ pub(crate) mod physics {
 
     /// `wgsl/dem_params.wgsl`: parameters, state bindings and gravity, for both variants.
     pub const PARAMS: &str = include_str!("../../wgsl/dem_params.wgsl");
-    /// `wgsl/dem_physics.wgsl`: the paper's law and its integration kernel.
+    /// `wgsl/dem_physics.wgsl`: the paper's law.
     pub const LINEAR: &str = include_str!("../../wgsl/dem_physics.wgsl");
+    /// `wgsl/dem_physics_per_pair.wgsl`: the paper's law with a stiffness per pair.
+    pub const PER_PAIR: &str = include_str!("../../wgsl/dem_physics_per_pair.wgsl");
+    /// `wgsl/dem_integrate.wgsl`: the integration kernel of both.
+    pub const INTEGRATE: &str = include_str!("../../wgsl/dem_integrate.wgsl");
 
     /// Float atomics (SHADER_FLOAT32_ATOMIC).
     pub(super) const F32: Accumulators = Accumulators {
@@ -40,7 +44,12 @@ pub(crate) mod physics {
 
     /// The physics that ends the paper's step module, with the accumulators `atomics`.
     pub fn frictionless(atomics: Accumulators) -> String {
-        format!("{PARAMS}{LINEAR}{}", atomics.force)
+        format!("{PARAMS}{LINEAR}{INTEGRATE}{}", atomics.force)
+    }
+
+    /// The physics that ends the paper's step module run with a stiffness per pair.
+    pub fn per_pair(atomics: Accumulators) -> String {
+        format!("{PARAMS}{PER_PAIR}{INTEGRATE}{}", atomics.force)
     }
 
     /// The physics that ends the granular step module, with the accumulators `atomics`.
@@ -59,6 +68,61 @@ pub(crate) mod physics {
     pub const FORCE: Binding = Binding::read_write(13, "force");
     pub const CLOCK: Binding = Binding::read_write(16, "clock");
     pub const BINDINGS: &[Binding] = &[DEM, POS, VEL, FORCE, CLOCK];
+    /// The uniform of `wgsl/dem_physics_per_pair.wgsl`.
+    pub const PER_PAIR_PARAMS: Binding = Binding::uniform(17, "per_pair");
+}
+
+/// The parameter of the per-pair variant of the paper's step; twin: `PerPairParams` in
+/// `wgsl/dem_physics_per_pair.wgsl` (checked by `tests/bindings.rs`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
+pub(crate) struct PerPairParams {
+    /// k/m* of every contact \[1/s²\].
+    rate: f32,
+}
+
+/// [`PerPairParams`] as a [`SharedStruct`].
+pub(crate) fn per_pair_params() -> SharedStruct {
+    shared_struct!("PerPairParams", PerPairParams { rate })
+}
+
+/// Which physics a wgpu engine's DEM step runs, each in a module of its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Variant {
+    /// The paper's law (`wgsl/dem_physics.wgsl`): one stiffness, no friction, no rotation.
+    Paper,
+    /// The paper's kernels with the stiffness of each pair from its effective mass
+    /// (`wgsl/dem_physics_per_pair.wgsl`): `stiffness = "per-pair"` without friction, rolling
+    /// resistance, spin or history.
+    PerPair,
+    /// The granular step ([`Granular`]).
+    Granular,
+}
+
+impl Variant {
+    /// The lightest variant that steps `particles` with `params` as the cpu step does.
+    pub fn of(particles: &Particles, params: &StepParams) -> Self {
+        if !Granular::needed(particles, params) {
+            return Variant::Paper;
+        }
+        let frictionless =
+            !params.friction.turns() && !particles.spin() && particles.history.is_empty();
+        match params.law {
+            NormalLaw::LinearPerPair { .. } if frictionless => Variant::PerPair,
+            _ => Variant::Granular,
+        }
+    }
+}
+
+/// The per-pair variant's uniform.
+pub(crate) struct PerPair {
+    uniform: wgpu::Buffer,
+}
+
+impl PerPair {
+    /// Bindings of the resolve and integration kernels.
+    pub fn bindings(&self) -> [(Binding, &wgpu::Buffer); 1] {
+        [(physics::PER_PAIR_PARAMS, &self.uniform)]
+    }
 }
 
 /// Workgroup size of every 256-wide kernel of the steps (as in the shaders).
@@ -320,22 +384,24 @@ impl StepTimer {
     }
 }
 
-/// What opening a wgpu engine's DEM step compiles: the accumulators chosen, the granular
-/// step's state where the scene needs it, and the step's module in the matching variant.
+/// What opening a wgpu engine's DEM step compiles: the accumulators chosen, the state of the
+/// variant the scene needs ([`Variant::of`]), and the step's module in that variant.
 pub(crate) struct DemModule {
     /// The accumulators, in words (for `describe`).
     pub atomics: &'static str,
-    /// The granular step's state (`None`: the paper's step).
+    /// The granular step's state (`None`: a variant of the paper's step).
     pub granular: Option<Granular>,
+    /// The per-pair variant's uniform (`None`: another variant).
+    pub per_pair: Option<PerPair>,
     /// The step's WGSL, compiled.
     pub module: wgpu::ShaderModule,
 }
 
 impl DemModule {
     /// Refuses more than `limit` spheres ([`Error::TooLarge`], naming `backend` and the
-    /// adapter), picks the accumulators, opens the granular state where
-    /// [`Granular::needed`] (for an engine with `sets` state sets, see [`Granular::new`]) and
-    /// compiles `source(accumulators, granular)`.
+    /// adapter), picks the accumulators and the variant, opens its state (the granular one for
+    /// an engine with `sets` state sets, see [`Granular::new`]) and compiles
+    /// `source(accumulators, variant)`.
     #[allow(clippy::too_many_arguments)]
     pub fn open(
         gpu: &Gpu,
@@ -345,7 +411,7 @@ impl DemModule {
         limit: u64,
         sets: usize,
         atomics: ForceAtomics,
-        source: impl FnOnce(Accumulators, bool) -> String,
+        source: impl FnOnce(Accumulators, Variant) -> String,
     ) -> Result<Self> {
         let n = particles.len() as u64;
         if n > limit {
@@ -356,14 +422,25 @@ impl DemModule {
             });
         }
         let (atomics, accumulators) = atomics.pick(gpu);
-        let granular = Granular::needed(particles, params)
+        let variant = Variant::of(particles, params);
+        let granular = (variant == Variant::Granular)
             .then(|| Granular::new(gpu, particles, params, backend, sets))
             .transpose()?;
-        let source = source(accumulators, granular.is_some());
+        let per_pair = match params.law {
+            NormalLaw::LinearPerPair { rate, .. } if variant == Variant::PerPair => Some(PerPair {
+                uniform: gpu.uniform(
+                    &format!("mochi.dem.{backend}.per_pair"),
+                    &PerPairParams { rate },
+                ),
+            }),
+            _ => None,
+        };
+        let source = source(accumulators, variant);
         let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
         Ok(DemModule {
             atomics,
             granular,
+            per_pair,
             module,
         })
     }
@@ -467,4 +544,48 @@ pub(crate) fn advance_in_batches(
         times,
         clock: if timed { Clock::Gpu } else { Clock::None },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dem::model::{ContactLaw, Material};
+
+    fn two_spheres() -> Particles {
+        Particles {
+            positions: vec![[0.2; 3], [0.5; 3]],
+            velocities: vec![[0.0; 3]; 2],
+            angular_velocities: vec![[0.0; 3]; 2],
+            radii: vec![0.01; 2],
+            ..Particles::default()
+        }
+    }
+
+    fn params(contact: ContactLaw, friction: f64, rolling_friction: f64) -> StepParams {
+        let material = Material {
+            contact,
+            friction,
+            rolling_friction,
+            ..Material::default()
+        };
+        StepParams::new(&material, 1e-5, [0.0; 3], [1.0; 3], [0.0; 3], 0.0, 0.01).unwrap()
+    }
+
+    #[test]
+    fn a_frictionless_stiffness_per_pair_runs_the_papers_kernels() {
+        let per_pair = ContactLaw::LinearPerPair { contact_time: None };
+        let spheres = two_spheres();
+        let variant = |p: &Particles, law, mu, mu_r| Variant::of(p, &params(law, mu, mu_r));
+        assert_eq!(
+            variant(&spheres, ContactLaw::Linear, 0.0, 0.0),
+            Variant::Paper
+        );
+        assert_eq!(variant(&spheres, per_pair, 0.0, 0.0), Variant::PerPair);
+        // Friction, rolling resistance or a spin need the granular step.
+        assert_eq!(variant(&spheres, per_pair, 0.5, 0.0), Variant::Granular);
+        assert_eq!(variant(&spheres, per_pair, 0.0, 0.1), Variant::Granular);
+        let mut spinning = two_spheres();
+        spinning.angular_velocities[1] = [0.0, 1.0, 0.0];
+        assert_eq!(variant(&spinning, per_pair, 0.0, 0.0), Variant::Granular);
+    }
 }

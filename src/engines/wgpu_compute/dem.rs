@@ -17,7 +17,8 @@
 //! granular variant of the step (`wgsl/dem_grid_granular.wgsl`, [`Granular`]): its own module
 //! and pipelines, with angular velocities, torques and the contact history bound besides; the
 //! walls are resolved in the contact pass, where their history lives. The paper's scenes run
-//! the paper's kernels as before.
+//! the paper's kernels as before; a frictionless scene with a stiffness per pair runs them too,
+//! with `wgsl/dem_physics_per_pair.wgsl`'s law (`Variant::PerPair`).
 
 use super::cell_table::{CellScan, CellScanBinds, CellTable};
 use super::layout::{
@@ -31,8 +32,8 @@ use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::engines::gpu_step::granular::OMEGA;
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, RedoableBatch, StepTimer,
-    advance_in_batches, max_spheres, particles_with, rows, run_batch,
+    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch,
+    StepTimer, advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
 use crate::error::{Error, Result};
 use crate::gpu::shader::Binding;
@@ -100,8 +101,10 @@ pub struct GridStepper {
     binds: Option<[Binds; 2]>,
     timer: Option<StepTimer>,
     atomics: &'static str,
-    /// The granular step's state (`None`: the paper's step).
+    /// The granular step's state (`None`: a variant of the paper's step).
     granular: Option<Granular>,
+    /// The per-pair variant's state (`None`: another variant).
+    per_pair: Option<PerPair>,
 }
 
 impl GridStepper {
@@ -122,6 +125,7 @@ impl GridStepper {
         let DemModule {
             atomics,
             granular,
+            per_pair,
             module,
         } = DemModule::open(
             &gpu,
@@ -132,10 +136,7 @@ impl GridStepper {
             // The two sets of the ping-ponged state.
             2,
             atomics,
-            |accumulators, granular| match granular {
-                true => dem_grid::granular_source(accumulators),
-                false => dem_grid::source(accumulators),
-            },
+            |accumulators, variant| dem_grid::variant_source(variant, accumulators),
         )?;
         let n64 = particles.len() as u64;
         let n = n64 as u32;
@@ -185,6 +186,7 @@ impl GridStepper {
                 timer,
                 atomics,
                 granular,
+                per_pair,
                 gpu: gpu.clone(),
             }
         })?;
@@ -335,7 +337,13 @@ impl GridStepper {
                     g.integrate_bindings(from).to_vec(),
                 )
             }
-            None => (Vec::new(), Vec::new(), Vec::new()),
+            None => {
+                let law = self
+                    .per_pair
+                    .as_ref()
+                    .map_or(Vec::new(), |k| k.bindings().to_vec());
+                (Vec::new(), law.clone(), law)
+            }
         };
         Binds {
             bin_count: gpu.bind(
@@ -493,7 +501,7 @@ impl RedoableBatch for GridStepper {
     }
 }
 
-/// `own` bindings and `more` (the granular step's).
+/// `own` bindings and `more` (the granular step's or the per-pair variant's).
 fn joined<'a>(
     own: &[(Binding, &'a wgpu::Buffer)],
     more: &[(Binding, &'a wgpu::Buffer)],
