@@ -377,7 +377,11 @@ fn checkerboard(n_side: usize) -> Particles {
     let mut start = pile(n_side, 0.0145, 0.0);
     for (k, r) in start.radii.iter_mut().enumerate() {
         let parity = k % n_side + (k / n_side) % n_side + k / (n_side * n_side);
-        *r = if parity.is_multiple_of(2) { 0.01 } else { 0.005 };
+        *r = if parity.is_multiple_of(2) {
+            0.01
+        } else {
+            0.005
+        };
     }
     start
 }

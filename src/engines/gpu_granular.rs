@@ -496,18 +496,22 @@ fn field_bytes(gpu: &Gpu, n: u32, slots: u32, engine: &str) -> Result<u64> {
         .limits
         .max_storage_buffer_binding_size
         .min(gpu.limits.max_buffer_size);
+    field_bytes_within(max, n, slots).map_err(|limit| Error::TooLarge {
+        what: format!(
+            "contact history slots per sphere for {n} spheres on the {engine} DEM of {} \
+             ({FIELD_BYTES} bytes per field of a slot, each field in one binding of {max} bytes)",
+            gpu.info.name
+        ),
+        got: slots as u64,
+        limit,
+    })
+}
+
+/// [`field_bytes`] for bindings of at most `max` bytes; `Err` the most slots that fit.
+fn field_bytes_within(max: u64, n: u32, slots: u32) -> std::result::Result<u64, u64> {
     let bytes = n as u64 * slots as u64 * FIELD_BYTES;
     if bytes > max {
-        return Err(Error::TooLarge {
-            what: format!(
-                "contact history slots per sphere for {n} spheres on the {engine} DEM of {} \
-                 ({FIELD_BYTES} bytes per field of a slot, each field in one binding of {max} \
-                 bytes)",
-                gpu.info.name
-            ),
-            got: slots as u64,
-            limit: max / (n as u64 * FIELD_BYTES).max(1),
-        });
+        return Err(max / (n as u64 * FIELD_BYTES).max(1));
     }
     Ok(bytes.max(FIELD_BYTES))
 }
@@ -567,6 +571,18 @@ mod tests {
             c.set(s, e);
         }
         c
+    }
+
+    #[test]
+    fn the_history_of_20m_spheres_fits_the_bindings_of_an_h100() {
+        // wgpu's largest storage binding on the H100 (docs/PERFORMANCE.md).
+        let max = 2_147_483_644;
+        let n = 20_000_000;
+        assert_eq!(field_bytes_within(max, n, FIRST_SLOTS), Ok(1_280_000_000));
+        // Grown by a quarter from 20 contacts, as a settled pile's worst sphere may need.
+        assert!(field_bytes_within(max, n, 25).is_ok());
+        assert_eq!(field_bytes_within(max, n, 27), Err(26));
+        assert_eq!(field_bytes_within(max, 0, 0), Ok(FIELD_BYTES));
     }
 
     #[test]
