@@ -44,11 +44,13 @@ const FIRST_WALL: u32 = 0xfffffffau;
 @group(0) @binding(36) var<storage, read_write> roll_y_new: array<f32>;
 @group(0) @binding(37) var<storage, read_write> roll_z_new: array<f32>;
 
-// Sphere p resolving its contacts.
+// Sphere p resolving its contacts. Its stable id and old count are read only where contacts
+// keep history (granular.slots > 0), the only use of either.
 struct Walker {
     p: u32,              // state index
     s: vec4<f32>,        // centre, radius
     a: u32,              // stable id
+    kept: u32,           // its contacts in the old history
     me: Body,
     force: vec3<f32>,
     torque: vec3<f32>,
@@ -57,11 +59,16 @@ struct Walker {
 }
 
 fn walker(p: u32) -> Walker {
-    let a = stable_id(p);
+    var a = 0u;
+    var kept = 0u;
+    if granular.slots > 0u {
+        a = stable_id(p);
+        kept = held_old[a];
+    }
     let s = pos[p];
     let v = vel[p];
     let me = Body(s.xyz, v.xyz, omega[p].xyz, s.w, v.w);
-    return Walker(p, s, a, me, vec3(0.0), vec3(0.0), 0u, 0u);
+    return Walker(p, s, a, kept, me, vec3(0.0), vec3(0.0), 0u, 0u);
 }
 
 // The springs of old slot `slot` times `sign`.
@@ -72,11 +79,12 @@ fn springs_of(slot: u32, sign: f32) -> Springs {
     );
 }
 
-// The springs sphere a kept of its contact with `partner` (a sphere's stable id or a wall),
-// from a's old slots, else from the partner's (negated); zero for a new contact.
-fn old_springs(a: u32, partner: u32) -> Springs {
+// The springs the walker (stable id a, `kept` old contacts) kept of its contact with
+// `partner` (a sphere's stable id or a wall), from its old slots, else from the partner's
+// (negated); zero for a new contact.
+fn old_springs(a: u32, kept: u32, partner: u32) -> Springs {
     let k = granular.slots;
-    for (var s = 0u; s < held_old[a]; s += 1u) {
+    for (var s = 0u; s < kept; s += 1u) {
         if partners_old[a * k + s] == partner {
             return springs_of(a * k + s, 1.0);
         }
@@ -107,10 +115,10 @@ fn keep_springs(w: ptr<function, Walker>, partner: u32, s: Springs) {
     (*w).held += 1u;
 }
 
-// Resolves the walker's sphere against sphere q (state index; stable id b; t = its centre and
-// radius): adds q's force and torque there and the walker's to the walker.
-fn meet(w: ptr<function, Walker>, q: u32, b: u32, t: vec4<f32>) {
-    // Cheap rejection first: most candidates do not touch.
+// Resolves the walker's sphere against sphere q (state index; t = its centre and radius): adds
+// q's force and torque there and the walker's to the walker.
+fn meet(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
+    // Cheap rejection first: most candidates do not touch (and need nothing else of q).
     let d = t.xyz - (*w).s.xyz;
     let reach = (*w).s.w + t.w;
     if d.x * d.x + d.y * d.y + d.z * d.z > reach * reach {
@@ -119,8 +127,10 @@ fn meet(w: ptr<function, Walker>, q: u32, b: u32, t: vec4<f32>) {
     let u = vel[q];
     let other = Body(t.xyz, u.xyz, omega[q].xyz, t.w, u.w);
     var old = Springs(vec3(0.0), vec3(0.0));
+    var b = 0u;   // q's stable id, where contacts keep history
     if granular.slots > 0u {
-        old = old_springs((*w).a, b);
+        b = stable_id(q);
+        old = old_springs((*w).a, (*w).kept, b);
     }
     let c = pair_contact((*w).me, other, old);
     if !c.touching {
@@ -157,7 +167,7 @@ fn finish(w: ptr<function, Walker>) {
             let wall = 2u * axis + side;
             var old = Springs(vec3(0.0), vec3(0.0));
             if granular.slots > 0u {
-                old = old_springs((*w).a, FIRST_WALL + wall);
+                old = old_springs((*w).a, (*w).kept, FIRST_WALL + wall);
             }
             let vn = select(b.v[axis], -b.v[axis], side == 1u);
             let c = wall_contact(b, wall, overlap, vn, old);

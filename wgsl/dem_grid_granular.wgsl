@@ -19,7 +19,7 @@ fn walk_sphere(q: u32) -> vec4<f32> {
 }
 
 fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
-    meet(w, q, ids[q], t);
+    meet(w, q, t);
 }
 
 fn walked(w: ptr<function, Walker>, n: u32) {}
