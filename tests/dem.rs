@@ -6,7 +6,7 @@
 
 mod common;
 
-use mochi::dem::model::{mass, stable_dt, stiffness_for_duration};
+use mochi::dem::model::{ContactLaw, mass, stable_dt, stiffness_for_duration};
 use mochi::dem::{Clock, Material, Particles, StepParams, Stepper};
 use mochi::engines::BackendKind;
 use mochi::engines::ForceAtomics;
@@ -366,16 +366,46 @@ fn gpu_steps_follow_the_cpu_step_on_the_same_scene() {
 
 #[test]
 fn gpu_steps_follow_the_cpu_step_with_two_sizes_of_spheres() {
-    // A 3-D checkerboard of spheres of radius 0.01 and 0.005 (two levels of the multi-level
-    // grid) at spacing 0.0145: every sphere touches its axis neighbours, no two big ones touch,
-    // and every distance is at least 0.0005 from its contact threshold.
-    let n_side = 9;
+    // Two levels of the multi-level grid.
+    assert_gpu_steps_follow_the_cpu_step(checkerboard(9));
+}
+
+/// A 3-D checkerboard of spheres of radius 0.01 and 0.005 at spacing 0.0145: every sphere
+/// touches its axis neighbours, no two big ones touch, and every distance is at least 0.0005
+/// from its contact threshold.
+fn checkerboard(n_side: usize) -> Particles {
     let mut start = pile(n_side, 0.0145, 0.0);
     for (k, r) in start.radii.iter_mut().enumerate() {
         let parity = k % n_side + (k / n_side) % n_side + k / (n_side * n_side);
-        *r = if parity % 2 == 0 { 0.01 } else { 0.005 };
+        *r = if parity.is_multiple_of(2) {
+            0.01
+        } else {
+            0.005
+        };
     }
-    assert_gpu_steps_follow_the_cpu_step(start);
+    start
+}
+
+#[test]
+fn gpu_steps_follow_the_cpu_step_with_a_stiffness_per_pair() {
+    // The checkerboard pressed 0.0005 into the low walls of x and z: per-pair stiffness between
+    // spheres of two masses and on the walls, no friction (the paper's kernels with the
+    // per-pair law on the GPUs).
+    let mut start = checkerboard(9);
+    for c in &mut start.positions {
+        c[0] -= 0.0105;
+        c[2] -= 0.0105;
+    }
+    let dt = 1e-4;
+    let material = Material {
+        contact: ContactLaw::LinearPerPair {
+            contact_time: Some(10.0 * dt),
+        },
+        ..Material::default()
+    };
+    let r_min = start.radius_range().0;
+    let p = params(material, dt, 0.3, [0.0, 0.0, -9.81], r_min);
+    assert_gpu_steps_follow_the_cpu_step_with(start, p);
 }
 
 #[test]

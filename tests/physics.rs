@@ -206,6 +206,59 @@ fn an_elastic_head_on_impact_of_two_spheres_lasts_and_sinks_as_hertz_says_on(kin
     assert_eq!(hit.after.velocities[0][0], -hit.after.velocities[1][0]);
 }
 
+#[test]
+fn a_head_on_impact_with_a_stiffness_per_pair_lasts_its_contact_time_and_parts_at_e() {
+    on_every_backend(
+        a_head_on_impact_with_a_stiffness_per_pair_lasts_its_contact_time_and_parts_at_e_on,
+    );
+}
+
+fn a_head_on_impact_with_a_stiffness_per_pair_lasts_its_contact_time_and_parts_at_e_on(
+    kind: BackendKind,
+) {
+    // Spheres of two sizes (masses 8:1), no friction: k = m*·(π² + ln² e)/t_c² makes the
+    // damped contact last t_c and part at e times the closing speed.
+    let (r, v, e) = (0.01f32, 1.0f64, 0.5);
+    let dt = 1e-5;
+    let t_c = 400.0 * dt;
+    let material = Material {
+        density: RHO,
+        restitution: e,
+        contact: ContactLaw::LinearPerPair {
+            contact_time: Some(t_c),
+        },
+        ..Material::default()
+    };
+    let p = params(&material, dt, 1.0, [0.0; 3], r / 2.0);
+    let start = spheres(
+        vec![[0.5 - r - 1e-4, 0.5, 0.5], [0.5 + r / 2.0 + 1e-4, 0.5, 0.5]],
+        vec![[(v / 2.0) as f32, 0.0, 0.0], [-(v / 2.0) as f32, 0.0, 0.0]],
+        vec![r, r / 2.0],
+    );
+    let mut s = open(kind, start, p);
+    let overlap = |p: &Particles| (1.5 * r - (p.positions[1][0] - p.positions[0][0])) as f64;
+    let hit = impact(s.as_mut(), overlap);
+    let duration = hit.steps_in_contact as f64 * dt;
+    assert!(
+        (duration - t_c).abs() <= 2.0 * dt + 1e-3 * t_c,
+        "contact lasted {duration:e} s, configured {t_c:e} s"
+    );
+    let w = &hit.after.velocities;
+    let parting = (w[1][0] - w[0][0]) as f64;
+    // Within π·dt/t_c (0.8%) of e, as on the wall.
+    assert!(
+        (parting / v - e).abs() <= std::f64::consts::PI / 400.0 * e,
+        "parting speed {parting}, closing {v}, e = {e}"
+    );
+    // Momentum kept: masses 8:1.
+    let momentum = 8.0 * w[0][0] as f64 + w[1][0] as f64;
+    let before = 8.0 * v / 2.0 - v / 2.0;
+    assert!(
+        (momentum - before).abs() <= 1e-5 * before,
+        "momentum {momentum}, before {before}"
+    );
+}
+
 /// Rebound over impact speed of a sphere dropped on the floor with restitution `e`.
 fn measured_restitution(kind: BackendKind, material: &Material, dt: f64, r: f32) -> f64 {
     let v = 1.0f32;

@@ -4,39 +4,53 @@
 // dem_force_*.wgsl and a dem_torque_*.wgsl; the including shader defines
 //   fn stable_id(p: u32) -> u32    the input index of the sphere at state index p
 //
+// Angular velocities and torques are in state order, as pos and vel (the engine permutes ω with
+// them wherever it re-sorts the state), so every kernel reads them where it reads pos and vel.
+//
 // History: K = granular.slots slots per sphere, indexed by stable id (a re-sort never moves
-// them), in two buffers that swap roles every step (old: read, new: written). A pair is resolved
-// once, by its owner (the sphere whose thread finds it); the owner looks the pair up in its own
-// old slots, then in the partner's (whose springs are the negatives: the owner of a pair changes
-// when the order or the proxy rule's case changes, and an uploaded history holds both sides), and
-// writes it to its own new slots. Only the owner writes its slots: no atomics. Every contact is
-// counted, also those that do not fit, and history_need keeps the most any sphere needed: the
-// host grows K and redoes the steps when it exceeds K.
-
-// Twin of HistoryRow in src/engines/gpu_step.rs and of mochi::particles::HistoryEntry.
-struct HistoryEntry {
-    partner: u32,                  // stable id of the partner, or FIRST_WALL + wall
-    tangential: array<f32, 3>,     // tangential spring ξ [m]
-    rolling: array<f32, 3>,        // rolling spring torque [N·m]
-}
+// them), in two sets of buffers that swap roles every step (old: read, new: written). Slot s of
+// the sphere of stable id a is element a·K + s of one array per field: the partners (scanned,
+// 4 bytes a slot) and each of the springs' six components (loaded only for the slot found).
+// A pair is resolved once, by its owner (the sphere whose thread finds it); the owner looks the
+// pair up in its own old slots, then in the partner's (whose springs are the negatives: the
+// owner of a pair changes when the order or the proxy rule's case changes, and an uploaded
+// history holds both sides), and writes it to its own new slots. Only the owner writes its
+// slots: no atomics. Every contact is counted, also those that do not fit, and history_need
+// keeps the most any sphere needed: the host grows K and redoes the steps when it exceeds K.
 
 // Partner ids from here on name the walls (src/particles/history.rs).
 const FIRST_WALL: u32 = 0xfffffffau;
 
-// by stable id
+// by state index
 @group(0) @binding(18) var<storage, read_write> omega: array<vec4<f32>>;   // ωx, ωy, ωz, 0
-@group(0) @binding(20) var<storage, read> history_old: array<HistoryEntry>;
+// by stable id: contacts held, and per slot the partner's stable id, or FIRST_WALL + wall
+@group(0) @binding(20) var<storage, read> partners_old: array<u32>;
 @group(0) @binding(21) var<storage, read> held_old: array<u32>;
-@group(0) @binding(22) var<storage, read_write> history_new: array<HistoryEntry>;
+@group(0) @binding(22) var<storage, read_write> partners_new: array<u32>;
 @group(0) @binding(23) var<storage, read_write> held_new: array<u32>;
 // The most contacts with history any sphere had since the host cleared it.
 @group(0) @binding(24) var<storage, read_write> history_need: atomic<u32>;
+// per slot: the tangential spring ξ [m] and the rolling spring torque [N·m], by component
+@group(0) @binding(26) var<storage, read> xi_x_old: array<f32>;
+@group(0) @binding(27) var<storage, read> xi_y_old: array<f32>;
+@group(0) @binding(28) var<storage, read> xi_z_old: array<f32>;
+@group(0) @binding(29) var<storage, read> roll_x_old: array<f32>;
+@group(0) @binding(30) var<storage, read> roll_y_old: array<f32>;
+@group(0) @binding(31) var<storage, read> roll_z_old: array<f32>;
+@group(0) @binding(32) var<storage, read_write> xi_x_new: array<f32>;
+@group(0) @binding(33) var<storage, read_write> xi_y_new: array<f32>;
+@group(0) @binding(34) var<storage, read_write> xi_z_new: array<f32>;
+@group(0) @binding(35) var<storage, read_write> roll_x_new: array<f32>;
+@group(0) @binding(36) var<storage, read_write> roll_y_new: array<f32>;
+@group(0) @binding(37) var<storage, read_write> roll_z_new: array<f32>;
 
-// Sphere p resolving its contacts.
+// Sphere p resolving its contacts. Its stable id and old count are read only where contacts
+// keep history (granular.slots > 0), the only use of either.
 struct Walker {
     p: u32,              // state index
     s: vec4<f32>,        // centre, radius
     a: u32,              // stable id
+    kept: u32,           // its contacts in the old history
     me: Body,
     force: vec3<f32>,
     torque: vec3<f32>,
@@ -45,35 +59,40 @@ struct Walker {
 }
 
 fn walker(p: u32) -> Walker {
-    let a = stable_id(p);
+    var a = 0u;
+    var kept = 0u;
+    if granular.slots > 0u {
+        a = stable_id(p);
+        kept = held_old[a];
+    }
     let s = pos[p];
     let v = vel[p];
-    let me = Body(s.xyz, v.xyz, omega[a].xyz, s.w, v.w);
-    return Walker(p, s, a, me, vec3(0.0), vec3(0.0), 0u, 0u);
+    let me = Body(s.xyz, v.xyz, omega[p].xyz, s.w, v.w);
+    return Walker(p, s, a, kept, me, vec3(0.0), vec3(0.0), 0u, 0u);
 }
 
-fn springs_of(e: HistoryEntry, sign: f32) -> Springs {
+// The springs of old slot `slot` times `sign`.
+fn springs_of(slot: u32, sign: f32) -> Springs {
     return Springs(
-        sign * vec3(e.tangential[0], e.tangential[1], e.tangential[2]),
-        sign * vec3(e.rolling[0], e.rolling[1], e.rolling[2]),
+        sign * vec3(xi_x_old[slot], xi_y_old[slot], xi_z_old[slot]),
+        sign * vec3(roll_x_old[slot], roll_y_old[slot], roll_z_old[slot]),
     );
 }
 
-// The springs sphere a kept of its contact with `partner` (a sphere's stable id or a wall),
-// from a's old slots, else from the partner's (negated); zero for a new contact.
-fn old_springs(a: u32, partner: u32) -> Springs {
+// The springs the walker (stable id a, `kept` old contacts) kept of its contact with
+// `partner` (a sphere's stable id or a wall), from its old slots, else from the partner's
+// (negated); zero for a new contact.
+fn old_springs(a: u32, kept: u32, partner: u32) -> Springs {
     let k = granular.slots;
-    for (var s = 0u; s < held_old[a]; s += 1u) {
-        let e = history_old[a * k + s];
-        if e.partner == partner {
-            return springs_of(e, 1.0);
+    for (var s = 0u; s < kept; s += 1u) {
+        if partners_old[a * k + s] == partner {
+            return springs_of(a * k + s, 1.0);
         }
     }
     if partner < FIRST_WALL {
         for (var s = 0u; s < held_old[partner]; s += 1u) {
-            let e = history_old[partner * k + s];
-            if e.partner == a {
-                return springs_of(e, -1.0);
+            if partners_old[partner * k + s] == a {
+                return springs_of(partner * k + s, -1.0);
             }
         }
     }
@@ -84,29 +103,34 @@ fn old_springs(a: u32, partner: u32) -> Springs {
 fn keep_springs(w: ptr<function, Walker>, partner: u32, s: Springs) {
     let k = granular.slots;
     if (*w).held < k {
-        history_new[(*w).a * k + (*w).held] = HistoryEntry(
-            partner,
-            array(s.tangential.x, s.tangential.y, s.tangential.z),
-            array(s.rolling.x, s.rolling.y, s.rolling.z),
-        );
+        let slot = (*w).a * k + (*w).held;
+        partners_new[slot] = partner;
+        xi_x_new[slot] = s.tangential.x;
+        xi_y_new[slot] = s.tangential.y;
+        xi_z_new[slot] = s.tangential.z;
+        roll_x_new[slot] = s.rolling.x;
+        roll_y_new[slot] = s.rolling.y;
+        roll_z_new[slot] = s.rolling.z;
     }
     (*w).held += 1u;
 }
 
-// Resolves the walker's sphere against sphere q (state index; stable id b; t = its centre and
-// radius): adds q's force and torque there and the walker's to the walker.
-fn meet(w: ptr<function, Walker>, q: u32, b: u32, t: vec4<f32>) {
-    // Cheap rejection first: most candidates do not touch.
+// Resolves the walker's sphere against sphere q (state index; t = its centre and radius): adds
+// q's force and torque there and the walker's to the walker.
+fn meet(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
+    // Cheap rejection first: most candidates do not touch (and need nothing else of q).
     let d = t.xyz - (*w).s.xyz;
     let reach = (*w).s.w + t.w;
     if d.x * d.x + d.y * d.y + d.z * d.z > reach * reach {
         return;
     }
     let u = vel[q];
-    let other = Body(t.xyz, u.xyz, omega[b].xyz, t.w, u.w);
+    let other = Body(t.xyz, u.xyz, omega[q].xyz, t.w, u.w);
     var old = Springs(vec3(0.0), vec3(0.0));
+    var b = 0u;   // q's stable id, where contacts keep history
     if granular.slots > 0u {
-        old = old_springs((*w).a, b);
+        b = stable_id(q);
+        old = old_springs((*w).a, (*w).kept, b);
     }
     let c = pair_contact((*w).me, other, old);
     if !c.touching {
@@ -116,7 +140,7 @@ fn meet(w: ptr<function, Walker>, q: u32, b: u32, t: vec4<f32>) {
     (*w).force += c.force;
     (*w).touching += 1u;
     if granular.turns != 0u {
-        add_torque(b, c.torque_j);
+        add_torque(q, c.torque_j);
         (*w).torque += c.torque_i;
     }
     if granular.slots > 0u {
@@ -143,7 +167,7 @@ fn finish(w: ptr<function, Walker>) {
             let wall = 2u * axis + side;
             var old = Springs(vec3(0.0), vec3(0.0));
             if granular.slots > 0u {
-                old = old_springs((*w).a, FIRST_WALL + wall);
+                old = old_springs((*w).a, (*w).kept, FIRST_WALL + wall);
             }
             let vn = select(b.v[axis], -b.v[axis], side == 1u);
             let c = wall_contact(b, wall, overlap, vn, old);
@@ -161,7 +185,7 @@ fn finish(w: ptr<function, Walker>) {
     (*w).torque += torque;
     add_force((*w).p, (*w).force);
     if granular.turns != 0u {
-        add_torque((*w).a, (*w).torque);
+        add_torque((*w).p, (*w).torque);
     }
     if granular.slots > 0u {
         held_new[(*w).a] = min((*w).held, granular.slots);
@@ -186,9 +210,8 @@ fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
     vel[p] = vec4(v_new, m);
     pos[p] = vec4(s.xyz + dem.dt * v_new, s.w);
     if granular.turns != 0u {
-        let a = stable_id(p);
         let inertia = moment_of_inertia(m, s.w);
-        omega[a] = vec4(omega[a].xyz + dem.dt * (load_torque(a) / inertia), 0.0);
-        clear_torque(a);
+        omega[p] = vec4(omega[p].xyz + dem.dt * (load_torque(p) / inertia), 0.0);
+        clear_torque(p);
     }
 }

@@ -1,6 +1,7 @@
 // DEM step of the wgpu-compute backend (docs/method.md, "The DEM step"): the binning of both
 // variants of the step; its resolve kernel is dem_grid_frictionless.wgsl's (the paper's law) or
-// dem_grid_granular.wgsl's. Needs grid_params.wgsl and grid_stencil.wgsl prepended, one resolve
+// dem_grid_granular.wgsl's, which also define
+//   fn carry(i: u32, p: u32)   moves the sphere at index i of set a to index p of the sorted set Needs grid_params.wgsl and grid_stencil.wgsl prepended, one resolve
 // file, grid_walk.wgsl, dem_params.wgsl, the physics of the variant and one of
 // dem_force_f32.wgsl / dem_force_cas.wgsl appended.
 //
@@ -43,7 +44,8 @@ fn bin_count(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // Counting sort, last pass (after the scan): set a → sorted set, with its force accumulators
-// zeroed (no clear of the whole buffer).
+// zeroed (no clear of the whole buffer); the resolve file's `carry` moves its own per-sphere
+// state along.
 @compute @workgroup_size(256)
 fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index(gid);
@@ -56,6 +58,7 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     clear_force(p);
     pos[p] = s;
     vel[p] = vel_a[i];
+    carry(i, p);
 }
 
 // Order-preserving u32 key of a float (for atomicMin / atomicMax).

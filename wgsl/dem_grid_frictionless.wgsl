@@ -9,6 +9,9 @@ struct Walker {
     total: vec4<f32>,  // the sum of the runs' and buckets' (in this order)
 }
 
+// The paper's state is pos and vel alone.
+fn carry(i: u32, p: u32) {}
+
 fn walk_sphere(q: u32) -> vec4<f32> {
     return pos[q];
 }

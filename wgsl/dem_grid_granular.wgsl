@@ -3,6 +3,13 @@
 // walk finds every pair once, by the thread of its owner p; the walls are resolved by each
 // sphere's own thread in the same pass (they keep history in its slots).
 
+// ω of set a, by its index (dem_grid.wgsl)
+@group(0) @binding(25) var<storage, read> omega_a: array<vec4<f32>>;
+
+fn carry(i: u32, p: u32) {
+    omega[p] = omega_a[i];
+}
+
 fn stable_id(p: u32) -> u32 {
     return ids[p];
 }
@@ -12,7 +19,7 @@ fn walk_sphere(q: u32) -> vec4<f32> {
 }
 
 fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
-    meet(w, q, ids[q], t);
+    meet(w, q, t);
 }
 
 fn walked(w: ptr<function, Walker>, n: u32) {}

@@ -1,7 +1,8 @@
-// The paper's DEM physics (linear spring-dashpot, no friction) shared by the GPU steps: the
-// contact and wall forces and the integration kernel. Keep the formulas in sync with
-// src/dem/model/linear.rs, line for line. Needs dem_params.wgsl prepended and a
-// dem_force_*.wgsl (add_force, load_force).
+// The paper's DEM law (linear spring-dashpot, no friction) shared by the GPU steps: the contact
+// and wall forces of one stiffness, which dem_integrate.wgsl's kernel follows. Keep the formulas
+// in sync with src/dem/model/linear.rs, line for line. Needs dem_params.wgsl prepended and a
+// dem_force_*.wgsl (add_force, load_force). Twin for a stiffness per pair:
+// dem_physics_per_pair.wgsl.
 
 // Force on sphere i from sphere j (xyz) and 1 in w when they touch; zero otherwise.
 fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
@@ -38,21 +39,4 @@ fn wall_force(c: vec3<f32>, v: vec3<f32>, r: f32, m: f32) -> vec3<f32> {
         }
     }
     return f;
-}
-
-// Walls, gravity and one semi-implicit Euler step, in place.
-@compute @workgroup_size(256)
-fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x + gid.y * dem.row;
-    if p >= dem.n {
-        return;
-    }
-    let s = pos[p];
-    let v = vel[p];
-    let f = load_force(p) + wall_force(s.xyz, v.xyz, s.w, v.w);
-    let g = gravity_at(atomicLoad(&clock) - 1u);
-    let m = v.w;
-    let v_new = v.xyz + dem.dt * (f / m + g);
-    vel[p] = vec4(v_new, m);
-    pos[p] = vec4(s.xyz + dem.dt * v_new, s.w);
 }

@@ -16,7 +16,7 @@ fn visit(w: ptr<function, Walker>, q: u32) {
     if !keep_in(rq.mode, (*w).p, (*w).s.xyz, (*w).s.w, q, t.xyz, t.w) {
         return;
     }
-    meet(w, q, q, t);
+    meet(w, q, t);
 }
 
 var<workgroup> group_contacts: atomic<u32>;

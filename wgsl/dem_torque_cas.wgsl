@@ -1,4 +1,4 @@
-// Torque accumulators as u32 bit patterns added by compare-and-swap loops, by stable id; appended
+// Torque accumulators as u32 bit patterns added by compare-and-swap loops, by state index; appended
 // to the granular step with dem_force_cas.wgsl. Twin: dem_torque_f32.wgsl.
 
 @group(0) @binding(19) var<storage, read_write> torque: array<atomic<u32>>;

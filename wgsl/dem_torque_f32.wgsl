@@ -1,4 +1,4 @@
-// Torque accumulators with float atomics (SHADER_FLOAT32_ATOMIC), by stable id; appended to
+// Torque accumulators with float atomics (SHADER_FLOAT32_ATOMIC), by state index; appended to
 // the granular step with dem_force_f32.wgsl. Twin: dem_torque_cas.wgsl.
 
 @group(0) @binding(19) var<storage, read_write> torque: array<atomic<f32>>;

@@ -4,11 +4,11 @@
 //! per-phase timestamps, and moving particles to and from the GPU.
 
 pub(crate) use super::gpu_granular::{Granular, RedoableBatch, Rotation, run_batch};
-use crate::dem::model::{StepParams, mass};
+use crate::dem::model::{NormalLaw, StepParams, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
-use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
+use crate::gpu::shader::{Binding, SharedStruct, Vec3f, shared_struct};
 use crate::gpu::timer::GpuTimer;
 use crate::particles::Particles;
 
@@ -21,8 +21,12 @@ pub(crate) mod physics {
 
     /// `wgsl/dem_params.wgsl`: parameters, state bindings and gravity, for both variants.
     pub const PARAMS: &str = include_str!("../../wgsl/dem_params.wgsl");
-    /// `wgsl/dem_physics.wgsl`: the paper's law and its integration kernel.
+    /// `wgsl/dem_physics.wgsl`: the paper's law.
     pub const LINEAR: &str = include_str!("../../wgsl/dem_physics.wgsl");
+    /// `wgsl/dem_physics_per_pair.wgsl`: the paper's law with a stiffness per pair.
+    pub const PER_PAIR: &str = include_str!("../../wgsl/dem_physics_per_pair.wgsl");
+    /// `wgsl/dem_integrate.wgsl`: the integration kernel of both.
+    pub const INTEGRATE: &str = include_str!("../../wgsl/dem_integrate.wgsl");
 
     /// Float atomics (SHADER_FLOAT32_ATOMIC).
     pub(super) const F32: Accumulators = Accumulators {
@@ -40,7 +44,12 @@ pub(crate) mod physics {
 
     /// The physics that ends the paper's step module, with the accumulators `atomics`.
     pub fn frictionless(atomics: Accumulators) -> String {
-        format!("{PARAMS}{LINEAR}{}", atomics.force)
+        format!("{PARAMS}{LINEAR}{INTEGRATE}{}", atomics.force)
+    }
+
+    /// The physics that ends the paper's step module run with a stiffness per pair.
+    pub fn per_pair(atomics: Accumulators) -> String {
+        format!("{PARAMS}{PER_PAIR}{INTEGRATE}{}", atomics.force)
     }
 
     /// The physics that ends the granular step module, with the accumulators `atomics`.
@@ -59,6 +68,61 @@ pub(crate) mod physics {
     pub const FORCE: Binding = Binding::read_write(13, "force");
     pub const CLOCK: Binding = Binding::read_write(16, "clock");
     pub const BINDINGS: &[Binding] = &[DEM, POS, VEL, FORCE, CLOCK];
+    /// The uniform of `wgsl/dem_physics_per_pair.wgsl`.
+    pub const PER_PAIR_PARAMS: Binding = Binding::uniform(17, "per_pair");
+}
+
+/// The parameter of the per-pair variant of the paper's step; twin: `PerPairParams` in
+/// `wgsl/dem_physics_per_pair.wgsl` (checked by `tests/bindings.rs`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
+pub(crate) struct PerPairParams {
+    /// k/m* of every contact \[1/s²\].
+    rate: f32,
+}
+
+/// [`PerPairParams`] as a [`SharedStruct`].
+pub(crate) fn per_pair_params() -> SharedStruct {
+    shared_struct!("PerPairParams", PerPairParams { rate })
+}
+
+/// Which physics a wgpu engine's DEM step runs, each in a module of its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Variant {
+    /// The paper's law (`wgsl/dem_physics.wgsl`): one stiffness, no friction, no rotation.
+    Paper,
+    /// The paper's kernels with the stiffness of each pair from its effective mass
+    /// (`wgsl/dem_physics_per_pair.wgsl`): `stiffness = "per-pair"` without friction, rolling
+    /// resistance, spin or history.
+    PerPair,
+    /// The granular step ([`Granular`]).
+    Granular,
+}
+
+impl Variant {
+    /// The lightest variant that steps `particles` with `params` as the cpu step does.
+    pub fn of(particles: &Particles, params: &StepParams) -> Self {
+        if !Granular::needed(particles, params) {
+            return Variant::Paper;
+        }
+        let frictionless =
+            !params.friction.turns() && !particles.spin() && particles.history.is_empty();
+        match params.law {
+            NormalLaw::LinearPerPair { .. } if frictionless => Variant::PerPair,
+            _ => Variant::Granular,
+        }
+    }
+}
+
+/// The per-pair variant's uniform.
+pub(crate) struct PerPair {
+    uniform: wgpu::Buffer,
+}
+
+impl PerPair {
+    /// Bindings of the resolve and integration kernels.
+    pub fn bindings(&self) -> [(Binding, &wgpu::Buffer); 1] {
+        [(physics::PER_PAIR_PARAMS, &self.uniform)]
+    }
 }
 
 /// Workgroup size of every 256-wide kernel of the steps (as in the shaders).
@@ -139,7 +203,6 @@ pub(crate) struct Accumulators {
 /// sources, bindings and the structs shared with Rust.
 pub(crate) mod granular {
     use crate::gpu::shader::{Binding, SharedStruct, shared_struct};
-    use crate::particles::HistoryEntry;
 
     /// `wgsl/dem_contact.wgsl`.
     pub const CONTACT: &str = include_str!("../../wgsl/dem_contact.wgsl");
@@ -150,21 +213,48 @@ pub(crate) mod granular {
     pub const OMEGA: Binding = Binding::read_write(18, "omega");
     /// Declared by the torque accumulator (`dem_torque_*.wgsl`).
     pub const TORQUE: Binding = Binding::read_write(19, "torque");
-    pub const HISTORY_OLD: Binding = Binding::read(20, "history_old");
+    pub const PARTNERS_OLD: Binding = Binding::read(20, "partners_old");
     pub const HELD_OLD: Binding = Binding::read(21, "held_old");
-    pub const HISTORY_NEW: Binding = Binding::read_write(22, "history_new");
+    pub const PARTNERS_NEW: Binding = Binding::read_write(22, "partners_new");
     pub const HELD_NEW: Binding = Binding::read_write(23, "held_new");
     pub const HISTORY_NEED: Binding = Binding::read_write(24, "history_need");
-    pub const BINDINGS: &[Binding] = &[
-        GRANULAR,
-        OMEGA,
-        TORQUE,
-        HISTORY_OLD,
-        HELD_OLD,
-        HISTORY_NEW,
-        HELD_NEW,
-        HISTORY_NEED,
+    /// The old springs' components, one array each: ξ x, y, z, then the rolling torque's x,
+    /// y, z.
+    pub const SPRINGS_OLD: [Binding; 6] = [
+        Binding::read(26, "xi_x_old"),
+        Binding::read(27, "xi_y_old"),
+        Binding::read(28, "xi_z_old"),
+        Binding::read(29, "roll_x_old"),
+        Binding::read(30, "roll_y_old"),
+        Binding::read(31, "roll_z_old"),
     ];
+    /// The new springs' components, as [`SPRINGS_OLD`].
+    pub const SPRINGS_NEW: [Binding; 6] = [
+        Binding::read_write(32, "xi_x_new"),
+        Binding::read_write(33, "xi_y_new"),
+        Binding::read_write(34, "xi_z_new"),
+        Binding::read_write(35, "roll_x_new"),
+        Binding::read_write(36, "roll_y_new"),
+        Binding::read_write(37, "roll_z_new"),
+    ];
+
+    /// Every binding of `wgsl/dem_granular.wgsl` and its accumulators.
+    pub fn bindings() -> Vec<Binding> {
+        [
+            GRANULAR,
+            OMEGA,
+            TORQUE,
+            PARTNERS_OLD,
+            HELD_OLD,
+            PARTNERS_NEW,
+            HELD_NEW,
+            HISTORY_NEED,
+        ]
+        .into_iter()
+        .chain(SPRINGS_OLD)
+        .chain(SPRINGS_NEW)
+        .collect()
+    }
 
     /// The granular step's parameters beyond [`super::DemParams`]; twin: `GranularParams` in
     /// `wgsl/dem_contact.wgsl` (checked by `tests/bindings.rs`).
@@ -213,28 +303,6 @@ pub(crate) mod granular {
                 rolling_model,
                 turns,
                 slots,
-            }
-        )
-    }
-
-    /// The layout of one history slot on the GPU: [`HistoryEntry`], whose bytes are uploaded
-    /// as they are; twin: `HistoryEntry` in `wgsl/dem_granular.wgsl`.
-    #[derive(Clone, Copy, Default, encase::ShaderType)]
-    pub struct HistoryRow {
-        partner: u32,
-        tangential: [f32; 3],
-        rolling: [f32; 3],
-    }
-    const _: () = assert!(size_of::<HistoryEntry>() == 28, "HistoryRow's size");
-
-    /// [`HistoryRow`] as a [`SharedStruct`].
-    pub fn history_row() -> SharedStruct {
-        shared_struct!(
-            "HistoryEntry",
-            HistoryRow {
-                partner,
-                tangential,
-                rolling,
             }
         )
     }
@@ -338,29 +406,34 @@ impl StepTimer {
     }
 }
 
-/// What opening a wgpu engine's DEM step compiles: the accumulators chosen, the granular
-/// step's state where the scene needs it, and the step's module in the matching variant.
+/// What opening a wgpu engine's DEM step compiles: the accumulators chosen, the state of the
+/// variant the scene needs ([`Variant::of`]), and the step's module in that variant.
 pub(crate) struct DemModule {
     /// The accumulators, in words (for `describe`).
     pub atomics: &'static str,
-    /// The granular step's state (`None`: the paper's step).
+    /// The granular step's state (`None`: a variant of the paper's step).
     pub granular: Option<Granular>,
+    /// The per-pair variant's uniform (`None`: another variant).
+    pub per_pair: Option<PerPair>,
     /// The step's WGSL, compiled.
     pub module: wgpu::ShaderModule,
 }
 
 impl DemModule {
     /// Refuses more than `limit` spheres ([`Error::TooLarge`], naming `backend` and the
-    /// adapter), picks the accumulators, opens the granular state where
-    /// [`Granular::needed`] and compiles `source(accumulators, granular)`.
+    /// adapter), picks the accumulators and the variant, opens its state (the granular one for
+    /// an engine with `sets` state sets, see [`Granular::new`]) and compiles
+    /// `source(accumulators, variant)`.
+    #[allow(clippy::too_many_arguments)]
     pub fn open(
         gpu: &Gpu,
         backend: &'static str,
         particles: &Particles,
         params: &StepParams,
         limit: u64,
+        sets: usize,
         atomics: ForceAtomics,
-        source: impl FnOnce(Accumulators, bool) -> String,
+        source: impl FnOnce(Accumulators, Variant) -> String,
     ) -> Result<Self> {
         let n = particles.len() as u64;
         if n > limit {
@@ -371,14 +444,25 @@ impl DemModule {
             });
         }
         let (atomics, accumulators) = atomics.pick(gpu);
-        let granular = Granular::needed(particles, params)
-            .then(|| Granular::new(gpu, particles, params, backend))
+        let variant = Variant::of(particles, params);
+        let granular = (variant == Variant::Granular)
+            .then(|| Granular::new(gpu, particles, params, backend, sets))
             .transpose()?;
-        let source = source(accumulators, granular.is_some());
+        let per_pair = match params.law {
+            NormalLaw::LinearPerPair { rate, .. } if variant == Variant::PerPair => Some(PerPair {
+                uniform: gpu.uniform(
+                    &format!("mochi.dem.{backend}.per_pair"),
+                    &PerPairParams { rate },
+                ),
+            }),
+            _ => None,
+        };
+        let source = source(accumulators, variant);
         let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
         Ok(DemModule {
             atomics,
             granular,
+            per_pair,
             module,
         })
     }
@@ -422,8 +506,8 @@ pub(crate) fn particles_from(
     particles_with(pos, vel, ids, step, None)
 }
 
-/// As [`particles_from`], with the angular velocities and contact history of a granular step
-/// (`None`: the paper's step).
+/// As [`particles_from`], with the angular velocities (in the rows' order) and contact history
+/// of a granular step (`None`: the paper's step).
 pub(crate) fn particles_with(
     pos: &[[f32; 4]],
     vel: &[[f32; 4]],
@@ -439,15 +523,17 @@ pub(crate) fn particles_with(
     let mut out = Particles {
         positions: vec![[0.0; 3]; n],
         velocities: vec![[0.0; 3]; n],
-        angular_velocities: rotation.angular_velocities,
+        angular_velocities: vec![[0.0; 3]; n],
         radii: vec![0.0; n],
         history: rotation.history,
         step,
     };
-    for (k, (p, v)) in pos.iter().zip(vel).enumerate() {
+    let spins = rotation.angular_velocities;
+    for (k, ((p, v), w)) in pos.iter().zip(vel).zip(spins).enumerate() {
         let i = ids.map_or(k, |ids| ids[k] as usize);
         out.positions[i] = [p[0], p[1], p[2]];
         out.velocities[i] = [v[0], v[1], v[2]];
+        out.angular_velocities[i] = w;
         out.radii[i] = p[3];
     }
     out.check_stable()?;
@@ -480,4 +566,48 @@ pub(crate) fn advance_in_batches(
         times,
         clock: if timed { Clock::Gpu } else { Clock::None },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dem::model::{ContactLaw, Material};
+
+    fn two_spheres() -> Particles {
+        Particles {
+            positions: vec![[0.2; 3], [0.5; 3]],
+            velocities: vec![[0.0; 3]; 2],
+            angular_velocities: vec![[0.0; 3]; 2],
+            radii: vec![0.01; 2],
+            ..Particles::default()
+        }
+    }
+
+    fn params(contact: ContactLaw, friction: f64, rolling_friction: f64) -> StepParams {
+        let material = Material {
+            contact,
+            friction,
+            rolling_friction,
+            ..Material::default()
+        };
+        StepParams::new(&material, 1e-5, [0.0; 3], [1.0; 3], [0.0; 3], 0.0, 0.01).unwrap()
+    }
+
+    #[test]
+    fn a_frictionless_stiffness_per_pair_runs_the_papers_kernels() {
+        let per_pair = ContactLaw::LinearPerPair { contact_time: None };
+        let spheres = two_spheres();
+        let variant = |p: &Particles, law, mu, mu_r| Variant::of(p, &params(law, mu, mu_r));
+        assert_eq!(
+            variant(&spheres, ContactLaw::Linear, 0.0, 0.0),
+            Variant::Paper
+        );
+        assert_eq!(variant(&spheres, per_pair, 0.0, 0.0), Variant::PerPair);
+        // Friction, rolling resistance or a spin need the granular step.
+        assert_eq!(variant(&spheres, per_pair, 0.5, 0.0), Variant::Granular);
+        assert_eq!(variant(&spheres, per_pair, 0.0, 0.1), Variant::Granular);
+        let mut spinning = two_spheres();
+        spinning.angular_velocities[1] = [0.0, 1.0, 0.0];
+        assert_eq!(variant(&spinning, per_pair, 0.0, 0.0), Variant::Granular);
+    }
 }

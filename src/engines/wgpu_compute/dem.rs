@@ -17,23 +17,25 @@
 //! granular variant of the step (`wgsl/dem_grid_granular.wgsl`, [`Granular`]): its own module
 //! and pipelines, with angular velocities, torques and the contact history bound besides; the
 //! walls are resolved in the contact pass, where their history lives. The paper's scenes run
-//! the paper's kernels as before.
+//! the paper's kernels as before; a frictionless scene with a stiffness per pair runs them too,
+//! with `wgsl/dem_physics_per_pair.wgsl`'s law (`Variant::PerPair`).
 
 use super::cell_table::{CellScan, CellScanBinds, CellTable};
 use super::layout::{
     Budget, DEM_CELLS_PER_SPHERE, GridParams, LayoutRequest, Levels, Structure, choose_layout,
 };
 use super::shaders::dem_grid::{
-    self, BOUNDS, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, PARAMS, POS_A, RANKS, VEL_A,
+    self, BOUNDS, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, OMEGA_A, PARAMS, POS_A, RANKS, VEL_A,
 };
 use crate::dem::model::StepParams;
 use crate::dem::stepper::Clock;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::engines::gpu_readback::{BatchReadback, InFlight};
+use crate::engines::gpu_step::granular::OMEGA;
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, RedoableBatch, StepTimer,
-    advance_in_batches, max_spheres, particles_with, rows, run_batch,
+    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch,
+    StepTimer, advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
 use crate::error::{Error, Result};
 use crate::gpu::shader::Binding;
@@ -105,8 +107,10 @@ pub struct GridStepper {
     /// The bounds' keys at the end of the last batch that finished (paper's step).
     last_bounds: Option<[u32; 6]>,
     atomics: &'static str,
-    /// The granular step's state (`None`: the paper's step).
+    /// The granular step's state (`None`: a variant of the paper's step).
     granular: Option<Granular>,
+    /// The per-pair variant's state (`None`: another variant).
+    per_pair: Option<PerPair>,
 }
 
 impl GridStepper {
@@ -127,6 +131,7 @@ impl GridStepper {
         let DemModule {
             atomics,
             granular,
+            per_pair,
             module,
         } = DemModule::open(
             &gpu,
@@ -134,11 +139,10 @@ impl GridStepper {
             &particles,
             &params,
             max_spheres(&gpu),
+            // The two sets of the ping-ponged state.
+            2,
             atomics,
-            |accumulators, granular| match granular {
-                true => dem_grid::granular_source(accumulators),
-                false => dem_grid::source(accumulators),
-            },
+            |accumulators, variant| dem_grid::variant_source(variant, accumulators),
         )?;
         let n64 = particles.len() as u64;
         let n = n64 as u32;
@@ -190,6 +194,7 @@ impl GridStepper {
                 last_bounds: None,
                 atomics,
                 granular,
+                per_pair,
                 gpu: gpu.clone(),
             }
         })?;
@@ -344,17 +349,27 @@ impl GridStepper {
     }
 
     /// Bind groups for binning from set `from` into the other (and, in the granular step,
-    /// reading the history of parity `from`).
+    /// moving the angular velocities with the state and reading the history of parity `from`).
     fn make_binds(&self, from: usize) -> Binds {
         let (a, b) = (&self.sets[from], &self.sets[1 - from]);
         let p = &self.pipelines;
         let gpu = &self.gpu;
-        let (resolve_more, integrate_more) = match &self.granular {
-            Some(g) => (
-                [&g.resolve_bindings(from)[..], &[(IDS, &b.ids)]].concat(),
-                [&g.integrate_bindings()[..], &[(IDS, &b.ids)]].concat(),
-            ),
-            None => (Vec::new(), Vec::new()),
+        let (scatter_more, resolve_more, integrate_more) = match &self.granular {
+            Some(g) => {
+                let [omega_a, omega] = g.sorted_omega(from);
+                (
+                    vec![(OMEGA_A, omega_a), (OMEGA, omega)],
+                    [&g.resolve_bindings(from)[..], &[(IDS, &b.ids)]].concat(),
+                    g.integrate_bindings(from).to_vec(),
+                )
+            }
+            None => {
+                let law = self
+                    .per_pair
+                    .as_ref()
+                    .map_or(Vec::new(), |k| k.bindings().to_vec());
+                (Vec::new(), law.clone(), law)
+            }
         };
         Binds {
             bin_count: gpu.bind(
@@ -372,18 +387,21 @@ impl GridStepper {
             bin_scatter: gpu.bind(
                 "mochi.dem.bin_scatter",
                 &p.bin_scatter,
-                &[
-                    (PARAMS, &self.grid_uniform),
-                    (POS_A, &a.pos),
-                    (VEL_A, &a.vel),
-                    (IDS_A, &a.ids),
-                    (RANKS, &self.ranks),
-                    (CELL_START, &self.cell_table.cell_start),
-                    (POS, &b.pos),
-                    (VEL, &b.vel),
-                    (IDS, &b.ids),
-                    (FORCE, &self.force),
-                ],
+                &joined(
+                    &[
+                        (PARAMS, &self.grid_uniform),
+                        (POS_A, &a.pos),
+                        (VEL_A, &a.vel),
+                        (IDS_A, &a.ids),
+                        (RANKS, &self.ranks),
+                        (CELL_START, &self.cell_table.cell_start),
+                        (POS, &b.pos),
+                        (VEL, &b.vel),
+                        (IDS, &b.ids),
+                        (FORCE, &self.force),
+                    ],
+                    &scatter_more,
+                ),
             ),
             resolve: gpu.bind(
                 "mochi.dem.resolve",
@@ -582,7 +600,7 @@ impl GridStepper {
     }
 }
 
-/// `own` bindings and `more` (the granular step's).
+/// `own` bindings and `more` (the granular step's or the per-pair variant's).
 fn joined<'a>(
     own: &[(Binding, &'a wgpu::Buffer)],
     more: &[(Binding, &'a wgpu::Buffer)],

@@ -104,11 +104,12 @@ pub(crate) mod cell_scan {
 }
 
 /// The DEM step's binning and contact resolution (`wgsl/dem_grid.wgsl`), followed by the
-/// shared physics ([`physics`]), in two variants: the paper's law (`wgsl/dem_grid_frictionless.wgsl`)
-/// and the granular step (`wgsl/dem_grid_granular.wgsl`, [`granular`]).
+/// shared physics ([`physics`]), in three variants: the paper's law and its per-pair stiffness
+/// (`wgsl/dem_grid_frictionless.wgsl`) and the granular step (`wgsl/dem_grid_granular.wgsl`,
+/// [`granular`]).
 pub(crate) mod dem_grid {
     use super::{Binding, granular, physics, wgsl};
-    use crate::engines::gpu_step::Accumulators;
+    use crate::engines::gpu_step::{Accumulators, Variant};
 
     const GRID: &str = wgsl!("grid_params.wgsl", "grid_stencil.wgsl", "dem_grid.wgsl");
     const FRICTIONLESS: &str = wgsl!("dem_grid_frictionless.wgsl", "grid_walk.wgsl");
@@ -119,12 +120,26 @@ pub(crate) mod dem_grid {
         format!("{GRID}{FRICTIONLESS}{}", physics::frictionless(atomics))
     }
 
+    /// The paper's step with a stiffness per pair, with the accumulators `atomics`.
+    pub fn per_pair_source(atomics: Accumulators) -> String {
+        format!("{GRID}{FRICTIONLESS}{}", physics::per_pair(atomics))
+    }
+
     /// The granular step with the accumulators `atomics`.
     pub fn granular_source(atomics: Accumulators) -> String {
         format!("{GRID}{GRANULAR}{}", physics::granular(atomics))
     }
 
-    /// The entry points of both variants.
+    /// The source of `variant` with the accumulators `atomics`.
+    pub fn variant_source(variant: Variant, atomics: Accumulators) -> String {
+        match variant {
+            Variant::Paper => source(atomics),
+            Variant::PerPair => per_pair_source(atomics),
+            Variant::Granular => granular_source(atomics),
+        }
+    }
+
+    /// The entry points of every variant.
     pub const ENTRY_POINTS: &[&str] = &[
         "bin_count",
         "bin_scatter",
@@ -143,6 +158,8 @@ pub(crate) mod dem_grid {
     pub const IDS: Binding = Binding::read_write(12, "ids");
     pub const COUNTERS: Binding = Binding::read_write(14, "counters");
     pub const BOUNDS: Binding = Binding::read_write(15, "bounds");
+    /// The granular step's angular velocities of set a (`wgsl/dem_grid_granular.wgsl`).
+    pub const OMEGA_A: Binding = Binding::read(25, "omega_a");
 
     const OWN: [Binding; 10] = [
         PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS,
@@ -155,11 +172,20 @@ pub(crate) mod dem_grid {
             .collect()
     }
 
+    /// Every binding of the paper's step with a stiffness per pair.
+    pub fn per_pair_bindings() -> Vec<Binding> {
+        bindings()
+            .into_iter()
+            .chain([physics::PER_PAIR_PARAMS])
+            .collect()
+    }
+
     /// Every binding of the granular step.
     pub fn granular_bindings() -> Vec<Binding> {
         bindings()
             .into_iter()
-            .chain(granular::BINDINGS.iter().copied())
+            .chain(granular::bindings())
+            .chain([OMEGA_A])
             .collect()
     }
 }
@@ -205,16 +231,22 @@ pub fn modules() -> Vec<WgslModule> {
         dem.structs.push(gpu_step::dem_params());
         all.push(dem);
         let mut dem = module(
+            format!("dem_grid_per_pair_{name}"),
+            dem_grid::per_pair_source(atomics),
+            dem_grid::ENTRY_POINTS,
+            &dem_grid::per_pair_bindings(),
+        );
+        dem.structs
+            .extend([gpu_step::dem_params(), gpu_step::per_pair_params()]);
+        all.push(dem);
+        let mut dem = module(
             format!("dem_grid_granular_{name}"),
             dem_grid::granular_source(atomics),
             dem_grid::ENTRY_POINTS,
             &dem_grid::granular_bindings(),
         );
-        dem.structs.extend([
-            gpu_step::dem_params(),
-            granular::granular_params(),
-            granular::history_row(),
-        ]);
+        dem.structs
+            .extend([gpu_step::dem_params(), granular::granular_params()]);
         all.push(dem);
     }
     all

@@ -17,8 +17,8 @@ use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, RedoableBatch, StepTimer,
-    advance_in_batches, max_spheres, particles_with, rows, run_batch,
+    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch,
+    StepTimer, advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
 use crate::error::Result;
 use crate::gpu::{self, Gpu, Need};
@@ -64,8 +64,10 @@ pub struct RqStepper {
     resident: Option<Resident>,
     timer: Option<StepTimer>,
     atomics: &'static str,
-    /// The granular step's state (`None`: the paper's step).
+    /// The granular step's state (`None`: a variant of the paper's step).
     granular: Option<Granular>,
+    /// The per-pair variant's state (`None`: another variant).
+    per_pair: Option<PerPair>,
     /// Parity of the next step (which history buffer it reads).
     parity: usize,
 }
@@ -91,6 +93,7 @@ impl RqStepper {
         let DemModule {
             atomics,
             granular,
+            per_pair,
             module,
         } = DemModule::open(
             &gpu,
@@ -98,11 +101,10 @@ impl RqStepper {
             &particles,
             &params,
             limit,
+            // One state set, in input order.
+            1,
             atomics,
-            |accumulators, granular| match granular {
-                true => dem_rq::granular_source(accumulators),
-                false => dem_rq::source(accumulators),
-            },
+            |accumulators, variant| dem_rq::variant_source(variant, accumulators),
         )?;
         let n64 = particles.len() as u64;
         let n = n64 as u32;
@@ -150,7 +152,8 @@ impl RqStepper {
                     &force,
                     &counters,
                 );
-                let binds = bind(&gpu, &pipelines, buffers, accel.tlas(), granular.as_ref());
+                let variant = (granular.as_ref(), per_pair.as_ref());
+                let binds = bind(&gpu, &pipelines, buffers, accel.tlas(), variant);
                 Resident {
                     accel,
                     rq,
@@ -178,6 +181,7 @@ impl RqStepper {
             resident,
             atomics,
             granular,
+            per_pair,
             parity: 0,
             gpu,
         })
@@ -267,7 +271,7 @@ impl RedoableBatch for RqStepper {
             &self.pipelines,
             buffers,
             r.accel.tlas(),
-            self.granular.as_ref(),
+            (self.granular.as_ref(), self.per_pair.as_ref()),
         );
     }
 }
@@ -321,14 +325,14 @@ type StepBuffers<'a> = (
     &'a wgpu::Buffer,
 );
 
-/// The bind groups of the step over `buffers` and `tlas`, with the granular step's where it
-/// has one.
+/// The bind groups of the step over `buffers` and `tlas`, with the granular step's or the
+/// per-pair variant's where it has one.
 fn bind(
     gpu: &Gpu,
     p: &Pipelines,
     buffers: StepBuffers,
     tlas: &wgpu::Tlas,
-    granular: Option<&Granular>,
+    (granular, per_pair): (Option<&Granular>, Option<&PerPair>),
 ) -> Binds {
     let (pos, vel, rq, dem, clock, boxes, force, counters) = buffers;
     let resolve = |parity: usize| {
@@ -343,6 +347,9 @@ fn bind(
         if let Some(g) = granular {
             all.extend(g.resolve_bindings(parity));
         }
+        if let Some(k) = per_pair {
+            all.extend(k.bindings());
+        }
         gpu.bind_with_tlas("mochi.dem.rq.resolve", &p.resolve, &all, (TLAS, tlas))
     };
     let mut integrate = vec![
@@ -353,7 +360,11 @@ fn bind(
         (CLOCK, clock),
     ];
     if let Some(g) = granular {
-        integrate.extend(g.integrate_bindings());
+        // One state set: every parity integrates the same ω.
+        integrate.extend(g.integrate_bindings(0));
+    }
+    if let Some(k) = per_pair {
+        integrate.extend(k.bindings());
     }
     Binds {
         proxy_boxes: gpu.bind(

@@ -111,11 +111,12 @@ pub(crate) mod rq_pairs {
 }
 
 /// The DEM step's proxy boxes and contact resolution (`wgsl/dem_rq.wgsl`), followed by the
-/// shared physics ([`physics`]), in two variants: the paper's law (`wgsl/dem_rq_frictionless.wgsl`)
-/// and the granular step (`wgsl/dem_rq_granular.wgsl`, [`granular`]).
+/// shared physics ([`physics`]), in three variants: the paper's law and its per-pair stiffness
+/// (`wgsl/dem_rq_frictionless.wgsl`) and the granular step (`wgsl/dem_rq_granular.wgsl`,
+/// [`granular`]).
 pub(crate) mod dem_rq {
     use super::{Binding, SharedStruct, granular, physics, shared_struct, wgsl};
-    use crate::engines::gpu_step::Accumulators;
+    use crate::engines::gpu_step::{Accumulators, Variant};
 
     const FRICTIONLESS: &str = wgsl!("dem_rq.wgsl", "dem_rq_frictionless.wgsl", "rq_walk.wgsl");
     const GRANULAR: &str = wgsl!("dem_rq.wgsl", "dem_rq_granular.wgsl", "rq_walk.wgsl");
@@ -126,12 +127,26 @@ pub(crate) mod dem_rq {
         format!("{FRICTIONLESS}{}{PROXY}", physics::frictionless(atomics))
     }
 
+    /// The paper's step with a stiffness per pair, with the accumulators `atomics`.
+    pub fn per_pair_source(atomics: Accumulators) -> String {
+        format!("{FRICTIONLESS}{}{PROXY}", physics::per_pair(atomics))
+    }
+
     /// The granular step with the accumulators `atomics`.
     pub fn granular_source(atomics: Accumulators) -> String {
         format!("{GRANULAR}{}{PROXY}", physics::granular(atomics))
     }
 
-    /// The entry points of both variants.
+    /// The source of `variant` with the accumulators `atomics`.
+    pub fn variant_source(variant: Variant, atomics: Accumulators) -> String {
+        match variant {
+            Variant::Paper => source(atomics),
+            Variant::PerPair => per_pair_source(atomics),
+            Variant::Granular => granular_source(atomics),
+        }
+    }
+
+    /// The entry points of every variant.
     pub const ENTRY_POINTS: &[&str] = &["proxy_boxes", "resolve", "integrate"];
 
     pub const RQ_PARAMS: Binding = Binding::uniform(0, "rq");
@@ -147,12 +162,17 @@ pub(crate) mod dem_rq {
             .collect()
     }
 
-    /// Every binding of the granular step.
-    pub fn granular_bindings() -> Vec<Binding> {
+    /// Every binding of the paper's step with a stiffness per pair.
+    pub fn per_pair_bindings() -> Vec<Binding> {
         bindings()
             .into_iter()
-            .chain(granular::BINDINGS.iter().copied())
+            .chain([physics::PER_PAIR_PARAMS])
             .collect()
+    }
+
+    /// Every binding of the granular step.
+    pub fn granular_bindings() -> Vec<Binding> {
+        bindings().into_iter().chain(granular::bindings()).collect()
     }
 
     /// The step's ray-query uniform; WGSL twin: `RqParams`.
@@ -208,6 +228,17 @@ pub fn modules() -> Vec<WgslModule> {
             structs: vec![dem_rq::rq_params(), gpu_step::dem_params()],
         });
         all.push(WgslModule {
+            label: format!("dem_rq_per_pair_{name}"),
+            source: dem_rq::per_pair_source(atomics),
+            entry_points: dem_rq::ENTRY_POINTS,
+            bindings: dem_rq::per_pair_bindings(),
+            structs: vec![
+                dem_rq::rq_params(),
+                gpu_step::dem_params(),
+                gpu_step::per_pair_params(),
+            ],
+        });
+        all.push(WgslModule {
             label: format!("dem_rq_granular_{name}"),
             source: dem_rq::granular_source(atomics),
             entry_points: dem_rq::ENTRY_POINTS,
@@ -216,7 +247,6 @@ pub fn modules() -> Vec<WgslModule> {
                 dem_rq::rq_params(),
                 gpu_step::dem_params(),
                 granular::granular_params(),
-                granular::history_row(),
             ],
         });
     }

@@ -1,0 +1,20 @@
+// The integration kernel of the frictionless GPU steps: walls, gravity and one semi-implicit
+// Euler step. Follows the law's file (dem_physics.wgsl or dem_physics_per_pair.wgsl: its
+// wall_force) and needs a dem_force_*.wgsl (load_force).
+
+// Walls, gravity and one semi-implicit Euler step, in place.
+@compute @workgroup_size(256)
+fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x + gid.y * dem.row;
+    if p >= dem.n {
+        return;
+    }
+    let s = pos[p];
+    let v = vel[p];
+    let f = load_force(p) + wall_force(s.xyz, v.xyz, s.w, v.w);
+    let g = gravity_at(atomicLoad(&clock) - 1u);
+    let m = v.w;
+    let v_new = v.xyz + dem.dt * (f / m + g);
+    vel[p] = vec4(v_new, m);
+    pos[p] = vec4(s.xyz + dem.dt * v_new, s.w);
+}

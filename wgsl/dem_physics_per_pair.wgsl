@@ -1,0 +1,51 @@
+// The frictionless DEM law with a stiffness per pair (`stiffness = "per-pair"` without friction or
+// rolling resistance): dem_physics.wgsl's contact and wall forces with k = m*·rate, m* the
+// contact's effective mass (m_i on a wall), instead of one stiffness. Keep the formulas in sync
+// with the LinearPerPair arm of normal_force in src/dem/model/contact.rs: the same operations
+// in the same order. Needs dem_params.wgsl prepended and a dem_force_*.wgsl.
+
+// Twin of PerPairParams in src/engines/gpu_step.rs (tests/bindings.rs compares the layouts).
+struct PerPairParams {
+    rate: f32,   // k/m* [1/s²]
+}
+
+@group(0) @binding(17) var<uniform> per_pair: PerPairParams;
+
+// Force on sphere i from sphere j (xyz) and 1 in w when they touch; zero otherwise.
+fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
+                 c_j: vec3<f32>, v_j: vec3<f32>, r_j: f32, m_j: f32) -> vec4<f32> {
+    let d = c_j - c_i;
+    let d2 = d.x * d.x + d.y * d.y + d.z * d.z;
+    let reach = r_i + r_j;
+    if d2 > reach * reach || d2 == 0.0 {
+        return vec4(0.0);
+    }
+    let dist = sqrt(d2);
+    let n = d / dist;
+    let overlap = reach - dist;
+    let dv = v_j - v_i;
+    let vn = dv.x * n.x + dv.y * n.y + dv.z * n.z;
+    let m_eff = m_i * m_j / (m_i + m_j);
+    let k = m_eff * per_pair.rate;
+    let c = 2.0 * dem.damping_ratio * sqrt(k * m_eff);
+    let push = k * overlap - c * vn;
+    return vec4(-push * n, 1.0);
+}
+
+// Force of the box walls on a sphere at c with velocity v, radius r and mass m.
+fn wall_force(c: vec3<f32>, v: vec3<f32>, r: f32, m: f32) -> vec3<f32> {
+    let k = m * per_pair.rate;
+    let damping = 2.0 * dem.damping_ratio * sqrt(k * m);
+    var f = vec3(0.0);
+    for (var a = 0; a < 3; a += 1) {
+        let below = r - (c[a] - dem.box_lo[a]);
+        if below > 0.0 {
+            f[a] += k * below - damping * v[a];
+        }
+        let above = r - (dem.box_hi[a] - c[a]);
+        if above > 0.0 {
+            f[a] -= k * above + damping * v[a];
+        }
+    }
+    return f;
+}
