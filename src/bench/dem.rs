@@ -92,6 +92,7 @@ pub fn run(
         let options = Options {
             structure: case.structure,
             rebuild,
+            ..Options::default()
         };
         let s = case.start;
         open_stepper(kind, s.particles.clone(), s.params, s.mode, &options)

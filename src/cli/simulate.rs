@@ -79,6 +79,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let p = start.params;
     let options = Options {
         structure: args.structure,
+        grid_build: args.grid_build,
         rebuild: args.rebuild,
     };
     let (r_min, r_max) = start.particles.radius_range();
