@@ -132,7 +132,7 @@ pub struct DetectArgs {
     pub structure: Structure,
     /// How wgpu-compute builds its grid: dense (a table of every cell), sorted (the cell keys
     /// sorted, no table: the cost follows the spheres, not the box), auto (sorted where the
-    /// dense table would have more than 8 cells per sphere).
+    /// dense table would have more than 1024 cells per sphere).
     #[arg(long, value_enum, default_value_t)]
     pub grid_build: GridBuild,
     /// Time build and detection this many more times after the first run and report the
@@ -245,7 +245,7 @@ pub struct SimulateArgs {
     pub structure: Structure,
     /// How wgpu-compute builds its grid: dense (a table of every cell), sorted (the cell keys
     /// sorted, no table: the cost follows the spheres, not the box), auto (sorted where the
-    /// dense table would have more than 8 cells per sphere).
+    /// dense table would have more than 1024 cells per sphere).
     #[arg(long, value_enum, default_value_t)]
     pub grid_build: GridBuild,
     /// When a refittable BVH (the optix step) is rebuilt: every K steps with refits between

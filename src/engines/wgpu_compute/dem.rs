@@ -694,4 +694,8 @@ impl Stepper for GridStepper {
     fn particles(&mut self) -> Result<Particles> {
         self.state()
     }
+
+    fn grid_build(&self) -> Option<&'static str> {
+        Some(self.build().name())
+    }
 }

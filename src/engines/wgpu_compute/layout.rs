@@ -145,9 +145,13 @@ impl BuildKind {
 }
 
 /// Cells per sphere of the dense table at the mode's cell size above which `auto` takes the
-/// sorted build. At 8 (the DEM step's budget, [`DEM_CELLS_PER_SPHERE`]) the dense DEM table
-/// would have to grow its cells; the lead tunes it from timings (docs/PERFORMANCE.md).
-pub const AUTO_SORTED_CELLS_PER_SPHERE: f64 = 8.0;
+/// sorted build. Not yet timed against the dense build: set above every scene of
+/// docs/PERFORMANCE.md, so `auto` keeps the dense build on each of them (1M spheres: `polylog`
+/// 0.10, `pour` 0.57, `slab` 2.2, 14 filled tori 3.6, the 14-bunny drop 6.8, `freefall` 576
+/// cells per sphere), to be lowered where `mochi bench --experiments clustered` shows the
+/// sorted build faster. Above the DEM budget ([`DEM_CELLS_PER_SPHERE`], 8) the dense table
+/// grows its cells (more candidates), the sorted build never does.
+pub const AUTO_SORTED_CELLS_PER_SPHERE: f64 = 1024.0;
 
 /// Cells of a dense table at or below which `auto` keeps it whatever the sphere count (the
 /// dense layout's budget never goes below this many cells: small tables cost little).
@@ -499,14 +503,14 @@ mod tests {
     #[test]
     fn auto_takes_the_sorted_build_where_the_dense_table_outgrows_the_spheres() {
         // 10^6 spheres in a box of 100 cells per side at the mode's size (10^6 cells, one per
-        // sphere): dense. The same box at 1000 cells per side (10^9 cells): sorted.
+        // sphere): dense. The same box at 2000 cells per side (8·10^9 cells): sorted.
         let bounds = ([0.0; 3], [1.0; 3]);
         assert_eq!(
             GridBuild::Auto.resolve(1_000_000, bounds, 0.01),
             BuildKind::Dense
         );
         assert_eq!(
-            GridBuild::Auto.resolve(1_000_000, bounds, 0.001),
+            GridBuild::Auto.resolve(1_000_000, bounds, 0.0005),
             BuildKind::Sorted
         );
         // A small table stays dense however few spheres it holds.
