@@ -11,11 +11,11 @@
 //! The grid's layout (cell size, dense or hashed table over the centres' bounds) is re-derived
 //! from a GPU reduction of the bounds every [`RELAYOUT_EVERY`] steps. Between, spheres that
 //! leave the layout's region are clamped into its border cells: exact, only slower.
+//! Float atomics add in no fixed order, so GPU runs are not bit-for-bit reproducible.
 //!
 //! The binning is the dense build's counting sort into a table of every cell, or the sorted
 //! build's radix sort of the cell keys (`wgsl/dem_grid_sorted.wgsl`, no table: its cost follows
 //! the spheres, not the box); [`GridBuild`] chooses, once, from the spheres at the start.
-//! Float atomics add in no fixed order, so GPU runs are not bit-for-bit reproducible.
 //!
 //! A scene with friction, rolling resistance, rotation or another law than the paper's runs the
 //! granular variant of the step (`wgsl/dem_grid_granular.wgsl`, [`Granular`]): its own module
