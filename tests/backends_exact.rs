@@ -9,7 +9,9 @@
 mod common;
 
 use mochi::Backend;
-use mochi::engines::BackendKind;
+use mochi::dem::scene::by_name;
+use mochi::engines::wgpu_compute::GridBuild;
+use mochi::engines::{BackendKind, Options};
 use mochi::oracle::{brute_force_pairs, differences};
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
 use mochi::{Error, Pair, ProxyMode, SphereSet};
@@ -44,18 +46,46 @@ fn backends() -> Vec<BackendKind> {
 
 type OpenSlot = Mutex<Option<Box<dyn Backend>>>;
 
-/// Opened backends, one per kind, shared by the tests (opening a GPU device is slow). A static
-/// is never dropped, so no device is torn down while a test thread exits.
-static OPENED: LazyLock<Vec<(BackendKind, OpenSlot)>> =
-    LazyLock::new(|| BackendKind::ALL.map(|k| (k, Mutex::new(None))).into());
+/// The settings each backend is tested with, by label: its defaults, and for `wgpu-compute`
+/// also each grid build forced (`auto` picks the dense one for most sets here).
+fn settings(kind: BackendKind) -> Vec<(String, Options)> {
+    let mut all = vec![(kind.name().to_owned(), Options::default())];
+    if kind == BackendKind::WgpuCompute {
+        for grid_build in [GridBuild::Dense, GridBuild::Sorted] {
+            let label = format!("{} {}", kind.name(), by_name::name(&grid_build));
+            all.push((
+                label,
+                Options {
+                    grid_build,
+                    ..Options::default()
+                },
+            ));
+        }
+    }
+    all
+}
 
-/// Runs `f` on each available backend, opened once per test run.
-fn with_each_backend(mut f: impl FnMut(BackendKind, &mut dyn Backend)) {
+/// Opened backends, one per kind and settings, shared by the tests (opening a GPU device is
+/// slow). A static is never dropped, so no device is torn down while a test thread exits.
+static OPENED: LazyLock<Vec<(String, OpenSlot)>> = LazyLock::new(|| {
+    BackendKind::ALL
+        .into_iter()
+        .flat_map(settings)
+        .map(|(label, _)| (label, Mutex::new(None)))
+        .collect()
+});
+
+/// Runs `f` on each available backend under each of its [`settings`], opened once per test
+/// run; `f` gets the kind and the label.
+fn with_each_backend(mut f: impl FnMut(BackendKind, &str, &mut dyn Backend)) {
     for kind in backends() {
-        let slot = &OPENED.iter().find(|(k, _)| *k == kind).unwrap().1;
-        let mut slot = slot.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        let backend = slot.get_or_insert_with(|| kind.open().expect("a probed backend opens"));
-        f(kind, backend.as_mut());
+        for (label, options) in settings(kind) {
+            let slot = &OPENED.iter().find(|(l, _)| *l == label).unwrap().1;
+            let mut slot = slot.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+            let backend = slot
+                .get_or_insert_with(|| kind.open_with(&options).expect("a probed backend opens"));
+            f(kind, &label, backend.as_mut());
+        }
     }
 }
 
@@ -64,9 +94,9 @@ fn check_exact(spheres: &SphereSet) -> Result<(), TestCaseError> {
     let mut want = brute_force_pairs(spheres);
     want.sort_unstable();
     let mut outcome = Ok(());
-    with_each_backend(|kind, backend| {
+    with_each_backend(|kind, name, backend| {
         if outcome.is_ok() {
-            outcome = check_backend(kind, backend, spheres, &want);
+            outcome = check_backend(kind, name, backend, spheres, &want);
         }
     });
     outcome
@@ -74,13 +104,14 @@ fn check_exact(spheres: &SphereSet) -> Result<(), TestCaseError> {
 
 fn check_backend(
     kind: BackendKind,
+    name: &str,
     backend: &mut dyn Backend,
     spheres: &SphereSet,
     want: &[Pair],
 ) -> Result<(), TestCaseError> {
     {
         for mode in MODES {
-            let label = format!("{} {}", kind.name(), mode.name());
+            let label = format!("{name} {}", mode.name());
             #[cfg(feature = "optix")]
             if kind == BackendKind::Optix && beyond_optix_reach(spheres) {
                 // OptiX drops boxes that far out: the backend must refuse, not answer wrongly.
@@ -383,7 +414,7 @@ fn update_after_moving_gives_the_new_exact_set() {
         layout: Layout::Random,
     };
     let original = generate(&spec).unwrap();
-    with_each_backend(|kind, backend| {
+    with_each_backend(|_, name, backend| {
         let mut spheres = original.clone();
         backend.build(&spheres, ProxyMode::Mochi).unwrap();
         for step in 0..3 {
@@ -400,12 +431,7 @@ fn update_after_moving_gives_the_new_exact_set() {
             backend.update(&spheres).unwrap();
             let mut got = backend.find_pairs().unwrap().0;
             got.sort_unstable();
-            assert_eq!(
-                got,
-                brute_force_pairs(&spheres),
-                "{} step {step}",
-                kind.name()
-            );
+            assert_eq!(got, brute_force_pairs(&spheres), "{name} step {step}");
         }
         // Misuse of the library, not bad input: Usage.
         let wrong_size = SphereSet::default();
@@ -460,21 +486,16 @@ fn far_away_outliers_keep_the_search_linear() {
     let spheres = SphereSet::new(centers, radii).unwrap();
     let mut want = brute_force_pairs(&spheres);
     want.sort_unstable();
-    with_each_backend(|kind, backend| {
+    with_each_backend(|kind, name, backend| {
         backend.build(&spheres, ProxyMode::Mochi).unwrap();
         let (mut got, stats) = backend.find_pairs().unwrap();
         got.sort_unstable();
         let off = differences(&got, &want, &spheres, fused(kind));
-        assert!(
-            off.is_empty(),
-            "{}: differs from the oracle: {off:?}",
-            kind.name()
-        );
+        assert!(off.is_empty(), "{name}: differs from the oracle: {off:?}");
         let per_sphere = stats.candidates as f64 / spheres.len() as f64;
         assert!(
             per_sphere < 40.0,
-            "{}: {per_sphere} candidates per sphere",
-            kind.name()
+            "{name}: {per_sphere} candidates per sphere"
         );
     });
 }

@@ -377,9 +377,92 @@ fn bench_friction_reports_the_frictional_step_with_its_history() {
 }
 
 #[test]
+fn bench_clustered_runs_at_the_small_scale() {
+    // 14 filled meshes (the built-in torus) at `--scale small`: about 11,500 spheres, in their
+    // box and in one 10× wider, wgpu-compute with both grid builds.
+    let mut backends = vec!["cpu"];
+    if common::adapter_for(Need::Compute, "mochi bench clustered on wgpu-compute") {
+        backends.insert(0, "wgpu-compute");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bench");
+    let list = backends.join(",");
+    let args = [
+        "bench",
+        "--scale",
+        "small",
+        "--experiments",
+        "clustered",
+        "--backends",
+        &list,
+        "--repeats",
+        "2",
+        "--warmup",
+        "0",
+        "--steps",
+        "2",
+        "--quiet",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    let (code, stdout, stderr) = mochi(&args);
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    let heading = format!("## 8. {}", Experiment::Clustered.title());
+    assert!(stdout.contains(&heading), "{stdout}");
+    assert!(stdout.contains("mesh, box ×10"), "{stdout}");
+
+    let json = std::fs::read_to_string(out.join("bench.json")).unwrap();
+    let report: Report = serde_json::from_str(&json).unwrap();
+    assert_eq!(report.settings.experiments, [Experiment::Clustered]);
+    assert!(report.skipped.is_empty(), "{:?}", report.skipped);
+    for backend in &backends {
+        let rows: Vec<&DemRow> = report
+            .dem
+            .iter()
+            .filter(|r| r.backend.name() == *backend)
+            .collect();
+        let setups: Vec<(Option<u32>, Option<&str>)> = rows
+            .iter()
+            .map(|r| (r.box_scale, r.grid_build.as_deref()))
+            .collect();
+        // wgpu-compute with both builds side by side, in both boxes; the others once each.
+        let want = match *backend {
+            "wgpu-compute" => vec![
+                (None, Some("dense")),
+                (None, Some("sorted")),
+                (Some(10), Some("dense")),
+                (Some(10), Some("sorted")),
+            ],
+            _ => vec![(None, None), (Some(10), None)],
+        };
+        assert_eq!(setups, want, "{backend}");
+        for row in &rows {
+            assert_eq!(row.scene.name(), "mesh");
+            assert!(
+                (9_000..14_000).contains(&row.n),
+                "{backend}: {} spheres",
+                row.n
+            );
+            assert_eq!(
+                row.n, rows[0].n,
+                "{backend}: the same spheres in both boxes"
+            );
+            assert_eq!(
+                row.contacts, rows[0].contacts,
+                "{backend}: the same contacts"
+            );
+            for phase in [&row.build_ms, &row.dcd_ms, &row.update_ms] {
+                assert_eq!(phase.samples, 2);
+            }
+        }
+    }
+    check_svg(&out.join("clustered.svg"), Experiment::Clustered.title());
+}
+
+#[test]
 fn bad_bench_arguments_fail_cleanly() {
     for (args, says) in [
-        (&["bench", "--experiments", "1,8"][..], "unknown experiment"),
+        (&["bench", "--experiments", "1,9"][..], "unknown experiment"),
         (&["bench", "--backends", "cpu,gpu"][..], "unknown backend"),
         (
             &["bench", "--backends", "cpu", "--repeats", "0"][..],

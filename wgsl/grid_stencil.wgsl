@@ -1,5 +1,6 @@
 // The cells a sphere searches in the grids of grid_params.wgsl (appended after it), as runs of
-// sorted positions read from the shader's `cell_start` table; shared by grid_pairs.wgsl and
+// sorted positions found by `cell_run` (grid_cells_dense.wgsl: read from the dense build's
+// table; grid_cells_sorted.wgsl: searched in the sorted keys); shared by grid_pairs.wgsl and
 // dem_grid.wgsl.
 
 // The 13 forward neighbours of a cell (the other 13 see this one as theirs).
@@ -55,5 +56,5 @@ fn window(s: vec4<f32>, level: u32) -> Window {
 // Sorted positions of row k of the window.
 fn window_row(w: Window, k: u32) -> vec2<u32> {
     let first = w.first + w.dims.x * (k % w.ny + w.dims.y * (k / w.ny));
-    return vec2(cell_start[first], cell_start[first + w.width]);
+    return cell_run(first, first + w.width);
 }

@@ -4,8 +4,8 @@
 // window after that row, then the full windows of every coarser level (grid_stencil.wgsl).
 // Hashed table: the rest of its own cell (q > p) and its 13 forward neighbour cells, each looked
 // up in its bucket and filtered by its coordinates (spheres of other cells sharing the bucket are
-// skipped). Needs grid_params.wgsl and grid_stencil.wgsl prepended and `cell_start` bound; the
-// including shader defines
+// skipped). Needs grid_params.wgsl, grid_stencil.wgsl and one of grid_cells_dense.wgsl (with
+// `cell_start` bound) or grid_cells_sorted.wgsl prepended; the including shader defines
 //   struct Walker { p: u32, s: vec4<f32>, ... }   sphere p (sorted position), s = pos/radius,
 //                                                  and whatever its visits accumulate
 //   fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>)   one candidate q, t = its sphere
@@ -23,8 +23,9 @@ fn walk_run(w: ptr<function, Walker>, a: u32, b: u32) {
 // Hashed table: visits the spheres of `cell` found in its bucket (in the own cell only q > p).
 fn walk_bucket(w: ptr<function, Walker>, cell: vec3<u32>, own: bool) {
     let b = hash_cell(cell);
+    let run = cell_run(b, b + 1u);
     var n = 0u;
-    for (var q = cell_start[b]; q < cell_start[b + 1u]; q += 1u) {
+    for (var q = run.x; q < run.y; q += 1u) {
         let t = walk_sphere(q);
         if (own && q <= (*w).p) || any(cell_coords(t.xyz, 0u) != cell) {
             continue;

@@ -7,7 +7,7 @@ use super::stats::Spread;
 use crate::dem::scene::{ContactKind, SceneConfig, SceneKind, Start};
 use crate::dem::{Clock, Stepper};
 use crate::engines::open_stepper;
-use crate::engines::wgpu_compute::Structure;
+use crate::engines::wgpu_compute::{GridBuild, Structure};
 use crate::engines::{BackendKind, Options, RebuildPolicy};
 use crate::error::{Error, Result};
 use crate::scenes::{SLAB_BASE, Scene};
@@ -44,6 +44,52 @@ pub fn friction_start(n: usize, seed: u64) -> Result<Start> {
     .build()
 }
 
+/// Spheres of the paper's 14-bunny scene (82,337 per bunny at radius 0.005 m).
+const PAPER_MESH_DROP_SPHERES: f64 = 1_151_878.0;
+
+/// Copies of the mesh in experiment 8, as in the paper's scene.
+pub const MESH_DROP_COPIES: u32 = 14;
+
+/// The wide box of experiment 8, per side over the scene's own.
+pub const WIDE_BOX_SCALE: u32 = 10;
+
+/// Sphere radius \[m\] at which one copy of the mesh is filled to count its spheres.
+const PROBE_RADIUS: f64 = 0.005;
+
+/// The start of experiment 8: [`MESH_DROP_COPIES`] copies of `mesh` (`None`: the `mesh`
+/// scene's built-in torus; the paper's is the Stanford bunny), side by side on the floor of
+/// their box, filled at the radius that gives them about the paper's 1,151,878 spheres scaled
+/// by `n` / 1,000,000 (the bunny at `n` = 1,000,000: radius 0.005 m, the paper's scene), under
+/// the paper's law (`linear`, frictionless, its default time step).
+pub fn mesh_drop_start(mesh: Option<&std::path::Path>, n: usize, seed: u64) -> Result<Start> {
+    let config = |radius: f64, copies| SceneConfig {
+        scene: SceneKind::Mesh,
+        mesh: mesh.map(std::path::Path::to_path_buf),
+        mesh_radius: radius as f32,
+        mesh_copies: copies,
+        seed,
+        frame_every: 0,
+        contact: ContactKind::Linear,
+        ..SceneConfig::default()
+    };
+    // Spheres per copy go as 1 / radius³ (a lattice of spacing 2.2 radii).
+    let one = config(PROBE_RADIUS, 1).build()?.particles.len().max(1) as f64;
+    let target = PAPER_MESH_DROP_SPHERES * n as f64 / 1e6;
+    let radius = PROBE_RADIUS * (MESH_DROP_COPIES as f64 * one / target).cbrt();
+    // To three significant figures: the bunny at n = 1,000,000 keeps the paper's 0.005 m.
+    let digits = 10f64.powi(2 - radius.log10().floor() as i32);
+    config((radius * digits).round() / digits, MESH_DROP_COPIES).build()
+}
+
+/// `start` in a box `scale` times wider per side, from the same lower corner: the same spheres,
+/// the same step, walls farther away.
+pub fn widened(start: &Start, scale: u32) -> Start {
+    let mut wide = start.clone();
+    let (lo, hi) = (start.params.box_lo, start.params.box_hi);
+    wide.params.box_hi = std::array::from_fn(|a| lo[a] + (hi[a] - lo[a]) * scale as f32);
+    wide
+}
+
 /// One DEM measurement to make.
 pub struct Case<'a> {
     /// The experiment it belongs to.
@@ -54,6 +100,10 @@ pub struct Case<'a> {
     pub start: &'a Start,
     /// Grid structure of `wgpu-compute`.
     pub structure: Structure,
+    /// How `wgpu-compute` builds its grid.
+    pub grid_build: GridBuild,
+    /// The box per side over the scene's own (`None`: its own).
+    pub box_scale: Option<u32>,
 }
 
 /// `start` after `plan.settings.settle` untimed steps on the first of the plan's backends whose DEM
@@ -91,6 +141,7 @@ pub fn run(
     let open = |rebuild| {
         let options = Options {
             structure: case.structure,
+            grid_build: case.grid_build,
             rebuild,
         };
         let s = case.start;
@@ -217,6 +268,8 @@ fn measure(
         wall_ms: Spread::of(&walls).expect("a plan has at least one repeat"),
         speedup_vs_cpu: None,
         history,
+        box_scale: case.box_scale,
+        grid_build: stepper.grid_build().map(str::to_owned),
     })
 }
 
@@ -274,6 +327,7 @@ mod tests {
                 warmup: 1,
                 structure: Structure::Auto,
                 seed: 1,
+                mesh: None,
             },
         };
         let freefall = SceneKind::Generated(Scene::Freefall);
@@ -283,6 +337,8 @@ mod tests {
             scene: freefall,
             start: &start,
             structure: Structure::Auto,
+            grid_build: GridBuild::Auto,
+            box_scale: None,
         };
         let open = |_| -> Result<Box<dyn Stepper>> {
             Ok(Box::new(Fake {

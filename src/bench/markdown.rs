@@ -151,7 +151,7 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
             out,
             "| {} | {} | {} | {} | {} |{rebuild} {} | {} | {} | {} | {} | {} | {} | {} |",
             r.backend.name(),
-            r.scene,
+            r.setup(),
             r.n,
             r.mode.name(),
             by_name::name(&r.structure),

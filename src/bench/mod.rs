@@ -11,7 +11,10 @@
 //!    and the multi-level grid side by side ([`dem`] runs 2–7; [`targets`] checks them);
 //! 7. the Hertz–Mindlin step of issue 18 (friction with contact history, rotation, EPSD rolling
 //!    resistance) on the landed `slab`, with its contacts and the bytes per sphere of its
-//!    history ([`report::HistorySize`]); a backend whose step does not run it yet reports why.
+//!    history ([`report::HistorySize`]); a backend whose step does not run it yet reports why;
+//! 8. issue 21's clustered scenes: 14 filled meshes dropped ([`dem::mesh_drop_start`]), in
+//!    their box and in one 10× wider per side; `wgpu-compute` with its dense and its sorted
+//!    grid build side by side.
 //!
 //! Every measurement runs `warmup` untimed times, then `repeats` timed times, and reports the
 //! median and spread ([`stats::Spread`]) on GPU timestamps where the backend has them, else on
@@ -29,7 +32,7 @@ pub mod targets;
 
 use crate::dem::scene::{SceneKind, Start};
 use crate::engines::BackendKind;
-use crate::engines::wgpu_compute::Structure;
+use crate::engines::wgpu_compute::{GridBuild, Structure};
 use crate::error::Result;
 use crate::proxy::ProxyMode;
 use crate::scenes::Scene;
@@ -91,19 +94,23 @@ pub fn run(
                 }
             }
             _ => {
-                for (scene, start) in dem_starts(plan, experiment, progress)? {
+                for (scene, start, box_scale) in dem_starts(plan, experiment, progress)? {
                     for &kind in &plan.backends {
                         for structure in structures(plan, experiment, scene, &start, kind) {
-                            let case = dem::Case {
-                                experiment,
-                                scene,
-                                start: &start,
-                                structure,
-                            };
-                            for outcome in dem::run(plan, kind, &case, progress) {
-                                match outcome {
-                                    Outcome::Row(row) => report.dem.push(row),
-                                    Outcome::Skipped(what, why) => skip(kind, what, why),
+                            for grid_build in grid_builds(experiment, kind) {
+                                let case = dem::Case {
+                                    experiment,
+                                    scene,
+                                    start: &start,
+                                    structure,
+                                    grid_build,
+                                    box_scale,
+                                };
+                                for outcome in dem::run(plan, kind, &case, progress) {
+                                    match outcome {
+                                        Outcome::Row(row) => report.dem.push(row),
+                                        Outcome::Skipped(what, why) => skip(kind, what, why),
+                                    }
                                 }
                             }
                         }
@@ -117,8 +124,30 @@ pub fn run(
     Ok(report)
 }
 
-/// The scenes of DEM experiment `experiment`, with their starts.
+/// The scenes of DEM experiment `experiment`, with their starts and their boxes per side over
+/// the scene's own (`None`: its own).
 fn dem_starts(
+    plan: &Plan,
+    experiment: Experiment,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<(SceneKind, Start, Option<u32>)>> {
+    if experiment == Experiment::Clustered {
+        progress("filling the meshes");
+        let n = plan.settings.spheres;
+        let seed = plan.settings.seed;
+        let own = dem::mesh_drop_start(plan.settings.mesh.as_deref(), n, seed)?;
+        let wide = dem::widened(&own, dem::WIDE_BOX_SCALE);
+        return Ok(vec![
+            (SceneKind::Mesh, own, None),
+            (SceneKind::Mesh, wide, Some(dem::WIDE_BOX_SCALE)),
+        ]);
+    }
+    let starts = own_box_starts(plan, experiment, progress)?;
+    Ok(starts.into_iter().map(|(k, s)| (k, s, None)).collect())
+}
+
+/// [`dem_starts`] of the experiments whose scenes keep their own boxes.
+fn own_box_starts(
     plan: &Plan,
     experiment: Experiment,
     progress: &mut dyn FnMut(&str),
@@ -168,6 +197,16 @@ fn dem_starts(
         }
         _ => vec![(freefall, dem::start(freefall, n, seed)?)],
     })
+}
+
+/// The `wgpu-compute` grid builds to measure with: in experiment 8 the dense and the sorted
+/// build side by side, else `auto`.
+fn grid_builds(experiment: Experiment, kind: BackendKind) -> Vec<GridBuild> {
+    if experiment == Experiment::Clustered && kind == BackendKind::WgpuCompute {
+        vec![GridBuild::Dense, GridBuild::Sorted]
+    } else {
+        vec![GridBuild::Auto]
+    }
 }
 
 /// The `wgpu-compute` structures to measure `scene` with: for `polylog` in `mochi` mode in

@@ -37,11 +37,16 @@ pub enum Experiment {
     /// 7: the Hertz–Mindlin step (friction with contact history, rotation, EPSD rolling
     /// resistance) on the settled slab, with its contacts and the size of the history.
     Friction,
+    /// 8: the paper's 14-bunny drop (14 copies of `--mesh`, or of the built-in torus, filled
+    /// with as many spheres as the paper's bunnies hold at `--scale paper`), and the same
+    /// spheres in a box 10× wider per side: a step whose grid build should cost by the spheres,
+    /// not by the box (issue 21); `wgpu-compute` with its dense and its sorted build.
+    Clustered,
 }
 
 impl Experiment {
     /// Every experiment, in order.
-    pub const ALL: [Experiment; 7] = [
+    pub const ALL: [Experiment; 8] = [
         Experiment::Dcd,
         Experiment::Freefall,
         Experiment::Rotating,
@@ -49,9 +54,11 @@ impl Experiment {
         Experiment::Scaling,
         Experiment::Targets,
         Experiment::Friction,
+        Experiment::Clustered,
     ];
 
-    /// Number in issue 7 (1–5; 6 for the targets; 7 for friction, of issue 18).
+    /// Number in issue 7 (1–5; 6 for the targets; 7 for friction, of issue 18; 8 for the
+    /// clustered scenes, of issue 21).
     pub fn number(self) -> u8 {
         self as u8 + 1
     }
@@ -66,6 +73,7 @@ impl Experiment {
             Experiment::Scaling => "scaling",
             Experiment::Targets => "targets",
             Experiment::Friction => "friction",
+            Experiment::Clustered => "clustered",
         }
     }
 
@@ -81,10 +89,11 @@ impl Experiment {
             Experiment::Friction => {
                 "Hertz–Mindlin step (friction, rotation, EPSD rolling) on the settled slab"
             }
+            Experiment::Clustered => "14 filled meshes dropped, in their box and in one 10× wider",
         }
     }
 
-    /// Parses a name (`dcd`, …) or a number (`1`–`7`).
+    /// Parses a name (`dcd`, …) or a number (`1`–`8`).
     pub fn parse(s: &str) -> std::result::Result<Self, String> {
         let s = s.trim();
         Experiment::ALL
@@ -92,8 +101,8 @@ impl Experiment {
             .find(|e| e.name().eq_ignore_ascii_case(s) || e.number().to_string() == s)
             .ok_or_else(|| {
                 format!(
-                    "unknown experiment `{s}`: use 1-7 or dcd, freefall, rotating, rebuild, \
-                     scaling, targets, friction"
+                    "unknown experiment `{s}`: use 1-8 or dcd, freefall, rotating, rebuild, \
+                     scaling, targets, friction, clustered"
                 )
             })
     }
@@ -240,6 +249,9 @@ pub struct Settings {
     pub structure: Structure,
     /// Seed of the generated scenes.
     pub seed: u64,
+    /// Mesh of experiment 8 (`None`: the built-in torus).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<std::path::PathBuf>,
 }
 
 /// Everything one benchmark run does.
@@ -307,6 +319,9 @@ impl Plan {
                 Experiment::Targets => 5,
                 // Settling, the pile.
                 Experiment::Friction => 2,
+                // The drop in its box and in the wide box, each with both grid builds
+                // (wgpu-compute; one row each elsewhere).
+                Experiment::Clustered => 4,
             })
             .sum();
         (per_backend * self.backends.len()) as u64
@@ -325,7 +340,9 @@ mod tests {
         assert_eq!(Experiment::parse("6"), Ok(Experiment::Targets));
         assert_eq!(Experiment::parse("friction"), Ok(Experiment::Friction));
         assert_eq!(Experiment::parse("7"), Ok(Experiment::Friction));
-        assert!(Experiment::parse("8").unwrap_err().contains("unknown"));
+        assert_eq!(Experiment::parse("clustered"), Ok(Experiment::Clustered));
+        assert_eq!(Experiment::parse("8"), Ok(Experiment::Clustered));
+        assert!(Experiment::parse("9").unwrap_err().contains("unknown"));
     }
 
     #[test]
@@ -357,6 +374,7 @@ mod tests {
                 warmup: 0,
                 structure: Structure::Auto,
                 seed: 1,
+                mesh: None,
             },
         };
         assert_eq!(plan.scaling_sizes(), vec![1000, 10_000, 100_000]);

@@ -47,6 +47,7 @@ pub fn draw(report: &Report) -> Result<Vec<(String, String)>> {
             | Experiment::Rotating
             | Experiment::Targets
             | Experiment::Friction
+            | Experiment::Clustered
                 if !rows.is_empty() =>
             {
                 svg(&name, bar_chart_width(rows.len()), |a| {
@@ -197,7 +198,7 @@ fn dcd(area: &Area, title: &str, report: &Report) -> Drawn {
     )
 }
 
-/// Experiments 2, 3, 6 and 7: one stacked bar of the phases per backend (and scene, structure).
+/// Experiments 2, 3, 6, 7 and 8: one stacked bar of the phases per backend (and scene, structure).
 fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
     let groups: Vec<(String, Vec<Bar>)> = rows
         .iter()
@@ -222,6 +223,8 @@ fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
                     r.mode.name(),
                     by_name::name(&r.structure)
                 )
+            } else if r.experiment == Experiment::Clustered {
+                format!("{}\n{}", r.backend.name(), r.setup())
             } else {
                 format!("{}\nn={}", r.backend.name(), r.n)
             };

@@ -159,13 +159,34 @@ pub struct DemRow {
     /// The whole step on the host's wall clock \[ms\], submissions and read-backs included
     /// (the only time of a GPU without timestamps).
     pub wall_ms: Spread,
-    /// The cpu backend's total median over this row's (same experiment, scene, n, mode;
+    /// The cpu backend's total median over this row's (same experiment, scene, box, n, mode;
     /// the cpu step never refits, so its one row serves every rebuild policy).
     pub speedup_vs_cpu: Option<f64>,
     /// The contact history after the timed steps (experiment 7; `None` for steps that keep
     /// none).
     #[serde(default)]
     pub history: Option<HistorySize>,
+    /// The scene's box per side over its own (experiment 8's wide box; `None`: its own box).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub box_scale: Option<u32>,
+    /// The grid build the step chose (`dense` or `sorted`; `None` for backends without one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grid_build: Option<String>,
+}
+
+impl DemRow {
+    /// The scene and, where they vary, its box and the grid build, in words ("mesh, box ×10,
+    /// sorted build").
+    pub fn setup(&self) -> String {
+        let mut words = vec![self.scene.to_string()];
+        if let Some(scale) = self.box_scale {
+            words.push(format!("box ×{scale}"));
+        }
+        if let Some(build) = &self.grid_build {
+            words.push(format!("{build} build"));
+        }
+        words.join(", ")
+    }
 }
 
 /// What the contact history of a frictional step holds, and its size.
@@ -234,6 +255,7 @@ impl Report {
                         && o.scene == row.scene
                         && o.n == row.n
                         && o.mode == row.mode
+                        && o.box_scale == row.box_scale
                         && (o.rebuild == row.rebuild || !o.refits)
                 })
                 .filter(|_| row.backend != BackendKind::Cpu)

@@ -240,6 +240,8 @@ mod tests {
             wall_ms: ms(total),
             speedup_vs_cpu: None,
             history: None,
+            box_scale: None,
+            grid_build: None,
         }
     }
 
@@ -260,6 +262,7 @@ mod tests {
                 warmup: 0,
                 structure: Structure::Auto,
                 seed: 1,
+                mesh: None,
             },
             backends: Vec::<BackendStatus>::new(),
             detect: Vec::new(),

@@ -2,7 +2,7 @@
 
 use clap::{Args, Parser, Subcommand};
 use mochi::ProxyMode;
-use mochi::engines::wgpu_compute::Structure;
+use mochi::engines::wgpu_compute::{GridBuild, Structure};
 use mochi::engines::{BackendChoice, RebuildPolicy};
 use mochi::render::{ColorBy, RenderChoice};
 use mochi::scenes::{Layout, Scene};
@@ -130,6 +130,11 @@ pub struct DetectArgs {
     /// mochi mode), auto (mlgrid where the radii span a factor of 4 or more).
     #[arg(long, value_enum, default_value_t)]
     pub structure: Structure,
+    /// How wgpu-compute builds its grid: dense (a table of every cell), sorted (the cell keys
+    /// sorted, no table: the cost follows the spheres, not the box), auto (sorted where the
+    /// dense table would have more than 1024 cells per sphere).
+    #[arg(long, value_enum, default_value_t)]
+    pub grid_build: GridBuild,
     /// Time build and detection this many more times after the first run and report the
     /// median (the first run warms up shaders and buffers).
     #[arg(long, default_value_t = 0)]
@@ -238,6 +243,11 @@ pub struct SimulateArgs {
     /// mochi mode), auto (mlgrid where the radii span a factor of 4 or more).
     #[arg(long, value_enum, default_value_t)]
     pub structure: Structure,
+    /// How wgpu-compute builds its grid: dense (a table of every cell), sorted (the cell keys
+    /// sorted, no table: the cost follows the spheres, not the box), auto (sorted where the
+    /// dense table would have more than 1024 cells per sphere).
+    #[arg(long, value_enum, default_value_t)]
+    pub grid_build: GridBuild,
     /// When a refittable BVH (the optix step) is rebuilt: every K steps with refits between
     /// (1: every step), or auto (rebuild when refits have made the rays meet clearly more
     /// boxes). Grids re-bin and wgpu-rq rebuilds every step.

@@ -27,8 +27,9 @@ pub struct BenchArgs {
     pub backends: BackendSelection,
     /// Experiments, by number or name: 1 dcd, 2 freefall, 3 rotating, 4 rebuild, 5 scaling,
     /// 6 targets (landed slab, polylog grid vs mlgrid), 7 friction (the Hertz–Mindlin step on
-    /// the settled slab, with its contact history).
-    #[arg(long, value_delimiter = ',', value_parser = Experiment::parse, default_value = "1,2,3,4,5,6,7")]
+    /// the settled slab, with its contact history), 8 clustered (14 filled meshes dropped, in
+    /// their box and in a box 10× wider, with the grid build wgpu-compute chose).
+    #[arg(long, value_delimiter = ',', value_parser = Experiment::parse, default_value = "1,2,3,4,5,6,7,8")]
     pub experiments: Vec<Experiment>,
     /// Timed runs per measurement (their median and spread are reported).
     #[arg(long, default_value_t = 5)]
@@ -50,6 +51,10 @@ pub struct BenchArgs {
     /// Seed of the generated scenes.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Mesh of experiment 8 (OBJ, PLY or STL; the paper's is the Stanford bunny), instead of
+    /// the built-in torus.
+    #[arg(long, value_name = "FILE")]
+    pub mesh: Option<PathBuf>,
     /// Folder for bench.json, bench.md and the SVG plots.
     #[arg(short, long, default_value = "mochi-bench")]
     pub out: PathBuf,
@@ -76,6 +81,7 @@ pub fn bench(args: BenchArgs) -> Result<()> {
             warmup: args.warmup,
             structure: args.structure,
             seed: args.seed,
+            mesh: args.mesh.clone(),
         },
     };
     plan.validate()?;

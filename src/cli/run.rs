@@ -56,6 +56,7 @@ fn detect(args: DetectArgs) -> Result<()> {
     }
     let options = engines::Options {
         structure: args.structure,
+        grid_build: args.grid_build,
         ..Default::default()
     };
     let opened = engines::open(args.backend, &options)?;

@@ -78,6 +78,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     }
     let options = Options {
         structure: args.structure,
+        grid_build: args.grid_build,
         rebuild: args.rebuild,
     };
     let run = run_start.open(args.backend, &options)?;

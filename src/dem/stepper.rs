@@ -72,4 +72,10 @@ pub trait Stepper: Send {
     fn refits(&self) -> bool {
         false
     }
+
+    /// The grid build this step chose, in words (`dense` or `sorted`), where the backend has a
+    /// choice (`wgpu-compute`); default `None`.
+    fn grid_build(&self) -> Option<&'static str> {
+        None
+    }
 }

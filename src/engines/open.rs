@@ -19,8 +19,14 @@ pub fn open_stepper(
     Ok(match kind {
         BackendKind::Cpu => Box::new(super::cpu::CpuStepper::new(particles, params, mode)?),
         BackendKind::WgpuCompute => Box::new(
-            super::wgpu_compute::GridStepper::new(particles, params, mode)?
-                .with_structure(options.structure),
+            super::wgpu_compute::GridStepper::with_options(
+                particles,
+                params,
+                mode,
+                super::gpu_step::ForceAtomics::Auto,
+                options.grid_build,
+            )?
+            .with_structure(options.structure),
         ),
         BackendKind::WgpuRq => Box::new(super::wgpu_rq::RqStepper::new(particles, params, mode)?),
         #[cfg(feature = "optix")]

@@ -104,9 +104,11 @@ impl BackendKind {
                 });
             }
             BackendKind::WgpuRq => Box::new(wgpu_rq::WgpuRqBackend::new()?),
-            BackendKind::WgpuCompute => {
-                Box::new(wgpu_compute::WgpuComputeBackend::new()?.with_structure(options.structure))
-            }
+            BackendKind::WgpuCompute => Box::new(
+                wgpu_compute::WgpuComputeBackend::new()?
+                    .with_structure(options.structure)
+                    .with_grid_build(options.grid_build),
+            ),
             BackendKind::Cpu => Box::new(cpu::CpuBackend::new()),
         })
     }
@@ -130,6 +132,8 @@ pub(crate) const NO_OPTIX_FEATURE: &str =
 pub struct Options {
     /// Grid structure of `wgpu-compute`.
     pub structure: wgpu_compute::Structure,
+    /// How `wgpu-compute` builds its grid: dense table, sorted keys, or auto.
+    pub grid_build: wgpu_compute::GridBuild,
     /// When a DEM step with a refittable BVH rebuilds it (grids re-bin and `wgpu-rq` rebuilds
     /// every step whatever this says).
     pub rebuild: RebuildPolicy,

@@ -15,7 +15,7 @@
 //! The shader is `wgsl/radix_sort.wgsl`; its constants mirror the ones here, and its bindings
 //! and `Params` are [`module`]'s (checked by `tests/bindings.rs`).
 
-use super::scan::ExclusiveScan;
+use super::scan::{ExclusiveScan, PreparedScan};
 use super::shader::{Binding, WgslModule, shared_struct, wgsl};
 use super::{Gpu, workgroups};
 use encase::{DynamicUniformBuffer, ShaderSize};
@@ -73,13 +73,6 @@ struct Params {
 
 /// Size of [`Params`] \[bytes\].
 const PARAMS_SIZE: u64 = Params::SHADER_SIZE.get();
-
-/// The two sort kernels of a pass.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kernel {
-    Histogram,
-    Scatter,
-}
 
 /// Scratch space, grown on demand.
 struct Scratch {
@@ -155,6 +148,37 @@ impl RadixSort {
         n: u32,
         key_bits: u32,
     ) {
+        let sort = self.prepare(gpu, keys, values, n, key_bits);
+        if sort.passes.is_empty() {
+            return;
+        }
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("mochi.sort.pass"),
+                timestamp_writes: None,
+            });
+            sort.record(&mut pass);
+        }
+        if let Some((sorted_keys, sorted_values)) = &sort.in_scratch {
+            let bytes = u64::from(n) * 4;
+            encoder.copy_buffer_to_buffer(sorted_keys, 0, keys, 0, bytes);
+            encoder.copy_buffer_to_buffer(sorted_values, 0, values, 0, bytes);
+        }
+    }
+
+    /// Prepares the sort [`encode`](Self::encode) records, for recording into compute passes
+    /// (any number of times, each sorting the pairs as they are then): writes its parameters,
+    /// grows the scratch if needed and makes its bind groups. Unlike `encode` it copies nothing
+    /// back: after an odd number of passes the sorted pairs are in the scratch buffers
+    /// ([`PreparedSort::sorted`] says where). Same conditions and panics as `encode`.
+    pub fn prepare(
+        &mut self,
+        gpu: &Gpu,
+        keys: &wgpu::Buffer,
+        values: &wgpu::Buffer,
+        n: u32,
+        key_bits: u32,
+    ) -> PreparedSort {
         let bytes = u64::from(n) * 4;
         assert!(
             keys.size() >= bytes && values.size() >= bytes,
@@ -163,8 +187,18 @@ impl RadixSort {
             values.size()
         );
         let key_bits = key_bits.min(32);
+        let mut prepared = PreparedSort {
+            histogram: self.histogram.clone(),
+            scatter: self.scatter.clone(),
+            scan: None,
+            binds: None,
+            passes: Vec::new(),
+            groups: (0, 0),
+            sorted: (keys.clone(), values.clone()),
+            in_scratch: None,
+        };
         if n == 0 || key_bits == 0 {
-            return;
+            return prepared;
         }
         let hist_len = n.div_ceil(BLOCK) * (1 << RADIX_BITS);
         self.reserve(gpu, n, hist_len);
@@ -192,43 +226,16 @@ impl RadixSort {
             bytes,
             &scratch.hist,
         );
-
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("mochi.sort.pass"),
-                timestamp_writes: None,
-            });
-            let groups = workgroups(n, BLOCK, gpu.limits.max_compute_workgroups_per_dimension);
-            for (k, &offset) in offsets.iter().enumerate() {
-                // Even passes read the caller's buffers, odd ones the scratch.
-                let bind = if k % 2 == 0 {
-                    &from_caller
-                } else {
-                    &from_scratch
-                };
-                let sort = |pass: &mut wgpu::ComputePass<'_>, kernel| {
-                    pass.set_pipeline(self.pipeline(kernel));
-                    pass.set_bind_group(0, bind, &[offset]);
-                    pass.dispatch_workgroups(groups.0, groups.1, 1);
-                };
-                sort(&mut pass, Kernel::Histogram);
-                scan.record(&mut pass);
-                sort(&mut pass, Kernel::Scatter);
-            }
+        if offsets.len() % 2 == 1 {
+            let in_scratch = (scratch.keys.clone(), scratch.values.clone());
+            prepared.sorted = in_scratch.clone();
+            prepared.in_scratch = Some(in_scratch);
         }
-
-        if passes.len() % 2 == 1 {
-            encoder.copy_buffer_to_buffer(&scratch.keys, 0, keys, 0, bytes);
-            encoder.copy_buffer_to_buffer(&scratch.values, 0, values, 0, bytes);
-        }
-    }
-
-    /// The pipeline of `kernel`.
-    fn pipeline(&self, kernel: Kernel) -> &wgpu::ComputePipeline {
-        match kernel {
-            Kernel::Histogram => &self.histogram,
-            Kernel::Scatter => &self.scatter,
-        }
+        prepared.groups = workgroups(n, BLOCK, gpu.limits.max_compute_workgroups_per_dimension);
+        prepared.scan = Some(scan);
+        prepared.binds = Some([from_caller, from_scratch]);
+        prepared.passes = offsets;
+        prepared
     }
 
     /// Makes sure the scratch holds `pairs` pairs and `hist_len` u32 of counts.
@@ -293,6 +300,58 @@ impl RadixSort {
             layout: &self.layout,
             entries: &entries,
         })
+    }
+}
+
+/// A sort ready to be recorded (any number of times) into compute passes; made by
+/// [`RadixSort::prepare`]. It holds its own parameters, bind groups and pipelines, and shares
+/// the scratch buffers of its [`RadixSort`] (so recordings of sorts of one sorter must run in
+/// the order recorded, as they do in one queue).
+pub struct PreparedSort {
+    histogram: wgpu::ComputePipeline,
+    scatter: wgpu::ComputePipeline,
+    /// `None` when there is nothing to sort.
+    scan: Option<PreparedScan>,
+    /// Binds reading the caller's buffers (even passes) and the scratch (odd passes).
+    binds: Option<[wgpu::BindGroup; 2]>,
+    /// Dynamic offset of each pass's parameters.
+    passes: Vec<u32>,
+    groups: (u32, u32),
+    /// Where the sorted keys and values are after a recording.
+    sorted: (wgpu::Buffer, wgpu::Buffer),
+    /// The scratch keys and values, where the sort ends after an odd number of passes.
+    in_scratch: Option<(wgpu::Buffer, wgpu::Buffer)>,
+}
+
+impl PreparedSort {
+    /// Records the sort's dispatches into `pass`: every pass's histogram, scan and scatter.
+    pub fn record(&self, pass: &mut wgpu::ComputePass<'_>) {
+        let (Some(scan), Some(binds)) = (&self.scan, &self.binds) else {
+            return;
+        };
+        for (k, &offset) in self.passes.iter().enumerate() {
+            // Even passes read the caller's buffers, odd ones the scratch.
+            let bind = &binds[k % 2];
+            let sort = |pass: &mut wgpu::ComputePass<'_>, pipeline| {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, bind, &[offset]);
+                pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
+            };
+            sort(pass, &self.histogram);
+            scan.record(pass);
+            sort(pass, &self.scatter);
+        }
+    }
+
+    /// The buffers that hold the sorted keys and values after a recording: the caller's after
+    /// an even number of passes (or none), else the scratch.
+    pub fn sorted(&self) -> (&wgpu::Buffer, &wgpu::Buffer) {
+        (&self.sorted.0, &self.sorted.1)
+    }
+
+    /// Passes each recording makes (one per digit of the keys).
+    pub fn passes(&self) -> usize {
+        self.passes.len()
     }
 }
 

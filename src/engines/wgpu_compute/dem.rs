@@ -13,6 +13,10 @@
 //! leave the layout's region are clamped into its border cells: exact, only slower.
 //! Float atomics add in no fixed order, so GPU runs are not bit-for-bit reproducible.
 //!
+//! The binning is the dense build's counting sort into a table of every cell, or the sorted
+//! build's radix sort of the cell keys (`wgsl/dem_grid_sorted.wgsl`, no table: its cost follows
+//! the spheres, not the box); [`GridBuild`] chooses, once, from the spheres at the start.
+//!
 //! A scene with friction, rolling resistance, rotation or another law than the paper's runs the
 //! granular variant of the step (`wgsl/dem_grid_granular.wgsl`, [`Granular`]): its own module
 //! and pipelines, with angular velocities, torques and the contact history bound besides; the
@@ -22,10 +26,13 @@
 
 use super::cell_table::{CellScan, CellScanBinds, CellTable};
 use super::layout::{
-    Budget, DEM_CELLS_PER_SPHERE, GridParams, LayoutRequest, Levels, Structure, choose_layout,
+    Budget, BuildKind, DEM_CELLS_PER_SPHERE, GridBuild, GridParams, LayoutRequest, Levels,
+    Structure, choose_layout, key_bits,
 };
+use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
-    self, BOUNDS, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, OMEGA_A, PARAMS, POS_A, RANKS, VEL_A,
+    self, BOUNDS, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, OMEGA_A, PARAMS, POS_A, RANKS,
+    SORT_KEYS, SORT_ORDER, VEL_A,
 };
 use crate::dem::model::StepParams;
 use crate::dem::stepper::Clock;
@@ -38,6 +45,7 @@ use crate::engines::gpu_step::{
     StepTimer, advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
 use crate::error::{Error, Result};
+use crate::gpu::radix_sort::{PreparedSort, RadixSort};
 use crate::gpu::shader::Binding;
 use crate::gpu::{self, Gpu, Need};
 use crate::particles::Particles;
@@ -53,9 +61,11 @@ struct StateSet {
     ids: wgpu::Buffer,
 }
 
+/// The binning's first pass (`bin_count` of the dense build, `bin_keys` of the sorted one) and
+/// its last (`bin_scatter`, `bin_gather`); between them the scan of the cell table or the sort.
 struct Pipelines {
-    bin_count: wgpu::ComputePipeline,
-    bin_scatter: wgpu::ComputePipeline,
+    bin_first: wgpu::ComputePipeline,
+    bin_last: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
     integrate: wgpu::ComputePipeline,
     reduce_bounds: wgpu::ComputePipeline,
@@ -63,20 +73,38 @@ struct Pipelines {
 
 /// Bind groups of one parity (which state set is the source of the next binning).
 struct Binds {
-    bin_count: wgpu::BindGroup,
-    bin_scatter: wgpu::BindGroup,
+    bin_first: wgpu::BindGroup,
+    bin_last: wgpu::BindGroup,
     resolve: wgpu::BindGroup,
     integrate: wgpu::BindGroup,
     reduce_bounds: wgpu::BindGroup,
+}
+
+/// What sorts the spheres by cell between the binning's passes.
+enum Sorter {
+    /// The dense build: ranks in each cell, the table of cells scanned.
+    Dense {
+        ranks: wgpu::Buffer,
+        cell_table: CellTable,
+        scan: CellScan,
+        /// The scan bound to the current cell table.
+        scan_bind: Option<CellScanBinds>,
+    },
+    /// The sorted build: each sphere's key and index, radix-sorted.
+    Sorted {
+        keys: wgpu::Buffer,
+        order: wgpu::Buffer,
+        sort: RadixSort,
+        /// The sort by the current layout's keys (boxed: it is large).
+        prepared: Option<Box<PreparedSort>>,
+    },
 }
 
 /// The wgpu-compute DEM step.
 pub struct GridStepper {
     gpu: Gpu,
     pipelines: Pipelines,
-    scan: CellScan,
-    /// The scan bound to the current cell table.
-    scan_bind: Option<CellScanBinds>,
+    sorter: Sorter,
     n: u32,
     mode: ProxyMode,
     mode_cell: f64,
@@ -94,8 +122,6 @@ pub struct GridStepper {
     sets: [StateSet; 2],
     /// Which set the next step bins from.
     current: usize,
-    ranks: wgpu::Buffer,
-    cell_table: CellTable,
     force: wgpu::Buffer,
     counters: wgpu::Buffer,
     bounds: wgpu::Buffer,
@@ -121,12 +147,30 @@ impl GridStepper {
 
     /// As [`new`](Self::new), choosing how forces are accumulated.
     pub fn with_atomics(
-        mut particles: Particles,
+        particles: Particles,
         params: StepParams,
         mode: ProxyMode,
         atomics: ForceAtomics,
     ) -> Result<Self> {
+        Self::with_options(particles, params, mode, atomics, GridBuild::Auto)
+    }
+
+    /// As [`new`](Self::new), choosing how forces are accumulated and how the grid is built
+    /// (`GridBuild::Auto` decides from the spheres' bounds now, for the whole run).
+    pub fn with_options(
+        mut particles: Particles,
+        params: StepParams,
+        mode: ProxyMode,
+        atomics: ForceAtomics,
+        grid_build: GridBuild,
+    ) -> Result<Self> {
         particles.separate_coincident()?;
+        let (r_min, r_max) = particles.radius_range();
+        let mode_cell = mode.cell_size(r_max) as f64;
+        let build = match start_bounds(&particles, &params, mode_cell as f32) {
+            Some(bounds) => grid_build.resolve(particles.len() as u64, bounds, mode_cell),
+            None => BuildKind::Dense,
+        };
         let gpu = Gpu::open(Need::Compute)?;
         let DemModule {
             atomics,
@@ -142,19 +186,22 @@ impl GridStepper {
             // The two sets of the ping-ponged state.
             2,
             atomics,
-            |accumulators, variant| dem_grid::variant_source(variant, accumulators),
+            |accumulators, variant| dem_grid::variant_source(build, variant, accumulators),
         )?;
         let n64 = particles.len() as u64;
         let n = n64 as u32;
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.{entry}"), &module, entry);
+        let (first, last) = match build {
+            BuildKind::Dense => ("bin_count", "bin_scatter"),
+            BuildKind::Sorted => ("bin_keys", "bin_gather"),
+        };
         let pipelines = Pipelines {
-            bin_count: pipeline("bin_count"),
-            bin_scatter: pipeline("bin_scatter"),
+            bin_first: pipeline(first),
+            bin_last: pipeline(last),
             resolve: pipeline("resolve"),
             integrate: pipeline("integrate"),
             reduce_bounds: pipeline("reduce_bounds"),
         };
-        let (r_min, r_max) = particles.radius_range();
         let none = wgpu::BufferUsages::empty();
         let make = |label: &str, bytes: u64| gpu.storage(label, bytes, none);
         let stepper = gpu.checked("allocating the DEM buffers", || {
@@ -164,13 +211,26 @@ impl GridStepper {
                 ids: make(&format!("mochi.dem.ids{k}"), n64 * 4),
             };
             let timer = StepTimer::new(&gpu);
+            let sorter = match build {
+                BuildKind::Dense => Sorter::Dense {
+                    ranks: make("mochi.dem.ranks", n64 * 4),
+                    cell_table: CellTable::new(&gpu, 1),
+                    scan: CellScan::new(&gpu),
+                    scan_bind: None,
+                },
+                BuildKind::Sorted => Sorter::Sorted {
+                    keys: make("mochi.dem.sort_keys", n64 * 4),
+                    order: make("mochi.dem.sort_order", n64 * 4),
+                    sort: RadixSort::new(&gpu),
+                    prepared: None,
+                },
+            };
             GridStepper {
-                scan: CellScan::new(&gpu),
-                scan_bind: None,
+                sorter,
                 pipelines,
                 n,
                 mode,
-                mode_cell: mode.cell_size(r_max) as f64,
+                mode_cell,
                 radii: (r_min as f64, r_max as f64),
                 levels: Structure::Auto.levels_for(mode, r_max as f64 / r_min as f64),
                 params,
@@ -182,8 +242,6 @@ impl GridStepper {
                 dem_uniform: gpu.uniform("mochi.dem.params", &DemParams::default()),
                 sets: [set(0), set(1)],
                 current: 0,
-                ranks: make("mochi.dem.ranks", n64 * 4),
-                cell_table: CellTable::new(&gpu, 1),
                 force: make("mochi.dem.force", n64 * 12),
                 counters: make("mochi.dem.counters", 16),
                 bounds: make("mochi.dem.bounds", 24),
@@ -328,6 +386,7 @@ impl GridStepper {
                     budget: Budget {
                         spheres: self.n as u64,
                         cells_per_sphere: DEM_CELLS_PER_SPHERE,
+                        build: self.build(),
                     },
                     base_cell: self.mode_cell,
                     radii: self.radii,
@@ -335,12 +394,36 @@ impl GridStepper {
                 },
             )
         };
-        if self.cell_table.capacity < layout.cells || self.binds.is_none() {
-            self.cell_table = gpu.checked("allocating the DEM cell table", || {
-                CellTable::new(gpu, layout.cells)
-            })?;
+        match &mut self.sorter {
+            Sorter::Dense {
+                cell_table,
+                scan,
+                scan_bind,
+                ..
+            } => {
+                if cell_table.capacity < layout.cells || self.binds.is_none() {
+                    *cell_table = gpu.checked("allocating the DEM cell table", || {
+                        CellTable::new(gpu, layout.cells)
+                    })?;
+                    *scan_bind = Some(scan.bind(gpu, &self.grid_uniform, cell_table));
+                    self.binds = None;
+                }
+            }
+            Sorter::Sorted {
+                keys,
+                order,
+                sort,
+                prepared,
+            } => {
+                // The sort ends in the scratch or in `keys`/`order` by its passes' parity, so
+                // the binds follow it.
+                let sort = sort.prepare(gpu, keys, order, self.n, key_bits(layout.cells));
+                *prepared = Some(Box::new(sort));
+                self.binds = None;
+            }
+        }
+        if self.binds.is_none() {
             self.binds = Some([self.make_binds(0), self.make_binds(1)]);
-            self.scan_bind = Some(self.scan.bind(gpu, &self.grid_uniform, &self.cell_table));
         }
         gpu.write_uniform(&self.grid_uniform, &layout);
         self.layout = layout;
@@ -371,36 +454,58 @@ impl GridStepper {
                 (Vec::new(), law.clone(), law)
             }
         };
-        Binds {
-            bin_count: gpu.bind(
-                "mochi.dem.bin_count",
-                &p.bin_count,
-                &[
-                    (PARAMS, &self.grid_uniform),
-                    (POS_A, &a.pos),
-                    (RANKS, &self.ranks),
-                    (COUNTS, &self.cell_table.counts),
-                    (COUNTERS, &self.counters),
-                    (CLOCK, &self.clock),
-                ],
+        // What the binning's passes and the search bind of the sorter.
+        let (first, last, cells) = match &self.sorter {
+            Sorter::Dense {
+                ranks, cell_table, ..
+            } => (
+                vec![(RANKS, ranks), (COUNTS, &cell_table.counts)],
+                vec![(RANKS, ranks), (CELL_START, &cell_table.cell_start)],
+                (CELL_START, &cell_table.cell_start),
             ),
-            bin_scatter: gpu.bind(
-                "mochi.dem.bin_scatter",
-                &p.bin_scatter,
+            Sorter::Sorted {
+                keys,
+                order,
+                prepared,
+                ..
+            } => {
+                let (sorted_keys, sorted_order) = prepared.as_ref().expect("laid out").sorted();
+                (
+                    vec![(SORT_KEYS, keys), (SORT_ORDER, order)],
+                    vec![(SORT_ORDER, sorted_order)],
+                    (CELL_KEYS, sorted_keys),
+                )
+            }
+        };
+        Binds {
+            bin_first: gpu.bind(
+                "mochi.dem.bin_first",
+                &p.bin_first,
+                &joined(
+                    &[
+                        (PARAMS, &self.grid_uniform),
+                        (POS_A, &a.pos),
+                        (COUNTERS, &self.counters),
+                        (CLOCK, &self.clock),
+                    ],
+                    &first,
+                ),
+            ),
+            bin_last: gpu.bind(
+                "mochi.dem.bin_last",
+                &p.bin_last,
                 &joined(
                     &[
                         (PARAMS, &self.grid_uniform),
                         (POS_A, &a.pos),
                         (VEL_A, &a.vel),
                         (IDS_A, &a.ids),
-                        (RANKS, &self.ranks),
-                        (CELL_START, &self.cell_table.cell_start),
                         (POS, &b.pos),
                         (VEL, &b.vel),
                         (IDS, &b.ids),
                         (FORCE, &self.force),
                     ],
-                    &scatter_more,
+                    &[&last[..], &scatter_more[..]].concat(),
                 ),
             ),
             resolve: gpu.bind(
@@ -410,7 +515,7 @@ impl GridStepper {
                     &[
                         (PARAMS, &self.grid_uniform),
                         (DEM, &self.dem_uniform),
-                        (CELL_START, &self.cell_table.cell_start),
+                        cells,
                         (POS, &b.pos),
                         (VEL, &b.vel),
                         (FORCE, &self.force),
@@ -451,10 +556,16 @@ impl GridStepper {
         let p = &self.pipelines;
         match phase {
             Phase::Build => {
-                gpu::record(pass, &p.bin_count, &b.bin_count, self.groups);
-                let scan_bind = self.scan_bind.as_ref().expect("laid out");
-                self.scan.record(pass, scan_bind, &self.layout);
-                gpu::record(pass, &p.bin_scatter, &b.bin_scatter, self.groups);
+                gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
+                match &self.sorter {
+                    Sorter::Dense {
+                        scan, scan_bind, ..
+                    } => scan.record(pass, scan_bind.as_ref().expect("laid out"), &self.layout),
+                    Sorter::Sorted { prepared, .. } => {
+                        prepared.as_ref().expect("laid out").record(pass)
+                    }
+                }
+                gpu::record(pass, &p.bin_last, &b.bin_last, self.groups);
             }
             Phase::Resolve => gpu::record(pass, &p.resolve, &b.resolve, self.groups),
             Phase::Integrate => gpu::record(pass, &p.integrate, &b.integrate, self.groups),
@@ -600,6 +711,36 @@ impl GridStepper {
     }
 }
 
+impl GridStepper {
+    /// The build this step bins with.
+    pub fn build(&self) -> BuildKind {
+        match self.sorter {
+            Sorter::Dense { .. } => BuildKind::Dense,
+            Sorter::Sorted { .. } => BuildKind::Sorted,
+        }
+    }
+}
+
+/// The centres' bounds of `particles` within the box of `params` widened by `margin` (as the
+/// step's layouts take them), or `None` for no spheres.
+fn start_bounds(
+    particles: &Particles,
+    params: &StepParams,
+    margin: f32,
+) -> Option<([f32; 3], [f32; 3])> {
+    let first = *particles.positions.first()?;
+    let (mut lo, mut hi) = (first, first);
+    for c in &particles.positions {
+        for a in 0..3 {
+            lo[a] = lo[a].min(c[a]);
+            hi[a] = hi[a].max(c[a]);
+        }
+    }
+    let lo: [f32; 3] = std::array::from_fn(|a| lo[a].max(params.box_lo[a] - margin));
+    let hi: [f32; 3] = std::array::from_fn(|a| hi[a].min(params.box_hi[a] + margin).max(lo[a]));
+    Some((lo, hi))
+}
+
 /// `own` bindings and `more` (the granular step's or the per-pair variant's).
 fn joined<'a>(
     own: &[(Binding, &'a wgpu::Buffer)],
@@ -634,9 +775,10 @@ impl Phase {
 impl Stepper for GridStepper {
     fn describe(&self) -> String {
         format!(
-            "wgpu-compute ({}; {})",
+            "wgpu-compute ({}; {}; {} build)",
             gpu::describe(&self.gpu.info),
-            self.atomics
+            self.atomics,
+            self.build().name()
         )
     }
 
@@ -668,5 +810,9 @@ impl Stepper for GridStepper {
 
     fn particles(&mut self) -> Result<Particles> {
         self.state()
+    }
+
+    fn grid_build(&self) -> Option<&'static str> {
+        Some(self.build().name())
     }
 }

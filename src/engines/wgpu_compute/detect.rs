@@ -2,15 +2,16 @@
 
 use super::cell_table::{CellScan, CellTable};
 use super::layout::{
-    Budget, DETECT_CELLS_PER_SPHERE, GridParams, LayoutRequest, MAX_CROWDING, Structure,
-    choose_layout, core_bounds, crowding, describe_layout,
+    Budget, BuildKind, DETECT_CELLS_PER_SPHERE, GridBuild, GridParams, LayoutRequest, MAX_CROWDING,
+    Structure, choose_layout, core_bounds, crowding, describe_layout, key_bits,
 };
 
-use super::shaders::{grid_build, grid_pairs};
+use super::shaders::{CELL_KEYS, grid_build, grid_pairs, grid_sort};
 use crate::detect::BackendInfo;
 use crate::engines::gpu_detect::{DetectKernel, GpuBackend, WgpuDetection};
 use crate::error::Result;
 use crate::gpu::pair_output;
+use crate::gpu::radix_sort::RadixSort;
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
@@ -32,13 +33,19 @@ pub struct WgpuComputeBackend {
     scatter: wgpu::ComputePipeline,
     gather: wgpu::ComputePipeline,
     find_pairs: wgpu::ComputePipeline,
+    /// The sorted-key build: keys, their sort, and the search over them.
+    key_spheres: wgpu::ComputePipeline,
+    sort: RadixSort,
+    find_pairs_sorted: wgpu::ComputePipeline,
     structure: Structure,
+    grid_build: GridBuild,
 }
 
-/// GPU buffers of a grid over `n` spheres, and the layout of its last build.
+/// GPU buffers of a grid over `n` spheres, and the layout and build of its last build.
 struct Grid {
     n: u32,
     layout: GridParams,
+    build: BuildKind,
     params: wgpu::Buffer,
     pair_params: wgpu::Buffer,
     /// `vec4(x, y, z, r)` in input order.
@@ -49,24 +56,39 @@ struct Grid {
     ids: wgpu::Buffer,
     /// `vec4(x, y, z, r)` in sorted order.
     spheres: wgpu::Buffer,
-    table: CellTable,
+    /// The sorted build's cell key of each sphere: in input order, then sorted.
+    keys: wgpu::Buffer,
+    /// The dense build's table (`None` in the sorted build, which has none).
+    table: Option<CellTable>,
 }
 
 impl Grid {
-    fn new(gpu: &Gpu, n: u32, cells: u32) -> Grid {
+    fn new(gpu: &Gpu, n: u32, build: BuildKind, cells: u32) -> Grid {
         let none = wgpu::BufferUsages::empty();
         let n64 = n as u64;
         Grid {
             n,
             layout: GridParams::default(),
+            build,
             params: gpu.uniform("mochi.grid.params", &GridParams::default()),
             pair_params: gpu.uniform("mochi.grid.pair_params", &GridParams::default()),
             spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
             slots: gpu.storage("mochi.grid.slots", n64 * 8, none),
             ids: gpu.storage("mochi.grid.ids", n64 * 4, none),
             spheres: gpu.storage("mochi.grid.spheres", n64 * 16, none),
-            table: CellTable::new(gpu, cells),
+            keys: gpu.storage("mochi.grid.keys", n64 * 4, none),
+            table: (build == BuildKind::Dense).then(|| CellTable::new(gpu, cells)),
         }
+    }
+
+    /// Whether this grid's buffers take a build of `n` spheres by `build` over `cells` cells.
+    fn fits(&self, n: u32, build: BuildKind, cells: u32) -> bool {
+        self.n == n
+            && match (build, &self.table) {
+                (BuildKind::Dense, Some(table)) => table.capacity >= cells,
+                (BuildKind::Dense, None) => false,
+                (BuildKind::Sorted, _) => true,
+            }
     }
 }
 
@@ -75,14 +97,20 @@ impl WgpuComputeBackend {
     pub fn new() -> Result<Self> {
         let gpu = Gpu::open(Need::Compute)?;
         let build = gpu.module("mochi.grid.build", grid_build::SOURCE);
-        let pairs = gpu.module("mochi.grid.pairs", grid_pairs::SOURCE);
+        let pairs = gpu.module("mochi.grid.pairs", grid_pairs::DENSE_SOURCE);
+        let sort = gpu.module("mochi.grid.sort", grid_sort::SOURCE);
+        let pairs_sorted = gpu.module("mochi.grid.pairs_sorted", grid_pairs::SORTED_SOURCE);
         Ok(Self {
             scan: CellScan::new(&gpu),
             count_cells: gpu.pipeline("mochi.grid.count_cells", &build, "count_cells"),
             scatter: gpu.pipeline("mochi.grid.scatter", &build, "scatter"),
             gather: gpu.pipeline("mochi.grid.gather", &build, "gather"),
             find_pairs: gpu.pipeline(FIND_PAIRS, &pairs, "find_pairs"),
+            key_spheres: gpu.pipeline("mochi.grid.key_spheres", &sort, "key_spheres"),
+            sort: RadixSort::new(&gpu),
+            find_pairs_sorted: gpu.pipeline(FIND_PAIRS, &pairs_sorted, "find_pairs"),
             structure: Structure::Auto,
+            grid_build: GridBuild::Auto,
             detection: WgpuDetection::new("wgpu-compute", gpu),
         })
     }
@@ -93,20 +121,31 @@ impl WgpuComputeBackend {
         self
     }
 
+    /// Builds with `grid_build` (dense table or sorted keys) from now on.
+    pub fn with_grid_build(mut self, grid_build: GridBuild) -> Self {
+        self.grid_build = grid_build;
+        self
+    }
+
     fn max_spheres(&self) -> u64 {
         let l = &self.detection.gpu.limits;
         (l.max_storage_buffer_binding_size.min(l.max_buffer_size) / 16).min(u32::MAX as u64)
     }
 
-    /// Cell layout for `spheres` (see [`choose_layout`]) over their [`core_bounds`].
-    fn layout(&self, spheres: &SphereSet, mode: ProxyMode) -> GridParams {
+    /// Build and cell layout for `spheres` (see [`GridBuild::resolve`], [`choose_layout`])
+    /// over their [`core_bounds`].
+    fn layout(&self, spheres: &SphereSet, mode: ProxyMode) -> (BuildKind, GridParams) {
         let (lo, hi) = core_bounds(spheres).expect("the set is not empty");
         let base = mode.cell_size(spheres.max_radius()) as f64;
+        let build = self
+            .grid_build
+            .resolve(spheres.len() as u64, (lo, hi), base);
         let uncrowded = |size: f64| crowding(spheres.centers(), lo, size) <= MAX_CROWDING;
         let radii = (spheres.min_radius() as f64, spheres.max_radius() as f64);
         let budget = Budget {
             spheres: spheres.len() as u64,
             cells_per_sphere: DETECT_CELLS_PER_SPHERE,
+            build,
         };
         let request = LayoutRequest {
             levels: self.structure.levels_for(mode, radii.1 / radii.0),
@@ -116,7 +155,7 @@ impl WgpuComputeBackend {
             radii,
             dense_check: &uncrowded,
         };
-        choose_layout(&self.detection.gpu.limits, &request)
+        (build, choose_layout(&self.detection.gpu.limits, &request))
     }
 }
 
@@ -131,23 +170,62 @@ impl GpuBackend for WgpuComputeBackend {
             return Ok(());
         };
         let (x, y) = self.detection.gpu.grid(n, BUILD_GROUP);
+        let (build, layout) = self.layout(spheres, mode);
         let layout = GridParams {
             row: x * BUILD_GROUP,
-            ..self.layout(spheres, mode)
+            ..layout
         };
         let (mut grid, output) = self.detection.reuse_or_allocate(
             n,
-            |g: &Grid| g.n == n && g.table.capacity >= layout.cells,
-            |gpu| Grid::new(gpu, n, layout.cells),
+            |g: &Grid| g.fits(n, build, layout.cells),
+            |gpu| Grid::new(gpu, n, build, layout.cells),
         )?;
         grid.layout = layout;
+        grid.build = build;
         let rows: Vec<[f32; 4]> = spheres.xyzr().collect();
         let what = "building the wgpu-compute grid";
-        let record = |gpu: &Gpu, g: &Grid, encoder: &mut wgpu::CommandEncoder| {
+        let gather = &self.gather;
+        let sort = &mut self.sort;
+        let key_spheres = &self.key_spheres;
+        let record_sorted = |gpu: &Gpu, g: &Grid, encoder: &mut wgpu::CommandEncoder| {
             gpu.write_uniform(&g.params, &g.layout);
             gpu.queue
                 .write_buffer(&g.spheres_in, 0, bytemuck::cast_slice(&rows));
-            let scan = self.scan.bind(gpu, &g.params, &g.table);
+            let keys = gpu.bind(
+                "mochi.grid.key_spheres",
+                key_spheres,
+                &[
+                    (grid_sort::PARAMS, &g.params),
+                    (grid_sort::SPHERES_IN, &g.spheres_in),
+                    (grid_sort::KEYS, &g.keys),
+                    (grid_sort::IDS, &g.ids),
+                ],
+            );
+            let gathered = gather_bind(gpu, gather, g);
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("mochi.grid.build.keys"),
+                timestamp_writes: None,
+            });
+            gpu::record(&mut pass, key_spheres, &keys, (x, y));
+            drop(pass);
+            sort.encode(gpu, encoder, &g.keys, &g.ids, n, key_bits(g.layout.cells));
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("mochi.grid.build.gather"),
+                timestamp_writes: None,
+            });
+            gpu::record(&mut pass, gather, &gathered, (x, y));
+        };
+        if build == BuildKind::Sorted {
+            return self
+                .detection
+                .finish_build(what, (n, mode), (grid, output), record_sorted);
+        }
+        let record = |gpu: &Gpu, g: &Grid, encoder: &mut wgpu::CommandEncoder| {
+            let table = g.table.as_ref().expect("a dense build has a table");
+            gpu.write_uniform(&g.params, &g.layout);
+            gpu.queue
+                .write_buffer(&g.spheres_in, 0, bytemuck::cast_slice(&rows));
+            let scan = self.scan.bind(gpu, &g.params, table);
             let count = gpu.bind(
                 "mochi.grid.count_cells",
                 &self.count_cells,
@@ -155,7 +233,7 @@ impl GpuBackend for WgpuComputeBackend {
                     (grid_build::PARAMS, &g.params),
                     (grid_build::SPHERES_IN, &g.spheres_in),
                     (grid_build::SLOTS, &g.slots),
-                    (grid_build::COUNTS, &g.table.counts),
+                    (grid_build::COUNTS, &table.counts),
                 ],
             );
             let scatter = gpu.bind(
@@ -164,20 +242,11 @@ impl GpuBackend for WgpuComputeBackend {
                 &[
                     (grid_build::PARAMS, &g.params),
                     (grid_build::SLOTS, &g.slots),
-                    (grid_build::CELL_START, &g.table.cell_start),
+                    (grid_build::CELL_START, &table.cell_start),
                     (grid_build::IDS, &g.ids),
                 ],
             );
-            let gather = gpu.bind(
-                "mochi.grid.gather",
-                &self.gather,
-                &[
-                    (grid_build::PARAMS, &g.params),
-                    (grid_build::SPHERES_IN, &g.spheres_in),
-                    (grid_build::IDS, &g.ids),
-                    (grid_build::SPHERES, &g.spheres),
-                ],
-            );
+            let gathered = gather_bind(gpu, gather, g);
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("mochi.grid.build"),
                 timestamp_writes: None,
@@ -185,7 +254,7 @@ impl GpuBackend for WgpuComputeBackend {
             gpu::record(&mut pass, &self.count_cells, &count, (x, y));
             self.scan.record(&mut pass, &scan, &g.layout);
             gpu::record(&mut pass, &self.scatter, &scatter, (x, y));
-            gpu::record(&mut pass, &self.gather, &gather, (x, y));
+            gpu::record(&mut pass, gather, &gathered, (x, y));
         };
         self.detection
             .finish_build(what, (n, mode), (grid, output), record)
@@ -196,9 +265,17 @@ impl GpuBackend for WgpuComputeBackend {
     }
 
     fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
+        let sorted = self
+            .detection
+            .structure()
+            .is_some_and(|g| g.build == BuildKind::Sorted);
+        let pipeline = match sorted {
+            true => &self.find_pairs_sorted,
+            false => &self.find_pairs,
+        };
         let kernel = DetectKernel {
             label: FIND_PAIRS,
-            pipeline: &self.find_pairs,
+            pipeline,
             group: PAIRS_GROUP,
             what: "running the wgpu-compute grid search",
         };
@@ -210,16 +287,23 @@ impl GpuBackend for WgpuComputeBackend {
                     ..grid.layout
                 };
                 gpu.write_uniform(&grid.pair_params, &params);
+                let cells = match grid.build {
+                    BuildKind::Dense => {
+                        let table = grid.table.as_ref().expect("a dense build has a table");
+                        (grid_pairs::CELL_START, &table.cell_start)
+                    }
+                    BuildKind::Sorted => (CELL_KEYS, &grid.keys),
+                };
                 gpu.bind(
                     FIND_PAIRS,
-                    &self.find_pairs,
+                    pipeline,
                     &[
                         (grid_pairs::PARAMS, &grid.pair_params),
                         (grid_pairs::SPHERES, &grid.spheres),
                         (grid_pairs::IDS, &grid.ids),
                         (pair_output::COUNTERS, &output.counters),
                         (pair_output::PAIRS, &output.pairs),
-                        (grid_pairs::CELL_START, &grid.table.cell_start),
+                        cells,
                     ],
                 )
             })
@@ -230,6 +314,22 @@ impl GpuBackend for WgpuComputeBackend {
     }
 
     fn structure(&self) -> Option<String> {
-        Some(describe_layout(&self.detection.structure()?.layout))
+        let grid = self.detection.structure()?;
+        Some(describe_layout(&grid.layout, grid.build))
     }
+}
+
+/// The bind group of `grid_build`'s `gather` over `g`: the spheres fetched in the order of
+/// `g.ids`.
+fn gather_bind(gpu: &Gpu, gather: &wgpu::ComputePipeline, g: &Grid) -> wgpu::BindGroup {
+    gpu.bind(
+        "mochi.grid.gather",
+        gather,
+        &[
+            (grid_build::PARAMS, &g.params),
+            (grid_build::SPHERES_IN, &g.spheres_in),
+            (grid_build::IDS, &g.ids),
+            (grid_build::SPHERES, &g.spheres),
+        ],
+    )
 }

@@ -36,11 +36,13 @@ pub const DETECT_CELLS_PER_SPHERE: u64 = 4;
 /// resolves contacts, so fewer candidates pay for a larger table (docs/PERFORMANCE.md, issue 4).
 pub const DEM_CELLS_PER_SPHERE: u64 = 8;
 
-/// What a layout may spend on its dense tables: `spheres` × `cells_per_sphere` cells.
+/// What a layout may spend on its tables: for the dense build `spheres` × `cells_per_sphere`
+/// cells; the sorted build has no table, only keys (see [`cell_budget`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Budget {
     pub spheres: u64,
     pub cells_per_sphere: u64,
+    pub build: BuildKind,
 }
 
 /// The grids' uniform; WGSL twin: `GridParams` in `wgsl/grid_params.wgsl` (`tests/bindings.rs`
@@ -96,6 +98,101 @@ pub enum Structure {
 
 /// Smallest r_max / r_min for which `auto` builds the multi-level grid.
 pub const AUTO_MLGRID_RATIO: f64 = 4.0;
+
+/// How the backend sorts the spheres by cell and finds a cell's run of sorted spheres.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    clap::ValueEnum,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum GridBuild {
+    /// `sorted` where the dense table over the spheres' bounds, at the mode's cell size, would
+    /// have more than [`AUTO_SORTED_CELLS_PER_SPHERE`] cells per sphere (and more than
+    /// [`AUTO_SORTED_MIN_CELLS`]), else `dense`.
+    #[default]
+    Auto,
+    /// A counting sort into a table of every cell (or hashed bucket): cheapest where the spheres
+    /// fill their bounds, but its cost follows the table, so cells may grow to fit a budget.
+    Dense,
+    /// The spheres' cell keys radix-sorted, runs of cells found by binary search in the sorted
+    /// keys: no table, so the cost follows the spheres whatever the box, and cells keep the
+    /// mode's size.
+    Sorted,
+}
+
+/// A build [`GridBuild`] resolves to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BuildKind {
+    Dense,
+    Sorted,
+}
+
+impl BuildKind {
+    /// The build in words, for reports ("dense" or "sorted").
+    pub fn name(self) -> &'static str {
+        match self {
+            BuildKind::Dense => "dense",
+            BuildKind::Sorted => "sorted",
+        }
+    }
+}
+
+/// Cells per sphere of the dense table at the mode's cell size above which `auto` takes the
+/// sorted build. Not yet timed against the dense build: set above every scene of
+/// docs/PERFORMANCE.md, so `auto` keeps the dense build on each of them (1M spheres: `polylog`
+/// 0.10, `pour` 0.57, `slab` 2.2, 14 filled tori 3.6, the 14-bunny drop 6.8, `freefall` 576
+/// cells per sphere), to be lowered where `mochi bench --experiments clustered` shows the
+/// sorted build faster. Above the DEM budget ([`DEM_CELLS_PER_SPHERE`], 8) the dense table
+/// grows its cells (more candidates), the sorted build never does.
+pub const AUTO_SORTED_CELLS_PER_SPHERE: f64 = 1024.0;
+
+/// Cells of a dense table at or below which `auto` keeps it whatever the sphere count (the
+/// dense layout's budget never goes below this many cells: small tables cost little).
+pub const AUTO_SORTED_MIN_CELLS: f64 = (1 << 20) as f64;
+
+impl GridBuild {
+    /// The build for `n` centres within `bounds` and cells of `base_cell` (the mode's size).
+    pub fn resolve(self, n: u64, bounds: ([f32; 3], [f32; 3]), base_cell: f64) -> BuildKind {
+        match self {
+            GridBuild::Dense => BuildKind::Dense,
+            GridBuild::Sorted => BuildKind::Sorted,
+            GridBuild::Auto => {
+                let cells = dense_cells(bounds, base_cell);
+                if cells > AUTO_SORTED_MIN_CELLS && cells > AUTO_SORTED_CELLS_PER_SPHERE * n as f64
+                {
+                    BuildKind::Sorted
+                } else {
+                    BuildKind::Dense
+                }
+            }
+        }
+    }
+}
+
+/// Cells of a single dense table over `bounds` at the cell size `base_cell` (padded), margin
+/// included; as `f64`, since it may exceed any integer table.
+pub fn dense_cells((lo, hi): ([f32; 3], [f32; 3]), base_cell: f64) -> f64 {
+    let size = base_cell * (1.0 + CELL_PADDING);
+    (0..3)
+        .map(|a| ((hi[a] - lo[a]) as f64 / size).floor() + 3.0)
+        .product()
+}
+
+/// Most cells (all levels together) of a layout for the sorted build: keys and the ends of
+/// runs (a key + a row's width) stay below 2^32.
+const SORTED_MAX_CELLS: u64 = 1 << 31;
+
+/// Bits of the largest key of a layout of `cells` cells (what the radix sort sorts by).
+pub(crate) fn key_bits(cells: u32) -> u32 {
+    32 - cells.saturating_sub(1).leading_zeros()
+}
 
 /// Levels a grid may have.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -170,9 +267,13 @@ pub(crate) fn crowding(centers: &[[f32; 3]], lo: [f32; 3], size: f64) -> f64 {
     centers.len() as f64 * same_cell_pairs / (m * m)
 }
 
-/// Cells a dense table (all its levels together) may have: the budget's, at least 2^20, within
-/// the adapter's binding size.
+/// Cells a layout (all its levels together) may have: for the dense build the budget's, at
+/// least 2^20, within the adapter's binding size; for the sorted build, as many as its keys
+/// hold ([`SORTED_MAX_CELLS`]).
 fn cell_budget(limits: &wgpu::Limits, budget: Budget) -> u64 {
+    if budget.build == BuildKind::Sorted {
+        return SORTED_MAX_CELLS;
+    }
     let table_limit = limits.max_storage_buffer_binding_size / 4 - 1;
     (budget.spheres * budget.cells_per_sphere)
         .max(1 << 20)
@@ -234,8 +335,12 @@ fn multi_level_layout(
     radius_ratio: f64,
 ) -> Option<GridParams> {
     let n = budget.spheres;
-    // Finer levels only within the cells per sphere (no floor: a small set gets a small table).
-    let budget = cell_budget(limits, budget).min(n * budget.cells_per_sphere);
+    // Dense: finer levels only within the cells per sphere (no floor: a small set gets a small
+    // table). Sorted: as many as the keys hold.
+    let budget = match budget.build {
+        BuildKind::Dense => cell_budget(limits, budget).min(n * budget.cells_per_sphere),
+        BuildKind::Sorted => cell_budget(limits, budget),
+    };
     let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as f64);
     let size = base * (1.0 + CELL_PADDING);
     let top = axis_cells(extent, size);
@@ -348,12 +453,12 @@ pub(crate) fn grid_layout(
     params(size, counts(size), buckets, 1)
 }
 
-/// A grid layout in words: table, levels, cells per axis and cell side.
-pub(crate) fn describe_layout(p: &GridParams) -> String {
-    let table = if p.hashed != 0 {
-        format!("hashed into {} buckets", p.cells)
-    } else {
-        format!("dense, {} cells", p.cells)
+/// A grid layout in words: build, table, levels, cells per axis and cell side.
+pub(crate) fn describe_layout(p: &GridParams, build: BuildKind) -> String {
+    let table = match (p.hashed != 0, build) {
+        (true, _) => format!("{} build, hashed into {} buckets", build.name(), p.cells),
+        (false, BuildKind::Dense) => format!("dense build, {} cells", p.cells),
+        (false, BuildKind::Sorted) => format!("sorted build, keys of {} cells", p.cells),
     };
     let levels = match p.levels {
         1 => "1 level".to_string(),
@@ -373,6 +478,7 @@ mod tests {
         Budget {
             spheres,
             cells_per_sphere: DETECT_CELLS_PER_SPHERE,
+            build: BuildKind::Dense,
         }
     }
 
@@ -392,6 +498,56 @@ mod tests {
         let p = grid_layout(&limits, [0.0; 3], [20.0; 3], budget(1000), 0.1, &|_| true);
         assert_eq!(p.hashed, 0);
         assert!(p.top_cell as f64 > 0.1);
+    }
+
+    #[test]
+    fn auto_takes_the_sorted_build_where_the_dense_table_outgrows_the_spheres() {
+        // 10^6 spheres in a box of 100 cells per side at the mode's size (10^6 cells, one per
+        // sphere): dense. The same box at 2000 cells per side (8·10^9 cells): sorted.
+        let bounds = ([0.0; 3], [1.0; 3]);
+        assert_eq!(
+            GridBuild::Auto.resolve(1_000_000, bounds, 0.01),
+            BuildKind::Dense
+        );
+        assert_eq!(
+            GridBuild::Auto.resolve(1_000_000, bounds, 0.0005),
+            BuildKind::Sorted
+        );
+        // A small table stays dense however few spheres it holds.
+        assert_eq!(GridBuild::Auto.resolve(2, bounds, 0.1), BuildKind::Dense);
+        // Forced builds are taken as they are.
+        assert_eq!(GridBuild::Dense.resolve(2, bounds, 0.001), BuildKind::Dense);
+        assert_eq!(GridBuild::Sorted.resolve(2, bounds, 1.0), BuildKind::Sorted);
+    }
+
+    #[test]
+    fn the_sorted_build_keeps_the_modes_cells_where_the_dense_one_grows_them() {
+        // 10^4 spheres over 300 cells per side: the dense table grows its cells to fit the
+        // budget, the sorted build keeps the mode's and sorts by keys of 27M cells.
+        let limits = wgpu::Limits::default();
+        let request = |build| LayoutRequest {
+            levels: Levels::One,
+            bounds: ([0.0; 3], [3.0; 3]),
+            budget: Budget {
+                build,
+                ..budget(10_000)
+            },
+            base_cell: 0.01,
+            radii: (0.005, 0.005),
+            dense_check: &|_| true,
+        };
+        let dense = choose_layout(&limits, &request(BuildKind::Dense));
+        let sorted = choose_layout(&limits, &request(BuildKind::Sorted));
+        assert_eq!((dense.hashed, sorted.hashed), (0, 0));
+        assert!(dense.top_cell > 0.012, "{}", dense.top_cell);
+        assert!((sorted.top_cell as f64 - 0.01 * (1.0 + CELL_PADDING)).abs() < 1e-7);
+        assert!(sorted.cells > 27_000_000);
+        assert_eq!(key_bits(sorted.cells), 25);
+        assert_eq!(
+            (key_bits(1), key_bits(2), key_bits(3), key_bits(4)),
+            (0, 1, 2, 2)
+        );
+        assert_eq!(key_bits(u32::MAX), 32);
     }
 
     #[test]

@@ -1,12 +1,20 @@
 //! The `wgpu-compute` backend: a sorted proxy grid built and searched in WGSL compute shaders,
 //! for adapters without ray queries or RT cores (where it beats software BVH traversal).
 //!
-//! Build, in one submission and one compute pass, a counting sort by cell
+//! Two builds sort the spheres by cell ([`GridBuild`]; `auto` picks by the size of the dense
+//! table against the sphere count). The dense build, in one submission and one compute pass, is a
+//! counting sort by cell
 //! (`wgsl/grid_build.wgsl`): every sphere's cell key and rank within its cell (one atomic add),
 //! the cell counts scanned into a table of where each cell's run starts (`cell_table.rs`: two
 //! dispatches, which leave the counts zeroed for the next build), each sphere's index scattered
 //! to its sorted place, and the spheres gathered in that order. No comparison or radix sort is
-//! needed: the table is the sort.
+//! needed: the table is the sort. Its cost follows the table, so a few spheres in a large
+//! box pay for the box. The sorted build (`wgsl/grid_sort.wgsl`) radix-sorts the spheres' cell
+//! keys instead (`src/gpu/radix_sort.rs`), and the search finds a cell's run by binary search
+//! in the sorted keys (`wgsl/grid_cells_sorted.wgsl`; a hash table of the occupied cells would
+//! need a lookup per cell of a window row, its own buffer and a clear each build, where the
+//! search needs one binary search per row and nothing else): no table, so its cost follows the
+//! spheres, and its cells keep the mode's size however large the box.
 //!
 //! The single grid has cells of 2·r_max in `mochi` mode and 4·r_max in `nns` mode (the proxy of
 //! the largest sphere, or the fixed-radius box), padded a little. Its table is dense over the
@@ -29,5 +37,8 @@ mod shaders;
 
 pub use dem::GridStepper;
 pub use detect::WgpuComputeBackend;
-pub use layout::{AUTO_MLGRID_RATIO, DEM_CELLS_PER_SPHERE, DETECT_CELLS_PER_SPHERE, Structure};
+pub use layout::{
+    AUTO_MLGRID_RATIO, AUTO_SORTED_CELLS_PER_SPHERE, AUTO_SORTED_MIN_CELLS, BuildKind,
+    DEM_CELLS_PER_SPHERE, DETECT_CELLS_PER_SPHERE, GridBuild, Structure, dense_cells,
+};
 pub use shaders::modules as shaders;

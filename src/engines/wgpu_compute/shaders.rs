@@ -2,7 +2,7 @@
 //! bindings, named once for the bind-group code and checked against the WGSL by
 //! `tests/bindings.rs`.
 
-use super::layout::GridParams;
+use super::layout::{BuildKind, GridParams};
 use crate::engines::gpu_step::{self, granular, physics};
 use crate::gpu::pair_output;
 use crate::gpu::shader::{Binding, SharedStruct, WgslModule, shared_struct, wgsl};
@@ -49,13 +49,42 @@ pub(crate) mod grid_build {
     pub const BINDINGS: &[Binding] = &[PARAMS, SPHERES_IN, SLOTS, COUNTS, CELL_START, IDS, SPHERES];
 }
 
-/// Detection over a built grid (`wgsl/grid_pairs.wgsl`).
-pub(crate) mod grid_pairs {
-    use super::{Binding, pair_output, wgsl};
+/// The sorted-key build's keys (`wgsl/grid_sort.wgsl`); the radix sort and `grid_build`'s
+/// `gather` do the rest.
+pub(crate) mod grid_sort {
+    use super::{Binding, wgsl};
 
-    pub const SOURCE: &str = wgsl!(
+    pub const SOURCE: &str = wgsl!("grid_params.wgsl", "grid_sort.wgsl");
+    pub const ENTRY_POINTS: &[&str] = &["key_spheres"];
+
+    pub const PARAMS: Binding = Binding::uniform(0, "params");
+    pub const SPHERES_IN: Binding = Binding::read(1, "spheres_in");
+    pub const KEYS: Binding = Binding::read_write(2, "keys");
+    pub const IDS: Binding = Binding::read_write(7, "ids");
+    pub const BINDINGS: &[Binding] = &[PARAMS, SPHERES_IN, KEYS, IDS];
+}
+
+/// The sorted keys the search of the sorted-key build reads (`wgsl/grid_cells_sorted.wgsl`).
+pub(crate) const CELL_KEYS: Binding = Binding::read(41, "cell_keys");
+
+/// Detection over a built grid (`wgsl/grid_pairs.wgsl`), in two variants: runs of cells read
+/// from the dense build's table, or searched in the sorted-key build's keys.
+pub(crate) mod grid_pairs {
+    use super::{Binding, CELL_KEYS, pair_output, wgsl};
+
+    pub const DENSE_SOURCE: &str = wgsl!(
         "grid_params.wgsl",
         "grid_stencil.wgsl",
+        "grid_cells_dense.wgsl",
+        "grid_pairs.wgsl",
+        "grid_walk.wgsl",
+        "proxy.wgsl",
+        "pair_output.wgsl"
+    );
+    pub const SORTED_SOURCE: &str = wgsl!(
+        "grid_params.wgsl",
+        "grid_stencil.wgsl",
+        "grid_cells_sorted.wgsl",
         "grid_pairs.wgsl",
         "grid_walk.wgsl",
         "proxy.wgsl",
@@ -67,11 +96,21 @@ pub(crate) mod grid_pairs {
     pub const SPHERES: Binding = Binding::read(1, "spheres");
     pub const IDS: Binding = Binding::read(2, "ids");
     pub const CELL_START: Binding = Binding::read(6, "cell_start");
-    pub const BINDINGS: &[Binding] = &[
+    pub const DENSE_BINDINGS: &[Binding] = &[
         PARAMS,
         SPHERES,
         IDS,
         CELL_START,
+        pair_output::COUNTERS,
+        pair_output::PAIRS,
+    ];
+    /// `cell_start` is declared (by `grid_pairs.wgsl`) but not read.
+    pub const SORTED_BINDINGS: &[Binding] = &[
+        PARAMS,
+        SPHERES,
+        IDS,
+        CELL_START,
+        CELL_KEYS,
         pair_output::COUNTERS,
         pair_output::PAIRS,
     ];
@@ -108,38 +147,65 @@ pub(crate) mod cell_scan {
 /// (`wgsl/dem_grid_frictionless.wgsl`) and the granular step (`wgsl/dem_grid_granular.wgsl`,
 /// [`granular`]).
 pub(crate) mod dem_grid {
-    use super::{Binding, granular, physics, wgsl};
+    use super::{Binding, CELL_KEYS, granular, physics, wgsl};
     use crate::engines::gpu_step::{Accumulators, Variant};
+    use crate::engines::wgpu_compute::layout::BuildKind;
 
-    const GRID: &str = wgsl!("grid_params.wgsl", "grid_stencil.wgsl", "dem_grid.wgsl");
+    /// The grid and the binning of the dense build (a counting sort into the cell table).
+    const DENSE_GRID: &str = wgsl!(
+        "grid_params.wgsl",
+        "grid_stencil.wgsl",
+        "grid_cells_dense.wgsl",
+        "dem_grid.wgsl"
+    );
+    /// The grid and the binning of the sorted-key build (`wgsl/dem_grid_sorted.wgsl`).
+    const SORTED_GRID: &str = wgsl!(
+        "grid_params.wgsl",
+        "grid_stencil.wgsl",
+        "grid_cells_sorted.wgsl",
+        "dem_grid.wgsl",
+        "dem_grid_sorted.wgsl"
+    );
     const FRICTIONLESS: &str = wgsl!("dem_grid_frictionless.wgsl", "grid_walk.wgsl");
     const GRANULAR: &str = wgsl!("dem_grid_granular.wgsl", "grid_walk.wgsl");
 
-    /// The paper's step with the accumulators `atomics` (one of [`physics::FORCE_VARIANTS`]).
-    pub fn source(atomics: Accumulators) -> String {
-        format!("{GRID}{FRICTIONLESS}{}", physics::frictionless(atomics))
-    }
-
-    /// The paper's step with a stiffness per pair, with the accumulators `atomics`.
-    pub fn per_pair_source(atomics: Accumulators) -> String {
-        format!("{GRID}{FRICTIONLESS}{}", physics::per_pair(atomics))
-    }
-
-    /// The granular step with the accumulators `atomics`.
-    pub fn granular_source(atomics: Accumulators) -> String {
-        format!("{GRID}{GRANULAR}{}", physics::granular(atomics))
-    }
-
-    /// The source of `variant` with the accumulators `atomics`.
-    pub fn variant_source(variant: Variant, atomics: Accumulators) -> String {
-        match variant {
-            Variant::Paper => source(atomics),
-            Variant::PerPair => per_pair_source(atomics),
-            Variant::Granular => granular_source(atomics),
+    fn grid(build: BuildKind) -> &'static str {
+        match build {
+            BuildKind::Dense => DENSE_GRID,
+            BuildKind::Sorted => SORTED_GRID,
         }
     }
 
-    /// The entry points of every variant.
+    /// The paper's step binned by `build` with the accumulators `atomics` (one of
+    /// [`physics::FORCE_VARIANTS`]).
+    pub fn source(build: BuildKind, atomics: Accumulators) -> String {
+        let grid = grid(build);
+        format!("{grid}{FRICTIONLESS}{}", physics::frictionless(atomics))
+    }
+
+    /// The paper's step with a stiffness per pair, binned by `build`, with the accumulators
+    /// `atomics`.
+    pub fn per_pair_source(build: BuildKind, atomics: Accumulators) -> String {
+        let grid = grid(build);
+        format!("{grid}{FRICTIONLESS}{}", physics::per_pair(atomics))
+    }
+
+    /// The granular step binned by `build` with the accumulators `atomics`.
+    pub fn granular_source(build: BuildKind, atomics: Accumulators) -> String {
+        let grid = grid(build);
+        format!("{grid}{GRANULAR}{}", physics::granular(atomics))
+    }
+
+    /// The source of `variant` binned by `build` with the accumulators `atomics`.
+    pub fn variant_source(build: BuildKind, variant: Variant, atomics: Accumulators) -> String {
+        match variant {
+            Variant::Paper => source(build, atomics),
+            Variant::PerPair => per_pair_source(build, atomics),
+            Variant::Granular => granular_source(build, atomics),
+        }
+    }
+
+    /// The entry points of the dense build's variants.
     pub const ENTRY_POINTS: &[&str] = &[
         "bin_count",
         "bin_scatter",
@@ -147,6 +213,23 @@ pub(crate) mod dem_grid {
         "reduce_bounds",
         "integrate",
     ];
+
+    /// The entry points of the sorted-key build's variants (the dense binning is in the module
+    /// but unused).
+    pub const SORTED_ENTRY_POINTS: &[&str] = &[
+        "bin_count",
+        "bin_scatter",
+        "bin_keys",
+        "bin_gather",
+        "resolve",
+        "reduce_bounds",
+        "integrate",
+    ];
+
+    /// What the sorted-key binning binds besides [`bindings`].
+    pub const SORT_KEYS: Binding = Binding::read_write(40, "sort_keys");
+    pub const SORT_ORDER: Binding = Binding::read_write(42, "sort_order");
+    pub const SORTED: [Binding; 3] = [SORT_KEYS, CELL_KEYS, SORT_ORDER];
 
     pub const PARAMS: Binding = Binding::uniform(0, "params");
     pub const POS_A: Binding = Binding::read(2, "pos_a");
@@ -190,6 +273,11 @@ pub(crate) mod dem_grid {
     }
 }
 
+/// Both builds, each with the suffix of its modules' labels.
+fn build_variants() -> [(BuildKind, &'static str); 2] {
+    [(BuildKind::Dense, ""), (BuildKind::Sorted, "_sorted")]
+}
+
 /// Every WGSL module of this engine (detection and DEM step), exactly as the device may get it.
 pub fn modules() -> Vec<WgslModule> {
     let module = |label: String, source: String, entry_points, bindings: &[Binding]| {
@@ -203,10 +291,22 @@ pub fn modules() -> Vec<WgslModule> {
             grid_build::BINDINGS,
         ),
         module(
+            "grid_sort".into(),
+            grid_sort::SOURCE.into(),
+            grid_sort::ENTRY_POINTS,
+            grid_sort::BINDINGS,
+        ),
+        module(
             "grid_pairs".into(),
-            grid_pairs::SOURCE.into(),
+            grid_pairs::DENSE_SOURCE.into(),
             grid_pairs::ENTRY_POINTS,
-            grid_pairs::BINDINGS,
+            grid_pairs::DENSE_BINDINGS,
+        ),
+        module(
+            "grid_pairs_sorted".into(),
+            grid_pairs::SORTED_SOURCE.into(),
+            grid_pairs::ENTRY_POINTS,
+            grid_pairs::SORTED_BINDINGS,
         ),
         module(
             "cell_scan_plain".into(),
@@ -221,33 +321,42 @@ pub fn modules() -> Vec<WgslModule> {
             cell_scan::BINDINGS,
         ),
     ];
-    for (name, atomics) in physics::FORCE_VARIANTS {
-        let mut dem = module(
-            format!("dem_grid_{name}"),
-            dem_grid::source(atomics),
-            dem_grid::ENTRY_POINTS,
-            &dem_grid::bindings(),
-        );
-        dem.structs.push(gpu_step::dem_params());
-        all.push(dem);
-        let mut dem = module(
-            format!("dem_grid_per_pair_{name}"),
-            dem_grid::per_pair_source(atomics),
-            dem_grid::ENTRY_POINTS,
-            &dem_grid::per_pair_bindings(),
-        );
-        dem.structs
-            .extend([gpu_step::dem_params(), gpu_step::per_pair_params()]);
-        all.push(dem);
-        let mut dem = module(
-            format!("dem_grid_granular_{name}"),
-            dem_grid::granular_source(atomics),
-            dem_grid::ENTRY_POINTS,
-            &dem_grid::granular_bindings(),
-        );
-        dem.structs
-            .extend([gpu_step::dem_params(), granular::granular_params()]);
-        all.push(dem);
+    for (build, suffix) in build_variants() {
+        let (entry_points, extra): (_, &[Binding]) = match build {
+            BuildKind::Dense => (dem_grid::ENTRY_POINTS, &[]),
+            BuildKind::Sorted => (dem_grid::SORTED_ENTRY_POINTS, &dem_grid::SORTED),
+        };
+        for (name, atomics) in physics::FORCE_VARIANTS {
+            let bindings = [&dem_grid::bindings()[..], extra].concat();
+            let mut dem = module(
+                format!("dem_grid_{name}{suffix}"),
+                dem_grid::source(build, atomics),
+                entry_points,
+                &bindings,
+            );
+            dem.structs.push(gpu_step::dem_params());
+            all.push(dem);
+            let bindings = [&dem_grid::per_pair_bindings()[..], extra].concat();
+            let mut dem = module(
+                format!("dem_grid_per_pair_{name}{suffix}"),
+                dem_grid::per_pair_source(build, atomics),
+                entry_points,
+                &bindings,
+            );
+            dem.structs
+                .extend([gpu_step::dem_params(), gpu_step::per_pair_params()]);
+            all.push(dem);
+            let bindings = [&dem_grid::granular_bindings()[..], extra].concat();
+            let mut dem = module(
+                format!("dem_grid_granular_{name}{suffix}"),
+                dem_grid::granular_source(build, atomics),
+                entry_points,
+                &bindings,
+            );
+            dem.structs
+                .extend([gpu_step::dem_params(), granular::granular_params()]);
+            all.push(dem);
+        }
     }
     all
 }
