@@ -8,7 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use mochi::dem::scene::{SceneConfig, SceneFlags, SceneKind};
 use mochi::dem::{Clock, StageTimes, Stepper};
 use mochi::engines::Options;
-use mochi::engines::open_choice;
+use mochi::engines::open_with_walls;
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::render::ColorBy;
 use std::path::{Path, PathBuf};
@@ -84,8 +84,14 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let (r_min, r_max) = start.particles.radius_range();
     let coincident = start.particles.coincident_pairs()?;
     let coarse = mochi::coarse_coordinates(&start.particles.positions, &start.particles.radii);
-    let (mut stepper, reason) =
-        open_choice(args.backend, start.particles, p, start.mode, &options)?;
+    let (mut stepper, reason) = open_with_walls(
+        args.backend,
+        start.particles,
+        p,
+        start.mode,
+        &options,
+        start.walls,
+    )?;
     if let Some(reason) = reason {
         eprintln!("{reason}");
     }

@@ -36,10 +36,14 @@
 //! mesh_mixed = false     # half of the spheres at mesh_radius / 2
 //! mesh_size = 0.818      # the mesh fitted into a cube of this side
 //! mesh_copies = 1        # copies side by side, in layers if needed
+//! box_walls = true       # false: the six walls of the box off
+//! [[wall]]               # mesh walls, any number (see `dem::walls::spec`)
+//! mesh = "hopper.stl"
 //! ```
 
 use super::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
 use super::model::{ContactLaw, Material, RollingModel, StepParams};
+use super::walls::{WallConfig, WallSet};
 use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
@@ -366,6 +370,16 @@ pub struct SceneConfig {
     pub mesh_size: f64,
     /// Scene `mesh`: copies dropped side by side (in layers when they do not fit one).
     pub mesh_copies: u32,
+    /// Whether the six walls of the box hold the spheres in (default true).
+    #[serde(skip_serializing_if = "is_true")]
+    pub box_walls: bool,
+    /// Mesh walls, the `[[wall]]` tables (`dem::walls::spec`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub wall: Vec<WallConfig>,
+}
+
+fn is_true(x: &bool) -> bool {
+    *x
 }
 
 impl Default for SceneConfig {
@@ -400,6 +414,8 @@ impl Default for SceneConfig {
             mesh_mixed: false,
             mesh_size: 0.818,
             mesh_copies: 1,
+            box_walls: true,
+            wall: Vec::new(),
         }
     }
 }
@@ -417,6 +433,8 @@ pub struct Start {
     pub params: StepParams,
     /// Proxy mode of the grid.
     pub mode: ProxyMode,
+    /// The walls: the box's (or none) and the mesh walls.
+    pub walls: WallSet,
 }
 
 /// Parses a `key=value` override into `table` (`value` in TOML syntax; a bare word is taken as
@@ -536,7 +554,9 @@ impl SceneConfig {
     /// Takes relative input and mesh paths from the folder of `origin`.
     fn rebase(&mut self, origin: Option<&Path>) {
         if let Some(dir) = origin.and_then(Path::parent) {
-            for path in [&mut self.input, &mut self.mesh].into_iter().flatten() {
+            let walls = self.wall.iter_mut().map(|w| &mut w.mesh);
+            let files = [&mut self.input, &mut self.mesh].into_iter().flatten();
+            for path in files.chain(walls) {
                 if path.is_relative() {
                     *path = dir.join(&*path);
                 }
@@ -662,8 +682,12 @@ impl SceneConfig {
     }
 
     /// `start`, if every centre lies in its box widened by `slack` times its extent on every
-    /// side (0 at t = 0).
+    /// side (0 at t = 0; a resumed scene without box walls is not checked).
     fn inside_the_box(start: Start, slack: f32) -> Result<Start> {
+        if slack > 0.0 && !start.walls.box_walls {
+            // Without the box walls spheres leave the box: it only bounds the grid.
+            return Ok(start);
+        }
         let (lo, hi) = (start.params.box_lo, start.params.box_hi);
         let grown: [(f32, f32); 3] = std::array::from_fn(|a| {
             let margin = slack * (hi[a] - lo[a]);
@@ -841,7 +865,20 @@ impl SceneConfig {
             particles,
             params,
             mode: self.mode,
+            walls: self.walls(&material)?,
         })
+    }
+
+    /// The walls of the scene: the box (or not) and each `[[wall]]` read and posed.
+    fn walls(&self, material: &Material) -> Result<WallSet> {
+        let friction = material.wall_friction.unwrap_or(material.friction);
+        let meshes = self
+            .wall
+            .iter()
+            .enumerate()
+            .map(|(k, w)| w.build(k, friction))
+            .collect::<Result<Vec<_>>>()?;
+        WallSet::new(self.box_walls, meshes)
     }
 
     /// The material the scene describes, its defaults filled in; refuses keys that do not

@@ -3,7 +3,8 @@
 use super::registry::{BackendChoice, BackendKind, Options};
 use crate::dem::model::StepParams;
 use crate::dem::stepper::Stepper;
-use crate::error::Result;
+use crate::dem::walls::WallSet;
+use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
@@ -56,4 +57,43 @@ pub fn open_choice(
         open_stepper(kind, particles.clone(), params, mode, options)
     })?;
     Ok((stepper, Some(reason)))
+}
+
+/// Opens the DEM step the user chose for a scene with `walls`. The box walls alone run on every
+/// backend ([`open_choice`]); mesh walls, and a box switched off, run on the cpu backend only
+/// until the GPU engines gain them: a GPU backend named is refused, saying so, and `auto`
+/// opens cpu and says why.
+pub fn open_with_walls(
+    choice: BackendChoice,
+    particles: Particles,
+    params: StepParams,
+    mode: ProxyMode,
+    options: &Options,
+    walls: WallSet,
+) -> Result<(Box<dyn Stepper>, Option<String>)> {
+    if walls.is_box_only() {
+        return open_choice(choice, particles, params, mode, options);
+    }
+    match choice.kind() {
+        Some(BackendKind::Cpu) | None => {
+            particles.validate()?;
+            let stepper =
+                super::cpu::CpuStepper::new(particles, params, mode)?.with_walls(walls)?;
+            let reason = choice.kind().is_none().then(|| {
+                "auto: cpu, the one backend that runs mesh walls and scenes without the box \
+                 walls so far"
+                    .to_owned()
+            });
+            Ok((Box::new(stepper), reason))
+        }
+        Some(kind) => Err(Error::BackendUnavailable {
+            backend: kind.name(),
+            reason: format!(
+                "this scene has {}, which the {} step does not run yet; the cpu backend runs \
+                 it (--backend cpu)",
+                walls.describe(),
+                kind.name()
+            ),
+        }),
+    }
 }

@@ -15,11 +15,19 @@ use crate::error::{Error, Result, try_vec};
 /// (side 0 the low wall). Sphere ids stay below it.
 pub const FIRST_WALL: u32 = u32::MAX - 5;
 
+/// How many mesh walls a run may have: their partner ids lie just below the box's.
+pub const MESH_WALLS: u32 = 1 << 16;
+
+/// Partner ids from here to [`FIRST_WALL`] name mesh walls (`FIRST_MESH_WALL + w`, the
+/// scene's wall `w`). A run with mesh walls keeps its sphere ids below it.
+pub const FIRST_MESH_WALL: u32 = FIRST_WALL - MESH_WALLS;
+
 /// One contact as one of its spheres keeps it.
 #[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct HistoryEntry {
-    /// The other sphere's index in input order, or a wall (from [`FIRST_WALL`] on).
+    /// The other sphere's index in input order, or a wall (a mesh wall from
+    /// [`FIRST_MESH_WALL`] on, a box wall from [`FIRST_WALL`] on).
     pub partner: u32,
     /// Tangential spring ξ \[m\].
     pub tangential: [f32; 3],
@@ -161,7 +169,8 @@ fn check_entry(n: usize, owner: usize, e: &HistoryEntry) -> Result<()> {
         return bad(format!("contact history for sphere {owner} of {n}"));
     }
     let partner = e.partner as usize;
-    if e.partner < FIRST_WALL && (partner >= n || partner == owner) {
+    let wall = e.partner >= FIRST_WALL || (e.partner >= FIRST_MESH_WALL && partner >= n);
+    if !wall && (partner >= n || partner == owner) {
         return bad(format!("contact history names partner {partner} of {n}"));
     }
     if e.tangential

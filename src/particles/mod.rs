@@ -5,7 +5,7 @@ pub mod history;
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
 use glam::Vec3;
-pub use history::{ContactHistory, FIRST_WALL, HistoryEntry};
+pub use history::{ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, MESH_WALLS};
 
 /// Spheres with velocities, in the order the user gave them, their contact history and the
 /// simulation clock.
