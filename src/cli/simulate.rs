@@ -3,6 +3,7 @@
 use super::args::SimulateArgs;
 use super::output;
 use super::render::{FrameData, FrameRenderer, png_name};
+use super::walls::WallOutputs;
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::dem::scene::{SceneConfig, SceneFlags, SceneKind};
@@ -84,6 +85,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let (r_min, r_max) = start.particles.radius_range();
     let coincident = start.particles.coincident_pairs()?;
     let coarse = mochi::coarse_coordinates(&start.particles.positions, &start.particles.radii);
+    let walls = start.walls.clone();
     let (mut stepper, reason) = open_with_walls(
         args.backend,
         start.particles,
@@ -134,6 +136,11 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     } else {
         Some(FrameSeries::create(&out)?)
     };
+    let resume_time = args.resume.as_ref().map(|_| first as f64 * p.dt as f64);
+    let wall_outputs = match frames {
+        Some(_) => WallOutputs::start(&out, &walls, resume_time)?,
+        None => None,
+    };
     eprintln!(
         "scene {} | {n} spheres | steps {first}..{total} | {} | restitution {} | backend {}",
         config.scene,
@@ -171,6 +178,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         if let Some(series) = frames {
             let now = stepper.particles()?;
             series.write(&Frame::of(&now, p.dt, p.friction.has_history()), config.csv)?;
+            if let Some(walls) = &wall_outputs {
+                walls.write(series.entries(), now.step, p.dt, &stepper.wall_loads())?;
+            }
         }
         Ok(())
     };

@@ -1221,4 +1221,46 @@ mod tests {
         let s = c.build().unwrap();
         assert!((s.params.gravity_spin as f64 - 0.25 * std::f64::consts::PI).abs() < 1e-6);
     }
+
+    #[test]
+    fn wall_tables_read_their_meshes_and_name_the_file_of_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let obj = dir.path().join("floor.obj");
+        std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let scene = dir.path().join("scene.toml");
+        let text = "scene = \"freefall\"\nspheres = 8\nbox_walls = false\n\n[[wall]]\n\
+                    mesh = \"floor.obj\"\nscale = 2.0\nrotate = { axis = [1, 0, 0], degrees = 10 }\n\
+                    omega = 1.5\naxis = [0, 1, 0]\n";
+        let c = SceneConfig::parse(Some(text), Some(&scene), &[]).unwrap();
+        assert_eq!(c.wall[0].mesh, obj);
+        let start = c.build().unwrap();
+        assert!(!start.walls.box_walls);
+        assert_eq!(start.walls.meshes.len(), 1);
+        assert_eq!(start.walls.meshes[0].motion.omega, 1.5);
+        // Saved and read back (a checkpoint's scene) the same.
+        let back: SceneConfig = toml::from_str(&c.resolved(&start).to_toml()).unwrap();
+        assert_eq!(back.wall, c.wall);
+        assert!(!back.box_walls);
+        // A file that is not there, a key no wall has, a bad scale: one error each, naming it.
+        let missing = text.replace("floor.obj", "nowhere.obj");
+        let e = SceneConfig::parse(Some(&missing), Some(&scene), &[])
+            .unwrap()
+            .build()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("nowhere.obj"), "{e}");
+        let e = SceneConfig::parse(Some(&format!("{text}colour = 1\n")), Some(&scene), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("colour"), "{e}");
+        let e = SceneConfig::parse(Some(&text.replace("2.0", "-1.0")), Some(&scene), &[])
+            .unwrap()
+            .build()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("wall 0") && e.contains("floor.obj") && e.contains("scale"),
+            "{e}"
+        );
+    }
 }

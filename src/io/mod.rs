@@ -1,7 +1,7 @@
 //! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4, optionally with velocities and
 //! angular velocities), pairs (CSV `i,j`), simulation
 //! frames for ParaView (`.vtu` files indexed by a `.pvd` collection, see [`FrameSeries`]) and
-//! checkpoints.
+//! checkpoints; mesh walls' surfaces and loads (`walls.pvd`, `walls.csv`).
 //!
 //! Every reader names the file, the line (CSV) or row (`.npy`) and the problem in its error.
 //! Every writer goes through [`write_atomically`] (or [`AtomicFile`]): a failed write leaves no
@@ -14,6 +14,7 @@ mod frames;
 mod pairs;
 mod run_folder;
 mod spheres;
+mod walls;
 
 pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};
 pub use checkpoint::{read_checkpoint, write_checkpoint};
@@ -27,6 +28,10 @@ pub use run_folder::{
     run_files_in, same_file,
 };
 pub use spheres::{read_particles, read_spheres, write_spheres};
+pub use walls::{
+    WALL_LOADS, WALLS_INDEX, WallLoadRow, append_wall_loads, start_wall_loads, wall_file_name,
+    write_surface_vtp, write_walls_index,
+};
 
 use crate::error::Error;
 use std::path::Path;

@@ -1,0 +1,77 @@
+//! `mochi simulate`'s mesh-wall outputs: with every frame, each wall's surface where it is then
+//! (`wall_{step}_{k}.vtp`, listed in `walls.pvd` beside `series.pvd`) and the force and torque
+//! the spheres exerted on it in the last step (`walls.csv`).
+
+use anyhow::Result;
+use mochi::dem::walls::{WallLoad, WallSet};
+use mochi::io::{self, SeriesEntry, WallLoadRow};
+use std::path::{Path, PathBuf};
+
+/// Where the walls' outputs go and what they show.
+pub struct WallOutputs {
+    walls: WallSet,
+    dir: PathBuf,
+}
+
+impl WallOutputs {
+    /// Outputs for the mesh walls of `walls` in the run folder `out` (`None` without any),
+    /// starting `walls.csv` anew or, on a resume from time `resume_time`, keeping its rows up
+    /// to that time.
+    pub fn start(out: &Path, walls: &WallSet, resume_time: Option<f64>) -> Result<Option<Self>> {
+        if walls.meshes.is_empty() {
+            return Ok(None);
+        }
+        io::start_wall_loads(&out.join(io::WALL_LOADS), resume_time)?;
+        Ok(Some(Self {
+            walls: walls.clone(),
+            dir: out.to_owned(),
+        }))
+    }
+
+    /// Writes the walls at `step` (time `step · dt`), the index of the frames `frames`, and the
+    /// rows of `loads`.
+    pub fn write(
+        &self,
+        frames: &[SeriesEntry],
+        step: u64,
+        dt: f32,
+        loads: &[WallLoad],
+    ) -> Result<()> {
+        let time = step as f64 * dt as f64;
+        for (k, (wall, pose)) in self
+            .walls
+            .meshes
+            .iter()
+            .zip(self.walls.poses_at(time))
+            .enumerate()
+        {
+            let tris = wall.triangles.triangles();
+            let points: Vec<[f32; 3]> = tris
+                .iter()
+                .flat_map(|t| t.corners.map(|c| pose.to_world(c).to_array()))
+                .collect();
+            let triangles: Vec<[u32; 3]> = (0..tris.len() as u32)
+                .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+                .collect();
+            let file = self.dir.join(io::wall_file_name(step, k));
+            io::write_surface_vtp(&file, &points, &triangles)?;
+        }
+        io::write_walls_index(
+            &self.dir.join(io::WALLS_INDEX),
+            frames,
+            self.walls.meshes.len(),
+        )?;
+        let rows: Vec<WallLoadRow> = loads
+            .iter()
+            .enumerate()
+            .map(|(wall, l)| WallLoadRow {
+                time,
+                wall,
+                force: l.force,
+                torque: l.torque,
+            })
+            .collect();
+        io::append_wall_loads(&self.dir.join(io::WALL_LOADS), &rows)?;
+        Ok(())
+    }
+}
