@@ -6,10 +6,12 @@
 //! backends refuse mesh walls, naming the cpu backend. Tolerances are stated with each test.
 
 use glam::Vec3;
+use mochi::dem::flow::FlowSet;
 use mochi::dem::model::{ContactLaw, Material, RollingModel};
+use mochi::dem::scene::Start;
 use mochi::dem::walls::{Rotation, WallConfig, WallSet};
 use mochi::dem::{FIRST_MESH_WALL, Particles, StepParams, Stepper};
-use mochi::engines::{BackendChoice, BackendKind, Options, open_with_walls};
+use mochi::engines::{BackendChoice, BackendKind, Options, open_scene};
 use mochi::mesh::Mesh;
 use mochi::proxy::ProxyMode;
 use std::f32::consts::PI;
@@ -71,16 +73,19 @@ fn grid_mesh(half: f64, cells: u32) -> Mesh {
     mesh
 }
 
-fn stepper(particles: Particles, p: StepParams, walls: WallSet) -> Box<dyn Stepper> {
-    let (s, _) = open_with_walls(
-        BackendChoice::Named(BackendKind::Cpu),
+fn start(particles: Particles, params: StepParams, walls: WallSet) -> Start {
+    Start {
         particles,
-        p,
-        ProxyMode::Mochi,
-        &Options::default(),
+        params,
+        mode: ProxyMode::Mochi,
         walls,
-    )
-    .unwrap();
+        flow: FlowSet::default(),
+    }
+}
+
+fn stepper(particles: Particles, p: StepParams, walls: WallSet) -> Box<dyn Stepper> {
+    let choice = BackendChoice::Named(BackendKind::Cpu);
+    let (s, _) = open_scene(choice, start(particles, p, walls), &Options::default()).unwrap();
     s
 }
 
@@ -430,13 +435,10 @@ fn gpu_backends_refuse_mesh_walls_and_auto_picks_cpu() {
     let p = params(&m, -0.3, 0.3);
     let sphere = one_sphere(Vec3::new(0.0, 0.0, 0.1), Vec3::ZERO, Vec3::ZERO);
     let open = |choice| {
-        open_with_walls(
+        open_scene(
             choice,
-            sphere.clone(),
-            p,
-            ProxyMode::Mochi,
+            start(sphere.clone(), p, walls.clone()),
             &Options::default(),
-            walls.clone(),
         )
     };
     for kind in [

@@ -3,13 +3,13 @@
 use super::args::SimulateArgs;
 use super::output;
 use super::render::{FrameData, FrameRenderer, png_name};
-use super::walls::WallOutputs;
+use super::walls::{FlowLog, WallOutputs};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::dem::scene::{SceneConfig, SceneFlags, SceneKind};
 use mochi::dem::{Clock, StageTimes, Stepper};
 use mochi::engines::Options;
-use mochi::engines::open_with_walls;
+use mochi::engines::open_scene;
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::render::ColorBy;
 use std::path::{Path, PathBuf};
@@ -86,14 +86,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let coincident = start.particles.coincident_pairs()?;
     let coarse = mochi::coarse_coordinates(&start.particles.positions, &start.particles.radii);
     let walls = start.walls.clone();
-    let (mut stepper, reason) = open_with_walls(
-        args.backend,
-        start.particles,
-        p,
-        start.mode,
-        &options,
-        start.walls,
-    )?;
+    let (mut stepper, reason) = open_scene(args.backend, start, &options)?;
     if let Some(reason) = reason {
         eprintln!("{reason}");
     }
@@ -137,9 +130,12 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         Some(FrameSeries::create(&out)?)
     };
     let resume_time = args.resume.as_ref().map(|_| first as f64 * p.dt as f64);
-    let wall_outputs = match frames {
-        Some(_) => WallOutputs::start(&out, &walls, resume_time)?,
-        None => None,
+    let (wall_outputs, mut flow_log) = match frames {
+        Some(_) => (
+            WallOutputs::start(&out, &walls, resume_time)?,
+            FlowLog::start(&out, stepper.flow_counts(), resume_time)?,
+        ),
+        None => (None, None),
     };
     eprintln!(
         "scene {} | {n} spheres | steps {first}..{total} | {} | restitution {} | backend {}",
@@ -174,16 +170,20 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     io::write_atomically(&out.join(io::SCENE_FILE), |w| {
         w.write_all(scene_toml.as_bytes())
     })?;
-    let write_frame = |frames: &mut Option<FrameSeries>, stepper: &mut dyn Stepper| -> Result<()> {
-        if let Some(series) = frames {
-            let now = stepper.particles()?;
-            series.write(&Frame::of(&now, p.dt, p.friction.has_history()), config.csv)?;
-            if let Some(walls) = &wall_outputs {
-                walls.write(series.entries(), now.step, p.dt, &stepper.wall_loads())?;
+    let mut write_frame =
+        |frames: &mut Option<FrameSeries>, stepper: &mut dyn Stepper| -> Result<()> {
+            if let Some(series) = frames {
+                let now = stepper.particles()?;
+                series.write(&Frame::of(&now, p.dt, p.friction.has_history()), config.csv)?;
+                if let Some(walls) = &wall_outputs {
+                    walls.write(series.entries(), now.step, p.dt, &stepper.wall_loads())?;
+                }
+                if let (Some(log), Some(counts)) = (&mut flow_log, stepper.flow_counts()) {
+                    log.write(now.step as f64 * p.dt as f64, now.len(), counts)?;
+                }
             }
-        }
-        Ok(())
-    };
+            Ok(())
+        };
     let draw = |pictures: &mut Option<FrameRenderer>, stepper: &mut dyn Stepper| -> Result<()> {
         if let Some(pictures) = pictures {
             let now = stepper.particles()?;

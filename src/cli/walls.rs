@@ -1,8 +1,10 @@
 //! `mochi simulate`'s mesh-wall outputs: with every frame, each wall's surface where it is then
 //! (`wall_{step}_{k}.vtp`, listed in `walls.pvd` beside `series.pvd`) and the force and torque
-//! the spheres exerted on it in the last step (`walls.csv`).
+//! the spheres exerted on it in the last step (`walls.csv`); and what the inflows and
+//! outflows did between frames (`flow.csv`).
 
 use anyhow::Result;
+use mochi::dem::flow::FlowCounts;
 use mochi::dem::walls::{WallLoad, WallSet};
 use mochi::io::{self, SeriesEntry, WallLoadRow};
 use std::path::{Path, PathBuf};
@@ -21,7 +23,11 @@ impl WallOutputs {
         if walls.meshes.is_empty() {
             return Ok(None);
         }
-        io::start_wall_loads(&out.join(io::WALL_LOADS), resume_time)?;
+        io::start_log(
+            &out.join(io::WALL_LOADS),
+            io::WALL_LOADS_HEADER,
+            resume_time,
+        )?;
         Ok(Some(Self {
             walls: walls.clone(),
             dir: out.to_owned(),
@@ -71,7 +77,46 @@ impl WallOutputs {
                 torque: l.torque,
             })
             .collect();
-        io::append_wall_loads(&self.dir.join(io::WALL_LOADS), &rows)?;
+        io::append_log(&self.dir.join(io::WALL_LOADS), &io::wall_load_lines(&rows))?;
+        Ok(())
+    }
+}
+
+/// `flow.csv`: what the inflows and outflows did between frames.
+pub struct FlowLog {
+    path: PathBuf,
+    /// The counts at the previous row.
+    last: FlowCounts,
+}
+
+impl FlowLog {
+    /// The log in the run folder `out` (`None` for a step without flows), started anew or, on
+    /// a resume from `resume_time`, kept up to that time.
+    pub fn start(
+        out: &Path,
+        counts: Option<FlowCounts>,
+        resume_time: Option<f64>,
+    ) -> Result<Option<Self>> {
+        let Some(last) = counts else {
+            return Ok(None);
+        };
+        let path = out.join(io::FLOW_LOG);
+        io::start_log(&path, io::FLOW_LOG_HEADER, resume_time)?;
+        Ok(Some(Self { path, last }))
+    }
+
+    /// Adds the row of time `time` with `spheres` present and the step's counts `now`.
+    pub fn write(&mut self, time: f64, spheres: usize, now: FlowCounts) -> Result<()> {
+        let was = self.last;
+        let line = format!(
+            "{time:e},{spheres},{},{},{},{:e}\n",
+            now.inserted - was.inserted,
+            now.refused - was.refused,
+            now.removed - was.removed,
+            now.removed_mass - was.removed_mass
+        );
+        io::append_log(&self.path, &line)?;
+        self.last = now;
         Ok(())
     }
 }

@@ -39,8 +39,17 @@
 //! box_walls = true       # false: the six walls of the box off
 //! [[wall]]               # mesh walls, any number (see `dem::walls::spec`)
 //! mesh = "hopper.stl"
+//! [[inflow]]             # spheres inserted at a rate (see `dem::flow`)
+//! lo = [0.4, 0.4, 0.9]
+//! hi = [0.6, 0.6, 0.95]
+//! rate = 2000
+//! sphere_radius = 0.004
+//! [[outflow]]            # spheres removed (and, without box walls, below the box)
+//! lo = [0, 0, 0]
+//! hi = [1, 1, 0.05]
 //! ```
 
+use super::flow::{FlowSet, InflowConfig, OutflowConfig};
 use super::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
 use super::model::{ContactLaw, Material, RollingModel, StepParams};
 use super::walls::{WallConfig, WallSet};
@@ -376,6 +385,12 @@ pub struct SceneConfig {
     /// Mesh walls, the `[[wall]]` tables (`dem::walls::spec`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub wall: Vec<WallConfig>,
+    /// Inflows, the `[[inflow]]` tables (`dem::flow`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub inflow: Vec<InflowConfig>,
+    /// Outflows, the `[[outflow]]` tables (`dem::flow`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub outflow: Vec<OutflowConfig>,
 }
 
 fn is_true(x: &bool) -> bool {
@@ -416,6 +431,8 @@ impl Default for SceneConfig {
             mesh_copies: 1,
             box_walls: true,
             wall: Vec::new(),
+            inflow: Vec::new(),
+            outflow: Vec::new(),
         }
     }
 }
@@ -435,6 +452,13 @@ pub struct Start {
     pub mode: ProxyMode,
     /// The walls: the box's (or none) and the mesh walls.
     pub walls: WallSet,
+    /// The spheres' ways in and out.
+    pub flow: FlowSet,
+}
+
+/// The height of the box's floor: `box_lo`'s where the scene gives it, else the default's.
+fn box_lo_z(box_lo: Option<[f64; 3]>, default_lo: [f64; 3]) -> f64 {
+    box_lo.unwrap_or(default_lo)[2]
 }
 
 /// Parses a `key=value` override into `table` (`value` in TOML syntax; a bare word is taken as
@@ -825,7 +849,14 @@ impl SceneConfig {
             }
         };
         let material = self.material()?;
-        let r_min = if particles.is_empty() { 1.0 } else { r_min };
+        let flow = self.flow(material.density, box_lo_z(self.box_lo, default_lo))?;
+        // The smallest sphere, inserted ones included, sets the time step.
+        let r_min = match (particles.is_empty(), flow.smallest_radius()) {
+            (true, None) => 1.0,
+            (true, Some(r)) => r,
+            (false, None) => r_min,
+            (false, Some(r)) => r_min.min(r),
+        };
         let dt = match (self.dt, material.contact) {
             (Some(dt), _) => dt,
             // The Rayleigh rule where the parameters make sense (else `StepParams::new` says
@@ -866,6 +897,29 @@ impl SceneConfig {
             params,
             mode: self.mode,
             walls: self.walls(&material)?,
+            flow,
+        })
+    }
+
+    /// The inflows and outflows of the scene; without the box walls, spheres below the box's
+    /// floor (at `floor`) leave too.
+    fn flow(&self, density: f64, floor: f64) -> Result<FlowSet> {
+        let inflows = self
+            .inflow
+            .iter()
+            .enumerate()
+            .map(|(k, f)| f.build(k, density))
+            .collect::<Result<Vec<_>>>()?;
+        let outflows = self
+            .outflow
+            .iter()
+            .enumerate()
+            .map(|(k, f)| f.build(k))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(FlowSet {
+            inflows,
+            outflows,
+            floor: (!self.box_walls).then_some(floor as f32),
         })
     }
 
@@ -1262,5 +1316,37 @@ mod tests {
             e.contains("wall 0") && e.contains("floor.obj") && e.contains("scale"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn inflow_and_outflow_tables_make_the_flows_and_refuse_what_is_ambiguous() {
+        let text = "scene = \"freefall\"\nspheres = 8\nbox_walls = false\n\n[[inflow]]\n\
+                    center = [0.5, 0.5, 0.9]\nradius = 0.1\nmass_rate = 0.01\n\
+                    sphere_radius = 0.002\n\n[[outflow]]\nlo = [0, 0, 0]\nhi = [1, 1, 0.1]\n";
+        let c = SceneConfig::parse(Some(text), None, &[]).unwrap();
+        let start = c.build().unwrap();
+        let flow = &start.flow;
+        assert_eq!((flow.inflows.len(), flow.outflows.len()), (1, 1));
+        // Without the box walls, the floor of the box drains too.
+        assert_eq!(flow.floor, Some(start.params.box_lo[2]));
+        // 0.01 kg/s of 2 mm spheres at 500 kg/m³.
+        let each = 500.0 * 4.0 / 3.0 * std::f64::consts::PI * 0.002f64.powi(3);
+        assert!((flow.inflows[0].rate * each / 0.01 - 1.0).abs() < 1e-9);
+        // The inserted spheres' radius sets the time step when smaller than the scene's.
+        assert!(start.params.dt_limit > 0.0);
+        let both = text.replace("mass_rate = 0.01", "mass_rate = 0.01\nrate = 5");
+        let e = SceneConfig::parse(Some(&both), None, &[])
+            .unwrap()
+            .build()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("inflow 0") && e.contains("one of the two"), "{e}");
+        let inverted = text.replace("hi = [1, 1, 0.1]", "hi = [1, 1, -0.1]");
+        let e = SceneConfig::parse(Some(&inverted), None, &[])
+            .unwrap()
+            .build()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("outflow 0"), "{e}");
     }
 }

@@ -1,5 +1,6 @@
 //! The [`Stepper`] trait that every backend's DEM step implements.
 
+use super::flow::FlowCounts;
 use super::walls::WallLoad;
 use crate::error::Result;
 use crate::particles::Particles;
@@ -69,6 +70,12 @@ pub trait Stepper {
     /// scene's order of walls (default: none, for a step without mesh walls).
     fn wall_loads(&self) -> Vec<WallLoad> {
         Vec::new()
+    }
+
+    /// What the inflows and outflows did since the step opened (default: `None`, a step
+    /// without them).
+    fn flow_counts(&self) -> Option<FlowCounts> {
+        None
     }
 
     /// Whether this step refits its acceleration structure between rebuilds, and so obeys the

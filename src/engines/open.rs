@@ -2,8 +2,8 @@
 
 use super::registry::{BackendChoice, BackendKind, Options};
 use crate::dem::model::StepParams;
+use crate::dem::scene::Start;
 use crate::dem::stepper::Stepper;
-use crate::dem::walls::WallSet;
 use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
@@ -59,39 +59,46 @@ pub fn open_choice(
     Ok((stepper, Some(reason)))
 }
 
-/// Opens the DEM step the user chose for a scene with `walls`. The box walls alone run on every
-/// backend ([`open_choice`]); mesh walls, and a box switched off, run on the cpu backend only
-/// until the GPU engines gain them: a GPU backend named is refused, saying so, and `auto`
-/// opens cpu and says why.
-pub fn open_with_walls(
+/// Opens the DEM step the user chose for the scene `start`. The box walls alone run on every
+/// backend ([`open_choice`]); mesh walls, a box switched off, inflows and outflows run on the
+/// cpu backend only until the GPU engines gain them: a GPU backend named is refused, saying
+/// so, and `auto` opens cpu and says why.
+pub fn open_scene(
     choice: BackendChoice,
-    particles: Particles,
-    params: StepParams,
-    mode: ProxyMode,
+    start: Start,
     options: &Options,
-    walls: WallSet,
 ) -> Result<(Box<dyn Stepper>, Option<String>)> {
-    if walls.is_box_only() {
+    let Start {
+        particles,
+        params,
+        mode,
+        walls,
+        flow,
+    } = start;
+    if walls.is_box_only() && flow.is_empty() {
         return open_choice(choice, particles, params, mode, options);
     }
+    let needs = match (walls.is_box_only(), flow.is_empty()) {
+        (false, false) => format!("{} and spheres flowing in or out", walls.describe()),
+        (false, true) => walls.describe(),
+        _ => "spheres flowing in or out".to_owned(),
+    };
     match choice.kind() {
         Some(BackendKind::Cpu) | None => {
             particles.validate()?;
-            let stepper =
-                super::cpu::CpuStepper::new(particles, params, mode)?.with_walls(walls)?;
+            let stepper = super::cpu::CpuStepper::new(particles, params, mode)?
+                .with_walls(walls)?
+                .with_flow(flow, mode);
             let reason = choice.kind().is_none().then(|| {
-                "auto: cpu, the one backend that runs mesh walls and scenes without the box \
-                 walls so far"
-                    .to_owned()
+                format!("auto: cpu, the one backend that runs a scene with {needs} so far")
             });
             Ok((Box::new(stepper), reason))
         }
         Some(kind) => Err(Error::BackendUnavailable {
             backend: kind.name(),
             reason: format!(
-                "this scene has {}, which the {} step does not run yet; the cpu backend runs \
-                 it (--backend cpu)",
-                walls.describe(),
+                "this scene has {needs}, which the {} step does not run yet; the cpu backend \
+                 runs it (--backend cpu)",
                 kind.name()
             ),
         }),

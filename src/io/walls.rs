@@ -1,11 +1,11 @@
 //! What a run writes of its mesh walls: each wall's surface at each frame as a VTK XML PolyData
 //! file (`wall_{step:08}_{k}.vtp`, ASCII), a ParaView collection of them (`walls.pvd`, the wall
 //! as the part), and the force and torque on each wall per frame (`walls.csv`: `time, wall, fx,
-//! fy, fz, tx, ty, tz`; N and N·m, the torque about the wall's rotation centre). Every file is
-//! written through [`write_atomically`].
+//! fy, fz, tx, ty, tz`; N and N·m, the torque about the wall's rotation centre; appended
+//! through [`super::append_log`]). Every file is written through [`write_atomically`].
 
 use super::frames::SeriesEntry;
-use super::{io_error, write_atomically};
+use super::write_atomically;
 use crate::error::Result;
 use std::path::Path;
 
@@ -16,7 +16,7 @@ pub const WALLS_INDEX: &str = "walls.pvd";
 pub const WALL_LOADS: &str = "walls.csv";
 
 /// Header of [`WALL_LOADS`].
-const LOADS_HEADER: &str = "time,wall,fx,fy,fz,tx,ty,tz";
+pub const WALL_LOADS_HEADER: &str = "time,wall,fx,fy,fz,tx,ty,tz";
 
 /// The file of wall `k`'s surface at step `step`.
 pub fn wall_file_name(step: u64, k: usize) -> String {
@@ -97,31 +97,8 @@ pub struct WallLoadRow {
     pub torque: [f64; 3],
 }
 
-/// Starts `path` anew with its header; on a resume (`resume_time` given) keeps the rows of
-/// times up to it instead (a file that is not there starts anew).
-pub fn start_wall_loads(path: &Path, resume_time: Option<f64>) -> Result<()> {
-    let kept = match resume_time {
-        Some(t) if path.exists() => {
-            let text = std::fs::read_to_string(path).map_err(io_error(path))?;
-            text.lines()
-                .skip(1)
-                .filter(|line| {
-                    let time = line.split(',').next().and_then(|x| x.parse::<f64>().ok());
-                    time.is_some_and(|x| x <= t)
-                })
-                .map(|line| format!("{line}\n"))
-                .collect()
-        }
-        _ => String::new(),
-    };
-    write_atomically(path, |out| {
-        writeln!(out, "{LOADS_HEADER}")?;
-        out.write_all(kept.as_bytes())
-    })
-}
-
-/// Appends `rows` to `path` (started by [`start_wall_loads`]).
-pub fn append_wall_loads(path: &Path, rows: &[WallLoadRow]) -> Result<()> {
+/// The lines of `rows` in [`WALL_LOADS`] (after its header, [`WALL_LOADS_HEADER`]).
+pub fn wall_load_lines(rows: &[WallLoadRow]) -> String {
     let mut text = String::new();
     for r in rows {
         let [fx, fy, fz] = r.force;
@@ -131,12 +108,7 @@ pub fn append_wall_loads(path: &Path, rows: &[WallLoadRow]) -> Result<()> {
             r.time, r.wall
         );
     }
-    // Rewritten whole, as every file of a run is: a killed run leaves it as it was.
-    let before = std::fs::read(path).map_err(io_error(path))?;
-    write_atomically(path, |out| {
-        out.write_all(&before)?;
-        out.write_all(text.as_bytes())
-    })
+    text
 }
 
 #[cfg(test)]
@@ -144,26 +116,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn loads_are_appended_and_a_resume_keeps_the_rows_up_to_its_time() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join(WALL_LOADS);
-        start_wall_loads(&path, None).unwrap();
+    fn load_rows_are_one_line_each() {
         let row = |time: f64, wall| WallLoadRow {
             time,
             wall,
             force: [1.0, -2.0, 0.5],
             torque: [0.0; 3],
         };
-        append_wall_loads(&path, &[row(0.0, 0), row(0.0, 1)]).unwrap();
-        append_wall_loads(&path, &[row(0.1, 0), row(0.1, 1)]).unwrap();
-        append_wall_loads(&path, &[row(0.2, 0), row(0.2, 1)]).unwrap();
-        let text = std::fs::read_to_string(&path).unwrap();
-        assert_eq!(text.lines().count(), 7);
-        assert!(text.starts_with("time,wall,fx,fy,fz,tx,ty,tz\n0e0,0,1e0,-2e0,5e-1,"));
-        start_wall_loads(&path, Some(0.1)).unwrap();
-        let text = std::fs::read_to_string(&path).unwrap();
-        assert_eq!(text.lines().count(), 5, "{text}");
-        assert!(!text.contains("2e-1,"));
+        let text = wall_load_lines(&[row(0.0, 0), row(0.1, 1)]);
+        assert_eq!(
+            text,
+            "0e0,0,1e0,-2e0,5e-1,0e0,0e0,0e0\n1e-1,1,1e0,-2e0,5e-1,0e0,0e0,0e0\n"
+        );
     }
 
     #[test]

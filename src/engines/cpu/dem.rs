@@ -8,6 +8,7 @@
 use super::grid::SortedGrid;
 use super::query::{gather, gather_with_side};
 use super::walls::MeshPass;
+use crate::dem::flow::{FlowCounts, FlowSet};
 use crate::dem::model::contact::{
     Body, Springs, integrate_rotation, moment_of_inertia, pair_contact, wall_contacts,
 };
@@ -61,6 +62,8 @@ pub struct CpuStepper {
     box_walls: bool,
     /// The mesh walls' pass (`None`: the box alone).
     mesh: Option<MeshPass>,
+    /// Inflows and outflows (`None`: the spheres stay as they are).
+    flow: Option<(FlowSet, FlowCounts)>,
 }
 
 impl CpuStepper {
@@ -100,9 +103,45 @@ impl CpuStepper {
             torques: Vec::new(),
             box_walls: true,
             mesh: None,
+            flow: None,
             params,
             particles,
         })
+    }
+
+    /// This stepper with spheres entering and leaving by `flow`; `mode` sizes the grid's
+    /// cells for the largest sphere an inflow inserts.
+    pub fn with_flow(mut self, flow: FlowSet, mode: ProxyMode) -> Self {
+        if flow.is_empty() {
+            return self;
+        }
+        let (_, r_max) = self.particles.radius_range();
+        let cell_size = mode.cell_size(r_max.max(flow.largest_radius()));
+        if cell_size > self.cell_size {
+            let margin = cell_size;
+            self.cell_size = cell_size;
+            self.region = (
+                self.params.box_lo.map(|x| x - margin),
+                self.params.box_hi.map(|x| x + margin),
+            );
+        }
+        self.flow = Some((flow, FlowCounts::default()));
+        self
+    }
+
+    /// Removes and inserts spheres as the flows say, after a step.
+    fn flow_after_step(&mut self) -> Result<()> {
+        let Some((flow, counts)) = &mut self.flow else {
+            return Ok(());
+        };
+        let p = &self.params;
+        if flow.apply(&mut self.particles, p.dt, p.density, counts)? {
+            self.masses.clear();
+            let radii = &self.particles.radii;
+            self.masses
+                .extend(radii.iter().map(|&r| mass(p.density, r)));
+        }
+        Ok(())
     }
 
     /// This stepper with `walls` instead of the box alone.
@@ -367,6 +406,7 @@ impl Stepper for CpuStepper {
             times.dcd_ms += ms(t);
             let t = Instant::now();
             self.integrate_all();
+            self.flow_after_step()?;
             times.update_ms += ms(t);
         }
         self.particles.check_stable()?;
@@ -380,6 +420,10 @@ impl Stepper for CpuStepper {
 
     fn particles(&mut self) -> Result<Particles> {
         Ok(self.particles.clone())
+    }
+
+    fn flow_counts(&self) -> Option<FlowCounts> {
+        self.flow.as_ref().map(|(_, counts)| *counts)
     }
 
     fn wall_loads(&self) -> Vec<WallLoad> {
