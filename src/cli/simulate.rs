@@ -7,7 +7,7 @@ use super::walls::{FlowLog, WallOutputs};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::dem::scene::{SceneConfig, SceneFlags, SceneKind};
-use mochi::dem::{Clock, StageTimes, Stepper};
+use mochi::dem::{Clock, StageTimes, Stepper, equipment};
 use mochi::engines::Options;
 use mochi::engines::open_scene;
 use mochi::io::{self, Frame, FrameSeries};
@@ -251,6 +251,15 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     bar.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
     let end = stepper.particles()?;
+    let measured = match config.scene {
+        SceneKind::Hopper => flow_log
+            .as_ref()
+            .and_then(|log| equipment::mass_flow_rate(log.discharge()))
+            .map(|w| format!("hopper: steady mass flow rate {w:.4e} kg/s (see flow.csv)")),
+        SceneKind::Drum => equipment::free_surface_angle(&end.positions, &end.radii)
+            .map(|a| format!("drum: free surface at {a:.1}° to the horizontal")),
+        _ => None,
+    };
     io::write_checkpoint(&checkpoint, &end, &scene_toml)?;
     summary(&SummaryLine {
         backend: stepper.describe(),
@@ -261,6 +270,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         clock,
         contacts,
     });
+    if let Some(line) = measured {
+        println!("{line}");
+    }
     eprintln!(
         "wrote {} (series.pvd opens in ParaView), checkpoint {}",
         out.display(),

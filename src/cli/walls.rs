@@ -87,6 +87,8 @@ pub struct FlowLog {
     path: PathBuf,
     /// The counts at the previous row.
     last: FlowCounts,
+    /// (time, mass removed since the log started) at each row.
+    discharge: Vec<(f64, f64)>,
 }
 
 impl FlowLog {
@@ -102,7 +104,11 @@ impl FlowLog {
         };
         let path = out.join(io::FLOW_LOG);
         io::start_log(&path, io::FLOW_LOG_HEADER, resume_time)?;
-        Ok(Some(Self { path, last }))
+        Ok(Some(Self {
+            path,
+            last,
+            discharge: Vec::new(),
+        }))
     }
 
     /// Adds the row of time `time` with `spheres` present and the step's counts `now`.
@@ -117,6 +123,12 @@ impl FlowLog {
         );
         io::append_log(&self.path, &line)?;
         self.last = now;
+        self.discharge.push((time, now.removed_mass));
         Ok(())
+    }
+
+    /// (time, mass removed since the log started) at each row so far.
+    pub fn discharge(&self) -> &[(f64, f64)] {
+        &self.discharge
     }
 }

@@ -3,7 +3,7 @@
 //!
 //! ```toml
 //! scene = "pour"         # freefall, slab, poly1.2, poly12, poly120, polylog, pour, rotating,
-//!                        # mesh, input
+//!                        # mesh, input, hopper, drum
 //! spheres = 4000
 //! seed = 1
 //! steps = 20000
@@ -36,6 +36,11 @@
 //! mesh_mixed = false     # half of the spheres at mesh_radius / 2
 //! mesh_size = 0.818      # the mesh fitted into a cube of this side
 //! mesh_copies = 1        # copies side by side, in layers if needed
+//! grain_radius = 0.004   # hopper, drum: mean radius (radii U[0.9, 1.1] of it)
+//! hopper_orifice = 0.03  # hopper: orifice diameter [m]
+//! hopper_angle = 0       # hopper: bottom's angle from the horizontal [°] (0: flat)
+//! hopper_open = 0.2      # hopper: time the gate under the orifice slides away [s]
+//! drum_omega = 3.0       # drum: angular speed about y [rad/s]
 //! box_walls = true       # false: the six walls of the box off
 //! [[wall]]               # mesh walls, any number (see `dem::walls::spec`)
 //! mesh = "hopper.stl"
@@ -49,6 +54,7 @@
 //! hi = [1, 1, 0.05]
 //! ```
 
+use super::equipment::{Built, Equipment, EquipmentSpec};
 use super::flow::{FlowSet, InflowConfig, OutflowConfig};
 use super::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
 use super::model::{ContactLaw, Material, RollingModel, StepParams};
@@ -116,11 +122,15 @@ pub enum SceneKind {
     Mesh,
     /// The spheres of a file.
     Input,
+    /// A hopper draining through its orifice (`dem::equipment`).
+    Hopper,
+    /// A turning drum (`dem::equipment`).
+    Drum,
 }
 
 impl SceneKind {
     /// Every scene, in the order errors list them.
-    pub const ALL: [SceneKind; 10] = [
+    pub const ALL: [SceneKind; 12] = [
         SceneKind::Generated(Scene::Freefall),
         SceneKind::Generated(Scene::Slab),
         SceneKind::Generated(Scene::Poly1_2),
@@ -131,6 +141,8 @@ impl SceneKind {
         SceneKind::Rotating,
         SceneKind::Mesh,
         SceneKind::Input,
+        SceneKind::Hopper,
+        SceneKind::Drum,
     ];
 
     /// Name, as in TOML and on the command line.
@@ -145,6 +157,8 @@ impl SceneKind {
             SceneKind::Rotating => Source::Generated(Scene::Freefall),
             SceneKind::Mesh => Source::Mesh,
             SceneKind::Input => Source::Input,
+            SceneKind::Hopper => Source::Equipment(Equipment::Hopper),
+            SceneKind::Drum => Source::Equipment(Equipment::Drum),
         }
     }
 }
@@ -155,6 +169,7 @@ enum Source {
     Generated(Scene),
     Mesh,
     Input,
+    Equipment(Equipment),
 }
 
 impl clap::ValueEnum for SceneKind {
@@ -170,6 +185,10 @@ impl clap::ValueEnum for SceneKind {
                 .help("freefall under gravity rotating about y (gravity_spin 0.25π rad/s)"),
             SceneKind::Mesh => PossibleValue::new("mesh").help("a mesh (mesh = FILE) filled"),
             SceneKind::Input => PossibleValue::new("input").help("the spheres of input = FILE"),
+            SceneKind::Hopper => PossibleValue::new("hopper")
+                .help("a hopper with a circular orifice, filled, then opened (mesh walls, cpu)"),
+            SceneKind::Drum => PossibleValue::new("drum")
+                .help("a drum about a horizontal axis, 40% filled, turning (mesh walls, cpu)"),
         })
     }
 }
@@ -391,6 +410,21 @@ pub struct SceneConfig {
     /// Outflows, the `[[outflow]]` tables (`dem::flow`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub outflow: Vec<OutflowConfig>,
+    /// Scenes `hopper` and `drum`: mean sphere radius \[m\] (default 0.004).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grain_radius: Option<f64>,
+    /// Scene `hopper`: orifice diameter \[m\] (default 0.03).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hopper_orifice: Option<f64>,
+    /// Scene `hopper`: angle of the bottom from the horizontal \[°\] (default 0: flat).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hopper_angle: Option<f64>,
+    /// Scene `hopper`: time the gate under the orifice slides away \[s\] (default 0.2).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hopper_open: Option<f64>,
+    /// Scene `drum`: angular speed about y \[rad/s\] (default 3).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub drum_omega: Option<f64>,
 }
 
 fn is_true(x: &bool) -> bool {
@@ -433,6 +467,11 @@ impl Default for SceneConfig {
             wall: Vec::new(),
             inflow: Vec::new(),
             outflow: Vec::new(),
+            grain_radius: None,
+            hopper_orifice: None,
+            hopper_angle: None,
+            hopper_open: None,
+            drum_omega: None,
         }
     }
 }
@@ -535,14 +574,24 @@ impl SceneConfig {
         let scene_option = match source {
             Source::Input => "--input/--scene",
             Source::Mesh => "--mesh/--scene",
-            Source::Generated(_) => "--scene",
+            Source::Generated(_) | Source::Equipment(_) => "--scene",
         };
         for (key, value) in &given {
             let (used, flag) = match key.as_str() {
-                "spheres" => (matches!(source, Source::Generated(_)), "-n"),
+                "spheres" => (
+                    matches!(source, Source::Generated(_) | Source::Equipment(_)),
+                    "-n",
+                ),
                 "seed" => (!matches!(source, Source::Input), "--seed"),
                 "input" => (matches!(source, Source::Input), "--input"),
                 "mesh" => (matches!(source, Source::Mesh), "--mesh"),
+                "grain_radius" => (matches!(source, Source::Equipment(_)), ""),
+                k if k.starts_with("hopper_") => {
+                    (matches!(source, Source::Equipment(Equipment::Hopper)), "")
+                }
+                k if k.starts_with("drum_") => {
+                    (matches!(source, Source::Equipment(Equipment::Drum)), "")
+                }
                 k => (
                     !k.starts_with("mesh_") || matches!(source, Source::Mesh),
                     "",
@@ -682,6 +731,7 @@ impl SceneConfig {
                 layout: Layout::Lattice,
             })?,
             Source::Mesh => self.mesh_spheres()?,
+            Source::Equipment(kind) => self.equipment(kind)?.spheres,
             Source::Input => {
                 let input = self.input.as_ref().ok_or_else(|| Error::InvalidConfig {
                     what: "scene \"input\"".into(),
@@ -836,6 +886,10 @@ impl SceneConfig {
                 ([0.0; 3], [side; 3])
             }
             Source::Mesh => ([0.0; 3], [self.mesh_box_side()?; 3]),
+            Source::Equipment(kind) => {
+                let built = self.equipment(kind)?;
+                (built.box_lo, built.box_hi)
+            }
             // A file: its bounds with a margin of two largest diameters.
             Source::Input => {
                 match SphereSet::new(particles.positions.clone(), particles.radii.clone())?.bounds()
@@ -901,6 +955,21 @@ impl SceneConfig {
         })
     }
 
+    /// The built-in scene `kind` as this scene sizes it.
+    fn equipment(&self, kind: Equipment) -> Result<Built> {
+        EquipmentSpec {
+            kind,
+            n: self.spheres,
+            seed: self.seed,
+            grain_radius: self.grain_radius.unwrap_or(0.004),
+            orifice: self.hopper_orifice.unwrap_or(0.03),
+            angle: self.hopper_angle.unwrap_or(0.0),
+            open: self.hopper_open.unwrap_or(0.2),
+            omega: self.drum_omega.unwrap_or(3.0),
+        }
+        .build()
+    }
+
     /// The inflows and outflows of the scene; without the box walls, spheres below the box's
     /// floor (at `floor`) leave too.
     fn flow(&self, density: f64, floor: f64) -> Result<FlowSet> {
@@ -910,8 +979,11 @@ impl SceneConfig {
             .enumerate()
             .map(|(k, f)| f.build(k, density))
             .collect::<Result<Vec<_>>>()?;
-        let outflows = self
-            .outflow
+        let mut outflow = self.outflow.clone();
+        if let Source::Equipment(kind) = self.scene.source() {
+            outflow.extend(self.equipment(kind)?.outflows);
+        }
+        let outflows = outflow
             .iter()
             .enumerate()
             .map(|(k, f)| f.build(k))
@@ -926,12 +998,15 @@ impl SceneConfig {
     /// The walls of the scene: the box (or not) and each `[[wall]]` read and posed.
     fn walls(&self, material: &Material) -> Result<WallSet> {
         let friction = material.wall_friction.unwrap_or(material.friction);
-        let meshes = self
-            .wall
-            .iter()
-            .enumerate()
-            .map(|(k, w)| w.build(k, friction))
-            .collect::<Result<Vec<_>>>()?;
+        let mut meshes = Vec::new();
+        if let Source::Equipment(kind) = self.scene.source() {
+            for (config, mesh) in self.equipment(kind)?.walls {
+                meshes.push(config.build_from(meshes.len(), &mesh, friction)?);
+            }
+        }
+        for w in &self.wall {
+            meshes.push(w.build(meshes.len(), friction)?);
+        }
         WallSet::new(self.box_walls, meshes)
     }
 
@@ -1089,7 +1164,7 @@ mod tests {
         assert!(
             e.contains(
                 "unknown scene \"teapot\": use freefall, slab, poly1.2, poly12, poly120, \
-                 polylog, pour, rotating, mesh or input"
+                 polylog, pour, rotating, mesh, input, hopper or drum"
             ),
             "{e}"
         );
@@ -1340,7 +1415,10 @@ mod tests {
             .build()
             .unwrap_err()
             .to_string();
-        assert!(e.contains("inflow 0") && e.contains("one of the two"), "{e}");
+        assert!(
+            e.contains("inflow 0") && e.contains("one of the two"),
+            "{e}"
+        );
         let inverted = text.replace("hi = [1, 1, 0.1]", "hi = [1, 1, -0.1]");
         let e = SceneConfig::parse(Some(&inverted), None, &[])
             .unwrap()
@@ -1348,5 +1426,51 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("outflow 0"), "{e}");
+    }
+
+    #[test]
+    fn the_hopper_and_the_drum_come_with_their_walls_inside_their_box() {
+        for (scene, walls, outflows) in [("hopper", 2, 1), ("drum", 1, 0)] {
+            let over = [format!("scene={scene}"), "spheres=300".into()];
+            let c = SceneConfig::load(None, &over).unwrap();
+            let start = c.build().unwrap();
+            assert_eq!(start.particles.len(), 300);
+            assert_eq!(start.walls.meshes.len(), walls, "{scene}");
+            assert_eq!(start.flow.outflows.len(), outflows, "{scene}");
+            let set = SphereSet::new(
+                start.particles.positions.clone(),
+                start.particles.radii.clone(),
+            )
+            .unwrap();
+            let pairs = crate::oracle::brute_force_pairs(&set);
+            assert!(pairs.is_empty(), "{scene}: the filled spheres overlap");
+            // No sphere touches a wall at t = 0.
+            let poses = start.walls.poses_at(0.0);
+            for (wall, pose) in start.walls.meshes.iter().zip(&poses) {
+                for (c, &r) in start.particles.positions.iter().zip(&start.particles.radii) {
+                    let mut touching = Vec::new();
+                    crate::dem::walls::touches(
+                        &wall.triangles,
+                        pose,
+                        glam::Vec3::from(*c),
+                        r,
+                        &mut touching,
+                    );
+                    assert!(
+                        touching.is_empty(),
+                        "{scene}: a sphere at {c:?} touches {}",
+                        wall.name
+                    );
+                }
+            }
+        }
+        let e = SceneConfig::load_new(
+            None,
+            &SceneFlags::default(),
+            &["scene=drum".into(), "hopper_angle=30".into()],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("hopper_angle"), "{e}");
     }
 }
