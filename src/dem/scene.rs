@@ -1448,7 +1448,7 @@ mod tests {
             let poses = start.walls.poses_at(0.0);
             for (wall, pose) in start.walls.meshes.iter().zip(&poses) {
                 for (c, &r) in start.particles.positions.iter().zip(&start.particles.radii) {
-                    let mut touching = Vec::new();
+                    let mut touching = crate::dem::walls::Touches::default();
                     crate::dem::walls::touches(
                         &wall.triangles,
                         pose,
@@ -1457,7 +1457,7 @@ mod tests {
                         &mut touching,
                     );
                     assert!(
-                        touching.is_empty(),
+                        touching.found.is_empty(),
                         "{scene}: a sphere at {c:?} touches {}",
                         wall.name
                     );

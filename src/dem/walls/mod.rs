@@ -20,7 +20,7 @@ pub mod triangles;
 
 pub use motion::{Motion, Pose};
 pub use spec::{Rotation, WallConfig};
-pub use touch::{SurfaceTouch, touches};
+pub use touch::{SurfaceTouch, Touches, touches};
 pub use triangles::TriangleMesh;
 
 use crate::error::{Error, Result};

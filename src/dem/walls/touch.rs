@@ -35,14 +35,27 @@ pub struct SurfaceTouch {
     pub overlap: f32,
 }
 
+/// Where [`touches`] works, kept between calls so that a pass over many spheres allocates once.
+#[derive(Debug, Clone, Default)]
+pub struct Touches {
+    /// (distance², closest point in the rest geometry) of the candidates.
+    near: Vec<(f32, Vec3)>,
+    /// (rest normal, distance) of the contacts kept.
+    kept: Vec<(Vec3, f32)>,
+    /// The contacts found by the last call.
+    pub found: Vec<SurfaceTouch>,
+}
+
 /// The contacts of the sphere (centre `c`, radius `r`) with `mesh` in `pose`, nearest first,
-/// each once (module docs), into `out` (cleared first). A centre exactly on the surface has no
-/// normal and no contact.
-pub fn touches(mesh: &TriangleMesh, pose: &Pose, c: Vec3, r: f32, out: &mut Vec<SurfaceTouch>) {
-    out.clear();
+/// each once (module docs), into `at.found` (replacing what was there). A centre exactly on the
+/// surface has no normal and no contact.
+pub fn touches(mesh: &TriangleMesh, pose: &Pose, c: Vec3, r: f32, at: &mut Touches) {
+    let Touches { near, kept, found } = at;
+    near.clear();
+    kept.clear();
+    found.clear();
     let p = pose.to_rest(c);
-    // (distance², closest point in the rest geometry), in the hierarchy's fixed order.
-    let mut near: Vec<(f32, Vec3)> = Vec::new();
+    // In the hierarchy's fixed order.
     mesh.for_each_near(p, r, |t| {
         let q = t.closest_point(p);
         let d2 = (q - p).length_squared();
@@ -54,8 +67,7 @@ pub fn touches(mesh: &TriangleMesh, pose: &Pose, c: Vec3, r: f32, out: &mut Vec<
     // alone.
     near.sort_by(|a, b| a.0.total_cmp(&b.0));
     let slack = ON_PLANE * r;
-    let mut kept: Vec<(Vec3, f32)> = Vec::new(); // (rest normal, distance)
-    for (d2, q) in near {
+    for &(d2, q) in near.iter() {
         let to = q - p;
         let covered = kept.iter().any(|&(n, d)| to.dot(n) >= d - slack);
         if covered {
@@ -64,7 +76,7 @@ pub fn touches(mesh: &TriangleMesh, pose: &Pose, c: Vec3, r: f32, out: &mut Vec<
         let d = d2.sqrt();
         let n = to / d;
         kept.push((n, d));
-        out.push(SurfaceTouch {
+        found.push(SurfaceTouch {
             point: pose.to_world(q),
             normal: pose.turn(n),
             overlap: r - d,

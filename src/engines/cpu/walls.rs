@@ -6,7 +6,7 @@
 
 use crate::dem::model::StepParams;
 use crate::dem::model::contact::{Body, Springs, surface_contact};
-use crate::dem::walls::{Pose, SurfaceTouch, WallLoad, WallSet, mesh_partner, touches};
+use crate::dem::walls::{Pose, Touches, WallLoad, WallSet, mesh_partner, touches};
 use crate::error::{Error, Result};
 use crate::particles::{HistoryEntry, Particles};
 use glam::Vec3;
@@ -95,7 +95,7 @@ impl MeshPass {
                 .enumerate()
                 .map(|(k, (sums, entries))| {
                     let mut loads = vec![WallLoad::default(); walls.meshes.len()];
-                    let mut scratch = Vec::new();
+                    let mut scratch = Touches::default();
                     for (j, sum) in sums.iter_mut().enumerate() {
                         let i = k * CHUNK + j;
                         let held = &mut entries[j * slots..(j + 1) * slots];
@@ -150,21 +150,21 @@ fn sphere(
     kept: &[HistoryEntry],
     held: &mut [HistoryEntry],
     loads: &mut [WallLoad],
-    scratch: &mut Vec<SurfaceTouch>,
+    scratch: &mut Touches,
 ) -> MeshSum {
     let keeps = p.friction.has_history();
     let turns = p.friction.turns();
     let mut sum = MeshSum::default();
     for (w, (wall, pose)) in walls.meshes.iter().zip(poses).enumerate() {
         touches(&wall.triangles, pose, b.c, b.r, scratch);
-        if scratch.is_empty() {
+        if scratch.found.is_empty() {
             continue;
         }
         let partner = mesh_partner(w);
         // The k-th contact with this wall takes the k-th entry kept of it.
         let mut olds = kept.iter().filter(|e| e.partner == partner);
         let (mut force, mut torque) = (Vec3::ZERO, Vec3::ZERO);
-        for t in scratch.iter() {
+        for t in &scratch.found {
             let old = match olds.next() {
                 Some(e) => Springs {
                     tangential: Vec3::from_array(e.tangential),
