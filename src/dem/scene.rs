@@ -37,7 +37,7 @@
 //! mesh_size = 0.818      # the mesh fitted into a cube of this side
 //! mesh_copies = 1        # copies side by side, in layers if needed
 //! grain_radius = 0.004   # hopper, drum: mean radius (radii U[0.9, 1.1] of it)
-//! hopper_orifice = 0.03  # hopper: orifice diameter [m]
+//! hopper_orifice = 0.04  # hopper: orifice diameter [m]
 //! hopper_angle = 0       # hopper: bottom's angle from the horizontal [°] (0: flat)
 //! hopper_open = 0.2      # hopper: time the gate under the orifice slides away [s]
 //! drum_omega = 3.0       # drum: angular speed about y [rad/s]
@@ -413,7 +413,7 @@ pub struct SceneConfig {
     /// Scenes `hopper` and `drum`: mean sphere radius \[m\] (default 0.004).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub grain_radius: Option<f64>,
-    /// Scene `hopper`: orifice diameter \[m\] (default 0.03).
+    /// Scene `hopper`: orifice diameter \[m\] (default 0.04).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub hopper_orifice: Option<f64>,
     /// Scene `hopper`: angle of the bottom from the horizontal \[°\] (default 0: flat).
@@ -962,7 +962,7 @@ impl SceneConfig {
             n: self.spheres,
             seed: self.seed,
             grain_radius: self.grain_radius.unwrap_or(0.004),
-            orifice: self.hopper_orifice.unwrap_or(0.03),
+            orifice: self.hopper_orifice.unwrap_or(0.04),
             angle: self.hopper_angle.unwrap_or(0.0),
             open: self.hopper_open.unwrap_or(0.2),
             omega: self.drum_omega.unwrap_or(3.0),
