@@ -17,7 +17,8 @@
 use crate::dem::model::StepParams;
 use crate::dem::scene::{SceneConfig, SceneFlags, Start};
 use crate::dem::stepper::Stepper;
-use crate::engines::{BackendChoice, BackendKind, Options, open_choice};
+use crate::dem::walls::WallSet;
+use crate::engines::{BackendChoice, BackendKind, Options, open_scene};
 use crate::error::{Error, Result};
 use crate::io::{self, Frame};
 use crate::particles::Particles;
@@ -69,18 +70,19 @@ impl RunStart {
     /// the reason it passed over faster backends in [`Run::auto_reason`]). Spheres that share a
     /// centre are counted here; the backend moves them apart as it opens.
     pub fn open(self, choice: BackendChoice, options: &Options) -> Result<Run> {
-        let particles = self.start.particles;
+        let particles = &self.start.particles;
         let spheres = particles.len();
         let first_step = particles.step;
         let radius_range = particles.radius_range();
         let coincident_pairs = particles.coincident_pairs()?;
         let coarse_warning = crate::coarse_coordinates(&particles.positions, &particles.radii);
         let params = self.start.params;
-        let (stepper, backend, auto_reason) =
-            open_choice(choice, particles, params, self.start.mode, options)?;
+        let walls = self.start.walls.clone();
+        let (stepper, backend, auto_reason) = open_scene(choice, self.start, options)?;
         Ok(Run {
             config: self.config,
             params,
+            walls,
             stepper,
             backend,
             auto_reason,
@@ -99,6 +101,8 @@ pub struct Run {
     pub config: SceneConfig,
     /// The step parameters.
     pub params: StepParams,
+    /// The walls: the box's (or none) and the mesh walls, in their rest pose.
+    pub walls: WallSet,
     /// The backend's DEM step, holding the particles.
     pub stepper: Box<dyn Stepper>,
     /// The backend it runs on.

@@ -1247,3 +1247,123 @@ fn gpu_runs_resume_from_a_checkpoint() {
         );
     }
 }
+
+/// A turning drum (an OBJ cylinder about y, radius 0.1 m) with a few spheres inside, as files
+/// in `dir`: `drum.obj`, `input.csv` and `scene.toml`.
+fn drum_scene(dir: &Path) {
+    let sides = 32;
+    let mut obj = String::new();
+    for k in 0..sides {
+        let a = std::f64::consts::TAU * k as f64 / sides as f64;
+        for y in [-0.05, 0.05] {
+            obj += &format!("v {} {y} {}\n", 0.1 * a.cos(), 0.1 * a.sin());
+        }
+    }
+    for k in 0..sides {
+        let (a, b) = (2 * k + 1, 2 * ((k + 1) % sides) + 1);
+        obj += &format!("f {a} {b} {}\nf {a} {} {}\n", b + 1, b + 1, a + 1);
+    }
+    std::fs::write(dir.join("drum.obj"), obj).unwrap();
+    let mut csv = String::from("x,y,z,r\n");
+    // Three layers on the bottom arc, the first already touching the drum.
+    for (layer, radius) in [0.094f64, 0.081, 0.068].into_iter().enumerate() {
+        for i in -3..=3 {
+            let a = (-90.0 + 8.5 * i as f64 + 4.0 * layer as f64).to_radians();
+            csv += &format!("{},0,{},0.006\n", radius * a.cos(), radius * a.sin());
+        }
+    }
+    std::fs::write(dir.join("input.csv"), csv).unwrap();
+    let scene = "scene = \"input\"\ninput = \"input.csv\"\nbox_lo = [-0.12, -0.05, -0.12]\n\
+                 box_hi = [0.12, 0.05, 0.12]\n\n[[wall]]\nmesh = \"drum.obj\"\nomega = 3.0\n\
+                 axis = [0, 1, 0]\n";
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+}
+
+#[test]
+fn a_turning_mesh_wall_is_written_with_its_loads_and_resumes_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    drum_scene(dir.path());
+    let run = |out: &str, steps: &str| {
+        let args = [
+            "simulate",
+            "scene.toml",
+            "--steps",
+            steps,
+            "--frame-every",
+            "50",
+            "-q",
+            "-o",
+            out,
+        ];
+        ok(&args, dir.path());
+    };
+    run("straight", "200");
+    run("split", "100");
+    let resume = [
+        "simulate",
+        "--resume",
+        "split/checkpoint.bin",
+        "--steps",
+        "200",
+        "-q",
+    ];
+    ok(&resume, dir.path());
+    let a = checkpoint(dir.path(), "straight");
+    assert!(
+        a == checkpoint(dir.path(), "split"),
+        "a resumed run differs"
+    );
+    let read = |path: &str| std::fs::read_to_string(dir.path().join(path)).unwrap();
+    let loads = read("straight/walls.csv");
+    assert_eq!(loads, read("split/walls.csv"));
+    // A row per frame (steps 0, 50, .., 200) for the one wall, the drum carrying weight.
+    assert_eq!(loads.lines().count(), 1 + 5, "{loads}");
+    assert!(
+        loads.starts_with("time,wall,fx,fy,fz,tx,ty,tz\n"),
+        "{loads}"
+    );
+    let last_fz: f64 = loads
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .nth(4)
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(last_fz < 0.0, "{loads}");
+    let index = read("split/walls.pvd");
+    for step in [0, 100, 200] {
+        let file = format!("wall_{step:08}_0.vtp");
+        assert!(index.contains(&file), "{index}");
+        assert!(dir.path().join("split").join(file).exists());
+    }
+    // The turned wall moved: its surface differs between frames.
+    assert_ne!(
+        read("straight/wall_00000050_0.vtp"),
+        read("straight/wall_00000200_0.vtp")
+    );
+}
+
+#[test]
+fn a_gpu_backend_refuses_mesh_walls_and_names_the_cpu_backend() {
+    let dir = tempfile::tempdir().unwrap();
+    drum_scene(dir.path());
+    for backend in ["wgpu-compute", "wgpu-rq", "optix"] {
+        let args = [
+            "simulate",
+            "scene.toml",
+            "--steps",
+            "10",
+            "--backend",
+            backend,
+        ];
+        let e = fails(&args, dir.path());
+        assert!(e.contains(backend) && e.contains("--backend cpu"), "{e}");
+    }
+    let e = fails(
+        &["simulate", "scene.toml", "--set", "box_walls=maybe"],
+        dir.path(),
+    );
+    assert!(e.contains("box_walls"), "{e}");
+}

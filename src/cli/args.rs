@@ -182,7 +182,7 @@ pub struct SimulateArgs {
     /// Scene file (TOML; see `mochi::dem::scene`). Without it, the built-in default scene.
     pub scene_file: Option<PathBuf>,
     /// Scene: pour (the default: a polydisperse column collapsing into a heap), freefall, slab,
-    /// poly1.2, poly12, poly120, polylog, rotating, mesh, input.
+    /// poly1.2, poly12, poly120, polylog, rotating, mesh, input, hopper, drum.
     #[arg(long)]
     pub scene: Option<String>,
     /// Number of spheres of a generated scene.

@@ -7,6 +7,7 @@ mod output;
 mod render;
 mod run;
 mod simulate;
+mod walls;
 
 use clap::Parser;
 use std::process::ExitCode;

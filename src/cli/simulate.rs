@@ -3,10 +3,11 @@
 use super::args::SimulateArgs;
 use super::output;
 use super::render::{FrameData, FrameRenderer, png_name};
+use super::walls::{FlowLog, WallOutputs};
 use anyhow::Result;
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::dem::scene::{SceneFlags, SceneKind};
-use mochi::dem::{Clock, StageTimes, Stepper};
+use mochi::dem::{Clock, StageTimes, Stepper, equipment};
 use mochi::engines::Options;
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::render::ColorBy;
@@ -94,6 +95,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         spheres: n,
         radius_range: (r_min, r_max),
         coarse_warning,
+        walls,
         ..
     } = run;
     let mut pictures = if args.render_every == 0 {
@@ -135,6 +137,14 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     } else {
         Some(FrameSeries::create(&out)?)
     };
+    let resume_time = args.resume.as_ref().map(|_| first as f64 * p.dt as f64);
+    let (wall_outputs, mut flow_log) = match frames {
+        Some(_) => (
+            WallOutputs::start(&out, &walls, resume_time)?,
+            FlowLog::start(&out, stepper.flow_counts(), resume_time)?,
+        ),
+        None => (None, None),
+    };
     eprintln!(
         "scene {} | {n} spheres | steps {first}..{total} | {} | restitution {} | backend {}",
         config.scene,
@@ -160,13 +170,20 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     io::write_atomically(&out.join(io::SCENE_FILE), |w| {
         w.write_all(scene_toml.as_bytes())
     })?;
-    let write_frame = |frames: &mut Option<FrameSeries>, stepper: &mut dyn Stepper| -> Result<()> {
-        if let Some(series) = frames {
-            let now = stepper.particles()?;
-            series.write(&Frame::of(&now, p.dt, p.friction.has_history()), config.csv)?;
-        }
-        Ok(())
-    };
+    let mut write_frame =
+        |frames: &mut Option<FrameSeries>, stepper: &mut dyn Stepper| -> Result<()> {
+            if let Some(series) = frames {
+                let now = stepper.particles()?;
+                series.write(&Frame::of(&now, p.dt, p.friction.has_history()), config.csv)?;
+                if let Some(walls) = &wall_outputs {
+                    walls.write(series.entries(), now.step, p.dt, &stepper.wall_loads())?;
+                }
+                if let (Some(log), Some(counts)) = (&mut flow_log, stepper.flow_counts()) {
+                    log.write(now.step as f64 * p.dt as f64, now.len(), counts)?;
+                }
+            }
+            Ok(())
+        };
     let draw = |pictures: &mut Option<FrameRenderer>, stepper: &mut dyn Stepper| -> Result<()> {
         if let Some(pictures) = pictures {
             let now = stepper.particles()?;
@@ -232,6 +249,15 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     bar.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
     let end = stepper.particles()?;
+    let measured = match config.scene {
+        SceneKind::Hopper => flow_log
+            .as_ref()
+            .and_then(|log| equipment::mass_flow_rate(log.discharge()))
+            .map(|w| format!("hopper: steady mass flow rate {w:.4e} kg/s (see flow.csv)")),
+        SceneKind::Drum => equipment::free_surface_angle(&end.positions, &end.radii)
+            .map(|a| format!("drum: free surface at {a:.1}° to the horizontal")),
+        _ => None,
+    };
     io::write_checkpoint(&checkpoint, &end, &scene_toml)?;
     summary(&SummaryLine {
         backend: stepper.describe(),
@@ -242,6 +268,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         clock,
         contacts,
     });
+    if let Some(line) = measured {
+        println!("{line}");
+    }
     eprintln!(
         "wrote {} (series.pvd opens in ParaView), checkpoint {}",
         out.display(),

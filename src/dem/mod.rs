@@ -1,13 +1,17 @@
 //! The discrete-element simulation, backend-independent (docs/method.md, "The DEM step"): per
 //! time step (1) maintain the acceleration structure, (2) find every touching pair and resolve
-//! its contact force in the same pass, (3) walls, gravity and integration. [`model`] holds the
+//! its contact force in the same pass, (3) walls, gravity and integration. [`walls`] holds the
+//! mesh walls' geometry and motion, [`flow`] the spheres' ways in and out. [`model`] holds the
 //! physics, [`scene`] the scene files, [`Stepper`] the step every engine implements
 //! (the `engines` registry opens one, where the backend's data lives).
 
+pub mod equipment;
+pub mod flow;
 pub mod model;
 pub mod scene;
 pub mod stepper;
+pub mod walls;
 
-pub use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, Particles};
+pub use crate::particles::{ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles};
 pub use model::{Material, StepParams};
 pub use stepper::{Advance, Clock, StageTimes, Stepper};

@@ -3,7 +3,7 @@
 //!
 //! ```toml
 //! scene = "pour"         # freefall, slab, poly1.2, poly12, poly120, polylog, pour, rotating,
-//!                        # mesh, input
+//!                        # mesh, input, hopper, drum
 //! spheres = 4000
 //! seed = 1
 //! steps = 20000
@@ -36,10 +36,29 @@
 //! mesh_mixed = false     # half of the spheres at mesh_radius / 2
 //! mesh_size = 0.818      # the mesh fitted into a cube of this side
 //! mesh_copies = 1        # copies side by side, in layers if needed
+//! grain_radius = 0.004   # hopper, drum: mean radius (radii U[0.9, 1.1] of it)
+//! hopper_orifice = 0.04  # hopper: orifice diameter [m]
+//! hopper_angle = 0       # hopper: bottom's angle from the horizontal [°] (0: flat)
+//! hopper_open = 0.2      # hopper: time the gate under the orifice slides away [s]
+//! drum_omega = 3.0       # drum: angular speed about y [rad/s]
+//! box_walls = true       # false: the six walls of the box off
+//! [[wall]]               # mesh walls, any number (see `dem::walls::spec`)
+//! mesh = "hopper.stl"
+//! [[inflow]]             # spheres inserted at a rate (see `dem::flow`)
+//! lo = [0.4, 0.4, 0.9]
+//! hi = [0.6, 0.6, 0.95]
+//! rate = 2000
+//! sphere_radius = 0.004
+//! [[outflow]]            # spheres removed (and, without box walls, below the box)
+//! lo = [0, 0, 0]
+//! hi = [1, 1, 0.05]
 //! ```
 
+use super::equipment::{Built, Equipment, EquipmentSpec};
+use super::flow::{FlowSet, InflowConfig, OutflowConfig};
 use super::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
 use super::model::{ContactLaw, Material, RollingModel, StepParams};
+use super::walls::{WallConfig, WallSet};
 use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
@@ -103,11 +122,15 @@ pub enum SceneKind {
     Mesh,
     /// The spheres of a file.
     Input,
+    /// A hopper draining through its orifice (`dem::equipment`).
+    Hopper,
+    /// A turning drum (`dem::equipment`).
+    Drum,
 }
 
 impl SceneKind {
     /// Every scene, in the order errors list them.
-    pub const ALL: [SceneKind; 10] = [
+    pub const ALL: [SceneKind; 12] = [
         SceneKind::Generated(Scene::Freefall),
         SceneKind::Generated(Scene::Slab),
         SceneKind::Generated(Scene::Poly1_2),
@@ -118,6 +141,8 @@ impl SceneKind {
         SceneKind::Rotating,
         SceneKind::Mesh,
         SceneKind::Input,
+        SceneKind::Hopper,
+        SceneKind::Drum,
     ];
 
     /// Name, as in TOML and on the command line.
@@ -132,6 +157,8 @@ impl SceneKind {
             SceneKind::Rotating => Source::Generated(Scene::Freefall),
             SceneKind::Mesh => Source::Mesh,
             SceneKind::Input => Source::Input,
+            SceneKind::Hopper => Source::Equipment(Equipment::Hopper),
+            SceneKind::Drum => Source::Equipment(Equipment::Drum),
         }
     }
 }
@@ -142,6 +169,7 @@ enum Source {
     Generated(Scene),
     Mesh,
     Input,
+    Equipment(Equipment),
 }
 
 impl clap::ValueEnum for SceneKind {
@@ -157,6 +185,10 @@ impl clap::ValueEnum for SceneKind {
                 .help("freefall under gravity rotating about y (gravity_spin 0.25π rad/s)"),
             SceneKind::Mesh => PossibleValue::new("mesh").help("a mesh (mesh = FILE) filled"),
             SceneKind::Input => PossibleValue::new("input").help("the spheres of input = FILE"),
+            SceneKind::Hopper => PossibleValue::new("hopper")
+                .help("a hopper with a circular orifice, filled, then opened (mesh walls, cpu)"),
+            SceneKind::Drum => PossibleValue::new("drum")
+                .help("a drum about a horizontal axis, 40% filled, turning (mesh walls, cpu)"),
         })
     }
 }
@@ -366,6 +398,37 @@ pub struct SceneConfig {
     pub mesh_size: f64,
     /// Scene `mesh`: copies dropped side by side (in layers when they do not fit one).
     pub mesh_copies: u32,
+    /// Whether the six walls of the box hold the spheres in (default true).
+    #[serde(skip_serializing_if = "is_true")]
+    pub box_walls: bool,
+    /// Mesh walls, the `[[wall]]` tables (`dem::walls::spec`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub wall: Vec<WallConfig>,
+    /// Inflows, the `[[inflow]]` tables (`dem::flow`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub inflow: Vec<InflowConfig>,
+    /// Outflows, the `[[outflow]]` tables (`dem::flow`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub outflow: Vec<OutflowConfig>,
+    /// Scenes `hopper` and `drum`: mean sphere radius \[m\] (default 0.004).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grain_radius: Option<f64>,
+    /// Scene `hopper`: orifice diameter \[m\] (default 0.04).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hopper_orifice: Option<f64>,
+    /// Scene `hopper`: angle of the bottom from the horizontal \[°\] (default 0: flat).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hopper_angle: Option<f64>,
+    /// Scene `hopper`: time the gate under the orifice slides away \[s\] (default 0.2).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hopper_open: Option<f64>,
+    /// Scene `drum`: angular speed about y \[rad/s\] (default 3).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub drum_omega: Option<f64>,
+}
+
+fn is_true(x: &bool) -> bool {
+    *x
 }
 
 impl Default for SceneConfig {
@@ -400,6 +463,15 @@ impl Default for SceneConfig {
             mesh_mixed: false,
             mesh_size: 0.818,
             mesh_copies: 1,
+            box_walls: true,
+            wall: Vec::new(),
+            inflow: Vec::new(),
+            outflow: Vec::new(),
+            grain_radius: None,
+            hopper_orifice: None,
+            hopper_angle: None,
+            hopper_open: None,
+            drum_omega: None,
         }
     }
 }
@@ -417,6 +489,15 @@ pub struct Start {
     pub params: StepParams,
     /// Proxy mode of the grid.
     pub mode: ProxyMode,
+    /// The walls: the box's (or none) and the mesh walls.
+    pub walls: WallSet,
+    /// The spheres' ways in and out.
+    pub flow: FlowSet,
+}
+
+/// The height of the box's floor: `box_lo`'s where the scene gives it, else the default's.
+fn box_lo_z(box_lo: Option<[f64; 3]>, default_lo: [f64; 3]) -> f64 {
+    box_lo.unwrap_or(default_lo)[2]
 }
 
 /// Parses a `key=value` override into `table` (`value` in TOML syntax; a bare word is taken as
@@ -493,14 +574,24 @@ impl SceneConfig {
         let scene_option = match source {
             Source::Input => "--input/--scene",
             Source::Mesh => "--mesh/--scene",
-            Source::Generated(_) => "--scene",
+            Source::Generated(_) | Source::Equipment(_) => "--scene",
         };
         for (key, value) in &given {
             let (used, flag) = match key.as_str() {
-                "spheres" => (matches!(source, Source::Generated(_)), "-n"),
+                "spheres" => (
+                    matches!(source, Source::Generated(_) | Source::Equipment(_)),
+                    "-n",
+                ),
                 "seed" => (!matches!(source, Source::Input), "--seed"),
                 "input" => (matches!(source, Source::Input), "--input"),
                 "mesh" => (matches!(source, Source::Mesh), "--mesh"),
+                "grain_radius" => (matches!(source, Source::Equipment(_)), ""),
+                k if k.starts_with("hopper_") => {
+                    (matches!(source, Source::Equipment(Equipment::Hopper)), "")
+                }
+                k if k.starts_with("drum_") => {
+                    (matches!(source, Source::Equipment(Equipment::Drum)), "")
+                }
                 k => (
                     !k.starts_with("mesh_") || matches!(source, Source::Mesh),
                     "",
@@ -536,7 +627,9 @@ impl SceneConfig {
     /// Takes relative input and mesh paths from the folder of `origin`.
     fn rebase(&mut self, origin: Option<&Path>) {
         if let Some(dir) = origin.and_then(Path::parent) {
-            for path in [&mut self.input, &mut self.mesh].into_iter().flatten() {
+            let walls = self.wall.iter_mut().map(|w| &mut w.mesh);
+            let files = [&mut self.input, &mut self.mesh].into_iter().flatten();
+            for path in files.chain(walls) {
                 if path.is_relative() {
                     *path = dir.join(&*path);
                 }
@@ -638,6 +731,7 @@ impl SceneConfig {
                 layout: Layout::Lattice,
             })?,
             Source::Mesh => self.mesh_spheres()?,
+            Source::Equipment(kind) => self.equipment(kind)?.spheres,
             Source::Input => {
                 let input = self.input.as_ref().ok_or_else(|| Error::InvalidConfig {
                     what: "scene \"input\"".into(),
@@ -662,8 +756,12 @@ impl SceneConfig {
     }
 
     /// `start`, if every centre lies in its box widened by `slack` times its extent on every
-    /// side (0 at t = 0).
+    /// side (0 at t = 0; a resumed scene without box walls is not checked).
     fn inside_the_box(start: Start, slack: f32) -> Result<Start> {
+        if slack > 0.0 && !start.walls.box_walls {
+            // Without the box walls spheres leave the box: it only bounds the grid.
+            return Ok(start);
+        }
         let (lo, hi) = (start.params.box_lo, start.params.box_hi);
         let grown: [(f32, f32); 3] = std::array::from_fn(|a| {
             let margin = slack * (hi[a] - lo[a]);
@@ -788,6 +886,10 @@ impl SceneConfig {
                 ([0.0; 3], [side; 3])
             }
             Source::Mesh => ([0.0; 3], [self.mesh_box_side()?; 3]),
+            Source::Equipment(kind) => {
+                let built = self.equipment(kind)?;
+                (built.box_lo, built.box_hi)
+            }
             // A file: its bounds with a margin of two largest diameters.
             Source::Input => {
                 match SphereSet::new(particles.positions.clone(), particles.radii.clone())?.bounds()
@@ -801,7 +903,14 @@ impl SceneConfig {
             }
         };
         let material = self.material()?;
-        let r_min = if particles.is_empty() { 1.0 } else { r_min };
+        let flow = self.flow(material.density, box_lo_z(self.box_lo, default_lo))?;
+        // The smallest sphere, inserted ones included, sets the time step.
+        let r_min = match (particles.is_empty(), flow.smallest_radius()) {
+            (true, None) => 1.0,
+            (true, Some(r)) => r,
+            (false, None) => r_min,
+            (false, Some(r)) => r_min.min(r),
+        };
         let dt = match (self.dt, material.contact) {
             (Some(dt), _) => dt,
             // The Rayleigh rule where the parameters make sense (else `StepParams::new` says
@@ -841,7 +950,64 @@ impl SceneConfig {
             particles,
             params,
             mode: self.mode,
+            walls: self.walls(&material)?,
+            flow,
         })
+    }
+
+    /// The built-in scene `kind` as this scene sizes it.
+    fn equipment(&self, kind: Equipment) -> Result<Built> {
+        EquipmentSpec {
+            kind,
+            n: self.spheres,
+            seed: self.seed,
+            grain_radius: self.grain_radius.unwrap_or(0.004),
+            orifice: self.hopper_orifice.unwrap_or(0.04),
+            angle: self.hopper_angle.unwrap_or(0.0),
+            open: self.hopper_open.unwrap_or(0.2),
+            omega: self.drum_omega.unwrap_or(3.0),
+        }
+        .build()
+    }
+
+    /// The inflows and outflows of the scene; without the box walls, spheres below the box's
+    /// floor (at `floor`) leave too.
+    fn flow(&self, density: f64, floor: f64) -> Result<FlowSet> {
+        let inflows = self
+            .inflow
+            .iter()
+            .enumerate()
+            .map(|(k, f)| f.build(k, density))
+            .collect::<Result<Vec<_>>>()?;
+        let mut outflow = self.outflow.clone();
+        if let Source::Equipment(kind) = self.scene.source() {
+            outflow.extend(self.equipment(kind)?.outflows);
+        }
+        let outflows = outflow
+            .iter()
+            .enumerate()
+            .map(|(k, f)| f.build(k))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(FlowSet {
+            inflows,
+            outflows,
+            floor: (!self.box_walls).then_some(floor as f32),
+        })
+    }
+
+    /// The walls of the scene: the box (or not) and each `[[wall]]` read and posed.
+    fn walls(&self, material: &Material) -> Result<WallSet> {
+        let friction = material.wall_friction.unwrap_or(material.friction);
+        let mut meshes = Vec::new();
+        if let Source::Equipment(kind) = self.scene.source() {
+            for (config, mesh) in self.equipment(kind)?.walls {
+                meshes.push(config.build_from(meshes.len(), &mesh, friction)?);
+            }
+        }
+        for w in &self.wall {
+            meshes.push(w.build(meshes.len(), friction)?);
+        }
+        WallSet::new(self.box_walls, meshes)
     }
 
     /// The material the scene describes, its defaults filled in; refuses keys that do not
@@ -998,7 +1164,7 @@ mod tests {
         assert!(
             e.contains(
                 "unknown scene \"teapot\": use freefall, slab, poly1.2, poly12, poly120, \
-                 polylog, pour, rotating, mesh or input"
+                 polylog, pour, rotating, mesh, input, hopper or drum"
             ),
             "{e}"
         );
@@ -1183,5 +1349,128 @@ mod tests {
         let c = SceneConfig::load(None, &["scene=rotating".into(), "spheres=1000".into()]).unwrap();
         let s = c.build().unwrap();
         assert!((s.params.gravity_spin as f64 - 0.25 * std::f64::consts::PI).abs() < 1e-6);
+    }
+
+    #[test]
+    fn wall_tables_read_their_meshes_and_name_the_file_of_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let obj = dir.path().join("floor.obj");
+        std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let scene = dir.path().join("scene.toml");
+        let text = "scene = \"freefall\"\nspheres = 8\nbox_walls = false\n\n[[wall]]\n\
+                    mesh = \"floor.obj\"\nscale = 2.0\nrotate = { axis = [1, 0, 0], degrees = 10 }\n\
+                    omega = 1.5\naxis = [0, 1, 0]\n";
+        let c = SceneConfig::parse(Some(text), Some(&scene), &[]).unwrap();
+        assert_eq!(c.wall[0].mesh, obj);
+        let start = c.build().unwrap();
+        assert!(!start.walls.box_walls);
+        assert_eq!(start.walls.meshes.len(), 1);
+        assert_eq!(start.walls.meshes[0].motion.omega, 1.5);
+        // Saved and read back (a checkpoint's scene) the same.
+        let back: SceneConfig = toml::from_str(&c.resolved(&start).to_toml()).unwrap();
+        assert_eq!(back.wall, c.wall);
+        assert!(!back.box_walls);
+        // A file that is not there, a key no wall has, a bad scale: one error each, naming it.
+        let missing = text.replace("floor.obj", "nowhere.obj");
+        let e = SceneConfig::parse(Some(&missing), Some(&scene), &[])
+            .unwrap()
+            .build()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("nowhere.obj"), "{e}");
+        let e = SceneConfig::parse(Some(&format!("{text}colour = 1\n")), Some(&scene), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("colour"), "{e}");
+        let e = SceneConfig::parse(Some(&text.replace("2.0", "-1.0")), Some(&scene), &[])
+            .unwrap()
+            .build()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("wall 0") && e.contains("floor.obj") && e.contains("scale"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn inflow_and_outflow_tables_make_the_flows_and_refuse_what_is_ambiguous() {
+        let text = "scene = \"freefall\"\nspheres = 8\nbox_walls = false\n\n[[inflow]]\n\
+                    center = [0.5, 0.5, 0.9]\nradius = 0.1\nmass_rate = 0.01\n\
+                    sphere_radius = 0.002\n\n[[outflow]]\nlo = [0, 0, 0]\nhi = [1, 1, 0.1]\n";
+        let c = SceneConfig::parse(Some(text), None, &[]).unwrap();
+        let start = c.build().unwrap();
+        let flow = &start.flow;
+        assert_eq!((flow.inflows.len(), flow.outflows.len()), (1, 1));
+        // Without the box walls, the floor of the box drains too.
+        assert_eq!(flow.floor, Some(start.params.box_lo[2]));
+        // 0.01 kg/s of 2 mm spheres at 500 kg/m³.
+        let each = 500.0 * 4.0 / 3.0 * std::f64::consts::PI * 0.002f64.powi(3);
+        assert!((flow.inflows[0].rate * each / 0.01 - 1.0).abs() < 1e-9);
+        // The inserted spheres' radius sets the time step when smaller than the scene's.
+        assert!(start.params.dt_limit > 0.0);
+        let both = text.replace("mass_rate = 0.01", "mass_rate = 0.01\nrate = 5");
+        let e = SceneConfig::parse(Some(&both), None, &[])
+            .unwrap()
+            .build()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("inflow 0") && e.contains("one of the two"),
+            "{e}"
+        );
+        let inverted = text.replace("hi = [1, 1, 0.1]", "hi = [1, 1, -0.1]");
+        let e = SceneConfig::parse(Some(&inverted), None, &[])
+            .unwrap()
+            .build()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("outflow 0"), "{e}");
+    }
+
+    #[test]
+    fn the_hopper_and_the_drum_come_with_their_walls_inside_their_box() {
+        for (scene, walls, outflows) in [("hopper", 2, 1), ("drum", 1, 0)] {
+            let over = [format!("scene={scene}"), "spheres=300".into()];
+            let c = SceneConfig::load(None, &over).unwrap();
+            let start = c.build().unwrap();
+            assert_eq!(start.particles.len(), 300);
+            assert_eq!(start.walls.meshes.len(), walls, "{scene}");
+            assert_eq!(start.flow.outflows.len(), outflows, "{scene}");
+            let set = SphereSet::new(
+                start.particles.positions.clone(),
+                start.particles.radii.clone(),
+            )
+            .unwrap();
+            let pairs = crate::oracle::brute_force_pairs(&set);
+            assert!(pairs.is_empty(), "{scene}: the filled spheres overlap");
+            // No sphere touches a wall at t = 0.
+            let poses = start.walls.poses_at(0.0);
+            for (wall, pose) in start.walls.meshes.iter().zip(&poses) {
+                for (c, &r) in start.particles.positions.iter().zip(&start.particles.radii) {
+                    let mut touching = crate::dem::walls::Touches::default();
+                    crate::dem::walls::touches(
+                        &wall.triangles,
+                        pose,
+                        glam::Vec3::from(*c),
+                        r,
+                        &mut touching,
+                    );
+                    assert!(
+                        touching.found.is_empty(),
+                        "{scene}: a sphere at {c:?} touches {}",
+                        wall.name
+                    );
+                }
+            }
+        }
+        let e = SceneConfig::load_new(
+            None,
+            &SceneFlags::default(),
+            &["scene=drum".into(), "hopper_angle=30".into()],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("hopper_angle"), "{e}");
     }
 }

@@ -1,5 +1,7 @@
 //! The [`Stepper`] trait that every backend's DEM step implements.
 
+use super::flow::FlowCounts;
+use super::walls::WallLoad;
 use crate::error::Result;
 use crate::particles::Particles;
 
@@ -65,6 +67,18 @@ pub trait Stepper: Send {
 
     /// The particles now, in input order (a read-back on GPU backends).
     fn particles(&mut self) -> Result<Particles>;
+
+    /// The force and torque the spheres exerted on each mesh wall in the last step, in the
+    /// scene's order of walls (default: none, for a step without mesh walls).
+    fn wall_loads(&self) -> Vec<WallLoad> {
+        Vec::new()
+    }
+
+    /// What the inflows and outflows did since the step opened (default: `None`, a step
+    /// without them).
+    fn flow_counts(&self) -> Option<FlowCounts> {
+        None
+    }
 
     /// Whether this step refits its acceleration structure between rebuilds, and so obeys the
     /// engines' `Options::rebuild` (default: no; grids re-bin and `wgpu-rq` rebuilds every

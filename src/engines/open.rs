@@ -2,8 +2,9 @@
 
 use super::registry::{BackendChoice, BackendKind, Options};
 use crate::dem::model::StepParams;
+use crate::dem::scene::Start;
 use crate::dem::stepper::Stepper;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
@@ -67,4 +68,50 @@ pub fn open_choice(
         ))
     })?;
     Ok((stepper, kind, Some(reason)))
+}
+
+/// Opens the DEM step the user chose for the scene `start`. The box walls alone run on every
+/// backend ([`open_choice`]); mesh walls, a box switched off, inflows and outflows run on the
+/// cpu backend only until the GPU engines gain them: a GPU backend named is refused, saying
+/// so, and `auto` opens cpu and says why.
+pub fn open_scene(
+    choice: BackendChoice,
+    start: Start,
+    options: &Options,
+) -> Result<(Box<dyn Stepper>, BackendKind, Option<String>)> {
+    let Start {
+        particles,
+        params,
+        mode,
+        walls,
+        flow,
+    } = start;
+    if walls.is_box_only() && flow.is_empty() {
+        return open_choice(choice, particles, params, mode, options);
+    }
+    let needs = match (walls.is_box_only(), flow.is_empty()) {
+        (false, false) => format!("{} and spheres flowing in or out", walls.describe()),
+        (false, true) => walls.describe(),
+        _ => "spheres flowing in or out".to_owned(),
+    };
+    match choice.kind() {
+        Some(BackendKind::Cpu) | None => {
+            particles.validate()?;
+            let stepper = super::cpu::CpuStepper::new(particles, params, mode)?
+                .with_walls(walls)?
+                .with_flow(flow, mode);
+            let reason = choice.kind().is_none().then(|| {
+                format!("auto: cpu, the one backend that runs a scene with {needs} so far")
+            });
+            Ok((Box::new(stepper), BackendKind::Cpu, reason))
+        }
+        Some(kind) => Err(Error::BackendUnavailable {
+            backend: kind.name(),
+            reason: format!(
+                "this scene has {needs}, which the {} step does not run yet; the cpu backend \
+                 runs it (--backend cpu)",
+                kind.name()
+            ),
+        }),
+    }
 }

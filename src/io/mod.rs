@@ -1,7 +1,8 @@
 //! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4, optionally with velocities and
 //! angular velocities), pairs (CSV `i,j`), simulation
 //! frames for ParaView (`.vtu` files indexed by a `.pvd` collection, see [`FrameSeries`]) and
-//! checkpoints.
+//! checkpoints; mesh walls' surfaces and loads (`walls.pvd`, `walls.csv`); the logs a run appends to
+//! per frame.
 //!
 //! Every reader names the file, the line (CSV) or row (`.npy`) and the problem in its error.
 //! Every writer goes through [`write_atomically`] (or [`AtomicFile`]): a failed write leaves no
@@ -11,9 +12,11 @@ mod atomic;
 mod checkpoint;
 mod frame_read;
 mod frames;
+mod log;
 mod pairs;
 mod run_folder;
 mod spheres;
+mod walls;
 
 pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};
 pub use checkpoint::{read_checkpoint, write_checkpoint};
@@ -22,12 +25,17 @@ pub use frames::{
     Frame, FrameSeries, SERIES_INDEX, SeriesEntry, read_series_index, write_frame, write_frame_csv,
     write_frame_npy, write_vtu,
 };
+pub use log::{FLOW_LOG, FLOW_LOG_HEADER, append_log, start_log};
 pub use pairs::{read_pairs, write_pairs};
 pub use run_folder::{
     CHECKPOINT_FILE, LOCK_FILE, RunFolder, SCENE_FILE, is_run_file_name, is_run_file_of,
     run_files_in, same_file,
 };
 pub use spheres::{read_particles, read_spheres, write_spheres};
+pub use walls::{
+    WALL_LOADS, WALL_LOADS_HEADER, WALLS_INDEX, WallLoadRow, wall_file_name, wall_load_lines,
+    write_surface_vtp, write_walls_index,
+};
 
 use crate::error::Error;
 use std::path::Path;

@@ -2,7 +2,7 @@
 //! it with non-overlapping spheres on a jittered lattice.
 //!
 //! - [`Mesh`]: vertices and triangles, [`Mesh::bounds`], [`Mesh::fitted`]; [`torus`] makes a
-//!   small watertight one.
+//!   small watertight one, [`revolution`] a surface turned about an axis (cylinders, cones).
 //! - [`load`]: reads `.obj`, `.ply` (ASCII and binary) and `.stl` (ASCII and binary);
 //!   [`load_bytes`] the same from memory.
 //! - [`winding_number`] and [`WindingTree`]: the generalized winding number, the inside test
@@ -173,6 +173,40 @@ pub fn torus(major: f64, minor: f64, segments_around: u32, segments_tube: u32) -
                 index(i + 1, j),
                 index(i + 1, j + 1),
                 index(i, j + 1),
+            );
+            triangles.push([a, b, c]);
+            triangles.push([a, c, d]);
+        }
+    }
+    Mesh {
+        vertices,
+        triangles,
+    }
+}
+
+/// The surface swept by the polyline `profile` of (distance from the z axis, height) points
+/// turning once about the z axis, in `sides` steps (at least 3): a quad (two triangles) per
+/// segment and step. A profile point on the axis gives triangles of zero area there, which
+/// users of the mesh may drop.
+pub fn revolution(profile: &[(f64, f64)], sides: u32) -> Mesh {
+    let sides = sides.max(3);
+    let rings = profile.len() as u32;
+    let mut vertices = Vec::with_capacity((sides * rings) as usize);
+    for k in 0..sides {
+        let phi = TAU * f64::from(k) / f64::from(sides);
+        for &(rho, z) in profile {
+            vertices.push([rho * phi.cos(), rho * phi.sin(), z]);
+        }
+    }
+    let index = |k: u32, j: u32| (k % sides) * rings + j;
+    let mut triangles = Vec::new();
+    for k in 0..sides {
+        for j in 0..rings.saturating_sub(1) {
+            let (a, b, c, d) = (
+                index(k, j),
+                index(k + 1, j),
+                index(k + 1, j + 1),
+                index(k, j + 1),
             );
             triangles.push([a, b, c]);
             triangles.push([a, c, d]);

@@ -15,11 +15,19 @@ use crate::error::{Error, Result, try_vec};
 /// (side 0 the low wall). Sphere ids stay below it.
 pub const FIRST_WALL: u32 = u32::MAX - 5;
 
+/// How many mesh walls a run may have: their partner ids lie just below the box's.
+pub const MESH_WALLS: u32 = 1 << 16;
+
+/// Partner ids from here to [`FIRST_WALL`] name mesh walls (`FIRST_MESH_WALL + w`, the
+/// scene's wall `w`). A run with mesh walls keeps its sphere ids below it.
+pub const FIRST_MESH_WALL: u32 = FIRST_WALL - MESH_WALLS;
+
 /// One contact as one of its spheres keeps it.
 #[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct HistoryEntry {
-    /// The other sphere's index in input order, or a wall (from [`FIRST_WALL`] on).
+    /// The other sphere's index in input order, or a wall (a mesh wall from
+    /// [`FIRST_MESH_WALL`] on, a box wall from [`FIRST_WALL`] on).
     pub partner: u32,
     /// Tangential spring ξ \[m\].
     pub tangential: [f32; 3],
@@ -133,6 +141,70 @@ impl ContactHistory {
         Ok(())
     }
 
+    /// Adds spheres with no contacts until there are `n` (a history with no spheres at all
+    /// stays empty: every sphere holds none).
+    pub fn grow_to(&mut self, n: usize) -> Result<()> {
+        if self.counts.is_empty() || self.counts.len() >= n {
+            return Ok(());
+        }
+        let what = || format!("the contact history of {n} spheres");
+        let total = n.checked_mul(self.slots).ok_or_else(|| Error::TooLarge {
+            what: what(),
+            got: u64::MAX,
+            limit: usize::MAX as u64,
+        })?;
+        self.counts
+            .try_reserve(n - self.counts.len())
+            .map_err(|_| Error::OutOfMemory {
+                what: what(),
+                bytes: (4 * n) as u64,
+            })?;
+        self.counts.resize(n, 0);
+        self.entries.resize(total, HistoryEntry::default());
+        Ok(())
+    }
+
+    /// Keeps the spheres `i` with `keep[i]` (one flag per sphere), renumbered in order: the
+    /// partners are renamed to the new numbers and the contacts with removed spheres dropped;
+    /// walls stay as they are.
+    pub fn retain(&mut self, keep: &[bool]) {
+        if self.counts.is_empty() {
+            return;
+        }
+        let n = keep.len();
+        let mut renamed = vec![u32::MAX; n];
+        let mut next = 0u32;
+        for (i, &k) in keep.iter().enumerate() {
+            if k {
+                renamed[i] = next;
+                next += 1;
+            }
+        }
+        let slots = self.slots;
+        let mut counts = Vec::with_capacity(next as usize);
+        let mut entries = Vec::with_capacity(next as usize * slots);
+        for i in (0..n).filter(|&i| keep[i]) {
+            let mut held = 0;
+            for e in self.of(i) {
+                let p = e.partner as usize;
+                let partner = match is_wall(e.partner, n) {
+                    true => e.partner,
+                    false if keep[p] => renamed[p],
+                    false => continue,
+                };
+                entries.push(HistoryEntry { partner, ..*e });
+                held += 1;
+            }
+            entries.resize(
+                entries.len() + slots - held as usize,
+                HistoryEntry::default(),
+            );
+            counts.push(held);
+        }
+        self.counts = counts;
+        self.entries = entries;
+    }
+
     /// Checks the history against `n` spheres: owners and partners in range, no sphere its own
     /// partner, finite springs.
     pub fn validate(&self, n: usize) -> Result<()> {
@@ -149,6 +221,12 @@ impl ContactHistory {
     }
 }
 
+/// Whether `partner` names a wall in the history of `n` spheres.
+#[inline]
+fn is_wall(partner: u32, n: usize) -> bool {
+    partner >= FIRST_WALL || (partner >= FIRST_MESH_WALL && partner as usize >= n)
+}
+
 /// Checks one entry of sphere `owner` among `n`.
 fn check_entry(n: usize, owner: usize, e: &HistoryEntry) -> Result<()> {
     let bad = |reason: String| {
@@ -161,7 +239,7 @@ fn check_entry(n: usize, owner: usize, e: &HistoryEntry) -> Result<()> {
         return bad(format!("contact history for sphere {owner} of {n}"));
     }
     let partner = e.partner as usize;
-    if e.partner < FIRST_WALL && (partner >= n || partner == owner) {
+    if !is_wall(e.partner, n) && (partner >= n || partner == owner) {
         return bad(format!("contact history names partner {partner} of {n}"));
     }
     if e.tangential
@@ -220,6 +298,29 @@ mod tests {
             ContactHistory::with_slots(3, 5).unwrap(),
             ContactHistory::default()
         );
+    }
+
+    #[test]
+    fn removed_spheres_take_their_contacts_along_and_the_rest_are_renumbered() {
+        let contacts = [
+            (0, entry(2, 1.0)),
+            (0, entry(1, 2.0)),
+            (1, entry(0, -2.0)),
+            (2, entry(0, -1.0)),
+            (2, entry(FIRST_MESH_WALL, 3.0)),
+        ];
+        let mut h = ContactHistory::from_contacts(3, &contacts).unwrap();
+        h.retain(&[true, false, true]);
+        let kept = [
+            (0, entry(1, 1.0)),
+            (1, entry(0, -1.0)),
+            (1, entry(FIRST_MESH_WALL, 3.0)),
+        ];
+        assert_eq!(h, ContactHistory::from_contacts(2, &kept).unwrap());
+        h.validate(2).unwrap();
+        h.grow_to(4).unwrap();
+        assert_eq!(h.of(3), &[]);
+        h.validate(4).unwrap();
     }
 
     #[test]

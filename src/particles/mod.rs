@@ -5,7 +5,7 @@ pub mod history;
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
 use glam::Vec3;
-pub use history::{ContactHistory, FIRST_WALL, HistoryEntry};
+pub use history::{ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, MESH_WALLS};
 
 /// Spheres with velocities, in the order the user gave them, their contact history and the
 /// simulation clock.
@@ -180,6 +180,47 @@ impl Particles {
             }
         }
         Ok(pairs)
+    }
+
+    /// Adds a sphere at `c` with velocity `v`, radius `r`, no spin and no contacts; refuses
+    /// more spheres than ids below the walls'.
+    pub fn push(&mut self, c: [f32; 3], v: [f32; 3], r: f32) -> Result<()> {
+        let n = self.len() + 1;
+        if n > FIRST_MESH_WALL as usize {
+            return Err(Error::TooLarge {
+                what: "spheres of a run (ids above are the walls')".into(),
+                got: n as u64,
+                limit: FIRST_MESH_WALL as u64,
+            });
+        }
+        self.positions.push(c);
+        self.velocities.push(v);
+        self.angular_velocities.push([0.0; 3]);
+        self.radii.push(r);
+        self.history.grow_to(n)
+    }
+
+    /// Keeps the spheres `i` with `keep[i]`, in order: later spheres move up and take new
+    /// numbers (their contact history follows them; contacts with removed spheres are
+    /// dropped).
+    pub fn retain(&mut self, keep: &[bool]) -> Result<()> {
+        if keep.len() != self.len() {
+            return Err(Error::Usage(format!(
+                "{} flags to keep for {} spheres",
+                keep.len(),
+                self.len()
+            )));
+        }
+        fn kept<T: Copy>(v: &mut Vec<T>, keep: &[bool]) {
+            let mut k = keep.iter();
+            v.retain(|_| *k.next().expect("one flag per sphere"));
+        }
+        kept(&mut self.positions, keep);
+        kept(&mut self.velocities, keep);
+        kept(&mut self.angular_velocities, keep);
+        kept(&mut self.radii, keep);
+        self.history.retain(keep);
+        Ok(())
     }
 
     /// Smallest and largest radius (0 for no spheres).

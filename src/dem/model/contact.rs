@@ -269,6 +269,52 @@ pub fn wall_contacts(
     }
 }
 
+/// The contact of sphere `b` with a rigid surface (a mesh wall): `n` the unit normal from the
+/// centre towards the contact point, `overlap` > 0, `surface_velocity` the velocity of the
+/// surface's material point at the contact, `mu` the sliding coefficient, `old` the springs the
+/// sphere kept of this contact. The same law as a box wall's ([`wall_contacts`]), with the
+/// surface's own velocity subtracted from the sphere's: a moving wall drags what touches it.
+#[inline(always)]
+pub fn surface_contact(
+    p: &StepParams,
+    b: &Body,
+    n: Vec3,
+    overlap: f32,
+    surface_velocity: Vec3,
+    mu: f32,
+    old: Springs,
+) -> Contact {
+    // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
+    let vn = (surface_velocity - b.v).dot(n);
+    let normal = normal_force(p, true, overlap, vn, b.m, b.r);
+    let force = -normal.push * n;
+    if !p.friction.turns() {
+        return Contact {
+            force,
+            torque: Vec3::ZERO,
+            springs: Springs::default(),
+        };
+    }
+    let touch = Touch {
+        n,
+        overlap,
+        normal,
+        m_eff: b.m,
+        r_eff: b.r,
+        i_eff: b.inertia(),
+        lever: b.r,
+        v_rel: b.v + b.w.cross(b.r * n) - surface_velocity,
+        w_rel: b.w,
+        on_wall: true,
+    };
+    let (f_t, torque, springs) = friction(p, &touch, mu, old);
+    Contact {
+        force: force + f_t,
+        torque,
+        springs,
+    }
+}
+
 /// `x` turned into the plane normal to `n`: its normal part removed, its length kept.
 #[inline(always)]
 fn into_plane(x: Vec3, n: Vec3) -> Vec3 {

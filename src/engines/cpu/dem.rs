@@ -7,13 +7,16 @@
 
 use super::grid::SortedGrid;
 use super::query::{gather, gather_with_side};
+use super::walls::MeshPass;
+use crate::dem::flow::{FlowCounts, FlowSet};
 use crate::dem::model::contact::{
     Body, Springs, integrate_rotation, moment_of_inertia, pair_contact, wall_contacts,
 };
 use crate::dem::model::{StepParams, integrate, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
+use crate::dem::walls::{WallLoad, WallSet};
 use crate::error::{Error, Result, try_vec};
-use crate::particles::{FIRST_WALL, HistoryEntry, Particles};
+use crate::particles::{FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles};
 use crate::proxy::ProxyMode;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -55,6 +58,12 @@ pub struct CpuStepper {
     forces: Vec<[f32; 3]>,
     /// Torque of each sphere, in input order (empty when nothing turns).
     torques: Vec<[f32; 3]>,
+    /// Whether the six walls of the box act.
+    box_walls: bool,
+    /// The mesh walls' pass (`None`: the box alone).
+    mesh: Option<MeshPass>,
+    /// Inflows and outflows (`None`: the spheres stay as they are).
+    flow: Option<(FlowSet, FlowCounts)>,
 }
 
 impl CpuStepper {
@@ -92,9 +101,67 @@ impl CpuStepper {
             sorted_history: Vec::new(),
             forces: Vec::new(),
             torques: Vec::new(),
+            box_walls: true,
+            mesh: None,
+            flow: None,
             params,
             particles,
         })
+    }
+
+    /// This stepper with spheres entering and leaving by `flow`; `mode` sizes the grid's
+    /// cells for the largest sphere an inflow inserts.
+    pub fn with_flow(mut self, flow: FlowSet, mode: ProxyMode) -> Self {
+        if flow.is_empty() {
+            return self;
+        }
+        let (_, r_max) = self.particles.radius_range();
+        let cell_size = mode.cell_size(r_max.max(flow.largest_radius()));
+        if cell_size > self.cell_size {
+            let margin = cell_size;
+            self.cell_size = cell_size;
+            self.region = (
+                self.params.box_lo.map(|x| x - margin),
+                self.params.box_hi.map(|x| x + margin),
+            );
+        }
+        self.flow = Some((flow, FlowCounts::default()));
+        self
+    }
+
+    /// Removes and inserts spheres as the flows say, after a step.
+    fn flow_after_step(&mut self) -> Result<()> {
+        let Some((flow, counts)) = &mut self.flow else {
+            return Ok(());
+        };
+        let p = &self.params;
+        if flow.apply(&mut self.particles, p.dt, p.density, counts)? {
+            self.masses.clear();
+            let radii = &self.particles.radii;
+            self.masses
+                .extend(radii.iter().map(|&r| mass(p.density, r)));
+        }
+        Ok(())
+    }
+
+    /// This stepper with `walls` instead of the box alone.
+    pub fn with_walls(mut self, walls: WallSet) -> Result<Self> {
+        let n = self.particles.len();
+        if !walls.meshes.is_empty()
+            && self.params.friction.has_history()
+            && n > FIRST_MESH_WALL as usize
+        {
+            return Err(Error::TooLarge {
+                what: "spheres of a run with mesh walls and contact history (ids above are the \
+                       walls')"
+                    .into(),
+                got: n as u64,
+                limit: FIRST_MESH_WALL as u64,
+            });
+        }
+        self.box_walls = walls.box_walls;
+        self.mesh = (!walls.meshes.is_empty()).then(|| MeshPass::new(walls));
+        Ok(self)
     }
 
     /// Sums every sorted sphere's contact forces and torques and writes the new contact
@@ -109,6 +176,8 @@ impl CpuStepper {
             params: &self.params,
             particles: &self.particles,
             masses: &self.masses,
+            box_walls: self.box_walls,
+            mesh: self.mesh.as_ref(),
         };
         if !self.params.friction.has_history() {
             gather(&self.grid, &mut self.sums, |at, runs| {
@@ -196,6 +265,10 @@ struct ContactPass<'a> {
     params: &'a StepParams,
     particles: &'a Particles,
     masses: &'a [f32],
+    /// Whether the six walls of the box act.
+    box_walls: bool,
+    /// Each sphere's mesh-wall contacts, resolved before this pass.
+    mesh: Option<&'a MeshPass>,
 }
 
 impl ContactPass<'_> {
@@ -269,17 +342,31 @@ impl ContactPass<'_> {
                 }
             }
         }
-        let walls = wall_contacts(
-            p,
-            &me,
-            |w| old(FIRST_WALL + w),
-            |w, springs| keep(FIRST_WALL + w, springs),
-        );
-        // The paper's law sums exactly as its GPU twins: pairs, then walls.
-        force += walls.normal;
-        if p.friction.turns() {
-            force += walls.tangential;
-            torque += walls.torque;
+        if self.box_walls {
+            let walls = wall_contacts(
+                p,
+                &me,
+                |w| old(FIRST_WALL + w),
+                |w, springs| keep(FIRST_WALL + w, springs),
+            );
+            // The paper's law sums exactly as its GPU twins: pairs, then walls.
+            force += walls.normal;
+            if p.friction.turns() {
+                force += walls.tangential;
+                torque += walls.torque;
+            }
+        }
+        if let Some(mesh) = self.mesh {
+            let (sum, entries) = mesh.of(i);
+            force += sum.force;
+            torque += sum.torque;
+            for e in entries {
+                let springs = Springs {
+                    tangential: Vec3::from_array(e.tangential),
+                    rolling: Vec3::from_array(e.rolling),
+                };
+                keep(e.partner, springs);
+            }
         }
         SphereSum {
             force,
@@ -292,7 +379,12 @@ impl ContactPass<'_> {
 
 impl Stepper for CpuStepper {
     fn describe(&self) -> String {
-        format!("cpu ({} threads)", rayon::current_num_threads())
+        let threads = rayon::current_num_threads();
+        match &self.mesh {
+            None if self.box_walls => format!("cpu ({threads} threads)"),
+            None => format!("cpu ({threads} threads, no walls)"),
+            Some(mesh) => format!("cpu ({threads} threads, {})", mesh.walls().describe()),
+        }
     }
 
     fn advance(&mut self, steps: u32) -> Result<Advance> {
@@ -307,10 +399,14 @@ impl Stepper for CpuStepper {
                 .bin_within(&parts.positions, &parts.radii, lo, hi, self.cell_size);
             times.build_ms += ms(t);
             let t = Instant::now();
+            if let Some(mesh) = &mut self.mesh {
+                mesh.resolve(&self.params, &self.particles, &self.masses)?;
+            }
             contacts = self.resolve_contacts()?;
             times.dcd_ms += ms(t);
             let t = Instant::now();
             self.integrate_all();
+            self.flow_after_step()?;
             times.update_ms += ms(t);
         }
         self.particles.check_stable()?;
@@ -324,5 +420,15 @@ impl Stepper for CpuStepper {
 
     fn particles(&mut self) -> Result<Particles> {
         Ok(self.particles.clone())
+    }
+
+    fn flow_counts(&self) -> Option<FlowCounts> {
+        self.flow.as_ref().map(|(_, counts)| *counts)
+    }
+
+    fn wall_loads(&self) -> Vec<WallLoad> {
+        self.mesh
+            .as_ref()
+            .map_or_else(Vec::new, |mesh| mesh.loads().to_vec())
     }
 }

@@ -8,6 +8,7 @@ mod dem;
 mod detect;
 pub(crate) mod grid;
 pub(crate) mod query;
+mod walls;
 
 pub use dem::CpuStepper;
 pub use detect::CpuBackend;

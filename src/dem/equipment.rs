@@ -1,0 +1,302 @@
+//! The built-in scenes with walls, their meshes made in code: `hopper` (a cylinder with a flat
+//! or conical bottom and a circular orifice, closed by a gate that slides away at
+//! `hopper_open`; the spheres that fall out are removed and counted in `flow.csv`) and `drum`
+//! (a cylinder about the y axis, 40% filled, turning at `drum_omega`; the box's walls close
+//! its ends). Both are sized from the number of spheres, of radii U[0.9, 1.1]·`grain_radius`
+//! on a jittered lattice. [`mass_flow_rate`] and [`free_surface_angle`] measure what each is
+//! for.
+
+use super::flow::OutflowConfig;
+use super::walls::{Rotation, WallConfig};
+use crate::error::{Error, Result};
+use crate::mesh::{Mesh, revolution};
+use crate::spheres::SphereSet;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+
+/// Sides of the generated cylinders and cones.
+const SIDES: u32 = 64;
+/// Lattice spacing over the largest radius.
+const SPACING: f64 = 2.2;
+
+/// Which built-in scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Equipment {
+    /// A hopper draining through its orifice.
+    Hopper,
+    /// A turning drum.
+    Drum,
+}
+
+/// What a built-in scene is made of.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EquipmentSpec {
+    /// Which.
+    pub kind: Equipment,
+    /// Spheres.
+    pub n: usize,
+    /// Seed of the radii and the jitter.
+    pub seed: u64,
+    /// Mean sphere radius \[m\].
+    pub grain_radius: f64,
+    /// Hopper: orifice diameter \[m\].
+    pub orifice: f64,
+    /// Hopper: angle of the bottom from the horizontal \[°\] (0: flat).
+    pub angle: f64,
+    /// Hopper: time the gate opens \[s\].
+    pub open: f64,
+    /// Drum: angular speed about y \[rad/s\].
+    pub omega: f64,
+}
+
+/// A built-in scene: its spheres, box, walls (mesh and pose) and outflows.
+#[derive(Debug, Clone)]
+pub struct Built {
+    /// The spheres at t = 0.
+    pub spheres: SphereSet,
+    /// The box \[m\].
+    pub box_lo: [f64; 3],
+    /// The box \[m\].
+    pub box_hi: [f64; 3],
+    /// The walls.
+    pub walls: Vec<(WallConfig, Mesh)>,
+    /// The outflows.
+    pub outflows: Vec<OutflowConfig>,
+}
+
+impl EquipmentSpec {
+    /// Builds the scene (module docs).
+    pub fn build(&self) -> Result<Built> {
+        let bad = |reason: String| Error::InvalidConfig {
+            what: match self.kind {
+                Equipment::Hopper => "scene \"hopper\"".into(),
+                Equipment::Drum => "scene \"drum\"".into(),
+            },
+            reason,
+        };
+        let r = self.grain_radius;
+        if !(r.is_finite() && r > 0.0) {
+            return Err(bad(format!("grain_radius must be positive, got {r}")));
+        }
+        let cell = SPACING * 1.1 * r;
+        // The lattice volume the spheres take.
+        let volume = self.n as f64 * cell.powi(3);
+        match self.kind {
+            Equipment::Hopper => self.hopper(r, cell, volume, bad),
+            Equipment::Drum => self.drum(r, cell, volume),
+        }
+    }
+
+    fn hopper(
+        &self,
+        r: f64,
+        cell: f64,
+        volume: f64,
+        bad: impl Fn(String) -> Error,
+    ) -> Result<Built> {
+        let (d, angle) = (self.orifice, self.angle);
+        if !(d.is_finite() && d > 2.0 * r) {
+            return Err(bad(format!(
+                "hopper_orifice must exceed a sphere's diameter, got {d} m"
+            )));
+        }
+        if !(0.0..80.0).contains(&angle) || !self.open.is_finite() {
+            return Err(bad(format!(
+                "hopper_angle must be in [0, 80) degrees and hopper_open finite, got {angle} and {}",
+                self.open
+            )));
+        }
+        // A cylinder 5 orifices wide, as tall as twice the fill.
+        let radius = 2.5 * d;
+        let cone = (radius - d / 2.0) * angle.to_radians().tan();
+        let fill = volume / (std::f64::consts::PI * (radius - cell).powi(2)) + cone;
+        let height = cone + 2.0 * fill;
+        let bottom = |rho: f64| (rho - d / 2.0).max(0.0) * angle.to_radians().tan();
+        let inside = |c: [f64; 3]| {
+            let rho = c[0].hypot(c[1]);
+            rho < radius - cell / 2.0 && c[2] > bottom(rho + cell / 2.0) + cell / 2.0
+        };
+        let lo = [-radius, -radius, 0.0];
+        let hi = [radius, radius, height];
+        let spheres = self.lattice(r, cell, lo, hi, inside)?;
+        let body = revolution(&[(d / 2.0, 0.0), (radius, cone), (radius, height)], SIDES);
+        let gate = revolution(&[(0.0, 0.0), (d / 2.0 + 2.0 * cell, 0.0)], SIDES);
+        // A quarter radius below the bottom: what rests on the bottom never touches it, and
+        // no sphere touches both (they are separate meshes, each contact resolved per mesh).
+        let gate_config = WallConfig {
+            translate: Some([0.0, 0.0, -0.25 * r]),
+            velocity: Some([1.0, 0.0, 0.0]),
+            start: Some(self.open),
+            ..WallConfig::of("gate (generated)")
+        };
+        let margin = 0.1 * radius;
+        Ok(Built {
+            spheres,
+            box_lo: [-radius - margin, -radius - margin, -height],
+            box_hi: [radius + margin, radius + margin, height + margin],
+            walls: vec![
+                (WallConfig::of("hopper (generated)"), body),
+                (gate_config, gate),
+            ],
+            // Spheres a hopper's height below the orifice have left.
+            outflows: vec![OutflowConfig {
+                lo: [-radius - margin, -radius - margin, -height],
+                hi: [radius + margin, radius + margin, -0.5 * height],
+            }],
+        })
+    }
+
+    fn drum(&self, r: f64, cell: f64, volume: f64) -> Result<Built> {
+        // Radius 12 lattice cells; the length holds the spheres at 40% of the drum.
+        let radius = 12.0 * cell;
+        let length = (volume / (0.4 * std::f64::consts::PI * radius * radius)).max(3.0 * cell);
+        let inside = |c: [f64; 3]| c[0].hypot(c[2]) < radius - cell / 2.0;
+        let lo = [-radius, -length / 2.0, -radius];
+        let hi = [radius, length / 2.0, radius];
+        let spheres = self.lattice(r, cell, lo, hi, inside)?;
+        let tube = revolution(&[(radius, -length / 2.0), (radius, length / 2.0)], SIDES);
+        let config = WallConfig {
+            rotate: Some(Rotation {
+                axis: [1.0, 0.0, 0.0],
+                degrees: 90.0,
+            }),
+            omega: Some(self.omega),
+            axis: Some([0.0, 1.0, 0.0]),
+            ..WallConfig::of("drum (generated)")
+        };
+        let margin = 0.05 * radius;
+        Ok(Built {
+            spheres,
+            box_lo: [-radius - margin, -length / 2.0, -radius - margin],
+            box_hi: [radius + margin, length / 2.0, radius + margin],
+            walls: vec![(config, tube)],
+            outflows: Vec::new(),
+        })
+    }
+
+    /// `n` spheres on the lattice of spacing `cell` in `lo..hi`, lowest layers first, at the
+    /// points `inside` keeps, each jittered within its cell.
+    fn lattice(
+        &self,
+        r: f64,
+        cell: f64,
+        lo: [f64; 3],
+        hi: [f64; 3],
+        inside: impl Fn([f64; 3]) -> bool,
+    ) -> Result<SphereSet> {
+        let mut rng = Pcg64::seed_from_u64(self.seed);
+        let counts: [usize; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / cell).floor() as usize);
+        let mut centers = Vec::with_capacity(self.n);
+        let mut radii = Vec::with_capacity(self.n);
+        let room = 0.5 * cell - 1.1 * r;
+        'fill: for k in 0..counts[2] {
+            for j in 0..counts[1] {
+                for i in 0..counts[0] {
+                    if centers.len() == self.n {
+                        break 'fill;
+                    }
+                    let at = [i, j, k].map(|x| x as f64 + 0.5);
+                    let c: [f64; 3] = std::array::from_fn(|a| lo[a] + at[a] * cell);
+                    if !inside(c) {
+                        continue;
+                    }
+                    let c = c.map(|x| (x + rng.random_range(-room..=room)) as f32);
+                    centers.push(c);
+                    radii.push((r * rng.random_range(0.9..=1.1)) as f32);
+                }
+            }
+        }
+        if centers.len() < self.n {
+            return Err(Error::InvalidConfig {
+                what: "scene".into(),
+                reason: format!(
+                    "only {} of the {} spheres fit in the equipment",
+                    centers.len(),
+                    self.n
+                ),
+            });
+        }
+        SphereSet::new(centers, radii)
+    }
+}
+
+/// The steady mass flow rate \[kg/s\] of a discharge given as (time, mass out so far) samples:
+/// the slope of the line fitted by least squares to the samples between 20% and 80% of the
+/// final mass out (where the flow is steady: the start-up and the last grains left out).
+/// `None` with fewer than three such samples.
+pub fn mass_flow_rate(samples: &[(f64, f64)]) -> Option<f64> {
+    let total = samples.last()?.1;
+    let steady: Vec<(f64, f64)> = samples
+        .iter()
+        .copied()
+        .filter(|&(_, m)| m >= 0.2 * total && m <= 0.8 * total)
+        .collect();
+    slope(&steady)
+}
+
+/// The angle \[°\] of a drum's free surface to the horizontal: the surface's height (the top of
+/// the highest sphere) in 10 bins across the middle 60% of the spheres' extent in x, and the
+/// slope of the line fitted to them. `None` with fewer than three bins holding spheres.
+pub fn free_surface_angle(positions: &[[f32; 3]], radii: &[f32]) -> Option<f64> {
+    let (lo, hi) = positions
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, h), c| (l.min(c[0]), h.max(c[0])));
+    let (from, width) = (lo + 0.2 * (hi - lo), 0.6 * (hi - lo));
+    let mut top = [f32::MIN; 10];
+    for (c, r) in positions.iter().zip(radii) {
+        let bin = ((c[0] - from) / width * 10.0).floor();
+        if (0.0..10.0).contains(&bin) {
+            let t = &mut top[bin as usize];
+            *t = t.max(c[2] + r);
+        }
+    }
+    let points: Vec<(f64, f64)> = (0..10)
+        .filter(|&b| top[b] > f32::MIN)
+        .map(|b| {
+            (
+                (from + (b as f32 + 0.5) * width / 10.0) as f64,
+                top[b] as f64,
+            )
+        })
+        .collect();
+    slope(&points).map(|s| s.atan().to_degrees().abs())
+}
+
+/// The least-squares slope of `points`; `None` for fewer than three or no spread in x.
+fn slope(points: &[(f64, f64)]) -> Option<f64> {
+    if points.len() < 3 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let (mx, my) = points
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
+    let sxx: f64 = points.iter().map(|(x, _)| (x - mx).powi(2)).sum();
+    let sxy: f64 = points.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
+    (sxx > 0.0).then(|| sxy / sxx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_steady_discharge_and_a_tilted_surface_are_measured() {
+        // 2 kg/s after a start-up, then a tail.
+        let mut samples = vec![(0.0, 0.0), (0.1, 0.01)];
+        samples.extend((1..=20).map(|k| (0.1 + 0.05 * k as f64, 0.01 + 0.1 * k as f64)));
+        samples.push((2.0, 2.02));
+        let w = mass_flow_rate(&samples).unwrap();
+        assert!((w - 2.0).abs() < 1e-9, "{w}");
+        // Spheres whose tops lie on a line at 30°.
+        let t = 30f64.to_radians().tan();
+        let positions: Vec<[f32; 3]> = (0..100)
+            .map(|k| {
+                let x = -0.05 + 0.001 * k as f64;
+                [x as f32, 0.0, (x * t) as f32]
+            })
+            .collect();
+        let angle = free_surface_angle(&positions, &vec![0.0; 100]).unwrap();
+        assert!((angle - 30.0).abs() < 0.5, "{angle}");
+    }
+}

@@ -1,0 +1,407 @@
+//! Spheres entering and leaving a run (issue 19): `[[inflow]]` regions insert spheres at a rate,
+//! `[[outflow]]` regions remove the spheres whose centres enter them, and without the box walls
+//! the spheres that fall below the box are removed too.
+//!
+//! ```toml
+//! [[inflow]]
+//! lo = [0.4, 0.4, 0.9]          # a box ...
+//! hi = [0.6, 0.6, 0.95]
+//! # center = [0.5, 0.5, 0.9]    # ... or a disc: centre, radius, axis (its normal)
+//! # radius = 0.1
+//! # axis = [0, 0, 1]
+//! rate = 2000                   # spheres/s, or
+//! # mass_rate = 0.05            # kg/s (by the mean mass of the radius distribution)
+//! sphere_radius = 0.004         # or sphere_radii = [0.003, 0.005] (uniform)
+//! velocity = [0, 0, -0.5]       # m/s (default 0)
+//! seed = 1                      # default 1
+//! start = 0.0                   # s (default 0)
+//! stop = 1.0                    # s (default: never)
+//!
+//! [[outflow]]
+//! lo = [0, 0, 0]
+//! hi = [1, 1, 0.05]
+//! ```
+//!
+//! Everything here is a function of the state and the step: inflow k inserts
+//! ⌊rate·t_{s+1}⌋ − ⌊rate·t_s⌋ spheres in step s (t from its start on), at places drawn from a
+//! generator seeded by (seed, k, s), each where it overlaps no sphere (up to [`ATTEMPTS`]
+//! places, else it is refused and counted). A resumed run so inserts exactly what the
+//! uninterrupted run did, with no generator state to save.
+
+use crate::dem::model::mass;
+use crate::error::{Error, Result};
+use crate::particles::Particles;
+use glam::{DVec3, Vec3};
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use serde::{Deserialize, Serialize};
+
+/// Places tried per sphere before it is refused.
+pub const ATTEMPTS: u32 = 32;
+
+/// One `[[inflow]]` table (module docs).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InflowConfig {
+    /// Lower corner of a box region \[m\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lo: Option<[f64; 3]>,
+    /// Upper corner of a box region \[m\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hi: Option<[f64; 3]>,
+    /// Centre of a disc region \[m\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f64; 3]>,
+    /// Radius of a disc region \[m\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    /// Normal of a disc region (default z).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis: Option<[f64; 3]>,
+    /// Spheres per second.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rate: Option<f64>,
+    /// Kilograms per second.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass_rate: Option<f64>,
+    /// Radius of every sphere \[m\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sphere_radius: Option<f64>,
+    /// Radii drawn uniformly from this range \[m\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sphere_radii: Option<[f64; 2]>,
+    /// Velocity of the new spheres \[m/s\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<[f64; 3]>,
+    /// Seed of the places and radii (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// Time the inflow starts \[s\] (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<f64>,
+    /// Time the inflow stops \[s\] (default never).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stop: Option<f64>,
+}
+
+/// One `[[outflow]]` table: a box whose spheres are removed.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutflowConfig {
+    /// Lower corner \[m\].
+    pub lo: [f64; 3],
+    /// Upper corner \[m\].
+    pub hi: [f64; 3],
+}
+
+/// Where an inflow puts its spheres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Region {
+    /// Centres uniform in the box `lo..hi`.
+    Box { lo: Vec3, hi: Vec3 },
+    /// Centres uniform in the disc of `radius` about `center`, normal to `axis` (unit).
+    Disc {
+        center: Vec3,
+        radius: f32,
+        axis: Vec3,
+    },
+}
+
+impl Region {
+    fn sample(&self, rng: &mut Pcg64) -> Vec3 {
+        match *self {
+            Region::Box { lo, hi } => Vec3::from_array(std::array::from_fn(|a| {
+                if hi[a] > lo[a] {
+                    rng.random_range(lo[a]..hi[a])
+                } else {
+                    lo[a]
+                }
+            })),
+            Region::Disc {
+                center,
+                radius,
+                axis,
+            } => {
+                let (u, v) = axis.any_orthonormal_pair();
+                let rho = radius * rng.random_range(0.0f32..1.0).sqrt();
+                let phi = rng.random_range(0.0..std::f32::consts::TAU);
+                center + rho * (phi.cos() * u + phi.sin() * v)
+            }
+        }
+    }
+
+    /// The box around the region.
+    fn bounds(&self) -> (Vec3, Vec3) {
+        match *self {
+            Region::Box { lo, hi } => (lo, hi),
+            Region::Disc { center, radius, .. } => (center - radius, center + radius),
+        }
+    }
+}
+
+/// An inflow of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Inflow {
+    /// Where.
+    pub region: Region,
+    /// Spheres per second.
+    pub rate: f64,
+    /// Smallest and largest radius (uniform between) \[m\].
+    pub radii: (f32, f32),
+    /// Velocity of new spheres \[m/s\].
+    pub velocity: Vec3,
+    /// Seed.
+    pub seed: u64,
+    /// Start and stop times \[s\].
+    pub window: (f64, f64),
+}
+
+/// The spheres' ways in and out of a run.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FlowSet {
+    /// Inflows, in the scene's order.
+    pub inflows: Vec<Inflow>,
+    /// Boxes whose spheres are removed.
+    pub outflows: Vec<(Vec3, Vec3)>,
+    /// Centres below this height are removed (a run without box walls: below its box).
+    pub floor: Option<f32>,
+}
+
+/// What the flows did, summed since the stepper opened.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FlowCounts {
+    /// Spheres inserted.
+    pub inserted: u64,
+    /// Spheres an inflow found no room for.
+    pub refused: u64,
+    /// Spheres removed.
+    pub removed: u64,
+    /// Their mass \[kg\].
+    pub removed_mass: f64,
+    /// Mass inserted \[kg\].
+    pub inserted_mass: f64,
+}
+
+impl InflowConfig {
+    /// The inflow; `index` names it in errors, `density` turns a mass rate into spheres.
+    pub fn build(&self, index: usize, density: f64) -> Result<Inflow> {
+        let bad = |reason: String| Error::InvalidConfig {
+            what: format!("inflow {index}"),
+            reason,
+        };
+        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        let region = match (self.lo, self.hi, self.center, self.radius) {
+            (Some(lo), Some(hi), None, None) => {
+                if !(finite(&lo) && finite(&hi) && (0..3).all(|a| lo[a] <= hi[a])) {
+                    return Err(bad(format!("needs finite lo <= hi, got {lo:?} .. {hi:?}")));
+                }
+                if self.axis.is_some() {
+                    return Err(bad("axis belongs to a disc (center, radius)".into()));
+                }
+                Region::Box {
+                    lo: DVec3::from(lo).as_vec3(),
+                    hi: DVec3::from(hi).as_vec3(),
+                }
+            }
+            (None, None, Some(center), Some(radius)) => {
+                let axis = self.axis.unwrap_or([0.0, 0.0, 1.0]);
+                let unit = DVec3::from(axis).try_normalize().filter(|_| finite(&axis));
+                match unit {
+                    Some(axis) if finite(&center) && radius.is_finite() && radius >= 0.0 => {
+                        Region::Disc {
+                            center: DVec3::from(center).as_vec3(),
+                            radius: radius as f32,
+                            axis: axis.as_vec3(),
+                        }
+                    }
+                    _ => {
+                        return Err(bad(
+                            "a disc needs a finite center, radius >= 0 and a non-zero axis".into(),
+                        ));
+                    }
+                }
+            }
+            _ => {
+                return Err(bad(
+                    "give a box (lo and hi) or a disc (center and radius), one of the two".into(),
+                ));
+            }
+        };
+        let radii = match (self.sphere_radius, self.sphere_radii) {
+            (Some(r), None) => (r, r),
+            (None, Some([a, b])) => (a, b),
+            _ => {
+                return Err(bad(
+                    "give sphere_radius or sphere_radii, one of the two".into()
+                ));
+            }
+        };
+        if !(radii.0 > 0.0 && radii.0 <= radii.1 && radii.1.is_finite()) {
+            return Err(bad(format!(
+                "radii must be positive and ordered, got {radii:?}"
+            )));
+        }
+        let rate = match (self.rate, self.mass_rate) {
+            (Some(n), None) => n,
+            (None, Some(kg)) => {
+                // E[r³] of r uniform in a..b is (b⁴ − a⁴) / (4(b − a)) (a³ when a = b).
+                let (a, b) = radii;
+                let r3 = if b > a {
+                    (b.powi(4) - a.powi(4)) / (4.0 * (b - a))
+                } else {
+                    a.powi(3)
+                };
+                kg / (density * 4.0 / 3.0 * std::f64::consts::PI * r3)
+            }
+            _ => {
+                return Err(bad(
+                    "give rate (spheres/s) or mass_rate (kg/s), one of the two".into(),
+                ));
+            }
+        };
+        if !(rate.is_finite() && rate >= 0.0) {
+            return Err(bad(format!(
+                "the rate must be finite and at least 0, got {rate} spheres/s"
+            )));
+        }
+        let velocity = self.velocity.unwrap_or_default();
+        let window = (
+            self.start.unwrap_or(0.0),
+            self.stop.unwrap_or(f64::INFINITY),
+        );
+        if !finite(&velocity) || window.0.is_nan() || window.1.is_nan() {
+            return Err(bad("velocity, start and stop must be finite".into()));
+        }
+        Ok(Inflow {
+            region,
+            rate,
+            radii: (radii.0 as f32, radii.1 as f32),
+            velocity: DVec3::from(velocity).as_vec3(),
+            seed: self.seed.unwrap_or(1),
+            window,
+        })
+    }
+}
+
+impl OutflowConfig {
+    /// The box, checked; `index` names it in errors.
+    pub fn build(&self, index: usize) -> Result<(Vec3, Vec3)> {
+        let (lo, hi) = (self.lo, self.hi);
+        if !(0..3).all(|a| lo[a].is_finite() && hi[a].is_finite() && lo[a] <= hi[a]) {
+            return Err(Error::InvalidConfig {
+                what: format!("outflow {index}"),
+                reason: format!("needs finite lo <= hi, got {lo:?} .. {hi:?}"),
+            });
+        }
+        Ok((DVec3::from(lo).as_vec3(), DVec3::from(hi).as_vec3()))
+    }
+}
+
+/// A seed for inflow `k`'s draws in step `step` (splitmix64 of the three).
+fn step_seed(seed: u64, k: usize, step: u64) -> u64 {
+    let mut z = seed ^ (k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ step.rotate_left(32);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+impl Inflow {
+    /// Spheres due in the step from `step` to `step + 1` (time step `dt`).
+    fn due(&self, step: u64, dt: f64) -> u64 {
+        let (start, stop) = self.window;
+        let inserted_by = |s: u64| {
+            let t = (s as f64 * dt).min(stop) - start;
+            if t <= 0.0 {
+                0.0
+            } else {
+                (self.rate * t).floor()
+            }
+        };
+        (inserted_by(step + 1) - inserted_by(step)) as u64
+    }
+}
+
+impl FlowSet {
+    /// Whether nothing flows.
+    pub fn is_empty(&self) -> bool {
+        self.inflows.is_empty() && self.outflows.is_empty() && self.floor.is_none()
+    }
+
+    /// The largest radius an inflow inserts (0 without any).
+    pub fn largest_radius(&self) -> f32 {
+        self.inflows.iter().map(|f| f.radii.1).fold(0.0, f32::max)
+    }
+
+    /// The smallest radius an inflow inserts (`None` without any).
+    pub fn smallest_radius(&self) -> Option<f32> {
+        self.inflows.iter().map(|f| f.radii.0).reduce(f32::min)
+    }
+
+    /// After step `parts.step − 1` (taken with time step `dt`): removes the spheres in an
+    /// outflow (or below the floor), then inserts what each inflow owes for that step;
+    /// `density` gives the masses counted. Returns whether any sphere came or went.
+    pub fn apply(
+        &self,
+        parts: &mut Particles,
+        dt: f32,
+        density: f32,
+        counts: &mut FlowCounts,
+    ) -> Result<bool> {
+        let before = (counts.inserted, counts.removed);
+        let gone = |c: &[f32; 3]| {
+            let c = Vec3::from(*c);
+            self.floor.is_some_and(|z| c.z < z)
+                || self
+                    .outflows
+                    .iter()
+                    .any(|&(lo, hi)| c.cmpge(lo).all() && c.cmple(hi).all())
+        };
+        let keep: Vec<bool> = parts.positions.iter().map(|c| !gone(c)).collect();
+        if keep.iter().any(|k| !k) {
+            for (r, _) in parts.radii.iter().zip(&keep).filter(|(_, k)| !**k) {
+                counts.removed += 1;
+                counts.removed_mass += mass(density, *r) as f64;
+            }
+            parts.retain(&keep)?;
+        }
+        let step = parts.step - 1;
+        for (k, inflow) in self.inflows.iter().enumerate() {
+            let due = inflow.due(step, dt as f64);
+            if due == 0 {
+                continue;
+            }
+            let mut rng = Pcg64::seed_from_u64(step_seed(inflow.seed, k, step));
+            // The spheres an insertion could touch: near the region.
+            let (lo, hi) = inflow.region.bounds();
+            let (_, r_max) = parts.radius_range();
+            let reach = r_max + inflow.radii.1;
+            let mut near: Vec<(Vec3, f32)> = parts
+                .positions
+                .iter()
+                .zip(&parts.radii)
+                .map(|(c, &r)| (Vec3::from(*c), r))
+                .filter(|(c, _)| c.cmpge(lo - reach).all() && c.cmple(hi + reach).all())
+                .collect();
+            for _ in 0..due {
+                let (a, b) = inflow.radii;
+                let r = if b > a { rng.random_range(a..=b) } else { a };
+                let free = (0..ATTEMPTS)
+                    .map(|_| inflow.region.sample(&mut rng))
+                    .find(|&c| {
+                        near.iter()
+                            .all(|&(d, s)| (d - c).length_squared() >= (r + s) * (r + s))
+                    });
+                match free {
+                    Some(c) => {
+                        parts.push(c.to_array(), inflow.velocity.to_array(), r)?;
+                        near.push((c, r));
+                        counts.inserted += 1;
+                        counts.inserted_mass += mass(density, r) as f64;
+                    }
+                    None => counts.refused += 1,
+                }
+            }
+        }
+        Ok((counts.inserted, counts.removed) != before)
+    }
+}

@@ -1,0 +1,204 @@
+//! The cpu step's mesh-wall pass: each sphere's contacts with the mesh walls (`dem::walls`),
+//! their force and torque on the sphere, the history they keep, and their reaction on each wall.
+//! Runs over the spheres in input order before the sphere contacts; the sphere pass adds each
+//! sphere's sum and keeps its entries. Per-wall loads are summed per fixed chunk of spheres and
+//! the chunks in order, so they depend on the state alone, not on the threads.
+
+use crate::dem::model::StepParams;
+use crate::dem::model::contact::{Body, Springs, surface_contact};
+use crate::dem::walls::{Pose, Touches, WallLoad, WallSet, mesh_partner, touches};
+use crate::error::{Error, Result};
+use crate::particles::{HistoryEntry, Particles};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Spheres per chunk of the load sums.
+const CHUNK: usize = 1024;
+
+/// History slots per sphere for mesh contacts a run starts with (a sphere in a corner touches
+/// three faces); more are added when a sphere needs them.
+const FIRST_SLOTS: usize = 4;
+
+/// What one sphere's mesh contacts sum to.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct MeshSum {
+    /// Force on the sphere \[N\].
+    pub force: Vec3,
+    /// Torque on the sphere about its centre \[N·m\].
+    pub torque: Vec3,
+    /// Contacts with history (the first of its slots in use).
+    pub held: u32,
+}
+
+/// The mesh walls and what the pass wrote in the last step.
+pub(super) struct MeshPass {
+    walls: WallSet,
+    /// History slots per sphere.
+    slots: usize,
+    /// Per sphere, input order.
+    sums: Vec<MeshSum>,
+    /// `slots` entries per sphere, input order.
+    entries: Vec<HistoryEntry>,
+    /// Per wall, of the last step.
+    loads: Vec<WallLoad>,
+}
+
+impl MeshPass {
+    pub fn new(walls: WallSet) -> Self {
+        Self {
+            loads: vec![WallLoad::default(); walls.meshes.len()],
+            walls,
+            slots: FIRST_SLOTS,
+            sums: Vec::new(),
+            entries: Vec::new(),
+        }
+    }
+
+    pub fn walls(&self) -> &WallSet {
+        &self.walls
+    }
+
+    /// The loads on each wall in the last step.
+    pub fn loads(&self) -> &[WallLoad] {
+        &self.loads
+    }
+
+    /// Sphere `i`'s sum and the history entries it keeps.
+    #[inline(always)]
+    pub fn of(&self, i: usize) -> (MeshSum, &[HistoryEntry]) {
+        let s = self.sums[i];
+        let at = i * self.slots;
+        (s, &self.entries[at..at + s.held as usize])
+    }
+
+    /// Resolves every sphere's mesh contacts in the state of `parts` (before the step).
+    pub fn resolve(&mut self, p: &StepParams, parts: &Particles, masses: &[f32]) -> Result<()> {
+        let n = parts.len();
+        let t = parts.step as f64 * p.dt as f64;
+        let poses = self.walls.poses_at(t);
+        let walls = &self.walls;
+        let keeps = p.friction.has_history();
+        self.sums.resize(n, MeshSum::default());
+        loop {
+            let slots = self.slots;
+            let entries = n.checked_mul(slots).ok_or_else(|| Error::TooLarge {
+                what: format!("mesh contact history slots of {n} spheres"),
+                got: slots as u64,
+                limit: (usize::MAX / n.max(1)) as u64,
+            })?;
+            self.entries.clear();
+            self.entries.resize(entries, HistoryEntry::default());
+            let chunks: Vec<Vec<WallLoad>> = self
+                .sums
+                .par_chunks_mut(CHUNK)
+                .zip(self.entries.par_chunks_mut(CHUNK * slots))
+                .enumerate()
+                .map(|(k, (sums, entries))| {
+                    let mut loads = vec![WallLoad::default(); walls.meshes.len()];
+                    let mut scratch = Touches::default();
+                    for (j, sum) in sums.iter_mut().enumerate() {
+                        let i = k * CHUNK + j;
+                        let held = &mut entries[j * slots..(j + 1) * slots];
+                        let body = Body {
+                            c: Vec3::from_array(parts.positions[i]),
+                            v: Vec3::from_array(parts.velocities[i]),
+                            w: Vec3::from_array(parts.angular_velocities[i]),
+                            r: parts.radii[i],
+                            m: masses[i],
+                        };
+                        let kept = if keeps { parts.history.of(i) } else { &[] };
+                        *sum = sphere(
+                            p,
+                            walls,
+                            &poses,
+                            &body,
+                            kept,
+                            held,
+                            &mut loads,
+                            &mut scratch,
+                        );
+                    }
+                    loads
+                })
+                .collect();
+            let most = self.sums.iter().map(|s| s.held).max().unwrap_or(0) as usize;
+            if most <= slots {
+                for load in &mut self.loads {
+                    *load = WallLoad::default();
+                }
+                for chunk in &chunks {
+                    for (load, part) in self.loads.iter_mut().zip(chunk) {
+                        load.add(part);
+                    }
+                }
+                return Ok(());
+            }
+            self.slots = most + most / 2;
+        }
+    }
+}
+
+/// One sphere's contacts with every mesh wall: the sum on it, its history entries in `held` (as
+/// many as fit; `held` counts them all) and the reactions added to `loads`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn sphere(
+    p: &StepParams,
+    walls: &WallSet,
+    poses: &[Pose],
+    b: &Body,
+    kept: &[HistoryEntry],
+    held: &mut [HistoryEntry],
+    loads: &mut [WallLoad],
+    scratch: &mut Touches,
+) -> MeshSum {
+    let keeps = p.friction.has_history();
+    let turns = p.friction.turns();
+    let mut sum = MeshSum::default();
+    for (w, (wall, pose)) in walls.meshes.iter().zip(poses).enumerate() {
+        touches(&wall.triangles, pose, b.c, b.r, scratch);
+        if scratch.found.is_empty() {
+            continue;
+        }
+        let partner = mesh_partner(w);
+        // The k-th contact with this wall takes the k-th entry kept of it.
+        let mut olds = kept.iter().filter(|e| e.partner == partner);
+        let (mut force, mut torque) = (Vec3::ZERO, Vec3::ZERO);
+        for t in &scratch.found {
+            let old = match olds.next() {
+                Some(e) => Springs {
+                    tangential: Vec3::from_array(e.tangential),
+                    rolling: Vec3::from_array(e.rolling),
+                },
+                None => Springs::default(),
+            };
+            let v = pose.velocity_at(t.point);
+            let c = surface_contact(p, b, t.normal, t.overlap, v, wall.friction, old);
+            force += c.force;
+            if turns {
+                torque += c.torque;
+            }
+            if keeps {
+                if let Some(slot) = held.get_mut(sum.held as usize) {
+                    *slot = HistoryEntry {
+                        partner,
+                        tangential: c.springs.tangential.to_array(),
+                        rolling: c.springs.rolling.to_array(),
+                    };
+                }
+                sum.held += 1;
+            }
+        }
+        sum.force += force;
+        sum.torque += torque;
+        // The wall takes the opposite force and the opposite angular impulse about its centre.
+        let on_wall = -force;
+        let about = -((b.c - pose.centre).cross(force) + torque);
+        let load = &mut loads[w];
+        for a in 0..3 {
+            load.force[a] += on_wall[a] as f64;
+            load.torque[a] += about[a] as f64;
+        }
+    }
+    sum
+}
