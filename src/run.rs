@@ -23,6 +23,24 @@ use crate::error::{Error, Result};
 use crate::io::{self, Frame};
 use crate::particles::Particles;
 use std::path::Path;
+use std::time::Duration;
+
+/// Wall-clock time between two returns from the DEM step that a run aims at (for progress,
+/// Ctrl-C and the like): the steps between them go to the backend as one call, which a GPU
+/// backend keeps busy without gaps.
+pub const PROGRESS_PERIOD: Duration = Duration::from_millis(250);
+
+/// Steps of a run's first call of the DEM step (from there [`progress_steps`] sets them).
+pub const FIRST_PROGRESS_STEPS: u64 = 10;
+
+/// Steps of the next call of the DEM step: enough for [`PROGRESS_PERIOD`] at the rate of the
+/// last `steps` steps, which took `took` (counted as at least a nanosecond per step, so at most
+/// 2.5e8: a backend call's `u32`), growing at most fourfold per call.
+pub fn progress_steps(steps: u64, took: Duration) -> u64 {
+    let per_step = took.as_secs_f64() / steps.max(1) as f64;
+    let fit = (PROGRESS_PERIOD.as_secs_f64() / per_step.max(1e-9)).round() as u64;
+    fit.clamp(1, 4 * steps.max(1))
+}
 
 /// A run's scene and the state it starts from, before a backend is opened.
 #[derive(Debug, Clone)]
@@ -153,5 +171,23 @@ impl Run {
             self.params.dt,
             self.params.friction.has_history(),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn progress_updates_come_about_every_period_and_grow_at_most_fourfold() {
+        // 10 steps in 1 ms: a quarter second holds 2,500, but the next call grows only to 40.
+        assert_eq!(progress_steps(10, Duration::from_millis(1)), 40);
+        // 1,000 steps in a second: 250 fit.
+        assert_eq!(progress_steps(1000, Duration::from_secs(1)), 250);
+        // A step slower than the period: one step per update.
+        assert_eq!(progress_steps(3, Duration::from_secs(3)), 1);
+        // No measurable time: bounded by the growth, then by a nanosecond per step.
+        assert_eq!(progress_steps(10, Duration::ZERO), 40);
+        assert_eq!(progress_steps(1 << 31, Duration::ZERO), 250_000_000);
     }
 }

@@ -1,9 +1,11 @@
-// DEM step of the wgpu-compute backend (docs/method.md, "The DEM step"): the binning of both
-// variants of the step; its resolve kernel is dem_grid_frictionless.wgsl's (the paper's law) or
-// dem_grid_granular.wgsl's, which also define
-//   fn carry(i: u32, p: u32)   moves the sphere at index i of set a to index p of the sorted set Needs grid_params.wgsl and grid_stencil.wgsl prepended, one resolve
-// file, grid_walk.wgsl, dem_params.wgsl, the physics of the variant and one of
-// dem_force_f32.wgsl / dem_force_cas.wgsl appended.
+// DEM step of the wgpu-compute backend (docs/method.md, "The DEM step"): the binning of every
+// variant of the step; its resolve kernel is dem_grid_frictionless.wgsl's (the paper's law, with
+// a fixed or a per-pair stiffness) or dem_grid_granular.wgsl's, which also define
+//   fn carry(i: u32, p: u32)   moves the per-sphere state of index i of set a to index p of the
+//                              sorted set (the granular step's ω; nothing in the paper's step)
+// Needs grid_params.wgsl and grid_stencil.wgsl prepended, one resolve file, grid_walk.wgsl,
+// dem_params.wgsl, the physics of the variant and one of dem_force_f32.wgsl /
+// dem_force_cas.wgsl appended.
 //
 // The state (pos, vel, ids) lives in sorted order and ping-pongs between two sets of buffers:
 // each step bins the previous step's sorted set (`*_a`, nearly sorted already, so the atomics of

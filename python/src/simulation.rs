@@ -9,7 +9,7 @@ use mochi::dem::Particles;
 use mochi::dem::scene::SceneFlags;
 use mochi::engines::{BackendChoice, Options};
 use mochi::io;
-use mochi::run::{Run, RunStart};
+use mochi::run::{FIRST_PROGRESS_STEPS, Run, RunStart, progress_steps};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::exceptions::{PyTypeError, PyUserWarning, PyValueError};
@@ -18,10 +18,7 @@ use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use std::ffi::CString;
 use std::path::PathBuf;
 use std::sync::{Mutex, PoisonError};
-
-/// Steps per call into the stepper at most: between two calls the progress callback runs and
-/// Ctrl-C is honoured (the command line reports progress as often).
-const STEPS_PER_BATCH: u64 = 100;
+use std::time::Instant;
 
 /// A scene value from Python as TOML: bool, int, float, str, path, or a list or tuple of them.
 fn toml_value(key: &str, value: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
@@ -199,19 +196,22 @@ impl Simulation {
         Simulation::open(py, start, backend)
     }
 
-    /// Takes `n` steps, in batches of at most 100 with the interpreter lock released; between
-    /// batches Ctrl-C stops it (the steps taken so far count) and `progress`, if given, is
+    /// Takes `n` steps, in batches of about a quarter second with the interpreter lock
+    /// released (the first of 10 steps); between batches Ctrl-C stops it (the steps taken so far count) and `progress`, if given, is
     /// called with the number of steps the batch took (an increment, as `tqdm`'s `update`
     /// takes it).
     #[pyo3(signature = (n, progress = None))]
     fn step(&mut self, py: Python<'_>, n: u64, progress: Option<Bound<'_, PyAny>>) -> PyResult<()> {
         let mut left = n;
+        let mut next = FIRST_PROGRESS_STEPS;
         while left > 0 {
-            let batch = left.min(STEPS_PER_BATCH);
+            let batch = left.min(next);
             let stepper = &mut self.run_mut().stepper;
+            let began = Instant::now();
             let advance = py
                 .detach(|| stepper.advance(batch as u32))
                 .map_err(to_py_err)?;
+            next = progress_steps(batch, began.elapsed());
             self.now = None;
             self.step += batch;
             self.contacts = advance.contacts;
