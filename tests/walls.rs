@@ -85,7 +85,7 @@ fn start(particles: Particles, params: StepParams, walls: WallSet) -> Start {
 
 fn stepper(particles: Particles, p: StepParams, walls: WallSet) -> Box<dyn Stepper> {
     let choice = BackendChoice::Named(BackendKind::Cpu);
-    let (s, _) = open_scene(choice, start(particles, p, walls), &Options::default()).unwrap();
+    let (s, _, _) = open_scene(choice, start(particles, p, walls), &Options::default()).unwrap();
     s
 }
 
@@ -452,7 +452,7 @@ fn gpu_backends_refuse_mesh_walls_and_auto_picks_cpu() {
             "{e}"
         );
     }
-    let (s, reason) = open(BackendChoice::Auto).unwrap();
+    let (s, _, reason) = open(BackendChoice::Auto).unwrap();
     assert!(s.describe().starts_with("cpu") && s.describe().contains("1 mesh wall"));
     assert!(reason.unwrap().contains("cpu"));
 }
