@@ -13,7 +13,8 @@ use mochi::dem::model::contact::moment_of_inertia;
 use mochi::dem::model::time_step::{hertz_contact_time, hertz_peak_overlap};
 use mochi::dem::model::{ContactLaw, Material, RollingModel, mass};
 use mochi::dem::{Particles, StepParams, Stepper};
-use mochi::engines::{BackendKind, Options, open_stepper};
+use mochi::engines::wgpu_compute::{GridBuild, GridStepper};
+use mochi::engines::{BackendKind, ForceAtomics, Options, open_stepper};
 use mochi::proxy::ProxyMode;
 
 const E: f64 = 1e7;
@@ -897,6 +898,40 @@ fn a_frictional_state_moves_between_the_cpu_and_the_gpus_with_its_history() {
     }
 }
 
+/// A wgpu-compute step of `start` on a device whose storage bindings hold 8 KiB (`None` where
+/// no adapter runs it): a history of more than 341 slots (8 KiB of springs) is split over
+/// several spring bindings, as the history of 20M spheres is on an H100.
+fn wgpu_compute_on_small_bindings(start: &Particles, p: StepParams) -> Option<GridStepper> {
+    let what = "the wgpu-compute DEM step with its history split over bindings";
+    let gpu = common::open_gpu_with_bindings_of(what, 8 << 10)?;
+    let atomics = ForceAtomics::Auto;
+    let stepper = GridStepper::on_gpu(
+        gpu,
+        start.clone(),
+        p,
+        ProxyMode::Mochi,
+        atomics,
+        GridBuild::Dense,
+    );
+    Some(stepper.expect("wgpu-compute opens on 8 KiB bindings"))
+}
+
+#[test]
+fn a_history_split_over_several_bindings_follows_the_cpu_step() {
+    // The frictional pile's 64 spheres at 16 slots: 4 KiB of partners (one binding) and 24 KiB
+    // of springs, in four bindings of 21 spheres.
+    let start = frictional_pile(4);
+    let p = frictional_pile_params(&start);
+    let Some(mut split) = wgpu_compute_on_small_bindings(&start, p) else {
+        return;
+    };
+    let mut cpu = open(BackendKind::Cpu, start, p);
+    cpu.advance(20).unwrap();
+    split.advance(20).unwrap();
+    let what = "wgpu-compute, history split over four bindings";
+    assert_follows(what, &split.particles().unwrap(), &cpu.particles().unwrap());
+}
+
 #[test]
 fn a_gpu_step_whose_spheres_own_more_contacts_than_slots_keeps_every_one() {
     // 40 spheres of 5 mm within 2 mm of one point: every pair touches, so the sphere that owns
@@ -922,9 +957,17 @@ fn a_gpu_step_whose_spheres_own_more_contacts_than_slots_keeps_every_one() {
     let mut cpu = open(BackendKind::Cpu, start.clone(), p);
     cpu.advance(2).unwrap();
     let expected = cpu.particles().unwrap();
-    for kind in backends().into_iter().filter(|&k| k != BackendKind::Cpu) {
-        let name = kind.name();
-        let mut s = open(kind, start.clone(), p);
+    let mut steppers: Vec<(String, Box<dyn Stepper>)> = backends()
+        .into_iter()
+        .filter(|&k| k != BackendKind::Cpu)
+        .map(|kind| (kind.name().to_string(), open(kind, start.clone(), p)))
+        .collect();
+    // And with the springs over several bindings of 8 KiB: two at 16 slots (384 bytes a
+    // sphere), six once the slots grow to hold the 39 contacts (48 slots, seven spheres each).
+    if let Some(split) = wgpu_compute_on_small_bindings(&start, p) {
+        steppers.push(("wgpu-compute on 8 KiB bindings".into(), Box::new(split)));
+    }
+    for (name, mut s) in steppers {
         // Two batches: the second reads the history the grown slots kept.
         s.advance(1).unwrap();
         s.advance(1).unwrap();

@@ -9,8 +9,11 @@
 //
 // History: K = granular.slots slots per sphere, indexed by stable id (a re-sort never moves
 // them), in two sets of buffers that swap roles every step (old: read, new: written). Slot s of
-// the sphere of stable id a is element a·K + s of one array per field: the partners (scanned,
-// 4 bytes a slot) and each of the springs' six components (loaded only for the slot found).
+// the sphere of stable id a holds its partner at element a·K + s of the partners (scanned, 4
+// bytes a slot) and its springs, six contiguous floats loaded only for the slot found, in one of
+// the spring bindings: part a / P of them at element (a mod P)·K + s, P =
+// granular.spheres_per_part (every sphere in part 0 where the springs fit one binding; the
+// bindings past the parts in use hold a spare buffer and are never read).
 // A pair is resolved once, by its owner (the sphere whose thread finds it); the owner looks the
 // pair up in its own old slots, then in the partner's (whose springs are the negatives: the
 // owner of a pair changes when the order or the proxy rule's case changes, and an uploaded
@@ -30,27 +33,40 @@ const FIRST_WALL: u32 = 0xfffffffau;
 @group(0) @binding(23) var<storage, read_write> held_new: array<u32>;
 // The most contacts with history any sphere had since the host cleared it.
 @group(0) @binding(24) var<storage, read_write> history_need: atomic<u32>;
-// per slot: the tangential spring ξ [m] and the rolling spring torque [N·m], by component
-@group(0) @binding(26) var<storage, read> xi_x_old: array<f32>;
-@group(0) @binding(27) var<storage, read> xi_y_old: array<f32>;
-@group(0) @binding(28) var<storage, read> xi_z_old: array<f32>;
-@group(0) @binding(29) var<storage, read> roll_x_old: array<f32>;
-@group(0) @binding(30) var<storage, read> roll_y_old: array<f32>;
-@group(0) @binding(31) var<storage, read> roll_z_old: array<f32>;
-@group(0) @binding(32) var<storage, read_write> xi_x_new: array<f32>;
-@group(0) @binding(33) var<storage, read_write> xi_y_new: array<f32>;
-@group(0) @binding(34) var<storage, read_write> xi_z_new: array<f32>;
-@group(0) @binding(35) var<storage, read_write> roll_x_new: array<f32>;
-@group(0) @binding(36) var<storage, read_write> roll_y_new: array<f32>;
-@group(0) @binding(37) var<storage, read_write> roll_z_new: array<f32>;
+// per slot: the tangential spring ξ [m] x, y, z, then the rolling spring torque [N·m] x, y, z
+@group(0) @binding(26) var<storage, read> springs_old0: array<array<f32, 6>>;
+@group(0) @binding(27) var<storage, read> springs_old1: array<array<f32, 6>>;
+@group(0) @binding(28) var<storage, read> springs_old2: array<array<f32, 6>>;
+@group(0) @binding(29) var<storage, read> springs_old3: array<array<f32, 6>>;
+@group(0) @binding(30) var<storage, read> springs_old4: array<array<f32, 6>>;
+@group(0) @binding(31) var<storage, read> springs_old5: array<array<f32, 6>>;
+@group(0) @binding(32) var<storage, read_write> springs_new0: array<array<f32, 6>>;
+@group(0) @binding(33) var<storage, read_write> springs_new1: array<array<f32, 6>>;
+@group(0) @binding(34) var<storage, read_write> springs_new2: array<array<f32, 6>>;
+@group(0) @binding(35) var<storage, read_write> springs_new3: array<array<f32, 6>>;
+@group(0) @binding(36) var<storage, read_write> springs_new4: array<array<f32, 6>>;
+@group(0) @binding(37) var<storage, read_write> springs_new5: array<array<f32, 6>>;
 
-// Sphere p resolving its contacts. Its stable id and old count are read only where contacts
-// keep history (granular.slots > 0), the only use of either.
+// Where a slot's springs are: the spring binding and the element in it.
+struct SpringsAt {
+    part: u32,
+    slot: u32,
+}
+
+// Where slot s of the sphere of stable id a keeps its springs.
+fn springs_at(a: u32, s: u32) -> SpringsAt {
+    let part = a / granular.spheres_per_part;
+    return SpringsAt(part, (a - part * granular.spheres_per_part) * granular.slots + s);
+}
+
+// Sphere p resolving its contacts. Its stable id, old count and the place of its springs are
+// found only where contacts keep history (granular.slots > 0), the only use of them.
 struct Walker {
     p: u32,              // state index
     s: vec4<f32>,        // centre, radius
     a: u32,              // stable id
     kept: u32,           // its contacts in the old history
+    own: SpringsAt,      // where the springs of its slot 0 are
     me: Body,
     force: vec3<f32>,
     torque: vec3<f32>,
@@ -61,38 +77,61 @@ struct Walker {
 fn walker(p: u32) -> Walker {
     var a = 0u;
     var kept = 0u;
+    var own = SpringsAt(0u, 0u);
     if granular.slots > 0u {
         a = stable_id(p);
         kept = held_old[a];
+        own = springs_at(a, 0u);
     }
     let s = pos[p];
     let v = vel[p];
     let me = Body(s.xyz, v.xyz, omega[p].xyz, s.w, v.w);
-    return Walker(p, s, a, kept, me, vec3(0.0), vec3(0.0), 0u, 0u);
+    return Walker(p, s, a, kept, own, me, vec3(0.0), vec3(0.0), 0u, 0u);
 }
 
-// The springs of old slot `slot` times `sign`.
-fn springs_of(slot: u32, sign: f32) -> Springs {
-    return Springs(
-        sign * vec3(xi_x_old[slot], xi_y_old[slot], xi_z_old[slot]),
-        sign * vec3(roll_x_old[slot], roll_y_old[slot], roll_z_old[slot]),
-    );
+// The old springs at `at` times `sign`.
+fn springs_of(at: SpringsAt, sign: f32) -> Springs {
+    var x: array<f32, 6>;
+    switch at.part {
+        case 1u: { x = springs_old1[at.slot]; }
+        case 2u: { x = springs_old2[at.slot]; }
+        case 3u: { x = springs_old3[at.slot]; }
+        case 4u: { x = springs_old4[at.slot]; }
+        case 5u: { x = springs_old5[at.slot]; }
+        case 0u, default: { x = springs_old0[at.slot]; }
+    }
+    return Springs(sign * vec3(x[0], x[1], x[2]), sign * vec3(x[3], x[4], x[5]));
 }
 
-// The springs the walker (stable id a, `kept` old contacts) kept of its contact with
-// `partner` (a sphere's stable id or a wall), from its old slots, else from the partner's
-// (negated); zero for a new contact.
-fn old_springs(a: u32, kept: u32, partner: u32) -> Springs {
+// Writes `s` as the new springs at `at`.
+fn store_springs(at: SpringsAt, s: Springs) {
+    let t = s.tangential;
+    let r = s.rolling;
+    let x = array(t.x, t.y, t.z, r.x, r.y, r.z);
+    switch at.part {
+        case 1u: { springs_new1[at.slot] = x; }
+        case 2u: { springs_new2[at.slot] = x; }
+        case 3u: { springs_new3[at.slot] = x; }
+        case 4u: { springs_new4[at.slot] = x; }
+        case 5u: { springs_new5[at.slot] = x; }
+        case 0u, default: { springs_new0[at.slot] = x; }
+    }
+}
+
+// The springs the walker (stable id a, `kept` old contacts, springs of slot 0 at `own`) kept
+// of its contact with `partner` (a sphere's stable id or a wall), from its old slots, else
+// from the partner's (negated); zero for a new contact.
+fn old_springs(a: u32, kept: u32, own: SpringsAt, partner: u32) -> Springs {
     let k = granular.slots;
     for (var s = 0u; s < kept; s += 1u) {
         if partners_old[a * k + s] == partner {
-            return springs_of(a * k + s, 1.0);
+            return springs_of(SpringsAt(own.part, own.slot + s), 1.0);
         }
     }
     if partner < FIRST_WALL {
         for (var s = 0u; s < held_old[partner]; s += 1u) {
             if partners_old[partner * k + s] == a {
-                return springs_of(partner * k + s, -1.0);
+                return springs_of(springs_at(partner, s), -1.0);
             }
         }
     }
@@ -103,14 +142,8 @@ fn old_springs(a: u32, kept: u32, partner: u32) -> Springs {
 fn keep_springs(w: ptr<function, Walker>, partner: u32, s: Springs) {
     let k = granular.slots;
     if (*w).held < k {
-        let slot = (*w).a * k + (*w).held;
-        partners_new[slot] = partner;
-        xi_x_new[slot] = s.tangential.x;
-        xi_y_new[slot] = s.tangential.y;
-        xi_z_new[slot] = s.tangential.z;
-        roll_x_new[slot] = s.rolling.x;
-        roll_y_new[slot] = s.rolling.y;
-        roll_z_new[slot] = s.rolling.z;
+        partners_new[(*w).a * k + (*w).held] = partner;
+        store_springs(SpringsAt((*w).own.part, (*w).own.slot + (*w).held), s);
     }
     (*w).held += 1u;
 }
@@ -130,7 +163,7 @@ fn meet(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     var b = 0u;   // q's stable id, where contacts keep history
     if granular.slots > 0u {
         b = stable_id(q);
-        old = old_springs((*w).a, (*w).kept, b);
+        old = old_springs((*w).a, (*w).kept, (*w).own, b);
     }
     let c = pair_contact((*w).me, other, old);
     if !c.touching {
@@ -167,7 +200,7 @@ fn finish(w: ptr<function, Walker>) {
             let wall = 2u * axis + side;
             var old = Springs(vec3(0.0), vec3(0.0));
             if granular.slots > 0u {
-                old = old_springs((*w).a, (*w).kept, FIRST_WALL + wall);
+                old = old_springs((*w).a, (*w).kept, (*w).own, FIRST_WALL + wall);
             }
             let vn = select(b.v[axis], -b.v[axis], side == 1u);
             let c = wall_contact(b, wall, overlap, vn, old);

@@ -3,15 +3,16 @@
 //! order (one ω buffer per state set of the engine: ω is permuted with positions and velocities),
 //! and the contact history (docs/method.md, "Contact history"): K slots per sphere indexed by
 //! stable id, each contact kept by its owner only, in two sets of buffers that swap roles every
-//! step, one buffer per field (partners, then each spring component: each fits one binding
-//! where a whole entry would not). The engine keeps its own state (positions, velocities, the
+//! step: the partners in one buffer (scanned at 4 bytes a slot), the springs of each slot
+//! contiguous (24 bytes), split by sphere range over a few bindings where they do not fit one
+//! ([`SpringSplit`]). The engine keeps its own state (positions, velocities, the
 //! order of its spheres); this module saves both at the start of a batch, so that a batch in
 //! which some sphere had more contacts than K is redone from that state with K grown: no
 //! contact is ever dropped.
 
 use super::gpu_step::granular::{
     GRANULAR, GranularParams, HELD_NEW, HELD_OLD, HISTORY_NEED, OMEGA, PARTNERS_NEW, PARTNERS_OLD,
-    SPRINGS_NEW, SPRINGS_OLD, TORQUE,
+    SPRING_PARTS, SPRINGS_NEW, SPRINGS_OLD, TORQUE,
 };
 use crate::dem::model::{NormalLaw, RollingModel, StepParams};
 use crate::dem::stepper::StageTimes;
@@ -19,6 +20,7 @@ use crate::error::{Error, Result, try_vec};
 use crate::gpu::Gpu;
 use crate::gpu::shader::Binding;
 use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, Particles};
+use std::ops::Range;
 
 /// A wgpu engine's DEM step as [`run_batch`] drives it.
 pub(crate) trait RedoableBatch {
@@ -74,15 +76,77 @@ pub(crate) fn run_batch(
 const FIRST_SLOTS: u32 = 16;
 
 /// Storage buffers the granular resolve kernel binds (wgpu-compute's: the state, the cell
-/// table, the ids, forces, counters, spins, torques, two histories of 7 fields and their
-/// counts, the need).
-const STORAGE_BUFFERS: u32 = 25;
+/// table, the ids, forces, counters, spins, torques, two histories of partners and
+/// [`SPRING_PARTS`] spring bindings and their counts, the need).
+const STORAGE_BUFFERS: u32 = 11 + 2 * (1 + SPRING_PARTS as u32);
 
-/// Fields of a history slot on the GPU, one buffer each: the partner and six spring components.
-const FIELDS: usize = 7;
+/// Bytes of a slot's partner.
+const PARTNER_BYTES: u64 = 4;
 
-/// Bytes of one field of one slot.
-const FIELD_BYTES: u64 = 4;
+/// A slot's springs: ξ x, y, z, then the rolling torque's x, y, z (`array<f32, 6>`).
+type SlotSprings = [f32; 6];
+
+/// Bytes of a slot's springs.
+const SPRING_BYTES: u64 = size_of::<SlotSprings>() as u64;
+
+/// How the springs of the history of `n` spheres with `slots` slots each are split over the
+/// spring bindings: sphere a's slots in part a / `spheres_per_part`, the first part alone
+/// wherever they fit one binding; the partners stay in one binding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct SpringSplit {
+    n: u32,
+    slots: u32,
+    spheres_per_part: u32,
+}
+
+impl SpringSplit {
+    /// The split for bindings of at most `max` bytes; `Err` the most slots per sphere that fit
+    /// (the partners in one binding, the springs of whole spheres in [`SPRING_PARTS`]).
+    fn within(max: u64, n: u32, slots: u32) -> std::result::Result<Self, u64> {
+        let (n64, k) = (n as u64, slots as u64);
+        let per_sphere = k * SPRING_BYTES;
+        let spheres_per_part = match per_sphere {
+            0 => n64,
+            _ => (max / per_sphere).min(n64),
+        }
+        .max(1);
+        let fits = n64 * k * PARTNER_BYTES <= max
+            && per_sphere <= max
+            && n64.div_ceil(spheres_per_part) <= SPRING_PARTS as u64;
+        if !fits {
+            let by_partners = max / (n64 * PARTNER_BYTES).max(1);
+            let by_springs = max / (n64.div_ceil(SPRING_PARTS as u64) * SPRING_BYTES).max(1);
+            return Err(by_partners.min(by_springs));
+        }
+        Ok(SpringSplit {
+            n,
+            slots,
+            spheres_per_part: spheres_per_part as u32,
+        })
+    }
+
+    /// Spring bindings in use (at least one).
+    fn parts(&self) -> usize {
+        (self.n.div_ceil(self.spheres_per_part) as usize).max(1)
+    }
+
+    /// The slots of part `part`, numbered a·K + s over all spheres.
+    fn slots_of(&self, part: usize) -> Range<usize> {
+        let (per, k) = (self.spheres_per_part as usize, self.slots as usize);
+        let n = self.n as usize;
+        (part * per).min(n) * k..((part + 1) * per).min(n) * k
+    }
+
+    /// Bytes of the partners' buffer (at least one slot's, the smallest binding).
+    fn partner_bytes(&self) -> u64 {
+        (self.n as u64 * self.slots as u64 * PARTNER_BYTES).max(PARTNER_BYTES)
+    }
+
+    /// Bytes of part `part`'s springs (at least one slot's).
+    fn spring_bytes(&self, part: usize) -> u64 {
+        (self.slots_of(part).len() as u64 * SPRING_BYTES).max(SPRING_BYTES)
+    }
+}
 
 /// What the granular step adds to the particles a GPU step reads back.
 pub(crate) struct Rotation {
@@ -93,61 +157,66 @@ pub(crate) struct Rotation {
 }
 
 /// One history on the GPU: K slots per sphere by stable id, slot s of sphere a at element
-/// a·K + s of every field's buffer.
+/// a·K + s of the partners and in the springs' part of its sphere ([`SpringSplit`]).
 struct History {
     partners: wgpu::Buffer,
-    /// ξ x, y, z, then the rolling torque's x, y, z.
-    springs: [wgpu::Buffer; 6],
+    /// The parts in use of the springs.
+    springs: Vec<wgpu::Buffer>,
 }
 
 impl History {
-    /// Zeroed buffers of `bytes` each, labelled for history `k` of `engine`.
-    fn new(gpu: &Gpu, engine: &str, k: usize, bytes: u64) -> Self {
-        let make = |field: &str| {
+    /// Zeroed buffers for `split`, labelled for history `k` of `engine`.
+    fn new(gpu: &Gpu, engine: &str, k: usize, split: &SpringSplit) -> Self {
+        let make = |field: &str, bytes: u64| {
             let label = format!("mochi.dem.{engine}.history{k}.{field}");
             gpu.storage(&label, bytes, wgpu::BufferUsages::empty())
         };
         History {
-            partners: make("partners"),
-            springs: ["xi_x", "xi_y", "xi_z", "roll_x", "roll_y", "roll_z"].map(make),
+            partners: make("partners", split.partner_bytes()),
+            springs: (0..split.parts())
+                .map(|b| make(&format!("springs{b}"), split.spring_bytes(b)))
+                .collect(),
         }
     }
 
-    /// The fields' buffers: partners first.
-    fn fields(&self) -> [&wgpu::Buffer; FIELDS] {
-        let [a, b, c, d, e, f] = &self.springs;
-        [&self.partners, a, b, c, d, e, f]
+    /// The buffers: partners first, then the springs' parts.
+    fn fields(&self) -> Vec<&wgpu::Buffer> {
+        [&self.partners].into_iter().chain(&self.springs).collect()
     }
 
-    /// Uploads `columns` (of as many slots as the buffers hold).
-    fn write(&self, gpu: &Gpu, columns: &Columns) {
+    /// Uploads `columns` (of every slot of `split`).
+    fn write(&self, gpu: &Gpu, split: &SpringSplit, columns: &Columns) {
         gpu.queue
             .write_buffer(&self.partners, 0, bytemuck::cast_slice(&columns.partners));
-        for (buffer, column) in self.springs.iter().zip(&columns.springs) {
+        for (part, buffer) in self.springs.iter().enumerate() {
+            let springs = &columns.springs[split.slots_of(part)];
             gpu.queue
-                .write_buffer(buffer, 0, bytemuck::cast_slice(column));
+                .write_buffer(buffer, 0, bytemuck::cast_slice(springs));
         }
-    }
-
-    /// The first `slots` slots of every field.
-    fn read(&self, gpu: &Gpu, slots: usize) -> Result<Columns> {
-        let mut springs: [Vec<f32>; 6] = Default::default();
-        for (column, buffer) in springs.iter_mut().zip(&self.springs) {
-            *column = gpu.read(buffer, slots)?;
-        }
-        Ok(Columns {
-            partners: gpu.read(&self.partners, slots)?,
-            springs,
-        })
     }
 }
 
-/// History slots in the GPU's layout, on the host: one vector per field.
+/// Every slot of `split` from `fields` (partners, then the springs' parts, as
+/// [`History::fields`]).
+fn read_columns(gpu: &Gpu, fields: &[&wgpu::Buffer], split: &SpringSplit) -> Result<Columns> {
+    let slots = split.n as usize * split.slots as usize;
+    let mut springs = try_vec(slots, || {
+        format!("the contact history of {} spheres", split.n)
+    })?;
+    for (part, buffer) in fields[1..].iter().enumerate() {
+        springs.extend(gpu.read::<SlotSprings>(buffer, split.slots_of(part).len())?);
+    }
+    Ok(Columns {
+        partners: gpu.read(fields[0], slots)?,
+        springs,
+    })
+}
+
+/// History slots in the GPU's layout, on the host: the partners and the springs, slot by slot.
 #[derive(Debug, Default, PartialEq)]
 struct Columns {
     partners: Vec<u32>,
-    /// ξ x, y, z, then the rolling torque's x, y, z.
-    springs: [Vec<f32>; 6],
+    springs: Vec<SlotSprings>,
 }
 
 impl Columns {
@@ -156,29 +225,37 @@ impl Columns {
         let what = || format!("the contact history of {n} spheres");
         let mut partners = try_vec(slots, what)?;
         partners.resize(slots, 0);
-        let mut springs: [Vec<f32>; 6] = Default::default();
-        for column in &mut springs {
-            *column = try_vec(slots, what)?;
-            column.resize(slots, 0.0);
-        }
+        let mut springs = try_vec(slots, what)?;
+        springs.resize(slots, [0.0; 6]);
         Ok(Columns { partners, springs })
     }
 
     fn set(&mut self, slot: usize, e: &HistoryEntry) {
         self.partners[slot] = e.partner;
-        let values = [e.tangential, e.rolling].concat();
-        for (column, x) in self.springs.iter_mut().zip(values) {
-            column[slot] = x;
-        }
+        let [x, y, z] = e.tangential;
+        let [u, v, w] = e.rolling;
+        self.springs[slot] = [x, y, z, u, v, w];
     }
 
     fn get(&self, slot: usize) -> HistoryEntry {
-        let x = |c: usize| self.springs[c][slot];
+        let [x, y, z, u, v, w] = self.springs[slot];
         HistoryEntry {
             partner: self.partners[slot],
-            tangential: [x(0), x(1), x(2)],
-            rolling: [x(3), x(4), x(5)],
+            tangential: [x, y, z],
+            rolling: [u, v, w],
         }
+    }
+
+    /// The first `held[i]` of the `from` slots of each sphere i moved to the first of `to`.
+    fn regrown(&self, held: &[u32], from: usize, to: usize) -> Result<Self> {
+        let n = held.len();
+        let mut grown = Self::empty(n * to, n)?;
+        for (i, &c) in held.iter().enumerate() {
+            let (old, new) = (i * from..i * from + c as usize, i * to..i * to + c as usize);
+            grown.partners[new.clone()].copy_from_slice(&self.partners[old.clone()]);
+            grown.springs[new].copy_from_slice(&self.springs[old]);
+        }
+        Ok(grown)
     }
 }
 
@@ -193,12 +270,18 @@ pub(crate) struct Granular {
     /// History slots, `params.slots` per sphere by stable id: the old ones of a step of parity
     /// k are `history[k]`, its new ones `history[1 - k]`.
     history: [History; 2],
+    /// How both histories' springs are split over the spring bindings.
+    split: SpringSplit,
+    /// Bound where a history uses fewer spring bindings than the shader declares: one for
+    /// the old springs' (read), one for the new springs' (written); never accessed.
+    spare: [wgpu::Buffer; 2],
     /// Contacts held per sphere, by stable id, beside `history`.
     held: [wgpu::Buffer; 2],
     /// The most contacts with history any sphere had in the batch.
     need: wgpu::Buffer,
     /// Copies of the state at the start of the batch (with history only): the old history's
-    /// fields and its counts, the angular velocities, then the engine's own buffers.
+    /// buffers (as [`History::fields`]) and its counts, the angular velocities, then the
+    /// engine's own buffers.
     saved: Vec<wgpu::Buffer>,
     /// The history as given, returned as it is where contacts keep no springs (as the cpu
     /// step does).
@@ -264,6 +347,8 @@ impl Granular {
             true => FIRST_SLOTS.max(particles.history.most() as u32),
             false => 0,
         };
+        let n = n64 as u32;
+        let split = spring_split(gpu, n, slots, engine)?;
         let gpu_params = GranularParams {
             law,
             rate,
@@ -280,9 +365,8 @@ impl Granular {
             },
             turns: f.turns() as u32,
             slots,
+            spheres_per_part: split.spheres_per_part,
         };
-        let n = n64 as u32;
-        let field_bytes = field_bytes(gpu, n, slots, engine)?;
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
         let make = |what: &str, bytes: u64| gpu.storage(&label(what), bytes, none);
@@ -293,7 +377,12 @@ impl Granular {
                 .map(|k| make(&format!("omega{k}"), n64 * 16))
                 .collect(),
             torque: make("torque", n64 * 12),
-            history: [0, 1].map(|k| History::new(gpu, engine, k, field_bytes)),
+            history: [0, 1].map(|k| History::new(gpu, engine, k, &split)),
+            split,
+            spare: [
+                make("springs_spare_old", SPRING_BYTES),
+                make("springs_spare_new", SPRING_BYTES),
+            ],
             held: [make("held0", n64 * 4), make("held1", n64 * 4)],
             need: make("history_need", 4),
             saved: Vec::new(),
@@ -315,7 +404,7 @@ impl Granular {
         // New buffers are zeroed: an empty history needs no upload.
         if keeps && !particles.history.is_empty() {
             let (columns, held) = lay_out(&particles.history, n as usize, slots as usize)?;
-            granular.history[0].write(gpu, &columns);
+            granular.history[0].write(gpu, &split, &columns);
             gpu.queue
                 .write_buffer(&granular.held[0], 0, bytemuck::cast_slice(&held));
         }
@@ -328,7 +417,7 @@ impl Granular {
     }
 
     /// Bindings of the resolve kernel of a step of parity `parity`.
-    pub fn resolve_bindings(&self, parity: usize) -> Vec<(Binding, &wgpu::Buffer)> {
+    pub fn resolve_bindings<'a>(&'a self, parity: usize) -> Vec<(Binding, &'a wgpu::Buffer)> {
         let (old, new) = (&self.history[parity], &self.history[1 - parity]);
         let mut all = vec![
             (GRANULAR, &self.uniform),
@@ -340,8 +429,10 @@ impl Granular {
             (HELD_NEW, &self.held[1 - parity]),
             (HISTORY_NEED, &self.need),
         ];
-        all.extend(SPRINGS_OLD.into_iter().zip(&old.springs));
-        all.extend(SPRINGS_NEW.into_iter().zip(&new.springs));
+        let [spare_old, spare_new] = &self.spare;
+        let parts = |h: &'a History, spare| h.springs.iter().chain(std::iter::repeat(spare));
+        all.extend(SPRINGS_OLD.into_iter().zip(parts(old, spare_old)));
+        all.extend(SPRINGS_NEW.into_iter().zip(parts(new, spare_new)));
         all
     }
 
@@ -428,36 +519,31 @@ impl Granular {
         need: u32,
     ) -> Result<()> {
         let engine = self.engine;
-        let (n, old_k) = (self.n as usize, self.params.slots as usize);
+        let (n, old) = (self.n as usize, self.split);
         let slots = need.saturating_add(need / 4);
-        let bytes = field_bytes(gpu, self.n, slots, engine)?;
-        let held: Vec<u32> = gpu.read(&self.saved[FIELDS], n)?;
-        let k = slots as usize;
+        let split = spring_split(gpu, self.n, slots, engine)?;
+        // The saved copies: the old history's buffers, its counts, then the rest.
+        let fields = 1 + old.parts();
+        let held: Vec<u32> = gpu.read(&self.saved[fields], n)?;
+        let saved: Vec<&wgpu::Buffer> = self.saved[..fields].iter().collect();
+        // Each sphere's held slots moved to its first slots of the wider rows.
+        let columns =
+            read_columns(gpu, &saved, &old)?.regrown(&held, old.slots as usize, slots as usize)?;
         let history = gpu.checked("allocating the contact history", || {
-            [0, 1].map(|b| History::new(gpu, engine, b, bytes))
+            [0, 1].map(|b| History::new(gpu, engine, b, &split))
         })?;
         self.history = history;
-        // Field by field, each sphere's held slots moved to its first slots of the wider rows.
-        for (field, target) in self.history[parity].fields().into_iter().enumerate() {
-            let what = || format!("the contact history of {n} spheres");
-            let saved: Vec<u32> = gpu.read(&self.saved[field], n * old_k)?;
-            let mut grown = try_vec(n * k, what)?;
-            grown.resize(n * k, 0u32);
-            for i in 0..n {
-                let c = held[i] as usize;
-                grown[i * k..i * k + c].copy_from_slice(&saved[i * old_k..i * old_k + c]);
-            }
-            gpu.queue
-                .write_buffer(target, 0, bytemuck::cast_slice(&grown));
-        }
+        self.history[parity].write(gpu, &split, &columns);
+        self.split = split;
+        self.params.spheres_per_part = split.spheres_per_part;
         self.params.slots = slots;
         gpu.write_uniform(&self.uniform, &self.params);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(&self.saved[FIELDS], 0, &self.held[parity], 0, n as u64 * 4);
+        encoder.copy_buffer_to_buffer(&self.saved[fields], 0, &self.held[parity], 0, n as u64 * 4);
         let targets = [self.omega_of(parity)]
             .into_iter()
             .chain(state.iter().copied());
-        for (from, to) in self.saved[FIELDS + 1..].iter().zip(targets) {
+        for (from, to) in self.saved[fields + 1..].iter().zip(targets) {
             encoder.copy_buffer_to_buffer(from, 0, to, 0, from.size());
         }
         gpu.checked("restoring the state of a batch", || {
@@ -476,7 +562,7 @@ impl Granular {
         let history = if self.keeps_history() {
             let k = self.params.slots as usize;
             let held: Vec<u32> = gpu.read(&self.held[parity], n)?;
-            let columns = self.history[parity].read(gpu, n * k)?;
+            let columns = read_columns(gpu, &self.history[parity].fields(), &self.split)?;
             both_sides(n, k, &held, &columns)?
         } else {
             self.given.clone()
@@ -488,32 +574,28 @@ impl Granular {
     }
 }
 
-/// Bytes of one field of the history of `n` spheres with `slots` slots each (at least one
-/// slot, the smallest binding), or [`Error::TooLarge`] when a field does not fit one binding
-/// of `gpu`.
-fn field_bytes(gpu: &Gpu, n: u32, slots: u32, engine: &str) -> Result<u64> {
+/// The split of the history of `n` spheres with `slots` slots each over the bindings of `gpu`
+/// ([`SpringSplit`]), or [`Error::TooLarge`] naming the most slots that fit.
+fn spring_split(gpu: &Gpu, n: u32, slots: u32, engine: &str) -> Result<SpringSplit> {
     let max = gpu
         .limits
         .max_storage_buffer_binding_size
         .min(gpu.limits.max_buffer_size);
-    field_bytes_within(max, n, slots).map_err(|limit| Error::TooLarge {
+    let place = format!("the {engine} DEM of {}", gpu.info.name);
+    split_or_refuse(max, n, slots, &place)
+}
+
+/// [`SpringSplit::within`] as the error [`spring_split`] gives on `place`.
+fn split_or_refuse(max: u64, n: u32, slots: u32, place: &str) -> Result<SpringSplit> {
+    SpringSplit::within(max, n, slots).map_err(|limit| Error::TooLarge {
         what: format!(
-            "contact history slots per sphere for {n} spheres on the {engine} DEM of {} \
-             ({FIELD_BYTES} bytes per field of a slot, each field in one binding of {max} bytes)",
-            gpu.info.name
+            "contact history slots per sphere for {n} spheres on {place} ({PARTNER_BYTES} \
+             bytes of partner per slot in one binding of {max} bytes, {SPRING_BYTES} bytes of \
+             springs per slot over at most {SPRING_PARTS} such bindings)"
         ),
         got: slots as u64,
         limit,
     })
-}
-
-/// [`field_bytes`] for bindings of at most `max` bytes; `Err` the most slots that fit.
-fn field_bytes_within(max: u64, n: u32, slots: u32) -> std::result::Result<u64, u64> {
-    let bytes = n as u64 * slots as u64 * FIELD_BYTES;
-    if bytes > max {
-        return Err(max / (n as u64 * FIELD_BYTES).max(1));
-    }
-    Ok(bytes.max(FIELD_BYTES))
 }
 
 /// `history` laid out in `slots` slots per sphere, and the count of each.
@@ -574,15 +656,46 @@ mod tests {
     }
 
     #[test]
-    fn the_history_of_20m_spheres_fits_the_bindings_of_an_h100() {
+    fn the_springs_split_by_sphere_range_where_one_binding_cannot_hold_them() {
         // wgpu's largest storage binding on the H100 (docs/PERFORMANCE.md).
         let max = 2_147_483_644;
+        // 1M spheres at K = 16: 384 MB of springs, one binding.
+        let one = SpringSplit::within(max, 1_000_000, FIRST_SLOTS).unwrap();
+        assert_eq!((one.parts(), one.spheres_per_part), (1, 1_000_000));
+        assert_eq!(one.slots_of(0), 0..16_000_000);
+        assert_eq!(one.partner_bytes(), 64_000_000);
+        assert_eq!(one.spring_bytes(0), 384_000_000);
+        // 20M at K = 16: 7.68 GB of springs, 384 bytes a sphere, in four bindings.
         let n = 20_000_000;
-        assert_eq!(field_bytes_within(max, n, FIRST_SLOTS), Ok(1_280_000_000));
+        let four = SpringSplit::within(max, n, FIRST_SLOTS).unwrap();
+        assert_eq!((four.parts(), four.spheres_per_part), (4, 5_592_405));
+        assert_eq!(four.slots_of(3), 3 * 5_592_405 * 16..n as usize * 16);
+        assert!((0..4).all(|b| four.spring_bytes(b) <= max));
+        assert_eq!(four.partner_bytes(), 1_280_000_000);
         // Grown by a quarter from 20 contacts, as a settled pile's worst sphere may need.
-        assert!(field_bytes_within(max, n, 25).is_ok());
-        assert_eq!(field_bytes_within(max, n, 27), Err(26));
-        assert_eq!(field_bytes_within(max, 0, 0), Ok(FIELD_BYTES));
+        assert_eq!(SpringSplit::within(max, n, 25).unwrap().parts(), 6);
+        // The partners' binding holds 26 slots a sphere, and so do six spring bindings.
+        assert_eq!(SpringSplit::within(max, n, 26).unwrap().parts(), 6);
+        let refused = split_or_refuse(max, n, 27, "an H100").unwrap_err();
+        assert!(
+            matches!(
+                refused,
+                Error::TooLarge {
+                    got: 27,
+                    limit: 26,
+                    ..
+                }
+            ),
+            "{refused}"
+        );
+        assert!(refused.to_string().contains("exceeds the limit of 26"));
+        // Where whole spheres leave the six bindings short first: 7 spheres, 1000 bytes each.
+        assert_eq!(SpringSplit::within(1000, 7, 20).unwrap().parts(), 4);
+        assert_eq!(SpringSplit::within(1000, 7, 21), Err(20));
+        // No history: one smallest binding.
+        let none = SpringSplit::within(max, 0, 0).unwrap();
+        assert_eq!((none.parts(), none.spring_bytes(0)), (1, SPRING_BYTES));
+        assert_eq!(none.partner_bytes(), PARTNER_BYTES);
     }
 
     #[test]

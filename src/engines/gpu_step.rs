@@ -218,24 +218,27 @@ pub(crate) mod granular {
     pub const PARTNERS_NEW: Binding = Binding::read_write(22, "partners_new");
     pub const HELD_NEW: Binding = Binding::read_write(23, "held_new");
     pub const HISTORY_NEED: Binding = Binding::read_write(24, "history_need");
-    /// The old springs' components, one array each: ξ x, y, z, then the rolling torque's x,
-    /// y, z.
-    pub const SPRINGS_OLD: [Binding; 6] = [
-        Binding::read(26, "xi_x_old"),
-        Binding::read(27, "xi_y_old"),
-        Binding::read(28, "xi_z_old"),
-        Binding::read(29, "roll_x_old"),
-        Binding::read(30, "roll_y_old"),
-        Binding::read(31, "roll_z_old"),
+    /// Bindings the springs of a history may be split over, by sphere range: as many as a
+    /// slot has spring components, so the springs (24 bytes a slot) hold as many slots as the
+    /// partners' one binding (4 bytes a slot), up to whole spheres per binding.
+    pub const SPRING_PARTS: usize = 6;
+    /// The old springs (six floats a slot: ξ, then the rolling torque), part by part.
+    pub const SPRINGS_OLD: [Binding; SPRING_PARTS] = [
+        Binding::read(26, "springs_old0"),
+        Binding::read(27, "springs_old1"),
+        Binding::read(28, "springs_old2"),
+        Binding::read(29, "springs_old3"),
+        Binding::read(30, "springs_old4"),
+        Binding::read(31, "springs_old5"),
     ];
-    /// The new springs' components, as [`SPRINGS_OLD`].
-    pub const SPRINGS_NEW: [Binding; 6] = [
-        Binding::read_write(32, "xi_x_new"),
-        Binding::read_write(33, "xi_y_new"),
-        Binding::read_write(34, "xi_z_new"),
-        Binding::read_write(35, "roll_x_new"),
-        Binding::read_write(36, "roll_y_new"),
-        Binding::read_write(37, "roll_z_new"),
+    /// The new springs, as [`SPRINGS_OLD`].
+    pub const SPRINGS_NEW: [Binding; SPRING_PARTS] = [
+        Binding::read_write(32, "springs_new0"),
+        Binding::read_write(33, "springs_new1"),
+        Binding::read_write(34, "springs_new2"),
+        Binding::read_write(35, "springs_new3"),
+        Binding::read_write(36, "springs_new4"),
+        Binding::read_write(37, "springs_new5"),
     ];
 
     /// Every binding of `wgsl/dem_granular.wgsl` and its accumulators.
@@ -284,6 +287,9 @@ pub(crate) mod granular {
         pub turns: u32,
         /// History slots per sphere (0: contacts keep no springs).
         pub slots: u32,
+        /// Spheres whose springs one spring binding holds: sphere a's are in
+        /// [`SPRINGS_OLD`]`[a / spheres_per_part]` (at least 1).
+        pub spheres_per_part: u32,
     }
 
     /// [`GranularParams`] as a [`SharedStruct`].
@@ -303,6 +309,7 @@ pub(crate) mod granular {
                 rolling_model,
                 turns,
                 slots,
+                spheres_per_part,
             }
         )
     }

@@ -53,6 +53,17 @@ pub fn open_gpu_lowered(what: &str, max: u32) -> Option<Gpu> {
     })
 }
 
+/// Like [`open_gpu`], with the device's `max_storage_buffer_binding_size` lowered to `bytes`
+/// (what sizes its buffers by that limit splits or refuses at small sizes).
+pub fn open_gpu_with_bindings_of(what: &str, bytes: u64) -> Option<Gpu> {
+    adapter_for(Need::Compute, what).then(|| {
+        Gpu::open_limited(Need::Compute, |limits| {
+            limits.max_storage_buffer_binding_size = bytes;
+        })
+        .expect("a probed adapter opens")
+    })
+}
+
 /// The largest difference of one coordinate between the same sphere in `a` and in `b` [m].
 pub fn largest_gap(a: &mochi::dem::Particles, b: &mochi::dem::Particles) -> f32 {
     assert_eq!(a.len(), b.len());

@@ -158,11 +158,38 @@ impl GridStepper {
     /// As [`new`](Self::new), choosing how forces are accumulated and how the grid is built
     /// (`GridBuild::Auto` decides from the spheres' bounds now, for the whole run).
     pub fn with_options(
+        particles: Particles,
+        params: StepParams,
+        mode: ProxyMode,
+        atomics: ForceAtomics,
+        grid_build: GridBuild,
+    ) -> Result<Self> {
+        Self::opening(particles, params, mode, atomics, grid_build, || {
+            Gpu::open(Need::Compute)
+        })
+    }
+
+    /// As [`with_options`](Self::with_options), on `gpu` (a test may lower its limits, say
+    /// the largest storage binding, to run the paths of large runs at small sizes).
+    pub fn on_gpu(
+        gpu: Gpu,
+        particles: Particles,
+        params: StepParams,
+        mode: ProxyMode,
+        atomics: ForceAtomics,
+        grid_build: GridBuild,
+    ) -> Result<Self> {
+        Self::opening(particles, params, mode, atomics, grid_build, || Ok(gpu))
+    }
+
+    /// The stepper on the device `open` gives once the particles are checked.
+    fn opening(
         mut particles: Particles,
         params: StepParams,
         mode: ProxyMode,
         atomics: ForceAtomics,
         grid_build: GridBuild,
+        open: impl FnOnce() -> Result<Gpu>,
     ) -> Result<Self> {
         particles.separate_coincident()?;
         let (r_min, r_max) = particles.radius_range();
@@ -171,7 +198,7 @@ impl GridStepper {
             Some(bounds) => grid_build.resolve(particles.len() as u64, bounds, mode_cell),
             None => BuildKind::Dense,
         };
-        let gpu = Gpu::open(Need::Compute)?;
+        let gpu = open()?;
         let DemModule {
             atomics,
             granular,
