@@ -656,7 +656,6 @@ fn a_frictional_heap_keeps_its_slope_where_a_frictionless_one_spreads_flat_on(ki
     // high, by 1 s and then stays).
     let [_, flat] = settle_pyramid(kind, &soft(0.0, 0.0), r, 1.0);
     let [heap, later] = settle_pyramid(kind, &soft(0.5, 0.1), r, 1.0);
-    eprintln!("DEBUG {} {:?} {:?} {:?}", kind.name(), flat, heap, later);
     assert_eq!(flat.1, 0, "frictionless: spheres off the floor at the end");
     assert!(flat.0 <= 2.0 * r * 1.01, "frictionless top at {} m", flat.0);
     assert!(
@@ -899,8 +898,8 @@ fn a_frictional_state_moves_between_the_cpu_and_the_gpus_with_its_history() {
 }
 
 /// A wgpu-compute step of `start` on a device whose storage bindings hold 8 KiB (`None` where
-/// no adapter runs it): a history of more than 341 slots (8 KiB of springs) is split over
-/// several spring bindings, as the history of 20M spheres is on an H100.
+/// no adapter runs it): a history of more than 256 slots (8 KiB of entries) is split over
+/// several entry bindings, as the history of 20M spheres is on an H100.
 fn wgpu_compute_on_small_bindings(start: &Particles, p: StepParams) -> Option<GridStepper> {
     let what = "the wgpu-compute DEM step with its history split over bindings";
     let gpu = common::open_gpu_with_bindings_of(what, 8 << 10)?;
@@ -918,8 +917,8 @@ fn wgpu_compute_on_small_bindings(start: &Particles, p: StepParams) -> Option<Gr
 
 #[test]
 fn a_history_split_over_several_bindings_follows_the_cpu_step() {
-    // The frictional pile's 64 spheres at 16 slots: 4 KiB of partners (one binding) and 24 KiB
-    // of springs, in four bindings of 21 spheres.
+    // The frictional pile's 64 spheres at 16 slots: 32 KiB of entries, in four bindings of 16
+    // spheres.
     let start = frictional_pile(4);
     let p = frictional_pile_params(&start);
     let Some(mut split) = wgpu_compute_on_small_bindings(&start, p) else {

@@ -21,7 +21,7 @@ struct GranularParams {
     rolling_model: u32,   // ROLLING_*
     turns: u32,           // 1 where any contact exerts a torque
     slots: u32,           // history slots per sphere (0: contacts keep no springs)
-    spheres_per_part: u32, // spheres whose springs one spring binding holds (dem_granular.wgsl)
+    spheres_per_part: u32, // history rows one entry binding holds (dem_granular.wgsl)
 }
 
 @group(0) @binding(17) var<uniform> granular: GranularParams;

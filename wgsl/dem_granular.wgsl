@@ -3,167 +3,265 @@
 // its contacts and the integration kernel. Needs dem_params.wgsl and dem_contact.wgsl, a
 // dem_force_*.wgsl and a dem_torque_*.wgsl; the including shader defines
 //   fn stable_id(p: u32) -> u32    the input index of the sphere at state index p
+//   fn row_before(p: u32) -> u32   the state index the sphere at state index p had in the
+//                                  previous step (its row of the old history)
 //
 // Angular velocities and torques are in state order, as pos and vel (the engine permutes ω with
 // them wherever it re-sorts the state), so every kernel reads them where it reads pos and vel.
 //
-// History: K = granular.slots slots per sphere, indexed by stable id (a re-sort never moves
-// them), in two sets of buffers that swap roles every step (old: read, new: written). Slot s of
-// the sphere of stable id a holds its partner at element a·K + s of the partners (scanned, 4
-// bytes a slot) and its springs, six contiguous floats loaded only for the slot found, in one of
-// the spring bindings: part a / P of them at element (a mod P)·K + s, P =
-// granular.spheres_per_part (every sphere in part 0 where the springs fit one binding; the
-// bindings past the parts in use hold a spare buffer and are never read).
+// History: K = granular.slots slots per sphere in rows in state order, in two sets of buffers
+// that swap roles every step (old: read, new: written): a step writes the new row of the sphere
+// at state index p at row p, and reads its old row at row_before(p), the row the previous step
+// wrote. The state barely moves from one re-sort to the next, so neighbouring threads read and
+// write neighbouring rows. A slot is one 32-byte entry (one memory sector, written whole: a
+// partly written sector costs the memory a read of the rest) holding the partner's stable id and
+// the six springs. Slot s of row r is in one of the entry bindings: part r / P of them, at
+// element (r mod P)·K + s, P = granular.spheres_per_part (every row in part 0 where the
+// entries fit one binding; the bindings past the parts in use hold a spare buffer and are
+// never read).
 // A pair is resolved once, by its owner (the sphere whose thread finds it); the owner looks the
 // pair up in its own old slots, then in the partner's (whose springs are the negatives: the
 // owner of a pair changes when the order or the proxy rule's case changes, and an uploaded
 // history holds both sides), and writes it to its own new slots. Only the owner writes its
-// slots: no atomics. Every contact is counted, also those that do not fit, and history_need
-// keeps the most any sphere needed: the host grows K and redoes the steps when it exceeds K.
+// slots: no atomics. Every contact is counted, also those that do not fit, and a sphere that
+// needs more than K raises history_need to its count: the host then grows K and redoes the
+// steps.
 
 // Partner ids from here on name the walls (src/particles/history.rs).
 const FIRST_WALL: u32 = 0xfffffffau;
 
 // by state index
 @group(0) @binding(18) var<storage, read_write> omega: array<vec4<f32>>;   // ωx, ωy, ωz, 0
-// by stable id: contacts held, and per slot the partner's stable id, or FIRST_WALL + wall
-@group(0) @binding(20) var<storage, read> partners_old: array<u32>;
+// by history row: contacts held
 @group(0) @binding(21) var<storage, read> held_old: array<u32>;
-@group(0) @binding(22) var<storage, read_write> partners_new: array<u32>;
 @group(0) @binding(23) var<storage, read_write> held_new: array<u32>;
 // The most contacts with history any sphere had since the host cleared it.
 @group(0) @binding(24) var<storage, read_write> history_need: atomic<u32>;
-// per slot: the tangential spring ξ [m] x, y, z, then the rolling spring torque [N·m] x, y, z
-@group(0) @binding(26) var<storage, read> springs_old0: array<array<f32, 6>>;
-@group(0) @binding(27) var<storage, read> springs_old1: array<array<f32, 6>>;
-@group(0) @binding(28) var<storage, read> springs_old2: array<array<f32, 6>>;
-@group(0) @binding(29) var<storage, read> springs_old3: array<array<f32, 6>>;
-@group(0) @binding(30) var<storage, read> springs_old4: array<array<f32, 6>>;
-@group(0) @binding(31) var<storage, read> springs_old5: array<array<f32, 6>>;
-@group(0) @binding(32) var<storage, read_write> springs_new0: array<array<f32, 6>>;
-@group(0) @binding(33) var<storage, read_write> springs_new1: array<array<f32, 6>>;
-@group(0) @binding(34) var<storage, read_write> springs_new2: array<array<f32, 6>>;
-@group(0) @binding(35) var<storage, read_write> springs_new3: array<array<f32, 6>>;
-@group(0) @binding(36) var<storage, read_write> springs_new4: array<array<f32, 6>>;
-@group(0) @binding(37) var<storage, read_write> springs_new5: array<array<f32, 6>>;
+// per slot, as bits: the tangential spring ξ [m] x, y, z and the partner's stable id (or
+// FIRST_WALL + wall), then the rolling spring torque [N·m] x, y, z and 0
+@group(0) @binding(50) var<storage, read> entries_old0: array<array<vec4<u32>, 2>>;
+@group(0) @binding(51) var<storage, read> entries_old1: array<array<vec4<u32>, 2>>;
+@group(0) @binding(52) var<storage, read> entries_old2: array<array<vec4<u32>, 2>>;
+@group(0) @binding(53) var<storage, read> entries_old3: array<array<vec4<u32>, 2>>;
+@group(0) @binding(54) var<storage, read> entries_old4: array<array<vec4<u32>, 2>>;
+@group(0) @binding(55) var<storage, read> entries_old5: array<array<vec4<u32>, 2>>;
+@group(0) @binding(56) var<storage, read> entries_old6: array<array<vec4<u32>, 2>>;
+@group(0) @binding(57) var<storage, read> entries_old7: array<array<vec4<u32>, 2>>;
+@group(0) @binding(58) var<storage, read_write> entries_new0: array<array<vec4<u32>, 2>>;
+@group(0) @binding(59) var<storage, read_write> entries_new1: array<array<vec4<u32>, 2>>;
+@group(0) @binding(60) var<storage, read_write> entries_new2: array<array<vec4<u32>, 2>>;
+@group(0) @binding(61) var<storage, read_write> entries_new3: array<array<vec4<u32>, 2>>;
+@group(0) @binding(62) var<storage, read_write> entries_new4: array<array<vec4<u32>, 2>>;
+@group(0) @binding(63) var<storage, read_write> entries_new5: array<array<vec4<u32>, 2>>;
+@group(0) @binding(64) var<storage, read_write> entries_new6: array<array<vec4<u32>, 2>>;
+@group(0) @binding(65) var<storage, read_write> entries_new7: array<array<vec4<u32>, 2>>;
 
-// Where a slot's springs are: the spring binding and the element in it.
-struct SpringsAt {
+// Where a slot is: the entry binding and the element in it.
+struct SlotAt {
     part: u32,
     slot: u32,
 }
 
-// Where slot s of the sphere of stable id a keeps its springs.
-fn springs_at(a: u32, s: u32) -> SpringsAt {
-    let part = a / granular.spheres_per_part;
-    return SpringsAt(part, (a - part * granular.spheres_per_part) * granular.slots + s);
+// Where slot s of history row r is.
+fn slot_at(r: u32, s: u32) -> SlotAt {
+    let part = r / granular.spheres_per_part;
+    return SlotAt(part, (r - part * granular.spheres_per_part) * granular.slots + s);
 }
 
-// Sphere p resolving its contacts. Its stable id, old count and the place of its springs are
-// found only where contacts keep history (granular.slots > 0), the only use of them.
+// Sphere p resolving its contacts. Its stable id, old row, old count and the places of its
+// slots are found only where contacts keep history (granular.slots > 0), the only use of them.
 struct Walker {
-    p: u32,              // state index
+    p: u32,              // state index, its row of the new history
     s: vec4<f32>,        // centre, radius
     a: u32,              // stable id
+    row_old: u32,        // its row of the old history
     kept: u32,           // its contacts in the old history
-    own: SpringsAt,      // where the springs of its slot 0 are
+    own_old: SlotAt,     // where its old slot 0 is
+    own_new: SlotAt,     // where its new slot 0 goes
     me: Body,
     force: vec3<f32>,
     torque: vec3<f32>,
     touching: u32,       // touching spheres it resolved
     held: u32,           // contacts with history (spheres it owns and walls)
+    waiting: u32,        // candidates in `deferred` (meet_later)
 }
 
 fn walker(p: u32) -> Walker {
     var a = 0u;
+    var row_old = 0u;
     var kept = 0u;
-    var own = SpringsAt(0u, 0u);
+    var own_old = SlotAt(0u, 0u);
+    var own_new = SlotAt(0u, 0u);
     if granular.slots > 0u {
         a = stable_id(p);
-        kept = held_old[a];
-        own = springs_at(a, 0u);
+        row_old = row_before(p);
+        kept = held_old[row_old];
+        own_old = slot_at(row_old, 0u);
+        own_new = slot_at(p, 0u);
     }
     let s = pos[p];
     let v = vel[p];
     let me = Body(s.xyz, v.xyz, omega[p].xyz, s.w, v.w);
-    return Walker(p, s, a, kept, own, me, vec3(0.0), vec3(0.0), 0u, 0u);
+    return Walker(p, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u);
 }
 
-// The old springs at `at` times `sign`.
-fn springs_of(at: SpringsAt, sign: f32) -> Springs {
-    var x: array<f32, 6>;
-    switch at.part {
-        case 1u: { x = springs_old1[at.slot]; }
-        case 2u: { x = springs_old2[at.slot]; }
-        case 3u: { x = springs_old3[at.slot]; }
-        case 4u: { x = springs_old4[at.slot]; }
-        case 5u: { x = springs_old5[at.slot]; }
-        case 0u, default: { x = springs_old0[at.slot]; }
+// The old entry at `at`.
+fn old_entry(at: SlotAt) -> array<vec4<u32>, 2> {
+    if at.part == 0u {
+        return entries_old0[at.slot];
     }
-    return Springs(sign * vec3(x[0], x[1], x[2]), sign * vec3(x[3], x[4], x[5]));
-}
-
-// Writes `s` as the new springs at `at`.
-fn store_springs(at: SpringsAt, s: Springs) {
-    let t = s.tangential;
-    let r = s.rolling;
-    let x = array(t.x, t.y, t.z, r.x, r.y, r.z);
     switch at.part {
-        case 1u: { springs_new1[at.slot] = x; }
-        case 2u: { springs_new2[at.slot] = x; }
-        case 3u: { springs_new3[at.slot] = x; }
-        case 4u: { springs_new4[at.slot] = x; }
-        case 5u: { springs_new5[at.slot] = x; }
-        case 0u, default: { springs_new0[at.slot] = x; }
+        case 1u: { return entries_old1[at.slot]; }
+        case 2u: { return entries_old2[at.slot]; }
+        case 3u: { return entries_old3[at.slot]; }
+        case 4u: { return entries_old4[at.slot]; }
+        case 5u: { return entries_old5[at.slot]; }
+        case 6u: { return entries_old6[at.slot]; }
+        case 7u: { return entries_old7[at.slot]; }
+        default: { return entries_old0[at.slot]; }
     }
 }
 
-// The springs the walker (stable id a, `kept` old contacts, springs of slot 0 at `own`) kept
-// of its contact with `partner` (a sphere's stable id or a wall), from its old slots, else
-// from the partner's (negated); zero for a new contact.
-fn old_springs(a: u32, kept: u32, own: SpringsAt, partner: u32) -> Springs {
-    let k = granular.slots;
-    for (var s = 0u; s < kept; s += 1u) {
-        if partners_old[a * k + s] == partner {
-            return springs_of(SpringsAt(own.part, own.slot + s), 1.0);
+// The partner of the old entry at `at`.
+fn old_partner(at: SlotAt) -> u32 {
+    return old_entry(at)[0].w;
+}
+
+// The springs of the old entry at `at` times `sign`.
+fn springs_of(at: SlotAt, sign: f32) -> Springs {
+    let e = old_entry(at);
+    return Springs(sign * bitcast<vec3<f32>>(e[0].xyz), sign * bitcast<vec3<f32>>(e[1].xyz));
+}
+
+// Writes the new entry at `at`: `partner` and its springs `s`.
+fn store_entry(at: SlotAt, partner: u32, s: Springs) {
+    let e = array(
+        vec4(bitcast<vec3<u32>>(s.tangential), partner),
+        vec4(bitcast<vec3<u32>>(s.rolling), 0u),
+    );
+    if at.part == 0u {
+        entries_new0[at.slot] = e;
+        return;
+    }
+    switch at.part {
+        case 1u: { entries_new1[at.slot] = e; }
+        case 2u: { entries_new2[at.slot] = e; }
+        case 3u: { entries_new3[at.slot] = e; }
+        case 4u: { entries_new4[at.slot] = e; }
+        case 5u: { entries_new5[at.slot] = e; }
+        case 6u: { entries_new6[at.slot] = e; }
+        case 7u: { entries_new7[at.slot] = e; }
+        default: { entries_new0[at.slot] = e; }
+    }
+}
+
+// The walker's old slot of its contact with `partner` (a sphere's stable id or a wall), or
+// `kept` where it holds none.
+fn own_old_slot(w: ptr<function, Walker>, partner: u32) -> u32 {
+    let at = (*w).own_old;
+    var s = 0u;
+    for (; s < (*w).kept; s += 1u) {
+        if old_partner(SlotAt(at.part, at.slot + s)) == partner {
+            break;
         }
     }
-    if partner < FIRST_WALL {
-        for (var s = 0u; s < held_old[partner]; s += 1u) {
-            if partners_old[partner * k + s] == a {
-                return springs_of(springs_at(partner, s), -1.0);
-            }
+    return s;
+}
+
+// The springs in the walker's old slot s.
+fn own_old_springs(w: ptr<function, Walker>, s: u32) -> Springs {
+    return springs_of(SlotAt((*w).own_old.part, (*w).own_old.slot + s), 1.0);
+}
+
+// The springs of the walker's contact with sphere q (state index, stable id b): from its own
+// old slots, else from q's (negated); zero for a new contact.
+fn old_springs(w: ptr<function, Walker>, q: u32, b: u32) -> Springs {
+    let own = own_old_slot(w, b);
+    if own < (*w).kept {
+        return own_old_springs(w, own);
+    }
+    let row = row_before(q);
+    let at = slot_at(row, 0u);
+    for (var s = 0u; s < held_old[row]; s += 1u) {
+        let theirs = SlotAt(at.part, at.slot + s);
+        if old_partner(theirs) == (*w).a {
+            return springs_of(theirs, -1.0);
         }
+    }
+    return Springs(vec3(0.0), vec3(0.0));
+}
+
+// The springs of the walker's contact with a wall (FIRST_WALL + wall); zero for a new contact.
+fn old_wall_springs(w: ptr<function, Walker>, wall: u32) -> Springs {
+    let own = own_old_slot(w, FIRST_WALL + wall);
+    if own < (*w).kept {
+        return own_old_springs(w, own);
     }
     return Springs(vec3(0.0), vec3(0.0));
 }
 
 // Keeps the contact with `partner` in the walker's next slot, where there is one; counts it.
 fn keep_springs(w: ptr<function, Walker>, partner: u32, s: Springs) {
-    let k = granular.slots;
-    if (*w).held < k {
-        partners_new[(*w).a * k + (*w).held] = partner;
-        store_springs(SpringsAt((*w).own.part, (*w).own.slot + (*w).held), s);
+    if (*w).held < granular.slots {
+        store_entry(SlotAt((*w).own_new.part, (*w).own_new.slot + (*w).held), partner, s);
     }
     (*w).held += 1u;
 }
 
-// Resolves the walker's sphere against sphere q (state index; t = its centre and radius): adds
-// q's force and torque there and the walker's to the walker.
+// Whether sphere t (centre, radius) may touch sphere s: the cheap test that rejects most
+// candidates of a walk (they need nothing else of their sphere).
+fn reaches(s: vec4<f32>, t: vec4<f32>) -> bool {
+    let d = t.xyz - s.xyz;
+    let reach = s.w + t.w;
+    return d.x * d.x + d.y * d.y + d.z * d.z <= reach * reach;
+}
+
+// Candidate q (state index; t = its centre and radius) of the walk, resolved where it reaches
+// the walker's sphere.
 fn meet(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
-    // Cheap rejection first: most candidates do not touch (and need nothing else of q).
-    let d = t.xyz - (*w).s.xyz;
-    let reach = (*w).s.w + t.w;
-    if d.x * d.x + d.y * d.y + d.z * d.z > reach * reach {
+    if reaches((*w).s, t) {
+        contact_with(w, q, t);
+    }
+}
+
+// A walk may instead keep the candidates that reach its sphere (`meet_later`) and resolve them
+// together once it is done (`resolve_deferred`), or once DEFERRED are waiting: a warp's lanes
+// then run the contact law in step, where resolving each at its place in the walk runs it once
+// for every lane that meets a partner there. The order of the contacts is the walk's.
+const DEFERRED: u32 = 8u;
+var<private> deferred: array<u32, DEFERRED>;
+
+// Candidate q of the walk, kept for `resolve_deferred` where it reaches the walker's sphere.
+fn meet_later(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
+    if !reaches((*w).s, t) {
         return;
     }
+    deferred[(*w).waiting] = q;
+    (*w).waiting += 1u;
+    if (*w).waiting == DEFERRED {
+        resolve_deferred(w);
+    }
+}
+
+// Resolves the candidates `meet_later` kept, in the order met.
+fn resolve_deferred(w: ptr<function, Walker>) {
+    for (var k = 0u; k < (*w).waiting; k += 1u) {
+        let q = deferred[k];
+        contact_with(w, q, pos[q]);
+    }
+    (*w).waiting = 0u;
+}
+
+// Resolves the walker's sphere against sphere q (state index; t = its centre and radius): adds
+// q's force and torque there and the walker's to the walker.
+fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     let u = vel[q];
     let other = Body(t.xyz, u.xyz, omega[q].xyz, t.w, u.w);
     var old = Springs(vec3(0.0), vec3(0.0));
     var b = 0u;   // q's stable id, where contacts keep history
     if granular.slots > 0u {
         b = stable_id(q);
-        old = old_springs((*w).a, (*w).kept, (*w).own, b);
+        old = old_springs(w, q, b);
     }
     let c = pair_contact((*w).me, other, old);
     if !c.touching {
@@ -200,7 +298,7 @@ fn finish(w: ptr<function, Walker>) {
             let wall = 2u * axis + side;
             var old = Springs(vec3(0.0), vec3(0.0));
             if granular.slots > 0u {
-                old = old_springs((*w).a, (*w).kept, (*w).own, FIRST_WALL + wall);
+                old = old_wall_springs(w, wall);
             }
             let vn = select(b.v[axis], -b.v[axis], side == 1u);
             let c = wall_contact(b, wall, overlap, vn, old);
@@ -221,8 +319,10 @@ fn finish(w: ptr<function, Walker>) {
         add_torque((*w).p, (*w).torque);
     }
     if granular.slots > 0u {
-        held_new[(*w).a] = min((*w).held, granular.slots);
-        atomicMax(&history_need, (*w).held);
+        held_new[(*w).p] = min((*w).held, granular.slots);
+        if (*w).held > granular.slots {
+            atomicMax(&history_need, (*w).held);
+        }
     }
 }
 

@@ -5,13 +5,20 @@
 
 // ω of set a, by its index (dem_grid.wgsl)
 @group(0) @binding(25) var<storage, read> omega_a: array<vec4<f32>>;
+// by state index: the index in set a of the sphere now at it (its row of the old history)
+@group(0) @binding(38) var<storage, read_write> came_from: array<u32>;
 
 fn carry(i: u32, p: u32) {
     omega[p] = omega_a[i];
+    came_from[p] = i;
 }
 
 fn stable_id(p: u32) -> u32 {
     return ids[p];
+}
+
+fn row_before(p: u32) -> u32 {
+    return came_from[p];
 }
 
 fn walk_sphere(q: u32) -> vec4<f32> {
@@ -19,7 +26,7 @@ fn walk_sphere(q: u32) -> vec4<f32> {
 }
 
 fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
-    meet(w, q, t);
+    meet_later(w, q, t);
 }
 
 fn walked(w: ptr<function, Walker>, n: u32) {}
@@ -33,6 +40,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
     if p < params.n {
         var w = walker(p);
         stencil_walk(&w);
+        resolve_deferred(&w);
         finish(&w);
         touching = w.touching;
     }

@@ -1,9 +1,14 @@
 // The resolve kernel of the wgpu-rq DEM step with the granular contact law (dem_contact.wgsl,
 // dem_granular.wgsl): part of the module dem_rq.wgsl describes. The state is in input order, so
-// a sphere's index is its stable id; the ray of the pair's owner p (the proxy rule's choice)
-// resolves it; the walls are resolved by each sphere's own thread in the same pass.
+// a sphere's index is its stable id and its history row; the ray of the pair's owner p (the
+// proxy rule's choice) resolves it; the walls are resolved by each sphere's own thread in the
+// same pass.
 
 fn stable_id(p: u32) -> u32 {
+    return p;
+}
+
+fn row_before(p: u32) -> u32 {
     return p;
 }
 

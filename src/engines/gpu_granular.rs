@@ -1,18 +1,19 @@
 //! The GPU state of the granular step (`wgsl/dem_contact.wgsl`, `wgsl/dem_granular.wgsl`),
 //! shared by the wgpu engines: angular velocities and torque accumulators in the engine's state
 //! order (one ω buffer per state set of the engine: ω is permuted with positions and velocities),
-//! and the contact history (docs/method.md, "Contact history"): K slots per sphere indexed by
-//! stable id, each contact kept by its owner only, in two sets of buffers that swap roles every
-//! step: the partners in one buffer (scanned at 4 bytes a slot), the springs of each slot
-//! contiguous (24 bytes), split by sphere range over a few bindings where they do not fit one
-//! ([`SpringSplit`]). The engine keeps its own state (positions, velocities, the
-//! order of its spheres); this module saves both at the start of a batch, so that a batch in
-//! which some sphere had more contacts than K is redone from that state with K grown: no
-//! contact is ever dropped.
+//! and the contact history (docs/method.md, "Contact history"): K slots per sphere in rows in
+//! the state's order (a step reads the old row of each sphere where the previous step wrote it,
+//! [`Granular::came_from`] where the engine re-sorts), each contact kept by its owner only, in
+//! two sets of buffers that swap roles every step. A slot is one 32-byte entry (the partner's
+//! stable id and the six springs: one memory sector, written whole), the entries split by row
+//! range over a few bindings where they do not fit one ([`EntrySplit`]). The engine keeps its
+//! own state (positions, velocities, the order of its spheres); this module saves both at the
+//! start of a batch, so that a batch in which some sphere had more contacts than K is redone
+//! from that state with K grown: no contact is ever dropped.
 
 use super::gpu_step::granular::{
-    GRANULAR, GranularParams, HELD_NEW, HELD_OLD, HISTORY_NEED, OMEGA, PARTNERS_NEW, PARTNERS_OLD,
-    SPRING_PARTS, SPRINGS_NEW, SPRINGS_OLD, TORQUE,
+    ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, GRANULAR, GranularParams, HELD_NEW, HELD_OLD,
+    HISTORY_NEED, OMEGA, TORQUE,
 };
 use crate::dem::model::{NormalLaw, RollingModel, StepParams};
 use crate::dem::stepper::StageTimes;
@@ -76,75 +77,64 @@ pub(crate) fn run_batch(
 const FIRST_SLOTS: u32 = 16;
 
 /// Storage buffers the granular resolve kernel binds (wgpu-compute's: the state, the cell
-/// table, the ids, forces, counters, spins, torques, two histories of partners and
-/// [`SPRING_PARTS`] spring bindings and their counts, the need).
-const STORAGE_BUFFERS: u32 = 11 + 2 * (1 + SPRING_PARTS as u32);
+/// table, the ids, the rows the spheres came from, forces, counters, spins, torques, two counts
+/// of the history, [`ENTRY_PARTS`] entry bindings of each history, the need).
+const STORAGE_BUFFERS: u32 = 10 + 2 * ENTRY_PARTS as u32;
 
-/// Bytes of a slot's partner.
-const PARTNER_BYTES: u64 = 4;
+/// A slot of the history as the GPU holds it, as bits: ξ x, y, z and the partner's stable id,
+/// then the rolling torque's x, y, z and 0 (`array<vec4<u32>, 2>`).
+type Entry = [u32; 8];
 
-/// A slot's springs: ξ x, y, z, then the rolling torque's x, y, z (`array<f32, 6>`).
-type SlotSprings = [f32; 6];
+/// Bytes of a slot.
+const ENTRY_BYTES: u64 = size_of::<Entry>() as u64;
 
-/// Bytes of a slot's springs.
-const SPRING_BYTES: u64 = size_of::<SlotSprings>() as u64;
-
-/// How the springs of the history of `n` spheres with `slots` slots each are split over the
-/// spring bindings: sphere a's slots in part a / `spheres_per_part`, the first part alone
-/// wherever they fit one binding; the partners stay in one binding.
+/// How the entries of the history of `n` spheres with `slots` slots each are split over the
+/// entry bindings: row r's slots in part r / `spheres_per_part`, the first part alone wherever
+/// they fit one binding.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct SpringSplit {
+struct EntrySplit {
     n: u32,
     slots: u32,
     spheres_per_part: u32,
 }
 
-impl SpringSplit {
+impl EntrySplit {
     /// The split for bindings of at most `max` bytes; `Err` the most slots per sphere that fit
-    /// (the partners in one binding, the springs of whole spheres in [`SPRING_PARTS`]).
+    /// (the entries of whole rows in [`ENTRY_PARTS`] bindings).
     fn within(max: u64, n: u32, slots: u32) -> std::result::Result<Self, u64> {
         let (n64, k) = (n as u64, slots as u64);
-        let per_sphere = k * SPRING_BYTES;
+        let per_sphere = k * ENTRY_BYTES;
         let spheres_per_part = match per_sphere {
             0 => n64,
             _ => (max / per_sphere).min(n64),
         }
         .max(1);
-        let fits = n64 * k * PARTNER_BYTES <= max
-            && per_sphere <= max
-            && n64.div_ceil(spheres_per_part) <= SPRING_PARTS as u64;
+        let fits = per_sphere <= max && n64.div_ceil(spheres_per_part) <= ENTRY_PARTS as u64;
         if !fits {
-            let by_partners = max / (n64 * PARTNER_BYTES).max(1);
-            let by_springs = max / (n64.div_ceil(SPRING_PARTS as u64) * SPRING_BYTES).max(1);
-            return Err(by_partners.min(by_springs));
+            return Err(max / (n64.div_ceil(ENTRY_PARTS as u64) * ENTRY_BYTES).max(1));
         }
-        Ok(SpringSplit {
+        Ok(EntrySplit {
             n,
             slots,
             spheres_per_part: spheres_per_part as u32,
         })
     }
 
-    /// Spring bindings in use (at least one).
+    /// Entry bindings in use (at least one).
     fn parts(&self) -> usize {
         (self.n.div_ceil(self.spheres_per_part) as usize).max(1)
     }
 
-    /// The slots of part `part`, numbered a·K + s over all spheres.
+    /// The slots of part `part`, numbered r·K + s over all rows.
     fn slots_of(&self, part: usize) -> Range<usize> {
         let (per, k) = (self.spheres_per_part as usize, self.slots as usize);
         let n = self.n as usize;
         (part * per).min(n) * k..((part + 1) * per).min(n) * k
     }
 
-    /// Bytes of the partners' buffer (at least one slot's, the smallest binding).
-    fn partner_bytes(&self) -> u64 {
-        (self.n as u64 * self.slots as u64 * PARTNER_BYTES).max(PARTNER_BYTES)
-    }
-
-    /// Bytes of part `part`'s springs (at least one slot's).
-    fn spring_bytes(&self, part: usize) -> u64 {
-        (self.slots_of(part).len() as u64 * SPRING_BYTES).max(SPRING_BYTES)
+    /// Bytes of part `part` (at least one slot's, the smallest binding).
+    fn part_bytes(&self, part: usize) -> u64 {
+        (self.slots_of(part).len() as u64 * ENTRY_BYTES).max(ENTRY_BYTES)
     }
 }
 
@@ -156,106 +146,94 @@ pub(crate) struct Rotation {
     pub history: ContactHistory,
 }
 
-/// One history on the GPU: K slots per sphere by stable id, slot s of sphere a at element
-/// a·K + s of the partners and in the springs' part of its sphere ([`SpringSplit`]).
+/// One history on the GPU: K slots per sphere in rows, slot s of row r at element r·K + s of
+/// the slots, in the part of its row ([`EntrySplit`]).
 struct History {
-    partners: wgpu::Buffer,
-    /// The parts in use of the springs.
-    springs: Vec<wgpu::Buffer>,
+    /// The parts in use.
+    parts: Vec<wgpu::Buffer>,
 }
 
 impl History {
     /// Zeroed buffers for `split`, labelled for history `k` of `engine`.
-    fn new(gpu: &Gpu, engine: &str, k: usize, split: &SpringSplit) -> Self {
-        let make = |field: &str, bytes: u64| {
-            let label = format!("mochi.dem.{engine}.history{k}.{field}");
-            gpu.storage(&label, bytes, wgpu::BufferUsages::empty())
-        };
+    fn new(gpu: &Gpu, engine: &str, k: usize, split: &EntrySplit) -> Self {
         History {
-            partners: make("partners", split.partner_bytes()),
-            springs: (0..split.parts())
-                .map(|b| make(&format!("springs{b}"), split.spring_bytes(b)))
+            parts: (0..split.parts())
+                .map(|b| {
+                    let label = format!("mochi.dem.{engine}.history{k}.entries{b}");
+                    gpu.storage(&label, split.part_bytes(b), wgpu::BufferUsages::empty())
+                })
                 .collect(),
         }
     }
 
-    /// The buffers: partners first, then the springs' parts.
-    fn fields(&self) -> Vec<&wgpu::Buffer> {
-        [&self.partners].into_iter().chain(&self.springs).collect()
-    }
-
-    /// Uploads `columns` (of every slot of `split`).
-    fn write(&self, gpu: &Gpu, split: &SpringSplit, columns: &Columns) {
-        gpu.queue
-            .write_buffer(&self.partners, 0, bytemuck::cast_slice(&columns.partners));
-        for (part, buffer) in self.springs.iter().enumerate() {
-            let springs = &columns.springs[split.slots_of(part)];
+    /// Uploads `slots` (every slot of `split`).
+    fn write(&self, gpu: &Gpu, split: &EntrySplit, slots: &Slots) {
+        for (part, buffer) in self.parts.iter().enumerate() {
+            let entries = &slots.entries[split.slots_of(part)];
             gpu.queue
-                .write_buffer(buffer, 0, bytemuck::cast_slice(springs));
+                .write_buffer(buffer, 0, bytemuck::cast_slice(entries));
         }
     }
 }
 
-/// Every slot of `split` from `fields` (partners, then the springs' parts, as
-/// [`History::fields`]).
-fn read_columns(gpu: &Gpu, fields: &[&wgpu::Buffer], split: &SpringSplit) -> Result<Columns> {
-    let slots = split.n as usize * split.slots as usize;
-    let mut springs = try_vec(slots, || {
+/// Every slot of `split` from `parts` (as [`History::parts`]).
+fn read_slots(gpu: &Gpu, parts: &[wgpu::Buffer], split: &EntrySplit) -> Result<Slots> {
+    let count = split.n as usize * split.slots as usize;
+    let mut entries = try_vec(count, || {
         format!("the contact history of {} spheres", split.n)
     })?;
-    for (part, buffer) in fields[1..].iter().enumerate() {
-        springs.extend(gpu.read::<SlotSprings>(buffer, split.slots_of(part).len())?);
+    for (part, buffer) in parts.iter().enumerate() {
+        entries.extend(gpu.read::<Entry>(buffer, split.slots_of(part).len())?);
     }
-    Ok(Columns {
-        partners: gpu.read(fields[0], slots)?,
-        springs,
-    })
+    Ok(Slots { entries })
 }
 
-/// History slots in the GPU's layout, on the host: the partners and the springs, slot by slot.
+/// History slots in the GPU's layout, on the host.
 #[derive(Debug, Default, PartialEq)]
-struct Columns {
-    partners: Vec<u32>,
-    springs: Vec<SlotSprings>,
+struct Slots {
+    entries: Vec<Entry>,
 }
 
-impl Columns {
-    /// `slots` empty slots.
-    fn empty(slots: usize, n: usize) -> Result<Self> {
-        let what = || format!("the contact history of {n} spheres");
-        let mut partners = try_vec(slots, what)?;
-        partners.resize(slots, 0);
-        let mut springs = try_vec(slots, what)?;
-        springs.resize(slots, [0.0; 6]);
-        Ok(Columns { partners, springs })
+impl Slots {
+    /// `count` empty slots.
+    fn empty(count: usize, n: usize) -> Result<Self> {
+        let mut entries = try_vec(count, || format!("the contact history of {n} spheres"))?;
+        entries.resize(count, [0; 8]);
+        Ok(Slots { entries })
     }
 
     fn set(&mut self, slot: usize, e: &HistoryEntry) {
-        self.partners[slot] = e.partner;
-        let [x, y, z] = e.tangential;
-        let [u, v, w] = e.rolling;
-        self.springs[slot] = [x, y, z, u, v, w];
+        let [x, y, z] = e.tangential.map(f32::to_bits);
+        let [u, v, w] = e.rolling.map(f32::to_bits);
+        self.entries[slot] = [x, y, z, e.partner, u, v, w, 0];
     }
 
     fn get(&self, slot: usize) -> HistoryEntry {
-        let [x, y, z, u, v, w] = self.springs[slot];
+        let [x, y, z, partner, u, v, w, _] = self.entries[slot];
         HistoryEntry {
-            partner: self.partners[slot],
-            tangential: [x, y, z],
-            rolling: [u, v, w],
+            partner,
+            tangential: [x, y, z].map(f32::from_bits),
+            rolling: [u, v, w].map(f32::from_bits),
         }
     }
 
-    /// The first `held[i]` of the `from` slots of each sphere i moved to the first of `to`.
-    fn regrown(&self, held: &[u32], from: usize, to: usize) -> Result<Self> {
+    /// The first `held[i]` of the `from` slots of each row i moved to the first of `to` slots
+    /// of row `row(i)`.
+    fn moved(
+        &self,
+        held: &[u32],
+        from: usize,
+        to: usize,
+        row: impl Fn(usize) -> usize,
+    ) -> Result<Self> {
         let n = held.len();
-        let mut grown = Self::empty(n * to, n)?;
+        let mut moved = Self::empty(n * to, n)?;
         for (i, &c) in held.iter().enumerate() {
-            let (old, new) = (i * from..i * from + c as usize, i * to..i * to + c as usize);
-            grown.partners[new.clone()].copy_from_slice(&self.partners[old.clone()]);
-            grown.springs[new].copy_from_slice(&self.springs[old]);
+            let r = row(i);
+            let (old, new) = (i * from..i * from + c as usize, r * to..r * to + c as usize);
+            moved.entries[new].copy_from_slice(&self.entries[old]);
         }
-        Ok(grown)
+        Ok(moved)
     }
 }
 
@@ -267,20 +245,23 @@ pub(crate) struct Granular {
     omega: Vec<wgpu::Buffer>,
     /// Torque accumulators in state order (zero between steps).
     torque: wgpu::Buffer,
-    /// History slots, `params.slots` per sphere by stable id: the old ones of a step of parity
-    /// k are `history[k]`, its new ones `history[1 - k]`.
+    /// History slots, `params.slots` per sphere in rows in state order: the old ones of a step
+    /// of parity k are `history[k]` (in the order of state set k), its new ones `history[1 - k]`.
     history: [History; 2],
-    /// How both histories' springs are split over the spring bindings.
-    split: SpringSplit,
-    /// Bound where a history uses fewer spring bindings than the shader declares: one for
-    /// the old springs' (read), one for the new springs' (written); never accessed.
+    /// How both histories' entries are split over the entry bindings.
+    split: EntrySplit,
+    /// Bound where a history uses fewer entry bindings than the shader declares: one for the
+    /// old entries' (read), one for the new entries' (written); never accessed.
     spare: [wgpu::Buffer; 2],
-    /// Contacts held per sphere, by stable id, beside `history`.
+    /// Contacts held per row, beside `history`.
     held: [wgpu::Buffer; 2],
+    /// By state index, the index in the previous state set of the sphere now there: its row
+    /// of the old history (written by the re-sort of engines with two state sets).
+    came_from: wgpu::Buffer,
     /// The most contacts with history any sphere had in the batch.
     need: wgpu::Buffer,
     /// Copies of the state at the start of the batch (with history only): the old history's
-    /// buffers (as [`History::fields`]) and its counts, the angular velocities, then the
+    /// buffers (as [`History::parts`]) and its counts, the angular velocities, then the
     /// engine's own buffers.
     saved: Vec<wgpu::Buffer>,
     /// The history as given, returned as it is where contacts keep no springs (as the cpu
@@ -304,9 +285,9 @@ impl Granular {
     /// The buffers for `particles` on `gpu` for the engine named `engine` (its backend's name),
     /// whose state is in `sets` sets of buffers (1: one set in input order; 2: two sets that a
     /// step of parity k reads from set k and writes in set 1 − k); the angular velocities go
-    /// into set 0, in input order, the history as the old history of a step of parity 0 (the
-    /// cpu's layout, both sides of each pair, is usable as it is: each owner finds its own
-    /// entry first).
+    /// into set 0, in input order, the history as the old history of a step of parity 0 (rows
+    /// in input order; the cpu's layout, both sides of each pair, is usable as it is: each owner
+    /// finds its own entry first).
     pub fn new(
         gpu: &Gpu,
         particles: &Particles,
@@ -348,7 +329,7 @@ impl Granular {
             false => 0,
         };
         let n = n64 as u32;
-        let split = spring_split(gpu, n, slots, engine)?;
+        let split = entry_split(gpu, n, slots, engine)?;
         let gpu_params = GranularParams {
             law,
             rate,
@@ -380,10 +361,11 @@ impl Granular {
             history: [0, 1].map(|k| History::new(gpu, engine, k, &split)),
             split,
             spare: [
-                make("springs_spare_old", SPRING_BYTES),
-                make("springs_spare_new", SPRING_BYTES),
+                make("entries_spare_old", ENTRY_BYTES),
+                make("entries_spare_new", ENTRY_BYTES),
             ],
             held: [make("held0", n64 * 4), make("held1", n64 * 4)],
+            came_from: make("came_from", if sets == 2 { n64 * 4 } else { 4 }),
             need: make("history_need", 4),
             saved: Vec::new(),
             given: if keeps {
@@ -403,8 +385,8 @@ impl Granular {
             .write_buffer(&granular.omega[0], 0, bytemuck::cast_slice(&omega));
         // New buffers are zeroed: an empty history needs no upload.
         if keeps && !particles.history.is_empty() {
-            let (columns, held) = lay_out(&particles.history, n as usize, slots as usize)?;
-            granular.history[0].write(gpu, &split, &columns);
+            let (slots, held) = lay_out(&particles.history, n as usize, slots as usize)?;
+            granular.history[0].write(gpu, &split, &slots);
             gpu.queue
                 .write_buffer(&granular.held[0], 0, bytemuck::cast_slice(&held));
         }
@@ -423,16 +405,14 @@ impl Granular {
             (GRANULAR, &self.uniform),
             (OMEGA, self.omega_of(1 - parity)),
             (TORQUE, &self.torque),
-            (PARTNERS_OLD, &old.partners),
             (HELD_OLD, &self.held[parity]),
-            (PARTNERS_NEW, &new.partners),
             (HELD_NEW, &self.held[1 - parity]),
             (HISTORY_NEED, &self.need),
         ];
         let [spare_old, spare_new] = &self.spare;
-        let parts = |h: &'a History, spare| h.springs.iter().chain(std::iter::repeat(spare));
-        all.extend(SPRINGS_OLD.into_iter().zip(parts(old, spare_old)));
-        all.extend(SPRINGS_NEW.into_iter().zip(parts(new, spare_new)));
+        let parts = |h: &'a History, spare| h.parts.iter().chain(std::iter::repeat(spare));
+        all.extend(ENTRIES_OLD.into_iter().zip(parts(old, spare_old)));
+        all.extend(ENTRIES_NEW.into_iter().zip(parts(new, spare_new)));
         all
     }
 
@@ -449,6 +429,12 @@ impl Granular {
     /// set `1 - parity` as it re-sorts the state (engines with two sets).
     pub fn sorted_omega(&self, parity: usize) -> [&wgpu::Buffer; 2] {
         [self.omega_of(parity), self.omega_of(1 - parity)]
+    }
+
+    /// Where the re-sort of an engine with two state sets writes, and its resolve kernel reads,
+    /// the index each sphere had in the previous state set (its row of the old history).
+    pub fn came_from(&self) -> &wgpu::Buffer {
+        &self.came_from
     }
 
     /// Whether contacts keep springs (then batches are saved and may be redone).
@@ -471,8 +457,8 @@ impl Granular {
             return;
         }
         let sources: Vec<&wgpu::Buffer> = self.history[parity]
-            .fields()
-            .into_iter()
+            .parts
+            .iter()
             .chain([&self.held[parity], &self.omega[parity % self.omega.len()]])
             .chain(state.iter().copied())
             .collect();
@@ -521,19 +507,22 @@ impl Granular {
         let engine = self.engine;
         let (n, old) = (self.n as usize, self.split);
         let slots = need.saturating_add(need / 4);
-        let split = spring_split(gpu, self.n, slots, engine)?;
+        let split = entry_split(gpu, self.n, slots, engine)?;
         // The saved copies: the old history's buffers, its counts, then the rest.
-        let fields = 1 + old.parts();
+        let fields = old.parts();
         let held: Vec<u32> = gpu.read(&self.saved[fields], n)?;
-        let saved: Vec<&wgpu::Buffer> = self.saved[..fields].iter().collect();
         // Each sphere's held slots moved to its first slots of the wider rows.
-        let columns =
-            read_columns(gpu, &saved, &old)?.regrown(&held, old.slots as usize, slots as usize)?;
+        let moved = read_slots(gpu, &self.saved[..fields], &old)?.moved(
+            &held,
+            old.slots as usize,
+            slots as usize,
+            |row| row,
+        )?;
         let history = gpu.checked("allocating the contact history", || {
             [0, 1].map(|b| History::new(gpu, engine, b, &split))
         })?;
         self.history = history;
-        self.history[parity].write(gpu, &split, &columns);
+        self.history[parity].write(gpu, &split, &moved);
         self.split = split;
         self.params.spheres_per_part = split.spheres_per_part;
         self.params.slots = slots;
@@ -554,16 +543,26 @@ impl Granular {
 
     /// The angular velocities (in the order of state set `parity`) and the history in the
     /// cpu's layout, after a step of parity `1 - parity` (the history of parity `parity` is
-    /// the one the next step reads).
-    pub fn read(&self, gpu: &Gpu, parity: usize) -> Result<Rotation> {
+    /// the one the next step reads); `ids` are the stable ids of state set `parity` (`None`:
+    /// the state is in input order).
+    pub fn read(&self, gpu: &Gpu, parity: usize, ids: Option<&[u32]>) -> Result<Rotation> {
         let n = self.n as usize;
         let omega: Vec<[f32; 4]> = gpu.read(self.omega_of(parity), n)?;
         let angular_velocities = omega.iter().map(|w| [w[0], w[1], w[2]]).collect();
         let history = if self.keeps_history() {
             let k = self.params.slots as usize;
-            let held: Vec<u32> = gpu.read(&self.held[parity], n)?;
-            let columns = read_columns(gpu, &self.history[parity].fields(), &self.split)?;
-            both_sides(n, k, &held, &columns)?
+            let mut held: Vec<u32> = gpu.read(&self.held[parity], n)?;
+            let mut slots = read_slots(gpu, &self.history[parity].parts, &self.split)?;
+            if let Some(ids) = ids {
+                // Rows in state order to rows by stable id.
+                slots = slots.moved(&held, k, k, |row| ids[row] as usize)?;
+                let mut by_id = vec![0; n];
+                for (row, &c) in held.iter().enumerate() {
+                    by_id[ids[row] as usize] = c;
+                }
+                held = by_id;
+            }
+            both_sides(n, k, &held, &slots)?
         } else {
             self.given.clone()
         };
@@ -575,8 +574,8 @@ impl Granular {
 }
 
 /// The split of the history of `n` spheres with `slots` slots each over the bindings of `gpu`
-/// ([`SpringSplit`]), or [`Error::TooLarge`] naming the most slots that fit.
-fn spring_split(gpu: &Gpu, n: u32, slots: u32, engine: &str) -> Result<SpringSplit> {
+/// ([`EntrySplit`]), or [`Error::TooLarge`] naming the most slots that fit.
+fn entry_split(gpu: &Gpu, n: u32, slots: u32, engine: &str) -> Result<EntrySplit> {
     let max = gpu
         .limits
         .max_storage_buffer_binding_size
@@ -585,13 +584,12 @@ fn spring_split(gpu: &Gpu, n: u32, slots: u32, engine: &str) -> Result<SpringSpl
     split_or_refuse(max, n, slots, &place)
 }
 
-/// [`SpringSplit::within`] as the error [`spring_split`] gives on `place`.
-fn split_or_refuse(max: u64, n: u32, slots: u32, place: &str) -> Result<SpringSplit> {
-    SpringSplit::within(max, n, slots).map_err(|limit| Error::TooLarge {
+/// [`EntrySplit::within`] as the error [`entry_split`] gives on `place`.
+fn split_or_refuse(max: u64, n: u32, slots: u32, place: &str) -> Result<EntrySplit> {
+    EntrySplit::within(max, n, slots).map_err(|limit| Error::TooLarge {
         what: format!(
-            "contact history slots per sphere for {n} spheres on {place} ({PARTNER_BYTES} \
-             bytes of partner per slot in one binding of {max} bytes, {SPRING_BYTES} bytes of \
-             springs per slot over at most {SPRING_PARTS} such bindings)"
+            "contact history slots per sphere for {n} spheres on {place} ({ENTRY_BYTES} bytes \
+             per slot, whole spheres' slots in at most {ENTRY_PARTS} bindings of {max} bytes)"
         ),
         got: slots as u64,
         limit,
@@ -599,24 +597,24 @@ fn split_or_refuse(max: u64, n: u32, slots: u32, place: &str) -> Result<SpringSp
 }
 
 /// `history` laid out in `slots` slots per sphere, and the count of each.
-fn lay_out(history: &ContactHistory, n: usize, slots: usize) -> Result<(Columns, Vec<u32>)> {
-    let mut columns = Columns::empty(n * slots, n)?;
+fn lay_out(history: &ContactHistory, n: usize, slots: usize) -> Result<(Slots, Vec<u32>)> {
+    let mut laid_out = Slots::empty(n * slots, n)?;
     let mut held = try_vec(n, || format!("the contact history of {n} spheres"))?;
     for i in 0..n {
         let own = history.of(i);
         for (s, e) in own.iter().enumerate() {
-            columns.set(i * slots + s, e);
+            laid_out.set(i * slots + s, e);
         }
         held.push(own.len() as u32);
     }
-    Ok((columns, held))
+    Ok((laid_out, held))
 }
 
 /// The owner-only history of the GPU (`held[i]` slots of sphere i from slot i·slots on) in the
 /// cpu's layout: each sphere pair also in the partner's slots, springs negated (unless the
 /// partner holds it already, as an uploaded history does before the first step).
-fn both_sides(n: usize, slots: usize, held: &[u32], columns: &Columns) -> Result<ContactHistory> {
-    let own = |i: usize| (i * slots..i * slots + held[i] as usize).map(|s| columns.get(s));
+fn both_sides(n: usize, slots: usize, held: &[u32], laid_out: &Slots) -> Result<ContactHistory> {
+    let own = |i: usize| (i * slots..i * slots + held[i] as usize).map(|s| laid_out.get(s));
     let mut contacts = Vec::new();
     for i in 0..n {
         for e in own(i) {
@@ -647,35 +645,33 @@ mod tests {
         }
     }
 
-    fn columns(entries: &[HistoryEntry]) -> Columns {
-        let mut c = Columns::empty(entries.len(), 1).unwrap();
+    fn laid_out(entries: &[HistoryEntry]) -> Slots {
+        let mut laid_out = Slots::empty(entries.len(), 1).unwrap();
         for (s, e) in entries.iter().enumerate() {
-            c.set(s, e);
+            laid_out.set(s, e);
         }
-        c
+        laid_out
     }
 
     #[test]
-    fn the_springs_split_by_sphere_range_where_one_binding_cannot_hold_them() {
+    fn the_entries_split_by_row_range_where_one_binding_cannot_hold_them() {
         // wgpu's largest storage binding on the H100 (docs/PERFORMANCE.md).
         let max = 2_147_483_644;
-        // 1M spheres at K = 16: 384 MB of springs, one binding.
-        let one = SpringSplit::within(max, 1_000_000, FIRST_SLOTS).unwrap();
+        // 1M spheres at K = 16: 512 MB of entries, one binding.
+        let one = EntrySplit::within(max, 1_000_000, FIRST_SLOTS).unwrap();
         assert_eq!((one.parts(), one.spheres_per_part), (1, 1_000_000));
         assert_eq!(one.slots_of(0), 0..16_000_000);
-        assert_eq!(one.partner_bytes(), 64_000_000);
-        assert_eq!(one.spring_bytes(0), 384_000_000);
-        // 20M at K = 16: 7.68 GB of springs, 384 bytes a sphere, in four bindings.
+        assert_eq!(one.part_bytes(0), 512_000_000);
+        // 20M at K = 16: 10.24 GB, 512 bytes a sphere, in five bindings.
         let n = 20_000_000;
-        let four = SpringSplit::within(max, n, FIRST_SLOTS).unwrap();
-        assert_eq!((four.parts(), four.spheres_per_part), (4, 5_592_405));
-        assert_eq!(four.slots_of(3), 3 * 5_592_405 * 16..n as usize * 16);
-        assert!((0..4).all(|b| four.spring_bytes(b) <= max));
-        assert_eq!(four.partner_bytes(), 1_280_000_000);
+        let five = EntrySplit::within(max, n, FIRST_SLOTS).unwrap();
+        assert_eq!((five.parts(), five.spheres_per_part), (5, 4_194_303));
+        assert_eq!(five.slots_of(4), 4 * 4_194_303 * 16..n as usize * 16);
+        assert!((0..5).all(|b| five.part_bytes(b) <= max));
         // Grown by a quarter from 20 contacts, as a settled pile's worst sphere may need.
-        assert_eq!(SpringSplit::within(max, n, 25).unwrap().parts(), 6);
-        // The partners' binding holds 26 slots a sphere, and so do six spring bindings.
-        assert_eq!(SpringSplit::within(max, n, 26).unwrap().parts(), 6);
+        assert_eq!(EntrySplit::within(max, n, 25).unwrap().parts(), 8);
+        // Eight bindings hold 26 slots a sphere.
+        assert_eq!(EntrySplit::within(max, n, 26).unwrap().parts(), 8);
         let refused = split_or_refuse(max, n, 27, "an H100").unwrap_err();
         assert!(
             matches!(
@@ -689,13 +685,26 @@ mod tests {
             "{refused}"
         );
         assert!(refused.to_string().contains("exceeds the limit of 26"));
-        // Where whole spheres leave the six bindings short first: 7 spheres, 1000 bytes each.
-        assert_eq!(SpringSplit::within(1000, 7, 20).unwrap().parts(), 4);
-        assert_eq!(SpringSplit::within(1000, 7, 21), Err(20));
+        // Where whole rows leave the bindings short first: 9 spheres, bindings of 1000 bytes
+        // (two rows of 15 slots each, but one of 16).
+        assert_eq!(EntrySplit::within(1000, 9, 15).unwrap().parts(), 5);
+        assert_eq!(EntrySplit::within(1000, 9, 16), Err(15));
         // No history: one smallest binding.
-        let none = SpringSplit::within(max, 0, 0).unwrap();
-        assert_eq!((none.parts(), none.spring_bytes(0)), (1, SPRING_BYTES));
-        assert_eq!(none.partner_bytes(), PARTNER_BYTES);
+        let none = EntrySplit::within(max, 0, 0).unwrap();
+        assert_eq!((none.parts(), none.part_bytes(0)), (1, ENTRY_BYTES));
+    }
+
+    #[test]
+    fn an_entry_keeps_its_partner_and_springs_bit_for_bit() {
+        let mut laid_out = Slots::empty(2, 1).unwrap();
+        let wall = HistoryEntry {
+            partner: FIRST_WALL + 5,
+            tangential: [f32::MIN_POSITIVE, -0.0, 1e-30],
+            rolling: [-3.5, f32::MAX, 0.25],
+        };
+        laid_out.set(1, &wall);
+        assert_eq!(laid_out.get(1), wall);
+        assert_eq!(laid_out.get(0), HistoryEntry::default());
     }
 
     #[test]
@@ -707,7 +716,7 @@ mod tests {
         entries[1] = entry(FIRST_WALL + 4, 2.0);
         entries[slots] = entry(2, 3.0);
         entries[2 * slots] = entry(1, -3.0);
-        let h = both_sides(3, slots, &[2, 1, 1], &columns(&entries)).unwrap();
+        let h = both_sides(3, slots, &[2, 1, 1], &laid_out(&entries)).unwrap();
         assert_eq!(h.of(0), &[entry(2, 1.0), entry(FIRST_WALL + 4, 2.0)]);
         assert_eq!(h.of(1), &[entry(2, 3.0)]);
         // Mirrored entries come in the order of their owners.

@@ -213,50 +213,42 @@ pub(crate) mod granular {
     pub const OMEGA: Binding = Binding::read_write(18, "omega");
     /// Declared by the torque accumulator (`dem_torque_*.wgsl`).
     pub const TORQUE: Binding = Binding::read_write(19, "torque");
-    pub const PARTNERS_OLD: Binding = Binding::read(20, "partners_old");
     pub const HELD_OLD: Binding = Binding::read(21, "held_old");
-    pub const PARTNERS_NEW: Binding = Binding::read_write(22, "partners_new");
     pub const HELD_NEW: Binding = Binding::read_write(23, "held_new");
     pub const HISTORY_NEED: Binding = Binding::read_write(24, "history_need");
-    /// Bindings the springs of a history may be split over, by sphere range: as many as a
-    /// slot has spring components, so the springs (24 bytes a slot) hold as many slots as the
-    /// partners' one binding (4 bytes a slot), up to whole spheres per binding.
-    pub const SPRING_PARTS: usize = 6;
-    /// The old springs (six floats a slot: ξ, then the rolling torque), part by part.
-    pub const SPRINGS_OLD: [Binding; SPRING_PARTS] = [
-        Binding::read(26, "springs_old0"),
-        Binding::read(27, "springs_old1"),
-        Binding::read(28, "springs_old2"),
-        Binding::read(29, "springs_old3"),
-        Binding::read(30, "springs_old4"),
-        Binding::read(31, "springs_old5"),
+    /// Bindings the entries of a history may be split over, by range of rows (whole rows per
+    /// binding): 20M spheres hold 26 slots each in eight bindings of 2 GiB.
+    pub const ENTRY_PARTS: usize = 8;
+    /// The old entries (32 bytes a slot: ξ and the partner, the rolling torque), part by part.
+    pub const ENTRIES_OLD: [Binding; ENTRY_PARTS] = [
+        Binding::read(50, "entries_old0"),
+        Binding::read(51, "entries_old1"),
+        Binding::read(52, "entries_old2"),
+        Binding::read(53, "entries_old3"),
+        Binding::read(54, "entries_old4"),
+        Binding::read(55, "entries_old5"),
+        Binding::read(56, "entries_old6"),
+        Binding::read(57, "entries_old7"),
     ];
-    /// The new springs, as [`SPRINGS_OLD`].
-    pub const SPRINGS_NEW: [Binding; SPRING_PARTS] = [
-        Binding::read_write(32, "springs_new0"),
-        Binding::read_write(33, "springs_new1"),
-        Binding::read_write(34, "springs_new2"),
-        Binding::read_write(35, "springs_new3"),
-        Binding::read_write(36, "springs_new4"),
-        Binding::read_write(37, "springs_new5"),
+    /// The new entries, as [`ENTRIES_OLD`].
+    pub const ENTRIES_NEW: [Binding; ENTRY_PARTS] = [
+        Binding::read_write(58, "entries_new0"),
+        Binding::read_write(59, "entries_new1"),
+        Binding::read_write(60, "entries_new2"),
+        Binding::read_write(61, "entries_new3"),
+        Binding::read_write(62, "entries_new4"),
+        Binding::read_write(63, "entries_new5"),
+        Binding::read_write(64, "entries_new6"),
+        Binding::read_write(65, "entries_new7"),
     ];
 
     /// Every binding of `wgsl/dem_granular.wgsl` and its accumulators.
     pub fn bindings() -> Vec<Binding> {
-        [
-            GRANULAR,
-            OMEGA,
-            TORQUE,
-            PARTNERS_OLD,
-            HELD_OLD,
-            PARTNERS_NEW,
-            HELD_NEW,
-            HISTORY_NEED,
-        ]
-        .into_iter()
-        .chain(SPRINGS_OLD)
-        .chain(SPRINGS_NEW)
-        .collect()
+        [GRANULAR, OMEGA, TORQUE, HELD_OLD, HELD_NEW, HISTORY_NEED]
+            .into_iter()
+            .chain(ENTRIES_OLD)
+            .chain(ENTRIES_NEW)
+            .collect()
     }
 
     /// The granular step's parameters beyond [`super::DemParams`]; twin: `GranularParams` in
@@ -287,8 +279,8 @@ pub(crate) mod granular {
         pub turns: u32,
         /// History slots per sphere (0: contacts keep no springs).
         pub slots: u32,
-        /// Spheres whose springs one spring binding holds: sphere a's are in
-        /// [`SPRINGS_OLD`]`[a / spheres_per_part]` (at least 1).
+        /// History rows one entry binding holds: row r's entries are in
+        /// [`ENTRIES_OLD`]`[r / spheres_per_part]` (at least 1).
         pub spheres_per_part: u32,
     }
 

@@ -31,8 +31,8 @@ use super::layout::{
 };
 use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
-    self, BOUNDS, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, OMEGA_A, PARAMS, POS_A, RANKS,
-    SORT_KEYS, SORT_ORDER, VEL_A,
+    self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, OMEGA_A, PARAMS, POS_A,
+    RANKS, SORT_KEYS, SORT_ORDER, VEL_A,
 };
 use crate::dem::model::StepParams;
 use crate::dem::stepper::Clock;
@@ -318,7 +318,7 @@ impl GridStepper {
         let vel: Vec<[f32; 4]> = self.gpu.read(&set.vel, n)?;
         let ids: Vec<u32> = self.gpu.read(&set.ids, n)?;
         let rotation = match &self.granular {
-            Some(g) => Some(g.read(&self.gpu, self.current)?),
+            Some(g) => Some(g.read(&self.gpu, self.current, Some(&ids))?),
             None => None,
         };
         particles_with(&pos, &vel, Some(&ids), self.step, rotation)
@@ -467,9 +467,10 @@ impl GridStepper {
         let (scatter_more, resolve_more, integrate_more) = match &self.granular {
             Some(g) => {
                 let [omega_a, omega] = g.sorted_omega(from);
+                let came_from = (CAME_FROM, g.came_from());
                 (
-                    vec![(OMEGA_A, omega_a), (OMEGA, omega)],
-                    [&g.resolve_bindings(from)[..], &[(IDS, &b.ids)]].concat(),
+                    vec![(OMEGA_A, omega_a), (OMEGA, omega), came_from],
+                    [&g.resolve_bindings(from)[..], &[(IDS, &b.ids), came_from]].concat(),
                     g.integrate_bindings(from).to_vec(),
                 )
             }

@@ -243,6 +243,8 @@ pub(crate) mod dem_grid {
     pub const BOUNDS: Binding = Binding::read_write(15, "bounds");
     /// The granular step's angular velocities of set a (`wgsl/dem_grid_granular.wgsl`).
     pub const OMEGA_A: Binding = Binding::read(25, "omega_a");
+    /// The granular step's rows of the old history, by state index (`wgsl/dem_grid_granular.wgsl`).
+    pub const CAME_FROM: Binding = Binding::read_write(38, "came_from");
 
     const OWN: [Binding; 10] = [
         PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS,
@@ -268,7 +270,7 @@ pub(crate) mod dem_grid {
         bindings()
             .into_iter()
             .chain(granular::bindings())
-            .chain([OMEGA_A])
+            .chain([OMEGA_A, CAME_FROM])
             .collect()
     }
 }

@@ -305,7 +305,7 @@ impl Stepper for RqStepper {
         let pos: Vec<[f32; 4]> = self.gpu.read(&self.pos, n)?;
         let vel: Vec<[f32; 4]> = self.gpu.read(&self.vel, n)?;
         let rotation = match &self.granular {
-            Some(g) => Some(g.read(&self.gpu, self.parity)?),
+            Some(g) => Some(g.read(&self.gpu, self.parity, None)?),
             None => None,
         };
         particles_with(&pos, &vel, None, self.step, rotation)
