@@ -669,11 +669,23 @@ fn a_frictional_heap_keeps_its_slope_where_a_frictionless_one_spreads_flat_on(ki
     // and in the one lavapipe builds the top sphere rattles at the contacts' frequency with an
     // amplitude of 5e-4·r (measured), so two samples of it differ by up to 1e-3·r: within a
     // hundredth of a radius there, which still tells a heap at rest from one that moves.
+    // On a GPU a sphere perched on the heap's flank falls within that half second in some runs
+    // and not in others (the order of the float atomics differs from run to run: seen on the
+    // H200 with wgpu-compute and with optix, one sphere at most): the heap keeps all its spheres
+    // but that one.
     let still = if kind == BackendKind::Cpu { 1e-3 } else { 1e-2 };
-    assert_eq!(later.1, heap.1);
+    let fallen = if kind == BackendKind::Cpu { 0 } else { 1 };
+    assert!(
+        later.1 <= heap.1 && later.1 + fallen >= heap.1,
+        "{}: {} spheres off the floor, then {}",
+        kind.name(),
+        heap.1,
+        later.1
+    );
     assert!(
         (later.0 - heap.0).abs() <= still * r,
-        "the heap moved: top {} m, then {} m",
+        "{}: the heap moved: top {} m, then {} m",
+        kind.name(),
         heap.0,
         later.0
     );
