@@ -8,9 +8,11 @@ pub mod shader;
 pub mod timer;
 
 use crate::error::{Error, Result};
+use rayon::prelude::*;
 use shader::Binding;
 use shader::WgslModule;
 use std::sync::OnceLock;
+use wgpu::WriteOnly;
 
 /// The WGSL modules of the shared plumbing (scan and radix sort), exactly as the device gets them.
 pub fn shaders() -> Vec<WgslModule> {
@@ -386,6 +388,64 @@ impl Gpu {
         let values = self.read_via(&buffer_back, buffer, size, bytes)?;
         staging.0 = Some(buffer_back);
         Ok(values)
+    }
+
+    /// A buffer the host writes (mapped) and the GPU copies from, of `bytes` bytes, kept by its
+    /// owner between uploads ([`fill_rows`](Self::fill_rows)).
+    pub fn upload_buffer(&self, label: &str, bytes: u64) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes.max(16),
+            usage: wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// Maps `upload` (from [`upload_buffer`](Self::upload_buffer)), fills its first `n` rows
+    /// of four floats with `row(i)` on the rayon pool and unmaps it, ready for a copy: an upload
+    /// that allocates no staging memory and writes it on every core.
+    pub fn fill_rows(
+        &self,
+        upload: &wgpu::Buffer,
+        n: usize,
+        row: impl Fn(usize) -> [f32; 4] + Sync,
+    ) -> Result<()> {
+        let bytes = n as u64 * 16;
+        if bytes == 0 {
+            return Ok(());
+        }
+        let (tx, rx) = std::sync::mpsc::channel();
+        upload
+            .slice(..bytes)
+            .map_async(wgpu::MapMode::Write, move |r| {
+                let _ = tx.send(r);
+            });
+        self.wait()?;
+        let failed = |e: &dyn std::fmt::Display| Error::Gpu(format!("upload failed: {e}"));
+        rx.recv()
+            .map_err(|_| Error::Gpu("upload was cancelled".into()))?
+            .map_err(|e| failed(&e))?;
+        {
+            let mut view = upload
+                .get_mapped_range_mut(..bytes)
+                .map_err(|e| failed(&e))?;
+            // Pieces of PIECE rows (sized, so each can go to another thread), then the rest.
+            const PIECE: usize = 1 << 14;
+            let (pieces, rest) = view.slice(..).into_chunks::<{ 16 * PIECE }>();
+            let write = |first: usize, bytes: WriteOnly<'_, [u8]>| {
+                let (rows, _) = bytes.into_chunks::<16>();
+                let len = rows.len();
+                rows.write_iter((first..first + len).map(|i| bytemuck::cast(row(i))));
+            };
+            let done = pieces.len() * PIECE;
+            write(done, rest);
+            let pieces: Vec<_> = pieces.into_iter().enumerate().collect();
+            pieces
+                .into_par_iter()
+                .for_each(|(k, piece)| write(k * PIECE, piece.into()));
+        }
+        upload.unmap();
+        Ok(())
     }
 
     /// Copies `size` bytes of `buffer` into `staging`, maps it and returns the first `bytes`

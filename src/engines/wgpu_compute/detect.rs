@@ -50,6 +50,8 @@ struct Grid {
     pair_params: wgpu::Buffer,
     /// `vec4(x, y, z, r)` in input order.
     spheres_in: wgpu::Buffer,
+    /// Where the host writes `spheres_in`'s rows for each build (kept: no staging per build).
+    upload: wgpu::Buffer,
     /// Cell key and rank among the spheres of that cell of each sphere, in input order.
     slots: wgpu::Buffer,
     /// Input index of each sorted sphere.
@@ -73,6 +75,7 @@ impl Grid {
             params: gpu.uniform("mochi.grid.params", &GridParams::default()),
             pair_params: gpu.uniform("mochi.grid.pair_params", &GridParams::default()),
             spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
+            upload: gpu.upload_buffer("mochi.grid.upload", n64 * 16),
             slots: gpu.storage("mochi.grid.slots", n64 * 8, none),
             ids: gpu.storage("mochi.grid.ids", n64 * 4, none),
             spheres: gpu.storage("mochi.grid.spheres", n64 * 16, none),
@@ -182,15 +185,20 @@ impl GpuBackend for WgpuComputeBackend {
         )?;
         grid.layout = layout;
         grid.build = build;
-        let rows: Vec<[f32; 4]> = spheres.xyzr().collect();
+        let (centers, radii) = (spheres.centers(), spheres.radii());
+        let gpu = &self.detection.gpu;
+        gpu.fill_rows(&grid.upload, n as usize, |i| {
+            let [x, y, z] = centers[i];
+            [x, y, z, radii[i]]
+        })?;
+        let rows_bytes = n as u64 * 16;
         let what = "building the wgpu-compute grid";
         let gather = &self.gather;
         let sort = &mut self.sort;
         let key_spheres = &self.key_spheres;
         let record_sorted = |gpu: &Gpu, g: &Grid, encoder: &mut wgpu::CommandEncoder| {
             gpu.write_uniform(&g.params, &g.layout);
-            gpu.queue
-                .write_buffer(&g.spheres_in, 0, bytemuck::cast_slice(&rows));
+            encoder.copy_buffer_to_buffer(&g.upload, 0, &g.spheres_in, 0, rows_bytes);
             let keys = gpu.bind(
                 "mochi.grid.key_spheres",
                 key_spheres,
@@ -223,8 +231,7 @@ impl GpuBackend for WgpuComputeBackend {
         let record = |gpu: &Gpu, g: &Grid, encoder: &mut wgpu::CommandEncoder| {
             let table = g.table.as_ref().expect("a dense build has a table");
             gpu.write_uniform(&g.params, &g.layout);
-            gpu.queue
-                .write_buffer(&g.spheres_in, 0, bytemuck::cast_slice(&rows));
+            encoder.copy_buffer_to_buffer(&g.upload, 0, &g.spheres_in, 0, rows_bytes);
             let scan = self.scan.bind(gpu, &g.params, table);
             let count = gpu.bind(
                 "mochi.grid.count_cells",
