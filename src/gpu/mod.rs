@@ -414,21 +414,11 @@ impl Gpu {
         if bytes == 0 {
             return Ok(());
         }
-        let (tx, rx) = std::sync::mpsc::channel();
-        upload
-            .slice(..bytes)
-            .map_async(wgpu::MapMode::Write, move |r| {
-                let _ = tx.send(r);
-            });
-        self.wait()?;
-        let failed = |e: &dyn std::fmt::Display| Error::Gpu(format!("upload failed: {e}"));
-        rx.recv()
-            .map_err(|_| Error::Gpu("upload was cancelled".into()))?
-            .map_err(|e| failed(&e))?;
+        self.map(upload, bytes, wgpu::MapMode::Write, "upload")?;
         {
             let mut view = upload
                 .get_mapped_range_mut(..bytes)
-                .map_err(|e| failed(&e))?;
+                .map_err(|e| Error::Gpu(format!("upload failed: {e}")))?;
             // Pieces of PIECE rows (sized, so each can go to another thread), then the rest.
             const PIECE: usize = 1 << 14;
             let (pieces, rest) = view.slice(..).into_chunks::<{ 16 * PIECE }>();
@@ -448,6 +438,24 @@ impl Gpu {
         Ok(())
     }
 
+    /// Maps the first `bytes` bytes of `buffer` in `mode` and waits for it; errors name `what`.
+    fn map(
+        &self,
+        buffer: &wgpu::Buffer,
+        bytes: u64,
+        mode: wgpu::MapMode,
+        what: &str,
+    ) -> Result<()> {
+        let (tx, rx) = std::sync::mpsc::channel();
+        buffer.slice(..bytes).map_async(mode, move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait()?;
+        rx.recv()
+            .map_err(|_| Error::Gpu(format!("{what} was cancelled")))?
+            .map_err(|e| Error::Gpu(format!("{what} failed: {e}")))
+    }
+
     /// Copies `size` bytes of `buffer` into `staging`, maps it and returns the first `bytes`
     /// as values, unmapping it again.
     fn read_via<T: bytemuck::Pod>(
@@ -460,16 +468,7 @@ impl Gpu {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(buffer, 0, staging, 0, size);
         self.queue.submit([encoder.finish()]);
-        let (tx, rx) = std::sync::mpsc::channel();
-        staging
-            .slice(..size)
-            .map_async(wgpu::MapMode::Read, move |r| {
-                let _ = tx.send(r);
-            });
-        self.wait()?;
-        rx.recv()
-            .map_err(|_| Error::Gpu("read-back was cancelled".into()))?
-            .map_err(|e| Error::Gpu(format!("read-back failed: {e}")))?;
+        self.map(staging, size, wgpu::MapMode::Read, "read-back")?;
         let values = {
             let view = staging
                 .get_mapped_range(..size)
