@@ -357,13 +357,17 @@ impl Gpu {
     }
 
     /// Copies the first `count` values of `buffer` back to the host (waits for the GPU).
-    pub fn read<T: bytemuck::Pod>(&self, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
+    pub fn read<T: bytemuck::Pod + Send + Sync>(
+        &self,
+        buffer: &wgpu::Buffer,
+        count: usize,
+    ) -> Result<Vec<T>> {
         self.read_through(&mut Staging::default(), buffer, count)
     }
 
     /// [`Gpu::read`] through `staging`, which is reused where it is large enough (else
     /// replaced by one that is): repeated read-backs allocate no buffer once warm.
-    pub fn read_through<T: bytemuck::Pod>(
+    pub fn read_through<T: bytemuck::Pod + Send + Sync>(
         &self,
         staging: &mut Staging,
         buffer: &wgpu::Buffer,
@@ -458,7 +462,7 @@ impl Gpu {
 
     /// Copies `size` bytes of `buffer` into `staging`, maps it and returns the first `bytes`
     /// as values, unmapping it again.
-    fn read_via<T: bytemuck::Pod>(
+    fn read_via<T: bytemuck::Pod + Send + Sync>(
         &self,
         staging: &wgpu::Buffer,
         buffer: &wgpu::Buffer,
@@ -473,12 +477,21 @@ impl Gpu {
             let view = staging
                 .get_mapped_range(..size)
                 .map_err(|e| Error::Gpu(format!("read-back failed: {e}")))?;
-            bytemuck::cast_slice::<u8, T>(&view[..bytes as usize]).to_vec()
+            let values = bytemuck::cast_slice::<u8, T>(&view[..bytes as usize]);
+            // Large read-backs (the pairs) are copied out on every core.
+            if bytes < PARALLEL_COPY_BYTES {
+                values.to_vec()
+            } else {
+                values.par_iter().copied().collect()
+            }
         };
         staging.unmap();
         Ok(values)
     }
 }
+
+/// Read-backs of at least this many bytes are copied out of the mapping on the rayon pool.
+const PARALLEL_COPY_BYTES: u64 = 1 << 20;
 
 /// A host-readable buffer kept between read-backs ([`Gpu::read_through`]); empty at first.
 #[derive(Debug, Default)]
