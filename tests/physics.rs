@@ -9,6 +9,7 @@
 
 mod common;
 
+use common::on_every_backend;
 use mochi::dem::model::contact::moment_of_inertia;
 use mochi::dem::model::time_step::{hertz_contact_time, hertz_peak_overlap};
 use mochi::dem::model::{ContactLaw, Material, RollingModel, mass};
@@ -52,35 +53,6 @@ fn spheres(positions: Vec<[f32; 3]>, velocities: Vec<[f32; 3]>, radii: Vec<f32>)
         velocities,
         radii,
         ..Particles::default()
-    }
-}
-
-/// Every backend whose DEM step runs here: cpu always, and each GPU backend that this run
-/// expects (`common::expected`: wgpu-compute and wgpu-rq under CI, optix with
-/// `MOCHI_EXPECT_OPTIX=1`) or that probes here anyway.
-fn backends() -> Vec<BackendKind> {
-    BackendKind::ALL
-        .into_iter()
-        .filter(|&kind| kind == BackendKind::Cpu || common::expected(kind) || kind.probe().is_ok())
-        .collect()
-}
-
-/// Runs `test` on every backend of [`backends`], naming the backend of a failure.
-fn on_every_backend(test: impl Fn(BackendKind)) {
-    for kind in backends() {
-        let _named = Naming(kind);
-        test(kind);
-    }
-}
-
-/// Names its backend when a test panics while it lives.
-struct Naming(BackendKind);
-
-impl Drop for Naming {
-    fn drop(&mut self) {
-        if std::thread::panicking() {
-            eprintln!("(on the {} backend)", self.0.name());
-        }
     }
 }
 
@@ -873,7 +845,10 @@ fn every_gpu_step_follows_the_cpu_step_of_a_frictional_pile_with_history() {
             expected.history.len() > 150,
             "{law}: the pile holds contacts"
         );
-        for kind in backends().into_iter().filter(|&k| k != BackendKind::Cpu) {
+        for kind in common::dem_backends()
+            .into_iter()
+            .filter(|&k| k != BackendKind::Cpu)
+        {
             let mut s = open(kind, start.clone(), p);
             s.advance(steps).unwrap();
             let what = format!("{law} on {}", kind.name());
@@ -894,7 +869,10 @@ fn a_frictional_state_moves_between_the_cpu_and_the_gpus_with_its_history() {
     let halfway = cpu.particles().unwrap();
     cpu.advance(10).unwrap();
     let expected = cpu.particles().unwrap();
-    for kind in backends().into_iter().filter(|&k| k != BackendKind::Cpu) {
+    for kind in common::dem_backends()
+        .into_iter()
+        .filter(|&k| k != BackendKind::Cpu)
+    {
         let name = kind.name();
         let mut gpu = open(kind, halfway.clone(), p);
         gpu.advance(10).unwrap();
@@ -968,7 +946,7 @@ fn a_gpu_step_whose_spheres_own_more_contacts_than_slots_keeps_every_one() {
     let mut cpu = open(BackendKind::Cpu, start.clone(), p);
     cpu.advance(2).unwrap();
     let expected = cpu.particles().unwrap();
-    let mut steppers: Vec<(String, Box<dyn Stepper>)> = backends()
+    let mut steppers: Vec<(String, Box<dyn Stepper>)> = common::dem_backends()
         .into_iter()
         .filter(|&k| k != BackendKind::Cpu)
         .map(|kind| (kind.name().to_string(), open(kind, start.clone(), p)))

@@ -1,9 +1,13 @@
-//! Mesh walls on the cpu step against analytic results (physics.md, "Analytic results", 5):
-//! a sphere on a mesh incline rolls, slides or is held as the law of its friction says; a
-//! sphere rolling across a flat mesh of many triangles feels one plane (the trajectory of the
-//! box's floor); an STL box gives the box walls' trajectories; a rotating cylinder drags a
-//! resting sphere; a run with a moving wall resumes from a checkpoint bit for bit; GPU
-//! backends refuse mesh walls, naming the cpu backend. Tolerances are stated with each test.
+//! Mesh walls against analytic results (physics.md, "Analytic results", 5), on the cpu step
+//! and the wgpu steps (each backend that runs here, `common::dem_backends`; optix refuses
+//! mesh walls): a sphere on a mesh incline rolls, slides or is held as the law of its friction
+//! says; a sphere rolling across a flat mesh of many triangles feels one plane (the trajectory
+//! of the box's floor); an STL box gives the box walls' trajectories; a rotating cylinder drags
+//! a resting sphere. On the cpu step, a run with a moving wall resumes from a checkpoint bit
+//! for bit. A scene with the box walls off runs on the cpu step alone: the GPU backends refuse
+//! it, naming the cpu backend. Tolerances are stated with each test.
+
+mod common;
 
 use glam::Vec3;
 use mochi::dem::flow::FlowSet;
@@ -83,10 +87,26 @@ fn start(particles: Particles, params: StepParams, walls: WallSet) -> Start {
     }
 }
 
-fn stepper(particles: Particles, p: StepParams, walls: WallSet) -> Box<dyn Stepper> {
-    let choice = BackendChoice::Named(BackendKind::Cpu);
-    let (s, _, _) = open_scene(choice, start(particles, p, walls), &Options::default()).unwrap();
-    s
+fn stepper(
+    kind: BackendKind,
+    particles: Particles,
+    p: StepParams,
+    walls: WallSet,
+) -> Box<dyn Stepper> {
+    let choice = BackendChoice::Named(kind);
+    let opened = open_scene(choice, start(particles, p, walls), &Options::default());
+    opened
+        .unwrap_or_else(|e| panic!("{} opens: {e}", kind.name()))
+        .0
+}
+
+/// Runs `test` on every backend that runs mesh walls here, naming the backend of a failure.
+fn on_every_backend(test: impl Fn(BackendKind)) {
+    common::on_every_backend(|kind| {
+        if kind != BackendKind::Optix {
+            test(kind)
+        }
+    });
 }
 
 fn walls_of(configs: &[(WallConfig, &Mesh)], box_walls: bool, friction: f64) -> WallSet {
@@ -110,7 +130,7 @@ fn state(s: &mut dyn Stepper) -> (Vec3, Vec3, Vec3) {
 /// Acceleration of a sphere set at rest on a mesh incline of `degrees` (64 × 64 quads, turned
 /// about y: downhill is +x), measured along the slope between 0.05 s (the landing's bounce
 /// has died out) and 0.25 s; and the distance it travelled in 0.25 s.
-fn on_incline(degrees: f32, m: &Material) -> (f32, f32) {
+fn on_incline(kind: BackendKind, degrees: f32, m: &Material) -> (f32, f32) {
     let theta = degrees.to_radians();
     let downhill = Vec3::new(theta.cos(), 0.0, -theta.sin());
     let normal = Vec3::new(theta.sin(), 0.0, theta.cos());
@@ -123,9 +143,10 @@ fn on_incline(degrees: f32, m: &Material) -> (f32, f32) {
         ..WallConfig::of("incline")
     };
     let friction = m.friction;
-    let walls = walls_of(&[(config, &mesh)], false, friction);
+    let walls = walls_of(&[(config, &mesh)], true, friction);
     let start = -0.1 * downhill + R * normal;
     let mut s = stepper(
+        kind,
         one_sphere(start, Vec3::ZERO, Vec3::ZERO),
         params(m, -0.5, 0.5),
         walls,
@@ -146,9 +167,13 @@ const INCLINE_TOLERANCE: f32 = 1e-4;
 
 #[test]
 fn a_sphere_on_a_mesh_incline_rolls_at_five_sevenths_g_sin_theta() {
+    on_every_backend(a_sphere_on_a_mesh_incline_rolls_at_five_sevenths_g_sin_theta_on);
+}
+
+fn a_sphere_on_a_mesh_incline_rolls_at_five_sevenths_g_sin_theta_on(kind: BackendKind) {
     // μ = 0.5 ≥ 2/7·tan 20° = 0.104: rolling without slip.
     let theta = 20f32.to_radians();
-    let (a, _) = on_incline(20.0, &material(0.5, 0.0, RollingModel::Epsd));
+    let (a, _) = on_incline(kind, 20.0, &material(0.5, 0.0, RollingModel::Epsd));
     let expected = 5.0 / 7.0 * G * theta.sin();
     assert!(
         (a / expected - 1.0).abs() < INCLINE_TOLERANCE,
@@ -158,9 +183,13 @@ fn a_sphere_on_a_mesh_incline_rolls_at_five_sevenths_g_sin_theta() {
 
 #[test]
 fn a_sphere_on_a_slippery_mesh_incline_slides_at_g_sin_minus_mu_cos() {
+    on_every_backend(a_sphere_on_a_slippery_mesh_incline_slides_at_g_sin_minus_mu_cos_on);
+}
+
+fn a_sphere_on_a_slippery_mesh_incline_slides_at_g_sin_minus_mu_cos_on(kind: BackendKind) {
     // μ = 0.05 < 2/7·tan 20° = 0.104: sliding.
     let (theta, mu) = (20f32.to_radians(), 0.05);
-    let (a, _) = on_incline(20.0, &material(mu as f64, 0.0, RollingModel::Epsd));
+    let (a, _) = on_incline(kind, 20.0, &material(mu as f64, 0.0, RollingModel::Epsd));
     let expected = G * (theta.sin() - mu * theta.cos());
     assert!(
         (a / expected - 1.0).abs() < INCLINE_TOLERANCE,
@@ -170,16 +199,28 @@ fn a_sphere_on_a_slippery_mesh_incline_slides_at_g_sin_minus_mu_cos() {
 
 #[test]
 fn constant_torque_rolling_resistance_holds_a_sphere_on_a_mesh_incline() {
+    on_every_backend(constant_torque_rolling_resistance_holds_a_sphere_on_a_mesh_incline_on);
+}
+
+fn constant_torque_rolling_resistance_holds_a_sphere_on_a_mesh_incline_on(kind: BackendKind) {
     // μ_r = 0.3 ≥ tan 10° = 0.176 holds it; μ_r = 0.1 does not. Held, the sphere creeps by the
     // one step of spin that friction gives before the rolling torque answers (ω = dt·F r/I,
     // v = 2.5·dt·g sin θ = 4e-4 m/s): 1.1e-4 m in 0.25 s, against 0.04 m rolling freely.
     let theta = 10f32.to_radians();
     let creep = 2.5 * DT as f32 * G * theta.sin() * 0.25;
-    let (_, held) = on_incline(10.0, &material(0.5, 0.3, RollingModel::ConstantTorque));
+    let (_, held) = on_incline(
+        kind,
+        10.0,
+        &material(0.5, 0.3, RollingModel::ConstantTorque),
+    );
     assert!(held.abs() < 2.0 * creep, "held sphere moved {held} m");
     // Not held, it rolls at 5/7·g·(sin θ − μ_r cos θ): 0.0164 m in 0.25 s, less the landing's
     // first steps.
-    let (_, rolled) = on_incline(10.0, &material(0.5, 0.1, RollingModel::ConstantTorque));
+    let (_, rolled) = on_incline(
+        kind,
+        10.0,
+        &material(0.5, 0.1, RollingModel::ConstantTorque),
+    );
     let expected = 0.5 * 5.0 / 7.0 * G * (theta.sin() - 0.1 * theta.cos()) * 0.25 * 0.25;
     assert!(
         (rolled / expected - 1.0).abs() < 0.02,
@@ -189,7 +230,12 @@ fn constant_torque_rolling_resistance_holds_a_sphere_on_a_mesh_incline() {
 
 /// A sphere rolling without slip across a plane at z = 0, diagonally (over faces, edges and
 /// vertices of the mesh): the trajectory over `steps` and the load on the wall at the end.
-fn rolling_across(walls: WallSet, box_lo: f64, steps: u32) -> (Vec<[f32; 3]>, Vec<[f64; 3]>) {
+fn rolling_across(
+    kind: BackendKind,
+    walls: WallSet,
+    box_lo: f64,
+    steps: u32,
+) -> (Vec<[f32; 3]>, Vec<[f64; 3]>) {
     let m = material(0.5, 0.0, RollingModel::Epsd);
     let dir = Vec3::new(1.0, 0.37, 0.0).normalize();
     let v = 0.5 * dir;
@@ -199,7 +245,7 @@ fn rolling_across(walls: WallSet, box_lo: f64, steps: u32) -> (Vec<[f32; 3]>, Ve
         ..params(&m, -0.3, 0.3)
     };
     let c = Vec3::new(-0.12, -0.05, R);
-    let mut s = stepper(one_sphere(c, v, w), p, walls);
+    let mut s = stepper(kind, one_sphere(c, v, w), p, walls);
     let mut path = Vec::new();
     for _ in 0..steps / 10 {
         s.advance(10).unwrap();
@@ -211,13 +257,17 @@ fn rolling_across(walls: WallSet, box_lo: f64, steps: u32) -> (Vec<[f32; 3]>, Ve
 
 #[test]
 fn a_sphere_rolling_across_a_flat_mesh_of_many_triangles_feels_one_plane() {
+    on_every_backend(a_sphere_rolling_across_a_flat_mesh_of_many_triangles_feels_one_plane_on);
+}
+
+fn a_sphere_rolling_across_a_flat_mesh_of_many_triangles_feels_one_plane_on(kind: BackendKind) {
     // Quads of 13 mm under a sphere of radius 10 mm: it always touches several triangles, and
-    // crosses about 20 edges and many vertices on its way.
+    // crosses about 20 edges and many vertices on its way. The box's floor is far below.
     let mesh = grid_mesh(0.25, 38);
-    let walls = walls_of(&[(WallConfig::of("floor"), &mesh)], false, 0.5);
-    let (on_mesh, loads) = rolling_across(walls, -0.3, 3000);
+    let walls = walls_of(&[(WallConfig::of("floor"), &mesh)], true, 0.5);
+    let (on_mesh, loads) = rolling_across(kind, walls, -0.3, 3000);
     // The box's own floor at z = 0, no mesh.
-    let (on_box, _) = rolling_across(WallSet::default(), 0.0, 3000);
+    let (on_box, _) = rolling_across(kind, WallSet::default(), 0.0, 3000);
     // The same contact computed from a triangle's plane as from the box's: only the rounding
     // of the force's sum differs (measured: 5e-9 m after 3000 steps, an ulp of 0.1 m is 7e-9 m).
     let gap = on_mesh
@@ -277,6 +327,10 @@ fn stl_box(lo: [f32; 3], hi: [f32; 3]) -> String {
 
 #[test]
 fn an_stl_box_gives_the_trajectories_of_the_box_walls() {
+    on_every_backend(an_stl_box_gives_the_trajectories_of_the_box_walls_on);
+}
+
+fn an_stl_box_gives_the_trajectories_of_the_box_walls_on(kind: BackendKind) {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("box.stl");
     std::fs::write(&path, stl_box([0.0; 3], [0.2; 3])).unwrap();
@@ -291,12 +345,14 @@ fn an_stl_box_gives_the_trajectories_of_the_box_walls() {
         ..Particles::default()
     };
     let stl = WallConfig::of(&path).build(0, 0.5).unwrap();
+    // Inside the STL box, the box's own walls 0.1 m beyond it, never reached.
     let mut mesh_run = stepper(
+        kind,
         particles.clone(),
-        p,
-        WallSet::new(false, vec![stl]).unwrap(),
+        params(&m, -0.1, 0.3),
+        WallSet::new(true, vec![stl]).unwrap(),
     );
-    let mut box_run = stepper(particles, p, WallSet::default());
+    let mut box_run = stepper(kind, particles, p, WallSet::default());
     // 0.3 s: each sphere hits its walls, bounces, lands and rolls on the floor.
     let mut worst = 0.0f32;
     for _ in 0..30 {
@@ -318,7 +374,7 @@ fn an_stl_box_gives_the_trajectories_of_the_box_walls() {
 
 /// A sphere resting at the bottom of a horizontal cylinder (axis y, radius 0.1 m, 96 sides)
 /// turning at `omega`; its state after 0.05 s.
-fn in_drum(omega: f64) -> (Vec3, Vec3, Vec3, Vec3) {
+fn in_drum(kind: BackendKind, omega: f64) -> (Vec3, Vec3, Vec3, Vec3) {
     let radius = 0.1;
     let sides = 96u32;
     let mut mesh = Mesh::default();
@@ -340,10 +396,11 @@ fn in_drum(omega: f64) -> (Vec3, Vec3, Vec3, Vec3) {
         ..WallConfig::of("drum")
     };
     let m = material(0.5, 0.0, RollingModel::Epsd);
-    let walls = walls_of(&[(config, &mesh)], false, 0.5);
+    let walls = walls_of(&[(config, &mesh)], true, 0.5);
     let bottom = -(radius as f32) * (PI / sides as f32).cos();
     let c = Vec3::new(0.0, 0.0, bottom + R);
     let mut s = stepper(
+        kind,
         one_sphere(c, Vec3::ZERO, Vec3::ZERO),
         params(&m, -0.15, 0.15),
         walls,
@@ -362,10 +419,14 @@ fn in_drum(omega: f64) -> (Vec3, Vec3, Vec3, Vec3) {
 
 #[test]
 fn a_rotating_cylinder_drags_a_resting_sphere_into_rolling_with_it() {
+    on_every_backend(a_rotating_cylinder_drags_a_resting_sphere_into_rolling_with_it_on);
+}
+
+fn a_rotating_cylinder_drags_a_resting_sphere_into_rolling_with_it_on(kind: BackendKind) {
     // Wall speed 0.2 m/s: the slip dies within 2·v/(7 μ g) ≈ 0.012 s of sliding, after which
     // the sphere rolls on the wall. At 0.05 s: slip under 1% of the wall's speed, and the
     // sphere carried the way the wall moves (−x at the bottom for ω about +y).
-    let (c, v, slip, wall) = in_drum(2.0);
+    let (c, v, slip, wall) = in_drum(kind, 2.0);
     assert!(wall.x < -0.19, "wall velocity {wall}");
     assert!(
         slip.length() < 0.01 * wall.length(),
@@ -373,7 +434,7 @@ fn a_rotating_cylinder_drags_a_resting_sphere_into_rolling_with_it() {
     );
     assert!(v.x < -0.02 && c.x < -1e-3, "sphere at {c} moving {v}");
     // A drum at rest leaves it at rest.
-    let (c, v, _, _) = in_drum(0.0);
+    let (c, v, _, _) = in_drum(kind, 0.0);
     assert!(
         v.length() < 1e-4 && c.x.abs() < 1e-6,
         "sphere at {c} moving {v}"
@@ -405,9 +466,10 @@ fn a_run_with_a_turning_wall_resumes_from_its_checkpoint_bit_for_bit() {
         ..Particles::default()
     };
     let p = params(&m, -0.3, 0.3);
-    let mut straight = stepper(particles.clone(), p, walls());
+    let cpu = BackendKind::Cpu;
+    let mut straight = stepper(cpu, particles.clone(), p, walls());
     straight.advance(400).unwrap();
-    let mut first = stepper(particles, p, walls());
+    let mut first = stepper(cpu, particles, p, walls());
     first.advance(200).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("checkpoint.bin");
@@ -420,7 +482,7 @@ fn a_run_with_a_turning_wall_resumes_from_its_checkpoint_bit_for_bit() {
             .any(|(_, e)| e.partner == FIRST_MESH_WALL),
         "the checkpoint holds mesh-wall history"
     );
-    let mut resumed = stepper(saved, p, walls());
+    let mut resumed = stepper(cpu, saved, p, walls());
     resumed.advance(200).unwrap();
     let (a, b) = (straight.particles().unwrap(), resumed.particles().unwrap());
     assert_eq!(a, b);
@@ -428,31 +490,35 @@ fn a_run_with_a_turning_wall_resumes_from_its_checkpoint_bit_for_bit() {
 }
 
 #[test]
-fn gpu_backends_refuse_mesh_walls_and_auto_picks_cpu() {
+fn gpu_backends_refuse_a_scene_without_box_walls_and_optix_mesh_walls() {
     let mesh = grid_mesh(0.2, 2);
-    let walls = walls_of(&[(WallConfig::of("floor"), &mesh)], true, 0.0);
     let m = material(0.5, 0.0, RollingModel::Epsd);
     let p = params(&m, -0.3, 0.3);
     let sphere = one_sphere(Vec3::new(0.0, 0.0, 0.1), Vec3::ZERO, Vec3::ZERO);
-    let open = |choice| {
-        open_scene(
-            choice,
-            start(sphere.clone(), p, walls.clone()),
-            &Options::default(),
-        )
+    let open = |choice, box_walls| {
+        let walls = walls_of(&[(WallConfig::of("floor"), &mesh)], box_walls, 0.0);
+        open_scene(choice, start(sphere.clone(), p, walls), &Options::default())
     };
     for kind in [
         BackendKind::WgpuCompute,
         BackendKind::WgpuRq,
         BackendKind::Optix,
     ] {
-        let e = open(BackendChoice::Named(kind)).err().unwrap().to_string();
+        let e = open(BackendChoice::Named(kind), false)
+            .err()
+            .unwrap()
+            .to_string();
         assert!(
-            e.contains(kind.name()) && e.contains("--backend cpu") && e.contains("mesh wall"),
+            e.contains(kind.name()) && e.contains("--backend cpu") && e.contains("no box walls"),
             "{e}"
         );
     }
-    let (s, _, reason) = open(BackendChoice::Auto).unwrap();
+    let (s, _, reason) = open(BackendChoice::Auto, false).unwrap();
     assert!(s.describe().starts_with("cpu") && s.describe().contains("1 mesh wall"));
     assert!(reason.unwrap().contains("cpu"));
+    // Inside the box, optix refuses mesh walls (or is not built), naming itself.
+    let e = open(BackendChoice::Named(BackendKind::Optix), true)
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("optix"), "{e}");
 }

@@ -220,24 +220,31 @@ fn pair_contact(i: Body, j: Body, old: Springs) -> Contact {
     return out;
 }
 
-// What one wall does to the sphere touching it.
-struct WallContact {
-    push: f32,          // the normal force's magnitude (positive pushes b off the wall)
-    tangential: vec3<f32>,
+// What a surface (a box wall, a mesh wall's point) does to the sphere touching it: the force
+// and torque on the sphere and the springs it keeps.
+struct SurfaceContact {
+    force: vec3<f32>,
     torque: vec3<f32>,
     springs: Springs,
 }
 
-// Wall `wall` (2·axis + side, side 0 the low wall) touching b with overlap `overlap` > 0 and
-// normal relative velocity `vn`; friction only where spheres turn.
-fn wall_contact(b: Body, wall: u32, overlap: f32, vn: f32, old: Springs) -> WallContact {
-    let nf = normal_force(true, overlap, vn, b.m, b.r);
-    var out = WallContact(nf.push, vec3(0.0), vec3(0.0), Springs(vec3(0.0), vec3(0.0)));
+// The surface touching b along the unit normal n (from b's centre towards the surface) with
+// overlap `overlap` > 0, its point there moving at `velocity`, sliding friction `mu`; friction
+// only where spheres turn.
+fn surface_contact(
+    b: Body,
+    n: vec3<f32>,
+    overlap: f32,
+    velocity: vec3<f32>,
+    mu: f32,
+    old: Springs,
+) -> SurfaceContact {
+    // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
+    let nf = normal_force(true, overlap, dot3(velocity - b.v, n), b.m, b.r);
+    var out = SurfaceContact(-nf.push * n, vec3(0.0), Springs(vec3(0.0), vec3(0.0)));
     if granular.turns == 0u {
         return out;
     }
-    var n = vec3(0.0);
-    n[wall / 2u] = select(-1.0, 1.0, (wall & 1u) == 1u);
     let touch = Touch(
         n,
         overlap,
@@ -246,12 +253,12 @@ fn wall_contact(b: Body, wall: u32, overlap: f32, vn: f32, old: Springs) -> Wall
         b.r,
         moment_of_inertia(b.m, b.r),
         b.r,
-        b.v + cross(b.w, b.r * n),
+        b.v + cross(b.w, b.r * n) - velocity,
         b.w,
         true,
     );
-    let f = friction(touch, granular.wall_sliding, old);
-    out.tangential = f.force;
+    let f = friction(touch, mu, old);
+    out.force += f.force;
     out.torque = cross(b.r * n, f.force) + f.rolling;
     out.springs = f.springs;
     return out;

@@ -279,41 +279,40 @@ fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     }
 }
 
-// The walls touching the walker's sphere (each axis low wall first, as the cpu step), then its
-// force and torque into the accumulators and its history count.
+// The box walls touching the walker's sphere (each axis low wall first, as the cpu step) and
+// the mesh walls (dem_mesh_walls.wgsl), then its force and torque into the accumulators and
+// its history count.
 fn finish(w: ptr<function, Walker>) {
     let b = (*w).me;
-    var normal = vec3(0.0);
-    var tangential = vec3(0.0);
-    var torque = vec3(0.0);
-    for (var axis = 0u; axis < 3u; axis += 1u) {
-        var f = 0.0;
-        let below = b.r - (b.c[axis] - dem.box_lo[axis]);
-        let above = b.r - (dem.box_hi[axis] - b.c[axis]);
-        for (var side = 0u; side < 2u; side += 1u) {
-            let overlap = select(below, above, side == 1u);
-            if overlap <= 0.0 {
-                continue;
-            }
-            let wall = 2u * axis + side;
-            var old = Springs(vec3(0.0), vec3(0.0));
-            if granular.slots > 0u {
-                old = old_wall_springs(w, wall);
-            }
-            let vn = select(b.v[axis], -b.v[axis], side == 1u);
-            let c = wall_contact(b, wall, overlap, vn, old);
-            f += select(c.push, -c.push, side == 1u);
-            tangential += c.tangential;
-            torque += c.torque;
-            if granular.slots > 0u {
-                keep_springs(w, FIRST_WALL + wall, c.springs);
+    if mesh.box_walls != 0u {
+        for (var axis = 0u; axis < 3u; axis += 1u) {
+            let below = b.r - (b.c[axis] - dem.box_lo[axis]);
+            let above = b.r - (dem.box_hi[axis] - b.c[axis]);
+            for (var side = 0u; side < 2u; side += 1u) {
+                let overlap = select(below, above, side == 1u);
+                if overlap <= 0.0 {
+                    continue;
+                }
+                let wall = 2u * axis + side;
+                var old = Springs(vec3(0.0), vec3(0.0));
+                if granular.slots > 0u {
+                    old = old_wall_springs(w, wall);
+                }
+                var n = vec3(0.0);
+                n[axis] = select(-1.0, 1.0, side == 1u);
+                let c = surface_contact(b, n, overlap, vec3(0.0), granular.wall_sliding, old);
+                (*w).force += c.force;
+                (*w).torque += c.torque;
+                if granular.slots > 0u {
+                    keep_springs(w, FIRST_WALL + wall, c.springs);
+                }
             }
         }
-        normal[axis] = f;
     }
-    (*w).force += normal;
-    (*w).force += tangential;
-    (*w).torque += torque;
+    if mesh.walls > 0u {
+        let step = atomicLoad(&clock) - 1u;
+        mesh_contacts(w, f32(step) * dem.dt, step == mesh.loads_step);
+    }
     add_force((*w).p, (*w).force);
     if granular.turns != 0u {
         add_torque((*w).p, (*w).torque);

@@ -16,6 +16,8 @@ use rand_pcg::Pcg64;
 
 /// Sides of the generated cylinders and cones.
 const SIDES: u32 = 64;
+/// Triangles of a drum's tube at most.
+const MAX_TRIANGLES: u64 = 1 << 24;
 /// Lattice spacing over the largest radius.
 const SPACING: f64 = 2.2;
 
@@ -47,6 +49,10 @@ pub struct EquipmentSpec {
     pub open: f64,
     /// Drum: angular speed about y \[rad/s\].
     pub omega: f64,
+    /// Drum: sides of the tube around (at least 3).
+    pub drum_sides: u32,
+    /// Drum: rings of the tube along its length (at least 1).
+    pub drum_rings: u32,
 }
 
 /// A built-in scene: its spheres, box, walls (mesh and pose) and outflows.
@@ -77,6 +83,16 @@ impl EquipmentSpec {
         let r = self.grain_radius;
         if !(r.is_finite() && r > 0.0) {
             return Err(bad(format!("grain_radius must be positive, got {r}")));
+        }
+        let triangles = 2 * self.drum_sides as u64 * self.drum_rings as u64;
+        if self.kind == Equipment::Drum
+            && (self.drum_sides < 3 || self.drum_rings < 1 || triangles > MAX_TRIANGLES)
+        {
+            return Err(bad(format!(
+                "drum_sides must be at least 3 and drum_rings at least 1, with 2·sides·rings at \
+                 most {MAX_TRIANGLES} triangles; got {} sides and {} rings",
+                self.drum_sides, self.drum_rings
+            )));
         }
         let cell = SPACING * 1.1 * r;
         // The lattice volume the spheres take.
@@ -154,7 +170,11 @@ impl EquipmentSpec {
         let lo = [-radius, -length / 2.0, -radius];
         let hi = [radius, length / 2.0, radius];
         let spheres = self.lattice(r, cell, lo, hi, inside)?;
-        let tube = revolution(&[(radius, -length / 2.0), (radius, length / 2.0)], SIDES);
+        let rings = self.drum_rings.max(1);
+        let profile: Vec<(f64, f64)> = (0..=rings)
+            .map(|j| (radius, -length / 2.0 + length * j as f64 / rings as f64))
+            .collect();
+        let tube = revolution(&profile, self.drum_sides);
         let config = WallConfig {
             rotate: Some(Rotation {
                 axis: [1.0, 0.0, 0.0],

@@ -41,6 +41,8 @@
 //! hopper_angle = 0       # hopper: bottom's angle from the horizontal [°] (0: flat)
 //! hopper_open = 0.2      # hopper: time the gate under the orifice slides away [s]
 //! drum_omega = 3.0       # drum: angular speed about y [rad/s]
+//! drum_sides = 64        # drum: the tube's sides around (2·sides·rings triangles)
+//! drum_rings = 1         # drum: the tube's rings along its length
 //! box_walls = true       # false: the six walls of the box off
 //! [[wall]]               # mesh walls, any number (see `dem::walls::spec`)
 //! mesh = "hopper.stl"
@@ -186,9 +188,9 @@ impl clap::ValueEnum for SceneKind {
             SceneKind::Mesh => PossibleValue::new("mesh").help("a mesh (mesh = FILE) filled"),
             SceneKind::Input => PossibleValue::new("input").help("the spheres of input = FILE"),
             SceneKind::Hopper => PossibleValue::new("hopper")
-                .help("a hopper with a circular orifice, filled, then opened (mesh walls, cpu)"),
+                .help("a hopper with a circular orifice, filled, then opened (mesh walls and an outflow: cpu)"),
             SceneKind::Drum => PossibleValue::new("drum")
-                .help("a drum about a horizontal axis, 40% filled, turning (mesh walls, cpu)"),
+                .help("a drum about a horizontal axis, 40% filled, turning (a mesh wall: cpu, wgpu-compute, wgpu-rq)"),
         })
     }
 }
@@ -425,6 +427,12 @@ pub struct SceneConfig {
     /// Scene `drum`: angular speed about y \[rad/s\] (default 3).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub drum_omega: Option<f64>,
+    /// Scene `drum`: sides of its tube around (default 64).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub drum_sides: Option<u32>,
+    /// Scene `drum`: rings of its tube along its length (default 1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub drum_rings: Option<u32>,
 }
 
 fn is_true(x: &bool) -> bool {
@@ -472,6 +480,8 @@ impl Default for SceneConfig {
             hopper_angle: None,
             hopper_open: None,
             drum_omega: None,
+            drum_sides: None,
+            drum_rings: None,
         }
     }
 }
@@ -966,6 +976,8 @@ impl SceneConfig {
             angle: self.hopper_angle.unwrap_or(0.0),
             open: self.hopper_open.unwrap_or(0.2),
             omega: self.drum_omega.unwrap_or(3.0),
+            drum_sides: self.drum_sides.unwrap_or(64),
+            drum_rings: self.drum_rings.unwrap_or(1),
         }
         .build()
     }

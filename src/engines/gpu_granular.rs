@@ -15,12 +15,14 @@ use super::gpu_step::granular::{
     ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, GRANULAR, GranularParams, HELD_NEW, HELD_OLD,
     HISTORY_NEED, OMEGA, TORQUE,
 };
+use super::gpu_walls::MeshWalls;
 use crate::dem::model::{NormalLaw, RollingModel, StepParams};
 use crate::dem::stepper::StageTimes;
+use crate::dem::walls::WallSet;
 use crate::error::{Error, Result, try_vec};
 use crate::gpu::Gpu;
 use crate::gpu::shader::Binding;
-use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, Particles};
+use crate::particles::{ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles};
 use std::ops::Range;
 
 /// A wgpu engine's DEM step as [`run_batch`] drives it.
@@ -78,8 +80,9 @@ const FIRST_SLOTS: u32 = 16;
 
 /// Storage buffers the granular resolve kernel binds (wgpu-compute's: the state, the cell
 /// table, the ids, the rows the spheres came from, forces, counters, spins, torques, two counts
-/// of the history, [`ENTRY_PARTS`] entry bindings of each history, the need).
-const STORAGE_BUFFERS: u32 = 10 + 2 * ENTRY_PARTS as u32;
+/// of the history, [`ENTRY_PARTS`] entry bindings of each history, the need, and the mesh
+/// walls' four).
+const STORAGE_BUFFERS: u32 = 14 + 2 * ENTRY_PARTS as u32;
 
 /// A slot of the history as the GPU holds it, as bits: ξ x, y, z and the partner's stable id,
 /// then the rolling torque's x, y, z and 0 (`array<vec4<u32>, 2>`).
@@ -267,19 +270,22 @@ pub(crate) struct Granular {
     /// The history as given, returned as it is where contacts keep no springs (as the cpu
     /// step does).
     given: ContactHistory,
+    /// The mesh walls (and whether the box's hold the spheres in).
+    mesh: MeshWalls,
     n: u32,
     /// The engine's backend name, for labels and errors.
     engine: &'static str,
 }
 
 impl Granular {
-    /// Whether the particles and parameters need the granular step; without, the paper's step
-    /// runs them, with the same work as before the granular step existed.
-    pub fn needed(particles: &Particles, params: &StepParams) -> bool {
+    /// Whether the particles, parameters and walls need the granular step; without, the
+    /// paper's step runs them, with the same work as before the granular step existed.
+    pub fn needed(particles: &Particles, params: &StepParams, walls: &WallSet) -> bool {
         params.law != NormalLaw::Linear
             || params.friction.turns()
             || particles.spin()
             || !particles.history.is_empty()
+            || !walls.is_box_only()
     }
 
     /// The buffers for `particles` on `gpu` for the engine named `engine` (its backend's name),
@@ -292,6 +298,7 @@ impl Granular {
         gpu: &Gpu,
         particles: &Particles,
         params: &StepParams,
+        walls: &WallSet,
         engine: &'static str,
         sets: usize,
     ) -> Result<Self> {
@@ -308,11 +315,15 @@ impl Granular {
         let n64 = particles.len() as u64;
         let f = &params.friction;
         let keeps = f.has_history();
-        if keeps && n64 > FIRST_WALL as u64 {
+        let first_wall = match walls.meshes.is_empty() {
+            true => FIRST_WALL,
+            false => FIRST_MESH_WALL,
+        };
+        if keeps && n64 > first_wall as u64 {
             return Err(Error::TooLarge {
                 what: "spheres of a run with contact history (ids above are the walls')".into(),
                 got: n64,
-                limit: FIRST_WALL as u64,
+                limit: first_wall as u64,
             });
         }
         let zero = crate::dem::model::Elastic {
@@ -351,6 +362,7 @@ impl Granular {
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
         let make = |what: &str, bytes: u64| gpu.storage(&label(what), bytes, none);
+        let mesh = MeshWalls::new(gpu, walls, particles.radius_range().1, engine)?;
         let granular = gpu.checked("allocating the granular step's buffers", || Self {
             params: gpu_params,
             uniform: gpu.uniform(&label("granular"), &gpu_params),
@@ -373,6 +385,7 @@ impl Granular {
             } else {
                 particles.history.clone()
             },
+            mesh,
             n,
             engine,
         })?;
@@ -413,6 +426,7 @@ impl Granular {
         let parts = |h: &'a History, spare| h.parts.iter().chain(std::iter::repeat(spare));
         all.extend(ENTRIES_OLD.into_iter().zip(parts(old, spare_old)));
         all.extend(ENTRIES_NEW.into_iter().zip(parts(new, spare_new)));
+        all.extend(self.mesh.bindings());
         all
     }
 
@@ -437,6 +451,16 @@ impl Granular {
         &self.came_from
     }
 
+    /// The mesh walls.
+    pub fn mesh(&self) -> &MeshWalls {
+        &self.mesh
+    }
+
+    /// The mesh walls, to set up an advance and read its loads.
+    pub fn mesh_mut(&mut self) -> &mut MeshWalls {
+        &mut self.mesh
+    }
+
     /// Whether contacts keep springs (then batches are saved and may be redone).
     pub fn keeps_history(&self) -> bool {
         self.params.slots > 0
@@ -453,6 +477,7 @@ impl Granular {
         state: &[&wgpu::Buffer],
     ) {
         encoder.clear_buffer(&self.need, 0, None);
+        self.mesh.clear_loads(encoder);
         if !self.keeps_history() {
             return;
         }
@@ -620,7 +645,8 @@ fn both_sides(n: usize, slots: usize, held: &[u32], laid_out: &Slots) -> Result<
         for e in own(i) {
             contacts.push((i as u32, e));
             let j = e.partner;
-            if j < FIRST_WALL && !own(j as usize).any(|back| back.partner == i as u32) {
+            // Partners from n on are walls (box or mesh).
+            if (j as usize) < n && !own(j as usize).any(|back| back.partner == i as u32) {
                 let negated = HistoryEntry {
                     partner: i as u32,
                     tangential: e.tangential.map(|x| -x),

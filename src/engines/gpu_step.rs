@@ -6,6 +6,7 @@
 pub(crate) use super::gpu_granular::{Granular, RedoableBatch, Rotation, run_batch};
 use crate::dem::model::{NormalLaw, StepParams, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
+use crate::dem::walls::WallSet;
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
 use crate::gpu::shader::{Binding, SharedStruct, Vec3f, shared_struct};
@@ -55,8 +56,9 @@ pub(crate) mod physics {
     /// The physics that ends the granular step module, with the accumulators `atomics`.
     pub fn granular(atomics: Accumulators) -> String {
         let (contact, state) = (super::granular::CONTACT, super::granular::STATE);
+        let walls = crate::engines::gpu_walls::SOURCE;
         format!(
-            "{PARAMS}{contact}{state}{}{}",
+            "{PARAMS}{contact}{state}{walls}{}{}",
             atomics.force, atomics.torque
         )
     }
@@ -100,12 +102,14 @@ pub(crate) enum Variant {
 
 impl Variant {
     /// The lightest variant that steps `particles` with `params` as the cpu step does.
-    pub fn of(particles: &Particles, params: &StepParams) -> Self {
-        if !Granular::needed(particles, params) {
+    pub fn of(particles: &Particles, params: &StepParams, walls: &WallSet) -> Self {
+        if !Granular::needed(particles, params, walls) {
             return Variant::Paper;
         }
-        let frictionless =
-            !params.friction.turns() && !particles.spin() && particles.history.is_empty();
+        let frictionless = !params.friction.turns()
+            && !particles.spin()
+            && particles.history.is_empty()
+            && walls.is_box_only();
         match params.law {
             NormalLaw::LinearPerPair { .. } if frictionless => Variant::PerPair,
             _ => Variant::Granular,
@@ -248,6 +252,7 @@ pub(crate) mod granular {
             .into_iter()
             .chain(ENTRIES_OLD)
             .chain(ENTRIES_NEW)
+            .chain(crate::engines::gpu_walls::bindings())
             .collect()
     }
 
@@ -429,6 +434,7 @@ impl DemModule {
         backend: &'static str,
         particles: &Particles,
         params: &StepParams,
+        walls: &WallSet,
         limit: u64,
         sets: usize,
         atomics: ForceAtomics,
@@ -443,9 +449,9 @@ impl DemModule {
             });
         }
         let (atomics, accumulators) = atomics.pick(gpu);
-        let variant = Variant::of(particles, params);
+        let variant = Variant::of(particles, params, walls);
         let granular = (variant == Variant::Granular)
-            .then(|| Granular::new(gpu, particles, params, backend, sets))
+            .then(|| Granular::new(gpu, particles, params, walls, backend, sets))
             .transpose()?;
         let per_pair = match params.law {
             NormalLaw::LinearPerPair { rate, .. } if variant == Variant::PerPair => Some(PerPair {
@@ -596,7 +602,9 @@ mod tests {
     fn a_frictionless_stiffness_per_pair_runs_the_papers_kernels() {
         let per_pair = ContactLaw::LinearPerPair { contact_time: None };
         let spheres = two_spheres();
-        let variant = |p: &Particles, law, mu, mu_r| Variant::of(p, &params(law, mu, mu_r));
+        let box_only = WallSet::default();
+        let variant =
+            |p: &Particles, law, mu, mu_r| Variant::of(p, &params(law, mu, mu_r), &box_only);
         assert_eq!(
             variant(&spheres, ContactLaw::Linear, 0.0, 0.0),
             Variant::Paper

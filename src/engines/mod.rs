@@ -9,6 +9,7 @@ mod gpu_detect;
 mod gpu_granular;
 mod gpu_readback;
 mod gpu_step;
+mod gpu_walls;
 mod open;
 #[cfg(feature = "optix")]
 pub mod optix;

@@ -4,11 +4,12 @@ use super::registry::{BackendChoice, BackendKind, Options};
 use crate::dem::model::StepParams;
 use crate::dem::scene::Start;
 use crate::dem::stepper::Stepper;
+use crate::dem::walls::WallSet;
 use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
-/// Opens the DEM step of backend `kind` over `particles`.
+/// Opens the DEM step of backend `kind` over `particles` in the box.
 pub fn open_stepper(
     kind: BackendKind,
     particles: Particles,
@@ -16,20 +17,50 @@ pub fn open_stepper(
     mode: ProxyMode,
     options: &Options,
 ) -> Result<Box<dyn Stepper>> {
+    open_walled(kind, particles, params, mode, options, WallSet::default())
+}
+
+/// Opens the DEM step of backend `kind` over `particles` inside `walls` (the box walls on:
+/// without them, spheres leave below the box, which only the cpu step's flow handles).
+fn open_walled(
+    kind: BackendKind,
+    particles: Particles,
+    params: StepParams,
+    mode: ProxyMode,
+    options: &Options,
+    walls: WallSet,
+) -> Result<Box<dyn Stepper>> {
     particles.validate()?;
+    let atomics = super::gpu_step::ForceAtomics::Auto;
     Ok(match kind {
-        BackendKind::Cpu => Box::new(super::cpu::CpuStepper::new(particles, params, mode)?),
+        BackendKind::Cpu => {
+            Box::new(super::cpu::CpuStepper::new(particles, params, mode)?.with_walls(walls)?)
+        }
         BackendKind::WgpuCompute => Box::new(
-            super::wgpu_compute::GridStepper::with_options(
+            super::wgpu_compute::GridStepper::with_walls(
                 particles,
                 params,
                 mode,
-                super::gpu_step::ForceAtomics::Auto,
+                atomics,
                 options.grid_build,
+                &walls,
             )?
             .with_structure(options.structure),
         ),
-        BackendKind::WgpuRq => Box::new(super::wgpu_rq::RqStepper::new(particles, params, mode)?),
+        BackendKind::WgpuRq => Box::new(super::wgpu_rq::RqStepper::with_walls(
+            particles, params, mode, atomics, &walls,
+        )?),
+        #[cfg(feature = "optix")]
+        BackendKind::Optix if !walls.is_box_only() => {
+            return Err(Error::BackendUnavailable {
+                backend: "optix",
+                reason: format!(
+                    "this scene has {}, which the optix step does not run yet; the cpu and \
+                     wgpu backends run it",
+                    walls.describe()
+                ),
+            });
+        }
         #[cfg(feature = "optix")]
         BackendKind::Optix => Box::new(super::optix::OptixStepper::new(
             particles,
@@ -57,23 +88,36 @@ pub fn open_choice(
     mode: ProxyMode,
     options: &Options,
 ) -> Result<(Box<dyn Stepper>, BackendKind, Option<String>)> {
+    choose_walled(choice, particles, params, mode, options, WallSet::default())
+}
+
+/// [`open_choice`] inside `walls`.
+fn choose_walled(
+    choice: BackendChoice,
+    particles: Particles,
+    params: StepParams,
+    mode: ProxyMode,
+    options: &Options,
+    walls: WallSet,
+) -> Result<(Box<dyn Stepper>, BackendKind, Option<String>)> {
     if let Some(kind) = choice.kind() {
-        let stepper = open_stepper(kind, particles, params, mode, options)?;
+        let stepper = open_walled(kind, particles, params, mode, options, walls)?;
         return Ok((stepper, kind, None));
     }
     let ((stepper, kind), reason) = super::registry::open_auto(&BackendKind::ALL, |kind| {
+        let walls = walls.clone();
         Ok((
-            open_stepper(kind, particles.clone(), params, mode, options)?,
+            open_walled(kind, particles.clone(), params, mode, options, walls)?,
             kind,
         ))
     })?;
     Ok((stepper, kind, Some(reason)))
 }
 
-/// Opens the DEM step the user chose for the scene `start`. The box walls alone run on every
-/// backend ([`open_choice`]); mesh walls, a box switched off, inflows and outflows run on the
-/// cpu backend only until the GPU engines gain them: a GPU backend named is refused, saying
-/// so, and `auto` opens cpu and says why.
+/// Opens the DEM step the user chose for the scene `start`. The box walls run on every
+/// backend, mesh walls on cpu and the wgpu backends ([`open_choice`]; optix refuses them); a
+/// box switched off, inflows and outflows run on the cpu backend only until the GPU engines
+/// gain them: a GPU backend named is refused, saying so, and `auto` opens cpu and says why.
 pub fn open_scene(
     choice: BackendChoice,
     start: Start,
@@ -86,10 +130,10 @@ pub fn open_scene(
         walls,
         flow,
     } = start;
-    if walls.is_box_only() && flow.is_empty() {
-        return open_choice(choice, particles, params, mode, options);
+    if walls.box_walls && flow.is_empty() {
+        return choose_walled(choice, particles, params, mode, options, walls);
     }
-    let needs = match (walls.is_box_only(), flow.is_empty()) {
+    let needs = match (walls.box_walls, flow.is_empty()) {
         (false, false) => format!("{} and spheres flowing in or out", walls.describe()),
         (false, true) => walls.describe(),
         _ => "spheres flowing in or out".to_owned(),

@@ -173,6 +173,9 @@ impl Gpu {
         let validation = pollster::block_on(validation.pop());
         let oom = pollster::block_on(oom.pop());
         match oom.or(validation) {
+            Some(wgpu::Error::Validation { description, .. }) => {
+                Err(Error::Gpu(format!("{what}: {description}")))
+            }
             Some(e) => Err(Error::Gpu(format!("{what}: {e}"))),
             None => Ok(out),
         }

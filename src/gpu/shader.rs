@@ -163,6 +163,10 @@ pub(crate) use wgsl;
 #[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Vec3f(pub [f32; 3]);
 
+/// A WGSL `vec3<u32>` (16-byte aligned; a scalar may follow in its last 4 bytes).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Vec3u(pub [u32; 3]);
+
 /// A WGSL `vec4<u32>`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Vec4u(pub [u32; 4]);
@@ -201,6 +205,7 @@ impl std::ops::Deref for Vec3f {
         &self.0
     }
 }
+vector_parts!(Vec3u, u32, 3);
 vector_parts!(Vec4u, u32, 4);
 
 impl From<glam::Vec3> for Vec3f {
@@ -262,6 +267,12 @@ impl FirstWord for f32 {
 impl FirstWord for Vec3f {
     fn first_word(&self) -> u32 {
         self.0[0].to_bits()
+    }
+}
+
+impl FirstWord for Vec3u {
+    fn first_word(&self) -> u32 {
+        self.0[0]
     }
 }
 

@@ -23,6 +23,35 @@ pub fn expected(kind: BackendKind) -> bool {
     }
 }
 
+/// Every backend whose DEM step runs here: cpu always, and each GPU backend that this run
+/// expects (`common::expected`: wgpu-compute and wgpu-rq under CI, optix with
+/// `MOCHI_EXPECT_OPTIX=1`) or that probes here anyway.
+pub fn dem_backends() -> Vec<BackendKind> {
+    BackendKind::ALL
+        .into_iter()
+        .filter(|&kind| kind == BackendKind::Cpu || expected(kind) || kind.probe().is_ok())
+        .collect()
+}
+
+/// Runs `test` on every backend of [`dem_backends`], naming the backend of a failure.
+pub fn on_every_backend(test: impl Fn(BackendKind)) {
+    for kind in dem_backends() {
+        let _named = Naming(kind);
+        test(kind);
+    }
+}
+
+/// Names its backend when a test panics while it lives.
+pub struct Naming(pub BackendKind);
+
+impl Drop for Naming {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("(on the {} backend)", self.0.name());
+        }
+    }
+}
+
 /// Whether an adapter for `need` exists. Without one: a panic under CI, else a printed note
 /// saying that `what` is not tested on this machine, and `false`.
 pub fn adapter_for(need: Need, what: &str) -> bool {

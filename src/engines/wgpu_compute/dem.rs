@@ -37,6 +37,7 @@ use super::shaders::dem_grid::{
 use crate::dem::model::StepParams;
 use crate::dem::stepper::Clock;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_readback::{BatchReadback, InFlight};
 use crate::engines::gpu_step::granular::OMEGA;
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
@@ -164,7 +165,26 @@ impl GridStepper {
         atomics: ForceAtomics,
         grid_build: GridBuild,
     ) -> Result<Self> {
-        Self::opening(particles, params, mode, atomics, grid_build, || {
+        Self::with_walls(
+            particles,
+            params,
+            mode,
+            atomics,
+            grid_build,
+            &WallSet::default(),
+        )
+    }
+
+    /// As [`with_options`](Self::with_options), inside `walls`.
+    pub fn with_walls(
+        particles: Particles,
+        params: StepParams,
+        mode: ProxyMode,
+        atomics: ForceAtomics,
+        grid_build: GridBuild,
+        walls: &WallSet,
+    ) -> Result<Self> {
+        Self::opening(particles, params, mode, atomics, grid_build, walls, || {
             Gpu::open(Need::Compute)
         })
     }
@@ -179,7 +199,10 @@ impl GridStepper {
         atomics: ForceAtomics,
         grid_build: GridBuild,
     ) -> Result<Self> {
-        Self::opening(particles, params, mode, atomics, grid_build, || Ok(gpu))
+        let walls = WallSet::default();
+        Self::opening(particles, params, mode, atomics, grid_build, &walls, || {
+            Ok(gpu)
+        })
     }
 
     /// The stepper on the device `open` gives once the particles are checked.
@@ -189,6 +212,7 @@ impl GridStepper {
         mode: ProxyMode,
         atomics: ForceAtomics,
         grid_build: GridBuild,
+        walls: &WallSet,
         open: impl FnOnce() -> Result<Gpu>,
     ) -> Result<Self> {
         particles.separate_coincident()?;
@@ -209,6 +233,7 @@ impl GridStepper {
             "wgpu-compute",
             &particles,
             &params,
+            walls,
             max_spheres(&gpu),
             // The two sets of the ping-ponged state.
             2,
@@ -470,7 +495,11 @@ impl GridStepper {
                 let came_from = (CAME_FROM, g.came_from());
                 (
                     vec![(OMEGA_A, omega_a), (OMEGA, omega), came_from],
-                    [&g.resolve_bindings(from)[..], &[(IDS, &b.ids), came_from]].concat(),
+                    [
+                        &g.resolve_bindings(from)[..],
+                        &[(IDS, &b.ids), came_from, (CLOCK, &self.clock)],
+                    ]
+                    .concat(),
                     g.integrate_bindings(from).to_vec(),
                 )
             }
@@ -818,10 +847,12 @@ impl Stepper for GridStepper {
                 Ok((left, 0, None))
             });
         }
-        if self.granular.is_none() {
+        let Some(granular) = &mut self.granular else {
             return self.advance_paper(steps);
-        }
-        advance_in_batches(steps, self.timer.is_some(), |left| {
+        };
+        let last = self.step + steps as u64 - 1;
+        granular.mesh_mut().sum_loads_in(&self.gpu, last);
+        let advance = advance_in_batches(steps, self.timer.is_some(), |left| {
             let due = match self.laid_out_at {
                 None => true,
                 Some(at) => self.step >= at + RELAYOUT_EVERY,
@@ -833,11 +864,21 @@ impl Stepper for GridStepper {
             let batch = left.min(MAX_BATCH).min(until_relayout.max(1) as u32);
             let (contacts, times) = run_batch(self, batch)?;
             Ok((batch, contacts, times))
-        })
+        })?;
+        if let Some(g) = &mut self.granular {
+            g.mesh_mut().read_loads(&self.gpu)?;
+        }
+        Ok(advance)
     }
 
     fn particles(&mut self) -> Result<Particles> {
         self.state()
+    }
+
+    fn wall_loads(&self) -> Vec<WallLoad> {
+        self.granular
+            .as_ref()
+            .map_or_else(Vec::new, |g| g.mesh().loads().to_vec())
     }
 
     fn grid_build(&self) -> Option<&'static str> {

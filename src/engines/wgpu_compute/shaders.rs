@@ -355,8 +355,12 @@ pub fn modules() -> Vec<WgslModule> {
                 entry_points,
                 &bindings,
             );
-            dem.structs
-                .extend([gpu_step::dem_params(), granular::granular_params()]);
+            dem.structs.extend([
+                gpu_step::dem_params(),
+                granular::granular_params(),
+                crate::engines::gpu_walls::mesh_params(),
+                crate::engines::gpu_walls::mesh_wall_row(),
+            ]);
             all.push(dem);
         }
     }

@@ -15,6 +15,7 @@ use super::accel::Accel;
 use super::shaders::dem_rq::{self, BOXES, COUNTERS, RQ_PARAMS, RqParams, TLAS};
 use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
     DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch,
@@ -80,10 +81,21 @@ impl RqStepper {
 
     /// As [`new`](Self::new), choosing how forces are accumulated.
     pub fn with_atomics(
+        particles: Particles,
+        params: StepParams,
+        mode: ProxyMode,
+        atomics: ForceAtomics,
+    ) -> Result<Self> {
+        Self::with_walls(particles, params, mode, atomics, &WallSet::default())
+    }
+
+    /// As [`with_atomics`](Self::with_atomics), inside `walls`.
+    pub fn with_walls(
         mut particles: Particles,
         params: StepParams,
         mode: ProxyMode,
         atomics: ForceAtomics,
+        walls: &WallSet,
     ) -> Result<Self> {
         particles.separate_coincident()?;
         let gpu = Gpu::open(Need::RayQuery)?;
@@ -100,6 +112,7 @@ impl RqStepper {
             "wgpu-rq",
             &particles,
             &params,
+            walls,
             limit,
             // One state set, in input order.
             1,
@@ -293,11 +306,25 @@ impl Stepper for RqStepper {
                 Ok((left, 0, None))
             });
         }
-        advance_in_batches(steps, self.timer.is_some(), |left| {
+        if let Some(g) = &mut self.granular {
+            g.mesh_mut()
+                .sum_loads_in(&self.gpu, self.step + steps as u64 - 1);
+        }
+        let advance = advance_in_batches(steps, self.timer.is_some(), |left| {
             let batch = left.min(MAX_BATCH);
             let (contacts, times) = run_batch(self, batch)?;
             Ok((batch, contacts, times))
-        })
+        })?;
+        if let Some(g) = &mut self.granular {
+            g.mesh_mut().read_loads(&self.gpu)?;
+        }
+        Ok(advance)
+    }
+
+    fn wall_loads(&self) -> Vec<WallLoad> {
+        self.granular
+            .as_ref()
+            .map_or_else(Vec::new, |g| g.mesh().loads().to_vec())
     }
 
     fn particles(&mut self) -> Result<Particles> {
@@ -346,6 +373,8 @@ fn bind(
         ];
         if let Some(g) = granular {
             all.extend(g.resolve_bindings(parity));
+            // The mesh walls' poses follow the step's time.
+            all.push((CLOCK, clock));
         }
         if let Some(k) = per_pair {
             all.extend(k.bindings());

@@ -1,0 +1,354 @@
+//! The mesh walls of the wgpu engines' granular step (`wgsl/dem_mesh_walls.wgsl`): each wall's
+//! triangles in their rest geometry, listed in the cells of a uniform grid over them that they
+//! pass through; each wall's motion, from which the shader takes its pose at the step's time;
+//! and the loads on the walls, summed in the last step of each advance and read back after it.
+//! Every granular step binds these (with no mesh walls: a wall count of 0 and minimal buffers).
+
+use crate::dem::walls::{TriangleMesh, WallLoad, WallSet};
+use crate::error::{Error, Result};
+use crate::gpu::Gpu;
+use crate::gpu::shader::{Binding, SharedStruct, Vec3f, Vec3u, shared_struct, storage_bytes};
+use glam::Vec3;
+
+/// `wgsl/dem_mesh_walls.wgsl`.
+pub const SOURCE: &str = include_str!("../../wgsl/dem_mesh_walls.wgsl");
+
+pub const MESH: Binding = Binding::uniform(70, "mesh");
+pub const MESH_WALLS: Binding = Binding::read(71, "mesh_walls");
+pub const MESH_GRID: Binding = Binding::read(72, "mesh_grid");
+pub const MESH_TRIS: Binding = Binding::read(73, "mesh_tris");
+pub const MESH_LOADS: Binding = Binding::read_write(74, "mesh_loads");
+
+/// The bindings the mesh walls add to the granular step's resolve kernel.
+pub fn bindings() -> [Binding; 5] {
+    [MESH, MESH_WALLS, MESH_GRID, MESH_TRIS, MESH_LOADS]
+}
+
+/// Candidates within a sphere's radius kept per wall (`MESH_NEAR` in the shader).
+const MESH_NEAR: u32 = 16;
+
+/// Cells of a wall's grid at most: this many per triangle (and at least [`MIN_CELLS`]).
+const CELLS_PER_TRIANGLE: usize = 8;
+const MIN_CELLS: usize = 4096;
+
+/// The walls' uniform; WGSL twin `MeshParams`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
+pub struct MeshParams {
+    walls: u32,
+    box_walls: u32,
+    loads_step: u32,
+    _pad: u32,
+}
+
+pub fn mesh_params() -> SharedStruct {
+    shared_struct!(
+        "MeshParams",
+        MeshParams {
+            walls,
+            box_walls,
+            loads_step,
+            _pad
+        }
+    )
+}
+
+/// One wall as the shader reads it; WGSL twin `MeshWall`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
+pub struct MeshWallRow {
+    lo: Vec3f,
+    cell: f32,
+    dims: Vec3u,
+    first_cell: u32,
+    velocity: Vec3f,
+    omega: f32,
+    axis: Vec3f,
+    start: f32,
+    centre: Vec3f,
+    friction: f32,
+}
+
+pub fn mesh_wall_row() -> SharedStruct {
+    shared_struct!(
+        "MeshWall",
+        MeshWallRow {
+            lo,
+            cell,
+            dims,
+            first_cell,
+            velocity,
+            omega,
+            axis,
+            start,
+            centre,
+            friction,
+        }
+    )
+}
+
+/// A wall's grid: its rest-geometry corner, cell side, cells per axis and each cell's triangles.
+struct WallGrid {
+    lo: Vec3,
+    cell: f32,
+    dims: [u32; 3],
+    cells: Vec<Vec<u32>>,
+}
+
+/// The grid over `mesh`'s rest geometry: cells no smaller than the largest sphere's diameter
+/// `reach` (a sphere's box then overlaps at most 8), and as small as [`CELLS_PER_TRIANGLE`]
+/// cells per triangle over the bounds allow; each triangle listed in every cell it may pass
+/// through (the cell's bounding sphere, a little enlarged, reaches the triangle: rounding
+/// where the shader finds a sphere's cells then never misses one).
+fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
+    let triangles = mesh.triangles();
+    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for t in triangles {
+        for c in t.corners {
+            lo = lo.min(c);
+            hi = hi.max(c);
+        }
+    }
+    let extent = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE));
+    let budget = (CELLS_PER_TRIANGLE * triangles.len()).max(MIN_CELLS) as f64;
+    // The budget's cells spread over the bounds, none smaller than `reach`.
+    let volume = extent.max(Vec3::splat(reach)).as_dvec3().element_product();
+    let mut cell = reach.max((volume / budget).cbrt() as f32);
+    // A margin of half a cell around the triangles: no corner lies on the grid's outer faces.
+    let dims_at = |cell: f32| (extent / cell).ceil().max(Vec3::ONE).as_uvec3() + 1;
+    while dims_at(cell).as_dvec3().element_product() > budget {
+        cell *= 1.25;
+    }
+    let lo = lo - Vec3::splat(0.5 * cell);
+    let dims = dims_at(cell).to_array();
+    let mut cells = vec![Vec::new(); dims.iter().map(|&d| d as usize).product()];
+    let radius = 0.5 * cell * 3f32.sqrt() * 1.01;
+    let index = |x: f32| x.floor().max(0.0) as u32;
+    for (k, t) in triangles.iter().enumerate() {
+        let (tlo, thi) = t
+            .corners
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &c| {
+                (a.min(c), b.max(c))
+            });
+        let from = ((tlo - lo) / cell - 0.01).to_array().map(index);
+        let to = ((thi - lo) / cell + 0.01).to_array();
+        let to: [u32; 3] = std::array::from_fn(|a| index(to[a]).min(dims[a] - 1));
+        for z in from[2]..=to[2] {
+            for y in from[1]..=to[1] {
+                for x in from[0]..=to[0] {
+                    let centre = lo + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * cell;
+                    if (t.closest_point(centre) - centre).length() <= radius {
+                        let at = x as usize
+                            + dims[0] as usize * (y as usize + dims[1] as usize * z as usize);
+                        cells[at].push(first_triangle + k as u32);
+                    }
+                }
+            }
+        }
+    }
+    WallGrid {
+        lo,
+        cell,
+        dims,
+        cells,
+    }
+}
+
+/// The mesh walls' buffers and the loads of the last advance.
+pub(crate) struct MeshWalls {
+    params: MeshParams,
+    uniform: wgpu::Buffer,
+    walls: wgpu::Buffer,
+    grid: wgpu::Buffer,
+    tris: wgpu::Buffer,
+    loads: wgpu::Buffer,
+    last: Vec<WallLoad>,
+    engine: &'static str,
+}
+
+impl MeshWalls {
+    /// The walls `walls` for spheres up to radius `r_max`, on `gpu`, for the engine `engine`.
+    pub fn new(gpu: &Gpu, walls: &WallSet, r_max: f32, engine: &'static str) -> Result<Self> {
+        let mut rows = Vec::with_capacity(walls.meshes.len());
+        let mut offsets: Vec<u32> = Vec::new();
+        let mut listed: Vec<u32> = Vec::new();
+        let mut tris: Vec<[f32; 4]> = Vec::new();
+        for wall in &walls.meshes {
+            let first_triangle = (tris.len() / 4) as u32;
+            for t in wall.triangles.triangles() {
+                tris.extend(
+                    t.corners
+                        .iter()
+                        .chain([&t.normal])
+                        .map(|v| v.extend(0.0).to_array()),
+                );
+            }
+            let g = wall_grid(&wall.triangles, 2.0 * r_max, first_triangle);
+            let m = wall.motion;
+            rows.push(MeshWallRow {
+                lo: g.lo.into(),
+                cell: g.cell,
+                dims: Vec3u(g.dims),
+                first_cell: offsets.len() as u32,
+                velocity: m.velocity.as_vec3().into(),
+                omega: m.omega as f32,
+                axis: m.axis.as_vec3().into(),
+                start: m.start as f32,
+                centre: m.centre.as_vec3().into(),
+                friction: wall.friction,
+            });
+            for cell in g.cells {
+                offsets.push(listed.len() as u32);
+                listed.extend(cell);
+            }
+        }
+        // Offsets past the cells' own words (and the end of the last cell).
+        let head = offsets.len() as u64 + 1;
+        let words = head + listed.len() as u64;
+        if words > u32::MAX as u64 || words * 4 > gpu.limits.max_storage_buffer_binding_size {
+            return Err(Error::TooLarge {
+                what: format!("words of the mesh walls' grids for the {engine} step"),
+                got: words,
+                limit: (gpu.limits.max_storage_buffer_binding_size / 4).min(u32::MAX as u64),
+            });
+        }
+        let mut grid: Vec<u32> = offsets.iter().map(|&o| o + head as u32).collect();
+        grid.push(words as u32);
+        grid.extend(listed);
+        let params = MeshParams {
+            walls: rows.len() as u32,
+            box_walls: walls.box_walls as u32,
+            loads_step: u32::MAX,
+            _pad: 0,
+        };
+        let none = wgpu::BufferUsages::empty();
+        let label = |what: &str| format!("mochi.dem.{engine}.{what}");
+        let filled = |what: &str, bytes: &[u8]| {
+            let buffer = gpu.storage(&label(what), bytes.len() as u64, none);
+            gpu.queue.write_buffer(&buffer, 0, bytes);
+            buffer
+        };
+        gpu.checked("allocating the mesh walls' buffers", || Self {
+            params,
+            uniform: gpu.uniform(&label("mesh"), &params),
+            walls: filled("mesh_walls", &storage_bytes(&rows)),
+            grid: filled("mesh_grid", bytemuck::cast_slice(&grid)),
+            tris: filled("mesh_tris", bytemuck::cast_slice(&tris)),
+            loads: gpu.storage(&label("mesh_loads"), (8 * rows.len() as u64 + 1) * 4, none),
+            last: vec![WallLoad::default(); rows.len()],
+            engine,
+        })
+    }
+
+    /// Bindings of the resolve kernel.
+    pub fn bindings(&self) -> [(Binding, &wgpu::Buffer); 5] {
+        [
+            (MESH, &self.uniform),
+            (MESH_WALLS, &self.walls),
+            (MESH_GRID, &self.grid),
+            (MESH_TRIS, &self.tris),
+            (MESH_LOADS, &self.loads),
+        ]
+    }
+
+    /// Whether there are mesh walls.
+    pub fn any(&self) -> bool {
+        self.params.walls > 0
+    }
+
+    /// Sums the loads on the walls in step `step` (the last of the advance to come).
+    pub fn sum_loads_in(&mut self, gpu: &Gpu, step: u64) {
+        if self.any() {
+            self.params.loads_step = step as u32;
+            gpu.write_uniform(&self.uniform, &self.params);
+        }
+    }
+
+    /// Records the clearing of the loads ahead of a batch.
+    pub fn clear_loads(&self, encoder: &mut wgpu::CommandEncoder) {
+        if self.any() {
+            encoder.clear_buffer(&self.loads, 0, None);
+        }
+    }
+
+    /// Reads the loads summed in the last advance, refusing a step in which some sphere came
+    /// within its radius of more triangles of one wall than the shader keeps.
+    pub fn read_loads(&mut self, gpu: &Gpu) -> Result<()> {
+        if !self.any() {
+            return Ok(());
+        }
+        let walls = self.last.len();
+        let words: Vec<u32> = gpu.read(&self.loads, 8 * walls + 1)?;
+        let most = words[8 * walls];
+        if most > MESH_NEAR {
+            return Err(Error::TooLarge {
+                what: format!(
+                    "triangles of one mesh wall within a sphere's radius in the {} step (a mesh \
+                     much finer than the spheres; the cpu backend takes any number)",
+                    self.engine
+                ),
+                got: most as u64,
+                limit: MESH_NEAR as u64,
+            });
+        }
+        let f = |k: usize| f32::from_bits(words[k]) as f64;
+        for (w, load) in self.last.iter_mut().enumerate() {
+            *load = WallLoad {
+                force: [f(8 * w), f(8 * w + 1), f(8 * w + 2)],
+                torque: [f(8 * w + 4), f(8 * w + 5), f(8 * w + 6)],
+            };
+        }
+        Ok(())
+    }
+
+    /// The loads on each wall in the last step of the last advance.
+    pub fn loads(&self) -> &[WallLoad] {
+        &self.last
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(z: f32, side: f32) -> TriangleMesh {
+        let v = [
+            Vec3::new(0.0, 0.0, z),
+            Vec3::new(side, 0.0, z),
+            Vec3::new(side, side, z),
+            Vec3::new(0.0, side, z),
+        ];
+        TriangleMesh::new(&v, &[[0, 1, 2], [0, 2, 3]])
+    }
+
+    #[test]
+    fn every_point_of_a_triangle_is_in_a_cell_that_lists_it() {
+        let mesh = square(0.3, 1.0);
+        let g = wall_grid(&mesh, 0.05, 7);
+        assert!(g.cell >= 0.05);
+        for i in 0..=40 {
+            for j in 0..=40 {
+                let p = Vec3::new(i as f32 / 40.0, j as f32 / 40.0, 0.3);
+                let c = ((p - g.lo) / g.cell).floor().as_uvec3();
+                let at = c.x as usize
+                    + g.dims[0] as usize * (c.y as usize + g.dims[1] as usize * c.z as usize);
+                let t = if j <= i { 7 } else { 8 };
+                assert!(g.cells[at].contains(&t), "{p} in cell {c} lacks {t}");
+            }
+        }
+        // A flat square is listed in one layer of cells, not in every cell of its box.
+        let listing: usize = g.cells.iter().map(Vec::len).sum();
+        let per_layer = (g.dims[0] * g.dims[1]) as usize;
+        assert!(
+            listing <= 2 * 3 * per_layer,
+            "{listing} listings, {per_layer} per layer"
+        );
+    }
+
+    #[test]
+    fn the_grid_stays_within_its_budget() {
+        let mesh = square(0.0, 100.0);
+        let g = wall_grid(&mesh, 1e-3, 0);
+        let cells: usize = g.dims.iter().map(|&d| d as usize).product();
+        assert!(cells <= MIN_CELLS, "{cells} cells");
+    }
+}

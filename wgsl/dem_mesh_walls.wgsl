@@ -1,0 +1,273 @@
+// Mesh walls in the granular GPU step (src/dem/walls, the cpu step's `engines/cpu/walls.rs`):
+// each sphere's contacts with every mesh wall, resolved by the sphere's own thread at the end
+// of its walk (`finish` in dem_granular.wgsl), with history under partner FIRST_MESH_WALL + w
+// (the k-th contact of a wall, nearest first, in the k-th old entry of that id), and the loads
+// on each wall summed in the step the host asks for. Twin structs: `MeshParams`, `MeshWall` in
+// src/engines/gpu_walls.rs.
+//
+// A wall's triangles live in their rest geometry, listed in the cells of a uniform grid over
+// their rest bounds that they pass through; a sphere's centre is taken into the rest geometry
+// by the wall's pose at the step's time (a function of the time alone, as on the cpu), and the
+// triangles of the cells its box overlaps are its candidates. Of those within its radius, the
+// nearest MESH_NEAR are kept, ordered by distance, and a candidate becomes a contact only where
+// it lies in front of the tangent plane of every contact kept before it (src/dem/walls/touch.rs
+// says why: one contact per surface seen, at a face, an edge or a vertex alike). A sphere with
+// more candidates raises the count the host checks after the step and refuses.
+
+struct MeshParams {
+    walls: u32,         // mesh walls
+    box_walls: u32,     // 1: the six walls of the box hold the spheres in
+    loads_step: u32,    // the step whose loads on the walls are summed into mesh_loads
+    _pad: u32,
+}
+
+struct MeshWall {
+    lo: vec3<f32>,      // the rest-geometry grid's lower corner [m]
+    cell: f32,          // its cell side [m]
+    dims: vec3<u32>,    // its cells per axis
+    first_cell: u32,    // its first cell's index in mesh_grid
+    velocity: vec3<f32>,// of the translation [m/s], from `start` on
+    omega: f32,         // angular speed about `axis` [rad/s], from `start` on
+    axis: vec3<f32>,    // unit
+    start: f32,         // when the motion starts [s]
+    centre: vec3<f32>,  // a point of the axis at `start` [m]; loads' torques are about it
+    friction: f32,      // μ with the wall
+}
+
+// Partner ids of mesh walls' contacts (src/particles/history.rs).
+const FIRST_MESH_WALL: u32 = 0xfffefffau;
+// Candidates within a sphere's radius kept per wall, nearest first.
+const MESH_NEAR: u32 = 16u;
+// Candidates this fraction of the radius behind a kept contact's tangent plane count as on it.
+const ON_PLANE: f32 = 1e-4;
+
+@group(0) @binding(70) var<uniform> mesh: MeshParams;
+@group(0) @binding(71) var<storage, read> mesh_walls: array<MeshWall>;
+// Cell k's triangles are mesh_grid[mesh_grid[k]] .. mesh_grid[mesh_grid[k + 1] - 1] (the
+// cells' offsets, then the triangle indices).
+@group(0) @binding(72) var<storage, read> mesh_grid: array<u32>;
+// per triangle: corners a, b, c and the unit normal (b − a) × (c − a), rest geometry
+@group(0) @binding(73) var<storage, read> mesh_tris: array<vec4<f32>>;
+// per wall 8 words as f32 bits: force on it x, y, z, 0, torque x, y, z, 0; then the most
+// candidates a sphere had (a u32)
+@group(0) @binding(74) var<storage, read_write> mesh_loads: array<atomic<u32>>;
+
+// Where a wall is at one time and how its points move.
+struct Pose {
+    q: vec4<f32>,       // rotation from the rest geometry (x, y, z, w)
+    offset: vec3<f32>,  // x = q·x_rest + offset
+    centre: vec3<f32>,
+    velocity: vec3<f32>,
+    spin: vec3<f32>,
+}
+
+fn rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
+    return v + 2.0 * cross(q.xyz, cross(q.xyz, v) + q.w * v);
+}
+
+fn pose_at(m: MeshWall, t: f32) -> Pose {
+    let running = t > m.start;
+    let tau = select(0.0, t - m.start, running);
+    let half = 0.5 * m.omega * tau;
+    let q = vec4(m.axis * sin(half), cos(half));
+    let centre = m.centre + m.velocity * tau;
+    let velocity = select(vec3(0.0), m.velocity, running);
+    let spin = select(vec3(0.0), m.axis * m.omega, running);
+    return Pose(q, centre - rotate(q, m.centre), centre, velocity, spin);
+}
+
+// The triangle's point closest to p (corner, edge or face regions by the barycentric signs, as
+// `Triangle::closest_point`).
+fn closest_point(tri: u32, p: vec3<f32>) -> vec3<f32> {
+    let a = mesh_tris[4u * tri].xyz;
+    let b = mesh_tris[4u * tri + 1u].xyz;
+    let c = mesh_tris[4u * tri + 2u].xyz;
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = dot3(ab, ap);
+    let d2 = dot3(ac, ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let d3 = dot3(ab, bp);
+    let d4 = dot3(ac, bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let d5 = dot3(ab, cp);
+    let d6 = dot3(ac, cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return b + (c - b) * w;
+    }
+    let n = mesh_tris[4u * tri + 3u].xyz;
+    return p - n * dot3(ap, n);
+}
+
+// A sphere's candidates of one wall: distance² and triangle, nearest first.
+var<private> near_d2: array<f32, MESH_NEAR>;
+var<private> near_tri: array<u32, MESH_NEAR>;
+// Its contacts kept so far: rest normal and distance.
+var<private> kept_plane: array<vec4<f32>, MESH_NEAR>;
+
+// Adds x to the f32 whose bits are mesh_loads[k].
+fn add_load(k: u32, x: f32) {
+    var old = atomicLoad(&mesh_loads[k]);
+    loop {
+        let swap = atomicCompareExchangeWeak(&mesh_loads[k], old, bitcast<u32>(bitcast<f32>(old) + x));
+        if swap.exchanged {
+            break;
+        }
+        old = swap.old_value;
+    }
+}
+
+// Lists wall m's triangles within distance r of the rest point p into near_*, nearest first;
+// returns how many there were (more than MESH_NEAR: the farthest were dropped).
+fn mesh_candidates(m: MeshWall, p: vec3<f32>, r: f32) -> u32 {
+    let lo = (p - vec3(r) - m.lo) / m.cell;
+    let hi = (p + vec3(r) - m.lo) / m.cell;
+    let top = vec3<f32>(m.dims);
+    if any(hi < vec3(0.0)) || any(lo >= top) {
+        return 0u;
+    }
+    let first = vec3<u32>(max(floor(lo), vec3(0.0)));
+    let last = min(vec3<u32>(floor(hi)), m.dims - vec3(1u));
+    var found = 0u;
+    for (var z = first.z; z <= last.z; z += 1u) {
+        for (var y = first.y; y <= last.y; y += 1u) {
+            for (var x = first.x; x <= last.x; x += 1u) {
+                let cell = m.first_cell + x + m.dims.x * (y + m.dims.y * z);
+                for (var k = mesh_grid[cell]; k < mesh_grid[cell + 1u]; k += 1u) {
+                    let tri = mesh_grid[k];
+                    let q = closest_point(tri, p);
+                    let d2 = dot3(q - p, q - p);
+                    if d2 >= r * r || d2 <= 0.0 {
+                        continue;
+                    }
+                    // A triangle listed in two of the cells is one candidate.
+                    let held = min(found, MESH_NEAR);
+                    var seen = false;
+                    for (var j = 0u; j < held; j += 1u) {
+                        seen = seen || near_tri[j] == tri;
+                    }
+                    if seen {
+                        continue;
+                    }
+                    found += 1u;
+                    if held == MESH_NEAR && d2 >= near_d2[MESH_NEAR - 1u] {
+                        continue;
+                    }
+                    // Insertion by distance, equal distances in the order met.
+                    var j = min(held, MESH_NEAR - 1u);
+                    while j > 0u && near_d2[j - 1u] > d2 {
+                        near_d2[j] = near_d2[j - 1u];
+                        near_tri[j] = near_tri[j - 1u];
+                        j -= 1u;
+                    }
+                    near_d2[j] = d2;
+                    near_tri[j] = tri;
+                }
+            }
+        }
+    }
+    return found;
+}
+
+// The walker's old slot at or after slot `first` of its contact with `partner`, or `kept`.
+fn own_old_slot_from(w: ptr<function, Walker>, partner: u32, first: u32) -> u32 {
+    let at = (*w).own_old;
+    var s = first;
+    for (; s < (*w).kept; s += 1u) {
+        if old_partner(SlotAt(at.part, at.slot + s)) == partner {
+            break;
+        }
+    }
+    return s;
+}
+
+// The walker's contacts with every mesh wall at time t: their force and torque added to the
+// walker's, their springs kept; in step mesh.loads_step (`summing`) their reactions added to
+// the walls' loads.
+fn mesh_contacts(w: ptr<function, Walker>, t: f32, summing: bool) {
+    let b = (*w).me;
+    for (var wall = 0u; wall < mesh.walls; wall += 1u) {
+        let m = mesh_walls[wall];
+        let pose = pose_at(m, t);
+        let inverse = vec4(-pose.q.xyz, pose.q.w);
+        let p = rotate(inverse, b.c - pose.offset);
+        let found = mesh_candidates(m, p, b.r);
+        if found == 0u {
+            continue;
+        }
+        if found > MESH_NEAR {
+            atomicMax(&mesh_loads[8u * mesh.walls], found);
+        }
+        let partner = FIRST_MESH_WALL + wall;
+        var force = vec3(0.0);
+        var torque = vec3(0.0);
+        var kept = 0u;
+        var next_old = 0u;
+        let slack = ON_PLANE * b.r;
+        for (var k = 0u; k < min(found, MESH_NEAR); k += 1u) {
+            let q = closest_point(near_tri[k], p);
+            let to = q - p;
+            var covered = false;
+            for (var j = 0u; j < kept; j += 1u) {
+                covered = covered || dot3(to, kept_plane[j].xyz) >= kept_plane[j].w - slack;
+            }
+            if covered {
+                continue;
+            }
+            let d = sqrt(near_d2[k]);
+            let n_rest = to / d;
+            kept_plane[kept] = vec4(n_rest, d);
+            kept += 1u;
+            let point = rotate(pose.q, q) + pose.offset;
+            let n = rotate(pose.q, n_rest);
+            let surface_velocity = pose.velocity + cross(pose.spin, point - pose.centre);
+            var old = Springs(vec3(0.0), vec3(0.0));
+            if granular.slots > 0u {
+                let s = own_old_slot_from(w, partner, next_old);
+                if s < (*w).kept {
+                    old = own_old_springs(w, s);
+                    next_old = s + 1u;
+                } else {
+                    next_old = (*w).kept;
+                }
+            }
+            let c = surface_contact(b, n, b.r - d, surface_velocity, m.friction, old);
+            force += c.force;
+            torque += c.torque;
+            if granular.slots > 0u {
+                keep_springs(w, partner, c.springs);
+            }
+        }
+        (*w).force += force;
+        (*w).torque += torque;
+        if summing {
+            // The wall takes the opposite force and the opposite angular impulse about its
+            // centre.
+            let about = -(cross(b.c - pose.centre, force) + torque);
+            for (var a = 0u; a < 3u; a += 1u) {
+                add_load(8u * wall + a, -force[a]);
+                add_load(8u * wall + 4u + a, about[a]);
+            }
+        }
+    }
+}
