@@ -187,7 +187,9 @@ fn pair_contact(i: Body, j: Body, old: Springs) -> Contact {
     }
     let dist = sqrt(d2);
     let n = d / dist;
-    let overlap = reach - dist;
+    // GPU square roots may round up by an ulp or two (they are not correctly rounded): a pair
+    // just touching could get a negative overlap, whose Hertz √(R·δ) is NaN.
+    let overlap = max(reach - dist, 0.0);
     let vn = dot3(j.v - i.v, n);
     let m_eff = i.m * j.m / (i.m + j.m);
     let r_eff = i.r * j.r / (i.r + j.r);

@@ -279,9 +279,9 @@ fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     }
 }
 
-// The box walls touching the walker's sphere (each axis low wall first, as the cpu step) and
-// the mesh walls (dem_mesh_walls.wgsl), then its force and torque into the accumulators and
-// its history count.
+// The box walls touching the walker's sphere (each axis low wall first, as the cpu step), then
+// its force and torque into the accumulators and its history count (the mesh walls' kernel,
+// dem_mesh_walls.wgsl, appends to both after this pass).
 fn finish(w: ptr<function, Walker>) {
     let b = (*w).me;
     if mesh.box_walls != 0u {
@@ -308,10 +308,6 @@ fn finish(w: ptr<function, Walker>) {
                 }
             }
         }
-    }
-    if mesh.walls > 0u {
-        let step = atomicLoad(&clock) - 1u;
-        mesh_contacts(w, f32(step) * dem.dt, step == mesh.loads_step);
     }
     add_force((*w).p, (*w).force);
     if granular.turns != 0u {

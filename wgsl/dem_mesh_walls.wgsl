@@ -1,8 +1,9 @@
 // Mesh walls in the granular GPU step (src/dem/walls, the cpu step's `engines/cpu/walls.rs`):
-// each sphere's contacts with every mesh wall, resolved by the sphere's own thread at the end
-// of its walk (`finish` in dem_granular.wgsl), with history under partner FIRST_MESH_WALL + w
-// (the k-th contact of a wall, nearest first, in the k-th old entry of that id), and the loads
-// on each wall summed in the step the host asks for. Twin structs: `MeshParams`, `MeshWall` in
+// each sphere's contacts with every mesh wall, resolved by a kernel of their own after the
+// contact pass (`mesh_wall_contacts`, dispatched only where there are mesh walls: the contact pass
+// keeps its registers), appended to the sphere's history row and force, with history under
+// partner FIRST_MESH_WALL + w (the k-th contact of a wall, nearest first, in the k-th old
+// entry of that id), and the loads on each wall summed in the step the host asks for. Twin structs: `MeshParams`, `MeshWall` in
 // src/engines/gpu_walls.rs.
 //
 // A wall's triangles live in their rest geometry, listed in the cells of a uniform grid over
@@ -18,7 +19,7 @@ struct MeshParams {
     walls: u32,         // mesh walls
     box_walls: u32,     // 1: the six walls of the box hold the spheres in
     loads_step: u32,    // the step whose loads on the walls are summed into mesh_loads
-    _pad: u32,
+    load_lanes: u32,    // partial sums of each load (sphere p adds to lane p mod load_lanes)
 }
 
 struct MeshWall {
@@ -48,7 +49,9 @@ const ON_PLANE: f32 = 1e-4;
 @group(0) @binding(72) var<storage, read> mesh_grid: array<u32>;
 // per triangle: corners a, b, c and the unit normal (b − a) × (c − a), rest geometry
 @group(0) @binding(73) var<storage, read> mesh_tris: array<vec4<f32>>;
-// per wall 8 words as f32 bits: force on it x, y, z, 0, torque x, y, z, 0; then the most
+// per lane and wall 8 words as f32 bits: force on it x, y, z, 0, torque x, y, z, 0 (word
+// (lane·walls + wall)·8 + k; the host adds the lanes: one sum per wall would have every
+// sphere touching it retry its compare-and-swap against all the others); then the most
 // candidates a sphere had (a u32)
 @group(0) @binding(74) var<storage, read_write> mesh_loads: array<atomic<u32>>;
 
@@ -143,7 +146,9 @@ fn mesh_candidates(m: MeshWall, p: vec3<f32>, r: f32) -> u32 {
     let lo = (p - vec3(r) - m.lo) / m.cell;
     let hi = (p + vec3(r) - m.lo) / m.cell;
     let top = vec3<f32>(m.dims);
-    if any(hi < vec3(0.0)) || any(lo >= top) {
+    // Written so that a non-finite centre (an unstable run, stopped by the host at the next
+    // read) takes no cells rather than every cell.
+    if !(all(hi >= vec3(0.0)) && all(lo < top)) {
         return 0u;
     }
     let first = vec3<u32>(max(floor(lo), vec3(0.0)));
@@ -216,7 +221,7 @@ fn mesh_contacts(w: ptr<function, Walker>, t: f32, summing: bool) {
             continue;
         }
         if found > MESH_NEAR {
-            atomicMax(&mesh_loads[8u * mesh.walls], found);
+            atomicMax(&mesh_loads[8u * mesh.walls * mesh.load_lanes], found);
         }
         let partner = FIRST_MESH_WALL + wall;
         var force = vec3(0.0);
@@ -251,7 +256,9 @@ fn mesh_contacts(w: ptr<function, Walker>, t: f32, summing: bool) {
                     next_old = (*w).kept;
                 }
             }
-            let c = surface_contact(b, n, b.r - d, surface_velocity, m.friction, old);
+            // d < r, but the GPU's square root may round up (see pair_contact).
+            let overlap = max(b.r - d, 0.0);
+            let c = surface_contact(b, n, overlap, surface_velocity, m.friction, old);
             force += c.force;
             torque += c.torque;
             if granular.slots > 0u {
@@ -264,10 +271,39 @@ fn mesh_contacts(w: ptr<function, Walker>, t: f32, summing: bool) {
             // The wall takes the opposite force and the opposite angular impulse about its
             // centre.
             let about = -(cross(b.c - pose.centre, force) + torque);
+            let at = 8u * ((*w).p % mesh.load_lanes * mesh.walls + wall);
             for (var a = 0u; a < 3u; a += 1u) {
-                add_load(8u * wall + a, -force[a]);
-                add_load(8u * wall + 4u + a, about[a]);
+                add_load(at + a, -force[a]);
+                add_load(at + 4u + a, about[a]);
             }
+        }
+    }
+}
+
+// Sphere p's (state index) mesh-wall contacts, after the contact pass wrote its row of the new
+// history and added its other forces: the contacts appended to the row (the count raised past
+// the slots as the contact pass does), their force and torque added to p's accumulators.
+@compute @workgroup_size(256)
+fn mesh_wall_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x + gid.y * dem.row;
+    if p >= dem.n {
+        return;
+    }
+    var w = walker(p);
+    if granular.slots > 0u {
+        // Past the slots the batch is redone anyway (history_need is raised already).
+        w.held = held_new[p];
+    }
+    let step = atomicLoad(&clock) - 1u;
+    mesh_contacts(&w, f32(step) * dem.dt, step == mesh.loads_step);
+    add_force(p, w.force);
+    if granular.turns != 0u {
+        add_torque(p, w.torque);
+    }
+    if granular.slots > 0u {
+        held_new[p] = min(w.held, granular.slots);
+        if w.held > granular.slots {
+            atomicMax(&history_need, w.held);
         }
     }
 }

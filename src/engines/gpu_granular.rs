@@ -421,13 +421,21 @@ impl Granular {
             (HELD_OLD, &self.held[parity]),
             (HELD_NEW, &self.held[1 - parity]),
             (HISTORY_NEED, &self.need),
+            self.mesh.params_binding(),
         ];
         let [spare_old, spare_new] = &self.spare;
         let parts = |h: &'a History, spare| h.parts.iter().chain(std::iter::repeat(spare));
         all.extend(ENTRIES_OLD.into_iter().zip(parts(old, spare_old)));
         all.extend(ENTRIES_NEW.into_iter().zip(parts(new, spare_new)));
-        all.extend(self.mesh.bindings());
         all
+    }
+
+    /// Bindings of the mesh walls' kernel of a step of parity `parity` (beside the state's),
+    /// `None` without mesh walls (the kernel is not dispatched).
+    pub fn mesh_bindings(&self, parity: usize) -> Option<Vec<(Binding, &wgpu::Buffer)>> {
+        let mut all = self.resolve_bindings(parity);
+        all.extend(self.mesh.bindings());
+        self.mesh.any().then_some(all)
     }
 
     /// Bindings of the integration kernel of a step of parity `parity`.

@@ -508,7 +508,7 @@ pub(crate) fn particles_from(
     ids: Option<&[u32]>,
     step: u64,
 ) -> Result<Particles> {
-    particles_with(pos, vel, ids, step, None)
+    particles_with(pos, vel, ids, step, || Ok(None))
 }
 
 /// As [`particles_from`], with the angular velocities (in the rows' order) and contact history
@@ -518,10 +518,23 @@ pub(crate) fn particles_with(
     vel: &[[f32; 4]],
     ids: Option<&[u32]>,
     step: u64,
-    rotation: Option<Rotation>,
+    rotation: impl FnOnce() -> Result<Option<Rotation>>,
 ) -> Result<Particles> {
     let n = pos.len();
-    let rotation = rotation.unwrap_or_else(|| Rotation {
+    // A run that blew up says so by its state before its history says anything.
+    let finite = |row: &[f32; 4]| row.iter().all(|x| x.is_finite());
+    if let Some(k) = (0..n).find(|&k| !(finite(&pos[k]) && finite(&vel[k]))) {
+        return Err(Error::Unstable {
+            step,
+            sphere: ids.map_or(k, |ids| ids[k] as usize),
+            what: format!(
+                "has position {:?} and velocity {:?}",
+                &pos[k][..3],
+                &vel[k][..3]
+            ),
+        });
+    }
+    let rotation = rotation()?.unwrap_or_else(|| Rotation {
         angular_velocities: vec![[0.0; 3]; n],
         history: Default::default(),
     });

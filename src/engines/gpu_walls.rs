@@ -27,9 +27,15 @@ pub fn bindings() -> [Binding; 5] {
 /// Candidates within a sphere's radius kept per wall (`MESH_NEAR` in the shader).
 const MESH_NEAR: u32 = 16;
 
-/// Cells of a wall's grid at most: this many per triangle (and at least [`MIN_CELLS`]).
+/// Partial sums of each wall load at most (spheres touching a wall add to different lanes),
+/// and the words of all lanes of all walls a run keeps at most.
+const MAX_LOAD_LANES: usize = 1024;
+const LOAD_WORDS: usize = 1 << 20;
+
+/// Cells of a wall's grid at most: this many per triangle, or [`MIN_CELLS`] (16 MB of
+/// offsets) where that is more.
 const CELLS_PER_TRIANGLE: usize = 8;
-const MIN_CELLS: usize = 4096;
+const MIN_CELLS: usize = 1 << 22;
 
 /// The walls' uniform; WGSL twin `MeshParams`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
@@ -37,7 +43,7 @@ pub struct MeshParams {
     walls: u32,
     box_walls: u32,
     loads_step: u32,
-    _pad: u32,
+    load_lanes: u32,
 }
 
 pub fn mesh_params() -> SharedStruct {
@@ -47,7 +53,7 @@ pub fn mesh_params() -> SharedStruct {
             walls,
             box_walls,
             loads_step,
-            _pad
+            load_lanes
         }
     )
 }
@@ -93,11 +99,11 @@ struct WallGrid {
     cells: Vec<Vec<u32>>,
 }
 
-/// The grid over `mesh`'s rest geometry: cells no smaller than the largest sphere's diameter
-/// `reach` (a sphere's box then overlaps at most 8), and as small as [`CELLS_PER_TRIANGLE`]
-/// cells per triangle over the bounds allow; each triangle listed in every cell it may pass
-/// through (the cell's bounding sphere, a little enlarged, reaches the triangle: rounding
-/// where the shader finds a sphere's cells then never misses one).
+/// The grid over `mesh`'s rest geometry: cells of the largest sphere's diameter `reach` (a
+/// sphere's box then overlaps at most 8, each holding only the triangles near it), larger
+/// where the bounds would need more cells than the budget; each triangle listed in every cell
+/// it passes through (its box enlarged by 1 %: rounding where the shader finds a sphere's
+/// cells then never misses one).
 fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
     let triangles = mesh.triangles();
     let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
@@ -107,20 +113,11 @@ fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
             hi = hi.max(c);
         }
     }
-    let extent = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE));
-    let budget = (CELLS_PER_TRIANGLE * triangles.len()).max(MIN_CELLS) as f64;
-    // The budget's cells spread over the bounds, none smaller than `reach`.
-    let volume = extent.max(Vec3::splat(reach)).as_dvec3().element_product();
-    let mut cell = reach.max((volume / budget).cbrt() as f32);
-    // A margin of half a cell around the triangles: no corner lies on the grid's outer faces.
-    let dims_at = |cell: f32| (extent / cell).ceil().max(Vec3::ONE).as_uvec3() + 1;
-    while dims_at(cell).as_dvec3().element_product() > budget {
-        cell *= 1.25;
-    }
+    let budget = CELLS_PER_TRIANGLE * triangles.len();
+    let (cell, dims) = grid_cell(hi - lo, reach, budget);
     let lo = lo - Vec3::splat(0.5 * cell);
-    let dims = dims_at(cell).to_array();
     let mut cells = vec![Vec::new(); dims.iter().map(|&d| d as usize).product()];
-    let radius = 0.5 * cell * 3f32.sqrt() * 1.01;
+    let half = 0.5 * cell * 1.01;
     let index = |x: f32| x.floor().max(0.0) as u32;
     for (k, t) in triangles.iter().enumerate() {
         let (tlo, thi) = t
@@ -136,7 +133,7 @@ fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
             for y in from[1]..=to[1] {
                 for x in from[0]..=to[0] {
                     let centre = lo + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * cell;
-                    if (t.closest_point(centre) - centre).length() <= radius {
+                    if meets_box(&t.corners, centre, half) {
                         let at = x as usize
                             + dims[0] as usize * (y as usize + dims[1] as usize * z as usize);
                         cells[at].push(first_triangle + k as u32);
@@ -151,6 +148,40 @@ fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
         dims,
         cells,
     }
+}
+
+/// The cell side and cells per axis of a grid over bounds of size `extent` with a margin of
+/// half a cell on each side (no triangle corner lies on its outer faces): cells of side
+/// `reach`, grown until there are at most `budget` of them (or [`MIN_CELLS`]).
+fn grid_cell(extent: Vec3, reach: f32, budget: usize) -> (f32, [u32; 3]) {
+    let extent = extent.max(Vec3::splat(f32::MIN_POSITIVE));
+    let budget = budget.max(MIN_CELLS) as f64;
+    let dims_at = |cell: f32| (extent / cell).ceil().max(Vec3::ONE).as_uvec3() + 1;
+    let mut cell = reach.max(extent.max_element() * 1e-6);
+    while dims_at(cell).as_dvec3().element_product() > budget {
+        cell *= 1.25;
+    }
+    (cell, dims_at(cell).to_array())
+}
+
+/// Whether the triangle `corners` meets the cube of half-side `half` about `centre`: no axis
+/// separates them (the cube's three, the triangle's normal, and the nine cross products of
+/// their edges).
+fn meets_box(corners: &[Vec3; 3], centre: Vec3, half: f32) -> bool {
+    let v = corners.map(|c| c - centre);
+    let edges = [v[1] - v[0], v[2] - v[1], v[0] - v[2]];
+    let apart = |axis: Vec3| {
+        let p = v.map(|x| x.dot(axis));
+        let reach = half * axis.abs().element_sum();
+        p[0].min(p[1]).min(p[2]) > reach || p[0].max(p[1]).max(p[2]) < -reach
+    };
+    let axes = [Vec3::X, Vec3::Y, Vec3::Z];
+    if axes.iter().any(|&a| apart(a)) || apart(edges[0].cross(edges[1])) {
+        return false;
+    }
+    !axes
+        .iter()
+        .any(|a| edges.iter().any(|e| apart(a.cross(*e))))
 }
 
 /// The mesh walls' buffers and the loads of the last advance.
@@ -214,11 +245,12 @@ impl MeshWalls {
         let mut grid: Vec<u32> = offsets.iter().map(|&o| o + head as u32).collect();
         grid.push(words as u32);
         grid.extend(listed);
+        let load_lanes = (LOAD_WORDS / (8 * rows.len().max(1))).clamp(1, MAX_LOAD_LANES) as u32;
         let params = MeshParams {
             walls: rows.len() as u32,
             box_walls: walls.box_walls as u32,
             loads_step: u32::MAX,
-            _pad: 0,
+            load_lanes,
         };
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
@@ -233,16 +265,24 @@ impl MeshWalls {
             walls: filled("mesh_walls", &storage_bytes(&rows)),
             grid: filled("mesh_grid", bytemuck::cast_slice(&grid)),
             tris: filled("mesh_tris", bytemuck::cast_slice(&tris)),
-            loads: gpu.storage(&label("mesh_loads"), (8 * rows.len() as u64 + 1) * 4, none),
+            loads: gpu.storage(
+                &label("mesh_loads"),
+                (8 * rows.len() as u64 * load_lanes as u64 + 1) * 4,
+                none,
+            ),
             last: vec![WallLoad::default(); rows.len()],
             engine,
         })
     }
 
-    /// Bindings of the resolve kernel.
-    pub fn bindings(&self) -> [(Binding, &wgpu::Buffer); 5] {
+    /// The uniform, which the contact pass reads too (whether the box walls hold).
+    pub fn params_binding(&self) -> (Binding, &wgpu::Buffer) {
+        (MESH, &self.uniform)
+    }
+
+    /// Bindings of the mesh walls' kernel besides [`params_binding`](Self::params_binding).
+    pub fn bindings(&self) -> [(Binding, &wgpu::Buffer); 4] {
         [
-            (MESH, &self.uniform),
             (MESH_WALLS, &self.walls),
             (MESH_GRID, &self.grid),
             (MESH_TRIS, &self.tris),
@@ -277,8 +317,9 @@ impl MeshWalls {
             return Ok(());
         }
         let walls = self.last.len();
-        let words: Vec<u32> = gpu.read(&self.loads, 8 * walls + 1)?;
-        let most = words[8 * walls];
+        let lanes = self.params.load_lanes as usize;
+        let words: Vec<u32> = gpu.read(&self.loads, 8 * walls * lanes + 1)?;
+        let most = words[8 * walls * lanes];
         if most > MESH_NEAR {
             return Err(Error::TooLarge {
                 what: format!(
@@ -290,7 +331,12 @@ impl MeshWalls {
                 limit: MESH_NEAR as u64,
             });
         }
-        let f = |k: usize| f32::from_bits(words[k]) as f64;
+        // Lane by lane, in order: the sum depends on the lanes' partial sums alone.
+        let f = |k: usize| -> f64 {
+            (0..lanes)
+                .map(|l| f32::from_bits(words[8 * walls * l + k]) as f64)
+                .sum()
+        };
         for (w, load) in self.last.iter_mut().enumerate() {
             *load = WallLoad {
                 force: [f(8 * w), f(8 * w + 1), f(8 * w + 2)],
@@ -324,7 +370,7 @@ mod tests {
     fn every_point_of_a_triangle_is_in_a_cell_that_lists_it() {
         let mesh = square(0.3, 1.0);
         let g = wall_grid(&mesh, 0.05, 7);
-        assert!(g.cell >= 0.05);
+        assert_eq!(g.cell, 0.05);
         for i in 0..=40 {
             for j in 0..=40 {
                 let p = Vec3::new(i as f32 / 40.0, j as f32 / 40.0, 0.3);
@@ -335,20 +381,38 @@ mod tests {
                 assert!(g.cells[at].contains(&t), "{p} in cell {c} lacks {t}");
             }
         }
-        // A flat square is listed in one layer of cells, not in every cell of its box.
+        // A flat square is listed in one layer of cells, each triangle in the cells it covers
+        // (half of them each, and those along the diagonal).
         let listing: usize = g.cells.iter().map(Vec::len).sum();
         let per_layer = (g.dims[0] * g.dims[1]) as usize;
         assert!(
-            listing <= 2 * 3 * per_layer,
+            listing <= per_layer + 3 * g.dims[0] as usize,
             "{listing} listings, {per_layer} per layer"
         );
+        // A triangle off to the side of a cell is not listed in it.
+        let far = [
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(2.0, 1.0, 0.0),
+            Vec3::new(1.0, 2.0, 0.0),
+        ];
+        assert!(!meets_box(&far, Vec3::ZERO, 0.9));
+        assert!(meets_box(&far, Vec3::new(1.2, 1.2, 0.5), 0.6));
+        // One crossing a cell's corner region diagonally, its corners all outside the box.
+        let slanted = [
+            Vec3::new(-2.0, 0.5, 0.0),
+            Vec3::new(0.5, -2.0, 0.0),
+            Vec3::new(0.5, 0.5, 3.0),
+        ];
+        assert!(meets_box(&slanted, Vec3::ZERO, 1.0));
     }
 
     #[test]
     fn the_grid_stays_within_its_budget() {
-        let mesh = square(0.0, 100.0);
-        let g = wall_grid(&mesh, 1e-3, 0);
-        let cells: usize = g.dims.iter().map(|&d| d as usize).product();
+        let (cell, dims) = grid_cell(Vec3::new(100.0, 100.0, 0.0), 1e-3, 10);
+        let cells: usize = dims.iter().map(|&d| d as usize).product();
         assert!(cells <= MIN_CELLS, "{cells} cells");
+        assert!(cells > MIN_CELLS / 4, "{cells} cells of {cell} m");
+        // Where the budget allows, cells are as wide as a sphere.
+        assert_eq!(grid_cell(Vec3::ONE, 0.01, 10).0, 0.01);
     }
 }

@@ -68,6 +68,8 @@ struct Pipelines {
     bin_first: wgpu::ComputePipeline,
     bin_last: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
+    /// The mesh walls' kernel (granular step with mesh walls only).
+    mesh: Option<wgpu::ComputePipeline>,
     integrate: wgpu::ComputePipeline,
     reduce_bounds: wgpu::ComputePipeline,
 }
@@ -77,6 +79,7 @@ struct Binds {
     bin_first: wgpu::BindGroup,
     bin_last: wgpu::BindGroup,
     resolve: wgpu::BindGroup,
+    mesh: Option<wgpu::BindGroup>,
     integrate: wgpu::BindGroup,
     reduce_bounds: wgpu::BindGroup,
 }
@@ -251,6 +254,10 @@ impl GridStepper {
             bin_first: pipeline(first),
             bin_last: pipeline(last),
             resolve: pipeline("resolve"),
+            mesh: granular
+                .as_ref()
+                .is_some_and(|g| g.mesh().any())
+                .then(|| pipeline("mesh_wall_contacts")),
             integrate: pipeline("integrate"),
             reduce_bounds: pipeline("reduce_bounds"),
         };
@@ -342,9 +349,10 @@ impl GridStepper {
         let pos: Vec<[f32; 4]> = self.gpu.read(&set.pos, n)?;
         let vel: Vec<[f32; 4]> = self.gpu.read(&set.vel, n)?;
         let ids: Vec<u32> = self.gpu.read(&set.ids, n)?;
-        let rotation = match &self.granular {
-            Some(g) => Some(g.read(&self.gpu, self.current, Some(&ids))?),
-            None => None,
+        let rotation = || {
+            let g = self.granular.as_ref();
+            g.map(|g| g.read(&self.gpu, self.current, Some(&ids)))
+                .transpose()
         };
         particles_with(&pos, &vel, Some(&ids), self.step, rotation)
     }
@@ -495,11 +503,7 @@ impl GridStepper {
                 let came_from = (CAME_FROM, g.came_from());
                 (
                     vec![(OMEGA_A, omega_a), (OMEGA, omega), came_from],
-                    [
-                        &g.resolve_bindings(from)[..],
-                        &[(IDS, &b.ids), came_from, (CLOCK, &self.clock)],
-                    ]
-                    .concat(),
+                    [&g.resolve_bindings(from)[..], &[(IDS, &b.ids), came_from]].concat(),
                     g.integrate_bindings(from).to_vec(),
                 )
             }
@@ -595,6 +599,23 @@ impl GridStepper {
                     &integrate_more,
                 ),
             ),
+            mesh: self
+                .granular
+                .as_ref()
+                .zip(p.mesh.as_ref())
+                .and_then(|(g, pipeline)| {
+                    let walls = g.mesh_bindings(from)?;
+                    let state = [
+                        (DEM, &self.dem_uniform),
+                        (POS, &b.pos),
+                        (VEL, &b.vel),
+                        (FORCE, &self.force),
+                        (CLOCK, &self.clock),
+                        (IDS, &b.ids),
+                        (CAME_FROM, g.came_from()),
+                    ];
+                    Some(gpu.bind("mochi.dem.mesh_walls", pipeline, &joined(&state, &walls)))
+                }),
             reduce_bounds: gpu.bind(
                 "mochi.dem.reduce_bounds",
                 &p.reduce_bounds,
@@ -624,7 +645,12 @@ impl GridStepper {
                 }
                 gpu::record(pass, &p.bin_last, &b.bin_last, self.groups);
             }
-            Phase::Resolve => gpu::record(pass, &p.resolve, &b.resolve, self.groups),
+            Phase::Resolve => {
+                gpu::record(pass, &p.resolve, &b.resolve, self.groups);
+                if let (Some(pipeline), Some(bind)) = (&p.mesh, &b.mesh) {
+                    gpu::record(pass, pipeline, bind, self.groups);
+                }
+            }
             Phase::Integrate => gpu::record(pass, &p.integrate, &b.integrate, self.groups),
         }
     }

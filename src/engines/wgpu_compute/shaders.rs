@@ -226,6 +226,28 @@ pub(crate) mod dem_grid {
         "integrate",
     ];
 
+    /// The entry points of the dense build's granular variant: the mesh walls' kernel too.
+    pub const GRANULAR_ENTRY_POINTS: &[&str] = &[
+        "bin_count",
+        "bin_scatter",
+        "resolve",
+        "mesh_wall_contacts",
+        "reduce_bounds",
+        "integrate",
+    ];
+
+    /// The entry points of the sorted-key build's granular variant.
+    pub const SORTED_GRANULAR_ENTRY_POINTS: &[&str] = &[
+        "bin_count",
+        "bin_scatter",
+        "bin_keys",
+        "bin_gather",
+        "resolve",
+        "mesh_wall_contacts",
+        "reduce_bounds",
+        "integrate",
+    ];
+
     /// What the sorted-key binning binds besides [`bindings`].
     pub const SORT_KEYS: Binding = Binding::read_write(40, "sort_keys");
     pub const SORT_ORDER: Binding = Binding::read_write(42, "sort_order");
@@ -324,9 +346,13 @@ pub fn modules() -> Vec<WgslModule> {
         ),
     ];
     for (build, suffix) in build_variants() {
-        let (entry_points, extra): (_, &[Binding]) = match build {
-            BuildKind::Dense => (dem_grid::ENTRY_POINTS, &[]),
-            BuildKind::Sorted => (dem_grid::SORTED_ENTRY_POINTS, &dem_grid::SORTED),
+        let (entry_points, granular_entry_points, extra): (_, _, &[Binding]) = match build {
+            BuildKind::Dense => (dem_grid::ENTRY_POINTS, dem_grid::GRANULAR_ENTRY_POINTS, &[]),
+            BuildKind::Sorted => (
+                dem_grid::SORTED_ENTRY_POINTS,
+                dem_grid::SORTED_GRANULAR_ENTRY_POINTS,
+                &dem_grid::SORTED,
+            ),
         };
         for (name, atomics) in physics::FORCE_VARIANTS {
             let bindings = [&dem_grid::bindings()[..], extra].concat();
@@ -352,7 +378,7 @@ pub fn modules() -> Vec<WgslModule> {
             let mut dem = module(
                 format!("dem_grid_granular_{name}{suffix}"),
                 dem_grid::granular_source(build, atomics),
-                entry_points,
+                granular_entry_points,
                 &bindings,
             );
             dem.structs.extend([

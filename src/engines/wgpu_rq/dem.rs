@@ -30,6 +30,8 @@ use crate::proxy::ProxyMode;
 struct Pipelines {
     proxy_boxes: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
+    /// The mesh walls' kernel (granular step with mesh walls only).
+    mesh: Option<wgpu::ComputePipeline>,
     integrate: wgpu::ComputePipeline,
 }
 
@@ -38,6 +40,8 @@ struct Binds {
     /// For the steps of each parity (which history they read, in the granular step; the same
     /// in the paper's).
     resolve: [wgpu::BindGroup; 2],
+    /// The mesh walls' kernel's, by parity as `resolve`.
+    mesh: Option<[wgpu::BindGroup; 2]>,
     integrate: wgpu::BindGroup,
 }
 
@@ -125,6 +129,10 @@ impl RqStepper {
         let pipelines = Pipelines {
             proxy_boxes: pipeline("proxy_boxes"),
             resolve: pipeline("resolve"),
+            mesh: granular
+                .as_ref()
+                .is_some_and(|g| g.mesh().any())
+                .then(|| pipeline("mesh_wall_contacts")),
             integrate: pipeline("integrate"),
         };
         let groups = gpu.grid(n, GROUP);
@@ -238,6 +246,15 @@ impl RedoableBatch for RqStepper {
                 &r.binds.resolve[parity],
                 self.groups,
             );
+            if let (Some(pipeline), Some(binds)) = (&p.mesh, &r.binds.mesh) {
+                gpu.dispatch(
+                    &mut encoder,
+                    "mochi.dem.rq.mesh_walls",
+                    pipeline,
+                    &binds[parity],
+                    self.groups,
+                );
+            }
             parity = 1 - parity;
             StepTimer::mark(timer, &mut encoder, s, 2);
             gpu.dispatch(
@@ -331,9 +348,9 @@ impl Stepper for RqStepper {
         let n = self.n as usize;
         let pos: Vec<[f32; 4]> = self.gpu.read(&self.pos, n)?;
         let vel: Vec<[f32; 4]> = self.gpu.read(&self.vel, n)?;
-        let rotation = match &self.granular {
-            Some(g) => Some(g.read(&self.gpu, self.parity, None)?),
-            None => None,
+        let rotation = || {
+            let g = self.granular.as_ref();
+            g.map(|g| g.read(&self.gpu, self.parity, None)).transpose()
         };
         particles_with(&pos, &vel, None, self.step, rotation)
     }
@@ -373,8 +390,6 @@ fn bind(
         ];
         if let Some(g) = granular {
             all.extend(g.resolve_bindings(parity));
-            // The mesh walls' poses follow the step's time.
-            all.push((CLOCK, clock));
         }
         if let Some(k) = per_pair {
             all.extend(k.bindings());
@@ -408,6 +423,19 @@ fn bind(
             ],
         ),
         resolve: [resolve(0), resolve(1)],
+        mesh: granular.zip(p.mesh.as_ref()).map(|(g, pipeline)| {
+            [0, 1].map(|parity| {
+                let mut all = vec![
+                    (DEM, dem),
+                    (POS, pos),
+                    (VEL, vel),
+                    (FORCE, force),
+                    (CLOCK, clock),
+                ];
+                all.extend(g.mesh_bindings(parity).into_iter().flatten());
+                gpu.bind("mochi.dem.rq.mesh_walls", pipeline, &all)
+            })
+        }),
         integrate: gpu.bind("mochi.dem.rq.integrate", &p.integrate, &integrate),
     }
 }

@@ -148,6 +148,9 @@ pub(crate) mod dem_rq {
 
     /// The entry points of every variant.
     pub const ENTRY_POINTS: &[&str] = &["proxy_boxes", "resolve", "integrate"];
+    /// The granular variant's: the mesh walls' kernel too.
+    pub const GRANULAR_ENTRY_POINTS: &[&str] =
+        &["proxy_boxes", "resolve", "mesh_wall_contacts", "integrate"];
 
     pub const RQ_PARAMS: Binding = Binding::uniform(0, "rq");
     pub const BOXES: Binding = Binding::read_write(5, "boxes");
@@ -241,7 +244,7 @@ pub fn modules() -> Vec<WgslModule> {
         all.push(WgslModule {
             label: format!("dem_rq_granular_{name}"),
             source: dem_rq::granular_source(atomics),
-            entry_points: dem_rq::ENTRY_POINTS,
+            entry_points: dem_rq::GRANULAR_ENTRY_POINTS,
             bindings: dem_rq::granular_bindings(),
             structs: vec![
                 dem_rq::rq_params(),
