@@ -10,9 +10,10 @@
 //! W^{2/5} against D, and compares the two fill heights.
 //!
 //! ```sh
-//! cargo run --release --example beverloo [-- SPHERES [D/d ...]]
+//! cargo run --release --example beverloo [-- [--settle S] [--window W] SPHERES [D/d ...]]
 //! ```
-//! (defaults: 1500 spheres at the smallest D, D/d = 4, 5, 6 with d the mean diameter, 8 mm).
+//! (defaults: settle 0.1 s, window 0.4 s, 1500 spheres at the smallest D, D/d = 4, 5, 6 with d
+//! the mean diameter, 8 mm).
 
 use mochi::dem::equipment::mass_flow_rate;
 use mochi::dem::model::mass;
@@ -24,7 +25,8 @@ use std::time::Instant;
 const GRAIN_RADIUS: f64 = 0.004;
 /// The gate opens at this time \[s\] (the scene's default).
 const OPEN: f64 = 0.2;
-/// The flow is measured from this long after the gate opens \[s\], over [`WINDOW`] \[s\].
+/// The flow is measured by default from this long after the gate opens \[s\], over
+/// [`WINDOW`] \[s\].
 const SETTLING: f64 = 0.1;
 const WINDOW: f64 = 0.4;
 /// Steps between two samples of the mass out.
@@ -41,7 +43,7 @@ struct Drain {
     seconds: f64,
 }
 
-fn drain(orifice: f64, spheres: usize) -> mochi::Result<Drain> {
+fn drain(orifice: f64, spheres: usize, (settle, window): (f64, f64)) -> mochi::Result<Drain> {
     let clock = Instant::now();
     let overrides = [
         "scene=hopper".to_owned(),
@@ -61,7 +63,7 @@ fn drain(orifice: f64, spheres: usize) -> mochi::Result<Drain> {
     let mut samples = Vec::new();
     let mut bulk = None;
     let mut t = 0.0;
-    let (from, to) = (OPEN + SETTLING, OPEN + SETTLING + WINDOW);
+    let (from, to) = (OPEN + settle, OPEN + settle + window);
     while t < to {
         stepper.advance(SAMPLE)?;
         t += SAMPLE as f64 * dt;
@@ -121,7 +123,19 @@ fn line(points: &[(f64, f64)]) -> (f64, f64) {
 }
 
 fn main() -> mochi::Result<()> {
-    let mut args = std::env::args().skip(1);
+    let mut args = std::env::args().skip(1).peekable();
+    let mut timing = (SETTLING, WINDOW);
+    while let Some(flag) = args.next_if(|a| a.starts_with("--")) {
+        let value: Option<f64> = args.next().and_then(|v| v.parse().ok());
+        match (flag.as_str(), value) {
+            ("--settle", Some(v)) => timing.0 = v,
+            ("--window", Some(v)) => timing.1 = v,
+            _ => {
+                eprintln!("usage: beverloo [--settle S] [--window W] [SPHERES [D/d ...]]");
+                std::process::exit(2);
+            }
+        }
+    }
     let spheres: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(1500);
     let ratios: Vec<f64> = args.filter_map(|a| a.parse().ok()).collect();
     let ratios = if ratios.is_empty() {
@@ -147,13 +161,13 @@ fn main() -> mochi::Result<()> {
     let spheres_at = |ratio: f64| (spheres as f64 * (ratio / smallest).powi(3)).round() as usize;
     let mut drains = Vec::new();
     for &ratio in &ratios {
-        let r = drain(ratio * d, spheres_at(ratio))?;
+        let r = drain(ratio * d, spheres_at(ratio), timing)?;
         show(&r);
         drains.push(r);
     }
     let middle_ratio = ratios[ratios.len() / 2];
     let middle = middle_ratio * d;
-    let taller = drain(middle, 2 * spheres_at(middle_ratio))?;
+    let taller = drain(middle, 2 * spheres_at(middle_ratio), timing)?;
     show(&taller);
     let g: f64 = 9.81;
     let bulk = drains.iter().map(|r| r.bulk).sum::<f64>() / drains.len() as f64;

@@ -335,6 +335,8 @@ fn bench_friction_reports_the_frictional_step_with_its_history() {
         "2",
         "--settle",
         "1500",
+        "--pour",
+        "300",
         "--quiet",
         "-o",
         out.to_str().unwrap(),
@@ -349,7 +351,10 @@ fn bench_friction_reports_the_frictional_step_with_its_history() {
     let report: Report = serde_json::from_str(&json).unwrap();
     assert_eq!(report.settings.experiments, [Experiment::Friction]);
     for backend in &backends {
-        let row = report.dem.iter().find(|r| r.backend.name() == *backend);
+        let row = report
+            .dem
+            .iter()
+            .find(|r| r.backend.name() == *backend && r.scene.name() == "slab");
         let skipped = report.skipped.iter().find(|s| s.backend.name() == *backend);
         match (row, skipped) {
             (Some(row), None) => {
@@ -371,6 +376,21 @@ fn bench_friction_reports_the_frictional_step_with_its_history() {
                 assert!(stdout.contains("Not measured"), "{stdout}");
             }
             other => panic!("{backend}: {other:?}"),
+        }
+        // The polylog pile poured for 300 steps (still falling apart): its row beside the
+        // slab's, a frictional one.
+        if let Some(pile) = report
+            .dem
+            .iter()
+            .find(|r| r.backend.name() == *backend && r.scene.name() == "polylog")
+        {
+            assert_eq!((pile.n, pile.steps), (1500, 2));
+            assert!(pile.history.is_some(), "{pile:?}");
+        } else {
+            assert!(
+                row.is_none(),
+                "{backend}: a slab row without the polylog row"
+            );
         }
     }
     check_svg(&out.join("friction.svg"), Experiment::Friction.title());

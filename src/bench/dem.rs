@@ -44,6 +44,20 @@ pub fn friction_start(n: usize, seed: u64) -> Result<Start> {
     .build()
 }
 
+/// The second start of experiment 7: the `polylog` scene of `n` spheres (radii 0.5 mm–6 cm) under
+/// Hertz–Mindlin with the default material and its Rayleigh time step, to be poured.
+pub fn friction_polylog_start(n: usize, seed: u64) -> Result<Start> {
+    SceneConfig {
+        scene: SceneKind::Generated(Scene::Polylog),
+        spheres: n,
+        seed,
+        frame_every: 0,
+        contact: ContactKind::HertzMindlin,
+        ..SceneConfig::default()
+    }
+    .build()
+}
+
 /// Spheres of the paper's 14-bunny scene (82,337 per bunny at radius 0.005 m).
 const PAPER_MESH_DROP_SPHERES: f64 = 1_151_878.0;
 
@@ -106,9 +120,9 @@ pub struct Case<'a> {
     pub box_scale: Option<u32>,
 }
 
-/// `start` after `plan.settings.settle` untimed steps on the first of the plan's backends whose DEM
-/// step opens (the others' reasons in the error when none does).
-pub fn settle(plan: &Plan, start: &Start) -> Result<Start> {
+/// `start` after `steps` untimed steps on the first of the plan's backends whose DEM step opens
+/// (the others' reasons in the error when none does).
+pub fn settle(plan: &Plan, start: &Start, steps: u64) -> Result<Start> {
     let mut reasons = Vec::new();
     for &kind in &plan.backends {
         let options = Options {
@@ -118,7 +132,12 @@ pub fn settle(plan: &Plan, start: &Start) -> Result<Start> {
         let s = start.clone();
         match open_stepper(kind, s.particles, s.params, s.mode, &options) {
             Ok(mut stepper) => {
-                stepper.advance(plan.settings.settle)?;
+                let mut left = steps;
+                while left > 0 {
+                    let batch = left.min(u32::MAX as u64) as u32;
+                    stepper.advance(batch)?;
+                    left -= batch as u64;
+                }
                 return Ok(Start {
                     particles: stepper.particles()?,
                     ..start.clone()
@@ -323,6 +342,7 @@ mod tests {
                 max_spheres: 1000,
                 steps: 4,
                 settle: 0,
+                pour: 0,
                 repeats: 3,
                 warmup: 1,
                 structure: Structure::Auto,

@@ -164,7 +164,7 @@ fn own_box_starts(
                     "letting the slab land ({} steps)",
                     plan.settings.settle
                 ));
-                slab = dem::settle(plan, &slab)?;
+                slab = dem::settle(plan, &slab, plan.settings.settle as u64)?;
             }
             let polylog = dem::start(POLYLOG, n, seed)?;
             // nns mode too: the DCD phase at radius ratio 120 in both modes.
@@ -182,9 +182,18 @@ fn own_box_starts(
                     "letting the frictional slab land ({} steps)",
                     plan.settings.settle
                 ));
-                pile = dem::settle(plan, &pile)?;
+                pile = dem::settle(plan, &pile, plan.settings.settle as u64)?;
             }
-            vec![(slab, pile)]
+            let mut starts = vec![(slab, pile)];
+            if plan.settings.pour > 0 {
+                progress(&format!(
+                    "pouring the polylog pile under Hertz–Mindlin ({} steps)",
+                    plan.settings.pour
+                ));
+                let poured = dem::friction_polylog_start(n, seed)?;
+                starts.push((POLYLOG, dem::settle(plan, &poured, plan.settings.pour)?));
+            }
+            starts
         }
         Experiment::Scaling => plan
             .scaling_sizes()

@@ -87,7 +87,8 @@ impl Experiment {
             Experiment::Scaling => "DEM step from 1k spheres up, ×10 each",
             Experiment::Targets => "DEM steps with targets: landed slab, polylog (grid vs mlgrid)",
             Experiment::Friction => {
-                "Hertz–Mindlin step (friction, rotation, EPSD rolling) on the settled slab"
+                "Hertz–Mindlin step (friction, rotation, EPSD rolling) on the settled slab and \
+                 the poured polylog pile"
             }
             Experiment::Clustered => "14 filled meshes dropped, in their box and in one 10× wider",
         }
@@ -241,6 +242,10 @@ pub struct Settings {
     /// per experiment, on the first backend whose DEM step runs it; every backend then starts
     /// from that state).
     pub settle: u32,
+    /// Untimed steps of the `polylog` pile poured under Hertz–Mindlin before experiment 7 times
+    /// it (0: experiment 7 measures the slab alone).
+    #[serde(default)]
+    pub pour: u64,
     /// Timed repeats per measurement (at least 1).
     pub repeats: usize,
     /// Untimed runs before the timed ones.
@@ -317,8 +322,8 @@ impl Plan {
                 Experiment::Scaling => self.scaling_sizes().len(),
                 // Settling, slab, polylog with two structures, polylog in nns mode.
                 Experiment::Targets => 5,
-                // Settling, the pile.
-                Experiment::Friction => 2,
+                // Settling, the slab; pouring, the polylog pile.
+                Experiment::Friction => 2 + 2 * (self.settings.pour > 0) as usize,
                 // The drop in its box and in the wide box, each with both grid builds
                 // (wgpu-compute; one row each elsewhere).
                 Experiment::Clustered => 4,
@@ -370,6 +375,7 @@ mod tests {
                 max_spheres: 250_000,
                 steps: 1,
                 settle: 0,
+                pour: 0,
                 repeats: 1,
                 warmup: 0,
                 structure: Structure::Auto,

@@ -258,6 +258,7 @@ mod tests {
                 max_spheres: MILLION,
                 steps: 10,
                 settle,
+                pour: 0,
                 repeats: 1,
                 warmup: 0,
                 structure: Structure::Auto,

@@ -27,7 +27,7 @@ pub struct BenchArgs {
     pub backends: BackendSelection,
     /// Experiments, by number or name: 1 dcd, 2 freefall, 3 rotating, 4 rebuild, 5 scaling,
     /// 6 targets (landed slab, polylog grid vs mlgrid), 7 friction (the Hertz–Mindlin step on
-    /// the settled slab, with its contact history), 8 clustered (14 filled meshes dropped, in
+    /// the settled slab, with its contact history, and with --pour the poured polylog pile), 8 clustered (14 filled meshes dropped, in
     /// their box and in a box 10× wider, with the grid build wgpu-compute chose).
     #[arg(long, value_delimiter = ',', value_parser = Experiment::parse, default_value = "1,2,3,4,5,6,7,8")]
     pub experiments: Vec<Experiment>,
@@ -45,6 +45,11 @@ pub struct BenchArgs {
     /// landed state).
     #[arg(long, default_value_t = 3000)]
     pub settle: u32,
+    /// Untimed steps that pour the `polylog` pile under Hertz–Mindlin (the default material,
+    /// its Rayleigh step: about 300,000 bring the 1M pile down) before experiment 7 times it
+    /// beside the slab; 0: the slab alone.
+    #[arg(long, default_value_t = 0)]
+    pub pour: u64,
     /// Grid of the wgpu-compute backend: auto, grid or mlgrid.
     #[arg(long, value_enum, default_value_t)]
     pub structure: Structure,
@@ -77,6 +82,7 @@ pub fn bench(args: BenchArgs) -> Result<()> {
             max_spheres: args.max_spheres.unwrap_or(args.scale.spheres()),
             steps: args.steps.unwrap_or(args.scale.steps()),
             settle: args.settle,
+            pour: args.pour,
             repeats: args.repeats,
             warmup: args.warmup,
             structure: args.structure,
