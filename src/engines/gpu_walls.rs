@@ -19,7 +19,8 @@ pub const MESH_GRID: Binding = Binding::read(72, "mesh_grid");
 pub const MESH_TRIS: Binding = Binding::read(73, "mesh_tris");
 pub const MESH_LOADS: Binding = Binding::read_write(74, "mesh_loads");
 
-/// The bindings the mesh walls add to the granular step's resolve kernel.
+/// The bindings the mesh walls add to the granular module (the contact pass reads [`MESH`],
+/// whether the box walls hold; the mesh walls' kernel reads them all).
 pub fn bindings() -> [Binding; 5] {
     [MESH, MESH_WALLS, MESH_GRID, MESH_TRIS, MESH_LOADS]
 }
