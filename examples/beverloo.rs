@@ -175,13 +175,17 @@ fn main() -> mochi::Result<()> {
         .iter()
         .map(|r| (r.orifice, r.rate.powf(0.4)))
         .collect();
-    let (a, b) = line(&points);
-    let k = -b / (a * d);
-    let c = a.powf(2.5) / (bulk * g.sqrt());
-    println!(
-        "\nfit W^(2/5) = a·(D − k·d): C = {c:.3}, k = {k:.2} (ρ_b {bulk:.0} kg/m³; Beverloo: C ≈ \
-         0.58, k ≈ 1.4–1.5)"
-    );
+    if points.len() < 2 {
+        println!("\n(the fit to Beverloo's law needs two orifices or more)");
+    } else {
+        let (a, b) = line(&points);
+        let k = -b / (a * d);
+        let c = a.powf(2.5) / (bulk * g.sqrt());
+        println!(
+            "\nfit W^(2/5) = a·(D − k·d): C = {c:.3}, k = {k:.2} (ρ_b {bulk:.0} kg/m³; Beverloo: \
+             C ≈ 0.58, k ≈ 1.4–1.5)"
+        );
+    }
     let same = drains
         .iter()
         .find(|r| r.orifice == middle)
