@@ -156,16 +156,23 @@ fn store_entry(at: SlotAt, partner: u32, s: Springs) {
 }
 
 // The walker's old slot of its contact with `partner` (a sphere's stable id or a wall), or
-// `kept` where it holds none.
+// `kept` where it holds none. A row holds a partner once, so where the search starts changes
+// nothing but its length: it starts at the slot the contact gets in the new row (`held`), where
+// it was in the old one if the walk met the same contacts before it, and wraps around.
 fn own_old_slot(w: ptr<function, Walker>, partner: u32) -> u32 {
     let at = (*w).own_old;
-    var s = 0u;
-    for (; s < (*w).kept; s += 1u) {
-        if old_partner(SlotAt(at.part, at.slot + s)) == partner {
-            break;
+    let kept = (*w).kept;
+    var s = (*w).held;
+    for (var k = 0u; k < kept; k += 1u) {
+        if s >= kept {
+            s = 0u;
         }
+        if old_partner(SlotAt(at.part, at.slot + s)) == partner {
+            return s;
+        }
+        s += 1u;
     }
-    return s;
+    return kept;
 }
 
 // The springs in the walker's old slot s.

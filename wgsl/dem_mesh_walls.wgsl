@@ -1,19 +1,23 @@
 // Mesh walls in the granular GPU step (src/dem/walls, the cpu step's `engines/cpu/walls.rs`):
-// each sphere's contacts with every mesh wall, resolved by a kernel of their own after the
-// contact pass (`mesh_wall_contacts`, dispatched only where there are mesh walls: the contact pass
-// keeps its registers), appended to the sphere's history row and force, with history under
-// partner FIRST_MESH_WALL + w (the k-th contact of a wall, nearest first, in the k-th old
-// entry of that id), and the loads on each wall summed in the step the host asks for. Twin structs: `MeshParams`, `MeshWall` in
-// src/engines/gpu_walls.rs.
+// each sphere's contacts with every mesh wall, resolved after the contact pass by two kernels of
+// their own (dispatched only where there are mesh walls: the contact pass keeps its registers):
+// `mesh_walls_near` lists the spheres whose cell of some wall's grid lists triangles, and
+// `mesh_wall_contacts` resolves the listed ones, so that its warps run the contact law together
+// where resolving every sphere in state order would leave most lanes of each warp idle. The
+// contacts are appended to the sphere's history row and force, with history under partner
+// FIRST_MESH_WALL + w (the k-th contact of a wall, nearest first, in the k-th old entry of that
+// id), and the loads on each wall summed in the step the host asks for. Twin structs:
+// `MeshParams`, `MeshWall` in src/engines/gpu_walls.rs.
 //
-// A wall's triangles live in their rest geometry, listed in the cells of a uniform grid over
-// their rest bounds that they pass through; a sphere's centre is taken into the rest geometry
-// by the wall's pose at the step's time (a function of the time alone, as on the cpu), and the
-// triangles of the cells its box overlaps are its candidates. Of those within its radius, the
-// nearest MESH_NEAR are kept, ordered by distance, and a candidate becomes a contact only where
-// it lies in front of the tangent plane of every contact kept before it (src/dem/walls/touch.rs
-// says why: one contact per surface seen, at a face, an edge or a vertex alike). A sphere with
-// more candidates raises the count the host checks after the step and refuses.
+// A wall's triangles live in their rest geometry, each listed in the cells of a uniform grid
+// over their rest bounds (grown by the largest radius) that it comes within the largest radius
+// of; a sphere's centre is taken into the rest geometry by the wall's pose at the step's time (a
+// function of the time alone, as on the cpu), and the triangles of the cell holding it are its
+// candidates. Of those within its radius, the nearest MESH_NEAR are kept, ordered by distance,
+// and a candidate becomes a contact only where it lies in front of the tangent plane of every
+// contact kept before it (src/dem/walls/touch.rs says why: one contact per surface seen, at a
+// face, an edge or a vertex alike). A sphere with more candidates raises the count the host
+// checks after the step and refuses.
 
 struct MeshParams {
     walls: u32,         // mesh walls
@@ -54,6 +58,10 @@ const ON_PLANE: f32 = 1e-4;
 // sphere touching it retry its compare-and-swap against all the others); then the most
 // candidates a sphere had (a u32)
 @group(0) @binding(74) var<storage, read_write> mesh_loads: array<atomic<u32>>;
+// The spheres near a mesh wall: words 0 and 1 count those of the steps of even and odd number
+// (the host zeroes both ahead of a batch; each step's listing zeroes the next step's), then the
+// state indices of the current step's.
+@group(0) @binding(75) var<storage, read_write> mesh_near: array<atomic<u32>>;
 
 // Where a wall is at one time and how its points move.
 struct Pose {
@@ -122,11 +130,31 @@ fn closest_point(tri: u32, p: vec3<f32>) -> vec3<f32> {
     return p - n * dot3(ap, n);
 }
 
-// A sphere's candidates of one wall: distance² and triangle, nearest first.
+// A sphere's candidates of one wall: distance² and triangle, nearest first; and its contacts
+// kept so far: rest normal and distance.
 var<private> near_d2: array<f32, MESH_NEAR>;
 var<private> near_tri: array<u32, MESH_NEAR>;
-// Its contacts kept so far: rest normal and distance.
 var<private> kept_plane: array<vec4<f32>, MESH_NEAR>;
+
+// The offset in mesh_grid of the cell of wall m's grid that holds the rest point p (its
+// triangles run from mesh_grid[cell] to mesh_grid[cell + 1]), or NO_CELL outside the grid.
+const NO_CELL: u32 = 0xffffffffu;
+
+fn cell_holding(m: MeshWall, p: vec3<f32>) -> u32 {
+    let at = (p - m.lo) / m.cell;
+    // Written so that a non-finite centre (an unstable run, stopped by the host at the next
+    // read) is in no cell.
+    if !(all(at >= vec3(0.0)) && all(at < vec3<f32>(m.dims))) {
+        return NO_CELL;
+    }
+    let c = vec3<u32>(at);
+    return m.first_cell + c.x + m.dims.x * (c.y + m.dims.y * c.z);
+}
+
+// Whether the cell (of cell_holding) lists triangles.
+fn lists_triangles(cell: u32) -> bool {
+    return cell != NO_CELL && mesh_grid[cell] < mesh_grid[cell + 1u];
+}
 
 // Adds x to the f32 whose bits are mesh_loads[k].
 fn add_load(k: u32, x: f32) {
@@ -140,56 +168,35 @@ fn add_load(k: u32, x: f32) {
     }
 }
 
-// Lists wall m's triangles within distance r of the rest point p into near_*, nearest first;
-// returns how many there were (more than MESH_NEAR: the farthest were dropped).
-fn mesh_candidates(m: MeshWall, p: vec3<f32>, r: f32) -> u32 {
-    let lo = (p - vec3(r) - m.lo) / m.cell;
-    let hi = (p + vec3(r) - m.lo) / m.cell;
-    let top = vec3<f32>(m.dims);
-    // Written so that a non-finite centre (an unstable run, stopped by the host at the next
-    // read) takes no cells rather than every cell.
-    if !(all(hi >= vec3(0.0)) && all(lo < top)) {
-        return 0u;
-    }
-    let first = vec3<u32>(max(floor(lo), vec3(0.0)));
-    let last = min(vec3<u32>(floor(hi)), m.dims - vec3(1u));
+// Lists the triangles of `cell` within distance r of the rest point p (in it) into near_*,
+// nearest first; returns how many there were (more than MESH_NEAR: the farthest were dropped).
+// A cell lists each triangle that comes within the largest radius of it once.
+fn mesh_candidates(cell: u32, p: vec3<f32>, r: f32) -> u32 {
     var found = 0u;
-    for (var z = first.z; z <= last.z; z += 1u) {
-        for (var y = first.y; y <= last.y; y += 1u) {
-            for (var x = first.x; x <= last.x; x += 1u) {
-                let cell = m.first_cell + x + m.dims.x * (y + m.dims.y * z);
-                for (var k = mesh_grid[cell]; k < mesh_grid[cell + 1u]; k += 1u) {
-                    let tri = mesh_grid[k];
-                    let q = closest_point(tri, p);
-                    let d2 = dot3(q - p, q - p);
-                    if d2 >= r * r || d2 <= 0.0 {
-                        continue;
-                    }
-                    // A triangle listed in two of the cells is one candidate.
-                    let held = min(found, MESH_NEAR);
-                    var seen = false;
-                    for (var j = 0u; j < held; j += 1u) {
-                        seen = seen || near_tri[j] == tri;
-                    }
-                    if seen {
-                        continue;
-                    }
-                    found += 1u;
-                    if held == MESH_NEAR && d2 >= near_d2[MESH_NEAR - 1u] {
-                        continue;
-                    }
-                    // Insertion by distance, equal distances in the order met.
-                    var j = min(held, MESH_NEAR - 1u);
-                    while j > 0u && near_d2[j - 1u] > d2 {
-                        near_d2[j] = near_d2[j - 1u];
-                        near_tri[j] = near_tri[j - 1u];
-                        j -= 1u;
-                    }
-                    near_d2[j] = d2;
-                    near_tri[j] = tri;
-                }
-            }
+    for (var k = mesh_grid[cell]; k < mesh_grid[cell + 1u]; k += 1u) {
+        let tri = mesh_grid[k];
+        let q = closest_point(tri, p);
+        let d2 = dot3(q - p, q - p);
+        if d2 >= r * r || d2 <= 0.0 {
+            continue;
         }
+        let held = min(found, MESH_NEAR);
+        found += 1u;
+        if held == MESH_NEAR && d2 >= near_d2[MESH_NEAR - 1u] {
+            continue;
+        }
+        // Insertion by distance, equal distances in the order met.
+        var j = held;
+        if j == MESH_NEAR {
+            j = MESH_NEAR - 1u;
+        }
+        while j > 0u && near_d2[j - 1u] > d2 {
+            near_d2[j] = near_d2[j - 1u];
+            near_tri[j] = near_tri[j - 1u];
+            j -= 1u;
+        }
+        near_d2[j] = d2;
+        near_tri[j] = tri;
     }
     return found;
 }
@@ -206,95 +213,166 @@ fn own_old_slot_from(w: ptr<function, Walker>, partner: u32, first: u32) -> u32 
     return s;
 }
 
-// The walker's contacts with every mesh wall at time t: their force and torque added to the
-// walker's, their springs kept; in step mesh.loads_step (`summing`) their reactions added to
-// the walls' loads.
-fn mesh_contacts(w: ptr<function, Walker>, t: f32, summing: bool) {
+// The walker's contacts with wall `wall` (m, at `pose`; p: its centre in the rest geometry):
+// their force and torque added to the walker's, their springs kept; in step mesh.loads_step
+// (`summing`) their reactions added to the wall's loads.
+fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, cell: u32, p: vec3<f32>, summing: bool) {
     let b = (*w).me;
-    for (var wall = 0u; wall < mesh.walls; wall += 1u) {
-        let m = mesh_walls[wall];
-        let pose = pose_at(m, t);
-        let inverse = vec4(-pose.q.xyz, pose.q.w);
-        let p = rotate(inverse, b.c - pose.offset);
-        let found = mesh_candidates(m, p, b.r);
-        if found == 0u {
+    let found = mesh_candidates(cell, p, b.r);
+    if found == 0u {
+        return;
+    }
+    if found > MESH_NEAR {
+        atomicMax(&mesh_loads[8u * mesh.walls * mesh.load_lanes], found);
+    }
+    // The contacts kept so far: rest normal and distance.
+    let partner = FIRST_MESH_WALL + wall;
+    var force = vec3(0.0);
+    var torque = vec3(0.0);
+    var kept = 0u;
+    var next_old = 0u;
+    let slack = ON_PLANE * b.r;
+    for (var k = 0u; k < min(found, MESH_NEAR); k += 1u) {
+        let q = closest_point(near_tri[k], p);
+        let to = q - p;
+        var covered = false;
+        for (var j = 0u; j < kept; j += 1u) {
+            covered = covered || dot3(to, kept_plane[j].xyz) >= kept_plane[j].w - slack;
+        }
+        if covered {
             continue;
         }
-        if found > MESH_NEAR {
-            atomicMax(&mesh_loads[8u * mesh.walls * mesh.load_lanes], found);
-        }
-        let partner = FIRST_MESH_WALL + wall;
-        var force = vec3(0.0);
-        var torque = vec3(0.0);
-        var kept = 0u;
-        var next_old = 0u;
-        let slack = ON_PLANE * b.r;
-        for (var k = 0u; k < min(found, MESH_NEAR); k += 1u) {
-            let q = closest_point(near_tri[k], p);
-            let to = q - p;
-            var covered = false;
-            for (var j = 0u; j < kept; j += 1u) {
-                covered = covered || dot3(to, kept_plane[j].xyz) >= kept_plane[j].w - slack;
-            }
-            if covered {
-                continue;
-            }
-            let d = sqrt(near_d2[k]);
-            let n_rest = to / d;
-            kept_plane[kept] = vec4(n_rest, d);
-            kept += 1u;
-            let point = rotate(pose.q, q) + pose.offset;
-            let n = rotate(pose.q, n_rest);
-            let surface_velocity = pose.velocity + cross(pose.spin, point - pose.centre);
-            var old = Springs(vec3(0.0), vec3(0.0));
-            if granular.slots > 0u {
-                let s = own_old_slot_from(w, partner, next_old);
-                if s < (*w).kept {
-                    old = own_old_springs(w, s);
-                    next_old = s + 1u;
-                } else {
-                    next_old = (*w).kept;
-                }
-            }
-            // d < r, but the GPU's square root may round up (see pair_contact).
-            let overlap = max(b.r - d, 0.0);
-            let c = surface_contact(b, n, overlap, surface_velocity, m.friction, old);
-            force += c.force;
-            torque += c.torque;
-            if granular.slots > 0u {
-                keep_springs(w, partner, c.springs);
+        let d = sqrt(near_d2[k]);
+        let n_rest = to / d;
+        kept_plane[kept] = vec4(n_rest, d);
+        kept += 1u;
+        let point = rotate(pose.q, q) + pose.offset;
+        let n = rotate(pose.q, n_rest);
+        let surface_velocity = pose.velocity + cross(pose.spin, point - pose.centre);
+        var old = Springs(vec3(0.0), vec3(0.0));
+        if granular.slots > 0u {
+            let s = own_old_slot_from(w, partner, next_old);
+            if s < (*w).kept {
+                old = own_old_springs(w, s);
+                next_old = s + 1u;
+            } else {
+                next_old = (*w).kept;
             }
         }
-        (*w).force += force;
-        (*w).torque += torque;
-        if summing {
-            // The wall takes the opposite force and the opposite angular impulse about its
-            // centre.
-            let about = -(cross(b.c - pose.centre, force) + torque);
-            let at = 8u * ((*w).p % mesh.load_lanes * mesh.walls + wall);
-            for (var a = 0u; a < 3u; a += 1u) {
-                add_load(at + a, -force[a]);
-                add_load(at + 4u + a, about[a]);
-            }
+        // d < r, but the GPU's square root may round up (see pair_contact).
+        let overlap = max(b.r - d, 0.0);
+        let c = surface_contact(b, n, overlap, surface_velocity, m.friction, old);
+        force += c.force;
+        torque += c.torque;
+        if granular.slots > 0u {
+            keep_springs(w, partner, c.springs);
+        }
+    }
+    (*w).force += force;
+    (*w).torque += torque;
+    if summing {
+        // The wall takes the opposite force and the opposite angular impulse about its
+        // centre.
+        let about = -(cross(b.c - pose.centre, force) + torque);
+        let at = 8u * ((*w).p % mesh.load_lanes * mesh.walls + wall);
+        for (var a = 0u; a < 3u; a += 1u) {
+            add_load(at + a, -force[a]);
+            add_load(at + 4u + a, about[a]);
         }
     }
 }
 
-// Sphere p's (state index) mesh-wall contacts, after the contact pass wrote its row of the new
-// history and added its other forces: the contacts appended to the row (the count raised past
-// the slots as the contact pass does), their force and torque added to p's accumulators.
+// Where wall m is at time t, and the rest point of the world point c.
+struct Seen {
+    pose: Pose,
+    p: vec3<f32>,
+}
+
+fn seen_from(m: MeshWall, t: f32, c: vec3<f32>) -> Seen {
+    let pose = pose_at(m, t);
+    let inverse = vec4(-pose.q.xyz, pose.q.w);
+    return Seen(pose, rotate(inverse, c - pose.offset));
+}
+
+// Whether the cell of some mesh wall's grid holding the centre c at time t lists triangles:
+// the spheres for which none does (most of them) have nothing to do.
+fn near_mesh_walls(c: vec3<f32>, t: f32) -> bool {
+    for (var wall = 0u; wall < mesh.walls; wall += 1u) {
+        let m = mesh_walls[wall];
+        if lists_triangles(cell_holding(m, seen_from(m, t, c).p)) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// The walker's contacts with every mesh wall at time t (`wall_contacts`).
+fn mesh_contacts(w: ptr<function, Walker>, t: f32, summing: bool) {
+    let b = (*w).me;
+    for (var wall = 0u; wall < mesh.walls; wall += 1u) {
+        let m = mesh_walls[wall];
+        let seen = seen_from(m, t, b.c);
+        let cell = cell_holding(m, seen.p);
+        if lists_triangles(cell) {
+            wall_contacts(w, wall, m, seen.pose, cell, seen.p, summing);
+        }
+    }
+}
+
+// The listing's room of a workgroup: its spheres near a wall, and where they go in mesh_near.
+var<workgroup> group_near: atomic<u32>;
+var<workgroup> group_first: u32;
+
+// Lists sphere p (state index) in mesh_near where the cell of some mesh wall's grid holding it
+// lists triangles (`near_mesh_walls`), a workgroup's spheres in one block (one atomic per
+// workgroup on the count).
+@compute @workgroup_size(256)
+fn mesh_walls_near(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let p = gid.x + gid.y * dem.row;
+    let step = atomicLoad(&clock) - 1u;
+    let parity = step & 1u;
+    if lid == 0u {
+        atomicStore(&group_near, 0u);
+    }
+    workgroupBarrier();
+    var near = false;
+    if p < dem.n {
+        near = near_mesh_walls(pos[p].xyz, f32(step) * dem.dt);
+    }
+    var at = 0u;
+    if near {
+        at = atomicAdd(&group_near, 1u);
+    }
+    workgroupBarrier();
+    if lid == 0u {
+        group_first = atomicAdd(&mesh_near[parity], atomicLoad(&group_near));
+    }
+    if p == 0u {
+        atomicStore(&mesh_near[1u - parity], 0u);
+    }
+    let first = workgroupUniformLoad(&group_first);
+    if near {
+        atomicStore(&mesh_near[2u + first + at], p);
+    }
+}
+
+// The mesh-wall contacts of the listed sphere `gid` of this step (mesh_walls_near), after the
+// contact pass wrote its row of the new history and added its other forces: the contacts
+// appended to the row (the count raised past the slots as the contact pass does), their force
+// and torque added to the sphere's accumulators.
 @compute @workgroup_size(256)
 fn mesh_wall_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let p = gid.x + gid.y * dem.row;
-    if p >= dem.n {
+    let k = gid.x + gid.y * dem.row;
+    let step = atomicLoad(&clock) - 1u;
+    if k >= atomicLoad(&mesh_near[step & 1u]) {
         return;
     }
+    let p = atomicLoad(&mesh_near[2u + k]);
     var w = walker(p);
     if granular.slots > 0u {
         // Past the slots the batch is redone anyway (history_need is raised already).
         w.held = held_new[p];
     }
-    let step = atomicLoad(&clock) - 1u;
     mesh_contacts(&w, f32(step) * dem.dt, step == mesh.loads_step);
     add_force(p, w.force);
     if granular.turns != 0u {

@@ -362,7 +362,13 @@ impl Granular {
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
         let make = |what: &str, bytes: u64| gpu.storage(&label(what), bytes, none);
-        let mesh = MeshWalls::new(gpu, walls, particles.radius_range().1, engine)?;
+        let mesh = MeshWalls::new(
+            gpu,
+            walls,
+            particles.len(),
+            particles.radius_range().1,
+            engine,
+        )?;
         let granular = gpu.checked("allocating the granular step's buffers", || Self {
             params: gpu_params,
             uniform: gpu.uniform(&label("granular"), &gpu_params),
@@ -430,12 +436,15 @@ impl Granular {
         all
     }
 
-    /// Bindings of the mesh walls' kernel of a step of parity `parity` (beside the state's),
-    /// `None` without mesh walls (the kernel is not dispatched).
-    pub fn mesh_bindings(&self, parity: usize) -> Option<Vec<(Binding, &wgpu::Buffer)>> {
-        let mut all = self.resolve_bindings(parity);
-        all.extend(self.mesh.bindings());
-        self.mesh.any().then_some(all)
+    /// Bindings of the mesh walls' kernels of a step of parity `parity`, in the order of
+    /// [`ENTRY_POINTS`](super::gpu_walls::ENTRY_POINTS), beside the state's (the listing reads
+    /// `dem`, `pos` and `clock`; the contacts read what the contact pass reads); `None` without
+    /// mesh walls (the kernels are not dispatched).
+    pub fn mesh_bindings(&self, parity: usize) -> Option<[Vec<(Binding, &wgpu::Buffer)>; 2]> {
+        let mut contacts = self.resolve_bindings(parity);
+        contacts.extend(self.mesh.bindings());
+        let near = self.mesh.near_bindings().to_vec();
+        self.mesh.any().then_some([near, contacts])
     }
 
     /// Bindings of the integration kernel of a step of parity `parity`.
@@ -485,7 +494,7 @@ impl Granular {
         state: &[&wgpu::Buffer],
     ) {
         encoder.clear_buffer(&self.need, 0, None);
-        self.mesh.clear_loads(encoder);
+        self.mesh.clear_sums(encoder);
         if !self.keeps_history() {
             return;
         }

@@ -1,8 +1,10 @@
 //! The mesh walls of the wgpu engines' granular step (`wgsl/dem_mesh_walls.wgsl`): each wall's
 //! triangles in their rest geometry, listed in the cells of a uniform grid over them that they
 //! pass through; each wall's motion, from which the shader takes its pose at the step's time;
-//! and the loads on the walls, summed in the last step of each advance and read back after it.
-//! Every granular step binds these (with no mesh walls: a wall count of 0 and minimal buffers).
+//! and the loads on the walls, summed in the last step of each advance and read back after it;
+//! and the list of the spheres near a wall, which the walls' first kernel makes each step for
+//! their second. Every granular step binds these (with no mesh walls: a wall count of 0 and
+//! minimal buffers).
 
 use crate::dem::walls::{TriangleMesh, WallLoad, WallSet};
 use crate::error::{Error, Result};
@@ -18,12 +20,24 @@ pub const MESH_WALLS: Binding = Binding::read(71, "mesh_walls");
 pub const MESH_GRID: Binding = Binding::read(72, "mesh_grid");
 pub const MESH_TRIS: Binding = Binding::read(73, "mesh_tris");
 pub const MESH_LOADS: Binding = Binding::read_write(74, "mesh_loads");
+pub const MESH_NEAR_LIST: Binding = Binding::read_write(75, "mesh_near");
 
 /// The bindings the mesh walls add to the granular module (the contact pass reads [`MESH`],
-/// whether the box walls hold; the mesh walls' kernel reads them all).
-pub fn bindings() -> [Binding; 5] {
-    [MESH, MESH_WALLS, MESH_GRID, MESH_TRIS, MESH_LOADS]
+/// whether the box walls hold; the mesh walls' kernels read the others).
+pub fn bindings() -> [Binding; 6] {
+    [
+        MESH,
+        MESH_WALLS,
+        MESH_GRID,
+        MESH_TRIS,
+        MESH_LOADS,
+        MESH_NEAR_LIST,
+    ]
 }
+
+/// The mesh walls' kernels, in the order a step dispatches them: the listing of the spheres
+/// near a wall, then their contacts.
+pub const ENTRY_POINTS: [&str; 2] = ["mesh_walls_near", "mesh_wall_contacts"];
 
 /// Candidates within a sphere's radius kept per wall (`MESH_NEAR` in the shader).
 const MESH_NEAR: u32 = 16;
@@ -100,12 +114,12 @@ struct WallGrid {
     cells: Vec<Vec<u32>>,
 }
 
-/// The grid over `mesh`'s rest geometry: cells of the largest sphere's diameter `reach` (a
-/// sphere's box then overlaps at most 8, each holding only the triangles near it), larger
-/// where the bounds would need more cells than the budget; each triangle listed in every cell
-/// it passes through (its box enlarged by 1 %: rounding where the shader finds a sphere's
-/// cells then never misses one).
-fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
+/// The grid over `mesh`'s rest geometry grown by the largest sphere radius `r_max`: cells of
+/// the largest diameter, larger where the bounds would need more cells than the budget; each
+/// triangle listed in every cell whose box grown by `r_max` it meets (a sphere's candidates are
+/// then the triangles of the one cell holding its centre, each once). The boxes are grown by
+/// 1 % more of a cell: rounding where the shader finds a centre's cell then never misses one.
+fn wall_grid(mesh: &TriangleMesh, r_max: f32, first_triangle: u32) -> WallGrid {
     let triangles = mesh.triangles();
     let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
     for t in triangles {
@@ -114,11 +128,12 @@ fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
             hi = hi.max(c);
         }
     }
+    let (lo, hi) = (lo - Vec3::splat(r_max), hi + Vec3::splat(r_max));
     let budget = CELLS_PER_TRIANGLE * triangles.len();
-    let (cell, dims) = grid_cell(hi - lo, reach, budget);
+    let (cell, dims) = grid_cell(hi - lo, 2.0 * r_max, budget);
     let lo = lo - Vec3::splat(0.5 * cell);
     let mut cells = vec![Vec::new(); dims.iter().map(|&d| d as usize).product()];
-    let half = 0.5 * cell * 1.01;
+    let grown = 0.5 * cell * 1.01 + r_max;
     let index = |x: f32| x.floor().max(0.0) as u32;
     for (k, t) in triangles.iter().enumerate() {
         let (tlo, thi) = t
@@ -127,14 +142,16 @@ fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
             .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &c| {
                 (a.min(c), b.max(c))
             });
-        let from = ((tlo - lo) / cell - 0.01).to_array().map(index);
-        let to = ((thi - lo) / cell + 0.01).to_array();
+        let from = ((tlo - Vec3::splat(r_max) - lo) / cell - 0.01)
+            .to_array()
+            .map(index);
+        let to = ((thi + Vec3::splat(r_max) - lo) / cell + 0.01).to_array();
         let to: [u32; 3] = std::array::from_fn(|a| index(to[a]).min(dims[a] - 1));
         for z in from[2]..=to[2] {
             for y in from[1]..=to[1] {
                 for x in from[0]..=to[0] {
                     let centre = lo + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * cell;
-                    if meets_box(&t.corners, centre, half) {
+                    if meets_box(&t.corners, centre, grown) {
                         let at = x as usize
                             + dims[0] as usize * (y as usize + dims[1] as usize * z as usize);
                         cells[at].push(first_triangle + k as u32);
@@ -193,13 +210,21 @@ pub(crate) struct MeshWalls {
     grid: wgpu::Buffer,
     tris: wgpu::Buffer,
     loads: wgpu::Buffer,
+    near: wgpu::Buffer,
     last: Vec<WallLoad>,
     engine: &'static str,
 }
 
 impl MeshWalls {
     /// The walls `walls` for spheres up to radius `r_max`, on `gpu`, for the engine `engine`.
-    pub fn new(gpu: &Gpu, walls: &WallSet, r_max: f32, engine: &'static str) -> Result<Self> {
+    /// The walls of `walls` for a step of `spheres` spheres of radius at most `r_max`.
+    pub fn new(
+        gpu: &Gpu,
+        walls: &WallSet,
+        spheres: usize,
+        r_max: f32,
+        engine: &'static str,
+    ) -> Result<Self> {
         let mut rows = Vec::with_capacity(walls.meshes.len());
         let mut offsets: Vec<u32> = Vec::new();
         let mut listed: Vec<u32> = Vec::new();
@@ -214,7 +239,7 @@ impl MeshWalls {
                         .map(|v| v.extend(0.0).to_array()),
                 );
             }
-            let g = wall_grid(&wall.triangles, 2.0 * r_max, first_triangle);
+            let g = wall_grid(&wall.triangles, r_max, first_triangle);
             let m = wall.motion;
             rows.push(MeshWallRow {
                 lo: g.lo.into(),
@@ -271,6 +296,11 @@ impl MeshWalls {
                 (8 * rows.len() as u64 * load_lanes as u64 + 1) * 4,
                 none,
             ),
+            near: gpu.storage(
+                &label("mesh_near"),
+                (2 + if rows.is_empty() { 0 } else { spheres as u64 }) * 4,
+                none,
+            ),
             last: vec![WallLoad::default(); rows.len()],
             engine,
         })
@@ -281,13 +311,25 @@ impl MeshWalls {
         (MESH, &self.uniform)
     }
 
-    /// Bindings of the mesh walls' kernel besides [`params_binding`](Self::params_binding).
-    pub fn bindings(&self) -> [(Binding, &wgpu::Buffer); 4] {
+    /// Bindings of the listing kernel (`mesh_walls_near`) besides the state's.
+    pub fn near_bindings(&self) -> [(Binding, &wgpu::Buffer); 4] {
+        [
+            (MESH, &self.uniform),
+            (MESH_WALLS, &self.walls),
+            (MESH_GRID, &self.grid),
+            (MESH_NEAR_LIST, &self.near),
+        ]
+    }
+
+    /// Bindings of the contacts kernel (`mesh_wall_contacts`) besides
+    /// [`params_binding`](Self::params_binding) and the contact pass's.
+    pub fn bindings(&self) -> [(Binding, &wgpu::Buffer); 5] {
         [
             (MESH_WALLS, &self.walls),
             (MESH_GRID, &self.grid),
             (MESH_TRIS, &self.tris),
             (MESH_LOADS, &self.loads),
+            (MESH_NEAR_LIST, &self.near),
         ]
     }
 
@@ -304,10 +346,11 @@ impl MeshWalls {
         }
     }
 
-    /// Records the clearing of the loads ahead of a batch.
-    pub fn clear_loads(&self, encoder: &mut wgpu::CommandEncoder) {
+    /// Records the clearing of the loads and of the near lists' counts ahead of a batch.
+    pub fn clear_sums(&self, encoder: &mut wgpu::CommandEncoder) {
         if self.any() {
             encoder.clear_buffer(&self.loads, 0, None);
+            encoder.clear_buffer(&self.near, 0, Some(8));
         }
     }
 
@@ -356,40 +399,67 @@ impl MeshWalls {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn square(z: f32, side: f32) -> TriangleMesh {
-        let v = [
-            Vec3::new(0.0, 0.0, z),
-            Vec3::new(side, 0.0, z),
-            Vec3::new(side, side, z),
-            Vec3::new(0.0, side, z),
-        ];
-        TriangleMesh::new(&v, &[[0, 1, 2], [0, 2, 3]])
-    }
+    use rand::{RngExt, SeedableRng};
+    use rand_pcg::Pcg64;
 
     #[test]
-    fn every_point_of_a_triangle_is_in_a_cell_that_lists_it() {
-        let mesh = square(0.3, 1.0);
-        let g = wall_grid(&mesh, 0.05, 7);
+    fn every_point_near_a_triangle_is_in_a_cell_that_lists_it_and_no_cell_lists_a_far_one() {
+        // A tilted square, so that its faces and edges cross the cells anywhere.
+        let v = [
+            Vec3::new(0.0, 0.0, 0.3),
+            Vec3::new(1.0, 0.1, 0.5),
+            Vec3::new(1.1, 1.0, 0.7),
+            Vec3::new(0.1, 1.1, 0.5),
+        ];
+        let mesh = TriangleMesh::new(&v, &[[0, 1, 2], [0, 2, 3]]);
+        let r_max = 0.025;
+        let g = wall_grid(&mesh, r_max, 7);
         assert_eq!(g.cell, 0.05);
-        for i in 0..=40 {
-            for j in 0..=40 {
-                let p = Vec3::new(i as f32 / 40.0, j as f32 / 40.0, 0.3);
-                let c = ((p - g.lo) / g.cell).floor().as_uvec3();
-                let at = c.x as usize
-                    + g.dims[0] as usize * (c.y as usize + g.dims[1] as usize * c.z as usize);
-                let t = if j <= i { 7 } else { 8 };
-                assert!(g.cells[at].contains(&t), "{p} in cell {c} lacks {t}");
+        let cell_of = |p: Vec3| {
+            let c = ((p - g.lo) / g.cell).floor().as_uvec3();
+            c.x as usize + g.dims[0] as usize * (c.y as usize + g.dims[1] as usize * c.z as usize)
+        };
+        let triangles = mesh.triangles();
+        // Points around the square, off its faces and edges by up to r_max in each direction.
+        let mut rng = Pcg64::seed_from_u64(5);
+        let mut checked = 0;
+        for _ in 0..20_000 {
+            let (a, b) = (rng.random_range(-0.1..1.1), rng.random_range(-0.1..1.1));
+            let on = v[0] + (v[1] - v[0]) * a + (v[3] - v[0]) * b;
+            let off = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            let p = on + off * r_max;
+            for (k, t) in triangles.iter().enumerate() {
+                if t.closest_point(p).distance(p) < r_max {
+                    let listed = &g.cells[cell_of(p)];
+                    assert!(listed.contains(&(7 + k as u32)), "{p} lacks {k}");
+                    checked += 1;
+                }
             }
         }
-        // A flat square is listed in one layer of cells, each triangle in the cells it covers
-        // (half of them each, and those along the diagonal).
-        let listing: usize = g.cells.iter().map(Vec::len).sum();
-        let per_layer = (g.dims[0] * g.dims[1]) as usize;
-        assert!(
-            listing <= per_layer + 3 * g.dims[0] as usize,
-            "{listing} listings, {per_layer} per layer"
-        );
+        assert!(checked > 10_000, "{checked} points near the square");
+        // A cell lists a triangle only where its box grown by r_max meets it (its centre then
+        // within √3 times the grown half side).
+        let reach = 3f32.sqrt() * (0.5 * g.cell * 1.01 + r_max);
+        for (at, listed) in g.cells.iter().enumerate() {
+            let d = g.dims.map(|d| d as usize);
+            let c = Vec3::new(
+                (at % d[0]) as f32,
+                (at / d[0] % d[1]) as f32,
+                (at / d[0] / d[1]) as f32,
+            );
+            let centre = g.lo + (c + 0.5) * g.cell;
+            for &t in listed {
+                let t = &triangles[t as usize - 7];
+                assert!(
+                    t.closest_point(centre).distance(centre) <= reach,
+                    "cell {c} lists a far triangle"
+                );
+            }
+        }
         // A triangle off to the side of a cell is not listed in it.
         let far = [
             Vec3::new(1.0, 1.0, 0.0),

@@ -45,6 +45,7 @@ use crate::engines::gpu_step::{
     DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch,
     StepTimer, advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
+use crate::engines::gpu_walls;
 use crate::error::{Error, Result};
 use crate::gpu::radix_sort::{PreparedSort, RadixSort};
 use crate::gpu::shader::Binding;
@@ -68,8 +69,9 @@ struct Pipelines {
     bin_first: wgpu::ComputePipeline,
     bin_last: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
-    /// The mesh walls' kernel (granular step with mesh walls only).
-    mesh: Option<wgpu::ComputePipeline>,
+    /// The mesh walls' kernels (granular step with mesh walls only), in the order of
+    /// `gpu_walls::ENTRY_POINTS`.
+    mesh: Option<[wgpu::ComputePipeline; 2]>,
     integrate: wgpu::ComputePipeline,
     reduce_bounds: wgpu::ComputePipeline,
 }
@@ -79,7 +81,8 @@ struct Binds {
     bin_first: wgpu::BindGroup,
     bin_last: wgpu::BindGroup,
     resolve: wgpu::BindGroup,
-    mesh: Option<wgpu::BindGroup>,
+    /// The mesh walls' kernels', as `Pipelines::mesh`.
+    mesh: Option<[wgpu::BindGroup; 2]>,
     integrate: wgpu::BindGroup,
     reduce_bounds: wgpu::BindGroup,
 }
@@ -257,7 +260,7 @@ impl GridStepper {
             mesh: granular
                 .as_ref()
                 .is_some_and(|g| g.mesh().any())
-                .then(|| pipeline("mesh_wall_contacts")),
+                .then(|| gpu_walls::ENTRY_POINTS.map(pipeline)),
             integrate: pipeline("integrate"),
             reduce_bounds: pipeline("reduce_bounds"),
         };
@@ -603,18 +606,25 @@ impl GridStepper {
                 .granular
                 .as_ref()
                 .zip(p.mesh.as_ref())
-                .and_then(|(g, pipeline)| {
-                    let walls = g.mesh_bindings(from)?;
+                .and_then(|(g, [near, contacts])| {
+                    let [near_walls, walls] = g.mesh_bindings(from)?;
                     let state = [
                         (DEM, &self.dem_uniform),
                         (POS, &b.pos),
+                        (CLOCK, &self.clock),
                         (VEL, &b.vel),
                         (FORCE, &self.force),
-                        (CLOCK, &self.clock),
                         (IDS, &b.ids),
                         (CAME_FROM, g.came_from()),
                     ];
-                    Some(gpu.bind("mochi.dem.mesh_walls", pipeline, &joined(&state, &walls)))
+                    Some([
+                        gpu.bind(
+                            "mochi.dem.mesh_near",
+                            near,
+                            &joined(&state[..3], &near_walls),
+                        ),
+                        gpu.bind("mochi.dem.mesh_walls", contacts, &joined(&state, &walls)),
+                    ])
                 }),
             reduce_bounds: gpu.bind(
                 "mochi.dem.reduce_bounds",
@@ -647,8 +657,10 @@ impl GridStepper {
             }
             Phase::Resolve => {
                 gpu::record(pass, &p.resolve, &b.resolve, self.groups);
-                if let (Some(pipeline), Some(bind)) = (&p.mesh, &b.mesh) {
-                    gpu::record(pass, pipeline, bind, self.groups);
+                if let (Some(pipelines), Some(binds)) = (&p.mesh, &b.mesh) {
+                    for (pipeline, bind) in pipelines.iter().zip(binds) {
+                        gpu::record(pass, pipeline, bind, self.groups);
+                    }
                 }
             }
             Phase::Integrate => gpu::record(pass, &p.integrate, &b.integrate, self.groups),

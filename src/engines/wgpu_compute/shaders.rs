@@ -226,11 +226,12 @@ pub(crate) mod dem_grid {
         "integrate",
     ];
 
-    /// The entry points of the dense build's granular variant: the mesh walls' kernel too.
+    /// The entry points of the dense build's granular variant: the mesh walls' kernels too.
     pub const GRANULAR_ENTRY_POINTS: &[&str] = &[
         "bin_count",
         "bin_scatter",
         "resolve",
+        "mesh_walls_near",
         "mesh_wall_contacts",
         "reduce_bounds",
         "integrate",
@@ -243,6 +244,7 @@ pub(crate) mod dem_grid {
         "bin_keys",
         "bin_gather",
         "resolve",
+        "mesh_walls_near",
         "mesh_wall_contacts",
         "reduce_bounds",
         "integrate",

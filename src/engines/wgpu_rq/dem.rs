@@ -21,17 +21,23 @@ use crate::engines::gpu_step::{
     DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch,
     StepTimer, advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
+use crate::engines::gpu_walls;
 use crate::error::Result;
 use crate::gpu::{self, Gpu, Need};
 use crate::particles::Particles;
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 
+/// Labels of the mesh walls' kernels' dispatches and bind groups, in the order of
+/// `gpu_walls::ENTRY_POINTS`.
+const MESH_LABELS: [&str; 2] = ["mochi.dem.rq.mesh_near", "mochi.dem.rq.mesh_walls"];
+
 struct Pipelines {
     proxy_boxes: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
-    /// The mesh walls' kernel (granular step with mesh walls only).
-    mesh: Option<wgpu::ComputePipeline>,
+    /// The mesh walls' kernels (granular step with mesh walls only), in the order of
+    /// `gpu_walls::ENTRY_POINTS`.
+    mesh: Option<[wgpu::ComputePipeline; 2]>,
     integrate: wgpu::ComputePipeline,
 }
 
@@ -40,8 +46,8 @@ struct Binds {
     /// For the steps of each parity (which history they read, in the granular step; the same
     /// in the paper's).
     resolve: [wgpu::BindGroup; 2],
-    /// The mesh walls' kernel's, by parity as `resolve`.
-    mesh: Option<[wgpu::BindGroup; 2]>,
+    /// The mesh walls' kernels', by parity as `resolve`, each in the order of `Pipelines::mesh`.
+    mesh: Option<[[wgpu::BindGroup; 2]; 2]>,
     integrate: wgpu::BindGroup,
 }
 
@@ -132,7 +138,7 @@ impl RqStepper {
             mesh: granular
                 .as_ref()
                 .is_some_and(|g| g.mesh().any())
-                .then(|| pipeline("mesh_wall_contacts")),
+                .then(|| gpu_walls::ENTRY_POINTS.map(pipeline)),
             integrate: pipeline("integrate"),
         };
         let groups = gpu.grid(n, GROUP);
@@ -246,14 +252,12 @@ impl RedoableBatch for RqStepper {
                 &r.binds.resolve[parity],
                 self.groups,
             );
-            if let (Some(pipeline), Some(binds)) = (&p.mesh, &r.binds.mesh) {
-                gpu.dispatch(
-                    &mut encoder,
-                    "mochi.dem.rq.mesh_walls",
-                    pipeline,
-                    &binds[parity],
-                    self.groups,
-                );
+            if let (Some(pipelines), Some(binds)) = (&p.mesh, &r.binds.mesh) {
+                for ((pipeline, bind), label) in
+                    pipelines.iter().zip(&binds[parity]).zip(MESH_LABELS)
+                {
+                    gpu.dispatch(&mut encoder, label, pipeline, bind, self.groups);
+                }
             }
             parity = 1 - parity;
             StepTimer::mark(timer, &mut encoder, s, 2);
@@ -423,18 +427,30 @@ fn bind(
             ],
         ),
         resolve: [resolve(0), resolve(1)],
-        mesh: granular.zip(p.mesh.as_ref()).map(|(g, pipeline)| {
-            [0, 1].map(|parity| {
-                let mut all = vec![
-                    (DEM, dem),
-                    (POS, pos),
-                    (VEL, vel),
-                    (FORCE, force),
-                    (CLOCK, clock),
-                ];
-                all.extend(g.mesh_bindings(parity).into_iter().flatten());
-                gpu.bind("mochi.dem.rq.mesh_walls", pipeline, &all)
-            })
+        mesh: granular.zip(p.mesh.as_ref()).and_then(|(g, pipelines)| {
+            let state = [
+                (DEM, dem),
+                (POS, pos),
+                (CLOCK, clock),
+                (VEL, vel),
+                (FORCE, force),
+            ];
+            let bind = |parity: usize| -> Option<[wgpu::BindGroup; 2]> {
+                let [near, contacts] = g.mesh_bindings(parity)?;
+                Some([
+                    gpu.bind(
+                        MESH_LABELS[0],
+                        &pipelines[0],
+                        &[&state[..3], &near].concat(),
+                    ),
+                    gpu.bind(
+                        MESH_LABELS[1],
+                        &pipelines[1],
+                        &[&state[..], &contacts].concat(),
+                    ),
+                ])
+            };
+            Some([bind(0)?, bind(1)?])
         }),
         integrate: gpu.bind("mochi.dem.rq.integrate", &p.integrate, &integrate),
     }

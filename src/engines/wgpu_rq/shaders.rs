@@ -148,9 +148,14 @@ pub(crate) mod dem_rq {
 
     /// The entry points of every variant.
     pub const ENTRY_POINTS: &[&str] = &["proxy_boxes", "resolve", "integrate"];
-    /// The granular variant's: the mesh walls' kernel too.
-    pub const GRANULAR_ENTRY_POINTS: &[&str] =
-        &["proxy_boxes", "resolve", "mesh_wall_contacts", "integrate"];
+    /// The granular variant's: the mesh walls' kernels too.
+    pub const GRANULAR_ENTRY_POINTS: &[&str] = &[
+        "proxy_boxes",
+        "resolve",
+        "mesh_walls_near",
+        "mesh_wall_contacts",
+        "integrate",
+    ];
 
     pub const RQ_PARAMS: Binding = Binding::uniform(0, "rq");
     pub const BOXES: Binding = Binding::read_write(5, "boxes");
