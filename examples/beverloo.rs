@@ -10,10 +10,12 @@
 //! W^{2/5} against D, and compares the two fill heights.
 //!
 //! ```sh
-//! cargo run --release --example beverloo [-- [--settle S] [--window W] SPHERES [D/d ...]]
+//! cargo run --release --example beverloo [-- [--settle S] [--window W] [--seed N] [--one-fill]
+//!     SPHERES [D/d ...]]
 //! ```
-//! (defaults: settle 0.1 s, window 0.4 s, 1500 spheres at the smallest D, D/d = 4, 5, 6 with d
-//! the mean diameter, 8 mm).
+//! (defaults: settle 0.1 s, window 0.4 s, the scene's seed, 1500 spheres at the smallest D,
+//! D/d = 4, 5, 6 with d the mean diameter, 8 mm; `--one-fill` leaves out the taller fill, so
+//! that runs of several seeds and fills can go side by side).
 
 use mochi::dem::equipment::mass_flow_rate;
 use mochi::dem::model::mass;
@@ -43,15 +45,28 @@ struct Drain {
     seconds: f64,
 }
 
-fn drain(orifice: f64, spheres: usize, (settle, window): (f64, f64)) -> mochi::Result<Drain> {
+/// How the drains run.
+struct Plan {
+    /// From the gate's opening to the window's start \[s\].
+    settle: f64,
+    /// The window's length \[s\].
+    window: f64,
+    /// The scene's seed (its default where `None`).
+    seed: Option<u64>,
+    /// Whether the middle orifice is drained again with twice the spheres.
+    taller: bool,
+}
+
+fn drain(orifice: f64, spheres: usize, plan: &Plan) -> mochi::Result<Drain> {
     let clock = Instant::now();
-    let overrides = [
+    let mut overrides = vec![
         "scene=hopper".to_owned(),
         format!("spheres={spheres}"),
         format!("hopper_orifice={orifice}"),
         format!("hopper_open={OPEN}"),
         "frame_every=0".to_owned(),
     ];
+    overrides.extend(plan.seed.map(|s| format!("seed={s}")));
     let start = SceneConfig::load(None, &overrides)?.build()?;
     let (dt, density) = (start.params.dt as f64, start.params.density);
     let cylinder = 2.5 * orifice;
@@ -63,7 +78,7 @@ fn drain(orifice: f64, spheres: usize, (settle, window): (f64, f64)) -> mochi::R
     let mut samples = Vec::new();
     let mut bulk = None;
     let mut t = 0.0;
-    let (from, to) = (OPEN + settle, OPEN + settle + window);
+    let (from, to) = (OPEN + plan.settle, OPEN + plan.settle + plan.window);
     while t < to {
         stepper.advance(SAMPLE)?;
         t += SAMPLE as f64 * dt;
@@ -124,16 +139,29 @@ fn line(points: &[(f64, f64)]) -> (f64, f64) {
 
 fn main() -> mochi::Result<()> {
     let mut args = std::env::args().skip(1).peekable();
-    let mut timing = (SETTLING, WINDOW);
+    let mut plan = Plan {
+        settle: SETTLING,
+        window: WINDOW,
+        seed: None,
+        taller: true,
+    };
+    let usage = || -> ! {
+        eprintln!(
+            "usage: beverloo [--settle S] [--window W] [--seed N] [--one-fill] [SPHERES [D/d ...]]"
+        );
+        std::process::exit(2)
+    };
     while let Some(flag) = args.next_if(|a| a.starts_with("--")) {
-        let value: Option<f64> = args.next().and_then(|v| v.parse().ok());
-        match (flag.as_str(), value) {
-            ("--settle", Some(v)) => timing.0 = v,
-            ("--window", Some(v)) => timing.1 = v,
-            _ => {
-                eprintln!("usage: beverloo [--settle S] [--window W] [SPHERES [D/d ...]]");
-                std::process::exit(2);
-            }
+        if flag == "--one-fill" {
+            plan.taller = false;
+            continue;
+        }
+        let value = args.next().unwrap_or_else(|| usage());
+        match flag.as_str() {
+            "--settle" => plan.settle = value.parse().unwrap_or_else(|_| usage()),
+            "--window" => plan.window = value.parse().unwrap_or_else(|_| usage()),
+            "--seed" => plan.seed = Some(value.parse().unwrap_or_else(|_| usage())),
+            _ => usage(),
         }
     }
     let spheres: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(1500);
@@ -161,14 +189,19 @@ fn main() -> mochi::Result<()> {
     let spheres_at = |ratio: f64| (spheres as f64 * (ratio / smallest).powi(3)).round() as usize;
     let mut drains = Vec::new();
     for &ratio in &ratios {
-        let r = drain(ratio * d, spheres_at(ratio), timing)?;
+        let r = drain(ratio * d, spheres_at(ratio), &plan)?;
         show(&r);
         drains.push(r);
     }
     let middle_ratio = ratios[ratios.len() / 2];
     let middle = middle_ratio * d;
-    let taller = drain(middle, 2 * spheres_at(middle_ratio), timing)?;
-    show(&taller);
+    let taller = if plan.taller {
+        let taller = drain(middle, 2 * spheres_at(middle_ratio), &plan)?;
+        show(&taller);
+        Some(taller)
+    } else {
+        None
+    };
     let g: f64 = 9.81;
     let bulk = drains.iter().map(|r| r.bulk).sum::<f64>() / drains.len() as f64;
     let points: Vec<(f64, f64)> = drains
@@ -186,6 +219,9 @@ fn main() -> mochi::Result<()> {
              C ≈ 0.58, k ≈ 1.4–1.5)"
         );
     }
+    let Some(taller) = taller else {
+        return Ok(());
+    };
     let same = drains
         .iter()
         .find(|r| r.orifice == middle)
