@@ -6,6 +6,7 @@
 use crate::detect::{Backend, BackendInfo};
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::PairOutput;
+use crate::gpu::pair_sort::PairSort;
 use crate::gpu::timer::{self, GpuTimer, Span};
 use crate::gpu::{self, Gpu};
 use crate::proxy::ProxyMode;
@@ -93,6 +94,8 @@ pub(crate) struct WgpuDetection<S> {
     /// Backend name, as in [`BackendInfo::name`] (for messages).
     name: &'static str,
     built: Option<Built<S>>,
+    /// Sorts the pairs of every detection.
+    sort: PairSort,
     timer: Option<GpuTimer>,
     times: GpuTimes,
 }
@@ -134,6 +137,7 @@ impl<S> WgpuDetection<S> {
     pub fn new(name: &'static str, gpu: Gpu) -> Self {
         WgpuDetection {
             timer: GpuTimer::new(&gpu, 2),
+            sort: PairSort::new(&gpu),
             gpu,
             name,
             built: None,
@@ -263,20 +267,23 @@ impl<S> WgpuDetection<S> {
         let (x, y) = gpu.grid(built.n, kernel.group);
         let (n, mode) = (built.n, built.mode);
         let timer = self.timer.as_ref();
-        let result = built.output.detect(gpu, collect, |output, capacity| {
-            let run = DetectRun {
-                n,
-                mode,
-                capacity,
-                row: x * kernel.group,
-            };
-            gpu.checked(kernel.what, || {
-                let group = bind(gpu, structure, output, run);
-                gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
-                    gpu.dispatch(encoder, kernel.label, kernel.pipeline, &group, (x, y));
-                });
-            })
-        })?;
+        let sort = (&mut self.sort, n);
+        let result = built
+            .output
+            .detect(gpu, collect, sort, |output, capacity| {
+                let run = DetectRun {
+                    n,
+                    mode,
+                    capacity,
+                    row: x * kernel.group,
+                };
+                gpu.checked(kernel.what, || {
+                    let group = bind(gpu, structure, output, run);
+                    gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
+                        gpu.dispatch(encoder, kernel.label, kernel.pipeline, &group, (x, y));
+                    });
+                })
+            })?;
         self.times.detect_ms = timer::read_ms(gpu, timer, DETECT_SPAN)?;
         Ok(result)
     }

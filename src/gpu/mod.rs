@@ -2,6 +2,7 @@
 //! pipelines, dispatch sizes and read-back, with every GPU failure turned into an [`Error`].
 
 pub mod pair_output;
+pub mod pair_sort;
 pub mod radix_sort;
 pub mod scan;
 pub mod shader;
@@ -14,9 +15,10 @@ use shader::WgslModule;
 use std::sync::OnceLock;
 use wgpu::WriteOnly;
 
-/// The WGSL modules of the shared plumbing (scan and radix sort), exactly as the device gets them.
+/// The WGSL modules of the shared plumbing (scan, radix sort and the pairs' split and join),
+/// exactly as the device gets them.
 pub fn shaders() -> Vec<WgslModule> {
-    vec![scan::module(), radix_sort::module()]
+    vec![scan::module(), radix_sort::module(), pair_sort::module()]
 }
 
 /// Bytes of one box in a BLAS's AABB input: two `vec3<f32>`, min then max (as

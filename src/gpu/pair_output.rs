@@ -1,13 +1,14 @@
 //! The pair output of the detection shaders (`wgsl/pair_output.wgsl`): a counter that counts
 //! every pair, a buffer that keeps as many as fit, and the host loop that grows the buffer and
-//! reruns until every pair fits. Nothing is ever truncated.
+//! reruns until every pair fits, then sorts the pairs on the GPU ([`PairSort`]) and reads them
+//! back. Nothing is ever truncated.
 
+use super::pair_sort::PairSort;
 use super::shader::Binding;
 use super::{Gpu, Staging};
 use crate::error::{Error, Result};
 use crate::types::DetectStats;
 use crate::types::Pair;
-use rayon::slice::ParallelSliceMut;
 
 /// The counters in every detection shader (`pair_output.wgsl`).
 pub const COUNTERS: Binding = Binding::read_write(3, "counters");
@@ -43,14 +44,16 @@ impl PairOutput {
         }
     }
 
-    /// Runs a detection: zeroes [`Self::counters`] (an upload, ahead of the commands submitted
-    /// next, so no clear is recorded into the timed work) and calls `run(capacity)`, which must
-    /// submit the shader with this output bound. With `collect`, grows the buffer until every
-    /// pair fits and returns the pairs sorted; without, only counts.
+    /// Runs a detection over `spheres` spheres: zeroes [`Self::counters`] (an upload, ahead of
+    /// the commands submitted next, so no clear is recorded into the timed work) and calls
+    /// `run(capacity)`, which must submit the shader with this output bound. With `collect`,
+    /// grows the buffer until every pair fits and returns the pairs sorted (by `sort`, on the
+    /// GPU); without, only counts.
     pub fn detect(
         &mut self,
         gpu: &Gpu,
         collect: bool,
+        (sort, spheres): (&mut PairSort, u32),
         mut run: impl FnMut(&PairOutput, u32) -> Result<()>,
     ) -> Result<(Vec<Pair>, DetectStats)> {
         loop {
@@ -70,9 +73,13 @@ impl PairOutput {
                 self.grow(gpu, counters[0])?;
                 continue;
             }
-            let mut pairs: Vec<Pair> =
+            gpu.checked("sorting the pairs", || {
+                let mut encoder = gpu.device.create_command_encoder(&Default::default());
+                sort.encode(gpu, &mut encoder, &self.pairs, counters[0], spheres);
+                gpu.queue.submit([encoder.finish()]);
+            })?;
+            let pairs =
                 gpu.read_through(&mut self.pairs_back, &self.pairs, counters[0] as usize)?;
-            pairs.par_sort_unstable();
             return Ok((pairs, stats));
         }
     }
