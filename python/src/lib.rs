@@ -120,9 +120,12 @@ fn parse_mode(name: &str) -> PyResult<ProxyMode> {
 }
 
 /// Pairs as the rows `i, j` of a `(P, 2)` array, sorted; on the rayon pool (the GIL released by
-/// the caller), one pass to sort and one to write.
+/// the caller): a pass that checks the order (the GPU backends sort the pairs already), a sort
+/// where it is not, and one pass to write.
 fn sorted_rows(mut pairs: Vec<Pair>) -> Vec<i64> {
-    pairs.par_sort_unstable();
+    if !pairs.par_windows(2).all(|w| w[0] < w[1]) {
+        pairs.par_sort_unstable();
+    }
     let mut rows = vec![0_i64; 2 * pairs.len()];
     rows.par_chunks_exact_mut(2)
         .zip(&pairs)
