@@ -234,13 +234,17 @@ pub(crate) fn core_bounds(spheres: &SphereSet) -> Option<([f32; 3], [f32; 3])> {
     let (lo, hi) = spheres.bounds()?;
     let centers = spheres.centers();
     let step = centers.len().div_ceil(BOUNDS_SAMPLE).max(1);
+    // One pass over the sample (each sampled centre is a cache miss), then the two quantiles of
+    // each axis by selection.
+    let sample: Vec<[f32; 3]> = centers.iter().step_by(step).copied().collect();
     let mut core_lo = lo;
     let mut core_hi = hi;
     for a in 0..3 {
-        let mut axis: Vec<f32> = centers.iter().step_by(step).map(|c| c[a]).collect();
-        axis.sort_unstable_by(f32::total_cmp);
+        let mut axis: Vec<f32> = sample.iter().map(|c| c[a]).collect();
         let k = (axis.len() as f64 * OUTLIER_FRACTION) as usize;
-        let (q_lo, q_hi) = (axis[k], axis[axis.len() - 1 - k]);
+        let last = axis.len() - 1 - k;
+        let q_hi = *axis.select_nth_unstable_by(last, f32::total_cmp).1;
+        let q_lo = *axis[..=last].select_nth_unstable_by(k, f32::total_cmp).1;
         let widen = 0.01 * (q_hi - q_lo);
         core_lo[a] = (q_lo - widen).max(lo[a]);
         core_hi[a] = (q_hi + widen).min(hi[a]);
