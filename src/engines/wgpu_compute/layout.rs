@@ -478,6 +478,31 @@ pub(crate) fn describe_layout(p: &GridParams, build: BuildKind) -> String {
 mod tests {
     use super::*;
 
+    #[test]
+    fn core_bounds_leave_out_a_few_far_centres_and_keep_the_bulk() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let mut centers: Vec<[f32; 3]> = (0..200_000)
+            .map(|_| std::array::from_fn(|_| rng.random_range(0.0..1.0)))
+            .collect();
+        // Outliers on both sides of every axis, fewer than the share left out.
+        for k in 0..20 {
+            let far = if k % 2 == 0 { 1e6 } else { -1e6 };
+            centers[k * 9973] = [far, -far, far];
+        }
+        let n = centers.len();
+        let spheres = SphereSet::new(centers, vec![1e-3; n]).unwrap();
+        let (lo, hi) = core_bounds(&spheres).unwrap();
+        for a in 0..3 {
+            assert!(
+                (-0.02..0.01).contains(&lo[a]),
+                "axis {a}: core from {}",
+                lo[a]
+            );
+            assert!((0.99..1.02).contains(&hi[a]), "axis {a}: core to {}", hi[a]);
+        }
+    }
+
     fn budget(spheres: u64) -> Budget {
         Budget {
             spheres,
