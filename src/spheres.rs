@@ -33,6 +33,7 @@ const CHECKS_PER_TASK: usize = 4096;
 pub struct SphereSet {
     centers: Vec<[f32; 3]>,
     radii: Vec<f32>,
+    min_radius: f32,
     max_radius: f32,
 }
 
@@ -57,13 +58,17 @@ impl SphereSet {
         if let Some((index, reason)) = bad {
             return Err(Error::InvalidSphere { index, reason });
         }
-        let max_radius = radii
+        let (min_radius, max_radius) = radii
             .par_iter()
             .with_min_len(CHECKS_PER_TASK)
-            .copied()
-            .reduce(|| 0.0, f32::max);
+            .map(|&r| (r, r))
+            .reduce(
+                || (f32::INFINITY, 0.0),
+                |(a, b), (c, d)| (a.min(c), b.max(d)),
+            );
         Ok(Self {
             centers,
+            min_radius: if radii.is_empty() { 0.0 } else { min_radius },
             radii,
             max_radius,
         })
@@ -107,7 +112,7 @@ impl SphereSet {
 
     /// Smallest radius (0 for an empty set).
     pub fn min_radius(&self) -> f32 {
-        self.radii.iter().copied().reduce(f32::min).unwrap_or(0.0)
+        self.min_radius
     }
 
     /// Component-wise bounds `(lo, hi)` of the centres; `None` for an empty set.
@@ -302,6 +307,8 @@ mod tests {
         s.set_centers(vec![[3.0; 3], [4.0; 3]]).unwrap();
         assert_eq!(s.centers()[1], [4.0; 3]);
         assert_eq!(SphereSet::default().max_radius(), 0.0);
+        let empty = SphereSet::new(Vec::new(), Vec::new()).unwrap();
+        assert_eq!((empty.min_radius(), empty.max_radius()), (0.0, 0.0));
         assert!(SphereSet::new(vec![[0.0; 3]], vec![MIN_RADIUS]).is_ok());
     }
 }
