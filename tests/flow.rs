@@ -1,8 +1,12 @@
-//! Inflow and outflow on the cpu step (`dem::flow`): an inflow inserts ⌊rate·t⌋ spheres, each
+//! Inflow and outflow (`dem::flow`) on every backend: an inflow inserts ⌊rate·t⌋ spheres, each
 //! where it overlaps nothing; mass is conserved (initial + inserted = present + removed);
-//! without the box walls a sphere that falls below the box is removed; a run with both resumes
-//! from a checkpoint bit for bit.
+//! without the box walls a sphere that falls below the box is removed (optix, which keeps its
+//! box walls, refuses such a run); every backend's flow events with the same `flow_every` insert
+//! and remove what the cpu's do; a run with both resumes from a checkpoint bit for bit on cpu.
 
+mod common;
+
+use common::on_every_backend;
 use mochi::ProxyMode;
 use mochi::dem::flow::{FlowSet, InflowConfig, OutflowConfig};
 use mochi::dem::model::{Material, mass};
@@ -36,12 +40,14 @@ fn top_inflow() -> InflowConfig {
     }
 }
 
-fn stepper(
+/// The step of backend `kind`, or its refusal.
+fn try_stepper(
+    kind: BackendKind,
     particles: Particles,
     params: StepParams,
     flow: FlowSet,
     box_walls: bool,
-) -> Box<dyn Stepper> {
+) -> mochi::Result<Box<dyn Stepper>> {
     let start = Start {
         particles,
         params,
@@ -49,8 +55,18 @@ fn stepper(
         walls: WallSet::new(box_walls, Vec::new()).unwrap(),
         flow,
     };
-    let choice = BackendChoice::Named(BackendKind::Cpu);
-    open_scene(choice, start, &Options::default()).unwrap().0
+    let choice = BackendChoice::Named(kind);
+    Ok(open_scene(choice, start, &Options::default())?.0)
+}
+
+fn stepper(
+    kind: BackendKind,
+    particles: Particles,
+    params: StepParams,
+    flow: FlowSet,
+    box_walls: bool,
+) -> Box<dyn Stepper> {
+    try_stepper(kind, particles, params, flow, box_walls).unwrap()
 }
 
 fn total_mass(p: &Particles) -> f64 {
@@ -66,60 +82,65 @@ fn an_inflow_inserts_at_its_rate_where_nothing_is_and_never_overlaps() {
         velocity: None,
         ..top_inflow()
     };
-    let flow = FlowSet {
-        inflows: vec![inflow.build(0, RHO).unwrap()],
-        ..FlowSet::default()
-    };
-    let mut s = stepper(Particles::default(), params(0.0), flow, true);
-    for _ in 0..100 {
-        let advance = s.advance(10).unwrap();
-        assert_eq!(advance.contacts, 0, "an inserted sphere overlaps another");
-    }
-    let counts = s.flow_counts().unwrap();
-    // ⌊2000/s · 1000 dt⌋ (dt in f32: 0.1 s less 2.5e-10), each inserted or refused.
-    let due = (2000.0 * 1000.0 * params(0.0).dt as f64).floor() as u64;
-    assert_eq!(due, 199);
-    assert_eq!(counts.inserted + counts.refused, due);
-    assert!(counts.inserted > 100, "{counts:?}");
-    assert_eq!(s.particles().unwrap().len() as u64, counts.inserted);
+    on_every_backend(|kind| {
+        let flow = FlowSet {
+            inflows: vec![inflow.build(0, RHO).unwrap()],
+            ..FlowSet::default()
+        };
+        let mut s = stepper(kind, Particles::default(), params(0.0), flow, true);
+        for _ in 0..100 {
+            let advance = s.advance(10).unwrap();
+            assert_eq!(advance.contacts, 0, "an inserted sphere overlaps another");
+        }
+        let counts = s.flow_counts().unwrap();
+        // ⌊2000/s · 1000 dt⌋ (dt in f32: 0.1 s less 2.5e-10), each inserted or refused (the
+        // last flow event is at step 1000 on every backend).
+        let due = (2000.0 * 1000.0 * params(0.0).dt as f64).floor() as u64;
+        assert_eq!(due, 199);
+        assert_eq!(counts.inserted + counts.refused, due);
+        assert!(counts.inserted > 100, "{counts:?}");
+        assert_eq!(s.particles().unwrap().len() as u64, counts.inserted);
+    });
 }
 
 #[test]
 fn mass_is_conserved_through_an_inflow_and_an_outflow() {
     // Spheres rain onto the floor, where an outflow 2 cm deep removes them.
-    let flow = FlowSet {
-        inflows: vec![top_inflow().build(0, RHO).unwrap()],
-        outflows: vec![
-            OutflowConfig {
-                lo: [0.0; 3],
-                hi: [0.2, 0.2, 0.02],
-            }
-            .build(0)
-            .unwrap(),
-        ],
-        floor: None,
-    };
-    let first = Particles {
-        positions: vec![[0.1, 0.1, 0.1]],
-        velocities: vec![[0.0; 3]],
-        angular_velocities: vec![[0.0; 3]],
-        radii: vec![0.006],
-        ..Particles::default()
-    };
-    let initial = total_mass(&first);
-    let mut s = stepper(first, params(-9.81), flow, true);
-    s.advance(3000).unwrap();
-    let c = s.flow_counts().unwrap();
-    let now = s.particles().unwrap();
-    assert!(c.inserted > 500 && c.removed > 100, "{c:?}");
-    assert_eq!(1 + c.inserted, now.len() as u64 + c.removed);
-    let balance = initial + c.inserted_mass - (total_mass(&now) + c.removed_mass);
-    // Sums of a few thousand f32 masses in f64: rounding far below a single sphere's mass.
-    assert!(
-        balance.abs() < 1e-9 * initial,
-        "mass balance off by {balance} kg"
-    );
-    now.validate().unwrap();
+    on_every_backend(|kind| {
+        let flow = FlowSet {
+            inflows: vec![top_inflow().build(0, RHO).unwrap()],
+            outflows: vec![
+                OutflowConfig {
+                    lo: [0.0; 3],
+                    hi: [0.2, 0.2, 0.02],
+                }
+                .build(0)
+                .unwrap(),
+            ],
+            ..FlowSet::default()
+        };
+        let first = Particles {
+            positions: vec![[0.1, 0.1, 0.1]],
+            velocities: vec![[0.0; 3]],
+            angular_velocities: vec![[0.0; 3]],
+            radii: vec![0.006],
+            ..Particles::default()
+        };
+        let initial = total_mass(&first);
+        let mut s = stepper(kind, first, params(-9.81), flow, true);
+        s.advance(3000).unwrap();
+        let c = s.flow_counts().unwrap();
+        let now = s.particles().unwrap();
+        assert!(c.inserted > 500 && c.removed > 100, "{c:?}");
+        assert_eq!(1 + c.inserted, now.len() as u64 + c.removed);
+        let balance = initial + c.inserted_mass - (total_mass(&now) + c.removed_mass);
+        // Sums of a few thousand f32 masses in f64: rounding far below a single sphere's mass.
+        assert!(
+            balance.abs() < 1e-9 * initial,
+            "mass balance off by {balance} kg"
+        );
+        now.validate().unwrap();
+    });
 }
 
 #[test]
@@ -135,12 +156,65 @@ fn without_box_walls_a_sphere_below_the_box_is_removed() {
         floor: Some(0.0),
         ..FlowSet::default()
     };
-    let mut s = stepper(falling, params(-9.81), flow, false);
-    s.advance(300).unwrap();
-    assert_eq!(s.particles().unwrap().len(), 0);
-    let c = s.flow_counts().unwrap();
-    assert_eq!(c.removed, 1);
-    assert!((c.removed_mass - mass(RHO as f32, 0.005) as f64).abs() < 1e-12);
+    on_every_backend(|kind| {
+        let opened = try_stepper(kind, falling.clone(), params(-9.81), flow.clone(), false);
+        if kind == BackendKind::Optix {
+            let refused = opened.err().expect("optix keeps its box walls");
+            assert!(refused.to_string().contains("no box walls"), "{refused}");
+            return;
+        }
+        let mut s = opened.unwrap();
+        s.advance(300).unwrap();
+        assert_eq!(s.particles().unwrap().len(), 0);
+        let c = s.flow_counts().unwrap();
+        assert_eq!(c.removed, 1);
+        assert!((c.removed_mass - mass(RHO as f32, 0.005) as f64).abs() < 1e-12);
+        // With no sphere left the run goes on, waiting for an inflow.
+        s.advance(50).unwrap();
+        assert_eq!(s.particles().unwrap().step, 350);
+    });
+}
+
+#[test]
+fn every_backend_inserts_and_removes_what_the_cpu_does_at_the_same_flow_events() {
+    // Spheres fall from the inflow at 0.5 m/s through an outflow band 1 cm under it: no two
+    // touch, so every backend moves them alike and its flow events (every 50 steps, as set)
+    // see the same spheres.
+    let flow = FlowSet {
+        inflows: vec![top_inflow().build(0, RHO).unwrap()],
+        outflows: vec![(
+            glam::Vec3::new(0.0, 0.0, 0.12),
+            glam::Vec3::new(0.2, 0.2, 0.13),
+        )],
+        every: Some(50),
+        ..FlowSet::default()
+    };
+    let run = |kind| {
+        let mut s = stepper(
+            kind,
+            Particles::default(),
+            params(-9.81),
+            flow.clone(),
+            true,
+        );
+        s.advance(730).unwrap();
+        (s.flow_counts().unwrap(), s.particles().unwrap())
+    };
+    let (counts, cpu) = run(BackendKind::Cpu);
+    assert!(counts.inserted > 100 && counts.removed > 10, "{counts:?}");
+    on_every_backend(|kind| {
+        let (c, now) = run(kind);
+        assert_eq!(
+            (c.inserted, c.refused, c.removed),
+            (counts.inserted, counts.refused, counts.removed)
+        );
+        assert_eq!(now.radii, cpu.radii, "the same spheres, in the same order");
+        for (a, b) in now.positions.iter().zip(&cpu.positions) {
+            let off = glam::Vec3::from(*a).distance(glam::Vec3::from(*b));
+            // Free fall for at most 730 steps in f32: far below a radius.
+            assert!(off < 1e-5, "{a:?} vs {b:?}");
+        }
+    });
 }
 
 #[test]
@@ -149,18 +223,19 @@ fn a_run_with_inflow_and_outflow_resumes_from_its_checkpoint_bit_for_bit() {
         inflows: vec![top_inflow().build(0, RHO).unwrap()],
         // A corner of the floor drains; elsewhere the spheres pile up and touch.
         outflows: vec![(glam::Vec3::ZERO, glam::Vec3::new(0.06, 0.2, 0.05))],
-        floor: None,
+        ..FlowSet::default()
     };
     let p = params(-9.81);
-    let mut straight = stepper(Particles::default(), p, flow(), true);
+    let stepper = |particles, p, flow| stepper(BackendKind::Cpu, particles, p, flow, true);
+    let mut straight = stepper(Particles::default(), p, flow());
     straight.advance(2400).unwrap();
-    let mut first = stepper(Particles::default(), p, flow(), true);
+    let mut first = stepper(Particles::default(), p, flow());
     first.advance(1200).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("checkpoint.bin");
     mochi::io::write_checkpoint(&file, &first.particles().unwrap(), "").unwrap();
     let (saved, _) = mochi::io::read_checkpoint(&file).unwrap();
-    let mut resumed = stepper(saved, p, flow(), true);
+    let mut resumed = stepper(saved, p, flow());
     resumed.advance(1200).unwrap();
     let (a, b) = (straight.particles().unwrap(), resumed.particles().unwrap());
     assert!(

@@ -13,6 +13,7 @@ use common::on_every_backend;
 use mochi::dem::model::contact::moment_of_inertia;
 use mochi::dem::model::time_step::{hertz_contact_time, hertz_peak_overlap};
 use mochi::dem::model::{ContactLaw, Material, RollingModel, mass};
+use mochi::dem::walls::WallSet;
 use mochi::dem::{Particles, StepParams, Stepper};
 use mochi::engines::wgpu_compute::{GridBuild, GridStepper};
 use mochi::engines::{BackendKind, ForceAtomics, Options, open_stepper};
@@ -913,6 +914,7 @@ fn wgpu_compute_on_small_bindings(start: &Particles, p: StepParams) -> Option<Gr
         ProxyMode::Mochi,
         atomics,
         GridBuild::Dense,
+        &WallSet::default(),
     );
     Some(stepper.expect("wgpu-compute opens on 8 KiB bindings"))
 }

@@ -44,6 +44,7 @@
 //! drum_sides = 64        # drum: the tube's sides around (2·sides·rings triangles)
 //! drum_rings = 1         # drum: the tube's rings along its length
 //! box_walls = true       # false: the six walls of the box off
+//! flow_every = 100       # steps between inflow/outflow events (default 1 on cpu, 100 on GPUs)
 //! [[wall]]               # mesh walls, any number (see `dem::walls::spec`)
 //! mesh = "hopper.stl"
 //! [[inflow]]             # spheres inserted at a rate (see `dem::flow`)
@@ -412,6 +413,10 @@ pub struct SceneConfig {
     /// Outflows, the `[[outflow]]` tables (`dem::flow`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub outflow: Vec<OutflowConfig>,
+    /// Steps between flow events (default: 1 on the cpu backend, 100 on the GPU backends;
+    /// `dem::flow`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flow_every: Option<u32>,
     /// Scenes `hopper` and `drum`: mean sphere radius \[m\] (default 0.004).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub grain_radius: Option<f64>,
@@ -482,6 +487,7 @@ impl Default for SceneConfig {
             drum_omega: None,
             drum_sides: None,
             drum_rings: None,
+            flow_every: None,
         }
     }
 }
@@ -1000,10 +1006,17 @@ impl SceneConfig {
             .enumerate()
             .map(|(k, f)| f.build(k))
             .collect::<Result<Vec<_>>>()?;
+        if self.flow_every == Some(0) {
+            return Err(Error::InvalidConfig {
+                what: "scene".into(),
+                reason: "flow_every must be at least 1 step, got 0".into(),
+            });
+        }
         Ok(FlowSet {
             inflows,
             outflows,
             floor: (!self.box_walls).then_some(floor as f32),
+            every: self.flow_every,
         })
     }
 

@@ -420,7 +420,7 @@ pub(crate) struct DemModule {
     /// The per-pair variant's uniform (`None`: another variant).
     pub per_pair: Option<PerPair>,
     /// The step's WGSL, compiled.
-    pub module: wgpu::ShaderModule,
+    pub module: crate::gpu::Module,
 }
 
 impl DemModule {

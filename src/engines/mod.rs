@@ -5,6 +5,7 @@
 //! simulation and rendering share (docs/ARCHITECTURE.md).
 
 pub mod cpu;
+mod flow_step;
 mod gpu_detect;
 mod gpu_granular;
 mod gpu_readback;

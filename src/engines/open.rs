@@ -1,11 +1,13 @@
 //! Opening a backend's [`Stepper`]: the one place that knows every backend's DEM step.
 
+use super::flow_step::{FlowStep, Reopen};
 use super::registry::{BackendChoice, BackendKind, Options};
 use crate::dem::model::StepParams;
 use crate::dem::scene::Start;
 use crate::dem::stepper::Stepper;
 use crate::dem::walls::WallSet;
 use crate::error::{Error, Result};
+use crate::gpu::{Gpu, Need};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
@@ -20,8 +22,7 @@ pub fn open_stepper(
     open_walled(kind, particles, params, mode, options, WallSet::default())
 }
 
-/// Opens the DEM step of backend `kind` over `particles` inside `walls` (the box walls on:
-/// without them, spheres leave below the box, which only the cpu step's flow handles).
+/// Opens the DEM step of backend `kind` over `particles` inside `walls`.
 fn open_walled(
     kind: BackendKind,
     particles: Particles,
@@ -51,16 +52,7 @@ fn open_walled(
             particles, params, mode, atomics, &walls,
         )?),
         #[cfg(feature = "optix")]
-        BackendKind::Optix if !walls.is_box_only() => {
-            return Err(Error::BackendUnavailable {
-                backend: "optix",
-                reason: format!(
-                    "this scene has {}, which the optix step does not run yet; the cpu and \
-                     wgpu backends run it",
-                    walls.describe()
-                ),
-            });
-        }
+        BackendKind::Optix if !walls.is_box_only() => return Err(optix_refuses(&walls)),
         #[cfg(feature = "optix")]
         BackendKind::Optix => Box::new(super::optix::OptixStepper::new(
             particles,
@@ -114,10 +106,22 @@ fn choose_walled(
     Ok((stepper, kind, Some(reason)))
 }
 
+/// The optix step runs inside the box walls only.
+#[cfg(feature = "optix")]
+fn optix_refuses(walls: &WallSet) -> Error {
+    Error::BackendUnavailable {
+        backend: "optix",
+        reason: format!(
+            "this scene has {}, which the optix step does not run yet; the cpu and wgpu \
+             backends run it",
+            walls.describe()
+        ),
+    }
+}
+
 /// Opens the DEM step the user chose for the scene `start`. The box walls run on every
-/// backend, mesh walls on cpu and the wgpu backends ([`open_choice`]; optix refuses them); a
-/// box switched off, inflows and outflows run on the cpu backend only until the GPU engines
-/// gain them: a GPU backend named is refused, saying so, and `auto` opens cpu and says why.
+/// backend, mesh walls and a box switched off on cpu and the wgpu backends (optix refuses
+/// them); spheres flowing in and out on every backend, the GPU ones through [`FlowStep`].
 pub fn open_scene(
     choice: BackendChoice,
     start: Start,
@@ -130,32 +134,97 @@ pub fn open_scene(
         walls,
         flow,
     } = start;
-    if walls.box_walls && flow.is_empty() {
+    if flow.is_empty() {
         return choose_walled(choice, particles, params, mode, options, walls);
     }
-    let needs = match (walls.box_walls, flow.is_empty()) {
-        (false, false) => format!("{} and spheres flowing in or out", walls.describe()),
-        (false, true) => walls.describe(),
-        _ => "spheres flowing in or out".to_owned(),
-    };
-    match choice.kind() {
-        Some(BackendKind::Cpu) | None => {
-            particles.validate()?;
-            let stepper = super::cpu::CpuStepper::new(particles, params, mode)?
-                .with_walls(walls)?
-                .with_flow(flow, mode);
-            let reason = choice.kind().is_none().then(|| {
-                format!("auto: cpu, the one backend that runs a scene with {needs} so far")
-            });
-            Ok((Box::new(stepper), BackendKind::Cpu, reason))
+    let open = |kind: BackendKind| -> Result<Box<dyn Stepper>> {
+        particles.validate()?;
+        if kind == BackendKind::Cpu {
+            let stepper = super::cpu::CpuStepper::new(particles.clone(), params, mode)?
+                .with_walls(walls.clone())?
+                .with_flow(flow.clone(), mode);
+            return Ok(Box::new(stepper));
         }
-        Some(kind) => Err(Error::BackendUnavailable {
-            backend: kind.name(),
-            reason: format!(
-                "this scene has {needs}, which the {} step does not run yet; the cpu backend \
-                 runs it (--backend cpu)",
-                kind.name()
-            ),
-        }),
+        let reopen = reopener(kind, params, mode, options, walls.clone())?;
+        let step = FlowStep::new(
+            particles.clone(),
+            flow.clone(),
+            params.dt,
+            params.density,
+            reopen,
+        )?;
+        Ok(Box::new(step))
+    };
+    if let Some(kind) = choice.kind() {
+        return Ok((open(kind)?, kind, None));
     }
+    let ((stepper, kind), reason) =
+        super::registry::open_auto(&BackendKind::ALL, |kind| Ok((open(kind)?, kind)))?;
+    Ok((stepper, kind, Some(reason)))
+}
+
+/// How [`FlowStep`] opens GPU backend `kind`'s step again over new spheres: on the device
+/// opened now, inside `walls`.
+fn reopener(
+    kind: BackendKind,
+    params: StepParams,
+    mode: ProxyMode,
+    options: &Options,
+    walls: WallSet,
+) -> Result<Reopen> {
+    let atomics = super::gpu_step::ForceAtomics::Auto;
+    Ok(match kind {
+        BackendKind::Cpu => {
+            return Err(Error::Usage(
+                "the cpu step runs its flows itself (CpuStepper::with_flow)".into(),
+            ));
+        }
+        BackendKind::WgpuCompute => {
+            let gpu = Gpu::open(Need::Compute)?;
+            let (build, structure) = (options.grid_build, options.structure);
+            Box::new(move |parts| {
+                let step = super::wgpu_compute::GridStepper::on_gpu(
+                    gpu.clone(),
+                    parts,
+                    params,
+                    mode,
+                    atomics,
+                    build,
+                    &walls,
+                )?;
+                Ok(Box::new(step.with_structure(structure)) as Box<dyn Stepper>)
+            })
+        }
+        BackendKind::WgpuRq => {
+            let gpu = Gpu::open(Need::RayQuery)?;
+            Box::new(move |parts| {
+                let step = super::wgpu_rq::RqStepper::on_gpu(
+                    gpu.clone(),
+                    parts,
+                    params,
+                    mode,
+                    atomics,
+                    &walls,
+                )?;
+                Ok(Box::new(step) as Box<dyn Stepper>)
+            })
+        }
+        #[cfg(feature = "optix")]
+        BackendKind::Optix if !walls.is_box_only() => return Err(optix_refuses(&walls)),
+        #[cfg(feature = "optix")]
+        BackendKind::Optix => {
+            let rebuild = options.rebuild;
+            Box::new(move |parts| {
+                let step = super::optix::OptixStepper::new(parts, params, mode, rebuild)?;
+                Ok(Box::new(step) as Box<dyn Stepper>)
+            })
+        }
+        #[cfg(not(feature = "optix"))]
+        BackendKind::Optix => {
+            return Err(Error::BackendUnavailable {
+                backend: "optix",
+                reason: super::registry::NO_OPTIX_FEATURE.into(),
+            });
+        }
+    })
 }

@@ -12,7 +12,8 @@ use crate::error::{Error, Result};
 use rayon::prelude::*;
 use shader::Binding;
 use shader::WgslModule;
-use std::sync::OnceLock;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
 use wgpu::WriteOnly;
 
 /// The WGSL modules of the shared plumbing (scan, radix sort and the pairs' split and join),
@@ -60,6 +61,33 @@ pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     /// Limits the device was opened with (all the adapter allows).
     pub limits: wgpu::Limits,
+    /// What was compiled on this device, shared by its clones.
+    compiled: Arc<Mutex<Compiled>>,
+}
+
+/// The modules (by source) and auto-layout pipelines (by module and entry point) compiled on
+/// one device, kept for the device's life: an engine opened again on the same device (a run
+/// whose spheres come and go reopens its step) compiles nothing.
+#[derive(Default)]
+struct Compiled {
+    modules: HashMap<String, Module>,
+    pipelines: HashMap<(usize, String), wgpu::ComputePipeline>,
+}
+
+/// A compiled WGSL module of a [`Gpu`] (dereferences to wgpu's).
+#[derive(Debug, Clone)]
+pub struct Module {
+    module: wgpu::ShaderModule,
+    /// Its index among the device's modules: the key of its pipelines.
+    index: usize,
+}
+
+impl std::ops::Deref for Module {
+    type Target = wgpu::ShaderModule;
+
+    fn deref(&self) -> &wgpu::ShaderModule {
+        &self.module
+    }
 }
 
 fn instance() -> &'static wgpu::Instance {
@@ -164,6 +192,7 @@ impl Gpu {
             queue,
             info: adapter.get_info(),
             limits,
+            compiled: Arc::default(),
         })
     }
 
@@ -204,14 +233,15 @@ impl Gpu {
         })
     }
 
-    /// A compute pipeline for `entry` of the WGSL module `source` (bind groups laid out by wgpu).
-    pub fn pipeline(
-        &self,
-        label: &str,
-        module: &wgpu::ShaderModule,
-        entry: &str,
-    ) -> wgpu::ComputePipeline {
-        self.device
+    /// A compute pipeline for `entry` of `module` (bind groups laid out by wgpu), compiled once
+    /// per device.
+    pub fn pipeline(&self, label: &str, module: &Module, entry: &str) -> wgpu::ComputePipeline {
+        let key = (module.index, entry.to_owned());
+        if let Some(pipeline) = self.compiled().pipelines.get(&key) {
+            return pipeline.clone();
+        }
+        let pipeline = self
+            .device
             .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(label),
                 layout: None,
@@ -219,16 +249,35 @@ impl Gpu {
                 entry_point: Some(entry),
                 compilation_options: Default::default(),
                 cache: None,
-            })
+            });
+        self.compiled().pipelines.insert(key, pipeline.clone());
+        pipeline
     }
 
-    /// Compiles a WGSL module.
-    pub fn module(&self, label: &str, source: &str) -> wgpu::ShaderModule {
-        self.device
+    /// Compiles a WGSL module, once per device and source.
+    pub fn module(&self, label: &str, source: &str) -> Module {
+        if let Some(module) = self.compiled().modules.get(source) {
+            return module.clone();
+        }
+        let module = self
+            .device
             .create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(label),
                 source: wgpu::ShaderSource::Wgsl(source.into()),
-            })
+            });
+        let mut compiled = self.compiled();
+        let module = Module {
+            module,
+            index: compiled.modules.len(),
+        };
+        compiled.modules.insert(source.to_owned(), module.clone());
+        module
+    }
+
+    /// The cache of compiled modules and pipelines (a panic while it was held left nothing
+    /// half-written: each insertion is one call).
+    fn compiled(&self) -> std::sync::MutexGuard<'_, Compiled> {
+        self.compiled.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     /// A bind group for `pipeline`'s group 0 with each buffer at its binding.

@@ -22,11 +22,15 @@
 //! hi = [1, 1, 0.05]
 //! ```
 //!
-//! Everything here is a function of the state and the step: inflow k inserts
-//! ⌊rate·t_{s+1}⌋ − ⌊rate·t_s⌋ spheres in step s (t from its start on), at places drawn from a
-//! generator seeded by (seed, k, s), each where it overlaps no sphere (up to [`ATTEMPTS`]
-//! places, else it is refused and counted). A resumed run so inserts exactly what the
-//! uninterrupted run did, with no generator state to save.
+//! Flows act after every `flow_every` steps (a scene key; default [`CPU_EVERY`] on the cpu
+//! backend, which holds the spheres in host memory, and [`GPU_EVERY`] on the GPU backends, where
+//! each flow event reads the spheres back and reopens the step): after step s − 1, for s a
+//! multiple of `flow_every`, the spheres in an outflow leave, and inflow k inserts
+//! ⌊rate·t_s⌋ − ⌊rate·t_{s−every}⌋ spheres (t from its start on), at places drawn from a
+//! generator seeded by (seed, k, s − 1), each where it overlaps no sphere (up to [`ATTEMPTS`]
+//! places, else it is refused and counted). Everything is a function of the state and the step
+//! number, so a resumed run inserts exactly what the uninterrupted run did, with no generator
+//! state to save.
 
 use crate::dem::model::mass;
 use crate::error::{Error, Result};
@@ -38,6 +42,13 @@ use serde::{Deserialize, Serialize};
 
 /// Places tried per sphere before it is refused.
 pub const ATTEMPTS: u32 = 32;
+
+/// Steps between flow events on the cpu backend unless the scene says (`flow_every`).
+pub const CPU_EVERY: u32 = 1;
+
+/// Steps between flow events on the GPU backends unless the scene says (`flow_every`): each
+/// event reads every sphere back and reopens the step.
+pub const GPU_EVERY: u32 = 100;
 
 /// One `[[inflow]]` table (module docs).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -165,6 +176,9 @@ pub struct FlowSet {
     pub outflows: Vec<(Vec3, Vec3)>,
     /// Centres below this height are removed (a run without box walls: below its box).
     pub floor: Option<f32>,
+    /// Steps between flow events (`None`: the backend's default, [`CPU_EVERY`] or
+    /// [`GPU_EVERY`]).
+    pub every: Option<u32>,
 }
 
 /// What the flows did, summed since the stepper opened.
@@ -306,8 +320,8 @@ fn step_seed(seed: u64, k: usize, step: u64) -> u64 {
 }
 
 impl Inflow {
-    /// Spheres due in the step from `step` to `step + 1` (time step `dt`).
-    fn due(&self, step: u64, dt: f64) -> u64 {
+    /// Spheres due in the steps from `from` to `to` (time step `dt`).
+    fn due(&self, (from, to): (u64, u64), dt: f64) -> u64 {
         let (start, stop) = self.window;
         let inserted_by = |s: u64| {
             let t = (s as f64 * dt).min(stop) - start;
@@ -317,7 +331,7 @@ impl Inflow {
                 (self.rate * t).floor()
             }
         };
-        (inserted_by(step + 1) - inserted_by(step)) as u64
+        (inserted_by(to) - inserted_by(from)) as u64
     }
 }
 
@@ -337,12 +351,28 @@ impl FlowSet {
         self.inflows.iter().map(|f| f.radii.0).reduce(f32::min)
     }
 
-    /// After step `parts.step − 1` (taken with time step `dt`): removes the spheres in an
-    /// outflow (or below the floor), then inserts what each inflow owes for that step;
-    /// `density` gives the masses counted. Returns whether any sphere came or went.
+    /// Steps between flow events on a backend that holds its spheres on a GPU (`gpu`) or in
+    /// host memory.
+    pub fn every(&self, gpu: bool) -> u32 {
+        self.every
+            .unwrap_or(if gpu { GPU_EVERY } else { CPU_EVERY })
+            .max(1)
+    }
+
+    /// Whether a flow event follows the step that brought the run to `step` (`every` steps
+    /// apart).
+    pub fn due_after(step: u64, every: u32) -> bool {
+        step > 0 && step.is_multiple_of(every as u64)
+    }
+
+    /// The flow event after step `parts.step − 1` (taken with time step `dt`), closing the
+    /// `every` steps since the last: removes the spheres in an outflow (or below the floor),
+    /// then inserts what each inflow owes for those steps; `density` gives the masses counted.
+    /// Returns whether any sphere came or went.
     pub fn apply(
         &self,
         parts: &mut Particles,
+        every: u32,
         dt: f32,
         density: f32,
         counts: &mut FlowCounts,
@@ -365,8 +395,9 @@ impl FlowSet {
             parts.retain(&keep)?;
         }
         let step = parts.step - 1;
+        let steps = (parts.step.saturating_sub(every as u64), parts.step);
         for (k, inflow) in self.inflows.iter().enumerate() {
-            let due = inflow.due(step, dt as f64);
+            let due = inflow.due(steps, dt as f64);
             if due == 0 {
                 continue;
             }

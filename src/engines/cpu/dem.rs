@@ -134,8 +134,11 @@ impl CpuStepper {
         let Some((flow, counts)) = &mut self.flow else {
             return Ok(());
         };
-        let p = &self.params;
-        if flow.apply(&mut self.particles, p.dt, p.density, counts)? {
+        let (p, every) = (&self.params, flow.every(false));
+        if !FlowSet::due_after(self.particles.step, every) {
+            return Ok(());
+        }
+        if flow.apply(&mut self.particles, every, p.dt, p.density, counts)? {
             self.masses.clear();
             let radii = &self.particles.radii;
             self.masses

@@ -195,8 +195,10 @@ impl GridStepper {
         })
     }
 
-    /// As [`with_options`](Self::with_options), on `gpu` (a test may lower its limits, say
+    /// As [`with_walls`](Self::with_walls), on `gpu`: a step reopened on the device of the
+    /// last (whose compiled pipelines it reuses), or a test's device with lowered limits (say
     /// the largest storage binding, to run the paths of large runs at small sizes).
+    #[allow(clippy::too_many_arguments)]
     pub fn on_gpu(
         gpu: Gpu,
         particles: Particles,
@@ -204,9 +206,9 @@ impl GridStepper {
         mode: ProxyMode,
         atomics: ForceAtomics,
         grid_build: GridBuild,
+        walls: &WallSet,
     ) -> Result<Self> {
-        let walls = WallSet::default();
-        Self::opening(particles, params, mode, atomics, grid_build, &walls, || {
+        Self::opening(particles, params, mode, atomics, grid_build, walls, || {
             Ok(gpu)
         })
     }

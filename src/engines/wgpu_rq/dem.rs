@@ -101,6 +101,26 @@ impl RqStepper {
 
     /// As [`with_atomics`](Self::with_atomics), inside `walls`.
     pub fn with_walls(
+        particles: Particles,
+        params: StepParams,
+        mode: ProxyMode,
+        atomics: ForceAtomics,
+        walls: &WallSet,
+    ) -> Result<Self> {
+        Self::on_gpu(
+            Gpu::open(Need::RayQuery)?,
+            particles,
+            params,
+            mode,
+            atomics,
+            walls,
+        )
+    }
+
+    /// As [`with_walls`](Self::with_walls), on `gpu` (opened with ray queries): a step
+    /// reopened on the device of the last, whose compiled pipelines it reuses.
+    pub fn on_gpu(
+        gpu: Gpu,
         mut particles: Particles,
         params: StepParams,
         mode: ProxyMode,
@@ -108,7 +128,6 @@ impl RqStepper {
         walls: &WallSet,
     ) -> Result<Self> {
         particles.separate_coincident()?;
-        let gpu = Gpu::open(Need::RayQuery)?;
         let limit = max_spheres(&gpu).min(
             gpu.limits.max_blas_primitive_count as u64 * gpu.limits.max_tlas_instance_count as u64,
         );
