@@ -252,6 +252,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         clock,
         contacts,
     });
+    if let Some(counts) = stepper.flow_counts() {
+        println!("{}", counts.describe());
+    }
     if let Some(line) = measured {
         println!("{line}");
     }

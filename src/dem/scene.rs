@@ -189,7 +189,7 @@ impl clap::ValueEnum for SceneKind {
             SceneKind::Mesh => PossibleValue::new("mesh").help("a mesh (mesh = FILE) filled"),
             SceneKind::Input => PossibleValue::new("input").help("the spheres of input = FILE"),
             SceneKind::Hopper => PossibleValue::new("hopper")
-                .help("a hopper with a circular orifice, filled, then opened (mesh walls and an outflow: cpu)"),
+                .help("a hopper with a circular orifice, filled, then opened (mesh walls and an outflow)"),
             SceneKind::Drum => PossibleValue::new("drum")
                 .help("a drum about a horizontal axis, 40% filled, turning (a mesh wall: cpu, wgpu-compute, wgpu-rq)"),
         })

@@ -10,6 +10,7 @@ use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::error::Result;
 use crate::particles::Particles;
+use std::time::Instant;
 
 /// Opens a backend's step over the spheres given, on the device of the first.
 pub type Reopen = Box<dyn FnMut(Particles) -> Result<Box<dyn Stepper>> + Send>;
@@ -72,6 +73,15 @@ impl FlowStep {
 
     /// Removes and inserts what the flows say after the step that brought the run to `now`.
     fn flow_event(&mut self) -> Result<()> {
+        let started = Instant::now();
+        let flowed = self.flow_on_host();
+        self.counts.events += 1;
+        self.counts.event_ms += started.elapsed().as_secs_f64() * 1e3;
+        flowed
+    }
+
+    /// [`flow_event`](Self::flow_event)'s work.
+    fn flow_on_host(&mut self) -> Result<()> {
         let mut parts = match &mut self.step {
             Some(step) => step.particles()?,
             None => self.idle.clone(),

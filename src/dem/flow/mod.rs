@@ -194,6 +194,25 @@ pub struct FlowCounts {
     pub removed_mass: f64,
     /// Mass inserted \[kg\].
     pub inserted_mass: f64,
+    /// Flow events taken.
+    pub events: u64,
+    /// Wall-clock time spent in them (reading back, flowing, reopening a GPU step) \[ms\].
+    pub event_ms: f64,
+}
+
+impl FlowCounts {
+    /// The flows' totals and cost, in words (for a run's summary).
+    pub fn describe(&self) -> String {
+        let each = match self.events {
+            0 => 0.0,
+            n => self.event_ms / n as f64,
+        };
+        format!(
+            "flows: {} inserted, {} refused, {} removed ({:.4e} kg); {} flow events, {each:.3} ms \
+             each (wall clock)",
+            self.inserted, self.refused, self.removed, self.removed_mass, self.events
+        )
+    }
 }
 
 impl InflowConfig {

@@ -138,7 +138,11 @@ impl CpuStepper {
         if !FlowSet::due_after(self.particles.step, every) {
             return Ok(());
         }
-        if flow.apply(&mut self.particles, every, p.dt, p.density, counts)? {
+        let started = Instant::now();
+        let changed = flow.apply(&mut self.particles, every, p.dt, p.density, counts)?;
+        counts.events += 1;
+        counts.event_ms += started.elapsed().as_secs_f64() * 1e3;
+        if changed {
             self.masses.clear();
             let radii = &self.particles.radii;
             self.masses
