@@ -94,6 +94,38 @@ fn the_nearer_of_two_spheres_on_the_view_axis_wins() {
 }
 
 #[test]
+fn a_wall_in_front_tints_what_is_behind_it_and_hides_nothing() {
+    // A square wall (two triangles) at y = -2 covering the picture's left half, between the
+    // eye and a sphere at the origin.
+    let sphere = Scene::new(&[[0.0; 3]], &[0.6], &[1.0], (0.0, 1.0)).unwrap();
+    let square = [
+        [[-3.0, -2.0, -3.0], [0.0, -2.0, -3.0], [0.0, -2.0, 3.0]],
+        [[-3.0, -2.0, -3.0], [0.0, -2.0, 3.0], [-3.0, -2.0, 3.0]],
+    ];
+    let walled = sphere.clone().with_walls(&square).unwrap();
+    let picture = Picture::new(40, 30, axis_camera());
+    for mut renderer in renderers() {
+        let name = renderer.name();
+        let bare = renderer.render(&sphere, &picture).unwrap();
+        let seen = renderer.render(&walled, &picture).unwrap();
+        let changed = |x, y| bare.rgb(x, y) != seen.rgb(x, y);
+        // Left of the centre: the sphere and the background, both tinted, the sphere still
+        // its own colour.
+        assert!(changed(17, 15) && changed(2, 15), "{name}: the wall is not drawn");
+        let c = rgb(&seen, 17, 15);
+        assert!(shade_of(c, viridis(1.0)) || c[1] > c[2], "{name}: sphere hidden: {c:?}");
+        // Right of the wall's edge: untouched.
+        for (x, y) in [(22, 15), (37, 2), (37, 27)] {
+            assert!(!changed(x, y), "{name}: ({x}, {y}) changed with no wall there");
+        }
+    }
+    assert!(Scene::new(&[], &[], &[], (0.0, 1.0))
+        .unwrap()
+        .with_walls(&[[[0.0, f32::NAN, 0.0], [1.0; 3], [0.0; 3]]])
+        .is_err());
+}
+
+#[test]
 fn gpu_paths_draw_the_cpu_picture() {
     let spheres = generate(&SceneSpec {
         scene: Dataset::Poly12,
@@ -107,6 +139,20 @@ fn gpu_paths_draw_the_cpu_picture() {
     let range = mochi::render::value_range(&values);
     let scene = Scene::new(spheres.centers(), &radii, &values, range).unwrap();
     let (lo, hi) = scene.bounds().unwrap();
+    // A tube of 48 wall triangles about the spheres' vertical axis, half as wide as they spread.
+    let (c, w) = ([0, 1].map(|a| (lo[a] + hi[a]) / 2.0), (hi[0] - lo[0]) / 4.0);
+    let at = |k: usize, z: f64| {
+        let phi = k as f64 * std::f64::consts::TAU / 24.0;
+        [c[0] + w * phi.cos(), c[1] + w * phi.sin(), z].map(|x| x as f32)
+    };
+    let tube: Vec<[[f32; 3]; 3]> = (0..24)
+        .flat_map(|k| {
+            let (a, b) = ([at(k, lo[2]), at(k, hi[2])], [at(k + 1, lo[2]), at(k + 1, hi[2])]);
+            [[a[0], b[0], b[1]], [a[0], b[1], a[1]]]
+        })
+        .collect();
+    let scene = scene.with_walls(&tube).unwrap();
+    assert_eq!(scene.wall_triangles(), 48);
     let picture = Picture {
         samples: 2,
         shadows: true,

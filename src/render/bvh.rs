@@ -1,8 +1,9 @@
 //! The bounding-volume hierarchy of the `wgpu-compute` and `cpu` render paths: built on the CPU
 //! over the spheres in Morton order (a top-down LBVH: each range splits where its highest
 //! differing Morton bit flips, a range of equal keys at the median of its widest axis),
-//! flattened depth first, and traversed nearest child first with a small stack. [`trace`] is the
-//! CPU twin of `trace` in `wgsl/render_bvh.wgsl`.
+//! flattened depth first, and traversed nearest child first with a small stack. The mesh walls'
+//! triangles get a tree of their own, built the same way over each triangle's bounding sphere.
+//! [`trace`] is the CPU twin of `walk` in `wgsl/render_common.wgsl`.
 
 use super::shade::{INF, hit_sphere};
 use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
@@ -117,16 +118,31 @@ fn bounds<'a>(spheres: impl Iterator<Item = &'a [f32; 4]>) -> (Vec3, Vec3) {
     })
 }
 
-/// The nearest sphere the ray `o + t·d` (`d` a unit vector, `inv` its reciprocal) hits with
-/// `t < t_max`: `(t, index)`, or `(t_max, u32::MAX)` for none. With `first`, stops at the first
-/// hit found (shadow rays).
-pub(crate) fn trace(
+/// The nearest sphere of `spheres` (in the order of the tree `nodes`) that the ray `o + t·d`
+/// hits with `t < t_max`, as [`trace`] finds it.
+pub(crate) fn trace_spheres(
     nodes: &[Node],
     spheres: &[[f32; 4]],
     o: Vec3,
     d: Vec3,
     t_max: f32,
     first: bool,
+) -> (f32, u32) {
+    trace(nodes, o, d, t_max, first, |k| {
+        hit_sphere(o, d, spheres[k as usize])
+    })
+}
+
+/// The nearest primitive the ray `o + t·d` (`d` a unit vector) hits with `t < t_max`, `hit(k)`
+/// being where it meets primitive `k` of the tree `nodes` (or [`INF`]): `(t, index)`, or
+/// `(t_max, u32::MAX)` for none. With `first`, stops at the first hit found (shadow rays).
+pub(crate) fn trace(
+    nodes: &[Node],
+    o: Vec3,
+    d: Vec3,
+    t_max: f32,
+    first: bool,
+    hit: impl Fn(u32) -> f32,
 ) -> (f32, u32) {
     let mut best = (t_max, u32::MAX);
     if nodes.is_empty() {
@@ -149,7 +165,7 @@ pub(crate) fn trace(
         let node = &nodes[index as usize];
         if node.count > 0 {
             for k in node.a..node.a + node.count {
-                let t = hit_sphere(o, d, spheres[k as usize]);
+                let t = hit(k);
                 if t < best.0 {
                     best = (t, k);
                     if first {
@@ -249,7 +265,7 @@ mod tests {
             let d = Vec3::new(a.cos() * 0.6, a.sin() * 0.6, 0.8);
             let o = 0.005 - 0.05 * d;
             assert_eq!(
-                trace(&nodes, &sorted, o, d, INF, false),
+                trace_spheres(&nodes, &sorted, o, d, INF, false),
                 brute(&sorted, o, d),
                 "ray {j}"
             );
@@ -269,7 +285,7 @@ mod tests {
             let v = Vec3::new(a.cos(), a.sin(), 0.3 * (a * 1.7).sin());
             let d = v / v.length();
             let o = 0.5 - 2.0 * d;
-            let got = trace(&nodes, &sorted, o, d, INF, false);
+            let got = trace_spheres(&nodes, &sorted, o, d, INF, false);
             let want = brute(&sorted, o, d);
             assert_eq!(got, want, "ray {j}");
         }
@@ -278,6 +294,9 @@ mod tests {
     #[test]
     fn an_empty_tree_hits_nothing() {
         assert!(build::<()>(&mut [], &[]).is_empty());
-        assert_eq!(trace(&[], &[], Vec3::ZERO, Vec3::X, INF, false).1, u32::MAX);
+        assert_eq!(
+            trace_spheres(&[], &[], Vec3::ZERO, Vec3::X, INF, false).1,
+            u32::MAX
+        );
     }
 }

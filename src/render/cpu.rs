@@ -1,10 +1,11 @@
-//! The `cpu` render path: one task per row (rayon), each pixel traced through the tree of
-//! [`super::bvh`] and shaded by [`super::shade::pixel`], exactly as the shaders do.
+//! The `cpu` render path: one task per row (rayon), each pixel traced through the trees of
+//! [`super::bvh`] (spheres, and the walls' triangles) and shaded by [`super::shade::pixel`],
+//! exactly as the shaders do.
 
 use super::Picture;
-use super::bvh::trace;
+use super::bvh::{trace, trace_spheres};
 use super::scene::Scene;
-use super::shade::pixel;
+use super::shade::{hit_triangle, pixel};
 use rayon::prelude::*;
 
 /// The pixels of `picture` of `scene`, row by row.
@@ -23,9 +24,15 @@ pub(crate) fn render(scene: &Scene, picture: &Picture) -> Vec<u32> {
                     (picture.samples, picture.height),
                     picture.shadows,
                     floor.as_ref(),
-                    &scene.spheres,
-                    &scene.colours,
-                    |o, d, t_max, first| trace(&scene.nodes, &scene.spheres, o, d, t_max, first),
+                    (&scene.spheres, &scene.colours, &scene.walls),
+                    |o, d, t_max, first| {
+                        trace_spheres(&scene.nodes, &scene.spheres, o, d, t_max, first)
+                    },
+                    |o, d, t_max| {
+                        trace(&scene.wall_nodes, o, d, t_max, false, |k| {
+                            hit_triangle(o, d, &scene.walls, k)
+                        })
+                    },
                 );
             }
         });

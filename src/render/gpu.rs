@@ -7,6 +7,7 @@ use super::bvh::Node;
 use super::scene::Scene;
 use super::shaders::{
     BVH_SOURCE, COLOURS, ENTRY_POINT, NODES, PIXELS, RQ_SOURCE, SPHERES, TLAS, VIEW, View,
+    WALL_NODES, WALLS,
 };
 use crate::error::{Error, Result};
 use crate::gpu::AABB_STRIDE;
@@ -61,6 +62,11 @@ impl GpuRenderer {
                 "tree nodes",
                 scene.nodes.len() as u64 * Node::SHADER_SIZE.get(),
             ),
+            ("wall triangles", scene.walls.len() as u64 * 16),
+            (
+                "wall tree nodes",
+                scene.wall_nodes.len() as u64 * Node::SHADER_SIZE.get(),
+            ),
         ] {
             if bytes > limit {
                 return Err(Error::TooLarge {
@@ -93,6 +99,7 @@ impl GpuRenderer {
             floor_lo: floor.map_or([0.0; 3], |f| f.lo.to_array()).into(),
             floor_on: floor.is_some() as u32,
             floor_hi: floor.map_or([0.0; 3], |f| f.hi.to_array()).into(),
+            walls: scene.wall_triangles() as u32,
         };
         let gpu = &self.gpu;
         let pixels = gpu.checked("rendering", || {
@@ -114,21 +121,32 @@ impl GpuRenderer {
                 none,
             );
             let pixels = gpu.storage("mochi.render.pixels", pixels_len * 4, none);
+            let nodes = upload("mochi.render.nodes", &storage_bytes(&scene.nodes), none);
+            let wall_nodes = upload(
+                "mochi.render.wall_nodes",
+                &storage_bytes(&scene.wall_nodes),
+                none,
+            );
+            let walls = upload(
+                "mochi.render.walls",
+                bytemuck::cast_slice(&scene.walls),
+                none,
+            );
             let buffers = [
                 (VIEW, &view),
                 (SPHERES, &spheres),
                 (COLOURS, &colours),
                 (PIXELS, &pixels),
+                (NODES, &nodes),
+                (WALL_NODES, &wall_nodes),
+                (WALLS, &walls),
             ];
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             let bind = if self.ray_query {
                 let tlas = self.build_accel(scene, &mut encoder);
                 gpu.bind_with_tlas("mochi.render.rq", &self.pipeline, &buffers, (TLAS, &tlas))
             } else {
-                let nodes = upload("mochi.render.nodes", &storage_bytes(&scene.nodes), none);
-                let mut all = buffers.to_vec();
-                all.push((NODES, &nodes));
-                gpu.bind("mochi.render.bvh", &self.pipeline, &all)
+                gpu.bind("mochi.render.bvh", &self.pipeline, &buffers)
             };
             let groups = (
                 picture.width.div_ceil(GROUP),

@@ -1,9 +1,11 @@
 //! A scene ready to render: the spheres in Morton order with their colours and the tree over
-//! them, prepared once and shared by every render path.
+//! them, and the mesh walls' triangles with a tree of their own, prepared once and shared by
+//! every render path.
 
 use super::bvh::{self, Node};
 use super::colour::colours;
 use crate::error::{Error, Result};
+use glam::Vec3;
 use rayon::slice::ParallelSliceMut;
 
 /// Spheres to render, each with the colour of its value.
@@ -15,6 +17,10 @@ pub struct Scene {
     pub(crate) colours: Vec<u32>,
     /// The tree over `spheres`.
     pub(crate) nodes: Vec<Node>,
+    /// The walls' triangles, three corners `x, y, z, 0` each, in the order of `wall_nodes`.
+    pub(crate) walls: Vec<[f32; 4]>,
+    /// The tree over the triangles of `walls`.
+    pub(crate) wall_nodes: Vec<Node>,
     bounds: Option<([f64; 3], [f64; 3])>,
 }
 
@@ -84,8 +90,69 @@ impl Scene {
             spheres,
             colours,
             nodes,
+            walls: Vec::new(),
+            wall_nodes: Vec::new(),
             bounds,
         })
+    }
+
+    /// This scene with mesh walls, the triangles `triangles` (three corners each \[m\]), drawn
+    /// as a translucent skin over what lies behind them; a corner that is not finite is an
+    /// [`Error`].
+    pub fn with_walls(mut self, triangles: &[[[f32; 3]; 3]]) -> Result<Scene> {
+        if let Some(k) = triangles
+            .iter()
+            .position(|t| !t.as_flattened().iter().all(|x| x.is_finite()))
+        {
+            return Err(Error::Usage(format!(
+                "wall triangle {k} has a corner that is not finite: {:?}",
+                triangles[k]
+            )));
+        }
+        if triangles.len() > u32::MAX as usize / 6 {
+            return Err(Error::TooLarge {
+                what: "wall triangles to render".into(),
+                got: triangles.len() as u64,
+                limit: u32::MAX as u64 / 6,
+            });
+        }
+        // Each triangle enters the tree by its bounding sphere (centroid, farthest corner).
+        let around = |t: &[[f32; 3]; 3]| {
+            let c = t.iter().map(|&p| Vec3::from(p)).sum::<Vec3>() / 3.0;
+            let r = t
+                .iter()
+                .map(|&p| Vec3::from(p).distance(c))
+                .fold(0.0f32, f32::max);
+            [c.x, c.y, c.z, r]
+        };
+        let spheres: Vec<[f32; 4]> = triangles.iter().map(around).collect();
+        let (order, keys) = bvh::morton_order(&spheres);
+        let mut items: Vec<([f32; 4], [[f32; 3]; 3])> = order
+            .iter()
+            .map(|&k| (spheres[k as usize], triangles[k as usize]))
+            .collect();
+        self.wall_nodes = bvh::build(&mut items, &keys);
+        self.walls = items
+            .iter()
+            .flat_map(|(_, t)| t.map(|p| [p[0], p[1], p[2], 0.0]))
+            .collect();
+        let walls = self
+            .wall_nodes
+            .first()
+            .map(|root| (root.lo.map(f64::from), root.hi.map(f64::from)));
+        self.bounds = match (self.bounds, walls) {
+            (Some((lo, hi)), Some((wlo, whi))) => Some((
+                std::array::from_fn(|a| lo[a].min(wlo[a])),
+                std::array::from_fn(|a| hi[a].max(whi[a])),
+            )),
+            (spheres, walls) => spheres.or(walls),
+        };
+        Ok(self)
+    }
+
+    /// The number of wall triangles drawn.
+    pub fn wall_triangles(&self) -> usize {
+        self.walls.len() / 3
     }
 
     /// The number of spheres drawn (see [`Scene::new`] for those left out).
@@ -98,7 +165,7 @@ impl Scene {
         self.spheres.is_empty()
     }
 
-    /// The box around every sphere (`None` for an empty scene).
+    /// The box around every sphere and wall (`None` for an empty scene).
     pub fn bounds(&self) -> Option<([f64; 3], [f64; 3])> {
         self.bounds
     }

@@ -28,6 +28,12 @@ const FLOOR_CELLS: f32 = 10.0;
 /// Shadow rays from the floor start this far above it, relative to the floor's size.
 const FLOOR_LIFT: f32 = 1e-5;
 
+/// The mesh walls' colour, and how much of their shade covers what lies behind them (walls are
+/// drawn as a translucent skin over the spheres inside, the nearest one only, and cast no
+/// shadow).
+const WALL_COLOUR: Vec3 = Vec3::new(0.55, 0.60, 0.68);
+const WALL_ALPHA: f32 = 0.35;
+
 /// Background at the top and the bottom of the picture (a vertical gradient).
 const SKY_TOP: Vec3 = Vec3::new(0.95, 0.96, 0.97);
 const SKY_BOTTOM: Vec3 = Vec3::new(0.78, 0.80, 0.84);
@@ -53,6 +59,43 @@ pub(crate) fn hit_sphere(o: Vec3, d: Vec3, s: [f32; 4]) -> f32 {
     }
     let far = -b + root;
     if far > 0.0 { far } else { INF }
+}
+
+/// Where the ray `o + t·d` meets triangle `k` of `walls` (three corners `x, y, z, 0` each) for
+/// `t > 0`, from either side, or [`INF`] (Möller–Trumbore).
+pub(crate) fn hit_triangle(o: Vec3, d: Vec3, walls: &[[f32; 4]], k: u32) -> f32 {
+    let [a, b, c] = corners(walls, k);
+    let e1 = b - a;
+    let e2 = c - a;
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 {
+        return INF;
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = s.dot(p) * inv;
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv;
+    if u < 0.0 || v < 0.0 || u + v > 1.0 {
+        return INF;
+    }
+    let t = e2.dot(q) * inv;
+    if t > 0.0 { t } else { INF }
+}
+
+/// The corners of triangle `k` of `walls`.
+fn corners(walls: &[[f32; 4]], k: u32) -> [Vec3; 3] {
+    let at = 3 * k as usize;
+    std::array::from_fn(|i| Vec3::from_slice(&walls[at + i][..3]))
+}
+
+/// `c`, seen through the wall triangle `k` of `walls` along `d`: its shade laid over `c`.
+fn through_wall(c: Vec3, walls: &[[f32; 4]], k: u32, d: Vec3, light: Vec3) -> Vec3 {
+    let [a, b, e] = corners(walls, k);
+    let n = (b - a).cross(e - a).normalize();
+    let n = if n.dot(d) > 0.0 { -n } else { n };
+    c + (shade(WALL_COLOUR, n, -d, light, 1.0) - c) * WALL_ALPHA
 }
 
 /// A horizontal rectangle under the spheres: `z = lo[2]`, `lo[0]..hi[0]` × `lo[1]..hi[1]`.
@@ -89,7 +132,8 @@ fn floor_colour(floor: &Floor, p: Vec3) -> Vec3 {
 }
 
 /// The colour of a pixel: the mean of `samples`×`samples` rays on a regular grid inside it;
-/// `trace(o, d, t_max, first)` is the path's nearest-hit search (see [`super::bvh::trace`]).
+/// `trace(o, d, t_max, first)` is the path's nearest-sphere search and `trace_walls(o, d,
+/// t_max)` its nearest-wall search (see [`super::bvh::trace`]).
 #[allow(clippy::too_many_arguments)] // the shader's inputs, one by one
 pub(crate) fn pixel(
     grid: &Grid,
@@ -97,9 +141,9 @@ pub(crate) fn pixel(
     (samples, height): (u32, u32),
     shadows: bool,
     floor: Option<&Floor>,
-    spheres: &[[f32; 4]],
-    colours: &[u32],
+    (spheres, colours, walls): (&[[f32; 4]], &[u32], &[[f32; 4]]),
     trace: impl Fn(Vec3, Vec3, f32, bool) -> (f32, u32),
+    trace_walls: impl Fn(Vec3, Vec3, f32) -> (f32, u32),
 ) -> u32 {
     let mut sum = Vec3::ZERO;
     for sy in 0..samples {
@@ -140,6 +184,11 @@ pub(crate) fn pixel(
                 }
                 let base = Vec3::from(unpack(colours[k as usize]));
                 shade(base, n, -d, grid.light, lit)
+            };
+            let wall = trace_walls(grid.eye, d, t.min(t_floor)).1;
+            let c = match wall {
+                u32::MAX => c,
+                w => through_wall(c, walls, w, d, grid.light),
             };
             sum += c;
         }

@@ -16,10 +16,13 @@ pub(crate) const VIEW: Binding = Binding::uniform(0, "view");
 pub(crate) const SPHERES: Binding = Binding::read(1, "spheres");
 pub(crate) const COLOURS: Binding = Binding::read(2, "colours");
 pub(crate) const PIXELS: Binding = Binding::read_write(3, "pixels");
-/// Only in the BVH module.
+/// The spheres' tree (searched by the BVH module; bound in both).
 pub(crate) const NODES: Binding = Binding::read(4, "nodes");
 /// Only in the ray-query module.
 pub(crate) const TLAS: Binding = Binding::acceleration_structure(5, "tlas");
+/// The walls' tree and triangles (three corners each).
+pub(crate) const WALL_NODES: Binding = Binding::read(6, "wall_nodes");
+pub(crate) const WALLS: Binding = Binding::read(7, "walls");
 
 /// The camera, picture and floor; WGSL twin: `View` in `wgsl/render_common.wgsl`.
 #[derive(Clone, Copy, Default, encase::ShaderType)]
@@ -43,6 +46,8 @@ pub(crate) struct View {
     /// 1: draw the floor `z = floor_lo.z` over `floor_lo.xy .. floor_hi.xy`.
     pub floor_on: u32,
     pub floor_hi: Vec3f,
+    /// Number of wall triangles.
+    pub walls: u32,
 }
 
 fn view() -> SharedStruct {
@@ -62,26 +67,27 @@ fn view() -> SharedStruct {
             floor_lo,
             floor_on,
             floor_hi,
+            walls,
         }
     )
 }
 
 /// Every WGSL module of the render paths, exactly as the device gets it.
 pub fn modules() -> Vec<WgslModule> {
-    const COMMON: [Binding; 4] = [VIEW, SPHERES, COLOURS, PIXELS];
+    const COMMON: [Binding; 7] = [VIEW, SPHERES, COLOURS, PIXELS, NODES, WALL_NODES, WALLS];
     vec![
         WgslModule::new(
             "render_rq",
             RQ_SOURCE,
             &[ENTRY_POINT],
             &[&COMMON[..], &[TLAS]].concat(),
-            vec![view()],
+            vec![view(), bvh::node()],
         ),
         WgslModule::new(
             "render_bvh",
             BVH_SOURCE,
             &[ENTRY_POINT],
-            &[&COMMON[..], &[NODES]].concat(),
+            &COMMON,
             vec![view(), bvh::node()],
         ),
     ]
