@@ -111,18 +111,29 @@ fn a_wall_in_front_tints_what_is_behind_it_and_hides_nothing() {
         let changed = |x, y| bare.rgb(x, y) != seen.rgb(x, y);
         // Left of the centre: the sphere and the background, both tinted, the sphere still
         // its own colour.
-        assert!(changed(17, 15) && changed(2, 15), "{name}: the wall is not drawn");
+        assert!(
+            changed(17, 15) && changed(2, 15),
+            "{name}: the wall is not drawn"
+        );
         let c = rgb(&seen, 17, 15);
-        assert!(shade_of(c, viridis(1.0)) || c[1] > c[2], "{name}: sphere hidden: {c:?}");
+        assert!(
+            shade_of(c, viridis(1.0)) || c[1] > c[2],
+            "{name}: sphere hidden: {c:?}"
+        );
         // Right of the wall's edge: untouched.
         for (x, y) in [(22, 15), (37, 2), (37, 27)] {
-            assert!(!changed(x, y), "{name}: ({x}, {y}) changed with no wall there");
+            assert!(
+                !changed(x, y),
+                "{name}: ({x}, {y}) changed with no wall there"
+            );
         }
     }
-    assert!(Scene::new(&[], &[], &[], (0.0, 1.0))
-        .unwrap()
-        .with_walls(&[[[0.0, f32::NAN, 0.0], [1.0; 3], [0.0; 3]]])
-        .is_err());
+    assert!(
+        Scene::new(&[], &[], &[], (0.0, 1.0))
+            .unwrap()
+            .with_walls(&[[[0.0, f32::NAN, 0.0], [1.0; 3], [0.0; 3]]])
+            .is_err()
+    );
 }
 
 #[test]
@@ -147,7 +158,10 @@ fn gpu_paths_draw_the_cpu_picture() {
     };
     let tube: Vec<[[f32; 3]; 3]> = (0..24)
         .flat_map(|k| {
-            let (a, b) = ([at(k, lo[2]), at(k, hi[2])], [at(k + 1, lo[2]), at(k + 1, hi[2])]);
+            let (a, b) = (
+                [at(k, lo[2]), at(k, hi[2])],
+                [at(k + 1, lo[2]), at(k + 1, hi[2])],
+            );
             [[a[0], b[0], b[1]], [a[0], b[1], a[1]]]
         })
         .collect();
@@ -295,6 +309,78 @@ fn not_background(image: &Image) -> f64 {
         .filter(|&(x, y)| !is_background(rgb(image, x, y)))
         .count();
     n as f64 / image.pixels.len() as f64
+}
+
+#[test]
+fn render_draws_a_runs_mesh_walls_where_they_are_at_its_frame() {
+    // A small drum whose 12-sided tube turns about half a side in 400 steps.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = mochi(
+        &[
+            "simulate",
+            "--scene",
+            "drum",
+            "-n",
+            "60",
+            "--steps",
+            "400",
+            "--frame-every",
+            "400",
+            "--set",
+            "drum_sides=12",
+            "--set",
+            "drum_omega=50",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            "turning",
+        ],
+        d,
+    );
+    assert_eq!(run.0, Some(0), "{run:?}");
+    // The same run said to stand still: the same frame, its tube at rest.
+    std::fs::create_dir(d.join("still")).unwrap();
+    std::fs::copy(
+        d.join("turning/frame_00000400.vtu"),
+        d.join("still/last.vtu"),
+    )
+    .unwrap();
+    let scene = std::fs::read_to_string(d.join("turning/scene.toml")).unwrap();
+    let still: String = scene
+        .lines()
+        .map(|l| match l.starts_with("drum_omega") {
+            true => "drum_omega = 0.0\n".to_owned(),
+            false => format!("{l}\n"),
+        })
+        .collect();
+    assert_ne!(still, scene);
+    std::fs::write(d.join("still/scene.toml"), still).unwrap();
+    let draw = |frame: &str, png: &str, walls: &str| {
+        let args = [
+            "render",
+            frame,
+            "-o",
+            png,
+            "--size",
+            "80x60",
+            "--renderer",
+            "cpu",
+        ];
+        let run = mochi(&args, d);
+        assert_eq!(run.0, Some(0), "{run:?}");
+        assert!(run.1.contains(walls), "{run:?}");
+        read_png(&d.join(png)).unwrap()
+    };
+    let drawn = "with 24 wall triangles drawn";
+    let turned = draw("turning/frame_00000400.vtu", "a.png", drawn);
+    let at_rest = draw("still/last.vtu", "b.png", drawn);
+    assert_ne!(turned.pixels, at_rest.pixels, "the tube is drawn at rest");
+    // Without the run's scene beside it, the frame is drawn without walls.
+    std::fs::copy(d.join("still/last.vtu"), d.join("alone.vtu")).unwrap();
+    let alone = draw("alone.vtu", "c.png", "60 spheres drawn");
+    assert_ne!(alone.pixels, at_rest.pixels);
 }
 
 #[test]

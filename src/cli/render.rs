@@ -5,6 +5,7 @@ use super::args::{Fit, RenderArgs, RenderCommandArgs};
 use super::output::{check_output_folder, folder_of, refuse_same_file};
 use anyhow::{Context, Result, bail};
 use mochi::dem::scene::SceneConfig;
+use mochi::dem::walls::WallSet;
 use mochi::io::{self, SERIES_INDEX};
 use mochi::render::{
     Camera, ColorBy, Gif, Legend, Picture, Renderer, Scene, parse_point, parse_size, value_range,
@@ -112,6 +113,8 @@ pub struct FrameData<'a> {
     pub radii: &'a [f32],
     /// Velocities [m/s].
     pub velocities: &'a [[f32; 3]],
+    /// The mesh walls' triangles where they are at this frame [m].
+    pub walls: &'a [[[f32; 3]; 3]],
 }
 
 impl FrameRenderer {
@@ -181,8 +184,18 @@ impl FrameRenderer {
         let values = self.color_by.values(frame.radii, frame.velocities);
         let range = self.range.unwrap_or_else(|| value_range(&values));
         let scene = Scene::new(frame.positions, frame.radii, &values, range)?;
+        let spheres = scene.bounds();
+        let scene = scene.with_walls(frame.walls)?;
         let bounds = scene.bounds().unwrap_or(([-1.0; 3], [1.0; 3]));
-        let core = core_bounds(frame.positions, frame.radii).unwrap_or(bounds);
+        // The equipment belongs in the picture: where there are walls, the core takes them in.
+        let core = match (
+            core_bounds(frame.positions, frame.radii),
+            frame.walls.is_empty(),
+        ) {
+            (Some(core), true) => core,
+            (Some(core), false) => union(core, bounds),
+            (None, _) => spheres.unwrap_or(bounds),
+        };
         let picture = self.view.picture(bounds, core);
         let mut image = self.renderer.render(&scene, &picture)?;
         if self.legend {
@@ -213,6 +226,57 @@ impl FrameRenderer {
             _ => Ok(None),
         }
     }
+}
+
+/// The box around both `a` and `b`.
+fn union(a: Bounds, b: Bounds) -> Bounds {
+    (
+        std::array::from_fn(|k| a.0[k].min(b.0[k])),
+        std::array::from_fn(|k| a.1[k].max(b.1[k])),
+    )
+}
+
+/// The mesh walls of the run in `dir` (its `scene.toml`) and its time step, to draw them where
+/// they are at each frame.
+pub struct RunWalls {
+    walls: WallSet,
+    dt: f64,
+}
+
+impl RunWalls {
+    /// The walls of `walls` moving with time step `dt` [s].
+    pub fn new(walls: WallSet, dt: f64) -> Self {
+        Self { walls, dt }
+    }
+
+    /// The walls the `scene.toml` of `dir` describes (`None` without mesh walls, or with a
+    /// warning where they cannot be built, say a mesh file moved since the run).
+    pub fn of_run(dir: &Path) -> Option<Self> {
+        let path = dir.join("scene.toml");
+        let config = SceneConfig::load(Some(&path), &[]).ok()?;
+        let built = config.wall_set().map_err(anyhow::Error::from);
+        match built.and_then(|w| Ok((w, config.dt.context("the scene names no dt")?))) {
+            Ok((walls, _)) if walls.meshes.is_empty() => None,
+            Ok((walls, dt)) => Some(Self::new(walls, dt)),
+            Err(e) => {
+                eprintln!(
+                    "warning: the walls of {} are not drawn: {e:#}",
+                    path.display()
+                );
+                None
+            }
+        }
+    }
+
+    /// The triangles at step `step`.
+    pub fn at(&self, step: u64) -> Vec<[[f32; 3]; 3]> {
+        self.walls.triangles_at(step as f64 * self.dt)
+    }
+}
+
+/// The walls of `walls` at `step` (none without walls).
+fn walls_at(walls: Option<&RunWalls>, step: u64) -> Vec<[[f32; 3]; 3]> {
+    walls.map(|w| w.at(step)).unwrap_or_default()
 }
 
 /// Parses `MIN,MAX` (finite, MIN ≤ MAX).
@@ -261,17 +325,23 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
     }
     io::remove_stale_temp_files(folder_of(&out));
     renderer.start_gif()?;
+    let walls = walls_at(RunWalls::of_run(parent).as_ref(), frame.step.unwrap_or(0));
     renderer.render(
         &FrameData {
             step: frame.step,
             positions: &frame.positions,
             radii: &frame.radii,
             velocities: &frame.velocities,
+            walls: &walls,
         },
         &out,
     )?;
+    let walls = match walls.len() {
+        0 => String::new(),
+        n => format!(" with {n} wall triangles"),
+    };
     println!(
-        "{}: {} spheres drawn into {} with {}",
+        "{}: {} spheres{walls} drawn into {} with {}",
         input.display(),
         frame.radii.len(),
         out.display(),
@@ -314,6 +384,7 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
             renderer.set_range((lo, hi));
         }
     }
+    let run_walls = RunWalls::of_run(dir);
     for (k, file) in files.iter().enumerate() {
         let frame = io::read_frame(file)?;
         let step = frame.step.unwrap_or(k as u64);
@@ -324,6 +395,7 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
                 positions: &frame.positions,
                 radii: &frame.radii,
                 velocities: &frame.velocities,
+                walls: &walls_at(run_walls.as_ref(), step),
             },
             &png,
         )?;

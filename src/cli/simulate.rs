@@ -171,11 +171,13 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let draw = |pictures: &mut Option<FrameRenderer>, stepper: &mut dyn Stepper| -> Result<()> {
         if let Some(pictures) = pictures {
             let now = stepper.particles()?;
+            let walls = walls.triangles_at(now.step as f64 * p.dt as f64);
             let frame = FrameData {
                 step: Some(now.step),
                 positions: &now.positions,
                 radii: &now.radii,
                 velocities: &now.velocities,
+                walls: &walls,
             };
             pictures.render(&frame, &png_name(&out, now.step))?;
         }

@@ -51,12 +51,8 @@ impl WallOutputs {
             .zip(self.walls.poses_at(time))
             .enumerate()
         {
-            let tris = wall.triangles.triangles();
-            let points: Vec<[f32; 3]> = tris
-                .iter()
-                .flat_map(|t| t.corners.map(|c| pose.to_world(c).to_array()))
-                .collect();
-            let triangles: Vec<[u32; 3]> = (0..tris.len() as u32)
+            let points: Vec<[f32; 3]> = wall.triangles_at(&pose).concat();
+            let triangles: Vec<[u32; 3]> = (0..points.len() as u32 / 3)
                 .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
                 .collect();
             let file = self.dir.join(io::wall_file_name(step, k));

@@ -1020,6 +1020,11 @@ impl SceneConfig {
         })
     }
 
+    /// The walls of the scene (its material's wall friction in them).
+    pub fn wall_set(&self) -> Result<WallSet> {
+        self.walls(&self.material()?)
+    }
+
     /// The walls of the scene: the box (or not) and each `[[wall]]` read and posed.
     fn walls(&self, material: &Material) -> Result<WallSet> {
         let friction = material.wall_friction.unwrap_or(material.friction);

@@ -1,7 +1,8 @@
 //! Pictures of spheres: ray traced, headless, on the GPU or the CPU.
 //!
 //! A [`Scene`] holds the spheres with a colour each (by radius or speed, [`ColorBy`], through
-//! the viridis map); a [`Picture`] says what to draw (size, [`Camera`], samples per pixel,
+//! the viridis map) and any mesh walls' triangles ([`Scene::with_walls`]: a translucent skin, the
+//! nearest wall laid over what lies behind it); a [`Picture`] says what to draw (size, [`Camera`], samples per pixel,
 //! shadows); a [`Renderer`] draws it into an [`Image`], which gets a colour [`Legend`] and is
 //! written as PNG (or collected into an animated [`Gif`]).
 //!

@@ -45,6 +45,16 @@ pub struct MeshWall {
     pub friction: f32,
 }
 
+impl MeshWall {
+    /// Its triangles in `pose`, three corners each.
+    pub fn triangles_at(&self, pose: &Pose) -> Vec<[[f32; 3]; 3]> {
+        let tris = self.triangles.triangles();
+        tris.iter()
+            .map(|t| t.corners.map(|c| pose.to_world(c).to_array()))
+            .collect()
+    }
+}
+
 /// The walls of a run: the six of the box (or none) and the mesh walls.
 #[derive(Debug, Clone)]
 pub struct WallSet {
@@ -85,6 +95,14 @@ impl WallSet {
     /// Every mesh wall's pose at time `t` \[s\].
     pub fn poses_at(&self, t: f64) -> Vec<Pose> {
         self.meshes.iter().map(|m| m.motion.pose_at(t)).collect()
+    }
+
+    /// The triangles of every mesh wall where they are at time `t` \[s\], three corners each.
+    pub fn triangles_at(&self, t: f64) -> Vec<[[f32; 3]; 3]> {
+        self.meshes
+            .iter()
+            .flat_map(|m| m.triangles_at(&m.motion.pose_at(t)))
+            .collect()
     }
 
     /// In words, for a run's summary line.
