@@ -77,14 +77,16 @@ fn total_mass(p: &Particles) -> f64 {
 fn an_inflow_inserts_at_its_rate_where_nothing_is_and_never_overlaps() {
     // No gravity and no velocity: the spheres stay where they are put, so any overlap would be
     // one the inflow made. 2000 spheres/s into a slab that holds a few hundred: it fills, then
-    // refuses.
+    // refuses. Every backend puts the same spheres at the same places as the cpu does at the
+    // same flow events (every 50 steps, as set).
     let inflow = InflowConfig {
         velocity: None,
         ..top_inflow()
     };
-    on_every_backend(|kind| {
+    let run = |kind| {
         let flow = FlowSet {
             inflows: vec![inflow.build(0, RHO).unwrap()],
+            every: Some(50),
             ..FlowSet::default()
         };
         let mut s = stepper(kind, Particles::default(), params(0.0), flow, true);
@@ -92,14 +94,30 @@ fn an_inflow_inserts_at_its_rate_where_nothing_is_and_never_overlaps() {
             let advance = s.advance(10).unwrap();
             assert_eq!(advance.contacts, 0, "an inserted sphere overlaps another");
         }
-        let counts = s.flow_counts().unwrap();
+        (s.flow_counts().unwrap(), s.particles().unwrap())
+    };
+    let (cpu, placed) = run(BackendKind::Cpu);
+    on_every_backend(|kind| {
+        let (counts, now) = run(kind);
         // ⌊2000/s · 1000 dt⌋ (dt in f32: 0.1 s less 2.5e-10), each inserted or refused (the
-        // last flow event is at step 1000 on every backend).
+        // last flow event is at step 1000).
         let due = (2000.0 * 1000.0 * params(0.0).dt as f64).floor() as u64;
         assert_eq!(due, 199);
         assert_eq!(counts.inserted + counts.refused, due);
         assert!(counts.inserted > 100, "{counts:?}");
-        assert_eq!(s.particles().unwrap().len() as u64, counts.inserted);
+        assert_eq!(
+            (counts.inserted, counts.refused),
+            (cpu.inserted, cpu.refused)
+        );
+        assert_eq!(now.len() as u64, counts.inserted);
+        assert_eq!(
+            (&now.positions, &now.radii),
+            (&placed.positions, &placed.radii)
+        );
+        if kind == BackendKind::WgpuCompute {
+            // Its flow events append on the device: none reads the spheres back.
+            assert_eq!(counts.read_backs, 0, "{counts:?}");
+        }
     });
 }
 

@@ -1,24 +1,52 @@
-//! Spheres entering and leaving a GPU backend's run ([`crate::dem::flow`]): the step runs on
-//! the GPU between flow events; at each event the spheres are read back (with their contact
-//! history, keyed by stable ids), the flows remove and insert on the host exactly as the cpu
-//! step does, and the step is reopened on the same device over the new spheres (its compiled
-//! pipelines are the device's, so reopening allocates and uploads, and compiles nothing).
-//! A run with no sphere left waits, without a step, for its inflows.
+//! Spheres entering and leaving a GPU backend's run ([`crate::dem::flow`]). The step runs on
+//! the GPU between flow events. At an event, a step that can ([`DeviceFlow`]: wgpu-compute)
+//! scans its state on the device for the spheres that leave and those near the inflows; where
+//! none leaves, the inflows place their spheres on the host against those near ones, exactly
+//! as the cpu step does, and the step appends them on the device. Otherwise (spheres leave, no
+//! room is left, or the step cannot scan) the spheres are read back with their contact history
+//! (keyed by stable ids), the flows act on the host as on the cpu, and the step is reopened on
+//! the same device over the new spheres (its compiled pipelines are the device's, so reopening
+//! allocates and uploads, and compiles nothing), with room for the spheres still to come. A
+//! run with no sphere left waits, without a step, for its inflows.
 
-use crate::dem::flow::{FlowCounts, FlowSet};
+use super::gpu_flow::{FlowQuery, Scan};
+use super::gpu_step::Room;
+use crate::dem::flow::{Event, FlowCounts, FlowSet, NewSphere};
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::error::Result;
 use crate::particles::Particles;
+use glam::Vec3;
 use std::time::Instant;
 
-/// Opens a backend's step over the spheres given, on the device of the first.
-pub type Reopen = Box<dyn FnMut(Particles) -> Result<Box<dyn Stepper>> + Send>;
+/// A GPU step's part in a flow event without reading every sphere back, where it has one (the
+/// defaults: none).
+pub(crate) trait DeviceFlow: Stepper {
+    /// The spheres that leave by `query` and those near its inflows (`None`: this step cannot
+    /// scan, and the event reads every sphere back).
+    fn scan(&mut self, _query: &FlowQuery) -> Result<Option<Scan>> {
+        Ok(None)
+    }
+
+    /// Appends `new` after the spheres there, their stable ids continuing those, with no
+    /// spin and no history; `false` where the step has no room for them (or its grid was
+    /// chosen for other radii) and the event reopens it.
+    fn append(&mut self, _new: &[NewSphere]) -> Result<bool> {
+        Ok(false)
+    }
+}
+
+/// Opens a backend's step over the spheres given with the room given for more (where it keeps
+/// any), on the device of the first.
+pub type Reopen = Box<dyn FnMut(Particles, Room) -> Result<Box<dyn DeviceFlow>> + Send>;
+
+/// Spheres of room a reopened step keeps for those to come, at least.
+const SPARE_ROOM: usize = 4096;
 
 /// A GPU backend's step with flows (module docs).
 pub struct FlowStep {
     /// The step (`None` while no sphere is in the run).
-    step: Option<Box<dyn Stepper>>,
+    step: Option<Box<dyn DeviceFlow>>,
     /// The spheres while there is no step: none, and the step count.
     idle: Particles,
     reopen: Reopen,
@@ -27,6 +55,8 @@ pub struct FlowStep {
     every: u32,
     dt: f32,
     density: f32,
+    /// At least the largest radius in the step (the boxes near the inflows grow with it).
+    r_max: f32,
     counts: FlowCounts,
     /// The step's description, kept for the times it has no step.
     described: String,
@@ -40,30 +70,25 @@ impl FlowStep {
         flow: FlowSet,
         dt: f32,
         density: f32,
-        mut reopen: Reopen,
+        reopen: Reopen,
     ) -> Result<Self> {
-        let every = flow.every(true);
-        let idle = Particles {
-            step: particles.step,
-            ..Particles::default()
-        };
-        let step = if particles.is_empty() {
-            None
-        } else {
-            Some(reopen(particles)?)
-        };
-        let described = step.as_ref().map(|s| s.describe()).unwrap_or_default();
-        Ok(FlowStep {
-            step,
-            idle,
+        let mut step = FlowStep {
+            step: None,
+            idle: Particles {
+                step: particles.step,
+                ..Particles::default()
+            },
             reopen,
+            every: flow.every(true),
             flow,
-            every,
             dt,
             density,
+            r_max: 0.0,
             counts: FlowCounts::default(),
-            described,
-        })
+            described: String::new(),
+        };
+        step.open(particles)?;
+        Ok(step)
     }
 
     /// The step count now.
@@ -71,19 +96,98 @@ impl FlowStep {
         self.idle.step
     }
 
+    /// Opens the step over `parts` (none for no spheres), with room for spheres to come where
+    /// an inflow brings them.
+    fn open(&mut self, parts: Particles) -> Result<()> {
+        if parts.is_empty() {
+            self.step = None;
+            self.idle = parts;
+            return Ok(());
+        }
+        let n = parts.len();
+        // Room for what the inflows bring: more spheres, of their radii.
+        let room = match (self.flow.smallest_radius(), self.flow.largest_radius()) {
+            (Some(a), b) => Room {
+                spheres: n + (n / 8).max(SPARE_ROOM),
+                radii: (a, b),
+            },
+            (None, _) => Room::of(&parts),
+        }
+        .holding(&parts);
+        self.r_max = room.radii.1;
+        let step = (self.reopen)(parts, room)?;
+        self.described = step.describe();
+        self.step = Some(step);
+        Ok(())
+    }
+
     /// Removes and inserts what the flows say after the step that brought the run to `now`.
     fn flow_event(&mut self) -> Result<()> {
         let started = Instant::now();
-        let flowed = self.flow_on_host();
+        let flowed = self.flow_on_device();
         self.counts.events += 1;
         self.counts.event_ms += started.elapsed().as_secs_f64() * 1e3;
         flowed
     }
 
-    /// [`flow_event`](Self::flow_event)'s work.
-    fn flow_on_host(&mut self) -> Result<()> {
+    /// The event on the device where the step can take it there, else [`round_trip`].
+    fn flow_on_device(&mut self) -> Result<()> {
+        let event = Event {
+            step: self.now(),
+            every: self.every,
+            dt: self.dt,
+            density: self.density,
+        };
+        let query = FlowQuery {
+            near: self
+                .flow
+                .reach(event, self.r_max)
+                .into_iter()
+                .flatten()
+                .collect(),
+            outflows: self.flow.outflows.clone(),
+            floor: self.flow.floor,
+        };
+        let Some(step) = &mut self.step else {
+            return self.round_trip();
+        };
+        if query == FlowQuery::default() {
+            return Ok(());
+        }
+        let scan = match step.scan(&query)? {
+            Some(scan) if scan.leaving == 0 => scan,
+            _ => return self.round_trip(),
+        };
+        let near = |lo: Vec3, hi: Vec3| -> Vec<(Vec3, f32)> {
+            let inside = |c: &Vec3| c.cmpge(lo).all() && c.cmple(hi).all();
+            scan.near
+                .iter()
+                .filter(|(c, _)| inside(c))
+                .copied()
+                .collect()
+        };
+        let new = self.flow.insert(event, self.r_max, near, &mut self.counts);
+        if new.is_empty() || step.append(&new)? {
+            let largest = new.iter().map(|s| s.radius).fold(0.0, f32::max);
+            self.r_max = self.r_max.max(largest);
+            return Ok(());
+        }
+        // No room (or other radii): reopened with them.
+        self.counts.read_backs += 1;
+        let mut parts = step.particles()?;
+        for s in &new {
+            parts.push(s.centre, s.velocity, s.radius)?;
+        }
+        self.open(parts)
+    }
+
+    /// The event on the host: every sphere read back, the flows applied, the step reopened.
+    fn round_trip(&mut self) -> Result<()> {
         let mut parts = match &mut self.step {
-            Some(step) => step.particles()?,
+            Some(step) => {
+                self.counts.read_backs += 1;
+                step.particles()?
+            }
             None => self.idle.clone(),
         };
         let changed = self.flow.apply(
@@ -93,18 +197,7 @@ impl FlowStep {
             self.density,
             &mut self.counts,
         )?;
-        if !changed {
-            return Ok(());
-        }
-        if parts.is_empty() {
-            self.step = None;
-            self.idle = parts;
-        } else {
-            let step = (self.reopen)(parts)?;
-            self.described = step.describe();
-            self.step = Some(step);
-        }
-        Ok(())
+        if changed { self.open(parts) } else { Ok(()) }
     }
 }
 

@@ -11,6 +11,7 @@
 //! start of a batch, so that a batch in which some sphere had more contacts than K is redone
 //! from that state with K grown: no contact is ever dropped.
 
+use super::gpu_step::Room;
 use super::gpu_step::granular::{
     ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, GRANULAR, GranularParams, HELD_NEW, HELD_OLD,
     HISTORY_NEED, OMEGA, TORQUE,
@@ -169,24 +170,31 @@ impl History {
         }
     }
 
-    /// Uploads `slots` (every slot of `split`).
+    /// Uploads `slots`, the first rows of `split` (the buffers are new: the rows after stay
+    /// empty).
     fn write(&self, gpu: &Gpu, split: &EntrySplit, slots: &Slots) {
         for (part, buffer) in self.parts.iter().enumerate() {
-            let entries = &slots.entries[split.slots_of(part)];
-            gpu.queue
-                .write_buffer(buffer, 0, bytemuck::cast_slice(entries));
+            let range = split.slots_of(part);
+            let end = range.end.min(slots.entries.len());
+            if range.start < end {
+                let entries = &slots.entries[range.start..end];
+                gpu.queue
+                    .write_buffer(buffer, 0, bytemuck::cast_slice(entries));
+            }
         }
     }
 }
 
-/// Every slot of `split` from `parts` (as [`History::parts`]).
-fn read_slots(gpu: &Gpu, parts: &[wgpu::Buffer], split: &EntrySplit) -> Result<Slots> {
-    let count = split.n as usize * split.slots as usize;
-    let mut entries = try_vec(count, || {
-        format!("the contact history of {} spheres", split.n)
-    })?;
+/// The slots of the first `rows` rows of `split` from `parts` (as [`History::parts`]).
+fn read_slots(gpu: &Gpu, parts: &[wgpu::Buffer], split: &EntrySplit, rows: u32) -> Result<Slots> {
+    let count = rows.min(split.n) as usize * split.slots as usize;
+    let mut entries = try_vec(count, || format!("the contact history of {rows} spheres"))?;
     for (part, buffer) in parts.iter().enumerate() {
-        entries.extend(gpu.read::<Entry>(buffer, split.slots_of(part).len())?);
+        let range = split.slots_of(part);
+        let wanted = range.end.min(count).saturating_sub(range.start);
+        if wanted > 0 {
+            entries.extend(gpu.read::<Entry>(buffer, wanted)?);
+        }
     }
     Ok(Slots { entries })
 }
@@ -290,7 +298,8 @@ impl Granular {
 
     /// The buffers for `particles` on `gpu` for the engine named `engine` (its backend's name),
     /// whose state is in `sets` sets of buffers (1: one set in input order; 2: two sets that a
-    /// step of parity k reads from set k and writes in set 1 − k); the angular velocities go
+    /// step of parity k reads from set k and writes in set 1 − k) with `room` (for spheres
+    /// appended later, see [`append`](Self::append)); the angular velocities go
     /// into set 0, in input order, the history as the old history of a step of parity 0 (rows
     /// in input order; the cpu's layout, both sides of each pair, is usable as it is: each owner
     /// finds its own entry first).
@@ -300,7 +309,7 @@ impl Granular {
         params: &StepParams,
         walls: &WallSet,
         engine: &'static str,
-        sets: usize,
+        (sets, room): (usize, Room),
     ) -> Result<Self> {
         let stage = gpu.limits.max_storage_buffers_per_shader_stage;
         if stage < STORAGE_BUFFERS {
@@ -313,16 +322,18 @@ impl Granular {
             });
         }
         let n64 = particles.len() as u64;
+        let room = room.holding(particles);
+        let rows = room.spheres as u64;
         let f = &params.friction;
         let keeps = f.has_history();
         let first_wall = match walls.meshes.is_empty() {
             true => FIRST_WALL,
             false => FIRST_MESH_WALL,
         };
-        if keeps && n64 > first_wall as u64 {
+        if keeps && rows > first_wall as u64 {
             return Err(Error::TooLarge {
                 what: "spheres of a run with contact history (ids above are the walls')".into(),
-                got: n64,
+                got: rows,
                 limit: first_wall as u64,
             });
         }
@@ -340,7 +351,7 @@ impl Granular {
             false => 0,
         };
         let n = n64 as u32;
-        let split = entry_split(gpu, n, slots, engine)?;
+        let split = entry_split(gpu, rows as u32, slots, engine)?;
         let gpu_params = GranularParams {
             law,
             rate,
@@ -362,28 +373,22 @@ impl Granular {
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
         let make = |what: &str, bytes: u64| gpu.storage(&label(what), bytes, none);
-        let mesh = MeshWalls::new(
-            gpu,
-            walls,
-            particles.len(),
-            particles.radius_range().1,
-            engine,
-        )?;
+        let mesh = MeshWalls::new(gpu, walls, rows as usize, room.radii.1, engine)?;
         let granular = gpu.checked("allocating the granular step's buffers", || Self {
             params: gpu_params,
             uniform: gpu.uniform(&label("granular"), &gpu_params),
             omega: (0..sets)
-                .map(|k| make(&format!("omega{k}"), n64 * 16))
+                .map(|k| make(&format!("omega{k}"), rows * 16))
                 .collect(),
-            torque: make("torque", n64 * 12),
+            torque: make("torque", rows * 12),
             history: [0, 1].map(|k| History::new(gpu, engine, k, &split)),
             split,
             spare: [
                 make("entries_spare_old", ENTRY_BYTES),
                 make("entries_spare_new", ENTRY_BYTES),
             ],
-            held: [make("held0", n64 * 4), make("held1", n64 * 4)],
-            came_from: make("came_from", if sets == 2 { n64 * 4 } else { 4 }),
+            held: [make("held0", rows * 4), make("held1", rows * 4)],
+            came_from: make("came_from", if sets == 2 { rows * 4 } else { 4 }),
             need: make("history_need", 4),
             saved: Vec::new(),
             given: if keeps {
@@ -478,6 +483,22 @@ impl Granular {
         &mut self.mesh
     }
 
+    /// Makes the `k` rows after the spheres there (rows kept at opening) those of new spheres
+    /// for a step of parity `parity`: no spin, no history.
+    pub fn append(&mut self, gpu: &Gpu, parity: usize, k: u32) -> Result<()> {
+        let (first, count) = (self.n as u64, k as u64);
+        gpu.checked("appending spheres", || {
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            let omega = self.omega_of(parity);
+            encoder.clear_buffer(omega, first * 16, Some(count * 16));
+            let held = &self.held[parity];
+            encoder.clear_buffer(held, first * 4, Some(count * 4));
+            gpu.queue.submit([encoder.finish()]);
+        })?;
+        self.n += k;
+        Ok(())
+    }
+
     /// Whether contacts keep springs (then batches are saved and may be redone).
     pub fn keeps_history(&self) -> bool {
         self.params.slots > 0
@@ -549,12 +570,12 @@ impl Granular {
         let engine = self.engine;
         let (n, old) = (self.n as usize, self.split);
         let slots = need.saturating_add(need / 4);
-        let split = entry_split(gpu, self.n, slots, engine)?;
+        let split = entry_split(gpu, old.n, slots, engine)?;
         // The saved copies: the old history's buffers, its counts, then the rest.
         let fields = old.parts();
         let held: Vec<u32> = gpu.read(&self.saved[fields], n)?;
         // Each sphere's held slots moved to its first slots of the wider rows.
-        let moved = read_slots(gpu, &self.saved[..fields], &old)?.moved(
+        let moved = read_slots(gpu, &self.saved[..fields], &old, self.n)?.moved(
             &held,
             old.slots as usize,
             slots as usize,
@@ -594,7 +615,7 @@ impl Granular {
         let history = if self.keeps_history() {
             let k = self.params.slots as usize;
             let mut held: Vec<u32> = gpu.read(&self.held[parity], n)?;
-            let mut slots = read_slots(gpu, &self.history[parity].parts, &self.split)?;
+            let mut slots = read_slots(gpu, &self.history[parity].parts, &self.split, self.n)?;
             if let Some(ids) = ids {
                 // Rows in state order to rows by stable id.
                 slots = slots.moved(&held, k, k, |row| ids[row] as usize)?;

@@ -412,6 +412,41 @@ impl StepTimer {
 
 /// What opening a wgpu engine's DEM step compiles: the accumulators chosen, the state of the
 /// variant the scene needs ([`Variant::of`]), and the step's module in that variant.
+/// What an engine's state has room for: rows for `spheres` spheres (at least the
+/// particles'), and a grid and walls for radii over the range `radii` (at least the
+/// particles'); the rest for spheres appended later ([`super::flow_step::DeviceFlow`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Room {
+    /// Spheres.
+    pub spheres: usize,
+    /// Smallest and largest radius \[m\].
+    pub radii: (f32, f32),
+}
+
+impl Room {
+    /// Room for `particles` and nothing more.
+    pub fn of(particles: &Particles) -> Room {
+        Room {
+            spheres: particles.len(),
+            radii: particles.radius_range(),
+        }
+    }
+
+    /// This room, grown to hold `particles` (the radii of none count for nothing).
+    pub fn holding(self, particles: &Particles) -> Room {
+        let (a, b) = particles.radius_range();
+        let radii = match (particles.is_empty(), self.radii) {
+            (true, radii) => radii,
+            (false, (0.0, 0.0)) => (a, b),
+            (false, (lo, hi)) => (lo.min(a), hi.max(b)),
+        };
+        Room {
+            spheres: self.spheres.max(particles.len()),
+            radii,
+        }
+    }
+}
+
 pub(crate) struct DemModule {
     /// The accumulators, in words (for `describe`).
     pub atomics: &'static str,
@@ -424,10 +459,10 @@ pub(crate) struct DemModule {
 }
 
 impl DemModule {
-    /// Refuses more than `limit` spheres ([`Error::TooLarge`], naming `backend` and the
-    /// adapter), picks the accumulators and the variant, opens its state (the granular one for
-    /// an engine with `sets` state sets, see [`Granular::new`]) and compiles
-    /// `source(accumulators, variant)`.
+    /// Refuses room for more than `limit` spheres ([`Error::TooLarge`], naming `backend` and
+    /// the adapter), picks the accumulators and the variant, opens its state (the granular one
+    /// for an engine with `sets` state sets of room for `capacity` spheres, at least the
+    /// particles', see [`Granular::new`]) and compiles `source(accumulators, variant)`.
     #[allow(clippy::too_many_arguments)]
     pub fn open(
         gpu: &Gpu,
@@ -436,11 +471,12 @@ impl DemModule {
         params: &StepParams,
         walls: &WallSet,
         limit: u64,
-        sets: usize,
+        (sets, room): (usize, Room),
         atomics: ForceAtomics,
         source: impl FnOnce(Accumulators, Variant) -> String,
     ) -> Result<Self> {
-        let n = particles.len() as u64;
+        let room = room.holding(particles);
+        let n = room.spheres as u64;
         if n > limit {
             return Err(Error::TooLarge {
                 what: format!("spheres for the {backend} DEM on {}", gpu.info.name),
@@ -451,7 +487,7 @@ impl DemModule {
         let (atomics, accumulators) = atomics.pick(gpu);
         let variant = Variant::of(particles, params, walls);
         let granular = (variant == Variant::Granular)
-            .then(|| Granular::new(gpu, particles, params, walls, backend, sets))
+            .then(|| Granular::new(gpu, particles, params, walls, backend, (sets, room)))
             .transpose()?;
         let per_pair = match params.law {
             NormalLaw::LinearPerPair { rate, .. } if variant == Variant::PerPair => Some(PerPair {

@@ -7,6 +7,7 @@
 pub mod cpu;
 mod flow_step;
 mod gpu_detect;
+mod gpu_flow;
 mod gpu_granular;
 mod gpu_readback;
 mod gpu_step;

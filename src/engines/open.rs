@@ -1,6 +1,6 @@
 //! Opening a backend's [`Stepper`]: the one place that knows every backend's DEM step.
 
-use super::flow_step::{FlowStep, Reopen};
+use super::flow_step::{DeviceFlow, FlowStep, Reopen};
 use super::registry::{BackendChoice, BackendKind, Options};
 use crate::dem::model::StepParams;
 use crate::dem::scene::Start;
@@ -182,22 +182,23 @@ fn reopener(
         BackendKind::WgpuCompute => {
             let gpu = Gpu::open(Need::Compute)?;
             let (build, structure) = (options.grid_build, options.structure);
-            Box::new(move |parts| {
-                let step = super::wgpu_compute::GridStepper::on_gpu(
+            Box::new(move |parts, room| {
+                let step = super::wgpu_compute::GridStepper::flowing_on(
                     gpu.clone(),
                     parts,
+                    room,
                     params,
                     mode,
                     atomics,
                     build,
                     &walls,
                 )?;
-                Ok(Box::new(step.with_structure(structure)) as Box<dyn Stepper>)
+                Ok(Box::new(step.with_structure(structure)) as Box<dyn DeviceFlow>)
             })
         }
         BackendKind::WgpuRq => {
             let gpu = Gpu::open(Need::RayQuery)?;
-            Box::new(move |parts| {
+            Box::new(move |parts, _room| {
                 let step = super::wgpu_rq::RqStepper::on_gpu(
                     gpu.clone(),
                     parts,
@@ -206,7 +207,7 @@ fn reopener(
                     atomics,
                     &walls,
                 )?;
-                Ok(Box::new(step) as Box<dyn Stepper>)
+                Ok(Box::new(step) as Box<dyn DeviceFlow>)
             })
         }
         #[cfg(feature = "optix")]
@@ -214,9 +215,9 @@ fn reopener(
         #[cfg(feature = "optix")]
         BackendKind::Optix => {
             let rebuild = options.rebuild;
-            Box::new(move |parts| {
+            Box::new(move |parts, _room| {
                 let step = super::optix::OptixStepper::new(parts, params, mode, rebuild)?;
-                Ok(Box::new(step) as Box<dyn Stepper>)
+                Ok(Box::new(step) as Box<dyn DeviceFlow>)
             })
         }
         #[cfg(not(feature = "optix"))]

@@ -196,6 +196,8 @@ pub struct FlowCounts {
     pub inserted_mass: f64,
     /// Flow events taken.
     pub events: u64,
+    /// Of those, the events that read every sphere back from a GPU (and reopened its step).
+    pub read_backs: u64,
     /// Wall-clock time spent in them (reading back, flowing, reopening a GPU step) \[ms\].
     pub event_ms: f64,
 }
@@ -209,8 +211,13 @@ impl FlowCounts {
         };
         format!(
             "flows: {} inserted, {} refused, {} removed ({:.4e} kg); {} flow events, {each:.3} ms \
-             each (wall clock)",
-            self.inserted, self.refused, self.removed, self.removed_mass, self.events
+             each (wall clock), {} of them reading every sphere back",
+            self.inserted,
+            self.refused,
+            self.removed,
+            self.removed_mass,
+            self.events,
+            self.read_backs
         )
     }
 }
@@ -330,6 +337,38 @@ impl OutflowConfig {
     }
 }
 
+/// A flow event: after the step that brought the run to `step`, closing the `every` steps since
+/// the last (time step `dt`; `density` weighs the spheres).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Event {
+    /// The step count after the event's step.
+    pub step: u64,
+    /// Steps since the last event.
+    pub every: u32,
+    /// Time step \[s\].
+    pub dt: f32,
+    /// Particle density \[kg/m³\].
+    pub density: f32,
+}
+
+impl Event {
+    /// The steps the event closes, `from..to`.
+    fn steps(&self) -> (u64, u64) {
+        (self.step.saturating_sub(self.every as u64), self.step)
+    }
+}
+
+/// A sphere an inflow inserts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NewSphere {
+    /// Centre \[m\].
+    pub centre: [f32; 3],
+    /// Velocity \[m/s\].
+    pub velocity: [f32; 3],
+    /// Radius \[m\].
+    pub radius: f32,
+}
+
 /// A seed for inflow `k`'s draws in step `step` (splitmix64 of the three).
 fn step_seed(seed: u64, k: usize, step: u64) -> u64 {
     let mut z = seed ^ (k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ step.rotate_left(32);
@@ -384,6 +423,15 @@ impl FlowSet {
         step > 0 && step.is_multiple_of(every as u64)
     }
 
+    /// Whether a sphere at `c` leaves: in an outflow (closed box) or below the floor.
+    pub fn leaves(&self, c: Vec3) -> bool {
+        self.floor.is_some_and(|z| c.z < z)
+            || self
+                .outflows
+                .iter()
+                .any(|&(lo, hi)| c.cmpge(lo).all() && c.cmple(hi).all())
+    }
+
     /// The flow event after step `parts.step − 1` (taken with time step `dt`), closing the
     /// `every` steps since the last: removes the spheres in an outflow (or below the floor),
     /// then inserts what each inflow owes for those steps; `density` gives the masses counted.
@@ -397,15 +445,11 @@ impl FlowSet {
         counts: &mut FlowCounts,
     ) -> Result<bool> {
         let before = (counts.inserted, counts.removed);
-        let gone = |c: &[f32; 3]| {
-            let c = Vec3::from(*c);
-            self.floor.is_some_and(|z| c.z < z)
-                || self
-                    .outflows
-                    .iter()
-                    .any(|&(lo, hi)| c.cmpge(lo).all() && c.cmple(hi).all())
-        };
-        let keep: Vec<bool> = parts.positions.iter().map(|c| !gone(c)).collect();
+        let keep: Vec<bool> = parts
+            .positions
+            .iter()
+            .map(|c| !self.leaves(Vec3::from(*c)))
+            .collect();
         if keep.iter().any(|k| !k) {
             for (r, _) in parts.radii.iter().zip(&keep).filter(|(_, k)| !**k) {
                 counts.removed += 1;
@@ -413,25 +457,62 @@ impl FlowSet {
             }
             parts.retain(&keep)?;
         }
-        let step = parts.step - 1;
-        let steps = (parts.step.saturating_sub(every as u64), parts.step);
-        for (k, inflow) in self.inflows.iter().enumerate() {
-            let due = inflow.due(steps, dt as f64);
-            if due == 0 {
-                continue;
-            }
-            let mut rng = Pcg64::seed_from_u64(step_seed(inflow.seed, k, step));
-            // The spheres an insertion could touch: near the region.
-            let (lo, hi) = inflow.region.bounds();
-            let (_, r_max) = parts.radius_range();
-            let reach = r_max + inflow.radii.1;
-            let mut near: Vec<(Vec3, f32)> = parts
+        let r_max = parts.radius_range().1;
+        let near = |lo: Vec3, hi: Vec3| -> Vec<(Vec3, f32)> {
+            parts
                 .positions
                 .iter()
                 .zip(&parts.radii)
                 .map(|(c, &r)| (Vec3::from(*c), r))
-                .filter(|(c, _)| c.cmpge(lo - reach).all() && c.cmple(hi + reach).all())
-                .collect();
+                .filter(|(c, _)| c.cmpge(lo).all() && c.cmple(hi).all())
+                .collect()
+        };
+        let step = Event {
+            step: parts.step,
+            every,
+            dt,
+            density,
+        };
+        for sphere in self.insert(step, r_max, near, counts) {
+            parts.push(sphere.centre, sphere.velocity, sphere.radius)?;
+        }
+        Ok((counts.inserted, counts.removed) != before)
+    }
+
+    /// The boxes around each inflow that owes spheres at `event` within which a sphere of
+    /// radius up to `r_max` could touch one it inserts (`None` for an inflow that owes none).
+    pub fn reach(&self, event: Event, r_max: f32) -> Vec<Option<(Vec3, Vec3)>> {
+        self.inflows
+            .iter()
+            .map(|inflow| {
+                let (lo, hi) = inflow.region.bounds();
+                let reach = r_max + inflow.radii.1;
+                (inflow.due(event.steps(), event.dt as f64) > 0).then_some((lo - reach, hi + reach))
+            })
+            .collect()
+    }
+
+    /// What each inflow inserts at `event`, in order, each where it overlaps no sphere that
+    /// `near(lo, hi)` lists (it lists at least every sphere with its centre in the box
+    /// `lo..hi` that [`reach`](Self::reach) gives, `r_max` the largest radius present) nor one
+    /// inserted before it; counts them (and those refused).
+    pub fn insert(
+        &self,
+        event: Event,
+        r_max: f32,
+        mut near: impl FnMut(Vec3, Vec3) -> Vec<(Vec3, f32)>,
+        counts: &mut FlowCounts,
+    ) -> Vec<NewSphere> {
+        let mut inserted: Vec<NewSphere> = Vec::new();
+        let reach = self.reach(event, r_max);
+        for ((k, inflow), bounds) in self.inflows.iter().enumerate().zip(reach) {
+            let Some((lo, hi)) = bounds else {
+                continue;
+            };
+            let due = inflow.due(event.steps(), event.dt as f64);
+            let mut rng = Pcg64::seed_from_u64(step_seed(inflow.seed, k, event.step - 1));
+            let mut near = near(lo, hi);
+            near.extend(inserted.iter().map(|s| (Vec3::from(s.centre), s.radius)));
             for _ in 0..due {
                 let (a, b) = inflow.radii;
                 let r = if b > a { rng.random_range(a..=b) } else { a };
@@ -443,15 +524,19 @@ impl FlowSet {
                     });
                 match free {
                     Some(c) => {
-                        parts.push(c.to_array(), inflow.velocity.to_array(), r)?;
                         near.push((c, r));
+                        inserted.push(NewSphere {
+                            centre: c.to_array(),
+                            velocity: inflow.velocity.to_array(),
+                            radius: r,
+                        });
                         counts.inserted += 1;
-                        counts.inserted_mass += mass(density, r) as f64;
+                        counts.inserted_mass += mass(event.density, r) as f64;
                     }
                     None => counts.refused += 1,
                 }
             }
         }
-        Ok((counts.inserted, counts.removed) != before)
+        inserted
     }
 }

@@ -412,6 +412,9 @@ impl OptixStepper {
     }
 }
 
+/// Flow events read the state back and reopen the step.
+impl crate::engines::flow_step::DeviceFlow for OptixStepper {}
+
 impl Stepper for OptixStepper {
     fn describe(&self) -> String {
         let m = &self.maintenance;

@@ -34,15 +34,19 @@ use super::shaders::dem_grid::{
     self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, OMEGA_A, PARAMS, POS_A,
     RANKS, SORT_KEYS, SORT_ORDER, VEL_A,
 };
+use crate::dem::flow::NewSphere;
 use crate::dem::model::StepParams;
+use crate::dem::model::mass;
 use crate::dem::stepper::Clock;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
+use crate::engines::flow_step::DeviceFlow;
+use crate::engines::gpu_flow::{FlowQuery, FlowScan, Scan};
 use crate::engines::gpu_readback::{BatchReadback, InFlight};
 use crate::engines::gpu_step::granular::OMEGA;
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch,
+    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch, Room,
     StepTimer, advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
 use crate::engines::gpu_walls;
@@ -112,7 +116,12 @@ pub struct GridStepper {
     gpu: Gpu,
     pipelines: Pipelines,
     sorter: Sorter,
+    /// Spheres in the state.
     n: u32,
+    /// Spheres the buffers have rows for (spheres appended up to it need no new buffers).
+    capacity: u32,
+    /// The flow events' scan of the state (made at the first).
+    flow_scan: Option<FlowScan>,
     mode: ProxyMode,
     mode_cell: f64,
     /// Smallest and largest radius.
@@ -190,9 +199,17 @@ impl GridStepper {
         grid_build: GridBuild,
         walls: &WallSet,
     ) -> Result<Self> {
-        Self::opening(particles, params, mode, atomics, grid_build, walls, || {
-            Gpu::open(Need::Compute)
-        })
+        let room = Room::of(&particles);
+        Self::opening(
+            particles,
+            params,
+            mode,
+            atomics,
+            grid_build,
+            walls,
+            room,
+            || Gpu::open(Need::Compute),
+        )
     }
 
     /// As [`with_walls`](Self::with_walls), on `gpu`: a step reopened on the device of the
@@ -208,12 +225,47 @@ impl GridStepper {
         grid_build: GridBuild,
         walls: &WallSet,
     ) -> Result<Self> {
-        Self::opening(particles, params, mode, atomics, grid_build, walls, || {
-            Ok(gpu)
-        })
+        let room = Room::of(&particles);
+        Self::opening(
+            particles,
+            params,
+            mode,
+            atomics,
+            grid_build,
+            walls,
+            room,
+            || Ok(gpu),
+        )
     }
 
-    /// The stepper on the device `open` gives once the particles are checked.
+    /// As [`on_gpu`](Self::on_gpu), with `room` for spheres flowing in, which are appended on
+    /// the device ([`DeviceFlow::append`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn flowing_on(
+        gpu: Gpu,
+        particles: Particles,
+        room: Room,
+        params: StepParams,
+        mode: ProxyMode,
+        atomics: ForceAtomics,
+        grid_build: GridBuild,
+        walls: &WallSet,
+    ) -> Result<Self> {
+        Self::opening(
+            particles,
+            params,
+            mode,
+            atomics,
+            grid_build,
+            walls,
+            room,
+            || Ok(gpu),
+        )
+    }
+
+    /// The stepper with `room` (at least the particles') on the device `open` gives once the
+    /// particles are checked.
+    #[allow(clippy::too_many_arguments)]
     fn opening(
         mut particles: Particles,
         params: StepParams,
@@ -221,10 +273,12 @@ impl GridStepper {
         atomics: ForceAtomics,
         grid_build: GridBuild,
         walls: &WallSet,
+        room: Room,
         open: impl FnOnce() -> Result<Gpu>,
     ) -> Result<Self> {
         particles.separate_coincident()?;
-        let (r_min, r_max) = particles.radius_range();
+        let room = room.holding(&particles);
+        let (r_min, r_max) = room.radii;
         let mode_cell = mode.cell_size(r_max) as f64;
         let build = match start_bounds(&particles, &params, mode_cell as f32) {
             Some(bounds) => grid_build.resolve(particles.len() as u64, bounds, mode_cell),
@@ -244,12 +298,12 @@ impl GridStepper {
             walls,
             max_spheres(&gpu),
             // The two sets of the ping-ponged state.
-            2,
+            (2, room),
             atomics,
             |accumulators, variant| dem_grid::variant_source(build, variant, accumulators),
         )?;
-        let n64 = particles.len() as u64;
-        let n = n64 as u32;
+        let n = particles.len() as u32;
+        let rows = room.spheres as u64;
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.{entry}"), &module, entry);
         let (first, last) = match build {
             BuildKind::Dense => ("bin_count", "bin_scatter"),
@@ -270,21 +324,21 @@ impl GridStepper {
         let make = |label: &str, bytes: u64| gpu.storage(label, bytes, none);
         let stepper = gpu.checked("allocating the DEM buffers", || {
             let set = |k: usize| StateSet {
-                pos: make(&format!("mochi.dem.pos{k}"), n64 * 16),
-                vel: make(&format!("mochi.dem.vel{k}"), n64 * 16),
-                ids: make(&format!("mochi.dem.ids{k}"), n64 * 4),
+                pos: make(&format!("mochi.dem.pos{k}"), rows * 16),
+                vel: make(&format!("mochi.dem.vel{k}"), rows * 16),
+                ids: make(&format!("mochi.dem.ids{k}"), rows * 4),
             };
             let timer = StepTimer::new(&gpu);
             let sorter = match build {
                 BuildKind::Dense => Sorter::Dense {
-                    ranks: make("mochi.dem.ranks", n64 * 4),
+                    ranks: make("mochi.dem.ranks", rows * 4),
                     cell_table: CellTable::new(&gpu, 1),
                     scan: CellScan::new(&gpu),
                     scan_bind: None,
                 },
                 BuildKind::Sorted => Sorter::Sorted {
-                    keys: make("mochi.dem.sort_keys", n64 * 4),
-                    order: make("mochi.dem.sort_order", n64 * 4),
+                    keys: make("mochi.dem.sort_keys", rows * 4),
+                    order: make("mochi.dem.sort_order", rows * 4),
                     sort: RadixSort::new(&gpu),
                     prepared: None,
                 },
@@ -293,6 +347,8 @@ impl GridStepper {
                 sorter,
                 pipelines,
                 n,
+                capacity: rows as u32,
+                flow_scan: None,
                 mode,
                 mode_cell,
                 radii: (r_min as f64, r_max as f64),
@@ -306,7 +362,7 @@ impl GridStepper {
                 dem_uniform: gpu.uniform("mochi.dem.params", &DemParams::default()),
                 sets: [set(0), set(1)],
                 current: 0,
-                force: make("mochi.dem.force", n64 * 12),
+                force: make("mochi.dem.force", rows * 12),
                 counters: make("mochi.dem.counters", 16),
                 bounds: make("mochi.dem.bounds", 24),
                 clock: make("mochi.dem.clock", 4),
@@ -866,6 +922,64 @@ impl Phase {
             Phase::Resolve => "mochi.dem.resolve",
             Phase::Integrate => "mochi.dem.integrate",
         }
+    }
+}
+
+/// Flow events scan the state on the device and append inserted spheres to it, in rows kept
+/// for them at opening ([`GridStepper::flowing_on`]).
+impl DeviceFlow for GridStepper {
+    fn scan(&mut self, query: &FlowQuery) -> Result<Option<Scan>> {
+        let gpu = &self.gpu;
+        let scan = self.flow_scan.get_or_insert_with(|| FlowScan::new(gpu));
+        let pos = &self.sets[self.current].pos;
+        scan.scan(gpu, pos, self.n, query).map(Some)
+    }
+
+    fn append(&mut self, new: &[NewSphere]) -> Result<bool> {
+        let k = new.len() as u32;
+        let (r_min, r_max) = new.iter().fold((f32::MAX, 0.0f32), |(a, b), s| {
+            (a.min(s.radius), b.max(s.radius))
+        });
+        // The grid's cells and levels were chosen for the radii present.
+        let radii_fit = k == 0 || (r_min as f64 >= self.radii.0 && r_max as f64 <= self.radii.1);
+        if self.n.checked_add(k).is_none_or(|n| n > self.capacity) || !radii_fit {
+            return Ok(false);
+        }
+        if k == 0 {
+            return Ok(true);
+        }
+        let density = self.params.density;
+        let pos: Vec<[f32; 4]> = new
+            .iter()
+            .map(|s| [s.centre[0], s.centre[1], s.centre[2], s.radius])
+            .collect();
+        let vel: Vec<[f32; 4]> = new
+            .iter()
+            .map(|s| {
+                [
+                    s.velocity[0],
+                    s.velocity[1],
+                    s.velocity[2],
+                    mass(density, s.radius),
+                ]
+            })
+            .collect();
+        let ids: Vec<u32> = (self.n..self.n + k).collect();
+        let (q, set) = (&self.gpu.queue, &self.sets[self.current]);
+        let at = self.n as u64;
+        q.write_buffer(&set.pos, at * 16, bytemuck::cast_slice(&pos));
+        q.write_buffer(&set.vel, at * 16, bytemuck::cast_slice(&vel));
+        q.write_buffer(&set.ids, at * 4, bytemuck::cast_slice(&ids));
+        if let Some(g) = &mut self.granular {
+            g.append(&self.gpu, self.current, k)?;
+        }
+        self.n += k;
+        self.groups = self.gpu.grid(self.n, GROUP);
+        let dem = DemParams::new(&self.params, self.n, self.groups.0 * GROUP);
+        self.gpu.write_uniform(&self.dem_uniform, &dem);
+        // The next advance lays the grid out again, over the new bounds and count.
+        self.laid_out_at = None;
+        Ok(true)
     }
 }
 

@@ -392,5 +392,7 @@ pub fn modules() -> Vec<WgslModule> {
             all.push(dem);
         }
     }
+    // The flow events' scan of the state (`engines/gpu_flow.rs`).
+    all.push(crate::engines::gpu_flow::module());
     all
 }

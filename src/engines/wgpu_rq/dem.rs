@@ -18,7 +18,7 @@ use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch,
+    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch, Room,
     StepTimer, advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
 use crate::engines::gpu_walls;
@@ -143,8 +143,8 @@ impl RqStepper {
             &params,
             walls,
             limit,
-            // One state set, in input order.
-            1,
+            // One state set, in input order, with room for the particles.
+            (1, Room::of(&particles)),
             atomics,
             |accumulators, variant| dem_rq::variant_source(variant, accumulators),
         )?;
@@ -328,6 +328,9 @@ impl RedoableBatch for RqStepper {
         );
     }
 }
+
+/// Flow events read the state back and reopen the step.
+impl crate::engines::flow_step::DeviceFlow for RqStepper {}
 
 impl Stepper for RqStepper {
     fn describe(&self) -> String {

@@ -1,0 +1,51 @@
+// A flow event on the device (src/engines/gpu_flow.rs): one pass over the state counts the
+// spheres that leave (centre in an outflow box or below the floor) and lists the spheres whose
+// centres lie in a box around an inflow, so that the event reads back these alone.
+
+// Twin of FlowParams in src/engines/gpu_flow.rs (tests/bindings.rs compares the layouts).
+struct FlowParams {
+    n: u32,          // spheres in the state
+    row: u32,        // invocations per dispatch row
+    near_boxes: u32, // boxes around the inflows: boxes[2k] and boxes[2k + 1] are lo and hi
+    out_boxes: u32,  // outflow boxes, after those
+    floor_on: u32,   // 1: centres below `floor` leave
+    floor: f32,
+    room: u32,       // entries of `near`
+    pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: FlowParams;
+@group(0) @binding(1) var<storage, read> pos: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> boxes: array<vec4<f32>>;
+// [0]: spheres that leave; [1]: spheres near an inflow (listed up to `room`).
+@group(0) @binding(3) var<storage, read_write> counts: array<atomic<u32>, 2>;
+@group(0) @binding(4) var<storage, read_write> near: array<vec4<f32>>;
+
+fn inside(c: vec3<f32>, k: u32) -> bool {
+    return all(c >= boxes[2u * k].xyz) && all(c <= boxes[2u * k + 1u].xyz);
+}
+
+@compute @workgroup_size(256)
+fn flow_scan(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x + gid.y * params.row;
+    if i >= params.n {
+        return;
+    }
+    let p = pos[i];
+    var leaves = params.floor_on != 0u && p.z < params.floor;
+    for (var k = 0u; k < params.out_boxes; k += 1u) {
+        leaves = leaves || inside(p.xyz, params.near_boxes + k);
+    }
+    if leaves {
+        atomicAdd(&counts[0], 1u);
+    }
+    for (var k = 0u; k < params.near_boxes; k += 1u) {
+        if inside(p.xyz, k) {
+            let at = atomicAdd(&counts[1], 1u);
+            if at < params.room {
+                near[at] = p;
+            }
+            break;
+        }
+    }
+}
