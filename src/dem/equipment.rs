@@ -136,7 +136,13 @@ impl EquipmentSpec {
         let hi = [radius, radius, height];
         let spheres = self.lattice(r, cell, lo, hi, inside)?;
         let body = revolution(&[(d / 2.0, 0.0), (radius, cone), (radius, height)], SIDES);
-        let gate = revolution(&[(0.0, 0.0), (d / 2.0 + 2.0 * cell, 0.0)], SIDES);
+        // A square plate under the orifice: two triangles (a disc of fan triangles would meet
+        // at its centre, every one of them within a sphere's reach there).
+        let h = d / 2.0 + 2.0 * cell;
+        let gate = Mesh {
+            vertices: vec![[-h, -h, 0.0], [h, -h, 0.0], [h, h, 0.0], [-h, h, 0.0]],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+        };
         // A quarter radius below the bottom: what rests on the bottom never touches it, and
         // no sphere touches both (they are separate meshes, each contact resolved per mesh).
         let gate_config = WallConfig {

@@ -110,6 +110,7 @@ impl FlowStep {
             (Some(a), b) => Room {
                 spheres: n + (n / 8).max(SPARE_ROOM),
                 radii: (a, b),
+                region: self.flow.inflow_bounds(),
             },
             (None, _) => Room::of(&parts),
         }

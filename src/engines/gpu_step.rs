@@ -421,6 +421,8 @@ pub(crate) struct Room {
     pub spheres: usize,
     /// Smallest and largest radius \[m\].
     pub radii: (f32, f32),
+    /// Where spheres will come (the inflows' regions: a grid build is chosen for them too).
+    pub region: Option<([f32; 3], [f32; 3])>,
 }
 
 impl Room {
@@ -429,6 +431,7 @@ impl Room {
         Room {
             spheres: particles.len(),
             radii: particles.radius_range(),
+            region: None,
         }
     }
 
@@ -443,6 +446,7 @@ impl Room {
         Room {
             spheres: self.spheres.max(particles.len()),
             radii,
+            ..self
         }
     }
 }

@@ -404,6 +404,15 @@ impl FlowSet {
         self.inflows.iter().map(|f| f.radii.1).fold(0.0, f32::max)
     }
 
+    /// The box around every inflow's region (`None` without any).
+    pub fn inflow_bounds(&self) -> Option<([f32; 3], [f32; 3])> {
+        self.inflows
+            .iter()
+            .map(|f| f.region.bounds())
+            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+            .map(|(lo, hi)| (lo.to_array(), hi.to_array()))
+    }
+
     /// The smallest radius an inflow inserts (`None` without any).
     pub fn smallest_radius(&self) -> Option<f32> {
         self.inflows.iter().map(|f| f.radii.0).reduce(f32::min)

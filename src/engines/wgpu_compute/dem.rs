@@ -280,8 +280,19 @@ impl GridStepper {
         let room = room.holding(&particles);
         let (r_min, r_max) = room.radii;
         let mode_cell = mode.cell_size(r_max) as f64;
-        let build = match start_bounds(&particles, &params, mode_cell as f32) {
-            Some(bounds) => grid_build.resolve(particles.len() as u64, bounds, mode_cell),
+        // The build for where the spheres are and where more will come.
+        let bounds = match (
+            start_bounds(&particles, &params, mode_cell as f32),
+            room.region,
+        ) {
+            (Some((lo, hi)), Some((a, b))) => Some((
+                std::array::from_fn(|k| lo[k].min(a[k])),
+                std::array::from_fn(|k| hi[k].max(b[k])),
+            )),
+            (bounds, region) => bounds.or(region),
+        };
+        let build = match bounds {
+            Some(bounds) => grid_build.resolve(room.spheres as u64, bounds, mode_cell),
             None => BuildKind::Dense,
         };
         let gpu = open()?;
