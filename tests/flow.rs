@@ -9,7 +9,7 @@ mod common;
 use common::on_every_backend;
 use mochi::ProxyMode;
 use mochi::dem::flow::{FlowSet, InflowConfig, OutflowConfig};
-use mochi::dem::model::{Material, mass};
+use mochi::dem::model::{ContactLaw, Material, mass};
 use mochi::dem::scene::Start;
 use mochi::dem::walls::WallSet;
 use mochi::dem::{Particles, StepParams, Stepper};
@@ -226,6 +226,10 @@ fn every_backend_inserts_and_removes_what_the_cpu_does_at_the_same_flow_events()
             (c.inserted, c.refused, c.removed),
             (counts.inserted, counts.refused, counts.removed)
         );
+        if kind == BackendKind::WgpuCompute {
+            // Its flow events remove and insert on the device: none reads the spheres back.
+            assert_eq!(c.read_backs, 0, "{c:?}");
+        }
         assert_eq!(now.radii, cpu.radii, "the same spheres, in the same order");
         for (a, b) in now.positions.iter().zip(&cpu.positions) {
             let off = glam::Vec3::from(*a).distance(glam::Vec3::from(*b));
@@ -262,4 +266,91 @@ fn a_run_with_inflow_and_outflow_resumes_from_its_checkpoint_bit_for_bit() {
     );
     assert!(!a.history.is_empty(), "the run had contact history");
     assert_eq!(a, b);
+}
+
+#[test]
+fn spheres_leaving_a_frictional_pile_on_the_device_leave_the_others_contacts_as_on_the_cpu() {
+    // A 4×4×4 lattice of touching spheres (radii 4.96–5 mm, 9.9 mm apart) on the floor, with
+    // friction and rolling resistance: contacts with springs everywhere. An outflow takes the
+    // layer at x < 9 mm at the first flow event (step 10); 20 steps later every backend holds
+    // the cpu's spheres, in its order, with the cpu's contacts and springs.
+    let m = Material {
+        density: RHO,
+        friction: 0.5,
+        rolling_friction: 0.1,
+        contact: ContactLaw::HertzMindlin {
+            young_modulus: 1e7,
+            poisson_ratio: 0.3,
+        },
+        ..Material::default()
+    };
+    let p = StepParams::new(
+        &m,
+        2e-5,
+        [0.0; 3],
+        [0.2; 3],
+        [0.0, 0.0, -9.81],
+        0.0,
+        0.00496,
+    )
+    .unwrap();
+    let mut pile = Particles::default();
+    for k in 0..64u32 {
+        let at = [k % 4, (k / 4) % 4, k / 16].map(|i| 0.0049 + i as f32 * 0.0099);
+        pile.push(
+            at,
+            [0.0; 3],
+            0.00496 + 0.00004 * ((k * 37) % 11) as f32 / 10.0,
+        )
+        .unwrap();
+    }
+    let flow = FlowSet {
+        outflows: vec![(glam::Vec3::ZERO, glam::Vec3::new(0.009, 0.2, 0.2))],
+        every: Some(10),
+        ..FlowSet::default()
+    };
+    let run = |kind| {
+        let mut s = stepper(kind, pile.clone(), p, flow.clone(), true);
+        s.advance(30).unwrap();
+        (s.flow_counts().unwrap(), s.particles().unwrap())
+    };
+    let (cpu_counts, cpu) = run(BackendKind::Cpu);
+    assert_eq!(cpu_counts.removed, 16);
+    assert!(
+        cpu.history.contacts().count() > 200,
+        "the pile keeps springs"
+    );
+    let largest = |x: &mut dyn Iterator<Item = f32>| x.fold(0.0f32, |m, v| m.max(v.abs()));
+    let xi_max = largest(&mut cpu.history.contacts().flat_map(|(_, e)| e.tangential));
+    on_every_backend(|kind| {
+        let (counts, got) = run(kind);
+        assert_eq!(counts.removed, 16);
+        if kind == BackendKind::WgpuCompute {
+            assert_eq!(counts.read_backs, 0, "{counts:?}");
+        }
+        assert_eq!(got.radii, cpu.radii, "the same spheres, in the same order");
+        for (a, b) in got.positions.iter().zip(&cpu.positions) {
+            let gap = glam::Vec3::from(*a).distance(glam::Vec3::from(*b));
+            assert!(gap < 1e-6, "{a:?} vs the cpu's {b:?}");
+        }
+        for i in 0..cpu.len() {
+            let mut a = got.history.of(i).to_vec();
+            let mut b = cpu.history.of(i).to_vec();
+            a.sort_by_key(|e| e.partner);
+            b.sort_by_key(|e| e.partner);
+            let partners =
+                |h: &[mochi::dem::HistoryEntry]| h.iter().map(|e| e.partner).collect::<Vec<_>>();
+            assert_eq!(partners(&a), partners(&b), "the contacts of sphere {i}");
+            for (x, y) in a.iter().zip(&b) {
+                for k in 0..3 {
+                    let gap = (x.tangential[k] - y.tangential[k]).abs();
+                    assert!(
+                        gap <= 1e-3 * xi_max,
+                        "sphere {i}'s spring with {}",
+                        x.partner
+                    );
+                }
+            }
+        }
+    });
 }

@@ -1,6 +1,6 @@
-// A flow event on the device (src/engines/gpu_flow.rs): one pass over the state counts the
-// spheres that leave (centre in an outflow box or below the floor) and lists the spheres whose
-// centres lie in a box around an inflow, so that the event reads back these alone.
+// A flow event on the device (src/engines/gpu_flow.rs): one pass over the state lists the
+// spheres that leave (centre in an outflow box or below the floor) and the others whose centres
+// lie in a box around an inflow, so that the event reads back these alone.
 
 // Twin of FlowParams in src/engines/gpu_flow.rs (tests/bindings.rs compares the layouts).
 struct FlowParams {
@@ -11,15 +11,18 @@ struct FlowParams {
     floor_on: u32,   // 1: centres below `floor` leave
     floor: f32,
     room: u32,       // entries of `near`
-    pad: u32,
+    leaving_room: u32, // entries of `leaving`
 }
 
 @group(0) @binding(0) var<uniform> params: FlowParams;
 @group(0) @binding(1) var<storage, read> pos: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> boxes: array<vec4<f32>>;
-// [0]: spheres that leave; [1]: spheres near an inflow (listed up to `room`).
+// [0]: spheres that leave (listed up to `leaving_room`); [1]: spheres near an inflow (listed up
+// to `room`).
 @group(0) @binding(3) var<storage, read_write> counts: array<atomic<u32>, 2>;
 @group(0) @binding(4) var<storage, read_write> near: array<vec4<f32>>;
+// State index and radius (bits) of each sphere that leaves.
+@group(0) @binding(5) var<storage, read_write> leaving: array<vec2<u32>>;
 
 fn inside(c: vec3<f32>, k: u32) -> bool {
     return all(c >= boxes[2u * k].xyz) && all(c <= boxes[2u * k + 1u].xyz);
@@ -37,7 +40,11 @@ fn flow_scan(@builtin(global_invocation_id) gid: vec3<u32>) {
         leaves = leaves || inside(p.xyz, params.near_boxes + k);
     }
     if leaves {
-        atomicAdd(&counts[0], 1u);
+        let at = atomicAdd(&counts[0], 1u);
+        if at < params.leaving_room {
+            leaving[at] = vec2(i, bitcast<u32>(p.w));
+        }
+        return;
     }
     for (var k = 0u; k < params.near_boxes; k += 1u) {
         if inside(p.xyz, k) {

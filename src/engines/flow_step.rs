@@ -1,17 +1,19 @@
 //! Spheres entering and leaving a GPU backend's run ([`crate::dem::flow`]). The step runs on
 //! the GPU between flow events. At an event, a step that can ([`DeviceFlow`]: wgpu-compute)
-//! scans its state on the device for the spheres that leave and those near the inflows; where
-//! none leaves, the inflows place their spheres on the host against those near ones, exactly
-//! as the cpu step does, and the step appends them on the device. Otherwise (spheres leave, no
-//! room is left, or the step cannot scan) the spheres are read back with their contact history
-//! (keyed by stable ids), the flows act on the host as on the cpu, and the step is reopened on
-//! the same device over the new spheres (its compiled pipelines are the device's, so reopening
-//! allocates and uploads, and compiles nothing), with room for the spheres still to come. A
-//! run with no sphere left waits, without a step, for its inflows.
+//! scans its state on the device for the spheres that leave and those near the inflows, removes
+//! the leaving ones on the device (the others keep their stable ids, so their history holds),
+//! and the inflows place their spheres on the host against the near ones, exactly as the cpu
+//! step does, which the step appends on the device. Otherwise (no room is left, or the step
+//! cannot scan) the spheres are read back with their contact history (keyed by stable ids), the
+//! flows act on the host as on the cpu, and the step is reopened on the same device over the
+//! new spheres (its compiled pipelines are the device's, so reopening allocates and uploads,
+//! and compiles nothing), with room for the spheres still to come. A run with no sphere left
+//! waits, without a step, for its inflows.
 
 use super::gpu_flow::{FlowQuery, Scan};
 use super::gpu_step::Room;
 use crate::dem::flow::{Event, FlowCounts, FlowSet, NewSphere};
+use crate::dem::model::mass;
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::error::Result;
@@ -28,10 +30,17 @@ pub(crate) trait DeviceFlow: Stepper {
         Ok(None)
     }
 
-    /// Appends `new` after the spheres there, their stable ids continuing those, with no
-    /// spin and no history; `false` where the step has no room for them (or its grid was
-    /// chosen for other radii) and the event reopens it.
+    /// Appends `new` after the spheres there, their stable ids after any the step has given,
+    /// with no spin and no history; `false` where the step has no room for them (or its grid
+    /// was chosen for other radii) and the event reopens it.
     fn append(&mut self, _new: &[NewSphere]) -> Result<bool> {
+        Ok(false)
+    }
+
+    /// Removes the spheres at the state indices `rows` (distinct, as a scan gave them), the
+    /// others keeping their stable ids (their order is input order still); `false` where the
+    /// step cannot, and the event reads the spheres back.
+    fn remove(&mut self, _rows: &[u32]) -> Result<bool> {
         Ok(false)
     }
 }
@@ -155,10 +164,19 @@ impl FlowStep {
         if query == FlowQuery::default() {
             return Ok(());
         }
-        let scan = match step.scan(&query)? {
-            Some(scan) if scan.leaving == 0 => scan,
-            _ => return self.round_trip(),
+        let Some(scan) = step.scan(&query)? else {
+            return self.round_trip();
         };
+        if !scan.leaving.is_empty() {
+            let rows: Vec<u32> = scan.leaving.iter().map(|&(row, _)| row).collect();
+            if !step.remove(&rows)? {
+                return self.round_trip();
+            }
+            for &(_, r) in &scan.leaving {
+                self.counts.removed += 1;
+                self.counts.removed_mass += mass(self.density, r) as f64;
+            }
+        }
         let near = |lo: Vec3, hi: Vec3| -> Vec<(Vec3, f32)> {
             let inside = |c: &Vec3| c.cmpge(lo).all() && c.cmple(hi).all();
             scan.near

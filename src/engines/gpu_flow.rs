@@ -1,6 +1,6 @@
 //! A flow event's look at a wgpu engine's state without reading every sphere back
-//! (`wgsl/flow_scan.wgsl`): one pass counts the spheres that leave and lists those near the
-//! inflows, the two things an event needs before it inserts ([`super::flow_step`]).
+//! (`wgsl/flow_scan.wgsl`): one pass lists the spheres that leave and those near the inflows,
+//! the two things an event needs to remove and insert ([`super::flow_step`]).
 
 use crate::error::Result;
 use crate::gpu::Gpu;
@@ -20,6 +20,7 @@ const POS: Binding = Binding::read(1, "pos");
 const BOXES: Binding = Binding::read(2, "boxes");
 const COUNTS: Binding = Binding::read_write(3, "counts");
 const NEAR: Binding = Binding::read_write(4, "near");
+const LEAVING: Binding = Binding::read_write(5, "leaving");
 
 /// The scan's WGSL module, exactly as the device gets it.
 pub fn module() -> WgslModule {
@@ -27,7 +28,7 @@ pub fn module() -> WgslModule {
         "flow_scan",
         SOURCE,
         &[ENTRY_POINT],
-        &[PARAMS, POS, BOXES, COUNTS, NEAR],
+        &[PARAMS, POS, BOXES, COUNTS, NEAR, LEAVING],
         vec![shared_struct!(
             "FlowParams",
             FlowParams {
@@ -38,7 +39,7 @@ pub fn module() -> WgslModule {
                 floor_on,
                 floor,
                 room,
-                pad,
+                leaving_room,
             }
         )],
     )
@@ -54,7 +55,7 @@ struct FlowParams {
     floor_on: u32,
     floor: f32,
     room: u32,
-    pad: u32,
+    leaving_room: u32,
 }
 
 /// What a flow event asks of the state.
@@ -71,9 +72,9 @@ pub struct FlowQuery {
 /// What the scan found.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Scan {
-    /// Spheres that leave.
-    pub leaving: u32,
-    /// Centre and radius of every sphere in a box of [`FlowQuery::near`], in no order.
+    /// State index and radius of every sphere that leaves, in no order.
+    pub leaving: Vec<(u32, f32)>,
+    /// Centre and radius of every other sphere in a box of [`FlowQuery::near`], in no order.
     pub near: Vec<(Vec3, f32)>,
 }
 
@@ -84,6 +85,8 @@ pub(crate) struct FlowScan {
     counts: wgpu::Buffer,
     near: wgpu::Buffer,
     room: u32,
+    leaving: wgpu::Buffer,
+    leaving_room: u32,
 }
 
 impl FlowScan {
@@ -97,6 +100,8 @@ impl FlowScan {
             counts: gpu.storage("mochi.flow_scan.counts", 8, none),
             near: gpu.storage("mochi.flow_scan.near", FIRST_ROOM as u64 * 16, none),
             room: FIRST_ROOM,
+            leaving: gpu.storage("mochi.flow_scan.leaving", FIRST_ROOM as u64 * 8, none),
+            leaving_room: FIRST_ROOM,
         }
     }
 
@@ -128,7 +133,7 @@ impl FlowScan {
                 floor_on: query.floor.is_some() as u32,
                 floor: query.floor.unwrap_or(0.0),
                 room: self.room,
-                pad: 0,
+                leaving_room: self.leaving_room,
             };
             gpu.write_uniform(&self.params, &params);
             let bind = gpu.bind(
@@ -140,6 +145,7 @@ impl FlowScan {
                     (BOXES, &boxes),
                     (COUNTS, &self.counts),
                     (NEAR, &self.near),
+                    (LEAVING, &self.leaving),
                 ],
             );
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -156,14 +162,30 @@ impl FlowScan {
             })?;
             let [leaving, listed] =
                 <[u32; 2]>::try_from(gpu.read::<u32>(&self.counts, 2)?).expect("two counts read");
-            if listed > self.room {
-                // The list overflowed: again with room for all.
-                self.room = listed.next_power_of_two();
-                self.near = gpu.checked("growing the flow scan's list", || {
-                    gpu.storage("mochi.flow_scan.near", self.room as u64 * 16, none)
+            if listed > self.room || leaving > self.leaving_room {
+                // A list overflowed: again with room for all.
+                self.room = self.room.max(listed.next_power_of_two());
+                self.leaving_room = self.leaving_room.max(leaving.next_power_of_two());
+                (self.near, self.leaving) = gpu.checked("growing the flow scan's lists", || {
+                    (
+                        gpu.storage("mochi.flow_scan.near", self.room as u64 * 16, none),
+                        gpu.storage(
+                            "mochi.flow_scan.leaving",
+                            self.leaving_room as u64 * 8,
+                            none,
+                        ),
+                    )
                 })?;
                 continue;
             }
+            let gone: Vec<[u32; 2]> = match leaving {
+                0 => Vec::new(),
+                _ => gpu.read(&self.leaving, leaving as usize)?,
+            };
+            let leaving = gone
+                .iter()
+                .map(|&[row, r]| (row, f32::from_bits(r)))
+                .collect();
             let rows: Vec<[f32; 4]> = match listed {
                 0 => Vec::new(),
                 _ => gpu.read(&self.near, listed as usize)?,

@@ -11,11 +11,11 @@
 //! start of a batch, so that a batch in which some sphere had more contacts than K is redone
 //! from that state with K grown: no contact is ever dropped.
 
-use super::gpu_step::Room;
 use super::gpu_step::granular::{
     ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, GRANULAR, GranularParams, HELD_NEW, HELD_OLD,
     HISTORY_NEED, OMEGA, TORQUE,
 };
+use super::gpu_step::{InputOrder, Room, move_rows};
 use super::gpu_walls::MeshWalls;
 use crate::dem::model::{NormalLaw, RollingModel, StepParams};
 use crate::dem::stepper::StageTimes;
@@ -225,6 +225,23 @@ impl Slots {
             partner,
             tangential: [x, y, z].map(f32::from_bits),
             rolling: [u, v, w].map(f32::from_bits),
+        }
+    }
+
+    /// Each row's partners renamed by `name` (`k` slots a row, `held` of them in use), the
+    /// entries of a partner with no name dropped.
+    fn rename(&mut self, held: &mut [u32], k: usize, name: impl Fn(u32) -> Option<u32>) {
+        for (i, count) in held.iter_mut().enumerate() {
+            let mut kept = 0;
+            for s in 0..*count as usize {
+                let mut e = self.entries[i * k + s];
+                if let Some(partner) = name(e[3]) {
+                    e[3] = partner;
+                    self.entries[i * k + kept] = e;
+                    kept += 1;
+                }
+            }
+            *count = kept as u32;
         }
     }
 
@@ -604,11 +621,45 @@ impl Granular {
         Ok(())
     }
 
+    /// Records the move of the rows of `moves` (as [`move_rows`]) of the angular velocities and
+    /// the history that a step of parity `parity` reads, through `scratch`.
+    pub fn move_rows(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        parity: usize,
+        scratch: &wgpu::Buffer,
+        moves: &[(u32, u32)],
+    ) {
+        let omega = self.omega_of(parity);
+        move_rows(encoder, scratch, moves, 16, |r| (omega, r as u64 * 16));
+        if !self.keeps_history() {
+            return;
+        }
+        let held = &self.held[parity];
+        move_rows(encoder, scratch, moves, 4, |r| (held, r as u64 * 4));
+        let (per, k) = (self.split.spheres_per_part, self.params.slots as u64);
+        let parts = &self.history[parity].parts;
+        move_rows(encoder, scratch, moves, k * ENTRY_BYTES, |r| {
+            let part = (r / per) as usize;
+            (&parts[part], (r % per) as u64 * k * ENTRY_BYTES)
+        });
+    }
+
+    /// Bytes of the longest row [`move_rows`](Self::move_rows) moves.
+    pub fn row_bytes(&self) -> u64 {
+        (self.params.slots as u64 * ENTRY_BYTES).max(16)
+    }
+
+    /// Forgets the last `k` rows (the engine moved the rows it keeps before them).
+    pub fn shrink(&mut self, k: u32) {
+        self.n -= k;
+    }
+
     /// The angular velocities (in the order of state set `parity`) and the history in the
     /// cpu's layout, after a step of parity `1 - parity` (the history of parity `parity` is
-    /// the one the next step reads); `ids` are the stable ids of state set `parity` (`None`:
-    /// the state is in input order).
-    pub fn read(&self, gpu: &Gpu, parity: usize, ids: Option<&[u32]>) -> Result<Rotation> {
+    /// the one the next step reads); `order` maps the rows of state set `parity` to input
+    /// order (`None`: the state is in input order).
+    pub fn read(&self, gpu: &Gpu, parity: usize, order: Option<&InputOrder>) -> Result<Rotation> {
         let n = self.n as usize;
         let omega: Vec<[f32; 4]> = gpu.read(self.omega_of(parity), n)?;
         let angular_velocities = omega.iter().map(|w| [w[0], w[1], w[2]]).collect();
@@ -616,14 +667,18 @@ impl Granular {
             let k = self.params.slots as usize;
             let mut held: Vec<u32> = gpu.read(&self.held[parity], n)?;
             let mut slots = read_slots(gpu, &self.history[parity].parts, &self.split, self.n)?;
-            if let Some(ids) = ids {
-                // Rows in state order to rows by stable id.
-                slots = slots.moved(&held, k, k, |row| ids[row] as usize)?;
-                let mut by_id = vec![0; n];
+            if let Some(order) = order {
+                // Rows in state order to rows in input order.
+                let rank = &order.rank;
+                slots = slots.moved(&held, k, k, |row| rank[row] as usize)?;
+                let mut by_rank = vec![0; n];
                 for (row, &c) in held.iter().enumerate() {
-                    by_id[ids[row] as usize] = c;
+                    by_rank[rank[row] as usize] = c;
                 }
-                held = by_id;
+                held = by_rank;
+                if order.renames() {
+                    slots.rename(&mut held, k, |id| order.partner(id));
+                }
             }
             both_sides(n, k, &held, &slots)?
         } else {

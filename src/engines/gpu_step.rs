@@ -11,7 +11,8 @@ use crate::error::{Error, Result};
 use crate::gpu::Gpu;
 use crate::gpu::shader::{Binding, SharedStruct, Vec3f, shared_struct};
 use crate::gpu::timer::GpuTimer;
-use crate::particles::Particles;
+use crate::particles::{FIRST_MESH_WALL, Particles};
+use rayon::prelude::*;
 
 /// The physics shared by the GPU steps (`wgsl/dem_params.wgsl` and, for the paper's law,
 /// `wgsl/dem_physics.wgsl`, integration kernel included) and its force accumulators: the
@@ -412,6 +413,75 @@ impl StepTimer {
 
 /// What opening a wgpu engine's DEM step compiles: the accumulators chosen, the state of the
 /// variant the scene needs ([`Variant::of`]), and the step's module in that variant.
+/// How the rows of a state whose spheres have the stable ids `ids` (distinct; with gaps where
+/// spheres left on the device) map to input order, the ids' ascending order.
+pub(crate) struct InputOrder {
+    /// Each row's index in input order (its id's rank among the ids).
+    pub rank: Vec<u32>,
+    /// The ids ascending, where they have gaps (`None`: they are `0..n`, each its own rank).
+    sorted: Option<Vec<u32>>,
+}
+
+impl InputOrder {
+    /// The order of the rows with stable ids `ids`.
+    pub fn of(ids: &[u32]) -> Self {
+        let n = ids.len();
+        if ids.iter().all(|&id| (id as usize) < n) {
+            // Distinct and below n: a permutation of 0..n.
+            return InputOrder {
+                rank: ids.to_vec(),
+                sorted: None,
+            };
+        }
+        let mut sorted = ids.to_vec();
+        sorted.par_sort_unstable();
+        let rank = ids
+            .par_iter()
+            .map(|&id| sorted.partition_point(|&x| x < id) as u32)
+            .collect();
+        InputOrder {
+            rank,
+            sorted: Some(sorted),
+        }
+    }
+
+    /// Whether the ids have gaps (history partners are then renamed).
+    pub fn renames(&self) -> bool {
+        self.sorted.is_some()
+    }
+
+    /// A history partner's name in input order: a wall keeps its own, a sphere gets its
+    /// rank, and one that has left gets none.
+    pub fn partner(&self, id: u32) -> Option<u32> {
+        match &self.sorted {
+            Some(sorted) if id < FIRST_MESH_WALL => {
+                sorted.binary_search(&id).ok().map(|k| k as u32)
+            }
+            _ => Some(id),
+        }
+    }
+}
+
+/// Records the move of rows within buffers through `scratch` (at least `moves.len() · bytes`
+/// bytes): each `(from, to)` of `moves` copies the row `from` over the row `to` (no row is both
+/// a source and a target); `at(row)` is the buffer and byte offset of a row of `bytes` bytes.
+pub(crate) fn move_rows<'a>(
+    encoder: &mut wgpu::CommandEncoder,
+    scratch: &wgpu::Buffer,
+    moves: &[(u32, u32)],
+    bytes: u64,
+    at: impl Fn(u32) -> (&'a wgpu::Buffer, u64),
+) {
+    for (k, &(from, _)) in moves.iter().enumerate() {
+        let (buffer, offset) = at(from);
+        encoder.copy_buffer_to_buffer(buffer, offset, scratch, k as u64 * bytes, bytes);
+    }
+    for (k, &(_, to)) in moves.iter().enumerate() {
+        let (buffer, offset) = at(to);
+        encoder.copy_buffer_to_buffer(scratch, k as u64 * bytes, buffer, offset, bytes);
+    }
+}
+
 /// What an engine's state has room for: rows for `spheres` spheres (at least the
 /// particles'), and a grid and walls for radii over the range `radii` (at least the
 /// particles'); the rest for spheres appended later ([`super::flow_step::DeviceFlow`]).

@@ -46,15 +46,16 @@ use crate::engines::gpu_readback::{BatchReadback, InFlight};
 use crate::engines::gpu_step::granular::OMEGA;
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch, Room,
-    StepTimer, advance_in_batches, max_spheres, particles_with, rows, run_batch,
+    DemModule, DemParams, ForceAtomics, GROUP, Granular, InputOrder, MAX_BATCH, PerPair,
+    RedoableBatch, Room, StepTimer, advance_in_batches, max_spheres, move_rows, particles_with,
+    rows, run_batch,
 };
 use crate::engines::gpu_walls;
 use crate::error::{Error, Result};
 use crate::gpu::radix_sort::{PreparedSort, RadixSort};
 use crate::gpu::shader::Binding;
 use crate::gpu::{self, Gpu, Need};
-use crate::particles::Particles;
+use crate::particles::{FIRST_MESH_WALL, Particles};
 use crate::proxy::ProxyMode;
 
 /// Steps between two re-derivations of the grid layout.
@@ -120,6 +121,8 @@ pub struct GridStepper {
     n: u32,
     /// Spheres the buffers have rows for (spheres appended up to it need no new buffers).
     capacity: u32,
+    /// The stable id the next sphere appended gets (ids have gaps where spheres left).
+    next_id: u32,
     /// The flow events' scan of the state (made at the first).
     flow_scan: Option<FlowScan>,
     mode: ProxyMode,
@@ -359,6 +362,7 @@ impl GridStepper {
                 pipelines,
                 n,
                 capacity: rows as u32,
+                next_id: n,
                 flow_scan: None,
                 mode,
                 mode_cell,
@@ -421,12 +425,13 @@ impl GridStepper {
         let pos: Vec<[f32; 4]> = self.gpu.read(&set.pos, n)?;
         let vel: Vec<[f32; 4]> = self.gpu.read(&set.vel, n)?;
         let ids: Vec<u32> = self.gpu.read(&set.ids, n)?;
+        let order = InputOrder::of(&ids);
         let rotation = || {
             let g = self.granular.as_ref();
-            g.map(|g| g.read(&self.gpu, self.current, Some(&ids)))
+            g.map(|g| g.read(&self.gpu, self.current, Some(&order)))
                 .transpose()
         };
-        particles_with(&pos, &vel, Some(&ids), self.step, rotation)
+        particles_with(&pos, &vel, Some(&order.rank), self.step, rotation)
     }
 
     /// The centres' bounds now (a GPU reduction), or `None` for no spheres.
@@ -953,7 +958,12 @@ impl DeviceFlow for GridStepper {
         });
         // The grid's cells and levels were chosen for the radii present.
         let radii_fit = k == 0 || (r_min as f64 >= self.radii.0 && r_max as f64 <= self.radii.1);
-        if self.n.checked_add(k).is_none_or(|n| n > self.capacity) || !radii_fit {
+        // Stable ids stay below the walls' (a reopening numbers the spheres afresh).
+        let ids_fit = self
+            .next_id
+            .checked_add(k)
+            .is_some_and(|end| end <= FIRST_MESH_WALL);
+        if self.n.checked_add(k).is_none_or(|n| n > self.capacity) || !radii_fit || !ids_fit {
             return Ok(false);
         }
         if k == 0 {
@@ -975,7 +985,8 @@ impl DeviceFlow for GridStepper {
                 ]
             })
             .collect();
-        let ids: Vec<u32> = (self.n..self.n + k).collect();
+        let ids: Vec<u32> = (self.next_id..self.next_id + k).collect();
+        self.next_id += k;
         let (q, set) = (&self.gpu.queue, &self.sets[self.current]);
         let at = self.n as u64;
         q.write_buffer(&set.pos, at * 16, bytemuck::cast_slice(&pos));
@@ -984,13 +995,62 @@ impl DeviceFlow for GridStepper {
         if let Some(g) = &mut self.granular {
             g.append(&self.gpu, self.current, k)?;
         }
-        self.n += k;
-        self.groups = self.gpu.grid(self.n, GROUP);
-        let dem = DemParams::new(&self.params, self.n, self.groups.0 * GROUP);
-        self.gpu.write_uniform(&self.dem_uniform, &dem);
-        // The next advance lays the grid out again, over the new bounds and count.
-        self.laid_out_at = None;
+        self.resize(self.n + k);
         Ok(true)
+    }
+
+    fn remove(&mut self, rows: &[u32]) -> Result<bool> {
+        let k = rows.len() as u32;
+        let Some(kept) = self.n.checked_sub(k) else {
+            return Ok(false);
+        };
+        // The last rows that stay fill the places of those that leave before them.
+        let mut leaving = rows.to_vec();
+        leaving.sort_unstable();
+        let holes = leaving.iter().copied().take_while(|&r| r < kept);
+        let fillers = (kept..self.n).filter(|r| leaving.binary_search(r).is_err());
+        let moves: Vec<(u32, u32)> = fillers.zip(holes).collect();
+        if !moves.is_empty() {
+            let gpu = &self.gpu;
+            let row_bytes = self.granular.as_ref().map_or(16, |g| g.row_bytes());
+            let bytes = moves.len() as u64 * row_bytes;
+            let none = wgpu::BufferUsages::empty();
+            gpu.checked("removing spheres", || {
+                let scratch = gpu.storage("mochi.dem.flow_scratch", bytes, none);
+                let mut encoder = gpu.device.create_command_encoder(&Default::default());
+                let set = &self.sets[self.current];
+                move_rows(&mut encoder, &scratch, &moves, 16, |r| {
+                    (&set.pos, r as u64 * 16)
+                });
+                move_rows(&mut encoder, &scratch, &moves, 16, |r| {
+                    (&set.vel, r as u64 * 16)
+                });
+                move_rows(&mut encoder, &scratch, &moves, 4, |r| {
+                    (&set.ids, r as u64 * 4)
+                });
+                if let Some(g) = &self.granular {
+                    g.move_rows(&mut encoder, self.current, &scratch, &moves);
+                }
+                gpu.queue.submit([encoder.finish()]);
+            })?;
+        }
+        if let Some(g) = &mut self.granular {
+            g.shrink(k);
+        }
+        self.resize(kept);
+        Ok(true)
+    }
+}
+
+impl GridStepper {
+    /// The state now holds `n` spheres: the dispatch and the uniform follow, and the next
+    /// advance lays the grid out again, over the new bounds and count.
+    fn resize(&mut self, n: u32) {
+        self.n = n;
+        self.groups = self.gpu.grid(n, GROUP);
+        let dem = DemParams::new(&self.params, n, self.groups.0 * GROUP);
+        self.gpu.write_uniform(&self.dem_uniform, &dem);
+        self.laid_out_at = None;
     }
 }
 
