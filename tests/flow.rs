@@ -354,3 +354,51 @@ fn spheres_leaving_a_frictional_pile_on_the_device_leave_the_others_contacts_as_
         }
     });
 }
+
+#[test]
+fn an_event_that_lists_thousands_of_spheres_leaving_and_near_an_inflow_matches_the_cpu() {
+    // 10,648 spheres of 2 mm on a 6 mm lattice (none touching, no gravity): an outflow takes
+    // the 4,840 at x ≤ 0.06 m, an inflow drops 2 mm spheres among the 5,324 at x ≥ 0.07 m: more
+    // than the scan's first lists hold on either side.
+    let mut lattice = Particles::default();
+    for k in 0..22u32.pow(3) {
+        let at = [k % 22, (k / 22) % 22, k / 484].map(|i| 0.004 + i as f32 * 0.006);
+        lattice.push(at, [0.0; 3], 0.002).unwrap();
+    }
+    let inflow = InflowConfig {
+        lo: Some([0.07, 0.0, 0.0]),
+        hi: Some([0.13, 0.13, 0.13]),
+        rate: Some(50_000.0),
+        sphere_radius: Some(0.002),
+        seed: Some(3),
+        ..InflowConfig::default()
+    };
+    let flow = FlowSet {
+        inflows: vec![inflow.build(0, RHO).unwrap()],
+        outflows: vec![(glam::Vec3::ZERO, glam::Vec3::new(0.061, 0.2, 0.2))],
+        every: Some(10),
+        ..FlowSet::default()
+    };
+    let run = |kind| {
+        let mut s = stepper(kind, lattice.clone(), params(0.0), flow.clone(), true);
+        let advance = s.advance(10).unwrap();
+        assert_eq!(advance.contacts, 0, "an inserted sphere overlaps another");
+        (s.flow_counts().unwrap(), s.particles().unwrap())
+    };
+    let (cpu, placed) = run(BackendKind::Cpu);
+    assert!(cpu.removed == 4840 && cpu.inserted > 20, "{cpu:?}");
+    on_every_backend(|kind| {
+        let (counts, now) = run(kind);
+        assert_eq!(
+            (counts.inserted, counts.refused, counts.removed),
+            (cpu.inserted, cpu.refused, cpu.removed)
+        );
+        assert_eq!(
+            (&now.positions, &now.radii),
+            (&placed.positions, &placed.radii)
+        );
+        if kind == BackendKind::WgpuCompute {
+            assert_eq!(counts.read_backs, 0, "{counts:?}");
+        }
+    });
+}

@@ -1,6 +1,6 @@
 // A flow event on the device (src/engines/gpu_flow.rs): one pass over the state lists the
 // spheres that leave (centre in an outflow box or below the floor) and the others whose centres
-// lie in a box around an inflow, so that the event reads back these alone.
+// lie in a box around an inflow, so that the event reads back these alone, in one read.
 
 // Twin of FlowParams in src/engines/gpu_flow.rs (tests/bindings.rs compares the layouts).
 struct FlowParams {
@@ -10,19 +10,19 @@ struct FlowParams {
     out_boxes: u32,  // outflow boxes, after those
     floor_on: u32,   // 1: centres below `floor` leave
     floor: f32,
-    room: u32,       // entries of `near`
-    leaving_room: u32, // entries of `leaving`
+    room: u32,       // entries of the near list
+    leaving_room: u32, // entries of the leaving list
 }
 
 @group(0) @binding(0) var<uniform> params: FlowParams;
 @group(0) @binding(1) var<storage, read> pos: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> boxes: array<vec4<f32>>;
-// [0]: spheres that leave (listed up to `leaving_room`); [1]: spheres near an inflow (listed up
-// to `room`).
-@group(0) @binding(3) var<storage, read_write> counts: array<atomic<u32>, 2>;
-@group(0) @binding(4) var<storage, read_write> near: array<vec4<f32>>;
-// State index and radius (bits) of each sphere that leaves.
-@group(0) @binding(5) var<storage, read_write> leaving: array<vec2<u32>>;
+// Words 0 and 1: spheres that leave, spheres near an inflow (each listed up to its room);
+// from word 4, `room` near entries of four words (x, y, z, r as bits); after them,
+// `leaving_room` leaving entries of two words (state index, radius as bits).
+@group(0) @binding(3) var<storage, read_write> found: array<atomic<u32>>;
+
+const HEADER: u32 = 4u;
 
 fn inside(c: vec3<f32>, k: u32) -> bool {
     return all(c >= boxes[2u * k].xyz) && all(c <= boxes[2u * k + 1u].xyz);
@@ -40,17 +40,23 @@ fn flow_scan(@builtin(global_invocation_id) gid: vec3<u32>) {
         leaves = leaves || inside(p.xyz, params.near_boxes + k);
     }
     if leaves {
-        let at = atomicAdd(&counts[0], 1u);
+        let at = atomicAdd(&found[0], 1u);
         if at < params.leaving_room {
-            leaving[at] = vec2(i, bitcast<u32>(p.w));
+            let w = HEADER + 4u * params.room + 2u * at;
+            atomicStore(&found[w], i);
+            atomicStore(&found[w + 1u], bitcast<u32>(p.w));
         }
         return;
     }
     for (var k = 0u; k < params.near_boxes; k += 1u) {
         if inside(p.xyz, k) {
-            let at = atomicAdd(&counts[1], 1u);
+            let at = atomicAdd(&found[1], 1u);
             if at < params.room {
-                near[at] = p;
+                let w = HEADER + 4u * at;
+                atomicStore(&found[w], bitcast<u32>(p.x));
+                atomicStore(&found[w + 1u], bitcast<u32>(p.y));
+                atomicStore(&found[w + 2u], bitcast<u32>(p.z));
+                atomicStore(&found[w + 3u], bitcast<u32>(p.w));
             }
             break;
         }

@@ -12,15 +12,13 @@ const SOURCE: &str = wgsl!("flow_scan.wgsl");
 const ENTRY_POINT: &str = "flow_scan";
 /// Workgroup size (as in the shader).
 const GROUP: u32 = 256;
-/// Entries of the list of spheres near an inflow at first (it grows to what an event needs).
+/// Entries of each list at first (they grow to what an event needs).
 const FIRST_ROOM: u32 = 4096;
 
 const PARAMS: Binding = Binding::uniform(0, "params");
 const POS: Binding = Binding::read(1, "pos");
 const BOXES: Binding = Binding::read(2, "boxes");
-const COUNTS: Binding = Binding::read_write(3, "counts");
-const NEAR: Binding = Binding::read_write(4, "near");
-const LEAVING: Binding = Binding::read_write(5, "leaving");
+const FOUND: Binding = Binding::read_write(3, "found");
 
 /// The scan's WGSL module, exactly as the device gets it.
 pub fn module() -> WgslModule {
@@ -28,7 +26,7 @@ pub fn module() -> WgslModule {
         "flow_scan",
         SOURCE,
         &[ENTRY_POINT],
-        &[PARAMS, POS, BOXES, COUNTS, NEAR, LEAVING],
+        &[PARAMS, POS, BOXES, FOUND],
         vec![shared_struct!(
             "FlowParams",
             FlowParams {
@@ -78,14 +76,17 @@ pub struct Scan {
     pub near: Vec<(Vec3, f32)>,
 }
 
-/// The scan's pipeline and buffers (the list grown on demand).
+/// Words before the lists in the scan's output.
+const HEADER: usize = 4;
+
+/// The scan's pipeline and buffers (the lists grown on demand).
 pub(crate) struct FlowScan {
     pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
-    counts: wgpu::Buffer,
-    near: wgpu::Buffer,
+    boxes: wgpu::Buffer,
+    /// The counts and both lists, read back together ([`HEADER`] words, then the lists).
+    found: wgpu::Buffer,
     room: u32,
-    leaving: wgpu::Buffer,
     leaving_room: u32,
 }
 
@@ -97,10 +98,13 @@ impl FlowScan {
         FlowScan {
             pipeline: gpu.pipeline("mochi.flow_scan", &module, ENTRY_POINT),
             params: gpu.uniform("mochi.flow_scan.params", &FlowParams::default()),
-            counts: gpu.storage("mochi.flow_scan.counts", 8, none),
-            near: gpu.storage("mochi.flow_scan.near", FIRST_ROOM as u64 * 16, none),
+            boxes: gpu.storage("mochi.flow_scan.boxes", 16, none),
+            found: gpu.storage(
+                "mochi.flow_scan.found",
+                found_words(FIRST_ROOM, FIRST_ROOM) * 4,
+                none,
+            ),
             room: FIRST_ROOM,
-            leaving: gpu.storage("mochi.flow_scan.leaving", FIRST_ROOM as u64 * 8, none),
             leaving_room: FIRST_ROOM,
         }
     }
@@ -120,9 +124,12 @@ impl FlowScan {
             .flat_map(|&(lo, hi)| [lo.extend(0.0).to_array(), hi.extend(0.0).to_array()])
             .collect();
         let none = wgpu::BufferUsages::empty();
-        let boxes = gpu.storage("mochi.flow_scan.boxes", corners.len() as u64 * 16, none);
+        let bytes = corners.len() as u64 * 16;
+        if self.boxes.size() < bytes {
+            self.boxes = gpu.storage("mochi.flow_scan.boxes", bytes, none);
+        }
         gpu.queue
-            .write_buffer(&boxes, 0, bytemuck::cast_slice(&corners));
+            .write_buffer(&self.boxes, 0, bytemuck::cast_slice(&corners));
         let groups = gpu.grid(n, GROUP);
         loop {
             let params = FlowParams {
@@ -142,14 +149,12 @@ impl FlowScan {
                 &[
                     (PARAMS, &self.params),
                     (POS, pos),
-                    (BOXES, &boxes),
-                    (COUNTS, &self.counts),
-                    (NEAR, &self.near),
-                    (LEAVING, &self.leaving),
+                    (BOXES, &self.boxes),
+                    (FOUND, &self.found),
                 ],
             );
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            encoder.clear_buffer(&self.counts, 0, None);
+            encoder.clear_buffer(&self.found, 0, Some(HEADER as u64 * 4));
             gpu.dispatch(
                 &mut encoder,
                 "mochi.flow_scan",
@@ -157,44 +162,37 @@ impl FlowScan {
                 &bind,
                 groups,
             );
-            gpu.checked("scanning for a flow event", || {
-                gpu.queue.submit([encoder.finish()])
-            })?;
-            let [leaving, listed] =
-                <[u32; 2]>::try_from(gpu.read::<u32>(&self.counts, 2)?).expect("two counts read");
+            gpu.queue.submit([encoder.finish()]);
+            let words = found_words(self.room, self.leaving_room) as usize;
+            let found: Vec<u32> = gpu.read(&self.found, words)?;
+            let (leaving, listed) = (found[0], found[1]);
             if listed > self.room || leaving > self.leaving_room {
                 // A list overflowed: again with room for all.
                 self.room = self.room.max(listed.next_power_of_two());
                 self.leaving_room = self.leaving_room.max(leaving.next_power_of_two());
-                (self.near, self.leaving) = gpu.checked("growing the flow scan's lists", || {
-                    (
-                        gpu.storage("mochi.flow_scan.near", self.room as u64 * 16, none),
-                        gpu.storage(
-                            "mochi.flow_scan.leaving",
-                            self.leaving_room as u64 * 8,
-                            none,
-                        ),
-                    )
+                let bytes = found_words(self.room, self.leaving_room) * 4;
+                self.found = gpu.checked("growing the flow scan's lists", || {
+                    gpu.storage("mochi.flow_scan.found", bytes, none)
                 })?;
                 continue;
             }
-            let gone: Vec<[u32; 2]> = match leaving {
-                0 => Vec::new(),
-                _ => gpu.read(&self.leaving, leaving as usize)?,
-            };
-            let leaving = gone
-                .iter()
-                .map(|&[row, r]| (row, f32::from_bits(r)))
+            let f = f32::from_bits;
+            let near_words = &found[HEADER..HEADER + 4 * listed as usize];
+            let near = near_words
+                .chunks_exact(4)
+                .map(|w| (Vec3::new(f(w[0]), f(w[1]), f(w[2])), f(w[3])))
                 .collect();
-            let rows: Vec<[f32; 4]> = match listed {
-                0 => Vec::new(),
-                _ => gpu.read(&self.near, listed as usize)?,
-            };
-            let near = rows
-                .iter()
-                .map(|p| (Vec3::new(p[0], p[1], p[2]), p[3]))
+            let at = HEADER + 4 * self.room as usize;
+            let leaving = found[at..at + 2 * leaving as usize]
+                .chunks_exact(2)
+                .map(|w| (w[0], f(w[1])))
                 .collect();
             return Ok(Scan { leaving, near });
         }
     }
+}
+
+/// Words of the scan's output with lists of `room` near and `leaving_room` leaving entries.
+fn found_words(room: u32, leaving_room: u32) -> u64 {
+    HEADER as u64 + 4 * room as u64 + 2 * leaving_room as u64
 }
