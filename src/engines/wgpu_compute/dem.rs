@@ -254,16 +254,13 @@ impl GridStepper {
         grid_build: GridBuild,
         walls: &WallSet,
     ) -> Result<Self> {
-        Self::opening(
-            particles,
-            params,
-            mode,
-            atomics,
-            grid_build,
-            walls,
-            room,
-            || Ok(gpu),
-        )
+        let open = || Ok(gpu);
+        let mut step = Self::opening(
+            particles, params, mode, atomics, grid_build, walls, room, open,
+        )?;
+        // Compiled now, not in the first flow event.
+        step.flow_scan = Some(FlowScan::new(&step.gpu));
+        Ok(step)
     }
 
     /// The stepper with `room` (at least the particles') on the device `open` gives once the
