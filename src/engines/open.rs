@@ -121,7 +121,7 @@ fn optix_refuses(walls: &WallSet) -> Error {
 
 /// Opens the DEM step the user chose for the scene `start`. The box walls run on every
 /// backend, mesh walls and a box switched off on cpu and the wgpu backends (optix refuses
-/// them); spheres flowing in and out on every backend, the GPU ones through [`FlowStep`].
+/// them); spheres flowing in and out on every backend, the GPU ones through `FlowStep` (`engines/flow_step.rs`).
 pub fn open_scene(
     choice: BackendChoice,
     start: Start,

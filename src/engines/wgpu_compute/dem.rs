@@ -215,8 +215,7 @@ impl GridStepper {
         )
     }
 
-    /// As [`with_walls`](Self::with_walls), on `gpu`: a step reopened on the device of the
-    /// last (whose compiled pipelines it reuses), or a test's device with lowered limits (say
+    /// As [`with_walls`](Self::with_walls), on `gpu` (a test's device with lowered limits, say
     /// the largest storage binding, to run the paths of large runs at small sizes).
     #[allow(clippy::too_many_arguments)]
     pub fn on_gpu(
@@ -242,7 +241,8 @@ impl GridStepper {
     }
 
     /// As [`on_gpu`](Self::on_gpu), with `room` for spheres flowing in, which are appended on
-    /// the device ([`DeviceFlow::append`]).
+    /// the device ([`DeviceFlow::append`]): a flowing run's step, opened again on the device of
+    /// the last (whose compiled pipelines it reuses).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn flowing_on(
         gpu: Gpu,
