@@ -35,6 +35,84 @@ pub struct SphereSet {
     radii: Vec<f32>,
     min_radius: f32,
     max_radius: f32,
+    /// The centres' bounds (`None` for no spheres), found in the checking pass.
+    bounds: Option<([f32; 3], [f32; 3])>,
+}
+
+/// What one pass over (part of) a set finds: the first bad sphere, if any, the centres'
+/// bounds and the radii's range.
+#[derive(Debug, Clone)]
+struct Survey {
+    bad: Option<(usize, String)>,
+    lo: [f32; 3],
+    hi: [f32; 3],
+    radii: (f32, f32),
+}
+
+impl Survey {
+    fn empty() -> Self {
+        Survey {
+            bad: None,
+            lo: [f32::INFINITY; 3],
+            hi: [f32::NEG_INFINITY; 3],
+            radii: (f32::INFINITY, 0.0),
+        }
+    }
+
+    /// Adds sphere `index` (centre `c`, radius `r`; `None`: radii not surveyed).
+    fn add(mut self, index: usize, c: &[f32; 3], r: Option<f32>) -> Self {
+        if self.bad.is_some() {
+            return self;
+        }
+        let checked = match r {
+            Some(r) => check_sphere(c, r),
+            None => check_center(c),
+        };
+        if let Err(reason) = checked {
+            self.bad = Some((index, reason));
+            return self;
+        }
+        self.lo = std::array::from_fn(|a| self.lo[a].min(c[a]));
+        self.hi = std::array::from_fn(|a| self.hi[a].max(c[a]));
+        if let Some(r) = r {
+            self.radii = (self.radii.0.min(r), self.radii.1.max(r));
+        }
+        self
+    }
+
+    /// Both parts' findings, `self` the earlier: its bad sphere first.
+    fn merge(self, later: Survey) -> Self {
+        Survey {
+            bad: self.bad.or(later.bad),
+            lo: std::array::from_fn(|a| self.lo[a].min(later.lo[a])),
+            hi: std::array::from_fn(|a| self.hi[a].max(later.hi[a])),
+            radii: (
+                self.radii.0.min(later.radii.0),
+                self.radii.1.max(later.radii.1),
+            ),
+        }
+    }
+
+    /// The first bad sphere as an error, else the bounds of `n` centres.
+    fn into_bounds(self, n: usize) -> Result<Option<([f32; 3], [f32; 3])>> {
+        match self.bad {
+            Some((index, reason)) => Err(Error::InvalidSphere { index, reason }),
+            None => Ok((n > 0).then_some((self.lo, self.hi))),
+        }
+    }
+}
+
+/// Surveys `centers` (and `radii`, where given) in one pass on the rayon pool; the bad sphere
+/// reported is the first in order, as a loop would find it.
+fn survey(centers: &[[f32; 3]], radii: Option<&[f32]>) -> Survey {
+    centers
+        .par_iter()
+        .enumerate()
+        .with_min_len(CHECKS_PER_TASK)
+        .fold(Survey::empty, |acc, (index, c)| {
+            acc.add(index, c, radii.map(|r| r[index]))
+        })
+        .reduce(Survey::empty, Survey::merge)
 }
 
 impl SphereSet {
@@ -48,29 +126,15 @@ impl SphereSet {
             )));
         }
         check_count(centers.len())?;
-        // On the rayon pool; the error names the first bad sphere, as a loop in order would.
-        let bad = centers
-            .par_iter()
-            .zip(&radii)
-            .enumerate()
-            .with_min_len(CHECKS_PER_TASK)
-            .find_map_first(|(index, (c, &r))| check_sphere(c, r).err().map(|e| (index, e)));
-        if let Some((index, reason)) = bad {
-            return Err(Error::InvalidSphere { index, reason });
-        }
-        let (min_radius, max_radius) = radii
-            .par_iter()
-            .with_min_len(CHECKS_PER_TASK)
-            .map(|&r| (r, r))
-            .reduce(
-                || (f32::INFINITY, 0.0),
-                |(a, b), (c, d)| (a.min(c), b.max(d)),
-            );
+        let found = survey(&centers, Some(&radii));
+        let (min_radius, max_radius) = found.radii;
+        let bounds = found.into_bounds(centers.len())?;
         Ok(Self {
             centers,
             min_radius: if radii.is_empty() { 0.0 } else { min_radius },
             radii,
             max_radius,
+            bounds,
         })
     }
 
@@ -115,25 +179,14 @@ impl SphereSet {
         self.min_radius
     }
 
-    /// Component-wise bounds `(lo, hi)` of the centres; `None` for an empty set.
+    /// Component-wise bounds `(lo, hi)` of the centres; `None` for an empty set (found when
+    /// the centres were checked).
     pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
-        use rayon::prelude::*;
-        let empty = || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-        let merge = |(l0, h0): ([f32; 3], [f32; 3]), (l1, h1): ([f32; 3], [f32; 3])| {
-            (
-                std::array::from_fn(|a| l0[a].min(l1[a])),
-                std::array::from_fn(|a| h0[a].max(h1[a])),
-            )
-        };
-        (!self.is_empty()).then(|| {
-            self.centers
-                .par_iter()
-                .fold(empty, |acc, &c| merge(acc, (c, c)))
-                .reduce(empty, merge)
-        })
+        self.bounds
     }
 
-    /// Moves the spheres: replaces every centre, keeping the radii.
+    /// Moves the spheres: replaces every centre, keeping the radii (refused centres leave the
+    /// set as it was).
     pub fn set_centers(&mut self, centers: Vec<[f32; 3]>) -> Result<()> {
         if centers.len() != self.len() {
             return Err(Error::Usage(format!(
@@ -142,9 +195,7 @@ impl SphereSet {
                 self.len()
             )));
         }
-        for (index, c) in centers.iter().enumerate() {
-            check_center(c).map_err(|reason| Error::InvalidSphere { index, reason })?;
-        }
+        self.bounds = survey(&centers, None).into_bounds(centers.len())?;
         self.centers = centers;
         Ok(())
     }
@@ -302,10 +353,17 @@ mod tests {
     fn tracks_radius_range_and_moves() {
         let mut s = SphereSet::new(vec![[0.0; 3], [1.0; 3]], vec![0.5, 2.0]).unwrap();
         assert_eq!((s.min_radius(), s.max_radius()), (0.5, 2.0));
+        assert_eq!(s.bounds(), Some(([0.0; 3], [1.0; 3])));
         assert!(s.set_centers(vec![[0.0; 3]]).is_err());
-        assert!(s.set_centers(vec![[0.0; 3], [f32::NAN; 3]]).is_err());
-        s.set_centers(vec![[3.0; 3], [4.0; 3]]).unwrap();
-        assert_eq!(s.centers()[1], [4.0; 3]);
+        let refused = s.set_centers(vec![[0.0; 3], [f32::NAN; 3]]).unwrap_err();
+        assert!(refused.to_string().contains("sphere 1"), "{refused}");
+        // A refused move leaves the set as it was.
+        assert_eq!(s.centers(), [[0.0; 3], [1.0; 3]]);
+        assert_eq!(s.bounds(), Some(([0.0; 3], [1.0; 3])));
+        s.set_centers(vec![[3.0; 3], [-4.0, 4.0, 4.0]]).unwrap();
+        assert_eq!(s.centers()[1], [-4.0, 4.0, 4.0]);
+        assert_eq!(s.bounds(), Some(([-4.0, 3.0, 3.0], [3.0, 4.0, 4.0])));
+        assert_eq!(SphereSet::default().bounds(), None);
         assert_eq!(SphereSet::default().max_radius(), 0.0);
         let empty = SphereSet::new(Vec::new(), Vec::new()).unwrap();
         assert_eq!((empty.min_radius(), empty.max_radius()), (0.0, 0.0));

@@ -150,8 +150,8 @@ struct Detector {
     /// makes the class `Sync`, as pyo3 requires.
     backend: Mutex<Box<dyn Backend>>,
     mode: ProxyMode,
-    /// The radii of the last `build`; `None` before the first.
-    radii: Option<Vec<f32>>,
+    /// The spheres of the last `build` or `update`; `None` before the first.
+    spheres: Option<SphereSet>,
 }
 
 impl Detector {
@@ -175,7 +175,7 @@ impl Detector {
         Ok(Detector {
             backend: Mutex::new(opened.backend),
             mode,
-            radii: None,
+            spheres: None,
         })
     }
 
@@ -191,27 +191,36 @@ impl Detector {
         centres: &Bound<'_, PyAny>,
         radii: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let radii = read_radii(radii)?;
-        let spheres = sphere_set(py, read_centres(centres)?, radii.clone())?;
+        let spheres = sphere_set(py, read_centres(centres)?, read_radii(radii)?)?;
         let mode = self.mode;
         let backend = self.backend_mut();
         py.detach(|| backend.build(&spheres, mode))
             .map_err(to_py_err)?;
-        self.radii = Some(radii);
+        self.spheres = Some(spheres);
         Ok(())
     }
 
     fn update(&mut self, py: Python<'_>, centres: &Bound<'_, PyAny>) -> PyResult<()> {
-        let Some(radii) = &self.radii else {
+        let centres = read_centres(centres)?;
+        let Some(spheres) = self.spheres.as_mut() else {
             return Err(MochiError::new_err("update() before build()"));
         };
-        let spheres = sphere_set(py, read_centres(centres)?, radii.clone())?;
-        let backend = self.backend_mut();
-        py.detach(|| backend.update(&spheres)).map_err(to_py_err)
+        // The radii stay (checked at build); only the new centres are checked, and refused ones
+        // leave the set as it was.
+        py.detach(|| spheres.set_centers(centres))
+            .map_err(|error| match error {
+                mochi::Error::Usage(msg) => PyValueError::new_err(msg),
+                other => to_py_err(other),
+            })?;
+        let backend = self
+            .backend
+            .get_mut()
+            .unwrap_or_else(PoisonError::into_inner);
+        py.detach(|| backend.update(spheres)).map_err(to_py_err)
     }
 
     fn pairs<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
-        if self.radii.is_none() {
+        if self.spheres.is_none() {
             return Err(MochiError::new_err("pairs() before build()"));
         }
         let backend = self.backend_mut();

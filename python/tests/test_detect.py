@@ -95,6 +95,20 @@ def test_detector_update_loop_equals_fresh_detect():
         )
 
 
+def test_detector_update_refused_keeps_the_last_spheres():
+    centres, radii = random_set(7)
+    detector = mochi.Detector(backend="cpu")
+    detector.build(centres, radii)
+    before = detector.pairs()
+    bad = centres.copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(ValueError, match="sphere 3"):
+        detector.update(bad)
+    with pytest.raises(ValueError):
+        detector.update(centres[:-1])
+    np.testing.assert_array_equal(detector.pairs(), before)
+
+
 def test_detector_before_build_is_mochi_error():
     with pytest.raises(mochi.MochiError):
         mochi.Detector(backend="cpu").pairs()
