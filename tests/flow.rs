@@ -402,3 +402,52 @@ fn an_event_that_lists_thousands_of_spheres_leaving_and_near_an_inflow_matches_t
         }
     });
 }
+
+#[test]
+fn an_inflow_that_outgrows_the_rows_kept_for_it_reopens_the_step_and_matches_the_cpu() {
+    // One sphere at first, so the step keeps rows for 4096 more; 2,000,000 spheres/s of 1 mm
+    // into a 0.18 m cube without gravity: about 2000 an event (every 10 steps), which outgrows
+    // the rows at the third event.
+    let first = Particles {
+        positions: vec![[0.1, 0.1, 0.195]],
+        velocities: vec![[0.0; 3]],
+        angular_velocities: vec![[0.0; 3]],
+        radii: vec![0.001],
+        ..Particles::default()
+    };
+    let inflow = InflowConfig {
+        lo: Some([0.01, 0.01, 0.01]),
+        hi: Some([0.19, 0.19, 0.19]),
+        rate: Some(2e6),
+        sphere_radius: Some(0.001),
+        ..InflowConfig::default()
+    };
+    let flow = FlowSet {
+        inflows: vec![inflow.build(0, RHO).unwrap()],
+        every: Some(10),
+        ..FlowSet::default()
+    };
+    let run = |kind| {
+        let mut s = stepper(kind, first.clone(), params(0.0), flow.clone(), true);
+        let advance = s.advance(40).unwrap();
+        assert_eq!(advance.contacts, 0, "an inserted sphere overlaps another");
+        (s.flow_counts().unwrap(), s.particles().unwrap())
+    };
+    let (cpu, placed) = run(BackendKind::Cpu);
+    assert!(cpu.inserted > 5000, "{cpu:?}");
+    on_every_backend(|kind| {
+        let (counts, now) = run(kind);
+        assert_eq!(
+            (counts.inserted, counts.refused),
+            (cpu.inserted, cpu.refused)
+        );
+        assert_eq!(
+            (&now.positions, &now.radii),
+            (&placed.positions, &placed.radii)
+        );
+        if kind == BackendKind::WgpuCompute {
+            // The one event that found no room read the spheres back and reopened the step.
+            assert_eq!(counts.read_backs, 1, "{counts:?}");
+        }
+    });
+}
