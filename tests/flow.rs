@@ -8,7 +8,7 @@ mod common;
 
 use common::on_every_backend;
 use mochi::ProxyMode;
-use mochi::dem::flow::{FlowSet, InflowConfig, OutflowConfig};
+use mochi::dem::flow::{FlowCounts, FlowSet, InflowConfig, OutflowConfig};
 use mochi::dem::model::{ContactLaw, Material, mass};
 use mochi::dem::scene::Start;
 use mochi::dem::walls::WallSet;
@@ -69,6 +69,27 @@ fn stepper(
     try_stepper(kind, particles, params, flow, box_walls).unwrap()
 }
 
+/// Asserts that backend `kind` (its flows' `counts`, its spheres `now`) inserted, refused and
+/// removed what the cpu did (`cpu`) and holds the spheres the cpu holds (`placed`) at the same
+/// places in the same order, and that on wgpu-compute `read_backs` of its flow events read the
+/// spheres back.
+fn assert_flows_as_the_cpu(
+    kind: BackendKind,
+    (counts, now): (&FlowCounts, &Particles),
+    (cpu, placed): (&FlowCounts, &Particles),
+    read_backs: u64,
+) {
+    let tally = |c: &FlowCounts| (c.inserted, c.refused, c.removed);
+    assert_eq!(tally(counts), tally(cpu));
+    assert_eq!(
+        (&now.positions, &now.radii),
+        (&placed.positions, &placed.radii)
+    );
+    if kind == BackendKind::WgpuCompute {
+        assert_eq!(counts.read_backs, read_backs, "{counts:?}");
+    }
+}
+
 fn total_mass(p: &Particles) -> f64 {
     p.radii.iter().map(|&r| mass(RHO as f32, r) as f64).sum()
 }
@@ -105,19 +126,9 @@ fn an_inflow_inserts_at_its_rate_where_nothing_is_and_never_overlaps() {
         assert_eq!(due, 199);
         assert_eq!(counts.inserted + counts.refused, due);
         assert!(counts.inserted > 100, "{counts:?}");
-        assert_eq!(
-            (counts.inserted, counts.refused),
-            (cpu.inserted, cpu.refused)
-        );
         assert_eq!(now.len() as u64, counts.inserted);
-        assert_eq!(
-            (&now.positions, &now.radii),
-            (&placed.positions, &placed.radii)
-        );
-        if kind == BackendKind::WgpuCompute {
-            // Its flow events append on the device: none reads the spheres back.
-            assert_eq!(counts.read_backs, 0, "{counts:?}");
-        }
+        // On wgpu-compute the flow events append on the device: none reads the spheres back.
+        assert_flows_as_the_cpu(kind, (&counts, &now), (&cpu, &placed), 0);
     });
 }
 
@@ -389,17 +400,7 @@ fn an_event_that_lists_thousands_of_spheres_leaving_and_near_an_inflow_matches_t
     assert!(cpu.removed == 4840 && cpu.inserted > 20, "{cpu:?}");
     on_every_backend(|kind| {
         let (counts, now) = run(kind);
-        assert_eq!(
-            (counts.inserted, counts.refused, counts.removed),
-            (cpu.inserted, cpu.refused, cpu.removed)
-        );
-        assert_eq!(
-            (&now.positions, &now.radii),
-            (&placed.positions, &placed.radii)
-        );
-        if kind == BackendKind::WgpuCompute {
-            assert_eq!(counts.read_backs, 0, "{counts:?}");
-        }
+        assert_flows_as_the_cpu(kind, (&counts, &now), (&cpu, &placed), 0);
     });
 }
 
@@ -437,17 +438,8 @@ fn an_inflow_that_outgrows_the_rows_kept_for_it_reopens_the_step_and_matches_the
     assert!(cpu.inserted > 5000, "{cpu:?}");
     on_every_backend(|kind| {
         let (counts, now) = run(kind);
-        assert_eq!(
-            (counts.inserted, counts.refused),
-            (cpu.inserted, cpu.refused)
-        );
-        assert_eq!(
-            (&now.positions, &now.radii),
-            (&placed.positions, &placed.radii)
-        );
-        if kind == BackendKind::WgpuCompute {
-            // The one event that found no room read the spheres back and reopened the step.
-            assert_eq!(counts.read_backs, 1, "{counts:?}");
-        }
+        // On wgpu-compute the one event that found no room read the spheres back and reopened
+        // the step.
+        assert_flows_as_the_cpu(kind, (&counts, &now), (&cpu, &placed), 1);
     });
 }
