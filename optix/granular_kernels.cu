@@ -15,7 +15,10 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* vel, float4* 
                                               unsigned int* new_count,
                                               MochiHistoryEntry* new_entries, unsigned int* need,
                                               unsigned int slots, GranularParams g,
-                                              unsigned int step) {
+                                              unsigned int step, MochiMeshParams mesh,
+                                              const MochiMeshWall* mesh_walls,
+                                              const unsigned int* mesh_grid,
+                                              const float4* mesh_tris, float* mesh_loads) {
     unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= g.dem.n) {
         return;
@@ -33,22 +36,50 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* vel, float4* 
     unsigned int held = g.keeps ? new_count[id] : 0u;
     MochiHistoryEntry* kept = new_entries + (unsigned long long)id * slots;
     MochiSlots old_slots = {old_count, old_entries, slots};
-    MochiWalls walls = mochi_wall_contacts(
-        g, b,
-        [&](unsigned int wall) {
-            // Only where contacts carry springs (old_slots are empty otherwise).
-            MochiSprings springs = mochi_no_springs();
-            if (g.keeps) {
-                mochi_find(old_slots, id, MOCHI_FIRST_WALL + wall, springs);
-            }
-            return springs;
-        },
-        [&](unsigned int wall, MochiSprings springs) {
-            if (held < slots) {
-                kept[held] = mochi_entry(MOCHI_FIRST_WALL + wall, springs);
-            }
-            held += 1u;
-        });
+    MochiWalls walls;
+    walls.normal = mochi_zero3();
+    walls.tangential = mochi_zero3();
+    walls.torque = mochi_zero3();
+    if (mesh.box_walls) {
+        walls = mochi_wall_contacts(
+            g, b,
+            [&](unsigned int wall) {
+                // Only where contacts carry springs (old_slots are empty otherwise).
+                MochiSprings springs = mochi_no_springs();
+                if (g.keeps) {
+                    mochi_find(old_slots, id, MOCHI_FIRST_WALL + wall, springs);
+                }
+                return springs;
+            },
+            [&](unsigned int wall, MochiSprings springs) {
+                if (held < slots) {
+                    kept[held] = mochi_entry(MOCHI_FIRST_WALL + wall, springs);
+                }
+                held += 1u;
+            });
+    }
+    if (mesh.walls > 0u) {
+        MochiMeshes meshes = {mesh, mesh_walls, mesh_grid, mesh_tris, mesh_loads};
+        float3 mesh_force = mochi_zero3();
+        float3 mesh_torque = mochi_zero3();
+        mochi_mesh_contacts(
+            g, meshes, b, (float)step * g.dem.dt, step == mesh.loads_step, p % mesh.load_lanes,
+            mesh_force, mesh_torque,
+            [&](unsigned int partner, unsigned int first, MochiSprings& springs) {
+                unsigned int s = mochi_find_from(old_slots, id, partner, first, springs);
+                return s < old_count[id] ? s + 1u : old_count[id];
+            },
+            [&](unsigned int partner, MochiSprings springs) {
+                if (held < slots) {
+                    kept[held] = mochi_entry(partner, springs);
+                }
+                held += 1u;
+            });
+        // The mesh walls' forces are whole (normal and tangential) and their torques, as the
+        // box walls' tangential parts, only where contacts turn.
+        walls.normal = mochi_add(walls.normal, mesh_force);
+        walls.torque = mochi_add(walls.torque, mesh_torque);
+    }
     if (g.keeps) {
         new_count[id] = min(held, slots);
         if (held > slots) {

@@ -59,6 +59,24 @@ static __forceinline__ __device__ bool mochi_find(const MochiSlots& h, unsigned 
     return false;
 }
 
+// The first of sphere `holder`'s slots in `h` at or after `first` that holds a contact with
+// `partner` (its springs into `out`), or its count where none does.
+static __forceinline__ __device__ unsigned int mochi_find_from(const MochiSlots& h,
+                                                               unsigned int holder,
+                                                               unsigned int partner,
+                                                               unsigned int first,
+                                                               MochiSprings& out) {
+    const MochiHistoryEntry* e = h.entries + (unsigned long long)holder * h.slots;
+    unsigned int count = h.count[holder];
+    for (unsigned int k = first; k < count; ++k) {
+        if (e[k].partner == partner) {
+            out = mochi_springs_of(e[k]);
+            return k;
+        }
+    }
+    return count;
+}
+
 // The springs sphere `i` had of its contact with sphere `j` (stable ids) at the last step: its
 // own entry, else j's negated, else none (a new contact).
 static __forceinline__ __device__ MochiSprings mochi_old_springs(const MochiSlots& h,

@@ -1,7 +1,6 @@
 //! Inflow and outflow (`dem::flow`) on every backend: an inflow inserts ⌊rate·t⌋ spheres, each
 //! where it overlaps nothing; mass is conserved (initial + inserted = present + removed);
-//! without the box walls a sphere that falls below the box is removed (optix, which keeps its
-//! box walls, refuses such a run); every backend's flow events with the same `flow_every` insert
+//! without the box walls a sphere that falls below the box is removed; every backend's flow events with the same `flow_every` insert
 //! and remove what the cpu's do; a run with both resumes from a checkpoint bit for bit on cpu.
 
 mod common;
@@ -187,11 +186,6 @@ fn without_box_walls_a_sphere_below_the_box_is_removed() {
     };
     on_every_backend(|kind| {
         let opened = try_stepper(kind, falling.clone(), params(-9.81), flow.clone(), false);
-        if kind == BackendKind::Optix {
-            let refused = opened.err().expect("optix keeps its box walls");
-            assert!(refused.to_string().contains("no box walls"), "{refused}");
-            return;
-        }
         let mut s = opened.unwrap();
         s.advance(300).unwrap();
         assert_eq!(s.particles().unwrap().len(), 0);

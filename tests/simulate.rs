@@ -1381,7 +1381,7 @@ fn the_wgpu_backends_load_a_turning_mesh_wall_as_the_cpu_does_and_run_it_without
         .flat_map(|r| r[2..].iter())
         .fold(0.0f64, |m, x| m.max(x.abs()));
     assert!(largest > 1.0, "{cpu:?}");
-    for backend in gpu_backends().into_iter().filter(|&b| b != "optix") {
+    for backend in gpu_backends() {
         let gpu = loads(backend);
         assert_eq!(gpu.len(), cpu.len(), "{backend}");
         // The same force and torque as the cpu step's to rounding grown over the impact
@@ -1396,11 +1396,11 @@ fn the_wgpu_backends_load_a_turning_mesh_wall_as_the_cpu_does_and_run_it_without
             }
         }
     }
-    // Without the box walls spheres leave below the box: the wgpu backends run it (their
-    // flows remove them), optix refuses it.
-    let no_box = |backend: &str| -> Vec<String> {
+    // Without the box walls spheres leave below the box: every backend runs it (its flows
+    // remove them).
+    for backend in gpu_backends() {
         let out = format!("no-box-{backend}");
-        [
+        let args = [
             "simulate",
             "scene.toml",
             "-q",
@@ -1408,28 +1408,14 @@ fn the_wgpu_backends_load_a_turning_mesh_wall_as_the_cpu_does_and_run_it_without
             &out,
             "--set",
             "box_walls=false",
-        ]
-        .into_iter()
-        .chain(["--steps", "10", "--backend", backend])
-        .map(String::from)
-        .collect()
-    };
-    for backend in gpu_backends().into_iter().filter(|&b| b != "optix") {
-        let args = no_box(backend);
-        let out = ok(
-            &args.iter().map(String::as_str).collect::<Vec<_>>(),
-            dir.path(),
-        );
+            "--steps",
+            "10",
+            "--backend",
+            backend,
+        ];
+        let out = ok(&args, dir.path());
         assert!(out.contains("flows:"), "{backend}: {out}");
     }
-    let args = no_box("optix");
-    let e = fails(
-        &args.iter().map(String::as_str).collect::<Vec<_>>(),
-        dir.path(),
-    );
-    // (A build without the optix feature refuses it for that.)
-    let why = e.contains("no box walls") || e.contains("without the `optix` feature");
-    assert!(e.contains("optix") && why, "{e}");
     let e = fails(
         &["simulate", "scene.toml", "--set", "box_walls=maybe"],
         dir.path(),

@@ -1,11 +1,10 @@
-//! Mesh walls against analytic results (physics.md, "Analytic results", 5), on the cpu step
-//! and the wgpu steps (each backend that runs here, `common::dem_backends`; optix refuses
-//! mesh walls): a sphere on a mesh incline rolls, slides or is held as the law of its friction
-//! says; a sphere rolling across a flat mesh of many triangles feels one plane (the trajectory
-//! of the box's floor); an STL box gives the box walls' trajectories; a rotating cylinder drags
-//! a resting sphere. On the cpu step, a run with a moving wall resumes from a checkpoint bit
-//! for bit. A scene with the box walls off runs on the cpu step alone: the GPU backends refuse
-//! it, naming the cpu backend. Tolerances are stated with each test.
+//! Mesh walls against analytic results (physics.md, "Analytic results", 5), on every backend
+//! that runs here (`common::dem_backends`): a sphere on a mesh incline rolls, slides or is held
+//! as the law of its friction says; a sphere rolling across a flat mesh of many triangles feels
+//! one plane (the trajectory of the box's floor); an STL box gives the box walls' trajectories;
+//! a rotating cylinder drags a resting sphere. On the cpu step, a run with a moving wall resumes
+//! from a checkpoint bit for bit. Every backend runs mesh walls with the box walls on and off.
+//! Tolerances are stated with each test.
 
 mod common;
 
@@ -100,15 +99,6 @@ fn stepper(
         .0
 }
 
-/// Runs `test` on every backend that runs mesh walls here, naming the backend of a failure.
-fn on_every_backend(test: impl Fn(BackendKind)) {
-    common::on_every_backend(|kind| {
-        if kind != BackendKind::Optix {
-            test(kind)
-        }
-    });
-}
-
 fn walls_of(configs: &[(WallConfig, &Mesh)], box_walls: bool, friction: f64) -> WallSet {
     let meshes = configs
         .iter()
@@ -167,7 +157,7 @@ const INCLINE_TOLERANCE: f32 = 1e-4;
 
 #[test]
 fn a_sphere_on_a_mesh_incline_rolls_at_five_sevenths_g_sin_theta() {
-    on_every_backend(a_sphere_on_a_mesh_incline_rolls_at_five_sevenths_g_sin_theta_on);
+    common::on_every_backend(a_sphere_on_a_mesh_incline_rolls_at_five_sevenths_g_sin_theta_on);
 }
 
 fn a_sphere_on_a_mesh_incline_rolls_at_five_sevenths_g_sin_theta_on(kind: BackendKind) {
@@ -183,7 +173,7 @@ fn a_sphere_on_a_mesh_incline_rolls_at_five_sevenths_g_sin_theta_on(kind: Backen
 
 #[test]
 fn a_sphere_on_a_slippery_mesh_incline_slides_at_g_sin_minus_mu_cos() {
-    on_every_backend(a_sphere_on_a_slippery_mesh_incline_slides_at_g_sin_minus_mu_cos_on);
+    common::on_every_backend(a_sphere_on_a_slippery_mesh_incline_slides_at_g_sin_minus_mu_cos_on);
 }
 
 fn a_sphere_on_a_slippery_mesh_incline_slides_at_g_sin_minus_mu_cos_on(kind: BackendKind) {
@@ -199,7 +189,9 @@ fn a_sphere_on_a_slippery_mesh_incline_slides_at_g_sin_minus_mu_cos_on(kind: Bac
 
 #[test]
 fn constant_torque_rolling_resistance_holds_a_sphere_on_a_mesh_incline() {
-    on_every_backend(constant_torque_rolling_resistance_holds_a_sphere_on_a_mesh_incline_on);
+    common::on_every_backend(
+        constant_torque_rolling_resistance_holds_a_sphere_on_a_mesh_incline_on,
+    );
 }
 
 fn constant_torque_rolling_resistance_holds_a_sphere_on_a_mesh_incline_on(kind: BackendKind) {
@@ -257,7 +249,9 @@ fn rolling_across(
 
 #[test]
 fn a_sphere_rolling_across_a_flat_mesh_of_many_triangles_feels_one_plane() {
-    on_every_backend(a_sphere_rolling_across_a_flat_mesh_of_many_triangles_feels_one_plane_on);
+    common::on_every_backend(
+        a_sphere_rolling_across_a_flat_mesh_of_many_triangles_feels_one_plane_on,
+    );
 }
 
 fn a_sphere_rolling_across_a_flat_mesh_of_many_triangles_feels_one_plane_on(kind: BackendKind) {
@@ -327,7 +321,7 @@ fn stl_box(lo: [f32; 3], hi: [f32; 3]) -> String {
 
 #[test]
 fn an_stl_box_gives_the_trajectories_of_the_box_walls() {
-    on_every_backend(an_stl_box_gives_the_trajectories_of_the_box_walls_on);
+    common::on_every_backend(an_stl_box_gives_the_trajectories_of_the_box_walls_on);
 }
 
 fn an_stl_box_gives_the_trajectories_of_the_box_walls_on(kind: BackendKind) {
@@ -419,7 +413,7 @@ fn in_drum(kind: BackendKind, omega: f64) -> (Vec3, Vec3, Vec3, Vec3) {
 
 #[test]
 fn a_rotating_cylinder_drags_a_resting_sphere_into_rolling_with_it() {
-    on_every_backend(a_rotating_cylinder_drags_a_resting_sphere_into_rolling_with_it_on);
+    common::on_every_backend(a_rotating_cylinder_drags_a_resting_sphere_into_rolling_with_it_on);
 }
 
 fn a_rotating_cylinder_drags_a_resting_sphere_into_rolling_with_it_on(kind: BackendKind) {
@@ -490,7 +484,7 @@ fn a_run_with_a_turning_wall_resumes_from_its_checkpoint_bit_for_bit() {
 }
 
 #[test]
-fn optix_refuses_mesh_walls_and_a_box_switched_off_and_the_wgpu_backends_run_them() {
+fn every_backend_runs_mesh_walls_with_and_without_the_box() {
     let mesh = grid_mesh(0.2, 2);
     let m = material(0.5, 0.0, RollingModel::Epsd);
     let p = params(&m, -0.3, 0.3);
@@ -502,23 +496,13 @@ fn optix_refuses_mesh_walls_and_a_box_switched_off_and_the_wgpu_backends_run_the
     for kind in common::dem_backends() {
         let _named = common::Naming(kind);
         for box_walls in [false, true] {
-            match open(BackendChoice::Named(kind), box_walls) {
-                Err(e) => {
-                    assert_eq!(kind, BackendKind::Optix, "{e}");
-                    let e = e.to_string();
-                    assert!(e.contains("optix") && e.contains("1 mesh wall"), "{e}");
-                    assert_eq!(e.contains("no box walls"), !box_walls, "{e}");
-                }
-                Ok((mut s, named, _)) => {
-                    assert_eq!(named, kind);
-                    assert_ne!(kind, BackendKind::Optix);
-                    s.advance(10).unwrap();
-                }
-            }
+            let (mut s, named, _) = open(BackendChoice::Named(kind), box_walls).unwrap();
+            assert_eq!(named, kind);
+            s.advance(10).unwrap();
+            assert_eq!(s.wall_loads().len(), 1);
         }
     }
     let (s, kind, reason) = open(BackendChoice::Auto, false).unwrap();
-    assert_ne!(kind, BackendKind::Optix);
     assert!(s.describe().contains("1 mesh wall") || kind != BackendKind::Cpu);
     assert!(reason.unwrap().contains(kind.name()));
 }

@@ -55,10 +55,10 @@ const MIN_CELLS: usize = 1 << 22;
 /// The walls' uniform; WGSL twin `MeshParams`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
 pub struct MeshParams {
-    walls: u32,
-    box_walls: u32,
-    loads_step: u32,
-    load_lanes: u32,
+    pub walls: u32,
+    pub box_walls: u32,
+    pub loads_step: u32,
+    pub load_lanes: u32,
 }
 
 pub fn mesh_params() -> SharedStruct {
@@ -202,29 +202,20 @@ fn meets_box(corners: &[Vec3; 3], centre: Vec3, half: f32) -> bool {
         .any(|a| edges.iter().any(|e| apart(a.cross(*e))))
 }
 
-/// The mesh walls' buffers and the loads of the last advance.
-pub(crate) struct MeshWalls {
-    params: MeshParams,
-    uniform: wgpu::Buffer,
-    walls: wgpu::Buffer,
-    grid: wgpu::Buffer,
-    tris: wgpu::Buffer,
-    loads: wgpu::Buffer,
-    near: wgpu::Buffer,
-    last: Vec<WallLoad>,
-    engine: &'static str,
+/// What the GPU steps read of the mesh walls, on the host: each wall's row, the grids' offsets
+/// and triangle indices, the triangles (three corners and the normal, rest geometry) and the
+/// walls' parameters. The wgpu engines upload them to their buffers, the optix engine to its.
+pub(crate) struct WallTables {
+    pub params: MeshParams,
+    pub rows: Vec<MeshWallRow>,
+    pub grid: Vec<u32>,
+    pub tris: Vec<[f32; 4]>,
 }
 
-impl MeshWalls {
-    /// The walls `walls` for spheres up to radius `r_max`, on `gpu`, for the engine `engine`.
-    /// The walls of `walls` for a step of `spheres` spheres of radius at most `r_max`.
-    pub fn new(
-        gpu: &Gpu,
-        walls: &WallSet,
-        spheres: usize,
-        r_max: f32,
-        engine: &'static str,
-    ) -> Result<Self> {
+impl WallTables {
+    /// The tables of `walls` for spheres of radius at most `r_max`, refusing grids of more
+    /// than `max_words` words (the `engine` step's limit).
+    pub fn new(walls: &WallSet, r_max: f32, max_words: u64, engine: &str) -> Result<Self> {
         let mut rows = Vec::with_capacity(walls.meshes.len());
         let mut offsets: Vec<u32> = Vec::new();
         let mut listed: Vec<u32> = Vec::new();
@@ -261,11 +252,12 @@ impl MeshWalls {
         // Offsets past the cells' own words (and the end of the last cell).
         let head = offsets.len() as u64 + 1;
         let words = head + listed.len() as u64;
-        if words > u32::MAX as u64 || words * 4 > gpu.limits.max_storage_buffer_binding_size {
+        let limit = max_words.min(u32::MAX as u64);
+        if words > limit {
             return Err(Error::TooLarge {
                 what: format!("words of the mesh walls' grids for the {engine} step"),
                 got: words,
-                limit: (gpu.limits.max_storage_buffer_binding_size / 4).min(u32::MAX as u64),
+                limit,
             });
         }
         let mut grid: Vec<u32> = offsets.iter().map(|&o| o + head as u32).collect();
@@ -278,6 +270,80 @@ impl MeshWalls {
             loads_step: u32::MAX,
             load_lanes,
         };
+        Ok(Self {
+            params,
+            rows,
+            grid,
+            tris,
+        })
+    }
+
+    /// Words of the loads' buffer: 8 per wall and lane, then the most candidates a sphere had.
+    pub fn load_words(&self) -> usize {
+        8 * self.rows.len() * self.params.load_lanes as usize + 1
+    }
+}
+
+/// The loads on `walls` walls summed in `lanes` lanes (`words` as the loads' buffer holds them,
+/// f32 bits), refusing a step in which some sphere came within its radius of more triangles of
+/// one wall than the `engine` step keeps.
+pub(crate) fn wall_loads(
+    words: &[u32],
+    walls: usize,
+    lanes: usize,
+    engine: &str,
+) -> Result<Vec<WallLoad>> {
+    let most = words[8 * walls * lanes];
+    if most > MESH_NEAR {
+        return Err(Error::TooLarge {
+            what: format!(
+                "triangles of one mesh wall within a sphere's radius in the {engine} step (a \
+                 mesh much finer than the spheres; the cpu backend takes any number)"
+            ),
+            got: most as u64,
+            limit: MESH_NEAR as u64,
+        });
+    }
+    // Lane by lane, in order: the sum depends on the lanes' partial sums alone.
+    let f = |k: usize| -> f64 {
+        (0..lanes)
+            .map(|l| f32::from_bits(words[8 * walls * l + k]) as f64)
+            .sum()
+    };
+    Ok((0..walls)
+        .map(|w| WallLoad {
+            force: [f(8 * w), f(8 * w + 1), f(8 * w + 2)],
+            torque: [f(8 * w + 4), f(8 * w + 5), f(8 * w + 6)],
+        })
+        .collect())
+}
+
+/// The mesh walls' buffers and the loads of the last advance.
+pub(crate) struct MeshWalls {
+    params: MeshParams,
+    uniform: wgpu::Buffer,
+    walls: wgpu::Buffer,
+    grid: wgpu::Buffer,
+    tris: wgpu::Buffer,
+    loads: wgpu::Buffer,
+    near: wgpu::Buffer,
+    last: Vec<WallLoad>,
+    engine: &'static str,
+}
+
+impl MeshWalls {
+    /// The walls of `walls` for a step of `spheres` spheres of radius at most `r_max`, on
+    /// `gpu`, for the engine `engine`.
+    pub fn new(
+        gpu: &Gpu,
+        walls: &WallSet,
+        spheres: usize,
+        r_max: f32,
+        engine: &'static str,
+    ) -> Result<Self> {
+        let max_words = gpu.limits.max_storage_buffer_binding_size / 4;
+        let tables = WallTables::new(walls, r_max, max_words, engine)?;
+        let params = tables.params;
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
         let filled = |what: &str, bytes: &[u8]| {
@@ -285,23 +351,20 @@ impl MeshWalls {
             gpu.queue.write_buffer(&buffer, 0, bytes);
             buffer
         };
+        let walls = tables.rows.len();
         gpu.checked("allocating the mesh walls' buffers", || Self {
             params,
             uniform: gpu.uniform(&label("mesh"), &params),
-            walls: filled("mesh_walls", &storage_bytes(&rows)),
-            grid: filled("mesh_grid", bytemuck::cast_slice(&grid)),
-            tris: filled("mesh_tris", bytemuck::cast_slice(&tris)),
-            loads: gpu.storage(
-                &label("mesh_loads"),
-                (8 * rows.len() as u64 * load_lanes as u64 + 1) * 4,
-                none,
-            ),
+            walls: filled("mesh_walls", &storage_bytes(&tables.rows)),
+            grid: filled("mesh_grid", bytemuck::cast_slice(&tables.grid)),
+            tris: filled("mesh_tris", bytemuck::cast_slice(&tables.tris)),
+            loads: gpu.storage(&label("mesh_loads"), tables.load_words() as u64 * 4, none),
             near: gpu.storage(
                 &label("mesh_near"),
-                (2 + if rows.is_empty() { 0 } else { spheres as u64 }) * 4,
+                (2 + if walls == 0 { 0 } else { spheres as u64 }) * 4,
                 none,
             ),
-            last: vec![WallLoad::default(); rows.len()],
+            last: vec![WallLoad::default(); walls],
             engine,
         })
     }
@@ -363,30 +426,7 @@ impl MeshWalls {
         let walls = self.last.len();
         let lanes = self.params.load_lanes as usize;
         let words: Vec<u32> = gpu.read(&self.loads, 8 * walls * lanes + 1)?;
-        let most = words[8 * walls * lanes];
-        if most > MESH_NEAR {
-            return Err(Error::TooLarge {
-                what: format!(
-                    "triangles of one mesh wall within a sphere's radius in the {} step (a mesh \
-                     much finer than the spheres; the cpu backend takes any number)",
-                    self.engine
-                ),
-                got: most as u64,
-                limit: MESH_NEAR as u64,
-            });
-        }
-        // Lane by lane, in order: the sum depends on the lanes' partial sums alone.
-        let f = |k: usize| -> f64 {
-            (0..lanes)
-                .map(|l| f32::from_bits(words[8 * walls * l + k]) as f64)
-                .sum()
-        };
-        for (w, load) in self.last.iter_mut().enumerate() {
-            *load = WallLoad {
-                force: [f(8 * w), f(8 * w + 1), f(8 * w + 2)],
-                torque: [f(8 * w + 4), f(8 * w + 5), f(8 * w + 6)],
-            };
-        }
+        self.last = wall_loads(&words, walls, lanes, self.engine)?;
         Ok(())
     }
 

@@ -52,13 +52,12 @@ fn open_walled(
             particles, params, mode, atomics, &walls,
         )?),
         #[cfg(feature = "optix")]
-        BackendKind::Optix if !walls.is_box_only() => return Err(optix_refuses(&walls)),
-        #[cfg(feature = "optix")]
         BackendKind::Optix => Box::new(super::optix::OptixStepper::new(
             particles,
             params,
             mode,
             options.rebuild,
+            &walls,
         )?),
         #[cfg(not(feature = "optix"))]
         BackendKind::Optix => {
@@ -106,22 +105,8 @@ fn choose_walled(
     Ok((stepper, kind, Some(reason)))
 }
 
-/// The optix step runs inside the box walls only.
-#[cfg(feature = "optix")]
-fn optix_refuses(walls: &WallSet) -> Error {
-    Error::BackendUnavailable {
-        backend: "optix",
-        reason: format!(
-            "this scene has {}, which the optix step does not run yet; the cpu and wgpu \
-             backends run it",
-            walls.describe()
-        ),
-    }
-}
-
-/// Opens the DEM step the user chose for the scene `start`. The box walls run on every
-/// backend, mesh walls and a box switched off on cpu and the wgpu backends (optix refuses
-/// them); spheres flowing in and out on every backend, the GPU ones through `FlowStep` (`engines/flow_step.rs`).
+/// Opens the DEM step the user chose for the scene `start`. The box walls, mesh walls and a
+/// box switched off run on every backend; spheres flowing in and out on every backend, the GPU ones through `FlowStep` (`engines/flow_step.rs`).
 pub fn open_scene(
     choice: BackendChoice,
     start: Start,
@@ -211,12 +196,10 @@ fn reopener(
             })
         }
         #[cfg(feature = "optix")]
-        BackendKind::Optix if !walls.is_box_only() => return Err(optix_refuses(&walls)),
-        #[cfg(feature = "optix")]
         BackendKind::Optix => {
             let rebuild = options.rebuild;
             Box::new(move |parts, _room| {
-                let step = super::optix::OptixStepper::new(parts, params, mode, rebuild)?;
+                let step = super::optix::OptixStepper::new(parts, params, mode, rebuild, &walls)?;
                 Ok(Box::new(step) as Box<dyn DeviceFlow>)
             })
         }

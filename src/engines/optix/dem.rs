@@ -8,7 +8,8 @@
 //! the state permuted on the GPU) with a rebuild. Phases are timed with CUDA events.
 //!
 //! A run that needs more than the paper's law (Hertz–Mindlin or per-pair contacts, friction,
-//! rolling resistance, spinning spheres, contact history) runs the granular programs instead
+//! rolling resistance, spinning spheres, contact history, mesh walls or no box walls) runs the
+//! granular programs instead
 //! (`granular.rs`) over the same structure maintenance and batches; such a batch starts over
 //! with more history slots where a sphere had more contacts than slots.
 //!
@@ -25,6 +26,7 @@ use super::engine::{MAX_COORDINATE, morton_order_of, open_device};
 use super::granular::{self, Granular};
 use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::RebuildPolicy;
 use crate::engines::gpu_step::{advance_in_batches, particles_from, rows};
 use crate::error::{Error, OptixError, Result};
@@ -94,12 +96,14 @@ pub struct OptixStepper {
 }
 
 impl OptixStepper {
-    /// Uploads `particles` to GPU 0 (in Morton order) and builds the acceleration structure.
+    /// Uploads `particles` to GPU 0 (in Morton order) and builds the acceleration structure,
+    /// for a step inside `walls`.
     pub fn new(
         mut particles: Particles,
         params: StepParams,
         mode: ProxyMode,
         policy: RebuildPolicy,
+        walls: &WallSet,
     ) -> Result<Self> {
         particles.separate_coincident()?;
         let device = open_device()?;
@@ -153,8 +157,8 @@ impl OptixStepper {
             stream.clone_htod(&order).map_err(&alloc)?
         };
         let len = n as usize;
-        let physics = if granular::needed(&particles, &params) {
-            Physics::Granular(Granular::new(&device, &particles, &params, &order)?)
+        let physics = if granular::needed(&particles, &params, walls) {
+            Physics::Granular(Granular::new(&device, &particles, &params, &order, walls)?)
         } else {
             Physics::Frictionless {
                 program: DemProgram::new(&device)?,
@@ -435,10 +439,26 @@ impl Stepper for OptixStepper {
                 Ok((left, 0, None))
             });
         }
-        advance_in_batches(steps, true, |left| {
+        if let Physics::Granular(g) = &mut self.physics
+            && steps > 0
+        {
+            g.sum_loads_in(&self.device.stream, self.step + steps as u64 - 1)?;
+        }
+        let advance = advance_in_batches(steps, true, |left| {
             let (done, contacts, times) = self.run_batch(left)?;
             Ok((done, contacts, Some(times)))
-        })
+        })?;
+        if let Physics::Granular(g) = &mut self.physics {
+            g.read_loads(&self.device.stream)?;
+        }
+        Ok(advance)
+    }
+
+    fn wall_loads(&self) -> Vec<WallLoad> {
+        match &self.physics {
+            Physics::Granular(g) => g.loads().to_vec(),
+            Physics::Frictionless { .. } => Vec::new(),
+        }
     }
 
     fn particles(&mut self) -> Result<Particles> {

@@ -13,7 +13,9 @@
 use super::programs::{self, Unit};
 use super::sys::{self, Api};
 use crate::dem::model::{Elastic, NormalLaw, RollingModel, StepParams};
+use crate::engines::gpu_walls::WallTables;
 use crate::error::OptixError;
+use crate::gpu::shader::storage_bytes;
 use crate::particles::HistoryEntry;
 use crate::proxy::ProxyMode;
 use cudarc::driver::{
@@ -751,6 +753,84 @@ impl GranularParams {
 const ENTRY_WORDS: usize = size_of::<HistoryEntry>() / size_of::<u32>();
 const _: () = assert!(ENTRY_WORDS == 7);
 
+/// The mesh walls' parameters as `granular_integrate` takes them (`MochiMeshParams` in
+/// `optix/mesh_walls.cuh`, [`MeshParams`] of the wgpu engines).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct MeshLaunch {
+    pub walls: u32,
+    pub box_walls: u32,
+    pub loads_step: u32,
+    pub load_lanes: u32,
+}
+
+// SAFETY: `#[repr(C)]` plain data laid out as `MochiMeshParams` in optix/mesh_walls.cuh.
+unsafe impl DeviceRepr for MeshLaunch {}
+
+/// The mesh walls on the device (`optix/mesh_walls.cuh`): each wall's row (`MochiMeshWall`,
+/// the words of [`WallTables::rows`]), the grids, the triangles and the loads summed in the
+/// step `params.loads_step`, 8 floats per lane and wall, then the most candidates a sphere had.
+pub struct MeshBuffers {
+    pub params: MeshLaunch,
+    walls: CudaSlice<u32>,
+    grid: CudaSlice<u32>,
+    tris: CudaSlice<f32>,
+    loads: CudaSlice<f32>,
+}
+
+impl MeshBuffers {
+    /// Uploads `tables`.
+    pub fn upload(stream: &Arc<CudaStream>, tables: &WallTables) -> Result<Self> {
+        let alloc = cuda("uploading the mesh walls");
+        let upload_u32 = |words: &[u32]| {
+            if words.is_empty() {
+                stream.alloc_zeros::<u32>(1)
+            } else {
+                stream.clone_htod(words)
+            }
+            .map_err(&alloc)
+        };
+        let rows = storage_bytes(&tables.rows);
+        let tris: &[f32] = bytemuck::cast_slice(&tables.tris);
+        let p = tables.params;
+        Ok(Self {
+            params: MeshLaunch {
+                walls: p.walls,
+                box_walls: p.box_walls,
+                loads_step: p.loads_step,
+                load_lanes: p.load_lanes,
+            },
+            walls: upload_u32(bytemuck::cast_slice(&rows))?,
+            grid: upload_u32(&tables.grid)?,
+            tris: if tris.is_empty() {
+                stream.alloc_zeros::<f32>(4)
+            } else {
+                stream.clone_htod(tris)
+            }
+            .map_err(&alloc)?,
+            loads: stream
+                .alloc_zeros::<f32>(tables.load_words())
+                .map_err(&alloc)?,
+        })
+    }
+
+    /// Zeroes the loads (and, with `counts`, the most candidates a sphere had).
+    pub fn clear_loads(&mut self, stream: &Arc<CudaStream>, counts: bool) -> Result<()> {
+        let clear = cuda("clearing the mesh walls' loads");
+        let words = self.loads.len() - usize::from(!counts);
+        let mut loads = self.loads.slice_mut(..words);
+        stream.memset_zeros(&mut loads).map_err(clear)
+    }
+
+    /// The loads' words (f32 bits; the last the most candidates a sphere had).
+    pub fn read_loads(&self, stream: &Arc<CudaStream>) -> Result<Vec<u32>> {
+        let floats = stream
+            .clone_dtoh(&self.loads)
+            .map_err(cuda("reading the mesh walls' loads back"))?;
+        Ok(floats.iter().map(|x| x.to_bits()).collect())
+    }
+}
+
 /// One contact history buffer on the device (`MochiSlots` in `optix/history.cuh`): for each of
 /// `n` spheres by stable id, a count and `slots` entries of [`HistoryEntry`]'s words.
 pub struct HistorySlots {
@@ -1020,6 +1100,7 @@ impl GranularKernels {
         g: &GranularParams,
         slots: u32,
         step: u32,
+        mesh: &mut MeshBuffers,
     ) -> Result<()> {
         const LAUNCH: &str = "granular_integrate";
         let n = g.n();
@@ -1052,11 +1133,18 @@ impl GranularKernels {
             .arg(b.need)
             .arg(&slots)
             .arg(g)
-            .arg(&step);
+            .arg(&step)
+            .arg(&mesh.params)
+            .arg(&mesh.walls)
+            .arg(&mesh.grid)
+            .arg(&mesh.tris)
+            .arg(&mut mesh.loads);
         // SAFETY: the arguments match granular_integrate's signature; the state, ang, force
         // and torque hold g.n() rows, ids g.n() entries below n (a permutation of the input
         // indices), the history buffers g.n() spheres of `slots` entries where g keeps springs
-        // (checked above; the kernel reads them only then), need one word.
+        // (checked above; the kernel reads them only then), need one word; the mesh buffers
+        // hold what MeshBuffers::upload made of one WallTables (rows, grids whose offsets and
+        // triangle indices stay within them, triangles, and the loads of every lane and wall).
         unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching granular_integrate"))?;
         Ok(())
     }

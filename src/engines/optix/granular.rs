@@ -12,12 +12,19 @@
 //! of [`ContactHistory`], and uploads both-sided entries as they are (the owner finds its own).
 //! Every sphere's contacts are counted even where they do not fit: if any sphere needed more
 //! than `slots`, the batch is redone from its start with more slots.
+//!
+//! Mesh walls (and a box switched off) run here only, whatever the contact law: the
+//! integration kernel resolves each sphere's mesh-wall contacts after its box walls'
+//! (`optix/mesh_walls.cuh`), from the tables the wgpu engines upload too
+//! ([`WallTables`]), and sums the walls' loads in the last step of an advance.
 
 use super::device::{
     Device, Gas, GranularBuffers, GranularIntegration, GranularKernels, GranularParams,
-    GranularProgram, HistorySlots, Order, State, cuda,
+    GranularProgram, HistorySlots, MeshBuffers, Order, State, cuda,
 };
 use crate::dem::model::{NormalLaw, StepParams};
+use crate::dem::walls::{WallLoad, WallSet};
+use crate::engines::gpu_walls::{WallTables, wall_loads};
 use crate::error::{Error, OptixError, Result};
 use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, Particles};
 use crate::proxy::ProxyMode;
@@ -29,9 +36,10 @@ use std::sync::Arc;
 const FIRST_SLOTS: u32 = 16;
 
 /// Whether a run needs the granular step: anything beyond the paper's law (linear, one
-/// stiffness, no friction, no rolling resistance, no spin, no history).
-pub(super) fn needed(particles: &Particles, params: &StepParams) -> bool {
-    params.law != NormalLaw::Linear
+/// stiffness, no friction, no rolling resistance, no spin, no history) or the box walls alone.
+pub(super) fn needed(particles: &Particles, params: &StepParams, walls: &WallSet) -> bool {
+    !walls.is_box_only()
+        || params.law != NormalLaw::Linear
         || params.friction.turns()
         || particles.spin()
         || !particles.history.is_empty()
@@ -49,6 +57,9 @@ pub(super) struct Granular {
     /// Contact torques of the current step, 3 floats per sphere.
     torque: CudaSlice<f32>,
     history: History,
+    mesh: MeshBuffers,
+    /// The loads on the mesh walls in the last step of the last advance.
+    loads: Vec<WallLoad>,
 }
 
 /// The contact history on the GPU: three buffers, of which a step reads `current` and writes
@@ -91,12 +102,13 @@ impl History {
 
 impl Granular {
     /// Uploads the angular velocities and the contact history of `particles` (`order`: the
-    /// input index of each state position) for a step with `params`.
+    /// input index of each state position) for a step with `params` inside `walls`.
     pub fn new(
         device: &Arc<Device>,
         particles: &Particles,
         params: &StepParams,
         order: &[u32],
+        walls: &WallSet,
     ) -> Result<Self> {
         let n = order.len() as u32;
         let stream = &device.stream;
@@ -124,7 +136,11 @@ impl Granular {
                 ..History::on_device(device, three(|| HistorySlots::empty(stream, 0, 0))?)?
             }
         };
+        let r_max = particles.radius_range().1;
+        let tables = WallTables::new(walls, r_max, u32::MAX as u64, "optix")?;
         Ok(Self {
+            mesh: MeshBuffers::upload(stream, &tables)?,
+            loads: vec![WallLoad::default(); walls.meshes.len()],
             program: GranularProgram::new(device)?,
             kernels: GranularKernels::load(device)?,
             params,
@@ -188,9 +204,36 @@ impl Granular {
             need,
         };
         self.kernels
-            .integrate(state, b, &self.params, slots, step)?;
+            .integrate(state, b, &self.params, slots, step, &mut self.mesh)?;
         self.history.current = written;
         Ok(())
+    }
+
+    /// Sums the loads on the mesh walls in step `step` (the last of the advance to come), from
+    /// zero.
+    pub fn sum_loads_in(&mut self, stream: &Arc<CudaStream>, step: u64) -> Result<()> {
+        if self.mesh.params.walls > 0 {
+            self.mesh.params.loads_step = step as u32;
+            self.mesh.clear_loads(stream, true)?;
+        }
+        Ok(())
+    }
+
+    /// Reads the loads summed in the last advance, refusing one in which some sphere came
+    /// within its radius of more triangles of one wall than the step keeps.
+    pub fn read_loads(&mut self, stream: &Arc<CudaStream>) -> Result<()> {
+        let walls = self.mesh.params.walls as usize;
+        if walls > 0 {
+            let words = self.mesh.read_loads(stream)?;
+            let lanes = self.mesh.params.load_lanes as usize;
+            self.loads = wall_loads(&words, walls, lanes, "optix")?;
+        }
+        Ok(())
+    }
+
+    /// The loads on each mesh wall in the last step of the last advance.
+    pub fn loads(&self) -> &[WallLoad] {
+        &self.loads
     }
 
     /// Reorders the angular velocities as the state (`order[p]`: the position whose sphere
@@ -227,6 +270,10 @@ impl Granular {
             .memcpy_dtod(&self.ang, &mut self.ang_spare)
             .map_err(&copy)?;
         stream.memset_zeros(&mut self.history.need).map_err(&copy)?;
+        if self.mesh.params.walls > 0 {
+            // A batch redone sums the loads of its steps once.
+            self.mesh.clear_loads(stream, false)?;
+        }
         self.history.start = self.history.current;
         Ok(())
     }
@@ -492,7 +539,7 @@ mod tests {
     }
 
     #[test]
-    fn only_the_papers_law_runs_the_frictionless_programs() {
+    fn only_the_papers_law_in_the_box_runs_the_frictionless_programs() {
         use crate::dem::model::{ContactLaw, Material};
         let params = |m: Material| {
             StepParams::new(&m, 1e-6, [0.0; 3], [1.0; 3], [0.0, 0.0, -9.81], 0.0, 5e-4).unwrap()
@@ -505,7 +552,10 @@ mod tests {
             ..Particles::default()
         };
         let paper = params(Material::default());
-        assert!(!needed(&still, &paper));
+        let in_box = WallSet::default();
+        assert!(!needed(&still, &paper, &in_box));
+        let open_box = WallSet::new(false, Vec::new()).unwrap();
+        assert!(needed(&still, &paper, &open_box));
         let more = [
             Material {
                 friction: 0.5,
@@ -532,18 +582,18 @@ mod tests {
             },
         ];
         for m in more {
-            assert!(needed(&still, &params(m)), "{m:?}");
+            assert!(needed(&still, &params(m), &in_box), "{m:?}");
         }
         let spinning = Particles {
             angular_velocities: vec![[0.0, 1.0, 0.0]],
             ..still.clone()
         };
-        assert!(needed(&spinning, &paper));
+        assert!(needed(&spinning, &paper, &in_box));
         let remembering = Particles {
             history: ContactHistory::from_contacts(1, &[(0, entry(FIRST_WALL, 1.0))]).unwrap(),
             ..still
         };
-        assert!(needed(&remembering, &paper));
+        assert!(needed(&remembering, &paper, &in_box));
     }
 
     #[test]

@@ -13,6 +13,7 @@ const CONTACT_CUH: &str = include_str!("../../../optix/contact.cuh");
 const HISTORY_CUH: &str = include_str!("../../../optix/history.cuh");
 const GRANULAR_CU: &str = include_str!("../../../optix/granular.cu");
 const GRANULAR_KERNELS_CU: &str = include_str!("../../../optix/granular_kernels.cu");
+const MESH_WALLS_CUH: &str = include_str!("../../../optix/mesh_walls.cuh");
 
 /// Virtual architecture of the PTX: Turing, the first GPUs with RT cores (the driver compiles
 /// it for the GPU at hand).
@@ -30,7 +31,8 @@ pub enum Unit {
     /// OptiX programs of the granular DEM step (contacts with friction, history and rolling
     /// resistance).
     Granular,
-    /// Plain CUDA kernels of the granular DEM step (walls, integration with rotation).
+    /// Plain CUDA kernels of the granular DEM step (box and mesh walls, integration with
+    /// rotation).
     GranularKernels,
 }
 
@@ -70,7 +72,8 @@ impl Unit {
                 format!("{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{GRANULAR_CU}")
             }
             Unit::GranularKernels => format!(
-                "{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{GRANULAR_KERNELS_CU}"
+                "{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{MESH_WALLS_CUH}\n\
+                 {GRANULAR_KERNELS_CU}"
             ),
         }
     }
