@@ -200,6 +200,25 @@ impl SphereSet {
         Ok(())
     }
 
+    /// [`Self::set_centers`] from borrowed centres, copied into the set's own (no allocation:
+    /// a caller moving the spheres every step touches no fresh memory).
+    pub fn copy_centers_from(&mut self, centers: &[[f32; 3]]) -> Result<()> {
+        if centers.len() != self.len() {
+            return Err(Error::Usage(format!(
+                "{} new centres for {} spheres",
+                centers.len(),
+                self.len()
+            )));
+        }
+        self.bounds = survey(centers, None).into_bounds(centers.len())?;
+        self.centers
+            .par_iter_mut()
+            .with_min_len(CHECKS_PER_TASK)
+            .zip(centers)
+            .for_each(|(to, from)| *to = *from);
+        Ok(())
+    }
+
     /// Rows `[x, y, z, r]`, in input order.
     pub fn xyzr(&self) -> impl ExactSizeIterator<Item = [f32; 4]> + '_ {
         self.centers
@@ -363,6 +382,17 @@ mod tests {
         s.set_centers(vec![[3.0; 3], [-4.0, 4.0, 4.0]]).unwrap();
         assert_eq!(s.centers()[1], [-4.0, 4.0, 4.0]);
         assert_eq!(s.bounds(), Some(([-4.0, 3.0, 3.0], [3.0, 4.0, 4.0])));
+        // Borrowed centres likewise: refused ones change nothing, accepted ones are copied.
+        assert!(s.copy_centers_from(&[[0.0; 3]]).is_err());
+        let refused = s.copy_centers_from(&[[1e30, 0.0, 0.0], [0.0; 3]]);
+        assert!(refused.unwrap_err().to_string().contains("sphere 0"));
+        assert_eq!(s.centers(), [[3.0; 3], [-4.0, 4.0, 4.0]]);
+        assert_eq!(s.bounds(), Some(([-4.0, 3.0, 3.0], [3.0, 4.0, 4.0])));
+        let many: Vec<[f32; 3]> = (0..10_000).map(|k| [k as f32, 0.0, -(k as f32)]).collect();
+        let mut big = SphereSet::new(vec![[0.0; 3]; many.len()], vec![1.0; many.len()]).unwrap();
+        big.copy_centers_from(&many).unwrap();
+        assert_eq!(big.centers(), many);
+        assert_eq!(big.bounds(), Some(([0.0, 0.0, -9999.0], [9999.0, 0.0, 0.0])));
         assert_eq!(SphereSet::default().bounds(), None);
         assert_eq!(SphereSet::default().max_radius(), 0.0);
         let empty = SphereSet::new(Vec::new(), Vec::new()).unwrap();

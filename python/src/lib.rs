@@ -44,11 +44,14 @@ pub(crate) fn to_py_err(error: mochi::Error) -> PyErr {
     }
 }
 
-/// The centres of an `(N, 3)` float32/float64 array, as `f32` (what the library stores): one
-/// copy, on the rayon pool for a C-ordered array (with the GIL held: Python may not write the
-/// array meanwhile).
-fn read_centres(centres: &Bound<'_, PyAny>) -> PyResult<Vec<[f32; 3]>> {
-    fn rows<T: Copy + Into<f64> + Sync>(view: ArrayView2<'_, T>) -> PyResult<Vec<[f32; 3]>> {
+/// The centres of an `(N, 3)` float32/float64 array, as `f32` (what the library stores), into
+/// `out` (its allocation reused): one copy, on the rayon pool for a C-ordered array (with the
+/// GIL held: Python may not write the array meanwhile).
+fn read_centres_into(centres: &Bound<'_, PyAny>, out: &mut Vec<[f32; 3]>) -> PyResult<()> {
+    fn rows<T: Copy + Into<f64> + Sync>(
+        view: ArrayView2<'_, T>,
+        out: &mut Vec<[f32; 3]>,
+    ) -> PyResult<()> {
         if view.ncols() != 3 {
             return Err(PyValueError::new_err(format!(
                 "centres must have shape (N, 3), not {:?}",
@@ -56,24 +59,63 @@ fn read_centres(centres: &Bound<'_, PyAny>) -> PyResult<Vec<[f32; 3]>> {
             )));
         }
         let row = |r: &[T]| [r[0].into() as f32, r[1].into() as f32, r[2].into() as f32];
-        Ok(match view.as_slice() {
-            Some(flat) => flat.par_chunks_exact(3).map(row).collect(),
-            None => view
-                .rows()
-                .into_iter()
-                .map(|r| [r[0].into() as f32, r[1].into() as f32, r[2].into() as f32])
-                .collect(),
-        })
+        out.clear();
+        match view.as_slice() {
+            Some(flat) => out.par_extend(flat.par_chunks_exact(3).map(row)),
+            None => out.extend(
+                view.rows()
+                    .into_iter()
+                    .map(|r| [r[0].into() as f32, r[1].into() as f32, r[2].into() as f32]),
+            ),
+        }
+        Ok(())
     }
     if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f32>>() {
-        return rows(a.as_array());
+        return rows(a.as_array(), out);
     }
     if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f64>>() {
-        return rows(a.as_array());
+        return rows(a.as_array(), out);
     }
     Err(PyValueError::new_err(
         "centres must be a NumPy array of shape (N, 3) and dtype float32 or float64",
     ))
+}
+
+/// [`read_centres_into`] a new vector.
+fn read_centres(centres: &Bound<'_, PyAny>) -> PyResult<Vec<[f32; 3]>> {
+    let mut out = Vec::new();
+    read_centres_into(centres, &mut out)?;
+    Ok(out)
+}
+
+/// Moves `spheres` to `centres` (refused centres leave them as they were): a C-ordered float32
+/// array's rows are checked and copied straight into the set's own, anything else converted
+/// into `scratch` first (its allocation kept between calls). With the GIL held, as
+/// [`read_centres_into`].
+fn move_spheres(
+    spheres: &mut SphereSet,
+    centres: &Bound<'_, PyAny>,
+    scratch: &mut Vec<[f32; 3]>,
+) -> PyResult<()> {
+    let moved = |spheres: &mut SphereSet, rows: &[[f32; 3]]| {
+        spheres
+            .copy_centers_from(rows)
+            .map_err(|error| match error {
+                mochi::Error::Usage(msg) => PyValueError::new_err(msg),
+                other => to_py_err(other),
+            })
+    };
+    if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f32>>() {
+        let view = a.as_array();
+        // ndarray's slice is the C order's alone (NumPy's would take Fortran order too).
+        if view.ncols() == 3
+            && let Some(flat) = view.as_slice()
+        {
+            return moved(spheres, flat.as_chunks::<3>().0);
+        }
+    }
+    read_centres_into(centres, scratch)?;
+    moved(spheres, scratch)
 }
 
 /// The radii of an `(N,)` float32/float64 array, as `f32`.
@@ -121,19 +163,17 @@ fn parse_mode(name: &str) -> PyResult<ProxyMode> {
 
 /// Pairs as the rows `i, j` of a `(P, 2)` array, sorted; on the rayon pool (the GIL released by
 /// the caller): a pass that checks the order (the GPU backends sort the pairs already), a sort
-/// where it is not, and one pass to write.
+/// where it is not, and one pass that writes the rows (into memory not zeroed first).
 fn sorted_rows(mut pairs: Vec<Pair>) -> Vec<i64> {
     if !pairs.par_windows(2).all(|w| w[0] < w[1]) {
         pairs.par_sort_unstable();
     }
-    let mut rows = vec![0_i64; 2 * pairs.len()];
-    rows.par_chunks_exact_mut(2)
-        .zip(&pairs)
-        .for_each(|(row, pair)| {
-            row[0] = i64::from(pair.i);
-            row[1] = i64::from(pair.j);
-        });
-    rows
+    let mut rows: Vec<[i64; 2]> = Vec::new();
+    pairs
+        .par_iter()
+        .map(|pair| [i64::from(pair.i), i64::from(pair.j)])
+        .collect_into_vec(&mut rows);
+    rows.into_flattened()
 }
 
 /// `rows` (of [`sorted_rows`]) as a `(P, 2)` int64 array, without a copy.
@@ -152,6 +192,8 @@ struct Detector {
     mode: ProxyMode,
     /// The spheres of the last `build` or `update`; `None` before the first.
     spheres: Option<SphereSet>,
+    /// Centres converted from arrays that are not C-ordered float32, kept between updates.
+    scratch: Vec<[f32; 3]>,
 }
 
 impl Detector {
@@ -176,6 +218,7 @@ impl Detector {
             backend: Mutex::new(opened.backend),
             mode,
             spheres: None,
+            scratch: Vec::new(),
         })
     }
 
@@ -201,17 +244,12 @@ impl Detector {
     }
 
     fn update(&mut self, py: Python<'_>, centres: &Bound<'_, PyAny>) -> PyResult<()> {
-        let centres = read_centres(centres)?;
         let Some(spheres) = self.spheres.as_mut() else {
             return Err(MochiError::new_err("update() before build()"));
         };
         // The radii stay (checked at build); only the new centres are checked, and refused ones
         // leave the set as it was.
-        py.detach(|| spheres.set_centers(centres))
-            .map_err(|error| match error {
-                mochi::Error::Usage(msg) => PyValueError::new_err(msg),
-                other => to_py_err(other),
-            })?;
+        move_spheres(spheres, centres, &mut self.scratch)?;
         let backend = self
             .backend
             .get_mut()

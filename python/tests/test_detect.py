@@ -87,11 +87,19 @@ def test_detector_update_loop_equals_fresh_detect():
     rng = np.random.default_rng(6)
     detector = mochi.Detector(backend="cpu")
     detector.build(centres, radii)
-    for _ in range(5):
+    # Every way in: float64, C-ordered float32 (copied straight into the set) and
+    # Fortran-ordered float32 (converted first), each twice.
+    ways = [
+        lambda c: c,
+        lambda c: np.ascontiguousarray(c, dtype=np.float32),
+        lambda c: np.asfortranarray(c, dtype=np.float32),
+    ]
+    for k in range(6):
         centres = centres + rng.normal(0.0, 0.2, size=centres.shape)
-        detector.update(centres)
+        given = ways[k % 3](centres)
+        detector.update(given)
         np.testing.assert_array_equal(
-            detector.pairs(), mochi.detect(centres, radii, backend="cpu")
+            detector.pairs(), mochi.detect(given, radii, backend="cpu")
         )
 
 
@@ -104,6 +112,10 @@ def test_detector_update_refused_keeps_the_last_spheres():
     bad[3, 1] = np.nan
     with pytest.raises(ValueError, match="sphere 3"):
         detector.update(bad)
+    with pytest.raises(ValueError, match="sphere 3"):
+        detector.update(bad.astype(np.float32))
+    with pytest.raises(ValueError):
+        detector.update(centres[:, :2].astype(np.float32))
     with pytest.raises(ValueError):
         detector.update(centres[:-1])
     np.testing.assert_array_equal(detector.pairs(), before)

@@ -7,7 +7,7 @@ use crate::detect::{Backend, BackendInfo};
 use crate::error::{Error, Result};
 use crate::gpu::pair_output::PairOutput;
 use crate::gpu::pair_sort::PairSort;
-use crate::gpu::timer::{self, GpuTimer, Span};
+use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::{self, Gpu};
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
@@ -88,7 +88,8 @@ const BUILD_SPAN: Span = Span(0);
 const DETECT_SPAN: Span = Span(1);
 
 /// A wgpu engine's detection state around its structure `S`: the device, the last build, and
-/// the timer of builds and detections with the times it read.
+/// the timer of builds and detections, read only when [`gpu_times`](Self::gpu_times) asks (a
+/// caller that never asks, as the Python `Detector`, waits for no read-back of them).
 pub(crate) struct WgpuDetection<S> {
     pub gpu: Gpu,
     /// Backend name, as in [`BackendInfo::name`] (for messages).
@@ -97,7 +98,15 @@ pub(crate) struct WgpuDetection<S> {
     /// Sorts the pairs of every detection.
     sort: PairSort,
     timer: Option<GpuTimer>,
-    times: GpuTimes,
+    /// Whether the timer's spans hold the current build's and detection's times.
+    timed: Timed,
+}
+
+/// Which of the timer's spans belong to the current build and its last detection.
+#[derive(Debug, Clone, Copy, Default)]
+struct Timed {
+    build: bool,
+    detect: bool,
 }
 
 /// What one build leaves on the GPU.
@@ -141,7 +150,7 @@ impl<S> WgpuDetection<S> {
             gpu,
             name,
             built: None,
-            times: GpuTimes::default(),
+            timed: Timed::default(),
         }
     }
 
@@ -223,9 +232,9 @@ impl<S> WgpuDetection<S> {
             });
         })?;
         gpu.wait()?;
-        self.times = GpuTimes {
-            build_ms: timer::read_ms(gpu, timer, BUILD_SPAN)?,
-            detect_ms: None,
+        self.timed = Timed {
+            build: timer.is_some(),
+            detect: false,
         };
         self.built = Some(Built {
             n,
@@ -284,12 +293,25 @@ impl<S> WgpuDetection<S> {
                     });
                 })
             })?;
-        self.times.detect_ms = timer::read_ms(gpu, timer, DETECT_SPAN)?;
+        self.timed.detect = timer.is_some();
         Ok(result)
     }
 
     /// GPU time of the last build and detection, where measured.
     pub fn gpu_times(&self) -> GpuTimes {
-        self.times
+        let (Some(timer), Timed { build, detect }) = (&self.timer, self.timed) else {
+            return GpuTimes::default();
+        };
+        if !build && !detect {
+            return GpuTimes::default();
+        }
+        // Both spans in one read-back; a failed read measures nothing.
+        match timer.spans_ms(&self.gpu, &[BUILD_SPAN, DETECT_SPAN]) {
+            Ok(ms) => GpuTimes {
+                build_ms: build.then_some(ms[0]),
+                detect_ms: detect.then_some(ms[1]),
+            },
+            Err(_) => GpuTimes::default(),
+        }
     }
 }

@@ -107,15 +107,20 @@ impl GpuTimer {
         self.resolve(encoder, first..first + 2);
     }
 
-    /// Milliseconds between the start and end of `span` (after its commands completed).
-    pub fn read_ms(&self, gpu: &Gpu, span: Span) -> Result<f64> {
-        let first = span.0 * RESOLVE_STRIDE;
-        let ticks = self.ticks(gpu, first..first + 2)?;
-        Ok(ticks[1].saturating_sub(ticks[0]) as f64 * Self::ms_per_tick(gpu))
+    /// Milliseconds of each of `spans`, in one read-back (after their commands completed).
+    pub fn spans_ms(&self, gpu: &Gpu, spans: &[Span]) -> Result<Vec<f64>> {
+        let end = spans
+            .iter()
+            .map(|s| s.0 * RESOLVE_STRIDE + 2)
+            .max()
+            .unwrap_or(0);
+        let ticks = self.ticks(gpu, 0..end)?;
+        Ok(spans
+            .iter()
+            .map(|s| {
+                let first = (s.0 * RESOLVE_STRIDE) as usize;
+                ticks[first + 1].saturating_sub(ticks[first]) as f64 * Self::ms_per_tick(gpu)
+            })
+            .collect())
     }
-}
-
-/// Milliseconds of `span`, or `None` without a timer (call after the span's commands completed).
-pub fn read_ms(gpu: &Gpu, timer: Option<&GpuTimer>, span: Span) -> Result<Option<f64>> {
-    timer.map(|t| t.read_ms(gpu, span)).transpose()
 }
