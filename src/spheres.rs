@@ -392,7 +392,10 @@ mod tests {
         let mut big = SphereSet::new(vec![[0.0; 3]; many.len()], vec![1.0; many.len()]).unwrap();
         big.copy_centers_from(&many).unwrap();
         assert_eq!(big.centers(), many);
-        assert_eq!(big.bounds(), Some(([0.0, 0.0, -9999.0], [9999.0, 0.0, 0.0])));
+        assert_eq!(
+            big.bounds(),
+            Some(([0.0, 0.0, -9999.0], [9999.0, 0.0, 0.0]))
+        );
         assert_eq!(SphereSet::default().bounds(), None);
         assert_eq!(SphereSet::default().max_radius(), 0.0);
         let empty = SphereSet::new(Vec::new(), Vec::new()).unwrap();

@@ -437,3 +437,28 @@ fn an_inflow_that_outgrows_the_rows_kept_for_it_reopens_the_step_and_matches_the
         assert_flows_as_the_cpu(kind, (&counts, &now), (&cpu, &placed), 1);
     });
 }
+
+#[test]
+fn auto_prefers_wgpu_compute_where_spheres_flow() {
+    let start = Start {
+        particles: Particles::default(),
+        params: params(-9.81),
+        mode: ProxyMode::Mochi,
+        walls: WallSet::default(),
+        flow: FlowSet {
+            floor: Some(0.0),
+            ..FlowSet::default()
+        },
+    };
+    let (_, kind, reason) = open_scene(BackendChoice::Auto, start, &Options::default()).unwrap();
+    let reason = reason.unwrap();
+    assert!(reason.contains("where spheres flow"), "{reason}");
+    // Where wgpu-compute runs (and is no software adapter), auto takes it before optix and
+    // wgpu-rq; else it says why it passed over it.
+    if kind != BackendKind::WgpuCompute {
+        assert!(reason.contains("skipped wgpu-compute"), "{reason}");
+    }
+    if common::expected(BackendKind::Optix) {
+        assert!(reason.starts_with("auto picked wgpu-compute"), "{reason}");
+    }
+}

@@ -105,8 +105,9 @@ fn choose_walled(
     Ok((stepper, kind, Some(reason)))
 }
 
-/// Opens the DEM step the user chose for the scene `start`. The box walls, mesh walls and a
-/// box switched off run on every backend; spheres flowing in and out on every backend, the GPU ones through `FlowStep` (`engines/flow_step.rs`).
+/// Opens the DEM step the user chose for the scene `start` (`auto`: in the order of
+/// [`BackendKind::FLOWING`] where spheres flow). The box walls, mesh walls and a box switched
+/// off run on every backend; spheres flowing in and out on every backend, the GPU ones through `FlowStep` (`engines/flow_step.rs`).
 pub fn open_scene(
     choice: BackendChoice,
     start: Start,
@@ -144,8 +145,9 @@ pub fn open_scene(
         return Ok((open(kind)?, kind, None));
     }
     let ((stepper, kind), reason) =
-        super::registry::open_auto(&BackendKind::ALL, |kind| Ok((open(kind)?, kind)))?;
-    Ok((stepper, kind, Some(reason)))
+        super::registry::open_auto(&BackendKind::FLOWING, |kind| Ok((open(kind)?, kind)))?;
+    let why = "wgpu-compute first where spheres flow: its flow events stay on the device";
+    Ok((stepper, kind, Some(format!("{reason} ({why})"))))
 }
 
 /// How [`FlowStep`] opens GPU backend `kind`'s step again over new spheres: on the device

@@ -41,6 +41,17 @@ impl BackendKind {
         BackendKind::Cpu,
     ];
 
+    /// Every backend, in the order `auto` prefers them for a scene whose spheres flow in or
+    /// out: wgpu-compute flows on the device, while the optix and wgpu-rq steps read every
+    /// sphere back and reopen at each flow event (docs/PERFORMANCE.md: a second an event at a
+    /// million spheres), which costs more than their faster steps save.
+    pub const FLOWING: [BackendKind; 4] = [
+        BackendKind::WgpuCompute,
+        BackendKind::Optix,
+        BackendKind::WgpuRq,
+        BackendKind::Cpu,
+    ];
+
     /// Name, as on the command line.
     pub fn name(self) -> &'static str {
         match self {
