@@ -258,3 +258,37 @@ fn auto_takes_the_dense_build_for_a_dense_set_and_the_sorted_one_for_a_sparse_se
     got.sort_unstable();
     assert!(differences(&got, &want, &sparse, true).is_empty());
 }
+
+#[test]
+fn spheres_that_barely_move_keep_their_layout_and_spheres_that_spread_get_a_new_one() {
+    let Some(mut backend) = open(Structure::Auto) else {
+        return;
+    };
+    let spheres = polydisperse(11, 4000, 4.0);
+    assert_exact(&mut backend, &spheres, "first build");
+    let first = backend.structure().unwrap();
+    let moved = |scale: f32, shift: f32| {
+        let mut s = spheres.clone();
+        let centers = s
+            .centers()
+            .iter()
+            .map(|c| c.map(|x| x * scale + shift))
+            .collect();
+        s.set_centers(centers).unwrap();
+        s
+    };
+    // A small shift: the same layout, the pairs still exact.
+    let shifted = moved(1.0, 0.05);
+    backend.update(&shifted).unwrap();
+    let mut got = backend.find_pairs().unwrap().0;
+    got.sort_unstable();
+    assert_eq!(got, brute_force_pairs(&shifted));
+    assert_eq!(backend.structure().unwrap(), first);
+    // Spread to three times the size: a layout over the new bounds.
+    let spread = moved(3.0, 0.0);
+    backend.update(&spread).unwrap();
+    let mut got = backend.find_pairs().unwrap().0;
+    got.sort_unstable();
+    assert_eq!(got, brute_force_pairs(&spread));
+    assert_ne!(backend.structure().unwrap(), first);
+}

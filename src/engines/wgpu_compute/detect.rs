@@ -39,6 +39,52 @@ pub struct WgpuComputeBackend {
     find_pairs_sorted: wgpu::ComputePipeline,
     structure: Structure,
     grid_build: GridBuild,
+    /// The last layout chosen, which builds of spheres that barely moved reuse.
+    last_layout: Option<ChosenLayout>,
+}
+
+/// A layout and what it was chosen for ([`WgpuComputeBackend::layout`]).
+#[derive(Clone, Copy)]
+struct ChosenLayout {
+    n: usize,
+    mode: ProxyMode,
+    radii: (f32, f32),
+    structure: Structure,
+    grid_build: GridBuild,
+    bounds: ([f32; 3], [f32; 3]),
+    build: BuildKind,
+    layout: GridParams,
+}
+
+/// A layout is reused while each face of the centres' bounds stays within this fraction of the
+/// bounds' extent along its axis of where it was (moving spheres keep their layout; any layout
+/// is exact, centres outside it are clamped to its border cells, so this only bounds the cost).
+const LAYOUT_SLACK: f32 = 1.0 / 64.0;
+
+impl ChosenLayout {
+    /// Whether this layout serves `spheres` in `mode` under `structure` and `grid_build`.
+    fn serves(
+        &self,
+        spheres: &SphereSet,
+        mode: ProxyMode,
+        structure: Structure,
+        grid_build: GridBuild,
+    ) -> bool {
+        let Some((lo, hi)) = spheres.bounds() else {
+            return false;
+        };
+        let (old_lo, old_hi) = self.bounds;
+        let near = |a: usize| {
+            let slack = LAYOUT_SLACK * (old_hi[a] - old_lo[a]);
+            (lo[a] - old_lo[a]).abs() <= slack && (hi[a] - old_hi[a]).abs() <= slack
+        };
+        self.n == spheres.len()
+            && self.mode == mode
+            && self.radii == (spheres.min_radius(), spheres.max_radius())
+            && self.structure == structure
+            && self.grid_build == grid_build
+            && (0..3).all(near)
+    }
 }
 
 /// GPU buffers of a grid over `n` spheres, and the layout and build of its last build.
@@ -114,6 +160,7 @@ impl WgpuComputeBackend {
             find_pairs_sorted: gpu.pipeline(FIND_PAIRS, &pairs_sorted, "find_pairs"),
             structure: Structure::Auto,
             grid_build: GridBuild::Auto,
+            last_layout: None,
             detection: WgpuDetection::new("wgpu-compute", gpu),
         })
     }
@@ -136,8 +183,31 @@ impl WgpuComputeBackend {
     }
 
     /// Build and cell layout for `spheres` (see [`GridBuild::resolve`], [`choose_layout`])
-    /// over their [`core_bounds`].
-    fn layout(&self, spheres: &SphereSet, mode: ProxyMode) -> (BuildKind, GridParams) {
+    /// over their [`core_bounds`]; the last one again where it serves them (spheres that barely
+    /// moved: [`LAYOUT_SLACK`]).
+    fn layout(&mut self, spheres: &SphereSet, mode: ProxyMode) -> (BuildKind, GridParams) {
+        let (structure, grid_build) = (self.structure, self.grid_build);
+        if let Some(last) = self.last_layout
+            && last.serves(spheres, mode, structure, grid_build)
+        {
+            return (last.build, last.layout);
+        }
+        let (build, layout) = self.choose(spheres, mode);
+        self.last_layout = spheres.bounds().map(|bounds| ChosenLayout {
+            n: spheres.len(),
+            mode,
+            radii: (spheres.min_radius(), spheres.max_radius()),
+            structure,
+            grid_build,
+            bounds,
+            build,
+            layout,
+        });
+        (build, layout)
+    }
+
+    /// [`Self::layout`] chosen afresh.
+    fn choose(&self, spheres: &SphereSet, mode: ProxyMode) -> (BuildKind, GridParams) {
         let (lo, hi) = core_bounds(spheres).expect("the set is not empty");
         let base = mode.cell_size(spheres.max_radius()) as f64;
         let build = self
