@@ -514,23 +514,25 @@ mod tests {
 
     #[test]
     fn owner_only_entries_read_back_as_both_sides() {
-        // Sphere 0 owns its contacts with 1 and 2, sphere 2 holds a wall; 2 slots each.
+        // Sphere 0 owns its contacts with 1 and 2, sphere 2 holds a box wall and sphere 1 a
+        // mesh wall (walls are never mirrored); 2 slots each.
         let e = HistoryEntry::default();
+        let mesh_wall = crate::particles::FIRST_MESH_WALL + 1;
         let entries = [
             entry(1, 1.0),
             entry(2, 2.0),
-            e,
+            entry(mesh_wall, 4.0),
             e,
             entry(FIRST_WALL + 4, 3.0),
             e,
         ];
-        let h = both_sides(&[2, 0, 1], &entries, 2).unwrap();
+        let h = both_sides(&[2, 1, 1], &entries, 2).unwrap();
         assert_eq!(h.of(0), &[entry(1, 1.0), entry(2, 2.0)]);
-        assert_eq!(h.of(1), &[entry(0, -1.0)]);
+        assert_eq!(h.of(1), &[entry(mesh_wall, 4.0), entry(0, -1.0)]);
         assert_eq!(h.of(2), &[entry(FIRST_WALL + 4, 3.0), entry(0, -2.0)]);
         // Both-sided already (an upload read back before any step): nothing is doubled.
         let (counts, entries) = layout(&h, 3, 4);
-        assert_eq!(counts, [2, 1, 2]);
+        assert_eq!(counts, [2, 2, 2]);
         assert_eq!(both_sides(&counts, &entries, 4).unwrap(), h);
         // More slots: the same history.
         let wider = relayout(&entries, 4, 7);
