@@ -303,6 +303,25 @@ static __forceinline__ __device__ float3 mochi_partner_torque(const GranularPara
 }
 
 // What the six walls of the box do to one sphere (contact.rs WallContacts).
+// Sphere b's touch of a wall whose surface moves at `velocity` where it touches (normal n from
+// b's centre; a box wall's stands still: x − 0 is x, bit for bit as the cpu step's).
+static __forceinline__ __device__ MochiTouch mochi_wall_touch(const MochiBody& b, float3 n,
+                                                              float overlap, MochiNormal nf,
+                                                              float3 velocity) {
+    MochiTouch touch;
+    touch.n = n;
+    touch.overlap = overlap;
+    touch.normal = nf;
+    touch.m_eff = b.m;
+    touch.r_eff = b.r;
+    touch.i_eff = mochi_inertia(b.m, b.r);
+    touch.lever = b.r;
+    touch.v_rel = mochi_sub(mochi_add(b.v, mochi_cross(b.w, mochi_scale(b.r, n))), velocity);
+    touch.w_rel = b.w;
+    touch.on_wall = true;
+    return touch;
+}
+
 struct MochiWalls {
     float3 normal;      // normal forces, summed per axis low wall first
     float3 tangential;  // tangential forces
@@ -345,17 +364,7 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const GranularP
                 float z = side == 0 ? -0.0f : 0.0f;
                 float3 n = mochi_v3(a == 0 ? s : z, a == 1 ? s : z, a == 2 ? s : z);
                 unsigned int wall = 2 * a + side;
-                MochiTouch touch;
-                touch.n = n;
-                touch.overlap = overlap;
-                touch.normal = nf;
-                touch.m_eff = b.m;
-                touch.r_eff = b.r;
-                touch.i_eff = mochi_inertia(b.m, b.r);
-                touch.lever = b.r;
-                touch.v_rel = mochi_add(b.v, mochi_cross(b.w, mochi_scale(b.r, n)));
-                touch.w_rel = b.w;
-                touch.on_wall = true;
+                MochiTouch touch = mochi_wall_touch(b, n, overlap, nf, mochi_zero3());
                 MochiFriction fr = mochi_friction(g, touch, g.wall_sliding, old(wall));
                 out.tangential = mochi_add(out.tangential, fr.force);
                 out.torque = mochi_add(out.torque, fr.torque);

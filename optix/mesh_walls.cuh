@@ -207,18 +207,7 @@ static __device__ MochiSurface mochi_surface_contact(const GranularParams& g, co
     if (!g.turns) {
         return out;
     }
-    MochiTouch touch;
-    touch.n = n;
-    touch.overlap = overlap;
-    touch.normal = nf;
-    touch.m_eff = b.m;
-    touch.r_eff = b.r;
-    touch.i_eff = mochi_inertia(b.m, b.r);
-    touch.lever = b.r;
-    touch.v_rel = mochi_sub(mochi_add(b.v, mochi_cross(b.w, mochi_scale(b.r, n))), velocity);
-    touch.w_rel = b.w;
-    touch.on_wall = true;
-    MochiFriction f = mochi_friction(g, touch, mu, old);
+    MochiFriction f = mochi_friction(g, mochi_wall_touch(b, n, overlap, nf, velocity), mu, old);
     out.force = mochi_add(out.force, f.force);
     out.torque = f.torque;
     out.springs = f.springs;
