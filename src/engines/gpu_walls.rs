@@ -4,7 +4,8 @@
 //! and the loads on the walls, summed in the last step of each advance and read back after it;
 //! and the list of the spheres near a wall, which the walls' first kernel makes each step for
 //! their second. Every granular step binds these (with no mesh walls: a wall count of 0 and
-//! minimal buffers).
+//! minimal buffers). The host tables ([`WallTables`]) and the loads' summing ([`wall_loads`])
+//! serve the optix step too (`optix/mesh_walls.cuh`).
 
 use crate::dem::walls::{TriangleMesh, WallLoad, WallSet};
 use crate::error::{Error, Result};

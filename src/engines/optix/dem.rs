@@ -9,9 +9,9 @@
 //!
 //! A run that needs more than the paper's law (Hertz–Mindlin or per-pair contacts, friction,
 //! rolling resistance, spinning spheres, contact history, mesh walls or no box walls) runs the
-//! granular programs instead
-//! (`granular.rs`) over the same structure maintenance and batches; such a batch starts over
-//! with more history slots where a sphere had more contacts than slots.
+//! granular programs instead (`granular.rs`) over the same structure maintenance and batches;
+//! such a batch starts over with more history slots where a sphere had more contacts than
+//! slots.
 //!
 //! The `auto` policy refits while that pays: it rebuilds once the last steps cost more (refit
 //! plus detection) than the average step since the last rebuild, the rebuild's own cost
