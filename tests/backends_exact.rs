@@ -148,6 +148,14 @@ fn check_backend(
 
             let again = backend.find_pairs().expect("find_pairs").0;
             prop_assert_eq!(&again, &pairs, "{}: order differs between runs", label);
+            if matches!(kind, BackendKind::WgpuCompute | BackendKind::WgpuRq) {
+                // The wgpu engines sort their pairs on the GPU (src/gpu/pair_sort.rs).
+                prop_assert!(
+                    pairs.windows(2).all(|w| w[0] < w[1]),
+                    "{}: pairs not sorted",
+                    label
+                );
+            }
             let count = backend.count_pairs().expect("count_pairs");
             prop_assert_eq!(count, stats, "{}: count_pairs", label);
 
@@ -254,6 +262,25 @@ fn exactly_touching_spheres_in_every_direction() {
     let s = set(&spheres);
     assert_eq!(brute_force_pairs(&s).len(), 8);
     exact(&s);
+}
+
+#[test]
+fn one_sphere_touching_thousands_of_later_ones() {
+    // Sphere 0 (radius 1) touched by small spheres spread over a shell around it, none touching
+    // another: its pairs all have first index 0, one bucket of the GPU pair sort longer than it
+    // orders in place (src/gpu/pair_sort.rs), then one it does order.
+    for count in [1500, 300] {
+        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+        let mut spheres = vec![([0.0; 3], 1.0)];
+        for k in 0..count {
+            let z = 1.0 - 2.0 * (k as f32 + 0.5) / count as f32;
+            let ring = (1.0 - z * z).sqrt();
+            let a = golden * k as f32;
+            let d = 1.005;
+            spheres.push(([d * ring * a.cos(), d * ring * a.sin(), d * z], 0.01));
+        }
+        exact(&set(&spheres));
+    }
 }
 
 #[test]

@@ -33,9 +33,10 @@ impl PairOutput {
     pub fn new(gpu: &Gpu, capacity: u32) -> Self {
         PairOutput {
             counters: gpu.storage("mochi.pairs.counters", 16, wgpu::BufferUsages::empty()),
+            // One pair more than the capacity: the pair sort's flag goes after the last pair.
             pairs: gpu.storage(
                 "mochi.pairs.pairs",
-                capacity as u64 * 8,
+                (capacity as u64 + 1) * 8,
                 wgpu::BufferUsages::empty(),
             ),
             capacity,
@@ -73,13 +74,28 @@ impl PairOutput {
                 self.grow(gpu, counters[0])?;
                 continue;
             }
-            gpu.checked("sorting the pairs", || {
+            let count = counters[0];
+            let bucketed = gpu.checked("sorting the pairs", || {
                 let mut encoder = gpu.device.create_command_encoder(&Default::default());
-                sort.encode(gpu, &mut encoder, &self.pairs, counters[0], spheres);
+                let bucketed = sort.encode(gpu, &mut encoder, &self.pairs, count, spheres);
                 gpu.queue.submit([encoder.finish()]);
+                bucketed
             })?;
-            let pairs =
-                gpu.read_through(&mut self.pairs_back, &self.pairs, counters[0] as usize)?;
+            if bucketed {
+                // The sort's flag comes back with the pairs, after the last.
+                let mut pairs: Vec<Pair> =
+                    gpu.read_through(&mut self.pairs_back, &self.pairs, count as usize + 1)?;
+                let long_bucket = pairs.pop().is_some_and(|flag| flag.i != 0);
+                if !long_bucket {
+                    return Ok((pairs, stats));
+                }
+                gpu.checked("sorting the pairs", || {
+                    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+                    sort.encode_radix(gpu, &mut encoder, &self.pairs, count, spheres);
+                    gpu.queue.submit([encoder.finish()]);
+                })?;
+            }
+            let pairs = gpu.read_through(&mut self.pairs_back, &self.pairs, count as usize)?;
             return Ok((pairs, stats));
         }
     }
@@ -90,7 +106,8 @@ impl PairOutput {
         let limit = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size)
-            / 8;
+            / 8
+            - 1;
         if needed as u64 > limit {
             return Err(Error::TooLarge {
                 what: format!("pairs in one detection on {}", gpu.info.name),
