@@ -161,67 +161,35 @@ impl PairSort {
                 row: x * GROUP,
             },
         );
-        let bind = |label: &str, pipeline, buffers: &[(Binding, &wgpu::Buffer)]| {
-            gpu.bind(label, pipeline, buffers)
+        // Every kernel reads the parameters, the pairs and the buckets, besides its own.
+        let run = |encoder: &mut wgpu::CommandEncoder,
+                   label: &str,
+                   pipeline: &wgpu::ComputePipeline,
+                   own: &[(Binding, &wgpu::Buffer)]| {
+            let mut buffers = vec![
+                (PARAMS, &self.params),
+                (PAIRS, pairs),
+                (BUCKETS, &b.buckets),
+            ];
+            buffers.extend_from_slice(own);
+            let group = gpu.bind(label, pipeline, &buffers);
+            gpu.dispatch(encoder, label, pipeline, &group, (x, y));
         };
-        let counted = bind(
-            "mochi.pair_sort.count",
-            &self.count,
-            &[
-                (PARAMS, &self.params),
-                (PAIRS, pairs),
-                (BUCKETS, &b.buckets),
-                (RANKS, &b.ranks),
-            ],
-        );
-        let placed = bind(
-            "mochi.pair_sort.place",
-            &self.place,
-            &[
-                (PARAMS, &self.params),
-                (PAIRS, pairs),
-                (BUCKETS, &b.buckets),
-                (RANKS, &b.ranks),
-                (GROUPED, &b.grouped),
-            ],
-        );
-        let ordered = bind(
-            "mochi.pair_sort.order",
-            &self.order,
-            &[
-                (PARAMS, &self.params),
-                (PAIRS, pairs),
-                (BUCKETS, &b.buckets),
-                (GROUPED, &b.grouped),
-                (LONG_BUCKET, &b.long_bucket),
-            ],
-        );
         let bucket_words = u64::from(spheres) + 1;
         encoder.clear_buffer(&b.buckets, 0, Some(bucket_words * 4));
         encoder.clear_buffer(&b.long_bucket, 0, None);
-        gpu.dispatch(
+        run(
             encoder,
             "mochi.pair_sort.count",
             &self.count,
-            &counted,
-            (x, y),
+            &[(RANKS, &b.ranks)],
         );
         self.scan
             .encode(gpu, encoder, &b.buckets, bucket_words as u32);
-        gpu.dispatch(
-            encoder,
-            "mochi.pair_sort.place",
-            &self.place,
-            &placed,
-            (x, y),
-        );
-        gpu.dispatch(
-            encoder,
-            "mochi.pair_sort.order",
-            &self.order,
-            &ordered,
-            (x, y),
-        );
+        let placed = [(RANKS, &b.ranks), (GROUPED, &b.grouped)];
+        run(encoder, "mochi.pair_sort.place", &self.place, &placed);
+        let ordered = [(GROUPED, &b.grouped), (LONG_BUCKET, &b.long_bucket)];
+        run(encoder, "mochi.pair_sort.order", &self.order, &ordered);
         encoder.copy_buffer_to_buffer(&b.long_bucket, 0, pairs, u64::from(count) * 8, 8);
         true
     }
