@@ -16,7 +16,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 use wgpu::WriteOnly;
 
-/// The WGSL modules of the shared plumbing (scan, radix sort and the pairs' split and join),
+/// The WGSL modules of the shared plumbing (scan, radix sort and the pair sort's kernels),
 /// exactly as the device gets them.
 pub fn shaders() -> Vec<WgslModule> {
     vec![scan::module(), radix_sort::module(), pair_sort::module()]
