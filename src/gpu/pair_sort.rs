@@ -153,14 +153,7 @@ impl PairSort {
         let Some(b) = &self.buckets else {
             unreachable!("allocated above")
         };
-        let (x, y) = gpu.grid(count, GROUP);
-        gpu.write_uniform(
-            &self.params,
-            &Params {
-                count,
-                row: x * GROUP,
-            },
-        );
+        let (x, y) = self.set_count(gpu, count);
         // Every kernel reads the parameters, the pairs and the buckets, besides its own.
         let run = |encoder: &mut wgpu::CommandEncoder,
                    label: &str,
@@ -194,6 +187,19 @@ impl PairSort {
         true
     }
 
+    /// Writes the kernels' parameters for `count` pairs; returns their dispatch grid.
+    fn set_count(&self, gpu: &Gpu, count: u32) -> (u32, u32) {
+        let (x, y) = gpu.grid(count, GROUP);
+        gpu.write_uniform(
+            &self.params,
+            &Params {
+                count,
+                row: x * GROUP,
+            },
+        );
+        (x, y)
+    }
+
     /// Records into `encoder` the radix sort of the first `count` pairs of `pairs` (as
     /// [`encode`](Self::encode) sorts them).
     pub fn encode_radix(
@@ -219,14 +225,7 @@ impl PairSort {
         let Some(h) = &self.halves else {
             unreachable!("allocated above")
         };
-        let (x, y) = gpu.grid(count, GROUP);
-        gpu.write_uniform(
-            &self.params,
-            &Params {
-                count,
-                row: x * GROUP,
-            },
-        );
+        let (x, y) = self.set_count(gpu, count);
         let buffers = [
             (PARAMS, &self.params),
             (PAIRS, pairs),
