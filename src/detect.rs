@@ -41,8 +41,26 @@ pub trait Backend: Send {
     /// where the backend can, else a rebuild.
     fn update(&mut self, spheres: &SphereSet) -> Result<()>;
 
+    /// Moves the built spheres to `centers` (as many as were built, radii unchanged) and brings
+    /// the structure up to date, where this backend takes centres from the caller's memory
+    /// straight into its own, checking them there as [`SphereSet`] does (refused centres leave
+    /// the build as it was): `Ok(true)`. `Ok(false)` where it does not, having done nothing:
+    /// the caller then moves a [`SphereSet`] and calls [`update`](Backend::update).
+    fn move_centers(&mut self, centers: &[[f32; 3]]) -> Result<bool> {
+        let _ = centers;
+        Ok(false)
+    }
+
     /// Every colliding pair, each once with `i < j`, in an order that is the same on every run.
     fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)>;
+
+    /// [`find_pairs`](Backend::find_pairs) handing the pairs to `take`, once, where they lie
+    /// (a GPU backend's read-back): a caller that converts them copies them once.
+    fn take_pairs(&mut self, take: &mut dyn FnMut(&[Pair])) -> Result<DetectStats> {
+        let (pairs, stats) = self.find_pairs()?;
+        take(&pairs);
+        Ok(stats)
+    }
 
     /// Counts the colliding pairs without storing them.
     fn count_pairs(&mut self) -> Result<DetectStats>;

@@ -39,10 +39,14 @@ pub struct SphereSet {
     bounds: Option<([f32; 3], [f32; 3])>,
 }
 
+/// The bounds of a set of centres, lowest then highest corner.
+pub(crate) type Bounds = ([f32; 3], [f32; 3]);
+
 /// What one pass over (part of) a set finds: the first bad sphere, if any, the centres'
-/// bounds and the radii's range.
+/// bounds and the radii's range. Parts surveyed apart (centres checked while they are copied
+/// elsewhere: [`crate::gpu::copy_surveyed`]) are merged in order.
 #[derive(Debug, Clone)]
-struct Survey {
+pub(crate) struct Survey {
     bad: Option<(usize, String)>,
     lo: [f32; 3],
     hi: [f32; 3],
@@ -50,7 +54,7 @@ struct Survey {
 }
 
 impl Survey {
-    fn empty() -> Self {
+    pub(crate) fn empty() -> Self {
         Survey {
             bad: None,
             lo: [f32::INFINITY; 3],
@@ -80,8 +84,16 @@ impl Survey {
         self
     }
 
+    /// The centres `centers` alone (radii not surveyed), the first numbered `first`.
+    pub(crate) fn of_centers(first: usize, centers: &[[f32; 3]]) -> Self {
+        centers
+            .iter()
+            .enumerate()
+            .fold(Survey::empty(), |acc, (i, c)| acc.add(first + i, c, None))
+    }
+
     /// Both parts' findings, `self` the earlier: its bad sphere first.
-    fn merge(self, later: Survey) -> Self {
+    pub(crate) fn merge(self, later: Survey) -> Self {
         Survey {
             bad: self.bad.or(later.bad),
             lo: std::array::from_fn(|a| self.lo[a].min(later.lo[a])),
@@ -94,7 +106,7 @@ impl Survey {
     }
 
     /// The first bad sphere as an error, else the bounds of `n` centres.
-    fn into_bounds(self, n: usize) -> Result<Option<([f32; 3], [f32; 3])>> {
+    pub(crate) fn into_bounds(self, n: usize) -> Result<Option<Bounds>> {
         match self.bad {
             Some((index, reason)) => Err(Error::InvalidSphere { index, reason }),
             None => Ok((n > 0).then_some((self.lo, self.hi))),

@@ -292,3 +292,58 @@ fn spheres_that_barely_move_keep_their_layout_and_spheres_that_spread_get_a_new_
     assert_eq!(got, brute_force_pairs(&spread));
     assert_ne!(backend.structure().unwrap(), first);
 }
+
+#[test]
+fn centres_moved_straight_in_stay_exact_and_a_refused_move_keeps_the_build() {
+    let Some(mut backend) = open(Structure::Auto) else {
+        return;
+    };
+    let spheres = polydisperse(12, 4000, 4.0);
+    assert_exact(&mut backend, &spheres, "first build");
+    let first = backend.structure().unwrap();
+    let moved = |scale: f32, shift: f32| {
+        let mut s = spheres.clone();
+        let centers = s
+            .centers()
+            .iter()
+            .enumerate()
+            .map(|(i, c)| c.map(|x| x * scale + shift + (i % 7) as f32 * 1e-3))
+            .collect();
+        s.set_centers(centers).unwrap();
+        s
+    };
+    let pairs = |backend: &mut WgpuComputeBackend| {
+        let mut got = Vec::new();
+        backend.take_pairs(&mut |p| got = p.to_vec()).unwrap();
+        assert!(got.windows(2).all(|w| w[0] < w[1]), "taken sorted");
+        got
+    };
+    // A small shift: taken straight in, the same layout, exact.
+    let shifted = moved(1.0, 0.05);
+    assert!(backend.move_centers(shifted.centers()).unwrap());
+    assert_eq!(pairs(&mut backend), brute_force_pairs(&shifted));
+    assert_eq!(backend.structure().unwrap(), first);
+    // A centre that is not finite, anywhere: refused with its index, the build as it was.
+    for bad in [0, 1234, 3999] {
+        let mut centers = spheres.centers().to_vec();
+        centers[bad][1] = f32::NAN;
+        let refused = backend.move_centers(&centers);
+        assert!(
+            matches!(refused, Err(mochi::Error::InvalidSphere { index, .. }) if index == bad),
+            "{refused:?}"
+        );
+        assert_eq!(pairs(&mut backend), brute_force_pairs(&shifted));
+    }
+    // A count unlike the build's: misuse of the library.
+    let short = backend.move_centers(&shifted.centers()[1..]);
+    assert!(matches!(short, Err(mochi::Error::Usage(_))), "{short:?}");
+    // Spread to three times the size: a layout over the new bounds (the radii read back).
+    let spread = moved(3.0, 0.0);
+    assert!(backend.move_centers(spread.centers()).unwrap());
+    assert_eq!(pairs(&mut backend), brute_force_pairs(&spread));
+    assert_ne!(backend.structure().unwrap(), first);
+    // And a move after that build.
+    let back = moved(3.0, 0.1);
+    assert!(backend.move_centers(back.centers()).unwrap());
+    assert_eq!(pairs(&mut backend), brute_force_pairs(&back));
+}

@@ -1,5 +1,6 @@
 // Build stage of the wgpu-compute backend: a counting sort of the spheres by cell.
-// count_cells gives every sphere its cell key and its rank among the spheres of its cell;
+// join_spheres puts each sphere's centre and radius, which the host uploads apart (a move
+// uploads the centres alone), together into spheres_in; count_cells gives every sphere its cell key and its rank among the spheres of its cell;
 // cell_scan.wgsl scans the counts into cell_start (exclusive prefix sum over cells + 1 entries)
 // and zeroes them; scatter writes every sphere's input index to its sorted place,
 // cell_start[key] + rank; and gather fetches the spheres into sorted order. Spheres in arbitrary
@@ -11,6 +12,21 @@
 // Needs grid_params.wgsl prepended.
 
 @group(0) @binding(0) var<uniform> params: GridParams;
+
+// First entry point: spheres_in (binding 1, written here as `joined`) from centres and radii.
+@group(0) @binding(9) var<storage, read> centres: array<f32>;
+@group(0) @binding(10) var<storage, read> radii: array<f32>;
+@group(0) @binding(11) var<storage, read_write> joined: array<vec4<f32>>;
+
+@compute @workgroup_size(256)
+fn join_spheres(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x + gid.y * params.row;
+    if i >= params.n {
+        return;
+    }
+    joined[i] = vec4(centres[3u * i], centres[3u * i + 1u], centres[3u * i + 2u], radii[i]);
+}
+
 @group(0) @binding(1) var<storage, read> spheres_in: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> slots: array<vec2<u32>>; // (cell key, rank)
 @group(0) @binding(4) var<storage, read_write> counts: array<atomic<u32>>;

@@ -15,6 +15,7 @@ use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 mod simulation;
@@ -88,34 +89,45 @@ fn read_centres(centres: &Bound<'_, PyAny>) -> PyResult<Vec<[f32; 3]>> {
     Ok(out)
 }
 
-/// Moves `spheres` to `centres` (refused centres leave them as they were): a C-ordered float32
-/// array's rows are checked and copied straight into the set's own, anything else converted
-/// into `scratch` first (its allocation kept between calls). With the GIL held, as
-/// [`read_centres_into`].
+/// A library error of moving spheres as a Python exception: a usage error (a count unlike the
+/// build's) is the caller's input, `ValueError`.
+fn move_err(error: mochi::Error) -> PyErr {
+    match error {
+        mochi::Error::Usage(msg) => PyValueError::new_err(msg),
+        other => to_py_err(other),
+    }
+}
+
+/// Moves the built spheres to `centres` (refused centres leave the build as it was): the
+/// backend takes a C-ordered float32 array's rows straight into its own memory where it can
+/// ([`Backend::move_centers`]: one pass that checks and uploads them); else they are copied
+/// into `spheres` (anything not C-ordered float32 converted into `scratch` first, its
+/// allocation kept between calls) and the backend updated from the set. The rows are read with
+/// the GIL held (Python may not write the array meanwhile), the update waited for without it.
 fn move_spheres(
+    py: Python<'_>,
+    backend: &mut Box<dyn Backend>,
     spheres: &mut SphereSet,
     centres: &Bound<'_, PyAny>,
     scratch: &mut Vec<[f32; 3]>,
 ) -> PyResult<()> {
-    let moved = |spheres: &mut SphereSet, rows: &[[f32; 3]]| {
-        spheres
-            .copy_centers_from(rows)
-            .map_err(|error| match error {
-                mochi::Error::Usage(msg) => PyValueError::new_err(msg),
-                other => to_py_err(other),
-            })
-    };
-    if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f32>>() {
-        let view = a.as_array();
-        // ndarray's slice is the C order's alone (NumPy's would take Fortran order too).
-        if view.ncols() == 3
-            && let Some(flat) = view.as_slice()
-        {
-            return moved(spheres, flat.as_chunks::<3>().0);
+    let direct = centres.extract::<PyReadonlyArray2<'_, f32>>().ok();
+    // ndarray's slice is the C order's alone (NumPy's would take Fortran order too).
+    let rows = match direct.as_ref().map(|a| a.as_array()) {
+        Some(view) if view.ncols() == 3 && view.as_slice().is_some() => {
+            let flat = view.to_slice().expect("C-ordered");
+            flat.as_chunks::<3>().0
         }
+        _ => {
+            read_centres_into(centres, scratch)?;
+            scratch.as_slice()
+        }
+    };
+    if backend.move_centers(rows).map_err(move_err)? {
+        return Ok(());
     }
-    read_centres_into(centres, scratch)?;
-    moved(spheres, scratch)
+    spheres.copy_centers_from(rows).map_err(move_err)?;
+    py.detach(|| backend.update(spheres)).map_err(to_py_err)
 }
 
 /// The radii of an `(N,)` float32/float64 array, as `f32`.
@@ -162,17 +174,23 @@ fn parse_mode(name: &str) -> PyResult<ProxyMode> {
 }
 
 /// Pairs as the rows `i, j` of a `(P, 2)` array, sorted; on the rayon pool (the GIL released by
-/// the caller): a pass that checks the order (the GPU backends sort the pairs already), a sort
-/// where it is not, and one pass that writes the rows (into memory not zeroed first).
-fn sorted_rows(mut pairs: Vec<Pair>) -> Vec<i64> {
-    if !pairs.par_windows(2).all(|w| w[0] < w[1]) {
-        pairs.par_sort_unstable();
-    }
+/// the caller): one pass that writes the rows (into memory not zeroed first) and checks their
+/// order (the GPU backends sort the pairs already), and a sort where it is not.
+fn sorted_rows(pairs: &[Pair]) -> Vec<i64> {
+    let unsorted = AtomicBool::new(false);
     let mut rows: Vec<[i64; 2]> = Vec::new();
-    pairs
-        .par_iter()
-        .map(|pair| [i64::from(pair.i), i64::from(pair.j)])
+    (0..pairs.len())
+        .into_par_iter()
+        .map(|k| {
+            if k > 0 && pairs[k - 1] >= pairs[k] {
+                unsorted.store(true, Ordering::Relaxed);
+            }
+            [i64::from(pairs[k].i), i64::from(pairs[k].j)]
+        })
         .collect_into_vec(&mut rows);
+    if unsorted.into_inner() {
+        rows.par_sort_unstable();
+    }
     rows.into_flattened()
 }
 
@@ -190,7 +208,8 @@ struct Detector {
     /// makes the class `Sync`, as pyo3 requires.
     backend: Mutex<Box<dyn Backend>>,
     mode: ProxyMode,
-    /// The spheres of the last `build` or `update`; `None` before the first.
+    /// The spheres of the last `build` (`None` before the first); their centres those of the
+    /// last `update` that the backend did not take straight ([`move_spheres`]).
     spheres: Option<SphereSet>,
     /// Centres converted from arrays that are not C-ordered float32, kept between updates.
     scratch: Vec<[f32; 3]>,
@@ -248,13 +267,12 @@ impl Detector {
             return Err(MochiError::new_err("update() before build()"));
         };
         // The radii stay (checked at build); only the new centres are checked, and refused ones
-        // leave the set as it was.
-        move_spheres(spheres, centres, &mut self.scratch)?;
+        // leave the build as it was.
         let backend = self
             .backend
             .get_mut()
             .unwrap_or_else(PoisonError::into_inner);
-        py.detach(|| backend.update(spheres)).map_err(to_py_err)
+        move_spheres(py, backend, spheres, centres, &mut self.scratch)
     }
 
     fn pairs<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
@@ -263,7 +281,12 @@ impl Detector {
         }
         let backend = self.backend_mut();
         let rows = py
-            .detach(|| backend.find_pairs().map(|(pairs, _)| sorted_rows(pairs)))
+            .detach(|| {
+                let mut rows = Vec::new();
+                backend
+                    .take_pairs(&mut |pairs| rows = sorted_rows(pairs))
+                    .map(|_| rows)
+            })
             .map_err(to_py_err)?;
         Ok(pairs_array(py, rows))
     }

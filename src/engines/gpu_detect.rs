@@ -5,7 +5,7 @@
 
 use crate::detect::{Backend, BackendInfo};
 use crate::error::{Error, Result};
-use crate::gpu::pair_output::PairOutput;
+use crate::gpu::pair_output::{PairOutput, TakePairs};
 use crate::gpu::pair_sort::PairSort;
 use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::{self, Gpu};
@@ -28,8 +28,13 @@ pub(crate) trait GpuBackend: Send {
     fn refresh(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
         self.build(spheres, mode)
     }
-    /// Runs detection: with `collect` the pairs (sorted) and counters, without only counters.
-    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)>;
+    /// Runs detection: with `take`, hands it the pairs (sorted), once; without, only counts.
+    fn detect(&mut self, take: Option<TakePairs<'_>>) -> Result<DetectStats>;
+    /// [`Backend::move_centers`] where the engine takes centres straight into its upload
+    /// (`centers` has the build's count); `Ok(false)` where it does not.
+    fn move_centers(&mut self, _centers: &[[f32; 3]]) -> Result<bool> {
+        Ok(false)
+    }
     /// GPU time of the last build and detection, where measured.
     fn gpu_times(&self) -> GpuTimes;
     /// The structure of the last build in words, where it varies.
@@ -48,30 +53,39 @@ impl<T: GpuBackend> Backend for T {
     }
 
     fn update(&mut self, spheres: &SphereSet) -> Result<()> {
-        let (n, mode) = self
-            .built()
-            .ok_or_else(|| Error::Usage("update asked for before build".into()))?;
-        if spheres.len() != n {
-            return Err(Error::Usage(format!(
-                "update with {} spheres, built with {n}",
-                spheres.len()
-            )));
-        }
+        let mode = built_count(self, spheres.len())?;
         self.refresh(spheres, mode)
     }
 
+    fn move_centers(&mut self, centers: &[[f32; 3]]) -> Result<bool> {
+        built_count(self, centers.len())?;
+        GpuBackend::move_centers(self, centers)
+    }
+
     fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
-        self.detect(true)
+        let mut found = Vec::new();
+        let stats = self.detect(Some(&mut |pairs: &[Pair]| {
+            // Many pairs are copied out on every core.
+            found = match pairs.len() < PARALLEL_COPY_PAIRS {
+                true => pairs.to_vec(),
+                false => pairs.par_iter().copied().collect(),
+            }
+        }))?;
+        Ok((found, stats))
+    }
+
+    fn take_pairs(&mut self, take: &mut dyn FnMut(&[Pair])) -> Result<DetectStats> {
+        self.detect(Some(take))
     }
 
     fn count_pairs(&mut self) -> Result<DetectStats> {
-        Ok(self.detect(false)?.1)
+        self.detect(None)
     }
 
     fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats> {
-        let (pairs, stats) = self.detect(true)?;
-        pairs.into_par_iter().for_each(visit);
-        Ok(stats)
+        self.detect(Some(&mut |pairs: &[Pair]| {
+            pairs.par_iter().copied().for_each(visit)
+        }))
     }
 
     fn gpu_times(&self) -> GpuTimes {
@@ -81,6 +95,23 @@ impl<T: GpuBackend> Backend for T {
     fn structure(&self) -> Option<String> {
         GpuBackend::structure(self)
     }
+}
+
+/// Pairs copied out of a read-back on the rayon pool from this many on.
+const PARALLEL_COPY_PAIRS: usize = 1 << 17;
+
+/// The mode of `backend`'s build, where it was built over `n` spheres; else the usage error
+/// of an update of `n` spheres.
+fn built_count(backend: &impl GpuBackend, n: usize) -> Result<ProxyMode> {
+    let (built, mode) = backend
+        .built()
+        .ok_or_else(|| Error::Usage("update asked for before build".into()))?;
+    if n != built {
+        return Err(Error::Usage(format!(
+            "update with {n} spheres, built with {built}"
+        )));
+    }
+    Ok(mode)
 }
 
 /// Timer spans of a build and of a detection pass.
@@ -215,9 +246,10 @@ impl<S> WgpuDetection<S> {
     }
 
     /// Records the build of `structure` over `n` spheres in `mode` with `record` (which may also
-    /// upload), submits it timed, waits for it (so that a build's time and errors are its own)
-    /// and keeps it as the current build.
-    pub fn finish_build(
+    /// upload), submits it timed and keeps it as the current build. Not waited for: a caller
+    /// whose build's time and errors should be its own waits ([`Gpu::wait`]); else the next
+    /// read-back waits for it.
+    pub fn submit_build(
         &mut self,
         what: &str,
         (n, mode): (u32, ProxyMode),
@@ -231,7 +263,6 @@ impl<S> WgpuDetection<S> {
                 record(gpu, &structure, encoder)
             });
         })?;
-        gpu.wait()?;
         self.timed = Timed {
             build: timer.is_some(),
             detect: false,
@@ -255,44 +286,45 @@ impl<S> WgpuDetection<S> {
         self.built.as_ref()?.structure.as_ref()
     }
 
-    /// Runs `kernel` over the current build; with `collect`, grows the output until every pair
-    /// fits. `bind` writes the run's uniform and returns the kernel's bind group (the output's
+    /// Runs `kernel` over the current build; with `take`, grows the output until every pair
+    /// fits and hands it the pairs. `bind` writes the run's uniform and returns the kernel's bind group (the output's
     /// [`COUNTERS`](crate::gpu::pair_output::COUNTERS) and
     /// [`PAIRS`](crate::gpu::pair_output::PAIRS) included).
     pub fn detect(
         &mut self,
-        collect: bool,
+        take: Option<TakePairs<'_>>,
         kernel: DetectKernel,
         bind: impl Fn(&Gpu, &S, &PairOutput, DetectRun) -> wgpu::BindGroup,
-    ) -> Result<(Vec<Pair>, DetectStats)> {
+    ) -> Result<DetectStats> {
         let gpu = &self.gpu;
         let built = self
             .built
             .as_mut()
             .ok_or_else(|| Error::Usage("detection asked for before build".into()))?;
         let Some(structure) = built.structure.as_ref() else {
-            return Ok((Vec::new(), DetectStats::default()));
+            if let Some(take) = take {
+                take(&[]);
+            }
+            return Ok(DetectStats::default());
         };
         let (x, y) = gpu.grid(built.n, kernel.group);
         let (n, mode) = (built.n, built.mode);
         let timer = self.timer.as_ref();
         let sort = (&mut self.sort, n);
-        let result = built
-            .output
-            .detect(gpu, collect, sort, |output, capacity| {
-                let run = DetectRun {
-                    n,
-                    mode,
-                    capacity,
-                    row: x * kernel.group,
-                };
-                gpu.checked(kernel.what, || {
-                    let group = bind(gpu, structure, output, run);
-                    gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
-                        gpu.dispatch(encoder, kernel.label, kernel.pipeline, &group, (x, y));
-                    });
-                })
-            })?;
+        let result = built.output.detect(gpu, take, sort, |output, capacity| {
+            let run = DetectRun {
+                n,
+                mode,
+                capacity,
+                row: x * kernel.group,
+            };
+            gpu.checked(kernel.what, || {
+                let group = bind(gpu, structure, output, run);
+                gpu.submit_timed(timer, DETECT_SPAN, |encoder| {
+                    gpu.dispatch(encoder, kernel.label, kernel.pipeline, &group, (x, y));
+                });
+            })
+        })?;
         self.timed.detect = timer.is_some();
         Ok(result)
     }

@@ -13,6 +13,7 @@ use rayon::prelude::*;
 use shader::Binding;
 use shader::WgslModule;
 use std::collections::HashMap;
+use std::ops::Range;
 use std::sync::{Arc, Mutex, OnceLock};
 use wgpu::WriteOnly;
 
@@ -427,9 +428,28 @@ impl Gpu {
         buffer: &wgpu::Buffer,
         count: usize,
     ) -> Result<Vec<T>> {
+        self.read_through_with(staging, buffer, count, |values: &[T]| {
+            // Large read-backs (the pairs) are copied out on every core.
+            if size_of_val(values) < PARALLEL_COPY_BYTES {
+                values.to_vec()
+            } else {
+                values.par_iter().copied().collect()
+            }
+        })
+    }
+
+    /// [`Gpu::read_through`] handing the values to `take` where they lie, in the mapped
+    /// staging buffer: a caller that converts them copies them once.
+    pub fn read_through_with<T: bytemuck::Pod, R>(
+        &self,
+        staging: &mut Staging,
+        buffer: &wgpu::Buffer,
+        count: usize,
+        take: impl FnOnce(&[T]) -> R,
+    ) -> Result<R> {
         let bytes = (count * size_of::<T>()) as u64;
         if bytes == 0 {
-            return Ok(Vec::new());
+            return Ok(take(&[]));
         }
         let size = bytes.next_multiple_of(4);
         // Taken out while in use: a read-back that fails leaves no buffer behind in a mapping.
@@ -443,13 +463,13 @@ impl Gpu {
                 mapped_at_creation: false,
             }),
         };
-        let values = self.read_via(&buffer_back, buffer, size, bytes)?;
+        let taken = self.read_via(&buffer_back, buffer, size, bytes, take)?;
         staging.0 = Some(buffer_back);
-        Ok(values)
+        Ok(taken)
     }
 
     /// A buffer the host writes (mapped) and the GPU copies from, of `bytes` bytes, kept by its
-    /// owner between uploads ([`fill_rows`](Self::fill_rows)).
+    /// owner between uploads ([`fill_upload`](Self::fill_upload)).
     pub fn upload_buffer(&self, label: &str, bytes: u64) -> wgpu::Buffer {
         self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -459,53 +479,38 @@ impl Gpu {
         })
     }
 
-    /// Maps `upload` (from [`upload_buffer`](Self::upload_buffer)), fills its first `n` rows
-    /// of four floats with `row(i)` on the rayon pool and unmaps it, ready for a copy: an upload
-    /// that allocates no staging memory and writes it on every core.
-    pub fn fill_rows(
+    /// Maps `range` of `upload` (from [`upload_buffer`](Self::upload_buffer)), hands it to
+    /// `fill` (which may write it on the rayon pool: [`copy_surveyed`]) and unmaps it,
+    /// ready for a copy: an upload that allocates no staging memory. After an error of `fill` the
+    /// range holds anything.
+    pub fn fill_upload<R>(
         &self,
         upload: &wgpu::Buffer,
-        n: usize,
-        row: impl Fn(usize) -> [f32; 4] + Sync,
-    ) -> Result<()> {
-        let bytes = n as u64 * 16;
-        if bytes == 0 {
-            return Ok(());
+        range: Range<u64>,
+        fill: impl FnOnce(WriteOnly<'_, [u8]>) -> Result<R>,
+    ) -> Result<R> {
+        if range.is_empty() {
+            return fill(WriteOnly::default());
         }
-        self.map(upload, bytes, wgpu::MapMode::Write, "upload")?;
-        {
-            let mut view = upload
-                .get_mapped_range_mut(..bytes)
-                .map_err(|e| Error::Gpu(format!("upload failed: {e}")))?;
-            // Pieces of PIECE rows (sized, so each can go to another thread), then the rest.
-            const PIECE: usize = 1 << 14;
-            let (pieces, rest) = view.slice(..).into_chunks::<{ 16 * PIECE }>();
-            let write = |first: usize, bytes: WriteOnly<'_, [u8]>| {
-                let (rows, _) = bytes.into_chunks::<16>();
-                let len = rows.len();
-                rows.write_iter((first..first + len).map(|i| bytemuck::cast(row(i))));
-            };
-            let done = pieces.len() * PIECE;
-            write(done, rest);
-            let pieces: Vec<_> = pieces.into_iter().enumerate().collect();
-            pieces
-                .into_par_iter()
-                .for_each(|(k, piece)| write(k * PIECE, piece.into()));
-        }
+        self.map(upload, range.clone(), wgpu::MapMode::Write, "upload")?;
+        let filled = match upload.get_mapped_range_mut(range) {
+            Ok(mut view) => fill(view.slice(..)),
+            Err(e) => Err(Error::Gpu(format!("upload failed: {e}"))),
+        };
         upload.unmap();
-        Ok(())
+        filled
     }
 
-    /// Maps the first `bytes` bytes of `buffer` in `mode` and waits for it; errors name `what`.
+    /// Maps `range` of `buffer` in `mode` and waits for it; errors name `what`.
     fn map(
         &self,
         buffer: &wgpu::Buffer,
-        bytes: u64,
+        range: Range<u64>,
         mode: wgpu::MapMode,
         what: &str,
     ) -> Result<()> {
         let (tx, rx) = std::sync::mpsc::channel();
-        buffer.slice(..bytes).map_async(mode, move |r| {
+        buffer.slice(range).map_async(mode, move |r| {
             let _ = tx.send(r);
         });
         self.wait()?;
@@ -514,38 +519,75 @@ impl Gpu {
             .map_err(|e| Error::Gpu(format!("{what} failed: {e}")))
     }
 
-    /// Copies `size` bytes of `buffer` into `staging`, maps it and returns the first `bytes`
-    /// as values, unmapping it again.
-    fn read_via<T: bytemuck::Pod + Send + Sync>(
+    /// Copies `size` bytes of `buffer` into `staging`, maps it, hands the first `bytes` as
+    /// values to `take` and unmaps it again.
+    fn read_via<T: bytemuck::Pod, R>(
         &self,
         staging: &wgpu::Buffer,
         buffer: &wgpu::Buffer,
         size: u64,
         bytes: u64,
-    ) -> Result<Vec<T>> {
+        take: impl FnOnce(&[T]) -> R,
+    ) -> Result<R> {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(buffer, 0, staging, 0, size);
         self.queue.submit([encoder.finish()]);
-        self.map(staging, size, wgpu::MapMode::Read, "read-back")?;
-        let values = {
-            let view = staging
-                .get_mapped_range(..size)
-                .map_err(|e| Error::Gpu(format!("read-back failed: {e}")))?;
-            let values = bytemuck::cast_slice::<u8, T>(&view[..bytes as usize]);
-            // Large read-backs (the pairs) are copied out on every core.
-            if bytes < PARALLEL_COPY_BYTES {
-                values.to_vec()
-            } else {
-                values.par_iter().copied().collect()
-            }
+        self.map(staging, 0..size, wgpu::MapMode::Read, "read-back")?;
+        let taken = match staging.get_mapped_range(..size) {
+            Ok(view) => Ok(take(bytemuck::cast_slice::<u8, T>(&view[..bytes as usize]))),
+            Err(e) => Err(Error::Gpu(format!("read-back failed: {e}"))),
         };
         staging.unmap();
-        Ok(values)
+        taken
     }
 }
 
+/// Bytes of one piece of a [`copy_surveyed`] (whole `f32`, `[f32; 3]` and `[f32; 4]` values).
+const PIECE_BYTES: usize = 3 << 16;
+
+/// Copies `values` into `view` (exactly their bytes) on the rayon pool, a piece of
+/// `PIECE_BYTES` at a time, calling `survey(first, values)` on each piece's values as they are
+/// copied (`first` the index of the first); the pieces' surveys folded in order by `merge`,
+/// from `empty`: a caller that checks values while uploading them reads them once.
+pub fn copy_surveyed<T, S>(
+    view: WriteOnly<'_, [u8]>,
+    values: &[T],
+    survey: impl Fn(usize, &[T]) -> S + Sync,
+    merge: impl Fn(S, S) -> S + Sync + Send,
+    empty: impl Fn() -> S + Sync + Send,
+) -> S
+where
+    T: bytemuck::Pod + Sync,
+    S: Send,
+{
+    let per_piece = PIECE_BYTES / size_of::<T>();
+    assert_eq!(view.len(), size_of_val(values), "the view holds the values");
+    let (pieces, mut tail) = view.into_chunks::<PIECE_BYTES>();
+    let whole = pieces.len() * per_piece;
+    let (head, rest) = values.split_at(whole);
+    // Whole pieces (sized, so each can go to another thread), then the rest here.
+    let pieces: Vec<_> = pieces.into_iter().collect();
+    let surveyed = head
+        .par_chunks(per_piece)
+        .zip(pieces)
+        .enumerate()
+        .map(|(k, (from, to))| {
+            let found = survey(k * per_piece, from);
+            WriteOnly::<[u8]>::from(to).copy_from_slice(bytemuck::cast_slice(from));
+            found
+        })
+        .reduce(&empty, &merge);
+    tail.copy_from_slice(bytemuck::cast_slice(rest));
+    merge(surveyed, survey(whole, rest))
+}
+
+/// [`copy_surveyed`] without a survey: `values` copied into `view` on the rayon pool.
+pub fn copy_into<T: bytemuck::Pod + Sync>(view: WriteOnly<'_, [u8]>, values: &[T]) {
+    copy_surveyed(view, values, |_, _| (), |(), ()| (), || ());
+}
+
 /// Read-backs of at least this many bytes are copied out of the mapping on the rayon pool.
-const PARALLEL_COPY_BYTES: u64 = 1 << 20;
+const PARALLEL_COPY_BYTES: usize = 1 << 20;
 
 /// A host-readable buffer kept between read-backs ([`Gpu::read_through`]); empty at first.
 #[derive(Debug, Default)]
@@ -592,6 +634,60 @@ pub(crate) fn test_gpu(what: &str) -> Option<Gpu> {
             assert!(!under_ci(), "CI expects a GPU adapter for {what}: {why}");
             eprintln!("note: {what} is not tested on this machine: {why}");
             None
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spheres::{SphereSet, Survey};
+
+    /// Centres spread over several whole pieces and a tail, surveyed while copied into bytes.
+    fn surveyed(centers: &[[f32; 3]]) -> (Vec<u8>, Result<Option<crate::spheres::Bounds>>) {
+        let mut bytes = vec![0u8; size_of_val(centers)];
+        let found = copy_surveyed(
+            WriteOnly::from(bytes.as_mut_slice()),
+            centers,
+            Survey::of_centers,
+            Survey::merge,
+            Survey::empty,
+        );
+        (bytes, found.into_bounds(centers.len()))
+    }
+
+    #[test]
+    fn a_surveyed_copy_copies_every_centre_and_finds_the_bounds_and_the_first_bad_one() {
+        let per_piece = PIECE_BYTES / 12;
+        let n = 3 * per_piece + 1234;
+        let centers: Vec<[f32; 3]> = (0..n)
+            .map(|i| {
+                let t = i as f32;
+                [
+                    t.sin() * 5.0,
+                    (t * 0.37).cos() * 3.0 - 1.0,
+                    (i % 977) as f32 * 0.01,
+                ]
+            })
+            .collect();
+        let (bytes, bounds) = surveyed(&centers);
+        assert_eq!(bytes, bytemuck::cast_slice::<_, u8>(&centers));
+        let set = SphereSet::new(centers.clone(), vec![0.1; n]).unwrap();
+        assert_eq!(bounds.unwrap(), set.bounds());
+        // A bad centre in the first, a middle and the last whole piece, and in the tail; the
+        // first of two is named.
+        for bad in [0, per_piece + 17, 3 * per_piece - 1, 3 * per_piece, n - 1] {
+            let mut broken = centers.clone();
+            broken[bad][2] = f32::INFINITY;
+            broken[n - 1][0] = f32::NAN;
+            if bad < 2 * per_piece {
+                broken[2 * per_piece + 5][1] = -f32::INFINITY;
+            }
+            let found = surveyed(&broken).1;
+            assert!(
+                matches!(found, Err(Error::InvalidSphere { index, .. }) if index == bad),
+                "{bad}: {found:?}"
+            );
         }
     }
 }

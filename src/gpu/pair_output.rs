@@ -15,6 +15,9 @@ pub const COUNTERS: Binding = Binding::read_write(3, "counters");
 /// The pair buffer in every detection shader.
 pub const PAIRS: Binding = Binding::read_write(4, "pairs");
 
+/// What a detection hands its pairs to, once, sorted, where they lie (a read-back's mapping).
+pub type TakePairs<'a> = &'a mut dyn FnMut(&[Pair]);
+
 /// GPU buffers receiving the pairs of one detection.
 pub struct PairOutput {
     /// Pairs found, candidates (low word, high word), unused.
@@ -47,18 +50,18 @@ impl PairOutput {
 
     /// Runs a detection over `spheres` spheres: zeroes [`Self::counters`] (an upload, ahead of
     /// the commands submitted next, so no clear is recorded into the timed work) and calls
-    /// `run(capacity)`, which must submit the shader with this output bound. With `collect`,
-    /// grows the buffer until every pair fits and returns the pairs sorted (by `sort`, on the
-    /// GPU); without, only counts.
+    /// `run(capacity)`, which must submit the shader with this output bound. With `take`, grows
+    /// the buffer until every pair fits and hands `take` the pairs sorted (by `sort`, on the GPU)
+    /// where they lie, in the read-back's mapping; without, only counts.
     pub fn detect(
         &mut self,
         gpu: &Gpu,
-        collect: bool,
+        mut take: Option<TakePairs<'_>>,
         (sort, spheres): (&mut PairSort, u32),
         mut run: impl FnMut(&PairOutput, u32) -> Result<()>,
-    ) -> Result<(Vec<Pair>, DetectStats)> {
+    ) -> Result<DetectStats> {
         loop {
-            let capacity = if collect { self.capacity } else { 0 };
+            let capacity = if take.is_some() { self.capacity } else { 0 };
             gpu.queue.write_buffer(&self.counters, 0, &[0; 16]);
             run(self, capacity)?;
             let counters: Vec<u32> =
@@ -67,36 +70,46 @@ impl PairOutput {
                 pairs: counters[0] as u64,
                 candidates: counters[1] as u64 | (counters[2] as u64) << 32,
             };
-            if !collect {
-                return Ok((Vec::new(), stats));
-            }
+            let Some(take) = take.as_mut() else {
+                return Ok(stats);
+            };
             if counters[0] > capacity {
                 self.grow(gpu, counters[0])?;
                 continue;
             }
-            let count = counters[0];
+            let count = counters[0] as usize;
             let bucketed = gpu.checked("sorting the pairs", || {
                 let mut encoder = gpu.device.create_command_encoder(&Default::default());
-                let bucketed = sort.encode(gpu, &mut encoder, &self.pairs, count, spheres);
+                let bucketed = sort.encode(gpu, &mut encoder, &self.pairs, counters[0], spheres);
                 gpu.queue.submit([encoder.finish()]);
                 bucketed
             })?;
             if bucketed {
-                // The sort's flag comes back with the pairs, after the last.
-                let mut pairs: Vec<Pair> =
-                    gpu.read_through(&mut self.pairs_back, &self.pairs, count as usize + 1)?;
-                let long_bucket = pairs.pop().is_some_and(|flag| flag.i != 0);
-                if !long_bucket {
-                    return Ok((pairs, stats));
+                // The sort's flag comes back with the pairs, after the last; the pairs are
+                // taken only where no bucket was too long for it.
+                let back = &mut self.pairs_back;
+                let sorted =
+                    gpu.read_through_with(back, &self.pairs, count + 1, |read: &[Pair]| {
+                        let (pairs, flag) = read.split_at(count);
+                        let long_bucket = flag[0].i != 0;
+                        if !long_bucket {
+                            take(pairs);
+                        }
+                        !long_bucket
+                    })?;
+                if sorted {
+                    return Ok(stats);
                 }
                 gpu.checked("sorting the pairs", || {
                     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-                    sort.encode_radix(gpu, &mut encoder, &self.pairs, count, spheres);
+                    sort.encode_radix(gpu, &mut encoder, &self.pairs, counters[0], spheres);
                     gpu.queue.submit([encoder.finish()]);
                 })?;
             }
-            let pairs = gpu.read_through(&mut self.pairs_back, &self.pairs, count as usize)?;
-            return Ok((pairs, stats));
+            gpu.read_through_with(&mut self.pairs_back, &self.pairs, count, |pairs| {
+                take(pairs)
+            })?;
+            return Ok(stats);
         }
     }
 

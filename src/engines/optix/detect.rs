@@ -7,6 +7,7 @@ use super::engine::{MAX_COORDINATE, MAX_LAUNCH, describe, morton_order_of, open_
 use crate::detect::BackendInfo;
 use crate::engines::gpu_detect::GpuBackend;
 use crate::error::{Error, OptixError, Result};
+use crate::gpu::pair_output::TakePairs;
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
@@ -267,8 +268,12 @@ impl GpuBackend for OptixBackend {
         result
     }
 
-    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
-        self.run_detection(collect)
+    fn detect(&mut self, take: Option<TakePairs<'_>>) -> Result<DetectStats> {
+        let (pairs, stats) = self.run_detection(take.is_some())?;
+        if let Some(take) = take {
+            take(&pairs);
+        }
+        Ok(stats)
     }
 
     fn gpu_times(&self) -> GpuTimes {

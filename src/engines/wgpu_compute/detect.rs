@@ -11,11 +11,11 @@ use crate::detect::BackendInfo;
 use crate::engines::gpu_detect::{DetectKernel, GpuBackend, WgpuDetection};
 use crate::error::Result;
 use crate::gpu::pair_output;
+use crate::gpu::pair_output::{PairOutput, TakePairs};
 use crate::gpu::radix_sort::RadixSort;
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
-use crate::spheres::SphereSet;
-use crate::types::Pair;
+use crate::spheres::{Bounds, SphereSet, Survey};
 use crate::types::{DetectStats, GpuTimes};
 
 /// Workgroup sizes, as in the shaders.
@@ -29,6 +29,7 @@ const FIND_PAIRS: &str = "mochi.grid.find_pairs";
 pub struct WgpuComputeBackend {
     detection: WgpuDetection<Grid>,
     scan: CellScan,
+    join_spheres: wgpu::ComputePipeline,
     count_cells: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
     gather: wgpu::ComputePipeline,
@@ -43,15 +44,22 @@ pub struct WgpuComputeBackend {
     last_layout: Option<ChosenLayout>,
 }
 
-/// A layout and what it was chosen for ([`WgpuComputeBackend::layout`]).
-#[derive(Clone, Copy)]
-struct ChosenLayout {
+/// What a layout is chosen for: the spheres' count and radii, the mode, and the backend's
+/// structure and build settings.
+#[derive(Clone, Copy, PartialEq)]
+struct LayoutFor {
     n: usize,
     mode: ProxyMode,
     radii: (f32, f32),
     structure: Structure,
     grid_build: GridBuild,
-    bounds: ([f32; 3], [f32; 3]),
+}
+
+/// A layout, what it was chosen for, and the centres' bounds then ([`WgpuComputeBackend::layout`]).
+#[derive(Clone, Copy)]
+struct ChosenLayout {
+    chosen_for: LayoutFor,
+    bounds: Bounds,
     build: BuildKind,
     layout: GridParams,
 }
@@ -62,29 +70,24 @@ struct ChosenLayout {
 const LAYOUT_SLACK: f32 = 1.0 / 64.0;
 
 impl ChosenLayout {
-    /// Whether this layout serves `spheres` in `mode` under `structure` and `grid_build`.
-    fn serves(
-        &self,
-        spheres: &SphereSet,
-        mode: ProxyMode,
-        structure: Structure,
-        grid_build: GridBuild,
-    ) -> bool {
-        let Some((lo, hi)) = spheres.bounds() else {
-            return false;
-        };
+    /// Whether this layout serves spheres within `bounds` chosen for the same.
+    fn serves(&self, chosen_for: &LayoutFor, (lo, hi): Bounds) -> bool {
         let (old_lo, old_hi) = self.bounds;
         let near = |a: usize| {
             let slack = LAYOUT_SLACK * (old_hi[a] - old_lo[a]);
             (lo[a] - old_lo[a]).abs() <= slack && (hi[a] - old_hi[a]).abs() <= slack
         };
-        self.n == spheres.len()
-            && self.mode == mode
-            && self.radii == (spheres.min_radius(), spheres.max_radius())
-            && self.structure == structure
-            && self.grid_build == grid_build
-            && (0..3).all(near)
+        self.chosen_for == *chosen_for && (0..3).all(near)
     }
+}
+
+/// What a build copies from its grid's upload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Upload {
+    /// Centres and radii: a build of a sphere set.
+    Spheres,
+    /// Centres alone: spheres moved, radii as built.
+    Centres,
 }
 
 /// GPU buffers of a grid over `n` spheres, and the layout and build of its last build.
@@ -94,10 +97,14 @@ struct Grid {
     build: BuildKind,
     params: wgpu::Buffer,
     pair_params: wgpu::Buffer,
-    /// `vec4(x, y, z, r)` in input order.
-    spheres_in: wgpu::Buffer,
-    /// Where the host writes `spheres_in`'s rows for each build (kept: no staging per build).
+    /// Where the host writes the centres (three floats each), then the radii, for each build
+    /// (kept: no staging per build); a move writes the centres alone.
     upload: wgpu::Buffer,
+    /// The centres and radii uploaded, in input order.
+    centres: wgpu::Buffer,
+    radii: wgpu::Buffer,
+    /// `vec4(x, y, z, r)` in input order, joined from `centres` and `radii`.
+    spheres_in: wgpu::Buffer,
     /// Cell key and rank among the spheres of that cell of each sphere, in input order.
     slots: wgpu::Buffer,
     /// Input index of each sorted sphere.
@@ -120,8 +127,10 @@ impl Grid {
             build,
             params: gpu.uniform("mochi.grid.params", &GridParams::default()),
             pair_params: gpu.uniform("mochi.grid.pair_params", &GridParams::default()),
-            spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
             upload: gpu.upload_buffer("mochi.grid.upload", n64 * 16),
+            centres: gpu.storage("mochi.grid.centres", n64 * 12, none),
+            radii: gpu.storage("mochi.grid.radii", n64 * 4, none),
+            spheres_in: gpu.storage("mochi.grid.spheres_in", n64 * 16, none),
             slots: gpu.storage("mochi.grid.slots", n64 * 8, none),
             ids: gpu.storage("mochi.grid.ids", n64 * 4, none),
             spheres: gpu.storage("mochi.grid.spheres", n64 * 16, none),
@@ -151,6 +160,7 @@ impl WgpuComputeBackend {
         let pairs_sorted = gpu.module("mochi.grid.pairs_sorted", grid_pairs::SORTED_SOURCE);
         Ok(Self {
             scan: CellScan::new(&gpu),
+            join_spheres: gpu.pipeline("mochi.grid.join_spheres", &build, "join_spheres"),
             count_cells: gpu.pipeline("mochi.grid.count_cells", &build, "count_cells"),
             scatter: gpu.pipeline("mochi.grid.scatter", &build, "scatter"),
             gather: gpu.pipeline("mochi.grid.gather", &build, "gather"),
@@ -186,19 +196,22 @@ impl WgpuComputeBackend {
     /// over their [`core_bounds`]; the last one again where it serves them (spheres that barely
     /// moved: [`LAYOUT_SLACK`]).
     fn layout(&mut self, spheres: &SphereSet, mode: ProxyMode) -> (BuildKind, GridParams) {
-        let (structure, grid_build) = (self.structure, self.grid_build);
+        let chosen_for = LayoutFor {
+            n: spheres.len(),
+            mode,
+            radii: (spheres.min_radius(), spheres.max_radius()),
+            structure: self.structure,
+            grid_build: self.grid_build,
+        };
+        let bounds = spheres.bounds().expect("the set is not empty");
         if let Some(last) = self.last_layout
-            && last.serves(spheres, mode, structure, grid_build)
+            && last.serves(&chosen_for, bounds)
         {
             return (last.build, last.layout);
         }
         let (build, layout) = self.choose(spheres, mode);
-        self.last_layout = spheres.bounds().map(|bounds| ChosenLayout {
-            n: spheres.len(),
-            mode,
-            radii: (spheres.min_radius(), spheres.max_radius()),
-            structure,
-            grid_build,
+        self.last_layout = Some(ChosenLayout {
+            chosen_for,
             bounds,
             build,
             layout,
@@ -232,43 +245,29 @@ impl WgpuComputeBackend {
     }
 }
 
-impl GpuBackend for WgpuComputeBackend {
-    fn info(&self) -> BackendInfo {
-        self.detection.info(self.max_spheres())
-    }
-
-    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
-        let max_spheres = self.max_spheres();
-        let Some(n) = self.detection.begin_build(spheres, mode, max_spheres)? else {
-            return Ok(());
-        };
+impl WgpuComputeBackend {
+    /// Records and submits the build of `grid` over `n` spheres by `build` in `layout` from
+    /// what its upload holds, and keeps it as the current build (not waited for).
+    fn submit(
+        &mut self,
+        (n, mode): (u32, ProxyMode),
+        (mut grid, output): (Grid, PairOutput),
+        (build, layout): (BuildKind, GridParams),
+        upload: Upload,
+    ) -> Result<()> {
         let (x, y) = self.detection.gpu.grid(n, BUILD_GROUP);
-        let (build, layout) = self.layout(spheres, mode);
-        let layout = GridParams {
+        grid.layout = GridParams {
             row: x * BUILD_GROUP,
             ..layout
         };
-        let (mut grid, output) = self.detection.reuse_or_allocate(
-            n,
-            |g: &Grid| g.fits(n, build, layout.cells),
-            |gpu| Grid::new(gpu, n, build, layout.cells),
-        )?;
-        grid.layout = layout;
         grid.build = build;
-        let (centers, radii) = (spheres.centers(), spheres.radii());
-        let gpu = &self.detection.gpu;
-        gpu.fill_rows(&grid.upload, n as usize, |i| {
-            let [x, y, z] = centers[i];
-            [x, y, z, radii[i]]
-        })?;
-        let rows_bytes = n as u64 * 16;
         let what = "building the wgpu-compute grid";
+        let join = &self.join_spheres;
         let gather = &self.gather;
         let sort = &mut self.sort;
         let key_spheres = &self.key_spheres;
         let record_sorted = |gpu: &Gpu, g: &Grid, encoder: &mut wgpu::CommandEncoder| {
-            gpu.write_uniform(&g.params, &g.layout);
-            encoder.copy_buffer_to_buffer(&g.upload, 0, &g.spheres_in, 0, rows_bytes);
+            let joined = record_upload(gpu, join, g, upload, encoder);
             let keys = gpu.bind(
                 "mochi.grid.key_spheres",
                 key_spheres,
@@ -284,6 +283,7 @@ impl GpuBackend for WgpuComputeBackend {
                 label: Some("mochi.grid.build.keys"),
                 timestamp_writes: None,
             });
+            gpu::record(&mut pass, join, &joined, (x, y));
             gpu::record(&mut pass, key_spheres, &keys, (x, y));
             drop(pass);
             sort.encode(gpu, encoder, &g.keys, &g.ids, n, key_bits(g.layout.cells));
@@ -296,12 +296,11 @@ impl GpuBackend for WgpuComputeBackend {
         if build == BuildKind::Sorted {
             return self
                 .detection
-                .finish_build(what, (n, mode), (grid, output), record_sorted);
+                .submit_build(what, (n, mode), (grid, output), record_sorted);
         }
         let record = |gpu: &Gpu, g: &Grid, encoder: &mut wgpu::CommandEncoder| {
             let table = g.table.as_ref().expect("a dense build has a table");
-            gpu.write_uniform(&g.params, &g.layout);
-            encoder.copy_buffer_to_buffer(&g.upload, 0, &g.spheres_in, 0, rows_bytes);
+            let joined = record_upload(gpu, join, g, upload, encoder);
             let scan = self.scan.bind(gpu, &g.params, table);
             let count = gpu.bind(
                 "mochi.grid.count_cells",
@@ -328,20 +327,108 @@ impl GpuBackend for WgpuComputeBackend {
                 label: Some("mochi.grid.build"),
                 timestamp_writes: None,
             });
+            gpu::record(&mut pass, join, &joined, (x, y));
             gpu::record(&mut pass, &self.count_cells, &count, (x, y));
             self.scan.record(&mut pass, &scan, &g.layout);
             gpu::record(&mut pass, &self.scatter, &scatter, (x, y));
             gpu::record(&mut pass, gather, &gathered, (x, y));
         };
         self.detection
-            .finish_build(what, (n, mode), (grid, output), record)
+            .submit_build(what, (n, mode), (grid, output), record)
+    }
+}
+
+impl GpuBackend for WgpuComputeBackend {
+    fn info(&self) -> BackendInfo {
+        self.detection.info(self.max_spheres())
+    }
+
+    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+        let max_spheres = self.max_spheres();
+        let Some(n) = self.detection.begin_build(spheres, mode, max_spheres)? else {
+            return Ok(());
+        };
+        let (build, layout) = self.layout(spheres, mode);
+        let (grid, output) = self.detection.reuse_or_allocate(
+            n,
+            |g: &Grid| g.fits(n, build, layout.cells),
+            |gpu| Grid::new(gpu, n, build, layout.cells),
+        )?;
+        let centre_bytes = n as usize * 12;
+        self.detection
+            .gpu
+            .fill_upload(&grid.upload, 0..n as u64 * 16, |view| {
+                let (centres, radii) = view.split_at(centre_bytes);
+                gpu::copy_into(centres, spheres.centers());
+                gpu::copy_into(radii, spheres.radii());
+                Ok(())
+            })?;
+        self.submit((n, mode), (grid, output), (build, layout), Upload::Spheres)?;
+        // A build's time and errors are its own.
+        self.detection.gpu.wait()
+    }
+
+    /// Uploads the centres straight into the grid's upload, checked as they are copied (a
+    /// refused centre leaves the build as it was), and rebuilds in the last layout, not waiting
+    /// for the GPU (the pairs' read-back does); spheres that moved out of that layout are built
+    /// afresh, their radii read back.
+    fn move_centers(&mut self, centers: &[[f32; 3]]) -> Result<bool> {
+        let (n, mode) = self
+            .detection
+            .built()
+            .expect("the caller checked the build");
+        let Some(grid) = self.detection.structure() else {
+            return Ok(true); // No spheres, none moved.
+        };
+        let gpu = &self.detection.gpu;
+        let survey = gpu.fill_upload(&grid.upload, 0..n as u64 * 12, |view| {
+            let survey = Survey::of_centers;
+            Ok(gpu::copy_surveyed(
+                view,
+                centers,
+                survey,
+                Survey::merge,
+                Survey::empty,
+            ))
+        })?;
+        let bounds = survey.into_bounds(n)?.expect("a built grid has spheres");
+        let last = self.last_layout.filter(|last| {
+            let chosen_for = LayoutFor {
+                n,
+                mode,
+                structure: self.structure,
+                grid_build: self.grid_build,
+                ..last.chosen_for
+            };
+            last.serves(&chosen_for, bounds)
+        });
+        let Some(last) = last else {
+            let radii = gpu.read(&grid.radii, n)?;
+            let spheres = SphereSet::new(centers.to_vec(), radii)?;
+            GpuBackend::build(self, &spheres, mode)?;
+            return Ok(true);
+        };
+        let n = n as u32;
+        // The grid just written (same spheres and layout): reused, never allocated.
+        let (grid, output) = self.detection.reuse_or_allocate(
+            n,
+            |_| true,
+            |gpu| Grid::new(gpu, n, last.build, last.layout.cells),
+        )?;
+        self.submit(
+            (n, mode),
+            (grid, output),
+            (last.build, last.layout),
+            Upload::Centres,
+        )?;
+        Ok(true)
     }
 
     fn built(&self) -> Option<(usize, ProxyMode)> {
         self.detection.built()
     }
 
-    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
+    fn detect(&mut self, take: Option<TakePairs<'_>>) -> Result<DetectStats> {
         let sorted = self
             .detection
             .structure()
@@ -357,7 +444,7 @@ impl GpuBackend for WgpuComputeBackend {
             what: "running the wgpu-compute grid search",
         };
         self.detection
-            .detect(collect, kernel, |gpu, grid, output, run| {
+            .detect(take, kernel, |gpu, grid, output, run| {
                 let params = GridParams {
                     row: run.row,
                     capacity: run.capacity,
@@ -394,6 +481,33 @@ impl GpuBackend for WgpuComputeBackend {
         let grid = self.detection.structure()?;
         Some(describe_layout(&grid.layout, grid.build))
     }
+}
+
+/// Writes `g`'s parameters, records the copies of what its upload holds (`upload`) into its
+/// centres and radii, and returns the bind group of `grid_build`'s `join_spheres` over `g`.
+fn record_upload(
+    gpu: &Gpu,
+    join: &wgpu::ComputePipeline,
+    g: &Grid,
+    upload: Upload,
+    encoder: &mut wgpu::CommandEncoder,
+) -> wgpu::BindGroup {
+    gpu.write_uniform(&g.params, &g.layout);
+    let centre_bytes = g.n as u64 * 12;
+    encoder.copy_buffer_to_buffer(&g.upload, 0, &g.centres, 0, centre_bytes);
+    if upload == Upload::Spheres {
+        encoder.copy_buffer_to_buffer(&g.upload, centre_bytes, &g.radii, 0, g.n as u64 * 4);
+    }
+    gpu.bind(
+        "mochi.grid.join_spheres",
+        join,
+        &[
+            (grid_build::PARAMS, &g.params),
+            (grid_build::CENTRES, &g.centres),
+            (grid_build::RADII, &g.radii),
+            (grid_build::JOINED, &g.spheres_in),
+        ],
+    )
 }
 
 /// The bind group of `grid_build`'s `gather` over `g`: the spheres fetched in the order of

@@ -37,16 +37,21 @@ pub(crate) mod grid_build {
     use super::{Binding, wgsl};
 
     pub const SOURCE: &str = wgsl!("grid_params.wgsl", "grid_build.wgsl");
-    pub const ENTRY_POINTS: &[&str] = &["count_cells", "scatter", "gather"];
+    pub const ENTRY_POINTS: &[&str] = &["join_spheres", "count_cells", "scatter", "gather"];
 
     pub const PARAMS: Binding = Binding::uniform(0, "params");
+    pub const CENTRES: Binding = Binding::read(9, "centres");
+    pub const RADII: Binding = Binding::read(10, "radii");
+    pub const JOINED: Binding = Binding::read_write(11, "joined");
     pub const SPHERES_IN: Binding = Binding::read(1, "spheres_in");
     pub const SLOTS: Binding = Binding::read_write(3, "slots");
     pub const COUNTS: Binding = Binding::read_write(4, "counts");
     pub const CELL_START: Binding = Binding::read(5, "cell_start");
     pub const IDS: Binding = Binding::read_write(7, "ids");
     pub const SPHERES: Binding = Binding::read_write(8, "spheres");
-    pub const BINDINGS: &[Binding] = &[PARAMS, SPHERES_IN, SLOTS, COUNTS, CELL_START, IDS, SPHERES];
+    pub const BINDINGS: &[Binding] = &[
+        PARAMS, CENTRES, RADII, JOINED, SPHERES_IN, SLOTS, COUNTS, CELL_START, IDS, SPHERES,
+    ];
 }
 
 /// The sorted-key build's keys (`wgsl/grid_sort.wgsl`); the radix sort and `grid_build`'s

@@ -7,13 +7,13 @@ use crate::detect::BackendInfo;
 use crate::engines::gpu_detect::{DetectKernel, GpuBackend, WgpuDetection};
 use crate::error::Result;
 use crate::gpu::AABB_STRIDE;
+use crate::gpu::pair_output::TakePairs;
 use crate::gpu::radix_sort::RadixSort;
 use crate::gpu::{Gpu, Need};
 use crate::morton;
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
-use crate::types::Pair;
 use crate::types::{DetectStats, GpuTimes};
 
 /// Workgroup sizes, as in the shaders.
@@ -128,14 +128,16 @@ impl GpuBackend for WgpuRqBackend {
             accel.encode_build(encoder);
         };
         self.detection
-            .finish_build(what, (n, mode), structure, record)
+            .submit_build(what, (n, mode), structure, record)?;
+        // A build's time and errors are its own.
+        self.detection.gpu.wait()
     }
 
     fn built(&self) -> Option<(usize, ProxyMode)> {
         self.detection.built()
     }
 
-    fn detect(&mut self, collect: bool) -> Result<(Vec<Pair>, DetectStats)> {
+    fn detect(&mut self, take: Option<TakePairs<'_>>) -> Result<DetectStats> {
         let kernel = DetectKernel {
             label: "mochi.rq.find_pairs",
             pipeline: &self.find_pairs,
@@ -143,7 +145,7 @@ impl GpuBackend for WgpuRqBackend {
             what: "running the wgpu-rq ray queries",
         };
         self.detection
-            .detect(collect, kernel, |gpu, accel, output, run| {
+            .detect(take, kernel, |gpu, accel, output, run| {
                 let params = PairParams {
                     n: run.n,
                     capacity: run.capacity,
