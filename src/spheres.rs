@@ -43,8 +43,8 @@ pub struct SphereSet {
 pub(crate) type Bounds = ([f32; 3], [f32; 3]);
 
 /// What one pass over (part of) a set finds: the first bad sphere, if any, the centres'
-/// bounds and the radii's range. Parts surveyed apart (centres checked while they are copied
-/// elsewhere: [`crate::gpu::copy_surveyed`]) are merged in order.
+/// bounds and the radii's range. Parts surveyed apart (centres checked piece by piece while
+/// they are copied elsewhere) are merged in order.
 #[derive(Debug, Clone)]
 pub(crate) struct Survey {
     bad: Option<(usize, String)>,
