@@ -84,8 +84,27 @@ impl Survey {
         self
     }
 
-    /// The centres `centers` alone (radii not surveyed), the first numbered `first`.
+    /// The centres `centers` alone (radii not surveyed), the first numbered `first`: one pass
+    /// without branches for the common case (every coordinate within ±[`MAX_MAGNITUDE`], which
+    /// no NaN is), and centre by centre again for the first bad one where it fails.
     pub(crate) fn of_centers(first: usize, centers: &[[f32; 3]]) -> Self {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        let mut within = true;
+        for c in centers {
+            for a in 0..3 {
+                within &= c[a].abs() <= MAX_MAGNITUDE;
+                lo[a] = lo[a].min(c[a]);
+                hi[a] = hi[a].max(c[a]);
+            }
+        }
+        if within {
+            return Survey {
+                lo,
+                hi,
+                ..Survey::empty()
+            };
+        }
         centers
             .iter()
             .enumerate()
@@ -117,13 +136,18 @@ impl Survey {
 /// Surveys `centers` (and `radii`, where given) in one pass on the rayon pool; the bad sphere
 /// reported is the first in order, as a loop would find it.
 fn survey(centers: &[[f32; 3]], radii: Option<&[f32]>) -> Survey {
+    let Some(radii) = radii else {
+        return centers
+            .par_chunks(CHECKS_PER_TASK)
+            .enumerate()
+            .map(|(k, piece)| Survey::of_centers(k * CHECKS_PER_TASK, piece))
+            .reduce(Survey::empty, Survey::merge);
+    };
     centers
         .par_iter()
         .enumerate()
         .with_min_len(CHECKS_PER_TASK)
-        .fold(Survey::empty, |acc, (index, c)| {
-            acc.add(index, c, radii.map(|r| r[index]))
-        })
+        .fold(Survey::empty, |acc, (index, c)| acc.add(index, c, Some(radii[index])))
         .reduce(Survey::empty, Survey::merge)
 }
 
