@@ -51,7 +51,7 @@ pub trait Backend: Send {
         Ok(false)
     }
 
-    /// Every colliding pair, each once with `i < j`, in an order that is the same on every run.
+    /// Every colliding pair, each once with `i < j`, sorted by `(i, j)`.
     fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)>;
 
     /// [`find_pairs`](Backend::find_pairs) handing the pairs to `take`, once, where they lie

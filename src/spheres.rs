@@ -147,7 +147,9 @@ fn survey(centers: &[[f32; 3]], radii: Option<&[f32]>) -> Survey {
         .par_iter()
         .enumerate()
         .with_min_len(CHECKS_PER_TASK)
-        .fold(Survey::empty, |acc, (index, c)| acc.add(index, c, Some(radii[index])))
+        .fold(Survey::empty, |acc, (index, c)| {
+            acc.add(index, c, Some(radii[index]))
+        })
         .reduce(Survey::empty, Survey::merge)
 }
 

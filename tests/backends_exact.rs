@@ -148,14 +148,19 @@ fn check_backend(
 
             let again = backend.find_pairs().expect("find_pairs").0;
             prop_assert_eq!(&again, &pairs, "{}: order differs between runs", label);
-            if matches!(kind, BackendKind::WgpuCompute | BackendKind::WgpuRq) {
-                // The wgpu engines sort their pairs on the GPU (src/gpu/pair_sort.rs).
-                prop_assert!(
-                    pairs.windows(2).all(|w| w[0] < w[1]),
-                    "{}: pairs not sorted",
-                    label
-                );
-            }
+            // Every backend returns its pairs sorted (the wgpu engines sort them on the GPU,
+            // src/gpu/pair_sort.rs; the cpu one by counting).
+            prop_assert!(
+                pairs.windows(2).all(|w| w[0] < w[1]),
+                "{}: pairs not sorted",
+                label
+            );
+            let mut taken = Vec::new();
+            let taken_stats = backend
+                .take_pairs(&mut |p| taken = p.to_vec())
+                .expect("take_pairs");
+            prop_assert_eq!(&taken, &pairs, "{}: take_pairs", label);
+            prop_assert_eq!(taken_stats, stats, "{}: take_pairs' stats", label);
             let count = backend.count_pairs().expect("count_pairs");
             prop_assert_eq!(count, stats, "{}: count_pairs", label);
 

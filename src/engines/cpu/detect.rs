@@ -8,6 +8,7 @@ use crate::proxy::ProxyMode;
 use crate::spheres::{MAX_SPHERES, SphereSet};
 use crate::types::DetectStats;
 use crate::types::Pair;
+use rayon::prelude::*;
 
 /// The multi-threaded CPU backend.
 #[derive(Debug, Default)]
@@ -64,6 +65,32 @@ impl PairSink for Visit<'_> {
     }
 }
 
+/// The pairs of `parts` (indices below `n`) into `out` (empty, with room for them all), sorted
+/// by (i, j): counted and placed by `i`, then each sphere's few (it touches few others) sorted
+/// by `j`. Linear in pairs and spheres, where a comparison sort of the pairs is not.
+fn sort_by_first<'a>(
+    parts: impl Iterator<Item = &'a [Pair]> + Clone,
+    n: usize,
+    out: &mut Vec<Pair>,
+) {
+    let mut starts = vec![0u32; n + 1];
+    for pair in parts.clone().flatten() {
+        starts[pair.i as usize + 1] += 1;
+    }
+    for k in 0..n {
+        starts[k + 1] += starts[k];
+    }
+    out.resize(starts[n] as usize, Pair { i: 0, j: 0 });
+    let mut next = starts.clone();
+    for &pair in parts.flatten() {
+        let place = &mut next[pair.i as usize];
+        out[*place as usize] = pair;
+        *place += 1;
+    }
+    out.par_chunk_by_mut(|a, b| a.i == b.i)
+        .for_each(|pairs| pairs.sort_unstable_by_key(|p| p.j));
+}
+
 impl Backend for CpuBackend {
     fn info(&self) -> BackendInfo {
         BackendInfo {
@@ -107,9 +134,8 @@ impl Backend for CpuBackend {
             return Err(too_many());
         }
         let mut pairs = try_vec(kept, String::new).map_err(|_| too_many())?;
-        for (chunk, _) in chunks {
-            pairs.extend(chunk.pairs);
-        }
+        let found_in = chunks.iter().map(|(chunk, _)| chunk.pairs.as_slice());
+        sort_by_first(found_in, self.grid.ids.len(), &mut pairs);
         let stats = DetectStats {
             candidates,
             pairs: found,
