@@ -175,7 +175,7 @@ fn parse_mode(name: &str) -> PyResult<ProxyMode> {
 
 /// Pairs as the rows `i, j` of a `(P, 2)` array, sorted; on the rayon pool (the GIL released by
 /// the caller): one pass that writes the rows (into memory not zeroed first) and checks their
-/// order (the GPU backends sort the pairs already), and a sort where it is not.
+/// order (every backend sorts its pairs already), and a sort where it is not.
 fn sorted_rows(pairs: &[Pair]) -> Vec<i64> {
     let unsorted = AtomicBool::new(false);
     let mut rows: Vec<[i64; 2]> = Vec::new();
