@@ -4,7 +4,8 @@
 //! mode, 4·r_max in `nns` mode), so every colliding pair lies in the same or in neighbouring
 //! cells. Keys are linear, `x + nx·(y + ny·z)`, over a grid with one empty cell of margin on every
 //! side, so the key of a neighbour is the key of the cell plus a constant: that is what lets the
-//! query walk the sorted keys with pointers that only move forward.
+//! query walk the sorted keys with pointers that only move forward. A layout of few cells per
+//! sphere is sorted by counting instead, which leaves a table of each cell's first sphere.
 
 use crate::spheres::SphereSet;
 use rayon::prelude::*;
@@ -29,7 +30,18 @@ pub(crate) struct SortedGrid {
     dims: [u64; 2],
     /// (key, input index) scratch for the sort, kept to avoid reallocation.
     order: Vec<(u64, u32)>,
+    /// The first sorted position of every cell key, one past the last cell included, where
+    /// the layout has at most [`DENSE_CELLS_PER_SPHERE`] cells per sphere (the spheres then
+    /// sorted by counting); else empty (sorted by radix, runs found by walking the keys).
+    pub starts: Vec<u32>,
+    /// Scratch of the counting sort, kept to avoid reallocation: the next place in each cell
+    /// and the sorted (key, input index) entries.
+    cursor: Vec<u32>,
+    sorted: Vec<(u64, u32)>,
 }
+
+/// Cells per sphere up to which a grid keeps a table of cell starts ([`SortedGrid::starts`]).
+const DENSE_CELLS_PER_SPHERE: u64 = 8;
 
 impl SortedGrid {
     /// Bins `spheres` into cells of side at least `cell_size`.
@@ -61,7 +73,13 @@ impl SortedGrid {
             .enumerate()
             .map(|(i, c)| (cells.key(c, lo, nx, ny), i as u32))
             .collect_into_vec(&mut self.order);
-        radsort::sort_by_key(&mut self.order, |e| e.0);
+        let all_cells = nx * ny * (cells.counts[2] + 2);
+        if all_cells <= DENSE_CELLS_PER_SPHERE * (centers.len() as u64).max(1) {
+            self.sort_by_counting(all_cells as usize);
+        } else {
+            self.starts.clear();
+            radsort::sort_by_key(&mut self.order, |e| e.0);
+        }
 
         let order = &self.order;
         order
@@ -79,6 +97,27 @@ impl SortedGrid {
                 [c[0], c[1], c[2], radii[i as usize]]
             })
             .collect_into_vec(&mut self.spheres);
+    }
+
+    /// Sorts `order` by key, stably, counting the spheres of each of the `cells` keys into
+    /// [`Self::starts`] on the way: linear in spheres and cells.
+    fn sort_by_counting(&mut self, cells: usize) {
+        self.starts.clear();
+        self.starts.resize(cells + 1, 0);
+        for &(key, _) in &self.order {
+            self.starts[key as usize + 1] += 1;
+        }
+        for k in 0..cells {
+            self.starts[k + 1] += self.starts[k];
+        }
+        self.cursor.clone_from(&self.starts);
+        self.sorted.resize(self.order.len(), (0, 0));
+        for &entry in &self.order {
+            let place = &mut self.cursor[entry.0 as usize];
+            self.sorted[*place as usize] = entry;
+            *place += 1;
+        }
+        std::mem::swap(&mut self.order, &mut self.sorted);
     }
 
     /// Key distances from a cell to the first cell (x − 1) of each of its nine neighbour rows

@@ -5,9 +5,10 @@
 //! four forward neighbour rows: 14 of the 27 cells, the other 13 being covered from the other side.
 //! So every candidate pair is seen exactly once and the narrow phase (rule 1 of the method) alone
 //! decides; rules 2–3 exist to deduplicate per-sphere rays, which this stencil never produces.
-//! Because the keys of the forward rows are K plus constants, the run boundaries are found by
-//! pointers that only move forward over the sorted keys: no cell table and no hashing, so memory
-//! stays O(n) however sparse the scene.
+//! Where the grid keeps a table of cell starts (a dense layout) each run is two reads of it;
+//! elsewhere, because the keys of the forward rows are K plus constants, the run boundaries are
+//! found by pointers that only move forward over the sorted keys: no table, so memory stays
+//! O(n) however sparse the scene.
 
 use super::grid::SortedGrid;
 use crate::proxy::collides;
@@ -32,7 +33,11 @@ where
         .into_par_iter()
         .map(|c| {
             let mut sink = new_sink();
-            let candidates = search_chunk(grid, c * CHUNK..((c + 1) * CHUNK).min(n), &mut sink);
+            let range = c * CHUNK..((c + 1) * CHUNK).min(n);
+            let candidates = match grid.starts.is_empty() {
+                true => search_chunk(grid, range, &mut sink),
+                false => search_chunk_dense(grid, range, &mut sink),
+            };
             (sink, candidates)
         })
         .collect()
@@ -43,6 +48,41 @@ where
 struct Run {
     begin: usize,
     end: usize,
+}
+
+/// [`search_chunk`] over the grid's table of cell starts: each run read from the table.
+fn search_chunk_dense<S: PairSink>(
+    grid: &SortedGrid,
+    range: std::ops::Range<usize>,
+    sink: &mut S,
+) -> u64 {
+    let keys = &grid.keys[..];
+    let spheres = &grid.spheres[..];
+    let ids = &grid.ids[..];
+    let starts = &grid.starts[..];
+    let offsets = grid.forward_row_offsets();
+    let mut candidates = 0u64;
+    for p in range {
+        let key = keys[p] as usize;
+        let s = spheres[p];
+        let (c_i, r_i, i) = ([s[0], s[1], s[2]], s[3], ids[p]);
+        let mut test = |q: usize| {
+            let t = spheres[q];
+            if collides(c_i, r_i, [t[0], t[1], t[2]], t[3]) {
+                sink.pair(i, ids[q]);
+            }
+        };
+        let own_end = starts[key + 2] as usize;
+        (p + 1..own_end).for_each(&mut test);
+        candidates += (own_end - p - 1) as u64;
+        for &o in &offsets {
+            let lo = key + o as usize;
+            let (begin, end) = (starts[lo] as usize, starts[lo + 3] as usize);
+            (begin..end).for_each(&mut test);
+            candidates += (end - begin) as u64;
+        }
+    }
+    candidates
 }
 
 fn search_chunk<S: PairSink>(
@@ -186,5 +226,50 @@ fn walk_chunk(
             }
         }
         visit(p, &runs);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spheres::SphereSet;
+
+    struct Pairs(Vec<(u32, u32)>);
+    impl PairSink for Pairs {
+        fn pair(&mut self, a: u32, b: u32) {
+            self.0.push((a.min(b), a.max(b)));
+        }
+    }
+
+    #[test]
+    fn the_table_of_cell_starts_finds_what_the_walk_over_the_keys_finds() {
+        // A dense random set (a table is kept), searched with the table and without.
+        let n = 6000;
+        let mut state = 12345u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let centers: Vec<[f32; 3]> = (0..n)
+            .map(|_| [next() * 9.0, next() * 9.0, next() * 9.0])
+            .collect();
+        let radii: Vec<f32> = (0..n).map(|_| 0.1 + 0.3 * next()).collect();
+        let spheres = SphereSet::new(centers, radii).unwrap();
+        let mut grid = SortedGrid::default();
+        grid.bin(&spheres, 2.0 * spheres.max_radius());
+        assert!(!grid.starts.is_empty(), "a dense set keeps a table");
+        let found = |grid: &SortedGrid| {
+            let chunks = search(grid, || Pairs(Vec::new()));
+            let candidates: u64 = chunks.iter().map(|c| c.1).sum();
+            let mut pairs: Vec<_> = chunks.into_iter().flat_map(|c| c.0.0).collect();
+            pairs.sort_unstable();
+            (pairs, candidates)
+        };
+        let with_table = found(&grid);
+        assert!(with_table.0.len() > n / 2, "{} pairs", with_table.0.len());
+        grid.starts.clear();
+        assert_eq!(found(&grid), with_table);
     }
 }
