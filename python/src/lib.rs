@@ -2,8 +2,9 @@
 //! `mochi.Simulation` and `mochi.read_frame` (in [`simulation`]).
 //!
 //! Invariants: no Rust panic crosses into Python (every library call returns `Result`, mapped
-//! by [`to_py_err`]); the GIL is released while the library works; arrays are read through
-//! NumPy views (any dtype of f32/f64, any memory order), never element by element in Python.
+//! by [`to_py_err`]); the GIL is released while the library works, and held only while it reads
+//! the caller's arrays (Python may not write them meanwhile); arrays are read through NumPy
+//! views (any dtype of f32/f64, any memory order), never element by element in Python.
 #![deny(unsafe_code)]
 
 use mochi::engines::{BackendChoice, BackendKind, Options, open};
