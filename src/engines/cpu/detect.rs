@@ -32,17 +32,29 @@ impl CpuBackend {
     }
 }
 
-/// Collects pairs until memory runs out, then only counts them.
-#[derive(Default)]
+/// Collects pairs until memory runs out, then only counts them; each pair in the block of
+/// spheres its first index falls in (`block` spheres a block), for [`sort_by_first`].
 struct Collect {
-    pairs: Vec<Pair>,
+    block: u32,
+    blocks: Vec<Vec<Pair>>,
     /// Pairs that found no memory.
     lost: u64,
+}
+impl Collect {
+    fn new(block: u32, blocks: usize) -> Self {
+        Collect {
+            block,
+            blocks: vec![Vec::new(); blocks],
+            lost: 0,
+        }
+    }
 }
 impl PairSink for Collect {
     #[inline(always)]
     fn pair(&mut self, a: u32, b: u32) {
-        if self.lost > 0 || try_push(&mut self.pairs, Pair::new(a, b), String::new).is_err() {
+        let pair = Pair::new(a, b);
+        let block = &mut self.blocks[(pair.i / self.block) as usize];
+        if self.lost > 0 || try_push(block, pair, String::new).is_err() {
             self.lost += 1;
         }
     }
@@ -65,30 +77,44 @@ impl PairSink for Visit<'_> {
     }
 }
 
-/// The pairs of `parts` (indices below `n`) into `out` (empty, with room for them all), sorted
-/// by (i, j): counted and placed by `i`, then each sphere's few (it touches few others) sorted
-/// by `j`. Linear in pairs and spheres, where a comparison sort of the pairs is not.
-fn sort_by_first<'a>(
-    parts: impl Iterator<Item = &'a [Pair]> + Clone,
-    n: usize,
-    out: &mut Vec<Pair>,
-) {
-    let mut starts = vec![0u32; n + 1];
-    for pair in parts.clone().flatten() {
-        starts[pair.i as usize + 1] += 1;
+/// The pairs collected in `chunks` (indices below `n`, in blocks of `block` spheres by their
+/// first index) into `out` (empty, with room for them all), sorted by (i, j): each block on its
+/// own thread, its pairs counted and placed by `i`, then each sphere's few (it touches few
+/// others) sorted by `j`. Linear in pairs and spheres, where a comparison sort of the pairs is
+/// not; the same order on any number of threads.
+fn sort_by_first(chunks: &[&Collect], (n, block): (usize, u32), out: &mut Vec<Pair>) {
+    let blocks = n.div_ceil(block as usize).max(1);
+    let sizes: Vec<usize> = (0..blocks)
+        .map(|b| chunks.iter().map(|c| c.blocks[b].len()).sum())
+        .collect();
+    out.resize(sizes.iter().sum(), Pair { i: 0, j: 0 });
+    let mut regions = Vec::with_capacity(blocks);
+    let mut rest = out.as_mut_slice();
+    for &size in &sizes {
+        let (region, after) = rest.split_at_mut(size);
+        regions.push(region);
+        rest = after;
     }
-    for k in 0..n {
-        starts[k + 1] += starts[k];
-    }
-    out.resize(starts[n] as usize, Pair { i: 0, j: 0 });
-    let mut next = starts.clone();
-    for &pair in parts.flatten() {
-        let place = &mut next[pair.i as usize];
-        out[*place as usize] = pair;
-        *place += 1;
-    }
-    out.par_chunk_by_mut(|a, b| a.i == b.i)
-        .for_each(|pairs| pairs.sort_unstable_by_key(|p| p.j));
+    regions.into_par_iter().enumerate().for_each(|(b, region)| {
+        let first = b * block as usize;
+        let spheres = (n - first).min(block as usize);
+        let parts = || chunks.iter().flat_map(|c| &c.blocks[b]);
+        let mut starts = vec![0u32; spheres + 1];
+        for pair in parts() {
+            starts[pair.i as usize - first + 1] += 1;
+        }
+        for k in 0..spheres {
+            starts[k + 1] += starts[k];
+        }
+        for pair in parts() {
+            let place = &mut starts[pair.i as usize - first];
+            region[*place as usize] = *pair;
+            *place += 1;
+        }
+        region
+            .chunk_by_mut(|a, b| a.i == b.i)
+            .for_each(|pairs| pairs.sort_unstable_by_key(|p| p.j));
+    });
 }
 
 impl Backend for CpuBackend {
@@ -121,9 +147,13 @@ impl Backend for CpuBackend {
     }
 
     fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
-        let chunks = search(self.built()?, Collect::default);
+        let n = self.grid.ids.len();
+        let blocks = 4 * rayon::current_num_threads();
+        let block = n.div_ceil(blocks).max(1) as u32;
+        let blocks = n.div_ceil(block as usize).max(1);
+        let chunks = search(self.built()?, || Collect::new(block, blocks));
         let candidates = chunks.iter().map(|c| c.1).sum();
-        let kept: usize = chunks.iter().map(|c| c.0.pairs.len()).sum();
+        let kept: usize = chunks.iter().flat_map(|c| &c.0.blocks).map(Vec::len).sum();
         let lost: u64 = chunks.iter().map(|c| c.0.lost).sum();
         let found = kept as u64 + lost;
         let too_many = || Error::OutOfMemory {
@@ -134,8 +164,8 @@ impl Backend for CpuBackend {
             return Err(too_many());
         }
         let mut pairs = try_vec(kept, String::new).map_err(|_| too_many())?;
-        let found_in = chunks.iter().map(|(chunk, _)| chunk.pairs.as_slice());
-        sort_by_first(found_in, self.grid.ids.len(), &mut pairs);
+        let collected: Vec<&Collect> = chunks.iter().map(|(chunk, _)| chunk).collect();
+        sort_by_first(&collected, (n, block), &mut pairs);
         let stats = DetectStats {
             candidates,
             pairs: found,
