@@ -84,10 +84,16 @@ impl Survey {
         self
     }
 
-    /// The centres `centers` alone (radii not surveyed), the first numbered `first`: one pass
-    /// without branches for the common case (every coordinate within ±[`MAX_MAGNITUDE`], which
-    /// no NaN is), and centre by centre again for the first bad one where it fails.
+    /// The centres `centers` alone (radii not surveyed), the first numbered `first`.
     pub(crate) fn of_centers(first: usize, centers: &[[f32; 3]]) -> Self {
+        Survey::of_part(first, centers, None)
+    }
+
+    /// The spheres of `centers` and `radii` (where given, as many), the first numbered
+    /// `first`: one pass without branches for the common case (every coordinate within
+    /// ±[`MAX_MAGNITUDE`] and every radius within [[`MIN_RADIUS`], [`MAX_MAGNITUDE`]], which no
+    /// NaN is), and sphere by sphere again for the first bad one where it fails.
+    fn of_part(first: usize, centers: &[[f32; 3]], radii: Option<&[f32]>) -> Self {
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
         let mut within = true;
@@ -98,17 +104,25 @@ impl Survey {
                 hi[a] = hi[a].max(c[a]);
             }
         }
+        let mut range = Survey::empty().radii;
+        for &r in radii.unwrap_or_default() {
+            within &= (r >= MIN_RADIUS) & (r <= MAX_MAGNITUDE);
+            range = (range.0.min(r), range.1.max(r));
+        }
         if within {
             return Survey {
+                bad: None,
                 lo,
                 hi,
-                ..Survey::empty()
+                radii: range,
             };
         }
         centers
             .iter()
             .enumerate()
-            .fold(Survey::empty(), |acc, (i, c)| acc.add(first + i, c, None))
+            .fold(Survey::empty(), |acc, (i, c)| {
+                acc.add(first + i, c, radii.map(|r| r[i]))
+            })
     }
 
     /// Both parts' findings, `self` the earlier: its bad sphere first.
@@ -136,21 +150,17 @@ impl Survey {
 /// Surveys `centers` (and `radii`, where given) in one pass on the rayon pool; the bad sphere
 /// reported is the first in order, as a loop would find it.
 fn survey(centers: &[[f32; 3]], radii: Option<&[f32]>) -> Survey {
-    let Some(radii) = radii else {
-        return centers
-            .par_chunks(CHECKS_PER_TASK)
-            .enumerate()
-            .map(|(k, piece)| Survey::of_centers(k * CHECKS_PER_TASK, piece))
-            .reduce(Survey::empty, Survey::merge);
-    };
-    centers
-        .par_iter()
-        .enumerate()
-        .with_min_len(CHECKS_PER_TASK)
-        .fold(Survey::empty, |acc, (index, c)| {
-            acc.add(index, c, Some(radii[index]))
-        })
-        .reduce(Survey::empty, Survey::merge)
+    let pieces = centers.par_chunks(CHECKS_PER_TASK).enumerate();
+    let first = |k: usize| k * CHECKS_PER_TASK;
+    match radii {
+        None => pieces
+            .map(|(k, piece)| Survey::of_part(first(k), piece, None))
+            .reduce(Survey::empty, Survey::merge),
+        Some(radii) => pieces
+            .zip(radii.par_chunks(CHECKS_PER_TASK))
+            .map(|((k, piece), r)| Survey::of_part(first(k), piece, Some(r)))
+            .reduce(Survey::empty, Survey::merge),
+    }
 }
 
 impl SphereSet {
