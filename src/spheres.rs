@@ -106,7 +106,7 @@ impl Survey {
         }
         let mut range = Survey::empty().radii;
         for &r in radii.unwrap_or_default() {
-            within &= (r >= MIN_RADIUS) & (r <= MAX_MAGNITUDE);
+            within &= (MIN_RADIUS..=MAX_MAGNITUDE).contains(&r);
             range = (range.0.min(r), range.1.max(r));
         }
         if within {
