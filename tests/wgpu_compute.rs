@@ -259,6 +259,18 @@ fn auto_takes_the_dense_build_for_a_dense_set_and_the_sorted_one_for_a_sparse_se
     assert!(differences(&got, &want, &sparse, true).is_empty());
 }
 
+/// `spheres` with every centre coordinate x moved to `x · scale + shift`.
+fn scaled(spheres: &SphereSet, scale: f32, shift: f32) -> SphereSet {
+    let mut s = spheres.clone();
+    let centers = s
+        .centers()
+        .iter()
+        .map(|c| c.map(|x| x * scale + shift))
+        .collect();
+    s.set_centers(centers).unwrap();
+    s
+}
+
 #[test]
 fn spheres_that_barely_move_keep_their_layout_and_spheres_that_spread_get_a_new_one() {
     let Some(mut backend) = open(Structure::Auto) else {
@@ -267,16 +279,7 @@ fn spheres_that_barely_move_keep_their_layout_and_spheres_that_spread_get_a_new_
     let spheres = polydisperse(11, 4000, 4.0);
     assert_exact(&mut backend, &spheres, "first build");
     let first = backend.structure().unwrap();
-    let moved = |scale: f32, shift: f32| {
-        let mut s = spheres.clone();
-        let centers = s
-            .centers()
-            .iter()
-            .map(|c| c.map(|x| x * scale + shift))
-            .collect();
-        s.set_centers(centers).unwrap();
-        s
-    };
+    let moved = |scale: f32, shift: f32| scaled(&spheres, scale, shift);
     // A small shift: the same layout, the pairs still exact.
     let shifted = moved(1.0, 0.05);
     backend.update(&shifted).unwrap();
@@ -301,17 +304,7 @@ fn centres_moved_straight_in_stay_exact_and_a_refused_move_keeps_the_build() {
     let spheres = polydisperse(12, 4000, 4.0);
     assert_exact(&mut backend, &spheres, "first build");
     let first = backend.structure().unwrap();
-    let moved = |scale: f32, shift: f32| {
-        let mut s = spheres.clone();
-        let centers = s
-            .centers()
-            .iter()
-            .enumerate()
-            .map(|(i, c)| c.map(|x| x * scale + shift + (i % 7) as f32 * 1e-3))
-            .collect();
-        s.set_centers(centers).unwrap();
-        s
-    };
+    let moved = |scale: f32, shift: f32| scaled(&spheres, scale, shift);
     let pairs = |backend: &mut WgpuComputeBackend| {
         let mut got = Vec::new();
         backend.take_pairs(&mut |p| got = p.to_vec()).unwrap();

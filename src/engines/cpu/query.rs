@@ -57,30 +57,47 @@ fn search_chunk_dense<S: PairSink>(
     sink: &mut S,
 ) -> u64 {
     let keys = &grid.keys[..];
-    let spheres = &grid.spheres[..];
-    let ids = &grid.ids[..];
     let starts = &grid.starts[..];
     let offsets = grid.forward_row_offsets();
     let mut candidates = 0u64;
     for p in range {
         let key = keys[p] as usize;
-        let s = spheres[p];
-        let (c_i, r_i, i) = ([s[0], s[1], s[2]], s[3], ids[p]);
-        let mut test = |q: usize| {
-            let t = spheres[q];
-            if collides(c_i, r_i, [t[0], t[1], t[2]], t[3]) {
-                sink.pair(i, ids[q]);
-            }
-        };
-        let own_end = starts[key + 2] as usize;
-        (p + 1..own_end).for_each(&mut test);
-        candidates += (own_end - p - 1) as u64;
-        for &o in &offsets {
+        let rows = offsets.map(|o| {
             let lo = key + o as usize;
-            let (begin, end) = (starts[lo] as usize, starts[lo + 3] as usize);
-            (begin..end).for_each(&mut test);
-            candidates += (end - begin) as u64;
+            Run {
+                begin: starts[lo] as usize,
+                end: starts[lo + 3] as usize,
+            }
+        });
+        candidates += test_runs(grid, p, starts[key + 2] as usize, &rows, sink);
+    }
+    candidates
+}
+
+/// Tests sorted sphere p against the rest of the run of its own cell and the next along x, up
+/// to `own_end`, and against `rows`; returns the candidates tested.
+#[inline(always)]
+fn test_runs<S: PairSink>(
+    grid: &SortedGrid,
+    p: usize,
+    own_end: usize,
+    rows: &[Run; 4],
+    sink: &mut S,
+) -> u64 {
+    let (spheres, ids) = (&grid.spheres[..], &grid.ids[..]);
+    let s = spheres[p];
+    let (c_i, r_i, i) = ([s[0], s[1], s[2]], s[3], ids[p]);
+    let mut test = |q: usize| {
+        let t = spheres[q];
+        if collides(c_i, r_i, [t[0], t[1], t[2]], t[3]) {
+            sink.pair(i, ids[q]);
         }
+    };
+    (p + 1..own_end).for_each(&mut test);
+    let mut candidates = (own_end - p - 1) as u64;
+    for run in rows {
+        (run.begin..run.end).for_each(&mut test);
+        candidates += (run.end - run.begin) as u64;
     }
     candidates
 }
@@ -91,8 +108,6 @@ fn search_chunk<S: PairSink>(
     sink: &mut S,
 ) -> u64 {
     let keys = &grid.keys[..];
-    let spheres = &grid.spheres[..];
-    let ids = &grid.ids[..];
     let n = keys.len();
     let offsets = grid.forward_row_offsets();
 
@@ -123,20 +138,7 @@ fn search_chunk<S: PairSink>(
                 }
             }
         }
-        let s = spheres[p];
-        let (c_i, r_i, i) = ([s[0], s[1], s[2]], s[3], ids[p]);
-        let mut test = |q: usize| {
-            let t = spheres[q];
-            if collides(c_i, r_i, [t[0], t[1], t[2]], t[3]) {
-                sink.pair(i, ids[q]);
-            }
-        };
-        (p + 1..own_end).for_each(&mut test);
-        candidates += (own_end - p - 1) as u64;
-        for run in &rows {
-            (run.begin..run.end).for_each(&mut test);
-            candidates += (run.end - run.begin) as u64;
-        }
+        candidates += test_runs(grid, p, own_end, &rows, sink);
     }
     candidates
 }
