@@ -26,7 +26,9 @@ def detect(
 
     ``centres`` is ``(N, 3)`` and ``radii`` ``(N,)``, float32 or float64, any memory order.
     Raises ``ValueError`` for bad input (naming the row and the reason) and ``MochiError``
-    when the backend fails or cannot run here.
+    when the backend fails or cannot run here. The backend it opens (its device and buffers)
+    is kept for the next call with the same ``backend``, which opens nothing; a call with
+    another ``backend`` lets it go.
     """
 
 def backends() -> list[BackendEntry]:

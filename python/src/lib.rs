@@ -217,6 +217,16 @@ struct Detector {
 }
 
 impl Detector {
+    /// A detector around a backend already open.
+    fn around(backend: Box<dyn Backend>, mode: ProxyMode) -> Self {
+        Detector {
+            backend: Mutex::new(backend),
+            mode,
+            spheres: None,
+            scratch: Vec::new(),
+        }
+    }
+
     fn backend_mut(&mut self) -> &mut Box<dyn Backend> {
         self.backend
             .get_mut()
@@ -234,12 +244,7 @@ impl Detector {
         let opened = py
             .detach(|| open(choice, &Options::default()))
             .map_err(to_py_err)?;
-        Ok(Detector {
-            backend: Mutex::new(opened.backend),
-            mode,
-            spheres: None,
-            scratch: Vec::new(),
-        })
+        Ok(Detector::around(opened.backend, mode))
     }
 
     /// The backend's name (`cpu`, `wgpu-rq`, …).
@@ -294,6 +299,8 @@ impl Detector {
 }
 
 /// Every colliding pair `(i, j)`, `i < j`, of the spheres, as a sorted `(P, 2)` int64 array.
+/// The backend it opens (its device and buffers) is kept for the next call with the same
+/// `backend`, which opens nothing; a call with another `backend` lets it go.
 #[pyfunction]
 #[pyo3(signature = (centres, radii, backend = "auto", mode = "mochi"))]
 fn detect<'py>(
@@ -303,10 +310,23 @@ fn detect<'py>(
     backend: &str,
     mode: &str,
 ) -> PyResult<Bound<'py, PyArray2<i64>>> {
-    let mut detector = Detector::new(py, backend, mode)?;
+    let kept = KEPT.lock().unwrap_or_else(PoisonError::into_inner).take();
+    let mut detector = match kept {
+        Some((name, opened)) if name == backend => Detector::around(opened, parse_mode(mode)?),
+        _ => Detector::new(py, backend, mode)?,
+    };
     detector.build(py, centres, radii)?;
-    detector.pairs(py)
+    let pairs = detector.pairs(py)?;
+    let opened = detector.backend.into_inner();
+    let opened = opened.unwrap_or_else(PoisonError::into_inner);
+    *KEPT.lock().unwrap_or_else(PoisonError::into_inner) = Some((backend.to_owned(), opened));
+    Ok(pairs)
 }
+
+/// The backend [`detect`] opened last and the `backend` argument it was opened for, kept for
+/// the next call with the same argument (its device, pipelines and buffers reused); empty before
+/// the first call, while a call holds it, and after a call that failed.
+static KEPT: Mutex<Option<(String, Box<dyn Backend>)>> = Mutex::new(None);
 
 /// Every backend this build knows: name, whether it can run here, and the device or the reason.
 #[pyfunction]

@@ -45,6 +45,18 @@ def test_random_polydisperse_matches_oracle(seed):
     np.testing.assert_array_equal(pairs, oracle(centres, radii))
 
 
+def test_detect_again_keeps_its_backend_and_stays_exact():
+    # Calls with sets of other sizes, modes and backends: the backend kept from the last call
+    # (or a new one) must give every set's own pairs.
+    calls = [(3, 400, "cpu", "mochi"), (4, 250, "cpu", "nns"), (5, 600, "cpu", "mochi")]
+    calls += [(6, 300, b, "mochi") for b in detector_backends()] + [(7, 350, "cpu", "mochi")]
+    for seed, n, backend, mode in calls:
+        centres, radii = random_set(seed, n=n)
+        np.testing.assert_array_equal(
+            mochi.detect(centres, radii, backend=backend, mode=mode), oracle(centres, radii)
+        )
+
+
 def test_nns_mode_finds_the_same_pairs():
     centres, radii = random_set(3)
     np.testing.assert_array_equal(

@@ -273,5 +273,17 @@ mod tests {
         assert!(with_table.0.len() > n / 2, "{} pairs", with_table.0.len());
         grid.starts.clear();
         assert_eq!(found(&grid), with_table);
+        // The same grid binned again, dense then sparse (a few spheres far out): as a new one.
+        grid.bin(&spheres, 2.0 * spheres.max_radius());
+        assert_eq!(found(&grid), with_table);
+        let mut spread = spheres.centers().to_vec();
+        spread[0] = [1e4, 0.0, 0.0];
+        spread[1] = [0.0, -1e4, 1e4];
+        let sparse = SphereSet::new(spread, spheres.radii().to_vec()).unwrap();
+        grid.bin(&sparse, 2.0 * sparse.max_radius());
+        assert!(grid.starts.is_empty(), "a sparse set keeps no table");
+        let mut fresh = SortedGrid::default();
+        fresh.bin(&sparse, 2.0 * sparse.max_radius());
+        assert_eq!(found(&grid), found(&fresh));
     }
 }
