@@ -3,7 +3,7 @@
 use super::grid::SortedGrid;
 use super::query::{PairSink, search};
 use crate::detect::{Backend, BackendInfo};
-use crate::error::{Error, Result, try_push, try_vec};
+use crate::error::{Error, Result, try_push};
 use crate::proxy::ProxyMode;
 use crate::spheres::{MAX_SPHERES, SphereSet};
 use crate::types::DetectStats;
@@ -16,6 +16,8 @@ pub struct CpuBackend {
     /// Mode of the last build; `None` before the first.
     mode: Option<ProxyMode>,
     grid: SortedGrid,
+    /// The last pairs [`Backend::take_pairs`] handed over (the allocation kept between calls).
+    pairs: Vec<Pair>,
 }
 
 impl CpuBackend {
@@ -75,6 +77,33 @@ impl PairSink for Visit<'_> {
         self.1 += 1;
         (self.0)(Pair::new(a, b));
     }
+}
+
+/// Every colliding pair of `grid`, sorted, into `pairs` (its allocation reused).
+fn sorted_pairs(grid: &SortedGrid, pairs: &mut Vec<Pair>) -> Result<DetectStats> {
+    let n = grid.ids.len();
+    let blocks = 4 * rayon::current_num_threads();
+    let block = n.div_ceil(blocks).max(1) as u32;
+    let blocks = n.div_ceil(block as usize).max(1);
+    let chunks = search(grid, || Collect::new(block, blocks));
+    let candidates = chunks.iter().map(|c| c.1).sum();
+    let kept: usize = chunks.iter().flat_map(|c| &c.0.blocks).map(Vec::len).sum();
+    let lost: u64 = chunks.iter().map(|c| c.0.lost).sum();
+    let found = kept as u64 + lost;
+    let too_many = || Error::OutOfMemory {
+        what: format!("{found} colliding pairs"),
+        bytes: found.saturating_mul(std::mem::size_of::<Pair>() as u64),
+    };
+    pairs.clear();
+    if lost > 0 || pairs.try_reserve_exact(kept).is_err() {
+        return Err(too_many());
+    }
+    let collected: Vec<&Collect> = chunks.iter().map(|(chunk, _)| chunk).collect();
+    sort_by_first(&collected, (n, block), pairs);
+    Ok(DetectStats {
+        candidates,
+        pairs: found,
+    })
 }
 
 /// The pairs collected in `chunks` (indices below `n`, in blocks of `block` spheres by their
@@ -147,30 +176,16 @@ impl Backend for CpuBackend {
     }
 
     fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
-        let n = self.grid.ids.len();
-        let blocks = 4 * rayon::current_num_threads();
-        let block = n.div_ceil(blocks).max(1) as u32;
-        let blocks = n.div_ceil(block as usize).max(1);
-        let chunks = search(self.built()?, || Collect::new(block, blocks));
-        let candidates = chunks.iter().map(|c| c.1).sum();
-        let kept: usize = chunks.iter().flat_map(|c| &c.0.blocks).map(Vec::len).sum();
-        let lost: u64 = chunks.iter().map(|c| c.0.lost).sum();
-        let found = kept as u64 + lost;
-        let too_many = || Error::OutOfMemory {
-            what: format!("{found} colliding pairs"),
-            bytes: found.saturating_mul(std::mem::size_of::<Pair>() as u64),
-        };
-        if lost > 0 {
-            return Err(too_many());
-        }
-        let mut pairs = try_vec(kept, String::new).map_err(|_| too_many())?;
-        let collected: Vec<&Collect> = chunks.iter().map(|(chunk, _)| chunk).collect();
-        sort_by_first(&collected, (n, block), &mut pairs);
-        let stats = DetectStats {
-            candidates,
-            pairs: found,
-        };
+        let mut pairs = Vec::new();
+        let stats = sorted_pairs(self.built()?, &mut pairs)?;
         Ok((pairs, stats))
+    }
+
+    fn take_pairs(&mut self, take: &mut dyn FnMut(&[Pair])) -> Result<DetectStats> {
+        self.built()?;
+        let stats = sorted_pairs(&self.grid, &mut self.pairs)?;
+        take(&self.pairs);
+        Ok(stats)
     }
 
     fn count_pairs(&mut self) -> Result<DetectStats> {
