@@ -267,6 +267,11 @@ impl SphereSet {
         Ok(())
     }
 
+    /// The centres and radii, for their allocations to be filled again.
+    pub fn into_parts(self) -> (Vec<[f32; 3]>, Vec<f32>) {
+        (self.centers, self.radii)
+    }
+
     /// Rows `[x, y, z, r]`, in input order.
     pub fn xyzr(&self) -> impl ExactSizeIterator<Item = [f32; 4]> + '_ {
         self.centers

@@ -83,13 +83,6 @@ fn read_centres_into(centres: &Bound<'_, PyAny>, out: &mut Vec<[f32; 3]>) -> PyR
     ))
 }
 
-/// [`read_centres_into`] a new vector.
-fn read_centres(centres: &Bound<'_, PyAny>) -> PyResult<Vec<[f32; 3]>> {
-    let mut out = Vec::new();
-    read_centres_into(centres, &mut out)?;
-    Ok(out)
-}
-
 /// A library error of moving spheres as a Python exception: a usage error (a count unlike the
 /// build's) is the caller's input, `ValueError`.
 fn move_err(error: mochi::Error) -> PyErr {
@@ -131,20 +124,23 @@ fn move_spheres(
     py.detach(|| backend.update(spheres)).map_err(to_py_err)
 }
 
-/// The radii of an `(N,)` float32/float64 array, as `f32`.
-fn read_radii(radii: &Bound<'_, PyAny>) -> PyResult<Vec<f32>> {
-    fn values<T: Copy + Into<f64> + Sync>(view: ArrayView1<'_, T>) -> Vec<f32> {
+/// The radii of an `(N,)` float32/float64 array, as `f32`, into `out` (its allocation reused).
+fn read_radii_into(radii: &Bound<'_, PyAny>, out: &mut Vec<f32>) -> PyResult<()> {
+    fn values<T: Copy + Into<f64> + Sync>(view: ArrayView1<'_, T>, out: &mut Vec<f32>) {
         let value = |&r: &T| r.into() as f32;
+        out.clear();
         match view.as_slice() {
-            Some(flat) => flat.par_iter().map(value).collect(),
-            None => view.iter().map(value).collect(),
+            Some(flat) => out.par_extend(flat.par_iter().map(value)),
+            None => out.extend(view.iter().map(value)),
         }
     }
     if let Ok(a) = radii.extract::<PyReadonlyArray1<'_, f32>>() {
-        return Ok(values(a.as_array()));
+        values(a.as_array(), out);
+        return Ok(());
     }
     if let Ok(a) = radii.extract::<PyReadonlyArray1<'_, f64>>() {
-        return Ok(values(a.as_array()));
+        values(a.as_array(), out);
+        return Ok(());
     }
     Err(PyValueError::new_err(
         "radii must be a NumPy array of shape (N,) and dtype float32 or float64",
@@ -214,6 +210,9 @@ struct Detector {
     spheres: Option<SphereSet>,
     /// Centres converted from arrays that are not C-ordered float32, kept between updates.
     scratch: Vec<[f32; 3]>,
+    /// The allocations of the spheres the last `build` replaced, filled by the next: repeated
+    /// builds take no fresh memory (whose first touch costs more than the copy).
+    spare: (Vec<[f32; 3]>, Vec<f32>),
 }
 
 impl Detector {
@@ -224,6 +223,7 @@ impl Detector {
             mode,
             spheres: None,
             scratch: Vec::new(),
+            spare: Default::default(),
         }
     }
 
@@ -259,12 +259,17 @@ impl Detector {
         centres: &Bound<'_, PyAny>,
         radii: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let spheres = sphere_set(py, read_centres(centres)?, read_radii(radii)?)?;
+        let (mut centres_f32, mut radii_f32) = std::mem::take(&mut self.spare);
+        read_centres_into(centres, &mut centres_f32)?;
+        read_radii_into(radii, &mut radii_f32)?;
+        let spheres = sphere_set(py, centres_f32, radii_f32)?;
         let mode = self.mode;
         let backend = self.backend_mut();
         py.detach(|| backend.build(&spheres, mode))
             .map_err(to_py_err)?;
-        self.spheres = Some(spheres);
+        if let Some(replaced) = self.spheres.replace(spheres) {
+            self.spare = replaced.into_parts();
+        }
         Ok(())
     }
 
@@ -310,23 +315,26 @@ fn detect<'py>(
     backend: &str,
     mode: &str,
 ) -> PyResult<Bound<'py, PyArray2<i64>>> {
+    let mode = parse_mode(mode)?;
     let kept = KEPT.lock().unwrap_or_else(PoisonError::into_inner).take();
     let mut detector = match kept {
-        Some((name, opened)) if name == backend => Detector::around(opened, parse_mode(mode)?),
-        _ => Detector::new(py, backend, mode)?,
+        Some((name, mut kept)) if name == backend => {
+            kept.mode = mode;
+            kept
+        }
+        _ => Detector::new(py, backend, mode.name())?,
     };
     detector.build(py, centres, radii)?;
     let pairs = detector.pairs(py)?;
-    let opened = detector.backend.into_inner();
-    let opened = opened.unwrap_or_else(PoisonError::into_inner);
-    *KEPT.lock().unwrap_or_else(PoisonError::into_inner) = Some((backend.to_owned(), opened));
+    *KEPT.lock().unwrap_or_else(PoisonError::into_inner) = Some((backend.to_owned(), detector));
     Ok(pairs)
 }
 
-/// The backend [`detect`] opened last and the `backend` argument it was opened for, kept for
-/// the next call with the same argument (its device, pipelines and buffers reused); empty before
-/// the first call, while a call holds it, and after a call that failed.
-static KEPT: Mutex<Option<(String, Box<dyn Backend>)>> = Mutex::new(None);
+/// The detector [`detect`] used last and the `backend` argument it was opened for, kept for
+/// the next call with the same argument (its device, pipelines and buffers, and the memory of
+/// its spheres, reused); empty before the first call, while a call holds it, and after a call
+/// that failed.
+static KEPT: Mutex<Option<(String, Detector)>> = Mutex::new(None);
 
 /// Every backend this build knows: name, whether it can run here, and the device or the reason.
 #[pyfunction]

@@ -1,7 +1,7 @@
 //! Detection on the cpu engine: [`CpuBackend`] implements [`crate::Backend`].
 
 use super::grid::SortedGrid;
-use super::query::{PairSink, search};
+use super::query::{PairSink, search, search_tasks};
 use crate::detect::{Backend, BackendInfo};
 use crate::error::{Error, Result, try_push};
 use crate::proxy::ProxyMode;
@@ -18,6 +18,8 @@ pub struct CpuBackend {
     grid: SortedGrid,
     /// The last pairs [`Backend::take_pairs`] handed over (the allocation kept between calls).
     pairs: Vec<Pair>,
+    /// The search's sinks, one per task (their allocations kept between calls).
+    collects: Vec<Collect>,
 }
 
 impl CpuBackend {
@@ -35,33 +37,36 @@ impl CpuBackend {
 }
 
 /// Collects pairs until memory runs out, then only counts them; each pair in the block of
-/// spheres its first index falls in (`block` spheres a block), for [`sort_by_first`].
+/// spheres its first index falls in (2^`shift` spheres a block), for [`sort_by_first`]. Kept
+/// between searches, so its blocks' allocations are reused.
+#[derive(Debug, Default)]
 struct Collect {
-    block: u32,
+    shift: u32,
     blocks: Vec<Vec<Pair>>,
     /// Pairs that found no memory.
     lost: u64,
 }
 impl Collect {
-    fn new(block: u32, blocks: usize) -> Self {
-        Collect {
-            block,
-            blocks: vec![Vec::new(); blocks],
-            lost: 0,
-        }
+    /// Emptied, for `blocks` blocks of 2^`shift` spheres.
+    fn reset(&mut self, shift: u32, blocks: usize) {
+        self.shift = shift;
+        self.blocks.resize_with(blocks, Vec::new);
+        self.blocks.iter_mut().for_each(Vec::clear);
+        self.lost = 0;
     }
 }
 impl PairSink for Collect {
     #[inline(always)]
     fn pair(&mut self, a: u32, b: u32) {
         let pair = Pair::new(a, b);
-        let block = &mut self.blocks[(pair.i / self.block) as usize];
+        let block = &mut self.blocks[(pair.i >> self.shift) as usize];
         if self.lost > 0 || try_push(block, pair, String::new).is_err() {
             self.lost += 1;
         }
     }
 }
 
+#[derive(Default)]
 struct Count(u64);
 impl PairSink for Count {
     #[inline(always)]
@@ -79,16 +84,28 @@ impl PairSink for Visit<'_> {
     }
 }
 
-/// Every colliding pair of `grid`, sorted, into `pairs` (its allocation reused).
-fn sorted_pairs(grid: &SortedGrid, pairs: &mut Vec<Pair>) -> Result<DetectStats> {
+/// Blocks of [`sort_by_first`] per thread: enough that the threads share the work evenly
+/// although the first index of a pair is more often a small one.
+const BLOCKS_PER_THREAD: usize = 16;
+
+/// Every colliding pair of `grid`, sorted, into `pairs`, through `collects` (both allocations
+/// reused).
+fn sorted_pairs(
+    grid: &SortedGrid,
+    collects: &mut Vec<Collect>,
+    pairs: &mut Vec<Pair>,
+) -> Result<DetectStats> {
     let n = grid.ids.len();
-    let blocks = 4 * rayon::current_num_threads();
-    let block = n.div_ceil(blocks).max(1) as u32;
-    let blocks = n.div_ceil(block as usize).max(1);
-    let chunks = search(grid, || Collect::new(block, blocks));
-    let candidates = chunks.iter().map(|c| c.1).sum();
-    let kept: usize = chunks.iter().flat_map(|c| &c.0.blocks).map(Vec::len).sum();
-    let lost: u64 = chunks.iter().map(|c| c.0.lost).sum();
+    let shift = n
+        .div_ceil(BLOCKS_PER_THREAD * rayon::current_num_threads())
+        .next_power_of_two()
+        .trailing_zeros();
+    let blocks = (n >> shift) + 1;
+    collects.resize_with(search_tasks(grid), Collect::default);
+    collects.iter_mut().for_each(|c| c.reset(shift, blocks));
+    let candidates = search(grid, collects);
+    let kept: usize = collects.iter().flat_map(|c| &c.blocks).map(Vec::len).sum();
+    let lost: u64 = collects.iter().map(|c| c.lost).sum();
     let found = kept as u64 + lost;
     let too_many = || Error::OutOfMemory {
         what: format!("{found} colliding pairs"),
@@ -98,21 +115,20 @@ fn sorted_pairs(grid: &SortedGrid, pairs: &mut Vec<Pair>) -> Result<DetectStats>
     if lost > 0 || pairs.try_reserve_exact(kept).is_err() {
         return Err(too_many());
     }
-    let collected: Vec<&Collect> = chunks.iter().map(|(chunk, _)| chunk).collect();
-    sort_by_first(&collected, (n, block), pairs);
+    sort_by_first(collects, (n, shift), pairs);
     Ok(DetectStats {
         candidates,
         pairs: found,
     })
 }
 
-/// The pairs collected in `chunks` (indices below `n`, in blocks of `block` spheres by their
+/// The pairs collected in `chunks` (indices below `n`, in blocks of 2^`shift` spheres by their
 /// first index) into `out` (empty, with room for them all), sorted by (i, j): each block on its
-/// own thread, its pairs counted and placed by `i`, then each sphere's few (it touches few
-/// others) sorted by `j`. Linear in pairs and spheres, where a comparison sort of the pairs is
-/// not; the same order on any number of threads.
-fn sort_by_first(chunks: &[&Collect], (n, block): (usize, u32), out: &mut Vec<Pair>) {
-    let blocks = n.div_ceil(block as usize).max(1);
+/// own thread, its pairs counted and placed by `i`, then the few pairs of each sphere that has
+/// several (a sphere touches few others) sorted by `j`. Linear in pairs and spheres, where a
+/// comparison sort of the pairs is not; the same order on any number of threads.
+fn sort_by_first(chunks: &[Collect], (n, shift): (usize, u32), out: &mut Vec<Pair>) {
+    let blocks = chunks.first().map_or(0, |c| c.blocks.len());
     let sizes: Vec<usize> = (0..blocks)
         .map(|b| chunks.iter().map(|c| c.blocks[b].len()).sum())
         .collect();
@@ -125,8 +141,8 @@ fn sort_by_first(chunks: &[&Collect], (n, block): (usize, u32), out: &mut Vec<Pa
         rest = after;
     }
     regions.into_par_iter().enumerate().for_each(|(b, region)| {
-        let first = b * block as usize;
-        let spheres = (n - first).min(block as usize);
+        let first = b << shift;
+        let spheres = n.saturating_sub(first).min(1 << shift);
         let parts = || chunks.iter().flat_map(|c| &c.blocks[b]);
         let mut starts = vec![0u32; spheres + 1];
         for pair in parts() {
@@ -135,15 +151,42 @@ fn sort_by_first(chunks: &[&Collect], (n, block): (usize, u32), out: &mut Vec<Pa
         for k in 0..spheres {
             starts[k + 1] += starts[k];
         }
-        for pair in parts() {
-            let place = &mut starts[pair.i as usize - first];
-            region[*place as usize] = *pair;
-            *place += 1;
+        // Placed by `i`; the spheres given a second pair listed (without a branch), so that
+        // only their pairs are then sorted by `j`.
+        let mut cursor = starts.clone();
+        let mut several = vec![0u32; spheres + 1];
+        let mut listed = 0;
+        for &pair in parts() {
+            let k = pair.i as usize - first;
+            let place = cursor[k];
+            region[place as usize] = pair;
+            cursor[k] = place + 1;
+            several[listed] = k as u32;
+            listed += (place == starts[k] + 1) as usize;
         }
-        region
-            .chunk_by_mut(|a, b| a.i == b.i)
-            .for_each(|pairs| pairs.sort_unstable_by_key(|p| p.j));
+        for &k in &several[..listed] {
+            let k = k as usize;
+            sort_by_second(&mut region[starts[k] as usize..starts[k + 1] as usize]);
+        }
     });
+}
+
+/// Sorts the few pairs of one sphere by `j`, by insertion.
+fn sort_by_second(pairs: &mut [Pair]) {
+    for k in 1..pairs.len() {
+        let pair = pairs[k];
+        let mut place = k;
+        while place > 0 && pairs[place - 1].j > pair.j {
+            pairs[place] = pairs[place - 1];
+            place -= 1;
+        }
+        pairs[place] = pair;
+    }
+}
+
+/// The per-task sinks of a one-off search of `grid`.
+fn sinks<S: Default>(grid: &SortedGrid) -> Vec<S> {
+    (0..search_tasks(grid)).map(|_| S::default()).collect()
 }
 
 impl Backend for CpuBackend {
@@ -176,31 +219,36 @@ impl Backend for CpuBackend {
     }
 
     fn find_pairs(&mut self) -> Result<(Vec<Pair>, DetectStats)> {
+        self.built()?;
         let mut pairs = Vec::new();
-        let stats = sorted_pairs(self.built()?, &mut pairs)?;
+        let stats = sorted_pairs(&self.grid, &mut self.collects, &mut pairs)?;
         Ok((pairs, stats))
     }
 
     fn take_pairs(&mut self, take: &mut dyn FnMut(&[Pair])) -> Result<DetectStats> {
         self.built()?;
-        let stats = sorted_pairs(&self.grid, &mut self.pairs)?;
+        let stats = sorted_pairs(&self.grid, &mut self.collects, &mut self.pairs)?;
         take(&self.pairs);
         Ok(stats)
     }
 
     fn count_pairs(&mut self) -> Result<DetectStats> {
-        let chunks = search(self.built()?, || Count(0));
+        let grid = self.built()?;
+        let mut counts: Vec<Count> = sinks(grid);
+        let candidates = search(grid, &mut counts);
         Ok(DetectStats {
-            candidates: chunks.iter().map(|c| c.1).sum(),
-            pairs: chunks.iter().map(|c| c.0.0).sum(),
+            candidates,
+            pairs: counts.iter().map(|c| c.0).sum(),
         })
     }
 
     fn for_each_contact(&mut self, visit: &(dyn Fn(Pair) + Sync)) -> Result<DetectStats> {
-        let chunks = search(self.built()?, || Visit(visit, 0));
+        let grid = self.built()?;
+        let mut visits: Vec<Visit> = (0..search_tasks(grid)).map(|_| Visit(visit, 0)).collect();
+        let candidates = search(grid, &mut visits);
         Ok(DetectStats {
-            candidates: chunks.iter().map(|c| c.1).sum(),
-            pairs: chunks.iter().map(|c| c.0.1).sum(),
+            candidates,
+            pairs: visits.iter().map(|c| c.1).sum(),
         })
     }
 }

@@ -22,25 +22,64 @@ pub(crate) trait PairSink {
     fn pair(&mut self, a: u32, b: u32);
 }
 
-/// Runs the search in parallel chunks; returns each chunk's sink and candidate count, in order.
-pub(crate) fn search<S, F>(grid: &SortedGrid, new_sink: F) -> Vec<(S, u64)>
-where
-    S: PairSink + Send,
-    F: Fn() -> S + Sync,
-{
+/// The parallel tasks of a [`search`] of `grid`: it takes one sink for each.
+pub(crate) fn search_tasks(grid: &SortedGrid) -> usize {
+    grid.keys.len().div_ceil(CHUNK)
+}
+
+/// Runs the search in parallel chunks, chunk `c`'s pairs into `sinks[c]` in a fixed order
+/// (`sinks` has [`search_tasks`] entries); returns the candidates tested.
+pub(crate) fn search<S: PairSink + Send>(grid: &SortedGrid, sinks: &mut [S]) -> u64 {
     let n = grid.keys.len();
-    (0..n.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| {
-            let mut sink = new_sink();
+    assert_eq!(sinks.len(), search_tasks(grid), "one sink per task");
+    sinks
+        .par_iter_mut()
+        .enumerate()
+        .map(|(c, sink)| {
             let range = c * CHUNK..((c + 1) * CHUNK).min(n);
+            let mut hits = Hits::new(&grid.ids, sink);
             let candidates = match grid.starts.is_empty() {
-                true => search_chunk(grid, range, &mut sink),
-                false => search_chunk_dense(grid, range, &mut sink),
+                true => search_chunk(grid, range, &mut hits),
+                false => search_chunk_dense(grid, range, &mut hits),
             };
-            (sink, candidates)
+            hits.flush();
+            candidates
         })
-        .collect()
+        .sum()
+}
+
+/// Colliding pairs buffered by sorted position: every candidate is written and only a hit
+/// advances the buffer ([`test_runs`]), so a test does not branch on its outcome; handed to the
+/// sink by input index when the buffer is full and at the end of the chunk.
+struct Hits<'a, S> {
+    ids: &'a [u32],
+    sink: &'a mut S,
+    near: [u32; HITS],
+    far: [u32; HITS],
+    /// Buffered pairs; always below [`HITS`] between calls.
+    len: usize,
+}
+
+const HITS: usize = 64;
+
+impl<'a, S: PairSink> Hits<'a, S> {
+    fn new(ids: &'a [u32], sink: &'a mut S) -> Self {
+        Hits {
+            ids,
+            sink,
+            near: [0; HITS],
+            far: [0; HITS],
+            len: 0,
+        }
+    }
+
+    fn flush(&mut self) {
+        for k in 0..self.len {
+            let (p, q) = (self.near[k] as usize, self.far[k] as usize);
+            self.sink.pair(self.ids[p], self.ids[q]);
+        }
+        self.len = 0;
+    }
 }
 
 /// A run `[begin, end)` of the sorted array that moves forward as the key grows.
@@ -54,7 +93,7 @@ struct Run {
 fn search_chunk_dense<S: PairSink>(
     grid: &SortedGrid,
     range: std::ops::Range<usize>,
-    sink: &mut S,
+    hits: &mut Hits<S>,
 ) -> u64 {
     let keys = &grid.keys[..];
     let starts = &grid.starts[..];
@@ -69,7 +108,7 @@ fn search_chunk_dense<S: PairSink>(
                 end: starts[lo + 3] as usize,
             }
         });
-        candidates += test_runs(grid, p, starts[key + 2] as usize, &rows, sink);
+        candidates += test_runs(grid, p, starts[key + 2] as usize, &rows, hits);
     }
     candidates
 }
@@ -82,15 +121,23 @@ fn test_runs<S: PairSink>(
     p: usize,
     own_end: usize,
     rows: &[Run; 4],
-    sink: &mut S,
+    hits: &mut Hits<S>,
 ) -> u64 {
-    let (spheres, ids) = (&grid.spheres[..], &grid.ids[..]);
+    let spheres = &grid.spheres[..];
     let s = spheres[p];
-    let (c_i, r_i, i) = ([s[0], s[1], s[2]], s[3], ids[p]);
+    let (c_i, r_i) = ([s[0], s[1], s[2]], s[3]);
+    // The buffer's length in a local (a register) while the runs are tested.
+    let mut len = hits.len;
     let mut test = |q: usize| {
         let t = spheres[q];
-        if collides(c_i, r_i, [t[0], t[1], t[2]], t[3]) {
-            sink.pair(i, ids[q]);
+        let hit = collides(c_i, r_i, [t[0], t[1], t[2]], t[3]);
+        hits.near[len % HITS] = p as u32;
+        hits.far[len % HITS] = q as u32;
+        len += hit as usize;
+        if len == HITS {
+            hits.len = len;
+            hits.flush();
+            len = 0;
         }
     };
     (p + 1..own_end).for_each(&mut test);
@@ -99,13 +146,14 @@ fn test_runs<S: PairSink>(
         (run.begin..run.end).for_each(&mut test);
         candidates += (run.end - run.begin) as u64;
     }
+    hits.len = len;
     candidates
 }
 
 fn search_chunk<S: PairSink>(
     grid: &SortedGrid,
     range: std::ops::Range<usize>,
-    sink: &mut S,
+    hits: &mut Hits<S>,
 ) -> u64 {
     let keys = &grid.keys[..];
     let n = keys.len();
@@ -138,7 +186,7 @@ fn search_chunk<S: PairSink>(
                 }
             }
         }
-        candidates += test_runs(grid, p, own_end, &rows, sink);
+        candidates += test_runs(grid, p, own_end, &rows, hits);
     }
     candidates
 }
@@ -263,9 +311,9 @@ mod tests {
         grid.bin(&spheres, 2.0 * spheres.max_radius());
         assert!(!grid.starts.is_empty(), "a dense set keeps a table");
         let found = |grid: &SortedGrid| {
-            let chunks = search(grid, || Pairs(Vec::new()));
-            let candidates: u64 = chunks.iter().map(|c| c.1).sum();
-            let mut pairs: Vec<_> = chunks.into_iter().flat_map(|c| c.0.0).collect();
+            let mut sinks: Vec<_> = (0..search_tasks(grid)).map(|_| Pairs(Vec::new())).collect();
+            let candidates = search(grid, &mut sinks);
+            let mut pairs: Vec<_> = sinks.into_iter().flat_map(|c| c.0).collect();
             pairs.sort_unstable();
             (pairs, candidates)
         };
