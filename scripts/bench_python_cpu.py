@@ -6,10 +6,12 @@
 
 Each round runs, one after the other on the same spheres: the CLI's first build and detection
 (the time it reports) and its process wall clock; the CLI with --repeat 5 (its median, warm);
-mochi.detect (a new backend each call); a warm Detector's update and pairs; np.load and
-mochi.detect together (the Python twin of the CLI's wall clock); SciPy's
-cKDTree.query_pairs(2 r_max) with the exact filter. Prints the minimum and the median of each
-over the rounds: on a shared machine the minimum is the least disturbed run.
+mochi.detect (the backend it kept from its last call); a warm Detector's update and pairs;
+np.load and mochi.detect together (the Python twin of the CLI's wall clock); SciPy's
+cKDTree.query_pairs(2 r_max) with the exact filter. Each of these starts with caches the one
+before it filled. Then the Python calls and SciPy again, each called ROUNDS times in a row
+(`looped`: what a loop over one of them sees). Prints the minimum and the median of each over
+the rounds: on a shared machine the minimum is the least disturbed run.
 """
 
 import os
@@ -77,8 +79,15 @@ def main(rounds, paths):
             times["scipy"].append(t)
         assert np.array_equal(pairs, again) and len(reference) == len(pairs)
         print(f"{path}: {len(radii)} spheres, {len(pairs)} pairs; min / median [ms] of {rounds}")
+        looped = {
+            "detect": lambda: mochi.detect(centres, radii, backend="cpu"),
+            "warm": lambda: (detector.update(centres), detector.pairs()),
+            "scipy": lambda: scipy_pairs(centres, radii),
+        }
+        for name, call in looped.items():
+            times[f"{name} looped"] = [timed(call)[0] for _ in range(rounds)]
         for name, values in times.items():
-            print(f"  {name:12s} {min(values):8.2f} {np.median(values):8.2f}")
+            print(f"  {name:14s} {min(values):8.2f} {np.median(values):8.2f}")
 
 
 if __name__ == "__main__":
