@@ -27,8 +27,9 @@ def detect(
     ``centres`` is ``(N, 3)`` and ``radii`` ``(N,)``, float32 or float64, any memory order.
     Raises ``ValueError`` for bad input (naming the row and the reason) and ``MochiError``
     when the backend fails or cannot run here. The backend it opens (its device and buffers)
-    is kept for the next call with the same ``backend``, which opens nothing; a call with
-    another ``backend`` lets it go.
+    and the memory of its copies of the spheres (32 bytes a sphere on the host) are kept for
+    the next call with the same ``backend``, which opens and allocates nothing but the result;
+    a call with another ``backend`` lets them go.
     """
 
 def backends() -> list[BackendEntry]:

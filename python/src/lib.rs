@@ -304,8 +304,9 @@ impl Detector {
 }
 
 /// Every colliding pair `(i, j)`, `i < j`, of the spheres, as a sorted `(P, 2)` int64 array.
-/// The backend it opens (its device and buffers) is kept for the next call with the same
-/// `backend`, which opens nothing; a call with another `backend` lets it go.
+/// The backend it opens (its device and buffers) and the memory of the spheres' copies are
+/// kept for the next call with the same `backend`, which opens and allocates nothing; a call
+/// with another `backend` lets them go.
 #[pyfunction]
 #[pyo3(signature = (centres, radii, backend = "auto", mode = "mochi"))]
 fn detect<'py>(
