@@ -147,6 +147,12 @@ impl Survey {
     }
 }
 
+/// The bounds of `centers` (`None` for none), found on the rayon pool; the first centre that is
+/// not finite or beyond [`MAX_MAGNITUDE`] as an error.
+pub(crate) fn center_bounds(centers: &[[f32; 3]]) -> Result<Option<Bounds>> {
+    survey(centers, None).into_bounds(centers.len())
+}
+
 /// Surveys `centers` (and `radii`, where given) in one pass on the rayon pool; the bad sphere
 /// reported is the first in order, as a loop would find it.
 fn survey(centers: &[[f32; 3]], radii: Option<&[f32]>) -> Survey {

@@ -624,11 +624,12 @@ fn a_frictional_heap_keeps_its_slope_where_a_frictionless_one_spreads_flat_on(ki
         ..hertz(0.3, friction)
     };
     let r = 0.005f32;
-    // After 1 s both have settled (measured: the frictionless pyramid is one layer from 1 s
-    // on; the frictional one slumps from its 45° edges to a heap of 14 raised spheres, 4.5·r
-    // high, by 1 s and then stays).
+    // After 1 s the frictionless pyramid is one layer and stays so; by 1.25 s the frictional
+    // one has slumped from its 45° edges to a heap of 14 raised spheres, 4.5·r high, and then
+    // stays (measured on the cpu step: its top still sank 1.5e-3·r between 1 s and 1.25 s,
+    // then moved less than 2e-4·r up to 3 s).
     let [_, flat] = settle_pyramid(kind, &soft(0.0, 0.0), r, 1.0);
-    let [heap, later] = settle_pyramid(kind, &soft(0.5, 0.1), r, 1.0);
+    let [heap, later] = settle_pyramid(kind, &soft(0.5, 0.1), r, 1.25);
     assert_eq!(flat.1, 0, "frictionless: spheres off the floor at the end");
     assert!(flat.0 <= 2.0 * r * 1.01, "frictionless top at {} m", flat.0);
     assert!(

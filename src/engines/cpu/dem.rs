@@ -18,6 +18,7 @@ use crate::dem::walls::{WallLoad, WallSet};
 use crate::error::{Error, Result, try_vec};
 use crate::particles::{FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles};
 use crate::proxy::ProxyMode;
+use crate::spheres::center_bounds;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -45,7 +46,9 @@ pub struct CpuStepper {
     params: StepParams,
     masses: Vec<f32>,
     cell_size: f32,
-    /// Region the grid covers: the box and a margin of one cell.
+    /// The box and a margin of one cell: the region the grid covers in a step whose centres
+    /// are not all finite (which then ends in an error); else it covers the centres' bounds,
+    /// so that its cells follow the spheres, not the box.
     region: ([f32; 3], [f32; 3]),
     grid: SortedGrid,
     /// Contact sums of each sorted sphere.
@@ -400,8 +403,11 @@ impl Stepper for CpuStepper {
         let ms = |t: Instant| t.elapsed().as_secs_f64() * 1e3;
         for _ in 0..steps {
             let t = Instant::now();
-            let (lo, hi) = self.region;
             let parts = &self.particles;
+            let (lo, hi) = match center_bounds(&parts.positions) {
+                Ok(Some(bounds)) => bounds,
+                _ => self.region,
+            };
             self.grid
                 .bin_within(&parts.positions, &parts.radii, lo, hi, self.cell_size);
             times.build_ms += ms(t);

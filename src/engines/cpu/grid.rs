@@ -28,27 +28,33 @@ pub(crate) struct SortedGrid {
     pub ids: Vec<u32>,
     /// Cells along x and y, margin included.
     dims: [u64; 2],
-    /// (key, input index) scratch of the radix sort, kept to avoid reallocation.
+    /// (key, input index) entries of the radix sort, each range's sorted in its part; kept to
+    /// avoid reallocation.
     order: Vec<(u64, u32)>,
     /// The first sorted position of every cell key, one past the last cell included, where
     /// the layout has at most [`DENSE_CELLS_PER_SPHERE`] cells per sphere (the spheres then
     /// sorted by counting); else empty (sorted by radix, runs found by walking the keys).
     pub starts: Vec<u32>,
     /// Scratch of the counting sort, kept to avoid reallocation: for each piece of the input,
-    /// its (key, input index) entries by range of cells ([`SortedGrid::sort_by_counting`]).
+    /// its (key within the range, input index) entries by range of cells
+    /// ([`SortedGrid::sort_by_counting`]).
     ranges: Vec<Vec<Vec<[u32; 2]>>>,
+    /// The same for the radix sort: (key, input index) entries by range of keys.
+    wide: Vec<Vec<Vec<(u64, u32)>>>,
 }
 
 /// Cells per sphere up to which a grid keeps a table of cell starts ([`SortedGrid::starts`]).
 const DENSE_CELLS_PER_SPHERE: u64 = 8;
 
-/// Ranges of cells per thread that [`SortedGrid::sort_by_counting`] places in parallel: enough
-/// that the threads share the work evenly where the spheres crowd into few cells.
+/// Ranges of cells (or keys) per thread that the sorts place in parallel: enough that the
+/// threads share the work evenly where the spheres crowd into few cells.
 const RANGES_PER_THREAD: usize = 16;
 /// Pieces of the input per thread that list their entries by range, and the fewest spheres a
 /// piece has.
 const PIECES_PER_THREAD: usize = 4;
 const MIN_PIECE: usize = 4096;
+/// Keys sampled per range of [`SortedGrid::sort_by_radix`] to place its boundaries.
+const SAMPLES_PER_RANGE: usize = 32;
 
 impl SortedGrid {
     /// Bins `spheres` into cells of side at least `cell_size`.
@@ -84,37 +90,58 @@ impl SortedGrid {
     }
 
     /// Sorts the spheres by `key`, stably, into [`Self::keys`], [`Self::ids`] and
-    /// [`Self::spheres`], by radix: no table of cells ([`Self::starts`] left empty).
+    /// [`Self::spheres`], in parallel: no table of cells ([`Self::starts`] left empty). The
+    /// keys are split into ranges at quantiles of a sample of them; each piece of the input
+    /// lists its entries by range ([`Self::wide`]), then each range gathers its entries (the
+    /// pieces in input order) into its part of [`Self::order`], sorts them there by radix
+    /// (stably) and writes them out.
     fn sort_by_radix(
         &mut self,
         centers: &[[f32; 3]],
         radii: &[f32],
         key: impl Fn(&[f32; 3]) -> u64 + Sync,
     ) {
-        centers
-            .par_iter()
-            .enumerate()
-            .map(|(i, c)| (key(c), i as u32))
-            .collect_into_vec(&mut self.order);
+        let n = centers.len();
         self.starts.clear();
-        radsort::sort_by_key(&mut self.order, |e| e.0);
+        let wanted = RANGES_PER_THREAD * rayon::current_num_threads();
+        let stride = (n / (wanted * SAMPLES_PER_RANGE)).max(1);
+        let mut sample: Vec<u64> = centers.par_iter().step_by(stride).map(&key).collect();
+        sample.sort_unstable();
+        let mut splitters: Vec<u64> = (1..wanted)
+            .filter_map(|k| sample.get(k * sample.len() / wanted).copied())
+            .collect();
+        splitters.dedup();
+        let range_of = |key: u64| splitters.partition_point(|&s| s <= key);
+        let ranges = splitters.len() + 1;
+        list_by_range(&mut self.wide, centers, ranges, |i, c| {
+            let key = key(c);
+            (range_of(key), (key, i))
+        });
 
-        let order = &self.order;
-        order
-            .par_iter()
-            .map(|e| e.0)
-            .collect_into_vec(&mut self.keys);
-        order
-            .par_iter()
-            .map(|e| e.1)
-            .collect_into_vec(&mut self.ids);
-        order
-            .par_iter()
-            .map(|&(_, i)| {
-                let c = centers[i as usize];
-                [c[0], c[1], c[2], radii[i as usize]]
-            })
-            .collect_into_vec(&mut self.spheres);
+        let sizes = range_sizes(&self.wide, ranges);
+        self.order.resize(n, (0, 0));
+        self.keys.resize(n, 0);
+        self.ids.resize(n, 0);
+        self.spheres.resize(n, [0.0; 4]);
+        let wide = &self.wide;
+        split_by(&mut self.order, &sizes)
+            .into_par_iter()
+            .zip(split_by(&mut self.keys, &sizes))
+            .zip(split_by(&mut self.ids, &sizes))
+            .zip(split_by(&mut self.spheres, &sizes))
+            .enumerate()
+            .for_each(|(r, (((order, keys), ids), spheres))| {
+                for (to, from) in order.iter_mut().zip(wide.iter().flat_map(|l| &l[r])) {
+                    *to = *from;
+                }
+                radsort::sort_by_key(order, |e| e.0);
+                for (at, &(key, i)) in order.iter().enumerate() {
+                    let c = centers[i as usize];
+                    keys[at] = key;
+                    ids[at] = i;
+                    spheres[at] = [c[0], c[1], c[2], radii[i as usize]];
+                }
+            });
     }
 
     /// Sorts the spheres by `key` (below `cells`), stably, into [`Self::keys`], [`Self::ids`]
@@ -130,53 +157,41 @@ impl SortedGrid {
         key: impl Fn(&[f32; 3]) -> u64 + Sync,
     ) {
         let n = centers.len();
-        let threads = rayon::current_num_threads();
         let shift = cells
-            .div_ceil(RANGES_PER_THREAD * threads)
+            .div_ceil(RANGES_PER_THREAD * rayon::current_num_threads())
             .next_power_of_two()
             .trailing_zeros();
         let ranges = cells.div_ceil(1 << shift);
-        let piece = n.div_ceil(PIECES_PER_THREAD * threads).max(MIN_PIECE);
-        self.ranges.resize_with(n.div_ceil(piece), Vec::new);
-        self.ranges
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(k, listed)| {
-                listed.resize_with(ranges, Vec::new);
-                listed.iter_mut().for_each(Vec::clear);
-                let first = k * piece;
-                for (i, c) in centers[first..(first + piece).min(n)].iter().enumerate() {
-                    let key = key(c);
-                    let within = (key & ((1 << shift) - 1)) as u32;
-                    listed[(key >> shift) as usize].push([within, (first + i) as u32]);
-                }
-            });
+        list_by_range(&mut self.ranges, centers, ranges, |i, c| {
+            let key = key(c);
+            (
+                (key >> shift) as usize,
+                [(key & ((1 << shift) - 1)) as u32, i],
+            )
+        });
 
+        let sizes = range_sizes(&self.ranges, ranges);
         self.keys.resize(n, 0);
         self.ids.resize(n, 0);
         self.spheres.resize(n, [0.0; 4]);
         self.starts.resize(cells + 1, 0);
         self.starts[cells] = n as u32;
-        let mut parts = Vec::with_capacity(ranges);
-        let (mut keys, mut ids, mut spheres) =
-            (&mut self.keys[..], &mut self.ids[..], &mut self.spheres[..]);
-        let mut starts = &mut self.starts[..cells];
-        let mut placed = 0;
-        for r in 0..ranges {
-            let size: usize = self.ranges.iter().map(|listed| listed[r].len()).sum();
-            let span = (1usize << shift).min(starts.len());
-            let (k, rest_k) = std::mem::take(&mut keys).split_at_mut(size);
-            let (i, rest_i) = std::mem::take(&mut ids).split_at_mut(size);
-            let (s, rest_s) = std::mem::take(&mut spheres).split_at_mut(size);
-            let (t, rest_t) = std::mem::take(&mut starts).split_at_mut(span);
-            parts.push((r, placed, k, i, s, t));
-            (keys, ids, spheres, starts) = (rest_k, rest_i, rest_s, rest_t);
-            placed += size;
-        }
+        let spans: Vec<usize> = (0..ranges)
+            .map(|r| (cells - (r << shift)).min(1 << shift))
+            .collect();
+        let firsts = sizes.iter().scan(0, |placed, &size| {
+            *placed += size;
+            Some(*placed - size)
+        });
         let listed = &self.ranges;
-        parts
+        split_by(&mut self.keys, &sizes)
             .into_par_iter()
-            .for_each(|(r, placed, keys, ids, spheres, starts)| {
+            .zip(split_by(&mut self.ids, &sizes))
+            .zip(split_by(&mut self.spheres, &sizes))
+            .zip(split_by(&mut self.starts[..cells], &spans))
+            .zip(firsts.collect::<Vec<_>>())
+            .enumerate()
+            .for_each(|(r, ((((keys, ids), spheres), starts), placed))| {
                 let first_cell = (r << shift) as u64;
                 let entries = || listed.iter().flat_map(|l| &l[r]);
                 starts.fill(0);
@@ -226,6 +241,51 @@ impl SortedGrid {
     }
 }
 
+/// Lists the entries of `centers` by range, for a sort in parallel: `listed[k][r]` holds, in
+/// input order, the entries `entry(i, c)` files under range `r` of the spheres of piece `k` of
+/// the input (each piece on its own thread; the allocations of `listed` reused).
+fn list_by_range<E: Send>(
+    listed: &mut Vec<Vec<Vec<E>>>,
+    centers: &[[f32; 3]],
+    ranges: usize,
+    entry: impl Fn(u32, &[f32; 3]) -> (usize, E) + Sync,
+) {
+    let n = centers.len();
+    let piece = n
+        .div_ceil(PIECES_PER_THREAD * rayon::current_num_threads())
+        .max(MIN_PIECE);
+    listed.resize_with(n.div_ceil(piece), Vec::new);
+    listed.par_iter_mut().enumerate().for_each(|(k, mine)| {
+        mine.resize_with(ranges, Vec::new);
+        mine.iter_mut().for_each(Vec::clear);
+        let first = k * piece;
+        for (i, c) in centers[first..(first + piece).min(n)].iter().enumerate() {
+            let (range, e) = entry((first + i) as u32, c);
+            mine[range].push(e);
+        }
+    });
+}
+
+/// The entries of each of `ranges` ranges in `listed` (of [`list_by_range`]).
+fn range_sizes<E>(listed: &[Vec<Vec<E>>], ranges: usize) -> Vec<usize> {
+    (0..ranges)
+        .map(|r| listed.iter().map(|mine| mine[r].len()).sum())
+        .collect()
+}
+
+/// `all` cut into consecutive parts of `sizes` (which sum to at most its length).
+fn split_by<'a, T>(all: &'a mut [T], sizes: &[usize]) -> Vec<&'a mut [T]> {
+    let mut rest = all;
+    sizes
+        .iter()
+        .map(|&size| {
+            let (part, after) = std::mem::take(&mut rest).split_at_mut(size);
+            rest = after;
+            part
+        })
+        .collect()
+}
+
 /// Cell size and counts for centres within `lo..=hi`.
 struct CellLayout {
     inv_size: f64,
@@ -262,7 +322,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_counting_sort_in_pieces_and_ranges_is_the_stable_radix_sort() {
+    fn both_sorts_in_pieces_and_ranges_are_a_stable_sort_by_cell() {
         // Enough spheres for several pieces of the input and many ranges of cells, some cells
         // holding several spheres (whose input order a stable sort keeps).
         let n = 20_000;
@@ -286,21 +346,39 @@ mod tests {
         );
         assert!(n > 2 * MIN_PIECE, "several pieces");
 
+        // The reference: a stable comparison sort of (key, input index) by key.
         let cells = cell_layout(lo, hi, 1.0);
         let [nx, ny] = counted.dims;
+        let key = |c: &[f32; 3]| cells.key(c, lo, nx, ny);
+        let mut expected: Vec<(u64, u32)> = (0..n).map(|i| (key(&centers[i]), i as u32)).collect();
+        expected.sort_by_key(|e| e.0);
+        let keys: Vec<u64> = expected.iter().map(|e| e.0).collect();
+        let ids: Vec<u32> = expected.iter().map(|e| e.1).collect();
+        assert!(keys.windows(2).any(|k| k[0] == k[1]), "shared cells");
+
         let mut radix = SortedGrid::default();
-        radix.sort_by_radix(&centers, &radii, |c| cells.key(c, lo, nx, ny));
-        assert_eq!(counted.keys, radix.keys);
-        assert_eq!(counted.ids, radix.ids);
-        assert_eq!(counted.spheres, radix.spheres);
-        assert!(
-            counted.keys.windows(2).any(|k| k[0] == k[1]),
-            "shared cells"
-        );
+        radix.sort_by_radix(&centers, &radii, key);
+        for grid in [&counted, &radix] {
+            assert_eq!(grid.keys, keys);
+            assert_eq!(grid.ids, ids);
+            let spheres = ids.iter().map(|&i| {
+                let c = centers[i as usize];
+                [c[0], c[1], c[2], radii[i as usize]]
+            });
+            assert!(grid.spheres.iter().copied().eq(spheres));
+        }
         for (cell, run) in counted.starts.windows(2).enumerate() {
-            let first = counted.keys.partition_point(|&k| k < cell as u64);
-            let end = counted.keys.partition_point(|&k| k <= cell as u64);
+            let first = keys.partition_point(|&k| k < cell as u64);
+            let end = keys.partition_point(|&k| k <= cell as u64);
             assert_eq!(run, [first as u32, end as u32], "cell {cell}");
         }
+        // Binned again, fewer and then no spheres: the kept scratch does not leak into them.
+        radix.sort_by_radix(&centers[..10], &radii[..10], key);
+        let mut few = expected[..0].to_vec();
+        few.extend((0..10).map(|i| (key(&centers[i]), i as u32)));
+        few.sort_by_key(|e| e.0);
+        assert_eq!(radix.ids, few.iter().map(|e| e.1).collect::<Vec<_>>());
+        radix.sort_by_radix(&[], &[], key);
+        assert!(radix.keys.is_empty() && radix.ids.is_empty() && radix.spheres.is_empty());
     }
 }
