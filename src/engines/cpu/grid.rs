@@ -318,25 +318,39 @@ fn cell_layout(lo: [f32; 3], hi: [f32; 3], cell_size: f32) -> CellLayout {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    #[test]
-    fn both_sorts_in_pieces_and_ranges_are_a_stable_sort_by_cell() {
-        // Enough spheres for several pieces of the input and many ranges of cells, some cells
-        // holding several spheres (whose input order a stable sort keeps).
-        let n = 20_000;
-        let mut state = 99u64;
+    /// `n` spheres with centres uniform in the cube `[0, side]³` and radii uniform in
+    /// `radii`, from a fixed `seed`.
+    pub(crate) fn random_set(
+        n: usize,
+        seed: u64,
+        side: f32,
+        radii: std::ops::Range<f32>,
+    ) -> (Vec<[f32; 3]>, Vec<f32>) {
+        let mut state = seed;
         let mut next = move || {
             state = state
                 .wrapping_mul(6364136223846793005)
                 .wrapping_add(1442695040888963407);
             (state >> 40) as f32 / (1u64 << 24) as f32
         };
-        let centers: Vec<[f32; 3]> = (0..n)
-            .map(|_| [next() * 20.0, next() * 20.0, next() * 20.0])
+        let centers = (0..n)
+            .map(|_| [next() * side, next() * side, next() * side])
             .collect();
-        let radii: Vec<f32> = (0..n).map(|_| 0.2 + 0.3 * next()).collect();
+        let r = (0..n)
+            .map(|_| radii.start + (radii.end - radii.start) * next())
+            .collect();
+        (centers, r)
+    }
+
+    #[test]
+    fn both_sorts_in_pieces_and_ranges_are_a_stable_sort_by_cell() {
+        // Enough spheres for several pieces of the input and many ranges of cells, some cells
+        // holding several spheres (whose input order a stable sort keeps).
+        let n = 20_000;
+        let (centers, radii) = random_set(n, 99, 20.0, 0.2..0.5);
         let (lo, hi) = ([0.0; 3], [20.0; 3]);
         let mut counted = SortedGrid::default();
         counted.bin_within(&centers, &radii, lo, hi, 1.0);

@@ -282,6 +282,7 @@ fn walk_chunk(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::engines::cpu::grid::tests::random_set;
     use crate::spheres::SphereSet;
 
     struct Pairs(Vec<(u32, u32)>);
@@ -295,17 +296,7 @@ mod tests {
     fn the_table_of_cell_starts_finds_what_the_walk_over_the_keys_finds() {
         // A dense random set (a table is kept), searched with the table and without.
         let n = 6000;
-        let mut state = 12345u64;
-        let mut next = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
-        let centers: Vec<[f32; 3]> = (0..n)
-            .map(|_| [next() * 9.0, next() * 9.0, next() * 9.0])
-            .collect();
-        let radii: Vec<f32> = (0..n).map(|_| 0.1 + 0.3 * next()).collect();
+        let (centers, radii) = random_set(n, 12345, 9.0, 0.1..0.4);
         let spheres = SphereSet::new(centers, radii).unwrap();
         let mut grid = SortedGrid::default();
         grid.bin(&spheres, 2.0 * spheres.max_radius());
