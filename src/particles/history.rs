@@ -10,6 +10,7 @@
 //! ever dropped.
 
 use crate::error::{Error, Result, try_vec};
+use rayon::prelude::*;
 
 /// Partner ids from here on name the six walls of the box: `FIRST_WALL + 2·axis + side`
 /// (side 0 the low wall). Sphere ids stay below it.
@@ -119,25 +120,35 @@ impl ContactHistory {
         self.counts.iter().copied().max().unwrap_or(0) as usize
     }
 
-    /// Replaces the history with one written in another order: sphere `ids[p]` holds
-    /// `entries[p·slots .. p·slots + counts[p]]`.
-    pub fn scatter_from(
+    /// Replaces the history of `counts.len()` spheres with one written in another order:
+    /// sphere i holds `entries[p·slots .. p·slots + counts[p]]` for p = `sorted_at(i)` (a
+    /// gather on the rayon pool).
+    pub fn gather_from(
         &mut self,
-        ids: &[u32],
+        sorted_at: impl Fn(usize) -> usize + Sync,
         slots: usize,
         counts: &[u32],
         entries: &[HistoryEntry],
     ) -> Result<()> {
-        let n = ids.len();
+        let n = counts.len();
         if self.counts.len() != n || self.slots != slots {
             *self = Self::with_slots(n, slots)?;
         }
-        for (p, &id) in ids.iter().enumerate() {
-            let (i, c) = (id as usize, counts[p] as usize);
-            self.entries[i * slots..i * slots + c]
-                .copy_from_slice(&entries[p * slots..p * slots + c]);
-            self.counts[i] = counts[p];
+        if slots == 0 {
+            self.counts.fill(0);
+            return Ok(());
         }
+        let rows = self.entries.par_chunks_mut(slots);
+        self.counts
+            .par_iter_mut()
+            .zip(rows)
+            .enumerate()
+            .for_each(|(i, (count, row))| {
+                let p = sorted_at(i);
+                let c = counts[p] as usize;
+                row[..c].copy_from_slice(&entries[p * slots..p * slots + c]);
+                *count = c as u32;
+            });
         Ok(())
     }
 
@@ -290,7 +301,8 @@ mod tests {
         sorted[1] = entry(FIRST_WALL, 3.0);
         sorted[4] = entry(2, -1.0);
         let mut g = ContactHistory::default();
-        g.scatter_from(&[2, 0, 1], 4, &[2, 1, 0], &sorted).unwrap();
+        g.gather_from(|i| [1, 2, 0][i], 4, &[2, 1, 0], &sorted)
+            .unwrap();
         assert_eq!(g.slots(), 4);
         assert_eq!(g, h);
         assert_ne!(g, ContactHistory::default());

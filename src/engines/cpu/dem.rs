@@ -21,6 +21,7 @@ use crate::proxy::ProxyMode;
 use crate::spheres::center_bounds;
 use glam::Vec3;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Instant;
 
 /// History slots per sphere a frictional run starts with (a dense monodisperse packing has
@@ -57,6 +58,8 @@ pub struct CpuStepper {
     slots: usize,
     /// The new contact history of each sorted sphere, `slots` entries each.
     sorted_history: Vec<HistoryEntry>,
+    /// The sorted position of each sphere (input order), for the gathers back into it.
+    sorted_at: Vec<AtomicU32>,
     /// Force of each sphere, in input order.
     forces: Vec<[f32; 3]>,
     /// Torque of each sphere, in input order (empty when nothing turns).
@@ -102,6 +105,7 @@ impl CpuStepper {
             sums: Vec::new(),
             slots,
             sorted_history: Vec::new(),
+            sorted_at: Vec::new(),
             forces: Vec::new(),
             torques: Vec::new(),
             box_walls: true,
@@ -220,25 +224,35 @@ impl CpuStepper {
                 // Room for this sphere and some more, rather than a redo per extra contact.
                 self.slots = most + most / 4;
             }
-            let counts: Vec<u32> = self.sums.iter().map(|s| s.held).collect();
-            self.particles.history.scatter_from(
-                &self.grid.ids,
-                self.slots,
-                &counts,
-                &self.sorted_history,
-            )?;
         }
-        let mut pairs_twice = 0u64;
+        // Each sphere's sorted position, so that what the pass found is gathered back into
+        // input order in parallel.
+        self.sorted_at.resize_with(n, || AtomicU32::new(0));
+        let sorted_at = &self.sorted_at;
+        self.grid
+            .ids
+            .par_iter()
+            .enumerate()
+            .for_each(|(p, &id)| sorted_at[id as usize].store(p as u32, Ordering::Relaxed));
+        let at = |i: usize| sorted_at[i].load(Ordering::Relaxed) as usize;
+        let sums = &self.sums;
+        if self.params.friction.has_history() {
+            let counts: Vec<u32> = sums.par_iter().map(|s| s.held).collect();
+            let history = &self.sorted_history;
+            (self.particles.history).gather_from(at, self.slots, &counts, history)?;
+        }
         self.forces.resize(n, [0.0; 3]);
+        self.forces
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, f)| *f = sums[at(i)].force.to_array());
         let turns = self.params.friction.turns();
         self.torques.resize(if turns { n } else { 0 }, [0.0; 3]);
-        for (s, &id) in self.sums.iter().zip(&self.grid.ids) {
-            self.forces[id as usize] = s.force.to_array();
-            if turns {
-                self.torques[id as usize] = s.torque.to_array();
-            }
-            pairs_twice += s.touching as u64;
-        }
+        self.torques
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, t)| *t = sums[at(i)].torque.to_array());
+        let pairs_twice: u64 = sums.par_iter().map(|s| s.touching as u64).sum();
         Ok(pairs_twice / 2)
     }
 
