@@ -47,9 +47,10 @@ pub struct CpuStepper {
     params: StepParams,
     masses: Vec<f32>,
     cell_size: f32,
-    /// The box and a margin of one cell: the region the grid covers in a step whose centres
-    /// are not all finite (which then ends in an error); else it covers the centres' bounds,
-    /// so that its cells follow the spheres, not the box.
+    /// The box and a margin of one cell: the region the grid covers in a step where some
+    /// centre is not finite or beyond the coordinate limit (centres outside it clamped into
+    /// its border cells); else it covers the centres' bounds, so that its cells follow the
+    /// spheres, not the box.
     region: ([f32; 3], [f32; 3]),
     grid: SortedGrid,
     /// Contact sums of each sorted sphere.
