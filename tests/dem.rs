@@ -376,6 +376,26 @@ fn gpu_steps_follow_the_cpu_step_with_two_sizes_of_spheres() {
     assert_gpu_steps_follow_the_cpu_step(checkerboard(9));
 }
 
+#[test]
+fn gpu_steps_follow_the_cpu_step_with_unequal_spheres_touching_on_one_level() {
+    // The compressed lattice of spheres of 8–10 mm with every seventh shrunk to 2 mm (touching
+    // nothing): the large ones share the top level of a multi-level grid, each touching pair of
+    // unequal spheres, with friction and rolling resistance (the granular step: each pair's
+    // history kept by the sphere that finds it, in a walk of several levels).
+    let mut start = pile(9, 0.0162, 0.0);
+    for r in start.radii.iter_mut().step_by(7) {
+        *r = 0.002;
+    }
+    let material = Material {
+        friction: 0.5,
+        rolling_friction: 0.1,
+        ..Material::default()
+    };
+    let r_min = start.radius_range().0;
+    let p = params(material, 1e-4, 0.3, [0.0, 0.0, -9.81], r_min);
+    assert_gpu_steps_follow_the_cpu_step_with(start, p);
+}
+
 /// A 3-D checkerboard of spheres of radius 0.01 and 0.005 at spacing 0.0145: every sphere
 /// touches its axis neighbours, no two big ones touch, and every distance is at least 0.0005
 /// from its contact threshold.

@@ -364,7 +364,7 @@ impl Granular {
             NormalLaw::Hertz { pair, wall } => (2, 0.0, pair, wall),
         };
         let slots = match keeps {
-            true => FIRST_SLOTS.max(particles.history.most() as u32),
+            true => FIRST_SLOTS.max(most_owned(&particles.history, &particles.radii) as u32),
             false => 0,
         };
         let n = n64 as u32;
@@ -426,7 +426,7 @@ impl Granular {
             .write_buffer(&granular.omega[0], 0, bytemuck::cast_slice(&omega));
         // New buffers are zeroed: an empty history needs no upload.
         if keeps && !particles.history.is_empty() {
-            let (slots, held) = lay_out(&particles.history, n as usize, slots as usize)?;
+            let (slots, held) = lay_out(&particles.history, &particles.radii, slots as usize)?;
             granular.history[0].write(gpu, &split, &slots);
             gpu.queue
                 .write_buffer(&granular.held[0], 0, bytemuck::cast_slice(&held));
@@ -519,6 +519,16 @@ impl Granular {
     /// Whether contacts keep springs (then batches are saved and may be redone).
     pub fn keeps_history(&self) -> bool {
         self.params.slots > 0
+    }
+
+    /// The history's size in words, for an engine's description: slots a sphere, and the bytes
+    /// a sphere of both histories and their counts (`None` without history).
+    pub fn describe_history(&self) -> Option<String> {
+        let slots = self.params.slots as u64;
+        self.keeps_history().then(|| {
+            let bytes = 2 * (slots * ENTRY_BYTES + size_of::<u32>() as u64);
+            format!("history {slots} slots a sphere, {bytes} B a sphere")
+        })
     }
 
     /// Records, ahead of a batch whose first step has parity `parity`, the clearing of the
@@ -714,16 +724,45 @@ fn split_or_refuse(max: u64, n: u32, slots: u32, place: &str) -> Result<EntrySpl
     })
 }
 
-/// `history` laid out in `slots` slots per sphere, and the count of each.
-fn lay_out(history: &ContactHistory, n: usize, slots: usize) -> Result<(Slots, Vec<u32>)> {
+/// The contacts of `history` that sphere `i` (of spheres of `radii`) keeps on the GPU: its walls,
+/// the pairs it alone holds, and of each pair both hold (the cpu's layout) the one of its smaller
+/// sphere (of two as large, the lower index). Either sphere's row will do, whichever finds the
+/// pair: a step looks it up in its partner's old row too (`wgsl/dem_granular.wgsl`). A sphere
+/// then keeps about what it owns on the GPU, not all it touches, which sets the rows' length.
+fn owned<'a>(
+    history: &'a ContactHistory,
+    radii: &'a [f32],
+    i: usize,
+) -> impl Iterator<Item = &'a HistoryEntry> + 'a {
+    history.of(i).iter().filter(move |e| {
+        let j = e.partner as usize;
+        j >= radii.len()
+            || (radii[i], i) < (radii[j], j)
+            || !history.of(j).iter().any(|back| back.partner == i as u32)
+    })
+}
+
+/// The most contacts a sphere keeps of `history` ([`owned`]).
+fn most_owned(history: &ContactHistory, radii: &[f32]) -> usize {
+    (0..radii.len())
+        .map(|i| owned(history, radii, i).count())
+        .max()
+        .unwrap_or(0)
+}
+
+/// The contacts of `history` the spheres of `radii` keep ([`owned`]) laid out in `slots` slots
+/// per sphere, and the count of each.
+fn lay_out(history: &ContactHistory, radii: &[f32], slots: usize) -> Result<(Slots, Vec<u32>)> {
+    let n = radii.len();
     let mut laid_out = Slots::empty(n * slots, n)?;
     let mut held = try_vec(n, || format!("the contact history of {n} spheres"))?;
     for i in 0..n {
-        let own = history.of(i);
-        for (s, e) in own.iter().enumerate() {
+        let mut count = 0;
+        for (s, e) in owned(history, radii, i).enumerate() {
             laid_out.set(i * slots + s, e);
+            count += 1;
         }
-        held.push(own.len() as u32);
+        held.push(count);
     }
     Ok((laid_out, held))
 }
@@ -847,7 +886,7 @@ mod tests {
         let h =
             ContactHistory::from_contacts(2, &[(1, entry(0, 1.0)), (1, entry(FIRST_WALL, 2.0))])
                 .unwrap();
-        let (laid_out, held) = lay_out(&h, 2, 4).unwrap();
+        let (laid_out, held) = lay_out(&h, &[1.0; 2], 4).unwrap();
         assert_eq!(held, [0, 2]);
         assert_eq!(
             [laid_out.get(4), laid_out.get(5)],
@@ -858,5 +897,42 @@ mod tests {
             both_sides(2, 4, &held, &laid_out).unwrap().of(0),
             &[entry(1, -1.0)]
         );
+    }
+
+    #[test]
+    fn a_pair_both_spheres_hold_lays_out_once_by_its_smaller_sphere() {
+        // Spheres 0 and 2 large, 1 small: 1 touches both and a wall, 0 and 2 (as large) touch.
+        let h = ContactHistory::from_contacts(
+            3,
+            &[
+                (0, entry(1, 1.0)),
+                (0, entry(2, 4.0)),
+                (1, entry(0, -1.0)),
+                (1, entry(2, -2.0)),
+                (1, entry(FIRST_WALL, 3.0)),
+                (2, entry(1, 2.0)),
+                (2, entry(0, -4.0)),
+            ],
+        )
+        .unwrap();
+        let radii = [2.0, 1.0, 2.0];
+        assert_eq!(most_owned(&h, &radii), 3);
+        let (laid_out, held) = lay_out(&h, &radii, 3).unwrap();
+        assert_eq!(held, [1, 3, 0]);
+        assert_eq!(laid_out.get(0), entry(2, 4.0));
+        assert_eq!(
+            [laid_out.get(3), laid_out.get(4), laid_out.get(5)],
+            [entry(0, -1.0), entry(2, -2.0), entry(FIRST_WALL, 3.0)]
+        );
+        // Read back, each sphere holds what it was given (in another order).
+        let back = both_sides(3, 3, &held, &laid_out).unwrap();
+        for i in 0..3 {
+            let by_partner = |h: &ContactHistory| {
+                let mut held = h.of(i).to_vec();
+                held.sort_by_key(|e| e.partner);
+                held
+            };
+            assert_eq!(by_partner(&back), by_partner(&h), "sphere {i}");
+        }
     }
 }

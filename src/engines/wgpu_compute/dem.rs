@@ -1053,11 +1053,13 @@ impl GridStepper {
 
 impl Stepper for GridStepper {
     fn describe(&self) -> String {
+        let history = self.granular.as_ref().and_then(Granular::describe_history);
         format!(
-            "wgpu-compute ({}; {}; {} build)",
+            "wgpu-compute ({}; {}; {} build{})",
             gpu::describe(&self.gpu.info),
             self.atomics,
-            self.build().name()
+            self.build().name(),
+            history.map(|h| format!("; {h}")).unwrap_or_default()
         )
     }
 

@@ -334,10 +334,12 @@ impl crate::engines::flow_step::DeviceFlow for RqStepper {}
 
 impl Stepper for RqStepper {
     fn describe(&self) -> String {
+        let history = self.granular.as_ref().and_then(Granular::describe_history);
         format!(
-            "wgpu-rq ({}; {})",
+            "wgpu-rq ({}; {}{})",
             gpu::describe(&self.gpu.info),
-            self.atomics
+            self.atomics,
+            history.map(|h| format!("; {h}")).unwrap_or_default()
         )
     }
 
