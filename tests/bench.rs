@@ -345,7 +345,10 @@ fn bench_friction_reports_the_frictional_step_with_its_history() {
     assert_eq!(code, Some(0), "{stdout}\n{stderr}");
     let heading = format!("## 7. {}", Experiment::Friction.title());
     assert!(stdout.contains(&heading), "{stdout}");
-    assert!(stdout.contains("history [bytes/sphere]"), "{stdout}");
+    assert!(
+        stdout.contains("history read back [bytes/sphere]"),
+        "{stdout}"
+    );
 
     let json = std::fs::read_to_string(out.join("bench.json")).unwrap();
     let report: Report = serde_json::from_str(&json).unwrap();

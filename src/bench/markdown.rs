@@ -167,7 +167,8 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
     }
 }
 
-/// The contact history of the rows that keep one (experiment 7).
+/// The contact history of the rows that keep one (experiment 7), as read back: the cpu's layout,
+/// each pair on both sides (a GPU keeps each pair once; its own size is in its description).
 fn history_table(out: &mut String, rows: &[&DemRow]) {
     let kept: Vec<_> = rows
         .iter()
@@ -177,8 +178,8 @@ fn history_table(out: &mut String, rows: &[&DemRow]) {
         return;
     }
     out.push_str(
-        "\n| backend | n | contacts (pairs) | held in history | slots per sphere | history \
-         [bytes/sphere] |\n| --- | --- | --- | --- | --- | --- |\n",
+        "\n| backend | n | contacts (pairs) | held in history (both sides) | slots per sphere \
+         (read back) | history read back [bytes/sphere] |\n| --- | --- | --- | --- | --- | --- |\n",
     );
     for (r, h) in kept {
         let _ = writeln!(
