@@ -102,6 +102,9 @@ fn multi_level_grid_tests_fewer_candidates_on_mixed_radii() {
     )
     .unwrap();
     let ml_candidates = assert_exact(&mut ml, &spheres, "mlgrid");
+    // Its coarser levels are searched in cells finer than their class (the budget leaves room).
+    let described = ml.structure().expect("built");
+    assert!(described.contains("cells 1/"), "{described}");
     let single_candidates = assert_exact(&mut single, &spheres, "grid");
     assert!(
         ml_candidates * 2 < single_candidates,

@@ -4,10 +4,12 @@
 // the layouts).
 //
 // A grid has one level (cells of the largest proxy; its table dense or hashed) or several dense
-// levels (the multi-level proxy grid of docs/method.md): level `levels - 1` is the top, with cells of
-// `top_cell`, and every level below halves them. A sphere lives at the finest level whose cells
-// hold its proxy (or the finest level there is) and meets its partners there (half stencil) and
-// at every coarser level (27 cells), where only it, the smaller sphere, looks for the pair.
+// levels (the multi-level proxy grid of docs/method.md): level `levels - 1` is the top, whose
+// class of radii is sized by `top_cell`, and every level below halves the class's size. A sphere
+// lives at the finest level whose class size holds its proxy (or the finest level there is) and
+// meets its partners there (half stencil) and at every coarser level (the cells within its reach),
+// where only it, the smaller sphere, looks for the pair. A level's table may have cells finer than
+// its class (`refine`): its search windows then span more, smaller cells.
 struct GridParams {
     lo: vec3<f32>,      // lower corner of the centres' bounding box
     n: u32,             // number of spheres
@@ -21,14 +23,15 @@ struct GridParams {
     hashed: u32,        // 0: dense tables; 1: one level, cells hashed into `cells` buckets
     levels: u32,        // 1: single grid; more: multi-level grid (dense), cells halving downwards
     top_cell: f32,      // cell side of the top level
-    level_pad: f32,     // 1 + relative padding: sphere i lives where cell ≥ 2·r_i·level_pad
+    level_pad: f32,     // 1 + relative padding: sphere i lives where class size ≥ 2·r_i·level_pad
     block_shift: u32,   // the table's blocks for the scan (cell_scan.wgsl): 1 << block_shift entries
     max_radius: f32,    // largest radius, padded (grid_stencil.wgsl's windows)
+    refine: u32,        // 4 bits a level (level k at bits 4k..4k+3): halvings of its cells below its class size
     level_first: array<vec4<u32>, 2>, // dense: table index of each level's first cell
 }
 
-// Level of a sphere of radius r: the finest level whose cells are at least 2·r·level_pad (so a
-// partner of a sphere at or below that level lies in the 27 cells around it). Monotone in r.
+// Level of a sphere of radius r: the finest level whose class size is at least 2·r·level_pad (so
+// a partner's reach at that level is at most half the class size). Monotone in r.
 fn level_of(r: f32) -> u32 {
     let top = i32(params.levels) - 1;
     if top == 0 {
@@ -45,15 +48,25 @@ fn level_of(r: f32) -> u32 {
     return u32(top - shift);
 }
 
+// Halvings of `level`'s class size below the top's (`top_cell`).
+fn class_shift(level: u32) -> u32 {
+    return params.levels - 1u - level;
+}
+
+// Halvings of `level`'s cells below `top_cell`: its class's, refined.
+fn cell_shift(level: u32) -> u32 {
+    return class_shift(level) + ((params.refine >> (4u * level)) & 15u);
+}
+
 // Cells of `level` along each axis, margin included.
 fn level_dims(level: u32) -> vec3<u32> {
-    let shift = params.levels - 1u - level;
+    let shift = cell_shift(level);
     return ((vec3(params.nx, params.ny, params.nz) - vec3(2u)) << vec3(shift)) + vec3(2u);
 }
 
 // Cell of a centre at `level`, margin included (1 ..= n - 2 on each axis of that level).
 fn cell_coords(c: vec3<f32>, level: u32) -> vec3<u32> {
-    let shift = params.levels - 1u - level;
+    let shift = cell_shift(level);
     let u = max((c - params.lo) * ldexp(params.inv_cell, i32(shift)), vec3(0.0));
     return min(vec3<u32>(u), level_dims(level) - vec3(3u)) + vec3(1u);
 }

@@ -12,8 +12,9 @@ const FORWARD = array<vec3<i32>, 13>(
 );
 
 // Dense tables: the partners of sphere s at `level` lie in its window there: the cells within
-// r_i plus the level's largest partner radius of c_i along each axis (2 or 3 cells per axis, fewer
-// than the 27 cells around its own when cells were grown), as rows of cells along x, each a run
+// r_i plus the level's largest partner radius of c_i along each axis (2 or 3 cells per axis where
+// the cells are the class's size, fewer than the 27 cells around its own when cells were grown,
+// more where the level is refined), as rows of cells along x, each a run
 // of sorted positions. At coarser levels s tests every sphere of its window (only the smaller
 // sphere looks for a pair); at its own level only those after it in sorted order: rows before its
 // own row are skipped and the rest start after p, so each pair is visited once.
@@ -23,7 +24,8 @@ struct Window {
     ny: u32,      // rows along y
     count: u32,   // rows in all
     dims: vec3<u32>,
-    own_row: u32, // index of the row through s's own cell
+    own_y: u32,   // the row through s's own cell: its y and z within the window
+    own_z: u32,
 }
 
 // Cell coordinates (margin included) of the cells within `reach` cells of u, per axis.
@@ -35,26 +37,18 @@ fn reach_cells(u: vec3<f32>, reach: f32, dims: vec3<u32>) -> array<vec3<u32>, 2>
 }
 
 fn window(s: vec4<f32>, level: u32) -> Window {
-    let shift = params.levels - 1u - level;
-    let inv = ldexp(params.inv_cell, i32(shift));
-    let cell = ldexp(params.top_cell, -i32(shift));
-    // A partner at `level` has r_j ≤ max_radius (padded on the host) and r_j·level_pad ≤ cell / 2.
+    let inv = ldexp(params.inv_cell, i32(cell_shift(level)));
+    let class_size = ldexp(params.top_cell, -i32(class_shift(level)));
+    // A partner at `level` has r_j ≤ max_radius (padded on the host) and r_j·level_pad ≤ class_size / 2.
     // Coordinates in cells are within ~2^-11 cells of exact for up to 4096 cells per axis; the
     // window is widened by 1/256 cell, and clamping to the border cells keeps it monotone (the
     // clamped outliers stay in it), as cell_coords is.
-    let reach = (s.w + min(params.max_radius, 0.5 * cell)) * inv + 1.0 / 256.0;
+    let reach = (s.w + min(params.max_radius, 0.5 * class_size)) * inv + 1.0 / 256.0;
     let dims = level_dims(level);
     let u = (s.xyz - params.lo) * inv;
     let cells = reach_cells(u, reach, dims);
     let lo = cells[0];
     let span = cells[1] - lo + vec3(1u);
     let own = cell_coords(s.xyz, level);
-    let own_row = (own.y - lo.y) + span.y * (own.z - lo.z);
-    return Window(dense_key(lo, level), span.x, span.y, span.y * span.z, dims, own_row);
-}
-
-// Sorted positions of row k of the window.
-fn window_row(w: Window, k: u32) -> vec2<u32> {
-    let first = w.first + w.dims.x * (k % w.ny + w.dims.y * (k / w.ny));
-    return cell_run(first, first + w.width);
+    return Window(dense_key(lo, level), span.x, span.y, span.y * span.z, dims, own.y - lo.y, own.z - lo.z);
 }

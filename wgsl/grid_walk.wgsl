@@ -36,6 +36,36 @@ fn walk_bucket(w: ptr<function, Walker>, cell: vec3<u32>, own: bool) {
     walked(w, n);
 }
 
+// Dense tables: visits the rows of `win` (at the walker's own level, `own`, those from its own
+// row on and, in each, the spheres after it). Rows go along y, then z; each row's first table
+// index follows from the last one's (no division per row).
+fn walk_window(w: ptr<function, Walker>, win: Window, own: bool) {
+    var y = 0u;
+    var z = 0u;
+    var after = 0u;
+    if own {
+        y = win.own_y;
+        z = win.own_z;
+        after = (*w).p + 1u;
+    }
+    var k = y + win.ny * z;
+    var row = win.first + win.dims.x * (y + win.dims.y * z);
+    // From the last row of one z-plane of the window to the first row of the next.
+    let next_plane = win.dims.x * (win.dims.y - win.ny + 1u);
+    while k < win.count {
+        let run = cell_run(row, row + win.width);
+        walk_run(w, max(run.x, after), run.y);
+        k += 1u;
+        y += 1u;
+        if y == win.ny {
+            y = 0u;
+            row += next_plane;
+        } else {
+            row += win.dims.x;
+        }
+    }
+}
+
 fn stencil_walk(w: ptr<function, Walker>) {
     let p = (*w).p;
     let s = (*w).s;
@@ -47,17 +77,9 @@ fn stencil_walk(w: ptr<function, Walker>) {
         }
     } else {
         let own = level_of(s.w);
-        let win = window(s, own);
-        for (var k = win.own_row; k < win.count; k += 1u) {
-            let run = window_row(win, k);
-            walk_run(w, max(run.x, p + 1u), run.y);
-        }
+        walk_window(w, window(s, own), true);
         for (var level = own + 1u; level < params.levels; level += 1u) {
-            let win = window(s, level);
-            for (var k = 0u; k < win.count; k += 1u) {
-                let run = window_row(win, k);
-                walk_run(w, run.x, run.y);
-            }
+            walk_window(w, window(s, level), false);
         }
     }
 }

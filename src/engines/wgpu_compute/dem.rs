@@ -27,7 +27,7 @@
 use super::cell_table::{CellScan, CellScanBinds, CellTable};
 use super::layout::{
     Budget, BuildKind, DEM_CELLS_PER_SPHERE, GridBuild, GridParams, LayoutRequest, Levels,
-    Structure, choose_layout, key_bits,
+    Structure, choose_layout, describe_layout, key_bits,
 };
 use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
@@ -1054,11 +1054,15 @@ impl GridStepper {
 impl Stepper for GridStepper {
     fn describe(&self) -> String {
         let history = self.granular.as_ref().and_then(Granular::describe_history);
+        // The grid as last laid out (it follows the spheres' bounds through the run).
+        let grid = match self.laid_out_at {
+            Some(_) => describe_layout(&self.layout, self.build()),
+            None => format!("{} build", self.build().name()),
+        };
         format!(
-            "wgpu-compute ({}; {}; {} build{})",
+            "wgpu-compute ({}; {}; {grid}{})",
             gpu::describe(&self.gpu.info),
             self.atomics,
-            self.build().name(),
             history.map(|h| format!("; {h}")).unwrap_or_default()
         )
     }

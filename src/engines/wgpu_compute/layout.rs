@@ -66,6 +66,9 @@ pub(crate) struct GridParams {
     pub block_shift: u32,
     /// Largest radius, padded by [`CELL_PADDING`] (the search windows' reach).
     pub max_radius: f32,
+    /// Multi-level grids: 4 bits a level (level `k` at bits `4k..4k + 4`), how many times its
+    /// cells are halved below its class's size ([`refine_levels`]).
+    pub refine: u32,
     /// Dense tables: index of each level's first cell (level `k` at `[k / 4].0[k % 4]`).
     pub level_first: [Vec4u; 2],
 }
@@ -341,7 +344,8 @@ fn multi_level_layout(
     let n = budget.spheres;
     // Dense: finer levels only within the cells per sphere (no floor: a small set gets a small
     // table). Sorted: as many as the keys hold.
-    let budget = match budget.build {
+    let build = budget.build;
+    let budget = match build {
         BuildKind::Dense => cell_budget(limits, budget).min(n * budget.cells_per_sphere),
         BuildKind::Sorted => cell_budget(limits, budget),
     };
@@ -352,32 +356,36 @@ fn multi_level_layout(
         .log2()
         .floor()
         .clamp(0.0, (MAX_LEVELS - 1) as f64) as u32;
-    // Level sizes from the top down, while they fit: (cells per axis, cells).
-    let mut sizes: Vec<u64> = Vec::new();
+    // Level sizes from the top down, while they fit: cells per axis.
+    let mut dims: Vec<[u64; 3]> = Vec::new();
     let mut total = 0u64;
     for shift in 0..=by_radii {
-        let dims = top.map(|c| ((c - 2) << shift) + 2);
-        if dims.iter().any(|&d| d > MAX_AXIS_CELLS) {
+        let level = top.map(|c| ((c - 2) << shift) + 2);
+        if level.iter().any(|&d| d > MAX_AXIS_CELLS) {
             break;
         }
-        let cells = dims.iter().product::<u64>();
+        let cells = level.iter().product::<u64>();
         if total + cells > budget {
             break;
         }
         total += cells;
-        sizes.push(cells);
+        dims.push(level);
     }
-    let levels = sizes.len() as u32;
+    let levels = dims.len() as u32;
     if levels < 2 {
         return None;
     }
+    let refine = match build {
+        BuildKind::Dense => refine_levels(&mut dims, budget),
+        BuildKind::Sorted => 0,
+    };
     // Level `levels - 1` is the top; its table comes first.
     let mut level_first = [Vec4u::default(); 2];
     let mut first = 0u64;
-    for (shift, cells) in sizes.iter().enumerate() {
+    for (shift, level_dims) in dims.iter().enumerate() {
         let level = levels as usize - 1 - shift;
         level_first[level / 4].0[level % 4] = first as u32;
-        first += cells;
+        first += level_dims.iter().product::<u64>();
     }
     Some(GridParams {
         lo: lo.into(),
@@ -386,13 +394,53 @@ fn multi_level_layout(
         nx: top[0] as u32,
         ny: top[1] as u32,
         nz: top[2] as u32,
-        cells: total as u32,
+        cells: first as u32,
         levels,
         top_cell: size as f32,
         level_pad: (1.0 + CELL_PADDING) as f32,
+        refine,
         level_first,
         ..GridParams::default()
     })
+}
+
+/// Most halvings of a level's cells below its class's size (one measured: docs/PERFORMANCE.md).
+const MAX_REFINE: u64 = 1;
+
+/// Refines the coarser levels of a multi-level grid (`dims`: cells per axis of each level, the
+/// top first) within `budget` cells in all; returns [`GridParams::refine`]. A sphere searches
+/// each coarser level for the partners within its radius plus that level's largest, about half
+/// the level's class size C: at cells of size C its window there is 2 cells (2C) per axis around
+/// a small sphere, where the partners' centres lie within a cube of side C; halving the cells
+/// makes it 3 cells (1.5C). The small spheres are most of a
+/// polydisperse set and search every coarser level, so the level refined first is the one whose
+/// table grows least (the top), then the next, while all fit; the finest level, which only its
+/// own spheres search, keeps its class's cells.
+fn refine_levels(dims: &mut [[u64; 3]], budget: u64) -> u32 {
+    let levels = dims.len();
+    let mut refined = vec![0u64; levels];
+    let mut total: u64 = dims.iter().map(|d| d.iter().product::<u64>()).sum();
+    loop {
+        let cheapest = (0..levels - 1)
+            .filter(|&k| refined[k] < MAX_REFINE)
+            .min_by_key(|&k| dims[k].iter().product::<u64>());
+        let Some(k) = cheapest else { break };
+        let finer = dims[k].map(|c| ((c - 2) << 1) + 2);
+        let (now, then) = (
+            dims[k].iter().product::<u64>(),
+            finer.iter().product::<u64>(),
+        );
+        if finer.iter().any(|&d| d > MAX_AXIS_CELLS) || total - now + then > budget {
+            break;
+        }
+        total = total - now + then;
+        dims[k] = finer;
+        refined[k] += 1;
+    }
+    // dims[shift] is level `levels - 1 - shift`.
+    (0..levels)
+        .map(|shift| (refined[shift] as u32) << (4 * (levels - 1 - shift)))
+        .sum()
 }
 
 /// Single-level cell layout for `n` centres within `lo..=hi` and cells of at least `base`: a
@@ -464,13 +512,27 @@ pub(crate) fn describe_layout(p: &GridParams, build: BuildKind) -> String {
         (false, BuildKind::Dense) => format!("dense build, {} cells", p.cells),
         (false, BuildKind::Sorted) => format!("sorted build, keys of {} cells", p.cells),
     };
+    let refined: Vec<String> = (0..p.levels)
+        .rev()
+        .filter_map(|k| match (p.refine >> (4 * k)) & 15 {
+            0 => None,
+            halvings => Some(format!(
+                "level {k}'s cells 1/{} of its class",
+                1 << halvings
+            )),
+        })
+        .collect();
     let levels = match p.levels {
         1 => "1 level".to_string(),
-        k => format!("{k} levels"),
+        k if refined.is_empty() => format!("{k} levels"),
+        k => format!("{k} levels ({})", refined.join(", ")),
     };
+    // The top level's own cells (refined or not).
+    let halvings = (p.refine >> (4 * (p.levels.max(1) - 1))) & 15;
+    let [nx, ny, nz] = [p.nx, p.ny, p.nz].map(|c| (c.saturating_sub(2) << halvings) + 2);
     format!(
-        "grid {table}, {levels}, top level {}×{}×{} cells of {:.4e} m",
-        p.nx, p.ny, p.nz, p.top_cell
+        "grid {table}, {levels}, top level {nx}×{ny}×{nz} cells of {:.4e} m",
+        p.top_cell / (1u32 << halvings) as f32
     )
 }
 
@@ -577,6 +639,79 @@ mod tests {
             (0, 1, 2, 2)
         );
         assert_eq!(key_bits(u32::MAX), 32);
+    }
+
+    #[test]
+    fn the_coarser_levels_are_refined_while_the_tables_fit_and_the_finest_never() {
+        // 1M spheres of `polylog`'s radii (0.5–60 mm) over a pile's bounds: both budgets hold 3
+        // levels (12, 6 and 3 cm classes), then refine the coarser ones as far as they fit.
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: 1 << 30,
+            ..wgpu::Limits::default()
+        };
+        let request = |cells_per_sphere| LayoutRequest {
+            levels: Levels::Many,
+            bounds: ([0.0; 3], [4.7, 2.0, 4.7]),
+            budget: Budget {
+                spheres: 1_000_000,
+                cells_per_sphere,
+                build: BuildKind::Dense,
+            },
+            base_cell: 0.12,
+            radii: (0.0005, 0.06),
+            dense_check: &|_| true,
+        };
+        let level_cells = |p: &GridParams, level: u32| {
+            let shift = p.levels - 1 - level + ((p.refine >> (4 * level)) & 15);
+            [p.nx, p.ny, p.nz]
+                .map(|c| (((c - 2) as u64) << shift) + 2)
+                .iter()
+                .product::<u64>()
+        };
+        for (cells_per_sphere, levels) in [(DEM_CELLS_PER_SPHERE, 3), (DETECT_CELLS_PER_SPHERE, 3)]
+        {
+            let p = choose_layout(&limits, &request(cells_per_sphere));
+            let described = describe_layout(&p, BuildKind::Dense);
+            assert_eq!(p.levels, levels, "{described}");
+            let top = levels - 1;
+            let halvings = |k: u32| (p.refine >> (4 * k)) & 15;
+            assert!(halvings(top) >= 1, "{described}");
+            assert!(described.contains(&format!("level {top}'s cells 1/")));
+            assert_eq!(halvings(0), 0, "the finest level keeps its class's cells");
+            let cells: u64 = (0..levels).map(|k| level_cells(&p, k)).sum();
+            assert_eq!(cells, p.cells as u64);
+            let budget = 1_000_000 * cells_per_sphere;
+            assert!(cells <= budget);
+            // Greedy to the end: the coarser level with the fewest cells, refined once more,
+            // would not fit.
+            let cheapest = (1..levels)
+                .filter(|&k| (halvings(k) as u64) < MAX_REFINE)
+                .map(|k| level_cells(&p, k))
+                .min();
+            if let Some(c) = cheapest {
+                assert!(cells + 7 * c > budget, "{described}");
+            }
+            // Tables follow each other, the top's first.
+            for k in 0..top {
+                let next = p.level_first[(k + 1) as usize / 4].0[(k + 1) as usize % 4];
+                assert_eq!(
+                    p.level_first[k as usize / 4].0[k as usize % 4] as u64,
+                    next as u64 + level_cells(&p, k + 1)
+                );
+            }
+        }
+        // The sorted build has no table to fit: its levels keep their classes' cells.
+        let sorted = choose_layout(
+            &limits,
+            &LayoutRequest {
+                budget: Budget {
+                    build: BuildKind::Sorted,
+                    ..request(DEM_CELLS_PER_SPHERE).budget
+                },
+                ..request(DEM_CELLS_PER_SPHERE)
+            },
+        );
+        assert_eq!(sorted.refine, 0);
     }
 
     #[test]

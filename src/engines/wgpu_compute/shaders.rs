@@ -27,6 +27,7 @@ fn grid_params() -> SharedStruct {
             level_pad,
             block_shift,
             max_radius,
+            refine,
             level_first,
         }
     )
