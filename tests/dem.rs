@@ -396,6 +396,58 @@ fn gpu_steps_follow_the_cpu_step_with_unequal_spheres_touching_on_one_level() {
     assert_gpu_steps_follow_the_cpu_step_with(start, p);
 }
 
+#[test]
+fn gpu_steps_follow_the_cpu_step_across_a_refined_coarse_level() {
+    // A lattice of spheres of 9.5–10 mm at spacing 0.0162 (axis neighbours pressed together),
+    // one of 5.5 mm at the centre of each lattice cube (touching its corners) and one of 2.4 mm
+    // at the centre of each z-face (touching the face's corners, 0.2 mm from the cube centres'):
+    // radii over a factor of 4.2, so a multi-level grid whose tables leave room to search its top
+    // level in cells of half its class. The small spheres meet the large ones through that level's
+    // finer cells; friction and rolling resistance, every GPU step against the cpu step.
+    let (n, spacing) = (8, 0.0162f32);
+    let at = |i: usize, j: usize, k: usize, off: [f32; 3]| -> [f32; 3] {
+        let idx = [i, j, k];
+        std::array::from_fn(|a| 0.02 + spacing * (idx[a] as f32 + off[a]))
+    };
+    let (mut positions, mut radii) = (Vec::new(), Vec::new());
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                positions.push(at(i, j, k, [0.0; 3]));
+                radii.push(if (i + j + k) % 2 == 0 { 0.01 } else { 0.0095 });
+                if i + 1 < n && j + 1 < n {
+                    positions.push(at(i, j, k, [0.5, 0.5, 0.0]));
+                    radii.push(0.0024);
+                    if k + 1 < n {
+                        positions.push(at(i, j, k, [0.5, 0.5, 0.5]));
+                        radii.push(0.0055);
+                    }
+                }
+            }
+        }
+    }
+    let count = positions.len();
+    let start = particles(positions, vec![[0.0; 3]; count], radii);
+    let material = Material {
+        friction: 0.5,
+        rolling_friction: 0.1,
+        ..Material::default()
+    };
+    let p = params(material, 1e-4, 0.3, [0.0, 0.0, -9.81], 0.0024);
+    // The dense builds (`auto` takes the multi-level grid here) refine the top level.
+    for (name, mut s) in steppers(&start, p) {
+        if name.starts_with("wgpu-compute") && !name.contains("sorted") {
+            s.advance(1).unwrap();
+            let described = s.describe();
+            assert!(
+                described.contains("2 levels (level 1's cells 1/2"),
+                "{name}: {described}"
+            );
+        }
+    }
+    assert_gpu_steps_follow_the_cpu_step_with(start, p);
+}
+
 /// A 3-D checkerboard of spheres of radius 0.01 and 0.005 at spacing 0.0145: every sphere
 /// touches its axis neighbours, no two big ones touch, and every distance is at least 0.0005
 /// from its contact threshold.
