@@ -404,7 +404,8 @@ fn multi_level_layout(
     })
 }
 
-/// Most halvings of a level's cells below its class's size (one measured: docs/PERFORMANCE.md).
+/// Most halvings of a level's cells below its class's size (on the poured pile of
+/// docs/PERFORMANCE.md a second did not fit the budget; one was measured).
 const MAX_REFINE: u64 = 1;
 
 /// Refines the coarser levels of a multi-level grid (`dims`: cells per axis of each level, the
@@ -412,10 +413,10 @@ const MAX_REFINE: u64 = 1;
 /// each coarser level for the partners within its radius plus that level's largest, about half
 /// the level's class size C: at cells of size C its window there is 2 cells (2C) per axis around
 /// a small sphere, where the partners' centres lie within a cube of side C; halving the cells
-/// makes it 3 cells (1.5C). The small spheres are most of a
-/// polydisperse set and search every coarser level, so the level refined first is the one whose
-/// table grows least (the top), then the next, while all fit; the finest level, which only its
-/// own spheres search, keeps its class's cells.
+/// makes it 3 cells (1.5C). The small spheres are most of a polydisperse set and search every
+/// coarser level, so the level refined first is the one whose table grows least (the top), then
+/// the next, while all fit; the finest level, which only its own spheres search, keeps its
+/// class's cells.
 fn refine_levels(dims: &mut [[u64; 3]], budget: u64) -> u32 {
     let levels = dims.len();
     let mut refined = vec![0u64; levels];
