@@ -21,8 +21,8 @@ struct GridParams {
     row: u32,           // invocations per dispatch row (2-D dispatch)
     capacity: u32,      // room in the pair buffer (detection only)
     hashed: u32,        // 0: dense tables; 1: one level, cells hashed into `cells` buckets
-    levels: u32,        // 1: single grid; more: multi-level grid (dense), cells halving downwards
-    top_cell: f32,      // cell side of the top level
+    levels: u32,        // 1: single grid; more: multi-level grid (dense), class sizes halving downwards
+    top_cell: f32,      // class size of the top level (its cell side unless `refine` halves it)
     level_pad: f32,     // 1 + relative padding: sphere i lives where class size ≥ 2·r_i·level_pad
     block_shift: u32,   // the table's blocks for the scan (cell_scan.wgsl): 1 << block_shift entries
     max_radius: f32,    // largest radius, padded (grid_stencil.wgsl's windows)
