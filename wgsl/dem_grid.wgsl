@@ -7,10 +7,14 @@
 // dem_params.wgsl, the physics of the variant and one of dem_force_f32.wgsl /
 // dem_force_cas.wgsl appended.
 //
-// The state (pos, vel, ids) lives in sorted order and ping-pongs between two sets of buffers:
-// each step bins the previous step's sorted set (`*_a`, nearly sorted already, so the atomics of
-// the counting sort hit few cells at a time) into the other set, resolves every contact there
-// and integrates in place.
+// The state (pos, vel, ids) lives in two sets of buffers. A sorting step bins one set (`*_a`,
+// nearly sorted already, so the atomics of the counting sort hit few cells at a time) into the
+// other in sorted order (`bin_scatter`), resolves every contact there and integrates in place.
+// A binning step (`bin_index`, the paper's step between its sorting steps) moves no state: it
+// bins set a's rows by index, writing each sorted place's row (`home`) and sphere (`walk_pos`),
+// and the step resolves and integrates set a in place. The resolve kernels walk the sorted
+// spheres and reach the state through `home` (bound to the identity in a sorting step, with
+// `walk_pos` bound to the sorted set's pos).
 
 @group(0) @binding(0) var<uniform> params: GridParams;
 @group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;   // x, y, z, r
@@ -25,6 +29,9 @@
 @group(0) @binding(14) var<storage, read_write> counters: array<atomic<u32>, 4>;
 // bounds of the centres as order-preserving u32 keys: min x, y, z, max x, y, z
 @group(0) @binding(15) var<storage, read_write> bounds: array<atomic<u32>, 6>;
+// by sorted place: the state row of the sphere there, and its centre and radius
+@group(0) @binding(26) var<storage, read_write> home: array<u32>;
+@group(0) @binding(27) var<storage, read_write> walk_pos: array<vec4<f32>>;
 
 fn index(gid: vec3<u32>) -> u32 {
     return gid.x + gid.y * params.row;
@@ -61,6 +68,22 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     pos[p] = s;
     vel[p] = vel_a[i];
     carry(i, p);
+}
+
+// Counting sort, last pass of a binning step (after the scan): each sphere of set a at its
+// sorted place by index (`home`, `walk_pos`); the state stays where it is, its force
+// accumulators zeroed.
+@compute @workgroup_size(256)
+fn bin_index(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = index(gid);
+    if i >= params.n {
+        return;
+    }
+    let s = pos_a[i];
+    let p = cell_start[cell_key(s)] + ranks[i];
+    home[p] = i;
+    walk_pos[p] = s;
+    clear_force(i);
 }
 
 // Order-preserving u32 key of a float (for atomicMin / atomicMax).

@@ -16,6 +16,9 @@
 //! The binning is the dense build's counting sort into a table of every cell, or the sorted
 //! build's radix sort of the cell keys (`wgsl/dem_grid_sorted.wgsl`, no table: its cost follows
 //! the spheres, not the box); [`GridBuild`] chooses, once, from the spheres at the start.
+//! The paper's step on the dense build moves its state into sorted order only every
+//! [`SORT_EVERY`] steps (a sorting step); the steps between bin the spheres by index and
+//! resolve and integrate the state where it is (binning steps, [`StepKind`]).
 //!
 //! A scene with friction, rolling resistance, rotation or another law than the paper's runs the
 //! granular variant of the step (`wgsl/dem_grid_granular.wgsl`, [`Granular`]): its own module
@@ -31,8 +34,8 @@ use super::layout::{
 };
 use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
-    self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, IDS, IDS_A, OMEGA_A, PARAMS, POS_A,
-    RANKS, SORT_KEYS, SORT_ORDER, VEL_A,
+    self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, HOME, IDS, IDS_A, OMEGA_A, PARAMS,
+    POS_A, RANKS, SORT_KEYS, SORT_ORDER, VEL_A, WALK_POS,
 };
 use crate::dem::flow::NewSphere;
 use crate::dem::model::StepParams;
@@ -61,6 +64,31 @@ use crate::proxy::ProxyMode;
 /// Steps between two re-derivations of the grid layout.
 pub const RELAYOUT_EVERY: u64 = 100;
 
+/// Steps from one sorting step to the next where binning steps run between them (the state
+/// drifts out of sorted order only as fast as spheres change cells).
+pub const SORT_EVERY: u64 = 16;
+
+/// When the paper's step on the dense build moves its state into sorted order (a sorting
+/// step); the other steps bin by index. Only speed depends on it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sorting {
+    /// At the steps whose number is a multiple of `k` (≥ 1), and at the first step after the
+    /// state was written out of order (uploaded, spheres appended or removed).
+    Every(u64),
+    /// Never: the state stays in the order given and every step bins by index.
+    Never,
+}
+
+/// How a step bins its spheres.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum StepKind {
+    /// The state moves into sorted order in the other set, and the step runs there.
+    Sorting,
+    /// The spheres are binned by index (`home`, `walk_pos`) and the step runs on the state where
+    /// it is.
+    Binning,
+}
+
 /// One set of the ping-ponged state, in sorted order.
 struct StateSet {
     pos: wgpu::Buffer,
@@ -79,6 +107,8 @@ struct Pipelines {
     mesh: Option<[wgpu::ComputePipeline; 2]>,
     integrate: wgpu::ComputePipeline,
     reduce_bounds: wgpu::ComputePipeline,
+    /// The binning step's last pass, where the step has binning steps.
+    bin_index: Option<wgpu::ComputePipeline>,
 }
 
 /// Bind groups of one parity (which state set is the source of the next binning).
@@ -90,6 +120,24 @@ struct Binds {
     mesh: Option<[wgpu::BindGroup; 2]>,
     integrate: wgpu::BindGroup,
     reduce_bounds: wgpu::BindGroup,
+    /// A binning step's on set `from` (where the step has binning steps).
+    binning: Option<BinningBinds>,
+}
+
+/// Bind groups of a binning step's own passes on one set (its count and integration are the
+/// sorting steps').
+struct BinningBinds {
+    bin_index: wgpu::BindGroup,
+    resolve: wgpu::BindGroup,
+}
+
+/// What the resolve kernel of the paper's step reads through: the state row and sphere of each
+/// sorted place.
+struct SortedPlaces {
+    home: wgpu::Buffer,
+    walk_pos: wgpu::Buffer,
+    /// Row k holds k: `home` of a sorting step, whose state is in sorted order.
+    identity: wgpu::Buffer,
 }
 
 /// What sorts the spheres by cell between the binning's passes.
@@ -141,6 +189,11 @@ pub struct GridStepper {
     sets: [StateSet; 2],
     /// Which set the next step bins from.
     current: usize,
+    /// The paper's step's places (`None`: the granular step, which sorts every step).
+    places: Option<SortedPlaces>,
+    /// Whether the next step must sort (the state was written out of order).
+    sort_next: bool,
+    sorting: Sorting,
     force: wgpu::Buffer,
     counters: wgpu::Buffer,
     bounds: wgpu::Buffer,
@@ -330,6 +383,8 @@ impl GridStepper {
                 .then(|| gpu_walls::ENTRY_POINTS.map(pipeline)),
             integrate: pipeline("integrate"),
             reduce_bounds: pipeline("reduce_bounds"),
+            bin_index: (granular.is_none() && build == BuildKind::Dense)
+                .then(|| pipeline("bin_index")),
         };
         let none = wgpu::BufferUsages::empty();
         let make = |label: &str, bytes: u64| gpu.storage(label, bytes, none);
@@ -374,6 +429,21 @@ impl GridStepper {
                 dem_uniform: gpu.uniform("mochi.dem.params", &DemParams::default()),
                 sets: [set(0), set(1)],
                 current: 0,
+                places: granular.is_none().then(|| {
+                    let identity = make("mochi.dem.identity", rows * 4);
+                    let places: Vec<u32> = (0..rows as u32).collect();
+                    gpu.queue
+                        .write_buffer(&identity, 0, bytemuck::cast_slice(&places));
+                    // Only a step with binning steps writes places of its own.
+                    let binning = (build == BuildKind::Dense) as u64;
+                    SortedPlaces {
+                        home: make("mochi.dem.home", binning * rows * 4),
+                        walk_pos: make("mochi.dem.walk_pos", binning * rows * 16),
+                        identity,
+                    }
+                }),
+                sort_next: true,
+                sorting: Sorting::Every(SORT_EVERY),
                 force: make("mochi.dem.force", rows * 12),
                 counters: make("mochi.dem.counters", 16),
                 bounds: make("mochi.dem.bounds", 24),
@@ -391,6 +461,12 @@ impl GridStepper {
         let mut stepper = stepper;
         stepper.upload(&particles)?;
         Ok(stepper)
+    }
+
+    /// Sorts the state as `sorting` says from the next step on.
+    pub fn with_sorting(mut self, sorting: Sorting) -> Self {
+        self.sorting = sorting;
+        self
     }
 
     /// Bins into `structure` from the next step on.
@@ -412,6 +488,7 @@ impl GridStepper {
         q.write_buffer(&set.ids, 0, bytemuck::cast_slice(&ids));
         self.gpu.write_uniform(&self.dem_uniform, &dem);
         q.write_buffer(&self.clock, 0, bytemuck::bytes_of(&(self.step as u32)));
+        self.sort_next = true;
         Ok(())
     }
 
@@ -577,7 +654,11 @@ impl GridStepper {
                 let came_from = (CAME_FROM, g.came_from());
                 (
                     vec![(OMEGA_A, omega_a), (OMEGA, omega), came_from],
-                    [&g.resolve_bindings(from)[..], &[(IDS, &b.ids), came_from]].concat(),
+                    [
+                        &g.resolve_bindings(from)[..],
+                        &[(POS, &b.pos), (IDS, &b.ids), came_from],
+                    ]
+                    .concat(),
                     g.integrate_bindings(from).to_vec(),
                 )
             }
@@ -586,7 +667,10 @@ impl GridStepper {
                     .per_pair
                     .as_ref()
                     .map_or(Vec::new(), |k| k.bindings().to_vec());
-                (Vec::new(), law.clone(), law)
+                let places = self.places.as_ref().expect("the paper's step has places");
+                // A sorting step's state is in sorted order.
+                let sorted = [(HOME, &places.identity), (WALK_POS, &b.pos)];
+                (Vec::new(), [&law[..], &sorted].concat(), law)
             }
         };
         // What the binning's passes and the search bind of the sorter.
@@ -651,7 +735,6 @@ impl GridStepper {
                         (PARAMS, &self.grid_uniform),
                         (DEM, &self.dem_uniform),
                         cells,
-                        (POS, &b.pos),
                         (VEL, &b.vel),
                         (FORCE, &self.force),
                         (COUNTERS, &self.counters),
@@ -706,24 +789,106 @@ impl GridStepper {
                     (BOUNDS, &self.bounds),
                 ],
             ),
+            binning: self.binning_binds(from),
         }
     }
 
-    /// Records one phase of a step binning from set `current` into `pass`.
-    fn record_phase(&self, pass: &mut wgpu::ComputePass, current: usize, phase: Phase) {
-        let b = &self.binds.as_ref().expect("laid out")[current];
+    /// Bind groups of a binning step on set `on` (`None` where the step has none).
+    fn binning_binds(&self, on: usize) -> Option<BinningBinds> {
+        let (bin_index, places) = (self.pipelines.bin_index.as_ref()?, self.places.as_ref()?);
+        let Sorter::Dense {
+            ranks, cell_table, ..
+        } = &self.sorter
+        else {
+            return None;
+        };
+        let (set, gpu) = (&self.sets[on], &self.gpu);
+        let law = self
+            .per_pair
+            .as_ref()
+            .map_or(Vec::new(), |k| k.bindings().to_vec());
+        let placed = [(HOME, &places.home), (WALK_POS, &places.walk_pos)];
+        Some(BinningBinds {
+            bin_index: gpu.bind(
+                "mochi.dem.bin_index",
+                bin_index,
+                &joined(
+                    &[
+                        (PARAMS, &self.grid_uniform),
+                        (POS_A, &set.pos),
+                        (RANKS, ranks),
+                        (CELL_START, &cell_table.cell_start),
+                        (FORCE, &self.force),
+                    ],
+                    &placed,
+                ),
+            ),
+            resolve: gpu.bind(
+                "mochi.dem.resolve",
+                &self.pipelines.resolve,
+                &joined(
+                    &[
+                        (PARAMS, &self.grid_uniform),
+                        (DEM, &self.dem_uniform),
+                        (CELL_START, &cell_table.cell_start),
+                        (VEL, &set.vel),
+                        (FORCE, &self.force),
+                        (COUNTERS, &self.counters),
+                    ],
+                    &[&law[..], &placed].concat(),
+                ),
+            ),
+        })
+    }
+
+    /// How the step after the next `ahead` steps bins.
+    fn kind_of_step(&self, ahead: u32) -> StepKind {
+        let step = self.step + ahead as u64;
+        let sorts = match self.sorting {
+            Sorting::Every(k) => (self.sort_next && ahead == 0) || step.is_multiple_of(k.max(1)),
+            Sorting::Never => false,
+        };
+        match self.pipelines.bin_index.is_some() && !sorts {
+            true => StepKind::Binning,
+            false => StepKind::Sorting,
+        }
+    }
+
+    /// Records one phase of a step of kind `kind` binning from set `current` into `pass`.
+    fn record_phase(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        current: usize,
+        kind: StepKind,
+        phase: Phase,
+    ) {
+        let binds = self.binds.as_ref().expect("laid out");
+        let b = &binds[current];
         let p = &self.pipelines;
+        if kind == StepKind::Binning {
+            let own = b.binning.as_ref().expect("a step with binning steps");
+            let bin_index = p.bin_index.as_ref().expect("a step with binning steps");
+            match phase {
+                Phase::Build => {
+                    gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
+                    self.record_scan(pass);
+                    gpu::record(pass, bin_index, &own.bin_index, self.groups);
+                }
+                Phase::Resolve => gpu::record(pass, &p.resolve, &own.resolve, self.groups),
+                // The sorting step from the other set integrates this one.
+                Phase::Integrate => gpu::record(
+                    pass,
+                    &p.integrate,
+                    &binds[1 - current].integrate,
+                    self.groups,
+                ),
+            }
+            return;
+        }
         match phase {
             Phase::Build => {
                 gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
-                match &self.sorter {
-                    Sorter::Dense {
-                        scan, scan_bind, ..
-                    } => scan.record(pass, scan_bind.as_ref().expect("laid out"), &self.layout),
-                    Sorter::Sorted { prepared, .. } => {
-                        prepared.as_ref().expect("laid out").record(pass)
-                    }
-                }
+                self.record_scan(pass);
                 gpu::record(pass, &p.bin_last, &b.bin_last, self.groups);
             }
             Phase::Resolve => {
@@ -735,6 +900,17 @@ impl GridStepper {
                 }
             }
             Phase::Integrate => gpu::record(pass, &p.integrate, &b.integrate, self.groups),
+        }
+    }
+
+    /// Records the sorter's pass between the binning's first and last: the scan of the cell
+    /// table, or the sort of the keys.
+    fn record_scan(&self, pass: &mut wgpu::ComputePass) {
+        match &self.sorter {
+            Sorter::Dense {
+                scan, scan_bind, ..
+            } => scan.record(pass, scan_bind.as_ref().expect("laid out"), &self.layout),
+            Sorter::Sorted { prepared, .. } => prepared.as_ref().expect("laid out").record(pass),
         }
     }
 }
@@ -779,18 +955,24 @@ impl GridStepper {
         let timer = self.timer.as_ref();
         let mut current = self.current;
         let mut profiled = 0;
+        // The set the step after one of kind `kind` from set `current` bins from.
+        let after = |kind, current: usize| match kind {
+            StepKind::Sorting => 1 - current,
+            StepKind::Binning => current,
+        };
         if timer.is_some() {
+            let kind = self.kind_of_step(0);
             StepTimer::mark(timer, encoder, 0, 0);
             for (k, phase) in Phase::ALL.into_iter().enumerate() {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some(phase.label()),
                     timestamp_writes: None,
                 });
-                self.record_phase(&mut pass, current, phase);
+                self.record_phase(&mut pass, current, kind, phase);
                 drop(pass);
                 StepTimer::mark(timer, encoder, 0, k as u32 + 1);
             }
-            current = 1 - current;
+            current = after(kind, current);
             profiled = 1;
         }
         if profiled < steps {
@@ -798,11 +980,12 @@ impl GridStepper {
                 label: Some("mochi.dem.steps"),
                 timestamp_writes: None,
             });
-            for _ in profiled..steps {
+            for k in profiled..steps {
+                let kind = self.kind_of_step(k);
                 for phase in Phase::ALL {
-                    self.record_phase(&mut pass, current, phase);
+                    self.record_phase(&mut pass, current, kind, phase);
                 }
-                current = 1 - current;
+                current = after(kind, current);
             }
         }
         if let Some(t) = timer {
@@ -810,6 +993,7 @@ impl GridStepper {
         }
         self.current = current;
         self.step += steps as u64;
+        self.sort_next = false;
         profiled
     }
 
@@ -1044,6 +1228,7 @@ impl GridStepper {
     /// advance lays the grid out again, over the new bounds and count.
     fn resize(&mut self, n: u32) {
         self.n = n;
+        self.sort_next = true;
         self.groups = self.gpu.grid(n, GROUP);
         let dem = DemParams::new(&self.params, n, self.groups.0 * GROUP);
         self.gpu.write_uniform(&self.dem_uniform, &dem);

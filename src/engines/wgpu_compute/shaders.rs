@@ -215,6 +215,7 @@ pub(crate) mod dem_grid {
     pub const ENTRY_POINTS: &[&str] = &[
         "bin_count",
         "bin_scatter",
+        "bin_index",
         "resolve",
         "reduce_bounds",
         "integrate",
@@ -225,6 +226,7 @@ pub(crate) mod dem_grid {
     pub const SORTED_ENTRY_POINTS: &[&str] = &[
         "bin_count",
         "bin_scatter",
+        "bin_index",
         "bin_keys",
         "bin_gather",
         "resolve",
@@ -236,6 +238,7 @@ pub(crate) mod dem_grid {
     pub const GRANULAR_ENTRY_POINTS: &[&str] = &[
         "bin_count",
         "bin_scatter",
+        "bin_index",
         "resolve",
         "mesh_walls_near",
         "mesh_wall_contacts",
@@ -247,6 +250,7 @@ pub(crate) mod dem_grid {
     pub const SORTED_GRANULAR_ENTRY_POINTS: &[&str] = &[
         "bin_count",
         "bin_scatter",
+        "bin_index",
         "bin_keys",
         "bin_gather",
         "resolve",
@@ -275,9 +279,13 @@ pub(crate) mod dem_grid {
     pub const OMEGA_A: Binding = Binding::read(25, "omega_a");
     /// The granular step's rows of the old history, by state index (`wgsl/dem_grid_granular.wgsl`).
     pub const CAME_FROM: Binding = Binding::read_write(38, "came_from");
+    /// By sorted place: the state row of the sphere there, and its centre and radius.
+    pub const HOME: Binding = Binding::read_write(26, "home");
+    pub const WALK_POS: Binding = Binding::read_write(27, "walk_pos");
 
-    const OWN: [Binding; 10] = [
-        PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS,
+    const OWN: [Binding; 12] = [
+        PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS, HOME,
+        WALK_POS,
     ];
 
     /// Every binding of the paper's step, the physics' included.
