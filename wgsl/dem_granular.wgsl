@@ -336,6 +336,11 @@ fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
     if p >= dem.n {
         return;
     }
+    integrate_sphere(p);
+}
+
+// Integrates sphere p (state index); returns its new centre and radius.
+fn integrate_sphere(p: u32) -> vec4<f32> {
     let s = pos[p];
     let v = vel[p];
     let f = load_force(p);
@@ -343,10 +348,12 @@ fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let m = v.w;
     let v_new = v.xyz + dem.dt * (f / m + g);
     vel[p] = vec4(v_new, m);
-    pos[p] = vec4(s.xyz + dem.dt * v_new, s.w);
+    let moved = vec4(s.xyz + dem.dt * v_new, s.w);
+    pos[p] = moved;
     if granular.turns != 0u {
         let inertia = moment_of_inertia(m, s.w);
         omega[p] = vec4(omega[p].xyz + dem.dt * (load_torque(p) / inertia), 0.0);
         clear_torque(p);
     }
+    return moved;
 }

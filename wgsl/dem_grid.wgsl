@@ -1,6 +1,7 @@
 // DEM step of the wgpu-compute backend (docs/method.md, "The DEM step"): the binning of every
 // variant of the step; its resolve kernel is dem_grid_frictionless.wgsl's (the paper's law, with
-// a fixed or a per-pair stiffness) or dem_grid_granular.wgsl's, which also define
+// a fixed or a per-pair stiffness) or dem_grid_granular.wgsl's, its integration kernel
+// dem_integrate.wgsl's or dem_granular.wgsl's (`integrate_sphere`), which also define
 //   fn carry(i: u32, p: u32)   moves the per-sphere state of index i of set a to index p of the
 //                              sorted set (the granular step's ω; nothing in the paper's step)
 // Needs grid_params.wgsl and grid_stencil.wgsl prepended, one resolve file, grid_walk.wgsl,
@@ -38,18 +39,41 @@ fn index(gid: vec3<u32>) -> u32 {
 }
 
 // Counting sort, first pass: the rank within its cell of every sphere of set a (then
-// cell_scan.wgsl scans the counts into cell_start and zeroes them).
+// cell_scan.wgsl scans the counts into cell_start and zeroes them). The dense build's step
+// counts its spheres as it integrates them (`integrate_and_count`), for the next step: this
+// pass runs only where the counts are not those of the state and the layout (at a batch's
+// start, after the host laid the grid out again or wrote the state).
 @compute @workgroup_size(256)
 fn bin_count(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index(gid);
-    if i == 0u {
-        atomicAdd(&clock, 1u);
-        atomicStore(&counters[0], 0u);
-    }
     if i >= params.n {
         return;
     }
     ranks[i] = atomicAdd(&counts[cell_key(pos_a[i])], 1u);
+}
+
+// The step's counters, by the binning's last pass (once per step).
+fn start_step(i: u32) {
+    if i == 0u {
+        atomicAdd(&clock, 1u);
+        atomicStore(&counters[0], 0u);
+    }
+}
+
+// The integration kernel, then the counting sort's first pass of the next step for the sphere
+// (its rank in the cell of its new centre).
+@compute @workgroup_size(256)
+fn integrate_and_count(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x + gid.y * dem.row;
+    if p >= dem.n {
+        return;
+    }
+    ranks[p] = atomicAdd(&counts[cell_key(integrate_sphere(p))], 1u);
+}
+
+// The sorted place of sphere i of set a (centre and radius s), after the scan.
+fn sorted_place(i: u32, s: vec4<f32>) -> u32 {
+    return cell_start[cell_key(s)] + ranks[i];
 }
 
 // Counting sort, last pass (after the scan): set a → sorted set, with its force accumulators
@@ -58,11 +82,12 @@ fn bin_count(@builtin(global_invocation_id) gid: vec3<u32>) {
 @compute @workgroup_size(256)
 fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index(gid);
+    start_step(i);
     if i >= params.n {
         return;
     }
     let s = pos_a[i];
-    let p = cell_start[cell_key(s)] + ranks[i];
+    let p = sorted_place(i, s);
     ids[p] = ids_a[i];
     clear_force(p);
     pos[p] = s;
@@ -76,11 +101,12 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
 @compute @workgroup_size(256)
 fn bin_index(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index(gid);
+    start_step(i);
     if i >= params.n {
         return;
     }
     let s = pos_a[i];
-    let p = cell_start[cell_key(s)] + ranks[i];
+    let p = sorted_place(i, s);
     home[p] = i;
     walk_pos[p] = s;
     clear_force(i);

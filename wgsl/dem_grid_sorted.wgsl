@@ -8,15 +8,11 @@
 @group(0) @binding(40) var<storage, read_write> sort_keys: array<u32>;
 @group(0) @binding(42) var<storage, read_write> sort_order: array<u32>;
 
-// Sorted-key binning, first pass: keys and indices to sort (and the step's counters, as
-// bin_count does).
+// Sorted-key binning, first pass: keys and indices to sort (and the step's counters).
 @compute @workgroup_size(256)
 fn bin_keys(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index(gid);
-    if i == 0u {
-        atomicAdd(&clock, 1u);
-        atomicStore(&counters[0], 0u);
-    }
+    start_step(i);
     if i >= params.n {
         return;
     }

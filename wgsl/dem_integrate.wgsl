@@ -9,6 +9,11 @@ fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
     if p >= dem.n {
         return;
     }
+    integrate_sphere(p);
+}
+
+// Integrates sphere p (state index); returns its new centre and radius.
+fn integrate_sphere(p: u32) -> vec4<f32> {
     let s = pos[p];
     let v = vel[p];
     let f = load_force(p) + wall_force(s.xyz, v.xyz, s.w, v.w);
@@ -16,5 +21,7 @@ fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let m = v.w;
     let v_new = v.xyz + dem.dt * (f / m + g);
     vel[p] = vec4(v_new, m);
-    pos[p] = vec4(s.xyz + dem.dt * v_new, s.w);
+    let moved = vec4(s.xyz + dem.dt * v_new, s.w);
+    pos[p] = moved;
+    return moved;
 }

@@ -2,9 +2,12 @@
 //! spheres by cell (the backend's sorted proxy grid, re-binned every step), one pass that finds
 //! every touching pair once and adds equal and opposite forces to both spheres (float atomics,
 //! or compare-and-swap loops where the adapter has none), and one pass for walls, gravity and
-//! integration (`wgsl/dem_grid.wgsl`, `wgsl/dem_physics.wgsl`). The step's own passes zero
-//! what the next step accumulates into (the cell counts in the scan, the forces in the scatter,
-//! the contact counter in the count), so no buffer is cleared. Many steps go into one submission
+//! integration (`wgsl/dem_grid.wgsl`, `wgsl/dem_physics.wgsl`), which in the dense build also
+//! counts each sphere into its new cell: the next step's binning starts from those counts (a
+//! batch counts afresh only after the host laid the grid out or wrote the state). The step's own
+//! passes zero what the next step accumulates into (the cell counts in the scan, the forces in
+//! the scatter, the contact counter in the binning's last pass), so no buffer is cleared but at
+//! such a fresh count. Many steps go into one submission
 //! and one compute pass (the first one phase by phase when timed, see `StepTimer`); the host
 //! reads back only the contact count and timestamps per batch, and the particles when asked.
 //!
@@ -29,8 +32,8 @@
 
 use super::cell_table::{CellScan, CellScanBinds, CellTable};
 use super::layout::{
-    Budget, BuildKind, DEM_CELLS_PER_SPHERE, GridBuild, GridParams, LayoutRequest, Levels,
-    Structure, choose_layout, describe_layout, key_bits,
+    Budget, BuildKind, GridBuild, GridParams, LayoutRequest, Levels, Structure, choose_layout,
+    describe_layout, key_bits,
 };
 use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
@@ -193,6 +196,10 @@ pub struct GridStepper {
     places: Option<SortedPlaces>,
     /// Whether the next step must sort (the state was written out of order).
     sort_next: bool,
+    /// Whether the cell counts and ranks are those of the current state in the current layout
+    /// (the dense build's last step counted them as it integrated; the host laying the grid out
+    /// or writing the state undoes it).
+    counted: bool,
     sorting: Sorting,
     force: wgpu::Buffer,
     counters: wgpu::Buffer,
@@ -381,7 +388,11 @@ impl GridStepper {
                 .as_ref()
                 .is_some_and(|g| g.mesh().any())
                 .then(|| gpu_walls::ENTRY_POINTS.map(pipeline)),
-            integrate: pipeline("integrate"),
+            // The dense build's counts the spheres for the next step as it integrates them.
+            integrate: pipeline(match build {
+                BuildKind::Dense => "integrate_and_count",
+                BuildKind::Sorted => "integrate",
+            }),
             reduce_bounds: pipeline("reduce_bounds"),
             bin_index: (granular.is_none() && build == BuildKind::Dense)
                 .then(|| pipeline("bin_index")),
@@ -443,6 +454,7 @@ impl GridStepper {
                     }
                 }),
                 sort_next: true,
+                counted: false,
                 sorting: Sorting::Every(SORT_EVERY),
                 force: make("mochi.dem.force", rows * 12),
                 counters: make("mochi.dem.counters", 16),
@@ -489,6 +501,7 @@ impl GridStepper {
         self.gpu.write_uniform(&self.dem_uniform, &dem);
         q.write_buffer(&self.clock, 0, bytemuck::bytes_of(&(self.step as u32)));
         self.sort_next = true;
+        self.counted = false;
         Ok(())
     }
 
@@ -596,7 +609,7 @@ impl GridStepper {
                     bounds: (lo, hi),
                     budget: Budget {
                         spheres: self.n as u64,
-                        cells_per_sphere: DEM_CELLS_PER_SPHERE,
+                        cells_per_sphere: self.levels.dem_cells_per_sphere(),
                         build: self.build(),
                     },
                     base_cell: self.mode_cell,
@@ -639,6 +652,7 @@ impl GridStepper {
         gpu.write_uniform(&self.grid_uniform, &layout);
         self.layout = layout;
         self.laid_out_at = Some(self.step);
+        self.counted = false;
         Ok(())
     }
 
@@ -673,14 +687,24 @@ impl GridStepper {
                 (Vec::new(), [&law[..], &sorted].concat(), law)
             }
         };
-        // What the binning's passes and the search bind of the sorter.
-        let (first, last, cells) = match &self.sorter {
+        // What the binning's passes, the search and the integration bind of the sorter.
+        let (first, last, cells, counting) = match &self.sorter {
             Sorter::Dense {
                 ranks, cell_table, ..
             } => (
                 vec![(RANKS, ranks), (COUNTS, &cell_table.counts)],
-                vec![(RANKS, ranks), (CELL_START, &cell_table.cell_start)],
+                vec![
+                    (RANKS, ranks),
+                    (CELL_START, &cell_table.cell_start),
+                    (COUNTERS, &self.counters),
+                    (CLOCK, &self.clock),
+                ],
                 (CELL_START, &cell_table.cell_start),
+                vec![
+                    (PARAMS, &self.grid_uniform),
+                    (RANKS, ranks),
+                    (COUNTS, &cell_table.counts),
+                ],
             ),
             Sorter::Sorted {
                 keys,
@@ -690,9 +714,15 @@ impl GridStepper {
             } => {
                 let (sorted_keys, sorted_order) = prepared.as_ref().expect("laid out").sorted();
                 (
-                    vec![(SORT_KEYS, keys), (SORT_ORDER, order)],
+                    vec![
+                        (SORT_KEYS, keys),
+                        (SORT_ORDER, order),
+                        (COUNTERS, &self.counters),
+                        (CLOCK, &self.clock),
+                    ],
                     vec![(SORT_ORDER, sorted_order)],
                     (CELL_KEYS, sorted_keys),
+                    Vec::new(),
                 )
             }
         };
@@ -700,15 +730,7 @@ impl GridStepper {
             bin_first: gpu.bind(
                 "mochi.dem.bin_first",
                 &p.bin_first,
-                &joined(
-                    &[
-                        (PARAMS, &self.grid_uniform),
-                        (POS_A, &a.pos),
-                        (COUNTERS, &self.counters),
-                        (CLOCK, &self.clock),
-                    ],
-                    &first,
-                ),
+                &joined(&[(PARAMS, &self.grid_uniform), (POS_A, &a.pos)], &first),
             ),
             bin_last: gpu.bind(
                 "mochi.dem.bin_last",
@@ -753,7 +775,7 @@ impl GridStepper {
                         (FORCE, &self.force),
                         (CLOCK, &self.clock),
                     ],
-                    &integrate_more,
+                    &[&integrate_more[..], &counting].concat(),
                 ),
             ),
             mesh: self
@@ -819,6 +841,8 @@ impl GridStepper {
                         (RANKS, ranks),
                         (CELL_START, &cell_table.cell_start),
                         (FORCE, &self.force),
+                        (COUNTERS, &self.counters),
+                        (CLOCK, &self.clock),
                     ],
                     &placed,
                 ),
@@ -854,7 +878,8 @@ impl GridStepper {
         }
     }
 
-    /// Records one phase of a step of kind `kind` binning from set `current` into `pass`.
+    /// Records one phase of a step of kind `kind` binning from set `current` into `pass` (the
+    /// dense build's spheres counted already: see [`counted`](Self::counted)).
     fn record_phase(
         &self,
         pass: &mut wgpu::ComputePass,
@@ -862,6 +887,7 @@ impl GridStepper {
         kind: StepKind,
         phase: Phase,
     ) {
+        let count = self.build() == BuildKind::Sorted;
         let binds = self.binds.as_ref().expect("laid out");
         let b = &binds[current];
         let p = &self.pipelines;
@@ -870,7 +896,9 @@ impl GridStepper {
             let bin_index = p.bin_index.as_ref().expect("a step with binning steps");
             match phase {
                 Phase::Build => {
-                    gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
+                    if count {
+                        gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
+                    }
                     self.record_scan(pass);
                     gpu::record(pass, bin_index, &own.bin_index, self.groups);
                 }
@@ -887,7 +915,9 @@ impl GridStepper {
         }
         match phase {
             Phase::Build => {
-                gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
+                if count {
+                    gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
+                }
                 self.record_scan(pass);
                 gpu::record(pass, &p.bin_last, &b.bin_last, self.groups);
             }
@@ -939,6 +969,7 @@ impl RedoableBatch for GridStepper {
     fn rewind(&mut self, steps: u32) {
         self.step -= steps as u64;
         self.current = (self.current + steps as usize) % 2;
+        self.counted = false;
     }
 
     fn rebind(&mut self) {
@@ -960,6 +991,24 @@ impl GridStepper {
             StepKind::Sorting => 1 - current,
             StepKind::Binning => current,
         };
+        if let Sorter::Dense { cell_table, .. } = &self.sorter
+            && !self.counted
+        {
+            // Counted afresh (what a step counted before the layout or the state changed is
+            // cleared first), ahead of the batch's first step and its timestamps.
+            encoder.clear_buffer(&cell_table.counts, 0, None);
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("mochi.dem.count"),
+                timestamp_writes: None,
+            });
+            let b = &self.binds.as_ref().expect("laid out")[current];
+            gpu::record(
+                &mut pass,
+                &self.pipelines.bin_first,
+                &b.bin_first,
+                self.groups,
+            );
+        }
         if timer.is_some() {
             let kind = self.kind_of_step(0);
             StepTimer::mark(timer, encoder, 0, 0);
@@ -994,6 +1043,7 @@ impl GridStepper {
         self.current = current;
         self.step += steps as u64;
         self.sort_next = false;
+        self.counted = self.build() == BuildKind::Dense;
         profiled
     }
 
@@ -1102,11 +1152,12 @@ fn joined<'a>(
 /// The phases of a step, in order.
 #[derive(Debug, Clone, Copy)]
 enum Phase {
-    /// Counting sort of the spheres by cell.
+    /// Sort of the spheres by cell (the dense build's counts come from the last step).
     Build,
     /// Detection with the contact forces.
     Resolve,
-    /// Walls, gravity and integration.
+    /// Walls, gravity and integration (the dense build's also counts the spheres into their
+    /// cells for the next step).
     Integrate,
 }
 
@@ -1229,6 +1280,7 @@ impl GridStepper {
     fn resize(&mut self, n: u32) {
         self.n = n;
         self.sort_next = true;
+        self.counted = false;
         self.groups = self.gpu.grid(n, GROUP);
         let dem = DemParams::new(&self.params, n, self.groups.0 * GROUP);
         self.gpu.write_uniform(&self.dem_uniform, &dem);

@@ -32,9 +32,14 @@ const MAX_HASHED_AXIS_CELLS: u64 = 1 << 21;
 /// few more candidates; for detection alone the build weighs more (docs/PERFORMANCE.md, issue 4).
 pub const DETECT_CELLS_PER_SPHERE: u64 = 4;
 
-/// Cells of the dense tables per sphere, at most, for the DEM step, whose detection pass also
-/// resolves contacts, so fewer candidates pay for a larger table (docs/PERFORMANCE.md, issue 4).
+/// Cells of the dense tables per sphere, at most, for the DEM step on a multi-level grid, whose
+/// detection pass also resolves contacts, so fewer candidates pay for a larger table (its
+/// coarser levels need the cells); see [`Levels::dem_cells_per_sphere`] (docs/PERFORMANCE.md).
 pub const DEM_CELLS_PER_SPHERE: u64 = 8;
+
+/// As [`DEM_CELLS_PER_SPHERE`] on a single grid, where the larger cells' shorter walk and
+/// cheaper build pay for their candidates (docs/PERFORMANCE.md, 2026-11-27).
+pub const DEM_CELLS_PER_SPHERE_ONE_LEVEL: u64 = 4;
 
 /// What a layout may spend on its tables: for the dense build `spheres` × `cells_per_sphere`
 /// cells; the sorted build has no table, only keys (see [`cell_budget`]).
@@ -204,6 +209,16 @@ pub(crate) enum Levels {
     One,
     /// As many as the radii call for and the cell budget allows.
     Many,
+}
+
+impl Levels {
+    /// The DEM step's budget of dense cells per sphere for a grid of these levels.
+    pub(crate) fn dem_cells_per_sphere(self) -> u64 {
+        match self {
+            Levels::One => DEM_CELLS_PER_SPHERE_ONE_LEVEL,
+            Levels::Many => DEM_CELLS_PER_SPHERE,
+        }
+    }
 }
 
 impl Structure {

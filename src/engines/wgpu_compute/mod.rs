@@ -20,7 +20,7 @@
 //! the largest sphere, or the fixed-radius box), padded a little. Its table is dense over the
 //! bulk of the centres (their 0.1% to 99.9% quantiles: a few far outliers are clamped into the
 //! border cells) while it fits a budget of [`DETECT_CELLS_PER_SPHERE`] cells per sphere
-//! ([`DEM_CELLS_PER_SPHERE`] in the DEM step); cells may grow for that (still exact, a few more
+//! ([`DEM_CELLS_PER_SPHERE`] and [`DEM_CELLS_PER_SPHERE_ONE_LEVEL`] in the DEM step); cells may grow for that (still exact, a few more
 //! candidates) as long as a sample shows them uncrowded. Otherwise (a cluster with far-away
 //! outliers, say) cells keep their size and are hashed into 2n buckets, so
 //! the work never degenerates. The multi-level grid (docs/method.md, "Grids") stacks dense tables whose cells
@@ -35,10 +35,11 @@ mod detect;
 pub(crate) mod layout;
 mod shaders;
 
-pub use dem::{GridStepper, Sorting};
+pub use dem::{GridStepper, RELAYOUT_EVERY, Sorting};
 pub use detect::WgpuComputeBackend;
 pub use layout::{
     AUTO_MLGRID_RATIO, AUTO_SORTED_CELLS_PER_SPHERE, AUTO_SORTED_MIN_CELLS, BuildKind,
-    DEM_CELLS_PER_SPHERE, DETECT_CELLS_PER_SPHERE, GridBuild, Structure, dense_cells,
+    DEM_CELLS_PER_SPHERE, DEM_CELLS_PER_SPHERE_ONE_LEVEL, DETECT_CELLS_PER_SPHERE, GridBuild,
+    Structure, dense_cells,
 };
 pub use shaders::modules as shaders;

@@ -219,6 +219,7 @@ pub(crate) mod dem_grid {
         "resolve",
         "reduce_bounds",
         "integrate",
+        "integrate_and_count",
     ];
 
     /// The entry points of the sorted-key build's variants (the dense binning is in the module
@@ -232,6 +233,7 @@ pub(crate) mod dem_grid {
         "resolve",
         "reduce_bounds",
         "integrate",
+        "integrate_and_count",
     ];
 
     /// The entry points of the dense build's granular variant: the mesh walls' kernels too.
@@ -244,6 +246,7 @@ pub(crate) mod dem_grid {
         "mesh_wall_contacts",
         "reduce_bounds",
         "integrate",
+        "integrate_and_count",
     ];
 
     /// The entry points of the sorted-key build's granular variant.
@@ -258,6 +261,7 @@ pub(crate) mod dem_grid {
         "mesh_wall_contacts",
         "reduce_bounds",
         "integrate",
+        "integrate_and_count",
     ];
 
     /// What the sorted-key binning binds besides [`bindings`].
