@@ -693,7 +693,7 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
         reference.push((a.contacts, cpu.particles().unwrap()));
     }
     assert!(reference[0].0 > 1000, "the pile starts in contact");
-    assert!(8 * 16 > RELAYOUT_EVERY);
+    const { assert!(8 * 16 > RELAYOUT_EVERY) };
     for sorting in [Sorting::Never, Sorting::Every(1), Sorting::Every(7)] {
         for structure in [Structure::Auto, Structure::Mlgrid] {
             let name = format!("{sorting:?} {structure:?}");
