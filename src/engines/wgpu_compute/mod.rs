@@ -35,7 +35,7 @@ mod detect;
 pub(crate) mod layout;
 mod shaders;
 
-pub use dem::{GridStepper, RELAYOUT_EVERY, Sorting};
+pub use dem::{GridStepper, Sorting};
 pub use detect::WgpuComputeBackend;
 pub use layout::{
     AUTO_MLGRID_RATIO, AUTO_SORTED_CELLS_PER_SPHERE, AUTO_SORTED_MIN_CELLS, BuildKind,
