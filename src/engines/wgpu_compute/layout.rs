@@ -34,7 +34,8 @@ pub const DETECT_CELLS_PER_SPHERE: u64 = 4;
 
 /// Cells of the dense tables per sphere, at most, for the DEM step on a multi-level grid, whose
 /// detection pass also resolves contacts, so fewer candidates pay for a larger table (its
-/// coarser levels need the cells); see [`Levels::dem_cells_per_sphere`] (docs/PERFORMANCE.md).
+/// coarser levels need the cells; the budget the DEM step takes follows its levels, see
+/// docs/PERFORMANCE.md).
 pub const DEM_CELLS_PER_SPHERE: u64 = 8;
 
 /// As [`DEM_CELLS_PER_SPHERE`] on a single grid, where the larger cells' shorter walk and
