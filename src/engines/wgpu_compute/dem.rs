@@ -123,7 +123,7 @@ struct Binds {
     mesh: Option<[wgpu::BindGroup; 2]>,
     integrate: wgpu::BindGroup,
     reduce_bounds: wgpu::BindGroup,
-    /// A binning step's on set `from` (where the step has binning steps).
+    /// A binning step's own bind groups on set `from` (where the step has binning steps).
     binning: Option<BinningBinds>,
 }
 
@@ -388,7 +388,7 @@ impl GridStepper {
                 .as_ref()
                 .is_some_and(|g| g.mesh().any())
                 .then(|| gpu_walls::ENTRY_POINTS.map(pipeline)),
-            // The dense build's counts the spheres for the next step as it integrates them.
+            // The dense build counts the spheres for the next step as it integrates them.
             integrate: pipeline(match build {
                 BuildKind::Dense => "integrate_and_count",
                 BuildKind::Sorted => "integrate",
