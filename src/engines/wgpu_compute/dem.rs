@@ -677,10 +677,7 @@ impl GridStepper {
                 )
             }
             None => {
-                let law = self
-                    .per_pair
-                    .as_ref()
-                    .map_or(Vec::new(), |k| k.bindings().to_vec());
+                let law = self.law_bindings();
                 let places = self.places.as_ref().expect("the paper's step has places");
                 // A sorting step's state is in sorted order.
                 let sorted = [(HOME, &places.identity), (WALK_POS, &b.pos)];
@@ -749,21 +746,7 @@ impl GridStepper {
                     &[&last[..], &scatter_more[..]].concat(),
                 ),
             ),
-            resolve: gpu.bind(
-                "mochi.dem.resolve",
-                &p.resolve,
-                &joined(
-                    &[
-                        (PARAMS, &self.grid_uniform),
-                        (DEM, &self.dem_uniform),
-                        cells,
-                        (VEL, &b.vel),
-                        (FORCE, &self.force),
-                        (COUNTERS, &self.counters),
-                    ],
-                    &resolve_more,
-                ),
-            ),
+            resolve: self.resolve_bind(cells, &b.vel, &resolve_more),
             integrate: gpu.bind(
                 "mochi.dem.integrate",
                 &p.integrate,
@@ -825,10 +808,6 @@ impl GridStepper {
             return None;
         };
         let (set, gpu) = (&self.sets[on], &self.gpu);
-        let law = self
-            .per_pair
-            .as_ref()
-            .map_or(Vec::new(), |k| k.bindings().to_vec());
         let placed = [(HOME, &places.home), (WALK_POS, &places.walk_pos)];
         Some(BinningBinds {
             bin_index: gpu.bind(
@@ -847,22 +826,39 @@ impl GridStepper {
                     &placed,
                 ),
             ),
-            resolve: gpu.bind(
-                "mochi.dem.resolve",
-                &self.pipelines.resolve,
-                &joined(
-                    &[
-                        (PARAMS, &self.grid_uniform),
-                        (DEM, &self.dem_uniform),
-                        (CELL_START, &cell_table.cell_start),
-                        (VEL, &set.vel),
-                        (FORCE, &self.force),
-                        (COUNTERS, &self.counters),
-                    ],
-                    &[&law[..], &placed].concat(),
-                ),
+            resolve: self.resolve_bind(
+                (CELL_START, &cell_table.cell_start),
+                &set.vel,
+                &[&self.law_bindings()[..], &placed].concat(),
             ),
         })
+    }
+
+    /// The resolve kernel's bind group: the search's cells, the velocities `vel` of the state it
+    /// resolves, and the variant's bindings `more`.
+    fn resolve_bind(
+        &self,
+        cells: (Binding, &wgpu::Buffer),
+        vel: &wgpu::Buffer,
+        more: &[(Binding, &wgpu::Buffer)],
+    ) -> wgpu::BindGroup {
+        let own = [
+            (PARAMS, &self.grid_uniform),
+            (DEM, &self.dem_uniform),
+            cells,
+            (VEL, vel),
+            (FORCE, &self.force),
+            (COUNTERS, &self.counters),
+        ];
+        let p = &self.pipelines.resolve;
+        self.gpu.bind("mochi.dem.resolve", p, &joined(&own, more))
+    }
+
+    /// The per-pair law's bindings (none for the paper's law).
+    fn law_bindings(&self) -> Vec<(Binding, &wgpu::Buffer)> {
+        self.per_pair
+            .as_ref()
+            .map_or(Vec::new(), |k| k.bindings().to_vec())
     }
 
     /// How the step after the next `ahead` steps bins.
