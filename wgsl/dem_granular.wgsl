@@ -71,7 +71,8 @@ fn slot_at(r: u32, s: u32) -> SlotAt {
 // Sphere p resolving its contacts. Its stable id, old row, old count and the places of its
 // slots are found only where contacts keep history (granular.slots > 0), the only use of them.
 struct Walker {
-    p: u32,              // state index, its row of the new history
+    p: u32,              // its place in the walk (the stencil walk's sorted place)
+    h: u32,              // its state index, its row of the new history
     s: vec4<f32>,        // centre, radius
     a: u32,              // stable id
     row_old: u32,        // its row of the old history
@@ -83,26 +84,26 @@ struct Walker {
     torque: vec3<f32>,
     touching: u32,       // touching spheres it resolved
     held: u32,           // contacts with history (spheres it owns and walls)
-    waiting: u32,        // candidates in `deferred` (meet_later)
+    waiting: u32,        // candidates waiting to be resolved (dem_grid_granular.wgsl)
 }
 
-fn walker(p: u32) -> Walker {
+// The walker of the sphere at place p of the walk, state index h, centre and radius s.
+fn walker(p: u32, h: u32, s: vec4<f32>) -> Walker {
     var a = 0u;
     var row_old = 0u;
     var kept = 0u;
     var own_old = SlotAt(0u, 0u);
     var own_new = SlotAt(0u, 0u);
     if granular.slots > 0u {
-        a = stable_id(p);
-        row_old = row_before(p);
+        a = stable_id(h);
+        row_old = row_before(h);
         kept = held_old[row_old];
         own_old = slot_at(row_old, 0u);
-        own_new = slot_at(p, 0u);
+        own_new = slot_at(h, 0u);
     }
-    let s = pos[p];
-    let v = vel[p];
-    let me = Body(s.xyz, v.xyz, omega[p].xyz, s.w, v.w);
-    return Walker(p, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u);
+    let v = vel[h];
+    let me = Body(s.xyz, v.xyz, omega[h].xyz, s.w, v.w);
+    return Walker(p, h, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u);
 }
 
 // The old entry at `at`.
@@ -231,34 +232,6 @@ fn meet(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     }
 }
 
-// A walk may instead keep the candidates that reach its sphere (`meet_later`) and resolve them
-// together once it is done (`resolve_deferred`), or once DEFERRED are waiting: a warp's lanes
-// then run the contact law in step, where resolving each at its place in the walk runs it once
-// for every lane that meets a partner there. The order of the contacts is the walk's.
-const DEFERRED: u32 = 8u;
-var<private> deferred: array<u32, DEFERRED>;
-
-// Candidate q of the walk, kept for `resolve_deferred` where it reaches the walker's sphere.
-fn meet_later(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
-    if !reaches((*w).s, t) {
-        return;
-    }
-    deferred[(*w).waiting] = q;
-    (*w).waiting += 1u;
-    if (*w).waiting == DEFERRED {
-        resolve_deferred(w);
-    }
-}
-
-// Resolves the candidates `meet_later` kept, in the order met.
-fn resolve_deferred(w: ptr<function, Walker>) {
-    for (var k = 0u; k < (*w).waiting; k += 1u) {
-        let q = deferred[k];
-        contact_with(w, q, pos[q]);
-    }
-    (*w).waiting = 0u;
-}
-
 // Resolves the walker's sphere against sphere q (state index; t = its centre and radius): adds
 // q's force and torque there and the walker's to the walker.
 fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
@@ -316,12 +289,12 @@ fn finish(w: ptr<function, Walker>) {
             }
         }
     }
-    add_force((*w).p, (*w).force);
+    add_force((*w).h, (*w).force);
     if granular.turns != 0u {
-        add_torque((*w).p, (*w).torque);
+        add_torque((*w).h, (*w).torque);
     }
     if granular.slots > 0u {
-        held_new[(*w).p] = min((*w).held, granular.slots);
+        held_new[(*w).h] = min((*w).held, granular.slots);
         if (*w).held > granular.slots {
             atomicMax(&history_need, (*w).held);
         }

@@ -1,7 +1,9 @@
 // The resolve kernel of the wgpu-compute DEM step with the granular contact law
 // (dem_contact.wgsl, dem_granular.wgsl): part of the module dem_grid.wgsl describes. The stencil
-// walk finds every pair once, by the thread of its owner p; the walls are resolved by each
-// sphere's own thread in the same pass (they keep history in its slots).
+// walk finds every pair once, by the thread of its owner's sorted place p; the walls are
+// resolved by each sphere's own thread in the same pass (they keep history in its slots). The
+// history's rows are state rows: a binning step, whose state stays where it is, binds the
+// identity as `came_from`.
 
 // ω of set a, by its index (dem_grid.wgsl)
 @group(0) @binding(25) var<storage, read> omega_a: array<vec4<f32>>;
@@ -22,11 +24,35 @@ fn row_before(p: u32) -> u32 {
 }
 
 fn walk_sphere(q: u32) -> vec4<f32> {
-    return pos[q];
+    return walk_pos[q];
 }
 
+// The walk keeps the candidates that reach its sphere and resolves them together once it is
+// done, or once DEFERRED are waiting: a warp's lanes then run the contact law in step, where
+// resolving each at its place in the walk runs it once for every lane that meets a partner
+// there. A candidate waits by its sorted place (its state row is read only as it is resolved,
+// out of the walk's way). The order of the contacts is the walk's.
+const DEFERRED: u32 = 8u;
+var<private> deferred: array<u32, DEFERRED>;
+
 fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
-    meet_later(w, q, t);
+    if !reaches((*w).s, t) {
+        return;
+    }
+    deferred[(*w).waiting] = q;
+    (*w).waiting += 1u;
+    if (*w).waiting == DEFERRED {
+        resolve_deferred(w);
+    }
+}
+
+// Resolves the candidates `visit` kept, in the order met.
+fn resolve_deferred(w: ptr<function, Walker>) {
+    for (var k = 0u; k < (*w).waiting; k += 1u) {
+        let q = deferred[k];
+        contact_with(w, home[q], walk_pos[q]);
+    }
+    (*w).waiting = 0u;
 }
 
 fn walked(w: ptr<function, Walker>, n: u32) {}
@@ -38,7 +64,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
     let p = index(gid);
     var touching = 0u;
     if p < params.n {
-        var w = walker(p);
+        var w = walker(p, home[p], walk_pos[p]);
         stencil_walk(&w);
         resolve_deferred(&w);
         finish(&w);

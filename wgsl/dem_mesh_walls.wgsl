@@ -274,7 +274,7 @@ fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, c
         // The wall takes the opposite force and the opposite angular impulse about its
         // centre.
         let about = -(cross(b.c - pose.centre, force) + torque);
-        let at = 8u * ((*w).p % mesh.load_lanes * mesh.walls + wall);
+        let at = 8u * ((*w).h % mesh.load_lanes * mesh.walls + wall);
         for (var a = 0u; a < 3u; a += 1u) {
             add_load(at + a, -force[a]);
             add_load(at + 4u + a, about[a]);
@@ -368,7 +368,7 @@ fn mesh_wall_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let p = atomicLoad(&mesh_near[2u + k]);
-    var w = walker(p);
+    var w = walker(p, p, pos[p]);
     if granular.slots > 0u {
         // Past the slots the batch is redone anyway (history_need is raised already).
         w.held = held_new[p];

@@ -31,7 +31,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
     let p = gid.x + gid.y * dem.row;
     var touching = 0u;
     if p < dem.n {
-        var w = walker(p);
+        var w = walker(p, p, pos[p]);
         rq_walk(&w);
         finish(&w);
         touching = w.touching;

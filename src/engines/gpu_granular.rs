@@ -4,7 +4,9 @@
 //! and the contact history (docs/method.md, "Contact history"): K slots per sphere in rows in
 //! the state's order (a step reads the old row of each sphere where the previous step wrote it,
 //! [`Granular::came_from`] where the engine re-sorts), each contact kept by its owner only, in
-//! two sets of buffers that swap roles every step. A slot is one 32-byte entry (the partner's
+//! two sets of buffers that swap roles every step (the history's parity, apart from the state
+//! set: an engine with two sets moves its state into the other only at the steps that re-sort
+//! it; [`Turn`] names both). A slot is one 32-byte entry (the partner's
 //! stable id and the six springs: one memory sector, written whole), the entries split by row
 //! range over a few bindings where they do not fit one ([`EntrySplit`]). The engine keeps its
 //! own state (positions, velocities, the order of its spheres); this module saves both at the
@@ -26,11 +28,21 @@ use crate::gpu::shader::Binding;
 use crate::particles::{ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles};
 use std::ops::Range;
 
+/// Which of the granular state's buffers are meant: those in the order of the engine's state
+/// set `set` (0 or 1; engines with one set have only 0) and the history of parity `parity`
+/// (a step of parity k reads the old history from `history[k]`, writes the new to
+/// `history[1 - k]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Turn {
+    pub set: usize,
+    pub parity: usize,
+}
+
 /// A wgpu engine's DEM step as [`run_batch`] drives it.
 pub(crate) trait RedoableBatch {
-    /// The GPU, the granular state (`None`: the paper's step), the parity of the next step and
-    /// the engine's buffers a batch begins from (restored when it is redone).
-    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, usize, Vec<&wgpu::Buffer>);
+    /// The GPU, the granular state (`None`: the paper's step), the state set and parity of the
+    /// next step and the engine's buffers a batch begins from (restored when it is redone).
+    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, Turn, Vec<&wgpu::Buffer>);
 
     /// Records `steps` steps into `encoder`, submits it and waits for it: the contacts of the
     /// last step and the phase times.
@@ -40,7 +52,8 @@ pub(crate) trait RedoableBatch {
         steps: u32,
     ) -> Result<(u64, Option<StageTimes>)>;
 
-    /// Moves the clock and the parity back by `steps` steps (their state is restored apart).
+    /// Moves the clock, the state set and the parity back to the start of the last batch of
+    /// `steps` steps (their state is restored apart).
     fn rewind(&mut self, steps: u32);
 
     /// Binds the granular state's buffers again (the history buffers are new after a growth).
@@ -55,10 +68,10 @@ pub(crate) fn run_batch(
     steps: u32,
 ) -> Result<(u64, Option<StageTimes>)> {
     loop {
-        let (gpu, granular, parity, state) = step.batch_parts();
+        let (gpu, granular, turn, state) = step.batch_parts();
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         if let Some(g) = granular {
-            g.begin_batch(gpu, &mut encoder, parity, &state);
+            g.begin_batch(gpu, &mut encoder, turn, &state);
         }
         let done = step.record_batch(encoder, steps)?;
         let (gpu, granular, ..) = step.batch_parts();
@@ -67,9 +80,9 @@ pub(crate) fn run_batch(
         };
         // The batch's steps are undone: back to the state and step it began from.
         step.rewind(steps);
-        let (gpu, granular, parity, state) = step.batch_parts();
+        let (gpu, granular, turn, state) = step.batch_parts();
         if let Some(g) = granular {
-            g.restore_grown(gpu, parity, &state, need)?;
+            g.restore_grown(gpu, turn, &state, need)?;
         }
         step.rebind();
     }
@@ -80,10 +93,10 @@ pub(crate) fn run_batch(
 const FIRST_SLOTS: u32 = 16;
 
 /// Storage buffers the granular resolve kernel binds (wgpu-compute's: the state, the cell
-/// table, the ids, the rows the spheres came from, forces, counters, spins, torques, two counts
-/// of the history, [`ENTRY_PARTS`] entry bindings of each history, the need, and the mesh
-/// walls' four).
-const STORAGE_BUFFERS: u32 = 14 + 2 * ENTRY_PARTS as u32;
+/// table, the ids, the rows the spheres came from, the sorted places' rows and spheres, forces,
+/// counters, spins, torques, two counts of the history, [`ENTRY_PARTS`] entry bindings of each
+/// history, the need, and the mesh walls' four).
+const STORAGE_BUFFERS: u32 = 16 + 2 * ENTRY_PARTS as u32;
 
 /// A slot of the history as the GPU holds it, as bits: ξ x, y, z and the partner's stable id,
 /// then the rolling torque's x, y, z and 0 (`array<vec4<u32>, 2>`).
@@ -274,7 +287,8 @@ pub(crate) struct Granular {
     /// Torque accumulators in state order (zero between steps).
     torque: wgpu::Buffer,
     /// History slots, `params.slots` per sphere in rows in state order: the old ones of a step
-    /// of parity k are `history[k]` (in the order of state set k), its new ones `history[1 - k]`.
+    /// of parity k are `history[k]` (in the order of the state set the step starts from), its
+    /// new ones `history[1 - k]` (in the order of the set it resolves).
     history: [History; 2],
     /// How both histories' entries are split over the entry bindings.
     split: EntrySplit,
@@ -314,8 +328,8 @@ impl Granular {
     }
 
     /// The buffers for `particles` on `gpu` for the engine named `engine` (its backend's name),
-    /// whose state is in `sets` sets of buffers (1: one set in input order; 2: two sets that a
-    /// step of parity k reads from set k and writes in set 1 − k) with `room` (for spheres
+    /// whose state is in `sets` sets of buffers (1: one set in input order; 2: two sets, a step
+    /// that re-sorts the state moving it from one into the other) with `room` (for spheres
     /// appended later, see [`append`](Self::append)); the angular velocities go
     /// into set 0, in input order, the history as the old history of a step of parity 0 (rows
     /// in input order; the cpu's layout, both sides of each pair, is usable as it is: each owner
@@ -439,12 +453,14 @@ impl Granular {
         &self.omega[set % self.omega.len()]
     }
 
-    /// Bindings of the resolve kernel of a step of parity `parity`.
-    pub fn resolve_bindings<'a>(&'a self, parity: usize) -> Vec<(Binding, &'a wgpu::Buffer)> {
+    /// Bindings of the resolve kernel of a step of parity `on.parity` that resolves state set
+    /// `on.set`.
+    pub fn resolve_bindings<'a>(&'a self, on: Turn) -> Vec<(Binding, &'a wgpu::Buffer)> {
+        let parity = on.parity;
         let (old, new) = (&self.history[parity], &self.history[1 - parity]);
         let mut all = vec![
             (GRANULAR, &self.uniform),
-            (OMEGA, self.omega_of(1 - parity)),
+            (OMEGA, self.omega_of(on.set)),
             (TORQUE, &self.torque),
             (HELD_OLD, &self.held[parity]),
             (HELD_NEW, &self.held[1 - parity]),
@@ -458,30 +474,30 @@ impl Granular {
         all
     }
 
-    /// Bindings of the mesh walls' kernels of a step of parity `parity`, in the order of
+    /// Bindings of the mesh walls' kernels of a step as [`resolve_bindings`](Self::resolve_bindings), in the order of
     /// [`ENTRY_POINTS`](super::gpu_walls::ENTRY_POINTS), beside the state's (the listing reads
     /// `dem`, `pos` and `clock`; the contacts read what the contact pass reads); `None` without
     /// mesh walls (the kernels are not dispatched).
-    pub fn mesh_bindings(&self, parity: usize) -> Option<[Vec<(Binding, &wgpu::Buffer)>; 2]> {
-        let mut contacts = self.resolve_bindings(parity);
+    pub fn mesh_bindings(&self, on: Turn) -> Option<[Vec<(Binding, &wgpu::Buffer)>; 2]> {
+        let mut contacts = self.resolve_bindings(on);
         contacts.extend(self.mesh.bindings());
         let near = self.mesh.near_bindings().to_vec();
         self.mesh.any().then_some([near, contacts])
     }
 
-    /// Bindings of the integration kernel of a step of parity `parity`.
-    pub fn integrate_bindings(&self, parity: usize) -> [(Binding, &wgpu::Buffer); 3] {
+    /// Bindings of the integration kernel of a step that integrates state set `set`.
+    pub fn integrate_bindings(&self, set: usize) -> [(Binding, &wgpu::Buffer); 3] {
         [
             (GRANULAR, &self.uniform),
-            (OMEGA, self.omega_of(1 - parity)),
+            (OMEGA, self.omega_of(set)),
             (TORQUE, &self.torque),
         ]
     }
 
-    /// The angular velocities a step of parity `parity` moves from set `parity` (first) to
-    /// set `1 - parity` as it re-sorts the state (engines with two sets).
-    pub fn sorted_omega(&self, parity: usize) -> [&wgpu::Buffer; 2] {
-        [self.omega_of(parity), self.omega_of(1 - parity)]
+    /// The angular velocities a step that re-sorts the state moves from set `from` (first) to
+    /// set `1 - from` (engines with two sets).
+    pub fn sorted_omega(&self, from: usize) -> [&wgpu::Buffer; 2] {
+        [self.omega_of(from), self.omega_of(1 - from)]
     }
 
     /// Where the re-sort of an engine with two state sets writes, and its resolve kernel reads,
@@ -501,14 +517,14 @@ impl Granular {
     }
 
     /// Makes the `k` rows after the spheres there (rows kept at opening) those of new spheres
-    /// for a step of parity `parity`: no spin, no history.
-    pub fn append(&mut self, gpu: &Gpu, parity: usize, k: u32) -> Result<()> {
+    /// for the next step (`next`): no spin, no history.
+    pub fn append(&mut self, gpu: &Gpu, next: Turn, k: u32) -> Result<()> {
         let (first, count) = (self.n as u64, k as u64);
         gpu.checked("appending spheres", || {
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            let omega = self.omega_of(parity);
+            let omega = self.omega_of(next.set);
             encoder.clear_buffer(omega, first * 16, Some(count * 16));
-            let held = &self.held[parity];
+            let held = &self.held[next.parity];
             encoder.clear_buffer(held, first * 4, Some(count * 4));
             gpu.queue.submit([encoder.finish()]);
         })?;
@@ -531,14 +547,14 @@ impl Granular {
         })
     }
 
-    /// Records, ahead of a batch whose first step has parity `parity`, the clearing of the
+    /// Records, ahead of a batch whose first step starts from `first`, the clearing of the
     /// history count and (with history) the copy of the state it starts from: the old history,
     /// the angular velocities and the engine's buffers `state`.
     pub fn begin_batch(
         &mut self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
-        parity: usize,
+        first: Turn,
         state: &[&wgpu::Buffer],
     ) {
         encoder.clear_buffer(&self.need, 0, None);
@@ -546,10 +562,10 @@ impl Granular {
         if !self.keeps_history() {
             return;
         }
-        let sources: Vec<&wgpu::Buffer> = self.history[parity]
+        let sources: Vec<&wgpu::Buffer> = self.history[first.parity]
             .parts
             .iter()
-            .chain([&self.held[parity], &self.omega[parity % self.omega.len()]])
+            .chain([&self.held[first.parity], &self.omega[first.set % self.omega.len()]])
             .chain(state.iter().copied())
             .collect();
         let fits = self.saved.len() == sources.len()
@@ -583,17 +599,18 @@ impl Granular {
         Ok((need > self.params.slots).then_some(need))
     }
 
-    /// Puts back the state a batch began from (parity `parity`, the engine's buffers `state`
-    /// as given to [`begin_batch`](Self::begin_batch)) with room for `need` contacts per sphere
+    /// Puts back the state a batch began from (`first`, the engine's buffers `state` as given
+    /// to [`begin_batch`](Self::begin_batch)) with room for `need` contacts per sphere
     /// and some more (a quarter, as the cpu step). The history buffers are new: the engine
     /// binds them again.
     pub fn restore_grown(
         &mut self,
         gpu: &Gpu,
-        parity: usize,
+        first: Turn,
         state: &[&wgpu::Buffer],
         need: u32,
     ) -> Result<()> {
+        let parity = first.parity;
         let engine = self.engine;
         let (n, old) = (self.n as usize, self.split);
         let slots = need.saturating_add(need / 4);
@@ -619,7 +636,7 @@ impl Granular {
         gpu.write_uniform(&self.uniform, &self.params);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&self.saved[fields], 0, &self.held[parity], 0, n as u64 * 4);
-        let targets = [self.omega_of(parity)]
+        let targets = [self.omega_of(first.set)]
             .into_iter()
             .chain(state.iter().copied());
         for (from, to) in self.saved[fields + 1..].iter().zip(targets) {
@@ -632,15 +649,15 @@ impl Granular {
     }
 
     /// Records the move of the rows of `moves` (as [`move_rows`]) of the angular velocities and
-    /// the history that a step of parity `parity` reads, through `scratch`.
+    /// the history that the next step (`next`) reads, through `scratch`.
     pub fn move_rows(
         &self,
         encoder: &mut wgpu::CommandEncoder,
-        parity: usize,
+        next: Turn,
         scratch: &wgpu::Buffer,
         moves: &[(u32, u32)],
     ) {
-        let omega = self.omega_of(parity);
+        let (omega, parity) = (self.omega_of(next.set), next.parity);
         move_rows(encoder, scratch, moves, 16, |r| (omega, r as u64 * 16));
         if !self.keeps_history() {
             return;
@@ -665,13 +682,12 @@ impl Granular {
         self.n -= k;
     }
 
-    /// The angular velocities (in the order of state set `parity`) and the history in the
-    /// cpu's layout, after a step of parity `1 - parity` (the history of parity `parity` is
-    /// the one the next step reads); `order` maps the rows of state set `parity` to input
-    /// order (`None`: the state is in input order).
-    pub fn read(&self, gpu: &Gpu, parity: usize, order: Option<&InputOrder>) -> Result<Rotation> {
-        let n = self.n as usize;
-        let omega: Vec<[f32; 4]> = gpu.read(self.omega_of(parity), n)?;
+    /// The angular velocities and the history in the cpu's layout that the next step (`next`)
+    /// reads; `order` maps the rows of state set `next.set` to input order (`None`: the state
+    /// is in input order).
+    pub fn read(&self, gpu: &Gpu, next: Turn, order: Option<&InputOrder>) -> Result<Rotation> {
+        let (n, parity) = (self.n as usize, next.parity);
+        let omega: Vec<[f32; 4]> = gpu.read(self.omega_of(next.set), n)?;
         let angular_velocities = omega.iter().map(|w| [w[0], w[1], w[2]]).collect();
         let history = if self.keeps_history() {
             let k = self.params.slots as usize;

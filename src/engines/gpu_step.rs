@@ -3,7 +3,7 @@
 //! `wgsl/dem_physics.wgsl`, or the granular step's, [`granular`]), the choice of force atomics,
 //! per-phase timestamps, and moving particles to and from the GPU.
 
-pub(crate) use super::gpu_granular::{Granular, RedoableBatch, Rotation, run_batch};
+pub(crate) use super::gpu_granular::{Granular, RedoableBatch, Rotation, Turn, run_batch};
 use crate::dem::model::{NormalLaw, StepParams, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::dem::walls::WallSet;

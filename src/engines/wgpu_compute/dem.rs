@@ -19,9 +19,9 @@
 //! The binning is the dense build's counting sort into a table of every cell, or the sorted
 //! build's radix sort of the cell keys (`wgsl/dem_grid_sorted.wgsl`, no table: its cost follows
 //! the spheres, not the box); [`GridBuild`] chooses, once, from the spheres at the start.
-//! The paper's step on the dense build moves its state into sorted order only every
-//! [`SORT_EVERY`] steps (a sorting step); the steps between bin the spheres by index and
-//! resolve and integrate the state where it is (binning steps, [`StepKind`]).
+//! A step on the dense build moves its state into sorted order only every [`SORT_EVERY`]
+//! steps (a sorting step); the steps between bin the spheres by index and resolve and
+//! integrate the state where it is (binning steps, [`StepKind`]).
 //!
 //! A scene with friction, rolling resistance, rotation or another law than the paper's runs the
 //! granular variant of the step (`wgsl/dem_grid_granular.wgsl`, [`Granular`]): its own module
@@ -53,8 +53,8 @@ use crate::engines::gpu_step::granular::OMEGA;
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
     DemModule, DemParams, ForceAtomics, GROUP, Granular, InputOrder, MAX_BATCH, PerPair,
-    RedoableBatch, Room, StepTimer, advance_in_batches, max_spheres, move_rows, particles_with,
-    rows, run_batch,
+    RedoableBatch, Room, StepTimer, Turn, advance_in_batches, max_spheres, move_rows,
+    particles_with, rows, run_batch,
 };
 use crate::engines::gpu_walls;
 use crate::error::{Error, Result};
@@ -71,8 +71,8 @@ pub const RELAYOUT_EVERY: u64 = 100;
 /// drifts out of sorted order only as fast as spheres change cells).
 pub const SORT_EVERY: u64 = 16;
 
-/// When the paper's step on the dense build moves its state into sorted order (a sorting
-/// step); the other steps bin by index. Only speed depends on it.
+/// When a step on the dense build moves its state into sorted order (a sorting step); the
+/// other steps bin by index. Only speed depends on it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Sorting {
     /// At the steps whose number is a multiple of `k` (≥ 1), and at the first step after the
@@ -114,13 +114,12 @@ struct Pipelines {
     bin_index: Option<wgpu::ComputePipeline>,
 }
 
-/// Bind groups of one parity (which state set is the source of the next binning).
+/// Bind groups of the steps from one state set (the source of the next binning).
 struct Binds {
     bin_first: wgpu::BindGroup,
     bin_last: wgpu::BindGroup,
-    resolve: wgpu::BindGroup,
-    /// The mesh walls' kernels', as `Pipelines::mesh`.
-    mesh: Option<[wgpu::BindGroup; 2]>,
+    /// The sorting step's, on the other set.
+    resolving: ResolveBinds,
     integrate: wgpu::BindGroup,
     reduce_bounds: wgpu::BindGroup,
     /// A binning step's own bind groups on set `from` (where the step has binning steps).
@@ -131,11 +130,18 @@ struct Binds {
 /// sorting steps').
 struct BinningBinds {
     bin_index: wgpu::BindGroup,
-    resolve: wgpu::BindGroup,
+    resolving: ResolveBinds,
 }
 
-/// What the resolve kernel of the paper's step reads through: the state row and sphere of each
-/// sorted place.
+/// The bind groups of the contact pass of a step on one state set, by the parity of the history
+/// it reads (one, 0, in the paper's step).
+struct ResolveBinds {
+    resolve: Vec<wgpu::BindGroup>,
+    /// The mesh walls' kernels', as `Pipelines::mesh` (granular step with mesh walls).
+    mesh: Option<Vec<[wgpu::BindGroup; 2]>>,
+}
+
+/// What the resolve kernel reads through: the state row and sphere of each sorted place.
 struct SortedPlaces {
     home: wgpu::Buffer,
     walk_pos: wgpu::Buffer,
@@ -192,8 +198,12 @@ pub struct GridStepper {
     sets: [StateSet; 2],
     /// Which set the next step bins from.
     current: usize,
-    /// The paper's step's places (`None`: the granular step, which sorts every step).
-    places: Option<SortedPlaces>,
+    /// The parity of the next step's history (granular step; 0 in the paper's).
+    parity: usize,
+    /// `current`, `parity` and `sort_next` when the last batch was recorded (where a redone
+    /// batch starts again).
+    batch_start: (usize, usize, bool),
+    places: SortedPlaces,
     /// Whether the next step must sort (the state was written out of order).
     sort_next: bool,
     /// Whether the cell counts and ranks are those of the current state in the current layout
@@ -394,8 +404,7 @@ impl GridStepper {
                 BuildKind::Sorted => "integrate",
             }),
             reduce_bounds: pipeline("reduce_bounds"),
-            bin_index: (granular.is_none() && build == BuildKind::Dense)
-                .then(|| pipeline("bin_index")),
+            bin_index: (build == BuildKind::Dense).then(|| pipeline("bin_index")),
         };
         let none = wgpu::BufferUsages::empty();
         let make = |label: &str, bytes: u64| gpu.storage(label, bytes, none);
@@ -440,7 +449,9 @@ impl GridStepper {
                 dem_uniform: gpu.uniform("mochi.dem.params", &DemParams::default()),
                 sets: [set(0), set(1)],
                 current: 0,
-                places: granular.is_none().then(|| {
+                parity: 0,
+                batch_start: (0, 0, true),
+                places: {
                     let identity = make("mochi.dem.identity", rows * 4);
                     let places: Vec<u32> = (0..rows as u32).collect();
                     gpu.queue
@@ -452,7 +463,7 @@ impl GridStepper {
                         walk_pos: make("mochi.dem.walk_pos", binning * rows * 16),
                         identity,
                     }
-                }),
+                },
                 sort_next: true,
                 counted: false,
                 sorting: Sorting::Every(SORT_EVERY),
@@ -515,7 +526,7 @@ impl GridStepper {
         let order = InputOrder::of(&ids);
         let rotation = || {
             let g = self.granular.as_ref();
-            g.map(|g| g.read(&self.gpu, self.current, Some(&order)))
+            g.map(|g| g.read(&self.gpu, self.turn(), Some(&order)))
                 .transpose()
         };
         particles_with(&pos, &vel, Some(&order.rank), self.step, rotation)
@@ -657,35 +668,23 @@ impl GridStepper {
     }
 
     /// Bind groups for binning from set `from` into the other (and, in the granular step,
-    /// moving the angular velocities with the state and reading the history of parity `from`).
+    /// moving the angular velocities with the state).
     fn make_binds(&self, from: usize) -> Binds {
         let (a, b) = (&self.sets[from], &self.sets[1 - from]);
         let p = &self.pipelines;
         let gpu = &self.gpu;
-        let (scatter_more, resolve_more, integrate_more) = match &self.granular {
+        let (scatter_more, integrate_more) = match &self.granular {
             Some(g) => {
                 let [omega_a, omega] = g.sorted_omega(from);
-                let came_from = (CAME_FROM, g.came_from());
                 (
-                    vec![(OMEGA_A, omega_a), (OMEGA, omega), came_from],
-                    [
-                        &g.resolve_bindings(from)[..],
-                        &[(POS, &b.pos), (IDS, &b.ids), came_from],
-                    ]
-                    .concat(),
-                    g.integrate_bindings(from).to_vec(),
+                    vec![(OMEGA_A, omega_a), (OMEGA, omega), (CAME_FROM, g.came_from())],
+                    g.integrate_bindings(1 - from).to_vec(),
                 )
             }
-            None => {
-                let law = self.law_bindings();
-                let places = self.places.as_ref().expect("the paper's step has places");
-                // A sorting step's state is in sorted order.
-                let sorted = [(HOME, &places.identity), (WALK_POS, &b.pos)];
-                (Vec::new(), [&law[..], &sorted].concat(), law)
-            }
+            None => (Vec::new(), self.law_bindings()),
         };
-        // What the binning's passes, the search and the integration bind of the sorter.
-        let (first, last, cells, counting) = match &self.sorter {
+        // What the binning's passes and the integration bind of the sorter.
+        let (first, last, counting) = match &self.sorter {
             Sorter::Dense {
                 ranks, cell_table, ..
             } => (
@@ -696,7 +695,6 @@ impl GridStepper {
                     (COUNTERS, &self.counters),
                     (CLOCK, &self.clock),
                 ],
-                (CELL_START, &cell_table.cell_start),
                 vec![
                     (PARAMS, &self.grid_uniform),
                     (RANKS, ranks),
@@ -709,7 +707,7 @@ impl GridStepper {
                 prepared,
                 ..
             } => {
-                let (sorted_keys, sorted_order) = prepared.as_ref().expect("laid out").sorted();
+                let (_, sorted_order) = prepared.as_ref().expect("laid out").sorted();
                 (
                     vec![
                         (SORT_KEYS, keys),
@@ -718,7 +716,6 @@ impl GridStepper {
                         (CLOCK, &self.clock),
                     ],
                     vec![(SORT_ORDER, sorted_order)],
-                    (CELL_KEYS, sorted_keys),
                     Vec::new(),
                 )
             }
@@ -746,7 +743,7 @@ impl GridStepper {
                     &[&last[..], &scatter_more[..]].concat(),
                 ),
             ),
-            resolve: self.resolve_bind(cells, &b.vel, &resolve_more),
+            resolving: self.resolving(1 - from, StepKind::Sorting),
             integrate: gpu.bind(
                 "mochi.dem.integrate",
                 &p.integrate,
@@ -761,30 +758,6 @@ impl GridStepper {
                     &[&integrate_more[..], &counting].concat(),
                 ),
             ),
-            mesh: self
-                .granular
-                .as_ref()
-                .zip(p.mesh.as_ref())
-                .and_then(|(g, [near, contacts])| {
-                    let [near_walls, walls] = g.mesh_bindings(from)?;
-                    let state = [
-                        (DEM, &self.dem_uniform),
-                        (POS, &b.pos),
-                        (CLOCK, &self.clock),
-                        (VEL, &b.vel),
-                        (FORCE, &self.force),
-                        (IDS, &b.ids),
-                        (CAME_FROM, g.came_from()),
-                    ];
-                    Some([
-                        gpu.bind(
-                            "mochi.dem.mesh_near",
-                            near,
-                            &joined(&state[..3], &near_walls),
-                        ),
-                        gpu.bind("mochi.dem.mesh_walls", contacts, &joined(&state, &walls)),
-                    ])
-                }),
             reduce_bounds: gpu.bind(
                 "mochi.dem.reduce_bounds",
                 &p.reduce_bounds,
@@ -800,58 +773,110 @@ impl GridStepper {
 
     /// Bind groups of a binning step on set `on` (`None` where the step has none).
     fn binning_binds(&self, on: usize) -> Option<BinningBinds> {
-        let (bin_index, places) = (self.pipelines.bin_index.as_ref()?, self.places.as_ref()?);
+        let bin_index = self.pipelines.bin_index.as_ref()?;
         let Sorter::Dense {
             ranks, cell_table, ..
         } = &self.sorter
         else {
             return None;
         };
-        let (set, gpu) = (&self.sets[on], &self.gpu);
-        let placed = [(HOME, &places.home), (WALK_POS, &places.walk_pos)];
+        let (set, gpu, places) = (&self.sets[on], &self.gpu, &self.places);
         Some(BinningBinds {
             bin_index: gpu.bind(
                 "mochi.dem.bin_index",
                 bin_index,
-                &joined(
-                    &[
-                        (PARAMS, &self.grid_uniform),
-                        (POS_A, &set.pos),
-                        (RANKS, ranks),
-                        (CELL_START, &cell_table.cell_start),
-                        (FORCE, &self.force),
-                        (COUNTERS, &self.counters),
-                        (CLOCK, &self.clock),
-                    ],
-                    &placed,
-                ),
+                &[
+                    (PARAMS, &self.grid_uniform),
+                    (POS_A, &set.pos),
+                    (RANKS, ranks),
+                    (CELL_START, &cell_table.cell_start),
+                    (FORCE, &self.force),
+                    (COUNTERS, &self.counters),
+                    (CLOCK, &self.clock),
+                    (HOME, &places.home),
+                    (WALK_POS, &places.walk_pos),
+                ],
             ),
-            resolve: self.resolve_bind(
-                (CELL_START, &cell_table.cell_start),
-                &set.vel,
-                &[&self.law_bindings()[..], &placed].concat(),
-            ),
+            resolving: self.resolving(on, StepKind::Binning),
         })
     }
 
-    /// The resolve kernel's bind group: the search's cells, the velocities `vel` of the state it
-    /// resolves, and the variant's bindings `more`.
-    fn resolve_bind(
-        &self,
-        cells: (Binding, &wgpu::Buffer),
-        vel: &wgpu::Buffer,
-        more: &[(Binding, &wgpu::Buffer)],
-    ) -> wgpu::BindGroup {
+    /// The contact pass's bind groups of a step of kind `kind` that resolves state set `on`:
+    /// the search's cells, the state, the sorted places (the state itself in a sorting step,
+    /// `bin_index`'s in a binning step) and the variant's bindings, by the history's parity.
+    fn resolving(&self, on: usize, kind: StepKind) -> ResolveBinds {
+        let (set, places, gpu) = (&self.sets[on], &self.places, &self.gpu);
+        let cells = match &self.sorter {
+            Sorter::Dense { cell_table, .. } => (CELL_START, &cell_table.cell_start),
+            Sorter::Sorted { prepared, .. } => {
+                (CELL_KEYS, prepared.as_ref().expect("laid out").sorted().0)
+            }
+        };
+        let placed = match kind {
+            StepKind::Sorting => [(HOME, &places.identity), (WALK_POS, &set.pos)],
+            StepKind::Binning => [(HOME, &places.home), (WALK_POS, &places.walk_pos)],
+        };
         let own = [
             (PARAMS, &self.grid_uniform),
             (DEM, &self.dem_uniform),
             cells,
-            (VEL, vel),
+            (VEL, &set.vel),
             (FORCE, &self.force),
             (COUNTERS, &self.counters),
+            placed[0],
+            placed[1],
         ];
-        let p = &self.pipelines.resolve;
-        self.gpu.bind("mochi.dem.resolve", p, &joined(&own, more))
+        let resolve = |more: &[(Binding, &wgpu::Buffer)]| {
+            gpu.bind("mochi.dem.resolve", &self.pipelines.resolve, &joined(&own, more))
+        };
+        let Some(g) = &self.granular else {
+            return ResolveBinds {
+                resolve: vec![resolve(&self.law_bindings())],
+                mesh: None,
+            };
+        };
+        // A binning step leaves the state where it is: each sphere's old history row is the
+        // row it is in.
+        let came_from = match kind {
+            StepKind::Sorting => g.came_from(),
+            StepKind::Binning => &places.identity,
+        };
+        let state = [
+            (DEM, &self.dem_uniform),
+            (POS, &set.pos),
+            (CLOCK, &self.clock),
+            (VEL, &set.vel),
+            (FORCE, &self.force),
+            (IDS, &set.ids),
+            (CAME_FROM, came_from),
+        ];
+        let turns = [0, 1].map(|parity| Turn { set: on, parity });
+        let mesh = self.pipelines.mesh.as_ref().and_then(|[near, contacts]| {
+            turns
+                .iter()
+                .map(|&turn| {
+                    let [near_walls, walls] = g.mesh_bindings(turn)?;
+                    Some([
+                        gpu.bind(
+                            "mochi.dem.mesh_near",
+                            near,
+                            &joined(&state[..3], &near_walls),
+                        ),
+                        gpu.bind("mochi.dem.mesh_walls", contacts, &joined(&state, &walls)),
+                    ])
+                })
+                .collect()
+        });
+        ResolveBinds {
+            resolve: turns
+                .iter()
+                .map(|&turn| {
+                    let more = [(IDS, &set.ids), (CAME_FROM, came_from)];
+                    resolve(&joined(&g.resolve_bindings(turn), &more))
+                })
+                .collect(),
+            mesh,
+        }
     }
 
     /// The per-pair law's bindings (none for the paper's law).
@@ -874,58 +899,72 @@ impl GridStepper {
         }
     }
 
-    /// Records one phase of a step of kind `kind` binning from set `current` into `pass` (the
-    /// dense build's spheres counted already: see [`counted`](Self::counted)).
-    fn record_phase(
-        &self,
-        pass: &mut wgpu::ComputePass,
-        current: usize,
-        kind: StepKind,
-        phase: Phase,
-    ) {
-        let count = self.build() == BuildKind::Sorted;
+    /// The buffers the next step starts from.
+    fn turn(&self) -> Turn {
+        Turn {
+            set: self.current,
+            parity: self.parity,
+        }
+    }
+
+    /// The buffers the step after one of kind `kind` from `turn` starts from: a sorting step
+    /// moves the state into the other set; the granular step's history changes sides at every
+    /// step.
+    fn turn_after(&self, kind: StepKind, turn: Turn) -> Turn {
+        Turn {
+            set: match kind {
+                StepKind::Sorting => 1 - turn.set,
+                StepKind::Binning => turn.set,
+            },
+            parity: match self.granular {
+                Some(_) => 1 - turn.parity,
+                None => 0,
+            },
+        }
+    }
+
+    /// Records one phase of a step of kind `kind` from `from` into `pass` (the dense build's
+    /// spheres counted already: see [`counted`](Self::counted)).
+    fn record_phase(&self, pass: &mut wgpu::ComputePass, from: Turn, kind: StepKind, phase: Phase) {
         let binds = self.binds.as_ref().expect("laid out");
-        let b = &binds[current];
+        let b = &binds[from.set];
         let p = &self.pipelines;
-        if kind == StepKind::Binning {
+        let binning = (kind == StepKind::Binning).then(|| {
             let own = b.binning.as_ref().expect("a step with binning steps");
             let bin_index = p.bin_index.as_ref().expect("a step with binning steps");
-            match phase {
-                Phase::Build => {
-                    if count {
-                        gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
-                    }
-                    self.record_scan(pass);
-                    gpu::record(pass, bin_index, &own.bin_index, self.groups);
-                }
-                Phase::Resolve => gpu::record(pass, &p.resolve, &own.resolve, self.groups),
-                // The sorting step from the other set integrates this one.
-                Phase::Integrate => gpu::record(
-                    pass,
-                    &p.integrate,
-                    &binds[1 - current].integrate,
-                    self.groups,
-                ),
-            }
-            return;
-        }
+            (own, bin_index)
+        });
         match phase {
             Phase::Build => {
-                if count {
+                if self.build() == BuildKind::Sorted {
                     gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
                 }
                 self.record_scan(pass);
-                gpu::record(pass, &p.bin_last, &b.bin_last, self.groups);
+                match binning {
+                    Some((own, bin_index)) => {
+                        gpu::record(pass, bin_index, &own.bin_index, self.groups)
+                    }
+                    None => gpu::record(pass, &p.bin_last, &b.bin_last, self.groups),
+                }
             }
             Phase::Resolve => {
-                gpu::record(pass, &p.resolve, &b.resolve, self.groups);
-                if let (Some(pipelines), Some(binds)) = (&p.mesh, &b.mesh) {
-                    for (pipeline, bind) in pipelines.iter().zip(binds) {
+                let r = binning.map_or(&b.resolving, |(own, _)| &own.resolving);
+                gpu::record(pass, &p.resolve, &r.resolve[from.parity], self.groups);
+                if let (Some(pipelines), Some(binds)) = (&p.mesh, &r.mesh) {
+                    for (pipeline, bind) in pipelines.iter().zip(&binds[from.parity]) {
                         gpu::record(pass, pipeline, bind, self.groups);
                     }
                 }
             }
-            Phase::Integrate => gpu::record(pass, &p.integrate, &b.integrate, self.groups),
+            // A binning step integrates the set it is on, as the sorting step from the other
+            // set does.
+            Phase::Integrate => {
+                let integrate = match kind {
+                    StepKind::Sorting => &b.integrate,
+                    StepKind::Binning => &binds[1 - from.set].integrate,
+                };
+                gpu::record(pass, &p.integrate, integrate, self.groups)
+            }
         }
     }
 
@@ -942,10 +981,10 @@ impl GridStepper {
 }
 
 impl RedoableBatch for GridStepper {
-    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, usize, Vec<&wgpu::Buffer>) {
-        let set = &self.sets[self.current];
+    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, Turn, Vec<&wgpu::Buffer>) {
+        let (turn, set) = (self.turn(), &self.sets[self.current]);
         let state = vec![&set.pos, &set.vel, &set.ids, &self.clock];
-        (&self.gpu, self.granular.as_mut(), self.current, state)
+        (&self.gpu, self.granular.as_mut(), turn, state)
     }
 
     fn record_batch(
@@ -964,7 +1003,7 @@ impl RedoableBatch for GridStepper {
 
     fn rewind(&mut self, steps: u32) {
         self.step -= steps as u64;
-        self.current = (self.current + steps as usize) % 2;
+        (self.current, self.parity, self.sort_next) = self.batch_start;
         self.counted = false;
     }
 
@@ -980,13 +1019,9 @@ impl GridStepper {
     /// batch's end is marked and resolved.
     fn encode_steps(&mut self, encoder: &mut wgpu::CommandEncoder, steps: u32) -> u32 {
         let timer = self.timer.as_ref();
-        let mut current = self.current;
+        let mut turn = self.turn();
+        self.batch_start = (self.current, self.parity, self.sort_next);
         let mut profiled = 0;
-        // The set the step after one of kind `kind` from set `current` bins from.
-        let after = |kind, current: usize| match kind {
-            StepKind::Sorting => 1 - current,
-            StepKind::Binning => current,
-        };
         if let Sorter::Dense { cell_table, .. } = &self.sorter
             && !self.counted
         {
@@ -997,7 +1032,7 @@ impl GridStepper {
                 label: Some("mochi.dem.count"),
                 timestamp_writes: None,
             });
-            let b = &self.binds.as_ref().expect("laid out")[current];
+            let b = &self.binds.as_ref().expect("laid out")[turn.set];
             gpu::record(
                 &mut pass,
                 &self.pipelines.bin_first,
@@ -1013,11 +1048,11 @@ impl GridStepper {
                     label: Some(phase.label()),
                     timestamp_writes: None,
                 });
-                self.record_phase(&mut pass, current, kind, phase);
+                self.record_phase(&mut pass, turn, kind, phase);
                 drop(pass);
                 StepTimer::mark(timer, encoder, 0, k as u32 + 1);
             }
-            current = after(kind, current);
+            turn = self.turn_after(kind, turn);
             profiled = 1;
         }
         if profiled < steps {
@@ -1028,15 +1063,15 @@ impl GridStepper {
             for k in profiled..steps {
                 let kind = self.kind_of_step(k);
                 for phase in Phase::ALL {
-                    self.record_phase(&mut pass, current, kind, phase);
+                    self.record_phase(&mut pass, turn, kind, phase);
                 }
-                current = after(kind, current);
+                turn = self.turn_after(kind, turn);
             }
         }
         if let Some(t) = timer {
             t.end(encoder, profiled);
         }
-        self.current = current;
+        (self.current, self.parity) = (turn.set, turn.parity);
         self.step += steps as u64;
         self.sort_next = false;
         self.counted = self.build() == BuildKind::Dense;
@@ -1220,8 +1255,9 @@ impl DeviceFlow for GridStepper {
         q.write_buffer(&set.pos, at * 16, bytemuck::cast_slice(&pos));
         q.write_buffer(&set.vel, at * 16, bytemuck::cast_slice(&vel));
         q.write_buffer(&set.ids, at * 4, bytemuck::cast_slice(&ids));
+        let next = self.turn();
         if let Some(g) = &mut self.granular {
-            g.append(&self.gpu, self.current, k)?;
+            g.append(&self.gpu, next, k)?;
         }
         self.resize(self.n + k);
         Ok(true)
@@ -1257,7 +1293,7 @@ impl DeviceFlow for GridStepper {
                     (&set.ids, r as u64 * 4)
                 });
                 if let Some(g) = &self.granular {
-                    g.move_rows(&mut encoder, self.current, &scratch, &moves);
+                    g.move_rows(&mut encoder, self.turn(), &scratch, &moves);
                 }
                 gpu.queue.submit([encoder.finish()]);
             })?;

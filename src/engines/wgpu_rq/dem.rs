@@ -19,7 +19,7 @@ use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
     DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch, Room,
-    StepTimer, advance_in_batches, max_spheres, particles_with, rows, run_batch,
+    StepTimer, Turn, advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
 use crate::engines::gpu_walls;
 use crate::error::Result;
@@ -234,11 +234,22 @@ impl RqStepper {
     }
 }
 
+impl RqStepper {
+    /// The buffers the next step starts from (one state set, in input order).
+    fn turn(&self) -> Turn {
+        Turn {
+            set: 0,
+            parity: self.parity,
+        }
+    }
+}
+
 impl RedoableBatch for RqStepper {
-    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, usize, Vec<&wgpu::Buffer>) {
+    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, Turn, Vec<&wgpu::Buffer>) {
+        let turn = self.turn();
         let r = self.resident.as_ref().expect("spheres to step");
         let state = vec![&self.pos, &self.vel, &r.clock];
-        (&self.gpu, self.granular.as_mut(), self.parity, state)
+        (&self.gpu, self.granular.as_mut(), turn, state)
     }
 
     fn record_batch(
@@ -378,7 +389,7 @@ impl Stepper for RqStepper {
         let vel: Vec<[f32; 4]> = self.gpu.read(&self.vel, n)?;
         let rotation = || {
             let g = self.granular.as_ref();
-            g.map(|g| g.read(&self.gpu, self.parity, None)).transpose()
+            g.map(|g| g.read(&self.gpu, self.turn(), None)).transpose()
         };
         particles_with(&pos, &vel, None, self.step, rotation)
     }
@@ -417,7 +428,7 @@ fn bind(
             (COUNTERS, counters),
         ];
         if let Some(g) = granular {
-            all.extend(g.resolve_bindings(parity));
+            all.extend(g.resolve_bindings(Turn { set: 0, parity }));
         }
         if let Some(k) = per_pair {
             all.extend(k.bindings());
@@ -432,7 +443,6 @@ fn bind(
         (CLOCK, clock),
     ];
     if let Some(g) = granular {
-        // One state set: every parity integrates the same ω.
         integrate.extend(g.integrate_bindings(0));
     }
     if let Some(k) = per_pair {
@@ -460,7 +470,7 @@ fn bind(
                 (FORCE, force),
             ];
             let bind = |parity: usize| -> Option<[wgpu::BindGroup; 2]> {
-                let [near, contacts] = g.mesh_bindings(parity)?;
+                let [near, contacts] = g.mesh_bindings(Turn { set: 0, parity })?;
                 Some([
                     gpu.bind(
                         MESH_LABELS[0],
