@@ -704,7 +704,10 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
             reference.push((a.contacts, cpu.particles().unwrap()));
         }
         let contacts: Vec<u64> = reference.iter().map(|r| r.0).collect();
-        assert!(contacts[0] > 500, "the pile starts in contact: {contacts:?}");
+        assert!(
+            contacts[0] > 500,
+            "the pile starts in contact: {contacts:?}"
+        );
         let spin = reference[2].1.angular_velocities.iter().flatten();
         let spin = spin.fold(0.0f32, |a, w| a.max(w.abs()));
         assert!(
@@ -788,7 +791,11 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
         // set; the second reads the history the grown slots kept.
         s.advance(3).unwrap();
         s.advance(3).unwrap();
-        assert!(!s.describe().contains("history 16 slots"), "{}", s.describe());
+        assert!(
+            !s.describe().contains("history 16 slots"),
+            "{}",
+            s.describe()
+        );
         let got = s.particles().unwrap();
         assert_eq!(got.step, expected.step, "{sorting:?}: the step count");
         let worst = common::largest_gap(&got, &expected);

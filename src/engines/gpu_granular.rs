@@ -565,7 +565,10 @@ impl Granular {
         let sources: Vec<&wgpu::Buffer> = self.history[first.parity]
             .parts
             .iter()
-            .chain([&self.held[first.parity], &self.omega[first.set % self.omega.len()]])
+            .chain([
+                &self.held[first.parity],
+                &self.omega[first.set % self.omega.len()],
+            ])
             .chain(state.iter().copied())
             .collect();
         let fits = self.saved.len() == sources.len()

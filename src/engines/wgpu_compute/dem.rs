@@ -677,7 +677,11 @@ impl GridStepper {
             Some(g) => {
                 let [omega_a, omega] = g.sorted_omega(from);
                 (
-                    vec![(OMEGA_A, omega_a), (OMEGA, omega), (CAME_FROM, g.came_from())],
+                    vec![
+                        (OMEGA_A, omega_a),
+                        (OMEGA, omega),
+                        (CAME_FROM, g.came_from()),
+                    ],
                     g.integrate_bindings(1 - from).to_vec(),
                 )
             }
@@ -827,7 +831,11 @@ impl GridStepper {
             placed[1],
         ];
         let resolve = |more: &[(Binding, &wgpu::Buffer)]| {
-            gpu.bind("mochi.dem.resolve", &self.pipelines.resolve, &joined(&own, more))
+            gpu.bind(
+                "mochi.dem.resolve",
+                &self.pipelines.resolve,
+                &joined(&own, more),
+            )
         };
         let Some(g) = &self.granular else {
             return ResolveBinds {
