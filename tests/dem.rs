@@ -751,7 +751,9 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
     // 40 spheres of 5 mm within 2 mm of one point, every pair touching: the sphere that owns
     // the others' pairs needs far more than the 16 slots a run starts with, so the first batch
     // is redone with more, from the state set and history it began from, whether its steps
-    // sort the state (moving it between the two sets) or bin it by index (leaving it).
+    // sort the state (moving it between the two sets) or bin it by index (leaving it); on one
+    // level (the walk and the contacts in one kernel) and on several (in two), the walk listing
+    // 16 candidates within reach at a time.
     let n = 40;
     let mut seed = 5u64;
     let mut rand = move || {
@@ -783,9 +785,13 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
     let mut cpu = common::open_dem(BackendKind::Cpu, &start, p, &Options::default());
     cpu.advance(6).unwrap();
     let expected = cpu.particles().unwrap();
-    for sorting in [Sorting::Never, Sorting::Every(1), Sorting::Every(2)] {
+    let ways = [Sorting::Never, Sorting::Every(1), Sorting::Every(2)]
+        .into_iter()
+        .flat_map(|sorting| [(sorting, Structure::Auto), (sorting, Structure::Mlgrid)]);
+    for (sorting, structure) in ways {
         let mut s = grid_stepper(&start, p, GridBuild::Dense)
             .unwrap()
+            .with_structure(structure)
             .with_sorting(sorting);
         // Three steps a batch: sorting every other step, the first batch ends in the other
         // set; the second reads the history the grown slots kept.
@@ -797,14 +803,23 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
             s.describe()
         );
         let got = s.particles().unwrap();
-        assert_eq!(got.step, expected.step, "{sorting:?}: the step count");
+        assert_eq!(
+            got.step, expected.step,
+            "{sorting:?} {structure:?}: the step count"
+        );
         let worst = common::largest_gap(&got, &expected);
-        assert!(worst < 1e-7, "{sorting:?}: {worst} m from the cpu step");
+        assert!(
+            worst < 1e-7,
+            "{sorting:?} {structure:?}: {worst} m from the cpu step"
+        );
         for i in 0..n {
             let mut partners: Vec<u32> = got.history.of(i).iter().map(|e| e.partner).collect();
             partners.sort();
             let all: Vec<u32> = (0..n as u32).filter(|&j| j != i as u32).collect();
-            assert_eq!(partners, all, "{sorting:?}: the contacts sphere {i} kept");
+            assert_eq!(
+                partners, all,
+                "{sorting:?} {structure:?}: the contacts sphere {i} kept"
+            );
         }
     }
 }

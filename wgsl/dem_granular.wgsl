@@ -84,7 +84,8 @@ struct Walker {
     torque: vec3<f32>,
     touching: u32,       // touching spheres it resolved
     held: u32,           // contacts with history (spheres it owns and walls)
-    waiting: u32,        // candidates waiting to be resolved (dem_grid_granular.wgsl)
+    waiting: u32,        // candidates within reach met (dem_grid_granular.wgsl)
+    list_from: u32,      // the first of them its list holds (dem_grid_granular.wgsl)
 }
 
 // The walker of the sphere at place p of the walk, state index h, centre and radius s.
@@ -103,7 +104,7 @@ fn walker(p: u32, h: u32, s: vec4<f32>) -> Walker {
     }
     let v = vel[h];
     let me = Body(s.xyz, v.xyz, omega[h].xyz, s.w, v.w);
-    return Walker(p, h, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u);
+    return Walker(p, h, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u, 0u);
 }
 
 // The old entry at `at`.

@@ -37,8 +37,8 @@ use super::layout::{
 };
 use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
-    self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, HOME, IDS, IDS_A, OMEGA_A, PARAMS,
-    POS_A, RANKS, SORT_KEYS, SORT_ORDER, VEL_A, WALK_POS,
+    self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, HOME, IDS, IDS_A, LISTED, NEAR,
+    NEAR_ROOM, OMEGA_A, PARAMS, POS_A, RANKS, SORT_KEYS, SORT_ORDER, VEL_A, WALK_POS,
 };
 use crate::dem::flow::NewSphere;
 use crate::dem::model::StepParams;
@@ -105,6 +105,10 @@ struct Pipelines {
     bin_first: wgpu::ComputePipeline,
     bin_last: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
+    /// The granular step's contact pass in two kernels (the walk listing each sphere's
+    /// candidates within reach, `list_near`, then their contacts, `resolve_near`), which a
+    /// multi-level grid's long walks run.
+    listing: Option<[wgpu::ComputePipeline; 2]>,
     /// The mesh walls' kernels (granular step with mesh walls only), in the order of
     /// `gpu_walls::ENTRY_POINTS`.
     mesh: Option<[wgpu::ComputePipeline; 2]>,
@@ -136,6 +140,9 @@ struct BinningBinds {
 /// The bind groups of the contact pass of a step on one state set, by the parity of the history
 /// it reads (one, 0, in the paper's step).
 struct ResolveBinds {
+    /// The walk's where the granular contact pass runs in two kernels (`Pipelines::listing`);
+    /// `resolve` then binds the second.
+    list_near: Option<wgpu::BindGroup>,
     resolve: Vec<wgpu::BindGroup>,
     /// The mesh walls' kernels', as `Pipelines::mesh` (granular step with mesh walls).
     mesh: Option<Vec<[wgpu::BindGroup; 2]>>,
@@ -147,6 +154,14 @@ struct SortedPlaces {
     walk_pos: wgpu::Buffer,
     /// Row k holds k: `home` of a sorting step, whose state is in sorted order.
     identity: wgpu::Buffer,
+}
+
+/// The granular contact pass's lists of candidates within reach (`wgsl/dem_grid_granular.wgsl`).
+struct NearLists {
+    /// By sorted place, the candidates within reach its walk met (the two-kernel pass).
+    listed: wgpu::Buffer,
+    /// [`NEAR_ROOM`] places a sphere.
+    near: wgpu::Buffer,
 }
 
 /// What sorts the spheres by cell between the binning's passes.
@@ -224,6 +239,8 @@ pub struct GridStepper {
     atomics: &'static str,
     /// The granular step's state (`None`: a variant of the paper's step).
     granular: Option<Granular>,
+    /// Its contact pass's lists.
+    near: Option<NearLists>,
     /// The per-pair variant's state (`None`: another variant).
     per_pair: Option<PerPair>,
 }
@@ -394,6 +411,9 @@ impl GridStepper {
             bin_first: pipeline(first),
             bin_last: pipeline(last),
             resolve: pipeline("resolve"),
+            listing: granular
+                .is_some()
+                .then(|| ["list_near", "resolve_near"].map(pipeline)),
             mesh: granular
                 .as_ref()
                 .is_some_and(|g| g.mesh().any())
@@ -451,6 +471,10 @@ impl GridStepper {
                 current: 0,
                 parity: 0,
                 batch_start: (0, 0, true),
+                near: granular.is_some().then(|| NearLists {
+                    listed: make("mochi.dem.listed", rows * 4),
+                    near: make("mochi.dem.near", rows * NEAR_ROOM * 4),
+                }),
                 places: {
                     let identity = make("mochi.dem.identity", rows * 4);
                     let places: Vec<u32> = (0..rows as u32).collect();
@@ -496,6 +520,8 @@ impl GridStepper {
     pub fn with_structure(mut self, structure: Structure) -> Self {
         self.levels = structure.levels_for(self.mode, self.radii.1 / self.radii.0);
         self.laid_out_at = None;
+        // The granular contact pass's kernels follow the levels.
+        self.binds = None;
         self
     }
 
@@ -830,18 +856,40 @@ impl GridStepper {
             placed[0],
             placed[1],
         ];
-        let resolve = |more: &[(Binding, &wgpu::Buffer)]| {
-            gpu.bind(
+        let Some(g) = &self.granular else {
+            let law = self.law_bindings();
+            let resolve = gpu.bind(
                 "mochi.dem.resolve",
                 &self.pipelines.resolve,
-                &joined(&own, more),
-            )
-        };
-        let Some(g) = &self.granular else {
+                &joined(&own, &law),
+            );
             return ResolveBinds {
-                resolve: vec![resolve(&self.law_bindings())],
+                list_near: None,
+                resolve: vec![resolve],
                 mesh: None,
             };
+        };
+        let lists = self.near.as_ref().expect("the granular step's lists");
+        // A multi-level grid's walk is long: it runs in a kernel of its own, without the
+        // contact law's registers.
+        let (list_near, resolve, own) = match (&self.pipelines.listing, self.levels) {
+            (Some([list_near, resolve_near]), Levels::Many) => {
+                let walk = [
+                    (PARAMS, &self.grid_uniform),
+                    cells,
+                    placed[1],
+                    (LISTED, &lists.listed),
+                    (NEAR, &lists.near),
+                ];
+                let list_near = gpu.bind("mochi.dem.list_near", list_near, &walk);
+                let listed = [(NEAR, &lists.near), (LISTED, &lists.listed)];
+                (Some(list_near), resolve_near, joined(&own, &listed))
+            }
+            _ => (
+                None,
+                &self.pipelines.resolve,
+                joined(&own, &[(NEAR, &lists.near)]),
+            ),
         };
         // A binning step leaves the state where it is: each sphere's old history row is the
         // row it is in.
@@ -876,11 +924,13 @@ impl GridStepper {
                 .collect()
         });
         ResolveBinds {
+            list_near,
             resolve: turns
                 .iter()
                 .map(|&turn| {
                     let more = [(IDS, &set.ids), (CAME_FROM, came_from)];
-                    resolve(&joined(&g.resolve_bindings(turn), &more))
+                    let all = [&own[..], &g.resolve_bindings(turn), &more].concat();
+                    gpu.bind("mochi.dem.resolve", resolve, &all)
                 })
                 .collect(),
             mesh,
@@ -957,7 +1007,14 @@ impl GridStepper {
             }
             Phase::Resolve => {
                 let r = binning.map_or(&b.resolving, |(own, _)| &own.resolving);
-                gpu::record(pass, &p.resolve, &r.resolve[from.parity], self.groups);
+                let resolve = match (&p.listing, &r.list_near) {
+                    (Some([list_near, resolve_near]), Some(bind)) => {
+                        gpu::record(pass, list_near, bind, self.groups);
+                        resolve_near
+                    }
+                    _ => &p.resolve,
+                };
+                gpu::record(pass, resolve, &r.resolve[from.parity], self.groups);
                 if let (Some(pipelines), Some(binds)) = (&p.mesh, &r.mesh) {
                     for (pipeline, bind) in pipelines.iter().zip(&binds[from.parity]) {
                         gpu::record(pass, pipeline, bind, self.groups);

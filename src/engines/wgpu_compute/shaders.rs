@@ -241,7 +241,9 @@ pub(crate) mod dem_grid {
         "bin_count",
         "bin_scatter",
         "bin_index",
+        "list_near",
         "resolve",
+        "resolve_near",
         "mesh_walls_near",
         "mesh_wall_contacts",
         "reduce_bounds",
@@ -256,7 +258,9 @@ pub(crate) mod dem_grid {
         "bin_index",
         "bin_keys",
         "bin_gather",
+        "list_near",
         "resolve",
+        "resolve_near",
         "mesh_walls_near",
         "mesh_wall_contacts",
         "reduce_bounds",
@@ -286,6 +290,12 @@ pub(crate) mod dem_grid {
     /// By sorted place: the state row of the sphere there, and its centre and radius.
     pub const HOME: Binding = Binding::read_write(26, "home");
     pub const WALK_POS: Binding = Binding::read_write(27, "walk_pos");
+    /// The granular step's candidates within reach (`wgsl/dem_grid_granular.wgsl`): by sorted
+    /// place their count, and [`NEAR_ROOM`] places a sphere.
+    pub const LISTED: Binding = Binding::read_write(30, "listed");
+    pub const NEAR: Binding = Binding::read_write(31, "near");
+    /// Twin of `NEAR_ROOM` in `wgsl/dem_grid_granular.wgsl`.
+    pub const NEAR_ROOM: u64 = 16;
 
     const OWN: [Binding; 12] = [
         PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS, HOME,
@@ -312,7 +322,7 @@ pub(crate) mod dem_grid {
         bindings()
             .into_iter()
             .chain(granular::bindings())
-            .chain([OMEGA_A, CAME_FROM])
+            .chain([OMEGA_A, CAME_FROM, LISTED, NEAR])
             .collect()
     }
 }
