@@ -670,9 +670,9 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
     // the cells is then dropped and counted again): with the paper's law, batches of 16 steps;
     // with Hertz–Mindlin, friction and rolling resistance (the granular step, whose history is
     // kept by state row between sortings; its spins follow the cpu's too), of 8, within 1e-5 m
-    // (on an H100 its frictional pile drifts from the cpu's by 2e-6 m and its spins by 5e-4 of
-    // the fastest within 24 steps, sorted every step as much as never: the GPU's rounding and
-    // the atomics' order; a wrong row or history puts it off by far more).
+    // (its frictional pile drifts from the cpu's by the GPU's rounding and the atomics' order,
+    // sorted every step as much as never: the tolerances are five and ten times an H100's drift,
+    // docs/PERFORMANCE.md; a wrong row or history puts it off by far more).
     let start = pile(10, 0.0165, 0.001);
     let n = start.len();
     let mut scrambled = start.clone();
