@@ -756,21 +756,7 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
     // sort the state (moving it between the two sets) or bin it by index (leaving it); on one
     // level (the walk and the contacts in one kernel) and on several (in two), the walk listing
     // 16 candidates within reach at a time.
-    let n = 40;
-    let mut seed = 5u64;
-    let mut rand = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
-    };
-    let mut start = particles(Vec::new(), Vec::new(), Vec::new());
-    for _ in 0..n {
-        start.positions.push([0; 3].map(|_| 0.5 + 0.002 * rand()));
-        start.velocities.push([0; 3].map(|_| 0.1 * rand()));
-        start.angular_velocities.push([0.0; 3]);
-        start.radii.push(0.005);
-    }
+    let start = common::clump(40);
     let material = Material {
         contact: ContactLaw::HertzMindlin {
             young_modulus: 1e7,
@@ -814,15 +800,7 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
             worst < 1e-7,
             "{sorting:?} {structure:?}: {worst} m from the cpu step"
         );
-        for i in 0..n {
-            let mut partners: Vec<u32> = got.history.of(i).iter().map(|e| e.partner).collect();
-            partners.sort();
-            let all: Vec<u32> = (0..n as u32).filter(|&j| j != i as u32).collect();
-            assert_eq!(
-                partners, all,
-                "{sorting:?} {structure:?}: the contacts sphere {i} kept"
-            );
-        }
+        common::assert_keeps_every_pair(&format!("{sorting:?} {structure:?}"), &got);
     }
 }
 

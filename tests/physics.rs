@@ -942,21 +942,7 @@ fn a_gpu_step_whose_spheres_own_more_contacts_than_slots_keeps_every_one() {
     // the pairs of the others (the lowest index on wgpu-rq, the first in its cell on
     // wgpu-compute) holds far more than the 16 slots a run starts with. The step must grow the
     // slots, redo the batch and keep every contact, as the cpu step does.
-    let n = 40;
-    let mut seed = 5u64;
-    let mut rand = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
-    };
-    let mut start = spheres(Vec::new(), Vec::new(), Vec::new());
-    for _ in 0..n {
-        start.positions.push([0; 3].map(|_| 0.5 + 0.002 * rand()));
-        start.velocities.push([0; 3].map(|_| 0.1 * rand()));
-        start.angular_velocities.push([0.0; 3]);
-        start.radii.push(0.005);
-    }
+    let start = common::clump(40);
     let p = params(&hertz(0.5, 0.5), 1e-7, 1.0, [0.0; 3], 0.005);
     let mut cpu = open(BackendKind::Cpu, start.clone(), p);
     cpu.advance(2).unwrap();
@@ -978,11 +964,8 @@ fn a_gpu_step_whose_spheres_own_more_contacts_than_slots_keeps_every_one() {
         let got = s.particles().unwrap();
         // A redone batch counts its steps once.
         assert_eq!(got.step, expected.step, "{name}: the step count");
-        for i in 0..n {
-            let mut partners: Vec<u32> = got.history.of(i).iter().map(|e| e.partner).collect();
-            partners.sort();
-            let all: Vec<u32> = (0..n as u32).filter(|&j| j != i as u32).collect();
-            assert_eq!(partners, all, "{name}: the contacts sphere {i} kept");
+        common::assert_keeps_every_pair(&name, &got);
+        for i in 0..start.len() {
             for e in got.history.of(i) {
                 let cpu = expected
                     .history

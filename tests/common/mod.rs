@@ -176,3 +176,35 @@ pub fn particles(
         ..Particles::default()
     }
 }
+
+/// `n` spheres of 5 mm within 2 mm of (0.5, 0.5, 0.5), moving every which way at up to 0.05 m/s
+/// (a fixed pseudo-random draw): every pair touches, so the sphere that owns the others' pairs
+/// holds far more contacts than the 16 history slots a run starts with.
+pub fn clump(n: usize) -> Particles {
+    let mut seed = 5u64;
+    let mut rand = move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
+    };
+    let mut start = particles(Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..n {
+        start.positions.push([0; 3].map(|_| 0.5 + 0.002 * rand()));
+        start.velocities.push([0; 3].map(|_| 0.1 * rand()));
+        start.angular_velocities.push([0.0; 3]);
+        start.radii.push(0.005);
+    }
+    start
+}
+
+/// Asserts that every sphere of `got` (a [`clump`]) keeps a contact with every other one.
+pub fn assert_keeps_every_pair(what: &str, got: &Particles) {
+    let n = got.len();
+    for i in 0..n {
+        let mut partners: Vec<u32> = got.history.of(i).iter().map(|e| e.partner).collect();
+        partners.sort();
+        let all: Vec<u32> = (0..n as u32).filter(|&j| j != i as u32).collect();
+        assert_eq!(partners, all, "{what}: the contacts sphere {i} kept");
+    }
+}
