@@ -872,25 +872,17 @@ impl GridStepper {
         let lists = self.near.as_ref().expect("the granular step's lists");
         // A multi-level grid's walk is long: it runs in a kernel of its own, without the
         // contact law's registers.
-        let (list_near, resolve, own) = match (&self.pipelines.listing, self.levels) {
+        let listed = [(NEAR, &lists.near), (LISTED, &lists.listed)];
+        let (list_near, resolve) = match (&self.pipelines.listing, self.levels) {
             (Some([list_near, resolve_near]), Levels::Many) => {
-                let walk = [
-                    (PARAMS, &self.grid_uniform),
-                    cells,
-                    placed[1],
-                    (LISTED, &lists.listed),
-                    (NEAR, &lists.near),
-                ];
+                let walk = [(PARAMS, &self.grid_uniform), cells, placed[1]];
+                let walk = joined(&walk, &listed);
                 let list_near = gpu.bind("mochi.dem.list_near", list_near, &walk);
-                let listed = [(NEAR, &lists.near), (LISTED, &lists.listed)];
-                (Some(list_near), resolve_near, joined(&own, &listed))
+                (Some(list_near), resolve_near)
             }
-            _ => (
-                None,
-                &self.pipelines.resolve,
-                joined(&own, &[(NEAR, &lists.near)]),
-            ),
+            _ => (None, &self.pipelines.resolve),
         };
+        let own = joined(&own, &listed);
         // A binning step leaves the state where it is: each sphere's old history row is the
         // row it is in.
         let came_from = match kind {
