@@ -290,8 +290,11 @@ fn finish(w: ptr<function, Walker>) {
             }
         }
     }
-    add_force((*w).h, (*w).force);
-    if granular.turns != 0u {
+    // A sphere that touches nothing (most of those whose contacts others own) adds nothing.
+    if any((*w).force != vec3(0.0)) {
+        add_force((*w).h, (*w).force);
+    }
+    if granular.turns != 0u && any((*w).torque != vec3(0.0)) {
         add_torque((*w).h, (*w).torque);
     }
     if granular.slots > 0u {
