@@ -189,13 +189,7 @@ fn the_cuda_contact_law_computes_the_bits_of_the_rust_one() {
             String::from_utf8_lossy(&out.stderr)
         ),
     }
-    let mut seed = 3u64;
-    let mut rand = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
-    };
+    let mut rand = common::noise(3);
     let hertz = ContactLaw::HertzMindlin {
         young_modulus: 1e7,
         poisson_ratio: 0.3,

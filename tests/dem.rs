@@ -139,13 +139,8 @@ fn a_free_cluster_conserves_momentum() {
     let mut positions = Vec::new();
     let mut velocities = Vec::new();
     let mut radii = Vec::new();
-    let mut seed = 12345u64;
-    let mut rand = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 40) as f32) / (1u64 << 24) as f32
-    };
+    let mut noise = common::noise(12345);
+    let mut rand = move || noise() + 0.5;
     for k in 0..300 {
         let (x, y, z) = ((k % 7) as f32, ((k / 7) % 7) as f32, (k / 49) as f32);
         positions.push([5.0 + 0.021 * x, 5.0 + 0.021 * y, 5.0 + 0.021 * z]);

@@ -265,22 +265,11 @@ fn frictional(contact: ContactLaw, mu: f64, mu_r: f64, model: RollingModel) -> M
     }
 }
 
-/// A seeded source of numbers in [−0.5, 0.5).
-fn noise(seed: u64) -> impl FnMut() -> f32 {
-    let mut seed = seed;
-    move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
-    }
-}
-
 /// 48 spheres of radius `r` in 3 layers of 4 × 4, a little closer than touching (1.96·r apart,
 /// jittered by 0.05·r) on the floor of the middle of a box of side `side`, moving and
 /// turning at random (a fixed seed).
 fn pressed_layers(r: f32, side: f32) -> Particles {
-    let mut rand = noise(11);
+    let mut rand = common::noise(11);
     let spacing = 1.96 * r;
     let mut p = Particles::default();
     for k in 0..48 {
@@ -299,7 +288,7 @@ fn pressed_layers(r: f32, side: f32) -> Particles {
 /// `n` spheres of radius `r` whose centres lie within half a radius of one another (every
 /// pair overlaps) in the middle of a box of side `side`, moving at random.
 fn clump(n: usize, r: f32, side: f32) -> Particles {
-    let mut rand = noise(5);
+    let mut rand = common::noise(5);
     let mut p = Particles::default();
     for k in 0..n {
         let t = k as f32 * 2.4;

@@ -432,13 +432,7 @@ fn constant_torque_rolling_resistance_slows_a_rolling_sphere_at_five_sevenths_mu
 /// `n`³ spheres of radius `r` on a lattice filling most of a box of side `side`, with random
 /// velocities of about `speed` (a fixed seed).
 fn gas(n: usize, r: f32, side: f32, speed: f32) -> Particles {
-    let mut seed = 7u64;
-    let mut rand = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
-    };
+    let mut rand = common::noise(7);
     let spacing = side / n as f32;
     let (mut c, mut v) = (Vec::new(), Vec::new());
     for k in 0..n * n * n {
@@ -730,13 +724,7 @@ fn a_sphere_with_more_contacts_than_history_slots_keeps_every_one_on(kind: Backe
 /// layer in the floor and the first row and column in the walls, with small random velocities
 /// and spins (a fixed seed).
 fn frictional_pile(n: usize) -> Particles {
-    let mut seed = 11u64;
-    let mut rand = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
-    };
+    let mut rand = common::noise(11);
     let spacing = 0.0099f32;
     let mut p = spheres(Vec::new(), Vec::new(), Vec::new());
     for k in 0..n * n * n {

@@ -97,40 +97,35 @@ fn count_touching(touching: u32, lid: u32) {
     }
 }
 
-// The contacts of sorted place p (< params.n), its candidates within reach listed by its own
-// walk (`walk`) or by list_near's; returns those touching.
-fn resolve_place(p: u32, walk: bool) -> u32 {
-    var w = walker(p, home[p], walk_pos[p]);
-    var count = 0u;
-    if walk {
-        stencil_walk(&w);
-        count = w.waiting;
-    } else {
-        count = listed[p];
+// The contacts of the thread's sorted place, its candidates within reach listed by its own walk
+// (`walk`) or by list_near's, added to the step's touching pairs.
+fn resolve_thread(gid: vec3<u32>, lid: u32, walk: bool) {
+    let p = index(gid);
+    var touching = 0u;
+    if p < params.n {
+        var w = walker(p, home[p], walk_pos[p]);
+        var count = 0u;
+        if walk {
+            stencil_walk(&w);
+            count = w.waiting;
+        } else {
+            count = listed[p];
+        }
+        resolve_listed(&w, count);
+        finish(&w);
+        touching = w.touching;
     }
-    resolve_listed(&w, count);
-    finish(&w);
-    return w.touching;
+    count_touching(touching, lid);
 }
 
 // The walk and the contacts of each sorted place.
 @compute @workgroup_size(256)
 fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    let p = index(gid);
-    var touching = 0u;
-    if p < params.n {
-        touching = resolve_place(p, true);
-    }
-    count_touching(touching, lid);
+    resolve_thread(gid, lid, true);
 }
 
 // The contacts of each sorted place that list_near listed.
 @compute @workgroup_size(256)
 fn resolve_near(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    let p = index(gid);
-    var touching = 0u;
-    if p < params.n {
-        touching = resolve_place(p, false);
-    }
-    count_touching(touching, lid);
+    resolve_thread(gid, lid, false);
 }

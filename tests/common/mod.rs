@@ -177,17 +177,23 @@ pub fn particles(
     }
 }
 
-/// `n` spheres of 5 mm within 2 mm of (0.5, 0.5, 0.5), moving every which way at up to 0.05 m/s
-/// (a fixed pseudo-random draw): every pair touches, so the sphere that owns the others' pairs
-/// holds far more contacts than the 16 history slots a run starts with.
-pub fn clump(n: usize) -> Particles {
-    let mut seed = 5u64;
-    let mut rand = move || {
+/// A seeded source of numbers in [−0.5, 0.5) (a linear congruential generator: the same
+/// numbers on every machine).
+pub fn noise(seed: u64) -> impl FnMut() -> f32 {
+    let mut seed = seed;
+    move || {
         seed = seed
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
         ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
-    };
+    }
+}
+
+/// `n` spheres of 5 mm within 2 mm of (0.5, 0.5, 0.5), moving every which way at up to 0.05 m/s
+/// (a fixed pseudo-random draw): every pair touches, so the sphere that owns the others' pairs
+/// holds far more contacts than the 16 history slots a run starts with.
+pub fn clump(n: usize) -> Particles {
+    let mut rand = noise(5);
     let mut start = particles(Vec::new(), Vec::new(), Vec::new());
     for _ in 0..n {
         start.positions.push([0; 3].map(|_| 0.5 + 0.002 * rand()));
