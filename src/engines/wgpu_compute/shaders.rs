@@ -325,6 +325,16 @@ pub(crate) mod dem_grid {
             .chain([OMEGA_A, CAME_FROM, LISTED, NEAR])
             .collect()
     }
+
+    #[cfg(test)]
+    mod tests {
+        #[test]
+        fn the_lists_room_is_the_shaders() {
+            // The host sizes `near` by NEAR_ROOM; the kernels index it by their own.
+            let declared = format!("const NEAR_ROOM: u32 = {}u;", super::NEAR_ROOM);
+            assert!(super::GRANULAR.contains(&declared), "{declared}");
+        }
+    }
 }
 
 /// Both builds, each with the suffix of its modules' labels.
