@@ -9,7 +9,7 @@ mod common;
 use mochi::dem::model::{ContactLaw, mass, stable_dt, stiffness_for_duration};
 use mochi::dem::{Clock, Material, Particles, StepParams, Stepper};
 use mochi::engines::BackendKind;
-use mochi::engines::ForceAtomics;
+use mochi::engines::KernelSet;
 use mochi::engines::wgpu_compute::{BuildKind, GridBuild, GridStepper, Sorting, Structure};
 use mochi::engines::wgpu_rq::RqStepper;
 use mochi::engines::{Options, RebuildPolicy};
@@ -34,8 +34,8 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
                 ));
             }
             BackendKind::WgpuCompute => {
-                for atomics in [ForceAtomics::Auto, ForceAtomics::CompareExchange] {
-                    let s = GridStepper::with_atomics(
+                for atomics in [KernelSet::Auto, KernelSet::Portable] {
+                    let s = GridStepper::with_kernels(
                         particles.clone(),
                         params,
                         ProxyMode::Mochi,
@@ -76,8 +76,8 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
                 }
             }
             BackendKind::WgpuRq => {
-                for atomics in [ForceAtomics::Auto, ForceAtomics::CompareExchange] {
-                    let s = RqStepper::with_atomics(
+                for atomics in [KernelSet::Auto, KernelSet::Portable] {
+                    let s = RqStepper::with_kernels(
                         particles.clone(),
                         params,
                         ProxyMode::Mochi,
@@ -603,15 +603,18 @@ fn coincident_spheres_are_pushed_apart() {
 
 /// A `wgpu-compute` step over `start` binned by `grid_build` (`None` where no adapter runs it).
 fn grid_stepper(start: &Particles, p: StepParams, grid_build: GridBuild) -> Option<GridStepper> {
+    grid_stepper_with(start, p, grid_build, KernelSet::Auto)
+}
+
+/// As [`grid_stepper`], running `kernels`.
+fn grid_stepper_with(
+    start: &Particles,
+    p: StepParams,
+    grid_build: GridBuild,
+    kernels: KernelSet,
+) -> Option<GridStepper> {
     common::dem_runs_here(BackendKind::WgpuCompute).then(|| {
-        GridStepper::with_options(
-            start.clone(),
-            p,
-            ProxyMode::Mochi,
-            ForceAtomics::Auto,
-            grid_build,
-        )
-        .unwrap()
+        GridStepper::with_options(start.clone(), p, ProxyMode::Mochi, kernels, grid_build).unwrap()
     })
 }
 
@@ -750,7 +753,8 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
     // is redone with more, from the state set and history it began from, whether its steps
     // sort the state (moving it between the two sets) or bin it by index (leaving it); on one
     // level (the walk and the contacts in one kernel) and on several (in two), the walk listing
-    // 16 candidates within reach at a time.
+    // 16 candidates within reach at a time; the lists shared among a subgroup's lanes (owners
+    // of 39 contacts down to none side by side) and resolved by each thread alone.
     let start = common::clump(40);
     let material = Material {
         contact: ContactLaw::HertzMindlin {
@@ -770,9 +774,10 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
     let expected = cpu.particles().unwrap();
     let ways = [Sorting::Never, Sorting::Every(1), Sorting::Every(2)]
         .into_iter()
-        .flat_map(|sorting| [(sorting, Structure::Auto), (sorting, Structure::Mlgrid)]);
-    for (sorting, structure) in ways {
-        let mut s = grid_stepper(&start, p, GridBuild::Dense)
+        .flat_map(|sorting| [(sorting, Structure::Auto), (sorting, Structure::Mlgrid)])
+        .flat_map(|way| [(way, KernelSet::Auto), (way, KernelSet::Portable)]);
+    for ((sorting, structure), kernels) in ways {
+        let mut s = grid_stepper_with(&start, p, GridBuild::Dense, kernels)
             .unwrap()
             .with_structure(structure)
             .with_sorting(sorting);
@@ -788,14 +793,14 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
         let got = s.particles().unwrap();
         assert_eq!(
             got.step, expected.step,
-            "{sorting:?} {structure:?}: the step count"
+            "{sorting:?} {structure:?} {kernels:?}: the step count"
         );
         let worst = common::largest_gap(&got, &expected);
         assert!(
             worst < 1e-7,
-            "{sorting:?} {structure:?}: {worst} m from the cpu step"
+            "{sorting:?} {structure:?} {kernels:?}: {worst} m from the cpu step"
         );
-        common::assert_keeps_every_pair(&format!("{sorting:?} {structure:?}"), &got);
+        common::assert_keeps_every_pair(&format!("{sorting:?} {structure:?} {kernels:?}"), &got);
     }
 }
 

@@ -16,7 +16,7 @@ use mochi::dem::model::{ContactLaw, Material, RollingModel, mass};
 use mochi::dem::walls::WallSet;
 use mochi::dem::{Particles, StepParams, Stepper};
 use mochi::engines::wgpu_compute::{GridBuild, GridStepper};
-use mochi::engines::{BackendKind, ForceAtomics, Options, open_stepper};
+use mochi::engines::{BackendKind, KernelSet, Options, open_stepper};
 use mochi::proxy::ProxyMode;
 
 const E: f64 = 1e7;
@@ -895,7 +895,7 @@ fn a_frictional_state_moves_between_the_cpu_and_the_gpus_with_its_history() {
 fn wgpu_compute_on_small_bindings(start: &Particles, p: StepParams) -> Option<GridStepper> {
     let what = "the wgpu-compute DEM step with its history split over bindings";
     let gpu = common::open_gpu_with_bindings_of(what, 8 << 10)?;
-    let atomics = ForceAtomics::Auto;
+    let atomics = KernelSet::Auto;
     let stepper = GridStepper::on_gpu(
         gpu,
         start.clone(),

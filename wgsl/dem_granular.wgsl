@@ -229,13 +229,16 @@ fn reaches(s: vec4<f32>, t: vec4<f32>) -> bool {
 // the walker's sphere.
 fn meet(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     if reaches((*w).s, t) {
-        contact_with(w, q, t);
+        take(w, contact_with(w, q, t));
     }
 }
 
-// Resolves the walker's sphere against sphere q (state index; t = its centre and radius): adds
-// q's force and torque there and the walker's to the walker.
-fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
+// Resolves the walker's sphere against sphere q (state index; t = its centre and radius, within
+// reach): adds q's force and torque there and keeps the springs in the walker's next slot (a pair
+// within reach keeps one also where it does not touch: its centres coincide, or its distance
+// rounds to the sum of the radii; its springs are then zero, as a new contact's). Returns the
+// contact, for the walker to take (`take`).
+fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) -> Contact {
     let u = vel[q];
     let other = Body(t.xyz, u.xyz, omega[q].xyz, t.w, u.w);
     var old = Springs(vec3(0.0), vec3(0.0));
@@ -245,19 +248,23 @@ fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
         old = old_springs(w, q, b);
     }
     let c = pair_contact((*w).me, other, old);
-    if !c.touching {
-        return;
-    }
-    add_force(q, -c.force);
-    (*w).force += c.force;
-    (*w).touching += 1u;
-    if granular.turns != 0u {
-        add_torque(q, c.torque_j);
-        (*w).torque += c.torque_i;
+    if c.touching {
+        add_force(q, -c.force);
+        if granular.turns != 0u {
+            add_torque(q, c.torque_j);
+        }
     }
     if granular.slots > 0u {
         keep_springs(w, b, c.springs);
     }
+    return c;
+}
+
+// Adds the walker's side of contact c to its sums (nothing where c does not touch).
+fn take(w: ptr<function, Walker>, c: Contact) {
+    (*w).force += c.force;
+    (*w).torque += c.torque_i;
+    (*w).touching += u32(c.touching);
 }
 
 // The box walls touching the walker's sphere (each axis low wall first, as the cpu step), then

@@ -313,26 +313,55 @@ pub(crate) mod granular {
     }
 }
 
-/// How forces are accumulated.
+/// Which kernels a GPU step runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ForceAtomics {
-    /// Float atomics where the adapter has them, else compare-and-swap.
+pub enum KernelSet {
+    /// Float atomics and subgroup operations where the adapter has them.
     Auto,
-    /// Compare-and-swap loops on the bit patterns (any adapter).
-    CompareExchange,
+    /// Those any adapter runs: compare-and-swap loops on the bit patterns for the forces, and
+    /// every thread a subgroup of its own.
+    Portable,
 }
 
-impl ForceAtomics {
-    /// The accumulators' WGSL for `gpu` and their name, in words.
-    pub(crate) fn pick(self, gpu: &Gpu) -> (&'static str, Accumulators) {
-        let floats = gpu
-            .device
-            .features()
-            .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
-        if self == ForceAtomics::Auto && floats {
-            ("float atomics", physics::F32)
+impl KernelSet {
+    /// The accumulators' WGSL for `gpu` and their name, in words, and how threads share work
+    /// with their subgroup.
+    pub(crate) fn pick(self, gpu: &Gpu) -> (&'static str, Accumulators, Lanes) {
+        let features = gpu.device.features();
+        let auto = self == KernelSet::Auto;
+        let lanes = if auto && features.contains(wgpu::Features::SUBGROUP) {
+            Lanes::Subgroups
         } else {
-            ("compare-and-swap", physics::CAS)
+            Lanes::Single
+        };
+        if auto && features.contains(wgpu::Features::SHADER_FLOAT32_ATOMIC) {
+            ("float atomics", physics::F32, lanes)
+        } else {
+            ("compare-and-swap", physics::CAS, lanes)
+        }
+    }
+}
+
+/// How a kernel's threads share work with the other lanes of their subgroup
+/// (`wgsl/lanes_subgroups.wgsl`, `wgsl/lanes_single.wgsl`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Lanes {
+    /// On subgroup operations (wgpu's SUBGROUP feature).
+    Subgroups,
+    /// Every thread a subgroup of one lane (any adapter).
+    Single,
+}
+
+impl Lanes {
+    /// Both, by label suffix.
+    pub const ALL: [(&'static str, Lanes); 2] =
+        [("", Lanes::Subgroups), ("_single", Lanes::Single)];
+
+    /// The WGSL that defines `Lanes` and its functions.
+    pub fn source(self) -> &'static str {
+        match self {
+            Lanes::Subgroups => include_str!("../../wgsl/lanes_subgroups.wgsl"),
+            Lanes::Single => include_str!("../../wgsl/lanes_single.wgsl"),
         }
     }
 }
@@ -536,7 +565,7 @@ impl DemModule {
     /// Refuses room for more than `limit` spheres ([`Error::TooLarge`], naming `backend` and
     /// the adapter), picks the accumulators and the variant, opens its state (the granular one
     /// for an engine with `sets` state sets of room for `capacity` spheres, at least the
-    /// particles', see [`Granular::new`]) and compiles `source(accumulators, variant)`.
+    /// particles', see [`Granular::new`]) and compiles `source(accumulators, lanes, variant)`.
     #[allow(clippy::too_many_arguments)]
     pub fn open(
         gpu: &Gpu,
@@ -546,8 +575,8 @@ impl DemModule {
         walls: &WallSet,
         limit: u64,
         (sets, room): (usize, Room),
-        atomics: ForceAtomics,
-        source: impl FnOnce(Accumulators, Variant) -> String,
+        kernels: KernelSet,
+        source: impl FnOnce(Accumulators, Lanes, Variant) -> String,
     ) -> Result<Self> {
         let room = room.holding(particles);
         let n = room.spheres as u64;
@@ -558,7 +587,7 @@ impl DemModule {
                 limit,
             });
         }
-        let (atomics, accumulators) = atomics.pick(gpu);
+        let (atomics, accumulators, lanes) = kernels.pick(gpu);
         let variant = Variant::of(particles, params, walls);
         let granular = (variant == Variant::Granular)
             .then(|| Granular::new(gpu, particles, params, walls, backend, (sets, room)))
@@ -572,7 +601,7 @@ impl DemModule {
             }),
             _ => None,
         };
-        let source = source(accumulators, variant);
+        let source = source(accumulators, lanes, variant);
         let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
         Ok(DemModule {
             atomics,

@@ -19,7 +19,7 @@ mod registry;
 pub mod wgpu_compute;
 pub mod wgpu_rq;
 
-pub use gpu_step::ForceAtomics;
+pub use gpu_step::KernelSet;
 pub use open::{open_choice, open_scene, open_stepper};
 pub(crate) use registry::open_auto;
 pub use registry::{BackendChoice, BackendKind, Opened, Options, RebuildPolicy, open};

@@ -32,7 +32,7 @@ fn open_walled(
     walls: WallSet,
 ) -> Result<Box<dyn Stepper>> {
     particles.validate()?;
-    let atomics = super::gpu_step::ForceAtomics::Auto;
+    let kernels = super::gpu_step::KernelSet::Auto;
     Ok(match kind {
         BackendKind::Cpu => {
             Box::new(super::cpu::CpuStepper::new(particles, params, mode)?.with_walls(walls)?)
@@ -42,14 +42,14 @@ fn open_walled(
                 particles,
                 params,
                 mode,
-                atomics,
+                kernels,
                 options.grid_build,
                 &walls,
             )?
             .with_structure(options.structure),
         ),
         BackendKind::WgpuRq => Box::new(super::wgpu_rq::RqStepper::with_walls(
-            particles, params, mode, atomics, &walls,
+            particles, params, mode, kernels, &walls,
         )?),
         #[cfg(feature = "optix")]
         BackendKind::Optix => Box::new(super::optix::OptixStepper::new(
@@ -159,7 +159,7 @@ fn reopener(
     options: &Options,
     walls: WallSet,
 ) -> Result<Reopen> {
-    let atomics = super::gpu_step::ForceAtomics::Auto;
+    let kernels = super::gpu_step::KernelSet::Auto;
     Ok(match kind {
         BackendKind::Cpu => {
             return Err(Error::Usage(
@@ -176,7 +176,7 @@ fn reopener(
                     room,
                     params,
                     mode,
-                    atomics,
+                    kernels,
                     build,
                     &walls,
                 )?;
@@ -191,7 +191,7 @@ fn reopener(
                     parts,
                     params,
                     mode,
-                    atomics,
+                    kernels,
                     &walls,
                 )?;
                 Ok(Box::new(step) as Box<dyn DeviceFlow>)

@@ -52,7 +52,7 @@ use crate::engines::gpu_readback::{BatchReadback, InFlight};
 use crate::engines::gpu_step::granular::OMEGA;
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemModule, DemParams, ForceAtomics, GROUP, Granular, InputOrder, MAX_BATCH, PerPair,
+    DemModule, DemParams, GROUP, Granular, InputOrder, KernelSet, MAX_BATCH, PerPair,
     RedoableBatch, Room, StepTimer, Turn, advance_in_batches, max_spheres, move_rows,
     particles_with, rows, run_batch,
 };
@@ -248,33 +248,33 @@ pub struct GridStepper {
 impl GridStepper {
     /// Uploads `particles` to the best adapter with compute shaders.
     pub fn new(particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
-        Self::with_atomics(particles, params, mode, ForceAtomics::Auto)
+        Self::with_kernels(particles, params, mode, KernelSet::Auto)
     }
 
-    /// As [`new`](Self::new), choosing how forces are accumulated.
-    pub fn with_atomics(
+    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable` runs those any adapter has).
+    pub fn with_kernels(
         particles: Particles,
         params: StepParams,
         mode: ProxyMode,
-        atomics: ForceAtomics,
+        kernels: KernelSet,
     ) -> Result<Self> {
-        Self::with_options(particles, params, mode, atomics, GridBuild::Auto)
+        Self::with_options(particles, params, mode, kernels, GridBuild::Auto)
     }
 
-    /// As [`new`](Self::new), choosing how forces are accumulated and how the grid is built
+    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable` runs those any adapter has) and how the grid is built
     /// (`GridBuild::Auto` decides from the spheres' bounds now, for the whole run).
     pub fn with_options(
         particles: Particles,
         params: StepParams,
         mode: ProxyMode,
-        atomics: ForceAtomics,
+        kernels: KernelSet,
         grid_build: GridBuild,
     ) -> Result<Self> {
         Self::with_walls(
             particles,
             params,
             mode,
-            atomics,
+            kernels,
             grid_build,
             &WallSet::default(),
         )
@@ -285,7 +285,7 @@ impl GridStepper {
         particles: Particles,
         params: StepParams,
         mode: ProxyMode,
-        atomics: ForceAtomics,
+        kernels: KernelSet,
         grid_build: GridBuild,
         walls: &WallSet,
     ) -> Result<Self> {
@@ -294,7 +294,7 @@ impl GridStepper {
             particles,
             params,
             mode,
-            atomics,
+            kernels,
             grid_build,
             walls,
             room,
@@ -310,7 +310,7 @@ impl GridStepper {
         particles: Particles,
         params: StepParams,
         mode: ProxyMode,
-        atomics: ForceAtomics,
+        kernels: KernelSet,
         grid_build: GridBuild,
         walls: &WallSet,
     ) -> Result<Self> {
@@ -319,7 +319,7 @@ impl GridStepper {
             particles,
             params,
             mode,
-            atomics,
+            kernels,
             grid_build,
             walls,
             room,
@@ -337,13 +337,13 @@ impl GridStepper {
         room: Room,
         params: StepParams,
         mode: ProxyMode,
-        atomics: ForceAtomics,
+        kernels: KernelSet,
         grid_build: GridBuild,
         walls: &WallSet,
     ) -> Result<Self> {
         let open = || Ok(gpu);
         let mut step = Self::opening(
-            particles, params, mode, atomics, grid_build, walls, room, open,
+            particles, params, mode, kernels, grid_build, walls, room, open,
         )?;
         // Compiled now, not in the first flow event.
         step.flow_scan = Some(FlowScan::new(&step.gpu));
@@ -357,7 +357,7 @@ impl GridStepper {
         mut particles: Particles,
         params: StepParams,
         mode: ProxyMode,
-        atomics: ForceAtomics,
+        kernels: KernelSet,
         grid_build: GridBuild,
         walls: &WallSet,
         room: Room,
@@ -397,8 +397,10 @@ impl GridStepper {
             max_spheres(&gpu),
             // The two sets of the ping-ponged state.
             (2, room),
-            atomics,
-            |accumulators, variant| dem_grid::variant_source(build, variant, accumulators),
+            kernels,
+            |accumulators, lanes, variant| {
+                dem_grid::variant_source(build, variant, accumulators, lanes)
+            },
         )?;
         let n = particles.len() as u32;
         let rows = room.spheres as u64;

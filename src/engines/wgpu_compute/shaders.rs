@@ -154,7 +154,7 @@ pub(crate) mod cell_scan {
 /// [`granular`]).
 pub(crate) mod dem_grid {
     use super::{Binding, CELL_KEYS, granular, physics, wgsl};
-    use crate::engines::gpu_step::{Accumulators, Variant};
+    use crate::engines::gpu_step::{Accumulators, Lanes, Variant};
     use crate::engines::wgpu_compute::layout::BuildKind;
 
     /// The grid and the binning of the dense build (a counting sort into the cell table).
@@ -196,18 +196,26 @@ pub(crate) mod dem_grid {
         format!("{grid}{FRICTIONLESS}{}", physics::per_pair(atomics))
     }
 
-    /// The granular step binned by `build` with the accumulators `atomics`.
-    pub fn granular_source(build: BuildKind, atomics: Accumulators) -> String {
+    /// The granular step binned by `build` with the accumulators `atomics`, its contacts shared
+    /// among `lanes`.
+    pub fn granular_source(build: BuildKind, atomics: Accumulators, lanes: Lanes) -> String {
         let grid = grid(build);
-        format!("{grid}{GRANULAR}{}", physics::granular(atomics))
+        let lanes = lanes.source();
+        format!("{grid}{lanes}{GRANULAR}{}", physics::granular(atomics))
     }
 
-    /// The source of `variant` binned by `build` with the accumulators `atomics`.
-    pub fn variant_source(build: BuildKind, variant: Variant, atomics: Accumulators) -> String {
+    /// The source of `variant` binned by `build` with the accumulators `atomics` (and `lanes`,
+    /// which only the granular step uses).
+    pub fn variant_source(
+        build: BuildKind,
+        variant: Variant,
+        atomics: Accumulators,
+        lanes: Lanes,
+    ) -> String {
         match variant {
             Variant::Paper => source(build, atomics),
             Variant::PerPair => per_pair_source(build, atomics),
-            Variant::Granular => granular_source(build, atomics),
+            Variant::Granular => granular_source(build, atomics, lanes),
         }
     }
 
@@ -414,20 +422,22 @@ pub fn modules() -> Vec<WgslModule> {
             dem.structs
                 .extend([gpu_step::dem_params(), gpu_step::per_pair_params()]);
             all.push(dem);
-            let bindings = [&dem_grid::granular_bindings()[..], extra].concat();
-            let mut dem = module(
-                format!("dem_grid_granular_{name}{suffix}"),
-                dem_grid::granular_source(build, atomics),
-                granular_entry_points,
-                &bindings,
-            );
-            dem.structs.extend([
-                gpu_step::dem_params(),
-                granular::granular_params(),
-                crate::engines::gpu_walls::mesh_params(),
-                crate::engines::gpu_walls::mesh_wall_row(),
-            ]);
-            all.push(dem);
+            for (lane_suffix, lanes) in gpu_step::Lanes::ALL {
+                let bindings = [&dem_grid::granular_bindings()[..], extra].concat();
+                let mut dem = module(
+                    format!("dem_grid_granular_{name}{suffix}{lane_suffix}"),
+                    dem_grid::granular_source(build, atomics, lanes),
+                    granular_entry_points,
+                    &bindings,
+                );
+                dem.structs.extend([
+                    gpu_step::dem_params(),
+                    granular::granular_params(),
+                    crate::engines::gpu_walls::mesh_params(),
+                    crate::engines::gpu_walls::mesh_wall_row(),
+                ]);
+                all.push(dem);
+            }
         }
     }
     // The flow events' scan of the state (`engines/gpu_flow.rs`).

@@ -18,7 +18,7 @@ use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
 use crate::engines::gpu_step::{
-    DemModule, DemParams, ForceAtomics, GROUP, Granular, MAX_BATCH, PerPair, RedoableBatch, Room,
+    DemModule, DemParams, GROUP, Granular, KernelSet, MAX_BATCH, PerPair, RedoableBatch, Room,
     StepTimer, Turn, advance_in_batches, max_spheres, particles_with, rows, run_batch,
 };
 use crate::engines::gpu_walls;
@@ -86,25 +86,25 @@ pub struct RqStepper {
 impl RqStepper {
     /// Uploads `particles` to the best adapter with ray queries.
     pub fn new(particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
-        Self::with_atomics(particles, params, mode, ForceAtomics::Auto)
+        Self::with_kernels(particles, params, mode, KernelSet::Auto)
     }
 
-    /// As [`new`](Self::new), choosing how forces are accumulated.
-    pub fn with_atomics(
+    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable` runs those any adapter has).
+    pub fn with_kernels(
         particles: Particles,
         params: StepParams,
         mode: ProxyMode,
-        atomics: ForceAtomics,
+        kernels: KernelSet,
     ) -> Result<Self> {
-        Self::with_walls(particles, params, mode, atomics, &WallSet::default())
+        Self::with_walls(particles, params, mode, kernels, &WallSet::default())
     }
 
-    /// As [`with_atomics`](Self::with_atomics), inside `walls`.
+    /// As [`with_kernels`](Self::with_kernels), inside `walls`.
     pub fn with_walls(
         particles: Particles,
         params: StepParams,
         mode: ProxyMode,
-        atomics: ForceAtomics,
+        kernels: KernelSet,
         walls: &WallSet,
     ) -> Result<Self> {
         Self::on_gpu(
@@ -112,7 +112,7 @@ impl RqStepper {
             particles,
             params,
             mode,
-            atomics,
+            kernels,
             walls,
         )
     }
@@ -124,7 +124,7 @@ impl RqStepper {
         mut particles: Particles,
         params: StepParams,
         mode: ProxyMode,
-        atomics: ForceAtomics,
+        kernels: KernelSet,
         walls: &WallSet,
     ) -> Result<Self> {
         particles.separate_coincident()?;
@@ -145,8 +145,8 @@ impl RqStepper {
             limit,
             // One state set, in input order, with room for the particles.
             (1, Room::of(&particles)),
-            atomics,
-            |accumulators, variant| dem_rq::variant_source(variant, accumulators),
+            kernels,
+            |accumulators, _, variant| dem_rq::variant_source(variant, accumulators),
         )?;
         let n64 = particles.len() as u64;
         let n = n64 as u32;
