@@ -33,9 +33,9 @@ fn walk_sphere(q: u32) -> vec4<f32> {
 // lanes (`share_listed`): its lanes then run the contact law in step, where resolving each at
 // its place in the walk runs it once for every lane that meets a partner there. A sphere that
 // met more walks again for each next NEAR_ROOM of them (`resolve_rest`: a walk lists those from
-// the walker's `list_from` on). The order of the contacts is the walk's. The walk and the resolution run in
-// one kernel (`resolve`) or in two (`list_near`, then `resolve_near`, where the walk is long: it
-// then runs without the contact law's registers).
+// the walker's `list_from` on). The order of the contacts is the walk's. The walk and the
+// resolution run in one kernel (`resolve`) or in two (`list_near`, then `resolve_near`, where the
+// walk is long: it then runs without the contact law's registers).
 const NEAR_ROOM: u32 = 16u;
 // by sorted place: the candidates within reach that list_near met
 @group(0) @binding(30) var<storage, read_write> listed: array<u32>;
