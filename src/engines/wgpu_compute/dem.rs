@@ -251,7 +251,8 @@ impl GridStepper {
         Self::with_kernels(particles, params, mode, KernelSet::Auto)
     }
 
-    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable` runs those any adapter has).
+    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable`: those any adapter
+    /// runs).
     pub fn with_kernels(
         particles: Particles,
         params: StepParams,
@@ -261,8 +262,9 @@ impl GridStepper {
         Self::with_options(particles, params, mode, kernels, GridBuild::Auto)
     }
 
-    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable` runs those any adapter has) and how the grid is built
-    /// (`GridBuild::Auto` decides from the spheres' bounds now, for the whole run).
+    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable`: those any adapter
+    /// runs) and how the grid is built (`GridBuild::Auto` decides from the spheres' bounds now,
+    /// for the whole run).
     pub fn with_options(
         particles: Particles,
         params: StepParams,

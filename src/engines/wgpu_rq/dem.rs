@@ -89,7 +89,8 @@ impl RqStepper {
         Self::with_kernels(particles, params, mode, KernelSet::Auto)
     }
 
-    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable` runs those any adapter has).
+    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable`: those any adapter
+    /// runs).
     pub fn with_kernels(
         particles: Particles,
         params: StepParams,
