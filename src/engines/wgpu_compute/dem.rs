@@ -67,6 +67,23 @@ use crate::proxy::ProxyMode;
 /// Steps between two re-derivations of the grid layout.
 pub const RELAYOUT_EVERY: u64 = 100;
 
+/// Steps a submission holds where a batch the host waits for (the granular step's, which may
+/// be redone) is submitted a few steps at a time: the GPU starts on them while the host records
+/// the next.
+const STEPS_A_SUBMISSION: u32 = 10;
+
+/// How the next batch the host waits for is submitted, from the last one's GPU time (`times`,
+/// where timestamps are taken) and the host's time recording it: [`STEPS_A_SUBMISSION`] steps
+/// at a time where the GPU's work took several times the recording, so that the GPU never
+/// waits for a submission and its timestamps stay its own work; in one submission otherwise;
+/// a few steps at a time where no timestamps are taken.
+fn submissions(times: Option<&StageTimes>, recorded_ms: f64) -> Option<u32> {
+    match times {
+        Some(t) if t.total_ms() <= 4.0 * recorded_ms => None,
+        _ => Some(STEPS_A_SUBMISSION),
+    }
+}
+
 /// Steps from one sorting step to the next where binning steps run between them (the state
 /// drifts out of sorted order only as fast as spheres change cells).
 pub const SORT_EVERY: u64 = 16;
@@ -225,6 +242,9 @@ pub struct GridStepper {
     /// (the dense build's last step counted them as it integrated; the host laying the grid out
     /// or writing the state undoes it).
     counted: bool,
+    /// Steps a submission of the next batch the host waits for holds (`None`: the whole
+    /// batch in one), from the last such batch (see [`submissions`]).
+    submit_every: Option<u32>,
     sorting: Sorting,
     force: wgpu::Buffer,
     counters: wgpu::Buffer,
@@ -494,6 +514,7 @@ impl GridStepper {
                 },
                 sort_next: true,
                 counted: false,
+                submit_every: None,
                 sorting: Sorting::Every(SORT_EVERY),
                 force: make("mochi.dem.force", rows * 12),
                 counters: make("mochi.dem.counters", 16),
@@ -1053,12 +1074,15 @@ impl RedoableBatch for GridStepper {
         mut encoder: wgpu::CommandEncoder,
         steps: u32,
     ) -> Result<(u64, Option<StageTimes>)> {
-        let profiled = self.encode_steps(&mut encoder, steps);
+        let recording = std::time::Instant::now();
+        let profiled = self.encode_steps(&mut encoder, steps, self.submit_every)?;
+        let recorded_ms = recording.elapsed().as_secs_f64() * 1e3;
         let gpu = &self.gpu;
         let timer = self.timer.as_ref();
         gpu.checked("running DEM steps", || gpu.queue.submit([encoder.finish()]))?;
         let contacts = gpu.read::<u32>(&self.counters, 1)?[0] as u64;
         let times = timer.map(|t| t.read(gpu, profiled)).transpose()?;
+        self.submit_every = submissions(times.as_ref(), recorded_ms);
         Ok((contacts, times))
     }
 
@@ -1076,9 +1100,16 @@ impl RedoableBatch for GridStepper {
 impl GridStepper {
     /// Records `steps` steps into `encoder` and moves the clock past them; returns how many
     /// were marked phase by phase. With a timer, the first step is recorded phase by phase
-    /// between timestamps (see [`StepTimer`]), the others share one compute pass, and the
-    /// batch's end is marked and resolved.
-    fn encode_steps(&mut self, encoder: &mut wgpu::CommandEncoder, steps: u32) -> u32 {
+    /// between timestamps (see [`StepTimer`]), the others share a compute pass for every
+    /// `submit_every` of them (all in one where `None`), each but the last submitted as soon as
+    /// it is recorded (`encoder` then holds the last), and the batch's end is marked and
+    /// resolved.
+    fn encode_steps(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        steps: u32,
+        submit_every: Option<u32>,
+    ) -> Result<u32> {
         let timer = self.timer.as_ref();
         let mut turn = self.turn();
         self.batch_start = (self.current, self.parity, self.sort_next);
@@ -1116,19 +1147,30 @@ impl GridStepper {
             turn = self.turn_after(kind, turn);
             profiled = 1;
         }
-        if profiled < steps {
+        let mut k = profiled;
+        while k < steps {
+            let end = submit_every.map_or(steps, |every| (k + every).min(steps));
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("mochi.dem.steps"),
                 timestamp_writes: None,
             });
-            for k in profiled..steps {
-                let kind = self.kind_of_step(k);
+            for step in k..end {
+                let kind = self.kind_of_step(step);
                 for phase in Phase::ALL {
                     self.record_phase(&mut pass, turn, kind, phase);
                 }
                 turn = self.turn_after(kind, turn);
             }
+            drop(pass);
+            k = end;
+            if k < steps {
+                let gpu = &self.gpu;
+                let next = gpu.device.create_command_encoder(&Default::default());
+                let done = std::mem::replace(encoder, next);
+                gpu.checked("running DEM steps", || gpu.queue.submit([done.finish()]))?;
+            }
         }
+        let timer = self.timer.as_ref();
         if let Some(t) = timer {
             t.end(encoder, profiled);
         }
@@ -1136,14 +1178,14 @@ impl GridStepper {
         self.step += steps as u64;
         self.sort_next = false;
         self.counted = self.build() == BuildKind::Dense;
-        profiled
+        Ok(profiled)
     }
 
     /// Records a batch of `steps` steps of the paper's step that ends by reducing its bounds
     /// and copying its results for the host, and submits it.
     fn submit_batch(&mut self, steps: u32) -> Result<InFlight> {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
-        let profiled = self.encode_steps(&mut encoder, steps);
+        let profiled = self.encode_steps(&mut encoder, steps, None)?;
         self.record_bounds(&mut encoder);
         let timer = self.timer.as_ref().map(|t| (t, profiled));
         self.readback
@@ -1441,5 +1483,23 @@ impl Stepper for GridStepper {
 
     fn grid_build(&self) -> Option<&'static str> {
         Some(self.build().name())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_batch_is_split_where_the_gpu_outlasts_its_recording() {
+        let gpu_ms = |total: f64| StageTimes {
+            build_ms: total / 2.0,
+            dcd_ms: total / 4.0,
+            update_ms: total / 4.0,
+        };
+        assert_eq!(submissions(Some(&gpu_ms(32.0)), 3.0), Some(STEPS_A_SUBMISSION));
+        assert_eq!(submissions(Some(&gpu_ms(2.0)), 3.0), None);
+        assert_eq!(submissions(Some(&gpu_ms(12.0)), 3.0), None);
+        assert_eq!(submissions(None, 3.0), Some(STEPS_A_SUBMISSION));
     }
 }
