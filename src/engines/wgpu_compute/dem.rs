@@ -1497,7 +1497,10 @@ mod tests {
             dcd_ms: total / 4.0,
             update_ms: total / 4.0,
         };
-        assert_eq!(submissions(Some(&gpu_ms(32.0)), 3.0), Some(STEPS_A_SUBMISSION));
+        assert_eq!(
+            submissions(Some(&gpu_ms(32.0)), 3.0),
+            Some(STEPS_A_SUBMISSION)
+        );
         assert_eq!(submissions(Some(&gpu_ms(2.0)), 3.0), None);
         assert_eq!(submissions(Some(&gpu_ms(12.0)), 3.0), None);
         assert_eq!(submissions(None, 3.0), Some(STEPS_A_SUBMISSION));
