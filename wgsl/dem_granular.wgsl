@@ -313,7 +313,8 @@ fn finish(w: ptr<function, Walker>) {
 }
 
 // Gravity and one semi-implicit Euler step of positions and angular velocities, in place (the
-// walls' forces are in the accumulators already); zeroes the torque accumulators.
+// walls' forces are in the accumulators already); zeroes the force and torque accumulators (those
+// a contact or wall added to), so they are zero between steps.
 @compute @workgroup_size(256)
 fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = gid.x + gid.y * dem.row;
@@ -328,6 +329,9 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
     let s = pos[p];
     let v = vel[p];
     let f = load_force(p);
+    if any(f != vec3(0.0)) {
+        clear_force(p);
+    }
     let g = gravity_at(atomicLoad(&clock) - 1u);
     let m = v.w;
     let v_new = v.xyz + dem.dt * (f / m + g);
@@ -336,8 +340,11 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
     pos[p] = moved;
     if granular.turns != 0u {
         let inertia = moment_of_inertia(m, s.w);
-        omega[p] = vec4(omega[p].xyz + dem.dt * (load_torque(p) / inertia), 0.0);
-        clear_torque(p);
+        let torque = load_torque(p);
+        omega[p] = vec4(omega[p].xyz + dem.dt * (torque / inertia), 0.0);
+        if any(torque != vec3(0.0)) {
+            clear_torque(p);
+        }
     }
     return moved;
 }

@@ -76,9 +76,9 @@ fn sorted_place(i: u32, s: vec4<f32>) -> u32 {
     return cell_start[cell_key(s)] + ranks[i];
 }
 
-// Counting sort, last pass (after the scan): set a → sorted set, with its force accumulators
-// zeroed (no clear of the whole buffer); the resolve file's `carry` moves its own per-sphere
-// state along.
+// Counting sort, last pass (after the scan): set a → sorted set (the force accumulators are zero
+// between steps: the integration zeroes them); the resolve file's `carry` moves its own
+// per-sphere state along.
 @compute @workgroup_size(256)
 fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index(gid);
@@ -89,15 +89,13 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s = pos_a[i];
     let p = sorted_place(i, s);
     ids[p] = ids_a[i];
-    clear_force(p);
     pos[p] = s;
     vel[p] = vel_a[i];
     carry(i, p);
 }
 
 // Counting sort, last pass of a binning step (after the scan): each sphere of set a at its
-// sorted place by index (`home`, `walk_pos`); the state stays where it is, its force
-// accumulators zeroed.
+// sorted place by index (`home`, `walk_pos`); the state stays where it is.
 @compute @workgroup_size(256)
 fn bin_index(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = index(gid);
@@ -109,7 +107,6 @@ fn bin_index(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = sorted_place(i, s);
     home[p] = i;
     walk_pos[p] = s;
-    clear_force(i);
 }
 
 // Order-preserving u32 key of a float (for atomicMin / atomicMax).

@@ -21,8 +21,8 @@ fn bin_keys(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // Sorted-key binning, last pass (after the sort, `sort_order` bound to the sorted indices):
-// set a → sorted set, with its force accumulators zeroed and the resolve file's per-sphere
-// state carried along (as bin_scatter does).
+// set a → sorted set, with the resolve file's per-sphere state carried along (as bin_scatter
+// does).
 @compute @workgroup_size(256)
 fn bin_gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = index(gid);
@@ -31,7 +31,6 @@ fn bin_gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let i = sort_order[p];
     ids[p] = ids_a[i];
-    clear_force(p);
     pos[p] = pos_a[i];
     vel[p] = vel_a[i];
     carry(i, p);

@@ -274,7 +274,6 @@ impl RedoableBatch for RqStepper {
             );
             r.accel.encode_build(&mut encoder);
             StepTimer::mark(timer, &mut encoder, s, 1);
-            encoder.clear_buffer(&r.force, 0, None);
             encoder.clear_buffer(&r.counters, 0, None);
             gpu.dispatch(
                 &mut encoder,
