@@ -25,6 +25,14 @@ fn block_range(block: u32) -> vec2<u32> {
     return vec2(first, min(first + (1u << params.block_shift) / 4u, len4));
 }
 
+// The counts of table entries k..k+3 (vec4 index k) below `end`, zero past it.
+fn tile_counts(k: u32, end: u32) -> vec4<u32> {
+    if k < end {
+        return counts[k];
+    }
+    return vec4(0u);
+}
+
 @compute @workgroup_size(256)
 fn reduce_blocks(
     @builtin(local_invocation_index) t: u32,
@@ -33,12 +41,16 @@ fn reduce_blocks(
 ) {
     let scan = scan_kind(t, lanes);
     let range = block_range(wid.x);
-    var sum = 0u;
-    for (var k = range.x + t; k < range.y; k += WG) {
-        let c = counts[k];
-        sum += c.x + c.y + c.z + c.w;
+    // Four tiles' loads in flight at once where the block has them.
+    var sums = vec4(0u);
+    var k = range.x + t;
+    for (; k + 3u * WG < range.y; k += 4u * WG) {
+        sums += counts[k] + counts[k + WG] + counts[k + 2u * WG] + counts[k + 3u * WG];
     }
-    let total = workgroup_scan(t, sum, lanes, scan).y;
+    for (; k < range.y; k += WG) {
+        sums += counts[k];
+    }
+    let total = workgroup_scan(t, sums.x + sums.y + sums.z + sums.w, lanes, scan).y;
     if t == 0u {
         block_sums[wid.x] = total;
     }
@@ -52,18 +64,20 @@ fn scan_cells(
 ) {
     let scan = scan_kind(t, lanes);
     let block = wid.x;
+    let range = block_range(block);
+    // Each tile's counts are fetched a step ahead: the first's while the blocks before are
+    // added up, the next's while this one is scanned.
+    var c = tile_counts(range.x + t, range.y);
     var carried = 0u;
     for (var k = t; k < block; k += WG) {
         carried += block_sums[k];
     }
     var base = workgroup_scan(t, carried, lanes, scan).y;
 
-    let range = block_range(block);
     for (var tile = range.x; tile < range.y; tile += WG) {
         let k = tile + t;
-        var c = vec4(0u);
+        let next = tile_counts(k + WG, range.y);
         if k < range.y {
-            c = counts[k];
             counts[k] = vec4(0u);
         }
         let before = vec4(0u, c.x, c.x + c.y, c.x + c.y + c.z);
@@ -73,5 +87,6 @@ fn scan_cells(
             cell_start[k] = vec4(base + scanned.x - sum) + before;
         }
         base += scanned.y;
+        c = next;
     }
 }
