@@ -482,6 +482,60 @@ fn gpu_steps_follow_the_cpu_step_with_a_stiffness_per_pair() {
 }
 
 #[test]
+fn gpu_steps_follow_the_cpu_step_where_a_sphere_meets_more_contacts_than_it_lists_at_once() {
+    // 30 spheres of one size spread within a cube of side r, no gravity: every pair touches, so
+    // the first spheres in sorted order meet up to 29 contacts, more than the paper's resolve
+    // kernels list before resolving them (8): they walk again for the rest. The per-pair law
+    // (the paper's kernels on the GPUs).
+    let r = 0.01f32;
+    let n = 30;
+    // A low-discrepancy spread: no two centres coincide.
+    let spread = |k: usize, a: f32| 0.5 + r * (k as f32 * a).fract();
+    let positions: Vec<[f32; 3]> = (0..n)
+        .map(|k| {
+            [
+                spread(k, 0.618_034),
+                spread(k, 0.754_878),
+                spread(k, 0.569_840),
+            ]
+        })
+        .collect();
+    let start = particles(positions, vec![[0.0; 3]; n], vec![r; n]);
+    let dt = 1e-4;
+    let material = Material {
+        contact: ContactLaw::LinearPerPair {
+            contact_time: Some(10.0 * dt),
+        },
+        ..Material::default()
+    };
+    let p = params(material, dt, 1.0, [0.0; 3], r);
+    let mut all = steppers(&start, p);
+    let (_, mut cpu) = all.remove(0);
+    let reference: Vec<_> = (0..4)
+        .map(|_| {
+            let a = cpu.advance(1).unwrap();
+            (a.contacts, cpu.particles().unwrap())
+        })
+        .collect();
+    assert_eq!(
+        reference[0].0,
+        (n * (n - 1) / 2) as u64,
+        "every pair touches"
+    );
+    for (name, mut s) in all {
+        for (k, (contacts, expected)) in reference.iter().enumerate() {
+            let a = s.advance(1).unwrap();
+            assert_eq!(a.contacts, *contacts, "{name}: contacts at step {k}");
+            let worst = common::largest_gap(&s.particles().unwrap(), expected);
+            assert!(
+                worst < 1e-6,
+                "{name}: {worst} m from the cpu step at step {k}"
+            );
+        }
+    }
+}
+
+#[test]
 fn gpu_steps_follow_the_cpu_step_under_rotating_gravity_from_a_later_step() {
     // Resumed at step 12,000 (1.2 s) of gravity turning at 2 rad/s: it points 2.4 rad away from
     // -z, so a step that took its phase from step 0 would pull the wrong way.
