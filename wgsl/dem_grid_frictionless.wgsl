@@ -39,6 +39,7 @@ fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     }
 }
 
+// A run's end: nothing to sum (the listed contacts are resolved after the walk).
 fn walked(w: ptr<function, Walker>, n: u32) {}
 
 var<workgroup> group_contacts: atomic<u32>;
