@@ -4,7 +4,8 @@
 // Candidates within reach a walk lists before resolving them (the walk's loop then holds no
 // contact law).
 const ROOM: u32 = 8u;
-var<workgroup> near_slots: array<u32, 2048>; // ROOM a thread of 256
+const RESOLVE_GROUP: u32 = 256u; // threads of a resolve workgroup
+var<workgroup> near_slots: array<u32, ROOM * RESOLVE_GROUP>;
 
 struct Walker {
     p: u32,            // sorted place of the walker's sphere
@@ -48,7 +49,7 @@ var<workgroup> group_contacts: atomic<u32>;
 // stencil walk, as in grid_pairs.wgsl) by the thread of one of its spheres, which adds equal and
 // opposite forces: it lists up to ROOM candidates within reach, resolves them, and walks again for
 // the next ROOM while there are more.
-@compute @workgroup_size(256)
+@compute @workgroup_size(RESOLVE_GROUP)
 fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let p = index(gid);
     var total = vec4(0.0);
