@@ -3,7 +3,11 @@
 // a fixed or a per-pair stiffness) or dem_grid_granular.wgsl's, its integration kernel
 // dem_integrate.wgsl's or dem_granular.wgsl's (`integrate_sphere`), which also define
 //   fn carry(i: u32, p: u32)   moves the per-sphere state of index i of set a to index p of the
-//                              sorted set (the granular step's ω; nothing in the paper's step)
+//                              sorted set (the granular step's ω; the paper's step's places
+//                              where it may skip its binning)
+//   fn binned(i: u32, p: u32, s: vec4<f32>)   sphere i of set a (sphere s) was binned at sorted
+//                              place p by `bin_index` (the paper's step notes it where it may
+//                              skip its binning)
 // Needs grid_params.wgsl and grid_stencil.wgsl prepended, one resolve file, grid_walk.wgsl,
 // dem_params.wgsl, the physics of the variant and one of dem_force_f32.wgsl /
 // dem_force_cas.wgsl appended.
@@ -52,9 +56,10 @@ fn bin_count(@builtin(global_invocation_id) gid: vec3<u32>) {
     ranks[i] = atomicAdd(&counts[cell_key(pos_a[i])], 1u);
 }
 
-// The step's counters, by the binning's last pass (once per step).
+// The step's counters, by the binning's first or last pass (once per step; where the step may
+// skip its binning, by its own first pass: dem_grid_frictionless.wgsl's `begin_step`).
 fn start_step(i: u32) {
-    if i == 0u {
+    if i == 0u && params.skin == 0.0 {
         atomicAdd(&clock, 1u);
         atomicStore(&counters[0], 0u);
     }
@@ -107,6 +112,7 @@ fn bin_index(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = sorted_place(i, s);
     home[p] = i;
     walk_pos[p] = s;
+    binned(i, p, s);
 }
 
 // Order-preserving u32 key of a float (for atomicMin / atomicMax).

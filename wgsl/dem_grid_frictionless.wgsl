@@ -17,11 +17,136 @@ struct Walker {
     skip: u32,         // those met before are resolved already (by an earlier walk)
 }
 
-// The paper's state is pos and vel alone.
-fn carry(i: u32, p: u32) {}
+// The skin (params.skin > 0: the dense build's paper step, docs/method.md "Re-binning only when
+// a sphere may have left its cells"). A step re-bins only where some sphere may have moved more
+// than `skin` since the last binning: `begin_step` decides from the largest displacement of each
+// step since (their sum bounds every sphere's distance from its binned centre), and sets the
+// indirect dispatches of the binning's passes to all workgroups or none. The steps between walk
+// the last binning's cells, every window widened by the skin (grid_stencil.wgsl), from the
+// spheres' current centres: `integrate_and_place` writes each new centre to walk_pos at the
+// sphere's binned place. A pair within reach then has its partner's binned cell in the walker's
+// window, and each walker starts from the row of its own binned cell (`walker_cell`): each pair
+// is still visited once.
+// by sorted place: the table index of the cell its sphere was binned in
+@group(0) @binding(28) var<storage, read_write> walk_key: array<u32>;
+// by state row: the sorted place its sphere was binned at
+@group(0) @binding(29) var<storage, read_write> place: array<u32>;
+// the skin's words, at the offsets below (host: src/engines/wgpu_compute/skin.rs)
+@group(0) @binding(32) var<storage, read_write> skin_state: array<atomic<u32>>;
+// [0]: the displacement above which a sphere reports its own this step (`begin_step` sets it)
+@group(0) @binding(33) var<storage, read_write> skin_limit: array<f32>;
+const ARGS_SPHERES: u32 = 0u;  // this step's dispatch of the binning's sphere passes (x, y, z)
+const ARGS_BLOCKS: u32 = 4u;   // and of the scan's (x, y, z)
+const FULL_SPHERES: u32 = 8u;  // their x when the step re-bins (the host's)
+const FULL_BLOCKS: u32 = 12u;
+const DRIFT: u32 = 16u;        // f32: bound on every sphere's distance from its binned centre
+const REBINS: u32 = 17u;       // steps that binned, since the host last cleared it
+const MOVED: u32 = 32u;        // DRIFT_SLOTS slots: the largest displacement reported this step (f32 bits)
+const DRIFT_SLOTS: u32 = 64u;
+
+// The paper's state is pos and vel alone; where the step may skip its binning, a sorting step
+// leaves its places for the steps that then skip theirs (the identity: the state is sorted).
+fn carry(i: u32, p: u32) {
+    if params.skin > 0.0 {
+        let s = pos_a[i];
+        home[p] = p;
+        walk_pos[p] = s;
+        walk_key[p] = cell_key(s);
+        place[p] = p;
+    }
+}
+
+fn binned(i: u32, p: u32, s: vec4<f32>) {
+    if params.skin > 0.0 {
+        walk_key[p] = cell_key(s);
+        place[i] = p;
+    }
+}
 
 fn walk_sphere(q: u32) -> vec4<f32> {
     return walk_pos[q];
+}
+
+// The cell the walker's sphere was binned in at its own level: that of its centre, or the one
+// its key notes where the centre may have moved since.
+fn walker_cell(w: ptr<function, Walker>, level: u32) -> vec3<u32> {
+    if params.skin == 0.0 {
+        return cell_coords((*w).s.xyz, level);
+    }
+    let dims = level_dims(level);
+    let k = walk_key[(*w).p] - params.level_first[level / 4u][level % 4u];
+    let row = k / dims.x;
+    return vec3(k - row * dims.x, row % dims.y, row / dims.y);
+}
+
+var<workgroup> step_moved: atomic<u32>;
+
+// The first pass of a step that may skip its binning: starts the step (clock, contact counter),
+// adds a bound on the last step's largest displacement to the drift and re-bins where the drift
+// passed the skin. Only the spheres that moved more than the limit reported their displacement
+// (few atomics), so the step's largest is at most the larger of the limit and the largest
+// reported; the limit then follows the motion: just above the largest reported where it was
+// exceeded, a little lower at each binning (so it comes down where the motion does). One
+// workgroup of DRIFT_SLOTS threads.
+@compute @workgroup_size(64)
+fn begin_step(@builtin(local_invocation_index) lid: u32) {
+    atomicMax(&step_moved, atomicExchange(&skin_state[MOVED + lid], 0u));
+    workgroupBarrier();
+    if lid == 0u {
+        atomicAdd(&clock, 1u);
+        atomicStore(&counters[0], 0u);
+        let limit = skin_limit[0];
+        let reported = bitcast<f32>(atomicLoad(&step_moved));
+        // The factor covers the f32 rounding of each displacement and of the sum.
+        let moved = max(limit, reported) * (1.0 + 1.0 / 1024.0);
+        let drift = bitcast<f32>(atomicLoad(&skin_state[DRIFT])) + moved;
+        let rebin = !(drift <= params.skin); // NaN or ∞ re-bins too
+        var next = limit;
+        if reported > limit {
+            next = 1.25 * reported;
+        }
+        skin_limit[0] = select(next, 0.8 * next, rebin);
+        atomicStore(&skin_state[DRIFT], bitcast<u32>(select(drift, 0.0, rebin)));
+        let spheres = atomicLoad(&skin_state[FULL_SPHERES]);
+        let blocks = atomicLoad(&skin_state[FULL_BLOCKS]);
+        atomicStore(&skin_state[ARGS_SPHERES], select(0u, spheres, rebin));
+        atomicStore(&skin_state[ARGS_BLOCKS], select(0u, blocks, rebin));
+        atomicAdd(&skin_state[REBINS], u32(rebin));
+    }
+}
+
+// The first pass of a step that bins whatever the drift (the first after the host wrote the
+// state or laid the grid out, and every sorting step).
+@compute @workgroup_size(64)
+fn begin_binning(@builtin(local_invocation_index) lid: u32) {
+    atomicStore(&skin_state[MOVED + lid], 0u);
+    if lid == 0u {
+        atomicAdd(&clock, 1u);
+        atomicStore(&counters[0], 0u);
+        atomicStore(&skin_state[DRIFT], 0u);
+        atomicAdd(&skin_state[REBINS], 1u);
+    }
+}
+
+// The integration kernel where the step may skip its binning: also writes each new centre to
+// its binned place, and a sphere that moved more than the limit reports its displacement (the
+// largest in one of DRIFT_SLOTS slots, by workgroup: few atomics meet at one word).
+@compute @workgroup_size(256)
+fn integrate_and_place(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+    let p = gid.x + gid.y * dem.row;
+    if p >= dem.n {
+        return;
+    }
+    let was = pos[p].xyz;
+    let moved = integrate_sphere(p);
+    walk_pos[place[p]] = moved;
+    let d = length(moved.xyz - was);
+    if d > skin_limit[0] {
+        let slot = MOVED + wid.x % DRIFT_SLOTS;
+        if bitcast<u32>(d) > atomicLoad(&skin_state[slot]) {
+            atomicMax(&skin_state[slot], bitcast<u32>(d));
+        }
+    }
 }
 
 // Lists the sphere at sorted place q where it is within reach of the walker's.

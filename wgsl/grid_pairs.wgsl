@@ -20,6 +20,10 @@ fn walk_sphere(q: u32) -> vec4<f32> {
     return spheres[q];
 }
 
+fn walker_cell(w: ptr<function, Walker>, level: u32) -> vec3<u32> {
+    return cell_coords((*w).s.xyz, level);
+}
+
 fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     let s = (*w).s;
     if collides(s.xyz, s.w, t.xyz, t.w) {

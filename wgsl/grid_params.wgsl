@@ -27,6 +27,7 @@ struct GridParams {
     block_shift: u32,   // the table's blocks for the scan (cell_scan.wgsl): 1 << block_shift entries
     max_radius: f32,    // largest radius, padded (grid_stencil.wgsl's windows)
     refine: u32,        // 4 bits a level (level k at bits 4k..4k+3): halvings of its cells below its class size
+    skin: f32,          // DEM step: how far a sphere may move before its grid is re-binned (0: every step)
     level_first: array<vec4<u32>, 2>, // dense: table index of each level's first cell
 }
 

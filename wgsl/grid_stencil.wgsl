@@ -12,7 +12,7 @@ const FORWARD = array<vec3<i32>, 13>(
 );
 
 // Dense tables: the partners of sphere s at `level` lie in its window there: the cells within
-// r_i plus the level's largest partner radius of c_i along each axis (2 or 3 cells per axis where
+// r_i plus the level's largest partner radius (plus the skin) of c_i along each axis (2 or 3 cells per axis where
 // the cells are the class's size, fewer than the 27 cells around its own when cells were grown,
 // more where the level is refined), as rows of cells along x, each a run
 // of sorted positions. At coarser levels s tests every sphere of its window (only the smaller
@@ -24,8 +24,7 @@ struct Window {
     ny: u32,      // rows along y
     count: u32,   // rows in all
     dims: vec3<u32>,
-    own_y: u32,   // the row through s's own cell: its y and z within the window
-    own_z: u32,
+    lo: vec3<u32>, // cell coordinates of the first cell
 }
 
 // Cell coordinates (margin included) of the cells within `reach` cells of u, per axis.
@@ -42,13 +41,14 @@ fn window(s: vec4<f32>, level: u32) -> Window {
     // A partner at `level` has r_j ≤ max_radius (padded on the host) and r_j·level_pad ≤ class_size / 2.
     // Coordinates in cells are within ~2^-11 cells of exact for up to 4096 cells per axis; the
     // window is widened by 1/256 cell, and clamping to the border cells keeps it monotone (the
-    // clamped outliers stay in it), as cell_coords is.
-    let reach = (s.w + min(params.max_radius, 0.5 * class_size)) * inv + 1.0 / 256.0;
+    // clamped outliers stay in it), as cell_coords is. A DEM step that re-bins only when a
+    // sphere may have moved `skin` since (dem_grid_frictionless.wgsl) widens it by that much: a
+    // partner's binned centre then lies within it too.
+    let reach = (s.w + min(params.max_radius, 0.5 * class_size) + params.skin) * inv + 1.0 / 256.0;
     let dims = level_dims(level);
     let u = (s.xyz - params.lo) * inv;
     let cells = reach_cells(u, reach, dims);
     let lo = cells[0];
     let span = cells[1] - lo + vec3(1u);
-    let own = cell_coords(s.xyz, level);
-    return Window(dense_key(lo, level), span.x, span.y, span.y * span.z, dims, own.y - lo.y, own.z - lo.z);
+    return Window(dense_key(lo, level), span.x, span.y, span.y * span.z, dims, lo);
 }

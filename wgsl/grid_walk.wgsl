@@ -11,6 +11,8 @@
 //   fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>)   one candidate q, t = its sphere
 //   fn walked(w: ptr<function, Walker>, n: u32)    a run or bucket is done; n candidates visited
 //   fn walk_sphere(q: u32) -> vec4<f32>                        sorted sphere q (centre, radius)
+//   fn walker_cell(w: ptr<function, Walker>, level: u32) -> vec3<u32>   the cell sphere p was
+//                                                  binned in at its own level (its sorted place's)
 
 // Visits the sorted spheres a..b.
 fn walk_run(w: ptr<function, Walker>, a: u32, b: u32) {
@@ -36,16 +38,16 @@ fn walk_bucket(w: ptr<function, Walker>, cell: vec3<u32>, own: bool) {
     walked(w, n);
 }
 
-// Dense tables: visits the rows of `win` (at the walker's own level, `own`, those from its own
-// row on and, in each, the spheres after it). Rows go along y, then z; each row's first table
-// index follows from the last one's (no division per row).
-fn walk_window(w: ptr<function, Walker>, win: Window, own: bool) {
+// Dense tables: visits the rows of `win` (at the walker's own level, `own`, those from the row
+// of its cell `cell` on and, in each, the spheres after it). Rows go along y, then z; each row's
+// first table index follows from the last one's (no division per row).
+fn walk_window(w: ptr<function, Walker>, win: Window, cell: vec3<u32>, own: bool) {
     var y = 0u;
     var z = 0u;
     var after = 0u;
     if own {
-        y = win.own_y;
-        z = win.own_z;
+        y = cell.y - win.lo.y;
+        z = cell.z - win.lo.z;
         after = (*w).p + 1u;
     }
     var k = y + win.ny * z;
@@ -77,9 +79,9 @@ fn stencil_walk(w: ptr<function, Walker>) {
         }
     } else {
         let own = level_of(s.w);
-        walk_window(w, window(s, own), true);
+        walk_window(w, window(s, own), walker_cell(w, own), true);
         for (var level = own + 1u; level < params.levels; level += 1u) {
-            walk_window(w, window(s, level), false);
+            walk_window(w, window(s, level), vec3(0u), false);
         }
     }
 }

@@ -14,6 +14,7 @@ use std::sync::mpsc::{Receiver, channel};
 
 /// Byte offsets in a read-back buffer.
 const CONTACTS_AT: u64 = 0;
+const REBINS_AT: u64 = 4;
 const BOUNDS_AT: u64 = 8;
 const TICKS_AT: u64 = 32;
 
@@ -33,6 +34,8 @@ pub(crate) struct InFlight {
     mapped: Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
     /// Its steps marked phase by phase (0: not timed).
     profiled: u32,
+    /// Its steps, where it counted those that re-binned (a step with a skin).
+    rebinning: Option<u32>,
 }
 
 /// What a finished batch read back.
@@ -43,6 +46,8 @@ pub(crate) struct BatchResults {
     pub bounds: [u32; 6],
     /// Its phase times (`None` without a timer).
     pub times: Option<StageTimes>,
+    /// Its steps, and those that re-binned (where it counted them).
+    pub rebins: Option<(u32, u32)>,
 }
 
 impl BatchReadback {
@@ -62,17 +67,22 @@ impl BatchReadback {
     }
 
     /// Records, at the end of a batch in `encoder`, the copies of its contact counter (a `u32`
-    /// at the start of `counters`), of its reduced `bounds` (where given) and of its `profiled`
+    /// at the start of `counters`), of its count of steps that re-binned (a `u32` in a buffer at
+    /// a byte offset, where given), of its reduced `bounds` (where given) and of its `profiled`
     /// steps' ticks (after [`StepTimer::end`]).
     pub fn record(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         counters: &wgpu::Buffer,
+        rebins: Option<(&wgpu::Buffer, u64)>,
         bounds: Option<&wgpu::Buffer>,
         timer: Option<(&StepTimer, u32)>,
     ) {
         let dst = &self.buffers[self.next];
         encoder.copy_buffer_to_buffer(counters, 0, dst, CONTACTS_AT, 4);
+        if let Some((buffer, at)) = rebins {
+            encoder.copy_buffer_to_buffer(buffer, at, dst, REBINS_AT, 4);
+        }
         if let Some(bounds) = bounds {
             encoder.copy_buffer_to_buffer(bounds, 0, dst, BOUNDS_AT, BOUNDS_BYTES);
         }
@@ -82,12 +92,14 @@ impl BatchReadback {
     }
 
     /// Submits the batch recorded in `encoder` (ending with [`record`](Self::record), its
-    /// `profiled` steps timed) and starts mapping its results.
+    /// `profiled` steps timed; `rebinning`: its steps, where it counted those that re-binned)
+    /// and starts mapping its results.
     pub fn submit(
         &mut self,
         gpu: &Gpu,
         encoder: wgpu::CommandEncoder,
         profiled: u32,
+        rebinning: Option<u32>,
     ) -> Result<InFlight> {
         let index = gpu.checked("running DEM steps", || gpu.queue.submit([encoder.finish()]))?;
         let slot = self.next;
@@ -103,6 +115,7 @@ impl BatchReadback {
             index,
             mapped,
             profiled,
+            rebinning,
         })
     }
 
@@ -130,10 +143,18 @@ impl BatchReadback {
             };
             let ticks_end = (TICKS_AT + StepTimer::ticks_bytes(batch.profiled)) as usize;
             let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&view[TICKS_AT as usize..ticks_end]);
+            let rebins = batch.rebinning.map(|steps| (steps, word(REBINS_AT)));
+            // The timed first step re-bins: the others' builds weigh what their re-binnings do.
+            let build_share = match rebins {
+                Some((steps, r)) => r as f64 / steps.max(1) as f64,
+                None => 1.0,
+            };
             BatchResults {
                 contacts: word(CONTACTS_AT) as u64,
                 bounds: std::array::from_fn(|k| word(BOUNDS_AT + 4 * k as u64)),
-                times: (batch.profiled > 0).then(|| StepTimer::phases(gpu, &ticks, batch.profiled)),
+                times: (batch.profiled > 0)
+                    .then(|| StepTimer::phases(gpu, &ticks, batch.profiled, build_share)),
+                rebins,
             }
         };
         buffer.unmap();

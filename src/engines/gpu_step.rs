@@ -398,7 +398,7 @@ impl StepTimer {
     /// The phase times of the last batch (after it completed): see [`phases`](Self::phases).
     pub fn read(&self, gpu: &Gpu, profiled: u32) -> Result<StageTimes> {
         let ticks = self.0.ticks(gpu, 0..4 * profiled + 1)?;
-        Ok(Self::phases(gpu, &ticks, profiled))
+        Ok(Self::phases(gpu, &ticks, profiled, 1.0))
     }
 
     /// Records a copy of a batch's ticks (after [`end`](Self::end)) into `dst` at `offset`:
@@ -419,14 +419,16 @@ impl StepTimer {
     }
 
     /// The phase times of a batch from its `ticks`: its whole time, from the first step's
-    /// start to its end, split in the proportions of its `profiled` steps' phases.
-    pub fn phases(gpu: &Gpu, ticks: &[u64], profiled: u32) -> StageTimes {
+    /// start to its end, split in the proportions of its `profiled` steps' phases, their builds
+    /// weighed by `build_share` (1 where every step builds as they did; the share of the steps
+    /// that re-binned where only those did, the profiled ones among them).
+    pub fn phases(gpu: &Gpu, ticks: &[u64], profiled: u32, build_share: f64) -> StageTimes {
         let marks = 4 * profiled as usize;
         let period = GpuTimer::ms_per_tick(gpu);
         let span = |a: u64, b: u64| b.saturating_sub(a) as f64 * period;
         let mut phases = StageTimes::default();
         for t in ticks[..marks].chunks_exact(4) {
-            phases.build_ms += span(t[0], t[1]);
+            phases.build_ms += span(t[0], t[1]) * build_share;
             phases.dcd_ms += span(t[1], t[2]);
             phases.update_ms += span(t[2], t[3]);
         }

@@ -94,8 +94,15 @@ impl std::ops::Deref for Module {
 fn instance() -> &'static wgpu::Instance {
     static INSTANCE: OnceLock<wgpu::Instance> = OnceLock::new();
     INSTANCE.get_or_init(|| {
+        // wgpu validates every indirect dispatch by default (a compute pass of its own before
+        // each, which costs the DEM step's skipped binnings more than the binning they skip).
+        // The engines' indirect dispatches are written by the host within the device's limits
+        // or set to zero by their kernels; WGPU_VALIDATION_INDIRECT_CALL=1 turns it back on.
+        let mut flags = wgpu::InstanceFlags::from_build_config();
+        flags.remove(wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL);
         wgpu::Instance::new(wgpu::InstanceDescriptor {
             backends: wgpu::Backends::PRIMARY,
+            flags: flags.with_env(),
             ..wgpu::InstanceDescriptor::new_without_display_handle()
         })
     })

@@ -28,9 +28,11 @@ pub(crate) fn block_shift(cells: u32) -> u32 {
     shift
 }
 
-/// Blocks of the table of `params`.
-fn blocks(params: &GridParams) -> u32 {
-    (params.cells >> params.block_shift) + 1
+impl GridParams {
+    /// Blocks the scan cuts this layout's table into: the workgroups of each of its dispatches.
+    pub(crate) fn scan_blocks(&self) -> u32 {
+        (self.cells >> self.block_shift) + 1
+    }
 }
 
 /// The buffers of a cell table with room for `capacity` cells.
@@ -108,13 +110,31 @@ impl CellScan {
 
     /// Records the scan of the table laid out by `params` into `pass`.
     pub fn record(&self, pass: &mut wgpu::ComputePass, binds: &CellScanBinds, params: &GridParams) {
-        let blocks = blocks(params);
+        let blocks = params.scan_blocks();
         pass.set_pipeline(&self.reduce_blocks);
         pass.set_bind_group(0, &binds.reduce_blocks, &[]);
         pass.dispatch_workgroups(blocks, 1, 1);
         pass.set_pipeline(&self.scan_cells);
         pass.set_bind_group(0, &binds.scan_cells, &[]);
         pass.dispatch_workgroups(blocks, 1, 1);
+    }
+}
+
+impl CellScan {
+    /// As [`record`](Self::record), both dispatches of the size at `args` (a buffer and byte
+    /// offset of indirect dispatch arguments: the table's blocks, or none).
+    pub fn record_indirect(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        binds: &CellScanBinds,
+        (buffer, offset): (&wgpu::Buffer, u64),
+    ) {
+        pass.set_pipeline(&self.reduce_blocks);
+        pass.set_bind_group(0, &binds.reduce_blocks, &[]);
+        pass.dispatch_workgroups_indirect(buffer, offset);
+        pass.set_pipeline(&self.scan_cells);
+        pass.set_bind_group(0, &binds.scan_cells, &[]);
+        pass.dispatch_workgroups_indirect(buffer, offset);
     }
 }
 

@@ -1,5 +1,5 @@
 //! The wgpu-compute backend's DEM step, resident on the GPU: per step a counting sort of the
-//! spheres by cell (the backend's sorted proxy grid, re-binned every step), one pass that finds
+//! spheres by cell (the backend's sorted proxy grid; see the skin below), one pass that finds
 //! every touching pair once and adds equal and opposite forces to both spheres (float atomics,
 //! or compare-and-swap loops where the adapter has none), and one pass for walls, gravity and
 //! integration (`wgsl/dem_grid.wgsl`, `wgsl/dem_physics.wgsl`), which in the dense build also
@@ -23,6 +23,13 @@
 //! steps (a sorting step); the steps between bin the spheres by index and resolve and
 //! integrate the state where it is (binning steps, [`StepKind`]).
 //!
+//! The paper's step on a dense grid has a skin (`skin.rs`, docs/method.md "Re-binning only when
+//! a sphere may have left its cells"): its search windows reach a little further, and a step
+//! re-bins only where the GPU finds that a sphere may have moved that far since the last
+//! binning ([`Rebin`]); its integration then writes the new centres to their binned places and
+//! does not count. Where a batch re-bins at more than [`MAX_REBIN_SHARE`] of its steps the skin
+//! is off for a while.
+//!
 //! A scene with friction, rolling resistance, rotation or another law than the paper's runs the
 //! granular variant of the step (`wgsl/dem_grid_granular.wgsl`, [`Granular`]): its own module
 //! and pipelines, with angular velocities, torques and the contact history bound besides; the
@@ -38,8 +45,10 @@ use super::layout::{
 use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
     self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, HOME, IDS, IDS_A, LISTED, NEAR,
-    NEAR_ROOM, OMEGA_A, PARAMS, POS_A, RANKS, SORT_KEYS, SORT_ORDER, VEL_A, WALK_POS,
+    NEAR_ROOM, OMEGA_A, PARAMS, PLACE, POS_A, RANKS, SKIN, SKIN_LIMIT, SORT_KEYS, SORT_ORDER,
+    VEL_A, WALK_KEY, WALK_POS,
 };
+use super::skin::{SKIN_CELLS, Skin, skin_of};
 use crate::dem::flow::NewSphere;
 use crate::dem::model::StepParams;
 use crate::dem::model::mass;
@@ -88,10 +97,25 @@ fn submissions(times: Option<&StageTimes>, recorded_ms: f64) -> Option<u32> {
 /// drifts out of sorted order only as fast as spheres change cells).
 pub const SORT_EVERY: u64 = 16;
 
+/// As [`SORT_EVERY`] where the step has a skin: a sorting step re-bins, so its steps between
+/// re-binnings are longer (docs/PERFORMANCE.md, issue 21).
+pub const SKIN_SORT_EVERY: u64 = 64;
+
+/// Share of a batch's steps above which re-binning is so frequent that the skin costs more
+/// than it saves (its wider windows and the centres it copies each step); the skin is then
+/// off for [`SKIN_RETRY_STEPS`] steps (docs/PERFORMANCE.md, issue 21).
+pub const MAX_REBIN_SHARE: f64 = 0.25;
+
+/// Steps the skin stays off after a batch re-binned too often; then it is tried again.
+pub const SKIN_RETRY_STEPS: u64 = 1000;
+
 /// When a step on the dense build moves its state into sorted order (a sorting step); the
 /// other steps bin by index. Only speed depends on it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Sorting {
+    /// Every [`SORT_EVERY`] steps, or [`SKIN_SORT_EVERY`] where the step has a skin, as
+    /// `Every`.
+    Auto,
     /// At the steps whose number is a multiple of `k` (≥ 1), and at the first step after the
     /// state was written out of order (uploaded, spheres appended or removed).
     Every(u64),
@@ -107,6 +131,16 @@ enum StepKind {
     /// The spheres are binned by index (`home`, `walk_pos`) and the step runs on the state where
     /// it is.
     Binning,
+}
+
+/// Whether a binning step with a skin re-bins (a sorting step always does).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Rebin {
+    /// Whatever the drift: the first step after the host wrote the state or laid the grid out,
+    /// and a timed batch's first step (whose phases the batch's times are split by).
+    Always,
+    /// Where some sphere may have moved more than the skin since the last binning.
+    IfMoved,
 }
 
 /// One set of the ping-ponged state, in sorted order.
@@ -133,6 +167,18 @@ struct Pipelines {
     reduce_bounds: wgpu::ComputePipeline,
     /// The binning step's last pass, where the step has binning steps.
     bin_index: Option<wgpu::ComputePipeline>,
+    /// The skin's kernels (the paper's step on the dense build).
+    skin: Option<SkinPipelines>,
+}
+
+/// The kernels of a step that may skip its binning (`wgsl/dem_grid_frictionless.wgsl`).
+struct SkinPipelines {
+    /// A step's first pass where the drift decides whether it re-bins.
+    begin_step: wgpu::ComputePipeline,
+    /// A step's first pass where it re-bins whatever the drift.
+    begin_binning: wgpu::ComputePipeline,
+    /// The integration, which keeps the walk's centres current and notes the displacements.
+    integrate: wgpu::ComputePipeline,
 }
 
 /// Bind groups of the steps from one state set (the source of the next binning).
@@ -145,6 +191,15 @@ struct Binds {
     reduce_bounds: wgpu::BindGroup,
     /// A binning step's own bind groups on set `from` (where the step has binning steps).
     binning: Option<BinningBinds>,
+    /// The skin's kernels' (where the step has them).
+    skin: Option<SkinBinds>,
+}
+
+/// The skin's bind groups, by the state set the integration steps (see [`Binds::integrate`]).
+struct SkinBinds {
+    begin_step: wgpu::BindGroup,
+    begin_binning: wgpu::BindGroup,
+    integrate: wgpu::BindGroup,
 }
 
 /// Bind groups of a binning step's own passes on one set (its count and integration are the
@@ -171,6 +226,10 @@ struct SortedPlaces {
     walk_pos: wgpu::Buffer,
     /// Row k holds k: `home` of a sorting step, whose state is in sorted order.
     identity: wgpu::Buffer,
+    /// The skin's: by sorted place, the key of the cell its sphere was binned in; by state row,
+    /// the place it was binned at (the paper's step).
+    walk_key: wgpu::Buffer,
+    place: wgpu::Buffer,
 }
 
 /// The granular contact pass's lists of candidates within reach (`wgsl/dem_grid_granular.wgsl`).
@@ -263,6 +322,14 @@ pub struct GridStepper {
     near: Option<NearLists>,
     /// The per-pair variant's state (`None`: another variant).
     per_pair: Option<PerPair>,
+    /// Where the step may skip its binning (the paper's step on the dense build; the layout's
+    /// `skin` says whether it does).
+    skin: Option<Skin>,
+    /// Steps run with a skin, and those that re-binned, since the stepper opened.
+    rebinned: (u64, u64),
+    /// The step before which the skin stays off (a batch re-binned too often: see
+    /// [`MAX_REBIN_SHARE`]).
+    skin_off_until: u64,
 }
 
 impl GridStepper {
@@ -426,6 +493,8 @@ impl GridStepper {
         )?;
         let n = particles.len() as u32;
         let rows = room.spheres as u64;
+        // The paper's step on the dense build may skip its binning (the skin).
+        let skinned = granular.is_none() && build == BuildKind::Dense;
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.{entry}"), &module, entry);
         let (first, last) = match build {
             BuildKind::Dense => ("bin_count", "bin_scatter"),
@@ -449,6 +518,11 @@ impl GridStepper {
             }),
             reduce_bounds: pipeline("reduce_bounds"),
             bin_index: (build == BuildKind::Dense).then(|| pipeline("bin_index")),
+            skin: skinned.then(|| SkinPipelines {
+                begin_step: pipeline("begin_step"),
+                begin_binning: pipeline("begin_binning"),
+                integrate: pipeline("integrate_and_place"),
+            }),
         };
         let none = wgpu::BufferUsages::empty();
         let make = |label: &str, bytes: u64| gpu.storage(label, bytes, none);
@@ -504,18 +578,22 @@ impl GridStepper {
                     let places: Vec<u32> = (0..rows as u32).collect();
                     gpu.queue
                         .write_buffer(&identity, 0, bytemuck::cast_slice(&places));
-                    // Only a step with binning steps writes places of its own.
-                    let binning = (build == BuildKind::Dense) as u64;
+                    // Only a step with binning steps writes places of its own (the paper's
+                    // kernels bind them in either build).
+                    let binning = (build == BuildKind::Dense || granular.is_none()) as u64;
+                    let paper = granular.is_none() as u64;
                     SortedPlaces {
                         home: make("mochi.dem.home", binning * rows * 4),
                         walk_pos: make("mochi.dem.walk_pos", binning * rows * 16),
                         identity,
+                        walk_key: make("mochi.dem.walk_key", paper * rows * 4),
+                        place: make("mochi.dem.place", paper * rows * 4),
                     }
                 },
                 sort_next: true,
                 counted: false,
                 submit_every: None,
-                sorting: Sorting::Every(SORT_EVERY),
+                sorting: Sorting::Auto,
                 force: make("mochi.dem.force", rows * 12),
                 counters: make("mochi.dem.counters", 16),
                 bounds: make("mochi.dem.bounds", 24),
@@ -527,6 +605,9 @@ impl GridStepper {
                 atomics,
                 granular,
                 per_pair,
+                skin: skinned.then(|| Skin::new(&gpu)),
+                rebinned: (0, 0),
+                skin_off_until: 0,
                 gpu: gpu.clone(),
             }
         })?;
@@ -680,6 +761,13 @@ impl GridStepper {
                 },
             )
         };
+        let layout = GridParams {
+            skin: match self.skin {
+                Some(_) if self.step >= self.skin_off_until => skin_of(&layout),
+                _ => 0.0,
+            },
+            ..layout
+        };
         match &mut self.sorter {
             Sorter::Dense {
                 cell_table,
@@ -736,7 +824,8 @@ impl GridStepper {
                     g.integrate_bindings(1 - from).to_vec(),
                 )
             }
-            None => (Vec::new(), self.law_bindings()),
+            // The paper's scatter leaves its places for the steps that may skip their binning.
+            None => (self.skin_places(true), self.law_bindings()),
         };
         // What the binning's passes and the integration bind of the sorter.
         let (first, last, counting) = match &self.sorter {
@@ -822,7 +911,67 @@ impl GridStepper {
                 ],
             ),
             binning: self.binning_binds(from),
+            skin: self.skin_binds(1 - from, &integrate_more),
         }
+    }
+
+    /// The places the paper's binning passes write for its skin (`home` and `walk_pos` too
+    /// where `sorting`: the scatter's), none in the granular step.
+    fn skin_places(&self, sorting: bool) -> Vec<(Binding, &wgpu::Buffer)> {
+        if self.granular.is_some() {
+            return Vec::new();
+        }
+        let places = &self.places;
+        let mut bound = vec![(WALK_KEY, &places.walk_key), (PLACE, &places.place)];
+        if sorting {
+            bound.extend([(HOME, &places.home), (WALK_POS, &places.walk_pos)]);
+        }
+        bound
+    }
+
+    /// The skin's bind groups with its integration on set `on` (`law`: the law's bindings),
+    /// where the step has a skin.
+    fn skin_binds(&self, on: usize, law: &[(Binding, &wgpu::Buffer)]) -> Option<SkinBinds> {
+        let (pipelines, skin) = (self.pipelines.skin.as_ref()?, self.skin.as_ref()?);
+        let (gpu, set, places) = (&self.gpu, &self.sets[on], &self.places);
+        let started = [
+            (CLOCK, &self.clock),
+            (COUNTERS, &self.counters),
+            (SKIN, &skin.state),
+        ];
+        Some(SkinBinds {
+            begin_step: gpu.bind(
+                "mochi.dem.begin_step",
+                &pipelines.begin_step,
+                &joined(
+                    &[(PARAMS, &self.grid_uniform), (SKIN_LIMIT, &skin.limit)],
+                    &started,
+                ),
+            ),
+            begin_binning: gpu.bind(
+                "mochi.dem.begin_binning",
+                &pipelines.begin_binning,
+                &started,
+            ),
+            integrate: gpu.bind(
+                "mochi.dem.integrate_and_place",
+                &pipelines.integrate,
+                &joined(
+                    &[
+                        (DEM, &self.dem_uniform),
+                        (POS, &set.pos),
+                        (VEL, &set.vel),
+                        (FORCE, &self.force),
+                        (CLOCK, &self.clock),
+                        (WALK_POS, &places.walk_pos),
+                        (PLACE, &places.place),
+                        (SKIN, &skin.state),
+                        (SKIN_LIMIT, &skin.limit),
+                    ],
+                    law,
+                ),
+            ),
+        })
     }
 
     /// Bind groups of a binning step on set `on` (`None` where the step has none).
@@ -839,16 +988,19 @@ impl GridStepper {
             bin_index: gpu.bind(
                 "mochi.dem.bin_index",
                 bin_index,
-                &[
-                    (PARAMS, &self.grid_uniform),
-                    (POS_A, &set.pos),
-                    (RANKS, ranks),
-                    (CELL_START, &cell_table.cell_start),
-                    (COUNTERS, &self.counters),
-                    (CLOCK, &self.clock),
-                    (HOME, &places.home),
-                    (WALK_POS, &places.walk_pos),
-                ],
+                &joined(
+                    &[
+                        (PARAMS, &self.grid_uniform),
+                        (POS_A, &set.pos),
+                        (RANKS, ranks),
+                        (CELL_START, &cell_table.cell_start),
+                        (COUNTERS, &self.counters),
+                        (CLOCK, &self.clock),
+                        (HOME, &places.home),
+                        (WALK_POS, &places.walk_pos),
+                    ],
+                    &self.skin_places(false),
+                ),
             ),
             resolving: self.resolving(on, StepKind::Binning),
         })
@@ -880,7 +1032,8 @@ impl GridStepper {
             placed[1],
         ];
         let Some(g) = &self.granular else {
-            let law = self.law_bindings();
+            // The walk starts from the row of its sphere's binned cell (the skin's).
+            let law = [&self.law_bindings()[..], &[(WALK_KEY, &places.walk_key)]].concat();
             let resolve = gpu.bind(
                 "mochi.dem.resolve",
                 &self.pipelines.resolve,
@@ -962,9 +1115,15 @@ impl GridStepper {
     /// How the step after the next `ahead` steps bins.
     fn kind_of_step(&self, ahead: u32) -> StepKind {
         let step = self.step + ahead as u64;
-        let sorts = match self.sorting {
-            Sorting::Every(k) => (self.sort_next && ahead == 0) || step.is_multiple_of(k.max(1)),
-            Sorting::Never => false,
+        let every = match (self.sorting, self.skinned()) {
+            (Sorting::Auto, false) => Some(SORT_EVERY),
+            (Sorting::Auto, true) => Some(SKIN_SORT_EVERY),
+            (Sorting::Every(k), _) => Some(k),
+            (Sorting::Never, _) => None,
+        };
+        let sorts = match every {
+            Some(k) => (self.sort_next && ahead == 0) || step.is_multiple_of(k.max(1)),
+            None => false,
         };
         match self.pipelines.bin_index.is_some() && !sorts {
             true => StepKind::Binning,
@@ -996,9 +1155,22 @@ impl GridStepper {
         }
     }
 
-    /// Records one phase of a step of kind `kind` from `from` into `pass` (the dense build's
-    /// spheres counted already: see [`counted`](Self::counted)).
-    fn record_phase(&self, pass: &mut wgpu::ComputePass, from: Turn, kind: StepKind, phase: Phase) {
+    /// Whether the layout has a skin: steps may skip their binning.
+    fn skinned(&self) -> bool {
+        self.skin.is_some() && self.layout.skin > 0.0
+    }
+
+    /// Records one phase of a step of kind `kind` from `from` into `pass` (without a skin, the
+    /// dense build's spheres counted already: see [`counted`](Self::counted); with one, the
+    /// step re-bins where `rebin` is `Always`, else where the GPU finds it must).
+    fn record_phase(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        from: Turn,
+        kind: StepKind,
+        rebin: Rebin,
+        phase: Phase,
+    ) {
         let binds = self.binds.as_ref().expect("laid out");
         let b = &binds[from.set];
         let p = &self.pipelines;
@@ -1007,12 +1179,45 @@ impl GridStepper {
             let bin_index = p.bin_index.as_ref().expect("a step with binning steps");
             (own, bin_index)
         });
+        let skin = match (&p.skin, &self.skin, self.skinned()) {
+            (Some(pipelines), Some(skin), true) => Some((pipelines, skin)),
+            _ => None,
+        };
+        // The skin's bind groups of the set this step integrates.
+        let skin_binds = || {
+            let set = match kind {
+                StepKind::Sorting => from.set,
+                StepKind::Binning => 1 - from.set,
+            };
+            binds[set].skin.as_ref().expect("a step with a skin")
+        };
         match phase {
+            Phase::Build if skin.is_some() => {
+                let (pipelines, skin) = skin.expect("a skin");
+                let own = skin_binds();
+                // A sorting step re-bins whatever the drift; a binning step as `rebin` says.
+                let decided = rebin == Rebin::IfMoved && binning.is_some();
+                let (last, last_bind) = match binning {
+                    Some((binning, bin_index)) => (bin_index, &binning.bin_index),
+                    None => (&p.bin_last, &b.bin_last),
+                };
+                if decided {
+                    gpu::record(pass, &pipelines.begin_step, &own.begin_step, (1, 1));
+                    skin.dispatch_spheres(pass, &p.bin_first, &b.bin_first);
+                    self.record_scan(pass, Some(skin.blocks_args()));
+                    skin.dispatch_spheres(pass, last, last_bind);
+                } else {
+                    gpu::record(pass, &pipelines.begin_binning, &own.begin_binning, (1, 1));
+                    gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
+                    self.record_scan(pass, None);
+                    gpu::record(pass, last, last_bind, self.groups);
+                }
+            }
             Phase::Build => {
                 if self.build() == BuildKind::Sorted {
                     gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
                 }
-                self.record_scan(pass);
+                self.record_scan(pass, None);
                 match binning {
                     Some((own, bin_index)) => {
                         gpu::record(pass, bin_index, &own.bin_index, self.groups)
@@ -1039,6 +1244,10 @@ impl GridStepper {
             // A binning step integrates the set it is on, as the sorting step from the other
             // set does.
             Phase::Integrate => {
+                if let Some((pipelines, _)) = skin {
+                    let own = skin_binds();
+                    return gpu::record(pass, &pipelines.integrate, &own.integrate, self.groups);
+                }
                 let integrate = match kind {
                     StepKind::Sorting => &b.integrate,
                     StepKind::Binning => &binds[1 - from.set].integrate,
@@ -1049,12 +1258,18 @@ impl GridStepper {
     }
 
     /// Records the sorter's pass between the binning's first and last: the scan of the cell
-    /// table, or the sort of the keys.
-    fn record_scan(&self, pass: &mut wgpu::ComputePass) {
+    /// table (its dispatch read from `indirect` where given), or the sort of the keys.
+    fn record_scan(&self, pass: &mut wgpu::ComputePass, indirect: Option<(&wgpu::Buffer, u64)>) {
         match &self.sorter {
             Sorter::Dense {
                 scan, scan_bind, ..
-            } => scan.record(pass, scan_bind.as_ref().expect("laid out"), &self.layout),
+            } => {
+                let binds = scan_bind.as_ref().expect("laid out");
+                match indirect {
+                    Some(args) => scan.record_indirect(pass, binds, args),
+                    None => scan.record(pass, binds, &self.layout),
+                }
+            }
             Sorter::Sorted { prepared, .. } => prepared.as_ref().expect("laid out").record(pass),
         }
     }
@@ -1112,7 +1327,22 @@ impl GridStepper {
         let mut turn = self.turn();
         self.batch_start = (self.current, self.parity, self.sort_next);
         let mut profiled = 0;
+        let skinned = self.skinned();
+        // With a skin the first step re-bins where its places may be stale or its phases are
+        // timed; the counts are zero between steps but where the layout or the state changed.
+        let first_rebin = match self.counted && timer.is_none() {
+            true => Rebin::IfMoved,
+            false => Rebin::Always,
+        };
+        if let (Some(skin), true, Sorter::Dense { .. }) = (&self.skin, skinned, &self.sorter) {
+            skin.prepare(&self.gpu, self.groups, self.layout.scan_blocks());
+        }
         if let Sorter::Dense { cell_table, .. } = &self.sorter
+            && skinned
+            && !self.counted
+        {
+            encoder.clear_buffer(&cell_table.counts, 0, None);
+        } else if let Sorter::Dense { cell_table, .. } = &self.sorter
             && !self.counted
         {
             // Counted afresh (what a step counted before the layout or the state changed is
@@ -1138,7 +1368,7 @@ impl GridStepper {
                     label: Some(phase.label()),
                     timestamp_writes: None,
                 });
-                self.record_phase(&mut pass, turn, kind, phase);
+                self.record_phase(&mut pass, turn, kind, first_rebin, phase);
                 drop(pass);
                 StepTimer::mark(timer, encoder, 0, k as u32 + 1);
             }
@@ -1154,8 +1384,12 @@ impl GridStepper {
             });
             for step in k..end {
                 let kind = self.kind_of_step(step);
+                let rebin = match step {
+                    0 => first_rebin,
+                    _ => Rebin::IfMoved,
+                };
                 for phase in Phase::ALL {
-                    self.record_phase(&mut pass, turn, kind, phase);
+                    self.record_phase(&mut pass, turn, kind, rebin, phase);
                 }
                 turn = self.turn_after(kind, turn);
             }
@@ -1186,9 +1420,18 @@ impl GridStepper {
         let profiled = self.encode_steps(&mut encoder, steps, None)?;
         self.record_bounds(&mut encoder);
         let timer = self.timer.as_ref().map(|t| (t, profiled));
+        let skin = self.skin.as_ref().filter(|_| self.skinned());
+        let rebins = skin.map(|s| (&s.state, Skin::REBINS_AT));
+        self.readback.record(
+            &mut encoder,
+            &self.counters,
+            rebins,
+            Some(&self.bounds),
+            timer,
+        );
+        let rebinning = skin.map(|_| steps);
         self.readback
-            .record(&mut encoder, &self.counters, Some(&self.bounds), timer);
-        self.readback.submit(&self.gpu, encoder, profiled)
+            .submit(&self.gpu, encoder, profiled, rebinning)
     }
 
     /// The paper's step, `steps` steps in batches kept in flight: batch k + 1 is recorded and
@@ -1223,6 +1466,14 @@ impl GridStepper {
             if let Some(done) = in_flight.take() {
                 let results = self.readback.finish(&self.gpu, done)?;
                 contacts = results.contacts;
+                if let Some((steps, rebins)) = results.rebins {
+                    self.rebinned.0 += steps as u64;
+                    self.rebinned.1 += rebins as u64;
+                    // Off from the next layout on where it re-binned too often.
+                    if rebins as f64 > MAX_REBIN_SHARE * steps as f64 {
+                        self.skin_off_until = self.step + SKIN_RETRY_STEPS;
+                    }
+                }
                 self.last_bounds = Some(results.bounds);
                 match results.times {
                     Some(t) => times.add(&t),
@@ -1429,8 +1680,14 @@ impl Stepper for GridStepper {
             Some(_) => describe_layout(&self.layout, self.build()),
             None => format!("{} build", self.build().name()),
         };
+        let skin = match self.rebinned {
+            (steps, rebins) if steps > 0 => {
+                format!("; skin of {SKIN_CELLS} cell on {steps} steps, re-binned at {rebins}")
+            }
+            _ => String::new(),
+        };
         format!(
-            "wgpu-compute ({}; {}; {grid}{})",
+            "wgpu-compute ({}; {}; {grid}{skin}{})",
             gpu::describe(&self.gpu.info),
             self.atomics,
             history.map(|h| format!("; {h}")).unwrap_or_default()

@@ -75,6 +75,9 @@ pub(crate) struct GridParams {
     /// Multi-level grids: 4 bits a level (level `k` at bits `4k..4k + 4`), how many times its
     /// cells are halved below its class's size ([`refine_levels`]).
     pub refine: u32,
+    /// The DEM step's skin ([`skin_of`](super::skin::skin_of)): how far a sphere may move
+    /// before its grid is re-binned; 0 (detection, and the steps that re-bin every step).
+    pub skin: f32,
     /// Dense tables: index of each level's first cell (level `k` at `[k / 4].0[k % 4]`).
     pub level_first: [Vec4u; 2],
 }

@@ -34,6 +34,7 @@ mod dem;
 mod detect;
 pub(crate) mod layout;
 mod shaders;
+mod skin;
 
 pub use dem::{GridStepper, Sorting};
 pub use detect::WgpuComputeBackend;

@@ -28,6 +28,7 @@ fn grid_params() -> SharedStruct {
             block_shift,
             max_radius,
             refine,
+            skin,
             level_first,
         }
     )
@@ -228,6 +229,9 @@ pub(crate) mod dem_grid {
         "reduce_bounds",
         "integrate",
         "integrate_and_count",
+        "begin_step",
+        "begin_binning",
+        "integrate_and_place",
     ];
 
     /// The entry points of the sorted-key build's variants (the dense binning is in the module
@@ -242,6 +246,9 @@ pub(crate) mod dem_grid {
         "reduce_bounds",
         "integrate",
         "integrate_and_count",
+        "begin_step",
+        "begin_binning",
+        "integrate_and_place",
     ];
 
     /// The entry points of the dense build's granular variant: the mesh walls' kernels too.
@@ -305,15 +312,31 @@ pub(crate) mod dem_grid {
     /// Twin of `NEAR_ROOM` in `wgsl/dem_grid_granular.wgsl`.
     pub const NEAR_ROOM: u64 = 16;
 
+    /// The paper's step's skin (`wgsl/dem_grid_frictionless.wgsl`): by sorted place the key of
+    /// the cell its sphere was binned in, by state row the place it was binned at, and the
+    /// words the GPU decides in whether a step re-bins (`skin.rs`).
+    pub const WALK_KEY: Binding = Binding::read_write(28, "walk_key");
+    pub const PLACE: Binding = Binding::read_write(29, "place");
+    pub const SKIN: Binding = Binding::read_write(32, "skin_state");
+    pub const SKIN_LIMIT: Binding = Binding::read_write(33, "skin_limit");
+
     const OWN: [Binding; 12] = [
         PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS, HOME,
         WALK_POS,
     ];
 
-    /// Every binding of the paper's step, the physics' included.
-    pub fn bindings() -> Vec<Binding> {
+    /// Every binding of every variant, the physics' included.
+    fn shared_bindings() -> Vec<Binding> {
         OWN.into_iter()
             .chain(physics::BINDINGS.iter().copied())
+            .collect()
+    }
+
+    /// Every binding of the paper's step.
+    pub fn bindings() -> Vec<Binding> {
+        shared_bindings()
+            .into_iter()
+            .chain([WALK_KEY, PLACE, SKIN, SKIN_LIMIT])
             .collect()
     }
 
@@ -327,7 +350,7 @@ pub(crate) mod dem_grid {
 
     /// Every binding of the granular step.
     pub fn granular_bindings() -> Vec<Binding> {
-        bindings()
+        shared_bindings()
             .into_iter()
             .chain(granular::bindings())
             .chain([OMEGA_A, CAME_FROM, LISTED, NEAR])
