@@ -890,16 +890,7 @@ impl GridStepper {
             integrate: gpu.bind(
                 "mochi.dem.integrate",
                 &p.integrate,
-                &joined(
-                    &[
-                        (DEM, &self.dem_uniform),
-                        (POS, &b.pos),
-                        (VEL, &b.vel),
-                        (FORCE, &self.force),
-                        (CLOCK, &self.clock),
-                    ],
-                    &[&integrate_more[..], &counting].concat(),
-                ),
+                &[&self.integrated(1 - from)[..], &integrate_more, &counting].concat(),
             ),
             reduce_bounds: gpu.bind(
                 "mochi.dem.reduce_bounds",
@@ -913,6 +904,18 @@ impl GridStepper {
             binning: self.binning_binds(from),
             skin: self.skin_binds(1 - from, &integrate_more),
         }
+    }
+
+    /// What every integration kernel binds to step state set `on`.
+    fn integrated(&self, on: usize) -> [(Binding, &wgpu::Buffer); 5] {
+        let set = &self.sets[on];
+        [
+            (DEM, &self.dem_uniform),
+            (POS, &set.pos),
+            (VEL, &set.vel),
+            (FORCE, &self.force),
+            (CLOCK, &self.clock),
+        ]
     }
 
     /// The places the paper's binning passes write for its skin (`home` and `walk_pos` too
@@ -933,7 +936,7 @@ impl GridStepper {
     /// where the step has a skin.
     fn skin_binds(&self, on: usize, law: &[(Binding, &wgpu::Buffer)]) -> Option<SkinBinds> {
         let (pipelines, skin) = (self.pipelines.skin.as_ref()?, self.skin.as_ref()?);
-        let (gpu, set, places) = (&self.gpu, &self.sets[on], &self.places);
+        let (gpu, places) = (&self.gpu, &self.places);
         let started = [
             (CLOCK, &self.clock),
             (COUNTERS, &self.counters),
@@ -956,20 +959,17 @@ impl GridStepper {
             integrate: gpu.bind(
                 "mochi.dem.integrate_and_place",
                 &pipelines.integrate,
-                &joined(
+                &[
+                    &self.integrated(on)[..],
                     &[
-                        (DEM, &self.dem_uniform),
-                        (POS, &set.pos),
-                        (VEL, &set.vel),
-                        (FORCE, &self.force),
-                        (CLOCK, &self.clock),
                         (WALK_POS, &places.walk_pos),
                         (PLACE, &places.place),
                         (SKIN, &skin.state),
                         (SKIN_LIMIT, &skin.limit),
                     ],
                     law,
-                ),
+                ]
+                .concat(),
             ),
         })
     }
