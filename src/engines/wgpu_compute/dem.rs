@@ -113,8 +113,8 @@ pub const SKIN_RETRY_STEPS: u64 = 1000;
 /// other steps bin by index. Only speed depends on it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Sorting {
-    /// Every [`SORT_EVERY`] steps, or [`SKIN_SORT_EVERY`] where the step has a skin, as
-    /// `Every`.
+    /// Every 16 steps, or every 64 where the step has a skin (`SORT_EVERY`,
+    /// `SKIN_SORT_EVERY`), as `Every`.
     Auto,
     /// At the steps whose number is a multiple of `k` (≥ 1), and at the first step after the
     /// state was written out of order (uploaded, spheres appended or removed).
