@@ -12,9 +12,9 @@ const FORWARD = array<vec3<i32>, 13>(
 );
 
 // Dense tables: the partners of sphere s at `level` lie in its window there: the cells within
-// r_i plus the level's largest partner radius (plus the skin) of c_i along each axis (2 or 3 cells per axis where
-// the cells are the class's size, fewer than the 27 cells around its own when cells were grown,
-// more where the level is refined), as rows of cells along x, each a run
+// r_i plus the level's largest partner radius (plus the skin) of c_i along each axis (2 or 3
+// cells per axis where the cells are the class's size, fewer than the 27 cells around its own
+// when cells were grown, more where the level is refined), as rows of cells along x, each a run
 // of sorted positions. At coarser levels s tests every sphere of its window (only the smaller
 // sphere looks for a pair); at its own level only those after it in sorted order: rows before its
 // own row are skipped and the rest start after p, so each pair is visited once.
