@@ -1334,31 +1334,29 @@ impl GridStepper {
             true => Rebin::IfMoved,
             false => Rebin::Always,
         };
-        if let (Some(skin), true, Sorter::Dense { .. }) = (&self.skin, skinned, &self.sorter) {
+        if let Some(skin) = self.skin.as_ref().filter(|_| skinned) {
             skin.prepare(&self.gpu, self.groups, self.layout.scan_blocks());
         }
         if let Sorter::Dense { cell_table, .. } = &self.sorter
-            && skinned
             && !self.counted
         {
+            // What a step counted before the layout or the state changed is cleared; without a
+            // skin the spheres are counted afresh, ahead of the batch's first step and its
+            // timestamps (with one, that step re-bins and counts them itself).
             encoder.clear_buffer(&cell_table.counts, 0, None);
-        } else if let Sorter::Dense { cell_table, .. } = &self.sorter
-            && !self.counted
-        {
-            // Counted afresh (what a step counted before the layout or the state changed is
-            // cleared first), ahead of the batch's first step and its timestamps.
-            encoder.clear_buffer(&cell_table.counts, 0, None);
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("mochi.dem.count"),
-                timestamp_writes: None,
-            });
-            let b = &self.binds.as_ref().expect("laid out")[turn.set];
-            gpu::record(
-                &mut pass,
-                &self.pipelines.bin_first,
-                &b.bin_first,
-                self.groups,
-            );
+            if !skinned {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("mochi.dem.count"),
+                    timestamp_writes: None,
+                });
+                let b = &self.binds.as_ref().expect("laid out")[turn.set];
+                gpu::record(
+                    &mut pass,
+                    &self.pipelines.bin_first,
+                    &b.bin_first,
+                    self.groups,
+                );
+            }
         }
         if timer.is_some() {
             let kind = self.kind_of_step(0);
