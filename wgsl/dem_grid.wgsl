@@ -3,11 +3,8 @@
 // a fixed or a per-pair stiffness) or dem_grid_granular.wgsl's, its integration kernel
 // dem_integrate.wgsl's or dem_granular.wgsl's (`integrate_sphere`), which also define
 //   fn carry(i: u32, p: u32)   moves the per-sphere state of index i of set a to index p of the
-//                              sorted set (the granular step's ω; the paper's step's places
+//                              sorted set (the granular step's ω; the paper's step's binned rows
 //                              where it may skip its binning)
-//   fn binned(i: u32, p: u32, s: vec4<f32>)   sphere i of set a (sphere s) was binned at sorted
-//                              place p by `bin_index` (the paper's step notes it where it may
-//                              skip its binning)
 // Needs grid_params.wgsl and grid_stencil.wgsl prepended, one resolve file, grid_walk.wgsl,
 // dem_params.wgsl, the physics of the variant and one of dem_force_f32.wgsl /
 // dem_force_cas.wgsl appended.
@@ -19,7 +16,9 @@
 // bins set a's rows by index, writing each sorted place's row (`home`) and sphere (`walk_pos`),
 // and the step resolves and integrates set a in place. The resolve kernels walk the sorted
 // spheres and reach the state through `home` (bound to the identity in a sorting step, with
-// `walk_pos` bound to the sorted set's pos).
+// `walk_pos` bound to the sorted set's pos). The paper's step with a skin
+// (dem_grid_frictionless.wgsl) re-bins only some steps, each by a scatter and a copy back: its
+// state stays on one set, sorted, and every step resolves and integrates it as a sorting step.
 
 @group(0) @binding(0) var<uniform> params: GridParams;
 @group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;   // x, y, z, r
@@ -112,7 +111,6 @@ fn bin_index(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = sorted_place(i, s);
     home[p] = i;
     walk_pos[p] = s;
-    binned(i, p, s);
 }
 
 // Order-preserving u32 key of a float (for atomicMin / atomicMax).

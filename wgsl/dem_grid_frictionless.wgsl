@@ -21,16 +21,15 @@ struct Walker {
 // a sphere may have left its cells"). A step re-bins only where some sphere may have moved more
 // than `skin` since the last binning: `begin_step` decides from the largest displacement of each
 // step since (their sum bounds every sphere's distance from its binned centre), and sets the
-// indirect dispatches of the binning's passes to all workgroups or none. The steps between walk
-// the last binning's cells, every window widened by the skin (grid_stencil.wgsl), from the
-// spheres' current centres: `integrate_and_place` writes each new centre to walk_pos at the
-// sphere's binned place. A pair within reach then has its partner's binned cell in the walker's
+// indirect dispatches of the binning's passes to all workgroups or none. A binning sorts the
+// state into the other set and copies it back (`bin_return`), so the state is always in the
+// last binning's order and the walk reads it in place. The steps between walk the last
+// binning's cells, every window widened by the skin (grid_stencil.wgsl), from the spheres'
+// current centres: a pair within reach then has its partner's binned cell in the walker's
 // window, and each walker starts from the row of its own binned cell (`walker_cell`): each pair
 // is still visited once.
-// by sorted place: the table index of the cell its sphere was binned in
-@group(0) @binding(28) var<storage, read_write> walk_key: array<u32>;
-// by state row: the sorted place its sphere was binned at
-@group(0) @binding(29) var<storage, read_write> place: array<u32>;
+// by sorted place: the y and z of the cell its sphere was binned in at its level (y | z << 16)
+@group(0) @binding(28) var<storage, read_write> walk_row: array<u32>;
 // the skin's words, at the offsets below (host: src/engines/wgpu_compute/skin.rs)
 @group(0) @binding(32) var<storage, read_write> skin_state: array<atomic<u32>>;
 // [0]: the displacement above which a sphere reports its own this step (`begin_step` sets it)
@@ -44,22 +43,13 @@ const REBINS: u32 = 17u;       // steps that binned, since the host last cleared
 const MOVED: u32 = 32u;        // DRIFT_SLOTS slots: the largest displacement reported this step (f32 bits)
 const DRIFT_SLOTS: u32 = 64u;
 
-// The paper's state is pos and vel alone; where the step may skip its binning, a sorting step
-// leaves its places for the steps that then skip theirs (the identity: the state is sorted).
+// The paper's state is pos and vel alone; where the step may skip its binning, the scatter
+// notes each sorted place's binned row for the steps that then skip theirs.
 fn carry(i: u32, p: u32) {
     if params.skin > 0.0 {
         let s = pos_a[i];
-        home[p] = p;
-        walk_pos[p] = s;
-        walk_key[p] = cell_key(s);
-        place[p] = p;
-    }
-}
-
-fn binned(i: u32, p: u32, s: vec4<f32>) {
-    if params.skin > 0.0 {
-        walk_key[p] = cell_key(s);
-        place[i] = p;
+        let cell = cell_coords(s.xyz, level_of(s.w));
+        walk_row[p] = cell.y | (cell.z << 16u);
     }
 }
 
@@ -67,16 +57,14 @@ fn walk_sphere(q: u32) -> vec4<f32> {
     return walk_pos[q];
 }
 
-// The cell the walker's sphere was binned in at its own level: that of its centre, or the one
-// its key notes where the centre may have moved since.
+// The cell the walker's sphere was binned in at its own level (its y and z: the walk needs no
+// more): that of its centre, or the one its row notes where the centre may have moved since.
 fn walker_cell(w: ptr<function, Walker>, level: u32) -> vec3<u32> {
     if params.skin == 0.0 {
         return cell_coords((*w).s.xyz, level);
     }
-    let dims = level_dims(level);
-    let k = walk_key[(*w).p] - params.level_first[level / 4u][level % 4u];
-    let row = k / dims.x;
-    return vec3(k - row * dims.x, row % dims.y, row / dims.y);
+    let row = walk_row[(*w).p];
+    return vec3(0u, row & 0xffffu, row >> 16u);
 }
 
 var<workgroup> step_moved: atomic<u32>;
@@ -128,19 +116,30 @@ fn begin_binning(@builtin(local_invocation_index) lid: u32) {
     }
 }
 
-// The integration kernel where the step may skip its binning: also writes each new centre to
-// its binned place, and a sphere that moved more than the limit reports its displacement (the
-// largest in one of DRIFT_SLOTS slots, by workgroup: few atomics meet at one word).
+// A binning's last pass where the step may skip its binning: the sorted set (bound as set a)
+// copied back to the state's set, which then stays in the binning's order.
 @compute @workgroup_size(256)
-fn integrate_and_place(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+fn bin_return(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = index(gid);
+    if i >= params.n {
+        return;
+    }
+    pos[i] = pos_a[i];
+    vel[i] = vel_a[i];
+    ids[i] = ids_a[i];
+}
+
+// The integration kernel where the step may skip its binning: a sphere that moved more than the
+// limit reports its displacement (the largest in one of DRIFT_SLOTS slots, by workgroup: few
+// atomics meet at one word).
+@compute @workgroup_size(256)
+fn integrate_and_report(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let p = gid.x + gid.y * dem.row;
     if p >= dem.n {
         return;
     }
     let was = pos[p].xyz;
-    let moved = integrate_sphere(p);
-    walk_pos[place[p]] = moved;
-    let d = length(moved.xyz - was);
+    let d = length(integrate_sphere(p).xyz - was);
     if d > skin_limit[0] {
         let slot = MOVED + wid.x % DRIFT_SLOTS;
         if bitcast<u32>(d) > atomicLoad(&skin_state[slot]) {

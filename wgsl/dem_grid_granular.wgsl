@@ -32,9 +32,6 @@ fn walker_cell(w: ptr<function, Walker>, level: u32) -> vec3<u32> {
     return cell_coords((*w).s.xyz, level);
 }
 
-// Nothing but the binning itself to note (its steps never skip theirs).
-fn binned(i: u32, p: u32, s: vec4<f32>) {}
-
 // The walk lists the candidates that reach its sphere by sorted place, the first NEAR_ROOM
 // of them at near[k · params.n + p] (the k-th of place p: a warp's lanes write and read side by
 // side), and they are resolved once the walk is done, the subgroup's lists shared among its

@@ -26,9 +26,10 @@
 //! The paper's step on a dense grid has a skin (`skin.rs`, docs/method.md "Re-binning only when
 //! a sphere may have left its cells"): its search windows reach a little further, and a step
 //! re-bins only where the GPU finds that a sphere may have moved that far since the last
-//! binning ([`Rebin`]); its integration then writes the new centres to their binned places and
-//! does not count. Where a batch re-bins at more than [`MAX_REBIN_SHARE`] of its steps the skin
-//! is off for a while.
+//! binning ([`Rebin`]). A re-binning sorts the state into the other set and copies it back, so
+//! the state stays on one set in the last binning's order ([`StepKind::Skin`]) and the
+//! integration only reports how far the spheres moved (it does not count). Where a batch re-bins
+//! at more than [`MAX_REBIN_SHARE`] of its steps the skin is off for a while.
 //!
 //! A scene with friction, rolling resistance, rotation or another law than the paper's runs the
 //! granular variant of the step (`wgsl/dem_grid_granular.wgsl`, [`Granular`]): its own module
@@ -45,8 +46,8 @@ use super::layout::{
 use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
     self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, HOME, IDS, IDS_A, LISTED, NEAR,
-    NEAR_ROOM, OMEGA_A, PARAMS, PLACE, POS_A, RANKS, SKIN, SKIN_LIMIT, SORT_KEYS, SORT_ORDER,
-    VEL_A, WALK_KEY, WALK_POS,
+    NEAR_ROOM, OMEGA_A, PARAMS, POS_A, RANKS, SKIN, SKIN_LIMIT, SORT_KEYS, SORT_ORDER, VEL_A,
+    WALK_POS, WALK_ROW,
 };
 use super::skin::{SKIN_CELLS, Skin, skin_of};
 use crate::dem::flow::NewSphere;
@@ -97,12 +98,8 @@ fn submissions(times: Option<&StageTimes>, recorded_ms: f64) -> Option<u32> {
 /// drifts out of sorted order only as fast as spheres change cells).
 pub const SORT_EVERY: u64 = 16;
 
-/// As [`SORT_EVERY`] where the step has a skin: a sorting step re-bins, so its steps between
-/// re-binnings are longer (docs/PERFORMANCE.md, issue 21).
-pub const SKIN_SORT_EVERY: u64 = 64;
-
 /// Share of a batch's steps above which re-binning is so frequent that the skin costs more
-/// than it saves (its wider windows and the centres it copies each step); the skin is then
+/// than it saves (its wider windows, and the copy back of each re-binning); the skin is then
 /// off for [`SKIN_RETRY_STEPS`] steps (docs/PERFORMANCE.md, issue 21).
 pub const MAX_REBIN_SHARE: f64 = 0.25;
 
@@ -113,13 +110,15 @@ pub const SKIN_RETRY_STEPS: u64 = 1000;
 /// other steps bin by index. Only speed depends on it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Sorting {
-    /// Every 16 steps, or every 64 where the step has a skin (`SORT_EVERY`,
-    /// `SKIN_SORT_EVERY`), as `Every`.
+    /// Every 16 steps (`SORT_EVERY`), as `Every`; where the step has a skin, only after the
+    /// state was written out of order (each of its re-binnings sorts).
     Auto,
     /// At the steps whose number is a multiple of `k` (≥ 1), and at the first step after the
-    /// state was written out of order (uploaded, spheres appended or removed).
+    /// state was written out of order (uploaded, spheres appended or removed); where the step
+    /// has a skin, those steps re-bin whatever the drift.
     Every(u64),
-    /// Never: the state stays in the order given and every step bins by index.
+    /// Never: the state stays in the order given and every step bins by index (where the step
+    /// has a skin, it re-bins only where a sphere may have moved the skin).
     Never,
 }
 
@@ -131,13 +130,17 @@ enum StepKind {
     /// The spheres are binned by index (`home`, `walk_pos`) and the step runs on the state where
     /// it is.
     Binning,
+    /// The step with a skin: the state stays on its set in the order of the last binning; where
+    /// the step re-bins ([`Rebin`]) it sorts the state into the other set and copies it back.
+    Skin,
 }
 
-/// Whether a binning step with a skin re-bins (a sorting step always does).
+/// Whether a step with a skin re-bins.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Rebin {
     /// Whatever the drift: the first step after the host wrote the state or laid the grid out,
-    /// and a timed batch's first step (whose phases the batch's times are split by).
+    /// a timed batch's first step (whose phases the batch's times are split by), and the steps
+    /// [`Sorting`] sorts at.
     Always,
     /// Where some sphere may have moved more than the skin since the last binning.
     IfMoved,
@@ -177,8 +180,10 @@ struct SkinPipelines {
     begin_step: wgpu::ComputePipeline,
     /// A step's first pass where it re-bins whatever the drift.
     begin_binning: wgpu::ComputePipeline,
-    /// The integration, which keeps the walk's centres current and notes the displacements.
+    /// The integration, which notes the displacements.
     integrate: wgpu::ComputePipeline,
+    /// A binning's last pass: the sorted state copied back to its own set.
+    bin_return: wgpu::ComputePipeline,
 }
 
 /// Bind groups of the steps from one state set (the source of the next binning).
@@ -195,11 +200,12 @@ struct Binds {
     skin: Option<SkinBinds>,
 }
 
-/// The skin's bind groups, by the state set the integration steps (see [`Binds::integrate`]).
+/// The skin's bind groups of a step whose state is on one set (binning into the other).
 struct SkinBinds {
     begin_step: wgpu::BindGroup,
     begin_binning: wgpu::BindGroup,
     integrate: wgpu::BindGroup,
+    bin_return: wgpu::BindGroup,
 }
 
 /// Bind groups of a binning step's own passes on one set (its count and integration are the
@@ -226,10 +232,9 @@ struct SortedPlaces {
     walk_pos: wgpu::Buffer,
     /// Row k holds k: `home` of a sorting step, whose state is in sorted order.
     identity: wgpu::Buffer,
-    /// The skin's: by sorted place, the key of the cell its sphere was binned in; by state row,
-    /// the place it was binned at (the paper's step).
-    walk_key: wgpu::Buffer,
-    place: wgpu::Buffer,
+    /// The skin's: by sorted place, the row (y, z) of the cell its sphere was binned in (the
+    /// paper's step).
+    walk_row: wgpu::Buffer,
 }
 
 /// The granular contact pass's lists of candidates within reach (`wgsl/dem_grid_granular.wgsl`).
@@ -521,7 +526,8 @@ impl GridStepper {
             skin: skinned.then(|| SkinPipelines {
                 begin_step: pipeline("begin_step"),
                 begin_binning: pipeline("begin_binning"),
-                integrate: pipeline("integrate_and_place"),
+                integrate: pipeline("integrate_and_report"),
+                bin_return: pipeline("bin_return"),
             }),
         };
         let none = wgpu::BufferUsages::empty();
@@ -586,8 +592,7 @@ impl GridStepper {
                         home: make("mochi.dem.home", binning * rows * 4),
                         walk_pos: make("mochi.dem.walk_pos", binning * rows * 16),
                         identity,
-                        walk_key: make("mochi.dem.walk_key", paper * rows * 4),
-                        place: make("mochi.dem.place", paper * rows * 4),
+                        walk_row: make("mochi.dem.walk_row", paper * rows * 4),
                     }
                 },
                 sort_next: true,
@@ -824,8 +829,8 @@ impl GridStepper {
                     g.integrate_bindings(1 - from).to_vec(),
                 )
             }
-            // The paper's scatter leaves its places for the steps that may skip their binning.
-            None => (self.skin_places(true), self.law_bindings()),
+            // The paper's scatter notes the binned rows for the steps that may skip their binning.
+            None => (self.skin_rows(), self.law_bindings()),
         };
         // What the binning's passes and the integration bind of the sorter.
         let (first, last, counting) = match &self.sorter {
@@ -902,7 +907,7 @@ impl GridStepper {
                 ],
             ),
             binning: self.binning_binds(from),
-            skin: self.skin_binds(1 - from, &integrate_more),
+            skin: self.skin_binds(from, &integrate_more),
         }
     }
 
@@ -918,25 +923,20 @@ impl GridStepper {
         ]
     }
 
-    /// The places the paper's binning passes write for its skin (`home` and `walk_pos` too
-    /// where `sorting`: the scatter's), none in the granular step.
-    fn skin_places(&self, sorting: bool) -> Vec<(Binding, &wgpu::Buffer)> {
-        if self.granular.is_some() {
-            return Vec::new();
+    /// What the paper's scatter writes for its skin (the binned rows), none in the granular
+    /// step.
+    fn skin_rows(&self) -> Vec<(Binding, &wgpu::Buffer)> {
+        match self.granular {
+            Some(_) => Vec::new(),
+            None => vec![(WALK_ROW, &self.places.walk_row)],
         }
-        let places = &self.places;
-        let mut bound = vec![(WALK_KEY, &places.walk_key), (PLACE, &places.place)];
-        if sorting {
-            bound.extend([(HOME, &places.home), (WALK_POS, &places.walk_pos)]);
-        }
-        bound
     }
 
-    /// The skin's bind groups with its integration on set `on` (`law`: the law's bindings),
+    /// The skin's bind groups of a step whose state is on set `on` (`law`: the law's bindings),
     /// where the step has a skin.
     fn skin_binds(&self, on: usize, law: &[(Binding, &wgpu::Buffer)]) -> Option<SkinBinds> {
         let (pipelines, skin) = (self.pipelines.skin.as_ref()?, self.skin.as_ref()?);
-        let (gpu, places) = (&self.gpu, &self.places);
+        let (gpu, sorted, state) = (&self.gpu, &self.sets[1 - on], &self.sets[on]);
         let started = [
             (CLOCK, &self.clock),
             (COUNTERS, &self.counters),
@@ -957,19 +957,27 @@ impl GridStepper {
                 &started,
             ),
             integrate: gpu.bind(
-                "mochi.dem.integrate_and_place",
+                "mochi.dem.integrate_and_report",
                 &pipelines.integrate,
                 &[
                     &self.integrated(on)[..],
-                    &[
-                        (WALK_POS, &places.walk_pos),
-                        (PLACE, &places.place),
-                        (SKIN, &skin.state),
-                        (SKIN_LIMIT, &skin.limit),
-                    ],
+                    &[(SKIN, &skin.state), (SKIN_LIMIT, &skin.limit)],
                     law,
                 ]
                 .concat(),
+            ),
+            bin_return: gpu.bind(
+                "mochi.dem.bin_return",
+                &pipelines.bin_return,
+                &[
+                    (PARAMS, &self.grid_uniform),
+                    (POS_A, &sorted.pos),
+                    (VEL_A, &sorted.vel),
+                    (IDS_A, &sorted.ids),
+                    (POS, &state.pos),
+                    (VEL, &state.vel),
+                    (IDS, &state.ids),
+                ],
             ),
         })
     }
@@ -988,19 +996,16 @@ impl GridStepper {
             bin_index: gpu.bind(
                 "mochi.dem.bin_index",
                 bin_index,
-                &joined(
-                    &[
-                        (PARAMS, &self.grid_uniform),
-                        (POS_A, &set.pos),
-                        (RANKS, ranks),
-                        (CELL_START, &cell_table.cell_start),
-                        (COUNTERS, &self.counters),
-                        (CLOCK, &self.clock),
-                        (HOME, &places.home),
-                        (WALK_POS, &places.walk_pos),
-                    ],
-                    &self.skin_places(false),
-                ),
+                &[
+                    (PARAMS, &self.grid_uniform),
+                    (POS_A, &set.pos),
+                    (RANKS, ranks),
+                    (CELL_START, &cell_table.cell_start),
+                    (COUNTERS, &self.counters),
+                    (CLOCK, &self.clock),
+                    (HOME, &places.home),
+                    (WALK_POS, &places.walk_pos),
+                ],
             ),
             resolving: self.resolving(on, StepKind::Binning),
         })
@@ -1018,7 +1023,7 @@ impl GridStepper {
             }
         };
         let placed = match kind {
-            StepKind::Sorting => [(HOME, &places.identity), (WALK_POS, &set.pos)],
+            StepKind::Sorting | StepKind::Skin => [(HOME, &places.identity), (WALK_POS, &set.pos)],
             StepKind::Binning => [(HOME, &places.home), (WALK_POS, &places.walk_pos)],
         };
         let own = [
@@ -1033,7 +1038,7 @@ impl GridStepper {
         ];
         let Some(g) = &self.granular else {
             // The walk starts from the row of its sphere's binned cell (the skin's).
-            let law = [&self.law_bindings()[..], &[(WALK_KEY, &places.walk_key)]].concat();
+            let law = [&self.law_bindings()[..], &[(WALK_ROW, &places.walk_row)]].concat();
             let resolve = gpu.bind(
                 "mochi.dem.resolve",
                 &self.pipelines.resolve,
@@ -1062,7 +1067,7 @@ impl GridStepper {
         // A binning step leaves the state where it is: each sphere's old history row is the
         // row it is in.
         let came_from = match kind {
-            StepKind::Sorting => g.came_from(),
+            StepKind::Sorting | StepKind::Skin => g.came_from(),
             StepKind::Binning => &places.identity,
         };
         let state = [
@@ -1114,21 +1119,25 @@ impl GridStepper {
 
     /// How the step after the next `ahead` steps bins.
     fn kind_of_step(&self, ahead: u32) -> StepKind {
-        let step = self.step + ahead as u64;
+        match (
+            self.skinned(),
+            self.pipelines.bin_index.is_some() && !self.sorts(ahead),
+        ) {
+            (true, _) => StepKind::Skin,
+            (false, true) => StepKind::Binning,
+            (false, false) => StepKind::Sorting,
+        }
+    }
+
+    /// Whether the step after the next `ahead` steps sorts (as [`Sorting`] says).
+    fn sorts(&self, ahead: u32) -> bool {
         let every = match (self.sorting, self.skinned()) {
             (Sorting::Auto, false) => Some(SORT_EVERY),
-            (Sorting::Auto, true) => Some(SKIN_SORT_EVERY),
+            (Sorting::Auto, true) | (Sorting::Never, _) => None,
             (Sorting::Every(k), _) => Some(k),
-            (Sorting::Never, _) => None,
         };
-        let sorts = match every {
-            Some(k) => (self.sort_next && ahead == 0) || step.is_multiple_of(k.max(1)),
-            None => false,
-        };
-        match self.pipelines.bin_index.is_some() && !sorts {
-            true => StepKind::Binning,
-            false => StepKind::Sorting,
-        }
+        let due = |k: u64| (self.step + ahead as u64).is_multiple_of(k.max(1));
+        (self.sort_next && ahead == 0 && every.is_some()) || every.is_some_and(due)
     }
 
     /// The buffers the next step starts from.
@@ -1140,13 +1149,13 @@ impl GridStepper {
     }
 
     /// The buffers the step after one of kind `kind` from `turn` starts from: a sorting step
-    /// moves the state into the other set; the granular step's history changes sides at every
-    /// step.
+    /// moves the state into the other set (a step with a skin moves it back); the granular
+    /// step's history changes sides at every step.
     fn turn_after(&self, kind: StepKind, turn: Turn) -> Turn {
         Turn {
             set: match kind {
                 StepKind::Sorting => 1 - turn.set,
-                StepKind::Binning => turn.set,
+                StepKind::Binning | StepKind::Skin => turn.set,
             },
             parity: match self.granular {
                 Some(_) => 1 - turn.parity,
@@ -1171,6 +1180,9 @@ impl GridStepper {
         rebin: Rebin,
         phase: Phase,
     ) {
+        if kind == StepKind::Skin {
+            return self.record_skin_phase(pass, from.set, rebin, phase);
+        }
         let binds = self.binds.as_ref().expect("laid out");
         let b = &binds[from.set];
         let p = &self.pipelines;
@@ -1179,40 +1191,7 @@ impl GridStepper {
             let bin_index = p.bin_index.as_ref().expect("a step with binning steps");
             (own, bin_index)
         });
-        let skin = match (&p.skin, &self.skin, self.skinned()) {
-            (Some(pipelines), Some(skin), true) => Some((pipelines, skin)),
-            _ => None,
-        };
-        // The skin's bind groups of the set this step integrates.
-        let skin_binds = || {
-            let set = match kind {
-                StepKind::Sorting => from.set,
-                StepKind::Binning => 1 - from.set,
-            };
-            binds[set].skin.as_ref().expect("a step with a skin")
-        };
         match phase {
-            Phase::Build if skin.is_some() => {
-                let (pipelines, skin) = skin.expect("a skin");
-                let own = skin_binds();
-                // A sorting step re-bins whatever the drift; a binning step as `rebin` says.
-                let decided = rebin == Rebin::IfMoved && binning.is_some();
-                let (last, last_bind) = match binning {
-                    Some((binning, bin_index)) => (bin_index, &binning.bin_index),
-                    None => (&p.bin_last, &b.bin_last),
-                };
-                if decided {
-                    gpu::record(pass, &pipelines.begin_step, &own.begin_step, (1, 1));
-                    skin.dispatch_spheres(pass, &p.bin_first, &b.bin_first);
-                    self.record_scan(pass, Some(skin.blocks_args()));
-                    skin.dispatch_spheres(pass, last, last_bind);
-                } else {
-                    gpu::record(pass, &pipelines.begin_binning, &own.begin_binning, (1, 1));
-                    gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
-                    self.record_scan(pass, None);
-                    gpu::record(pass, last, last_bind, self.groups);
-                }
-            }
             Phase::Build => {
                 if self.build() == BuildKind::Sorted {
                     gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
@@ -1244,15 +1223,61 @@ impl GridStepper {
             // A binning step integrates the set it is on, as the sorting step from the other
             // set does.
             Phase::Integrate => {
-                if let Some((pipelines, _)) = skin {
-                    let own = skin_binds();
-                    return gpu::record(pass, &pipelines.integrate, &own.integrate, self.groups);
-                }
                 let integrate = match kind {
-                    StepKind::Sorting => &b.integrate,
                     StepKind::Binning => &binds[1 - from.set].integrate,
+                    _ => &b.integrate,
                 };
                 gpu::record(pass, &p.integrate, integrate, self.groups)
+            }
+        }
+    }
+
+    /// Records one phase of a step with a skin whose state is on set `on`: where it re-bins
+    /// (`rebin`, or the GPU's decision), the count, the scan, the scatter into the other set
+    /// and the copy back; then the contact pass and the integration on `on`, as a sorting
+    /// step's on a sorted set.
+    fn record_skin_phase(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        on: usize,
+        rebin: Rebin,
+        phase: Phase,
+    ) {
+        let binds = self.binds.as_ref().expect("laid out");
+        let (b, p) = (&binds[on], &self.pipelines);
+        let own = b.skin.as_ref().expect("a step with a skin");
+        let pipelines = p.skin.as_ref().expect("a step with a skin");
+        let skin = self.skin.as_ref().expect("a step with a skin");
+        match phase {
+            Phase::Build => {
+                let passes = [
+                    (&p.bin_first, &b.bin_first),
+                    (&p.bin_last, &b.bin_last),
+                    (&pipelines.bin_return, &own.bin_return),
+                ];
+                if rebin == Rebin::IfMoved {
+                    gpu::record(pass, &pipelines.begin_step, &own.begin_step, (1, 1));
+                    skin.dispatch_spheres(pass, passes[0].0, passes[0].1);
+                    self.record_scan(pass, Some(skin.blocks_args()));
+                    for (pipeline, bind) in &passes[1..] {
+                        skin.dispatch_spheres(pass, pipeline, bind);
+                    }
+                } else {
+                    gpu::record(pass, &pipelines.begin_binning, &own.begin_binning, (1, 1));
+                    gpu::record(pass, passes[0].0, passes[0].1, self.groups);
+                    self.record_scan(pass, None);
+                    for (pipeline, bind) in &passes[1..] {
+                        gpu::record(pass, pipeline, bind, self.groups);
+                    }
+                }
+            }
+            // The sorting step's contact pass from the other set resolves `on`.
+            Phase::Resolve => {
+                let resolve = &binds[1 - on].resolving.resolve[0];
+                gpu::record(pass, &p.resolve, resolve, self.groups)
+            }
+            Phase::Integrate => {
+                gpu::record(pass, &pipelines.integrate, &own.integrate, self.groups)
             }
         }
     }
@@ -1334,6 +1359,12 @@ impl GridStepper {
             true => Rebin::IfMoved,
             false => Rebin::Always,
         };
+        // A step with a skin re-bins where the batch's first step must or [`Sorting`] sorts.
+        let rebin_at = |step: u32| match step == 0 && first_rebin == Rebin::Always {
+            true => Rebin::Always,
+            false if self.sorts(step) => Rebin::Always,
+            false => Rebin::IfMoved,
+        };
         if let Some(skin) = self.skin.as_ref().filter(|_| skinned) {
             skin.prepare(&self.gpu, self.groups, self.layout.scan_blocks());
         }
@@ -1366,7 +1397,7 @@ impl GridStepper {
                     label: Some(phase.label()),
                     timestamp_writes: None,
                 });
-                self.record_phase(&mut pass, turn, kind, first_rebin, phase);
+                self.record_phase(&mut pass, turn, kind, rebin_at(0), phase);
                 drop(pass);
                 StepTimer::mark(timer, encoder, 0, k as u32 + 1);
             }
@@ -1382,12 +1413,8 @@ impl GridStepper {
             });
             for step in k..end {
                 let kind = self.kind_of_step(step);
-                let rebin = match step {
-                    0 => first_rebin,
-                    _ => Rebin::IfMoved,
-                };
                 for phase in Phase::ALL {
-                    self.record_phase(&mut pass, turn, kind, rebin, phase);
+                    self.record_phase(&mut pass, turn, kind, rebin_at(step), phase);
                 }
                 turn = self.turn_after(kind, turn);
             }

@@ -231,7 +231,8 @@ pub(crate) mod dem_grid {
         "integrate_and_count",
         "begin_step",
         "begin_binning",
-        "integrate_and_place",
+        "bin_return",
+        "integrate_and_report",
     ];
 
     /// The entry points of the sorted-key build's variants (the dense binning is in the module
@@ -248,7 +249,8 @@ pub(crate) mod dem_grid {
         "integrate_and_count",
         "begin_step",
         "begin_binning",
-        "integrate_and_place",
+        "bin_return",
+        "integrate_and_report",
     ];
 
     /// The entry points of the dense build's granular variant: the mesh walls' kernels too.
@@ -312,11 +314,10 @@ pub(crate) mod dem_grid {
     /// Twin of `NEAR_ROOM` in `wgsl/dem_grid_granular.wgsl`.
     pub const NEAR_ROOM: u64 = 16;
 
-    /// The paper's step's skin (`wgsl/dem_grid_frictionless.wgsl`): by sorted place the key of
-    /// the cell its sphere was binned in, by state row the place it was binned at, and the
-    /// words the GPU decides in whether a step re-bins (`skin.rs`).
-    pub const WALK_KEY: Binding = Binding::read_write(28, "walk_key");
-    pub const PLACE: Binding = Binding::read_write(29, "place");
+    /// The paper's step's skin (`wgsl/dem_grid_frictionless.wgsl`): by sorted place the row of
+    /// the cell its sphere was binned in, and the words the GPU decides in whether a step
+    /// re-bins (`skin.rs`).
+    pub const WALK_ROW: Binding = Binding::read_write(28, "walk_row");
     pub const SKIN: Binding = Binding::read_write(32, "skin_state");
     pub const SKIN_LIMIT: Binding = Binding::read_write(33, "skin_limit");
 
@@ -336,7 +337,7 @@ pub(crate) mod dem_grid {
     pub fn bindings() -> Vec<Binding> {
         shared_bindings()
             .into_iter()
-            .chain([WALK_KEY, PLACE, SKIN, SKIN_LIMIT])
+            .chain([WALK_ROW, SKIN, SKIN_LIMIT])
             .collect()
     }
 

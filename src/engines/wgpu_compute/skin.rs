@@ -20,13 +20,18 @@ const REBINS: u64 = 17;
 const WORDS: u64 = 32 + 64;
 
 /// The skin of `layout` in its units of length: [`SKIN_CELLS`] of its finest cells, or none for
-/// a hashed table (its buckets are found by the cells of the spheres' current centres).
+/// a hashed table (its buckets are found by the cells of the spheres' current centres) or where
+/// a binned row's y or z would not fit the 16 bits the shader notes each in.
 pub(crate) fn skin_of(layout: &GridParams) -> f32 {
     if layout.hashed != 0 || layout.inv_cell <= 0.0 {
         return 0.0;
     }
     // Level 0's cells: the top's halved once a level and by level 0's own refinement.
     let halvings = layout.levels.saturating_sub(1) + (layout.refine & 15);
+    let finest_dims = |n: u32| ((n.saturating_sub(2) as u64) << halvings) + 2;
+    if finest_dims(layout.ny).max(finest_dims(layout.nz)) > 1 << 16 {
+        return 0.0;
+    }
     let finest = 1.0 / (layout.inv_cell as f64 * f64::powi(2.0, halvings as i32));
     (SKIN_CELLS * finest) as f32
 }
@@ -86,7 +91,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_skin_is_a_tenth_of_the_finest_cells_and_none_when_hashed() {
+    fn the_skin_is_a_tenth_of_the_finest_cells_and_none_when_hashed_or_rows_overflow() {
         let one = GridParams {
             inv_cell: 100.0,
             levels: 1,
@@ -102,6 +107,19 @@ mod tests {
         assert!((skin_of(&three) - 1e-3 / 8.0).abs() < 1e-9);
         let hashed = GridParams { hashed: 1, ..one };
         assert_eq!(skin_of(&hashed), 0.0);
+        // A level whose rows along z number more than 16 bits hold.
+        let tall = GridParams {
+            ny: 10,
+            nz: (1 << 16) + 3,
+            ..one
+        };
+        assert_eq!(skin_of(&tall), 0.0);
+        assert!(
+            skin_of(&GridParams {
+                nz: 1 << 16,
+                ..tall
+            }) > 0.0
+        );
     }
 
     #[test]
