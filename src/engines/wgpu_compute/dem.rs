@@ -814,7 +814,7 @@ impl GridStepper {
     /// Bind groups for binning from set `from` into the other (and, in the granular step,
     /// moving the angular velocities with the state).
     fn make_binds(&self, from: usize) -> Binds {
-        let (a, b) = (&self.sets[from], &self.sets[1 - from]);
+        let a = &self.sets[from];
         let p = &self.pipelines;
         let gpu = &self.gpu;
         let (scatter_more, integrate_more) = match &self.granular {
@@ -879,15 +879,7 @@ impl GridStepper {
                 "mochi.dem.bin_last",
                 &p.bin_last,
                 &joined(
-                    &[
-                        (PARAMS, &self.grid_uniform),
-                        (POS_A, &a.pos),
-                        (VEL_A, &a.vel),
-                        (IDS_A, &a.ids),
-                        (POS, &b.pos),
-                        (VEL, &b.vel),
-                        (IDS, &b.ids),
-                    ],
+                    &self.moving(from, 1 - from),
                     &[&last[..], &scatter_more[..]].concat(),
                 ),
             ),
@@ -909,6 +901,20 @@ impl GridStepper {
             binning: self.binning_binds(from),
             skin: self.skin_binds(from, &integrate_more),
         }
+    }
+
+    /// What a pass moving the state from set `from` (as set a) into set `to` binds.
+    fn moving(&self, from: usize, to: usize) -> [(Binding, &wgpu::Buffer); 7] {
+        let (a, b) = (&self.sets[from], &self.sets[to]);
+        [
+            (PARAMS, &self.grid_uniform),
+            (POS_A, &a.pos),
+            (VEL_A, &a.vel),
+            (IDS_A, &a.ids),
+            (POS, &b.pos),
+            (VEL, &b.vel),
+            (IDS, &b.ids),
+        ]
     }
 
     /// What every integration kernel binds to step state set `on`.
@@ -936,7 +942,7 @@ impl GridStepper {
     /// where the step has a skin.
     fn skin_binds(&self, on: usize, law: &[(Binding, &wgpu::Buffer)]) -> Option<SkinBinds> {
         let (pipelines, skin) = (self.pipelines.skin.as_ref()?, self.skin.as_ref()?);
-        let (gpu, sorted, state) = (&self.gpu, &self.sets[1 - on], &self.sets[on]);
+        let gpu = &self.gpu;
         let started = [
             (CLOCK, &self.clock),
             (COUNTERS, &self.counters),
@@ -969,15 +975,7 @@ impl GridStepper {
             bin_return: gpu.bind(
                 "mochi.dem.bin_return",
                 &pipelines.bin_return,
-                &[
-                    (PARAMS, &self.grid_uniform),
-                    (POS_A, &sorted.pos),
-                    (VEL_A, &sorted.vel),
-                    (IDS_A, &sorted.ids),
-                    (POS, &state.pos),
-                    (VEL, &state.vel),
-                    (IDS, &state.ids),
-                ],
+                &self.moving(1 - on, on),
             ),
         })
     }
