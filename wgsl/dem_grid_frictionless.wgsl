@@ -24,15 +24,16 @@ struct Walker {
 // indirect dispatches of the binning's passes to all workgroups or none. A binning sorts the
 // state into the other set and copies it back (`bin_return`), so the state is always in the
 // last binning's order and the walk reads it in place. The steps between walk the last
-// binning's cells, every window widened by the skin (grid_stencil.wgsl), from the spheres'
-// current centres: a pair within reach then has its partner's binned cell in the walker's
-// window, and each walker starts from the row of its own binned cell (`walker_cell`): each pair
+// binning's cells, every window widened by the drift since, at most the skin (`window_slack`,
+// grid_stencil.wgsl), from the spheres' current centres: a pair within reach then has its
+// partner's binned cell in the walker's window, and each walker starts from the row of its own binned cell (`walker_cell`): each pair
 // is still visited once.
 // by sorted place: the y and z of the cell its sphere was binned in at its level (y | z << 16)
 @group(0) @binding(28) var<storage, read_write> walk_row: array<u32>;
 // the skin's words, at the offsets below (host: src/engines/wgpu_compute/skin.rs)
 @group(0) @binding(32) var<storage, read_write> skin_state: array<atomic<u32>>;
-// [0]: the displacement above which a sphere reports its own this step (`begin_step` sets it)
+// [0]: the displacement above which a sphere reports its own this step; [1]: the drift, a
+// bound on every sphere's distance from its binned centre this step (`begin_step` sets both)
 @group(0) @binding(33) var<storage, read_write> skin_limit: array<f32>;
 const ARGS_SPHERES: u32 = 0u;  // this step's dispatch of the binning's sphere passes (x, y, z)
 const ARGS_BLOCKS: u32 = 4u;   // and of the scan's (x, y, z)
@@ -94,6 +95,7 @@ fn begin_step(@builtin(local_invocation_index) lid: u32) {
             next = 1.25 * reported;
         }
         skin_limit[0] = select(next, 0.8 * next, rebin);
+        skin_limit[1] = select(drift, 0.0, rebin);
         atomicStore(&skin_state[DRIFT], bitcast<u32>(select(drift, 0.0, rebin)));
         let spheres = atomicLoad(&skin_state[FULL_SPHERES]);
         let blocks = atomicLoad(&skin_state[FULL_BLOCKS]);
@@ -112,6 +114,7 @@ fn begin_binning(@builtin(local_invocation_index) lid: u32) {
         atomicAdd(&clock, 1u);
         atomicStore(&counters[0], 0u);
         atomicStore(&skin_state[DRIFT], 0u);
+        skin_limit[1] = 0.0;
         atomicAdd(&skin_state[REBINS], 1u);
     }
 }
@@ -177,6 +180,9 @@ var<workgroup> group_contacts: atomic<u32>;
 fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let p = index(gid);
     var total = vec4(0.0);
+    if params.skin > 0.0 {
+        window_slack = skin_limit[1];
+    }
     if p < params.n {
         let h = home[p];
         let s = walk_pos[p];

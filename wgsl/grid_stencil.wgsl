@@ -12,12 +12,16 @@ const FORWARD = array<vec3<i32>, 13>(
 );
 
 // Dense tables: the partners of sphere s at `level` lie in its window there: the cells within
-// r_i plus the level's largest partner radius (plus the skin) of c_i along each axis (2 or 3
+// r_i plus the level's largest partner radius (plus the slack) of c_i along each axis (2 or 3
 // cells per axis where the cells are the class's size, fewer than the 27 cells around its own
 // when cells were grown, more where the level is refined), as rows of cells along x, each a run
 // of sorted positions. At coarser levels s tests every sphere of its window (only the smaller
 // sphere looks for a pair); at its own level only those after it in sorted order: rows before its
 // own row are skipped and the rest start after p, so each pair is visited once.
+// How far every sphere may be from the centre it was binned by: zero but in a DEM step that
+// walks the cells of an earlier binning, which sets it at its walk's start.
+var<private> window_slack: f32 = 0.0;
+
 struct Window {
     first: u32,   // table index of the first cell of the first row
     width: u32,   // cells per row (along x)
@@ -41,10 +45,10 @@ fn window(s: vec4<f32>, level: u32) -> Window {
     // A partner at `level` has r_j ≤ max_radius (padded on the host) and r_j·level_pad ≤ class_size / 2.
     // Coordinates in cells are within ~2^-11 cells of exact for up to 4096 cells per axis; the
     // window is widened by 1/256 cell, and clamping to the border cells keeps it monotone (the
-    // clamped outliers stay in it), as cell_coords is. A DEM step that re-bins only when a
-    // sphere may have moved `skin` since (dem_grid_frictionless.wgsl) widens it by that much: a
-    // partner's binned centre then lies within it too.
-    let reach = (s.w + min(params.max_radius, 0.5 * class_size) + params.skin) * inv + 1.0 / 256.0;
+    // clamped outliers stay in it), as cell_coords is. A DEM step that walks the cells of an
+    // earlier binning (dem_grid_frictionless.wgsl) widens it by `window_slack`: a partner's
+    // binned centre then lies within it too.
+    let reach = (s.w + min(params.max_radius, 0.5 * class_size) + window_slack) * inv + 1.0 / 256.0;
     let dims = level_dims(level);
     let u = (s.xyz - params.lo) * inv;
     let cells = reach_cells(u, reach, dims);

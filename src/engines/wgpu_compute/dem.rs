@@ -327,8 +327,8 @@ pub struct GridStepper {
     near: Option<NearLists>,
     /// The per-pair variant's state (`None`: another variant).
     per_pair: Option<PerPair>,
-    /// Where the step may skip its binning (the paper's step on the dense build; the layout's
-    /// `skin` says whether it does).
+    /// The skin's buffers (the paper's step, whose walk reads the drift in any build; only the
+    /// dense build's steps may skip their binning, where the layout's `skin` says).
     skin: Option<Skin>,
     /// Steps run with a skin, and those that re-binned, since the stepper opened.
     rebinned: (u64, u64),
@@ -499,7 +499,8 @@ impl GridStepper {
         let n = particles.len() as u32;
         let rows = room.spheres as u64;
         // The paper's step on the dense build may skip its binning (the skin).
-        let skinned = granular.is_none() && build == BuildKind::Dense;
+        let paper = granular.is_none();
+        let skinned = paper && build == BuildKind::Dense;
         let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.{entry}"), &module, entry);
         let (first, last) = match build {
             BuildKind::Dense => ("bin_count", "bin_scatter"),
@@ -610,7 +611,8 @@ impl GridStepper {
                 atomics,
                 granular,
                 per_pair,
-                skin: skinned.then(|| Skin::new(&gpu)),
+                // The paper's walk reads the drift in any build (none without a skin).
+                skin: paper.then(|| Skin::new(&gpu)),
                 rebinned: (0, 0),
                 skin_off_until: 0,
                 gpu: gpu.clone(),
@@ -767,7 +769,7 @@ impl GridStepper {
             )
         };
         let layout = GridParams {
-            skin: match self.skin {
+            skin: match self.pipelines.skin {
                 Some(_) if self.step >= self.skin_off_until => skin_of(&layout),
                 _ => 0.0,
             },
@@ -960,7 +962,7 @@ impl GridStepper {
             begin_binning: gpu.bind(
                 "mochi.dem.begin_binning",
                 &pipelines.begin_binning,
-                &started,
+                &joined(&started, &[(SKIN_LIMIT, &skin.limit)]),
             ),
             integrate: gpu.bind(
                 "mochi.dem.integrate_and_report",
@@ -1035,8 +1037,11 @@ impl GridStepper {
             placed[1],
         ];
         let Some(g) = &self.granular else {
-            // The walk starts from the row of its sphere's binned cell (the skin's).
-            let law = [&self.law_bindings()[..], &[(WALK_ROW, &places.walk_row)]].concat();
+            // The walk starts from the row of its sphere's binned cell and widens its windows by
+            // the drift since (the skin's).
+            let skin = self.skin.as_ref().expect("the paper's step's skin buffers");
+            let drift = [(WALK_ROW, &places.walk_row), (SKIN_LIMIT, &skin.limit)];
+            let law = [&self.law_bindings()[..], &drift].concat();
             let resolve = gpu.bind(
                 "mochi.dem.resolve",
                 &self.pipelines.resolve,
@@ -1164,7 +1169,7 @@ impl GridStepper {
 
     /// Whether the layout has a skin: steps may skip their binning.
     fn skinned(&self) -> bool {
-        self.skin.is_some() && self.layout.skin > 0.0
+        self.pipelines.skin.is_some() && self.layout.skin > 0.0
     }
 
     /// Records one phase of a step of kind `kind` from `from` into `pass` (without a skin, the

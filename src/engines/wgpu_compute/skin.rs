@@ -41,7 +41,8 @@ pub(crate) fn skin_of(layout: &GridParams) -> f32 {
 /// of steps that re-binned; and the displacement above which a sphere reports.
 pub(crate) struct Skin {
     pub state: wgpu::Buffer,
-    /// The displacement above which a sphere reports its own (`f32`; the GPU adapts it).
+    /// The displacement above which a sphere reports its own, and the drift the walk's windows
+    /// reach past their spheres (two `f32`, the GPU's).
     pub limit: wgpu::Buffer,
 }
 
@@ -50,7 +51,7 @@ impl Skin {
         let none = wgpu::BufferUsages::empty();
         Skin {
             state: gpu.storage("mochi.dem.skin", WORDS * 4, wgpu::BufferUsages::INDIRECT),
-            limit: gpu.storage("mochi.dem.skin_limit", 4, none),
+            limit: gpu.storage("mochi.dem.skin_limit", 8, none),
         }
     }
 
