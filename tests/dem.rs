@@ -804,7 +804,7 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
 fn steps_that_skip_their_binning_follow_the_cpu_step_as_spheres_cross_cells() {
     // A lattice of 10 mm spheres 1 mm apart flying apart and into each other at up to 2 m/s, no
     // gravity: each step moves a sphere up to 0.2 mm, so the paper's step on the dense build
-    // (whose skin is a tenth of its 2 cm cells) skips its binning for several steps at a time and
+    // (whose skin is a fifth of its 2 cm cells) skips its binning for several steps at a time and
     // re-bins when the GPU finds a sphere may have moved the skin; spheres meet partners they
     // were not near at the last binning, and the walls. Over three batches it finds the cpu
     // step's contacts and stays within the GPU tolerance of its positions. One size of sphere:

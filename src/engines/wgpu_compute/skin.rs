@@ -10,7 +10,7 @@ use crate::gpu::Gpu;
 
 /// The skin, in cells of the finest level: what a sphere may move before the grid is re-binned.
 /// A wider skin re-bins less often and walks wider windows.
-pub(crate) const SKIN_CELLS: f64 = 0.1;
+pub(crate) const SKIN_CELLS: f64 = 0.2;
 
 /// Word offsets in [`Skin::state`]; twins of the constants in `wgsl/dem_grid_frictionless.wgsl`.
 const ARGS_SPHERES: u64 = 0;
@@ -92,20 +92,20 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_skin_is_a_tenth_of_the_finest_cells_and_none_when_hashed_or_rows_overflow() {
+    fn the_skin_is_a_fifth_of_the_finest_cells_and_none_when_hashed_or_rows_overflow() {
         let one = GridParams {
             inv_cell: 100.0,
             levels: 1,
             ..GridParams::default()
         };
-        assert!((skin_of(&one) - 1e-3).abs() < 1e-9);
+        assert!((skin_of(&one) - 2e-3).abs() < 1e-9);
         // Three levels, level 0 refined once: cells of 1 cm / 8.
         let three = GridParams {
             levels: 3,
             refine: 1,
             ..one
         };
-        assert!((skin_of(&three) - 1e-3 / 8.0).abs() < 1e-9);
+        assert!((skin_of(&three) - 2e-3 / 8.0).abs() < 1e-9);
         let hashed = GridParams { hashed: 1, ..one };
         assert_eq!(skin_of(&hashed), 0.0);
         // A level whose rows along z number more than 16 bits hold.
