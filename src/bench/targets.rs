@@ -1,5 +1,6 @@
-//! Issue 7's targets, checked against the rows of a report. A target is judged only where the
-//! report measured what it names (its scene at its size); otherwise it says what to run.
+//! Issue 7's targets and issue 21's, checked against the rows of a report. A target is judged
+//! only where the report measured what it names (its scene at its size); otherwise it says what
+//! to run.
 
 use super::plan::Experiment;
 use super::report::{DemRow, Report};
@@ -29,7 +30,10 @@ const POLY120: SceneKind = SceneKind::Generated(Scene::Poly120);
 /// Spheres of the DEM targets.
 const MILLION: usize = 1_000_000;
 
-/// Every target of issue 7, checked against `report`.
+/// The whole drop of experiment 8 (the paper's bunnies fall and land in about this many steps).
+const WHOLE_DROP_STEPS: u32 = 5000;
+
+/// Every target of issues 7 and 21, checked against `report`.
 pub fn check(report: &Report) -> Vec<Check> {
     vec![
         dem_target(
@@ -51,7 +55,78 @@ pub fn check(report: &Report) -> Vec<Check> {
         detect_ratio_120(report),
         dem_dcd_ratio_120(report),
         cpu_poly120(report),
+        mesh_drop(report),
+        wide_box(report),
     ]
+}
+
+/// Experiment 8's rows in the meshes' own box (`wide`: in the box 10× wider), fastest first.
+fn clustered(report: &Report, wide: bool) -> Vec<&DemRow> {
+    let mut rows: Vec<&DemRow> = report
+        .dem
+        .iter()
+        .filter(|r| r.experiment == Experiment::Clustered && r.box_scale.is_some() == wide)
+        .collect();
+    rows.sort_by(|a, b| a.total_ms.median.total_cmp(&b.total_ms.median));
+    rows
+}
+
+/// Issue 21: the paper's 14 bunnies (a mesh given, a million spheres or more) dropped for the
+/// whole drop, the fastest row at ≤ 0.12 ms a step with its build at ≤ 0.03.
+fn mesh_drop(report: &Report) -> Check {
+    let rows = clustered(report, false);
+    let fastest = rows.first();
+    let settings = &report.settings;
+    let judged = settings.mesh.is_some() && settings.steps >= WHOLE_DROP_STEPS;
+    Check {
+        target: format!(
+            "14 meshes dropped (experiment 8, --mesh, ≥ 1M spheres, --steps {WHOLE_DROP_STEPS}): \
+             full DEM step ≤ 0.12 ms, build ≤ 0.03 ms"
+        ),
+        measured: fastest.map_or_else(
+            || "not measured (experiment 8)".to_owned(),
+            |r| {
+                format!(
+                    "{} {} n={} over {} steps: {:.3} ms, build {:.3} ms",
+                    r.backend.name(),
+                    r.setup(),
+                    r.n,
+                    r.steps,
+                    r.total_ms.median,
+                    r.build_ms.median
+                )
+            },
+        ),
+        met: fastest
+            .filter(|r| judged && r.n >= MILLION)
+            .map(|r| r.total_ms.median <= 0.12 && r.build_ms.median <= 0.03),
+    }
+}
+
+/// Issue 21: the same spheres in a box 10× wider per side, the fastest row within 10 % of the
+/// fastest in their own box.
+fn wide_box(report: &Report) -> Check {
+    let (own, wide) = (clustered(report, false), clustered(report, true));
+    let pair = own.first().zip(wide.first());
+    Check {
+        target: "experiment 8 in a box 10× wider: full DEM step within 10 % of its own box's"
+            .to_owned(),
+        measured: pair.map_or_else(
+            || "not measured (experiment 8)".to_owned(),
+            |(own, wide)| {
+                format!(
+                    "{} {}: {:.3} ms against {} {}: {:.3} ms",
+                    wide.backend.name(),
+                    wide.setup(),
+                    wide.total_ms.median,
+                    own.backend.name(),
+                    own.setup(),
+                    own.total_ms.median
+                )
+            },
+        ),
+        met: pair.map(|(own, wide)| wide.total_ms.median <= 1.1 * own.total_ms.median),
+    }
 }
 
 /// The fastest experiment-6 row of `scene` at 1M spheres against `limit_ms` (judged only where
@@ -284,10 +359,65 @@ mod tests {
         let met: Vec<Option<bool>> = checks.iter().map(|c| c.met).collect();
         // slab met, polylog missed (mlgrid 0.55 > 0.5), no 5M, no detection rows, DEM DCD
         // 6.9 / 0.3 = 23× met, no cpu row.
-        assert_eq!(met, [Some(true), Some(false), None, None, Some(true), None]);
+        assert_eq!(
+            met,
+            [
+                Some(true),
+                Some(false),
+                None,
+                None,
+                Some(true),
+                None,
+                None,
+                None
+            ]
+        );
         assert!(checks[1].measured.contains("mlgrid"), "{:?}", checks[1]);
         assert!(checks[4].measured.contains("23.00×"), "{:?}", checks[4]);
         // A slab that never had steps to land is not judged.
         assert_eq!(check(&report(0))[0].met, None);
+    }
+
+    /// Experiment 8's rows: the dense and the sorted build, in the own box and the wide one.
+    fn clustered_report(steps: u32, mesh: bool, dense: f64, wide: f64) -> Report {
+        let mut r = report(0);
+        r.settings.steps = steps;
+        r.settings.mesh = mesh.then(|| "bunny.obj".into());
+        r.dem.clear();
+        for (box_scale, build, total) in [
+            (None, "dense", dense),
+            (None, "sorted", 0.6),
+            (Some(10), "dense", wide),
+            (Some(10), "sorted", 0.6),
+        ] {
+            let mut row = row("mesh", "mochi", "auto", 0.07, total);
+            row.experiment = Experiment::Clustered;
+            row.n = 1_151_878;
+            row.build_ms = ms(0.005);
+            row.box_scale = box_scale;
+            row.grid_build = Some(build.into());
+            r.dem.push(row);
+        }
+        r
+    }
+
+    #[test]
+    fn the_mesh_drop_is_judged_over_the_whole_drop_and_the_wide_box_against_its_own() {
+        let judged = |steps, mesh, dense, wide| {
+            let checks = check(&clustered_report(steps, mesh, dense, wide));
+            (checks[6].met, checks[7].met)
+        };
+        assert_eq!(judged(5000, true, 0.113, 0.115), (Some(true), Some(true)));
+        assert_eq!(judged(5000, true, 0.125, 0.14), (Some(false), Some(false)));
+        // 200 steps are not the whole drop, and the built-in torus is not the paper's bunny.
+        assert_eq!(judged(200, true, 0.113, 0.115), (None, Some(true)));
+        assert_eq!(judged(5000, false, 0.113, 0.115), (None, Some(true)));
+        let checks = check(&clustered_report(5000, true, 0.113, 0.115));
+        assert!(
+            checks[6].measured.contains("dense build"),
+            "{:?}",
+            checks[6]
+        );
+        assert!(checks[7].measured.contains("box ×10"), "{:?}", checks[7]);
     }
 }
