@@ -1122,13 +1122,12 @@ impl GridStepper {
 
     /// How the step after the next `ahead` steps bins.
     fn kind_of_step(&self, ahead: u32) -> StepKind {
-        match (
-            self.skinned(),
-            self.pipelines.bin_index.is_some() && !self.sorts(ahead),
-        ) {
-            (true, _) => StepKind::Skin,
-            (false, true) => StepKind::Binning,
-            (false, false) => StepKind::Sorting,
+        if self.skinned() {
+            return StepKind::Skin;
+        }
+        match self.pipelines.bin_index.is_some() && !self.sorts(ahead) {
+            true => StepKind::Binning,
+            false => StepKind::Sorting,
         }
     }
 

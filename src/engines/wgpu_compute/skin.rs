@@ -1,7 +1,7 @@
 //! The skin of the paper's DEM step on a dense single- or multi-level grid: a step re-bins its
 //! spheres only where one may have moved more than the skin since the last binning, and the
-//! steps between walk the last binning's cells with their search windows widened by the skin
-//! (`wgsl/dem_grid_frictionless.wgsl`, docs/method.md "Re-binning only when a sphere may have
+//! steps between walk the last binning's cells with their search windows widened by the drift
+//! since, at most the skin (`wgsl/dem_grid_frictionless.wgsl`, docs/method.md "Re-binning only when a sphere may have
 //! left its cells"). The GPU decides at each step's start (`begin_step`) and sets the binning's
 //! indirect dispatches to every workgroup or none; this is the buffer it decides in.
 
@@ -9,7 +9,8 @@ use super::layout::GridParams;
 use crate::gpu::Gpu;
 
 /// The skin, in cells of the finest level: what a sphere may move before the grid is re-binned.
-/// A wider skin re-bins less often and walks wider windows.
+/// A wider skin re-bins less often; the walk's windows widen by the drift since the last
+/// binning, which grows up to it (docs/PERFORMANCE.md, issue 21, has the sweep).
 pub(crate) const SKIN_CELLS: f64 = 0.2;
 
 /// Word offsets in [`Skin::state`]; twins of the constants in `wgsl/dem_grid_frictionless.wgsl`.
