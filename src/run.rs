@@ -14,6 +14,7 @@
 //! # Ok::<(), mochi::Error>(())
 //! ```
 
+use crate::dem::flow::FlowCounts;
 use crate::dem::model::StepParams;
 use crate::dem::scene::{SceneConfig, SceneFlags, Start};
 use crate::dem::stepper::Stepper;
@@ -22,7 +23,8 @@ use crate::engines::{BackendChoice, BackendKind, Options, open_scene};
 use crate::error::{Error, Result};
 use crate::io::{self, Frame};
 use crate::particles::Particles;
-use std::path::Path;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// Wall-clock time between two returns from the DEM step that a run aims at (for progress,
@@ -42,6 +44,86 @@ pub fn progress_steps(steps: u64, took: Duration) -> u64 {
     fit.clamp(1, 4 * steps.max(1))
 }
 
+/// A file a run reads while it runs (a wall's mesh), as it was when the run started: a resumed
+/// run refuses a file that changed since.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FileDigest {
+    /// The file, as the scene names it.
+    pub path: PathBuf,
+    /// Its length \[bytes\].
+    pub bytes: u64,
+    /// The CRC-32 of its bytes.
+    pub crc32: u32,
+}
+
+impl FileDigest {
+    /// The digest of the file `path` now.
+    pub fn of(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|error| Error::Io {
+            path: path.to_owned(),
+            error,
+        })?;
+        Ok(Self {
+            path: path.to_owned(),
+            bytes: bytes.len() as u64,
+            crc32: crc32fast::hash(&bytes),
+        })
+    }
+
+    /// Refuses the file where it is no longer what this digest saw.
+    fn check(&self) -> Result<()> {
+        let now = Self::of(&self.path)?;
+        if now != *self {
+            return Err(Error::InvalidConfig {
+                what: format!("wall mesh {}", self.path.display()),
+                reason: format!(
+                    "the file changed since the run started ({} bytes with CRC-32 {:08x} then, \
+                     {} bytes with CRC-32 {:08x} now): a resumed run must meet the walls it had; \
+                     restore the file, or start a new run from the last frame \
+                     (--input OUT/frame_<step>.csv)",
+                    self.bytes, self.crc32, now.bytes, now.crc32
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A run's state besides its particles, as its checkpoints save it (TOML), so that a resumed
+/// run goes on as the uninterrupted one would: what its flows did, what its flow log had
+/// counted at its last row, and the files it reads.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RunState {
+    /// What the flows did from the run's start (`None`: a run without flows).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flow: Option<FlowCounts>,
+    /// The flow counts at the last row of the run's flow log (`mochi simulate`'s `flow.csv`),
+    /// where it keeps one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flow_logged: Option<FlowCounts>,
+    /// The wall meshes the run reads, as they were at its start.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub meshes: Vec<FileDigest>,
+}
+
+impl RunState {
+    /// The state as TOML.
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("a run's state serializes")
+    }
+
+    /// The state a checkpoint saved (`text`, empty in older checkpoints).
+    fn parse(text: &str, checkpoint: &Path) -> Result<Self> {
+        toml::from_str(text).map_err(|e| Error::Parse {
+            path: checkpoint.to_owned(),
+            line: None,
+            msg: format!("the run's state: {}", e.to_string().trim_end()),
+        })
+    }
+}
+
 /// A run's scene and the state it starts from, before a backend is opened.
 #[derive(Debug, Clone)]
 pub struct RunStart {
@@ -50,6 +132,9 @@ pub struct RunStart {
     pub config: SceneConfig,
     /// The particles, step parameters and proxy mode.
     pub start: Start,
+    /// The run's state besides the particles: at its start, or as its checkpoint saved it
+    /// (its files checked against it).
+    pub state: RunState,
 }
 
 impl RunStart {
@@ -63,25 +148,45 @@ impl RunStart {
     ) -> Result<Self> {
         let config = SceneConfig::load_new(scene_file, flags, overrides)?;
         let start = config.build()?;
+        let meshes = config
+            .wall
+            .iter()
+            .map(|w| FileDigest::of(&w.mesh))
+            .collect::<Result<_>>()?;
         Ok(Self {
             config: config.resolved(&start),
             start,
+            state: RunState {
+                meshes,
+                ..RunState::default()
+            },
         })
     }
 
     /// A run resumed from `checkpoint`: its particles, and its saved scene with `flags` and
     /// `overrides` applied (only the fields of [`crate::dem::scene::RESUMABLE`] may change).
     /// A checkpoint that cannot be read is an error of its own; a scene or particles that do
-    /// not pass are an [`Error::Resuming`] naming the checkpoint.
+    /// not pass, or a wall mesh that changed since the run started, are an [`Error::Resuming`]
+    /// naming the checkpoint. The flows go on from the checkpoint's counts.
     pub fn resume(checkpoint: &Path, flags: &SceneFlags, overrides: &[String]) -> Result<Self> {
-        let (particles, scene) = io::read_checkpoint(checkpoint)?;
+        let saved = io::read_checkpoint(checkpoint)?;
+        let state = RunState::parse(&saved.state, checkpoint)?;
         let resuming = |error| Error::Resuming {
             checkpoint: checkpoint.to_owned(),
             error: Box::new(error),
         };
-        let config = SceneConfig::resume(&scene, checkpoint, flags, overrides).map_err(resuming)?;
-        let start = config.resume_from(particles).map_err(resuming)?;
-        Ok(Self { config, start })
+        let config =
+            SceneConfig::resume(&saved.scene, checkpoint, flags, overrides).map_err(resuming)?;
+        for digest in &state.meshes {
+            digest.check().map_err(resuming)?;
+        }
+        let mut start = config.resume_from(saved.particles).map_err(resuming)?;
+        start.flow.counted = state.flow.unwrap_or_default();
+        Ok(Self {
+            config,
+            start,
+            state,
+        })
     }
 
     /// Opens the DEM step of `choice` over the particles (`auto`: the registry's one rule, with
@@ -99,6 +204,7 @@ impl RunStart {
         let (stepper, backend, auto_reason) = open_scene(choice, self.start, options)?;
         Ok(Run {
             config: self.config,
+            meshes: self.state.meshes,
             params,
             walls,
             stepper,
@@ -137,6 +243,8 @@ pub struct Run {
     pub coarse_warning: Option<String>,
     /// Pairs of spheres that shared their centre at the start.
     pub coincident_pairs: u64,
+    /// The wall meshes the run reads, as they were at its start ([`RunState::meshes`]).
+    pub meshes: Vec<FileDigest>,
 }
 
 impl Run {
@@ -161,6 +269,17 @@ impl Run {
     /// The resolved scene as TOML, as checkpoints save it.
     pub fn scene_toml(&self) -> String {
         self.config.to_toml()
+    }
+
+    /// The run's state now as TOML, as checkpoints save it (`flow_logged`: the flow counts
+    /// at the last row of a flow log the caller keeps).
+    pub fn state_toml(&self, flow_logged: Option<FlowCounts>) -> String {
+        RunState {
+            flow: self.stepper.flow_counts(),
+            flow_logged,
+            meshes: self.meshes.clone(),
+        }
+        .to_toml()
     }
 
     /// `particles` (of this run) as a frame: its time from the step and the time step, and the

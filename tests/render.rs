@@ -5,15 +5,13 @@
 
 mod common;
 
+use common::cli::mochi;
 use mochi::gpu::Need;
 use mochi::render::{
     Camera, ColorBy, Image, Picture, RenderChoice, Renderer, Scene, read_png, viridis,
 };
 use mochi::scenes::{Layout, Scene as Dataset, SceneSpec, generate};
 use std::path::Path;
-use std::process::Command;
-
-const BIN: &str = env!("CARGO_BIN_EXE_mochi");
 
 /// Every path that can be tested here: cpu always, the GPU paths where an adapter has them
 /// (a missing one fails under CI).
@@ -288,19 +286,6 @@ fn an_empty_scene_is_background_and_bad_pictures_are_errors() {
 // ----------------------------------------------------------------------------------------------
 // The command line
 // ----------------------------------------------------------------------------------------------
-
-fn mochi(args: &[&str], dir: &Path) -> (Option<i32>, String, String) {
-    let out = Command::new(BIN)
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap();
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout).into(),
-        String::from_utf8_lossy(&out.stderr).into(),
-    )
-}
 
 /// Share of pixels that are not the background's light grey.
 fn not_background(image: &Image) -> f64 {

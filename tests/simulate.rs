@@ -3,45 +3,13 @@
 
 mod common;
 
+use common::cli::{BIN, fails, mochi, ok, snapshot};
 use mochi::dem::Particles;
 use mochi::engines::BackendKind;
 use mochi::gpu::Need;
 use mochi::io::read_checkpoint;
 use std::path::Path;
 use std::process::Command;
-
-const BIN: &str = env!("CARGO_BIN_EXE_mochi");
-
-fn mochi(args: &[&str], dir: &Path) -> (Option<i32>, String, String) {
-    let out = Command::new(BIN)
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the binary runs");
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn ok(args: &[&str], dir: &Path) -> String {
-    let (code, stdout, stderr) = mochi(args, dir);
-    assert_eq!(code, Some(0), "{args:?}\n{stdout}\n{stderr}");
-    stdout
-}
-
-fn fails(args: &[&str], dir: &Path) -> String {
-    let (code, stdout, stderr) = mochi(args, dir);
-    assert_eq!(
-        code,
-        Some(1),
-        "{args:?} should fail cleanly\n{stdout}\n{stderr}"
-    );
-    assert!(!stderr.contains("panicked"), "{stderr}");
-    assert!(stderr.starts_with("error: "), "{stderr}");
-    stderr
-}
 
 /// The paper's slab with its law (`linear`, frictionless), which every backend runs.
 const SMALL: [&str; 11] = [
@@ -73,7 +41,8 @@ fn a_run_writes_frames_an_index_a_checkpoint_and_a_summary() {
         assert!(out.join(&name).is_file());
         assert!(out.join(format!("frame_{step:08}.csv")).is_file());
     }
-    let (particles, scene) = read_checkpoint(&out.join("checkpoint.bin")).unwrap();
+    let saved = read_checkpoint(&out.join("checkpoint.bin")).unwrap();
+    let (particles, scene) = (saved.particles, saved.scene);
     assert_eq!(particles.step, 60);
     assert_eq!(particles.len(), 1500);
     assert!(
@@ -237,7 +206,9 @@ fn a_csv_frame_restarts_a_run_with_its_velocities() {
         ],
         dir.path(),
     );
-    let (after, _) = read_checkpoint(&dir.path().join("b/checkpoint.bin")).unwrap();
+    let after = read_checkpoint(&dir.path().join("b/checkpoint.bin"))
+        .unwrap()
+        .particles;
     // One step of free fall from the frame's velocities: v = v0 - g dt.
     for (v, v0) in after.velocities.iter().zip(&velocities) {
         assert!(
@@ -273,7 +244,8 @@ fn a_mesh_file_is_filled_and_dropped() {
         dir.path(),
     );
     assert!(stdout.contains("| cpu"), "{stdout}");
-    let (particles, scene) = read_checkpoint(&dir.path().join("out/checkpoint.bin")).unwrap();
+    let saved = read_checkpoint(&dir.path().join("out/checkpoint.bin")).unwrap();
+    let (particles, scene) = (saved.particles, saved.scene);
     // The box (1.75 × 2 × 0.75) fitted into 0.3 is scaled by 0.15 to 0.2625 × 0.3 × 0.1125;
     // the lattice of spacing 2.2 · 0.02 = 0.044 centred on it has ⌈extent / 0.044⌉ = 6 × 7 × 3
     // points, every one at least 0.012 inside a face.
@@ -288,9 +260,9 @@ fn a_checkpoint_with_a_sphere_pushed_into_a_wall_still_resumes() {
     first.extend(["--steps", "10", "--frame-every", "0", "-o", "a"]);
     ok(&first, dir.path());
     let path = dir.path().join("a/checkpoint.bin");
-    let (mut particles, scene) = read_checkpoint(&path).unwrap();
-    particles.positions[0][2] = -0.0001; // through the floor, as a soft wall allows
-    mochi::io::write_checkpoint(&path, &particles, &scene).unwrap();
+    let mut saved = read_checkpoint(&path).unwrap();
+    saved.particles.positions[0][2] = -0.0001; // through the floor, as a soft wall allows
+    mochi::io::write_checkpoint(&path, &saved.particles, &saved.scene, &saved.state).unwrap();
     ok(
         &[
             "simulate",
@@ -450,12 +422,13 @@ fn a_resumed_state_is_checked_like_a_fresh_one() {
     first.extend(["--steps", "10", "--frame-every", "0", "-o", "a"]);
     ok(&first, dir.path());
     let path = dir.path().join("a/checkpoint.bin");
-    let (particles, scene) = read_checkpoint(&path).unwrap();
+    let saved = read_checkpoint(&path).unwrap();
+    let (particles, scene) = (saved.particles, saved.scene);
     let resume = resume_run("a", "20", &[]);
     // A centre far outside the unit box, though the file is intact.
     let mut far = particles.clone();
     far.positions[3][0] = 5.0;
-    mochi::io::write_checkpoint(&path, &far, &scene).unwrap();
+    mochi::io::write_checkpoint(&path, &far, &scene, "").unwrap();
     let e = fails(&strs(&resume), dir.path());
     assert!(
         e.contains("sphere 3") && e.contains("outside the box"),
@@ -464,13 +437,13 @@ fn a_resumed_state_is_checked_like_a_fresh_one() {
     // A radius no sphere file may hold.
     let mut flat = particles.clone();
     flat.radii[7] = 0.0;
-    mochi::io::write_checkpoint(&path, &flat, &scene).unwrap();
+    mochi::io::write_checkpoint(&path, &flat, &scene, "").unwrap();
     let e = fails(&strs(&resume), dir.path());
     assert!(e.contains("sphere 7"), "{e}");
     // Parameters a fresh run refuses.
     let soft = scene.replace("restitution = 0.5", "restitution = 0.0");
     assert_ne!(soft, scene);
-    mochi::io::write_checkpoint(&path, &particles, &soft).unwrap();
+    mochi::io::write_checkpoint(&path, &particles, &soft, "").unwrap();
     let e = fails(&strs(&resume), dir.path());
     assert!(e.contains("restitution"), "{e}");
 }
@@ -526,7 +499,9 @@ fn resume_refuses_overrides_that_change_the_run() {
         ],
         dir.path(),
     );
-    let (_, scene) = read_checkpoint(&dir.path().join("a/checkpoint.bin")).unwrap();
+    let scene = read_checkpoint(&dir.path().join("a/checkpoint.bin"))
+        .unwrap()
+        .scene;
     assert!(scene.contains("scene = \"slab\""), "{scene}");
     assert!(scene.contains("steps = 20"), "{scene}");
 }
@@ -673,21 +648,6 @@ fn a_run_of_zero_steps_claims_no_clock() {
 // ----------------------------------------------------------------------------------------------
 // The output folder: nothing of an earlier run or of an input is lost
 // ----------------------------------------------------------------------------------------------
-
-/// Every file in `dir` (not the lock file) with its contents, in name order.
-fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap())
-        .filter(|e| e.file_name() != mochi::io::LOCK_FILE)
-        .map(|e| {
-            let name = e.file_name().to_string_lossy().into_owned();
-            (name, std::fs::read(e.path()).unwrap())
-        })
-        .collect();
-    files.sort();
-    files
-}
 
 /// A short run of 300 spheres of the paper's slab (`linear`) into `out` with frames every 10
 /// steps (as CSV too).

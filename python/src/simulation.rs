@@ -299,9 +299,10 @@ impl Simulation {
     /// `Simulation.resume`; atomically.
     fn checkpoint(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         self.particles(py)?;
-        let scene = self.run_mut().scene_toml();
+        let run = self.run_mut();
+        let (scene, state) = (run.scene_toml(), run.state_toml(None));
         let now = self.now.as_ref().expect("read back above");
-        py.detach(|| io::write_checkpoint(&path, now, &scene))
+        py.detach(|| io::write_checkpoint(&path, now, &scene, &state))
             .map_err(to_py_err)
     }
 

@@ -3,7 +3,7 @@
 
 use anyhow::{Result, bail};
 use mochi::io::{self, RunFolder};
-use std::path::{Component, Path};
+use std::path::{Component, Path, PathBuf};
 
 /// The folder a file is in (`.` for a bare name).
 pub fn folder_of(path: &Path) -> &Path {
@@ -81,6 +81,36 @@ pub fn check_run_outputs(out: &Path, inputs: &[&Path], gif: Option<&Path>) -> Re
                 "--gif {} has the name of a file the run writes into {}: choose another name",
                 gif.display(),
                 out.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Refuses an output of `mochi render` (`option` names it) that would take the place of a file
+/// of the run in `run_dir` or of one of `inputs` (under any name or link): a run file there (a
+/// frame's picture, `frame_<step>.png`, only where `picture` says the output is one), or a
+/// file with a run file's name anywhere.
+pub fn check_render_output(
+    output: &Path,
+    option: &str,
+    run_dir: &Path,
+    inputs: &[PathBuf],
+    picture: bool,
+) -> Result<()> {
+    for input in inputs {
+        refuse_same_file(input, output, option)?;
+    }
+    let name = output.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    let is_picture = picture && name.starts_with("frame_") && name.ends_with(".png");
+    if io::is_run_file_name(name) && !is_picture {
+        let in_run =
+            same_spelling(folder_of(output), run_dir) || io::same_file(folder_of(output), run_dir);
+        if in_run || output.exists() {
+            bail!(
+                "{option} {} would replace a file of a simulation run ({name} is a name `mochi \
+                 simulate` writes): choose another name",
+                output.display()
             );
         }
     }

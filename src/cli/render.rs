@@ -2,7 +2,7 @@
 //! optional animated GIF) out.
 
 use super::args::{Fit, RenderArgs, RenderCommandArgs};
-use super::output::{check_output_folder, folder_of, refuse_same_file};
+use super::output::{check_output_folder, check_render_output, folder_of};
 use anyhow::{Context, Result, bail};
 use mochi::dem::scene::SceneConfig;
 use mochi::dem::walls::WallSet;
@@ -252,7 +252,7 @@ impl RunWalls {
     /// The walls the `scene.toml` of `dir` describes (`None` without mesh walls, or with a
     /// warning where they cannot be built, say a mesh file moved since the run).
     pub fn of_run(dir: &Path) -> Option<Self> {
-        let path = dir.join("scene.toml");
+        let path = dir.join(io::SCENE_FILE);
         let config = SceneConfig::load(Some(&path), &[]).ok()?;
         let built = config.wall_set().map_err(anyhow::Error::from);
         match built.and_then(|w| Ok((w, config.dt.context("the scene names no dt")?))) {
@@ -289,14 +289,54 @@ fn parse_range(text: &str) -> Result<(f32, f32)> {
     parsed.with_context(|| format!("range {text:?}: expected MIN,MAX with MIN <= MAX"))
 }
 
-/// The simulation box in the `scene.toml` of `dir`, if there is one that says.
-pub fn box_of(dir: &Path) -> Option<([f64; 3], [f64; 3])> {
-    let path = dir.join("scene.toml");
+/// The scene in the `scene.toml` of `dir`, if there is one that reads.
+fn scene_of(dir: &Path) -> Option<SceneConfig> {
+    let path = dir.join(io::SCENE_FILE);
     if !path.is_file() {
         return None;
     }
-    let config = SceneConfig::load(Some(&path), &[]).ok()?;
+    SceneConfig::load(Some(&path), &[]).ok()
+}
+
+/// The simulation box in the `scene.toml` of `dir`, if there is one that says.
+pub fn box_of(dir: &Path) -> Option<([f64; 3], [f64; 3])> {
+    let config = scene_of(dir)?;
     Some((config.box_lo?, config.box_hi?))
+}
+
+/// The files a render of the run in `dir` reads besides its frames: the scene, and the files
+/// the scene names (its sphere file, its mesh, its walls' meshes).
+fn run_inputs(dir: &Path) -> Vec<PathBuf> {
+    let mut inputs = vec![dir.join(io::SCENE_FILE), dir.join(SERIES_INDEX)];
+    if let Some(config) = scene_of(dir) {
+        let named = [config.input, config.mesh].into_iter().flatten();
+        inputs.extend(named.chain(config.wall.into_iter().map(|w| w.mesh)));
+    }
+    inputs
+}
+
+/// Refuses outputs (`-o` and `--gif`) that would take the place of a file of the run in
+/// `run_dir` or of an input of the render (`inputs`), or of each other.
+fn check_render_outputs(
+    run_dir: &Path,
+    inputs: &[PathBuf],
+    picture: Option<&Path>,
+    gif: Option<&Path>,
+) -> Result<()> {
+    let inputs: Vec<PathBuf> = inputs.iter().cloned().chain(run_inputs(run_dir)).collect();
+    if let Some(png) = picture {
+        check_render_output(png, "-o", run_dir, &inputs, true)?;
+    }
+    if let Some(gif) = gif {
+        check_render_output(gif, "--gif", run_dir, &inputs, false)?;
+        if picture.is_some_and(|png| png == gif || io::same_file(png, gif)) {
+            bail!(
+                "--gif {} is the picture -o writes: choose another name",
+                gif.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// The PNG of the frame of `step` in `dir`.
@@ -310,19 +350,19 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
     if input.is_dir() {
         return render_folder(input, args.output.as_deref(), &args.render);
     }
-    let frame = io::read_frame(input)?;
     let parent = input.parent().unwrap_or(Path::new("."));
-    let mut renderer = FrameRenderer::new(&args.render, box_of(parent))?;
     let out = args
         .output
         .clone()
         .unwrap_or_else(|| input.with_extension("png"));
-    refuse_same_file(input, &out, "-o")?;
+    let gif = args.render.gif.as_deref();
+    check_render_outputs(parent, &[input.clone()], Some(&out), gif)?;
     check_output_folder(&out, "-o", None)?;
-    if let Some(gif) = &args.render.gif {
-        refuse_same_file(input, gif, "--gif")?;
+    if let Some(gif) = gif {
         check_output_folder(gif, "--gif", None)?;
     }
+    let frame = io::read_frame(input)?;
+    let mut renderer = FrameRenderer::new(&args.render, box_of(parent))?;
     io::remove_stale_temp_files(folder_of(&out));
     renderer.start_gif()?;
     let walls = walls_at(RunWalls::of_run(parent).as_ref(), frame.step.unwrap_or(0));
@@ -360,13 +400,12 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
         bail!("{}: no frames (frame_*.vtu or frame_*.csv)", dir.display());
     }
     let out = out.unwrap_or(dir);
-    let mut renderer = FrameRenderer::new(args, box_of(dir))?;
+    check_render_outputs(dir, &files, None, args.gif.as_deref())?;
     if let Some(gif) = &args.gif {
-        for input in files.iter().chain([&dir.join(SERIES_INDEX)]) {
-            refuse_same_file(input, gif, "--gif")?;
-        }
+        check_render_outputs(out, &[], None, Some(gif))?;
         check_output_folder(gif, "--gif", Some(out))?;
     }
+    let mut renderer = FrameRenderer::new(args, box_of(dir))?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     io::remove_stale_temp_files(out);
     renderer.start_gif()?;

@@ -7,11 +7,11 @@ use super::walls::{FlowLog, WallOutputs};
 use anyhow::Result;
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::dem::scene::{SceneFlags, SceneKind};
-use mochi::dem::{Clock, StageTimes, Stepper, equipment};
+use mochi::dem::{Clock, StageTimes, StepParams, Stepper, equipment};
 use mochi::engines::Options;
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::render::ColorBy;
-use mochi::run::{FIRST_PROGRESS_STEPS, Run, RunStart, progress_steps};
+use mochi::run::{FIRST_PROGRESS_STEPS, FileDigest, Run, RunStart, RunState, progress_steps};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -61,6 +61,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             "the checkpoint is at step {first}, past the run's {total} steps: raise --steps"
         );
     }
+    let flow_logged = run_start.state.flow_logged;
     let options = Options {
         structure: args.structure,
         grid_build: args.grid_build,
@@ -80,6 +81,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         radius_range: (r_min, r_max),
         coarse_warning,
         walls,
+        meshes,
         ..
     } = run;
     let mut pictures = if args.render_every == 0 {
@@ -97,6 +99,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         None => [&args.scene_file, &config.input, &config.mesh]
             .into_iter()
             .flatten()
+            .chain(config.wall.iter().map(|w| &w.mesh))
             .map(PathBuf::as_path)
             .collect(),
     };
@@ -114,20 +117,19 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         pictures.start_gif()?;
     }
     // The index first: on a resume it is read, and may be refused, before the run writes a file.
+    let resume_time = args.resume.as_ref().map(|_| first as f64 * p.dt as f64);
     let mut frames = if config.frame_every == 0 {
         None
-    } else if args.resume.is_some() {
-        Some(FrameSeries::open_for_resume(&out, first)?)
     } else {
-        Some(FrameSeries::create(&out)?)
-    };
-    let resume_time = args.resume.as_ref().map(|_| first as f64 * p.dt as f64);
-    let (wall_outputs, mut flow_log) = match frames {
-        Some(_) => (
-            WallOutputs::start(&out, &walls, resume_time)?,
-            FlowLog::start(&out, stepper.flow_counts(), resume_time)?,
-        ),
-        None => (None, None),
+        let series = match args.resume {
+            Some(_) => FrameSeries::open_for_resume(&out, first)?,
+            None => FrameSeries::create(&out)?,
+        };
+        Some(FrameOutputs {
+            walls: WallOutputs::start(&out, &walls, series.entries(), resume_time)?,
+            flow: FlowLog::start(&out, stepper.flow_counts(), resume_time, flow_logged)?,
+            series,
+        })
     };
     eprintln!(
         "scene {} | {n} spheres | steps {first}..{total} | {} | restitution {} | backend {}",
@@ -154,20 +156,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     io::write_atomically(&out.join(io::SCENE_FILE), |w| {
         w.write_all(scene_toml.as_bytes())
     })?;
-    let mut write_frame =
-        |frames: &mut Option<FrameSeries>, stepper: &mut dyn Stepper| -> Result<()> {
-            if let Some(series) = frames {
-                let now = stepper.particles()?;
-                series.write(&Frame::of(&now, p.dt, p.friction.has_history()), config.csv)?;
-                if let Some(walls) = &wall_outputs {
-                    walls.write(series.entries(), now.step, p.dt, &stepper.wall_loads())?;
-                }
-                if let (Some(log), Some(counts)) = (&mut flow_log, stepper.flow_counts()) {
-                    log.write(now.step as f64 * p.dt as f64, now.len(), counts)?;
-                }
-            }
-            Ok(())
-        };
+    let write_frame = |frames: &mut Option<FrameOutputs>, stepper: &mut dyn Stepper| match frames {
+        Some(frames) => frames.write(stepper, &p, config.csv),
+        None => Ok(()),
+    };
     let draw = |pictures: &mut Option<FrameRenderer>, stepper: &mut dyn Stepper| -> Result<()> {
         if let Some(pictures) = pictures {
             let now = stepper.particles()?;
@@ -227,7 +219,8 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             draw(&mut pictures, stepper.as_mut())?;
         }
         if due(args.checkpoint_every, step) {
-            io::write_checkpoint(&checkpoint, &stepper.particles()?, &scene_toml)?;
+            let state = state_toml(stepper.as_ref(), &frames, &meshes);
+            io::write_checkpoint(&checkpoint, &stepper.particles()?, &scene_toml, &state)?;
         }
         bar.set_message(format!("{contacts} contacts"));
         bar.set_position(step - first);
@@ -236,15 +229,15 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let wall = started.elapsed().as_secs_f64();
     let end = stepper.particles()?;
     let measured = match config.scene {
-        SceneKind::Hopper => flow_log
-            .as_ref()
+        SceneKind::Hopper => (frames.as_ref().and_then(|f| f.flow.as_ref()))
             .and_then(|log| equipment::mass_flow_rate(log.discharge()))
             .map(|w| format!("hopper: steady mass flow rate {w:.4e} kg/s (see flow.csv)")),
         SceneKind::Drum => equipment::free_surface_angle(&end.positions, &end.radii)
             .map(|a| format!("drum: free surface at {a:.1}° to the horizontal")),
         _ => None,
     };
-    io::write_checkpoint(&checkpoint, &end, &scene_toml)?;
+    let state = state_toml(stepper.as_ref(), &frames, &meshes);
+    io::write_checkpoint(&checkpoint, &end, &scene_toml, &state)?;
     summary(&SummaryLine {
         backend: stepper.describe(),
         n,
@@ -269,6 +262,46 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         eprintln!("wrote {}", gif.display());
     }
     Ok(())
+}
+
+/// What a run writes with every frame: the frame and the index, the walls' surfaces, index and
+/// loads, and the flow log.
+struct FrameOutputs {
+    series: FrameSeries,
+    walls: Option<WallOutputs>,
+    flow: Option<FlowLog>,
+}
+
+impl FrameOutputs {
+    /// Writes the frame of the particles of `stepper` (and CSV beside it where `csv`), with the
+    /// walls and the flows then.
+    fn write(&mut self, stepper: &mut dyn Stepper, p: &StepParams, csv: bool) -> Result<()> {
+        let now = stepper.particles()?;
+        let series = &mut self.series;
+        series.write(&Frame::of(&now, p.dt, p.friction.has_history()), csv)?;
+        if let Some(walls) = &mut self.walls {
+            walls.write(series.entries(), now.step, p.dt, &stepper.wall_loads())?;
+        }
+        if let (Some(log), Some(counts)) = (&mut self.flow, stepper.flow_counts()) {
+            log.write(now.step as f64 * p.dt as f64, now.len(), counts)?;
+        }
+        Ok(())
+    }
+}
+
+/// The run's state besides its particles, as its checkpoints save it.
+fn state_toml(
+    stepper: &dyn Stepper,
+    frames: &Option<FrameOutputs>,
+    meshes: &[FileDigest],
+) -> String {
+    let flow_log = frames.as_ref().and_then(|f| f.flow.as_ref());
+    RunState {
+        flow: stepper.flow_counts(),
+        flow_logged: flow_log.map(FlowLog::last),
+        meshes: meshes.to_vec(),
+    }
+    .to_toml()
 }
 
 struct SummaryLine {

@@ -586,6 +586,7 @@ impl SceneConfig {
         let text = read_scene_file(path)?;
         let (mut config, given) = Self::parse_table(text.as_deref(), path, flags, overrides)?;
         config.rebase(path);
+        config.make_paths_absolute()?;
         let source = config.scene.source();
         let scene_option = match source {
             Source::Input => "--input/--scene",
@@ -640,17 +641,32 @@ impl SceneConfig {
         Ok(config)
     }
 
+    /// The scene's input and mesh paths.
+    fn paths_mut(&mut self) -> impl Iterator<Item = &mut PathBuf> {
+        let walls = self.wall.iter_mut().map(|w| &mut w.mesh);
+        let files = [&mut self.input, &mut self.mesh].into_iter().flatten();
+        files.chain(walls)
+    }
+
     /// Takes relative input and mesh paths from the folder of `origin`.
     fn rebase(&mut self, origin: Option<&Path>) {
         if let Some(dir) = origin.and_then(Path::parent) {
-            let walls = self.wall.iter_mut().map(|w| &mut w.mesh);
-            let files = [&mut self.input, &mut self.mesh].into_iter().flatten();
-            for path in files.chain(walls) {
-                if path.is_relative() {
-                    *path = dir.join(&*path);
-                }
+            for path in self.paths_mut().filter(|p| p.is_relative()) {
+                *path = dir.join(&*path);
             }
         }
+    }
+
+    /// Makes every input and mesh path absolute (from the current folder), so that the scene
+    /// saved in a run's folder and its checkpoints names the same files from anywhere.
+    fn make_paths_absolute(&mut self) -> Result<()> {
+        for path in self.paths_mut().filter(|p| p.is_relative()) {
+            *path = std::path::absolute(&*path).map_err(|error| Error::Io {
+                path: path.clone(),
+                error,
+            })?;
+        }
+        Ok(())
     }
 
     /// The scene and the table of the fields the text, the flags and the overrides give.
@@ -1017,6 +1033,7 @@ impl SceneConfig {
             outflows,
             floor: (!self.box_walls).then_some(floor as f32),
             every: self.flow_every,
+            counted: Default::default(),
         })
     }
 

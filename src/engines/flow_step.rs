@@ -89,11 +89,11 @@ impl FlowStep {
             },
             reopen,
             every: flow.every(true),
+            counts: flow.counted,
             flow,
             dt,
             density,
             r_max: 0.0,
-            counts: FlowCounts::default(),
             described: String::new(),
         };
         step.open(particles)?;

@@ -1,13 +1,15 @@
-//! Checkpoints: the particles, their contact history, the step count and the scene (as TOML)
-//! in one little-endian binary file, written atomically so the file on disk is always a whole
-//! checkpoint.
+//! Checkpoints: the particles, their contact history, the step count, the scene (as TOML) and
+//! the run's state besides the particles (as TOML: what its flows did, digests of the files it
+//! reads) in one little-endian binary file, written atomically so the file on disk is always a
+//! whole checkpoint.
 //!
-//! Layout (version 3): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
-//! (UTF-8), then n·3 f32 positions, n·3 f32 velocities, n·3 f32 angular velocities, n f32
+//! Layout (version 4): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
+//! (UTF-8), state length u64, state TOML (UTF-8), then n·3 f32 positions, n·3 f32 velocities, n·3 f32 angular velocities, n f32
 //! radii, the number of history entries u64 and each entry as owner u32, partner u32, 3 f32
 //! tangential spring, 3 f32 rolling spring (owners in order), and last the CRC-32 (u32) of
-//! every byte before it: a damaged file is refused rather than resumed. Version 2 (no angular
-//! velocities, no history) is still read, as spheres at rest in rotation without history.
+//! every byte before it: a damaged file is refused rather than resumed. Version 3 (no state) is
+//! still read with an empty state, and version 2 (no angular velocities, no history) as spheres
+//! at rest in rotation without history.
 
 use super::{io_error, write_atomically};
 use crate::error::{Error, Result};
@@ -15,14 +17,31 @@ use crate::particles::{ContactHistory, HistoryEntry, Particles};
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"MOCHICKP";
-const VERSION: u32 = 3;
+const VERSION: u32 = 4;
 /// The oldest version this mochi reads.
 const OLDEST: u32 = 2;
 /// Bytes of one history entry: owner, partner and six f32.
 const ENTRY_BYTES: usize = 32;
 
-/// Writes `particles` and `scene` (TOML) to `path`, atomically.
-pub fn write_checkpoint(path: &Path, particles: &Particles, scene: &str) -> Result<()> {
+/// What a checkpoint holds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Checkpoint {
+    /// The particles (their step included).
+    pub particles: Particles,
+    /// The scene, as TOML.
+    pub scene: String,
+    /// The run's state besides the particles, as TOML (empty in checkpoints of version 3 and
+    /// older).
+    pub state: String,
+}
+
+/// Writes `particles`, `scene` (TOML) and the run's `state` (TOML) to `path`, atomically.
+pub fn write_checkpoint(
+    path: &Path,
+    particles: &Particles,
+    scene: &str,
+    state: &str,
+) -> Result<()> {
     let floats = particles
         .positions
         .iter()
@@ -32,7 +51,7 @@ pub fn write_checkpoint(path: &Path, particles: &Particles, scene: &str) -> Resu
         .chain(&particles.radii);
     let history = &particles.history;
     let mut bytes = Vec::with_capacity(
-        48 + scene.len() + 40 * particles.len() + ENTRY_BYTES * history.len() + 4,
+        56 + scene.len() + state.len() + 40 * particles.len() + ENTRY_BYTES * history.len() + 4,
     );
     bytes.extend_from_slice(MAGIC);
     bytes.extend_from_slice(&VERSION.to_le_bytes());
@@ -40,6 +59,8 @@ pub fn write_checkpoint(path: &Path, particles: &Particles, scene: &str) -> Resu
     bytes.extend_from_slice(&(particles.len() as u64).to_le_bytes());
     bytes.extend_from_slice(&(scene.len() as u64).to_le_bytes());
     bytes.extend_from_slice(scene.as_bytes());
+    bytes.extend_from_slice(&(state.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(state.as_bytes());
     bytes.extend(floats.flat_map(|x| x.to_le_bytes()));
     bytes.extend_from_slice(&(history.len() as u64).to_le_bytes());
     for (owner, e) in history.contacts() {
@@ -54,8 +75,8 @@ pub fn write_checkpoint(path: &Path, particles: &Particles, scene: &str) -> Resu
     write_atomically(path, |out| out.write_all(&bytes))
 }
 
-/// Reads a checkpoint: the particles and the scene TOML it was saved with.
-pub fn read_checkpoint(path: &Path) -> Result<(Particles, String)> {
+/// Reads a checkpoint.
+pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
     let bytes = std::fs::read(path).map_err(io_error(path))?;
     let bad = |msg: String| Error::Parse {
         path: path.to_owned(),
@@ -93,6 +114,13 @@ pub fn read_checkpoint(path: &Path) -> Result<(Particles, String)> {
     let n = u64_at(take(8, "sphere count")?);
     let scene_len = u64_at(take(8, "scene length")?);
     let scene = take(scene_len.try_into().unwrap_or(usize::MAX), "scene")?;
+    let state = match version >= 4 {
+        true => {
+            let len = u64_at(take(8, "state length")?);
+            take(len.try_into().unwrap_or(usize::MAX), "state")?
+        }
+        false => &[][..],
+    };
     let per_sphere = if spins { 10 } else { 7 };
     let floats = n
         .checked_mul(per_sphere * 4)
@@ -123,6 +151,9 @@ pub fn read_checkpoint(path: &Path) -> Result<(Particles, String)> {
     }
     let scene = std::str::from_utf8(scene)
         .map_err(|_| bad("the scene is not UTF-8".into()))?
+        .to_owned();
+    let state = std::str::from_utf8(state)
+        .map_err(|_| bad("the run's state is not UTF-8".into()))?
         .to_owned();
     let f32_at = |c: &[u8]| f32::from_le_bytes(c.try_into().expect("4 bytes"));
     let u32_at = |c: &[u8]| u32::from_le_bytes(c.try_into().expect("4 bytes"));
@@ -163,7 +194,11 @@ pub fn read_checkpoint(path: &Path) -> Result<(Particles, String)> {
     {
         return Err(bad(format!("sphere {i} has radius {}", particles.radii[i])));
     }
-    Ok((particles, scene))
+    Ok(Checkpoint {
+        particles,
+        scene,
+        state,
+    })
 }
 
 #[cfg(test)]
@@ -202,17 +237,18 @@ mod tests {
     fn a_checkpoint_round_trips_bit_for_bit() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
-        write_checkpoint(&path, &sample(), "scene = \"slab\"\n").unwrap();
-        let (p, scene) = read_checkpoint(&path).unwrap();
-        assert_eq!(p, sample());
-        assert_eq!(scene, "scene = \"slab\"\n");
+        write_checkpoint(&path, &sample(), "scene = \"slab\"\n", "[flow]\n").unwrap();
+        let c = read_checkpoint(&path).unwrap();
+        assert_eq!(c.particles, sample());
+        assert_eq!(c.scene, "scene = \"slab\"\n");
+        assert_eq!(c.state, "[flow]\n");
     }
 
     #[test]
     fn damaged_checkpoints_are_errors() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
-        write_checkpoint(&path, &sample(), "x").unwrap();
+        write_checkpoint(&path, &sample(), "x", "").unwrap();
         let whole = std::fs::read(&path).unwrap();
         for cut in [0, 5, 20, whole.len() - 1] {
             std::fs::write(&path, &whole[..cut]).unwrap();
@@ -246,13 +282,16 @@ mod tests {
     fn a_flipped_bit_anywhere_is_caught_by_the_checksum() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
-        let scene = "scene = \"slab\"\n";
-        write_checkpoint(&path, &sample(), scene).unwrap();
+        let (scene, state) = ("scene = \"slab\"\n", "[flow]\ninserted = 3\n");
+        write_checkpoint(&path, &sample(), scene, state).unwrap();
         let whole = std::fs::read(&path).unwrap();
-        // The step, the scene, the sphere data and the history (damage to the magic, version
-        // or a length reads as a foreign, older or truncated file).
-        let history_length = 36 + scene.len() + 40 * sample().len();
-        let data = (36..history_length).chain(history_length + 8..whole.len());
+        // The step, the scene, the state, the sphere data and the history (damage to the
+        // magic, version or a length reads as a foreign, older or truncated file).
+        let state_length = 36 + scene.len();
+        let history_length = state_length + 8 + state.len() + 40 * sample().len();
+        let data = (36..state_length)
+            .chain(state_length + 8..history_length)
+            .chain(history_length + 8..whole.len());
         for at in (12..20).chain(data) {
             let mut flipped = whole.clone();
             flipped[at] ^= 0x10;
@@ -284,21 +323,41 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
         std::fs::write(&path, &bytes).unwrap();
-        let (read, scene) = read_checkpoint(&path).unwrap();
-        assert_eq!(scene, "x");
+        let read = read_checkpoint(&path).unwrap();
+        assert_eq!((read.scene.as_str(), read.state.as_str()), ("x", ""));
         let expected = Particles {
             angular_velocities: vec![[0.0; 3]; 2],
             history: ContactHistory::default(),
             ..p
         };
-        assert_eq!(read, expected);
+        assert_eq!(read.particles, expected);
+    }
+
+    #[test]
+    fn a_version_3_checkpoint_reads_with_an_empty_state() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        write_checkpoint(&path, &sample(), "x", "").unwrap();
+        // Version 4 with an empty state is version 3 with a zero length after the scene.
+        let v4 = std::fs::read(&path).unwrap();
+        let mut v3 = v4[..37].to_vec();
+        v3[8..12].copy_from_slice(&3u32.to_le_bytes());
+        v3.extend_from_slice(&v4[45..v4.len() - 4]);
+        let crc = crc32fast::hash(&v3);
+        v3.extend_from_slice(&crc.to_le_bytes());
+        std::fs::write(&path, &v3).unwrap();
+        let read = read_checkpoint(&path).unwrap();
+        assert_eq!(
+            (read.particles, read.scene.as_str(), read.state.as_str()),
+            (sample(), "x", "")
+        );
     }
 
     #[test]
     fn an_older_checkpoint_version_is_refused_by_name() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
-        write_checkpoint(&path, &sample(), "x").unwrap();
+        write_checkpoint(&path, &sample(), "x", "").unwrap();
         let mut old = std::fs::read(&path).unwrap();
         old[8..12].copy_from_slice(&1u32.to_le_bytes());
         std::fs::write(&path, &old).unwrap();

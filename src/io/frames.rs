@@ -24,7 +24,7 @@
 //! Every file is written through [`write_atomically`]: a killed run leaves each frame and the
 //! index either whole or as it was, and a frame is always written before the index that names it.
 
-use super::{io_error, parse_error, write_atomically};
+use super::{collection, io_error, parse_error, write_atomically};
 use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, Particles};
 use npyz::WriterBuilder;
@@ -344,14 +344,14 @@ fn write_block(
 }
 
 /// Gathers small values into 64 KiB writes (one dynamic call per chunk, not per value).
-struct Chunked<'o> {
+pub(super) struct Chunked<'o> {
     out: &'o mut dyn Write,
     buf: Box<[u8; 1 << 16]>,
     used: usize,
 }
 
 impl<'o> Chunked<'o> {
-    fn new(out: &'o mut dyn Write) -> Self {
+    pub(super) fn new(out: &'o mut dyn Write) -> Self {
         Self {
             out,
             buf: Box::new([0; 1 << 16]),
@@ -359,7 +359,7 @@ impl<'o> Chunked<'o> {
         }
     }
 
-    fn put<const W: usize>(&mut self, bytes: [u8; W]) -> std::io::Result<()> {
+    pub(super) fn put<const W: usize>(&mut self, bytes: [u8; W]) -> std::io::Result<()> {
         if self.used + W > self.buf.len() {
             self.flush()?;
         }
@@ -368,7 +368,7 @@ impl<'o> Chunked<'o> {
         Ok(())
     }
 
-    fn flush(&mut self) -> std::io::Result<()> {
+    pub(super) fn flush(&mut self) -> std::io::Result<()> {
         self.out.write_all(&self.buf[..self.used])?;
         self.used = 0;
         Ok(())
@@ -470,6 +470,11 @@ impl SeriesEntry {
     pub fn file_name(&self) -> String {
         frame_stem(self.step) + ".vtu"
     }
+
+    /// The frame's line in the index.
+    fn line(&self) -> String {
+        collection::entry_line(self.time, 0, &self.file_name())
+    }
 }
 
 fn frame_stem(step: u64) -> String {
@@ -478,7 +483,7 @@ fn frame_stem(step: u64) -> String {
 
 /// A directory of frames (`frame_{step:08}.vtu`, optionally `.csv`) and their index
 /// [`SERIES_INDEX`], which lists them in step order. Each [`FrameSeries::write`] writes the frame
-/// first and then replaces the index, so the index never names a missing or partial file.
+/// first and then adds it to the index, so the index never names a missing or partial file.
 #[derive(Debug)]
 pub struct FrameSeries {
     dir: PathBuf,
@@ -521,8 +526,9 @@ impl FrameSeries {
         Ok(Self { entries, ..series })
     }
 
-    /// Writes `frame` as `frame_{step:08}.vtu` (and `.csv` when `csv`), then the index with the
-    /// frame added (replacing an entry of the same step). Returns the `.vtu` path. On an error
+    /// Writes `frame` as `frame_{step:08}.vtu` (and `.csv` when `csv`), then adds it to the
+    /// index: its entry appended after the last (a frame of the last step or before rewrites
+    /// the index with the frame in its place). Returns the `.vtu` path. On an error
     /// the index and [`FrameSeries::entries`] are as before.
     pub fn write(&mut self, frame: &Frame, csv: bool) -> Result<PathBuf> {
         let stem = frame_stem(frame.step);
@@ -531,13 +537,23 @@ impl FrameSeries {
         if csv {
             write_frame_csv(&self.dir.join(format!("{stem}.csv")), frame)?;
         }
-        let mut entries = self.entries.clone();
-        entries.retain(|e| e.step != frame.step);
-        let at = entries.partition_point(|e| e.step < frame.step);
         let entry = SeriesEntry {
             step: frame.step,
             time: frame.time,
         };
+        if self
+            .entries
+            .last()
+            .is_none_or(|last| last.step < frame.step)
+        {
+            // The usual case, a frame after the last: only its entry is written.
+            collection::append_entries(&self.index_path(), &entry.line())?;
+            self.entries.push(entry);
+            return Ok(vtu);
+        }
+        let mut entries = self.entries.clone();
+        entries.retain(|e| e.step != frame.step);
+        let at = entries.partition_point(|e| e.step < frame.step);
         entries.insert(at, entry);
         write_index(&self.index_path(), &entries)?;
         self.entries = entries;
@@ -561,22 +577,8 @@ impl FrameSeries {
 }
 
 fn write_index(path: &Path, entries: &[SeriesEntry]) -> Result<()> {
-    write_atomically(path, |out| {
-        out.write_all(
-            b"<?xml version=\"1.0\"?>\n\
-              <VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n  \
-              <Collection>\n",
-        )?;
-        for e in entries {
-            writeln!(
-                out,
-                r#"    <DataSet timestep="{}" group="" part="0" file="{}"/>"#,
-                e.time,
-                e.file_name()
-            )?;
-        }
-        out.write_all(b"  </Collection>\n</VTKFile>\n")
-    })
+    let lines: String = entries.iter().map(SeriesEntry::line).collect();
+    collection::write_collection(path, &lines)
 }
 
 /// Reads the frames listed in a series index ([`SERIES_INDEX`]) this module wrote, in its order.

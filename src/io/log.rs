@@ -1,7 +1,7 @@
 //! CSV logs a run appends rows to as it goes (`walls.csv`, `flow.csv`): started with a header,
-//! or on a resume cut back to the rows up to the resume's time (the first column), then
-//! appended to. Each append rewrites the file through [`write_atomically`], so a killed run
-//! leaves it whole.
+//! or on a resume cut back to the whole rows up to the resume's time (the first column), then
+//! appended to. Each append is one write of whole rows at the end of the file, so a frame costs
+//! its own rows, never the whole log; a resume drops a row a killed run left without its end.
 
 use super::{io_error, write_atomically};
 use crate::error::Result;
@@ -19,8 +19,9 @@ pub fn start_log(path: &std::path::Path, header: &str, resume_time: Option<f64>)
     let kept: String = match resume_time {
         Some(t) if path.exists() => {
             let text = std::fs::read_to_string(path).map_err(io_error(path))?;
-            text.lines()
+            text.split_inclusive('\n')
                 .skip(1)
+                .filter_map(|line| line.strip_suffix('\n'))
                 .filter(|line| {
                     let time = line.split(',').next().and_then(|x| x.parse::<f64>().ok());
                     time.is_some_and(|x| x <= t)
@@ -36,13 +37,14 @@ pub fn start_log(path: &std::path::Path, header: &str, resume_time: Option<f64>)
     })
 }
 
-/// Appends `lines` (each ending in a newline) to the log `path`.
+/// Appends `lines` (each ending in a newline) to the log `path`, which [`start_log`] started.
 pub fn append_log(path: &std::path::Path, lines: &str) -> Result<()> {
-    let before = std::fs::read(path).map_err(io_error(path))?;
-    write_atomically(path, |out| {
-        out.write_all(&before)?;
-        out.write_all(lines.as_bytes())
-    })
+    use std::io::Write;
+    std::fs::File::options()
+        .append(true)
+        .open(path)
+        .and_then(|mut file| file.write_all(lines.as_bytes()))
+        .map_err(io_error(path))
 }
 
 #[cfg(test)]
@@ -61,6 +63,11 @@ mod tests {
         start_log(&path, "time,x", Some(0.1)).unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(text, "time,x\n0e0,1\n1e-1,2\n");
+        // A row a killed run left without its end is dropped.
+        append_log(&path, "2e-1,3\n3e-1,").unwrap();
+        start_log(&path, "time,x", Some(1.0)).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(text, "time,x\n0e0,1\n1e-1,2\n2e-1,3\n");
         start_log(&path, "time,x", None).unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "time,x\n");
     }

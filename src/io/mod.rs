@@ -10,6 +10,7 @@
 
 mod atomic;
 mod checkpoint;
+mod collection;
 mod frame_read;
 mod frames;
 mod log;
@@ -19,7 +20,8 @@ mod spheres;
 mod walls;
 
 pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};
-pub use checkpoint::{read_checkpoint, write_checkpoint};
+pub use checkpoint::{Checkpoint, read_checkpoint, write_checkpoint};
+pub use collection::{append_entries, entry_line, write_collection};
 pub use frame_read::{OwnedFrame, read_frame, read_vtu};
 pub use frames::{
     Frame, FrameSeries, SERIES_INDEX, SeriesEntry, read_series_index, write_frame, write_frame_csv,
@@ -33,8 +35,8 @@ pub use run_folder::{
 };
 pub use spheres::{read_particles, read_spheres, write_spheres};
 pub use walls::{
-    WALL_LOADS, WALL_LOADS_HEADER, WALLS_INDEX, WallLoadRow, wall_file_name, wall_load_lines,
-    write_surface_vtp, write_walls_index,
+    WALL_LOADS, WALL_LOADS_HEADER, WALLS_INDEX, WallLoadRow, is_wall_file_name, wall_file_name,
+    wall_load_lines, write_surface_vtp,
 };
 
 use crate::error::Error;

@@ -1,7 +1,10 @@
 //! The output folder of a simulation run: locked while the run writes into it, and told apart
 //! from a folder that holds an earlier run.
 
-use super::{SERIES_INDEX, io_error, remove_stale_temp_files};
+use super::{
+    FLOW_LOG, SERIES_INDEX, WALL_LOADS, WALLS_INDEX, io_error, is_wall_file_name,
+    remove_stale_temp_files,
+};
 use crate::error::{Error, Result};
 use std::fs::{File, TryLockError};
 use std::path::{Path, PathBuf};
@@ -18,9 +21,14 @@ pub const SCENE_FILE: &str = "scene.toml";
 pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 
 /// Whether `name` is the name of a file `mochi simulate` writes into its output folder: the
-/// index, the scene, the checkpoint, or a frame `frame_<step>.vtu`, `.csv` or `.png`.
+/// index, the scene, the checkpoint, a frame `frame_<step>.vtu`, `.csv` or `.png`, the walls'
+/// surfaces, index and loads, or the flows' log.
 pub fn is_run_file_name(name: &str) -> bool {
-    if [SERIES_INDEX, SCENE_FILE, CHECKPOINT_FILE].contains(&name) {
+    let logs = [WALLS_INDEX, WALL_LOADS, FLOW_LOG];
+    if [SERIES_INDEX, SCENE_FILE, CHECKPOINT_FILE].contains(&name)
+        || logs.contains(&name)
+        || is_wall_file_name(name)
+    {
         return true;
     }
     let step = name.strip_prefix("frame_").and_then(|rest| {
@@ -162,6 +170,11 @@ mod tests {
             "frame_00000000.vtu",
             "frame_00012345.csv",
             "frame_123456789.png",
+            "walls.pvd",
+            "walls.csv",
+            "flow.csv",
+            "wall_00000100_0.vtp",
+            "wall_2.vtp",
         ] {
             assert!(is_run_file_name(name), "{name}");
         }
@@ -192,12 +205,19 @@ mod tests {
     fn clear_removes_the_run_files_only() {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
-        for name in ["series.pvd", "frame_00000010.vtu", "notes.txt", "start.csv"] {
+        let run = [
+            "series.pvd",
+            "frame_00000010.vtu",
+            "walls.pvd",
+            "wall_0.vtp",
+            "flow.csv",
+        ];
+        for name in run.iter().chain(&["notes.txt", "start.csv"]) {
             std::fs::write(d.join(name), b"x").unwrap();
         }
         let folder = RunFolder::lock(d).unwrap();
-        assert_eq!(folder.clear().unwrap(), 2);
-        assert!(!d.join("series.pvd").exists() && !d.join("frame_00000010.vtu").exists());
+        assert_eq!(folder.clear().unwrap(), run.len());
+        assert!(run.iter().all(|name| !d.join(name).exists()));
         assert!(d.join("notes.txt").exists() && d.join("start.csv").exists());
     }
 }

@@ -1,10 +1,12 @@
-//! What a run writes of its mesh walls: each wall's surface at each frame as a VTK XML PolyData
-//! file (`wall_{step:08}_{k}.vtp`, ASCII), a ParaView collection of them (`walls.pvd`, the wall
-//! as the part), and the force and torque on each wall per frame (`walls.csv`: `time, wall, fx,
-//! fy, fz, tx, ty, tz`; N and N·m, the torque about the wall's rotation centre; appended
-//! through [`super::append_log`]). Every file is written through [`write_atomically`].
+//! What a run writes of its mesh walls: each wall's surface as a VTK XML PolyData file (binary,
+//! appended raw data), once for a wall that never moves (`wall_{k}.vtp`) and at each frame for
+//! one that moves (`wall_{step:08}_{k}.vtp`); a ParaView collection of them (`walls.pvd`, the
+//! wall as the part, grown a frame at a time); and the force and torque on each wall per frame
+//! (`walls.csv`: `time, wall, fx, fy, fz, tx, ty, tz`; N and N·m, the torque about the wall's
+//! rotation centre; appended through [`super::append_log`]). Surfaces are written through
+//! [`write_atomically`].
 
-use super::frames::SeriesEntry;
+use super::frames::Chunked;
 use super::write_atomically;
 use crate::error::Result;
 use std::path::Path;
@@ -18,69 +20,69 @@ pub const WALL_LOADS: &str = "walls.csv";
 /// Header of [`WALL_LOADS`].
 pub const WALL_LOADS_HEADER: &str = "time,wall,fx,fy,fz,tx,ty,tz";
 
-/// The file of wall `k`'s surface at step `step`.
-pub fn wall_file_name(step: u64, k: usize) -> String {
-    format!("wall_{step:08}_{k}.vtp")
+/// The file of wall `k`'s surface: at step `step` for a wall that moves, or its one file
+/// (`None`) for a wall that never does.
+pub fn wall_file_name(step: Option<u64>, k: usize) -> String {
+    match step {
+        Some(step) => format!("wall_{step:08}_{k}.vtp"),
+        None => format!("wall_{k}.vtp"),
+    }
 }
 
-/// Writes a triangle surface: `triangles` index `points`.
-pub fn write_surface_vtp(path: &Path, points: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<()> {
-    write_atomically(path, |out| {
-        writeln!(
-            out,
-            "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\" \
-             byte_order=\"LittleEndian\">\n  <PolyData>\n    <Piece NumberOfPoints=\"{}\" \
-             NumberOfPolys=\"{}\">\n      <Points>\n        <DataArray type=\"Float32\" \
-             NumberOfComponents=\"3\" format=\"ascii\">",
-            points.len(),
-            triangles.len()
-        )?;
-        for p in points {
-            writeln!(out, "{} {} {}", p[0], p[1], p[2])?;
-        }
-        writeln!(
-            out,
-            "        </DataArray>\n      </Points>\n      <Polys>\n        <DataArray \
-             type=\"UInt32\" Name=\"connectivity\" format=\"ascii\">"
-        )?;
-        for t in triangles {
-            writeln!(out, "{} {} {}", t[0], t[1], t[2])?;
-        }
-        writeln!(
-            out,
-            "        </DataArray>\n        <DataArray type=\"UInt32\" Name=\"offsets\" \
-             format=\"ascii\">"
-        )?;
-        for k in 1..=triangles.len() {
-            writeln!(out, "{}", 3 * k)?;
-        }
-        writeln!(
-            out,
-            "        </DataArray>\n      </Polys>\n    </Piece>\n  </PolyData>\n</VTKFile>"
-        )
-    })
+/// Whether `name` is a name of [`wall_file_name`].
+pub fn is_wall_file_name(name: &str) -> bool {
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    name.strip_prefix("wall_")
+        .and_then(|rest| rest.strip_suffix(".vtp"))
+        .is_some_and(|rest| match rest.split_once('_') {
+            Some((step, k)) => digits(step) && digits(k),
+            None => digits(rest),
+        })
 }
 
-/// Writes the collection of `walls` walls at the frames `entries` (their files
-/// [`wall_file_name`]) to `path`.
-pub fn write_walls_index(path: &Path, entries: &[SeriesEntry], walls: usize) -> Result<()> {
+/// Writes a triangle surface, each triangle its own three points, as binary PolyData.
+pub fn write_surface_vtp(path: &Path, triangles: &[[[f32; 3]; 3]]) -> Result<()> {
+    let n = triangles.len() as u64;
+    let blocks = [
+        ("Points", 36 * n),
+        ("connectivity", 12 * n),
+        ("offsets", 4 * n),
+    ];
+    let mut offsets = [0u64; 3];
+    for k in 1..3 {
+        offsets[k] = offsets[k - 1] + 8 + blocks[k - 1].1;
+    }
+    let header = format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" \
+         byte_order=\"LittleEndian\" header_type=\"UInt64\">\n  <PolyData>\n    <Piece \
+         NumberOfPoints=\"{points}\" NumberOfPolys=\"{n}\">\n      <Points>\n        <DataArray \
+         type=\"Float32\" NumberOfComponents=\"3\" format=\"appended\" offset=\"{}\"/>\n      \
+         </Points>\n      <Polys>\n        <DataArray type=\"UInt32\" Name=\"connectivity\" \
+         format=\"appended\" offset=\"{}\"/>\n        <DataArray type=\"UInt32\" \
+         Name=\"offsets\" format=\"appended\" offset=\"{}\"/>\n      </Polys>\n    </Piece>\n  \
+         </PolyData>\n  <AppendedData encoding=\"raw\">\n   _",
+        offsets[0],
+        offsets[1],
+        offsets[2],
+        points = 3 * n,
+    );
     write_atomically(path, |out| {
-        out.write_all(
-            b"<?xml version=\"1.0\"?>\n\
-              <VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n  \
-              <Collection>\n",
-        )?;
-        for e in entries {
-            for k in 0..walls {
-                writeln!(
-                    out,
-                    r#"    <DataSet timestep="{}" group="" part="{k}" file="{}"/>"#,
-                    e.time,
-                    wall_file_name(e.step, k)
-                )?;
-            }
+        out.write_all(header.as_bytes())?;
+        let mut chunked = Chunked::new(out);
+        chunked.put(blocks[0].1.to_le_bytes())?;
+        for x in triangles.iter().flatten().flatten() {
+            chunked.put(x.to_le_bytes())?;
         }
-        out.write_all(b"  </Collection>\n</VTKFile>\n")
+        chunked.put(blocks[1].1.to_le_bytes())?;
+        for i in 0..3 * n as u32 {
+            chunked.put(i.to_le_bytes())?;
+        }
+        chunked.put(blocks[2].1.to_le_bytes())?;
+        for t in 1..=n as u32 {
+            chunked.put((3 * t).to_le_bytes())?;
+        }
+        chunked.flush()?;
+        out.write_all(b"\n  </AppendedData>\n</VTKFile>\n")
     })
 }
 
@@ -131,28 +133,55 @@ mod tests {
     }
 
     #[test]
-    fn a_surface_file_lists_its_points_and_triangles() {
+    fn wall_file_names_tell_moving_walls_from_resting_ones() {
+        assert_eq!(wall_file_name(Some(10), 2), "wall_00000010_2.vtp");
+        assert_eq!(wall_file_name(None, 3), "wall_3.vtp");
+        for name in ["wall_00000010_2.vtp", "wall_3.vtp"] {
+            assert!(is_wall_file_name(name), "{name}");
+        }
+        for name in [
+            "wall_.vtp",
+            "wall_1_.vtp",
+            "wall_a.vtp",
+            "wall_1.vtu",
+            "walls.pvd",
+        ] {
+            assert!(!is_wall_file_name(name), "{name}");
+        }
+    }
+
+    #[test]
+    fn a_surface_file_holds_its_triangles_in_binary() {
         let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join(wall_file_name(10, 2));
-        assert!(path.ends_with("wall_00000010_2.vtp"));
-        let points = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
-        write_surface_vtp(&path, &points, &[[0, 1, 2]]).unwrap();
-        let text = std::fs::read_to_string(&path).unwrap();
+        let path = dir.path().join(wall_file_name(None, 0));
+        let triangles = [
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.5]],
+        ];
+        write_surface_vtp(&path, &triangles).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let opening = b"<AppendedData encoding=\"raw\">\n   _";
+        let at = bytes
+            .windows(opening.len())
+            .position(|w| w == opening)
+            .unwrap()
+            + opening.len();
+        let text = String::from_utf8_lossy(&bytes);
         assert!(
-            text.contains("NumberOfPoints=\"3\" NumberOfPolys=\"1\""),
+            text.contains("NumberOfPoints=\"6\" NumberOfPolys=\"2\""),
             "{text}"
         );
-        assert!(
-            text.contains("0 1 2\n") && text.contains("1 0 0\n"),
-            "{text}"
-        );
-        let index = dir.path().join(WALLS_INDEX);
-        let entries = [SeriesEntry {
-            step: 10,
-            time: 0.5,
-        }];
-        write_walls_index(&index, &entries, 2).unwrap();
-        let text = std::fs::read_to_string(&index).unwrap();
-        assert!(text.contains(r#"timestep="0.5" group="" part="1" file="wall_00000010_1.vtp""#));
+        // The data after `_`: each block its byte count (u64), then its values.
+        let data = &bytes[at..];
+        let u64_at = |o: usize| u64::from_le_bytes(data[o..o + 8].try_into().unwrap());
+        let f32_at = |o: usize| f32::from_le_bytes(data[o..o + 4].try_into().unwrap());
+        let u32_at = |o: usize| u32::from_le_bytes(data[o..o + 4].try_into().unwrap());
+        assert_eq!(u64_at(0), 72);
+        assert_eq!(f32_at(8 + 4 * 17), 1.5);
+        assert_eq!(u64_at(80), 24);
+        assert_eq!((u32_at(88), u32_at(88 + 20)), (0, 5));
+        assert_eq!(u64_at(112), 8);
+        assert_eq!((u32_at(120), u32_at(124)), (3, 6));
+        assert!(text.ends_with("\n  </AppendedData>\n</VTKFile>\n"));
     }
 }

@@ -2,6 +2,7 @@
 //! without an adapter), the steppers of the backends that run here, and small scene builders.
 #![allow(dead_code)] // each test file uses the part it needs
 
+pub mod cli;
 pub mod rule_cases;
 
 use mochi::ProxyMode;

@@ -179,10 +179,15 @@ pub struct FlowSet {
     /// Steps between flow events (`None`: the backend's default, [`CPU_EVERY`] or
     /// [`GPU_EVERY`]).
     pub every: Option<u32>,
+    /// What the flows did before the step opened: nothing for a new run, a checkpoint's
+    /// totals for a resumed one. A step's [`FlowCounts`] go on from them.
+    pub counted: FlowCounts,
 }
 
-/// What the flows did, summed since the stepper opened.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+/// What the flows did, summed since the run started (a resumed run goes on from its
+/// checkpoint's totals, [`FlowSet::counted`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct FlowCounts {
     /// Spheres inserted.
     pub inserted: u64,

@@ -133,7 +133,8 @@ impl CpuStepper {
                 self.params.box_hi.map(|x| x + margin),
             );
         }
-        self.flow = Some((flow, FlowCounts::default()));
+        let counted = flow.counted;
+        self.flow = Some((flow, counted));
         self
     }
 
