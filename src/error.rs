@@ -238,6 +238,23 @@ pub(crate) fn try_vec<T>(n: usize, what: impl FnOnce() -> String) -> Result<Vec<
     Ok(v)
 }
 
+/// Resizes `v` to `n` items, new ones `value`, growing it fallibly (see [`try_vec`]).
+pub(crate) fn try_resize<T: Clone>(
+    v: &mut Vec<T>,
+    n: usize,
+    value: T,
+    what: impl FnOnce() -> String,
+) -> Result<()> {
+    if let Some(more) = n.checked_sub(v.len()) {
+        v.try_reserve_exact(more).map_err(|_| Error::OutOfMemory {
+            what: what(),
+            bytes: (n as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+        })?;
+    }
+    v.resize(n, value);
+    Ok(())
+}
+
 /// Pushes `item`, growing `v` fallibly (see [`try_vec`]).
 pub(crate) fn try_push<T>(v: &mut Vec<T>, item: T, what: impl FnOnce() -> String) -> Result<()> {
     if v.len() == v.capacity() {

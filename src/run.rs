@@ -201,7 +201,10 @@ impl RunStart {
         let coarse_warning = crate::coarse_coordinates(&particles.positions, &particles.radii);
         let params = self.start.params;
         let walls = self.start.walls.clone();
+        let flow = self.start.flow.clone();
         let (stepper, backend, auto_reason) = open_scene(choice, self.start, options)?;
+        let every = flow.every(backend != BackendKind::Cpu);
+        let flow_warning = flow.rate_warning(params.dt as f64, every);
         Ok(Run {
             config: self.config,
             meshes: self.state.meshes,
@@ -214,6 +217,7 @@ impl RunStart {
             first_step,
             radius_range,
             coarse_warning,
+            flow_warning,
             coincident_pairs,
         })
     }
@@ -241,6 +245,9 @@ pub struct Run {
     pub radius_range: (f32, f32),
     /// The warning of [`crate::coarse_coordinates`] for the starting centres, if any.
     pub coarse_warning: Option<String>,
+    /// The warning of [`crate::dem::flow::FlowSet::rate_warning`] for this run's flows and
+    /// backend, if any.
+    pub flow_warning: Option<String>,
     /// Pairs of spheres that shared their centre at the start.
     pub coincident_pairs: u64,
     /// The wall meshes the run reads, as they were at its start ([`RunState::meshes`]).

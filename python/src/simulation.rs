@@ -142,6 +142,7 @@ impl Simulation {
             run.overlap_warning(),
             run.coarse_warning.clone(),
             run.coincident_warning(),
+            run.flow_warning.clone(),
         ];
         for warning in warnings.into_iter().flatten() {
             let message = CString::new(warning).unwrap_or_default();

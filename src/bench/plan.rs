@@ -268,6 +268,9 @@ pub struct Plan {
     pub settings: Settings,
 }
 
+/// The most timed (and untimed) runs per measurement.
+pub const MAX_RUNS: usize = 10_000;
+
 /// Rebuild intervals swept on steps that refit (experiment 4), before `auto`.
 pub const REBUILD_INTERVALS: [u32; 6] = [1, 5, 10, 25, 50, 100];
 
@@ -282,6 +285,13 @@ impl Plan {
         };
         if self.settings.repeats == 0 {
             return bad("--repeats must be at least 1");
+        }
+        if self.settings.repeats > MAX_RUNS || self.settings.warmup > MAX_RUNS {
+            return bad(&format!(
+                "--repeats and --warmup must be at most {MAX_RUNS} each (runs of every \
+                 measurement), got {} and {}",
+                self.settings.repeats, self.settings.warmup
+            ));
         }
         if self.settings.steps == 0 {
             return bad("--steps must be at least 1");

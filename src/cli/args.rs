@@ -18,8 +18,8 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Run a DEM simulation (a built-in 50,000-sphere slab drop by default) and write frames
-    /// ParaView opens (VTK + .pvd).
+    /// Run a DEM simulation (by default the built-in `pour`: 4,000 spheres of random radii
+    /// collapsing into a heap under Hertz–Mindlin) and write frames ParaView opens (VTK + .pvd).
     Simulate(Box<SimulateArgs>),
     /// Find every colliding pair in a sphere file or a generated scene, and print a summary.
     Detect(DetectArgs),
@@ -96,6 +96,43 @@ pub struct RenderArgs {
     pub gif: Option<PathBuf>,
 }
 
+impl RenderArgs {
+    /// The options given other than as their defaults, as flags (`--gif` included).
+    pub fn given(&self) -> Vec<&'static str> {
+        use clap::{FromArgMatches, Parser};
+        /// The picture options alone, to read their defaults.
+        #[derive(Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            render: RenderArgs,
+        }
+        let d = Defaults::try_parse_from(["mochi"])
+            .map(|d| d.render)
+            .or_else(|_| RenderArgs::from_arg_matches(&Default::default()))
+            .expect("the picture options all have defaults");
+        let changed = [
+            ("--renderer", self.renderer != d.renderer),
+            ("--size", self.size != d.size),
+            ("--color-by", self.color_by != d.color_by),
+            ("--range", self.range.is_some()),
+            ("--eye", self.eye.is_some()),
+            ("--look-at", self.look_at.is_some()),
+            ("--fov", self.fov != d.fov),
+            ("--fit", self.fit != d.fit),
+            ("--samples", self.samples != d.samples),
+            ("--no-shadows", self.no_shadows),
+            ("--no-floor", self.no_floor),
+            ("--no-legend", self.no_legend),
+            ("--gif", self.gif.is_some()),
+        ];
+        changed
+            .into_iter()
+            .filter(|&(_, c)| c)
+            .map(|(flag, _)| flag)
+            .collect()
+    }
+}
+
 /// What the default camera frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Fit {
@@ -127,14 +164,14 @@ pub struct DetectArgs {
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// Grid of the wgpu-compute backend: grid (single level), mlgrid (multi-level proxy grid,
-    /// mochi mode), auto (mlgrid where the radii span a factor of 4 or more).
-    #[arg(long, value_enum, default_value_t)]
-    pub structure: Structure,
+    /// mochi mode), auto (the default: mlgrid where the radii span a factor of 4 or more).
+    #[arg(long, value_enum)]
+    pub structure: Option<Structure>,
     /// How wgpu-compute builds its grid: dense (a table of every cell), sorted (the cell keys
-    /// sorted, no table: the cost follows the spheres, not the box), auto (sorted where the
-    /// dense table would have more than 1024 cells per sphere).
-    #[arg(long, value_enum, default_value_t)]
-    pub grid_build: GridBuild,
+    /// sorted, no table: the cost follows the spheres, not the box), auto (the default: sorted
+    /// where the dense table would have more than 1024 cells per sphere).
+    #[arg(long, value_enum)]
+    pub grid_build: Option<GridBuild>,
     /// Time build and detection this many more times after the first run and report the
     /// median (the first run warms up shaders and buffers).
     #[arg(long, default_value_t = 0)]
@@ -240,19 +277,19 @@ pub struct SimulateArgs {
     #[arg(long, value_enum, default_value_t)]
     pub backend: BackendChoice,
     /// Grid of the wgpu-compute backend: grid (single level), mlgrid (multi-level proxy grid,
-    /// mochi mode), auto (mlgrid where the radii span a factor of 4 or more).
-    #[arg(long, value_enum, default_value_t)]
-    pub structure: Structure,
+    /// mochi mode), auto (the default: mlgrid where the radii span a factor of 4 or more).
+    #[arg(long, value_enum)]
+    pub structure: Option<Structure>,
     /// How wgpu-compute builds its grid: dense (a table of every cell), sorted (the cell keys
-    /// sorted, no table: the cost follows the spheres, not the box), auto (sorted where the
-    /// dense table would have more than 1024 cells per sphere).
-    #[arg(long, value_enum, default_value_t)]
-    pub grid_build: GridBuild,
+    /// sorted, no table: the cost follows the spheres, not the box), auto (the default: sorted
+    /// where the dense table would have more than 1024 cells per sphere).
+    #[arg(long, value_enum)]
+    pub grid_build: Option<GridBuild>,
     /// When a refittable BVH (the optix step) is rebuilt: every K steps with refits between
-    /// (1: every step), or auto (rebuild when refits have made the rays meet clearly more
-    /// boxes). Grids re-bin and wgpu-rq rebuilds every step.
-    #[arg(long, value_name = "K|auto", default_value_t = RebuildPolicy::Auto)]
-    pub rebuild: RebuildPolicy,
+    /// (1: every step), or auto (the default: rebuild when refits have made the rays meet
+    /// clearly more boxes). Grids re-bin and wgpu-rq rebuilds every step.
+    #[arg(long, value_name = "K|auto")]
+    pub rebuild: Option<RebuildPolicy>,
     /// Output folder for frames, checkpoints and the summary (default: mochi-out, or with
     /// --resume the checkpoint's folder). A folder that holds another run (series.pvd,
     /// scene.toml, checkpoint.bin, frame_* files) is refused unless --overwrite or --resume; a

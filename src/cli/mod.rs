@@ -2,6 +2,7 @@
 //! [`simulate`], [`bench`](mod@bench)).
 
 mod args;
+mod backend_options;
 mod bench;
 mod output;
 mod render;

@@ -1,6 +1,7 @@
 //! The commands.
 
 use super::args::{Cli, Command, DetectArgs, GenerateArgs, SceneArgs};
+use super::backend_options::BackendFlags;
 use super::output::{check_output_folder, folder_of, refuse_same_file};
 use anyhow::Result;
 use mochi::dem::scene::by_name;
@@ -54,14 +55,18 @@ fn detect(args: DetectArgs) -> Result<()> {
     if let Some(warning) = mochi::coarse_coordinates(spheres.centers(), spheres.radii()) {
         eprintln!("warning: {source}: {warning}");
     }
-    let options = engines::Options {
+    let flags = BackendFlags {
         structure: args.structure,
         grid_build: args.grid_build,
-        ..Default::default()
+        rebuild: None,
     };
-    let opened = engines::open(args.backend, &options)?;
+    flags.check(args.backend)?;
+    let opened = engines::open(args.backend, &flags.options())?;
     if let Some(reason) = &opened.reason {
         eprintln!("{reason}");
+    }
+    if let Some(warning) = flags.warning(args.backend, opened.kind) {
+        eprintln!("warning: {warning}");
     }
     let mut backend = opened.backend;
     let info = backend.info();

@@ -1,6 +1,7 @@
 //! `mochi simulate`: runs a DEM scene with a progress bar, frames, checkpoints and a summary.
 
 use super::args::SimulateArgs;
+use super::backend_options::BackendFlags;
 use super::output;
 use super::render::{FrameData, FrameRenderer, png_name};
 use super::walls::{FlowLog, WallOutputs};
@@ -8,7 +9,6 @@ use anyhow::Result;
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::dem::scene::{SceneFlags, SceneKind};
 use mochi::dem::{Clock, StageTimes, StepParams, Stepper, equipment};
-use mochi::engines::Options;
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::render::ColorBy;
 use mochi::run::{FIRST_PROGRESS_STEPS, FileDigest, Run, RunStart, RunState, progress_steps};
@@ -39,12 +39,18 @@ fn flags(args: &SimulateArgs) -> Result<SceneFlags> {
 
 pub fn simulate(args: SimulateArgs) -> Result<()> {
     let out = run_folder(&args);
-    if let (Some(gif), 0) = (&args.render.gif, args.render_every) {
+    if let (Some(flag), 0) = (args.render.given().first(), args.render_every) {
         anyhow::bail!(
-            "--gif {} needs --render-every M: the GIF is made of the pictures",
-            gif.display()
+            "{flag} is a picture option, and pictures are drawn only with --render-every M: \
+             add it, or leave {flag} out"
         );
     }
+    let backend_flags = BackendFlags {
+        structure: args.structure,
+        grid_build: args.grid_build,
+        rebuild: args.rebuild,
+    };
+    backend_flags.check(args.backend)?;
     if args.resume.is_none() && !args.overwrite {
         // Checked again once the folder is locked; here before the scene is built.
         output::refuse_earlier_run(&out)?;
@@ -62,14 +68,12 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         );
     }
     let flow_logged = run_start.state.flow_logged;
-    let options = Options {
-        structure: args.structure,
-        grid_build: args.grid_build,
-        rebuild: args.rebuild,
-    };
-    let run = run_start.open(args.backend, &options)?;
+    let run = run_start.open(args.backend, &backend_flags.options())?;
     if let Some(reason) = &run.auto_reason {
         eprintln!("{reason}");
+    }
+    if let Some(warning) = backend_flags.warning(args.backend, run.backend) {
+        eprintln!("warning: {warning}");
     }
     let overlap_warning = run.overlap_warning();
     let coincident_warning = run.coincident_warning();
@@ -80,6 +84,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         spheres: n,
         radius_range: (r_min, r_max),
         coarse_warning,
+        flow_warning,
         walls,
         meshes,
         ..
@@ -149,7 +154,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             pictures.describe()
         );
     }
-    for warning in [coarse_warning, coincident_warning].into_iter().flatten() {
+    for warning in [coarse_warning, coincident_warning, flow_warning]
+        .into_iter()
+        .flatten()
+    {
         eprintln!("warning: {warning}");
     }
     let scene_toml = config.to_toml();

@@ -8,7 +8,7 @@
 
 use super::flow::OutflowConfig;
 use super::walls::{Rotation, WallConfig};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, try_vec};
 use crate::mesh::{Mesh, revolution};
 use crate::spheres::SphereSet;
 use rand::{RngExt, SeedableRng};
@@ -84,6 +84,7 @@ impl EquipmentSpec {
         if !(r.is_finite() && r > 0.0) {
             return Err(bad(format!("grain_radius must be positive, got {r}")));
         }
+        crate::spheres::check_count(self.n)?;
         let triangles = 2 * self.drum_sides as u64 * self.drum_rings as u64;
         if self.kind == Equipment::Drum
             && (self.drum_sides < 3 || self.drum_rings < 1 || triangles > MAX_TRIANGLES)
@@ -122,11 +123,12 @@ impl EquipmentSpec {
                 self.open
             )));
         }
-        // A cylinder 5 orifices wide, as tall as twice the fill.
+        // A cylinder 5 orifices wide, as tall as twice the fill (at least two lattice layers
+        // above the bottom's rim, so that any number of spheres finds room).
         let radius = 2.5 * d;
         let cone = (radius - d / 2.0) * angle.to_radians().tan();
         let fill = volume / (std::f64::consts::PI * (radius - cell).powi(2)) + cone;
-        let height = cone + 2.0 * fill;
+        let height = cone + 2.0 * fill.max(2.0 * cell);
         let bottom = |rho: f64| (rho - d / 2.0).max(0.0) * angle.to_radians().tan();
         let inside = |c: [f64; 3]| {
             let rho = c[0].hypot(c[1]);
@@ -169,10 +171,14 @@ impl EquipmentSpec {
     }
 
     fn drum(&self, r: f64, cell: f64, volume: f64) -> Result<Built> {
-        // Radius 12 lattice cells; the length holds the spheres at 40% of the drum.
+        // Radius 12 lattice cells at the corners of its polygon; the length holds the spheres
+        // at 40% of the polygon's area. The spheres start inside the circle the sides touch.
         let radius = 12.0 * cell;
-        let length = (volume / (0.4 * std::f64::consts::PI * radius * radius)).max(3.0 * cell);
-        let inside = |c: [f64; 3]| c[0].hypot(c[2]) < radius - cell / 2.0;
+        let sides = self.drum_sides as f64;
+        let inradius = radius * (std::f64::consts::PI / sides).cos();
+        let area = 0.5 * sides * radius * radius * (std::f64::consts::TAU / sides).sin();
+        let length = (volume / (0.4 * area)).max(3.0 * cell);
+        let inside = |c: [f64; 3]| c[0].hypot(c[2]) < inradius - cell / 2.0;
         let lo = [-radius, -length / 2.0, -radius];
         let hi = [radius, length / 2.0, radius];
         let spheres = self.lattice(r, cell, lo, hi, inside)?;
@@ -212,8 +218,9 @@ impl EquipmentSpec {
     ) -> Result<SphereSet> {
         let mut rng = Pcg64::seed_from_u64(self.seed);
         let counts: [usize; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / cell).floor() as usize);
-        let mut centers = Vec::with_capacity(self.n);
-        let mut radii = Vec::with_capacity(self.n);
+        let what = || format!("{} spheres", self.n);
+        let mut centers = try_vec(self.n, what)?;
+        let mut radii = try_vec(self.n, what)?;
         let room = 0.5 * cell - 1.1 * r;
         'fill: for k in 0..counts[2] {
             for j in 0..counts[1] {

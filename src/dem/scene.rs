@@ -59,8 +59,9 @@
 
 use super::equipment::{Built, Equipment, EquipmentSpec};
 use super::flow::{FlowSet, InflowConfig, OutflowConfig};
+use super::model::contact::moment_of_inertia;
 use super::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
-use super::model::{ContactLaw, Material, RollingModel, StepParams};
+use super::model::{ContactLaw, Material, RollingModel, StepParams, mass};
 use super::walls::{WallConfig, WallSet};
 use crate::error::{Error, Result};
 use crate::particles::Particles;
@@ -511,6 +512,26 @@ pub struct Start {
     pub flow: FlowSet,
 }
 
+/// Refuses spheres of radius `r_max` (the largest) whose mass or moment of inertia at
+/// `density` overflows single precision, naming the largest radius that density allows.
+fn check_heaviest(density: f64, r_max: f32) -> Result<()> {
+    let m = mass(density as f32, r_max);
+    if m.is_finite() && moment_of_inertia(m, r_max).is_finite() {
+        return Ok(());
+    }
+    // 0.4·ρ·(4/3)π·r⁵ is the moment of inertia, the first to overflow for r > 1.
+    let largest = (f32::MAX as f64 / (0.4 * density * 4.0 / 3.0 * std::f64::consts::PI))
+        .powf(0.2)
+        .min((f32::MAX as f64 / (density * 4.0 / 3.0 * std::f64::consts::PI)).cbrt());
+    Err(Error::InvalidConfig {
+        what: format!("spheres of radius {r_max:e} m"),
+        reason: format!(
+            "at density {density:e} kg/m³ their mass ({m:e} kg) or moment of inertia is beyond \
+             single precision (3.4e38); the largest radius this density allows is {largest:.3e} m"
+        ),
+    })
+}
+
 /// The height of the box's floor: `box_lo`'s where the scene gives it, else the default's.
 fn box_lo_z(box_lo: Option<[f64; 3]>, default_lo: [f64; 3]) -> f64 {
     box_lo.unwrap_or(default_lo)[2]
@@ -629,7 +650,34 @@ impl SceneConfig {
                 });
             }
         }
+        config.refuse_idle_keys(&given)?;
         Ok(config)
+    }
+
+    /// Refuses keys of `given` (the fields a new scene gives) that would have no effect in this
+    /// scene: `flow_every` without any flow, `rolling_model` without rolling friction.
+    fn refuse_idle_keys(&self, given: &toml::Table) -> Result<()> {
+        let idle = |key: &str, reason: &str| Error::InvalidConfig {
+            what: format!("scene key {key}"),
+            reason: format!("{reason}: leave it out, or add what it acts on"),
+        };
+        let flows = !(self.inflow.is_empty() && self.outflow.is_empty())
+            || !self.box_walls
+            || self.scene == SceneKind::Hopper;
+        if given.contains_key("flow_every") && !flows {
+            return Err(idle(
+                "flow_every",
+                "sets the steps between flow events, and this scene has no [[inflow]] or \
+                 [[outflow]] tables (nor box_walls = false, whose floor drains)",
+            ));
+        }
+        if given.contains_key("rolling_model") && self.material()?.rolling_friction == 0.0 {
+            return Err(idle(
+                "rolling_model",
+                "chooses the law of rolling resistance, and this scene's rolling_friction is 0",
+            ));
+        }
+        Ok(())
     }
 
     /// Parses scene TOML (`None`: the defaults) from `origin` (named in errors; relative input
@@ -823,16 +871,20 @@ impl SceneConfig {
     /// Copies per row and layers of the `mesh` scene, and the side of its cell per copy.
     fn mesh_layout(&self) -> Result<(u32, u32, f64)> {
         let copies = self.mesh_copies;
-        if copies == 0 {
+        if copies == 0 || copies as usize > crate::MAX_SPHERES {
             return Err(Error::InvalidConfig {
-                what: "scene".into(),
-                reason: "mesh_copies must be at least 1, got 0".into(),
+                what: "scene key mesh_copies".into(),
+                reason: format!(
+                    "must be from 1 to {} (each copy holds a sphere at least), got {copies}",
+                    crate::MAX_SPHERES
+                ),
             });
         }
         let per_row = (copies as f64).sqrt().ceil() as u32;
         // Spheres reach past the mesh by up to their radius: keep 4.4 radii between copies.
         let cell = self.mesh_size * 1.05 + 4.4 * self.mesh_radius as f64;
-        Ok((per_row, copies.div_ceil(per_row * per_row), cell))
+        let layers = (copies as u64).div_ceil(per_row as u64 * per_row as u64) as u32;
+        Ok((per_row, layers, cell))
     }
 
     /// The `mesh` scene's box side: the unit cube, or larger to hold every copy.
@@ -935,6 +987,10 @@ impl SceneConfig {
             }
         };
         let material = self.material()?;
+        // The material's values, before the time step is derived from them.
+        material.check()?;
+        let r_max = particles.radius_range().1;
+        check_heaviest(material.density, r_max)?;
         let flow = self.flow(material.density, box_lo_z(self.box_lo, default_lo))?;
         // The smallest sphere, inserted ones included, sets the time step.
         let r_min = match (particles.is_empty(), flow.smallest_radius()) {
@@ -978,11 +1034,14 @@ impl SceneConfig {
             self.box_hi.unwrap_or(default_hi),
         );
         let params = StepParams::new(&material, dt, lo, hi, self.gravity, spin, r_min)?;
+        flow.check(params.dt as f64, params.box_lo, params.box_hi)?;
+        let walls = self.walls(&material)?;
+        walls.check_speed(params.dt as f64, r_min)?;
         Ok(Start {
             particles,
             params,
             mode: self.mode,
-            walls: self.walls(&material)?,
+            walls,
             flow,
         })
     }

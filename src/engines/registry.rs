@@ -193,6 +193,8 @@ impl std::fmt::Display for RebuildPolicy {
 pub struct Opened {
     /// The backend, ready for [`Backend::build`].
     pub backend: Box<dyn Backend>,
+    /// Which backend it is.
+    pub kind: BackendKind,
     /// For `auto`: one line naming the pick and why the faster ones were skipped.
     pub reason: Option<String>,
 }
@@ -284,14 +286,17 @@ impl std::fmt::Display for BackendChoice {
 /// Opens the backend the user chose; `auto` tries each in order of preference.
 pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
     let Some(kind) = choice.kind() else {
-        let (backend, reason) = open_auto(&BackendKind::ALL, |kind| kind.open_with(options))?;
+        let open = |kind: BackendKind| kind.open_with(options).map(|backend| (kind, backend));
+        let ((kind, backend), reason) = open_auto(&BackendKind::ALL, open)?;
         return Ok(Opened {
             backend,
+            kind,
             reason: Some(reason),
         });
     };
     Ok(Opened {
         backend: kind.open_with(options)?,
+        kind,
         reason: None,
     })
 }

@@ -80,6 +80,41 @@ impl FillSpec {
     }
 }
 
+/// Least volume a mesh to fill encloses, as a share of its bounding box's.
+const MIN_VOLUME_SHARE: f64 = 1e-6;
+
+/// Refuses a mesh that encloses no volume (its bounds `lo..hi`): one whose triangles all have
+/// zero area, a flat one, or one whose signed volume is nil next to its bounding box's (an open
+/// sheet), which would be filled only where its winding numbers happen to reach ½ beside it.
+fn check_encloses_volume(mesh: &Mesh, lo: [f64; 3], hi: [f64; 3]) -> Result<()> {
+    let corners = |t: &[u32; 3]| t.map(|i| DVec3::from_array(mesh.vertices[i as usize]));
+    let (area, volume) = mesh.triangles.iter().fold((0.0, 0.0), |(area, volume), t| {
+        let [a, b, c] = corners(t);
+        let normal = (b - a).cross(c - a);
+        (
+            area + 0.5 * normal.length(),
+            volume + a.dot(b.cross(c)) / 6.0,
+        )
+    });
+    let extent = DVec3::from(hi) - DVec3::from(lo);
+    let boxed = extent.x * extent.y * extent.z;
+    let reason = if area == 0.0 {
+        "every triangle has zero area".to_owned()
+    } else if boxed == 0.0 {
+        format!("the mesh is flat (its bounds {lo:?} .. {hi:?} have no thickness)")
+    } else if volume.abs() < MIN_VOLUME_SHARE * boxed {
+        format!(
+            "the mesh encloses no volume (signed volume {volume:e} within a bounding box of \
+             {boxed:e}): an open sheet"
+        )
+    } else {
+        return Ok(());
+    };
+    Err(fill_error(format!(
+        "{reason}; a mesh to fill must be a closed surface"
+    )))
+}
+
 /// The lattice over the mesh's bounding box: `n` points per axis, centred on the box.
 struct Lattice {
     origin: DVec3,
@@ -144,6 +179,7 @@ pub fn fill(mesh: &Mesh, spec: &FillSpec) -> Result<(Vec<[f32; 3]>, Vec<f32>)> {
     let Some((lo, hi)) = mesh.bounds() else {
         return Ok((Vec::new(), Vec::new()));
     };
+    check_encloses_volume(mesh, lo, hi)?;
     let lattice = Lattice::over(lo.into(), hi.into(), spec.spacing)?;
     let tree = WindingTree::new(mesh);
     let [nx, ny, nz] = lattice.n;

@@ -555,13 +555,17 @@ mod stl {
             }
         } else {
             match (declared, binary_size) {
-                (Some(n), Some(size)) if len < size => {
+                (Some(n), Some(size)) if len != size => {
+                    let why = match len < size {
+                        true => "truncated?",
+                        false => "more triangles than it declares?",
+                    };
                     return Err(parse_error(
                         path,
                         None,
                         format!(
                             "binary STL declares {n} triangles, which take 84 + 50·{n} = {size} \
-                             bytes, but the file has {len} bytes (truncated?)"
+                             bytes, but the file has {len} bytes ({why})"
                         ),
                     ));
                 }

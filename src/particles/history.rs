@@ -67,6 +67,21 @@ impl ContactHistory {
         })
     }
 
+    /// A copy, or [`Error::OutOfMemory`] where it does not fit.
+    pub fn try_clone(&self) -> Result<Self> {
+        let n = self.counts.len();
+        let what = || format!("a copy of the contact history of {n} spheres");
+        let mut counts = try_vec(n, what)?;
+        counts.extend_from_slice(&self.counts);
+        let mut entries = try_vec(self.entries.len(), what)?;
+        entries.extend_from_slice(&self.entries);
+        Ok(Self {
+            slots: self.slots,
+            counts,
+            entries,
+        })
+    }
+
     /// The history of `n` spheres holding `contacts` (owner, entry), in any order of owners;
     /// each owner's entries keep their order. Refuses owners or partners out of range.
     pub fn from_contacts(n: usize, contacts: &[(u32, HistoryEntry)]) -> Result<Self> {

@@ -47,6 +47,26 @@ impl Particles {
         })
     }
 
+    /// A copy, or [`Error::OutOfMemory`] where it does not fit.
+    pub fn try_clone(&self) -> Result<Self> {
+        let what = || format!("a copy of the state of {} spheres", self.len());
+        let copy = |v: &Vec<[f32; 3]>| -> Result<Vec<[f32; 3]>> {
+            let mut out = try_vec(v.len(), what)?;
+            out.extend_from_slice(v);
+            Ok(out)
+        };
+        let mut radii = try_vec(self.radii.len(), what)?;
+        radii.extend_from_slice(&self.radii);
+        Ok(Self {
+            positions: copy(&self.positions)?,
+            velocities: copy(&self.velocities)?,
+            angular_velocities: copy(&self.angular_velocities)?,
+            radii,
+            history: self.history.try_clone()?,
+            step: self.step,
+        })
+    }
+
     /// Number of spheres.
     pub fn len(&self) -> usize {
         self.radii.len()

@@ -141,6 +141,16 @@ impl Region {
         }
     }
 
+    /// An upper bound of the spheres of radius `r` with centres in the region that overlap no
+    /// other: one per cell of side 2r of a lattice over it (a disc as its square), at least 1.
+    fn capacity(&self, r: f32) -> f64 {
+        let per_axis = |extent: f32| (extent as f64 / (2.0 * r as f64)).floor() + 1.0;
+        match *self {
+            Region::Box { lo, hi } => (0..3).map(|a| per_axis(hi[a] - lo[a])).product(),
+            Region::Disc { radius, .. } => per_axis(2.0 * radius).powi(2),
+        }
+    }
+
     /// The box around the region.
     fn bounds(&self) -> (Vec3, Vec3) {
         match *self {
@@ -227,18 +237,27 @@ impl FlowCounts {
     }
 }
 
+/// Whether `x` is a finite `f32` (what the step stores) once converted.
+fn fits_f32(x: f64) -> bool {
+    (x as f32).is_finite()
+}
+
 impl InflowConfig {
-    /// The inflow; `index` names it in errors, `density` turns a mass rate into spheres.
+    /// The inflow; `index` names it in errors, `density` turns a mass rate into spheres. Every
+    /// value must be a finite `f32` (radii positive ones), the window must start at a time ≥ 0.
     pub fn build(&self, index: usize, density: f64) -> Result<Inflow> {
         let bad = |reason: String| Error::InvalidConfig {
             what: format!("inflow {index}"),
             reason,
         };
-        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        let finite = |v: &[f64]| v.iter().all(|&x| fits_f32(x));
         let region = match (self.lo, self.hi, self.center, self.radius) {
             (Some(lo), Some(hi), None, None) => {
                 if !(finite(&lo) && finite(&hi) && (0..3).all(|a| lo[a] <= hi[a])) {
-                    return Err(bad(format!("needs finite lo <= hi, got {lo:?} .. {hi:?}")));
+                    return Err(bad(format!(
+                        "needs lo <= hi, finite in single precision (|x| < 3.4e38), got {lo:?} \
+                         .. {hi:?}"
+                    )));
                 }
                 if self.axis.is_some() {
                     return Err(bad("axis belongs to a disc (center, radius)".into()));
@@ -252,7 +271,7 @@ impl InflowConfig {
                 let axis = self.axis.unwrap_or([0.0, 0.0, 1.0]);
                 let unit = DVec3::from(axis).try_normalize().filter(|_| finite(&axis));
                 match unit {
-                    Some(axis) if finite(&center) && radius.is_finite() && radius >= 0.0 => {
+                    Some(axis) if finite(&center) && fits_f32(radius) && radius >= 0.0 => {
                         Region::Disc {
                             center: DVec3::from(center).as_vec3(),
                             radius: radius as f32,
@@ -260,9 +279,11 @@ impl InflowConfig {
                         }
                     }
                     _ => {
-                        return Err(bad(
-                            "a disc needs a finite center, radius >= 0 and a non-zero axis".into(),
-                        ));
+                        return Err(bad(format!(
+                            "a disc needs a center and a radius >= 0, finite in single precision \
+                             (|x| < 3.4e38), and a non-zero axis, got center {center:?}, radius \
+                             {radius}, axis {axis:?}"
+                        )));
                     }
                 }
             }
@@ -281,9 +302,11 @@ impl InflowConfig {
                 ));
             }
         };
-        if !(radii.0 > 0.0 && radii.0 <= radii.1 && radii.1.is_finite()) {
+        let positive = |r: f64| fits_f32(r) && r as f32 > 0.0;
+        if !(positive(radii.0) && positive(radii.1) && radii.0 <= radii.1) {
             return Err(bad(format!(
-                "radii must be positive and ordered, got {radii:?}"
+                "radii must be positive and ordered, each a finite single-precision number \
+                 (from 1.2e-38 to 3.4e38 m), got {radii:?}"
             )));
         }
         let rate = match (self.rate, self.mass_rate) {
@@ -314,8 +337,17 @@ impl InflowConfig {
             self.start.unwrap_or(0.0),
             self.stop.unwrap_or(f64::INFINITY),
         );
-        if !finite(&velocity) || window.0.is_nan() || window.1.is_nan() {
-            return Err(bad("velocity, start and stop must be finite".into()));
+        if !finite(&velocity) {
+            return Err(bad(format!(
+                "velocity must be finite in single precision (|v| < 3.4e38), got {velocity:?}"
+            )));
+        }
+        if !(window.0.is_finite() && window.0 >= 0.0 && window.1 >= window.0) {
+            return Err(bad(format!(
+                "start must be a finite time >= 0 and stop a time >= start (or left out: \
+                 never), got start {} and stop {}",
+                window.0, window.1
+            )));
         }
         Ok(Inflow {
             region,
@@ -332,10 +364,13 @@ impl OutflowConfig {
     /// The box, checked; `index` names it in errors.
     pub fn build(&self, index: usize) -> Result<(Vec3, Vec3)> {
         let (lo, hi) = (self.lo, self.hi);
-        if !(0..3).all(|a| lo[a].is_finite() && hi[a].is_finite() && lo[a] <= hi[a]) {
+        if !(0..3).all(|a| fits_f32(lo[a]) && fits_f32(hi[a]) && lo[a] <= hi[a]) {
             return Err(Error::InvalidConfig {
                 what: format!("outflow {index}"),
-                reason: format!("needs finite lo <= hi, got {lo:?} .. {hi:?}"),
+                reason: format!(
+                    "needs lo <= hi, finite in single precision (|x| < 3.4e38), got {lo:?} .. \
+                     {hi:?}"
+                ),
             });
         }
         Ok((DVec3::from(lo).as_vec3(), DVec3::from(hi).as_vec3()))
@@ -383,6 +418,12 @@ fn step_seed(seed: u64, k: usize, step: u64) -> u64 {
 }
 
 impl Inflow {
+    /// An upper bound of the spheres its region holds ([`Region::capacity`] of its smallest
+    /// radius): an event tries to insert at most this many, counting the rest refused.
+    pub fn capacity(&self) -> f64 {
+        self.region.capacity(self.radii.0)
+    }
+
     /// Spheres due in the steps from `from` to `to` (time step `dt`).
     fn due(&self, (from, to): (u64, u64), dt: f64) -> u64 {
         let (start, stop) = self.window;
@@ -429,6 +470,53 @@ impl FlowSet {
         self.every
             .unwrap_or(if gpu { GPU_EVERY } else { CPU_EVERY })
             .max(1)
+    }
+
+    /// Refuses inflows a run with time step `dt` in the box `lo..hi` cannot take: a region
+    /// not inside the box, or a rate that owes more spheres in one step than the region holds.
+    pub fn check(&self, dt: f64, lo: [f32; 3], hi: [f32; 3]) -> Result<()> {
+        for (k, inflow) in self.inflows.iter().enumerate() {
+            let bad = |reason: String| Error::InvalidConfig {
+                what: format!("inflow {k}"),
+                reason,
+            };
+            let (a, b) = inflow.region.bounds();
+            if (0..3).any(|x| a[x] < lo[x] || b[x] > hi[x]) {
+                return Err(bad(format!(
+                    "its region {:?} .. {:?} is not inside the box {lo:?} .. {hi:?}, where the \
+                     run's spheres live: move the region or widen the box (box_lo, box_hi)",
+                    a.to_array(),
+                    b.to_array()
+                )));
+            }
+            let per_step = inflow.rate * dt;
+            let capacity = inflow.capacity();
+            if per_step > capacity {
+                return Err(bad(format!(
+                    "a rate of {:.4e} spheres/s owes {per_step:.4e} spheres a step (dt {dt:.4e} \
+                     s), more than its region holds ({capacity} spheres of radius {:.4e} m): \
+                     lower the rate or widen the region",
+                    inflow.rate, inflow.radii.0
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// A warning where an inflow owes more spheres at one flow event (`every` steps of `dt`)
+    /// than its region holds: the excess is refused.
+    pub fn rate_warning(&self, dt: f64, every: u32) -> Option<String> {
+        let crowded: Vec<String> = (self.inflows.iter().enumerate())
+            .filter(|(_, f)| f.rate * dt * every as f64 > f.capacity())
+            .map(|(k, f)| format!("inflow {k} ({:.4e} spheres/s)", f.rate))
+            .collect();
+        (!crowded.is_empty()).then(|| {
+            format!(
+                "{} owes more spheres per flow event ({every} steps) than its region holds: \
+                 each event inserts at most what fits and counts the rest refused",
+                crowded.join(", ")
+            )
+        })
     }
 
     /// Whether a flow event follows the step that brought the run to `step` (`every` steps
@@ -523,7 +611,10 @@ impl FlowSet {
             let Some((lo, hi)) = bounds else {
                 continue;
             };
-            let due = inflow.due(event.steps(), event.dt as f64);
+            let owed = inflow.due(event.steps(), event.dt as f64);
+            // What cannot fit is refused untried.
+            let due = owed.min(inflow.capacity() as u64);
+            counts.refused += owed - due;
             let mut rng = Pcg64::seed_from_u64(step_seed(inflow.seed, k, event.step - 1));
             let mut near = near(lo, hi);
             near.extend(inserted.iter().map(|s| (Vec3::from(s.centre), s.radius)));

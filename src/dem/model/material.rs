@@ -179,27 +179,83 @@ fn normal_f32(x: f64) -> bool {
     x > 0.0 && (x as f32).is_normal()
 }
 
+/// The largest friction coefficient (sliding, with the walls, rolling) a scene may give: the
+/// laws multiply it into forces and torques in single precision, and a coefficient this large
+/// already never lets a contact slide or roll.
+pub const MAX_FRICTION: f64 = 1e6;
+
 impl Material {
-    /// Refuses friction coefficients that are negative or not finite.
-    pub(super) fn check_friction(&self) -> Result<()> {
+    /// Refuses values no contact law can work with, naming the scene key: a restitution outside
+    /// (0, 1], a density, Young's modulus or Poisson's ratio outside their ranges (each a normal
+    /// `f32`), a friction coefficient outside 0 ..= [`MAX_FRICTION`]. Checked before the time
+    /// step is derived from them.
+    pub fn check(&self) -> Result<()> {
+        let bad = |key: &str, reason: String| {
+            Err(Error::InvalidConfig {
+                what: format!("scene key {key}"),
+                reason,
+            })
+        };
+        if !(self.restitution > 0.0 && self.restitution <= 1.0) {
+            return bad(
+                "restitution",
+                format!("must be in (0, 1], got {}", self.restitution),
+            );
+        }
+        if !normal_f32(self.density) {
+            return bad(
+                "density",
+                format!(
+                    "must be positive and within single precision's range ({:e} .. {:e} \
+                     kg/m³), got {:e}",
+                    f32::MIN_POSITIVE,
+                    f32::MAX,
+                    self.density
+                ),
+            );
+        }
+        if let ContactLaw::HertzMindlin {
+            young_modulus,
+            poisson_ratio,
+        } = self.contact
+        {
+            if !normal_f32(young_modulus) {
+                return bad(
+                    "young_modulus",
+                    format!(
+                        "must be positive and within single precision's range ({:e} .. {:e} \
+                         Pa), got {young_modulus:e}",
+                        f32::MIN_POSITIVE,
+                        f32::MAX
+                    ),
+                );
+            }
+            if !(poisson_ratio > -1.0 && poisson_ratio < 0.5) {
+                return bad(
+                    "poisson_ratio",
+                    format!("must be in (−1, 0.5), got {poisson_ratio}"),
+                );
+            }
+        }
         let coefficients = [
             ("friction", self.friction),
             ("wall_friction", self.wall_friction.unwrap_or(self.friction)),
             ("rolling_friction", self.rolling_friction),
         ];
-        for (name, mu) in coefficients {
-            if !(mu >= 0.0 && (mu as f32).is_finite()) {
-                return Err(Error::InvalidConfig {
-                    what: format!("material {name}"),
-                    reason: format!("must be a finite coefficient ≥ 0, got {mu}"),
-                });
+        for (key, mu) in coefficients {
+            if !(0.0..=MAX_FRICTION).contains(&mu) {
+                return bad(
+                    key,
+                    format!("must be a coefficient from 0 to {MAX_FRICTION:e}, got {mu}"),
+                );
             }
         }
         Ok(())
     }
 
     /// The normal law for time step `dt` and lightest spheres of radius `r_min` (effective mass
-    /// `m_eff` of two of them), damping ratio `zeta`; refuses impossible values.
+    /// `m_eff` of two of them), damping ratio `zeta`, for a material that passed
+    /// [`Material::check`]; refuses impossible values.
     pub(super) fn law(&self, dt: f64, r_min: f32, m_eff: f64, zeta: f64) -> Result<ResolvedLaw> {
         let bad = |reason: String| {
             Err(Error::InvalidConfig {
@@ -275,17 +331,6 @@ impl Material {
                 young_modulus,
                 poisson_ratio,
             } => {
-                if !normal_f32(young_modulus) {
-                    return bad(format!(
-                        "young_modulus must be positive and within f32's range, got \
-                         {young_modulus:e} Pa"
-                    ));
-                }
-                if !(poisson_ratio > -1.0 && poisson_ratio < 0.5) {
-                    return bad(format!(
-                        "poisson_ratio must be in (−1, 0.5), got {poisson_ratio}"
-                    ));
-                }
                 let t_r = rayleigh_time(r_min as f64, self.density, young_modulus, poisson_ratio);
                 let (pair, wall) = (
                     Elastic::pair(young_modulus, poisson_ratio),

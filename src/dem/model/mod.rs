@@ -17,7 +17,9 @@ pub mod time_step;
 pub use linear::{
     STEPS_PER_CONTACT, contact_force, damping_ratio, stable_dt, stiffness_for_duration, wall_force,
 };
-pub use material::{ContactLaw, Elastic, Friction, Material, NormalLaw, RollingModel};
+pub use material::{
+    ContactLaw, Elastic, Friction, MAX_FRICTION, Material, NormalLaw, RollingModel,
+};
 
 use crate::error::{Error, Result};
 use std::f64::consts::PI;
@@ -76,12 +78,7 @@ impl StepParams {
             })
         };
         let m = &material;
-        if !(m.restitution > 0.0 && m.restitution <= 1.0) {
-            return bad(&format!(
-                "restitution must be in (0, 1], got {}",
-                m.restitution
-            ));
-        }
+        m.check()?;
         // Every parameter is used as an f32: each must be a normal f32 number (no overflow to
         // inf, no underflow to 0).
         let normal = |x: f64| x > 0.0 && (x as f32).is_normal();
@@ -90,12 +87,6 @@ impl StepParams {
                 "time step must be positive and within f32's range ({:e} .. {:e} s), got {dt:e}",
                 f32::MIN_POSITIVE,
                 f32::MAX
-            ));
-        }
-        if !normal(m.density) {
-            return bad(&format!(
-                "density must be positive and within f32's range, got {:e}",
-                m.density
             ));
         }
         if gravity
@@ -122,7 +113,6 @@ impl StepParams {
                 2.0 * m_eff
             ));
         }
-        m.check_friction()?;
         let law = m.law(dt, r_min, m_eff, zeta)?;
         if dt > law.dt_limit {
             return bad(&format!(

@@ -26,6 +26,10 @@ pub use triangles::TriangleMesh;
 use crate::error::{Error, Result};
 pub use crate::particles::{FIRST_MESH_WALL, MESH_WALLS};
 
+/// The most a mesh wall may move in one step, as a share of the smallest sphere radius: its
+/// contacts then build up over several steps, so no sphere is passed through.
+pub const MAX_WALL_STEP: f64 = 0.1;
+
 /// The history partner id of mesh wall `w`.
 #[inline]
 pub fn mesh_partner(w: usize) -> u32 {
@@ -46,6 +50,17 @@ pub struct MeshWall {
 }
 
 impl MeshWall {
+    /// The fastest any point of the wall moves \[m/s\]: its translation plus its turn times
+    /// the farthest corner's distance from the rotation axis (which moves with it).
+    pub fn top_speed(&self) -> f64 {
+        let m = &self.motion;
+        let reach = (self.triangles.triangles().iter())
+            .flat_map(|t| t.corners)
+            .map(|c| (c.as_dvec3() - m.centre).cross(m.axis).length())
+            .fold(0.0, f64::max);
+        m.velocity.length() + m.omega.abs() * reach
+    }
+
     /// Its triangles in `pose`, three corners each.
     pub fn triangles_at(&self, pose: &Pose) -> Vec<[[f32; 3]; 3]> {
         let tris = self.triangles.triangles();
@@ -85,6 +100,29 @@ impl WallSet {
             });
         }
         Ok(Self { box_walls, meshes })
+    }
+
+    /// Refuses a mesh wall that moves more than [`MAX_WALL_STEP`] of the smallest radius
+    /// `r_min` in one step of `dt`: spheres would pass through it.
+    pub fn check_speed(&self, dt: f64, r_min: f32) -> Result<()> {
+        for (k, wall) in self.meshes.iter().enumerate() {
+            let speed = wall.top_speed();
+            let limit = MAX_WALL_STEP * r_min as f64;
+            if speed * dt > limit {
+                return Err(Error::InvalidConfig {
+                    what: format!("wall {k} ({})", wall.name),
+                    reason: format!(
+                        "moves at up to {speed:.4e} m/s (its velocity and turn), {:.4e} m in a \
+                         step of {dt:.4e} s, more than {MAX_WALL_STEP} of the smallest radius \
+                         ({r_min:.4e} m): spheres would pass through it; lower its speed or \
+                         the time step (below {:.4e} s)",
+                        speed * dt,
+                        limit / speed
+                    ),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// Whether these are the box walls alone (what every backend runs).

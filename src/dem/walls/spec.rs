@@ -19,8 +19,10 @@
 use super::MeshWall;
 use super::motion::Motion;
 use super::triangles::TriangleMesh;
+use crate::dem::model::MAX_FRICTION;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
+use crate::spheres::MAX_MAGNITUDE;
 use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -109,7 +111,8 @@ impl WallConfig {
             what: format!("wall {index} ({})", self.mesh.display()),
             reason,
         };
-        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        // Every value is used as an f32.
+        let finite = |v: &[f64]| v.iter().all(|&x| (x as f32).is_finite());
         if !(self.scale.is_finite() && self.scale > 0.0) {
             return Err(bad(format!("scale must be positive, got {}", self.scale)));
         }
@@ -142,7 +145,9 @@ impl WallConfig {
         ];
         for (name, v) in vectors {
             if let Some(v) = v.filter(|v| !finite(v)) {
-                return Err(bad(format!("{name} must be finite, got {v:?}")));
+                return Err(bad(format!(
+                    "{name} must be finite in single precision (|x| < 3.4e38), got {v:?}"
+                )));
             }
         }
         let scalars = [
@@ -151,13 +156,17 @@ impl WallConfig {
             ("friction", self.friction),
         ];
         for (name, x) in scalars {
-            if let Some(x) = x.filter(|x| !x.is_finite()) {
-                return Err(bad(format!("{name} must be finite, got {x}")));
+            if let Some(x) = x.filter(|&x| !finite(&[x])) {
+                return Err(bad(format!(
+                    "{name} must be finite in single precision (|x| < 3.4e38), got {x}"
+                )));
             }
         }
         let mu = self.friction.unwrap_or(friction);
-        if mu < 0.0 {
-            return Err(bad(format!("friction must be at least 0, got {mu}")));
+        if !(0.0..=MAX_FRICTION).contains(&mu) {
+            return Err(bad(format!(
+                "friction must be from 0 to {MAX_FRICTION:e}, got {mu}"
+            )));
         }
         mesh.validate().map_err(|e| bad(e.to_string()))?;
         let translate = DVec3::from(self.translate.unwrap_or_default());
@@ -166,8 +175,14 @@ impl WallConfig {
             .iter()
             .map(|&v| (rotation * (self.scale * DVec3::from(v)) + translate).as_vec3())
             .collect();
-        if vertices.iter().any(|v| !v.is_finite()) {
-            return Err(bad("a vertex leaves f32's range once scaled".into()));
+        if let Some(v) = vertices
+            .iter()
+            .find(|v| !(v.abs().max_element() <= MAX_MAGNITUDE))
+        {
+            return Err(bad(format!(
+                "a vertex at {v} lies beyond ±{MAX_MAGNITUDE:e} m once scaled, rotated and \
+                 translated: the contact geometry squares lengths in single precision"
+            )));
         }
         let triangles = TriangleMesh::new(&vertices, &mesh.triangles);
         if triangles.triangles().is_empty() {

@@ -15,7 +15,7 @@ use crate::dem::model::contact::{
 use crate::dem::model::{StepParams, integrate, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
-use crate::error::{Error, Result, try_vec};
+use crate::error::{Error, Result, try_resize, try_vec};
 use crate::particles::{FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles};
 use crate::proxy::ProxyMode;
 use crate::spheres::center_bounds;
@@ -186,7 +186,8 @@ impl CpuStepper {
     /// history is only read, so the redo sees the same state).
     fn resolve_contacts(&mut self) -> Result<u64> {
         let n = self.grid.keys.len();
-        self.sums.resize(n, SphereSum::default());
+        let of_n = || format!("the contact sums of {n} spheres");
+        try_resize(&mut self.sums, n, SphereSum::default(), of_n)?;
         let pass = ContactPass {
             grid: &self.grid,
             params: &self.params,
@@ -229,6 +230,15 @@ impl CpuStepper {
         }
         // Each sphere's sorted position, so that what the pass found is gathered back into
         // input order in parallel.
+        if self.sorted_at.len() < n {
+            let more = n - self.sorted_at.len();
+            self.sorted_at
+                .try_reserve_exact(more)
+                .map_err(|_| Error::OutOfMemory {
+                    what: of_n(),
+                    bytes: (n * std::mem::size_of::<AtomicU32>()) as u64,
+                })?;
+        }
         self.sorted_at.resize_with(n, || AtomicU32::new(0));
         let sorted_at = &self.sorted_at;
         self.grid
@@ -239,17 +249,18 @@ impl CpuStepper {
         let at = |i: usize| sorted_at[i].load(Ordering::Relaxed) as usize;
         let sums = &self.sums;
         if self.params.friction.has_history() {
-            let counts: Vec<u32> = sums.par_iter().map(|s| s.held).collect();
+            let mut counts = try_vec(n, of_n)?;
+            counts.par_extend(sums.par_iter().map(|s| s.held));
             let history = &self.sorted_history;
             (self.particles.history).gather_from(at, self.slots, &counts, history)?;
         }
-        self.forces.resize(n, [0.0; 3]);
+        try_resize(&mut self.forces, n, [0.0; 3], of_n)?;
         self.forces
             .par_iter_mut()
             .enumerate()
             .for_each(|(i, f)| *f = sums[at(i)].force.to_array());
         let turns = self.params.friction.turns();
-        self.torques.resize(if turns { n } else { 0 }, [0.0; 3]);
+        try_resize(&mut self.torques, if turns { n } else { 0 }, [0.0; 3], of_n)?;
         self.torques
             .par_iter_mut()
             .enumerate()
@@ -425,7 +436,7 @@ impl Stepper for CpuStepper {
                 _ => self.region,
             };
             self.grid
-                .bin_within(&parts.positions, &parts.radii, lo, hi, self.cell_size);
+                .bin_within(&parts.positions, &parts.radii, lo, hi, self.cell_size)?;
             times.build_ms += ms(t);
             let t = Instant::now();
             if let Some(mesh) = &mut self.mesh {
@@ -448,7 +459,7 @@ impl Stepper for CpuStepper {
     }
 
     fn particles(&mut self) -> Result<Particles> {
-        Ok(self.particles.clone())
+        self.particles.try_clone()
     }
 
     fn flow_counts(&self) -> Option<FlowCounts> {

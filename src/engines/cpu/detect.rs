@@ -199,7 +199,8 @@ impl Backend for CpuBackend {
     }
 
     fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
-        self.grid.bin(spheres, mode.cell_size(spheres.max_radius()));
+        self.grid
+            .bin(spheres, mode.cell_size(spheres.max_radius()))?;
         self.mode = Some(mode);
         Ok(())
     }

@@ -7,6 +7,7 @@
 //! query walk the sorted keys with pointers that only move forward. A layout of few cells per
 //! sphere is sorted by counting instead, which leaves a table of each cell's first sphere.
 
+use crate::error::{Error, Result, try_resize};
 use crate::spheres::SphereSet;
 use rayon::prelude::*;
 
@@ -57,8 +58,9 @@ const MIN_PIECE: usize = 4096;
 const SAMPLES_PER_RANGE: usize = 32;
 
 impl SortedGrid {
-    /// Bins `spheres` into cells of side at least `cell_size`.
-    pub fn bin(&mut self, spheres: &SphereSet, cell_size: f32) {
+    /// Bins `spheres` into cells of side at least `cell_size` ([`Error::OutOfMemory`] where the
+    /// grid does not fit).
+    pub fn bin(&mut self, spheres: &SphereSet, cell_size: f32) -> Result<()> {
         match spheres.bounds() {
             Some((lo, hi)) => {
                 self.bin_within(spheres.centers(), spheres.radii(), lo, hi, cell_size)
@@ -76,7 +78,7 @@ impl SortedGrid {
         lo: [f32; 3],
         hi: [f32; 3],
         cell_size: f32,
-    ) {
+    ) -> Result<()> {
         let cells = cell_layout(lo, hi, cell_size);
         let [nx, ny] = [cells.counts[0] + 2, cells.counts[1] + 2];
         self.dims = [nx, ny];
@@ -100,7 +102,7 @@ impl SortedGrid {
         centers: &[[f32; 3]],
         radii: &[f32],
         key: impl Fn(&[f32; 3]) -> u64 + Sync,
-    ) {
+    ) -> Result<()> {
         let n = centers.len();
         self.starts.clear();
         let wanted = RANGES_PER_THREAD * rayon::current_num_threads();
@@ -116,13 +118,11 @@ impl SortedGrid {
         list_by_range(&mut self.wide, centers, ranges, |i, c| {
             let key = key(c);
             (range_of(key), (key, i))
-        });
+        })?;
 
         let sizes = range_sizes(&self.wide, ranges);
-        self.order.resize(n, (0, 0));
-        self.keys.resize(n, 0);
-        self.ids.resize(n, 0);
-        self.spheres.resize(n, [0.0; 4]);
+        try_resize(&mut self.order, n, (0, 0), || grid_of(n))?;
+        self.resize_sorted(n)?;
         let wide = &self.wide;
         split_by(&mut self.order, &sizes)
             .into_par_iter()
@@ -142,6 +142,14 @@ impl SortedGrid {
                     spheres[at] = [c[0], c[1], c[2], radii[i as usize]];
                 }
             });
+        Ok(())
+    }
+
+    /// [`Self::keys`], [`Self::ids`] and [`Self::spheres`] sized for `n` spheres.
+    fn resize_sorted(&mut self, n: usize) -> Result<()> {
+        try_resize(&mut self.keys, n, 0, || grid_of(n))?;
+        try_resize(&mut self.ids, n, 0, || grid_of(n))?;
+        try_resize(&mut self.spheres, n, [0.0; 4], || grid_of(n))
     }
 
     /// Sorts the spheres by `key` (below `cells`), stably, into [`Self::keys`], [`Self::ids`]
@@ -155,7 +163,7 @@ impl SortedGrid {
         radii: &[f32],
         cells: usize,
         key: impl Fn(&[f32; 3]) -> u64 + Sync,
-    ) {
+    ) -> Result<()> {
         let n = centers.len();
         let shift = cells
             .div_ceil(RANGES_PER_THREAD * rayon::current_num_threads())
@@ -168,13 +176,13 @@ impl SortedGrid {
                 (key >> shift) as usize,
                 [(key & ((1 << shift) - 1)) as u32, i],
             )
-        });
+        })?;
 
         let sizes = range_sizes(&self.ranges, ranges);
-        self.keys.resize(n, 0);
-        self.ids.resize(n, 0);
-        self.spheres.resize(n, [0.0; 4]);
-        self.starts.resize(cells + 1, 0);
+        self.resize_sorted(n)?;
+        try_resize(&mut self.starts, cells + 1, 0, || {
+            format!("the cell table of {cells} cells")
+        })?;
         self.starts[cells] = n as u32;
         let spans: Vec<usize> = (0..ranges)
             .map(|r| (cells - (r << shift)).min(1 << shift))
@@ -218,6 +226,7 @@ impl SortedGrid {
                     spheres[at] = [c[0], c[1], c[2], radii[i as usize]];
                 }
             });
+        Ok(())
     }
 
     /// Key distances from a cell to the first cell (x − 1) of each of its nine neighbour rows
@@ -249,21 +258,32 @@ fn list_by_range<E: Send>(
     centers: &[[f32; 3]],
     ranges: usize,
     entry: impl Fn(u32, &[f32; 3]) -> (usize, E) + Sync,
-) {
+) -> Result<()> {
     let n = centers.len();
     let piece = n
         .div_ceil(PIECES_PER_THREAD * rayon::current_num_threads())
         .max(MIN_PIECE);
     listed.resize_with(n.div_ceil(piece), Vec::new);
-    listed.par_iter_mut().enumerate().for_each(|(k, mine)| {
+    listed.par_iter_mut().enumerate().try_for_each(|(k, mine)| {
         mine.resize_with(ranges, Vec::new);
         mine.iter_mut().for_each(Vec::clear);
         let first = k * piece;
         for (i, c) in centers[first..(first + piece).min(n)].iter().enumerate() {
             let (range, e) = entry((first + i) as u32, c);
-            mine[range].push(e);
+            let list = &mut mine[range];
+            list.try_reserve(1).map_err(|_| Error::OutOfMemory {
+                what: grid_of(n),
+                bytes: (n * std::mem::size_of::<E>()) as u64,
+            })?;
+            list.push(e);
         }
-    });
+        Ok(())
+    })
+}
+
+/// What the grid of `n` spheres is, in errors.
+fn grid_of(n: usize) -> String {
+    format!("the grid of {n} spheres")
 }
 
 /// The entries of each of `ranges` ranges in `listed` (of [`list_by_range`]).
@@ -353,7 +373,7 @@ pub(crate) mod tests {
         let (centers, radii) = random_set(n, 99, 20.0, 0.2..0.5);
         let (lo, hi) = ([0.0; 3], [20.0; 3]);
         let mut counted = SortedGrid::default();
-        counted.bin_within(&centers, &radii, lo, hi, 1.0);
+        counted.bin_within(&centers, &radii, lo, hi, 1.0).unwrap();
         assert!(
             !counted.starts.is_empty(),
             "a dense layout is sorted by counting"
@@ -371,7 +391,7 @@ pub(crate) mod tests {
         assert!(keys.windows(2).any(|k| k[0] == k[1]), "shared cells");
 
         let mut radix = SortedGrid::default();
-        radix.sort_by_radix(&centers, &radii, key);
+        radix.sort_by_radix(&centers, &radii, key).unwrap();
         for grid in [&counted, &radix] {
             assert_eq!(grid.keys, keys);
             assert_eq!(grid.ids, ids);
