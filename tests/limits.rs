@@ -15,8 +15,21 @@ const BIN: &str = env!("CARGO_BIN_EXE_mochi");
 const CAP_BYTES: u64 = 1 << 30;
 
 /// Runs mochi with its address space capped at [`CAP_BYTES`]; returns the single `error:` line
-/// it must have ended with (after checking it did not abort, panic or succeed).
+/// it must have printed alone (after checking it did not abort, panic or succeed).
 fn capped_error(args: &[&str], dir: &Path) -> String {
+    let stderr = capped(args, dir);
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert!(
+        lines.len() == 1 && lines[0].starts_with("error:"),
+        "expected one error line\n{args:?}\n{stderr}"
+    );
+    lines[0].to_owned()
+}
+
+/// Runs mochi with its address space capped at [`CAP_BYTES`]; returns what it printed on
+/// standard error, which must end with its one `error:` line (after checking it did not abort,
+/// panic or succeed).
+fn capped(args: &[&str], dir: &Path) -> String {
     let mut command = Command::new(BIN);
     command
         .args(args)
@@ -47,12 +60,13 @@ fn capped_error(args: &[&str], dir: &Path) -> String {
         Some(101) => panic!("exit 101 looks like a panic\n{describe}"),
         Some(_) => {}
     }
-    let lines: Vec<&str> = stderr.lines().collect();
+    let errors = stderr.lines().filter(|l| l.starts_with("error:")).count();
+    let last = stderr.lines().last().unwrap_or("");
     assert!(
-        lines.len() == 1 && lines[0].starts_with("error:"),
-        "expected one error line\n{describe}"
+        errors == 1 && last.starts_with("error:"),
+        "expected one error line, last\n{describe}"
     );
-    lines[0].to_owned()
+    stderr
 }
 
 fn assert_contains(line: &str, want: &str) {
@@ -180,4 +194,35 @@ fn npy_data_larger_than_memory_is_refused() {
     file.set_len(header.len() as u64 + 600_000_000).unwrap();
     let line = capped_error(&["detect", "--backend", "cpu", "rows.npy"], dir.path());
     assert_contains(&line, "37500000 rows of rows.npy: out of memory");
+}
+
+#[test]
+fn equipment_and_steps_larger_than_memory_are_refused() {
+    let dir = TempDir::new().unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "simulate",
+            "--backend",
+            "cpu",
+            "--steps",
+            "1",
+            "-q",
+            "-o",
+            "s",
+        ];
+        args.extend(extra);
+        // A step that runs out of memory has said which scene it runs.
+        let stderr = capped(&args, dir.path());
+        stderr.lines().last().unwrap_or("").to_owned()
+    };
+    for scene in [
+        &["--scene", "hopper", "-n", "3000000000"][..],
+        &["--scene", "drum", "-n", "200000000"],
+        &["--scene", "hopper", "-n", "20000000"],
+        // The start fits; the step's grid, sums and contact history do not.
+        &["-n", "2560000"],
+    ] {
+        assert_contains(&run(scene), "out of memory");
+    }
+    assert!(!dir.path().join("s").join("checkpoint.bin").exists());
 }

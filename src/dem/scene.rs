@@ -1570,6 +1570,38 @@ mod tests {
                 }
             }
         }
+        // A drum of few sides holds its spheres inside its polygon: each lies on the axis's side
+        // of every side's plane, by its radius at least.
+        for sides in 3..=6 {
+            let over = ["scene=drum".into(), format!("drum_sides={sides}")];
+            let start = SceneConfig::load(None, &over).unwrap().build().unwrap();
+            let tube = start.walls.triangles_at(0.0);
+            for (c, &r) in start.particles.positions.iter().zip(&start.particles.radii) {
+                let c = glam::Vec3::from(*c);
+                let axis = glam::Vec3::new(0.0, c.y, 0.0);
+                for [a, b, d] in tube.iter().map(|t| t.map(glam::Vec3::from)) {
+                    let n = (b - a).cross(d - a).normalize();
+                    let (sphere, centre) = (n.dot(c - a), n.dot(axis - a));
+                    assert!(
+                        sphere * centre.signum() >= r,
+                        "{sides} sides: a sphere at {c} is outside the drum"
+                    );
+                }
+            }
+        }
+        // However few the spheres or wide the orifice, a hopper has room for them.
+        for over in [
+            ["spheres=10", "hopper_orifice=0.04"],
+            ["spheres=4000", "hopper_orifice=10"],
+        ] {
+            let over: Vec<String> = ["scene=hopper"]
+                .iter()
+                .chain(&over)
+                .map(|s| s.to_string())
+                .collect();
+            let start = SceneConfig::load(None, &over).unwrap().build();
+            assert!(start.is_ok(), "{over:?}: {:?}", start.err());
+        }
         let e = SceneConfig::load_new(
             None,
             &SceneFlags::default(),

@@ -7,7 +7,7 @@
 use crate::dem::model::StepParams;
 use crate::dem::model::contact::{Body, Springs, surface_contact};
 use crate::dem::walls::{Pose, Touches, WallLoad, WallSet, mesh_partner, touches};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, try_resize};
 use crate::particles::{HistoryEntry, Particles};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -78,7 +78,8 @@ impl MeshPass {
         let poses = self.walls.poses_at(t);
         let walls = &self.walls;
         let keeps = p.friction.has_history();
-        self.sums.resize(n, MeshSum::default());
+        let of_n = || format!("the mesh wall contacts of {n} spheres");
+        try_resize(&mut self.sums, n, MeshSum::default(), of_n)?;
         loop {
             let slots = self.slots;
             let entries = n.checked_mul(slots).ok_or_else(|| Error::TooLarge {
@@ -87,7 +88,7 @@ impl MeshPass {
                 limit: (usize::MAX / n.max(1)) as u64,
             })?;
             self.entries.clear();
-            self.entries.resize(entries, HistoryEntry::default());
+            try_resize(&mut self.entries, entries, HistoryEntry::default(), of_n)?;
             let chunks: Vec<Vec<WallLoad>> = self
                 .sums
                 .par_chunks_mut(CHUNK)
