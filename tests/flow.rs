@@ -260,7 +260,7 @@ fn a_run_with_inflow_and_outflow_resumes_from_its_checkpoint_bit_for_bit() {
     first.advance(1200).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("checkpoint.bin");
-    mochi::io::write_checkpoint(&file, &first.particles().unwrap(), "").unwrap();
+    mochi::io::write_checkpoint(&file, &first.particles().unwrap(), "", "").unwrap();
     let saved = mochi::io::read_checkpoint(&file).unwrap().particles;
     let mut resumed = stepper(saved, p, flow());
     resumed.advance(1200).unwrap();

@@ -11,7 +11,6 @@ use mochi::render::{
     Camera, ColorBy, Image, Picture, RenderChoice, Renderer, Scene, read_png, viridis,
 };
 use mochi::scenes::{Layout, Scene as Dataset, SceneSpec, generate};
-use std::path::Path;
 
 /// Every path that can be tested here: cpu always, the GPU paths where an adapter has them
 /// (a missing one fails under CI).

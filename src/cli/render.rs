@@ -356,7 +356,7 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| input.with_extension("png"));
     let gif = args.render.gif.as_deref();
-    check_render_outputs(parent, &[input.clone()], Some(&out), gif)?;
+    check_render_outputs(parent, std::slice::from_ref(input), Some(&out), gif)?;
     check_output_folder(&out, "-o", None)?;
     if let Some(gif) = gif {
         check_output_folder(gif, "--gif", None)?;

@@ -661,8 +661,7 @@ impl SceneConfig {
             what: format!("scene key {key}"),
             reason: format!("{reason}: leave it out, or add what it acts on"),
         };
-        let flows = !(self.inflow.is_empty() && self.outflow.is_empty())
-            || !self.box_walls
+        let flows = !(self.inflow.is_empty() && self.outflow.is_empty() && self.box_walls)
             || self.scene == SceneKind::Hopper;
         if given.contains_key("flow_every") && !flows {
             return Err(idle(

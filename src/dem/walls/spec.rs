@@ -175,10 +175,8 @@ impl WallConfig {
             .iter()
             .map(|&v| (rotation * (self.scale * DVec3::from(v)) + translate).as_vec3())
             .collect();
-        if let Some(v) = vertices
-            .iter()
-            .find(|v| !(v.abs().max_element() <= MAX_MAGNITUDE))
-        {
+        let beyond = |v: &&glam::Vec3| !v.is_finite() || v.abs().max_element() > MAX_MAGNITUDE;
+        if let Some(v) = vertices.iter().find(beyond) {
             return Err(bad(format!(
                 "a vertex at {v} lies beyond ±{MAX_MAGNITUDE:e} m once scaled, rotated and \
                  translated: the contact geometry squares lengths in single precision"

@@ -407,12 +407,14 @@ pub(crate) mod tests {
             assert_eq!(run, [first as u32, end as u32], "cell {cell}");
         }
         // Binned again, fewer and then no spheres: the kept scratch does not leak into them.
-        radix.sort_by_radix(&centers[..10], &radii[..10], key);
+        radix
+            .sort_by_radix(&centers[..10], &radii[..10], key)
+            .unwrap();
         let mut few = expected[..0].to_vec();
         few.extend((0..10).map(|i| (key(&centers[i]), i as u32)));
         few.sort_by_key(|e| e.0);
         assert_eq!(radix.ids, few.iter().map(|e| e.1).collect::<Vec<_>>());
-        radix.sort_by_radix(&[], &[], key);
+        radix.sort_by_radix(&[], &[], key).unwrap();
         assert!(radix.keys.is_empty() && radix.ids.is_empty() && radix.spheres.is_empty());
     }
 }
