@@ -5,8 +5,8 @@
 //! of every law and rolling model: a sphere pair from one side, the partner's share as the
 //! partner's own side computes it (what the GPU's owner adds to the partner), and the six
 //! walls with their springs; at the size of the tests' spheres and at nanometres, where the
-//! products of masses, moments of inertia and torques underflow f32. Needs a C++17 compiler (`c++`) and no GPU; skips with a note
-//! without one (CI has one).
+//! products of masses, moments of inertia and torques underflow f32. Needs a C++17 compiler
+//! (`c++`) and no GPU; skips with a note without one (CI has one).
 
 mod common;
 

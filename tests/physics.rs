@@ -1000,10 +1000,11 @@ fn head_on_restitution(kind: BackendKind, material: &Material, dt: f64, r: f32) 
 }
 
 /// The three laws of a head-on impact at restitution `e` of two spheres of radius `r` and
-/// `density`, each at a time step that gives the contact 400 steps: the linear law with the stiffness of a
-/// contact of t_c = π·r/(100 m/s) (a peak overlap of about 1% of r at 1 m/s), the per-pair law
-/// with that contact time, and Hertz–Mindlin (with `friction`, or none), with the tolerance of
-/// each on e: π·dt/t_c for the linear laws, 0.5% for Tsuji's damping (as on a wall).
+/// `density`, each at a time step that gives the contact 400 steps: the linear law with the
+/// stiffness of a contact of t_c = π·r/(100 m/s) (a peak overlap of about 1% of r at 1 m/s),
+/// the per-pair law with that contact time, and Hertz–Mindlin (with `friction`, or none), with
+/// the tolerance of each on e: π·dt/t_c for the linear laws, 0.5% for Tsuji's damping (as on a
+/// wall).
 fn head_on_laws(
     r: f32,
     density: f64,

@@ -20,17 +20,17 @@
 //! Computed from j's side every operation sees negated inputs (n, v_rel, ω_rel and, by
 //! induction, j's springs are the exact negatives of i's), and the effective quantities are
 //! symmetric in i and j ([`effective`]), so the forces and the rolling torques are equal and
-//! opposite bit for bit.
+//! opposite bit for bit. For the linear law without friction, the normal force takes the
+//! operations of [`super::contact_force`] and [`super::wall_force`] in the same order, so the
+//! step gives the same bits as the GPU engines' reference.
 //!
 //! Small spheres (docs/method.md, "Small spheres in f32"): masses and moments of inertia are
 //! tiny (2e-33 kg at r = 1e-12 m), and their products underflow f32. So no law multiplies two
 //! of them: m*, R* and I* come from [`effective`], every damping coefficient √(S·m*) is
-//! [`root_product`]`(S, m*)`, and every length of a force, torque or spring is
-//! [`length`], which squares nothing below its largest component. What remains in range is
-//! checked by [`super::StepParams::new`]: half the mass of the smallest sphere, and where
-//! spheres turn half its moment of inertia, are normal f32 numbers. For the linear law without friction, the normal
-//! force takes the operations of [`super::contact_force`] and [`super::wall_force`] in the same
-//! order, so the step gives the same bits as the GPU engines' reference.
+//! [`root_product`]`(S, m*)`, and every length of a force, torque or spring is [`length`],
+//! which squares nothing below its largest component. What remains in range is checked by
+//! [`super::StepParams::new`]: half the mass of the smallest sphere, and where spheres turn
+//! half its moment of inertia, are normal f32 numbers.
 
 use super::StepParams;
 use super::material::{NormalLaw, RollingModel};

@@ -8,11 +8,11 @@
 //! way with m_eff = m_i. Neither product is formed (they underflow f32 for small spheres):
 //! m_eff is [`effective`]`(m_i, m_j)` and √(k·m_eff) is [`root_product`]`(k, m_eff)`. Computed
 //! from j's side, every operation sees negated inputs and m_eff is symmetric, so F_j = −F_i
-//! exactly. Coincident centres (distance 0) have no contact normal and get no force:
-//! the steppers never see them, as `Particles::separate_coincident` moves such spheres apart
-//! when a stepper is made. `wgsl/dem_physics.wgsl` follows [`contact_force`] and [`wall_force`]
-//! line by line; the cpu step's [`super::contact`] computes the same normal force with the same
-//! operations, so both give the same bits for this law.
+//! exactly. Coincident centres (distance 0) have no contact normal and get no force: the
+//! steppers never see them, as `Particles::separate_coincident` spreads such spheres about their
+//! centre when a stepper is made. `wgsl/dem_physics.wgsl` follows [`contact_force`] and
+//! [`wall_force`] line by line; the cpu step's [`super::contact`] computes the same normal
+//! force with the same operations, so both give the same bits for this law.
 
 use super::StepParams;
 use super::contact::{effective, root_product};
