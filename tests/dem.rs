@@ -663,7 +663,7 @@ fn large_coincident_groups_stack_on_the_floor_under_every_law_on(kind: BackendKi
     // group spreads into. Were they moved apart by a fraction of a radius, their N(N − 1)/2
     // overlaps of almost 2r would fling them out at 1 to 3 km/s (stored energy), faster still
     // in the first step (from 200 up, their collective stiffness is beyond the step's stability),
-    // and through the walls, where a Hertz contact stiffens without bound (NaN by step 10).
+    // and through the walls, where a Hertz contact stiffens without bound: the step diverges.
     // Spread, they fall onto the floor and stack: 100 steps stay finite and slow, their overlaps
     // small.
     let r = 0.01f32;

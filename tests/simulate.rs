@@ -1137,8 +1137,8 @@ fn large_coincident_groups_in_a_file_run_in_the_box_fitted_to_them() {
     // 200 and 2000 rows at one point, the box fitted to the file: the group spreads into a
     // cluster about the point and the box holds it (fitted to the centres it spreads to, with
     // the margin of two diameters), under Hertz–Mindlin (the default) and the linear law.
-    // Moved apart by a fraction of a radius, the 200 became NaN by step 10 under
-    // Hertz–Mindlin in a box of 8 radii.
+    // Left a fraction of a radius apart, their overlaps would fling them through the walls of
+    // a box of 8 radii, and the step would diverge under Hertz–Mindlin.
     let dir = tempfile::tempdir().unwrap();
     let r = 0.01f32;
     for n in [200, 2000] {
