@@ -4,7 +4,6 @@ pub mod history;
 
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
-use glam::Vec3;
 pub use history::{ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, MESH_WALLS};
 
 /// Spheres with velocities, in the order the user gave them, their contact history and the
@@ -289,6 +288,7 @@ fn lattice_points(n: usize) -> Result<Vec<[i32; 3]>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     #[test]
     fn coincident_pairs_are_counted_per_shared_centre() {
