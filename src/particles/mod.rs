@@ -145,7 +145,7 @@ impl Particles {
     /// Moves apart spheres whose centres coincide, so that every pair has a contact normal and
     /// no group starts piled into one sphere's volume: of each group sharing a centre, the
     /// sphere of the smallest index stays and the others, in order of index, take the next
-    /// points of a cubic lattice about the centre ([`lattice_points`]: nearest first), spaced
+    /// points of a cubic lattice about the centre (`lattice_points`: nearest first), spaced
     /// by the group's largest diameter and a thousandth of its largest radius (at least 8
     /// `f32` steps of the coordinates there). The group's spheres then overlap none of their
     /// own group, as a cluster about the centre. Moved apart by a fraction of a radius, a group
