@@ -61,6 +61,17 @@ static __forceinline__ __device__ float3 mochi_cross(float3 a, float3 b) {
 static __forceinline__ __device__ float3 mochi_zero3() {
     return make_float3(0.0f, 0.0f, 0.0f);
 }
+// The length of v without squaring anything below its largest component s: s·|v/s| (|v|²
+// underflows f32 for the forces and torques of small spheres); 0 for the zero vector
+// (contact.rs length).
+static __forceinline__ __device__ float mochi_length(float3 v) {
+    float s = fmaxf(fmaxf(fabsf(v.x), fabsf(v.y)), fabsf(v.z));
+    if (s > 0.0f) {
+        float3 u = mochi_div(v, s);
+        return s * sqrtf(mochi_dot(u, u));
+    }
+    return 0.0f;
+}
 
 // ---- The contact (contact.rs) ------------------------------------------------------------------
 
@@ -111,7 +122,7 @@ struct MochiTouch {
     MochiNormal normal;
     float m_eff;
     float r_eff;
-    float i_eff;   // I_i·I_j/(I_i + I_j) (I_i on a wall)
+    float i_eff;   // I_i·I_j/(I_i + I_j), mochi_effective(I_i, I_j) (I_i on a wall)
     float lever;   // from i's centre to the contact point
     float3 v_rel;  // velocity of i's surface relative to the partner's at the contact point
     float3 w_rel;  // ω_i − ω_j (ω_i on a wall)
@@ -127,12 +138,12 @@ static __forceinline__ __device__ MochiNormal mochi_normal_force(const GranularP
     if (g.law == MOCHI_LAW_HERTZ) {
         float e_star = on_wall ? g.wall_e_star : g.pair_e_star;
         float s_n = 2.0f * e_star * sqrtf(r_eff * overlap);
-        float c = MOCHI_TSUJI * g.dem.damping_ratio * sqrtf(s_n * m_eff);
+        float c = MOCHI_TSUJI * g.dem.damping_ratio * mochi_root_product(s_n, m_eff);
         out.push = 2.0f / 3.0f * s_n * overlap - c * vn;
         out.stiffness = s_n;
     } else {
         float k = g.law == MOCHI_LAW_LINEAR ? g.dem.stiffness : m_eff * g.rate;
-        float c = 2.0f * g.dem.damping_ratio * sqrtf(k * m_eff);
+        float c = 2.0f * g.dem.damping_ratio * mochi_root_product(k, m_eff);
         out.push = k * overlap - c * vn;
         out.stiffness = k;
     }
@@ -142,9 +153,9 @@ static __forceinline__ __device__ MochiNormal mochi_normal_force(const GranularP
 // `x` turned into the plane normal to `n`: its normal part removed, its length kept.
 static __forceinline__ __device__ float3 mochi_into_plane(float3 x, float3 n) {
     float3 t = mochi_sub(x, mochi_scale(mochi_dot(x, n), n));
-    float len2 = mochi_dot(t, t);
-    if (len2 > 0.0f) {
-        return mochi_scale(sqrtf(mochi_dot(x, x)) / sqrtf(len2), t);
+    float len = mochi_length(t);
+    if (len > 0.0f) {
+        return mochi_scale(mochi_length(x) / len, t);
     }
     return t;
 }
@@ -175,18 +186,18 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const GranularPar
             float g_star = t.on_wall ? g.wall_g_star : g.pair_g_star;
             float s_t = 8.0f * g_star * sqrtf(t.r_eff * t.overlap);
             k_t = s_t;
-            c_t = MOCHI_TSUJI * g.dem.damping_ratio * sqrtf(s_t * t.m_eff);
+            c_t = MOCHI_TSUJI * g.dem.damping_ratio * mochi_root_product(s_t, t.m_eff);
         } else {
             k_t = 2.0f / 7.0f * t.normal.stiffness;
-            c_t = 2.0f * g.dem.damping_ratio * sqrtf(k_t * t.m_eff);
+            c_t = 2.0f * g.dem.damping_ratio * mochi_root_product(k_t, t.m_eff);
         }
         float3 v_t = mochi_sub(t.v_rel, mochi_scale(mochi_dot(t.v_rel, n), n));
         float3 xi = mochi_add(mochi_into_plane(old.tangential, n), mochi_scale(g.dem.dt, v_t));
         float3 f_t = mochi_sub(mochi_scale(-k_t, xi), mochi_scale(c_t, v_t));
         float cap = mu * pressing;
-        float f2 = mochi_dot(f_t, f_t);
-        if (f2 > cap * cap) {
-            f_t = mochi_scale(cap / sqrtf(f2), f_t);
+        float len = mochi_length(f_t);
+        if (len > cap) {
+            f_t = mochi_scale(cap / len, f_t);
             xi = mochi_div(mochi_neg(f_t), k_t);
         }
         out.force = f_t;
@@ -202,14 +213,14 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const GranularPar
             float k_r = 2.25f * t.normal.stiffness * mu_r * mu_r * t.r_eff * t.r_eff;
             float3 m = mochi_sub(mochi_into_plane(old.rolling, n),
                                  mochi_scale(k_r * g.dem.dt, w_roll));
-            float m2 = mochi_dot(m, m);
-            if (m2 > cap * cap) {
-                m = mochi_scale(cap / sqrtf(m2), m);
+            float len = mochi_length(m);
+            if (len > cap) {
+                m = mochi_scale(cap / len, m);
             }
             out.springs.rolling = m;
             rolling = m;
         } else {
-            float speed = sqrtf(mochi_dot(w_roll, w_roll));
+            float speed = mochi_length(w_roll);
             if (speed > 0.0f) {
                 // Never more than stops the relative rolling within the step.
                 float size = fminf(cap, t.i_eff * speed / g.dem.dt);
@@ -251,8 +262,8 @@ static __forceinline__ __device__ bool mochi_pair_contact(const GranularParams& 
     float3 n = mochi_div(d, dist);
     float overlap = reach - dist;
     float vn = mochi_dot(mochi_sub(j.v, i.v), n);
-    float m_eff = i.m * j.m / (i.m + j.m);
-    float r_eff = i.r * j.r / (i.r + j.r);
+    float m_eff = mochi_effective(i.m, j.m);
+    float r_eff = mochi_effective(i.r, j.r);
     MochiNormal normal = mochi_normal_force(g, false, overlap, vn, m_eff, r_eff);
     float3 force = mochi_scale(-normal.push, n);
     out.n = n;
@@ -264,15 +275,13 @@ static __forceinline__ __device__ bool mochi_pair_contact(const GranularParams& 
         out.springs = mochi_no_springs();
         return true;
     }
-    float inertia_i = mochi_inertia(i.m, i.r);
-    float inertia_j = mochi_inertia(j.m, j.r);
     MochiTouch touch;
     touch.n = n;
     touch.overlap = overlap;
     touch.normal = normal;
     touch.m_eff = m_eff;
     touch.r_eff = r_eff;
-    touch.i_eff = inertia_i * inertia_j / (inertia_i + inertia_j);
+    touch.i_eff = mochi_effective(mochi_inertia(i.m, i.r), mochi_inertia(j.m, j.r));
     touch.lever = i.r;
     touch.v_rel = mochi_sub(mochi_add(i.v, mochi_cross(i.w, mochi_scale(i.r, n))),
                             mochi_sub(j.v, mochi_cross(j.w, mochi_scale(j.r, n))));

@@ -15,6 +15,21 @@ struct DemParams {
     unsigned int _pad1;
 };
 
+// The effective value a·b/(a + b) of two positive values (m*, R*, I*) without their product,
+// which underflows f32 for small spheres: lo/(1 + lo/hi), symmetric in a and b (contact.rs
+// effective).
+static __forceinline__ __device__ float mochi_effective(float a, float b) {
+    float lo = fminf(a, b);
+    float hi = fmaxf(a, b);
+    return lo / (1.0f + lo / hi);
+}
+
+// √(a·b) without the product, which underflows (or overflows) f32: √a·√b (contact.rs
+// root_product).
+static __forceinline__ __device__ float mochi_root_product(float a, float b) {
+    return sqrtf(a) * sqrtf(b);
+}
+
 // Force on sphere i from sphere j (x, y, z, r and vx, vy, vz, mass each) in xyz, and 1 in w
 // when they touch; zero otherwise.
 static __forceinline__ __device__ float4 mochi_contact_force(const DemParams& dem, float4 c_i,
@@ -33,8 +48,8 @@ static __forceinline__ __device__ float4 mochi_contact_force(const DemParams& de
     float nz = dz / dist;
     float overlap = reach - dist;
     float vn = (v_j.x - v_i.x) * nx + (v_j.y - v_i.y) * ny + (v_j.z - v_i.z) * nz;
-    float m_eff = v_i.w * v_j.w / (v_i.w + v_j.w);
-    float c = 2.0f * dem.damping_ratio * sqrtf(dem.stiffness * m_eff);
+    float m_eff = mochi_effective(v_i.w, v_j.w);
+    float c = 2.0f * dem.damping_ratio * mochi_root_product(dem.stiffness, m_eff);
     float push = dem.stiffness * overlap - c * vn;
     return make_float4(-push * nx, -push * ny, -push * nz, 1.0f);
 }
@@ -42,7 +57,7 @@ static __forceinline__ __device__ float4 mochi_contact_force(const DemParams& de
 // Force of the box walls on sphere s (x, y, z, r) with velocity and mass v.
 static __forceinline__ __device__ float3 mochi_wall_force(const DemParams& dem, float4 s,
                                                           float4 v) {
-    float damping = 2.0f * dem.damping_ratio * sqrtf(dem.stiffness * v.w);
+    float damping = 2.0f * dem.damping_ratio * mochi_root_product(dem.stiffness, v.w);
     float c[3] = {s.x, s.y, s.z};
     float u[3] = {v.x, v.y, v.z};
     float f[3] = {0.0f, 0.0f, 0.0f};

@@ -260,8 +260,9 @@ impl Run {
         (self.coincident_pairs > 0).then(|| {
             format!(
                 "{} pairs of spheres share their centre: each sphere after the first of such a \
-                 group starts a thousandth of a radius away, in a direction drawn from the \
-                 indices, and their contacts push them apart",
+                 group starts at the next point of a cubic lattice about the centre, nearest \
+                 first, a diameter of the group's largest sphere apart, so that none of them \
+                 overlaps another",
                 self.coincident_pairs
             )
         })

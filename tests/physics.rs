@@ -324,22 +324,24 @@ fn an_oblique_impact_in_gross_sliding_trades_speed_for_spin_on(kind: BackendKind
     assert!(w[0] == 0.0 && w[2] == 0.0 && v[1] == 0.0, "{w:?} {v:?}");
 }
 
-/// A sphere resting on the floor of a 1 m box under gravity `g`, set moving along x at `v0`.
+/// A sphere resting on the floor of a box of side `side` under gravity `g`, set moving along x
+/// at `v0` from a tenth of the way across.
 fn set_on_the_floor(
     kind: BackendKind,
     material: &Material,
     r: f32,
     v0: f32,
     g: f64,
+    side: f32,
 ) -> (Box<dyn Stepper>, f64) {
     let m = mass(RHO as f32, r) as f64;
     // Resting overlap m·g = 4/3·E*·√r·δ^{3/2}.
     let rest = (3.0 * m * g / (4.0 * e_star(true) * (r as f64).sqrt())).powf(2.0 / 3.0);
     let t_r = mochi::dem::model::time_step::rayleigh_time(r as f64, RHO, E, NU);
     let dt = 0.2 * t_r;
-    let p = params(material, dt, 1.0, [0.0, 0.0, -g], r);
+    let p = params(material, dt, side as f64, [0.0, 0.0, -g], r);
     let start = spheres(
-        vec![[0.1, 0.5, r - rest as f32]],
+        vec![[0.1 * side, 0.5 * side, r - rest as f32]],
         vec![[v0, 0.0, 0.0]],
         vec![r],
     );
@@ -354,7 +356,7 @@ fn a_sliding_sphere_rolls_at_five_sevenths_of_its_speed_from_t_star_on() {
 fn a_sliding_sphere_rolls_at_five_sevenths_of_its_speed_from_t_star_on_on(kind: BackendKind) {
     let (r, v0, mu, g) = (0.01f32, 0.5f32, 0.3, 9.81);
     let material = hertz(0.5, mu);
-    let (mut s, dt) = set_on_the_floor(kind, &material, r, v0, g);
+    let (mut s, dt) = set_on_the_floor(kind, &material, r, v0, g, 1.0);
     let t_star = 2.0 * v0 as f64 / (7.0 * mu * g);
     let steps = |t: f64| (t / dt).round() as u32;
     // Halfway through the sliding: decelerating at μ·g.
@@ -392,26 +394,30 @@ fn a_sliding_sphere_rolls_at_five_sevenths_of_its_speed_from_t_star_on_on(kind: 
 
 #[test]
 fn constant_torque_rolling_resistance_slows_a_rolling_sphere_at_five_sevenths_mu_r_g() {
-    on_every_backend(
-        constant_torque_rolling_resistance_slows_a_rolling_sphere_at_five_sevenths_mu_r_g_on,
-    );
+    on_every_backend(|kind| {
+        rolling_resistance_slows_a_rolling_sphere(kind, RollingModel::ConstantTorque, 0.01)
+    });
 }
 
-fn constant_torque_rolling_resistance_slows_a_rolling_sphere_at_five_sevenths_mu_r_g_on(
-    kind: BackendKind,
-) {
-    let (r, v0, mu, mu_r, g) = (0.01f32, 0.5f32, 0.3, 0.05, 9.81);
+/// A sphere of radius `r` set sliding on the floor rolls from 2·t* on, and rolling resistance
+/// of `model` then slows it at 5/7·μ_r·g: the sphere of 1 cm under 9.81 m/s², and any other
+/// radius under gravity scaled by 1 cm/r in a box scaled by r/1 cm, which keeps every speed,
+/// every ratio of lengths and the steps per contact (the time step follows the Rayleigh time,
+/// which scales with r).
+fn rolling_resistance_slows_a_rolling_sphere(kind: BackendKind, model: RollingModel, r: f32) {
+    let scale = r as f64 / 0.01;
+    let (v0, mu, mu_r, g) = (0.5f32, 0.3, 0.05, 9.81 / scale);
     let material = Material {
         rolling_friction: mu_r,
-        rolling_model: RollingModel::ConstantTorque,
+        rolling_model: model,
         ..hertz(0.5, mu)
     };
-    let (mut s, dt) = set_on_the_floor(kind, &material, r, v0, g);
+    let (mut s, dt) = set_on_the_floor(kind, &material, r, v0, g, scale as f32);
     let t_star = 2.0 * v0 as f64 / (7.0 * mu * g);
-    // Rolling by 2·t*; then 0.2 s of rolling, slowing by 5/7·μ_r·g.
+    // Rolling by 2·t*; then 0.2 s (scaled) of rolling, slowing by 5/7·μ_r·g.
     s.advance((2.0 * t_star / dt) as u32).unwrap();
     let a = s.particles().unwrap();
-    let span = (0.2 / dt) as u32;
+    let span = (0.2 * scale / dt) as u32;
     s.advance(span).unwrap();
     let b = s.particles().unwrap();
     let slowing = (a.velocities[0][0] - b.velocities[0][0]) as f64 / (span as f64 * dt);
@@ -419,12 +425,12 @@ fn constant_torque_rolling_resistance_slows_a_rolling_sphere_at_five_sevenths_mu
     // The resting overlap shortens the lever of the torque (r − δ against r): ≪ 1%.
     assert!(
         (slowing / expected - 1.0).abs() <= 1e-2,
-        "slowing {slowing} m/s², expected {expected}"
+        "r = {r:e} m: slowing {slowing} m/s², expected {expected}"
     );
     let (v, w) = (b.velocities[0][0], b.angular_velocities[0][1]);
     assert!(
         (w * r - v).abs() <= 2e-3 * v,
-        "slipping: ω·r {} v {v}",
+        "r = {r:e} m: slipping: ω·r {} v {v}",
         w * r
     );
 }
@@ -969,5 +975,172 @@ fn a_gpu_step_whose_spheres_own_more_contacts_than_slots_keeps_every_one() {
                 );
             }
         }
+    }
+}
+
+/// Parting over closing speed of two spheres of radius `r` meeting head-on at 1 m/s at the
+/// origin (no gravity, in a box of 100·r about it, so that f32 resolves their overlap as at
+/// any other scale), with `material` at time step `dt`.
+fn head_on_restitution(kind: BackendKind, material: &Material, dt: f64, r: f32) -> f64 {
+    let v = 1.0f32;
+    let side = 50.0 * r as f64;
+    let p = StepParams::new(material, dt, [-side; 3], [side; 3], [0.0; 3], 0.0, r)
+        .unwrap_or_else(|e| panic!("r = {r:e} m: {e}"));
+    let x = r * (1.0 + 1e-3);
+    let start = spheres(
+        vec![[-x, 0.0, 0.0], [x, 0.0, 0.0]],
+        vec![[v / 2.0, 0.0, 0.0], [-v / 2.0, 0.0, 0.0]],
+        vec![r, r],
+    );
+    let mut s = open(kind, start, p);
+    let overlap = |p: &Particles| (2.0 * r - (p.positions[1][0] - p.positions[0][0])) as f64;
+    let hit = impact(s.as_mut(), overlap);
+    let w = &hit.after.velocities;
+    ((w[1][0] - w[0][0]) / v) as f64
+}
+
+/// The three laws of a head-on impact at restitution `e` of two spheres of radius `r` and
+/// `density`, each at a time step that gives the contact 400 steps: the linear law with the
+/// stiffness of a contact of t_c = π·r/(100 m/s) (a peak overlap of about 1% of r at 1 m/s),
+/// the per-pair law with that contact time, and Hertz–Mindlin (with `friction`, or none), with
+/// the tolerance of each on e: π·dt/t_c for the linear laws, 0.5% for Tsuji's damping (as on a
+/// wall).
+fn head_on_laws(
+    r: f32,
+    density: f64,
+    e: f64,
+    friction: f64,
+) -> Vec<(&'static str, Material, f64, f64)> {
+    let m_eff = mass(density as f32, r) as f64 / 2.0;
+    let t_c = std::f64::consts::PI * r as f64 / 100.0;
+    let linear = Material {
+        density,
+        restitution: e,
+        stiffness: Some(mochi::dem::model::stiffness_for_duration(m_eff, e, t_c)),
+        friction,
+        ..Material::default()
+    };
+    let per_pair = Material {
+        stiffness: None,
+        contact: ContactLaw::LinearPerPair {
+            contact_time: Some(t_c),
+        },
+        ..linear
+    };
+    let hertz_t_c = hertz_contact_time(m_eff, r as f64 / 2.0, e_star(false), 1.0);
+    let linear_tolerance = std::f64::consts::PI / 400.0 * e;
+    let mut hertz = Material {
+        density,
+        ..hertz(e, friction)
+    };
+    if friction > 0.0 {
+        hertz.rolling_friction = 0.1;
+    }
+    vec![
+        ("linear", linear, t_c / 400.0, linear_tolerance),
+        ("per-pair", per_pair, t_c / 400.0, linear_tolerance),
+        ("hertz-mindlin", hertz, hertz_t_c / 400.0, 5e-3 * e),
+    ]
+}
+
+#[test]
+fn tiny_spheres_meet_head_on_at_their_restitution_under_every_law() {
+    on_every_backend(tiny_spheres_meet_head_on_at_their_restitution_under_every_law_on);
+}
+
+fn tiny_spheres_meet_head_on_at_their_restitution_under_every_law_on(kind: BackendKind) {
+    // Without friction every radius from the smallest a sphere may have is accepted, at the
+    // default density of 500 kg/m³ (the masses, 2e-33 kg at 1e-12 m, are normal f32 numbers;
+    // their products are not, and m*, R* and the damping are computed without them); 1 cm is
+    // the control. With friction and rolling resistance, the smallest radius whose moment of
+    // inertia the step accepts at 2500 kg/m³ (about 5.6e-9 m): the granular step's law, with
+    // the spheres' rotation integrated.
+    let e = 0.5;
+    let turning = mochi::dem::model::smallest_turning_radius(RHO as f32);
+    let frictionless = [0.01, 3e-9, 2e-9, 1e-9, mochi::MIN_RADIUS].map(|r| (r, 500.0, 0.0));
+    for (r, density, friction) in frictionless.into_iter().chain([(turning, RHO, 0.5)]) {
+        for (law, material, dt, tolerance) in head_on_laws(r, density, e, friction) {
+            let got = head_on_restitution(kind, &material, dt, r);
+            assert!(
+                (got - e).abs() <= tolerance,
+                "{law}, r = {r:e} m, friction {friction}: restitution {got}, configured {e}"
+            );
+        }
+    }
+}
+
+#[test]
+fn rolling_resistance_slows_the_smallest_sphere_that_turns_at_five_sevenths_mu_r_g() {
+    // Its rolling torque (about 1e-23 N·m) has a square below f32's smallest normal number:
+    // the cap of the EPSD spring holds only where lengths are taken without squares.
+    on_every_backend(|kind| {
+        let r = mochi::dem::model::smallest_turning_radius(RHO as f32);
+        for model in [RollingModel::Epsd, RollingModel::ConstantTorque] {
+            rolling_resistance_slows_a_rolling_sphere(kind, model, r);
+        }
+    });
+}
+
+#[test]
+fn constant_torque_rolling_resistance_between_the_smallest_spheres_that_turn_takes_its_impulse() {
+    on_every_backend(
+        constant_torque_rolling_resistance_between_the_smallest_spheres_that_turn_takes_its_impulse_on,
+    );
+}
+
+fn constant_torque_rolling_resistance_between_the_smallest_spheres_that_turn_takes_its_impulse_on(
+    kind: BackendKind,
+) {
+    // Two spheres at rest pressed into each other by 1% of their radius, spinning oppositely
+    // about y (rolling on each other), no gravity, elastic, μ = 0: their contact pushes them
+    // apart with an impulse J = m·v (v the speed each leaves with), and constant-torque rolling
+    // resistance, μ_r·R*·F_n while it does not stop the rolling, turns each by μ_r·R*·J/I. At
+    // the smallest radius that turns, I_i·I_j is far below f32's smallest normal number: the
+    // effective moment of inertia that clips the torque is computed without it.
+    let r = mochi::dem::model::smallest_turning_radius(RHO as f32);
+    let mu_r = 0.1;
+    let material = Material {
+        rolling_friction: mu_r,
+        rolling_model: RollingModel::ConstantTorque,
+        ..hertz(1.0, 0.0)
+    };
+    let t_r = mochi::dem::model::time_step::rayleigh_time(r as f64, RHO, E, NU);
+    let side = 50.0 * r as f64;
+    let p = StepParams::new(
+        &material,
+        0.05 * t_r,
+        [-side; 3],
+        [side; 3],
+        [0.0; 3],
+        0.0,
+        r,
+    )
+    .unwrap();
+    let x = r * (1.0 - 5e-3);
+    let w0 = 1.0 / r;
+    let mut start = spheres(
+        vec![[-x, 0.0, 0.0], [x, 0.0, 0.0]],
+        vec![[0.0; 3]; 2],
+        vec![r, r],
+    );
+    start.angular_velocities = vec![[0.0, w0, 0.0], [0.0, -w0, 0.0]];
+    let mut s = open(kind, start, p);
+    let overlap = |p: &Particles| (2.0 * r - (p.positions[1][0] - p.positions[0][0])) as f64;
+    let apart = impact(s.as_mut(), overlap).after;
+    let m = mass(RHO as f32, r) as f64;
+    let inertia = moment_of_inertia(mass(RHO as f32, r), r) as f64;
+    let v = apart.velocities[1][0] as f64;
+    assert!(v > 0.0, "the spheres did not part: {:?}", apart.velocities);
+    let turned = mu_r * (r as f64 / 2.0) * m * v / inertia;
+    let w = [0, 1].map(|k| apart.angular_velocities[k][1] as f64);
+    // Within 1% of the turn (the lever of the push shortens with the overlap, ≪ 1%), and
+    // well short of stopping the rolling.
+    assert!(turned < 0.1 * w0 as f64, "{turned} of {w0}");
+    for (got, expected) in [(w[0], w0 as f64 - turned), (w[1], -(w0 as f64 - turned))] {
+        assert!(
+            (got - expected).abs() <= 1e-2 * turned,
+            "spins {w:?} rad/s, expected ±{} (turned by {turned})",
+            w0 as f64 - turned
+        );
     }
 }

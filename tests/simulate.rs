@@ -1099,6 +1099,65 @@ fn coincident_spheres_are_warned_about_and_pushed_apart() {
     }
 }
 
+#[test]
+fn large_coincident_groups_in_a_file_run_in_the_box_fitted_to_them() {
+    // 200 and 2000 rows at one point, the box fitted to the file: the group spreads into a
+    // cluster about the point and the box holds it (fitted to the centres it spreads to, with
+    // the margin of two diameters), under Hertz–Mindlin (the default) and the linear law.
+    // Left a fraction of a radius apart, their overlaps would fling them through the walls of
+    // a box of 8 radii, and the step would diverge under Hertz–Mindlin.
+    let dir = tempfile::tempdir().unwrap();
+    let r = 0.01f32;
+    for n in [200, 2000] {
+        let csv = format!("x,y,z,r\n{}", "0.5,0.5,0.5,0.01\n".repeat(n));
+        std::fs::write(dir.path().join("same.csv"), csv).unwrap();
+        for law in ["hertz-mindlin", "linear"] {
+            let out = format!("out-{n}-{law}");
+            let contact = format!("contact={law}");
+            let args = [
+                "simulate",
+                "--input",
+                "same.csv",
+                "--set",
+                &contact,
+                "--steps",
+                "100",
+                "--frame-every",
+                "0",
+                "--backend",
+                "cpu",
+                "-q",
+                "-o",
+                &out,
+            ];
+            let (code, stdout, stderr) = mochi(&args, dir.path());
+            assert_eq!(code, Some(0), "{n} spheres, {law}: {stdout}\n{stderr}");
+            let pairs = format!("{} pairs of spheres share their centre", n * (n - 1) / 2);
+            assert!(stderr.contains(&pairs), "{stderr}");
+            let checkpoint = dir.path().join(&out).join("checkpoint.bin");
+            let (end, scene) = read_checkpoint(&checkpoint).unwrap();
+            let scene: toml::Table = toml::from_str(&scene).unwrap();
+            let corner = |key: &str| -> Vec<f32> {
+                let values = scene[key].as_array().unwrap();
+                values
+                    .iter()
+                    .map(|x| x.as_float().unwrap() as f32)
+                    .collect()
+            };
+            let (lo, hi) = (corner("box_lo"), corner("box_hi"));
+            for (i, (c, v)) in end.positions.iter().zip(&end.velocities).enumerate() {
+                let inside = (0..3).all(|a| c[a] - r >= lo[a] && c[a] + r <= hi[a]);
+                assert!(
+                    inside,
+                    "{n}, {law}: sphere {i} at {c:?}, box {lo:?} .. {hi:?}"
+                );
+                let speed = v.iter().map(|x| x * x).sum::<f32>().sqrt();
+                assert!(speed < 0.1, "{n}, {law}: sphere {i} moves at {speed} m/s");
+            }
+        }
+    }
+}
+
 /// The GPU backends whose `simulate` runs here: wgpu-compute and wgpu-rq wherever an adapter
 /// exists (a panic under CI without one), optix where it runs or is expected.
 fn gpu_backends() -> Vec<&'static str> {

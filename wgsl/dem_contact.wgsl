@@ -63,7 +63,7 @@ struct Touch {
     normal: Normal,
     m_eff: f32,
     r_eff: f32,
-    i_eff: f32,         // I_i·I_j/(I_i + I_j) (I_i on a wall)
+    i_eff: f32,         // I_i·I_j/(I_i + I_j), effective(I_i, I_j) (I_i on a wall)
     lever: f32,         // distance from i's centre to the contact point
     v_rel: vec3<f32>,   // velocity of i's surface relative to the partner's at the contact point
     w_rel: vec3<f32>,   // ω_i − ω_j (ω_i on a wall)
@@ -96,29 +96,41 @@ fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return a.x * b.x + a.y * b.y + a.z * b.z;
 }
 
+// The length of v without squaring anything below its largest component s: s·|v/s| (|v|²
+// underflows f32 for the forces and torques of small spheres); 0 for the zero vector. Keep in
+// sync with `length` in src/dem/model/contact.rs.
+fn length_of(v: vec3<f32>) -> f32 {
+    let s = max(max(abs(v.x), abs(v.y)), abs(v.z));
+    if s > 0.0 {
+        let u = v / s;
+        return s * sqrt(dot3(u, u));
+    }
+    return 0.0;
+}
+
 // The normal force of a contact with overlap `overlap` > 0 and normal relative velocity `vn`.
 fn normal_force(on_wall: bool, overlap: f32, vn: f32, m_eff: f32, r_eff: f32) -> Normal {
     if granular.law == LAW_LINEAR {
-        let c = 2.0 * dem.damping_ratio * sqrt(dem.stiffness * m_eff);
+        let c = 2.0 * dem.damping_ratio * root_product(dem.stiffness, m_eff);
         return Normal(dem.stiffness * overlap - c * vn, dem.stiffness);
     }
     if granular.law == LAW_PER_PAIR {
         let k = m_eff * granular.rate;
-        let c = 2.0 * dem.damping_ratio * sqrt(k * m_eff);
+        let c = 2.0 * dem.damping_ratio * root_product(k, m_eff);
         return Normal(k * overlap - c * vn, k);
     }
     let e_star = select(granular.pair_e_star, granular.wall_e_star, on_wall);
     let s_n = 2.0 * e_star * sqrt(r_eff * overlap);
-    let c = TSUJI * dem.damping_ratio * sqrt(s_n * m_eff);
+    let c = TSUJI * dem.damping_ratio * root_product(s_n, m_eff);
     return Normal(2.0 / 3.0 * s_n * overlap - c * vn, s_n);
 }
 
 // `x` turned into the plane normal to `n`: its normal part removed, its length kept.
 fn into_plane(x: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let t = x - dot3(x, n) * n;
-    let len2 = dot3(t, t);
-    if len2 > 0.0 {
-        return t * (sqrt(dot3(x, x)) / sqrt(len2));
+    let len = length_of(t);
+    if len > 0.0 {
+        return t * (length_of(x) / len);
     }
     return t;
 }
@@ -134,18 +146,18 @@ fn friction(t: Touch, mu: f32, old: Springs) -> Friction {
         if granular.law == LAW_HERTZ {
             let g_star = select(granular.pair_g_star, granular.wall_g_star, t.on_wall);
             k_t = 8.0 * g_star * sqrt(t.r_eff * t.overlap);
-            c_t = TSUJI * dem.damping_ratio * sqrt(k_t * t.m_eff);
+            c_t = TSUJI * dem.damping_ratio * root_product(k_t, t.m_eff);
         } else {
             k_t = 2.0 / 7.0 * t.normal.stiffness;
-            c_t = 2.0 * dem.damping_ratio * sqrt(k_t * t.m_eff);
+            c_t = 2.0 * dem.damping_ratio * root_product(k_t, t.m_eff);
         }
         let v_t = t.v_rel - dot3(t.v_rel, n) * n;
         var xi = into_plane(old.tangential, n) + v_t * dem.dt;
         var f_t = -k_t * xi - c_t * v_t;
         let cap = mu * pressing;
-        let f2 = dot3(f_t, f_t);
-        if f2 > cap * cap {
-            f_t *= cap / sqrt(f2);
+        let len = length_of(f_t);
+        if len > cap {
+            f_t *= cap / len;
             xi = -f_t / k_t;
         }
         out.force = f_t;
@@ -158,14 +170,14 @@ fn friction(t: Touch, mu: f32, old: Springs) -> Friction {
         if granular.rolling_model == ROLLING_EPSD {
             let k_r = 2.25 * t.normal.stiffness * mu_r * mu_r * t.r_eff * t.r_eff;
             var m = into_plane(old.rolling, n) - k_r * dem.dt * w_roll;
-            let m2 = dot3(m, m);
-            if m2 > cap * cap {
-                m *= cap / sqrt(m2);
+            let len = length_of(m);
+            if len > cap {
+                m *= cap / len;
             }
             out.springs.rolling = m;
             out.rolling = m;
         } else {
-            let speed = sqrt(dot3(w_roll, w_roll));
+            let speed = length_of(w_roll);
             if speed > 0.0 {
                 // Never more than stops the relative rolling within the step.
                 let size = min(cap, t.i_eff * speed / dem.dt);
@@ -191,23 +203,21 @@ fn pair_contact(i: Body, j: Body, old: Springs) -> Contact {
     // just touching could get a negative overlap, whose Hertz √(R·δ) is NaN.
     let overlap = max(reach - dist, 0.0);
     let vn = dot3(j.v - i.v, n);
-    let m_eff = i.m * j.m / (i.m + j.m);
-    let r_eff = i.r * j.r / (i.r + j.r);
+    let m_eff = effective(i.m, j.m);
+    let r_eff = effective(i.r, j.r);
     let normal = normal_force(false, overlap, vn, m_eff, r_eff);
     out.touching = true;
     out.force = -normal.push * n;
     if granular.turns == 0u {
         return out;
     }
-    let inertia_i = moment_of_inertia(i.m, i.r);
-    let inertia_j = moment_of_inertia(j.m, j.r);
     let touch = Touch(
         n,
         overlap,
         normal,
         m_eff,
         r_eff,
-        inertia_i * inertia_j / (inertia_i + inertia_j),
+        effective(moment_of_inertia(i.m, i.r), moment_of_inertia(j.m, j.r)),
         i.r,
         (i.v + cross(i.w, i.r * n)) - (j.v - cross(j.w, j.r * n)),
         i.w - j.w,

@@ -21,6 +21,21 @@ struct DemParams {
 // steps begun since t = 0
 @group(0) @binding(16) var<storage, read_write> clock: atomic<u32>;
 
+// The effective value a·b/(a + b) of two positive values (m*, R*, I*) without their product,
+// which underflows f32 for small spheres: lo/(1 + lo/hi), symmetric in a and b. Keep in sync with
+// `effective` in src/dem/model/contact.rs.
+fn effective(a: f32, b: f32) -> f32 {
+    let lo = min(a, b);
+    let hi = max(a, b);
+    return lo / (1.0 + lo / hi);
+}
+
+// √(a·b) without the product, which underflows (or overflows) f32: √a·√b. Keep in sync with
+// `root_product` in src/dem/model/contact.rs.
+fn root_product(a: f32, b: f32) -> f32 {
+    return sqrt(a) * sqrt(b);
+}
+
 // Gravity at step `step`, turned about the y axis by gravity_spin · t.
 fn gravity_at(step: u32) -> vec3<f32> {
     let angle = dem.gravity_spin * (f32(step) * dem.dt);

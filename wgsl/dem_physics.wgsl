@@ -18,15 +18,15 @@ fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
     let overlap = reach - dist;
     let dv = v_j - v_i;
     let vn = dv.x * n.x + dv.y * n.y + dv.z * n.z;
-    let m_eff = m_i * m_j / (m_i + m_j);
-    let c = 2.0 * dem.damping_ratio * sqrt(dem.stiffness * m_eff);
+    let m_eff = effective(m_i, m_j);
+    let c = 2.0 * dem.damping_ratio * root_product(dem.stiffness, m_eff);
     let push = dem.stiffness * overlap - c * vn;
     return vec4(-push * n, 1.0);
 }
 
 // Force of the box walls on a sphere at c with velocity v, radius r and mass m.
 fn wall_force(c: vec3<f32>, v: vec3<f32>, r: f32, m: f32) -> vec3<f32> {
-    let damping = 2.0 * dem.damping_ratio * sqrt(dem.stiffness * m);
+    let damping = 2.0 * dem.damping_ratio * root_product(dem.stiffness, m);
     var f = vec3(0.0);
     for (var a = 0; a < 3; a += 1) {
         let below = r - (c[a] - dem.box_lo[a]);

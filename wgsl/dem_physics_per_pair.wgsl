@@ -25,9 +25,9 @@ fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
     let overlap = reach - dist;
     let dv = v_j - v_i;
     let vn = dv.x * n.x + dv.y * n.y + dv.z * n.z;
-    let m_eff = m_i * m_j / (m_i + m_j);
+    let m_eff = effective(m_i, m_j);
     let k = m_eff * per_pair.rate;
-    let c = 2.0 * dem.damping_ratio * sqrt(k * m_eff);
+    let c = 2.0 * dem.damping_ratio * root_product(k, m_eff);
     let push = k * overlap - c * vn;
     return vec4(-push * n, 1.0);
 }
@@ -35,7 +35,7 @@ fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
 // Force of the box walls on a sphere at c with velocity v, radius r and mass m.
 fn wall_force(c: vec3<f32>, v: vec3<f32>, r: f32, m: f32) -> vec3<f32> {
     let k = m * per_pair.rate;
-    let damping = 2.0 * dem.damping_ratio * sqrt(k * m);
+    let damping = 2.0 * dem.damping_ratio * root_product(k, m);
     var f = vec3(0.0);
     for (var a = 0; a < 3; a += 1) {
         let below = r - (c[a] - dem.box_lo[a]);

@@ -973,10 +973,16 @@ impl SceneConfig {
                 let built = self.equipment(kind)?;
                 (built.box_lo, built.box_hi)
             }
-            // A file: its bounds with a margin of two largest diameters.
+            // A file: its bounds with a margin of two largest diameters, as the step starts
+            // them (spheres sharing a centre spread about it).
             Source::Input => {
-                match SphereSet::new(particles.positions.clone(), particles.radii.clone())?.bounds()
-                {
+                let mut centres = particles.positions.clone();
+                if particles.coincident_pairs()? > 0 {
+                    let mut spread = particles.clone();
+                    spread.separate_coincident()?;
+                    centres = spread.positions;
+                }
+                match SphereSet::new(centres, particles.radii.clone())?.bounds() {
                     Some((lo, hi)) => {
                         let m = 4.0 * r_max as f64;
                         (lo.map(|x| x as f64 - m), hi.map(|x| x as f64 + m))

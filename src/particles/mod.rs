@@ -4,7 +4,6 @@ pub mod history;
 
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
-use glam::Vec3;
 pub use history::{ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, MESH_WALLS};
 
 /// Spheres with velocities, in the order the user gave them, their contact history and the
@@ -163,12 +162,19 @@ impl Particles {
             .sum())
     }
 
-    /// Moves apart spheres whose centres coincide, so that every touching pair has a contact
-    /// normal: of each group sharing a centre, the sphere of the smallest index stays and every
-    /// other sphere k moves by a thousandth of the group's smallest radius (at least a few `f32`
-    /// steps of the centre's coordinates) along `coincident_direction`
-    /// of the two indices. The contact forces then push the group apart radially. Deterministic,
-    /// and a no-op where no centres coincide. Returns how many pairs coincided.
+    /// Moves apart spheres whose centres coincide, so that every pair has a contact normal and
+    /// no group starts piled into one sphere's volume: of each group sharing a centre, the
+    /// sphere of the smallest index stays and the others, in order of index, take the next
+    /// points of a cubic lattice about the centre (`lattice_points`: nearest first), spaced
+    /// by the group's largest diameter and a thousandth of its largest radius (at least 8
+    /// `f32` steps of the coordinates there). The group's spheres then overlap none of their
+    /// own group, as a cluster about the centre. Moved apart by a fraction of a radius, a group
+    /// of N would start with N(N − 1)/2 overlaps of almost 2r, whose contacts store an energy
+    /// growing as N² per sphere and a collective stiffness growing as N: from a few dozen
+    /// spheres up the first step flings them out faster than any time step for their contacts
+    /// resolves, and a Hertz contact stiffens without bound as they cross the walls.
+    /// Deterministic (so every backend starts from the same centres), and a no-op where no
+    /// centres coincide. Returns how many pairs coincided.
     pub fn separate_coincident(&mut self) -> Result<u64> {
         use rayon::slice::ParallelSliceMut;
         let n = self.positions.len();
@@ -180,23 +186,39 @@ impl Particles {
                 .map(|(k, c)| (c.map(|x| (x + 0.0).to_bits()), k as u32)),
         );
         keys.par_sort_unstable();
+        let groups = || keys.chunk_by(|a, b| a.0 == b.0).filter(|g| g.len() > 1);
+        let largest = groups().map(|g| g.len()).max().unwrap_or(0);
+        if largest == 0 {
+            return Ok(0);
+        }
+        let points = lattice_points(largest)?;
         let mut pairs = 0;
-        for group in keys.chunk_by(|a, b| a.0 == b.0).filter(|g| g.len() > 1) {
+        for group in groups() {
             pairs += (group.len() as u64) * (group.len() as u64 - 1) / 2;
-            let first = group[0].1;
-            let centre = self.positions[first as usize];
+            let centre = self.positions[group[0].1 as usize];
             let r = group
                 .iter()
                 .map(|&(_, k)| self.radii[k as usize])
-                .fold(f32::INFINITY, f32::min);
+                .fold(0.0f32, f32::max);
+            // The farthest point's distance along an axis, at a spacing of about 2r.
+            let reach = points[group.len() - 1]
+                .iter()
+                .map(|&i| i.unsigned_abs())
+                .max()
+                .unwrap_or(0) as f32
+                * 2.1
+                * r;
             let coarsest = centre
                 .iter()
-                .map(|x| x.abs().next_up() - x.abs())
+                .map(|x| {
+                    let far = x.abs() + reach;
+                    far.next_up() - far
+                })
                 .fold(0.0f32, f32::max);
-            let step = (1e-3 * r).max(8.0 * coarsest);
-            for &(_, k) in &group[1..] {
-                let u = coincident_direction(first, k);
-                self.positions[k as usize] = (Vec3::from(centre) + step * u).to_array();
+            let spacing = (2.0 * r + (1e-3 * r).max(8.0 * coarsest)) as f64;
+            for (&(_, k), p) in group.iter().zip(&points).skip(1) {
+                self.positions[k as usize] =
+                    std::array::from_fn(|a| (centre[a] as f64 + spacing * p[a] as f64) as f32);
             }
         }
         Ok(pairs)
@@ -254,24 +276,39 @@ impl Particles {
     }
 }
 
-/// A unit vector picked by a hash of two sphere indices `lo < hi`: the direction in which
-/// [`Particles::separate_coincident`] moves sphere `hi`
-/// away from the sphere `lo` whose centre it shares. Different pairs take different directions,
-/// the same pair always the same.
-#[inline]
-fn coincident_direction(lo: u32, hi: u32) -> Vec3 {
-    let mut h = lo.wrapping_mul(0x9E37_79B9) ^ hi.wrapping_mul(0x85EB_CA6B);
-    h ^= h >> 16;
-    h = h.wrapping_mul(0x7FEB_352D);
-    h ^= h >> 15;
-    // Components (k − 511.5) for k in 0..1024: never all zero.
-    let d = Vec3::from([0, 10, 20].map(|shift| ((h >> shift) & 1023) as f32 - 511.5));
-    d / d.length()
+/// The first `n` points of the integer lattice ℤ³ in order of distance from the origin (ties
+/// in the order of z, then y, then x): the origin first, then its 6 neighbours, its 12
+/// diagonal ones, and so on, filling a ball. [`Particles::separate_coincident`] lays a group of
+/// spheres sharing a centre on them.
+fn lattice_points(n: usize) -> Result<Vec<[i32; 3]>> {
+    // The ball of radius h holds about 4/3·π·h³ points: the smallest h whose ball holds n.
+    let mut h = ((n as f64 * 3.0 / (4.0 * std::f64::consts::PI)).cbrt() as i32).max(1);
+    loop {
+        let side = 2 * h as usize + 1;
+        let what = || format!("the lattice points of {n} spheres sharing a centre");
+        let mut points: Vec<[i32; 3]> = try_vec(side * side * side, what)?;
+        for z in -h..=h {
+            for y in -h..=h {
+                for x in -h..=h {
+                    if x * x + y * y + z * z <= h * h {
+                        points.push([x, y, z]);
+                    }
+                }
+            }
+        }
+        if points.len() >= n {
+            points.sort_by_key(|&[x, y, z]| (x * x + y * y + z * z, z, y, x));
+            points.truncate(n);
+            return Ok(points);
+        }
+        h += 1;
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     #[test]
     fn coincident_pairs_are_counted_per_shared_centre() {
@@ -301,14 +338,27 @@ mod tests {
         for k in [0, 1, 5] {
             assert_eq!(p.positions[k], before[k]);
         }
-        // The others moved a thousandth of their group's smallest radius, each its own way.
-        for (k, r) in [(2, 0.1f32), (4, 0.1), (3, 0.25)] {
-            let d = (0..3)
-                .map(|a| (p.positions[k][a] - before[k][a]).powi(2))
-                .sum::<f32>();
-            assert!((d.sqrt() - 1e-3 * r).abs() < 1e-6 * r, "{k}: {}", d.sqrt());
-        }
-        assert_ne!(p.positions[2], p.positions[4]);
+        // The others took the nearest lattice points, a diameter of the group's largest sphere
+        // and a thousandth of its radius apart: the first two neighbours along −z, then −y.
+        let spacing = |r: f32| 2.0 * r + 1e-3 * r;
+        let offset =
+            |k: usize| -> [f32; 3] { std::array::from_fn(|a| p.positions[k][a] - before[k][a]) };
+        let close = |a: [f32; 3], b: [f32; 3]| (0..3).all(|i| (a[i] - b[i]).abs() < 1e-6);
+        assert!(
+            close(offset(2), [0.0, 0.0, -spacing(0.5)]),
+            "{:?}",
+            offset(2)
+        );
+        assert!(
+            close(offset(4), [0.0, -spacing(0.5), 0.0]),
+            "{:?}",
+            offset(4)
+        );
+        assert!(
+            close(offset(3), [0.0, 0.0, -spacing(0.25)]),
+            "{:?}",
+            offset(3)
+        );
         // Deterministic, and a no-op once apart.
         let once = p.positions.clone();
         assert_eq!(p.separate_coincident().unwrap(), 0);
@@ -316,10 +366,47 @@ mod tests {
     }
 
     #[test]
-    fn coincident_directions_are_unit_and_differ_by_pair() {
-        let u = coincident_direction(3, 7);
-        assert!((u.length_squared() - 1.0).abs() < 1e-6);
-        assert_ne!(u, coincident_direction(3, 8));
-        assert_eq!(u, coincident_direction(3, 7));
+    fn a_large_coincident_group_becomes_a_cluster_with_no_overlap() {
+        let n = 2000;
+        let r = 0.01f32;
+        let mut p = Particles {
+            positions: vec![[0.5; 3]; n],
+            radii: (0..n)
+                .map(|k| r * (1.0 - 0.5 * (k % 3) as f32 / 3.0))
+                .collect(),
+            ..Particles::default()
+        };
+        assert_eq!(p.separate_coincident().unwrap(), (n * (n - 1) / 2) as u64);
+        let mut farthest = 0.0f32;
+        for i in 0..n {
+            let a = Vec3::from(p.positions[i]);
+            farthest = farthest.max((a - Vec3::splat(0.5)).length());
+            for j in i + 1..n {
+                let d = (Vec3::from(p.positions[j]) - a).length();
+                assert!(d >= 2.0 * r, "spheres {i} and {j} {d} m apart");
+            }
+        }
+        // A ball about the centre: 2000 lattice points of spacing 2r fill a ball of radius
+        // about 7.8 spacings.
+        assert!(farthest < 8.5 * 2.002 * r, "{farthest}");
+    }
+
+    #[test]
+    fn lattice_points_fill_a_ball_nearest_first() {
+        let points = lattice_points(27).unwrap();
+        assert_eq!(points[0], [0, 0, 0]);
+        let d2: Vec<i32> = points
+            .iter()
+            .map(|p| p.iter().map(|x| x * x).sum())
+            .collect();
+        assert!(d2.windows(2).all(|w| w[0] <= w[1]), "{d2:?}");
+        // 1 + 6 + 12 + 8 points within √3.
+        assert_eq!(d2.iter().filter(|&&x| x <= 3).count(), 27);
+        let mut unique = points.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(unique.len(), 27);
+        assert_eq!(lattice_points(1).unwrap(), vec![[0, 0, 0]]);
+        assert_eq!(lattice_points(5000).unwrap().len(), 5000);
     }
 }

@@ -18,10 +18,19 @@
 //! acts on the rolling part of ω_i − ω_j (its component along n, twisting, is not resisted).
 //!
 //! Computed from j's side every operation sees negated inputs (n, v_rel, ω_rel and, by
-//! induction, j's springs are the exact negatives of i's), so the forces and the rolling
-//! torques are equal and opposite bit for bit. For the linear law without friction, the normal
-//! force takes the operations of [`super::contact_force`] and [`super::wall_force`] in the same
-//! order, so the step gives the same bits as the GPU engines' reference.
+//! induction, j's springs are the exact negatives of i's), and the effective quantities are
+//! symmetric in i and j ([`effective`]), so the forces and the rolling torques are equal and
+//! opposite bit for bit. For the linear law without friction, the normal force takes the
+//! operations of [`super::contact_force`] and [`super::wall_force`] in the same order, so the
+//! step gives the same bits as the GPU engines' reference.
+//!
+//! Small spheres (docs/method.md, "Small spheres in f32"): masses and moments of inertia are
+//! tiny (2e-33 kg at r = 1e-12 m), and their products underflow f32. So no law multiplies two
+//! of them: m*, R* and I* come from [`effective`], every damping coefficient √(S·m*) is
+//! [`root_product`]`(S, m*)`, and every length of a force, torque or spring is [`length`],
+//! which squares nothing below its largest component. What remains in range is checked by
+//! [`super::StepParams::new`]: half the mass of the smallest sphere, and where spheres turn
+//! half its moment of inertia, are normal f32 numbers.
 
 use super::StepParams;
 use super::material::{NormalLaw, RollingModel};
@@ -29,6 +38,43 @@ use glam::Vec3;
 
 /// 2·√(5/6): Tsuji's damping coefficient over ζ·√(S·m*).
 const TSUJI: f32 = 1.825_741_9;
+
+/// The effective value a·b/(a + b) of two positive values (m* of two masses, R* of two
+/// radii, I* of two moments of inertia) without their product, which underflows f32 for small
+/// spheres: lo/(1 + lo/hi) with lo ≤ hi. It lies in [lo/2, lo], so it is a normal number
+/// wherever lo/2 is; lo/hi may underflow to 0 (then it is lo, correctly rounded). Symmetric
+/// in a and b bit for bit (min and max are exact), so both sides of a pair compute the same.
+/// Keep in sync with `effective` in wgsl/dem_params.wgsl and `mochi_effective` in
+/// optix/physics.cuh.
+#[inline(always)]
+pub fn effective(a: f32, b: f32) -> f32 {
+    let (lo, hi) = (a.min(b), a.max(b));
+    lo / (1.0 + lo / hi)
+}
+
+/// √(a·b) of two values ≥ 0 without their product, which underflows f32 for small spheres
+/// (a stiffness times an effective mass: 1e-6 N/m × 1e-33 kg) or overflows for large ones:
+/// √a·√b. Keep in sync with `root_product` in wgsl/dem_params.wgsl and `mochi_root_product` in
+/// optix/physics.cuh.
+#[inline(always)]
+pub fn root_product(a: f32, b: f32) -> f32 {
+    a.sqrt() * b.sqrt()
+}
+
+/// The length of `v` without squaring anything below its largest component s: s·|v/s| (the
+/// squares of v/s lie in [0, 1], one of them 1), where |v|² would underflow f32 for the forces
+/// and torques of small spheres (a rolling torque of 1e-23 N·m). 0 for the zero vector. Keep
+/// in sync with `length_of` in wgsl/dem_contact.wgsl and `mochi_length` in optix/contact.cuh.
+#[inline(always)]
+pub fn length(v: Vec3) -> f32 {
+    let s = v.x.abs().max(v.y.abs()).max(v.z.abs());
+    if s > 0.0 {
+        let u = v / s;
+        s * u.dot(u).sqrt()
+    } else {
+        0.0
+    }
+}
 
 /// A sphere as its contacts see it.
 #[derive(Debug, Clone, Copy)]
@@ -93,7 +139,7 @@ struct Touch {
     normal: Normal,
     m_eff: f32,
     r_eff: f32,
-    /// Effective moment of inertia I_i·I_j/(I_i + I_j) (I_i on a wall).
+    /// Effective moment of inertia I_i·I_j/(I_i + I_j) ([`effective`]; I_i on a wall).
     i_eff: f32,
     /// Distance from i's centre to the contact point.
     lever: f32,
@@ -116,7 +162,7 @@ fn normal_force(
 ) -> Normal {
     match p.law {
         NormalLaw::Linear => {
-            let c = 2.0 * p.damping_ratio * (p.stiffness * m_eff).sqrt();
+            let c = 2.0 * p.damping_ratio * root_product(p.stiffness, m_eff);
             Normal {
                 push: p.stiffness * overlap - c * vn,
                 stiffness: p.stiffness,
@@ -124,7 +170,7 @@ fn normal_force(
         }
         NormalLaw::LinearPerPair { rate, .. } => {
             let k = m_eff * rate;
-            let c = 2.0 * p.damping_ratio * (k * m_eff).sqrt();
+            let c = 2.0 * p.damping_ratio * root_product(k, m_eff);
             Normal {
                 push: k * overlap - c * vn,
                 stiffness: k,
@@ -132,8 +178,9 @@ fn normal_force(
         }
         NormalLaw::Hertz { pair, wall } => {
             let e_star = if on_wall { wall.e_star } else { pair.e_star };
+            // R*·δ ≥ R*·ulp(r_i + r_j)/2 when δ > 0: a normal number from r = 1e-12 m up.
             let s_n = 2.0 * e_star * (r_eff * overlap).sqrt();
-            let c = TSUJI * p.damping_ratio * (s_n * m_eff).sqrt();
+            let c = TSUJI * p.damping_ratio * root_product(s_n, m_eff);
             Normal {
                 push: 2.0 / 3.0 * s_n * overlap - c * vn,
                 stiffness: s_n,
@@ -156,8 +203,8 @@ pub fn pair_contact(p: &StepParams, i: &Body, j: &Body, old: Springs) -> Option<
     let n = d / dist;
     let overlap = reach - dist;
     let vn = (j.v - i.v).dot(n);
-    let m_eff = i.m * j.m / (i.m + j.m);
-    let r_eff = i.r * j.r / (i.r + j.r);
+    let m_eff = effective(i.m, j.m);
+    let r_eff = effective(i.r, j.r);
     let normal = normal_force(p, false, overlap, vn, m_eff, r_eff);
     let force = -normal.push * n;
     if !p.friction.turns() {
@@ -167,14 +214,13 @@ pub fn pair_contact(p: &StepParams, i: &Body, j: &Body, old: Springs) -> Option<
             springs: Springs::default(),
         });
     }
-    let (inertia_i, inertia_j) = (i.inertia(), j.inertia());
     let touch = Touch {
         n,
         overlap,
         normal,
         m_eff,
         r_eff,
-        i_eff: inertia_i * inertia_j / (inertia_i + inertia_j),
+        i_eff: effective(i.inertia(), j.inertia()),
         lever: i.r,
         v_rel: (i.v + i.w.cross(i.r * n)) - (j.v - j.w.cross(j.r * n)),
         w_rel: i.w - j.w,
@@ -319,12 +365,8 @@ pub fn surface_contact(
 #[inline(always)]
 fn into_plane(x: Vec3, n: Vec3) -> Vec3 {
     let t = x - x.dot(n) * n;
-    let len2 = t.length_squared();
-    if len2 > 0.0 {
-        t * (x.length() / len2.sqrt())
-    } else {
-        t
-    }
+    let len = length(t);
+    if len > 0.0 { t * (length(x) / len) } else { t }
 }
 
 /// Tangential force with sliding coefficient `mu`, the torque on i (from it and from rolling
@@ -340,21 +382,21 @@ fn friction(p: &StepParams, t: &Touch, mu: f32, old: Springs) -> (Vec3, Vec3, Sp
         let (k_t, c_t) = match p.law {
             NormalLaw::Linear | NormalLaw::LinearPerPair { .. } => {
                 let k_t = 2.0 / 7.0 * t.normal.stiffness;
-                (k_t, 2.0 * p.damping_ratio * (k_t * t.m_eff).sqrt())
+                (k_t, 2.0 * p.damping_ratio * root_product(k_t, t.m_eff))
             }
             NormalLaw::Hertz { pair, wall } => {
                 let g_star = if t.on_wall { wall.g_star } else { pair.g_star };
                 let s_t = 8.0 * g_star * (t.r_eff * t.overlap).sqrt();
-                (s_t, TSUJI * p.damping_ratio * (s_t * t.m_eff).sqrt())
+                (s_t, TSUJI * p.damping_ratio * root_product(s_t, t.m_eff))
             }
         };
         let v_t = t.v_rel - t.v_rel.dot(n) * n;
         let mut xi = into_plane(old.tangential, n) + v_t * p.dt;
         let mut f_t = -k_t * xi - c_t * v_t;
         let cap = mu * pressing;
-        let f2 = f_t.length_squared();
-        if f2 > cap * cap {
-            f_t *= cap / f2.sqrt();
+        let len = length(f_t);
+        if len > cap {
+            f_t *= cap / len;
             xi = -f_t / k_t;
         }
         force = f_t;
@@ -369,15 +411,15 @@ fn friction(p: &StepParams, t: &Touch, mu: f32, old: Springs) -> (Vec3, Vec3, Sp
             RollingModel::Epsd => {
                 let k_r = 2.25 * t.normal.stiffness * mu_r * mu_r * t.r_eff * t.r_eff;
                 let mut m = into_plane(old.rolling, n) - k_r * p.dt * w_roll;
-                let m2 = m.length_squared();
-                if m2 > cap * cap {
-                    m *= cap / m2.sqrt();
+                let len = length(m);
+                if len > cap {
+                    m *= cap / len;
                 }
                 springs.rolling = m;
                 m
             }
             RollingModel::ConstantTorque => {
-                let speed = w_roll.length();
+                let speed = length(w_roll);
                 if speed > 0.0 {
                     // Never more than stops the relative rolling within the step.
                     let size = cap.min(t.i_eff * speed / p.dt);
@@ -398,5 +440,92 @@ pub fn integrate_rotation(dt: f32, w: &mut [f32; 3], torque: Vec3, inertia: f32)
     let t = torque.to_array();
     for a in 0..3 {
         w[a] += dt * (t[a] / inertia);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn effective_values_of_small_spheres_are_their_products_over_their_sums_without_the_product() {
+        // Masses of spheres of 1e-12 m: their product underflows f32 to 0.
+        let (a, b) = (2e-33f32, 3e-33f32);
+        assert_eq!(a * b / (a + b), 0.0);
+        let exact = a as f64 * b as f64 / (a as f64 + b as f64);
+        for got in [effective(a, b), effective(b, a)] {
+            assert!(
+                (got as f64 / exact - 1.0).abs() < 3e-7,
+                "{got:e}, {exact:e}"
+            );
+        }
+        // Symmetric bit for bit, equal values halve exactly, a vanishing ratio gives lo.
+        for (x, y) in [(1.7f32, 0.3), (1e-30, 7e-31), (3.0, 3.0), (1e-30, 1e20)] {
+            assert_eq!(effective(x, y).to_bits(), effective(y, x).to_bits());
+        }
+        assert_eq!(effective(3.0, 3.0), 1.5);
+        assert_eq!(effective(1e-30, 1e20), 1e-30);
+    }
+
+    #[test]
+    fn root_products_and_lengths_of_small_quantities_do_not_underflow() {
+        // A stiffness and an effective mass of 1e-12 m spheres whose product is below f32's
+        // smallest subnormal number.
+        let (k, m) = (1e-13f32, 1e-33f32);
+        assert_eq!((k * m).sqrt(), 0.0);
+        assert!((root_product(k, m) as f64 / 1e-46f64.sqrt() - 1.0).abs() < 1e-6);
+        // A rolling torque of a 1e-8 m sphere: its square is 0 in f32.
+        let v = Vec3::new(3e-24, -4e-24, 0.0);
+        assert_eq!(v.length(), 0.0);
+        assert!((length(v) / 5e-24 - 1.0).abs() < 1e-6, "{}", length(v));
+        assert_eq!(length(Vec3::ZERO), 0.0);
+        assert_eq!(length(Vec3::new(0.0, -2.0, 0.0)), 2.0);
+        let w = Vec3::new(0.3, -1.7, 2.9);
+        assert!((length(w) / w.length() - 1.0).abs() < 3e-7);
+    }
+
+    #[test]
+    fn the_contact_of_the_smallest_spheres_that_turn_is_equal_and_opposite_and_damped() {
+        use super::super::{ContactLaw, Material, mass, smallest_turning_radius};
+        let r = smallest_turning_radius(500.0);
+        let material = Material {
+            contact: ContactLaw::HertzMindlin {
+                young_modulus: 1e7,
+                poisson_ratio: 0.3,
+            },
+            friction: 0.5,
+            rolling_friction: 0.1,
+            ..Material::default()
+        };
+        let side = 100.0 * r as f64;
+        let p = StepParams::new(&material, 1e-11, [0.0; 3], [side; 3], [0.0; 3], 0.0, r).unwrap();
+        let body = |c: Vec3, v: Vec3, w: Vec3| Body {
+            c,
+            v,
+            w,
+            r,
+            m: mass(500.0, r),
+        };
+        let i = body(Vec3::splat(50.0 * r), Vec3::new(0.5, 0.1, 0.0), Vec3::Y / r);
+        let j = body(
+            i.c + Vec3::new(1.98 * r, 0.0, 0.0),
+            Vec3::new(-0.5, 0.0, 0.2),
+            Vec3::Z / r,
+        );
+        let f = pair_contact(&p, &i, &j, Springs::default()).unwrap();
+        let g = pair_contact(&p, &j, &i, Springs::default()).unwrap();
+        assert_eq!(f.force, -g.force);
+        assert_eq!(f.springs.rolling, -g.springs.rolling);
+        // Closing at 1 m/s: the damping pushes harder than the spring alone.
+        let elastic = pair_contact(
+            &p,
+            &Body { v: Vec3::ZERO, ..i },
+            &Body { v: Vec3::ZERO, ..j },
+            Springs::default(),
+        )
+        .unwrap();
+        assert!(f.force.x < 1.01 * elastic.force.x && elastic.force.x < 0.0);
+        // Rolling resistance acts.
+        assert_ne!(f.springs.rolling, Vec3::ZERO);
     }
 }

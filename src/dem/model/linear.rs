@@ -5,14 +5,17 @@
 //! overlap δ = r_i + r_j − |c_j − c_i| and normal relative velocity v_n = (v_j − v_i)·n, is
 //! F_i = −(k·δ − c·v_n)·n with c = 2ζ·√(k·m_eff), m_eff = m_i·m_j/(m_i + m_j), and ζ the damping
 //! ratio that gives the restitution coefficient e: ζ = −ln e / √(π² + ln² e). Walls act the same
-//! way with m_eff = m_i. Computed from j's side, every operation sees negated inputs, so
-//! F_j = −F_i exactly. Coincident centres (distance 0) have no contact normal and get no force:
-//! the steppers never see them, as `Particles::separate_coincident` moves such spheres apart
-//! when a stepper is made. `wgsl/dem_physics.wgsl` follows [`contact_force`] and [`wall_force`]
-//! line by line; the cpu step's [`super::contact`] computes the same normal force with the same
-//! operations, so both give the same bits for this law.
+//! way with m_eff = m_i. Neither product is formed (they underflow f32 for small spheres):
+//! m_eff is [`effective`]`(m_i, m_j)` and √(k·m_eff) is [`root_product`]`(k, m_eff)`. Computed
+//! from j's side, every operation sees negated inputs and m_eff is symmetric, so F_j = −F_i
+//! exactly. Coincident centres (distance 0) have no contact normal and get no force: the
+//! steppers never see them, as `Particles::separate_coincident` spreads such spheres about their
+//! centre when a stepper is made. `wgsl/dem_physics.wgsl` follows [`contact_force`] and
+//! [`wall_force`] line by line; the cpu step's [`super::contact`] computes the same normal
+//! force with the same operations, so both give the same bits for this law.
 
 use super::StepParams;
+use super::contact::{effective, root_product};
 use std::f64::consts::PI;
 
 /// Contact durations per time step that the default stiffness gives the lightest pair.
@@ -62,8 +65,8 @@ pub fn contact_force(
     let overlap = reach - dist;
     let dv = [v_j[0] - v_i[0], v_j[1] - v_i[1], v_j[2] - v_i[2]];
     let vn = dv[0] * n[0] + dv[1] * n[1] + dv[2] * n[2];
-    let m_eff = m_i * m_j / (m_i + m_j);
-    let c = 2.0 * p.damping_ratio * (p.stiffness * m_eff).sqrt();
+    let m_eff = effective(m_i, m_j);
+    let c = 2.0 * p.damping_ratio * root_product(p.stiffness, m_eff);
     let push = p.stiffness * overlap - c * vn;
     Some([-push * n[0], -push * n[1], -push * n[2]])
 }
@@ -71,7 +74,7 @@ pub fn contact_force(
 /// Force of the box walls on a sphere at `c` with velocity `v`, radius `r` and mass `m`.
 #[inline(always)]
 pub fn wall_force(p: &StepParams, c: [f32; 3], v: [f32; 3], r: f32, m: f32) -> [f32; 3] {
-    let damping = 2.0 * p.damping_ratio * (p.stiffness * m).sqrt();
+    let damping = 2.0 * p.damping_ratio * root_product(p.stiffness, m);
     std::array::from_fn(|a| {
         let mut f = 0.0;
         let below = r - (c[a] - p.box_lo[a]);

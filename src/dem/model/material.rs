@@ -316,6 +316,15 @@ impl Material {
                         "contact_time {t_c:e} s gives k/m* = {rate:e} 1/s², outside f32's range"
                     ));
                 }
+                // The lightest pair's k = m*·rate, as the step computes it.
+                let k = m_eff as f32 * rate as f32;
+                if !k.is_normal() {
+                    return bad(format!(
+                        "contact_time {t_c:e} s gives the lightest spheres (r = {r_min:e} m) a \
+                         stiffness of {k:e} N/m, outside f32's range: choose a shorter contact \
+                         time"
+                    ));
+                }
                 Ok(ResolvedLaw {
                     law: NormalLaw::LinearPerPair {
                         rate: rate as f32,

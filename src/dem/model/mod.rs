@@ -58,9 +58,55 @@ pub fn mass(density: f32, r: f32) -> f32 {
     density * (4.0 / 3.0 * std::f32::consts::PI) * r * r * r
 }
 
+/// Whether the laws can be evaluated in f32 for a sphere of radius `r` at `density`: half its
+/// mass is a normal f32 number, so every effective mass m* ∈ [m_lo/2, m_lo] of its contacts
+/// is one (docs/method.md, "Small spheres in f32").
+pub fn mass_in_range(density: f32, r: f32) -> bool {
+    (mass(density, r) / 2.0).is_normal()
+}
+
+/// Whether a sphere of radius `r` at `density` can turn in f32: half its moment of inertia
+/// 2/5·m·r² (as the step computes it) is a normal f32 number, so every effective moment of
+/// inertia I* ∈ [I_lo/2, I_lo] of its contacts is one and ω += dt·τ/I is defined.
+pub fn inertia_in_range(density: f32, r: f32) -> bool {
+    (contact::moment_of_inertia(mass(density, r), r) / 2.0).is_normal()
+}
+
+/// The smallest f32 radius `r` with `within(r)`, for a `within` that holds from some radius
+/// on (up to where the quantity overflows), starting from the estimate `guess`.
+fn smallest_radius_with(guess: f64, within: impl Fn(f32) -> bool) -> f32 {
+    let mut r = (guess as f32).max(f32::MIN_POSITIVE);
+    while !within(r) && r < f32::MAX {
+        r = r.next_up();
+    }
+    while within(r.next_down()) {
+        r = r.next_down();
+    }
+    r
+}
+
+/// The smallest radius whose sphere's mass at `density` is within [`mass_in_range`]:
+/// ρ·4/3·π·r³ ≥ 2·2⁻¹²⁶ kg (2.2e-14 m at 500 kg/m³, below [`crate::MIN_RADIUS`]).
+pub fn smallest_radius(density: f32) -> f32 {
+    let volume = 2.0 * f32::MIN_POSITIVE as f64 / (density as f64 * 4.0 / 3.0 * PI);
+    smallest_radius_with(volume.cbrt(), |r| mass_in_range(density, r))
+}
+
+/// The smallest radius whose sphere at `density` can turn ([`inertia_in_range`]):
+/// 2/5·ρ·4/3·π·r⁵ ≥ 2·2⁻¹²⁶ kg·m² (7.8e-9 m at 500 kg/m³, 5.6e-9 m at 2500).
+pub fn smallest_turning_radius(density: f32) -> f32 {
+    let r5 = 2.0 * f32::MIN_POSITIVE as f64 / (0.4 * density as f64 * 4.0 / 3.0 * PI);
+    smallest_radius_with(r5.powf(0.2), |r| inertia_in_range(density, r))
+}
+
 impl StepParams {
-    /// Checks and completes the parameters for spheres of radii within `r_min..=r_max`: derives
-    /// the stiffness when the material has none, and refuses a time step too large for it.
+    /// Checks and completes the parameters for spheres of radii from `r_min` up: derives the
+    /// stiffness when the material has none, and refuses a time step too large for it, and
+    /// spheres too small for the laws in f32 (docs/method.md, "Small spheres in f32"): half
+    /// the mass of a sphere of `r_min` must be a normal f32 number ([`mass_in_range`]), and
+    /// where the material has friction or rolling resistance half its moment of inertia too
+    /// ([`inertia_in_range`]); [`smallest_radius`] and [`smallest_turning_radius`] give the
+    /// limits.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         material: &Material,
@@ -104,13 +150,34 @@ impl StepParams {
             ));
         }
         let zeta = damping_ratio(m.restitution);
-        let m_eff = mass(m.density as f32, r_min) as f64 / 2.0;
-        if !normal(m_eff) {
+        let density = m.density as f32;
+        let m_eff = mass(density, r_min) as f64 / 2.0;
+        if !mass_in_range(density, r_min) {
             return bad(&format!(
                 "the lightest spheres (r = {r_min:e} m, density {:e} kg/m³) have mass {:e} kg, \
-                 outside f32's range",
+                 outside f32's range for the contact laws (half of it must be a normal f32 \
+                 number; the smallest radius at this density is {:e} m)",
                 m.density,
-                2.0 * m_eff
+                2.0 * m_eff,
+                smallest_radius(density)
+            ));
+        }
+        let friction = Friction {
+            sliding: m.friction as f32,
+            wall_sliding: m.wall_friction.unwrap_or(m.friction) as f32,
+            rolling: m.rolling_friction as f32,
+            rolling_model: m.rolling_model,
+        };
+        if friction.turns() && !inertia_in_range(density, r_min) {
+            return bad(&format!(
+                "the smallest spheres (r = {r_min:e} m, density {:e} kg/m³) have moment of \
+                 inertia {:e} kg·m², outside f32's range (half of it must be a normal f32 \
+                 number): with friction or rolling resistance the spheres turn, and the smallest \
+                 radius that can turn at this density is {:e} m; use larger spheres, a higher \
+                 density, or no friction and no rolling resistance",
+                m.density,
+                contact::moment_of_inertia(mass(density, r_min), r_min),
+                smallest_turning_radius(density)
             ));
         }
         let law = m.law(dt, r_min, m_eff, zeta)?;
@@ -139,12 +206,7 @@ impl StepParams {
             damping_ratio: zeta as f32,
             density: m.density as f32,
             law: law.law,
-            friction: Friction {
-                sliding: m.friction as f32,
-                wall_sliding: m.wall_friction.unwrap_or(m.friction) as f32,
-                rolling: m.rolling_friction as f32,
-                rolling_model: m.rolling_model,
-            },
+            friction,
             dt_limit: law.dt_limit as f32,
             rayleigh_time: law.rayleigh_time.map(|t| t as f32),
         })
@@ -364,6 +426,68 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("stiffness"), "{e}");
+    }
+
+    #[test]
+    fn radii_are_accepted_down_to_where_masses_and_moments_of_inertia_fit_f32() {
+        let new = |m: &Material, r: f32| {
+            let side = 100.0 * r as f64;
+            StepParams::new(m, 1e-15, [0.0; 3], [side; 3], [0.0; 3], 0.0, r)
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        };
+        // Without friction: the smallest radius there is, at the default density.
+        let frictionless = Material::default();
+        assert!(smallest_radius(500.0) < crate::MIN_RADIUS);
+        assert_eq!(new(&frictionless, crate::MIN_RADIUS), Ok(()));
+        // At 1e-6 kg/m³, 1e-12 m weighs 4e-42 kg: below the smallest radius, refused.
+        let light = Material {
+            density: 1e-6,
+            ..frictionless
+        };
+        let r = smallest_radius(1e-6);
+        assert!((1e-11..1e-10).contains(&r), "{r:e}");
+        assert_eq!(new(&light, r), Ok(()));
+        let e = new(&light, r.next_down()).unwrap_err();
+        assert!(e.contains("mass") && e.contains(&format!("{r:e} m")), "{e}");
+        // Turning spheres: the moment of inertia sets the limit, 7.8e-9 m at 500 kg/m³.
+        let r = smallest_turning_radius(500.0);
+        assert!((7.7e-9..7.9e-9).contains(&r), "{r:e}");
+        for turning in [
+            Material {
+                friction: 0.5,
+                ..frictionless
+            },
+            Material {
+                rolling_friction: 0.1,
+                ..frictionless
+            },
+            Material {
+                wall_friction: Some(0.1),
+                ..frictionless
+            },
+        ] {
+            assert_eq!(new(&turning, r), Ok(()));
+            let e = new(&turning, r.next_down()).unwrap_err();
+            assert!(
+                e.contains("moment of inertia") && e.contains(&format!("{r:e} m")),
+                "{e}"
+            );
+            // Where it does not turn, the same radius is accepted.
+            assert_eq!(new(&frictionless, r.next_down()), Ok(()));
+        }
+        // Denser spheres turn smaller.
+        assert!((5.5e-9..5.7e-9).contains(&smallest_turning_radius(2500.0)));
+        // A per-pair stiffness m*·(π² + ln² e)/t_c² below f32's range for the lightest pair.
+        let slow = Material {
+            contact: ContactLaw::LinearPerPair {
+                contact_time: Some(1e4),
+            },
+            ..frictionless
+        };
+        let e = new(&slow, crate::MIN_RADIUS).unwrap_err();
+        assert!(e.contains("stiffness") && e.contains("contact time"), "{e}");
+        assert_eq!(new(&slow, 1e-6), Ok(()));
     }
 
     #[test]
