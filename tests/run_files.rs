@@ -88,6 +88,29 @@ fn render_refuses_to_write_over_a_file_of_the_run_or_an_input() {
     let out = ok(&["render", "rr/frame_00000010.vtu"], d);
     assert!(out.contains("wall triangles"), "{out}");
     assert!(d.join("rr/frame_00000010.png").is_file());
+    // A folder as -o takes the frame's picture; a series' index stands for its folder; a
+    // folder as --gif is refused before anything is drawn.
+    std::fs::create_dir(d.join("pictures")).unwrap();
+    ok(
+        &[
+            "render",
+            "rr/frame_00000020.vtu",
+            "-o",
+            "pictures",
+            "--size",
+            "64x48",
+        ],
+        d,
+    );
+    assert!(d.join("pictures/frame_00000020.png").is_file());
+    let out = ok(
+        &["render", "rr/series.pvd", "-o", "all", "--size", "64x48"],
+        d,
+    );
+    assert!(out.contains("3 frames"), "{out}");
+    let e = fails(&["render", "rr", "-o", "drawn", "--gif", "pictures"], d);
+    assert!(e.contains("--gif pictures is a folder"), "{e}");
+    assert!(!d.join("drawn").exists());
 }
 
 #[test]

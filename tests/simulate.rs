@@ -1135,7 +1135,8 @@ fn large_coincident_groups_in_a_file_run_in_the_box_fitted_to_them() {
             let pairs = format!("{} pairs of spheres share their centre", n * (n - 1) / 2);
             assert!(stderr.contains(&pairs), "{stderr}");
             let checkpoint = dir.path().join(&out).join("checkpoint.bin");
-            let (end, scene) = read_checkpoint(&checkpoint).unwrap();
+            let saved = read_checkpoint(&checkpoint).unwrap();
+            let (end, scene) = (saved.particles, saved.scene);
             let scene: toml::Table = toml::from_str(&scene).unwrap();
             let corner = |key: &str| -> Vec<f32> {
                 let values = scene[key].as_array().unwrap();

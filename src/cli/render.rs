@@ -347,14 +347,34 @@ pub fn png_name(dir: &Path, step: u64) -> PathBuf {
 /// `mochi render`.
 pub fn render(args: RenderCommandArgs) -> Result<()> {
     let input = &args.input;
+    if let Some(gif) = &args.render.gif
+        && gif.is_dir()
+    {
+        bail!("--gif {} is a folder: name the GIF file", gif.display());
+    }
     if input.is_dir() {
         return render_folder(input, args.output.as_deref(), &args.render);
     }
-    let parent = input.parent().unwrap_or(Path::new("."));
-    let out = args
-        .output
-        .clone()
-        .unwrap_or_else(|| input.with_extension("png"));
+    let parent = folder_of(input);
+    if input.extension().is_some_and(|e| e == "pvd") {
+        // A series' index stands for its folder.
+        if input.file_name().is_some_and(|n| n == SERIES_INDEX) {
+            return render_folder(parent, args.output.as_deref(), &args.render);
+        }
+        bail!(
+            "{}: render draws frames: give a frame, a run's folder or its {SERIES_INDEX}",
+            input.display()
+        );
+    }
+    let out = match &args.output {
+        // Into a folder: the frame's name with .png.
+        Some(folder) if folder.is_dir() => {
+            let name = input.with_extension("png");
+            folder.join(name.file_name().unwrap_or(name.as_os_str()))
+        }
+        Some(file) => file.clone(),
+        None => input.with_extension("png"),
+    };
     let gif = args.render.gif.as_deref();
     check_render_outputs(parent, std::slice::from_ref(input), Some(&out), gif)?;
     check_output_folder(&out, "-o", None)?;
@@ -400,6 +420,12 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
         bail!("{}: no frames (frame_*.vtu or frame_*.csv)", dir.display());
     }
     let out = out.unwrap_or(dir);
+    if out.exists() && !out.is_dir() {
+        bail!(
+            "-o {}: the pictures of a folder of frames go into a folder, and this is a file",
+            out.display()
+        );
+    }
     check_render_outputs(dir, &files, None, args.gif.as_deref())?;
     if let Some(gif) = &args.gif {
         check_render_outputs(out, &[], None, Some(gif))?;
