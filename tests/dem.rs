@@ -667,15 +667,7 @@ fn large_coincident_groups_stack_on_the_floor_under_every_law_on(kind: BackendKi
     // Spread, they fall onto the floor and stack: 100 steps stay finite and slow, their overlaps
     // small.
     let r = 0.01f32;
-    let hertz = Material {
-        contact: ContactLaw::HertzMindlin {
-            young_modulus: 1e7,
-            poisson_ratio: 0.3,
-        },
-        friction: 0.5,
-        rolling_friction: 0.1,
-        ..Material::default()
-    };
+    let hertz = common::granular_material();
     let t_r = mochi::dem::model::time_step::rayleigh_time(r as f64, 500.0, 1e7, 0.3);
     for n in [200, 2000] {
         let start = particles(vec![[0.5; 3]; n], vec![[0.0; 3]; n], vec![r; n]);
@@ -820,15 +812,7 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
         scrambled.velocities[k] = [0.5 * turn.cos(), 0.5 * turn.sin(), 0.3 * (0.7 * turn).sin()];
     }
     let r_min = scrambled.radius_range().0;
-    let granular = Material {
-        contact: ContactLaw::HertzMindlin {
-            young_modulus: 1e7,
-            poisson_ratio: 0.3,
-        },
-        friction: 0.5,
-        rolling_friction: 0.1,
-        ..Material::default()
-    };
+    let granular = common::granular_material();
     for (material, batch, tolerance) in [(Material::default(), 16, 1e-6), (granular, 8, 1e-5)] {
         let p = params(material, 1e-4, 0.3, [0.0, 0.0, -9.81], r_min);
         let Some(any) = grid_stepper(&scrambled, p, GridBuild::Dense) else {

@@ -8,7 +8,7 @@ mod common;
 use common::on_every_backend;
 use mochi::ProxyMode;
 use mochi::dem::flow::{FlowCounts, FlowSet, InflowConfig, OutflowConfig};
-use mochi::dem::model::{ContactLaw, Material, mass};
+use mochi::dem::model::{Material, mass};
 use mochi::dem::scene::Start;
 use mochi::dem::walls::WallSet;
 use mochi::dem::{Particles, StepParams, Stepper};
@@ -281,13 +281,7 @@ fn spheres_leaving_a_frictional_pile_on_the_device_leave_the_others_contacts_as_
     // the cpu's spheres, in its order, with the cpu's contacts and springs.
     let m = Material {
         density: RHO,
-        friction: 0.5,
-        rolling_friction: 0.1,
-        contact: ContactLaw::HertzMindlin {
-            young_modulus: 1e7,
-            poisson_ratio: 0.3,
-        },
-        ..Material::default()
+        ..common::granular_material()
     };
     let p = StepParams::new(
         &m,

@@ -178,6 +178,20 @@ pub fn particles(
     }
 }
 
+/// The scenes' default material: Hertz–Mindlin (E 1e7 Pa, ν 0.3), μ 0.5, μ_r 0.1 (EPSD), at
+/// the default density and restitution.
+pub fn granular_material() -> Material {
+    Material {
+        contact: mochi::dem::model::ContactLaw::HertzMindlin {
+            young_modulus: 1e7,
+            poisson_ratio: 0.3,
+        },
+        friction: 0.5,
+        rolling_friction: 0.1,
+        ..Material::default()
+    }
+}
+
 /// A seeded source of numbers in [−0.5, 0.5) (a linear congruential generator: the same
 /// numbers on every machine).
 pub fn noise(seed: u64) -> impl FnMut() -> f32 {
