@@ -424,7 +424,7 @@ impl Stepper for CpuStepper {
                 _ => self.region,
             };
             self.grid
-                .bin_within(&parts.positions, &parts.radii, lo, hi, self.cell_size);
+                .bin_within(&parts.positions, &parts.radii, lo, hi, self.cell_size)?;
             times.build_ms += ms(t);
             let t = Instant::now();
             if let Some(mesh) = &mut self.mesh {

@@ -7,6 +7,7 @@
 //! query walk the sorted keys with pointers that only move forward. A layout of few cells per
 //! sphere is sorted by counting instead, which leaves a table of each cell's first sphere.
 
+use crate::error::{Error, Result, try_push, try_vec};
 use crate::spheres::SphereSet;
 use rayon::prelude::*;
 
@@ -57,8 +58,9 @@ const MIN_PIECE: usize = 4096;
 const SAMPLES_PER_RANGE: usize = 32;
 
 impl SortedGrid {
-    /// Bins `spheres` into cells of side at least `cell_size`.
-    pub fn bin(&mut self, spheres: &SphereSet, cell_size: f32) {
+    /// Bins `spheres` into cells of side at least `cell_size`. Memory that cannot be had is
+    /// [`Error::OutOfMemory`], and leaves the grid to be binned again before it is searched.
+    pub fn bin(&mut self, spheres: &SphereSet, cell_size: f32) -> Result<()> {
         match spheres.bounds() {
             Some((lo, hi)) => {
                 self.bin_within(spheres.centers(), spheres.radii(), lo, hi, cell_size)
@@ -68,7 +70,8 @@ impl SortedGrid {
     }
 
     /// Bins spheres whose centres lie within `lo..=hi` (finite; centres outside are clamped to
-    /// the nearest cell, which keeps the search exact, only slower).
+    /// the nearest cell, which keeps the search exact, only slower). Every allocation is
+    /// fallible, as for [`Self::bin`].
     pub fn bin_within(
         &mut self,
         centers: &[[f32; 3]],
@@ -76,7 +79,7 @@ impl SortedGrid {
         lo: [f32; 3],
         hi: [f32; 3],
         cell_size: f32,
-    ) {
+    ) -> Result<()> {
         let cells = cell_layout(lo, hi, cell_size);
         let [nx, ny] = [cells.counts[0] + 2, cells.counts[1] + 2];
         self.dims = [nx, ny];
@@ -100,7 +103,7 @@ impl SortedGrid {
         centers: &[[f32; 3]],
         radii: &[f32],
         key: impl Fn(&[f32; 3]) -> u64 + Sync,
-    ) {
+    ) -> Result<()> {
         let n = centers.len();
         self.starts.clear();
         let wanted = RANGES_PER_THREAD * rayon::current_num_threads();
@@ -116,9 +119,13 @@ impl SortedGrid {
         list_by_range(&mut self.wide, centers, ranges, |i, c| {
             let key = key(c);
             (range_of(key), (key, i))
-        });
+        })?;
 
         let sizes = range_sizes(&self.wide, ranges);
+        room(&mut self.order, n, "sort entries")?;
+        room(&mut self.keys, n, "cell keys")?;
+        room(&mut self.ids, n, "sphere indices")?;
+        room(&mut self.spheres, n, "sorted spheres")?;
         self.order.resize(n, (0, 0));
         self.keys.resize(n, 0);
         self.ids.resize(n, 0);
@@ -142,6 +149,7 @@ impl SortedGrid {
                     spheres[at] = [c[0], c[1], c[2], radii[i as usize]];
                 }
             });
+        Ok(())
     }
 
     /// Sorts the spheres by `key` (below `cells`), stably, into [`Self::keys`], [`Self::ids`]
@@ -155,7 +163,7 @@ impl SortedGrid {
         radii: &[f32],
         cells: usize,
         key: impl Fn(&[f32; 3]) -> u64 + Sync,
-    ) {
+    ) -> Result<()> {
         let n = centers.len();
         let shift = cells
             .div_ceil(RANGES_PER_THREAD * rayon::current_num_threads())
@@ -168,9 +176,13 @@ impl SortedGrid {
                 (key >> shift) as usize,
                 [(key & ((1 << shift) - 1)) as u32, i],
             )
-        });
+        })?;
 
         let sizes = range_sizes(&self.ranges, ranges);
+        room(&mut self.keys, n, "cell keys")?;
+        room(&mut self.ids, n, "sphere indices")?;
+        room(&mut self.spheres, n, "sorted spheres")?;
+        room(&mut self.starts, cells + 1, "cell starts")?;
         self.keys.resize(n, 0);
         self.ids.resize(n, 0);
         self.spheres.resize(n, [0.0; 4]);
@@ -191,7 +203,7 @@ impl SortedGrid {
             .zip(split_by(&mut self.starts[..cells], &spans))
             .zip(firsts.collect::<Vec<_>>())
             .enumerate()
-            .for_each(|(r, ((((keys, ids), spheres), starts), placed))| {
+            .try_for_each(|(r, ((((keys, ids), spheres), starts), placed))| {
                 let first_cell = (r << shift) as u64;
                 let entries = || listed.iter().flat_map(|l| &l[r]);
                 starts.fill(0);
@@ -199,15 +211,15 @@ impl SortedGrid {
                     starts[within as usize] += 1;
                 }
                 let mut next = 0;
-                let mut cursor: Vec<u32> = starts
-                    .iter_mut()
-                    .map(|start| {
-                        let here = next;
-                        next += *start;
-                        *start = here + placed as u32;
-                        here
-                    })
-                    .collect();
+                let mut cursor: Vec<u32> = try_vec(starts.len(), || {
+                    format!("the cpu grid's cursors for {} cells", starts.len())
+                })?;
+                cursor.extend(starts.iter_mut().map(|start| {
+                    let here = next;
+                    next += *start;
+                    *start = here + placed as u32;
+                    here
+                }));
                 for &[within, i] in entries() {
                     let place = &mut cursor[within as usize];
                     let at = *place as usize;
@@ -217,7 +229,8 @@ impl SortedGrid {
                     ids[at] = i;
                     spheres[at] = [c[0], c[1], c[2], radii[i as usize]];
                 }
-            });
+                Ok(())
+            })
     }
 
     /// Key distances from a cell to the first cell (x − 1) of each of its nine neighbour rows
@@ -241,29 +254,43 @@ impl SortedGrid {
     }
 }
 
+/// Room in `v` for `n` items, so that resizing it to `n` allocates nothing, or
+/// [`Error::OutOfMemory`] for the grid's `what`.
+fn room<T>(v: &mut Vec<T>, n: usize, what: &str) -> Result<()> {
+    v.try_reserve_exact(n.saturating_sub(v.len()))
+        .map_err(|_| Error::OutOfMemory {
+            what: format!("the cpu grid's {what} ({n})"),
+            bytes: (n as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+        })
+}
+
 /// Lists the entries of `centers` by range, for a sort in parallel: `listed[k][r]` holds, in
 /// input order, the entries `entry(i, c)` files under range `r` of the spheres of piece `k` of
-/// the input (each piece on its own thread; the allocations of `listed` reused).
+/// the input (each piece on its own thread; the allocations of `listed` reused). Each list
+/// grows fallibly.
 fn list_by_range<E: Send>(
     listed: &mut Vec<Vec<Vec<E>>>,
     centers: &[[f32; 3]],
     ranges: usize,
     entry: impl Fn(u32, &[f32; 3]) -> (usize, E) + Sync,
-) {
+) -> Result<()> {
     let n = centers.len();
     let piece = n
         .div_ceil(PIECES_PER_THREAD * rayon::current_num_threads())
         .max(MIN_PIECE);
     listed.resize_with(n.div_ceil(piece), Vec::new);
-    listed.par_iter_mut().enumerate().for_each(|(k, mine)| {
+    listed.par_iter_mut().enumerate().try_for_each(|(k, mine)| {
         mine.resize_with(ranges, Vec::new);
         mine.iter_mut().for_each(Vec::clear);
         let first = k * piece;
         for (i, c) in centers[first..(first + piece).min(n)].iter().enumerate() {
             let (range, e) = entry((first + i) as u32, c);
-            mine[range].push(e);
+            try_push(&mut mine[range], e, || {
+                format!("the cpu grid's sort entries ({n} spheres)")
+            })?;
         }
-    });
+        Ok(())
+    })
 }
 
 /// The entries of each of `ranges` ranges in `listed` (of [`list_by_range`]).
@@ -353,7 +380,7 @@ pub(crate) mod tests {
         let (centers, radii) = random_set(n, 99, 20.0, 0.2..0.5);
         let (lo, hi) = ([0.0; 3], [20.0; 3]);
         let mut counted = SortedGrid::default();
-        counted.bin_within(&centers, &radii, lo, hi, 1.0);
+        counted.bin_within(&centers, &radii, lo, hi, 1.0).unwrap();
         assert!(
             !counted.starts.is_empty(),
             "a dense layout is sorted by counting"
@@ -371,7 +398,7 @@ pub(crate) mod tests {
         assert!(keys.windows(2).any(|k| k[0] == k[1]), "shared cells");
 
         let mut radix = SortedGrid::default();
-        radix.sort_by_radix(&centers, &radii, key);
+        radix.sort_by_radix(&centers, &radii, key).unwrap();
         for grid in [&counted, &radix] {
             assert_eq!(grid.keys, keys);
             assert_eq!(grid.ids, ids);
@@ -387,12 +414,14 @@ pub(crate) mod tests {
             assert_eq!(run, [first as u32, end as u32], "cell {cell}");
         }
         // Binned again, fewer and then no spheres: the kept scratch does not leak into them.
-        radix.sort_by_radix(&centers[..10], &radii[..10], key);
+        radix
+            .sort_by_radix(&centers[..10], &radii[..10], key)
+            .unwrap();
         let mut few = expected[..0].to_vec();
         few.extend((0..10).map(|i| (key(&centers[i]), i as u32)));
         few.sort_by_key(|e| e.0);
         assert_eq!(radix.ids, few.iter().map(|e| e.1).collect::<Vec<_>>());
-        radix.sort_by_radix(&[], &[], key);
+        radix.sort_by_radix(&[], &[], key).unwrap();
         assert!(radix.keys.is_empty() && radix.ids.is_empty() && radix.spheres.is_empty());
     }
 }
