@@ -194,8 +194,8 @@ pub(crate) fn plain_array<'py>(
             .extract()?;
         if masked {
             return Err(PyValueError::new_err(format!(
-                "{what} is a masked array with masked entries, and mochi takes no mask: pass \
-                 {what}.filled(value), or leave the masked rows out"
+                "{what} is a masked array with masked entries, and mochi takes no mask: fill \
+                 them (.filled(value)) or leave them out"
             )));
         }
         array = array.getattr("data")?;
