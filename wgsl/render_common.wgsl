@@ -26,7 +26,8 @@ struct View {
 
 // Twin of Node in src/render/bvh.rs (tests/bindings.rs compares the layouts). Interior
 // (count == 0): left child at index + 1, right child at `a`; leaf: primitives a .. a + count.
-// Every primitive below a node lies inside its box lo .. hi and inside its ball (centre, radius).
+// Every primitive below a node lies inside its box lo .. hi, and where radius >= 0 inside its
+// ball (centre, radius); a negative radius: no ball to test.
 struct Node {
     lo: vec3<f32>,
     a: u32,
@@ -126,7 +127,7 @@ fn safe(x: f32) -> f32 {
 
 // Where the ray enters the node, inside both its box and its (widened) ball (0 inside both),
 // or INF for a miss of either, for box and ball passed at different times, or for an entry at
-// or past t_max.
+// or past t_max; a node without a ball is entered where its box is.
 fn enter(node: Node, o: vec3<f32>, d: vec3<f32>, inv: vec3<f32>, t_max: f32) -> f32 {
     let a = (node.lo - o) * inv;
     let b = (node.hi - o) * inv;
@@ -134,6 +135,12 @@ fn enter(node: Node, o: vec3<f32>, d: vec3<f32>, inv: vec3<f32>, t_max: f32) -> 
     let hi = max(a, b);
     let box_in = max(max(max(lo.x, lo.y), lo.z), 0.0);
     let box_out = min(min(min(hi.x, hi.y), hi.z), t_max);
+    if box_in > box_out || box_in >= t_max {
+        return INF;
+    }
+    if node.radius < 0.0 {
+        return box_in;
+    }
     let oc = o - node.centre;
     let along = dot(oc, d);
     let q = oc - d * along;

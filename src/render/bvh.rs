@@ -5,12 +5,14 @@
 //! triangles get a tree of their own, built the same way over each triangle's bounding sphere.
 //! [`trace`] is the CPU twin of `walk` in `wgsl/render_common.wgsl`.
 //!
-//! Each node bounds its primitives twice, by a box and by a ball, and a ray enters it where it
-//! is inside both. Boxes alone fail heavily overlapping spheres: around a cluster of spheres
-//! whose centres nearly coincide every box is nearly the same, and a ray enters each of them
-//! well before it meets any sphere (near the box's corners), so it would test every sphere of
-//! the cluster; the balls are nearly the spheres themselves, and a ray enters a ball no earlier
-//! than the spread of its centres before the nearest sphere in it.
+//! Each node bounds its primitives by a box and, where that is tighter (a small ball in its box,
+//! [`BALL_TO_BOX`]), by a ball as well; a ray enters it where it is inside both. Boxes alone
+//! fail heavily overlapping spheres: around a cluster of spheres whose centres nearly coincide
+//! every box is nearly the same, and a ray enters each of them well before it meets any sphere
+//! (near the box's corners), so it would test every sphere of the cluster; the balls are nearly
+//! the spheres themselves, and a ray enters a ball no earlier than the spread of its centres
+//! before the nearest sphere in it. A leaf's ball is around its spheres, an interior node's
+//! around its children's balls.
 
 use super::shade::{INF, hit_sphere};
 use crate::gpu::shader::{SharedStruct, Vec3f, shared_struct};
@@ -30,10 +32,17 @@ pub(crate) const STACK: usize = 64;
 /// an eighth too little). Keep in sync with `BALL_SLACK` in `wgsl/render_common.wgsl`.
 const BALL_SLACK: f32 = 1.0 / 1_048_576.0;
 
+/// Largest ratio of a node's ball's volume to its box's at which the traversal tests the ball
+/// too: about a sphere's in its own box (π/6) and below, as around spheres that nearly coincide.
+/// A ball larger than that (around spheres side by side, or a flat wall) would rarely cut off
+/// what the box lets through, and only add its test.
+const BALL_TO_BOX: f64 = 0.6;
+
 /// One node of the flattened tree. An interior node (`count == 0`) has its left child right
 /// after it and its right child at `a`; a leaf holds the spheres `a..a + count`. Every
-/// primitive below it lies inside the box `lo..hi` and inside the ball of centre `centre` and
-/// radius `radius`.
+/// primitive below it lies inside the box `lo..hi`, and where `radius >= 0` inside the ball of
+/// centre `centre` and radius `radius` (a negative radius: no ball to test, see
+/// [`BALL_TO_BOX`]).
 ///
 /// WGSL twin: `Node` in `wgsl/render_common.wgsl` (uploaded as a storage array).
 #[derive(Debug, Clone, Copy, PartialEq, encase::ShaderType)]
@@ -92,6 +101,15 @@ pub(crate) fn build<T>(items: &mut [([f32; 4], T)], keys: &[u32]) -> Vec<Node> {
     if !items.is_empty() {
         build_range(items, keys, 0, items.len(), &mut nodes);
     }
+    for node in &mut nodes {
+        let ball = 4.0 / 3.0 * std::f64::consts::PI * f64::from(node.radius).powi(3);
+        let cube = (0..3)
+            .map(|k| f64::from(node.hi[k]) - f64::from(node.lo[k]))
+            .product::<f64>();
+        if ball > BALL_TO_BOX * cube {
+            node.radius = -1.0;
+        }
+    }
     nodes
 }
 
@@ -104,7 +122,12 @@ fn build_range<T>(
 ) {
     let at = nodes.len();
     let (bmin, bmax) = bounds(items[lo..hi].iter().map(|item| &item.0));
-    let (centre, radius) = ball(&items[lo..hi]);
+    // A leaf's ball is around its spheres; an interior node's is set below, around its
+    // children's.
+    let (centre, radius) = match hi - lo <= LEAF_SIZE {
+        true => ball(&items[lo..hi]),
+        false => (Vec3::ZERO, 0.0),
+    };
     nodes.push(Node {
         lo: bmin.into(),
         a: lo as u32,
@@ -129,8 +152,34 @@ fn build_range<T>(
     build_range(items, keys, lo, split, nodes);
     let right = nodes.len() as u32;
     build_range(items, keys, split, hi, nodes);
-    nodes[at].a = right;
-    nodes[at].count = 0;
+    let (centre, radius) = enclosing(&nodes[at + 1], &nodes[right as usize]);
+    let node = &mut nodes[at];
+    node.a = right;
+    node.count = 0;
+    node.centre = centre.into();
+    node.radius = radius;
+}
+
+/// A ball around the balls of nodes `a` and `b`: the smallest for the two as `f64` would
+/// place it, its centre rounded to `f32` and its radius then measured from there in `f64` and
+/// rounded up, so that it holds both balls as `f32` stores them.
+fn enclosing(a: &Node, b: &Node) -> (Vec3, f32) {
+    let (ca, cb) = (
+        Vec3::from(a.centre).as_dvec3(),
+        Vec3::from(b.centre).as_dvec3(),
+    );
+    let (ra, rb) = (f64::from(a.radius), f64::from(b.radius));
+    let d = ca.distance(cb);
+    let centre = if d + rb <= ra {
+        ca
+    } else if d + ra <= rb {
+        cb
+    } else {
+        ca + (cb - ca) * ((d + rb - ra) / (2.0 * d))
+    };
+    let c = centre.as_vec3();
+    let reach = |x: glam::DVec3, r: f64| c.as_dvec3().distance(x) + r;
+    (c, (reach(ca, ra).max(reach(cb, rb)) as f32).next_up())
 }
 
 /// The axis along which the centres of `items` spread the most.
@@ -142,9 +191,9 @@ fn widest_axis<T>(items: &[([f32; 4], T)]) -> usize {
         .unwrap_or(0)
 }
 
-/// A ball around the spheres of `items` (not empty): centred on the box of their centres, its
-/// radius the farthest reach of a sphere from there, computed in `f64` and rounded up, so that
-/// it holds each sphere as `f32` stores it.
+/// A ball around the spheres of `items` (not empty; a leaf's): centred on the box of their
+/// centres, its radius the farthest reach of a sphere from there, computed in `f64` and rounded
+/// up, so that it holds each sphere as `f32` stores it.
 fn ball<T>(items: &[([f32; 4], T)]) -> (Vec3, f32) {
     let (lo, hi) = centre_bounds(items.iter().map(|(s, _)| s));
     let c = (lo + hi) * 0.5;
@@ -255,12 +304,19 @@ pub(crate) fn safe(x: f32) -> f32 {
 /// node, inside both its box and its ball (0 when it starts inside both), or [`INF`] when it
 /// misses either, passes through them at different times, or enters at or beyond `t_max`. The
 /// ball is widened by [`BALL_SLACK`] of the ray's distance, so the entry is never later than a
-/// hit of a primitive below the node as [`hit_sphere`] or `hit_triangle` computes it.
+/// hit of a primitive below the node as [`hit_sphere`] or `hit_triangle` computes it. A node
+/// without a ball (a negative radius) is entered where its box is.
 fn enter(node: &Node, o: Vec3, d: Vec3, inv: Vec3, t_max: f32) -> f32 {
     let a = (Vec3::from(node.lo) - o) * inv;
     let b = (Vec3::from(node.hi) - o) * inv;
     let box_in = a.min(b).max_element().max(0.0);
     let box_out = a.max(b).min_element().min(t_max);
+    if box_in > box_out || box_in >= t_max {
+        return INF;
+    }
+    if node.radius < 0.0 {
+        return box_in;
+    }
     let oc = o - Vec3::from(node.centre);
     let along = oc.dot(d);
     let q = oc - d * along;
