@@ -124,11 +124,13 @@ def test_detecting_more_spheres_than_memory_holds_is_one_error(limit_kib, runs_o
     "until it is merged the interpreter aborts",
 )
 def test_a_hopper_larger_than_memory_is_one_error():
-    done = run_limited('mochi.Simulation({"scene": "hopper", "spheres": 300_000_000})')
+    done = run_limited(
+        'mochi.Simulation({"scene": "hopper", "spheres": 300_000_000}, backend="cpu")'
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.startswith(("MemoryError", "ValueError")), done.stdout
 
 
 def test_a_whole_float_count_is_refused_before_anything_is_built():
     with pytest.raises(ValueError, match="takes an integer"):
-        mochi.Simulation({"scene": "hopper", "spheres": 3e8})
+        mochi.Simulation({"scene": "hopper", "spheres": 3e8}, backend="cpu")
