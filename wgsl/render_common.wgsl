@@ -26,11 +26,15 @@ struct View {
 
 // Twin of Node in src/render/bvh.rs (tests/bindings.rs compares the layouts). Interior
 // (count == 0): left child at index + 1, right child at `a`; leaf: primitives a .. a + count.
+// Every primitive below a node lies inside its box lo .. hi, and where radius >= 0 inside its
+// ball (centre, radius); a negative radius: no ball to test.
 struct Node {
     lo: vec3<f32>,
     a: u32,
     hi: vec3<f32>,
     count: u32,
+    centre: vec3<f32>,
+    radius: f32,
 }
 
 struct Hit {
@@ -55,6 +59,9 @@ const SKY_BOTTOM: vec3<f32> = vec3(0.78, 0.80, 0.84);
 const WALL_COLOUR: vec3<f32> = vec3(0.55, 0.60, 0.68);
 const WALL_ALPHA: f32 = 0.35;
 const STACK: u32 = 64u;
+// A node's ball is widened by this share of the ray's distance from its centre (twin of
+// BALL_SLACK in src/render/bvh.rs).
+const BALL_SLACK: f32 = 1.0 / 1048576.0;
 // The trees `walk` searches.
 const SPHERE_TREE: u32 = 0u;
 const WALL_TREE: u32 = 1u;
@@ -118,14 +125,33 @@ fn safe(x: f32) -> f32 {
     return select(x, select(1e-20, -1e-20, x < 0.0), abs(x) < 1e-20);
 }
 
-// Where the ray enters the box (0 inside), or INF for a miss or an entry at or past t_max.
-fn enter(node: Node, o: vec3<f32>, inv: vec3<f32>, t_max: f32) -> f32 {
+// Where the ray enters the node, inside both its box and its (widened) ball (0 inside both),
+// or INF for a miss of either, for box and ball passed at different times, or for an entry at
+// or past t_max; a node without a ball is entered where its box is.
+fn enter(node: Node, o: vec3<f32>, d: vec3<f32>, inv: vec3<f32>, t_max: f32) -> f32 {
     let a = (node.lo - o) * inv;
     let b = (node.hi - o) * inv;
     let lo = min(a, b);
     let hi = max(a, b);
-    let t0 = max(max(max(lo.x, lo.y), lo.z), 0.0);
-    let t1 = min(min(min(hi.x, hi.y), hi.z), t_max);
+    let box_in = max(max(max(lo.x, lo.y), lo.z), 0.0);
+    let box_out = min(min(min(hi.x, hi.y), hi.z), t_max);
+    if box_in > box_out || box_in >= t_max {
+        return INF;
+    }
+    if node.radius < 0.0 {
+        return box_in;
+    }
+    let oc = o - node.centre;
+    let along = dot(oc, d);
+    let q = oc - d * along;
+    let r = node.radius + (abs(along) + node.radius) * BALL_SLACK;
+    let h = r * r - dot(q, q);
+    if h < 0.0 {
+        return INF;
+    }
+    let root = sqrt(h);
+    let t0 = max(box_in, -along - root);
+    let t1 = min(box_out, -along + root);
     return select(INF, t0, t0 <= t1 && t0 < t_max);
 }
 
@@ -154,7 +180,7 @@ fn walk(tree: u32, o: vec3<f32>, d: vec3<f32>, t_max: f32, first: bool) -> Hit {
     var stack_node: array<u32, STACK>;
     var stack_t: array<f32, STACK>;
     var sp = 0u;
-    let t_root = enter(node_of(tree, 0u), o, inv, best.t);
+    let t_root = enter(node_of(tree, 0u), o, d, inv, best.t);
     if t_root < INF {
         stack_node[0] = 0u;
         stack_t[0] = t_root;
@@ -181,8 +207,8 @@ fn walk(tree: u32, o: vec3<f32>, d: vec3<f32>, t_max: f32, first: bool) -> Hit {
         }
         let left = index + 1u;
         let right = node.a;
-        let tl = enter(node_of(tree, left), o, inv, best.t);
-        let tr = enter(node_of(tree, right), o, inv, best.t);
+        let tl = enter(node_of(tree, left), o, d, inv, best.t);
+        let tr = enter(node_of(tree, right), o, d, inv, best.t);
         // Push the farther child first, so the nearer one is searched first.
         var near = left;
         var t_near = tl;

@@ -9,7 +9,10 @@ import numpy.typing as npt
 Mode = Literal["mochi", "nns"]
 
 class MochiError(RuntimeError):
-    """A device or library failure (bad input raises ValueError instead)."""
+    """A device or library failure (bad input raises ValueError instead, and input too large for
+    memory MemoryError). A bug inside mochi (a Rust panic) is a MochiError too, naming the call
+    and saying it is a bug; a ``Detector`` or ``Simulation`` one of whose calls hit one refuses
+    every later call."""
 
 class BackendEntry(TypedDict):
     name: str
@@ -24,9 +27,13 @@ def detect(
 ) -> npt.NDArray[np.int64]:
     """Every colliding pair of spheres as a ``(P, 2)`` int64 array, ``i < j``, rows sorted.
 
-    ``centres`` is ``(N, 3)`` and ``radii`` ``(N,)``, float32 or float64, any memory order.
-    Raises ``ValueError`` for bad input (naming the row and the reason) and ``MochiError``
-    when the backend fails or cannot run here. The backend it opens (its device and buffers)
+    ``centres`` is ``(N, 3)`` and ``radii`` ``(N,)``, float32 or float64 in either byte order,
+    any memory order. mochi computes in float32: a float64 value beyond its range is refused,
+    naming it. A masked array is read only where no entry is masked (else ``ValueError``: mochi
+    takes no mask). Raises ``ValueError`` for bad input (naming the row and the reason),
+    ``MemoryError`` (naming what and how many bytes) where the spheres' copies, the backend's
+    structure or the pairs do not fit in memory, and ``MochiError`` when the backend fails or
+    cannot run here. The backend it opens (its device and buffers)
     and the memory of its copies of the spheres (32 bytes a sphere on the host) are kept for
     the next call with the same ``backend``, which opens and allocates nothing but the result;
     a call with another ``backend`` lets them go.
@@ -53,7 +60,15 @@ class Detector:
     def pairs(self) -> npt.NDArray[np.int64]:
         """The colliding pairs of the current spheres, as ``detect`` returns them."""
 
-SceneValue = bool | int | float | str | os.PathLike[str] | list[bool | int | float | str]
+Scalar = bool | int | float | str | os.PathLike[str] | np.generic
+SceneValue = (
+    Scalar
+    | npt.NDArray[np.generic]
+    | list[Scalar]
+    | tuple[Scalar, ...]
+    | dict[str, object]
+    | list[dict[str, object]]
+)
 
 class FrameDict(TypedDict):
     positions: npt.NDArray[np.float32]
@@ -72,9 +87,20 @@ class Simulation:
     """A DEM simulation: a scene's spheres under gravity, walls and contact forces.
 
     ``scene`` is a dict of scene keys (as in a scene TOML, or ``mochi simulate --set``), a path
-    to a scene TOML, or ``None`` for the default scene (``pour``). Bad keys or values raise
-    ``ValueError`` naming them; the run's warnings (overlaps, coarse coordinates, coincident
-    centres) are ``UserWarning``s. Arrays are float32 in input order.
+    to a scene TOML, or ``None`` for the default scene (``pour``). A dict value is a TOML table
+    and a list of dicts an array of tables: ``{"inflow": [{"lo": [...], "hi": [...], "rate":
+    2000, "sphere_radius": 0.004}]}`` is ``[[inflow]]``, and a lone dict for ``wall``,
+    ``inflow`` or ``outflow`` is an array of one. NumPy scalars and 0-d arrays count as the
+    Python scalars they hold, NumPy arrays as lists. A whole float for a key that takes an
+    integer (``"spheres": 3e8``) is refused, as in a scene file: pass an int. Bad keys or values
+    raise ``ValueError`` naming them; the run's warnings (overlaps, coarse coordinates,
+    coincident centres) are ``UserWarning``s.
+
+    ``positions``, ``velocities``, ``angular_velocities`` and ``radii`` are float32 in input
+    order: read-only snapshots of the step they were read at (the same array object until the
+    next ``step``; a later step does not change them). Writing into one raises ``ValueError``;
+    a simulation's state is changed only by stepping it (``copy()`` an array to change it, and
+    start a new run from the changed spheres with ``{"scene": "input", "input": file}``).
     """
 
     def __init__(
@@ -94,16 +120,16 @@ class Simulation:
         """
     @property
     def positions(self) -> npt.NDArray[np.float32]:
-        """Centres ``(N, 3)`` [m]."""
+        """Centres ``(N, 3)`` [m]: read-only, this step's."""
     @property
     def velocities(self) -> npt.NDArray[np.float32]:
-        """Velocities ``(N, 3)`` [m/s]."""
+        """Velocities ``(N, 3)`` [m/s]: read-only, this step's."""
     @property
     def angular_velocities(self) -> npt.NDArray[np.float32]:
-        """Angular velocities ``(N, 3)`` [rad/s]."""
+        """Angular velocities ``(N, 3)`` [rad/s]: read-only, this step's."""
     @property
     def radii(self) -> npt.NDArray[np.float32]:
-        """Radii ``(N,)`` [m]."""
+        """Radii ``(N,)`` [m]: read-only, this step's."""
     @property
     def time(self) -> float:
         """Simulated time [s]: steps taken times the time step."""
@@ -120,7 +146,8 @@ class Simulation:
     def dt(self) -> float:
         """The time step [s]."""
     def __len__(self) -> int:
-        """Number of spheres."""
+        """Number of spheres now: inflows add spheres and outflows remove them, so it is the
+        length of ``positions`` at every step."""
     def write_frame(self, path: str | os.PathLike[str]) -> None:
         """Writes the spheres now by extension: ``.vtu`` (ParaView), ``.csv`` or ``.npy``
         (float32 N×10: x, y, z, r, vx, vy, vz, wx, wy, wz); atomically."""

@@ -2,26 +2,37 @@
 //! simulate` uses), stepped from Python.
 //!
 //! Invariants: `step` counts the steps the stepper has taken (its particles' step); `now` is
-//! `None` or the particles at `step` (read back once, dropped on every step).
+//! `None` or the particles at `step` (read back once, dropped on every step), and `views` holds
+//! only arrays made from `now` (dropped with it); the arrays handed out are read-only snapshots.
 
-use crate::to_py_err;
+use crate::{Guarded, guard, plain_array, to_py_err};
 use mochi::dem::Particles;
-use mochi::dem::scene::SceneFlags;
+use mochi::dem::scene::{SceneConfig, SceneFlags};
 use mochi::engines::{BackendChoice, Options};
 use mochi::io;
 use mochi::run::{FIRST_PROGRESS_STEPS, Run, RunStart, progress_steps};
-use numpy::ndarray::{Array1, Array2};
-use numpy::{IntoPyArray, PyArray1, PyArray2};
-use pyo3::exceptions::{PyTypeError, PyUserWarning, PyValueError};
+use numpy::ndarray::{Array1, Array2, Dimension, Ix1, Ix2};
+use numpy::{IntoPyArray, PyArray, PyArray1, PyArray2, PyUntypedArray, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyMemoryError, PyTypeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{IntoPyDict, PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple, PyType};
 use std::ffi::CString;
 use std::path::PathBuf;
 use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
-/// A scene value from Python as TOML: bool, int, float, str, path, or a list or tuple of them.
+/// The scene keys whose TOML values are arrays of tables (`[[wall]]`, `[[inflow]]`,
+/// `[[outflow]]`, as `dem::scene` documents them): a lone dict given for one is that array's
+/// one table.
+const TABLE_ARRAYS: [&str; 3] = ["wall", "inflow", "outflow"];
+
+/// A scene value from Python as TOML: bool, int, float, str, a path, a dict (a table, its keys
+/// str), or a list or tuple of them (an array); a NumPy scalar or 0-d array as the Python scalar
+/// it holds, a NumPy array as the nested lists of its values (a masked array only where no entry
+/// is masked). `key` names the value in errors.
 fn toml_value(key: &str, value: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
+    let py = value.py();
     let bad = |why: &str| PyValueError::new_err(format!("scene key {key:?}: {why}"));
     if value.is_instance_of::<PyBool>() {
         return Ok(toml::Value::Boolean(value.extract()?));
@@ -45,6 +56,25 @@ fn toml_value(key: &str, value: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
             .collect::<PyResult<_>>()?;
         return Ok(toml::Value::Array(items));
     }
+    if let Ok(dict) = value.cast::<PyDict>() {
+        let mut table = toml::Table::new();
+        for (field, item) in dict.iter() {
+            let field: String = field
+                .extract()
+                .map_err(|_| bad("the keys of a dict (a table) must be str"))?;
+            let item = toml_value(&format!("{key}.{field}"), &item)?;
+            table.insert(field, item);
+        }
+        return Ok(toml::Value::Table(table));
+    }
+    static GENERIC: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+    let array = value.cast::<PyUntypedArray>().ok();
+    if array.is_some() || value.is_instance(GENERIC.import(py, "numpy", "generic")?)? {
+        let plain = plain_array(&format!("scene key {key:?}"), value)?;
+        let scalar = array.is_none_or(|a| a.ndim() == 0);
+        let python = plain.call_method0(if scalar { "item" } else { "tolist" })?;
+        return toml_value(key, &python);
+    }
     if let Ok(path) = value.extract::<PathBuf>() {
         let text = path
             .to_str()
@@ -52,13 +82,26 @@ fn toml_value(key: &str, value: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
         return Ok(toml::Value::String(text.to_owned()));
     }
     Err(bad(&format!(
-        "a value of type {} cannot be a scene value (use bool, int, float, str, a path, or a \
-         list of them)",
+        "a value of type {} cannot be a scene value (use bool, int, float, str, a path, a dict, \
+         a list of them, or NumPy scalars and arrays)",
         value.get_type().name()?
     )))
 }
 
-/// A scene dict as `key=value` overrides, in the dict's order.
+/// Whether the scene field `key` takes an integer and not the float `x` (a whole number): the
+/// library reads the field from the float as an error and from the integer as a value.
+fn wants_integer(key: &str, x: f64) -> bool {
+    let read = |value: toml::Value| SceneConfig::parse(None, None, &[format!("{key}={value}")]);
+    x.fract() == 0.0
+        && x.abs() < 9.2e18
+        && read(toml::Value::Float(x)).is_err()
+        && read(toml::Value::Integer(x as i64)).is_ok()
+}
+
+/// A scene dict as `key=value` overrides, in the dict's order; a dict or a list of dicts as an
+/// inline table or an array of them (a lone dict for a key of [`TABLE_ARRAYS`] as an array of
+/// one). A whole float for a field that takes an integer is refused here, naming both, as a
+/// scene file's is (`spheres = 3e8`).
 fn overrides(scene: &Bound<'_, PyDict>) -> PyResult<Vec<String>> {
     scene
         .iter()
@@ -71,7 +114,19 @@ fn overrides(scene: &Bound<'_, PyDict>) -> PyResult<Vec<String>> {
                     "scene key {key:?} is not a field name"
                 )));
             }
-            Ok(format!("{key}={}", toml_value(&key, &value)?))
+            let value = match toml_value(&key, &value)? {
+                table @ toml::Value::Table(_) if TABLE_ARRAYS.contains(&key.as_str()) => {
+                    toml::Value::Array(vec![table])
+                }
+                toml::Value::Float(x) if wants_integer(&key, x) => {
+                    return Err(PyValueError::new_err(format!(
+                        "scene key {key:?} takes an integer, not the float {x:?} (pass {})",
+                        x as i64
+                    )));
+                }
+                value => value,
+            };
+            Ok(format!("{key}={value}"))
         })
         .collect()
 }
@@ -94,14 +149,57 @@ fn new_start(py: Python<'_>, scene: Option<&Bound<'_, PyAny>>) -> PyResult<RunSt
         },
     };
     py.detach(|| RunStart::new(file.as_deref(), &flags, &overrides))
-        .map_err(to_py_err)
+        .map_err(|error| match error {
+            // The library names the source of overrides the command line; here it is the dict.
+            mochi::Error::Parse { path, msg, .. }
+                if file.is_none() && path.as_os_str() == "command line" =>
+            {
+                PyValueError::new_err(format!("scene dict: {msg}"))
+            }
+            other => to_py_err(other),
+        })
+}
+
+/// A copy of `values`, allocated fallibly (`MemoryError` naming `what`).
+fn copied<T: Copy>(values: &[T], what: &str) -> PyResult<Vec<T>> {
+    let mut copy = Vec::new();
+    copy.try_reserve_exact(values.len()).map_err(|_| {
+        PyMemoryError::new_err(format!(
+            "{what}: out of memory ({} bytes needed)",
+            std::mem::size_of_val(values)
+        ))
+    })?;
+    copy.extend_from_slice(values);
+    Ok(copy)
 }
 
 /// `values` (three per sphere) as an `(N, 3)` float32 array.
-fn triples<'py>(py: Python<'py>, values: &[[f32; 3]]) -> Bound<'py, PyArray2<f32>> {
-    Array2::from_shape_vec((values.len(), 3), values.as_flattened().to_vec())
-        .expect("three values per sphere")
-        .into_pyarray(py)
+fn triples<'py>(py: Python<'py>, values: &[[f32; 3]]) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let flat = copied(values.as_flattened(), "an array of the spheres")?;
+    Array2::from_shape_vec((values.len(), 3), flat)
+        .map(|a| a.into_pyarray(py))
+        .map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
+/// `values` (one per sphere) as an `(N,)` float32 array.
+fn singles<'py>(py: Python<'py>, values: &[f32]) -> PyResult<Bound<'py, PyArray1<f32>>> {
+    Ok(Array1::from_vec(copied(values, "an array of the spheres")?).into_pyarray(py))
+}
+
+/// Where [`Views`] keeps one array.
+type Slot<D> = fn(&mut Views) -> &mut Option<Py<PyArray<f32, D>>>;
+
+/// How one array of [`Views`] is made from the particles.
+type Make<'py, D> = fn(Python<'py>, &Particles) -> PyResult<Bound<'py, PyArray<f32, D>>>;
+
+/// The arrays of the particles now that a `Simulation` has handed out, each made once: the same
+/// read-only array for every read until the next step.
+#[derive(Default)]
+struct Views {
+    positions: Option<Py<PyArray2<f32>>>,
+    velocities: Option<Py<PyArray2<f32>>>,
+    angular_velocities: Option<Py<PyArray2<f32>>>,
+    radii: Option<Py<PyArray1<f32>>>,
 }
 
 /// Reads a frame (`.vtu` as `write_frame` and `mochi simulate` write it, `.csv` or `.npy`) into
@@ -109,15 +207,20 @@ fn triples<'py>(py: Python<'py>, values: &[[f32; 3]]) -> Bound<'py, PyArray2<f32
 /// `step` and `time` (`None` where the file does not say).
 #[pyfunction]
 pub fn read_frame(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>> {
-    let frame = py.detach(|| io::read_frame(&path)).map_err(to_py_err)?;
-    let out = PyDict::new(py);
-    out.set_item("positions", triples(py, &frame.positions))?;
-    out.set_item("radii", Array1::from_vec(frame.radii).into_pyarray(py))?;
-    out.set_item("velocities", triples(py, &frame.velocities))?;
-    out.set_item("angular_velocities", triples(py, &frame.angular_velocities))?;
-    out.set_item("step", frame.step)?;
-    out.set_item("time", frame.time)?;
-    Ok(out)
+    guard("mochi.read_frame", || {
+        let frame = py.detach(|| io::read_frame(&path)).map_err(to_py_err)?;
+        let out = PyDict::new(py);
+        out.set_item("positions", triples(py, &frame.positions)?)?;
+        out.set_item("radii", Array1::from_vec(frame.radii).into_pyarray(py))?;
+        out.set_item("velocities", triples(py, &frame.velocities)?)?;
+        out.set_item(
+            "angular_velocities",
+            triples(py, &frame.angular_velocities)?,
+        )?;
+        out.set_item("step", frame.step)?;
+        out.set_item("time", frame.time)?;
+        Ok(out)
+    })
 }
 
 /// A DEM simulation: a scene's spheres under gravity, walls and contact forces.
@@ -129,6 +232,15 @@ pub struct Simulation {
     step: u64,
     contacts: u64,
     now: Option<Particles>,
+    views: Views,
+    /// What a call that panicked said ([`Guarded`]).
+    broken: Option<String>,
+}
+
+impl Guarded for Simulation {
+    fn broken(&mut self) -> &mut Option<String> {
+        &mut self.broken
+    }
 }
 
 impl Simulation {
@@ -153,6 +265,8 @@ impl Simulation {
             run: Mutex::new(run),
             contacts: 0,
             now: None,
+            views: Views::default(),
+            broken: None,
         })
     }
 
@@ -169,6 +283,45 @@ impl Simulation {
         }
         Ok(self.now.as_ref().expect("read back above"))
     }
+
+    /// The spheres now: the particles' count where they were read back since the last step,
+    /// else the start's count with the flows' insertions and removals since (no read-back).
+    fn spheres_now(&mut self) -> usize {
+        if let Some(now) = &self.now {
+            return now.len();
+        }
+        let run = self.run_mut();
+        match run.stepper.flow_counts() {
+            Some(flows) => {
+                let inserted = run.spheres as u64 + flows.inserted;
+                inserted.saturating_sub(flows.removed) as usize
+            }
+            None => run.spheres,
+        }
+    }
+
+    /// The array in `slot` of [`Self::views`], made by `make` from the particles now and set
+    /// read-only where none is yet.
+    fn view<'py, D: Dimension>(
+        &mut self,
+        py: Python<'py>,
+        slot: Slot<D>,
+        make: Make<'py, D>,
+    ) -> PyResult<Bound<'py, PyArray<f32, D>>> {
+        if let Some(array) = slot(&mut self.views) {
+            return Ok(array.bind(py).clone());
+        }
+        let array = make(py, self.particles(py)?)?;
+        array.call_method("setflags", (), Some(&[("write", false)].into_py_dict(py)?))?;
+        *slot(&mut self.views) = Some(array.clone().unbind());
+        Ok(array)
+    }
+
+    /// Drops what was read back for the last step.
+    fn stepped(&mut self) {
+        self.now = None;
+        self.views = Views::default();
+    }
 }
 
 #[pymethods]
@@ -178,8 +331,10 @@ impl Simulation {
     #[new]
     #[pyo3(signature = (scene = None, backend = "auto"))]
     fn new(py: Python<'_>, scene: Option<&Bound<'_, PyAny>>, backend: &str) -> PyResult<Self> {
-        let start = new_start(py, scene)?;
-        Simulation::open(py, start, backend)
+        guard("mochi.Simulation()", || {
+            let start = new_start(py, scene)?;
+            Simulation::open(py, start, backend)
+        })
     }
 
     /// Resumes the run saved in the checkpoint at `path` on `backend`.
@@ -191,10 +346,12 @@ impl Simulation {
         path: PathBuf,
         backend: &str,
     ) -> PyResult<Self> {
-        let start = py
-            .detach(|| RunStart::resume(&path, &SceneFlags::default(), &[]))
-            .map_err(to_py_err)?;
-        Simulation::open(py, start, backend)
+        guard("mochi.Simulation.resume", || {
+            let start = py
+                .detach(|| RunStart::resume(&path, &SceneFlags::default(), &[]))
+                .map_err(to_py_err)?;
+            Simulation::open(py, start, backend)
+        })
     }
 
     /// Takes `n` steps, in batches of about a quarter second with the interpreter lock
@@ -203,119 +360,145 @@ impl Simulation {
     /// takes it).
     #[pyo3(signature = (n, progress = None))]
     fn step(&mut self, py: Python<'_>, n: u64, progress: Option<Bound<'_, PyAny>>) -> PyResult<()> {
-        let mut left = n;
-        let mut next = FIRST_PROGRESS_STEPS;
-        while left > 0 {
-            let batch = left.min(next);
-            let stepper = &mut self.run_mut().stepper;
-            let began = Instant::now();
-            let advance = py
-                .detach(|| stepper.advance(batch as u32))
-                .map_err(to_py_err)?;
-            next = progress_steps(batch, began.elapsed());
-            self.now = None;
-            self.step += batch;
-            self.contacts = advance.contacts;
-            left -= batch;
-            if let Some(progress) = &progress {
-                progress.call1((batch,))?;
+        self.guarded("Simulation.step", |sim| {
+            let mut left = n;
+            let mut next = FIRST_PROGRESS_STEPS;
+            while left > 0 {
+                let batch = left.min(next);
+                let stepper = &mut sim.run_mut().stepper;
+                let began = Instant::now();
+                let advance = py.detach(|| stepper.advance(batch as u32));
+                // Even a failed batch may have moved the state.
+                sim.stepped();
+                let advance = advance.map_err(to_py_err)?;
+                next = progress_steps(batch, began.elapsed());
+                sim.step += batch;
+                sim.contacts = advance.contacts;
+                left -= batch;
+                if let Some(progress) = &progress {
+                    progress.call1((batch,))?;
+                }
+                py.check_signals()?;
             }
-            py.check_signals()?;
-        }
-        Ok(())
+            Ok(())
+        })
     }
 
-    /// Centres `(N, 3)` float32 \[m\], in input order.
+    /// Centres `(N, 3)` float32 \[m\], in input order: a read-only snapshot of this step.
     #[getter]
     fn positions<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        Ok(triples(py, &self.particles(py)?.positions))
+        self.guarded("Simulation.positions", |sim| {
+            sim.view::<Ix2>(py, |v| &mut v.positions, |py, p| triples(py, &p.positions))
+        })
     }
 
-    /// Velocities `(N, 3)` float32 \[m/s\], in input order.
+    /// Velocities `(N, 3)` float32 \[m/s\], in input order: a read-only snapshot of this step.
     #[getter]
     fn velocities<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        Ok(triples(py, &self.particles(py)?.velocities))
+        self.guarded("Simulation.velocities", |sim| {
+            sim.view::<Ix2>(
+                py,
+                |v| &mut v.velocities,
+                |py, p| triples(py, &p.velocities),
+            )
+        })
     }
 
-    /// Angular velocities `(N, 3)` float32 \[rad/s\], in input order.
+    /// Angular velocities `(N, 3)` float32 \[rad/s\], in input order: a read-only snapshot of
+    /// this step.
     #[getter]
     fn angular_velocities<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        Ok(triples(py, &self.particles(py)?.angular_velocities))
+        self.guarded("Simulation.angular_velocities", |sim| {
+            sim.view::<Ix2>(
+                py,
+                |v| &mut v.angular_velocities,
+                |py, p| triples(py, &p.angular_velocities),
+            )
+        })
     }
 
-    /// Radii `(N,)` float32 \[m\], in input order.
+    /// Radii `(N,)` float32 \[m\], in input order: a read-only snapshot of this step.
     #[getter]
     fn radii<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
-        let radii = self.particles(py)?.radii.clone();
-        Ok(Array1::from_vec(radii).into_pyarray(py))
+        self.guarded("Simulation.radii", |sim| {
+            sim.view::<Ix1>(py, |v| &mut v.radii, |py, p| singles(py, &p.radii))
+        })
     }
 
     /// Simulated time \[s\]: steps taken times the time step.
     #[getter]
-    fn time(&mut self) -> f64 {
-        self.step as f64 * self.run_mut().params.dt as f64
+    fn time(&mut self) -> PyResult<f64> {
+        self.guarded("Simulation.time", |sim| {
+            Ok(sim.step as f64 * sim.run_mut().params.dt as f64)
+        })
     }
 
     /// Steps taken (counting those before a resumed checkpoint).
     #[getter]
-    fn step_count(&self) -> u64 {
-        self.step
+    fn step_count(&mut self) -> PyResult<u64> {
+        self.guarded("Simulation.step_count", |sim| Ok(sim.step))
     }
 
     /// Touching pairs in the last step taken (0 before the first).
     #[getter]
-    fn contacts(&self) -> u64 {
-        self.contacts
+    fn contacts(&mut self) -> PyResult<u64> {
+        self.guarded("Simulation.contacts", |sim| Ok(sim.contacts))
     }
 
     /// The backend's name (`cpu`, `wgpu-rq`, …).
     #[getter]
-    fn backend(&mut self) -> &'static str {
-        self.run_mut().backend.name()
+    fn backend(&mut self) -> PyResult<&'static str> {
+        self.guarded("Simulation.backend", |sim| Ok(sim.run_mut().backend.name()))
     }
 
     /// The time step \[s\].
     #[getter]
-    fn dt(&mut self) -> f64 {
-        self.run_mut().params.dt as f64
+    fn dt(&mut self) -> PyResult<f64> {
+        self.guarded("Simulation.dt", |sim| Ok(sim.run_mut().params.dt as f64))
     }
 
-    /// Number of spheres.
-    fn __len__(&mut self) -> usize {
-        self.run_mut().spheres
+    /// Number of spheres now (inflows add spheres, outflows remove them).
+    fn __len__(&mut self) -> PyResult<usize> {
+        self.guarded("Simulation.__len__", |sim| Ok(sim.spheres_now()))
     }
 
     /// Writes the spheres now as a frame, by extension: `.vtu` (ParaView), `.csv` or `.npy`
     /// (float32 N×10: x, y, z, r, vx, vy, vz, wx, wy, wz); atomically, as `mochi simulate`
     /// writes its frames.
     fn write_frame(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        self.particles(py)?;
-        let run = self.run.get_mut().unwrap_or_else(PoisonError::into_inner);
-        let frame = run.frame(self.now.as_ref().expect("read back above"));
-        py.detach(|| io::write_frame(&path, &frame))
-            .map_err(to_py_err)
+        self.guarded("Simulation.write_frame", |sim| {
+            sim.particles(py)?;
+            let run = sim.run.get_mut().unwrap_or_else(PoisonError::into_inner);
+            let frame = run.frame(sim.now.as_ref().expect("read back above"));
+            py.detach(|| io::write_frame(&path, &frame))
+                .map_err(to_py_err)
+        })
     }
 
     /// Saves the run (particles, contact history and resolved scene) for
     /// `Simulation.resume`; atomically.
     fn checkpoint(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        self.particles(py)?;
-        let run = self.run_mut();
-        let (scene, state) = (run.scene_toml(), run.state_toml(None));
-        let now = self.now.as_ref().expect("read back above");
-        py.detach(|| io::write_checkpoint(&path, now, &scene, &state))
-            .map_err(to_py_err)
+        self.guarded("Simulation.checkpoint", |sim| {
+            sim.particles(py)?;
+            let run = sim.run_mut();
+            let (scene, state) = (run.scene_toml(), run.state_toml(None));
+            let now = sim.now.as_ref().expect("read back above");
+            py.detach(|| io::write_checkpoint(&path, now, &scene, &state))
+                .map_err(to_py_err)
+        })
     }
 
-    fn __repr__(&mut self) -> String {
-        let step = self.step;
-        let run = self.run_mut();
-        format!(
-            "Simulation(scene={:?}, spheres={}, backend={:?}, step={})",
-            run.config.scene.name(),
-            run.spheres,
-            run.backend.name(),
-            step
-        )
+    fn __repr__(&mut self) -> PyResult<String> {
+        self.guarded("Simulation.__repr__", |sim| {
+            let (step, spheres) = (sim.step, sim.spheres_now());
+            let run = sim.run_mut();
+            Ok(format!(
+                "Simulation(scene={:?}, spheres={}, backend={:?}, step={})",
+                run.config.scene.name(),
+                spheres,
+                run.backend.name(),
+                step
+            ))
+        })
     }
 }

@@ -163,3 +163,58 @@ def test_backends():
     cpu = entries[-1]
     assert cpu["available"] is True and "CPU" in cpu["reason"]
     assert all(isinstance(e["reason"], str) and e["reason"] for e in entries)
+
+
+# Issue 42, item 22: masked arrays, byte order, and float64 beyond float32.
+
+
+def test_a_masked_array_with_masked_entries_is_refused():
+    centres, radii = random_set(8, n=50)
+    masked = np.ma.masked_array(centres, mask=np.zeros_like(centres, dtype=bool))
+    masked[4, 1] = np.ma.masked
+    with pytest.raises(ValueError, match="centres is a masked array"):
+        mochi.detect(masked, radii, backend="cpu")
+    masked_radii = np.ma.masked_less(radii, 0.2)
+    assert masked_radii.mask.any()
+    with pytest.raises(ValueError, match="radii is a masked array"):
+        mochi.detect(centres, masked_radii, backend="cpu")
+    detector = mochi.Detector(backend="cpu")
+    detector.build(centres, radii)
+    with pytest.raises(ValueError, match="centres is a masked array"):
+        detector.update(masked.astype(np.float32))
+    # Nothing masked: the values are the spheres.
+    unmasked = np.ma.masked_array(centres, mask=False)
+    np.testing.assert_array_equal(
+        mochi.detect(unmasked, np.ma.masked_array(radii), backend="cpu"), oracle(centres, radii)
+    )
+
+
+@pytest.mark.parametrize("dtype", [">f8", ">f4", "<f8", "<f4"])
+def test_either_byte_order_is_read(dtype):
+    centres, radii = random_set(9, n=300)
+    c, r = centres.astype(dtype), radii.astype(dtype)
+    np.testing.assert_array_equal(mochi.detect(c, r, backend="cpu"), oracle(centres.astype(dtype), r))
+    detector = mochi.Detector(backend="cpu")
+    detector.build(c, r)
+    moved = (centres + 0.3).astype(dtype)
+    detector.update(moved)
+    np.testing.assert_array_equal(detector.pairs(), oracle(moved, r))
+
+
+@pytest.mark.parametrize(
+    "centres, radii, words",
+    [
+        ([[0.0, 0, 0], [0, 1e39, 0]], [1.0, 1.0], r"sphere 1: y = 1e39 is outside the range of float32"),
+        ([[0.0, 0, 0], [0, 0, -4e38]], [1.0, 1.0], r"sphere 1: z = -4e38 is outside the range"),
+        ([[0.0, 0, 0], [1, 0, 0]], [1.0, 1e39], r"sphere 1: radius 1e39 is outside the range of float32"),
+        ([[0.0, 0, 0], [1, 0, 0]], [1e-50, 1.0], r"sphere 0: radius 1e-50 is outside the range"),
+        (np.zeros((2, 3), dtype=np.int64), [1.0, 1.0], "dtype int64"),
+        ([[0.0, 0, 0]], [1.0], "not a list"),
+    ],
+)
+def test_values_float32_cannot_hold_are_named(centres, radii, words):
+    given = centres if isinstance(centres, np.ndarray) else np.array(centres)
+    if words == "not a list":
+        given = centres
+    with pytest.raises(ValueError, match=words):
+        mochi.detect(given, np.array(radii), backend="cpu")

@@ -207,3 +207,160 @@ def test_a_frame_of_unknown_type_is_refused(tmp_path):
 
 def test_the_default_scene_is_pour():
     assert "pour" in repr(mochi.Simulation(backend="cpu"))
+
+
+# Issue 42, item 4: the count follows the flows.
+
+FLOWS_TOML = """scene = "freefall"
+spheres = 200
+seed = 5
+{inflow}
+{outflow}
+"""
+INFLOW_TOML = """[[inflow]]
+lo = [0.3, 0.3, 0.85]
+hi = [0.7, 0.7, 0.95]
+rate = 200000
+sphere_radius = 0.0005
+"""
+# The lower half of the box, where about half of freefall's spheres start.
+OUTFLOW_TOML = """[[outflow]]
+lo = [0.0, 0.0, 0.0]
+hi = [1.0, 1.0, 0.5]
+"""
+
+
+def flow_backends():
+    """cpu, and wgpu-compute where it runs (its flows stay on the device)."""
+    available = {e["name"]: e for e in mochi.backends()}
+    return ["cpu"] + (["wgpu-compute"] if available["wgpu-compute"]["available"] else [])
+
+
+@pytest.mark.parametrize("backend", flow_backends())
+@pytest.mark.parametrize("inflow, outflow", [(True, False), (False, True), (True, True)])
+def test_len_follows_inflows_and_outflows(tmp_path, backend, inflow, outflow):
+    path = tmp_path / "scene.toml"
+    path.write_text(
+        FLOWS_TOML.format(
+            inflow=INFLOW_TOML if inflow else "", outflow=OUTFLOW_TOML if outflow else ""
+        )
+    )
+    sim = mochi.Simulation(path, backend=backend)
+    assert len(sim) == 200 and sim.positions.shape == (200, 3)
+    sim.step(300)
+    # Asked before anything is read back (the flows' counts), then after (the particles).
+    counted = len(sim)
+    for name in ["positions", "velocities", "angular_velocities"]:
+        assert getattr(sim, name).shape == (counted, 3), name
+    assert sim.radii.shape == (counted,)
+    assert len(sim) == counted and f"spheres={counted}," in repr(sim)
+    if inflow and not outflow:
+        assert counted > 200
+    if outflow and not inflow:
+        assert 0 < counted < 200
+
+
+# Issue 42, item 22: tables, NumPy values and read-only arrays.
+
+INFLOW = {
+    "lo": [0.3, 0.3, 0.85],
+    "hi": [0.7, 0.7, 0.95],
+    "rate": 200000,
+    "sphere_radius": 0.0005,
+}
+OUTFLOW = {"lo": [0.0, 0.0, 0.0], "hi": [1.0, 1.0, 0.5]}
+
+
+def run_of(scene, steps=300):
+    """The positions and count after `steps` steps of `scene` on the cpu backend."""
+    sim = mochi.Simulation(scene, backend="cpu")
+    sim.step(steps)
+    return len(sim), sim.positions
+
+
+@pytest.mark.parametrize("inflow", [[INFLOW], INFLOW], ids=["list", "lone dict"])
+def test_flow_tables_in_the_dict_give_the_run_of_the_scene_file(tmp_path, inflow):
+    path = tmp_path / "scene.toml"
+    path.write_text(FLOWS_TOML.format(inflow=INFLOW_TOML, outflow=OUTFLOW_TOML))
+    from_file = run_of(path)
+    scene = {"scene": "freefall", "spheres": 200, "seed": 5, "inflow": inflow}
+    from_dict = run_of({**scene, "outflow": (OUTFLOW,)})
+    assert from_dict[0] == from_file[0] != 200
+    np.testing.assert_array_equal(from_dict[1], from_file[1])
+
+
+def test_a_wall_table_with_a_nested_table_in_the_dict(tmp_path):
+    # A unit square of two triangles, turned upright about x and moved to y = 0.5: a wall
+    # across the box that half of freefall's spheres start beyond.
+    mesh = tmp_path / "square.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n")
+    wall = {"mesh": mesh, "rotate": {"axis": [1, 0, 0], "degrees": 90}, "translate": [0, 0.5, 0]}
+    path = tmp_path / "scene.toml"
+    path.write_text(
+        'scene = "freefall"\nspheres = 100\n[[wall]]\nmesh = "square.obj"\n'
+        "rotate = { axis = [1, 0, 0], degrees = 90 }\ntranslate = [0, 0.5, 0]\n"
+    )
+    from_file = run_of(path, steps=50)
+    for given in [wall, [wall]]:
+        from_dict = run_of({"scene": "freefall", "spheres": 100, "wall": given}, steps=50)
+        np.testing.assert_array_equal(from_dict[1], from_file[1])
+    with pytest.raises(ValueError, match="(?s)scene dict: .*unknown field `spin`"):
+        mochi.Simulation({"scene": "freefall", "wall": {"mesh": mesh, "spin": 1}}, backend="cpu")
+    with pytest.raises(ValueError, match="str"):
+        mochi.Simulation({"scene": "freefall", "wall": {1: mesh}}, backend="cpu")
+
+
+def test_numpy_scalars_and_arrays_are_scene_values():
+    plain = {
+        "scene": "freefall",
+        "spheres": 60,
+        "seed": 3,
+        "density": 500.0,
+        "csv": True,
+        "box_lo": [0.0, 0.0, 0.0],
+        "box_hi": [1.0, 1.0, 1.0],
+        "gravity": [0.0, 0.0, -9.75],
+        "inflow": [INFLOW],
+    }
+    numpy = {
+        "scene": np.str_("freefall"),
+        "spheres": np.int64(60),
+        "seed": np.uint32(3),
+        "density": np.float32(500.0),
+        "csv": np.bool_(True),
+        "box_lo": np.zeros(3),
+        "box_hi": np.ones(3, dtype=np.float32),
+        "gravity": [np.float64(0.0), np.array(0.0), np.array(-9.75)],
+        "inflow": [{**INFLOW, "rate": np.int32(200000), "lo": np.array(INFLOW["lo"])}],
+    }
+    a, b = run_of(plain, steps=100), run_of(numpy, steps=100)
+    assert a[0] == b[0]
+    np.testing.assert_array_equal(a[1], b[1])
+    masked = np.ma.masked_array([0.0, 0.0, 0.0], mask=[True, False, False])
+    with pytest.raises(ValueError, match="box_lo.*mask"):
+        mochi.Simulation({"scene": "freefall", "box_lo": masked}, backend="cpu")
+
+
+@pytest.mark.parametrize("value", [3e8, 100.0, np.float64(100)])
+def test_a_whole_float_for_an_integer_key_is_refused_naming_it(value):
+    with pytest.raises(ValueError, match=r'"spheres" takes an integer, not the float'):
+        mochi.Simulation({"scene": "freefall", "spheres": value}, backend="cpu")
+    # As a scene file's is; a whole float for a float key, and an int for one, are values.
+    sim = mochi.Simulation({"scene": "freefall", "spheres": 10, "density": 500}, backend="cpu")
+    assert len(sim) == 10
+
+
+def test_the_arrays_are_read_only_snapshots_of_their_step():
+    sim = mochi.Simulation({"scene": "freefall", "spheres": 50}, backend="cpu")
+    names = ["positions", "velocities", "angular_velocities", "radii"]
+    before = {name: getattr(sim, name) for name in names}
+    for name, array in before.items():
+        assert not array.flags.writeable, name
+        assert getattr(sim, name) is array, name  # one array per step, not a copy per read
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 1.0
+    kept = before["positions"].copy()
+    sim.step(20)
+    np.testing.assert_array_equal(before["positions"], kept)  # the old step's, unchanged
+    assert sim.positions is not before["positions"]
+    assert not (sim.positions == kept).all()

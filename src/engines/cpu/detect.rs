@@ -3,7 +3,7 @@
 use super::grid::SortedGrid;
 use super::query::{PairSink, search, search_tasks};
 use crate::detect::{Backend, BackendInfo};
-use crate::error::{Error, Result, try_push};
+use crate::error::{Error, Result, try_push, try_vec};
 use crate::proxy::ProxyMode;
 use crate::spheres::{MAX_SPHERES, SphereSet};
 use crate::types::DetectStats;
@@ -115,7 +115,7 @@ fn sorted_pairs(
     if lost > 0 || pairs.try_reserve_exact(kept).is_err() {
         return Err(too_many());
     }
-    sort_by_first(collects, (n, shift), pairs);
+    sort_by_first(collects, (n, shift), pairs)?;
     Ok(DetectStats {
         candidates,
         pairs: found,
@@ -126,8 +126,9 @@ fn sorted_pairs(
 /// first index) into `out` (empty, with room for them all), sorted by (i, j): each block on its
 /// own thread, its pairs counted and placed by `i`, then the few pairs of each sphere that has
 /// several (a sphere touches few others) sorted by `j`. Linear in pairs and spheres, where a
-/// comparison sort of the pairs is not; the same order on any number of threads.
-fn sort_by_first(chunks: &[Collect], (n, shift): (usize, u32), out: &mut Vec<Pair>) {
+/// comparison sort of the pairs is not; the same order on any number of threads. Its tables
+/// of each block's spheres are allocated fallibly.
+fn sort_by_first(chunks: &[Collect], (n, shift): (usize, u32), out: &mut Vec<Pair>) -> Result<()> {
     let blocks = chunks.first().map_or(0, |c| c.blocks.len());
     let sizes: Vec<usize> = (0..blocks)
         .map(|b| chunks.iter().map(|c| c.blocks[b].len()).sum())
@@ -140,35 +141,45 @@ fn sort_by_first(chunks: &[Collect], (n, shift): (usize, u32), out: &mut Vec<Pai
         regions.push(region);
         rest = after;
     }
-    regions.into_par_iter().enumerate().for_each(|(b, region)| {
-        let first = b << shift;
-        let spheres = n.saturating_sub(first).min(1 << shift);
-        let parts = || chunks.iter().flat_map(|c| &c.blocks[b]);
-        let mut starts = vec![0u32; spheres + 1];
-        for pair in parts() {
-            starts[pair.i as usize - first + 1] += 1;
-        }
-        for k in 0..spheres {
-            starts[k + 1] += starts[k];
-        }
-        // Placed by `i`; the spheres given a second pair listed (without a branch), so that
-        // only their pairs are then sorted by `j`.
-        let mut cursor = starts.clone();
-        let mut several = vec![0u32; spheres + 1];
-        let mut listed = 0;
-        for &pair in parts() {
-            let k = pair.i as usize - first;
-            let place = cursor[k];
-            region[place as usize] = pair;
-            cursor[k] = place + 1;
-            several[listed] = k as u32;
-            listed += (place == starts[k] + 1) as usize;
-        }
-        for &k in &several[..listed] {
-            let k = k as usize;
-            sort_by_second(&mut region[starts[k] as usize..starts[k + 1] as usize]);
-        }
-    });
+    regions
+        .into_par_iter()
+        .enumerate()
+        .try_for_each(|(b, region)| {
+            let first = b << shift;
+            let spheres = n.saturating_sub(first).min(1 << shift);
+            let parts = || chunks.iter().flat_map(|c| &c.blocks[b]);
+            let table = || -> Result<Vec<u32>> {
+                let mut v = try_vec(spheres + 1, || format!("pair tables of {spheres} spheres"))?;
+                v.resize(spheres + 1, 0);
+                Ok(v)
+            };
+            let mut starts = table()?;
+            for pair in parts() {
+                starts[pair.i as usize - first + 1] += 1;
+            }
+            for k in 0..spheres {
+                starts[k + 1] += starts[k];
+            }
+            // Placed by `i`; the spheres given a second pair listed (without a branch), so that
+            // only their pairs are then sorted by `j`.
+            let mut cursor = table()?;
+            cursor.copy_from_slice(&starts);
+            let mut several = table()?;
+            let mut listed = 0;
+            for &pair in parts() {
+                let k = pair.i as usize - first;
+                let place = cursor[k];
+                region[place as usize] = pair;
+                cursor[k] = place + 1;
+                several[listed] = k as u32;
+                listed += (place == starts[k] + 1) as usize;
+            }
+            for &k in &several[..listed] {
+                let k = k as usize;
+                sort_by_second(&mut region[starts[k] as usize..starts[k + 1] as usize]);
+            }
+            Ok(())
+        })
 }
 
 /// Sorts the few pairs of one sphere by `j`, by insertion.
@@ -199,6 +210,8 @@ impl Backend for CpuBackend {
     }
 
     fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+        // Built only once binned: a failed binning leaves nothing to search.
+        self.mode = None;
         self.grid
             .bin(spheres, mode.cell_size(spheres.max_radius()))?;
         self.mode = Some(mode);

@@ -7,7 +7,7 @@
 //! query walk the sorted keys with pointers that only move forward. A layout of few cells per
 //! sphere is sorted by counting instead, which leaves a table of each cell's first sphere.
 
-use crate::error::{Error, Result, try_resize};
+use crate::error::{Error, Result, try_push, try_vec};
 use crate::spheres::SphereSet;
 use rayon::prelude::*;
 
@@ -58,8 +58,8 @@ const MIN_PIECE: usize = 4096;
 const SAMPLES_PER_RANGE: usize = 32;
 
 impl SortedGrid {
-    /// Bins `spheres` into cells of side at least `cell_size` ([`Error::OutOfMemory`] where the
-    /// grid does not fit).
+    /// Bins `spheres` into cells of side at least `cell_size`. Memory that cannot be had is
+    /// [`Error::OutOfMemory`], and leaves the grid to be binned again before it is searched.
     pub fn bin(&mut self, spheres: &SphereSet, cell_size: f32) -> Result<()> {
         match spheres.bounds() {
             Some((lo, hi)) => {
@@ -70,7 +70,8 @@ impl SortedGrid {
     }
 
     /// Bins spheres whose centres lie within `lo..=hi` (finite; centres outside are clamped to
-    /// the nearest cell, which keeps the search exact, only slower).
+    /// the nearest cell, which keeps the search exact, only slower). Every allocation is
+    /// fallible, as for [`Self::bin`].
     pub fn bin_within(
         &mut self,
         centers: &[[f32; 3]],
@@ -121,8 +122,14 @@ impl SortedGrid {
         })?;
 
         let sizes = range_sizes(&self.wide, ranges);
-        try_resize(&mut self.order, n, (0, 0), || grid_of(n))?;
-        self.resize_sorted(n)?;
+        room(&mut self.order, n, "sort entries")?;
+        room(&mut self.keys, n, "cell keys")?;
+        room(&mut self.ids, n, "sphere indices")?;
+        room(&mut self.spheres, n, "sorted spheres")?;
+        self.order.resize(n, (0, 0));
+        self.keys.resize(n, 0);
+        self.ids.resize(n, 0);
+        self.spheres.resize(n, [0.0; 4]);
         let wide = &self.wide;
         split_by(&mut self.order, &sizes)
             .into_par_iter()
@@ -143,13 +150,6 @@ impl SortedGrid {
                 }
             });
         Ok(())
-    }
-
-    /// [`Self::keys`], [`Self::ids`] and [`Self::spheres`] sized for `n` spheres.
-    fn resize_sorted(&mut self, n: usize) -> Result<()> {
-        try_resize(&mut self.keys, n, 0, || grid_of(n))?;
-        try_resize(&mut self.ids, n, 0, || grid_of(n))?;
-        try_resize(&mut self.spheres, n, [0.0; 4], || grid_of(n))
     }
 
     /// Sorts the spheres by `key` (below `cells`), stably, into [`Self::keys`], [`Self::ids`]
@@ -179,10 +179,14 @@ impl SortedGrid {
         })?;
 
         let sizes = range_sizes(&self.ranges, ranges);
-        self.resize_sorted(n)?;
-        try_resize(&mut self.starts, cells + 1, 0, || {
-            format!("the cell table of {cells} cells")
-        })?;
+        room(&mut self.keys, n, "cell keys")?;
+        room(&mut self.ids, n, "sphere indices")?;
+        room(&mut self.spheres, n, "sorted spheres")?;
+        room(&mut self.starts, cells + 1, "cell starts")?;
+        self.keys.resize(n, 0);
+        self.ids.resize(n, 0);
+        self.spheres.resize(n, [0.0; 4]);
+        self.starts.resize(cells + 1, 0);
         self.starts[cells] = n as u32;
         let spans: Vec<usize> = (0..ranges)
             .map(|r| (cells - (r << shift)).min(1 << shift))
@@ -199,7 +203,7 @@ impl SortedGrid {
             .zip(split_by(&mut self.starts[..cells], &spans))
             .zip(firsts.collect::<Vec<_>>())
             .enumerate()
-            .for_each(|(r, ((((keys, ids), spheres), starts), placed))| {
+            .try_for_each(|(r, ((((keys, ids), spheres), starts), placed))| {
                 let first_cell = (r << shift) as u64;
                 let entries = || listed.iter().flat_map(|l| &l[r]);
                 starts.fill(0);
@@ -207,15 +211,15 @@ impl SortedGrid {
                     starts[within as usize] += 1;
                 }
                 let mut next = 0;
-                let mut cursor: Vec<u32> = starts
-                    .iter_mut()
-                    .map(|start| {
-                        let here = next;
-                        next += *start;
-                        *start = here + placed as u32;
-                        here
-                    })
-                    .collect();
+                let mut cursor: Vec<u32> = try_vec(starts.len(), || {
+                    format!("the cpu grid's cursors for {} cells", starts.len())
+                })?;
+                cursor.extend(starts.iter_mut().map(|start| {
+                    let here = next;
+                    next += *start;
+                    *start = here + placed as u32;
+                    here
+                }));
                 for &[within, i] in entries() {
                     let place = &mut cursor[within as usize];
                     let at = *place as usize;
@@ -225,8 +229,8 @@ impl SortedGrid {
                     ids[at] = i;
                     spheres[at] = [c[0], c[1], c[2], radii[i as usize]];
                 }
-            });
-        Ok(())
+                Ok(())
+            })
     }
 
     /// Key distances from a cell to the first cell (x − 1) of each of its nine neighbour rows
@@ -250,9 +254,20 @@ impl SortedGrid {
     }
 }
 
+/// Room in `v` for `n` items, so that resizing it to `n` allocates nothing, or
+/// [`Error::OutOfMemory`] for the grid's `what`.
+fn room<T>(v: &mut Vec<T>, n: usize, what: &str) -> Result<()> {
+    v.try_reserve_exact(n.saturating_sub(v.len()))
+        .map_err(|_| Error::OutOfMemory {
+            what: format!("the cpu grid's {what} ({n})"),
+            bytes: (n as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+        })
+}
+
 /// Lists the entries of `centers` by range, for a sort in parallel: `listed[k][r]` holds, in
 /// input order, the entries `entry(i, c)` files under range `r` of the spheres of piece `k` of
-/// the input (each piece on its own thread; the allocations of `listed` reused).
+/// the input (each piece on its own thread; the allocations of `listed` reused). Each list
+/// grows fallibly.
 fn list_by_range<E: Send>(
     listed: &mut Vec<Vec<Vec<E>>>,
     centers: &[[f32; 3]],
@@ -270,20 +285,12 @@ fn list_by_range<E: Send>(
         let first = k * piece;
         for (i, c) in centers[first..(first + piece).min(n)].iter().enumerate() {
             let (range, e) = entry((first + i) as u32, c);
-            let list = &mut mine[range];
-            list.try_reserve(1).map_err(|_| Error::OutOfMemory {
-                what: grid_of(n),
-                bytes: (n * std::mem::size_of::<E>()) as u64,
+            try_push(&mut mine[range], e, || {
+                format!("the cpu grid's sort entries ({n} spheres)")
             })?;
-            list.push(e);
         }
         Ok(())
     })
-}
-
-/// What the grid of `n` spheres is, in errors.
-fn grid_of(n: usize) -> String {
-    format!("the grid of {n} spheres")
 }
 
 /// The entries of each of `ranges` ranges in `listed` (of [`list_by_range`]).
