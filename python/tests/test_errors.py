@@ -28,22 +28,13 @@ def test_a_panic_is_a_mochi_error_naming_the_call(where):
     assert "deliberate panic" in message and "lib.rs" in message  # what and where
 
 
-# Inputs that panicked inside the library (issue 42, item 8): the library's fix is made on
-# another branch. Until it is merged each of these is a MochiError (the bindings' guard, above);
-# once it is, they raise ValueError, these marks turn into failures (strict), and go.
-LIBRARY_PANIC = pytest.mark.xfail(
-    strict=True,
-    raises=mochi.MochiError,
-    reason="issue 42 item 8: a library panic; ValueError once the library's fix is merged",
-)
-
+# Inputs that panicked inside the library (issue 42, item 8) are refused as ValueError.
 BAD_INFLOWS = {
     "radius beyond f32": "sphere_radii = [0.003, 1e39]",
     "corner beyond f32": "lo = [-1e39, 0.3, 0.85]\nhi = [0.7, 0.7, 0.95]",
 }
 
 
-@LIBRARY_PANIC
 @pytest.mark.parametrize("table", BAD_INFLOWS.values(), ids=BAD_INFLOWS.keys())
 def test_an_inflow_beyond_f32_is_a_value_error(tmp_path, table):
     fields = {"lo": "lo = [0.3, 0.3, 0.85]", "hi": "hi = [0.7, 0.7, 0.95]"}
@@ -59,7 +50,6 @@ def test_an_inflow_beyond_f32_is_a_value_error(tmp_path, table):
         sim.step(10)
 
 
-@LIBRARY_PANIC
 def test_too_many_mesh_copies_is_a_value_error():
     with pytest.raises(ValueError, match="mesh_copies"):
         mochi.Simulation({"scene": "mesh", "mesh_copies": 4294967295}, backend="cpu")
@@ -118,11 +108,6 @@ def test_detecting_more_spheres_than_memory_holds_is_one_error(limit_kib, runs_o
 
 
 @needs_rlimit
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 42 item 9: the hopper's size check is the library's, on another branch; "
-    "until it is merged the interpreter aborts",
-)
 def test_a_hopper_larger_than_memory_is_one_error():
     done = run_limited(
         'mochi.Simulation({"scene": "hopper", "spheres": 300_000_000}, backend="cpu")'

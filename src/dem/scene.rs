@@ -931,7 +931,7 @@ impl SceneConfig {
         let total = one_c.len().saturating_mul(copies);
         if total > crate::MAX_SPHERES {
             return Err(Error::TooLarge {
-                what: format!("spheres in {copies} filled copies of the mesh"),
+                what: format!("spheres in {copies} filled copies of the mesh (mesh_copies)"),
                 got: total as u64,
                 limit: crate::MAX_SPHERES as u64,
             });
