@@ -26,8 +26,8 @@ fn bad_settings_are_invalid_config_naming_the_setting() {
         0.01,
     ) {
         Err(Error::InvalidConfig { what, reason }) => {
-            assert_eq!(what, "scene");
-            assert!(reason.contains("restitution"), "{reason}");
+            assert_eq!(what, "scene key restitution");
+            assert!(reason.contains("(0, 1]"), "{reason}");
         }
         other => panic!("{other:?}"),
     }
