@@ -418,8 +418,9 @@ fn step_seed(seed: u64, k: usize, step: u64) -> u64 {
 }
 
 impl Inflow {
-    /// An upper bound of the spheres its region holds ([`Region::capacity`] of its smallest
-    /// radius): an event tries to insert at most this many, counting the rest refused.
+    /// An upper bound of the spheres its region holds: one of its smallest radius r per cell of
+    /// side 2r of a lattice over the region (a disc as its square). An event tries to insert at
+    /// most this many, counting the rest refused.
     pub fn capacity(&self) -> f64 {
         self.region.capacity(self.radii.0)
     }
