@@ -29,9 +29,11 @@ impl Scene {
     /// entry of `values` falls in `range` (viridis; values outside are clamped).
     ///
     /// Slices of different lengths, non-finite coordinates or radii that are not finite and
-    /// positive are an [`Error`]; no spheres is a valid, empty scene. Of spheres sharing a centre
-    /// only the largest (the first in input order among equals) is drawn: the others lie inside
-    /// it, and identical boxes would make every ray through them visit each one.
+    /// positive are an [`Error`]; no spheres is a valid, empty scene. Of spheres whose centres
+    /// share a cell of side [`MERGED_SHARE`] of the smallest radius only the largest (the first
+    /// in input order among equals) is drawn: the others lie inside it but for less than that
+    /// share of their radius, and boxes so alike would make every ray through them visit each
+    /// one on every path.
     pub fn new(
         positions: &[[f32; 3]],
         radii: &[f32],
@@ -171,11 +173,20 @@ impl Scene {
     }
 }
 
-/// Input indices (ascending) of the spheres drawn: of each group sharing a centre, the largest,
-/// the first in input order among equal radii.
+/// Side of the cells within which only the largest sphere is drawn, as a share of the smallest
+/// radius: a sphere left out sticks out of the one drawn by less than √3 of it, far below a
+/// pixel unless a picture spans less than a thousandth of a sphere.
+pub const MERGED_SHARE: f64 = 1e-3;
+
+/// Input indices (ascending) of the spheres drawn: of each group whose centres share a cell of
+/// side [`MERGED_SHARE`] of the smallest radius, the largest, the first in input order among
+/// equal radii.
 fn outermost(positions: &[[f32; 3]], radii: &[f32]) -> Vec<u32> {
-    // Centre bits with −0 read as +0 (the same point).
-    let centre = |i: u32| positions[i as usize].map(|x| (x + 0.0).to_bits());
+    let r_min = radii.iter().copied().fold(f32::INFINITY, f32::min);
+    let side = MERGED_SHARE * r_min as f64;
+    // The cell of a centre, as the bits of its floored coordinates (−0 read as +0).
+    let centre =
+        |i: u32| positions[i as usize].map(|x| ((x as f64 / side).floor() + 0.0).to_bits());
     let mut by_centre: Vec<u32> = (0..positions.len() as u32).collect();
     by_centre.par_sort_unstable_by(|&a, &b| {
         centre(a)
@@ -219,5 +230,27 @@ mod tests {
         assert_eq!(scene.spheres[at_origin][3], 0.5);
         let colour_of_4000 = colours(&values, (0.0, (n + 1) as f32))[4000];
         assert_eq!(scene.colours[at_origin], colour_of_4000);
+    }
+
+    #[test]
+    fn spheres_within_a_thousandth_of_a_radius_are_drawn_as_few() {
+        // 100,000 spheres of r = 0.01 within 1e-6 of a point, and a lattice of spheres 2r apart.
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let mut positions: Vec<[f32; 3]> = (0..100_000)
+            .map(|_| std::array::from_fn(|_| 0.5 + rng.random_range(-1e-6..1e-6f32)))
+            .collect();
+        let lattice =
+            (0..10).flat_map(|i| (0..10).map(move |j| [0.02 * i as f32, 0.02 * j as f32, 0.0]));
+        positions.extend(lattice);
+        let radii = vec![0.01f32; positions.len()];
+        let values = vec![0.0; positions.len()];
+        let scene = Scene::new(&positions, &radii, &values, (0.0, 1.0)).unwrap();
+        // At most one per cell the cluster touches (8 at most), and every lattice sphere.
+        assert!(
+            scene.len() <= 8 + 100 && scene.len() > 100,
+            "{}",
+            scene.len()
+        );
     }
 }
