@@ -30,8 +30,8 @@ impl Scene {
     ///
     /// Slices of different lengths, non-finite coordinates or radii that are not finite and
     /// positive are an [`Error`]; no spheres is a valid, empty scene. Of spheres whose centres
-    /// share a cell of side [`MERGED_SHARE`] of the smallest radius only the largest (the first
-    /// in input order among equals) is drawn: the others lie inside it but for less than that
+    /// share a cell of side a thousandth of the smallest radius only the largest (the first in
+    /// input order among equals) is drawn: the others lie inside it but for less than that
     /// share of their radius, and boxes so alike would make every ray through them visit each
     /// one on every path.
     pub fn new(
@@ -176,7 +176,7 @@ impl Scene {
 /// Side of the cells within which only the largest sphere is drawn, as a share of the smallest
 /// radius: a sphere left out sticks out of the one drawn by less than √3 of it, far below a
 /// pixel unless a picture spans less than a thousandth of a sphere.
-pub const MERGED_SHARE: f64 = 1e-3;
+const MERGED_SHARE: f64 = 1e-3;
 
 /// Input indices (ascending) of the spheres drawn: of each group whose centres share a cell of
 /// side [`MERGED_SHARE`] of the smallest radius, the largest, the first in input order among
