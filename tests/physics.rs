@@ -1002,9 +1002,9 @@ fn head_on_restitution(kind: BackendKind, material: &Material, dt: f64, r: f32) 
 /// The three laws of a head-on impact at restitution `e` of two spheres of radius `r` and
 /// `density`, each at a time step that gives the contact 400 steps: the linear law with the
 /// stiffness of a contact of t_c = π·r/(100 m/s) (a peak overlap of about 1% of r at 1 m/s),
-/// the per-pair law with that contact time, and Hertz–Mindlin (with `friction`, or none), with
-/// the tolerance of each on e: π·dt/t_c for the linear laws, 0.5% for Tsuji's damping (as on a
-/// wall).
+/// the per-pair law with that contact time, and Hertz–Mindlin (with `friction`, or none) at the
+/// soft default E and at glass's E, with the tolerance of each on e: π·dt/t_c for the linear
+/// laws, 0.5% for Tsuji's damping (as on a wall).
 fn head_on_laws(
     r: f32,
     density: f64,
@@ -1036,10 +1036,22 @@ fn head_on_laws(
     if friction > 0.0 {
         hertz.rolling_friction = 0.1;
     }
+    // Glass's own stiffness (E = 63 GPa, ν = 0.22): the contact 80 times shorter.
+    let (e_glass, nu_glass) = (6.3e10, 0.22);
+    let glass = Material {
+        contact: ContactLaw::HertzMindlin {
+            young_modulus: e_glass,
+            poisson_ratio: nu_glass,
+        },
+        ..hertz
+    };
+    let glass_e_star = e_glass / (2.0 * (1.0 - nu_glass * nu_glass));
+    let glass_t_c = hertz_contact_time(m_eff, r as f64 / 2.0, glass_e_star, 1.0);
     vec![
         ("linear", linear, t_c / 400.0, linear_tolerance),
         ("per-pair", per_pair, t_c / 400.0, linear_tolerance),
         ("hertz-mindlin", hertz, hertz_t_c / 400.0, 5e-3 * e),
+        ("hertz-mindlin, glass", glass, glass_t_c / 400.0, 5e-3 * e),
     ]
 }
 

@@ -7,7 +7,7 @@
 //! query walk the sorted keys with pointers that only move forward. A layout of few cells per
 //! sphere is sorted by counting instead, which leaves a table of each cell's first sphere.
 
-use crate::error::{Error, Result, try_push, try_vec};
+use crate::error::{Result, try_push, try_resize, try_vec};
 use crate::spheres::SphereSet;
 use rayon::prelude::*;
 
@@ -59,7 +59,7 @@ const SAMPLES_PER_RANGE: usize = 32;
 
 impl SortedGrid {
     /// Bins `spheres` into cells of side at least `cell_size`. Memory that cannot be had is
-    /// [`Error::OutOfMemory`], and leaves the grid to be binned again before it is searched.
+    /// [`crate::Error::OutOfMemory`], and leaves the grid to be binned again before it is searched.
     pub fn bin(&mut self, spheres: &SphereSet, cell_size: f32) -> Result<()> {
         match spheres.bounds() {
             Some((lo, hi)) => {
@@ -122,14 +122,8 @@ impl SortedGrid {
         })?;
 
         let sizes = range_sizes(&self.wide, ranges);
-        room(&mut self.order, n, "sort entries")?;
-        room(&mut self.keys, n, "cell keys")?;
-        room(&mut self.ids, n, "sphere indices")?;
-        room(&mut self.spheres, n, "sorted spheres")?;
-        self.order.resize(n, (0, 0));
-        self.keys.resize(n, 0);
-        self.ids.resize(n, 0);
-        self.spheres.resize(n, [0.0; 4]);
+        try_resize(&mut self.order, n, (0, 0), || grid_of("sort entries", n))?;
+        self.resize_sorted(n)?;
         let wide = &self.wide;
         split_by(&mut self.order, &sizes)
             .into_par_iter()
@@ -150,6 +144,15 @@ impl SortedGrid {
                 }
             });
         Ok(())
+    }
+
+    /// [`Self::keys`], [`Self::ids`] and [`Self::spheres`] sized for `n` spheres, fallibly.
+    fn resize_sorted(&mut self, n: usize) -> Result<()> {
+        try_resize(&mut self.keys, n, 0, || grid_of("cell keys", n))?;
+        try_resize(&mut self.ids, n, 0, || grid_of("sphere indices", n))?;
+        try_resize(&mut self.spheres, n, [0.0; 4], || {
+            grid_of("sorted spheres", n)
+        })
     }
 
     /// Sorts the spheres by `key` (below `cells`), stably, into [`Self::keys`], [`Self::ids`]
@@ -179,14 +182,10 @@ impl SortedGrid {
         })?;
 
         let sizes = range_sizes(&self.ranges, ranges);
-        room(&mut self.keys, n, "cell keys")?;
-        room(&mut self.ids, n, "sphere indices")?;
-        room(&mut self.spheres, n, "sorted spheres")?;
-        room(&mut self.starts, cells + 1, "cell starts")?;
-        self.keys.resize(n, 0);
-        self.ids.resize(n, 0);
-        self.spheres.resize(n, [0.0; 4]);
-        self.starts.resize(cells + 1, 0);
+        self.resize_sorted(n)?;
+        try_resize(&mut self.starts, cells + 1, 0, || {
+            grid_of("cell starts", cells + 1)
+        })?;
         self.starts[cells] = n as u32;
         let spans: Vec<usize> = (0..ranges)
             .map(|r| (cells - (r << shift)).min(1 << shift))
@@ -254,14 +253,9 @@ impl SortedGrid {
     }
 }
 
-/// Room in `v` for `n` items, so that resizing it to `n` allocates nothing, or
-/// [`Error::OutOfMemory`] for the grid's `what`.
-fn room<T>(v: &mut Vec<T>, n: usize, what: &str) -> Result<()> {
-    v.try_reserve_exact(n.saturating_sub(v.len()))
-        .map_err(|_| Error::OutOfMemory {
-            what: format!("the cpu grid's {what} ({n})"),
-            bytes: (n as u64).saturating_mul(std::mem::size_of::<T>() as u64),
-        })
+/// The grid's `what` for `n` items, in errors.
+fn grid_of(what: &str, n: usize) -> String {
+    format!("the cpu grid's {what} ({n})")
 }
 
 /// Lists the entries of `centers` by range, for a sort in parallel: `listed[k][r]` holds, in
