@@ -267,7 +267,8 @@ pub struct SimulateArgs {
     /// the two lightest spheres) or "per-pair" with contact_time [s] (10·dt), linear only;
     /// friction μ (0.5 hertz-mindlin, 0 linear); wall_friction (= friction); rolling_friction
     /// μ_r (0.1 hertz-mindlin, 0 linear); rolling_model = "epsd" (default) or
-    /// "constant-torque"; dt [s] (hertz-mindlin: 0.2 × the Rayleigh time of the smallest
+    /// "constant-torque"; tangential_model = "mindlin" (default) or "mindlin-deresiewicz"
+    /// (hertz-mindlin only); dt [s] (hertz-mindlin: 0.2 × the Rayleigh time of the smallest
     /// sphere). The other keys: scene, spheres, seed, steps, box_lo, box_hi [m], gravity
     /// [m/s²], gravity_spin [rad/s], mode, frame_every, csv, input, mesh, mesh_radius [m],
     /// mesh_mixed, mesh_size [m], mesh_copies (see mochi::dem::scene).

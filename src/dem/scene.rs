@@ -27,6 +27,7 @@
 //! wall_friction = 0.5    # μ with the walls; default: friction
 //! rolling_friction = 0.1 # μ_r; default 0.1 (hertz-mindlin), 0 (linear)
 //! rolling_model = "epsd" # or "constant-torque" (default epsd)
+//! tangential_model = "mindlin" # or "mindlin-deresiewicz" (hertz-mindlin only; default mindlin)
 //! mode = "mochi"         # or "nns"
 //! frame_every = 1000     # 0: no frames
 //! csv = false            # CSV frames beside the VTK ones
@@ -61,7 +62,7 @@ use super::equipment::{Built, Equipment, EquipmentSpec};
 use super::flow::{FlowSet, InflowConfig, OutflowConfig};
 use super::model::contact::moment_of_inertia;
 use super::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
-use super::model::{ContactLaw, Material, RollingModel, StepParams, mass};
+use super::model::{ContactLaw, Material, RollingModel, StepParams, TangentialModel, mass};
 use super::walls::{WallConfig, WallSet};
 use crate::error::{Error, Result};
 use crate::particles::Particles;
@@ -380,6 +381,10 @@ pub struct SceneConfig {
     /// Rolling resistance model, `epsd` or `constant-torque`; `None`: `epsd`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rolling_model: Option<RollingModel>,
+    /// Tangential model, `mindlin` (Mindlin's no-slip spring) or `mindlin-deresiewicz` (load
+    /// history dependent stiffness; `hertz-mindlin` only); `None`: `mindlin`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tangential_model: Option<TangentialModel>,
     /// `mochi` (cells of 2·r_max) or `nns` (4·r_max).
     #[serde(with = "by_name")]
     pub mode: ProxyMode,
@@ -468,6 +473,7 @@ impl Default for SceneConfig {
             wall_friction: None,
             rolling_friction: None,
             rolling_model: None,
+            tangential_model: None,
             mode: ProxyMode::Mochi,
             frame_every: 1_000,
             csv: false,
@@ -674,6 +680,17 @@ impl SceneConfig {
             return Err(idle(
                 "rolling_model",
                 "chooses the law of rolling resistance, and this scene's rolling_friction is 0",
+            ));
+        }
+        let m = self.material()?;
+        if given.contains_key("tangential_model")
+            && m.friction == 0.0
+            && m.wall_friction.unwrap_or(m.friction) == 0.0
+        {
+            return Err(idle(
+                "tangential_model",
+                "chooses the law of the tangential force, and this scene's friction and \
+                 wall_friction are 0",
             ));
         }
         Ok(())
@@ -1182,6 +1199,7 @@ impl SceneConfig {
             wall_friction: self.wall_friction,
             rolling_friction: self.rolling_friction.unwrap_or(rolling),
             rolling_model: self.rolling_model.unwrap_or_default(),
+            tangential_model: self.tangential_model.unwrap_or_default(),
         })
     }
 

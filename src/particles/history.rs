@@ -7,7 +7,9 @@
 //! slots (the partner's springs are the exact negatives), so a step that computes every sphere's
 //! contacts from its own side reads and writes only its own slots. K grows when a sphere has
 //! more contacts than slots (the step counts them, grows K and redoes the step): no contact is
-//! ever dropped.
+//! ever dropped. Under the Mindlin–Deresiewicz tangential model each entry has a
+//! [`LoadEntry`] beside it (its load history), in a parallel array that other runs do not
+//! allocate.
 
 use crate::error::{Error, Result, try_vec};
 use rayon::prelude::*;
@@ -36,6 +38,20 @@ pub struct HistoryEntry {
     pub rolling: [f32; 3],
 }
 
+/// What the Mindlin–Deresiewicz tangential model keeps of a contact besides its
+/// [`HistoryEntry`] (whose `tangential` then holds the elastic tangential force \[N\] on the
+/// sphere, not a spring): its load history. The partner keeps the negated reversal and the
+/// same normal force.
+#[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct LoadEntry {
+    /// The elastic tangential force on the sphere at the last reversal of the loading \[N\]
+    /// (zero: no reversal since the contact began or last slid).
+    pub reversal: [f32; 3],
+    /// The elastic normal force of the last step \[N\].
+    pub normal: f32,
+}
+
 /// Every sphere's contacts with history, in per-sphere slots.
 #[derive(Debug, Clone, Default)]
 pub struct ContactHistory {
@@ -45,6 +61,9 @@ pub struct ContactHistory {
     counts: Vec<u32>,
     /// `slots` entries per sphere, the first `counts[i]` in use.
     entries: Vec<HistoryEntry>,
+    /// The load history of each entry (Mindlin–Deresiewicz), beside `entries`; empty where
+    /// contacts keep none.
+    loads: Vec<LoadEntry>,
 }
 
 impl ContactHistory {
@@ -64,6 +83,7 @@ impl ContactHistory {
             slots,
             counts,
             entries,
+            loads: Vec::new(),
         })
     }
 
@@ -75,30 +95,93 @@ impl ContactHistory {
         counts.extend_from_slice(&self.counts);
         let mut entries = try_vec(self.entries.len(), what)?;
         entries.extend_from_slice(&self.entries);
+        let mut loads = try_vec(self.loads.len(), what)?;
+        loads.extend_from_slice(&self.loads);
         Ok(Self {
             slots: self.slots,
             counts,
             entries,
+            loads,
         })
     }
 
     /// The history of `n` spheres holding `contacts` (owner, entry), in any order of owners;
     /// each owner's entries keep their order. Refuses owners or partners out of range.
     pub fn from_contacts(n: usize, contacts: &[(u32, HistoryEntry)]) -> Result<Self> {
+        Self::from_contacts_with_loads(n, contacts, &[])
+    }
+
+    /// [`from_contacts`](Self::from_contacts) with the load history of each contact, `loads`
+    /// beside `contacts` (empty: none kept).
+    pub fn from_contacts_with_loads(
+        n: usize,
+        contacts: &[(u32, HistoryEntry)],
+        loads: &[LoadEntry],
+    ) -> Result<Self> {
+        if !loads.is_empty() && loads.len() != contacts.len() {
+            return Err(Error::Usage(format!(
+                "{} load histories for {} contacts",
+                loads.len(),
+                contacts.len()
+            )));
+        }
         let mut per = vec![0usize; n];
-        for &(owner, entry) in contacts {
+        for (k, &(owner, entry)) in contacts.iter().enumerate() {
             check_entry(n, owner as usize, &entry)?;
+            if let Some(load) = loads.get(k) {
+                check_load(owner as usize, load)?;
+            }
             per[owner as usize] += 1;
         }
         let slots = per.iter().copied().max().unwrap_or(0);
         let mut out = Self::with_slots(n, slots)?;
-        for &(owner, entry) in contacts {
+        if !loads.is_empty() {
+            out.keep_loads()?;
+        }
+        for (c, &(owner, entry)) in contacts.iter().enumerate() {
             let i = owner as usize;
             let k = out.counts[i] as usize;
             out.entries[i * slots + k] = entry;
+            if let Some(&load) = loads.get(c) {
+                out.loads[i * slots + k] = load;
+            }
             out.counts[i] += 1;
         }
         Ok(out)
+    }
+
+    /// Keeps a load history beside every entry from now on (zero for those held: the virgin
+    /// curve, from no normal force), as the Mindlin–Deresiewicz model needs.
+    pub fn keep_loads(&mut self) -> Result<()> {
+        if self.loads.len() != self.entries.len() {
+            let n = self.entries.len();
+            self.loads.clear();
+            crate::error::try_resize(&mut self.loads, n, LoadEntry::default(), || {
+                format!("the load history of {n} contact slots")
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Whether the entries have a load history beside them.
+    pub fn has_loads(&self) -> bool {
+        !self.loads.is_empty()
+    }
+
+    /// The load histories of the contacts sphere `i` holds, beside [`of`](Self::of) (none
+    /// without load history).
+    #[inline]
+    pub fn loads_of(&self, i: usize) -> &[LoadEntry] {
+        match (self.loads.is_empty(), self.counts.get(i)) {
+            (false, Some(&c)) => &self.loads[i * self.slots..i * self.slots + c as usize],
+            _ => &[],
+        }
+    }
+
+    /// The load history of every contact, in the order of [`contacts`](Self::contacts)
+    /// (nothing without load history).
+    pub fn contact_loads(&self) -> impl Iterator<Item = &LoadEntry> {
+        (0..self.counts.len()).flat_map(move |i| self.loads_of(i).iter())
     }
 
     /// Slots per sphere.
@@ -136,18 +219,25 @@ impl ContactHistory {
     }
 
     /// Replaces the history of `counts.len()` spheres with one written in another order:
-    /// sphere i holds `entries[p·slots .. p·slots + counts[p]]` for p = `sorted_at(i)` (a
-    /// gather on the rayon pool).
+    /// sphere i holds `entries[p·slots .. p·slots + counts[p]]` (and the load histories of
+    /// `loads`, beside them, where it is not empty) for p = `sorted_at(i)` (a gather on the
+    /// rayon pool).
     pub fn gather_from(
         &mut self,
         sorted_at: impl Fn(usize) -> usize + Sync,
         slots: usize,
         counts: &[u32],
         entries: &[HistoryEntry],
+        loads: &[LoadEntry],
     ) -> Result<()> {
         let n = counts.len();
         if self.counts.len() != n || self.slots != slots {
             *self = Self::with_slots(n, slots)?;
+        }
+        if loads.is_empty() {
+            self.loads = Vec::new();
+        } else {
+            self.keep_loads()?;
         }
         if slots == 0 {
             self.counts.fill(0);
@@ -164,6 +254,17 @@ impl ContactHistory {
                 row[..c].copy_from_slice(&entries[p * slots..p * slots + c]);
                 *count = c as u32;
             });
+        if !loads.is_empty() {
+            let counts = &self.counts;
+            self.loads
+                .par_chunks_mut(slots)
+                .enumerate()
+                .for_each(|(i, row)| {
+                    let p = sorted_at(i);
+                    let c = counts[i] as usize;
+                    row[..c].copy_from_slice(&loads[p * slots..p * slots + c]);
+                });
+        }
         Ok(())
     }
 
@@ -187,6 +288,9 @@ impl ContactHistory {
             })?;
         self.counts.resize(n, 0);
         self.entries.resize(total, HistoryEntry::default());
+        if !self.loads.is_empty() {
+            self.loads.resize(total, LoadEntry::default());
+        }
         Ok(())
     }
 
@@ -207,11 +311,13 @@ impl ContactHistory {
             }
         }
         let slots = self.slots;
+        let with_loads = self.has_loads();
         let mut counts = Vec::with_capacity(next as usize);
         let mut entries = Vec::with_capacity(next as usize * slots);
+        let mut loads = Vec::with_capacity(if with_loads { entries.capacity() } else { 0 });
         for i in (0..n).filter(|&i| keep[i]) {
             let mut held = 0;
-            for e in self.of(i) {
+            for (k, e) in self.of(i).iter().enumerate() {
                 let p = e.partner as usize;
                 let partner = match is_wall(e.partner, n) {
                     true => e.partner,
@@ -219,16 +325,21 @@ impl ContactHistory {
                     false => continue,
                 };
                 entries.push(HistoryEntry { partner, ..*e });
+                if with_loads {
+                    loads.push(self.loads_of(i)[k]);
+                }
                 held += 1;
             }
-            entries.resize(
-                entries.len() + slots - held as usize,
-                HistoryEntry::default(),
-            );
+            let free = slots - held as usize;
+            entries.resize(entries.len() + free, HistoryEntry::default());
+            if with_loads {
+                loads.resize(loads.len() + free, LoadEntry::default());
+            }
             counts.push(held);
         }
         self.counts = counts;
         self.entries = entries;
+        self.loads = loads;
     }
 
     /// Checks the history against `n` spheres: owners and partners in range, no sphere its own
@@ -243,8 +354,25 @@ impl ContactHistory {
         for (owner, entry) in self.contacts() {
             check_entry(n, owner as usize, entry)?;
         }
+        for i in 0..self.counts.len() {
+            for load in self.loads_of(i) {
+                check_load(i, load)?;
+            }
+        }
         Ok(())
     }
+}
+
+/// Checks the load history of a contact of sphere `owner`: finite, the normal force ≥ 0.
+fn check_load(owner: usize, load: &LoadEntry) -> Result<()> {
+    let finite = load.reversal.iter().all(|x| x.is_finite()) && load.normal.is_finite();
+    if !finite || load.normal < 0.0 {
+        return Err(Error::InvalidSphere {
+            index: owner,
+            reason: format!("bad load history {load:?}"),
+        });
+    }
+    Ok(())
 }
 
 /// Whether `partner` names a wall in the history of `n` spheres.
@@ -278,11 +406,21 @@ fn check_entry(n: usize, owner: usize, e: &HistoryEntry) -> Result<()> {
     Ok(())
 }
 
-/// Equal when every sphere holds the same contacts in the same order, whatever the slots.
+/// Equal when every sphere holds the same contacts in the same order, whatever the slots, with
+/// the same load histories (a history without them counts as holding zero ones).
 impl PartialEq for ContactHistory {
     fn eq(&self, other: &Self) -> bool {
         let n = self.counts.len().max(other.counts.len());
-        (0..n).all(|i| self.of(i) == other.of(i))
+        let loads = |h: &Self, i: usize| -> Vec<LoadEntry> {
+            match h.has_loads() {
+                true => h.loads_of(i).to_vec(),
+                false => vec![LoadEntry::default(); h.of(i).len()],
+            }
+        };
+        (0..n).all(|i| {
+            self.of(i) == other.of(i)
+                && (!(self.has_loads() || other.has_loads()) || loads(self, i) == loads(other, i))
+        })
     }
 }
 
@@ -316,7 +454,7 @@ mod tests {
         sorted[1] = entry(FIRST_WALL, 3.0);
         sorted[4] = entry(2, -1.0);
         let mut g = ContactHistory::default();
-        g.gather_from(|i| [1, 2, 0][i], 4, &[2, 1, 0], &sorted)
+        g.gather_from(|i| [1, 2, 0][i], 4, &[2, 1, 0], &sorted, &[])
             .unwrap();
         assert_eq!(g.slots(), 4);
         assert_eq!(g, h);

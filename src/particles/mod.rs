@@ -4,7 +4,9 @@ pub mod history;
 
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
-pub use history::{ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, MESH_WALLS};
+pub use history::{
+    ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadEntry, MESH_WALLS,
+};
 
 /// Spheres with velocities, in the order the user gave them, their contact history and the
 /// simulation clock.

@@ -33,7 +33,7 @@
 //! half its moment of inertia, are normal f32 numbers.
 
 use super::StepParams;
-use super::material::{NormalLaw, RollingModel};
+use super::material::{NormalLaw, RollingModel, TangentialModel};
 use glam::Vec3;
 
 /// 2·√(5/6): Tsuji's damping coefficient over ζ·√(S·m*).
@@ -104,13 +104,20 @@ pub fn moment_of_inertia(m: f32, r: f32) -> f32 {
 }
 
 /// What a contact carries from one step to the next, as the sphere holding it sees it (its
-/// partner holds the exact negatives). Zero for a new contact.
+/// partner holds the exact negatives of the vectors, and the same normal force). Zero for a
+/// new contact.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Springs {
-    /// Tangential spring ξ \[m\].
+    /// Tangential spring ξ \[m\] of [`TangentialModel::Mindlin`]; the elastic tangential
+    /// force on the sphere \[N\] of [`TangentialModel::MindlinDeresiewicz`].
     pub tangential: Vec3,
     /// Rolling spring torque of the EPSD model \[N·m\].
     pub rolling: Vec3,
+    /// Mindlin–Deresiewicz: the elastic tangential force on the sphere at the last reversal
+    /// of the loading \[N\] (zero: on the virgin curve, no reversal since the last full slip).
+    pub reversal: Vec3,
+    /// Mindlin–Deresiewicz: the elastic normal force of the last step \[N\].
+    pub normal: f32,
 }
 
 /// What one contact does to the sphere computing it.
@@ -124,10 +131,12 @@ pub struct Contact {
     pub springs: Springs,
 }
 
-/// The normal force's magnitude (positive pushes the bodies apart) and the normal stiffness.
+/// The normal force's magnitude (positive pushes the bodies apart), its elastic part (no
+/// damping) and the normal stiffness.
 #[derive(Debug, Clone, Copy)]
 struct Normal {
     push: f32,
+    elastic: f32,
     stiffness: f32,
 }
 
@@ -163,16 +172,20 @@ fn normal_force(
     match p.law {
         NormalLaw::Linear => {
             let c = 2.0 * p.damping_ratio * root_product(p.stiffness, m_eff);
+            let elastic = p.stiffness * overlap;
             Normal {
-                push: p.stiffness * overlap - c * vn,
+                push: elastic - c * vn,
+                elastic,
                 stiffness: p.stiffness,
             }
         }
         NormalLaw::LinearPerPair { rate, .. } => {
             let k = m_eff * rate;
             let c = 2.0 * p.damping_ratio * root_product(k, m_eff);
+            let elastic = k * overlap;
             Normal {
-                push: k * overlap - c * vn,
+                push: elastic - c * vn,
+                elastic,
                 stiffness: k,
             }
         }
@@ -181,8 +194,10 @@ fn normal_force(
             // R*·δ ≥ R*·ulp(r_i + r_j)/2 when δ > 0: a normal number from r = 1e-12 m up.
             let s_n = 2.0 * e_star * (r_eff * overlap).sqrt();
             let c = TSUJI * p.damping_ratio * root_product(s_n, m_eff);
+            let elastic = 2.0 / 3.0 * s_n * overlap;
             Normal {
-                push: 2.0 / 3.0 * s_n * overlap - c * vn,
+                push: elastic - c * vn,
+                elastic,
                 stiffness: s_n,
             }
         }
@@ -369,6 +384,116 @@ fn into_plane(x: Vec3, n: Vec3) -> Vec3 {
     if len > 0.0 { t * (length(x) / len) } else { t }
 }
 
+/// The cube root of `x` in [0, 1], by the same operations on every backend (WGSL has no cube
+/// root, and the libraries' are not the same function): a start from the bits (the exponent
+/// divided by three), then three Newton steps, y ← (2y + x/y²)/3, which bring it within an
+/// ulp or two of ∛x. 0 for x ≤ 0. Keep in sync with `cube_root` in wgsl/dem_load.wgsl and
+/// `mochi_cube_root` in optix/contact.cuh.
+#[inline(always)]
+pub fn cube_root(x: f32) -> f32 {
+    if x <= 0.0 {
+        return 0.0;
+    }
+    let mut y = f32::from_bits(x.to_bits() / 3 + 0x2a51_37a0);
+    for _ in 0..3 {
+        y = (y + y + x / (y * y)) / 3.0;
+    }
+    y
+}
+
+/// What the Mindlin–Deresiewicz law of one contact needs besides its springs.
+struct Load {
+    /// Mindlin's full tangential stiffness S_t = 8G*√(R*δ) \[N/m\].
+    k_t: f32,
+    /// Tangential damping coefficient \[N·s/m\].
+    c_t: f32,
+    /// Sliding friction coefficient.
+    mu: f32,
+    /// Elastic normal force N \[N\].
+    elastic: f32,
+    /// The normal force that caps the tangential one, max(push, 0) \[N\].
+    pressing: f32,
+    /// Time step \[s\].
+    dt: f32,
+}
+
+/// The Mindlin–Deresiewicz tangential force on i (docs/method.md, "Friction, rotation and
+/// rolling resistance"): Thornton & Yin's incremental form (Powder Technol. 65 (1991) 153–166;
+/// as restated by Thornton, Cummins & Cleary, Powder Technol. 210 (2011) 189–197) in vectors.
+/// The elastic force F (kept in `springs.tangential`) changes by
+/// ΔF = −S_t·θ·Δξ + μ·ΔN·(1 − θ)·ê, Δξ = v_t·dt, ê the direction F moves in away from the last
+/// reversal point F* (`springs.reversal`), with θ³ = 1 − (|F − F*| + c·μ·ΔN)/(c·μ·N), c = 1 on
+/// the virgin curve (F* = 0) and 2 after a reversal (Masing's rule); θ = 1 where the normal
+/// force grows faster than the tangential one would (μ·ΔN > S_t·|Δξ|: no new slip). A reversal
+/// (Δξ driving F back towards F*) makes F* = F; F*'s size follows the normal force by μ·ΔN;
+/// past the mirror point (|F| ≥ |F*| on the far side) the virgin curve holds again; |F| ≤ μ·N
+/// (full slip: virgin again). The damping −c_t·v_t is added and Coulomb's cap μ·max(push, 0)
+/// applied as for Mindlin's spring. Every operation is odd in the vectors, so the partner's
+/// side (all vectors negated, N the same) gets the exact negatives.
+#[inline(always)]
+fn load_history(load: &Load, n: Vec3, v_t: Vec3, old: &Springs, springs: &mut Springs) -> Vec3 {
+    let mu = load.mu;
+    let mut f = into_plane(old.tangential, n);
+    let mut r = into_plane(old.reversal, n);
+    let dn = load.elastic - old.normal;
+    let d = v_t * load.dt;
+    // A reversal: the displacement drives the force back towards the last reversal point.
+    let back = f - r;
+    if length(back) > 0.0 && back.dot(d) > 0.0 {
+        r = f;
+    }
+    // The reversal point follows the normal force (Thornton & Yin's T* += μΔN); where it
+    // shrinks to nothing the virgin curve holds.
+    if r != Vec3::ZERO {
+        let size = length(r);
+        let grown = size + mu * dn;
+        r = if grown > 0.0 { r * (grown / size) } else { Vec3::ZERO };
+    }
+    let c = if r != Vec3::ZERO { 2.0 } else { 1.0 };
+    let scale = c * mu * load.elastic;
+    let away = f - r;
+    let gone = length(away);
+    let mut theta = 0.0;
+    if scale > 0.0 {
+        theta = cube_root(1.0 - (gone + c * mu * dn) / scale);
+    }
+    let step = length(d);
+    if mu * dn > load.k_t * step {
+        theta = 1.0;
+    }
+    let e = if gone > 0.0 {
+        away / gone
+    } else if step > 0.0 {
+        d / -step
+    } else {
+        Vec3::ZERO
+    };
+    f = f - d * (load.k_t * theta) + e * (mu * dn * (1.0 - theta));
+    // Past the mirror point of the last reversal: back on the virgin curve.
+    if r != Vec3::ZERO && f.dot(r) < 0.0 && length(f) >= length(r) {
+        r = Vec3::ZERO;
+    }
+    // Never more than μN: full slip, and the virgin curve from there.
+    let most = mu * load.elastic;
+    let len = length(f);
+    if len > most {
+        f *= most / len;
+        r = Vec3::ZERO;
+    }
+    let mut f_t = f - load.c_t * v_t;
+    let cap = mu * load.pressing;
+    let len = length(f_t);
+    if len > cap {
+        f_t *= cap / len;
+        f = f_t;
+        r = Vec3::ZERO;
+    }
+    springs.tangential = f;
+    springs.reversal = r;
+    springs.normal = load.elastic;
+    f_t
+}
+
 /// Tangential force with sliding coefficient `mu`, the torque on i (from it and from rolling
 /// resistance) and the springs to keep.
 #[inline(always)]
@@ -391,17 +516,33 @@ fn friction(p: &StepParams, t: &Touch, mu: f32, old: Springs) -> (Vec3, Vec3, Sp
             }
         };
         let v_t = t.v_rel - t.v_rel.dot(n) * n;
-        let mut xi = into_plane(old.tangential, n) + v_t * p.dt;
-        let mut f_t = -k_t * xi - c_t * v_t;
-        let cap = mu * pressing;
-        let len = length(f_t);
-        if len > cap {
-            f_t *= cap / len;
-            xi = -f_t / k_t;
-        }
+        let f_t = match p.friction.tangential_model {
+            TangentialModel::Mindlin => {
+                let mut xi = into_plane(old.tangential, n) + v_t * p.dt;
+                let mut f_t = -k_t * xi - c_t * v_t;
+                let cap = mu * pressing;
+                let len = length(f_t);
+                if len > cap {
+                    f_t *= cap / len;
+                    xi = -f_t / k_t;
+                }
+                springs.tangential = xi;
+                f_t
+            }
+            TangentialModel::MindlinDeresiewicz => {
+                let load = Load {
+                    k_t,
+                    c_t,
+                    mu,
+                    elastic: t.normal.elastic,
+                    pressing,
+                    dt: p.dt,
+                };
+                load_history(&load, n, v_t, &old, &mut springs)
+            }
+        };
         force = f_t;
         torque = (t.lever * n).cross(f_t);
-        springs.tangential = xi;
     }
     let mu_r = p.friction.rolling;
     if mu_r > 0.0 {

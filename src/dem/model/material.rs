@@ -46,6 +46,25 @@ pub enum RollingModel {
     ConstantTorque,
 }
 
+/// How the tangential force follows the tangential displacement of a contact
+/// (docs/method.md, "Friction, rotation and rolling resistance").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TangentialModel {
+    /// Mindlin's no-slip spring (Mindlin 1949): a spring ξ of stiffness S_t = 8G*√(R*δ) holds
+    /// F_t = −S_t·ξ up to Coulomb's cap (LIGGGHTS `tangential history`, EDEM's Hertz–Mindlin).
+    /// Follows gross sliding; in the stick regime of oblique impacts it releases its force
+    /// with the contact's stiffness, not with its load history.
+    #[default]
+    Mindlin,
+    /// Mindlin and Deresiewicz's load-history dependent stiffness (Mindlin & Deresiewicz
+    /// 1953) in the incremental form of Thornton & Yin (1991) as Thornton, Cummins & Cleary
+    /// (2011) restate it: the stiffness falls as the force nears μ·N on the virgin curve, or
+    /// twice that from the last reversal, and the force follows the normal force's changes.
+    /// Hertz–Mindlin only.
+    MindlinDeresiewicz,
+}
+
 /// A material and its contact law, as the user describes it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Material {
@@ -67,6 +86,8 @@ pub struct Material {
     pub rolling_friction: f64,
     /// Rolling resistance model (default: EPSD).
     pub rolling_model: RollingModel,
+    /// Tangential model (default: Mindlin's no-slip spring).
+    pub tangential_model: TangentialModel,
 }
 
 impl Default for Material {
@@ -80,6 +101,7 @@ impl Default for Material {
             wall_friction: None,
             rolling_friction: 0.0,
             rolling_model: RollingModel::Epsd,
+            tangential_model: TangentialModel::Mindlin,
         }
     }
 }
@@ -144,6 +166,8 @@ pub struct Friction {
     pub rolling: f32,
     /// How rolling is resisted.
     pub rolling_model: RollingModel,
+    /// How the tangential force follows the displacement.
+    pub tangential_model: TangentialModel,
 }
 
 impl Friction {
@@ -157,6 +181,13 @@ impl Friction {
         self.sliding > 0.0
             || self.wall_sliding > 0.0
             || (self.rolling > 0.0 && self.rolling_model == RollingModel::Epsd)
+    }
+
+    /// Whether contacts keep the Mindlin–Deresiewicz model's load history besides their
+    /// springs (its tangential force, the force at its last reversal, its last normal force).
+    pub fn keeps_load(&self) -> bool {
+        self.tangential_model == TangentialModel::MindlinDeresiewicz
+            && (self.sliding > 0.0 || self.wall_sliding > 0.0)
     }
 }
 
@@ -263,6 +294,16 @@ impl Material {
                 reason,
             })
         };
+        if self.tangential_model == TangentialModel::MindlinDeresiewicz
+            && !matches!(self.contact, ContactLaw::HertzMindlin { .. })
+        {
+            return Err(Error::InvalidConfig {
+                what: "scene key tangential_model".into(),
+                reason: "\"mindlin-deresiewicz\" follows the Hertz contact's radius and needs \
+                         contact = \"hertz-mindlin\""
+                    .into(),
+            });
+        }
         if self.stiffness.is_some() && self.contact != ContactLaw::Linear {
             return bad(
                 "a stiffness in N/m is for contact = \"linear\" with one stiffness only".into(),

@@ -18,7 +18,7 @@ pub use linear::{
     STEPS_PER_CONTACT, contact_force, damping_ratio, stable_dt, stiffness_for_duration, wall_force,
 };
 pub use material::{
-    ContactLaw, Elastic, Friction, MAX_FRICTION, Material, NormalLaw, RollingModel,
+    ContactLaw, Elastic, Friction, MAX_FRICTION, Material, NormalLaw, RollingModel, TangentialModel,
 };
 
 use crate::error::{Error, Result};
@@ -167,6 +167,7 @@ impl StepParams {
             wall_sliding: m.wall_friction.unwrap_or(m.friction) as f32,
             rolling: m.rolling_friction as f32,
             rolling_model: m.rolling_model,
+            tangential_model: m.tangential_model,
         };
         if friction.turns() && !inertia_in_range(density, r_min) {
             return bad(&format!(

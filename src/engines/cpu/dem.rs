@@ -16,7 +16,7 @@ use crate::dem::model::{StepParams, integrate, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::error::{Error, Result, try_resize, try_vec};
-use crate::particles::{FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles};
+use crate::particles::{FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;
 use crate::spheres::center_bounds;
 use glam::Vec3;
@@ -59,6 +59,8 @@ pub struct CpuStepper {
     slots: usize,
     /// The new contact history of each sorted sphere, `slots` entries each.
     sorted_history: Vec<HistoryEntry>,
+    /// Their load histories, beside them (Mindlin–Deresiewicz; empty otherwise).
+    sorted_loads: Vec<LoadEntry>,
     /// The sorted position of each sphere (input order), for the gathers back into it.
     sorted_at: Vec<AtomicU32>,
     /// Force of each sphere, in input order.
@@ -98,6 +100,9 @@ impl CpuStepper {
             true => FIRST_SLOTS.max(particles.history.most()),
             false => 0,
         };
+        if params.friction.keeps_load() {
+            particles.history.keep_loads()?;
+        }
         Ok(Self {
             masses,
             cell_size,
@@ -106,6 +111,7 @@ impl CpuStepper {
             sums: Vec::new(),
             slots,
             sorted_history: Vec::new(),
+            sorted_loads: Vec::new(),
             sorted_at: Vec::new(),
             forces: Vec::new(),
             torques: Vec::new(),
@@ -198,9 +204,10 @@ impl CpuStepper {
         };
         if !self.params.friction.has_history() {
             gather(&self.grid, &mut self.sums, |at, runs| {
-                pass.sphere(at, runs, &mut [])
+                pass.sphere(at, runs, &mut [], &mut [])
             });
         } else {
+            let loaded = self.params.friction.keeps_load();
             loop {
                 let slots = self.slots;
                 let entries = n.checked_mul(slots).ok_or_else(|| Error::TooLarge {
@@ -216,9 +223,16 @@ impl CpuStepper {
                         bytes: (entries * std::mem::size_of::<HistoryEntry>()) as u64,
                     })?;
                 self.sorted_history.resize(entries, HistoryEntry::default());
+                self.sorted_loads.clear();
+                if loaded {
+                    try_resize(&mut self.sorted_loads, entries, LoadEntry::default(), || {
+                        format!("the load history of {n} spheres ({slots} contacts each)")
+                    })?;
+                }
                 let (sums, side) = (&mut self.sums, &mut self.sorted_history);
-                gather_with_side(&self.grid, sums, side, slots, |at, runs, held| {
-                    pass.sphere(at, runs, held)
+                let loads = &mut self.sorted_loads;
+                gather_with_side(&self.grid, sums, side, loads, slots, |at, runs, held, lh| {
+                    pass.sphere(at, runs, held, lh)
                 });
                 let most = self.sums.iter().map(|s| s.held).max().unwrap_or(0) as usize;
                 if most <= slots {
@@ -251,8 +265,8 @@ impl CpuStepper {
         if self.params.friction.has_history() {
             let mut counts = try_vec(n, of_n)?;
             counts.par_extend(sums.par_iter().map(|s| s.held));
-            let history = &self.sorted_history;
-            (self.particles.history).gather_from(at, self.slots, &counts, history)?;
+            let (history, loads) = (&self.sorted_history, &self.sorted_loads);
+            (self.particles.history).gather_from(at, self.slots, &counts, history, loads)?;
         }
         try_resize(&mut self.forces, n, [0.0; 3], of_n)?;
         self.forces
@@ -310,13 +324,15 @@ struct ContactPass<'a> {
 
 impl ContactPass<'_> {
     /// The contacts of the sphere at sorted position `at` with the spheres of `runs` and the
-    /// walls; writes those with history to `held` (as many as fit) and counts them all.
+    /// walls; writes those with history to `held` (as many as fit; their load histories to
+    /// `loads` where it is not empty) and counts them all.
     #[inline(always)]
     fn sphere(
         &self,
         at: usize,
         runs: &[std::ops::Range<usize>; 9],
         held: &mut [HistoryEntry],
+        loads: &mut [LoadEntry],
     ) -> SphereSum {
         let (grid, p, parts) = (self.grid, self.params, self.particles);
         let keeps = p.friction.has_history();
@@ -335,12 +351,10 @@ impl ContactPass<'_> {
         let i = grid.ids[at] as usize;
         let me = body(at);
         let kept = parts.history.of(i);
+        let kept_loads = parts.history.loads_of(i);
         let old = |partner: u32| -> Springs {
-            match kept.iter().find(|e| e.partner == partner) {
-                Some(e) => Springs {
-                    tangential: Vec3::from_array(e.tangential),
-                    rolling: Vec3::from_array(e.rolling),
-                },
+            match kept.iter().position(|e| e.partner == partner) {
+                Some(k) => springs_of(&kept[k], kept_loads.get(k)),
                 None => Springs::default(),
             }
         };
@@ -352,6 +366,12 @@ impl ContactPass<'_> {
                     tangential: springs.tangential.to_array(),
                     rolling: springs.rolling.to_array(),
                 };
+                if let Some(load) = loads.get_mut(count as usize) {
+                    *load = LoadEntry {
+                        reversal: springs.reversal.to_array(),
+                        normal: springs.normal,
+                    };
+                }
             }
             count += 1;
         };
@@ -394,15 +414,11 @@ impl ContactPass<'_> {
             }
         }
         if let Some(mesh) = self.mesh {
-            let (sum, entries) = mesh.of(i);
+            let (sum, entries, mesh_loads) = mesh.of(i);
             force += sum.force;
             torque += sum.torque;
-            for e in entries {
-                let springs = Springs {
-                    tangential: Vec3::from_array(e.tangential),
-                    rolling: Vec3::from_array(e.rolling),
-                };
-                keep(e.partner, springs);
+            for (k, e) in entries.iter().enumerate() {
+                keep(e.partner, springs_of(e, mesh_loads.get(k)));
             }
         }
         SphereSum {
@@ -411,6 +427,18 @@ impl ContactPass<'_> {
             touching,
             held: count,
         }
+    }
+}
+
+/// The springs of a history entry and its load history (`None`: none kept).
+#[inline(always)]
+pub(super) fn springs_of(e: &HistoryEntry, load: Option<&LoadEntry>) -> Springs {
+    let load = load.copied().unwrap_or_default();
+    Springs {
+        tangential: Vec3::from_array(e.tangential),
+        rolling: Vec3::from_array(e.rolling),
+        reversal: Vec3::from_array(load.reversal),
+        normal: load.normal,
     }
 }
 

@@ -5,10 +5,12 @@
 //! the chunks in order, so they depend on the state alone, not on the threads.
 
 use crate::dem::model::StepParams;
+use super::dem::springs_of;
+use super::query::chunks_or_none;
 use crate::dem::model::contact::{Body, Springs, surface_contact};
 use crate::dem::walls::{Pose, Touches, WallLoad, WallSet, mesh_partner, touches};
 use crate::error::{Error, Result, try_resize};
-use crate::particles::{HistoryEntry, Particles};
+use crate::particles::{HistoryEntry, LoadEntry, Particles};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -39,6 +41,8 @@ pub(super) struct MeshPass {
     sums: Vec<MeshSum>,
     /// `slots` entries per sphere, input order.
     entries: Vec<HistoryEntry>,
+    /// Their load histories, beside them (Mindlin–Deresiewicz; empty otherwise).
+    entry_loads: Vec<LoadEntry>,
     /// Per wall, of the last step.
     loads: Vec<WallLoad>,
 }
@@ -51,6 +55,7 @@ impl MeshPass {
             slots: FIRST_SLOTS,
             sums: Vec::new(),
             entries: Vec::new(),
+            entry_loads: Vec::new(),
         }
     }
 
@@ -63,12 +68,18 @@ impl MeshPass {
         &self.loads
     }
 
-    /// Sphere `i`'s sum and the history entries it keeps.
+    /// Sphere `i`'s sum, the history entries it keeps and their load histories (none where
+    /// contacts keep none).
     #[inline(always)]
-    pub fn of(&self, i: usize) -> (MeshSum, &[HistoryEntry]) {
+    pub fn of(&self, i: usize) -> (MeshSum, &[HistoryEntry], &[LoadEntry]) {
         let s = self.sums[i];
         let at = i * self.slots;
-        (s, &self.entries[at..at + s.held as usize])
+        let kept = at..at + s.held as usize;
+        let loads = match self.entry_loads.is_empty() {
+            true => &[][..],
+            false => &self.entry_loads[kept.clone()],
+        };
+        (s, &self.entries[kept], loads)
     }
 
     /// Resolves every sphere's mesh contacts in the state of `parts` (before the step).
@@ -89,17 +100,30 @@ impl MeshPass {
             })?;
             self.entries.clear();
             try_resize(&mut self.entries, entries, HistoryEntry::default(), of_n)?;
+            self.entry_loads.clear();
+            if p.friction.keeps_load() {
+                try_resize(&mut self.entry_loads, entries, LoadEntry::default(), of_n)?;
+            }
             let chunks: Vec<Vec<WallLoad>> = self
                 .sums
                 .par_chunks_mut(CHUNK)
                 .zip(self.entries.par_chunks_mut(CHUNK * slots))
+                .zip(chunks_or_none(
+                    &mut self.entry_loads,
+                    CHUNK * slots,
+                    n.div_ceil(CHUNK),
+                ))
                 .enumerate()
-                .map(|(k, (sums, entries))| {
+                .map(|(k, ((sums, entries), entry_loads))| {
                     let mut loads = vec![WallLoad::default(); walls.meshes.len()];
                     let mut scratch = Touches::default();
                     for (j, sum) in sums.iter_mut().enumerate() {
                         let i = k * CHUNK + j;
                         let held = &mut entries[j * slots..(j + 1) * slots];
+                        let held_loads = match entry_loads.is_empty() {
+                            true => &mut [][..],
+                            false => &mut entry_loads[j * slots..(j + 1) * slots],
+                        };
                         let body = Body {
                             c: Vec3::from_array(parts.positions[i]),
                             v: Vec3::from_array(parts.velocities[i]),
@@ -107,14 +131,17 @@ impl MeshPass {
                             r: parts.radii[i],
                             m: masses[i],
                         };
-                        let kept = if keeps { parts.history.of(i) } else { &[] };
+                        let kept = match keeps {
+                            true => (parts.history.of(i), parts.history.loads_of(i)),
+                            false => (&[][..], &[][..]),
+                        };
                         *sum = sphere(
                             p,
                             walls,
                             &poses,
                             &body,
                             kept,
-                            held,
+                            (held, held_loads),
                             &mut loads,
                             &mut scratch,
                         );
@@ -140,7 +167,9 @@ impl MeshPass {
 }
 
 /// One sphere's contacts with every mesh wall: the sum on it, its history entries in `held` (as
-/// many as fit; `held` counts them all) and the reactions added to `loads`.
+/// many as fit, with their load histories where that slice is not empty; the sum counts them
+/// all) and the reactions added to `loads`. `kept`: the entries of the step before and their
+/// load histories.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn sphere(
@@ -148,11 +177,13 @@ fn sphere(
     walls: &WallSet,
     poses: &[Pose],
     b: &Body,
-    kept: &[HistoryEntry],
-    held: &mut [HistoryEntry],
+    kept: (&[HistoryEntry], &[LoadEntry]),
+    held: (&mut [HistoryEntry], &mut [LoadEntry]),
     loads: &mut [WallLoad],
     scratch: &mut Touches,
 ) -> MeshSum {
+    let (kept, kept_loads) = kept;
+    let (held, held_loads) = held;
     let keeps = p.friction.has_history();
     let turns = p.friction.turns();
     let mut sum = MeshSum::default();
@@ -163,14 +194,11 @@ fn sphere(
         }
         let partner = mesh_partner(w);
         // The k-th contact with this wall takes the k-th entry kept of it.
-        let mut olds = kept.iter().filter(|e| e.partner == partner);
+        let mut olds = (0..kept.len()).filter(|&k| kept[k].partner == partner);
         let (mut force, mut torque) = (Vec3::ZERO, Vec3::ZERO);
         for t in &scratch.found {
             let old = match olds.next() {
-                Some(e) => Springs {
-                    tangential: Vec3::from_array(e.tangential),
-                    rolling: Vec3::from_array(e.rolling),
-                },
+                Some(k) => springs_of(&kept[k], kept_loads.get(k)),
                 None => Springs::default(),
             };
             let v = pose.velocity_at(t.point);
@@ -185,6 +213,12 @@ fn sphere(
                         partner,
                         tangential: c.springs.tangential.to_array(),
                         rolling: c.springs.rolling.to_array(),
+                    };
+                }
+                if let Some(load) = held_loads.get_mut(sum.held as usize) {
+                    *load = LoadEntry {
+                        reversal: c.springs.reversal.to_array(),
+                        normal: c.springs.normal,
                     };
                 }
                 sum.held += 1;
