@@ -3,25 +3,29 @@
 //! reads) in one little-endian binary file, written atomically so the file on disk is always a
 //! whole checkpoint.
 //!
-//! Layout (version 4): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
+//! Layout (version 5): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
 //! (UTF-8), state length u64, state TOML (UTF-8), then n·3 f32 positions, n·3 f32 velocities, n·3 f32 angular velocities, n f32
 //! radii, the number of history entries u64 and each entry as owner u32, partner u32, 3 f32
-//! tangential spring, 3 f32 rolling spring (owners in order), and last the CRC-32 (u32) of
-//! every byte before it: a damaged file is refused rather than resumed. Version 3 (no state) is
-//! still read with an empty state, and version 2 (no angular velocities, no history) as spheres
-//! at rest in rotation without history.
+//! tangential spring, 3 f32 rolling spring (owners in order), the number of load histories u64
+//! (0, or that of the entries: the Mindlin–Deresiewicz model's) and each as 3 f32 reversal
+//! force, f32 normal force (in the entries' order), and last the CRC-32 (u32) of every byte
+//! before it: a damaged file is refused rather than resumed. Version 4 (no load histories) is
+//! still read without them, version 3 (no state) with an empty state, and version 2 (no angular
+//! velocities, no history) as spheres at rest in rotation without history.
 
 use super::{io_error, write_atomically};
 use crate::error::{Error, Result};
-use crate::particles::{ContactHistory, HistoryEntry, Particles};
+use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, Particles};
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"MOCHICKP";
-const VERSION: u32 = 4;
+const VERSION: u32 = 5;
 /// The oldest version this mochi reads.
 const OLDEST: u32 = 2;
 /// Bytes of one history entry: owner, partner and six f32.
 const ENTRY_BYTES: usize = 32;
+/// Bytes of one load history: four f32.
+const LOAD_BYTES: usize = 16;
 
 /// What a checkpoint holds.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,8 +54,17 @@ pub fn write_checkpoint(
         .chain(particles.angular_velocities.iter().flatten())
         .chain(&particles.radii);
     let history = &particles.history;
+    let loads = match history.has_loads() {
+        true => history.len(),
+        false => 0,
+    };
     let mut bytes = Vec::with_capacity(
-        56 + scene.len() + state.len() + 40 * particles.len() + ENTRY_BYTES * history.len() + 4,
+        64 + scene.len()
+            + state.len()
+            + 40 * particles.len()
+            + ENTRY_BYTES * history.len()
+            + LOAD_BYTES * loads
+            + 4,
     );
     bytes.extend_from_slice(MAGIC);
     bytes.extend_from_slice(&VERSION.to_le_bytes());
@@ -67,6 +80,12 @@ pub fn write_checkpoint(
         bytes.extend_from_slice(&owner.to_le_bytes());
         bytes.extend_from_slice(&e.partner.to_le_bytes());
         for x in e.tangential.iter().chain(&e.rolling) {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    bytes.extend_from_slice(&(loads as u64).to_le_bytes());
+    for load in history.contact_loads() {
+        for x in load.reversal.iter().chain([&load.normal]) {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
     }
@@ -137,6 +156,17 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
     } else {
         (0, &[][..])
     };
+    let loads = if version >= 5 {
+        let len = u64_at(take(8, "load history length")?);
+        if len != 0 && len != history_len as u64 {
+            return Err(bad(format!(
+                "{len} load histories for {history_len} history entries"
+            )));
+        }
+        take(len as usize * LOAD_BYTES, "load history")?
+    } else {
+        &[][..]
+    };
     let stored = u32::from_le_bytes(take(4, "checksum")?.try_into().expect("4 bytes"));
     if at != bytes.len() {
         return Err(bad(format!(
@@ -178,12 +208,23 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         })
         .collect();
     debug_assert_eq!(contacts.len(), history_len);
+    let loads: Vec<LoadEntry> = loads
+        .chunks_exact(LOAD_BYTES)
+        .map(|l| {
+            let f: Vec<f32> = l.chunks_exact(4).map(f32_at).collect();
+            LoadEntry {
+                reversal: [f[0], f[1], f[2]],
+                normal: f[3],
+            }
+        })
+        .collect();
     let particles = Particles {
         positions: triples(&values[..3 * n]),
         velocities: triples(&values[3 * n..6 * n]),
         angular_velocities,
         radii,
-        history: ContactHistory::from_contacts(n, &contacts).map_err(|e| bad(e.to_string()))?,
+        history: ContactHistory::from_contacts_with_loads(n, &contacts, &loads)
+            .map_err(|e| bad(e.to_string()))?,
         step,
     };
     particles.validate().map_err(|e| bad(e.to_string()))?;
@@ -269,7 +310,7 @@ mod tests {
         );
         // A NaN with a valid checksum: refused by the value checks.
         let mut nan = whole[..whole.len() - 4].to_vec();
-        let first_position = nan.len() - 4 * 20 - 8 - 3 * ENTRY_BYTES;
+        let first_position = nan.len() - 8 - 4 * 20 - 8 - 3 * ENTRY_BYTES;
         nan[first_position..first_position + 4].copy_from_slice(&f32::NAN.to_le_bytes());
         let crc = crc32fast::hash(&nan);
         nan.extend_from_slice(&crc.to_le_bytes());
@@ -285,13 +326,15 @@ mod tests {
         let (scene, state) = ("scene = \"slab\"\n", "[flow]\ninserted = 3\n");
         write_checkpoint(&path, &sample(), scene, state).unwrap();
         let whole = std::fs::read(&path).unwrap();
-        // The step, the scene, the state, the sphere data and the history (damage to the
-        // magic, version or a length reads as a foreign, older or truncated file).
+        // The step, the scene, the state, the sphere data, the history and the checksum (damage
+        // to the magic, version or a length or count reads as a foreign, older or truncated
+        // file).
         let state_length = 36 + scene.len();
         let history_length = state_length + 8 + state.len() + 40 * sample().len();
         let data = (36..state_length)
             .chain(state_length + 8..history_length)
-            .chain(history_length + 8..whole.len());
+            .chain(history_length + 8..whole.len() - 12)
+            .chain(whole.len() - 4..whole.len());
         for at in (12..20).chain(data) {
             let mut flipped = whole.clone();
             flipped[at] ^= 0x10;
@@ -338,11 +381,12 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
         write_checkpoint(&path, &sample(), "x", "").unwrap();
-        // Version 4 with an empty state is version 3 with a zero length after the scene.
-        let v4 = std::fs::read(&path).unwrap();
-        let mut v3 = v4[..37].to_vec();
+        // Version 5 with an empty state and no load histories is version 3 with a zero length
+        // after the scene and a zero count before the checksum.
+        let v5 = std::fs::read(&path).unwrap();
+        let mut v3 = v5[..37].to_vec();
         v3[8..12].copy_from_slice(&3u32.to_le_bytes());
-        v3.extend_from_slice(&v4[45..v4.len() - 4]);
+        v3.extend_from_slice(&v5[45..v5.len() - 12]);
         let crc = crc32fast::hash(&v3);
         v3.extend_from_slice(&crc.to_le_bytes());
         std::fs::write(&path, &v3).unwrap();
@@ -351,6 +395,51 @@ mod tests {
             (read.particles, read.scene.as_str(), read.state.as_str()),
             (sample(), "x", "")
         );
+    }
+
+    /// [`sample`] with the load histories of the Mindlin–Deresiewicz model.
+    fn loaded() -> Particles {
+        let load = |x: f32| LoadEntry {
+            reversal: [x, 0.0, -x],
+            normal: 3.0 * x.abs(),
+        };
+        let p = sample();
+        let contacts: Vec<(u32, HistoryEntry)> = p.history.contacts().map(|(o, e)| (o, *e)).collect();
+        let loads = [load(1e-3), load(-1e-3), load(0.25)];
+        Particles {
+            history: ContactHistory::from_contacts_with_loads(2, &contacts, &loads).unwrap(),
+            ..p
+        }
+    }
+
+    #[test]
+    fn load_histories_round_trip_bit_for_bit() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        write_checkpoint(&path, &loaded(), "x", "").unwrap();
+        let c = read_checkpoint(&path).unwrap();
+        assert!(c.particles.history.has_loads());
+        assert_eq!(c.particles, loaded());
+        assert_ne!(c.particles, sample());
+        // Without, the file is 8 bytes (the count) longer than version 4's.
+        write_checkpoint(&path, &sample(), "x", "").unwrap();
+        assert!(!read_checkpoint(&path).unwrap().particles.history.has_loads());
+    }
+
+    #[test]
+    fn a_version_4_checkpoint_reads_without_load_histories() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        write_checkpoint(&path, &sample(), "x", "[flow]\n").unwrap();
+        // Version 5 without load histories is version 4 with a zero count before the checksum.
+        let v5 = std::fs::read(&path).unwrap();
+        let mut v4 = v5[..v5.len() - 12].to_vec();
+        v4[8..12].copy_from_slice(&4u32.to_le_bytes());
+        let crc = crc32fast::hash(&v4);
+        v4.extend_from_slice(&crc.to_le_bytes());
+        std::fs::write(&path, &v4).unwrap();
+        let read = read_checkpoint(&path).unwrap();
+        assert_eq!((read.particles, read.state.as_str()), (sample(), "[flow]\n"));
     }
 
     #[test]

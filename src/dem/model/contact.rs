@@ -626,6 +626,70 @@ mod tests {
     }
 
     #[test]
+    fn the_cube_root_is_within_two_ulps_on_zero_to_one() {
+        assert_eq!(cube_root(0.0), 0.0);
+        assert_eq!(cube_root(-1.0), 0.0);
+        assert_eq!(cube_root(1.0), 1.0);
+        let mut x = 1.0f32;
+        while x > 1e-9 {
+            for y in [x, x * 0.7, x * 0.3] {
+                let got = cube_root(y);
+                let want = (y as f64).cbrt() as f32;
+                let ulps = (got.to_bits() as i64 - want.to_bits() as i64).abs();
+                assert!(ulps <= 2, "∛{y:e}: {got:e}, {want:e}");
+            }
+            x *= 0.5;
+        }
+    }
+
+    #[test]
+    fn the_mindlin_deresiewicz_contact_is_equal_and_opposite_through_loading_and_reversals() {
+        use super::super::{ContactLaw, Material, TangentialModel, mass};
+        let material = Material {
+            contact: ContactLaw::HertzMindlin {
+                young_modulus: 1e7,
+                poisson_ratio: 0.3,
+            },
+            friction: 0.5,
+            restitution: 0.7,
+            tangential_model: TangentialModel::MindlinDeresiewicz,
+            ..Material::default()
+        };
+        let r = 0.01;
+        let p = StepParams::new(&material, 1e-6, [0.0; 3], [1.0; 3], [0.0; 3], 0.0, r).unwrap();
+        let body = |c: Vec3, v: Vec3, w: Vec3| Body {
+            c,
+            v,
+            w,
+            r,
+            m: mass(500.0, r),
+        };
+        let (mut a, mut b) = (Springs::default(), Springs::default());
+        let mut reversed = false;
+        // Tangential speeds that load, turn back and load again while the pair approaches.
+        for (k, side) in [0.3f32, 0.2, -0.4, -0.1, 0.5, 0.6].into_iter().enumerate() {
+            let gap = 1.99 - 0.002 * k as f32;
+            let i = body(Vec3::splat(0.5), Vec3::new(0.1, side, 0.0), Vec3::Z);
+            let j = body(
+                i.c + Vec3::new(gap * r, 0.0, 0.0),
+                Vec3::new(-0.1, -side, 0.05),
+                -Vec3::Y,
+            );
+            let f = pair_contact(&p, &i, &j, a).unwrap();
+            let g = pair_contact(&p, &j, &i, b).unwrap();
+            assert_eq!(f.force, -g.force, "step {k}");
+            assert_eq!(f.springs.tangential, -g.springs.tangential);
+            assert_eq!(f.springs.reversal, -g.springs.reversal);
+            assert_eq!(f.springs.normal, g.springs.normal);
+            assert!(f.springs.normal > 0.0);
+            reversed |= f.springs.reversal != Vec3::ZERO;
+            (a, b) = (f.springs, g.springs);
+        }
+        // The turn back left a reversal point on the way.
+        assert!(reversed);
+    }
+
+    #[test]
     fn the_contact_of_the_smallest_spheres_that_turn_is_equal_and_opposite_and_damped() {
         use super::super::{ContactLaw, Material, mass, smallest_turning_radius};
         let r = smallest_turning_radius(500.0);
