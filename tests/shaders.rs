@@ -1,5 +1,7 @@
-//! Every WGSL module, exactly as the device gets it, parses and validates with naga (no GPU
-//! needed), so a broken shader fails here with its name and the error's location.
+//! Every WGSL module, exactly as the device gets it, parses and validates with naga and
+//! translates to SPIR-V as wgpu's Vulkan backend does (no GPU needed), so a broken shader fails
+//! here with its name and the error's location, and one that trips naga's SPIR-V writer (a
+//! pointer to a member of a local struct passed to a function did) with its name.
 
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
@@ -25,10 +27,21 @@ fn every_shader_parses_and_validates() {
                 continue;
             }
         };
-        if let Err(e) =
-            Validator::new(ValidationFlags::all(), Capabilities::all()).validate(&module)
-        {
-            failures.push(format!("{name}: {}", e.emit_to_string(source)));
+        let info =
+            match Validator::new(ValidationFlags::all(), Capabilities::all()).validate(&module) {
+                Ok(info) => info,
+                Err(e) => {
+                    failures.push(format!("{name}: {}", e.emit_to_string(source)));
+                    continue;
+                }
+            };
+        let options = naga::back::spv::Options::default();
+        let spirv =
+            std::panic::catch_unwind(|| naga::back::spv::write_vec(&module, &info, &options, None));
+        match spirv {
+            Ok(Ok(_)) => {}
+            Ok(Err(e)) => failures.push(format!("{name}: SPIR-V: {e}")),
+            Err(_) => failures.push(format!("{name}: naga's SPIR-V writer panicked")),
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));

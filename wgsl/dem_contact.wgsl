@@ -1,8 +1,11 @@
 // The contact law of the granular GPU step (docs/method.md, "Contact laws", "Friction, rotation
 // and rolling resistance"): linear (one stiffness or per pair) or Hertz normal force, tangential
-// spring with Coulomb cap, torque, rolling resistance (EPSD or constant torque). Keep in sync with
+// force with Coulomb cap, torque, rolling resistance (EPSD or constant torque). Keep in sync with
 // src/dem/model/contact.rs, line for line: the same formulas in the same order, in f32. Needs
-// dem_params.wgsl prepended. Unlike the cpu step, which computes a pair from both sides, the GPU
+// dem_params.wgsl prepended and a tangential model: dem_tangential_mindlin.wgsl (Mindlin's
+// spring) or dem_tangential_md.wgsl (Mindlin–Deresiewicz), which define the springs a contact
+// keeps (`Springs`, `no_springs`), the history entry that holds them (`Entry`, `springs_from`,
+// `entry_of`) and the tangential force (`tangential_force`). Unlike the cpu step, which computes a pair from both sides, the GPU
 // steps compute it once, from its owner's side, and give the partner the negated force and its
 // own torque (what the cpu computes from the partner's side: its operations see exactly negated
 // inputs).
@@ -44,15 +47,11 @@ struct Body {
     m: f32,
 }
 
-// What a contact carries from one step to the next, as the sphere holding it sees it.
-struct Springs {
-    tangential: vec3<f32>,
-    rolling: vec3<f32>,
-}
-
-// The normal force's magnitude (positive pushes apart) and the normal stiffness.
+// The normal force's magnitude (positive pushes apart), its elastic part (no damping) and the
+// normal stiffness.
 struct Normal {
     push: f32,
+    elastic: f32,
     stiffness: f32,
 }
 
@@ -68,6 +67,21 @@ struct Touch {
     v_rel: vec3<f32>,   // velocity of i's surface relative to the partner's at the contact point
     w_rel: vec3<f32>,   // ω_i − ω_j (ω_i on a wall)
     on_wall: bool,
+}
+
+// What the tangential force of a contact needs besides its springs.
+struct Load {
+    k_t: f32,       // Mindlin's full tangential stiffness
+    c_t: f32,       // tangential damping coefficient
+    mu: f32,        // sliding friction coefficient
+    elastic: f32,   // elastic normal force N
+    pressing: f32,  // the normal force that caps the tangential one, max(push, 0)
+}
+
+// The tangential force on i and the springs it keeps (their rolling torque zero).
+struct Tangential {
+    force: vec3<f32>,
+    springs: Springs,
 }
 
 // What friction does: the tangential force on i, the rolling torque on i (the partner gets
@@ -112,17 +126,20 @@ fn length_of(v: vec3<f32>) -> f32 {
 fn normal_force(on_wall: bool, overlap: f32, vn: f32, m_eff: f32, r_eff: f32) -> Normal {
     if granular.law == LAW_LINEAR {
         let c = 2.0 * dem.damping_ratio * root_product(dem.stiffness, m_eff);
-        return Normal(dem.stiffness * overlap - c * vn, dem.stiffness);
+        let elastic = dem.stiffness * overlap;
+        return Normal(elastic - c * vn, elastic, dem.stiffness);
     }
     if granular.law == LAW_PER_PAIR {
         let k = m_eff * granular.rate;
         let c = 2.0 * dem.damping_ratio * root_product(k, m_eff);
-        return Normal(k * overlap - c * vn, k);
+        let elastic = k * overlap;
+        return Normal(elastic - c * vn, elastic, k);
     }
     let e_star = select(granular.pair_e_star, granular.wall_e_star, on_wall);
     let s_n = 2.0 * e_star * sqrt(r_eff * overlap);
     let c = TSUJI * dem.damping_ratio * root_product(s_n, m_eff);
-    return Normal(2.0 / 3.0 * s_n * overlap - c * vn, s_n);
+    let elastic = 2.0 / 3.0 * s_n * overlap;
+    return Normal(elastic - c * vn, elastic, s_n);
 }
 
 // `x` turned into the plane normal to `n`: its normal part removed, its length kept.
@@ -139,7 +156,8 @@ fn into_plane(x: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 fn friction(t: Touch, mu: f32, old: Springs) -> Friction {
     let n = t.n;
     let pressing = max(t.normal.push, 0.0);
-    var out = Friction(vec3(0.0), vec3(0.0), Springs(vec3(0.0), vec3(0.0)));
+    let elastic = t.normal.elastic;
+    var out = Friction(vec3(0.0), vec3(0.0), no_springs());
     if mu > 0.0 {
         var k_t: f32;
         var c_t: f32;
@@ -152,16 +170,9 @@ fn friction(t: Touch, mu: f32, old: Springs) -> Friction {
             c_t = 2.0 * dem.damping_ratio * root_product(k_t, t.m_eff);
         }
         let v_t = t.v_rel - dot3(t.v_rel, n) * n;
-        var xi = into_plane(old.tangential, n) + v_t * dem.dt;
-        var f_t = -k_t * xi - c_t * v_t;
-        let cap = mu * pressing;
-        let len = length_of(f_t);
-        if len > cap {
-            f_t *= cap / len;
-            xi = -f_t / k_t;
-        }
-        out.force = f_t;
-        out.springs.tangential = xi;
+        let tangential = tangential_force(Load(k_t, c_t, mu, elastic, pressing), n, v_t, old);
+        out.force = tangential.force;
+        out.springs = tangential.springs;
     }
     let mu_r = granular.rolling;
     if mu_r > 0.0 {
@@ -190,7 +201,7 @@ fn friction(t: Touch, mu: f32, old: Springs) -> Friction {
 
 // The contact of sphere i with sphere j from i's side, given the springs i kept of it (`old`).
 fn pair_contact(i: Body, j: Body, old: Springs) -> Contact {
-    var out = Contact(false, vec3(0.0), vec3(0.0), vec3(0.0), Springs(vec3(0.0), vec3(0.0)));
+    var out = Contact(false, vec3(0.0), vec3(0.0), vec3(0.0), no_springs());
     let d = j.c - i.c;
     let d2 = d.x * d.x + d.y * d.y + d.z * d.z;
     let reach = i.r + j.r;
@@ -253,7 +264,7 @@ fn surface_contact(
 ) -> SurfaceContact {
     // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
     let nf = normal_force(true, overlap, dot3(velocity - b.v, n), b.m, b.r);
-    var out = SurfaceContact(-nf.push * n, vec3(0.0), Springs(vec3(0.0), vec3(0.0)));
+    var out = SurfaceContact(-nf.push * n, vec3(0.0), no_springs());
     if granular.turns == 0u {
         return out;
     }

@@ -37,24 +37,24 @@ const FIRST_WALL: u32 = 0xfffffffau;
 @group(0) @binding(23) var<storage, read_write> held_new: array<u32>;
 // The most contacts with history any sphere had since the host cleared it.
 @group(0) @binding(24) var<storage, read_write> history_need: atomic<u32>;
-// per slot, as bits: the tangential spring ξ [m] x, y, z and the partner's stable id (or
-// FIRST_WALL + wall), then the rolling spring torque [N·m] x, y, z and 0
-@group(0) @binding(50) var<storage, read> entries_old0: array<array<vec4<u32>, 2>>;
-@group(0) @binding(51) var<storage, read> entries_old1: array<array<vec4<u32>, 2>>;
-@group(0) @binding(52) var<storage, read> entries_old2: array<array<vec4<u32>, 2>>;
-@group(0) @binding(53) var<storage, read> entries_old3: array<array<vec4<u32>, 2>>;
-@group(0) @binding(54) var<storage, read> entries_old4: array<array<vec4<u32>, 2>>;
-@group(0) @binding(55) var<storage, read> entries_old5: array<array<vec4<u32>, 2>>;
-@group(0) @binding(56) var<storage, read> entries_old6: array<array<vec4<u32>, 2>>;
-@group(0) @binding(57) var<storage, read> entries_old7: array<array<vec4<u32>, 2>>;
-@group(0) @binding(58) var<storage, read_write> entries_new0: array<array<vec4<u32>, 2>>;
-@group(0) @binding(59) var<storage, read_write> entries_new1: array<array<vec4<u32>, 2>>;
-@group(0) @binding(60) var<storage, read_write> entries_new2: array<array<vec4<u32>, 2>>;
-@group(0) @binding(61) var<storage, read_write> entries_new3: array<array<vec4<u32>, 2>>;
-@group(0) @binding(62) var<storage, read_write> entries_new4: array<array<vec4<u32>, 2>>;
-@group(0) @binding(63) var<storage, read_write> entries_new5: array<array<vec4<u32>, 2>>;
-@group(0) @binding(64) var<storage, read_write> entries_new6: array<array<vec4<u32>, 2>>;
-@group(0) @binding(65) var<storage, read_write> entries_new7: array<array<vec4<u32>, 2>>;
+// per slot, an Entry of the tangential model (dem_tangential_*.wgsl): the partner's stable id (or
+// FIRST_WALL + wall) in its first word's w, the springs as bits
+@group(0) @binding(50) var<storage, read> entries_old0: array<Entry>;
+@group(0) @binding(51) var<storage, read> entries_old1: array<Entry>;
+@group(0) @binding(52) var<storage, read> entries_old2: array<Entry>;
+@group(0) @binding(53) var<storage, read> entries_old3: array<Entry>;
+@group(0) @binding(54) var<storage, read> entries_old4: array<Entry>;
+@group(0) @binding(55) var<storage, read> entries_old5: array<Entry>;
+@group(0) @binding(56) var<storage, read> entries_old6: array<Entry>;
+@group(0) @binding(57) var<storage, read> entries_old7: array<Entry>;
+@group(0) @binding(58) var<storage, read_write> entries_new0: array<Entry>;
+@group(0) @binding(59) var<storage, read_write> entries_new1: array<Entry>;
+@group(0) @binding(60) var<storage, read_write> entries_new2: array<Entry>;
+@group(0) @binding(61) var<storage, read_write> entries_new3: array<Entry>;
+@group(0) @binding(62) var<storage, read_write> entries_new4: array<Entry>;
+@group(0) @binding(63) var<storage, read_write> entries_new5: array<Entry>;
+@group(0) @binding(64) var<storage, read_write> entries_new6: array<Entry>;
+@group(0) @binding(65) var<storage, read_write> entries_new7: array<Entry>;
 
 // Where a slot is: the entry binding and the element in it.
 struct SlotAt {
@@ -108,7 +108,7 @@ fn walker(p: u32, h: u32, s: vec4<f32>) -> Walker {
 }
 
 // The old entry at `at`.
-fn old_entry(at: SlotAt) -> array<vec4<u32>, 2> {
+fn old_entry(at: SlotAt) -> Entry {
     if at.part == 0u {
         return entries_old0[at.slot];
     }
@@ -131,16 +131,12 @@ fn old_partner(at: SlotAt) -> u32 {
 
 // The springs of the old entry at `at` times `sign`.
 fn springs_of(at: SlotAt, sign: f32) -> Springs {
-    let e = old_entry(at);
-    return Springs(sign * bitcast<vec3<f32>>(e[0].xyz), sign * bitcast<vec3<f32>>(e[1].xyz));
+    return springs_from(old_entry(at), sign);
 }
 
 // Writes the new entry at `at`: `partner` and its springs `s`.
 fn store_entry(at: SlotAt, partner: u32, s: Springs) {
-    let e = array(
-        vec4(bitcast<vec3<u32>>(s.tangential), partner),
-        vec4(bitcast<vec3<u32>>(s.rolling), 0u),
-    );
+    let e = entry_of(partner, s);
     if at.part == 0u {
         entries_new0[at.slot] = e;
         return;
@@ -197,7 +193,7 @@ fn old_springs(w: ptr<function, Walker>, q: u32, b: u32) -> Springs {
             return springs_of(theirs, -1.0);
         }
     }
-    return Springs(vec3(0.0), vec3(0.0));
+    return no_springs();
 }
 
 // The springs of the walker's contact with a wall (FIRST_WALL + wall); zero for a new contact.
@@ -206,7 +202,7 @@ fn old_wall_springs(w: ptr<function, Walker>, wall: u32) -> Springs {
     if own < (*w).kept {
         return own_old_springs(w, own);
     }
-    return Springs(vec3(0.0), vec3(0.0));
+    return no_springs();
 }
 
 // Keeps the contact with `partner` in the walker's next slot, where there is one; counts it.
@@ -241,7 +237,7 @@ fn meet(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
 fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) -> Contact {
     let u = vel[q];
     let other = Body(t.xyz, u.xyz, omega[q].xyz, t.w, u.w);
-    var old = Springs(vec3(0.0), vec3(0.0));
+    var old = no_springs();
     var b = 0u;   // q's stable id, where contacts keep history
     if granular.slots > 0u {
         b = stable_id(q);
@@ -282,7 +278,7 @@ fn finish(w: ptr<function, Walker>) {
                     continue;
                 }
                 let wall = 2u * axis + side;
-                var old = Springs(vec3(0.0), vec3(0.0));
+                var old = no_springs();
                 if granular.slots > 0u {
                     old = old_wall_springs(w, wall);
                 }

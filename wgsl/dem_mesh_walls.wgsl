@@ -249,7 +249,7 @@ fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, c
         let point = rotate(pose.q, q) + pose.offset;
         let n = rotate(pose.q, n_rest);
         let surface_velocity = pose.velocity + cross(pose.spin, point - pose.centre);
-        var old = Springs(vec3(0.0), vec3(0.0));
+        var old = no_springs();
         if granular.slots > 0u {
             let s = own_old_slot_from(w, partner, next_old);
             if s < (*w).kept {

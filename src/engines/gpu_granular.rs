@@ -7,8 +7,9 @@
 //! two sets of buffers that swap roles every step (the history's parity, apart from the state
 //! set: an engine with two sets moves its state into the other only at the steps that re-sort
 //! it; [`Turn`] names both). A slot is one 32-byte entry (the partner's
-//! stable id and the six springs: one memory sector, written whole), the entries split by row
-//! range over a few bindings where they do not fit one ([`EntrySplit`]). The engine keeps its
+//! stable id and the six springs: one memory sector, written whole; 64 bytes, two sectors, under
+//! the Mindlin–Deresiewicz model, whose entries hold the load history too), the entries split
+//! by row range over a few bindings where they do not fit one ([`EntrySplit`]). The engine keeps its
 //! own state (positions, velocities, the order of its spheres); this module saves both at the
 //! start of a batch, so that a batch in which some sphere had more contacts than K is redone
 //! from that state with K grown: no contact is ever dropped.
@@ -25,7 +26,9 @@ use crate::dem::walls::WallSet;
 use crate::error::{Error, Result, try_vec};
 use crate::gpu::Gpu;
 use crate::gpu::shader::Binding;
-use crate::particles::{ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles};
+use crate::particles::{
+    ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadEntry, Particles,
+};
 use std::ops::Range;
 
 /// Which of the granular state's buffers are meant: those in the order of the engine's state
@@ -98,12 +101,17 @@ const FIRST_SLOTS: u32 = 16;
 /// history, the need, and the mesh walls' four).
 const STORAGE_BUFFERS: u32 = 16 + 2 * ENTRY_PARTS as u32;
 
-/// A slot of the history as the GPU holds it, as bits: ξ x, y, z and the partner's stable id,
-/// then the rolling torque's x, y, z and 0 (`array<vec4<u32>, 2>`).
-type Entry = [u32; 8];
+/// Words of a slot of the history as the GPU holds it (`Entry` of `wgsl/dem_tangential_*.wgsl`),
+/// as bits: ξ x, y, z and the partner's stable id, then the rolling torque's x, y, z and 0;
+/// under the Mindlin–Deresiewicz model ([`LOADED_WORDS`]) the tangential force in ξ's place, the
+/// normal force in the rolling torque's w, then the reversal force x, y, z, and 5 words unused.
+const WORDS: usize = 8;
 
-/// Bytes of a slot.
-const ENTRY_BYTES: u64 = size_of::<Entry>() as u64;
+/// Words of a slot of the Mindlin–Deresiewicz model's history.
+const LOADED_WORDS: usize = 16;
+
+/// Bytes of a slot of Mindlin's spring (the smallest binding's).
+const ENTRY_BYTES: u64 = 4 * WORDS as u64;
 
 /// How the entries of the history of `n` spheres with `slots` slots each are split over the
 /// entry bindings: row r's slots in part r / `spheres_per_part`, the first part alone wherever
@@ -113,14 +121,16 @@ struct EntrySplit {
     n: u32,
     slots: u32,
     spheres_per_part: u32,
+    /// Bytes of a slot (32, or 64 under Mindlin–Deresiewicz).
+    entry_bytes: u64,
 }
 
 impl EntrySplit {
-    /// The split for bindings of at most `max` bytes; `Err` the most slots per sphere that fit
-    /// (the entries of whole rows in [`ENTRY_PARTS`] bindings).
-    fn within(max: u64, n: u32, slots: u32) -> std::result::Result<Self, u64> {
+    /// The split for bindings of at most `max` bytes, slots of `entry_bytes`; `Err` the most
+    /// slots per sphere that fit (the entries of whole rows in [`ENTRY_PARTS`] bindings).
+    fn within(max: u64, n: u32, slots: u32, entry_bytes: u64) -> std::result::Result<Self, u64> {
         let (n64, k) = (n as u64, slots as u64);
-        let per_sphere = k * ENTRY_BYTES;
+        let per_sphere = k * entry_bytes;
         let spheres_per_part = match per_sphere {
             0 => n64,
             _ => (max / per_sphere).min(n64),
@@ -128,13 +138,19 @@ impl EntrySplit {
         .max(1);
         let fits = per_sphere <= max && n64.div_ceil(spheres_per_part) <= ENTRY_PARTS as u64;
         if !fits {
-            return Err(max / (n64.div_ceil(ENTRY_PARTS as u64) * ENTRY_BYTES).max(1));
+            return Err(max / (n64.div_ceil(ENTRY_PARTS as u64) * entry_bytes).max(1));
         }
         Ok(EntrySplit {
             n,
             slots,
             spheres_per_part: spheres_per_part as u32,
+            entry_bytes,
         })
+    }
+
+    /// Words of a slot.
+    fn width(&self) -> usize {
+        self.entry_bytes as usize / 4
     }
 
     /// Entry bindings in use (at least one).
@@ -151,7 +167,7 @@ impl EntrySplit {
 
     /// Bytes of part `part` (at least one slot's, the smallest binding).
     fn part_bytes(&self, part: usize) -> u64 {
-        (self.slots_of(part).len() as u64 * ENTRY_BYTES).max(ENTRY_BYTES)
+        (self.slots_of(part).len() as u64 * self.entry_bytes).max(self.entry_bytes)
     }
 }
 
@@ -188,11 +204,12 @@ impl History {
     fn write(&self, gpu: &Gpu, split: &EntrySplit, slots: &Slots) {
         for (part, buffer) in self.parts.iter().enumerate() {
             let range = split.slots_of(part);
-            let end = range.end.min(slots.entries.len());
+            let w = slots.width;
+            let end = range.end.min(slots.len());
             if range.start < end {
-                let entries = &slots.entries[range.start..end];
+                let words = &slots.words[range.start * w..end * w];
                 gpu.queue
-                    .write_buffer(buffer, 0, bytemuck::cast_slice(entries));
+                    .write_buffer(buffer, 0, bytemuck::cast_slice(words));
             }
         }
     }
@@ -201,56 +218,92 @@ impl History {
 /// The slots of the first `rows` rows of `split` from `parts` (as [`History::parts`]).
 fn read_slots(gpu: &Gpu, parts: &[wgpu::Buffer], split: &EntrySplit, rows: u32) -> Result<Slots> {
     let count = rows.min(split.n) as usize * split.slots as usize;
-    let mut entries = try_vec(count, || format!("the contact history of {rows} spheres"))?;
+    let w = split.width();
+    let mut words = try_vec(count * w, || {
+        format!("the contact history of {rows} spheres")
+    })?;
     for (part, buffer) in parts.iter().enumerate() {
         let range = split.slots_of(part);
         let wanted = range.end.min(count).saturating_sub(range.start);
         if wanted > 0 {
-            entries.extend(gpu.read::<Entry>(buffer, wanted)?);
+            words.extend(gpu.read::<u32>(buffer, wanted * w)?);
         }
     }
-    Ok(Slots { entries })
+    Ok(Slots { words, width: w })
 }
 
-/// History slots in the GPU's layout, on the host.
+/// History slots in the GPU's layout, on the host: `width` words each ([`WORDS`], or
+/// [`LOADED_WORDS`] with the load history).
 #[derive(Debug, Default, PartialEq)]
 struct Slots {
-    entries: Vec<Entry>,
+    words: Vec<u32>,
+    width: usize,
 }
 
 impl Slots {
-    /// `count` empty slots.
-    fn empty(count: usize, n: usize) -> Result<Self> {
-        let mut entries = try_vec(count, || format!("the contact history of {n} spheres"))?;
-        entries.resize(count, [0; 8]);
-        Ok(Slots { entries })
+    /// `count` empty slots of `width` words.
+    fn empty(count: usize, n: usize, width: usize) -> Result<Self> {
+        let mut words = try_vec(count * width, || {
+            format!("the contact history of {n} spheres")
+        })?;
+        words.resize(count * width, 0);
+        Ok(Slots { words, width })
     }
 
-    fn set(&mut self, slot: usize, e: &HistoryEntry) {
+    /// Slots held.
+    fn len(&self) -> usize {
+        self.words.len() / self.width.max(1)
+    }
+
+    /// The words of slot `slot`.
+    fn slot(&mut self, slot: usize) -> &mut [u32] {
+        &mut self.words[slot * self.width..(slot + 1) * self.width]
+    }
+
+    /// Writes entry `e` with its load history `load` (kept only in slots that hold one).
+    fn set(&mut self, slot: usize, e: &HistoryEntry, load: &LoadEntry) {
         let [x, y, z] = e.tangential.map(f32::to_bits);
         let [u, v, w] = e.rolling.map(f32::to_bits);
-        self.entries[slot] = [x, y, z, e.partner, u, v, w, 0];
+        let loaded = self.width == LOADED_WORDS;
+        let at = self.slot(slot);
+        at[..WORDS].copy_from_slice(&[x, y, z, e.partner, u, v, w, 0]);
+        if loaded {
+            at[7] = load.normal.to_bits();
+            let [a, b, c] = load.reversal.map(f32::to_bits);
+            at[WORDS..WORDS + 4].copy_from_slice(&[a, b, c, 0]);
+        }
     }
 
-    fn get(&self, slot: usize) -> HistoryEntry {
-        let [x, y, z, partner, u, v, w, _] = self.entries[slot];
-        HistoryEntry {
-            partner,
-            tangential: [x, y, z].map(f32::from_bits),
-            rolling: [u, v, w].map(f32::from_bits),
-        }
+    /// The entry in slot `slot` and its load history (zero where slots hold none).
+    fn get(&self, slot: usize) -> (HistoryEntry, LoadEntry) {
+        let at = &self.words[slot * self.width..(slot + 1) * self.width];
+        let f = |k: usize| f32::from_bits(at[k]);
+        let entry = HistoryEntry {
+            partner: at[3],
+            tangential: [f(0), f(1), f(2)],
+            rolling: [f(4), f(5), f(6)],
+        };
+        let load = match self.width == LOADED_WORDS {
+            true => LoadEntry {
+                reversal: [f(8), f(9), f(10)],
+                normal: f(7),
+            },
+            false => LoadEntry::default(),
+        };
+        (entry, load)
     }
 
     /// Each row's partners renamed by `name` (`k` slots a row, `held` of them in use), the
     /// entries of a partner with no name dropped.
     fn rename(&mut self, held: &mut [u32], k: usize, name: impl Fn(u32) -> Option<u32>) {
+        let w = self.width;
         for (i, count) in held.iter_mut().enumerate() {
             let mut kept = 0;
             for s in 0..*count as usize {
-                let mut e = self.entries[i * k + s];
-                if let Some(partner) = name(e[3]) {
-                    e[3] = partner;
-                    self.entries[i * k + kept] = e;
+                let from = (i * k + s) * w;
+                if let Some(partner) = name(self.words[from + 3]) {
+                    self.words[from + 3] = partner;
+                    self.words.copy_within(from..from + w, (i * k + kept) * w);
                     kept += 1;
                 }
             }
@@ -267,12 +320,15 @@ impl Slots {
         to: usize,
         row: impl Fn(usize) -> usize,
     ) -> Result<Self> {
-        let n = held.len();
-        let mut moved = Self::empty(n * to, n)?;
+        let (n, w) = (held.len(), self.width);
+        let mut moved = Self::empty(n * to, n, w)?;
         for (i, &c) in held.iter().enumerate() {
             let r = row(i);
-            let (old, new) = (i * from..i * from + c as usize, r * to..r * to + c as usize);
-            moved.entries[new].copy_from_slice(&self.entries[old]);
+            let (old, new) = (
+                i * from * w..(i * from + c as usize) * w,
+                r * to * w..(r * to + c as usize) * w,
+            );
+            moved.words[new].copy_from_slice(&self.words[old]);
         }
         Ok(moved)
     }
@@ -382,7 +438,11 @@ impl Granular {
             false => 0,
         };
         let n = n64 as u32;
-        let split = entry_split(gpu, rows as u32, slots, engine)?;
+        let entry_bytes = match f.keeps_load() {
+            true => 4 * LOADED_WORDS as u64,
+            false => ENTRY_BYTES,
+        };
+        let split = entry_split(gpu, rows as u32, slots, entry_bytes, engine)?;
         let gpu_params = GranularParams {
             law,
             rate,
@@ -415,8 +475,8 @@ impl Granular {
             history: [0, 1].map(|k| History::new(gpu, engine, k, &split)),
             split,
             spare: [
-                make("entries_spare_old", ENTRY_BYTES),
-                make("entries_spare_new", ENTRY_BYTES),
+                make("entries_spare_old", entry_bytes),
+                make("entries_spare_new", entry_bytes),
             ],
             held: [make("held0", rows * 4), make("held1", rows * 4)],
             came_from: make("came_from", if sets == 2 { rows * 4 } else { 4 }),
@@ -440,7 +500,12 @@ impl Granular {
             .write_buffer(&granular.omega[0], 0, bytemuck::cast_slice(&omega));
         // New buffers are zeroed: an empty history needs no upload.
         if keeps && !particles.history.is_empty() {
-            let (slots, held) = lay_out(&particles.history, &particles.radii, slots as usize)?;
+            let (slots, held) = lay_out(
+                &particles.history,
+                &particles.radii,
+                slots as usize,
+                split.width(),
+            )?;
             granular.history[0].write(gpu, &split, &slots);
             gpu.queue
                 .write_buffer(&granular.held[0], 0, bytemuck::cast_slice(&held));
@@ -542,7 +607,7 @@ impl Granular {
     pub fn describe_history(&self) -> Option<String> {
         let slots = self.params.slots as u64;
         self.keeps_history().then(|| {
-            let bytes = 2 * (slots * ENTRY_BYTES + size_of::<u32>() as u64);
+            let bytes = 2 * (slots * self.split.entry_bytes + size_of::<u32>() as u64);
             format!("history {slots} slots a sphere, {bytes} B a sphere")
         })
     }
@@ -617,7 +682,7 @@ impl Granular {
         let engine = self.engine;
         let (n, old) = (self.n as usize, self.split);
         let slots = need.saturating_add(need / 4);
-        let split = entry_split(gpu, old.n, slots, engine)?;
+        let split = entry_split(gpu, old.n, slots, old.entry_bytes, engine)?;
         // The saved copies: the old history's buffers, its counts, then the rest.
         let fields = old.parts();
         let held: Vec<u32> = gpu.read(&self.saved[fields], n)?;
@@ -669,15 +734,16 @@ impl Granular {
         move_rows(encoder, scratch, moves, 4, |r| (held, r as u64 * 4));
         let (per, k) = (self.split.spheres_per_part, self.params.slots as u64);
         let parts = &self.history[parity].parts;
-        move_rows(encoder, scratch, moves, k * ENTRY_BYTES, |r| {
+        let entry = self.split.entry_bytes;
+        move_rows(encoder, scratch, moves, k * entry, |r| {
             let part = (r / per) as usize;
-            (&parts[part], (r % per) as u64 * k * ENTRY_BYTES)
+            (&parts[part], (r % per) as u64 * k * entry)
         });
     }
 
     /// Bytes of the longest row [`move_rows`](Self::move_rows) moves.
     pub fn row_bytes(&self) -> u64 {
-        (self.params.slots as u64 * ENTRY_BYTES).max(16)
+        (self.params.slots as u64 * self.split.entry_bytes).max(16)
     }
 
     /// Forgets the last `k` rows (the engine moved the rows it keeps before them).
@@ -720,22 +786,34 @@ impl Granular {
     }
 }
 
-/// The split of the history of `n` spheres with `slots` slots each over the bindings of `gpu`
-/// ([`EntrySplit`]), or [`Error::TooLarge`] naming the most slots that fit.
-fn entry_split(gpu: &Gpu, n: u32, slots: u32, engine: &str) -> Result<EntrySplit> {
+/// The split of the history of `n` spheres with `slots` slots each of `entry_bytes` over the
+/// bindings of `gpu` ([`EntrySplit`]), or [`Error::TooLarge`] naming the most slots that fit.
+fn entry_split(
+    gpu: &Gpu,
+    n: u32,
+    slots: u32,
+    entry_bytes: u64,
+    engine: &str,
+) -> Result<EntrySplit> {
     let max = gpu
         .limits
         .max_storage_buffer_binding_size
         .min(gpu.limits.max_buffer_size);
     let place = format!("the {engine} DEM of {}", gpu.info.name);
-    split_or_refuse(max, n, slots, &place)
+    split_or_refuse(max, n, slots, entry_bytes, &place)
 }
 
 /// [`EntrySplit::within`] as the error [`entry_split`] gives on `place`.
-fn split_or_refuse(max: u64, n: u32, slots: u32, place: &str) -> Result<EntrySplit> {
-    EntrySplit::within(max, n, slots).map_err(|limit| Error::TooLarge {
+fn split_or_refuse(
+    max: u64,
+    n: u32,
+    slots: u32,
+    entry_bytes: u64,
+    place: &str,
+) -> Result<EntrySplit> {
+    EntrySplit::within(max, n, slots, entry_bytes).map_err(|limit| Error::TooLarge {
         what: format!(
-            "contact history slots per sphere for {n} spheres on {place} ({ENTRY_BYTES} bytes \
+            "contact history slots per sphere for {n} spheres on {place} ({entry_bytes} bytes \
              per slot, whole spheres' slots in at most {ENTRY_PARTS} bindings of {max} bytes)"
         ),
         got: slots as u64,
@@ -752,8 +830,8 @@ fn owned<'a>(
     history: &'a ContactHistory,
     radii: &'a [f32],
     i: usize,
-) -> impl Iterator<Item = &'a HistoryEntry> + 'a {
-    history.of(i).iter().filter(move |e| {
+) -> impl Iterator<Item = (usize, &'a HistoryEntry)> + 'a {
+    history.of(i).iter().enumerate().filter(move |(_, e)| {
         let j = e.partner as usize;
         j >= radii.len()
             || (radii[i], i) < (radii[j], j)
@@ -770,15 +848,23 @@ fn most_owned(history: &ContactHistory, radii: &[f32]) -> usize {
 }
 
 /// The contacts of `history` the spheres of `radii` keep ([`owned`]) laid out in `slots` slots
-/// per sphere, and the count of each.
-fn lay_out(history: &ContactHistory, radii: &[f32], slots: usize) -> Result<(Slots, Vec<u32>)> {
+/// of `width` words per sphere (with their load histories where the slots hold them), and the
+/// count of each.
+fn lay_out(
+    history: &ContactHistory,
+    radii: &[f32],
+    slots: usize,
+    width: usize,
+) -> Result<(Slots, Vec<u32>)> {
     let n = radii.len();
-    let mut laid_out = Slots::empty(n * slots, n)?;
+    let mut laid_out = Slots::empty(n * slots, n, width)?;
     let mut held = try_vec(n, || format!("the contact history of {n} spheres"))?;
     for i in 0..n {
+        let loads = history.loads_of(i);
         let mut count = 0;
-        for (s, e) in owned(history, radii, i).enumerate() {
-            laid_out.set(i * slots + s, e);
+        for (s, (k, e)) in owned(history, radii, i).enumerate() {
+            let load = loads.get(k).copied().unwrap_or_default();
+            laid_out.set(i * slots + s, e, &load);
             count += 1;
         }
         held.push(count);
@@ -791,23 +877,31 @@ fn lay_out(history: &ContactHistory, radii: &[f32], slots: usize) -> Result<(Slo
 /// partner holds it already, as an uploaded history does before the first step).
 fn both_sides(n: usize, slots: usize, held: &[u32], laid_out: &Slots) -> Result<ContactHistory> {
     let own = |i: usize| (i * slots..i * slots + held[i] as usize).map(|s| laid_out.get(s));
-    let mut contacts = Vec::new();
+    let (mut contacts, mut loads) = (Vec::new(), Vec::new());
     for i in 0..n {
-        for e in own(i) {
+        for (e, load) in own(i) {
             contacts.push((i as u32, e));
+            loads.push(load);
             let j = e.partner;
             // Partners from n on are walls (box or mesh).
-            if (j as usize) < n && !own(j as usize).any(|back| back.partner == i as u32) {
+            if (j as usize) < n && !own(j as usize).any(|(back, _)| back.partner == i as u32) {
                 let negated = HistoryEntry {
                     partner: i as u32,
                     tangential: e.tangential.map(|x| -x),
                     rolling: e.rolling.map(|x| -x),
                 };
                 contacts.push((j, negated));
+                loads.push(LoadEntry {
+                    reversal: load.reversal.map(|x| -x),
+                    normal: load.normal,
+                });
             }
         }
     }
-    ContactHistory::from_contacts(n, &contacts)
+    if laid_out.width != LOADED_WORDS {
+        loads.clear();
+    }
+    ContactHistory::from_contacts_with_loads(n, &contacts, &loads)
 }
 
 #[cfg(test)]
@@ -823,9 +917,9 @@ mod tests {
     }
 
     fn laid_out(entries: &[HistoryEntry]) -> Slots {
-        let mut laid_out = Slots::empty(entries.len(), 1).unwrap();
+        let mut laid_out = Slots::empty(entries.len(), 1, WORDS).unwrap();
         for (s, e) in entries.iter().enumerate() {
-            laid_out.set(s, e);
+            laid_out.set(s, e, &LoadEntry::default());
         }
         laid_out
     }
@@ -835,21 +929,27 @@ mod tests {
         // wgpu's largest storage binding on the H100 (docs/PERFORMANCE.md).
         let max = 2_147_483_644;
         // 1M spheres at K = 16: 512 MB of entries, one binding.
-        let one = EntrySplit::within(max, 1_000_000, FIRST_SLOTS).unwrap();
+        let one = EntrySplit::within(max, 1_000_000, FIRST_SLOTS, ENTRY_BYTES).unwrap();
         assert_eq!((one.parts(), one.spheres_per_part), (1, 1_000_000));
         assert_eq!(one.slots_of(0), 0..16_000_000);
         assert_eq!(one.part_bytes(0), 512_000_000);
         // 20M at K = 16: 10.24 GB, 512 bytes a sphere, in five bindings.
         let n = 20_000_000;
-        let five = EntrySplit::within(max, n, FIRST_SLOTS).unwrap();
+        let five = EntrySplit::within(max, n, FIRST_SLOTS, ENTRY_BYTES).unwrap();
         assert_eq!((five.parts(), five.spheres_per_part), (5, 4_194_303));
         assert_eq!(five.slots_of(4), 4 * 4_194_303 * 16..n as usize * 16);
         assert!((0..5).all(|b| five.part_bytes(b) <= max));
         // Grown by a quarter from 20 contacts, as a settled pile's worst sphere may need.
-        assert_eq!(EntrySplit::within(max, n, 25).unwrap().parts(), 8);
+        assert_eq!(
+            EntrySplit::within(max, n, 25, ENTRY_BYTES).unwrap().parts(),
+            8
+        );
         // Eight bindings hold 26 slots a sphere.
-        assert_eq!(EntrySplit::within(max, n, 26).unwrap().parts(), 8);
-        let refused = split_or_refuse(max, n, 27, "an H100").unwrap_err();
+        assert_eq!(
+            EntrySplit::within(max, n, 26, ENTRY_BYTES).unwrap().parts(),
+            8
+        );
+        let refused = split_or_refuse(max, n, 27, ENTRY_BYTES, "an H100").unwrap_err();
         assert!(
             matches!(
                 refused,
@@ -864,24 +964,71 @@ mod tests {
         assert!(refused.to_string().contains("exceeds the limit of 26"));
         // Where whole rows leave the bindings short first: 9 spheres, bindings of 1000 bytes
         // (two rows of 15 slots each, but one of 16).
-        assert_eq!(EntrySplit::within(1000, 9, 15).unwrap().parts(), 5);
-        assert_eq!(EntrySplit::within(1000, 9, 16), Err(15));
+        assert_eq!(
+            EntrySplit::within(1000, 9, 15, ENTRY_BYTES)
+                .unwrap()
+                .parts(),
+            5
+        );
+        assert_eq!(EntrySplit::within(1000, 9, 16, ENTRY_BYTES), Err(15));
         // No history: one smallest binding.
-        let none = EntrySplit::within(max, 0, 0).unwrap();
+        let none = EntrySplit::within(max, 0, 0, ENTRY_BYTES).unwrap();
         assert_eq!((none.parts(), none.part_bytes(0)), (1, ENTRY_BYTES));
     }
 
     #[test]
     fn an_entry_keeps_its_partner_and_springs_bit_for_bit() {
-        let mut laid_out = Slots::empty(2, 1).unwrap();
         let wall = HistoryEntry {
             partner: FIRST_WALL + 5,
             tangential: [f32::MIN_POSITIVE, -0.0, 1e-30],
             rolling: [-3.5, f32::MAX, 0.25],
         };
-        laid_out.set(1, &wall);
-        assert_eq!(laid_out.get(1), wall);
-        assert_eq!(laid_out.get(0), HistoryEntry::default());
+        let load = LoadEntry {
+            reversal: [1e-20, -2.0, f32::MIN_POSITIVE],
+            normal: 7.5,
+        };
+        let none = (HistoryEntry::default(), LoadEntry::default());
+        // Mindlin's spring: no load history kept.
+        let mut laid_out = Slots::empty(2, 1, WORDS).unwrap();
+        laid_out.set(1, &wall, &load);
+        assert_eq!(laid_out.get(1), (wall, LoadEntry::default()));
+        assert_eq!(laid_out.get(0), none);
+        // Mindlin–Deresiewicz: twice the words, the load history kept.
+        let mut laid_out = Slots::empty(2, 1, LOADED_WORDS).unwrap();
+        laid_out.set(1, &wall, &load);
+        assert_eq!(laid_out.get(1), (wall, load));
+        assert_eq!(laid_out.get(0), none);
+        // The 64-byte entries halve the rows a binding holds.
+        let max = 2_147_483_644;
+        let loaded = EntrySplit::within(max, 1_000_000, FIRST_SLOTS, 64).unwrap();
+        assert_eq!((loaded.parts(), loaded.part_bytes(0)), (1, 1_024_000_000));
+        assert_eq!(
+            EntrySplit::within(max, 20_000_000, 13, 64).unwrap().parts(),
+            8
+        );
+        assert!(EntrySplit::within(max, 20_000_000, 14, 64).is_err());
+    }
+
+    #[test]
+    fn load_histories_read_back_on_both_sides_with_their_reversal_negated() {
+        let mut laid_out = Slots::empty(2, 1, LOADED_WORDS).unwrap();
+        let load = LoadEntry {
+            reversal: [0.5, -0.25, 0.0],
+            normal: 3.0,
+        };
+        laid_out.set(0, &entry(1, 1.0), &load);
+        let h = both_sides(2, 1, &[1, 0], &laid_out).unwrap();
+        assert_eq!(h.loads_of(0), &[load]);
+        let mirrored = LoadEntry {
+            reversal: [-0.5, 0.25, -0.0],
+            normal: 3.0,
+        };
+        assert_eq!(h.of(1), &[entry(0, -1.0)]);
+        assert_eq!(h.loads_of(1), &[mirrored]);
+        // Laid out again from the cpu's layout: the owner's entry and load history.
+        let (again, held) = lay_out(&h, &[1.0; 2], 1, LOADED_WORDS).unwrap();
+        assert_eq!(held, [1, 0]);
+        assert_eq!(again.get(0), (entry(1, 1.0), load));
     }
 
     #[test]
@@ -905,13 +1052,13 @@ mod tests {
         let h =
             ContactHistory::from_contacts(2, &[(1, entry(0, 1.0)), (1, entry(FIRST_WALL, 2.0))])
                 .unwrap();
-        let (laid_out, held) = lay_out(&h, &[1.0; 2], 4).unwrap();
+        let (laid_out, held) = lay_out(&h, &[1.0; 2], 4, WORDS).unwrap();
         assert_eq!(held, [0, 2]);
         assert_eq!(
-            [laid_out.get(4), laid_out.get(5)],
+            [laid_out.get(4).0, laid_out.get(5).0],
             [entry(0, 1.0), entry(FIRST_WALL, 2.0)]
         );
-        assert_eq!(laid_out.get(6), HistoryEntry::default());
+        assert_eq!(laid_out.get(6).0, HistoryEntry::default());
         assert_eq!(
             both_sides(2, 4, &held, &laid_out).unwrap().of(0),
             &[entry(1, -1.0)]
@@ -936,11 +1083,11 @@ mod tests {
         .unwrap();
         let radii = [2.0, 1.0, 2.0];
         assert_eq!(most_owned(&h, &radii), 3);
-        let (laid_out, held) = lay_out(&h, &radii, 3).unwrap();
+        let (laid_out, held) = lay_out(&h, &radii, 3, WORDS).unwrap();
         assert_eq!(held, [1, 3, 0]);
-        assert_eq!(laid_out.get(0), entry(2, 4.0));
+        assert_eq!(laid_out.get(0).0, entry(2, 4.0));
         assert_eq!(
-            [laid_out.get(3), laid_out.get(4), laid_out.get(5)],
+            [laid_out.get(3).0, laid_out.get(4).0, laid_out.get(5).0],
             [entry(0, -1.0), entry(2, -2.0), entry(FIRST_WALL, 3.0)]
         );
         // Read back, each sphere holds what it was given (in another order).

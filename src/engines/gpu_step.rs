@@ -54,12 +54,17 @@ pub(crate) mod physics {
         format!("{PARAMS}{PER_PAIR}{INTEGRATE}{}", atomics.force)
     }
 
-    /// The physics that ends the granular step module, with the accumulators `atomics`.
-    pub fn granular(atomics: Accumulators) -> String {
+    /// The physics that ends the granular step module, with the accumulators `atomics`, under
+    /// the tangential model of `variant` (the granular one or its Mindlin–Deresiewicz twin).
+    pub fn granular(atomics: Accumulators, variant: super::Variant) -> String {
         let (contact, state) = (super::granular::CONTACT, super::granular::STATE);
+        let tangential = match variant {
+            super::Variant::Loaded => super::granular::LOAD_HISTORY,
+            _ => super::granular::SPRING,
+        };
         let walls = crate::engines::gpu_walls::SOURCE;
         format!(
-            "{PARAMS}{contact}{state}{walls}{}{}",
+            "{PARAMS}{tangential}{contact}{state}{walls}{}{}",
             atomics.force, atomics.torque
         )
     }
@@ -97,8 +102,11 @@ pub(crate) enum Variant {
     /// (`wgsl/dem_physics_per_pair.wgsl`): `stiffness = "per-pair"` without friction, rolling
     /// resistance, spin or history.
     PerPair,
-    /// The granular step ([`Granular`]).
+    /// The granular step ([`Granular`]) with Mindlin's spring.
     Granular,
+    /// The granular step under the Mindlin–Deresiewicz tangential model: its law, and its load
+    /// history in entries of twice the size (`wgsl/dem_tangential_md.wgsl`).
+    Loaded,
 }
 
 impl Variant {
@@ -113,8 +121,14 @@ impl Variant {
             && walls.is_box_only();
         match params.law {
             NormalLaw::LinearPerPair { .. } if frictionless => Variant::PerPair,
+            _ if params.friction.keeps_load() => Variant::Loaded,
             _ => Variant::Granular,
         }
+    }
+
+    /// Whether it is a variant of the granular step.
+    pub fn granular(self) -> bool {
+        matches!(self, Variant::Granular | Variant::Loaded)
     }
 }
 
@@ -213,6 +227,10 @@ pub(crate) mod granular {
     pub const CONTACT: &str = include_str!("../../wgsl/dem_contact.wgsl");
     /// `wgsl/dem_granular.wgsl`.
     pub const STATE: &str = include_str!("../../wgsl/dem_granular.wgsl");
+    /// `wgsl/dem_tangential_mindlin.wgsl`: Mindlin's spring (`Variant::Granular`).
+    pub const SPRING: &str = include_str!("../../wgsl/dem_tangential_mindlin.wgsl");
+    /// `wgsl/dem_tangential_md.wgsl`: Mindlin–Deresiewicz (`Variant::Loaded`).
+    pub const LOAD_HISTORY: &str = include_str!("../../wgsl/dem_tangential_md.wgsl");
 
     pub const GRANULAR: Binding = Binding::uniform(17, "granular");
     pub const OMEGA: Binding = Binding::read_write(18, "omega");
@@ -591,7 +609,8 @@ impl DemModule {
         }
         let (atomics, accumulators, lanes) = kernels.pick(gpu);
         let variant = Variant::of(particles, params, walls);
-        let granular = (variant == Variant::Granular)
+        let granular = variant
+            .granular()
             .then(|| Granular::new(gpu, particles, params, walls, backend, (sets, room)))
             .transpose()?;
         let per_pair = match params.law {

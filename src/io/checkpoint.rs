@@ -404,7 +404,8 @@ mod tests {
             normal: 3.0 * x.abs(),
         };
         let p = sample();
-        let contacts: Vec<(u32, HistoryEntry)> = p.history.contacts().map(|(o, e)| (o, *e)).collect();
+        let contacts: Vec<(u32, HistoryEntry)> =
+            p.history.contacts().map(|(o, e)| (o, *e)).collect();
         let loads = [load(1e-3), load(-1e-3), load(0.25)];
         Particles {
             history: ContactHistory::from_contacts_with_loads(2, &contacts, &loads).unwrap(),
@@ -423,7 +424,13 @@ mod tests {
         assert_ne!(c.particles, sample());
         // Without, the file is 8 bytes (the count) longer than version 4's.
         write_checkpoint(&path, &sample(), "x", "").unwrap();
-        assert!(!read_checkpoint(&path).unwrap().particles.history.has_loads());
+        assert!(
+            !read_checkpoint(&path)
+                .unwrap()
+                .particles
+                .history
+                .has_loads()
+        );
     }
 
     #[test]
@@ -439,7 +446,10 @@ mod tests {
         v4.extend_from_slice(&crc.to_le_bytes());
         std::fs::write(&path, &v4).unwrap();
         let read = read_checkpoint(&path).unwrap();
-        assert_eq!((read.particles, read.state.as_str()), (sample(), "[flow]\n"));
+        assert_eq!(
+            (read.particles, read.state.as_str()),
+            (sample(), "[flow]\n")
+        );
     }
 
     #[test]

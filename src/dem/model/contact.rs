@@ -447,7 +447,11 @@ fn load_history(load: &Load, n: Vec3, v_t: Vec3, old: &Springs, springs: &mut Sp
     if r != Vec3::ZERO {
         let size = length(r);
         let grown = size + mu * dn;
-        r = if grown > 0.0 { r * (grown / size) } else { Vec3::ZERO };
+        r = if grown > 0.0 {
+            r * (grown / size)
+        } else {
+            Vec3::ZERO
+        };
     }
     let c = if r != Vec3::ZERO { 2.0 } else { 1.0 };
     let scale = c * mu * load.elastic;

@@ -225,15 +225,23 @@ impl CpuStepper {
                 self.sorted_history.resize(entries, HistoryEntry::default());
                 self.sorted_loads.clear();
                 if loaded {
-                    try_resize(&mut self.sorted_loads, entries, LoadEntry::default(), || {
-                        format!("the load history of {n} spheres ({slots} contacts each)")
-                    })?;
+                    try_resize(
+                        &mut self.sorted_loads,
+                        entries,
+                        LoadEntry::default(),
+                        || format!("the load history of {n} spheres ({slots} contacts each)"),
+                    )?;
                 }
                 let (sums, side) = (&mut self.sums, &mut self.sorted_history);
                 let loads = &mut self.sorted_loads;
-                gather_with_side(&self.grid, sums, side, loads, slots, |at, runs, held, lh| {
-                    pass.sphere(at, runs, held, lh)
-                });
+                gather_with_side(
+                    &self.grid,
+                    sums,
+                    side,
+                    loads,
+                    slots,
+                    |at, runs, held, lh| pass.sphere(at, runs, held, lh),
+                );
                 let most = self.sums.iter().map(|s| s.held).max().unwrap_or(0) as usize;
                 if most <= slots {
                     break;

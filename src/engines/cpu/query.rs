@@ -234,7 +234,10 @@ pub(crate) fn gather_with_side<T, S, L, F>(
     let n = grid.keys.len();
     assert_eq!(out.len(), n, "one output slot per sphere");
     assert_eq!(side.len(), n * width, "`width` side entries per sphere");
-    assert!(loads.is_empty() || loads.len() == side.len(), "loads beside the entries");
+    assert!(
+        loads.is_empty() || loads.len() == side.len(),
+        "loads beside the entries"
+    );
     let chunks = n.div_ceil(CHUNK);
     out.par_chunks_mut(CHUNK)
         .zip(side.par_chunks_mut(CHUNK * width))

@@ -4,9 +4,9 @@
 //! sphere's sum and keeps its entries. Per-wall loads are summed per fixed chunk of spheres and
 //! the chunks in order, so they depend on the state alone, not on the threads.
 
-use crate::dem::model::StepParams;
 use super::dem::springs_of;
 use super::query::chunks_or_none;
+use crate::dem::model::StepParams;
 use crate::dem::model::contact::{Body, Springs, surface_contact};
 use crate::dem::walls::{Pose, Touches, WallLoad, WallSet, mesh_partner, touches};
 use crate::error::{Error, Result, try_resize};

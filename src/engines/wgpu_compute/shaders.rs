@@ -3,7 +3,7 @@
 //! `tests/bindings.rs`.
 
 use super::layout::{BuildKind, GridParams};
-use crate::engines::gpu_step::{self, granular, physics};
+use crate::engines::gpu_step::{self, Variant, granular, physics};
 use crate::gpu::pair_output;
 use crate::gpu::shader::{Binding, SharedStruct, WgslModule, shared_struct, wgsl};
 
@@ -197,12 +197,18 @@ pub(crate) mod dem_grid {
         format!("{grid}{FRICTIONLESS}{}", physics::per_pair(atomics))
     }
 
-    /// The granular step binned by `build` with the accumulators `atomics`, its contacts shared
-    /// among `lanes`.
-    pub fn granular_source(build: BuildKind, atomics: Accumulators, lanes: Lanes) -> String {
+    /// The granular step (`variant`: Mindlin's spring or Mindlin–Deresiewicz) binned by
+    /// `build` with the accumulators `atomics`, its contacts shared among `lanes`.
+    pub fn granular_source(
+        build: BuildKind,
+        atomics: Accumulators,
+        lanes: Lanes,
+        variant: Variant,
+    ) -> String {
         let grid = grid(build);
         let lanes = lanes.source();
-        format!("{grid}{lanes}{GRANULAR}{}", physics::granular(atomics))
+        let physics = physics::granular(atomics, variant);
+        format!("{grid}{lanes}{GRANULAR}{physics}")
     }
 
     /// The source of `variant` binned by `build` with the accumulators `atomics` (and `lanes`,
@@ -216,7 +222,7 @@ pub(crate) mod dem_grid {
         match variant {
             Variant::Paper => source(build, atomics),
             Variant::PerPair => per_pair_source(build, atomics),
-            Variant::Granular => granular_source(build, atomics, lanes),
+            Variant::Granular | Variant::Loaded => granular_source(build, atomics, lanes, variant),
         }
     }
 
@@ -446,11 +452,14 @@ pub fn modules() -> Vec<WgslModule> {
             dem.structs
                 .extend([gpu_step::dem_params(), gpu_step::per_pair_params()]);
             all.push(dem);
-            for (lane_suffix, lanes) in gpu_step::Lanes::ALL {
+            for ((lane_suffix, lanes), (model, variant)) in gpu_step::Lanes::ALL
+                .into_iter()
+                .flat_map(|l| [("", Variant::Granular), ("_md", Variant::Loaded)].map(|v| (l, v)))
+            {
                 let bindings = [&dem_grid::granular_bindings()[..], extra].concat();
                 let mut dem = module(
-                    format!("dem_grid_granular_{name}{suffix}{lane_suffix}"),
-                    dem_grid::granular_source(build, atomics, lanes),
+                    format!("dem_grid_granular_{name}{suffix}{lane_suffix}{model}"),
+                    dem_grid::granular_source(build, atomics, lanes, variant),
                     granular_entry_points,
                     &bindings,
                 );

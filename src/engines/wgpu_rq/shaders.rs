@@ -2,7 +2,7 @@
 //! uniform, named once for the bind-group code and checked against the WGSL by
 //! `tests/bindings.rs`.
 
-use crate::engines::gpu_step::{self, granular, physics};
+use crate::engines::gpu_step::{self, Variant, granular, physics};
 use crate::gpu::pair_output;
 use crate::gpu::shader::{Binding, SharedStruct, Vec3f, WgslModule, shared_struct, wgsl};
 
@@ -132,9 +132,11 @@ pub(crate) mod dem_rq {
         format!("{FRICTIONLESS}{}{PROXY}", physics::per_pair(atomics))
     }
 
-    /// The granular step with the accumulators `atomics`.
-    pub fn granular_source(atomics: Accumulators) -> String {
-        format!("{GRANULAR}{}{PROXY}", physics::granular(atomics))
+    /// The granular step (`variant`: Mindlin's spring or Mindlin–Deresiewicz) with the
+    /// accumulators `atomics`.
+    pub fn granular_source(atomics: Accumulators, variant: Variant) -> String {
+        let physics = physics::granular(atomics, variant);
+        format!("{GRANULAR}{physics}{PROXY}")
     }
 
     /// The source of `variant` with the accumulators `atomics`.
@@ -142,7 +144,7 @@ pub(crate) mod dem_rq {
         match variant {
             Variant::Paper => source(atomics),
             Variant::PerPair => per_pair_source(atomics),
-            Variant::Granular => granular_source(atomics),
+            Variant::Granular | Variant::Loaded => granular_source(atomics, variant),
         }
     }
 
@@ -246,19 +248,21 @@ pub fn modules() -> Vec<WgslModule> {
                 gpu_step::per_pair_params(),
             ],
         });
-        all.push(WgslModule {
-            label: format!("dem_rq_granular_{name}"),
-            source: dem_rq::granular_source(atomics),
-            entry_points: dem_rq::GRANULAR_ENTRY_POINTS,
-            bindings: dem_rq::granular_bindings(),
-            structs: vec![
-                dem_rq::rq_params(),
-                gpu_step::dem_params(),
-                granular::granular_params(),
-                crate::engines::gpu_walls::mesh_params(),
-                crate::engines::gpu_walls::mesh_wall_row(),
-            ],
-        });
+        for (model, variant) in [("", Variant::Granular), ("_md", Variant::Loaded)] {
+            all.push(WgslModule {
+                label: format!("dem_rq_granular_{name}{model}"),
+                source: dem_rq::granular_source(atomics, variant),
+                entry_points: dem_rq::GRANULAR_ENTRY_POINTS,
+                bindings: dem_rq::granular_bindings(),
+                structs: vec![
+                    dem_rq::rq_params(),
+                    gpu_step::dem_params(),
+                    granular::granular_params(),
+                    crate::engines::gpu_walls::mesh_params(),
+                    crate::engines::gpu_walls::mesh_wall_row(),
+                ],
+            });
+        }
     }
     all
 }
