@@ -12,7 +12,7 @@ mod common;
 use common::on_every_backend;
 use mochi::dem::model::contact::moment_of_inertia;
 use mochi::dem::model::time_step::{hertz_contact_time, hertz_peak_overlap};
-use mochi::dem::model::{ContactLaw, Material, RollingModel, mass};
+use mochi::dem::model::{ContactLaw, Material, RollingModel, TangentialModel, mass};
 use mochi::dem::walls::WallSet;
 use mochi::dem::{Particles, StepParams, Stepper};
 use mochi::engines::wgpu_compute::{GridBuild, GridStepper};
@@ -755,9 +755,15 @@ fn worst(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
 /// The frictional pile's step: Hertz–Mindlin with friction (0.3 on the walls) and EPSD
 /// rolling resistance, at 0.2 Rayleigh times, under gravity, in a box of 5 cm.
 fn frictional_pile_params(start: &Particles) -> StepParams {
+    frictional_pile_params_with(start, TangentialModel::Mindlin)
+}
+
+/// [`frictional_pile_params`] with the tangential model `model`.
+fn frictional_pile_params_with(start: &Particles, model: TangentialModel) -> StepParams {
     let material = Material {
         wall_friction: Some(0.3),
         rolling_friction: 0.1,
+        tangential_model: model,
         ..hertz(0.5, 0.5)
     };
     let r_min = start.radius_range().0;
@@ -772,7 +778,8 @@ fn frictional_pile_params(start: &Particles) -> StepParams {
 /// any order): relative differences of an ulp or so per step (1e-7), which the stiff contacts
 /// amplify over 20 steps (measured on lavapipe: 4e-9 m, 1e-6 of v_max, 2e-5 of ω_max, 1e-5 of
 /// the largest spring). Tolerances: 1e-7 m for positions (a millionth of the box, 2e-5·r) and
-/// 1e-4 of each quantity's largest value.
+/// 1e-4 of each quantity's largest value; the load histories of the Mindlin–Deresiewicz model
+/// likewise, where the cpu's run keeps them.
 fn assert_follows(what: &str, got: &Particles, expected: &Particles) {
     let largest = |x: &[[f32; 3]]| worst(x, &vec![[0.0; 3]; x.len()]);
     let (tangential, rolling): (Vec<[f32; 3]>, Vec<[f32; 3]>) = expected
@@ -798,19 +805,38 @@ fn assert_follows(what: &str, got: &Particles, expected: &Particles) {
         w_gap <= 1e-4 * w_max,
         "{what}: spins {w_gap} rad/s from the cpu's (of {w_max})"
     );
+    let loaded = expected.history.has_loads();
+    assert_eq!(
+        got.history.has_loads(),
+        loaded,
+        "{what}: load histories kept"
+    );
+    let (reversals, normals): (Vec<[f32; 3]>, Vec<[f32; 3]>) = expected
+        .history
+        .contact_loads()
+        .map(|l| (l.reversal, [l.normal; 3]))
+        .unzip();
+    let (reversal_max, normal_max) = (largest(&reversals), largest(&normals));
     // The same contacts with the same springs, on both sides of each pair.
     for i in 0..expected.len() {
-        let mut a = got.history.of(i).to_vec();
-        let mut b = expected.history.of(i).to_vec();
-        a.sort_by_key(|e| e.partner);
-        b.sort_by_key(|e| e.partner);
-        let got_partners: Vec<u32> = a.iter().map(|e| e.partner).collect();
-        let partners: Vec<u32> = b.iter().map(|e| e.partner).collect();
+        let with_loads = |p: &Particles| {
+            let loads = p.history.loads_of(i);
+            let mut held: Vec<_> = (p.history.of(i).iter().enumerate())
+                .map(|(k, e)| (*e, loads.get(k).copied().unwrap_or_default()))
+                .collect();
+            held.sort_by_key(|(e, _)| e.partner);
+            held
+        };
+        let (a, b) = (with_loads(got), with_loads(expected));
+        let got_partners: Vec<u32> = a.iter().map(|(e, _)| e.partner).collect();
+        let partners: Vec<u32> = b.iter().map(|(e, _)| e.partner).collect();
         assert_eq!(got_partners, partners, "{what}: the contacts of sphere {i}");
-        for (x, y) in a.iter().zip(&b) {
+        for ((x, x_load), (y, y_load)) in a.iter().zip(&b) {
             let pairs = [
                 (x.tangential, y.tangential, xi_max),
                 (x.rolling, y.rolling, roll_max),
+                (x_load.reversal, y_load.reversal, reversal_max),
+                ([x_load.normal; 3], [y_load.normal; 3], normal_max),
             ];
             for (got, expected, scale) in pairs {
                 let gap = worst(&[got], &[expected]);
@@ -819,6 +845,7 @@ fn assert_follows(what: &str, got: &Particles, expected: &Particles) {
                     "{what}: sphere {i}'s springs with {}: {got:?}, cpu {expected:?}",
                     x.partner
                 );
+                assert!(loaded || (x_load.normal == 0.0 && x_load.reversal == [0.0; 3]));
             }
         }
     }
@@ -837,11 +864,16 @@ fn every_gpu_step_follows_the_cpu_step_of_a_frictional_pile_with_history() {
         ..Material::default()
     };
     let r_min = start.radius_range().0;
+    let md = TangentialModel::MindlinDeresiewicz;
     let laws = [
         ("hertz-mindlin", frictional_pile_params(&start)),
         (
             "linear",
             params(&linear, 2e-5, 0.05, [0.0, 0.0, -9.81], r_min),
+        ),
+        (
+            "hertz-mindlin, mindlin-deresiewicz",
+            frictional_pile_params_with(&start, md),
         ),
     ];
     for (law, p) in laws {
@@ -869,29 +901,35 @@ fn every_gpu_step_follows_the_cpu_step_of_a_frictional_pile_with_history() {
 fn a_frictional_state_moves_between_the_cpu_and_the_gpus_with_its_history() {
     // 10 steps on one backend, the state read back (as a checkpoint saves it) and 10 more on
     // another: angular velocities and springs go both ways (the cpu's history holds both sides
-    // of each pair, a GPU's only the owner's), so each run follows the cpu's 20 steps.
+    // of each pair, a GPU's only the owner's), so each run follows the cpu's 20 steps; so do the
+    // load histories of the Mindlin–Deresiewicz model.
     let start = frictional_pile(4);
-    let p = frictional_pile_params(&start);
-    let mut cpu = open(BackendKind::Cpu, start.clone(), p);
-    cpu.advance(10).unwrap();
-    let halfway = cpu.particles().unwrap();
-    cpu.advance(10).unwrap();
-    let expected = cpu.particles().unwrap();
-    for kind in common::dem_backends()
-        .into_iter()
-        .filter(|&k| k != BackendKind::Cpu)
-    {
-        let name = kind.name();
-        let mut gpu = open(kind, halfway.clone(), p);
-        gpu.advance(10).unwrap();
-        let what = format!("cpu, then {name}");
-        assert_follows(&what, &gpu.particles().unwrap(), &expected);
-        let mut gpu = open(kind, start.clone(), p);
-        gpu.advance(10).unwrap();
-        let mut cpu = open(BackendKind::Cpu, gpu.particles().unwrap(), p);
+    for model in [
+        TangentialModel::Mindlin,
+        TangentialModel::MindlinDeresiewicz,
+    ] {
+        let p = frictional_pile_params_with(&start, model);
+        let mut cpu = open(BackendKind::Cpu, start.clone(), p);
         cpu.advance(10).unwrap();
-        let what = format!("{name}, then cpu");
-        assert_follows(&what, &cpu.particles().unwrap(), &expected);
+        let halfway = cpu.particles().unwrap();
+        cpu.advance(10).unwrap();
+        let expected = cpu.particles().unwrap();
+        for kind in common::dem_backends()
+            .into_iter()
+            .filter(|&k| k != BackendKind::Cpu)
+        {
+            let name = kind.name();
+            let mut gpu = open(kind, halfway.clone(), p);
+            gpu.advance(10).unwrap();
+            let what = format!("{model:?}: cpu, then {name}");
+            assert_follows(&what, &gpu.particles().unwrap(), &expected);
+            let mut gpu = open(kind, start.clone(), p);
+            gpu.advance(10).unwrap();
+            let mut cpu = open(BackendKind::Cpu, gpu.particles().unwrap(), p);
+            cpu.advance(10).unwrap();
+            let what = format!("{model:?}: {name}, then cpu");
+            assert_follows(&what, &cpu.particles().unwrap(), &expected);
+        }
     }
 }
 
@@ -923,10 +961,20 @@ fn a_history_split_over_several_bindings_follows_the_cpu_step() {
     let Some(mut split) = wgpu_compute_on_small_bindings(&start, p) else {
         return;
     };
-    let mut cpu = open(BackendKind::Cpu, start, p);
+    let mut cpu = open(BackendKind::Cpu, start.clone(), p);
     cpu.advance(20).unwrap();
     split.advance(20).unwrap();
     let what = "wgpu-compute, history split over four bindings";
+    assert_follows(what, &split.particles().unwrap(), &cpu.particles().unwrap());
+    // The Mindlin–Deresiewicz model's entries of 64 bytes: eight bindings of 8 spheres.
+    let p = frictional_pile_params_with(&start, TangentialModel::MindlinDeresiewicz);
+    let Some(mut split) = wgpu_compute_on_small_bindings(&start, p) else {
+        return;
+    };
+    let mut cpu = open(BackendKind::Cpu, start, p);
+    cpu.advance(20).unwrap();
+    split.advance(20).unwrap();
+    let what = "wgpu-compute, load histories split over eight bindings";
     assert_follows(what, &split.particles().unwrap(), &cpu.particles().unwrap());
 }
 
