@@ -90,8 +90,18 @@ fn resuming_the_cpu_backend_continues_bit_for_bit() {
 
 #[test]
 fn resuming_a_frictional_cpu_run_continues_bit_for_bit() {
-    // A heap of 64 pressed-together spheres thrown about on the floor: Hertz–Mindlin with
-    // friction and EPSD rolling resistance, so contacts carry springs across the resume.
+    resumes_bit_for_bit("mindlin");
+}
+
+#[test]
+fn resuming_a_cpu_run_under_mindlin_deresiewicz_continues_bit_for_bit_with_its_load_history() {
+    resumes_bit_for_bit("mindlin-deresiewicz");
+}
+
+/// A heap of 64 pressed-together spheres thrown about on the floor: Hertz–Mindlin with friction
+/// (the tangential model `model`) and EPSD rolling resistance, so contacts carry springs (and
+/// the Mindlin–Deresiewicz model's load histories) across the resume.
+fn resumes_bit_for_bit(model: &str) {
     let dir = tempfile::tempdir().unwrap();
     let mut rows = String::from("x,y,z,r,vx,vy,vz\n");
     for k in 0..64 {
@@ -121,6 +131,8 @@ fn resuming_a_frictional_cpu_run_continues_bit_for_bit() {
             "--set",
             "young_modulus=1e5",
             "--set",
+            &format!("tangential_model=\"{model}\""),
+            "--set",
             "box_lo=[0,0,0]",
             "--set",
             "box_hi=[0.3,0.3,0.3]",
@@ -143,6 +155,7 @@ fn resuming_a_frictional_cpu_run_continues_bit_for_bit() {
         "{} contacts with history",
         a.history.len()
     );
+    assert_eq!(a.history.has_loads(), model == "mindlin-deresiewicz");
     assert!(
         a.angular_velocities
             .iter()
@@ -154,16 +167,19 @@ fn resuming_a_frictional_cpu_run_continues_bit_for_bit() {
             .history
             .contacts()
             .flat_map(|(_, e)| e.tangential.into_iter().chain(e.rolling));
+        let loads =
+            (p.history.contact_loads()).flat_map(|l| l.reversal.into_iter().chain([l.normal]));
         vectors
             .into_iter()
             .flat_map(|v| v.iter().flatten().copied())
             .chain(springs)
+            .chain(loads)
             .map(f32::to_bits)
             .collect()
     };
     assert!(
         a == b,
-        "a resumed frictional run differs from an uninterrupted one"
+        "a resumed frictional run ({model}) differs from an uninterrupted one"
     );
     assert_eq!(bits(&a), bits(&b));
 }

@@ -290,8 +290,12 @@ impl StepParams {
             RollingModel::Epsd => "epsd",
             RollingModel::ConstantTorque => "constant-torque",
         };
+        let tangential = match f.keeps_load() {
+            true => " (mindlin-deresiewicz)",
+            false => "",
+        };
         format!(
-            "{law} | friction {} (walls {}), rolling {} ({model})",
+            "{law} | friction {} (walls {}){tangential}, rolling {} ({model})",
             f.sliding, f.wall_sliding, f.rolling
         )
     }
