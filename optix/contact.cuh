@@ -3,6 +3,10 @@
 // without fused multiply-adds, and glam's Vec3 computes component by component: dot products
 // as (x·x + y·y) + z·z, cross products as glam writes them). Keep the two in sync. Needs
 // physics.cuh (DemParams) prepended; keep GranularParams in sync with src/engines/optix/device.rs.
+// The tangential model is chosen when the programs are compiled: Mindlin's spring, or with
+// MOCHI_LOAD_HISTORY defined the Mindlin–Deresiewicz law (contact.rs load_history), whose springs
+// carry the load history too (the units GranularLoaded and GranularKernelsLoaded of
+// src/engines/optix/programs.rs), so the spring's programs are the same as without the model.
 
 #define MOCHI_LAW_LINEAR 0u
 #define MOCHI_LAW_LINEAR_PER_PAIR 1u
@@ -91,27 +95,40 @@ static __forceinline__ __device__ float mochi_inertia(float m, float r) {
 
 // What a contact carries from one step to the next, as the sphere holding it sees it.
 struct MochiSprings {
-    float3 tangential;  // ξ [m]
+    float3 tangential;  // ξ [m]; Mindlin–Deresiewicz: the elastic tangential force [N]
     float3 rolling;     // EPSD rolling spring torque [N·m]
+#ifdef MOCHI_LOAD_HISTORY
+    float3 reversal;  // the elastic tangential force at the last reversal [N] (0: virgin curve)
+    float normal;     // the elastic normal force of the last step [N]
+#endif
 };
 
 static __forceinline__ __device__ MochiSprings mochi_no_springs() {
     MochiSprings s;
     s.tangential = mochi_zero3();
     s.rolling = mochi_zero3();
+#ifdef MOCHI_LOAD_HISTORY
+    s.reversal = mochi_zero3();
+    s.normal = 0.0f;
+#endif
     return s;
 }
 
-// The springs as the partner sees them: the exact negatives.
+// The springs as the partner sees them: the exact negatives (the same normal force).
 static __forceinline__ __device__ MochiSprings mochi_negated(MochiSprings s) {
     s.tangential = mochi_neg(s.tangential);
     s.rolling = mochi_neg(s.rolling);
+#ifdef MOCHI_LOAD_HISTORY
+    s.reversal = mochi_neg(s.reversal);
+#endif
     return s;
 }
 
-// The normal force's magnitude (positive pushes apart) and the normal stiffness.
+// The normal force's magnitude (positive pushes apart), its elastic part (no damping) and the
+// normal stiffness.
 struct MochiNormal {
     float push;
+    float elastic;
     float stiffness;
 };
 
@@ -139,12 +156,14 @@ static __forceinline__ __device__ MochiNormal mochi_normal_force(const GranularP
         float e_star = on_wall ? g.wall_e_star : g.pair_e_star;
         float s_n = 2.0f * e_star * sqrtf(r_eff * overlap);
         float c = MOCHI_TSUJI * g.dem.damping_ratio * mochi_root_product(s_n, m_eff);
-        out.push = 2.0f / 3.0f * s_n * overlap - c * vn;
+        out.elastic = 2.0f / 3.0f * s_n * overlap;
+        out.push = out.elastic - c * vn;
         out.stiffness = s_n;
     } else {
         float k = g.law == MOCHI_LAW_LINEAR ? g.dem.stiffness : m_eff * g.rate;
         float c = 2.0f * g.dem.damping_ratio * mochi_root_product(k, m_eff);
-        out.push = k * overlap - c * vn;
+        out.elastic = k * overlap;
+        out.push = out.elastic - c * vn;
         out.stiffness = k;
     }
     return out;
@@ -159,6 +178,92 @@ static __forceinline__ __device__ float3 mochi_into_plane(float3 x, float3 n) {
     }
     return t;
 }
+
+#ifdef MOCHI_LOAD_HISTORY
+// ∛x of x in [0, 1] by the same operations on every backend: a start from the bits, then three
+// Newton steps (contact.rs cube_root); 0 for x ≤ 0.
+static __forceinline__ __device__ float mochi_cube_root(float x) {
+    if (x <= 0.0f) {
+        return 0.0f;
+    }
+    float y = __uint_as_float(__float_as_uint(x) / 3u + 0x2a5137a0u);
+    for (int k = 0; k < 3; ++k) {
+        y = (y + y + x / (y * y)) / 3.0f;
+    }
+    return y;
+}
+
+// The Mindlin–Deresiewicz tangential force on i with full stiffness k_t, damping c_t, sliding
+// coefficient mu, elastic normal force `elastic` and Coulomb's cap mu·pressing; its springs
+// into `springs` (contact.rs load_history: Thornton & Yin's incremental form in vectors).
+static __forceinline__ __device__ float3 mochi_load_history(const GranularParams& g, float k_t,
+                                                           float c_t, float mu, float elastic,
+                                                           float pressing, float3 n, float3 v_t,
+                                                           const MochiSprings& old,
+                                                           MochiSprings& springs) {
+    float3 f = mochi_into_plane(old.tangential, n);
+    float3 r = mochi_into_plane(old.reversal, n);
+    float dn = elastic - old.normal;
+    float3 d = mochi_scale(g.dem.dt, v_t);
+    // A reversal: the displacement drives the force back towards the last reversal point.
+    float3 back = mochi_sub(f, r);
+    if (mochi_length(back) > 0.0f && mochi_dot(back, d) > 0.0f) {
+        r = f;
+    }
+    // The reversal point follows the normal force; where it shrinks to nothing the virgin
+    // curve holds.
+    bool reversed = r.x != 0.0f || r.y != 0.0f || r.z != 0.0f;
+    if (reversed) {
+        float size = mochi_length(r);
+        float grown = size + mu * dn;
+        r = grown > 0.0f ? mochi_scale(grown / size, r) : mochi_zero3();
+    }
+    float c = (r.x != 0.0f || r.y != 0.0f || r.z != 0.0f) ? 2.0f : 1.0f;
+    float scale = c * mu * elastic;
+    float3 away = mochi_sub(f, r);
+    float gone = mochi_length(away);
+    float theta = 0.0f;
+    if (scale > 0.0f) {
+        theta = mochi_cube_root(1.0f - (gone + c * mu * dn) / scale);
+    }
+    float step = mochi_length(d);
+    if (mu * dn > k_t * step) {
+        theta = 1.0f;
+    }
+    float3 e = mochi_zero3();
+    if (gone > 0.0f) {
+        e = mochi_div(away, gone);
+    } else if (step > 0.0f) {
+        e = mochi_div(d, -step);
+    }
+    f = mochi_add(mochi_sub(f, mochi_scale(k_t * theta, d)),
+                  mochi_scale(mu * dn * (1.0f - theta), e));
+    // Past the mirror point of the last reversal: back on the virgin curve.
+    if ((r.x != 0.0f || r.y != 0.0f || r.z != 0.0f) && mochi_dot(f, r) < 0.0f &&
+        mochi_length(f) >= mochi_length(r)) {
+        r = mochi_zero3();
+    }
+    // Never more than μN: full slip, and the virgin curve from there.
+    float most = mu * elastic;
+    float len = mochi_length(f);
+    if (len > most) {
+        f = mochi_scale(most / len, f);
+        r = mochi_zero3();
+    }
+    float3 f_t = mochi_sub(f, mochi_scale(c_t, v_t));
+    float cap = mu * pressing;
+    float len_t = mochi_length(f_t);
+    if (len_t > cap) {
+        f_t = mochi_scale(cap / len_t, f_t);
+        f = f_t;
+        r = mochi_zero3();
+    }
+    springs.tangential = f;
+    springs.reversal = r;
+    springs.normal = elastic;
+    return f_t;
+}
+#endif
 
 // Tangential force, torque on i (from it and from rolling resistance), the rolling torque
 // alone, and the springs to keep (contact.rs friction).
@@ -192,6 +297,10 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const GranularPar
             c_t = 2.0f * g.dem.damping_ratio * mochi_root_product(k_t, t.m_eff);
         }
         float3 v_t = mochi_sub(t.v_rel, mochi_scale(mochi_dot(t.v_rel, n), n));
+#ifdef MOCHI_LOAD_HISTORY
+        float3 f_t = mochi_load_history(g, k_t, c_t, mu, t.normal.elastic, pressing, n, v_t, old,
+                                        out.springs);
+#else
         float3 xi = mochi_add(mochi_into_plane(old.tangential, n), mochi_scale(g.dem.dt, v_t));
         float3 f_t = mochi_sub(mochi_scale(-k_t, xi), mochi_scale(c_t, v_t));
         float cap = mu * pressing;
@@ -200,9 +309,10 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const GranularPar
             f_t = mochi_scale(cap / len, f_t);
             xi = mochi_div(mochi_neg(f_t), k_t);
         }
+        out.springs.tangential = xi;
+#endif
         out.force = f_t;
         out.torque = mochi_cross(mochi_scale(t.lever, n), f_t);
-        out.springs.tangential = xi;
     }
     float mu_r = g.rolling;
     if (mu_r > 0.0f) {

@@ -21,6 +21,8 @@ struct GranularLaunch {
     const MochiHistoryEntry* old_entries;
     unsigned int* new_count;         // this step's: contacts each ray holds (may exceed slots)
     MochiHistoryEntry* new_entries;  // `slots` per stable id
+    const MochiLoadEntry* old_loads;  // beside old_entries (MOCHI_LOAD_HISTORY; else unused)
+    MochiLoadEntry* new_loads;        // beside new_entries (MOCHI_LOAD_HISTORY; else unused)
     unsigned long long handle;       // the acceleration structure
     unsigned int n;
     unsigned int mode;   // MOCHI_MODE_MOCHI or MOCHI_MODE_NNS
@@ -92,7 +94,7 @@ extern "C" __global__ void __intersection__granular() {
     unsigned int id_j = params.ids[j];
     MochiSprings old = mochi_no_springs();
     if (g.keeps) {
-        MochiSlots h = {params.old_count, params.old_entries, params.slots};
+        MochiSlots h = {params.old_count, params.old_entries, params.slots, params.old_loads};
         old = mochi_old_springs(h, id_i, id_j);
     }
     MochiPairContact c;
@@ -118,8 +120,8 @@ extern "C" __global__ void __intersection__granular() {
     if (g.keeps) {
         unsigned int k = mochi_get_payload(8u);
         if (k < params.slots) {
-            params.new_entries[(unsigned long long)id_i * params.slots + k] =
-                mochi_entry(id_j, c.springs);
+            mochi_keep_entry(params.new_entries, params.new_loads,
+                             (unsigned long long)id_i * params.slots + k, id_j, c.springs);
         }
         mochi_set_payload(8u, k + 1u);
     }

@@ -1,5 +1,6 @@
 // Plain CUDA kernels of the optix granular step (src/engines/optix/granular.rs). Needs
-// device.cuh, physics.cuh, contact.cuh and history.cuh prepended.
+// device.cuh, physics.cuh, contact.cuh and history.cuh prepended. The load histories
+// (`old_loads`, `new_loads`) are read and written only with MOCHI_LOAD_HISTORY.
 
 // Walls (with their springs), gravity at step `step` and one semi-implicit Euler step of
 // positions and angular velocities, in place (src/engines/cpu/dem.rs: pairs, then the walls'
@@ -13,7 +14,9 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* vel, float4* 
                                               const unsigned int* old_count,
                                               const MochiHistoryEntry* old_entries,
                                               unsigned int* new_count,
-                                              MochiHistoryEntry* new_entries, unsigned int* need,
+                                              MochiHistoryEntry* new_entries,
+                                              const MochiLoadEntry* old_loads,
+                                              MochiLoadEntry* new_loads, unsigned int* need,
                                               unsigned int slots, GranularParams g,
                                               unsigned int step, MochiMeshParams mesh,
                                               const MochiMeshWall* mesh_walls,
@@ -34,8 +37,8 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* vel, float4* 
     b.m = v.w;
     unsigned int id = ids[p];
     unsigned int held = g.keeps ? new_count[id] : 0u;
-    MochiHistoryEntry* kept = new_entries + (unsigned long long)id * slots;
-    MochiSlots old_slots = {old_count, old_entries, slots};
+    unsigned long long row = (unsigned long long)id * slots;
+    MochiSlots old_slots = {old_count, old_entries, slots, old_loads};
     MochiWalls walls;
     walls.normal = mochi_zero3();
     walls.tangential = mochi_zero3();
@@ -53,7 +56,8 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* vel, float4* 
             },
             [&](unsigned int wall, MochiSprings springs) {
                 if (held < slots) {
-                    kept[held] = mochi_entry(MOCHI_FIRST_WALL + wall, springs);
+                    mochi_keep_entry(new_entries, new_loads, row + held, MOCHI_FIRST_WALL + wall,
+                                     springs);
                 }
                 held += 1u;
             });
@@ -71,7 +75,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* vel, float4* 
             },
             [&](unsigned int partner, MochiSprings springs) {
                 if (held < slots) {
-                    kept[held] = mochi_entry(partner, springs);
+                    mochi_keep_entry(new_entries, new_loads, row + held, partner, springs);
                 }
                 held += 1u;
             });

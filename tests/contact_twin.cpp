@@ -2,7 +2,8 @@
 // test writes (one case a line, f32 values as hex bits, sections split by '|') and prints one
 // line per value whose bits differ from what src/dem/model/contact.rs computed (the first 20),
 // then a summary.
-// ±0 count as equal (the partner's negated zero springs).
+// ±0 count as equal (the partner's negated zero springs). Compiled with -DMOCHI_LOAD_HISTORY for
+// the Mindlin–Deresiewicz law, whose springs carry 4 more values (reversal, normal force).
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -24,8 +25,28 @@ struct float4 {
 inline float3 make_float3(float x, float y, float z) { return {x, y, z}; }
 inline float4 make_float4(float x, float y, float z, float w) { return {x, y, z, w}; }
 
+// CUDA's bit casts, as the host does them.
+inline unsigned int __float_as_uint(float x) {
+    unsigned int u;
+    std::memcpy(&u, &x, 4);
+    return u;
+}
+inline float __uint_as_float(unsigned int u) {
+    float x;
+    std::memcpy(&x, &u, 4);
+    return x;
+}
+
 #include "physics.cuh"
 #include "contact.cuh"
+
+#ifdef MOCHI_LOAD_HISTORY
+// Values of a springs section: tangential, rolling, reversal, normal force.
+static const size_t SPRINGS = 10;
+#else
+// Values of a springs section: tangential, rolling.
+static const size_t SPRINGS = 6;
+#endif
 
 static float from_bits(const std::string& s) {
     uint32_t u = (uint32_t)std::stoul(s, nullptr, 16);
@@ -112,6 +133,10 @@ int main() {
         MochiSprings old;
         old.tangential = vec(s[3], 0);
         old.rolling = vec(s[3], 3);
+#ifdef MOCHI_LOAD_HISTORY
+        old.reversal = vec(s[3], 6);
+        old.normal = from_bits(s[3][9]);
+#endif
         // From i's side: touching, then force, torque, springs; from j's side the same.
         const std::vector<std::string>& from_i = s[4];
         const std::vector<std::string>& from_j = s[5];
@@ -126,12 +151,20 @@ int main() {
             check3("torque", c.torque, from_i, 4);
             check3("tangential spring", c.springs.tangential, from_i, 7);
             check3("rolling spring", c.springs.rolling, from_i, 10);
+#ifdef MOCHI_LOAD_HISTORY
+            check3("reversal", c.springs.reversal, from_i, 13);
+            check("normal force kept", c.springs.normal, from_i[16]);
+#endif
             check3("partner's force", mochi_neg(c.force), from_j, 1);
             float3 t = g.turns ? mochi_partner_torque(g, j.r, c) : mochi_zero3();
             check3("partner's torque", t, from_j, 4);
             MochiSprings back = mochi_negated(c.springs);
             check3("partner's tangential spring", back.tangential, from_j, 7);
             check3("partner's rolling spring", back.rolling, from_j, 10);
+#ifdef MOCHI_LOAD_HISTORY
+            check3("partner's reversal", back.reversal, from_j, 13);
+            check("partner's normal force kept", back.normal, from_j[16]);
+#endif
         }
         // Walls: normal, tangential, torque, then (wall, springs) kept and their count. The
         // springs kept of wall w are (w, w, w)·1e-6 and the rolling one their negative.
@@ -144,6 +177,10 @@ int main() {
                 MochiSprings k;
                 k.tangential = make_float3(x, x, x);
                 k.rolling = make_float3(-x, -x, -x);
+#ifdef MOCHI_LOAD_HISTORY
+                k.reversal = make_float3(x, -x, x);
+                k.normal = x;
+#endif
                 return k;
             },
             [&](unsigned int wall, MochiSprings springs) { kept.push_back({wall, springs}); });
@@ -158,7 +195,7 @@ int main() {
             continue;
         }
         for (size_t k = 0; k < count; ++k) {
-            size_t at = 9 + 7 * k;
+            size_t at = 9 + (1 + SPRINGS) * k;
             if (std::to_string(kept[k].first) != walls[at]) {
                 std::printf("case %d: wall %u kept, contact.rs %s\n", line_number, kept[k].first,
                             walls[at].c_str());
@@ -166,6 +203,10 @@ int main() {
             }
             check3("wall's tangential spring", kept[k].second.tangential, walls, at + 1);
             check3("wall's rolling spring", kept[k].second.rolling, walls, at + 4);
+#ifdef MOCHI_LOAD_HISTORY
+            check3("wall's reversal", kept[k].second.reversal, walls, at + 7);
+            check("wall's normal force kept", kept[k].second.normal, walls[at + 10]);
+#endif
         }
     }
     std::printf("%d cases, %d differences\n", line_number, differences);

@@ -5,14 +5,18 @@
 //! of every law and rolling model: a sphere pair from one side, the partner's share as the
 //! partner's own side computes it (what the GPU's owner adds to the partner), and the six
 //! walls with their springs; at the size of the tests' spheres and at nanometres, where the
-//! products of masses, moments of inertia and torques underflow f32. Needs a C++17 compiler
+//! products of masses, moments of inertia and torques underflow f32. Compiled again with
+//! `MOCHI_LOAD_HISTORY`, the Mindlin–Deresiewicz law on cases of its own (springs with a load
+//! history, on the virgin curve and after a reversal, sticking and sliding). Needs a C++17 compiler
 //! (`c++`) and no GPU; skips with a note without one (CI has one).
 
 mod common;
 
 use glam::Vec3;
 use mochi::dem::model::contact::{Body, Contact, Springs, pair_contact, wall_contacts};
-use mochi::dem::model::{ContactLaw, Material, NormalLaw, RollingModel, StepParams, mass};
+use mochi::dem::model::{
+    ContactLaw, Material, NormalLaw, RollingModel, StepParams, TangentialModel, mass,
+};
 use std::fmt::Write;
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -79,14 +83,23 @@ fn body_section(b: &Body) -> String {
     )
 }
 
-fn contact_section(c: Option<Contact>) -> String {
+/// The springs' values: tangential, rolling, and under Mindlin–Deresiewicz (`loaded`) the
+/// reversal and the normal force.
+fn springs_section(s: &Springs, loaded: bool) -> String {
+    let mut out = format!("{} {}", vec3(s.tangential), vec3(s.rolling));
+    if loaded {
+        out += &format!(" {} {}", vec3(s.reversal), bits(s.normal));
+    }
+    out
+}
+
+fn contact_section(c: Option<Contact>, loaded: bool) -> String {
     match c {
         Some(c) => format!(
-            "1 {} {} {} {}",
+            "1 {} {} {}",
             vec3(c.force),
             vec3(c.torque),
-            vec3(c.springs.tangential),
-            vec3(c.springs.rolling)
+            springs_section(&c.springs, loaded)
         ),
         None => "0".into(),
     }
@@ -114,6 +127,7 @@ fn cases(
     )
     .unwrap();
     let params = params_section(&p);
+    let loaded = p.friction.keeps_load();
     let body = |c: Vec3, rand: &mut dyn FnMut() -> f32| {
         let r = (0.005 + 0.002 * rand()) * scale;
         let v = Vec3::new(rand(), rand(), rand());
@@ -133,40 +147,52 @@ fn cases(
         let towards = Vec3::new(rand(), rand(), rand()).normalize();
         let at = i.c + towards * ((0.0095 + 0.002 * rand()) * scale);
         let j = body(at, rand);
-        let old = Springs {
-            tangential: 1e-5 * scale * Vec3::new(rand(), rand(), rand()),
-            rolling: 1e-5 * scale.powi(3) * Vec3::new(rand(), rand(), rand()),
+        let old = if loaded {
+            // Forces of the size of these contacts' (about a newton at scale 1, as the square
+            // of the lengths below), on the virgin curve in half the cases.
+            let force = scale * scale;
+            let reversed = rand() > 0.0;
+            Springs {
+                tangential: 0.5 * force * Vec3::new(rand(), rand(), rand()),
+                rolling: 1e-5 * scale.powi(3) * Vec3::new(rand(), rand(), rand()),
+                reversal: match reversed {
+                    true => 0.5 * force * Vec3::new(rand(), rand(), rand()),
+                    false => Vec3::ZERO,
+                },
+                normal: 2.0 * force * rand().abs(),
+            }
+        } else {
+            Springs {
+                tangential: 1e-5 * scale * Vec3::new(rand(), rand(), rand()),
+                rolling: 1e-5 * scale.powi(3) * Vec3::new(rand(), rand(), rand()),
+                ..Springs::default()
+            }
         };
         let back = Springs {
             tangential: -old.tangential,
             rolling: -old.rolling,
+            reversal: -old.reversal,
+            normal: old.normal,
         };
         let mut kept = String::new();
         let mut count = 0;
         let walls = wall_contacts(
             &p,
             &i,
-            |w| {
-                let x = w as f32 * 1e-6;
-                Springs {
-                    tangential: Vec3::splat(x),
-                    rolling: Vec3::splat(-x),
-                }
-            },
+            |w| wall_springs(w, loaded),
             |w, s| {
                 count += 1;
-                write!(kept, "{w} {} {} ", vec3(s.tangential), vec3(s.rolling)).unwrap();
+                write!(kept, "{w} {} ", springs_section(&s, loaded)).unwrap();
             },
         );
         writeln!(
             out,
-            "{params} | {} | {} | {} {} | {} | {} | {} {} {} {kept}{count}",
+            "{params} | {} | {} | {} | {} | {} | {} {} {} {kept}{count}",
             body_section(&i),
             body_section(&j),
-            vec3(old.tangential),
-            vec3(old.rolling),
-            contact_section(pair_contact(&p, &i, &j, old)),
-            contact_section(pair_contact(&p, &j, &i, back)),
+            springs_section(&old, loaded),
+            contact_section(pair_contact(&p, &i, &j, old), loaded),
+            contact_section(pair_contact(&p, &j, &i, back), loaded),
             vec3(walls.normal),
             vec3(walls.tangential),
             vec3(walls.torque),
@@ -175,13 +201,38 @@ fn cases(
     }
 }
 
-#[test]
-fn the_cuda_contact_law_computes_the_bits_of_the_rust_one() {
-    let dir = tempfile::tempdir().unwrap();
-    let binary = dir.path().join("contact_twin");
+/// The springs the cases keep of wall `w`: (w, w, w)·1e-6 and the rolling one their negative;
+/// under Mindlin–Deresiewicz (`loaded`) the reversal (w, −w, w)·1e-6 and the normal force
+/// w·1e-6.
+fn wall_springs(w: u32, loaded: bool) -> Springs {
+    let x = w as f32 * 1e-6;
+    Springs {
+        tangential: Vec3::splat(x),
+        rolling: Vec3::splat(-x),
+        reversal: match loaded {
+            true => Vec3::new(x, -x, x),
+            false => Vec3::ZERO,
+        },
+        normal: if loaded { x } else { 0.0 },
+    }
+}
+
+/// `tests/contact_twin.cpp` compiled into `dir` (with `optix/contact.cuh` of the
+/// Mindlin–Deresiewicz model where `loaded`), or `None` without a C++ compiler (outside CI).
+fn compile_twin(dir: &Path, loaded: bool) -> Option<std::path::PathBuf> {
+    let binary = dir.join(if loaded {
+        "contact_twin_md"
+    } else {
+        "contact_twin"
+    });
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let compiled = Command::new("c++")
-        .args(["-std=c++17", "-O2", "-ffp-contract=off", "-I"])
+    let mut command = Command::new("c++");
+    command.args(["-std=c++17", "-O2", "-ffp-contract=off"]);
+    if loaded {
+        command.arg("-DMOCHI_LOAD_HISTORY");
+    }
+    let compiled = command
+        .arg("-I")
         .arg(root.join("optix"))
         .arg(root.join("tests/contact_twin.cpp"))
         .arg("-o")
@@ -191,14 +242,94 @@ fn the_cuda_contact_law_computes_the_bits_of_the_rust_one() {
         Err(why) => {
             assert!(!common::ci(), "CI expects a C++ compiler (c++): {why}");
             eprintln!("note: no C++ compiler here ({why}); the CUDA contact law is not compared");
-            return;
+            None
         }
-        Ok(out) => assert!(
-            out.status.success(),
-            "optix/contact.cuh does not compile as C++:\n{}",
-            String::from_utf8_lossy(&out.stderr)
-        ),
+        Ok(out) => {
+            assert!(
+                out.status.success(),
+                "optix/contact.cuh does not compile as C++:\n{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            Some(binary)
+        }
     }
+}
+
+/// Runs `binary` on the case `table` of `count` cases: no bit differs.
+fn compare(binary: &Path, table: &str, count: usize) {
+    let mut run = Command::new(binary)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::io::Write::write_all(&mut run.stdin.take().unwrap(), table.as_bytes()).unwrap();
+    let out = run.wait_with_output().unwrap();
+    let report = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{report}");
+    assert!(
+        report
+            .trim_end()
+            .ends_with(&format!("{count} cases, 0 differences")),
+        "{report}"
+    );
+    // Most cases touch (the rest check that apart is apart).
+    let touching = table
+        .lines()
+        .filter(|l| l.split('|').nth(4) != Some(" 0 "))
+        .count();
+    assert!(
+        touching > count / 2,
+        "only {touching} of {count} cases touch"
+    );
+}
+
+#[test]
+fn the_cuda_mindlin_deresiewicz_law_computes_the_bits_of_the_rust_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(binary) = compile_twin(dir.path(), true) else {
+        return;
+    };
+    let mut rand = common::noise(5);
+    let hertz = ContactLaw::HertzMindlin {
+        young_modulus: 1e7,
+        poisson_ratio: 0.3,
+    };
+    let mut table = String::new();
+    let mut count = 0;
+    // The sliding coefficient, with the walls, the rolling resistance and the damping: sliding
+    // in some cases, sticking in others; a reversal point in half of them.
+    let materials = [
+        (0.5, None, 0.1, RollingModel::Epsd, 0.5),
+        (0.3, Some(0.1), 0.05, RollingModel::ConstantTorque, 0.9),
+        (2.0, Some(0.0), 0.0, RollingModel::Epsd, 1.0),
+        (0.0, Some(0.4), 0.0, RollingModel::Epsd, 0.7),
+    ];
+    for scale in [1.0, 2e-6] {
+        for (mu, wall_mu, mu_r, rolling_model, restitution) in materials {
+            let material = Material {
+                density: DENSITY,
+                restitution,
+                contact: hertz,
+                friction: mu,
+                wall_friction: wall_mu,
+                rolling_friction: mu_r,
+                rolling_model,
+                tangential_model: TangentialModel::MindlinDeresiewicz,
+                ..Material::default()
+            };
+            cases(&material, 1e-6, scale, &mut rand, &mut table);
+            count += 200;
+        }
+    }
+    compare(&binary, &table, count);
+}
+
+#[test]
+fn the_cuda_contact_law_computes_the_bits_of_the_rust_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(binary) = compile_twin(dir.path(), false) else {
+        return;
+    };
     let mut rand = common::noise(3);
     let hertz = ContactLaw::HertzMindlin {
         young_modulus: 1e7,
@@ -253,28 +384,5 @@ fn the_cuda_contact_law_computes_the_bits_of_the_rust_one() {
             count += 200;
         }
     }
-    let mut run = Command::new(&binary)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::io::Write::write_all(&mut run.stdin.take().unwrap(), table.as_bytes()).unwrap();
-    let out = run.wait_with_output().unwrap();
-    let report = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{report}");
-    assert!(
-        report
-            .trim_end()
-            .ends_with(&format!("{count} cases, 0 differences")),
-        "{report}"
-    );
-    // Most cases touch (the rest check that apart is apart).
-    let touching = table
-        .lines()
-        .filter(|l| l.split('|').nth(4) != Some(" 0 "))
-        .count();
-    assert!(
-        touching > count / 2,
-        "only {touching} of {count} cases touch"
-    );
+    compare(&binary, &table, count);
 }

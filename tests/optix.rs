@@ -88,7 +88,7 @@ fn device_programs_compile_with_nvrtc() {
         eprintln!("note: NVRTC is not installed here; the device programs are not compiled");
         return;
     }
-    let entries: [(Unit, &[&str]); 5] = [
+    let entries: [(Unit, &[&str]); 7] = [
         (
             Unit::Detect,
             &["__raygen__detect", "__intersection__detect", "params"],
@@ -109,12 +109,28 @@ fn device_programs_compile_with_nvrtc() {
             Unit::GranularKernels,
             &["granular_integrate", "permute_rows"],
         ),
+        (
+            Unit::GranularLoaded,
+            &["__raygen__granular", "__intersection__granular", "params"],
+        ),
+        (
+            Unit::GranularKernelsLoaded,
+            &["granular_integrate", "permute_rows"],
+        ),
     ];
     for (unit, names) in entries {
         let ptx = programs::compile(unit).unwrap_or_else(|e| panic!("{e}"));
         for name in names {
             assert!(ptx.contains(name), "{}: no {name} in the PTX", unit.name());
         }
+    }
+    // The Mindlin–Deresiewicz programs are others than the spring's.
+    for loaded in [true, false] {
+        let [a, b] = [Unit::granular(loaded), Unit::granular_kernels(loaded)]
+            .map(|u| programs::compile(u).unwrap_or_else(|e| panic!("{e}")));
+        let [c, d] = [Unit::granular(!loaded), Unit::granular_kernels(!loaded)]
+            .map(|u| programs::compile(u).unwrap_or_else(|e| panic!("{e}")));
+        assert!(a != c && b != d);
     }
 }
 

@@ -16,7 +16,7 @@ use crate::dem::model::{Elastic, NormalLaw, RollingModel, StepParams};
 use crate::engines::gpu_walls::WallTables;
 use crate::error::OptixError;
 use crate::gpu::shader::storage_bytes;
-use crate::particles::HistoryEntry;
+use crate::particles::{HistoryEntry, LoadEntry};
 use crate::proxy::ProxyMode;
 use cudarc::driver::{
     CudaContext, CudaFunction, CudaSlice, CudaStream, DevicePtr, DevicePtrMut, DeviceRepr,
@@ -753,6 +753,11 @@ impl GranularParams {
 const ENTRY_WORDS: usize = size_of::<HistoryEntry>() / size_of::<u32>();
 const _: () = assert!(ENTRY_WORDS == 7);
 
+/// Words of one load history on the device ([`LoadEntry`], `MochiLoadEntry` in
+/// `optix/history.cuh`).
+const LOAD_WORDS: usize = size_of::<LoadEntry>() / size_of::<u32>();
+const _: () = assert!(LOAD_WORDS == 4);
+
 /// The mesh walls' parameters as `granular_integrate` takes them (`MochiMeshParams` in
 /// `optix/mesh_walls.cuh`, [`MeshParams`] of the wgpu engines).
 #[repr(C)]
@@ -832,36 +837,50 @@ impl MeshBuffers {
 }
 
 /// One contact history buffer on the device (`MochiSlots` in `optix/history.cuh`): for each of
-/// `n` spheres by stable id, a count and `slots` entries of [`HistoryEntry`]'s words.
+/// `n` spheres by stable id, a count and `slots` entries of [`HistoryEntry`]'s words, and under
+/// the Mindlin–Deresiewicz model as many [`LoadEntry`]s beside them.
 pub struct HistorySlots {
     counts: CudaSlice<u32>,
     entries: CudaSlice<u32>,
+    /// The load histories beside `entries` (`None`: the model keeps none).
+    loads: Option<CudaSlice<u32>>,
     n: u32,
     slots: u32,
 }
 
 impl HistorySlots {
-    /// Bytes of a buffer of `n` spheres with `slots` slots each.
-    pub fn bytes(n: u32, slots: u32) -> u64 {
-        n as u64 * (4 + slots as u64 * size_of::<HistoryEntry>() as u64)
+    /// Bytes of a buffer of `n` spheres with `slots` slots each (with load histories where
+    /// `loaded`).
+    pub fn bytes(n: u32, slots: u32, loaded: bool) -> u64 {
+        let slot = size_of::<HistoryEntry>() + if loaded { size_of::<LoadEntry>() } else { 0 };
+        n as u64 * (4 + slots as u64 * slot as u64)
     }
 
     /// A buffer holding, for each of the `counts.len()` spheres, `counts[i]` entries of
-    /// `entries[i·slots..]`.
+    /// `entries[i·slots..]`, and their load histories of `loads` (`None`: none kept).
     pub fn upload(
         stream: &Arc<CudaStream>,
         slots: u32,
         counts: &[u32],
         entries: &[HistoryEntry],
+        loads: Option<&[LoadEntry]>,
     ) -> Result<Self> {
         let n = counts.len();
-        if entries.len() != n * slots as usize {
-            return Err(OptixError::BufferTooShort {
-                launch: "uploading the contact history",
-                buffer: "entries",
-                len: entries.len(),
-                needed: n * slots as usize,
-            });
+        for (buffer, len) in [
+            ("entries", Some(entries.len())),
+            ("loads", loads.map(<[_]>::len)),
+        ] {
+            match len {
+                Some(len) if len != n * slots as usize => {
+                    return Err(OptixError::BufferTooShort {
+                        launch: "uploading the contact history",
+                        buffer,
+                        len,
+                        needed: n * slots as usize,
+                    });
+                }
+                _ => {}
+            }
         }
         if let Some(&count) = counts.iter().find(|&&c| c > slots) {
             return Err(OptixError::IndexOutOfRange {
@@ -881,13 +900,15 @@ impl HistorySlots {
         Ok(Self {
             counts: upload(counts)?,
             entries: upload(bytemuck::cast_slice(entries))?,
+            loads: loads.map(|l| upload(bytemuck::cast_slice(l))).transpose()?,
             n: n as u32,
             slots,
         })
     }
 
-    /// An empty buffer for `n` spheres with `slots` slots each.
-    pub fn empty(stream: &Arc<CudaStream>, n: u32, slots: u32) -> Result<Self> {
+    /// An empty buffer for `n` spheres with `slots` slots each (with load histories where
+    /// `loaded`).
+    pub fn empty(stream: &Arc<CudaStream>, n: u32, slots: u32, loaded: bool) -> Result<Self> {
         let entries = n as usize * slots as usize * ENTRY_WORDS;
         let zeros = |len: usize| {
             stream
@@ -897,9 +918,23 @@ impl HistorySlots {
         Ok(Self {
             counts: zeros(n as usize)?,
             entries: zeros(entries)?,
+            loads: loaded
+                .then(|| zeros(n as usize * slots as usize * LOAD_WORDS))
+                .transpose()?,
             n,
             slots,
         })
+    }
+
+    /// The device address of the load histories (0 where none are kept: the programs compiled
+    /// without `MOCHI_LOAD_HISTORY` never use it).
+    fn loads_ptr(&self, device: &Device) -> u64 {
+        self.loads.as_ref().map_or(0, |l| device.ptr(l))
+    }
+
+    /// [`loads_ptr`](Self::loads_ptr), for writing.
+    fn loads_ptr_mut(&mut self, device: &Device) -> u64 {
+        self.loads.as_mut().map_or(0, |l| device.ptr_mut(l))
     }
 
     /// Slots per sphere.
@@ -907,29 +942,63 @@ impl HistorySlots {
         self.slots
     }
 
-    /// The counts and the entries (`slots` per sphere), read back.
-    pub fn read(&self, stream: &Arc<CudaStream>) -> Result<(Vec<u32>, Vec<HistoryEntry>)> {
+    /// The counts, the entries (`slots` per sphere) and their load histories (empty where
+    /// none are kept), read back.
+    pub fn read(&self, stream: &Arc<CudaStream>) -> Result<SlotsRead> {
         let read = cuda("reading the contact history back");
         let mut counts = stream.clone_dtoh(&self.counts).map_err(&read)?;
         counts.truncate(self.n as usize);
+        let slots = self.n as usize * self.slots as usize;
         let mut words = stream.clone_dtoh(&self.entries).map_err(&read)?;
-        words.truncate(self.n as usize * self.slots as usize * ENTRY_WORDS);
-        Ok((counts, bytemuck::cast_slice(&words).to_vec()))
-    }
-
-    /// `Ok` if the buffer covers `n` spheres with `slots` slots each.
-    fn check(&self, launch: &'static str, n: u32, slots: u32) -> Result<()> {
-        let needed = n as usize * slots as usize;
-        if self.n >= n && self.slots == slots {
-            return Ok(());
-        }
-        Err(OptixError::BufferTooShort {
-            launch,
-            buffer: "history",
-            len: self.n as usize * self.slots as usize,
-            needed,
+        words.truncate(slots * ENTRY_WORDS);
+        let loads = match &self.loads {
+            Some(l) => {
+                let mut words = stream.clone_dtoh(l).map_err(&read)?;
+                words.truncate(slots * LOAD_WORDS);
+                bytemuck::cast_slice(&words).to_vec()
+            }
+            None => Vec::new(),
+        };
+        Ok(SlotsRead {
+            counts,
+            entries: bytemuck::cast_slice(&words).to_vec(),
+            loads,
         })
     }
+
+    /// `Ok` if the buffer covers `n` spheres with `slots` slots each, with load histories
+    /// where `loaded` (the programs of the Mindlin–Deresiewicz model read and write them).
+    fn check(&self, launch: &'static str, n: u32, slots: u32, loaded: bool) -> Result<()> {
+        let needed = n as usize * slots as usize;
+        let len = self.n as usize * self.slots as usize;
+        if !(self.n >= n && self.slots == slots) {
+            return Err(OptixError::BufferTooShort {
+                launch,
+                buffer: "history",
+                len,
+                needed,
+            });
+        }
+        if loaded && n > 0 && self.loads.is_none() {
+            return Err(OptixError::BufferTooShort {
+                launch,
+                buffer: "load history",
+                len: 0,
+                needed,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A history buffer read back ([`HistorySlots::read`]).
+pub struct SlotsRead {
+    /// Contacts held per sphere.
+    pub counts: Vec<u32>,
+    /// `slots` entries per sphere.
+    pub entries: Vec<HistoryEntry>,
+    /// Their load histories, beside them (empty where none are kept).
+    pub loads: Vec<LoadEntry>,
 }
 
 /// Launch parameters of `optix/granular.cu`; keep in sync with `GranularLaunch` there.
@@ -948,6 +1017,8 @@ struct GranularLaunch {
     old_entries: u64,
     new_count: u64,
     new_entries: u64,
+    old_loads: u64,
+    new_loads: u64,
     handle: u64,
     n: u32,
     mode: u32,
@@ -955,7 +1026,7 @@ struct GranularLaunch {
     _pad: u32,
     g: GranularParams,
 }
-const _: () = assert!(size_of::<GranularLaunch>() == 232);
+const _: () = assert!(size_of::<GranularLaunch>() == 248);
 
 /// The buffers of one granular contact launch.
 pub struct GranularBuffers<'a> {
@@ -982,15 +1053,20 @@ pub struct GranularBuffers<'a> {
 pub struct GranularProgram {
     pipeline: Pipeline,
     params: LaunchParamSets<GranularLaunch>,
+    /// Compiled for the Mindlin–Deresiewicz model (its history buffers hold load histories).
+    loaded: bool,
 }
 
 impl GranularProgram {
-    /// Compiles (NVRTC, once per process) and links the programs on `device`.
-    pub fn new(device: &Arc<Device>) -> Result<Self> {
-        let ptx = programs::ptx(Unit::Granular)?;
+    /// Compiles (NVRTC, once per process) and links the programs on `device`, those of the
+    /// Mindlin–Deresiewicz model where `loaded` (the history buffers must then hold load
+    /// histories).
+    pub fn new(device: &Arc<Device>, loaded: bool) -> Result<Self> {
+        let ptx = programs::ptx(Unit::granular(loaded))?;
         Ok(Self {
             pipeline: Pipeline::new(device, ptx, "granular", 9)?,
             params: LaunchParamSets::default(),
+            loaded,
         })
     }
 
@@ -1016,8 +1092,8 @@ impl GranularProgram {
         check_len(LAUNCH, "contacts", b.contacts, COUNTER_SLOTS)?;
         check_len(LAUNCH, "candidates", b.candidates, COUNTER_SLOTS)?;
         let history_n = if g.keeps() { n } else { 0 };
-        b.old.check(LAUNCH, history_n, slots)?;
-        b.new.check(LAUNCH, history_n, slots)?;
+        b.old.check(LAUNCH, history_n, slots, self.loaded)?;
+        b.new.check(LAUNCH, history_n, slots, self.loaded)?;
         let device = &self.pipeline.device;
         let params = GranularLaunch {
             pos: device.ptr(&b.state.pos),
@@ -1032,6 +1108,8 @@ impl GranularProgram {
             old_entries: device.ptr(&b.old.entries),
             new_count: device.ptr_mut(&mut b.new.counts),
             new_entries: device.ptr_mut(&mut b.new.entries),
+            old_loads: b.old.loads_ptr(device),
+            new_loads: b.new.loads_ptr_mut(device),
             handle: gas.handle,
             n,
             mode: mode.code(),
@@ -1053,6 +1131,8 @@ pub struct GranularKernels {
     stream: Arc<CudaStream>,
     integrate: CudaFunction,
     permute_rows: CudaFunction,
+    /// Compiled for the Mindlin–Deresiewicz model (its history buffers hold load histories).
+    loaded: bool,
 }
 
 /// What one integration of the granular step reads and writes besides the state.
@@ -1072,9 +1152,10 @@ pub struct GranularIntegration<'a> {
 }
 
 impl GranularKernels {
-    /// Compiles (NVRTC, once per process) and loads the kernels on `device`.
-    pub fn load(device: &Device) -> Result<Self> {
-        let ptx = programs::ptx(Unit::GranularKernels)?;
+    /// Compiles (NVRTC, once per process) and loads the kernels on `device`, those of the
+    /// Mindlin–Deresiewicz model where `loaded`.
+    pub fn load(device: &Device, loaded: bool) -> Result<Self> {
+        let ptx = programs::ptx(Unit::granular_kernels(loaded))?;
         let module = device
             .cuda
             .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
@@ -1088,6 +1169,7 @@ impl GranularKernels {
             stream: device.stream.clone(),
             integrate: function("granular_integrate")?,
             permute_rows: function("permute_rows")?,
+            loaded,
         })
     }
 
@@ -1116,8 +1198,15 @@ impl GranularKernels {
         check_len(LAUNCH, "torque", b.torque, 3 * n as usize)?;
         check_len(LAUNCH, "need", b.need, 1)?;
         let history_n = if g.keeps() { n } else { 0 };
-        b.old.check(LAUNCH, history_n, slots)?;
-        b.new.check(LAUNCH, history_n, slots)?;
+        b.old.check(LAUNCH, history_n, slots, self.loaded)?;
+        b.new.check(LAUNCH, history_n, slots, self.loaded)?;
+        let old = b.old;
+        let HistorySlots {
+            counts: new_counts,
+            entries: new_entries,
+            loads: new_loads,
+            ..
+        } = b.new;
         let mut launch = self.stream.launch_builder(&self.integrate);
         launch
             .arg(&mut state.pos)
@@ -1126,10 +1215,16 @@ impl GranularKernels {
             .arg(b.force)
             .arg(b.torque)
             .arg(&state.ids)
-            .arg(&b.old.counts)
-            .arg(&b.old.entries)
-            .arg(&mut b.new.counts)
-            .arg(&mut b.new.entries)
+            .arg(&old.counts)
+            .arg(&old.entries)
+            .arg(new_counts)
+            .arg(new_entries);
+        match (&old.loads, new_loads) {
+            (Some(old_loads), Some(new_loads)) => launch.arg(old_loads).arg(new_loads),
+            // Never read without MOCHI_LOAD_HISTORY: any buffer will do for the pointers.
+            _ => launch.arg(&old.entries).arg(&old.counts),
+        };
+        launch
             .arg(b.need)
             .arg(&slots)
             .arg(g)
@@ -1142,7 +1237,8 @@ impl GranularKernels {
         // SAFETY: the arguments match granular_integrate's signature; the state, ang, force
         // and torque hold g.n() rows, ids g.n() entries below n (a permutation of the input
         // indices), the history buffers g.n() spheres of `slots` entries where g keeps springs
-        // (checked above; the kernel reads them only then), need one word; the mesh buffers
+        // (checked above; the kernel reads them only then), with load histories of as many
+        // slots where the kernel was compiled for them (checked above), need one word; the mesh buffers
         // hold what MeshBuffers::upload made of one WallTables (rows, grids whose offsets and
         // triangle indices stay within them, triangles, and the loads of every lane and wall).
         unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching granular_integrate"))?;
@@ -1246,7 +1342,7 @@ pub fn layout_checks(unit: Unit) -> String {
                 tangential,
                 rolling
             }
-        )
+        ) + &cuda_layout!("MochiLoadEntry", LoadEntry { reversal, normal })
     };
     // NVRTC has no offsetof; its front end's __INTADDR__ folds the address to a constant.
     let offset_of =
@@ -1286,7 +1382,7 @@ pub fn layout_checks(unit: Unit) -> String {
                     }
                 )
         }
-        Unit::Granular => {
+        Unit::Granular | Unit::GranularLoaded => {
             dem_params()
                 + &granular_params()
                 + &entry()
@@ -1305,6 +1401,8 @@ pub fn layout_checks(unit: Unit) -> String {
                         old_entries,
                         new_count,
                         new_entries,
+                        old_loads,
+                        new_loads,
                         handle,
                         n,
                         mode,
@@ -1314,7 +1412,9 @@ pub fn layout_checks(unit: Unit) -> String {
                     }
                 )
         }
-        Unit::GranularKernels => dem_params() + &granular_params() + &entry(),
+        Unit::GranularKernels | Unit::GranularKernelsLoaded => {
+            dem_params() + &granular_params() + &entry()
+        }
     };
     format!("{offset_of}{checks}")
 }

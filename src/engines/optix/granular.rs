@@ -20,13 +20,13 @@
 
 use super::device::{
     Device, Gas, GranularBuffers, GranularIntegration, GranularKernels, GranularParams,
-    GranularProgram, HistorySlots, MeshBuffers, Order, State, cuda,
+    GranularProgram, HistorySlots, MeshBuffers, Order, SlotsRead, State, cuda,
 };
 use crate::dem::model::{NormalLaw, StepParams};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_walls::{WallTables, wall_loads};
 use crate::error::{Error, OptixError, Result};
-use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, Particles};
+use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;
 use cudarc::driver::{CudaSlice, CudaStream, DriverError, sys::CUresult};
 use std::sync::Arc;
@@ -63,9 +63,11 @@ pub(super) struct Granular {
 }
 
 /// The contact history on the GPU: three buffers, of which a step reads `current` and writes
-/// another, while `start` holds the batch's start until the batch is known good.
+/// another, while `start` holds the batch's start until the batch is known good (each with the
+/// load histories of the Mindlin–Deresiewicz model where `loaded`).
 struct History {
     buffers: [HistorySlots; 3],
+    loaded: bool,
     start: usize,
     current: usize,
     /// The most contacts a sphere held where that exceeded the slots (0: none did).
@@ -127,13 +129,15 @@ impl Granular {
         }
         .map_err(&alloc)?;
         let zeros = |len: usize| stream.alloc_zeros::<f32>(len.max(4)).map_err(&alloc);
+        let loaded = params.friction.keeps_load();
         let params = GranularParams::new(params, n);
         let history = if params.keeps() {
-            upload_history(device, &particles.history, n)?
+            upload_history(device, &particles.history, n, loaded)?
         } else {
+            let empty = three(|| HistorySlots::empty(stream, 0, 0, false))?;
             History {
                 idle: Some(particles.history.clone()),
-                ..History::on_device(device, three(|| HistorySlots::empty(stream, 0, 0))?)?
+                ..History::on_device(device, empty, false)?
             }
         };
         let r_max = particles.radius_range().1;
@@ -141,8 +145,8 @@ impl Granular {
         Ok(Self {
             mesh: MeshBuffers::upload(stream, &tables)?,
             loads: vec![WallLoad::default(); walls.meshes.len()],
-            program: GranularProgram::new(device)?,
-            kernels: GranularKernels::load(device)?,
+            program: GranularProgram::new(device, loaded)?,
+            kernels: GranularKernels::load(device, loaded)?,
             params,
             ang_spare: zeros(4 * n as usize)?,
             torque: zeros(3 * n as usize)?,
@@ -308,19 +312,25 @@ impl Granular {
             .memcpy_dtod(&self.ang_spare, &mut self.ang)
             .map_err(&copy)?;
         let h = &mut self.history;
-        let old_slots = h.slots();
-        let (counts, entries) = h.buffers[h.start].read(stream)?;
+        let (old_slots, loaded) = (h.slots(), h.loaded);
+        let SlotsRead {
+            counts,
+            entries,
+            loads,
+        } = h.buffers[h.start].read(stream)?;
         let n = counts.len() as u32;
         // Room for this sphere and some more, rather than a redo per extra contact.
         let slots = need.saturating_add(need / 4);
         let entries = relayout(&entries, old_slots as usize, slots as usize);
+        let loads = relayout(&loads, old_slots as usize, slots as usize);
         // The old buffers go first, their memory back to the GPU (freed on the stream), as it
         // is the new ones' too.
-        h.buffers = three(|| HistorySlots::empty(stream, 0, 0))?;
+        h.buffers = three(|| HistorySlots::empty(stream, 0, 0, false))?;
         stream
             .synchronize()
             .map_err(cuda("freeing the contact history"))?;
-        self.history = upload(device, n, slots, &counts, &entries)?;
+        let loads = loaded.then_some(&loads[..]);
+        self.history = upload(device, n, slots, &counts, &entries, loads)?;
         Ok(())
     }
 
@@ -346,8 +356,8 @@ impl Granular {
         let history = match &h.idle {
             Some(given) => given.clone(),
             None => {
-                let (counts, entries) = h.buffers[h.current].read(stream)?;
-                both_sides(&counts, &entries, h.slots() as usize)?
+                let read = h.buffers[h.current].read(stream)?;
+                both_sides(&read, h.slots() as usize)?
             }
         };
         Ok((w, history))
@@ -355,14 +365,16 @@ impl Granular {
 }
 
 impl History {
-    /// Buffers `buffers` (the first holding the history) with a cleared overflow counter.
-    fn on_device(device: &Device, buffers: [HistorySlots; 3]) -> Result<Self> {
+    /// Buffers `buffers` (the first holding the history; load histories where `loaded`) with a
+    /// cleared overflow counter.
+    fn on_device(device: &Device, buffers: [HistorySlots; 3], loaded: bool) -> Result<Self> {
         let need = device
             .stream
             .alloc_zeros::<u32>(1)
             .map_err(cuda("allocating the history counter"))?;
         Ok(Self {
             buffers,
+            loaded,
             start: 0,
             current: 0,
             need,
@@ -379,40 +391,50 @@ fn three(
 }
 
 /// `history` (by stable id, both sides of each pair, as the cpu step keeps it) on the GPU for
-/// `n` spheres, with the slots it needs and at least [`FIRST_SLOTS`].
-fn upload_history(device: &Device, history: &ContactHistory, n: u32) -> Result<History> {
+/// `n` spheres, with the slots it needs and at least [`FIRST_SLOTS`], and load histories
+/// beside the entries where `loaded` (zero where `history` has none).
+fn upload_history(
+    device: &Device,
+    history: &ContactHistory,
+    n: u32,
+    loaded: bool,
+) -> Result<History> {
     let slots = FIRST_SLOTS.max(history.most() as u32);
     if history.is_empty() {
-        check_room(device, n, slots)?;
-        let empty = || HistorySlots::empty(&device.stream, n, slots);
-        let buffers = three(empty).map_err(|e| out_of_room(device, e, n, slots))?;
-        return History::on_device(device, buffers);
+        check_room(device, n, slots, loaded)?;
+        let empty = || HistorySlots::empty(&device.stream, n, slots, loaded);
+        let buffers = three(empty).map_err(|e| out_of_room(device, e, n, slots, loaded))?;
+        return History::on_device(device, buffers, loaded);
     }
-    let (counts, entries) = layout(history, n as usize, slots as usize);
-    upload(device, n, slots, &counts, &entries)
+    let (counts, entries, loads) = layout(history, n as usize, slots as usize);
+    let loads = loaded.then_some(&loads[..]);
+    upload(device, n, slots, &counts, &entries, loads)
 }
 
-/// History `counts` and `entries` (`slots` per sphere) of `n` spheres on the GPU.
+/// History `counts` and `entries` (`slots` per sphere) of `n` spheres on the GPU, with the
+/// load histories `loads` beside them (`None`: none kept).
 fn upload(
     device: &Device,
     n: u32,
     slots: u32,
     counts: &[u32],
     entries: &[HistoryEntry],
+    loads: Option<&[LoadEntry]>,
 ) -> Result<History> {
-    check_room(device, n, slots)?;
+    let loaded = loads.is_some();
+    check_room(device, n, slots, loaded)?;
     let stream = &device.stream;
-    let room = |e| out_of_room(device, e, n, slots);
-    let start = HistorySlots::upload(stream, slots, counts, entries).map_err(room)?;
-    let empty = || HistorySlots::empty(stream, n, slots);
+    let room = |e| out_of_room(device, e, n, slots, loaded);
+    let start = HistorySlots::upload(stream, slots, counts, entries, loads).map_err(room)?;
+    let empty = || HistorySlots::empty(stream, n, slots, loaded);
     let [a, b] = [empty().map_err(room)?, empty().map_err(room)?];
-    History::on_device(device, [start, a, b])
+    History::on_device(device, [start, a, b], loaded)
 }
 
 /// [`Error::TooLarge`] unless the GPU has room for the three history buffers of `n` spheres
-/// with `slots` slots each.
-fn check_room(device: &Device, n: u32, slots: u32) -> Result<()> {
-    let needed = 3 * HistorySlots::bytes(n, slots);
+/// with `slots` slots each (with load histories where `loaded`).
+fn check_room(device: &Device, n: u32, slots: u32, loaded: bool) -> Result<()> {
+    let needed = 3 * HistorySlots::bytes(n, slots, loaded);
     let free = device.free_memory()?;
     if needed <= free {
         return Ok(());
@@ -434,7 +456,7 @@ fn too_large(device: &Device, n: u32, slots: u32, needed: u64, free: u64) -> Err
 
 /// An allocation that failed for want of memory as [`Error::TooLarge`]; other errors as they
 /// are.
-fn out_of_room(device: &Device, e: OptixError, n: u32, slots: u32) -> Error {
+fn out_of_room(device: &Device, e: OptixError, n: u32, slots: u32, loaded: bool) -> Error {
     match e {
         OptixError::Cuda {
             error: DriverError(CUresult::CUDA_ERROR_OUT_OF_MEMORY),
@@ -443,48 +465,65 @@ fn out_of_room(device: &Device, e: OptixError, n: u32, slots: u32) -> Error {
             device,
             n,
             slots,
-            3 * HistorySlots::bytes(n, slots),
+            3 * HistorySlots::bytes(n, slots, loaded),
             device.free_memory().unwrap_or(0),
         ),
         e => e.into(),
     }
 }
 
-/// The counts and the entries (`slots` per sphere, which must hold the most any sphere has) of
-/// `history` for `n` spheres.
-fn layout(history: &ContactHistory, n: usize, slots: usize) -> (Vec<u32>, Vec<HistoryEntry>) {
+/// The counts, the entries (`slots` per sphere, which must hold the most any sphere has) and
+/// their load histories (zero where `history` keeps none) of `history` for `n` spheres.
+fn layout(
+    history: &ContactHistory,
+    n: usize,
+    slots: usize,
+) -> (Vec<u32>, Vec<HistoryEntry>, Vec<LoadEntry>) {
     let mut counts = vec![0u32; n];
     let mut entries = vec![HistoryEntry::default(); n * slots];
+    let mut loads = vec![LoadEntry::default(); n * slots];
     for (i, count) in counts.iter_mut().enumerate() {
-        let held = history.of(i);
+        let (held, held_loads) = (history.of(i), history.loads_of(i));
         entries[i * slots..i * slots + held.len()].copy_from_slice(held);
+        loads[i * slots..i * slots + held_loads.len()].copy_from_slice(held_loads);
         *count = held.len() as u32;
     }
-    (counts, entries)
+    (counts, entries, loads)
 }
 
 /// `entries` of `from` slots per sphere in `to` ≥ `from` slots per sphere.
-fn relayout(entries: &[HistoryEntry], from: usize, to: usize) -> Vec<HistoryEntry> {
+fn relayout<T: Copy + Default>(entries: &[T], from: usize, to: usize) -> Vec<T> {
     let n = entries.len() / from.max(1);
-    let mut out = vec![HistoryEntry::default(); n * to];
+    let mut out = vec![T::default(); n * to];
     for (i, held) in entries.chunks_exact(from.max(1)).enumerate() {
         out[i * to..i * to + from].copy_from_slice(held);
     }
     out
 }
 
-/// The history of spheres holding `counts[i]` entries of `entries[i·slots..]`, with every
-/// contact a sphere holds of a partner that does not hold it back added to the partner, springs
-/// negated (the partner's view): the GPU's owner-only entries as both sides, as
-/// [`ContactHistory`] keeps them; entries already both-sided stay as they are.
-fn both_sides(counts: &[u32], entries: &[HistoryEntry], slots: usize) -> Result<ContactHistory> {
+/// The history of spheres holding `counts[i]` entries of `entries[i·slots..]` (and their load
+/// histories, where `read` has them), with every contact a sphere holds of a partner that does
+/// not hold it back added to the partner, springs negated (the partner's view; the load
+/// history's reversal negated, its normal force the same): the GPU's owner-only entries as
+/// both sides, as [`ContactHistory`] keeps them; entries already both-sided stay as they are.
+fn both_sides(read: &SlotsRead, slots: usize) -> Result<ContactHistory> {
+    let (counts, entries) = (&read.counts, &read.entries);
+    let loaded = !read.loads.is_empty();
     let n = counts.len();
-    let own = |i: usize| &entries[i * slots..i * slots + (counts[i] as usize).min(slots)];
-    let mut contacts: Vec<(u32, HistoryEntry)> = (0..n)
-        .flat_map(|i| own(i).iter().map(move |&e| (i as u32, e)))
-        .collect();
+    let range = |i: usize| i * slots..i * slots + (counts[i] as usize).min(slots);
+    let own = |i: usize| &entries[range(i)];
+    let load = |at: usize| read.loads.get(at).copied().unwrap_or_default();
+    let mut contacts: Vec<(u32, HistoryEntry)> = Vec::new();
+    let mut loads = Vec::new();
     for i in 0..n {
-        for e in own(i) {
+        for at in range(i) {
+            contacts.push((i as u32, entries[at]));
+            loads.push(load(at));
+        }
+    }
+    for i in 0..n {
+        for at in range(i) {
+            let e = &entries[at];
             let j = e.partner as usize;
             // A partner out of range is refused by from_contacts with the owner's entry.
             if e.partner < FIRST_WALL && j < n && !own(j).iter().any(|b| b.partner == i as u32) {
@@ -494,10 +533,18 @@ fn both_sides(counts: &[u32], entries: &[HistoryEntry], slots: usize) -> Result<
                     rolling: e.rolling.map(|x| -x),
                 };
                 contacts.push((e.partner, back));
+                let l = load(at);
+                loads.push(LoadEntry {
+                    reversal: l.reversal.map(|x| -x),
+                    normal: l.normal,
+                });
             }
         }
     }
-    ContactHistory::from_contacts(n, &contacts)
+    if !loaded {
+        loads.clear();
+    }
+    ContactHistory::from_contacts_with_loads(n, &contacts, &loads)
 }
 
 #[cfg(test)]
@@ -526,18 +573,50 @@ mod tests {
             entry(FIRST_WALL + 4, 3.0),
             e,
         ];
-        let h = both_sides(&[2, 1, 1], &entries, 2).unwrap();
+        let read = |counts: &[u32], entries: &[HistoryEntry]| SlotsRead {
+            counts: counts.to_vec(),
+            entries: entries.to_vec(),
+            loads: Vec::new(),
+        };
+        let h = both_sides(&read(&[2, 1, 1], &entries), 2).unwrap();
         assert_eq!(h.of(0), &[entry(1, 1.0), entry(2, 2.0)]);
         assert_eq!(h.of(1), &[entry(mesh_wall, 4.0), entry(0, -1.0)]);
         assert_eq!(h.of(2), &[entry(FIRST_WALL + 4, 3.0), entry(0, -2.0)]);
         // Both-sided already (an upload read back before any step): nothing is doubled.
-        let (counts, entries) = layout(&h, 3, 4);
+        let (counts, entries, _) = layout(&h, 3, 4);
         assert_eq!(counts, [2, 2, 2]);
-        assert_eq!(both_sides(&counts, &entries, 4).unwrap(), h);
+        assert_eq!(both_sides(&read(&counts, &entries), 4).unwrap(), h);
         // More slots: the same history.
         let wider = relayout(&entries, 4, 7);
         assert_eq!(wider.len(), 21);
-        assert_eq!(both_sides(&counts, &wider, 7).unwrap(), h);
+        assert_eq!(both_sides(&read(&counts, &wider), 7).unwrap(), h);
+    }
+
+    #[test]
+    fn load_histories_read_back_on_both_sides_with_their_reversal_negated() {
+        let load = LoadEntry {
+            reversal: [0.5, -0.25, 0.0],
+            normal: 2.0,
+        };
+        let read = SlotsRead {
+            counts: vec![1, 0],
+            entries: vec![entry(1, 1.0), HistoryEntry::default()],
+            loads: vec![load, LoadEntry::default()],
+        };
+        let h = both_sides(&read, 1).unwrap();
+        assert_eq!(h.loads_of(0), &[load]);
+        assert_eq!(h.of(1), &[entry(0, -1.0)]);
+        let mirrored = LoadEntry {
+            reversal: [-0.5, 0.25, -0.0],
+            normal: 2.0,
+        };
+        assert_eq!(h.loads_of(1), &[mirrored]);
+        let (_, _, loads) = layout(&h, 2, 2);
+        assert_eq!(
+            loads,
+            [load, LoadEntry::default(), mirrored, LoadEntry::default()]
+        );
+        assert_eq!(relayout(&loads, 2, 3)[3], mirrored);
     }
 
     #[test]
@@ -600,6 +679,11 @@ mod tests {
 
     #[test]
     fn a_partner_out_of_range_is_refused() {
-        assert!(both_sides(&[1], &[entry(5, 1.0)], 1).is_err());
+        let read = SlotsRead {
+            counts: vec![1],
+            entries: vec![entry(5, 1.0)],
+            loads: Vec::new(),
+        };
+        assert!(both_sides(&read, 1).is_err());
     }
 }

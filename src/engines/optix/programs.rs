@@ -15,6 +15,9 @@ const GRANULAR_CU: &str = include_str!("../../../optix/granular.cu");
 const GRANULAR_KERNELS_CU: &str = include_str!("../../../optix/granular_kernels.cu");
 const MESH_WALLS_CUH: &str = include_str!("../../../optix/mesh_walls.cuh");
 
+/// What the Mindlin–Deresiewicz units prepend (`optix/contact.cuh`, `optix/history.cuh`).
+const LOAD_HISTORY: &str = "#define MOCHI_LOAD_HISTORY 1\n";
+
 /// Virtual architecture of the PTX: Turing, the first GPUs with RT cores (the driver compiles
 /// it for the GPU at hand).
 const ARCH: &str = "compute_75";
@@ -34,17 +37,40 @@ pub enum Unit {
     /// Plain CUDA kernels of the granular DEM step (box and mesh walls, integration with
     /// rotation).
     GranularKernels,
+    /// [`Unit::Granular`] under the Mindlin–Deresiewicz tangential model (`MOCHI_LOAD_HISTORY`:
+    /// its law, and the load history beside the contact history).
+    GranularLoaded,
+    /// [`Unit::GranularKernels`] under the Mindlin–Deresiewicz tangential model.
+    GranularKernelsLoaded,
 }
 
 impl Unit {
     /// Every unit.
-    pub const ALL: [Unit; 5] = [
+    pub const ALL: [Unit; 7] = [
         Unit::Detect,
         Unit::Kernels,
         Unit::Dem,
         Unit::Granular,
         Unit::GranularKernels,
+        Unit::GranularLoaded,
+        Unit::GranularKernelsLoaded,
     ];
+
+    /// The granular step's OptiX programs, under the Mindlin–Deresiewicz model where `loaded`.
+    pub fn granular(loaded: bool) -> Unit {
+        match loaded {
+            true => Unit::GranularLoaded,
+            false => Unit::Granular,
+        }
+    }
+
+    /// The granular step's kernels, under the Mindlin–Deresiewicz model where `loaded`.
+    pub fn granular_kernels(loaded: bool) -> Unit {
+        match loaded {
+            true => Unit::GranularKernelsLoaded,
+            false => Unit::GranularKernels,
+        }
+    }
 
     /// File name, for messages.
     pub fn name(self) -> &'static str {
@@ -54,12 +80,17 @@ impl Unit {
             Unit::Dem => "optix/dem.cu",
             Unit::Granular => "optix/granular.cu",
             Unit::GranularKernels => "optix/granular_kernels.cu",
+            Unit::GranularLoaded => "optix/granular.cu (MOCHI_LOAD_HISTORY)",
+            Unit::GranularKernelsLoaded => "optix/granular_kernels.cu (MOCHI_LOAD_HISTORY)",
         }
     }
 
     /// Whether the unit is an OptiX module (relocatable device code) rather than plain kernels.
     fn is_optix_module(self) -> bool {
-        !matches!(self, Unit::Kernels | Unit::GranularKernels)
+        !matches!(
+            self,
+            Unit::Kernels | Unit::GranularKernels | Unit::GranularKernelsLoaded
+        )
     }
 
     /// The full source NVRTC gets.
@@ -75,6 +106,12 @@ impl Unit {
                 "{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{MESH_WALLS_CUH}\n\
                  {GRANULAR_KERNELS_CU}"
             ),
+            Unit::GranularLoaded => {
+                format!("{LOAD_HISTORY}{}", Unit::Granular.source())
+            }
+            Unit::GranularKernelsLoaded => {
+                format!("{LOAD_HISTORY}{}", Unit::GranularKernels.source())
+            }
         }
     }
 }
