@@ -244,7 +244,7 @@ fn compile_errors_carry_the_nvrtc_log() {
 // ---- The granular step (GPU only: each test says why it skips without one) -------------------
 
 use mochi::dem::model::time_step::rayleigh_time;
-use mochi::dem::model::{ContactLaw, Material, RollingModel};
+use mochi::dem::model::{ContactLaw, Material, RollingModel, TangentialModel};
 use mochi::dem::{Particles, StepParams, Stepper};
 use mochi::engines::{Options, open_stepper};
 
@@ -338,15 +338,17 @@ fn largest(a: &Particles, of: impl Fn(&Particles, usize) -> [f32; 3]) -> f32 {
         .fold(0.0, |m, x| m.max(x.abs()))
 }
 
-/// The history of `p` as sorted (owner, partner) pairs with their springs.
-fn contacts(p: &Particles) -> Vec<(u32, u32, [f32; 6])> {
-    let mut out: Vec<_> = p
-        .history
-        .contacts()
-        .map(|(owner, e)| {
+/// The history of `p` as sorted (owner, partner) pairs with their springs and load histories
+/// (zero where none are kept).
+fn contacts(p: &Particles) -> Vec<(u32, u32, [f32; 10])> {
+    let loads: Vec<_> = p.history.contact_loads().copied().collect();
+    let mut out: Vec<_> = (p.history.contacts().enumerate())
+        .map(|(k, (owner, e))| {
             let [a, b, c] = e.tangential;
             let [d, f, g] = e.rolling;
-            (owner, e.partner, [a, b, c, d, f, g])
+            let l = loads.get(k).copied().unwrap_or_default();
+            let [h, i, j] = l.reversal;
+            (owner, e.partner, [a, b, c, d, f, g, h, i, j, l.normal])
         })
         .collect();
     out.sort_by_key(|&(o, q, _)| (o, q));
@@ -376,16 +378,26 @@ fn compare_with_cpu(particles: &Particles, p: StepParams, steps: u32) -> Option<
         "angular velocities differ by {dw:e} rad/s"
     );
     let (ca, cb) = (contacts(&a), contacts(&b));
-    let pairs = |c: &[(u32, u32, [f32; 6])]| c.iter().map(|&(o, q, _)| (o, q)).collect::<Vec<_>>();
+    assert_eq!(
+        a.history.has_loads(),
+        b.history.has_loads(),
+        "load histories kept"
+    );
+    let pairs = |c: &[(u32, u32, [f32; 10])]| c.iter().map(|&(o, q, _)| (o, q)).collect::<Vec<_>>();
     assert_eq!(pairs(&ca), pairs(&cb), "the two hold different contacts");
-    let largest = ca
-        .iter()
-        .flat_map(|c| c.2)
-        .fold(0.0f32, |m, x| m.max(x.abs()));
+    // The springs against their largest value, the reversals and the normal forces of the
+    // load histories against theirs.
+    let largest = |ks: std::ops::Range<usize>| {
+        ca.iter()
+            .flat_map(|c| c.2[ks.clone()].to_vec())
+            .fold(0.0f32, |m, x| m.max(x.abs()))
+    };
+    let scales = [largest(0..6), largest(6..9), largest(9..10)];
     for ((o, q, x), (_, _, y)) in ca.iter().zip(&cb) {
-        for k in 0..6 {
+        for k in 0..10 {
+            let scale = scales[[0, 0, 0, 0, 0, 0, 1, 1, 1, 2][k]];
             assert!(
-                (x[k] - y[k]).abs() <= 1e-3 * largest,
+                (x[k] - y[k]).abs() <= 1e-3 * scale,
                 "springs of {o} with {q}: cpu {x:?}, optix {y:?}"
             );
         }
@@ -411,6 +423,11 @@ fn the_granular_step_follows_the_cpu_step() {
         frictional(per_pair, 0.4, 0.0, RollingModel::Epsd),
         // No friction: the granular programs for the Hertz law alone.
         frictional(hertz, 0.0, 0.0, RollingModel::Epsd),
+        // Mindlin–Deresiewicz: its programs and load histories.
+        Material {
+            tangential_model: TangentialModel::MindlinDeresiewicz,
+            ..frictional(hertz, 0.5, 0.1, RollingModel::Epsd)
+        },
     ] {
         let p =
             StepParams::new(&material, dt, [0.0; 3], [0.1; 3], [0.0, 0.0, -9.81], 0.0, r).unwrap();
@@ -477,5 +494,17 @@ fn a_granular_state_reads_back_as_it_went_up() {
     let Some(mut gpu) = stepper(BackendKind::Optix, &state, p) else {
         return;
     };
+    assert_eq!(gpu.particles().unwrap(), state);
+    // So does one under Mindlin–Deresiewicz, its load histories included.
+    let md = Material {
+        tangential_model: TangentialModel::MindlinDeresiewicz,
+        ..material
+    };
+    let p = StepParams::new(&md, dt, [0.0; 3], [0.1; 3], [0.0, 0.0, -9.81], 0.0, r).unwrap();
+    let mut cpu = stepper(BackendKind::Cpu, &pressed_layers(r, 0.1), p).unwrap();
+    cpu.advance(10).unwrap();
+    let state = cpu.particles().unwrap();
+    assert!(state.history.has_loads());
+    let mut gpu = stepper(BackendKind::Optix, &state, p).unwrap();
     assert_eq!(gpu.particles().unwrap(), state);
 }
