@@ -7,8 +7,9 @@
 //! a row of independent springs of stiffness E*·dx and G'·dx (G' = 4·G*, so that the row's
 //! tangential stiffness is Mindlin's 8G*·a) under the profile x²/R, each sticking or sliding by
 //! Coulomb's law, which reproduces the Cattaneo–Mindlin tractions' force for any history of
-//! normal and tangential loading. That reference agrees with Chung & Ooi's FEM points to about
-//! 0.1 in the normalised recoil (docs/method.md, "Friction, rotation and rolling resistance").
+//! normal and tangential loading. That reference agrees with Chung & Ooi's FEM points within
+//! 0.15 in the normalised recoil, 0.06 on average (docs/method.md, "Friction, rotation and
+//! rolling resistance").
 //!
 //! With Mindlin–Deresiewicz's load-history dependent stiffness the step follows the theory
 //! within 0.1 from microslip (tangential speeds of 2 to 5 μ·v_n, where the contact point's
