@@ -1,7 +1,9 @@
 //! H. Chung and J. Y. Ooi, "Benchmark tests for verifying discrete element modelling codes at
 //! particle impact level", Granular Matter 13 (2011) 643–656: their eight impact tests, each a
-//! test of the whole step (`open_stepper` + `advance`) on every backend that runs here, with the
-//! paper's materials at their real moduli (docs/method.md, "Chung & Ooi benchmarks").
+//! test of the whole step (opened as `open_stepper` opens it, the wgpu engines' on a device the
+//! test binary shares, `common::open_dem_shared`; then `advance`) on every backend that runs
+//! here, with the paper's materials at their real moduli (docs/method.md, "Chung & Ooi
+//! benchmarks").
 //!
 //! | test | what | materials | here |
 //! | --- | --- | --- | --- |
@@ -37,8 +39,8 @@
 //! known to follow MBF in gross sliding only.
 //!
 //! Each test runs all its cases in one stepper per material: many spheres, each its own impact,
-//! spaced apart, read back once or three times ([`common::impacts`]). The time step gives the
-//! shortest contact [`STEPS`] steps (0.003–0.03 of the Rayleigh time at these real moduli, far
+//! spaced apart, read back a few times ([`common::impacts`]). The time step gives the
+//! shortest contact [`STEPS`] steps (0.006–0.017 of the Rayleigh time at these real moduli, far
 //! below the 0.2 a granular run takes), so semi-implicit Euler's error, O(dt/t_c), is a quarter
 //! of a percent; the tolerances are stated in those terms.
 
@@ -184,7 +186,7 @@ fn open(kind: BackendKind, p: &Particles, params: StepParams) -> Box<dyn mochi::
 }
 
 /// An elastic head-on impact of `solid` spheres of radius `r` at closing speed `v` with
-/// `target` (friction `mu`), sampled over 125 staggered copies 4 steps apart
+/// `target` (friction `mu`), sampled over 63 staggered copies 8 steps apart
 /// ([`Staggered::sample`]), against Hertz: t_c = 2.87·(m*²/(R*·E*²·v))^{1/5},
 /// δ_max = (15·m*·v²/(16·E*·√R*))^{2/5}, F_max = 4/3·E*·√R*·δ_max^{3/2}, F(δ) = 4/3·E*·√R*·δ^{3/2},
 /// rebound at v.
