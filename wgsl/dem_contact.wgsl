@@ -47,8 +47,8 @@ struct Body {
     m: f32,
 }
 
-// The normal force's magnitude (positive pushes apart), its elastic part (no damping) and the
-// normal stiffness.
+// The normal force's magnitude (≥ 0: a dry contact pushes or does nothing, it never pulls),
+// its elastic part (no damping) and the normal stiffness.
 struct Normal {
     push: f32,
     elastic: f32,
@@ -127,19 +127,19 @@ fn normal_force(on_wall: bool, overlap: f32, vn: f32, m_eff: f32, r_eff: f32) ->
     if granular.law == LAW_LINEAR {
         let c = 2.0 * dem.damping_ratio * root_product(dem.stiffness, m_eff);
         let elastic = dem.stiffness * overlap;
-        return Normal(elastic - c * vn, elastic, dem.stiffness);
+        return Normal(max(elastic - c * vn, 0.0), elastic, dem.stiffness);
     }
     if granular.law == LAW_PER_PAIR {
         let k = m_eff * granular.rate;
         let c = 2.0 * dem.damping_ratio * root_product(k, m_eff);
         let elastic = k * overlap;
-        return Normal(elastic - c * vn, elastic, k);
+        return Normal(max(elastic - c * vn, 0.0), elastic, k);
     }
     let e_star = select(granular.pair_e_star, granular.wall_e_star, on_wall);
     let s_n = 2.0 * e_star * sqrt(r_eff * overlap);
     let c = TSUJI * dem.damping_ratio * root_product(s_n, m_eff);
     let elastic = 2.0 / 3.0 * s_n * overlap;
-    return Normal(elastic - c * vn, elastic, s_n);
+    return Normal(max(elastic - c * vn, 0.0), elastic, s_n);
 }
 
 // `x` turned into the plane normal to `n`: its normal part removed, its length kept.
@@ -155,7 +155,7 @@ fn into_plane(x: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 // Tangential force with sliding coefficient `mu`, rolling torque and the springs to keep.
 fn friction(t: Touch, mu: f32, old: Springs) -> Friction {
     let n = t.n;
-    let pressing = max(t.normal.push, 0.0);
+    let pressing = t.normal.push;
     let elastic = t.normal.elastic;
     var out = Friction(vec3(0.0), vec3(0.0), no_springs());
     if mu > 0.0 {
