@@ -75,7 +75,7 @@ struct Load {
     c_t: f32,       // tangential damping coefficient
     mu: f32,        // sliding friction coefficient
     elastic: f32,   // elastic normal force N
-    pressing: f32,  // the normal force that caps the tangential one, max(push, 0)
+    pressing: f32,  // the normal force that caps the tangential one (push, ≥ 0)
 }
 
 // The tangential force on i and the springs it keeps (their rolling torque zero).

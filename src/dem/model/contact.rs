@@ -389,7 +389,7 @@ fn into_plane(x: Vec3, n: Vec3) -> Vec3 {
 /// The cube root of `x` in [0, 1], by the same operations on every backend (WGSL has no cube
 /// root, and the libraries' are not the same function): a start from the bits (the exponent
 /// divided by three), then three Newton steps, y ← (2y + x/y²)/3, which bring it within an
-/// ulp or two of ∛x. 0 for x ≤ 0. Keep in sync with `cube_root` in wgsl/dem_load.wgsl and
+/// ulp or two of ∛x. 0 for x ≤ 0. Keep in sync with `cube_root` in wgsl/dem_tangential_md.wgsl and
 /// `mochi_cube_root` in optix/contact.cuh.
 #[inline(always)]
 pub fn cube_root(x: f32) -> f32 {
@@ -413,7 +413,7 @@ struct Load {
     mu: f32,
     /// Elastic normal force N \[N\].
     elastic: f32,
-    /// The normal force that caps the tangential one, max(push, 0) \[N\].
+    /// The normal force that caps the tangential one (push, ≥ 0) \[N\].
     pressing: f32,
     /// Time step \[s\].
     dt: f32,
@@ -429,7 +429,7 @@ struct Load {
 /// force grows faster than the tangential one would (μ·ΔN > S_t·|Δξ|: no new slip). A reversal
 /// (Δξ driving F back towards F*) makes F* = F; F*'s size follows the normal force by μ·ΔN;
 /// past the mirror point (|F| ≥ |F*| on the far side) the virgin curve holds again; |F| ≤ μ·N
-/// (full slip: virgin again). The damping −c_t·v_t is added and Coulomb's cap μ·max(push, 0)
+/// (full slip: virgin again). The damping −c_t·v_t is added and Coulomb's cap μ·push
 /// applied as for Mindlin's spring. Every operation is odd in the vectors, so the partner's
 /// side (all vectors negated, N the same) gets the exact negatives.
 #[inline(always)]
