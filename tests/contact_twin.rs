@@ -13,7 +13,9 @@
 mod common;
 
 use glam::Vec3;
-use mochi::dem::model::contact::{Body, Contact, Springs, pair_contact, wall_contacts};
+use mochi::dem::model::contact::{
+    Body, Contact, Kept, LoadedSprings, Springs, pair_contact, wall_contacts,
+};
 use mochi::dem::model::{
     ContactLaw, Material, NormalLaw, RollingModel, StepParams, TangentialModel, mass,
 };
@@ -83,23 +85,80 @@ fn body_section(b: &Body) -> String {
     )
 }
 
-/// The springs' values: tangential, rolling, and under Mindlin–Deresiewicz (`loaded`) the
-/// reversal and the normal force.
-fn springs_section(s: &Springs, loaded: bool) -> String {
-    let mut out = format!("{} {}", vec3(s.tangential), vec3(s.rolling));
-    if loaded {
-        out += &format!(" {} {}", vec3(s.reversal), bits(s.normal));
-    }
-    out
+/// What the cases keep of a contact, as the case table writes it.
+trait Twin: Kept {
+    /// The values: tangential, rolling (and under Mindlin–Deresiewicz the reversal and the
+    /// normal force).
+    fn section(&self) -> String;
+    /// Springs a contact of spheres at `scale` may have kept.
+    fn old(scale: f32, rand: &mut impl FnMut() -> f32) -> Self;
+    /// What the cases keep of wall `w`: (w, w, w)·1e-6 and the rolling one their negative
+    /// (under Mindlin–Deresiewicz the reversal (w, −w, w)·1e-6 and the normal force w·1e-6).
+    fn of_wall(w: u32) -> Self;
 }
 
-fn contact_section(c: Option<Contact>, loaded: bool) -> String {
+impl Twin for Springs {
+    fn section(&self) -> String {
+        format!("{} {}", vec3(self.tangential), vec3(self.rolling))
+    }
+
+    fn old(scale: f32, rand: &mut impl FnMut() -> f32) -> Self {
+        Springs {
+            tangential: 1e-5 * scale * Vec3::new(rand(), rand(), rand()),
+            rolling: 1e-5 * scale.powi(3) * Vec3::new(rand(), rand(), rand()),
+        }
+    }
+
+    fn of_wall(w: u32) -> Self {
+        let x = w as f32 * 1e-6;
+        Springs {
+            tangential: Vec3::splat(x),
+            rolling: Vec3::splat(-x),
+        }
+    }
+}
+
+impl Twin for LoadedSprings {
+    fn section(&self) -> String {
+        let (r, n) = (vec3(self.reversal), bits(self.normal));
+        format!("{} {r} {n}", self.springs.section())
+    }
+
+    fn old(scale: f32, rand: &mut impl FnMut() -> f32) -> Self {
+        // Forces of the size of these contacts' (about a newton at scale 1, as the square of the
+        // lengths below), on the virgin curve in half the cases.
+        let force = scale * scale;
+        let reversed = rand() > 0.0;
+        LoadedSprings {
+            springs: Springs {
+                tangential: 0.5 * force * Vec3::new(rand(), rand(), rand()),
+                rolling: 1e-5 * scale.powi(3) * Vec3::new(rand(), rand(), rand()),
+            },
+            reversal: match reversed {
+                true => 0.5 * force * Vec3::new(rand(), rand(), rand()),
+                false => Vec3::ZERO,
+            },
+            normal: 2.0 * force * rand().abs(),
+        }
+    }
+
+    fn of_wall(w: u32) -> Self {
+        let x = w as f32 * 1e-6;
+        LoadedSprings {
+            springs: Springs::of_wall(w),
+            reversal: Vec3::new(x, -x, x),
+            normal: x,
+        }
+    }
+}
+
+fn contact_section<S: Twin>(c: Option<Contact<S>>) -> String {
     match c {
         Some(c) => format!(
             "1 {} {} {}",
             vec3(c.force),
             vec3(c.torque),
-            springs_section(&c.springs, loaded)
+            c.springs.section()
         ),
         None => "0".into(),
     }
@@ -108,7 +167,7 @@ fn contact_section(c: Option<Contact>, loaded: bool) -> String {
 /// Cases of one material: pairs at about touching distance (some apart), spinning, with old
 /// springs, near the walls of a 0.1 m box; all of it scaled by `scale` (lengths and times,
 /// velocities kept: spins by 1/scale, rolling springs by scale³).
-fn cases(
+fn cases<S: Twin>(
     material: &Material,
     dt: f64,
     scale: f32,
@@ -127,7 +186,7 @@ fn cases(
     )
     .unwrap();
     let params = params_section(&p);
-    let loaded = p.friction.keeps_load();
+    assert_eq!(p.friction.tangential_model, S::MODEL);
     let body = |c: Vec3, rand: &mut dyn FnMut() -> f32| {
         let r = (0.005 + 0.002 * rand()) * scale;
         let v = Vec3::new(rand(), rand(), rand());
@@ -147,73 +206,27 @@ fn cases(
         let towards = Vec3::new(rand(), rand(), rand()).normalize();
         let at = i.c + towards * ((0.0095 + 0.002 * rand()) * scale);
         let j = body(at, rand);
-        let old = if loaded {
-            // Forces of the size of these contacts' (about a newton at scale 1, as the square
-            // of the lengths below), on the virgin curve in half the cases.
-            let force = scale * scale;
-            let reversed = rand() > 0.0;
-            Springs {
-                tangential: 0.5 * force * Vec3::new(rand(), rand(), rand()),
-                rolling: 1e-5 * scale.powi(3) * Vec3::new(rand(), rand(), rand()),
-                reversal: match reversed {
-                    true => 0.5 * force * Vec3::new(rand(), rand(), rand()),
-                    false => Vec3::ZERO,
-                },
-                normal: 2.0 * force * rand().abs(),
-            }
-        } else {
-            Springs {
-                tangential: 1e-5 * scale * Vec3::new(rand(), rand(), rand()),
-                rolling: 1e-5 * scale.powi(3) * Vec3::new(rand(), rand(), rand()),
-                ..Springs::default()
-            }
-        };
-        let back = Springs {
-            tangential: -old.tangential,
-            rolling: -old.rolling,
-            reversal: -old.reversal,
-            normal: old.normal,
-        };
+        let old = S::old(scale, rand);
+        let back = old.negated();
         let mut kept = String::new();
         let mut count = 0;
-        let walls = wall_contacts(
-            &p,
-            &i,
-            |w| wall_springs(w, loaded),
-            |w, s| {
-                count += 1;
-                write!(kept, "{w} {} ", springs_section(&s, loaded)).unwrap();
-            },
-        );
+        let walls = wall_contacts(&p, &i, S::of_wall, |w, s: S| {
+            count += 1;
+            write!(kept, "{w} {} ", s.section()).unwrap();
+        });
         writeln!(
             out,
             "{params} | {} | {} | {} | {} | {} | {} {} {} {kept}{count}",
             body_section(&i),
             body_section(&j),
-            springs_section(&old, loaded),
-            contact_section(pair_contact(&p, &i, &j, old), loaded),
-            contact_section(pair_contact(&p, &j, &i, back), loaded),
+            old.section(),
+            contact_section(pair_contact(&p, &i, &j, old)),
+            contact_section(pair_contact(&p, &j, &i, back)),
             vec3(walls.normal),
             vec3(walls.tangential),
             vec3(walls.torque),
         )
         .unwrap();
-    }
-}
-
-/// The springs the cases keep of wall `w`: (w, w, w)·1e-6 and the rolling one their negative;
-/// under Mindlin–Deresiewicz (`loaded`) the reversal (w, −w, w)·1e-6 and the normal force
-/// w·1e-6.
-fn wall_springs(w: u32, loaded: bool) -> Springs {
-    let x = w as f32 * 1e-6;
-    Springs {
-        tangential: Vec3::splat(x),
-        rolling: Vec3::splat(-x),
-        reversal: match loaded {
-            true => Vec3::new(x, -x, x),
-            false => Vec3::ZERO,
-        },
-        normal: if loaded { x } else { 0.0 },
     }
 }
 
@@ -317,7 +330,7 @@ fn the_cuda_mindlin_deresiewicz_law_computes_the_bits_of_the_rust_one() {
                 tangential_model: TangentialModel::MindlinDeresiewicz,
                 ..Material::default()
             };
-            cases(&material, 1e-6, scale, &mut rand, &mut table);
+            cases::<LoadedSprings>(&material, 1e-6, scale, &mut rand, &mut table);
             count += 200;
         }
     }
@@ -380,7 +393,7 @@ fn the_cuda_contact_law_computes_the_bits_of_the_rust_one() {
                 rolling_model,
                 ..Material::default()
             };
-            cases(&material, dt, scale, &mut rand, &mut table);
+            cases::<Springs>(&material, dt, scale, &mut rand, &mut table);
             count += 200;
         }
     }

@@ -10,7 +10,7 @@ mod common;
 
 use glam::Vec3;
 use mochi::dem::flow::FlowSet;
-use mochi::dem::model::{ContactLaw, Material, RollingModel};
+use mochi::dem::model::{ContactLaw, Material, RollingModel, TangentialModel};
 use mochi::dem::scene::Start;
 use mochi::dem::walls::{Rotation, WallConfig, WallSet};
 use mochi::dem::{FIRST_MESH_WALL, Particles, StepParams, Stepper};
@@ -180,8 +180,23 @@ fn a_run_reopened_from_its_spheres_keeps_its_mesh_wall_springs_on(kind: BackendK
     // A sphere rolling down a mesh incline (tangential and EPSD rolling springs on the mesh
     // wall), read back halfway and stepped on by a step opened from what was read (as a
     // resumed run and a flow event's reopening are): one sphere, no sums in another order, so
-    // the two runs agree bit for bit on every backend; springs lost on the way would not.
-    let m = material(0.5, 0.1, RollingModel::Epsd);
+    // the two runs agree bit for bit on every backend; springs lost on the way would not, nor
+    // would the load histories of the Mindlin–Deresiewicz model.
+    for model in [
+        TangentialModel::Mindlin,
+        TangentialModel::MindlinDeresiewicz,
+    ] {
+        let m = Material {
+            tangential_model: model,
+            ..material(0.5, 0.1, RollingModel::Epsd)
+        };
+        reopened_on_an_incline(kind, &m);
+    }
+}
+
+/// [`a_run_reopened_from_its_spheres_keeps_its_mesh_wall_springs`] under material `m`.
+fn reopened_on_an_incline(kind: BackendKind, m: &Material) {
+    let m = *m;
     let theta = 20f32.to_radians();
     let downhill = Vec3::new(theta.cos(), 0.0, -theta.sin());
     let normal = Vec3::new(theta.sin(), 0.0, theta.cos());
@@ -209,6 +224,9 @@ fn a_run_reopened_from_its_spheres_keeps_its_mesh_wall_springs_on(kind: BackendK
         "the sphere holds springs of the mesh wall: {:?}",
         halfway.history
     );
+    if m.tangential_model == TangentialModel::MindlinDeresiewicz {
+        assert!(halfway.history.loads_of(0).iter().any(|l| l.normal > 0.0));
+    }
     let mut reopened = stepper(kind, halfway, p, walls());
     reopened.advance(300).unwrap();
     assert_eq!(straight.particles().unwrap(), reopened.particles().unwrap());

@@ -52,6 +52,51 @@ pub struct LoadEntry {
     pub normal: f32,
 }
 
+/// An entry with its load history, as a step under the Mindlin–Deresiewicz model writes it.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LoadedEntry {
+    /// The entry.
+    pub entry: HistoryEntry,
+    /// Its load history.
+    pub load: LoadEntry,
+}
+
+/// A slot as a step writes it: a [`HistoryEntry`] alone, or a [`LoadedEntry`] (the
+/// Mindlin–Deresiewicz model), so that a step of the other models keeps its entries as they
+/// are.
+pub trait Slot: Copy + Default + Send + Sync {
+    /// Whether it carries a load history.
+    const LOADED: bool;
+    /// The entry.
+    fn entry(&self) -> &HistoryEntry;
+    /// Its load history (zero where it carries none).
+    fn load(&self) -> LoadEntry;
+}
+
+impl Slot for HistoryEntry {
+    const LOADED: bool = false;
+    #[inline(always)]
+    fn entry(&self) -> &HistoryEntry {
+        self
+    }
+    #[inline(always)]
+    fn load(&self) -> LoadEntry {
+        LoadEntry::default()
+    }
+}
+
+impl Slot for LoadedEntry {
+    const LOADED: bool = true;
+    #[inline(always)]
+    fn entry(&self) -> &HistoryEntry {
+        &self.entry
+    }
+    #[inline(always)]
+    fn load(&self) -> LoadEntry {
+        self.load
+    }
+}
+
 /// Every sphere's contacts with history, in per-sphere slots.
 #[derive(Debug, Clone, Default)]
 pub struct ContactHistory {
@@ -219,25 +264,23 @@ impl ContactHistory {
     }
 
     /// Replaces the history of `counts.len()` spheres with one written in another order:
-    /// sphere i holds `entries[p·slots .. p·slots + counts[p]]` (and the load histories of
-    /// `loads`, beside them, where it is not empty) for p = `sorted_at(i)` (a gather on the
-    /// rayon pool).
-    pub fn gather_from(
+    /// sphere i holds `entries[p·slots .. p·slots + counts[p]]` for p = `sorted_at(i)` (a
+    /// gather on the rayon pool), with their load histories where the slots carry them.
+    pub fn gather_from<E: Slot>(
         &mut self,
         sorted_at: impl Fn(usize) -> usize + Sync,
         slots: usize,
         counts: &[u32],
-        entries: &[HistoryEntry],
-        loads: &[LoadEntry],
+        entries: &[E],
     ) -> Result<()> {
         let n = counts.len();
         if self.counts.len() != n || self.slots != slots {
             *self = Self::with_slots(n, slots)?;
         }
-        if loads.is_empty() {
-            self.loads = Vec::new();
-        } else {
+        if E::LOADED {
             self.keep_loads()?;
+        } else {
+            self.loads = Vec::new();
         }
         if slots == 0 {
             self.counts.fill(0);
@@ -251,10 +294,13 @@ impl ContactHistory {
             .for_each(|(i, (count, row))| {
                 let p = sorted_at(i);
                 let c = counts[p] as usize;
-                row[..c].copy_from_slice(&entries[p * slots..p * slots + c]);
+                let from = &entries[p * slots..p * slots + c];
+                for (to, e) in row[..c].iter_mut().zip(from) {
+                    *to = *e.entry();
+                }
                 *count = c as u32;
             });
-        if !loads.is_empty() {
+        if E::LOADED {
             let counts = &self.counts;
             self.loads
                 .par_chunks_mut(slots)
@@ -262,7 +308,10 @@ impl ContactHistory {
                 .for_each(|(i, row)| {
                     let p = sorted_at(i);
                     let c = counts[i] as usize;
-                    row[..c].copy_from_slice(&loads[p * slots..p * slots + c]);
+                    let from = &entries[p * slots..p * slots + c];
+                    for (to, e) in row[..c].iter_mut().zip(from) {
+                        *to = e.load();
+                    }
                 });
         }
         Ok(())
@@ -454,7 +503,7 @@ mod tests {
         sorted[1] = entry(FIRST_WALL, 3.0);
         sorted[4] = entry(2, -1.0);
         let mut g = ContactHistory::default();
-        g.gather_from(|i| [1, 2, 0][i], 4, &[2, 1, 0], &sorted, &[])
+        g.gather_from(|i| [1, 2, 0][i], 4, &[2, 1, 0], &sorted)
             .unwrap();
         assert_eq!(g.slots(), 4);
         assert_eq!(g, h);

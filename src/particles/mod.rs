@@ -5,7 +5,8 @@ pub mod history;
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
 pub use history::{
-    ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadEntry, MESH_WALLS,
+    ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadEntry, LoadedEntry, MESH_WALLS,
+    Slot,
 };
 
 /// Spheres with velocities, in the order the user gave them, their contact history and the

@@ -36,6 +36,7 @@
 
 use super::StepParams;
 use super::material::{NormalLaw, RollingModel, TangentialModel};
+use crate::particles::{HistoryEntry, LoadEntry, LoadedEntry};
 use glam::Vec3;
 
 /// 2·√(5/6): Tsuji's damping coefficient over ζ·√(S·m*).
@@ -105,32 +106,169 @@ pub fn moment_of_inertia(m: f32, r: f32) -> f32 {
     0.4 * m * r * r
 }
 
-/// What a contact carries from one step to the next, as the sphere holding it sees it (its
-/// partner holds the exact negatives of the vectors, and the same normal force). Zero for a
-/// new contact.
+/// What a contact carries from one step to the next under Mindlin's spring
+/// ([`TangentialModel::Mindlin`]), as the sphere holding it sees it (its partner holds the
+/// exact negatives). Zero for a new contact.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Springs {
-    /// Tangential spring ξ \[m\] of [`TangentialModel::Mindlin`]; the elastic tangential
-    /// force on the sphere \[N\] of [`TangentialModel::MindlinDeresiewicz`].
+    /// Tangential spring ξ \[m\].
     pub tangential: Vec3,
     /// Rolling spring torque of the EPSD model \[N·m\].
     pub rolling: Vec3,
-    /// Mindlin–Deresiewicz: the elastic tangential force on the sphere at the last reversal
-    /// of the loading \[N\] (zero: on the virgin curve, no reversal since the last full slip).
+}
+
+/// What a contact carries from one step to the next under the Mindlin–Deresiewicz model
+/// ([`TangentialModel::MindlinDeresiewicz`]), as the sphere holding it sees it (its partner
+/// holds the exact negatives of the vectors and the same normal force). Zero for a new contact.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LoadedSprings {
+    /// The elastic tangential force on the sphere \[N\] (in the spring's place) and the
+    /// rolling spring torque \[N·m\].
+    pub springs: Springs,
+    /// The elastic tangential force on the sphere at the last reversal of the loading \[N\]
+    /// (zero: on the virgin curve, no reversal since the contact began or last slid).
     pub reversal: Vec3,
-    /// Mindlin–Deresiewicz: the elastic normal force of the last step \[N\].
+    /// The elastic normal force of the last step \[N\].
     pub normal: f32,
+}
+
+/// What a contact keeps from one step to the next under a tangential model: [`Springs`]
+/// (Mindlin's spring) or [`LoadedSprings`] (Mindlin–Deresiewicz). The laws are generic in it, so
+/// that a step compiles each model on its own and the spring's code is as it was without the
+/// other.
+pub trait Kept: Copy + Default + PartialEq + std::fmt::Debug + Send + Sync {
+    /// The model it is kept under.
+    const MODEL: TangentialModel;
+    /// A slot of the history holding it.
+    type Slot: crate::particles::Slot;
+    /// Rolling spring torque \[N·m\].
+    fn rolling(&self) -> Vec3;
+    /// Sets the rolling spring torque \[N·m\].
+    fn set_rolling(&mut self, m: Vec3);
+    /// The tangential force on i (`load`, unit normal `n`, tangential velocity `v_t`) from
+    /// what i kept (`old`); what it keeps of it into `new`.
+    fn tangential(load: &Load, n: Vec3, v_t: Vec3, old: &Self, new: &mut Self) -> Vec3;
+    /// The slot of `partner` holding it.
+    fn slot(&self, partner: u32) -> Self::Slot;
+    /// What `entry` (with the load history `load`, where kept) holds.
+    fn of_entry(entry: &HistoryEntry, load: Option<&LoadEntry>) -> Self;
+    /// As the partner sees it: the vectors negated.
+    fn negated(&self) -> Self;
+}
+
+impl Kept for Springs {
+    const MODEL: TangentialModel = TangentialModel::Mindlin;
+    type Slot = HistoryEntry;
+
+    #[inline(always)]
+    fn rolling(&self) -> Vec3 {
+        self.rolling
+    }
+
+    #[inline(always)]
+    fn set_rolling(&mut self, m: Vec3) {
+        self.rolling = m;
+    }
+
+    /// Mindlin's spring: ξ turned into the tangent plane grows by v_t·dt,
+    /// F_t = −k_t·ξ − c_t·v_t up to Coulomb's cap, where ξ = −F_t/k_t.
+    #[inline(always)]
+    fn tangential(load: &Load, n: Vec3, v_t: Vec3, old: &Self, new: &mut Self) -> Vec3 {
+        let mut xi = into_plane(old.tangential, n) + v_t * load.dt;
+        let mut f_t = -load.k_t * xi - load.c_t * v_t;
+        let cap = load.mu * load.pressing;
+        let len = length(f_t);
+        if len > cap {
+            f_t *= cap / len;
+            xi = -f_t / load.k_t;
+        }
+        new.tangential = xi;
+        f_t
+    }
+
+    #[inline(always)]
+    fn slot(&self, partner: u32) -> HistoryEntry {
+        HistoryEntry {
+            partner,
+            tangential: self.tangential.to_array(),
+            rolling: self.rolling.to_array(),
+        }
+    }
+
+    #[inline(always)]
+    fn of_entry(entry: &HistoryEntry, _: Option<&LoadEntry>) -> Self {
+        Springs {
+            tangential: Vec3::from_array(entry.tangential),
+            rolling: Vec3::from_array(entry.rolling),
+        }
+    }
+
+    fn negated(&self) -> Self {
+        Springs {
+            tangential: -self.tangential,
+            rolling: -self.rolling,
+        }
+    }
+}
+
+impl Kept for LoadedSprings {
+    const MODEL: TangentialModel = TangentialModel::MindlinDeresiewicz;
+    type Slot = LoadedEntry;
+
+    #[inline(always)]
+    fn rolling(&self) -> Vec3 {
+        self.springs.rolling
+    }
+
+    #[inline(always)]
+    fn set_rolling(&mut self, m: Vec3) {
+        self.springs.rolling = m;
+    }
+
+    #[inline(always)]
+    fn tangential(load: &Load, n: Vec3, v_t: Vec3, old: &Self, new: &mut Self) -> Vec3 {
+        load_history(load, n, v_t, old, new)
+    }
+
+    #[inline(always)]
+    fn slot(&self, partner: u32) -> LoadedEntry {
+        LoadedEntry {
+            entry: self.springs.slot(partner),
+            load: LoadEntry {
+                reversal: self.reversal.to_array(),
+                normal: self.normal,
+            },
+        }
+    }
+
+    #[inline(always)]
+    fn of_entry(entry: &HistoryEntry, load: Option<&LoadEntry>) -> Self {
+        let load = load.copied().unwrap_or_default();
+        LoadedSprings {
+            springs: Springs::of_entry(entry, None),
+            reversal: Vec3::from_array(load.reversal),
+            normal: load.normal,
+        }
+    }
+
+    fn negated(&self) -> Self {
+        LoadedSprings {
+            springs: self.springs.negated(),
+            reversal: -self.reversal,
+            normal: self.normal,
+        }
+    }
 }
 
 /// What one contact does to the sphere computing it.
 #[derive(Debug, Clone, Copy)]
-pub struct Contact {
+pub struct Contact<S = Springs> {
     /// Force on the sphere \[N\].
     pub force: Vec3,
     /// Torque on the sphere about its centre \[N·m\].
     pub torque: Vec3,
     /// Springs to keep for the next step.
-    pub springs: Springs,
+    pub springs: S,
 }
 
 /// The normal force's magnitude (≥ 0: it pushes the bodies apart or does nothing), its elastic
@@ -207,9 +345,10 @@ fn normal_force(
 }
 
 /// The contact of sphere `i` with sphere `j`, from i's side, given the springs i kept of it
-/// (`old`), or `None` when they do not touch (or their centres coincide: no normal, no force).
+/// (`old`, of the parameters' tangential model), or `None` when they do not touch (or their
+/// centres coincide: no normal, no force).
 #[inline(always)]
-pub fn pair_contact(p: &StepParams, i: &Body, j: &Body, old: Springs) -> Option<Contact> {
+pub fn pair_contact<S: Kept>(p: &StepParams, i: &Body, j: &Body, old: S) -> Option<Contact<S>> {
     let d = j.c - i.c;
     let d2 = d.dot(d);
     let reach = i.r + j.r;
@@ -228,7 +367,7 @@ pub fn pair_contact(p: &StepParams, i: &Body, j: &Body, old: Springs) -> Option<
         return Some(Contact {
             force,
             torque: Vec3::ZERO,
-            springs: Springs::default(),
+            springs: S::default(),
         });
     }
     let touch = Touch {
@@ -270,11 +409,11 @@ pub struct WallContacts {
 /// and `keep(w, springs)` receives those to keep, for each touching wall in order, where the
 /// material has history.
 #[inline(always)]
-pub fn wall_contacts(
+pub fn wall_contacts<S: Kept>(
     p: &StepParams,
     b: &Body,
-    old: impl Fn(u32) -> Springs,
-    mut keep: impl FnMut(u32, Springs),
+    old: impl Fn(u32) -> S,
+    mut keep: impl FnMut(u32, S),
 ) -> WallContacts {
     let turns = p.friction.turns();
     let keeps = p.friction.has_history();
@@ -338,15 +477,15 @@ pub fn wall_contacts(
 /// sphere kept of this contact. The same law as a box wall's ([`wall_contacts`]), with the
 /// surface's own velocity subtracted from the sphere's: a moving wall drags what touches it.
 #[inline(always)]
-pub fn surface_contact(
+pub fn surface_contact<S: Kept>(
     p: &StepParams,
     b: &Body,
     n: Vec3,
     overlap: f32,
     surface_velocity: Vec3,
     mu: f32,
-    old: Springs,
-) -> Contact {
+    old: S,
+) -> Contact<S> {
     // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
     let vn = (surface_velocity - b.v).dot(n);
     let normal = normal_force(p, true, overlap, vn, b.m, b.r);
@@ -355,7 +494,7 @@ pub fn surface_contact(
         return Contact {
             force,
             torque: Vec3::ZERO,
-            springs: Springs::default(),
+            springs: S::default(),
         };
     }
     let touch = Touch {
@@ -403,20 +542,21 @@ pub fn cube_root(x: f32) -> f32 {
     y
 }
 
-/// What the Mindlin–Deresiewicz law of one contact needs besides its springs.
-struct Load {
-    /// Mindlin's full tangential stiffness S_t = 8G*√(R*δ) \[N/m\].
-    k_t: f32,
+/// What the tangential force of a contact needs besides its springs.
+#[derive(Debug, Clone, Copy)]
+pub struct Load {
+    /// Mindlin's full tangential stiffness S_t = 8G*√(R*δ) (linear laws: 2/7·k) \[N/m\].
+    pub k_t: f32,
     /// Tangential damping coefficient \[N·s/m\].
-    c_t: f32,
+    pub c_t: f32,
     /// Sliding friction coefficient.
-    mu: f32,
+    pub mu: f32,
     /// Elastic normal force N \[N\].
-    elastic: f32,
+    pub elastic: f32,
     /// The normal force that caps the tangential one (push, ≥ 0) \[N\].
-    pressing: f32,
+    pub pressing: f32,
     /// Time step \[s\].
-    dt: f32,
+    pub dt: f32,
 }
 
 /// The Mindlin–Deresiewicz tangential force on i (docs/method.md, "Friction, rotation and
@@ -433,9 +573,15 @@ struct Load {
 /// applied as for Mindlin's spring. Every operation is odd in the vectors, so the partner's
 /// side (all vectors negated, N the same) gets the exact negatives.
 #[inline(always)]
-fn load_history(load: &Load, n: Vec3, v_t: Vec3, old: &Springs, springs: &mut Springs) -> Vec3 {
+fn load_history(
+    load: &Load,
+    n: Vec3,
+    v_t: Vec3,
+    old: &LoadedSprings,
+    springs: &mut LoadedSprings,
+) -> Vec3 {
     let mu = load.mu;
-    let mut f = into_plane(old.tangential, n);
+    let mut f = into_plane(old.springs.tangential, n);
     let mut r = into_plane(old.reversal, n);
     let dn = load.elastic - old.normal;
     let d = v_t * load.dt;
@@ -494,7 +640,7 @@ fn load_history(load: &Load, n: Vec3, v_t: Vec3, old: &Springs, springs: &mut Sp
         f = f_t;
         r = Vec3::ZERO;
     }
-    springs.tangential = f;
+    springs.springs.tangential = f;
     springs.reversal = r;
     springs.normal = load.elastic;
     f_t
@@ -503,12 +649,13 @@ fn load_history(load: &Load, n: Vec3, v_t: Vec3, old: &Springs, springs: &mut Sp
 /// Tangential force with sliding coefficient `mu`, the torque on i (from it and from rolling
 /// resistance) and the springs to keep.
 #[inline(always)]
-fn friction(p: &StepParams, t: &Touch, mu: f32, old: Springs) -> (Vec3, Vec3, Springs) {
+fn friction<S: Kept>(p: &StepParams, t: &Touch, mu: f32, old: S) -> (Vec3, Vec3, S) {
+    debug_assert!(!p.friction.has_history() || p.friction.tangential_model == S::MODEL);
     let n = t.n;
     let pressing = t.normal.push;
     let mut force = Vec3::ZERO;
     let mut torque = Vec3::ZERO;
-    let mut springs = Springs::default();
+    let mut springs = S::default();
     if mu > 0.0 {
         let (k_t, c_t) = match p.law {
             NormalLaw::Linear | NormalLaw::LinearPerPair { .. } => {
@@ -522,31 +669,15 @@ fn friction(p: &StepParams, t: &Touch, mu: f32, old: Springs) -> (Vec3, Vec3, Sp
             }
         };
         let v_t = t.v_rel - t.v_rel.dot(n) * n;
-        let f_t = match p.friction.tangential_model {
-            TangentialModel::Mindlin => {
-                let mut xi = into_plane(old.tangential, n) + v_t * p.dt;
-                let mut f_t = -k_t * xi - c_t * v_t;
-                let cap = mu * pressing;
-                let len = length(f_t);
-                if len > cap {
-                    f_t *= cap / len;
-                    xi = -f_t / k_t;
-                }
-                springs.tangential = xi;
-                f_t
-            }
-            TangentialModel::MindlinDeresiewicz => {
-                let load = Load {
-                    k_t,
-                    c_t,
-                    mu,
-                    elastic: t.normal.elastic,
-                    pressing,
-                    dt: p.dt,
-                };
-                load_history(&load, n, v_t, &old, &mut springs)
-            }
+        let load = Load {
+            k_t,
+            c_t,
+            mu,
+            elastic: t.normal.elastic,
+            pressing,
+            dt: p.dt,
         };
+        let f_t = S::tangential(&load, n, v_t, &old, &mut springs);
         force = f_t;
         torque = (t.lever * n).cross(f_t);
     }
@@ -557,12 +688,12 @@ fn friction(p: &StepParams, t: &Touch, mu: f32, old: Springs) -> (Vec3, Vec3, Sp
         let rolling = match p.friction.rolling_model {
             RollingModel::Epsd => {
                 let k_r = 2.25 * t.normal.stiffness * mu_r * mu_r * t.r_eff * t.r_eff;
-                let mut m = into_plane(old.rolling, n) - k_r * p.dt * w_roll;
+                let mut m = into_plane(old.rolling(), n) - k_r * p.dt * w_roll;
                 let len = length(m);
                 if len > cap {
                     m *= cap / len;
                 }
-                springs.rolling = m;
+                springs.set_rolling(m);
                 m
             }
             RollingModel::ConstantTorque => {
@@ -670,7 +801,7 @@ mod tests {
             r,
             m: mass(500.0, r),
         };
-        let (mut a, mut b) = (Springs::default(), Springs::default());
+        let (mut a, mut b) = (LoadedSprings::default(), LoadedSprings::default());
         let mut reversed = false;
         // Tangential speeds that load, turn back and load again while the pair approaches.
         for (k, side) in [0.3f32, 0.2, -0.4, -0.1, 0.5, 0.6].into_iter().enumerate() {
@@ -684,7 +815,8 @@ mod tests {
             let f = pair_contact(&p, &i, &j, a).unwrap();
             let g = pair_contact(&p, &j, &i, b).unwrap();
             assert_eq!(f.force, -g.force, "step {k}");
-            assert_eq!(f.springs.tangential, -g.springs.tangential);
+            assert_eq!(f.springs, g.springs.negated());
+            assert_eq!(f.springs.springs.tangential, -g.springs.springs.tangential);
             assert_eq!(f.springs.reversal, -g.springs.reversal);
             assert_eq!(f.springs.normal, g.springs.normal);
             assert!(f.springs.normal > 0.0);

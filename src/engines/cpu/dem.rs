@@ -10,13 +10,14 @@ use super::query::{gather, gather_with_side};
 use super::walls::MeshPass;
 use crate::dem::flow::{FlowCounts, FlowSet};
 use crate::dem::model::contact::{
-    Body, Springs, integrate_rotation, moment_of_inertia, pair_contact, wall_contacts,
+    Body, Kept, LoadedSprings, Springs, integrate_rotation, moment_of_inertia, pair_contact,
+    wall_contacts,
 };
 use crate::dem::model::{StepParams, integrate, mass};
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::error::{Error, Result, try_resize, try_vec};
-use crate::particles::{FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadEntry, Particles};
+use crate::particles::{FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadedEntry, Particles, Slot};
 use crate::proxy::ProxyMode;
 use crate::spheres::center_bounds;
 use glam::Vec3;
@@ -57,10 +58,12 @@ pub struct CpuStepper {
     sums: Vec<SphereSum>,
     /// History slots per sphere while resolving contacts (0 without history).
     slots: usize,
-    /// The new contact history of each sorted sphere, `slots` entries each.
+    /// The new contact history of each sorted sphere, `slots` entries each (where contacts
+    /// keep Mindlin's springs).
     sorted_history: Vec<HistoryEntry>,
-    /// Their load histories, beside them (Mindlin–Deresiewicz; empty otherwise).
-    sorted_loads: Vec<LoadEntry>,
+    /// The same with load histories (where contacts keep those of the Mindlin–Deresiewicz
+    /// model).
+    sorted_loaded: Vec<LoadedEntry>,
     /// The sorted position of each sphere (input order), for the gathers back into it.
     sorted_at: Vec<AtomicU32>,
     /// Force of each sphere, in input order.
@@ -111,7 +114,7 @@ impl CpuStepper {
             sums: Vec::new(),
             slots,
             sorted_history: Vec::new(),
-            sorted_loads: Vec::new(),
+            sorted_loaded: Vec::new(),
             sorted_at: Vec::new(),
             forces: Vec::new(),
             torques: Vec::new(),
@@ -202,53 +205,17 @@ impl CpuStepper {
             box_walls: self.box_walls,
             mesh: self.mesh.as_ref(),
         };
+        let (grid, sums, slots) = (&self.grid, &mut self.sums, &mut self.slots);
         if !self.params.friction.has_history() {
-            gather(&self.grid, &mut self.sums, |at, runs| {
-                pass.sphere(at, runs, &mut [], &mut [])
+            gather(grid, sums, |at, runs| {
+                pass.sphere::<Springs>(at, runs, &mut [])
             });
+        } else if self.params.friction.keeps_load() {
+            let side = &mut self.sorted_loaded;
+            resolve_kept::<LoadedSprings>(&pass, grid, sums, side, slots)?;
         } else {
-            let loaded = self.params.friction.keeps_load();
-            loop {
-                let slots = self.slots;
-                let entries = n.checked_mul(slots).ok_or_else(|| Error::TooLarge {
-                    what: format!("contact history slots of {n} spheres"),
-                    got: slots as u64,
-                    limit: (usize::MAX / n.max(1)) as u64,
-                })?;
-                self.sorted_history.clear();
-                self.sorted_history
-                    .try_reserve(entries)
-                    .map_err(|_| Error::OutOfMemory {
-                        what: format!("the contact history of {n} spheres ({slots} contacts each)"),
-                        bytes: (entries * std::mem::size_of::<HistoryEntry>()) as u64,
-                    })?;
-                self.sorted_history.resize(entries, HistoryEntry::default());
-                self.sorted_loads.clear();
-                if loaded {
-                    try_resize(
-                        &mut self.sorted_loads,
-                        entries,
-                        LoadEntry::default(),
-                        || format!("the load history of {n} spheres ({slots} contacts each)"),
-                    )?;
-                }
-                let (sums, side) = (&mut self.sums, &mut self.sorted_history);
-                let loads = &mut self.sorted_loads;
-                gather_with_side(
-                    &self.grid,
-                    sums,
-                    side,
-                    loads,
-                    slots,
-                    |at, runs, held, lh| pass.sphere(at, runs, held, lh),
-                );
-                let most = self.sums.iter().map(|s| s.held).max().unwrap_or(0) as usize;
-                if most <= slots {
-                    break;
-                }
-                // Room for this sphere and some more, rather than a redo per extra contact.
-                self.slots = most + most / 4;
-            }
+            let side = &mut self.sorted_history;
+            resolve_kept::<Springs>(&pass, grid, sums, side, slots)?;
         }
         // Each sphere's sorted position, so that what the pass found is gathered back into
         // input order in parallel.
@@ -273,8 +240,11 @@ impl CpuStepper {
         if self.params.friction.has_history() {
             let mut counts = try_vec(n, of_n)?;
             counts.par_extend(sums.par_iter().map(|s| s.held));
-            let (history, loads) = (&self.sorted_history, &self.sorted_loads);
-            (self.particles.history).gather_from(at, self.slots, &counts, history, loads)?;
+            let history = &mut self.particles.history;
+            match self.params.friction.keeps_load() {
+                true => history.gather_from(at, self.slots, &counts, &self.sorted_loaded)?,
+                false => history.gather_from(at, self.slots, &counts, &self.sorted_history)?,
+            }
         }
         try_resize(&mut self.forces, n, [0.0; 3], of_n)?;
         self.forces
@@ -332,15 +302,14 @@ struct ContactPass<'a> {
 
 impl ContactPass<'_> {
     /// The contacts of the sphere at sorted position `at` with the spheres of `runs` and the
-    /// walls; writes those with history to `held` (as many as fit; their load histories to
-    /// `loads` where it is not empty) and counts them all.
+    /// walls, keeping `S`; writes those with history to `held` (as many as fit) and counts them
+    /// all.
     #[inline(always)]
-    fn sphere(
+    fn sphere<S: Kept>(
         &self,
         at: usize,
         runs: &[std::ops::Range<usize>; 9],
-        held: &mut [HistoryEntry],
-        loads: &mut [LoadEntry],
+        held: &mut [S::Slot],
     ) -> SphereSum {
         let (grid, p, parts) = (self.grid, self.params, self.particles);
         let keeps = p.friction.has_history();
@@ -359,27 +328,20 @@ impl ContactPass<'_> {
         let i = grid.ids[at] as usize;
         let me = body(at);
         let kept = parts.history.of(i);
-        let kept_loads = parts.history.loads_of(i);
-        let old = |partner: u32| -> Springs {
+        let kept_loads = match <S::Slot as Slot>::LOADED {
+            true => parts.history.loads_of(i),
+            false => &[],
+        };
+        let old = |partner: u32| -> S {
             match kept.iter().position(|e| e.partner == partner) {
-                Some(k) => springs_of(&kept[k], kept_loads.get(k)),
-                None => Springs::default(),
+                Some(k) => S::of_entry(&kept[k], kept_loads.get(k)),
+                None => S::default(),
             }
         };
         let mut count = 0u32;
-        let mut keep = |partner: u32, springs: Springs| {
+        let mut keep = |partner: u32, springs: S| {
             if let Some(slot) = held.get_mut(count as usize) {
-                *slot = HistoryEntry {
-                    partner,
-                    tangential: springs.tangential.to_array(),
-                    rolling: springs.rolling.to_array(),
-                };
-                if let Some(load) = loads.get_mut(count as usize) {
-                    *load = LoadEntry {
-                        reversal: springs.reversal.to_array(),
-                        normal: springs.normal,
-                    };
-                }
+                *slot = springs.slot(partner);
             }
             count += 1;
         };
@@ -396,7 +358,7 @@ impl ContactPass<'_> {
                     continue;
                 }
                 let j = grid.ids[q];
-                let springs = if keeps { old(j) } else { Springs::default() };
+                let springs = if keeps { old(j) } else { S::default() };
                 if let Some(c) = pair_contact(p, &me, &body(q), springs) {
                     touching += 1;
                     force += c.force;
@@ -422,11 +384,14 @@ impl ContactPass<'_> {
             }
         }
         if let Some(mesh) = self.mesh {
-            let (sum, entries, mesh_loads) = mesh.of(i);
+            let (sum, entries, loaded) = mesh.of(i);
             force += sum.force;
             torque += sum.torque;
-            for (k, e) in entries.iter().enumerate() {
-                keep(e.partner, springs_of(e, mesh_loads.get(k)));
+            for e in entries {
+                keep(e.partner, S::of_entry(e, None));
+            }
+            for e in loaded {
+                keep(e.entry.partner, S::of_entry(&e.entry, Some(&e.load)));
             }
         }
         SphereSum {
@@ -438,15 +403,40 @@ impl ContactPass<'_> {
     }
 }
 
-/// The springs of a history entry and its load history (`None`: none kept).
-#[inline(always)]
-pub(super) fn springs_of(e: &HistoryEntry, load: Option<&LoadEntry>) -> Springs {
-    let load = load.copied().unwrap_or_default();
-    Springs {
-        tangential: Vec3::from_array(e.tangential),
-        rolling: Vec3::from_array(e.rolling),
-        reversal: Vec3::from_array(load.reversal),
-        normal: load.normal,
+/// The contact pass of a step whose contacts keep `S`: gathers every sorted sphere's contacts
+/// into `sums` and their new history into `side` (`slots` entries a sphere), growing the slots
+/// and resolving again while some sphere has more contacts than slots (the old history is only
+/// read, so the redo sees the same state).
+fn resolve_kept<S: Kept>(
+    pass: &ContactPass,
+    grid: &SortedGrid,
+    sums: &mut [SphereSum],
+    side: &mut Vec<S::Slot>,
+    slots: &mut usize,
+) -> Result<()> {
+    let n = grid.keys.len();
+    loop {
+        let k = *slots;
+        let entries = n.checked_mul(k).ok_or_else(|| Error::TooLarge {
+            what: format!("contact history slots of {n} spheres"),
+            got: k as u64,
+            limit: (usize::MAX / n.max(1)) as u64,
+        })?;
+        side.clear();
+        side.try_reserve(entries).map_err(|_| Error::OutOfMemory {
+            what: format!("the contact history of {n} spheres ({k} contacts each)"),
+            bytes: (entries * std::mem::size_of::<S::Slot>()) as u64,
+        })?;
+        side.resize(entries, S::Slot::default());
+        gather_with_side(grid, sums, side, k, |at, runs, held| {
+            pass.sphere::<S>(at, runs, held)
+        });
+        let most = sums.iter().map(|s| s.held).max().unwrap_or(0) as usize;
+        if most <= k {
+            return Ok(());
+        }
+        // Room for this sphere and some more, rather than a redo per extra contact.
+        *slots = most + most / 4;
     }
 }
 

@@ -12,7 +12,6 @@
 
 use super::grid::SortedGrid;
 use crate::proxy::collides;
-use rayon::iter::Either;
 use rayon::prelude::*;
 
 /// Sorted spheres per parallel task; fixed so the output order does not depend on the threads.
@@ -215,66 +214,32 @@ where
 }
 
 /// [`gather`] that also hands `each` the `width` entries of `side[p·width ..]` to write: the
-/// contact history of sphere p (`side` has `width` entries per sphere, `width` ≥ 1), and those
-/// of `loads` beside them (their load histories; `loads` is empty or as long as `side`: then
-/// `each` gets empty slices).
-pub(crate) fn gather_with_side<T, S, L, F>(
+/// contact history of sphere p (`side` has `width` entries per sphere, `width` ≥ 1).
+pub(crate) fn gather_with_side<T, S, F>(
     grid: &SortedGrid,
     out: &mut [T],
     side: &mut [S],
-    loads: &mut [L],
     width: usize,
     each: F,
 ) where
     T: Send,
     S: Send,
-    L: Send,
-    F: Fn(usize, &[std::ops::Range<usize>; 9], &mut [S], &mut [L]) -> T + Sync,
+    F: Fn(usize, &[std::ops::Range<usize>; 9], &mut [S]) -> T + Sync,
 {
     let n = grid.keys.len();
     assert_eq!(out.len(), n, "one output slot per sphere");
     assert_eq!(side.len(), n * width, "`width` side entries per sphere");
-    assert!(
-        loads.is_empty() || loads.len() == side.len(),
-        "loads beside the entries"
-    );
-    let chunks = n.div_ceil(CHUNK);
     out.par_chunks_mut(CHUNK)
         .zip(side.par_chunks_mut(CHUNK * width))
-        .zip(chunks_or_none(loads, CHUNK * width, chunks))
         .enumerate()
-        .for_each(|(c, ((slots, sides), loads))| {
+        .for_each(|(c, (slots, sides))| {
             let len = slots.len();
-            let mut outs = slots
-                .iter_mut()
-                .zip(sides.chunks_mut(width))
-                .zip(rows_or_none(loads, width));
+            let mut outs = slots.iter_mut().zip(sides.chunks_mut(width));
             walk_chunk(grid, c * CHUNK, len, |p, runs| {
-                let ((slot, side), loads) = outs.next().expect("one slot per sphere");
-                *slot = each(p, runs, side, loads);
+                let (slot, side) = outs.next().expect("one slot per sphere");
+                *slot = each(p, runs, side);
             });
         });
-}
-
-/// `v` in chunks of `size` (≥ 1) on the rayon pool, or `count` empty slices where `v` is
-/// empty (an array that is not kept, beside one that is).
-pub(crate) fn chunks_or_none<T: Send>(
-    v: &mut [T],
-    size: usize,
-    count: usize,
-) -> impl IndexedParallelIterator<Item = &mut [T]> {
-    match v.is_empty() {
-        true => Either::Left((0..count).into_par_iter().map(|_| <&mut [T]>::default())),
-        false => Either::Right(v.par_chunks_mut(size)),
-    }
-}
-
-/// `v` in rows of `width` (≥ 1), or empty rows without end where `v` is empty.
-pub(crate) fn rows_or_none<T>(v: &mut [T], width: usize) -> impl Iterator<Item = &mut [T]> {
-    match v.is_empty() {
-        true => Either::Left(std::iter::repeat_with(<&mut [T]>::default)),
-        false => Either::Right(v.chunks_mut(width)),
-    }
 }
 
 /// Calls `visit(p, runs)` for the `len` sorted positions from `start` on, in order, with the

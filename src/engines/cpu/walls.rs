@@ -4,13 +4,11 @@
 //! sphere's sum and keeps its entries. Per-wall loads are summed per fixed chunk of spheres and
 //! the chunks in order, so they depend on the state alone, not on the threads.
 
-use super::dem::springs_of;
-use super::query::chunks_or_none;
 use crate::dem::model::StepParams;
-use crate::dem::model::contact::{Body, Springs, surface_contact};
+use crate::dem::model::contact::{Body, Kept, LoadedSprings, Springs, surface_contact};
 use crate::dem::walls::{Pose, Touches, WallLoad, WallSet, mesh_partner, touches};
 use crate::error::{Error, Result, try_resize};
-use crate::particles::{HistoryEntry, LoadEntry, Particles};
+use crate::particles::{HistoryEntry, LoadEntry, LoadedEntry, Particles};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -39,10 +37,11 @@ pub(super) struct MeshPass {
     slots: usize,
     /// Per sphere, input order.
     sums: Vec<MeshSum>,
-    /// `slots` entries per sphere, input order.
+    /// `slots` entries per sphere, input order (where contacts keep Mindlin's springs).
     entries: Vec<HistoryEntry>,
-    /// Their load histories, beside them (Mindlin–Deresiewicz; empty otherwise).
-    entry_loads: Vec<LoadEntry>,
+    /// `slots` entries with their load histories per sphere, input order (where contacts keep
+    /// those of the Mindlin–Deresiewicz model).
+    loaded: Vec<LoadedEntry>,
     /// Per wall, of the last step.
     loads: Vec<WallLoad>,
 }
@@ -55,7 +54,7 @@ impl MeshPass {
             slots: FIRST_SLOTS,
             sums: Vec::new(),
             entries: Vec::new(),
-            entry_loads: Vec::new(),
+            loaded: Vec::new(),
         }
     }
 
@@ -68,26 +67,44 @@ impl MeshPass {
         &self.loads
     }
 
-    /// Sphere `i`'s sum, the history entries it keeps and their load histories (none where
-    /// contacts keep none).
+    /// Sphere `i`'s sum and the history entries it keeps: those of Mindlin's springs, or
+    /// those with load histories (the other slice is empty).
     #[inline(always)]
-    pub fn of(&self, i: usize) -> (MeshSum, &[HistoryEntry], &[LoadEntry]) {
+    pub fn of(&self, i: usize) -> (MeshSum, &[HistoryEntry], &[LoadedEntry]) {
         let s = self.sums[i];
         let at = i * self.slots;
-        let kept = at..at + s.held as usize;
-        let loads = match self.entry_loads.is_empty() {
-            true => &[][..],
-            false => &self.entry_loads[kept.clone()],
-        };
-        (s, &self.entries[kept], loads)
+        let held = at..at + s.held as usize;
+        match self.loaded.is_empty() {
+            true => (s, &self.entries[held], &[]),
+            false => (s, &[], &self.loaded[held]),
+        }
     }
 
     /// Resolves every sphere's mesh contacts in the state of `parts` (before the step).
     pub fn resolve(&mut self, p: &StepParams, parts: &Particles, masses: &[f32]) -> Result<()> {
+        match p.friction.keeps_load() {
+            true => {
+                self.entries = Vec::new();
+                self.resolve_kept::<LoadedSprings>(p, parts, masses, |pass| &mut pass.loaded)
+            }
+            false => {
+                self.loaded = Vec::new();
+                self.resolve_kept::<Springs>(p, parts, masses, |pass| &mut pass.entries)
+            }
+        }
+    }
+
+    /// [`resolve`](Self::resolve) with contacts keeping `S`, in the entries `side` picks.
+    fn resolve_kept<S: Kept>(
+        &mut self,
+        p: &StepParams,
+        parts: &Particles,
+        masses: &[f32],
+        side: impl Fn(&mut Self) -> &mut Vec<S::Slot>,
+    ) -> Result<()> {
         let n = parts.len();
         let t = parts.step as f64 * p.dt as f64;
         let poses = self.walls.poses_at(t);
-        let walls = &self.walls;
         let keeps = p.friction.has_history();
         let of_n = || format!("the mesh wall contacts of {n} spheres");
         try_resize(&mut self.sums, n, MeshSum::default(), of_n)?;
@@ -98,32 +115,22 @@ impl MeshPass {
                 got: slots as u64,
                 limit: (usize::MAX / n.max(1)) as u64,
             })?;
-            self.entries.clear();
-            try_resize(&mut self.entries, entries, HistoryEntry::default(), of_n)?;
-            self.entry_loads.clear();
-            if p.friction.keeps_load() {
-                try_resize(&mut self.entry_loads, entries, LoadEntry::default(), of_n)?;
-            }
+            // Taken out while the pass writes it, beside the walls and sums it reads.
+            let mut held_entries = std::mem::take(side(self));
+            held_entries.clear();
+            try_resize(&mut held_entries, entries, S::Slot::default(), of_n)?;
+            let walls = &self.walls;
             let chunks: Vec<Vec<WallLoad>> = self
                 .sums
                 .par_chunks_mut(CHUNK)
-                .zip(self.entries.par_chunks_mut(CHUNK * slots))
-                .zip(chunks_or_none(
-                    &mut self.entry_loads,
-                    CHUNK * slots,
-                    n.div_ceil(CHUNK),
-                ))
+                .zip(held_entries.par_chunks_mut(CHUNK * slots))
                 .enumerate()
-                .map(|(k, ((sums, entries), entry_loads))| {
+                .map(|(k, (sums, entries))| {
                     let mut loads = vec![WallLoad::default(); walls.meshes.len()];
                     let mut scratch = Touches::default();
                     for (j, sum) in sums.iter_mut().enumerate() {
                         let i = k * CHUNK + j;
                         let held = &mut entries[j * slots..(j + 1) * slots];
-                        let held_loads = match entry_loads.is_empty() {
-                            true => &mut [][..],
-                            false => &mut entry_loads[j * slots..(j + 1) * slots],
-                        };
                         let body = Body {
                             c: Vec3::from_array(parts.positions[i]),
                             v: Vec3::from_array(parts.velocities[i]),
@@ -135,13 +142,13 @@ impl MeshPass {
                             true => (parts.history.of(i), parts.history.loads_of(i)),
                             false => (&[][..], &[][..]),
                         };
-                        *sum = sphere(
+                        *sum = sphere::<S>(
                             p,
                             walls,
                             &poses,
                             &body,
                             kept,
-                            (held, held_loads),
+                            held,
                             &mut loads,
                             &mut scratch,
                         );
@@ -149,6 +156,7 @@ impl MeshPass {
                     loads
                 })
                 .collect();
+            *side(self) = held_entries;
             let most = self.sums.iter().map(|s| s.held).max().unwrap_or(0) as usize;
             if most <= slots {
                 for load in &mut self.loads {
@@ -167,23 +175,21 @@ impl MeshPass {
 }
 
 /// One sphere's contacts with every mesh wall: the sum on it, its history entries in `held` (as
-/// many as fit, with their load histories where that slice is not empty; the sum counts them
-/// all) and the reactions added to `loads`. `kept`: the entries of the step before and their
-/// load histories.
+/// many as fit; `held` counts them all) and the reactions added to `loads`. `kept`: the entries
+/// of the step before and their load histories (none where contacts keep none).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn sphere(
+fn sphere<S: Kept>(
     p: &StepParams,
     walls: &WallSet,
     poses: &[Pose],
     b: &Body,
     kept: (&[HistoryEntry], &[LoadEntry]),
-    held: (&mut [HistoryEntry], &mut [LoadEntry]),
+    held: &mut [S::Slot],
     loads: &mut [WallLoad],
     scratch: &mut Touches,
 ) -> MeshSum {
     let (kept, kept_loads) = kept;
-    let (held, held_loads) = held;
     let keeps = p.friction.has_history();
     let turns = p.friction.turns();
     let mut sum = MeshSum::default();
@@ -198,8 +204,8 @@ fn sphere(
         let (mut force, mut torque) = (Vec3::ZERO, Vec3::ZERO);
         for t in &scratch.found {
             let old = match olds.next() {
-                Some(k) => springs_of(&kept[k], kept_loads.get(k)),
-                None => Springs::default(),
+                Some(k) => S::of_entry(&kept[k], kept_loads.get(k)),
+                None => S::default(),
             };
             let v = pose.velocity_at(t.point);
             let c = surface_contact(p, b, t.normal, t.overlap, v, wall.friction, old);
@@ -209,17 +215,7 @@ fn sphere(
             }
             if keeps {
                 if let Some(slot) = held.get_mut(sum.held as usize) {
-                    *slot = HistoryEntry {
-                        partner,
-                        tangential: c.springs.tangential.to_array(),
-                        rolling: c.springs.rolling.to_array(),
-                    };
-                }
-                if let Some(load) = held_loads.get_mut(sum.held as usize) {
-                    *load = LoadEntry {
-                        reversal: c.springs.reversal.to_array(),
-                        normal: c.springs.normal,
-                    };
+                    *slot = c.springs.slot(partner);
                 }
                 sum.held += 1;
             }
