@@ -1252,6 +1252,57 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_tangential_model_is_mindlin_unless_asked_and_mindlin_deresiewicz_is_for_hertz() {
+        let flags = SceneFlags::default();
+        let new = |sets: &[&str]| {
+            let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+            SceneConfig::load_new(None, &flags, &sets)
+        };
+        let default = new(&["spheres=10"]).unwrap();
+        assert_eq!(default.tangential_model, None);
+        let m = default.material().unwrap();
+        assert_eq!(m.tangential_model, TangentialModel::Mindlin);
+        let md = new(&["spheres=10", "tangential_model=mindlin-deresiewicz"]).unwrap();
+        let m = md.material().unwrap();
+        assert_eq!(m.tangential_model, TangentialModel::MindlinDeresiewicz);
+        let start = md.build().unwrap();
+        assert!(start.params.friction.keeps_load());
+        // Saved with the scene, so a checkpoint resumes under it.
+        let saved = toml::to_string(&md.resolved(&start)).unwrap();
+        assert!(
+            saved.contains("tangential_model = \"mindlin-deresiewicz\""),
+            "{saved}"
+        );
+        // An unknown model names the two.
+        let e = new(&["tangential_model=mindlin-rescale"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("mindlin-deresiewicz"), "{e}");
+        // The linear laws have no contact radius to follow.
+        let sets = [
+            "contact=linear",
+            "friction=0.3",
+            "tangential_model=mindlin-deresiewicz",
+        ];
+        let e = new(&sets)
+            .and_then(|c| c.build())
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("tangential_model") && e.contains("hertz-mindlin"),
+            "{e}"
+        );
+        // Without friction it would act on nothing.
+        let sets = ["friction=0", "tangential_model=mindlin-deresiewicz"];
+        let e = new(&sets).unwrap_err().to_string();
+        assert!(
+            e.contains("tangential_model") && e.contains("friction"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn overrides_take_toml_values_and_bare_words() {
         let c = SceneConfig::load(
             None,
