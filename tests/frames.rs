@@ -109,6 +109,7 @@ impl Spheres {
             time,
             step,
             positions: &self.positions,
+            position_residuals: &[],
             radii: &self.radii,
             velocities: &self.velocities,
             angular_velocities: &self.angular_velocities,
@@ -491,6 +492,7 @@ fn mismatched_lengths_and_bad_times_are_usage_errors_and_write_nothing() {
         },
         Frame {
             positions: &spheres.positions[..0],
+            position_residuals: &[],
             ..spheres.frame(1, 0.1)
         },
         spheres.frame(1, f64::NAN),

@@ -41,7 +41,7 @@ def test_a_falling_sphere_follows_the_closed_form(tmp_path):
     g = np.array([0.0, 0.0, -GRAVITY])
     exact = x0 + v0 * t + g * t * t / 2
     # Semi-implicit Euler (v += g dt, then x += v dt) is ahead of the closed form by g t dt / 2;
-    # float32 adds a rounding of the position per step.
+    # float32 adds a rounding of the velocity per step (the position keeps every displacement).
     lead = g * t * float(dt) / 2
     rounding = n * np.finfo(np.float32).eps * np.abs(exact).max()
     position = sim.positions[0].astype(np.float64)
@@ -190,7 +190,7 @@ def test_frames_read_back_as_written(tmp_path, ext):
         assert frame["step"] == 900 and frame["time"] == pytest.approx(sim.time)
     if ext == "npy":
         table = np.load(path)
-        assert table.dtype == np.float32 and table.shape == (200, 10)
+        assert table.dtype == np.float64 and table.shape == (200, 10)
         np.testing.assert_array_equal(table[:, :3], sim.positions)
         np.testing.assert_array_equal(table[:, 3], sim.radii)
         np.testing.assert_array_equal(table[:, 4:7], sim.velocities)
