@@ -2,7 +2,8 @@
 //! accepted and rounded to float32). Both may carry velocities, header `x,y,z,r,vx,vy,vz` or shape
 //! N×7, and angular velocities after them, header `x,y,z,r,vx,vy,vz,wx,wy,wz` or shape N×10 (the
 //! frame CSVs of `mochi simulate`). [`read_spheres`] ignores the motion; [`read_particles`]
-//! returns it.
+//! returns it, and each centre as the file holds it (a CSV's decimal or a float64, read as
+//! `f64`): its `f32` centre and the residual that `f32` drops.
 
 use super::{Format, io_error, parse_error, write_atomically};
 use crate::error::{Result, try_push, try_vec};

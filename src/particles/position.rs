@@ -91,10 +91,13 @@ pub fn advance(hi: &mut f32, lo: &mut f32, d: f32) {
 }
 
 /// `hi + lo` in `f64`: exact where the pair's bits span at most 53 (module docs), else rounded
-/// once (by less than 2⁻⁵³ of it).
+/// once (by less than 2⁻⁵³ of it). A centre of −0 with no residual stays −0.
 #[inline]
 pub fn join(hi: f32, lo: f32) -> f64 {
-    hi as f64 + lo as f64
+    match lo == 0.0 {
+        true => hi as f64,
+        false => hi as f64 + lo as f64,
+    }
 }
 
 /// The normalised pair of `x`: `hi` is `x` rounded to `f32`, `lo` the rest rounded to `f32`
@@ -104,6 +107,9 @@ pub fn join(hi: f32, lo: f32) -> f64 {
 pub fn split(x: f64) -> (f32, f32) {
     let hi = x as f32;
     let lo = (x - hi as f64) as f32;
+    if lo == 0.0 {
+        return (hi, 0.0); // −0 stays −0
+    }
     // Fast2Sum (|hi| ≥ |lo|): the same exact sum, normalised.
     let s = hi + lo;
     (s, lo - (s - hi))
