@@ -52,6 +52,22 @@ def test_a_falling_sphere_follows_the_closed_form(tmp_path):
     assert sim.contacts == 0
 
 
+def test_a_slow_sphere_far_out_moves_by_every_step(tmp_path):
+    # 1 mm/s along each axis for 10^4 steps of 1e-7 s at 50 m from the origin: 1 um, where each
+    # step's 1e-10 m is far below float32's spacing there (3.8e-6 m). The positions are float64:
+    # each centre plus the residual that keeps every displacement.
+    x0 = np.array([50.0, -50.0, 50.0])
+    v0 = np.array([1e-3, -1e-3, 1e-3])
+    scene = one_sphere_scene(tmp_path, x0, v0) | {"gravity": [0.0, 0.0, 0.0], "dt": 1e-7}
+    sim = mochi.Simulation(scene, backend="cpu")
+    assert sim.positions.dtype == np.float64
+    sim.step(10_000)
+    np.testing.assert_allclose(sim.positions[0] - x0, v0 * 1e-3, rtol=1e-3)
+    path = tmp_path / "frame.csv"
+    sim.write_frame(path)
+    np.testing.assert_array_equal(mochi.read_frame(path)["positions"], sim.positions)
+
+
 def energy(sim):
     """Kinetic (translation and rotation) plus gravitational energy of the spheres."""
     r = sim.radii.astype(np.float64)

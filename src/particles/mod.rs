@@ -22,7 +22,9 @@ pub struct Particles {
     /// rounded to `f32`, so |residual| ≤ half the `f32` spacing at the centre). Empty, or one
     /// per sphere; empty means every residual is 0 (the centres are exact, as a new scene's
     /// are). Every step adds its displacement to the pair, so no displacement is lost however
-    /// small it is beside the spacing of `f32` far from the origin.
+    /// small it is beside the spacing of `f32` far from the origin. A sphere is moved by
+    /// [`Self::set_exact_position`] (a centre changed alone would keep a residual that may no
+    /// longer be within half a spacing of it, which [`Self::validate`] refuses).
     pub position_residuals: Vec<[f32; 3]>,
     /// Velocities \[m/s\].
     pub velocities: Vec<[f32; 3]>,

@@ -8,8 +8,9 @@
 //! [`advance`]: `t = fl(d + lo)`, then the error-free sum of `hi` and `t` ([`two_sum`]), whose
 //! rounded sum is the new `hi` and whose rounding error, exact, the new `lo`. A displacement far
 //! below the spacing of `f32` at `hi` so gathers in `lo` until it moves `hi`; what is lost is
-//! `t`'s rounding alone, at most half an ulp of |t| < |d| + ulp(hi)/2 (about 2⁻⁴⁸ |hi| a step
-//! for a slow sphere: 1e-13 m at 100 m, where `f32` alone rounds to 4e-6 m).
+//! `t`'s rounding alone, at most half an ulp of |t| ≤ |d| + ulp(hi)/2: for a slow sphere
+//! (|d| < ulp(hi)/2) at most 2⁻²⁵ ulp(hi) a step, 2e-13 m at 100 m, where `f32` alone rounds
+//! each step by up to 4e-6 m.
 //!
 //! Rust and NVRTC (no fast math) compute these additions as written, so the cpu and `mochi_advance`
 //! in `optix/physics.cuh` run TwoSum itself. A Vulkan shader compiler may reassociate additions
