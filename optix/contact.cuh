@@ -109,7 +109,8 @@ static __forceinline__ __device__ MochiSprings mochi_negated(MochiSprings s) {
     return s;
 }
 
-// The normal force's magnitude (positive pushes apart) and the normal stiffness.
+// The normal force's magnitude (≥ 0: a dry contact pushes or does nothing, it never pulls)
+// and the normal stiffness.
 struct MochiNormal {
     float push;
     float stiffness;
@@ -139,12 +140,12 @@ static __forceinline__ __device__ MochiNormal mochi_normal_force(const GranularP
         float e_star = on_wall ? g.wall_e_star : g.pair_e_star;
         float s_n = 2.0f * e_star * sqrtf(r_eff * overlap);
         float c = MOCHI_TSUJI * g.dem.damping_ratio * mochi_root_product(s_n, m_eff);
-        out.push = 2.0f / 3.0f * s_n * overlap - c * vn;
+        out.push = fmaxf(2.0f / 3.0f * s_n * overlap - c * vn, 0.0f);
         out.stiffness = s_n;
     } else {
         float k = g.law == MOCHI_LAW_LINEAR ? g.dem.stiffness : m_eff * g.rate;
         float c = 2.0f * g.dem.damping_ratio * mochi_root_product(k, m_eff);
-        out.push = k * overlap - c * vn;
+        out.push = fmaxf(k * overlap - c * vn, 0.0f);
         out.stiffness = k;
     }
     return out;
@@ -173,7 +174,7 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const GranularPar
                                                                const MochiTouch& t, float mu,
                                                                MochiSprings old) {
     float3 n = t.n;
-    float pressing = fmaxf(t.normal.push, 0.0f);
+    float pressing = t.normal.push;
     MochiFriction out;
     out.force = mochi_zero3();
     out.torque = mochi_zero3();

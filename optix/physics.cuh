@@ -50,7 +50,7 @@ static __forceinline__ __device__ float4 mochi_contact_force(const DemParams& de
     float vn = (v_j.x - v_i.x) * nx + (v_j.y - v_i.y) * ny + (v_j.z - v_i.z) * nz;
     float m_eff = mochi_effective(v_i.w, v_j.w);
     float c = 2.0f * dem.damping_ratio * mochi_root_product(dem.stiffness, m_eff);
-    float push = dem.stiffness * overlap - c * vn;
+    float push = fmaxf(dem.stiffness * overlap - c * vn, 0.0f);
     return make_float4(-push * nx, -push * ny, -push * nz, 1.0f);
 }
 
@@ -64,11 +64,11 @@ static __forceinline__ __device__ float3 mochi_wall_force(const DemParams& dem, 
     for (int a = 0; a < 3; ++a) {
         float below = s.w - (c[a] - dem.box_lo[a]);
         if (below > 0.0f) {
-            f[a] += dem.stiffness * below - damping * u[a];
+            f[a] += fmaxf(dem.stiffness * below - damping * u[a], 0.0f);
         }
         float above = s.w - (dem.box_hi[a] - c[a]);
         if (above > 0.0f) {
-            f[a] -= dem.stiffness * above + damping * u[a];
+            f[a] -= fmaxf(dem.stiffness * above + damping * u[a], 0.0f);
         }
     }
     return make_float3(f[0], f[1], f[2]);

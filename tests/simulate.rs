@@ -1414,7 +1414,9 @@ fn the_wgpu_backends_load_a_turning_mesh_wall_as_the_cpu_does_and_run_it_without
         .iter()
         .flat_map(|r| r[2..].iter())
         .fold(0.0f64, |m, x| m.max(x.abs()));
-    assert!(largest > 1.0, "{cpu:?}");
+    // More than the 21 spheres weigh (21 × 4.5e-4 kg × 9.81 m/s² = 0.093 N): the drum carries
+    // them, and took the first layer's impact.
+    assert!(largest > 0.093, "{cpu:?}");
     for backend in gpu_backends() {
         let gpu = loads(backend);
         assert_eq!(gpu.len(), cpu.len(), "{backend}");

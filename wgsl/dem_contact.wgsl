@@ -50,7 +50,8 @@ struct Springs {
     rolling: vec3<f32>,
 }
 
-// The normal force's magnitude (positive pushes apart) and the normal stiffness.
+// The normal force's magnitude (≥ 0: a dry contact pushes or does nothing, it never pulls)
+// and the normal stiffness.
 struct Normal {
     push: f32,
     stiffness: f32,
@@ -112,17 +113,17 @@ fn length_of(v: vec3<f32>) -> f32 {
 fn normal_force(on_wall: bool, overlap: f32, vn: f32, m_eff: f32, r_eff: f32) -> Normal {
     if granular.law == LAW_LINEAR {
         let c = 2.0 * dem.damping_ratio * root_product(dem.stiffness, m_eff);
-        return Normal(dem.stiffness * overlap - c * vn, dem.stiffness);
+        return Normal(max(dem.stiffness * overlap - c * vn, 0.0), dem.stiffness);
     }
     if granular.law == LAW_PER_PAIR {
         let k = m_eff * granular.rate;
         let c = 2.0 * dem.damping_ratio * root_product(k, m_eff);
-        return Normal(k * overlap - c * vn, k);
+        return Normal(max(k * overlap - c * vn, 0.0), k);
     }
     let e_star = select(granular.pair_e_star, granular.wall_e_star, on_wall);
     let s_n = 2.0 * e_star * sqrt(r_eff * overlap);
     let c = TSUJI * dem.damping_ratio * root_product(s_n, m_eff);
-    return Normal(2.0 / 3.0 * s_n * overlap - c * vn, s_n);
+    return Normal(max(2.0 / 3.0 * s_n * overlap - c * vn, 0.0), s_n);
 }
 
 // `x` turned into the plane normal to `n`: its normal part removed, its length kept.
@@ -138,7 +139,7 @@ fn into_plane(x: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 // Tangential force with sliding coefficient `mu`, rolling torque and the springs to keep.
 fn friction(t: Touch, mu: f32, old: Springs) -> Friction {
     let n = t.n;
-    let pressing = max(t.normal.push, 0.0);
+    let pressing = t.normal.push;
     var out = Friction(vec3(0.0), vec3(0.0), Springs(vec3(0.0), vec3(0.0)));
     if mu > 0.0 {
         var k_t: f32;

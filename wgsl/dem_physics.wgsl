@@ -20,7 +20,7 @@ fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
     let vn = dv.x * n.x + dv.y * n.y + dv.z * n.z;
     let m_eff = effective(m_i, m_j);
     let c = 2.0 * dem.damping_ratio * root_product(dem.stiffness, m_eff);
-    let push = dem.stiffness * overlap - c * vn;
+    let push = max(dem.stiffness * overlap - c * vn, 0.0);
     return vec4(-push * n, 1.0);
 }
 
@@ -31,11 +31,11 @@ fn wall_force(c: vec3<f32>, v: vec3<f32>, r: f32, m: f32) -> vec3<f32> {
     for (var a = 0; a < 3; a += 1) {
         let below = r - (c[a] - dem.box_lo[a]);
         if below > 0.0 {
-            f[a] += dem.stiffness * below - damping * v[a];
+            f[a] += max(dem.stiffness * below - damping * v[a], 0.0);
         }
         let above = r - (dem.box_hi[a] - c[a]);
         if above > 0.0 {
-            f[a] -= dem.stiffness * above + damping * v[a];
+            f[a] -= max(dem.stiffness * above + damping * v[a], 0.0);
         }
     }
     return f;

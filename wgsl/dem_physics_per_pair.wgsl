@@ -28,7 +28,7 @@ fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
     let m_eff = effective(m_i, m_j);
     let k = m_eff * per_pair.rate;
     let c = 2.0 * dem.damping_ratio * root_product(k, m_eff);
-    let push = k * overlap - c * vn;
+    let push = max(k * overlap - c * vn, 0.0);
     return vec4(-push * n, 1.0);
 }
 
@@ -40,11 +40,11 @@ fn wall_force(c: vec3<f32>, v: vec3<f32>, r: f32, m: f32) -> vec3<f32> {
     for (var a = 0; a < 3; a += 1) {
         let below = r - (c[a] - dem.box_lo[a]);
         if below > 0.0 {
-            f[a] += k * below - damping * v[a];
+            f[a] += max(k * below - damping * v[a], 0.0);
         }
         let above = r - (dem.box_hi[a] - c[a]);
         if above > 0.0 {
-            f[a] -= k * above + damping * v[a];
+            f[a] -= max(k * above + damping * v[a], 0.0);
         }
     }
     return f;

@@ -3,6 +3,8 @@
 #![allow(dead_code)] // each test file uses the part it needs
 
 pub mod cli;
+pub mod impacts;
+pub mod mbf;
 pub mod rule_cases;
 
 use mochi::ProxyMode;
@@ -133,6 +135,53 @@ pub fn open_dem(
 ) -> Box<dyn Stepper> {
     open_stepper(kind, particles.clone(), params, ProxyMode::Mochi, options)
         .unwrap_or_else(|e| panic!("{} runs here but does not open: {e}", kind.name()))
+}
+
+/// `kind`'s stepper over `particles` in proxy mode mochi with default options, as [`open_dem`]
+/// opens it, but the wgpu engines' on one device per engine for the whole test binary (their
+/// `on_gpu`, the path a reopened step takes): every stepper after the first reuses the modules
+/// and pipelines compiled on it, where a fresh device compiles them again (over a second for
+/// wgpu-compute's granular step on lavapipe). For tests that open a stepper per case.
+pub fn open_dem_shared(
+    kind: BackendKind,
+    particles: &Particles,
+    params: StepParams,
+) -> Box<dyn Stepper> {
+    use mochi::dem::walls::WallSet;
+    use mochi::engines::KernelSet;
+    use mochi::engines::wgpu_compute::GridStepper;
+    use mochi::engines::wgpu_rq::RqStepper;
+    use std::sync::OnceLock;
+    static COMPUTE: OnceLock<Gpu> = OnceLock::new();
+    static RAY_QUERY: OnceLock<Gpu> = OnceLock::new();
+    let shared = |cell: &'static OnceLock<Gpu>, need: Need| {
+        cell.get_or_init(|| Gpu::open(need).expect("a probed adapter opens"))
+            .clone()
+    };
+    let (p, options) = (particles.clone(), Options::default());
+    let opened: mochi::Result<Box<dyn Stepper>> = match kind {
+        BackendKind::WgpuCompute => GridStepper::on_gpu(
+            shared(&COMPUTE, Need::Compute),
+            p,
+            params,
+            ProxyMode::Mochi,
+            KernelSet::Auto,
+            options.grid_build,
+            &WallSet::default(),
+        )
+        .map(|s| Box::new(s.with_structure(options.structure)) as Box<dyn Stepper>),
+        BackendKind::WgpuRq => RqStepper::on_gpu(
+            shared(&RAY_QUERY, Need::RayQuery),
+            p,
+            params,
+            ProxyMode::Mochi,
+            KernelSet::Auto,
+            &WallSet::default(),
+        )
+        .map(|s| Box::new(s) as Box<dyn Stepper>),
+        _ => return open_dem(kind, particles, params, &options),
+    };
+    opened.unwrap_or_else(|e| panic!("{} runs here but does not open: {e}", kind.name()))
 }
 
 /// One stepper with default options per backend that [`dem_runs_here`], named as on the

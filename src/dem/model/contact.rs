@@ -4,7 +4,9 @@
 //!
 //! Notation of `docs/method.md`: for sphere i touching j (or a wall), n is the unit normal from
 //! c_i towards j, δ the overlap, m* and R* the effective mass and radius. The normal force on i
-//! is −push·n with push = F_el(δ) − c_n·v_n, v_n = (v_j − v_i)·n:
+//! is −push·n with push = max(F_el(δ) − c_n·v_n, 0), v_n = (v_j − v_i)·n (a dry contact never
+//! pulls; the damping ratio ζ is the one that gives the restitution with that clamp,
+//! [`super::restitution`]):
 //! - linear: F_el = k·δ, c_n = 2ζ√(k·m*) (k fixed, or m*·rate per contact);
 //! - Hertz: S_n = 2E*√(R*δ), F_el = ⅔·S_n·δ = 4/3·E*·√R*·δ^{3/2}, c_n = 2√(5/6)·ζ·√(S_n·m*)
 //!   (Tsuji et al. 1992; ζ = −β of the restitution).
@@ -13,7 +15,7 @@
 //! tangent plane (its normal part removed, its length kept), then grows by v_t·dt with v_t the
 //! tangential velocity of i's surface relative to j's at the contact point; the force is
 //! F_t = −k_t·ξ − c_t·v_t with k_t = 2/7·k (linear) or S_t = 8G*√(R*δ) (Mindlin 1949). When
-//! |F_t| > μ·max(push, 0) the contact slides: F_t is scaled to the cap and ξ = −F_t/k_t, so
+//! |F_t| > μ·push the contact slides: F_t is scaled to the cap and ξ = −F_t/k_t, so
 //! history never holds more than the cap. The torque on i is (r_i·n) × F_t. Rolling resistance
 //! acts on the rolling part of ω_i − ω_j (its component along n, twisting, is not resisted).
 //!
@@ -124,7 +126,8 @@ pub struct Contact {
     pub springs: Springs,
 }
 
-/// The normal force's magnitude (positive pushes the bodies apart) and the normal stiffness.
+/// The normal force's magnitude (≥ 0: it pushes the bodies apart or does nothing) and the
+/// normal stiffness.
 #[derive(Debug, Clone, Copy)]
 struct Normal {
     push: f32,
@@ -164,7 +167,7 @@ fn normal_force(
         NormalLaw::Linear => {
             let c = 2.0 * p.damping_ratio * root_product(p.stiffness, m_eff);
             Normal {
-                push: p.stiffness * overlap - c * vn,
+                push: (p.stiffness * overlap - c * vn).max(0.0),
                 stiffness: p.stiffness,
             }
         }
@@ -172,7 +175,7 @@ fn normal_force(
             let k = m_eff * rate;
             let c = 2.0 * p.damping_ratio * root_product(k, m_eff);
             Normal {
-                push: k * overlap - c * vn,
+                push: (k * overlap - c * vn).max(0.0),
                 stiffness: k,
             }
         }
@@ -182,7 +185,7 @@ fn normal_force(
             let s_n = 2.0 * e_star * (r_eff * overlap).sqrt();
             let c = TSUJI * p.damping_ratio * root_product(s_n, m_eff);
             Normal {
-                push: 2.0 / 3.0 * s_n * overlap - c * vn,
+                push: (2.0 / 3.0 * s_n * overlap - c * vn).max(0.0),
                 stiffness: s_n,
             }
         }
@@ -374,7 +377,7 @@ fn into_plane(x: Vec3, n: Vec3) -> Vec3 {
 #[inline(always)]
 fn friction(p: &StepParams, t: &Touch, mu: f32, old: Springs) -> (Vec3, Vec3, Springs) {
     let n = t.n;
-    let pressing = t.normal.push.max(0.0);
+    let pressing = t.normal.push;
     let mut force = Vec3::ZERO;
     let mut torque = Vec3::ZERO;
     let mut springs = Springs::default();

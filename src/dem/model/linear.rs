@@ -3,9 +3,9 @@
 //!
 //! The force on sphere i from a touching sphere j, with n the unit vector from c_i to c_j,
 //! overlap δ = r_i + r_j − |c_j − c_i| and normal relative velocity v_n = (v_j − v_i)·n, is
-//! F_i = −(k·δ − c·v_n)·n with c = 2ζ·√(k·m_eff), m_eff = m_i·m_j/(m_i + m_j), and ζ the damping
-//! ratio that gives the restitution coefficient e: ζ = −ln e / √(π² + ln² e). Walls act the same
-//! way with m_eff = m_i. Neither product is formed (they underflow f32 for small spheres):
+//! F_i = −max(k·δ − c·v_n, 0)·n with c = 2ζ·√(k·m_eff), m_eff = m_i·m_j/(m_i + m_j), and ζ the
+//! damping ratio that gives the restitution coefficient e ([`super::restitution`]): a dry
+//! contact pushes or does nothing, it never pulls. Walls act the same way with m_eff = m_i. Neither product is formed (they underflow f32 for small spheres):
 //! m_eff is [`effective`]`(m_i, m_j)` and √(k·m_eff) is [`root_product`]`(k, m_eff)`. Computed
 //! from j's side, every operation sees negated inputs and m_eff is symmetric, so F_j = −F_i
 //! exactly. Coincident centres (distance 0) have no contact normal and get no force: the
@@ -27,16 +27,12 @@ pub fn stable_dt(stiffness: f64, m_eff: f64, zeta: f64) -> f64 {
     2.0 * ((1.0 + zeta * zeta).sqrt() - zeta) / (stiffness / m_eff).sqrt()
 }
 
-/// Stiffness that makes a contact of effective mass `m_eff` with restitution `e` last `t_c` \[s\].
+/// Stiffness that makes a contact of effective mass `m_eff` with restitution `e` last `t_c` \[s\]
+/// as a dashpot that pulls would (ω_d = π/t_c with ζ = −ln e/√(π² + ln² e)); the clamped contact
+/// of the step, damped for e by [`super::restitution`], lasts about as long.
 pub fn stiffness_for_duration(m_eff: f64, e: f64, t_c: f64) -> f64 {
     let l = e.ln();
     m_eff * (PI * PI + l * l) / (t_c * t_c)
-}
-
-/// Damping ratio ζ that gives restitution `e` to a linear spring–dashpot contact.
-pub fn damping_ratio(e: f64) -> f64 {
-    let l = e.ln();
-    -l / (PI * PI + l * l).sqrt()
 }
 
 /// Force on sphere i (centre `c_i`, velocity `v_i`, radius `r_i`, mass `m_i`) from sphere j, or
@@ -67,7 +63,7 @@ pub fn contact_force(
     let vn = dv[0] * n[0] + dv[1] * n[1] + dv[2] * n[2];
     let m_eff = effective(m_i, m_j);
     let c = 2.0 * p.damping_ratio * root_product(p.stiffness, m_eff);
-    let push = p.stiffness * overlap - c * vn;
+    let push = (p.stiffness * overlap - c * vn).max(0.0);
     Some([-push * n[0], -push * n[1], -push * n[2]])
 }
 
@@ -79,11 +75,11 @@ pub fn wall_force(p: &StepParams, c: [f32; 3], v: [f32; 3], r: f32, m: f32) -> [
         let mut f = 0.0;
         let below = r - (c[a] - p.box_lo[a]);
         if below > 0.0 {
-            f += p.stiffness * below - damping * v[a];
+            f += (p.stiffness * below - damping * v[a]).max(0.0);
         }
         let above = r - (p.box_hi[a] - c[a]);
         if above > 0.0 {
-            f -= p.stiffness * above + damping * v[a];
+            f -= (p.stiffness * above + damping * v[a]).max(0.0);
         }
         f
     })

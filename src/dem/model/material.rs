@@ -3,6 +3,7 @@
 //! friction coefficients.
 
 use super::linear::{STEPS_PER_CONTACT, stable_dt, stiffness_for_duration};
+use super::restitution::{hertz_damping, linear_damping};
 use super::time_step::{RAYLEIGH_LIMIT, rayleigh_time};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -166,6 +167,9 @@ pub(super) struct ResolvedLaw {
     pub law: NormalLaw,
     /// k of [`NormalLaw::Linear`] \[N/m\] (0 for the other laws).
     pub stiffness: f64,
+    /// The damping ratio ζ that makes a head-on contact of the lightest spheres part at the
+    /// material's restitution ([`super::restitution`]).
+    pub damping_ratio: f64,
     /// The largest stable time step \[s\].
     pub dt_limit: f64,
     /// What sets `dt_limit`, in words.
@@ -254,9 +258,9 @@ impl Material {
     }
 
     /// The normal law for time step `dt` and lightest spheres of radius `r_min` (effective mass
-    /// `m_eff` of two of them), damping ratio `zeta`, for a material that passed
-    /// [`Material::check`]; refuses impossible values.
-    pub(super) fn law(&self, dt: f64, r_min: f32, m_eff: f64, zeta: f64) -> Result<ResolvedLaw> {
+    /// `m_eff` of two of them), for a material that passed [`Material::check`]; refuses
+    /// impossible values.
+    pub(super) fn law(&self, dt: f64, r_min: f32, m_eff: f64) -> Result<ResolvedLaw> {
         let bad = |reason: String| {
             Err(Error::InvalidConfig {
                 what: "material".into(),
@@ -290,9 +294,12 @@ impl Material {
                         k
                     }
                 };
+                // The lightest pair's contact is the shortest in steps: its ζ.
+                let zeta = linear_damping(self.restitution, dt * (stiffness / m_eff).sqrt())?;
                 Ok(ResolvedLaw {
                     law: NormalLaw::Linear,
                     stiffness,
+                    damping_ratio: zeta,
                     dt_limit: stable_dt(stiffness, m_eff, zeta),
                     limited_by: format!(
                         "stiffness {stiffness:e} N/m and the lightest spheres (r = {r_min:e} m, \
@@ -325,12 +332,15 @@ impl Material {
                          time"
                     ));
                 }
+                // Every contact is as many steps long: one ζ is exact for all.
+                let zeta = linear_damping(self.restitution, dt * rate.sqrt())?;
                 Ok(ResolvedLaw {
                     law: NormalLaw::LinearPerPair {
                         rate: rate as f32,
                         contact_time: t_c as f32,
                     },
                     stiffness: 0.0,
+                    damping_ratio: zeta,
                     dt_limit: stable_dt(rate, 1.0, zeta),
                     limited_by: format!("a per-pair stiffness with contact time {t_c:e} s"),
                     rayleigh_time: None,
@@ -354,6 +364,7 @@ impl Material {
                 Ok(ResolvedLaw {
                     law: NormalLaw::Hertz { pair, wall },
                     stiffness: 0.0,
+                    damping_ratio: hertz_damping(self.restitution),
                     dt_limit: RAYLEIGH_LIMIT * t_r,
                     limited_by: format!(
                         "Hertz–Mindlin with E = {young_modulus:e} Pa, ν = {poisson_ratio}, \

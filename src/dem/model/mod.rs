@@ -12,11 +12,10 @@
 pub mod contact;
 pub mod linear;
 pub mod material;
+pub mod restitution;
 pub mod time_step;
 
-pub use linear::{
-    STEPS_PER_CONTACT, contact_force, damping_ratio, stable_dt, stiffness_for_duration, wall_force,
-};
+pub use linear::{STEPS_PER_CONTACT, contact_force, stable_dt, stiffness_for_duration, wall_force};
 pub use material::{
     ContactLaw, Elastic, Friction, MAX_FRICTION, Material, NormalLaw, RollingModel,
 };
@@ -149,7 +148,6 @@ impl StepParams {
                  {box_lo:?} .. {box_hi:?}"
             ));
         }
-        let zeta = damping_ratio(m.restitution);
         let density = m.density as f32;
         let m_eff = mass(density, r_min) as f64 / 2.0;
         if !mass_in_range(density, r_min) {
@@ -180,7 +178,7 @@ impl StepParams {
                 smallest_turning_radius(density)
             ));
         }
-        let law = m.law(dt, r_min, m_eff, zeta)?;
+        let law = m.law(dt, r_min, m_eff)?;
         if dt > law.dt_limit {
             return bad(&format!(
                 "time step {dt:e} s is too large for {}: the stable limit is {:e} s",
@@ -203,7 +201,7 @@ impl StepParams {
             gravity: gravity.map(|x| x as f32),
             gravity_spin: gravity_spin as f32,
             stiffness: law.stiffness as f32,
-            damping_ratio: zeta as f32,
+            damping_ratio: law.damping_ratio as f32,
             density: m.density as f32,
             law: law.law,
             friction,
@@ -340,19 +338,18 @@ mod tests {
     }
 
     #[test]
-    fn damping_ratio_matches_known_values() {
-        assert!((damping_ratio(1.0)).abs() < 1e-15);
-        assert!((damping_ratio(0.5) - 0.215_453_7).abs() < 1e-6);
-    }
-
-    #[test]
     fn default_stiffness_gives_ten_step_contacts_and_is_stable() {
+        // k = m*·(π² + ln² e)/t_c² with t_c ten steps: ω·dt = √(π² + ln² e)/10.
         let p = params();
         let m_eff = mass(500.0, 0.0005) as f64 / 2.0;
+        let omega_dt = (p.stiffness as f64 / m_eff).sqrt() * 1e-4;
+        let l = 0.5f64.ln();
+        assert!((omega_dt - (PI * PI + l * l).sqrt() / STEPS_PER_CONTACT).abs() < 1e-6);
         let zeta = p.damping_ratio as f64;
-        let omega_d = (p.stiffness as f64 / m_eff).sqrt() * (1.0 - zeta * zeta).sqrt();
-        let t_c = PI / omega_d;
-        assert!((t_c / 1e-4 - STEPS_PER_CONTACT).abs() < 1e-3, "{t_c}");
+        assert_eq!(
+            zeta as f32,
+            restitution::linear_damping(0.5, omega_dt).unwrap() as f32
+        );
         assert!(stable_dt(p.stiffness as f64, m_eff, zeta) > 1e-4);
     }
 
