@@ -3,13 +3,13 @@
 // (`old_loads`, `new_loads`) are read and written only with MOCHI_LOAD_HISTORY.
 
 // Walls (with their springs), gravity at step `step` and one semi-implicit Euler step of
-// positions and angular velocities, in place (src/engines/cpu/dem.rs: pairs, then the walls'
+// positions (the centres with their residuals `lo`) and angular velocities, in place (src/engines/cpu/dem.rs: pairs, then the walls'
 // normal and tangential forces); clears the force and torque accumulators for the next step.
 // Appends the walls' springs to the sphere's new history after those its ray wrote, and where a
 // sphere holds more contacts than `slots`, raises `need` to its count (the host then grows
 // the slots and redoes the steps).
-extern "C" __global__ void granular_integrate(float4* pos, float4* vel, float4* ang,
-                                              float* force, float* torque,
+extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* vel,
+                                              float4* ang, float* force, float* torque,
                                               const unsigned int* ids,
                                               const unsigned int* old_count,
                                               const MochiHistoryEntry* old_entries,
@@ -112,7 +112,10 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* vel, float4* 
     float vy = v.y + dt * (f.y / m + g_now.y);
     float vz = v.z + dt * (f.z / m + g_now.z);
     vel[p] = make_float4(vx, vy, vz, m);
-    pos[p] = make_float4(s.x + dt * vx, s.y + dt * vy, s.z + dt * vz, s.w);
+    float4 l = lo[p];
+    mochi_move(s, l, dt, vx, vy, vz);
+    pos[p] = s;
+    lo[p] = l;
 }
 
 // Reorders rows of 4 floats: sorted position p takes row `order[p]` of the input (the angular

@@ -47,10 +47,11 @@ extern "C" __global__ void dem_boxes(const float4* pos, float* boxes, unsigned i
     mochi_write_box(boxes + 6 * p, pos[p], mode, r_max, pad_rel);
 }
 
-// Walls, gravity at step `step` and one semi-implicit Euler step, in place; clears the force
-// accumulator for the next step. Keep in sync with `integrate` in wgsl/dem_physics.wgsl.
-extern "C" __global__ void dem_integrate(float4* pos, float4* vel, float* force, DemParams dem,
-                                         unsigned int step) {
+// Walls, gravity at step `step` and one semi-implicit Euler step, in place (the centres with
+// their residuals `lo`); clears the force accumulator for the next step. Keep in sync with
+// `integrate_sphere` in wgsl/dem_integrate.wgsl.
+extern "C" __global__ void dem_integrate(float4* pos, float4* lo, float4* vel, float* force,
+                                         DemParams dem, unsigned int step) {
     unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= dem.n) {
         return;
@@ -70,20 +71,24 @@ extern "C" __global__ void dem_integrate(float4* pos, float4* vel, float* force,
     float vy = v.y + dem.dt * (fy / m + g.y);
     float vz = v.z + dem.dt * (fz / m + g.z);
     vel[p] = make_float4(vx, vy, vz, m);
-    pos[p] = make_float4(s.x + dem.dt * vx, s.y + dem.dt * vy, s.z + dem.dt * vz, s.w);
+    float4 l = lo[p];
+    mochi_move(s, l, dem.dt, vx, vy, vz);
+    pos[p] = s;
+    lo[p] = l;
 }
 
 // Reorders the state: sorted position p takes the sphere at position `order[p]` of the input.
-extern "C" __global__ void dem_permute(const float4* pos_in, const float4* vel_in,
-                                       const unsigned int* ids_in, const unsigned int* order,
-                                       float4* pos, float4* vel, unsigned int* ids,
-                                       unsigned int n) {
+extern "C" __global__ void dem_permute(const float4* pos_in, const float4* lo_in,
+                                       const float4* vel_in, const unsigned int* ids_in,
+                                       const unsigned int* order, float4* pos, float4* lo,
+                                       float4* vel, unsigned int* ids, unsigned int n) {
     unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= n) {
         return;
     }
     unsigned int k = order[p];
     pos[p] = pos_in[k];
+    lo[p] = lo_in[k];
     vel[p] = vel_in[k];
     ids[p] = ids_in[k];
 }

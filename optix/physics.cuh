@@ -74,6 +74,27 @@ static __forceinline__ __device__ float3 mochi_wall_force(const DemParams& dem, 
     return make_float3(f[0], f[1], f[2]);
 }
 
+// Moves the coordinate hi + lo (a normalised pair: hi is the sum rounded to f32) by d: the
+// displacement and the residual are added first, then to hi without error (TwoSum), whose
+// rounding error is the new residual. Keep in sync with `advance` in src/particles/position.rs
+// (and advance_position in wgsl/dem_params.wgsl): the same additions in the same order; NVRTC
+// compiles without fused multiply-adds and never reassociates them.
+static __forceinline__ __device__ void mochi_advance(float& hi, float& lo, float d) {
+    float t = d + lo;
+    float s = hi + t;
+    float tt = s - hi;
+    lo = (hi - (s - tt)) + (t - tt);
+    hi = s;
+}
+
+// Moves the centre s.xyz, with its residuals lo.xyz, by dt·v (the step's displacement).
+static __forceinline__ __device__ void mochi_move(float4& s, float4& lo, float dt, float vx,
+                                                  float vy, float vz) {
+    mochi_advance(s.x, lo.x, dt * vx);
+    mochi_advance(s.y, lo.y, dt * vy);
+    mochi_advance(s.z, lo.z, dt * vz);
+}
+
 // Gravity at step `step`, turned about the y axis by gravity_spin · t.
 static __forceinline__ __device__ float3 mochi_gravity_at(const DemParams& dem,
                                                           unsigned int step) {

@@ -1176,6 +1176,7 @@ fn render_of_a_frame_with_a_nan_radius_names_the_file() {
             time: 0.0,
             step: 3,
             positions: &positions,
+            position_residuals: &[],
             radii: &[0.1, f32::NAN],
             velocities: &velocities,
             angular_velocities: &velocities,

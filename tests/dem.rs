@@ -555,8 +555,9 @@ fn gpu_steps_follow_the_cpu_step_under_rotating_gravity_from_a_later_step() {
     assert_gpu_steps_follow_the_cpu_step_with(start, p);
 }
 
-/// Every GPU stepper finds the cpu step's contacts and stays within 1e-6 m of its positions over
-/// the first 40 steps from `start` (which must start in contact).
+/// Every GPU stepper, over the first 40 steps from `start` (which must start in contact), finds
+/// in each batch of 5 steps the contacts the cpu step finds from the same state and stays within
+/// 1e-7 m of its positions.
 fn assert_gpu_steps_follow_the_cpu_step(start: Particles) {
     let r_min = start.radius_range().0;
     let p = params(Material::default(), 1e-4, 0.3, [0.0, 0.0, -9.81], r_min);
@@ -564,28 +565,36 @@ fn assert_gpu_steps_follow_the_cpu_step(start: Particles) {
 }
 
 /// [`assert_gpu_steps_follow_the_cpu_step`] with the step parameters `p`.
+///
+/// The GPU's run goes on through all 40 steps (its sorting, binning and skin carry on), and
+/// the cpu step starts again from the GPU's state at each batch: the GPUs add forces by atomics
+/// in any order, so the two runs part by ulps that grow, and within tens of steps a pair at the
+/// threshold of touching (the lattices have pairs within a nanometre of it) may be decided the
+/// other way by either, a different contact from then on. From one state, 5 steps part by
+/// nanometres (a step whose physics differed would part by far more).
 fn assert_gpu_steps_follow_the_cpu_step_with(start: Particles, p: StepParams) {
     let mut all = steppers(&start, p);
     let (_, mut cpu) = all.remove(0);
-    let mut reference = Vec::new();
-    for _ in 0..8 {
-        let a = cpu.advance(5).unwrap();
-        reference.push((a.contacts, cpu.particles().unwrap()));
-    }
-    assert!(reference[0].0 > 1000, "the lattice starts in contact");
+    let first = cpu.advance(5).unwrap();
+    assert!(first.contacts > 1000, "the lattice starts in contact");
     for (name, mut s) in all {
-        for (k, (contacts, expected)) in reference.iter().enumerate() {
+        let mut from = start.clone();
+        for k in 0..8 {
+            let mut cpu = common::open_dem(BackendKind::Cpu, &from, p, &Options::default());
+            let c = cpu.advance(5).unwrap();
+            let expected = cpu.particles().unwrap();
             let a = s.advance(5).unwrap();
             let got = s.particles().unwrap();
             assert_eq!(got.step, expected.step, "{name}");
-            assert_eq!(a.contacts, *contacts, "{name}: contacts at batch {k}");
+            assert_eq!(a.contacts, c.contacts, "{name}: contacts at batch {k}");
             // GPUs fuse multiply-adds and add forces in any order: close, not identical.
-            let worst = common::largest_gap(&got, expected);
+            let worst = common::largest_gap(&got, &expected);
             assert!(
-                worst < 1e-6,
+                worst < 1e-7,
                 "{name}: {worst} m from the cpu step at step {}",
                 got.step
             );
+            from = got;
         }
     }
 }

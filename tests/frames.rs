@@ -4,6 +4,7 @@
 //! leaves no temporary file.
 
 use mochi::Error;
+use mochi::dem::position::join;
 use mochi::dem::{ContactHistory, FIRST_WALL, HistoryEntry};
 use mochi::io::{
     Frame, FrameSeries, SERIES_INDEX, SeriesEntry, write_frame, write_frame_csv, write_vtu,
@@ -19,6 +20,8 @@ use tempfile::TempDir;
 /// Owned data behind a [`Frame`].
 struct Spheres {
     positions: Vec<[f32; 3]>,
+    /// A residual of 0.3 of the spacing above each coordinate of every other sphere.
+    position_residuals: Vec<[f32; 3]>,
     radii: Vec<f32>,
     velocities: Vec<[f32; 3]>,
     angular_velocities: Vec<[f32; 3]>,
@@ -55,7 +58,7 @@ impl Spheres {
                 break x;
             }
         };
-        let positions = (0..n)
+        let positions: Vec<[f32; 3]> = (0..n)
             .map(|i| [value(i), value(i + 1), value(i + 2)])
             .collect();
         let velocities = (0..n)
@@ -65,8 +68,22 @@ impl Spheres {
             .map(|i| [value(i + 2), value(i + 4), value(i + 1)])
             .collect();
         let radii = (0..n).map(|i| value(i).abs().max(1e-6)).collect();
+        let position_residuals = positions
+            .iter()
+            .enumerate()
+            .map(|(i, c): (usize, &[f32; 3])| {
+                c.map(|x| {
+                    let spacing = x.abs().next_up() - x.abs();
+                    match i % 2 == 1 && spacing.is_finite() {
+                        true => 0.3 * spacing,
+                        false => 0.0,
+                    }
+                })
+            })
+            .collect();
         Self {
             positions,
+            position_residuals,
             radii,
             velocities,
             angular_velocities,
@@ -96,6 +113,15 @@ impl Spheres {
         self
     }
 
+    /// Each sphere's position, its centre plus its residual, as the frames write it.
+    fn exact_positions(&self) -> Vec<[f64; 3]> {
+        self.positions
+            .iter()
+            .zip(&self.position_residuals)
+            .map(|(c, r)| std::array::from_fn(|k| join(c[k], r[k])))
+            .collect()
+    }
+
     /// Contacts per sphere in [`Self::with_history`].
     fn contact_counts(&self) -> Vec<i64> {
         let n = self.radii.len();
@@ -109,6 +135,7 @@ impl Spheres {
             time,
             step,
             positions: &self.positions,
+            position_residuals: &self.position_residuals,
             radii: &self.radii,
             velocities: &self.velocities,
             angular_velocities: &self.angular_velocities,
@@ -135,6 +162,11 @@ impl Array {
     fn f32_bits(&self) -> Vec<u32> {
         assert_eq!(self.vtk_type, "Float32");
         self.words::<4>().map(u32::from_le_bytes).collect()
+    }
+
+    fn f64_bits(&self) -> Vec<u64> {
+        assert_eq!(self.vtk_type, "Float64");
+        self.words::<8>().map(u64::from_le_bytes).collect()
     }
 
     fn integers(&self) -> Vec<i64> {
@@ -274,7 +306,13 @@ fn check_vtu(path: &Path, spheres: &Spheres, step: u64, time: f64) {
     let bits3 = |v: &[[f32; 3]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
     let a = &vtu.arrays;
     assert_eq!(a["Points"].components, 3);
-    assert_eq!(a["Points"].f32_bits(), bits3(&spheres.positions));
+    let positions: Vec<u64> = spheres
+        .exact_positions()
+        .iter()
+        .flatten()
+        .map(|x| x.to_bits())
+        .collect();
+    assert_eq!(a["Points"].f64_bits(), positions);
     assert_eq!(a["radius"].components, 1);
     let radius_bits: Vec<u32> = spheres.radii.iter().map(|r| r.to_bits()).collect();
     assert_eq!(a["radius"].f32_bits(), radius_bits);
@@ -399,21 +437,28 @@ fn csv_rows_parse_back_to_the_same_floats() {
     let text = std::fs::read_to_string(&path).unwrap();
     let mut lines = text.lines();
     assert_eq!(lines.next(), Some("x,y,z,r,vx,vy,vz,wx,wy,wz"));
-    let rows: Vec<Vec<u32>> = lines
+    // The positions in f64, the rest in f32.
+    let rows: Vec<Vec<u64>> = lines
         .map(|l| {
             l.split(',')
-                .map(|f| f.parse::<f32>().unwrap().to_bits())
+                .enumerate()
+                .map(|(k, f)| match k < 3 {
+                    true => f.parse::<f64>().unwrap().to_bits(),
+                    false => f.parse::<f32>().unwrap().to_bits().into(),
+                })
                 .collect()
         })
         .collect();
     assert_eq!(rows.len(), 41);
+    let positions = spheres.exact_positions();
     for (i, row) in rows.iter().enumerate() {
-        let [x, y, z] = spheres.positions[i];
         let [vx, vy, vz] = spheres.velocities[i];
         let [wx, wy, wz] = spheres.angular_velocities[i];
-        let want: Vec<u32> = [x, y, z, spheres.radii[i], vx, vy, vz, wx, wy, wz]
-            .iter()
-            .map(|v| v.to_bits())
+        let rest = [spheres.radii[i], vx, vy, vz, wx, wy, wz].map(|v| v.to_bits().into());
+        let want: Vec<u64> = positions[i]
+            .map(f64::to_bits)
+            .into_iter()
+            .chain(rest)
             .collect();
         assert_eq!(row, &want, "row {i}");
     }
@@ -428,12 +473,19 @@ fn npy_frames_hold_the_csv_columns_bit_exactly() {
     let bytes = std::fs::read(&path).unwrap();
     let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
     assert_eq!(npy.shape(), &[37, 10]);
-    let values: Vec<f32> = npy.into_vec().unwrap();
+    // float64: the positions, and the rest's f32 values exactly.
+    let values: Vec<f64> = npy.into_vec().unwrap();
+    let positions = spheres.exact_positions();
     for (i, row) in values.chunks_exact(10).enumerate() {
-        let [x, y, z] = spheres.positions[i];
+        let [x, y, z] = positions[i];
         let [vx, vy, vz] = spheres.velocities[i];
         let [wx, wy, wz] = spheres.angular_velocities[i];
-        let want = [x, y, z, spheres.radii[i], vx, vy, vz, wx, wy, wz].map(f32::to_bits);
+        let rest = [spheres.radii[i], vx, vy, vz, wx, wy, wz].map(f64::from);
+        let want: Vec<u64> = [x, y, z]
+            .into_iter()
+            .chain(rest)
+            .map(f64::to_bits)
+            .collect();
         assert_eq!(
             row.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
             want,
@@ -491,6 +543,7 @@ fn mismatched_lengths_and_bad_times_are_usage_errors_and_write_nothing() {
         },
         Frame {
             positions: &spheres.positions[..0],
+            position_residuals: &[],
             ..spheres.frame(1, 0.1)
         },
         spheres.frame(1, f64::NAN),

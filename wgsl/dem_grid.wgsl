@@ -9,7 +9,7 @@
 // dem_params.wgsl, the physics of the variant and one of dem_force_f32.wgsl /
 // dem_force_cas.wgsl appended.
 //
-// The state (pos, vel, ids) lives in two sets of buffers. A sorting step bins one set (`*_a`,
+// The state (pos, vel, ids and the centres' residuals, pos_lo) lives in two sets of buffers. A sorting step bins one set (`*_a`,
 // nearly sorted already, so the atomics of the counting sort hit few cells at a time) into the
 // other in sorted order (`bin_scatter`), resolves every contact there and integrates in place.
 // A binning step (`bin_index`, the paper's step between its sorting steps) moves no state: it
@@ -24,6 +24,7 @@
 @group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;   // x, y, z, r
 @group(0) @binding(3) var<storage, read> vel_a: array<vec4<f32>>;   // vx, vy, vz, mass
 @group(0) @binding(4) var<storage, read> ids_a: array<u32>;
+@group(0) @binding(35) var<storage, read> pos_lo_a: array<vec4<f32>>;   // residuals of pos_a
 @group(0) @binding(6) var<storage, read_write> ranks: array<u32>;
 @group(0) @binding(7) var<storage, read_write> counts: array<atomic<u32>>;
 @group(0) @binding(8) var<storage, read> cell_start: array<u32>;
@@ -94,6 +95,7 @@ fn bin_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = sorted_place(i, s);
     ids[p] = ids_a[i];
     pos[p] = s;
+    pos_lo[p] = pos_lo_a[i];
     vel[p] = vel_a[i];
     carry(i, p);
 }

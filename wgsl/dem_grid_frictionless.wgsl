@@ -128,6 +128,7 @@ fn bin_return(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     pos[i] = pos_a[i];
+    pos_lo[i] = pos_lo_a[i];
     vel[i] = vel_a[i];
     ids[i] = ids_a[i];
 }

@@ -32,6 +32,7 @@ fn bin_gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = sort_order[p];
     ids[p] = ids_a[i];
     pos[p] = pos_a[i];
+    pos_lo[p] = pos_lo_a[i];
     vel[p] = vel_a[i];
     carry(i, p);
 }

@@ -27,7 +27,7 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
     let m = v.w;
     let v_new = v.xyz + dem.dt * (f / m + g);
     vel[p] = vec4(v_new, m);
-    let moved = vec4(s.xyz + dem.dt * v_new, s.w);
+    let moved = vec4(advance_position(p, s.xyz, dem.dt * v_new), s.w);
     pos[p] = moved;
     return moved;
 }

@@ -71,7 +71,7 @@ SceneValue = (
 )
 
 class FrameDict(TypedDict):
-    positions: npt.NDArray[np.float32]
+    positions: npt.NDArray[np.float64]
     radii: npt.NDArray[np.float32]
     velocities: npt.NDArray[np.float32]
     angular_velocities: npt.NDArray[np.float32]
@@ -80,8 +80,8 @@ class FrameDict(TypedDict):
 
 def read_frame(path: str | os.PathLike[str]) -> FrameDict:
     """Reads a frame (``.vtu`` as ``write_frame`` and ``mochi simulate`` write it, ``.csv`` or
-    ``.npy``): positions, radii, velocities and angular velocities, with its step and time
-    (``None`` where the file does not say)."""
+    ``.npy``): positions (float64, as the file holds them), radii, velocities and angular
+    velocities (float32), with its step and time (``None`` where the file does not say)."""
 
 class Simulation:
     """A DEM simulation: a scene's spheres under gravity, walls and contact forces.
@@ -96,8 +96,8 @@ class Simulation:
     raise ``ValueError`` naming them; the run's warnings (overlaps, coarse coordinates,
     coincident centres) are ``UserWarning``s.
 
-    ``positions``, ``velocities``, ``angular_velocities`` and ``radii`` are float32 in input
-    order: read-only snapshots of the step they were read at (the same array object until the
+    ``positions`` (float64) and ``velocities``, ``angular_velocities`` and ``radii`` (float32)
+    are in input order: read-only snapshots of the step they were read at (the same array object until the
     next ``step``; a later step does not change them). Writing into one raises ``ValueError``;
     a simulation's state is changed only by stepping it (``copy()`` an array to change it, and
     start a new run from the changed spheres with ``{"scene": "input", "input": file}``).
@@ -119,8 +119,10 @@ class Simulation:
         of tqdm works).
         """
     @property
-    def positions(self) -> npt.NDArray[np.float32]:
-        """Centres ``(N, 3)`` [m]: read-only, this step's."""
+    def positions(self) -> npt.NDArray[np.float64]:
+        """Positions ``(N, 3)`` [m]: read-only, this step's. Each is the sphere's float32 centre
+        (what the contacts use) plus the residual that keeps every step's displacement, however
+        small beside float32's spacing far from the origin."""
     @property
     def velocities(self) -> npt.NDArray[np.float32]:
         """Velocities ``(N, 3)`` [m/s]: read-only, this step's."""
@@ -150,6 +152,7 @@ class Simulation:
         length of ``positions`` at every step."""
     def write_frame(self, path: str | os.PathLike[str]) -> None:
         """Writes the spheres now by extension: ``.vtu`` (ParaView), ``.csv`` or ``.npy``
-        (float32 N×10: x, y, z, r, vx, vy, vz, wx, wy, wz); atomically."""
+        (float64 N×10: x, y, z, r, vx, vy, vz, wx, wy, wz); atomically. The positions are
+        written in float64, the rest as the float32 they are."""
     def checkpoint(self, path: str | os.PathLike[str]) -> None:
         """Saves the run (particles, contact history, resolved scene) for ``resume``."""

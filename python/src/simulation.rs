@@ -12,7 +12,9 @@ use mochi::engines::{BackendChoice, Options};
 use mochi::io;
 use mochi::run::{FIRST_PROGRESS_STEPS, Run, RunStart, progress_steps};
 use numpy::ndarray::{Array1, Array2, Dimension, Ix1, Ix2};
-use numpy::{IntoPyArray, PyArray, PyArray1, PyArray2, PyUntypedArray, PyUntypedArrayMethods};
+use numpy::{
+    Element, IntoPyArray, PyArray, PyArray1, PyArray2, PyUntypedArray, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::{PyMemoryError, PyTypeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
@@ -173,8 +175,11 @@ fn copied<T: Copy>(values: &[T], what: &str) -> PyResult<Vec<T>> {
     Ok(copy)
 }
 
-/// `values` (three per sphere) as an `(N, 3)` float32 array.
-fn triples<'py>(py: Python<'py>, values: &[[f32; 3]]) -> PyResult<Bound<'py, PyArray2<f32>>> {
+/// `values` (three per sphere) as an `(N, 3)` array (float32, or float64 for positions).
+fn triples<'py, T: Element + Copy>(
+    py: Python<'py>,
+    values: &[[T; 3]],
+) -> PyResult<Bound<'py, PyArray2<T>>> {
     let flat = copied(values.as_flattened(), "an array of the spheres")?;
     Array2::from_shape_vec((values.len(), 3), flat)
         .map(|a| a.into_pyarray(py))
@@ -187,30 +192,35 @@ fn singles<'py>(py: Python<'py>, values: &[f32]) -> PyResult<Bound<'py, PyArray1
 }
 
 /// Where [`Views`] keeps one array.
-type Slot<D> = fn(&mut Views) -> &mut Option<Py<PyArray<f32, D>>>;
+type Slot<T, D> = fn(&mut Views) -> &mut Option<Py<PyArray<T, D>>>;
 
 /// How one array of [`Views`] is made from the particles.
-type Make<'py, D> = fn(Python<'py>, &Particles) -> PyResult<Bound<'py, PyArray<f32, D>>>;
+type Make<'py, T, D> = fn(Python<'py>, &Particles) -> PyResult<Bound<'py, PyArray<T, D>>>;
+
+/// Where the spheres are (`(N, 3)` float64): each centre plus its residual.
+fn positions<'py>(py: Python<'py>, p: &Particles) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    triples(py, &p.exact_positions().map_err(to_py_err)?)
+}
 
 /// The arrays of the particles now that a `Simulation` has handed out, each made once: the same
 /// read-only array for every read until the next step.
 #[derive(Default)]
 struct Views {
-    positions: Option<Py<PyArray2<f32>>>,
+    positions: Option<Py<PyArray2<f64>>>,
     velocities: Option<Py<PyArray2<f32>>>,
     angular_velocities: Option<Py<PyArray2<f32>>>,
     radii: Option<Py<PyArray1<f32>>>,
 }
 
 /// Reads a frame (`.vtu` as `write_frame` and `mochi simulate` write it, `.csv` or `.npy`) into
-/// a dict of NumPy arrays (`positions`, `radii`, `velocities`, `angular_velocities`) with its
-/// `step` and `time` (`None` where the file does not say).
+/// a dict of NumPy arrays (`positions`, float64, `radii`, `velocities`, `angular_velocities`,
+/// float32) with its `step` and `time` (`None` where the file does not say).
 #[pyfunction]
 pub fn read_frame(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>> {
     guard("mochi.read_frame", || {
         let frame = py.detach(|| io::read_frame(&path)).map_err(to_py_err)?;
         let out = PyDict::new(py);
-        out.set_item("positions", triples(py, &frame.positions)?)?;
+        out.set_item("positions", triples(py, &frame.exact_positions)?)?;
         out.set_item("radii", Array1::from_vec(frame.radii).into_pyarray(py))?;
         out.set_item("velocities", triples(py, &frame.velocities)?)?;
         out.set_item(
@@ -302,12 +312,12 @@ impl Simulation {
 
     /// The array in `slot` of [`Self::views`], made by `make` from the particles now and set
     /// read-only where none is yet.
-    fn view<'py, D: Dimension>(
+    fn view<'py, T: Element, D: Dimension>(
         &mut self,
         py: Python<'py>,
-        slot: Slot<D>,
-        make: Make<'py, D>,
-    ) -> PyResult<Bound<'py, PyArray<f32, D>>> {
+        slot: Slot<T, D>,
+        make: Make<'py, T, D>,
+    ) -> PyResult<Bound<'py, PyArray<T, D>>> {
         if let Some(array) = slot(&mut self.views) {
             return Ok(array.bind(py).clone());
         }
@@ -384,11 +394,13 @@ impl Simulation {
         })
     }
 
-    /// Centres `(N, 3)` float32 \[m\], in input order: a read-only snapshot of this step.
+    /// Positions `(N, 3)` float64 \[m\], in input order: a read-only snapshot of this step.
+    /// Each is where the step keeps its sphere (its `f32` centre plus the residual that holds
+    /// what `f32` cannot: every step's displacement, however small, far from the origin).
     #[getter]
-    fn positions<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    fn positions<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         self.guarded("Simulation.positions", |sim| {
-            sim.view::<Ix2>(py, |v| &mut v.positions, |py, p| triples(py, &p.positions))
+            sim.view::<f64, Ix2>(py, |v| &mut v.positions, positions)
         })
     }
 
@@ -396,7 +408,7 @@ impl Simulation {
     #[getter]
     fn velocities<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
         self.guarded("Simulation.velocities", |sim| {
-            sim.view::<Ix2>(
+            sim.view::<f32, Ix2>(
                 py,
                 |v| &mut v.velocities,
                 |py, p| triples(py, &p.velocities),
@@ -409,7 +421,7 @@ impl Simulation {
     #[getter]
     fn angular_velocities<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
         self.guarded("Simulation.angular_velocities", |sim| {
-            sim.view::<Ix2>(
+            sim.view::<f32, Ix2>(
                 py,
                 |v| &mut v.angular_velocities,
                 |py, p| triples(py, &p.angular_velocities),
@@ -421,7 +433,7 @@ impl Simulation {
     #[getter]
     fn radii<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
         self.guarded("Simulation.radii", |sim| {
-            sim.view::<Ix1>(py, |v| &mut v.radii, |py, p| singles(py, &p.radii))
+            sim.view::<f32, Ix1>(py, |v| &mut v.radii, |py, p| singles(py, &p.radii))
         })
     }
 
@@ -463,7 +475,7 @@ impl Simulation {
     }
 
     /// Writes the spheres now as a frame, by extension: `.vtu` (ParaView), `.csv` or `.npy`
-    /// (float32 N×10: x, y, z, r, vx, vy, vz, wx, wy, wz); atomically, as `mochi simulate`
+    /// (float64 N×10: x, y, z, r, vx, vy, vz, wx, wy, wz); atomically, as `mochi simulate`
     /// writes its frames.
     fn write_frame(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         self.guarded("Simulation.write_frame", |sim| {

@@ -41,7 +41,7 @@ def test_a_falling_sphere_follows_the_closed_form(tmp_path):
     g = np.array([0.0, 0.0, -GRAVITY])
     exact = x0 + v0 * t + g * t * t / 2
     # Semi-implicit Euler (v += g dt, then x += v dt) is ahead of the closed form by g t dt / 2;
-    # float32 adds a rounding of the position per step.
+    # float32 adds a rounding of the velocity per step (the position keeps every displacement).
     lead = g * t * float(dt) / 2
     rounding = n * np.finfo(np.float32).eps * np.abs(exact).max()
     position = sim.positions[0].astype(np.float64)
@@ -50,6 +50,22 @@ def test_a_falling_sphere_follows_the_closed_form(tmp_path):
     np.testing.assert_allclose(sim.velocities[0], v0 + g * t, rtol=0, atol=1e-4)
     np.testing.assert_array_equal(sim.angular_velocities, np.zeros((1, 3), np.float32))
     assert sim.contacts == 0
+
+
+def test_a_slow_sphere_far_out_moves_by_every_step(tmp_path):
+    # 1 mm/s along each axis for 10^4 steps of 1e-7 s at 50 m from the origin: 1 um, where each
+    # step's 1e-10 m is far below float32's spacing there (3.8e-6 m). The positions are float64:
+    # each centre plus the residual that keeps every displacement.
+    x0 = np.array([50.0, -50.0, 50.0])
+    v0 = np.array([1e-3, -1e-3, 1e-3])
+    scene = one_sphere_scene(tmp_path, x0, v0) | {"gravity": [0.0, 0.0, 0.0], "dt": 1e-7}
+    sim = mochi.Simulation(scene, backend="cpu")
+    assert sim.positions.dtype == np.float64
+    sim.step(10_000)
+    np.testing.assert_allclose(sim.positions[0] - x0, v0 * 1e-3, rtol=1e-3)
+    path = tmp_path / "frame.csv"
+    sim.write_frame(path)
+    np.testing.assert_array_equal(mochi.read_frame(path)["positions"], sim.positions)
 
 
 def energy(sim):
@@ -190,7 +206,7 @@ def test_frames_read_back_as_written(tmp_path, ext):
         assert frame["step"] == 900 and frame["time"] == pytest.approx(sim.time)
     if ext == "npy":
         table = np.load(path)
-        assert table.dtype == np.float32 and table.shape == (200, 10)
+        assert table.dtype == np.float64 and table.shape == (200, 10)
         np.testing.assert_array_equal(table[:, :3], sim.positions)
         np.testing.assert_array_equal(table[:, 3], sim.radii)
         np.testing.assert_array_equal(table[:, 4:7], sim.velocities)

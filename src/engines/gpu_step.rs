@@ -75,7 +75,10 @@ pub(crate) mod physics {
     /// Declared by the force accumulator (`dem_force_*.wgsl`).
     pub const FORCE: Binding = Binding::read_write(13, "force");
     pub const CLOCK: Binding = Binding::read_write(16, "clock");
-    pub const BINDINGS: &[Binding] = &[DEM, POS, VEL, FORCE, CLOCK];
+    /// The residuals of the centres `pos` holds (`Particles::position_residuals`), which only
+    /// the integration and the passes that move the state bind.
+    pub const POS_LO: Binding = Binding::read_write(34, "pos_lo");
+    pub const BINDINGS: &[Binding] = &[DEM, POS, VEL, FORCE, CLOCK, POS_LO];
     /// The uniform of `wgsl/dem_physics_per_pair.wgsl`.
     pub const PER_PAIR_PARAMS: Binding = Binding::uniform(17, "per_pair");
 }
@@ -659,27 +662,41 @@ pub(crate) fn rows(particles: &Particles, density: f32) -> (Vec<[f32; 4]>, Vec<[
     (pos, vel)
 }
 
+/// `vec4(lo_x, lo_y, lo_z, 0)` rows of the residuals of the centres of `particles`, in input
+/// order (zeros where they have none).
+pub(crate) fn residual_rows(particles: &Particles) -> Vec<[f32; 4]> {
+    (0..particles.len())
+        .map(|i| {
+            let [x, y, z] = particles.residual(i);
+            [x, y, z, 0.0]
+        })
+        .collect()
+}
+
+/// The state rows a GPU step reads back: centres and radii, the centres' residuals, velocities
+/// and masses.
+pub(crate) struct StateRows<'a> {
+    pub pos: &'a [[f32; 4]],
+    pub lo: &'a [[f32; 4]],
+    pub vel: &'a [[f32; 4]],
+}
+
 /// Particles from rows read back in the order `ids` gives (`None`: input order), of the paper's
 /// step (no rotation, no history): the optix step's.
 #[cfg(feature = "optix")]
-pub(crate) fn particles_from(
-    pos: &[[f32; 4]],
-    vel: &[[f32; 4]],
-    ids: Option<&[u32]>,
-    step: u64,
-) -> Result<Particles> {
-    particles_with(pos, vel, ids, step, || Ok(None))
+pub(crate) fn particles_from(rows: StateRows, ids: Option<&[u32]>, step: u64) -> Result<Particles> {
+    particles_with(rows, ids, step, || Ok(None))
 }
 
 /// As [`particles_from`], with the angular velocities (in the rows' order) and contact history
 /// of a granular step (`None`: the paper's step).
 pub(crate) fn particles_with(
-    pos: &[[f32; 4]],
-    vel: &[[f32; 4]],
+    rows: StateRows,
     ids: Option<&[u32]>,
     step: u64,
     rotation: impl FnOnce() -> Result<Option<Rotation>>,
 ) -> Result<Particles> {
+    let StateRows { pos, lo, vel } = rows;
     let n = pos.len();
     // A run that blew up says so by its state before its history says anything.
     let finite = |row: &[f32; 4]| row.iter().all(|x| x.is_finite());
@@ -700,6 +717,7 @@ pub(crate) fn particles_with(
     });
     let mut out = Particles {
         positions: vec![[0.0; 3]; n],
+        position_residuals: vec![[0.0; 3]; n],
         velocities: vec![[0.0; 3]; n],
         angular_velocities: vec![[0.0; 3]; n],
         radii: vec![0.0; n],
@@ -707,9 +725,10 @@ pub(crate) fn particles_with(
         step,
     };
     let spins = rotation.angular_velocities;
-    for (k, ((p, v), w)) in pos.iter().zip(vel).zip(spins).enumerate() {
+    for (k, (((p, l), v), w)) in pos.iter().zip(lo).zip(vel).zip(spins).enumerate() {
         let i = ids.map_or(k, |ids| ids[k] as usize);
         out.positions[i] = [p[0], p[1], p[2]];
+        out.position_residuals[i] = [l[0], l[1], l[2]];
         out.velocities[i] = [v[0], v[1], v[2]];
         out.angular_velocities[i] = w;
         out.radii[i] = p[3];

@@ -3,15 +3,19 @@
 //! reads) in one little-endian binary file, written atomically so the file on disk is always a
 //! whole checkpoint.
 //!
-//! Layout (version 5): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
-//! (UTF-8), state length u64, state TOML (UTF-8), then n·3 f32 positions, n·3 f32 velocities, n·3 f32 angular velocities, n f32
-//! radii, the number of history entries u64 and each entry as owner u32, partner u32, 3 f32
-//! tangential spring, 3 f32 rolling spring (owners in order), the number of load histories u64
-//! (0, or that of the entries: the Mindlin–Deresiewicz model's) and each as 3 f32 reversal
-//! force, f32 normal force (in the entries' order), and last the CRC-32 (u32) of every byte
-//! before it: a damaged file is refused rather than resumed. Version 4 (no load histories) is
-//! still read without them, version 3 (no state) with an empty state, and version 2 (no angular
-//! velocities, no history) as spheres at rest in rotation without history.
+//! Layout (version 6): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
+//! (UTF-8), state length u64, state TOML (UTF-8), then n·3 f32 positions (the `f32` centres),
+//! n·3 f32 velocities, n·3 f32 angular velocities, n f32 radii, n·3 f32 position residuals
+//! (each centre plus its residual is the sphere's position, as [`Particles`] holds it: saved as
+//! the pair, a resumed run goes on bit for bit), the number of history entries u64 and each
+//! entry as owner u32, partner u32, 3 f32 tangential spring, 3 f32 rolling spring (owners in
+//! order), the number of load histories u64 (0, or that of the entries: the
+//! Mindlin–Deresiewicz model's) and each as 3 f32 reversal force, f32 normal force (in the
+//! entries' order), and last the CRC-32 (u32) of every byte before it: a damaged file is
+//! refused rather than resumed. Version 5 (no load histories) is still read without them,
+//! version 4 (no residuals either) with residuals of 0, version 3 (no state either) with an
+//! empty state, and version 2 (no angular velocities, no history) as spheres at rest in
+//! rotation without history.
 
 use super::{io_error, write_atomically};
 use crate::error::{Error, Result};
@@ -19,7 +23,7 @@ use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, Particles};
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"MOCHICKP";
-const VERSION: u32 = 5;
+const VERSION: u32 = 6;
 /// The oldest version this mochi reads.
 const OLDEST: u32 = 2;
 /// Bytes of one history entry: owner, partner and six f32.
@@ -46,13 +50,16 @@ pub fn write_checkpoint(
     scene: &str,
     state: &str,
 ) -> Result<()> {
+    let residuals = (0..particles.positions.len()).flat_map(|i| particles.residual(i));
     let floats = particles
         .positions
         .iter()
         .flatten()
         .chain(particles.velocities.iter().flatten())
         .chain(particles.angular_velocities.iter().flatten())
-        .chain(&particles.radii);
+        .chain(&particles.radii)
+        .copied()
+        .chain(residuals);
     let history = &particles.history;
     let loads = match history.has_loads() {
         true => history.len(),
@@ -61,7 +68,7 @@ pub fn write_checkpoint(
     let mut bytes = Vec::with_capacity(
         64 + scene.len()
             + state.len()
-            + 40 * particles.len()
+            + 52 * particles.len()
             + ENTRY_BYTES * history.len()
             + LOAD_BYTES * loads
             + 4,
@@ -129,6 +136,7 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         )));
     }
     let spins = version >= 3;
+    let residuals = version >= 5;
     let step = u64_at(take(8, "step")?);
     let n = u64_at(take(8, "sphere count")?);
     let scene_len = u64_at(take(8, "scene length")?);
@@ -140,7 +148,11 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         }
         false => &[][..],
     };
-    let per_sphere = if spins { 10 } else { 7 };
+    let per_sphere = match (spins, residuals) {
+        (_, true) => 13,
+        (true, false) => 10,
+        (false, false) => 7,
+    };
     let floats = n
         .checked_mul(per_sphere * 4)
         .and_then(|b| usize::try_from(b).ok())
@@ -156,7 +168,7 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
     } else {
         (0, &[][..])
     };
-    let loads = if version >= 5 {
+    let loads = if version >= 6 {
         let len = u64_at(take(8, "load history length")?);
         if len != 0 && len != history_len as u64 {
             return Err(bad(format!(
@@ -191,9 +203,16 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
     let n = n as usize;
     let triples = |s: &[f32]| s.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
     let (angular_velocities, radii) = if spins {
-        (triples(&values[6 * n..9 * n]), values[9 * n..].to_vec())
+        (
+            triples(&values[6 * n..9 * n]),
+            values[9 * n..10 * n].to_vec(),
+        )
     } else {
         (vec![[0.0; 3]; n], values[6 * n..].to_vec())
+    };
+    let position_residuals = match residuals {
+        true => triples(&values[10 * n..]),
+        false => Vec::new(),
     };
     let contacts: Vec<(u32, HistoryEntry)> = history
         .chunks_exact(ENTRY_BYTES)
@@ -220,6 +239,7 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         .collect();
     let particles = Particles {
         positions: triples(&values[..3 * n]),
+        position_residuals,
         velocities: triples(&values[3 * n..6 * n]),
         angular_velocities,
         radii,
@@ -258,6 +278,7 @@ mod tests {
     fn sample() -> Particles {
         Particles {
             positions: vec![[0.1, 0.2, 0.3], [1.0, -2.0, 3.5]],
+            position_residuals: vec![[1e-9, -3e-9, 0.0], [0.0, 5e-8, -1e-7]],
             velocities: vec![[0.0, -1.5, 2.0], [1e-9, 0.0, -0.0]],
             angular_velocities: vec![[3.0, 0.0, -1.0], [0.0, 2e-7, 0.0]],
             radii: vec![0.01, 0.002],
@@ -310,7 +331,7 @@ mod tests {
         );
         // A NaN with a valid checksum: refused by the value checks.
         let mut nan = whole[..whole.len() - 4].to_vec();
-        let first_position = nan.len() - 8 - 4 * 20 - 8 - 3 * ENTRY_BYTES;
+        let first_position = nan.len() - 8 - 4 * 26 - 8 - 3 * ENTRY_BYTES;
         nan[first_position..first_position + 4].copy_from_slice(&f32::NAN.to_le_bytes());
         let crc = crc32fast::hash(&nan);
         nan.extend_from_slice(&crc.to_le_bytes());
@@ -330,7 +351,7 @@ mod tests {
         // to the magic, version or a length or count reads as a foreign, older or truncated
         // file).
         let state_length = 36 + scene.len();
-        let history_length = state_length + 8 + state.len() + 40 * sample().len();
+        let history_length = state_length + 8 + state.len() + 52 * sample().len();
         let data = (36..state_length)
             .chain(state_length + 8..history_length)
             .chain(history_length + 8..whole.len() - 12)
@@ -369,6 +390,7 @@ mod tests {
         let read = read_checkpoint(&path).unwrap();
         assert_eq!((read.scene.as_str(), read.state.as_str()), ("x", ""));
         let expected = Particles {
+            position_residuals: Vec::new(),
             angular_velocities: vec![[0.0; 3]; 2],
             history: ContactHistory::default(),
             ..p
@@ -376,24 +398,86 @@ mod tests {
         assert_eq!(read.particles, expected);
     }
 
+    /// The checkpoint of [`sample`] (scene `x`, empty state) as version 5 wrote it: no load
+    /// histories' count before the checksum.
+    fn version_5() -> Vec<u8> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        write_checkpoint(&path, &sample(), "x", "").unwrap();
+        let v6 = std::fs::read(&path).unwrap();
+        let mut v5 = v6[..v6.len() - 12].to_vec();
+        v5[8..12].copy_from_slice(&5u32.to_le_bytes());
+        let crc = crc32fast::hash(&v5);
+        v5.extend_from_slice(&crc.to_le_bytes());
+        v5
+    }
+
+    /// The checkpoint of [`sample`] (scene `x`, empty state) as version 4 wrote it: no
+    /// residuals after the radii.
+    fn version_4() -> Vec<u8> {
+        let v5 = version_5();
+        // Header (45 bytes with scene "x" and an empty state), then 40 bytes a sphere of
+        // positions, velocities, spins and radii, then the residuals.
+        let spheres = 45 + 40 * sample().len();
+        let mut v4 = v5[..spheres].to_vec();
+        v4[8..12].copy_from_slice(&4u32.to_le_bytes());
+        v4.extend_from_slice(&v5[spheres + 12 * sample().len()..v5.len() - 4]);
+        let crc = crc32fast::hash(&v4);
+        v4.extend_from_slice(&crc.to_le_bytes());
+        v4
+    }
+
+    #[test]
+    fn a_version_4_checkpoint_reads_with_residuals_of_zero() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        std::fs::write(&path, version_4()).unwrap();
+        let read = read_checkpoint(&path).unwrap();
+        let expected = Particles {
+            position_residuals: Vec::new(),
+            ..sample()
+        };
+        assert_eq!(
+            (read.particles, read.scene.as_str(), read.state.as_str()),
+            (expected, "x", "")
+        );
+    }
+
     #[test]
     fn a_version_3_checkpoint_reads_with_an_empty_state() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
-        write_checkpoint(&path, &sample(), "x", "").unwrap();
-        // Version 5 with an empty state and no load histories is version 3 with a zero length
-        // after the scene and a zero count before the checksum.
-        let v5 = std::fs::read(&path).unwrap();
-        let mut v3 = v5[..37].to_vec();
+        // Version 4 with an empty state is version 3 with a zero length after the scene.
+        let v4 = version_4();
+        let mut v3 = v4[..37].to_vec();
         v3[8..12].copy_from_slice(&3u32.to_le_bytes());
-        v3.extend_from_slice(&v5[45..v5.len() - 12]);
+        v3.extend_from_slice(&v4[45..v4.len() - 4]);
         let crc = crc32fast::hash(&v3);
         v3.extend_from_slice(&crc.to_le_bytes());
         std::fs::write(&path, &v3).unwrap();
         let read = read_checkpoint(&path).unwrap();
+        let expected = Particles {
+            position_residuals: Vec::new(),
+            ..sample()
+        };
         assert_eq!(
             (read.particles, read.scene.as_str(), read.state.as_str()),
-            (sample(), "x", "")
+            (expected, "x", "")
+        );
+    }
+
+    #[test]
+    fn residuals_that_are_not_below_half_a_spacing_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        let mut off = sample();
+        // Half of 1.0's spacing above: the pair's sum rounds to 1.0's neighbour.
+        off.position_residuals[1][0] = 1e-7;
+        write_checkpoint(&path, &off, "x", "").unwrap();
+        let e = read_checkpoint(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("sphere 1") && e.contains("half an f32 spacing"),
+            "{e}"
         );
     }
 
@@ -422,34 +506,17 @@ mod tests {
         assert!(c.particles.history.has_loads());
         assert_eq!(c.particles, loaded());
         assert_ne!(c.particles, sample());
-        // Without, the file is 8 bytes (the count) longer than version 4's.
         write_checkpoint(&path, &sample(), "x", "").unwrap();
-        assert!(
-            !read_checkpoint(&path)
-                .unwrap()
-                .particles
-                .history
-                .has_loads()
-        );
+        assert!(!read_checkpoint(&path).unwrap().particles.history.has_loads());
     }
 
     #[test]
-    fn a_version_4_checkpoint_reads_without_load_histories() {
+    fn a_version_5_checkpoint_reads_without_load_histories() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
-        write_checkpoint(&path, &sample(), "x", "[flow]\n").unwrap();
-        // Version 5 without load histories is version 4 with a zero count before the checksum.
-        let v5 = std::fs::read(&path).unwrap();
-        let mut v4 = v5[..v5.len() - 12].to_vec();
-        v4[8..12].copy_from_slice(&4u32.to_le_bytes());
-        let crc = crc32fast::hash(&v4);
-        v4.extend_from_slice(&crc.to_le_bytes());
-        std::fs::write(&path, &v4).unwrap();
+        std::fs::write(&path, version_5()).unwrap();
         let read = read_checkpoint(&path).unwrap();
-        assert_eq!(
-            (read.particles, read.state.as_str()),
-            (sample(), "[flow]\n")
-        );
+        assert_eq!((read.particles, read.state.as_str()), (sample(), ""));
     }
 
     #[test]

@@ -2,8 +2,9 @@
 //! binary, `UInt64` block headers) and the frame CSVs (`x,y,z,r,vx,vy,vz,wx,wy,wz`, or any
 //! sphere file).
 
+use super::spheres::read_particles_as_written;
 use super::spheres::{check_finite, check_velocity};
-use super::{Format, io_error, parse_error, read_particles};
+use super::{Format, io_error, parse_error};
 use crate::error::Result;
 use crate::spheres::check_sphere;
 use std::path::Path;
@@ -15,8 +16,11 @@ pub struct OwnedFrame {
     pub step: Option<u64>,
     /// Simulated time \[s\], when the file has it (`.vtu`).
     pub time: Option<f64>,
-    /// Centres \[m\].
+    /// Centres \[m\]: the positions rounded to `f32`.
     pub positions: Vec<[f32; 3]>,
+    /// The positions \[m\] as the file holds them: `f64` (a CSV's decimals read as `f64`;
+    /// `f32` in `.vtu` frames of mochi before it kept residuals and in `float32` files).
+    pub exact_positions: Vec<[f64; 3]>,
     /// Radii \[m\].
     pub radii: Vec<f32>,
     /// Velocities \[m/s\] (zero when the file has none).
@@ -37,7 +41,7 @@ pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
         return read_vtu(path);
     }
     Format::of(path)?;
-    let particles = read_particles(path)?;
+    let (particles, exact_positions) = read_particles_as_written(path)?;
     let step = path
         .file_stem()
         .and_then(|s| s.to_str())
@@ -47,6 +51,7 @@ pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
         step,
         time: None,
         positions: particles.positions,
+        exact_positions,
         radii: particles.radii,
         velocities: particles.velocities,
         angular_velocities: particles.angular_velocities,
@@ -56,8 +61,9 @@ pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
 /// Marks the start of the raw data in our `.vtu` files.
 const APPENDED: &[u8] = b"<AppendedData encoding=\"raw\">";
 
-/// Reads the arrays `Points`, `radius`, `velocity` and, where the file has it,
-/// `angular_velocity` (all `Float32`) of a `.vtu`.
+/// Reads the arrays `Points` (`Float64`, as mochi writes them, or `Float32`, as it did before it
+/// kept residuals), `radius`, `velocity` and, where the file has it, `angular_velocity` (all
+/// `Float32`) of a `.vtu`.
 pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     let bytes = std::fs::read(path).map_err(io_error(path))?;
     let bad = |msg: String| parse_error(path, None, msg);
@@ -86,20 +92,28 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
         true => f32::from_be_bytes(b),
         false => f32::from_le_bytes(b),
     };
+    let f64_of = |b: [u8; 8]| match big_endian {
+        true => f64::from_be_bytes(b),
+        false => f64::from_le_bytes(b),
+    };
     let n: usize = attribute_after(header, "<Piece", "NumberOfPoints")
         .and_then(|v| v.parse().ok())
         .ok_or_else(|| bad("no NumberOfPoints in <Piece>".into()))?;
-    let array = |name: &str, components: usize| -> Result<Vec<f32>> {
+    // The values of an array of `Float32` (or, where `wide`, also `Float64`) as f64.
+    let array_of = |name: &str, components: usize, wide: bool| -> Result<Vec<f64>> {
         let element =
             data_array(header, name).ok_or_else(|| bad(format!("no DataArray named {name:?}")))?;
-        if attribute(element, "type") != Some("Float32") {
-            return Err(bad(format!("{name}: only Float32 is read")));
-        }
+        let size = match attribute(element, "type") {
+            Some("Float32") => 4,
+            Some("Float64") if wide => 8,
+            _ if wide => return Err(bad(format!("{name}: only Float64 or Float32 is read"))),
+            _ => return Err(bad(format!("{name}: only Float32 is read"))),
+        };
         let offset: usize = attribute(element, "offset")
             .and_then(|v| v.parse().ok())
             .ok_or_else(|| bad(format!("{name}: no offset")))?;
         let want = n
-            .checked_mul(components * 4)
+            .checked_mul(components * size)
             .ok_or_else(|| bad(format!("{name}: {n} points is too many")))?;
         let block = offset
             .checked_add(8)
@@ -112,12 +126,23 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
         let values = data
             .get(offset + 8..offset + 8 + want)
             .ok_or_else(|| bad(format!("{name}: the file ends inside the block")))?;
-        Ok(values
-            .chunks_exact(4)
-            .map(|b| f32_of(b.try_into().expect("4 bytes")))
-            .collect())
+        Ok(match size {
+            4 => values
+                .chunks_exact(4)
+                .map(|b| f32_of(b.try_into().expect("4 bytes")) as f64)
+                .collect(),
+            _ => values
+                .chunks_exact(8)
+                .map(|b| f64_of(b.try_into().expect("8 bytes")))
+                .collect(),
+        })
     };
-    let points = array("Points", 3)?;
+    let array = |name: &str, components: usize| -> Result<Vec<f32>> {
+        let values = array_of(name, components, false)?;
+        Ok(values.into_iter().map(|x| x as f32).collect())
+    };
+    let exact = array_of("Points", 3, true)?;
+    let points: Vec<f32> = exact.iter().map(|&x| x as f32).collect();
     let radii = array("radius", 1)?;
     let velocity = array("velocity", 3)?;
     let angular = match data_array(header, "angular_velocity") {
@@ -127,6 +152,7 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     let triples =
         |v: Vec<f32>| -> Vec<[f32; 3]> { v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() };
     let (points, velocity, angular) = (triples(points), triples(velocity), triples(angular));
+    let exact_positions = exact.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
     // The rules of a sphere file, so that every reader of a frame gets valid spheres.
     for (i, (((c, &r), v), w)) in points
         .iter()
@@ -150,6 +176,7 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
         step: field("step").and_then(|v| v.parse().ok()),
         time: field("TimeValue").and_then(|v| v.parse().ok()),
         positions: points,
+        exact_positions,
         radii,
         velocities: velocity,
         angular_velocities: angular,
@@ -214,6 +241,7 @@ mod tests {
             time: 0.125,
             step: 42,
             positions: &p,
+            position_residuals: &[],
             radii: &r,
             velocities: &v,
             angular_velocities: &SPIN,
@@ -286,6 +314,7 @@ mod tests {
             time: 0.5,
             step: 7,
             positions: &p,
+            position_residuals: &[],
             radii: &r,
             velocities: &v,
             angular_velocities: &SPIN,
@@ -313,6 +342,7 @@ mod tests {
             time: 0.0,
             step: 1,
             positions: &p,
+            position_residuals: &[],
             radii: &r,
             velocities: &v,
             angular_velocities: &SPIN,
@@ -332,6 +362,7 @@ mod tests {
             time: 0.0,
             step: 1,
             positions: &p,
+            position_residuals: &[],
             radii: &r,
             velocities: &v,
             angular_velocities: &SPIN,

@@ -2,8 +2,9 @@
 //! optional CSV twin (`x,y,z,r,vx,vy,vz,wx,wy,wz`), and a ParaView collection (`series.pvd`) that
 //! lists the frames with their times.
 //!
-//! A `.vtu` frame holds one `VTK_VERTEX` cell per sphere, the centres as `Float32` points and the
-//! point arrays `radius`, `velocity` (3 components), `speed`, `angular_velocity` (3 components;
+//! A `.vtu` frame holds one `VTK_VERTEX` cell per sphere, the positions as `Float64` points
+//! (each centre plus its residual, [`crate::particles::position`]: 1e-14 m at 100 m, where
+//! `Float32` would round to 8e-6 m) and the point arrays `radius`, `velocity` (3 components), `speed`, `angular_velocity` (3 components;
 //! all `Float32`) and `id` (`UInt32`, the sphere's index), and, when the run keeps contact
 //! history (friction or EPSD rolling resistance), `contacts` (`UInt32`: the contacts each sphere
 //! holds in that history, walls included), plus the field data `TimeValue` (`Float64`) and `step`
@@ -26,21 +27,25 @@
 
 use super::{collection, io_error, parse_error, write_atomically};
 use crate::error::{Error, Result};
-use crate::particles::{ContactHistory, Particles};
+use crate::particles::{ContactHistory, Particles, position};
 use npyz::WriterBuilder;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The state of every sphere at one step of a simulation. The slices are parallel: sphere `i` is
-/// `positions[i]`, `radii[i]`, `velocities[i]`, `angular_velocities[i]`.
+/// `positions[i]` (plus `position_residuals[i]`), `radii[i]`, `velocities[i]`,
+/// `angular_velocities[i]`.
 #[derive(Debug, Clone, Copy)]
 pub struct Frame<'a> {
     /// Simulated time \[s\]; must be finite.
     pub time: f64,
     /// Step number; names the frame's files (`frame_{step:08}.vtu`).
     pub step: u64,
-    /// Centres \[m\].
+    /// Centres \[m\] (as `f32`: [`Particles::positions`]).
     pub positions: &'a [[f32; 3]],
+    /// The centres' residuals \[m\] ([`Particles::position_residuals`]): empty (none) or one
+    /// per sphere. The files hold each centre plus its residual, in `f64`.
+    pub position_residuals: &'a [[f32; 3]],
     /// Radii \[m\].
     pub radii: &'a [f32],
     /// Velocities \[m/s\].
@@ -61,6 +66,7 @@ impl<'a> Frame<'a> {
             time: particles.step as f64 * dt as f64,
             step: particles.step,
             positions: &particles.positions,
+            position_residuals: &particles.position_residuals,
             radii: &particles.radii,
             velocities: &particles.velocities,
             angular_velocities: &particles.angular_velocities,
@@ -74,11 +80,15 @@ impl Frame<'_> {
     /// to be finite.
     fn checked_len(&self) -> Result<usize> {
         let n = self.positions.len();
-        if self.radii.len() != n || self.velocities.len() != n || self.angular_velocities.len() != n
+        let residuals = self.position_residuals.len();
+        if self.radii.len() != n
+            || self.velocities.len() != n
+            || self.angular_velocities.len() != n
+            || !(residuals == 0 || residuals == n)
         {
             return Err(Error::Usage(format!(
-                "frame at step {}: {} positions, {} radii, {} velocities and {} angular \
-                 velocities (must be equal)",
+                "frame at step {}: {} positions, {residuals} position residuals (none or as \
+                 many), {} radii, {} velocities and {} angular velocities (must be equal)",
                 self.step,
                 n,
                 self.radii.len(),
@@ -105,6 +115,20 @@ impl Frame<'_> {
             });
         }
         Ok(n)
+    }
+}
+
+impl Frame<'_> {
+    /// Where sphere `i` is: its centre plus its residual, in `f64`.
+    fn exact_position(&self, i: usize) -> [f64; 3] {
+        let hi = self.positions[i];
+        let lo = self.position_residuals.get(i).copied().unwrap_or([0.0; 3]);
+        std::array::from_fn(|a| position::join(hi[a], lo[a]))
+    }
+
+    /// Every sphere's [`exact_position`](Self::exact_position), in order.
+    fn exact_positions(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
+        (0..self.positions.len()).map(|i| self.exact_position(i))
     }
 }
 
@@ -158,11 +182,8 @@ impl Block {
     /// `wide`: cell indices need 64 bits (more than `i32::MAX` spheres).
     fn vtk_type(self, wide: bool) -> &'static str {
         match self {
-            Block::Radius
-            | Block::Velocity
-            | Block::Speed
-            | Block::AngularVelocity
-            | Block::Points => "Float32",
+            Block::Radius | Block::Velocity | Block::Speed | Block::AngularVelocity => "Float32",
+            Block::Points => "Float64",
             Block::Id | Block::Contacts => "UInt32",
             Block::Connectivity | Block::Offsets if wide => "Int64",
             Block::Connectivity | Block::Offsets => "Int32",
@@ -210,6 +231,7 @@ impl Block {
     fn value_bytes(self, wide: bool) -> usize {
         match self {
             Block::Connectivity | Block::Offsets if wide => 8,
+            Block::Points => 8,
             Block::Types => 1,
             _ => 4,
         }
@@ -332,8 +354,7 @@ fn write_block(
             (0..n).try_for_each(|i| out.put((history.of(i).len() as u32).to_le_bytes()))?
         }
         Block::Points => frame
-            .positions
-            .iter()
+            .exact_positions()
             .flatten()
             .try_for_each(|x| out.put(x.to_le_bytes()))?,
         Block::Connectivity => (0..n).try_for_each(|i| index(i, out))?,
@@ -380,7 +401,9 @@ impl<'o> Chunked<'o> {
 // ---------------------------------------------------------------------------------------------
 
 /// Writes `frame` as CSV with the header `x,y,z,r,vx,vy,vz,wx,wy,wz`, one sphere per row, every
-/// number in its shortest round-trip form (as [`super::write_spheres`] writes), atomically.
+/// number in its shortest round-trip form (as [`super::write_spheres`] writes), atomically: the
+/// positions (each centre plus its residual) as `f64` (up to 17 significant digits), the rest as
+/// `f32`.
 ///
 /// The file is a sphere file with velocities and angular velocities: [`super::read_particles`]
 /// reads it back (so `mochi simulate --input FRAME.csv` restarts from it) and
@@ -390,9 +413,8 @@ pub fn write_frame_csv(path: &Path, frame: &Frame) -> Result<()> {
     frame.checked_len()?;
     write_atomically(path, |out| {
         writeln!(out, "x,y,z,r,vx,vy,vz,wx,wy,wz")?;
-        for (((&[x, y, z], r), &[vx, vy, vz]), &[wx, wy, wz]) in frame
-            .positions
-            .iter()
+        for ((([x, y, z], r), &[vx, vy, vz]), &[wx, wy, wz]) in frame
+            .exact_positions()
             .zip(frame.radii)
             .zip(frame.velocities)
             .zip(frame.angular_velocities)
@@ -403,25 +425,26 @@ pub fn write_frame_csv(path: &Path, frame: &Frame) -> Result<()> {
     })
 }
 
-/// Writes `frame` as NumPy `.npy`, float32 of shape N×10 (the columns of
-/// [`write_frame_csv`]), atomically. [`super::read_particles`] and [`super::read_frame`] read it
-/// back, as does `numpy.load`.
+/// Writes `frame` as NumPy `.npy`, float64 of shape N×10 (the columns of
+/// [`write_frame_csv`]: the positions, each centre plus its residual, and the other columns'
+/// `f32` values exactly), atomically. [`super::read_particles`] and [`super::read_frame`] read
+/// it back, as does `numpy.load`.
 pub fn write_frame_npy(path: &Path, frame: &Frame) -> Result<()> {
     let n = frame.checked_len()?;
     write_atomically(path, |out| {
-        let mut npy = npyz::WriteOptions::<f32>::new()
+        let mut npy = npyz::WriteOptions::<f64>::new()
             .default_dtype()
             .shape(&[n as u64, 10])
             .writer(out)
             .begin_nd()?;
-        for (((&[x, y, z], &r), &[vx, vy, vz]), &[wx, wy, wz]) in frame
-            .positions
-            .iter()
+        for ((([x, y, z], &r), &[vx, vy, vz]), &[wx, wy, wz]) in frame
+            .exact_positions()
             .zip(frame.radii)
             .zip(frame.velocities)
             .zip(frame.angular_velocities)
         {
-            npy.extend([x, y, z, r, vx, vy, vz, wx, wy, wz])?;
+            let rest = [r, vx, vy, vz, wx, wy, wz].map(f64::from);
+            npy.extend([x, y, z].into_iter().chain(rest))?;
         }
         npy.finish()
     })

@@ -2,7 +2,8 @@
 //! accepted and rounded to float32). Both may carry velocities, header `x,y,z,r,vx,vy,vz` or shape
 //! N×7, and angular velocities after them, header `x,y,z,r,vx,vy,vz,wx,wy,wz` or shape N×10 (the
 //! frame CSVs of `mochi simulate`). [`read_spheres`] ignores the motion; [`read_particles`]
-//! returns it.
+//! returns it, and each centre as the file holds it (a CSV's decimal or a float64, read as
+//! `f64`): its `f32` centre and the residual that `f32` drops.
 
 use super::{Format, io_error, parse_error, write_atomically};
 use crate::error::{Result, try_push, try_vec};
@@ -23,10 +24,14 @@ fn accepted_headers() -> String {
     format!("{}, {} or {}", all[0], all[1], all[2])
 }
 
-/// Rows of a sphere file: `x, y, z, r`, and the velocities and angular velocities where the file
-/// has them (`None` where it does not).
+/// Rows of a sphere file: `x, y, z, r`, the centres as the file holds them where that is more
+/// than `f32` holds, and the velocities and angular velocities where the file has them (`None`
+/// where it does not).
 struct Rows {
     spheres: Vec<[f32; 4]>,
+    /// The centres as written (CSV) or as `float64` (`.npy`), one per row; empty where the
+    /// file holds `float32` (the centres are then exact in `spheres`).
+    centres: Vec<[f64; 3]>,
     velocities: Option<Vec<[f32; 3]>>,
     angular_velocities: Option<Vec<[f32; 3]>>,
 }
@@ -39,6 +44,7 @@ impl Rows {
         };
         Ok(Self {
             spheres: try_vec(n, &what)?,
+            centres: Vec::new(),
             velocities: motion(7)?,
             angular_velocities: motion(10)?,
         })
@@ -71,28 +77,50 @@ enum RowError {
 /// Reads a sphere file (`.csv` or `.npy`, by extension) and validates every sphere (velocity
 /// columns, if any, are ignored).
 pub fn read_spheres(path: &Path) -> Result<SphereSet> {
-    let rows = read_rows(path)?;
+    let rows = read_rows(path, false)?;
     SphereSet::from_xyzr(&rows.spheres)
 }
 
 /// Reads a sphere file into particles at step 0: its velocities and angular velocities where
-/// it has them, zero where it does not; no contact history.
+/// it has them, zero where it does not; no contact history. Each position is the centre as the
+/// file writes it (the CSV's decimal, or the `.npy`'s `float64`, read as `f64`): its `f32`
+/// centre and the residual ([`Particles::position_residuals`], [`crate::particles::position`]),
+/// so a frame written by `mochi simulate` restarts where its spheres were.
 pub fn read_particles(path: &Path) -> Result<Particles> {
-    let rows = read_rows(path)?;
+    read_particles_as_written(path).map(|(particles, _)| particles)
+}
+
+/// [`read_particles`], and the positions as the file holds them (in `f64`, which the
+/// particles' centres and residuals hold to within 2⁻⁵³ of each).
+pub(super) fn read_particles_as_written(path: &Path) -> Result<(Particles, Vec<[f64; 3]>)> {
+    let rows = read_rows(path, true)?;
     let mut particles = Particles::at_rest(&SphereSet::from_xyzr(&rows.spheres)?)?;
+    for (i, &centre) in rows.centres.iter().enumerate() {
+        particles.set_exact_position(i, centre)?;
+    }
+    let written = match rows.centres.is_empty() {
+        true => rows
+            .spheres
+            .iter()
+            .map(|s| [s[0], s[1], s[2]].map(f64::from))
+            .collect(),
+        false => rows.centres,
+    };
     if let Some(v) = rows.velocities {
         particles.velocities = v;
     }
     if let Some(w) = rows.angular_velocities {
         particles.angular_velocities = w;
     }
-    Ok(particles)
+    Ok((particles, written))
 }
 
-fn read_rows(path: &Path) -> Result<Rows> {
+/// The rows of a sphere file, with its centres as the file holds them where `centres` (and
+/// it holds more than `f32`).
+fn read_rows(path: &Path, centres: bool) -> Result<Rows> {
     match Format::of(path)? {
-        Format::Csv => read_csv(path),
-        Format::Npy => read_npy(path),
+        Format::Csv => read_csv(path, centres),
+        Format::Npy => read_npy(path, centres),
     }
 }
 
@@ -175,7 +203,7 @@ impl Lines<'_> {
     }
 }
 
-fn read_csv(path: &Path) -> Result<Rows> {
+fn read_csv(path: &Path, centres: bool) -> Result<Rows> {
     let file = std::fs::File::open(path).map_err(io_error(path))?;
     let mut lines = Lines {
         reader: std::io::BufReader::with_capacity(1 << 20, file),
@@ -239,14 +267,20 @@ fn read_csv(path: &Path) -> Result<Rows> {
             )));
         }
         let mut row = [0f32; COLUMNS.len()];
+        let mut centre = [0f64; 3];
         for (k, (field, name)) in fields.iter().zip(names).enumerate() {
-            row[k] = field
-                .parse()
-                .map_err(|_| bad(format!("column {name}: {field:?} is not a number")))?;
+            let not_a_number = || bad(format!("column {name}: {field:?} is not a number"));
+            row[k] = field.parse().map_err(|_| not_a_number())?;
+            if k < 3 && centres {
+                centre[k] = field.parse().map_err(|_| not_a_number())?;
+            }
         }
         let count = rows.spheres.len() + 1;
         check_count(count)?;
         let what = || format!("{count} rows of {}", path.display());
+        if centres {
+            try_push(&mut rows.centres, centre, what)?;
+        }
         rows.push(&row[..names.len()], what).map_err(|e| match e {
             RowError::Bad(msg) => bad(msg),
             RowError::Fatal(e) => e,
@@ -255,7 +289,7 @@ fn read_csv(path: &Path) -> Result<Rows> {
     Ok(rows)
 }
 
-fn read_npy(path: &Path) -> Result<Rows> {
+fn read_npy(path: &Path, centres: bool) -> Result<Rows> {
     let bad = |msg: String| parse_error(path, None, msg);
     // The header is checked against the file's length before npyz parses it; the data is then
     // read in blocks into a fallibly allocated array.
@@ -286,11 +320,11 @@ fn read_npy(path: &Path) -> Result<Rows> {
         npyz::DType::Plain(t) => t.to_string(),
         other => other.descr(),
     };
-    let decode: fn(&[u8]) -> f32 = match dtype.as_str() {
-        "<f4" => |b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-        ">f4" => |b| f32::from_be_bytes([b[0], b[1], b[2], b[3]]),
-        "<f8" => |b| f64::from_le_bytes(std::array::from_fn(|k| b[k])) as f32,
-        ">f8" => |b| f64::from_be_bytes(std::array::from_fn(|k| b[k])) as f32,
+    let decode: fn(&[u8]) -> f64 = match dtype.as_str() {
+        "<f4" => |b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
+        ">f4" => |b| f32::from_be_bytes([b[0], b[1], b[2], b[3]]) as f64,
+        "<f8" => |b| f64::from_le_bytes(std::array::from_fn(|k| b[k])),
+        ">f8" => |b| f64::from_be_bytes(std::array::from_fn(|k| b[k])),
         other => return Err(bad(format!("expected float32 values, found dtype {other}"))),
     };
     let item = if dtype.ends_with('4') { 4 } else { 8 };
@@ -298,6 +332,12 @@ fn read_npy(path: &Path) -> Result<Rows> {
     let total = n * columns;
     let mut values: Vec<f32> = try_vec(total, what)?;
     let mut rows = Rows::with_capacity(n, columns, what)?;
+    // The centres of a float64 file, as the file holds them (each value's row and column by
+    // the file's order).
+    let wide = item == 8 && centres;
+    if wide {
+        crate::error::try_resize(&mut rows.centres, n, [0.0; 3], what)?;
+    }
     let mut data = std::io::BufReader::new(file);
     data.seek(std::io::SeekFrom::Start(data_at))
         .map_err(io_error(path))?;
@@ -310,7 +350,17 @@ fn read_npy(path: &Path) -> Result<Rows> {
                 values.len()
             ))
         })?;
-        values.extend(bytes.chunks_exact(item).map(decode));
+        for value in bytes.chunks_exact(item).map(decode) {
+            let k = values.len();
+            let (i, column) = match fortran {
+                true => (k % n, k / n),
+                false => (k / columns, k % columns),
+            };
+            if column < 3 && wide {
+                rows.centres[i][column] = value;
+            }
+            values.push(value as f32);
+        }
     }
     let mut row = [0f32; COLUMNS.len()];
     for i in 0..n {

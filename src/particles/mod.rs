@@ -1,6 +1,7 @@
 //! The simulation state: what a checkpoint saves and a frame shows.
 
 pub mod history;
+pub mod position;
 
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
@@ -11,10 +12,23 @@ pub use history::{
 
 /// Spheres with velocities, in the order the user gave them, their contact history and the
 /// simulation clock.
-#[derive(Debug, Clone, PartialEq, Default)]
+///
+/// Two states are equal where every field is, an empty `position_residuals` counting as zeros.
+#[derive(Debug, Clone, Default)]
 pub struct Particles {
-    /// Centres \[m\].
+    /// Centres \[m\], as `f32`: what detection, the contacts and the walls use. Each is its
+    /// sphere's position rounded to `f32`; the position itself is the centre plus its residual
+    /// ([`Self::position_residuals`], [`position`]).
     pub positions: Vec<[f32; 3]>,
+    /// Residuals of the centres \[m\]: sphere i is at `positions[i] + position_residuals[i]`
+    /// (summed exactly), each coordinate a normalised pair ([`position`]: the centre is the sum
+    /// rounded to `f32`, so |residual| ≤ half the `f32` spacing at the centre). Empty, or one
+    /// per sphere; empty means every residual is 0 (the centres are exact, as a new scene's
+    /// are). Every step adds its displacement to the pair, so no displacement is lost however
+    /// small it is beside the spacing of `f32` far from the origin. A sphere is moved by
+    /// [`Self::set_exact_position`] (a centre changed alone would keep a residual that may no
+    /// longer be within half a spacing of it, which [`Self::validate`] refuses).
+    pub position_residuals: Vec<[f32; 3]>,
     /// Velocities \[m/s\].
     pub velocities: Vec<[f32; 3]>,
     /// Angular velocities \[rad/s\].
@@ -41,6 +55,7 @@ impl Particles {
         radii.extend_from_slice(spheres.radii());
         Ok(Self {
             positions,
+            position_residuals: Vec::new(),
             velocities,
             angular_velocities,
             radii,
@@ -61,6 +76,7 @@ impl Particles {
         radii.extend_from_slice(&self.radii);
         Ok(Self {
             positions: copy(&self.positions)?,
+            position_residuals: copy(&self.position_residuals)?,
             velocities: copy(&self.velocities)?,
             angular_velocities: copy(&self.angular_velocities)?,
             radii,
@@ -79,15 +95,19 @@ impl Particles {
         self.radii.is_empty()
     }
 
-    /// Checks that every value is finite and the lengths agree; names the first bad sphere.
+    /// Checks that every value is finite, the lengths agree and every position is a normalised
+    /// pair (its centre the position rounded to `f32`); names the first bad sphere.
     pub fn validate(&self) -> Result<()> {
         if self.positions.len() != self.len()
             || self.velocities.len() != self.len()
             || self.angular_velocities.len() != self.len()
+            || !(self.position_residuals.is_empty() || self.position_residuals.len() == self.len())
         {
             return Err(Error::Usage(format!(
-                "particles: {} positions, {} velocities, {} angular velocities, {} radii",
+                "particles: {} positions, {} position residuals (none or one per sphere), {} \
+                 velocities, {} angular velocities, {} radii",
                 self.positions.len(),
+                self.position_residuals.len(),
                 self.velocities.len(),
                 self.angular_velocities.len(),
                 self.len()
@@ -110,8 +130,29 @@ impl Particles {
                     self.step
                 ),
             }),
-            None => self.history.validate(self.len()),
+            None => self.validate_residuals(),
         }
+    }
+
+    /// Checks that every centre is its position rounded to `f32` (its pair is normalised), then
+    /// the history.
+    fn validate_residuals(&self) -> Result<()> {
+        let off = self
+            .position_residuals
+            .iter()
+            .zip(&self.positions)
+            .position(|(lo, hi)| (0..3).any(|a| !position::normalised(hi[a], lo[a])));
+        if let Some(index) = off {
+            return Err(Error::InvalidSphere {
+                index,
+                reason: format!(
+                    "position residual {:?} is not within half an f32 spacing of the centre \
+                     {:?} (the centre must be the position rounded to f32)",
+                    self.position_residuals[index], self.positions[index]
+                ),
+            });
+        }
+        self.history.validate(self.len())
     }
 
     /// Checks a state a stepper computed: [`Error::Unstable`] names the first sphere (in the
@@ -220,8 +261,8 @@ impl Particles {
                 .fold(0.0f32, f32::max);
             let spacing = (2.0 * r + (1e-3 * r).max(8.0 * coarsest)) as f64;
             for (&(_, k), p) in group.iter().zip(&points).skip(1) {
-                self.positions[k as usize] =
-                    std::array::from_fn(|a| (centre[a] as f64 + spacing * p[a] as f64) as f32);
+                let at = std::array::from_fn(|a| centre[a] as f64 + spacing * p[a] as f64);
+                self.set_exact_position(k as usize, at)?;
             }
         }
         Ok(pairs)
@@ -239,6 +280,9 @@ impl Particles {
             });
         }
         self.positions.push(c);
+        if !self.position_residuals.is_empty() {
+            self.position_residuals.push([0.0; 3]);
+        }
         self.velocities.push(v);
         self.angular_velocities.push([0.0; 3]);
         self.radii.push(r);
@@ -261,6 +305,9 @@ impl Particles {
             v.retain(|_| *k.next().expect("one flag per sphere"));
         }
         kept(&mut self.positions, keep);
+        if !self.position_residuals.is_empty() {
+            kept(&mut self.position_residuals, keep);
+        }
         kept(&mut self.velocities, keep);
         kept(&mut self.angular_velocities, keep);
         kept(&mut self.radii, keep);
@@ -276,6 +323,74 @@ impl Particles {
                 Some(acc.map_or((r, r), |(a, b)| (a.min(r), b.max(r))))
             })
             .unwrap_or((0.0, 0.0))
+    }
+
+    /// The residual of sphere `i`'s centre ([`Self::position_residuals`]; 0 where there are
+    /// none).
+    pub fn residual(&self, i: usize) -> [f32; 3] {
+        match self.position_residuals.is_empty() {
+            true => [0.0; 3],
+            false => self.position_residuals[i],
+        }
+    }
+
+    /// Where sphere `i` is: its centre plus its residual, in `f64` ([`position::join`]: exact
+    /// but where the residual is below 2⁻⁵³ of the coordinate).
+    pub fn exact_position(&self, i: usize) -> [f64; 3] {
+        let (hi, lo) = (self.positions[i], self.residual(i));
+        std::array::from_fn(|a| position::join(hi[a], lo[a]))
+    }
+
+    /// Every sphere's [`exact_position`](Self::exact_position), in order ([`Error::OutOfMemory`]
+    /// where they do not fit).
+    pub fn exact_positions(&self) -> Result<Vec<[f64; 3]>> {
+        let n = self.len();
+        let mut out = try_vec(n, || format!("the positions of {n} spheres"))?;
+        out.extend((0..self.positions.len()).map(|i| self.exact_position(i)));
+        Ok(out)
+    }
+
+    /// Puts sphere `i` at `x`: its centre `x` rounded to `f32`, its residual the rest
+    /// ([`position::split`]).
+    pub fn set_exact_position(&mut self, i: usize, x: [f64; 3]) -> Result<()> {
+        let pairs = x.map(position::split);
+        self.positions[i] = pairs.map(|(hi, _)| hi);
+        let lo = pairs.map(|(_, lo)| lo);
+        if lo != [0.0; 3] || !self.position_residuals.is_empty() {
+            self.fill_residuals()?;
+            self.position_residuals[i] = lo;
+        }
+        Ok(())
+    }
+
+    /// Gives every sphere its residual (0 where there were none), as a stepper keeps them
+    /// ([`Error::OutOfMemory`] where they do not fit).
+    pub fn fill_residuals(&mut self) -> Result<()> {
+        let n = self.positions.len();
+        if self.position_residuals.len() != n {
+            let what = || format!("the position residuals of {n} spheres");
+            crate::error::try_resize(&mut self.position_residuals, n, [0.0; 3], what)?;
+        }
+        Ok(())
+    }
+}
+
+impl PartialEq for Particles {
+    fn eq(&self, other: &Self) -> bool {
+        let residuals = |p: &Particles| -> Vec<[f32; 3]> {
+            (0..p.positions.len())
+                .map(|i| p.position_residuals.get(i).copied().unwrap_or([0.0; 3]))
+                .collect()
+        };
+        let lengths = |p: &Particles| p.position_residuals.len().max(p.positions.len());
+        self.positions == other.positions
+            && lengths(self) == lengths(other)
+            && residuals(self) == residuals(other)
+            && self.velocities == other.velocities
+            && self.angular_velocities == other.angular_velocities
+            && self.radii == other.radii
+            && self.history == other.history
+            && self.step == other.step
     }
 }
 

@@ -308,11 +308,12 @@ impl StepParams {
 }
 
 /// One semi-implicit Euler step of a sphere under `force` and gravity `g`: v += dt·(F/m + g),
-/// then c += dt·v.
+/// then its position (centre `c`, residual `lo`) moves by dt·v without losing the displacement
+/// to the rounding of `c` ([`crate::particles::position::advance`]).
 #[inline(always)]
 pub fn integrate(
     dt: f32,
-    c: &mut [f32; 3],
+    (c, lo): (&mut [f32; 3], &mut [f32; 3]),
     v: &mut [f32; 3],
     force: [f32; 3],
     m: f32,
@@ -320,7 +321,7 @@ pub fn integrate(
 ) {
     for a in 0..3 {
         v[a] += dt * (force[a] / m + g[a]);
-        c[a] += dt * v[a];
+        crate::particles::position::advance(&mut c[a], &mut lo[a], dt * v[a]);
     }
 }
 

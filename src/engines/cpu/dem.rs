@@ -263,14 +263,17 @@ impl CpuStepper {
 
     /// Gravity and one semi-implicit Euler step for every sphere (positions, and angular
     /// velocities where contacts exert torques).
-    fn integrate_all(&mut self) {
+    fn integrate_all(&mut self) -> Result<()> {
         let p = &self.params;
         let g = p.gravity_at(self.particles.step);
         let parts = &mut self.particles;
+        // Inserted spheres arrive with a residual of 0 (a run may start with none).
+        parts.fill_residuals()?;
         let (forces, masses) = (&self.forces, &self.masses);
         parts
             .positions
             .par_iter_mut()
+            .zip(parts.position_residuals.par_iter_mut())
             .zip(parts.velocities.par_iter_mut())
             .zip(forces.par_iter().zip(masses.par_iter()))
             .for_each(|((c, v), (&f, &m))| integrate(p.dt, c, v, f, m, g));
@@ -285,6 +288,7 @@ impl CpuStepper {
                 });
         }
         parts.step += 1;
+        Ok(())
     }
 }
 
@@ -471,7 +475,7 @@ impl Stepper for CpuStepper {
             contacts = self.resolve_contacts()?;
             times.dcd_ms += ms(t);
             let t = Instant::now();
-            self.integrate_all();
+            self.integrate_all()?;
             self.flow_after_step()?;
             times.update_ms += ms(t);
         }

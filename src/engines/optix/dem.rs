@@ -28,7 +28,9 @@ use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::RebuildPolicy;
-use crate::engines::gpu_step::{advance_in_batches, particles_from, rows};
+use crate::engines::gpu_step::{
+    StateRows, advance_in_batches, particles_from, residual_rows, rows,
+};
 use crate::error::{Error, OptixError, Result};
 use crate::particles::Particles;
 use crate::proxy::BOX_PADDING;
@@ -136,6 +138,7 @@ impl OptixStepper {
         }
         let stream = device.stream.clone();
         let (pos, vel) = rows(&particles, params.density);
+        let lo = residual_rows(&particles);
         let order = morton_order_of(&particles.positions);
         let pick = |rows: &[[f32; 4]]| -> Vec<f32> {
             order.iter().flat_map(|&i| rows[i as usize]).collect()
@@ -175,11 +178,13 @@ impl OptixStepper {
             step: particles.step,
             state: State {
                 pos: upload(&pick(&pos))?,
+                lo: upload(&pick(&lo))?,
                 vel: upload(&pick(&vel))?,
                 ids,
             },
             spare: State {
                 pos: zeros_f32(4 * len)?,
+                lo: zeros_f32(4 * len)?,
                 vel: zeros_f32(4 * len)?,
                 ids: zeros_u32(len)?,
             },
@@ -283,8 +288,7 @@ impl OptixStepper {
                 program.launch(gas, self.mode, *dem, buffers)?;
                 let resolved = record_event(&self.device)?;
                 self.kernels.dem_integrate(
-                    &mut self.state.pos,
-                    &mut self.state.vel,
+                    &mut self.state,
                     &mut self.force,
                     dem,
                     self.step as u32,
@@ -472,10 +476,16 @@ impl Stepper for OptixStepper {
         };
         let read = cuda("reading the state back");
         let pos = rows4(stream.clone_dtoh(&self.state.pos).map_err(&read)?);
+        let lo = rows4(stream.clone_dtoh(&self.state.lo).map_err(&read)?);
         let vel = rows4(stream.clone_dtoh(&self.state.vel).map_err(&read)?);
         let mut ids = stream.clone_dtoh(&self.state.ids).map_err(&read)?;
         ids.truncate(n);
-        let mut out = particles_from(&pos, &vel, Some(&ids), self.step)?;
+        let rows = StateRows {
+            pos: &pos,
+            lo: &lo,
+            vel: &vel,
+        };
+        let mut out = particles_from(rows, Some(&ids), self.step)?;
         if let Physics::Granular(g) = &self.physics {
             let (angular_velocities, history) = g.read_back(stream, &ids)?;
             out.angular_velocities = angular_velocities;

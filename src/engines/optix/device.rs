@@ -1191,6 +1191,7 @@ impl GranularKernels {
         }
         let rows = 4 * n as usize;
         check_len(LAUNCH, "pos", &state.pos, rows)?;
+        check_len(LAUNCH, "lo", &state.lo, rows)?;
         check_len(LAUNCH, "vel", &state.vel, rows)?;
         check_len(LAUNCH, "ids", &state.ids, n as usize)?;
         check_len(LAUNCH, "ang", b.ang, rows)?;
@@ -1210,6 +1211,7 @@ impl GranularKernels {
         let mut launch = self.stream.launch_builder(&self.integrate);
         launch
             .arg(&mut state.pos)
+            .arg(&mut state.lo)
             .arg(&mut state.vel)
             .arg(b.ang)
             .arg(b.force)
@@ -1554,6 +1556,8 @@ pub struct Kernels {
 pub struct State {
     /// x, y, z, r per sphere.
     pub pos: CudaSlice<f32>,
+    /// The residuals of the centres in `pos`: x, y, z, 0 per sphere.
+    pub lo: CudaSlice<f32>,
     /// vx, vy, vz, mass per sphere.
     pub vel: CudaSlice<f32>,
     /// Input index of each sphere.
@@ -1708,12 +1712,11 @@ impl Kernels {
         Ok(())
     }
 
-    /// Walls, gravity at `step` and one integration step of the `dem.n` spheres, in place;
-    /// clears `force` for the next step.
+    /// Walls, gravity at `step` and one integration step of the `dem.n` spheres of `state`, in
+    /// place; clears `force` for the next step.
     pub fn dem_integrate(
         &self,
-        pos: &mut CudaSlice<f32>,
-        vel: &mut CudaSlice<f32>,
+        state: &mut State,
         force: &mut CudaSlice<f32>,
         dem: &DemParams,
         step: u32,
@@ -1723,13 +1726,20 @@ impl Kernels {
         if n == 0 {
             return Ok(());
         }
-        check_len(LAUNCH, "pos", pos, 4 * n as usize)?;
-        check_len(LAUNCH, "vel", vel, 4 * n as usize)?;
+        check_len(LAUNCH, "pos", &state.pos, 4 * n as usize)?;
+        check_len(LAUNCH, "lo", &state.lo, 4 * n as usize)?;
+        check_len(LAUNCH, "vel", &state.vel, 4 * n as usize)?;
         check_len(LAUNCH, "force", force, 3 * n as usize)?;
         let mut launch = self.stream.launch_builder(&self.dem_integrate);
-        launch.arg(pos).arg(vel).arg(force).arg(dem).arg(&step);
-        // SAFETY: the arguments match dem_integrate's signature; pos and vel hold dem.n rows,
-        // force 3·dem.n floats (checked above).
+        launch
+            .arg(&mut state.pos)
+            .arg(&mut state.lo)
+            .arg(&mut state.vel)
+            .arg(force)
+            .arg(dem)
+            .arg(&step);
+        // SAFETY: the arguments match dem_integrate's signature; pos, lo and vel hold dem.n
+        // rows, force 3·dem.n floats (checked above).
         unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching dem_integrate"))?;
         Ok(())
     }
@@ -1743,19 +1753,23 @@ impl Kernels {
         }
         let rows = 4 * n as usize;
         check_len(LAUNCH, "pos_in", &from.pos, rows)?;
+        check_len(LAUNCH, "lo_in", &from.lo, rows)?;
         check_len(LAUNCH, "vel_in", &from.vel, rows)?;
         check_len(LAUNCH, "ids_in", &from.ids, n as usize)?;
         order.check(LAUNCH, n)?;
         check_len(LAUNCH, "pos", &to.pos, rows)?;
+        check_len(LAUNCH, "lo", &to.lo, rows)?;
         check_len(LAUNCH, "vel", &to.vel, rows)?;
         check_len(LAUNCH, "ids", &to.ids, n as usize)?;
         let mut launch = self.stream.launch_builder(&self.dem_permute);
         launch
             .arg(&from.pos)
+            .arg(&from.lo)
             .arg(&from.vel)
             .arg(&from.ids)
             .arg(&order.entries)
             .arg(&mut to.pos)
+            .arg(&mut to.lo)
             .arg(&mut to.vel)
             .arg(&mut to.ids)
             .arg(&n);

@@ -268,6 +268,9 @@ impl Granular {
             .memcpy_dtod(&state.pos, &mut spare.pos)
             .map_err(&copy)?;
         stream
+            .memcpy_dtod(&state.lo, &mut spare.lo)
+            .map_err(&copy)?;
+        stream
             .memcpy_dtod(&state.vel, &mut spare.vel)
             .map_err(&copy)?;
         stream
@@ -304,6 +307,9 @@ impl Granular {
         let copy = cuda("going back to the batch's start");
         stream
             .memcpy_dtod(&spare.pos, &mut state.pos)
+            .map_err(&copy)?;
+        stream
+            .memcpy_dtod(&spare.lo, &mut state.lo)
             .map_err(&copy)?;
         stream
             .memcpy_dtod(&spare.vel, &mut state.vel)

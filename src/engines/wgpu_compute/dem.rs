@@ -46,8 +46,8 @@ use super::layout::{
 use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
     self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, HOME, IDS, IDS_A, LISTED, NEAR,
-    NEAR_ROOM, OMEGA_A, PARAMS, POS_A, RANKS, SKIN, SKIN_LIMIT, SORT_KEYS, SORT_ORDER, VEL_A,
-    WALK_POS, WALK_ROW,
+    NEAR_ROOM, OMEGA_A, PARAMS, POS_A, POS_LO_A, RANKS, SKIN, SKIN_LIMIT, SORT_KEYS, SORT_ORDER,
+    VEL_A, WALK_POS, WALK_ROW,
 };
 use super::skin::{SKIN_CELLS, Skin, skin_of};
 use crate::dem::flow::NewSphere;
@@ -60,11 +60,11 @@ use crate::engines::flow_step::DeviceFlow;
 use crate::engines::gpu_flow::{FlowQuery, FlowScan, Scan};
 use crate::engines::gpu_readback::{BatchReadback, InFlight};
 use crate::engines::gpu_step::granular::OMEGA;
-use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
+use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
 use crate::engines::gpu_step::{
     DemModule, DemParams, GROUP, Granular, InputOrder, KernelSet, MAX_BATCH, PerPair,
-    RedoableBatch, Room, StepTimer, Turn, advance_in_batches, max_spheres, move_rows,
-    particles_with, rows, run_batch,
+    RedoableBatch, Room, StateRows, StepTimer, Turn, advance_in_batches, max_spheres, move_rows,
+    particles_with, residual_rows, rows, run_batch,
 };
 use crate::engines::gpu_walls;
 use crate::error::{Error, Result};
@@ -149,6 +149,8 @@ enum Rebin {
 /// One set of the ping-ponged state, in sorted order.
 struct StateSet {
     pos: wgpu::Buffer,
+    /// The residuals of the centres in `pos` (`vec4`: x, y, z, 0).
+    lo: wgpu::Buffer,
     vel: wgpu::Buffer,
     ids: wgpu::Buffer,
 }
@@ -536,6 +538,7 @@ impl GridStepper {
         let stepper = gpu.checked("allocating the DEM buffers", || {
             let set = |k: usize| StateSet {
                 pos: make(&format!("mochi.dem.pos{k}"), rows * 16),
+                lo: make(&format!("mochi.dem.pos_lo{k}"), rows * 16),
                 vel: make(&format!("mochi.dem.vel{k}"), rows * 16),
                 ids: make(&format!("mochi.dem.ids{k}"), rows * 4),
             };
@@ -641,11 +644,13 @@ impl GridStepper {
     /// Writes the particles (in input order) into the current set and the parameters.
     fn upload(&mut self, particles: &Particles) -> Result<()> {
         let (pos, vel) = rows(particles, self.params.density);
+        let lo = residual_rows(particles);
         let ids: Vec<u32> = (0..self.n).collect();
         let dem = DemParams::new(&self.params, self.n, self.groups.0 * GROUP);
         let q = &self.gpu.queue;
         let set = &self.sets[self.current];
         q.write_buffer(&set.pos, 0, bytemuck::cast_slice(&pos));
+        q.write_buffer(&set.lo, 0, bytemuck::cast_slice(&lo));
         q.write_buffer(&set.vel, 0, bytemuck::cast_slice(&vel));
         q.write_buffer(&set.ids, 0, bytemuck::cast_slice(&ids));
         self.gpu.write_uniform(&self.dem_uniform, &dem);
@@ -660,6 +665,7 @@ impl GridStepper {
         let n = self.n as usize;
         let set = &self.sets[self.current];
         let pos: Vec<[f32; 4]> = self.gpu.read(&set.pos, n)?;
+        let lo: Vec<[f32; 4]> = self.gpu.read(&set.lo, n)?;
         let vel: Vec<[f32; 4]> = self.gpu.read(&set.vel, n)?;
         let ids: Vec<u32> = self.gpu.read(&set.ids, n)?;
         let order = InputOrder::of(&ids);
@@ -668,7 +674,12 @@ impl GridStepper {
             g.map(|g| g.read(&self.gpu, self.turn(), Some(&order)))
                 .transpose()
         };
-        particles_with(&pos, &vel, Some(&order.rank), self.step, rotation)
+        let rows = StateRows {
+            pos: &pos,
+            lo: &lo,
+            vel: &vel,
+        };
+        particles_with(rows, Some(&order.rank), self.step, rotation)
     }
 
     /// The centres' bounds now (a GPU reduction), or `None` for no spheres.
@@ -906,25 +917,28 @@ impl GridStepper {
     }
 
     /// What a pass moving the state from set `from` (as set a) into set `to` binds.
-    fn moving(&self, from: usize, to: usize) -> [(Binding, &wgpu::Buffer); 7] {
+    fn moving(&self, from: usize, to: usize) -> [(Binding, &wgpu::Buffer); 9] {
         let (a, b) = (&self.sets[from], &self.sets[to]);
         [
             (PARAMS, &self.grid_uniform),
             (POS_A, &a.pos),
+            (POS_LO_A, &a.lo),
             (VEL_A, &a.vel),
             (IDS_A, &a.ids),
             (POS, &b.pos),
+            (POS_LO, &b.lo),
             (VEL, &b.vel),
             (IDS, &b.ids),
         ]
     }
 
     /// What every integration kernel binds to step state set `on`.
-    fn integrated(&self, on: usize) -> [(Binding, &wgpu::Buffer); 5] {
+    fn integrated(&self, on: usize) -> [(Binding, &wgpu::Buffer); 6] {
         let set = &self.sets[on];
         [
             (DEM, &self.dem_uniform),
             (POS, &set.pos),
+            (POS_LO, &set.lo),
             (VEL, &set.vel),
             (FORCE, &self.force),
             (CLOCK, &self.clock),
@@ -1305,7 +1319,7 @@ impl GridStepper {
 impl RedoableBatch for GridStepper {
     fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, Turn, Vec<&wgpu::Buffer>) {
         let (turn, set) = (self.turn(), &self.sets[self.current]);
-        let state = vec![&set.pos, &set.vel, &set.ids, &self.clock];
+        let state = vec![&set.pos, &set.lo, &set.vel, &set.ids, &self.clock];
         (&self.gpu, self.granular.as_mut(), turn, state)
     }
 
@@ -1632,6 +1646,9 @@ impl DeviceFlow for GridStepper {
         let (q, set) = (&self.gpu.queue, &self.sets[self.current]);
         let at = self.n as u64;
         q.write_buffer(&set.pos, at * 16, bytemuck::cast_slice(&pos));
+        // Inserted at their f32 centres: no residual (the rows may hold a removed sphere's).
+        let lo = vec![[0.0f32; 4]; new.len()];
+        q.write_buffer(&set.lo, at * 16, bytemuck::cast_slice(&lo));
         q.write_buffer(&set.vel, at * 16, bytemuck::cast_slice(&vel));
         q.write_buffer(&set.ids, at * 4, bytemuck::cast_slice(&ids));
         let next = self.turn();
@@ -1664,6 +1681,9 @@ impl DeviceFlow for GridStepper {
                 let set = &self.sets[self.current];
                 move_rows(&mut encoder, &scratch, &moves, 16, |r| {
                     (&set.pos, r as u64 * 16)
+                });
+                move_rows(&mut encoder, &scratch, &moves, 16, |r| {
+                    (&set.lo, r as u64 * 16)
                 });
                 move_rows(&mut encoder, &scratch, &moves, 16, |r| {
                     (&set.vel, r as u64 * 16)

@@ -300,6 +300,8 @@ pub(crate) mod dem_grid {
     pub const POS_A: Binding = Binding::read(2, "pos_a");
     pub const VEL_A: Binding = Binding::read(3, "vel_a");
     pub const IDS_A: Binding = Binding::read(4, "ids_a");
+    /// The residuals of set a's centres, which the passes that move the state carry along.
+    pub const POS_LO_A: Binding = Binding::read(35, "pos_lo_a");
     pub const RANKS: Binding = Binding::read_write(6, "ranks");
     pub const COUNTS: Binding = Binding::read_write(7, "counts");
     pub const CELL_START: Binding = Binding::read(8, "cell_start");
@@ -327,9 +329,9 @@ pub(crate) mod dem_grid {
     pub const SKIN: Binding = Binding::read_write(32, "skin_state");
     pub const SKIN_LIMIT: Binding = Binding::read_write(33, "skin_limit");
 
-    const OWN: [Binding; 12] = [
-        PARAMS, POS_A, VEL_A, IDS_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS, HOME,
-        WALK_POS,
+    const OWN: [Binding; 13] = [
+        PARAMS, POS_A, VEL_A, IDS_A, POS_LO_A, RANKS, COUNTS, CELL_START, IDS, COUNTERS, BOUNDS,
+        HOME, WALK_POS,
     ];
 
     /// Every binding of every variant, the physics' included.

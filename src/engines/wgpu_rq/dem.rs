@@ -16,10 +16,11 @@ use super::shaders::dem_rq::{self, BOXES, COUNTERS, RQ_PARAMS, RqParams, TLAS};
 use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
-use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, VEL};
+use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
 use crate::engines::gpu_step::{
     DemModule, DemParams, GROUP, Granular, KernelSet, MAX_BATCH, PerPair, RedoableBatch, Room,
-    StepTimer, Turn, advance_in_batches, max_spheres, particles_with, rows, run_batch,
+    StateRows, StepTimer, Turn, advance_in_batches, max_spheres, particles_with, residual_rows,
+    rows, run_batch,
 };
 use crate::engines::gpu_walls;
 use crate::error::Result;
@@ -70,6 +71,8 @@ pub struct RqStepper {
     step: u64,
     groups: (u32, u32),
     pos: wgpu::Buffer,
+    /// The residuals of the centres in `pos` (`vec4`: x, y, z, 0).
+    lo: wgpu::Buffer,
     vel: wgpu::Buffer,
     /// `None` for no spheres.
     resident: Option<Resident>,
@@ -164,9 +167,11 @@ impl RqStepper {
         let groups = gpu.grid(n, GROUP);
         let none = wgpu::BufferUsages::empty();
         let (pos_rows, vel_rows) = rows(&particles, params.density);
+        let lo_rows = residual_rows(&particles);
         let (_, r_max) = particles.radius_range();
-        let (pos, vel, resident) = gpu.checked("allocating the wgpu-rq DEM buffers", || {
+        let (pos, lo, vel, resident) = gpu.checked("allocating the wgpu-rq DEM buffers", || {
             let pos = gpu.storage("mochi.dem.rq.pos", n64 * 16, none);
+            let lo = gpu.storage("mochi.dem.rq.pos_lo", n64 * 16, none);
             let vel = gpu.storage("mochi.dem.rq.vel", n64 * 16, none);
             let dem = gpu.uniform(
                 "mochi.dem.rq.params",
@@ -191,6 +196,7 @@ impl RqStepper {
                 let counters = gpu.storage("mochi.dem.rq.counters", 16, none);
                 let buffers = (
                     &pos,
+                    &lo,
                     &vel,
                     &rq,
                     &dem,
@@ -211,10 +217,12 @@ impl RqStepper {
                     binds,
                 }
             });
-            (pos, vel, resident)
+            (pos, lo, vel, resident)
         })?;
         gpu.queue
             .write_buffer(&pos, 0, bytemuck::cast_slice(&pos_rows));
+        gpu.queue
+            .write_buffer(&lo, 0, bytemuck::cast_slice(&lo_rows));
         gpu.queue
             .write_buffer(&vel, 0, bytemuck::cast_slice(&vel_rows));
         Ok(RqStepper {
@@ -224,6 +232,7 @@ impl RqStepper {
             step: particles.step,
             groups,
             pos,
+            lo,
             vel,
             resident,
             atomics,
@@ -249,7 +258,7 @@ impl RedoableBatch for RqStepper {
     fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, Turn, Vec<&wgpu::Buffer>) {
         let turn = self.turn();
         let r = self.resident.as_ref().expect("spheres to step");
-        let state = vec![&self.pos, &self.vel, &r.clock];
+        let state = vec![&self.pos, &self.lo, &self.vel, &r.clock];
         (&self.gpu, self.granular.as_mut(), turn, state)
     }
 
@@ -322,6 +331,7 @@ impl RedoableBatch for RqStepper {
         let r = self.resident.as_mut().expect("spheres to step");
         let buffers = (
             &self.pos,
+            &self.lo,
             &self.vel,
             &r.rq,
             &r.dem,
@@ -386,18 +396,25 @@ impl Stepper for RqStepper {
     fn particles(&mut self) -> Result<Particles> {
         let n = self.n as usize;
         let pos: Vec<[f32; 4]> = self.gpu.read(&self.pos, n)?;
+        let lo: Vec<[f32; 4]> = self.gpu.read(&self.lo, n)?;
         let vel: Vec<[f32; 4]> = self.gpu.read(&self.vel, n)?;
         let rotation = || {
             let g = self.granular.as_ref();
             g.map(|g| g.read(&self.gpu, self.turn(), None)).transpose()
         };
-        particles_with(&pos, &vel, None, self.step, rotation)
+        let rows = StateRows {
+            pos: &pos,
+            lo: &lo,
+            vel: &vel,
+        };
+        particles_with(rows, None, self.step, rotation)
     }
 }
 
-/// The step's buffers: positions, velocities, the ray-query and step uniforms, the clock, the
-/// proxy boxes, the force accumulators and the counters.
+/// The step's buffers: positions, their residuals, velocities, the ray-query and step uniforms,
+/// the clock, the proxy boxes, the force accumulators and the counters.
 type StepBuffers<'a> = (
+    &'a wgpu::Buffer,
     &'a wgpu::Buffer,
     &'a wgpu::Buffer,
     &'a wgpu::Buffer,
@@ -417,7 +434,7 @@ fn bind(
     tlas: &wgpu::Tlas,
     (granular, per_pair): (Option<&Granular>, Option<&PerPair>),
 ) -> Binds {
-    let (pos, vel, rq, dem, clock, boxes, force, counters) = buffers;
+    let (pos, lo, vel, rq, dem, clock, boxes, force, counters) = buffers;
     let resolve = |parity: usize| {
         let mut all = vec![
             (RQ_PARAMS, rq),
@@ -438,6 +455,7 @@ fn bind(
     let mut integrate = vec![
         (DEM, dem),
         (POS, pos),
+        (POS_LO, lo),
         (VEL, vel),
         (FORCE, force),
         (CLOCK, clock),
