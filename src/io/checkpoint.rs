@@ -507,7 +507,13 @@ mod tests {
         assert_eq!(c.particles, loaded());
         assert_ne!(c.particles, sample());
         write_checkpoint(&path, &sample(), "x", "").unwrap();
-        assert!(!read_checkpoint(&path).unwrap().particles.history.has_loads());
+        assert!(
+            !read_checkpoint(&path)
+                .unwrap()
+                .particles
+                .history
+                .has_loads()
+        );
     }
 
     #[test]
