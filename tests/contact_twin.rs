@@ -233,39 +233,12 @@ fn cases<S: Twin>(
 /// `tests/contact_twin.cpp` compiled into `dir` (with `optix/contact.cuh` of the
 /// Mindlin–Deresiewicz model where `loaded`), or `None` without a C++ compiler (outside CI).
 fn compile_twin(dir: &Path, loaded: bool) -> Option<std::path::PathBuf> {
-    let binary = dir.join(if loaded {
-        "contact_twin_md"
-    } else {
-        "contact_twin"
-    });
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut command = Command::new("c++");
-    command.args(["-std=c++17", "-O2", "-ffp-contract=off"]);
-    if loaded {
-        command.arg("-DMOCHI_LOAD_HISTORY");
-    }
-    let compiled = command
-        .arg("-I")
-        .arg(root.join("optix"))
-        .arg(root.join("tests/contact_twin.cpp"))
-        .arg("-o")
-        .arg(&binary)
-        .output();
-    match compiled {
-        Err(why) => {
-            assert!(!common::ci(), "CI expects a C++ compiler (c++): {why}");
-            eprintln!("note: no C++ compiler here ({why}); the CUDA contact law is not compared");
-            None
-        }
-        Ok(out) => {
-            assert!(
-                out.status.success(),
-                "optix/contact.cuh does not compile as C++:\n{}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            Some(binary)
-        }
-    }
+    let (name, defines): (_, &[&str]) = match loaded {
+        true => ("contact_twin_md", &["MOCHI_LOAD_HISTORY"]),
+        false => ("contact_twin", &[]),
+    };
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/contact_twin.cpp");
+    common::twin::compile(&source, &dir.join(name), defines, "the CUDA contact law")
 }
 
 /// Runs `binary` on the case `table` of `count` cases: no bit differs.

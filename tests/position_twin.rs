@@ -12,7 +12,6 @@ mod common;
 
 use mochi::dem::position::{advance, normalised};
 use std::fmt::Write;
-use std::path::Path;
 use std::process::{Command, Stdio};
 
 /// Reads `hi lo d` (f32 bits in hex) a line and prints the pair `mochi_advance` leaves.
@@ -43,31 +42,12 @@ int main() {
 
 #[test]
 fn the_cuda_position_update_is_the_rust_one() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let dir = tempfile::tempdir().unwrap();
     let source = dir.path().join("position_twin.cpp");
     std::fs::write(&source, TWIN).unwrap();
     let binary = dir.path().join("position_twin");
-    let compiled = Command::new("c++")
-        .args(["-std=c++17", "-O2", "-ffp-contract=off", "-I"])
-        .arg(root.join("optix"))
-        .arg(&source)
-        .arg("-o")
-        .arg(&binary)
-        .output();
-    match compiled {
-        Err(why) => {
-            assert!(!common::ci(), "CI expects a C++ compiler (c++): {why}");
-            eprintln!(
-                "note: no C++ compiler here ({why}); the CUDA position update is not compared"
-            );
-            return;
-        }
-        Ok(out) => assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        ),
+    if common::twin::compile(&source, &binary, &[], "the CUDA position update").is_none() {
+        return;
     }
     // A coordinate from 1e-6 to 1e6 m either side, its residual a normalised part of its
     // spacing, and a displacement from a millionth of the spacing to a thousand spacings.

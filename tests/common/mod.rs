@@ -6,6 +6,7 @@ pub mod cli;
 pub mod impacts;
 pub mod mbf;
 pub mod rule_cases;
+pub mod twin;
 
 use mochi::ProxyMode;
 use mochi::dem::{Material, Particles, StepParams, Stepper};
