@@ -199,7 +199,7 @@ impl RunStart {
         let radius_range = particles.radius_range();
         let coincident_pairs = particles.coincident_pairs()?;
         let coarse_warning = crate::coarse_coordinates(&particles.positions, &particles.radii);
-        let params = self.start.params;
+        let params = self.start.params.clone();
         let walls = self.start.walls.clone();
         let flow = self.start.flow.clone();
         let (stepper, backend, auto_reason) = open_scene(choice, self.start, options)?;

@@ -197,6 +197,7 @@ fn cases<S: Twin>(
             w,
             r,
             m: mass(DENSITY as f32, r),
+            material: 0,
         }
     };
     for _ in 0..200 {

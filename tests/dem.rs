@@ -30,14 +30,14 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
             BackendKind::Cpu => {
                 out.push((
                     "cpu".into(),
-                    common::open_dem(kind, particles, params, &Options::default()),
+                    common::open_dem(kind, particles, params.clone(), &Options::default()),
                 ));
             }
             BackendKind::WgpuCompute => {
                 for atomics in [KernelSet::Auto, KernelSet::Portable] {
                     let s = GridStepper::with_kernels(
                         particles.clone(),
-                        params,
+                        params.clone(),
                         ProxyMode::Mochi,
                         atomics,
                     )
@@ -56,7 +56,7 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
                     };
                     out.push((
                         format!("wgpu-compute {label}"),
-                        common::open_dem(kind, particles, params, &options),
+                        common::open_dem(kind, particles, params.clone(), &options),
                     ));
                 }
             }
@@ -70,7 +70,7 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
                         rebuild,
                         ..Options::default()
                     };
-                    let s = common::open_dem(kind, particles, params, &options);
+                    let s = common::open_dem(kind, particles, params.clone(), &options);
                     assert!(s.refits());
                     out.push((format!("optix rebuild {rebuild}"), s));
                 }
@@ -79,7 +79,7 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
                 for atomics in [KernelSet::Auto, KernelSet::Portable] {
                     let s = RqStepper::with_kernels(
                         particles.clone(),
-                        params,
+                        params.clone(),
                         ProxyMode::Mochi,
                         atomics,
                     )
@@ -223,7 +223,7 @@ fn a_settled_pile_comes_to_rest_with_small_overlaps() {
     )
     .unwrap();
     let steps = (1.2 / dt) as u32;
-    for (name, mut s) in steppers(&start, p) {
+    for (name, mut s) in steppers(&start, p.clone()) {
         s.advance(steps).unwrap();
         let end = s.particles().unwrap();
         let speed = end
@@ -296,7 +296,7 @@ fn a_long_run_stays_finite_and_inside_the_box() {
         let n = s.len() as f32;
         [0, 1, 2].map(|a| s.positions.iter().map(|c| c[a]).sum::<f32>() / n)
     };
-    for (name, mut s) in steppers(&start, p) {
+    for (name, mut s) in steppers(&start, p.clone()) {
         let mut contacts = 0;
         for _ in 0..10 {
             contacts = s.advance(300).unwrap().contacts;
@@ -430,7 +430,7 @@ fn gpu_steps_follow_the_cpu_step_across_a_refined_coarse_level() {
     };
     let p = params(material, 1e-4, 0.3, [0.0, 0.0, -9.81], 0.0024);
     // The dense builds (`auto` takes the multi-level grid here) refine the top level.
-    for (name, mut s) in steppers(&start, p) {
+    for (name, mut s) in steppers(&start, p.clone()) {
         if name.starts_with("wgpu-compute") && !name.contains("sorted") {
             s.advance(1).unwrap();
             let described = s.describe();
@@ -573,14 +573,14 @@ fn assert_gpu_steps_follow_the_cpu_step(start: Particles) {
 /// other way by either, a different contact from then on. From one state, 5 steps part by
 /// nanometres (a step whose physics differed would part by far more).
 fn assert_gpu_steps_follow_the_cpu_step_with(start: Particles, p: StepParams) {
-    let mut all = steppers(&start, p);
+    let mut all = steppers(&start, p.clone());
     let (_, mut cpu) = all.remove(0);
     let first = cpu.advance(5).unwrap();
     assert!(first.contacts > 1000, "the lattice starts in contact");
     for (name, mut s) in all {
         let mut from = start.clone();
         for k in 0..8 {
-            let mut cpu = common::open_dem(BackendKind::Cpu, &from, p, &Options::default());
+            let mut cpu = common::open_dem(BackendKind::Cpu, &from, p.clone(), &Options::default());
             let c = cpu.advance(5).unwrap();
             let expected = cpu.particles().unwrap();
             let a = s.advance(5).unwrap();
@@ -771,7 +771,7 @@ fn the_sorted_build_steps_like_the_dense_build() {
     };
     for material in [Material::default(), frictional] {
         let p = params(material, 1e-4, 0.3, [0.0, 0.0, -9.81], r_min);
-        let Some(mut dense) = grid_stepper(&start, p, GridBuild::Dense) else {
+        let Some(mut dense) = grid_stepper(&start, p.clone(), GridBuild::Dense) else {
             return;
         };
         let mut sorted = grid_stepper(&start, p, GridBuild::Sorted).unwrap();
@@ -824,11 +824,12 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
     let granular = common::granular_material();
     for (material, batch, tolerance) in [(Material::default(), 16, 1e-6), (granular, 8, 1e-5)] {
         let p = params(material, 1e-4, 0.3, [0.0, 0.0, -9.81], r_min);
-        let Some(any) = grid_stepper(&scrambled, p, GridBuild::Dense) else {
+        let Some(any) = grid_stepper(&scrambled, p.clone(), GridBuild::Dense) else {
             return;
         };
         drop(any);
-        let mut cpu = common::open_dem(BackendKind::Cpu, &scrambled, p, &Options::default());
+        let mut cpu =
+            common::open_dem(BackendKind::Cpu, &scrambled, p.clone(), &Options::default());
         let mut reference = Vec::new();
         for _ in 0..3 {
             let a = cpu.advance(batch).unwrap();
@@ -848,7 +849,7 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
         for sorting in [Sorting::Never, Sorting::Every(1), Sorting::Every(7)] {
             for structure in [Structure::Auto, Structure::Mlgrid] {
                 let name = format!("{:?} {sorting:?} {structure:?}", material.contact);
-                let mut s = grid_stepper(&scrambled, p, GridBuild::Dense)
+                let mut s = grid_stepper(&scrambled, p.clone(), GridBuild::Dense)
                     .unwrap()
                     .with_structure(structure)
                     .with_sorting(sorting);
@@ -901,7 +902,7 @@ fn steps_that_skip_their_binning_follow_the_cpu_step_as_spheres_cross_cells() {
     }
     let r_min = start.radius_range().0;
     let p = params(Material::default(), 1e-4, 0.3, [0.0; 3], r_min);
-    let Some(mut gpu) = grid_stepper(&start, p, GridBuild::Dense) else {
+    let Some(mut gpu) = grid_stepper(&start, p.clone(), GridBuild::Dense) else {
         return;
     };
     let mut cpu = common::open_dem(BackendKind::Cpu, &start, p, &Options::default());
@@ -949,11 +950,11 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
         ..Material::default()
     };
     let p = params(material, 1e-7, 1.0, [0.0; 3], 0.005);
-    let Some(any) = grid_stepper(&start, p, GridBuild::Dense) else {
+    let Some(any) = grid_stepper(&start, p.clone(), GridBuild::Dense) else {
         return;
     };
     drop(any);
-    let mut cpu = common::open_dem(BackendKind::Cpu, &start, p, &Options::default());
+    let mut cpu = common::open_dem(BackendKind::Cpu, &start, p.clone(), &Options::default());
     cpu.advance(6).unwrap();
     let expected = cpu.particles().unwrap();
     let ways = [Sorting::Never, Sorting::Every(1), Sorting::Every(2)]
@@ -961,7 +962,7 @@ fn a_batch_of_binning_steps_redone_with_more_history_slots_keeps_every_contact()
         .flat_map(|sorting| [(sorting, Structure::Auto), (sorting, Structure::Mlgrid)])
         .flat_map(|way| [(way, KernelSet::Auto), (way, KernelSet::Portable)]);
     for ((sorting, structure), kernels) in ways {
-        let mut s = grid_stepper_with(&start, p, GridBuild::Dense, kernels)
+        let mut s = grid_stepper_with(&start, p.clone(), GridBuild::Dense, kernels)
             .unwrap()
             .with_structure(structure)
             .with_sorting(sorting);

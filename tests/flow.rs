@@ -105,7 +105,7 @@ fn an_inflow_inserts_at_its_rate_where_nothing_is_and_never_overlaps() {
     };
     let run = |kind| {
         let flow = FlowSet {
-            inflows: vec![inflow.build(0, RHO).unwrap()],
+            inflows: vec![inflow.build(0, RHO, 0).unwrap()],
             every: Some(50),
             ..FlowSet::default()
         };
@@ -136,7 +136,7 @@ fn mass_is_conserved_through_an_inflow_and_an_outflow() {
     // Spheres rain onto the floor, where an outflow 2 cm deep removes them.
     on_every_backend(|kind| {
         let flow = FlowSet {
-            inflows: vec![top_inflow().build(0, RHO).unwrap()],
+            inflows: vec![top_inflow().build(0, RHO, 0).unwrap()],
             outflows: vec![
                 OutflowConfig {
                     lo: [0.0; 3],
@@ -204,7 +204,7 @@ fn every_backend_inserts_and_removes_what_the_cpu_does_at_the_same_flow_events()
     // touch, so every backend moves them alike and its flow events (every 50 steps, as set)
     // see the same spheres.
     let flow = FlowSet {
-        inflows: vec![top_inflow().build(0, RHO).unwrap()],
+        inflows: vec![top_inflow().build(0, RHO, 0).unwrap()],
         outflows: vec![(
             glam::Vec3::new(0.0, 0.0, 0.12),
             glam::Vec3::new(0.2, 0.2, 0.13),
@@ -247,16 +247,16 @@ fn every_backend_inserts_and_removes_what_the_cpu_does_at_the_same_flow_events()
 #[test]
 fn a_run_with_inflow_and_outflow_resumes_from_its_checkpoint_bit_for_bit() {
     let flow = || FlowSet {
-        inflows: vec![top_inflow().build(0, RHO).unwrap()],
+        inflows: vec![top_inflow().build(0, RHO, 0).unwrap()],
         // A corner of the floor drains; elsewhere the spheres pile up and touch.
         outflows: vec![(glam::Vec3::ZERO, glam::Vec3::new(0.06, 0.2, 0.05))],
         ..FlowSet::default()
     };
     let p = params(-9.81);
     let stepper = |particles, p, flow| stepper(BackendKind::Cpu, particles, p, flow, true);
-    let mut straight = stepper(Particles::default(), p, flow());
+    let mut straight = stepper(Particles::default(), p.clone(), flow());
     straight.advance(2400).unwrap();
-    let mut first = stepper(Particles::default(), p, flow());
+    let mut first = stepper(Particles::default(), p.clone(), flow());
     first.advance(1200).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("checkpoint.bin");
@@ -309,7 +309,7 @@ fn spheres_leaving_a_frictional_pile_on_the_device_leave_the_others_contacts_as_
         ..FlowSet::default()
     };
     let run = |kind| {
-        let mut s = stepper(kind, pile.clone(), p, flow.clone(), true);
+        let mut s = stepper(kind, pile.clone(), p.clone(), flow.clone(), true);
         s.advance(30).unwrap();
         (s.flow_counts().unwrap(), s.particles().unwrap())
     };
@@ -373,7 +373,7 @@ fn an_event_that_lists_thousands_of_spheres_leaving_and_near_an_inflow_matches_t
         ..InflowConfig::default()
     };
     let flow = FlowSet {
-        inflows: vec![inflow.build(0, RHO).unwrap()],
+        inflows: vec![inflow.build(0, RHO, 0).unwrap()],
         outflows: vec![(glam::Vec3::ZERO, glam::Vec3::new(0.061, 0.2, 0.2))],
         every: Some(10),
         ..FlowSet::default()
@@ -412,7 +412,7 @@ fn an_inflow_that_outgrows_the_rows_kept_for_it_reopens_the_step_and_matches_the
         ..InflowConfig::default()
     };
     let flow = FlowSet {
-        inflows: vec![inflow.build(0, RHO).unwrap()],
+        inflows: vec![inflow.build(0, RHO, 0).unwrap()],
         every: Some(10),
         ..FlowSet::default()
     };

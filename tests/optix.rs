@@ -358,7 +358,7 @@ fn contacts(p: &Particles) -> Vec<(u32, u32, [f32; 10])> {
 /// Runs `particles` for `steps` steps on the cpu and on optix and compares positions,
 /// velocities, angular velocities and the contact history (both sides); returns both ends.
 fn compare_with_cpu(particles: &Particles, p: StepParams, steps: u32) -> Option<[Particles; 2]> {
-    let mut gpu = stepper(BackendKind::Optix, particles, p)?;
+    let mut gpu = stepper(BackendKind::Optix, particles, p.clone())?;
     let mut cpu = stepper(BackendKind::Cpu, particles, p).unwrap();
     cpu.advance(steps).unwrap();
     gpu.advance(steps).unwrap();
@@ -455,7 +455,7 @@ fn a_clump_with_more_contacts_than_history_slots_keeps_every_one() {
     );
     let dt = 0.02 * rayleigh_time(r as f64, RHO, E, 0.3);
     let p = StepParams::new(&material, dt, [0.0; 3], [0.1; 3], [0.0; 3], 0.0, r).unwrap();
-    let Some([cpu, gpu]) = compare_with_cpu(&start, p, 3) else {
+    let Some([cpu, gpu]) = compare_with_cpu(&start, p.clone(), 3) else {
         return;
     };
     for (i, held) in (0..24).map(|i| (i, gpu.history.of(i))) {
@@ -487,7 +487,7 @@ fn a_granular_state_reads_back_as_it_went_up() {
     );
     let dt = 0.2 * rayleigh_time(r as f64, RHO, E, 0.3);
     let p = StepParams::new(&material, dt, [0.0; 3], [0.1; 3], [0.0, 0.0, -9.81], 0.0, r).unwrap();
-    let mut cpu = stepper(BackendKind::Cpu, &pressed_layers(r, 0.1), p).unwrap();
+    let mut cpu = stepper(BackendKind::Cpu, &pressed_layers(r, 0.1), p.clone()).unwrap();
     cpu.advance(10).unwrap();
     let state = cpu.particles().unwrap();
     assert!(!state.history.is_empty() && state.spin());
@@ -501,7 +501,7 @@ fn a_granular_state_reads_back_as_it_went_up() {
         ..material
     };
     let p = StepParams::new(&md, dt, [0.0; 3], [0.1; 3], [0.0, 0.0, -9.81], 0.0, r).unwrap();
-    let mut cpu = stepper(BackendKind::Cpu, &pressed_layers(r, 0.1), p).unwrap();
+    let mut cpu = stepper(BackendKind::Cpu, &pressed_layers(r, 0.1), p.clone()).unwrap();
     cpu.advance(10).unwrap();
     let state = cpu.particles().unwrap();
     assert!(state.history.has_loads());

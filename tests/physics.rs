@@ -944,7 +944,7 @@ fn every_gpu_step_follows_the_cpu_step_of_a_frictional_pile_with_history() {
     ];
     for (law, p) in laws {
         let steps = 20;
-        let mut cpu = open(BackendKind::Cpu, start.clone(), p);
+        let mut cpu = open(BackendKind::Cpu, start.clone(), p.clone());
         cpu.advance(steps).unwrap();
         let expected = cpu.particles().unwrap();
         assert!(
@@ -955,7 +955,7 @@ fn every_gpu_step_follows_the_cpu_step_of_a_frictional_pile_with_history() {
             .into_iter()
             .filter(|&k| k != BackendKind::Cpu)
         {
-            let mut s = open(kind, start.clone(), p);
+            let mut s = open(kind, start.clone(), p.clone());
             s.advance(steps).unwrap();
             let what = format!("{law} on {}", kind.name());
             assert_follows(&what, &s.particles().unwrap(), &expected);
@@ -975,7 +975,7 @@ fn a_frictional_state_moves_between_the_cpu_and_the_gpus_with_its_history() {
         TangentialModel::MindlinDeresiewicz,
     ] {
         let p = frictional_pile_params_with(&start, model);
-        let mut cpu = open(BackendKind::Cpu, start.clone(), p);
+        let mut cpu = open(BackendKind::Cpu, start.clone(), p.clone());
         cpu.advance(10).unwrap();
         let halfway = cpu.particles().unwrap();
         cpu.advance(10).unwrap();
@@ -985,13 +985,13 @@ fn a_frictional_state_moves_between_the_cpu_and_the_gpus_with_its_history() {
             .filter(|&k| k != BackendKind::Cpu)
         {
             let name = kind.name();
-            let mut gpu = open(kind, halfway.clone(), p);
+            let mut gpu = open(kind, halfway.clone(), p.clone());
             gpu.advance(10).unwrap();
             let what = format!("{model:?}: cpu, then {name}");
             assert_follows(&what, &gpu.particles().unwrap(), &expected);
-            let mut gpu = open(kind, start.clone(), p);
+            let mut gpu = open(kind, start.clone(), p.clone());
             gpu.advance(10).unwrap();
-            let mut cpu = open(BackendKind::Cpu, gpu.particles().unwrap(), p);
+            let mut cpu = open(BackendKind::Cpu, gpu.particles().unwrap(), p.clone());
             cpu.advance(10).unwrap();
             let what = format!("{model:?}: {name}, then cpu");
             assert_follows(&what, &cpu.particles().unwrap(), &expected);
@@ -1024,7 +1024,7 @@ fn a_history_split_over_several_bindings_follows_the_cpu_step() {
     // spheres.
     let start = frictional_pile(4);
     let p = frictional_pile_params(&start);
-    let Some(mut split) = wgpu_compute_on_small_bindings(&start, p) else {
+    let Some(mut split) = wgpu_compute_on_small_bindings(&start, p.clone()) else {
         return;
     };
     let mut cpu = open(BackendKind::Cpu, start.clone(), p);
@@ -1034,7 +1034,7 @@ fn a_history_split_over_several_bindings_follows_the_cpu_step() {
     assert_follows(what, &split.particles().unwrap(), &cpu.particles().unwrap());
     // The Mindlin–Deresiewicz model's entries of 64 bytes: eight bindings of 8 spheres.
     let p = frictional_pile_params_with(&start, TangentialModel::MindlinDeresiewicz);
-    let Some(mut split) = wgpu_compute_on_small_bindings(&start, p) else {
+    let Some(mut split) = wgpu_compute_on_small_bindings(&start, p.clone()) else {
         return;
     };
     let mut cpu = open(BackendKind::Cpu, start, p);
@@ -1052,13 +1052,18 @@ fn a_gpu_step_whose_spheres_own_more_contacts_than_slots_keeps_every_one() {
     // slots, redo the batch and keep every contact, as the cpu step does.
     let start = common::clump(40);
     let p = params(&hertz(0.5, 0.5), 1e-7, 1.0, [0.0; 3], 0.005);
-    let mut cpu = open(BackendKind::Cpu, start.clone(), p);
+    let mut cpu = open(BackendKind::Cpu, start.clone(), p.clone());
     cpu.advance(2).unwrap();
     let expected = cpu.particles().unwrap();
     let mut steppers: Vec<(String, Box<dyn Stepper>)> = common::dem_backends()
         .into_iter()
         .filter(|&k| k != BackendKind::Cpu)
-        .map(|kind| (kind.name().to_string(), open(kind, start.clone(), p)))
+        .map(|kind| {
+            (
+                kind.name().to_string(),
+                open(kind, start.clone(), p.clone()),
+            )
+        })
         .collect();
     // And with the springs over several bindings of 8 KiB: two at 16 slots (384 bytes a
     // sphere), six once the slots grow to hold the 39 contacts (48 slots, seven spheres each).

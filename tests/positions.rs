@@ -200,11 +200,11 @@ fn a_run_resumed_from_its_checkpoint_flies_on_bit_for_bit() {
     on_every_backend(|kind| {
         for granular in [false, true] {
             let p = params(granular);
-            let mut whole = stepper(kind, &start, p, &Options::default());
+            let mut whole = stepper(kind, &start, p.clone(), &Options::default());
             whole.advance(steps).unwrap();
             let whole = whole.particles().unwrap();
             assert!(whole.position_residuals.iter().any(|r| *r != [0.0; 3]));
-            let mut first = stepper(kind, &start, p, &Options::default());
+            let mut first = stepper(kind, &start, p.clone(), &Options::default());
             first.advance(steps / 2).unwrap();
             let path = dir.path().join("checkpoint.bin");
             write_checkpoint(&path, &first.particles().unwrap(), "", "").unwrap();

@@ -103,7 +103,11 @@ fn walls_of(configs: &[(WallConfig, &Mesh)], box_walls: bool, friction: f64) -> 
     let meshes = configs
         .iter()
         .enumerate()
-        .map(|(k, (c, m))| c.build_from(k, m, friction).unwrap())
+        .map(|(k, (c, m))| {
+            let mut wall = c.build_from(k, m, None).unwrap();
+            wall.friction = Some(c.friction.unwrap_or(friction) as f32);
+            wall
+        })
         .collect();
     WallSet::new(box_walls, meshes).unwrap()
 }
@@ -211,9 +215,9 @@ fn reopened_on_an_incline(kind: BackendKind, m: &Material) {
     let walls = || walls_of(&[(config.clone(), &mesh)], true, m.friction);
     let sphere = one_sphere(-0.1 * downhill + 0.99 * R * normal, Vec3::ZERO, Vec3::ZERO);
     let p = params(&m, -0.5, 0.5);
-    let mut straight = stepper(kind, sphere.clone(), p, walls());
+    let mut straight = stepper(kind, sphere.clone(), p.clone(), walls());
     straight.advance(600).unwrap();
-    let mut first = stepper(kind, sphere, p, walls());
+    let mut first = stepper(kind, sphere, p.clone(), walls());
     first.advance(300).unwrap();
     let halfway = first.particles().unwrap();
     assert!(
@@ -399,7 +403,8 @@ fn an_stl_box_gives_the_trajectories_of_the_box_walls_on(kind: BackendKind) {
         radii: vec![R; 3],
         ..Particles::default()
     };
-    let stl = WallConfig::of(&path).build(0, 0.5).unwrap();
+    let mut stl = WallConfig::of(&path).build(0, None).unwrap();
+    stl.friction = Some(0.5);
     // Inside the STL box, the box's own walls 0.1 m beyond it, never reached.
     let mut mesh_run = stepper(
         kind,
@@ -522,9 +527,9 @@ fn a_run_with_a_turning_wall_resumes_from_its_checkpoint_bit_for_bit() {
     };
     let p = params(&m, -0.3, 0.3);
     let cpu = BackendKind::Cpu;
-    let mut straight = stepper(cpu, particles.clone(), p, walls());
+    let mut straight = stepper(cpu, particles.clone(), p.clone(), walls());
     straight.advance(400).unwrap();
-    let mut first = stepper(cpu, particles, p, walls());
+    let mut first = stepper(cpu, particles, p.clone(), walls());
     first.advance(200).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("checkpoint.bin");
@@ -552,7 +557,11 @@ fn every_backend_runs_mesh_walls_with_and_without_the_box() {
     let sphere = one_sphere(Vec3::new(0.0, 0.0, 0.1), Vec3::ZERO, Vec3::ZERO);
     let open = |choice, box_walls| {
         let walls = walls_of(&[(WallConfig::of("floor"), &mesh)], box_walls, 0.0);
-        open_scene(choice, start(sphere.clone(), p, walls), &Options::default())
+        open_scene(
+            choice,
+            start(sphere.clone(), p.clone(), walls),
+            &Options::default(),
+        )
     };
     for kind in common::dem_backends() {
         let _named = common::Naming(kind);

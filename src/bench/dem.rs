@@ -164,7 +164,13 @@ pub fn run(
             rebuild,
         };
         let s = case.start;
-        open_stepper(kind, s.particles.clone(), s.params, s.mode, &options)
+        open_stepper(
+            kind,
+            s.particles.clone(),
+            s.params.clone(),
+            s.mode,
+            &options,
+        )
     };
     run_with(plan, kind, case, &open, progress)
 }

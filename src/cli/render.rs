@@ -254,7 +254,7 @@ impl RunWalls {
     pub fn of_run(dir: &Path) -> Option<Self> {
         let path = dir.join(io::SCENE_FILE);
         let config = SceneConfig::load(Some(&path), &[]).ok()?;
-        let built = config.wall_set().map_err(anyhow::Error::from);
+        let built = config.walls().map_err(anyhow::Error::from);
         match built.and_then(|w| Ok((w, config.dt.context("the scene names no dt")?))) {
             Ok((walls, _)) if walls.meshes.is_empty() => None,
             Ok((walls, dt)) => Some(Self::new(walls, dt)),

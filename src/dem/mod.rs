@@ -7,6 +7,7 @@
 
 pub mod equipment;
 pub mod flow;
+pub mod material_spec;
 pub mod model;
 pub mod scene;
 pub mod stepper;

@@ -60,9 +60,12 @@
 
 use super::equipment::{Built, Equipment, EquipmentSpec};
 use super::flow::{FlowSet, InflowConfig, OutflowConfig};
+use super::material_spec::{self, MaterialConfig, MaterialPairConfig, material_index};
 use super::model::contact::moment_of_inertia;
 use super::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
-use super::model::{ContactLaw, Material, RollingModel, StepParams, TangentialModel, mass};
+use super::model::{
+    ContactLaw, Material, Materials, RollingModel, StepParams, TangentialModel, mass,
+};
 use super::walls::{WallConfig, WallSet};
 use crate::error::{Error, Result};
 use crate::particles::Particles;
@@ -385,6 +388,16 @@ pub struct SceneConfig {
     /// history dependent stiffness; `hertz-mindlin` only); `None`: `mindlin`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tangential_model: Option<TangentialModel>,
+    /// Materials, the `[[material]]` tables (`dem::material_spec`); none: one material, the
+    /// top-level keys'.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub material: Vec<MaterialConfig>,
+    /// Pairs of materials with their own coefficients, the `[[material_pair]]` tables.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub material_pair: Vec<MaterialPairConfig>,
+    /// The box walls' material (a `[[material]]` name); `None`: rigid walls.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub box_material: Option<String>,
     /// `mochi` (cells of 2·r_max) or `nns` (4·r_max).
     #[serde(with = "by_name")]
     pub mode: ProxyMode,
@@ -474,6 +487,9 @@ impl Default for SceneConfig {
             rolling_friction: None,
             rolling_model: None,
             tangential_model: None,
+            material: Vec::new(),
+            material_pair: Vec::new(),
+            box_material: None,
             mode: ProxyMode::Mochi,
             frame_every: 1_000,
             csv: false,
@@ -1008,12 +1024,14 @@ impl SceneConfig {
                 }
             }
         };
-        let material = self.material()?;
-        // The material's values, before the time step is derived from them.
-        material.check()?;
+        let materials = self.materials()?;
+        let material = *materials.first();
+        // The materials' values, before the time step is derived from them.
+        materials.check()?;
+        particles.check_materials(materials.list.len())?;
         let r_max = particles.radius_range().1;
-        check_heaviest(material.density, r_max)?;
-        let flow = self.flow(material.density, box_lo_z(self.box_lo, default_lo))?;
+        check_heaviest(materials.heaviest_density(), r_max)?;
+        let flow = self.flow(&materials, box_lo_z(self.box_lo, default_lo))?;
         // The smallest sphere, inserted ones included, sets the time step.
         let r_min = match (particles.is_empty(), flow.smallest_radius()) {
             (true, None) => 1.0,
@@ -1025,15 +1043,20 @@ impl SceneConfig {
             (Some(dt), _) => dt,
             // The Rayleigh rule where the parameters make sense (else `StepParams::new` says
             // what is wrong with them).
-            (
-                None,
-                ContactLaw::HertzMindlin {
-                    young_modulus,
-                    poisson_ratio,
-                },
-            ) if young_modulus > 0.0 && poisson_ratio > -1.0 && poisson_ratio < 0.5 => {
-                let t_r =
-                    rayleigh_time(r_min as f64, material.density, young_modulus, poisson_ratio);
+            // The fastest material's Rayleigh time (materials.check() passed: the parameters
+            // make sense).
+            (None, ContactLaw::HertzMindlin { .. }) => {
+                let t_r = materials
+                    .list
+                    .iter()
+                    .map(|m| match m.contact {
+                        ContactLaw::HertzMindlin {
+                            young_modulus,
+                            poisson_ratio,
+                        } => rayleigh_time(r_min as f64, m.density, young_modulus, poisson_ratio),
+                        _ => f64::INFINITY,
+                    })
+                    .fold(f64::INFINITY, f64::min);
                 RAYLEIGH_FRACTION * t_r
             }
             (None, _) => match source {
@@ -1055,9 +1078,22 @@ impl SceneConfig {
             self.box_lo.unwrap_or(default_lo),
             self.box_hi.unwrap_or(default_hi),
         );
-        let params = StepParams::new(&material, dt, lo, hi, self.gravity, spin, r_min)?;
+        let box_material = match &self.box_material {
+            Some(name) => Some(material_index(&self.material, name, "box_material")?),
+            None => None,
+        };
+        let params = StepParams::with_materials(
+            &materials,
+            box_material,
+            dt,
+            lo,
+            hi,
+            self.gravity,
+            spin,
+            r_min,
+        )?;
         flow.check(params.dt as f64, params.box_lo, params.box_hi)?;
-        let walls = self.walls(&material)?;
+        let walls = self.walls()?;
         walls.check_speed(params.dt as f64, r_min)?;
         Ok(Start {
             particles,
@@ -1087,12 +1123,18 @@ impl SceneConfig {
 
     /// The inflows and outflows of the scene; without the box walls, spheres below the box's
     /// floor (at `floor`) leave too.
-    fn flow(&self, density: f64, floor: f64) -> Result<FlowSet> {
+    fn flow(&self, materials: &Materials, floor: f64) -> Result<FlowSet> {
         let inflows = self
             .inflow
             .iter()
             .enumerate()
-            .map(|(k, f)| f.build(k, density))
+            .map(|(k, f)| {
+                let material = match &f.material {
+                    Some(name) => material_index(&self.material, name, "inflow.material")?,
+                    None => 0,
+                };
+                f.build(k, materials.list[material].density, material as u8)
+            })
             .collect::<Result<Vec<_>>>()?;
         let mut outflow = self.outflow.clone();
         if let Source::Equipment(kind) = self.scene.source() {
@@ -1118,24 +1160,32 @@ impl SceneConfig {
         })
     }
 
-    /// The walls of the scene (its material's wall friction in them).
-    pub fn wall_set(&self) -> Result<WallSet> {
-        self.walls(&self.material()?)
-    }
-
-    /// The walls of the scene: the box (or not) and each `[[wall]]` read and posed.
-    fn walls(&self, material: &Material) -> Result<WallSet> {
-        let friction = material.wall_friction.unwrap_or(material.friction);
+    /// The walls of the scene: the box (or not) and each `[[wall]]` read and posed, with its
+    /// material.
+    pub fn walls(&self) -> Result<WallSet> {
         let mut meshes = Vec::new();
+        let material_of = |w: &WallConfig| match &w.material {
+            Some(name) => {
+                material_index(&self.material, name, "wall.material").map(|m| Some(m as u32))
+            }
+            None => Ok(None),
+        };
         if let Source::Equipment(kind) = self.scene.source() {
             for (config, mesh) in self.equipment(kind)?.walls {
-                meshes.push(config.build_from(meshes.len(), &mesh, friction)?);
+                let material = material_of(&config)?;
+                meshes.push(config.build_from(meshes.len(), &mesh, material)?);
             }
         }
         for w in &self.wall {
-            meshes.push(w.build(meshes.len(), friction)?);
+            meshes.push(w.build(meshes.len(), material_of(w)?)?);
         }
         WallSet::new(self.box_walls, meshes)
+    }
+
+    /// The materials of the scene: its `[[material]]` tables, or the one its top-level keys
+    /// describe.
+    pub fn materials(&self) -> Result<Materials> {
+        material_spec::materials(&self.material()?, &self.material, &self.material_pair)
     }
 
     /// The material the scene describes, its defaults filled in; refuses keys that do not

@@ -63,7 +63,8 @@ pub struct FlowStep {
     /// Steps between flow events.
     every: u32,
     dt: f32,
-    density: f32,
+    /// Each material's density \[kg/m³\].
+    densities: Vec<f32>,
     /// At least the largest radius in the step (the boxes near the inflows grow with it).
     r_max: f32,
     counts: FlowCounts,
@@ -73,12 +74,12 @@ pub struct FlowStep {
 
 impl FlowStep {
     /// The step over `particles` that `reopen` opens, with `flow` acting every
-    /// [`FlowSet::every`] steps (time step `dt`, particle `density`).
+    /// [`FlowSet::every`] steps (time step `dt`, each material's density in `densities`).
     pub fn new(
         particles: Particles,
         flow: FlowSet,
         dt: f32,
-        density: f32,
+        densities: Vec<f32>,
         reopen: Reopen,
     ) -> Result<Self> {
         let mut step = FlowStep {
@@ -92,7 +93,7 @@ impl FlowStep {
             counts: flow.counted,
             flow,
             dt,
-            density,
+            densities,
             r_max: 0.0,
             described: String::new(),
         };
@@ -142,11 +143,14 @@ impl FlowStep {
 
     /// The event on the device where the step can take it there, else [`round_trip`].
     fn flow_on_device(&mut self) -> Result<()> {
+        // The device's scan weighs the leaving spheres by the first material's density.
+        if self.densities.len() > 1 {
+            return self.round_trip();
+        }
         let event = Event {
             step: self.now(),
             every: self.every,
             dt: self.dt,
-            density: self.density,
         };
         let query = FlowQuery {
             near: self
@@ -174,7 +178,7 @@ impl FlowStep {
             }
             for &(_, r) in &scan.leaving {
                 self.counts.removed += 1;
-                self.counts.removed_mass += mass(self.density, r) as f64;
+                self.counts.removed_mass += mass(self.densities[0], r) as f64;
             }
         }
         let near = |lo: Vec3, hi: Vec3| -> Vec<(Vec3, f32)> {
@@ -195,7 +199,7 @@ impl FlowStep {
         self.counts.read_backs += 1;
         let mut parts = step.particles()?;
         for s in &new {
-            parts.push(s.centre, s.velocity, s.radius)?;
+            parts.push_of(s.centre, s.velocity, s.radius, s.material)?;
         }
         self.open(parts)
     }
@@ -213,7 +217,7 @@ impl FlowStep {
             &mut parts,
             self.every,
             self.dt,
-            self.density,
+            &self.densities,
             &mut self.counts,
         )?;
         if changed { self.open(parts) } else { Ok(()) }

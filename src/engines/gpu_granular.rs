@@ -464,7 +464,14 @@ impl Granular {
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
         let make = |what: &str, bytes: u64| gpu.storage(&label(what), bytes, none);
-        let mesh = MeshWalls::new(gpu, walls, rows as usize, room.radii.1, engine)?;
+        let mesh = MeshWalls::new(
+            gpu,
+            walls,
+            &params.materials,
+            rows as usize,
+            room.radii.1,
+            engine,
+        )?;
         let granular = gpu.checked("allocating the granular step's buffers", || Self {
             params: gpu_params,
             uniform: gpu.uniform(&label("granular"), &gpu_params),

@@ -721,6 +721,7 @@ pub(crate) fn particles_with(
         velocities: vec![[0.0; 3]; n],
         angular_velocities: vec![[0.0; 3]; n],
         radii: vec![0.0; n],
+        materials: Vec::new(),
         history: rotation.history,
         step,
     };

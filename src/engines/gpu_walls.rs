@@ -7,6 +7,7 @@
 //! minimal buffers). The host tables ([`WallTables`]) and the loads' summing ([`wall_loads`])
 //! serve the optix step too (`optix/mesh_walls.cuh`).
 
+use crate::dem::model::MaterialTable;
 use crate::dem::walls::{TriangleMesh, WallLoad, WallSet};
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
@@ -216,7 +217,13 @@ pub(crate) struct WallTables {
 impl WallTables {
     /// The tables of `walls` for spheres of radius at most `r_max`, refusing grids of more
     /// than `max_words` words (the `engine` step's limit).
-    pub fn new(walls: &WallSet, r_max: f32, max_words: u64, engine: &str) -> Result<Self> {
+    pub fn new(
+        walls: &WallSet,
+        table: &MaterialTable,
+        r_max: f32,
+        max_words: u64,
+        engine: &str,
+    ) -> Result<Self> {
         let mut rows = Vec::with_capacity(walls.meshes.len());
         let mut offsets: Vec<u32> = Vec::new();
         let mut listed: Vec<u32> = Vec::new();
@@ -243,7 +250,9 @@ impl WallTables {
                 axis: m.axis.as_vec3().into(),
                 start: m.start as f32,
                 centre: m.centre.as_vec3().into(),
-                friction: wall.friction,
+                friction: wall
+                    .friction
+                    .unwrap_or(table.law(0, wall.column(table)).sliding),
             });
             for cell in g.cells {
                 offsets.push(listed.len() as u32);
@@ -338,12 +347,13 @@ impl MeshWalls {
     pub fn new(
         gpu: &Gpu,
         walls: &WallSet,
+        table: &MaterialTable,
         spheres: usize,
         r_max: f32,
         engine: &'static str,
     ) -> Result<Self> {
         let max_words = gpu.limits.max_storage_buffer_binding_size / 4;
-        let tables = WallTables::new(walls, r_max, max_words, engine)?;
+        let tables = WallTables::new(walls, table, r_max, max_words, engine)?;
         let params = tables.params;
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");

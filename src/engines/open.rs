@@ -22,6 +22,17 @@ pub fn open_stepper(
     open_walled(kind, particles, params, mode, options, WallSet::default())
 }
 
+/// Refuses several materials on the GPU backends, whose steps read the first material's law.
+fn one_material_off_the_cpu(kind: BackendKind, params: &StepParams) -> Result<()> {
+    if kind != BackendKind::Cpu && params.materials.count > 1 {
+        return Err(Error::BackendUnavailable {
+            backend: kind.name(),
+            reason: "several materials run on the cpu backend only".into(),
+        });
+    }
+    Ok(())
+}
+
 /// Opens the DEM step of backend `kind` over `particles` inside `walls`.
 fn open_walled(
     kind: BackendKind,
@@ -32,6 +43,7 @@ fn open_walled(
     walls: WallSet,
 ) -> Result<Box<dyn Stepper>> {
     particles.validate()?;
+    one_material_off_the_cpu(kind, &params)?;
     let kernels = super::gpu_step::KernelSet::Auto;
     Ok(match kind {
         BackendKind::Cpu => {
@@ -98,7 +110,14 @@ fn choose_walled(
     let ((stepper, kind), reason) = super::registry::open_auto(&BackendKind::ALL, |kind| {
         let walls = walls.clone();
         Ok((
-            open_walled(kind, particles.clone(), params, mode, options, walls)?,
+            open_walled(
+                kind,
+                particles.clone(),
+                params.clone(),
+                mode,
+                options,
+                walls,
+            )?,
             kind,
         ))
     })?;
@@ -126,17 +145,18 @@ pub fn open_scene(
     let open = |kind: BackendKind| -> Result<Box<dyn Stepper>> {
         particles.validate()?;
         if kind == BackendKind::Cpu {
-            let stepper = super::cpu::CpuStepper::new(particles.clone(), params, mode)?
+            let stepper = super::cpu::CpuStepper::new(particles.clone(), params.clone(), mode)?
                 .with_walls(walls.clone())?
                 .with_flow(flow.clone(), mode);
             return Ok(Box::new(stepper));
         }
-        let reopen = reopener(kind, params, mode, options, walls.clone())?;
+        one_material_off_the_cpu(kind, &params)?;
+        let reopen = reopener(kind, params.clone(), mode, options, walls.clone())?;
         let step = FlowStep::new(
             particles.clone(),
             flow.clone(),
             params.dt,
-            params.density,
+            params.materials.densities.clone(),
             reopen,
         )?;
         Ok(Box::new(step))
@@ -174,7 +194,7 @@ fn reopener(
                     gpu.clone(),
                     parts,
                     room,
-                    params,
+                    params.clone(),
                     mode,
                     kernels,
                     build,
@@ -189,7 +209,7 @@ fn reopener(
                 let step = super::wgpu_rq::RqStepper::on_gpu(
                     gpu.clone(),
                     parts,
-                    params,
+                    params.clone(),
                     mode,
                     kernels,
                     &walls,
@@ -201,7 +221,8 @@ fn reopener(
         BackendKind::Optix => {
             let rebuild = options.rebuild;
             Box::new(move |parts, _room| {
-                let step = super::optix::OptixStepper::new(parts, params, mode, rebuild, &walls)?;
+                let step =
+                    super::optix::OptixStepper::new(parts, params.clone(), mode, rebuild, &walls)?;
                 Ok(Box::new(step) as Box<dyn DeviceFlow>)
             })
         }

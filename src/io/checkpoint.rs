@@ -243,6 +243,7 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         velocities: triples(&values[3 * n..6 * n]),
         angular_velocities,
         radii,
+        materials: Vec::new(),
         history: ContactHistory::from_contacts_with_loads(n, &contacts, &loads)
             .map_err(|e| bad(e.to_string()))?,
         step,
@@ -282,6 +283,7 @@ mod tests {
             velocities: vec![[0.0, -1.5, 2.0], [1e-9, 0.0, -0.0]],
             angular_velocities: vec![[3.0, 0.0, -1.0], [0.0, 2e-7, 0.0]],
             radii: vec![0.01, 0.002],
+            materials: Vec::new(),
             history: ContactHistory::from_contacts(
                 2,
                 &[

@@ -35,6 +35,9 @@ pub struct Particles {
     pub angular_velocities: Vec<[f32; 3]>,
     /// Radii \[m\].
     pub radii: Vec<f32>,
+    /// Each sphere's material, its index in the scene's materials. Empty, or one per sphere;
+    /// empty means every sphere is of the first material.
+    pub materials: Vec<u8>,
     /// The springs of the contacts that have friction or rolling resistance (empty without).
     pub history: ContactHistory,
     /// Steps taken since t = 0 (the time is `step · dt`).
@@ -59,6 +62,7 @@ impl Particles {
             velocities,
             angular_velocities,
             radii,
+            materials: Vec::new(),
             history: ContactHistory::default(),
             step: 0,
         })
@@ -80,6 +84,11 @@ impl Particles {
             velocities: copy(&self.velocities)?,
             angular_velocities: copy(&self.angular_velocities)?,
             radii,
+            materials: {
+                let mut m = try_vec(self.materials.len(), what)?;
+                m.extend_from_slice(&self.materials);
+                m
+            },
             history: self.history.try_clone()?,
             step: self.step,
         })
@@ -102,12 +111,15 @@ impl Particles {
             || self.velocities.len() != self.len()
             || self.angular_velocities.len() != self.len()
             || !(self.position_residuals.is_empty() || self.position_residuals.len() == self.len())
+            || !(self.materials.is_empty() || self.materials.len() == self.len())
         {
             return Err(Error::Usage(format!(
                 "particles: {} positions, {} position residuals (none or one per sphere), {} \
-                 velocities, {} angular velocities, {} radii",
+                 materials (none or one per sphere), {} velocities, {} angular velocities, {} \
+                 radii",
                 self.positions.len(),
                 self.position_residuals.len(),
+                self.materials.len(),
                 self.velocities.len(),
                 self.angular_velocities.len(),
                 self.len()
@@ -268,9 +280,14 @@ impl Particles {
         Ok(pairs)
     }
 
-    /// Adds a sphere at `c` with velocity `v`, radius `r`, no spin and no contacts; refuses
-    /// more spheres than ids below the walls'.
+    /// Adds a sphere of the first material at `c` with velocity `v`, radius `r`, no spin and no
+    /// contacts; refuses more spheres than ids below the walls'.
     pub fn push(&mut self, c: [f32; 3], v: [f32; 3], r: f32) -> Result<()> {
+        self.push_of(c, v, r, 0)
+    }
+
+    /// As [`Self::push`], a sphere of material `material`.
+    pub fn push_of(&mut self, c: [f32; 3], v: [f32; 3], r: f32, material: u8) -> Result<()> {
         let n = self.len() + 1;
         if n > FIRST_MESH_WALL as usize {
             return Err(Error::TooLarge {
@@ -286,6 +303,12 @@ impl Particles {
         self.velocities.push(v);
         self.angular_velocities.push([0.0; 3]);
         self.radii.push(r);
+        if material != 0 && self.materials.is_empty() {
+            self.materials.resize(n - 1, 0);
+        }
+        if !self.materials.is_empty() {
+            self.materials.push(material);
+        }
         self.history.grow_to(n)
     }
 
@@ -311,8 +334,32 @@ impl Particles {
         kept(&mut self.velocities, keep);
         kept(&mut self.angular_velocities, keep);
         kept(&mut self.radii, keep);
+        if !self.materials.is_empty() {
+            kept(&mut self.materials, keep);
+        }
         self.history.retain(keep);
         Ok(())
+    }
+
+    /// Sphere `i`'s material ([`Self::materials`]; 0 where there are none).
+    #[inline(always)]
+    pub fn material(&self, i: usize) -> u32 {
+        self.materials.get(i).map_or(0, |&m| m as u32)
+    }
+
+    /// Checks every sphere's material is one of `count`; names the first that is not.
+    pub fn check_materials(&self, count: usize) -> Result<()> {
+        match self.materials.iter().position(|&m| m as usize >= count) {
+            Some(index) => Err(Error::InvalidSphere {
+                index,
+                reason: format!(
+                    "material {} but the scene has {count} material{} (indices from 0)",
+                    self.materials[index],
+                    if count == 1 { "" } else { "s" }
+                ),
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Smallest and largest radius (0 for no spheres).

@@ -195,7 +195,7 @@ pub fn default_steppers(
         .into_iter()
         .filter(|&kind| dem_runs_here(kind))
         .map(|kind| {
-            let stepper = open_dem(kind, particles, params, &Options::default());
+            let stepper = open_dem(kind, particles, params.clone(), &Options::default());
             (kind.name(), stepper)
         })
         .collect()

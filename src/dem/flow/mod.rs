@@ -93,6 +93,9 @@ pub struct InflowConfig {
     /// Time the inflow stops \[s\] (default never).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stop: Option<f64>,
+    /// The material of its spheres, a `[[material]]` name (default the first material).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<String>,
 }
 
 /// One `[[outflow]]` table: a box whose spheres are removed.
@@ -175,6 +178,10 @@ pub struct Inflow {
     pub seed: u64,
     /// Start and stop times \[s\].
     pub window: (f64, f64),
+    /// The material of the spheres it inserts.
+    pub material: u8,
+    /// That material's density \[kg/m³\].
+    pub density: f32,
 }
 
 /// The spheres' ways in and out of a run.
@@ -243,9 +250,10 @@ fn fits_f32(x: f64) -> bool {
 }
 
 impl InflowConfig {
-    /// The inflow; `index` names it in errors, `density` turns a mass rate into spheres. Every
+    /// The inflow of spheres of material `material` (density `density`, which turns a mass
+    /// rate into spheres); `index` names it in errors. Every
     /// value must be a finite `f32` (radii positive ones), the window must start at a time ≥ 0.
-    pub fn build(&self, index: usize, density: f64) -> Result<Inflow> {
+    pub fn build(&self, index: usize, density: f64, material: u8) -> Result<Inflow> {
         let bad = |reason: String| Error::InvalidConfig {
             what: format!("inflow {index}"),
             reason,
@@ -356,6 +364,8 @@ impl InflowConfig {
             velocity: DVec3::from(velocity).as_vec3(),
             seed: self.seed.unwrap_or(1),
             window,
+            material,
+            density: density as f32,
         })
     }
 }
@@ -378,7 +388,7 @@ impl OutflowConfig {
 }
 
 /// A flow event: after the step that brought the run to `step`, closing the `every` steps since
-/// the last (time step `dt`; `density` weighs the spheres).
+/// the last (time step `dt`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Event {
     /// The step count after the event's step.
@@ -387,8 +397,6 @@ pub struct Event {
     pub every: u32,
     /// Time step \[s\].
     pub dt: f32,
-    /// Particle density \[kg/m³\].
-    pub density: f32,
 }
 
 impl Event {
@@ -407,6 +415,8 @@ pub struct NewSphere {
     pub velocity: [f32; 3],
     /// Radius \[m\].
     pub radius: f32,
+    /// Material.
+    pub material: u8,
 }
 
 /// A seed for inflow `k`'s draws in step `step` (splitmix64 of the three).
@@ -537,14 +547,15 @@ impl FlowSet {
 
     /// The flow event after step `parts.step − 1` (taken with time step `dt`), closing the
     /// `every` steps since the last: removes the spheres in an outflow (or below the floor),
-    /// then inserts what each inflow owes for those steps; `density` gives the masses counted.
+    /// then inserts what each inflow owes for those steps; `densities` (of each material) give
+    /// the masses counted.
     /// Returns whether any sphere came or went.
     pub fn apply(
         &self,
         parts: &mut Particles,
         every: u32,
         dt: f32,
-        density: f32,
+        densities: &[f32],
         counts: &mut FlowCounts,
     ) -> Result<bool> {
         let before = (counts.inserted, counts.removed);
@@ -554,9 +565,10 @@ impl FlowSet {
             .map(|c| !self.leaves(Vec3::from(*c)))
             .collect();
         if keep.iter().any(|k| !k) {
-            for (r, _) in parts.radii.iter().zip(&keep).filter(|(_, k)| !**k) {
+            for (i, _) in keep.iter().enumerate().filter(|(_, k)| !**k) {
+                let density = densities[parts.material(i) as usize];
                 counts.removed += 1;
-                counts.removed_mass += mass(density, *r) as f64;
+                counts.removed_mass += mass(density, parts.radii[i]) as f64;
             }
             parts.retain(&keep)?;
         }
@@ -574,10 +586,9 @@ impl FlowSet {
             step: parts.step,
             every,
             dt,
-            density,
         };
-        for sphere in self.insert(step, r_max, near, counts) {
-            parts.push(sphere.centre, sphere.velocity, sphere.radius)?;
+        for s in self.insert(step, r_max, near, counts) {
+            parts.push_of(s.centre, s.velocity, s.radius, s.material)?;
         }
         Ok((counts.inserted, counts.removed) != before)
     }
@@ -635,9 +646,10 @@ impl FlowSet {
                             centre: c.to_array(),
                             velocity: inflow.velocity.to_array(),
                             radius: r,
+                            material: inflow.material,
                         });
                         counts.inserted += 1;
-                        counts.inserted_mass += mass(event.density, r) as f64;
+                        counts.inserted_mass += mass(inflow.density, r) as f64;
                     }
                     None => counts.refused += 1,
                 }

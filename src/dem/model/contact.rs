@@ -36,6 +36,7 @@
 
 use super::StepParams;
 use super::material::{NormalLaw, RollingModel, TangentialModel};
+use super::materials::PairLaw;
 use crate::particles::{HistoryEntry, LoadEntry, LoadedEntry};
 use glam::Vec3;
 
@@ -92,6 +93,8 @@ pub struct Body {
     pub r: f32,
     /// Mass \[kg\].
     pub m: f32,
+    /// Material (its row in [`super::MaterialTable`]).
+    pub material: u32,
 }
 
 impl Body {
@@ -296,14 +299,14 @@ struct Touch {
     v_rel: Vec3,
     /// ω_i − ω_j (ω_i on a wall).
     w_rel: Vec3,
-    on_wall: bool,
 }
 
-/// The normal force of a contact with overlap `overlap` > 0 and normal relative velocity `vn`.
+/// The normal force of a contact of law `law` with overlap `overlap` > 0 and normal relative
+/// velocity `vn`.
 #[inline(always)]
 fn normal_force(
     p: &StepParams,
-    on_wall: bool,
+    law: &PairLaw,
     overlap: f32,
     vn: f32,
     m_eff: f32,
@@ -311,7 +314,7 @@ fn normal_force(
 ) -> Normal {
     match p.law {
         NormalLaw::Linear => {
-            let c = 2.0 * p.damping_ratio * root_product(p.stiffness, m_eff);
+            let c = 2.0 * law.damping_ratio * root_product(p.stiffness, m_eff);
             let elastic = p.stiffness * overlap;
             Normal {
                 push: (elastic - c * vn).max(0.0),
@@ -319,9 +322,9 @@ fn normal_force(
                 stiffness: p.stiffness,
             }
         }
-        NormalLaw::LinearPerPair { rate, .. } => {
-            let k = m_eff * rate;
-            let c = 2.0 * p.damping_ratio * root_product(k, m_eff);
+        NormalLaw::LinearPerPair { .. } => {
+            let k = m_eff * law.rate;
+            let c = 2.0 * law.damping_ratio * root_product(k, m_eff);
             let elastic = k * overlap;
             Normal {
                 push: (elastic - c * vn).max(0.0),
@@ -329,11 +332,10 @@ fn normal_force(
                 stiffness: k,
             }
         }
-        NormalLaw::Hertz { pair, wall } => {
-            let e_star = if on_wall { wall.e_star } else { pair.e_star };
+        NormalLaw::Hertz { .. } => {
             // R*·δ ≥ R*·ulp(r_i + r_j)/2 when δ > 0: a normal number from r = 1e-12 m up.
-            let s_n = 2.0 * e_star * (r_eff * overlap).sqrt();
-            let c = TSUJI * p.damping_ratio * root_product(s_n, m_eff);
+            let s_n = 2.0 * law.e_star * (r_eff * overlap).sqrt();
+            let c = TSUJI * law.damping_ratio * root_product(s_n, m_eff);
             let elastic = 2.0 / 3.0 * s_n * overlap;
             Normal {
                 push: (elastic - c * vn).max(0.0),
@@ -361,7 +363,8 @@ pub fn pair_contact<S: Kept>(p: &StepParams, i: &Body, j: &Body, old: S) -> Opti
     let vn = (j.v - i.v).dot(n);
     let m_eff = effective(i.m, j.m);
     let r_eff = effective(i.r, j.r);
-    let normal = normal_force(p, false, overlap, vn, m_eff, r_eff);
+    let law = p.materials.law(i.material, j.material);
+    let normal = normal_force(p, law, overlap, vn, m_eff, r_eff);
     let force = -normal.push * n;
     if !p.friction.turns() {
         return Some(Contact {
@@ -380,9 +383,8 @@ pub fn pair_contact<S: Kept>(p: &StepParams, i: &Body, j: &Body, old: S) -> Opti
         lever: i.r,
         v_rel: (i.v + i.w.cross(i.r * n)) - (j.v - j.w.cross(j.r * n)),
         w_rel: i.w - j.w,
-        on_wall: false,
     };
-    let (f_t, torque, springs) = friction(p, &touch, p.friction.sliding, old);
+    let (f_t, torque, springs) = friction(p, law, &touch, law.sliding, old);
     Some(Contact {
         force: force + f_t,
         torque,
@@ -417,6 +419,7 @@ pub fn wall_contacts<S: Kept>(
 ) -> WallContacts {
     let turns = p.friction.turns();
     let keeps = p.friction.has_history();
+    let law = p.materials.law(b.material, p.box_column);
     let (c, v) = (b.c.to_array(), b.v.to_array());
     let mut normal = [0.0f32; 3];
     let mut tangential = Vec3::ZERO;
@@ -430,7 +433,7 @@ pub fn wall_contacts<S: Kept>(
             if overlap <= 0.0 {
                 continue;
             }
-            let nf = normal_force(p, true, overlap, vn, b.m, b.r);
+            let nf = normal_force(p, law, overlap, vn, b.m, b.r);
             match side {
                 0 => f += nf.push,
                 _ => f -= nf.push,
@@ -452,9 +455,8 @@ pub fn wall_contacts<S: Kept>(
                     lever: b.r,
                     v_rel: b.v + b.w.cross(b.r * n),
                     w_rel: b.w,
-                    on_wall: true,
                 };
-                let (f_t, t, springs) = friction(p, &touch, p.friction.wall_sliding, old(wall));
+                let (f_t, t, springs) = friction(p, law, &touch, law.sliding, old(wall));
                 tangential += f_t;
                 torque += t;
                 if keeps {
@@ -471,11 +473,14 @@ pub fn wall_contacts<S: Kept>(
     }
 }
 
-/// The contact of sphere `b` with a rigid surface (a mesh wall): `n` the unit normal from the
-/// centre towards the contact point, `overlap` > 0, `surface_velocity` the velocity of the
-/// surface's material point at the contact, `mu` the sliding coefficient, `old` the springs the
-/// sphere kept of this contact. The same law as a box wall's ([`wall_contacts`]), with the
-/// surface's own velocity subtracted from the sphere's: a moving wall drags what touches it.
+/// The contact of sphere `b` with a surface (a mesh wall) of column `column` in the material
+/// table (its material, or a rigid wall): `n` the unit normal from the centre towards the
+/// contact point, `overlap` > 0, `surface_velocity` the velocity of the surface's material
+/// point at the contact, `friction` the wall's own sliding coefficient (`None`: the pair's),
+/// `old` the springs the sphere kept of this contact. The same law as a box wall's
+/// ([`wall_contacts`]), with the surface's own velocity subtracted from the sphere's: a moving
+/// wall drags what touches it.
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn surface_contact<S: Kept>(
     p: &StepParams,
@@ -483,12 +488,15 @@ pub fn surface_contact<S: Kept>(
     n: Vec3,
     overlap: f32,
     surface_velocity: Vec3,
-    mu: f32,
+    column: u32,
+    friction_given: Option<f32>,
     old: S,
 ) -> Contact<S> {
+    let law = p.materials.law(b.material, column);
+    let mu = friction_given.unwrap_or(law.sliding);
     // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
     let vn = (surface_velocity - b.v).dot(n);
-    let normal = normal_force(p, true, overlap, vn, b.m, b.r);
+    let normal = normal_force(p, law, overlap, vn, b.m, b.r);
     let force = -normal.push * n;
     if !p.friction.turns() {
         return Contact {
@@ -507,9 +515,8 @@ pub fn surface_contact<S: Kept>(
         lever: b.r,
         v_rel: b.v + b.w.cross(b.r * n) - surface_velocity,
         w_rel: b.w,
-        on_wall: true,
     };
-    let (f_t, torque, springs) = friction(p, &touch, mu, old);
+    let (f_t, torque, springs) = friction(p, law, &touch, mu, old);
     Contact {
         force: force + f_t,
         torque,
@@ -646,10 +653,10 @@ fn load_history(
     f_t
 }
 
-/// Tangential force with sliding coefficient `mu`, the torque on i (from it and from rolling
-/// resistance) and the springs to keep.
+/// Tangential force of a contact of law `law` with sliding coefficient `mu`, the torque on i
+/// (from it and from rolling resistance) and the springs to keep.
 #[inline(always)]
-fn friction<S: Kept>(p: &StepParams, t: &Touch, mu: f32, old: S) -> (Vec3, Vec3, S) {
+fn friction<S: Kept>(p: &StepParams, law: &PairLaw, t: &Touch, mu: f32, old: S) -> (Vec3, Vec3, S) {
     debug_assert!(!p.friction.has_history() || p.friction.tangential_model == S::MODEL);
     let n = t.n;
     let pressing = t.normal.push;
@@ -660,12 +667,11 @@ fn friction<S: Kept>(p: &StepParams, t: &Touch, mu: f32, old: S) -> (Vec3, Vec3,
         let (k_t, c_t) = match p.law {
             NormalLaw::Linear | NormalLaw::LinearPerPair { .. } => {
                 let k_t = 2.0 / 7.0 * t.normal.stiffness;
-                (k_t, 2.0 * p.damping_ratio * root_product(k_t, t.m_eff))
+                (k_t, 2.0 * law.damping_ratio * root_product(k_t, t.m_eff))
             }
-            NormalLaw::Hertz { pair, wall } => {
-                let g_star = if t.on_wall { wall.g_star } else { pair.g_star };
-                let s_t = 8.0 * g_star * (t.r_eff * t.overlap).sqrt();
-                (s_t, TSUJI * p.damping_ratio * root_product(s_t, t.m_eff))
+            NormalLaw::Hertz { .. } => {
+                let s_t = 8.0 * law.g_star * (t.r_eff * t.overlap).sqrt();
+                (s_t, TSUJI * law.damping_ratio * root_product(s_t, t.m_eff))
             }
         };
         let v_t = t.v_rel - t.v_rel.dot(n) * n;
@@ -681,7 +687,7 @@ fn friction<S: Kept>(p: &StepParams, t: &Touch, mu: f32, old: S) -> (Vec3, Vec3,
         force = f_t;
         torque = (t.lever * n).cross(f_t);
     }
-    let mu_r = p.friction.rolling;
+    let mu_r = law.rolling;
     if mu_r > 0.0 {
         let w_roll = t.w_rel - t.w_rel.dot(n) * n;
         let cap = mu_r * t.r_eff * pressing;
@@ -800,6 +806,7 @@ mod tests {
             w,
             r,
             m: mass(500.0, r),
+            material: 0,
         };
         let (mut a, mut b) = (LoadedSprings::default(), LoadedSprings::default());
         let mut reversed = false;
@@ -848,6 +855,7 @@ mod tests {
             w,
             r,
             m: mass(500.0, r),
+            material: 0,
         };
         let i = body(Vec3::splat(50.0 * r), Vec3::new(0.5, 0.1, 0.0), Vec3::Y / r);
         let j = body(

@@ -2,9 +2,8 @@
 //! it (f32 coefficients): the normal law, the effective elastic moduli of Hertz–Mindlin, and the
 //! friction coefficients.
 
-use super::linear::{STEPS_PER_CONTACT, stable_dt, stiffness_for_duration};
-use super::restitution::{hertz_damping, linear_damping};
-use super::time_step::{RAYLEIGH_LIMIT, rayleigh_time};
+use super::linear::{STEPS_PER_CONTACT, stiffness_for_duration};
+use super::time_step::rayleigh_time;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -192,19 +191,13 @@ impl Friction {
     }
 }
 
-/// The normal law a material resolves to for a time step and the lightest spheres.
+/// The normal law a material resolves to for a time step and the lightest spheres (each pair's
+/// damping and the stable time step: [`super::MaterialTable`]).
 #[derive(Debug, Clone)]
 pub(super) struct ResolvedLaw {
     pub law: NormalLaw,
     /// k of [`NormalLaw::Linear`] \[N/m\] (0 for the other laws).
     pub stiffness: f64,
-    /// The damping ratio ζ that makes a head-on contact of the lightest spheres part at the
-    /// material's restitution ([`super::restitution`]).
-    pub damping_ratio: f64,
-    /// The largest stable time step \[s\].
-    pub dt_limit: f64,
-    /// What sets `dt_limit`, in words.
-    pub limited_by: String,
     /// Rayleigh time of the smallest sphere \[s\] (Hertz–Mindlin).
     pub rayleigh_time: Option<f64>,
 }
@@ -335,18 +328,9 @@ impl Material {
                         k
                     }
                 };
-                // The lightest pair's contact is the shortest in steps: its ζ.
-                let zeta = linear_damping(self.restitution, dt * (stiffness / m_eff).sqrt())?;
                 Ok(ResolvedLaw {
                     law: NormalLaw::Linear,
                     stiffness,
-                    damping_ratio: zeta,
-                    dt_limit: stable_dt(stiffness, m_eff, zeta),
-                    limited_by: format!(
-                        "stiffness {stiffness:e} N/m and the lightest spheres (r = {r_min:e} m, \
-                         density {})",
-                        self.density
-                    ),
                     rayleigh_time: None,
                 })
             }
@@ -373,17 +357,12 @@ impl Material {
                          time"
                     ));
                 }
-                // Every contact is as many steps long: one ζ is exact for all.
-                let zeta = linear_damping(self.restitution, dt * rate.sqrt())?;
                 Ok(ResolvedLaw {
                     law: NormalLaw::LinearPerPair {
                         rate: rate as f32,
                         contact_time: t_c as f32,
                     },
                     stiffness: 0.0,
-                    damping_ratio: zeta,
-                    dt_limit: stable_dt(rate, 1.0, zeta),
-                    limited_by: format!("a per-pair stiffness with contact time {t_c:e} s"),
                     rayleigh_time: None,
                 })
             }
@@ -405,14 +384,6 @@ impl Material {
                 Ok(ResolvedLaw {
                     law: NormalLaw::Hertz { pair, wall },
                     stiffness: 0.0,
-                    damping_ratio: hertz_damping(self.restitution),
-                    dt_limit: RAYLEIGH_LIMIT * t_r,
-                    limited_by: format!(
-                        "Hertz–Mindlin with E = {young_modulus:e} Pa, ν = {poisson_ratio}, \
-                         density {} and the smallest spheres (r = {r_min:e} m, Rayleigh time \
-                         {t_r:.4e} s; the limit is {RAYLEIGH_LIMIT} of it)",
-                        self.density
-                    ),
                     rayleigh_time: Some(t_r),
                 })
             }

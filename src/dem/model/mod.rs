@@ -12,6 +12,7 @@
 pub mod contact;
 pub mod linear;
 pub mod material;
+pub mod materials;
 pub mod restitution;
 pub mod time_step;
 
@@ -19,12 +20,15 @@ pub use linear::{STEPS_PER_CONTACT, contact_force, stable_dt, stiffness_for_dura
 pub use material::{
     ContactLaw, Elastic, Friction, MAX_FRICTION, Material, NormalLaw, RollingModel, TangentialModel,
 };
+pub use materials::{MAX_MATERIALS, MaterialTable, Materials, PairLaw, PairOverride};
 
 use crate::error::{Error, Result};
 use std::f64::consts::PI;
+use std::sync::Arc;
 
-/// Everything a step needs besides the particles.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Everything a step needs besides the particles. The scalar law fields (`stiffness` aside) are
+/// the first material's with itself; each pair's are in `materials`.
+#[derive(Debug, Clone, PartialEq)]
 pub struct StepParams {
     /// Time step \[s\].
     pub dt: f32,
@@ -38,15 +42,20 @@ pub struct StepParams {
     pub gravity_spin: f32,
     /// Normal stiffness k \[N/m\].
     pub stiffness: f32,
-    /// Damping ratio ζ of the contacts (from the restitution coefficient).
+    /// Damping ratio ζ of two spheres of the first material (from its restitution coefficient).
     pub damping_ratio: f32,
-    /// Density \[kg/m³\].
+    /// Density of the first material \[kg/m³\].
     pub density: f32,
     /// The normal law; with [`NormalLaw::Linear`], `stiffness` is its k (with the others,
     /// `stiffness` is 0).
     pub law: NormalLaw,
-    /// Friction coefficients (all 0: no tangential force, no torque).
+    /// The largest friction coefficients of any pair, and the models (all 0: no tangential
+    /// force, no torque).
     pub friction: Friction,
+    /// Every pair of materials' law and each material's density.
+    pub materials: Arc<MaterialTable>,
+    /// The column of `materials` the six box walls take (their material, or a rigid wall).
+    pub box_column: u32,
     /// The largest stable time step for these contacts and the lightest spheres \[s\].
     pub dt_limit: f32,
     /// Rayleigh time of the smallest sphere \[s\] (Hertz–Mindlin only).
@@ -116,14 +125,38 @@ impl StepParams {
         gravity_spin: f64,
         r_min: f32,
     ) -> Result<Self> {
+        let one = Materials::one(*material);
+        Self::with_materials(&one, None, dt, box_lo, box_hi, gravity, gravity_spin, r_min)
+    }
+
+    /// As [`Self::new`], for several materials (`box_material`: the box walls' material, or
+    /// `None` for rigid walls): the time step must suit the stiffest pair, and the lightest
+    /// sphere is the smallest at the lowest density.
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_materials(
+        materials: &Materials,
+        box_material: Option<usize>,
+        dt: f64,
+        box_lo: [f64; 3],
+        box_hi: [f64; 3],
+        gravity: [f64; 3],
+        gravity_spin: f64,
+        r_min: f32,
+    ) -> Result<Self> {
         let bad = |reason: &str| {
             Err(Error::InvalidConfig {
                 what: "scene".into(),
                 reason: reason.to_owned(),
             })
         };
-        let m = &material;
-        m.check()?;
+        materials.check()?;
+        if let Some(b) = box_material.filter(|&b| b >= materials.list.len()) {
+            return bad(&format!(
+                "box_material is material {b}, of {}",
+                materials.list.len()
+            ));
+        }
+        let m = materials.first();
         // Every parameter is used as an f32: each must be a normal f32 number (no overflow to
         // inf, no underflow to 0).
         let normal = |x: f64| x > 0.0 && (x as f32).is_normal();
@@ -148,22 +181,26 @@ impl StepParams {
                  {box_lo:?} .. {box_hi:?}"
             ));
         }
-        let density = m.density as f32;
+        let lightest = materials.lightest_density();
+        let density = lightest as f32;
         let m_eff = mass(density, r_min) as f64 / 2.0;
         if !mass_in_range(density, r_min) {
             return bad(&format!(
                 "the lightest spheres (r = {r_min:e} m, density {:e} kg/m³) have mass {:e} kg, \
                  outside f32's range for the contact laws (half of it must be a normal f32 \
                  number; the smallest radius at this density is {:e} m)",
-                m.density,
+                lightest,
                 2.0 * m_eff,
                 smallest_radius(density)
             ));
         }
+        let law = m.law(dt, r_min, m_eff)?;
+        let resolved = MaterialTable::resolve(materials, dt, law.stiffness, r_min, m_eff)?;
+        let table = resolved.table;
         let friction = Friction {
-            sliding: m.friction as f32,
-            wall_sliding: m.wall_friction.unwrap_or(m.friction) as f32,
-            rolling: m.rolling_friction as f32,
+            sliding: table.largest_sliding(),
+            wall_sliding: table.largest_rigid_wall_sliding(),
+            rolling: table.largest_rolling(),
             rolling_model: m.rolling_model,
             tangential_model: m.tangential_model,
         };
@@ -174,16 +211,15 @@ impl StepParams {
                  number): with friction or rolling resistance the spheres turn, and the smallest \
                  radius that can turn at this density is {:e} m; use larger spheres, a higher \
                  density, or no friction and no rolling resistance",
-                m.density,
+                lightest,
                 contact::moment_of_inertia(mass(density, r_min), r_min),
                 smallest_turning_radius(density)
             ));
         }
-        let law = m.law(dt, r_min, m_eff)?;
-        if dt > law.dt_limit {
+        if dt > resolved.dt_limit {
             return bad(&format!(
                 "time step {dt:e} s is too large for {}: the stable limit is {:e} s",
-                law.limited_by, law.dt_limit
+                resolved.limited_by, resolved.dt_limit
             ));
         }
         let g = gravity.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -202,11 +238,13 @@ impl StepParams {
             gravity: gravity.map(|x| x as f32),
             gravity_spin: gravity_spin as f32,
             stiffness: law.stiffness as f32,
-            damping_ratio: law.damping_ratio as f32,
+            damping_ratio: table.law(0, 0).damping_ratio,
             density: m.density as f32,
             law: law.law,
             friction,
-            dt_limit: law.dt_limit as f32,
+            dt_limit: resolved.dt_limit as f32,
+            box_column: box_material.map_or(table.column_of_rigid_wall(), |b| b as u32),
+            materials: Arc::new(table),
             rayleigh_time: law.rayleigh_time.map(|t| t as f32),
         })
     }
@@ -227,13 +265,16 @@ impl StepParams {
             .sum::<f64>()
             .sqrt();
         let volume = |r: f32| 4.0 / 3.0 * PI * (r as f64).powi(3);
-        let heavy = self.density as f64 * volume(r_max);
+        let densities = &self.materials.densities;
+        let heaviest = densities.iter().copied().fold(0.0, f32::max) as f64;
+        let lightest = densities.iter().copied().fold(f32::INFINITY, f32::min) as f64;
+        let heavy = heaviest * volume(r_max);
         let sink = heavy * g / self.stiffness as f64;
         if sink <= 0.1 * r_max as f64 {
             return None;
         }
         let k = heavy * g / (0.01 * r_max as f64);
-        let m_eff = self.density as f64 * volume(r_min) / 2.0;
+        let m_eff = lightest * volume(r_min) / 2.0;
         let zeta = self.damping_ratio as f64;
         let t_c = PI / ((k / m_eff).sqrt() * (1.0 - zeta * zeta).sqrt());
         let dt = t_c / STEPS_PER_CONTACT;

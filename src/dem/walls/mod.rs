@@ -45,11 +45,18 @@ pub struct MeshWall {
     pub triangles: TriangleMesh,
     /// How it moves.
     pub motion: Motion,
-    /// Sliding friction μ with it.
-    pub friction: f32,
+    /// Its own sliding friction μ with the spheres (`None`: each pair's, by the materials).
+    pub friction: Option<f32>,
+    /// Its material, an index into the scene's materials (`None`: rigid).
+    pub material: Option<u32>,
 }
 
 impl MeshWall {
+    /// Its column in `table`: its material's, or a rigid wall's.
+    pub fn column(&self, table: &crate::dem::model::MaterialTable) -> u32 {
+        self.material.unwrap_or(table.column_of_rigid_wall())
+    }
+
     /// The fastest any point of the wall moves \[m/s\]: its translation plus its turn times
     /// the farthest corner's distance from the rotation axis (which moves with it).
     pub fn top_speed(&self) -> f64 {

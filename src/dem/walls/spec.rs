@@ -68,9 +68,13 @@ pub struct WallConfig {
     /// Time the motion starts \[s\] (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub start: Option<f64>,
-    /// Sliding friction μ with this wall (default: the scene's `wall_friction`).
+    /// Sliding friction μ with this wall (default: the pair's, by the materials: the scene's
+    /// `wall_friction` for a wall without a material).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction: Option<f64>,
+    /// The wall's material, a `[[material]]` name (default: none, a rigid wall).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<String>,
 }
 
 fn one() -> f64 {
@@ -95,18 +99,20 @@ impl WallConfig {
             center: None,
             start: None,
             friction: None,
+            material: None,
         }
     }
 
     /// The wall: its mesh read and put in its rest pose. `index` names it in errors (the
-    /// scene's `wall` tables from 0) and `friction` is the scene's wall friction.
-    pub fn build(&self, index: usize, friction: f64) -> Result<MeshWall> {
+    /// scene's `wall` tables from 0) and `material` is its material's index (resolved from its
+    /// name by the scene).
+    pub fn build(&self, index: usize, material: Option<u32>) -> Result<MeshWall> {
         let mesh = crate::mesh::load(&self.mesh)?;
-        self.build_from(index, &mesh, friction)
+        self.build_from(index, &mesh, material)
     }
 
     /// As [`Self::build`], from a mesh already read.
-    pub fn build_from(&self, index: usize, mesh: &Mesh, friction: f64) -> Result<MeshWall> {
+    pub fn build_from(&self, index: usize, mesh: &Mesh, material: Option<u32>) -> Result<MeshWall> {
         let bad = |reason: String| Error::InvalidConfig {
             what: format!("wall {index} ({})", self.mesh.display()),
             reason,
@@ -162,8 +168,10 @@ impl WallConfig {
                 )));
             }
         }
-        let mu = self.friction.unwrap_or(friction);
-        if !(0.0..=MAX_FRICTION).contains(&mu) {
+        if let Some(mu) = self
+            .friction
+            .filter(|mu| !(0.0..=MAX_FRICTION).contains(mu))
+        {
             return Err(bad(format!(
                 "friction must be from 0 to {MAX_FRICTION:e}, got {mu}"
             )));
@@ -197,7 +205,8 @@ impl WallConfig {
             name: self.mesh.display().to_string(),
             triangles,
             motion,
-            friction: mu as f32,
+            friction: self.friction.map(|mu| mu as f32),
+            material,
         })
     }
 }

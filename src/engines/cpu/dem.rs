@@ -13,7 +13,7 @@ use crate::dem::model::contact::{
     Body, Kept, LoadedSprings, Springs, integrate_rotation, moment_of_inertia, pair_contact,
     wall_contacts,
 };
-use crate::dem::model::{StepParams, integrate, mass};
+use crate::dem::model::{StepParams, integrate};
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::error::{Error, Result, try_resize, try_vec};
@@ -98,7 +98,8 @@ impl CpuStepper {
             });
         }
         let mut masses = try_vec(n, || format!("the masses of {n} spheres"))?;
-        masses.extend(particles.radii.iter().map(|&r| mass(params.density, r)));
+        let table = &params.materials;
+        masses.extend((0..n).map(|i| table.mass(particles.material(i), particles.radii[i])));
         let slots = match params.friction.has_history() {
             true => FIRST_SLOTS.max(particles.history.most()),
             false => 0,
@@ -157,14 +158,20 @@ impl CpuStepper {
             return Ok(());
         }
         let started = Instant::now();
-        let changed = flow.apply(&mut self.particles, every, p.dt, p.density, counts)?;
+        let changed = flow.apply(
+            &mut self.particles,
+            every,
+            p.dt,
+            &p.materials.densities,
+            counts,
+        )?;
         counts.events += 1;
         counts.event_ms += started.elapsed().as_secs_f64() * 1e3;
         if changed {
             self.masses.clear();
-            let radii = &self.particles.radii;
+            let (parts, table) = (&self.particles, &p.materials);
             self.masses
-                .extend(radii.iter().map(|&r| mass(p.density, r)));
+                .extend((0..parts.len()).map(|i| table.mass(parts.material(i), parts.radii[i])));
         }
         Ok(())
     }
@@ -326,6 +333,7 @@ impl ContactPass<'_> {
                 w: Vec3::from_array(parts.angular_velocities[id]),
                 r: s[3],
                 m: self.masses[id],
+                material: parts.material(id),
             }
         };
         let s = grid.spheres[at];

@@ -137,6 +137,7 @@ impl MeshPass {
                             w: Vec3::from_array(parts.angular_velocities[i]),
                             r: parts.radii[i],
                             m: masses[i],
+                            material: parts.material(i),
                         };
                         let kept = match keeps {
                             true => (parts.history.of(i), parts.history.loads_of(i)),
@@ -208,7 +209,8 @@ fn sphere<S: Kept>(
                 None => S::default(),
             };
             let v = pose.velocity_at(t.point);
-            let c = surface_contact(p, b, t.normal, t.overlap, v, wall.friction, old);
+            let column = wall.column(&p.materials);
+            let c = surface_contact(p, b, t.normal, t.overlap, v, column, wall.friction, old);
             force += c.force;
             if turns {
                 torque += c.torque;

@@ -130,6 +130,7 @@ impl Granular {
         .map_err(&alloc)?;
         let zeros = |len: usize| stream.alloc_zeros::<f32>(len.max(4)).map_err(&alloc);
         let loaded = params.friction.keeps_load();
+        let table = params.materials.clone();
         let params = GranularParams::new(params, n);
         let history = if params.keeps() {
             upload_history(device, &particles.history, n, loaded)?
@@ -141,7 +142,7 @@ impl Granular {
             }
         };
         let r_max = particles.radius_range().1;
-        let tables = WallTables::new(walls, r_max, u32::MAX as u64, "optix")?;
+        let tables = WallTables::new(walls, &table, r_max, u32::MAX as u64, "optix")?;
         Ok(Self {
             mesh: MeshBuffers::upload(stream, &tables)?,
             loads: vec![WallLoad::default(); walls.meshes.len()],

@@ -1,0 +1,190 @@
+//! The `[[material]]` and `[[material_pair]]` tables of a scene file and the materials they make
+//! (docs/method.md, "Several materials").
+//!
+//! ```toml
+//! contact = "hertz-mindlin"
+//! friction = 0.4               # top-level keys: the default of every material's missing keys
+//!
+//! [[material]]                 # material 0: spheres without a material column are of it
+//! name = "glass"
+//! young_modulus = 6.3e10       # Pa (hertz-mindlin)
+//! poisson_ratio = 0.24
+//! density = 2500               # kg/m³
+//! restitution = 0.9
+//! friction = 0.3
+//! rolling_friction = 0.01
+//!
+//! [[material]]
+//! name = "steel"
+//! young_modulus = 2.0e11
+//! poisson_ratio = 0.3
+//! density = 7800
+//!
+//! [[material_pair]]            # overrides the mixing rules for one pair
+//! materials = ["glass", "steel"]
+//! restitution = 0.8
+//! friction = 0.2
+//!
+//! box_material = "steel"       # the box's walls (default: rigid)
+//! [[wall]]
+//! mesh = "hopper.stl"
+//! material = "steel"           # a mesh wall's (default: rigid)
+//! [[inflow]]
+//! material = "glass"           # the spheres an inflow inserts (default: the first material)
+//! ```
+//!
+//! Without `[[material]]` tables the scene has one material, the top-level keys'. Spheres choose
+//! theirs by the `material` column of a CSV input, the 11th column of a `.npy` input (the
+//! index in the order of the tables, from 0).
+
+use super::model::{ContactLaw, MAX_MATERIALS, Material, Materials, PairOverride};
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// One `[[material]]` table: a name and the values that differ from the scene's defaults.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialConfig {
+    /// What walls, inflows and pairs call it.
+    pub name: String,
+    /// Young's modulus \[Pa\] (`hertz-mindlin`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub young_modulus: Option<f64>,
+    /// Poisson's ratio (`hertz-mindlin`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub poisson_ratio: Option<f64>,
+    /// Density \[kg/m³\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub density: Option<f64>,
+    /// Restitution coefficient of two spheres of it, in (0, 1].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restitution: Option<f64>,
+    /// Sliding friction coefficient of two spheres of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
+    /// Rolling friction coefficient of two spheres of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rolling_friction: Option<f64>,
+}
+
+/// One `[[material_pair]]` table: the coefficients of a pair of materials, where the mixing
+/// rules are not wanted.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialPairConfig {
+    /// The two materials' names (the same name twice: the material with itself).
+    pub materials: [String; 2],
+    /// Restitution coefficient of the pair, in (0, 1].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restitution: Option<f64>,
+    /// Sliding friction coefficient of the pair.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
+    /// Rolling friction coefficient of the pair.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rolling_friction: Option<f64>,
+}
+
+/// The index of the material called `name` in `tables`, or an error naming `user` (the key
+/// that named it) and the names there are.
+pub fn material_index(tables: &[MaterialConfig], name: &str, user: &str) -> Result<usize> {
+    tables
+        .iter()
+        .position(|m| m.name == name)
+        .ok_or_else(|| Error::InvalidConfig {
+            what: format!("scene key {user}"),
+            reason: match tables.is_empty() {
+                true => {
+                    format!("names material \"{name}\", but the scene has no [[material]] tables")
+                }
+                false => format!(
+                    "names material \"{name}\", which is not one of the [[material]] tables ({})",
+                    tables
+                        .iter()
+                        .map(|m| format!("\"{}\"", m.name))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            },
+        })
+}
+
+/// The materials of `tables` and `pairs`, each missing key taken from `base` (the scene's
+/// top-level material); `base` alone where there are no tables.
+pub fn materials(
+    base: &Material,
+    tables: &[MaterialConfig],
+    pairs: &[MaterialPairConfig],
+) -> Result<Materials> {
+    if tables.is_empty() {
+        if !pairs.is_empty() {
+            return Err(Error::InvalidConfig {
+                what: "scene key material_pair".into(),
+                reason: "needs [[material]] tables to name".into(),
+            });
+        }
+        return Ok(Materials::one(*base));
+    }
+    if tables.len() > MAX_MATERIALS {
+        return Err(Error::InvalidConfig {
+            what: "scene key material".into(),
+            reason: format!(
+                "a scene has at most {MAX_MATERIALS} materials, got {}",
+                tables.len()
+            ),
+        });
+    }
+    let list = tables
+        .iter()
+        .map(|t| {
+            let contact = match base.contact {
+                ContactLaw::HertzMindlin {
+                    young_modulus,
+                    poisson_ratio,
+                } => ContactLaw::HertzMindlin {
+                    young_modulus: t.young_modulus.unwrap_or(young_modulus),
+                    poisson_ratio: t.poisson_ratio.unwrap_or(poisson_ratio),
+                },
+                other => {
+                    if t.young_modulus.is_some() || t.poisson_ratio.is_some() {
+                        return Err(Error::InvalidConfig {
+                            what: format!("material \"{}\"", t.name),
+                            reason: "young_modulus and poisson_ratio apply to contact = \
+                                     \"hertz-mindlin\" only"
+                                .into(),
+                        });
+                    }
+                    other
+                }
+            };
+            Ok(Material {
+                density: t.density.unwrap_or(base.density),
+                restitution: t.restitution.unwrap_or(base.restitution),
+                friction: t.friction.unwrap_or(base.friction),
+                rolling_friction: t.rolling_friction.unwrap_or(base.rolling_friction),
+                contact,
+                ..*base
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let pairs = pairs
+        .iter()
+        .map(|p| {
+            let [a, b] = &p.materials;
+            Ok(PairOverride {
+                a: material_index(tables, a, "material_pair.materials")?,
+                b: material_index(tables, b, "material_pair.materials")?,
+                restitution: p.restitution,
+                friction: p.friction,
+                rolling_friction: p.rolling_friction,
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let materials = Materials {
+        list,
+        names: tables.iter().map(|t| t.name.clone()).collect(),
+        pairs,
+    };
+    materials.check()?;
+    Ok(materials)
+}
