@@ -32,6 +32,7 @@ struct MochiMeshWall {
     float start;              // when the motion starts [s]
     float centre[3];          // a point of the axis at `start` [m]; loads' torques are about it
     float friction;           // μ with the wall
+    unsigned int column; float own_friction; unsigned int _pad[2];  // the wgpu steps' (MeshWallRow)
 };
 
 // The mesh walls as granular_integrate reads them.

@@ -1,6 +1,7 @@
 // The contact law of the granular GPU step (docs/method.md, "Contact laws", "Friction, rotation
 // and rolling resistance"): linear (one stiffness or per pair) or Hertz normal force, tangential
-// force with Coulomb cap, torque, rolling resistance (EPSD or constant torque). Keep in sync with
+// force with Coulomb cap, torque, rolling resistance (EPSD or constant torque), each contact's
+// coefficients from the material table (`law_of`). Keep in sync with
 // src/dem/model/contact.rs, line for line: the same formulas in the same order, in f32. Needs
 // dem_params.wgsl prepended and a tangential model: dem_tangential_mindlin.wgsl (Mindlin's
 // spring) or dem_tangential_md.wgsl (Mindlin–Deresiewicz), which define the springs a contact
@@ -13,21 +14,34 @@
 // Twin of GranularParams in src/engines/gpu_step.rs (tests/bindings.rs compares the layouts).
 struct GranularParams {
     law: u32,             // LAW_*
-    rate: f32,            // k/m* of LAW_PER_PAIR [1/s²]
-    pair_e_star: f32,     // E* and G* of two spheres (LAW_HERTZ) [Pa]
-    pair_g_star: f32,
-    wall_e_star: f32,     // and of a sphere on a wall
-    wall_g_star: f32,
-    sliding: f32,         // μ between spheres
-    wall_sliding: f32,    // μ with the walls
-    rolling: f32,         // μ_r
     rolling_model: u32,   // ROLLING_*
     turns: u32,           // 1 where any contact exerts a torque
     slots: u32,           // history slots per sphere (0: contacts keep no springs)
     spheres_per_part: u32, // history rows one entry binding holds (dem_granular.wgsl)
+    materials: u32,       // materials; the table has materials + 1 columns
+    box_column: u32,      // the table's column of the six box walls
+}
+
+// The law of one ordered pair of materials; twin of PairLaw in src/dem/model/materials.rs.
+struct PairLaw {
+    rate: f32,            // k/m* of LAW_PER_PAIR [1/s²]
+    e_star: f32,          // E* of LAW_HERTZ [Pa]
+    g_star: f32,          // G* of LAW_HERTZ [Pa]
+    damping_ratio: f32,   // ζ giving the pair's restitution
+    sliding: f32,         // μ
+    rolling: f32,         // μ_r
+    _pad: array<f32, 2>,
 }
 
 @group(0) @binding(17) var<uniform> granular: GranularParams;
+// Row a (a sphere of material a), column b (a sphere or wall of material b; column
+// granular.materials: a rigid wall) at a · (materials + 1) + b: MaterialTable::laws.
+@group(0) @binding(20) var<storage, read> material_laws: array<PairLaw>;
+
+// The law of a sphere of material a against column b of the table (MaterialTable::law).
+fn law_of(a: u32, b: u32) -> PairLaw {
+    return material_laws[a * (granular.materials + 1u) + b];
+}
 
 const LAW_LINEAR: u32 = 0u;
 const LAW_PER_PAIR: u32 = 1u;
@@ -45,6 +59,7 @@ struct Body {
     w: vec3<f32>,   // angular velocity
     r: f32,
     m: f32,
+    material: u32,  // its row of the material table
 }
 
 // The normal force's magnitude (≥ 0: a dry contact pushes or does nothing, it never pulls),
@@ -66,7 +81,6 @@ struct Touch {
     lever: f32,         // distance from i's centre to the contact point
     v_rel: vec3<f32>,   // velocity of i's surface relative to the partner's at the contact point
     w_rel: vec3<f32>,   // ω_i − ω_j (ω_i on a wall)
-    on_wall: bool,
 }
 
 // What the tangential force of a contact needs besides its springs.
@@ -122,22 +136,22 @@ fn length_of(v: vec3<f32>) -> f32 {
     return 0.0;
 }
 
-// The normal force of a contact with overlap `overlap` > 0 and normal relative velocity `vn`.
-fn normal_force(on_wall: bool, overlap: f32, vn: f32, m_eff: f32, r_eff: f32) -> Normal {
+// The normal force of a contact of law `law` with overlap `overlap` > 0 and normal relative
+// velocity `vn`.
+fn normal_force(law: PairLaw, overlap: f32, vn: f32, m_eff: f32, r_eff: f32) -> Normal {
     if granular.law == LAW_LINEAR {
-        let c = 2.0 * dem.damping_ratio * root_product(dem.stiffness, m_eff);
+        let c = 2.0 * law.damping_ratio * root_product(dem.stiffness, m_eff);
         let elastic = dem.stiffness * overlap;
         return Normal(max(elastic - c * vn, 0.0), elastic, dem.stiffness);
     }
     if granular.law == LAW_PER_PAIR {
-        let k = m_eff * granular.rate;
-        let c = 2.0 * dem.damping_ratio * root_product(k, m_eff);
+        let k = m_eff * law.rate;
+        let c = 2.0 * law.damping_ratio * root_product(k, m_eff);
         let elastic = k * overlap;
         return Normal(max(elastic - c * vn, 0.0), elastic, k);
     }
-    let e_star = select(granular.pair_e_star, granular.wall_e_star, on_wall);
-    let s_n = 2.0 * e_star * sqrt(r_eff * overlap);
-    let c = TSUJI * dem.damping_ratio * root_product(s_n, m_eff);
+    let s_n = 2.0 * law.e_star * sqrt(r_eff * overlap);
+    let c = TSUJI * law.damping_ratio * root_product(s_n, m_eff);
     let elastic = 2.0 / 3.0 * s_n * overlap;
     return Normal(max(elastic - c * vn, 0.0), elastic, s_n);
 }
@@ -152,8 +166,9 @@ fn into_plane(x: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     return t;
 }
 
-// Tangential force with sliding coefficient `mu`, rolling torque and the springs to keep.
-fn friction(t: Touch, mu: f32, old: Springs) -> Friction {
+// Tangential force of a contact of law `law` with sliding coefficient `mu`, rolling torque and
+// the springs to keep.
+fn friction(t: Touch, law: PairLaw, mu: f32, old: Springs) -> Friction {
     let n = t.n;
     let pressing = t.normal.push;
     let elastic = t.normal.elastic;
@@ -162,19 +177,18 @@ fn friction(t: Touch, mu: f32, old: Springs) -> Friction {
         var k_t: f32;
         var c_t: f32;
         if granular.law == LAW_HERTZ {
-            let g_star = select(granular.pair_g_star, granular.wall_g_star, t.on_wall);
-            k_t = 8.0 * g_star * sqrt(t.r_eff * t.overlap);
-            c_t = TSUJI * dem.damping_ratio * root_product(k_t, t.m_eff);
+            k_t = 8.0 * law.g_star * sqrt(t.r_eff * t.overlap);
+            c_t = TSUJI * law.damping_ratio * root_product(k_t, t.m_eff);
         } else {
             k_t = 2.0 / 7.0 * t.normal.stiffness;
-            c_t = 2.0 * dem.damping_ratio * root_product(k_t, t.m_eff);
+            c_t = 2.0 * law.damping_ratio * root_product(k_t, t.m_eff);
         }
         let v_t = t.v_rel - dot3(t.v_rel, n) * n;
         let tangential = tangential_force(Load(k_t, c_t, mu, elastic, pressing), n, v_t, old);
         out.force = tangential.force;
         out.springs = tangential.springs;
     }
-    let mu_r = granular.rolling;
+    let mu_r = law.rolling;
     if mu_r > 0.0 {
         let w_roll = t.w_rel - dot3(t.w_rel, n) * n;
         let cap = mu_r * t.r_eff * pressing;
@@ -216,7 +230,8 @@ fn pair_contact(i: Body, j: Body, old: Springs) -> Contact {
     let vn = dot3(j.v - i.v, n);
     let m_eff = effective(i.m, j.m);
     let r_eff = effective(i.r, j.r);
-    let normal = normal_force(false, overlap, vn, m_eff, r_eff);
+    let law = law_of(i.material, j.material);
+    let normal = normal_force(law, overlap, vn, m_eff, r_eff);
     out.touching = true;
     out.force = -normal.push * n;
     if granular.turns == 0u {
@@ -232,9 +247,8 @@ fn pair_contact(i: Body, j: Body, old: Springs) -> Contact {
         i.r,
         (i.v + cross(i.w, i.r * n)) - (j.v - cross(j.w, j.r * n)),
         i.w - j.w,
-        false,
     );
-    let f = friction(touch, granular.sliding, old);
+    let f = friction(touch, law, law.sliding, old);
     out.force += f.force;
     out.torque_i = cross(i.r * n, f.force) + f.rolling;
     // From j's side: lever r_j along −n, force −F_t, rolling torque −M.
@@ -252,18 +266,19 @@ struct SurfaceContact {
 }
 
 // The surface touching b along the unit normal n (from b's centre towards the surface) with
-// overlap `overlap` > 0, its point there moving at `velocity`, sliding friction `mu`; friction
-// only where spheres turn.
+// overlap `overlap` > 0, its point there moving at `velocity`, of law `law` (b's material's row,
+// the surface's column) and sliding friction `mu`; friction only where spheres turn.
 fn surface_contact(
     b: Body,
     n: vec3<f32>,
     overlap: f32,
     velocity: vec3<f32>,
+    law: PairLaw,
     mu: f32,
     old: Springs,
 ) -> SurfaceContact {
     // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
-    let nf = normal_force(true, overlap, dot3(velocity - b.v, n), b.m, b.r);
+    let nf = normal_force(law, overlap, dot3(velocity - b.v, n), b.m, b.r);
     var out = SurfaceContact(-nf.push * n, vec3(0.0), no_springs());
     if granular.turns == 0u {
         return out;
@@ -278,9 +293,8 @@ fn surface_contact(
         b.r,
         b.v + cross(b.w, b.r * n) - velocity,
         b.w,
-        true,
     );
-    let f = friction(touch, mu, old);
+    let f = friction(touch, law, mu, old);
     out.force += f.force;
     out.torque = cross(b.r * n, f.force) + f.rolling;
     out.springs = f.springs;

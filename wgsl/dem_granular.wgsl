@@ -8,6 +8,8 @@
 //
 // Angular velocities and torques are in state order, as pos and vel (the engine permutes ω with
 // them wherever it re-sorts the state), so every kernel reads them where it reads pos and vel.
+// Each sphere's material travels in its ω's fourth component, a whole f32 number (`material_of`):
+// read with ω at no cost, and moved wherever ω moves.
 //
 // History: K = granular.slots slots per sphere in rows in state order, in two sets of buffers
 // that swap roles every step (old: read, new: written): a step writes the new row of the sphere
@@ -31,7 +33,7 @@
 const FIRST_WALL: u32 = 0xfffffffau;
 
 // by state index
-@group(0) @binding(18) var<storage, read_write> omega: array<vec4<f32>>;   // ωx, ωy, ωz, 0
+@group(0) @binding(18) var<storage, read_write> omega: array<vec4<f32>>;   // ωx, ωy, ωz, material
 // by history row: contacts held
 @group(0) @binding(21) var<storage, read> held_old: array<u32>;
 @group(0) @binding(23) var<storage, read_write> held_new: array<u32>;
@@ -55,6 +57,12 @@ const FIRST_WALL: u32 = 0xfffffffau;
 @group(0) @binding(63) var<storage, read_write> entries_new5: array<Entry>;
 @group(0) @binding(64) var<storage, read_write> entries_new6: array<Entry>;
 @group(0) @binding(65) var<storage, read_write> entries_new7: array<Entry>;
+
+// The sphere of state row `o` (its ω and material, omega[p]) with centre and radius s and
+// velocity and mass v.
+fn body_of(s: vec4<f32>, v: vec4<f32>, o: vec4<f32>) -> Body {
+    return Body(s.xyz, v.xyz, o.xyz, s.w, v.w, u32(o.w));
+}
 
 // Where a slot is: the entry binding and the element in it.
 struct SlotAt {
@@ -102,8 +110,7 @@ fn walker(p: u32, h: u32, s: vec4<f32>) -> Walker {
         own_old = slot_at(row_old, 0u);
         own_new = slot_at(h, 0u);
     }
-    let v = vel[h];
-    let me = Body(s.xyz, v.xyz, omega[h].xyz, s.w, v.w);
+    let me = body_of(s, vel[h], omega[h]);
     return Walker(p, h, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u, 0u);
 }
 
@@ -235,8 +242,7 @@ fn meet(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
 // rounds to the sum of the radii; its springs are then zero, as a new contact's). Returns the
 // contact, for the walker to take (`take`).
 fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) -> Contact {
-    let u = vel[q];
-    let other = Body(t.xyz, u.xyz, omega[q].xyz, t.w, u.w);
+    let other = body_of(t, vel[q], omega[q]);
     var old = no_springs();
     var b = 0u;   // q's stable id, where contacts keep history
     if granular.slots > 0u {
@@ -269,6 +275,7 @@ fn take(w: ptr<function, Walker>, c: Contact) {
 fn finish(w: ptr<function, Walker>) {
     let b = (*w).me;
     if mesh.box_walls != 0u {
+        let law = law_of(b.material, granular.box_column);
         for (var axis = 0u; axis < 3u; axis += 1u) {
             let below = b.r - (b.c[axis] - dem.box_lo[axis]);
             let above = b.r - (dem.box_hi[axis] - b.c[axis]);
@@ -284,7 +291,7 @@ fn finish(w: ptr<function, Walker>) {
                 }
                 var n = vec3(0.0);
                 n[axis] = select(-1.0, 1.0, side == 1u);
-                let c = surface_contact(b, n, overlap, vec3(0.0), granular.wall_sliding, old);
+                let c = surface_contact(b, n, overlap, vec3(0.0), law, law.sliding, old);
                 (*w).force += c.force;
                 (*w).torque += c.torque;
                 if granular.slots > 0u {
@@ -337,7 +344,8 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
     if granular.turns != 0u {
         let inertia = moment_of_inertia(m, s.w);
         let torque = load_torque(p);
-        omega[p] = vec4(omega[p].xyz + dem.dt * (torque / inertia), 0.0);
+        let o = omega[p];
+        omega[p] = vec4(o.xyz + dem.dt * (torque / inertia), o.w);
         if any(torque != vec3(0.0)) {
             clear_torque(p);
         }

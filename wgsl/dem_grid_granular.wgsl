@@ -86,7 +86,12 @@ fn walker_of_lane(w: ptr<function, Walker>, o: u32, k: u32) -> Walker {
     var theirs: Walker;
     theirs.p = lane_u32((*w).p, o);
     theirs.s = s;
-    theirs.me = Body(s.xyz, v.xyz, lane_vec3f(me.w, o), s.w, v.w);
+    // One material: every lane's is 0, and no lane asks for it.
+    var material = 0u;
+    if granular.materials > 1u {
+        material = lane_u32(me.material, o);
+    }
+    theirs.me = Body(s.xyz, v.xyz, lane_vec3f(me.w, o), s.w, v.w, material);
     theirs.a = ids.x;
     theirs.kept = ids.y;
     theirs.own_old = SlotAt(ids.z, ids.w);

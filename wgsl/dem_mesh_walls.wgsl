@@ -36,7 +36,9 @@ struct MeshWall {
     axis: vec3<f32>,    // unit
     start: f32,         // when the motion starts [s]
     centre: vec3<f32>,  // a point of the axis at `start` [m]; loads' torques are about it
-    friction: f32,      // μ with the wall
+    friction: f32,      // μ of a sphere of the first material (the optix step's)
+    column: u32,        // the wall's column of the material table
+    own_friction: f32,  // the wall's own μ, or < 0 (NO_FRICTION): the pair's
 }
 
 // Partner ids of mesh walls' contacts (src/particles/history.rs).
@@ -232,6 +234,8 @@ fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, c
     var kept = 0u;
     var next_old = 0u;
     let slack = ON_PLANE * b.r;
+    let law = law_of(b.material, m.column);
+    let mu = select(law.sliding, m.own_friction, m.own_friction >= 0.0);
     for (var k = 0u; k < min(found, MESH_NEAR); k += 1u) {
         let q = closest_point(near_tri[k], p);
         let to = q - p;
@@ -261,7 +265,7 @@ fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, c
         }
         // d < r, but the GPU's square root may round up (see pair_contact).
         let overlap = max(b.r - d, 0.0);
-        let c = surface_contact(b, n, overlap, surface_velocity, m.friction, old);
+        let c = surface_contact(b, n, overlap, surface_velocity, law, mu, old);
         force += c.force;
         torque += c.torque;
         if granular.slots > 0u {

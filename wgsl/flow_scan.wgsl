@@ -12,6 +12,7 @@ struct FlowParams {
     floor: f32,
     room: u32,       // entries of the near list
     leaving_room: u32, // entries of the leaving list
+    materials: u32,  // 1: spin holds each sphere's material (the granular step's ω), else all 0
 }
 
 @group(0) @binding(0) var<uniform> params: FlowParams;
@@ -19,8 +20,10 @@ struct FlowParams {
 @group(0) @binding(2) var<storage, read> boxes: array<vec4<f32>>;
 // Words 0 and 1: spheres that leave, spheres near an inflow (each listed up to its room);
 // from word 4, `room` near entries of four words (x, y, z, r as bits); after them,
-// `leaving_room` leaving entries of two words (state index, radius as bits).
+// `leaving_room` leaving entries of three words (state index, radius as bits, material).
 @group(0) @binding(3) var<storage, read_write> found: array<atomic<u32>>;
+// by state index: ωx, ωy, ωz and the material as a whole f32 number (dem_granular.wgsl)
+@group(0) @binding(4) var<storage, read> spin: array<vec4<f32>>;
 
 const HEADER: u32 = 4u;
 
@@ -42,9 +45,14 @@ fn flow_scan(@builtin(global_invocation_id) gid: vec3<u32>) {
     if leaves {
         let at = atomicAdd(&found[0], 1u);
         if at < params.leaving_room {
-            let w = HEADER + 4u * params.room + 2u * at;
+            let w = HEADER + 4u * params.room + 3u * at;
+            var material = 0u;
+            if params.materials != 0u {
+                material = u32(spin[i].w);
+            }
             atomicStore(&found[w], i);
             atomicStore(&found[w + 1u], bitcast<u32>(p.w));
+            atomicStore(&found[w + 2u], material);
         }
         return;
     }

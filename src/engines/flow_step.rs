@@ -143,10 +143,6 @@ impl FlowStep {
 
     /// The event on the device where the step can take it there, else [`round_trip`].
     fn flow_on_device(&mut self) -> Result<()> {
-        // The device's scan weighs the leaving spheres by the first material's density.
-        if self.densities.len() > 1 {
-            return self.round_trip();
-        }
         let event = Event {
             step: self.now(),
             every: self.every,
@@ -172,13 +168,15 @@ impl FlowStep {
             return self.round_trip();
         };
         if !scan.leaving.is_empty() {
-            let rows: Vec<u32> = scan.leaving.iter().map(|&(row, _)| row).collect();
+            let rows: Vec<u32> = scan.leaving.iter().map(|s| s.row).collect();
             if !step.remove(&rows)? {
                 return self.round_trip();
             }
-            for &(_, r) in &scan.leaving {
+            // Weighed as the cpu's flows weigh them: by the density of each one's material.
+            for s in &scan.leaving {
                 self.counts.removed += 1;
-                self.counts.removed_mass += mass(self.densities[0], r) as f64;
+                let density = self.densities[s.material as usize];
+                self.counts.removed_mass += mass(density, s.radius) as f64;
             }
         }
         let near = |lo: Vec3, hi: Vec3| -> Vec<(Vec3, f32)> {

@@ -19,6 +19,7 @@ const PARAMS: Binding = Binding::uniform(0, "params");
 const POS: Binding = Binding::read(1, "pos");
 const BOXES: Binding = Binding::read(2, "boxes");
 const FOUND: Binding = Binding::read_write(3, "found");
+const SPIN: Binding = Binding::read(4, "spin");
 
 /// The scan's WGSL module, exactly as the device gets it.
 pub fn module() -> WgslModule {
@@ -26,7 +27,7 @@ pub fn module() -> WgslModule {
         "flow_scan",
         SOURCE,
         &[ENTRY_POINT],
-        &[PARAMS, POS, BOXES, FOUND],
+        &[PARAMS, POS, BOXES, FOUND, SPIN],
         vec![shared_struct!(
             "FlowParams",
             FlowParams {
@@ -38,6 +39,7 @@ pub fn module() -> WgslModule {
                 floor,
                 room,
                 leaving_room,
+                materials,
             }
         )],
     )
@@ -54,6 +56,7 @@ struct FlowParams {
     floor: f32,
     room: u32,
     leaving_room: u32,
+    materials: u32,
 }
 
 /// What a flow event asks of the state.
@@ -67,11 +70,22 @@ pub struct FlowQuery {
     pub floor: Option<f32>,
 }
 
+/// A sphere that leaves, as the scan found it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Leaving {
+    /// Its state index.
+    pub row: u32,
+    /// Its radius \[m\].
+    pub radius: f32,
+    /// Its material.
+    pub material: u8,
+}
+
 /// What the scan found.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Scan {
-    /// State index and radius of every sphere that leaves, in no order.
-    pub leaving: Vec<(u32, f32)>,
+    /// Every sphere that leaves, in no order.
+    pub leaving: Vec<Leaving>,
     /// Centre and radius of every other sphere in a box of [`FlowQuery::near`], in no order.
     pub near: Vec<(Vec3, f32)>,
 }
@@ -86,6 +100,9 @@ pub(crate) struct FlowScan {
     boxes: wgpu::Buffer,
     /// The counts and both lists, read back together ([`HEADER`] words, then the lists).
     found: wgpu::Buffer,
+    /// Bound as the spins where the state has none (the paper's step: every sphere of the
+    /// first material); never read.
+    no_spin: wgpu::Buffer,
     room: u32,
     leaving_room: u32,
 }
@@ -104,16 +121,20 @@ impl FlowScan {
                 found_words(FIRST_ROOM, FIRST_ROOM) * 4,
                 none,
             ),
+            no_spin: gpu.storage("mochi.flow_scan.no_spin", 16, none),
             room: FIRST_ROOM,
             leaving_room: FIRST_ROOM,
         }
     }
 
-    /// Scans the first `n` rows of `pos` (`x, y, z, r` each) for `query`.
+    /// Scans the first `n` rows of `pos` (`x, y, z, r` each) for `query`, the leaving spheres'
+    /// materials from `spin` (the granular step's ω rows in the order of `pos`; `None`: all of
+    /// the first material).
     pub fn scan(
         &mut self,
         gpu: &Gpu,
         pos: &wgpu::Buffer,
+        spin: Option<&wgpu::Buffer>,
         n: u32,
         query: &FlowQuery,
     ) -> Result<Scan> {
@@ -141,6 +162,7 @@ impl FlowScan {
                 floor: query.floor.unwrap_or(0.0),
                 room: self.room,
                 leaving_room: self.leaving_room,
+                materials: spin.is_some() as u32,
             };
             gpu.write_uniform(&self.params, &params);
             let bind = gpu.bind(
@@ -151,6 +173,7 @@ impl FlowScan {
                     (POS, pos),
                     (BOXES, &self.boxes),
                     (FOUND, &self.found),
+                    (SPIN, spin.unwrap_or(&self.no_spin)),
                 ],
             );
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -183,16 +206,23 @@ impl FlowScan {
                 .map(|w| (Vec3::new(f(w[0]), f(w[1]), f(w[2])), f(w[3])))
                 .collect();
             let at = HEADER + 4 * self.room as usize;
-            let leaving = found[at..at + 2 * leaving as usize]
-                .chunks_exact(2)
-                .map(|w| (w[0], f(w[1])))
+            let leaving = found[at..at + LEAVING_WORDS * leaving as usize]
+                .chunks_exact(LEAVING_WORDS)
+                .map(|w| Leaving {
+                    row: w[0],
+                    radius: f(w[1]),
+                    material: w[2] as u8,
+                })
                 .collect();
             return Ok(Scan { leaving, near });
         }
     }
 }
 
+/// Words of a leaving entry: state index, radius, material.
+const LEAVING_WORDS: usize = 3;
+
 /// Words of the scan's output with lists of `room` near and `leaving_room` leaving entries.
 fn found_words(room: u32, leaving_room: u32) -> u64 {
-    HEADER as u64 + 4 * room as u64 + 2 * leaving_room as u64
+    HEADER as u64 + 4 * room as u64 + LEAVING_WORDS as u64 * leaving_room as u64
 }

@@ -16,7 +16,7 @@
 
 use super::gpu_step::granular::{
     ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, GRANULAR, GranularParams, HELD_NEW, HELD_OLD,
-    HISTORY_NEED, OMEGA, TORQUE,
+    HISTORY_NEED, MATERIAL_LAWS, OMEGA, TORQUE,
 };
 use super::gpu_step::{InputOrder, Room, move_rows};
 use super::gpu_walls::MeshWalls;
@@ -97,9 +97,9 @@ const FIRST_SLOTS: u32 = 16;
 
 /// Storage buffers the granular resolve kernel binds (wgpu-compute's: the state, the cell
 /// table, the ids, the rows the spheres came from, the sorted places' rows and spheres, forces,
-/// counters, spins, torques, two counts of the history, [`ENTRY_PARTS`] entry bindings of each
-/// history, the need, and the mesh walls' four).
-const STORAGE_BUFFERS: u32 = 16 + 2 * ENTRY_PARTS as u32;
+/// counters, spins, the material table, torques, two counts of the history, [`ENTRY_PARTS`]
+/// entry bindings of each history, the need, and the mesh walls' four).
+const STORAGE_BUFFERS: u32 = 17 + 2 * ENTRY_PARTS as u32;
 
 /// Words of a slot of the history as the GPU holds it (`Entry` of `wgsl/dem_tangential_*.wgsl`),
 /// as bits: ξ x, y, z and the partner's stable id, then the rolling torque's x, y, z and 0;
@@ -175,6 +175,8 @@ impl EntrySplit {
 pub(crate) struct Rotation {
     /// Angular velocities, in the order of the engine's state read with them \[rad/s\].
     pub angular_velocities: Vec<[f32; 3]>,
+    /// Materials, in that order (empty: all of the first material).
+    pub materials: Vec<u8>,
     /// The contact history in the cpu's layout (both sides of each pair).
     pub history: ContactHistory,
 }
@@ -338,8 +340,13 @@ impl Slots {
 pub(crate) struct Granular {
     params: GranularParams,
     uniform: wgpu::Buffer,
-    /// `vec4(ω, 0)` in the order of each of the engine's state sets (one or two).
+    /// `vec4(ω, material)` in the order of each of the engine's state sets (one or two): each
+    /// sphere's material travels with its spin through every move of the state, as a whole
+    /// f32 number (exact below 2²⁴; a number, not bits, which no f32 operation may flush as it
+    /// may flush a denormal's).
     omega: Vec<wgpu::Buffer>,
+    /// The material table's laws, row by row ([`MATERIAL_LAWS`]).
+    laws: wgpu::Buffer,
     /// Torque accumulators in state order (zero between steps).
     torque: wgpu::Buffer,
     /// History slots, `params.slots` per sphere in rows in state order: the old ones of a step
@@ -374,13 +381,16 @@ pub(crate) struct Granular {
 
 impl Granular {
     /// Whether the particles, parameters and walls need the granular step; without, the
-    /// paper's step runs them, with the same work as before the granular step existed.
+    /// paper's step runs them, with the same work as before the granular step existed (its
+    /// kernels read one law: a scene of several materials runs the granular step, which reads
+    /// each contact's from the material table).
     pub fn needed(particles: &Particles, params: &StepParams, walls: &WallSet) -> bool {
         params.law != NormalLaw::Linear
             || params.friction.turns()
             || particles.spin()
             || !particles.history.is_empty()
             || !walls.is_box_only()
+            || params.materials.count > 1
     }
 
     /// The buffers for `particles` on `gpu` for the engine named `engine` (its backend's name),
@@ -424,14 +434,10 @@ impl Granular {
                 limit: first_wall as u64,
             });
         }
-        let zero = crate::dem::model::Elastic {
-            e_star: 0.0,
-            g_star: 0.0,
-        };
-        let (law, rate, pair, wall) = match params.law {
-            NormalLaw::Linear => (0, 0.0, zero, zero),
-            NormalLaw::LinearPerPair { rate, .. } => (1, rate, zero, zero),
-            NormalLaw::Hertz { pair, wall } => (2, 0.0, pair, wall),
+        let law = match params.law {
+            NormalLaw::Linear => 0,
+            NormalLaw::LinearPerPair { .. } => 1,
+            NormalLaw::Hertz { .. } => 2,
         };
         let slots = match keeps {
             true => FIRST_SLOTS.max(most_owned(&particles.history, &particles.radii) as u32),
@@ -443,16 +449,9 @@ impl Granular {
             false => ENTRY_BYTES,
         };
         let split = entry_split(gpu, rows as u32, slots, entry_bytes, engine)?;
+        let table = &params.materials;
         let gpu_params = GranularParams {
             law,
-            rate,
-            pair_e_star: pair.e_star,
-            pair_g_star: pair.g_star,
-            wall_e_star: wall.e_star,
-            wall_g_star: wall.g_star,
-            sliding: f.sliding,
-            wall_sliding: f.wall_sliding,
-            rolling: f.rolling,
             rolling_model: match f.rolling_model {
                 RollingModel::Epsd => 0,
                 RollingModel::ConstantTorque => 1,
@@ -460,24 +459,25 @@ impl Granular {
             turns: f.turns() as u32,
             slots,
             spheres_per_part: split.spheres_per_part,
+            materials: table.count as u32,
+            box_column: params.box_column,
         };
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
         let make = |what: &str, bytes: u64| gpu.storage(&label(what), bytes, none);
-        let mesh = MeshWalls::new(
-            gpu,
-            walls,
-            &params.materials,
-            rows as usize,
-            room.radii.1,
-            engine,
-        )?;
+        let mesh = MeshWalls::new(gpu, walls, table, rows as usize, room.radii.1, engine)?;
         let granular = gpu.checked("allocating the granular step's buffers", || Self {
             params: gpu_params,
             uniform: gpu.uniform(&label("granular"), &gpu_params),
             omega: (0..sets)
                 .map(|k| make(&format!("omega{k}"), rows * 16))
                 .collect(),
+            laws: {
+                let laws = make("material_laws", size_of_val(&table.laws[..]) as u64);
+                gpu.queue
+                    .write_buffer(&laws, 0, bytemuck::cast_slice(&table.laws));
+                laws
+            },
             torque: make("torque", rows * 12),
             history: [0, 1].map(|k| History::new(gpu, engine, k, &split)),
             split,
@@ -501,7 +501,8 @@ impl Granular {
         let omega: Vec<[f32; 4]> = particles
             .angular_velocities
             .iter()
-            .map(|w| [w[0], w[1], w[2], 0.0])
+            .enumerate()
+            .map(|(i, w)| [w[0], w[1], w[2], particles.material(i) as f32])
             .collect();
         gpu.queue
             .write_buffer(&granular.omega[0], 0, bytemuck::cast_slice(&omega));
@@ -520,8 +521,8 @@ impl Granular {
         Ok(granular)
     }
 
-    /// The angular velocities in the order of state set `set`.
-    fn omega_of(&self, set: usize) -> &wgpu::Buffer {
+    /// The angular velocities (and materials) in the order of state set `set`.
+    pub fn omega_of(&self, set: usize) -> &wgpu::Buffer {
         &self.omega[set % self.omega.len()]
     }
 
@@ -533,6 +534,7 @@ impl Granular {
         let mut all = vec![
             (GRANULAR, &self.uniform),
             (OMEGA, self.omega_of(on.set)),
+            (MATERIAL_LAWS, &self.laws),
             (TORQUE, &self.torque),
             (HELD_OLD, &self.held[parity]),
             (HELD_NEW, &self.held[1 - parity]),
@@ -588,14 +590,22 @@ impl Granular {
         &mut self.mesh
     }
 
-    /// Makes the `k` rows after the spheres there (rows kept at opening) those of new spheres
-    /// for the next step (`next`): no spin, no history.
-    pub fn append(&mut self, gpu: &Gpu, next: Turn, k: u32) -> Result<()> {
+    /// Makes the rows after the spheres there (rows kept at opening) those of new spheres of
+    /// the materials `materials` for the next step (`next`): no spin, no history.
+    pub fn append(&mut self, gpu: &Gpu, next: Turn, materials: &[u8]) -> Result<()> {
+        let k = materials.len() as u32;
         let (first, count) = (self.n as u64, k as u64);
+        let omega: Vec<[f32; 4]> = materials
+            .iter()
+            .map(|&m| [0.0, 0.0, 0.0, m as f32])
+            .collect();
         gpu.checked("appending spheres", || {
+            gpu.queue.write_buffer(
+                self.omega_of(next.set),
+                first * 16,
+                bytemuck::cast_slice(&omega),
+            );
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            let omega = self.omega_of(next.set);
-            encoder.clear_buffer(omega, first * 16, Some(count * 16));
             let held = &self.held[next.parity];
             encoder.clear_buffer(held, first * 4, Some(count * 4));
             gpu.queue.submit([encoder.finish()]);
@@ -758,13 +768,14 @@ impl Granular {
         self.n -= k;
     }
 
-    /// The angular velocities and the history in the cpu's layout that the next step (`next`)
-    /// reads; `order` maps the rows of state set `next.set` to input order (`None`: the state
-    /// is in input order).
+    /// The angular velocities, the materials and the history in the cpu's layout that the next
+    /// step (`next`) reads; `order` maps the rows of state set `next.set` to input order
+    /// (`None`: the state is in input order).
     pub fn read(&self, gpu: &Gpu, next: Turn, order: Option<&InputOrder>) -> Result<Rotation> {
         let (n, parity) = (self.n as usize, next.parity);
         let omega: Vec<[f32; 4]> = gpu.read(self.omega_of(next.set), n)?;
         let angular_velocities = omega.iter().map(|w| [w[0], w[1], w[2]]).collect();
+        let materials = omega.iter().map(|w| w[3] as u8).collect();
         let history = if self.keeps_history() {
             let k = self.params.slots as usize;
             let mut held: Vec<u32> = gpu.read(&self.held[parity], n)?;
@@ -788,6 +799,7 @@ impl Granular {
         };
         Ok(Rotation {
             angular_velocities,
+            materials,
             history,
         })
     }

@@ -4,7 +4,7 @@
 //! per-phase timestamps, and moving particles to and from the GPU.
 
 pub(crate) use super::gpu_granular::{Granular, RedoableBatch, Rotation, Turn, run_batch};
-use crate::dem::model::{NormalLaw, StepParams, mass};
+use crate::dem::model::{MaterialTable, NormalLaw, StepParams};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::dem::walls::WallSet;
 use crate::error::{Error, Result};
@@ -103,7 +103,7 @@ pub(crate) enum Variant {
     Paper,
     /// The paper's kernels with the stiffness of each pair from its effective mass
     /// (`wgsl/dem_physics_per_pair.wgsl`): `stiffness = "per-pair"` without friction, rolling
-    /// resistance, spin or history.
+    /// resistance, spin, history or a second material.
     PerPair,
     /// The granular step ([`Granular`]) with Mindlin's spring.
     Granular,
@@ -121,7 +121,8 @@ impl Variant {
         let frictionless = !params.friction.turns()
             && !particles.spin()
             && particles.history.is_empty()
-            && walls.is_box_only();
+            && walls.is_box_only()
+            && params.materials.count == 1;
         match params.law {
             NormalLaw::LinearPerPair { .. } if frictionless => Variant::PerPair,
             _ if params.friction.keeps_load() => Variant::Loaded,
@@ -237,6 +238,8 @@ pub(crate) mod granular {
 
     pub const GRANULAR: Binding = Binding::uniform(17, "granular");
     pub const OMEGA: Binding = Binding::read_write(18, "omega");
+    /// The material table's laws (`PairLaw` rows, [`crate::dem::model::MaterialTable::laws`]).
+    pub const MATERIAL_LAWS: Binding = Binding::read(20, "material_laws");
     /// Declared by the torque accumulator (`dem_torque_*.wgsl`).
     pub const TORQUE: Binding = Binding::read_write(19, "torque");
     pub const HELD_OLD: Binding = Binding::read(21, "held_old");
@@ -270,36 +273,30 @@ pub(crate) mod granular {
 
     /// Every binding of `wgsl/dem_granular.wgsl` and its accumulators.
     pub fn bindings() -> Vec<Binding> {
-        [GRANULAR, OMEGA, TORQUE, HELD_OLD, HELD_NEW, HISTORY_NEED]
-            .into_iter()
-            .chain(ENTRIES_OLD)
-            .chain(ENTRIES_NEW)
-            .chain(crate::engines::gpu_walls::bindings())
-            .collect()
+        [
+            GRANULAR,
+            OMEGA,
+            MATERIAL_LAWS,
+            TORQUE,
+            HELD_OLD,
+            HELD_NEW,
+            HISTORY_NEED,
+        ]
+        .into_iter()
+        .chain(ENTRIES_OLD)
+        .chain(ENTRIES_NEW)
+        .chain(crate::engines::gpu_walls::bindings())
+        .collect()
     }
 
     /// The granular step's parameters beyond [`super::DemParams`]; twin: `GranularParams` in
-    /// `wgsl/dem_contact.wgsl` (checked by `tests/bindings.rs`).
+    /// `wgsl/dem_contact.wgsl` (checked by `tests/bindings.rs`). Each contact's coefficients are
+    /// in the material table ([`MATERIAL_LAWS`]), the fixed stiffness of the linear law in
+    /// `DemParams`.
     #[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
     pub struct GranularParams {
         /// `LAW_*` of the WGSL: 0 linear, 1 linear per pair, 2 Hertz.
         pub law: u32,
-        /// k/m* of the per-pair linear law \[1/s²\].
-        pub rate: f32,
-        /// E* of two spheres \[Pa\].
-        pub pair_e_star: f32,
-        /// G* of two spheres \[Pa\].
-        pub pair_g_star: f32,
-        /// E* of a sphere on a wall \[Pa\].
-        pub wall_e_star: f32,
-        /// G* of a sphere on a wall \[Pa\].
-        pub wall_g_star: f32,
-        /// μ between spheres.
-        pub sliding: f32,
-        /// μ with the walls.
-        pub wall_sliding: f32,
-        /// μ_r.
-        pub rolling: f32,
         /// `ROLLING_*` of the WGSL: 0 EPSD, 1 constant torque.
         pub rolling_model: u32,
         /// 1 where any contact exerts a torque.
@@ -309,6 +306,10 @@ pub(crate) mod granular {
         /// History rows one entry binding holds: row r's entries are in
         /// [`ENTRIES_OLD`]`[r / spheres_per_part]` (at least 1).
         pub spheres_per_part: u32,
+        /// Materials: the table has `materials + 1` columns (the last a rigid wall's).
+        pub materials: u32,
+        /// The column of the table the six box walls take.
+        pub box_column: u32,
     }
 
     /// [`GranularParams`] as a [`SharedStruct`].
@@ -317,18 +318,30 @@ pub(crate) mod granular {
             "GranularParams",
             GranularParams {
                 law,
-                rate,
-                pair_e_star,
-                pair_g_star,
-                wall_e_star,
-                wall_g_star,
-                sliding,
-                wall_sliding,
-                rolling,
                 rolling_model,
                 turns,
                 slots,
                 spheres_per_part,
+                materials,
+                box_column,
+            }
+        )
+    }
+
+    /// [`PairLaw`](crate::dem::model::PairLaw), a row of [`MATERIAL_LAWS`], as a
+    /// [`SharedStruct`].
+    pub fn pair_law() -> SharedStruct {
+        use crate::dem::model::PairLaw;
+        shared_struct!(
+            "PairLaw",
+            PairLaw {
+                rate,
+                e_star,
+                g_star,
+                damping_ratio,
+                sliding,
+                rolling,
+                _pad,
             }
         )
     }
@@ -586,7 +599,7 @@ pub(crate) struct DemModule {
 
 impl DemModule {
     /// Refuses room for more than `limit` spheres ([`Error::TooLarge`], naming `backend` and
-    /// the adapter), picks the accumulators and the variant, opens its state (the granular one
+    /// the adapter) and spheres of materials the table lacks, picks the accumulators and the variant, opens its state (the granular one
     /// for an engine with `sets` state sets of room for `capacity` spheres, at least the
     /// particles', see [`Granular::new`]) and compiles `source(accumulators, lanes, variant)`.
     #[allow(clippy::too_many_arguments)]
@@ -610,6 +623,7 @@ impl DemModule {
                 limit,
             });
         }
+        particles.check_materials(params.materials.count)?;
         let (atomics, accumulators, lanes) = kernels.pick(gpu);
         let variant = Variant::of(particles, params, walls);
         let granular = variant
@@ -645,8 +659,9 @@ pub(crate) fn max_spheres(gpu: &Gpu) -> u64 {
         .min(u32::MAX as u64 / 4)
 }
 
-/// `vec4(x, y, z, r)` and `vec4(vx, vy, vz, mass)` rows of `particles`, in input order.
-pub(crate) fn rows(particles: &Particles, density: f32) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+/// `vec4(x, y, z, r)` and `vec4(vx, vy, vz, mass)` rows of `particles`, in input order, each
+/// mass by the density of the sphere's material in `table` (as the cpu step's).
+pub(crate) fn rows(particles: &Particles, table: &MaterialTable) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
     let pos = particles
         .positions
         .iter()
@@ -657,7 +672,8 @@ pub(crate) fn rows(particles: &Particles, density: f32) -> (Vec<[f32; 4]>, Vec<[
         .velocities
         .iter()
         .zip(&particles.radii)
-        .map(|(v, &r)| [v[0], v[1], v[2], mass(density, r)])
+        .enumerate()
+        .map(|(i, (v, &r))| [v[0], v[1], v[2], table.mass(particles.material(i), r)])
         .collect();
     (pos, vel)
 }
@@ -688,8 +704,9 @@ pub(crate) fn particles_from(rows: StateRows, ids: Option<&[u32]>, step: u64) ->
     particles_with(rows, ids, step, || Ok(None))
 }
 
-/// As [`particles_from`], with the angular velocities (in the rows' order) and contact history
-/// of a granular step (`None`: the paper's step).
+/// As [`particles_from`], with the angular velocities and materials (in the rows' order) and
+/// contact history of a granular step (`None`: the paper's step, whose spheres are all of the
+/// first material).
 pub(crate) fn particles_with(
     rows: StateRows,
     ids: Option<&[u32]>,
@@ -713,6 +730,7 @@ pub(crate) fn particles_with(
     }
     let rotation = rotation()?.unwrap_or_else(|| Rotation {
         angular_velocities: vec![[0.0; 3]; n],
+        materials: Vec::new(),
         history: Default::default(),
     });
     let mut out = Particles {
@@ -721,6 +739,7 @@ pub(crate) fn particles_with(
         velocities: vec![[0.0; 3]; n],
         angular_velocities: vec![[0.0; 3]; n],
         radii: vec![0.0; n],
+        // Filled below where some sphere is of another material than the first.
         materials: Vec::new(),
         history: rotation.history,
         step,
@@ -733,6 +752,13 @@ pub(crate) fn particles_with(
         out.velocities[i] = [v[0], v[1], v[2]];
         out.angular_velocities[i] = w;
         out.radii[i] = p[3];
+    }
+    let materials = rotation.materials;
+    if materials.iter().any(|&m| m != 0) {
+        out.materials = vec![0; n];
+        for (k, m) in materials.into_iter().enumerate() {
+            out.materials[ids.map_or(k, |ids| ids[k] as usize)] = m;
+        }
     }
     out.check_stable()?;
     Ok(out)

@@ -22,12 +22,13 @@ pub fn open_stepper(
     open_walled(kind, particles, params, mode, options, WallSet::default())
 }
 
-/// Refuses several materials on the GPU backends, whose steps read the first material's law.
+/// Refuses several materials on the optix backend, whose step reads the first material's law
+/// (the cpu and wgpu steps read each contact's from the material table).
 fn one_material_off_the_cpu(kind: BackendKind, params: &StepParams) -> Result<()> {
-    if kind != BackendKind::Cpu && params.materials.count > 1 {
+    if kind == BackendKind::Optix && params.materials.count > 1 {
         return Err(Error::BackendUnavailable {
             backend: kind.name(),
-            reason: "several materials run on the cpu backend only".into(),
+            reason: "several materials run on the cpu and wgpu backends only".into(),
         });
     }
     Ok(())

@@ -190,9 +190,10 @@ impl Materials {
 }
 
 /// The law of one ordered pair of materials as the step computes it (f32), the layout the GPU
-/// engines upload (`PairLaw` in wgsl/dem_contact.wgsl and optix/contact.cuh).
+/// engines upload (`PairLaw` in wgsl/dem_contact.wgsl, checked by `tests/bindings.rs`, and in
+/// optix/contact.cuh).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, encase::ShaderType)]
 pub struct PairLaw {
     /// k/m* of the per-pair linear law \[1/s²\] (0 for the others).
     pub rate: f32,

@@ -137,7 +137,7 @@ impl OptixStepper {
             });
         }
         let stream = device.stream.clone();
-        let (pos, vel) = rows(&particles, params.density);
+        let (pos, vel) = rows(&particles, &params.materials);
         let lo = residual_rows(&particles);
         let order = morton_order_of(&particles.positions);
         let pick = |rows: &[[f32; 4]]| -> Vec<f32> {

@@ -52,7 +52,6 @@ use super::shaders::dem_grid::{
 use super::skin::{SKIN_CELLS, Skin, skin_of};
 use crate::dem::flow::NewSphere;
 use crate::dem::model::StepParams;
-use crate::dem::model::mass;
 use crate::dem::stepper::Clock;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
@@ -643,7 +642,7 @@ impl GridStepper {
 
     /// Writes the particles (in input order) into the current set and the parameters.
     fn upload(&mut self, particles: &Particles) -> Result<()> {
-        let (pos, vel) = rows(particles, self.params.density);
+        let (pos, vel) = rows(particles, &self.params.materials);
         let lo = residual_rows(particles);
         let ids: Vec<u32> = (0..self.n).collect();
         let dem = DemParams::new(&self.params, self.n, self.groups.0 * GROUP);
@@ -1601,10 +1600,12 @@ impl Phase {
 /// for them at opening ([`GridStepper::flowing_on`]).
 impl DeviceFlow for GridStepper {
     fn scan(&mut self, query: &FlowQuery) -> Result<Option<Scan>> {
+        let set = self.turn().set;
         let gpu = &self.gpu;
         let scan = self.flow_scan.get_or_insert_with(|| FlowScan::new(gpu));
-        let pos = &self.sets[self.current].pos;
-        scan.scan(gpu, pos, self.n, query).map(Some)
+        let pos = &self.sets[set].pos;
+        let spin = self.granular.as_ref().map(|g| g.omega_of(set));
+        scan.scan(gpu, pos, spin, self.n, query).map(Some)
     }
 
     fn append(&mut self, new: &[NewSphere]) -> Result<bool> {
@@ -1625,7 +1626,7 @@ impl DeviceFlow for GridStepper {
         if k == 0 {
             return Ok(true);
         }
-        let density = self.params.density;
+        let table = &self.params.materials;
         let pos: Vec<[f32; 4]> = new
             .iter()
             .map(|s| [s.centre[0], s.centre[1], s.centre[2], s.radius])
@@ -1637,7 +1638,7 @@ impl DeviceFlow for GridStepper {
                     s.velocity[0],
                     s.velocity[1],
                     s.velocity[2],
-                    mass(density, s.radius),
+                    table.mass(s.material as u32, s.radius),
                 ]
             })
             .collect();
@@ -1653,7 +1654,8 @@ impl DeviceFlow for GridStepper {
         q.write_buffer(&set.ids, at * 4, bytemuck::cast_slice(&ids));
         let next = self.turn();
         if let Some(g) = &mut self.granular {
-            g.append(&self.gpu, next, k)?;
+            let materials: Vec<u8> = new.iter().map(|s| s.material).collect();
+            g.append(&self.gpu, next, &materials)?;
         }
         self.resize(self.n + k);
         Ok(true)

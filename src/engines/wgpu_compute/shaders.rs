@@ -468,6 +468,7 @@ pub fn modules() -> Vec<WgslModule> {
                 dem.structs.extend([
                     gpu_step::dem_params(),
                     granular::granular_params(),
+                    granular::pair_law(),
                     crate::engines::gpu_walls::mesh_params(),
                     crate::engines::gpu_walls::mesh_wall_row(),
                 ]);

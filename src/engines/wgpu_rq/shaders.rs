@@ -258,6 +258,7 @@ pub fn modules() -> Vec<WgslModule> {
                     dem_rq::rq_params(),
                     gpu_step::dem_params(),
                     granular::granular_params(),
+                    granular::pair_law(),
                     crate::engines::gpu_walls::mesh_params(),
                     crate::engines::gpu_walls::mesh_wall_row(),
                 ],
