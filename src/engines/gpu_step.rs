@@ -4,7 +4,7 @@
 //! per-phase timestamps, and moving particles to and from the GPU.
 
 pub(crate) use super::gpu_granular::{Granular, RedoableBatch, Rotation, Turn, run_batch};
-use crate::dem::model::{NormalLaw, StepParams, mass};
+use crate::dem::model::{MaterialTable, NormalLaw, StepParams};
 use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::dem::walls::WallSet;
 use crate::error::{Error, Result};
@@ -645,8 +645,9 @@ pub(crate) fn max_spheres(gpu: &Gpu) -> u64 {
         .min(u32::MAX as u64 / 4)
 }
 
-/// `vec4(x, y, z, r)` and `vec4(vx, vy, vz, mass)` rows of `particles`, in input order.
-pub(crate) fn rows(particles: &Particles, density: f32) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+/// `vec4(x, y, z, r)` and `vec4(vx, vy, vz, mass)` rows of `particles`, in input order, each
+/// mass by the density of the sphere's material in `table` (as the cpu step's).
+pub(crate) fn rows(particles: &Particles, table: &MaterialTable) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
     let pos = particles
         .positions
         .iter()
@@ -657,7 +658,8 @@ pub(crate) fn rows(particles: &Particles, density: f32) -> (Vec<[f32; 4]>, Vec<[
         .velocities
         .iter()
         .zip(&particles.radii)
-        .map(|(v, &r)| [v[0], v[1], v[2], mass(density, r)])
+        .enumerate()
+        .map(|(i, (v, &r))| [v[0], v[1], v[2], table.mass(particles.material(i), r)])
         .collect();
     (pos, vel)
 }

@@ -75,7 +75,12 @@ pub fn mesh_params() -> SharedStruct {
     )
 }
 
-/// One wall as the shader reads it; WGSL twin `MeshWall`.
+/// [`MeshWallRow::own_friction`] of a wall without a friction of its own: each sphere takes
+/// the pair's (its material's row, the wall's column).
+pub const NO_FRICTION: f32 = -1.0;
+
+/// One wall as the shader reads it; WGSL twin `MeshWall` (and `MochiMeshWall` in
+/// `optix/mesh_walls.cuh`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
 pub struct MeshWallRow {
     lo: Vec3f,
@@ -87,7 +92,13 @@ pub struct MeshWallRow {
     axis: Vec3f,
     start: f32,
     centre: Vec3f,
+    /// μ of a sphere of the first material with the wall (its own, else the pair's): what the
+    /// optix step reads, which runs one material.
     friction: f32,
+    /// The wall's column of the material table (its material, or a rigid wall's).
+    column: u32,
+    /// The wall's own μ, or [`NO_FRICTION`]: what the wgpu steps read, with `column`.
+    own_friction: f32,
 }
 
 pub fn mesh_wall_row() -> SharedStruct {
@@ -104,6 +115,8 @@ pub fn mesh_wall_row() -> SharedStruct {
             start,
             centre,
             friction,
+            column,
+            own_friction,
         }
     )
 }
@@ -240,6 +253,7 @@ impl WallTables {
             }
             let g = wall_grid(&wall.triangles, r_max, first_triangle);
             let m = wall.motion;
+            let column = wall.column(table);
             rows.push(MeshWallRow {
                 lo: g.lo.into(),
                 cell: g.cell,
@@ -250,9 +264,9 @@ impl WallTables {
                 axis: m.axis.as_vec3().into(),
                 start: m.start as f32,
                 centre: m.centre.as_vec3().into(),
-                friction: wall
-                    .friction
-                    .unwrap_or(table.law(0, wall.column(table)).sliding),
+                friction: wall.friction.unwrap_or(table.law(0, column).sliding),
+                column,
+                own_friction: wall.friction.unwrap_or(NO_FRICTION),
             });
             for cell in g.cells {
                 offsets.push(listed.len() as u32);

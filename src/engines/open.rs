@@ -22,12 +22,12 @@ pub fn open_stepper(
     open_walled(kind, particles, params, mode, options, WallSet::default())
 }
 
-/// Refuses several materials on the GPU backends, whose steps read the first material's law.
+/// Refuses several materials on the wgpu backends, whose steps read the first material's law.
 fn one_material_off_the_cpu(kind: BackendKind, params: &StepParams) -> Result<()> {
-    if kind != BackendKind::Cpu && params.materials.count > 1 {
+    if !matches!(kind, BackendKind::Cpu | BackendKind::Optix) && params.materials.count > 1 {
         return Err(Error::BackendUnavailable {
             backend: kind.name(),
-            reason: "several materials run on the cpu backend only".into(),
+            reason: "several materials run on the cpu and optix backends only".into(),
         });
     }
     Ok(())

@@ -643,7 +643,7 @@ impl GridStepper {
 
     /// Writes the particles (in input order) into the current set and the parameters.
     fn upload(&mut self, particles: &Particles) -> Result<()> {
-        let (pos, vel) = rows(particles, self.params.density);
+        let (pos, vel) = rows(particles, &self.params.materials);
         let lo = residual_rows(particles);
         let ids: Vec<u32> = (0..self.n).collect();
         let dem = DemParams::new(&self.params, self.n, self.groups.0 * GROUP);

@@ -166,7 +166,7 @@ impl RqStepper {
         };
         let groups = gpu.grid(n, GROUP);
         let none = wgpu::BufferUsages::empty();
-        let (pos_rows, vel_rows) = rows(&particles, params.density);
+        let (pos_rows, vel_rows) = rows(&particles, &params.materials);
         let lo_rows = residual_rows(&particles);
         let (_, r_max) = particles.radius_range();
         let (pos, lo, vel, resident) = gpu.checked("allocating the wgpu-rq DEM buffers", || {
