@@ -716,6 +716,24 @@ mod tests {
         for m in more {
             assert!(needed(&still, &params(m), &in_box), "{m:?}");
         }
+        // Two materials of the paper's law: each pair's damping from the table.
+        let two = crate::dem::model::Materials {
+            list: vec![Material::default(), Material::default()],
+            names: vec!["a".into(), "b".into()],
+            pairs: Vec::new(),
+        };
+        let p2 = StepParams::with_materials(
+            &two,
+            None,
+            1e-6,
+            [0.0; 3],
+            [1.0; 3],
+            [0.0, 0.0, -9.81],
+            0.0,
+            5e-4,
+        )
+        .unwrap();
+        assert!(needed(&still, &p2, &in_box));
         let spinning = Particles {
             angular_velocities: vec![[0.0, 1.0, 0.0]],
             ..still.clone()
