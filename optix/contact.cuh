@@ -7,6 +7,9 @@
 // MOCHI_LOAD_HISTORY defined the Mindlin–Deresiewicz law (contact.rs load_history), whose springs
 // carry the load history too (the units GranularLoaded and GranularKernelsLoaded of
 // src/engines/optix/programs.rs), so the spring's programs are the same as without the model.
+// Each contact reads its coefficients from the material table (MochiPairLaw, MaterialTable's
+// laws as uploaded): a sphere pair the row of i's material and the column of j's, a wall the
+// column of its material or of a rigid wall (src/dem/model/materials.rs).
 
 #define MOCHI_LAW_LINEAR 0u
 #define MOCHI_LAW_LINEAR_PER_PAIR 1u
@@ -18,22 +21,35 @@
 // 2·√(5/6): Tsuji's damping coefficient over ζ·√(S·m*) (contact.rs TSUJI).
 #define MOCHI_TSUJI 1.8257419f
 
-// The step's parameters with the contact law's (StepParams: law, moduli, friction).
+// The law of one ordered pair of materials (PairLaw in src/dem/model/materials.rs, 32 bytes,
+// uploaded as it is; 16-byte aligned on the device, where the table starts 256-byte aligned).
+struct alignas(16) MochiPairLaw {
+    float rate;           // k/m* of MOCHI_LAW_LINEAR_PER_PAIR [1/s²]
+    float e_star;         // E* of Hertz–Mindlin [Pa]
+    float g_star;         // G* of Hertz–Mindlin [Pa]
+    float damping_ratio;  // ζ giving the pair's restitution
+    float sliding;        // μ
+    float rolling;        // μ_r
+    float _pad[2];
+};
+
+// The step's parameters with the contact law's (StepParams: law, materials, friction models).
 struct GranularParams {
-    DemParams dem;               // box, gravity, dt, stiffness (MOCHI_LAW_LINEAR), damping ratio
+    DemParams dem;               // box, gravity, dt, stiffness (MOCHI_LAW_LINEAR)
+    const MochiPairLaw* laws;    // the material table (MaterialTable::laws), row by row
+    unsigned int columns;        // laws in a row: the materials and a rigid wall
+    unsigned int box_column;     // the box walls' column (their material, or a rigid wall)
     unsigned int law;            // MOCHI_LAW_*
-    float rate;                  // k/m* of MOCHI_LAW_LINEAR_PER_PAIR [1/s²]
-    float pair_e_star;           // E* of two spheres (Hertz) [Pa]
-    float pair_g_star;           // G* of two spheres [Pa]
-    float wall_e_star;           // E* of a sphere on a wall [Pa]
-    float wall_g_star;           // G* of a sphere on a wall [Pa]
-    float sliding;               // μ between spheres
-    float wall_sliding;          // μ with the walls
-    float rolling;               // μ_r
     unsigned int rolling_model;  // MOCHI_ROLLING_*
     unsigned int turns;          // 1: contacts exert torques (Friction::turns)
     unsigned int keeps;          // 1: contacts carry springs (Friction::has_history)
 };
+
+// The law of a sphere of material a against a sphere or wall of column b (MaterialTable::law).
+static __forceinline__ __device__ MochiPairLaw mochi_law(const GranularParams& g, unsigned int a,
+                                                         unsigned int b) {
+    return g.laws[a * g.columns + b];
+}
 
 // ---- glam's Vec3 operations, component by component -------------------------------------------
 
@@ -81,11 +97,12 @@ static __forceinline__ __device__ float mochi_length(float3 v) {
 
 // A sphere as its contacts see it (contact.rs Body).
 struct MochiBody {
-    float3 c;  // centre [m]
-    float3 v;  // velocity [m/s]
-    float3 w;  // angular velocity [rad/s]
-    float r;   // radius [m]
-    float m;   // mass [kg]
+    float3 c;               // centre [m]
+    float3 v;               // velocity [m/s]
+    float3 w;               // angular velocity [rad/s]
+    float r;                // radius [m]
+    float m;                // mass [kg]
+    unsigned int material;  // its row in the material table
 };
 
 // Moment of inertia of a solid sphere, 2/5·m·r² (contact.rs moment_of_inertia).
@@ -143,25 +160,23 @@ struct MochiTouch {
     float lever;   // from i's centre to the contact point
     float3 v_rel;  // velocity of i's surface relative to the partner's at the contact point
     float3 w_rel;  // ω_i − ω_j (ω_i on a wall)
-    bool on_wall;
 };
 
-// The normal force of a contact with overlap > 0 and normal relative velocity vn.
+// The normal force of a contact of law `law` with overlap > 0 and normal relative velocity vn.
 static __forceinline__ __device__ MochiNormal mochi_normal_force(const GranularParams& g,
-                                                                 bool on_wall, float overlap,
-                                                                 float vn, float m_eff,
-                                                                 float r_eff) {
+                                                                 const MochiPairLaw& law,
+                                                                 float overlap, float vn,
+                                                                 float m_eff, float r_eff) {
     MochiNormal out;
     if (g.law == MOCHI_LAW_HERTZ) {
-        float e_star = on_wall ? g.wall_e_star : g.pair_e_star;
-        float s_n = 2.0f * e_star * sqrtf(r_eff * overlap);
-        float c = MOCHI_TSUJI * g.dem.damping_ratio * mochi_root_product(s_n, m_eff);
+        float s_n = 2.0f * law.e_star * sqrtf(r_eff * overlap);
+        float c = MOCHI_TSUJI * law.damping_ratio * mochi_root_product(s_n, m_eff);
         out.elastic = 2.0f / 3.0f * s_n * overlap;
         out.push = fmaxf(out.elastic - c * vn, 0.0f);
         out.stiffness = s_n;
     } else {
-        float k = g.law == MOCHI_LAW_LINEAR ? g.dem.stiffness : m_eff * g.rate;
-        float c = 2.0f * g.dem.damping_ratio * mochi_root_product(k, m_eff);
+        float k = g.law == MOCHI_LAW_LINEAR ? g.dem.stiffness : m_eff * law.rate;
+        float c = 2.0f * law.damping_ratio * mochi_root_product(k, m_eff);
         out.elastic = k * overlap;
         out.push = fmaxf(out.elastic - c * vn, 0.0f);
         out.stiffness = k;
@@ -274,7 +289,9 @@ struct MochiFriction {
     MochiSprings springs;
 };
 
+// Of a contact of law `law` with sliding coefficient mu.
 static __forceinline__ __device__ MochiFriction mochi_friction(const GranularParams& g,
+                                                               const MochiPairLaw& law,
                                                                const MochiTouch& t, float mu,
                                                                MochiSprings old) {
     float3 n = t.n;
@@ -288,13 +305,12 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const GranularPar
         float k_t;
         float c_t;
         if (g.law == MOCHI_LAW_HERTZ) {
-            float g_star = t.on_wall ? g.wall_g_star : g.pair_g_star;
-            float s_t = 8.0f * g_star * sqrtf(t.r_eff * t.overlap);
+            float s_t = 8.0f * law.g_star * sqrtf(t.r_eff * t.overlap);
             k_t = s_t;
-            c_t = MOCHI_TSUJI * g.dem.damping_ratio * mochi_root_product(s_t, t.m_eff);
+            c_t = MOCHI_TSUJI * law.damping_ratio * mochi_root_product(s_t, t.m_eff);
         } else {
             k_t = 2.0f / 7.0f * t.normal.stiffness;
-            c_t = 2.0f * g.dem.damping_ratio * mochi_root_product(k_t, t.m_eff);
+            c_t = 2.0f * law.damping_ratio * mochi_root_product(k_t, t.m_eff);
         }
         float3 v_t = mochi_sub(t.v_rel, mochi_scale(mochi_dot(t.v_rel, n), n));
 #ifdef MOCHI_LOAD_HISTORY
@@ -314,7 +330,7 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const GranularPar
         out.force = f_t;
         out.torque = mochi_cross(mochi_scale(t.lever, n), f_t);
     }
-    float mu_r = g.rolling;
+    float mu_r = law.rolling;
     if (mu_r > 0.0f) {
         float3 w_roll = mochi_sub(t.w_rel, mochi_scale(mochi_dot(t.w_rel, n), n));
         float cap = mu_r * t.r_eff * pressing;
@@ -346,9 +362,12 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const GranularPar
 }
 
 // What one sphere pair does, from i's side: the force and torque on i, the springs i keeps,
-// and what the partner's torque is made of (the tangential force and the rolling torque).
+// and what the partner's torque is made of (the tangential force and the rolling torque, where
+// the pair's μ and μ_r give them).
 struct MochiPairContact {
-    float3 n;  // unit normal from i towards j
+    float3 n;                // unit normal from i towards j
+    float sliding;           // the pair's μ
+    float rolling_friction;  // the pair's μ_r
     float3 force;
     float3 torque;
     float3 tangential;
@@ -374,9 +393,12 @@ static __forceinline__ __device__ bool mochi_pair_contact(const GranularParams& 
     float vn = mochi_dot(mochi_sub(j.v, i.v), n);
     float m_eff = mochi_effective(i.m, j.m);
     float r_eff = mochi_effective(i.r, j.r);
-    MochiNormal normal = mochi_normal_force(g, false, overlap, vn, m_eff, r_eff);
+    MochiPairLaw law = mochi_law(g, i.material, j.material);
+    MochiNormal normal = mochi_normal_force(g, law, overlap, vn, m_eff, r_eff);
     float3 force = mochi_scale(-normal.push, n);
     out.n = n;
+    out.sliding = law.sliding;
+    out.rolling_friction = law.rolling;
     if (!g.turns) {
         out.force = force;
         out.torque = mochi_zero3();
@@ -396,8 +418,7 @@ static __forceinline__ __device__ bool mochi_pair_contact(const GranularParams& 
     touch.v_rel = mochi_sub(mochi_add(i.v, mochi_cross(i.w, mochi_scale(i.r, n))),
                             mochi_sub(j.v, mochi_cross(j.w, mochi_scale(j.r, n))));
     touch.w_rel = mochi_sub(i.w, j.w);
-    touch.on_wall = false;
-    MochiFriction f = mochi_friction(g, touch, g.sliding, old);
+    MochiFriction f = mochi_friction(g, law, touch, law.sliding, old);
     out.force = mochi_add(force, f.force);
     out.torque = f.torque;
     out.tangential = f.force;
@@ -406,16 +427,17 @@ static __forceinline__ __device__ bool mochi_pair_contact(const GranularParams& 
     return true;
 }
 
-// The torque on the partner j (radius r_j) of contact `c`, as j's own side computes it: its
-// normal and tangential force are the exact negatives of i's, so (r_j·(−n)) × (−F_t) =
-// (r_j·n) × F_t bit for bit, and its rolling torque is −rolling.
-static __forceinline__ __device__ float3 mochi_partner_torque(const GranularParams& g, float r_j,
+// The torque on the partner j (radius r_j) of contact `c`, as j's own side computes it (its
+// law is i's: the table is symmetric): its normal and tangential force are the exact negatives
+// of i's, so (r_j·(−n)) × (−F_t) = (r_j·n) × F_t bit for bit, and its rolling torque is
+// −rolling.
+static __forceinline__ __device__ float3 mochi_partner_torque(float r_j,
                                                               const MochiPairContact& c) {
     float3 torque = mochi_zero3();
-    if (g.sliding > 0.0f) {
+    if (c.sliding > 0.0f) {
         torque = mochi_cross(mochi_scale(r_j, c.n), c.tangential);
     }
-    if (g.rolling > 0.0f) {
+    if (c.rolling_friction > 0.0f) {
         torque = mochi_add(torque, mochi_neg(c.rolling));
     }
     return torque;
@@ -437,7 +459,6 @@ static __forceinline__ __device__ MochiTouch mochi_wall_touch(const MochiBody& b
     touch.lever = b.r;
     touch.v_rel = mochi_sub(mochi_add(b.v, mochi_cross(b.w, mochi_scale(b.r, n))), velocity);
     touch.w_rel = b.w;
-    touch.on_wall = true;
     return touch;
 }
 
@@ -457,6 +478,7 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const GranularP
     float c[3] = {b.c.x, b.c.y, b.c.z};
     float v[3] = {b.v.x, b.v.y, b.v.z};
     float normal[3] = {0.0f, 0.0f, 0.0f};
+    MochiPairLaw law = mochi_law(g, b.material, g.box_column);
     MochiWalls out;
     out.tangential = mochi_zero3();
     out.torque = mochi_zero3();
@@ -471,7 +493,7 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const GranularP
             if (overlap <= 0.0f) {
                 continue;
             }
-            MochiNormal nf = mochi_normal_force(g, true, overlap, vn, b.m, b.r);
+            MochiNormal nf = mochi_normal_force(g, law, overlap, vn, b.m, b.r);
             if (side == 0) {
                 f += nf.push;
             } else {
@@ -484,7 +506,7 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const GranularP
                 float3 n = mochi_v3(a == 0 ? s : z, a == 1 ? s : z, a == 2 ? s : z);
                 unsigned int wall = 2 * a + side;
                 MochiTouch touch = mochi_wall_touch(b, n, overlap, nf, mochi_zero3());
-                MochiFriction fr = mochi_friction(g, touch, g.wall_sliding, old(wall));
+                MochiFriction fr = mochi_friction(g, law, touch, law.sliding, old(wall));
                 out.tangential = mochi_add(out.tangential, fr.force);
                 out.torque = mochi_add(out.torque, fr.torque);
                 if (g.keeps) {
@@ -495,5 +517,38 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const GranularP
         normal[a] = f;
     }
     out.normal = mochi_v3(normal[0], normal[1], normal[2]);
+    return out;
+}
+
+// The contact of sphere b with a surface (a mesh wall) of column `column` in the material
+// table, moving at `velocity` where it touches, normal n from the centre, overlap > 0: its
+// force and torque and the springs to keep (contact.rs surface_contact). `given` is the wall's
+// own μ, or negative where it has none (then the pair's).
+struct MochiSurface {
+    float3 force;
+    float3 torque;
+    MochiSprings springs;
+};
+
+static __device__ MochiSurface mochi_surface_contact(const GranularParams& g, const MochiBody& b,
+                                                     float3 n, float overlap, float3 velocity,
+                                                     unsigned int column, float given,
+                                                     MochiSprings old) {
+    MochiPairLaw law = mochi_law(g, b.material, column);
+    float mu = given < 0.0f ? law.sliding : given;
+    MochiNormal nf =
+        mochi_normal_force(g, law, overlap, mochi_dot(mochi_sub(velocity, b.v), n), b.m, b.r);
+    MochiSurface out;
+    out.force = mochi_scale(-nf.push, n);
+    out.torque = mochi_zero3();
+    out.springs = mochi_no_springs();
+    if (!g.turns) {
+        return out;
+    }
+    MochiFriction f =
+        mochi_friction(g, law, mochi_wall_touch(b, n, overlap, nf, velocity), mu, old);
+    out.force = mochi_add(out.force, f.force);
+    out.torque = f.torque;
+    out.springs = f.springs;
     return out;
 }

@@ -11,7 +11,7 @@
 struct GranularLaunch {
     const float4* pos;               // x, y, z, r (the state's order)
     const float4* vel;               // vx, vy, vz, mass
-    const float4* ang;               // wx, wy, wz, 0
+    const float4* ang;               // wx, wy, wz, material (its bits)
     const unsigned int* ids;         // stable id (input index) of each sphere
     float* force;                    // 3 floats per sphere, summed with atomics
     float* torque;                   // 3 floats per sphere, summed with atomics
@@ -47,6 +47,7 @@ static __forceinline__ __device__ MochiBody mochi_body(unsigned int k) {
     b.w = mochi_v3(w.x, w.y, w.z);
     b.r = s.w;
     b.m = v.w;
+    b.material = __float_as_uint(w.w);
     return b;
 }
 
@@ -108,7 +109,7 @@ extern "C" __global__ void __intersection__granular() {
     mochi_add_payload(2u, c.force.y);
     mochi_add_payload(3u, c.force.z);
     if (g.turns) {
-        float3 t = mochi_partner_torque(g, b.r, c);
+        float3 t = mochi_partner_torque(b.r, c);
         atomicAdd(&params.torque[3 * j], t.x);
         atomicAdd(&params.torque[3 * j + 1], t.y);
         atomicAdd(&params.torque[3 * j + 2], t.z);

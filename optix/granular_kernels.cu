@@ -4,7 +4,8 @@
 
 // Walls (with their springs), gravity at step `step` and one semi-implicit Euler step of
 // positions (the centres with their residuals `lo`) and angular velocities, in place (src/engines/cpu/dem.rs: pairs, then the walls'
-// normal and tangential forces); clears the force and torque accumulators for the next step.
+// normal and tangential forces; each sphere's material rides in its angular velocity row's w,
+// as bits, and stays there); clears the force and torque accumulators for the next step.
 // Appends the walls' springs to the sphere's new history after those its ray wrote, and where a
 // sphere holds more contacts than `slots`, raises `need` to its count (the host then grows
 // the slots and redoes the steps).
@@ -35,6 +36,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
     b.w = mochi_v3(w.x, w.y, w.z);
     b.r = s.w;
     b.m = v.w;
+    b.material = __float_as_uint(w.w);
     unsigned int id = ids[p];
     unsigned int held = g.keeps ? new_count[id] : 0u;
     unsigned long long row = (unsigned long long)id * slots;
@@ -119,7 +121,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
 }
 
 // Reorders rows of 4 floats: sorted position p takes row `order[p]` of the input (the angular
-// velocities, beside dem_permute's state).
+// velocities with the materials, beside dem_permute's state).
 extern "C" __global__ void permute_rows(const float4* rows_in, const unsigned int* order,
                                         float4* rows, unsigned int n) {
     unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;

@@ -31,8 +31,9 @@ struct MochiMeshWall {
     float axis[3];            // unit
     float start;              // when the motion starts [s]
     float centre[3];          // a point of the axis at `start` [m]; loads' torques are about it
-    float friction;           // μ with the wall
-    unsigned int column; float own_friction; unsigned int _pad[2];  // the wgpu steps' (MeshWallRow)
+    unsigned int column;      // its column in the material table (its material's, or rigid)
+    float own_friction;       // its own μ with the spheres, or negative: each pair's
+    unsigned int _pad[3];     // to the size of the Rust row (a multiple of 16 bytes)
 };
 
 // The mesh walls as granular_integrate reads them.
@@ -188,33 +189,6 @@ static __device__ unsigned int mochi_mesh_candidates(const MochiMeshes& w, unsig
     return found;
 }
 
-// The force and torque of a sphere's contact with a surface moving at `velocity` where it
-// touches, normal n from the centre, with friction μ (surface_contact in dem_contact.wgsl).
-struct MochiSurface {
-    float3 force;
-    float3 torque;
-    MochiSprings springs;
-};
-
-static __device__ MochiSurface mochi_surface_contact(const GranularParams& g, const MochiBody& b,
-                                                     float3 n, float overlap, float3 velocity,
-                                                     float mu, MochiSprings old) {
-    MochiNormal nf =
-        mochi_normal_force(g, true, overlap, mochi_dot(mochi_sub(velocity, b.v), n), b.m, b.r);
-    MochiSurface out;
-    out.force = mochi_scale(-nf.push, n);
-    out.torque = mochi_zero3();
-    out.springs = mochi_no_springs();
-    if (!g.turns) {
-        return out;
-    }
-    MochiFriction f = mochi_friction(g, mochi_wall_touch(b, n, overlap, nf, velocity), mu, old);
-    out.force = mochi_add(out.force, f.force);
-    out.torque = f.torque;
-    out.springs = f.springs;
-    return out;
-}
-
 // Sphere b's contacts with every mesh wall at time t: their force and torque added to `force`
 // and `torque`; `old(partner, first)` gives the slot at or after `first` of the sphere's old
 // contact with `partner` and its springs (a slot ≥ its count: none), `keep(partner, springs)`
@@ -276,8 +250,8 @@ static __device__ void mochi_mesh_contacts(const GranularParams& g, const MochiM
             }
             // d < r, but the square root may round up.
             float overlap = fmaxf(b.r - d, 0.0f);
-            MochiSurface c =
-                mochi_surface_contact(g, b, n, overlap, surface_velocity, m.friction, springs);
+            MochiSurface c = mochi_surface_contact(g, b, n, overlap, surface_velocity, m.column,
+                                                   m.own_friction, springs);
             f_wall = mochi_add(f_wall, c.force);
             t_wall = mochi_add(t_wall, c.torque);
             if (g.keeps) {

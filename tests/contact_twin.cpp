@@ -3,7 +3,8 @@
 // line per value whose bits differ from what src/dem/model/contact.rs computed (the first 20),
 // then a summary.
 // ±0 count as equal (the partner's negated zero springs). Compiled with -DMOCHI_LOAD_HISTORY for
-// the Mindlin–Deresiewicz law, whose springs carry 4 more values (reversal, normal force).
+// the Mindlin–Deresiewicz law, whose springs carry 4 more values (reversal, normal force). Each
+// case carries its material table; the law reads it as the device reads the uploaded one.
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -94,7 +95,34 @@ static MochiBody body(const std::vector<std::string>& w) {
     b.w = vec(w, 6);
     b.r = from_bits(w[9]);
     b.m = from_bits(w[10]);
+    b.material = std::stoul(w[11]);
     return b;
+}
+
+// The springs of a section from `at` on.
+static MochiSprings springs(const std::vector<std::string>& w, size_t at) {
+    MochiSprings k;
+    k.tangential = vec(w, at);
+    k.rolling = vec(w, at + 3);
+#ifdef MOCHI_LOAD_HISTORY
+    k.reversal = vec(w, at + 6);
+    k.normal = from_bits(w[at + 9]);
+#endif
+    return k;
+}
+
+// A contact's force, torque and springs against a contact section ("1", then those).
+static void check_contact(const char* what, float3 force, float3 torque, const MochiSprings& k,
+                          const std::vector<std::string>& want) {
+    std::string w(what);
+    check3((w + " force").c_str(), force, want, 1);
+    check3((w + " torque").c_str(), torque, want, 4);
+    check3((w + " tangential spring").c_str(), k.tangential, want, 7);
+    check3((w + " rolling spring").c_str(), k.rolling, want, 10);
+#ifdef MOCHI_LOAD_HISTORY
+    check3((w + " reversal").c_str(), k.reversal, want, 13);
+    check((w + " normal force kept").c_str(), k.normal, want[16]);
+#endif
 }
 
 int main() {
@@ -105,38 +133,37 @@ int main() {
         std::stringstream ss(line);
         std::string section;
         while (std::getline(ss, section, '|')) s.push_back(words(section));
-        // Parameters: law, rate, E* and G* of pairs and walls, μ, μ_wall, μ_r, rolling model,
-        // turns, keeps, dt, ζ, k, box.
+        // Parameters: law, rolling model, turns, keeps, dt, k, box, then the material table:
+        // its columns, the box walls' column and each law's rate, E*, G*, ζ, μ, μ_r.
         const std::vector<std::string>& h = s[0];
         GranularParams g{};
         g.law = std::stoul(h[0]);
-        g.rate = from_bits(h[1]);
-        g.pair_e_star = from_bits(h[2]);
-        g.pair_g_star = from_bits(h[3]);
-        g.wall_e_star = from_bits(h[4]);
-        g.wall_g_star = from_bits(h[5]);
-        g.sliding = from_bits(h[6]);
-        g.wall_sliding = from_bits(h[7]);
-        g.rolling = from_bits(h[8]);
-        g.rolling_model = std::stoul(h[9]);
-        g.turns = std::stoul(h[10]);
-        g.keeps = std::stoul(h[11]);
-        g.dem.dt = from_bits(h[12]);
-        g.dem.damping_ratio = from_bits(h[13]);
-        g.dem.stiffness = from_bits(h[14]);
+        g.rolling_model = std::stoul(h[1]);
+        g.turns = std::stoul(h[2]);
+        g.keeps = std::stoul(h[3]);
+        g.dem.dt = from_bits(h[4]);
+        g.dem.stiffness = from_bits(h[5]);
         for (int a = 0; a < 3; ++a) {
-            g.dem.box_lo[a] = from_bits(h[15 + a]);
-            g.dem.box_hi[a] = from_bits(h[18 + a]);
+            g.dem.box_lo[a] = from_bits(h[6 + a]);
+            g.dem.box_hi[a] = from_bits(h[9 + a]);
         }
+        g.columns = std::stoul(h[12]);
+        g.box_column = std::stoul(h[13]);
+        std::vector<MochiPairLaw> laws((h.size() - 14) / 6);
+        for (size_t k = 0; k < laws.size(); ++k) {
+            MochiPairLaw& l = laws[k];
+            const std::string* x = &h[14 + 6 * k];
+            l.rate = from_bits(x[0]);
+            l.e_star = from_bits(x[1]);
+            l.g_star = from_bits(x[2]);
+            l.damping_ratio = from_bits(x[3]);
+            l.sliding = from_bits(x[4]);
+            l.rolling = from_bits(x[5]);
+        }
+        g.laws = laws.data();
         MochiBody i = body(s[1]);
         MochiBody j = body(s[2]);
-        MochiSprings old;
-        old.tangential = vec(s[3], 0);
-        old.rolling = vec(s[3], 3);
-#ifdef MOCHI_LOAD_HISTORY
-        old.reversal = vec(s[3], 6);
-        old.normal = from_bits(s[3][9]);
-#endif
+        MochiSprings old = springs(s[3], 0);
         // From i's side: touching, then force, torque, springs; from j's side the same.
         const std::vector<std::string>& from_i = s[4];
         const std::vector<std::string>& from_j = s[5];
@@ -147,24 +174,9 @@ int main() {
                         from_i[0].c_str(), from_j[0].c_str());
             ++differences;
         } else if (touching) {
-            check3("force", c.force, from_i, 1);
-            check3("torque", c.torque, from_i, 4);
-            check3("tangential spring", c.springs.tangential, from_i, 7);
-            check3("rolling spring", c.springs.rolling, from_i, 10);
-#ifdef MOCHI_LOAD_HISTORY
-            check3("reversal", c.springs.reversal, from_i, 13);
-            check("normal force kept", c.springs.normal, from_i[16]);
-#endif
-            check3("partner's force", mochi_neg(c.force), from_j, 1);
-            float3 t = g.turns ? mochi_partner_torque(g, j.r, c) : mochi_zero3();
-            check3("partner's torque", t, from_j, 4);
-            MochiSprings back = mochi_negated(c.springs);
-            check3("partner's tangential spring", back.tangential, from_j, 7);
-            check3("partner's rolling spring", back.rolling, from_j, 10);
-#ifdef MOCHI_LOAD_HISTORY
-            check3("partner's reversal", back.reversal, from_j, 13);
-            check("partner's normal force kept", back.normal, from_j[16]);
-#endif
+            check_contact("pair's", c.force, c.torque, c.springs, from_i);
+            float3 t = g.turns ? mochi_partner_torque(j.r, c) : mochi_zero3();
+            check_contact("partner's", mochi_neg(c.force), t, mochi_negated(c.springs), from_j);
         }
         // Walls: normal, tangential, torque, then (wall, springs) kept and their count. The
         // springs kept of wall w are (w, w, w)·1e-6 and the rolling one their negative.
@@ -187,6 +199,12 @@ int main() {
         check3("walls' normal force", w.normal, walls, 0);
         check3("walls' tangential force", w.tangential, walls, 3);
         check3("walls' torque", w.torque, walls, 6);
+        // A surface: n, overlap, velocity, column, its own μ (negative: none), then the contact.
+        const std::vector<std::string>& on = s[7];
+        MochiSurface surface = mochi_surface_contact(g, i, vec(on, 0), from_bits(on[3]),
+                                                     vec(on, 4), std::stoul(on[7]),
+                                                     from_bits(on[8]), old);
+        check_contact("surface's", surface.force, surface.torque, surface.springs, s[8]);
         size_t count = std::stoul(walls.back());
         if (count != kept.size()) {
             std::printf("case %d: %zu walls kept, contact.rs %zu\n", line_number, kept.size(),

@@ -3,21 +3,25 @@
 //! supplies CUDA's vector types; no fused multiply-adds, as NVRTC compiles it for the GPU), it
 //! computes the same forces, torques and springs as the Rust law on a table of random contacts
 //! of every law and rolling model: a sphere pair from one side, the partner's share as the
-//! partner's own side computes it (what the GPU's owner adds to the partner), and the six
-//! walls with their springs; at the size of the tests' spheres and at nanometres, where the
-//! products of masses, moments of inertia and torques underflow f32. Compiled again with
+//! partner's own side computes it (what the GPU's owner adds to the partner), the six walls
+//! with their springs and a moving surface (a mesh wall's contact); at the size of the tests'
+//! spheres and at nanometres, where the products of masses, moments of inertia and torques
+//! underflow f32. Each case carries its material table (one material, or three that differ in
+//! E, ν, density, restitution, friction and rolling friction, with a pair of its own), its
+//! spheres' materials and the walls' columns (a material's or rigid). Compiled again with
 //! `MOCHI_LOAD_HISTORY`, the Mindlin–Deresiewicz law on cases of its own (springs with a load
-//! history, on the virgin curve and after a reversal, sticking and sliding). Needs a C++17 compiler
-//! (`c++`) and no GPU; skips with a note without one (CI has one).
+//! history, on the virgin curve and after a reversal, sticking and sliding). Needs a C++17
+//! compiler (`c++`) and no GPU; skips with a note without one (CI has one).
 
 mod common;
 
 use glam::Vec3;
 use mochi::dem::model::contact::{
-    Body, Contact, Kept, LoadedSprings, Springs, pair_contact, wall_contacts,
+    Body, Contact, Kept, LoadedSprings, Springs, pair_contact, surface_contact, wall_contacts,
 };
 use mochi::dem::model::{
-    ContactLaw, Material, NormalLaw, RollingModel, StepParams, TangentialModel, mass,
+    ContactLaw, Material, Materials, NormalLaw, PairOverride, RollingModel, StepParams,
+    TangentialModel, mass,
 };
 use std::fmt::Write;
 use std::path::Path;
@@ -33,55 +37,59 @@ fn vec3(v: Vec3) -> String {
     format!("{} {} {}", bits(v.x), bits(v.y), bits(v.z))
 }
 
-/// The parameters' section of a case (the order `contact_twin.cpp` reads).
+/// The parameters' section of a case (the order `contact_twin.cpp` reads): the law, the
+/// models, dt, k, the box, then the material table (its columns, the box walls' column and
+/// every law's six values, row by row).
 fn params_section(p: &StepParams) -> String {
-    let (law, rate, pair, wall) = match p.law {
-        NormalLaw::Linear => (0, 0.0, (0.0, 0.0), (0.0, 0.0)),
-        NormalLaw::LinearPerPair { rate, .. } => (1, rate, (0.0, 0.0), (0.0, 0.0)),
-        NormalLaw::Hertz { pair, wall } => (
-            2,
-            0.0,
-            (pair.e_star, pair.g_star),
-            (wall.e_star, wall.g_star),
-        ),
+    let law = match p.law {
+        NormalLaw::Linear => 0,
+        NormalLaw::LinearPerPair { .. } => 1,
+        NormalLaw::Hertz { .. } => 2,
     };
     let f = p.friction;
     let model = match f.rolling_model {
         RollingModel::Epsd => 0,
         RollingModel::ConstantTorque => 1,
     };
-    let floats = [
-        rate,
-        pair.0,
-        pair.1,
-        wall.0,
-        wall.1,
-        f.sliding,
-        f.wall_sliding,
-        f.rolling,
-    ];
-    let floats: Vec<String> = floats.into_iter().map(bits).collect();
+    let table = &p.materials;
+    let laws: Vec<String> = table
+        .laws
+        .iter()
+        .flat_map(|l| {
+            [
+                l.rate,
+                l.e_star,
+                l.g_star,
+                l.damping_ratio,
+                l.sliding,
+                l.rolling,
+            ]
+        })
+        .map(bits)
+        .collect();
     format!(
-        "{law} {} {model} {} {} {} {} {} {} {}",
-        floats.join(" "),
+        "{law} {model} {} {} {} {} {} {} {} {} {}",
         f.turns() as u32,
         f.has_history() as u32,
         bits(p.dt),
-        bits(p.damping_ratio),
         bits(p.stiffness),
         vec3(Vec3::from_array(p.box_lo)),
         vec3(Vec3::from_array(p.box_hi)),
+        table.count + 1,
+        p.box_column,
+        laws.join(" "),
     )
 }
 
 fn body_section(b: &Body) -> String {
     format!(
-        "{} {} {} {} {}",
+        "{} {} {} {} {} {}",
         vec3(b.c),
         vec3(b.v),
         vec3(b.w),
         bits(b.r),
-        bits(b.m)
+        bits(b.m),
+        b.material
     )
 }
 
@@ -164,19 +172,22 @@ fn contact_section<S: Twin>(c: Option<Contact<S>>) -> String {
     }
 }
 
-/// Cases of one material: pairs at about touching distance (some apart), spinning, with old
-/// springs, near the walls of a 0.1 m box; all of it scaled by `scale` (lengths and times,
-/// velocities kept: spins by 1/scale, rolling springs by scale³).
+/// Cases of `materials`: pairs of random materials at about touching distance (some apart),
+/// spinning, with old springs, near the walls of a 0.1 m box of a random column (a material's
+/// or rigid), and a sphere on a moving surface of a random column, with its own friction in a
+/// third of the cases; all of it scaled by `scale` (lengths and times, velocities kept: spins
+/// by 1/scale, rolling springs by scale³).
 fn cases<S: Twin>(
-    material: &Material,
+    materials: &Materials,
     dt: f64,
     scale: f32,
     rand: &mut impl FnMut() -> f32,
     out: &mut String,
 ) {
     let s = scale as f64;
-    let p = StepParams::new(
-        material,
+    let p = StepParams::with_materials(
+        materials,
+        None,
         dt * s,
         [0.0; 3],
         [0.1 * s; 3],
@@ -185,22 +196,31 @@ fn cases<S: Twin>(
         0.004 * scale,
     )
     .unwrap();
-    let params = params_section(&p);
     assert_eq!(p.friction.tangential_model, S::MODEL);
+    let count = materials.list.len();
+    let pick = |rand: &mut dyn FnMut() -> f32, of: usize| {
+        (((rand() + 0.5) * of as f32) as usize).min(of - 1) as u32
+    };
     let body = |c: Vec3, rand: &mut dyn FnMut() -> f32| {
         let r = (0.005 + 0.002 * rand()) * scale;
         let v = Vec3::new(rand(), rand(), rand());
         let w = 50.0 / scale * Vec3::new(rand(), rand(), rand());
+        let material = pick(rand, count);
         Body {
             c,
             v,
             w,
             r,
-            m: mass(DENSITY as f32, r),
-            material: 0,
+            m: mass(materials.list[material as usize].density as f32, r),
+            material,
         }
     };
     for _ in 0..200 {
+        // The box's walls and the surface: a material's, or rigid (column `count`).
+        let p = StepParams {
+            box_column: pick(rand, count + 1),
+            ..p.clone()
+        };
         let c = Vec3::new(rand(), rand(), rand()) * 0.1 + Vec3::splat(0.05);
         let c = c.clamp(Vec3::splat(0.003), Vec3::splat(0.097)) * scale;
         let i = body(c, rand);
@@ -210,14 +230,21 @@ fn cases<S: Twin>(
         let old = S::old(scale, rand);
         let back = old.negated();
         let mut kept = String::new();
-        let mut count = 0;
+        let mut held = 0;
         let walls = wall_contacts(&p, &i, S::of_wall, |w, s: S| {
-            count += 1;
+            held += 1;
             write!(kept, "{w} {} ", s.section()).unwrap();
         });
+        let n = Vec3::new(rand(), rand(), rand()).normalize();
+        let overlap = i.r * (0.001 + 0.01 * (rand() + 0.5));
+        let moving = 0.5 * Vec3::new(rand(), rand(), rand());
+        let column = pick(rand, count + 1);
+        let given = (rand() < -0.2).then(|| rand() + 0.5);
+        let surface = surface_contact(&p, &i, n, overlap, moving, column, given, old);
         writeln!(
             out,
-            "{params} | {} | {} | {} | {} | {} | {} {} {} {kept}{count}",
+            "{} | {} | {} | {} | {} | {} | {} {} {} {kept}{held} | {} {} {} {column} {} | {}",
+            params_section(&p),
             body_section(&i),
             body_section(&j),
             old.section(),
@@ -226,6 +253,12 @@ fn cases<S: Twin>(
             vec3(walls.normal),
             vec3(walls.tangential),
             vec3(walls.torque),
+            vec3(n),
+            bits(overlap),
+            vec3(moving),
+            // No friction of its own: negative, as the device reads it.
+            bits(given.unwrap_or(-1.0)),
+            contact_section(Some(surface)),
         )
         .unwrap();
     }
@@ -304,7 +337,13 @@ fn the_cuda_mindlin_deresiewicz_law_computes_the_bits_of_the_rust_one() {
                 tangential_model: TangentialModel::MindlinDeresiewicz,
                 ..Material::default()
             };
-            cases::<LoadedSprings>(&material, 1e-6, scale, &mut rand, &mut table);
+            cases::<LoadedSprings>(
+                &Materials::one(material),
+                1e-6,
+                scale,
+                &mut rand,
+                &mut table,
+            );
             count += 200;
         }
     }
@@ -367,9 +406,118 @@ fn the_cuda_contact_law_computes_the_bits_of_the_rust_one() {
                 rolling_model,
                 ..Material::default()
             };
-            cases::<Springs>(&material, dt, scale, &mut rand, &mut table);
+            cases::<Springs>(&Materials::one(material), dt, scale, &mut rand, &mut table);
             count += 200;
         }
     }
     compare(&binary, &table, count);
+}
+
+/// Three materials of `contact` (under Hertz–Mindlin with E and ν of their own) that differ in
+/// density, restitution, friction (none on the second) and rolling friction (none on the
+/// third), the first and the third a pair with coefficients of its own: pairs that slide and
+/// roll, only slide, only roll, or neither.
+fn three_materials(
+    contact: ContactLaw,
+    rolling_model: RollingModel,
+    tangential_model: TangentialModel,
+) -> Materials {
+    let moduli = [(1e7, 0.3), (5e7, 0.2), (2e6, 0.45)];
+    let list = (0..3)
+        .map(|k| Material {
+            density: [2500.0, 1200.0, 7800.0][k],
+            restitution: [0.5, 0.9, 0.3][k],
+            contact: match contact {
+                ContactLaw::HertzMindlin { .. } => ContactLaw::HertzMindlin {
+                    young_modulus: moduli[k].0,
+                    poisson_ratio: moduli[k].1,
+                },
+                other => other,
+            },
+            friction: [0.5, 0.0, 0.8][k],
+            rolling_friction: [0.1, 0.05, 0.0][k],
+            rolling_model,
+            tangential_model,
+            ..Material::default()
+        })
+        .collect();
+    Materials {
+        list,
+        names: ["glass", "wax", "steel"].map(String::from).to_vec(),
+        pairs: vec![PairOverride {
+            a: 2,
+            b: 0,
+            restitution: Some(0.7),
+            friction: Some(0.1),
+            rolling_friction: Some(0.2),
+        }],
+    }
+}
+
+/// Materials as [`three_materials`] without friction and rolling resistance.
+fn frictionless(mut materials: Materials) -> Materials {
+    for m in &mut materials.list {
+        m.friction = 0.0;
+        m.rolling_friction = 0.0;
+    }
+    materials.pairs.clear();
+    materials
+}
+
+#[test]
+fn the_cuda_law_of_several_materials_computes_the_bits_of_the_rust_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (Some(spring), Some(loaded)) = (
+        compile_twin(dir.path(), false),
+        compile_twin(dir.path(), true),
+    ) else {
+        return;
+    };
+    let mut rand = common::noise(7);
+    let hertz = ContactLaw::HertzMindlin {
+        young_modulus: 1e7,
+        poisson_ratio: 0.3,
+    };
+    let per_pair = ContactLaw::LinearPerPair {
+        contact_time: Some(1e-4),
+    };
+    let mindlin = TangentialModel::Mindlin;
+    let laws = [
+        (hertz, RollingModel::Epsd, 1e-6),
+        (hertz, RollingModel::ConstantTorque, 1e-6),
+        (per_pair, RollingModel::Epsd, 1e-6),
+        (ContactLaw::Linear, RollingModel::ConstantTorque, 1e-5),
+    ];
+    let (mut table, mut count) = (String::new(), 0);
+    // At the tests' size and at radii of about 1e-8 m; without friction at about 2e-12 m too.
+    for scale in [1.0, 2e-6, 4e-10] {
+        for (contact, rolling_model, dt) in laws {
+            let contact = match contact {
+                ContactLaw::LinearPerPair {
+                    contact_time: Some(t),
+                } => ContactLaw::LinearPerPair {
+                    contact_time: Some(t * scale as f64),
+                },
+                other => other,
+            };
+            let materials = three_materials(contact, rolling_model, mindlin);
+            if scale > 1e-9 {
+                cases::<Springs>(&materials, dt, scale, &mut rand, &mut table);
+                count += 200;
+            }
+            cases::<Springs>(&frictionless(materials), dt, scale, &mut rand, &mut table);
+            count += 200;
+        }
+    }
+    compare(&spring, &table, count);
+    let (mut table, mut count) = (String::new(), 0);
+    for scale in [1.0, 2e-6] {
+        for rolling_model in [RollingModel::Epsd, RollingModel::ConstantTorque] {
+            let md = TangentialModel::MindlinDeresiewicz;
+            let materials = three_materials(hertz, rolling_model, md);
+            cases::<LoadedSprings>(&materials, 1e-6, scale, &mut rand, &mut table);
+            count += 200;
+        }
+    }
+    compare(&loaded, &table, count);
 }

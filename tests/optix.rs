@@ -243,17 +243,33 @@ fn compile_errors_carry_the_nvrtc_log() {
 
 // ---- The granular step (GPU only: each test says why it skips without one) -------------------
 
+use mochi::dem::flow::FlowSet;
 use mochi::dem::model::time_step::rayleigh_time;
-use mochi::dem::model::{ContactLaw, Material, RollingModel, TangentialModel};
+use mochi::dem::model::{
+    ContactLaw, Material, Materials, PairOverride, RollingModel, TangentialModel,
+};
+use mochi::dem::scene::Start;
+use mochi::dem::walls::{WallConfig, WallSet};
 use mochi::dem::{Particles, StepParams, Stepper};
-use mochi::engines::{Options, open_stepper};
+use mochi::engines::{BackendChoice, Options, open_scene};
+use mochi::mesh::Mesh;
 
 const E: f64 = 1e7;
 const RHO: f64 = 2500.0;
 
-/// The step of `backend` over `particles`, or `None` (with a note) where optix does not run
-/// here and is not expected.
+/// The step of `backend` over `particles` in the box, or `None` (with a note) where optix does
+/// not run here and is not expected.
 fn stepper(backend: BackendKind, particles: &Particles, p: StepParams) -> Option<Box<dyn Stepper>> {
+    stepper_in(backend, particles, p, &WallSet::default())
+}
+
+/// As [`stepper`], inside `walls`.
+fn stepper_in(
+    backend: BackendKind,
+    particles: &Particles,
+    p: StepParams,
+    walls: &WallSet,
+) -> Option<Box<dyn Stepper>> {
     if backend == BackendKind::Optix
         && let Err(why) = BackendKind::Optix.probe()
     {
@@ -264,8 +280,15 @@ fn stepper(backend: BackendKind, particles: &Particles, p: StepParams) -> Option
         eprintln!("note: the optix granular step is not run here: {why}");
         return None;
     }
-    let options = Options::default();
-    Some(open_stepper(backend, particles.clone(), p, ProxyMode::Mochi, &options).unwrap())
+    let start = Start {
+        particles: particles.clone(),
+        params: p,
+        mode: ProxyMode::Mochi,
+        walls: walls.clone(),
+        flow: FlowSet::default(),
+    };
+    let choice = BackendChoice::Named(backend);
+    Some(open_scene(choice, start, &Options::default()).unwrap().0)
 }
 
 /// A material with friction `mu` and rolling resistance `mu_r` of `model` under `contact`.
@@ -356,13 +379,25 @@ fn contacts(p: &Particles) -> Vec<(u32, u32, [f32; 10])> {
 }
 
 /// Runs `particles` for `steps` steps on the cpu and on optix and compares positions,
-/// velocities, angular velocities and the contact history (both sides); returns both ends.
+/// velocities, angular velocities, materials and the contact history (both sides); returns both
+/// ends.
 fn compare_with_cpu(particles: &Particles, p: StepParams, steps: u32) -> Option<[Particles; 2]> {
-    let mut gpu = stepper(BackendKind::Optix, particles, p.clone())?;
-    let mut cpu = stepper(BackendKind::Cpu, particles, p).unwrap();
+    compare_with_cpu_in(particles, p, &WallSet::default(), steps).map(|(ends, _)| ends)
+}
+
+/// As [`compare_with_cpu`], inside `walls`; returns the optix step too.
+fn compare_with_cpu_in(
+    particles: &Particles,
+    p: StepParams,
+    walls: &WallSet,
+    steps: u32,
+) -> Option<([Particles; 2], Box<dyn Stepper>)> {
+    let mut gpu = stepper_in(BackendKind::Optix, particles, p.clone(), walls)?;
+    let mut cpu = stepper_in(BackendKind::Cpu, particles, p, walls).unwrap();
     cpu.advance(steps).unwrap();
     gpu.advance(steps).unwrap();
     let (a, b) = (cpu.particles().unwrap(), gpu.particles().unwrap());
+    assert_eq!(a.materials, b.materials, "materials");
     let r = particles.radius_range().0;
     // The two differ only in the order of the force sums (atomics on the GPU): f32 rounding,
     // far below a millionth of a radius over a few steps.
@@ -402,7 +437,7 @@ fn compare_with_cpu(particles: &Particles, p: StepParams, steps: u32) -> Option<
             );
         }
     }
-    Some([a, b])
+    Some(([a, b], gpu))
 }
 
 #[test]
@@ -507,4 +542,102 @@ fn a_granular_state_reads_back_as_it_went_up() {
     assert!(state.history.has_loads());
     let mut gpu = stepper(BackendKind::Optix, &state, p).unwrap();
     assert_eq!(gpu.particles().unwrap(), state);
+}
+
+/// A square of side `2·half` standing on the floor in the plane x = `x` (`axis` 0) or y = `x`
+/// (`axis` 1), centred on `c` in the other horizontal coordinate: two triangles.
+fn square(axis: usize, x: f64, c: f64, half: f64) -> Mesh {
+    let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
+    let vertices = corners
+        .map(|(u, v)| {
+            let (u, v) = (c + u * half, (1.0 + v) * half);
+            match axis {
+                0 => [x, u, v],
+                _ => [u, x, v],
+            }
+        })
+        .to_vec();
+    Mesh {
+        vertices,
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+    }
+}
+
+#[test]
+fn several_materials_follow_the_cpu_step() {
+    // Two Hertz–Mindlin materials that differ in E, ν, density, restitution, friction and
+    // rolling friction, their pair with coefficients of its own, spheres of both mixed; the box
+    // of the second material, a mesh wall of the first, and a rigid one with friction of its
+    // own, each touched by the outer spheres of one side.
+    let r = 0.005f32;
+    let hertz = |young_modulus, poisson_ratio| ContactLaw::HertzMindlin {
+        young_modulus,
+        poisson_ratio,
+    };
+    let glass = frictional(hertz(E, 0.3), 0.5, 0.1, RollingModel::Epsd);
+    let steel = Material {
+        density: 7800.0,
+        restitution: 0.8,
+        ..frictional(hertz(5.0 * E, 0.2), 0.3, 0.05, RollingModel::Epsd)
+    };
+    let materials = Materials {
+        list: vec![glass, steel],
+        names: vec!["glass".into(), "steel".into()],
+        pairs: vec![PairOverride {
+            a: 0,
+            b: 1,
+            restitution: Some(0.6),
+            friction: Some(0.2),
+            rolling_friction: Some(0.02),
+        }],
+    };
+    let dt = 0.2
+        * rayleigh_time(r as f64, RHO, E, 0.3).min(rayleigh_time(r as f64, 7800.0, 5.0 * E, 0.2));
+    let gravity = [0.0, 0.0, -9.81];
+    let (side, box_material) = (0.1, Some(1));
+    let p = StepParams::with_materials(
+        &materials,
+        box_material,
+        dt,
+        [0.0; 3],
+        [side; 3],
+        gravity,
+        0.0,
+        r,
+    )
+    .unwrap();
+    let mut start = pressed_layers(r, side as f32);
+    start.materials = (0..start.len()).map(|k| (k % 3 == 1) as u8).collect();
+    // The layers' outer centres lie 1.5 spacings (1.96·r) from the middle, give or take 0.05·r.
+    let reach = 1.5 * 1.96 * r as f64 + 0.98 * r as f64;
+    let (mid, half) = (side / 2.0, 6.0 * r as f64);
+    let wall = |k: usize, mesh: &Mesh, material: Option<u32>, friction: Option<f32>| {
+        let mut wall = WallConfig::of(format!("side {k}"))
+            .build_from(k, mesh, material)
+            .unwrap();
+        wall.friction = friction;
+        wall
+    };
+    let walls = WallSet::new(
+        true,
+        vec![
+            wall(0, &square(0, mid + reach, mid, half), Some(0), None),
+            wall(1, &square(1, mid - reach, mid, half), None, Some(0.7)),
+        ],
+    )
+    .unwrap();
+    let Some(([cpu, _], mut gpu)) = compare_with_cpu_in(&start, p, &walls, 20) else {
+        return;
+    };
+    // Both mesh walls and both materials were touched.
+    for wall in [0, 1] {
+        let partner = mochi::dem::FIRST_MESH_WALL + wall;
+        assert!(
+            (0..cpu.len()).any(|i| cpu.history.of(i).iter().any(|e| e.partner == partner)),
+            "no sphere touches mesh wall {wall}"
+        );
+    }
+    // The materials travel with their spheres through the Morton re-sorts (every 2,000 steps).
+    gpu.advance(4000).unwrap();
+    assert_eq!(gpu.particles().unwrap().materials, start.materials);
 }

@@ -36,7 +36,6 @@ struct MeshWall {
     axis: vec3<f32>,    // unit
     start: f32,         // when the motion starts [s]
     centre: vec3<f32>,  // a point of the axis at `start` [m]; loads' torques are about it
-    friction: f32,      // μ of a sphere of the first material (the optix step's)
     column: u32,        // the wall's column of the material table
     own_friction: f32,  // the wall's own μ, or < 0 (NO_FRICTION): the pair's
 }

@@ -92,12 +92,9 @@ pub struct MeshWallRow {
     axis: Vec3f,
     start: f32,
     centre: Vec3f,
-    /// μ of a sphere of the first material with the wall (its own, else the pair's): what the
-    /// optix step reads, which runs one material.
-    friction: f32,
     /// The wall's column of the material table (its material, or a rigid wall's).
     column: u32,
-    /// The wall's own μ, or [`NO_FRICTION`]: what the wgpu steps read, with `column`.
+    /// The wall's own μ, or [`NO_FRICTION`]: each sphere then takes its pair's, by `column`.
     own_friction: f32,
 }
 
@@ -114,7 +111,6 @@ pub fn mesh_wall_row() -> SharedStruct {
             axis,
             start,
             centre,
-            friction,
             column,
             own_friction,
         }
@@ -264,7 +260,6 @@ impl WallTables {
                 axis: m.axis.as_vec3().into(),
                 start: m.start as f32,
                 centre: m.centre.as_vec3().into(),
-                friction: wall.friction.unwrap_or(table.law(0, column).sliding),
                 column,
                 own_friction: wall.friction.unwrap_or(NO_FRICTION),
             });

@@ -22,18 +22,6 @@ pub fn open_stepper(
     open_walled(kind, particles, params, mode, options, WallSet::default())
 }
 
-/// Refuses several materials on the optix backend, whose step reads the first material's law
-/// (the cpu and wgpu steps read each contact's from the material table).
-fn one_material_off_the_cpu(kind: BackendKind, params: &StepParams) -> Result<()> {
-    if kind == BackendKind::Optix && params.materials.count > 1 {
-        return Err(Error::BackendUnavailable {
-            backend: kind.name(),
-            reason: "several materials run on the cpu and wgpu backends only".into(),
-        });
-    }
-    Ok(())
-}
-
 /// Opens the DEM step of backend `kind` over `particles` inside `walls`.
 fn open_walled(
     kind: BackendKind,
@@ -44,7 +32,6 @@ fn open_walled(
     walls: WallSet,
 ) -> Result<Box<dyn Stepper>> {
     particles.validate()?;
-    one_material_off_the_cpu(kind, &params)?;
     let kernels = super::gpu_step::KernelSet::Auto;
     Ok(match kind {
         BackendKind::Cpu => {
@@ -151,8 +138,7 @@ pub fn open_scene(
                 .with_flow(flow.clone(), mode);
             return Ok(Box::new(stepper));
         }
-        one_material_off_the_cpu(kind, &params)?;
-        let reopen = reopener(kind, params.clone(), mode, options, walls.clone())?;
+            let reopen = reopener(kind, params.clone(), mode, options, walls.clone())?;
         let step = FlowStep::new(
             particles.clone(),
             flow.clone(),

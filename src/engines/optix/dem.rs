@@ -95,6 +95,9 @@ pub struct OptixStepper {
     maintenance: Maintenance,
     /// Candidates per ray of the last step.
     last_candidates: f64,
+    /// Whether the particles came with their materials (read back as they came: with them, or
+    /// without, all of the first).
+    materials_given: bool,
 }
 
 impl OptixStepper {
@@ -136,6 +139,7 @@ impl OptixStepper {
                 ),
             });
         }
+        granular::check_materials(&particles, &params, walls)?;
         let stream = device.stream.clone();
         let (pos, vel) = rows(&particles, &params.materials);
         let lo = residual_rows(&particles);
@@ -201,6 +205,7 @@ impl OptixStepper {
                 ..Maintenance::default()
             },
             last_candidates: 0.0,
+            materials_given: !particles.materials.is_empty(),
             device,
         };
         if n > 0 {
@@ -487,10 +492,16 @@ impl Stepper for OptixStepper {
         };
         let mut out = particles_from(rows, Some(&ids), self.step)?;
         if let Physics::Granular(g) = &self.physics {
-            let (angular_velocities, history) = g.read_back(stream, &ids)?;
-            out.angular_velocities = angular_velocities;
+            let back = g.read_back(stream, &ids)?;
+            out.angular_velocities = back.angular_velocities;
             out.check_stable()?;
-            out.history = history;
+            out.history = back.history;
+            if self.materials_given {
+                out.materials = back.materials;
+            }
+        } else if self.materials_given {
+            // The frictionless step runs one material.
+            out.materials = vec![0; n];
         }
         Ok(out)
     }

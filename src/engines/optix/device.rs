@@ -12,8 +12,8 @@
 
 use super::programs::{self, Unit};
 use super::sys::{self, Api};
-use crate::dem::model::{Elastic, NormalLaw, RollingModel, StepParams};
-use crate::engines::gpu_walls::WallTables;
+use crate::dem::model::{MaterialTable, NormalLaw, PairLaw, RollingModel, StepParams};
+use crate::engines::gpu_walls::{MeshWallRow, WallTables};
 use crate::error::OptixError;
 use crate::gpu::shader::storage_bytes;
 use crate::particles::{HistoryEntry, LoadEntry};
@@ -681,25 +681,21 @@ impl DemProgram {
 }
 
 /// The twin of `GranularParams` in `optix/contact.cuh` (keep the two in sync): the granular
-/// step's parameters, the contact law's included, as its programs and kernels read them.
+/// step's parameters, the contact law's included, as its programs and kernels read them. The
+/// address of the material table is filled in by each launch from the [`LawTable`] it borrows.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GranularParams {
     dem: DemParams,
+    laws: u64,
+    columns: u32,
+    box_column: u32,
     law: u32,
-    rate: f32,
-    pair_e_star: f32,
-    pair_g_star: f32,
-    wall_e_star: f32,
-    wall_g_star: f32,
-    sliding: f32,
-    wall_sliding: f32,
-    rolling: f32,
     rolling_model: u32,
     turns: u32,
     keeps: u32,
 }
-const _: () = assert!(size_of::<GranularParams>() == 112);
+const _: () = assert!(size_of::<GranularParams>() == 96);
 
 // SAFETY: `#[repr(C)]` plain data laid out as `GranularParams` in optix/contact.cuh.
 unsafe impl DeviceRepr for GranularParams {}
@@ -707,27 +703,17 @@ unsafe impl DeviceRepr for GranularParams {}
 impl GranularParams {
     /// The parameters of a step over `n` spheres.
     pub fn new(p: &StepParams, n: u32) -> Self {
-        let none = Elastic {
-            e_star: 0.0,
-            g_star: 0.0,
-        };
-        let (law, rate, pair, wall) = match p.law {
-            NormalLaw::Linear => (0, 0.0, none, none),
-            NormalLaw::LinearPerPair { rate, .. } => (1, rate, none, none),
-            NormalLaw::Hertz { pair, wall } => (2, 0.0, pair, wall),
-        };
         let f = &p.friction;
         Self {
             dem: DemParams::new(p, n),
-            law,
-            rate,
-            pair_e_star: pair.e_star,
-            pair_g_star: pair.g_star,
-            wall_e_star: wall.e_star,
-            wall_g_star: wall.g_star,
-            sliding: f.sliding,
-            wall_sliding: f.wall_sliding,
-            rolling: f.rolling,
+            laws: 0,
+            columns: p.materials.count as u32 + 1,
+            box_column: p.box_column,
+            law: match p.law {
+                NormalLaw::Linear => 0,
+                NormalLaw::LinearPerPair { .. } => 1,
+                NormalLaw::Hertz { .. } => 2,
+            },
             rolling_model: match f.rolling_model {
                 RollingModel::Epsd => 0,
                 RollingModel::ConstantTorque => 1,
@@ -745,6 +731,52 @@ impl GranularParams {
     /// Whether contacts carry springs from one step to the next (a contact history).
     pub fn keeps(&self) -> bool {
         self.keeps != 0
+    }
+
+    /// These parameters reading `table`, checked to hold the laws of their columns.
+    fn reading(
+        &self,
+        launch: &'static str,
+        stream: &Arc<CudaStream>,
+        table: &LawTable,
+    ) -> Result<Self> {
+        if table.columns != self.columns {
+            return Err(OptixError::BufferTooShort {
+                launch,
+                buffer: "material laws",
+                len: table.words.len(),
+                needed: (self.columns * (self.columns - 1)) as usize * LAW_WORDS,
+            });
+        }
+        Ok(Self {
+            laws: table.words.device_ptr(stream).0,
+            ..*self
+        })
+    }
+}
+
+/// Words of one law on the device ([`PairLaw`], `MochiPairLaw` in `optix/contact.cuh`).
+const LAW_WORDS: usize = size_of::<PairLaw>() / size_of::<u32>();
+const _: () = assert!(LAW_WORDS == 8);
+
+/// The material table on the device (`MaterialTable::laws` as they are, row by row: the laws
+/// of a sphere of each material against each material and a rigid wall). Every material index
+/// the step reads (the spheres', the walls' columns) is checked on the host against it.
+pub struct LawTable {
+    words: CudaSlice<u32>,
+    /// Laws in a row: the materials and a rigid wall.
+    columns: u32,
+}
+
+impl LawTable {
+    /// Uploads `table`.
+    pub fn upload(stream: &Arc<CudaStream>, table: &MaterialTable) -> Result<Self> {
+        Ok(Self {
+            words: stream
+                .clone_htod(bytemuck::cast_slice::<PairLaw, u32>(&table.laws))
+                .map_err(cuda("uploading the material laws"))?,
+            columns: table.count as u32 + 1,
+        })
     }
 }
 
@@ -1026,13 +1058,13 @@ struct GranularLaunch {
     _pad: u32,
     g: GranularParams,
 }
-const _: () = assert!(size_of::<GranularLaunch>() == 248);
+const _: () = assert!(size_of::<GranularLaunch>() == 232);
 
 /// The buffers of one granular contact launch.
 pub struct GranularBuffers<'a> {
     /// Positions, velocities and stable ids, in the order of the structure's primitives.
     pub state: &'a State,
-    /// wx, wy, wz, 0 per sphere.
+    /// wx, wy, wz and the material (its bits) per sphere.
     pub ang: &'a CudaSlice<f32>,
     /// 3 floats per sphere, summed with atomics.
     pub force: &'a mut CudaSlice<f32>,
@@ -1046,6 +1078,8 @@ pub struct GranularBuffers<'a> {
     pub old: &'a HistorySlots,
     /// This step's, written by the owners of the pairs.
     pub new: &'a mut HistorySlots,
+    /// The material table.
+    pub laws: &'a LawTable,
 }
 
 /// The granular DEM programs of `optix/granular.cu`: one point ray per sphere that resolves
@@ -1115,13 +1149,14 @@ impl GranularProgram {
             mode: mode.code(),
             slots,
             _pad: 0,
-            g,
+            g: g.reading(LAUNCH, &device.stream, b.laws)?,
         };
         let on_device = self.params.set(device, params)?;
         // SAFETY: the parameters were built just now from the borrowed buffers, whose lengths
         // cover what granular.cu indexes for n rays over n primitives (rows by ray and
         // primitive index < n, history by stable id < n with `slots` entries each where g
-        // keeps springs, counters & 255).
+        // keeps springs, counters & 255; the material table of g's columns, whose rows cover
+        // every material the angular velocity rows name: checked when they were uploaded).
         unsafe { self.pipeline.launch(on_device, n) }
     }
 }
@@ -1137,7 +1172,7 @@ pub struct GranularKernels {
 
 /// What one integration of the granular step reads and writes besides the state.
 pub struct GranularIntegration<'a> {
-    /// wx, wy, wz, 0 per sphere, integrated in place.
+    /// wx, wy, wz and the material (its bits) per sphere. integrated in place.
     pub ang: &'a mut CudaSlice<f32>,
     /// Contact forces of the step (3 floats per sphere), cleared.
     pub force: &'a mut CudaSlice<f32>,
@@ -1149,6 +1184,8 @@ pub struct GranularIntegration<'a> {
     pub new: &'a mut HistorySlots,
     /// Raised to the most contacts a sphere holds where that exceeds the slots.
     pub need: &'a mut CudaSlice<u32>,
+    /// The material table.
+    pub laws: &'a LawTable,
 }
 
 impl GranularKernels {
@@ -1201,6 +1238,7 @@ impl GranularKernels {
         let history_n = if g.keeps() { n } else { 0 };
         b.old.check(LAUNCH, history_n, slots, self.loaded)?;
         b.new.check(LAUNCH, history_n, slots, self.loaded)?;
+        let g = g.reading(LAUNCH, &self.stream, b.laws)?;
         let old = b.old;
         let HistorySlots {
             counts: new_counts,
@@ -1229,7 +1267,7 @@ impl GranularKernels {
         launch
             .arg(b.need)
             .arg(&slots)
-            .arg(g)
+            .arg(&g)
             .arg(&step)
             .arg(&mesh.params)
             .arg(&mesh.walls)
@@ -1240,9 +1278,12 @@ impl GranularKernels {
         // and torque hold g.n() rows, ids g.n() entries below n (a permutation of the input
         // indices), the history buffers g.n() spheres of `slots` entries where g keeps springs
         // (checked above; the kernel reads them only then), with load histories of as many
-        // slots where the kernel was compiled for them (checked above), need one word; the mesh buffers
-        // hold what MeshBuffers::upload made of one WallTables (rows, grids whose offsets and
-        // triangle indices stay within them, triangles, and the loads of every lane and wall).
+        // slots where the kernel was compiled for them (checked above), need one word; the
+        // material table has g's columns (checked above) and rows for every material the
+        // angular velocity rows name, its columns every wall's (checked when they were
+        // uploaded); the mesh buffers hold what MeshBuffers::upload made of one WallTables
+        // (rows, grids whose offsets and triangle indices stay within them, triangles, and the
+        // loads of every lane and wall).
         unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching granular_integrate"))?;
         Ok(())
     }
@@ -1321,18 +1362,24 @@ pub fn layout_checks(unit: Unit) -> String {
             "GranularParams",
             GranularParams {
                 dem,
+                laws,
+                columns,
+                box_column,
                 law,
-                rate,
-                pair_e_star,
-                pair_g_star,
-                wall_e_star,
-                wall_g_star,
-                sliding,
-                wall_sliding,
-                rolling,
                 rolling_model,
                 turns,
                 keeps
+            }
+        ) + &cuda_layout!(
+            "MochiPairLaw",
+            PairLaw {
+                rate,
+                e_star,
+                g_star,
+                damping_ratio,
+                sliding,
+                rolling,
+                _pad
             }
         )
     };
@@ -1415,7 +1462,15 @@ pub fn layout_checks(unit: Unit) -> String {
                 )
         }
         Unit::GranularKernels | Unit::GranularKernelsLoaded => {
-            dem_params() + &granular_params() + &entry()
+            // The mesh walls' rows go up as the wgpu engines lay them out (encase).
+            let row = <MeshWallRow as encase::ShaderSize>::SHADER_SIZE.get();
+            dem_params()
+                + &granular_params()
+                + &entry()
+                + &format!(
+                    "static_assert(sizeof(MochiMeshWall) == {row}, \"MochiMeshWall has the size \
+                     of MeshWallRow\");\n"
+                )
         }
     };
     format!("{offset_of}{checks}")

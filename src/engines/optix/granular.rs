@@ -20,7 +20,7 @@
 
 use super::device::{
     Device, Gas, GranularBuffers, GranularIntegration, GranularKernels, GranularParams,
-    GranularProgram, HistorySlots, MeshBuffers, Order, SlotsRead, State, cuda,
+    GranularProgram, HistorySlots, LawTable, MeshBuffers, Order, SlotsRead, State, cuda,
 };
 use crate::dem::model::{NormalLaw, StepParams};
 use crate::dem::walls::{WallLoad, WallSet};
@@ -36,10 +36,12 @@ use std::sync::Arc;
 const FIRST_SLOTS: u32 = 16;
 
 /// Whether a run needs the granular step: anything beyond the paper's law (linear, one
-/// stiffness, no friction, no rolling resistance, no spin, no history) or the box walls alone.
+/// stiffness, one material, no friction, no rolling resistance, no spin, no history) or the
+/// box walls alone.
 pub(super) fn needed(particles: &Particles, params: &StepParams, walls: &WallSet) -> bool {
     !walls.is_box_only()
         || params.law != NormalLaw::Linear
+        || params.materials.count > 1
         || params.friction.turns()
         || particles.spin()
         || !particles.history.is_empty()
@@ -50,7 +52,10 @@ pub(super) struct Granular {
     program: GranularProgram,
     kernels: GranularKernels,
     params: GranularParams,
-    /// wx, wy, wz, 0 per sphere, in the state's order.
+    /// Every pair of materials' law.
+    laws: LawTable,
+    /// wx, wy, wz and the material (its bits: `Particles::material`) per sphere, in the
+    /// state's order.
     ang: CudaSlice<f32>,
     /// The angular velocities at the batch's start (and the re-sort's scratch).
     ang_spare: CudaSlice<f32>,
@@ -103,8 +108,9 @@ impl History {
 }
 
 impl Granular {
-    /// Uploads the angular velocities and the contact history of `particles` (`order`: the
-    /// input index of each state position) for a step with `params` inside `walls`.
+    /// Uploads the angular velocities, the materials and the contact history of `particles`
+    /// (`order`: the input index of each state position) for a step with `params` inside
+    /// `walls`, whose materials [`check_materials`] passed.
     pub fn new(
         device: &Arc<Device>,
         particles: &Particles,
@@ -119,7 +125,7 @@ impl Granular {
             .iter()
             .flat_map(|&i| {
                 let [x, y, z] = particles.angular_velocities[i as usize];
-                [x, y, z, 0.0]
+                [x, y, z, f32::from_bits(particles.material(i as usize))]
             })
             .collect();
         let ang = if ang_rows.is_empty() {
@@ -131,6 +137,7 @@ impl Granular {
         let zeros = |len: usize| stream.alloc_zeros::<f32>(len.max(4)).map_err(&alloc);
         let loaded = params.friction.keeps_load();
         let table = params.materials.clone();
+        let laws = LawTable::upload(stream, &table)?;
         let params = GranularParams::new(params, n);
         let history = if params.keeps() {
             upload_history(device, &particles.history, n, loaded)?
@@ -149,6 +156,7 @@ impl Granular {
             program: GranularProgram::new(device, loaded)?,
             kernels: GranularKernels::load(device, loaded)?,
             params,
+            laws,
             ang_spare: zeros(4 * n as usize)?,
             torque: zeros(3 * n as usize)?,
             ang,
@@ -183,6 +191,7 @@ impl Granular {
             candidates,
             old,
             new,
+            laws: &self.laws,
         };
         self.program
             .launch(gas, mode, self.params, slots, buffers)?;
@@ -207,6 +216,7 @@ impl Granular {
             old,
             new,
             need,
+            laws: &self.laws,
         };
         self.kernels
             .integrate(state, b, &self.params, slots, step, &mut self.mesh)?;
@@ -346,18 +356,17 @@ impl Granular {
         self.history.start = self.history.current;
     }
 
-    /// The angular velocities (in input order, `ids[p]` the input index of state position p)
-    /// and the contact history, both sides of each pair.
-    pub fn read_back(
-        &self,
-        stream: &Arc<CudaStream>,
-        ids: &[u32],
-    ) -> Result<(Vec<[f32; 3]>, ContactHistory)> {
+    /// The angular velocities and the materials (in input order, `ids[p]` the input index of
+    /// state position p) and the contact history, both sides of each pair.
+    pub fn read_back(&self, stream: &Arc<CudaStream>, ids: &[u32]) -> Result<ReadBack> {
         let read = cuda("reading the angular velocities back");
         let rows = stream.clone_dtoh(&self.ang).map_err(&read)?;
         let mut w = vec![[0.0f32; 3]; ids.len()];
+        let mut materials = vec![0u8; ids.len()];
         for (row, &id) in rows.chunks_exact(4).zip(ids) {
             w[id as usize] = [row[0], row[1], row[2]];
+            // Uploaded from a u8 and never written since.
+            materials[id as usize] = row[3].to_bits() as u8;
         }
         let h = &self.history;
         let history = match &h.idle {
@@ -367,8 +376,20 @@ impl Granular {
                 both_sides(&read, h.slots() as usize)?
             }
         };
-        Ok((w, history))
+        Ok(ReadBack {
+            angular_velocities: w,
+            materials,
+            history,
+        })
     }
+}
+
+/// What the granular step reads back besides the frictionless step's state, in input order.
+pub(super) struct ReadBack {
+    pub angular_velocities: Vec<[f32; 3]>,
+    /// Each sphere's material.
+    pub materials: Vec<u8>,
+    pub history: ContactHistory,
 }
 
 impl History {
@@ -387,6 +408,29 @@ impl History {
             need,
             idle: None,
         })
+    }
+}
+
+/// Refuses materials the step would read past the table with: a sphere's beyond the table's
+/// materials, the box's or a mesh wall's column beyond its rigid wall's.
+pub(super) fn check_materials(
+    particles: &Particles,
+    params: &StepParams,
+    walls: &WallSet,
+) -> Result<()> {
+    let table = &params.materials;
+    particles.check_materials(table.count)?;
+    let rigid = table.column_of_rigid_wall();
+    let columns = walls.meshes.iter().map(|w| w.column(table));
+    match std::iter::once(params.box_column).chain(columns).max() {
+        Some(column) if column > rigid => Err(Error::InvalidConfig {
+            what: "optix".into(),
+            reason: format!(
+                "a wall has material {column} but the scene has {} materials",
+                table.count
+            ),
+        }),
+        _ => Ok(()),
     }
 }
 
@@ -672,6 +716,24 @@ mod tests {
         for m in more {
             assert!(needed(&still, &params(m), &in_box), "{m:?}");
         }
+        // Two materials of the paper's law: each pair's damping from the table.
+        let two = crate::dem::model::Materials {
+            list: vec![Material::default(), Material::default()],
+            names: vec!["a".into(), "b".into()],
+            pairs: Vec::new(),
+        };
+        let p2 = StepParams::with_materials(
+            &two,
+            None,
+            1e-6,
+            [0.0; 3],
+            [1.0; 3],
+            [0.0, 0.0, -9.81],
+            0.0,
+            5e-4,
+        )
+        .unwrap();
+        assert!(needed(&still, &p2, &in_box));
         let spinning = Particles {
             angular_velocities: vec![[0.0, 1.0, 0.0]],
             ..still.clone()
