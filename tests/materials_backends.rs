@@ -6,7 +6,6 @@
 
 mod common;
 
-use mochi::Error;
 use mochi::dem::scene::{SceneConfig, Start};
 use mochi::dem::{Particles, Stepper};
 use mochi::engines::{BackendChoice, BackendKind, Options, open_scene};
@@ -96,17 +95,11 @@ fn pile() -> Particles {
     p
 }
 
-/// The step of backend `kind` over `start`, or `None` where the backend refuses several
-/// materials (optix, for now: `engines::open`), which this run then does not test.
-fn open(kind: BackendKind, start: Start) -> Option<Box<dyn Stepper>> {
-    match open_scene(BackendChoice::Named(kind), start, &Options::default()) {
-        Ok((s, _, _)) => Some(s),
-        Err(Error::BackendUnavailable { reason, .. }) if kind == BackendKind::Optix => {
-            eprintln!("note: several materials are not tested on optix here: {reason}");
-            None
-        }
-        Err(e) => panic!("{} opens: {e}", kind.name()),
-    }
+/// The step of backend `kind` over `start`.
+fn open(kind: BackendKind, start: Start) -> Box<dyn Stepper> {
+    open_scene(BackendChoice::Named(kind), start, &Options::default())
+        .unwrap_or_else(|e| panic!("{} opens: {e}", kind.name()))
+        .0
 }
 
 /// The largest difference of any component between `a` and `b`.
@@ -192,7 +185,7 @@ fn a_pile_of_two_materials_steps_on_every_backend_as_on_the_cpu_and_moves_betwee
         particles,
         ..start.clone()
     };
-    let mut cpu = open(BackendKind::Cpu, start.clone()).unwrap();
+    let mut cpu = open(BackendKind::Cpu, start.clone());
     cpu.advance(10).unwrap();
     let halfway = cpu.particles().unwrap();
     cpu.advance(10).unwrap();
@@ -212,19 +205,17 @@ fn a_pile_of_two_materials_steps_on_every_backend_as_on_the_cpu_and_moves_betwee
             continue;
         }
         let name = kind.name();
-        let Some(mut gpu) = open(kind, start.clone()) else {
-            continue;
-        };
+        let mut gpu = open(kind, start.clone());
         gpu.advance(20).unwrap();
         assert_follows(name, &gpu.particles().unwrap(), &expected);
         // cpu, then the GPU; the GPU, then cpu.
-        let mut gpu = open(kind, with(halfway.clone())).unwrap();
+        let mut gpu = open(kind, with(halfway.clone()));
         gpu.advance(10).unwrap();
         let what = format!("cpu, then {name}");
         assert_follows(&what, &gpu.particles().unwrap(), &expected);
-        let mut gpu = open(kind, start.clone()).unwrap();
+        let mut gpu = open(kind, start.clone());
         gpu.advance(10).unwrap();
-        let mut cpu = open(BackendKind::Cpu, with(gpu.particles().unwrap())).unwrap();
+        let mut cpu = open(BackendKind::Cpu, with(gpu.particles().unwrap()));
         cpu.advance(10).unwrap();
         let what = format!("{name}, then cpu");
         assert_follows(&what, &cpu.particles().unwrap(), &expected);
@@ -280,11 +271,11 @@ fn spheres_of_another_material_flow_into_a_pile_with_their_material_and_mass() {
     }
     let start = start(FLOWS, row);
     let run = |kind| {
-        let mut s = open(kind, start.clone())?;
+        let mut s = open(kind, start.clone());
         s.advance(700).unwrap();
-        Some((s.flow_counts().unwrap(), s.particles().unwrap()))
+        (s.flow_counts().unwrap(), s.particles().unwrap())
     };
-    let (counts, cpu) = run(BackendKind::Cpu).unwrap();
+    let (counts, cpu) = run(BackendKind::Cpu);
     let of = |m: u32| materials(&cpu).iter().filter(|&&x| x == m).count();
     assert!(counts.inserted > 100 && counts.removed > 14, "{counts:?}");
     assert!(
@@ -296,9 +287,7 @@ fn spheres_of_another_material_flow_into_a_pile_with_their_material_and_mass() {
             continue;
         }
         let _named = common::Naming(kind);
-        let Some((c, now)) = run(kind) else {
-            continue;
-        };
+        let (c, now) = run(kind);
         let tally = |c: &mochi::dem::flow::FlowCounts| (c.inserted, c.refused, c.removed);
         assert_eq!(tally(&c), tally(&counts));
         // Sums of a few hundred f32 masses of one size in f64: exact in any order.

@@ -138,7 +138,7 @@ pub fn open_scene(
                 .with_flow(flow.clone(), mode);
             return Ok(Box::new(stepper));
         }
-            let reopen = reopener(kind, params.clone(), mode, options, walls.clone())?;
+        let reopen = reopener(kind, params.clone(), mode, options, walls.clone())?;
         let step = FlowStep::new(
             particles.clone(),
             flow.clone(),
