@@ -1180,6 +1180,7 @@ fn render_of_a_frame_with_a_nan_radius_names_the_file() {
             radii: &[0.1, f32::NAN],
             velocities: &velocities,
             angular_velocities: &velocities,
+            materials: &[],
             contacts: None,
         },
     )

@@ -25,6 +25,8 @@ struct Spheres {
     radii: Vec<f32>,
     velocities: Vec<[f32; 3]>,
     angular_velocities: Vec<[f32; 3]>,
+    /// Every material from 0 to 255, in a scrambled order.
+    materials: Vec<u8>,
     /// The contact history of a frictional run (`None`: a run without one).
     history: Option<ContactHistory>,
 }
@@ -68,6 +70,7 @@ impl Spheres {
             .map(|i| [value(i + 2), value(i + 4), value(i + 1)])
             .collect();
         let radii = (0..n).map(|i| value(i).abs().max(1e-6)).collect();
+        let materials = (0..n).map(|i| (i * 167 % 256) as u8).collect();
         let position_residuals = positions
             .iter()
             .enumerate()
@@ -87,6 +90,7 @@ impl Spheres {
             radii,
             velocities,
             angular_velocities,
+            materials,
             history: None,
         }
     }
@@ -139,6 +143,7 @@ impl Spheres {
             radii: &self.radii,
             velocities: &self.velocities,
             angular_velocities: &self.angular_velocities,
+            materials: &self.materials,
             contacts: self.history.as_ref(),
         }
     }
@@ -336,6 +341,12 @@ fn check_vtu(path: &Path, spheres: &Spheres, step: u64, time: f64) {
         }
         None => assert!(!a.contains_key("contacts"), "contacts without a history"),
     }
+    assert_eq!(
+        (a["material"].vtk_type.as_str(), a["material"].components),
+        ("UInt8", 1)
+    );
+    let materials: Vec<i64> = spheres.materials.iter().map(|&m| m.into()).collect();
+    assert_eq!(a["material"].integers(), materials);
     assert!(["Int32", "UInt32"].contains(&a["id"].vtk_type.as_str()));
     assert_eq!(a["id"].integers(), (0..n as i64).collect::<Vec<_>>());
 
@@ -424,7 +435,7 @@ fn an_empty_frame_is_a_valid_file() {
     write_frame_csv(&csv, &spheres.frame(0, 0.0)).unwrap();
     assert_eq!(
         std::fs::read_to_string(&csv).unwrap(),
-        "x,y,z,r,vx,vy,vz,wx,wy,wz\n"
+        "x,y,z,r,vx,vy,vz,wx,wy,wz,material\n"
     );
 }
 
@@ -436,15 +447,16 @@ fn csv_rows_parse_back_to_the_same_floats() {
     write_frame_csv(&path, &spheres.frame(5, 1.5)).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("x,y,z,r,vx,vy,vz,wx,wy,wz"));
-    // The positions in f64, the rest in f32.
+    assert_eq!(lines.next(), Some("x,y,z,r,vx,vy,vz,wx,wy,wz,material"));
+    // The positions in f64, the material an integer, the rest in f32.
     let rows: Vec<Vec<u64>> = lines
         .map(|l| {
             l.split(',')
                 .enumerate()
-                .map(|(k, f)| match k < 3 {
-                    true => f.parse::<f64>().unwrap().to_bits(),
-                    false => f.parse::<f32>().unwrap().to_bits().into(),
+                .map(|(k, f)| match k {
+                    0..3 => f.parse::<f64>().unwrap().to_bits(),
+                    10 => f.parse::<u8>().unwrap().into(),
+                    _ => f.parse::<f32>().unwrap().to_bits().into(),
                 })
                 .collect()
         })
@@ -459,6 +471,7 @@ fn csv_rows_parse_back_to_the_same_floats() {
             .map(f64::to_bits)
             .into_iter()
             .chain(rest)
+            .chain([spheres.materials[i].into()])
             .collect();
         assert_eq!(row, &want, "row {i}");
     }
@@ -472,11 +485,11 @@ fn npy_frames_hold_the_csv_columns_bit_exactly() {
     write_frame(&path, &spheres.frame(5, 1.5)).unwrap();
     let bytes = std::fs::read(&path).unwrap();
     let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
-    assert_eq!(npy.shape(), &[37, 10]);
-    // float64: the positions, and the rest's f32 values exactly.
+    assert_eq!(npy.shape(), &[37, 11]);
+    // float64: the positions, the rest's f32 values exactly, and the material.
     let values: Vec<f64> = npy.into_vec().unwrap();
     let positions = spheres.exact_positions();
-    for (i, row) in values.chunks_exact(10).enumerate() {
+    for (i, row) in values.chunks_exact(11).enumerate() {
         let [x, y, z] = positions[i];
         let [vx, vy, vz] = spheres.velocities[i];
         let [wx, wy, wz] = spheres.angular_velocities[i];
@@ -484,6 +497,7 @@ fn npy_frames_hold_the_csv_columns_bit_exactly() {
         let want: Vec<u64> = [x, y, z]
             .into_iter()
             .chain(rest)
+            .chain([spheres.materials[i].into()])
             .map(f64::to_bits)
             .collect();
         assert_eq!(
@@ -539,6 +553,10 @@ fn mismatched_lengths_and_bad_times_are_usage_errors_and_write_nothing() {
         },
         Frame {
             velocities: &spheres.velocities[1..],
+            ..spheres.frame(1, 0.1)
+        },
+        Frame {
+            materials: &spheres.materials[1..],
             ..spheres.frame(1, 0.1)
         },
         Frame {
@@ -809,7 +827,7 @@ fn write_npy(path: &Path, rows: &[Vec<f32>]) {
 }
 
 #[test]
-fn sphere_files_of_4_7_and_10_columns_read_back_their_motion() {
+fn sphere_files_of_4_7_and_10_columns_read_back_their_motion_and_materials() {
     let dir = TempDir::new().unwrap();
     let spheres = Spheres::new(23, 5);
     let finite = |v: [f32; 3]| v.map(|x| if x.abs() < 1e30 { x } else { 1.0 });
@@ -822,18 +840,39 @@ fn sphere_files_of_4_7_and_10_columns_read_back_their_motion() {
             vec![x, y, z, r, vx, vy, vz, wx, wy, wz]
         })
         .collect();
-    for columns in [4, 7, 10] {
+    // Each sphere's material, as the `material` column and the 11th of a `.npy` give it.
+    let materials: Vec<u8> = (0..23).map(|i| [0, 3, 255][i % 3]).collect();
+    for (columns, with_material) in [4, 7, 10].into_iter().flat_map(|c| [(c, false), (c, true)]) {
         let cut: Vec<Vec<f32>> = rows.iter().map(|r| r[..columns].to_vec()).collect();
-        let header = ["x", "y", "z", "r", "vx", "vy", "vz", "wx", "wy", "wz"][..columns].join(",");
-        let csv = dir.path().join(format!("s{columns}.csv"));
-        let text: String = cut
+        let mut header =
+            ["x", "y", "z", "r", "vx", "vy", "vz", "wx", "wy", "wz"][..columns].join(",");
+        let name = format!("s{columns}{}", if with_material { "m" } else { "" });
+        let csv = dir.path().join(format!("{name}.csv"));
+        let mut text: Vec<String> = cut
             .iter()
-            .map(|r| r.iter().map(f32::to_string).collect::<Vec<_>>().join(",") + "\n")
+            .map(|r| r.iter().map(f32::to_string).collect::<Vec<_>>().join(","))
             .collect();
-        std::fs::write(&csv, format!("{header}\n{text}")).unwrap();
-        let npy = dir.path().join(format!("s{columns}.npy"));
-        write_npy(&npy, &cut);
-        for path in [&csv, &npy] {
+        if with_material {
+            header += ",material";
+            for (line, m) in text.iter_mut().zip(&materials) {
+                *line += &format!(",{m}");
+            }
+        }
+        std::fs::write(&csv, format!("{header}\n{}\n", text.join("\n"))).unwrap();
+        let mut files = vec![csv];
+        // A `.npy` has the material as its 11th column only.
+        if !with_material || columns == 10 {
+            let npy = dir.path().join(format!("{name}.npy"));
+            let wide: Vec<Vec<f32>> = match with_material {
+                true => (cut.iter().zip(&materials))
+                    .map(|(r, &m)| r.iter().copied().chain([m.into()]).collect())
+                    .collect(),
+                false => cut.clone(),
+            };
+            write_npy(&npy, &wide);
+            files.push(npy);
+        }
+        for path in &files {
             let p = mochi::io::read_particles(path).unwrap();
             for (i, row) in rows.iter().enumerate() {
                 let at = |k: usize| [row[k], row[k + 1], row[k + 2]];
@@ -842,6 +881,10 @@ fn sphere_files_of_4_7_and_10_columns_read_back_their_motion() {
                 let v = if columns >= 7 { at(4) } else { [0.0; 3] };
                 let w = if columns == 10 { at(7) } else { [0.0; 3] };
                 assert_eq!((p.velocities[i], p.angular_velocities[i]), (v, w));
+            }
+            match with_material {
+                true => assert_eq!(p.materials, materials, "{path:?}"),
+                false => assert!(p.materials.is_empty(), "{path:?}"),
             }
             assert!(p.history.is_empty() && p.step == 0);
         }
@@ -857,6 +900,13 @@ fn sphere_files_of_4_7_and_10_columns_read_back_their_motion() {
     let p = mochi::io::read_particles(&frame).unwrap();
     assert_eq!(p.angular_velocities, rowed.angular_velocities);
     assert_eq!(p.velocities, rowed.velocities);
+    assert_eq!(p.materials, rowed.materials);
+    // So is a frame `.npy`, float64 N×11.
+    let frame = dir.path().join("frame.npy");
+    write_frame(&frame, &rowed.frame(1, 0.1)).unwrap();
+    let p = mochi::io::read_particles(&frame).unwrap();
+    assert_eq!(p.angular_velocities, rowed.angular_velocities);
+    assert_eq!(p.materials, rowed.materials);
 }
 
 #[test]
@@ -898,4 +948,60 @@ fn sphere_files_with_bad_motion_columns_are_one_clear_error() {
     );
     let e = mochi::io::read_particles(&npy).unwrap_err().to_string();
     assert!(e.contains("row 0") && e.contains("angular velocity"), "{e}");
+}
+
+#[test]
+fn a_material_that_is_not_a_whole_number_from_0_to_255_is_one_clear_error() {
+    let dir = TempDir::new().unwrap();
+    let error = |name: &str, text: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        mochi::io::read_particles(&path).unwrap_err().to_string()
+    };
+    // CSV: the file, the line and the value.
+    for (k, bad) in ["1.5", "256", "-1", "nan", "inf"].into_iter().enumerate() {
+        let name = format!("m{k}.csv");
+        let e = error(
+            &name,
+            &format!("x,y,z,r,material\n0,0,0,1,0\n\n3,0,0,1,{bad}\n"),
+        );
+        assert!(
+            e.contains(&format!("{name}:4:")) && e.contains("a whole number from 0 to 255"),
+            "{e}"
+        );
+    }
+    let e = error(
+        "glass.csv",
+        "x,y,z,r,vx,vy,vz,material\n0,0,0,1,0,0,0,glass\n",
+    );
+    assert!(
+        e.contains("glass.csv:2:") && e.contains("column material: \"glass\" is not a number"),
+        "{e}"
+    );
+    // A row without its material.
+    let e = error("short.csv", "x,y,z,r,material\n0,0,0,1\n");
+    assert!(
+        e.contains("short.csv:2:") && e.contains("expected 5 columns (x,y,z,r,material)"),
+        "{e}"
+    );
+    // The material elsewhere than last is no accepted header.
+    let e = error("first.csv", "material,x,y,z,r\n0,0,0,0,1\n");
+    assert!(
+        e.contains("first.csv:1:") && e.contains("followed by ,material"),
+        "{e}"
+    );
+    // .npy: the row of the bad value (0-based), and the accepted shapes.
+    let npy = dir.path().join("m.npy");
+    let row = |m: f32| vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, m];
+    for bad in [0.5, 256.0, -1.0, f32::NAN] {
+        write_npy(&npy, &[row(0.0), row(1.0), row(bad)]);
+        let e = mochi::io::read_particles(&npy).unwrap_err().to_string();
+        assert!(
+            e.contains("m.npy") && e.contains("row 2 (0-based)") && e.contains("material"),
+            "{e}"
+        );
+    }
+    write_npy(&npy, &[vec![0.0, 0.0, 0.0, 1.0, 0.0]]);
+    let e = mochi::io::read_particles(&npy).unwrap_err().to_string();
+    assert!(e.contains("N×11 (and the material)"), "{e}");
 }

@@ -850,6 +850,13 @@ impl SceneConfig {
                     reason: "needs input = \"FILE\" (--input)".into(),
                 })?;
                 let particles = crate::io::read_particles(input)?;
+                // The file's materials index the scene's: an error names the file.
+                let count = self.materials()?.list.len();
+                particles.check_materials(count).map_err(|e| Error::Parse {
+                    path: input.clone(),
+                    line: None,
+                    msg: e.to_string(),
+                })?;
                 return Self::inside_the_box(self.start_from(particles)?, 0.0);
             }
         };

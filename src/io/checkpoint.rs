@@ -3,7 +3,7 @@
 //! reads) in one little-endian binary file, written atomically so the file on disk is always a
 //! whole checkpoint.
 //!
-//! Layout (version 6): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
+//! Layout (version 7): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
 //! (UTF-8), state length u64, state TOML (UTF-8), then n·3 f32 positions (the `f32` centres),
 //! n·3 f32 velocities, n·3 f32 angular velocities, n f32 radii, n·3 f32 position residuals
 //! (each centre plus its residual is the sphere's position, as [`Particles`] holds it: saved as
@@ -11,11 +11,13 @@
 //! entry as owner u32, partner u32, 3 f32 tangential spring, 3 f32 rolling spring (owners in
 //! order), the number of load histories u64 (0, or that of the entries: the
 //! Mindlin–Deresiewicz model's) and each as 3 f32 reversal force, f32 normal force (in the
-//! entries' order), and last the CRC-32 (u32) of every byte before it: a damaged file is
-//! refused rather than resumed. Version 5 (no load histories) is still read without them,
-//! version 4 (no residuals either) with residuals of 0, version 3 (no state either) with an
-//! empty state, and version 2 (no angular velocities, no history) as spheres at rest in
-//! rotation without history.
+//! entries' order), the number of materials u64 (0: every sphere of the first material, or n)
+//! and each sphere's material as a u8 (as [`Particles::materials`] holds them), and last the
+//! CRC-32 (u32) of every byte before it: a damaged file is refused rather than resumed.
+//! Version 6 (no materials) is still read without them (every sphere of the first material),
+//! version 5 (no load histories either) without those, version 4 (no residuals either) with
+//! residuals of 0, version 3 (no state either) with an empty state, and version 2 (no angular
+//! velocities, no history) as spheres at rest in rotation without history.
 
 use super::{io_error, write_atomically};
 use crate::error::{Error, Result};
@@ -23,7 +25,7 @@ use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, Particles};
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"MOCHICKP";
-const VERSION: u32 = 6;
+const VERSION: u32 = 7;
 /// The oldest version this mochi reads.
 const OLDEST: u32 = 2;
 /// Bytes of one history entry: owner, partner and six f32.
@@ -71,6 +73,8 @@ pub fn write_checkpoint(
             + 52 * particles.len()
             + ENTRY_BYTES * history.len()
             + LOAD_BYTES * loads
+            + 8
+            + particles.materials.len()
             + 4,
     );
     bytes.extend_from_slice(MAGIC);
@@ -96,6 +100,8 @@ pub fn write_checkpoint(
             bytes.extend_from_slice(&x.to_le_bytes());
         }
     }
+    bytes.extend_from_slice(&(particles.materials.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(&particles.materials);
     let crc = crc32fast::hash(&bytes);
     bytes.extend_from_slice(&crc.to_le_bytes());
     write_atomically(path, |out| out.write_all(&bytes))
@@ -179,6 +185,15 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
     } else {
         &[][..]
     };
+    let materials = if version >= 7 {
+        let len = u64_at(take(8, "material count")?);
+        if len != 0 && len != n {
+            return Err(bad(format!("{len} materials for {n} spheres")));
+        }
+        take(len as usize, "materials")?
+    } else {
+        &[][..]
+    };
     let stored = u32::from_le_bytes(take(4, "checksum")?.try_into().expect("4 bytes"));
     if at != bytes.len() {
         return Err(bad(format!(
@@ -243,7 +258,7 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         velocities: triples(&values[3 * n..6 * n]),
         angular_velocities,
         radii,
-        materials: Vec::new(),
+        materials: materials.to_vec(),
         history: ContactHistory::from_contacts_with_loads(n, &contacts, &loads)
             .map_err(|e| bad(e.to_string()))?,
         step,
@@ -283,7 +298,7 @@ mod tests {
             velocities: vec![[0.0, -1.5, 2.0], [1e-9, 0.0, -0.0]],
             angular_velocities: vec![[3.0, 0.0, -1.0], [0.0, 2e-7, 0.0]],
             radii: vec![0.01, 0.002],
-            materials: Vec::new(),
+            materials: vec![2, 0],
             history: ContactHistory::from_contacts(
                 2,
                 &[
@@ -304,8 +319,23 @@ mod tests {
         write_checkpoint(&path, &sample(), "scene = \"slab\"\n", "[flow]\n").unwrap();
         let c = read_checkpoint(&path).unwrap();
         assert_eq!(c.particles, sample());
+        assert_eq!(c.particles.materials, [2, 0]);
         assert_eq!(c.scene, "scene = \"slab\"\n");
         assert_eq!(c.state, "[flow]\n");
+        // A run of one material keeps none, and reads back with none.
+        write_checkpoint(&path, &without_materials(), "x", "").unwrap();
+        let c = read_checkpoint(&path).unwrap();
+        assert!(c.particles.materials.is_empty());
+        assert_eq!(c.particles, without_materials());
+        assert_ne!(c.particles, sample());
+    }
+
+    /// [`sample`] of one material, as a run of one material holds it (no materials).
+    fn without_materials() -> Particles {
+        Particles {
+            materials: Vec::new(),
+            ..sample()
+        }
     }
 
     #[test]
@@ -331,15 +361,25 @@ mod tests {
                 .to_string()
                 .contains("unexpected")
         );
-        // A NaN with a valid checksum: refused by the value checks.
+        // A NaN with a valid checksum: refused by the value checks. After the sphere data: the
+        // history, the load histories' count, the materials' count and the materials.
         let mut nan = whole[..whole.len() - 4].to_vec();
-        let first_position = nan.len() - 8 - 4 * 26 - 8 - 3 * ENTRY_BYTES;
+        let tail = 8 + 3 * ENTRY_BYTES + 8 + 8 + sample().len();
+        let first_position = nan.len() - tail - 4 * 26;
         nan[first_position..first_position + 4].copy_from_slice(&f32::NAN.to_le_bytes());
         let crc = crc32fast::hash(&nan);
         nan.extend_from_slice(&crc.to_le_bytes());
         std::fs::write(&path, &nan).unwrap();
         let e = read_checkpoint(&path).unwrap_err().to_string();
         assert!(e.contains("non-finite"), "{e}");
+        // Materials for some spheres only.
+        let partial = Particles {
+            materials: vec![1],
+            ..sample()
+        };
+        write_checkpoint(&path, &partial, "x", "").unwrap();
+        let e = read_checkpoint(&path).unwrap_err().to_string();
+        assert!(e.contains("1 materials for 2 spheres"), "{e}");
     }
 
     #[test]
@@ -349,15 +389,16 @@ mod tests {
         let (scene, state) = ("scene = \"slab\"\n", "[flow]\ninserted = 3\n");
         write_checkpoint(&path, &sample(), scene, state).unwrap();
         let whole = std::fs::read(&path).unwrap();
-        // The step, the scene, the state, the sphere data, the history and the checksum (damage
-        // to the magic, version or a length or count reads as a foreign, older or truncated
-        // file).
+        // The step, the scene, the state, the sphere data, the history, the materials and the
+        // checksum (damage to the magic, version or a length or count reads as a foreign,
+        // older or truncated file).
         let state_length = 36 + scene.len();
         let history_length = state_length + 8 + state.len() + 52 * sample().len();
+        let materials = whole.len() - 4 - sample().len();
         let data = (36..state_length)
             .chain(state_length + 8..history_length)
-            .chain(history_length + 8..whole.len() - 12)
-            .chain(whole.len() - 4..whole.len());
+            .chain(history_length + 8..materials - 16)
+            .chain(materials..whole.len());
         for at in (12..20).chain(data) {
             let mut flipped = whole.clone();
             flipped[at] ^= 0x10;
@@ -394,19 +435,31 @@ mod tests {
         let expected = Particles {
             position_residuals: Vec::new(),
             angular_velocities: vec![[0.0; 3]; 2],
+            materials: Vec::new(),
             history: ContactHistory::default(),
             ..p
         };
         assert_eq!(read.particles, expected);
     }
 
-    /// The checkpoint of [`sample`] (scene `x`, empty state) as version 5 wrote it: no load
-    /// histories' count before the checksum.
-    fn version_5() -> Vec<u8> {
+    /// The checkpoint of [`sample`] (scene `x`, empty state) as version 6 wrote it: no
+    /// materials' count before the checksum (the materials lost).
+    fn version_6() -> Vec<u8> {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
-        write_checkpoint(&path, &sample(), "x", "").unwrap();
-        let v6 = std::fs::read(&path).unwrap();
+        write_checkpoint(&path, &without_materials(), "x", "").unwrap();
+        let v7 = std::fs::read(&path).unwrap();
+        let mut v6 = v7[..v7.len() - 12].to_vec();
+        v6[8..12].copy_from_slice(&6u32.to_le_bytes());
+        let crc = crc32fast::hash(&v6);
+        v6.extend_from_slice(&crc.to_le_bytes());
+        v6
+    }
+
+    /// The checkpoint of [`sample`] (scene `x`, empty state) as version 5 wrote it: no load
+    /// histories' count before the checksum either.
+    fn version_5() -> Vec<u8> {
+        let v6 = version_6();
         let mut v5 = v6[..v6.len() - 12].to_vec();
         v5[8..12].copy_from_slice(&5u32.to_le_bytes());
         let crc = crc32fast::hash(&v5);
@@ -429,13 +482,25 @@ mod tests {
         v4
     }
 
+    /// The checkpoint at `path` reads as [`sample`] (scene `x`, empty state) without
+    /// materials: one written before spheres had them.
+    fn assert_reads_as_sample_without_materials(path: &std::path::Path) {
+        let read = read_checkpoint(path).unwrap();
+        assert!(read.particles.materials.is_empty());
+        assert_eq!(
+            (read.particles, read.scene.as_str(), read.state.as_str()),
+            (without_materials(), "x", "")
+        );
+    }
+
     /// The checkpoint at `path` reads as [`sample`] (scene `x`, empty state) with residuals of
-    /// zero: one written before positions had them.
+    /// zero and without materials: one written before positions had residuals.
     fn assert_reads_as_sample_without_residuals(path: &std::path::Path) {
         let read = read_checkpoint(path).unwrap();
+        assert!(read.particles.materials.is_empty());
         let expected = Particles {
             position_residuals: Vec::new(),
-            ..sample()
+            ..without_materials()
         };
         assert_eq!(
             (read.particles, read.scene.as_str(), read.state.as_str()),
@@ -517,12 +582,19 @@ mod tests {
     }
 
     #[test]
+    fn a_version_6_checkpoint_reads_without_materials() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        std::fs::write(&path, version_6()).unwrap();
+        assert_reads_as_sample_without_materials(&path);
+    }
+
+    #[test]
     fn a_version_5_checkpoint_reads_without_load_histories() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
         std::fs::write(&path, version_5()).unwrap();
-        let read = read_checkpoint(&path).unwrap();
-        assert_eq!((read.particles, read.state.as_str()), (sample(), ""));
+        assert_reads_as_sample_without_materials(&path);
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! Reading simulation frames back: the `.vtu` files [`super::write_vtu`] writes (raw appended
-//! binary, `UInt64` block headers) and the frame CSVs (`x,y,z,r,vx,vy,vz,wx,wy,wz`, or any
-//! sphere file).
+//! binary, `UInt64` block headers) and the frame CSVs (`x,y,z,r,vx,vy,vz,wx,wy,wz,material`, or
+//! any sphere file). Frames of mochi before it had several materials have no materials, and read
+//! as spheres of the first material.
 
 use super::spheres::read_particles_as_written;
 use super::spheres::{check_finite, check_velocity};
@@ -28,6 +29,9 @@ pub struct OwnedFrame {
     /// Angular velocities \[rad/s\] (zero when the file has none, as frames of mochi before
     /// rotation have not).
     pub angular_velocities: Vec<[f32; 3]>,
+    /// Materials (as [`crate::particles::Particles::materials`]): one per sphere, or empty
+    /// where the file has none (every sphere of the first material, 0).
+    pub materials: Vec<u8>,
 }
 
 /// Reads a frame: a `.vtu` written by [`super::write_vtu`], or a sphere file (`.csv`, `.npy`)
@@ -55,6 +59,7 @@ pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
         radii: particles.radii,
         velocities: particles.velocities,
         angular_velocities: particles.angular_velocities,
+        materials: particles.materials,
     })
 }
 
@@ -62,8 +67,8 @@ pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
 const APPENDED: &[u8] = b"<AppendedData encoding=\"raw\">";
 
 /// Reads the arrays `Points` (`Float64`, as mochi writes them, or `Float32`, as it did before it
-/// kept residuals), `radius`, `velocity` and, where the file has it, `angular_velocity` (all
-/// `Float32`) of a `.vtu`.
+/// kept residuals), `radius`, `velocity` and, where the file has them, `angular_velocity` (all
+/// `Float32`) and `material` (`UInt8`) of a `.vtu`.
 pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     let bytes = std::fs::read(path).map_err(io_error(path))?;
     let bad = |msg: String| parse_error(path, None, msg);
@@ -99,16 +104,8 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     let n: usize = attribute_after(header, "<Piece", "NumberOfPoints")
         .and_then(|v| v.parse().ok())
         .ok_or_else(|| bad("no NumberOfPoints in <Piece>".into()))?;
-    // The values of an array of `Float32` (or, where `wide`, also `Float64`) as f64.
-    let array_of = |name: &str, components: usize, wide: bool| -> Result<Vec<f64>> {
-        let element =
-            data_array(header, name).ok_or_else(|| bad(format!("no DataArray named {name:?}")))?;
-        let size = match attribute(element, "type") {
-            Some("Float32") => 4,
-            Some("Float64") if wide => 8,
-            _ if wide => return Err(bad(format!("{name}: only Float64 or Float32 is read"))),
-            _ => return Err(bad(format!("{name}: only Float32 is read"))),
-        };
+    // The bytes of the array `name` (`element`, its attributes) of `size`-byte values.
+    let block_of = |name: &str, element: &str, components: usize, size: usize| -> Result<&[u8]> {
         let offset: usize = attribute(element, "offset")
             .and_then(|v| v.parse().ok())
             .ok_or_else(|| bad(format!("{name}: no offset")))?;
@@ -123,9 +120,20 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
         if len != want as u64 {
             return Err(bad(format!("{name}: {len} bytes, expected {want}")));
         }
-        let values = data
-            .get(offset + 8..offset + 8 + want)
-            .ok_or_else(|| bad(format!("{name}: the file ends inside the block")))?;
+        data.get(offset + 8..offset + 8 + want)
+            .ok_or_else(|| bad(format!("{name}: the file ends inside the block")))
+    };
+    // The values of an array of `Float32` (or, where `wide`, also `Float64`) as f64.
+    let array_of = |name: &str, components: usize, wide: bool| -> Result<Vec<f64>> {
+        let element =
+            data_array(header, name).ok_or_else(|| bad(format!("no DataArray named {name:?}")))?;
+        let size = match attribute(element, "type") {
+            Some("Float32") => 4,
+            Some("Float64") if wide => 8,
+            _ if wide => return Err(bad(format!("{name}: only Float64 or Float32 is read"))),
+            _ => return Err(bad(format!("{name}: only Float32 is read"))),
+        };
+        let values = block_of(name, element, components, size)?;
         Ok(match size {
             4 => values
                 .chunks_exact(4)
@@ -148,6 +156,14 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     let angular = match data_array(header, "angular_velocity") {
         Some(_) => array("angular_velocity", 3)?,
         None => vec![0.0; 3 * n],
+    };
+    // One byte per sphere (a byte has no byte order); none in frames of one material's mochi.
+    let materials = match data_array(header, "material") {
+        Some(element) if attribute(element, "type") == Some("UInt8") => {
+            block_of("material", element, 1, 1)?.to_vec()
+        }
+        Some(_) => return Err(bad("material: only UInt8 is read".into())),
+        None => Vec::new(),
     };
     let triples =
         |v: Vec<f32>| -> Vec<[f32; 3]> { v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() };
@@ -180,6 +196,7 @@ pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
         radii,
         velocities: velocity,
         angular_velocities: angular,
+        materials,
     })
 }
 
@@ -221,7 +238,7 @@ fn attribute<'e>(element: &'e str, name: &str) -> Option<&'e str> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::{Frame, write_frame_csv, write_vtu};
+    use crate::io::{Frame, write_frame, write_vtu};
 
     /// Angular velocities of the two spheres of [`frame`].
     const SPIN: [[f32; 3]; 2] = [[0.5, -1.0, 2.0], [0.0, 0.0, -3.0e-7]];
@@ -235,7 +252,7 @@ mod tests {
     }
 
     #[test]
-    fn vtu_and_csv_frames_read_back() {
+    fn vtu_csv_and_npy_frames_read_back_with_their_materials() {
         let (p, r, v) = frame();
         let f = Frame {
             time: 0.125,
@@ -245,21 +262,73 @@ mod tests {
             radii: &r,
             velocities: &v,
             angular_velocities: &SPIN,
+            materials: &[255, 3],
             contacts: None,
         };
         let dir = tempfile::tempdir().unwrap();
-        let vtu = dir.path().join("frame_00000042.vtu");
+        for ext in ["vtu", "csv", "npy"] {
+            let path = dir.path().join(format!("frame_00000042.{ext}"));
+            write_frame(&path, &f).unwrap();
+            let got = read_frame(&path).unwrap();
+            let time = (ext == "vtu").then_some(0.125);
+            assert_eq!((got.step, got.time), (Some(42), time), "{ext}");
+            assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
+            assert_eq!(got.angular_velocities, SPIN);
+            assert_eq!(got.materials, [255, 3], "{ext}");
+        }
+        // A frame of one material: every sphere's material is 0.
+        let one = Frame {
+            materials: &[],
+            ..f
+        };
+        for ext in ["vtu", "csv", "npy"] {
+            let path = dir.path().join(format!("one.{ext}"));
+            write_frame(&path, &one).unwrap();
+            assert_eq!(read_frame(&path).unwrap().materials, [0, 0], "{ext}");
+        }
+    }
+
+    #[test]
+    fn frames_written_before_materials_read_with_none() {
+        let (p, r, v) = frame();
+        let f = Frame {
+            time: 0.5,
+            step: 7,
+            positions: &p,
+            position_residuals: &[],
+            radii: &r,
+            velocities: &v,
+            angular_velocities: &SPIN,
+            materials: &[1, 1],
+            contacts: None,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        // A `.vtu` whose header lists no `material` array, as mochi wrote before materials (its
+        // block left in the data, unnamed, is never read).
+        let vtu = dir.path().join("old.vtu");
         write_vtu(&vtu, &f).unwrap();
-        let got = read_frame(&vtu).unwrap();
-        assert_eq!((got.step, got.time), (Some(42), Some(0.125)));
-        assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
-        assert_eq!(got.angular_velocities, SPIN);
-        let csv = dir.path().join("frame_00000042.csv");
-        write_frame_csv(&csv, &f).unwrap();
-        let got = read_frame(&csv).unwrap();
-        assert_eq!((got.step, got.time), (Some(42), None));
-        assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
-        assert_eq!(got.angular_velocities, SPIN);
+        let bytes = std::fs::read(&vtu).unwrap();
+        let at = find(&bytes, APPENDED).unwrap();
+        let header = std::str::from_utf8(&bytes[..at]).unwrap();
+        let start = header
+            .find(r#"<DataArray type="UInt8" Name="material""#)
+            .unwrap();
+        let end = start + header[start..].find('\n').unwrap() + 1;
+        let old = [&bytes[..start], &bytes[end..]].concat();
+        std::fs::write(&vtu, old).unwrap();
+        // A CSV of ten columns, as frames were written before materials.
+        let csv = dir.path().join("old.csv");
+        std::fs::write(
+            &csv,
+            "x,y,z,r,vx,vy,vz,wx,wy,wz\n0,1,2,0.25,1,0,0,0.5,-1,2\n3.5,-4,5,0.5,0,-2,0.5,0,0,-3e-7\n",
+        )
+        .unwrap();
+        for path in [vtu, csv] {
+            let got = read_frame(&path).unwrap();
+            assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
+            assert_eq!(got.angular_velocities, SPIN);
+            assert!(got.materials.is_empty(), "{}", path.display());
+        }
     }
 
     /// `bytes` (a little-endian `.vtu` of [`write_vtu`]) with every appended block and its
@@ -318,6 +387,7 @@ mod tests {
             radii: &r,
             velocities: &v,
             angular_velocities: &SPIN,
+            materials: &[],
             contacts: None,
         };
         let dir = tempfile::tempdir().unwrap();
@@ -346,6 +416,7 @@ mod tests {
             radii: &r,
             velocities: &v,
             angular_velocities: &SPIN,
+            materials: &[],
             contacts: None,
         };
         let dir = tempfile::tempdir().unwrap();
@@ -366,6 +437,7 @@ mod tests {
             radii: &r,
             velocities: &v,
             angular_velocities: &SPIN,
+            materials: &[],
             contacts: None,
         };
         let dir = tempfile::tempdir().unwrap();

@@ -1,11 +1,12 @@
 //! Simulation frames for ParaView: one VTK XML UnstructuredGrid file (`.vtu`) per frame, an
-//! optional CSV twin (`x,y,z,r,vx,vy,vz,wx,wy,wz`), and a ParaView collection (`series.pvd`) that
-//! lists the frames with their times.
+//! optional CSV twin (`x,y,z,r,vx,vy,vz,wx,wy,wz,material`), and a ParaView collection
+//! (`series.pvd`) that lists the frames with their times.
 //!
 //! A `.vtu` frame holds one `VTK_VERTEX` cell per sphere, the positions as `Float64` points
 //! (each centre plus its residual, [`crate::particles::position`]: 1e-14 m at 100 m, where
 //! `Float32` would round to 8e-6 m) and the point arrays `radius`, `velocity` (3 components), `speed`, `angular_velocity` (3 components;
-//! all `Float32`) and `id` (`UInt32`, the sphere's index), and, when the run keeps contact
+//! all `Float32`), `id` (`UInt32`, the sphere's index) and `material` (`UInt8`, the sphere's
+//! material: its index in the scene's `[[material]]` tables), and, when the run keeps contact
 //! history (friction or EPSD rolling resistance), `contacts` (`UInt32`: the contacts each sphere
 //! holds in that history, walls included), plus the field data `TimeValue` (`Float64`) and `step`
 //! (`UInt64`). The
@@ -18,7 +19,7 @@
 //! only as release candidates, 0.7.0-rc2 checked) writes XML binary data only as inline base64
 //! (a third larger, and encoded), never as raw appended data; it wants every array copied into
 //! its own owned model first, serialises through serde and quick-xml, and by default pulls in
-//! three compression libraries. A frame needs only a fixed header and ten byte blocks, which
+//! three compression libraries. A frame needs only a fixed header and a dozen byte blocks, which
 //! this file writes straight from the caller's slices (61 MB for a million spheres), with no
 //! copy of the state.
 //!
@@ -34,7 +35,7 @@ use std::path::{Path, PathBuf};
 
 /// The state of every sphere at one step of a simulation. The slices are parallel: sphere `i` is
 /// `positions[i]` (plus `position_residuals[i]`), `radii[i]`, `velocities[i]`,
-/// `angular_velocities[i]`.
+/// `angular_velocities[i]` (and `materials[i]`).
 #[derive(Debug, Clone, Copy)]
 pub struct Frame<'a> {
     /// Simulated time \[s\]; must be finite.
@@ -52,6 +53,9 @@ pub struct Frame<'a> {
     pub velocities: &'a [[f32; 3]],
     /// Angular velocities \[rad/s\].
     pub angular_velocities: &'a [[f32; 3]],
+    /// Materials ([`Particles::materials`]): empty (every sphere of the first material, 0) or
+    /// one per sphere.
+    pub materials: &'a [u8],
     /// The contact history of a run that keeps one: the `.vtu` then holds each sphere's number
     /// of contacts in it (`None`: a run without friction keeps none, and the array is left out).
     pub contacts: Option<&'a ContactHistory>,
@@ -70,6 +74,7 @@ impl<'a> Frame<'a> {
             radii: &particles.radii,
             velocities: &particles.velocities,
             angular_velocities: &particles.angular_velocities,
+            materials: &particles.materials,
             contacts: keeps_history.then_some(&particles.history),
         }
     }
@@ -81,14 +86,17 @@ impl Frame<'_> {
     fn checked_len(&self) -> Result<usize> {
         let n = self.positions.len();
         let residuals = self.position_residuals.len();
+        let materials = self.materials.len();
         if self.radii.len() != n
             || self.velocities.len() != n
             || self.angular_velocities.len() != n
             || !(residuals == 0 || residuals == n)
+            || !(materials == 0 || materials == n)
         {
             return Err(Error::Usage(format!(
-                "frame at step {}: {} positions, {residuals} position residuals (none or as \
-                 many), {} radii, {} velocities and {} angular velocities (must be equal)",
+                "frame at step {}: {} positions, {residuals} position residuals and {materials} \
+                 materials (none or as many), {} radii, {} velocities and {} angular velocities \
+                 (must be equal)",
                 self.step,
                 n,
                 self.radii.len(),
@@ -130,6 +138,11 @@ impl Frame<'_> {
     fn exact_positions(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
         (0..self.positions.len()).map(|i| self.exact_position(i))
     }
+
+    /// Every sphere's material, in order (0 where the frame has none).
+    fn materials(&self) -> impl Iterator<Item = u8> + '_ {
+        (0..self.positions.len()).map(|i| self.materials.get(i).copied().unwrap_or(0))
+    }
 }
 
 /// Speed |v| of a velocity, computed in `f64` and rounded once to `f32` (the `speed` array).
@@ -152,6 +165,7 @@ enum Block {
     Speed,
     AngularVelocity,
     Id,
+    Material,
     Contacts,
     Points,
     Connectivity,
@@ -167,6 +181,7 @@ fn blocks(frame: &Frame) -> Vec<Block> {
         Block::Speed,
         Block::AngularVelocity,
         Block::Id,
+        Block::Material,
         Block::Contacts,
         Block::Points,
         Block::Connectivity,
@@ -187,7 +202,7 @@ impl Block {
             Block::Id | Block::Contacts => "UInt32",
             Block::Connectivity | Block::Offsets if wide => "Int64",
             Block::Connectivity | Block::Offsets => "Int32",
-            Block::Types => "UInt8",
+            Block::Material | Block::Types => "UInt8",
         }
     }
 
@@ -198,6 +213,7 @@ impl Block {
             Block::Speed => "speed",
             Block::AngularVelocity => "angular_velocity",
             Block::Id => "id",
+            Block::Material => "material",
             Block::Contacts => "contacts",
             Block::Points => "Points",
             Block::Connectivity => "connectivity",
@@ -214,6 +230,7 @@ impl Block {
             | Block::Speed
             | Block::AngularVelocity
             | Block::Id
+            | Block::Material
             | Block::Contacts => "PointData",
             Block::Points => "Points",
             Block::Connectivity | Block::Offsets | Block::Types => "Cells",
@@ -232,7 +249,7 @@ impl Block {
         match self {
             Block::Connectivity | Block::Offsets if wide => 8,
             Block::Points => 8,
-            Block::Types => 1,
+            Block::Material | Block::Types => 1,
             _ => 4,
         }
     }
@@ -349,6 +366,7 @@ fn write_block(
             .flatten()
             .try_for_each(|x| out.put(x.to_le_bytes()))?,
         Block::Id => (0..n as u32).try_for_each(|i| out.put(i.to_le_bytes()))?,
+        Block::Material => frame.materials().try_for_each(|m| out.put([m]))?,
         Block::Contacts => {
             let history = frame.contacts.expect("the block is written with a history");
             (0..n).try_for_each(|i| out.put((history.of(i).len() as u32).to_le_bytes()))?
@@ -400,51 +418,54 @@ impl<'o> Chunked<'o> {
 // .csv
 // ---------------------------------------------------------------------------------------------
 
-/// Writes `frame` as CSV with the header `x,y,z,r,vx,vy,vz,wx,wy,wz`, one sphere per row, every
-/// number in its shortest round-trip form (as [`super::write_spheres`] writes), atomically: the
-/// positions (each centre plus its residual) as `f64` (up to 17 significant digits), the rest as
-/// `f32`.
+/// Writes `frame` as CSV with the header `x,y,z,r,vx,vy,vz,wx,wy,wz,material`, one sphere per
+/// row, every number in its shortest round-trip form (as [`super::write_spheres`] writes),
+/// atomically: the positions (each centre plus its residual) as `f64` (up to 17 significant
+/// digits), the material as an integer, the rest as `f32`.
 ///
-/// The file is a sphere file with velocities and angular velocities: [`super::read_particles`]
+/// The file is a sphere file with velocities, angular velocities and materials:
+/// [`super::read_particles`]
 /// reads it back (so `mochi simulate --input FRAME.csv` restarts from it) and
 /// [`super::read_spheres`] reads its spheres. (The contact history is not in it: a restart
 /// from a frame starts every contact's springs from zero; a checkpoint keeps them.)
 pub fn write_frame_csv(path: &Path, frame: &Frame) -> Result<()> {
     frame.checked_len()?;
     write_atomically(path, |out| {
-        writeln!(out, "x,y,z,r,vx,vy,vz,wx,wy,wz")?;
-        for ((([x, y, z], r), &[vx, vy, vz]), &[wx, wy, wz]) in frame
+        writeln!(out, "x,y,z,r,vx,vy,vz,wx,wy,wz,material")?;
+        for (((([x, y, z], r), &[vx, vy, vz]), &[wx, wy, wz]), m) in frame
             .exact_positions()
             .zip(frame.radii)
             .zip(frame.velocities)
             .zip(frame.angular_velocities)
+            .zip(frame.materials())
         {
-            writeln!(out, "{x},{y},{z},{r},{vx},{vy},{vz},{wx},{wy},{wz}")?;
+            writeln!(out, "{x},{y},{z},{r},{vx},{vy},{vz},{wx},{wy},{wz},{m}")?;
         }
         Ok(())
     })
 }
 
-/// Writes `frame` as NumPy `.npy`, float64 of shape N×10 (the columns of
-/// [`write_frame_csv`]: the positions, each centre plus its residual, and the other columns'
-/// `f32` values exactly), atomically. [`super::read_particles`] and [`super::read_frame`] read
+/// Writes `frame` as NumPy `.npy`, float64 of shape N×11 (the columns of
+/// [`write_frame_csv`]: the positions, each centre plus its residual, the other columns' `f32`
+/// values exactly, and the material), atomically. [`super::read_particles`] and [`super::read_frame`] read
 /// it back, as does `numpy.load`.
 pub fn write_frame_npy(path: &Path, frame: &Frame) -> Result<()> {
     let n = frame.checked_len()?;
     write_atomically(path, |out| {
         let mut npy = npyz::WriteOptions::<f64>::new()
             .default_dtype()
-            .shape(&[n as u64, 10])
+            .shape(&[n as u64, 11])
             .writer(out)
             .begin_nd()?;
-        for ((([x, y, z], &r), &[vx, vy, vz]), &[wx, wy, wz]) in frame
+        for (((([x, y, z], &r), &[vx, vy, vz]), &[wx, wy, wz]), m) in frame
             .exact_positions()
             .zip(frame.radii)
             .zip(frame.velocities)
             .zip(frame.angular_velocities)
+            .zip(frame.materials())
         {
             let rest = [r, vx, vy, vz, wx, wy, wz].map(f64::from);
-            npy.extend([x, y, z].into_iter().chain(rest))?;
+            npy.extend([x, y, z].into_iter().chain(rest).chain([m.into()]))?;
         }
         npy.finish()
     })

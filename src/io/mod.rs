@@ -1,5 +1,5 @@
-//! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4, optionally with velocities and
-//! angular velocities), pairs (CSV `i,j`), simulation
+//! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4, optionally with velocities,
+//! angular velocities and materials), pairs (CSV `i,j`), simulation
 //! frames for ParaView (`.vtu` files indexed by a `.pvd` collection, see [`FrameSeries`]) and
 //! checkpoints; mesh walls' surfaces and loads (`walls.pvd`, `walls.csv`); the logs a run appends to
 //! per frame.
@@ -63,7 +63,8 @@ impl Format {
                 line: None,
                 msg: format!(
                     "unknown sphere file type {:?}: use .csv (header x,y,z,r, optionally with \
-                     vx,vy,vz and wx,wy,wz) or .npy (float32, N×4, N×7 or N×10)",
+                     vx,vy,vz and wx,wy,wz, then material) or .npy (float32, N×4, N×7, N×10 or \
+                     N×11)",
                     other.unwrap_or("")
                 ),
             }),

@@ -1,9 +1,12 @@
 //! Sphere files: CSV with header `x,y,z,r`, or NumPy `.npy` of shape N×4 (float32; float64 is
 //! accepted and rounded to float32). Both may carry velocities, header `x,y,z,r,vx,vy,vz` or shape
-//! N×7, and angular velocities after them, header `x,y,z,r,vx,vy,vz,wx,wy,wz` or shape N×10 (the
-//! frame CSVs of `mochi simulate`). [`read_spheres`] ignores the motion; [`read_particles`]
-//! returns it, and each centre as the file holds it (a CSV's decimal or a float64, read as
-//! `f64`): its `f32` centre and the residual that `f32` drops.
+//! N×7, and angular velocities after them, header `x,y,z,r,vx,vy,vz,wx,wy,wz` or shape N×10. A
+//! CSV may end any of the three headers with `material`, and a `.npy` of N×11 has it as its 11th
+//! column (the frames of `mochi simulate` are such files): each sphere's material, its index in
+//! the order of the scene's `[[material]]` tables, a whole number from 0 to 255. [`read_spheres`]
+//! ignores the motion and the materials; [`read_particles`] returns them, and each centre as the
+//! file holds it (a CSV's decimal or a float64, read as `f64`): its `f32` centre and the residual
+//! that `f32` drops.
 
 use super::{Format, io_error, parse_error, write_atomically};
 use crate::error::{Result, try_push, try_vec};
@@ -17,16 +20,36 @@ use std::path::Path;
 const COLUMNS: [&str; 10] = ["x", "y", "z", "r", "vx", "vy", "vz", "wx", "wy", "wz"];
 /// The column counts a file may have: the sphere, with velocities, and with angular velocities.
 const WIDTHS: [usize; 3] = [4, 7, 10];
+/// The column of each sphere's material: the last of a CSV whose header ends with it, the 11th
+/// of a `.npy` of N×11.
+const MATERIAL: &str = "material";
+/// The columns of a `.npy` with materials: every column of [`COLUMNS`], then the material.
+const NPY_WITH_MATERIAL: usize = COLUMNS.len() + 1;
 
 /// The headers a sphere CSV may have, as errors list them.
 fn accepted_headers() -> String {
     let all: Vec<String> = WIDTHS.iter().map(|&w| COLUMNS[..w].join(",")).collect();
-    format!("{}, {} or {}", all[0], all[1], all[2])
+    format!(
+        "{}, {} or {}, each optionally followed by ,{MATERIAL}",
+        all[0], all[1], all[2]
+    )
+}
+
+/// A sphere's material as a file gives it: a whole number from 0 to 255 (the index of one of
+/// the scene's `[[material]]` tables, which `SceneConfig::start_from` checks).
+fn sphere_material(x: f64) -> std::result::Result<u8, String> {
+    match x.fract() == 0.0 && (0.0..=255.0).contains(&x) {
+        true => Ok(x as u8),
+        false => Err(format!(
+            "{MATERIAL} {x} is not a material index (a whole number from 0 to 255, the \
+             [[material]] table's place from 0)"
+        )),
+    }
 }
 
 /// Rows of a sphere file: `x, y, z, r`, the centres as the file holds them where that is more
-/// than `f32` holds, and the velocities and angular velocities where the file has them (`None`
-/// where it does not).
+/// than `f32` holds, and the velocities, angular velocities and materials where the file has
+/// them (`None` where it does not).
 struct Rows {
     spheres: Vec<[f32; 4]>,
     /// The centres as written (CSV) or as `float64` (`.npy`), one per row; empty where the
@@ -34,6 +57,7 @@ struct Rows {
     centres: Vec<[f64; 3]>,
     velocities: Option<Vec<[f32; 3]>>,
     angular_velocities: Option<Vec<[f32; 3]>>,
+    materials: Option<Vec<u8>>,
 }
 
 impl Rows {
@@ -47,6 +71,7 @@ impl Rows {
             centres: Vec::new(),
             velocities: motion(7)?,
             angular_velocities: motion(10)?,
+            materials: None,
         })
     }
 
@@ -111,6 +136,9 @@ pub(super) fn read_particles_as_written(path: &Path) -> Result<(Particles, Vec<[
     }
     if let Some(w) = rows.angular_velocities {
         particles.angular_velocities = w;
+    }
+    if let Some(m) = rows.materials {
+        particles.materials = m;
     }
     Ok((particles, written))
 }
@@ -212,7 +240,7 @@ fn read_csv(path: &Path, centres: bool) -> Result<Rows> {
         no: 0,
     };
     // The header is the first non-blank line.
-    let (header_no, fields, header) = loop {
+    let (header_no, fields, header_text) = loop {
         match lines.next()? {
             None => {
                 return Err(parse_error(
@@ -236,21 +264,29 @@ fn read_csv(path: &Path, centres: bool) -> Result<Rows> {
             Some(_) => {}
         }
     };
+    // The material column, where the header ends with it, is read apart from the others.
+    let with_material = fields.last().is_some_and(|f| f == MATERIAL);
+    let motion = &fields[..fields.len() - with_material as usize];
     let Some(names) = WIDTHS
         .iter()
         .map(|&w| &COLUMNS[..w])
-        .find(|names| fields == *names)
+        .find(|names| motion == *names)
     else {
         return Err(parse_error(
             path,
             Some(header_no),
             format!(
-                "the header must be {} (found {header:?})",
+                "the header must be {} (found {header_text:?})",
                 accepted_headers()
             ),
         ));
     };
+    // The columns every row has: `names`, then the material where the header ends with it.
+    let header = &fields;
     let mut rows = Rows::with_capacity(0, names.len(), String::new)?;
+    if with_material {
+        rows.materials = Some(Vec::new());
+    }
     while let Some((no, line)) = lines.next()? {
         let line = line.trim();
         if line.is_empty() {
@@ -258,14 +294,25 @@ fn read_csv(path: &Path, centres: bool) -> Result<Rows> {
         }
         let bad = |msg: String| parse_error(path, Some(no), msg);
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if fields.len() != names.len() {
+        if fields.len() != header.len() {
             return Err(bad(format!(
                 "expected {} columns ({}), found {}",
-                names.len(),
-                names.join(","),
+                header.len(),
+                header.join(","),
                 fields.len()
             )));
         }
+        // The material's field, where the header has it, is the one after `names`.
+        let (fields, material) = fields.split_at(names.len());
+        let material = material
+            .first()
+            .map(|field| {
+                let value = field
+                    .parse::<f64>()
+                    .map_err(|_| bad(format!("column {MATERIAL}: {field:?} is not a number")))?;
+                sphere_material(value).map_err(&bad)
+            })
+            .transpose()?;
         let mut row = [0f32; COLUMNS.len()];
         let mut centre = [0f64; 3];
         for (k, (field, name)) in fields.iter().zip(names).enumerate() {
@@ -280,6 +327,9 @@ fn read_csv(path: &Path, centres: bool) -> Result<Rows> {
         let what = || format!("{count} rows of {}", path.display());
         if centres {
             try_push(&mut rows.centres, centre, what)?;
+        }
+        if let (Some(materials), Some(m)) = (&mut rows.materials, material) {
+            try_push(materials, m, what)?;
         }
         rows.push(&row[..names.len()], what).map_err(|e| match e {
             RowError::Bad(msg) => bad(msg),
@@ -306,13 +356,17 @@ fn read_npy(path: &Path, centres: bool) -> Result<Rows> {
     let npy = npyz::NpyFile::new(std::io::BufReader::new(&mut file))
         .map_err(|e| bad(format!("not a .npy file: {e}")))?;
     let shape = npy.shape().to_vec();
-    if shape.len() != 2 || !WIDTHS.iter().any(|&w| shape[1] == w as u64) {
+    let mut widths = WIDTHS.iter().chain([&NPY_WITH_MATERIAL]);
+    if shape.len() != 2 || !widths.any(|&w| shape[1] == w as u64) {
         return Err(bad(format!(
-            "expected an array of shape N×4 (x, y, z, r), N×7 (and vx, vy, vz) or N×10 (and wx, \
-             wy, wz), found shape {shape:?}"
+            "expected an array of shape N×4 (x, y, z, r), N×7 (and vx, vy, vz), N×10 (and wx, \
+             wy, wz) or N×11 (and the {MATERIAL}), found shape {shape:?}"
         )));
     }
     let columns = shape[1] as usize;
+    // The columns of the sphere and its motion; the material's, where there is one, is read
+    // apart from them (exactly, from the file's value).
+    let motion = columns.min(COLUMNS.len());
     let n = shape[0] as usize;
     check_count(n)?;
     let fortran = npy.order() == npyz::Order::Fortran;
@@ -331,7 +385,12 @@ fn read_npy(path: &Path, centres: bool) -> Result<Rows> {
     let what = || format!("{n} rows of {}", path.display());
     let total = n * columns;
     let mut values: Vec<f32> = try_vec(total, what)?;
-    let mut rows = Rows::with_capacity(n, columns, what)?;
+    let mut rows = Rows::with_capacity(n, motion, what)?;
+    if columns == NPY_WITH_MATERIAL {
+        let mut materials = Vec::new();
+        crate::error::try_resize(&mut materials, n, 0, what)?;
+        rows.materials = Some(materials);
+    }
     // The centres of a float64 file, as the file holds them (each value's row and column by
     // the file's order).
     let wide = item == 8 && centres;
@@ -359,18 +418,22 @@ fn read_npy(path: &Path, centres: bool) -> Result<Rows> {
             if column < 3 && wide {
                 rows.centres[i][column] = value;
             }
+            if let Some(materials) = rows.materials.as_mut().filter(|_| column == motion) {
+                materials[i] =
+                    sphere_material(value).map_err(|m| bad(format!("row {i} (0-based): {m}")))?;
+            }
             values.push(value as f32);
         }
     }
     let mut row = [0f32; COLUMNS.len()];
     for i in 0..n {
-        for (k, value) in row[..columns].iter_mut().enumerate() {
+        for (k, value) in row[..motion].iter_mut().enumerate() {
             *value = match fortran {
                 true => values[k * n + i],
                 false => values[i * columns + k],
             };
         }
-        rows.push(&row[..columns], what).map_err(|e| match e {
+        rows.push(&row[..motion], what).map_err(|e| match e {
             RowError::Bad(m) => bad(format!("row {i} (0-based): {m}")),
             RowError::Fatal(e) => e,
         })?;

@@ -13,7 +13,8 @@ pub use history::{
 /// Spheres with velocities, in the order the user gave them, their contact history and the
 /// simulation clock.
 ///
-/// Two states are equal where every field is, an empty `position_residuals` counting as zeros.
+/// Two states are equal where every field is, an empty `position_residuals` counting as zeros
+/// and an empty `materials` as the first material's (0) for every sphere.
 #[derive(Debug, Clone, Default)]
 pub struct Particles {
     /// Centres \[m\], as `f32`: what detection, the contacts and the walls use. Each is its
@@ -353,7 +354,8 @@ impl Particles {
             Some(index) => Err(Error::InvalidSphere {
                 index,
                 reason: format!(
-                    "material {} but the scene has {count} material{} (indices from 0)",
+                    "material {}, but the scene has {count} material{} (a sphere's material is \
+                     the place of a [[material]] table in the scene, from 0)",
                     self.materials[index],
                     if count == 1 { "" } else { "s" }
                 ),
@@ -430,12 +432,15 @@ impl PartialEq for Particles {
                 .collect()
         };
         let lengths = |p: &Particles| p.position_residuals.len().max(p.positions.len());
+        let materials = |p: &Particles| (0..p.len()).map(|i| p.material(i)).collect::<Vec<_>>();
         self.positions == other.positions
             && lengths(self) == lengths(other)
             && residuals(self) == residuals(other)
             && self.velocities == other.velocities
             && self.angular_velocities == other.angular_velocities
             && self.radii == other.radii
+            && materials(self) == materials(other)
+            && self.materials.len().max(self.len()) == other.materials.len().max(other.len())
             && self.history == other.history
             && self.step == other.step
     }
