@@ -1474,3 +1474,177 @@ fn the_wgpu_backends_load_a_turning_mesh_wall_as_the_cpu_does_and_run_it_without
     );
     assert!(e.contains("box_walls"), "{e}");
 }
+
+/// A scene of two materials (glass, steel: a pair given, the box walls steel) with an inflow of
+/// steel spheres, started from `heap.csv`.
+const TWO_MATERIALS: &str = r#"
+scene = "input"
+input = "heap.csv"
+contact = "hertz-mindlin"
+young_modulus = 1e5
+box_lo = [0, 0, 0]
+box_hi = [0.3, 0.3, 0.3]
+frame_every = 40
+csv = true
+box_material = "steel"
+
+[[material]]
+name = "glass"
+density = 2500
+restitution = 0.9
+friction = 0.3
+
+[[material]]
+name = "steel"
+density = 7800
+young_modulus = 3e5
+restitution = 0.5
+
+[[material_pair]]
+materials = ["glass", "steel"]
+friction = 0.2
+
+[[inflow]]
+lo = [0.05, 0.05, 0.2]
+hi = [0.25, 0.25, 0.28]
+rate = 200
+sphere_radius = 0.008
+material = "steel"
+"#;
+
+/// `heap.csv` of [`TWO_MATERIALS`]: 64 spheres thrown onto the floor, every third glass (0),
+/// the others steel (1), by the file's `material` column; their materials.
+fn two_material_heap(dir: &Path) -> Vec<u8> {
+    let mut rows = String::from("x,y,z,r,vx,vy,vz,material\n");
+    let mut materials = Vec::new();
+    for k in 0..64 {
+        let at = [k % 4, (k / 4) % 4, k / 16].map(|i| 0.0101 + 0.0199 * i as f32);
+        let material = u8::from(k % 3 != 0);
+        rows += &format!(
+            "{},{},{},0.01,{},-0.05,-0.1,{material}\n",
+            at[0],
+            at[1],
+            at[2],
+            ((k % 3) as f32 - 1.0) * 0.1
+        );
+        materials.push(material);
+    }
+    std::fs::write(dir.join("heap.csv"), rows).unwrap();
+    std::fs::write(dir.join("scene.toml"), TWO_MATERIALS).unwrap();
+    materials
+}
+
+#[test]
+fn a_two_material_run_from_a_csv_writes_each_spheres_material_and_resumes_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let file_materials = two_material_heap(dir.path());
+    let run = |out: &str, steps: &str| {
+        let args = [
+            "simulate",
+            "scene.toml",
+            "--steps",
+            steps,
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            out,
+        ];
+        let (code, stdout, stderr) = mochi(&args, dir.path());
+        assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+        stderr
+    };
+    let said = run("straight", "120");
+    assert!(
+        said.contains("| 2 materials: glass, steel (1 pair given) |")
+            && said.contains("| friction up to 0.5 (walls up to 0.5)"),
+        "{said}"
+    );
+    let end = checkpoint(dir.path(), "straight");
+    assert_eq!(end.step, 120);
+    let n = end.len();
+    assert!(n > 64, "the inflow inserted no sphere ({n})");
+    // The file's spheres keep their materials, the inflow's are steel.
+    let mut expected = file_materials.clone();
+    expected.resize(n, 1);
+    assert_eq!(end.materials, expected);
+    // Every frame carries them: the `.vtu`'s `material` array and the CSV's column.
+    let out = dir.path().join("straight");
+    for step in [0, 40, 80, 120] {
+        for ext in ["vtu", "csv"] {
+            let path = out.join(format!("frame_{step:08}.{ext}"));
+            let frame = mochi::io::read_frame(&path).unwrap();
+            assert_eq!(frame.materials, expected[..frame.radii.len()], "{path:?}");
+        }
+    }
+    let csv = std::fs::read_to_string(out.join("frame_00000000.csv")).unwrap();
+    assert!(
+        csv.starts_with("x,y,z,r,vx,vy,vz,wx,wy,wz,material\n"),
+        "{csv}"
+    );
+    // A run resumed from its checkpoint goes on as the uninterrupted one, materials and all.
+    run("split", "50");
+    let (code, stdout, stderr) = mochi(&strs(&resume_run("split", "120", &[])), dir.path());
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    let resumed = checkpoint(dir.path(), "split");
+    assert!(resumed == end, "a resumed two-material run differs");
+    assert_eq!(resumed.materials, end.materials);
+    // A frame CSV restarts a run with its materials.
+    let restart = [
+        "simulate",
+        "scene.toml",
+        "--input",
+        "straight/frame_00000120.csv",
+        "--steps",
+        "1",
+        "--backend",
+        "cpu",
+        "-q",
+        "-o",
+        "again",
+    ];
+    ok(&restart, dir.path());
+    assert_eq!(checkpoint(dir.path(), "again").materials[..n], expected);
+}
+
+#[test]
+fn a_sphere_of_a_material_the_scene_lacks_is_refused_naming_the_file_and_sphere() {
+    let dir = tempfile::tempdir().unwrap();
+    two_material_heap(dir.path());
+    let mut rows = std::fs::read_to_string(dir.path().join("heap.csv")).unwrap();
+    rows += "0.25,0.25,0.25,0.01,0,0,0,2\n";
+    std::fs::write(dir.path().join("three.csv"), rows).unwrap();
+    let args = [
+        "simulate",
+        "scene.toml",
+        "--input",
+        "three.csv",
+        "--backend",
+        "cpu",
+        "-q",
+        "-o",
+        "out",
+    ];
+    let e = fails(&args, dir.path());
+    assert!(
+        e.contains("three.csv: sphere 64: material 2, but the scene has 2 materials"),
+        "{e}"
+    );
+    assert!(!dir.path().join("out").exists());
+    // Without [[material]] tables, every sphere must be of the one material.
+    let args = [
+        "simulate",
+        "--input",
+        "heap.csv",
+        "--backend",
+        "cpu",
+        "-q",
+        "-o",
+        "out",
+    ];
+    let e = fails(&args, dir.path());
+    assert!(
+        e.contains("heap.csv: sphere 1: material 1, but the scene has 1 material ("),
+        "{e}"
+    );
+}

@@ -75,13 +75,16 @@ class FrameDict(TypedDict):
     radii: npt.NDArray[np.float32]
     velocities: npt.NDArray[np.float32]
     angular_velocities: npt.NDArray[np.float32]
+    materials: npt.NDArray[np.uint8]
     step: int | None
     time: float | None
 
 def read_frame(path: str | os.PathLike[str]) -> FrameDict:
     """Reads a frame (``.vtu`` as ``write_frame`` and ``mochi simulate`` write it, ``.csv`` or
     ``.npy``): positions (float64, as the file holds them), radii, velocities and angular
-    velocities (float32), with its step and time (``None`` where the file does not say)."""
+    velocities (float32), materials (uint8: each sphere's index in the scene's materials, 0 for
+    every sphere of a file without them), with its step and time (``None`` where the file does
+    not say)."""
 
 class Simulation:
     """A DEM simulation: a scene's spheres under gravity, walls and contact forces.
@@ -90,14 +93,18 @@ class Simulation:
     to a scene TOML, or ``None`` for the default scene (``pour``). A dict value is a TOML table
     and a list of dicts an array of tables: ``{"inflow": [{"lo": [...], "hi": [...], "rate":
     2000, "sphere_radius": 0.004}]}`` is ``[[inflow]]``, and a lone dict for ``wall``,
-    ``inflow`` or ``outflow`` is an array of one. NumPy scalars and 0-d arrays count as the
+    ``inflow``, ``outflow``, ``material`` or ``material_pair`` is an array of one. Several
+    materials: ``{"material": [{"name": "glass", "density": 2500}, {"name": "steel",
+    "density": 7800}], "box_material": "steel", "inflow": {..., "material": "glass"}}``; an
+    input file's ``material`` column gives each sphere's (its index in that list, from 0).
+    NumPy scalars and 0-d arrays count as the
     Python scalars they hold, NumPy arrays as lists. A whole float for a key that takes an
     integer (``"spheres": 3e8``) is refused, as in a scene file: pass an int. Bad keys or values
     raise ``ValueError`` naming them; the run's warnings (overlaps, coarse coordinates,
     coincident centres) are ``UserWarning``s.
 
-    ``positions`` (float64) and ``velocities``, ``angular_velocities`` and ``radii`` (float32)
-    are in input order: read-only snapshots of the step they were read at (the same array object until the
+    ``positions`` (float64), ``velocities``, ``angular_velocities`` and ``radii`` (float32) and
+    ``materials`` (uint8) are in input order: read-only snapshots of the step they were read at (the same array object until the
     next ``step``; a later step does not change them). Writing into one raises ``ValueError``;
     a simulation's state is changed only by stepping it (``copy()`` an array to change it, and
     start a new run from the changed spheres with ``{"scene": "input", "input": file}``).
@@ -133,6 +140,13 @@ class Simulation:
     def radii(self) -> npt.NDArray[np.float32]:
         """Radii ``(N,)`` [m]: read-only, this step's."""
     @property
+    def materials(self) -> npt.NDArray[np.uint8]:
+        """Materials ``(N,)``: each sphere's index in ``material_names``; read-only, this
+        step's."""
+    @property
+    def material_names(self) -> list[str]:
+        """The scene's material names in order (``["default"]`` without ``material`` tables)."""
+    @property
     def time(self) -> float:
         """Simulated time [s]: steps taken times the time step."""
     @property
@@ -152,7 +166,7 @@ class Simulation:
         length of ``positions`` at every step."""
     def write_frame(self, path: str | os.PathLike[str]) -> None:
         """Writes the spheres now by extension: ``.vtu`` (ParaView), ``.csv`` or ``.npy``
-        (float64 N×10: x, y, z, r, vx, vy, vz, wx, wy, wz); atomically. The positions are
+        (float64 N×11: x, y, z, r, vx, vy, vz, wx, wy, wz, material); atomically. The positions are
         written in float64, the rest as the float32 they are."""
     def checkpoint(self, path: str | os.PathLike[str]) -> None:
         """Saves the run (particles, contact history, resolved scene) for ``resume``."""

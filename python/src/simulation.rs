@@ -25,9 +25,9 @@ use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 /// The scene keys whose TOML values are arrays of tables (`[[wall]]`, `[[inflow]]`,
-/// `[[outflow]]`, as `dem::scene` documents them): a lone dict given for one is that array's
-/// one table.
-const TABLE_ARRAYS: [&str; 3] = ["wall", "inflow", "outflow"];
+/// `[[outflow]]`, `[[material]]`, `[[material_pair]]`, as `dem::scene` documents them): a lone
+/// dict given for one is that array's one table.
+const TABLE_ARRAYS: [&str; 5] = ["wall", "inflow", "outflow", "material", "material_pair"];
 
 /// A scene value from Python as TOML: bool, int, float, str, a path, a dict (a table, its keys
 /// str), or a list or tuple of them (an array); a NumPy scalar or 0-d array as the Python scalar
@@ -186,9 +186,32 @@ fn triples<'py, T: Element + Copy>(
         .map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
-/// `values` (one per sphere) as an `(N,)` float32 array.
-fn singles<'py>(py: Python<'py>, values: &[f32]) -> PyResult<Bound<'py, PyArray1<f32>>> {
+/// `values` (one per sphere) as an `(N,)` array.
+fn singles<'py, T: Element + Copy>(
+    py: Python<'py>,
+    values: &[T],
+) -> PyResult<Bound<'py, PyArray1<T>>> {
     Ok(Array1::from_vec(copied(values, "an array of the spheres")?).into_pyarray(py))
+}
+
+/// Each sphere's material (`(N,)` uint8): its index in the scene's materials, 0 for every
+/// sphere where the particles keep none (one material).
+fn materials<'py>(py: Python<'py>, p: &Particles) -> PyResult<Bound<'py, PyArray1<u8>>> {
+    match p.materials.is_empty() {
+        true => {
+            let mut zeros = Vec::new();
+            zeros.try_reserve_exact(p.len()).map_err(|_| {
+                PyMemoryError::new_err(format!(
+                    "the materials of {} spheres: out of memory ({} bytes needed)",
+                    p.len(),
+                    p.len()
+                ))
+            })?;
+            zeros.resize(p.len(), 0);
+            Ok(Array1::from_vec(zeros).into_pyarray(py))
+        }
+        false => singles(py, &p.materials),
+    }
 }
 
 /// Where [`Views`] keeps one array.
@@ -210,15 +233,19 @@ struct Views {
     velocities: Option<Py<PyArray2<f32>>>,
     angular_velocities: Option<Py<PyArray2<f32>>>,
     radii: Option<Py<PyArray1<f32>>>,
+    materials: Option<Py<PyArray1<u8>>>,
 }
 
 /// Reads a frame (`.vtu` as `write_frame` and `mochi simulate` write it, `.csv` or `.npy`) into
 /// a dict of NumPy arrays (`positions`, float64, `radii`, `velocities`, `angular_velocities`,
-/// float32) with its `step` and `time` (`None` where the file does not say).
+/// float32, `materials`, uint8: 0 for every sphere of a file without them) with its `step` and
+/// `time` (`None` where the file does not say).
 #[pyfunction]
 pub fn read_frame(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>> {
     guard("mochi.read_frame", || {
-        let frame = py.detach(|| io::read_frame(&path)).map_err(to_py_err)?;
+        let mut frame = py.detach(|| io::read_frame(&path)).map_err(to_py_err)?;
+        // A file without materials: every sphere of the first.
+        frame.materials.resize(frame.radii.len(), 0);
         let out = PyDict::new(py);
         out.set_item("positions", triples(py, &frame.exact_positions)?)?;
         out.set_item("radii", Array1::from_vec(frame.radii).into_pyarray(py))?;
@@ -226,6 +253,10 @@ pub fn read_frame(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>> 
         out.set_item(
             "angular_velocities",
             triples(py, &frame.angular_velocities)?,
+        )?;
+        out.set_item(
+            "materials",
+            Array1::from_vec(frame.materials).into_pyarray(py),
         )?;
         out.set_item("step", frame.step)?;
         out.set_item("time", frame.time)?;
@@ -437,6 +468,25 @@ impl Simulation {
         })
     }
 
+    /// Materials `(N,)` uint8, in input order: each sphere's index in `material_names` (the
+    /// scene's `material` tables, in order); a read-only snapshot of this step.
+    #[getter]
+    fn materials<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<u8>>> {
+        self.guarded("Simulation.materials", |sim| {
+            sim.view::<u8, Ix1>(py, |v| &mut v.materials, materials)
+        })
+    }
+
+    /// The scene's material names, in order (`["default"]` for a scene without `material`
+    /// tables): `materials` indexes them.
+    #[getter]
+    fn material_names(&mut self) -> PyResult<Vec<String>> {
+        self.guarded("Simulation.material_names", |sim| {
+            let materials = sim.run_mut().config.materials().map_err(to_py_err)?;
+            Ok(materials.names)
+        })
+    }
+
     /// Simulated time \[s\]: steps taken times the time step.
     #[getter]
     fn time(&mut self) -> PyResult<f64> {
@@ -475,8 +525,8 @@ impl Simulation {
     }
 
     /// Writes the spheres now as a frame, by extension: `.vtu` (ParaView), `.csv` or `.npy`
-    /// (float64 N×10: x, y, z, r, vx, vy, vz, wx, wy, wz); atomically, as `mochi simulate`
-    /// writes its frames.
+    /// (float64 N×11: x, y, z, r, vx, vy, vz, wx, wy, wz, material); atomically, as `mochi
+    /// simulate` writes its frames.
     fn write_frame(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         self.guarded("Simulation.write_frame", |sim| {
             sim.particles(py)?;

@@ -119,7 +119,7 @@ def test_checkpoint_and_resume_continue_bit_for_bit(tmp_path):
     assert resumed.step_count == straight.step_count == 1200
     assert resumed.time == straight.time
     assert resumed.contacts == straight.contacts
-    for name in ["positions", "velocities", "angular_velocities", "radii"]:
+    for name in ["positions", "velocities", "angular_velocities", "radii", "materials"]:
         np.testing.assert_array_equal(getattr(resumed, name), getattr(straight, name), name)
 
 
@@ -200,17 +200,19 @@ def test_frames_read_back_as_written(tmp_path, ext):
     path = tmp_path / f"frame.{ext}"
     sim.write_frame(path)
     frame = mochi.read_frame(path)
-    for name in ["positions", "velocities", "angular_velocities", "radii"]:
+    for name in ["positions", "velocities", "angular_velocities", "radii", "materials"]:
         np.testing.assert_array_equal(frame[name], getattr(sim, name), name)
+    assert frame["materials"].dtype == np.uint8 and not frame["materials"].any()
     if ext == "vtu":
         assert frame["step"] == 900 and frame["time"] == pytest.approx(sim.time)
     if ext == "npy":
         table = np.load(path)
-        assert table.dtype == np.float64 and table.shape == (200, 10)
+        assert table.dtype == np.float64 and table.shape == (200, 11)
         np.testing.assert_array_equal(table[:, :3], sim.positions)
         np.testing.assert_array_equal(table[:, 3], sim.radii)
         np.testing.assert_array_equal(table[:, 4:7], sim.velocities)
-        np.testing.assert_array_equal(table[:, 7:], sim.angular_velocities)
+        np.testing.assert_array_equal(table[:, 7:10], sim.angular_velocities)
+        np.testing.assert_array_equal(table[:, 10], sim.materials)
     assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary left
 
 
@@ -368,7 +370,7 @@ def test_a_whole_float_for_an_integer_key_is_refused_naming_it(value):
 
 def test_the_arrays_are_read_only_snapshots_of_their_step():
     sim = mochi.Simulation({"scene": "freefall", "spheres": 50}, backend="cpu")
-    names = ["positions", "velocities", "angular_velocities", "radii"]
+    names = ["positions", "velocities", "angular_velocities", "radii", "materials"]
     before = {name: getattr(sim, name) for name in names}
     for name, array in before.items():
         assert not array.flags.writeable, name

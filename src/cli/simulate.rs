@@ -136,11 +136,15 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             series,
         })
     };
+    // One material's restitution, or the materials (each with its own).
+    let material = match config.materials()?.describe() {
+        Some(materials) => materials,
+        None => format!("restitution {}", config.restitution),
+    };
     eprintln!(
-        "scene {} | {n} spheres | steps {first}..{total} | {} | restitution {} | backend {}",
+        "scene {} | {n} spheres | steps {first}..{total} | {} | {material} | backend {}",
         config.scene,
         p.describe(),
-        config.restitution,
         stepper.describe()
     );
 

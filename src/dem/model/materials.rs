@@ -187,6 +187,20 @@ impl Materials {
     pub fn heaviest_density(&self) -> f64 {
         self.list.iter().map(|m| m.density).fold(0.0, f64::max)
     }
+
+    /// The materials in words for a run's summary line, where there are several: "3 materials:
+    /// glass, steel, rubber", and how many pairs the scene gives; `None` for one material.
+    pub fn describe(&self) -> Option<String> {
+        let n = self.list.len();
+        (n > 1).then(|| {
+            let pairs = match self.pairs.len() {
+                0 => String::new(),
+                1 => " (1 pair given)".into(),
+                k => format!(" ({k} pairs given)"),
+            };
+            format!("{n} materials: {}{pairs}", self.names.join(", "))
+        })
+    }
 }
 
 /// The law of one ordered pair of materials as the step computes it (f32), the layout the GPU

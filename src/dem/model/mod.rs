@@ -298,7 +298,8 @@ impl StepParams {
     }
 
     /// The time step and the contact law in words, for a run's summary line: the stiffness or
-    /// the Rayleigh time the step follows from, and the friction where there is any.
+    /// the Rayleigh time the step follows from, and the friction where there is any (with
+    /// several materials, the largest of any pair; [`Materials::describe`] names them).
     pub fn describe(&self) -> String {
         let dt = self.dt as f64;
         let law = match self.law {
@@ -333,8 +334,13 @@ impl StepParams {
             true => " (mindlin-deresiewicz)",
             false => "",
         };
+        let up_to = match self.materials.count {
+            1 => "",
+            _ => "up to ",
+        };
         format!(
-            "{law} | friction {} (walls {}){tangential}, rolling {} ({model})",
+            "{law} | friction {up_to}{} (walls {up_to}{}){tangential}, rolling {up_to}{} \
+             ({model})",
             f.sliding, f.wall_sliding, f.rolling
         )
     }
