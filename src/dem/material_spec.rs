@@ -303,7 +303,7 @@ mod tests {
         );
         let e = err("box_material = \"b\"\n");
         assert!(e.contains("no [[material]] tables"), "{e}");
-        let e = err("[[material]]\nname = \"a\"\nrestitution = 1.5\n");
+        let e = err("[[material]]\nname = \"a\"\nrestitution = 1.5\n[[material]]\nname = \"b\"\n");
         assert!(
             e.contains("material \"a\"") && e.contains("restitution"),
             "{e}"

@@ -91,10 +91,14 @@ impl Materials {
         }
         let first = self.first();
         for (m, name) in self.list.iter().zip(&self.names) {
-            m.check().map_err(|e| Error::InvalidConfig {
-                what: format!("material \"{name}\""),
-                reason: e.to_string(),
-            })?;
+            // One material is the scene's top-level keys: their own errors name them.
+            match n {
+                1 => m.check()?,
+                _ => m.check().map_err(|e| Error::InvalidConfig {
+                    what: format!("material \"{name}\""),
+                    reason: e.to_string(),
+                })?,
+            }
             let same_kind = std::mem::discriminant(&m.contact)
                 == std::mem::discriminant(&first.contact)
                 && match (m.contact, first.contact) {
