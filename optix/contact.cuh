@@ -30,7 +30,8 @@ struct alignas(16) MochiPairLaw {
     float damping_ratio;  // ζ giving the pair's restitution
     float sliding;        // μ
     float rolling;        // μ_r
-    float _pad[2];
+    float _pad0;
+    float _pad1;
 };
 
 // The step's parameters with the contact law's (StepParams: law, materials, friction models).

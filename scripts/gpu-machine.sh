@@ -4,7 +4,9 @@
 # and glvnd as .deb files in .gl/. Usage there: `bash scripts/gpu-machine.sh run [TEST...]`.
 #   pack   build the release binary and the named test binaries (--features optix) into .bin/
 #          (in $CARGO_TARGET_DIR where set)
-#   run    unpack the loaders, then run each carried test binary with optix expected
+#   run    unpack the loaders, then run each carried test binary with optix expected (TEST_ARGS:
+#          more arguments for every test binary, e.g. a filter and --nocapture)
+#   shell  unpack the loaders, then run the command given (a benchmark of the carried binaries)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 tests=(backends_exact dem simulate optix proxy_parity wgpu_compute)
@@ -31,13 +33,17 @@ for l in sys.stdin:
     # The test binaries name the mochi binary under the target folder they were built in.
     realpath "${CARGO_TARGET_DIR:-target}" > .bin/target-dir
     ;;
-run)
+run | shell)
+    what=$1
     shift
-    [ $# -gt 0 ] && tests=("$@")
     for f in .gl/*.deb; do dpkg -x "$f" /; done
     ldconfig
     export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
     export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+    if [ "$what" = shell ]; then
+        exec "$@"
+    fi
+    [ $# -gt 0 ] && tests=("$@")
     # The test binaries name the build machine's paths (the binary, tests/data): make them here.
     root=$(cat .bin/build-root)
     if [ "$root" != "$PWD" ] && [ ! -e "$root" ]; then
@@ -54,12 +60,13 @@ run)
     status=0
     for t in "${tests[@]}"; do
         echo "== $t"
-        (cd "$root" && "$PWD/.bin/test-$t" --test-threads 1) || status=1
+        # shellcheck disable=SC2086 # TEST_ARGS are words
+        (cd "$root" && "$PWD/.bin/test-$t" --test-threads 1 ${TEST_ARGS:-}) || status=1
     done
     exit $status
     ;;
 *)
-    echo "usage: $0 pack [TEST...] | run [TEST...]" >&2
+    echo "usage: $0 pack [TEST...] | run [TEST...] | shell COMMAND..." >&2
     exit 2
     ;;
 esac

@@ -801,15 +801,20 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
     // A compressed pile given in a scrambled order, its spheres moving every which way at up to
     // 0.5 m/s: never sorted, the dense build's step bins the scrambled state by index at every
     // step (and resolves and integrates it where it is); sorted at every step, or every
-    // SORT_EVERY steps, it moves the state. Every way finds the cpu step's contacts and stays
-    // within the GPU tolerance of its positions over three batches, on one level and on
-    // several, with the grid laid out again after every batch (what the last step counted into
-    // the cells is then dropped and counted again): with the paper's law, batches of 16 steps;
+    // SORT_EVERY steps, it moves the state. Every way, on one level and on several, with the
+    // grid laid out again after every batch (what the last step counted into the cells is then
+    // dropped and counted again), steps as the first way does (the same contacts, within 1e-6
+    // m: only the order in which forces add differs), and follows the cpu step over three
+    // batches: with the paper's law, batches of 16 steps, the cpu's contacts and within 1e-6 m;
     // with Hertz–Mindlin, friction and rolling resistance (the granular step, whose history is
-    // kept by state row between sortings; its spins follow the cpu's too), of 8, within 1e-5 m
-    // (its frictional pile drifts from the cpu's by the GPU's rounding and the atomics' order,
-    // sorted every step as much as never: the tolerances are five and ten times an H100's drift,
-    // docs/PERFORMANCE.md; a wrong row or history puts it off by far more).
+    // kept by state row between sortings; its spins follow the cpu's too), batches of 8.
+    // A frictional pile may meet a contact whose tangential force is within a rounding of the
+    // Coulomb cap: the cpu and a GPU, rounding differently, then slide and stick there, and that
+    // contact's neighbourhood drifts apart by a few 1e-5 m in 8 steps (an H200 does, in batch 0,
+    // docs/PERFORMANCE.md, "The dem test's drift on this card"), spreading through the pile's
+    // contacts. So against the cpu the granular step keeps its contacts within 1 %, half of its
+    // spheres within 1e-6 m (and of their spins within 5e-3 of the fastest) and every one within
+    // 2e-4 m; a wrong row or history moves most spheres by far more.
     let start = pile(10, 0.0165, 0.001);
     let n = start.len();
     let mut scrambled = start.clone();
@@ -822,7 +827,8 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
     }
     let r_min = scrambled.radius_range().0;
     let granular = common::granular_material();
-    for (material, batch, tolerance) in [(Material::default(), 16, 1e-6), (granular, 8, 1e-5)] {
+    for (material, batch) in [(Material::default(), 16), (granular, 8)] {
+        let frictional = material.friction > 0.0;
         let p = params(material, 1e-4, 0.3, [0.0, 0.0, -9.81], r_min);
         let Some(any) = grid_stepper(&scrambled, p.clone(), GridBuild::Dense) else {
             return;
@@ -842,10 +848,9 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
         );
         let spin = reference[2].1.angular_velocities.iter().flatten();
         let spin = spin.fold(0.0f32, |a, w| a.max(w.abs()));
-        assert!(
-            material.friction == 0.0 || spin > 1.0,
-            "friction turns the spheres"
-        );
+        assert!(!frictional || spin > 1.0, "friction turns the spheres");
+        // The batches of the first way: contacts and state.
+        let mut first_way: Vec<(u64, Particles)> = Vec::new();
         for sorting in [Sorting::Never, Sorting::Every(1), Sorting::Every(7)] {
             for structure in [Structure::Auto, Structure::Mlgrid] {
                 let name = format!("{:?} {sorting:?} {structure:?}", material.contact);
@@ -855,21 +860,50 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
                     .with_sorting(sorting);
                 for (k, (contacts, expected)) in reference.iter().enumerate() {
                     let a = s.advance(batch).unwrap();
-                    assert_eq!(a.contacts, *contacts, "{name}: contacts at batch {k}");
                     let got = s.particles().unwrap();
-                    let worst = common::largest_gap(&got, expected);
-                    assert!(
-                        worst < tolerance,
-                        "{name}: {worst} m from the cpu step at batch {k}"
-                    );
+                    if let Some((first_contacts, first)) = first_way.get(k) {
+                        assert_eq!(a.contacts, *first_contacts, "{name}: contacts at batch {k}");
+                        let worst = common::largest_gap(&got, first);
+                        assert!(
+                            worst < 1e-6,
+                            "{name}: {worst} m from the first way at batch {k}"
+                        );
+                    }
+                    let gaps = common::gaps(&got, expected);
+                    let (half, worst) = (gaps[gaps.len() / 2], gaps[gaps.len() - 1]);
+                    if frictional {
+                        let off = a.contacts.abs_diff(*contacts);
+                        assert!(
+                            off * 100 <= *contacts,
+                            "{name}: {} contacts against the cpu's {contacts} at batch {k}",
+                            a.contacts
+                        );
+                        assert!(
+                            half < 1e-6 && worst < 2e-4,
+                            "{name}: half of the spheres within {half} m of the cpu step's, \
+                             all within {worst} m, at batch {k}"
+                        );
+                    } else {
+                        assert_eq!(a.contacts, *contacts, "{name}: contacts at batch {k}");
+                        assert!(
+                            worst < 1e-6,
+                            "{name}: {worst} m from the cpu step at batch {k}"
+                        );
+                    }
                     let spins = got.angular_velocities.iter().flatten();
                     let cpu_spins = expected.angular_velocities.iter().flatten();
-                    let gap = spins.zip(cpu_spins).map(|(a, b)| (a - b).abs());
-                    let gap = gap.fold(0.0f32, f32::max);
+                    let mut spin_gaps: Vec<f32> =
+                        spins.zip(cpu_spins).map(|(a, b)| (a - b).abs()).collect();
+                    spin_gaps.sort_by(f32::total_cmp);
+                    let spin_gap = spin_gaps[spin_gaps.len() / 2];
                     assert!(
-                        gap <= 5e-3 * spin.max(1.0),
-                        "{name}: spins {gap} rad/s from the cpu step's at batch {k}"
+                        spin_gap <= 5e-3 * spin.max(1.0),
+                        "{name}: half of the spins within {spin_gap} rad/s of the cpu step's at \
+                         batch {k}"
                     );
+                    if first_way.len() == k {
+                        first_way.push((a.contacts, got));
+                    }
                     // Laid out again at the next advance.
                     s = s.with_structure(structure);
                 }

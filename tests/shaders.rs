@@ -1,7 +1,8 @@
 //! Every WGSL module, exactly as the device gets it, parses and validates with naga and
 //! translates to SPIR-V as wgpu's Vulkan backend does (no GPU needed), so a broken shader fails
 //! here with its name and the error's location, and one that trips naga's SPIR-V writer (a
-//! pointer to a member of a local struct passed to a function did) with its name.
+//! pointer to a member of a local struct passed to a function did) with its name, under every
+//! set of `override` values the engines give its pipelines.
 
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
@@ -35,16 +36,47 @@ fn every_shader_parses_and_validates() {
                     continue;
                 }
             };
-        let options = naga::back::spv::Options::default();
-        let spirv =
-            std::panic::catch_unwind(|| naga::back::spv::write_vec(&module, &info, &options, None));
-        match spirv {
-            Ok(Ok(_)) => {}
-            Ok(Err(e)) => failures.push(format!("{name}: SPIR-V: {e}")),
-            Err(_) => failures.push(format!("{name}: naga's SPIR-V writer panicked")),
+        for constants in pipeline_constants(&module) {
+            let said = format!("{name} {:?}", constants.iter().collect::<Vec<_>>());
+            let (module, info) = match naga::back::pipeline_constants::process_overrides(
+                &module, &info, None, &constants,
+            ) {
+                Ok(processed) => processed,
+                Err(e) => {
+                    failures.push(format!("{said}: {e}"));
+                    continue;
+                }
+            };
+            let options = naga::back::spv::Options::default();
+            let spirv = std::panic::catch_unwind(|| {
+                naga::back::spv::write_vec(&module, &info, &options, None)
+            });
+            match spirv {
+                Ok(Ok(_)) => {}
+                Ok(Err(e)) => failures.push(format!("{said}: SPIR-V: {e}")),
+                Err(_) => failures.push(format!("{said}: naga's SPIR-V writer panicked")),
+            }
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Every set of `override` values the engines make `module`'s pipelines with: the defaults, and
+/// `ONE_MATERIAL` set where the module declares it (the granular step's `DemModule::constants`).
+fn pipeline_constants(module: &naga::Module) -> Vec<naga::back::PipelineConstants> {
+    let mut sets = vec![naga::back::PipelineConstants::default()];
+    let declares = |name: &str| {
+        module
+            .overrides
+            .iter()
+            .any(|(_, o)| o.name.as_deref() == Some(name))
+    };
+    if declares("ONE_MATERIAL") {
+        let mut one = naga::back::PipelineConstants::default();
+        one.insert("ONE_MATERIAL".into(), 1.0);
+        sets.push(one);
+    }
+    sets
 }
 
 /// The `u32` value of the WGSL constant `name` (a literal) in `module`.

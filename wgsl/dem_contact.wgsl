@@ -20,6 +20,8 @@ struct GranularParams {
     spheres_per_part: u32, // history rows one entry binding holds (dem_granular.wgsl)
     materials: u32,       // materials; the table has materials + 1 columns
     box_column: u32,      // the table's column of the six box walls
+    _pad: u32,
+    sphere_law: PairLaw,  // row 0, column 0 of the table: with one material, every pair's law
 }
 
 // The law of one ordered pair of materials; twin of PairLaw in src/dem/model/materials.rs.
@@ -30,7 +32,8 @@ struct PairLaw {
     damping_ratio: f32,   // ζ giving the pair's restitution
     sliding: f32,         // μ
     rolling: f32,         // μ_r
-    _pad: array<f32, 2>,
+    _pad0: f32,
+    _pad1: f32,
 }
 
 @group(0) @binding(17) var<uniform> granular: GranularParams;
@@ -41,6 +44,19 @@ struct PairLaw {
 // The law of a sphere of material a against column b of the table (MaterialTable::law).
 fn law_of(a: u32, b: u32) -> PairLaw {
     return material_laws[a * (granular.materials + 1u) + b];
+}
+
+// True where the scene has one material (set when the pipeline is made, DemModule::constants):
+// the compiler then drops every sphere's material (0) and its lookups, and every pair's law is
+// the uniform's copy of the table's first row.
+override ONE_MATERIAL: bool = false;
+
+// The law of two spheres of materials a and b.
+fn sphere_law(a: u32, b: u32) -> PairLaw {
+    if ONE_MATERIAL {
+        return granular.sphere_law;
+    }
+    return law_of(a, b);
 }
 
 const LAW_LINEAR: u32 = 0u;
@@ -230,7 +246,7 @@ fn pair_contact(i: Body, j: Body, old: Springs) -> Contact {
     let vn = dot3(j.v - i.v, n);
     let m_eff = effective(i.m, j.m);
     let r_eff = effective(i.r, j.r);
-    let law = law_of(i.material, j.material);
+    let law = sphere_law(i.material, j.material);
     let normal = normal_force(law, overlap, vn, m_eff, r_eff);
     out.touching = true;
     out.force = -normal.push * n;

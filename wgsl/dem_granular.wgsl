@@ -61,7 +61,11 @@ const FIRST_WALL: u32 = 0xfffffffau;
 // The sphere of state row `o` (its ω and material, omega[p]) with centre and radius s and
 // velocity and mass v.
 fn body_of(s: vec4<f32>, v: vec4<f32>, o: vec4<f32>) -> Body {
-    return Body(s.xyz, v.xyz, o.xyz, s.w, v.w, u32(o.w));
+    var material = 0u;
+    if !ONE_MATERIAL {
+        material = u32(o.w);
+    }
+    return Body(s.xyz, v.xyz, o.xyz, s.w, v.w, material);
 }
 
 // Where a slot is: the entry binding and the element in it.

@@ -88,7 +88,7 @@ fn walker_of_lane(w: ptr<function, Walker>, o: u32, k: u32) -> Walker {
     theirs.s = s;
     // One material: every lane's is 0, and no lane asks for it.
     var material = 0u;
-    if granular.materials > 1u {
+    if !ONE_MATERIAL {
         material = lane_u32(me.material, o);
     }
     theirs.me = Body(s.xyz, v.xyz, lane_vec3f(me.w, o), s.w, v.w, material);

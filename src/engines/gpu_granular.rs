@@ -461,6 +461,8 @@ impl Granular {
             spheres_per_part: split.spheres_per_part,
             materials: table.count as u32,
             box_column: params.box_column,
+            _pad: 0,
+            sphere_law: *table.law(0, 0),
         };
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");

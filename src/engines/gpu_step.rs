@@ -310,6 +310,11 @@ pub(crate) mod granular {
         pub materials: u32,
         /// The column of the table the six box walls take.
         pub box_column: u32,
+        /// Padding: `sphere_law` starts a 16-byte line, as a struct member of a uniform must.
+        pub _pad: u32,
+        /// The law of two spheres of the first material (the table's row 0, column 0): with one
+        /// material every pair's, read from this uniform rather than the table.
+        pub sphere_law: crate::dem::model::PairLaw,
     }
 
     /// [`GranularParams`] as a [`SharedStruct`].
@@ -324,6 +329,8 @@ pub(crate) mod granular {
                 spheres_per_part,
                 materials,
                 box_column,
+                _pad,
+                sphere_law,
             }
         )
     }
@@ -341,7 +348,8 @@ pub(crate) mod granular {
                 damping_ratio,
                 sliding,
                 rolling,
-                _pad,
+                _pad0,
+                _pad1,
             }
         )
     }
@@ -595,6 +603,8 @@ pub(crate) struct DemModule {
     pub per_pair: Option<PerPair>,
     /// The step's WGSL, compiled.
     pub module: crate::gpu::Module,
+    /// The values of its `override` constants its pipelines take ([`Gpu::pipeline_with`]).
+    pub constants: &'static [(&'static str, f64)],
 }
 
 impl DemModule {
@@ -641,11 +651,17 @@ impl DemModule {
         };
         let source = source(accumulators, lanes, variant);
         let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
+        // The granular step's contact law (wgsl/dem_contact.wgsl) specialised for one material.
+        let constants: &[_] = match granular.is_some() && params.materials.count == 1 {
+            true => &[("ONE_MATERIAL", 1.0)],
+            false => &[],
+        };
         Ok(DemModule {
             atomics,
             granular,
             per_pair,
             module,
+            constants,
         })
     }
 }

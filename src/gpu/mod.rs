@@ -244,7 +244,19 @@ impl Gpu {
     /// A compute pipeline for `entry` of `module` (bind groups laid out by wgpu), compiled once
     /// per device.
     pub fn pipeline(&self, label: &str, module: &Module, entry: &str) -> wgpu::ComputePipeline {
-        let key = (module.index, entry.to_owned());
+        self.pipeline_with(label, module, entry, &[])
+    }
+
+    /// [`pipeline`](Self::pipeline) with the module's `override` constants set to `constants`
+    /// (each name's value), compiled once per device and set of values.
+    pub fn pipeline_with(
+        &self,
+        label: &str,
+        module: &Module,
+        entry: &str,
+        constants: &[(&str, f64)],
+    ) -> wgpu::ComputePipeline {
+        let key = (module.index, format!("{entry} {constants:?}"));
         if let Some(pipeline) = self.compiled().pipelines.get(&key) {
             return pipeline.clone();
         }
@@ -255,7 +267,10 @@ impl Gpu {
                 layout: None,
                 module,
                 entry_point: Some(entry),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants,
+                    ..Default::default()
+                },
                 cache: None,
             });
         self.compiled().pipelines.insert(key, pipeline.clone());

@@ -99,12 +99,21 @@ pub fn open_gpu_with_bindings_of(what: &str, bytes: u64) -> Option<Gpu> {
 
 /// The largest difference of one coordinate between the same sphere in `a` and in `b` [m].
 pub fn largest_gap(a: &mochi::dem::Particles, b: &mochi::dem::Particles) -> f32 {
+    gaps(a, b).last().copied().unwrap_or(0.0)
+}
+
+/// The difference of the same sphere's centre in `a` and in `b` (its largest coordinate) [m], for
+/// every sphere, in increasing order.
+pub fn gaps(a: &mochi::dem::Particles, b: &mochi::dem::Particles) -> Vec<f32> {
     assert_eq!(a.len(), b.len());
-    a.positions
+    let mut gaps: Vec<f32> = a
+        .positions
         .iter()
         .zip(&b.positions)
         .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).abs()).fold(0.0, f32::max))
-        .fold(0.0, f32::max)
+        .collect();
+    gaps.sort_by(f32::total_cmp);
+    gaps
 }
 
 /// The backends whose DEM step the tests run, in the order they are reported.

@@ -225,8 +225,10 @@ pub struct PairLaw {
     pub sliding: f32,
     /// Rolling friction μ_r.
     pub rolling: f32,
+    /// Padding to 32 bytes (two scalars, not an array: a uniform buffer holds this struct too).
+    pub _pad0: f32,
     /// Padding to 32 bytes.
-    pub _pad: [f32; 2],
+    pub _pad1: f32,
 }
 
 /// Every pair's law: row a (a sphere of material a), column b < count (a sphere or a wall of

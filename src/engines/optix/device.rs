@@ -1379,7 +1379,8 @@ pub fn layout_checks(unit: Unit) -> String {
                 damping_ratio,
                 sliding,
                 rolling,
-                _pad
+                _pad0,
+                _pad1
             }
         )
     };

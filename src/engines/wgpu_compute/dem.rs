@@ -483,6 +483,7 @@ impl GridStepper {
             granular,
             per_pair,
             module,
+            constants,
         } = DemModule::open(
             &gpu,
             "wgpu-compute",
@@ -502,7 +503,9 @@ impl GridStepper {
         // The paper's step on the dense build may skip its binning (the skin).
         let paper = granular.is_none();
         let skinned = paper && build == BuildKind::Dense;
-        let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.{entry}"), &module, entry);
+        let pipeline = |entry: &str| {
+            gpu.pipeline_with(&format!("mochi.dem.{entry}"), &module, entry, constants)
+        };
         let (first, last) = match build {
             BuildKind::Dense => ("bin_count", "bin_scatter"),
             BuildKind::Sorted => ("bin_keys", "bin_gather"),

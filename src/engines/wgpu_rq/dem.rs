@@ -140,6 +140,7 @@ impl RqStepper {
             granular,
             per_pair,
             module,
+            constants,
         } = DemModule::open(
             &gpu,
             "wgpu-rq",
@@ -154,7 +155,9 @@ impl RqStepper {
         )?;
         let n64 = particles.len() as u64;
         let n = n64 as u32;
-        let pipeline = |entry: &str| gpu.pipeline(&format!("mochi.dem.rq.{entry}"), &module, entry);
+        let pipeline = |entry: &str| {
+            gpu.pipeline_with(&format!("mochi.dem.rq.{entry}"), &module, entry, constants)
+        };
         let pipelines = Pipelines {
             proxy_boxes: pipeline("proxy_boxes"),
             resolve: pipeline("resolve"),
