@@ -143,7 +143,7 @@ fn gpu_paths_draw_the_cpu_picture() {
     })
     .unwrap();
     let radii: Vec<f32> = spheres.radii().iter().map(|r| r * 60.0).collect();
-    let values = ColorBy::Radius.values(&radii, &[]);
+    let values = ColorBy::Radius.values(&radii, &[], &[]);
     let range = mochi::render::value_range(&values);
     let scene = Scene::new(spheres.centers(), &radii, &values, range).unwrap();
     let (lo, hi) = scene.bounds().unwrap();
@@ -583,4 +583,62 @@ fn the_default_framing_closes_in_on_a_heap_in_a_large_box_but_not_on_strays() {
     // little larger; auto frames the heap itself.
     assert!(auto > 4.0 * whole_box, "auto {auto}, box {whole_box}");
     assert!(auto > 2.0 * spheres, "auto {auto}, spheres {spheres}");
+}
+
+#[test]
+fn render_colours_by_material() {
+    // Two spheres of the same size side by side, of materials 0 and 1: by material they take
+    // viridis's two ends (purple, yellow); by radius, both its middle (teal), neither end.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("two.csv"),
+        "x,y,z,r,vx,vy,vz,wx,wy,wz,material\n\
+         -1,0,0,0.9,0,0,0,0,0,0,0\n\
+         1,0,0,0.9,0,0,0,0,0,0,1\n",
+    )
+    .unwrap();
+    let hues = |color_by: &str| {
+        let png = format!("{color_by}.png");
+        let run = mochi(
+            &[
+                "render",
+                "two.csv",
+                "-o",
+                &png,
+                "--size",
+                "96x72",
+                "--samples",
+                "1",
+                "--renderer",
+                "cpu",
+                "--no-legend",
+                "--color-by",
+                color_by,
+            ],
+            d,
+        );
+        assert_eq!(run.0, Some(0), "{run:?}");
+        let image = read_png(&d.join(png)).unwrap();
+        let rgb = |p: u32| [p & 0xff, (p >> 8) & 0xff, (p >> 16) & 0xff].map(|c| c as f32);
+        let purple = image.pixels.iter().map(|&p| rgb(p));
+        let purple = purple
+            .filter(|[r, g, b]| b > &(1.3 * g) && r > &(1.3 * g))
+            .count();
+        let yellow = image.pixels.iter().map(|&p| rgb(p));
+        let yellow = yellow
+            .filter(|[r, g, b]| r > &(1.5 * b) && g > &(1.5 * b))
+            .count();
+        (purple, yellow)
+    };
+    let (purple, yellow) = hues("material");
+    assert!(
+        purple > 100 && yellow > 100,
+        "by material: {purple} purple, {yellow} yellow pixels"
+    );
+    let (purple, yellow) = hues("radius");
+    assert!(
+        purple < 10 && yellow < 10,
+        "by radius: {purple} purple, {yellow} yellow pixels"
+    );
 }

@@ -1608,6 +1608,42 @@ fn a_two_material_run_from_a_csv_writes_each_spheres_material_and_resumes_bit_fo
 }
 
 #[test]
+fn a_checkpoint_whose_sphere_has_a_material_the_scene_lacks_is_refused_on_resume() {
+    // The checkpoint reads (its bytes are whole), but sphere 3's material 5 names no
+    // [[material]] table of its scene: the resume says so and writes nothing.
+    let dir = tempfile::tempdir().unwrap();
+    two_material_heap(dir.path());
+    let args = [
+        "simulate",
+        "scene.toml",
+        "--steps",
+        "5",
+        "--backend",
+        "cpu",
+        "-q",
+        "-o",
+        "run",
+    ];
+    ok(&args, dir.path());
+    let path = dir.path().join("run/checkpoint.bin");
+    let mut saved = read_checkpoint(&path).unwrap();
+    saved.particles.materials[3] = 5;
+    mochi::io::write_checkpoint(&path, &saved.particles, &saved.scene, &saved.state).unwrap();
+    let before = snapshot(&dir.path().join("run"));
+    let e = fails(&strs(&resume_run("run", "10", &[])), dir.path());
+    assert!(
+        e.contains("checkpoint.bin")
+            && e.contains("sphere 3: material 5, but the scene has 2 materials"),
+        "{e}"
+    );
+    assert_eq!(
+        snapshot(&dir.path().join("run")),
+        before,
+        "the refused resume wrote nothing"
+    );
+}
+
+#[test]
 fn a_sphere_of_a_material_the_scene_lacks_is_refused_naming_the_file_and_sphere() {
     let dir = tempfile::tempdir().unwrap();
     two_material_heap(dir.path());

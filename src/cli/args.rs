@@ -57,7 +57,7 @@ pub struct RenderArgs {
     /// Picture size in pixels, WxH.
     #[arg(long, value_name = "WxH", default_value = "960x720")]
     pub size: String,
-    /// Colour the spheres by radius or speed.
+    /// Colour the spheres by radius, speed or material.
     #[arg(long, value_enum, default_value_t)]
     pub color_by: ColorBy,
     /// Values at both ends of the colour map, MIN,MAX (default: the values' own range; over all

@@ -113,6 +113,8 @@ pub struct FrameData<'a> {
     pub radii: &'a [f32],
     /// Velocities [m/s].
     pub velocities: &'a [[f32; 3]],
+    /// Materials (empty: one material).
+    pub materials: &'a [u8],
     /// The mesh walls' triangles where they are at this frame [m].
     pub walls: &'a [[[f32; 3]; 3]],
 }
@@ -181,7 +183,9 @@ impl FrameRenderer {
 
     /// Renders `frame` into the PNG `out` (and the GIF, if any).
     pub fn render(&mut self, frame: &FrameData, out: &Path) -> Result<()> {
-        let values = self.color_by.values(frame.radii, frame.velocities);
+        let values = self
+            .color_by
+            .values(frame.radii, frame.velocities, frame.materials);
         let range = self.range.unwrap_or_else(|| value_range(&values));
         let scene = Scene::new(frame.positions, frame.radii, &values, range)?;
         let spheres = scene.bounds();
@@ -392,6 +396,7 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
             positions: &frame.positions,
             radii: &frame.radii,
             velocities: &frame.velocities,
+            materials: &frame.materials,
             walls: &walls,
         },
         &out,
@@ -441,7 +446,11 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
         let mut hi = f32::NEG_INFINITY;
         for file in &files {
             let frame = io::read_frame(file)?;
-            let (a, b) = value_range(&args.color_by.values(&frame.radii, &frame.velocities));
+            let (a, b) = value_range(&args.color_by.values(
+                &frame.radii,
+                &frame.velocities,
+                &frame.materials,
+            ));
             lo = lo.min(a);
             hi = hi.max(b);
         }
@@ -460,6 +469,7 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
                 positions: &frame.positions,
                 radii: &frame.radii,
                 velocities: &frame.velocities,
+                materials: &frame.materials,
                 walls: &walls_at(run_walls.as_ref(), step),
             },
             &png,

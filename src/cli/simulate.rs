@@ -94,8 +94,11 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     } else {
         let sim_box = config.box_lo.zip(config.box_hi);
         let mut pictures = FrameRenderer::new(&args.render, sim_box)?;
-        if args.render.color_by == ColorBy::Radius {
-            pictures.set_range((r_min, r_max));
+        // Every picture of the run in one range where it is known from the start.
+        match args.render.color_by {
+            ColorBy::Radius => pictures.set_range((r_min, r_max)),
+            ColorBy::Material => pictures.set_range((0.0, (p.materials.count - 1) as f32)),
+            ColorBy::Speed => {}
         }
         Some(pictures)
     };
@@ -181,6 +184,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
                 positions: &now.positions,
                 radii: &now.radii,
                 velocities: &now.velocities,
+                materials: &now.materials,
                 walls: &walls,
             };
             pictures.render(&frame, &png_name(&out, now.step))?;

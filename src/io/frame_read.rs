@@ -251,20 +251,30 @@ mod tests {
         )
     }
 
+    /// The frame of step `step` at `time` of spheres like [`frame`]'s (centres, radii and
+    /// velocities), spinning as [`SPIN`], of `materials`, without residuals or contacts.
+    fn frame_at<'a>(
+        (time, step): (f64, u64),
+        (positions, radii, velocities): (&'a [[f32; 3]], &'a [f32], &'a [[f32; 3]]),
+        materials: &'a [u8],
+    ) -> Frame<'a> {
+        Frame {
+            time,
+            step,
+            positions,
+            position_residuals: &[],
+            radii,
+            velocities,
+            angular_velocities: &SPIN,
+            materials,
+            contacts: None,
+        }
+    }
+
     #[test]
     fn vtu_csv_and_npy_frames_read_back_with_their_materials() {
         let (p, r, v) = frame();
-        let f = Frame {
-            time: 0.125,
-            step: 42,
-            positions: &p,
-            position_residuals: &[],
-            radii: &r,
-            velocities: &v,
-            angular_velocities: &SPIN,
-            materials: &[255, 3],
-            contacts: None,
-        };
+        let f = frame_at((0.125, 42), (&p, &r, &v), &[255, 3]);
         let dir = tempfile::tempdir().unwrap();
         for ext in ["vtu", "csv", "npy"] {
             let path = dir.path().join(format!("frame_00000042.{ext}"));
@@ -291,17 +301,7 @@ mod tests {
     #[test]
     fn frames_written_before_materials_read_with_none() {
         let (p, r, v) = frame();
-        let f = Frame {
-            time: 0.5,
-            step: 7,
-            positions: &p,
-            position_residuals: &[],
-            radii: &r,
-            velocities: &v,
-            angular_velocities: &SPIN,
-            materials: &[1, 1],
-            contacts: None,
-        };
+        let f = frame_at((0.5, 7), (&p, &r, &v), &[1, 1]);
         let dir = tempfile::tempdir().unwrap();
         // A `.vtu` whose header lists no `material` array, as mochi wrote before materials (its
         // block left in the data, unnamed, is never read).
@@ -379,17 +379,7 @@ mod tests {
     #[test]
     fn a_big_endian_vtu_reads_the_same_values() {
         let (p, r, v) = frame();
-        let f = Frame {
-            time: 0.5,
-            step: 7,
-            positions: &p,
-            position_residuals: &[],
-            radii: &r,
-            velocities: &v,
-            angular_velocities: &SPIN,
-            materials: &[],
-            contacts: None,
-        };
+        let f = frame_at((0.5, 7), (&p, &r, &v), &[]);
         let dir = tempfile::tempdir().unwrap();
         let vtu = dir.path().join("le.vtu");
         write_vtu(&vtu, &f).unwrap();
@@ -408,17 +398,7 @@ mod tests {
     fn a_vtu_with_a_bad_sphere_is_an_error_naming_the_file_and_point() {
         let (p, mut r, v) = frame();
         r[1] = f32::NAN;
-        let f = Frame {
-            time: 0.0,
-            step: 1,
-            positions: &p,
-            position_residuals: &[],
-            radii: &r,
-            velocities: &v,
-            angular_velocities: &SPIN,
-            materials: &[],
-            contacts: None,
-        };
+        let f = frame_at((0.0, 1), (&p, &r, &v), &[]);
         let dir = tempfile::tempdir().unwrap();
         let vtu = dir.path().join("nan.vtu");
         write_vtu(&vtu, &f).unwrap();
@@ -429,17 +409,7 @@ mod tests {
     #[test]
     fn broken_vtu_files_are_errors() {
         let (p, r, v) = frame();
-        let f = Frame {
-            time: 0.0,
-            step: 1,
-            positions: &p,
-            position_residuals: &[],
-            radii: &r,
-            velocities: &v,
-            angular_velocities: &SPIN,
-            materials: &[],
-            contacts: None,
-        };
+        let f = frame_at((0.0, 1), (&p, &r, &v), &[]);
         let dir = tempfile::tempdir().unwrap();
         let vtu = dir.path().join("a.vtu");
         write_vtu(&vtu, &f).unwrap();

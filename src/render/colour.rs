@@ -11,6 +11,8 @@ pub enum ColorBy {
     Radius,
     /// The speed |v|, in m/s.
     Speed,
+    /// The material's index (0 for every sphere of a run of one material).
+    Material,
 }
 
 impl ColorBy {
@@ -19,14 +21,17 @@ impl ColorBy {
         match self {
             ColorBy::Radius => "radius [m]",
             ColorBy::Speed => "speed [m/s]",
+            ColorBy::Material => "material",
         }
     }
 
-    /// The value of each sphere: its radius, or its speed (`velocities` may be empty for spheres
-    /// at rest).
-    pub fn values(self, radii: &[f32], velocities: &[[f32; 3]]) -> Vec<f32> {
+    /// The value of each sphere: its radius, its speed (`velocities` may be empty for spheres
+    /// at rest) or its material (`materials` may be empty for one material).
+    pub fn values(self, radii: &[f32], velocities: &[[f32; 3]], materials: &[u8]) -> Vec<f32> {
         match self {
             ColorBy::Radius => radii.to_vec(),
+            ColorBy::Material if materials.is_empty() => vec![0.0; radii.len()],
+            ColorBy::Material => materials.iter().map(|&m| f32::from(m)).collect(),
             ColorBy::Speed if velocities.is_empty() => vec![0.0; radii.len()],
             ColorBy::Speed => velocities
                 .iter()

@@ -1,6 +1,6 @@
 //! Pictures of spheres: ray traced, headless, on the GPU or the CPU.
 //!
-//! A [`Scene`] holds the spheres with a colour each (by radius or speed, [`ColorBy`], through
+//! A [`Scene`] holds the spheres with a colour each (by radius, speed or material, [`ColorBy`], through
 //! the viridis map) and any mesh walls' triangles ([`Scene::with_walls`]: a translucent skin, the
 //! nearest wall laid over what lies behind it); a [`Picture`] says what to draw (size, [`Camera`], samples per pixel,
 //! shadows); a [`Renderer`] draws it into an [`Image`], which gets a colour [`Legend`] and is
@@ -27,7 +27,7 @@
 //! use mochi::render::{Camera, ColorBy, Picture, RenderChoice, Renderer, Scene};
 //! let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
 //! let radii = [0.5, 0.3];
-//! let values = ColorBy::Radius.values(&radii, &[]);
+//! let values = ColorBy::Radius.values(&radii, &[], &[]);
 //! let scene = Scene::new(&positions, &radii, &values, (0.3, 0.5))?;
 //! let (lo, hi) = scene.bounds().expect("not empty");
 //! let picture = Picture::new(64, 48, Camera::framing(lo, hi, 64.0 / 48.0, 40.0));
