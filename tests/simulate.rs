@@ -1608,6 +1608,75 @@ fn a_two_material_run_from_a_csv_writes_each_spheres_material_and_resumes_bit_fo
 }
 
 #[test]
+fn gpu_runs_of_two_materials_resume_with_their_materials() {
+    // The two-material heap with its steel inflow on each GPU backend: resumed at step 50, a run
+    // ends at step 120 with the uninterrupted run's spheres, each of its own material (a GPU step
+    // keeps it in its angular velocity rows: a resume that lost it would make glass steel, three
+    // times as heavy, and put the heap far from the straight run's) and near its place.
+    let dir = tempfile::tempdir().unwrap();
+    let file_materials = two_material_heap(dir.path());
+    for backend in gpu_backends() {
+        let (straight, split) = (format!("{backend}-straight"), format!("{backend}-split"));
+        let run = |out: &str, steps: &str| {
+            let args = [
+                "simulate",
+                "scene.toml",
+                "--steps",
+                steps,
+                "--frame-every",
+                "0",
+                "--backend",
+                backend,
+                "-q",
+                "-o",
+                out,
+            ];
+            ok(&args, dir.path());
+        };
+        run(&straight, "120");
+        run(&split, "50");
+        let resume = format!("{split}/checkpoint.bin");
+        let args = [
+            "simulate",
+            "--resume",
+            &resume,
+            "--steps",
+            "120",
+            "--backend",
+            backend,
+            "-q",
+            "-o",
+            &split,
+        ];
+        ok(&args, dir.path());
+        let (a, b) = (
+            checkpoint(dir.path(), &straight),
+            checkpoint(dir.path(), &split),
+        );
+        assert_eq!((a.step, b.step), (120, 120), "{backend}");
+        assert!(a.len() > 64, "{backend}: the inflow inserted no sphere");
+        assert_eq!(
+            a.materials[..64],
+            file_materials,
+            "{backend}: the file's materials"
+        );
+        assert!(
+            a.materials[64..].iter().all(|&m| m == 1),
+            "{backend}: the inflow's spheres are steel"
+        );
+        assert_eq!(
+            b.materials, a.materials,
+            "{backend}: the resumed run's materials"
+        );
+        let gap = common::largest_gap(&a, &b);
+        assert!(
+            gap < 1e-4,
+            "{backend}: the resumed run is {gap} m from the uninterrupted one"
+        );
+    }
+}
+
+#[test]
 fn a_checkpoint_whose_sphere_has_a_material_the_scene_lacks_is_refused_on_resume() {
     // The checkpoint reads (its bytes are whole), but sphere 3's material 5 names no
     // [[material]] table of its scene: the resume says so and writes nothing.
