@@ -811,10 +811,11 @@ fn binning_steps_follow_the_cpu_step_whatever_the_order_of_the_state() {
     // A frictional pile may meet a contact whose tangential force is within a rounding of the
     // Coulomb cap: the cpu and a GPU, rounding differently, then slide and stick there, and that
     // contact's neighbourhood drifts apart by a few 1e-5 m in 8 steps (an H200 does, in batch 0,
-    // docs/PERFORMANCE.md, "The dem test's drift on this card"), spreading through the pile's
-    // contacts. So against the cpu the granular step keeps its contacts within 1 %, half of its
-    // spheres within 1e-6 m (and of their spins within 5e-3 of the fastest) and every one within
-    // 2e-4 m; a wrong row or history moves most spheres by far more.
+    // docs/performance-log/2026-11-28-h200-issue-43.md, "The dem test's drift on this card"),
+    // spreading through the pile's contacts. So against the cpu the granular step keeps its
+    // contacts within 1 %, half of its spheres within 1e-6 m (and of their spins within 5e-3 of
+    // the fastest) and every one within 2e-4 m; a wrong row or history moves most spheres by far
+    // more.
     let start = pile(10, 0.0165, 0.001);
     let n = start.len();
     let mut scrambled = start.clone();
