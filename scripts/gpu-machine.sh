@@ -3,7 +3,7 @@
 # carried in .bin/ (made by `scripts/gpu-machine.sh pack` on the build machine), Vulkan's loader
 # and glvnd as .deb files in .gl/. Usage there: `bash scripts/gpu-machine.sh run [TEST...]`.
 #   pack   build the release binary and the named test binaries (--features optix) into .bin/
-#          (in $CARGO_TARGET_DIR where set)
+#          (in $CARGO_TARGET_DIR where set; PROFILE=dist for the profile of published builds)
 #   run    unpack the loaders, then run each carried test binary with optix expected (TEST_ARGS:
 #          more arguments for every test binary, e.g. a filter and --nocapture)
 #   shell  unpack the loaders, then run the command given (a benchmark of the carried binaries)
@@ -14,11 +14,12 @@ case "${1:-}" in
 pack)
     shift
     [ $# -gt 0 ] && tests=("$@")
-    cargo build --release --locked --features optix
+    profile=${PROFILE:-release}
+    cargo build --profile "$profile" --locked --features optix
     mkdir -p .bin
-    cp "${CARGO_TARGET_DIR:-target}/release/mochi" .bin/mochi
+    cp "${CARGO_TARGET_DIR:-target}/$profile/mochi" .bin/mochi
     for t in "${tests[@]}"; do
-        exe=$(cargo test --release --locked --features optix --test "$t" --no-run \
+        exe=$(cargo test --profile "$profile" --locked --features optix --test "$t" --no-run \
             --message-format=json 2>/dev/null |
             python3 -c 'import json,sys
 for l in sys.stdin:
@@ -32,6 +33,7 @@ for l in sys.stdin:
     echo "$PWD" > .bin/build-root
     # The test binaries name the mochi binary under the target folder they were built in.
     realpath "${CARGO_TARGET_DIR:-target}" > .bin/target-dir
+    echo "$profile" > .bin/profile
     ;;
 run | shell)
     what=$1
@@ -51,8 +53,9 @@ run | shell)
         ln -s "$PWD" "$root"
     fi
     target=$(cat .bin/target-dir 2>/dev/null || echo "$root/target")
-    mkdir -p "$target/release"
-    cp .bin/mochi "$target/release/mochi"
+    profile=$(cat .bin/profile 2>/dev/null || echo release)
+    mkdir -p "$target/$profile"
+    cp .bin/mochi "$target/$profile/mochi"
     # Not CI=true: that expects wgpu-rq, which needs ray queries (lavapipe has them, the H100 not).
     export MOCHI_EXPECT_OPTIX=1
     nvrtc=$(python3 -c 'import nvidia.cuda_nvrtc, os; print(os.path.dirname(nvidia.cuda_nvrtc.__file__))' 2>/dev/null || true)

@@ -94,12 +94,13 @@ RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --locked --quiet
 cargo test --locked
 cargo test --locked --features optix --test optix
 
-# The Python package (python/): a debug build of the extension into the shared target/ (so the
-# library and its dependencies built above are reused), installed with pytest into a virtual
-# environment from the machine's configured package index. A failed install fails the run.
+# The Python package (python/, a member of the workspace): a debug build of the extension into
+# the workspace's target/ (so the library and its dependencies built above are reused), installed
+# with pytest into a virtual environment from the machine's configured package index. A failed
+# install fails the run.
 venv="$PWD/target/py-venv"
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy pytest
-CARGO_TARGET_DIR="$PWD/target" MATURIN_PEP517_ARGS="--profile dev" \
+MATURIN_PEP517_ARGS="--profile dev" \
     "$venv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps ./python
 "$venv/bin/python" -m pytest -q python/tests
