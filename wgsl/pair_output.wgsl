@@ -8,7 +8,7 @@
 // (finish_pairs) the workgroup reserves room for all their pairs with one global atomic and each
 // thread looks its partners' input indices up and writes its pairs at its offset. One atomic per
 // pair on a single counter was most of the detection time on contact-heavy scenes; the indices
-// are looked up at the end rather than in the search (docs/PERFORMANCE.md).
+// are looked up at the end rather than in the search (docs/performance-log/).
 // Pairs beyond LOCAL_PAIRS take a global atomic each.
 
 @group(0) @binding(3) var<storage, read_write> counters: array<atomic<u32>, 4>;

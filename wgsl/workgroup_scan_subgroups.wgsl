@@ -1,6 +1,6 @@
 // Scan across a workgroup of WG threads on subgroup operations (adapters with wgpu's SUBGROUP
 // feature; workgroup_scan_plain.wgsl otherwise): each subgroup scans its own values, one subgroup
-// scans the subgroups' totals, three barriers in all instead of log2(WG) + 2 (docs/PERFORMANCE.md
+// scans the subgroups' totals, three barriers in all instead of log2(WG) + 2 (docs/performance-log/
 // has what it saves). It needs every subgroup to be a full run
 // of consecutive local indices in lane order, as on every driver we know, but neither Vulkan nor
 // WebGPU promises it: a workgroup that finds otherwise (scan_kind) scans in workgroup memory, so

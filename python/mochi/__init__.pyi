@@ -119,7 +119,8 @@ class Simulation:
     def resume(cls, path: str | os.PathLike[str], backend: str = "auto") -> Simulation:
         """Resumes the run saved by ``checkpoint`` at ``path``."""
     def step(self, n: int, progress: Callable[[int], object] | None = None) -> None:
-        """Takes ``n`` steps, in batches of at most 100 with the interpreter lock released.
+        """Takes ``n`` steps, in batches of about a quarter second (the first of 10 steps) with
+        the interpreter lock released.
 
         Between batches Ctrl-C stops it (the steps taken so far count) and ``progress`` is
         called with the number of steps the batch took (an increment: ``progress=bar.update``

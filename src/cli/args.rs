@@ -234,8 +234,9 @@ pub struct SimulateArgs {
     /// Time step [s] (default: the scene's).
     #[arg(long)]
     pub dt: Option<f64>,
-    /// Start from a sphere file (CSV x,y,z,r or .npy N×4, optionally with vx,vy,vz and then
-    /// wx,wy,wz, N×7 or N×10: a frame CSV restarts a run) instead of a generated scene.
+    /// Start from a sphere file (CSV x,y,z,r or .npy N×4, optionally with vx,vy,vz, then
+    /// wx,wy,wz, then each sphere's material, N×7, N×10 or N×11; a CSV may add a `material`
+    /// column to any of these: a frame CSV restarts a run) instead of a generated scene.
     #[arg(long, conflicts_with_all = ["scene", "spheres", "seed", "mesh"])]
     pub input: Option<PathBuf>,
     /// Fill this mesh (OBJ, PLY or STL) with spheres and drop it (scene `mesh`; see the
@@ -245,7 +246,7 @@ pub struct SimulateArgs {
     /// Write a frame every M steps (0: none).
     #[arg(long, value_name = "M", value_parser = toml_integer())]
     pub frame_every: Option<u64>,
-    /// Also write every frame as CSV (x,y,z,r,vx,vy,vz,wx,wy,wz).
+    /// Also write every frame as CSV (x,y,z,r,vx,vy,vz,wx,wy,wz,material).
     #[arg(long)]
     pub csv: bool,
     /// Ray trace a PNG picture (OUT/frame_<step>.png) every M steps (0: none); see the
@@ -287,8 +288,9 @@ pub struct SimulateArgs {
     #[arg(long, value_enum)]
     pub grid_build: Option<GridBuild>,
     /// When a refittable BVH (the optix step) is rebuilt: every K steps with refits between
-    /// (1: every step), or auto (the default: rebuild when refits have made the rays meet
-    /// clearly more boxes). Grids re-bin and wgpu-rq rebuilds every step.
+    /// (1: every step), or auto (the default: rebuild once the refitted steps cost more than
+    /// the average step since the last rebuild, the rebuild included). Grids re-bin and wgpu-rq
+    /// rebuilds every step.
     #[arg(long, value_name = "K|auto")]
     pub rebuild: Option<RebuildPolicy>,
     /// Output folder for frames, checkpoints and the summary (default: mochi-out, or with

@@ -947,7 +947,7 @@ mod tests {
 
     #[test]
     fn the_entries_split_by_row_range_where_one_binding_cannot_hold_them() {
-        // wgpu's largest storage binding on the H100 (docs/PERFORMANCE.md).
+        // wgpu's largest storage binding on the H100 (docs/performance-log/).
         let max = 2_147_483_644;
         // 1M spheres at K = 16: 512 MB of entries, one binding.
         let one = EntrySplit::within(max, 1_000_000, FIRST_SLOTS, ENTRY_BYTES).unwrap();

@@ -412,7 +412,7 @@ impl Lanes {
 /// integrated) of each of its first *profiled* steps, then the batch's end, in the slots of one
 /// [`GpuTimer`]. A step's phases are told apart only by recording them in passes of their own
 /// between timestamps, and every pass boundary and timestamp costs the GPU time
-/// (docs/PERFORMANCE.md). So a stepper may profile only its batch's first step and record the
+/// (docs/performance-log/). So a stepper may profile only its batch's first step and record the
 /// others in one compute pass; [`read`](Self::read) then splits the batch's whole time in the
 /// profiled steps' proportions.
 pub(crate) struct StepTimer(GpuTimer);

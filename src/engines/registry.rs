@@ -43,7 +43,7 @@ impl BackendKind {
 
     /// Every backend, in the order `auto` prefers them for a scene whose spheres flow in or
     /// out: wgpu-compute flows on the device, while the optix and wgpu-rq steps read every
-    /// sphere back and reopen at each flow event (docs/PERFORMANCE.md: a second an event at a
+    /// sphere back and reopen at each flow event (docs/performance-log/: a second an event at a
     /// million spheres), which costs more than their faster steps save.
     pub const FLOWING: [BackendKind; 4] = [
         BackendKind::WgpuCompute,
@@ -155,8 +155,8 @@ pub struct Options {
 /// and each ray meets more of them.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum RebuildPolicy {
-    /// Rebuild when refitting has made the rays meet clearly more boxes than just after the
-    /// last rebuild (candidates per ray grow), else refit.
+    /// Rebuild once the refitted steps (refit and detection) cost more than the average step
+    /// since the last rebuild, the rebuild's own cost included, else refit.
     #[default]
     Auto,
     /// Rebuild every `k` steps and refit in between (`1`: rebuild every step).

@@ -617,7 +617,7 @@ pub struct Staging(Option<wgpu::Buffer>);
 
 /// Records a dispatch of `pipeline` with `bind` at group 0 over the workgroups `(x, y)` into an
 /// open pass. Dependent dispatches recorded in one pass cost less than one pass each (every pass
-/// boundary costs the GPU time: docs/PERFORMANCE.md).
+/// boundary costs the GPU time: docs/performance-log/).
 pub fn record(
     pass: &mut wgpu::ComputePass,
     pipeline: &wgpu::ComputePipeline,

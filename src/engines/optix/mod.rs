@@ -8,7 +8,7 @@
 //! Everything NVIDIA is loaded at run time (CUDA driver and NVRTC through `cudarc`, OptiX
 //! through our own FFI of ABI 105), so the crate builds anywhere and a machine without the
 //! driver gets a clear "unavailable" instead of a crash. Spheres are launched in Morton order
-//! (coherent rays: faster than random order, docs/PERFORMANCE.md).
+//! (coherent rays: faster than random order, docs/performance-log/).
 //!
 //! Layers, as cudarc's: `sys.rs` is the raw OptiX ABI (structs, constants, the function table by
 //! named slot, loaded once); `device.rs` the safe layer (owning types, one typed, length-checked

@@ -99,7 +99,7 @@ pub const SORT_EVERY: u64 = 16;
 
 /// Share of a batch's steps above which re-binning is so frequent that the skin costs more
 /// than it saves (its wider windows, and the copy back of each re-binning); the skin is then
-/// off for [`SKIN_RETRY_STEPS`] steps (docs/PERFORMANCE.md, issue 21).
+/// off for [`SKIN_RETRY_STEPS`] steps (docs/performance-log/, issue 21).
 pub const MAX_REBIN_SHARE: f64 = 0.25;
 
 /// Steps the skin stays off after a batch re-binned too often; then it is tried again.

@@ -29,17 +29,17 @@ const MAX_HASHED_AXIS_CELLS: u64 = 1 << 21;
 
 /// Cells of the dense tables per sphere, at most, for detection (a table of at least 2^20 cells is
 /// always fine). Fewer cells per sphere mean fewer levels and a cheaper build, paid for with a
-/// few more candidates; for detection alone the build weighs more (docs/PERFORMANCE.md, issue 4).
+/// few more candidates; for detection alone the build weighs more (docs/performance-log/, issue 4).
 pub const DETECT_CELLS_PER_SPHERE: u64 = 4;
 
 /// Cells of the dense tables per sphere, at most, for the DEM step on a multi-level grid, whose
 /// detection pass also resolves contacts, so fewer candidates pay for a larger table (its
 /// coarser levels need the cells; the budget the DEM step takes follows its levels, see
-/// docs/PERFORMANCE.md).
+/// docs/performance-log/).
 pub const DEM_CELLS_PER_SPHERE: u64 = 8;
 
 /// As [`DEM_CELLS_PER_SPHERE`] on a single grid, where the larger cells' shorter walk and
-/// cheaper build pay for their candidates (docs/PERFORMANCE.md, 2026-11-27).
+/// cheaper build pay for their candidates (docs/performance-log/, 2026-11-27).
 pub const DEM_CELLS_PER_SPHERE_ONE_LEVEL: u64 = 4;
 
 /// What a layout may spend on its tables: for the dense build `spheres` × `cells_per_sphere`
@@ -97,7 +97,7 @@ pub(crate) struct GridParams {
 #[serde(rename_all = "lowercase")]
 pub enum Structure {
     /// The multi-level grid where the radii span a factor of 4 or more (`AUTO_MLGRID_RATIO`;
-    /// docs/PERFORMANCE.md has the comparison), else the single grid.
+    /// docs/performance-log/ has the comparison), else the single grid.
     #[default]
     Auto,
     /// One grid with cells of the largest proxy (2·r_max; 4·r_max in `nns` mode).
@@ -158,7 +158,7 @@ impl BuildKind {
 
 /// Cells per sphere of the dense table at the mode's cell size above which `auto` takes the
 /// sorted build. Not yet timed against the dense build: set above every scene of
-/// docs/PERFORMANCE.md, so `auto` keeps the dense build on each of them (1M spheres: `polylog`
+/// docs/performance-log/, so `auto` keeps the dense build on each of them (1M spheres: `polylog`
 /// 0.10, `pour` 0.57, `slab` 2.2, 14 filled tori 3.6, the 14-bunny drop 6.8, `freefall` 576
 /// cells per sphere), to be lowered where `mochi bench --experiments clustered` shows the
 /// sorted build faster. Above the DEM budget ([`DEM_CELLS_PER_SPHERE`], 8) the dense table
@@ -424,7 +424,7 @@ fn multi_level_layout(
 }
 
 /// Most halvings of a level's cells below its class's size (on the poured pile of
-/// docs/PERFORMANCE.md a second did not fit the budget; one was measured).
+/// docs/performance-log/ a second did not fit the budget; one was measured).
 const MAX_REFINE: u64 = 1;
 
 /// Refines the coarser levels of a multi-level grid (`dims`: cells per axis of each level, the
