@@ -140,6 +140,15 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
                 assert_eq!(row.scene.name(), scene, "{what}");
                 assert_eq!(row.mode.name(), "mochi", "{what}");
                 assert_eq!(row.steps, STEPS, "{what}");
+                // From the start, one run continuing the last: 1 warm-up run, then the timed.
+                assert_eq!(row.dt, Some(1e-4), "{what}");
+                assert_eq!(row.settled, 0, "{what}");
+                let timed = row.timed.expect("a DEM row says the steps it timed");
+                assert_eq!(
+                    (timed.from, timed.to, timed.each_run),
+                    (STEPS as u64, (1 + REPEATS as u64) * STEPS as u64, false),
+                    "{what}"
+                );
                 // No backend here refits (only a future OptiX step will): one row each.
                 assert!(!row.refits, "{what}");
                 assert_eq!(row.rebuild, "every step", "{what}");
@@ -170,6 +179,15 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
         };
         assert_eq!(of("slab", "mochi").len(), 1, "{backend}");
         assert_eq!(of("polylog", "nns").len(), 1, "{backend}");
+        // The slab after its 10 settling steps, the pile after its 20 pouring steps (per-pair
+        // stiffness, dt 1e-4), both timed from there.
+        for (scene, settled) in [("slab", 10), ("polylog", 20)] {
+            for row in of(scene, "mochi").into_iter().chain(of(scene, "nns")) {
+                assert_eq!((row.settled, row.dt), (settled, Some(1e-4)), "{row:?}");
+                let timed = row.timed.expect("a DEM row says the steps it timed");
+                assert_eq!(timed.from, settled + STEPS as u64, "{row:?}");
+            }
+        }
         let structures: Vec<String> = of("polylog", "mochi")
             .iter()
             .map(|r| by_name::name(&r.structure))
@@ -237,6 +255,8 @@ fn bench_small_reports_every_experiment_as_markdown_json_and_svg() {
         &steps,
         "--settle",
         "10",
+        "--pile",
+        "20",
         "--experiments",
         "1,2,3,4,5,6",
         "--quiet",
@@ -251,7 +271,9 @@ fn bench_small_reports_every_experiment_as_markdown_json_and_svg() {
         let at = stdout
             .find(&heading)
             .unwrap_or_else(|| panic!("no section {heading:?}\n{stdout}"));
-        let table = stdout[at..].lines().nth(2).unwrap_or_default();
+        let workload = stdout[at..].lines().nth(2).unwrap_or_default();
+        assert!(workload.starts_with("Workload: "), "{heading}: {workload}");
+        let table = stdout[at..].lines().nth(4).unwrap_or_default();
         assert!(table.starts_with("| backend |"), "{heading}: {table}");
     }
     assert!(!stdout.contains("Not measured"), "{stdout}");
@@ -281,12 +303,18 @@ fn bench_small_reports_every_experiment_as_markdown_json_and_svg() {
     check_dem(&report.dem, &backends);
     assert!(report.skipped.is_empty(), "{:?}", report.skipped);
     assert_eq!(report.settings.settle, 10);
-    // Every target is reported; at this size only the 2-core cpu one could be judged.
+    // Every target is reported; at this size only the 2-core cpu one could be judged, and the
+    // DEM ones measured here say why they were not.
     assert_eq!(report.targets.len(), 8);
     for t in &report.targets {
         assert!(!t.measured.is_empty(), "{t:?}");
         if !t.target.starts_with("cpu backend") {
             assert_eq!(t.met, None, "{t:?}");
+        }
+        if t.target.contains("slab 1M") || t.target.contains("polylog pile 1M") {
+            let why = t.not_judged.as_deref().unwrap_or_default();
+            assert!(why.starts_with("not judged: "), "{t:?}");
+            assert!(t.measured.contains("contacts at the end"), "{t:?}");
         }
     }
     assert!(stdout.contains("## Targets (issues 7 and 21)"), "{stdout}");
@@ -401,8 +429,9 @@ fn bench_friction_reports_the_frictional_step_with_its_history() {
 
 #[test]
 fn bench_clustered_runs_at_the_small_scale() {
-    // 14 filled meshes (the built-in torus) at `--scale small`: about 11,500 spheres, in their
-    // box and in one 10× wider, wgpu-compute with both grid builds.
+    // 14 filled meshes (the built-in torus) at `--scale small` with 1,000 spheres' worth: about
+    // 1,300 spheres, dropped at dt 1e-4 for the whole 5,000 steps in their box and in one 10×
+    // wider, wgpu-compute with both grid builds.
     let mut backends = vec!["cpu"];
     if common::adapter_for(Need::Compute, "mochi bench clustered on wgpu-compute") {
         backends.insert(0, "wgpu-compute");
@@ -410,14 +439,27 @@ fn bench_clustered_runs_at_the_small_scale() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("bench");
     let list = backends.join(",");
+    // A peer's figure, printed beside mochi's.
+    let peers = dir.path().join("peers.json");
+    std::fs::write(
+        &peers,
+        r#"[{"experiment": "clustered", "peer": "Taichi", "ms_per_step": 0.983,
+             "workload": "14 bunnies, 5,000 steps at dt 1e-4", "spheres": 1151878,
+             "device": "H100", "date": "2026-11-28"}]"#,
+    )
+    .unwrap();
     let args = [
         "bench",
         "--scale",
         "small",
         "--experiments",
         "clustered",
+        "--compare",
+        peers.to_str().unwrap(),
         "--backends",
         &list,
+        "--spheres",
+        "1000",
         "--repeats",
         "2",
         "--warmup",
@@ -431,6 +473,15 @@ fn bench_clustered_runs_at_the_small_scale() {
     let (code, stdout, stderr) = mochi(&args);
     assert_eq!(code, Some(0), "{stdout}\n{stderr}");
     let heading = format!("## 8. {}", Experiment::Clustered.title());
+    assert!(
+        stdout.contains("dt 1e-4 s") && stdout.contains("steps 0–5000"),
+        "the workload is stated: {stdout}"
+    );
+    // The row's time step, steps timed and contacts are printed.
+    assert!(
+        stdout.contains("| 1e-4 | 0–5000 (every run from the start) |"),
+        "{stdout}"
+    );
     assert!(stdout.contains(&heading), "{stdout}");
     assert!(stdout.contains("mesh, box ×10"), "{stdout}");
 
@@ -462,7 +513,7 @@ fn bench_clustered_runs_at_the_small_scale() {
         for row in &rows {
             assert_eq!(row.scene.name(), "mesh");
             assert!(
-                (9_000..14_000).contains(&row.n),
+                (900..1_600).contains(&row.n),
                 "{backend}: {} spheres",
                 row.n
             );
@@ -470,25 +521,44 @@ fn bench_clustered_runs_at_the_small_scale() {
                 row.n, rows[0].n,
                 "{backend}: the same spheres in both boxes"
             );
-            assert_eq!(
-                row.contacts, rows[0].contacts,
-                "{backend}: the same contacts"
-            );
+            // The whole drop at the paper's dt, every run from the start, `--steps 2`
+            // notwithstanding; the meshes have landed by its end.
+            assert_eq!((row.steps, row.dt, row.settled), (5000, Some(1e-4), 0));
+            let timed = row.timed.expect("the steps timed");
+            assert_eq!((timed.from, timed.to, timed.each_run), (0, 5000, true));
+            assert!(row.contacts > 0, "{backend}: contacts at the end: {row:?}");
             for phase in [&row.build_ms, &row.dcd_ms, &row.update_ms] {
                 assert_eq!(phase.samples, 2);
             }
         }
     }
-    // Issue 21's targets: the whole drop is judged only with a mesh given and over 5000 steps,
-    // the wide box against its own at any size.
+    // Issue 21's targets: the whole drop is judged only with a mesh given and at 1M spheres,
+    // the wide box against its own at any size (both end with contacts).
     let target = |start: &str| {
         let found = report.targets.iter().find(|t| t.target.starts_with(start));
         found.unwrap_or_else(|| panic!("no target {start:?}: {:?}", report.targets))
     };
     assert_eq!(target("14 meshes dropped").met, None);
+    assert!(
+        target("14 meshes dropped")
+            .not_judged
+            .as_deref()
+            .is_some_and(|why| why.contains("torus")),
+        "{:?}",
+        report.targets
+    );
     assert!(target("experiment 8 in a box 10× wider").met.is_some());
     assert!(stdout.contains("## Targets (issues 7 and 21)"), "{stdout}");
     check_svg(&out.join("clustered.svg"), Experiment::Clustered.title());
+    // The peer ran the paper's 1,151,878 spheres, mochi about 1,300 here: no ratio.
+    assert!(stdout.contains("## Against other codes"), "{stdout}");
+    let compared = &report.comparisons[0];
+    assert_eq!(compared.peer.peer, "Taichi");
+    assert_eq!(compared.mochi_faster, None);
+    assert!(
+        compared.note.as_deref().unwrap().contains("not compared"),
+        "{compared:?}"
+    );
 }
 
 #[test]
@@ -512,6 +582,43 @@ fn bad_bench_arguments_fail_cleanly() {
             "{args:?}: {stderr}"
         );
         assert!(stderr.contains(says), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+    // `--compare` files are read and checked before anything runs.
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.json");
+    let bad = dir.path().join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"[{"experiment": "clustered", "peer": "Taichi", "ms_per_step": 0}]"#,
+    )
+    .unwrap();
+    let empty = dir.path().join("empty.json");
+    std::fs::write(&empty, "[]").unwrap();
+    for (file, says) in [
+        (&missing, "cannot read it"),
+        (&bad, "missing field `workload`"),
+        (&empty, "no figures"),
+    ] {
+        let args = [
+            "bench",
+            "--backends",
+            "cpu",
+            "--compare",
+            file.to_str().unwrap(),
+            "-o",
+            dir.path().to_str().unwrap(),
+        ];
+        let (code, _, stderr) = mochi(&args);
+        assert_eq!(
+            code.map(|c| c != 0 && c != 101),
+            Some(true),
+            "{args:?}: {stderr}"
+        );
+        assert!(
+            stderr.contains("--compare") && stderr.contains(says),
+            "{args:?}: {stderr}"
+        );
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     }
 }

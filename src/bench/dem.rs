@@ -1,10 +1,10 @@
-//! Experiments 2–5: the DEM step, timed per phase.
+//! Experiments 2–8: the DEM step, timed per phase.
 
 use super::Outcome;
 use super::plan::{Experiment, Plan, REBUILD_INTERVALS};
-use super::report::{DemRow, HistorySize};
+use super::report::{DemRow, HistorySize, StepRange};
 use super::stats::Spread;
-use crate::dem::scene::{ContactKind, SceneConfig, SceneKind, Start};
+use crate::dem::scene::{ContactKind, SceneConfig, SceneKind, Start, Stiffness};
 use crate::dem::{Clock, Stepper};
 use crate::engines::open_stepper;
 use crate::engines::wgpu_compute::{GridBuild, Structure};
@@ -58,6 +58,63 @@ pub fn friction_polylog_start(n: usize, seed: u64) -> Result<Start> {
     .build()
 }
 
+/// Time step of experiment 6's `polylog` pile \[s\], the poured pile's of the comparison with
+/// Taichi (its contacts last 10 steps, 1 ms).
+pub const PILE_DT: f64 = 1e-4;
+
+/// The `polylog` start of experiment 6: `n` spheres (radii 0.5 mm–6 cm, log-uniform) in their
+/// layers, under the linear law with the per-pair stiffness (every contact lasts 10 steps),
+/// frictionless, dt [`PILE_DT`]: the law of the poured pile that the polylog claims (the
+/// comparison with Taichi) are made on. The paper's one stiffness for every pair, derived for
+/// the lightest pair (about 5 N/m at the scene's own dt 5e-5), would hold a 6 cm sphere's 4 N
+/// on springs that give way by most of a metre: no pile.
+pub fn pile_start(n: usize, seed: u64) -> Result<Start> {
+    SceneConfig {
+        scene: SceneKind::Generated(Scene::Polylog),
+        spheres: n,
+        seed,
+        frame_every: 0,
+        contact: ContactKind::Linear,
+        stiffness: Some(Stiffness::PerPair),
+        dt: Some(PILE_DT),
+        ..SceneConfig::default()
+    }
+    .build()
+}
+
+/// Steps that pour `start` into a pile: 1.5 times the time a sphere at the top of the spheres
+/// takes to fall to the floor from rest, at the start's time step (6,375 steps for
+/// [`pile_start`] of 10,000 spheres, 12,522 of 1,000,000).
+pub fn pour_steps(start: &Start) -> u64 {
+    let p = &start.particles;
+    let top = p
+        .positions
+        .iter()
+        .zip(&p.radii)
+        .map(|(c, r)| c[2] + r)
+        .fold(start.params.box_lo[2], f32::max);
+    let height = (top - start.params.box_lo[2]).max(0.0) as f64;
+    let g = start
+        .params
+        .gravity
+        .map(|x| x as f64 * x as f64)
+        .iter()
+        .sum::<f64>()
+        .sqrt();
+    if g <= 0.0 {
+        return 0;
+    }
+    let fall = (2.0 * height / g).sqrt();
+    (1.5 * fall / start.params.dt as f64).ceil() as u64
+}
+
+/// Steps of experiment 8's drop: the paper's (and the comparison with Taichi's) 0.5 s at
+/// [`DROP_DT`], every one of them timed.
+pub const DROP_STEPS: u32 = 5000;
+
+/// Time step of experiment 8's drop \[s\] (the paper's; the mesh scene's own is 2.5e-5).
+pub const DROP_DT: f64 = 1e-4;
+
 /// Spheres of the paper's 14-bunny scene (82,337 per bunny at radius 0.005 m).
 const PAPER_MESH_DROP_SPHERES: f64 = 1_151_878.0;
 
@@ -74,7 +131,9 @@ const PROBE_RADIUS: f64 = 0.005;
 /// scene's built-in torus; the paper's is the Stanford bunny), side by side on the floor of
 /// their box, filled at the radius that gives them about the paper's 1,151,878 spheres scaled
 /// by `n` / 1,000,000 (the bunny at `n` = 1,000,000: radius 0.005 m, the paper's scene), under
-/// the paper's law (`linear`, frictionless, its default time step).
+/// the paper's law (`linear`, frictionless, its stiffness derived for a 10-step contact) at the
+/// paper's time step [`DROP_DT`] (not the mesh scene's own 2.5e-5: the drop of the comparison
+/// with Taichi, 0.5 s in [`DROP_STEPS`] steps).
 pub fn mesh_drop_start(mesh: Option<&std::path::Path>, n: usize, seed: u64) -> Result<Start> {
     let config = |radius: f64, copies| SceneConfig {
         scene: SceneKind::Mesh,
@@ -84,6 +143,7 @@ pub fn mesh_drop_start(mesh: Option<&std::path::Path>, n: usize, seed: u64) -> R
         seed,
         frame_every: 0,
         contact: ContactKind::Linear,
+        dt: Some(DROP_DT),
         ..SceneConfig::default()
     };
     // Spheres per copy go as 1 / radius³ (a lattice of spacing 2.2 radii).
@@ -121,7 +181,7 @@ pub struct Case<'a> {
 }
 
 /// `start` after `steps` untimed steps on the first of the plan's backends whose DEM step opens
-/// (the others' reasons in the error when none does).
+/// (the others' reasons in the error when none does); its `particles.step` counts them.
 pub fn settle(plan: &Plan, start: &Start, steps: u64) -> Result<Start> {
     let mut reasons = Vec::new();
     for &kind in &plan.backends {
@@ -138,8 +198,10 @@ pub fn settle(plan: &Plan, start: &Start, steps: u64) -> Result<Start> {
                     stepper.advance(batch)?;
                     left -= batch as u64;
                 }
+                let mut particles = stepper.particles()?;
+                particles.step = start.particles.step + steps;
                 return Ok(Start {
-                    particles: stepper.particles()?,
+                    particles,
                     ..start.clone()
                 });
             }
@@ -200,7 +262,10 @@ fn run_with(
         } else {
             "every step".to_owned()
         };
-        return vec![measure_or_skip(plan, kind, case, stepper, &policy, &what)];
+        let reopen = || open(RebuildPolicy::Auto);
+        return vec![measure_or_skip(
+            plan, kind, case, stepper, &policy, &what, &reopen,
+        )];
     }
     drop(stepper);
     let policies = REBUILD_INTERVALS
@@ -212,7 +277,10 @@ fn run_with(
             let what = format!("{what} rebuild {policy}");
             progress(&what);
             match open(policy) {
-                Ok(s) => measure_or_skip(plan, kind, case, s, &policy.to_string(), &what),
+                Ok(s) => {
+                    let reopen = || open(policy);
+                    measure_or_skip(plan, kind, case, s, &policy.to_string(), &what, &reopen)
+                }
                 Err(e) => Outcome::Skipped(what, e.to_string()),
             }
         })
@@ -226,31 +294,51 @@ fn measure_or_skip(
     stepper: Box<dyn Stepper>,
     policy: &str,
     what: &str,
+    reopen: &dyn Fn() -> Result<Box<dyn Stepper>>,
 ) -> Outcome<DemRow> {
-    match measure(plan, kind, case, stepper, policy) {
+    match measure(plan, kind, case, stepper, policy, reopen) {
         Ok(row) => Outcome::Row(row),
         Err(e) => Outcome::Skipped(what.to_owned(), e.to_string()),
     }
 }
 
-/// Warm-up advances, then `repeats` timed advances of `steps` steps each, continuing one run.
+/// Warm-up runs, then `repeats` timed runs of [`Plan::steps_of`] steps each: one run continuing
+/// the last, or in experiment 8 each from the start (the whole drop; `reopen` opens a stepper
+/// at the start for every run after the first).
 fn measure(
     plan: &Plan,
     kind: BackendKind,
     case: &Case,
-    mut stepper: Box<dyn Stepper>,
+    stepper: Box<dyn Stepper>,
     policy: &str,
+    reopen: &dyn Fn() -> Result<Box<dyn Stepper>>,
 ) -> Result<DemRow> {
-    for _ in 0..plan.settings.warmup {
-        stepper.advance(plan.settings.steps)?;
-    }
-    let mut runs = Vec::with_capacity(plan.settings.repeats);
-    let mut walls = Vec::with_capacity(plan.settings.repeats);
-    for _ in 0..plan.settings.repeats {
+    let steps = plan.steps_of(case.experiment);
+    let restart = case.experiment == Experiment::Clustered;
+    let (warmup, repeats) = (plan.settings.warmup, plan.settings.repeats);
+    let mut stepper = Some(stepper);
+    // The stepper for the next run: at the start where every run restarts.
+    let next = |stepper: &mut Option<Box<dyn Stepper>>, first: bool| -> Result<()> {
+        if restart && !first {
+            // The last run's state goes before the next is opened.
+            *stepper = None;
+            *stepper = Some(reopen()?);
+        }
+        Ok(())
+    };
+    let mut runs = Vec::with_capacity(repeats);
+    let mut walls = Vec::with_capacity(repeats);
+    for run in 0..warmup + repeats {
+        next(&mut stepper, run == 0)?;
+        let s = stepper.as_mut().expect("a stepper for every run");
         let t = Instant::now();
-        runs.push(stepper.advance(plan.settings.steps)?);
-        walls.push(t.elapsed().as_secs_f64() * 1e3 / plan.settings.steps as f64);
+        let advance = s.advance(steps)?;
+        if run >= warmup {
+            walls.push(t.elapsed().as_secs_f64() * 1e3 / steps as f64);
+            runs.push(advance);
+        }
     }
+    let mut stepper = stepper.expect("a stepper for every run");
     let last = *runs.last().expect("a plan has at least one repeat");
     // Timestamps can be missing on a GPU without them: then nothing was measured.
     let clock = if runs.iter().all(|r| r.clock == last.clock) {
@@ -273,6 +361,20 @@ fn measure(
         .map(|d| d.trim().trim_start_matches('(').trim_end_matches(')'))
         .unwrap_or(&described)
         .to_owned();
+    let settled = case.start.particles.step;
+    let timed = if restart {
+        StepRange {
+            from: settled,
+            to: settled + steps as u64,
+            each_run: true,
+        }
+    } else {
+        StepRange {
+            from: settled + (warmup as u64) * steps as u64,
+            to: settled + ((warmup + repeats) as u64) * steps as u64,
+            each_run: false,
+        }
+    };
     Ok(DemRow {
         experiment: case.experiment,
         backend: kind,
@@ -283,7 +385,10 @@ fn measure(
         structure: case.structure,
         rebuild: policy.to_owned(),
         refits: stepper.refits(),
-        steps: plan.settings.steps,
+        steps,
+        dt: Some(f32_as_written(case.start.params.dt)),
+        settled,
+        timed: Some(timed),
         contacts: last.contacts,
         clock,
         build_ms: per_step(&|t| t.build_ms),
@@ -296,6 +401,11 @@ fn measure(
         box_scale: case.box_scale,
         grid_build: stepper.grid_build().map(str::to_owned),
     })
+}
+
+/// `x` as an f64 with the digits f32 writes it with (1e-4, not 9.99999974737875e-5).
+fn f32_as_written(x: f32) -> f64 {
+    x.to_string().parse().unwrap_or(x as f64)
 }
 
 #[cfg(test)]
@@ -340,6 +450,21 @@ mod tests {
     }
 
     fn rows(refits: bool, experiment: Experiment) -> Vec<DemRow> {
+        let freefall = SceneKind::Generated(Scene::Freefall);
+        let start = start(freefall, 100, 1).unwrap();
+        let opened = std::cell::Cell::new(0);
+        rows_of(refits, experiment, freefall, &start, &opened)
+    }
+
+    /// The rows of `experiment` on `start` with the fake step (`opened` counts the steppers
+    /// opened): 3 runs of 4 steps after 1 warm-up run.
+    fn rows_of(
+        refits: bool,
+        experiment: Experiment,
+        scene: SceneKind,
+        start: &Start,
+        opened: &std::cell::Cell<usize>,
+    ) -> Vec<DemRow> {
         let plan = Plan {
             backends: vec![BackendKind::Cpu],
             settings: Settings {
@@ -348,6 +473,7 @@ mod tests {
                 max_spheres: 1000,
                 steps: 4,
                 settle: 0,
+                pile: None,
                 pour: 0,
                 repeats: 3,
                 warmup: 1,
@@ -356,17 +482,16 @@ mod tests {
                 mesh: None,
             },
         };
-        let freefall = SceneKind::Generated(Scene::Freefall);
-        let start = start(freefall, 100, 1).unwrap();
         let case = Case {
             experiment,
-            scene: freefall,
-            start: &start,
+            scene,
+            start,
             structure: Structure::Auto,
             grid_build: GridBuild::Auto,
             box_scale: None,
         };
         let open = |_| -> Result<Box<dyn Stepper>> {
+            opened.set(opened.get() + 1);
             Ok(Box::new(Fake {
                 refits,
                 particles: start.particles.clone(),
@@ -400,5 +525,68 @@ mod tests {
         assert_eq!(refitting.len(), 1);
         assert_eq!(refitting[0].rebuild, "auto");
         assert_eq!(refitting[0].contacts, 7);
+        // One run continuing the last: the warm-up's 4 steps, then 3 timed runs of 4.
+        assert_eq!(refitting[0].steps, 4);
+        assert_eq!(refitting[0].dt, Some(1e-4));
+        assert_eq!(
+            refitting[0].timed,
+            Some(StepRange {
+                from: 4,
+                to: 16,
+                each_run: false
+            })
+        );
+    }
+
+    #[test]
+    fn the_clustered_row_times_the_whole_drop_at_dt_1e_4_every_run_from_the_start() {
+        let drop = mesh_drop_start(None, 2000, 1).unwrap();
+        assert_eq!(drop.params.dt, 1e-4);
+        assert_eq!(drop.particles.step, 0);
+        let opened = std::cell::Cell::new(0);
+        let rows = rows_of(
+            false,
+            Experiment::Clustered,
+            SceneKind::Mesh,
+            &drop,
+            &opened,
+        );
+        let row = &rows[0];
+        // `--steps 4` does not apply: every run is the whole drop, from the start.
+        assert_eq!((row.steps, row.dt), (DROP_STEPS, Some(DROP_DT)));
+        assert_eq!((DROP_STEPS, DROP_DT), (5000, 1e-4));
+        assert_eq!(
+            row.timed,
+            Some(StepRange {
+                from: 0,
+                to: 5000,
+                each_run: true
+            })
+        );
+        assert_eq!(row.total_ms.median, 3.0);
+        assert_eq!(row.contacts, 7, "the contacts at the end of the drop");
+        // A stepper opened at the start for the warm-up run and for each of the 3 timed runs.
+        assert_eq!(opened.get(), 4);
+    }
+
+    #[test]
+    fn the_pile_is_poured_for_its_fall_time() {
+        let pile = pile_start(2000, 1).unwrap();
+        assert_eq!(pile.params.dt, PILE_DT as f32);
+        let steps = pour_steps(&pile);
+        // The layers' top falls to the floor in sqrt(2 h / g); the pour lasts 1.5 times that.
+        let top = pile
+            .particles
+            .positions
+            .iter()
+            .zip(&pile.particles.radii)
+            .map(|(c, r)| (c[2] + r) as f64)
+            .fold(0.0, f64::max);
+        let fall = (2.0 * top / 9.81).sqrt();
+        assert!(
+            (steps as f64 * PILE_DT - 1.5 * fall).abs() < 2.0 * PILE_DT,
+            "{steps} steps for a fall of {fall} s"
+        );
+        assert!(steps > 1000, "{steps}");
     }
 }

@@ -1,6 +1,7 @@
 //! The report as Markdown: a header (date, command, machine, backends) and one table per
 //! experiment.
 
+use super::dem::DROP_STEPS;
 use super::plan::Experiment;
 use super::report::{DemRow, DetectRow, Report};
 use super::stats::Spread;
@@ -15,9 +16,10 @@ pub fn render(report: &Report) -> String {
     for &experiment in &report.settings.experiments {
         let _ = writeln!(
             out,
-            "\n## {}. {}\n",
+            "\n## {}. {}\n\nWorkload: {}\n",
             experiment.number(),
-            experiment.title()
+            experiment.title(),
+            experiment.workload(&report.settings)
         );
         if experiment == Experiment::Dcd {
             detect_table(&mut out, &report.detect);
@@ -38,12 +40,57 @@ pub fn render(report: &Report) -> String {
             "\n## Targets (issues 7 and 21)\n\n| target | measured | met |\n| --- | --- | --- |\n",
         );
         for t in &report.targets {
-            let met = match t.met {
-                Some(true) => "yes",
-                Some(false) => "**no**",
-                None => "–",
+            let met = match (t.met, &t.not_judged) {
+                (Some(true), _) => "yes",
+                (Some(false), _) => "**no**",
+                (None, Some(why)) => why.as_str(),
+                (None, None) => "–",
             };
             let _ = writeln!(out, "| {} | {} | {met} |", t.target, t.measured);
+        }
+    }
+    if !report.comparisons.is_empty() {
+        out.push_str(
+            "\n## Against other codes (--compare)\n\n| experiment | other code | its workload | \
+             its device, date | its ms/step | mochi's row | mochi ms/step | mochi faster |\n\
+             | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+        );
+        for c in &report.comparisons {
+            let p = &c.peer;
+            let mut workload = p.workload.clone();
+            if let Some(n) = p.spheres {
+                let _ = write!(workload, "; {n} spheres");
+            }
+            if let Some(contacts) = p.contacts {
+                let _ = write!(workload, "; {contacts} contacts");
+            }
+            let when = [p.device.as_deref(), p.date.as_deref(), p.commit.as_deref()]
+                .into_iter()
+                .flatten()
+                .collect::<Vec<_>>()
+                .join(", ");
+            let faster = match (c.mochi_faster, &c.note) {
+                (Some(x), Some(note)) => format!("{x:.2}× ({note})"),
+                (Some(x), None) => format!("{x:.2}×"),
+                (None, Some(note)) => note.clone(),
+                (None, None) => "–".to_owned(),
+            };
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {} | {} | {} | {} | {} |",
+                p.experiment.number(),
+                cell(&p.peer),
+                cell(&workload),
+                if when.is_empty() {
+                    "–".to_owned()
+                } else {
+                    cell(&when)
+                },
+                time(p.ms_per_step),
+                cell(&c.mochi),
+                c.mochi_ms_per_step.map_or_else(|| "–".to_owned(), time),
+                cell(&faster),
+            );
         }
     }
     if !report.skipped.is_empty() {
@@ -92,8 +139,11 @@ fn header(out: &mut String, r: &Report) {
     let _ = writeln!(
         out,
         "\nTimes: median (min–max) of {} timed runs after {} warm-up runs, in ms; the clock column \
-         says whether they are GPU timestamps or wall clock. DEM rows: per step, {} steps per run.",
-        s.repeats, s.warmup, s.steps
+         says whether they are GPU timestamps or wall clock. DEM rows: per step, {} steps per run \
+         (experiment 8: the whole drop, {} steps, every run from the start); each row says its \
+         time step, the steps it timed (counted from the scene's start) and the contacts in its \
+         last step.",
+        s.repeats, s.warmup, s.steps, DROP_STEPS
     );
 }
 
@@ -137,9 +187,10 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
     let rebuild_rule = if with_rebuild { " --- |" } else { "" };
     let _ = writeln!(
         out,
-        "| backend | scene | n | mode | structure |{rebuild_head} contacts | build | DCD | update | \
-         total [ms/step] | clock | wall [ms/step] | vs cpu |\n\
-         | --- | --- | --- | --- | --- |{rebuild_rule} --- | --- | --- | --- | --- | --- | --- | --- |"
+        "| backend | scene | n | mode | structure |{rebuild_head} dt [s] | steps timed | contacts \
+         (last step) | build | DCD | update | total [ms/step] | clock | wall [ms/step] | vs cpu |\n\
+         | --- | --- | --- | --- | --- |{rebuild_rule} --- | --- | --- | --- | --- | --- | --- | --- \
+         | --- | --- |"
     );
     for r in rows {
         let rebuild = if with_rebuild {
@@ -149,12 +200,20 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
         };
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} |{rebuild} {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} |{rebuild} {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.backend.name(),
             r.setup(),
             r.n,
             r.mode.name(),
             by_name::name(&r.structure),
+            r.dt.map_or_else(|| "–".to_owned(), |dt| format!("{dt:e}")),
+            r.timed.map_or_else(
+                || "–".to_owned(),
+                |t| match r.settled {
+                    0 => t.to_string(),
+                    s => format!("{t} (after {s} settling or pouring)"),
+                }
+            ),
             r.contacts,
             spread(&r.build_ms),
             spread(&r.dcd_ms),
@@ -193,6 +252,11 @@ fn history_table(out: &mut String, rows: &[&DemRow]) {
             h.bytes_per_sphere
         );
     }
+}
+
+/// `text` for a table cell (no column breaks).
+fn cell(text: &str) -> String {
+    text.replace('|', "/").replace('\n', " ")
 }
 
 /// A time with about three significant digits.

@@ -7,20 +7,26 @@
 //! 4. the DEM step against the rebuild interval of steps that refit (others are reported once,
 //!    "every step");
 //! 5. the DEM step from 1,000 spheres up, ×10 each time;
-//! 6. the DEM steps issue 7 sets targets for: the landed `slab`, and `polylog` with the single
-//!    and the multi-level grid side by side ([`dem`] runs 2–7; [`targets`] checks them);
+//! 6. the DEM steps issue 7 sets targets for: the landed `slab`, and the poured `polylog` pile
+//!    ([`dem::pile_start`]) with the single and the multi-level grid side by side ([`dem`] runs
+//!    2–8; [`targets`] checks them, each on a state with contacts only);
 //! 7. the Hertz–Mindlin step of issue 18 (friction with contact history, rotation, EPSD rolling
 //!    resistance) on the landed `slab`, with its contacts and the bytes per sphere of its
 //!    history ([`report::HistorySize`]); a backend whose step does not run it yet reports why;
-//! 8. issue 21's clustered scenes: 14 filled meshes dropped ([`dem::mesh_drop_start`]), in
-//!    their box and in one 10× wider per side; `wgpu-compute` with its dense and its sorted
-//!    grid build side by side.
+//! 8. issue 21's clustered scenes: 14 filled meshes dropped ([`dem::mesh_drop_start`]) at the
+//!    paper's dt 1e-4, every step of the 5,000-step drop timed from the start, in their box and
+//!    in one 10× wider per side; `wgpu-compute` with its dense and its sorted grid build side
+//!    by side.
+//!
+//! [`Experiment::workload`](plan::Experiment::workload) states each experiment's workload
+//! exactly, and every DEM row its time step, the steps before the timed ones and the steps timed.
 //!
 //! Every measurement runs `warmup` untimed times, then `repeats` timed times, and reports the
 //! median and spread ([`stats::Spread`]) on GPU timestamps where the backend has them, else on
 //! the wall clock, and says which ([`crate::dem::Clock`]). A [`report::Report`] holds the rows;
 //! [`markdown`] prints it and [`plot`] draws it as SVG.
 
+pub mod compare;
 pub mod dem;
 pub mod detect;
 pub mod markdown;
@@ -59,6 +65,13 @@ pub fn run(
     progress: &mut dyn FnMut(&str),
 ) -> Result<Report> {
     plan.validate()?;
+    // The pile's pouring steps as they will be run, so that the report says them.
+    let mut resolved = plan.clone();
+    if plan.settings.experiments.contains(&Experiment::Targets) && plan.settings.pile.is_none() {
+        let layers = dem::pile_start(plan.settings.spheres, plan.settings.seed)?;
+        resolved.settings.pile = Some(dem::pour_steps(&layers));
+    }
+    let plan = &resolved;
     let mut report = Report {
         schema_version: SCHEMA_VERSION,
         mochi_version: env!("CARGO_PKG_VERSION").to_owned(),
@@ -71,6 +84,7 @@ pub fn run(
         dem: Vec::new(),
         skipped: Vec::new(),
         targets: Vec::new(),
+        comparisons: Vec::new(),
     };
     for &experiment in &plan.settings.experiments {
         let mut skip = |backend: BackendKind, what: String, reason: String| {
@@ -166,8 +180,19 @@ fn own_box_starts(
                 ));
                 slab = dem::settle(plan, &slab, plan.settings.settle as u64)?;
             }
-            let polylog = dem::start(POLYLOG, n, seed)?;
-            // nns mode too: the DCD phase at radius ratio 120 in both modes.
+            // The pile the polylog claims are made on: poured, with its contacts (a target is
+            // judged only on a state with contacts).
+            let layers = dem::pile_start(n, seed)?;
+            let pour = plan
+                .settings
+                .pile
+                .unwrap_or_else(|| dem::pour_steps(&layers));
+            progress(&format!("pouring the polylog pile ({pour} steps)"));
+            let polylog = match pour {
+                0 => layers,
+                _ => dem::settle(plan, &layers, pour)?,
+            };
+            // nns mode too: the DCD phase at radius ratio 120 in both modes, on the same pile.
             let nns = Start {
                 mode: ProxyMode::Nns,
                 ..polylog.clone()

@@ -1,5 +1,6 @@
 //! What a benchmark run measures: the experiments, the scale, the backends and the repeats.
 
+use super::dem::{DROP_DT, DROP_STEPS, MESH_DROP_COPIES, WIDE_BOX_SCALE};
 use crate::engines::BackendKind;
 use crate::engines::wgpu_compute::Structure;
 use crate::error::{Error, Result};
@@ -31,16 +32,17 @@ pub enum Experiment {
     Rebuild,
     /// 5: the DEM step from 1,000 spheres up in steps of ×10.
     Scaling,
-    /// 6: the DEM steps issue 7 sets targets for: the landed slab, and `polylog` with the
-    /// single and the multi-level grid side by side.
+    /// 6: the DEM steps issue 7 sets targets for: the landed slab, and the poured `polylog`
+    /// pile with the single and the multi-level grid side by side.
     Targets,
     /// 7: the Hertz–Mindlin step (friction with contact history, rotation, EPSD rolling
     /// resistance) on the settled slab, with its contacts and the size of the history.
     Friction,
     /// 8: the paper's 14-bunny drop (14 copies of `--mesh`, or of the built-in torus, filled
-    /// with as many spheres as the paper's bunnies hold at `--scale paper`), and the same
-    /// spheres in a box 10× wider per side: a step whose grid build should cost by the spheres,
-    /// not by the box (issue 21); `wgpu-compute` with its dense and its sorted build.
+    /// with as many spheres as the paper's bunnies hold at `--scale paper`) at the paper's dt
+    /// 1e-4, every one of its 5,000 steps timed, and the same spheres in a box 10× wider per
+    /// side: a step whose grid build should cost by the spheres, not by the box (issue 21);
+    /// `wgpu-compute` with its dense and its sorted build.
     Clustered,
 }
 
@@ -85,12 +87,125 @@ impl Experiment {
             Experiment::Rotating => "DEM under rotating gravity (0.25π rad/s), time per step",
             Experiment::Rebuild => "DEM step against the rebuild interval",
             Experiment::Scaling => "DEM step from 1k spheres up, ×10 each",
-            Experiment::Targets => "DEM steps with targets: landed slab, polylog (grid vs mlgrid)",
+            Experiment::Targets => {
+                "DEM steps with targets: landed slab, poured polylog pile (grid vs mlgrid)"
+            }
             Experiment::Friction => {
                 "Hertz–Mindlin step (friction, rotation, EPSD rolling) on the settled slab and \
                  the poured polylog pile"
             }
-            Experiment::Clustered => "14 filled meshes dropped, in their box and in one 10× wider",
+            Experiment::Clustered => {
+                "14 filled meshes dropped (whole drop, dt 1e-4), in their box and in one 10× wider"
+            }
+        }
+    }
+
+    /// The workload measured, exactly: scene, spheres, law and time step, the steps run before
+    /// the timed ones, the steps timed and the contacts reported.
+    pub fn workload(self, s: &Settings) -> String {
+        let (n, w, r, steps) = (s.spheres, s.warmup as u64, s.repeats as u64, s.steps as u64);
+        let runs = |k: u64| format!("{k} run{}", if k == 1 { "" } else { "s" });
+        let continued = |before: &str| {
+            format!(
+                "timed: {} of {steps} steps after {} untimed (warm-up), each run continuing \
+                 the last: steps {}–{} after {before} (each row says its own)",
+                runs(r),
+                runs(w),
+                w * steps,
+                (w + r) * steps
+            )
+        };
+        let contacts = "reported: the contacts (touching pairs) in the last timed step";
+        match self {
+            Experiment::Dcd => format!(
+                "`poly1.2`, `poly12` and `poly120` (radius ratios 1.2, 12 and 120) of {n} spheres \
+                 at uniform random centres (overlaps allowed), each detected in `mochi` and in \
+                 `nns` mode; timed: build + detection of every pair, {} after {} untimed \
+                 (warm-up); reported: the pairs found and their digest.",
+                runs(r),
+                runs(w)
+            ),
+            Experiment::Freefall | Experiment::Rotating => format!(
+                "`{}` (dataset 1: radii 0.5–0.6 mm in a lattice) of {n} spheres falling from rest \
+                 at t = 0{}, the paper's linear law (one stiffness, frictionless), dt 1e-4 s; {}; \
+                 {contacts}.",
+                if self == Experiment::Rotating {
+                    "rotating"
+                } else {
+                    "freefall"
+                },
+                if self == Experiment::Rotating {
+                    " under gravity turning at 0.25π rad/s about y"
+                } else {
+                    ""
+                },
+                continued("the start")
+            ),
+            Experiment::Rebuild => format!(
+                "as experiment 2 (`freefall` of {n} spheres from rest, linear, dt 1e-4 s), once \
+                 per rebuild interval ({}, auto) from a fresh start on steps that refit, once \
+                 (\"every step\") on the others; {}; {contacts}.",
+                REBUILD_INTERVALS.map(|i| i.to_string()).join(", "),
+                continued("the start")
+            ),
+            Experiment::Scaling => format!(
+                "as experiment 2 (`freefall` from rest, linear, dt 1e-4 s) with 1,000, 10,000, … \
+                 up to {} spheres; {}; {contacts}.",
+                s.max_spheres,
+                continued("the start")
+            ),
+            Experiment::Targets => format!(
+                "the `slab` (radii 0.5–0.6 mm) of {n} spheres under the paper's linear law, dt \
+                 1e-4 s, after {} untimed steps of landing (`--settle`); the `polylog` pile \
+                 (radii 0.5 mm–6 cm, log-uniform) of {n} spheres under the linear law with the \
+                 per-pair stiffness (every contact 10 steps), frictionless, dt 1e-4 s, poured from \
+                 its layers for {} (`--pile`), timed in `mochi` mode (wgpu-compute: \
+                 the single and the multi-level grid) and in `nns` mode from the same pile; {}; \
+                 {contacts}. A target is judged only on a state with contacts.",
+                s.settle,
+                s.pile.map_or_else(
+                    || "1.5 times its top spheres' fall time (untimed; the rows say the steps)"
+                        .to_owned(),
+                    |p| format!("{p} untimed steps")
+                ),
+                continued("the settling or the pouring")
+            ),
+            Experiment::Friction => format!(
+                "the `slab` of {n} spheres under Hertz–Mindlin (the default material: E 1e7 Pa, \
+                 μ 0.5, EPSD rolling μ_r 0.1, dt 0.2 Rayleigh time of the smallest sphere) on a \
+                 floor raised to its underside, after {} untimed steps of landing (`--settle`){}; \
+                 {}; {contacts}, and the contact history.",
+                s.settle,
+                if s.pour > 0 {
+                    format!(
+                        "; the `polylog` pile of {n} spheres poured for {} untimed steps under \
+                         Hertz–Mindlin (`--pour`)",
+                        s.pour
+                    )
+                } else {
+                    String::new()
+                },
+                continued("the settling or the pouring")
+            ),
+            Experiment::Clustered => format!(
+                "{MESH_DROP_COPIES} copies of {} filled with about {} spheres (the paper's \
+                 1,151,878 × {n} / 1,000,000), the paper's linear law (one stiffness, \
+                 frictionless), dt {DROP_DT:e} s, dropped from rest at t = 0 under gravity −z \
+                 (9.81 m/s²) in their box and in \
+                 one {WIDE_BOX_SCALE}× wider per side; timed: every step of the drop, steps \
+                 0–{DROP_STEPS} ({:.1} s), every run from the start ({} after {} untimed \
+                 (warm-up); `--steps` does not apply); reported: the contacts at the end of the \
+                 drop.",
+                s.mesh.as_ref().map_or_else(
+                    || "the built-in torus (the paper's is the Stanford bunny: `--mesh`)"
+                        .to_owned(),
+                    |m| format!("`{}`", m.display())
+                ),
+                (1_151_878.0 * n as f64 / 1e6).round(),
+                DROP_STEPS as f64 * DROP_DT,
+                runs(r),
+                runs(w)
+            ),
         }
     }
 
@@ -236,12 +351,17 @@ pub struct Settings {
     pub spheres: usize,
     /// Largest sphere count of the scaling experiment (from 1,000 up, ×10).
     pub max_spheres: usize,
-    /// Timed DEM steps per repeat.
+    /// Timed DEM steps per repeat (experiment 8 times its whole drop, [`DROP_STEPS`], instead).
     pub steps: u32,
     /// Untimed steps that let the slab of experiments 6 and 7 land before it is timed (run once
     /// per experiment, on the first backend whose DEM step runs it; every backend then starts
     /// from that state).
     pub settle: u32,
+    /// Untimed steps that pour experiment 6's `polylog` pile before it is timed (once, like
+    /// `settle`); `None`: 1.5 times the time its top spheres take to fall to the floor
+    /// ([`super::dem::pour_steps`]; a report holds the steps that [`super::run`] ran).
+    #[serde(default)]
+    pub pile: Option<u64>,
     /// Untimed steps of the `polylog` pile poured under Hertz–Mindlin before experiment 7 times
     /// it (0: experiment 7 measures the slab alone).
     #[serde(default)]
@@ -312,6 +432,15 @@ impl Plan {
         Ok(())
     }
 
+    /// Timed steps per run of `experiment`: the whole drop ([`DROP_STEPS`]) for experiment 8,
+    /// else `--steps`.
+    pub fn steps_of(&self, experiment: Experiment) -> u32 {
+        match experiment {
+            Experiment::Clustered => DROP_STEPS,
+            _ => self.settings.steps,
+        }
+    }
+
     /// Sphere counts of the scaling experiment: 1,000, 10,000, … up to `max_spheres`.
     pub fn scaling_sizes(&self) -> Vec<usize> {
         std::iter::successors(Some(1000usize), |n| n.checked_mul(10))
@@ -330,8 +459,8 @@ impl Plan {
                 Experiment::Freefall | Experiment::Rotating => 1,
                 Experiment::Rebuild => REBUILD_INTERVALS.len() + 1,
                 Experiment::Scaling => self.scaling_sizes().len(),
-                // Settling, slab, polylog with two structures, polylog in nns mode.
-                Experiment::Targets => 5,
+                // Settling, slab, pouring, polylog with two structures, polylog in nns mode.
+                Experiment::Targets => 6,
                 // Settling, the slab; pouring, the polylog pile.
                 Experiment::Friction => 2 + 2 * (self.settings.pour > 0) as usize,
                 // The drop in its box and in the wide box, each with both grid builds
@@ -385,6 +514,7 @@ mod tests {
                 max_spheres: 250_000,
                 steps: 1,
                 settle: 0,
+                pile: None,
                 pour: 0,
                 repeats: 1,
                 warmup: 0,

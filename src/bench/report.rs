@@ -12,8 +12,12 @@ use crate::proxy::ProxyMode;
 use crate::scenes::Layout;
 use serde::{Deserialize, Serialize};
 
-/// Version of the JSON layout; raised whenever a field changes meaning or goes away.
-pub const SCHEMA_VERSION: u32 = 1;
+/// Version of the JSON layout; raised whenever a field changes meaning or goes away. 2: experiment
+/// 8's rows time the whole drop at dt 1e-4 from its start (each run from the start), experiment
+/// 6's `polylog` rows a poured pile under the per-pair linear law; DEM rows say their time step,
+/// the steps run before the timed ones and the steps timed; the report holds the peers' figures
+/// of `--compare`.
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// A whole benchmark run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -34,12 +38,15 @@ pub struct Report {
     pub backends: Vec<BackendStatus>,
     /// Detection rows (experiment 1).
     pub detect: Vec<DetectRow>,
-    /// DEM rows (experiments 2–6).
+    /// DEM rows (experiments 2–8).
     pub dem: Vec<DemRow>,
     /// Measurements a backend could not make, and why.
     pub skipped: Vec<Skipped>,
     /// Issue 7's targets, checked against the rows.
     pub targets: Vec<Check>,
+    /// Other codes' figures (`--compare`) beside mochi's rows of the same experiment.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub comparisons: Vec<super::compare::Comparison>,
 }
 
 /// The host that ran the benchmark.
@@ -123,7 +130,7 @@ pub struct DetectRow {
 /// One DEM measurement: the same stepper advanced `steps` steps per repeat.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DemRow {
-    /// Experiment 2–6.
+    /// Experiment 2–8.
     pub experiment: Experiment,
     /// The backend.
     #[serde(with = "crate::dem::scene::by_name")]
@@ -144,7 +151,18 @@ pub struct DemRow {
     pub refits: bool,
     /// Timed steps per repeat.
     pub steps: u32,
-    /// Touching pairs in the last step.
+    /// Time step \[s\] (`None` in reports older than schema 2).
+    #[serde(default)]
+    pub dt: Option<f64>,
+    /// Untimed steps the start state had run before this row's runs began (the slab's settling,
+    /// the pile's pouring; 0: the scene's start at t = 0).
+    #[serde(default)]
+    pub settled: u64,
+    /// The steps timed, counted from the scene's start (`None` in reports older than schema 2).
+    #[serde(default)]
+    pub timed: Option<StepRange>,
+    /// Touching pairs in the last step of the last timed run (experiment 8: at the end of the
+    /// drop).
     pub contacts: u64,
     /// The clock of the times.
     pub clock: Clock,
@@ -174,7 +192,49 @@ pub struct DemRow {
     pub grid_build: Option<String>,
 }
 
+/// The steps a DEM row timed, counted from its scene's start (t = 0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StepRange {
+    /// First step timed.
+    pub from: u64,
+    /// One past the last step timed.
+    pub to: u64,
+    /// Whether every run timed `from..to` again from the same start (experiment 8's drop);
+    /// else the runs followed one another, each timing its share of `from..to`.
+    pub each_run: bool,
+}
+
+impl std::fmt::Display for StepRange {
+    /// "0–5000 (every run from the start)" or "3020–3120".
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}–{}", self.from, self.to)?;
+        if self.each_run {
+            write!(f, " (every run from the start)")?;
+        }
+        Ok(())
+    }
+}
+
 impl DemRow {
+    /// The row's time step, steps and contacts in words: "dt 1e-4, timed steps 17000–17020, after
+    /// 17,000 steps settling or pouring, 1,090,000 contacts at the end".
+    pub fn state(&self) -> String {
+        let r = self;
+        let mut words = Vec::new();
+        if let Some(dt) = r.dt {
+            words.push(format!("dt {dt:e}"));
+        }
+        if let Some(t) = r.timed {
+            let before = match r.settled {
+                0 => String::new(),
+                s => format!(", after {} steps settling or pouring", thousands(s)),
+            };
+            words.push(format!("timed steps {t}{before}"));
+        }
+        words.push(format!("{} contacts at the end", thousands(r.contacts)));
+        words.join(", ")
+    }
+
     /// The scene and, where they vary, its box and the grid build, in words ("mesh, box ×10,
     /// sorted build").
     pub fn setup(&self) -> String {
@@ -262,6 +322,19 @@ impl Report {
                 .map(|cpu| ratio(cpu.total_ms.median, row.total_ms.median));
         }
     }
+}
+
+/// `x` with thousands separated by commas.
+pub fn thousands(x: u64) -> String {
+    let digits = x.to_string();
+    let mut out = String::new();
+    for (k, c) in digits.chars().enumerate() {
+        if k > 0 && (digits.len() - k).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
 }
 
 /// `a / b`, or infinity when `b` is not positive.

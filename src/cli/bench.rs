@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::bench::plan::{BackendSelection, Experiment, Plan, Scale, Settings};
-use mochi::bench::{self, markdown, plot};
+use mochi::bench::{self, compare, markdown, plot};
 use mochi::engines::wgpu_compute::Structure;
 use mochi::io;
 use std::path::PathBuf;
@@ -26,9 +26,11 @@ pub struct BenchArgs {
     #[arg(long, default_value = "all")]
     pub backends: BackendSelection,
     /// Experiments, by number or name: 1 dcd, 2 freefall, 3 rotating, 4 rebuild, 5 scaling,
-    /// 6 targets (landed slab, polylog grid vs mlgrid), 7 friction (the Hertz–Mindlin step on
-    /// the settled slab, with its contact history, and with --pour the poured polylog pile), 8 clustered (14 filled meshes dropped, in
-    /// their box and in a box 10× wider, with the grid build wgpu-compute chose).
+    /// 6 targets (landed slab, poured polylog pile with grid vs mlgrid, each judged only on a
+    /// state with contacts), 7 friction (the Hertz–Mindlin step on the settled slab, with its
+    /// contact history, and with --pour the poured polylog pile), 8 clustered (14 filled meshes
+    /// dropped at dt 1e-4, every step of the 5,000-step drop timed, in their box and in a box
+    /// 10× wider, with the grid build wgpu-compute chose).
     #[arg(long, value_delimiter = ',', value_parser = Experiment::parse, default_value = "1,2,3,4,5,6,7,8")]
     pub experiments: Vec<Experiment>,
     /// Timed runs per measurement (their median and spread are reported).
@@ -37,7 +39,8 @@ pub struct BenchArgs {
     /// Untimed runs before the timed ones.
     #[arg(long, default_value_t = 1)]
     pub warmup: usize,
-    /// Timed DEM steps per run (default: the scale's).
+    /// Timed DEM steps per run (default: the scale's; experiment 8 always times its whole drop,
+    /// 5,000 steps).
     #[arg(long)]
     pub steps: Option<u32>,
     /// Untimed steps that let the slab of experiments 6 and 7 land before it is timed (once per
@@ -45,6 +48,11 @@ pub struct BenchArgs {
     /// landed state).
     #[arg(long, default_value_t = 3000)]
     pub settle: u32,
+    /// Untimed steps that pour experiment 6's `polylog` pile (linear, per-pair stiffness, dt
+    /// 1e-4) before it is timed (default: 1.5 times its top spheres' fall time, 6,375 steps
+    /// at 10,000 spheres, 12,522 at 1M).
+    #[arg(long, value_name = "STEPS")]
+    pub pile: Option<u64>,
     /// Untimed steps that pour the `polylog` pile under Hertz–Mindlin (the default material,
     /// its Rayleigh step: about 300,000 bring the 1M pile down) before experiment 7 times it
     /// beside the slab; 0: the slab alone.
@@ -60,6 +68,11 @@ pub struct BenchArgs {
     /// the built-in torus.
     #[arg(long, value_name = "FILE")]
     pub mesh: Option<PathBuf>,
+    /// A JSON list of other codes' figures ({"experiment", "peer", "ms_per_step", "workload"},
+    /// optionally "scene", "spheres", "contacts", "device", "date", "commit") to print beside
+    /// mochi's rows of the same experiment, with the ratio.
+    #[arg(long, value_name = "FILE")]
+    pub compare: Option<PathBuf>,
     /// Folder for bench.json, bench.md and the SVG plots.
     #[arg(short, long, default_value = "mochi-bench")]
     pub out: PathBuf,
@@ -82,6 +95,7 @@ pub fn bench(args: BenchArgs) -> Result<()> {
             max_spheres: args.max_spheres.unwrap_or(args.scale.spheres()),
             steps: args.steps.unwrap_or(args.scale.steps()),
             settle: args.settle,
+            pile: args.pile,
             pour: args.pour,
             repeats: args.repeats,
             warmup: args.warmup,
@@ -91,6 +105,11 @@ pub fn bench(args: BenchArgs) -> Result<()> {
         },
     };
     plan.validate()?;
+    // Read before the run, so that a bad file fails at once.
+    let peers = match &args.compare {
+        Some(path) => compare::read(path)?,
+        None => Vec::new(),
+    };
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
 
@@ -107,7 +126,8 @@ pub fn bench(args: BenchArgs) -> Result<()> {
         bar.set_message(what.to_owned());
         bar.inc(1);
     };
-    let report = bench::run(&plan, status, command_line(), &mut progress)?;
+    let mut report = bench::run(&plan, status, command_line(), &mut progress)?;
+    report.comparisons = compare::compare(&report, &peers);
     bar.finish_and_clear();
 
     let text = markdown::render(&report);
