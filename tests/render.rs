@@ -11,6 +11,7 @@ use mochi::render::{
     Camera, ColorBy, Image, Picture, RenderChoice, Renderer, Scene, read_png, viridis,
 };
 use mochi::scenes::{Layout, Scene as Dataset, SceneSpec, generate};
+use std::path::Path;
 
 /// Every path that can be tested here: cpu always, the GPU paths where an adapter has them
 /// (a missing one fails under CI).
@@ -556,27 +557,13 @@ fn the_default_framing_closes_in_on_a_heap_in_a_large_box_but_not_on_strays() {
     rows += "0.02,0.02,0.005,0.005\n0.98,0.97,0.005,0.005\n";
     std::fs::write(d.join("frame_00000007.csv"), rows).unwrap();
     let share = |fit: &str| {
-        let png = format!("{fit}.png");
-        let run = mochi(
-            &[
-                "render",
-                "frame_00000007.csv",
-                "-o",
-                &png,
-                "--size",
-                "96x72",
-                "--samples",
-                "1",
-                "--renderer",
-                "cpu",
-                "--no-legend",
-                "--fit",
-                fit,
-            ],
+        let image = small_picture(
             d,
+            "frame_00000007.csv",
+            &format!("{fit}.png"),
+            &["--fit", fit],
         );
-        assert_eq!(run.0, Some(0), "{run:?}");
-        sphere_share(&read_png(&d.join(png)).unwrap())
+        sphere_share(&image)
     };
     let (auto, whole_box, spheres) = (share("auto"), share("box"), share("spheres"));
     // The box's framing shows the heap small; the spheres' framing, stretched to the strays,
@@ -600,26 +587,7 @@ fn render_colours_by_material() {
     .unwrap();
     let hues = |color_by: &str| {
         let png = format!("{color_by}.png");
-        let run = mochi(
-            &[
-                "render",
-                "two.csv",
-                "-o",
-                &png,
-                "--size",
-                "96x72",
-                "--samples",
-                "1",
-                "--renderer",
-                "cpu",
-                "--no-legend",
-                "--color-by",
-                color_by,
-            ],
-            d,
-        );
-        assert_eq!(run.0, Some(0), "{run:?}");
-        let image = read_png(&d.join(png)).unwrap();
+        let image = small_picture(d, "two.csv", &png, &["--color-by", color_by]);
         let rgb = |p: u32| [p & 0xff, (p >> 8) & 0xff, (p >> 16) & 0xff].map(|c| c as f32);
         let purple = image.pixels.iter().map(|&p| rgb(p));
         let purple = purple
@@ -641,4 +609,26 @@ fn render_colours_by_material() {
         purple < 10 && yellow < 10,
         "by radius: {purple} purple, {yellow} yellow pixels"
     );
+}
+
+/// `mochi render FRAME -o PNG` in `d` at 96×72 pixels, one ray per pixel, on the cpu, without a
+/// legend, with `extra` options: the picture, once the command succeeded.
+fn small_picture(d: &Path, frame: &str, png: &str, extra: &[&str]) -> Image {
+    let mut args = vec![
+        "render",
+        frame,
+        "-o",
+        png,
+        "--size",
+        "96x72",
+        "--samples",
+        "1",
+        "--renderer",
+        "cpu",
+        "--no-legend",
+    ];
+    args.extend(extra);
+    let run = mochi(&args, d);
+    assert_eq!(run.0, Some(0), "{run:?}");
+    read_png(&d.join(png)).unwrap()
 }
