@@ -301,23 +301,23 @@ impl StepParams {
     /// the Rayleigh time the step follows from, and the friction where there is any (with
     /// several materials, the largest of any pair; [`Materials::describe`] names them).
     pub fn describe(&self) -> String {
-        let dt = self.dt as f64;
+        let dt = four_digits(self.dt as f64);
         let law = match self.law {
             NormalLaw::Linear => format!(
-                "dt {dt:e} s (stable limit {:.3e} s) | stiffness {:.4e} N/m",
+                "dt {dt} s (stable limit {:.3e} s) | stiffness {:.4e} N/m",
                 self.dt_limit, self.stiffness
             ),
             NormalLaw::LinearPerPair { contact_time, .. } => format!(
-                "dt {dt:e} s (stable limit {:.3e} s) | per-pair stiffness, contact time \
+                "dt {dt} s (stable limit {:.3e} s) | per-pair stiffness, contact time \
                  {contact_time:.3e} s",
                 self.dt_limit,
             ),
             NormalLaw::Hertz { .. } => {
                 let t_r = self.rayleigh_time.unwrap_or(f32::NAN) as f64;
                 format!(
-                    "dt {dt:e} s = {:.3} Rayleigh time of the smallest sphere ({t_r:.3e} s; \
+                    "dt {dt} s = {:.3} Rayleigh time of the smallest sphere ({t_r:.3e} s; \
                      limit {:.3e} s) | hertz-mindlin",
-                    dt / t_r,
+                    self.dt as f64 / t_r,
                     self.dt_limit
                 )
             }
@@ -354,6 +354,19 @@ impl StepParams {
     }
 }
 
+/// `x` in four significant digits in scientific notation, its mantissa's trailing zeros dropped
+/// (2.322e-5, 5e-6): a time step as a summary shows it (scene.toml keeps every digit).
+pub fn four_digits(x: f64) -> String {
+    let text = format!("{x:.3e}");
+    match text.split_once('e') {
+        Some((mantissa, exponent)) if mantissa.contains('.') => {
+            let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+            format!("{mantissa}e{exponent}")
+        }
+        _ => text,
+    }
+}
+
 /// One semi-implicit Euler step of a sphere under `force` and gravity `g`: v += dt·(F/m + g),
 /// then its position (centre `c`, residual `lo`) moves by dt·v without losing the displacement
 /// to the rounding of `c` ([`crate::particles::position::advance`]).
@@ -375,6 +388,14 @@ pub fn integrate(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn time_steps_show_four_significant_digits() {
+        assert_eq!(four_digits(2.3222333766170777e-5), "2.322e-5");
+        assert_eq!(four_digits(5e-6_f32 as f64), "5e-6");
+        assert_eq!(four_digits(1.25e-4), "1.25e-4");
+        assert_eq!(four_digits(0.0), "0e0");
+    }
 
     fn params() -> StepParams {
         StepParams::new(
