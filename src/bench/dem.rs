@@ -309,36 +309,28 @@ fn measure(
     plan: &Plan,
     kind: BackendKind,
     case: &Case,
-    stepper: Box<dyn Stepper>,
+    mut stepper: Box<dyn Stepper>,
     policy: &str,
     reopen: &dyn Fn() -> Result<Box<dyn Stepper>>,
 ) -> Result<DemRow> {
     let steps = plan.steps_of(case.experiment);
     let restart = case.experiment == Experiment::Clustered;
     let (warmup, repeats) = (plan.settings.warmup, plan.settings.repeats);
-    let mut stepper = Some(stepper);
-    // The stepper for the next run: at the start where every run restarts.
-    let next = |stepper: &mut Option<Box<dyn Stepper>>, first: bool| -> Result<()> {
-        if restart && !first {
-            // The last run's state goes before the next is opened.
-            *stepper = None;
-            *stepper = Some(reopen()?);
-        }
-        Ok(())
-    };
     let mut runs = Vec::with_capacity(repeats);
     let mut walls = Vec::with_capacity(repeats);
     for run in 0..warmup + repeats {
-        next(&mut stepper, run == 0)?;
-        let s = stepper.as_mut().expect("a stepper for every run");
+        if restart && run > 0 {
+            // Every run from the start: the last run's state goes before the next is opened.
+            drop(stepper);
+            stepper = reopen()?;
+        }
         let t = Instant::now();
-        let advance = s.advance(steps)?;
+        let advance = stepper.advance(steps)?;
         if run >= warmup {
             walls.push(t.elapsed().as_secs_f64() * 1e3 / steps as f64);
             runs.push(advance);
         }
     }
-    let mut stepper = stepper.expect("a stepper for every run");
     let last = *runs.last().expect("a plan has at least one repeat");
     // Timestamps can be missing on a GPU without them: then nothing was measured.
     let clock = if runs.iter().all(|r| r.clock == last.clock) {
