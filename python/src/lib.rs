@@ -292,7 +292,15 @@ fn read_centres_into(centres: &Bound<'_, PyAny>, out: &mut Vec<[f32; 3]>) -> PyR
         Ok(())
     }
     if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f32>>() {
-        return rows(a.as_array(), out);
+        let view = a.as_array();
+        // A C-ordered float32 array's rows are what the library stores: copied as they are
+        // (float32 holds them all; the sphere set checks their values).
+        if let (3, Some(flat)) = (view.ncols(), view.as_slice()) {
+            emptied_with_room(out, view.nrows(), "centres")?;
+            out.par_extend(flat.as_chunks::<3>().0.par_iter().copied());
+            return Ok(());
+        }
+        return rows(view, out);
     }
     if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f64>>() {
         return rows(a.as_array(), out);
@@ -372,7 +380,14 @@ fn read_radii_into(radii: &Bound<'_, PyAny>, out: &mut Vec<f32>) -> PyResult<()>
         Ok(())
     }
     if let Ok(a) = radii.extract::<PyReadonlyArray1<'_, f32>>() {
-        return values(a.as_array(), out);
+        let view = a.as_array();
+        // As the centres: a contiguous float32 array copied as it is.
+        if let Some(flat) = view.as_slice() {
+            emptied_with_room(out, flat.len(), "radii")?;
+            out.par_extend(flat.par_iter().copied());
+            return Ok(());
+        }
+        return values(view, out);
     }
     if let Ok(a) = radii.extract::<PyReadonlyArray1<'_, f64>>() {
         return values(a.as_array(), out);
