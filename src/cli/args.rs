@@ -57,16 +57,14 @@ pub struct RenderArgs {
     /// Picture size in pixels, WxH.
     #[arg(long, value_name = "WxH", default_value = "960x720")]
     pub size: String,
-    /// Colour the spheres by radius, speed, height (of the centre) or material. auto: by speed
-    /// where mesh walls move (a hopper, a drum) or the spheres do (a tenth of them faster than
-    /// half the speed of a fall through their mean radius), else by radius where the radii
-    /// differ more than 3:1, else by height (a heap's shape). For a folder, one choice for the
-    /// whole run (speed if any frame moves); simulate --render-every takes speed. Speeds are
-    /// coloured from 0 to their 95th percentile (the legend's top then reads ≥).
+    /// Colour the spheres by radius, speed, height (of the centre) or material; auto picks one
+    /// for each frame (below), for a folder one for the whole run (speed if any frame moves),
+    /// and for simulate --render-every speed.
     #[arg(long, value_enum, default_value_t)]
     pub color_by: ColorChoice,
-    /// Values at both ends of the colour map, MIN,MAX (default: the values' own range; over all
-    /// frames when rendering a folder).
+    /// Values at both ends of the colour map, MIN,MAX (default: the values' own range, speeds
+    /// from 0 to their 95th percentile, the legend's top then reading ≥; over all frames when
+    /// rendering a folder).
     #[arg(long, value_name = "MIN,MAX", allow_hyphen_values = true)]
     pub range: Option<String>,
     /// Camera position x,y,z [m] (default: from the front left, 33° above the horizon, or 12°

@@ -123,7 +123,7 @@ impl FrameRenderer {
 
     /// Adds `frame` to `survey`.
     pub fn survey(&self, frame: &FrameData, survey: &mut Survey) {
-        let walls_move = frame.walls.iter().any(|w| w.moves);
+        let walls_move = frame.walls.iter().any(WallAt::moves);
         let picked = self
             .color_by
             .resolve(frame.radii, frame.velocities, walls_move);
@@ -171,7 +171,7 @@ impl FrameRenderer {
     /// Renders `frame` into the PNG `out` (and the GIF, if any); returns the number of wall
     /// triangles drawn.
     pub fn render(&mut self, frame: &FrameData, out: &Path) -> Result<usize> {
-        let walls_move = frame.walls.iter().any(|w| w.moves);
+        let walls_move = frame.walls.iter().any(WallAt::moves);
         let color_by = self
             .color_by
             .resolve(frame.radii, frame.velocities, walls_move);

@@ -8,8 +8,10 @@
 //!   flows out of it), or without walls most spheres ([`core_bounds`]: a heap rather than the
 //!   few that rolled far); `--fit spheres` every sphere and wall, `--fit box` the simulation
 //!   box;
-//! - a mesh wall that moves is drawn only while it comes within [`WALL_REACH`] largest radii
-//!   of the spheres: a hopper's gate that has slid away no longer floats beside it;
+//! - a mesh wall that moves and started within [`WALL_REACH`] largest radii of the spheres is
+//!   drawn only while it is still that near: a hopper's gate that has slid away no longer
+//!   floats beside it (a wall that moves towards the spheres from afar, a lid coming down, is
+//!   drawn all the way);
 //! - the box's bottom is drawn as a floor only where the spheres come within [`FLOOR_REACH`]
 //!   largest radii of it: a heap stands on it, a hopper's stream (removed half-way down) does
 //!   not hang over it.
@@ -27,8 +29,8 @@ pub type Triangle = [[f32; 3]; 3];
 /// Share of the centres, on each side of each axis, that [`core_bounds`] leaves out.
 const CORE_TAIL: f64 = 0.01;
 
-/// A moving wall is drawn while its box comes within this many largest radii of the box around
-/// the spheres.
+/// A moving wall is near the spheres while its box comes within this many largest radii of the
+/// box around them.
 const WALL_REACH: f64 = 2.0;
 
 /// The box's floor is drawn where the lowest sphere's bottom comes within this many largest
@@ -39,15 +41,27 @@ const FLOOR_REACH: f64 = 4.0;
 pub struct WallAt {
     /// Its triangles.
     pub triangles: Vec<Triangle>,
-    /// Whether it ever moves (translates or turns).
-    pub moves: bool,
+    /// For a wall that moves (translates or turns), the box around it where it starts (its rest
+    /// pose); `None` for one that stands still.
+    pub start: Option<Bounds>,
+}
+
+impl WallAt {
+    /// Whether the wall moves.
+    pub fn moves(&self) -> bool {
+        self.start.is_some()
+    }
 }
 
 /// The mesh walls of `walls` where they are at time `t` \[s\], in the scene's order.
 pub fn walls_at(walls: &WallSet, t: f64) -> Vec<WallAt> {
     let wall = |m: &mochi::dem::walls::MeshWall| WallAt {
         triangles: m.triangles_at(&m.motion.pose_at(t)),
-        moves: m.motion.moves(),
+        start: m
+            .motion
+            .moves()
+            .then(|| triangle_bounds(&m.triangles_at(&m.motion.pose_at(m.motion.start))))
+            .flatten(),
     };
     walls.meshes.iter().map(wall).collect()
 }
@@ -93,13 +107,17 @@ impl View {
     pub fn frame(&self, positions: &[[f32; 3]], radii: &[f32], walls: &[WallAt]) -> Framed {
         let r_max = radii.iter().copied().fold(0.0f32, f32::max) as f64;
         let spheres = sphere_bounds(positions, radii);
-        let near = |tris: &[Triangle]| match (spheres, triangle_bounds(tris)) {
+        let near = |wall: Option<Bounds>| match (spheres, wall) {
             (Some(s), Some(w)) => overlap(widen(s, WALL_REACH * r_max), w),
             _ => true,
         };
+        // A moving wall that started near the spheres and has left them.
+        let moved_clear = |w: &WallAt| {
+            w.start.is_some_and(|start| near(Some(start))) && !near(triangle_bounds(&w.triangles))
+        };
         let walls: Vec<Triangle> = walls
             .iter()
-            .filter(|w| !w.moves || near(&w.triangles))
+            .filter(|w| !moved_clear(w))
             .flat_map(|w| w.triangles.iter().copied())
             .collect();
         let wall_box = triangle_bounds(&walls);
@@ -229,41 +247,43 @@ mod tests {
     }
 
     /// A square plate of side 0.1 at height `z` with its corner at `x`, `y`.
-    fn plate(x: f32, y: f32, z: f32, moves: bool) -> WallAt {
+    fn plate([x, y, z]: [f32; 3]) -> Vec<Triangle> {
         let [a, b, c, d] =
             [[x, y], [x + 0.1, y], [x + 0.1, y + 0.1], [x, y + 0.1]].map(|[x, y]| [x, y, z]);
+        vec![[a, b, c], [a, c, d]]
+    }
+
+    /// A plate at `now` that started at `start` (`None`: one that stands still).
+    fn wall(now: [f32; 3], start: Option<[f32; 3]>) -> WallAt {
         WallAt {
-            triangles: vec![[a, b, c], [a, c, d]],
-            moves,
+            triangles: plate(now),
+            start: start.and_then(|at| triangle_bounds(&plate(at))),
         }
     }
 
     #[test]
-    fn a_moving_wall_clear_of_the_spheres_is_not_drawn_nor_framed() {
+    fn a_wall_that_moved_clear_of_the_spheres_is_not_drawn_nor_framed() {
         let view = in_a_box();
         let positions = [[0.5, 0.5, 0.52], [0.52, 0.5, 0.52]];
         let radii = [0.01; 2];
-        // A gate under the spheres, one slid far away, and a plate that never moves, as far.
-        let under = plate(0.45, 0.45, 0.5, true);
-        let away = plate(0.85, 0.45, 0.5, true);
-        let fixed = plate(0.85, 0.05, 0.5, false);
-        let framed = view.frame(&positions, &radii, &[under, away, fixed]);
-        assert_eq!(
-            framed.walls.len(),
-            4,
-            "the gate under them and the fixed plate"
-        );
-        assert!(
-            framed
-                .walls
-                .iter()
-                .flatten()
-                .all(|c| c[0] < 0.56 || c[1] < 0.2)
-        );
+        let under = [0.45, 0.45, 0.5];
+        // A gate still under the spheres, one slid far away from there, a plate that never
+        // moves as far away, and a lid coming down from far above, still as far.
+        let gate = wall(under, Some(under));
+        let opened = wall([0.85, 0.45, 0.5], Some(under));
+        let fixed = wall([0.85, 0.05, 0.5], None);
+        let lid = wall([0.45, 0.45, 0.9], Some([0.45, 0.45, 0.95]));
+        let framed = view.frame(&positions, &radii, &[gate, opened, fixed, lid]);
+        assert_eq!(framed.walls.len(), 6, "all but the opened gate");
+        let opened_gate = |c: &[f32; 3]| c[0] > 0.8 && c[1] > 0.4;
+        assert!(!framed.walls.iter().flatten().any(opened_gate));
         let (lo, hi) = framed.region;
-        assert!(hi[0] < 0.96 && lo[1] < 0.06, "{lo:?}..{hi:?}");
-        // Slid away, the gate leaves the region the camera frames: the spheres alone.
-        let framed = view.frame(&positions, &radii, &[plate(0.85, 0.45, 0.5, true)]);
+        assert!(
+            hi[0] < 0.96 && lo[1] < 0.06 && hi[2] > 0.89,
+            "{lo:?}..{hi:?}"
+        );
+        // The opened gate alone: the region the camera frames is the spheres'.
+        let framed = view.frame(&positions, &radii, &[wall([0.85, 0.45, 0.5], Some(under))]);
         assert!(framed.walls.is_empty());
         let (lo, hi) = framed.region;
         assert!(hi[0] < 0.6 && lo[0] > 0.4, "{lo:?}..{hi:?}");
@@ -272,10 +292,8 @@ mod tests {
             fit: Fit::Box,
             ..in_a_box()
         };
-        assert_eq!(
-            whole.frame(&positions, &radii, &[]).region,
-            ([0.0; 3], [1.0; 3])
-        );
+        let framed = whole.frame(&positions, &radii, &[wall(under, None)]);
+        assert_eq!(framed.region, ([0.0; 3], [1.0; 3]));
     }
 
     #[test]
