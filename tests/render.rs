@@ -144,7 +144,7 @@ fn gpu_paths_draw_the_cpu_picture() {
     })
     .unwrap();
     let radii: Vec<f32> = spheres.radii().iter().map(|r| r * 60.0).collect();
-    let values = ColorBy::Radius.values(&radii, &[], &[]);
+    let values = ColorBy::Radius.values(spheres.centers(), &radii, &[], &[]);
     let range = mochi::render::value_range(&values);
     let scene = Scene::new(spheres.centers(), &radii, &values, range).unwrap();
     let (lo, hi) = scene.bounds().unwrap();
@@ -608,6 +608,107 @@ fn render_colours_by_material() {
     assert!(
         purple < 10 && yellow < 10,
         "by radius: {purple} purple, {yellow} yellow pixels"
+    );
+}
+
+#[test]
+fn auto_colours_a_heap_at_rest_by_height_and_a_collapse_by_speed() {
+    // A pyramid of 30 spheres of radius 5 mm, at rest, then the same falling apart.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (mut rest, mut falling) = (String::from("x,y,z,r,vx,vy,vz\n"), String::new());
+    falling += "x,y,z,r,vx,vy,vz\n";
+    for (layer, side) in [(0, 4), (1, 3), (2, 2), (3, 1)] {
+        for k in 0..side * side {
+            let (i, j) = (k % side, k / side);
+            let at = |a: i32| 0.01 * a as f32 + 0.005 * layer as f32;
+            let (x, y, z) = (at(i), at(j), 0.005 + 0.008 * layer as f32);
+            rest += &format!("{x},{y},{z},0.005,0,0,0\n");
+            falling += &format!("{x},{y},{z},0.005,{},0,-0.3\n", 0.1 * i as f32);
+        }
+    }
+    std::fs::write(d.join("rest.csv"), rest).unwrap();
+    std::fs::write(d.join("falling.csv"), falling).unwrap();
+    let draw = |frame: &str, color_by: &str| {
+        let png = format!("{frame}-{color_by}.png");
+        small_picture(d, &format!("{frame}.csv"), &png, &["--color-by", color_by]).pixels
+    };
+    let auto = draw("rest", "auto");
+    assert!(auto == draw("rest", "height"), "a heap at rest: by height");
+    assert!(auto != draw("rest", "radius") && auto != draw("rest", "speed"));
+    let auto = draw("falling", "auto");
+    assert!(auto == draw("falling", "speed"), "a collapse: by speed");
+    assert!(auto != draw("falling", "height"));
+}
+
+#[test]
+fn the_legend_writes_its_label_into_the_picture() {
+    // Two spheres whose radius and height are both 0.5: coloured alike by either in the range
+    // 0..1, so the pictures differ only where the legend's labels differ.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("two.csv"), "x,y,z,r\n-1,0,0.5,0.5\n1,0,0.5,0.5\n").unwrap();
+    let (w, h) = (240, 180);
+    let draw = |color_by: &str, legend: bool| {
+        let png = format!("{color_by}-{legend}.png");
+        let mut args = vec![
+            "render",
+            "two.csv",
+            "-o",
+            &png,
+            "--size",
+            "240x180",
+            "--samples",
+            "1",
+            "--range",
+            "0,1",
+            "--renderer",
+            "cpu",
+            "--color-by",
+            color_by,
+        ];
+        if !legend {
+            args.push("--no-legend");
+        }
+        let run = mochi(&args, d);
+        assert_eq!(run.0, Some(0), "{run:?}");
+        read_png(&d.join(&png)).unwrap()
+    };
+    let (radius, height) = (draw("radius", true), draw("height", true));
+    let bare = draw("radius", false);
+    // The two labels differ above the colour bar (which starts a quarter down) at the right;
+    // elsewhere at most the veil's left edge moves with the wider label.
+    let differ: Vec<(u32, u32)> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| radius.rgb(x, y) != height.rgb(x, y))
+        .collect();
+    let in_label = differ.iter().filter(|&&(_, y)| y < h / 4).count();
+    assert!(in_label > 50, "{in_label} pixels of the label differ");
+    assert!(differ.iter().all(|&(x, _)| x > w / 2), "{differ:?}");
+    let columns_below: std::collections::BTreeSet<u32> = differ
+        .iter()
+        .filter(|&&(_, y)| y >= h / 4)
+        .map(|&(x, _)| x)
+        .collect();
+    assert!(columns_below.len() <= 12, "{columns_below:?}");
+    // The text is ink: pixels above the bar darker with the legend than without (its veil
+    // only lightens), a few fully so, most in shades between (anti-aliased).
+    let shade = |image: &Image, x, y| image.rgb(x, y).iter().map(|&c| c as i32).sum::<i32>();
+    let darker: Vec<i32> = (0..h / 4)
+        .flat_map(|y| (w / 2..w).map(move |x| (x, y)))
+        .map(|(x, y)| shade(&bare, x, y) - shade(&radius, x, y))
+        .filter(|&d| d > 30)
+        .collect();
+    let solid = darker.iter().filter(|&&d| d > 400).count();
+    assert!(
+        darker.len() > 60 && solid > 10,
+        "{} darker, {solid} of them much",
+        darker.len()
+    );
+    assert!(
+        darker.len() > 2 * solid,
+        "{} darker, {solid} of them much",
+        darker.len()
     );
 }
 

@@ -4,7 +4,7 @@ use clap::{Args, Parser, Subcommand};
 use mochi::ProxyMode;
 use mochi::engines::wgpu_compute::{GridBuild, Structure};
 use mochi::engines::{BackendChoice, RebuildPolicy};
-use mochi::render::{ColorBy, RenderChoice};
+use mochi::render::{ColorChoice, RenderChoice};
 use mochi::scenes::{Layout, Scene};
 use std::path::PathBuf;
 
@@ -57,26 +57,31 @@ pub struct RenderArgs {
     /// Picture size in pixels, WxH.
     #[arg(long, value_name = "WxH", default_value = "960x720")]
     pub size: String,
-    /// Colour the spheres by radius, speed or material.
+    /// Colour the spheres by radius, speed, height (of the centre) or material; auto picks one
+    /// for each frame (below), for a folder one for the whole run (speed if any frame moves),
+    /// and for simulate --render-every speed.
     #[arg(long, value_enum, default_value_t)]
-    pub color_by: ColorBy,
-    /// Values at both ends of the colour map, MIN,MAX (default: the values' own range; over all
-    /// frames when rendering a folder).
+    pub color_by: ColorChoice,
+    /// Values at both ends of the colour map, MIN,MAX (default: the values' own range, speeds
+    /// from 0 to their 95th percentile, the legend's top then reading ≥; over all frames when
+    /// rendering a folder).
     #[arg(long, value_name = "MIN,MAX", allow_hyphen_values = true)]
     pub range: Option<String>,
-    /// Camera position x,y,z [m] (default: a 3/4 view from the front left, framing the box).
+    /// Camera position x,y,z [m] (default: from the front left, 33° above the horizon, or 12°
+    /// where what is framed is less than half as tall as it is wide, as a heap is, so that
+    /// its height shows; far enough that what is framed fills the picture).
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub eye: Option<String>,
-    /// The point at the picture's centre, x,y,z [m] (default: the centre of the box).
+    /// The point at the picture's centre, x,y,z [m] (default: the centre of what is framed).
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub look_at: Option<String>,
     /// Vertical field of view [degrees].
     #[arg(long, default_value_t = mochi::render::DEFAULT_FOV_DEG)]
     pub fov: f64,
-    /// What the default camera frames: auto (the simulation box, from scene.toml next to the
-    /// frames, unless most spheres, the 1st to 99th percentile of the centres on each axis,
-    /// span less than half of its diagonal, as a heap on a wide floor does: then those), the
-    /// box, or the spheres alone.
+    /// What the default camera frames: auto (the mesh walls drawn and every sphere, or without
+    /// walls most spheres: the 1st to 99th percentile of the centres on each axis, a heap
+    /// rather than the few that rolled far), every sphere and wall, or the simulation box
+    /// (from scene.toml next to the frames).
     #[arg(long, value_enum, default_value_t)]
     pub fit: Fit,
     /// Rays per pixel side (1-4): 2 gives 4 rays per pixel, smoother edges.
@@ -85,7 +90,8 @@ pub struct RenderArgs {
     /// No shadow rays.
     #[arg(long)]
     pub no_shadows: bool,
-    /// No floor (drawn where the simulation box is known: a checker at its bottom).
+    /// No floor (drawn where the simulation box is known and a sphere comes within 4 largest
+    /// radii of its bottom: a checker there).
     #[arg(long)]
     pub no_floor: bool,
     /// No colour legend and step caption.
@@ -136,13 +142,13 @@ impl RenderArgs {
 /// What the default camera frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Fit {
-    /// The simulation box, or most spheres (the 1st to 99th percentile of the centres on each
-    /// axis) where they span less than half of its diagonal.
+    /// The mesh walls drawn and every sphere, or without walls most spheres (the 1st to 99th
+    /// percentile of the centres on each axis).
     #[default]
     Auto,
-    /// The simulation box.
+    /// The simulation box (where scene.toml gives it; else every sphere and wall).
     Box,
-    /// The spheres of each frame.
+    /// Every sphere and mesh wall drawn.
     Spheres,
 }
 

@@ -8,6 +8,7 @@ mod output;
 mod render;
 mod run;
 mod simulate;
+mod view;
 mod walls;
 
 use clap::Parser;

@@ -1,56 +1,24 @@
 //! `mochi render` and the pictures of `mochi simulate --render-every`: frames in, PNG (and an
 //! optional animated GIF) out.
 
-use super::args::{Fit, RenderArgs, RenderCommandArgs};
+use super::args::{RenderArgs, RenderCommandArgs};
 use super::output::{check_output_folder, check_render_output, folder_of};
+use super::view::{Bounds, View, WallAt, union, walls_at};
 use anyhow::{Context, Result, bail};
 use mochi::dem::scene::SceneConfig;
 use mochi::dem::walls::WallSet;
 use mochi::io::{self, SERIES_INDEX};
-use mochi::render::{
-    Camera, ColorBy, Gif, Legend, Picture, Renderer, Scene, parse_point, parse_size, value_range,
-};
+use mochi::render::{ColorBy, ColorChoice, Gif, Legend, Renderer, Scene, parse_point, parse_size};
 use std::path::{Path, PathBuf};
 
 /// GIF frame delay [1/100 s].
 const GIF_DELAY_CS: u16 = 10;
 
-/// `--fit auto` frames the spheres rather than the box where the diagonal of their
-/// [`core_bounds`] is less than this share of the box's.
-const AUTO_FIT_SHARE: f64 = 0.5;
-
-/// Share of the centres, on each side of each axis, that [`core_bounds`] leaves out.
-const CORE_TAIL: f64 = 0.01;
-
-/// Lower and upper corners \[m\].
-type Bounds = ([f64; 3], [f64; 3]);
-
-/// Where most spheres are: on each axis, the centres from the 1st to the 99th percentile,
-/// widened by the largest radius (`None` for no spheres). A heap on a floor with a few spheres
-/// rolled far away is framed by its heap.
-fn core_bounds(positions: &[[f32; 3]], radii: &[f32]) -> Option<Bounds> {
-    let n = positions.len();
-    let r_max = radii.iter().copied().fold(0.0f32, f32::max) as f64;
-    let (lo_at, hi_at) = ((CORE_TAIL * n as f64) as usize, n.checked_sub(1)?);
-    let hi_at = hi_at - lo_at;
-    let mut bounds = ([0.0; 3], [0.0; 3]);
-    let mut axis: Vec<f32> = Vec::with_capacity(n);
-    for a in 0..3 {
-        axis.clear();
-        axis.extend(positions.iter().map(|c| c[a]));
-        let lo = *axis.select_nth_unstable_by(lo_at, f32::total_cmp).1;
-        let hi = *axis.select_nth_unstable_by(hi_at, f32::total_cmp).1;
-        bounds.0[a] = lo as f64 - r_max;
-        bounds.1[a] = hi as f64 + r_max;
-    }
-    Some(bounds)
-}
-
 /// Draws frames one after another with one renderer and one set of options.
 pub struct FrameRenderer {
     renderer: Renderer,
     view: View,
-    color_by: ColorBy,
+    color_by: ColorChoice,
     range: Option<(f32, f32)>,
     legend: bool,
     /// Where `--gif` asked for the animation.
@@ -59,48 +27,15 @@ pub struct FrameRenderer {
     gif: Option<Gif>,
 }
 
-/// Where the camera stands and what the picture is like.
-struct View {
-    size: (u32, u32),
-    eye: Option<[f64; 3]>,
-    look_at: Option<[f64; 3]>,
-    fov: f64,
-    samples: u32,
-    shadows: bool,
-    /// The simulation box, when known and the camera may frame it.
-    frame_box: Option<([f64; 3], [f64; 3])>,
-    /// Whether the camera frames the spheres instead where they fill little of the box.
-    fit_auto: bool,
-    /// The box whose bottom is drawn as the floor.
-    floor: Option<([f64; 3], [f64; 3])>,
-}
-
-impl View {
-    /// The picture of a frame whose spheres lie in `bounds`, most of them in `core` (see
-    /// [`core_bounds`]).
-    fn picture(&self, bounds: Bounds, core: Bounds) -> Picture {
-        let diagonal =
-            |(lo, hi): Bounds| (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
-        let (lo, hi) = match self.frame_box {
-            Some(b) if self.fit_auto && diagonal(core) < AUTO_FIT_SHARE * diagonal(b) => core,
-            Some(b) => b,
-            None => bounds,
-        };
-        let aspect = self.size.0 as f64 / self.size.1 as f64;
-        let mut camera = Camera::framing(lo, hi, aspect, self.fov);
-        if let Some(look_at) = self.look_at {
-            camera.look_at = look_at;
-        }
-        if let Some(eye) = self.eye {
-            camera.eye = eye;
-        }
-        Picture {
-            samples: self.samples,
-            shadows: self.shadows,
-            floor: self.floor,
-            ..Picture::new(self.size.0, self.size.1, camera)
-        }
-    }
+/// What a first pass over a run's frames learns, for all its pictures to share: what `auto`
+/// colours by (speed if any frame moves, else the last frame's choice), each quantity's range
+/// over the run, the region that holds every frame's, and whether any frame reaches the floor.
+#[derive(Default)]
+pub struct Survey {
+    color_by: Option<ColorBy>,
+    ranges: Vec<(ColorBy, (f32, f32))>,
+    region: Option<Bounds>,
+    floor: bool,
 }
 
 /// One frame's spheres (parallel slices).
@@ -115,8 +50,8 @@ pub struct FrameData<'a> {
     pub velocities: &'a [[f32; 3]],
     /// Materials (empty: one material).
     pub materials: &'a [u8],
-    /// The mesh walls' triangles where they are at this frame [m].
-    pub walls: &'a [[[f32; 3]; 3]],
+    /// The mesh walls where they are at this frame.
+    pub walls: &'a [WallAt],
 }
 
 impl FrameRenderer {
@@ -131,13 +66,13 @@ impl FrameRenderer {
             fov: args.fov,
             samples: args.samples,
             shadows: !args.no_shadows,
-            frame_box: sim_box.filter(|_| args.fit != Fit::Spheres),
-            fit_auto: args.fit == Fit::Auto,
-            floor: sim_box.filter(|_| !args.no_floor),
+            fit: args.fit,
+            sim_box,
+            floor_box: sim_box.filter(|_| !args.no_floor),
+            run: None,
         };
         // Catch a bad camera or sample count before any work.
-        view.picture(([0.0; 3], [1.0; 3]), ([0.0; 3], [1.0; 3]))
-            .validate()?;
+        view.picture(&view.frame(&[], &[], &[])).validate()?;
         if let Some(gif) = &args.gif
             && (view.size.0 > u16::MAX.into() || view.size.1 > u16::MAX.into())
         {
@@ -181,32 +116,83 @@ impl FrameRenderer {
         self.range.get_or_insert(range);
     }
 
-    /// Renders `frame` into the PNG `out` (and the GIF, if any).
-    pub fn render(&mut self, frame: &FrameData, out: &Path) -> Result<()> {
-        let values = self
+    /// Colours every later frame by `color_by`, whatever `--color-by auto` would pick for it.
+    pub fn set_color_by(&mut self, color_by: ColorBy) {
+        self.color_by = color_by.into();
+    }
+
+    /// Adds `frame` to `survey`.
+    pub fn survey(&self, frame: &FrameData, survey: &mut Survey) {
+        let walls_move = frame.walls.iter().any(WallAt::moves);
+        let picked = self
             .color_by
-            .values(frame.radii, frame.velocities, frame.materials);
-        let range = self.range.unwrap_or_else(|| value_range(&values));
+            .resolve(frame.radii, frame.velocities, walls_move);
+        if survey.color_by != Some(ColorBy::Speed) {
+            survey.color_by = Some(picked);
+        }
+        for color_by in ColorBy::ALL {
+            let values = color_by.values(
+                frame.positions,
+                frame.radii,
+                frame.velocities,
+                frame.materials,
+            );
+            if values.is_empty() {
+                continue;
+            }
+            let (lo, hi) = color_by.range(&values);
+            match survey.ranges.iter_mut().find(|(c, _)| *c == color_by) {
+                Some((_, range)) => *range = (range.0.min(lo), range.1.max(hi)),
+                None => survey.ranges.push((color_by, (lo, hi))),
+            }
+        }
+        let framed = self.view.frame(frame.positions, frame.radii, frame.walls);
+        survey.region = Some(match survey.region {
+            Some(region) => union(region, framed.region),
+            None => framed.region,
+        });
+        survey.floor |= framed.reaches_floor;
+    }
+
+    /// Draws every later frame as `survey` says: its colouring, range (unless `--range` fixed
+    /// one), region and floor.
+    pub fn settle(&mut self, survey: Survey) {
+        if let Some(color_by) = survey.color_by {
+            self.set_color_by(color_by);
+            if let Some(&(_, range)) = survey.ranges.iter().find(|(c, _)| *c == color_by) {
+                self.set_range(range);
+            }
+        }
+        if let Some(region) = survey.region {
+            self.view.run = Some((region, survey.floor));
+        }
+    }
+
+    /// Renders `frame` into the PNG `out` (and the GIF, if any); returns the number of wall
+    /// triangles drawn.
+    pub fn render(&mut self, frame: &FrameData, out: &Path) -> Result<usize> {
+        let walls_move = frame.walls.iter().any(WallAt::moves);
+        let color_by = self
+            .color_by
+            .resolve(frame.radii, frame.velocities, walls_move);
+        let values = color_by.values(
+            frame.positions,
+            frame.radii,
+            frame.velocities,
+            frame.materials,
+        );
+        let range = self.range.unwrap_or_else(|| color_by.range(&values));
+        let framed = self.view.frame(frame.positions, frame.radii, frame.walls);
         let scene = Scene::new(frame.positions, frame.radii, &values, range)?;
-        let spheres = scene.bounds();
-        let scene = scene.with_walls(frame.walls)?;
-        let bounds = scene.bounds().unwrap_or(([-1.0; 3], [1.0; 3]));
-        // The equipment belongs in the picture: where there are walls, the core takes them in.
-        let core = match (
-            core_bounds(frame.positions, frame.radii),
-            frame.walls.is_empty(),
-        ) {
-            (Some(core), true) => core,
-            (Some(core), false) => union(core, bounds),
-            (None, _) => spheres.unwrap_or(bounds),
-        };
-        let picture = self.view.picture(bounds, core);
+        let scene = scene.with_walls(&framed.walls)?;
+        let picture = self.view.picture(&framed);
         let mut image = self.renderer.render(&scene, &picture)?;
         if self.legend {
             image.draw_legend(&Legend {
-                label: self.color_by.label().into(),
+                label: color_by.label().into(),
                 min: range.0,
                 max: range.1,
+                above: values.iter().any(|&v| v > range.1),
             });
             if let Some(step) = frame.step {
                 image.draw_caption(&format!("step {step}"));
@@ -216,7 +202,7 @@ impl FrameRenderer {
         if let Some(gif) = &mut self.gif {
             gif.add(&image, GIF_DELAY_CS)?;
         }
-        Ok(())
+        Ok(framed.walls.len())
     }
 
     /// Puts the GIF in place, if one was started and got pictures; returns its path.
@@ -230,14 +216,6 @@ impl FrameRenderer {
             _ => Ok(None),
         }
     }
-}
-
-/// The box around both `a` and `b`.
-fn union(a: Bounds, b: Bounds) -> Bounds {
-    (
-        std::array::from_fn(|k| a.0[k].min(b.0[k])),
-        std::array::from_fn(|k| a.1[k].max(b.1[k])),
-    )
 }
 
 /// The mesh walls of the run in `dir` (its `scene.toml`) and its time step, to draw them where
@@ -272,14 +250,14 @@ impl RunWalls {
         }
     }
 
-    /// The triangles at step `step`.
-    pub fn at(&self, step: u64) -> Vec<[[f32; 3]; 3]> {
-        self.walls.triangles_at(step as f64 * self.dt)
+    /// The walls at step `step`.
+    pub fn at(&self, step: u64) -> Vec<WallAt> {
+        walls_at(&self.walls, step as f64 * self.dt)
     }
 }
 
-/// The walls of `walls` at `step` (none without walls).
-fn walls_at(walls: Option<&RunWalls>, step: u64) -> Vec<[[f32; 3]; 3]> {
+/// The walls of a run at `step` (none without walls).
+fn run_walls_at(walls: Option<&RunWalls>, step: u64) -> Vec<WallAt> {
     walls.map(|w| w.at(step)).unwrap_or_default()
 }
 
@@ -389,8 +367,8 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
     let mut renderer = FrameRenderer::new(&args.render, box_of(parent))?;
     io::remove_stale_temp_files(folder_of(&out));
     renderer.start_gif()?;
-    let walls = walls_at(RunWalls::of_run(parent).as_ref(), frame.step.unwrap_or(0));
-    renderer.render(
+    let walls = run_walls_at(RunWalls::of_run(parent).as_ref(), frame.step.unwrap_or(0));
+    let drawn = renderer.render(
         &FrameData {
             step: frame.step,
             positions: &frame.positions,
@@ -401,7 +379,7 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
         },
         &out,
     )?;
-    let walls = match walls.len() {
+    let walls = match drawn {
         0 => String::new(),
         n => format!(" with {n} wall triangles"),
     };
@@ -418,7 +396,8 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
     Ok(())
 }
 
-/// Every frame of a folder, with one colour range over all of them (unless `--range` gives one).
+/// Every frame of a folder, all with one colouring and colour range (unless `--range` gives
+/// one), one camera and the floor or not ([`Survey`]).
 fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()> {
     let files = frames_in(dir)?;
     if files.is_empty() {
@@ -440,25 +419,25 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     io::remove_stale_temp_files(out);
     renderer.start_gif()?;
-    if args.range.is_none() {
-        // A first pass for one colour range over the whole run (frames are read one at a time).
-        let mut lo = f32::INFINITY;
-        let mut hi = f32::NEG_INFINITY;
-        for file in &files {
-            let frame = io::read_frame(file)?;
-            let (a, b) = value_range(&args.color_by.values(
-                &frame.radii,
-                &frame.velocities,
-                &frame.materials,
-            ));
-            lo = lo.min(a);
-            hi = hi.max(b);
-        }
-        if lo <= hi {
-            renderer.set_range((lo, hi));
-        }
-    }
     let run_walls = RunWalls::of_run(dir);
+    // A first pass, frames read one at a time, for what every picture of the run shares.
+    let mut survey = Survey::default();
+    for (k, file) in files.iter().enumerate() {
+        let frame = io::read_frame(file)?;
+        let step = frame.step.unwrap_or(k as u64);
+        renderer.survey(
+            &FrameData {
+                step: Some(step),
+                positions: &frame.positions,
+                radii: &frame.radii,
+                velocities: &frame.velocities,
+                materials: &frame.materials,
+                walls: &run_walls_at(run_walls.as_ref(), step),
+            },
+            &mut survey,
+        );
+    }
+    renderer.settle(survey);
     for (k, file) in files.iter().enumerate() {
         let frame = io::read_frame(file)?;
         let step = frame.step.unwrap_or(k as u64);
@@ -470,7 +449,7 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
                 radii: &frame.radii,
                 velocities: &frame.velocities,
                 materials: &frame.materials,
-                walls: &walls_at(run_walls.as_ref(), step),
+                walls: &run_walls_at(run_walls.as_ref(), step),
             },
             &png,
         )?;

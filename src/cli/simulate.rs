@@ -4,13 +4,14 @@ use super::args::SimulateArgs;
 use super::backend_options::BackendFlags;
 use super::output;
 use super::render::{FrameData, FrameRenderer, png_name};
+use super::view::walls_at;
 use super::walls::{FlowLog, WallOutputs};
 use anyhow::Result;
 use indicatif::{ProgressBar, ProgressStyle};
 use mochi::dem::scene::{SceneFlags, SceneKind};
 use mochi::dem::{Clock, StageTimes, StepParams, Stepper, equipment};
 use mochi::io::{self, Frame, FrameSeries};
-use mochi::render::ColorBy;
+use mochi::render::{ColorBy, ColorChoice};
 use mochi::run::{FIRST_PROGRESS_STEPS, FileDigest, Run, RunStart, RunState, progress_steps};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -94,11 +95,13 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     } else {
         let sim_box = config.box_lo.zip(config.box_hi);
         let mut pictures = FrameRenderer::new(&args.render, sim_box)?;
-        // Every picture of the run in one range where it is known from the start.
+        // Every picture of the run in one range where it is known from the start; `auto`
+        // colours a running simulation by speed.
         match args.render.color_by {
-            ColorBy::Radius => pictures.set_range((r_min, r_max)),
-            ColorBy::Material => pictures.set_range((0.0, (p.materials.count - 1) as f32)),
-            ColorBy::Speed => {}
+            ColorChoice::Radius => pictures.set_range((r_min, r_max)),
+            ColorChoice::Material => pictures.set_range((0.0, (p.materials.count - 1) as f32)),
+            ColorChoice::Auto => pictures.set_color_by(ColorBy::Speed),
+            ColorChoice::Speed | ColorChoice::Height => {}
         }
         Some(pictures)
     };
@@ -178,7 +181,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let draw = |pictures: &mut Option<FrameRenderer>, stepper: &mut dyn Stepper| -> Result<()> {
         if let Some(pictures) = pictures {
             let now = stepper.particles()?;
-            let walls = walls.triangles_at(now.step as f64 * p.dt as f64);
+            let walls = walls_at(&walls, now.step as f64 * p.dt as f64);
             let frame = FrameData {
                 step: Some(now.step),
                 positions: &now.positions,

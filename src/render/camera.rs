@@ -7,8 +7,21 @@ use glam::{DVec3, Vec3};
 const UP: DVec3 = DVec3::Z;
 
 /// The default viewing direction, from the target towards the eye: a 3/4 view from the front
-/// left, above.
+/// left, 33° above the horizon.
 const VIEW_FROM: DVec3 = DVec3::new(-0.55, -1.0, 0.75);
+
+/// A region less tall than this share of its horizontal extent (a heap, a layer) is seen from
+/// [`LOW_ELEVATION_DEG`] above the horizon rather than along [`VIEW_FROM`]: from 33°, a heap
+/// whose slopes are gentler than that shows as a disc; from low, its outline shows its height
+/// and its slopes.
+const FLAT_SHARE: f64 = 0.5;
+
+/// The elevation of the view of a flat region \[degrees\] (the azimuth is [`VIEW_FROM`]'s).
+const LOW_ELEVATION_DEG: f64 = 12.0;
+
+/// Space left around the framed region: its projection spans at most `1 / FIT_MARGIN` of the
+/// picture's width or height.
+const FIT_MARGIN: f64 = 1.06;
 
 /// Largest image side in pixels.
 pub const MAX_SIDE: u32 = 8192;
@@ -36,19 +49,55 @@ fn camera_error(reason: String) -> Error {
 }
 
 impl Camera {
-    /// The default 3/4 view of the box `lo..hi`, from the front left and above, far enough that
-    /// the box's bounding sphere fits the picture of aspect `width / height`.
+    /// The default view of the box `lo..hi`: from the front left, 33° above the horizon, or
+    /// 12° where the box is less than half as tall as it is wide (a heap, a layer); the box's projection is centred and fills the picture of aspect
+    /// `width / height` but for a margin (every corner inside).
     pub fn framing(lo: [f64; 3], hi: [f64; 3], aspect: f64, fov_deg: f64) -> Camera {
         let (lo, hi) = (DVec3::from(lo), DVec3::from(hi));
-        let center = 0.5 * (lo + hi);
+        let forward = -unit(view_from(lo, hi));
+        let right = unit(forward.cross(UP));
+        let up = right.cross(forward);
+        let tan_v = (0.5 * fov_deg.to_radians()).tan() / FIT_MARGIN;
+        let tan_h = tan_v * aspect;
+        let corners: [DVec3; 8] = std::array::from_fn(|k| {
+            DVec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            )
+        });
+        // The eye never enters the box's bounding sphere: every corner lies ahead of it.
         let radius = 0.5 * (hi - lo).length().max(f64::MIN_POSITIVE);
-        let half_v = 0.5 * fov_deg.to_radians();
-        let half_h = (half_v.tan() * aspect.min(1.0)).atan();
-        let distance = 1.02 * radius / half_v.min(half_h).sin();
-        let dir = unit(VIEW_FROM);
+        let mut target = 0.5 * (lo + hi);
+        let mut distance = radius;
+        // Each round: the nearest distance at which every corner fits (around `target`), then
+        // `target` moved across the view so that the corners' projection is centred. A few
+        // rounds settle it to well under a pixel.
+        for _ in 0..6 {
+            distance = corners.iter().fold(1.02 * radius, |d, &p| {
+                let rel = p - target;
+                let depth = rel.dot(forward);
+                let across = rel.dot(right).abs() / tan_h - depth;
+                let along = rel.dot(up).abs() / tan_v - depth;
+                d.max(across).max(along)
+            });
+            let eye = target - distance * forward;
+            let (mut x, mut y) = (
+                (f64::INFINITY, f64::NEG_INFINITY),
+                (f64::INFINITY, f64::NEG_INFINITY),
+            );
+            for &p in &corners {
+                let rel = p - eye;
+                let depth = rel.dot(forward);
+                let (px, py) = (rel.dot(right) / depth, rel.dot(up) / depth);
+                x = (x.0.min(px), x.1.max(px));
+                y = (y.0.min(py), y.1.max(py));
+            }
+            target += distance * (0.5 * (x.0 + x.1) * right + 0.5 * (y.0 + y.1) * up);
+        }
         Camera {
-            eye: (center + distance * dir).to_array(),
-            look_at: center.to_array(),
+            eye: (target - distance * forward).to_array(),
+            look_at: target.to_array(),
             fov_deg,
         }
     }
@@ -96,6 +145,20 @@ impl Camera {
             // Key light from the upper left, slightly behind the viewer.
             light: unit(0.8 * up - 0.5 * right - 0.4 * forward).as_vec3(),
         }
+    }
+}
+
+/// The direction the default view of the box `lo..hi` looks from (towards the eye, not of
+/// unit length): [`VIEW_FROM`], or as low as [`LOW_ELEVATION_DEG`] above the horizon for a
+/// box less tall than half its larger horizontal side.
+fn view_from(lo: DVec3, hi: DVec3) -> DVec3 {
+    let size = hi - lo;
+    if size.z < FLAT_SHARE * size.x.max(size.y) {
+        let level = unit(DVec3::new(VIEW_FROM.x, VIEW_FROM.y, 0.0));
+        let up = LOW_ELEVATION_DEG.to_radians();
+        level * up.cos() + UP * up.sin()
+    } else {
+        VIEW_FROM
     }
 }
 
@@ -190,11 +253,72 @@ mod tests {
         }
     }
 
+    /// Where `p` falls in the picture of `cam` (`width`×`height`), in pixels.
+    fn project(cam: &Camera, width: u32, height: u32, p: DVec3) -> (f64, f64) {
+        let g = cam.grid(width, height);
+        let (corner, right, down) = (g.corner.as_dvec3(), g.right.as_dvec3(), g.down.as_dvec3());
+        let d = p - DVec3::from(cam.eye);
+        // d = s·(corner + x·right + y·down): solve the 3×3 system.
+        let m = glam::DMat3::from_cols(right, down, corner);
+        let xyz = m.inverse() * d;
+        (xyz.x / xyz.z, xyz.y / xyz.z)
+    }
+
+    /// The elevation of the view \[degrees\].
+    fn elevation(cam: &Camera) -> f64 {
+        let d = DVec3::from(cam.eye) - DVec3::from(cam.look_at);
+        (d.z / d.length()).asin().to_degrees()
+    }
+
     #[test]
-    fn the_framing_sees_the_whole_box() {
-        let cam = Camera::framing([0.0; 3], [1.0; 3], 4.0 / 3.0, 40.0);
-        let d = DVec3::from(cam.eye).distance(DVec3::from(cam.look_at));
-        assert!(d > 0.5 * 3f64.sqrt() / 20f64.to_radians().sin());
-        assert_eq!(cam.look_at, [0.5; 3]);
+    fn the_framing_fits_the_box_into_the_picture_centred() {
+        let (w, h) = (400, 300);
+        for (lo, hi) in [
+            ([0.0; 3], [1.0; 3]),
+            ([-0.2, -0.1, 0.0], [0.2, 0.1, 0.05]),
+            ([0.0, 0.0, -3.0], [0.5, 0.5, 1.0]),
+        ] {
+            let cam = Camera::framing(lo, hi, w as f64 / h as f64, 40.0);
+            let (lo, hi) = (DVec3::from(lo), DVec3::from(hi));
+            let (mut x, mut y) = ((f64::MAX, f64::MIN), (f64::MAX, f64::MIN));
+            for k in 0..8 {
+                let p = DVec3::select(glam::BVec3::new(k & 1 == 0, k & 2 == 0, k & 4 == 0), lo, hi);
+                let (px, py) = project(&cam, w, h, p);
+                x = (x.0.min(px), x.1.max(px));
+                y = (y.0.min(py), y.1.max(py));
+            }
+            let msg = format!("{lo}..{hi}: x {x:?}, y {y:?}");
+            assert!(
+                x.0 >= 0.0 && x.1 <= w as f64 && y.0 >= 0.0 && y.1 <= h as f64,
+                "{msg}"
+            );
+            // Centred, and filling the picture's width or height but for the margin.
+            assert!(
+                (x.0 + x.1 - w as f64).abs() < 1.0 && (y.0 + y.1 - h as f64).abs() < 1.0,
+                "{msg}"
+            );
+            let fill = ((x.1 - x.0) / w as f64).max((y.1 - y.0) / h as f64);
+            assert!(fill > 0.9, "{msg}: {fill}");
+        }
+    }
+
+    #[test]
+    fn a_flat_region_is_seen_from_low_and_a_tall_one_from_above() {
+        let heap = Camera::framing([-0.2, -0.2, 0.0], [0.2, 0.2, 0.08], 4.0 / 3.0, 40.0);
+        let column = Camera::framing([-0.1, -0.1, 0.0], [0.1, 0.1, 0.4], 4.0 / 3.0, 40.0);
+        let cube = Camera::framing([0.0; 3], [1.0; 3], 4.0 / 3.0, 40.0);
+        assert!(
+            (elevation(&heap) - LOW_ELEVATION_DEG).abs() < 1e-9,
+            "{}",
+            elevation(&heap)
+        );
+        for cam in [column, cube] {
+            assert!((elevation(&cam) - 33.3).abs() < 0.1, "{}", elevation(&cam));
+        }
+        // Both from the front left.
+        for cam in [heap, cube] {
+            let d = DVec3::from(cam.eye) - DVec3::from(cam.look_at);
+            assert!(d.x < 0.0 && d.y < 0.0 && d.y < 1.5 * d.x, "{d}");
+        }
     }
 }

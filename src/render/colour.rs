@@ -1,35 +1,54 @@
-//! Colour by a per-sphere value: the quantity ([`ColorBy`]), its range, and the viridis colour
-//! map (perceptually uniform, readable in grey and by most colour-blind viewers).
+//! Colour by a per-sphere value: the quantity ([`ColorBy`], or the one `auto` picks for a frame,
+//! [`ColorChoice`]), its range, and the viridis colour map (perceptually uniform, readable in
+//! grey and by most colour-blind viewers).
 
 use super::shade::pack;
 
 /// What a sphere's colour shows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ColorBy {
     /// The radius, in m.
-    #[default]
     Radius,
     /// The speed |v|, in m/s.
     Speed,
+    /// The height of the centre, z, in m.
+    Height,
     /// The material's index (0 for every sphere of a run of one material).
     Material,
 }
 
 impl ColorBy {
+    /// Every quantity.
+    pub const ALL: [ColorBy; 4] = [
+        ColorBy::Radius,
+        ColorBy::Speed,
+        ColorBy::Height,
+        ColorBy::Material,
+    ];
+
     /// The legend's label, with the unit.
     pub fn label(self) -> &'static str {
         match self {
             ColorBy::Radius => "radius [m]",
             ColorBy::Speed => "speed [m/s]",
+            ColorBy::Height => "height [m]",
             ColorBy::Material => "material",
         }
     }
 
     /// The value of each sphere: its radius, its speed (`velocities` may be empty for spheres
-    /// at rest) or its material (`materials` may be empty for one material).
-    pub fn values(self, radii: &[f32], velocities: &[[f32; 3]], materials: &[u8]) -> Vec<f32> {
+    /// at rest), the height of its centre or its material (`materials` may be empty for one
+    /// material).
+    pub fn values(
+        self,
+        positions: &[[f32; 3]],
+        radii: &[f32],
+        velocities: &[[f32; 3]],
+        materials: &[u8],
+    ) -> Vec<f32> {
         match self {
             ColorBy::Radius => radii.to_vec(),
+            ColorBy::Height => positions.iter().map(|p| p[2]).collect(),
             ColorBy::Material if materials.is_empty() => vec![0.0; radii.len()],
             ColorBy::Material => materials.iter().map(|&m| f32::from(m)).collect(),
             ColorBy::Speed if velocities.is_empty() => vec![0.0; radii.len()],
@@ -39,6 +58,109 @@ impl ColorBy {
                 .collect(),
         }
     }
+}
+
+impl ColorBy {
+    /// The range of the colour map for `values` of this quantity: their own (see
+    /// [`value_range`]), but for speeds from 0 to the 95th percentile: at rest is always the
+    /// map's bottom, and the few fastest (a stream, a sphere in flight) take its top rather
+    /// than leaving every slower one in its bottom colours.
+    pub fn range(self, values: &[f32]) -> (f32, f32) {
+        let (lo, hi) = value_range(values);
+        if self != ColorBy::Speed {
+            return (lo, hi);
+        }
+        let mut finite: Vec<f32> = values.iter().copied().filter(|v| v.is_finite()).collect();
+        let Some(last) = finite.len().checked_sub(1) else {
+            return (0.0, 0.0);
+        };
+        let at = (SPEED_TOP * last as f32).round() as usize;
+        let top = *finite.select_nth_unstable_by(at, f32::total_cmp).1;
+        // Where nineteen in twenty are at rest, the fastest set the top.
+        (0.0, if top > 0.0 { top } else { hi.max(0.0) })
+    }
+}
+
+/// The quantile of the speeds that the top of their colour map stands for.
+const SPEED_TOP: f32 = 0.95;
+
+/// What to colour the spheres by: one quantity, or `auto`, the one that tells most about a
+/// frame ([`ColorChoice::resolve`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum ColorChoice {
+    /// The speed where walls move (a hopper's gate, a drum: the flow they drive) or the
+    /// spheres do (a tenth of them faster than half the speed of a fall through their mean
+    /// radius under 9.81 m/s²), else the radius where the radii differ more than 3:1, else the
+    /// height.
+    #[default]
+    Auto,
+    /// The radius, in m.
+    Radius,
+    /// The speed |v|, in m/s.
+    Speed,
+    /// The height of the centre, z, in m.
+    Height,
+    /// The material's index (0 for every sphere of a run of one material).
+    Material,
+}
+
+impl From<ColorBy> for ColorChoice {
+    /// That quantity, chosen.
+    fn from(color_by: ColorBy) -> Self {
+        match color_by {
+            ColorBy::Radius => ColorChoice::Radius,
+            ColorBy::Speed => ColorChoice::Speed,
+            ColorBy::Height => ColorChoice::Height,
+            ColorBy::Material => ColorChoice::Material,
+        }
+    }
+}
+
+/// `auto` colours by speed where a tenth of the spheres move faster than this share of
+/// √(2·g·r̄), the speed of a fall through the mean radius r̄ (g = 9.81 m/s²): a collapse or a
+/// flow, but not a heap whose last few spheres still roll away from its foot.
+const MOVING_SHARE: f32 = 0.5;
+
+/// `auto` colours by radius where the largest radius exceeds the smallest this many times
+/// (and nothing moves): sizes that different are what tells the spheres apart.
+const SIZES_APART: f32 = 3.0;
+
+impl ColorChoice {
+    /// The quantity: the one chosen, or for `auto` the one that tells most about spheres of
+    /// `radii` moving at `velocities` (empty: at rest) among walls that move or not
+    /// (`walls_move`): their speed where either moves (see [`ColorChoice::Auto`]), else their
+    /// radius where it differs more than 3:1, else their height.
+    pub fn resolve(self, radii: &[f32], velocities: &[[f32; 3]], walls_move: bool) -> ColorBy {
+        match self {
+            ColorChoice::Radius => ColorBy::Radius,
+            ColorChoice::Speed => ColorBy::Speed,
+            ColorChoice::Height => ColorBy::Height,
+            ColorChoice::Material => ColorBy::Material,
+            ColorChoice::Auto if walls_move || moving(radii, velocities) => ColorBy::Speed,
+            ColorChoice::Auto => {
+                let (lo, hi) = value_range(radii);
+                if hi > SIZES_APART * lo {
+                    ColorBy::Radius
+                } else {
+                    ColorBy::Height
+                }
+            }
+        }
+    }
+}
+
+/// Whether a tenth of the spheres move faster than [`MOVING_SHARE`] of √(2·g·r̄).
+fn moving(radii: &[f32], velocities: &[[f32; 3]]) -> bool {
+    if velocities.is_empty() || radii.is_empty() {
+        return false;
+    }
+    let mean = radii.iter().map(|&r| r as f64).sum::<f64>() / radii.len() as f64;
+    let slow = MOVING_SHARE * (2.0 * 9.81 * mean as f32).sqrt();
+    let fast = velocities
+        .iter()
+        .filter(|&&v| glam::Vec3::from(v).length() > slow)
+        .count();
+    10 * fast >= velocities.len()
 }
 
 /// The smallest and largest finite value, or `(0, 0)` when there is none.
@@ -103,6 +225,56 @@ mod tests {
         assert!(lo[2] > lo[1] && hi[0] > 0.9 && hi[1] > 0.85);
         assert_eq!(viridis(f32::NAN), lo);
         assert_eq!(viridis(2.0), hi);
+    }
+
+    #[test]
+    fn auto_colours_by_speed_where_things_move_else_by_radius_or_height() {
+        // 100 spheres of mean radius 5 mm: √(2·g·r̄) = 0.31 m/s, half of it 0.157 m/s.
+        let radii: Vec<f32> = (0..100).map(|k| 0.004 + 0.001 * (k % 3) as f32).collect();
+        let creeping = vec![[0.0, 0.15, 0.0]; 100];
+        let mut ten_roll = creeping.clone();
+        for v in &mut ten_roll[40..50] {
+            *v = [0.0, 0.0, -0.16];
+        }
+        let mut nine_roll = ten_roll.clone();
+        nine_roll[40] = [0.0; 3];
+        let auto = |r: &[f32], v: &[[f32; 3]]| ColorChoice::Auto.resolve(r, v, false);
+        assert_eq!(auto(&radii, &creeping), ColorBy::Height);
+        assert_eq!(auto(&radii, &nine_roll), ColorBy::Height);
+        assert_eq!(auto(&radii, &ten_roll), ColorBy::Speed);
+        assert_eq!(auto(&radii, &[]), ColorBy::Height);
+        // Walls that move make it speed, whatever the spheres do.
+        assert_eq!(ColorChoice::Auto.resolve(&radii, &[], true), ColorBy::Speed);
+        let mut mixed = radii.clone();
+        mixed[0] = 0.0015;
+        assert_eq!(auto(&mixed, &creeping), ColorBy::Radius);
+        assert_eq!(auto(&mixed, &ten_roll), ColorBy::Speed);
+        assert_eq!(auto(&[], &[]), ColorBy::Height);
+        // A quantity named is kept.
+        for color_by in ColorBy::ALL {
+            let chosen = ColorChoice::from(color_by);
+            assert_eq!(chosen.resolve(&radii, &ten_roll, true), color_by);
+        }
+    }
+
+    #[test]
+    fn speeds_are_coloured_from_zero_to_their_95th_percentile() {
+        let mut speeds: Vec<f32> = (0..100).map(|k| k as f32 / 100.0).collect();
+        speeds.push(f32::NAN);
+        assert_eq!(ColorBy::Speed.range(&speeds), (0.0, 0.94));
+        assert_eq!(ColorBy::Height.range(&speeds), (0.0, 0.99));
+        // Nearly all at rest: the fastest set the top.
+        let mut resting = vec![0.0; 100];
+        resting[7] = 0.5;
+        assert_eq!(ColorBy::Speed.range(&resting), (0.0, 0.5));
+        assert_eq!(ColorBy::Speed.range(&[]), (0.0, 0.0));
+    }
+
+    #[test]
+    fn height_is_the_centres_z() {
+        let values =
+            ColorBy::Height.values(&[[1.0, 2.0, 3.0], [0.0, 0.0, -1.0]], &[1.0; 2], &[], &[]);
+        assert_eq!(values, [3.0, -1.0]);
     }
 
     #[test]

@@ -1,108 +1,76 @@
-//! A 3×5 bitmap font of our own (`m` is 5 wide), just large enough for legends: digits, `.`,
-//! `+`, `-`, `e`, brackets, `/` and the lower-case letters of the labels.
+//! The pictures' text: DejaVu Sans (`assets/fonts/`, its licence beside it), embedded in the
+//! binary and rasterised by `ab_glyph` into coverage, which the caller blends into the picture
+//! (anti-aliased). One line at a time, laid out left to right with the font's advances and
+//! kerning; a character the font lacks shows as its missing-glyph box.
 
-/// Width in columns of a glyph.
-fn glyph_width(c: char) -> u32 {
-    if c == 'm' { 5 } else { 3 }
+use ab_glyph::{Font, FontRef, Glyph, PxScale, ScaleFont, point};
+use std::sync::OnceLock;
+
+/// The font file, as shipped (DejaVu Sans 2.37).
+const DEJAVU_SANS: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+/// The parsed font, once.
+fn font() -> &'static FontRef<'static> {
+    static FONT: OnceLock<FontRef<'static>> = OnceLock::new();
+    // The bytes are part of the binary, not input: the unit tests parse them.
+    FONT.get_or_init(|| FontRef::try_from_slice(DEJAVU_SANS).expect("the embedded font parses"))
 }
 
-/// Each glyph: five rows from the top, [`glyph_width`] bits each (the high bit is the left
-/// column).
-fn glyph(c: char) -> Option<[u8; 5]> {
-    Some(match c {
-        '0' => [0b111, 0b101, 0b101, 0b101, 0b111],
-        '1' => [0b010, 0b110, 0b010, 0b010, 0b111],
-        '2' => [0b111, 0b001, 0b111, 0b100, 0b111],
-        '3' => [0b111, 0b001, 0b111, 0b001, 0b111],
-        '4' => [0b101, 0b101, 0b111, 0b001, 0b001],
-        '5' => [0b111, 0b100, 0b111, 0b001, 0b111],
-        '6' => [0b111, 0b100, 0b111, 0b101, 0b111],
-        '7' => [0b111, 0b001, 0b001, 0b010, 0b010],
-        '8' => [0b111, 0b101, 0b111, 0b101, 0b111],
-        '9' => [0b111, 0b101, 0b111, 0b001, 0b111],
-        '.' => [0b000, 0b000, 0b000, 0b000, 0b010],
-        '-' => [0b000, 0b000, 0b111, 0b000, 0b000],
-        '+' => [0b000, 0b010, 0b111, 0b010, 0b000],
-        '[' => [0b110, 0b100, 0b100, 0b100, 0b110],
-        ']' => [0b011, 0b001, 0b001, 0b001, 0b011],
-        '/' => [0b001, 0b001, 0b010, 0b100, 0b100],
-        ' ' => [0; 5],
-        'a' => [0b000, 0b011, 0b101, 0b101, 0b011],
-        'd' => [0b001, 0b011, 0b101, 0b101, 0b011],
-        'e' => [0b000, 0b011, 0b111, 0b100, 0b011],
-        'i' => [0b010, 0b000, 0b010, 0b010, 0b010],
-        'm' => [0b00000, 0b11110, 0b10101, 0b10101, 0b10101],
-        'n' => [0b000, 0b110, 0b101, 0b101, 0b101],
-        'o' => [0b000, 0b010, 0b101, 0b101, 0b010],
-        'p' => [0b000, 0b110, 0b101, 0b110, 0b100],
-        'r' => [0b000, 0b101, 0b110, 0b100, 0b100],
-        's' => [0b000, 0b011, 0b110, 0b011, 0b110],
-        't' => [0b010, 0b111, 0b010, 0b010, 0b001],
-        'u' => [0b000, 0b101, 0b101, 0b101, 0b011],
-        _ => return None,
-    })
+/// `text` laid out at `size` px (the font's ascent to descent): each glyph with its pen
+/// position, the baseline at `y = 0` and the first glyph's origin at `x = 0`, and the advance
+/// of the whole line \[px\].
+fn layout(text: &str, size: f32) -> (Vec<Glyph>, f32) {
+    let font = font().as_scaled(PxScale::from(size));
+    let mut glyphs = Vec::with_capacity(text.len());
+    let mut pen = 0.0;
+    let mut previous = None;
+    for c in text.chars() {
+        let id = font.glyph_id(c);
+        if let Some(before) = previous {
+            pen += font.kern(before, id);
+        }
+        glyphs.push(id.with_scale_and_position(size, point(pen, 0.0)));
+        pen += font.h_advance(id);
+        previous = Some(id);
+    }
+    (glyphs, pen)
 }
 
-/// Width of `text` in pixels at `scale` (each glyph plus a gap of 1, times `scale`).
-pub(crate) fn text_width(text: &str, scale: u32) -> u32 {
-    let columns: u32 = text.chars().map(|c| glyph_width(c) + 1).sum();
-    columns.saturating_sub(1) * scale
+/// Width of `text` at `size` px, in whole pixels (its advance, rounded up).
+pub(crate) fn text_width(text: &str, size: f32) -> u32 {
+    layout(text, size).1.ceil() as u32
 }
 
-/// Height of a line of text in pixels at `scale`.
-pub(crate) fn text_height(scale: u32) -> u32 {
-    5 * scale
+/// Height of a line of text at `size` px, from the top of the tallest letters to the bottom of
+/// the deepest descender, in whole pixels.
+pub(crate) fn line_height(size: f32) -> u32 {
+    let font = font().as_scaled(PxScale::from(size));
+    (font.ascent() - font.descent()).ceil() as u32
 }
 
-/// Calls `set(x, y)` for every lit pixel of `text` with its top left at `(x0, y0)`; characters
-/// the font lacks are drawn as a box.
+/// Calls `ink(x, y, coverage)` for every pixel that `text` at `size` px covers, with the top
+/// of its line (see [`line_height`]) at `y0` and its left end at `x0`; `coverage` is in
+/// (0, 1], the share of the pixel the letters cover.
 pub(crate) fn draw_text(
     text: &str,
     (x0, y0): (i64, i64),
-    scale: u32,
-    mut set: impl FnMut(i64, i64),
+    size: f32,
+    mut ink: impl FnMut(i64, i64, f32),
 ) {
-    let scale = scale as i64;
-    let mut left = x0;
-    for c in text.chars() {
-        let (rows, width) = match glyph(c) {
-            Some(rows) => (rows, glyph_width(c) as i64),
-            None => ([0b111, 0b101, 0b101, 0b101, 0b111], 3),
+    let ascent = font().as_scaled(PxScale::from(size)).ascent();
+    let (glyphs, _) = layout(text, size);
+    for mut glyph in glyphs {
+        glyph.position.y += ascent;
+        let Some(outline) = font().outline_glyph(glyph) else {
+            continue; // a space, or a glyph without an outline
         };
-        for (row, bits) in rows.iter().enumerate() {
-            for col in 0..width {
-                if bits & (1 << (width - 1 - col)) == 0 {
-                    continue;
-                }
-                for dy in 0..scale {
-                    for dx in 0..scale {
-                        set(left + col * scale + dx, y0 + row as i64 * scale + dy);
-                    }
-                }
+        let min = outline.px_bounds().min;
+        outline.draw(|x, y, coverage| {
+            if coverage > 0.0 {
+                let (x, y) = (x as i64 + min.x as i64, y as i64 + min.y as i64);
+                ink(x0 + x, y0 + y, coverage.min(1.0));
             }
-        }
-        left += (width + 1) * scale;
-    }
-}
-
-/// `value` in at most four significant digits: plain for 0.01 ≤ |v| < 10⁴ (and 0), else as
-/// `m.mme±x`.
-pub(crate) fn format_value(value: f32) -> String {
-    let a = value.abs();
-    if a == 0.0 || (1e-2..1e4).contains(&a) {
-        let decimals = if a == 0.0 {
-            0
-        } else {
-            (3 - a.log10().floor() as i32).clamp(0, 5)
-        };
-        let text = format!("{value:.*}", decimals as usize);
-        if text.contains('.') {
-            text.trim_end_matches('0').trim_end_matches('.').to_owned()
-        } else {
-            text
-        }
-    } else {
-        format!("{value:.2e}")
+        });
     }
 }
 
@@ -110,24 +78,53 @@ pub(crate) fn format_value(value: f32) -> String {
 mod tests {
     use super::*;
 
-    #[test]
-    fn values_format_short() {
-        assert_eq!(format_value(0.0), "0");
-        assert_eq!(format_value(1.5), "1.5");
-        assert_eq!(format_value(12.34567), "12.35");
-        assert_eq!(format_value(0.0005), "5.00e-4");
-        assert_eq!(format_value(-2.5e6), "-2.50e6");
+    /// The pixels `text` at `size` covers, as a `width`×`height` mask of coverage.
+    fn mask(text: &str, size: f32) -> (u32, u32, Vec<f32>) {
+        let (w, h) = (text_width(text, size), line_height(size));
+        let mut cover = vec![0.0; (w * h) as usize];
+        draw_text(text, (0, 0), size, |x, y, c| {
+            assert!(
+                (0..w as i64).contains(&x) && (0..h as i64).contains(&y),
+                "{text:?}: ({x}, {y}) outside {w}x{h}"
+            );
+            cover[(y as u32 * w + x as u32) as usize] += c;
+        });
+        (w, h, cover)
     }
 
     #[test]
-    fn every_character_of_the_labels_and_numbers_has_a_glyph() {
-        for c in "radius [m]speed [m/s]step 0123456789.-+e".chars() {
-            assert!(glyph(c).is_some(), "{c:?}");
+    fn the_embedded_font_has_every_character_of_the_labels() {
+        for c in "radius [m] speed [m/s] height material step 0123456789.-+e ≥×⁰¹²³⁴⁵⁶⁷⁸⁹⁻ µ°·–"
+            .chars()
+            .filter(|c| !c.is_whitespace())
+        {
+            assert_ne!(font().glyph_id(c).0, 0, "{c:?} has no glyph");
         }
-        let mut lit = 0;
-        draw_text("8", (0, 0), 2, |_, _| lit += 1);
-        assert_eq!(lit, 13 * 4);
-        assert_eq!(text_width("ab", 2), 14);
-        assert_eq!(text_width("m", 1), 5);
+    }
+
+    #[test]
+    fn text_is_drawn_anti_aliased_inside_its_box() {
+        let (w, h, cover) = mask("speed [m/s]", 20.0);
+        assert!((61..160).contains(&w) && (20..=26).contains(&h), "{w}x{h}");
+        let inked = cover.iter().filter(|&&c| c > 0.0).count();
+        let partial = cover.iter().filter(|&&c| c > 0.05 && c < 0.95).count();
+        assert!(inked > 150, "{inked} pixels inked");
+        assert!(partial > inked / 5, "{partial} of {inked} partly covered");
+        // Letters differ: "l" and "o" differ in shape as they do in width.
+        let (_, _, l) = mask("l", 20.0);
+        let (_, _, o) = mask("o", 20.0);
+        assert_ne!(l, o);
+        // Larger text covers more.
+        let small: f32 = mask("8", 12.0).2.iter().sum();
+        let large: f32 = mask("8", 24.0).2.iter().sum();
+        assert!(large > 3.0 * small, "{small} {large}");
+    }
+
+    #[test]
+    fn spaces_advance_without_ink() {
+        let (_, _, cover) = mask(" ", 20.0);
+        assert!(cover.iter().all(|&c| c == 0.0));
+        assert!(text_width("a b", 20.0) > text_width("ab", 20.0));
+        assert_eq!(text_width("", 20.0), 0);
     }
 }

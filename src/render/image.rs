@@ -1,7 +1,5 @@
-//! Pictures: an RGBA image in memory, its legend, and PNG and animated-GIF files.
+//! Pictures: an RGBA image in memory, and PNG and animated-GIF files.
 
-use super::colour::{unit, viridis};
-use super::font::{draw_text, format_value, text_height, text_width};
 use super::shade::{pack, unpack};
 use crate::error::{Error, Result};
 use crate::io::{AtomicFile, write_atomically};
@@ -17,25 +15,6 @@ pub struct Image {
     pub height: u32,
     /// `width·height` pixels, row by row, each `r | g << 8 | b << 16 | a << 24`.
     pub pixels: Vec<u32>,
-}
-
-/// How far [`Image::veil`] lightens what lies under the legend (0: not at all, 1: white).
-const VEIL: f32 = 0.7;
-
-/// Pixels per font pixel for a picture `height` pixels high.
-fn text_scale(height: u32) -> u32 {
-    (height / 180).clamp(1, 4)
-}
-
-/// What a colour legend shows: a label and the values at both ends of the colour map.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Legend {
-    /// The quantity and its unit, e.g. `radius [m]`.
-    pub label: String,
-    /// The value coloured as the bottom of the map.
-    pub min: f32,
-    /// The value coloured as the top of the map.
-    pub max: f32,
 }
 
 impl Image {
@@ -54,89 +33,16 @@ impl Image {
         self.pixels.iter().flat_map(|p| p.to_le_bytes()).collect()
     }
 
-    fn set(&mut self, x: i64, y: i64, colour: u32) {
+    /// Mixes `colour` into pixel `(x, y)` by `alpha` in [0, 1] (1: `colour` alone); pixels
+    /// outside the picture are left alone.
+    pub(super) fn blend(&mut self, x: i64, y: i64, colour: [f32; 3], alpha: f32) {
         if x >= 0 && y >= 0 && (x as u32) < self.width && (y as u32) < self.height {
-            self.pixels[(y as u32 * self.width + x as u32) as usize] = colour;
+            let i = (y as u32 * self.width + x as u32) as usize;
+            let under = unpack(self.pixels[i]);
+            self.pixels[i] = pack(std::array::from_fn(|k| {
+                under[k] + (colour[k] - under[k]) * alpha
+            }));
         }
-    }
-
-    /// Lightens the rectangle `x0..x1` × `y0..y1` (clipped), so that text on it stays legible.
-    fn veil(&mut self, (x0, y0): (i64, i64), (x1, y1): (i64, i64)) {
-        for y in y0.max(0)..y1.min(self.height as i64) {
-            for x in x0.max(0)..x1.min(self.width as i64) {
-                let i = (y as u32 * self.width + x as u32) as usize;
-                let c = unpack(self.pixels[i]);
-                self.pixels[i] = pack(c.map(|v| v + (0.97 - v) * VEIL));
-            }
-        }
-    }
-
-    /// Draws `legend` at the right edge on a light veil: the label, the maximum, a vertical
-    /// colour bar and the minimum. Pictures smaller than 96×64 get no legend (it would hide the
-    /// spheres).
-    pub fn draw_legend(&mut self, legend: &Legend) {
-        if self.width < 96 || self.height < 64 {
-            return;
-        }
-        let scale = text_scale(self.height);
-        let margin = (4 * scale) as i64;
-        let line = (text_height(scale) + 2 * scale) as i64;
-        let bar_w = (6 * scale) as i64;
-        let bar_h = (self.height / 2) as i64;
-        let right = self.width as i64 - margin;
-        let ink = pack([0.08, 0.08, 0.1]);
-        let top = (self.height as i64 - bar_h) / 2;
-        let (max, min) = (format_value(legend.max), format_value(legend.min));
-        let widest = [&legend.label, &max, &min]
-            .iter()
-            .map(|s| text_width(s, scale))
-            .max()
-            .unwrap_or(0) as i64;
-        let pad = 2 * scale as i64;
-        self.veil(
-            (right - widest - pad, top - 2 * line - pad),
-            (right + pad, top + bar_h + line + pad),
-        );
-        let text = |image: &mut Image, s: &str, y: i64| {
-            let x = right - text_width(s, scale) as i64;
-            draw_text(s, (x, y), scale, |px, py| image.set(px, py, ink));
-        };
-        text(self, &legend.label, top - 2 * line);
-        text(self, &max, top - line);
-        text(self, &min, top + bar_h + 2 * scale as i64);
-        for dy in 0..bar_h {
-            let u = 1.0 - dy as f32 / (bar_h - 1).max(1) as f32;
-            let value = legend.min + (legend.max - legend.min) * u;
-            let colour = pack(viridis(unit(value, (legend.min, legend.max))));
-            for dx in 0..bar_w {
-                let edge = dx == 0 || dx == bar_w - 1 || dy == 0 || dy == bar_h - 1;
-                self.set(
-                    right - bar_w + dx,
-                    top + dy,
-                    if edge { ink } else { colour },
-                );
-            }
-        }
-    }
-
-    /// Writes `text` at the top left on a light veil (letters the font lacks show as boxes).
-    /// Pictures smaller than 96×64 get no caption.
-    pub fn draw_caption(&mut self, text: &str) {
-        if self.width < 96 || self.height < 64 {
-            return;
-        }
-        let scale = text_scale(self.height);
-        let ink = pack([0.08, 0.08, 0.1]);
-        let at = (4 * scale) as i64;
-        let pad = 2 * scale as i64;
-        self.veil(
-            (at - pad, at - pad),
-            (
-                at + text_width(text, scale) as i64 + pad,
-                at + text_height(scale) as i64 + pad,
-            ),
-        );
-        draw_text(text, (at, at), scale, |x, y| self.set(x, y, ink));
     }
 
     /// Writes the picture as an 8-bit RGB PNG, atomically.
@@ -310,40 +216,6 @@ mod tests {
         let path = dir.path().join("a.png");
         image.write_png(&path).unwrap();
         assert_eq!(read_png(&path).unwrap(), image);
-    }
-
-    #[test]
-    fn the_legend_draws_the_colour_map() {
-        let mut image = Image {
-            width: 200,
-            height: 100,
-            pixels: vec![pack([1.0; 3]); 200 * 100],
-        };
-        image.draw_legend(&Legend {
-            label: "radius [m]".into(),
-            min: 0.0005,
-            max: 0.0006,
-        });
-        // The bar: 6 px wide at the right margin of 4, from y = 25 to 74.
-        let near = |p: [u8; 3], want: [f32; 3]| {
-            (0..3).all(|k| (p[k] as f32 - want[k] * 255.0).abs() <= 16.0)
-        };
-        assert!(
-            near(image.rgb(192, 26), viridis(1.0)),
-            "{:?}",
-            image.rgb(192, 26)
-        );
-        assert!(
-            near(image.rgb(192, 73), viridis(0.0)),
-            "{:?}",
-            image.rgb(192, 73)
-        );
-        let ink = image
-            .pixels
-            .iter()
-            .filter(|&&p| p == pack([0.08, 0.08, 0.1]))
-            .count();
-        assert!(ink > 200, "{ink} pixels of text and frame");
     }
 
     #[test]

@@ -1,10 +1,13 @@
 //! Pictures of spheres: ray traced, headless, on the GPU or the CPU.
 //!
-//! A [`Scene`] holds the spheres with a colour each (by radius, speed or material, [`ColorBy`], through
-//! the viridis map) and any mesh walls' triangles ([`Scene::with_walls`]: a translucent skin, the
-//! nearest wall laid over what lies behind it); a [`Picture`] says what to draw (size, [`Camera`], samples per pixel,
-//! shadows); a [`Renderer`] draws it into an [`Image`], which gets a colour [`Legend`] and is
-//! written as PNG (or collected into an animated [`Gif`]).
+//! A [`Scene`] holds the spheres with a colour each (by radius, speed, height or material,
+//! [`ColorBy`], through the viridis map; [`ColorChoice::Auto`] picks one for a frame) and any
+//! mesh walls' triangles ([`Scene::with_walls`]: a translucent skin, the nearest wall laid over
+//! what lies behind it); a [`Picture`] says what to draw (size, [`Camera`] — by default
+//! [`Camera::framing`] the region to show, from low for a heap —, samples per pixel, shadows);
+//! a [`Renderer`] draws it into an [`Image`], which gets a colour [`Legend`] and a caption in
+//! DejaVu Sans (embedded, anti-aliased) and is written as PNG (or collected into an animated
+//! [`Gif`]).
 //!
 //! Three render paths give the same picture up to rounding. Each runs on the hardware of one
 //! detection backend, whose name it takes, and is picked through the same registry
@@ -27,7 +30,7 @@
 //! use mochi::render::{Camera, ColorBy, Picture, RenderChoice, Renderer, Scene};
 //! let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
 //! let radii = [0.5, 0.3];
-//! let values = ColorBy::Radius.values(&radii, &[], &[]);
+//! let values = ColorBy::Radius.values(&positions, &radii, &[], &[]);
 //! let scene = Scene::new(&positions, &radii, &values, (0.3, 0.5))?;
 //! let (lo, hi) = scene.bounds().expect("not empty");
 //! let picture = Picture::new(64, 48, Camera::framing(lo, hi, 64.0 / 48.0, 40.0));
@@ -44,13 +47,15 @@ mod cpu;
 mod font;
 mod gpu;
 mod image;
+mod legend;
 mod scene;
 mod shade;
 mod shaders;
 
 pub use camera::{Camera, DEFAULT_FOV_DEG, MAX_SIDE, check_size, parse_point, parse_size};
-pub use colour::{ColorBy, unit, value_range, viridis};
-pub use image::{Gif, Image, Legend, read_png};
+pub use colour::{ColorBy, ColorChoice, unit, value_range, viridis};
+pub use image::{Gif, Image, read_png};
+pub use legend::Legend;
 pub use scene::Scene;
 pub use shaders::modules as shaders;
 
