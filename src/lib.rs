@@ -15,6 +15,7 @@
 //! - [`oracle`]: brute force, for tests.
 //! - [`io`]: sphere files (CSV `x,y,z,r[,vx,vy,vz[,wx,wy,wz]]`, NumPy `.npy` N×4, N×7 or
 //!   N×10), pair files (CSV `i,j`), simulation frames (VTK `.vtu` + `.pvd`) and checkpoints.
+//! - [`numbers`]: numbers as people read them (significant digits; `f32` widened without noise).
 //! - [`scenes`]: the paper's datasets, seeded and reproducible.
 //! - [`dem`]: the discrete-element simulation: the contact model, scene files and the
 //!   [`dem::Stepper`] trait each engine implements (GPU-resident on the GPU engines).
@@ -43,6 +44,7 @@ pub mod gpu;
 pub mod io;
 pub mod mesh;
 mod morton;
+pub mod numbers;
 pub mod oracle;
 mod particles;
 pub mod proxy;

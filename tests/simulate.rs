@@ -358,15 +358,45 @@ fn named_options_set_the_scene_and_set_overrides_them() {
         "spheres = 100",
         "seed = 5",
         "mode = \"nns\"",
-        // The time step as f32 resolved it.
-        "dt = 0.0000199999",
+        // The time step as f32 resolved it, by its shortest decimal.
+        "dt = 0.00002",
         "csv = true",
     ] {
-        assert!(
-            scene.lines().any(|l| l.starts_with(line)),
-            "{line} in\n{scene}"
-        );
+        assert!(scene.lines().any(|l| l == line), "{line} in\n{scene}");
     }
+}
+
+#[test]
+fn the_saved_scene_holds_short_numbers_and_resumes_as_the_same_run() {
+    let dir = tempfile::tempdir().unwrap();
+    // The default scene, whose box (fitted to 300 spheres) and time step (0.2 Rayleigh times)
+    // are derived f32 values.
+    let run = ["simulate", "-n", "300", "--backend", "cpu", "-q"];
+    ok(
+        &[&run[..], &["--steps", "6", "-o", "straight"]].concat(),
+        dir.path(),
+    );
+    ok(
+        &[&run[..], &["--steps", "3", "-o", "split"]].concat(),
+        dir.path(),
+    );
+    let saved = std::fs::read_to_string(dir.path().join("split/scene.toml")).unwrap();
+    for key in ["dt = ", "box_hi = ", "gravity_spin = "] {
+        let line = saved.lines().find(|l| l.starts_with(key)).unwrap();
+        // An f32 by its shortest decimal has at most 9 significant digits, one widened to f64
+        // (0.800000011920929) 15 to 17.
+        let digits = line.split([',', '[']).map(|number| {
+            let mantissa = number.split('e').next().unwrap();
+            let digits: String = mantissa.chars().filter(char::is_ascii_digit).collect();
+            digits.trim_matches('0').len()
+        });
+        assert!(digits.max().unwrap() <= 9, "{line}");
+    }
+    // Resumed from its saved scene, the run is the uninterrupted one: the same particles, the
+    // same scene saved.
+    ok(&strs(&resume_run("split", "6", &[])), dir.path());
+    let read = |run: &str| std::fs::read(dir.path().join(run).join("checkpoint.bin")).unwrap();
+    assert!(read("straight") == read("split"), "the checkpoints differ");
 }
 
 #[test]

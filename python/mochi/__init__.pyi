@@ -80,8 +80,8 @@ class FrameDict(TypedDict):
     time: float | None
 
 def read_frame(path: str | os.PathLike[str]) -> FrameDict:
-    """Reads a frame (``.vtu`` as ``write_frame`` and ``mochi simulate`` write it, ``.csv`` or
-    ``.npy``): positions (float64, as the file holds them), radii, velocities and angular
+    """Reads a frame (``.vtu`` as ``write_frame`` and ``mochi simulate`` write it, or of another
+    writer such as meshio or ParaView, ``.csv`` or ``.npy``): positions (float64, as the file holds them), radii, velocities and angular
     velocities (float32), materials (uint8: each sphere's index in the scene's materials, 0 for
     every sphere of a file without them), with its step and time (``None`` where the file does
     not say)."""

@@ -236,7 +236,8 @@ struct Views {
     materials: Option<Py<PyArray1<u8>>>,
 }
 
-/// Reads a frame (`.vtu` as `write_frame` and `mochi simulate` write it, `.csv` or `.npy`) into
+/// Reads a frame (`.vtu` as `write_frame` and `mochi simulate` write it or of another writer,
+/// `.csv` or `.npy`) into
 /// a dict of NumPy arrays (`positions`, float64, `radii`, `velocities`, `angular_velocities`,
 /// float32, `materials`, uint8: 0 for every sphere of a file without them) with its `step` and
 /// `time` (`None` where the file does not say).

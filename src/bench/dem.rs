@@ -378,7 +378,7 @@ fn measure(
         rebuild: policy.to_owned(),
         refits: stepper.refits(),
         steps,
-        dt: Some(f32_as_written(case.start.params.dt)),
+        dt: Some(crate::numbers::widened(case.start.params.dt)),
         settled,
         timed: Some(timed),
         contacts: last.contacts,
@@ -393,11 +393,6 @@ fn measure(
         box_scale: case.box_scale,
         grid_build: stepper.grid_build().map(str::to_owned),
     })
-}
-
-/// `x` as an f64 with the digits f32 writes it with (1e-4, not 9.99999974737875e-5).
-fn f32_as_written(x: f32) -> f64 {
-    x.to_string().parse().unwrap_or(x as f64)
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@ use super::report::{DemRow, DetectRow, Report};
 use super::stats::Spread;
 use crate::dem::Clock;
 use crate::dem::scene::by_name;
+use crate::numbers::significant;
 use std::fmt::Write;
 
 /// The whole report as Markdown.
@@ -206,7 +207,7 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
             r.n,
             r.mode.name(),
             by_name::name(&r.structure),
-            r.dt.map_or_else(|| "–".to_owned(), |dt| format!("{dt:e}")),
+            r.dt.map_or_else(|| "–".to_owned(), |dt| significant(dt, 4)),
             r.timed.map_or_else(
                 || "–".to_owned(),
                 |t| match r.settled {

@@ -8,6 +8,7 @@ use crate::dem::Clock;
 use crate::dem::scene::SceneKind;
 use crate::engines::BackendKind;
 use crate::engines::wgpu_compute::Structure;
+use crate::numbers::significant;
 use crate::proxy::ProxyMode;
 use crate::scenes::Layout;
 use serde::{Deserialize, Serialize};
@@ -222,7 +223,7 @@ impl DemRow {
         let r = self;
         let mut words = Vec::new();
         if let Some(dt) = r.dt {
-            words.push(format!("dt {dt:e}"));
+            words.push(format!("dt {}", significant(dt, 4)));
         }
         if let Some(t) = r.timed {
             let before = match r.settled {

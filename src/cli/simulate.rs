@@ -7,10 +7,11 @@ use super::render::{FrameData, FrameRenderer, png_name};
 use super::view::walls_at;
 use super::walls::{FlowLog, WallOutputs};
 use anyhow::Result;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use mochi::dem::scene::{SceneFlags, SceneKind};
 use mochi::dem::{Clock, StageTimes, StepParams, Stepper, equipment};
 use mochi::io::{self, Frame, FrameSeries};
+use mochi::numbers::significant;
 use mochi::render::{ColorBy, ColorChoice};
 use mochi::run::{FIRST_PROGRESS_STEPS, FileDigest, Run, RunStart, RunState, progress_steps};
 use std::path::{Path, PathBuf};
@@ -205,8 +206,17 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         ProgressBar::new(total - first)
     };
     bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} steps | {per_sec} | ETA {eta} | {msg}")
-            .expect("a valid template"),
+        ProgressStyle::with_template(
+            "{bar:30} {pos}/{len} steps | {rate} steps/s | ETA {eta} | {msg}",
+        )
+        .expect("a valid template")
+        // Three significant digits (indicatif's own {per_sec} writes four decimals).
+        .with_key(
+            "rate",
+            |state: &ProgressState, w: &mut dyn std::fmt::Write| {
+                let _ = w.write_str(&significant(state.per_sec(), 3));
+            },
+        ),
     );
     let checkpoint = out.join("checkpoint.bin");
     let started = Instant::now();

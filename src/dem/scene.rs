@@ -68,6 +68,7 @@ use super::model::{
 };
 use super::walls::{WallConfig, WallSet};
 use crate::error::{Error, Result};
+use crate::numbers::widened;
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 use crate::scenes::{self, Layout, Scene, SceneSpec};
@@ -1281,13 +1282,15 @@ impl SceneConfig {
             true => Some(value),
             false => given,
         };
+        // The step's `f32` values by their shortest decimals (box_hi = [0.8, ...], not
+        // 0.800000011920929), each of which reads back as the same `f32`.
         SceneConfig {
-            dt: Some(p.dt as f64),
-            box_lo: Some(p.box_lo.map(f64::from)),
-            box_hi: Some(p.box_hi.map(f64::from)),
-            gravity_spin: Some(p.gravity_spin as f64),
+            dt: Some(widened(p.dt)),
+            box_lo: Some(p.box_lo.map(widened)),
+            box_hi: Some(p.box_hi.map(widened)),
+            gravity_spin: Some(widened(p.gravity_spin)),
             stiffness: match m.contact {
-                ContactLaw::Linear => Some(Stiffness::Fixed(p.stiffness as f64)),
+                ContactLaw::Linear => Some(Stiffness::Fixed(widened(p.stiffness))),
                 _ => self.stiffness,
             },
             young_modulus,
@@ -1307,6 +1310,45 @@ impl SceneConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Significant digits of the number `token` (leading zeros, sign and exponent aside).
+    fn significant_digits(token: &str) -> usize {
+        let mantissa = token.split(['e', 'E']).next().unwrap_or("");
+        let digits: String = mantissa.chars().filter(char::is_ascii_digit).collect();
+        digits.trim_start_matches('0').trim_end_matches('0').len()
+    }
+
+    #[test]
+    fn a_saved_scene_writes_f32_values_by_their_shortest_decimals_and_rebuilds_the_same_step() {
+        let flags = SceneFlags::default();
+        for sets in [
+            &["spheres=300"][..],
+            &["scene=rotating", "contact=linear", "spheres=50", "dt=2e-5"],
+            &["scene=poly12", "contact=linear", "spheres=100"],
+            &[
+                "scene=freefall",
+                "spheres=50",
+                "box_lo=[-0.1, -0.3, -0.7]",
+                "box_hi=[1.3, 1.7, 1.9]",
+            ],
+        ] {
+            let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+            let config = SceneConfig::load_new(None, &flags, &sets).unwrap();
+            let start = config.build().unwrap();
+            let saved = config.resolved(&start).to_toml();
+            // No f32 widened to 16 or 17 digits (0.800000011920929): an f32 needs at most 9.
+            let numbers = saved.split(|c: char| !(c.is_ascii_alphanumeric() || "+-.".contains(c)));
+            for token in numbers.filter(|t| t.starts_with(|c: char| c.is_ascii_digit() || c == '-'))
+            {
+                assert!(significant_digits(token) <= 9, "{token} in\n{saved}");
+            }
+            // Read back, the scene builds the same step and saves the same text.
+            let again = SceneConfig::parse(Some(&saved), None, &[]).unwrap();
+            let rebuilt = again.build().unwrap();
+            assert_eq!(rebuilt.params, start.params, "{saved}");
+            assert_eq!(again.resolved(&rebuilt).to_toml(), saved);
+        }
+    }
 
     #[test]
     fn the_tangential_model_is_mindlin_unless_asked_and_mindlin_deresiewicz_is_for_hertz() {

@@ -1,10 +1,13 @@
-//! Reading simulation frames back: the `.vtu` files [`super::write_vtu`] writes (raw appended
-//! binary, `UInt64` block headers) and the frame CSVs (`x,y,z,r,vx,vy,vz,wx,wy,wz,material`, or
-//! any sphere file). Frames of mochi before it had several materials have no materials, and read
-//! as spheres of the first material.
+//! Reading simulation frames back: `.vtu` files, those [`super::write_vtu`] writes (raw appended
+//! binary, `UInt64` block headers) and those of other writers (any VTK XML encoding, see
+//! [`read_vtu`]), and the frame CSVs (`x,y,z,r,vx,vy,vz,wx,wy,wz,material`, or any sphere file).
+//! Frames of mochi before it had several materials have no materials, and read as spheres of
+//! the first material.
 
 use super::spheres::read_particles_as_written;
 use super::spheres::{check_finite, check_velocity};
+use super::vtk_arrays::Values;
+use super::vtu_read::{PointArray, Vtu, VtuText};
 use super::{Format, io_error, parse_error};
 use crate::error::Result;
 use crate::spheres::check_sphere;
@@ -34,8 +37,8 @@ pub struct OwnedFrame {
     pub materials: Vec<u8>,
 }
 
-/// Reads a frame: a `.vtu` written by [`super::write_vtu`], or a sphere file (`.csv`, `.npy`)
-/// with or without velocities. Every problem is an error naming the file.
+/// Reads a frame: a `.vtu` ([`read_vtu`]: mochi's or another writer's), or a sphere file
+/// (`.csv`, `.npy`) with or without velocities. Every problem is an error naming the file.
 pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
     let is_vtu = path
         .extension()
@@ -63,176 +66,141 @@ pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
     })
 }
 
-/// Marks the start of the raw data in our `.vtu` files.
-const APPENDED: &[u8] = b"<AppendedData encoding=\"raw\">";
+/// The names a point-data array of radii may have (in any case), in order of preference.
+const RADIUS_NAMES: [&str; 3] = ["radius", "radii", "r"];
+/// The names of an array of diameters (any case), read where none has a [`RADIUS_NAMES`] name.
+const DIAMETER_NAMES: [&str; 2] = ["diameter", "diameters"];
+/// The names of an array of velocities (any case; 3 components).
+const VELOCITY_NAMES: [&str; 3] = ["velocity", "velocities", "v"];
+/// The names of an array of angular velocities (any case; 3 components).
+const ANGULAR_VELOCITY_NAMES: [&str; 2] = ["angular_velocity", "omega"];
 
-/// Reads the arrays `Points` (`Float64`, as mochi writes them, or `Float32`, as it did before it
-/// kept residuals), `radius`, `velocity` and, where the file has them, `angular_velocity` (all
-/// `Float32`) and `material` (`UInt8`) of a `.vtu`.
+/// Reads a `.vtu` (VTK XML UnstructuredGrid) of spheres, as mochi writes it or any other
+/// writer ([`super::vtu_read`]: ascii, inline base64 or appended data, raw or base64, zlib or
+/// uncompressed, either byte order): the points are the centres, the radii the point data of a
+/// [`RADIUS_NAMES`] name (else half those of a [`DIAMETER_NAMES`] name), the velocities and
+/// angular velocities those of [`VELOCITY_NAMES`] and [`ANGULAR_VELOCITY_NAMES`] (zero where
+/// there is none) and the materials an integer array `material` (0 to 255; none: every sphere
+/// of the first material). The field data `step` and `TimeValue` give the step and time where
+/// the file has them. Any number type is read; positions keep their `Float64` values exactly.
 pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
     let bytes = std::fs::read(path).map_err(io_error(path))?;
-    let bad = |msg: String| parse_error(path, None, msg);
-    let at = find(&bytes, APPENDED)
-        .ok_or_else(|| bad("not a .vtu with raw appended data (as mochi writes)".into()))?;
-    let underscore = bytes[at..]
-        .iter()
-        .position(|&b| b == b'_')
-        .ok_or_else(|| bad("no '_' opening the appended data".into()))?;
-    let data = &bytes[at + underscore + 1..];
-    let header =
-        std::str::from_utf8(&bytes[..at]).map_err(|_| bad("the XML header is not UTF-8".into()))?;
-    if !header.contains(r#"header_type="UInt64""#) {
-        return Err(bad("only header_type=\"UInt64\" is read".into()));
-    }
-    let big_endian = match attribute_after(header, "<VTKFile", "byte_order") {
-        Some("LittleEndian") | None => false,
-        Some("BigEndian") => true,
-        Some(other) => return Err(bad(format!("unknown byte_order {other:?}"))),
-    };
-    let u64_of = |b: [u8; 8]| match big_endian {
-        true => u64::from_be_bytes(b),
-        false => u64::from_le_bytes(b),
-    };
-    let f32_of = |b: [u8; 4]| match big_endian {
-        true => f32::from_be_bytes(b),
-        false => f32::from_le_bytes(b),
-    };
-    let f64_of = |b: [u8; 8]| match big_endian {
-        true => f64::from_be_bytes(b),
-        false => f64::from_le_bytes(b),
-    };
-    let n: usize = attribute_after(header, "<Piece", "NumberOfPoints")
-        .and_then(|v| v.parse().ok())
-        .ok_or_else(|| bad("no NumberOfPoints in <Piece>".into()))?;
-    // The bytes of the array `name` (`element`, its attributes) of `size`-byte values.
-    let block_of = |name: &str, element: &str, components: usize, size: usize| -> Result<&[u8]> {
-        let offset: usize = attribute(element, "offset")
-            .and_then(|v| v.parse().ok())
-            .ok_or_else(|| bad(format!("{name}: no offset")))?;
-        let want = n
-            .checked_mul(components * size)
-            .ok_or_else(|| bad(format!("{name}: {n} points is too many")))?;
-        let block = offset
-            .checked_add(8)
-            .and_then(|start| data.get(offset..start))
-            .ok_or_else(|| bad(format!("{name}: the data ends before its block")))?;
-        let len = u64_of(block.try_into().expect("8 bytes"));
-        if len != want as u64 {
-            return Err(bad(format!("{name}: {len} bytes, expected {want}")));
-        }
-        data.get(offset + 8..offset + 8 + want)
-            .ok_or_else(|| bad(format!("{name}: the file ends inside the block")))
-    };
-    // The values of an array of `Float32` (or, where `wide`, also `Float64`) as f64.
-    let array_of = |name: &str, components: usize, wide: bool| -> Result<Vec<f64>> {
-        let element =
-            data_array(header, name).ok_or_else(|| bad(format!("no DataArray named {name:?}")))?;
-        let size = match attribute(element, "type") {
-            Some("Float32") => 4,
-            Some("Float64") if wide => 8,
-            _ if wide => return Err(bad(format!("{name}: only Float64 or Float32 is read"))),
-            _ => return Err(bad(format!("{name}: only Float32 is read"))),
-        };
-        let values = block_of(name, element, components, size)?;
-        Ok(match size {
-            4 => values
-                .chunks_exact(4)
-                .map(|b| f32_of(b.try_into().expect("4 bytes")) as f64)
+    frame_of_vtu(&bytes).map_err(|msg| parse_error(path, None, msg))
+}
+
+/// The frame of the `.vtu` file `bytes`, or what is wrong with it.
+fn frame_of_vtu(bytes: &[u8]) -> std::result::Result<OwnedFrame, String> {
+    let text = VtuText::of(bytes)?;
+    let vtu = Vtu::parse(&text)?;
+    let n = vtu.points();
+    let exact = vtu.positions()?.to_f64();
+    let radii: Vec<f32> = match vtu.point_data(&RADIUS_NAMES)? {
+        Some(radius) => scalars(radius)?
+            .to_f64()
+            .iter()
+            .map(|&r| r as f32)
+            .collect(),
+        None => match vtu.point_data(&DIAMETER_NAMES)? {
+            Some(diameter) => (scalars(diameter)?.to_f64().iter())
+                .map(|&d| (d / 2.0) as f32)
                 .collect(),
-            _ => values
-                .chunks_exact(8)
-                .map(|b| f64_of(b.try_into().expect("8 bytes")))
-                .collect(),
-        })
+            None => {
+                return Err(format!(
+                    "no point data of radii: name its array {} (or one of diameters {}), in \
+                     any case",
+                    either(&RADIUS_NAMES),
+                    either(&DIAMETER_NAMES)
+                ));
+            }
+        },
     };
-    let array = |name: &str, components: usize| -> Result<Vec<f32>> {
-        let values = array_of(name, components, false)?;
-        Ok(values.into_iter().map(|x| x as f32).collect())
-    };
-    let exact = array_of("Points", 3, true)?;
-    let points: Vec<f32> = exact.iter().map(|&x| x as f32).collect();
-    let radii = array("radius", 1)?;
-    let velocity = array("velocity", 3)?;
-    let angular = match data_array(header, "angular_velocity") {
-        Some(_) => array("angular_velocity", 3)?,
-        None => vec![0.0; 3 * n],
-    };
-    // One byte per sphere (a byte has no byte order); none in frames of one material's mochi.
-    let materials = match data_array(header, "material") {
-        Some(element) if attribute(element, "type") == Some("UInt8") => {
-            block_of("material", element, 1, 1)?.to_vec()
+    let velocities = vectors(vtu.point_data(&VELOCITY_NAMES)?, n)?;
+    let angular_velocities = vectors(vtu.point_data(&ANGULAR_VELOCITY_NAMES)?, n)?;
+    let materials = match vtu.point_data(&["material"])? {
+        Some(material) => {
+            let name = material.name.clone();
+            let codes = scalars(material)?.to_unsigned(u8::MAX.into());
+            let codes = codes.map_err(|e| format!("point data {name:?}: {e}"))?;
+            codes.into_iter().map(|m| m as u8).collect()
         }
-        Some(_) => return Err(bad("material: only UInt8 is read".into())),
         None => Vec::new(),
     };
-    let triples =
-        |v: Vec<f32>| -> Vec<[f32; 3]> { v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() };
-    let (points, velocity, angular) = (triples(points), triples(velocity), triples(angular));
+    let positions: Vec<[f32; 3]> = exact
+        .chunks_exact(3)
+        .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
+        .collect();
     let exact_positions = exact.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
     // The rules of a sphere file, so that every reader of a frame gets valid spheres.
-    for (i, (((c, &r), v), w)) in points
+    for (i, (((c, &r), v), w)) in positions
         .iter()
         .zip(&radii)
-        .zip(&velocity)
-        .zip(&angular)
+        .zip(&velocities)
+        .zip(&angular_velocities)
         .enumerate()
     {
         check_sphere(c, r)
             .and_then(|()| check_velocity(v))
             .and_then(|()| check_finite("angular velocity", w))
-            .map_err(|m| bad(format!("point {i} (0-based): {m}")))?;
+            .map_err(|m| format!("point {i} (0-based): {m}"))?;
     }
-    let field = |name: &str| {
-        let start = header.find(&format!(r#"Name="{name}""#))?;
-        let open = start + header[start..].find('>')? + 1;
-        let close = open + header[open..].find('<')?;
-        Some(header[open..close].trim())
+    let first = |values: Option<Values>| values.and_then(|v| v.to_f64().first().copied());
+    let step = match vtu.field_data("step")? {
+        Some(step) => step
+            .to_unsigned(u64::MAX)
+            .map_err(|e| format!("field data \"step\": {e}"))?
+            .first()
+            .copied(),
+        None => None,
     };
     Ok(OwnedFrame {
-        step: field("step").and_then(|v| v.parse().ok()),
-        time: field("TimeValue").and_then(|v| v.parse().ok()),
-        positions: points,
+        step,
+        time: first(vtu.field_data("TimeValue")?),
+        positions,
         exact_positions,
         radii,
-        velocities: velocity,
-        angular_velocities: angular,
+        velocities,
+        angular_velocities,
         materials,
     })
 }
 
-fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
-    haystack.windows(needle.len()).position(|w| w == needle)
-}
-
-/// The attributes of the `<DataArray .. Name="name" ../>` element.
-fn data_array<'h>(header: &'h str, name: &str) -> Option<&'h str> {
-    let key = format!(r#"Name="{name}""#);
-    let mut rest = 0;
-    while let Some(found) = header[rest..].find("<DataArray") {
-        let start = rest + found;
-        let end = start + header[start..].find('>')?;
-        let element = &header[start + "<DataArray".len()..end];
-        if element.contains(&key) {
-            return Some(element);
-        }
-        rest = end;
+/// `names` as words: "a, b or c".
+fn either(names: &[&str]) -> String {
+    match names.split_last() {
+        Some((last, [])) => last.to_string(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+        None => String::new(),
     }
-    None
 }
 
-/// The value of attribute `name` of the first element opening with `tag`.
-fn attribute_after<'h>(header: &'h str, tag: &str, name: &str) -> Option<&'h str> {
-    let start = header.find(tag)?;
-    let end = start + header[start..].find('>')?;
-    attribute(&header[start + tag.len()..end], name)
+/// The values of `array`, one a point.
+fn scalars(array: PointArray) -> std::result::Result<Values, String> {
+    match array.components {
+        1 => Ok(array.values),
+        c => Err(format!(
+            "point data {:?} has {c} components, not 1",
+            array.name
+        )),
+    }
 }
 
-/// The value of `name="value"` among an element's attributes.
-fn attribute<'e>(element: &'e str, name: &str) -> Option<&'e str> {
-    let key = format!(" {name}=\"");
-    let start = element.find(&key)? + key.len();
-    let len = element[start..].find('"')?;
-    Some(&element[start..start + len])
+/// The vectors of `array`, one a point, 3 components each; zero where there is no array (of
+/// `n` points).
+fn vectors(array: Option<PointArray>, n: usize) -> std::result::Result<Vec<[f32; 3]>, String> {
+    let Some(array) = array else {
+        return Ok(vec![[0.0; 3]; n]);
+    };
+    if array.components != 3 {
+        return Err(format!(
+            "point data {:?} has {} components, not 3",
+            array.name, array.components
+        ));
+    }
+    let values = array.values.to_f64();
+    Ok(values
+        .chunks_exact(3)
+        .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
+        .collect())
 }
 
 #[cfg(test)]
@@ -298,6 +266,14 @@ mod tests {
         }
     }
 
+    /// The index of `needle` in `haystack`.
+    fn position(haystack: &[u8], needle: &[u8]) -> usize {
+        haystack
+            .windows(needle.len())
+            .position(|w| w == needle)
+            .unwrap_or_else(|| panic!("no {:?}", String::from_utf8_lossy(needle)))
+    }
+
     #[test]
     fn frames_written_before_materials_read_with_none() {
         let (p, r, v) = frame();
@@ -308,12 +284,8 @@ mod tests {
         let vtu = dir.path().join("old.vtu");
         write_vtu(&vtu, &f).unwrap();
         let bytes = std::fs::read(&vtu).unwrap();
-        let at = find(&bytes, APPENDED).unwrap();
-        let header = std::str::from_utf8(&bytes[..at]).unwrap();
-        let start = header
-            .find(r#"<DataArray type="UInt8" Name="material""#)
-            .unwrap();
-        let end = start + header[start..].find('\n').unwrap() + 1;
+        let start = position(&bytes, br#"<DataArray type="UInt8" Name="material""#);
+        let end = start + position(&bytes[start..], b"\n") + 1;
         let old = [&bytes[..start], &bytes[end..]].concat();
         std::fs::write(&vtu, old).unwrap();
         // A CSV of ten columns, as frames were written before materials.
@@ -331,67 +303,195 @@ mod tests {
         }
     }
 
-    /// `bytes` (a little-endian `.vtu` of [`write_vtu`]) with every appended block and its
-    /// length in big-endian order, as `byte_order="BigEndian"` declares.
-    fn to_big_endian(bytes: &[u8]) -> Vec<u8> {
-        let at = find(bytes, APPENDED).unwrap();
-        let header = std::str::from_utf8(&bytes[..at]).unwrap();
-        let data_start = at + bytes[at..].iter().position(|&b| b == b'_').unwrap() + 1;
-        let mut out = bytes.to_vec();
-        let mut rest = 0;
-        while let Some(found) = header[rest..].find("<DataArray") {
-            let start = rest + found;
-            let end = start + header[start..].find('>').unwrap();
-            let element = &header[start + "<DataArray".len()..end];
-            rest = end;
-            let Some(offset) = attribute(element, "offset") else {
-                continue; // an ascii array
-            };
-            let size = match attribute(element, "type").unwrap() {
-                "Float32" | "Int32" | "UInt32" => 4,
-                "Float64" | "Int64" | "UInt64" => 8,
-                "UInt8" | "Int8" => 1,
-                other => panic!("type {other}"),
-            };
-            let block = data_start + offset.parse::<usize>().unwrap();
-            let len = u64::from_le_bytes(bytes[block..block + 8].try_into().unwrap()) as usize;
-            out[block..block + 8].reverse();
-            for value in out[block + 8..block + 8 + len].chunks_exact_mut(size) {
-                value.reverse();
-            }
-        }
-        with_byte_order(&out, "BigEndian")
+    /// A fixture of `tests/data` (written by `make_vtu_fixtures.py`).
+    fn fixture(name: &str) -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data")
+            .join(name)
     }
 
-    /// `bytes` (a `.vtu` of [`write_vtu`]) declaring `byte_order="{order}"`.
-    fn with_byte_order(bytes: &[u8], order: &str) -> Vec<u8> {
-        let at = find(bytes, APPENDED).unwrap();
-        let header = std::str::from_utf8(&bytes[..at]).unwrap();
-        let changed = header.replacen(
-            r#"byte_order="LittleEndian""#,
-            &format!(r#"byte_order="{order}""#),
-            1,
-        );
-        assert_ne!(changed, header);
-        [changed.as_bytes(), &bytes[at..]].concat()
+    /// The spheres of every fixture.
+    const CENTRES: [[f32; 3]; 3] = [[0.0, 1.0, 2.0], [3.5, -4.0, 5.0], [0.25, 0.5, -0.125]];
+    const RADII: [f32; 3] = [0.25, 0.5, 0.125];
+    const VELOCITIES: [[f32; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, -2.0, 0.5], [0.0; 3]];
+
+    #[test]
+    fn vtu_files_of_other_writers_read_as_their_spheres() {
+        // (file, with velocities, step and time)
+        let fixtures = [
+            ("vtu_meshio_ascii.vtu", true, None),
+            ("vtu_meshio_binary.vtu", true, None),
+            ("vtu_meshio_zlib.vtu", false, None),
+            ("vtu_vtk_appended_zlib.vtu", true, None),
+            ("vtu_vtk_big_endian.vtu", true, Some((12, 0.375))),
+        ];
+        for (name, moving, when) in fixtures {
+            let got = read_frame(&fixture(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(got.positions, CENTRES, "{name}");
+            let exact = CENTRES.map(|c| c.map(f64::from));
+            assert_eq!(got.exact_positions, exact, "{name}");
+            assert_eq!(got.radii, RADII, "{name}");
+            let velocities = if moving { VELOCITIES } else { [[0.0; 3]; 3] };
+            assert_eq!(got.velocities, velocities, "{name}");
+            assert_eq!(got.angular_velocities, [[0.0; 3]; 3], "{name}");
+            assert!(got.materials.is_empty(), "{name}");
+            assert_eq!((got.step, got.time), when.unzip(), "{name}");
+        }
     }
 
     #[test]
-    fn a_big_endian_vtu_reads_the_same_values() {
-        let (p, r, v) = frame();
-        let f = frame_at((0.5, 7), (&p, &r, &v), &[]);
+    fn angular_velocities_and_materials_of_other_writers_are_read() {
+        // LIGGGHTS names them omega; a material of any integer type.
+        let text = std::fs::read_to_string(fixture("vtu_meshio_ascii.vtu")).unwrap();
+        let extra = "<DataArray type=\"Float32\" Name=\"omega\" NumberOfComponents=\"3\" \
+                     format=\"ascii\">0 0 1  0 2 0  3 0 0</DataArray>\n\
+                     <DataArray type=\"Int32\" Name=\"material\" format=\"ascii\">2 0 255\
+                     </DataArray>\n</PointData>";
         let dir = tempfile::tempdir().unwrap();
-        let vtu = dir.path().join("le.vtu");
-        write_vtu(&vtu, &f).unwrap();
-        let big = dir.path().join("be.vtu");
-        std::fs::write(&big, to_big_endian(&std::fs::read(&vtu).unwrap())).unwrap();
-        let got = read_frame(&big).unwrap();
-        assert_eq!((&got.positions, &got.radii, &got.velocities), (&p, &r, &v));
-        assert_eq!(got.angular_velocities, SPIN);
-        let odd = with_byte_order(&std::fs::read(&vtu).unwrap(), "MiddleEndian");
-        std::fs::write(&vtu, odd).unwrap();
-        let e = read_frame(&vtu).unwrap_err().to_string();
-        assert!(e.contains("byte_order"), "{e}");
+        let path = dir.path().join("spin.vtu");
+        std::fs::write(&path, text.replace("</PointData>", extra)).unwrap();
+        let got = read_frame(&path).unwrap();
+        let spin = [[0.0, 0.0, 1.0], [0.0, 2.0, 0.0], [3.0, 0.0, 0.0]];
+        assert_eq!(
+            (got.angular_velocities, got.materials),
+            (spin.to_vec(), vec![2, 0, 255])
+        );
+        // A material beyond 255 or of a float type is refused.
+        for (from, to, error) in [
+            ("2 0 255", "2 0 256", "256, is not in 0..=255"),
+            (
+                "\"Int32\" Name=\"material\"",
+                "\"Float32\" Name=\"material\"",
+                "not an integer",
+            ),
+        ] {
+            let bad = text.replace("</PointData>", &extra.replace(from, to));
+            std::fs::write(&path, bad).unwrap();
+            let e = read_frame(&path).unwrap_err().to_string();
+            assert!(
+                e.contains("spin.vtu") && e.contains("material") && e.contains(error),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
+    fn malformed_vtu_files_get_one_error_naming_the_file_and_the_problem() {
+        let dir = tempfile::tempdir().unwrap();
+        // (fixture, text replaced, by, in the error)
+        let cases = [
+            ("vtu_meshio_ascii.vtu", "<?xml", "<<?xml", "bad XML"),
+            ("vtu_meshio_ascii.vtu", "</Piece>", "</Peace>", "bad XML"),
+            (
+                "vtu_meshio_ascii.vtu",
+                "\"UnstructuredGrid\"",
+                "\"PolyData\"",
+                "PolyData",
+            ),
+            (
+                "vtu_meshio_ascii.vtu",
+                "LittleEndian",
+                "MiddleEndian",
+                "byte_order",
+            ),
+            (
+                "vtu_meshio_ascii.vtu",
+                "version=\"0.1\"",
+                "header_type=\"UInt16\"",
+                "UInt16",
+            ),
+            (
+                "vtu_meshio_ascii.vtu",
+                "\"Radius\"",
+                "\"size\"",
+                "no point data of radii",
+            ),
+            (
+                "vtu_meshio_ascii.vtu",
+                "Points=\"3\"",
+                "Points=\"4\"",
+                "expected 4 × 3",
+            ),
+            (
+                "vtu_meshio_ascii.vtu",
+                "Points=\"3\"",
+                "Points=\"-3\"",
+                "NumberOfPoints",
+            ),
+            (
+                "vtu_meshio_ascii.vtu",
+                "5.00000000000e-01\n-1.25",
+                "0.5x\n-1.25",
+                "\"0.5x\"",
+            ),
+            (
+                "vtu_meshio_ascii.vtu",
+                "\"Float64\" Name=\"Radius\"",
+                "\"Float16\" Name=\"Radius\"",
+                "Float16",
+            ),
+            (
+                "vtu_meshio_ascii.vtu",
+                "\"Radius\" format=\"ascii\"",
+                "\"Radius\" format=\"hex\"",
+                "hex",
+            ),
+            (
+                "vtu_meshio_ascii.vtu",
+                "\"v\" NumberOfComponents=\"3\"",
+                "\"v\" NumberOfComponents=\"2\"",
+                "expected 3 × 2",
+            ),
+            (
+                "vtu_meshio_ascii.vtu",
+                "</UnstructuredGrid>",
+                "<Piece/></UnstructuredGrid>",
+                "2 <Piece>s",
+            ),
+            (
+                "vtu_meshio_binary.vtu",
+                "AAAAAAAAAAAAAAAAAAAA",
+                "AAAAAAAAAAAAAAAA",
+                "ends inside",
+            ),
+            (
+                "vtu_meshio_binary.vtu",
+                "GAAAAAAAAAAAANA",
+                "G*AAAAAAAAAAANA",
+                "base64",
+            ),
+            (
+                "vtu_meshio_zlib.vtu",
+                "vtkZLibDataCompressor",
+                "vtkLZ4DataCompressor",
+                "vtkLZ4DataCompressor",
+            ),
+            ("vtu_meshio_zlib.vtu", "eJxjYACBB", "eJxjYACBC", "zlib"),
+            (
+                "vtu_vtk_big_endian.vtu",
+                "offset=\"104\"",
+                "offset=\"9999\"",
+                "offset 9999",
+            ),
+            (
+                "vtu_vtk_big_endian.vtu",
+                "encoding=\"base64\"",
+                "encoding=\"hex\"",
+                "hex",
+            ),
+            ("vtu_vtk_big_endian.vtu", "   _", "   ", "'_'"),
+        ];
+        for (name, from, to, error) in cases {
+            let text = std::fs::read_to_string(fixture(name)).unwrap();
+            assert!(text.contains(from), "{name} has no {from:?}");
+            let path = dir.path().join(format!("broken_{name}"));
+            std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
+            let e = read_frame(&path).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("broken_{name}")) && e.contains(error),
+                "{from:?} → {to:?}: {e}"
+            );
+        }
     }
 
     #[test]
@@ -414,11 +514,28 @@ mod tests {
         let vtu = dir.path().join("a.vtu");
         write_vtu(&vtu, &f).unwrap();
         let bytes = std::fs::read(&vtu).unwrap();
-        let data = find(&bytes, APPENDED).unwrap() + APPENDED.len() + 5;
-        std::fs::write(&vtu, &bytes[..data + 20]).unwrap();
-        assert!(read_frame(&vtu).is_err());
+        // Cut before the points' block, then inside it.
+        let data = position(&bytes, b"\n   _") + 5;
+        let points = position(&bytes, br#"Name="Points""#);
+        let offset = position(&bytes[points..], b"offset=\"") + points + 8;
+        let len = position(&bytes[offset..], b"\"");
+        let offset: usize = std::str::from_utf8(&bytes[offset..offset + len])
+            .unwrap()
+            .parse()
+            .unwrap();
+        for (cut, error) in [(20, "past the end"), (offset + 12, "ends inside a block")] {
+            std::fs::write(&vtu, &bytes[..data + cut]).unwrap();
+            let e = read_frame(&vtu).unwrap_err().to_string();
+            assert!(
+                e.contains("a.vtu") && e.contains("the points") && e.contains(error),
+                "{e}"
+            );
+        }
         std::fs::write(&vtu, b"<VTKFile>").unwrap();
         assert!(read_frame(&vtu).is_err());
+        std::fs::write(&vtu, [&bytes[..10], &[0xff], &bytes[11..]].concat()).unwrap();
+        let e = read_frame(&vtu).unwrap_err().to_string();
+        assert!(e.contains("UTF-8"), "{e}");
         assert!(read_frame(&dir.path().join("missing.vtu")).is_err());
     }
 }

@@ -17,6 +17,8 @@ mod log;
 mod pairs;
 mod run_folder;
 mod spheres;
+mod vtk_arrays;
+mod vtu_read;
 mod walls;
 
 pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};

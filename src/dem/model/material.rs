@@ -330,7 +330,9 @@ impl Material {
                 };
                 Ok(ResolvedLaw {
                     law: NormalLaw::Linear,
-                    stiffness,
+                    // As a saved scene gives it back (its f32 by the shortest decimal), so that
+                    // a run from the saved scene derives the same damping and limits from it.
+                    stiffness: crate::numbers::widened(stiffness as f32),
                     rayleigh_time: None,
                 })
             }

@@ -167,6 +167,9 @@ impl StepParams {
                 f32::MAX
             ));
         }
+        // The time step as a saved scene gives it back (its f32 by the shortest decimal), so
+        // that a run from the saved scene derives the same damping, rates and limits from it.
+        let dt = crate::numbers::widened(dt as f32);
         if gravity
             .iter()
             .chain([&gravity_spin])
@@ -301,7 +304,7 @@ impl StepParams {
     /// the Rayleigh time the step follows from, and the friction where there is any (with
     /// several materials, the largest of any pair; [`Materials::describe`] names them).
     pub fn describe(&self) -> String {
-        let dt = four_digits(self.dt as f64);
+        let dt = crate::numbers::significant(self.dt as f64, 4);
         let law = match self.law {
             NormalLaw::Linear => format!(
                 "dt {dt} s (stable limit {:.3e} s) | stiffness {:.4e} N/m",
@@ -354,19 +357,6 @@ impl StepParams {
     }
 }
 
-/// `x` in four significant digits in scientific notation, its mantissa's trailing zeros dropped
-/// (2.322e-5, 5e-6): a time step as a summary shows it (scene.toml keeps every digit).
-pub fn four_digits(x: f64) -> String {
-    let text = format!("{x:.3e}");
-    match text.split_once('e') {
-        Some((mantissa, exponent)) if mantissa.contains('.') => {
-            let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
-            format!("{mantissa}e{exponent}")
-        }
-        _ => text,
-    }
-}
-
 /// One semi-implicit Euler step of a sphere under `force` and gravity `g`: v += dt·(F/m + g),
 /// then its position (centre `c`, residual `lo`) moves by dt·v without losing the displacement
 /// to the rounding of `c` ([`crate::particles::position::advance`]).
@@ -388,14 +378,6 @@ pub fn integrate(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn time_steps_show_four_significant_digits() {
-        assert_eq!(four_digits(2.3222333766170777e-5), "2.322e-5");
-        assert_eq!(four_digits(5e-6_f32 as f64), "5e-6");
-        assert_eq!(four_digits(1.25e-4), "1.25e-4");
-        assert_eq!(four_digits(0.0), "0e0");
-    }
 
     fn params() -> StepParams {
         StepParams::new(
