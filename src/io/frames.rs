@@ -632,59 +632,108 @@ pub fn read_series_index(path: &Path) -> Result<Vec<SeriesEntry>> {
 }
 
 /// Reads the `<DataSet timestep=".." file="frame_N.vtu"/>` entries of an index this module wrote
-/// (the step comes from the file name).
+/// (the step comes from the file name), with an XML parser: an error names the line.
 fn parse_index(path: &Path, text: &str) -> Result<Vec<SeriesEntry>> {
-    let line_of = |at: usize| Some(text[..at].matches('\n').count() as u64 + 1);
-    if !text.contains(r#"type="Collection""#) {
+    let document = roxmltree::Document::parse(text).map_err(|e| {
+        let line = Some(u64::from(e.pos().row));
+        parse_error(path, line, format!("not XML: {e}"))
+    })?;
+    let root = document.root_element();
+    if !root.has_tag_name("VTKFile") || root.attribute("type") != Some("Collection") {
         return Err(parse_error(
             path,
             None,
             "not a ParaView collection (no VTKFile of type=\"Collection\")",
         ));
     }
-    let mut entries = Vec::new();
-    let mut rest = 0;
-    while let Some(found) = text[rest..].find("<DataSet") {
-        let start = rest + found;
-        let bad = |msg: String| parse_error(path, line_of(start), msg);
-        let Some(len) = text[start..].find('>') else {
-            return Err(bad("unterminated <DataSet> element".into()));
-        };
-        let element = &text[start + "<DataSet".len()..start + len];
-        rest = start + len;
-        let timestep = attribute(element, "timestep")
-            .ok_or_else(|| bad("a DataSet without a timestep".into()))?;
-        let file =
-            attribute(element, "file").ok_or_else(|| bad("a DataSet without a file".into()))?;
-        let time: f64 = timestep
-            .parse()
-            .ok()
-            .filter(|t: &f64| t.is_finite())
-            .ok_or_else(|| bad(format!("timestep {timestep:?} is not a finite number")))?;
-        let step = file
-            .strip_prefix("frame_")
-            .and_then(|f| f.strip_suffix(".vtu"))
-            .filter(|digits| digits.bytes().all(|b| b.is_ascii_digit()))
-            .and_then(|digits| digits.parse().ok())
-            .ok_or_else(|| bad(format!("file {file:?} is not a frame_<step>.vtu name")))?;
-        entries.push(SeriesEntry { step, time });
-    }
-    Ok(entries)
+    let data_sets = root
+        .descendants()
+        .filter(|node| node.has_tag_name("DataSet"));
+    data_sets
+        .map(|node| {
+            let line = Some(u64::from(document.text_pos_at(node.range().start).row));
+            let bad = |msg: String| parse_error(path, line, msg);
+            let timestep = node
+                .attribute("timestep")
+                .ok_or_else(|| bad("a DataSet without a timestep".into()))?;
+            let file = node
+                .attribute("file")
+                .ok_or_else(|| bad("a DataSet without a file".into()))?;
+            let time: f64 = timestep
+                .parse()
+                .ok()
+                .filter(|t: &f64| t.is_finite())
+                .ok_or_else(|| bad(format!("timestep {timestep:?} is not a finite number")))?;
+            let step = file
+                .strip_prefix("frame_")
+                .and_then(|f| f.strip_suffix(".vtu"))
+                .filter(|digits| digits.bytes().all(|b| b.is_ascii_digit()))
+                .and_then(|digits| digits.parse().ok())
+                .ok_or_else(|| bad(format!("file {file:?} is not a frame_<step>.vtu name")))?;
+            Ok(SeriesEntry { step, time })
+        })
+        .collect()
 }
 
-/// The value of `name="value"` (or single quotes) among an element's attributes.
-fn attribute<'t>(element: &'t str, name: &str) -> Option<&'t str> {
-    let mut rest = element;
-    loop {
-        let eq = rest.find('=')?;
-        let key = rest[..eq].trim();
-        let after = rest[eq + 1..].trim_start();
-        let quote = after.chars().next().filter(|q| *q == '"' || *q == '\'')?;
-        let close = after[1..].find(quote)?;
-        let value = &after[1..1 + close];
-        if key == name {
-            return Some(value);
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parsed(text: &str) -> std::result::Result<Vec<SeriesEntry>, String> {
+        parse_index(Path::new("series.pvd"), text).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn an_index_is_read_as_xml_whatever_its_layout() {
+        let text = "<?xml version='1.0'?>\n<VTKFile type='Collection' version='0.1'>\n\
+                    <Collection><DataSet part='0' file='frame_00000010.vtu' group=''\n \
+                    timestep='0.5'/>\n<!-- <DataSet timestep=\"9\" file=\"frame_9.vtu\"/> -->\n\
+                    <DataSet timestep=\"1e0\" file=\"frame_00000020.vtu\"></DataSet>\
+                    </Collection></VTKFile>";
+        let want = vec![
+            SeriesEntry {
+                step: 10,
+                time: 0.5,
+            },
+            SeriesEntry {
+                step: 20,
+                time: 1.0,
+            },
+        ];
+        assert_eq!(parsed(text), Ok(want));
+    }
+
+    #[test]
+    fn a_broken_index_is_refused_naming_its_line() {
+        let collection = |body: &str| {
+            format!("<VTKFile type=\"Collection\">\n<Collection>\n{body}\n</Collection></VTKFile>")
+        };
+        let cases = [
+            ("<VTKFile>not an index", "series.pvd:1: not XML"),
+            (
+                "<VTKFile type=\"UnstructuredGrid\"></VTKFile>",
+                "not a ParaView collection",
+            ),
+            (
+                &collection("<DataSet timestep=\"0\"/>") as &str,
+                "series.pvd:3: a DataSet without a file",
+            ),
+            (
+                &collection("<DataSet file=\"frame_1.vtu\"/>"),
+                "without a timestep",
+            ),
+            (
+                &collection("<DataSet timestep=\"x\" file=\"frame_1.vtu\"/>"),
+                "finite",
+            ),
+            (
+                &collection("<DataSet timestep=\"0\" file=\"a.vtu\"/>"),
+                "frame_<step>.vtu",
+            ),
+        ];
+        for (text, said) in cases {
+            let e = parsed(text).unwrap_err();
+            assert!(e.contains("series.pvd") && e.contains(said), "{text}: {e}");
         }
-        rest = &after[close + 2..];
     }
 }
