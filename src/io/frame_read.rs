@@ -76,11 +76,11 @@ const VELOCITY_NAMES: [&str; 3] = ["velocity", "velocities", "v"];
 const ANGULAR_VELOCITY_NAMES: [&str; 2] = ["angular_velocity", "omega"];
 
 /// Reads a `.vtu` (VTK XML UnstructuredGrid) of spheres, as mochi writes it or any other
-/// writer ([`super::vtu_read`]: ascii, inline base64 or appended data, raw or base64, zlib or
-/// uncompressed, either byte order): the points are the centres, the radii the point data of a
-/// [`RADIUS_NAMES`] name (else half those of a [`DIAMETER_NAMES`] name), the velocities and
-/// angular velocities those of [`VELOCITY_NAMES`] and [`ANGULAR_VELOCITY_NAMES`] (zero where
-/// there is none) and the materials an integer array `material` (0 to 255; none: every sphere
+/// writer (ascii, inline base64 or appended data, raw or base64, zlib or uncompressed, either
+/// byte order): the points are the centres, the radii the point data named `radius`, `radii` or
+/// `r` in any case (else half those named `diameter` or `diameters`), the velocities those named
+/// `velocity`, `velocities` or `v` and the angular velocities `angular_velocity` or `omega` (zero
+/// where there is none) and the materials an integer array `material` (0 to 255; none: every sphere
 /// of the first material). The field data `step` and `TimeValue` give the step and time where
 /// the file has them. Any number type is read; positions keep their `Float64` values exactly.
 pub fn read_vtu(path: &Path) -> Result<OwnedFrame> {
