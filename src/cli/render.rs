@@ -261,6 +261,22 @@ fn run_walls_at(walls: Option<&RunWalls>, step: u64) -> Vec<WallAt> {
     walls.map(|w| w.at(step)).unwrap_or_default()
 }
 
+/// What a frame read from a file draws at `step`, with the walls where they are then.
+fn read_frame_data<'a>(
+    frame: &'a io::OwnedFrame,
+    step: Option<u64>,
+    walls: &'a [WallAt],
+) -> FrameData<'a> {
+    FrameData {
+        step,
+        positions: &frame.positions,
+        radii: &frame.radii,
+        velocities: &frame.velocities,
+        materials: &frame.materials,
+        walls,
+    }
+}
+
 /// Parses `MIN,MAX` (finite, MIN ≤ MAX).
 fn parse_range(text: &str) -> Result<(f32, f32)> {
     let parsed = text.split_once(',').and_then(|(a, b)| {
@@ -368,17 +384,7 @@ pub fn render(args: RenderCommandArgs) -> Result<()> {
     io::remove_stale_temp_files(folder_of(&out));
     renderer.start_gif()?;
     let walls = run_walls_at(RunWalls::of_run(parent).as_ref(), frame.step.unwrap_or(0));
-    let drawn = renderer.render(
-        &FrameData {
-            step: frame.step,
-            positions: &frame.positions,
-            radii: &frame.radii,
-            velocities: &frame.velocities,
-            materials: &frame.materials,
-            walls: &walls,
-        },
-        &out,
-    )?;
+    let drawn = renderer.render(&read_frame_data(&frame, frame.step, &walls), &out)?;
     let walls = match drawn {
         0 => String::new(),
         n => format!(" with {n} wall triangles"),
@@ -425,34 +431,16 @@ fn render_folder(dir: &Path, out: Option<&Path>, args: &RenderArgs) -> Result<()
     for (k, file) in files.iter().enumerate() {
         let frame = io::read_frame(file)?;
         let step = frame.step.unwrap_or(k as u64);
-        renderer.survey(
-            &FrameData {
-                step: Some(step),
-                positions: &frame.positions,
-                radii: &frame.radii,
-                velocities: &frame.velocities,
-                materials: &frame.materials,
-                walls: &run_walls_at(run_walls.as_ref(), step),
-            },
-            &mut survey,
-        );
+        let walls = run_walls_at(run_walls.as_ref(), step);
+        renderer.survey(&read_frame_data(&frame, Some(step), &walls), &mut survey);
     }
     renderer.settle(survey);
     for (k, file) in files.iter().enumerate() {
         let frame = io::read_frame(file)?;
         let step = frame.step.unwrap_or(k as u64);
         let png = png_name(out, step);
-        renderer.render(
-            &FrameData {
-                step: Some(step),
-                positions: &frame.positions,
-                radii: &frame.radii,
-                velocities: &frame.velocities,
-                materials: &frame.materials,
-                walls: &run_walls_at(run_walls.as_ref(), step),
-            },
-            &png,
-        )?;
+        let walls = run_walls_at(run_walls.as_ref(), step);
+        renderer.render(&read_frame_data(&frame, Some(step), &walls), &png)?;
         eprintln!("{} -> {}", file.display(), png.display());
     }
     println!(
