@@ -20,8 +20,7 @@ use mochi::dem::model::contact::{
     Body, Contact, Kept, LoadedSprings, Springs, pair_contact, surface_contact, wall_contacts,
 };
 use mochi::dem::model::{
-    ContactLaw, Material, Materials, NormalLaw, PairOverride, RollingModel, StepParams,
-    TangentialModel, mass,
+    ContactLaw, Material, Materials, PairOverride, RollingModel, StepParams, TangentialModel, mass,
 };
 use std::fmt::Write;
 use std::path::Path;
@@ -41,16 +40,9 @@ fn vec3(v: Vec3) -> String {
 /// models, dt, k, the box, then the material table (its columns, the box walls' column and
 /// every law's six values, row by row).
 fn params_section(p: &StepParams) -> String {
-    let law = match p.law {
-        NormalLaw::Linear => 0,
-        NormalLaw::LinearPerPair { .. } => 1,
-        NormalLaw::Hertz { .. } => 2,
-    };
+    let law = p.law.code() as u32;
     let f = p.friction;
-    let model = match f.rolling_model {
-        RollingModel::Epsd => 0,
-        RollingModel::ConstantTorque => 1,
-    };
+    let model = f.rolling_model.code();
     let table = &p.materials;
     let laws: Vec<String> = table
         .laws

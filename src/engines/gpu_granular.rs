@@ -20,7 +20,7 @@ use super::gpu_step::granular::{
 };
 use super::gpu_step::{InputOrder, Room, move_rows};
 use super::gpu_walls::MeshWalls;
-use crate::dem::model::{NormalLaw, RollingModel, StepParams};
+use crate::dem::model::{NormalLaw, StepParams};
 use crate::dem::stepper::StageTimes;
 use crate::dem::walls::WallSet;
 use crate::error::{Error, Result, try_vec};
@@ -434,11 +434,6 @@ impl Granular {
                 limit: first_wall as u64,
             });
         }
-        let law = match params.law {
-            NormalLaw::Linear => 0,
-            NormalLaw::LinearPerPair { .. } => 1,
-            NormalLaw::Hertz { .. } => 2,
-        };
         let slots = match keeps {
             true => FIRST_SLOTS.max(most_owned(&particles.history, &particles.radii) as u32),
             false => 0,
@@ -451,11 +446,8 @@ impl Granular {
         let split = entry_split(gpu, rows as u32, slots, entry_bytes, engine)?;
         let table = &params.materials;
         let gpu_params = GranularParams {
-            law,
-            rolling_model: match f.rolling_model {
-                RollingModel::Epsd => 0,
-                RollingModel::ConstantTorque => 1,
-            },
+            law: params.law.code() as u32,
+            rolling_model: f.rolling_model.code(),
             turns: f.turns() as u32,
             slots,
             spheres_per_part: split.spheres_per_part,

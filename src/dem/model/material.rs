@@ -35,15 +35,24 @@ pub enum ContactLaw {
 /// How rolling is resisted (Ai et al., Powder Technology 206 (2011) 269–282).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[repr(u32)]
 pub enum RollingModel {
     /// Elastic–plastic spring (Ai et al.'s type C, LIGGGHTS `epsd2`): a rolling spring of
     /// stiffness 2.25·S_n·μ_r²·R*² accumulates torque, capped at μ_r·R*·|F_n|. Holds a heap's
     /// slope at rest.
     #[default]
-    Epsd,
+    Epsd = 0,
     /// Constant torque μ_r·R*·|F_n| against the relative rolling (Ai et al.'s type A, EDEM's
     /// default), clipped so it never reverses the rolling within a step.
-    ConstantTorque,
+    ConstantTorque = 1,
+}
+
+impl RollingModel {
+    /// The model's code on the devices (`ROLLING_*` in `wgsl/dem_contact.wgsl`,
+    /// `MOCHI_ROLLING_*` in `optix/contact.cuh`).
+    pub fn code(self) -> u32 {
+        self as u32
+    }
 }
 
 /// How the tangential force follows the tangential displacement of a contact
@@ -125,6 +134,30 @@ pub enum NormalLaw {
         /// A sphere on a rigid wall.
         wall: Elastic,
     },
+}
+
+/// The normal law's code on the devices (`LAW_*` in `wgsl/dem_contact.wgsl`, `MOCHI_LAW_*` in
+/// `optix/contact.cuh`): the one place its numbers are given.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum LawCode {
+    /// [`NormalLaw::Linear`].
+    Linear = 0,
+    /// [`NormalLaw::LinearPerPair`].
+    LinearPerPair = 1,
+    /// [`NormalLaw::Hertz`].
+    Hertz = 2,
+}
+
+impl NormalLaw {
+    /// The law's code on the devices.
+    pub fn code(&self) -> LawCode {
+        match self {
+            NormalLaw::Linear => LawCode::Linear,
+            NormalLaw::LinearPerPair { .. } => LawCode::LinearPerPair,
+            NormalLaw::Hertz { .. } => LawCode::Hertz,
+        }
+    }
 }
 
 /// Effective moduli of a contact (physics notation: E*, G*).
@@ -389,6 +422,44 @@ impl Material {
                     rayleigh_time: Some(t_r),
                 })
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{LawCode, RollingModel};
+
+    #[test]
+    fn the_device_codes_are_the_kernels() {
+        let wgsl = include_str!("../../../wgsl/dem_contact.wgsl");
+        let cuda = include_str!("../../../optix/contact.cuh");
+        let laws = [
+            ("LAW_LINEAR", "MOCHI_LAW_LINEAR", LawCode::Linear as u32),
+            (
+                "LAW_PER_PAIR",
+                "MOCHI_LAW_LINEAR_PER_PAIR",
+                LawCode::LinearPerPair as u32,
+            ),
+            ("LAW_HERTZ", "MOCHI_LAW_HERTZ", LawCode::Hertz as u32),
+        ];
+        let rolling = [
+            ("ROLLING_EPSD", "MOCHI_ROLLING_EPSD", RollingModel::Epsd),
+            (
+                "ROLLING_CONSTANT_TORQUE",
+                "MOCHI_ROLLING_CONSTANT_TORQUE",
+                RollingModel::ConstantTorque,
+            ),
+        ]
+        .map(|(w, c, model)| (w, c, model.code()));
+        for (in_wgsl, in_cuda, code) in laws.into_iter().chain(rolling) {
+            let declared = format!("const {in_wgsl}: u32 = {code}u;");
+            assert!(
+                wgsl.contains(&declared),
+                "wgsl/dem_contact.wgsl: {declared}"
+            );
+            let defined = format!("#define {in_cuda} {code}u");
+            assert!(cuda.contains(&defined), "optix/contact.cuh: {defined}");
         }
     }
 }

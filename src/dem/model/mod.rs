@@ -18,7 +18,8 @@ pub mod time_step;
 
 pub use linear::{STEPS_PER_CONTACT, contact_force, stable_dt, stiffness_for_duration, wall_force};
 pub use material::{
-    ContactLaw, Elastic, Friction, MAX_FRICTION, Material, NormalLaw, RollingModel, TangentialModel,
+    ContactLaw, Elastic, Friction, LawCode, MAX_FRICTION, Material, NormalLaw, RollingModel,
+    TangentialModel,
 };
 pub use materials::{MAX_MATERIALS, MaterialTable, Materials, PairLaw, PairOverride};
 

@@ -12,7 +12,7 @@
 
 use super::programs::{self, Unit};
 use super::sys::{self, Api};
-use crate::dem::model::{MaterialTable, NormalLaw, PairLaw, RollingModel, StepParams};
+use crate::dem::model::{MaterialTable, PairLaw, StepParams};
 use crate::engines::gpu_walls::{MeshWallRow, WallTables};
 use crate::error::OptixError;
 use crate::gpu::shader::storage_bytes;
@@ -709,15 +709,8 @@ impl GranularParams {
             laws: 0,
             columns: p.materials.count as u32 + 1,
             box_column: p.box_column,
-            law: match p.law {
-                NormalLaw::Linear => 0,
-                NormalLaw::LinearPerPair { .. } => 1,
-                NormalLaw::Hertz { .. } => 2,
-            },
-            rolling_model: match f.rolling_model {
-                RollingModel::Epsd => 0,
-                RollingModel::ConstantTorque => 1,
-            },
+            law: p.law.code() as u32,
+            rolling_model: f.rolling_model.code(),
             turns: f.turns() as u32,
             keeps: f.has_history() as u32,
         }
