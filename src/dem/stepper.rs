@@ -1,7 +1,9 @@
 //! The [`Stepper`] trait that every backend's DEM step implements.
 
 use super::flow::FlowCounts;
+use super::model::{NormalLaw, StepParams};
 use super::walls::WallLoad;
+use super::walls::WallSet;
 use crate::error::Result;
 use crate::particles::Particles;
 
@@ -91,5 +93,111 @@ pub trait Stepper: Send {
     /// choice (`wgpu-compute`); default `None`.
     fn grid_build(&self) -> Option<&'static str> {
         None
+    }
+}
+
+/// Whether a run needs more than the paper's step (the engines' granular step): anything beyond
+/// the paper's law (linear, one stiffness, one material, no friction, no rolling resistance, no
+/// spin, no history) or the box walls alone. Without, the paper's kernels run it with the same
+/// work as before the granular step existed (they read one law: a scene of several materials
+/// needs the granular step, which reads each contact's from the material table).
+pub fn needs_granular_step(particles: &Particles, params: &StepParams, walls: &WallSet) -> bool {
+    !walls.is_box_only()
+        || params.law != NormalLaw::Linear
+        || params.materials.count > 1
+        || params.friction.turns()
+        || particles.spin()
+        || !particles.history.is_empty()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry};
+
+    #[test]
+    fn only_the_papers_law_in_the_box_runs_the_papers_step() {
+        use crate::dem::model::{ContactLaw, Material};
+        let params = |m: Material| {
+            StepParams::new(&m, 1e-6, [0.0; 3], [1.0; 3], [0.0, 0.0, -9.81], 0.0, 5e-4).unwrap()
+        };
+        let still = Particles {
+            positions: vec![[0.5; 3]],
+            velocities: vec![[0.0; 3]],
+            angular_velocities: vec![[0.0; 3]],
+            radii: vec![5e-4],
+            ..Particles::default()
+        };
+        let paper = params(Material::default());
+        let in_box = WallSet::default();
+        assert!(!needs_granular_step(&still, &paper, &in_box));
+        let open_box = WallSet::new(false, Vec::new()).unwrap();
+        assert!(needs_granular_step(&still, &paper, &open_box));
+        let more = [
+            Material {
+                friction: 0.5,
+                ..Material::default()
+            },
+            Material {
+                wall_friction: Some(0.5),
+                ..Material::default()
+            },
+            Material {
+                rolling_friction: 0.1,
+                ..Material::default()
+            },
+            Material {
+                contact: ContactLaw::LinearPerPair { contact_time: None },
+                ..Material::default()
+            },
+            Material {
+                contact: ContactLaw::HertzMindlin {
+                    young_modulus: 1e7,
+                    poisson_ratio: 0.3,
+                },
+                ..Material::default()
+            },
+        ];
+        for m in more {
+            assert!(needs_granular_step(&still, &params(m), &in_box), "{m:?}");
+        }
+        // Two materials of the paper's law: each pair's damping from the table.
+        let two = crate::dem::model::Materials {
+            list: vec![Material::default(), Material::default()],
+            names: vec!["a".into(), "b".into()],
+            pairs: Vec::new(),
+        };
+        let p2 = StepParams::with_materials(
+            &two,
+            None,
+            1e-6,
+            [0.0; 3],
+            [1.0; 3],
+            [0.0, 0.0, -9.81],
+            0.0,
+            5e-4,
+        )
+        .unwrap();
+        assert!(needs_granular_step(&still, &p2, &in_box));
+        let spinning = Particles {
+            angular_velocities: vec![[0.0, 1.0, 0.0]],
+            ..still.clone()
+        };
+        assert!(needs_granular_step(&spinning, &paper, &in_box));
+        let remembering = Particles {
+            history: ContactHistory::from_contacts(
+                1,
+                &[(
+                    0,
+                    HistoryEntry {
+                        partner: FIRST_WALL,
+                        ..HistoryEntry::default()
+                    },
+                )],
+            )
+            .unwrap(),
+            ..still
+        };
+        assert!(needs_granular_step(&remembering, &paper, &in_box));
     }
 }

@@ -20,7 +20,7 @@ use super::gpu_step::granular::{
 };
 use super::gpu_step::{InputOrder, Room, move_rows};
 use super::gpu_walls::MeshWalls;
-use crate::dem::model::{NormalLaw, StepParams};
+use crate::dem::model::StepParams;
 use crate::dem::stepper::StageTimes;
 use crate::dem::walls::WallSet;
 use crate::error::{Error, Result, try_vec};
@@ -380,19 +380,6 @@ pub(crate) struct Granular {
 }
 
 impl Granular {
-    /// Whether the particles, parameters and walls need the granular step; without, the
-    /// paper's step runs them, with the same work as before the granular step existed (its
-    /// kernels read one law: a scene of several materials runs the granular step, which reads
-    /// each contact's from the material table).
-    pub fn needed(particles: &Particles, params: &StepParams, walls: &WallSet) -> bool {
-        params.law != NormalLaw::Linear
-            || params.friction.turns()
-            || particles.spin()
-            || !particles.history.is_empty()
-            || !walls.is_box_only()
-            || params.materials.count > 1
-    }
-
     /// The buffers for `particles` on `gpu` for the engine named `engine` (its backend's name),
     /// whose state is in `sets` sets of buffers (1: one set in input order; 2: two sets, a step
     /// that re-sorts the state moving it from one into the other) with `room` (for spheres

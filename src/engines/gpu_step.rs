@@ -5,7 +5,7 @@
 
 pub(crate) use super::gpu_granular::{Granular, RedoableBatch, Rotation, Turn, run_batch};
 use crate::dem::model::{MaterialTable, NormalLaw, StepParams};
-use crate::dem::stepper::{Advance, Clock, StageTimes};
+use crate::dem::stepper::{Advance, Clock, StageTimes, needs_granular_step};
 use crate::dem::walls::WallSet;
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
@@ -115,7 +115,7 @@ pub(crate) enum Variant {
 impl Variant {
     /// The lightest variant that steps `particles` with `params` as the cpu step does.
     pub fn of(particles: &Particles, params: &StepParams, walls: &WallSet) -> Self {
-        if !Granular::needed(particles, params, walls) {
+        if !needs_granular_step(particles, params, walls) {
             return Variant::Paper;
         }
         let frictionless = !params.friction.turns()

@@ -25,7 +25,7 @@ use super::device::{
 use super::engine::{MAX_COORDINATE, morton_order_of, open_device};
 use super::granular::{self, Granular};
 use crate::dem::model::StepParams;
-use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, StageTimes, Stepper, needs_granular_step};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::RebuildPolicy;
 use crate::engines::gpu_step::{
@@ -164,7 +164,7 @@ impl OptixStepper {
             stream.clone_htod(&order).map_err(&alloc)?
         };
         let len = n as usize;
-        let physics = if granular::needed(&particles, &params, walls) {
+        let physics = if needs_granular_step(&particles, &params, walls) {
             Physics::Granular(Granular::new(&device, &particles, &params, &order, walls)?)
         } else {
             Physics::Frictionless {

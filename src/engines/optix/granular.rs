@@ -22,7 +22,7 @@ use super::device::{
     Device, Gas, GranularBuffers, GranularIntegration, GranularKernels, GranularParams,
     GranularProgram, HistorySlots, LawTable, MeshBuffers, Order, SlotsRead, State, cuda,
 };
-use crate::dem::model::{NormalLaw, StepParams};
+use crate::dem::model::StepParams;
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_walls::{WallTables, wall_loads};
 use crate::error::{Error, OptixError, Result};
@@ -34,18 +34,6 @@ use std::sync::Arc;
 /// History slots per sphere a run starts with, as the cpu step (a dense monodisperse packing
 /// has 12 neighbours, plus up to 3 walls; a pair is held by one of its spheres only here).
 const FIRST_SLOTS: u32 = 16;
-
-/// Whether a run needs the granular step: anything beyond the paper's law (linear, one
-/// stiffness, one material, no friction, no rolling resistance, no spin, no history) or the
-/// box walls alone.
-pub(super) fn needed(particles: &Particles, params: &StepParams, walls: &WallSet) -> bool {
-    !walls.is_box_only()
-        || params.law != NormalLaw::Linear
-        || params.materials.count > 1
-        || params.friction.turns()
-        || particles.spin()
-        || !particles.history.is_empty()
-}
 
 /// The granular step's programs, parameters and buffers.
 pub(super) struct Granular {
@@ -668,82 +656,6 @@ mod tests {
             [load, LoadEntry::default(), mirrored, LoadEntry::default()]
         );
         assert_eq!(relayout(&loads, 2, 3)[3], mirrored);
-    }
-
-    #[test]
-    fn only_the_papers_law_in_the_box_runs_the_frictionless_programs() {
-        use crate::dem::model::{ContactLaw, Material};
-        let params = |m: Material| {
-            StepParams::new(&m, 1e-6, [0.0; 3], [1.0; 3], [0.0, 0.0, -9.81], 0.0, 5e-4).unwrap()
-        };
-        let still = Particles {
-            positions: vec![[0.5; 3]],
-            velocities: vec![[0.0; 3]],
-            angular_velocities: vec![[0.0; 3]],
-            radii: vec![5e-4],
-            ..Particles::default()
-        };
-        let paper = params(Material::default());
-        let in_box = WallSet::default();
-        assert!(!needed(&still, &paper, &in_box));
-        let open_box = WallSet::new(false, Vec::new()).unwrap();
-        assert!(needed(&still, &paper, &open_box));
-        let more = [
-            Material {
-                friction: 0.5,
-                ..Material::default()
-            },
-            Material {
-                wall_friction: Some(0.5),
-                ..Material::default()
-            },
-            Material {
-                rolling_friction: 0.1,
-                ..Material::default()
-            },
-            Material {
-                contact: ContactLaw::LinearPerPair { contact_time: None },
-                ..Material::default()
-            },
-            Material {
-                contact: ContactLaw::HertzMindlin {
-                    young_modulus: 1e7,
-                    poisson_ratio: 0.3,
-                },
-                ..Material::default()
-            },
-        ];
-        for m in more {
-            assert!(needed(&still, &params(m), &in_box), "{m:?}");
-        }
-        // Two materials of the paper's law: each pair's damping from the table.
-        let two = crate::dem::model::Materials {
-            list: vec![Material::default(), Material::default()],
-            names: vec!["a".into(), "b".into()],
-            pairs: Vec::new(),
-        };
-        let p2 = StepParams::with_materials(
-            &two,
-            None,
-            1e-6,
-            [0.0; 3],
-            [1.0; 3],
-            [0.0, 0.0, -9.81],
-            0.0,
-            5e-4,
-        )
-        .unwrap();
-        assert!(needed(&still, &p2, &in_box));
-        let spinning = Particles {
-            angular_velocities: vec![[0.0, 1.0, 0.0]],
-            ..still.clone()
-        };
-        assert!(needed(&spinning, &paper, &in_box));
-        let remembering = Particles {
-            history: ContactHistory::from_contacts(1, &[(0, entry(FIRST_WALL, 1.0))]).unwrap(),
-            ..still
-        };
-        assert!(needed(&remembering, &paper, &in_box));
     }
 
     #[test]
