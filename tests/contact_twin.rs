@@ -40,7 +40,7 @@ fn vec3(v: Vec3) -> String {
 /// models, dt, k, the box, then the material table (its columns, the box walls' column and
 /// every law's six values, row by row).
 fn params_section(p: &StepParams) -> String {
-    let law = p.law.code() as u32;
+    let law = p.law.code();
     let f = p.friction;
     let model = f.rolling_model.code();
     let table = &p.materials;

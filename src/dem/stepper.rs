@@ -2,8 +2,7 @@
 
 use super::flow::FlowCounts;
 use super::model::{NormalLaw, StepParams};
-use super::walls::WallLoad;
-use super::walls::WallSet;
+use super::walls::{WallLoad, WallSet};
 use crate::error::Result;
 use crate::particles::Particles;
 

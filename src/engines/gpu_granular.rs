@@ -433,7 +433,7 @@ impl Granular {
         let split = entry_split(gpu, rows as u32, slots, entry_bytes, engine)?;
         let table = &params.materials;
         let gpu_params = GranularParams {
-            law: params.law.code() as u32,
+            law: params.law.code(),
             rolling_model: f.rolling_model.code(),
             turns: f.turns() as u32,
             slots,

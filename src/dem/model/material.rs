@@ -150,13 +150,14 @@ pub enum LawCode {
 }
 
 impl NormalLaw {
-    /// The law's code on the devices.
-    pub fn code(&self) -> LawCode {
-        match self {
+    /// The law's code on the devices ([`LawCode`]).
+    pub fn code(&self) -> u32 {
+        let code = match self {
             NormalLaw::Linear => LawCode::Linear,
             NormalLaw::LinearPerPair { .. } => LawCode::LinearPerPair,
             NormalLaw::Hertz { .. } => LawCode::Hertz,
-        }
+        };
+        code as u32
     }
 }
 

@@ -709,7 +709,7 @@ impl GranularParams {
             laws: 0,
             columns: p.materials.count as u32 + 1,
             box_column: p.box_column,
-            law: p.law.code() as u32,
+            law: p.law.code(),
             rolling_model: f.rolling_model.code(),
             turns: f.turns() as u32,
             keeps: f.has_history() as u32,
