@@ -1,6 +1,7 @@
 // The paper's DEM law (linear spring-dashpot, no friction) shared by the GPU steps: the contact
 // and wall forces of one stiffness, which dem_integrate.wgsl's kernel follows. Keep the formulas
-// in sync with src/dem/model/linear.rs, line for line. Needs dem_params.wgsl prepended and a
+// in sync with the Linear arm of normal_force in src/dem/model/contact.rs (pair_contact,
+// wall_contacts without friction): the same operations in the same order. Needs dem_params.wgsl prepended and a
 // dem_force_*.wgsl (add_force, load_force). Twin for a stiffness per pair:
 // dem_physics_per_pair.wgsl.
 

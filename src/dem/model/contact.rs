@@ -22,9 +22,9 @@
 //! Computed from j's side every operation sees negated inputs (n, v_rel, ω_rel and, by
 //! induction, j's springs are the exact negatives of i's), and the effective quantities are
 //! symmetric in i and j ([`effective`]), so the forces and the rolling torques are equal and
-//! opposite bit for bit. For the linear law without friction, the normal force takes the
-//! operations of [`super::contact_force`] and [`super::wall_force`] in the same order, so the
-//! step gives the same bits as the GPU engines' reference.
+//! opposite bit for bit. The GPU engines' copies of the law (`wgsl/dem_physics.wgsl` for the
+//! paper's frictionless linear law, `wgsl/dem_contact.wgsl` and `optix/contact.cuh` for the
+//! granular one) take the same operations in the same order: tests/contact_twin.rs compares them.
 //!
 //! Small spheres (docs/method.md, "Small spheres in f32"): masses and moments of inertia are
 //! tiny (2e-33 kg at r = 1e-12 m), and their products underflow f32. So no law multiplies two
@@ -399,7 +399,7 @@ pub const WALLS: u32 = 6;
 /// What the six walls of the box do to one sphere.
 #[derive(Debug, Clone, Copy)]
 pub struct WallContacts {
-    /// Normal forces, summed per axis low wall first, as [`super::wall_force`] does \[N\].
+    /// Normal forces, summed per axis low wall first \[N\].
     pub normal: Vec3,
     /// Tangential forces \[N\].
     pub tangential: Vec3,

@@ -2,8 +2,7 @@
 //! gravity in a box with six walls, a contact law between spheres and with the walls, and
 //! semi-implicit Euler integration of positions and angular velocities.
 //!
-//! - [`linear`]: the paper's law (linear spring–dashpot, no friction), the reference the GPU
-//!   engines follow line by line.
+//! - [`linear`]: the stiffness and the stable time step of the paper's linear spring–dashpot.
 //! - [`contact`]: the whole contact of the cpu step: linear or Hertz–Mindlin normal force,
 //!   tangential spring with history and Coulomb cap, torque, rolling resistance.
 //! - [`material`]: what a material says and the coefficients the step makes of it.
@@ -16,7 +15,7 @@ pub mod materials;
 pub mod restitution;
 pub mod time_step;
 
-pub use linear::{STEPS_PER_CONTACT, contact_force, stable_dt, stiffness_for_duration, wall_force};
+pub use linear::{STEPS_PER_CONTACT, stable_dt, stiffness_for_duration};
 pub use material::{
     ContactLaw, Elastic, Friction, LawCode, MAX_FRICTION, Material, NormalLaw, RollingModel,
     TangentialModel,
@@ -422,19 +421,25 @@ mod tests {
     }
 
     #[test]
-    fn contact_forces_are_equal_and_opposite_bit_for_bit() {
+    fn the_papers_contact_forces_are_equal_and_opposite_bit_for_bit() {
+        use contact::{Body, Springs, pair_contact};
+        use glam::Vec3;
         let p = params();
-        let (ci, vi, cj, vj) = (
-            [0.1, 0.2, 0.3],
-            [0.01, -0.3, 0.2],
-            [0.1007, 0.2003, 0.2996],
-            [-0.2, 0.1, 0.05],
-        );
-        let f = contact_force(&p, ci, vi, 0.0005, 2e-7, cj, vj, 0.0006, 3e-7).unwrap();
-        let g = contact_force(&p, cj, vj, 0.0006, 3e-7, ci, vi, 0.0005, 2e-7).unwrap();
-        assert_eq!(f, g.map(|x| -x));
+        let body = |c: [f32; 3], v: [f32; 3], r: f32, m: f32| Body {
+            c: Vec3::from_array(c),
+            v: Vec3::from_array(v),
+            w: Vec3::ZERO,
+            r,
+            m,
+            material: 0,
+        };
+        let i = body([0.1, 0.2, 0.3], [0.01, -0.3, 0.2], 0.0005, 2e-7);
+        let j = body([0.1007, 0.2003, 0.2996], [-0.2, 0.1, 0.05], 0.0006, 3e-7);
+        let f = pair_contact(&p, &i, &j, Springs::default()).unwrap().force;
+        let g = pair_contact(&p, &j, &i, Springs::default()).unwrap().force;
+        assert_eq!(f, -g);
         // Repulsive: pushes i away from j.
-        assert!(f[0] < 0.0 && f[1] < 0.0 && f[2] > 0.0);
+        assert!(f.x < 0.0 && f.y < 0.0 && f.z > 0.0);
     }
 
     #[test]
