@@ -2,7 +2,8 @@
 // its doc for the physics), in f32 with the same operations in the same order (NVRTC compiles
 // without fused multiply-adds, and glam's Vec3 computes component by component: dot products
 // as (x·x + y·y) + z·z, cross products as glam writes them). Keep the two in sync. Needs
-// physics.cuh (DemParams) prepended; keep GranularParams in sync with src/engines/optix/device.rs.
+// physics.cuh (LawParams, MochiPairLaw) prepended; keep MochiLaw in sync with DeviceLaw in
+// src/engines/optix/device.rs.
 // The tangential model is chosen when the programs are compiled: Mindlin's spring, or with
 // MOCHI_LOAD_HISTORY defined the Mindlin–Deresiewicz law (contact.rs load_history), whose springs
 // carry the load history too (the units GranularLoaded and GranularKernelsLoaded of
@@ -21,35 +22,22 @@
 // 2·√(5/6): Tsuji's damping coefficient over ζ·√(S·m*) (contact.rs TSUJI).
 #define MOCHI_TSUJI 1.8257419f
 
-// The law of one ordered pair of materials (PairLaw in src/dem/model/materials.rs, 32 bytes,
-// uploaded as it is; 16-byte aligned on the device, where the table starts 256-byte aligned).
-struct alignas(16) MochiPairLaw {
-    float rate;           // k/m* of MOCHI_LAW_LINEAR_PER_PAIR [1/s²]
-    float e_star;         // E* of Hertz–Mindlin [Pa]
-    float g_star;         // G* of Hertz–Mindlin [Pa]
-    float damping_ratio;  // ζ giving the pair's restitution
-    float sliding;        // μ
-    float rolling;        // μ_r
-    float _pad0;
-    float _pad1;
+// The law as the granular programs and kernels read it: the step's parameters and the material
+// table (DeviceLaw in src/engines/optix/device.rs).
+struct MochiLaw {
+    LawParams dem;             // box, gravity, dt, the law and its models, the history's slots
+    const MochiPairLaw* laws;  // the material table (MaterialTable::laws), row by row
 };
 
-// The step's parameters with the contact law's (StepParams: law, materials, friction models).
-struct GranularParams {
-    DemParams dem;               // box, gravity, dt, stiffness (MOCHI_LAW_LINEAR)
-    const MochiPairLaw* laws;    // the material table (MaterialTable::laws), row by row
-    unsigned int columns;        // laws in a row: the materials and a rigid wall
-    unsigned int box_column;     // the box walls' column (their material, or a rigid wall)
-    unsigned int law;            // MOCHI_LAW_*
-    unsigned int rolling_model;  // MOCHI_ROLLING_*
-    unsigned int turns;          // 1: contacts exert torques (Friction::turns)
-    unsigned int keeps;          // 1: contacts carry springs (Friction::has_history)
-};
+// Whether contacts carry springs from one step to the next (a contact history).
+static __forceinline__ __device__ bool mochi_keeps(const MochiLaw& g) {
+    return g.dem.slots != 0u;
+}
 
 // The law of a sphere of material a against a sphere or wall of column b (MaterialTable::law).
-static __forceinline__ __device__ MochiPairLaw mochi_law(const GranularParams& g, unsigned int a,
+static __forceinline__ __device__ MochiPairLaw mochi_law(const MochiLaw& g, unsigned int a,
                                                          unsigned int b) {
-    return g.laws[a * g.columns + b];
+    return g.laws[a * g.dem.columns + b];
 }
 
 // ---- glam's Vec3 operations, component by component -------------------------------------------
@@ -164,19 +152,19 @@ struct MochiTouch {
 };
 
 // The normal force of a contact of law `law` with overlap > 0 and normal relative velocity vn.
-static __forceinline__ __device__ MochiNormal mochi_normal_force(const GranularParams& g,
+static __forceinline__ __device__ MochiNormal mochi_normal_force(const MochiLaw& g,
                                                                  const MochiPairLaw& law,
                                                                  float overlap, float vn,
                                                                  float m_eff, float r_eff) {
     MochiNormal out;
-    if (g.law == MOCHI_LAW_HERTZ) {
+    if (g.dem.law == MOCHI_LAW_HERTZ) {
         float s_n = 2.0f * law.e_star * sqrtf(r_eff * overlap);
         float c = MOCHI_TSUJI * law.damping_ratio * mochi_root_product(s_n, m_eff);
         out.elastic = 2.0f / 3.0f * s_n * overlap;
         out.push = fmaxf(out.elastic - c * vn, 0.0f);
         out.stiffness = s_n;
     } else {
-        float k = g.law == MOCHI_LAW_LINEAR ? g.dem.stiffness : m_eff * law.rate;
+        float k = g.dem.law == MOCHI_LAW_LINEAR ? g.dem.stiffness : m_eff * law.rate;
         float c = 2.0f * law.damping_ratio * mochi_root_product(k, m_eff);
         out.elastic = k * overlap;
         out.push = fmaxf(out.elastic - c * vn, 0.0f);
@@ -212,7 +200,7 @@ static __forceinline__ __device__ float mochi_cube_root(float x) {
 // The Mindlin–Deresiewicz tangential force on i with full stiffness k_t, damping c_t, sliding
 // coefficient mu, elastic normal force `elastic` and Coulomb's cap mu·pressing; its springs
 // into `springs` (contact.rs load_history: Thornton & Yin's incremental form in vectors).
-static __forceinline__ __device__ float3 mochi_load_history(const GranularParams& g, float k_t,
+static __forceinline__ __device__ float3 mochi_load_history(const MochiLaw& g, float k_t,
                                                            float c_t, float mu, float elastic,
                                                            float pressing, float3 n, float3 v_t,
                                                            const MochiSprings& old,
@@ -291,7 +279,7 @@ struct MochiFriction {
 };
 
 // Of a contact of law `law` with sliding coefficient mu.
-static __forceinline__ __device__ MochiFriction mochi_friction(const GranularParams& g,
+static __forceinline__ __device__ MochiFriction mochi_friction(const MochiLaw& g,
                                                                const MochiPairLaw& law,
                                                                const MochiTouch& t, float mu,
                                                                MochiSprings old) {
@@ -305,7 +293,7 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const GranularPar
     if (mu > 0.0f) {
         float k_t;
         float c_t;
-        if (g.law == MOCHI_LAW_HERTZ) {
+        if (g.dem.law == MOCHI_LAW_HERTZ) {
             float s_t = 8.0f * law.g_star * sqrtf(t.r_eff * t.overlap);
             k_t = s_t;
             c_t = MOCHI_TSUJI * law.damping_ratio * mochi_root_product(s_t, t.m_eff);
@@ -336,7 +324,7 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const GranularPar
         float3 w_roll = mochi_sub(t.w_rel, mochi_scale(mochi_dot(t.w_rel, n), n));
         float cap = mu_r * t.r_eff * pressing;
         float3 rolling;
-        if (g.rolling_model == MOCHI_ROLLING_EPSD) {
+        if (g.dem.rolling_model == MOCHI_ROLLING_EPSD) {
             float k_r = 2.25f * t.normal.stiffness * mu_r * mu_r * t.r_eff * t.r_eff;
             float3 m = mochi_sub(mochi_into_plane(old.rolling, n),
                                  mochi_scale(k_r * g.dem.dt, w_roll));
@@ -378,7 +366,7 @@ struct MochiPairContact {
 
 // The contact of sphere i with sphere j given the springs i kept of it (`old`); false when they
 // do not touch (or their centres coincide). contact.rs pair_contact.
-static __forceinline__ __device__ bool mochi_pair_contact(const GranularParams& g,
+static __forceinline__ __device__ bool mochi_pair_contact(const MochiLaw& g,
                                                           const MochiBody& i, const MochiBody& j,
                                                           MochiSprings old,
                                                           MochiPairContact& out) {
@@ -400,7 +388,7 @@ static __forceinline__ __device__ bool mochi_pair_contact(const GranularParams& 
     out.n = n;
     out.sliding = law.sliding;
     out.rolling_friction = law.rolling;
-    if (!g.turns) {
+    if (!g.dem.turns) {
         out.force = force;
         out.torque = mochi_zero3();
         out.tangential = mochi_zero3();
@@ -473,13 +461,13 @@ struct MochiWalls {
 // high walls of x, y and z, 2·axis + side) and `keep(w, springs)` receives those to keep, for
 // each touching wall in order, where contacts carry springs. contact.rs wall_contacts.
 template <class Old, class Keep>
-static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const GranularParams& g,
+static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const MochiLaw& g,
                                                                  const MochiBody& b, Old old,
                                                                  Keep keep) {
     float c[3] = {b.c.x, b.c.y, b.c.z};
     float v[3] = {b.v.x, b.v.y, b.v.z};
     float normal[3] = {0.0f, 0.0f, 0.0f};
-    MochiPairLaw law = mochi_law(g, b.material, g.box_column);
+    MochiPairLaw law = mochi_law(g, b.material, g.dem.box_column);
     MochiWalls out;
     out.tangential = mochi_zero3();
     out.torque = mochi_zero3();
@@ -500,7 +488,7 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const GranularP
             } else {
                 f -= nf.push;
             }
-            if (g.turns) {
+            if (g.dem.turns) {
                 // ±e_a, the low wall's with negative zeros as glam's −Vec3::AXES[a].
                 float s = side == 0 ? -1.0f : 1.0f;
                 float z = side == 0 ? -0.0f : 0.0f;
@@ -510,7 +498,7 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const GranularP
                 MochiFriction fr = mochi_friction(g, law, touch, law.sliding, old(wall));
                 out.tangential = mochi_add(out.tangential, fr.force);
                 out.torque = mochi_add(out.torque, fr.torque);
-                if (g.keeps) {
+                if (mochi_keeps(g)) {
                     keep(wall, fr.springs);
                 }
             }
@@ -531,7 +519,7 @@ struct MochiSurface {
     MochiSprings springs;
 };
 
-static __device__ MochiSurface mochi_surface_contact(const GranularParams& g, const MochiBody& b,
+static __device__ MochiSurface mochi_surface_contact(const MochiLaw& g, const MochiBody& b,
                                                      float3 n, float overlap, float3 velocity,
                                                      unsigned int column, float given,
                                                      MochiSprings old) {
@@ -543,7 +531,7 @@ static __device__ MochiSurface mochi_surface_contact(const GranularParams& g, co
     out.force = mochi_scale(-nf.push, n);
     out.torque = mochi_zero3();
     out.springs = mochi_no_springs();
-    if (!g.turns) {
+    if (!g.dem.turns) {
         return out;
     }
     MochiFriction f =

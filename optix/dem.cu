@@ -15,7 +15,7 @@ struct DemLaunch {
     unsigned int n;
     unsigned int mode;               // MOCHI_MODE_MOCHI or MOCHI_MODE_NNS
     unsigned int _pad[2];
-    DemParams dem;
+    LawParams dem;
 };
 
 extern "C" __constant__ DemLaunch params;

@@ -20,15 +20,14 @@ struct GranularLaunch {
     const unsigned int* old_count;   // the last step's history, by stable id
     const MochiHistoryEntry* old_entries;
     unsigned int* new_count;         // this step's: contacts each ray holds (may exceed slots)
-    MochiHistoryEntry* new_entries;  // `slots` per stable id
+    MochiHistoryEntry* new_entries;  // g.dem.slots per stable id
     const MochiLoadEntry* old_loads;  // beside old_entries (MOCHI_LOAD_HISTORY; else unused)
     MochiLoadEntry* new_loads;        // beside new_entries (MOCHI_LOAD_HISTORY; else unused)
     unsigned long long handle;       // the acceleration structure
     unsigned int n;
-    unsigned int mode;   // MOCHI_MODE_MOCHI or MOCHI_MODE_NNS
-    unsigned int slots;  // history slots per sphere (0 where contacts carry no springs)
-    unsigned int _pad;
-    GranularParams g;
+    unsigned int mode;       // MOCHI_MODE_MOCHI or MOCHI_MODE_NNS
+    unsigned int _pad[4];    // g starts a 16-byte line (its sphere_law's alignment)
+    MochiLaw g;              // with the history's slots (g.dem.slots)
 };
 
 extern "C" __constant__ GranularLaunch params;
@@ -68,14 +67,14 @@ extern "C" __global__ void __raygen__granular() {
         atomicAdd(&params.force[3 * i], __uint_as_float(payload[1]));
         atomicAdd(&params.force[3 * i + 1], __uint_as_float(payload[2]));
         atomicAdd(&params.force[3 * i + 2], __uint_as_float(payload[3]));
-        if (params.g.turns) {
+        if (params.g.dem.turns) {
             atomicAdd(&params.torque[3 * i], __uint_as_float(payload[4]));
             atomicAdd(&params.torque[3 * i + 1], __uint_as_float(payload[5]));
             atomicAdd(&params.torque[3 * i + 2], __uint_as_float(payload[6]));
         }
         atomicAdd(&params.contacts[i & 255u], payload[7]);
     }
-    if (params.g.keeps) {
+    if (mochi_keeps(params.g)) {
         // The walls' entries follow (granular_integrate), which also checks the count.
         params.new_count[params.ids[i]] = payload[8];
     }
@@ -88,14 +87,14 @@ extern "C" __global__ void __intersection__granular() {
     if (!mochi_keep(params.mode, i, params.pos[i], j, params.pos[j])) {
         return;
     }
-    const GranularParams& g = params.g;
+    const MochiLaw& g = params.g;
     MochiBody a = mochi_body(i);
     MochiBody b = mochi_body(j);
     unsigned int id_i = params.ids[i];
     unsigned int id_j = params.ids[j];
     MochiSprings old = mochi_no_springs();
-    if (g.keeps) {
-        MochiSlots h = {params.old_count, params.old_entries, params.slots, params.old_loads};
+    if (mochi_keeps(g)) {
+        MochiSlots h = {params.old_count, params.old_entries, g.dem.slots, params.old_loads};
         old = mochi_old_springs(h, id_i, id_j);
     }
     MochiPairContact c;
@@ -108,7 +107,7 @@ extern "C" __global__ void __intersection__granular() {
     mochi_add_payload(1u, c.force.x);
     mochi_add_payload(2u, c.force.y);
     mochi_add_payload(3u, c.force.z);
-    if (g.turns) {
+    if (g.dem.turns) {
         float3 t = mochi_partner_torque(b.r, c);
         atomicAdd(&params.torque[3 * j], t.x);
         atomicAdd(&params.torque[3 * j + 1], t.y);
@@ -118,11 +117,11 @@ extern "C" __global__ void __intersection__granular() {
         mochi_add_payload(6u, c.torque.z);
     }
     mochi_set_payload(7u, mochi_get_payload(7u) + 1u);
-    if (g.keeps) {
+    if (mochi_keeps(g)) {
         unsigned int k = mochi_get_payload(8u);
-        if (k < params.slots) {
+        if (k < g.dem.slots) {
             mochi_keep_entry(params.new_entries, params.new_loads,
-                             (unsigned long long)id_i * params.slots + k, id_j, c.springs);
+                             (unsigned long long)id_i * g.dem.slots + k, id_j, c.springs);
         }
         mochi_set_payload(8u, k + 1u);
     }

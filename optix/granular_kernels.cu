@@ -7,7 +7,7 @@
 // normal and tangential forces; each sphere's material rides in its angular velocity row's w,
 // as bits, and stays there); clears the force and torque accumulators for the next step.
 // Appends the walls' springs to the sphere's new history after those its ray wrote, and where a
-// sphere holds more contacts than `slots`, raises `need` to its count (the host then grows
+// sphere holds more contacts than its slots (g.dem.slots), raises `need` to its count (the host then grows
 // the slots and redoes the steps).
 extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* vel,
                                               float4* ang, float* force, float* torque,
@@ -18,7 +18,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
                                               MochiHistoryEntry* new_entries,
                                               const MochiLoadEntry* old_loads,
                                               MochiLoadEntry* new_loads, unsigned int* need,
-                                              unsigned int slots, GranularParams g,
+                                              MochiLaw g,
                                               unsigned int step, MochiMeshParams mesh,
                                               const MochiMeshWall* mesh_walls,
                                               const unsigned int* mesh_grid,
@@ -27,6 +27,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
     if (p >= g.dem.n) {
         return;
     }
+    const unsigned int slots = g.dem.slots;
     float4 s = pos[p];
     float4 v = vel[p];
     float4 w = ang[p];
@@ -38,7 +39,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
     b.m = v.w;
     b.material = __float_as_uint(w.w);
     unsigned int id = ids[p];
-    unsigned int held = g.keeps ? new_count[id] : 0u;
+    unsigned int held = mochi_keeps(g) ? new_count[id] : 0u;
     unsigned long long row = (unsigned long long)id * slots;
     MochiSlots old_slots = {old_count, old_entries, slots, old_loads};
     MochiWalls walls;
@@ -51,7 +52,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
             [&](unsigned int wall) {
                 // Only where contacts carry springs (old_slots are empty otherwise).
                 MochiSprings springs = mochi_no_springs();
-                if (g.keeps) {
+                if (mochi_keeps(g)) {
                     mochi_find(old_slots, id, MOCHI_FIRST_WALL + wall, springs);
                 }
                 return springs;
@@ -86,7 +87,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
         walls.normal = mochi_add(walls.normal, mesh_force);
         walls.torque = mochi_add(walls.torque, mesh_torque);
     }
-    if (g.keeps) {
+    if (mochi_keeps(g)) {
         new_count[id] = min(held, slots);
         if (held > slots) {
             atomicMax(need, held);
@@ -99,7 +100,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
     float3 g_now = mochi_gravity_at(g.dem, step);
     float m = v.w;
     float dt = g.dem.dt;
-    if (g.turns) {
+    if (g.dem.turns) {
         f = mochi_add(f, walls.tangential);
         float3 t = mochi_add(mochi_v3(torque[3 * p], torque[3 * p + 1], torque[3 * p + 2]),
                              walls.torque);

@@ -51,7 +51,7 @@ extern "C" __global__ void dem_boxes(const float4* pos, float* boxes, unsigned i
 // their residuals `lo`); clears the force accumulator for the next step. Keep in sync with
 // `integrate_sphere` in wgsl/dem_integrate.wgsl.
 extern "C" __global__ void dem_integrate(float4* pos, float4* lo, float4* vel, float* force,
-                                         DemParams dem, unsigned int step) {
+                                         LawParams dem, unsigned int step) {
     unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= dem.n) {
         return;

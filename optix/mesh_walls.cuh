@@ -195,7 +195,7 @@ static __device__ unsigned int mochi_mesh_candidates(const MochiMeshes& w, unsig
 // receives the springs to keep in order; in step `summing` the reactions go to the walls' loads
 // (lane `lane`).
 template <class Old, class Keep>
-static __device__ void mochi_mesh_contacts(const GranularParams& g, const MochiMeshes& w,
+static __device__ void mochi_mesh_contacts(const MochiLaw& g, const MochiMeshes& w,
                                            const MochiBody& b, float t, bool summing,
                                            unsigned int lane, float3& force, float3& torque,
                                            Old old, Keep keep) {
@@ -245,7 +245,7 @@ static __device__ void mochi_mesh_contacts(const GranularParams& g, const MochiM
             float3 surface_velocity = mochi_add(
                 pose.velocity, mochi_cross(pose.spin, mochi_sub(point, pose.centre)));
             MochiSprings springs = mochi_no_springs();
-            if (g.keeps) {
+            if (mochi_keeps(g)) {
                 next_old = old(partner, next_old, springs);
             }
             // d < r, but the square root may round up.
@@ -254,7 +254,7 @@ static __device__ void mochi_mesh_contacts(const GranularParams& g, const MochiM
                                                    m.own_friction, springs);
             f_wall = mochi_add(f_wall, c.force);
             t_wall = mochi_add(t_wall, c.torque);
-            if (g.keeps) {
+            if (mochi_keeps(g)) {
                 keep(partner, c.springs);
             }
         }

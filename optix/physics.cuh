@@ -1,18 +1,42 @@
 // The DEM physics of the optix backend's step: parameters, contact and wall forces, gravity.
-// Keep DemParams in sync with `DemParams` in src/engines/optix/device.rs (laid out as the WGSL one
-// of wgsl/dem_physics.wgsl) and the formulas with src/dem/model.rs, line for line.
+// LawParams is checked against its Rust twin by the layout asserts of src/engines/optix/device.rs;
+// the formulas follow src/dem/model/contact.rs, line for line.
 
-struct DemParams {
+// The law of one ordered pair of materials (PairLaw in src/dem/model/materials.rs, 32 bytes,
+// uploaded as it is; 16-byte aligned on the device, where the table starts 256-byte aligned).
+struct alignas(16) MochiPairLaw {
+    float rate;           // k/m* of MOCHI_LAW_LINEAR_PER_PAIR [1/s²]
+    float e_star;         // E* of Hertz–Mindlin [Pa]
+    float g_star;         // G* of Hertz–Mindlin [Pa]
+    float damping_ratio;  // ζ giving the pair's restitution
+    float sliding;        // μ
+    float rolling;        // μ_r
+    float _pad0;
+    float _pad1;
+};
+
+// The step's parameters: the box, gravity, the time step and the contact law (LawParams in
+// src/dem/model/law.rs, passed by value as it is).
+struct LawParams {
     float box_lo[3];
     unsigned int n;
     float box_hi[3];
     unsigned int row;  // unused here (wgpu dispatch rows)
     float gravity[3];  // at t = 0
     float dt;
-    float stiffness;
-    float damping_ratio;
-    float gravity_spin;  // rad/s about the y axis
+    float stiffness;      // of MOCHI_LAW_LINEAR
+    float damping_ratio;  // the first material's (the paper's law)
+    float gravity_spin;   // rad/s about the y axis
+    unsigned int law;     // MOCHI_LAW_* (contact.cuh)
+    unsigned int rolling_model;  // MOCHI_ROLLING_*
+    unsigned int turns;          // 1: contacts exert torques (Friction::turns)
+    unsigned int slots;          // history slots per sphere (0: contacts keep no springs)
+    unsigned int spheres_per_part;  // unused here (wgpu entry bindings)
+    unsigned int columns;        // laws in a row of the material table: the materials and a rigid wall
+    unsigned int box_column;     // the box walls' column (their material, or a rigid wall)
+    unsigned int _pad0;
     unsigned int _pad1;
+    MochiPairLaw sphere_law;     // the table's row 0, column 0
 };
 
 // The effective value a·b/(a + b) of two positive values (m*, R*, I*) without their product,
@@ -32,7 +56,7 @@ static __forceinline__ __device__ float mochi_root_product(float a, float b) {
 
 // Force on sphere i from sphere j (x, y, z, r and vx, vy, vz, mass each) in xyz, and 1 in w
 // when they touch; zero otherwise.
-static __forceinline__ __device__ float4 mochi_contact_force(const DemParams& dem, float4 c_i,
+static __forceinline__ __device__ float4 mochi_contact_force(const LawParams& dem, float4 c_i,
                                                              float4 v_i, float4 c_j, float4 v_j) {
     float dx = c_j.x - c_i.x;
     float dy = c_j.y - c_i.y;
@@ -55,7 +79,7 @@ static __forceinline__ __device__ float4 mochi_contact_force(const DemParams& de
 }
 
 // Force of the box walls on sphere s (x, y, z, r) with velocity and mass v.
-static __forceinline__ __device__ float3 mochi_wall_force(const DemParams& dem, float4 s,
+static __forceinline__ __device__ float3 mochi_wall_force(const LawParams& dem, float4 s,
                                                           float4 v) {
     float damping = 2.0f * dem.damping_ratio * mochi_root_product(dem.stiffness, v.w);
     float c[3] = {s.x, s.y, s.z};
@@ -96,7 +120,7 @@ static __forceinline__ __device__ void mochi_move(float4& s, float4& lo, float d
 }
 
 // Gravity at step `step`, turned about the y axis by gravity_spin · t.
-static __forceinline__ __device__ float3 mochi_gravity_at(const DemParams& dem,
+static __forceinline__ __device__ float3 mochi_gravity_at(const LawParams& dem,
                                                           unsigned int step) {
     float angle = dem.gravity_spin * ((float)step * dem.dt);
     float s = sinf(angle);

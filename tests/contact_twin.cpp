@@ -136,19 +136,19 @@ int main() {
         // Parameters: law, rolling model, turns, keeps, dt, k, box, then the material table:
         // its columns, the box walls' column and each law's rate, E*, G*, ζ, μ, μ_r.
         const std::vector<std::string>& h = s[0];
-        GranularParams g{};
-        g.law = std::stoul(h[0]);
-        g.rolling_model = std::stoul(h[1]);
-        g.turns = std::stoul(h[2]);
-        g.keeps = std::stoul(h[3]);
+        MochiLaw g{};
+        g.dem.law = std::stoul(h[0]);
+        g.dem.rolling_model = std::stoul(h[1]);
+        g.dem.turns = std::stoul(h[2]);
+        g.dem.slots = std::stoul(h[3]);  // the law reads only whether contacts keep springs
         g.dem.dt = from_bits(h[4]);
         g.dem.stiffness = from_bits(h[5]);
         for (int a = 0; a < 3; ++a) {
             g.dem.box_lo[a] = from_bits(h[6 + a]);
             g.dem.box_hi[a] = from_bits(h[9 + a]);
         }
-        g.columns = std::stoul(h[12]);
-        g.box_column = std::stoul(h[13]);
+        g.dem.columns = std::stoul(h[12]);
+        g.dem.box_column = std::stoul(h[13]);
         std::vector<MochiPairLaw> laws((h.size() - 14) / 6);
         for (size_t k = 0; k < laws.size(); ++k) {
             MochiPairLaw& l = laws[k];
@@ -175,7 +175,7 @@ int main() {
             ++differences;
         } else if (touching) {
             check_contact("pair's", c.force, c.torque, c.springs, from_i);
-            float3 t = g.turns ? mochi_partner_torque(j.r, c) : mochi_zero3();
+            float3 t = g.dem.turns ? mochi_partner_torque(j.r, c) : mochi_zero3();
             check_contact("partner's", mochi_neg(c.force), t, mochi_negated(c.springs), from_j);
         }
         // Walls: normal, tangential, torque, then (wall, springs) kept and their count. The

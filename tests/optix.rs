@@ -150,12 +150,10 @@ fn shared_structs_lie_where_the_device_code_reads_them() {
         programs::compile_with_checks(unit, &checks).unwrap_or_else(|e| panic!("{e}"));
     }
     // A wrong offset is caught.
-    let wrong = programs::layout_checks(Unit::Granular).replace(
-        "GranularLaunch, slots) == ",
-        "GranularLaunch, slots) == 4 + ",
-    );
+    let wrong = programs::layout_checks(Unit::Granular)
+        .replace("LawParams, slots) == ", "LawParams, slots) == 4 + ");
     let err = programs::compile_with_checks(Unit::Granular, &wrong).expect_err("a wrong offset");
-    assert!(err.to_string().contains("GranularLaunch.slots"), "{err}");
+    assert!(err.to_string().contains("LawParams.slots"), "{err}");
 }
 
 #[test]

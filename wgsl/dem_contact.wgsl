@@ -11,39 +11,13 @@
 // own torque (what the cpu computes from the partner's side: its operations see exactly negated
 // inputs).
 
-// Twin of GranularParams in src/engines/gpu_step.rs (tests/bindings.rs compares the layouts).
-struct GranularParams {
-    law: u32,             // LAW_*
-    rolling_model: u32,   // ROLLING_*
-    turns: u32,           // 1 where any contact exerts a torque
-    slots: u32,           // history slots per sphere (0: contacts keep no springs)
-    spheres_per_part: u32, // history rows one entry binding holds (dem_granular.wgsl)
-    materials: u32,       // materials; the table has materials + 1 columns
-    box_column: u32,      // the table's column of the six box walls
-    _pad: u32,
-    sphere_law: PairLaw,  // row 0, column 0 of the table: with one material, every pair's law
-}
-
-// The law of one ordered pair of materials; twin of PairLaw in src/dem/model/materials.rs.
-struct PairLaw {
-    rate: f32,            // k/m* of LAW_PER_PAIR [1/s²]
-    e_star: f32,          // E* of LAW_HERTZ [Pa]
-    g_star: f32,          // G* of LAW_HERTZ [Pa]
-    damping_ratio: f32,   // ζ giving the pair's restitution
-    sliding: f32,         // μ
-    rolling: f32,         // μ_r
-    _pad0: f32,
-    _pad1: f32,
-}
-
-@group(0) @binding(17) var<uniform> granular: GranularParams;
 // Row a (a sphere of material a), column b (a sphere or wall of material b; column
-// granular.materials: a rigid wall) at a · (materials + 1) + b: MaterialTable::laws.
+// dem.columns - 1: a rigid wall) at a · dem.columns + b: MaterialTable::laws.
 @group(0) @binding(20) var<storage, read> material_laws: array<PairLaw>;
 
 // The law of a sphere of material a against column b of the table (MaterialTable::law).
 fn law_of(a: u32, b: u32) -> PairLaw {
-    return material_laws[a * (granular.materials + 1u) + b];
+    return material_laws[a * dem.columns + b];
 }
 
 // True where the scene has one material (set when the pipeline is made, DemModule::constants):
@@ -54,7 +28,7 @@ override ONE_MATERIAL: bool = false;
 // The law of two spheres of materials a and b.
 fn sphere_law(a: u32, b: u32) -> PairLaw {
     if ONE_MATERIAL {
-        return granular.sphere_law;
+        return dem.sphere_law;
     }
     return law_of(a, b);
 }
@@ -155,12 +129,12 @@ fn length_of(v: vec3<f32>) -> f32 {
 // The normal force of a contact of law `law` with overlap `overlap` > 0 and normal relative
 // velocity `vn`.
 fn normal_force(law: PairLaw, overlap: f32, vn: f32, m_eff: f32, r_eff: f32) -> Normal {
-    if granular.law == LAW_LINEAR {
+    if dem.law == LAW_LINEAR {
         let c = 2.0 * law.damping_ratio * root_product(dem.stiffness, m_eff);
         let elastic = dem.stiffness * overlap;
         return Normal(max(elastic - c * vn, 0.0), elastic, dem.stiffness);
     }
-    if granular.law == LAW_PER_PAIR {
+    if dem.law == LAW_PER_PAIR {
         let k = m_eff * law.rate;
         let c = 2.0 * law.damping_ratio * root_product(k, m_eff);
         let elastic = k * overlap;
@@ -192,7 +166,7 @@ fn friction(t: Touch, law: PairLaw, mu: f32, old: Springs) -> Friction {
     if mu > 0.0 {
         var k_t: f32;
         var c_t: f32;
-        if granular.law == LAW_HERTZ {
+        if dem.law == LAW_HERTZ {
             k_t = 8.0 * law.g_star * sqrt(t.r_eff * t.overlap);
             c_t = TSUJI * law.damping_ratio * root_product(k_t, t.m_eff);
         } else {
@@ -208,7 +182,7 @@ fn friction(t: Touch, law: PairLaw, mu: f32, old: Springs) -> Friction {
     if mu_r > 0.0 {
         let w_roll = t.w_rel - dot3(t.w_rel, n) * n;
         let cap = mu_r * t.r_eff * pressing;
-        if granular.rolling_model == ROLLING_EPSD {
+        if dem.rolling_model == ROLLING_EPSD {
             let k_r = 2.25 * t.normal.stiffness * mu_r * mu_r * t.r_eff * t.r_eff;
             var m = into_plane(old.rolling, n) - k_r * dem.dt * w_roll;
             let len = length_of(m);
@@ -250,7 +224,7 @@ fn pair_contact(i: Body, j: Body, old: Springs) -> Contact {
     let normal = normal_force(law, overlap, vn, m_eff, r_eff);
     out.touching = true;
     out.force = -normal.push * n;
-    if granular.turns == 0u {
+    if dem.turns == 0u {
         return out;
     }
     let touch = Touch(
@@ -296,7 +270,7 @@ fn surface_contact(
     // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
     let nf = normal_force(law, overlap, dot3(velocity - b.v, n), b.m, b.r);
     var out = SurfaceContact(-nf.push * n, vec3(0.0), no_springs());
-    if granular.turns == 0u {
+    if dem.turns == 0u {
         return out;
     }
     let touch = Touch(

@@ -11,14 +11,14 @@
 // Each sphere's material travels in its ω's fourth component, a whole f32 number (`material_of`):
 // read with ω at no cost, and moved wherever ω moves.
 //
-// History: K = granular.slots slots per sphere in rows in state order, in two sets of buffers
+// History: K = dem.slots slots per sphere in rows in state order, in two sets of buffers
 // that swap roles every step (old: read, new: written): a step writes the new row of the sphere
 // at state index p at row p, and reads its old row at row_before(p), the row the previous step
 // wrote. The state barely moves from one re-sort to the next, so neighbouring threads read and
 // write neighbouring rows. A slot is one 32-byte entry (one memory sector, written whole: a
 // partly written sector costs the memory a read of the rest) holding the partner's stable id and
 // the six springs. Slot s of row r is in one of the entry bindings: part r / P of them, at
-// element (r mod P)·K + s, P = granular.spheres_per_part (every row in part 0 where the
+// element (r mod P)·K + s, P = dem.spheres_per_part (every row in part 0 where the
 // entries fit one binding; the bindings past the parts in use hold a spare buffer and are
 // never read).
 // A pair is resolved once, by its owner (the sphere whose thread finds it); the owner looks the
@@ -76,12 +76,12 @@ struct SlotAt {
 
 // Where slot s of history row r is.
 fn slot_at(r: u32, s: u32) -> SlotAt {
-    let part = r / granular.spheres_per_part;
-    return SlotAt(part, (r - part * granular.spheres_per_part) * granular.slots + s);
+    let part = r / dem.spheres_per_part;
+    return SlotAt(part, (r - part * dem.spheres_per_part) * dem.slots + s);
 }
 
 // Sphere p resolving its contacts. Its stable id, old row, old count and the places of its
-// slots are found only where contacts keep history (granular.slots > 0), the only use of them.
+// slots are found only where contacts keep history (dem.slots > 0), the only use of them.
 struct Walker {
     p: u32,              // its place in the walk (the stencil walk's sorted place)
     h: u32,              // its state index, its row of the new history
@@ -107,7 +107,7 @@ fn walker(p: u32, h: u32, s: vec4<f32>) -> Walker {
     var kept = 0u;
     var own_old = SlotAt(0u, 0u);
     var own_new = SlotAt(0u, 0u);
-    if granular.slots > 0u {
+    if dem.slots > 0u {
         a = stable_id(h);
         row_old = row_before(h);
         kept = held_old[row_old];
@@ -218,7 +218,7 @@ fn old_wall_springs(w: ptr<function, Walker>, wall: u32) -> Springs {
 
 // Keeps the contact with `partner` in the walker's next slot, where there is one; counts it.
 fn keep_springs(w: ptr<function, Walker>, partner: u32, s: Springs) {
-    if (*w).held < granular.slots {
+    if (*w).held < dem.slots {
         store_entry(SlotAt((*w).own_new.part, (*w).own_new.slot + (*w).held), partner, s);
     }
     (*w).held += 1u;
@@ -249,18 +249,18 @@ fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) -> Contact {
     let other = body_of(t, vel[q], omega[q]);
     var old = no_springs();
     var b = 0u;   // q's stable id, where contacts keep history
-    if granular.slots > 0u {
+    if dem.slots > 0u {
         b = stable_id(q);
         old = old_springs(w, q, b);
     }
     let c = pair_contact((*w).me, other, old);
     if c.touching {
         add_force(q, -c.force);
-        if granular.turns != 0u {
+        if dem.turns != 0u {
             add_torque(q, c.torque_j);
         }
     }
-    if granular.slots > 0u {
+    if dem.slots > 0u {
         keep_springs(w, b, c.springs);
     }
     return c;
@@ -279,7 +279,7 @@ fn take(w: ptr<function, Walker>, c: Contact) {
 fn finish(w: ptr<function, Walker>) {
     let b = (*w).me;
     if mesh.box_walls != 0u {
-        let law = law_of(b.material, granular.box_column);
+        let law = law_of(b.material, dem.box_column);
         for (var axis = 0u; axis < 3u; axis += 1u) {
             let below = b.r - (b.c[axis] - dem.box_lo[axis]);
             let above = b.r - (dem.box_hi[axis] - b.c[axis]);
@@ -290,7 +290,7 @@ fn finish(w: ptr<function, Walker>) {
                 }
                 let wall = 2u * axis + side;
                 var old = no_springs();
-                if granular.slots > 0u {
+                if dem.slots > 0u {
                     old = old_wall_springs(w, wall);
                 }
                 var n = vec3(0.0);
@@ -298,7 +298,7 @@ fn finish(w: ptr<function, Walker>) {
                 let c = surface_contact(b, n, overlap, vec3(0.0), law, law.sliding, old);
                 (*w).force += c.force;
                 (*w).torque += c.torque;
-                if granular.slots > 0u {
+                if dem.slots > 0u {
                     keep_springs(w, FIRST_WALL + wall, c.springs);
                 }
             }
@@ -308,12 +308,12 @@ fn finish(w: ptr<function, Walker>) {
     if any((*w).force != vec3(0.0)) {
         add_force((*w).h, (*w).force);
     }
-    if granular.turns != 0u && any((*w).torque != vec3(0.0)) {
+    if dem.turns != 0u && any((*w).torque != vec3(0.0)) {
         add_torque((*w).h, (*w).torque);
     }
-    if granular.slots > 0u {
-        held_new[(*w).h] = min((*w).held, granular.slots);
-        if (*w).held > granular.slots {
+    if dem.slots > 0u {
+        held_new[(*w).h] = min((*w).held, dem.slots);
+        if (*w).held > dem.slots {
             atomicMax(&history_need, (*w).held);
         }
     }
@@ -345,7 +345,7 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
     vel[p] = vec4(v_new, m);
     let moved = vec4(advance_position(p, s.xyz, dem.dt * v_new), s.w);
     pos[p] = moved;
-    if granular.turns != 0u {
+    if dem.turns != 0u {
         let inertia = moment_of_inertia(m, s.w);
         let torque = load_torque(p);
         let o = omega[p];

@@ -253,7 +253,7 @@ fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, c
         let n = rotate(pose.q, n_rest);
         let surface_velocity = pose.velocity + cross(pose.spin, point - pose.centre);
         var old = no_springs();
-        if granular.slots > 0u {
+        if dem.slots > 0u {
             let s = own_old_slot_from(w, partner, next_old);
             if s < (*w).kept {
                 old = own_old_springs(w, s);
@@ -267,7 +267,7 @@ fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, c
         let c = surface_contact(b, n, overlap, surface_velocity, law, mu, old);
         force += c.force;
         torque += c.torque;
-        if granular.slots > 0u {
+        if dem.slots > 0u {
             keep_springs(w, partner, c.springs);
         }
     }
@@ -372,18 +372,18 @@ fn mesh_wall_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let p = atomicLoad(&mesh_near[2u + k]);
     var w = walker(p, p, pos[p]);
-    if granular.slots > 0u {
+    if dem.slots > 0u {
         // Past the slots the batch is redone anyway (history_need is raised already).
         w.held = held_new[p];
     }
     mesh_contacts(&w, f32(step) * dem.dt, step == mesh.loads_step);
     add_force(p, w.force);
-    if granular.turns != 0u {
+    if dem.turns != 0u {
         add_torque(p, w.torque);
     }
-    if granular.slots > 0u {
-        held_new[p] = min(w.held, granular.slots);
-        if w.held > granular.slots {
+    if dem.slots > 0u {
+        held_new[p] = min(w.held, dem.slots);
+        if w.held > dem.slots {
             atomicMax(&history_need, w.held);
         }
     }

@@ -1,21 +1,44 @@
 // What every GPU DEM step shares: its parameters, the state it steps and its clock, and gravity.
-// Keep DemParams in sync with src/engines/gpu_step.rs. Prepended to dem_physics.wgsl (the
-// paper's law) or to dem_contact.wgsl and dem_granular.wgsl (the granular step).
+// Prepended to dem_physics.wgsl (the paper's law) or to dem_contact.wgsl and dem_granular.wgsl
+// (the granular step).
 
-struct DemParams {
+// The step's parameters: the box, gravity, the time step and the contact law. Twin of LawParams
+// in src/dem/model/law.rs (tests/bindings.rs compares the layouts).
+struct LawParams {
     box_lo: vec3<f32>,
     n: u32,
     box_hi: vec3<f32>,
     row: u32,               // invocations per dispatch row of a 256-wide kernel
     gravity: vec3<f32>,     // at t = 0
     dt: f32,
-    stiffness: f32,
-    damping_ratio: f32,
+    stiffness: f32,         // of LAW_LINEAR
+    damping_ratio: f32,     // the first material's (the paper's law)
     gravity_spin: f32,      // rad/s about the y axis
+    law: u32,               // LAW_* (dem_contact.wgsl)
+    rolling_model: u32,     // ROLLING_*
+    turns: u32,             // 1 where any contact exerts a torque
+    slots: u32,             // history slots per sphere (0: contacts keep no springs)
+    spheres_per_part: u32,  // history rows one entry binding holds (dem_granular.wgsl)
+    columns: u32,           // laws in a row of the material table: the materials and a rigid wall
+    box_column: u32,        // the table's column of the six box walls
+    _pad0: u32,
     _pad1: u32,
+    sphere_law: PairLaw,    // row 0, column 0 of the table: with one material, every pair's law
 }
 
-@group(0) @binding(1) var<uniform> dem: DemParams;
+// The law of one ordered pair of materials; twin of PairLaw in src/dem/model/materials.rs.
+struct PairLaw {
+    rate: f32,            // k/m* of LAW_PER_PAIR [1/s²]
+    e_star: f32,          // E* of LAW_HERTZ [Pa]
+    g_star: f32,          // G* of LAW_HERTZ [Pa]
+    damping_ratio: f32,   // ζ giving the pair's restitution
+    sliding: f32,         // μ
+    rolling: f32,         // μ_r
+    _pad0: f32,
+    _pad1: f32,
+}
+
+@group(0) @binding(1) var<uniform> dem: LawParams;
 @group(0) @binding(10) var<storage, read_write> pos: array<vec4<f32>>;   // x, y, z, r
 @group(0) @binding(11) var<storage, read_write> vel: array<vec4<f32>>;   // vx, vy, vz, mass
 // the residuals of the centres in pos: x, y, z, 0 (each coordinate of pos plus its residual is

@@ -1,15 +1,9 @@
 // The frictionless DEM law with a stiffness per pair (`stiffness = "per-pair"` without friction or
 // rolling resistance): dem_physics.wgsl's contact and wall forces with k = m*·rate, m* the
-// contact's effective mass (m_i on a wall), instead of one stiffness. Keep the formulas in sync
+// contact's effective mass (m_i on a wall) and rate the one material's (dem.sphere_law.rate),
+// instead of one stiffness. Keep the formulas in sync
 // with the LinearPerPair arm of normal_force in src/dem/model/contact.rs: the same operations
 // in the same order. Needs dem_params.wgsl prepended and a dem_force_*.wgsl.
-
-// Twin of PerPairParams in src/engines/gpu_step.rs (tests/bindings.rs compares the layouts).
-struct PerPairParams {
-    rate: f32,   // k/m* [1/s²]
-}
-
-@group(0) @binding(17) var<uniform> per_pair: PerPairParams;
 
 // Force on sphere i from sphere j (xyz) and 1 in w when they touch; zero otherwise.
 fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
@@ -26,7 +20,7 @@ fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
     let dv = v_j - v_i;
     let vn = dv.x * n.x + dv.y * n.y + dv.z * n.z;
     let m_eff = effective(m_i, m_j);
-    let k = m_eff * per_pair.rate;
+    let k = m_eff * dem.sphere_law.rate;
     let c = 2.0 * dem.damping_ratio * root_product(k, m_eff);
     let push = max(k * overlap - c * vn, 0.0);
     return vec4(-push * n, 1.0);
@@ -34,7 +28,7 @@ fn contact_force(c_i: vec3<f32>, v_i: vec3<f32>, r_i: f32, m_i: f32,
 
 // Force of the box walls on a sphere at c with velocity v, radius r and mass m.
 fn wall_force(c: vec3<f32>, v: vec3<f32>, r: f32, m: f32) -> vec3<f32> {
-    let k = m * per_pair.rate;
+    let k = m * dem.sphere_law.rate;
     let damping = 2.0 * dem.damping_ratio * root_product(k, m);
     var f = vec3(0.0);
     for (var a = 0; a < 3; a += 1) {

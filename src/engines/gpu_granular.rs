@@ -15,12 +15,12 @@
 //! from that state with K grown: no contact is ever dropped.
 
 use super::gpu_step::granular::{
-    ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, GRANULAR, GranularParams, HELD_NEW, HELD_OLD,
-    HISTORY_NEED, MATERIAL_LAWS, OMEGA, TORQUE,
+    ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, HELD_NEW, HELD_OLD, HISTORY_NEED, MATERIAL_LAWS, OMEGA,
+    TORQUE,
 };
-use super::gpu_step::{InputOrder, Room, move_rows};
+use super::gpu_step::{InputOrder, ParamsUniform, Room, move_rows};
 use super::gpu_walls::MeshWalls;
-use crate::dem::model::StepParams;
+use crate::dem::model::{LawParams, StepParams};
 use crate::dem::stepper::StageTimes;
 use crate::dem::walls::WallSet;
 use crate::error::{Error, Result, try_vec};
@@ -44,8 +44,9 @@ pub(crate) struct Turn {
 /// A wgpu engine's DEM step as [`run_batch`] drives it.
 pub(crate) trait RedoableBatch {
     /// The GPU, the granular state (`None`: the paper's step), the state set and parity of the
-    /// next step and the engine's buffers a batch begins from (restored when it is redone).
-    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, Turn, Vec<&wgpu::Buffer>);
+    /// next step, the engine's buffers a batch begins from (restored when it is redone) and
+    /// the step's parameters.
+    fn batch_parts(&mut self) -> BatchParts<'_>;
 
     /// Records `steps` steps into `encoder`, submits it and waits for it: the contacts of the
     /// last step and the phase times.
@@ -63,6 +64,15 @@ pub(crate) trait RedoableBatch {
     fn rebind(&mut self);
 }
 
+/// What [`RedoableBatch::batch_parts`] lends.
+pub(crate) type BatchParts<'a> = (
+    &'a Gpu,
+    Option<&'a mut Granular>,
+    Turn,
+    Vec<&'a wgpu::Buffer>,
+    &'a mut ParamsUniform,
+);
+
 /// Records `steps` steps (≤ the engine's batch) into one submission and waits for it; in the
 /// granular step, redoes them with more history slots from the state they began from while
 /// some sphere had more contacts than slots.
@@ -71,7 +81,7 @@ pub(crate) fn run_batch(
     steps: u32,
 ) -> Result<(u64, Option<StageTimes>)> {
     loop {
-        let (gpu, granular, turn, state) = step.batch_parts();
+        let (gpu, granular, turn, state, _) = step.batch_parts();
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         if let Some(g) = granular {
             g.begin_batch(gpu, &mut encoder, turn, &state);
@@ -83,9 +93,9 @@ pub(crate) fn run_batch(
         };
         // The batch's steps are undone: back to the state and step it began from.
         step.rewind(steps);
-        let (gpu, granular, turn, state) = step.batch_parts();
+        let (gpu, granular, turn, state, params) = step.batch_parts();
         if let Some(g) = granular {
-            g.restore_grown(gpu, turn, &state, need)?;
+            g.restore_grown(gpu, (turn, &state), need, params)?;
         }
         step.rebind();
     }
@@ -338,8 +348,6 @@ impl Slots {
 
 /// The granular step's buffers beyond the paper's.
 pub(crate) struct Granular {
-    params: GranularParams,
-    uniform: wgpu::Buffer,
     /// `vec4(ω, material)` in the order of each of the engine's state sets (one or two): each
     /// sphere's material travels with its spin through every move of the state, as a whole
     /// f32 number (exact below 2²⁴; a number, not bits, which no f32 operation may flush as it
@@ -349,7 +357,7 @@ pub(crate) struct Granular {
     laws: wgpu::Buffer,
     /// Torque accumulators in state order (zero between steps).
     torque: wgpu::Buffer,
-    /// History slots, `params.slots` per sphere in rows in state order: the old ones of a step
+    /// History slots, `split.slots` per sphere in rows in state order: the old ones of a step
     /// of parity k are `history[k]` (in the order of the state set the step starts from), its
     /// new ones `history[1 - k]` (in the order of the set it resolves).
     history: [History; 2],
@@ -432,24 +440,11 @@ impl Granular {
         };
         let split = entry_split(gpu, rows as u32, slots, entry_bytes, engine)?;
         let table = &params.materials;
-        let gpu_params = GranularParams {
-            law: params.law.code(),
-            rolling_model: f.rolling_model.code(),
-            turns: f.turns() as u32,
-            slots,
-            spheres_per_part: split.spheres_per_part,
-            materials: table.count as u32,
-            box_column: params.box_column,
-            _pad: 0,
-            sphere_law: *table.law(0, 0),
-        };
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
         let make = |what: &str, bytes: u64| gpu.storage(&label(what), bytes, none);
         let mesh = MeshWalls::new(gpu, walls, table, rows as usize, room.radii.1, engine)?;
         let granular = gpu.checked("allocating the granular step's buffers", || Self {
-            params: gpu_params,
-            uniform: gpu.uniform(&label("granular"), &gpu_params),
             omega: (0..sets)
                 .map(|k| make(&format!("omega{k}"), rows * 16))
                 .collect(),
@@ -513,7 +508,6 @@ impl Granular {
         let parity = on.parity;
         let (old, new) = (&self.history[parity], &self.history[1 - parity]);
         let mut all = vec![
-            (GRANULAR, &self.uniform),
             (OMEGA, self.omega_of(on.set)),
             (MATERIAL_LAWS, &self.laws),
             (TORQUE, &self.torque),
@@ -541,12 +535,8 @@ impl Granular {
     }
 
     /// Bindings of the integration kernel of a step that integrates state set `set`.
-    pub fn integrate_bindings(&self, set: usize) -> [(Binding, &wgpu::Buffer); 3] {
-        [
-            (GRANULAR, &self.uniform),
-            (OMEGA, self.omega_of(set)),
-            (TORQUE, &self.torque),
-        ]
+    pub fn integrate_bindings(&self, set: usize) -> [(Binding, &wgpu::Buffer); 2] {
+        [(OMEGA, self.omega_of(set)), (TORQUE, &self.torque)]
     }
 
     /// The angular velocities a step that re-sorts the state moves from set `from` (first) to
@@ -597,13 +587,18 @@ impl Granular {
 
     /// Whether contacts keep springs (then batches are saved and may be redone).
     pub fn keeps_history(&self) -> bool {
-        self.params.slots > 0
+        self.split.slots > 0
+    }
+
+    /// `law` with this history's layout: its slots a sphere and rows an entry binding.
+    pub fn history_layout(&self, law: LawParams) -> LawParams {
+        law.with_history(self.split.slots, self.split.spheres_per_part)
     }
 
     /// The history's size in words, for an engine's description: slots a sphere, and the bytes
     /// a sphere of both histories and their counts (`None` without history).
     pub fn describe_history(&self) -> Option<String> {
-        let slots = self.params.slots as u64;
+        let slots = self.split.slots as u64;
         self.keeps_history().then(|| {
             let bytes = 2 * (slots * self.split.entry_bytes + size_of::<u32>() as u64);
             format!("history {slots} slots a sphere, {bytes} B a sphere")
@@ -662,19 +657,19 @@ impl Granular {
             return Ok(None);
         }
         let need = gpu.read::<u32>(&self.need, 1)?[0];
-        Ok((need > self.params.slots).then_some(need))
+        Ok((need > self.split.slots).then_some(need))
     }
 
     /// Puts back the state a batch began from (`first`, the engine's buffers `state` as given
     /// to [`begin_batch`](Self::begin_batch)) with room for `need` contacts per sphere
-    /// and some more (a quarter, as the cpu step). The history buffers are new: the engine
-    /// binds them again.
+    /// and some more (a quarter, as the cpu step), the new layout written into `params`. The
+    /// history buffers are new: the engine binds them again.
     pub fn restore_grown(
         &mut self,
         gpu: &Gpu,
-        first: Turn,
-        state: &[&wgpu::Buffer],
+        (first, state): (Turn, &[&wgpu::Buffer]),
         need: u32,
+        params: &mut ParamsUniform,
     ) -> Result<()> {
         let parity = first.parity;
         let engine = self.engine;
@@ -697,9 +692,7 @@ impl Granular {
         self.history = history;
         self.history[parity].write(gpu, &split, &moved);
         self.split = split;
-        self.params.spheres_per_part = split.spheres_per_part;
-        self.params.slots = slots;
-        gpu.write_uniform(&self.uniform, &self.params);
+        params.update(gpu, |p| *p = self.history_layout(*p));
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&self.saved[fields], 0, &self.held[parity], 0, n as u64 * 4);
         let targets = [self.omega_of(first.set)]
@@ -730,7 +723,7 @@ impl Granular {
         }
         let held = &self.held[parity];
         move_rows(encoder, scratch, moves, 4, |r| (held, r as u64 * 4));
-        let (per, k) = (self.split.spheres_per_part, self.params.slots as u64);
+        let (per, k) = (self.split.spheres_per_part, self.split.slots as u64);
         let parts = &self.history[parity].parts;
         let entry = self.split.entry_bytes;
         move_rows(encoder, scratch, moves, k * entry, |r| {
@@ -741,7 +734,7 @@ impl Granular {
 
     /// Bytes of the longest row [`move_rows`](Self::move_rows) moves.
     pub fn row_bytes(&self) -> u64 {
-        (self.params.slots as u64 * self.split.entry_bytes).max(16)
+        (self.split.slots as u64 * self.split.entry_bytes).max(16)
     }
 
     /// Forgets the last `k` rows (the engine moved the rows it keeps before them).
@@ -758,7 +751,7 @@ impl Granular {
         let angular_velocities = omega.iter().map(|w| [w[0], w[1], w[2]]).collect();
         let materials = omega.iter().map(|w| w[3] as u8).collect();
         let history = if self.keeps_history() {
-            let k = self.params.slots as usize;
+            let k = self.split.slots as usize;
             let mut held: Vec<u32> = gpu.read(&self.held[parity], n)?;
             let mut slots = read_slots(gpu, &self.history[parity].parts, &self.split, self.n)?;
             if let Some(order) = order {

@@ -3,13 +3,15 @@
 //! `wgsl/dem_physics.wgsl`, or the granular step's, [`granular`]), the choice of force atomics,
 //! per-phase timestamps, and moving particles to and from the GPU.
 
-pub(crate) use super::gpu_granular::{Granular, RedoableBatch, Rotation, Turn, run_batch};
-use crate::dem::model::{MaterialTable, NormalLaw, StepParams};
+pub(crate) use super::gpu_granular::{
+    BatchParts, Granular, RedoableBatch, Rotation, Turn, run_batch,
+};
+use crate::dem::model::{LawParams, MaterialTable, NormalLaw, StepParams};
 use crate::dem::stepper::{Advance, Clock, StageTimes, needs_granular_step};
 use crate::dem::walls::WallSet;
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
-use crate::gpu::shader::{Binding, SharedStruct, Vec3f, shared_struct};
+use crate::gpu::shader::{SharedStruct, shared_struct};
 use crate::gpu::timer::GpuTimer;
 use crate::particles::{FIRST_MESH_WALL, Particles};
 use rayon::prelude::*;
@@ -79,21 +81,6 @@ pub(crate) mod physics {
     /// the integration and the passes that move the state bind.
     pub const POS_LO: Binding = Binding::read_write(34, "pos_lo");
     pub const BINDINGS: &[Binding] = &[DEM, POS, VEL, FORCE, CLOCK, POS_LO];
-    /// The uniform of `wgsl/dem_physics_per_pair.wgsl`.
-    pub const PER_PAIR_PARAMS: Binding = Binding::uniform(17, "per_pair");
-}
-
-/// The parameter of the per-pair variant of the paper's step; twin: `PerPairParams` in
-/// `wgsl/dem_physics_per_pair.wgsl` (checked by `tests/bindings.rs`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
-pub(crate) struct PerPairParams {
-    /// k/m* of every contact \[1/s²\].
-    rate: f32,
-}
-
-/// [`PerPairParams`] as a [`SharedStruct`].
-pub(crate) fn per_pair_params() -> SharedStruct {
-    shared_struct!("PerPairParams", PerPairParams { rate })
 }
 
 /// Which physics a wgpu engine's DEM step runs, each in a module of its own.
@@ -136,50 +123,17 @@ impl Variant {
     }
 }
 
-/// The per-pair variant's uniform.
-pub(crate) struct PerPair {
-    uniform: wgpu::Buffer,
-}
-
-impl PerPair {
-    /// Bindings of the resolve and integration kernels.
-    pub fn bindings(&self) -> [(Binding, &wgpu::Buffer); 1] {
-        [(physics::PER_PAIR_PARAMS, &self.uniform)]
-    }
-}
-
 /// Workgroup size of every 256-wide kernel of the steps (as in the shaders).
 pub(crate) const GROUP: u32 = 256;
 
 /// Most steps recorded into one submission (and timed by one query set).
 pub(crate) const MAX_BATCH: u32 = 200;
 
-/// The step's parameters; twins: `DemParams` in `wgsl/dem_params.wgsl` (laid out by `encase`,
-/// checked by `tests/bindings.rs`) and in `optix/physics.cuh`, which the OptiX step passes by
-/// value as plain `#[repr(C)]` data: for that twin alone the struct is `Pod` and spells out its
-/// 4-byte tail (`_pad1`), which the WGSL struct declares too so both layouts stay one.
-#[repr(C)]
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable, encase::ShaderType)]
-pub(crate) struct DemParams {
-    box_lo: Vec3f,
-    n: u32,
-    box_hi: Vec3f,
-    /// Invocations per dispatch row of a 256-wide kernel.
-    row: u32,
-    gravity: Vec3f,
-    dt: f32,
-    stiffness: f32,
-    damping_ratio: f32,
-    gravity_spin: f32,
-    _pad1: u32,
-}
-const _: () = assert!(size_of::<DemParams>() == 64, "the CUDA twin's size");
-
-/// [`DemParams`] as a [`SharedStruct`].
-pub(crate) fn dem_params() -> SharedStruct {
+/// [`LawParams`] as a [`SharedStruct`] (`LawParams` in `wgsl/dem_params.wgsl`).
+pub(crate) fn law_params() -> SharedStruct {
     shared_struct!(
-        "DemParams",
-        DemParams {
+        "LawParams",
+        LawParams {
             box_lo,
             n,
             box_hi,
@@ -189,26 +143,45 @@ pub(crate) fn dem_params() -> SharedStruct {
             stiffness,
             damping_ratio,
             gravity_spin,
+            law,
+            rolling_model,
+            turns,
+            slots,
+            spheres_per_part,
+            columns,
+            box_column,
+            _pad0,
             _pad1,
+            sphere_law,
         }
     )
 }
 
-impl DemParams {
-    /// The block for `n` spheres dispatched in rows of `row` invocations.
-    pub fn new(p: &StepParams, n: u32, row: u32) -> Self {
+/// A step's [`LawParams`] on the GPU (the uniform [`physics::DEM`]) and the value it holds: every
+/// change writes the whole value, so no part of it can be stale.
+pub(crate) struct ParamsUniform {
+    params: LawParams,
+    buffer: wgpu::Buffer,
+}
+
+impl ParamsUniform {
+    /// `params` in a new uniform labelled `label`.
+    pub fn new(gpu: &Gpu, label: &str, params: LawParams) -> Self {
         Self {
-            box_lo: p.box_lo.into(),
-            n,
-            box_hi: p.box_hi.into(),
-            row,
-            gravity: p.gravity.into(),
-            dt: p.dt,
-            stiffness: p.stiffness,
-            damping_ratio: p.damping_ratio,
-            gravity_spin: p.gravity_spin,
-            _pad1: 0,
+            params,
+            buffer: gpu.uniform(label, &params),
         }
+    }
+
+    /// Changes the parameters by `change` and writes them.
+    pub fn update(&mut self, gpu: &Gpu, change: impl FnOnce(&mut LawParams)) {
+        change(&mut self.params);
+        gpu.write_uniform(&self.buffer, &self.params);
+    }
+
+    /// The uniform.
+    pub fn buffer(&self) -> &wgpu::Buffer {
+        &self.buffer
     }
 }
 
@@ -236,7 +209,6 @@ pub(crate) mod granular {
     /// `wgsl/dem_tangential_md.wgsl`: Mindlin–Deresiewicz (`Variant::Loaded`).
     pub const LOAD_HISTORY: &str = include_str!("../../wgsl/dem_tangential_md.wgsl");
 
-    pub const GRANULAR: Binding = Binding::uniform(17, "granular");
     pub const OMEGA: Binding = Binding::read_write(18, "omega");
     /// The material table's laws (`PairLaw` rows, [`crate::dem::model::MaterialTable::laws`]).
     pub const MATERIAL_LAWS: Binding = Binding::read(20, "material_laws");
@@ -274,7 +246,6 @@ pub(crate) mod granular {
     /// Every binding of `wgsl/dem_granular.wgsl` and its accumulators.
     pub fn bindings() -> Vec<Binding> {
         [
-            GRANULAR,
             OMEGA,
             MATERIAL_LAWS,
             TORQUE,
@@ -287,52 +258,6 @@ pub(crate) mod granular {
         .chain(ENTRIES_NEW)
         .chain(crate::engines::gpu_walls::bindings())
         .collect()
-    }
-
-    /// The granular step's parameters beyond [`super::DemParams`]; twin: `GranularParams` in
-    /// `wgsl/dem_contact.wgsl` (checked by `tests/bindings.rs`). Each contact's coefficients are
-    /// in the material table ([`MATERIAL_LAWS`]), the fixed stiffness of the linear law in
-    /// `DemParams`.
-    #[derive(Debug, Clone, Copy, Default, PartialEq, encase::ShaderType)]
-    pub struct GranularParams {
-        /// `LAW_*` of the WGSL: 0 linear, 1 linear per pair, 2 Hertz.
-        pub law: u32,
-        /// `ROLLING_*` of the WGSL: 0 EPSD, 1 constant torque.
-        pub rolling_model: u32,
-        /// 1 where any contact exerts a torque.
-        pub turns: u32,
-        /// History slots per sphere (0: contacts keep no springs).
-        pub slots: u32,
-        /// History rows one entry binding holds: row r's entries are in
-        /// [`ENTRIES_OLD`]`[r / spheres_per_part]` (at least 1).
-        pub spheres_per_part: u32,
-        /// Materials: the table has `materials + 1` columns (the last a rigid wall's).
-        pub materials: u32,
-        /// The column of the table the six box walls take.
-        pub box_column: u32,
-        /// Padding: `sphere_law` starts a 16-byte line, as a struct member of a uniform must.
-        pub _pad: u32,
-        /// The law of two spheres of the first material (the table's row 0, column 0): with one
-        /// material every pair's, read from this uniform rather than the table.
-        pub sphere_law: crate::dem::model::PairLaw,
-    }
-
-    /// [`GranularParams`] as a [`SharedStruct`].
-    pub fn granular_params() -> SharedStruct {
-        shared_struct!(
-            "GranularParams",
-            GranularParams {
-                law,
-                rolling_model,
-                turns,
-                slots,
-                spheres_per_part,
-                materials,
-                box_column,
-                _pad,
-                sphere_law,
-            }
-        )
     }
 
     /// [`PairLaw`](crate::dem::model::PairLaw), a row of [`MATERIAL_LAWS`], as a
@@ -599,8 +524,9 @@ pub(crate) struct DemModule {
     pub atomics: &'static str,
     /// The granular step's state (`None`: a variant of the paper's step).
     pub granular: Option<Granular>,
-    /// The per-pair variant's uniform (`None`: another variant).
-    pub per_pair: Option<PerPair>,
+    /// The step's parameters ([`LawParams`], its history's layout included), for its spheres
+    /// at the start; the engine sets the count and the dispatch rows.
+    pub params: ParamsUniform,
     /// The step's WGSL, compiled.
     pub module: crate::gpu::Module,
     /// The values of its `override` constants its pipelines take ([`Gpu::pipeline_with`]).
@@ -640,15 +566,11 @@ impl DemModule {
             .granular()
             .then(|| Granular::new(gpu, particles, params, walls, backend, (sets, room)))
             .transpose()?;
-        let per_pair = match params.law {
-            NormalLaw::LinearPerPair { rate, .. } if variant == Variant::PerPair => Some(PerPair {
-                uniform: gpu.uniform(
-                    &format!("mochi.dem.{backend}.per_pair"),
-                    &PerPairParams { rate },
-                ),
-            }),
-            _ => None,
-        };
+        let mut law = LawParams::new(params, particles.len() as u32, 0);
+        if let Some(g) = &granular {
+            law = g.history_layout(law);
+        }
+        let params_uniform = ParamsUniform::new(gpu, &format!("mochi.dem.{backend}.params"), law);
         let source = source(accumulators, lanes, variant);
         let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
         // The granular step's contact law (wgsl/dem_contact.wgsl) specialised for one material.
@@ -659,7 +581,7 @@ impl DemModule {
         Ok(DemModule {
             atomics,
             granular,
-            per_pair,
+            params: params_uniform,
             module,
             constants,
         })

@@ -282,12 +282,6 @@ impl FirstWord for Vec4u {
     }
 }
 
-impl FirstWord for crate::dem::model::PairLaw {
-    fn first_word(&self) -> u32 {
-        self.rate.to_bits()
-    }
-}
-
 impl<T: FirstWord, const N: usize> FirstWord for [T; N] {
     fn first_word(&self) -> u32 {
         self[0].first_word()

@@ -2,6 +2,7 @@
 //! it (f32 coefficients): the normal law, the effective elastic moduli of Hertz–Mindlin, and the
 //! friction coefficients.
 
+use super::law::LawCode;
 use super::linear::{STEPS_PER_CONTACT, stiffness_for_duration};
 use super::time_step::rayleigh_time;
 use crate::error::{Error, Result};
@@ -136,21 +137,8 @@ pub enum NormalLaw {
     },
 }
 
-/// The normal law's code on the devices (`LAW_*` in `wgsl/dem_contact.wgsl`, `MOCHI_LAW_*` in
-/// `optix/contact.cuh`): the one place its numbers are given.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum LawCode {
-    /// [`NormalLaw::Linear`].
-    Linear = 0,
-    /// [`NormalLaw::LinearPerPair`].
-    LinearPerPair = 1,
-    /// [`NormalLaw::Hertz`].
-    Hertz = 2,
-}
-
 impl NormalLaw {
-    /// The law's code on the devices ([`LawCode`]).
+    /// The law's code on the devices ([`LawCode`](super::LawCode)).
     pub fn code(&self) -> u32 {
         let code = match self {
             NormalLaw::Linear => LawCode::Linear,
@@ -423,44 +411,6 @@ impl Material {
                     rayleigh_time: Some(t_r),
                 })
             }
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{LawCode, RollingModel};
-
-    #[test]
-    fn the_device_codes_are_the_kernels() {
-        let wgsl = include_str!("../../../wgsl/dem_contact.wgsl");
-        let cuda = include_str!("../../../optix/contact.cuh");
-        let laws = [
-            ("LAW_LINEAR", "MOCHI_LAW_LINEAR", LawCode::Linear as u32),
-            (
-                "LAW_PER_PAIR",
-                "MOCHI_LAW_LINEAR_PER_PAIR",
-                LawCode::LinearPerPair as u32,
-            ),
-            ("LAW_HERTZ", "MOCHI_LAW_HERTZ", LawCode::Hertz as u32),
-        ];
-        let rolling = [
-            ("ROLLING_EPSD", "MOCHI_ROLLING_EPSD", RollingModel::Epsd),
-            (
-                "ROLLING_CONSTANT_TORQUE",
-                "MOCHI_ROLLING_CONSTANT_TORQUE",
-                RollingModel::ConstantTorque,
-            ),
-        ]
-        .map(|(w, c, model)| (w, c, model.code()));
-        for (in_wgsl, in_cuda, code) in laws.into_iter().chain(rolling) {
-            let declared = format!("const {in_wgsl}: u32 = {code}u;");
-            assert!(
-                wgsl.contains(&declared),
-                "wgsl/dem_contact.wgsl: {declared}"
-            );
-            let defined = format!("#define {in_cuda} {code}u");
-            assert!(cuda.contains(&defined), "optix/contact.cuh: {defined}");
         }
     }
 }

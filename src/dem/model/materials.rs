@@ -415,3 +415,9 @@ impl MaterialTable {
         })
     }
 }
+
+impl crate::gpu::shader::FirstWord for PairLaw {
+    fn first_word(&self) -> u32 {
+        self.rate.to_bits()
+    }
+}

@@ -3,22 +3,24 @@
 //! semi-implicit Euler integration of positions and angular velocities.
 //!
 //! - [`linear`]: the stiffness and the stable time step of the paper's linear spring–dashpot.
+//! - [`law`]: the law's parameters as the GPU steps read them, and its code on the devices.
 //! - [`contact`]: the whole contact of the cpu step: linear or Hertz–Mindlin normal force,
 //!   tangential spring with history and Coulomb cap, torque, rolling resistance.
 //! - [`material`]: what a material says and the coefficients the step makes of it.
 //! - [`time_step`]: the Rayleigh time and the Hertz impact formulas.
 
 pub mod contact;
+pub mod law;
 pub mod linear;
 pub mod material;
 pub mod materials;
 pub mod restitution;
 pub mod time_step;
 
+pub use law::{LawCode, LawParams};
 pub use linear::{STEPS_PER_CONTACT, stable_dt, stiffness_for_duration};
 pub use material::{
-    ContactLaw, Elastic, Friction, LawCode, MAX_FRICTION, Material, NormalLaw, RollingModel,
-    TangentialModel,
+    ContactLaw, Elastic, Friction, MAX_FRICTION, Material, NormalLaw, RollingModel, TangentialModel,
 };
 pub use materials::{MAX_MATERIALS, MaterialTable, Materials, PairLaw, PairOverride};
 

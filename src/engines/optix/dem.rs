@@ -19,12 +19,11 @@
 //! what decays is the traversal's cost, and that is what the policy watches.
 
 use super::device::{
-    AccelOp, COUNTER_SLOTS, DemBuffers, DemParams, DemProgram, Device, Gas, Kernels, Order, State,
-    cuda,
+    AccelOp, COUNTER_SLOTS, DemBuffers, DemProgram, Device, Gas, Kernels, Order, State, cuda,
 };
 use super::engine::{MAX_COORDINATE, morton_order_of, open_device};
 use super::granular::{self, Granular};
-use crate::dem::model::StepParams;
+use crate::dem::model::{LawParams, StepParams};
 use crate::dem::stepper::{Advance, StageTimes, Stepper, needs_granular_step};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::RebuildPolicy;
@@ -70,7 +69,7 @@ struct Maintenance {
 #[allow(clippy::large_enum_variant)]
 enum Physics {
     /// The paper's law (`optix/dem.cu` and `dem_integrate`).
-    Frictionless { program: DemProgram, dem: DemParams },
+    Frictionless { program: DemProgram, dem: LawParams },
     /// Everything else (`optix/granular.cu` and `optix/granular_kernels.cu`).
     Granular(Granular),
 }
@@ -169,7 +168,7 @@ impl OptixStepper {
         } else {
             Physics::Frictionless {
                 program: DemProgram::new(&device)?,
-                dem: DemParams::new(&params, n),
+                dem: LawParams::new(&params, n, 0),
             }
         };
         let mut stepper = OptixStepper {

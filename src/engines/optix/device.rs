@@ -12,7 +12,7 @@
 
 use super::programs::{self, Unit};
 use super::sys::{self, Api};
-use crate::dem::model::{MaterialTable, PairLaw, StepParams};
+use crate::dem::model::{LawParams, MaterialTable, PairLaw};
 use crate::engines::gpu_walls::{MeshWallRow, WallTables};
 use crate::error::OptixError;
 use crate::gpu::shader::storage_bytes;
@@ -558,44 +558,9 @@ impl DetectProgram {
     }
 }
 
-/// The CUDA twin of `DemParams` in `optix/physics.cuh` (keep the two in sync): the step's
-/// parameters as the DEM kernels and programs read them.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct DemParams {
-    box_lo: [f32; 3],
-    n: u32,
-    box_hi: [f32; 3],
-    row: u32,
-    gravity: [f32; 3],
-    dt: f32,
-    stiffness: f32,
-    damping_ratio: f32,
-    gravity_spin: f32,
-    _pad1: u32,
-}
-const _: () = assert!(size_of::<DemParams>() == 64);
-
-// SAFETY: `#[repr(C)]` plain data laid out as `DemParams` in optix/physics.cuh.
-unsafe impl DeviceRepr for DemParams {}
-
-impl DemParams {
-    /// The parameters of a step over `n` spheres.
-    pub fn new(p: &StepParams, n: u32) -> Self {
-        Self {
-            box_lo: p.box_lo,
-            n,
-            box_hi: p.box_hi,
-            row: 0,
-            gravity: p.gravity,
-            dt: p.dt,
-            stiffness: p.stiffness,
-            damping_ratio: p.damping_ratio,
-            gravity_spin: p.gravity_spin,
-            _pad1: 0,
-        }
-    }
-}
+// SAFETY: `#[repr(C)]` plain data laid out as `LawParams` in optix/physics.cuh (checked by
+// `layout_checks`).
+unsafe impl DeviceRepr for LawParams {}
 
 /// Launch parameters of `optix/dem.cu`; keep in sync with `DemLaunch` there.
 #[repr(C)]
@@ -610,9 +575,9 @@ struct DemLaunch {
     n: u32,
     mode: u32,
     _pad: [u32; 2],
-    dem: DemParams,
+    dem: LawParams,
 }
-const _: () = assert!(size_of::<DemLaunch>() == 128);
+const _: () = assert!(size_of::<DemLaunch>() == 192);
 
 /// The buffers of one DEM contact launch.
 pub struct DemBuffers<'a> {
@@ -649,7 +614,7 @@ impl DemProgram {
         &mut self,
         gas: &Gas,
         mode: ProxyMode,
-        dem: DemParams,
+        dem: LawParams,
         b: DemBuffers<'_>,
     ) -> Result<()> {
         const LAUNCH: &str = "optix/dem.cu";
@@ -680,70 +645,43 @@ impl DemProgram {
     }
 }
 
-/// The twin of `GranularParams` in `optix/contact.cuh` (keep the two in sync): the granular
-/// step's parameters, the contact law's included, as its programs and kernels read them. The
-/// address of the material table is filled in by each launch from the [`LawTable`] it borrows.
+/// [`LawParams`] with the address of the material table: the law as the granular programs and
+/// kernels read it (`MochiLaw` in `optix/contact.cuh`), made by each launch from the step's
+/// parameters and the [`LawTable`] it borrows.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct GranularParams {
-    dem: DemParams,
+struct DeviceLaw {
+    dem: LawParams,
     laws: u64,
-    columns: u32,
-    box_column: u32,
-    law: u32,
-    rolling_model: u32,
-    turns: u32,
-    keeps: u32,
+    /// `MochiLaw` is 16-byte aligned (its parameters' `sphere_law` is): its size, too.
+    _pad: u64,
 }
-const _: () = assert!(size_of::<GranularParams>() == 96);
+const _: () = assert!(size_of::<DeviceLaw>() == 144);
 
-// SAFETY: `#[repr(C)]` plain data laid out as `GranularParams` in optix/contact.cuh.
-unsafe impl DeviceRepr for GranularParams {}
+// SAFETY: `#[repr(C)]` plain data laid out as `MochiLaw` in optix/contact.cuh (checked by
+// `layout_checks`).
+unsafe impl DeviceRepr for DeviceLaw {}
 
-impl GranularParams {
-    /// The parameters of a step over `n` spheres.
-    pub fn new(p: &StepParams, n: u32) -> Self {
-        let f = &p.friction;
-        Self {
-            dem: DemParams::new(p, n),
-            laws: 0,
-            columns: p.materials.count as u32 + 1,
-            box_column: p.box_column,
-            law: p.law.code(),
-            rolling_model: f.rolling_model.code(),
-            turns: f.turns() as u32,
-            keeps: f.has_history() as u32,
-        }
-    }
-
-    /// Spheres stepped.
-    pub fn n(&self) -> u32 {
-        self.dem.n
-    }
-
-    /// Whether contacts carry springs from one step to the next (a contact history).
-    pub fn keeps(&self) -> bool {
-        self.keeps != 0
-    }
-
-    /// These parameters reading `table`, checked to hold the laws of their columns.
+impl DeviceLaw {
+    /// `dem` reading `table`, checked to hold the laws of its columns.
     fn reading(
-        &self,
         launch: &'static str,
         stream: &Arc<CudaStream>,
+        dem: &LawParams,
         table: &LawTable,
     ) -> Result<Self> {
-        if table.columns != self.columns {
+        if table.columns != dem.columns {
             return Err(OptixError::BufferTooShort {
                 launch,
                 buffer: "material laws",
                 len: table.words.len(),
-                needed: (self.columns * (self.columns - 1)) as usize * LAW_WORDS,
+                needed: (dem.columns * (dem.columns - 1)) as usize * LAW_WORDS,
             });
         }
         Ok(Self {
+            dem: *dem,
             laws: table.words.device_ptr(stream).0,
-            ..*self
+            _pad: 0,
         })
     }
 }
@@ -1047,11 +985,11 @@ struct GranularLaunch {
     handle: u64,
     n: u32,
     mode: u32,
-    slots: u32,
-    _pad: u32,
-    g: GranularParams,
+    /// `g` starts a 16-byte line, as `MochiLaw`'s alignment asks.
+    _pad: [u32; 4],
+    g: DeviceLaw,
 }
-const _: () = assert!(size_of::<GranularLaunch>() == 232);
+const _: () = assert!(size_of::<GranularLaunch>() == 288);
 
 /// The buffers of one granular contact launch.
 pub struct GranularBuffers<'a> {
@@ -1098,13 +1036,12 @@ impl GranularProgram {
     }
 
     /// One point ray for each of the `n` spheres of `gas` in `mode`, adding contact forces and
-    /// torques and writing the pairs' new history (`slots` per sphere where `g` keeps springs).
+    /// torques and writing the pairs' new history (`law.slots` per sphere where it keeps any).
     pub fn launch(
         &mut self,
         gas: &Gas,
         mode: ProxyMode,
-        g: GranularParams,
-        slots: u32,
+        law: LawParams,
         b: GranularBuffers<'_>,
     ) -> Result<()> {
         const LAUNCH: &str = "optix/granular.cu";
@@ -1118,7 +1055,7 @@ impl GranularProgram {
         check_len(LAUNCH, "torque", b.torque, 3 * n as usize)?;
         check_len(LAUNCH, "contacts", b.contacts, COUNTER_SLOTS)?;
         check_len(LAUNCH, "candidates", b.candidates, COUNTER_SLOTS)?;
-        let history_n = if g.keeps() { n } else { 0 };
+        let (history_n, slots) = (if law.keeps() { n } else { 0 }, law.slots);
         b.old.check(LAUNCH, history_n, slots, self.loaded)?;
         b.new.check(LAUNCH, history_n, slots, self.loaded)?;
         let device = &self.pipeline.device;
@@ -1140,15 +1077,14 @@ impl GranularProgram {
             handle: gas.handle,
             n,
             mode: mode.code(),
-            slots,
-            _pad: 0,
-            g: g.reading(LAUNCH, &device.stream, b.laws)?,
+            _pad: [0; 4],
+            g: DeviceLaw::reading(LAUNCH, &device.stream, &law, b.laws)?,
         };
         let on_device = self.params.set(device, params)?;
         // SAFETY: the parameters were built just now from the borrowed buffers, whose lengths
         // cover what granular.cu indexes for n rays over n primitives (rows by ray and
-        // primitive index < n, history by stable id < n with `slots` entries each where g
-        // keeps springs, counters & 255; the material table of g's columns, whose rows cover
+        // primitive index < n, history by stable id < n with `slots` entries each where the
+        // law keeps springs, counters & 255; the material table of its columns, whose rows cover
         // every material the angular velocity rows name: checked when they were uploaded).
         unsafe { self.pipeline.launch(on_device, n) }
     }
@@ -1209,13 +1145,12 @@ impl GranularKernels {
         &self,
         state: &mut State,
         b: GranularIntegration<'_>,
-        g: &GranularParams,
-        slots: u32,
+        law: &LawParams,
         step: u32,
         mesh: &mut MeshBuffers,
     ) -> Result<()> {
         const LAUNCH: &str = "granular_integrate";
-        let n = g.n();
+        let (n, slots) = (law.n, law.slots);
         if n == 0 {
             return Ok(());
         }
@@ -1228,10 +1163,10 @@ impl GranularKernels {
         check_len(LAUNCH, "force", b.force, 3 * n as usize)?;
         check_len(LAUNCH, "torque", b.torque, 3 * n as usize)?;
         check_len(LAUNCH, "need", b.need, 1)?;
-        let history_n = if g.keeps() { n } else { 0 };
+        let history_n = if law.keeps() { n } else { 0 };
         b.old.check(LAUNCH, history_n, slots, self.loaded)?;
         b.new.check(LAUNCH, history_n, slots, self.loaded)?;
-        let g = g.reading(LAUNCH, &self.stream, b.laws)?;
+        let g = DeviceLaw::reading(LAUNCH, &self.stream, law, b.laws)?;
         let old = b.old;
         let HistorySlots {
             counts: new_counts,
@@ -1259,7 +1194,6 @@ impl GranularKernels {
         };
         launch
             .arg(b.need)
-            .arg(&slots)
             .arg(&g)
             .arg(&step)
             .arg(&mesh.params)
@@ -1333,37 +1267,8 @@ macro_rules! cuda_layout {
 /// field offsets of its Rust twin: compiled after the unit (`programs::compile_with_checks`),
 /// they need NVRTC but no GPU.
 pub fn layout_checks(unit: Unit) -> String {
-    let dem_params = || {
+    let pair_law = || {
         cuda_layout!(
-            "DemParams",
-            DemParams {
-                box_lo,
-                n,
-                box_hi,
-                row,
-                gravity,
-                dt,
-                stiffness,
-                damping_ratio,
-                gravity_spin,
-                _pad1
-            }
-        )
-    };
-    let granular_params = || {
-        cuda_layout!(
-            "GranularParams",
-            GranularParams {
-                dem,
-                laws,
-                columns,
-                box_column,
-                law,
-                rolling_model,
-                turns,
-                keeps
-            }
-        ) + &cuda_layout!(
             "MochiPairLaw",
             PairLaw {
                 rate,
@@ -1377,6 +1282,34 @@ pub fn layout_checks(unit: Unit) -> String {
             }
         )
     };
+    let law_params = || {
+        pair_law()
+            + &cuda_layout!(
+                "LawParams",
+                LawParams {
+                    box_lo,
+                    n,
+                    box_hi,
+                    row,
+                    gravity,
+                    dt,
+                    stiffness,
+                    damping_ratio,
+                    gravity_spin,
+                    law,
+                    rolling_model,
+                    turns,
+                    slots,
+                    spheres_per_part,
+                    columns,
+                    box_column,
+                    _pad0,
+                    _pad1,
+                    sphere_law
+                }
+            )
+    };
+    let device_law = || law_params() + &cuda_layout!("MochiLaw", DeviceLaw { dem, laws });
     let entry = || {
         cuda_layout!(
             "MochiHistoryEntry",
@@ -1406,9 +1339,9 @@ pub fn layout_checks(unit: Unit) -> String {
                 _pad
             }
         ),
-        Unit::Kernels => dem_params(),
+        Unit::Kernels => law_params(),
         Unit::Dem => {
-            dem_params()
+            law_params()
                 + &cuda_layout!(
                     "DemLaunch",
                     DemLaunch {
@@ -1426,8 +1359,7 @@ pub fn layout_checks(unit: Unit) -> String {
                 )
         }
         Unit::Granular | Unit::GranularLoaded => {
-            dem_params()
-                + &granular_params()
+            device_law()
                 + &entry()
                 + &cuda_layout!(
                     "GranularLaunch",
@@ -1449,7 +1381,6 @@ pub fn layout_checks(unit: Unit) -> String {
                         handle,
                         n,
                         mode,
-                        slots,
                         _pad,
                         g
                     }
@@ -1458,8 +1389,7 @@ pub fn layout_checks(unit: Unit) -> String {
         Unit::GranularKernels | Unit::GranularKernelsLoaded => {
             // The mesh walls' rows go up as the wgpu engines lay them out (encase).
             let row = <MeshWallRow as encase::ShaderSize>::SHADER_SIZE.get();
-            dem_params()
-                + &granular_params()
+            device_law()
                 + &entry()
                 + &format!(
                     "static_assert(sizeof(MochiMeshWall) == {row}, \"MochiMeshWall has the size \
@@ -1767,7 +1697,7 @@ impl Kernels {
         &self,
         state: &mut State,
         force: &mut CudaSlice<f32>,
-        dem: &DemParams,
+        dem: &LawParams,
         step: u32,
     ) -> Result<()> {
         const LAUNCH: &str = "dem_integrate";

@@ -19,10 +19,10 @@
 //! ([`WallTables`]), and sums the walls' loads in the last step of an advance.
 
 use super::device::{
-    Device, Gas, GranularBuffers, GranularIntegration, GranularKernels, GranularParams,
-    GranularProgram, HistorySlots, LawTable, MeshBuffers, Order, SlotsRead, State, cuda,
+    Device, Gas, GranularBuffers, GranularIntegration, GranularKernels, GranularProgram,
+    HistorySlots, LawTable, MeshBuffers, Order, SlotsRead, State, cuda,
 };
-use crate::dem::model::StepParams;
+use crate::dem::model::{LawParams, StepParams};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_walls::{WallTables, wall_loads};
 use crate::error::{Error, OptixError, Result};
@@ -39,7 +39,8 @@ const FIRST_SLOTS: u32 = 16;
 pub(super) struct Granular {
     program: GranularProgram,
     kernels: GranularKernels,
-    params: GranularParams,
+    /// The step's parameters, but for the history's slots (each launch gives its own).
+    params: LawParams,
     /// Every pair of materials' law.
     laws: LawTable,
     /// wx, wy, wz and the material (its bits: `Particles::material`) per sphere, in the
@@ -126,8 +127,9 @@ impl Granular {
         let loaded = params.friction.keeps_load();
         let table = params.materials.clone();
         let laws = LawTable::upload(stream, &table)?;
-        let params = GranularParams::new(params, n);
-        let history = if params.keeps() {
+        let keeps = params.friction.has_history();
+        let params = LawParams::new(params, n, 0);
+        let history = if keeps {
             upload_history(device, &particles.history, n, loaded)?
         } else {
             let empty = three(|| HistorySlots::empty(stream, 0, 0, false))?;
@@ -157,6 +159,11 @@ impl Granular {
         self.history.slots()
     }
 
+    /// The step's parameters with the history's slots.
+    fn law(&self) -> LawParams {
+        self.params.with_history(self.slots(), 0)
+    }
+
     /// Resolves every contact of `state` (forces into `force`, torques into the step's torque
     /// accumulator, the pairs' new history).
     pub fn resolve(
@@ -168,7 +175,7 @@ impl Granular {
         contacts: &mut CudaSlice<u32>,
         candidates: &mut CudaSlice<u64>,
     ) -> Result<()> {
-        let slots = self.slots();
+        let law = self.law();
         let (old, new, _) = self.history.step_buffers();
         let buffers = GranularBuffers {
             state,
@@ -181,8 +188,7 @@ impl Granular {
             new,
             laws: &self.laws,
         };
-        self.program
-            .launch(gas, mode, self.params, slots, buffers)?;
+        self.program.launch(gas, mode, law, buffers)?;
         Ok(())
     }
 
@@ -194,7 +200,7 @@ impl Granular {
         force: &mut CudaSlice<f32>,
         step: u32,
     ) -> Result<()> {
-        let slots = self.slots();
+        let law = self.law();
         let written = self.history.next();
         let (old, new, need) = self.history.step_buffers();
         let b = GranularIntegration {
@@ -207,7 +213,7 @@ impl Granular {
             laws: &self.laws,
         };
         self.kernels
-            .integrate(state, b, &self.params, slots, step, &mut self.mesh)?;
+            .integrate(state, b, &law, step, &mut self.mesh)?;
         self.history.current = written;
         Ok(())
     }
@@ -242,7 +248,7 @@ impl Granular {
     /// Reorders the angular velocities as the state (`order[p]`: the position whose sphere
     /// goes to p).
     pub fn permute(&mut self, order: &Order) -> Result<()> {
-        let n = self.params.n();
+        let n = self.params.n;
         self.kernels
             .permute_rows(&self.ang, order, &mut self.ang_spare, n)?;
         std::mem::swap(&mut self.ang, &mut self.ang_spare);

@@ -61,7 +61,7 @@ use crate::engines::gpu_readback::{BatchReadback, InFlight};
 use crate::engines::gpu_step::granular::OMEGA;
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
 use crate::engines::gpu_step::{
-    DemModule, DemParams, GROUP, Granular, InputOrder, KernelSet, MAX_BATCH, PerPair,
+    BatchParts, DemModule, GROUP, Granular, InputOrder, KernelSet, MAX_BATCH, ParamsUniform,
     RedoableBatch, Room, StateRows, StepTimer, Turn, advance_in_batches, max_spheres, move_rows,
     particles_with, residual_rows, rows, run_batch,
 };
@@ -291,7 +291,8 @@ pub struct GridStepper {
     step: u64,
     groups: (u32, u32),
     grid_uniform: wgpu::Buffer,
-    dem_uniform: wgpu::Buffer,
+    /// The step's parameters (binding `DEM`).
+    dem_uniform: ParamsUniform,
     sets: [StateSet; 2],
     /// Which set the next step bins from.
     current: usize,
@@ -326,8 +327,6 @@ pub struct GridStepper {
     granular: Option<Granular>,
     /// Its contact pass's lists.
     near: Option<NearLists>,
-    /// The per-pair variant's state (`None`: another variant).
-    per_pair: Option<PerPair>,
     /// The skin's buffers (the paper's step, whose walk reads the drift in any build; only the
     /// dense build's steps may skip their binning, where the layout's `skin` says).
     skin: Option<Skin>,
@@ -481,7 +480,7 @@ impl GridStepper {
         let DemModule {
             atomics,
             granular,
-            per_pair,
+            params: dem_uniform,
             module,
             constants,
         } = DemModule::open(
@@ -576,7 +575,7 @@ impl GridStepper {
                 step: particles.step,
                 groups: gpu.grid(n, GROUP),
                 grid_uniform: gpu.uniform("mochi.dem.grid", &GridParams::default()),
-                dem_uniform: gpu.uniform("mochi.dem.params", &DemParams::default()),
+                dem_uniform,
                 sets: [set(0), set(1)],
                 current: 0,
                 parity: 0,
@@ -615,7 +614,6 @@ impl GridStepper {
                 last_bounds: None,
                 atomics,
                 granular,
-                per_pair,
                 // The paper's walk reads the drift in any build (none without a skin).
                 skin: paper.then(|| Skin::new(&gpu)),
                 rebinned: (0, 0),
@@ -648,15 +646,14 @@ impl GridStepper {
         let (pos, vel) = rows(particles, &self.params.materials);
         let lo = residual_rows(particles);
         let ids: Vec<u32> = (0..self.n).collect();
-        let dem = DemParams::new(&self.params, self.n, self.groups.0 * GROUP);
         let q = &self.gpu.queue;
         let set = &self.sets[self.current];
         q.write_buffer(&set.pos, 0, bytemuck::cast_slice(&pos));
         q.write_buffer(&set.lo, 0, bytemuck::cast_slice(&lo));
         q.write_buffer(&set.vel, 0, bytemuck::cast_slice(&vel));
         q.write_buffer(&set.ids, 0, bytemuck::cast_slice(&ids));
-        self.gpu.write_uniform(&self.dem_uniform, &dem);
         q.write_buffer(&self.clock, 0, bytemuck::bytes_of(&(self.step as u32)));
+        self.write_count();
         self.sort_next = true;
         self.counted = false;
         Ok(())
@@ -845,7 +842,7 @@ impl GridStepper {
                 )
             }
             // The paper's scatter notes the binned rows for the steps that may skip their binning.
-            None => (self.skin_rows(), self.law_bindings()),
+            None => (self.skin_rows(), Vec::new()),
         };
         // What the binning's passes and the integration bind of the sorter.
         let (first, last, counting) = match &self.sorter {
@@ -938,7 +935,7 @@ impl GridStepper {
     fn integrated(&self, on: usize) -> [(Binding, &wgpu::Buffer); 6] {
         let set = &self.sets[on];
         [
-            (DEM, &self.dem_uniform),
+            (DEM, self.dem_uniform.buffer()),
             (POS, &set.pos),
             (POS_LO, &set.lo),
             (VEL, &set.vel),
@@ -1044,7 +1041,7 @@ impl GridStepper {
         };
         let own = [
             (PARAMS, &self.grid_uniform),
-            (DEM, &self.dem_uniform),
+            (DEM, self.dem_uniform.buffer()),
             cells,
             (VEL, &set.vel),
             (FORCE, &self.force),
@@ -1057,11 +1054,10 @@ impl GridStepper {
             // the drift since (the skin's).
             let skin = self.skin.as_ref().expect("the paper's step's skin buffers");
             let drift = [(WALK_ROW, &places.walk_row), (SKIN_LIMIT, &skin.limit)];
-            let law = [&self.law_bindings()[..], &drift].concat();
             let resolve = gpu.bind(
                 "mochi.dem.resolve",
                 &self.pipelines.resolve,
-                &joined(&own, &law),
+                &joined(&own, &drift),
             );
             return ResolveBinds {
                 list_near: None,
@@ -1090,7 +1086,7 @@ impl GridStepper {
             StepKind::Binning => &places.identity,
         };
         let state = [
-            (DEM, &self.dem_uniform),
+            (DEM, self.dem_uniform.buffer()),
             (POS, &set.pos),
             (CLOCK, &self.clock),
             (VEL, &set.vel),
@@ -1127,13 +1123,6 @@ impl GridStepper {
                 .collect(),
             mesh,
         }
-    }
-
-    /// The per-pair law's bindings (none for the paper's law).
-    fn law_bindings(&self) -> Vec<(Binding, &wgpu::Buffer)> {
-        self.per_pair
-            .as_ref()
-            .map_or(Vec::new(), |k| k.bindings().to_vec())
     }
 
     /// How the step after the next `ahead` steps bins.
@@ -1319,10 +1308,11 @@ impl GridStepper {
 }
 
 impl RedoableBatch for GridStepper {
-    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, Turn, Vec<&wgpu::Buffer>) {
+    fn batch_parts(&mut self) -> BatchParts<'_> {
         let (turn, set) = (self.turn(), &self.sets[self.current]);
         let state = vec![&set.pos, &set.lo, &set.vel, &set.ids, &self.clock];
-        (&self.gpu, self.granular.as_mut(), turn, state)
+        let (granular, params) = (self.granular.as_mut(), &mut self.dem_uniform);
+        (&self.gpu, granular, turn, state, params)
     }
 
     fn record_batch(
@@ -1718,9 +1708,15 @@ impl GridStepper {
         self.sort_next = true;
         self.counted = false;
         self.groups = self.gpu.grid(n, GROUP);
-        let dem = DemParams::new(&self.params, n, self.groups.0 * GROUP);
-        self.gpu.write_uniform(&self.dem_uniform, &dem);
+        self.write_count();
         self.laid_out_at = None;
+    }
+
+    /// Writes the sphere count and the dispatch rows into the step's parameters.
+    fn write_count(&mut self) {
+        let (n, row) = (self.n, self.groups.0 * GROUP);
+        self.dem_uniform
+            .update(&self.gpu, |p| (p.n, p.row) = (n, row));
     }
 }
 

@@ -349,14 +349,6 @@ pub(crate) mod dem_grid {
             .collect()
     }
 
-    /// Every binding of the paper's step with a stiffness per pair.
-    pub fn per_pair_bindings() -> Vec<Binding> {
-        bindings()
-            .into_iter()
-            .chain([physics::PER_PAIR_PARAMS])
-            .collect()
-    }
-
     /// Every binding of the granular step.
     pub fn granular_bindings() -> Vec<Binding> {
         shared_bindings()
@@ -442,9 +434,10 @@ pub fn modules() -> Vec<WgslModule> {
                 entry_points,
                 &bindings,
             );
-            dem.structs.push(gpu_step::dem_params());
+            dem.structs
+                .extend([gpu_step::law_params(), granular::pair_law()]);
             all.push(dem);
-            let bindings = [&dem_grid::per_pair_bindings()[..], extra].concat();
+            let bindings = [&dem_grid::bindings()[..], extra].concat();
             let mut dem = module(
                 format!("dem_grid_per_pair_{name}{suffix}"),
                 dem_grid::per_pair_source(build, atomics),
@@ -452,7 +445,7 @@ pub fn modules() -> Vec<WgslModule> {
                 &bindings,
             );
             dem.structs
-                .extend([gpu_step::dem_params(), gpu_step::per_pair_params()]);
+                .extend([gpu_step::law_params(), granular::pair_law()]);
             all.push(dem);
             for ((lane_suffix, lanes), (model, variant)) in gpu_step::Lanes::ALL
                 .into_iter()
@@ -466,8 +459,7 @@ pub fn modules() -> Vec<WgslModule> {
                     &bindings,
                 );
                 dem.structs.extend([
-                    gpu_step::dem_params(),
-                    granular::granular_params(),
+                    gpu_step::law_params(),
                     granular::pair_law(),
                     crate::engines::gpu_walls::mesh_params(),
                     crate::engines::gpu_walls::mesh_wall_row(),

@@ -18,9 +18,9 @@ use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
 use crate::engines::gpu_step::{
-    DemModule, DemParams, GROUP, Granular, KernelSet, MAX_BATCH, PerPair, RedoableBatch, Room,
-    StateRows, StepTimer, Turn, advance_in_batches, max_spheres, particles_with, residual_rows,
-    rows, run_batch,
+    BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, ParamsUniform, RedoableBatch,
+    Room, StateRows, StepTimer, Turn, advance_in_batches, max_spheres, particles_with,
+    residual_rows, rows, run_batch,
 };
 use crate::engines::gpu_walls;
 use crate::error::Result;
@@ -56,7 +56,6 @@ struct Binds {
 struct Resident {
     accel: Accel,
     rq: wgpu::Buffer,
-    dem: wgpu::Buffer,
     clock: wgpu::Buffer,
     force: wgpu::Buffer,
     counters: wgpu::Buffer,
@@ -80,8 +79,8 @@ pub struct RqStepper {
     atomics: &'static str,
     /// The granular step's state (`None`: a variant of the paper's step).
     granular: Option<Granular>,
-    /// The per-pair variant's state (`None`: another variant).
-    per_pair: Option<PerPair>,
+    /// The step's parameters (binding `DEM`).
+    dem: ParamsUniform,
     /// Parity of the next step (which history buffer it reads).
     parity: usize,
 }
@@ -138,7 +137,7 @@ impl RqStepper {
         let DemModule {
             atomics,
             granular,
-            per_pair,
+            params: mut dem,
             module,
             constants,
         } = DemModule::open(
@@ -168,6 +167,7 @@ impl RqStepper {
             integrate: pipeline("integrate"),
         };
         let groups = gpu.grid(n, GROUP);
+        dem.update(&gpu, |p| p.row = groups.0 * GROUP);
         let none = wgpu::BufferUsages::empty();
         let (pos_rows, vel_rows) = rows(&particles, &params.materials);
         let lo_rows = residual_rows(&particles);
@@ -176,10 +176,6 @@ impl RqStepper {
             let pos = gpu.storage("mochi.dem.rq.pos", n64 * 16, none);
             let lo = gpu.storage("mochi.dem.rq.pos_lo", n64 * 16, none);
             let vel = gpu.storage("mochi.dem.rq.vel", n64 * 16, none);
-            let dem = gpu.uniform(
-                "mochi.dem.rq.params",
-                &DemParams::new(&params, n, groups.0 * GROUP),
-            );
             let clock = gpu.storage("mochi.dem.rq.clock", 4, none);
             gpu.queue
                 .write_buffer(&clock, 0, bytemuck::bytes_of(&(particles.step as u32)));
@@ -202,18 +198,16 @@ impl RqStepper {
                     &lo,
                     &vel,
                     &rq,
-                    &dem,
+                    dem.buffer(),
                     &clock,
                     &accel.boxes,
                     &force,
                     &counters,
                 );
-                let variant = (granular.as_ref(), per_pair.as_ref());
-                let binds = bind(&gpu, &pipelines, buffers, accel.tlas(), variant);
+                let binds = bind(&gpu, &pipelines, buffers, accel.tlas(), granular.as_ref());
                 Resident {
                     accel,
                     rq,
-                    dem,
                     clock,
                     force,
                     counters,
@@ -240,7 +234,7 @@ impl RqStepper {
             resident,
             atomics,
             granular,
-            per_pair,
+            dem,
             parity: 0,
             gpu,
         })
@@ -258,11 +252,17 @@ impl RqStepper {
 }
 
 impl RedoableBatch for RqStepper {
-    fn batch_parts(&mut self) -> (&Gpu, Option<&mut Granular>, Turn, Vec<&wgpu::Buffer>) {
+    fn batch_parts(&mut self) -> BatchParts<'_> {
         let turn = self.turn();
         let r = self.resident.as_ref().expect("spheres to step");
         let state = vec![&self.pos, &self.lo, &self.vel, &r.clock];
-        (&self.gpu, self.granular.as_mut(), turn, state)
+        (
+            &self.gpu,
+            self.granular.as_mut(),
+            turn,
+            state,
+            &mut self.dem,
+        )
     }
 
     fn record_batch(
@@ -337,7 +337,7 @@ impl RedoableBatch for RqStepper {
             &self.lo,
             &self.vel,
             &r.rq,
-            &r.dem,
+            self.dem.buffer(),
             &r.clock,
             &r.accel.boxes,
             &r.force,
@@ -348,7 +348,7 @@ impl RedoableBatch for RqStepper {
             &self.pipelines,
             buffers,
             r.accel.tlas(),
-            (self.granular.as_ref(), self.per_pair.as_ref()),
+            self.granular.as_ref(),
         );
     }
 }
@@ -428,14 +428,14 @@ type StepBuffers<'a> = (
     &'a wgpu::Buffer,
 );
 
-/// The bind groups of the step over `buffers` and `tlas`, with the granular step's or the
-/// per-pair variant's where it has one.
+/// The bind groups of the step over `buffers` and `tlas`, with the granular step's where it
+/// has one.
 fn bind(
     gpu: &Gpu,
     p: &Pipelines,
     buffers: StepBuffers,
     tlas: &wgpu::Tlas,
-    (granular, per_pair): (Option<&Granular>, Option<&PerPair>),
+    granular: Option<&Granular>,
 ) -> Binds {
     let (pos, lo, vel, rq, dem, clock, boxes, force, counters) = buffers;
     let resolve = |parity: usize| {
@@ -450,9 +450,6 @@ fn bind(
         if let Some(g) = granular {
             all.extend(g.resolve_bindings(Turn { set: 0, parity }));
         }
-        if let Some(k) = per_pair {
-            all.extend(k.bindings());
-        }
         gpu.bind_with_tlas("mochi.dem.rq.resolve", &p.resolve, &all, (TLAS, tlas))
     };
     let mut integrate = vec![
@@ -465,9 +462,6 @@ fn bind(
     ];
     if let Some(g) = granular {
         integrate.extend(g.integrate_bindings(0));
-    }
-    if let Some(k) = per_pair {
-        integrate.extend(k.bindings());
     }
     Binds {
         proxy_boxes: gpu.bind(

@@ -172,14 +172,6 @@ pub(crate) mod dem_rq {
             .collect()
     }
 
-    /// Every binding of the paper's step with a stiffness per pair.
-    pub fn per_pair_bindings() -> Vec<Binding> {
-        bindings()
-            .into_iter()
-            .chain([physics::PER_PAIR_PARAMS])
-            .collect()
-    }
-
     /// Every binding of the granular step.
     pub fn granular_bindings() -> Vec<Binding> {
         bindings().into_iter().chain(granular::bindings()).collect()
@@ -235,17 +227,21 @@ pub fn modules() -> Vec<WgslModule> {
             source: dem_rq::source(atomics),
             entry_points: dem_rq::ENTRY_POINTS,
             bindings: dem_rq::bindings(),
-            structs: vec![dem_rq::rq_params(), gpu_step::dem_params()],
+            structs: vec![
+                dem_rq::rq_params(),
+                gpu_step::law_params(),
+                granular::pair_law(),
+            ],
         });
         all.push(WgslModule {
             label: format!("dem_rq_per_pair_{name}"),
             source: dem_rq::per_pair_source(atomics),
             entry_points: dem_rq::ENTRY_POINTS,
-            bindings: dem_rq::per_pair_bindings(),
+            bindings: dem_rq::bindings(),
             structs: vec![
                 dem_rq::rq_params(),
-                gpu_step::dem_params(),
-                gpu_step::per_pair_params(),
+                gpu_step::law_params(),
+                granular::pair_law(),
             ],
         });
         for (model, variant) in [("", Variant::Granular), ("_md", Variant::Loaded)] {
@@ -256,8 +252,7 @@ pub fn modules() -> Vec<WgslModule> {
                 bindings: dem_rq::granular_bindings(),
                 structs: vec![
                     dem_rq::rq_params(),
-                    gpu_step::dem_params(),
-                    granular::granular_params(),
+                    gpu_step::law_params(),
                     granular::pair_law(),
                     crate::engines::gpu_walls::mesh_params(),
                     crate::engines::gpu_walls::mesh_wall_row(),
