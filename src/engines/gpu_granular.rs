@@ -866,35 +866,10 @@ fn lay_out(
 }
 
 /// The owner-only history of the GPU (`held[i]` slots of sphere i from slot i·slots on) in the
-/// cpu's layout: each sphere pair also in the partner's slots, springs negated (unless the
-/// partner holds it already, as an uploaded history does before the first step).
+/// cpu's layout ([`ContactHistory::from_owner_rows`]).
 fn both_sides(n: usize, slots: usize, held: &[u32], laid_out: &Slots) -> Result<ContactHistory> {
-    let own = |i: usize| (i * slots..i * slots + held[i] as usize).map(|s| laid_out.get(s));
-    let (mut contacts, mut loads) = (Vec::new(), Vec::new());
-    for i in 0..n {
-        for (e, load) in own(i) {
-            contacts.push((i as u32, e));
-            loads.push(load);
-            let j = e.partner;
-            // Partners from n on are walls (box or mesh).
-            if (j as usize) < n && !own(j as usize).any(|(back, _)| back.partner == i as u32) {
-                let negated = HistoryEntry {
-                    partner: i as u32,
-                    tangential: e.tangential.map(|x| -x),
-                    rolling: e.rolling.map(|x| -x),
-                };
-                contacts.push((j, negated));
-                loads.push(LoadEntry {
-                    reversal: load.reversal.map(|x| -x),
-                    normal: load.normal,
-                });
-            }
-        }
-    }
-    if laid_out.width != LOADED_WORDS {
-        loads.clear();
-    }
-    ContactHistory::from_contacts_with_loads(n, &contacts, &loads)
+    let row = |i: usize| (i * slots..i * slots + held[i] as usize).map(|s| laid_out.get(s));
+    ContactHistory::from_owner_rows(n, laid_out.width == LOADED_WORDS, row)
 }
 
 #[cfg(test)]

@@ -52,6 +52,29 @@ pub struct LoadEntry {
     pub normal: f32,
 }
 
+impl HistoryEntry {
+    /// The contact as its partner keeps it, `owner` holding this entry: `owner` the partner,
+    /// the springs negated.
+    pub fn seen_by_partner(&self, owner: u32) -> HistoryEntry {
+        HistoryEntry {
+            partner: owner,
+            tangential: self.tangential.map(|x| -x),
+            rolling: self.rolling.map(|x| -x),
+        }
+    }
+}
+
+impl LoadEntry {
+    /// The load history as the contact's partner keeps it: the reversal negated, the same
+    /// normal force.
+    pub fn seen_by_partner(&self) -> LoadEntry {
+        LoadEntry {
+            reversal: self.reversal.map(|x| -x),
+            normal: self.normal,
+        }
+    }
+}
+
 /// An entry with its load history, as a step under the Mindlin–Deresiewicz model writes it.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LoadedEntry {
@@ -193,6 +216,37 @@ impl ContactHistory {
             out.counts[i] += 1;
         }
         Ok(out)
+    }
+
+    /// The history of `n` spheres from rows that hold each sphere pair's contact once, by
+    /// either sphere (as the GPU steps keep it), or by both (an uploaded history read back
+    /// before a step): `row(i)` gives sphere i's entries with their load histories. A contact
+    /// that a sphere holds of a partner sphere that does not hold it back is given to the
+    /// partner too, as the partner sees it, right after the owner's entry: each sphere's
+    /// contacts come in the order of their owners. Contacts with walls stay with their
+    /// sphere; the load histories are kept where `loaded`. Refuses partners out of range.
+    pub fn from_owner_rows<R>(n: usize, loaded: bool, row: impl Fn(usize) -> R) -> Result<Self>
+    where
+        R: Iterator<Item = (HistoryEntry, LoadEntry)>,
+    {
+        let (mut contacts, mut loads) = (Vec::new(), Vec::new());
+        for i in 0..n {
+            let owner = i as u32;
+            for (e, load) in row(i) {
+                contacts.push((owner, e));
+                loads.push(load);
+                // Partners from n on are walls (or out of range: refused below).
+                let j = e.partner as usize;
+                if j < n && !row(j).any(|(back, _)| back.partner == owner) {
+                    contacts.push((e.partner, e.seen_by_partner(owner)));
+                    loads.push(load.seen_by_partner());
+                }
+            }
+        }
+        if !loaded {
+            loads.clear();
+        }
+        Self::from_contacts_with_loads(n, &contacts, &loads)
     }
 
     /// Keeps a load history beside every entry from now on (zero for those held: the virgin
@@ -483,6 +537,41 @@ mod tests {
             tangential: [x, 0.0, 0.0],
             rolling: [0.0; 3],
         }
+    }
+
+    #[test]
+    fn owner_rows_give_each_pair_to_both_spheres_in_the_order_of_their_owners() {
+        let load = LoadEntry {
+            reversal: [0.5, -0.25, 0.0],
+            normal: 2.0,
+        };
+        // Sphere 0 owns its contacts with 2 and a wall; 1 and 2 both hold theirs.
+        let rows = [
+            vec![(entry(2, 1.0), load), (entry(FIRST_WALL + 4, 2.0), load)],
+            vec![(entry(2, 3.0), LoadEntry::default())],
+            vec![(entry(1, -3.0), LoadEntry::default())],
+        ];
+        let row = |i: usize| rows[i].iter().copied();
+        let h = ContactHistory::from_owner_rows(3, true, row).unwrap();
+        assert_eq!(h.of(0), &[entry(2, 1.0), entry(FIRST_WALL + 4, 2.0)]);
+        assert_eq!(h.of(1), &[entry(2, 3.0)]);
+        assert_eq!(h.of(2), &[entry(0, -1.0), entry(1, -3.0)]);
+        let mirrored = LoadEntry {
+            reversal: [-0.5, 0.25, -0.0],
+            normal: 2.0,
+        };
+        assert_eq!(h.loads_of(2), &[mirrored, LoadEntry::default()]);
+        // Without load histories, and both-sided rows as they are.
+        let plain = ContactHistory::from_owner_rows(3, false, row).unwrap();
+        assert!(!plain.has_loads());
+        let both = |i: usize| h.of(i).iter().map(|&e| (e, LoadEntry::default()));
+        assert_eq!(
+            ContactHistory::from_owner_rows(3, false, both).unwrap(),
+            plain
+        );
+        // A partner that is neither a sphere nor a wall.
+        let stray = [vec![(entry(7, 1.0), load)]];
+        assert!(ContactHistory::from_owner_rows(1, true, |i| stray[i].iter().copied()).is_err());
     }
 
     #[test]

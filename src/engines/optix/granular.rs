@@ -26,7 +26,7 @@ use crate::dem::model::{LawParams, StepParams};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_walls::{WallTables, wall_loads};
 use crate::error::{Error, OptixError, Result};
-use crate::particles::{ContactHistory, FIRST_WALL, HistoryEntry, LoadEntry, Particles};
+use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;
 use cudarc::driver::{CudaSlice, CudaStream, DriverError, sys::CUresult};
 use std::sync::Arc;
@@ -547,54 +547,21 @@ fn relayout<T: Copy + Default>(entries: &[T], from: usize, to: usize) -> Vec<T> 
 }
 
 /// The history of spheres holding `counts[i]` entries of `entries[i·slots..]` (and their load
-/// histories, where `read` has them), with every contact a sphere holds of a partner that does
-/// not hold it back added to the partner, springs negated (the partner's view; the load
-/// history's reversal negated, its normal force the same): the GPU's owner-only entries as
-/// both sides, as [`ContactHistory`] keeps them; entries already both-sided stay as they are.
+/// histories, where `read` has them) in the cpu's layout ([`ContactHistory::from_owner_rows`]).
 fn both_sides(read: &SlotsRead, slots: usize) -> Result<ContactHistory> {
     let (counts, entries) = (&read.counts, &read.entries);
-    let loaded = !read.loads.is_empty();
-    let n = counts.len();
-    let range = |i: usize| i * slots..i * slots + (counts[i] as usize).min(slots);
-    let own = |i: usize| &entries[range(i)];
     let load = |at: usize| read.loads.get(at).copied().unwrap_or_default();
-    let mut contacts: Vec<(u32, HistoryEntry)> = Vec::new();
-    let mut loads = Vec::new();
-    for i in 0..n {
-        for at in range(i) {
-            contacts.push((i as u32, entries[at]));
-            loads.push(load(at));
-        }
-    }
-    for i in 0..n {
-        for at in range(i) {
-            let e = &entries[at];
-            let j = e.partner as usize;
-            // A partner out of range is refused by from_contacts with the owner's entry.
-            if e.partner < FIRST_WALL && j < n && !own(j).iter().any(|b| b.partner == i as u32) {
-                let back = HistoryEntry {
-                    partner: i as u32,
-                    tangential: e.tangential.map(|x| -x),
-                    rolling: e.rolling.map(|x| -x),
-                };
-                contacts.push((e.partner, back));
-                let l = load(at);
-                loads.push(LoadEntry {
-                    reversal: l.reversal.map(|x| -x),
-                    normal: l.normal,
-                });
-            }
-        }
-    }
-    if !loaded {
-        loads.clear();
-    }
-    ContactHistory::from_contacts_with_loads(n, &contacts, &loads)
+    let row = |i: usize| {
+        let held = (counts[i] as usize).min(slots);
+        (i * slots..i * slots + held).map(|at| (entries[at], load(at)))
+    };
+    ContactHistory::from_owner_rows(counts.len(), !read.loads.is_empty(), row)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::particles::FIRST_WALL;
 
     fn entry(partner: u32, x: f32) -> HistoryEntry {
         HistoryEntry {
@@ -625,8 +592,9 @@ mod tests {
         };
         let h = both_sides(&read(&[2, 1, 1], &entries), 2).unwrap();
         assert_eq!(h.of(0), &[entry(1, 1.0), entry(2, 2.0)]);
-        assert_eq!(h.of(1), &[entry(mesh_wall, 4.0), entry(0, -1.0)]);
-        assert_eq!(h.of(2), &[entry(FIRST_WALL + 4, 3.0), entry(0, -2.0)]);
+        // A sphere's contacts come in the order of their owners.
+        assert_eq!(h.of(1), &[entry(0, -1.0), entry(mesh_wall, 4.0)]);
+        assert_eq!(h.of(2), &[entry(0, -2.0), entry(FIRST_WALL + 4, 3.0)]);
         // Both-sided already (an upload read back before any step): nothing is doubled.
         let (counts, entries, _) = layout(&h, 3, 4);
         assert_eq!(counts, [2, 2, 2]);
