@@ -760,7 +760,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let m = surface_contact(i, vec_at(s), cases[s + 3u], vec_at(s + 4u), law, mu, old);
     put_contact(m.force, m.torque, m.springs);
     // The box walls, as finish (dem_granular.wgsl) meets them.
-    let box_law = law_of(i.material, granular.box_column);
+    let box_law = law_of(i.material, dem.box_column);
     for (var axis = 0u; axis < 3u; axis += 1u) {
         let below = i.r - (i.c[axis] - dem.box_lo[axis]);
         let above = i.r - (dem.box_hi[axis] - i.c[axis]);
@@ -773,7 +773,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 continue;
             }
             var kept = no_springs();
-            if granular.slots > 0u {
+            if dem.slots > 0u {
                 kept = springs_at(at + 24u + (1u + wall) * SPRINGS_WORDS);
             }
             var n = vec3(0.0);
@@ -860,7 +860,7 @@ fn pair_law(l: &PairLaw) -> Value {
 }
 
 /// The blocks the laws read of `p`, for each global of `module` that holds one, with its bytes:
-/// the step's parameters (`dem`), the granular step's (`granular`) and the material table
+/// the step's parameters with the law's (`dem`) and the material table
 /// (`material_laws`, row by row), as the engines fill them. Each value lies where naga lays its
 /// member out; a member named here that the WGSL lacks or types otherwise, or one of the WGSL's
 /// (but padding, `_*`) not named here, fails.
@@ -881,18 +881,13 @@ fn uploads(p: &StepParams, module: &naga::Module) -> Vec<(Binding, Vec<u8>)> {
                 ("stiffness", F(p.stiffness)),
                 ("damping_ratio", F(p.damping_ratio)),
                 ("gravity_spin", F(p.gravity_spin)),
-            ])],
-        ),
-        (
-            "granular",
-            vec![Struct(vec![
                 ("law", U(p.law.code())),
                 ("rolling_model", U(f.rolling_model.code())),
                 ("turns", U(f.turns() as u32)),
                 // Slots where contacts keep springs: the kernel reads the walls' then.
                 ("slots", U(f.has_history() as u32)),
                 ("spheres_per_part", U(1)),
-                ("materials", U(table.count as u32)),
+                ("columns", U(table.count as u32 + 1)),
                 ("box_column", U(p.box_column)),
                 ("sphere_law", pair_law(table.law(0, 0))),
             ])],
