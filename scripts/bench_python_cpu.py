@@ -1,5 +1,5 @@
 """The Python package against the CLI and SciPy on the cpu backend
-(docs/performance-log/2026-11-25-to-26-python-cpu.md, "Issue 20: Python on the CPU").
+(docs/performance-log/2026-11-25-to-26-python-cpu.md).
 
     python scripts/bench_python_cpu.py ROUNDS FILE.npy...   (MOCHI: the CLI, default
     target/release/mochi; needs numpy, scipy and the mochi package)

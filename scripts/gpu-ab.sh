@@ -20,7 +20,8 @@ want() { [[ " ${parts[*]} " == *" $1 "* ]]; }
 for round in $(seq "$rounds"); do
     for b in "${bins[@]}"; do
         m=".bin/mochi-$b"
-        # The paper's law: named where the build knows the key (builds before issue 18 had no other).
+        # The paper's law: named where the build knows the `contact` key (older builds have no
+        # other law).
         law=()
         "$m" simulate --scene freefall -n 8 --steps 0 --set contact=linear --overwrite \
             -o "$out/probe-$b" >/dev/null 2>&1 && law=(--set contact=linear)

@@ -1,4 +1,4 @@
-//! Positions that never freeze (issue 43; docs/method.md, "Positions that never freeze"): a
+//! Positions that never freeze (docs/method.md, "Positions that never freeze"): a
 //! slow sphere far from the origin moves by every step's displacement on every backend, in the
 //! paper's kernels and the granular ones, though each is far below the spacing of `f32` at its
 //! centre; frames hold the positions with the digits to tell, and a run resumed from its

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""The HCP block of issue 43's benchmark, as a sphere file mochi reads (.npy, N x 4: x, y, z, r).
+"""The HCP block of the comparison with Chrono DEM-Engine, as a sphere file mochi reads (.npy,
+N x 4: x, y, z, r).
 
 963,567 spheres of radius 0.5 mm on a hexagonal close-packed lattice whose neighbours are
 2.01 r apart (every pair starts 0.01 r apart, no contact): rows of 99 along x, 115 rows in an

@@ -165,7 +165,7 @@ def test_backends():
     assert all(isinstance(e["reason"], str) and e["reason"] for e in entries)
 
 
-# Issue 42, item 22: masked arrays, byte order, and float64 beyond float32.
+# Masked arrays, byte order, and float64 beyond float32.
 
 
 def test_a_masked_array_with_masked_entries_is_refused():

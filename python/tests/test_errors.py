@@ -1,4 +1,4 @@
-"""What a bug or a lack of memory looks like from Python (issue 42, items 8 and 9): a panic in
+"""What a bug or a lack of memory looks like from Python: a panic in
 mochi is a MochiError naming the call, never pyo3's PanicException (a BaseException that
 `except Exception` lets through); input that is too large is one ValueError or MemoryError,
 never an aborted interpreter."""
@@ -28,7 +28,7 @@ def test_a_panic_is_a_mochi_error_naming_the_call(where):
     assert "deliberate panic" in message and "lib.rs" in message  # what and where
 
 
-# Inputs that panicked inside the library (issue 42, item 8) are refused as ValueError.
+# Inputs that would panic inside the library are refused as ValueError.
 BAD_INFLOWS = {
     "radius beyond f32": "sphere_radii = [0.003, 1e39]",
     "corner beyond f32": "lo = [-1e39, 0.3, 0.85]\nhi = [0.7, 0.7, 0.95]",

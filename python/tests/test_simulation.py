@@ -227,7 +227,7 @@ def test_the_default_scene_is_pour():
     assert "pour" in repr(mochi.Simulation(backend="cpu"))
 
 
-# Issue 42, item 4: the count follows the flows.
+# The count follows the flows.
 
 FLOWS_TOML = """scene = "freefall"
 spheres = 200
@@ -278,7 +278,7 @@ def test_len_follows_inflows_and_outflows(tmp_path, backend, inflow, outflow):
         assert 0 < counted < 200
 
 
-# Issue 42, item 22: tables, NumPy values and read-only arrays.
+# Tables, NumPy values and read-only arrays.
 
 INFLOW = {
     "lo": [0.3, 0.3, 0.85],

@@ -38,7 +38,7 @@ pub fn render(report: &Report) -> String {
     }
     if !report.targets.is_empty() {
         out.push_str(
-            "\n## Targets (issues 7 and 21)\n\n| target | measured | met |\n| --- | --- | --- |\n",
+            "\n## Performance targets\n\n| target | measured | met |\n| --- | --- | --- |\n",
         );
         for t in &report.targets {
             let met = match (t.met, &t.not_judged) {

@@ -7,13 +7,13 @@
 //! 4. the DEM step against the rebuild interval of steps that refit (others are reported once,
 //!    "every step");
 //! 5. the DEM step from 1,000 spheres up, ×10 each time;
-//! 6. the DEM steps issue 7 sets targets for: the landed `slab`, and the poured `polylog` pile
-//!    ([`dem::pile_start`]) with the single and the multi-level grid side by side ([`dem`] runs
-//!    2–8; [`targets`] checks them, each on a state with contacts only);
-//! 7. the Hertz–Mindlin step of issue 18 (friction with contact history, rotation, EPSD rolling
+//! 6. the DEM steps the performance targets name: the landed `slab`, and the poured `polylog`
+//!    pile ([`dem::pile_start`]) with the single and the multi-level grid side by side ([`dem`]
+//!    runs 2–8; [`targets`] checks them, each on a state with contacts only);
+//! 7. the Hertz–Mindlin step (friction with contact history, rotation, EPSD rolling
 //!    resistance) on the landed `slab`, with its contacts and the bytes per sphere of its
 //!    history ([`report::HistorySize`]); a backend whose step does not run it yet reports why;
-//! 8. issue 21's clustered scenes: 14 filled meshes dropped ([`dem::mesh_drop_start`]) at the
+//! 8. the clustered scenes: 14 filled meshes dropped ([`dem::mesh_drop_start`]) at the
 //!    paper's dt 1e-4, every step of the 5,000-step drop timed from the start, in their box and
 //!    in one 10× wider per side; `wgpu-compute` with its dense and its sorted grid build side
 //!    by side.

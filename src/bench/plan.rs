@@ -6,7 +6,8 @@ use crate::engines::wgpu_compute::Structure;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
-/// One of the paper's experiments (docs/method.md), numbered as in issue 7.
+/// One of the paper's experiments (docs/method.md, "The paper's workloads"), numbered 1–8 as
+/// `mochi bench` lists them (docs/guide/bench.md; [`Experiment::number`]).
 #[derive(
     Debug,
     Clone,
@@ -32,8 +33,8 @@ pub enum Experiment {
     Rebuild,
     /// 5: the DEM step from 1,000 spheres up in steps of ×10.
     Scaling,
-    /// 6: the DEM steps issue 7 sets targets for: the landed slab, and the poured `polylog`
-    /// pile with the single and the multi-level grid side by side.
+    /// 6: the DEM steps the performance targets name: the landed slab, and the poured
+    /// `polylog` pile with the single and the multi-level grid side by side.
     Targets,
     /// 7: the Hertz–Mindlin step (friction with contact history, rotation, EPSD rolling
     /// resistance) on the settled slab, with its contacts and the size of the history.
@@ -41,7 +42,7 @@ pub enum Experiment {
     /// 8: the paper's 14-bunny drop (14 copies of `--mesh`, or of the built-in torus, filled
     /// with as many spheres as the paper's bunnies hold at `--scale paper`) at the paper's dt
     /// 1e-4, every one of its 5,000 steps timed, and the same spheres in a box 10× wider per
-    /// side: a step whose grid build should cost by the spheres, not by the box (issue 21);
+    /// side: a step whose grid build should cost by the spheres, not by the box;
     /// `wgpu-compute` with its dense and its sorted build.
     Clustered,
 }
@@ -59,8 +60,10 @@ impl Experiment {
         Experiment::Clustered,
     ];
 
-    /// Number in issue 7 (1–5; 6 for the targets; 7 for friction, of issue 18; 8 for the
-    /// clustered scenes, of issue 21).
+    /// Number, 1–8, as on the command line (`--experiments 1,6`) and in the report's headings:
+    /// the paper's detection and DEM experiments 1–5, then the steps the performance targets
+    /// name (6), the Hertz–Mindlin step (7) and the clustered scenes (8), in the order of
+    /// [`Experiment::ALL`].
     pub fn number(self) -> u8 {
         self as u8 + 1
     }

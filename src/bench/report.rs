@@ -43,7 +43,7 @@ pub struct Report {
     pub dem: Vec<DemRow>,
     /// Measurements a backend could not make, and why.
     pub skipped: Vec<Skipped>,
-    /// Issue 7's targets, checked against the rows.
+    /// The performance targets ([`super::targets::check`]), checked against the rows.
     pub targets: Vec<Check>,
     /// Other codes' figures (`--compare`) beside mochi's rows of the same experiment.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]

@@ -1,4 +1,4 @@
-//! Spheres entering and leaving a run (issue 19): `[[inflow]]` regions insert spheres at a rate,
+//! Spheres entering and leaving a run: `[[inflow]]` regions insert spheres at a rate,
 //! `[[outflow]]` regions remove the spheres whose centres enter them, and without the box walls
 //! the spheres that fall below the box are removed too.
 //!

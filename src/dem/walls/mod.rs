@@ -1,4 +1,4 @@
-//! Walls besides the box: triangle meshes in a pose that moves (issue 19). Geometry only: which
+//! Walls besides the box: triangle meshes in a pose that moves. Geometry only: which
 //! points of which wall a sphere touches, and how fast the wall moves there; the force of each
 //! contact is the model's ([`crate::dem::model::contact::surface_contact`], the box walls' law
 //! with the wall's velocity), and each engine applies it in its step.

@@ -12,7 +12,8 @@ use crate::gpu::Gpu;
 
 /// Most blocks a table is cut into for the scan (each scan workgroup sums the blocks before it).
 /// More blocks mean more block sums to add up, fewer mean too few workgroups, each scanning more
-/// tiles in a row; 1024 measured best (docs/performance-log/, issue 4).
+/// tiles in a row; 1024 measured best (docs/performance-log/2026-11-22-h200.md, the sweep of the
+/// most blocks).
 const MAX_BLOCKS: u32 = 1024;
 
 /// Smallest block: one tile of a scan workgroup (`TILE` in the shader).

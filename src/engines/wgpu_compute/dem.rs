@@ -99,7 +99,9 @@ pub const SORT_EVERY: u64 = 16;
 
 /// Share of a batch's steps above which re-binning is so frequent that the skin costs more
 /// than it saves (its wider windows, and the copy back of each re-binning); the skin is then
-/// off for [`SKIN_RETRY_STEPS`] steps (docs/performance-log/, issue 21).
+/// off for [`SKIN_RETRY_STEPS`] steps (docs/performance-log/2026-11-27-h100-session-6.md has the
+/// scenes where the skin loses, docs/performance-log/2026-11-27-h100-session-7.md the share swept
+/// with the skin's width).
 pub const MAX_REBIN_SHARE: f64 = 0.25;
 
 /// Steps the skin stays off after a batch re-binned too often; then it is tried again.

@@ -29,7 +29,8 @@ const MAX_HASHED_AXIS_CELLS: u64 = 1 << 21;
 
 /// Cells of the dense tables per sphere, at most, for detection (a table of at least 2^20 cells is
 /// always fine). Fewer cells per sphere mean fewer levels and a cheaper build, paid for with a
-/// few more candidates; for detection alone the build weighs more (docs/performance-log/, issue 4).
+/// few more candidates; for detection alone the build weighs more (the cell budget experiment in
+/// docs/performance-log/2026-11-22-h200.md).
 pub const DETECT_CELLS_PER_SPHERE: u64 = 4;
 
 /// Cells of the dense tables per sphere, at most, for the DEM step on a multi-level grid, whose

@@ -10,7 +10,8 @@ use crate::gpu::Gpu;
 
 /// The skin, in cells of the finest level: what a sphere may move before the grid is re-binned.
 /// A wider skin re-bins less often; the walk's windows widen by the drift since the last
-/// binning, which grows up to it (docs/performance-log/, issue 21, has the sweep).
+/// binning, which grows up to it (docs/performance-log/2026-11-27-h100-session-7.md has the
+/// sweep).
 pub(crate) const SKIN_CELLS: f64 = 0.2;
 
 /// Word offsets in [`Skin::state`]; twins of the constants in `wgsl/dem_grid_frictionless.wgsl`.
