@@ -22,7 +22,7 @@ static __forceinline__ __device__ void mochi_write_box(float* box, float4 s, uns
 }
 
 // Gathers the spheres into sorted order (`order[p]` is the input index of sorted position p) and
-// writes each one's proxy box (mochi_write_box). Keep in sync with wgsl/rq_build.wgsl.
+// writes each one's proxy box (mochi_write_box). Keep in sync with wgsl/rq/rq_build.wgsl.
 extern "C" __global__ void proxy_boxes(const float4* spheres_in, const unsigned int* order,
                                        float4* spheres, float* boxes, unsigned int n,
                                        unsigned int mode, float r_max, float pad_rel) {
@@ -49,7 +49,7 @@ extern "C" __global__ void dem_boxes(const float4* pos, float* boxes, unsigned i
 
 // Walls, gravity at step `step` and one semi-implicit Euler step, in place (the centres with
 // their residuals `lo`); clears the force accumulator for the next step. Keep in sync with
-// `integrate_sphere` in wgsl/dem_integrate.wgsl.
+// `integrate_sphere` in wgsl/dem/dem_integrate.wgsl.
 extern "C" __global__ void dem_integrate(float4* pos, float4* lo, float4* vel, float* force,
                                          LawParams dem, unsigned int step) {
     unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;

@@ -1,4 +1,4 @@
-// Mesh walls of the optix granular step: the CUDA twin of wgsl/dem_mesh_walls.wgsl (read its
+// Mesh walls of the optix granular step: the CUDA twin of wgsl/dem/dem_mesh_walls.wgsl (read its
 // doc: rest geometry, one grid cell's triangles per sphere, the nearest MOCHI_MESH_NEAR within
 // the radius, one contact per surface seen at a face, an edge or a vertex alike) and of the cpu
 // step's src/dem/walls. Resolved by each sphere's thread of granular_integrate after the box

@@ -101,7 +101,7 @@ static __forceinline__ __device__ float3 mochi_wall_force(const LawParams& dem, 
 // Moves the coordinate hi + lo (a normalised pair: hi is the sum rounded to f32) by d: the
 // displacement and the residual are added first, then to hi without error (TwoSum), whose
 // rounding error is the new residual. Keep in sync with `advance` in src/particles/position.rs
-// (and advance_position in wgsl/dem_params.wgsl): the same additions in the same order; NVRTC
+// (and advance_position in wgsl/dem/dem_params.wgsl): the same additions in the same order; NVRTC
 // compiles without fused multiply-adds and never reassociates them.
 static __forceinline__ __device__ void mochi_advance(float& hi, float& lo, float d) {
     float t = d + lo;

@@ -1,5 +1,5 @@
 //! Morton (Z-order) keys of points, the one host encoder: 10 bits per axis over the points'
-//! bounding box, x in the lowest bit of each bit triple. `morton_keys` in `wgsl/rq_build.wgsl`
+//! bounding box, x in the lowest bit of each bit triple. `morton_keys` in `wgsl/rq/rq_build.wgsl`
 //! computes the same keys on the GPU (same quantisation in `f32`, same bit order).
 
 use rayon::prelude::*;

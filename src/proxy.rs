@@ -36,7 +36,7 @@ impl ProxyMode {
         }
     }
 
-    /// The value of `mode` in the device programs: `MODE_MOCHI`/`MODE_NNS` of `wgsl/proxy.wgsl`
+    /// The value of `mode` in the device programs: `MODE_MOCHI`/`MODE_NNS` of `wgsl/core/proxy.wgsl`
     /// and `MOCHI_MODE_MOCHI`/`MOCHI_MODE_NNS` of `optix/device.cuh` (checked by
     /// `tests/shaders.rs`).
     pub fn code(self) -> u32 {

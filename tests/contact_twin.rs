@@ -13,12 +13,12 @@
 //!   supplies CUDA's vector types; no fused multiply-adds, as NVRTC compiles it for the GPU),
 //!   again with `MOCHI_LOAD_HISTORY` for Mindlin–Deresiewicz. Needs a C++17 compiler (`c++`)
 //!   and no GPU; skips with a note without one (CI has one).
-//! - The wgpu steps' law, `wgsl/dem_contact.wgsl` after `wgsl/dem_params.wgsl` and a tangential
-//!   model (`wgsl/dem_tangential_mindlin.wgsl` or `wgsl/dem_tangential_md.wgsl`), composed as
+//! - The wgpu steps' law, `wgsl/dem/dem_contact.wgsl` after `wgsl/dem/dem_params.wgsl` and a tangential
+//!   model (`wgsl/dem/dem_tangential_mindlin.wgsl` or `wgsl/dem/dem_tangential_md.wgsl`), composed as
 //!   the engines compose it, with a test kernel appended that calls the law on each case as the
-//!   step's kernels call it (`contact_with` and `finish` of `wgsl/dem_granular.wgsl`,
-//!   `wall_contacts` of `wgsl/dem_mesh_walls.wgsl`); and the paper's frictionless linear law of
-//!   `wgsl/dem_physics.wgsl` (`contact_force`, `wall_force`) on the cases of one frictionless
+//!   step's kernels call it (`contact_with` and `finish` of `wgsl/dem/dem_granular.wgsl`,
+//!   `wall_contacts` of `wgsl/dem/dem_mesh_walls.wgsl`); and the paper's frictionless linear law of
+//!   `wgsl/dem/dem_physics.wgsl` (`contact_force`, `wall_force`) on the cases of one frictionless
 //!   linear material, which the Rust law computes with the same operations.
 //!
 //! Values are compared bit for bit, ±0 equal. For the WGSL that takes two conditions. Its
@@ -88,7 +88,7 @@ trait Twin: Kept {
 
 impl Twin for Springs {
     const PARTS: &[(&str, usize)] = &[("tangential spring", 3), ("rolling spring", 3)];
-    const TANGENTIAL: &str = include_str!("../wgsl/dem_tangential_mindlin.wgsl");
+    const TANGENTIAL: &str = include_str!("../wgsl/dem/dem_tangential_mindlin.wgsl");
     const KERNEL_IO: &str = "
 const SPRINGS_WORDS: u32 = 6u;
 fn springs_at(k: u32) -> Springs {
@@ -130,7 +130,7 @@ impl Twin for LoadedSprings {
         ("reversal", 3),
         ("normal force kept", 1),
     ];
-    const TANGENTIAL: &str = include_str!("../wgsl/dem_tangential_md.wgsl");
+    const TANGENTIAL: &str = include_str!("../wgsl/dem/dem_tangential_md.wgsl");
     const KERNEL_IO: &str = "
 const SPRINGS_WORDS: u32 = 10u;
 fn springs_at(k: u32) -> Springs {
@@ -677,12 +677,12 @@ fn the_cuda_law_of_several_materials_computes_the_bits_of_the_rust_one() {
 }
 
 // ----------------------------------------------------------------------------------------------
-// The WGSL twin: wgsl/dem_contact.wgsl and wgsl/dem_physics.wgsl on lavapipe
+// The WGSL twin: wgsl/dem/dem_contact.wgsl and wgsl/dem/dem_physics.wgsl on lavapipe
 // ----------------------------------------------------------------------------------------------
 
-const PARAMS: &str = include_str!("../wgsl/dem_params.wgsl");
-const CONTACT: &str = include_str!("../wgsl/dem_contact.wgsl");
-const PAPER: &str = include_str!("../wgsl/dem_physics.wgsl");
+const PARAMS: &str = include_str!("../wgsl/dem/dem_params.wgsl");
+const CONTACT: &str = include_str!("../wgsl/dem/dem_contact.wgsl");
+const PAPER: &str = include_str!("../wgsl/dem/dem_physics.wgsl");
 
 /// The test kernels' bindings (numbers the law's modules leave free).
 const CASES: Binding = Binding::read(0, "cases");

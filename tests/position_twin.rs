@@ -3,7 +3,7 @@
 //! multiply-adds, as NVRTC compiles it for the GPU), it leaves the same centre and residual
 //! from the same centre, residual and displacement, on a table of slow and fast steps at every
 //! distance from the origin. (The wgpu steps' update, `advance_position` of
-//! `wgsl/dem_params.wgsl`, computes its error from the operands' bits: its Rust twin is
+//! `wgsl/dem/dem_params.wgsl`, computes its error from the operands' bits: its Rust twin is
 //! `position::sum_error_by_bits`, tested against TwoSum in the library, and the GPU itself by
 //! `tests/positions.rs`.) Needs a C++17 compiler (`c++`) and no GPU; skips with a note without
 //! one (CI has one).

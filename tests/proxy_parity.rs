@@ -1,4 +1,4 @@
-//! The rule of `src/proxy.rs` and its WGSL copy (`wgsl/proxy.wgsl`) agree on a table of boundary
+//! The rule of `src/proxy.rs` and its WGSL copy (`wgsl/core/proxy.wgsl`) agree on a table of boundary
 //! cases (`common/rule_cases.rs`). Where the squared distance lies within rounding of a threshold
 //! (`proxy::near_boundary`) a GPU that fuses multiply-adds may differ; everywhere else, and on
 //! every axis-aligned case (exact in any arithmetic), they must agree. Runs the WGSL on any
@@ -33,7 +33,7 @@ fn wgsl_rule_matches_the_rust_rule() {
     let Some(gpu) = common::open_gpu("the WGSL rule") else {
         return;
     };
-    let source = format!("{}{KERNEL}", include_str!("../wgsl/proxy.wgsl"));
+    let source = format!("{}{KERNEL}", include_str!("../wgsl/core/proxy.wgsl"));
     let module = gpu.module("mochi.test.proxy_parity", &source);
     let pipeline = gpu.pipeline("mochi.test.proxy_parity", &module, "main");
     for mode in [ProxyMode::Mochi, ProxyMode::Nns] {

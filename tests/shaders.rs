@@ -111,7 +111,7 @@ fn cuda_define(source: &str, name: &str) -> u32 {
 #[test]
 fn mode_codes_agree_with_the_device_programs() {
     use mochi::ProxyMode;
-    let wgsl = naga::front::wgsl::parse_str(include_str!("../wgsl/proxy.wgsl")).unwrap();
+    let wgsl = naga::front::wgsl::parse_str(include_str!("../wgsl/core/proxy.wgsl")).unwrap();
     let cuda = include_str!("../optix/device.cuh");
     for (mode, wgsl_name, cuda_name) in [
         (ProxyMode::Mochi, "MODE_MOCHI", "MOCHI_MODE_MOCHI"),

@@ -1,5 +1,5 @@
 //! A flow event's look at a wgpu engine's state without reading every sphere back
-//! (`wgsl/flow_scan.wgsl`): one pass lists the spheres that leave and those near the inflows,
+//! (`wgsl/dem/flow_scan.wgsl`): one pass lists the spheres that leave and those near the inflows,
 //! the two things an event needs to remove and insert ([`super::flow_step`]).
 
 use crate::error::Result;
@@ -8,7 +8,7 @@ use crate::gpu::shader::{Binding, WgslModule, shared_struct, wgsl};
 use glam::Vec3;
 
 /// The shader, embedded.
-const SOURCE: &str = wgsl!("flow_scan.wgsl");
+const SOURCE: &str = wgsl!("dem/flow_scan.wgsl");
 const ENTRY_POINT: &str = "flow_scan";
 /// Workgroup size (as in the shader).
 const GROUP: u32 = 256;
@@ -45,7 +45,7 @@ pub fn module() -> WgslModule {
     )
 }
 
-/// WGSL twin: `FlowParams` in `wgsl/flow_scan.wgsl`.
+/// WGSL twin: `FlowParams` in `wgsl/dem/flow_scan.wgsl`.
 #[derive(Debug, Clone, Copy, Default, encase::ShaderType)]
 struct FlowParams {
     n: u32,

@@ -1,4 +1,4 @@
-//! The GPU state of the granular step (`wgsl/dem_contact.wgsl`, `wgsl/dem_granular.wgsl`),
+//! The GPU state of the granular step (`wgsl/dem/dem_contact.wgsl`, `wgsl/dem/dem_granular.wgsl`),
 //! shared by the wgpu engines: angular velocities and torque accumulators in the engine's state
 //! order (one ω buffer per state set of the engine: ω is permuted with positions and velocities),
 //! and the contact history (docs/method.md, "Contact history"): K slots per sphere in rows in
@@ -817,7 +817,7 @@ fn split_or_refuse(
 /// The contacts of `history` that sphere `i` (of spheres of `radii`) keeps on the GPU: its walls,
 /// the pairs it alone holds, and of each pair both hold (the cpu's layout) the one of its smaller
 /// sphere (of two as large, the lower index). Either sphere's row will do, whichever finds the
-/// pair: a step looks it up in its partner's old row too (`wgsl/dem_granular.wgsl`). A sphere
+/// pair: a step looks it up in its partner's old row too (`wgsl/dem/dem_granular.wgsl`). A sphere
 /// then keeps about what it owns on the GPU, not all it touches, which sets the rows' length.
 fn owned<'a>(
     history: &'a ContactHistory,

@@ -1,6 +1,6 @@
-//! What the GPU DEM steps share: the physics modules (`wgsl/dem_params.wgsl`, its bindings and
+//! What the GPU DEM steps share: the physics modules (`wgsl/dem/dem_params.wgsl`, its bindings and
 //! parameter block, and the physics of the step's two variants: the paper's law,
-//! `wgsl/dem_physics.wgsl`, or the granular step's, [`granular`]), the choice of force atomics,
+//! `wgsl/dem/dem_physics.wgsl`, or the granular step's, [`granular`]), the choice of force atomics,
 //! per-phase timestamps, and moving particles to and from the GPU.
 
 pub(crate) use super::gpu_granular::{
@@ -11,36 +11,37 @@ use crate::dem::stepper::{Advance, Clock, StageTimes, needs_granular_step};
 use crate::dem::walls::WallSet;
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
-use crate::gpu::shader::{SharedStruct, shared_struct};
+use crate::gpu::shader::{SharedStruct, shared_struct, wgsl};
 use crate::gpu::timer::GpuTimer;
 use crate::particles::{FIRST_MESH_WALL, Particles};
 use rayon::prelude::*;
 
-/// The physics shared by the GPU steps (`wgsl/dem_params.wgsl` and, for the paper's law,
-/// `wgsl/dem_physics.wgsl`, integration kernel included) and its force accumulators: the
+/// The physics shared by the GPU steps (`wgsl/dem/dem_params.wgsl` and, for the paper's law,
+/// `wgsl/dem/dem_physics.wgsl`, integration kernel included) and its force accumulators: the
 /// bindings it adds to the step module it ends.
 pub(crate) mod physics {
     use super::Accumulators;
     use crate::gpu::shader::Binding;
+    use crate::gpu::shader::wgsl;
 
-    /// `wgsl/dem_params.wgsl`: parameters, state bindings and gravity, for both variants.
-    pub const PARAMS: &str = include_str!("../../wgsl/dem_params.wgsl");
-    /// `wgsl/dem_physics.wgsl`: the paper's law.
-    pub const LINEAR: &str = include_str!("../../wgsl/dem_physics.wgsl");
-    /// `wgsl/dem_physics_per_pair.wgsl`: the paper's law with a stiffness per pair.
-    pub const PER_PAIR: &str = include_str!("../../wgsl/dem_physics_per_pair.wgsl");
-    /// `wgsl/dem_integrate.wgsl`: the integration kernel of both.
-    pub const INTEGRATE: &str = include_str!("../../wgsl/dem_integrate.wgsl");
+    /// `wgsl/dem/dem_params.wgsl`: parameters, state bindings and gravity, for both variants.
+    pub const PARAMS: &str = wgsl!("dem/dem_params.wgsl");
+    /// `wgsl/dem/dem_physics.wgsl`: the paper's law.
+    pub const LINEAR: &str = wgsl!("dem/dem_physics.wgsl");
+    /// `wgsl/dem/dem_physics_per_pair.wgsl`: the paper's law with a stiffness per pair.
+    pub const PER_PAIR: &str = wgsl!("dem/dem_physics_per_pair.wgsl");
+    /// `wgsl/dem/dem_integrate.wgsl`: the integration kernel of both.
+    pub const INTEGRATE: &str = wgsl!("dem/dem_integrate.wgsl");
 
     /// Float atomics (SHADER_FLOAT32_ATOMIC).
     pub(super) const F32: Accumulators = Accumulators {
-        force: include_str!("../../wgsl/dem_force_f32.wgsl"),
-        torque: include_str!("../../wgsl/dem_torque_f32.wgsl"),
+        force: wgsl!("dem/dem_force_f32.wgsl"),
+        torque: wgsl!("dem/dem_torque_f32.wgsl"),
     };
     /// Compare-and-swap loops on the bit patterns.
     pub(super) const CAS: Accumulators = Accumulators {
-        force: include_str!("../../wgsl/dem_force_cas.wgsl"),
-        torque: include_str!("../../wgsl/dem_torque_cas.wgsl"),
+        force: wgsl!("dem/dem_force_cas.wgsl"),
+        torque: wgsl!("dem/dem_torque_cas.wgsl"),
     };
 
     /// Both kinds of accumulators, by label suffix.
@@ -86,16 +87,16 @@ pub(crate) mod physics {
 /// Which physics a wgpu engine's DEM step runs, each in a module of its own.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Variant {
-    /// The paper's law (`wgsl/dem_physics.wgsl`): one stiffness, no friction, no rotation.
+    /// The paper's law (`wgsl/dem/dem_physics.wgsl`): one stiffness, no friction, no rotation.
     Paper,
     /// The paper's kernels with the stiffness of each pair from its effective mass
-    /// (`wgsl/dem_physics_per_pair.wgsl`): `stiffness = "per-pair"` without friction, rolling
+    /// (`wgsl/dem/dem_physics_per_pair.wgsl`): `stiffness = "per-pair"` without friction, rolling
     /// resistance, spin, history or a second material.
     PerPair,
     /// The granular step ([`Granular`]) with Mindlin's spring.
     Granular,
     /// The granular step under the Mindlin–Deresiewicz tangential model: its law, and its load
-    /// history in entries of twice the size (`wgsl/dem_tangential_md.wgsl`).
+    /// history in entries of twice the size (`wgsl/dem/dem_tangential_md.wgsl`).
     Loaded,
 }
 
@@ -129,7 +130,7 @@ pub(crate) const GROUP: u32 = 256;
 /// Most steps recorded into one submission (and timed by one query set).
 pub(crate) const MAX_BATCH: u32 = 200;
 
-/// [`LawParams`] as a [`SharedStruct`] (`LawParams` in `wgsl/dem_params.wgsl`).
+/// [`LawParams`] as a [`SharedStruct`] (`LawParams` in `wgsl/dem/dem_params.wgsl`).
 pub(crate) fn law_params() -> SharedStruct {
     shared_struct!(
         "LawParams",
@@ -194,20 +195,21 @@ pub(crate) struct Accumulators {
     pub torque: &'static str,
 }
 
-/// What the granular step adds to the paper's (`wgsl/dem_contact.wgsl`, the contact law, and
-/// `wgsl/dem_granular.wgsl`, angular velocities, torques, contact history and integration):
+/// What the granular step adds to the paper's (`wgsl/dem/dem_contact.wgsl`, the contact law, and
+/// `wgsl/dem/dem_granular.wgsl`, angular velocities, torques, contact history and integration):
 /// sources, bindings and the structs shared with Rust.
 pub(crate) mod granular {
+    use crate::gpu::shader::wgsl;
     use crate::gpu::shader::{Binding, SharedStruct, shared_struct};
 
-    /// `wgsl/dem_contact.wgsl`.
-    pub const CONTACT: &str = include_str!("../../wgsl/dem_contact.wgsl");
-    /// `wgsl/dem_granular.wgsl`.
-    pub const STATE: &str = include_str!("../../wgsl/dem_granular.wgsl");
-    /// `wgsl/dem_tangential_mindlin.wgsl`: Mindlin's spring (`Variant::Granular`).
-    pub const SPRING: &str = include_str!("../../wgsl/dem_tangential_mindlin.wgsl");
-    /// `wgsl/dem_tangential_md.wgsl`: Mindlin–Deresiewicz (`Variant::Loaded`).
-    pub const LOAD_HISTORY: &str = include_str!("../../wgsl/dem_tangential_md.wgsl");
+    /// `wgsl/dem/dem_contact.wgsl`.
+    pub const CONTACT: &str = wgsl!("dem/dem_contact.wgsl");
+    /// `wgsl/dem/dem_granular.wgsl`.
+    pub const STATE: &str = wgsl!("dem/dem_granular.wgsl");
+    /// `wgsl/dem/dem_tangential_mindlin.wgsl`: Mindlin's spring (`Variant::Granular`).
+    pub const SPRING: &str = wgsl!("dem/dem_tangential_mindlin.wgsl");
+    /// `wgsl/dem/dem_tangential_md.wgsl`: Mindlin–Deresiewicz (`Variant::Loaded`).
+    pub const LOAD_HISTORY: &str = wgsl!("dem/dem_tangential_md.wgsl");
 
     pub const OMEGA: Binding = Binding::read_write(18, "omega");
     /// The material table's laws (`PairLaw` rows, [`crate::dem::model::MaterialTable::laws`]).
@@ -243,7 +245,7 @@ pub(crate) mod granular {
         Binding::read_write(65, "entries_new7"),
     ];
 
-    /// Every binding of `wgsl/dem_granular.wgsl` and its accumulators.
+    /// Every binding of `wgsl/dem/dem_granular.wgsl` and its accumulators.
     pub fn bindings() -> Vec<Binding> {
         [
             OMEGA,
@@ -310,7 +312,7 @@ impl KernelSet {
 }
 
 /// How a kernel's threads share work with the other lanes of their subgroup
-/// (`wgsl/lanes_subgroups.wgsl`, `wgsl/lanes_single.wgsl`).
+/// (`wgsl/core/lanes_subgroups.wgsl`, `wgsl/core/lanes_single.wgsl`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Lanes {
     /// On subgroup operations (wgpu's SUBGROUP feature).
@@ -327,8 +329,8 @@ impl Lanes {
     /// The WGSL that defines `Lanes` and its functions.
     pub fn source(self) -> &'static str {
         match self {
-            Lanes::Subgroups => include_str!("../../wgsl/lanes_subgroups.wgsl"),
-            Lanes::Single => include_str!("../../wgsl/lanes_single.wgsl"),
+            Lanes::Subgroups => wgsl!("core/lanes_subgroups.wgsl"),
+            Lanes::Single => wgsl!("core/lanes_single.wgsl"),
         }
     }
 }
@@ -573,7 +575,7 @@ impl DemModule {
         let params_uniform = ParamsUniform::new(gpu, &format!("mochi.dem.{backend}.params"), law);
         let source = source(accumulators, lanes, variant);
         let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
-        // The granular step's contact law (wgsl/dem_contact.wgsl) specialised for one material.
+        // The granular step's contact law (wgsl/dem/dem_contact.wgsl) specialised for one material.
         let constants: &[_] = match granular.is_some() && params.materials.count == 1 {
             true => &[("ONE_MATERIAL", 1.0)],
             false => &[],

@@ -1,4 +1,4 @@
-//! The mesh walls of the wgpu engines' granular step (`wgsl/dem_mesh_walls.wgsl`): each wall's
+//! The mesh walls of the wgpu engines' granular step (`wgsl/dem/dem_mesh_walls.wgsl`): each wall's
 //! triangles in their rest geometry, listed in the cells of a uniform grid over them that they
 //! pass through; each wall's motion, from which the shader takes its pose at the step's time;
 //! and the loads on the walls, summed in the last step of each advance and read back after it;
@@ -11,11 +11,11 @@ use crate::dem::model::MaterialTable;
 use crate::dem::walls::{TriangleMesh, WallLoad, WallSet};
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
-use crate::gpu::shader::{Binding, SharedStruct, Vec3f, Vec3u, shared_struct, storage_bytes};
+use crate::gpu::shader::{Binding, SharedStruct, Vec3f, Vec3u, shared_struct, storage_bytes, wgsl};
 use glam::Vec3;
 
-/// `wgsl/dem_mesh_walls.wgsl`.
-pub const SOURCE: &str = include_str!("../../wgsl/dem_mesh_walls.wgsl");
+/// `wgsl/dem/dem_mesh_walls.wgsl`.
+pub const SOURCE: &str = wgsl!("dem/dem_mesh_walls.wgsl");
 
 pub const MESH: Binding = Binding::uniform(70, "mesh");
 pub const MESH_WALLS: Binding = Binding::read(71, "mesh_walls");

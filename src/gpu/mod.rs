@@ -24,7 +24,7 @@ pub fn shaders() -> Vec<WgslModule> {
 }
 
 /// Bytes of one box in a BLAS's AABB input: two `vec3<f32>`, min then max (as
-/// `wgsl/rq_build.wgsl` and `wgsl/dem_rq.wgsl` write them: 6 floats per box).
+/// `wgsl/rq/rq_build.wgsl` and `wgsl/rq/dem_rq.wgsl` write them: 6 floats per box).
 pub const AABB_STRIDE: u64 = 24;
 
 /// What a backend needs from an adapter.

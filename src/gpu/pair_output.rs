@@ -1,4 +1,4 @@
-//! The pair output of the detection shaders (`wgsl/pair_output.wgsl`): a counter that counts
+//! The pair output of the detection shaders (`wgsl/core/pair_output.wgsl`): a counter that counts
 //! every pair, a buffer that keeps as many as fit, and the host loop that grows the buffer and
 //! reruns until every pair fits, then sorts the pairs on the GPU ([`PairSort`]) and reads them
 //! back. Nothing is ever truncated.

@@ -1,5 +1,5 @@
 //! The pairs of a detection sorted on the GPU, (i, j) ascending, i < j in each, recorded into
-//! the caller's encoder ahead of the read-back (`wgsl/pair_sort.wgsl`). Bucketed where the pairs
+//! the caller's encoder ahead of the read-back (`wgsl/core/pair_sort.wgsl`). Bucketed where the pairs
 //! are not far outnumbered by the spheres: each pair ranked in its first index's bucket, the
 //! buckets' starts by an [`ExclusiveScan`], the pairs placed in their buckets and ordered in them
 //! by their second index; a bucket too long for that is copied as it is and flagged, and the
@@ -13,7 +13,7 @@ use super::scan::ExclusiveScan;
 use super::shader::{Binding, WgslModule, shared_struct, wgsl};
 
 /// The shader, embedded.
-const SOURCE: &str = wgsl!("pair_sort.wgsl");
+const SOURCE: &str = wgsl!("core/pair_sort.wgsl");
 const ENTRY_POINTS: &[&str] = &["count", "place", "order", "split", "join"];
 /// Workgroup size of every kernel (as in the shader).
 const GROUP: u32 = 256;
@@ -51,7 +51,7 @@ pub fn module() -> WgslModule {
     )
 }
 
-/// Parameters of every kernel. WGSL twin: `Params` in `wgsl/pair_sort.wgsl`.
+/// Parameters of every kernel. WGSL twin: `Params` in `wgsl/core/pair_sort.wgsl`.
 #[derive(Debug, Clone, Copy, Default, encase::ShaderType)]
 struct Params {
     /// Pairs.

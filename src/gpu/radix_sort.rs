@@ -12,7 +12,7 @@
 //!
 //! Passes ping-pong between the caller's buffers and two scratch buffers; after an odd number of
 //! passes the result is copied back, so it always ends in the caller's buffers.
-//! The shader is `wgsl/radix_sort.wgsl`; its constants mirror the ones here, and its bindings
+//! The shader is `wgsl/core/radix_sort.wgsl`; its constants mirror the ones here, and its bindings
 //! and `Params` are [`module`]'s (checked by `tests/bindings.rs`).
 
 use super::scan::{ExclusiveScan, PreparedScan};
@@ -22,7 +22,7 @@ use encase::{DynamicUniformBuffer, ShaderSize};
 use std::num::NonZeroU64;
 
 /// The shader, embedded.
-const SOURCE: &str = wgsl!("radix_sort.wgsl", "workgroup_scan.wgsl");
+const SOURCE: &str = wgsl!("core/radix_sort.wgsl", "core/workgroup_scan.wgsl");
 const ENTRY_POINTS: &[&str] = &["histogram", "scatter"];
 
 const PARAMS: Binding = Binding::uniform(0, "params");
@@ -58,7 +58,7 @@ const RADIX_BITS: u32 = 4;
 pub const BLOCK: u32 = 2048;
 
 /// Parameters of one pass (its histogram and scatter). WGSL twin: `Params` in
-/// `wgsl/radix_sort.wgsl`.
+/// `wgsl/core/radix_sort.wgsl`.
 #[derive(Debug, Clone, Copy, Default, encase::ShaderType)]
 struct Params {
     /// Number of pairs to sort.

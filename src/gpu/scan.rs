@@ -9,7 +9,7 @@
 //! level). Level 0 is read twice and written once; two levels cover 2^20 entries, three 2^30.
 //! Levels of more than 65535 blocks use a 2-D dispatch.
 //!
-//! The shader is `wgsl/scan.wgsl`; its constants mirror the ones here, and its bindings and
+//! The shader is `wgsl/core/scan.wgsl`; its constants mirror the ones here, and its bindings and
 //! `Params` are [`module`]'s (checked by `tests/bindings.rs`).
 
 use super::shader::{Binding, WgslModule, shared_struct, wgsl};
@@ -18,7 +18,7 @@ use encase::{DynamicUniformBuffer, ShaderSize};
 use std::num::NonZeroU64;
 
 /// The shader, embedded.
-const SOURCE: &str = wgsl!("scan.wgsl", "workgroup_scan.wgsl");
+const SOURCE: &str = wgsl!("core/scan.wgsl", "core/workgroup_scan.wgsl");
 const ENTRY_POINTS: &[&str] = &["reduce", "scan"];
 
 const PARAMS: Binding = Binding::uniform(0, "params");
@@ -49,7 +49,7 @@ pub fn module() -> WgslModule {
 /// Entries per workgroup (keep in sync with `BLOCK` in the shader).
 pub const SCAN_BLOCK: u32 = 1024;
 
-/// Parameters of one dispatch. WGSL twin: `Params` in `wgsl/scan.wgsl`.
+/// Parameters of one dispatch. WGSL twin: `Params` in `wgsl/core/scan.wgsl`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, encase::ShaderType)]
 struct Params {
     /// Entries of the level.

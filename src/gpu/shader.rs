@@ -148,7 +148,7 @@ impl WgslModule {
 }
 
 /// The files of the repository's `wgsl/` folder, concatenated in the order given and embedded
-/// at compile time (a `&'static str`): `wgsl!("grid_params.wgsl", "grid_build.wgsl")`. A
+/// at compile time (a `&'static str`): `wgsl!("grid/grid_params.wgsl", "grid/grid_build.wgsl")`. A
 /// module's later files use what its earlier ones declare.
 macro_rules! wgsl {
     ($($file:literal),+ $(,)?) => {

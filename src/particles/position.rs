@@ -16,7 +16,7 @@
 //! in `optix/physics.cuh` run TwoSum itself. A Vulkan shader compiler may reassociate additions
 //! (SPIR-V forbids it only for operations marked `NoContraction`, which WGSL cannot ask for) and
 //! simplify TwoSum's error to 0 (Mesa's does: `(a + b) − a` is `b` to it), so
-//! `advance_position` in `wgsl/dem_params.wgsl` computes the same error from the bits of the
+//! `advance_position` in `wgsl/dem/dem_params.wgsl` computes the same error from the bits of the
 //! operands in integer arithmetic ([`sum_error_by_bits`], its twin here). Every backend then
 //! gives the same pair from the same displacement.
 //!
@@ -39,7 +39,7 @@ pub fn two_sum(a: f32, b: f32) -> (f32, f32) {
 
 /// The rounding error of the sum `s = a + b` of two finite `f32`, exactly, `(a + b) − s`, from
 /// their bits in integer arithmetic, as the GPU steps compute it (`sum_error` in
-/// `wgsl/dem_params.wgsl`, which a shader compiler cannot simplify away). `a`, `b` and `s` are
+/// `wgsl/dem/dem_params.wgsl`, which a shader compiler cannot simplify away). `a`, `b` and `s` are
 /// whole multiples of 2^k, k the lower exponent of `a`'s and `b`'s last bits, and the error a
 /// multiple below 2^25 of it (it is `f32`, at most half an ulp of `s`, or the smaller operand
 /// itself), so their multiples summed modulo 2^32 give it. Equal to [`two_sum`]'s error but where

@@ -3,7 +3,7 @@
 //! differing Morton bit flips, a range of equal keys at the median of its widest axis),
 //! flattened depth first, and traversed nearest child first with a small stack. The mesh walls'
 //! triangles get a tree of their own, built the same way over each triangle's bounding sphere.
-//! [`trace`] is the CPU twin of `walk` in `wgsl/render_common.wgsl`.
+//! [`trace`] is the CPU twin of `walk` in `wgsl/render/render_common.wgsl`.
 //!
 //! Each node bounds its primitives by a box and, where that is tighter (a small ball in its box,
 //! [`BALL_TO_BOX`]), by a ball as well; a ray enters it where it is inside both. Boxes alone
@@ -22,14 +22,14 @@ use glam::Vec3;
 /// Most spheres in one leaf.
 const LEAF_SIZE: usize = 4;
 
-/// Deepest the traversal stack may grow; keep in sync with `STACK` in `wgsl/render_common.wgsl`.
+/// Deepest the traversal stack may grow; keep in sync with `STACK` in `wgsl/render/render_common.wgsl`.
 pub(crate) const STACK: usize = 64;
 
 /// Relative widening of a node's ball per unit of the ray's distance from its centre, as
 /// [`enter`] applies it: it covers the rounding of the ray–ball test and of the primitives'
 /// own tests, so a ray that hits a primitive always enters the balls around it first (a search
 /// of random grazing rays past spheres of every size and spread found a quarter of it enough and
-/// an eighth too little). Keep in sync with `BALL_SLACK` in `wgsl/render_common.wgsl`.
+/// an eighth too little). Keep in sync with `BALL_SLACK` in `wgsl/render/render_common.wgsl`.
 const BALL_SLACK: f32 = 1.0 / 1_048_576.0;
 
 /// Largest ratio of a node's ball's volume to its box's at which the traversal tests the ball
@@ -44,7 +44,7 @@ const BALL_TO_BOX: f64 = 0.6;
 /// centre `centre` and radius `radius` (a negative radius: no ball to test, see
 /// [`BALL_TO_BOX`]).
 ///
-/// WGSL twin: `Node` in `wgsl/render_common.wgsl` (uploaded as a storage array).
+/// WGSL twin: `Node` in `wgsl/render/render_common.wgsl` (uploaded as a storage array).
 #[derive(Debug, Clone, Copy, PartialEq, encase::ShaderType)]
 pub(crate) struct Node {
     pub lo: Vec3f,

@@ -1,5 +1,5 @@
 //! The GPU render paths: `wgpu-rq` (ray queries over a BLAS of the spheres' boxes) and
-//! `wgpu-compute` (our own BVH, traversed in WGSL); both share `wgsl/render_common.wgsl` and
+//! `wgpu-compute` (our own BVH, traversed in WGSL); both share `wgsl/render/render_common.wgsl` and
 //! differ only in `trace`.
 
 use super::Picture;
@@ -15,7 +15,7 @@ use crate::gpu::shader::storage_bytes;
 use crate::gpu::{self, Gpu, Need};
 use encase::ShaderSize;
 
-/// Workgroup side, as in `wgsl/render_common.wgsl` (8×8 pixels).
+/// Workgroup side, as in `wgsl/render/render_common.wgsl` (8×8 pixels).
 const GROUP: u32 = 8;
 
 /// A GPU render path on an open device.

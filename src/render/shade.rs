@@ -1,11 +1,11 @@
 //! What every render path computes per pixel, in Rust: the ray–sphere test, the shading, the
-//! background and the samples of a pixel. This is the CPU twin of `wgsl/render_common.wgsl`;
+//! background and the samples of a pixel. This is the CPU twin of `wgsl/render/render_common.wgsl`;
 //! keep the two in sync line for line, so that the paths give the same picture up to rounding.
 
 use super::camera::Grid;
 use glam::Vec3;
 
-/// "No hit" distance; keep in sync with `INF` in `wgsl/render_common.wgsl` (WGSL has no
+/// "No hit" distance; keep in sync with `INF` in `wgsl/render/render_common.wgsl` (WGSL has no
 /// infinity literal).
 pub(crate) const INF: f32 = 3.0e38;
 

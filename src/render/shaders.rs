@@ -5,10 +5,10 @@
 use super::bvh;
 use crate::gpu::shader::{Binding, SharedStruct, Vec3f, WgslModule, shared_struct, wgsl};
 
-/// Ray queries over a BLAS of the spheres' boxes (`wgsl/render_rq.wgsl`).
-pub(crate) const RQ_SOURCE: &str = wgsl!("render_rq.wgsl", "render_common.wgsl");
-/// Our own BVH traversed in WGSL (`wgsl/render_bvh.wgsl`).
-pub(crate) const BVH_SOURCE: &str = wgsl!("render_bvh.wgsl", "render_common.wgsl");
+/// Ray queries over a BLAS of the spheres' boxes (`wgsl/render/render_rq.wgsl`).
+pub(crate) const RQ_SOURCE: &str = wgsl!("render/render_rq.wgsl", "render/render_common.wgsl");
+/// Our own BVH traversed in WGSL (`wgsl/render/render_bvh.wgsl`).
+pub(crate) const BVH_SOURCE: &str = wgsl!("render/render_bvh.wgsl", "render/render_common.wgsl");
 /// The one entry point of both modules.
 pub(crate) const ENTRY_POINT: &str = "render";
 
@@ -24,7 +24,7 @@ pub(crate) const TLAS: Binding = Binding::acceleration_structure(5, "tlas");
 pub(crate) const WALL_NODES: Binding = Binding::read(6, "wall_nodes");
 pub(crate) const WALLS: Binding = Binding::read(7, "walls");
 
-/// The camera, picture and floor; WGSL twin: `View` in `wgsl/render_common.wgsl`.
+/// The camera, picture and floor; WGSL twin: `View` in `wgsl/render/render_common.wgsl`.
 #[derive(Clone, Copy, Default, encase::ShaderType)]
 pub(crate) struct View {
     pub eye: Vec3f,

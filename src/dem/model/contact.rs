@@ -22,8 +22,8 @@
 //! Computed from j's side every operation sees negated inputs (n, v_rel, ω_rel and, by
 //! induction, j's springs are the exact negatives of i's), and the effective quantities are
 //! symmetric in i and j ([`effective`]), so the forces and the rolling torques are equal and
-//! opposite bit for bit. The GPU engines' copies of the law (`wgsl/dem_physics.wgsl` for the
-//! paper's frictionless linear law, `wgsl/dem_contact.wgsl` and `optix/contact.cuh` for the
+//! opposite bit for bit. The GPU engines' copies of the law (`wgsl/dem/dem_physics.wgsl` for the
+//! paper's frictionless linear law, `wgsl/dem/dem_contact.wgsl` and `optix/contact.cuh` for the
 //! granular one) take the same operations in the same order: tests/contact_twin.rs compares them.
 //!
 //! Small spheres (docs/method.md, "Small spheres in f32"): masses and moments of inertia are
@@ -48,7 +48,7 @@ const TSUJI: f32 = 1.825_741_9;
 /// spheres: lo/(1 + lo/hi) with lo ≤ hi. It lies in [lo/2, lo], so it is a normal number
 /// wherever lo/2 is; lo/hi may underflow to 0 (then it is lo, correctly rounded). Symmetric
 /// in a and b bit for bit (min and max are exact), so both sides of a pair compute the same.
-/// Keep in sync with `effective` in wgsl/dem_params.wgsl and `mochi_effective` in
+/// Keep in sync with `effective` in wgsl/dem/dem_params.wgsl and `mochi_effective` in
 /// optix/physics.cuh.
 #[inline(always)]
 pub fn effective(a: f32, b: f32) -> f32 {
@@ -58,7 +58,7 @@ pub fn effective(a: f32, b: f32) -> f32 {
 
 /// √(a·b) of two values ≥ 0 without their product, which underflows f32 for small spheres
 /// (a stiffness times an effective mass: 1e-6 N/m × 1e-33 kg) or overflows for large ones:
-/// √a·√b. Keep in sync with `root_product` in wgsl/dem_params.wgsl and `mochi_root_product` in
+/// √a·√b. Keep in sync with `root_product` in wgsl/dem/dem_params.wgsl and `mochi_root_product` in
 /// optix/physics.cuh.
 #[inline(always)]
 pub fn root_product(a: f32, b: f32) -> f32 {
@@ -68,7 +68,7 @@ pub fn root_product(a: f32, b: f32) -> f32 {
 /// The length of `v` without squaring anything below its largest component s: s·|v/s| (the
 /// squares of v/s lie in [0, 1], one of them 1), where |v|² would underflow f32 for the forces
 /// and torques of small spheres (a rolling torque of 1e-23 N·m). 0 for the zero vector. Keep
-/// in sync with `length_of` in wgsl/dem_contact.wgsl and `mochi_length` in optix/contact.cuh.
+/// in sync with `length_of` in wgsl/dem/dem_contact.wgsl and `mochi_length` in optix/contact.cuh.
 #[inline(always)]
 pub fn length(v: Vec3) -> f32 {
     let s = v.x.abs().max(v.y.abs()).max(v.z.abs());
@@ -535,7 +535,7 @@ fn into_plane(x: Vec3, n: Vec3) -> Vec3 {
 /// The cube root of `x` in [0, 1], by the same operations on every backend (WGSL has no cube
 /// root, and the libraries' are not the same function): a start from the bits (the exponent
 /// divided by three), then three Newton steps, y ← (2y + x/y²)/3, which bring it within an
-/// ulp or two of ∛x. 0 for x ≤ 0. Keep in sync with `cube_root` in wgsl/dem_tangential_md.wgsl and
+/// ulp or two of ∛x. 0 for x ≤ 0. Keep in sync with `cube_root` in wgsl/dem/dem_tangential_md.wgsl and
 /// `mochi_cube_root` in optix/contact.cuh.
 #[inline(always)]
 pub fn cube_root(x: f32) -> f32 {

@@ -1,5 +1,5 @@
 //! The contact law as the GPU steps read it: one block of parameters, [`LawParams`], laid out
-//! once for every device copy of the law (`LawParams` in `wgsl/dem_params.wgsl`, checked by
+//! once for every device copy of the law (`LawParams` in `wgsl/dem/dem_params.wgsl`, checked by
 //! `tests/bindings.rs`; in `optix/physics.cuh`, checked by the CUDA layout asserts of
 //! `src/engines/optix/device.rs`), and the law's code on the devices, [`LawCode`].
 
@@ -8,7 +8,7 @@ use super::materials::PairLaw;
 use crate::gpu::shader::Vec3f;
 use bytemuck::{Pod, Zeroable};
 
-/// The normal law's code on the devices (`LAW_*` in `wgsl/dem_contact.wgsl`, `MOCHI_LAW_*` in
+/// The normal law's code on the devices (`LAW_*` in `wgsl/dem/dem_contact.wgsl`, `MOCHI_LAW_*` in
 /// `optix/contact.cuh`): the one place its numbers are given.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u32)]
@@ -120,10 +120,11 @@ impl LawParams {
 mod tests {
     use super::LawCode;
     use crate::dem::model::RollingModel;
+    use crate::gpu::shader::wgsl;
 
     #[test]
     fn the_device_codes_are_the_kernels() {
-        let wgsl = include_str!("../../../wgsl/dem_contact.wgsl");
+        let wgsl = wgsl!("dem/dem_contact.wgsl");
         let cuda = include_str!("../../../optix/contact.cuh");
         let laws = [
             ("LAW_LINEAR", "MOCHI_LAW_LINEAR", LawCode::Linear as u32),
@@ -147,7 +148,7 @@ mod tests {
             let declared = format!("const {in_wgsl}: u32 = {code}u;");
             assert!(
                 wgsl.contains(&declared),
-                "wgsl/dem_contact.wgsl: {declared}"
+                "wgsl/dem/dem_contact.wgsl: {declared}"
             );
             let defined = format!("#define {in_cuda} {code}u");
             assert!(cuda.contains(&defined), "optix/contact.cuh: {defined}");

@@ -49,7 +49,7 @@ pub enum RollingModel {
 }
 
 impl RollingModel {
-    /// The model's code on the devices (`ROLLING_*` in `wgsl/dem_contact.wgsl`,
+    /// The model's code on the devices (`ROLLING_*` in `wgsl/dem/dem_contact.wgsl`,
     /// `MOCHI_ROLLING_*` in `optix/contact.cuh`).
     pub fn code(self) -> u32 {
         self as u32

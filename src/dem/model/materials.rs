@@ -208,7 +208,7 @@ impl Materials {
 }
 
 /// The law of one ordered pair of materials as the step computes it (f32), the layout the GPU
-/// engines upload (`PairLaw` in wgsl/dem_contact.wgsl, checked by `tests/bindings.rs`, and in
+/// engines upload (`PairLaw` in wgsl/dem/dem_contact.wgsl, checked by `tests/bindings.rs`, and in
 /// optix/contact.cuh).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, encase::ShaderType)]

@@ -1,4 +1,4 @@
-//! The cell table of the sorted grids and the scan that fills it (`wgsl/cell_scan.wgsl`), shared
+//! The cell table of the sorted grids and the scan that fills it (`wgsl/grid/cell_scan.wgsl`), shared
 //! by the detection build and the DEM step.
 //!
 //! A counting sort by cell runs: count (every sphere's rank in its cell), scan, scatter. The scan

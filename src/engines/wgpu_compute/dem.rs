@@ -2,7 +2,7 @@
 //! spheres by cell (the backend's sorted proxy grid; see the skin below), one pass that finds
 //! every touching pair once and adds equal and opposite forces to both spheres (float atomics,
 //! or compare-and-swap loops where the adapter has none), and one pass for walls, gravity and
-//! integration (`wgsl/dem_grid.wgsl`, `wgsl/dem_physics.wgsl`), which in the dense build also
+//! integration (`wgsl/grid/dem_grid.wgsl`, `wgsl/dem/dem_physics.wgsl`), which in the dense build also
 //! counts each sphere into its new cell: the next step's binning starts from those counts (a
 //! batch counts afresh only after the host laid the grid out or wrote the state). The step's own
 //! passes zero what the next step accumulates into (the cell counts in the scan, the forces in
@@ -17,7 +17,7 @@
 //! Float atomics add in no fixed order, so GPU runs are not bit-for-bit reproducible.
 //!
 //! The binning is the dense build's counting sort into a table of every cell, or the sorted
-//! build's radix sort of the cell keys (`wgsl/dem_grid_sorted.wgsl`, no table: its cost follows
+//! build's radix sort of the cell keys (`wgsl/grid/dem_grid_sorted.wgsl`, no table: its cost follows
 //! the spheres, not the box); [`GridBuild`] chooses, once, from the spheres at the start.
 //! A step on the dense build moves its state into sorted order only every [`SORT_EVERY`]
 //! steps (a sorting step); the steps between bin the spheres by index and resolve and
@@ -32,11 +32,11 @@
 //! at more than [`MAX_REBIN_SHARE`] of its steps the skin is off for a while.
 //!
 //! A scene with friction, rolling resistance, rotation or another law than the paper's runs the
-//! granular variant of the step (`wgsl/dem_grid_granular.wgsl`, [`Granular`]): its own module
+//! granular variant of the step (`wgsl/grid/dem_grid_granular.wgsl`, [`Granular`]): its own module
 //! and pipelines, with angular velocities, torques and the contact history bound besides; the
 //! walls are resolved in the contact pass, where their history lives. The paper's scenes run
 //! the paper's kernels as before; a frictionless scene with a stiffness per pair runs them too,
-//! with `wgsl/dem_physics_per_pair.wgsl`'s law (`Variant::PerPair`).
+//! with `wgsl/dem/dem_physics_per_pair.wgsl`'s law (`Variant::PerPair`).
 
 use super::cell_table::{CellScan, CellScanBinds, CellTable};
 use super::layout::{
@@ -177,7 +177,7 @@ struct Pipelines {
     skin: Option<SkinPipelines>,
 }
 
-/// The kernels of a step that may skip its binning (`wgsl/dem_grid_frictionless.wgsl`).
+/// The kernels of a step that may skip its binning (`wgsl/grid/dem_grid_frictionless.wgsl`).
 struct SkinPipelines {
     /// A step's first pass where the drift decides whether it re-bins.
     begin_step: wgpu::ComputePipeline,
@@ -240,7 +240,7 @@ struct SortedPlaces {
     walk_row: wgpu::Buffer,
 }
 
-/// The granular contact pass's lists of candidates within reach (`wgsl/dem_grid_granular.wgsl`).
+/// The granular contact pass's lists of candidates within reach (`wgsl/grid/dem_grid_granular.wgsl`).
 struct NearLists {
     /// By sorted place, the candidates within reach its walk met (the two-kernel pass).
     listed: wgpu::Buffer,

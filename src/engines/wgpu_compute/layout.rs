@@ -52,7 +52,7 @@ pub(crate) struct Budget {
     pub build: BuildKind,
 }
 
-/// The grids' uniform; WGSL twin: `GridParams` in `wgsl/grid_params.wgsl` (`tests/bindings.rs`
+/// The grids' uniform; WGSL twin: `GridParams` in `wgsl/grid/grid_params.wgsl` (`tests/bindings.rs`
 /// checks that both lay it out alike).
 #[derive(Clone, Copy, Default, encase::ShaderType)]
 pub(crate) struct GridParams {

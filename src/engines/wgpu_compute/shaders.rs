@@ -34,11 +34,11 @@ fn grid_params() -> SharedStruct {
     )
 }
 
-/// The counting sort by cell of a detection build (`wgsl/grid_build.wgsl`).
+/// The counting sort by cell of a detection build (`wgsl/grid/grid_build.wgsl`).
 pub(crate) mod grid_build {
     use super::{Binding, wgsl};
 
-    pub const SOURCE: &str = wgsl!("grid_params.wgsl", "grid_build.wgsl");
+    pub const SOURCE: &str = wgsl!("grid/grid_params.wgsl", "grid/grid_build.wgsl");
     pub const ENTRY_POINTS: &[&str] = &["join_spheres", "count_cells", "scatter", "gather"];
 
     pub const PARAMS: Binding = Binding::uniform(0, "params");
@@ -56,12 +56,12 @@ pub(crate) mod grid_build {
     ];
 }
 
-/// The sorted-key build's keys (`wgsl/grid_sort.wgsl`); the radix sort and `grid_build`'s
+/// The sorted-key build's keys (`wgsl/grid/grid_sort.wgsl`); the radix sort and `grid_build`'s
 /// `gather` do the rest.
 pub(crate) mod grid_sort {
     use super::{Binding, wgsl};
 
-    pub const SOURCE: &str = wgsl!("grid_params.wgsl", "grid_sort.wgsl");
+    pub const SOURCE: &str = wgsl!("grid/grid_params.wgsl", "grid/grid_sort.wgsl");
     pub const ENTRY_POINTS: &[&str] = &["key_spheres"];
 
     pub const PARAMS: Binding = Binding::uniform(0, "params");
@@ -71,31 +71,31 @@ pub(crate) mod grid_sort {
     pub const BINDINGS: &[Binding] = &[PARAMS, SPHERES_IN, KEYS, IDS];
 }
 
-/// The sorted keys the search of the sorted-key build reads (`wgsl/grid_cells_sorted.wgsl`).
+/// The sorted keys the search of the sorted-key build reads (`wgsl/grid/grid_cells_sorted.wgsl`).
 pub(crate) const CELL_KEYS: Binding = Binding::read(41, "cell_keys");
 
-/// Detection over a built grid (`wgsl/grid_pairs.wgsl`), in two variants: runs of cells read
+/// Detection over a built grid (`wgsl/grid/grid_pairs.wgsl`), in two variants: runs of cells read
 /// from the dense build's table, or searched in the sorted-key build's keys.
 pub(crate) mod grid_pairs {
     use super::{Binding, CELL_KEYS, pair_output, wgsl};
 
     pub const DENSE_SOURCE: &str = wgsl!(
-        "grid_params.wgsl",
-        "grid_stencil.wgsl",
-        "grid_cells_dense.wgsl",
-        "grid_pairs.wgsl",
-        "grid_walk.wgsl",
-        "proxy.wgsl",
-        "pair_output.wgsl"
+        "grid/grid_params.wgsl",
+        "grid/grid_stencil.wgsl",
+        "grid/grid_cells_dense.wgsl",
+        "grid/grid_pairs.wgsl",
+        "grid/grid_walk.wgsl",
+        "core/proxy.wgsl",
+        "core/pair_output.wgsl"
     );
     pub const SORTED_SOURCE: &str = wgsl!(
-        "grid_params.wgsl",
-        "grid_stencil.wgsl",
-        "grid_cells_sorted.wgsl",
-        "grid_pairs.wgsl",
-        "grid_walk.wgsl",
-        "proxy.wgsl",
-        "pair_output.wgsl"
+        "grid/grid_params.wgsl",
+        "grid/grid_stencil.wgsl",
+        "grid/grid_cells_sorted.wgsl",
+        "grid/grid_pairs.wgsl",
+        "grid/grid_walk.wgsl",
+        "core/proxy.wgsl",
+        "core/pair_output.wgsl"
     );
     pub const ENTRY_POINTS: &[&str] = &["find_pairs"];
 
@@ -123,22 +123,22 @@ pub(crate) mod grid_pairs {
     ];
 }
 
-/// The scan of the cell counts into the cell table (`wgsl/cell_scan.wgsl`), in two variants:
+/// The scan of the cell counts into the cell table (`wgsl/grid/cell_scan.wgsl`), in two variants:
 /// on subgroup operations where the adapter has them, else in workgroup memory.
 pub(crate) mod cell_scan {
     use super::{Binding, wgsl};
 
     pub const PLAIN_SOURCE: &str = wgsl!(
-        "grid_params.wgsl",
-        "cell_scan.wgsl",
-        "workgroup_scan_plain.wgsl",
-        "workgroup_scan.wgsl"
+        "grid/grid_params.wgsl",
+        "grid/cell_scan.wgsl",
+        "core/workgroup_scan_plain.wgsl",
+        "core/workgroup_scan.wgsl"
     );
     pub const SUBGROUP_SOURCE: &str = wgsl!(
-        "grid_params.wgsl",
-        "cell_scan.wgsl",
-        "workgroup_scan_subgroups.wgsl",
-        "workgroup_scan.wgsl"
+        "grid/grid_params.wgsl",
+        "grid/cell_scan.wgsl",
+        "core/workgroup_scan_subgroups.wgsl",
+        "core/workgroup_scan.wgsl"
     );
     pub const ENTRY_POINTS: &[&str] = &["reduce_blocks", "scan_cells"];
 
@@ -149,9 +149,9 @@ pub(crate) mod cell_scan {
     pub const BINDINGS: &[Binding] = &[PARAMS, COUNTS, BLOCK_SUMS, CELL_START];
 }
 
-/// The DEM step's binning and contact resolution (`wgsl/dem_grid.wgsl`), followed by the
+/// The DEM step's binning and contact resolution (`wgsl/grid/dem_grid.wgsl`), followed by the
 /// shared physics ([`physics`]), in three variants: the paper's law and its per-pair stiffness
-/// (`wgsl/dem_grid_frictionless.wgsl`) and the granular step (`wgsl/dem_grid_granular.wgsl`,
+/// (`wgsl/grid/dem_grid_frictionless.wgsl`) and the granular step (`wgsl/grid/dem_grid_granular.wgsl`,
 /// [`granular`]).
 pub(crate) mod dem_grid {
     use super::{Binding, CELL_KEYS, granular, physics, wgsl};
@@ -160,21 +160,21 @@ pub(crate) mod dem_grid {
 
     /// The grid and the binning of the dense build (a counting sort into the cell table).
     const DENSE_GRID: &str = wgsl!(
-        "grid_params.wgsl",
-        "grid_stencil.wgsl",
-        "grid_cells_dense.wgsl",
-        "dem_grid.wgsl"
+        "grid/grid_params.wgsl",
+        "grid/grid_stencil.wgsl",
+        "grid/grid_cells_dense.wgsl",
+        "grid/dem_grid.wgsl"
     );
-    /// The grid and the binning of the sorted-key build (`wgsl/dem_grid_sorted.wgsl`).
+    /// The grid and the binning of the sorted-key build (`wgsl/grid/dem_grid_sorted.wgsl`).
     const SORTED_GRID: &str = wgsl!(
-        "grid_params.wgsl",
-        "grid_stencil.wgsl",
-        "grid_cells_sorted.wgsl",
-        "dem_grid.wgsl",
-        "dem_grid_sorted.wgsl"
+        "grid/grid_params.wgsl",
+        "grid/grid_stencil.wgsl",
+        "grid/grid_cells_sorted.wgsl",
+        "grid/dem_grid.wgsl",
+        "grid/dem_grid_sorted.wgsl"
     );
-    const FRICTIONLESS: &str = wgsl!("dem_grid_frictionless.wgsl", "grid_walk.wgsl");
-    const GRANULAR: &str = wgsl!("dem_grid_granular.wgsl", "grid_walk.wgsl");
+    const FRICTIONLESS: &str = wgsl!("grid/dem_grid_frictionless.wgsl", "grid/grid_walk.wgsl");
+    const GRANULAR: &str = wgsl!("grid/dem_grid_granular.wgsl", "grid/grid_walk.wgsl");
 
     fn grid(build: BuildKind) -> &'static str {
         match build {
@@ -308,21 +308,21 @@ pub(crate) mod dem_grid {
     pub const IDS: Binding = Binding::read_write(12, "ids");
     pub const COUNTERS: Binding = Binding::read_write(14, "counters");
     pub const BOUNDS: Binding = Binding::read_write(15, "bounds");
-    /// The granular step's angular velocities of set a (`wgsl/dem_grid_granular.wgsl`).
+    /// The granular step's angular velocities of set a (`wgsl/grid/dem_grid_granular.wgsl`).
     pub const OMEGA_A: Binding = Binding::read(25, "omega_a");
-    /// The granular step's rows of the old history, by state index (`wgsl/dem_grid_granular.wgsl`).
+    /// The granular step's rows of the old history, by state index (`wgsl/grid/dem_grid_granular.wgsl`).
     pub const CAME_FROM: Binding = Binding::read_write(38, "came_from");
     /// By sorted place: the state row of the sphere there, and its centre and radius.
     pub const HOME: Binding = Binding::read_write(26, "home");
     pub const WALK_POS: Binding = Binding::read_write(27, "walk_pos");
-    /// The granular step's candidates within reach (`wgsl/dem_grid_granular.wgsl`): by sorted
+    /// The granular step's candidates within reach (`wgsl/grid/dem_grid_granular.wgsl`): by sorted
     /// place their count, and [`NEAR_ROOM`] places a sphere.
     pub const LISTED: Binding = Binding::read_write(30, "listed");
     pub const NEAR: Binding = Binding::read_write(31, "near");
-    /// Twin of `NEAR_ROOM` in `wgsl/dem_grid_granular.wgsl`.
+    /// Twin of `NEAR_ROOM` in `wgsl/grid/dem_grid_granular.wgsl`.
     pub const NEAR_ROOM: u64 = 16;
 
-    /// The paper's step's skin (`wgsl/dem_grid_frictionless.wgsl`): by sorted place the row of
+    /// The paper's step's skin (`wgsl/grid/dem_grid_frictionless.wgsl`): by sorted place the row of
     /// the cell its sphere was binned in, and the words the GPU decides in whether a step
     /// re-bins (`skin.rs`).
     pub const WALK_ROW: Binding = Binding::read_write(28, "walk_row");

@@ -1,7 +1,7 @@
 //! The skin of the paper's DEM step on a dense single- or multi-level grid: a step re-bins its
 //! spheres only where one may have moved more than the skin since the last binning, and the
 //! steps between walk the last binning's cells with their search windows widened by the drift
-//! since, at most the skin (`wgsl/dem_grid_frictionless.wgsl`, docs/method.md "Re-binning only when a sphere may have
+//! since, at most the skin (`wgsl/grid/dem_grid_frictionless.wgsl`, docs/method.md "Re-binning only when a sphere may have
 //! left its cells"). The GPU decides at each step's start (`begin_step`) and sets the binning's
 //! indirect dispatches to every workgroup or none; this is the buffer it decides in.
 
@@ -14,7 +14,7 @@ use crate::gpu::Gpu;
 /// sweep).
 pub(crate) const SKIN_CELLS: f64 = 0.2;
 
-/// Word offsets in [`Skin::state`]; twins of the constants in `wgsl/dem_grid_frictionless.wgsl`.
+/// Word offsets in [`Skin::state`]; twins of the constants in `wgsl/grid/dem_grid_frictionless.wgsl`.
 const ARGS_SPHERES: u64 = 0;
 const ARGS_BLOCKS: u64 = 4;
 const REBINS: u64 = 17;
@@ -92,6 +92,7 @@ impl Skin {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gpu::shader::wgsl;
 
     #[test]
     fn the_skin_is_a_fifth_of_the_finest_cells_and_none_when_hashed_or_rows_overflow() {
@@ -127,7 +128,7 @@ mod tests {
 
     #[test]
     fn the_offsets_are_the_shaders() {
-        let shader = include_str!("../../../wgsl/dem_grid_frictionless.wgsl");
+        let shader = wgsl!("grid/dem_grid_frictionless.wgsl");
         for (name, at) in [
             ("ARGS_SPHERES", ARGS_SPHERES),
             ("ARGS_BLOCKS", ARGS_BLOCKS),

@@ -2,11 +2,11 @@
 //! Per step the proxy boxes of all spheres, a BLAS and TLAS rebuilt from them (wgpu has no refit,
 //! so "rebuild every step" is the only policy), one point ray per sphere that resolves every pair
 //! the proxy rule keeps (equal and opposite forces, atomics), then `dem_physics.wgsl`'s
-//! integration (`wgsl/dem_rq.wgsl`). The spheres stay in input order: the generated scenes are
+//! integration (`wgsl/rq/dem_rq.wgsl`). The spheres stay in input order: the generated scenes are
 //! laid out along a lattice, so the BVH's primitives are already spatially coherent.
 //!
 //! A scene with friction, rolling resistance, rotation or another law than the paper's runs the
-//! granular variant of the step (`wgsl/dem_rq_granular.wgsl`, [`Granular`]): its own module and
+//! granular variant of the step (`wgsl/rq/dem_rq_granular.wgsl`, [`Granular`]): its own module and
 //! pipelines, with angular velocities, torques and the contact history bound besides (a
 //! sphere's index is its stable id); the walls are resolved in the contact pass, where their
 //! history lives. The paper's scenes run the paper's kernels as before.

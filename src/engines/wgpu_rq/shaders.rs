@@ -6,11 +6,11 @@ use crate::engines::gpu_step::{self, Variant, granular, physics};
 use crate::gpu::pair_output;
 use crate::gpu::shader::{Binding, SharedStruct, Vec3f, WgslModule, shared_struct, wgsl};
 
-/// Morton keys and proxy boxes of a detection build (`wgsl/rq_build.wgsl`).
+/// Morton keys and proxy boxes of a detection build (`wgsl/rq/rq_build.wgsl`).
 pub(crate) mod rq_build {
     use super::{Binding, SharedStruct, Vec3f, shared_struct, wgsl};
 
-    pub const SOURCE: &str = wgsl!("proxy.wgsl", "rq_build.wgsl");
+    pub const SOURCE: &str = wgsl!("core/proxy.wgsl", "rq/rq_build.wgsl");
     pub const ENTRY_POINTS: &[&str] = &["morton_keys", "proxy_boxes"];
 
     pub const PARAMS: Binding = Binding::uniform(0, "params");
@@ -56,15 +56,15 @@ pub(crate) mod rq_build {
     }
 }
 
-/// Detection by ray queries (`wgsl/rq_pairs.wgsl`).
+/// Detection by ray queries (`wgsl/rq/rq_pairs.wgsl`).
 pub(crate) mod rq_pairs {
     use super::{Binding, SharedStruct, pair_output, shared_struct, wgsl};
 
     pub const SOURCE: &str = wgsl!(
-        "rq_pairs.wgsl",
-        "rq_walk.wgsl",
-        "proxy.wgsl",
-        "pair_output.wgsl"
+        "rq/rq_pairs.wgsl",
+        "rq/rq_walk.wgsl",
+        "core/proxy.wgsl",
+        "core/pair_output.wgsl"
     );
     pub const ENTRY_POINTS: &[&str] = &["find_pairs"];
 
@@ -110,17 +110,25 @@ pub(crate) mod rq_pairs {
     }
 }
 
-/// The DEM step's proxy boxes and contact resolution (`wgsl/dem_rq.wgsl`), followed by the
+/// The DEM step's proxy boxes and contact resolution (`wgsl/rq/dem_rq.wgsl`), followed by the
 /// shared physics ([`physics`]), in three variants: the paper's law and its per-pair stiffness
-/// (`wgsl/dem_rq_frictionless.wgsl`) and the granular step (`wgsl/dem_rq_granular.wgsl`,
+/// (`wgsl/rq/dem_rq_frictionless.wgsl`) and the granular step (`wgsl/rq/dem_rq_granular.wgsl`,
 /// [`granular`]).
 pub(crate) mod dem_rq {
     use super::{Binding, SharedStruct, granular, physics, shared_struct, wgsl};
     use crate::engines::gpu_step::{Accumulators, Variant};
 
-    const FRICTIONLESS: &str = wgsl!("dem_rq.wgsl", "dem_rq_frictionless.wgsl", "rq_walk.wgsl");
-    const GRANULAR: &str = wgsl!("dem_rq.wgsl", "dem_rq_granular.wgsl", "rq_walk.wgsl");
-    const PROXY: &str = wgsl!("proxy.wgsl");
+    const FRICTIONLESS: &str = wgsl!(
+        "rq/dem_rq.wgsl",
+        "rq/dem_rq_frictionless.wgsl",
+        "rq/rq_walk.wgsl"
+    );
+    const GRANULAR: &str = wgsl!(
+        "rq/dem_rq.wgsl",
+        "rq/dem_rq_granular.wgsl",
+        "rq/rq_walk.wgsl"
+    );
+    const PROXY: &str = wgsl!("core/proxy.wgsl");
 
     /// The paper's step with the accumulators `atomics` (one of [`physics::FORCE_VARIANTS`]).
     pub fn source(atomics: Accumulators) -> String {

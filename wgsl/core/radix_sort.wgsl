@@ -3,7 +3,7 @@
 //
 // A pass over the digit at bit `shift` runs:
 //   1. `histogram`: block b (BLOCK pairs) counts its digits into hist[d * blocks + b];
-//   2. an exclusive scan of hist in that (digit-major) order, by the scan of wgsl/scan.wgsl
+//   2. an exclusive scan of hist in that (digit-major) order, by the scan of wgsl/core/scan.wgsl
 //      (src/gpu/scan.rs), recorded between the two kernels;
 //   3. `scatter`: block b ranks its pairs per digit (stable) and writes each to
 //      hist[d * blocks + b] + its rank among the block's pairs of digit d.
