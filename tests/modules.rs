@@ -1,5 +1,5 @@
-//! The top-level modules of `src/` form layers: no module reaches, directly or through others,
-//! back into one that uses it. A module uses another when any of its files names
+//! The modules of `src/` form layers, at the top level and within every folder: no module
+//! reaches, directly or through others, back into one that uses it. A module uses another when any of its files names
 //! `crate::other` (in code or in a doc link, which ties the two as much as an import does).
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -10,14 +10,24 @@ type Graph = BTreeMap<String, BTreeSet<String>>;
 
 /// Top-level modules named after `crate::` in `text`, including each name in a `crate::{a, b::c}` group.
 fn named_modules(text: &str) -> Vec<String> {
+    named_after(text, "crate::")
+}
+
+/// Names that follow `prefix` (a path such as `crate::` or `super::super::`, not itself the tail
+/// of a longer path) in `text`, including each name in a `prefix{a, b::c}` group.
+fn named_after(text: &str, prefix: &str) -> Vec<String> {
     let ident = |s: &str| -> String {
         s.chars()
             .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
             .collect()
     };
     let mut names = Vec::new();
-    for (at, _) in text.match_indices("crate::") {
-        let rest = &text[at + "crate::".len()..];
+    for (at, _) in text.match_indices(prefix) {
+        let before = text[..at].chars().next_back();
+        if before.is_some_and(|c| c == ':' || c.is_ascii_alphanumeric() || c == '_') {
+            continue;
+        }
+        let rest = &text[at + prefix.len()..];
         if let Some(group) = rest.strip_prefix('{') {
             let mut depth = 0;
             let mut start = true;
@@ -117,6 +127,92 @@ fn find_cycle(graph: &Graph) -> Option<Vec<String>> {
         .find_map(|n| visit(n, graph, &mut done, &mut Vec::new()))
 }
 
+/// For the module folder `dir` (module path `path`, e.g. `engines::optix`), which of its
+/// child modules (files and folders) uses which: a file of child `a` names child `b` as
+/// `crate::path::b` or through `super::` paths from where it lies.
+fn folder_graph(dir: &Path, path: &str) -> Graph {
+    let mut children: BTreeMap<String, Vec<std::path::PathBuf>> = BTreeMap::new();
+    for entry in fs::read_dir(dir).expect("a module folder is readable") {
+        let p = entry.expect("a folder entry").path();
+        let stem = p.file_stem().unwrap().to_string_lossy().to_string();
+        if p.is_dir() {
+            let mut files = Vec::new();
+            rust_files(&p, &mut files);
+            children.insert(stem, files);
+        } else if p.extension().is_some_and(|e| e == "rs")
+            && !["mod", "lib", "main"].contains(&stem.as_str())
+        {
+            children.insert(stem, vec![p]);
+        }
+    }
+    let mut graph: Graph = children
+        .keys()
+        .map(|c| (c.clone(), BTreeSet::new()))
+        .collect();
+    for (from, files) in &children {
+        for file in files {
+            let text = fs::read_to_string(file).expect("source is UTF-8");
+            // How many `super::` reach this folder's module from the file's module.
+            let parts = file.strip_prefix(dir).unwrap().components().count();
+            let is_mod = file.file_name().is_some_and(|n| n == "mod.rs");
+            let ups = parts - is_mod as usize;
+            let mut named = named_after(&text, &"super::".repeat(ups));
+            if !path.is_empty() {
+                named.extend(named_after(&text, &format!("crate::{path}::")));
+            }
+            for to in named {
+                if &to != from && children.contains_key(&to) {
+                    graph.get_mut(from).unwrap().insert(to);
+                }
+            }
+        }
+    }
+    graph
+}
+
+/// Every module folder under `dir` with its module path (`dir` itself with `path`).
+fn module_folders(dir: &Path, path: &str, out: &mut Vec<(std::path::PathBuf, String)>) {
+    out.push((dir.to_path_buf(), path.to_string()));
+    for entry in fs::read_dir(dir).expect("a module folder is readable") {
+        let p = entry.expect("a folder entry").path();
+        if p.is_dir() {
+            let name = p.file_name().unwrap().to_string_lossy().to_string();
+            let sub = if path.is_empty() {
+                name
+            } else {
+                format!("{path}::{name}")
+            };
+            module_folders(&p, &sub, out);
+        }
+    }
+}
+
+#[test]
+fn the_modules_of_every_folder_form_no_cycle() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut folders = Vec::new();
+    module_folders(&src, "", &mut folders);
+    assert!(folders.len() > 5, "read the folders: {folders:?}");
+    let engines = folder_graph(&src.join("engines"), "engines");
+    assert!(
+        engines["gpu_step"].contains("gpu_granular"),
+        "read the engines' uses: {engines:?}"
+    );
+    let cycles: Vec<String> = folders
+        .iter()
+        .filter_map(|(dir, path)| {
+            let cycle = find_cycle(&folder_graph(dir, path))?;
+            let folder = dir.strip_prefix(&src).unwrap().display();
+            Some(format!("src/{folder}: {}", cycle.join(" -> ")))
+        })
+        .collect();
+    assert!(
+        cycles.is_empty(),
+        "modules use each other:\n{}",
+        cycles.join("\n")
+    );
+}
+
 #[test]
 fn top_level_modules_form_no_cycle() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
@@ -152,4 +248,9 @@ fn the_check_sees_direct_grouped_and_long_cycles() {
         named_modules("use crate::{error::{Error, Result}, io};\n/// [`crate::proxy::keep`]"),
         ["error", "io", "proxy"]
     );
+    assert_eq!(
+        named_after("use super::{a, b::c};\nuse super::super::d;", "super::"),
+        ["a", "b", "super"]
+    );
+    assert_eq!(named_after("use super::super::d;", "super::super::"), ["d"]);
 }

@@ -145,12 +145,12 @@ fn shared_structs_lie_where_the_device_code_reads_them() {
         return;
     }
     for unit in Unit::ALL {
-        let checks = programs::layout_checks(unit);
+        let checks = mochi::engines::optix::layout_checks(unit);
         assert!(checks.contains("static_assert(sizeof("), "{}", unit.name());
         programs::compile_with_checks(unit, &checks).unwrap_or_else(|e| panic!("{e}"));
     }
     // A wrong offset is caught.
-    let wrong = programs::layout_checks(Unit::Granular)
+    let wrong = mochi::engines::optix::layout_checks(Unit::Granular)
         .replace("LawParams, slots) == ", "LawParams, slots) == 4 + ");
     let err = programs::compile_with_checks(Unit::Granular, &wrong).expect_err("a wrong offset");
     assert!(err.to_string().contains("LawParams.slots"), "{err}");

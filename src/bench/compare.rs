@@ -14,62 +14,10 @@
 //! row must have as many to be compared), `contacts`, `device`, `date` and `commit` are optional.
 
 use super::plan::Experiment;
-use super::report::{DemRow, Report, thousands};
-use crate::dem::scene::SceneKind;
+use super::report::{Comparison, DemRow, PeerFigure, Report, thousands};
 use crate::error::{Error, Result};
 use crate::proxy::ProxyMode;
-use serde::{Deserialize, Serialize};
 use std::path::Path;
-
-/// One figure of another code.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PeerFigure {
-    /// The experiment whose rows it is compared with (a DEM experiment).
-    pub experiment: Experiment,
-    /// The scene of the rows compared (`None`: every row of the experiment).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub scene: Option<SceneKind>,
-    /// The other code.
-    pub peer: String,
-    /// Its time per step \[ms\].
-    pub ms_per_step: f64,
-    /// What it ran, in words.
-    pub workload: String,
-    /// Its spheres (`None`: not said; then the ratio is printed for any size, and says so).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub spheres: Option<usize>,
-    /// Its contacts at the end.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub contacts: Option<u64>,
-    /// Its device.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub device: Option<String>,
-    /// When it was measured.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub date: Option<String>,
-    /// The other code's version or commit.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub commit: Option<String>,
-}
-
-/// A figure of another code beside mochi's.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Comparison {
-    /// The other code's figure, as read.
-    pub peer: PeerFigure,
-    /// mochi's row compared (backend, setup, n, time step, steps timed, contacts), or why there
-    /// is none.
-    pub mochi: String,
-    /// mochi's time per step \[ms\] (the row's median), where a row was found.
-    pub mochi_ms_per_step: Option<f64>,
-    /// The other code's time over mochi's, where both measured the same size (or the peer did
-    /// not say its size).
-    pub mochi_faster: Option<f64>,
-    /// Why there is no ratio, or what to keep in mind reading it.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub note: Option<String>,
-}
 
 /// Reads and checks the figures of `path`.
 pub fn read(path: &Path) -> Result<Vec<PeerFigure>> {

@@ -1,7 +1,7 @@
 //! Experiments 2–8: the DEM step, timed per phase.
 
 use super::Outcome;
-use super::plan::{Experiment, Plan, REBUILD_INTERVALS};
+use super::plan::{DROP_DT, Experiment, MESH_DROP_COPIES, Plan, REBUILD_INTERVALS};
 use super::report::{DemRow, HistorySize, StepRange};
 use super::stats::Spread;
 use crate::dem::scene::{ContactKind, SceneConfig, SceneKind, Start, Stiffness};
@@ -108,21 +108,8 @@ pub fn pour_steps(start: &Start) -> u64 {
     (1.5 * fall / start.params.dt as f64).ceil() as u64
 }
 
-/// Steps of experiment 8's drop: the paper's (and the comparison with Taichi's) 0.5 s at
-/// [`DROP_DT`], every one of them timed.
-pub const DROP_STEPS: u32 = 5000;
-
-/// Time step of experiment 8's drop \[s\] (the paper's; the mesh scene's own is 2.5e-5).
-pub const DROP_DT: f64 = 1e-4;
-
 /// Spheres of the paper's 14-bunny scene (82,337 per bunny at radius 0.005 m).
 const PAPER_MESH_DROP_SPHERES: f64 = 1_151_878.0;
-
-/// Copies of the mesh in experiment 8, as in the paper's scene.
-pub const MESH_DROP_COPIES: u32 = 14;
-
-/// The wide box of experiment 8, per side over the scene's own.
-pub const WIDE_BOX_SCALE: u32 = 10;
 
 /// Sphere radius \[m\] at which one copy of the mesh is filled to count its spheres.
 const PROBE_RADIUS: f64 = 0.005;
@@ -398,6 +385,7 @@ fn measure(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bench::plan::DROP_STEPS;
     use crate::bench::plan::Settings;
     use crate::dem::{Advance, Particles, StageTimes};
     use crate::scenes::Scene;

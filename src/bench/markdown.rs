@@ -1,7 +1,7 @@
 //! The report as Markdown: a header (date, command, machine, backends) and one table per
 //! experiment.
 
-use super::dem::DROP_STEPS;
+use super::plan::DROP_STEPS;
 use super::plan::Experiment;
 use super::report::{DemRow, DetectRow, Report};
 use super::stats::Spread;
@@ -293,4 +293,24 @@ fn clock(c: Clock) -> &'static str {
 /// A speed-up as `3.2×`, or `–`.
 pub fn speedup(s: Option<f64>) -> String {
     s.map_or_else(|| "–".to_owned(), |x| format!("{x:.2}×"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bench::targets::{NO_CONTACTS, check, tests::report};
+
+    #[test]
+    fn a_target_not_judged_prints_why_and_is_not_met() {
+        let mut r = report(3000);
+        for row in &mut r.dem {
+            row.contacts = 0;
+        }
+        let md = render(&Report {
+            targets: check(&r),
+            ..r
+        });
+        assert!(md.contains(&format!("| {NO_CONTACTS} |")), "{md}");
+        assert!(!md.contains("| yes |"), "{md}");
+    }
 }

@@ -150,10 +150,10 @@ fn dem_starts(
         let n = plan.settings.spheres;
         let seed = plan.settings.seed;
         let own = dem::mesh_drop_start(plan.settings.mesh.as_deref(), n, seed)?;
-        let wide = dem::widened(&own, dem::WIDE_BOX_SCALE);
+        let wide = dem::widened(&own, plan::WIDE_BOX_SCALE);
         return Ok(vec![
             (SceneKind::Mesh, own, None),
-            (SceneKind::Mesh, wide, Some(dem::WIDE_BOX_SCALE)),
+            (SceneKind::Mesh, wide, Some(plan::WIDE_BOX_SCALE)),
         ]);
     }
     let starts = own_box_starts(plan, experiment, progress)?;

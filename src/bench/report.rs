@@ -3,7 +3,6 @@
 
 use super::plan::{BackendStatus, Experiment, Settings};
 use super::stats::Spread;
-use super::targets::Check;
 use crate::dem::Clock;
 use crate::dem::scene::SceneKind;
 use crate::engines::BackendKind;
@@ -43,11 +42,11 @@ pub struct Report {
     pub dem: Vec<DemRow>,
     /// Measurements a backend could not make, and why.
     pub skipped: Vec<Skipped>,
-    /// The performance targets ([`super::targets::check`]), checked against the rows.
+    /// The performance targets, checked against the rows (the bench's `targets::check`).
     pub targets: Vec<Check>,
     /// Other codes' figures (`--compare`) beside mochi's rows of the same experiment.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub comparisons: Vec<super::compare::Comparison>,
+    pub comparisons: Vec<Comparison>,
 }
 
 /// The host that ran the benchmark.
@@ -384,6 +383,71 @@ fn civil_from_days(days: i64) -> (i64, u32, u32) {
     let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
     let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
     (yoe + era * 400 + i64::from(m <= 2), m, d)
+}
+
+/// One target and how the report meets it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Check {
+    /// The target, in words.
+    pub target: String,
+    /// What was measured (backend, value, size, contacts).
+    pub measured: String,
+    /// Met, missed, or `None` where it was not judged.
+    pub met: Option<bool>,
+    /// Why it was not judged, where the report measured something it could not judge (a state
+    /// without contacts, another size or workload).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub not_judged: Option<String>,
+}
+
+/// One figure of another code.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PeerFigure {
+    /// The experiment whose rows it is compared with (a DEM experiment).
+    pub experiment: Experiment,
+    /// The scene of the rows compared (`None`: every row of the experiment).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<SceneKind>,
+    /// The other code.
+    pub peer: String,
+    /// Its time per step \[ms\].
+    pub ms_per_step: f64,
+    /// What it ran, in words.
+    pub workload: String,
+    /// Its spheres (`None`: not said; then the ratio is printed for any size, and says so).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spheres: Option<usize>,
+    /// Its contacts at the end.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contacts: Option<u64>,
+    /// Its device.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device: Option<String>,
+    /// When it was measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub date: Option<String>,
+    /// The other code's version or commit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub commit: Option<String>,
+}
+
+/// A figure of another code beside mochi's.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Comparison {
+    /// The other code's figure, as read.
+    pub peer: PeerFigure,
+    /// mochi's row compared (backend, setup, n, time step, steps timed, contacts), or why there
+    /// is none.
+    pub mochi: String,
+    /// mochi's time per step \[ms\] (the row's median), where a row was found.
+    pub mochi_ms_per_step: Option<f64>,
+    /// The other code's time over mochi's, where both measured the same size (or the peer did
+    /// not say its size).
+    pub mochi_faster: Option<f64>,
+    /// Why there is no ratio, or what to keep in mind reading it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
 }
 
 #[cfg(test)]

@@ -6,30 +6,14 @@
 //! workload); a DEM target only on a state with contacts (a row without contacts says "not
 //! judged: the state has no contacts", never "met"); otherwise it says what to run.
 
-use super::dem::{DROP_DT, DROP_STEPS};
 use super::plan::Experiment;
-use super::report::{self, DemRow, Report};
+use super::plan::{DROP_DT, DROP_STEPS};
+use super::report::{self, Check, DemRow, Report};
 use crate::dem::scene::SceneKind;
 use crate::dem::scene::by_name;
 use crate::engines::BackendKind;
 use crate::proxy::ProxyMode;
 use crate::scenes::Scene;
-use serde::{Deserialize, Serialize};
-
-/// One target and how the report meets it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Check {
-    /// The target, in words.
-    pub target: String,
-    /// What was measured (backend, value, size, contacts).
-    pub measured: String,
-    /// Met, missed, or `None` where it was not judged.
-    pub met: Option<bool>,
-    /// Why it was not judged, where the report measured something it could not judge (a state
-    /// without contacts, another size or workload).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub not_judged: Option<String>,
-}
 
 /// Why a DEM target measured on a state without contacts is not judged.
 pub const NO_CONTACTS: &str = "not judged: the state has no contacts";
@@ -546,12 +530,6 @@ pub(crate) mod tests {
             assert_eq!(checks[k].met, None, "{:?}", checks[k]);
             assert_eq!(checks[k].not_judged.as_deref(), Some(NO_CONTACTS));
         }
-        let md = crate::bench::markdown::render(&Report {
-            targets: checks,
-            ..r.clone()
-        });
-        assert!(md.contains(&format!("| {NO_CONTACTS} |")), "{md}");
-        assert!(!md.contains("| yes |"), "{md}");
         // With contacts, 5M is met.
         big.contacts = 12;
         r.dem.push(big);

@@ -1785,3 +1785,136 @@ mod tests {
         assert!(e.contains("hopper_angle"), "{e}");
     }
 }
+
+/// The `[[material]]` and `[[material_pair]]` tables as a scene reads them (`material_spec`).
+#[cfg(test)]
+mod material_tables {
+    use crate::dem::model::{ContactLaw, StepParams};
+    use crate::dem::scene::SceneConfig;
+
+    fn scene(text: &str) -> crate::error::Result<SceneConfig> {
+        SceneConfig::parse(Some(text), None, &[])
+    }
+
+    const TWO: &str = r#"
+        friction = 0.4
+        [[material]]
+        name = "glass"
+        young_modulus = 6.3e10
+        poisson_ratio = 0.24
+        density = 2500
+        restitution = 0.9
+        rolling_friction = 0.01
+        [[material]]
+        name = "steel"
+        young_modulus = 2.0e11
+        poisson_ratio = 0.3
+        density = 7800
+        friction = 0.3
+        [[material_pair]]
+        materials = ["steel", "glass"]
+        restitution = 0.8
+    "#;
+
+    #[test]
+    fn material_tables_take_the_top_level_keys_as_defaults_and_pairs_override_the_mixing() {
+        let s = scene(TWO).unwrap();
+        let m = s.materials().unwrap();
+        assert_eq!(m.names, ["glass", "steel"]);
+        let (glass, steel) = (&m.list[0], &m.list[1]);
+        assert_eq!((glass.friction, steel.friction), (0.4, 0.3));
+        assert_eq!((glass.density, steel.density), (2500.0, 7800.0));
+        // The scene's default restitution (0.5) where a table gives none.
+        assert_eq!((glass.restitution, steel.restitution), (0.9, 0.5));
+        assert!(matches!(
+            steel.contact,
+            ContactLaw::HertzMindlin { young_modulus, .. } if young_modulus == 2.0e11
+        ));
+        // Restitution: the pair's own; friction and rolling friction: the smaller.
+        // (Steel's rolling friction is the scene's default, 0.1.)
+        assert_eq!(m.coefficients(0, Some(1)), (0.8, 0.3, 0.01));
+        assert_eq!(m.coefficients(1, Some(0)), (0.8, 0.3, 0.01));
+        assert_eq!(m.coefficients(0, Some(0)), (0.9, 0.4, 0.01));
+        // A rigid wall: the sphere's own, friction the scene's wall friction (here μ).
+        assert_eq!(m.coefficients(1, None), (0.5, 0.3, 0.1));
+    }
+
+    #[test]
+    fn the_table_mixes_the_moduli_of_both_bodies_and_the_time_step_follows_the_stiffest() {
+        let s = scene(TWO).unwrap();
+        let m = s.materials().unwrap();
+        let p =
+            StepParams::with_materials(&m, Some(1), 1e-7, [0.0; 3], [1.0; 3], [0.0; 3], 0.0, 0.001)
+                .unwrap();
+        let t = &p.materials;
+        assert_eq!((t.count, t.laws.len(), p.box_column), (2, 6, 1));
+        let c = |e: f64, nu: f64| (1.0 - nu * nu) / e;
+        let mixed = 1.0 / (c(6.3e10, 0.24) + c(2.0e11, 0.3));
+        assert_eq!(t.law(0, 1).e_star, mixed as f32);
+        assert_eq!(t.law(1, 0), t.law(0, 1));
+        assert_eq!(t.law(0, 0).e_star, (1.0 / (2.0 * c(6.3e10, 0.24))) as f32);
+        assert_eq!(
+            t.law(0, 2).e_star,
+            (1.0 / c(6.3e10, 0.24)) as f32,
+            "rigid wall"
+        );
+        assert_eq!((t.law(0, 1).sliding, t.law(0, 0).rolling), (0.3, 0.01));
+        assert_eq!(t.densities, [2500.0, 7800.0]);
+        // The shorter Rayleigh time (glass's, by 1%) sets the limit.
+        let rayleigh = |e: f64, nu: f64, rho: f64| {
+            crate::dem::model::time_step::rayleigh_time(0.001, rho, e, nu)
+        };
+        let limit = 0.5 * rayleigh(6.3e10, 0.24, 2500.0);
+        assert!(rayleigh(6.3e10, 0.24, 2500.0) < rayleigh(2.0e11, 0.3, 7800.0));
+        assert!(
+            (p.dt_limit as f64 / limit - 1.0).abs() < 1e-6,
+            "{} {limit}",
+            p.dt_limit
+        );
+        let e = StepParams::with_materials(
+            &m,
+            None,
+            1.01 * limit,
+            [0.0; 3],
+            [1.0; 3],
+            [0.0; 3],
+            0.0,
+            0.001,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("\"glass\""), "{e}");
+    }
+
+    #[test]
+    fn bad_material_tables_are_one_clear_error() {
+        let err = |text: &str| {
+            let s = scene(text).and_then(|s| s.build().map(|_| s));
+            s.unwrap_err().to_string()
+        };
+        let e = err("[[material]]\nname = \"a\"\n[[material]]\nname = \"a\"\n");
+        assert!(e.contains("\"a\" is given twice"), "{e}");
+        let e = err("box_material = \"b\"\n[[material]]\nname = \"a\"\n");
+        assert!(
+            e.contains("box_material") && e.contains("\"b\"") && e.contains("\"a\""),
+            "{e}"
+        );
+        let e = err("box_material = \"b\"\n");
+        assert!(e.contains("no [[material]] tables"), "{e}");
+        let e = err("[[material]]\nname = \"a\"\nrestitution = 1.5\n[[material]]\nname = \"b\"\n");
+        assert!(
+            e.contains("material \"a\"") && e.contains("restitution"),
+            "{e}"
+        );
+        let e = err("contact = \"linear\"\n[[material]]\nname = \"a\"\nyoung_modulus = 1e9\n");
+        assert!(e.contains("hertz-mindlin"), "{e}");
+        let e = err("[[material]]\nname = \"a\"\n[[material_pair]]\nmaterials = [\"a\", \"c\"]\n");
+        assert!(e.contains("\"c\""), "{e}");
+        let e = err("[[material]]\nname = \"a\"\ncolour = 3\n");
+        assert!(e.contains("colour"), "{e}");
+        let many: String = (0..257)
+            .map(|k| format!("[[material]]\nname = \"m{k}\"\n"))
+            .collect();
+        assert!(err(&many).contains("at most 256"));
+    }
+}

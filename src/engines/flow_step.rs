@@ -11,7 +11,7 @@
 //! waits, without a step, for its inflows.
 
 use super::gpu_flow::{FlowQuery, Scan};
-use super::gpu_step::Room;
+use super::gpu_state::Room;
 use crate::dem::flow::{Event, FlowCounts, FlowSet, NewSphere};
 use crate::dem::model::mass;
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};

@@ -1,6 +1,6 @@
 //! A flow event's look at a wgpu engine's state without reading every sphere back
 //! (`wgsl/dem/flow_scan.wgsl`): one pass lists the spheres that leave and those near the inflows,
-//! the two things an event needs to remove and insert ([`super::flow_step`]).
+//! the two things an event of the flow step needs to remove and insert.
 
 use crate::error::Result;
 use crate::gpu::Gpu;

@@ -14,11 +14,11 @@
 //! start of a batch, so that a batch in which some sphere had more contacts than K is redone
 //! from that state with K grown: no contact is ever dropped.
 
-use super::gpu_step::granular::{
+use self::shader::{
     ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, HELD_NEW, HELD_OLD, HISTORY_NEED, MATERIAL_LAWS, OMEGA,
     TORQUE,
 };
-use super::gpu_step::{InputOrder, ParamsUniform, Room, move_rows};
+use super::gpu_state::{InputOrder, ParamsUniform, Room, move_rows};
 use super::gpu_walls::MeshWalls;
 use crate::dem::model::{LawParams, StepParams};
 use crate::dem::stepper::StageTimes;
@@ -30,6 +30,73 @@ use crate::particles::{
     ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadEntry, Particles,
 };
 use std::ops::Range;
+
+/// What the granular step adds to the paper's (`wgsl/dem/dem_contact.wgsl`, the contact law, and
+/// `wgsl/dem/dem_granular.wgsl`, angular velocities, torques, contact history and integration):
+/// sources, bindings and the structs shared with Rust.
+pub(crate) mod shader {
+    use crate::gpu::shader::{Binding, wgsl};
+
+    /// `wgsl/dem/dem_contact.wgsl`.
+    pub const CONTACT: &str = wgsl!("dem/dem_contact.wgsl");
+    /// `wgsl/dem/dem_granular.wgsl`.
+    pub const STATE: &str = wgsl!("dem/dem_granular.wgsl");
+    /// `wgsl/dem/dem_tangential_mindlin.wgsl`: Mindlin's spring (`Variant::Granular`).
+    pub const SPRING: &str = wgsl!("dem/dem_tangential_mindlin.wgsl");
+    /// `wgsl/dem/dem_tangential_md.wgsl`: Mindlin–Deresiewicz (`Variant::Loaded`).
+    pub const LOAD_HISTORY: &str = wgsl!("dem/dem_tangential_md.wgsl");
+
+    pub const OMEGA: Binding = Binding::read_write(18, "omega");
+    /// The material table's laws (`PairLaw` rows, [`crate::dem::model::MaterialTable::laws`]).
+    pub const MATERIAL_LAWS: Binding = Binding::read(20, "material_laws");
+    /// Declared by the torque accumulator (`dem_torque_*.wgsl`).
+    pub const TORQUE: Binding = Binding::read_write(19, "torque");
+    pub const HELD_OLD: Binding = Binding::read(21, "held_old");
+    pub const HELD_NEW: Binding = Binding::read_write(23, "held_new");
+    pub const HISTORY_NEED: Binding = Binding::read_write(24, "history_need");
+    /// Bindings the entries of a history may be split over, by range of rows (whole rows per
+    /// binding): 20M spheres hold 26 slots each in eight bindings of 2 GiB.
+    pub const ENTRY_PARTS: usize = 8;
+    /// The old entries (32 bytes a slot: ξ and the partner, the rolling torque), part by part.
+    pub const ENTRIES_OLD: [Binding; ENTRY_PARTS] = [
+        Binding::read(50, "entries_old0"),
+        Binding::read(51, "entries_old1"),
+        Binding::read(52, "entries_old2"),
+        Binding::read(53, "entries_old3"),
+        Binding::read(54, "entries_old4"),
+        Binding::read(55, "entries_old5"),
+        Binding::read(56, "entries_old6"),
+        Binding::read(57, "entries_old7"),
+    ];
+    /// The new entries, as [`ENTRIES_OLD`].
+    pub const ENTRIES_NEW: [Binding; ENTRY_PARTS] = [
+        Binding::read_write(58, "entries_new0"),
+        Binding::read_write(59, "entries_new1"),
+        Binding::read_write(60, "entries_new2"),
+        Binding::read_write(61, "entries_new3"),
+        Binding::read_write(62, "entries_new4"),
+        Binding::read_write(63, "entries_new5"),
+        Binding::read_write(64, "entries_new6"),
+        Binding::read_write(65, "entries_new7"),
+    ];
+
+    /// Every binding of `wgsl/dem/dem_granular.wgsl` and its accumulators.
+    pub fn bindings() -> Vec<Binding> {
+        [
+            OMEGA,
+            MATERIAL_LAWS,
+            TORQUE,
+            HELD_OLD,
+            HELD_NEW,
+            HISTORY_NEED,
+        ]
+        .into_iter()
+        .chain(ENTRIES_OLD)
+        .chain(ENTRIES_NEW)
+        .chain(crate::engines::gpu_walls::bindings())
+        .collect()
+    }
+}
 
 /// Which of the granular state's buffers are meant: those in the order of the engine's state
 /// set `set` (0 or 1; engines with one set have only 0) and the history of parity `parity`

@@ -6,6 +6,7 @@
 pub(crate) use super::gpu_granular::{
     BatchParts, Granular, RedoableBatch, Rotation, Turn, run_batch,
 };
+use super::gpu_state::{ParamsUniform, Room};
 use crate::dem::model::{LawParams, MaterialTable, NormalLaw, StepParams};
 use crate::dem::stepper::{Advance, Clock, StageTimes, needs_granular_step};
 use crate::dem::walls::WallSet;
@@ -13,14 +14,14 @@ use crate::error::{Error, Result};
 use crate::gpu::Gpu;
 use crate::gpu::shader::{SharedStruct, shared_struct, wgsl};
 use crate::gpu::timer::GpuTimer;
-use crate::particles::{FIRST_MESH_WALL, Particles};
-use rayon::prelude::*;
+use crate::particles::Particles;
 
 /// The physics shared by the GPU steps (`wgsl/dem/dem_params.wgsl` and, for the paper's law,
 /// `wgsl/dem/dem_physics.wgsl`, integration kernel included) and its force accumulators: the
 /// bindings it adds to the step module it ends.
 pub(crate) mod physics {
     use super::Accumulators;
+    use crate::engines::gpu_granular::shader;
     use crate::gpu::shader::Binding;
     use crate::gpu::shader::wgsl;
 
@@ -60,10 +61,10 @@ pub(crate) mod physics {
     /// The physics that ends the granular step module, with the accumulators `atomics`, under
     /// the tangential model of `variant` (the granular one or its Mindlin–Deresiewicz twin).
     pub fn granular(atomics: Accumulators, variant: super::Variant) -> String {
-        let (contact, state) = (super::granular::CONTACT, super::granular::STATE);
+        let (contact, state) = (shader::CONTACT, shader::STATE);
         let tangential = match variant {
-            super::Variant::Loaded => super::granular::LOAD_HISTORY,
-            _ => super::granular::SPRING,
+            super::Variant::Loaded => shader::LOAD_HISTORY,
+            _ => shader::SPRING,
         };
         let walls = crate::engines::gpu_walls::SOURCE;
         format!(
@@ -158,32 +159,23 @@ pub(crate) fn law_params() -> SharedStruct {
     )
 }
 
-/// A step's [`LawParams`] on the GPU (the uniform [`physics::DEM`]) and the value it holds: every
-/// change writes the whole value, so no part of it can be stale.
-pub(crate) struct ParamsUniform {
-    params: LawParams,
-    buffer: wgpu::Buffer,
-}
-
-impl ParamsUniform {
-    /// `params` in a new uniform labelled `label`.
-    pub fn new(gpu: &Gpu, label: &str, params: LawParams) -> Self {
-        Self {
-            params,
-            buffer: gpu.uniform(label, &params),
+/// [`PairLaw`](crate::dem::model::PairLaw), a row of the material table (`material_laws` of `wgsl/dem/dem_contact.wgsl`) and `LawParams::sphere_law`, as a
+/// [`SharedStruct`].
+pub(crate) fn pair_law() -> SharedStruct {
+    use crate::dem::model::PairLaw;
+    shared_struct!(
+        "PairLaw",
+        PairLaw {
+            rate,
+            e_star,
+            g_star,
+            damping_ratio,
+            sliding,
+            rolling,
+            _pad0,
+            _pad1,
         }
-    }
-
-    /// Changes the parameters by `change` and writes them.
-    pub fn update(&mut self, gpu: &Gpu, change: impl FnOnce(&mut LawParams)) {
-        change(&mut self.params);
-        gpu.write_uniform(&self.buffer, &self.params);
-    }
-
-    /// The uniform.
-    pub fn buffer(&self) -> &wgpu::Buffer {
-        &self.buffer
-    }
+    )
 }
 
 /// The WGSL of one kind of force and torque accumulators.
@@ -193,93 +185,6 @@ pub(crate) struct Accumulators {
     pub force: &'static str,
     /// `wgsl/dem_torque_*.wgsl` (granular step only).
     pub torque: &'static str,
-}
-
-/// What the granular step adds to the paper's (`wgsl/dem/dem_contact.wgsl`, the contact law, and
-/// `wgsl/dem/dem_granular.wgsl`, angular velocities, torques, contact history and integration):
-/// sources, bindings and the structs shared with Rust.
-pub(crate) mod granular {
-    use crate::gpu::shader::wgsl;
-    use crate::gpu::shader::{Binding, SharedStruct, shared_struct};
-
-    /// `wgsl/dem/dem_contact.wgsl`.
-    pub const CONTACT: &str = wgsl!("dem/dem_contact.wgsl");
-    /// `wgsl/dem/dem_granular.wgsl`.
-    pub const STATE: &str = wgsl!("dem/dem_granular.wgsl");
-    /// `wgsl/dem/dem_tangential_mindlin.wgsl`: Mindlin's spring (`Variant::Granular`).
-    pub const SPRING: &str = wgsl!("dem/dem_tangential_mindlin.wgsl");
-    /// `wgsl/dem/dem_tangential_md.wgsl`: Mindlin–Deresiewicz (`Variant::Loaded`).
-    pub const LOAD_HISTORY: &str = wgsl!("dem/dem_tangential_md.wgsl");
-
-    pub const OMEGA: Binding = Binding::read_write(18, "omega");
-    /// The material table's laws (`PairLaw` rows, [`crate::dem::model::MaterialTable::laws`]).
-    pub const MATERIAL_LAWS: Binding = Binding::read(20, "material_laws");
-    /// Declared by the torque accumulator (`dem_torque_*.wgsl`).
-    pub const TORQUE: Binding = Binding::read_write(19, "torque");
-    pub const HELD_OLD: Binding = Binding::read(21, "held_old");
-    pub const HELD_NEW: Binding = Binding::read_write(23, "held_new");
-    pub const HISTORY_NEED: Binding = Binding::read_write(24, "history_need");
-    /// Bindings the entries of a history may be split over, by range of rows (whole rows per
-    /// binding): 20M spheres hold 26 slots each in eight bindings of 2 GiB.
-    pub const ENTRY_PARTS: usize = 8;
-    /// The old entries (32 bytes a slot: ξ and the partner, the rolling torque), part by part.
-    pub const ENTRIES_OLD: [Binding; ENTRY_PARTS] = [
-        Binding::read(50, "entries_old0"),
-        Binding::read(51, "entries_old1"),
-        Binding::read(52, "entries_old2"),
-        Binding::read(53, "entries_old3"),
-        Binding::read(54, "entries_old4"),
-        Binding::read(55, "entries_old5"),
-        Binding::read(56, "entries_old6"),
-        Binding::read(57, "entries_old7"),
-    ];
-    /// The new entries, as [`ENTRIES_OLD`].
-    pub const ENTRIES_NEW: [Binding; ENTRY_PARTS] = [
-        Binding::read_write(58, "entries_new0"),
-        Binding::read_write(59, "entries_new1"),
-        Binding::read_write(60, "entries_new2"),
-        Binding::read_write(61, "entries_new3"),
-        Binding::read_write(62, "entries_new4"),
-        Binding::read_write(63, "entries_new5"),
-        Binding::read_write(64, "entries_new6"),
-        Binding::read_write(65, "entries_new7"),
-    ];
-
-    /// Every binding of `wgsl/dem/dem_granular.wgsl` and its accumulators.
-    pub fn bindings() -> Vec<Binding> {
-        [
-            OMEGA,
-            MATERIAL_LAWS,
-            TORQUE,
-            HELD_OLD,
-            HELD_NEW,
-            HISTORY_NEED,
-        ]
-        .into_iter()
-        .chain(ENTRIES_OLD)
-        .chain(ENTRIES_NEW)
-        .chain(crate::engines::gpu_walls::bindings())
-        .collect()
-    }
-
-    /// [`PairLaw`](crate::dem::model::PairLaw), a row of [`MATERIAL_LAWS`], as a
-    /// [`SharedStruct`].
-    pub fn pair_law() -> SharedStruct {
-        use crate::dem::model::PairLaw;
-        shared_struct!(
-            "PairLaw",
-            PairLaw {
-                rate,
-                e_star,
-                g_star,
-                damping_ratio,
-                sliding,
-                rolling,
-                _pad0,
-                _pad1,
-            }
-        )
-    }
 }
 
 /// Which kernels a GPU step runs.
@@ -413,114 +318,6 @@ impl StepTimer {
 
 /// What opening a wgpu engine's DEM step compiles: the accumulators chosen, the state of the
 /// variant the scene needs ([`Variant::of`]), and the step's module in that variant.
-/// How the rows of a state whose spheres have the stable ids `ids` (distinct; with gaps where
-/// spheres left on the device) map to input order, the ids' ascending order.
-pub(crate) struct InputOrder {
-    /// Each row's index in input order (its id's rank among the ids).
-    pub rank: Vec<u32>,
-    /// The ids ascending, where they have gaps (`None`: they are `0..n`, each its own rank).
-    sorted: Option<Vec<u32>>,
-}
-
-impl InputOrder {
-    /// The order of the rows with stable ids `ids`.
-    pub fn of(ids: &[u32]) -> Self {
-        let n = ids.len();
-        if ids.iter().all(|&id| (id as usize) < n) {
-            // Distinct and below n: a permutation of 0..n.
-            return InputOrder {
-                rank: ids.to_vec(),
-                sorted: None,
-            };
-        }
-        let mut sorted = ids.to_vec();
-        sorted.par_sort_unstable();
-        let rank = ids
-            .par_iter()
-            .map(|&id| sorted.partition_point(|&x| x < id) as u32)
-            .collect();
-        InputOrder {
-            rank,
-            sorted: Some(sorted),
-        }
-    }
-
-    /// Whether the ids have gaps (history partners are then renamed).
-    pub fn renames(&self) -> bool {
-        self.sorted.is_some()
-    }
-
-    /// A history partner's name in input order: a wall keeps its own, a sphere gets its
-    /// rank, and one that has left gets none.
-    pub fn partner(&self, id: u32) -> Option<u32> {
-        match &self.sorted {
-            Some(sorted) if id < FIRST_MESH_WALL => {
-                sorted.binary_search(&id).ok().map(|k| k as u32)
-            }
-            _ => Some(id),
-        }
-    }
-}
-
-/// Records the move of rows within buffers through `scratch` (at least `moves.len() · bytes`
-/// bytes): each `(from, to)` of `moves` copies the row `from` over the row `to` (no row is both
-/// a source and a target); `at(row)` is the buffer and byte offset of a row of `bytes` bytes.
-pub(crate) fn move_rows<'a>(
-    encoder: &mut wgpu::CommandEncoder,
-    scratch: &wgpu::Buffer,
-    moves: &[(u32, u32)],
-    bytes: u64,
-    at: impl Fn(u32) -> (&'a wgpu::Buffer, u64),
-) {
-    for (k, &(from, _)) in moves.iter().enumerate() {
-        let (buffer, offset) = at(from);
-        encoder.copy_buffer_to_buffer(buffer, offset, scratch, k as u64 * bytes, bytes);
-    }
-    for (k, &(_, to)) in moves.iter().enumerate() {
-        let (buffer, offset) = at(to);
-        encoder.copy_buffer_to_buffer(scratch, k as u64 * bytes, buffer, offset, bytes);
-    }
-}
-
-/// What an engine's state has room for: rows for `spheres` spheres (at least the
-/// particles'), and a grid and walls for radii over the range `radii` (at least the
-/// particles'); the rest for spheres appended later ([`super::flow_step::DeviceFlow`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Room {
-    /// Spheres.
-    pub spheres: usize,
-    /// Smallest and largest radius \[m\].
-    pub radii: (f32, f32),
-    /// Where spheres will come (the inflows' regions: a grid build is chosen for them too).
-    pub region: Option<([f32; 3], [f32; 3])>,
-}
-
-impl Room {
-    /// Room for `particles` and nothing more.
-    pub fn of(particles: &Particles) -> Room {
-        Room {
-            spheres: particles.len(),
-            radii: particles.radius_range(),
-            region: None,
-        }
-    }
-
-    /// This room, grown to hold `particles` (the radii of none count for nothing).
-    pub fn holding(self, particles: &Particles) -> Room {
-        let (a, b) = particles.radius_range();
-        let radii = match (particles.is_empty(), self.radii) {
-            (true, radii) => radii,
-            (false, (0.0, 0.0)) => (a, b),
-            (false, (lo, hi)) => (lo.min(a), hi.max(b)),
-        };
-        Room {
-            spheres: self.spheres.max(particles.len()),
-            radii,
-            ..self
-        }
-    }
-}
-
 pub(crate) struct DemModule {
     /// The accumulators, in words (for `describe`).
     pub atomics: &'static str,

@@ -10,6 +10,7 @@ mod gpu_detect;
 mod gpu_flow;
 mod gpu_granular;
 mod gpu_readback;
+mod gpu_state;
 mod gpu_step;
 mod gpu_walls;
 mod open;

@@ -133,7 +133,7 @@ fn floor_colour(floor: &Floor, p: Vec3) -> Vec3 {
 
 /// The colour of a pixel: the mean of `samples`×`samples` rays on a regular grid inside it;
 /// `trace(o, d, t_max, first)` is the path's nearest-sphere search and `trace_walls(o, d,
-/// t_max)` its nearest-wall search (see [`super::bvh::trace`]).
+/// t_max)` its nearest-wall search (the BVH's `trace`).
 #[allow(clippy::too_many_arguments)] // the shader's inputs, one by one
 pub(crate) fn pixel(
     grid: &Grid,

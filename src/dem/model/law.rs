@@ -4,6 +4,7 @@
 //! `src/engines/optix/device.rs`), and the law's code on the devices, [`LawCode`].
 
 use super::StepParams;
+use super::material::NormalLaw;
 use super::materials::PairLaw;
 use crate::gpu::shader::Vec3f;
 use bytemuck::{Pod, Zeroable};
@@ -19,6 +20,18 @@ pub enum LawCode {
     LinearPerPair = 1,
     /// [`NormalLaw::Hertz`](super::NormalLaw::Hertz).
     Hertz = 2,
+}
+
+impl NormalLaw {
+    /// The law's code on the devices ([`LawCode`]).
+    pub fn code(&self) -> u32 {
+        let code = match self {
+            NormalLaw::Linear => LawCode::Linear,
+            NormalLaw::LinearPerPair { .. } => LawCode::LinearPerPair,
+            NormalLaw::Hertz { .. } => LawCode::Hertz,
+        };
+        code as u32
+    }
 }
 
 /// A GPU step's parameters: the box, gravity and time step, and the contact law with its

@@ -2,7 +2,6 @@
 //! it (f32 coefficients): the normal law, the effective elastic moduli of Hertz–Mindlin, and the
 //! friction coefficients.
 
-use super::law::LawCode;
 use super::linear::{STEPS_PER_CONTACT, stiffness_for_duration};
 use super::time_step::rayleigh_time;
 use crate::error::{Error, Result};
@@ -135,18 +134,6 @@ pub enum NormalLaw {
         /// A sphere on a rigid wall.
         wall: Elastic,
     },
-}
-
-impl NormalLaw {
-    /// The law's code on the devices ([`LawCode`](super::LawCode)).
-    pub fn code(&self) -> u32 {
-        let code = match self {
-            NormalLaw::Linear => LawCode::Linear,
-            NormalLaw::LinearPerPair { .. } => LawCode::LinearPerPair,
-            NormalLaw::Hertz { .. } => LawCode::Hertz,
-        };
-        code as u32
-    }
 }
 
 /// Effective moduli of a contact (physics notation: E*, G*).

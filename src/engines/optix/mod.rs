@@ -30,5 +30,5 @@ mod sys;
 
 pub use dem::OptixStepper;
 pub use detect::OptixBackend;
-pub use device::COUNTER_SLOTS;
+pub use device::{COUNTER_SLOTS, layout_checks};
 pub use engine::{MAX_COORDINATE, auto_skip, probe};

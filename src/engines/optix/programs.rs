@@ -131,12 +131,6 @@ pub fn compile(unit: Unit) -> Result<String, OptixError> {
     compile_source(unit.name(), unit.source(), unit.is_optix_module())
 }
 
-/// CUDA `static_assert`s that every struct of `unit` shared with the host has the size and
-/// field offsets of its Rust twin (for [`compile_with_checks`]).
-pub fn layout_checks(unit: Unit) -> String {
-    super::device::layout_checks(unit)
-}
-
 /// Compiles `unit` followed by `checks` (CUDA `static_assert`s over its types, which emit no
 /// code): the layout test compiles each launch-parameter struct against its Rust twin this way.
 pub fn compile_with_checks(unit: Unit, checks: &str) -> Result<String, OptixError> {

@@ -6,35 +6,9 @@
 //! has each workgroup add up the blocks before its own and scan its block. It also zeroes the
 //! counts, so they are zero between builds and no clear is recorded.
 
-use super::layout::GridParams;
+use super::layout::{GridParams, MAX_BLOCKS};
 use super::shaders::cell_scan::{self, BLOCK_SUMS, CELL_START, COUNTS, PARAMS};
 use crate::gpu::Gpu;
-
-/// Most blocks a table is cut into for the scan (each scan workgroup sums the blocks before it).
-/// More blocks mean more block sums to add up, fewer mean too few workgroups, each scanning more
-/// tiles in a row; 1024 measured best (docs/performance-log/2026-11-22-h200.md, the sweep of the
-/// most blocks).
-const MAX_BLOCKS: u32 = 1024;
-
-/// Smallest block: one tile of a scan workgroup (`TILE` in the shader).
-const MIN_BLOCK_SHIFT: u32 = 10;
-
-/// Log2 of the entries per block for a table of `cells` cells (`cells + 1` entries): the
-/// smallest block of at least one tile that cuts the table into at most [`MAX_BLOCKS`].
-pub(crate) fn block_shift(cells: u32) -> u32 {
-    let mut shift = MIN_BLOCK_SHIFT;
-    while (cells >> shift) + 1 > MAX_BLOCKS {
-        shift += 1;
-    }
-    shift
-}
-
-impl GridParams {
-    /// Blocks the scan cuts this layout's table into: the workgroups of each of its dispatches.
-    pub(crate) fn scan_blocks(&self) -> u32 {
-        (self.cells >> self.block_shift) + 1
-    }
-}
 
 /// The buffers of a cell table with room for `capacity` cells.
 pub(crate) struct CellTable {
@@ -148,6 +122,7 @@ pub(crate) struct CellScanBinds {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::engines::wgpu_compute::layout::{MIN_BLOCK_SHIFT, block_shift};
     use crate::gpu;
     use rand::{RngExt, SeedableRng};
 

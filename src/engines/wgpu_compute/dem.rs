@@ -57,13 +57,14 @@ use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::flow_step::DeviceFlow;
 use crate::engines::gpu_flow::{FlowQuery, FlowScan, Scan};
+use crate::engines::gpu_granular::shader::OMEGA;
 use crate::engines::gpu_readback::{BatchReadback, InFlight};
-use crate::engines::gpu_step::granular::OMEGA;
+use crate::engines::gpu_state::{InputOrder, ParamsUniform, Room, move_rows};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
 use crate::engines::gpu_step::{
-    BatchParts, DemModule, GROUP, Granular, InputOrder, KernelSet, MAX_BATCH, ParamsUniform,
-    RedoableBatch, Room, StateRows, StepTimer, Turn, advance_in_batches, max_spheres, move_rows,
-    particles_with, residual_rows, rows, run_batch,
+    BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, RedoableBatch, StateRows,
+    StepTimer, Turn, advance_in_batches, max_spheres, particles_with, residual_rows, rows,
+    run_batch,
 };
 use crate::engines::gpu_walls;
 use crate::error::{Error, Result};

@@ -2,7 +2,6 @@
 //! dense or hashed) and which cells a sphere set gets within a budget of table cells per sphere
 //! (docs/method.md, "Grids"). [`GridParams`] is its result and the shaders' uniform.
 
-use super::cell_table;
 use crate::gpu::shader::{Vec3f, Vec4u};
 use crate::proxy::ProxyMode;
 use crate::spheres::SphereSet;
@@ -69,14 +68,14 @@ pub(crate) struct GridParams {
     pub levels: u32,
     pub top_cell: f32,
     pub level_pad: f32,
-    /// Log2 of the table entries per block of the scan ([`cell_table::block_shift`]).
+    /// Log2 of the table entries per block of the scan ([`block_shift`]).
     pub block_shift: u32,
     /// Largest radius, padded by [`CELL_PADDING`] (the search windows' reach).
     pub max_radius: f32,
     /// Multi-level grids: 4 bits a level (level `k` at bits `4k..4k + 4`), how many times its
     /// cells are halved below its class's size ([`refine_levels`]).
     pub refine: u32,
-    /// The DEM step's skin ([`skin_of`](super::skin::skin_of)): how far a sphere may move
+    /// The DEM step's skin (set by `skin_of` of the step's skin module): how far a sphere may move
     /// before its grid is re-binned; 0 (detection, and the steps that re-bin every step).
     pub skin: f32,
     /// Dense tables: index of each level's first cell (level `k` at `[k / 4].0[k % 4]`).
@@ -343,7 +342,7 @@ pub(crate) fn choose_layout(limits: &wgpu::Limits, request: &LayoutRequest) -> G
     let params =
         multi.unwrap_or_else(|| grid_layout(limits, lo, hi, budget, base, request.dense_check));
     GridParams {
-        block_shift: cell_table::block_shift(params.cells),
+        block_shift: block_shift(params.cells),
         max_radius: (r_max * (1.0 + CELL_PADDING)) as f32,
         ..params
     }
@@ -555,6 +554,33 @@ pub(crate) fn describe_layout(p: &GridParams, build: BuildKind) -> String {
         "grid {table}, {levels}, top level {nx}×{ny}×{nz} cells of {:.4e} m",
         p.top_cell / (1u32 << halvings) as f32
     )
+}
+
+/// Most blocks the cell table is cut into for its scan (`wgsl/grid/cell_scan.wgsl`; each scan
+/// workgroup sums the blocks before it).
+/// More blocks mean more block sums to add up, fewer mean too few workgroups, each scanning more
+/// tiles in a row; 1024 measured best (docs/performance-log/2026-11-22-h200.md, the sweep of the
+/// most blocks).
+pub(crate) const MAX_BLOCKS: u32 = 1024;
+
+/// Smallest block: one tile of a scan workgroup (`TILE` in the shader).
+pub(crate) const MIN_BLOCK_SHIFT: u32 = 10;
+
+/// Log2 of the entries per block for a table of `cells` cells (`cells + 1` entries): the
+/// smallest block of at least one tile that cuts the table into at most [`MAX_BLOCKS`].
+pub(crate) fn block_shift(cells: u32) -> u32 {
+    let mut shift = MIN_BLOCK_SHIFT;
+    while (cells >> shift) + 1 > MAX_BLOCKS {
+        shift += 1;
+    }
+    shift
+}
+
+impl GridParams {
+    /// Blocks the scan cuts this layout's table into: the workgroups of each of its dispatches.
+    pub(crate) fn scan_blocks(&self) -> u32 {
+        (self.cells >> self.block_shift) + 1
+    }
 }
 
 #[cfg(test)]

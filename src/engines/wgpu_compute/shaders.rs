@@ -3,7 +3,8 @@
 //! `tests/bindings.rs`.
 
 use super::layout::{BuildKind, GridParams};
-use crate::engines::gpu_step::{self, Variant, granular, physics};
+use crate::engines::gpu_granular::shader as granular;
+use crate::engines::gpu_step::{self, Variant, physics};
 use crate::gpu::pair_output;
 use crate::gpu::shader::{Binding, SharedStruct, WgslModule, shared_struct, wgsl};
 
@@ -435,7 +436,7 @@ pub fn modules() -> Vec<WgslModule> {
                 &bindings,
             );
             dem.structs
-                .extend([gpu_step::law_params(), granular::pair_law()]);
+                .extend([gpu_step::law_params(), gpu_step::pair_law()]);
             all.push(dem);
             let bindings = [&dem_grid::bindings()[..], extra].concat();
             let mut dem = module(
@@ -445,7 +446,7 @@ pub fn modules() -> Vec<WgslModule> {
                 &bindings,
             );
             dem.structs
-                .extend([gpu_step::law_params(), granular::pair_law()]);
+                .extend([gpu_step::law_params(), gpu_step::pair_law()]);
             all.push(dem);
             for ((lane_suffix, lanes), (model, variant)) in gpu_step::Lanes::ALL
                 .into_iter()
@@ -460,7 +461,7 @@ pub fn modules() -> Vec<WgslModule> {
                 );
                 dem.structs.extend([
                     gpu_step::law_params(),
-                    granular::pair_law(),
+                    gpu_step::pair_law(),
                     crate::engines::gpu_walls::mesh_params(),
                     crate::engines::gpu_walls::mesh_wall_row(),
                 ]);

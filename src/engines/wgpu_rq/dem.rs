@@ -16,11 +16,12 @@ use super::shaders::dem_rq::{self, BOXES, COUNTERS, RQ_PARAMS, RqParams, TLAS};
 use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
+use crate::engines::gpu_state::{ParamsUniform, Room};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
 use crate::engines::gpu_step::{
-    BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, ParamsUniform, RedoableBatch,
-    Room, StateRows, StepTimer, Turn, advance_in_batches, max_spheres, particles_with,
-    residual_rows, rows, run_batch,
+    BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, RedoableBatch, StateRows,
+    StepTimer, Turn, advance_in_batches, max_spheres, particles_with, residual_rows, rows,
+    run_batch,
 };
 use crate::engines::gpu_walls;
 use crate::error::Result;

@@ -2,7 +2,8 @@
 //! uniform, named once for the bind-group code and checked against the WGSL by
 //! `tests/bindings.rs`.
 
-use crate::engines::gpu_step::{self, Variant, granular, physics};
+use crate::engines::gpu_granular::shader as granular;
+use crate::engines::gpu_step::{self, Variant, physics};
 use crate::gpu::pair_output;
 use crate::gpu::shader::{Binding, SharedStruct, Vec3f, WgslModule, shared_struct, wgsl};
 
@@ -238,7 +239,7 @@ pub fn modules() -> Vec<WgslModule> {
             structs: vec![
                 dem_rq::rq_params(),
                 gpu_step::law_params(),
-                granular::pair_law(),
+                gpu_step::pair_law(),
             ],
         });
         all.push(WgslModule {
@@ -249,7 +250,7 @@ pub fn modules() -> Vec<WgslModule> {
             structs: vec![
                 dem_rq::rq_params(),
                 gpu_step::law_params(),
-                granular::pair_law(),
+                gpu_step::pair_law(),
             ],
         });
         for (model, variant) in [("", Variant::Granular), ("_md", Variant::Loaded)] {
@@ -261,7 +262,7 @@ pub fn modules() -> Vec<WgslModule> {
                 structs: vec![
                     dem_rq::rq_params(),
                     gpu_step::law_params(),
-                    granular::pair_law(),
+                    gpu_step::pair_law(),
                     crate::engines::gpu_walls::mesh_params(),
                     crate::engines::gpu_walls::mesh_wall_row(),
                 ],
