@@ -18,8 +18,9 @@
 //!   the engines compose it, with a test kernel appended that calls the law on each case as the
 //!   step's kernels call it (`contact_with` and `finish` of `wgsl/dem/dem_granular.wgsl`,
 //!   `wall_contacts` of `wgsl/dem/dem_mesh_walls.wgsl`); and the paper's frictionless linear law of
-//!   `wgsl/dem/dem_physics.wgsl` (`contact_force`, `wall_force`) on the cases of one frictionless
-//!   linear material, which the Rust law computes with the same operations.
+//!   `wgsl/dem/dem_physics.wgsl` (`contact_force`, `wall_force`; one stiffness, or one per pair
+//!   with its `PER_PAIR` constant) on the cases of one frictionless linear material, which the
+//!   Rust law computes with the same operations.
 //!
 //! Values are compared bit for bit, ±0 equal. For the WGSL that takes two conditions. Its
 //! operations must run as written: Vulkan lets a driver fuse (a·b + c into one fused
@@ -1127,14 +1128,18 @@ impl SpirvDevice {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let specialised = module
-            .overrides
-            .iter()
-            .any(|(_, o)| o.name.as_deref() == Some("ONE_MATERIAL"));
-        let pipeline = |one_material: bool| {
+        let declares = |name: &str| {
+            let mut overrides = module.overrides.iter();
+            overrides.any(|(_, o)| o.name.as_deref() == Some(name))
+        };
+        let (one_material, per_pair) = (declares("ONE_MATERIAL"), declares("PER_PAIR"));
+        let pipeline = |(one_material, per_pair): (bool, bool)| {
             let mut constants = naga::back::PipelineConstants::default();
             if one_material {
                 constants.insert("ONE_MATERIAL".into(), 1.0);
+            }
+            if per_pair {
+                constants.insert("PER_PAIR".into(), 1.0);
             }
             let spirv = exact_spirv(&module, &constants, &bindings);
             let entry_point = wgpu::PassthroughShaderEntryPoint {
@@ -1159,7 +1164,7 @@ impl SpirvDevice {
                 cache: None,
             })
         };
-        let mut pipelines: [Option<wgpu::ComputePipeline>; 2] = [None, None];
+        let mut pipelines = std::collections::HashMap::new();
         let buffer = |contents: &[u8], usage| {
             let descriptor = wgpu::util::BufferInitDescriptor {
                 label,
@@ -1178,10 +1183,12 @@ impl SpirvDevice {
         let mut encoder = device.create_command_encoder(&Default::default());
         let mut at = 0;
         for ((p, group), blocks) in groups.iter().zip(blocks) {
-            // As DemModule::constants.
-            let one_material = specialised && p.materials.count == 1;
-            let pipeline =
-                pipelines[one_material as usize].get_or_insert_with(|| pipeline(one_material));
+            // As DemModule::open sets the constants.
+            let key = (
+                one_material && p.materials.count == 1,
+                per_pair && matches!(p.law, NormalLaw::LinearPerPair { .. }),
+            );
+            let pipeline = pipelines.entry(key).or_insert_with(|| pipeline(key));
             let input: Vec<f32> = group.iter().flat_map(|&k| words(&cases[k])).collect();
             let size = (group.len() * out * 4) as u64;
             let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
@@ -1380,8 +1387,8 @@ fn compare_wgsl<S: Twin>(gpu: &SpirvDevice, cases: &[Case<S>]) {
     d.assert_none(cases.len());
 }
 
-/// Runs the paper's law of the WGSL on `cases` (of one frictionless linear material) on `gpu`:
-/// its forces are the Rust law's.
+/// Runs the paper's law of the WGSL on `cases` (of one frictionless linear material, of one
+/// stiffness or one per pair) on `gpu`: its forces are the Rust law's.
 fn compare_paper(gpu: &SpirvDevice, cases: &[Case<Springs>]) {
     let source = format!("{PARAMS}{PAPER}{KERNEL_IO}{PAPER_KERNEL}");
     let words = |c: &Case<Springs>| [body_words(&c.i), body_words(&c.j)].concat();
@@ -1451,8 +1458,11 @@ fn the_papers_wgsl_law_computes_the_bits_of_the_rust_one() {
     };
     let paper: Vec<_> = one_material_cases()
         .into_iter()
-        .filter(|c| c.p.law == NormalLaw::Linear && !c.p.friction.turns())
+        .filter(|c| !c.p.friction.turns())
+        .filter(|c| matches!(c.p.law, NormalLaw::Linear | NormalLaw::LinearPerPair { .. }))
         .collect();
     assert_most_touch(&paper);
+    let per_pair = paper.iter().filter(|c| c.p.law != NormalLaw::Linear);
+    assert!(per_pair.count() >= 100, "cases of a stiffness per pair");
     compare_paper(&gpu, &paper);
 }

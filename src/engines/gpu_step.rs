@@ -27,10 +27,8 @@ pub(crate) mod physics {
 
     /// `wgsl/dem/dem_params.wgsl`: parameters, state bindings and gravity, for both variants.
     pub const PARAMS: &str = wgsl!("dem/dem_params.wgsl");
-    /// `wgsl/dem/dem_physics.wgsl`: the paper's law.
+    /// `wgsl/dem/dem_physics.wgsl`: the paper's law (one stiffness, or one per pair).
     pub const LINEAR: &str = wgsl!("dem/dem_physics.wgsl");
-    /// `wgsl/dem/dem_physics_per_pair.wgsl`: the paper's law with a stiffness per pair.
-    pub const PER_PAIR: &str = wgsl!("dem/dem_physics_per_pair.wgsl");
     /// `wgsl/dem/dem_integrate.wgsl`: the integration kernel of both.
     pub const INTEGRATE: &str = wgsl!("dem/dem_integrate.wgsl");
 
@@ -51,11 +49,6 @@ pub(crate) mod physics {
     /// The physics that ends the paper's step module, with the accumulators `atomics`.
     pub fn frictionless(atomics: Accumulators) -> String {
         format!("{PARAMS}{LINEAR}{INTEGRATE}{}", atomics.force)
-    }
-
-    /// The physics that ends the paper's step module run with a stiffness per pair.
-    pub fn per_pair(atomics: Accumulators) -> String {
-        format!("{PARAMS}{PER_PAIR}{INTEGRATE}{}", atomics.force)
     }
 
     /// The physics that ends the granular step module, with the accumulators `atomics`, under
@@ -91,8 +84,8 @@ pub(crate) enum Variant {
     /// The paper's law (`wgsl/dem/dem_physics.wgsl`): one stiffness, no friction, no rotation.
     Paper,
     /// The paper's kernels with the stiffness of each pair from its effective mass
-    /// (`wgsl/dem/dem_physics_per_pair.wgsl`): `stiffness = "per-pair"` without friction, rolling
-    /// resistance, spin, history or a second material.
+    /// (`wgsl/dem/dem_physics.wgsl` with `PER_PAIR`): `stiffness = "per-pair"` without friction,
+    /// rolling resistance, spin, history or a second material.
     PerPair,
     /// The granular step ([`Granular`]) with Mindlin's spring.
     Granular,
@@ -372,10 +365,12 @@ impl DemModule {
         let params_uniform = ParamsUniform::new(gpu, &format!("mochi.dem.{backend}.params"), law);
         let source = source(accumulators, lanes, variant);
         let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
-        // The granular step's contact law (wgsl/dem/dem_contact.wgsl) specialised for one material.
-        let constants: &[_] = match granular.is_some() && params.materials.count == 1 {
-            true => &[("ONE_MATERIAL", 1.0)],
-            false => &[],
+        // The paper's law (wgsl/dem/dem_physics.wgsl) with a stiffness per pair, or the granular
+        // step's (wgsl/dem/dem_contact.wgsl) specialised for one material.
+        let constants: &[_] = match variant {
+            Variant::PerPair => &[("PER_PAIR", 1.0)],
+            _ if granular.is_some() && params.materials.count == 1 => &[("ONE_MATERIAL", 1.0)],
+            _ => &[],
         };
         Ok(DemModule {
             atomics,

@@ -1,6 +1,5 @@
 // The integration kernel of the frictionless GPU steps: walls, gravity and one semi-implicit
-// Euler step. Follows the law's file (dem_physics.wgsl or dem_physics_per_pair.wgsl: its
-// wall_force) and needs a dem_force_*.wgsl (load_force, clear_force).
+// Euler step. Follows the law's file (dem_physics.wgsl: its wall_force) and needs a dem_force_*.wgsl (load_force, clear_force).
 
 // Walls, gravity and one semi-implicit Euler step, in place.
 @compute @workgroup_size(256)

@@ -36,7 +36,7 @@
 //! and pipelines, with angular velocities, torques and the contact history bound besides; the
 //! walls are resolved in the contact pass, where their history lives. The paper's scenes run
 //! the paper's kernels as before; a frictionless scene with a stiffness per pair runs them too,
-//! with `wgsl/dem/dem_physics_per_pair.wgsl`'s law (`Variant::PerPair`).
+//! with `wgsl/dem/dem_physics.wgsl`'s per-pair stiffness (`Variant::PerPair`).
 
 use super::cell_table::{CellScan, CellScanBinds, CellTable};
 use super::layout::{

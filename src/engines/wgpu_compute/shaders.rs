@@ -191,13 +191,6 @@ pub(crate) mod dem_grid {
         format!("{grid}{FRICTIONLESS}{}", physics::frictionless(atomics))
     }
 
-    /// The paper's step with a stiffness per pair, binned by `build`, with the accumulators
-    /// `atomics`.
-    pub fn per_pair_source(build: BuildKind, atomics: Accumulators) -> String {
-        let grid = grid(build);
-        format!("{grid}{FRICTIONLESS}{}", physics::per_pair(atomics))
-    }
-
     /// The granular step (`variant`: Mindlin's spring or Mindlin–Deresiewicz) binned by
     /// `build` with the accumulators `atomics`, its contacts shared among `lanes`.
     pub fn granular_source(
@@ -221,8 +214,7 @@ pub(crate) mod dem_grid {
         lanes: Lanes,
     ) -> String {
         match variant {
-            Variant::Paper => source(build, atomics),
-            Variant::PerPair => per_pair_source(build, atomics),
+            Variant::Paper | Variant::PerPair => source(build, atomics),
             Variant::Granular | Variant::Loaded => granular_source(build, atomics, lanes, variant),
         }
     }
@@ -432,16 +424,6 @@ pub fn modules() -> Vec<WgslModule> {
             let mut dem = module(
                 format!("dem_grid_{name}{suffix}"),
                 dem_grid::source(build, atomics),
-                entry_points,
-                &bindings,
-            );
-            dem.structs
-                .extend([gpu_step::law_params(), gpu_step::pair_law()]);
-            all.push(dem);
-            let bindings = [&dem_grid::bindings()[..], extra].concat();
-            let mut dem = module(
-                format!("dem_grid_per_pair_{name}{suffix}"),
-                dem_grid::per_pair_source(build, atomics),
                 entry_points,
                 &bindings,
             );

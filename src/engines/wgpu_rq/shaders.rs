@@ -136,11 +136,6 @@ pub(crate) mod dem_rq {
         format!("{FRICTIONLESS}{}{PROXY}", physics::frictionless(atomics))
     }
 
-    /// The paper's step with a stiffness per pair, with the accumulators `atomics`.
-    pub fn per_pair_source(atomics: Accumulators) -> String {
-        format!("{FRICTIONLESS}{}{PROXY}", physics::per_pair(atomics))
-    }
-
     /// The granular step (`variant`: Mindlin's spring or Mindlin–Deresiewicz) with the
     /// accumulators `atomics`.
     pub fn granular_source(atomics: Accumulators, variant: Variant) -> String {
@@ -151,8 +146,7 @@ pub(crate) mod dem_rq {
     /// The source of `variant` with the accumulators `atomics`.
     pub fn variant_source(variant: Variant, atomics: Accumulators) -> String {
         match variant {
-            Variant::Paper => source(atomics),
-            Variant::PerPair => per_pair_source(atomics),
+            Variant::Paper | Variant::PerPair => source(atomics),
             Variant::Granular | Variant::Loaded => granular_source(atomics, variant),
         }
     }
@@ -234,17 +228,6 @@ pub fn modules() -> Vec<WgslModule> {
         all.push(WgslModule {
             label: format!("dem_rq_{name}"),
             source: dem_rq::source(atomics),
-            entry_points: dem_rq::ENTRY_POINTS,
-            bindings: dem_rq::bindings(),
-            structs: vec![
-                dem_rq::rq_params(),
-                gpu_step::law_params(),
-                gpu_step::pair_law(),
-            ],
-        });
-        all.push(WgslModule {
-            label: format!("dem_rq_per_pair_{name}"),
-            source: dem_rq::per_pair_source(atomics),
             entry_points: dem_rq::ENTRY_POINTS,
             bindings: dem_rq::bindings(),
             structs: vec![
