@@ -3,7 +3,7 @@
 // without fused multiply-adds, and glam's Vec3 computes component by component: dot products
 // as (x·x + y·y) + z·z, cross products as glam writes them). Keep the two in sync. Needs
 // physics.cuh (LawParams, MochiPairLaw) prepended; keep MochiLaw in sync with DeviceLaw in
-// src/engines/optix/device.rs.
+// src/engines/optix/launches.rs.
 // The tangential model is chosen when the programs are compiled: Mindlin's spring, or with
 // MOCHI_LOAD_HISTORY defined the Mindlin–Deresiewicz law (contact.rs load_history), whose springs
 // carry the load history too (the units GranularLoaded and GranularKernelsLoaded of
@@ -23,7 +23,7 @@
 #define MOCHI_TSUJI 1.8257419f
 
 // The law as the granular programs and kernels read it: the step's parameters and the material
-// table (DeviceLaw in src/engines/optix/device.rs).
+// table (DeviceLaw in src/engines/optix/launches.rs).
 struct MochiLaw {
     LawParams dem;             // box, gravity, dt, the law and its models, the history's slots
     const MochiPairLaw* laws;  // the material table (MaterialTable::laws), row by row

@@ -3,7 +3,7 @@
 // in and resolves each kept contact at once: the partner's share of the force goes to it with
 // atomics, this sphere's share is summed in the payload and added once by the raygen program.
 // It never reports a hit, so traversal visits every such box. Needs device.cuh and physics.cuh
-// prepended. Keep DemLaunch in sync with src/engines/optix/device.rs.
+// prepended. Keep DemLaunch in sync with src/engines/optix/launches.rs.
 
 struct DemLaunch {
     float4* pos;                     // x, y, z, r (the state's order)

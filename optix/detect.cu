@@ -1,7 +1,7 @@
 // OptiX programs of collision detection: one point ray per sphere from its centre; the
 // intersection program sees every proxy box the point lies in, applies the proxy-sphere rule
 // and writes the kept pairs. It never reports a hit, so traversal visits every such box.
-// Needs device.cuh prepended. Keep DetectParams in sync with src/engines/optix/device.rs.
+// Needs device.cuh prepended. Keep DetectParams in sync with src/engines/optix/launches.rs.
 
 struct DetectParams {
     const float4* spheres;           // x, y, z, r in sorted order

@@ -6,7 +6,7 @@
 // updated ones to its own new slots (counted in the payload: no atomics), sums its own force
 // and torque in the payload and adds the partner's with atomics. Needs device.cuh, physics.cuh,
 // contact.cuh and history.cuh prepended. Keep GranularLaunch in sync with
-// src/engines/optix/device.rs.
+// src/engines/optix/launches.rs.
 
 struct GranularLaunch {
     const float4* pos;               // x, y, z, r (the state's order)

@@ -1,5 +1,5 @@
 // The DEM physics of the optix backend's step: parameters, contact and wall forces, gravity.
-// LawParams is checked against its Rust twin by the layout asserts of src/engines/optix/device.rs;
+// LawParams is checked against its Rust twin by the layout asserts of src/engines/optix/launches.rs;
 // the formulas follow src/dem/model/contact.rs, line for line.
 
 // The law of one ordered pair of materials (PairLaw in src/dem/model/materials.rs, 32 bytes,

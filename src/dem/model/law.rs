@@ -1,7 +1,7 @@
 //! The contact law as the GPU steps read it: one block of parameters, [`LawParams`], laid out
 //! once for every device copy of the law (`LawParams` in `wgsl/dem/dem_params.wgsl`, checked by
 //! `tests/bindings.rs`; in `optix/physics.cuh`, checked by the CUDA layout asserts of
-//! `src/engines/optix/device.rs`), and the law's code on the devices, [`LawCode`].
+//! `src/engines/optix/launches.rs`), and the law's code on the devices, [`LawCode`].
 
 use super::StepParams;
 use super::material::NormalLaw;

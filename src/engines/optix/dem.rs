@@ -18,11 +18,10 @@
 //! included. Refitting leaves the leaf boxes exact, so candidates per ray do not change with it;
 //! what decays is the traversal's cost, and that is what the policy watches.
 
-use super::device::{
-    AccelOp, COUNTER_SLOTS, DemBuffers, DemProgram, Device, Gas, Kernels, Order, State, cuda,
-};
+use super::device::{AccelOp, COUNTER_SLOTS, Device, Gas, Order, State, cuda};
 use super::engine::{MAX_COORDINATE, morton_order_of, open_device};
 use super::granular::{self, Granular};
+use super::launches::{DemBuffers, DemProgram, Kernels};
 use crate::dem::model::{LawParams, StepParams};
 use crate::dem::stepper::{Advance, StageTimes, Stepper, needs_granular_step};
 use crate::dem::walls::{WallLoad, WallSet};

@@ -1,9 +1,8 @@
 //! Detection on the optix engine: [`OptixBackend`] implements [`crate::Backend`].
 
-use super::device::{
-    AccelOp, COUNTER_SLOTS, DetectBuffers, DetectProgram, Device, Gas, Kernels, Order, cuda,
-};
+use super::device::{AccelOp, COUNTER_SLOTS, Device, Gas, Order, cuda};
 use super::engine::{MAX_COORDINATE, MAX_LAUNCH, describe, morton_order_of, open_device};
+use super::launches::{DetectBuffers, DetectProgram, Kernels};
 use crate::detect::BackendInfo;
 use crate::engines::gpu_detect::GpuBackend;
 use crate::error::{Error, OptixError, Result};

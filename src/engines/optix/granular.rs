@@ -19,9 +19,9 @@
 //! ([`WallTables`]), and sums the walls' loads in the last step of an advance.
 
 use super::device::{
-    Device, Gas, GranularBuffers, GranularIntegration, GranularKernels, GranularProgram,
-    HistorySlots, LawTable, MeshBuffers, Order, SlotsRead, State, cuda,
+    Device, Gas, HistorySlots, LawTable, MeshBuffers, Order, SlotsRead, State, cuda,
 };
+use super::launches::{GranularBuffers, GranularIntegration, GranularKernels, GranularProgram};
 use crate::dem::model::{LawParams, StepParams};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::gpu_walls::{WallTables, wall_loads};

@@ -11,10 +11,13 @@
 //! (coherent rays: faster than random order, docs/performance-log/).
 //!
 //! Layers, as cudarc's: `sys.rs` is the raw OptiX ABI (structs, constants, the function table by
-//! named slot, loaded once); `device.rs` the safe layer (owning types, one typed, length-checked
-//! launch per device program and CUDA kernel); `engine.rs` (the one probe and opened device,
-//! limits, Morton order), `detect.rs` (`impl Backend`) and `dem.rs` (`impl Stepper`) are safe
-//! code over it. Only `sys.rs` and `device.rs` may use `unsafe`, each block with its reason.
+//! named slot, loaded once); `device.rs` and `launches.rs` the safe layer (`device.rs` the owning
+//! types: device, pipelines, acceleration structure, state, history and tables; `launches.rs`
+//! one typed, length-checked launch per device program and CUDA kernel, with the launch
+//! parameters the device code reads); `engine.rs` (the one probe and opened device, limits,
+//! Morton order), `detect.rs` (`impl Backend`) and `dem.rs` (`impl Stepper`) are safe code over
+//! it. Only `sys.rs`, `device.rs` and `launches.rs` may use `unsafe`, each block with its
+//! reason.
 
 mod dem;
 mod detect;
@@ -23,6 +26,9 @@ mod detect;
 mod device;
 mod engine;
 mod granular;
+#[allow(unsafe_code)]
+#[deny(clippy::undocumented_unsafe_blocks)]
+mod launches;
 pub mod programs;
 #[allow(unsafe_code)]
 #[deny(clippy::undocumented_unsafe_blocks)]
@@ -30,5 +36,6 @@ mod sys;
 
 pub use dem::OptixStepper;
 pub use detect::OptixBackend;
-pub use device::{COUNTER_SLOTS, layout_checks};
+pub use device::COUNTER_SLOTS;
 pub use engine::{MAX_COORDINATE, auto_skip, probe};
+pub use launches::layout_checks;

@@ -3,7 +3,7 @@
 //! driver's `libnvoptix.so.1` hands out a table of function pointers; [`Api::get`] loads it once
 //! per process and [`Api`] holds the entries, typed, by their [`slot`] in the table. Every
 //! struct's size is checked at compile time against the ABI. Nothing here is safe to call on its
-//! own: `device.rs` is the safe layer over it.
+//! own: `device.rs` and `launches.rs` are the safe layer over it.
 
 #![allow(missing_docs)]
 
