@@ -120,7 +120,7 @@ const PROBE_RADIUS: f64 = 0.005;
 /// by `n` / 1,000,000 (the bunny at `n` = 1,000,000: radius 0.005 m, the paper's scene), under
 /// the paper's law (`linear`, frictionless, its stiffness derived for a 10-step contact) at the
 /// paper's time step [`DROP_DT`] (not the mesh scene's own 2.5e-5: the drop of the comparison
-/// with Taichi, 0.5 s in [`DROP_STEPS`] steps).
+/// with Taichi, 0.5 s in [`DROP_STEPS`](super::plan::DROP_STEPS) steps).
 pub fn mesh_drop_start(mesh: Option<&std::path::Path>, n: usize, seed: u64) -> Result<Start> {
     let config = |radius: f64, copies| SceneConfig {
         scene: SceneKind::Mesh,

@@ -14,11 +14,11 @@ use bytemuck::{Pod, Zeroable};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u32)]
 pub enum LawCode {
-    /// [`NormalLaw::Linear`](super::NormalLaw::Linear).
+    /// [`NormalLaw::Linear`].
     Linear = 0,
-    /// [`NormalLaw::LinearPerPair`](super::NormalLaw::LinearPerPair).
+    /// [`NormalLaw::LinearPerPair`].
     LinearPerPair = 1,
-    /// [`NormalLaw::Hertz`](super::NormalLaw::Hertz).
+    /// [`NormalLaw::Hertz`].
     Hertz = 2,
 }
 
