@@ -9,9 +9,11 @@ mod common;
 use mochi::dem::model::{ContactLaw, mass, stable_dt, stiffness_for_duration};
 use mochi::dem::{Clock, Material, Particles, StepParams, Stepper};
 use mochi::engines::BackendKind;
-use mochi::engines::KernelSet;
-use mochi::engines::wgpu_compute::{BuildKind, GridBuild, GridStepper, Sorting, Structure};
+use mochi::engines::wgpu_compute::{
+    BuildKind, GridBuild, GridStepOptions, GridStepper, Sorting, Structure,
+};
 use mochi::engines::wgpu_rq::RqStepper;
+use mochi::engines::{DemSetup, KernelSet};
 use mochi::engines::{Options, RebuildPolicy};
 use mochi::proxy::ProxyMode;
 
@@ -35,13 +37,12 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
             }
             BackendKind::WgpuCompute => {
                 for atomics in [KernelSet::Auto, KernelSet::Portable] {
-                    let s = GridStepper::with_kernels(
-                        particles.clone(),
-                        params.clone(),
-                        ProxyMode::Mochi,
-                        atomics,
-                    )
-                    .unwrap();
+                    let setup = DemSetup::new(particles.clone(), params.clone(), ProxyMode::Mochi);
+                    let options = GridStepOptions {
+                        kernels: atomics,
+                        ..GridStepOptions::default()
+                    };
+                    let s = GridStepper::open(setup, options).unwrap();
                     out.push((format!("wgpu-compute {atomics:?}"), Box::new(s)));
                 }
                 for (structure, grid_build, label) in [
@@ -77,13 +78,8 @@ fn steppers(particles: &Particles, params: StepParams) -> Vec<(String, Box<dyn S
             }
             BackendKind::WgpuRq => {
                 for atomics in [KernelSet::Auto, KernelSet::Portable] {
-                    let s = RqStepper::with_kernels(
-                        particles.clone(),
-                        params.clone(),
-                        ProxyMode::Mochi,
-                        atomics,
-                    )
-                    .unwrap();
+                    let setup = DemSetup::new(particles.clone(), params.clone(), ProxyMode::Mochi);
+                    let s = RqStepper::open(setup, atomics).unwrap();
                     out.push((format!("wgpu-rq {atomics:?}"), Box::new(s)));
                 }
             }
@@ -753,7 +749,13 @@ fn grid_stepper_with(
     kernels: KernelSet,
 ) -> Option<GridStepper> {
     common::dem_runs_here(BackendKind::WgpuCompute).then(|| {
-        GridStepper::with_options(start.clone(), p, ProxyMode::Mochi, kernels, grid_build).unwrap()
+        let setup = DemSetup::new(start.clone(), p, ProxyMode::Mochi);
+        let options = GridStepOptions {
+            kernels,
+            grid_build,
+            ..GridStepOptions::default()
+        };
+        GridStepper::open(setup, options).unwrap()
     })
 }
 

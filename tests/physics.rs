@@ -13,10 +13,9 @@ use common::on_every_backend;
 use mochi::dem::model::contact::moment_of_inertia;
 use mochi::dem::model::time_step::{hertz_contact_time, hertz_peak_overlap};
 use mochi::dem::model::{ContactLaw, Material, RollingModel, TangentialModel, mass};
-use mochi::dem::walls::WallSet;
 use mochi::dem::{Particles, StepParams, Stepper};
-use mochi::engines::wgpu_compute::{GridBuild, GridStepper};
-use mochi::engines::{BackendKind, KernelSet, Options, open_stepper};
+use mochi::engines::wgpu_compute::{GridBuild, GridStepOptions, GridStepper};
+use mochi::engines::{BackendKind, DemSetup, Options, open_stepper};
 use mochi::proxy::ProxyMode;
 
 const E: f64 = 1e7;
@@ -1005,16 +1004,12 @@ fn a_frictional_state_moves_between_the_cpu_and_the_gpus_with_its_history() {
 fn wgpu_compute_on_small_bindings(start: &Particles, p: StepParams) -> Option<GridStepper> {
     let what = "the wgpu-compute DEM step with its history split over bindings";
     let gpu = common::open_gpu_with_bindings_of(what, 8 << 10)?;
-    let atomics = KernelSet::Auto;
-    let stepper = GridStepper::on_gpu(
-        gpu,
-        start.clone(),
-        p,
-        ProxyMode::Mochi,
-        atomics,
-        GridBuild::Dense,
-        &WallSet::default(),
-    );
+    let setup = DemSetup::new(start.clone(), p, ProxyMode::Mochi);
+    let options = GridStepOptions {
+        grid_build: GridBuild::Dense,
+        ..GridStepOptions::default()
+    };
+    let stepper = GridStepper::open_on(gpu, setup, options);
     Some(stepper.expect("wgpu-compute opens on 8 KiB bindings"))
 }
 

@@ -17,10 +17,12 @@ mod open;
 #[cfg(feature = "optix")]
 pub mod optix;
 mod registry;
+mod setup;
 pub mod wgpu_compute;
 pub mod wgpu_rq;
 
 pub use gpu_step::KernelSet;
-pub use open::{open_choice, open_scene, open_stepper};
+pub use open::{open, open_choice, open_scene, open_setup, open_stepper};
 pub(crate) use registry::open_auto;
-pub use registry::{BackendChoice, BackendKind, Opened, Options, RebuildPolicy, open};
+pub use registry::{BackendChoice, BackendKind, Opened, Options, RebuildPolicy};
+pub use setup::DemSetup;

@@ -1,15 +1,214 @@
-//! Opening a backend's [`Stepper`]: the one place that knows every backend's DEM step.
+//! Opening a backend: its detection ([`BackendKind::open_with`], [`open`]) or its DEM step
+//! ([`open_stepper`], [`open_choice`], [`open_scene`]), each through the one opener of its
+//! engine ([`Engine`]): the one place that knows how every backend is opened.
 
 use super::flow_step::{DeviceFlow, FlowStep, Reopen};
-use super::registry::{BackendChoice, BackendKind, Options};
+use super::gpu_step::KernelSet;
+use super::registry::{BackendChoice, BackendKind, Opened, Options, open_auto};
+use super::setup::DemSetup;
+use super::{cpu, wgpu_compute, wgpu_rq};
+use crate::dem::flow::FlowSet;
 use crate::dem::model::StepParams;
 use crate::dem::scene::Start;
 use crate::dem::stepper::Stepper;
-use crate::dem::walls::WallSet;
+use crate::detect::Backend;
 use crate::error::{Error, Result};
 use crate::gpu::{Gpu, Need};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
+
+/// How one backend is opened: its detection, its DEM step, and its DEM step with spheres
+/// flowing in and out.
+trait Engine: Sync {
+    /// The backend's detection with `options`.
+    fn detector(&self, options: &Options) -> Result<Box<dyn Backend>>;
+
+    /// The backend's DEM step of `setup` with `options` (a GPU step with the kernels that
+    /// make the most of the adapter).
+    fn stepper(&self, setup: DemSetup, options: &Options) -> Result<Box<dyn Stepper>>;
+
+    /// How a flowing run opens this GPU step again over new spheres (each time with room for
+    /// those to come), on the device opened now; `setup`'s own spheres are not used.
+    fn reopener(&self, setup: DemSetup, options: &Options) -> Result<Reopen>;
+
+    /// The DEM step of `setup` with `options` and spheres flowing by `flow`: a GPU step,
+    /// wrapped in a [`FlowStep`] that opens it again at every flow event.
+    fn flowing(
+        &self,
+        setup: DemSetup,
+        options: &Options,
+        flow: FlowSet,
+    ) -> Result<Box<dyn Stepper>> {
+        let (dt, densities) = (setup.params.dt, setup.params.materials.densities.clone());
+        let (particles, rest) = setup.split();
+        let reopen = self.reopener(rest, options)?;
+        Ok(Box::new(FlowStep::new(
+            particles, flow, dt, densities, reopen,
+        )?))
+    }
+}
+
+/// The engine of backend `kind`: the one table of the backends' openers.
+fn engine(kind: BackendKind) -> Result<&'static dyn Engine> {
+    Ok(match kind {
+        BackendKind::Cpu => &CpuEngine,
+        BackendKind::WgpuCompute => &ComputeEngine,
+        BackendKind::WgpuRq => &RqEngine,
+        #[cfg(feature = "optix")]
+        BackendKind::Optix => &OptixEngine,
+        #[cfg(not(feature = "optix"))]
+        BackendKind::Optix => {
+            return Err(Error::BackendUnavailable {
+                backend: "optix",
+                reason: super::registry::NO_OPTIX_FEATURE.into(),
+            });
+        }
+    })
+}
+
+/// The settings of a `wgpu-compute` step of `options`, with the kernels that make the most of
+/// the adapter.
+fn grid_options(options: &Options) -> wgpu_compute::GridStepOptions {
+    wgpu_compute::GridStepOptions {
+        kernels: KernelSet::Auto,
+        grid_build: options.grid_build,
+        structure: options.structure,
+    }
+}
+
+/// The `cpu` backend, whose step runs its flows itself.
+struct CpuEngine;
+
+impl Engine for CpuEngine {
+    fn detector(&self, _: &Options) -> Result<Box<dyn Backend>> {
+        Ok(Box::new(cpu::CpuBackend::new()))
+    }
+
+    fn stepper(&self, setup: DemSetup, _: &Options) -> Result<Box<dyn Stepper>> {
+        Ok(Box::new(cpu::CpuStepper::open(setup)?))
+    }
+
+    fn reopener(&self, _: DemSetup, _: &Options) -> Result<Reopen> {
+        Err(Error::Usage(
+            "the cpu step runs its flows itself (CpuStepper::with_flow)".into(),
+        ))
+    }
+
+    fn flowing(&self, setup: DemSetup, _: &Options, flow: FlowSet) -> Result<Box<dyn Stepper>> {
+        let mode = setup.mode;
+        Ok(Box::new(
+            cpu::CpuStepper::open(setup)?.with_flow(flow, mode),
+        ))
+    }
+}
+
+/// The `wgpu-compute` backend (sorted grids).
+struct ComputeEngine;
+
+impl Engine for ComputeEngine {
+    fn detector(&self, options: &Options) -> Result<Box<dyn Backend>> {
+        Ok(Box::new(
+            wgpu_compute::WgpuComputeBackend::new()?
+                .with_structure(options.structure)
+                .with_grid_build(options.grid_build),
+        ))
+    }
+
+    fn stepper(&self, setup: DemSetup, options: &Options) -> Result<Box<dyn Stepper>> {
+        let options = grid_options(options);
+        Ok(Box::new(wgpu_compute::GridStepper::open(setup, options)?))
+    }
+
+    fn reopener(&self, setup: DemSetup, options: &Options) -> Result<Reopen> {
+        let (gpu, options) = (Gpu::open(Need::Compute)?, grid_options(options));
+        Ok(Box::new(move |particles, room| {
+            let setup = setup.over(particles);
+            let step = wgpu_compute::GridStepper::flowing_on(gpu.clone(), setup, room, options)?;
+            Ok(Box::new(step) as Box<dyn DeviceFlow>)
+        }))
+    }
+}
+
+/// The `wgpu-rq` backend (ray queries).
+struct RqEngine;
+
+impl Engine for RqEngine {
+    fn detector(&self, _: &Options) -> Result<Box<dyn Backend>> {
+        Ok(Box::new(wgpu_rq::WgpuRqBackend::new()?))
+    }
+
+    fn stepper(&self, setup: DemSetup, _: &Options) -> Result<Box<dyn Stepper>> {
+        Ok(Box::new(wgpu_rq::RqStepper::open(setup, KernelSet::Auto)?))
+    }
+
+    fn reopener(&self, setup: DemSetup, _: &Options) -> Result<Reopen> {
+        let gpu = Gpu::open(Need::RayQuery)?;
+        Ok(Box::new(move |particles, _room| {
+            let setup = setup.over(particles);
+            let step = wgpu_rq::RqStepper::open_on(gpu.clone(), setup, KernelSet::Auto)?;
+            Ok(Box::new(step) as Box<dyn DeviceFlow>)
+        }))
+    }
+}
+
+/// The `optix` backend (cargo feature `optix`).
+#[cfg(feature = "optix")]
+struct OptixEngine;
+
+#[cfg(feature = "optix")]
+impl Engine for OptixEngine {
+    fn detector(&self, _: &Options) -> Result<Box<dyn Backend>> {
+        Ok(Box::new(super::optix::OptixBackend::new()?))
+    }
+
+    fn stepper(&self, setup: DemSetup, options: &Options) -> Result<Box<dyn Stepper>> {
+        let step = super::optix::OptixStepper::open(setup, options.rebuild)?;
+        Ok(Box::new(step))
+    }
+
+    fn reopener(&self, setup: DemSetup, options: &Options) -> Result<Reopen> {
+        let rebuild = options.rebuild;
+        Ok(Box::new(move |particles, _room| {
+            let setup = setup.over(particles);
+            let step = super::optix::OptixStepper::open(setup, rebuild)?;
+            Ok(Box::new(step) as Box<dyn DeviceFlow>)
+        }))
+    }
+}
+
+impl BackendKind {
+    /// Opens the backend's detection with default options, or says why it cannot run here.
+    pub fn open(self) -> Result<Box<dyn Backend>> {
+        self.open_with(&Options::default())
+    }
+
+    /// Opens the backend's detection with `options`, or says why it cannot run here.
+    pub fn open_with(self, options: &Options) -> Result<Box<dyn Backend>> {
+        self.probe().map_err(|reason| Error::BackendUnavailable {
+            backend: self.name(),
+            reason,
+        })?;
+        engine(self)?.detector(options)
+    }
+}
+
+/// Opens the detection the user chose; `auto` tries each backend in order of preference.
+pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
+    let Some(kind) = choice.kind() else {
+        let open = |kind: BackendKind| kind.open_with(options).map(|backend| (kind, backend));
+        let ((kind, backend), reason) = open_auto(&BackendKind::ALL, open)?;
+        return Ok(Opened {
+            backend,
+            kind,
+            reason: Some(reason),
+        });
+    };
+    Ok(Opened {
+        backend: kind.open_with(options)?,
+        kind,
+        reason: None,
+    })
+}
 
 /// Opens the DEM step of backend `kind` over `particles` in the box.
 pub fn open_stepper(
@@ -19,54 +218,17 @@ pub fn open_stepper(
     mode: ProxyMode,
     options: &Options,
 ) -> Result<Box<dyn Stepper>> {
-    open_walled(kind, particles, params, mode, options, WallSet::default())
+    open_setup(kind, DemSetup::new(particles, params, mode), options)
 }
 
-/// Opens the DEM step of backend `kind` over `particles` inside `walls`.
-fn open_walled(
+/// Opens the DEM step of backend `kind` of `setup` with `options`, its spheres validated.
+pub fn open_setup(
     kind: BackendKind,
-    particles: Particles,
-    params: StepParams,
-    mode: ProxyMode,
+    setup: DemSetup,
     options: &Options,
-    walls: WallSet,
 ) -> Result<Box<dyn Stepper>> {
-    particles.validate()?;
-    let kernels = super::gpu_step::KernelSet::Auto;
-    Ok(match kind {
-        BackendKind::Cpu => {
-            Box::new(super::cpu::CpuStepper::new(particles, params, mode)?.with_walls(walls)?)
-        }
-        BackendKind::WgpuCompute => Box::new(
-            super::wgpu_compute::GridStepper::with_walls(
-                particles,
-                params,
-                mode,
-                kernels,
-                options.grid_build,
-                &walls,
-            )?
-            .with_structure(options.structure),
-        ),
-        BackendKind::WgpuRq => Box::new(super::wgpu_rq::RqStepper::with_walls(
-            particles, params, mode, kernels, &walls,
-        )?),
-        #[cfg(feature = "optix")]
-        BackendKind::Optix => Box::new(super::optix::OptixStepper::new(
-            particles,
-            params,
-            mode,
-            options.rebuild,
-            &walls,
-        )?),
-        #[cfg(not(feature = "optix"))]
-        BackendKind::Optix => {
-            return Err(crate::error::Error::BackendUnavailable {
-                backend: "optix",
-                reason: super::registry::NO_OPTIX_FEATURE.into(),
-            });
-        }
-    })
+    setup.particles.validate()?;
+    engine(kind)?.stepper(setup, options)
 }
 
 /// Opens the DEM step the user chose, and names the backend it runs on; `auto` follows the
@@ -79,42 +241,28 @@ pub fn open_choice(
     mode: ProxyMode,
     options: &Options,
 ) -> Result<(Box<dyn Stepper>, BackendKind, Option<String>)> {
-    choose_walled(choice, particles, params, mode, options, WallSet::default())
+    choose(choice, DemSetup::new(particles, params, mode), options)
 }
 
-/// [`open_choice`] inside `walls`.
-fn choose_walled(
+/// [`open_choice`] of `setup`.
+fn choose(
     choice: BackendChoice,
-    particles: Particles,
-    params: StepParams,
-    mode: ProxyMode,
+    setup: DemSetup,
     options: &Options,
-    walls: WallSet,
 ) -> Result<(Box<dyn Stepper>, BackendKind, Option<String>)> {
     if let Some(kind) = choice.kind() {
-        let stepper = open_walled(kind, particles, params, mode, options, walls)?;
-        return Ok((stepper, kind, None));
+        return Ok((open_setup(kind, setup, options)?, kind, None));
     }
-    let ((stepper, kind), reason) = super::registry::open_auto(&BackendKind::ALL, |kind| {
-        let walls = walls.clone();
-        Ok((
-            open_walled(
-                kind,
-                particles.clone(),
-                params.clone(),
-                mode,
-                options,
-                walls,
-            )?,
-            kind,
-        ))
+    let ((stepper, kind), reason) = open_auto(&BackendKind::ALL, |kind| {
+        Ok((open_setup(kind, setup.clone(), options)?, kind))
     })?;
     Ok((stepper, kind, Some(reason)))
 }
 
 /// Opens the DEM step the user chose for the scene `start` (`auto`: in the order of
 /// [`BackendKind::FLOWING`] where spheres flow). The box walls, mesh walls and a box switched
-/// off run on every backend; spheres flowing in and out on every backend, the GPU ones through `FlowStep` (`engines/flow_step.rs`).
+/// off run on every backend; spheres flowing in and out on every backend, the GPU ones through
+/// `FlowStep` (`engines/flow_step.rs`).
 pub fn open_scene(
     choice: BackendChoice,
     start: Start,
@@ -127,98 +275,19 @@ pub fn open_scene(
         walls,
         flow,
     } = start;
+    let setup = DemSetup::new(particles, params, mode).with_walls(walls);
     if flow.is_empty() {
-        return choose_walled(choice, particles, params, mode, options, walls);
+        return choose(choice, setup, options);
     }
     let open = |kind: BackendKind| -> Result<Box<dyn Stepper>> {
-        particles.validate()?;
-        if kind == BackendKind::Cpu {
-            let stepper = super::cpu::CpuStepper::new(particles.clone(), params.clone(), mode)?
-                .with_walls(walls.clone())?
-                .with_flow(flow.clone(), mode);
-            return Ok(Box::new(stepper));
-        }
-        let reopen = reopener(kind, params.clone(), mode, options, walls.clone())?;
-        let step = FlowStep::new(
-            particles.clone(),
-            flow.clone(),
-            params.dt,
-            params.materials.densities.clone(),
-            reopen,
-        )?;
-        Ok(Box::new(step))
+        setup.particles.validate()?;
+        engine(kind)?.flowing(setup.clone(), options, flow.clone())
     };
     if let Some(kind) = choice.kind() {
         return Ok((open(kind)?, kind, None));
     }
     let ((stepper, kind), reason) =
-        super::registry::open_auto(&BackendKind::FLOWING, |kind| Ok((open(kind)?, kind)))?;
+        open_auto(&BackendKind::FLOWING, |kind| Ok((open(kind)?, kind)))?;
     let why = "wgpu-compute first where spheres flow: its flow events stay on the device";
     Ok((stepper, kind, Some(format!("{reason} ({why})"))))
-}
-
-/// How [`FlowStep`] opens GPU backend `kind`'s step again over new spheres: on the device
-/// opened now, inside `walls`.
-fn reopener(
-    kind: BackendKind,
-    params: StepParams,
-    mode: ProxyMode,
-    options: &Options,
-    walls: WallSet,
-) -> Result<Reopen> {
-    let kernels = super::gpu_step::KernelSet::Auto;
-    Ok(match kind {
-        BackendKind::Cpu => {
-            return Err(Error::Usage(
-                "the cpu step runs its flows itself (CpuStepper::with_flow)".into(),
-            ));
-        }
-        BackendKind::WgpuCompute => {
-            let gpu = Gpu::open(Need::Compute)?;
-            let (build, structure) = (options.grid_build, options.structure);
-            Box::new(move |parts, room| {
-                let step = super::wgpu_compute::GridStepper::flowing_on(
-                    gpu.clone(),
-                    parts,
-                    room,
-                    params.clone(),
-                    mode,
-                    kernels,
-                    build,
-                    &walls,
-                )?;
-                Ok(Box::new(step.with_structure(structure)) as Box<dyn DeviceFlow>)
-            })
-        }
-        BackendKind::WgpuRq => {
-            let gpu = Gpu::open(Need::RayQuery)?;
-            Box::new(move |parts, _room| {
-                let step = super::wgpu_rq::RqStepper::on_gpu(
-                    gpu.clone(),
-                    parts,
-                    params.clone(),
-                    mode,
-                    kernels,
-                    &walls,
-                )?;
-                Ok(Box::new(step) as Box<dyn DeviceFlow>)
-            })
-        }
-        #[cfg(feature = "optix")]
-        BackendKind::Optix => {
-            let rebuild = options.rebuild;
-            Box::new(move |parts, _room| {
-                let step =
-                    super::optix::OptixStepper::new(parts, params.clone(), mode, rebuild, &walls)?;
-                Ok(Box::new(step) as Box<dyn DeviceFlow>)
-            })
-        }
-        #[cfg(not(feature = "optix"))]
-        BackendKind::Optix => {
-            return Err(Error::BackendUnavailable {
-                backend: "optix",
-                reason: super::registry::NO_OPTIX_FEATURE.into(),
-            });
-        }
-    })
 }

@@ -1,9 +1,9 @@
-//! The registry: which backends this build knows, which can run on this machine, the one `auto`
-//! rule, and opening a backend's detection ([`open`]) or DEM step ([`super::open_stepper`]).
+//! The registry: which backends this build knows, which can run on this machine and the one
+//! `auto` rule (opening them is `open.rs`'s).
 
 #[cfg(feature = "optix")]
 use super::optix;
-use super::{cpu, wgpu_compute, wgpu_rq};
+use super::wgpu_compute;
 use crate::detect::Backend;
 use crate::error::{Error, Result};
 use crate::gpu::{self, Need};
@@ -91,37 +91,6 @@ impl BackendKind {
             )),
             _ => None,
         }
-    }
-
-    /// Opens the backend with default options, or says why it cannot run here.
-    pub fn open(self) -> Result<Box<dyn Backend>> {
-        self.open_with(&Options::default())
-    }
-
-    /// Opens the backend with `options`, or says why it cannot run here.
-    pub fn open_with(self, options: &Options) -> Result<Box<dyn Backend>> {
-        self.probe().map_err(|reason| Error::BackendUnavailable {
-            backend: self.name(),
-            reason,
-        })?;
-        Ok(match self {
-            #[cfg(feature = "optix")]
-            BackendKind::Optix => Box::new(optix::OptixBackend::new()?),
-            #[cfg(not(feature = "optix"))]
-            BackendKind::Optix => {
-                return Err(Error::BackendUnavailable {
-                    backend: "optix",
-                    reason: NO_OPTIX_FEATURE.into(),
-                });
-            }
-            BackendKind::WgpuRq => Box::new(wgpu_rq::WgpuRqBackend::new()?),
-            BackendKind::WgpuCompute => Box::new(
-                wgpu_compute::WgpuComputeBackend::new()?
-                    .with_structure(options.structure)
-                    .with_grid_build(options.grid_build),
-            ),
-            BackendKind::Cpu => Box::new(cpu::CpuBackend::new()),
-        })
     }
 }
 
@@ -281,24 +250,6 @@ impl std::fmt::Display for BackendChoice {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
     }
-}
-
-/// Opens the backend the user chose; `auto` tries each in order of preference.
-pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
-    let Some(kind) = choice.kind() else {
-        let open = |kind: BackendKind| kind.open_with(options).map(|backend| (kind, backend));
-        let ((kind, backend), reason) = open_auto(&BackendKind::ALL, open)?;
-        return Ok(Opened {
-            backend,
-            kind,
-            reason: Some(reason),
-        });
-    };
-    Ok(Opened {
-        backend: kind.open_with(options)?,
-        kind,
-        reason: None,
-    })
 }
 
 /// The one `auto` rule of detection, simulation and rendering: the first of `candidates` (not

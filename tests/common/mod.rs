@@ -149,7 +149,7 @@ pub fn open_dem(
 
 /// `kind`'s stepper over `particles` in proxy mode mochi with default options, as [`open_dem`]
 /// opens it, but the wgpu engines' on one device per engine for the whole test binary (their
-/// `on_gpu`, the path a reopened step takes): every stepper after the first reuses the modules
+/// `open_on`, the path a reopened step takes): every stepper after the first reuses the modules
 /// and pipelines compiled on it, where a fresh device compiles them again (over a second for
 /// wgpu-compute's granular step on lavapipe). For tests that open a stepper per case.
 pub fn open_dem_shared(
@@ -157,10 +157,9 @@ pub fn open_dem_shared(
     particles: &Particles,
     params: StepParams,
 ) -> Box<dyn Stepper> {
-    use mochi::dem::walls::WallSet;
-    use mochi::engines::KernelSet;
-    use mochi::engines::wgpu_compute::GridStepper;
+    use mochi::engines::wgpu_compute::{GridStepOptions, GridStepper};
     use mochi::engines::wgpu_rq::RqStepper;
+    use mochi::engines::{DemSetup, KernelSet};
     use std::sync::OnceLock;
     static COMPUTE: OnceLock<Gpu> = OnceLock::new();
     static RAY_QUERY: OnceLock<Gpu> = OnceLock::new();
@@ -168,28 +167,19 @@ pub fn open_dem_shared(
         cell.get_or_init(|| Gpu::open(need).expect("a probed adapter opens"))
             .clone()
     };
-    let (p, options) = (particles.clone(), Options::default());
+    let setup = DemSetup::new(particles.clone(), params, ProxyMode::Mochi);
     let opened: mochi::Result<Box<dyn Stepper>> = match kind {
-        BackendKind::WgpuCompute => GridStepper::on_gpu(
+        BackendKind::WgpuCompute => GridStepper::open_on(
             shared(&COMPUTE, Need::Compute),
-            p,
-            params,
-            ProxyMode::Mochi,
-            KernelSet::Auto,
-            options.grid_build,
-            &WallSet::default(),
-        )
-        .map(|s| Box::new(s.with_structure(options.structure)) as Box<dyn Stepper>),
-        BackendKind::WgpuRq => RqStepper::on_gpu(
-            shared(&RAY_QUERY, Need::RayQuery),
-            p,
-            params,
-            ProxyMode::Mochi,
-            KernelSet::Auto,
-            &WallSet::default(),
+            setup,
+            GridStepOptions::default(),
         )
         .map(|s| Box::new(s) as Box<dyn Stepper>),
-        _ => return open_dem(kind, particles, params, &options),
+        BackendKind::WgpuRq => {
+            RqStepper::open_on(shared(&RAY_QUERY, Need::RayQuery), setup, KernelSet::Auto)
+                .map(|s| Box::new(s) as Box<dyn Stepper>)
+        }
+        _ => return open_dem(kind, particles, setup.params, &Options::default()),
     };
     opened.unwrap_or_else(|e| panic!("{} runs here but does not open: {e}", kind.name()))
 }

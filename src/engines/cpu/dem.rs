@@ -16,6 +16,7 @@ use crate::dem::model::contact::{
 use crate::dem::model::{StepParams, integrate};
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
+use crate::engines::setup::DemSetup;
 use crate::error::{Error, Result, try_resize, try_vec};
 use crate::particles::{FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadedEntry, Particles, Slot};
 use crate::proxy::ProxyMode;
@@ -79,8 +80,19 @@ pub struct CpuStepper {
 }
 
 impl CpuStepper {
-    /// A stepper over `particles` (validated by the caller).
-    pub fn new(mut particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
+    /// The step of `setup` (its spheres validated by the caller).
+    pub fn open(setup: DemSetup) -> Result<Self> {
+        let DemSetup {
+            particles,
+            params,
+            mode,
+            walls,
+        } = setup;
+        Self::new(particles, params, mode)?.with_walls(walls)
+    }
+
+    /// A stepper over `particles` in the box (validated by the caller).
+    fn new(mut particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
         particles.separate_coincident()?;
         let (_, r_max) = particles.radius_range();
         let cell_size = mode.cell_size(r_max);
@@ -177,7 +189,7 @@ impl CpuStepper {
     }
 
     /// This stepper with `walls` instead of the box alone.
-    pub fn with_walls(mut self, walls: WallSet) -> Result<Self> {
+    fn with_walls(mut self, walls: WallSet) -> Result<Self> {
         let n = self.particles.len();
         if !walls.meshes.is_empty()
             && self.params.friction.has_history()

@@ -22,13 +22,14 @@ use super::device::{AccelOp, COUNTER_SLOTS, Device, Gas, Order, State, cuda};
 use super::engine::{MAX_COORDINATE, morton_order_of, open_device};
 use super::granular::{self, Granular};
 use super::launches::{DemBuffers, DemProgram, Kernels};
-use crate::dem::model::{LawParams, StepParams};
+use crate::dem::model::LawParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper, needs_granular_step};
-use crate::dem::walls::{WallLoad, WallSet};
+use crate::dem::walls::WallLoad;
 use crate::engines::RebuildPolicy;
 use crate::engines::gpu_step::{
     StateRows, advance_in_batches, particles_from, residual_rows, rows,
 };
+use crate::engines::setup::DemSetup;
 use crate::error::{Error, OptixError, Result};
 use crate::particles::Particles;
 use crate::proxy::BOX_PADDING;
@@ -101,13 +102,14 @@ pub struct OptixStepper {
 impl OptixStepper {
     /// Uploads `particles` to GPU 0 (in Morton order) and builds the acceleration structure,
     /// for a step inside `walls`.
-    pub fn new(
-        mut particles: Particles,
-        params: StepParams,
-        mode: ProxyMode,
-        policy: RebuildPolicy,
-        walls: &WallSet,
-    ) -> Result<Self> {
+    pub fn open(setup: DemSetup, policy: RebuildPolicy) -> Result<Self> {
+        let DemSetup {
+            mut particles,
+            params,
+            mode,
+            walls,
+        } = setup;
+        let walls = &walls;
         particles.separate_coincident()?;
         let device = open_device()?;
         let kernels = Kernels::load(&device)?;

@@ -54,7 +54,7 @@ use crate::dem::flow::NewSphere;
 use crate::dem::model::StepParams;
 use crate::dem::stepper::Clock;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
-use crate::dem::walls::{WallLoad, WallSet};
+use crate::dem::walls::WallLoad;
 use crate::engines::flow_step::DeviceFlow;
 use crate::engines::gpu_flow::{FlowQuery, FlowScan, Scan};
 use crate::engines::gpu_granular::shader::OMEGA;
@@ -67,6 +67,7 @@ use crate::engines::gpu_step::{
     run_batch,
 };
 use crate::engines::gpu_walls;
+use crate::engines::setup::DemSetup;
 use crate::error::{Error, Result};
 use crate::gpu::radix_sort::{PreparedSort, RadixSort};
 use crate::gpu::shader::Binding;
@@ -340,126 +341,78 @@ pub struct GridStepper {
     skin_off_until: u64,
 }
 
-impl GridStepper {
-    /// Uploads `particles` to the best adapter with compute shaders.
-    pub fn new(particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
-        Self::with_kernels(particles, params, mode, KernelSet::Auto)
-    }
-
-    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable`: those any adapter
-    /// runs).
-    pub fn with_kernels(
-        particles: Particles,
-        params: StepParams,
-        mode: ProxyMode,
-        kernels: KernelSet,
-    ) -> Result<Self> {
-        Self::with_options(particles, params, mode, kernels, GridBuild::Auto)
-    }
-
-    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable`: those any adapter
-    /// runs) and how the grid is built (`GridBuild::Auto` decides from the spheres' bounds now,
+/// How a `wgpu-compute` DEM step is opened besides its [`DemSetup`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GridStepOptions {
+    /// Which kernels the step runs (`KernelSet::Portable`: those any adapter runs).
+    pub kernels: KernelSet,
+    /// How the grid is built (`GridBuild::Auto` decides from the spheres' bounds at the start,
     /// for the whole run).
-    pub fn with_options(
-        particles: Particles,
-        params: StepParams,
-        mode: ProxyMode,
-        kernels: KernelSet,
-        grid_build: GridBuild,
-    ) -> Result<Self> {
-        Self::with_walls(
-            particles,
-            params,
-            mode,
-            kernels,
-            grid_build,
-            &WallSet::default(),
-        )
+    pub grid_build: GridBuild,
+    /// The grid's structure.
+    pub structure: Structure,
+}
+
+impl Default for GridStepOptions {
+    /// The kernels that make the most of the adapter, the build and the structure `auto`.
+    fn default() -> Self {
+        GridStepOptions {
+            kernels: KernelSet::Auto,
+            grid_build: GridBuild::Auto,
+            structure: Structure::Auto,
+        }
+    }
+}
+
+impl GridStepper {
+    /// The step of `setup` with `options` on the best adapter with compute shaders.
+    pub fn open(setup: DemSetup, options: GridStepOptions) -> Result<Self> {
+        let room = Room::of(&setup.particles);
+        Self::opening(setup, options, room, || Gpu::open(Need::Compute))
     }
 
-    /// As [`with_options`](Self::with_options), inside `walls`.
-    pub fn with_walls(
-        particles: Particles,
-        params: StepParams,
-        mode: ProxyMode,
-        kernels: KernelSet,
-        grid_build: GridBuild,
-        walls: &WallSet,
-    ) -> Result<Self> {
-        let room = Room::of(&particles);
-        Self::opening(
-            particles,
-            params,
-            mode,
-            kernels,
-            grid_build,
-            walls,
-            room,
-            || Gpu::open(Need::Compute),
-        )
-    }
-
-    /// As [`with_walls`](Self::with_walls), on `gpu` (a test's device with lowered limits, say
+    /// The step of `setup` with `options` on `gpu` (a test's device with lowered limits, say
     /// the largest storage binding, to run the paths of large runs at small sizes).
-    #[allow(clippy::too_many_arguments)]
-    pub fn on_gpu(
-        gpu: Gpu,
-        particles: Particles,
-        params: StepParams,
-        mode: ProxyMode,
-        kernels: KernelSet,
-        grid_build: GridBuild,
-        walls: &WallSet,
-    ) -> Result<Self> {
-        let room = Room::of(&particles);
-        Self::opening(
-            particles,
-            params,
-            mode,
-            kernels,
-            grid_build,
-            walls,
-            room,
-            || Ok(gpu),
-        )
+    pub fn open_on(gpu: Gpu, setup: DemSetup, options: GridStepOptions) -> Result<Self> {
+        let room = Room::of(&setup.particles);
+        Self::opening(setup, options, room, || Ok(gpu))
     }
 
-    /// As [`on_gpu`](Self::on_gpu), with `room` for spheres flowing in, which are appended on
+    /// As [`open_on`](Self::open_on), with `room` for spheres flowing in, which are appended on
     /// the device ([`DeviceFlow::append`]): a flowing run's step, opened again on the device of
     /// the last (whose compiled pipelines it reuses).
-    #[allow(clippy::too_many_arguments)]
     pub(crate) fn flowing_on(
         gpu: Gpu,
-        particles: Particles,
+        setup: DemSetup,
         room: Room,
-        params: StepParams,
-        mode: ProxyMode,
-        kernels: KernelSet,
-        grid_build: GridBuild,
-        walls: &WallSet,
+        options: GridStepOptions,
     ) -> Result<Self> {
-        let open = || Ok(gpu);
-        let mut step = Self::opening(
-            particles, params, mode, kernels, grid_build, walls, room, open,
-        )?;
+        let mut step = Self::opening(setup, options, room, || Ok(gpu))?;
         // Compiled now, not in the first flow event.
         step.flow_scan = Some(FlowScan::new(&step.gpu));
         Ok(step)
     }
 
-    /// The stepper with `room` (at least the particles') on the device `open` gives once the
-    /// particles are checked.
-    #[allow(clippy::too_many_arguments)]
+    /// The stepper of `setup` with `options` and `room` (at least the particles') on the
+    /// device `open` gives once the particles are checked.
     fn opening(
-        mut particles: Particles,
-        params: StepParams,
-        mode: ProxyMode,
-        kernels: KernelSet,
-        grid_build: GridBuild,
-        walls: &WallSet,
+        setup: DemSetup,
+        options: GridStepOptions,
         room: Room,
         open: impl FnOnce() -> Result<Gpu>,
     ) -> Result<Self> {
+        let DemSetup {
+            mut particles,
+            params,
+            mode,
+            walls,
+        } = setup;
+        let GridStepOptions {
+            kernels,
+            grid_build,
+            structure,
+        } = options;
+        let walls = &walls;
         particles.separate_coincident()?;
         let room = room.holding(&particles);
         let (r_min, r_max) = room.radii;
@@ -624,7 +577,7 @@ impl GridStepper {
                 gpu: gpu.clone(),
             }
         })?;
-        let mut stepper = stepper;
+        let mut stepper = stepper.with_structure(structure);
         stepper.upload(&particles)?;
         Ok(stepper)
     }

@@ -36,7 +36,7 @@ pub(crate) mod layout;
 mod shaders;
 mod skin;
 
-pub use dem::{GridStepper, Sorting};
+pub use dem::{GridStepOptions, GridStepper, Sorting};
 pub use detect::WgpuComputeBackend;
 pub use layout::{
     AUTO_MLGRID_RATIO, AUTO_SORTED_CELLS_PER_SPHERE, AUTO_SORTED_MIN_CELLS, BuildKind,

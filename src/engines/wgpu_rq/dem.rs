@@ -13,9 +13,8 @@
 
 use super::accel::Accel;
 use super::shaders::dem_rq::{self, BOXES, COUNTERS, RQ_PARAMS, RqParams, TLAS};
-use crate::dem::model::StepParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
-use crate::dem::walls::{WallLoad, WallSet};
+use crate::dem::walls::WallLoad;
 use crate::engines::gpu_state::{ParamsUniform, Room};
 use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
 use crate::engines::gpu_step::{
@@ -24,11 +23,11 @@ use crate::engines::gpu_step::{
     run_batch,
 };
 use crate::engines::gpu_walls;
+use crate::engines::setup::DemSetup;
 use crate::error::Result;
 use crate::gpu::{self, Gpu, Need};
 use crate::particles::Particles;
 use crate::proxy::BOX_PADDING;
-use crate::proxy::ProxyMode;
 
 /// Labels of the mesh walls' kernels' dispatches and bind groups, in the order of
 /// `gpu_walls::ENTRY_POINTS`.
@@ -87,50 +86,21 @@ pub struct RqStepper {
 }
 
 impl RqStepper {
-    /// Uploads `particles` to the best adapter with ray queries.
-    pub fn new(particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
-        Self::with_kernels(particles, params, mode, KernelSet::Auto)
+    /// The step of `setup` running `kernels` on the best adapter with ray queries.
+    pub fn open(setup: DemSetup, kernels: KernelSet) -> Result<Self> {
+        Self::open_on(Gpu::open(Need::RayQuery)?, setup, kernels)
     }
 
-    /// As [`new`](Self::new), choosing the kernels (`KernelSet::Portable`: those any adapter
-    /// runs).
-    pub fn with_kernels(
-        particles: Particles,
-        params: StepParams,
-        mode: ProxyMode,
-        kernels: KernelSet,
-    ) -> Result<Self> {
-        Self::with_walls(particles, params, mode, kernels, &WallSet::default())
-    }
-
-    /// As [`with_kernels`](Self::with_kernels), inside `walls`.
-    pub fn with_walls(
-        particles: Particles,
-        params: StepParams,
-        mode: ProxyMode,
-        kernels: KernelSet,
-        walls: &WallSet,
-    ) -> Result<Self> {
-        Self::on_gpu(
-            Gpu::open(Need::RayQuery)?,
-            particles,
+    /// The step of `setup` running `kernels` on `gpu` (opened with ray queries): a step
+    /// reopened on the device of the last, whose compiled pipelines it reuses.
+    pub fn open_on(gpu: Gpu, setup: DemSetup, kernels: KernelSet) -> Result<Self> {
+        let DemSetup {
+            mut particles,
             params,
             mode,
-            kernels,
             walls,
-        )
-    }
-
-    /// As [`with_walls`](Self::with_walls), on `gpu` (opened with ray queries): a step
-    /// reopened on the device of the last, whose compiled pipelines it reuses.
-    pub fn on_gpu(
-        gpu: Gpu,
-        mut particles: Particles,
-        params: StepParams,
-        mode: ProxyMode,
-        kernels: KernelSet,
-        walls: &WallSet,
-    ) -> Result<Self> {
+        } = setup;
+        let walls = &walls;
         particles.separate_coincident()?;
         let limit = max_spheres(&gpu).min(
             gpu.limits.max_blas_primitive_count as u64 * gpu.limits.max_tlas_instance_count as u64,
