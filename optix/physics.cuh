@@ -1,6 +1,6 @@
 // The DEM physics of the optix backend's step: parameters, contact and wall forces, gravity.
-// LawParams is checked against its Rust twin by the layout asserts of src/engines/optix/launches.rs;
-// the formulas follow src/dem/model/contact.rs, line for line.
+// LawParams is checked against its Rust twin by the layout asserts of
+// src/engines/optix/launches.rs; the formulas follow src/dem/model/contact.rs, line for line.
 
 // The law of one ordered pair of materials (PairLaw in src/dem/model/materials.rs, 32 bytes,
 // uploaded as it is; 16-byte aligned on the device, where the table starts 256-byte aligned).

@@ -8,8 +8,8 @@ use crate::gpu::Gpu;
 use crate::particles::{FIRST_MESH_WALL, Particles};
 use rayon::prelude::*;
 
-/// A step's [`LawParams`] on the GPU (the uniform `dem` of `wgsl/dem/dem_params.wgsl`) and the value it holds: every
-/// change writes the whole value, so no part of it can be stale.
+/// A step's [`LawParams`] on the GPU (the uniform `dem` of `wgsl/dem/dem_params.wgsl`) and the
+/// value it holds: every change writes the whole value, so no part of it can be stale.
 pub(crate) struct ParamsUniform {
     params: LawParams,
     buffer: wgpu::Buffer,

@@ -152,8 +152,8 @@ pub(crate) fn law_params() -> SharedStruct {
     )
 }
 
-/// [`PairLaw`](crate::dem::model::PairLaw), a row of the material table (`material_laws` of `wgsl/dem/dem_contact.wgsl`) and `LawParams::sphere_law`, as a
-/// [`SharedStruct`].
+/// [`PairLaw`](crate::dem::model::PairLaw), a row of the material table (`material_laws` of
+/// `wgsl/dem/dem_contact.wgsl`) and `LawParams::sphere_law`, as a [`SharedStruct`].
 pub(crate) fn pair_law() -> SharedStruct {
     use crate::dem::model::PairLaw;
     shared_struct!(
@@ -327,9 +327,11 @@ pub(crate) struct DemModule {
 
 impl DemModule {
     /// Refuses room for more than `limit` spheres ([`Error::TooLarge`], naming `backend` and
-    /// the adapter) and spheres of materials the table lacks, picks the accumulators and the variant, opens its state (the granular one
-    /// for an engine with `sets` state sets of room for `capacity` spheres, at least the
-    /// particles', see [`Granular::new`]) and compiles `source(accumulators, lanes, variant)`.
+    /// the adapter) and spheres of materials the table lacks, picks the accumulators and the
+    /// variant, opens its state (the granular one for an engine with `sets` state sets of room
+    /// for `capacity` spheres, at least the particles', see [`Granular::new`]) and the step's
+    /// parameters ([`LawParams`], with the history's layout), and compiles
+    /// `source(accumulators, lanes, variant)` with the variant's constants.
     #[allow(clippy::too_many_arguments)]
     pub fn open(
         gpu: &Gpu,

@@ -173,8 +173,7 @@ pub struct Opened {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(try_from = "String", into = "String")]
 pub enum BackendChoice {
-    /// The fastest backend that can run here (the registry's one `auto` rule, as [`open`]
-    /// applies it).
+    /// The fastest backend that can run here (the registry's one `auto` rule).
     #[default]
     Auto,
     /// This backend.

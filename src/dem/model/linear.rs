@@ -1,8 +1,8 @@
 //! The paper's contact law's numbers: the stiffness that gives a contact its duration and the
 //! largest stable time step of a linear spring–dashpot. The law itself (a linear normal force
 //! between spheres and with the six walls of a box, no friction, no rotation: the granular law
-//! with `NormalLaw::Linear` and no friction) is the one of the contact module, which the GPU engines
-//! follow line by line.
+//! with `NormalLaw::Linear` and no friction) is the one of the contact module, which the GPU
+//! engines follow line by line.
 
 use std::f64::consts::PI;
 

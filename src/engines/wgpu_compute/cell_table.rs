@@ -1,5 +1,5 @@
-//! The cell table of the sorted grids and the scan that fills it (`wgsl/grid/cell_scan.wgsl`), shared
-//! by the detection build and the DEM step.
+//! The cell table of the sorted grids and the scan that fills it (`wgsl/grid/cell_scan.wgsl`),
+//! shared by the detection build and the DEM step.
 //!
 //! A counting sort by cell runs: count (every sphere's rank in its cell), scan, scatter. The scan
 //! takes two dispatches whatever the table's size: one sums each block of the table, the next
