@@ -70,11 +70,12 @@ fn drain(orifice: f64, spheres: usize, plan: &Plan) -> mochi::Result<Drain> {
     let start = SceneConfig::load(None, &overrides)?.build()?;
     let (dt, density) = (start.params.dt as f64, start.params.density);
     let cylinder = 2.5 * orifice;
-    let (mut stepper, _, _) = open_scene(
+    let mut stepper = open_scene(
         BackendChoice::Named(BackendKind::Cpu),
         start,
         &Options::default(),
-    )?;
+    )?
+    .value;
     let mut samples = Vec::new();
     let mut bulk = None;
     let mut t = 0.0;

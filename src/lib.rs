@@ -23,9 +23,10 @@
 //! - [`bench`](mod@bench): the paper's experiments on every backend (`mochi bench`): tables, JSON, plots.
 //! - [`render`]: pictures of spheres, ray traced on the GPU (ray queries or our own BVH) or the
 //!   CPU, with a colour legend, as PNG frames or an animated GIF.
+//! - [`prelude`]: what most programs use, in one import.
 //!
 //! ```
-//! use mochi::{SphereSet, ProxyMode, engines::BackendKind};
+//! use mochi::prelude::*;
 //! let spheres = SphereSet::new(vec![[0.0; 3], [1.5, 0.0, 0.0], [9.0, 0.0, 0.0]], vec![1.0, 0.5, 1.0])?;
 //! let mut cpu = BackendKind::Cpu.open()?;
 //! cpu.build(&spheres, ProxyMode::Mochi)?;
@@ -63,3 +64,14 @@ pub use spheres::{
     MAX_MAGNITUDE, MAX_SPACING_PER_RADIUS, MAX_SPHERES, MIN_RADIUS, SphereSet, coarse_coordinates,
 };
 pub use types::{DetectStats, Pair};
+
+/// What most programs use, in one import (`use mochi::prelude::*;`): spheres and detection,
+/// opening a backend's detection or DEM step, scenes, and stepping them.
+pub mod prelude {
+    pub use crate::dem::scene::{SceneConfig, Start};
+    pub use crate::dem::{Advance, Material, Particles, StepParams, Stepper};
+    pub use crate::engines::{
+        BackendChoice, BackendKind, DemSetup, Opened, Options, open, open_scene, open_setup,
+    };
+    pub use crate::{Backend, Error, Pair, ProxyMode, Result, SphereSet};
+}

@@ -19,7 +19,7 @@ use crate::dem::model::StepParams;
 use crate::dem::scene::{SceneConfig, SceneFlags, Start};
 use crate::dem::stepper::Stepper;
 use crate::dem::walls::WallSet;
-use crate::engines::{BackendChoice, BackendKind, Options, open_scene};
+use crate::engines::{BackendChoice, BackendKind, Opened, Options, open_scene};
 use crate::error::{Error, Result};
 use crate::io::{self, Frame};
 use crate::particles::Particles;
@@ -202,7 +202,11 @@ impl RunStart {
         let params = self.start.params.clone();
         let walls = self.start.walls.clone();
         let flow = self.start.flow.clone();
-        let (stepper, backend, auto_reason) = open_scene(choice, self.start, options)?;
+        let Opened {
+            value: stepper,
+            kind: backend,
+            reason: auto_reason,
+        } = open_scene(choice, self.start, options)?;
         let every = flow.every(backend != BackendKind::Cpu);
         let flow_warning = flow.rate_warning(params.dt as f64, every);
         Ok(Run {

@@ -55,7 +55,7 @@ fn try_stepper(
         flow,
     };
     let choice = BackendChoice::Named(kind);
-    Ok(open_scene(choice, start, &Options::default())?.0)
+    Ok(open_scene(choice, start, &Options::default())?.value)
 }
 
 fn stepper(
@@ -444,8 +444,8 @@ fn auto_prefers_wgpu_compute_where_spheres_flow() {
             ..FlowSet::default()
         },
     };
-    let (_, kind, reason) = open_scene(BackendChoice::Auto, start, &Options::default()).unwrap();
-    let reason = reason.unwrap();
+    let opened = open_scene(BackendChoice::Auto, start, &Options::default()).unwrap();
+    let (kind, reason) = (opened.kind, opened.reason.unwrap());
     assert!(reason.contains("where spheres flow"), "{reason}");
     // Where wgpu-compute runs (and is no software adapter), auto takes it before optix and
     // wgpu-rq; else it says why it passed over it.

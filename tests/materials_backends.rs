@@ -99,7 +99,7 @@ fn pile() -> Particles {
 fn open(kind: BackendKind, start: Start) -> Box<dyn Stepper> {
     open_scene(BackendChoice::Named(kind), start, &Options::default())
         .unwrap_or_else(|e| panic!("{} opens: {e}", kind.name()))
-        .0
+        .value
 }
 
 /// The largest difference of any component between `a` and `b`.

@@ -286,7 +286,11 @@ fn stepper_in(
         flow: FlowSet::default(),
     };
     let choice = BackendChoice::Named(backend);
-    Some(open_scene(choice, start, &Options::default()).unwrap().0)
+    Some(
+        open_scene(choice, start, &Options::default())
+            .unwrap()
+            .value,
+    )
 }
 
 /// A material with friction `mu` and rolling resistance `mu_r` of `model` under `contact`.

@@ -96,7 +96,7 @@ fn stepper(
     let opened = open_scene(choice, start(particles, p, walls), &Options::default());
     opened
         .unwrap_or_else(|e| panic!("{} opens: {e}", kind.name()))
-        .0
+        .value
 }
 
 fn walls_of(configs: &[(WallConfig, &Mesh)], box_walls: bool, friction: f64) -> WallSet {
@@ -566,13 +566,15 @@ fn every_backend_runs_mesh_walls_with_and_without_the_box() {
     for kind in common::dem_backends() {
         let _named = common::Naming(kind);
         for box_walls in [false, true] {
-            let (mut s, named, _) = open(BackendChoice::Named(kind), box_walls).unwrap();
+            let opened = open(BackendChoice::Named(kind), box_walls).unwrap();
+            let (mut s, named) = (opened.value, opened.kind);
             assert_eq!(named, kind);
             s.advance(10).unwrap();
             assert_eq!(s.wall_loads().len(), 1);
         }
     }
-    let (s, kind, reason) = open(BackendChoice::Auto, false).unwrap();
-    assert!(s.describe().contains("1 mesh wall") || kind != BackendKind::Cpu);
-    assert!(reason.unwrap().contains(kind.name()));
+    let opened = open(BackendChoice::Auto, false).unwrap();
+    let kind = opened.kind;
+    assert!(opened.value.describe().contains("1 mesh wall") || kind != BackendKind::Cpu);
+    assert!(opened.reason.unwrap().contains(kind.name()));
 }

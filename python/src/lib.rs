@@ -500,7 +500,7 @@ impl Detector {
         let opened = py
             .detach(|| open(choice, &Options::default()))
             .map_err(to_py_err)?;
-        Ok(Detector::around(opened.backend, mode))
+        Ok(Detector::around(opened.value, mode))
     }
 
     fn backend_mut(&mut self) -> &mut Box<dyn Backend> {

@@ -68,7 +68,7 @@ fn detect(args: DetectArgs) -> Result<()> {
     if let Some(warning) = flags.warning(args.backend, opened.kind) {
         eprintln!("warning: {warning}");
     }
-    let mut backend = opened.backend;
+    let mut backend = opened.value;
     let info = backend.info();
     if spheres.len() as u64 > info.max_spheres {
         anyhow::bail!(

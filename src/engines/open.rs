@@ -193,20 +193,29 @@ impl BackendKind {
 }
 
 /// Opens the detection the user chose; `auto` tries each backend in order of preference.
-pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened> {
-    let Some(kind) = choice.kind() else {
-        let open = |kind: BackendKind| kind.open_with(options).map(|backend| (kind, backend));
-        let ((kind, backend), reason) = open_auto(&BackendKind::ALL, open)?;
+pub fn open(choice: BackendChoice, options: &Options) -> Result<Opened<Box<dyn Backend>>> {
+    choosing(choice, &BackendKind::ALL, |kind| kind.open_with(options))
+}
+
+/// What `open` opens of the backend the user chose; for `auto`, of the first of `candidates`
+/// the registry's one rule takes, saying why.
+fn choosing<T>(
+    choice: BackendChoice,
+    candidates: &[BackendKind],
+    mut open: impl FnMut(BackendKind) -> Result<T>,
+) -> Result<Opened<T>> {
+    if let Some(kind) = choice.kind() {
         return Ok(Opened {
-            backend,
+            value: open(kind)?,
             kind,
-            reason: Some(reason),
+            reason: None,
         });
-    };
+    }
+    let ((value, kind), reason) = open_auto(candidates, |kind| Ok((open(kind)?, kind)))?;
     Ok(Opened {
-        backend: kind.open_with(options)?,
+        value,
         kind,
-        reason: None,
+        reason: Some(reason),
     })
 }
 
@@ -240,7 +249,7 @@ pub fn open_choice(
     params: StepParams,
     mode: ProxyMode,
     options: &Options,
-) -> Result<(Box<dyn Stepper>, BackendKind, Option<String>)> {
+) -> Result<Opened<Box<dyn Stepper>>> {
     choose(choice, DemSetup::new(particles, params, mode), options)
 }
 
@@ -249,14 +258,10 @@ fn choose(
     choice: BackendChoice,
     setup: DemSetup,
     options: &Options,
-) -> Result<(Box<dyn Stepper>, BackendKind, Option<String>)> {
-    if let Some(kind) = choice.kind() {
-        return Ok((open_setup(kind, setup, options)?, kind, None));
-    }
-    let ((stepper, kind), reason) = open_auto(&BackendKind::ALL, |kind| {
-        Ok((open_setup(kind, setup.clone(), options)?, kind))
-    })?;
-    Ok((stepper, kind, Some(reason)))
+) -> Result<Opened<Box<dyn Stepper>>> {
+    choosing(choice, &BackendKind::ALL, |kind| {
+        open_setup(kind, setup.clone(), options)
+    })
 }
 
 /// Opens the DEM step the user chose for the scene `start` (`auto`: in the order of
@@ -267,7 +272,7 @@ pub fn open_scene(
     choice: BackendChoice,
     start: Start,
     options: &Options,
-) -> Result<(Box<dyn Stepper>, BackendKind, Option<String>)> {
+) -> Result<Opened<Box<dyn Stepper>>> {
     let Start {
         particles,
         params,
@@ -283,11 +288,8 @@ pub fn open_scene(
         setup.particles.validate()?;
         engine(kind)?.flowing(setup.clone(), options, flow.clone())
     };
-    if let Some(kind) = choice.kind() {
-        return Ok((open(kind)?, kind, None));
-    }
-    let ((stepper, kind), reason) =
-        open_auto(&BackendKind::FLOWING, |kind| Ok((open(kind)?, kind)))?;
+    let mut opened = choosing(choice, &BackendKind::FLOWING, open)?;
     let why = "wgpu-compute first where spheres flow: its flow events stay on the device";
-    Ok((stepper, kind, Some(format!("{reason} ({why})"))))
+    opened.reason = opened.reason.map(|reason| format!("{reason} ({why})"));
+    Ok(opened)
 }

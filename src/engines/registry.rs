@@ -4,7 +4,6 @@
 #[cfg(feature = "optix")]
 use super::optix;
 use super::wgpu_compute;
-use crate::detect::Backend;
 use crate::error::{Error, Result};
 use crate::gpu::{self, Need};
 
@@ -158,10 +157,12 @@ impl std::fmt::Display for RebuildPolicy {
     }
 }
 
-/// An opened backend and, for `auto`, why it was picked.
-pub struct Opened {
-    /// The backend, ready for [`Backend::build`].
-    pub backend: Box<dyn Backend>,
+/// What was opened for the user's choice of backend (its detection, `Box<dyn Backend>`, ready
+/// for [`Backend::build`](crate::Backend::build), or its DEM step, `Box<dyn Stepper>`), which backend it is and, for
+/// `auto`, why it was picked.
+pub struct Opened<T> {
+    /// The detection or the DEM step.
+    pub value: T,
     /// Which backend it is.
     pub kind: BackendKind,
     /// For `auto`: one line naming the pick and why the faster ones were skipped.
