@@ -126,49 +126,14 @@ pub(crate) const MAX_BATCH: u32 = 200;
 
 /// [`LawParams`] as a [`SharedStruct`] (`LawParams` in `wgsl/dem/dem_params.wgsl`).
 pub(crate) fn law_params() -> SharedStruct {
-    shared_struct!(
-        "LawParams",
-        LawParams {
-            box_lo,
-            n,
-            box_hi,
-            row,
-            gravity,
-            dt,
-            stiffness,
-            damping_ratio,
-            gravity_spin,
-            law,
-            rolling_model,
-            turns,
-            slots,
-            spheres_per_part,
-            columns,
-            box_column,
-            _pad0,
-            _pad1,
-            sphere_law,
-        }
-    )
+    crate::dem::model::law::law_params_fields!(shared_struct)
 }
 
 /// [`PairLaw`](crate::dem::model::PairLaw), a row of the material table (`material_laws` of
 /// `wgsl/dem/dem_contact.wgsl`) and `LawParams::sphere_law`, as a [`SharedStruct`].
 pub(crate) fn pair_law() -> SharedStruct {
     use crate::dem::model::PairLaw;
-    shared_struct!(
-        "PairLaw",
-        PairLaw {
-            rate,
-            e_star,
-            g_star,
-            damping_ratio,
-            sliding,
-            rolling,
-            _pad0,
-            _pad1,
-        }
-    )
+    crate::dem::model::materials::pair_law_fields!(shared_struct, "PairLaw")
 }
 
 /// The WGSL of one kind of force and torque accumulators.

@@ -85,6 +85,39 @@ pub struct LawParams {
 }
 const _: () = assert!(size_of::<LawParams>() == 128, "the device copies' size");
 
+/// `$check!("LawParams", LawParams { every field })`: the one list of [`LawParams`]' fields,
+/// which the WGSL layout check (`shared_struct!`, whose pattern fails to compile for a field
+/// it does not list) and the CUDA one (`cuda_layout!`) both take.
+macro_rules! law_params_fields {
+    ($check:ident) => {
+        $check!(
+            "LawParams",
+            LawParams {
+                box_lo,
+                n,
+                box_hi,
+                row,
+                gravity,
+                dt,
+                stiffness,
+                damping_ratio,
+                gravity_spin,
+                law,
+                rolling_model,
+                turns,
+                slots,
+                spheres_per_part,
+                columns,
+                box_column,
+                _pad0,
+                _pad1,
+                sphere_law,
+            }
+        )
+    };
+}
+pub(crate) use law_params_fields;
+
 impl LawParams {
     /// The parameters of a step with `p` over `n` spheres, dispatched in rows of `row`
     /// invocations, its contacts keeping no history (see [`with_history`](Self::with_history)).

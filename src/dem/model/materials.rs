@@ -416,6 +416,27 @@ impl MaterialTable {
     }
 }
 
+/// `$check!("PairLaw", PairLaw { every field })`: the one list of [`PairLaw`]'s fields, which
+/// the WGSL layout check and the CUDA one (`MochiPairLaw`) both take.
+macro_rules! pair_law_fields {
+    ($check:ident, $cuda:literal) => {
+        $check!(
+            $cuda,
+            PairLaw {
+                rate,
+                e_star,
+                g_star,
+                damping_ratio,
+                sliding,
+                rolling,
+                _pad0,
+                _pad1,
+            }
+        )
+    };
+}
+pub(crate) use pair_law_fields;
+
 impl crate::gpu::shader::FirstWord for PairLaw {
     fn first_word(&self) -> u32 {
         self.rate.to_bits()

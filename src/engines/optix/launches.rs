@@ -534,48 +534,8 @@ macro_rules! cuda_layout {
 /// field offsets of its Rust twin: compiled after the unit (`programs::compile_with_checks`),
 /// they need NVRTC but no GPU.
 pub fn layout_checks(unit: Unit) -> String {
-    let pair_law = || {
-        cuda_layout!(
-            "MochiPairLaw",
-            PairLaw {
-                rate,
-                e_star,
-                g_star,
-                damping_ratio,
-                sliding,
-                rolling,
-                _pad0,
-                _pad1
-            }
-        )
-    };
-    let law_params = || {
-        pair_law()
-            + &cuda_layout!(
-                "LawParams",
-                LawParams {
-                    box_lo,
-                    n,
-                    box_hi,
-                    row,
-                    gravity,
-                    dt,
-                    stiffness,
-                    damping_ratio,
-                    gravity_spin,
-                    law,
-                    rolling_model,
-                    turns,
-                    slots,
-                    spheres_per_part,
-                    columns,
-                    box_column,
-                    _pad0,
-                    _pad1,
-                    sphere_law
-                }
-            )
-    };
+    let pair_law = || crate::dem::model::materials::pair_law_fields!(cuda_layout, "MochiPairLaw");
+    let law_params = || pair_law() + &crate::dem::model::law::law_params_fields!(cuda_layout);
     let device_law = || law_params() + &cuda_layout!("MochiLaw", DeviceLaw { dem, laws });
     let entry = || {
         cuda_layout!(
