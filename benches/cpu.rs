@@ -64,21 +64,21 @@ fn bench(c: &mut Criterion) {
             .measurement_time(Duration::from_secs(4));
         for mode in [ProxyMode::Mochi, ProxyMode::Nns] {
             let mut cpu = CpuBackend::new();
-            cpu.build(&spheres, mode).unwrap();
+            cpu.build(spheres.view(), mode).unwrap();
             group.bench_function(format!("{}/build+find_pairs", mode.name()), |b| {
                 b.iter(|| {
-                    cpu.build(&spheres, mode).unwrap();
+                    cpu.build(spheres.view(), mode).unwrap();
                     black_box(cpu.find_pairs().unwrap())
                 })
             });
             group.bench_function(format!("{}/build", mode.name()), |b| {
-                b.iter(|| cpu.build(&spheres, mode).unwrap())
+                b.iter(|| cpu.build(spheres.view(), mode).unwrap())
             });
             let mut next = 0;
             group.bench_function(format!("{}/update", mode.name()), |b| {
                 b.iter(|| {
                     next = 1 - next;
-                    cpu.update(&states[next]).unwrap()
+                    cpu.update(states[next].view()).unwrap()
                 })
             });
             group.bench_function(format!("{}/find_pairs", mode.name()), |b| {

@@ -27,7 +27,7 @@ fn scene(scene: Scene, n: usize, layout: Layout) -> SphereSet {
 /// One build and one counting detection; GPU time where measured, else host time.
 fn step(backend: &mut dyn Backend, spheres: &SphereSet, mode: ProxyMode) -> Duration {
     let t = Instant::now();
-    backend.build(spheres, mode).expect("build");
+    backend.build(spheres.view(), mode).expect("build");
     backend.count_pairs().expect("detect");
     let host = t.elapsed();
     let gpu = backend.gpu_times();

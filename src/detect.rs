@@ -12,7 +12,7 @@
 
 use crate::error::Result;
 use crate::proxy::ProxyMode;
-use crate::spheres::SphereSet;
+use crate::spheres::Spheres;
 use crate::types::{DetectStats, GpuTimes, Pair};
 
 /// What a backend is and what it can take.
@@ -34,12 +34,29 @@ pub trait Backend: Send {
     /// Name, device and limits.
     fn info(&self) -> BackendInfo;
 
-    /// Builds the acceleration structure over `spheres` in `mode`.
-    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()>;
+    /// Builds the acceleration structure over `spheres` in `mode`, having copied them into the
+    /// backend's own memory. Errors are reported here; a GPU backend may return while the
+    /// device still works on the build (the next detection waits for it, and a caller timing
+    /// the build alone calls [`finish`](Backend::finish)).
+    fn build(&mut self, spheres: Spheres<'_>, mode: ProxyMode) -> Result<()>;
+
+    /// Waits until the device has finished the work submitted so far (a build): what a caller
+    /// timing a build calls. A backend that works synchronously has nothing to wait for.
+    fn finish(&mut self) -> Result<()> {
+        Ok(())
+    }
 
     /// Brings the structure up to date after the spheres moved (same count and radii): a refit
     /// where the backend can, else a rebuild.
-    fn update(&mut self, spheres: &SphereSet) -> Result<()>;
+    fn update(&mut self, spheres: Spheres<'_>) -> Result<()>;
+
+    /// Whether [`move_centers`](Backend::move_centers) takes centres straight (never answers
+    /// `Ok(false)`): the backend keeps its own copy of the spheres, and a caller that only
+    /// moves them need not keep a [`SphereSet`](crate::SphereSet) for
+    /// [`update`](Backend::update).
+    fn takes_centers(&self) -> bool {
+        false
+    }
 
     /// Moves the built spheres to `centers` (as many as were built, radii unchanged) and brings
     /// the structure up to date, where this backend takes centres from the caller's memory

@@ -7,7 +7,8 @@
 //! colliding pair exactly once. Only the smaller sphere of a pair has to find it, so boxes follow
 //! each sphere's own size instead of the largest radius.
 //!
-//! - [`SphereSet`]: validated centres and radii (`f32`); [`Pair`]: `(i, j)` with `i < j`.
+//! - [`SphereSet`]: validated centres and radii (`f32`); [`Spheres`]: the same checked where
+//!   they lie (what a backend builds over); [`Pair`]: `(i, j)` with `i < j`.
 //! - [`proxy`]: the rule, the one definition every backend mirrors; [`ProxyMode`] selects the
 //!   paper's proxies (`mochi`) or the older fixed-radius boxes (`nns`).
 //! - [`Backend`]: the detection trait; [`engines`]: one engine per backend (detection and DEM
@@ -29,7 +30,7 @@
 //! use mochi::prelude::*;
 //! let spheres = SphereSet::new(vec![[0.0; 3], [1.5, 0.0, 0.0], [9.0, 0.0, 0.0]], vec![1.0, 0.5, 1.0])?;
 //! let mut cpu = BackendKind::Cpu.open()?;
-//! cpu.build(&spheres, ProxyMode::Mochi)?;
+//! cpu.build(spheres.view(), ProxyMode::Mochi)?;
 //! let (pairs, _stats) = cpu.find_pairs()?;
 //! assert_eq!(pairs, vec![mochi::Pair::new(0, 1)]);
 //! # Ok::<(), mochi::Error>(())
@@ -61,7 +62,8 @@ pub use error::OptixError;
 pub use error::{Error, Result};
 pub use proxy::ProxyMode;
 pub use spheres::{
-    MAX_MAGNITUDE, MAX_SPACING_PER_RADIUS, MAX_SPHERES, MIN_RADIUS, SphereSet, coarse_coordinates,
+    MAX_MAGNITUDE, MAX_SPACING_PER_RADIUS, MAX_SPHERES, MIN_RADIUS, SphereSet, Spheres,
+    coarse_coordinates,
 };
 pub use types::{DetectStats, Pair};
 
@@ -73,5 +75,5 @@ pub mod prelude {
     pub use crate::engines::{
         BackendChoice, BackendKind, DemSetup, Opened, Options, open, open_scene, open_setup,
     };
-    pub use crate::{Backend, Error, Pair, ProxyMode, Result, SphereSet};
+    pub use crate::{Backend, Error, Pair, ProxyMode, Result, SphereSet, Spheres};
 }

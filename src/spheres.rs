@@ -33,10 +33,8 @@ const CHECKS_PER_TASK: usize = 4096;
 pub struct SphereSet {
     centers: Vec<[f32; 3]>,
     radii: Vec<f32>,
-    min_radius: f32,
-    max_radius: f32,
-    /// The centres' bounds (`None` for no spheres), found in the checking pass.
-    bounds: Option<([f32; 3], [f32; 3])>,
+    /// The radii's range and the centres' bounds, found in the checking pass.
+    found: Found,
 }
 
 /// The bounds of a set of centres, lowest then highest corner.
@@ -239,9 +237,18 @@ fn survey(centers: &[[f32; 3]], radii: Option<&[f32]>) -> Survey {
     }
 }
 
-impl SphereSet {
-    /// Checks and wraps centres and radii (same length).
-    pub fn new(centers: Vec<[f32; 3]>, radii: Vec<f32>) -> Result<Self> {
+/// What checking a set of spheres finds: the radii's range (0, 0 for none) and the centres'
+/// bounds (`None` for none).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Found {
+    min_radius: f32,
+    max_radius: f32,
+    bounds: Option<Bounds>,
+}
+
+impl Found {
+    /// Checks `centers` and `radii` (as many, at most [`MAX_SPHERES`]) on the rayon pool.
+    fn check(centers: &[[f32; 3]], radii: &[f32]) -> Result<Self> {
         if centers.len() != radii.len() {
             return Err(Error::Usage(format!(
                 "{} centres but {} radii",
@@ -250,16 +257,134 @@ impl SphereSet {
             )));
         }
         check_count(centers.len())?;
-        let found = survey(&centers, Some(&radii));
+        let found = survey(centers, Some(radii));
         let (min_radius, max_radius) = found.radii;
-        let bounds = found.into_bounds(centers.len())?;
+        Ok(Found {
+            min_radius: if radii.is_empty() { 0.0 } else { min_radius },
+            max_radius,
+            bounds: found.into_bounds(centers.len())?,
+        })
+    }
+}
+
+/// Spheres checked where they lie: borrowed centres and radii with what checking them found,
+/// as a [`SphereSet`] holds them. What a backend builds over; a caller whose spheres are in
+/// its own memory (a NumPy array, a mapped file) checks them there and copies them once, into
+/// the backend.
+#[derive(Debug, Clone, Copy)]
+pub struct Spheres<'a> {
+    centers: &'a [[f32; 3]],
+    radii: &'a [f32],
+    found: Found,
+}
+
+impl<'a> Spheres<'a> {
+    /// Checks `centers` and `radii` (same length) as [`SphereSet::new`] does.
+    pub fn check(centers: &'a [[f32; 3]], radii: &'a [f32]) -> Result<Self> {
+        let found = Found::check(centers, radii)?;
+        Ok(Spheres {
+            centers,
+            radii,
+            found,
+        })
+    }
+
+    /// A set of its own: the spheres copied (no second check).
+    pub fn to_set(&self) -> Result<SphereSet> {
+        self.to_set_in(Default::default())
+    }
+
+    /// [`Self::to_set`] into the allocations `room` (those of [`SphereSet::into_parts`], say,
+    /// grown fallibly where too small): a caller that copies sets again and again takes no
+    /// fresh memory.
+    pub fn to_set_in(&self, room: (Vec<[f32; 3]>, Vec<f32>)) -> Result<SphereSet> {
+        let (mut centers, mut radii) = room;
+        let n = self.len();
+        let out_of_memory = || Error::OutOfMemory {
+            what: format!("{n} spheres"),
+            bytes: (n as u64).saturating_mul(16),
+        };
+        centers.clear();
+        radii.clear();
+        centers.try_reserve_exact(n).map_err(|_| out_of_memory())?;
+        radii.try_reserve_exact(n).map_err(|_| out_of_memory())?;
+        centers.par_extend(self.centers.par_iter().copied());
+        radii.par_extend(self.radii.par_iter().copied());
+        Ok(SphereSet {
+            centers,
+            radii,
+            found: self.found,
+        })
+    }
+
+    /// Number of spheres.
+    pub fn len(&self) -> usize {
+        self.radii.len()
+    }
+
+    /// True when there is no sphere.
+    pub fn is_empty(&self) -> bool {
+        self.radii.is_empty()
+    }
+
+    /// Centres, in input order.
+    pub fn centers(&self) -> &'a [[f32; 3]] {
+        self.centers
+    }
+
+    /// Radii, in input order.
+    pub fn radii(&self) -> &'a [f32] {
+        self.radii
+    }
+
+    /// Largest radius (0 for no spheres).
+    pub fn max_radius(&self) -> f32 {
+        self.found.max_radius
+    }
+
+    /// Smallest radius (0 for no spheres).
+    pub fn min_radius(&self) -> f32 {
+        self.found.min_radius
+    }
+
+    /// Component-wise bounds `(lo, hi)` of the centres; `None` for no spheres.
+    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
+        self.found.bounds
+    }
+
+    /// Rows `[x, y, z, r]`, in input order.
+    pub fn xyzr(&self) -> impl ExactSizeIterator<Item = [f32; 4]> + use<'a> {
+        self.centers
+            .iter()
+            .zip(self.radii)
+            .map(|(c, &r)| [c[0], c[1], c[2], r])
+    }
+}
+
+impl<'a> From<&'a SphereSet> for Spheres<'a> {
+    fn from(set: &'a SphereSet) -> Self {
+        set.view()
+    }
+}
+
+impl SphereSet {
+    /// Checks and wraps centres and radii (same length).
+    pub fn new(centers: Vec<[f32; 3]>, radii: Vec<f32>) -> Result<Self> {
+        let found = Found::check(&centers, &radii)?;
         Ok(Self {
             centers,
-            min_radius: if radii.is_empty() { 0.0 } else { min_radius },
             radii,
-            max_radius,
-            bounds,
+            found,
         })
+    }
+
+    /// The set as [`Spheres`], for a backend to build over.
+    pub fn view(&self) -> Spheres<'_> {
+        Spheres {
+            centers: &self.centers,
+            radii: &self.radii,
+            found: self.found,
+        }
     }
 
     /// Builds a set from rows `[x, y, z, r]`.
@@ -295,18 +420,18 @@ impl SphereSet {
 
     /// Largest radius (0 for an empty set).
     pub fn max_radius(&self) -> f32 {
-        self.max_radius
+        self.found.max_radius
     }
 
     /// Smallest radius (0 for an empty set).
     pub fn min_radius(&self) -> f32 {
-        self.min_radius
+        self.found.min_radius
     }
 
     /// Component-wise bounds `(lo, hi)` of the centres; `None` for an empty set (found when
     /// the centres were checked).
     pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
-        self.bounds
+        self.found.bounds
     }
 
     /// Moves the spheres: replaces every centre, keeping the radii (refused centres leave the
@@ -319,7 +444,7 @@ impl SphereSet {
                 self.len()
             )));
         }
-        self.bounds = survey(&centers, None).into_bounds(centers.len())?;
+        self.found.bounds = survey(&centers, None).into_bounds(centers.len())?;
         self.centers = centers;
         Ok(())
     }
@@ -334,7 +459,7 @@ impl SphereSet {
                 self.len()
             )));
         }
-        self.bounds = survey(centers, None).into_bounds(centers.len())?;
+        self.found.bounds = survey(centers, None).into_bounds(centers.len())?;
         self.centers
             .par_iter_mut()
             .with_min_len(CHECKS_PER_TASK)
@@ -350,10 +475,7 @@ impl SphereSet {
 
     /// Rows `[x, y, z, r]`, in input order.
     pub fn xyzr(&self) -> impl ExactSizeIterator<Item = [f32; 4]> + '_ {
-        self.centers
-            .iter()
-            .zip(&self.radii)
-            .map(|(c, &r)| [c[0], c[1], c[2], r])
+        self.view().xyzr()
     }
 }
 
@@ -554,5 +676,42 @@ mod tests {
         let empty = SphereSet::new(Vec::new(), Vec::new()).unwrap();
         assert_eq!((empty.min_radius(), empty.max_radius()), (0.0, 0.0));
         assert!(SphereSet::new(vec![[0.0; 3]], vec![MIN_RADIUS]).is_ok());
+    }
+
+    #[test]
+    fn borrowed_spheres_are_checked_as_a_set_and_copied_into_one_unchanged() {
+        let centers = [[0.0; 3], [2.0, -1.0, 0.5], [1.0; 3]];
+        let radii = [0.5, 0.25, 1.5];
+        let set = SphereSet::new(centers.to_vec(), radii.to_vec()).unwrap();
+        let view = Spheres::check(&centers, &radii).unwrap();
+        assert_eq!(view.bounds(), set.bounds());
+        assert_eq!((view.min_radius(), view.max_radius()), (0.25, 1.5));
+        assert_eq!(
+            view.xyzr().collect::<Vec<_>>(),
+            set.xyzr().collect::<Vec<_>>()
+        );
+        assert_eq!(view.to_set().unwrap(), set);
+        // Into larger and smaller allocations alike, which it keeps.
+        let room = (vec![[9.0; 3]; 10], Vec::with_capacity(1));
+        let copied = view.to_set_in(room).unwrap();
+        assert_eq!(copied, set);
+        assert!(copied.into_parts().0.capacity() >= 10);
+        assert_eq!(set.view().to_set().unwrap(), set);
+        // The set's refusals, word for word.
+        let bad = [[0.0; 3], [0.0, f32::NAN, 0.0], [1.0; 3]];
+        let refused = Spheres::check(&bad, &radii).unwrap_err().to_string();
+        let by_set = SphereSet::new(bad.to_vec(), radii.to_vec()).unwrap_err();
+        assert_eq!(refused, by_set.to_string());
+        assert!(refused.contains("sphere 1"), "{refused}");
+        let short = Spheres::check(&centers, &radii[1..]).unwrap_err();
+        assert!(
+            short.to_string().contains("3 centres but 2 radii"),
+            "{short}"
+        );
+        let empty = Spheres::check(&[], &[]).unwrap();
+        assert_eq!(
+            (empty.len(), empty.bounds(), empty.max_radius()),
+            (0, None, 0.0)
+        );
     }
 }

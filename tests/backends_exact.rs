@@ -116,12 +116,12 @@ fn check_backend(
             if kind == BackendKind::Optix && beyond_optix_reach(spheres) {
                 // OptiX drops boxes that far out: the backend must refuse, not answer wrongly.
                 let err = backend
-                    .build(spheres, mode)
+                    .build(spheres.view(), mode)
                     .expect_err("optix refuses far-out sets");
                 prop_assert!(err.to_string().contains("beyond"), "{}: {}", label, err);
                 continue;
             }
-            backend.build(spheres, mode).expect("build");
+            backend.build(spheres.view(), mode).expect("build");
             let (pairs, stats) = backend.find_pairs().expect("find_pairs");
             assert_pairs_well_formed(&pairs, &label)?;
             let mut got = pairs.clone();
@@ -448,7 +448,7 @@ fn update_after_moving_gives_the_new_exact_set() {
     let original = generate(&spec).unwrap();
     with_each_backend(|_, name, backend| {
         let mut spheres = original.clone();
-        backend.build(&spheres, ProxyMode::Mochi).unwrap();
+        backend.build(spheres.view(), ProxyMode::Mochi).unwrap();
         for step in 0..3 {
             let moved = spheres
                 .centers()
@@ -460,14 +460,14 @@ fn update_after_moving_gives_the_new_exact_set() {
                 })
                 .collect();
             spheres.set_centers(moved).unwrap();
-            backend.update(&spheres).unwrap();
+            backend.update(spheres.view()).unwrap();
             let mut got = backend.find_pairs().unwrap().0;
             got.sort_unstable();
             assert_eq!(got, brute_force_pairs(&spheres), "{name} step {step}");
         }
         // Misuse of the library, not bad input: Usage.
         let wrong_size = SphereSet::default();
-        let result = backend.update(&wrong_size);
+        let result = backend.update(wrong_size.view());
         assert!(matches!(result, Err(Error::Usage(_))), "{result:?}");
     });
 }
@@ -488,7 +488,7 @@ fn detection_before_build_is_an_error() {
             "{}: {counted:?}",
             kind.name()
         );
-        let updated = backend.update(&SphereSet::default());
+        let updated = backend.update(SphereSet::default().view());
         assert!(
             matches!(updated, Err(Error::Usage(_))),
             "{}: {updated:?}",
@@ -519,7 +519,7 @@ fn far_away_outliers_keep_the_search_linear() {
     let mut want = brute_force_pairs(&spheres);
     want.sort_unstable();
     with_each_backend(|kind, name, backend| {
-        backend.build(&spheres, ProxyMode::Mochi).unwrap();
+        backend.build(spheres.view(), ProxyMode::Mochi).unwrap();
         let (mut got, stats) = backend.find_pairs().unwrap();
         got.sort_unstable();
         let off = differences(&got, &want, &spheres, fused(kind));

@@ -52,7 +52,7 @@ fn polydisperse(seed: u64, n: usize, ratio: f32) -> SphereSet {
 
 fn assert_exact(backend: &mut WgpuComputeBackend, spheres: &SphereSet, label: &str) -> u64 {
     let want = brute_force_pairs(spheres);
-    backend.build(spheres, ProxyMode::Mochi).unwrap();
+    backend.build(spheres.view(), ProxyMode::Mochi).unwrap();
     let (got, stats) = backend.find_pairs().unwrap();
     let mut seen = std::collections::HashSet::new();
     assert!(
@@ -76,7 +76,7 @@ fn multi_level_grid_is_exact_on_random_polydisperse_sets() {
         }
     }
     backend
-        .build(&SphereSet::default(), ProxyMode::Mochi)
+        .build(SphereSet::default().view(), ProxyMode::Mochi)
         .unwrap();
     assert!(backend.find_pairs().unwrap().0.is_empty());
 }
@@ -135,7 +135,7 @@ fn sorted_build_is_exact_on_random_polydisperse_sets() {
             }
         }
         backend
-            .build(&SphereSet::default(), ProxyMode::Mochi)
+            .build(SphereSet::default().view(), ProxyMode::Mochi)
             .unwrap();
         assert!(backend.find_pairs().unwrap().0.is_empty(), "sorted {name}");
     }
@@ -214,7 +214,7 @@ fn sorted_build_finds_the_same_pairs_as_the_dense_build_on_the_scenes() {
         for mode in [ProxyMode::Mochi, ProxyMode::Nns] {
             let mut found = Vec::new();
             for backend in [&mut sorted, &mut dense] {
-                backend.build(&spheres, mode).unwrap();
+                backend.build(spheres.view(), mode).unwrap();
                 let mut pairs = backend.find_pairs().unwrap().0;
                 pairs.sort_unstable();
                 found.push((built_with(backend), pairs));
@@ -242,7 +242,7 @@ fn auto_takes_the_dense_build_for_a_dense_set_and_the_sorted_one_for_a_sparse_se
         layout: Layout::Random,
     })
     .unwrap();
-    backend.build(&dense, ProxyMode::Mochi).unwrap();
+    backend.build(dense.view(), ProxyMode::Mochi).unwrap();
     assert_eq!(built_with(&backend), "dense build");
     // The same spheres spread over a box 40 times wider per side: 64,000 times the cells.
     let sparse = SphereSet::new(
@@ -254,7 +254,7 @@ fn auto_takes_the_dense_build_for_a_dense_set_and_the_sorted_one_for_a_sparse_se
         dense.radii().to_vec(),
     )
     .unwrap();
-    backend.build(&sparse, ProxyMode::Mochi).unwrap();
+    backend.build(sparse.view(), ProxyMode::Mochi).unwrap();
     assert_eq!(built_with(&backend), "sorted build");
     let want = brute_force_pairs(&sparse);
     let mut got = backend.find_pairs().unwrap().0;
@@ -285,14 +285,14 @@ fn spheres_that_barely_move_keep_their_layout_and_spheres_that_spread_get_a_new_
     let moved = |scale: f32, shift: f32| scaled(&spheres, scale, shift);
     // A small shift: the same layout, the pairs still exact.
     let shifted = moved(1.0, 0.05);
-    backend.update(&shifted).unwrap();
+    backend.update(shifted.view()).unwrap();
     let mut got = backend.find_pairs().unwrap().0;
     got.sort_unstable();
     assert_eq!(got, brute_force_pairs(&shifted));
     assert_eq!(backend.structure().unwrap(), first);
     // Spread to three times the size: a layout over the new bounds.
     let spread = moved(3.0, 0.0);
-    backend.update(&spread).unwrap();
+    backend.update(spread.view()).unwrap();
     let mut got = backend.find_pairs().unwrap().0;
     got.sort_unstable();
     assert_eq!(got, brute_force_pairs(&spread));

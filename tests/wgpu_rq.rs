@@ -35,7 +35,7 @@ fn scenes_split_over_several_blas_stay_exact() {
     let want = brute_force_pairs(&spheres);
     assert!(!want.is_empty());
     for mode in [ProxyMode::Mochi, ProxyMode::Nns] {
-        backend.build(&spheres, mode).unwrap();
+        backend.build(spheres.view(), mode).unwrap();
         let (got, stats) = backend.find_pairs().unwrap();
         let off = differences(&got, &want, &spheres, true);
         assert!(off.is_empty(), "{mode:?}: differs from the oracle: {off:?}");
@@ -52,7 +52,7 @@ fn a_dense_scene_grows_the_pair_buffer() {
     let spheres = SphereSet::new(spheres.centers().to_vec(), grown).unwrap();
     let want = brute_force_pairs(&spheres);
     assert!(want.len() > 4 * spheres.len(), "{} pairs", want.len());
-    backend.build(&spheres, ProxyMode::Mochi).unwrap();
+    backend.build(spheres.view(), ProxyMode::Mochi).unwrap();
     let got = backend.find_pairs().unwrap().0;
     assert!(differences(&got, &want, &spheres, true).is_empty());
 }
@@ -61,9 +61,9 @@ fn a_dense_scene_grows_the_pair_buffer() {
 fn mochi_mode_tests_fewer_candidates_than_nns_on_mixed_radii() {
     let Some(mut backend) = open() else { return };
     let spheres = scene(Scene::Poly120, 8000, Layout::Random);
-    backend.build(&spheres, ProxyMode::Mochi).unwrap();
+    backend.build(spheres.view(), ProxyMode::Mochi).unwrap();
     let mochi = backend.count_pairs().unwrap();
-    backend.build(&spheres, ProxyMode::Nns).unwrap();
+    backend.build(spheres.view(), ProxyMode::Nns).unwrap();
     let nns = backend.count_pairs().unwrap();
     assert_eq!(mochi.pairs, nns.pairs);
     // Every ray also meets its own box: compare the candidates beyond those.

@@ -13,7 +13,7 @@
 #![deny(unsafe_code)]
 
 use mochi::engines::{BackendChoice, BackendKind, Options, open};
-use mochi::{Backend, Pair, ProxyMode, SphereSet};
+use mochi::{Backend, Pair, ProxyMode, SphereSet, Spheres};
 use numpy::ndarray::{Array2, ArrayView1, ArrayView2};
 use numpy::{
     IntoPyArray, PyArray2, PyArrayDescrMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArray,
@@ -292,15 +292,7 @@ fn read_centres_into(centres: &Bound<'_, PyAny>, out: &mut Vec<[f32; 3]>) -> PyR
         Ok(())
     }
     if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f32>>() {
-        let view = a.as_array();
-        // A C-ordered float32 array's rows are what the library stores: copied as they are
-        // (float32 holds them all; the sphere set checks their values).
-        if let (3, Some(flat)) = (view.ncols(), view.as_slice()) {
-            emptied_with_room(out, view.nrows(), "centres")?;
-            out.par_extend(flat.as_chunks::<3>().0.par_iter().copied());
-            return Ok(());
-        }
-        return rows(view, out);
+        return rows(a.as_array(), out);
     }
     if let Ok(a) = centres.extract::<PyReadonlyArray2<'_, f64>>() {
         return rows(a.as_array(), out);
@@ -311,46 +303,76 @@ fn read_centres_into(centres: &Bound<'_, PyAny>, out: &mut Vec<[f32; 3]>) -> PyR
     )))
 }
 
-/// A library error of moving spheres as a Python exception: a usage error (a count unlike the
-/// build's) is the caller's input, `ValueError`.
-fn move_err(error: mochi::Error) -> PyErr {
+/// A library error about the caller's spheres as a Python exception: a usage error (centres
+/// and radii of different counts, a count unlike the build's) is the caller's input,
+/// `ValueError`.
+fn spheres_err(error: mochi::Error) -> PyErr {
     match error {
         mochi::Error::Usage(msg) => PyValueError::new_err(msg),
         other => to_py_err(other),
     }
 }
 
-/// Moves the built spheres to `centres` (refused centres leave the build as it was): the
-/// backend takes a C-ordered float32 array's rows straight into its own memory where it can
-/// ([`Backend::move_centers`]: one pass that checks and uploads them); else they are copied
-/// into `spheres` (anything not C-ordered float32 converted into `scratch` first, its
-/// allocation kept between calls) and the backend updated from the set. The rows are read with
-/// the GIL held (Python may not write the array meanwhile), the update waited for without it.
+/// A C-ordered `(N, 3)` float32 array (`centres` has passed [`plain_array`]): its rows are what
+/// the library stores, read where they lie ([`float32_rows`]); `None` for any other array.
+fn float32_rows<'py>(centres: &Bound<'py, PyAny>) -> Option<PyReadonlyArray2<'py, f32>> {
+    let array = centres.extract::<PyReadonlyArray2<'py, f32>>().ok()?;
+    // ndarray's slice is the C order's alone (NumPy's would take Fortran order too).
+    let c_ordered = array.as_array().ncols() == 3 && array.as_array().is_standard_layout();
+    c_ordered.then_some(array)
+}
+
+/// The rows of an array [`float32_rows`] accepted.
+fn rows_of<'a>(array: &'a PyReadonlyArray2<'_, f32>) -> &'a [[f32; 3]] {
+    let flat = array.as_array().to_slice().expect("C-ordered");
+    flat.as_chunks::<3>().0
+}
+
+/// A contiguous `(N,)` float32 array (`radii` has passed [`plain_array`]), read where it lies;
+/// `None` for any other array.
+fn float32_values<'py>(radii: &Bound<'py, PyAny>) -> Option<PyReadonlyArray1<'py, f32>> {
+    let array = radii.extract::<PyReadonlyArray1<'py, f32>>().ok()?;
+    array.as_array().is_standard_layout().then_some(array)
+}
+
+/// The values of an array [`float32_values`] accepted.
+fn values_of<'a>(array: &'a PyReadonlyArray1<'_, f32>) -> &'a [f32] {
+    array.as_array().to_slice().expect("contiguous")
+}
+
+/// Moves the built spheres to `centres` (refused centres leave the build as it was): a
+/// C-ordered float32 array's rows are read where they lie, anything else converted into
+/// `scratch` first (its allocation kept between calls). Spheres in the backend (`kept` is
+/// `None`, [`Backend::takes_centers`]) take the rows straight into its memory, checked as they
+/// are copied, with the GIL held (Python may not write the array meanwhile); a kept set takes
+/// them as its centres and the backend is updated from it, waited for without the GIL.
 fn move_spheres(
     py: Python<'_>,
     backend: &mut Box<dyn Backend>,
-    spheres: &mut SphereSet,
+    kept: Option<&mut SphereSet>,
     centres: &Bound<'_, PyAny>,
     scratch: &mut Vec<[f32; 3]>,
 ) -> PyResult<()> {
     let centres = &plain_array("centres", centres)?;
-    let direct = centres.extract::<PyReadonlyArray2<'_, f32>>().ok();
-    // ndarray's slice is the C order's alone (NumPy's would take Fortran order too).
-    let rows = match direct.as_ref().map(|a| a.as_array()) {
-        Some(view) if view.ncols() == 3 && view.as_slice().is_some() => {
-            let flat = view.to_slice().expect("C-ordered");
-            flat.as_chunks::<3>().0
-        }
-        _ => {
+    let direct = float32_rows(centres);
+    let rows = match direct.as_ref() {
+        Some(array) => rows_of(array),
+        None => {
             read_centres_into(centres, scratch)?;
             scratch.as_slice()
         }
     };
-    if backend.move_centers(rows).map_err(move_err)? {
-        return Ok(());
-    }
-    spheres.copy_centers_from(rows).map_err(move_err)?;
-    py.detach(|| backend.update(spheres)).map_err(to_py_err)
+    let Some(spheres) = kept else {
+        return match backend.move_centers(rows).map_err(spheres_err)? {
+            true => Ok(()),
+            false => Err(PyRuntimeError::new_err(
+                "the backend took the spheres but not their new centres",
+            )),
+        };
+    };
+    spheres.copy_centers_from(rows).map_err(spheres_err)?;
+    py.detach(|| backend.update(spheres.view()))
+        .map_err(to_py_err)
 }
 
 /// The radii of an `(N,)` float32/float64 array, as `f32`, into `out` (its allocation reused,
@@ -380,14 +402,7 @@ fn read_radii_into(radii: &Bound<'_, PyAny>, out: &mut Vec<f32>) -> PyResult<()>
         Ok(())
     }
     if let Ok(a) = radii.extract::<PyReadonlyArray1<'_, f32>>() {
-        let view = a.as_array();
-        // As the centres: a contiguous float32 array copied as it is.
-        if let Some(flat) = view.as_slice() {
-            emptied_with_room(out, flat.len(), "radii")?;
-            out.par_extend(flat.par_iter().copied());
-            return Ok(());
-        }
-        return values(view, out);
+        return values(a.as_array(), out);
     }
     if let Ok(a) = radii.extract::<PyReadonlyArray1<'_, f64>>() {
         return values(a.as_array(), out);
@@ -399,13 +414,6 @@ fn read_radii_into(radii: &Bound<'_, PyAny>, out: &mut Vec<f32>) -> PyResult<()>
 }
 
 /// A validated sphere set; every complaint about the arrays (row and reason) is a `ValueError`.
-fn sphere_set(py: Python<'_>, centres: Vec<[f32; 3]>, radii: Vec<f32>) -> PyResult<SphereSet> {
-    py.detach(|| SphereSet::new(centres, radii))
-        .map_err(|error| match error {
-            mochi::Error::Usage(msg) => PyValueError::new_err(msg),
-            other => to_py_err(other),
-        })
-}
 
 fn parse_backend(name: &str) -> PyResult<BackendChoice> {
     name.parse().map_err(PyValueError::new_err)
@@ -462,16 +470,26 @@ struct Detector {
     /// makes the class `Sync`, as pyo3 requires.
     backend: Mutex<Box<dyn Backend>>,
     mode: ProxyMode,
-    /// The spheres of the last `build` (`None` before the first); their centres those of the
-    /// last `update` that the backend did not take straight ([`move_spheres`]).
-    spheres: Option<SphereSet>,
-    /// Centres converted from arrays that are not C-ordered float32, kept between updates.
-    scratch: Vec<[f32; 3]>,
-    /// The allocations of the spheres the last `build` replaced, filled by the next: repeated
+    /// The last `build` (`None` before the first).
+    built: Option<Built>,
+    /// Centres and radii converted from arrays that are not C-ordered float32, their
+    /// allocations kept between calls.
+    scratch: (Vec<[f32; 3]>, Vec<f32>),
+    /// The allocations of the kept set the last `build` replaced, filled by the next: repeated
     /// builds take no fresh memory (whose first touch costs more than the copy).
     spare: (Vec<[f32; 3]>, Vec<f32>),
     /// What a call that panicked said ([`Guarded`]).
     broken: Option<String>,
+}
+
+/// Where the spheres of a [`Detector`]'s last build are.
+enum Built {
+    /// In the backend's memory alone: it takes moved centres straight
+    /// ([`Backend::takes_centers`]).
+    InBackend,
+    /// Kept here for a backend that is updated from a set: their centres those of the last
+    /// `update`.
+    Kept(SphereSet),
 }
 
 impl Guarded for Detector {
@@ -486,8 +504,8 @@ impl Detector {
         Detector {
             backend: Mutex::new(backend),
             mode,
-            spheres: None,
-            scratch: Vec::new(),
+            built: None,
+            scratch: Default::default(),
             spare: Default::default(),
             broken: None,
         }
@@ -509,6 +527,11 @@ impl Detector {
             .unwrap_or_else(PoisonError::into_inner)
     }
 
+    /// Builds over `centres` and `radii`, read where they lie where they are C-ordered float32
+    /// (else converted into the scratch first) and checked there, with the GIL held (Python may
+    /// not write the arrays meanwhile). A backend that takes centres straight copies them once,
+    /// into its own memory, the GIL still held; any other builds from a set copied here, waited
+    /// for without the GIL.
     fn build_spheres(
         &mut self,
         py: Python<'_>,
@@ -517,22 +540,49 @@ impl Detector {
     ) -> PyResult<()> {
         let centres = plain_array("centres", centres)?;
         let radii = plain_array("radii", radii)?;
-        let (mut centres_f32, mut radii_f32) = std::mem::take(&mut self.spare);
-        read_centres_into(&centres, &mut centres_f32)?;
-        read_radii_into(&radii, &mut radii_f32)?;
-        let spheres = sphere_set(py, centres_f32, radii_f32)?;
-        let mode = self.mode;
-        let backend = self.backend_mut();
-        py.detach(|| backend.build(&spheres, mode))
+        let (direct_centres, direct_radii) = (float32_rows(&centres), float32_values(&radii));
+        let Detector {
+            backend,
+            mode,
+            built,
+            scratch: (centre_scratch, radius_scratch),
+            spare,
+            ..
+        } = self;
+        let rows = match direct_centres.as_ref() {
+            Some(array) => rows_of(array),
+            None => {
+                read_centres_into(&centres, centre_scratch)?;
+                centre_scratch.as_slice()
+            }
+        };
+        let values = match direct_radii.as_ref() {
+            Some(array) => values_of(array),
+            None => {
+                read_radii_into(&radii, radius_scratch)?;
+                radius_scratch.as_slice()
+            }
+        };
+        let spheres = Spheres::check(rows, values).map_err(spheres_err)?;
+        let backend = backend.get_mut().unwrap_or_else(PoisonError::into_inner);
+        if backend.takes_centers() {
+            backend.build(spheres, *mode).map_err(to_py_err)?;
+            *built = Some(Built::InBackend);
+            return Ok(());
+        }
+        let set = spheres
+            .to_set_in(std::mem::take(spare))
             .map_err(to_py_err)?;
-        if let Some(replaced) = self.spheres.replace(spheres) {
-            self.spare = replaced.into_parts();
+        py.detach(|| backend.build(set.view(), *mode))
+            .map_err(to_py_err)?;
+        if let Some(Built::Kept(replaced)) = built.replace(Built::Kept(set)) {
+            *spare = replaced.into_parts();
         }
         Ok(())
     }
 
     fn sorted_pairs<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
-        if self.spheres.is_none() {
+        if self.built.is_none() {
             return Err(MochiError::new_err("pairs() before build()"));
         }
         let backend = self.backend_mut();
@@ -573,13 +623,15 @@ impl Detector {
 
     fn update(&mut self, py: Python<'_>, centres: &Bound<'_, PyAny>) -> PyResult<()> {
         self.guarded("Detector.update", |d| {
-            let Some(spheres) = d.spheres.as_mut() else {
-                return Err(MochiError::new_err("update() before build()"));
+            let kept = match d.built.as_mut() {
+                None => return Err(MochiError::new_err("update() before build()")),
+                Some(Built::InBackend) => None,
+                Some(Built::Kept(spheres)) => Some(spheres),
             };
             // The radii stay (checked at build); only the new centres are checked, and refused
             // ones leave the build as it was.
             let backend = d.backend.get_mut().unwrap_or_else(PoisonError::into_inner);
-            move_spheres(py, backend, spheres, centres, &mut d.scratch)
+            move_spheres(py, backend, kept, centres, &mut d.scratch.0)
         })
     }
 

@@ -132,6 +132,35 @@ def test_detector_update_loop_equals_fresh_detect(backend):
 
 
 @pytest.mark.parametrize("backend", detector_backends())
+def test_detector_builds_from_every_layout_of_arrays(backend):
+    # C-ordered float32 arrays are read where they lie, anything else converted first; a set
+    # refused at build leaves the last build as it was.
+    detector = mochi.Detector(backend=backend)
+    for seed in range(11, 14):
+        centres, radii = random_set(seed)
+        xyzr = np.hstack([centres, radii[:, None]]).astype(np.float32)
+        want = oracle(xyzr[:, :3], xyzr[:, 3])
+        ways = [
+            (centres, radii),
+            (xyzr[:, :3].copy(), xyzr[:, 3].copy()),
+            (np.asfortranarray(xyzr[:, :3]), xyzr[:, 3].copy()),
+            (xyzr[:, :3], xyzr[:, 3]),  # strided views into one (N, 4) array
+            (xyzr[::-1, :3][::-1], xyzr[::-1, 3][::-1]),  # negative strides
+        ]
+        for c, r in ways:
+            detector.build(c, r)
+            np.testing.assert_array_equal(detector.pairs(), want)
+            assert len(want) > 0
+        bad = xyzr.copy()
+        bad[5, 3] = -1.0
+        with pytest.raises(ValueError, match="sphere 5"):
+            detector.build(bad[:, :3].copy(), bad[:, 3].copy())
+        with pytest.raises(ValueError, match="centres but"):
+            detector.build(xyzr[:-1, :3].copy(), xyzr[:, 3].copy())
+        np.testing.assert_array_equal(detector.pairs(), want)
+
+
+@pytest.mark.parametrize("backend", detector_backends())
 def test_detector_update_refused_keeps_the_last_spheres(backend):
     centres, radii = random_set(7)
     detector = mochi.Detector(backend=backend)

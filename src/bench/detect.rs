@@ -89,7 +89,8 @@ fn once(
     mode: ProxyMode,
 ) -> Result<(Sample, Vec<crate::Pair>, crate::DetectStats)> {
     let t = Instant::now();
-    backend.build(spheres, mode)?;
+    backend.build(spheres.view(), mode)?;
+    backend.finish()?;
     let wall_build = ms(t);
     let t = Instant::now();
     let (pairs, stats) = backend.find_pairs()?;

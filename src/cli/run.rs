@@ -80,7 +80,8 @@ fn detect(args: DetectArgs) -> Result<()> {
     }
 
     let t = Instant::now();
-    backend.build(&spheres, args.mode)?;
+    backend.build(spheres.view(), args.mode)?;
+    backend.finish()?;
     let mut build_ms = ms(t);
     let t = Instant::now();
     let (pairs, stats) = backend.find_pairs()?;
@@ -93,7 +94,8 @@ fn detect(args: DetectArgs) -> Result<()> {
         let (mut gpu_builds, mut gpu_detects) = (Vec::new(), Vec::new());
         for _ in 0..args.repeat {
             let t = Instant::now();
-            backend.build(&spheres, args.mode)?;
+            backend.build(spheres.view(), args.mode)?;
+            backend.finish()?;
             builds.push(ms(t));
             let t = Instant::now();
             backend.find_pairs()?;

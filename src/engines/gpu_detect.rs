@@ -10,7 +10,7 @@ use crate::gpu::pair_sort::PairSort;
 use crate::gpu::timer::{GpuTimer, Span};
 use crate::gpu::{self, Gpu};
 use crate::proxy::ProxyMode;
-use crate::spheres::SphereSet;
+use crate::spheres::Spheres;
 use crate::types::Pair;
 use crate::types::{DetectStats, GpuTimes};
 use rayon::prelude::*;
@@ -20,16 +20,22 @@ pub(crate) trait GpuBackend: Send {
     /// Name, device and limits.
     fn info(&self) -> BackendInfo;
     /// Builds over `spheres` in `mode`, replacing any earlier build.
-    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()>;
+    fn build(&mut self, spheres: Spheres<'_>, mode: ProxyMode) -> Result<()>;
     /// Sphere count and mode of the current build, if any.
     fn built(&self) -> Option<(usize, ProxyMode)>;
     /// Brings the current build up to date after the spheres moved; `spheres` has the build's
     /// count. A rebuild unless the engine can refit (wgpu cannot).
-    fn refresh(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+    fn refresh(&mut self, spheres: Spheres<'_>, mode: ProxyMode) -> Result<()> {
         self.build(spheres, mode)
     }
     /// Runs detection: with `take`, hands it the pairs (sorted), once; without, only counts.
     fn detect(&mut self, take: Option<TakePairs<'_>>) -> Result<DetectStats>;
+    /// [`Backend::finish`].
+    fn finish(&mut self) -> Result<()>;
+    /// [`Backend::takes_centers`].
+    fn takes_centers(&self) -> bool {
+        false
+    }
     /// [`Backend::move_centers`] where the engine takes centres straight into its upload
     /// (`centers` has the build's count); `Ok(false)` where it does not.
     fn move_centers(&mut self, _centers: &[[f32; 3]]) -> Result<bool> {
@@ -48,13 +54,21 @@ impl<T: GpuBackend> Backend for T {
         GpuBackend::info(self)
     }
 
-    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+    fn build(&mut self, spheres: Spheres<'_>, mode: ProxyMode) -> Result<()> {
         GpuBackend::build(self, spheres, mode)
     }
 
-    fn update(&mut self, spheres: &SphereSet) -> Result<()> {
+    fn update(&mut self, spheres: Spheres<'_>) -> Result<()> {
         let mode = built_count(self, spheres.len())?;
         self.refresh(spheres, mode)
+    }
+
+    fn finish(&mut self) -> Result<()> {
+        GpuBackend::finish(self)
+    }
+
+    fn takes_centers(&self) -> bool {
+        GpuBackend::takes_centers(self)
     }
 
     fn move_centers(&mut self, centers: &[[f32; 3]]) -> Result<bool> {
@@ -198,7 +212,7 @@ impl<S> WgpuDetection<S> {
     /// build and returns `None` for it, else the sphere count.
     pub fn begin_build(
         &mut self,
-        spheres: &SphereSet,
+        spheres: Spheres<'_>,
         mode: ProxyMode,
         max_spheres: u64,
     ) -> Result<Option<u32>> {

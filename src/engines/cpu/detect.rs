@@ -5,7 +5,7 @@ use super::query::{PairSink, search, search_tasks};
 use crate::detect::{Backend, BackendInfo};
 use crate::error::{Error, Result, try_push, try_vec};
 use crate::proxy::ProxyMode;
-use crate::spheres::{MAX_SPHERES, SphereSet};
+use crate::spheres::{MAX_SPHERES, Spheres};
 use crate::types::DetectStats;
 use crate::types::Pair;
 use rayon::prelude::*;
@@ -209,7 +209,7 @@ impl Backend for CpuBackend {
         }
     }
 
-    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+    fn build(&mut self, spheres: Spheres<'_>, mode: ProxyMode) -> Result<()> {
         // Built only once binned: a failed binning leaves nothing to search.
         self.mode = None;
         self.grid
@@ -218,7 +218,7 @@ impl Backend for CpuBackend {
         Ok(())
     }
 
-    fn update(&mut self, spheres: &SphereSet) -> Result<()> {
+    fn update(&mut self, spheres: Spheres<'_>) -> Result<()> {
         let mode = self
             .mode
             .ok_or_else(|| Error::Usage("update asked for before build".into()))?;

@@ -8,7 +8,7 @@
 //! sphere is sorted by counting instead, which leaves a table of each cell's first sphere.
 
 use crate::error::{Result, try_push, try_resize, try_vec};
-use crate::spheres::SphereSet;
+use crate::spheres::Spheres;
 use rayon::prelude::*;
 
 /// Most cells along one axis (margin included): 3 × 21 bits keep every key below 2⁶³.
@@ -60,7 +60,7 @@ const SAMPLES_PER_RANGE: usize = 32;
 impl SortedGrid {
     /// Bins `spheres` into cells of side at least `cell_size`. Memory that cannot be had is
     /// [`crate::Error::OutOfMemory`], and leaves the grid to be binned again before it is searched.
-    pub fn bin(&mut self, spheres: &SphereSet, cell_size: f32) -> Result<()> {
+    pub fn bin(&mut self, spheres: Spheres<'_>, cell_size: f32) -> Result<()> {
         match spheres.bounds() {
             Some((lo, hi)) => {
                 self.bin_within(spheres.centers(), spheres.radii(), lo, hi, cell_size)

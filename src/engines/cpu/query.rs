@@ -299,7 +299,8 @@ mod tests {
         let (centers, radii) = random_set(n, 12345, 9.0, 0.1..0.4);
         let spheres = SphereSet::new(centers, radii).unwrap();
         let mut grid = SortedGrid::default();
-        grid.bin(&spheres, 2.0 * spheres.max_radius()).unwrap();
+        grid.bin(spheres.view(), 2.0 * spheres.max_radius())
+            .unwrap();
         assert!(!grid.starts.is_empty(), "a dense set keeps a table");
         let found = |grid: &SortedGrid| {
             let mut sinks: Vec<_> = (0..search_tasks(grid)).map(|_| Pairs(Vec::new())).collect();
@@ -313,16 +314,17 @@ mod tests {
         grid.starts.clear();
         assert_eq!(found(&grid), with_table);
         // The same grid binned again, dense then sparse (a few spheres far out): as a new one.
-        grid.bin(&spheres, 2.0 * spheres.max_radius()).unwrap();
+        grid.bin(spheres.view(), 2.0 * spheres.max_radius())
+            .unwrap();
         assert_eq!(found(&grid), with_table);
         let mut spread = spheres.centers().to_vec();
         spread[0] = [1e4, 0.0, 0.0];
         spread[1] = [0.0, -1e4, 1e4];
         let sparse = SphereSet::new(spread, spheres.radii().to_vec()).unwrap();
-        grid.bin(&sparse, 2.0 * sparse.max_radius()).unwrap();
+        grid.bin(sparse.view(), 2.0 * sparse.max_radius()).unwrap();
         assert!(grid.starts.is_empty(), "a sparse set keeps no table");
         let mut fresh = SortedGrid::default();
-        fresh.bin(&sparse, 2.0 * sparse.max_radius()).unwrap();
+        fresh.bin(sparse.view(), 2.0 * sparse.max_radius()).unwrap();
         assert_eq!(found(&grid), found(&fresh));
     }
 }

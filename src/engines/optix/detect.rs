@@ -9,7 +9,7 @@ use crate::error::{Error, OptixError, Result};
 use crate::gpu::pair_output::TakePairs;
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
-use crate::spheres::SphereSet;
+use crate::spheres::Spheres;
 use crate::types::Pair;
 use crate::types::{DetectStats, GpuTimes};
 use cudarc::driver::{CudaEvent, CudaSlice, CudaStream, sys::CUevent_flags};
@@ -57,7 +57,7 @@ impl OptixBackend {
     }
 
     /// Refuses sets whose boxes reach beyond [`MAX_COORDINATE`].
-    fn check_extent(spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+    fn check_extent(spheres: Spheres<'_>, mode: ProxyMode) -> Result<()> {
         let r_max = spheres.max_radius();
         let reach = spheres
             .xyzr()
@@ -81,7 +81,7 @@ impl OptixBackend {
     }
 
     /// Writes the input spheres and gathers them into sorted order with their boxes.
-    fn write_boxes(&self, built: &mut Built, spheres: &SphereSet) -> Result<()> {
+    fn write_boxes(&self, built: &mut Built, spheres: Spheres<'_>) -> Result<()> {
         let stream = &self.device.stream;
         let rows: Vec<f32> = spheres.xyzr().flatten().collect();
         stream
@@ -182,7 +182,7 @@ fn elapsed_ms(start: &CudaEvent, end: &CudaEvent) -> std::result::Result<f64, Op
 }
 
 /// Input indices in Morton order of the centres (ties by index), for coherent rays.
-fn morton_order(spheres: &SphereSet) -> Vec<u32> {
+fn morton_order(spheres: Spheres<'_>) -> Vec<u32> {
     morton_order_of(spheres.centers())
 }
 
@@ -195,7 +195,7 @@ impl GpuBackend for OptixBackend {
         }
     }
 
-    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+    fn build(&mut self, spheres: Spheres<'_>, mode: ProxyMode) -> Result<()> {
         let n64 = spheres.len() as u64;
         if n64 > self.max_spheres() {
             return Err(Error::TooLarge {
@@ -239,12 +239,18 @@ impl GpuBackend for OptixBackend {
         Ok(())
     }
 
+    /// Nothing to wait for: a build returns once its time between the stream's events is
+    /// known.
+    fn finish(&mut self) -> Result<()> {
+        Ok(())
+    }
+
     fn built(&self) -> Option<(usize, ProxyMode)> {
         self.built.as_ref().map(|b| (b.n as usize, b.mode))
     }
 
     /// Refits: the boxes are rewritten and the structure updated in place.
-    fn refresh(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+    fn refresh(&mut self, spheres: Spheres<'_>, mode: ProxyMode) -> Result<()> {
         let mut built = self
             .built
             .take()

@@ -15,7 +15,7 @@ use crate::gpu::pair_output::{PairOutput, TakePairs};
 use crate::gpu::radix_sort::RadixSort;
 use crate::gpu::{self, Gpu, Need};
 use crate::proxy::ProxyMode;
-use crate::spheres::{Bounds, SphereSet, Survey};
+use crate::spheres::{Bounds, SphereSet, Spheres, Survey};
 use crate::types::{DetectStats, GpuTimes};
 
 /// Workgroup sizes, as in the shaders.
@@ -195,7 +195,7 @@ impl WgpuComputeBackend {
     /// Build and cell layout for `spheres` (see [`GridBuild::resolve`], [`choose_layout`])
     /// over their [`core_bounds`]; the last one again where it serves them (spheres that barely
     /// moved: [`LAYOUT_SLACK`]).
-    fn layout(&mut self, spheres: &SphereSet, mode: ProxyMode) -> (BuildKind, GridParams) {
+    fn layout(&mut self, spheres: Spheres<'_>, mode: ProxyMode) -> (BuildKind, GridParams) {
         let chosen_for = LayoutFor {
             n: spheres.len(),
             mode,
@@ -220,7 +220,7 @@ impl WgpuComputeBackend {
     }
 
     /// [`Self::layout`] chosen afresh.
-    fn choose(&self, spheres: &SphereSet, mode: ProxyMode) -> (BuildKind, GridParams) {
+    fn choose(&self, spheres: Spheres<'_>, mode: ProxyMode) -> (BuildKind, GridParams) {
         let (lo, hi) = core_bounds(spheres).expect("the set is not empty");
         let base = mode.cell_size(spheres.max_radius()) as f64;
         let build = self
@@ -343,7 +343,7 @@ impl GpuBackend for WgpuComputeBackend {
         self.detection.info(self.max_spheres())
     }
 
-    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+    fn build(&mut self, spheres: Spheres<'_>, mode: ProxyMode) -> Result<()> {
         let max_spheres = self.max_spheres();
         let Some(n) = self.detection.begin_build(spheres, mode, max_spheres)? else {
             return Ok(());
@@ -363,9 +363,15 @@ impl GpuBackend for WgpuComputeBackend {
                 gpu::copy_into(radii, spheres.radii());
                 Ok(())
             })?;
-        self.submit((n, mode), (grid, output), (build, layout), Upload::Spheres)?;
-        // A build's time and errors are its own.
+        self.submit((n, mode), (grid, output), (build, layout), Upload::Spheres)
+    }
+
+    fn finish(&mut self) -> Result<()> {
         self.detection.gpu.wait()
+    }
+
+    fn takes_centers(&self) -> bool {
+        true
     }
 
     /// Uploads the centres straight into the grid's upload, checked as they are copied (a
@@ -405,7 +411,7 @@ impl GpuBackend for WgpuComputeBackend {
         let Some(last) = last else {
             let radii = gpu.read(&grid.radii, n)?;
             let spheres = SphereSet::new(centers.to_vec(), radii)?;
-            GpuBackend::build(self, &spheres, mode)?;
+            GpuBackend::build(self, spheres.view(), mode)?;
             return Ok(true);
         };
         let n = n as u32;

@@ -4,7 +4,7 @@
 
 use crate::gpu::shader::{Vec3f, Vec4u};
 use crate::proxy::ProxyMode;
-use crate::spheres::SphereSet;
+use crate::spheres::Spheres;
 
 /// Relative padding of the cell side: far above the `f32` rounding of the cell coordinates of
 /// up to [`MAX_AXIS_CELLS`] cells (about 2^-22 per cell of coordinate), so a pair the narrow phase
@@ -252,7 +252,7 @@ const BOUNDS_SAMPLE: usize = 16384;
 /// the true bounds. The shaders clamp the centres outside into the border cells (still exact),
 /// so a few spheres thrown far away (a bounce, a stray outlier) cannot stretch the table over
 /// empty space and coarsen the cells of all the others.
-pub(crate) fn core_bounds(spheres: &SphereSet) -> Option<([f32; 3], [f32; 3])> {
+pub(crate) fn core_bounds(spheres: Spheres<'_>) -> Option<([f32; 3], [f32; 3])> {
     let (lo, hi) = spheres.bounds()?;
     let centers = spheres.centers();
     let step = centers.len().div_ceil(BOUNDS_SAMPLE).max(1);
@@ -600,8 +600,8 @@ mod tests {
             centers[k * 9973] = [far, -far, far];
         }
         let n = centers.len();
-        let spheres = SphereSet::new(centers, vec![1e-3; n]).unwrap();
-        let (lo, hi) = core_bounds(&spheres).unwrap();
+        let spheres = crate::spheres::SphereSet::new(centers, vec![1e-3; n]).unwrap();
+        let (lo, hi) = core_bounds(spheres.view()).unwrap();
         for a in 0..3 {
             assert!(
                 (-0.02..0.01).contains(&lo[a]),

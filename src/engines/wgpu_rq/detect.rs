@@ -13,7 +13,7 @@ use crate::gpu::{Gpu, Need};
 use crate::morton;
 use crate::proxy::BOX_PADDING;
 use crate::proxy::ProxyMode;
-use crate::spheres::SphereSet;
+use crate::spheres::Spheres;
 use crate::types::{DetectStats, GpuTimes};
 
 /// Workgroup sizes, as in the shaders.
@@ -69,7 +69,7 @@ impl GpuBackend for WgpuRqBackend {
         self.detection.info(self.max_spheres())
     }
 
-    fn build(&mut self, spheres: &SphereSet, mode: ProxyMode) -> Result<()> {
+    fn build(&mut self, spheres: Spheres<'_>, mode: ProxyMode) -> Result<()> {
         let max_spheres = self.max_spheres();
         let Some(n) = self.detection.begin_build(spheres, mode, max_spheres)? else {
             return Ok(());
@@ -128,8 +128,10 @@ impl GpuBackend for WgpuRqBackend {
             accel.encode_build(encoder);
         };
         self.detection
-            .submit_build(what, (n, mode), structure, record)?;
-        // A build's time and errors are its own.
+            .submit_build(what, (n, mode), structure, record)
+    }
+
+    fn finish(&mut self) -> Result<()> {
         self.detection.gpu.wait()
     }
 
