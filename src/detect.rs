@@ -60,9 +60,9 @@ pub trait Backend: Send {
 
     /// Moves the built spheres to `centers` (as many as were built, radii unchanged) and brings
     /// the structure up to date, where this backend takes centres from the caller's memory
-    /// straight into its own, checking them there as [`SphereSet`] does (refused centres leave
+    /// straight into its own, checking them there as [`SphereSet`](crate::SphereSet) does (refused centres leave
     /// the build as it was): `Ok(true)`. `Ok(false)` where it does not, having done nothing:
-    /// the caller then moves a [`SphereSet`] and calls [`update`](Backend::update).
+    /// the caller then moves a [`SphereSet`](crate::SphereSet) and calls [`update`](Backend::update).
     fn move_centers(&mut self, centers: &[[f32; 3]]) -> Result<bool> {
         let _ = centers;
         Ok(false)

@@ -106,20 +106,12 @@ pub enum Error {
     /// caller, never the user's input).
     #[error("{0}")]
     Usage(String),
-    /// A benchmark plot could not be drawn.
-    #[error("plot {name}: {msg}")]
-    Plot {
-        /// The plot.
-        name: String,
-        /// What went wrong.
-        msg: String,
-    },
 }
 
 impl Error {
     /// This error as the reason a backend was passed over: a [`Error::BackendUnavailable`]'s own
     /// reason (the backend is named beside it), else the whole message.
-    pub(crate) fn into_reason(self) -> String {
+    pub fn into_reason(self) -> String {
         match self {
             Error::BackendUnavailable { reason, .. } => reason,
             e => e.to_string(),

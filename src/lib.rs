@@ -21,10 +21,15 @@
 //! - [`dem`]: the discrete-element simulation: the contact model, scene files and the
 //!   [`dem::Stepper`] trait each engine implements (GPU-resident on the GPU engines).
 //! - [`mesh`]: triangle meshes (OBJ, PLY, STL) filled with spheres, for the `mesh` scene.
-//! - [`bench`](mod@bench): the paper's experiments on every backend (`mochi bench`): tables, JSON, plots.
+//! - [`names`]: the names of the values a user types (backends, scenes, modes…), read alike on
+//!   the command line and in scene files.
 //! - [`render`]: pictures of spheres, ray traced on the GPU (ray queries or our own BVH) or the
 //!   CPU, with a colour legend, as PNG frames or an animated GIF.
 //! - [`prelude`]: what most programs use, in one import.
+//!
+//! The `mochi` command-line tool (its commands and `mochi bench`) is the crate `mochi-cli` in
+//! `cli/`; this library depends on none of its crates (clap only behind the `clap` feature, which
+//! the tool turns on).
 //!
 //! ```
 //! use mochi::prelude::*;
@@ -37,7 +42,6 @@
 //! ```
 #![deny(unsafe_code)]
 
-pub mod bench;
 pub mod dem;
 mod detect;
 pub mod engines;
@@ -46,6 +50,7 @@ pub mod gpu;
 pub mod io;
 pub mod mesh;
 mod morton;
+pub mod names;
 pub mod numbers;
 pub mod oracle;
 mod particles;
@@ -63,7 +68,7 @@ pub use error::{Error, Result};
 pub use proxy::ProxyMode;
 pub use spheres::{
     MAX_MAGNITUDE, MAX_SPACING_PER_RADIUS, MAX_SPHERES, MIN_RADIUS, SphereSet, Spheres,
-    coarse_coordinates,
+    check_count, coarse_coordinates,
 };
 pub use types::{DetectStats, Pair};
 

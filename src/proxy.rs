@@ -7,17 +7,8 @@
 //! `f32`, so no square that can change a decision underflows or overflows.
 
 /// How large the box of each sphere is.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Default,
-    clap::ValueEnum,
-    serde::Serialize,
-    serde::Deserialize,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum ProxyMode {
     /// The paper's proxy spheres: the box of sphere j has half-width 2·r_j.
@@ -27,15 +18,9 @@ pub enum ProxyMode {
     Nns,
 }
 
-impl ProxyMode {
-    /// Name as on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            ProxyMode::Mochi => "mochi",
-            ProxyMode::Nns => "nns",
-        }
-    }
+crate::names::named!(ProxyMode { Mochi => "mochi", Nns => "nns" });
 
+impl ProxyMode {
     /// The value of `mode` in the device programs: `MODE_MOCHI`/`MODE_NNS` of `wgsl/core/proxy.wgsl`
     /// and `MOCHI_MODE_MOCHI`/`MOCHI_MODE_NNS` of `optix/device.cuh` (checked by
     /// `tests/shaders.rs`).

@@ -14,7 +14,8 @@ use std::array::from_fn;
 use std::f64::consts::PI;
 
 /// A named scene.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Scene {
     /// Paper dataset 1: radii U[0.0005, 0.0006] filling the unit cube.
     Freefall,
@@ -23,7 +24,7 @@ pub enum Scene {
     /// takes, at most 0.8 (reached at a million spheres).
     Slab,
     /// Paper dataset 2, r_max/r_min = 1.2: radii U[0.0005, 0.0006] in a 16-unit cube.
-    #[value(name = "poly1.2")]
+    #[cfg_attr(feature = "clap", value(name = "poly1.2"))]
     Poly1_2,
     /// Paper dataset 2, r_max/r_min = 12: radii U[0.0005, 0.006] in a 16-unit cube.
     Poly12,
@@ -54,17 +55,8 @@ const POUR_BOX: f64 = 4.0;
 pub const SLAB_BASE: f64 = 0.1;
 
 /// Where the centres go.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Default,
-    clap::ValueEnum,
-    serde::Serialize,
-    serde::Deserialize,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Layout {
     /// Jittered lattice, no overlaps.
@@ -73,6 +65,8 @@ pub enum Layout {
     /// Uniformly random centres, overlaps allowed.
     Random,
 }
+
+crate::names::named!(Layout { Lattice => "lattice", Random => "random" });
 
 /// Everything that determines a generated sphere set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -87,16 +81,17 @@ pub struct SceneSpec {
     pub layout: Layout,
 }
 
-impl Scene {
-    /// Name, as on the command line.
-    pub fn name(self) -> String {
-        use clap::ValueEnum;
-        self.to_possible_value()
-            .expect("no scene is hidden from the command line")
-            .get_name()
-            .to_owned()
-    }
+crate::names::named!(Scene {
+    Freefall => "freefall",
+    Slab => "slab",
+    Poly1_2 => "poly1.2",
+    Poly12 => "poly12",
+    Poly120 => "poly120",
+    Polylog => "polylog",
+    Pour => "pour",
+});
 
+impl Scene {
     /// Range of the uniformly distributed radii \[m\].
     pub fn radius_range(self) -> (f32, f32) {
         match self {
@@ -370,8 +365,8 @@ mod tests {
 
     #[test]
     fn no_scene_is_too_coarse_for_f32() {
-        use clap::ValueEnum;
-        for &scene in Scene::value_variants() {
+        use crate::names::Named;
+        for &scene in Scene::ALL {
             for layout in [Layout::Lattice, Layout::Random] {
                 let s = generate(&spec(scene, 20_000, layout)).unwrap();
                 let warning = crate::spheres::coarse_coordinates(s.centers(), s.radii());

@@ -9,7 +9,6 @@
 mod common;
 
 use mochi::Backend;
-use mochi::dem::scene::by_name;
 use mochi::engines::wgpu_compute::GridBuild;
 use mochi::engines::{BackendKind, Options};
 use mochi::oracle::{brute_force_pairs, differences};
@@ -52,7 +51,7 @@ fn settings(kind: BackendKind) -> Vec<(String, Options)> {
     let mut all = vec![(kind.name().to_owned(), Options::default())];
     if kind == BackendKind::WgpuCompute {
         for grid_build in [GridBuild::Dense, GridBuild::Sorted] {
-            let label = format!("{} {}", kind.name(), by_name::name(&grid_build));
+            let label = format!("{} {}", kind.name(), grid_build.name());
             all.push((
                 label,
                 Options {

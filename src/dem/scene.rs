@@ -76,50 +76,9 @@ use crate::spheres::SphereSet;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// The names of [`clap::ValueEnum`] values: on the command line, in TOML and in reports alike.
-/// As a serde module (`#[serde(with = "crate::dem::scene::by_name")]`) it serves types that
-/// have no serde of their own and fields read in any case (as scene files always were).
-pub mod by_name {
-    use serde::de::Error as _;
-    use serde::{Deserialize, Deserializer, Serializer};
-
-    /// The command-line name of `value`.
-    pub fn name<T: clap::ValueEnum>(value: &T) -> String {
-        value
-            .to_possible_value()
-            .expect("no value is hidden from the command line")
-            .get_name()
-            .to_owned()
-    }
-
-    /// The value of `T` named `name` in any case, or an error naming `what` and listing the
-    /// names.
-    pub fn parse<T: clap::ValueEnum>(name: &str, what: &str) -> Result<T, String> {
-        T::from_str(name, true).map_err(|_| {
-            let names: Vec<String> = T::value_variants().iter().map(self::name).collect();
-            let (last, rest) = names.split_last().expect("an enum has values");
-            format!("unknown {what} {name:?}: use {} or {last}", rest.join(", "))
-        })
-    }
-
-    /// Writes the name of `value`.
-    pub fn serialize<T: clap::ValueEnum, S: Serializer>(
-        value: &T,
-        s: S,
-    ) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&name(value))
-    }
-
-    /// Reads a name in any case, refusing any other than those of `T`, which the error lists.
-    pub fn deserialize<'de, T: clap::ValueEnum, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
-        let name = String::deserialize(d)?;
-        parse(&name, "value").map_err(D::Error::custom)
-    }
-}
-
 /// What the `scene` field names: a generated scene of [`Scene`], `rotating` (freefall under
-/// rotating gravity), `mesh` (a filled mesh) or `input` (a sphere file). Its names are those of
-/// [`clap::ValueEnum`], in TOML and on the command line alike.
+/// rotating gravity), `mesh` (a filled mesh) or `input` (a sphere file). Its names
+/// ([`Named`](crate::names::Named)) are read alike in TOML and on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(try_from = "String", into = "String")]
 pub enum SceneKind {
@@ -155,8 +114,15 @@ impl SceneKind {
     ];
 
     /// Name, as in TOML and on the command line.
-    pub fn name(self) -> String {
-        by_name::name(&self)
+    pub fn name(self) -> &'static str {
+        match self {
+            SceneKind::Generated(scene) => scene.name(),
+            SceneKind::Rotating => "rotating",
+            SceneKind::Mesh => "mesh",
+            SceneKind::Input => "input",
+            SceneKind::Hopper => "hopper",
+            SceneKind::Drum => "drum",
+        }
     }
 
     /// Where the spheres come from (`rotating` is freefall).
@@ -181,6 +147,15 @@ enum Source {
     Equipment(Equipment),
 }
 
+impl crate::names::Named for SceneKind {
+    const ALL: &'static [Self] = &Self::ALL;
+
+    fn name(self) -> &'static str {
+        SceneKind::name(self)
+    }
+}
+
+#[cfg(feature = "clap")]
 impl clap::ValueEnum for SceneKind {
     fn value_variants<'a>() -> &'a [Self] {
         &Self::ALL
@@ -207,7 +182,7 @@ impl std::str::FromStr for SceneKind {
 
     /// `name` in any case.
     fn from_str(name: &str) -> std::result::Result<Self, String> {
-        by_name::parse(name, "scene")
+        crate::names::parse(name, "scene")
     }
 }
 
@@ -221,13 +196,13 @@ impl TryFrom<String> for SceneKind {
 
 impl From<SceneKind> for String {
     fn from(scene: SceneKind) -> String {
-        scene.name()
+        scene.name().to_owned()
     }
 }
 
 impl std::fmt::Display for SceneKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.name())
+        f.write_str(self.name())
     }
 }
 
@@ -400,7 +375,7 @@ pub struct SceneConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub box_material: Option<String>,
     /// `mochi` (cells of 2·r_max) or `nns` (4·r_max).
-    #[serde(with = "by_name")]
+    #[serde(with = "crate::names::by_name")]
     pub mode: ProxyMode,
     /// Steps between frames (0: none).
     pub frame_every: u64,
@@ -1457,7 +1432,7 @@ mod tests {
 
     #[test]
     fn each_scene_and_mode_has_one_name_in_toml_and_on_the_command_line() {
-        use clap::ValueEnum;
+        use crate::names::Named;
         for scene in SceneKind::ALL {
             let c = SceneConfig::load(None, &[format!("scene={}", scene.name())]).unwrap();
             assert_eq!(c.scene, scene);
@@ -1467,10 +1442,9 @@ mod tests {
             SceneKind::Generated(scene) => Some(*scene),
             _ => None,
         });
-        assert!(generated.eq(Scene::value_variants().iter().copied()));
-        for &mode in ProxyMode::value_variants() {
-            let name = mode.to_possible_value().unwrap().get_name().to_owned();
-            assert_eq!(name, mode.name());
+        assert!(generated.eq(Scene::ALL.iter().copied()));
+        for &mode in ProxyMode::ALL {
+            let name = mode.name();
             assert_eq!(serde_json::to_string(&mode).unwrap(), format!("\"{name}\""));
             let c = SceneConfig::load(None, &[format!("mode={name}")]).unwrap();
             assert_eq!(c.mode, mode);

@@ -9,7 +9,8 @@ use crate::gpu::{self, Need};
 
 /// The backends this build of mochi knows. The first paragraph of each variant's doc is its
 /// help on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum BackendKind {
     /// OptiX custom primitives on NVIDIA GPUs (cargo feature `optix`).
     ///
@@ -18,18 +19,25 @@ pub enum BackendKind {
     /// Proxy boxes in a hardware BVH, WGSL ray queries.
     ///
     /// One point ray per sphere.
-    #[value(name = "wgpu-rq")]
+    #[cfg_attr(feature = "clap", value(name = "wgpu-rq"))]
     WgpuRq,
     /// Sorted proxy grid in WGSL compute shaders.
     ///
     /// For GPUs without ray queries.
-    #[value(name = "wgpu-compute")]
+    #[cfg_attr(feature = "clap", value(name = "wgpu-compute"))]
     WgpuCompute,
     /// Multi-threaded sorted proxy grid on the CPU.
     ///
     /// Runs everywhere.
     Cpu,
 }
+
+crate::names::named!(BackendKind {
+    Optix => "optix",
+    WgpuRq => "wgpu-rq",
+    WgpuCompute => "wgpu-compute",
+    Cpu => "cpu",
+});
 
 impl BackendKind {
     /// Every backend, in the order `auto` prefers them.
@@ -51,16 +59,6 @@ impl BackendKind {
         BackendKind::Cpu,
     ];
 
-    /// Name, as on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            BackendKind::Optix => "optix",
-            BackendKind::WgpuRq => "wgpu-rq",
-            BackendKind::WgpuCompute => "wgpu-compute",
-            BackendKind::Cpu => "cpu",
-        }
-    }
-
     /// The device this backend would run on, or why it cannot run here.
     pub fn probe(self) -> Result<String, String> {
         match self {
@@ -73,7 +71,7 @@ impl BackendKind {
 
     /// Why `auto` should pass over this backend although it can run (a software GPU is slower
     /// than the cpu backend; OptiX without RT cores is slower than wgpu-compute).
-    pub(crate) fn auto_skip(self) -> Option<String> {
+    pub fn auto_skip(self) -> Option<String> {
         let need = match self {
             #[cfg(feature = "optix")]
             BackendKind::Optix => return optix::auto_skip(),
@@ -207,6 +205,15 @@ impl BackendChoice {
     }
 }
 
+impl crate::names::Named for BackendChoice {
+    const ALL: &'static [Self] = &Self::ALL;
+
+    fn name(self) -> &'static str {
+        BackendChoice::name(self)
+    }
+}
+
+#[cfg(feature = "clap")]
 impl clap::ValueEnum for BackendChoice {
     fn value_variants<'a>() -> &'a [Self] {
         &Self::ALL
@@ -228,7 +235,7 @@ impl std::str::FromStr for BackendChoice {
 
     /// `auto` or a backend's name, in any case.
     fn from_str(name: &str) -> std::result::Result<Self, String> {
-        crate::dem::scene::by_name::parse(name, "backend")
+        crate::names::parse(name, "backend")
     }
 }
 
@@ -360,15 +367,15 @@ mod tests {
 
     #[test]
     fn the_choices_are_auto_then_every_backend_by_its_name() {
-        use clap::ValueEnum;
-        let names: Vec<String> = BackendChoice::value_variants()
+        use crate::names::Named;
+        let names: Vec<&str> = <BackendChoice as Named>::ALL
             .iter()
-            .map(crate::dem::scene::by_name::name)
+            .map(crate::names::name)
             .collect();
-        let mut want = vec!["auto".to_owned()];
-        want.extend(BackendKind::ALL.map(|kind| kind.name().to_owned()));
+        let mut want = vec!["auto"];
+        want.extend(BackendKind::ALL.map(BackendKind::name));
         assert_eq!(names, want);
-        for &choice in BackendChoice::value_variants() {
+        for &choice in <BackendChoice as Named>::ALL {
             let name = choice.to_string();
             assert_eq!(name.parse(), Ok(choice));
             assert_eq!(name.to_uppercase().parse(), Ok(choice));

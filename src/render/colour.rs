@@ -86,7 +86,8 @@ const SPEED_TOP: f32 = 0.95;
 
 /// What to colour the spheres by: one quantity, or `auto`, the one that tells most about a
 /// frame ([`ColorChoice::resolve`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum ColorChoice {
     /// The speed where walls move (a hopper's gate, a drum: the flow they drive) or the
     /// spheres do (a tenth of them faster than half the speed of a fall through their mean
@@ -103,6 +104,14 @@ pub enum ColorChoice {
     /// The material's index (0 for every sphere of a run of one material).
     Material,
 }
+
+crate::names::named!(ColorChoice {
+    Auto => "auto",
+    Radius => "radius",
+    Speed => "speed",
+    Height => "height",
+    Material => "material",
+});
 
 impl From<ColorBy> for ColorChoice {
     /// That quantity, chosen.

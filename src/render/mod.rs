@@ -133,17 +133,18 @@ impl Picture {
 /// Which render path to use. Each path needs the hardware of one detection backend and is
 /// chosen through the registry like it ([`RenderChoice::backend`]): `auto` is the registry's one
 /// rule over the backends that have a path, with their probes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum RenderChoice {
     /// The fastest path that runs here: wgpu-rq, then wgpu-compute, then cpu, passing over
     /// software adapters (slower than the cpu path).
     #[default]
     Auto,
     /// Ray queries over a BLAS of the spheres' boxes.
-    #[value(name = "wgpu-rq")]
+    #[cfg_attr(feature = "clap", value(name = "wgpu-rq"))]
     WgpuRq,
     /// Our own BVH traversed in a WGSL compute shader.
-    #[value(name = "wgpu-compute")]
+    #[cfg_attr(feature = "clap", value(name = "wgpu-compute"))]
     WgpuCompute,
     /// The same BVH on the CPU (rayon).
     Cpu,
@@ -161,17 +162,19 @@ impl RenderChoice {
             RenderChoice::Cpu => Some(BackendKind::Cpu),
         }
     }
-
-    /// The name on the command line (that of its backend).
-    pub fn name(self) -> &'static str {
-        self.backend().map_or("auto", BackendKind::name)
-    }
 }
+
+crate::names::named!(RenderChoice {
+    Auto => "auto",
+    WgpuRq => "wgpu-rq",
+    WgpuCompute => "wgpu-compute",
+    Cpu => "cpu",
+});
 
 /// The backends that have a render path, in the order `auto` prefers them.
 fn render_backends() -> Vec<BackendKind> {
-    use clap::ValueEnum;
-    let paths: Vec<BackendKind> = RenderChoice::value_variants()
+    use crate::names::Named;
+    let paths: Vec<BackendKind> = RenderChoice::ALL
         .iter()
         .filter_map(|choice| choice.backend())
         .collect();
@@ -270,7 +273,7 @@ impl Renderer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::ValueEnum;
+    use crate::names::Named;
 
     #[test]
     fn each_render_path_is_named_and_chosen_as_its_backend() {
@@ -282,9 +285,9 @@ mod tests {
                 BackendKind::Cpu
             ]
         );
-        for choice in RenderChoice::value_variants() {
-            let value = choice.to_possible_value().expect("not hidden");
-            assert_eq!(value.get_name(), choice.name());
+        for choice in RenderChoice::ALL {
+            let named = choice.backend().map_or("auto", BackendKind::name);
+            assert_eq!(named, choice.name());
         }
     }
 

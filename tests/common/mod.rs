@@ -2,7 +2,6 @@
 //! without an adapter), the steppers of the backends that run here, and small scene builders.
 #![allow(dead_code)] // each test file uses the part it needs
 
-pub mod cli;
 pub mod impacts;
 pub mod mbf;
 pub mod rule_cases;

@@ -83,17 +83,8 @@ pub(crate) struct GridParams {
 }
 
 /// Which grid the backend builds.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Default,
-    clap::ValueEnum,
-    serde::Serialize,
-    serde::Deserialize,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Structure {
     /// The multi-level grid where the radii span a factor of 4 or more (`AUTO_MLGRID_RATIO`;
@@ -108,21 +99,14 @@ pub enum Structure {
     Mlgrid,
 }
 
+crate::names::named!(Structure { Auto => "auto", Grid => "grid", Mlgrid => "mlgrid" });
+
 /// Smallest r_max / r_min for which `auto` builds the multi-level grid.
 pub const AUTO_MLGRID_RATIO: f64 = 4.0;
 
 /// How the backend sorts the spheres by cell and finds a cell's run of sorted spheres.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Default,
-    clap::ValueEnum,
-    serde::Serialize,
-    serde::Deserialize,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum GridBuild {
     /// `sorted` where the dense table over the spheres' bounds, at the mode's cell size, would
@@ -138,6 +122,8 @@ pub enum GridBuild {
     /// mode's size.
     Sorted,
 }
+
+crate::names::named!(GridBuild { Auto => "auto", Dense => "dense", Sorted => "sorted" });
 
 /// A build [`GridBuild`] resolves to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -4,7 +4,7 @@ use super::args::{Cli, Command, DetectArgs, GenerateArgs, SceneArgs};
 use super::backend_options::BackendFlags;
 use super::output::{check_output_folder, folder_of, refuse_same_file};
 use anyhow::Result;
-use mochi::dem::scene::by_name;
+
 use mochi::engines::{self, BackendKind};
 use mochi::scenes::{self, Layout, SceneSpec};
 use mochi::{SphereSet, io};
@@ -35,7 +35,7 @@ fn scene(args: &SceneArgs, default_layout: Layout) -> Result<(SphereSet, String)
     let what = format!(
         "scene {} ({} layout, seed {})",
         spec.scene.name(),
-        by_name::name(&spec.layout),
+        spec.layout.name(),
         spec.seed
     );
     Ok((spheres, what))

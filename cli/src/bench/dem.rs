@@ -4,13 +4,13 @@ use super::Outcome;
 use super::plan::{DROP_DT, Experiment, MESH_DROP_COPIES, Plan, REBUILD_INTERVALS};
 use super::report::{DemRow, HistorySize, StepRange};
 use super::stats::Spread;
-use crate::dem::scene::{ContactKind, SceneConfig, SceneKind, Start, Stiffness};
-use crate::dem::{Clock, Stepper};
-use crate::engines::open_stepper;
-use crate::engines::wgpu_compute::{GridBuild, Structure};
-use crate::engines::{BackendKind, Options, RebuildPolicy};
-use crate::error::{Error, Result};
-use crate::scenes::{SLAB_BASE, Scene};
+use mochi::dem::scene::{ContactKind, SceneConfig, SceneKind, Start, Stiffness};
+use mochi::dem::{Clock, Stepper};
+use mochi::engines::open_stepper;
+use mochi::engines::wgpu_compute::{GridBuild, Structure};
+use mochi::engines::{BackendKind, Options, RebuildPolicy};
+use mochi::scenes::{SLAB_BASE, Scene};
+use mochi::{Error, Result};
 use std::time::Instant;
 
 /// The start of a generated DEM scene (`freefall`, `rotating`, `slab`, `polylog`) of `n`
@@ -325,7 +325,7 @@ fn measure(
     } else {
         Clock::None
     };
-    let per_step = |f: &dyn Fn(&crate::dem::StageTimes) -> f64| {
+    let per_step = |f: &dyn Fn(&mochi::dem::StageTimes) -> f64| {
         let values: Vec<f64> = runs.iter().map(|r| f(&r.times) / r.steps as f64).collect();
         Spread::of(&values).expect("a plan has at least one repeat")
     };
@@ -365,7 +365,7 @@ fn measure(
         rebuild: policy.to_owned(),
         refits: stepper.refits(),
         steps,
-        dt: Some(crate::numbers::widened(case.start.params.dt)),
+        dt: Some(mochi::numbers::widened(case.start.params.dt)),
         settled,
         timed: Some(timed),
         contacts: last.contacts,
@@ -387,8 +387,8 @@ mod tests {
     use super::*;
     use crate::bench::plan::DROP_STEPS;
     use crate::bench::plan::Settings;
-    use crate::dem::{Advance, Particles, StageTimes};
-    use crate::scenes::Scene;
+    use mochi::dem::{Advance, Particles, StageTimes};
+    use mochi::scenes::Scene;
 
     /// A step that takes 1 ms per phase and refits or not.
     struct Fake {
@@ -411,7 +411,7 @@ mod tests {
                     dcd_ms: ms,
                     update_ms: ms,
                 },
-                clock: crate::dem::Clock::Gpu,
+                clock: mochi::dem::Clock::Gpu,
             })
         }
 

@@ -1,5 +1,5 @@
-//! Command-line interface: argument definitions in [`args`], the commands in [`run`] (and
-//! [`simulate`], [`bench`](mod@bench)).
+//! Command-line interface: argument definitions in `args`, the commands in `run` (and
+//! `simulate`, `bench`, `render`).
 
 mod args;
 mod backend_options;

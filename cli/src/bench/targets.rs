@@ -9,11 +9,10 @@
 use super::plan::Experiment;
 use super::plan::{DROP_DT, DROP_STEPS};
 use super::report::{self, Check, DemRow, Report};
-use crate::dem::scene::SceneKind;
-use crate::dem::scene::by_name;
-use crate::engines::BackendKind;
-use crate::proxy::ProxyMode;
-use crate::scenes::Scene;
+use mochi::dem::scene::SceneKind;
+use mochi::engines::BackendKind;
+use mochi::proxy::ProxyMode;
+use mochi::scenes::Scene;
 
 /// Why a DEM target measured on a state without contacts is not judged.
 pub const NO_CONTACTS: &str = "not judged: the state has no contacts";
@@ -193,7 +192,7 @@ fn dem_target(
             format!(
                 "{} {} n={}, {}: {:.3} ms",
                 r.backend.name(),
-                by_name::name(&r.structure),
+                r.structure.name(),
                 r.n,
                 r.state(),
                 r.total_ms.median
@@ -392,9 +391,9 @@ pub(crate) mod tests {
     use crate::bench::plan::{BackendStatus, Settings};
     use crate::bench::report::{Machine, SCHEMA_VERSION, StepRange};
     use crate::bench::stats::Spread;
-    use crate::dem::Clock;
-    use crate::engines::wgpu_compute::Structure;
     use clap::ValueEnum;
+    use mochi::dem::Clock;
+    use mochi::engines::wgpu_compute::Structure;
 
     fn ms(v: f64) -> Spread {
         Spread::of(&[v]).unwrap()

@@ -5,9 +5,8 @@ use super::plan::DROP_STEPS;
 use super::plan::Experiment;
 use super::report::{DemRow, DetectRow, Report};
 use super::stats::Spread;
-use crate::dem::Clock;
-use crate::dem::scene::by_name;
-use crate::numbers::significant;
+use mochi::dem::Clock;
+use mochi::numbers::significant;
 use std::fmt::Write;
 
 /// The whole report as Markdown.
@@ -166,7 +165,7 @@ fn detect_table(out: &mut String, rows: &[DetectRow]) {
             r.scene,
             r.n,
             r.mode.name(),
-            by_name::name(&r.structure),
+            r.structure.name(),
             r.candidates_per_sphere,
             r.pairs,
             spread(&r.build_ms),
@@ -206,7 +205,7 @@ fn dem_table(out: &mut String, rows: &[&DemRow], with_rebuild: bool) {
             r.setup(),
             r.n,
             r.mode.name(),
-            by_name::name(&r.structure),
+            r.structure.name(),
             r.dt.map_or_else(|| "–".to_owned(), |dt| significant(dt, 4)),
             r.timed.map_or_else(
                 || "–".to_owned(),

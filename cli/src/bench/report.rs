@@ -3,13 +3,13 @@
 
 use super::plan::{BackendStatus, Experiment, Settings};
 use super::stats::Spread;
-use crate::dem::Clock;
-use crate::dem::scene::SceneKind;
-use crate::engines::BackendKind;
-use crate::engines::wgpu_compute::Structure;
-use crate::numbers::significant;
-use crate::proxy::ProxyMode;
-use crate::scenes::Layout;
+use mochi::dem::Clock;
+use mochi::dem::scene::SceneKind;
+use mochi::engines::BackendKind;
+use mochi::engines::wgpu_compute::Structure;
+use mochi::numbers::significant;
+use mochi::proxy::ProxyMode;
+use mochi::scenes::Layout;
 use serde::{Deserialize, Serialize};
 
 /// Version of the JSON layout; raised whenever a field changes meaning or goes away. 2: experiment
@@ -88,7 +88,7 @@ pub struct DetectRow {
     /// Always [`Experiment::Dcd`].
     pub experiment: Experiment,
     /// The backend.
-    #[serde(with = "crate::dem::scene::by_name")]
+    #[serde(with = "mochi::names::by_name")]
     pub backend: BackendKind,
     /// Its device, in words.
     pub device: String,
@@ -133,7 +133,7 @@ pub struct DemRow {
     /// Experiment 2–8.
     pub experiment: Experiment,
     /// The backend.
-    #[serde(with = "crate::dem::scene::by_name")]
+    #[serde(with = "mochi::names::by_name")]
     pub backend: BackendKind,
     /// Its device, in words.
     pub device: String,
@@ -262,9 +262,9 @@ pub struct HistorySize {
 
 impl HistorySize {
     /// What `history` holds, and its bytes per sphere in the layout of
-    /// [`ContactHistory`](crate::dem::ContactHistory) (an engine's own copy may differ).
-    pub fn of(history: &crate::dem::ContactHistory) -> Self {
-        let entry = std::mem::size_of::<crate::dem::HistoryEntry>();
+    /// [`ContactHistory`](mochi::dem::ContactHistory) (an engine's own copy may differ).
+    pub fn of(history: &mochi::dem::ContactHistory) -> Self {
+        let entry = std::mem::size_of::<mochi::dem::HistoryEntry>();
         Self {
             entries: history.len() as u64,
             slots: history.slots(),
@@ -279,7 +279,7 @@ pub struct Skipped {
     /// The experiment.
     pub experiment: Experiment,
     /// The backend.
-    #[serde(with = "crate::dem::scene::by_name")]
+    #[serde(with = "mochi::names::by_name")]
     pub backend: BackendKind,
     /// What was to be measured.
     pub what: String,
@@ -344,7 +344,7 @@ fn ratio(a: f64, b: f64) -> f64 {
 
 /// FNV-1a (64-bit) of the pairs in sorted order, as 16 hex digits: equal pair sets, equal
 /// digests, whatever order a backend returns them in.
-pub fn pairs_digest(pairs: &[crate::Pair]) -> String {
+pub fn pairs_digest(pairs: &[mochi::Pair]) -> String {
     let mut sorted = pairs.to_vec();
     sorted.sort_unstable();
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
@@ -463,8 +463,8 @@ mod tests {
 
     #[test]
     fn the_digest_depends_on_every_pair() {
-        let a = [crate::Pair::new(0, 1), crate::Pair::new(2, 5)];
-        let b = [crate::Pair::new(0, 1), crate::Pair::new(2, 6)];
+        let a = [mochi::Pair::new(0, 1), mochi::Pair::new(2, 5)];
+        let b = [mochi::Pair::new(0, 1), mochi::Pair::new(2, 6)];
         assert_ne!(pairs_digest(&a), pairs_digest(&b));
         assert_eq!(pairs_digest(&a), pairs_digest(&[a[1], a[0]]));
     }

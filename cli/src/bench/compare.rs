@@ -15,8 +15,8 @@
 
 use super::plan::Experiment;
 use super::report::{Comparison, DemRow, PeerFigure, Report, thousands};
-use crate::error::{Error, Result};
-use crate::proxy::ProxyMode;
+use mochi::proxy::ProxyMode;
+use mochi::{Error, Result};
 use std::path::Path;
 
 /// Reads and checks the figures of `path`.

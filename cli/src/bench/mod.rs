@@ -23,7 +23,7 @@
 //!
 //! Every measurement runs `warmup` untimed times, then `repeats` timed times, and reports the
 //! median and spread ([`stats::Spread`]) on GPU timestamps where the backend has them, else on
-//! the wall clock, and says which ([`crate::dem::Clock`]). A [`report::Report`] holds the rows;
+//! the wall clock, and says which ([`mochi::dem::Clock`]). A [`report::Report`] holds the rows;
 //! [`markdown`] prints it and [`plot`] draws it as SVG.
 
 pub mod compare;
@@ -36,12 +36,12 @@ pub mod report;
 pub mod stats;
 pub mod targets;
 
-use crate::dem::scene::{SceneKind, Start};
-use crate::engines::BackendKind;
-use crate::engines::wgpu_compute::{GridBuild, Structure};
-use crate::error::Result;
-use crate::proxy::ProxyMode;
-use crate::scenes::Scene;
+use mochi::Result;
+use mochi::dem::scene::{SceneKind, Start};
+use mochi::engines::BackendKind;
+use mochi::engines::wgpu_compute::{GridBuild, Structure};
+use mochi::proxy::ProxyMode;
+use mochi::scenes::Scene;
 use plan::{BackendStatus, Experiment, Plan};
 use report::{Machine, Report, SCHEMA_VERSION, Skipped, utc_now};
 
@@ -267,7 +267,7 @@ fn structures(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dem::scene::by_name;
+    use mochi::names::by_name;
 
     #[derive(Debug, PartialEq, serde::Serialize, serde::Deserialize)]
     struct Row {

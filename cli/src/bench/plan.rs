@@ -1,8 +1,8 @@
 //! What a benchmark run measures: the experiments, the scale, the backends and the repeats.
 
-use crate::engines::BackendKind;
-use crate::engines::wgpu_compute::Structure;
-use crate::error::{Error, Result};
+use mochi::engines::BackendKind;
+use mochi::engines::wgpu_compute::Structure;
+use mochi::{Error, Result};
 use serde::{Deserialize, Serialize};
 
 /// Steps of experiment 8's drop: the paper's (and the comparison with Taichi's) 0.5 s at
@@ -313,7 +313,7 @@ impl std::str::FromStr for BackendSelection {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct BackendStatus {
     /// The backend.
-    #[serde(with = "crate::dem::scene::by_name")]
+    #[serde(with = "mochi::names::by_name")]
     pub name: BackendKind,
     /// The device it runs on, when it runs.
     pub device: Option<String>,
@@ -434,8 +434,8 @@ impl Plan {
         if self.settings.spheres < 2 {
             return bad("--spheres must be at least 2");
         }
-        crate::spheres::check_count(self.settings.spheres)?;
-        crate::spheres::check_count(self.settings.max_spheres)?;
+        mochi::check_count(self.settings.spheres)?;
+        mochi::check_count(self.settings.max_spheres)?;
         if self.settings.experiments.contains(&Experiment::Scaling)
             && self.settings.max_spheres < 1000
         {

@@ -4,14 +4,14 @@ use super::Outcome;
 use super::plan::{Experiment, Plan};
 use super::report::{DetectRow, pairs_digest};
 use super::stats::Spread;
-use crate::dem::Clock;
-use crate::dem::scene::SceneKind;
-use crate::detect::Backend;
-use crate::engines::{BackendKind, Options};
-use crate::error::Result;
-use crate::proxy::ProxyMode;
-use crate::scenes::{self, Layout, Scene, SceneSpec};
-use crate::spheres::SphereSet;
+use mochi::Backend;
+use mochi::Result;
+use mochi::SphereSet;
+use mochi::dem::Clock;
+use mochi::dem::scene::SceneKind;
+use mochi::engines::{BackendKind, Options};
+use mochi::proxy::ProxyMode;
+use mochi::scenes::{self, Layout, Scene, SceneSpec};
 use std::time::Instant;
 
 /// The scenes of experiment 1 (paper dataset 2): radius ratios 1.2, 12 and 120.
@@ -87,7 +87,7 @@ fn once(
     backend: &mut dyn Backend,
     spheres: &SphereSet,
     mode: ProxyMode,
-) -> Result<(Sample, Vec<crate::Pair>, crate::DetectStats)> {
+) -> Result<(Sample, Vec<mochi::Pair>, mochi::DetectStats)> {
     let t = Instant::now();
     backend.build(spheres.view(), mode)?;
     backend.finish()?;
@@ -115,7 +115,7 @@ fn measure(
 ) -> Result<DetectRow> {
     let info = backend.info();
     if spheres.len() as u64 > info.max_spheres {
-        return Err(crate::Error::TooLarge {
+        return Err(mochi::Error::TooLarge {
             what: format!("spheres for backend {}", info.name),
             got: spheres.len() as u64,
             limit: info.max_spheres,

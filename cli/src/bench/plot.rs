@@ -5,9 +5,8 @@
 use super::markdown::{speedup, time};
 use super::plan::Experiment;
 use super::report::{DemRow, Report};
-use crate::dem::scene::by_name;
-use crate::error::{Error, Result};
-use crate::proxy::ProxyMode;
+use anyhow::{Result, anyhow};
+use mochi::proxy::ProxyMode;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
@@ -84,10 +83,7 @@ fn svg(name: &str, width: u32, draw: impl FnOnce(&Area) -> Drawn) -> Result<Stri
             .map_err(Into::into)
             .and_then(|()| draw(&area))
             .and_then(|()| area.present().map_err(Into::into));
-        drawn.map_err(|e| Error::Plot {
-            name: name.to_owned(),
-            msg: e.to_string(),
-        })?;
+        drawn.map_err(|e| anyhow!("plot {name}: {e}"))?;
     }
     Ok(text)
 }
@@ -221,7 +217,7 @@ fn phases(area: &Area, title: &str, rows: &[&DemRow]) -> Drawn {
                     r.backend.name(),
                     r.scene,
                     r.mode.name(),
-                    by_name::name(&r.structure)
+                    r.structure.name()
                 )
             } else if r.experiment == Experiment::Clustered {
                 format!("{}\n{}", r.backend.name(), r.setup())

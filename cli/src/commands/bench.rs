@@ -1,10 +1,10 @@
 //! `mochi bench`: runs the paper's experiments, prints Markdown, writes JSON and SVG plots.
 
+use crate::bench::plan::{BackendSelection, Experiment, Plan, Scale, Settings};
+use crate::bench::{self, compare, markdown, plot};
 use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use mochi::bench::plan::{BackendSelection, Experiment, Plan, Scale, Settings};
-use mochi::bench::{self, compare, markdown, plot};
 use mochi::engines::wgpu_compute::Structure;
 use mochi::io;
 use std::path::PathBuf;

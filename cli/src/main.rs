@@ -1,11 +1,9 @@
-//! The `mochi` command-line tool; everything it does is in [`cli`].
+//! The `mochi` command-line tool; everything it does is in `mochi_cli::commands`.
 #![deny(unsafe_code)]
-
-mod cli;
 
 fn main() -> std::process::ExitCode {
     restore_sigpipe();
-    cli::main()
+    mochi_cli::commands::main()
 }
 
 /// Lets a closed pipe end the process quietly, as it does other Unix tools (`mochi backends |

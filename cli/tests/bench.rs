@@ -6,11 +6,11 @@
 
 mod common;
 
-use mochi::bench::plan::Experiment;
-use mochi::bench::report::{DemRow, DetectRow, Report, SCHEMA_VERSION, pairs_digest};
-use mochi::bench::stats::Spread;
 use mochi::dem::Clock;
-use mochi::dem::scene::by_name;
+use mochi_cli::bench::plan::Experiment;
+use mochi_cli::bench::report::{DemRow, DetectRow, Report, SCHEMA_VERSION, pairs_digest};
+use mochi_cli::bench::stats::Spread;
+
 use mochi::gpu::Need;
 use mochi::oracle::brute_force_pairs;
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};
@@ -192,7 +192,7 @@ fn check_dem(rows: &[DemRow], backends: &[&str]) {
         }
         let structures: Vec<String> = of("polylog", "mochi")
             .iter()
-            .map(|r| by_name::name(&r.structure))
+            .map(|r| r.structure.name().to_owned())
             .collect();
         if *backend == "wgpu-compute" {
             assert_eq!(structures, ["grid", "mlgrid"]);
@@ -391,7 +391,7 @@ fn bench_friction_reports_the_frictional_step_with_its_history() {
         let skipped = report.skipped.iter().find(|s| s.backend.name() == *backend);
         match (row, skipped) {
             (Some(row), None) => {
-                assert_eq!((row.scene.name().as_str(), row.n), ("slab", 1500));
+                assert_eq!((row.scene.name(), row.n), ("slab", 1500));
                 // 1,500 steps of 3.9 µs: the first layers have just met.
                 assert!(row.contacts > 0, "the slab is landing: {row:?}");
                 let history = row.history.expect("a frictional row reports its history");

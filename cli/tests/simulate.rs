@@ -237,7 +237,7 @@ fn a_csv_frame_restarts_a_run_with_its_velocities() {
 #[test]
 fn a_mesh_file_is_filled_and_dropped() {
     let dir = tempfile::tempdir().unwrap();
-    let obj = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/box.obj");
+    let obj = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/box.obj");
     let stdout = ok(
         &[
             "simulate",
@@ -591,7 +591,7 @@ fn absurd_parameters_are_refused_up_front_with_the_reason() {
 fn conflicting_options_are_errors_naming_both() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("good.csv"), "x,y,z,r\n0.5,0.5,0.5,0.01\n").unwrap();
-    let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/box.obj");
+    let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/box.obj");
     let cases: [(&[&str], [&str; 2]); 8] = [
         (
             &["--input", "good.csv", "--scene", "slab"],
