@@ -1,12 +1,12 @@
 //! Shared wgpu plumbing of the GPU backends: finding an adapter, opening a device, buffers,
 //! pipelines, dispatch sizes and read-back, with every GPU failure turned into an [`Error`].
 
-pub mod pair_output;
-pub mod pair_sort;
+pub(crate) mod pair_output;
+pub(crate) mod pair_sort;
 pub mod radix_sort;
 pub mod scan;
 pub mod shader;
-pub mod timer;
+pub(crate) mod timer;
 
 use crate::error::{Error, Result};
 use rayon::prelude::*;
@@ -25,7 +25,7 @@ pub fn shaders() -> Vec<WgslModule> {
 
 /// Bytes of one box in a BLAS's AABB input: two `vec3<f32>`, min then max (as
 /// `wgsl/rq/rq_build.wgsl` and `wgsl/rq/dem_rq.wgsl` write them: 6 floats per box).
-pub const AABB_STRIDE: u64 = 24;
+pub(crate) const AABB_STRIDE: u64 = 24;
 
 /// What a backend needs from an adapter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -502,7 +502,7 @@ impl Gpu {
     }
 
     /// Maps `range` of `upload` (from [`upload_buffer`](Self::upload_buffer)), hands it to
-    /// `fill` (which may write it on the rayon pool: [`copy_surveyed`]) and unmaps it,
+    /// `fill` (which may write it on the rayon pool, as `copy_surveyed` does) and unmaps it,
     /// ready for a copy: an upload that allocates no staging memory. After an error of `fill` the
     /// range holds anything.
     pub fn fill_upload<R>(
@@ -571,7 +571,7 @@ const PIECE_BYTES: usize = 3 << 16;
 /// `PIECE_BYTES` at a time, calling `survey(first, values)` on each piece's values as they are
 /// copied (`first` the index of the first); the pieces' surveys folded in order by `merge`,
 /// from `empty`: a caller that checks values while uploading them reads them once.
-pub fn copy_surveyed<T, S>(
+pub(crate) fn copy_surveyed<T, S>(
     view: WriteOnly<'_, [u8]>,
     values: &[T],
     survey: impl Fn(usize, &[T]) -> S + Sync,
@@ -604,7 +604,7 @@ where
 }
 
 /// [`copy_surveyed`] without a survey: `values` copied into `view` on the rayon pool.
-pub fn copy_into<T: bytemuck::Pod + Sync>(view: WriteOnly<'_, [u8]>, values: &[T]) {
+pub(crate) fn copy_into<T: bytemuck::Pod + Sync>(view: WriteOnly<'_, [u8]>, values: &[T]) {
     copy_surveyed(view, values, |_, _| (), |(), ()| (), || ());
 }
 

@@ -11,9 +11,9 @@ use crate::types::DetectStats;
 use crate::types::Pair;
 
 /// The counters in every detection shader (`pair_output.wgsl`).
-pub const COUNTERS: Binding = Binding::read_write(3, "counters");
+pub(crate) const COUNTERS: Binding = Binding::read_write(3, "counters");
 /// The pair buffer in every detection shader.
-pub const PAIRS: Binding = Binding::read_write(4, "pairs");
+pub(crate) const PAIRS: Binding = Binding::read_write(4, "pairs");
 
 /// What a detection hands its pairs to, once, sorted, where they lie (a read-back's mapping).
 pub type TakePairs<'a> = &'a mut dyn FnMut(&[Pair]);
