@@ -19,7 +19,7 @@
 
 use mochi::dem::equipment::mass_flow_rate;
 use mochi::dem::model::mass;
-use mochi::dem::scene::SceneConfig;
+use mochi::dem::scene::{Overrides, SceneConfig};
 use mochi::engines::{BackendChoice, BackendKind, Options, open_scene};
 use std::time::Instant;
 
@@ -67,7 +67,7 @@ fn drain(orifice: f64, spheres: usize, plan: &Plan) -> mochi::Result<Drain> {
         "frame_every=0".to_owned(),
     ];
     overrides.extend(plan.seed.map(|s| format!("seed={s}")));
-    let start = SceneConfig::load(None, &overrides)?.build()?;
+    let start = SceneConfig::load(None, &Overrides::parse(&overrides)?)?.build()?;
     let (dt, density) = (start.params.dt as f64, start.params.density);
     let cylinder = 2.5 * orifice;
     let mut stepper = open_scene(

@@ -3,11 +3,11 @@
 //! the Python `mochi.Simulation` both start their runs here, so the two cannot drift apart.
 //!
 //! ```no_run
-//! use mochi::dem::scene::SceneFlags;
+//! use mochi::dem::scene::{Overrides, SceneFlags};
 //! use mochi::engines::{BackendChoice, Options};
 //! use mochi::run::RunStart;
 //!
-//! let overrides = ["scene=freefall".to_owned(), "spheres=100".to_owned()];
+//! let overrides = Overrides::parse(&["scene=freefall", "spheres=100"])?;
 //! let start = RunStart::new(None, &SceneFlags::default(), &overrides)?;
 //! let mut run = start.open("cpu".parse::<BackendChoice>().unwrap(), &Options::default())?;
 //! run.stepper.advance(10)?;
@@ -16,7 +16,7 @@
 
 use crate::dem::flow::FlowCounts;
 use crate::dem::model::StepParams;
-use crate::dem::scene::{SceneConfig, SceneFlags, Start};
+use crate::dem::scene::{Overrides, SceneConfig, SceneFlags, Start};
 use crate::dem::stepper::Stepper;
 use crate::dem::walls::WallSet;
 use crate::engines::{BackendChoice, BackendKind, Opened, Options, open_scene};
@@ -139,12 +139,12 @@ pub struct RunStart {
 
 impl RunStart {
     /// A new run: the scene file (`None`: the default scene), then `flags`, then `overrides`
-    /// (`key=value`, as `--set` gives them), built into particles at step 0. Refuses fields the
+    /// (as `--set` gives them, or a table), built into particles at step 0. Refuses fields the
     /// chosen scene does not use, and a time step the contact law cannot keep stable.
     pub fn new(
         scene_file: Option<&Path>,
         flags: &SceneFlags,
-        overrides: &[String],
+        overrides: &Overrides,
     ) -> Result<Self> {
         let config = SceneConfig::load_new(scene_file, flags, overrides)?;
         let start = config.build()?;
@@ -168,7 +168,7 @@ impl RunStart {
     /// A checkpoint that cannot be read is an error of its own; a scene or particles that do
     /// not pass, or a wall mesh that changed since the run started, are an [`Error::Resuming`]
     /// naming the checkpoint. The flows go on from the checkpoint's counts.
-    pub fn resume(checkpoint: &Path, flags: &SceneFlags, overrides: &[String]) -> Result<Self> {
+    pub fn resume(checkpoint: &Path, flags: &SceneFlags, overrides: &Overrides) -> Result<Self> {
         let saved = io::read_checkpoint(checkpoint)?;
         let state = RunState::parse(&saved.state, checkpoint)?;
         let resuming = |error| Error::Resuming {

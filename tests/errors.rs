@@ -5,7 +5,7 @@
 
 mod common;
 
-use mochi::dem::scene::apply_override;
+use mochi::dem::scene::Overrides;
 use mochi::dem::{Material, Particles, StepParams};
 use mochi::render::parse_size;
 use mochi::{Error, SphereSet};
@@ -31,8 +31,7 @@ fn bad_settings_are_invalid_config_naming_the_setting() {
         }
         other => panic!("{other:?}"),
     }
-    let mut table = toml::Table::new();
-    match apply_override(&mut table, "dt") {
+    match Overrides::parse(&["dt"]) {
         Err(Error::InvalidConfig { what, reason }) => {
             assert_eq!(what, "--set \"dt\"");
             assert_eq!(reason, "expected key=value");

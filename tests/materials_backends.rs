@@ -6,7 +6,7 @@
 
 mod common;
 
-use mochi::dem::scene::{SceneConfig, Start};
+use mochi::dem::scene::{Overrides, SceneConfig, Start};
 use mochi::dem::{Particles, Stepper};
 use mochi::engines::{BackendChoice, BackendKind, Options, open_scene};
 
@@ -75,7 +75,7 @@ fn start(text: &str, particles: Particles) -> Start {
         std::fs::write(dir.path().join(name), plane(axis)).unwrap();
     }
     let file = dir.path().join("scene.toml");
-    let config = SceneConfig::parse(Some(text), Some(&file), &[]).unwrap();
+    let config = SceneConfig::parse(Some(text), Some(&file), &Overrides::default()).unwrap();
     config.start_from(particles).unwrap()
 }
 

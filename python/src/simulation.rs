@@ -7,7 +7,7 @@
 
 use crate::{Guarded, guard, plain_array, to_py_err};
 use mochi::dem::Particles;
-use mochi::dem::scene::{SceneConfig, SceneFlags};
+use mochi::dem::scene::{Overrides, SceneConfig, SceneFlags};
 use mochi::engines::{BackendChoice, Options};
 use mochi::io;
 use mochi::run::{FIRST_PROGRESS_STEPS, Run, RunStart, progress_steps};
@@ -93,19 +93,22 @@ fn toml_value(key: &str, value: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
 /// Whether the scene field `key` takes an integer and not the float `x` (a whole number): the
 /// library reads the field from the float as an error and from the integer as a value.
 fn wants_integer(key: &str, x: f64) -> bool {
-    let read = |value: toml::Value| SceneConfig::parse(None, None, &[format!("{key}={value}")]);
+    let read = |value: toml::Value| {
+        let field = toml::Table::from_iter([(key.to_owned(), value)]);
+        SceneConfig::parse(None, None, &Overrides::from_table(field))
+    };
     x.fract() == 0.0
         && x.abs() < 9.2e18
         && read(toml::Value::Float(x)).is_err()
         && read(toml::Value::Integer(x as i64)).is_ok()
 }
 
-/// A scene dict as `key=value` overrides, in the dict's order; a dict or a list of dicts as an
-/// inline table or an array of them (a lone dict for a key of [`TABLE_ARRAYS`] as an array of
-/// one). A whole float for a field that takes an integer is refused here, naming both, as a
-/// scene file's is (`spheres = 3e8`).
-fn overrides(scene: &Bound<'_, PyDict>) -> PyResult<Vec<String>> {
-    scene
+/// A scene dict as the table of the fields it sets (the scene reads it as it reads a file's);
+/// a dict or a list of dicts as a table or an array of them (a lone dict for a key of
+/// [`TABLE_ARRAYS`] as an array of one). A whole float for a field that takes an integer is
+/// refused here, naming both, as a scene file's is (`spheres = 3e8`).
+fn overrides(scene: &Bound<'_, PyDict>) -> PyResult<Overrides> {
+    let fields = scene
         .iter()
         .map(|(key, value)| {
             let key: String = key
@@ -128,16 +131,17 @@ fn overrides(scene: &Bound<'_, PyDict>) -> PyResult<Vec<String>> {
                 }
                 value => value,
             };
-            Ok(format!("{key}={value}"))
+            Ok((key, value))
         })
-        .collect()
+        .collect::<PyResult<toml::Table>>()?;
+    Ok(Overrides::from_table(fields))
 }
 
 /// The start of a new run from `scene`: a dict of scene keys, a TOML file, or `None`.
 fn new_start(py: Python<'_>, scene: Option<&Bound<'_, PyAny>>) -> PyResult<RunStart> {
     let flags = SceneFlags::default();
     let (file, overrides) = match scene {
-        None => (None, Vec::new()),
+        None => (None, Overrides::default()),
         Some(scene) => match scene.cast::<PyDict>() {
             Ok(dict) => (None, overrides(dict)?),
             Err(_) => {
@@ -146,7 +150,7 @@ fn new_start(py: Python<'_>, scene: Option<&Bound<'_, PyAny>>) -> PyResult<RunSt
                         "scene must be a dict of scene keys, a path to a scene TOML, or None",
                     )
                 })?;
-                (Some(path), Vec::new())
+                (Some(path), Overrides::default())
             }
         },
     };
@@ -390,7 +394,7 @@ impl Simulation {
     ) -> PyResult<Self> {
         guard("mochi.Simulation.resume", || {
             let start = py
-                .detach(|| RunStart::resume(&path, &SceneFlags::default(), &[]))
+                .detach(|| RunStart::resume(&path, &SceneFlags::default(), &Overrides::default()))
                 .map_err(to_py_err)?;
             Simulation::open(py, start, backend)
         })

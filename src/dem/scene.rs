@@ -535,9 +535,38 @@ fn box_lo_z(box_lo: Option<[f64; 3]>, default_lo: [f64; 3]) -> f64 {
     box_lo.unwrap_or(default_lo)[2]
 }
 
+/// Scene fields set over a scene file and the flags: one table, from `--set key=value`
+/// assignments ([`Overrides::parse`]) or built whole ([`Overrides::from_table`], as Python's
+/// scene dict is), so a value is read once, by the scene's own deserialization.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides(toml::Table);
+
+impl Overrides {
+    /// From `key=value` assignments, in order (`value` in TOML syntax; a bare word is taken as
+    /// a string, so `scene=slab` works).
+    pub fn parse(assignments: &[impl AsRef<str>]) -> Result<Self> {
+        let mut table = toml::Table::new();
+        for assignment in assignments {
+            apply_override(&mut table, assignment.as_ref())?;
+        }
+        Ok(Overrides(table))
+    }
+
+    /// From a table of fields (each key a field of the scene file, each value as the file
+    /// would give it).
+    pub fn from_table(table: toml::Table) -> Self {
+        Overrides(table)
+    }
+
+    /// Whether no field is set.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
 /// Parses a `key=value` override into `table` (`value` in TOML syntax; a bare word is taken as
 /// a string, so `scene=slab` works).
-pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
+fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
     let bad = |reason: String| Error::InvalidConfig {
         what: format!("--set {assignment:?}"),
         reason,
@@ -592,8 +621,8 @@ fn is_integer(text: &str) -> bool {
 }
 
 impl SceneConfig {
-    /// Reads a scene file (`None`: the defaults) and applies `overrides` (`key=value`).
-    pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Self> {
+    /// Reads a scene file (`None`: the defaults) and applies `overrides`.
+    pub fn load(path: Option<&Path>, overrides: &Overrides) -> Result<Self> {
         Self::parse(read_scene_file(path)?.as_deref(), path, overrides)
     }
 
@@ -601,7 +630,11 @@ impl SceneConfig {
     /// `overrides`, refusing fields given (in the file, by a flag or by an override) that the
     /// chosen scene does not use, such as `spheres` or `input` with a `mesh` scene: each would
     /// be silently ignored.
-    pub fn load_new(path: Option<&Path>, flags: &SceneFlags, overrides: &[String]) -> Result<Self> {
+    pub fn load_new(
+        path: Option<&Path>,
+        flags: &SceneFlags,
+        overrides: &Overrides,
+    ) -> Result<Self> {
         let text = read_scene_file(path)?;
         let (mut config, given) = Self::parse_table(text.as_deref(), path, flags, overrides)?;
         config.rebase(path);
@@ -689,8 +722,8 @@ impl SceneConfig {
     }
 
     /// Parses scene TOML (`None`: the defaults) from `origin` (named in errors; relative input
-    /// paths are taken from its folder) and applies `overrides` (`key=value`).
-    pub fn parse(text: Option<&str>, origin: Option<&Path>, overrides: &[String]) -> Result<Self> {
+    /// paths are taken from its folder) and applies `overrides`.
+    pub fn parse(text: Option<&str>, origin: Option<&Path>, overrides: &Overrides) -> Result<Self> {
         let flags = SceneFlags::default();
         let (mut config, _) = Self::parse_table(text, origin, &flags, overrides)?;
         config.rebase(origin);
@@ -730,7 +763,7 @@ impl SceneConfig {
         text: Option<&str>,
         origin: Option<&Path>,
         flags: &SceneFlags,
-        overrides: &[String],
+        overrides: &Overrides,
     ) -> Result<(Self, toml::Table)> {
         let where_ = || origin.map_or_else(|| "command line".into(), Path::to_owned);
         let mut table = match text {
@@ -748,9 +781,7 @@ impl SceneConfig {
         })?;
         let overridden = !flagged.is_empty() || !overrides.is_empty();
         table.extend(flagged);
-        for o in overrides {
-            apply_override(&mut table, o)?;
-        }
+        table.extend(overrides.0.clone());
         // Deserialize from text, so that errors quote the offending line: the file's own text
         // when nothing was overridden, else the merged table's.
         let merged;
@@ -777,11 +808,12 @@ impl SceneConfig {
         saved: &str,
         origin: &Path,
         flags: &SceneFlags,
-        overrides: &[String],
+        overrides: &Overrides,
     ) -> Result<Self> {
         let none = SceneFlags::default();
         let saved = &with_saved_contact(saved);
-        let (before, _) = Self::parse_table(Some(saved), Some(origin), &none, &[])?;
+        let (before, _) =
+            Self::parse_table(Some(saved), Some(origin), &none, &Overrides::default())?;
         let (after, _) = Self::parse_table(Some(saved), Some(origin), flags, overrides)?;
         let fields = |c: &SceneConfig| toml::Table::try_from(c).expect("a scene serializes");
         let (was, now) = (fields(&before), fields(&after));
@@ -1286,6 +1318,11 @@ impl SceneConfig {
 mod tests {
     use super::*;
 
+    /// `assignments` as overrides, which must parse.
+    fn given(assignments: &[impl AsRef<str>]) -> Overrides {
+        Overrides::parse(assignments).expect("the overrides parse")
+    }
+
     /// Significant digits of the number `token` (leading zeros, sign and exponent aside).
     fn significant_digits(token: &str) -> usize {
         let mantissa = token.split(['e', 'E']).next().unwrap_or("");
@@ -1308,7 +1345,7 @@ mod tests {
             ],
         ] {
             let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
-            let config = SceneConfig::load_new(None, &flags, &sets).unwrap();
+            let config = SceneConfig::load_new(None, &flags, &given(&sets)).unwrap();
             let start = config.build().unwrap();
             let saved = config.resolved(&start).to_toml();
             // No f32 widened to 16 or 17 digits (0.800000011920929): an f32 needs at most 9.
@@ -1318,7 +1355,7 @@ mod tests {
                 assert!(significant_digits(token) <= 9, "{token} in\n{saved}");
             }
             // Read back, the scene builds the same step and saves the same text.
-            let again = SceneConfig::parse(Some(&saved), None, &[]).unwrap();
+            let again = SceneConfig::parse(Some(&saved), None, &Overrides::default()).unwrap();
             let rebuilt = again.build().unwrap();
             assert_eq!(rebuilt.params, start.params, "{saved}");
             assert_eq!(again.resolved(&rebuilt).to_toml(), saved);
@@ -1330,7 +1367,7 @@ mod tests {
         let flags = SceneFlags::default();
         let new = |sets: &[&str]| {
             let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
-            SceneConfig::load_new(None, &flags, &sets)
+            SceneConfig::load_new(None, &flags, &given(&sets))
         };
         let default = new(&["spheres=10"]).unwrap();
         assert_eq!(default.tangential_model, None);
@@ -1380,12 +1417,12 @@ mod tests {
     fn overrides_take_toml_values_and_bare_words() {
         let c = SceneConfig::load(
             None,
-            &[
-                "scene=poly12".into(),
-                "spheres = 2000".into(),
-                "gravity=[0, -9.81, 0]".into(),
-                "stiffness=3.5".into(),
-            ],
+            &given(&[
+                "scene=poly12",
+                "spheres = 2000",
+                "gravity=[0, -9.81, 0]",
+                "stiffness=3.5",
+            ]),
         )
         .unwrap();
         assert_eq!(c.scene.name(), "poly12");
@@ -1396,24 +1433,25 @@ mod tests {
 
     #[test]
     fn unknown_fields_and_bad_values_are_errors() {
-        let e = SceneConfig::load(None, &["sphers=10".into()]).unwrap_err();
+        let e = SceneConfig::load(None, &given(&["sphers=10"])).unwrap_err();
         assert!(e.to_string().contains("sphers"), "{e}");
-        let e = SceneConfig::load(None, &["spheres=-3".into()]).unwrap_err();
+        let e = SceneConfig::load(None, &given(&["spheres=-3"])).unwrap_err();
         assert!(
             e.to_string().contains("spheres") || e.to_string().contains("-3"),
             "{e}"
         );
-        let e = SceneConfig::load(None, &["steps=18446744073709551615".into()]).unwrap_err();
+        let e = Overrides::parse(&["steps=18446744073709551615"]).unwrap_err();
         assert!(e.to_string().contains("outside the range"), "{e}");
-        let e = SceneConfig::load(None, &["no equals sign".into()]).unwrap_err();
+        let e = Overrides::parse(&["no equals sign"]).unwrap_err();
         assert!(e.to_string().contains("key=value"), "{e}");
-        let e = SceneConfig::load(None, &["scene=teapot".into()]).unwrap_err();
+        let e = SceneConfig::load(None, &given(&["scene=teapot"])).unwrap_err();
         assert!(e.to_string().contains("teapot"), "{e}");
     }
 
     #[test]
     fn unknown_scenes_and_modes_are_errors_listing_the_names() {
-        let e = SceneConfig::parse(Some("scene = \"teapot\""), None, &[]).unwrap_err();
+        let e = SceneConfig::parse(Some("scene = \"teapot\""), None, &Overrides::default())
+            .unwrap_err();
         let e = e.to_string();
         assert!(
             e.contains(
@@ -1422,7 +1460,7 @@ mod tests {
             ),
             "{e}"
         );
-        let e = SceneConfig::load(None, &["mode=fast".into()]).unwrap_err();
+        let e = SceneConfig::load(None, &given(&["mode=fast"])).unwrap_err();
         let e = e.to_string();
         assert!(
             e.contains("unknown value \"fast\": use mochi or nns"),
@@ -1434,7 +1472,7 @@ mod tests {
     fn each_scene_and_mode_has_one_name_in_toml_and_on_the_command_line() {
         use crate::names::Named;
         for scene in SceneKind::ALL {
-            let c = SceneConfig::load(None, &[format!("scene={}", scene.name())]).unwrap();
+            let c = SceneConfig::load(None, &given(&[format!("scene={}", scene.name())])).unwrap();
             assert_eq!(c.scene, scene);
             assert!(c.to_toml().contains(&format!("scene = \"{scene}\"")));
         }
@@ -1446,7 +1484,7 @@ mod tests {
         for &mode in ProxyMode::ALL {
             let name = mode.name();
             assert_eq!(serde_json::to_string(&mode).unwrap(), format!("\"{name}\""));
-            let c = SceneConfig::load(None, &[format!("mode={name}")]).unwrap();
+            let c = SceneConfig::load(None, &given(&[format!("mode={name}")])).unwrap();
             assert_eq!(c.mode, mode);
             assert!(c.to_toml().contains(&format!("mode = \"{name}\"")));
         }
@@ -1463,7 +1501,7 @@ mod tests {
             mode: Some(ProxyMode::Nns),
             ..SceneFlags::default()
         };
-        let c = SceneConfig::load_new(Some(&file), &flags, &["spheres=100".into()]).unwrap();
+        let c = SceneConfig::load_new(Some(&file), &flags, &given(&["spheres=100"])).unwrap();
         assert_eq!(
             (c.scene, c.spheres, c.steps, c.mode),
             (SceneKind::Rotating, 100, 7, ProxyMode::Nns)
@@ -1475,7 +1513,7 @@ mod tests {
             scene: Some(SceneKind::Mesh),
             ..SceneFlags::default()
         };
-        let e = SceneConfig::load_new(None, &flags, &[]).unwrap_err();
+        let e = SceneConfig::load_new(None, &flags, &Overrides::default()).unwrap_err();
         assert!(e.to_string().contains("-n/--set spheres"), "{e}");
     }
 
@@ -1488,7 +1526,7 @@ mod tests {
             input: Some(std::ffi::OsStr::from_bytes(b"bad\xff.csv").into()),
             ..SceneFlags::default()
         };
-        let e = SceneConfig::load_new(None, &flags, &[]).unwrap_err();
+        let e = SceneConfig::load_new(None, &flags, &Overrides::default()).unwrap_err();
         assert!(
             e.to_string().contains("cannot be written in TOML: path"),
             "{e}"
@@ -1503,8 +1541,13 @@ mod tests {
                      density = 500.0\nrestitution = 0.5\nstiffness = 2.0\nmode = \"nns\"\n\
                      frame_every = 5\ncsv = false\nmesh_radius = 0.005\n\
                      mesh_mixed = false\nmesh_size = 0.818\nmesh_copies = 1\n";
-        let c =
-            SceneConfig::resume(saved, Path::new("c.bin"), &SceneFlags::default(), &[]).unwrap();
+        let c = SceneConfig::resume(
+            saved,
+            Path::new("c.bin"),
+            &SceneFlags::default(),
+            &Overrides::default(),
+        )
+        .unwrap();
         assert_eq!((c.scene, c.mode), (SceneKind::Rotating, ProxyMode::Nns));
         // Saved before hertz-mindlin became the default, without a contact law: linear, and
         // written out from now on.
@@ -1514,11 +1557,21 @@ mod tests {
             "restitution = 0.5\ncontact = \"linear\"\n",
         );
         assert_eq!(c.to_toml(), named);
-        let again =
-            SceneConfig::resume(&named, Path::new("c.bin"), &SceneFlags::default(), &[]).unwrap();
+        let again = SceneConfig::resume(
+            &named,
+            Path::new("c.bin"),
+            &SceneFlags::default(),
+            &Overrides::default(),
+        )
+        .unwrap();
         assert_eq!(again, c);
         // Names were always read in any case.
-        let c = SceneConfig::parse(Some("scene = \"Poly1.2\"\nmode = \"NNS\""), None, &[]).unwrap();
+        let c = SceneConfig::parse(
+            Some("scene = \"Poly1.2\"\nmode = \"NNS\""),
+            None,
+            &Overrides::default(),
+        )
+        .unwrap();
         assert_eq!(
             (c.scene, c.mode),
             (SceneKind::Generated(Scene::Poly1_2), ProxyMode::Nns)
@@ -1540,14 +1593,14 @@ mod tests {
     fn the_mesh_scene_fills_copies_side_by_side_without_overlaps() {
         let c = SceneConfig::load(
             None,
-            &[
-                "scene=mesh".into(),
-                "contact=linear".into(),
-                "mesh_radius=0.02".into(),
-                "mesh_size=0.5".into(),
-                "mesh_copies=3".into(),
-                "mesh_mixed=true".into(),
-            ],
+            &given(&[
+                "scene=mesh",
+                "contact=linear",
+                "mesh_radius=0.02",
+                "mesh_size=0.5",
+                "mesh_copies=3",
+                "mesh_mixed=true",
+            ]),
         )
         .unwrap();
         let s = c.build().unwrap();
@@ -1558,14 +1611,13 @@ mod tests {
         assert!(crate::oracle::brute_force_pairs(&spheres).is_empty());
         assert!(s.particles.radii.contains(&0.01));
         assert_eq!(s.params.dt, 2.5e-5);
-        let bad =
-            SceneConfig::load(None, &["scene=mesh".into(), "mesh=\"nope.obj\"".into()]).unwrap();
+        let bad = SceneConfig::load(None, &given(&["scene=mesh", "mesh=\"nope.obj\""])).unwrap();
         assert!(bad.build().unwrap_err().to_string().contains("nope.obj"));
     }
 
     #[test]
     fn new_scenes_are_hertz_mindlin_with_the_documented_material() {
-        let c = SceneConfig::load(None, &[]).unwrap();
+        let c = SceneConfig::load(None, &Overrides::default()).unwrap();
         assert_eq!(c.scene, SceneKind::Generated(Scene::Pour));
         let m = c.material().unwrap();
         assert_eq!(
@@ -1581,7 +1633,7 @@ mod tests {
             (0.1, RollingModel::Epsd)
         );
         // A scene file without `contact` is Hertz–Mindlin too, and says so when saved.
-        let c = SceneConfig::parse(Some("scene = \"slab\""), None, &[]).unwrap();
+        let c = SceneConfig::parse(Some("scene = \"slab\""), None, &Overrides::default()).unwrap();
         assert!(
             c.to_toml().contains("contact = \"hertz-mindlin\""),
             "{}",
@@ -1591,7 +1643,7 @@ mod tests {
             &c.to_toml(),
             Path::new("c.bin"),
             &SceneFlags::default(),
-            &[],
+            &Overrides::default(),
         )
         .unwrap();
         assert_eq!(saved.contact, ContactKind::HertzMindlin);
@@ -1599,7 +1651,7 @@ mod tests {
 
     #[test]
     fn rotating_spins_gravity_a_quarter_pi_per_second() {
-        let c = SceneConfig::load(None, &["scene=rotating".into(), "spheres=1000".into()]).unwrap();
+        let c = SceneConfig::load(None, &given(&["scene=rotating", "spheres=1000"])).unwrap();
         let s = c.build().unwrap();
         assert!((s.params.gravity_spin as f64 - 0.25 * std::f64::consts::PI).abs() < 1e-6);
     }
@@ -1613,7 +1665,7 @@ mod tests {
         let text = "scene = \"freefall\"\nspheres = 8\nbox_walls = false\n\n[[wall]]\n\
                     mesh = \"floor.obj\"\nscale = 2.0\nrotate = { axis = [1, 0, 0], degrees = 10 }\n\
                     omega = 1.5\naxis = [0, 1, 0]\n";
-        let c = SceneConfig::parse(Some(text), Some(&scene), &[]).unwrap();
+        let c = SceneConfig::parse(Some(text), Some(&scene), &Overrides::default()).unwrap();
         assert_eq!(c.wall[0].mesh, obj);
         let start = c.build().unwrap();
         assert!(!start.walls.box_walls);
@@ -1625,21 +1677,29 @@ mod tests {
         assert!(!back.box_walls);
         // A file that is not there, a key no wall has, a bad scale: one error each, naming it.
         let missing = text.replace("floor.obj", "nowhere.obj");
-        let e = SceneConfig::parse(Some(&missing), Some(&scene), &[])
+        let e = SceneConfig::parse(Some(&missing), Some(&scene), &Overrides::default())
             .unwrap()
             .build()
             .unwrap_err()
             .to_string();
         assert!(e.contains("nowhere.obj"), "{e}");
-        let e = SceneConfig::parse(Some(&format!("{text}colour = 1\n")), Some(&scene), &[])
-            .unwrap_err()
-            .to_string();
+        let e = SceneConfig::parse(
+            Some(&format!("{text}colour = 1\n")),
+            Some(&scene),
+            &Overrides::default(),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("colour"), "{e}");
-        let e = SceneConfig::parse(Some(&text.replace("2.0", "-1.0")), Some(&scene), &[])
-            .unwrap()
-            .build()
-            .unwrap_err()
-            .to_string();
+        let e = SceneConfig::parse(
+            Some(&text.replace("2.0", "-1.0")),
+            Some(&scene),
+            &Overrides::default(),
+        )
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
         assert!(
             e.contains("wall 0") && e.contains("floor.obj") && e.contains("scale"),
             "{e}"
@@ -1651,7 +1711,7 @@ mod tests {
         let text = "scene = \"freefall\"\nspheres = 8\nbox_walls = false\n\n[[inflow]]\n\
                     center = [0.5, 0.5, 0.9]\nradius = 0.1\nmass_rate = 0.01\n\
                     sphere_radius = 0.002\n\n[[outflow]]\nlo = [0, 0, 0]\nhi = [1, 1, 0.1]\n";
-        let c = SceneConfig::parse(Some(text), None, &[]).unwrap();
+        let c = SceneConfig::parse(Some(text), None, &Overrides::default()).unwrap();
         let start = c.build().unwrap();
         let flow = &start.flow;
         assert_eq!((flow.inflows.len(), flow.outflows.len()), (1, 1));
@@ -1663,7 +1723,7 @@ mod tests {
         // The inserted spheres' radius sets the time step when smaller than the scene's.
         assert!(start.params.dt_limit > 0.0);
         let both = text.replace("mass_rate = 0.01", "mass_rate = 0.01\nrate = 5");
-        let e = SceneConfig::parse(Some(&both), None, &[])
+        let e = SceneConfig::parse(Some(&both), None, &Overrides::default())
             .unwrap()
             .build()
             .unwrap_err()
@@ -1673,7 +1733,7 @@ mod tests {
             "{e}"
         );
         let inverted = text.replace("hi = [1, 1, 0.1]", "hi = [1, 1, -0.1]");
-        let e = SceneConfig::parse(Some(&inverted), None, &[])
+        let e = SceneConfig::parse(Some(&inverted), None, &Overrides::default())
             .unwrap()
             .build()
             .unwrap_err()
@@ -1685,7 +1745,7 @@ mod tests {
     fn the_hopper_and_the_drum_come_with_their_walls_inside_their_box() {
         for (scene, walls, outflows) in [("hopper", 2, 1), ("drum", 1, 0)] {
             let over = [format!("scene={scene}"), "spheres=300".into()];
-            let c = SceneConfig::load(None, &over).unwrap();
+            let c = SceneConfig::load(None, &given(&over)).unwrap();
             let start = c.build().unwrap();
             assert_eq!(start.particles.len(), 300);
             assert_eq!(start.walls.meshes.len(), walls, "{scene}");
@@ -1721,7 +1781,10 @@ mod tests {
         // of every side's plane, by its radius at least.
         for sides in 3..=6 {
             let over = ["scene=drum".into(), format!("drum_sides={sides}")];
-            let start = SceneConfig::load(None, &over).unwrap().build().unwrap();
+            let start = SceneConfig::load(None, &given(&over))
+                .unwrap()
+                .build()
+                .unwrap();
             let tube = start.walls.triangles_at(0.0);
             for (c, &r) in start.particles.positions.iter().zip(&start.particles.radii) {
                 let c = glam::Vec3::from(*c);
@@ -1746,13 +1809,13 @@ mod tests {
                 .chain(&over)
                 .map(|s| s.to_string())
                 .collect();
-            let start = SceneConfig::load(None, &over).unwrap().build();
+            let start = SceneConfig::load(None, &given(&over)).unwrap().build();
             assert!(start.is_ok(), "{over:?}: {:?}", start.err());
         }
         let e = SceneConfig::load_new(
             None,
             &SceneFlags::default(),
-            &["scene=drum".into(), "hopper_angle=30".into()],
+            &given(&["scene=drum", "hopper_angle=30"]),
         )
         .unwrap_err()
         .to_string();
@@ -1764,10 +1827,10 @@ mod tests {
 #[cfg(test)]
 mod material_tables {
     use crate::dem::model::{ContactLaw, StepParams};
-    use crate::dem::scene::SceneConfig;
+    use crate::dem::scene::{Overrides, SceneConfig};
 
     fn scene(text: &str) -> crate::error::Result<SceneConfig> {
-        SceneConfig::parse(Some(text), None, &[])
+        SceneConfig::parse(Some(text), None, &Overrides::default())
     }
 
     const TWO: &str = r#"

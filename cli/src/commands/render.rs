@@ -5,7 +5,7 @@ use super::args::{RenderArgs, RenderCommandArgs};
 use super::output::{check_output_folder, check_render_output, folder_of};
 use super::view::{Bounds, View, WallAt, union, walls_at};
 use anyhow::{Context, Result, bail};
-use mochi::dem::scene::SceneConfig;
+use mochi::dem::scene::{Overrides, SceneConfig};
 use mochi::dem::walls::WallSet;
 use mochi::io::{self, SERIES_INDEX};
 use mochi::render::{ColorBy, ColorChoice, Gif, Legend, Renderer, Scene, parse_point, parse_size};
@@ -235,7 +235,7 @@ impl RunWalls {
     /// warning where they cannot be built, say a mesh file moved since the run).
     pub fn of_run(dir: &Path) -> Option<Self> {
         let path = dir.join(io::SCENE_FILE);
-        let config = SceneConfig::load(Some(&path), &[]).ok()?;
+        let config = SceneConfig::load(Some(&path), &Overrides::default()).ok()?;
         let built = config.walls().map_err(anyhow::Error::from);
         match built.and_then(|w| Ok((w, config.dt.context("the scene names no dt")?))) {
             Ok((walls, _)) if walls.meshes.is_empty() => None,
@@ -293,7 +293,7 @@ fn scene_of(dir: &Path) -> Option<SceneConfig> {
     if !path.is_file() {
         return None;
     }
-    SceneConfig::load(Some(&path), &[]).ok()
+    SceneConfig::load(Some(&path), &Overrides::default()).ok()
 }
 
 /// The simulation box in the `scene.toml` of `dir`, if there is one that says.

@@ -8,7 +8,7 @@ use super::view::walls_at;
 use super::walls::{FlowLog, WallOutputs};
 use anyhow::Result;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
-use mochi::dem::scene::{SceneFlags, SceneKind};
+use mochi::dem::scene::{Overrides, SceneFlags, SceneKind};
 use mochi::dem::{Clock, StageTimes, StepParams, Stepper, equipment};
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::numbers::significant;
@@ -58,9 +58,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         output::refuse_earlier_run(&out)?;
     }
     let flags = flags(&args)?;
+    let overrides = Overrides::parse(&args.set)?;
     let run_start = match &args.resume {
-        Some(path) => RunStart::resume(path, &flags, &args.set)?,
-        None => RunStart::new(args.scene_file.as_deref(), &flags, &args.set)?,
+        Some(path) => RunStart::resume(path, &flags, &overrides)?,
+        None => RunStart::new(args.scene_file.as_deref(), &flags, &overrides)?,
     };
     let total = run_start.config.steps;
     let first = run_start.start.particles.step;
