@@ -413,8 +413,6 @@ fn read_radii_into(radii: &Bound<'_, PyAny>, out: &mut Vec<f32>) -> PyResult<()>
     )))
 }
 
-/// A validated sphere set; every complaint about the arrays (row and reason) is a `ValueError`.
-
 fn parse_backend(name: &str) -> PyResult<BackendChoice> {
     name.parse().map_err(PyValueError::new_err)
 }
