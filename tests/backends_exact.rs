@@ -9,7 +9,7 @@
 mod common;
 
 use mochi::Backend;
-use mochi::engines::wgpu_compute::GridBuild;
+use mochi::engines::wgpu::compute::GridBuild;
 use mochi::engines::{BackendKind, Options};
 use mochi::oracle::{brute_force_pairs, differences};
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};

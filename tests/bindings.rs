@@ -14,8 +14,8 @@ fn all_modules() -> Vec<WgslModule> {
     mochi::gpu::shaders()
         .into_iter()
         .chain(mochi::render::shaders())
-        .chain(mochi::engines::wgpu_compute::shaders())
-        .chain(mochi::engines::wgpu_rq::shaders())
+        .chain(mochi::engines::wgpu::compute::shaders())
+        .chain(mochi::engines::wgpu::rq::shaders())
         .collect()
 }
 

@@ -9,10 +9,10 @@ mod common;
 use mochi::dem::model::{ContactLaw, mass, stable_dt, stiffness_for_duration};
 use mochi::dem::{Clock, Material, Particles, StepParams, Stepper};
 use mochi::engines::BackendKind;
-use mochi::engines::wgpu_compute::{
+use mochi::engines::wgpu::compute::{
     BuildKind, GridBuild, GridStepOptions, GridStepper, Sorting, Structure,
 };
-use mochi::engines::wgpu_rq::RqStepper;
+use mochi::engines::wgpu::rq::RqStepper;
 use mochi::engines::{DemSetup, KernelSet};
 use mochi::engines::{Options, RebuildPolicy};
 use mochi::proxy::ProxyMode;

@@ -205,10 +205,10 @@ fn the_modules_of_every_folder_form_no_cycle() {
             Some(format!("{folder}: {}", cycle.join(" -> ")))
         }));
     }
-    let engines = folder_graph(&root.join("src/engines"), "engines");
+    let wgpu = folder_graph(&root.join("src/engines/wgpu"), "engines::wgpu");
     assert!(
-        engines["gpu_step"].contains("gpu_granular"),
-        "read the engines' uses: {engines:?}"
+        wgpu["step"].contains("granular"),
+        "read the wgpu engines' uses: {wgpu:?}"
     );
     assert!(
         cycles.is_empty(),

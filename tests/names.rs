@@ -3,7 +3,7 @@
 //! command line.
 
 use mochi::ProxyMode;
-use mochi::engines::wgpu_compute::{GridBuild, Structure};
+use mochi::engines::wgpu::compute::{GridBuild, Structure};
 use mochi::engines::{BackendChoice, BackendKind};
 use mochi::names::{Named, parse};
 use mochi::render::{ColorChoice, RenderChoice};

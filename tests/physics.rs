@@ -14,7 +14,7 @@ use mochi::dem::model::contact::moment_of_inertia;
 use mochi::dem::model::time_step::{hertz_contact_time, hertz_peak_overlap};
 use mochi::dem::model::{ContactLaw, Material, RollingModel, TangentialModel, mass};
 use mochi::dem::{Particles, StepParams, Stepper};
-use mochi::engines::wgpu_compute::{GridBuild, GridStepOptions, GridStepper};
+use mochi::engines::wgpu::compute::{GridBuild, GridStepOptions, GridStepper};
 use mochi::engines::{BackendKind, DemSetup, Options, open_stepper};
 use mochi::proxy::ProxyMode;
 

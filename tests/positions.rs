@@ -15,7 +15,7 @@ mod common;
 use common::on_every_backend;
 use mochi::dem::model::{ContactLaw, Material};
 use mochi::dem::{Particles, StepParams, Stepper};
-use mochi::engines::wgpu_compute::GridBuild;
+use mochi::engines::wgpu::compute::GridBuild;
 use mochi::engines::{BackendKind, Options, open_stepper};
 use mochi::io::{Frame, read_checkpoint, read_frame, read_particles, write_checkpoint};
 use mochi::proxy::ProxyMode;

@@ -10,8 +10,8 @@ fn all_shaders() -> Vec<(String, String)> {
     mochi::gpu::shaders()
         .into_iter()
         .chain(mochi::render::shaders())
-        .chain(mochi::engines::wgpu_compute::shaders())
-        .chain(mochi::engines::wgpu_rq::shaders())
+        .chain(mochi::engines::wgpu::compute::shaders())
+        .chain(mochi::engines::wgpu::rq::shaders())
         .map(|m| (m.label, m.source))
         .collect()
 }

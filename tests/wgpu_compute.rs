@@ -6,7 +6,7 @@
 mod common;
 
 use mochi::Backend;
-use mochi::engines::wgpu_compute::{GridBuild, Structure, WgpuComputeBackend};
+use mochi::engines::wgpu::compute::{GridBuild, Structure, WgpuComputeBackend};
 use mochi::gpu::Need;
 use mochi::oracle::{brute_force_pairs, differences};
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};

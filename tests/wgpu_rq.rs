@@ -5,7 +5,7 @@
 mod common;
 
 use mochi::Backend;
-use mochi::engines::wgpu_rq::WgpuRqBackend;
+use mochi::engines::wgpu::rq::WgpuRqBackend;
 use mochi::gpu::Need;
 use mochi::oracle::{brute_force_pairs, differences};
 use mochi::scenes::{Layout, Scene, SceneSpec, generate};

@@ -2,11 +2,12 @@
 //! ([`open_stepper`], [`open_choice`], [`open_scene`]), each through the one opener of its
 //! engine ([`Engine`]): the one place that knows how every backend is opened.
 
-use super::flow_step::{DeviceFlow, FlowStep, Reopen};
-use super::gpu_step::KernelSet;
+use super::common::flow::{DeviceFlow, FlowStep, Reopen};
+use super::cpu;
 use super::registry::{BackendChoice, BackendKind, Opened, Options, open_auto};
 use super::setup::DemSetup;
-use super::{cpu, wgpu_compute, wgpu_rq};
+use super::wgpu::step::KernelSet;
+use super::wgpu::{compute as wgpu_compute, rq as wgpu_rq};
 use crate::dem::flow::FlowSet;
 use crate::dem::model::StepParams;
 use crate::dem::scene::Start;
@@ -267,7 +268,7 @@ fn choose(
 /// Opens the DEM step the user chose for the scene `start` (`auto`: in the order of
 /// [`BackendKind::FLOWING`] where spheres flow). The box walls, mesh walls and a box switched
 /// off run on every backend; spheres flowing in and out on every backend, the GPU ones through
-/// `FlowStep` (`engines/flow_step.rs`).
+/// `FlowStep` (`engines/common/flow.rs`).
 pub fn open_scene(
     choice: BackendChoice,
     start: Start,

@@ -3,7 +3,7 @@
 
 #[cfg(feature = "optix")]
 use super::optix;
-use super::wgpu_compute;
+use super::wgpu::compute;
 use crate::error::{Error, Result};
 use crate::gpu::{self, Need};
 
@@ -108,9 +108,9 @@ pub(crate) const NO_OPTIX_FEATURE: &str =
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Options {
     /// Grid structure of `wgpu-compute`.
-    pub structure: wgpu_compute::Structure,
+    pub structure: compute::Structure,
     /// How `wgpu-compute` builds its grid: dense table, sorted keys, or auto.
-    pub grid_build: wgpu_compute::GridBuild,
+    pub grid_build: compute::GridBuild,
     /// When a DEM step with a refittable BVH rebuilds it (grids re-bin and `wgpu-rq` rebuilds
     /// every step whatever this says).
     pub rebuild: RebuildPolicy,

@@ -5,7 +5,7 @@
 //! them readable and [`GpuTimer::ticks`] reads them back. Detection times spans
 //! ([`GpuTimer::start`], [`GpuTimer::end`]: two slots each, resolved on their own); the DEM steps
 //! mark the phases of a batch of steps and resolve them at once
-//! (`engines/gpu_step.rs`, `StepTimer`).
+//! (`engines/wgpu/step.rs`, `StepTimer`).
 
 use super::Gpu;
 use crate::error::Result;

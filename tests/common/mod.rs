@@ -156,8 +156,8 @@ pub fn open_dem_shared(
     particles: &Particles,
     params: StepParams,
 ) -> Box<dyn Stepper> {
-    use mochi::engines::wgpu_compute::{GridStepOptions, GridStepper};
-    use mochi::engines::wgpu_rq::RqStepper;
+    use mochi::engines::wgpu::compute::{GridStepOptions, GridStepper};
+    use mochi::engines::wgpu::rq::RqStepper;
     use mochi::engines::{DemSetup, KernelSet};
     use std::sync::OnceLock;
     static COMPUTE: OnceLock<Gpu> = OnceLock::new();

@@ -7,7 +7,7 @@ use super::stats::Spread;
 use mochi::dem::scene::{ContactKind, SceneConfig, SceneKind, Start, Stiffness};
 use mochi::dem::{Clock, Stepper};
 use mochi::engines::open_stepper;
-use mochi::engines::wgpu_compute::{GridBuild, Structure};
+use mochi::engines::wgpu::compute::{GridBuild, Structure};
 use mochi::engines::{BackendKind, Options, RebuildPolicy};
 use mochi::scenes::{SLAB_BASE, Scene};
 use mochi::{Error, Result};

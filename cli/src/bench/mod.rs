@@ -39,7 +39,7 @@ pub mod targets;
 use mochi::Result;
 use mochi::dem::scene::{SceneKind, Start};
 use mochi::engines::BackendKind;
-use mochi::engines::wgpu_compute::{GridBuild, Structure};
+use mochi::engines::wgpu::compute::{GridBuild, Structure};
 use mochi::proxy::ProxyMode;
 use mochi::scenes::Scene;
 use plan::{BackendStatus, Experiment, Plan};

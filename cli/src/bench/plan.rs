@@ -1,7 +1,7 @@
 //! What a benchmark run measures: the experiments, the scale, the backends and the repeats.
 
 use mochi::engines::BackendKind;
-use mochi::engines::wgpu_compute::Structure;
+use mochi::engines::wgpu::compute::Structure;
 use mochi::{Error, Result};
 use serde::{Deserialize, Serialize};
 

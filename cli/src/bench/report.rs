@@ -6,7 +6,7 @@ use super::stats::Spread;
 use mochi::dem::Clock;
 use mochi::dem::scene::SceneKind;
 use mochi::engines::BackendKind;
-use mochi::engines::wgpu_compute::Structure;
+use mochi::engines::wgpu::compute::Structure;
 use mochi::numbers::significant;
 use mochi::proxy::ProxyMode;
 use mochi::scenes::Layout;

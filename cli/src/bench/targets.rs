@@ -393,7 +393,7 @@ pub(crate) mod tests {
     use crate::bench::stats::Spread;
     use clap::ValueEnum;
     use mochi::dem::Clock;
-    use mochi::engines::wgpu_compute::Structure;
+    use mochi::engines::wgpu::compute::Structure;
 
     fn ms(v: f64) -> Spread {
         Spread::of(&[v]).unwrap()

@@ -2,7 +2,7 @@
 
 use clap::{Args, Parser, Subcommand};
 use mochi::ProxyMode;
-use mochi::engines::wgpu_compute::{GridBuild, Structure};
+use mochi::engines::wgpu::compute::{GridBuild, Structure};
 use mochi::engines::{BackendChoice, RebuildPolicy};
 use mochi::render::{ColorChoice, RenderChoice};
 use mochi::scenes::{Layout, Scene};

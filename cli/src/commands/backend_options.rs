@@ -3,7 +3,7 @@
 //! named, and a warning where `auto` picked it.
 
 use anyhow::{Result, bail};
-use mochi::engines::wgpu_compute::{GridBuild, Structure};
+use mochi::engines::wgpu::compute::{GridBuild, Structure};
 use mochi::engines::{BackendChoice, BackendKind, Options, RebuildPolicy};
 
 /// The backend options given (`None`: not given, the default applies).

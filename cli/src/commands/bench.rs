@@ -5,7 +5,7 @@ use crate::bench::{self, compare, markdown, plot};
 use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use mochi::engines::wgpu_compute::Structure;
+use mochi::engines::wgpu::compute::Structure;
 use mochi::io;
 use std::path::PathBuf;
 

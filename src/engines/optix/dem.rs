@@ -26,7 +26,7 @@ use crate::dem::model::LawParams;
 use crate::dem::stepper::{Advance, StageTimes, Stepper, needs_granular_step};
 use crate::dem::walls::WallLoad;
 use crate::engines::RebuildPolicy;
-use crate::engines::gpu_step::{
+use crate::engines::common::rows::{
     StateRows, advance_in_batches, particles_from, residual_rows, rows,
 };
 use crate::engines::setup::DemSetup;
@@ -426,7 +426,7 @@ impl OptixStepper {
 }
 
 /// Flow events read the state back and reopen the step.
-impl crate::engines::flow_step::DeviceFlow for OptixStepper {}
+impl crate::engines::common::flow::DeviceFlow for OptixStepper {}
 
 impl Stepper for OptixStepper {
     fn describe(&self) -> String {

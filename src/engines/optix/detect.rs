@@ -4,7 +4,7 @@ use super::device::{AccelOp, COUNTER_SLOTS, Device, Gas, Order, cuda};
 use super::engine::{MAX_COORDINATE, MAX_LAUNCH, describe, morton_order_of, open_device};
 use super::launches::{DetectBuffers, DetectProgram, Kernels};
 use crate::detect::BackendInfo;
-use crate::engines::gpu_detect::GpuBackend;
+use crate::engines::common::detect::GpuBackend;
 use crate::error::{Error, OptixError, Result};
 use crate::gpu::pair_output::TakePairs;
 use crate::proxy::BOX_PADDING;

@@ -11,7 +11,7 @@
 
 use super::sys::{self, Api};
 use crate::dem::model::{MaterialTable, PairLaw};
-use crate::engines::gpu_walls::WallTables;
+use crate::engines::common::walls::WallTables;
 use crate::error::OptixError;
 use crate::gpu::shader::storage_bytes;
 use crate::particles::{HistoryEntry, LoadEntry};

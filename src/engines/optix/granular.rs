@@ -24,7 +24,7 @@ use super::device::{
 use super::launches::{GranularBuffers, GranularIntegration, GranularKernels, GranularProgram};
 use crate::dem::model::{LawParams, StepParams};
 use crate::dem::walls::{WallLoad, WallSet};
-use crate::engines::gpu_walls::{WallTables, wall_loads};
+use crate::engines::common::walls::{WallTables, wall_loads};
 use crate::error::{Error, OptixError, Result};
 use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;

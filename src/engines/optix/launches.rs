@@ -11,7 +11,7 @@ use super::device::{
 };
 use super::programs::{self, Unit};
 use crate::dem::model::{LawParams, PairLaw};
-use crate::engines::gpu_walls::MeshWallRow;
+use crate::engines::common::walls::MeshWallRow;
 use crate::error::OptixError;
 use crate::particles::{HistoryEntry, LoadEntry};
 use crate::proxy::ProxyMode;

@@ -55,19 +55,22 @@ use crate::dem::model::StepParams;
 use crate::dem::stepper::Clock;
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
-use crate::engines::flow_step::DeviceFlow;
-use crate::engines::gpu_flow::{FlowQuery, FlowScan, Scan};
-use crate::engines::gpu_granular::shader::OMEGA;
-use crate::engines::gpu_readback::{BatchReadback, InFlight};
-use crate::engines::gpu_state::{InputOrder, ParamsUniform, Room, move_rows};
-use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
-use crate::engines::gpu_step::{
-    BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, RedoableBatch, StateRows,
-    StepTimer, Turn, advance_in_batches, max_spheres, particles_with, residual_rows, rows,
-    run_batch,
+use crate::engines::common::flow::DeviceFlow;
+use crate::engines::common::flow::{FlowQuery, Room, Scan};
+use crate::engines::common::rows::{
+    StateRows, advance_in_batches, particles_with, residual_rows, rows,
 };
-use crate::engines::gpu_walls;
 use crate::engines::setup::DemSetup;
+use crate::engines::wgpu::flow::FlowScan;
+use crate::engines::wgpu::granular::shader::OMEGA;
+use crate::engines::wgpu::readback::{BatchReadback, InFlight};
+use crate::engines::wgpu::state::{InputOrder, ParamsUniform, move_rows};
+use crate::engines::wgpu::step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
+use crate::engines::wgpu::step::{
+    BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, RedoableBatch, StepTimer, Turn,
+    max_spheres, run_batch,
+};
+use crate::engines::wgpu::walls;
 use crate::error::{Error, Result};
 use crate::gpu::radix_sort::{PreparedSort, RadixSort};
 use crate::gpu::shader::Binding;
@@ -169,7 +172,7 @@ struct Pipelines {
     /// multi-level grid's long walks run.
     listing: Option<[wgpu::ComputePipeline; 2]>,
     /// The mesh walls' kernels (granular step with mesh walls only), in the order of
-    /// `gpu_walls::ENTRY_POINTS`.
+    /// `walls::ENTRY_POINTS`.
     mesh: Option<[wgpu::ComputePipeline; 2]>,
     integrate: wgpu::ComputePipeline,
     reduce_bounds: wgpu::ComputePipeline,
@@ -475,7 +478,7 @@ impl GridStepper {
             mesh: granular
                 .as_ref()
                 .is_some_and(|g| g.mesh().any())
-                .then(|| gpu_walls::ENTRY_POINTS.map(pipeline)),
+                .then(|| walls::ENTRY_POINTS.map(pipeline)),
             // The dense build counts the spheres for the next step as it integrates them.
             integrate: pipeline(match build {
                 BuildKind::Dense => "integrate_and_count",

@@ -10,8 +10,6 @@
 //! and compiles nothing), with room for the spheres still to come. A run with no sphere left
 //! waits, without a step, for its inflows.
 
-use super::gpu_flow::{FlowQuery, Scan};
-use super::gpu_state::Room;
 use crate::dem::flow::{Event, FlowCounts, FlowSet, NewSphere};
 use crate::dem::model::mass;
 use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
@@ -285,5 +283,75 @@ impl Stepper for FlowStep {
 
     fn grid_build(&self) -> Option<&'static str> {
         self.step.as_ref().and_then(|s| s.grid_build())
+    }
+}
+
+/// What a flow event asks of the state.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FlowQuery {
+    /// Boxes (lo, hi) whose spheres are listed (around the inflows that insert).
+    pub near: Vec<(Vec3, Vec3)>,
+    /// Boxes whose spheres leave.
+    pub outflows: Vec<(Vec3, Vec3)>,
+    /// Centres below this height leave.
+    pub floor: Option<f32>,
+}
+
+/// A sphere that leaves, as the scan found it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Leaving {
+    /// Its state index.
+    pub row: u32,
+    /// Its radius \[m\].
+    pub radius: f32,
+    /// Its material.
+    pub material: u8,
+}
+
+/// What the scan found.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Scan {
+    /// Every sphere that leaves, in no order.
+    pub leaving: Vec<Leaving>,
+    /// Centre and radius of every other sphere in a box of [`FlowQuery::near`], in no order.
+    pub near: Vec<(Vec3, f32)>,
+}
+
+/// What an engine's state has room for: rows for `spheres` spheres (at least the
+/// particles'), and a grid and walls for radii over the range `radii` (at least the
+/// particles'); the rest for spheres appended later (the flow events of a device step).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Room {
+    /// Spheres.
+    pub spheres: usize,
+    /// Smallest and largest radius \[m\].
+    pub radii: (f32, f32),
+    /// Where spheres will come (the inflows' regions: a grid build is chosen for them too).
+    pub region: Option<([f32; 3], [f32; 3])>,
+}
+
+impl Room {
+    /// Room for `particles` and nothing more.
+    pub fn of(particles: &Particles) -> Room {
+        Room {
+            spheres: particles.len(),
+            radii: particles.radius_range(),
+            region: None,
+        }
+    }
+
+    /// This room, grown to hold `particles` (the radii of none count for nothing).
+    pub fn holding(self, particles: &Particles) -> Room {
+        let (a, b) = particles.radius_range();
+        let radii = match (particles.is_empty(), self.radii) {
+            (true, radii) => radii,
+            (false, (0.0, 0.0)) => (a, b),
+            (false, (lo, hi)) => (lo.min(a), hi.max(b)),
+        };
+        Room {
+            spheres: self.spheres.max(particles.len()),
+            radii,
+            ..self
+        }
     }
 }

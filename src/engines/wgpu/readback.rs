@@ -6,8 +6,8 @@
 //! Invariant: at most one batch is in flight per buffer; [`BatchReadback::submit`] takes the
 //! buffer the previous [`BatchReadback::finish`] unmapped.
 
-use super::gpu_step::{MAX_BATCH, StepTimer};
 use crate::dem::stepper::StageTimes;
+use crate::engines::wgpu::step::{MAX_BATCH, StepTimer};
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
 use std::sync::mpsc::{Receiver, channel};

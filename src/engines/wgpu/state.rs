@@ -1,11 +1,10 @@
 //! What a wgpu engine's DEM step keeps beside its shaders, shared by the paper's step and the
-//! granular one: its parameters on the GPU ([`ParamsUniform`]), the room its state has
-//! ([`Room`]), how its rows map to input order ([`InputOrder`]) and moving rows between places
-//! ([`move_rows`]).
+//! granular one: its parameters on the GPU ([`ParamsUniform`]), how its rows map to input order
+//! ([`InputOrder`]) and moving rows between places ([`move_rows`]).
 
 use crate::dem::model::LawParams;
 use crate::gpu::Gpu;
-use crate::particles::{FIRST_MESH_WALL, Particles};
+use crate::particles::FIRST_MESH_WALL;
 use rayon::prelude::*;
 
 /// A step's [`LawParams`] on the GPU (the uniform `dem` of `wgsl/dem/dem_params.wgsl`) and the
@@ -102,44 +101,5 @@ pub(crate) fn move_rows<'a>(
     for (k, &(_, to)) in moves.iter().enumerate() {
         let (buffer, offset) = at(to);
         encoder.copy_buffer_to_buffer(scratch, k as u64 * bytes, buffer, offset, bytes);
-    }
-}
-
-/// What an engine's state has room for: rows for `spheres` spheres (at least the
-/// particles'), and a grid and walls for radii over the range `radii` (at least the
-/// particles'); the rest for spheres appended later (the flow events of a device step).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Room {
-    /// Spheres.
-    pub spheres: usize,
-    /// Smallest and largest radius \[m\].
-    pub radii: (f32, f32),
-    /// Where spheres will come (the inflows' regions: a grid build is chosen for them too).
-    pub region: Option<([f32; 3], [f32; 3])>,
-}
-
-impl Room {
-    /// Room for `particles` and nothing more.
-    pub fn of(particles: &Particles) -> Room {
-        Room {
-            spheres: particles.len(),
-            radii: particles.radius_range(),
-            region: None,
-        }
-    }
-
-    /// This room, grown to hold `particles` (the radii of none count for nothing).
-    pub fn holding(self, particles: &Particles) -> Room {
-        let (a, b) = particles.radius_range();
-        let radii = match (particles.is_empty(), self.radii) {
-            (true, radii) => radii,
-            (false, (0.0, 0.0)) => (a, b),
-            (false, (lo, hi)) => (lo.min(a), hi.max(b)),
-        };
-        Room {
-            spheres: self.spheres.max(particles.len()),
-            radii,
-            ..self
-        }
     }
 }

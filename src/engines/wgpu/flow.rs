@@ -2,6 +2,7 @@
 //! (`wgsl/dem/flow_scan.wgsl`): one pass lists the spheres that leave and those near the inflows,
 //! the two things an event of the flow step needs to remove and insert.
 
+use crate::engines::common::flow::{FlowQuery, Leaving, Scan};
 use crate::error::Result;
 use crate::gpu::Gpu;
 use crate::gpu::shader::{Binding, WgslModule, shared_struct, wgsl};
@@ -57,37 +58,6 @@ struct FlowParams {
     room: u32,
     leaving_room: u32,
     materials: u32,
-}
-
-/// What a flow event asks of the state.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct FlowQuery {
-    /// Boxes (lo, hi) whose spheres are listed (around the inflows that insert).
-    pub near: Vec<(Vec3, Vec3)>,
-    /// Boxes whose spheres leave.
-    pub outflows: Vec<(Vec3, Vec3)>,
-    /// Centres below this height leave.
-    pub floor: Option<f32>,
-}
-
-/// A sphere that leaves, as the scan found it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Leaving {
-    /// Its state index.
-    pub row: u32,
-    /// Its radius \[m\].
-    pub radius: f32,
-    /// Its material.
-    pub material: u8,
-}
-
-/// What the scan found.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Scan {
-    /// Every sphere that leaves, in no order.
-    pub leaving: Vec<Leaving>,
-    /// Centre and radius of every other sphere in a box of [`FlowQuery::near`], in no order.
-    pub near: Vec<(Vec3, f32)>,
 }
 
 /// Words before the lists in the scan's output.

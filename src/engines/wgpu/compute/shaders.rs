@@ -3,8 +3,8 @@
 //! `tests/bindings.rs`.
 
 use super::layout::{BuildKind, GridParams};
-use crate::engines::gpu_granular::shader as granular;
-use crate::engines::gpu_step::{self, Variant, physics};
+use crate::engines::wgpu::granular::shader as granular;
+use crate::engines::wgpu::step::{self, Variant, physics};
 use crate::gpu::pair_output;
 use crate::gpu::shader::{Binding, SharedStruct, WgslModule, shared_struct, wgsl};
 
@@ -156,8 +156,8 @@ pub(crate) mod cell_scan {
 /// [`granular`]).
 pub(crate) mod dem_grid {
     use super::{Binding, CELL_KEYS, granular, physics, wgsl};
-    use crate::engines::gpu_step::{Accumulators, Lanes, Variant};
-    use crate::engines::wgpu_compute::layout::BuildKind;
+    use crate::engines::wgpu::compute::layout::BuildKind;
+    use crate::engines::wgpu::step::{Accumulators, Lanes, Variant};
 
     /// The grid and the binning of the dense build (a counting sort into the cell table).
     const DENSE_GRID: &str = wgsl!(
@@ -427,10 +427,9 @@ pub fn modules() -> Vec<WgslModule> {
                 entry_points,
                 &bindings,
             );
-            dem.structs
-                .extend([gpu_step::law_params(), gpu_step::pair_law()]);
+            dem.structs.extend([step::law_params(), step::pair_law()]);
             all.push(dem);
-            for ((lane_suffix, lanes), (model, variant)) in gpu_step::Lanes::ALL
+            for ((lane_suffix, lanes), (model, variant)) in step::Lanes::ALL
                 .into_iter()
                 .flat_map(|l| [("", Variant::Granular), ("_md", Variant::Loaded)].map(|v| (l, v)))
             {
@@ -442,16 +441,16 @@ pub fn modules() -> Vec<WgslModule> {
                     &bindings,
                 );
                 dem.structs.extend([
-                    gpu_step::law_params(),
-                    gpu_step::pair_law(),
-                    crate::engines::gpu_walls::mesh_params(),
-                    crate::engines::gpu_walls::mesh_wall_row(),
+                    step::law_params(),
+                    step::pair_law(),
+                    crate::engines::common::walls::mesh_params(),
+                    crate::engines::common::walls::mesh_wall_row(),
                 ]);
                 all.push(dem);
             }
         }
     }
-    // The flow events' scan of the state (`engines/gpu_flow.rs`).
-    all.push(crate::engines::gpu_flow::module());
+    // The flow events' scan of the state (`engines/wgpu/flow.rs`).
+    all.push(crate::engines::wgpu::flow::module());
     all
 }

@@ -18,11 +18,13 @@ use self::shader::{
     ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, HELD_NEW, HELD_OLD, HISTORY_NEED, MATERIAL_LAWS, OMEGA,
     TORQUE,
 };
-use super::gpu_state::{InputOrder, ParamsUniform, Room, move_rows};
-use super::gpu_walls::MeshWalls;
 use crate::dem::model::{LawParams, StepParams};
 use crate::dem::stepper::StageTimes;
 use crate::dem::walls::WallSet;
+use crate::engines::common::flow::Room;
+use crate::engines::common::rows::Rotation;
+use crate::engines::wgpu::state::{InputOrder, ParamsUniform, move_rows};
+use crate::engines::wgpu::walls::MeshWalls;
 use crate::error::{Error, Result, try_vec};
 use crate::gpu::Gpu;
 use crate::gpu::shader::Binding;
@@ -93,7 +95,7 @@ pub(crate) mod shader {
         .into_iter()
         .chain(ENTRIES_OLD)
         .chain(ENTRIES_NEW)
-        .chain(crate::engines::gpu_walls::bindings())
+        .chain(crate::engines::wgpu::walls::bindings())
         .collect()
     }
 }
@@ -246,16 +248,6 @@ impl EntrySplit {
     fn part_bytes(&self, part: usize) -> u64 {
         (self.slots_of(part).len() as u64 * self.entry_bytes).max(self.entry_bytes)
     }
-}
-
-/// What the granular step adds to the particles a GPU step reads back.
-pub(crate) struct Rotation {
-    /// Angular velocities, in the order of the engine's state read with them \[rad/s\].
-    pub angular_velocities: Vec<[f32; 3]>,
-    /// Materials, in that order (empty: all of the first material).
-    pub materials: Vec<u8>,
-    /// The contact history in the cpu's layout (both sides of each pair).
-    pub history: ContactHistory,
 }
 
 /// One history on the GPU: K slots per sphere in rows, slot s of row r at element r·K + s of
@@ -591,7 +583,7 @@ impl Granular {
     }
 
     /// Bindings of the mesh walls' kernels of a step as [`resolve_bindings`](Self::resolve_bindings), in the order of
-    /// [`ENTRY_POINTS`](super::gpu_walls::ENTRY_POINTS), beside the state's (the listing reads
+    /// [`ENTRY_POINTS`](crate::engines::wgpu::walls::ENTRY_POINTS), beside the state's (the listing reads
     /// `dem`, `pos` and `clock`; the contacts read what the contact pass reads); `None` without
     /// mesh walls (the kernels are not dispatched).
     pub fn mesh_bindings(&self, on: Turn) -> Option<[Vec<(Binding, &wgpu::Buffer)>; 2]> {

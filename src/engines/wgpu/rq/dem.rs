@@ -15,29 +15,32 @@ use super::accel::Accel;
 use super::shaders::dem_rq::{self, BOXES, COUNTERS, RQ_PARAMS, RqParams, TLAS};
 use crate::dem::stepper::{Advance, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
-use crate::engines::gpu_state::{ParamsUniform, Room};
-use crate::engines::gpu_step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
-use crate::engines::gpu_step::{
-    BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, RedoableBatch, StateRows,
-    StepTimer, Turn, advance_in_batches, max_spheres, particles_with, residual_rows, rows,
-    run_batch,
+use crate::engines::common::flow::Room;
+use crate::engines::common::rows::{
+    StateRows, advance_in_batches, particles_with, residual_rows, rows,
 };
-use crate::engines::gpu_walls;
 use crate::engines::setup::DemSetup;
+use crate::engines::wgpu::state::ParamsUniform;
+use crate::engines::wgpu::step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
+use crate::engines::wgpu::step::{
+    BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, RedoableBatch, StepTimer, Turn,
+    max_spheres, run_batch,
+};
+use crate::engines::wgpu::walls;
 use crate::error::Result;
 use crate::gpu::{self, Gpu, Need};
 use crate::particles::Particles;
 use crate::proxy::BOX_PADDING;
 
 /// Labels of the mesh walls' kernels' dispatches and bind groups, in the order of
-/// `gpu_walls::ENTRY_POINTS`.
+/// `walls::ENTRY_POINTS`.
 const MESH_LABELS: [&str; 2] = ["mochi.dem.rq.mesh_near", "mochi.dem.rq.mesh_walls"];
 
 struct Pipelines {
     proxy_boxes: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
     /// The mesh walls' kernels (granular step with mesh walls only), in the order of
-    /// `gpu_walls::ENTRY_POINTS`.
+    /// `walls::ENTRY_POINTS`.
     mesh: Option<[wgpu::ComputePipeline; 2]>,
     integrate: wgpu::ComputePipeline,
 }
@@ -134,7 +137,7 @@ impl RqStepper {
             mesh: granular
                 .as_ref()
                 .is_some_and(|g| g.mesh().any())
-                .then(|| gpu_walls::ENTRY_POINTS.map(pipeline)),
+                .then(|| walls::ENTRY_POINTS.map(pipeline)),
             integrate: pipeline("integrate"),
         };
         let groups = gpu.grid(n, GROUP);
@@ -325,7 +328,7 @@ impl RedoableBatch for RqStepper {
 }
 
 /// Flow events read the state back and reopen the step.
-impl crate::engines::flow_step::DeviceFlow for RqStepper {}
+impl crate::engines::common::flow::DeviceFlow for RqStepper {}
 
 impl Stepper for RqStepper {
     fn describe(&self) -> String {

@@ -2,8 +2,8 @@
 //! uniform, named once for the bind-group code and checked against the WGSL by
 //! `tests/bindings.rs`.
 
-use crate::engines::gpu_granular::shader as granular;
-use crate::engines::gpu_step::{self, Variant, physics};
+use crate::engines::wgpu::granular::shader as granular;
+use crate::engines::wgpu::step::{self, Variant, physics};
 use crate::gpu::pair_output;
 use crate::gpu::shader::{Binding, SharedStruct, Vec3f, WgslModule, shared_struct, wgsl};
 
@@ -117,7 +117,7 @@ pub(crate) mod rq_pairs {
 /// [`granular`]).
 pub(crate) mod dem_rq {
     use super::{Binding, SharedStruct, granular, physics, shared_struct, wgsl};
-    use crate::engines::gpu_step::{Accumulators, Variant};
+    use crate::engines::wgpu::step::{Accumulators, Variant};
 
     const FRICTIONLESS: &str = wgsl!(
         "rq/dem_rq.wgsl",
@@ -230,11 +230,7 @@ pub fn modules() -> Vec<WgslModule> {
             source: dem_rq::source(atomics),
             entry_points: dem_rq::ENTRY_POINTS,
             bindings: dem_rq::bindings(),
-            structs: vec![
-                dem_rq::rq_params(),
-                gpu_step::law_params(),
-                gpu_step::pair_law(),
-            ],
+            structs: vec![dem_rq::rq_params(), step::law_params(), step::pair_law()],
         });
         for (model, variant) in [("", Variant::Granular), ("_md", Variant::Loaded)] {
             all.push(WgslModule {
@@ -244,10 +240,10 @@ pub fn modules() -> Vec<WgslModule> {
                 bindings: dem_rq::granular_bindings(),
                 structs: vec![
                     dem_rq::rq_params(),
-                    gpu_step::law_params(),
-                    gpu_step::pair_law(),
-                    crate::engines::gpu_walls::mesh_params(),
-                    crate::engines::gpu_walls::mesh_wall_row(),
+                    step::law_params(),
+                    step::pair_law(),
+                    crate::engines::common::walls::mesh_params(),
+                    crate::engines::common::walls::mesh_wall_row(),
                 ],
             });
         }

@@ -8,7 +8,8 @@ use super::layout::{
 
 use super::shaders::{CELL_KEYS, grid_build, grid_pairs, grid_sort};
 use crate::detect::BackendInfo;
-use crate::engines::gpu_detect::{DetectKernel, GpuBackend, WgpuDetection};
+use crate::engines::common::detect::GpuBackend;
+use crate::engines::wgpu::detection::{DetectKernel, WgpuDetection};
 use crate::error::Result;
 use crate::gpu::pair_output;
 use crate::gpu::pair_output::{PairOutput, TakePairs};

@@ -122,7 +122,7 @@ pub(crate) struct CellScanBinds {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engines::wgpu_compute::layout::{MIN_BLOCK_SHIFT, block_shift};
+    use crate::engines::wgpu::compute::layout::{MIN_BLOCK_SHIFT, block_shift};
     use crate::gpu;
     use rand::{RngExt, SeedableRng};
 

@@ -1,0 +1,150 @@
+//! The state every GPU step keeps in rows (`vec4` centres and radii, residuals, velocities and
+//! masses), to and from [`Particles`], and the loop that runs a step's batches.
+
+use crate::dem::model::MaterialTable;
+use crate::dem::stepper::{Advance, Clock, StageTimes};
+use crate::error::{Error, Result};
+use crate::particles::{ContactHistory, Particles};
+
+/// What the granular step adds to the particles a GPU step reads back.
+pub(crate) struct Rotation {
+    /// Angular velocities, in the order of the engine's state read with them \[rad/s\].
+    pub angular_velocities: Vec<[f32; 3]>,
+    /// Materials, in that order (empty: all of the first material).
+    pub materials: Vec<u8>,
+    /// The contact history in the cpu's layout (both sides of each pair).
+    pub history: ContactHistory,
+}
+
+/// `vec4(x, y, z, r)` and `vec4(vx, vy, vz, mass)` rows of `particles`, in input order, each
+/// mass by the density of the sphere's material in `table` (as the cpu step's).
+pub(crate) fn rows(particles: &Particles, table: &MaterialTable) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+    let pos = particles
+        .positions
+        .iter()
+        .zip(&particles.radii)
+        .map(|(c, &r)| [c[0], c[1], c[2], r])
+        .collect();
+    let vel = particles
+        .velocities
+        .iter()
+        .zip(&particles.radii)
+        .enumerate()
+        .map(|(i, (v, &r))| [v[0], v[1], v[2], table.mass(particles.material(i), r)])
+        .collect();
+    (pos, vel)
+}
+
+/// `vec4(lo_x, lo_y, lo_z, 0)` rows of the residuals of the centres of `particles`, in input
+/// order (zeros where they have none).
+pub(crate) fn residual_rows(particles: &Particles) -> Vec<[f32; 4]> {
+    (0..particles.len())
+        .map(|i| {
+            let [x, y, z] = particles.residual(i);
+            [x, y, z, 0.0]
+        })
+        .collect()
+}
+
+/// The state rows a GPU step reads back: centres and radii, the centres' residuals, velocities
+/// and masses.
+pub(crate) struct StateRows<'a> {
+    pub pos: &'a [[f32; 4]],
+    pub lo: &'a [[f32; 4]],
+    pub vel: &'a [[f32; 4]],
+}
+
+/// Particles from rows read back in the order `ids` gives (`None`: input order), of the paper's
+/// step (no rotation, no history): the optix step's.
+#[cfg(feature = "optix")]
+pub(crate) fn particles_from(rows: StateRows, ids: Option<&[u32]>, step: u64) -> Result<Particles> {
+    particles_with(rows, ids, step, || Ok(None))
+}
+
+/// As [`particles_from`], with the angular velocities and materials (in the rows' order) and
+/// contact history of a granular step (`None`: the paper's step, whose spheres are all of the
+/// first material).
+pub(crate) fn particles_with(
+    rows: StateRows,
+    ids: Option<&[u32]>,
+    step: u64,
+    rotation: impl FnOnce() -> Result<Option<Rotation>>,
+) -> Result<Particles> {
+    let StateRows { pos, lo, vel } = rows;
+    let n = pos.len();
+    // A run that blew up says so by its state before its history says anything.
+    let finite = |row: &[f32; 4]| row.iter().all(|x| x.is_finite());
+    if let Some(k) = (0..n).find(|&k| !(finite(&pos[k]) && finite(&vel[k]))) {
+        return Err(Error::Unstable {
+            step,
+            sphere: ids.map_or(k, |ids| ids[k] as usize),
+            what: format!(
+                "has position {:?} and velocity {:?}",
+                &pos[k][..3],
+                &vel[k][..3]
+            ),
+        });
+    }
+    let rotation = rotation()?.unwrap_or_else(|| Rotation {
+        angular_velocities: vec![[0.0; 3]; n],
+        materials: Vec::new(),
+        history: Default::default(),
+    });
+    let mut out = Particles {
+        positions: vec![[0.0; 3]; n],
+        position_residuals: vec![[0.0; 3]; n],
+        velocities: vec![[0.0; 3]; n],
+        angular_velocities: vec![[0.0; 3]; n],
+        radii: vec![0.0; n],
+        // Filled below where some sphere is of another material than the first.
+        materials: Vec::new(),
+        history: rotation.history,
+        step,
+    };
+    let spins = rotation.angular_velocities;
+    for (k, (((p, l), v), w)) in pos.iter().zip(lo).zip(vel).zip(spins).enumerate() {
+        let i = ids.map_or(k, |ids| ids[k] as usize);
+        out.positions[i] = [p[0], p[1], p[2]];
+        out.position_residuals[i] = [l[0], l[1], l[2]];
+        out.velocities[i] = [v[0], v[1], v[2]];
+        out.angular_velocities[i] = w;
+        out.radii[i] = p[3];
+    }
+    let materials = rotation.materials;
+    if materials.iter().any(|&m| m != 0) {
+        out.materials = vec![0; n];
+        for (k, m) in materials.into_iter().enumerate() {
+            out.materials[ids.map_or(k, |ids| ids[k] as usize)] = m;
+        }
+    }
+    out.check_stable()?;
+    Ok(out)
+}
+
+/// Runs `steps` steps as batches: `batch(left)` runs some of the `left` steps and returns how
+/// many, the contacts of its last step and its phase times (`None` without timestamps).
+pub(crate) fn advance_in_batches(
+    steps: u32,
+    timed: bool,
+    mut batch: impl FnMut(u32) -> Result<(u32, u64, Option<StageTimes>)>,
+) -> Result<Advance> {
+    let mut times = StageTimes::default();
+    let mut timed = timed;
+    let mut contacts = 0;
+    let mut left = steps;
+    while left > 0 {
+        let (done, c, t) = batch(left)?;
+        contacts = c;
+        match t {
+            Some(t) => times.add(&t),
+            None => timed = false,
+        }
+        left -= done;
+    }
+    Ok(Advance {
+        steps,
+        contacts,
+        times,
+        clock: if timed { Clock::Gpu } else { Clock::None },
+    })
+}
