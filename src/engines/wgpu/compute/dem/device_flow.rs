@@ -1,0 +1,135 @@
+//! Flow events on the device: the state scanned for spheres leaving, spheres appended into the
+//! rows kept for them, leaving ones removed by moving the last rows over theirs.
+
+use super::*;
+
+/// Flow events scan the state on the device and append inserted spheres to it, in rows kept
+/// for them at opening ([`GridStepper::flowing_on`]).
+impl DeviceFlow for GridStepper {
+    fn scan(&mut self, query: &FlowQuery) -> Result<Option<Scan>> {
+        let set = self.turn().set;
+        let gpu = &self.gpu;
+        let scan = self.flow_scan.get_or_insert_with(|| FlowScan::new(gpu));
+        let pos = &self.sets[set].pos;
+        let spin = self.granular.as_ref().map(|g| g.omega_of(set));
+        scan.scan(gpu, pos, spin, self.n, query).map(Some)
+    }
+
+    fn append(&mut self, new: &[NewSphere]) -> Result<bool> {
+        let k = new.len() as u32;
+        let (r_min, r_max) = new.iter().fold((f32::MAX, 0.0f32), |(a, b), s| {
+            (a.min(s.radius), b.max(s.radius))
+        });
+        // The grid's cells and levels were chosen for the radii present.
+        let radii_fit = k == 0 || (r_min as f64 >= self.radii.0 && r_max as f64 <= self.radii.1);
+        // Stable ids stay below the walls' (a reopening numbers the spheres afresh).
+        let ids_fit = self
+            .next_id
+            .checked_add(k)
+            .is_some_and(|end| end <= FIRST_MESH_WALL);
+        if self.n.checked_add(k).is_none_or(|n| n > self.capacity) || !radii_fit || !ids_fit {
+            return Ok(false);
+        }
+        if k == 0 {
+            return Ok(true);
+        }
+        let table = &self.params.materials;
+        let pos: Vec<[f32; 4]> = new
+            .iter()
+            .map(|s| [s.centre[0], s.centre[1], s.centre[2], s.radius])
+            .collect();
+        let vel: Vec<[f32; 4]> = new
+            .iter()
+            .map(|s| {
+                [
+                    s.velocity[0],
+                    s.velocity[1],
+                    s.velocity[2],
+                    table.mass(s.material as u32, s.radius),
+                ]
+            })
+            .collect();
+        let ids: Vec<u32> = (self.next_id..self.next_id + k).collect();
+        self.next_id += k;
+        let (q, set) = (&self.gpu.queue, &self.sets[self.current]);
+        let at = self.n as u64;
+        q.write_buffer(&set.pos, at * 16, bytemuck::cast_slice(&pos));
+        // Inserted at their f32 centres: no residual (the rows may hold a removed sphere's).
+        let lo = vec![[0.0f32; 4]; new.len()];
+        q.write_buffer(&set.lo, at * 16, bytemuck::cast_slice(&lo));
+        q.write_buffer(&set.vel, at * 16, bytemuck::cast_slice(&vel));
+        q.write_buffer(&set.ids, at * 4, bytemuck::cast_slice(&ids));
+        let next = self.turn();
+        if let Some(g) = &mut self.granular {
+            let materials: Vec<u8> = new.iter().map(|s| s.material).collect();
+            g.append(&self.gpu, next, &materials)?;
+        }
+        self.resize(self.n + k);
+        Ok(true)
+    }
+
+    fn remove(&mut self, rows: &[u32]) -> Result<bool> {
+        let k = rows.len() as u32;
+        let Some(kept) = self.n.checked_sub(k) else {
+            return Ok(false);
+        };
+        // The last rows that stay fill the places of those that leave before them.
+        let mut leaving = rows.to_vec();
+        leaving.sort_unstable();
+        let holes = leaving.iter().copied().take_while(|&r| r < kept);
+        let fillers = (kept..self.n).filter(|r| leaving.binary_search(r).is_err());
+        let moves: Vec<(u32, u32)> = fillers.zip(holes).collect();
+        if !moves.is_empty() {
+            let gpu = &self.gpu;
+            let row_bytes = self.granular.as_ref().map_or(16, |g| g.row_bytes());
+            let bytes = moves.len() as u64 * row_bytes;
+            let none = wgpu::BufferUsages::empty();
+            gpu.checked("removing spheres", || {
+                let scratch = gpu.storage("mochi.dem.flow_scratch", bytes, none);
+                let mut encoder = gpu.device.create_command_encoder(&Default::default());
+                let set = &self.sets[self.current];
+                move_rows(&mut encoder, &scratch, &moves, 16, |r| {
+                    (&set.pos, r as u64 * 16)
+                });
+                move_rows(&mut encoder, &scratch, &moves, 16, |r| {
+                    (&set.lo, r as u64 * 16)
+                });
+                move_rows(&mut encoder, &scratch, &moves, 16, |r| {
+                    (&set.vel, r as u64 * 16)
+                });
+                move_rows(&mut encoder, &scratch, &moves, 4, |r| {
+                    (&set.ids, r as u64 * 4)
+                });
+                if let Some(g) = &self.granular {
+                    g.move_rows(&mut encoder, self.turn(), &scratch, &moves);
+                }
+                gpu.queue.submit([encoder.finish()]);
+            })?;
+        }
+        if let Some(g) = &mut self.granular {
+            g.shrink(k);
+        }
+        self.resize(kept);
+        Ok(true)
+    }
+}
+
+impl GridStepper {
+    /// The state now holds `n` spheres: the dispatch and the uniform follow, and the next
+    /// advance lays the grid out again, over the new bounds and count.
+    pub(super) fn resize(&mut self, n: u32) {
+        self.n = n;
+        self.sort_next = true;
+        self.counted = false;
+        self.groups = self.gpu.grid(n, GROUP);
+        self.write_count();
+        self.laid_out_at = None;
+    }
+
+    /// Writes the sphere count and the dispatch rows into the step's parameters.
+    pub(super) fn write_count(&mut self) {
+        let (n, row) = (self.n, self.groups.0 * GROUP);
+        self.dem_uniform
+            .update(&self.gpu, |p| (p.n, p.row) = (n, row));
+    }
+}
