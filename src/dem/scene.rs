@@ -841,8 +841,10 @@ impl SceneConfig {
         toml::to_string(self).expect("a scene always serializes")
     }
 
-    /// Builds the particles at t = 0 and the step parameters.
+    /// Builds the particles at t = 0 and the step parameters (a built-in scene's equipment
+    /// built once, for its spheres, box, flows and walls alike).
     pub fn build(&self) -> Result<Start> {
+        let equipment = self.equipment()?;
         let spheres = match self.scene.source() {
             Source::Generated(scene) => scenes::generate(&SceneSpec {
                 scene,
@@ -851,7 +853,7 @@ impl SceneConfig {
                 layout: Layout::Lattice,
             })?,
             Source::Mesh => self.mesh_spheres()?,
-            Source::Equipment(kind) => self.equipment(kind)?.spheres,
+            Source::Equipment(_) => equipment.as_ref().expect("built").spheres.clone(),
             Source::Input => {
                 let input = self.input.as_ref().ok_or_else(|| Error::InvalidConfig {
                     what: "scene \"input\"".into(),
@@ -865,10 +867,11 @@ impl SceneConfig {
                     line: None,
                     msg: e.to_string(),
                 })?;
-                return Self::inside_the_box(self.start_from(particles)?, 0.0);
+                return Self::inside_the_box(self.start_with(particles, None)?, 0.0);
             }
         };
-        Self::inside_the_box(self.start_from(Particles::at_rest(&spheres)?)?, 0.0)
+        let particles = Particles::at_rest(&spheres)?;
+        Self::inside_the_box(self.start_with(particles, equipment.as_ref())?, 0.0)
     }
 
     /// The start of a run resumed from a checkpoint of this scene: `particles` pass the checks
@@ -1009,6 +1012,12 @@ impl SceneConfig {
 
     /// The step parameters for `particles` (at t = 0, or from a checkpoint of this scene).
     pub fn start_from(&self, particles: Particles) -> Result<Start> {
+        self.start_with(particles, self.equipment()?.as_ref())
+    }
+
+    /// [`Self::start_from`] with the scene's equipment built already (`None`: no built-in
+    /// scene).
+    fn start_with(&self, particles: Particles, equipment: Option<&Built>) -> Result<Start> {
         let (r_min, r_max) = particles.radius_range();
         let source = self.scene.source();
         let (default_lo, default_hi) = match source {
@@ -1017,8 +1026,8 @@ impl SceneConfig {
                 ([0.0; 3], [side; 3])
             }
             Source::Mesh => ([0.0; 3], [self.mesh_box_side()?; 3]),
-            Source::Equipment(kind) => {
-                let built = self.equipment(kind)?;
+            Source::Equipment(_) => {
+                let built = equipment.expect("a built-in scene's equipment");
                 (built.box_lo, built.box_hi)
             }
             // A file: its bounds with a margin of two largest diameters, as the step starts
@@ -1046,7 +1055,8 @@ impl SceneConfig {
         particles.check_materials(materials.list.len())?;
         let r_max = particles.radius_range().1;
         check_heaviest(materials.heaviest_density(), r_max)?;
-        let flow = self.flow(&materials, box_lo_z(self.box_lo, default_lo))?;
+        let floor = box_lo_z(self.box_lo, default_lo);
+        let flow = self.flow(&materials, floor, equipment)?;
         // The smallest sphere, inserted ones included, sets the time step.
         let r_min = match (particles.is_empty(), flow.smallest_radius()) {
             (true, None) => 1.0,
@@ -1108,7 +1118,7 @@ impl SceneConfig {
             r_min,
         )?;
         flow.check(params.dt as f64, params.box_lo, params.box_hi)?;
-        let walls = self.walls()?;
+        let walls = self.walls_with(equipment)?;
         walls.check_speed(params.dt as f64, r_min)?;
         Ok(Start {
             particles,
@@ -1119,8 +1129,11 @@ impl SceneConfig {
         })
     }
 
-    /// The built-in scene `kind` as this scene sizes it.
-    fn equipment(&self, kind: Equipment) -> Result<Built> {
+    /// The built-in scene this scene names, as it sizes it (`None`: not a built-in scene).
+    fn equipment(&self) -> Result<Option<Built>> {
+        let Source::Equipment(kind) = self.scene.source() else {
+            return Ok(None);
+        };
         EquipmentSpec {
             kind,
             n: self.spheres,
@@ -1134,11 +1147,17 @@ impl SceneConfig {
             drum_rings: self.drum_rings.unwrap_or(1),
         }
         .build()
+        .map(Some)
     }
 
-    /// The inflows and outflows of the scene; without the box walls, spheres below the box's
-    /// floor (at `floor`) leave too.
-    fn flow(&self, materials: &Materials, floor: f64) -> Result<FlowSet> {
+    /// The inflows and outflows of the scene (with those of its `equipment`); without the box
+    /// walls, spheres below the box's floor (at `floor`) leave too.
+    fn flow(
+        &self,
+        materials: &Materials,
+        floor: f64,
+        equipment: Option<&Built>,
+    ) -> Result<FlowSet> {
         let inflows = self
             .inflow
             .iter()
@@ -1152,8 +1171,8 @@ impl SceneConfig {
             })
             .collect::<Result<Vec<_>>>()?;
         let mut outflow = self.outflow.clone();
-        if let Source::Equipment(kind) = self.scene.source() {
-            outflow.extend(self.equipment(kind)?.outflows);
+        if let Some(built) = equipment {
+            outflow.extend(built.outflows.iter().cloned());
         }
         let outflows = outflow
             .iter()
@@ -1175,9 +1194,14 @@ impl SceneConfig {
         })
     }
 
-    /// The walls of the scene: the box (or not) and each `[[wall]]` read and posed, with its
-    /// material.
+    /// The walls of the scene: the box (or not), a built-in scene's, and each `[[wall]]` read
+    /// and posed, with its material.
     pub fn walls(&self) -> Result<WallSet> {
+        self.walls_with(self.equipment()?.as_ref())
+    }
+
+    /// [`Self::walls`] with the scene's equipment built already (`None`: no built-in scene).
+    fn walls_with(&self, equipment: Option<&Built>) -> Result<WallSet> {
         let mut meshes = Vec::new();
         let material_of = |w: &WallConfig| match &w.material {
             Some(name) => {
@@ -1185,10 +1209,10 @@ impl SceneConfig {
             }
             None => Ok(None),
         };
-        if let Source::Equipment(kind) = self.scene.source() {
-            for (config, mesh) in self.equipment(kind)?.walls {
-                let material = material_of(&config)?;
-                meshes.push(config.build_from(meshes.len(), &mesh, material)?);
+        if let Some(built) = equipment {
+            for (config, mesh) in &built.walls {
+                let material = material_of(config)?;
+                meshes.push(config.build_from(meshes.len(), mesh, material)?);
             }
         }
         for w in &self.wall {
