@@ -216,7 +216,8 @@ impl GridStepper {
         let mut turn = self.turn();
         self.batch_start = (self.current, self.parity, self.sort_next);
         let mut profiled = 0;
-        let skinned = self.skinned();
+        let schedule = self.schedule();
+        let skinned = schedule.skinned;
         // With a skin the first step re-bins where its places may be stale or its phases are
         // timed; the counts are zero between steps but where the layout or the state changed.
         let first_rebin = match self.counted && timer.is_none() {
@@ -226,7 +227,7 @@ impl GridStepper {
         // A step with a skin re-bins where the batch's first step must or [`Sorting`] sorts.
         let rebin_at = |step: u32| match step == 0 && first_rebin == Rebin::Always {
             true => Rebin::Always,
-            false if self.sorts(step) => Rebin::Always,
+            false if schedule.sorts(step) => Rebin::Always,
             false => Rebin::IfMoved,
         };
         if let Some(skin) = self.skin.as_ref().filter(|_| skinned) {
@@ -254,7 +255,7 @@ impl GridStepper {
             }
         }
         if timer.is_some() {
-            let kind = self.kind_of_step(0);
+            let kind = schedule.kind_of_step(0);
             StepTimer::mark(timer, encoder, 0, 0);
             for (k, phase) in Phase::ALL.into_iter().enumerate() {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -265,7 +266,7 @@ impl GridStepper {
                 drop(pass);
                 StepTimer::mark(timer, encoder, 0, k as u32 + 1);
             }
-            turn = self.turn_after(kind, turn);
+            turn = schedule.turn_after(kind, turn);
             profiled = 1;
         }
         let mut k = profiled;
@@ -276,11 +277,11 @@ impl GridStepper {
                 timestamp_writes: None,
             });
             for step in k..end {
-                let kind = self.kind_of_step(step);
+                let kind = schedule.kind_of_step(step);
                 for phase in Phase::ALL {
                     self.record_phase(&mut pass, turn, kind, rebin_at(step), phase);
                 }
-                turn = self.turn_after(kind, turn);
+                turn = schedule.turn_after(kind, turn);
             }
             drop(pass);
             k = end;

@@ -77,21 +77,39 @@ pub(super) enum Rebin {
     IfMoved,
 }
 
-impl GridStepper {
+/// What decides how the coming steps bin and where they run: a copy of the step's state at
+/// the start of a batch ([`GridStepper::schedule`]), so the schedule is a pure function of it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Schedule {
+    /// The next step's number.
+    pub step: u64,
+    /// When steps sort.
+    pub sorting: Sorting,
+    /// Whether the next step must sort (the state was written out of order).
+    pub sort_next: bool,
+    /// Whether the layout has a skin: steps may skip their binning.
+    pub skinned: bool,
+    /// Whether the build can bin by index (the dense build): steps between sortings do.
+    pub bins_by_index: bool,
+    /// Whether the step keeps a contact history, whose two sides alternate step by step.
+    pub granular: bool,
+}
+
+impl Schedule {
     /// How the step after the next `ahead` steps bins.
-    pub(super) fn kind_of_step(&self, ahead: u32) -> StepKind {
-        if self.skinned() {
+    pub fn kind_of_step(&self, ahead: u32) -> StepKind {
+        if self.skinned {
             return StepKind::Skin;
         }
-        match self.pipelines.bin_index.is_some() && !self.sorts(ahead) {
+        match self.bins_by_index && !self.sorts(ahead) {
             true => StepKind::Binning,
             false => StepKind::Sorting,
         }
     }
 
     /// Whether the step after the next `ahead` steps sorts (as [`Sorting`] says).
-    pub(super) fn sorts(&self, ahead: u32) -> bool {
-        let every = match (self.sorting, self.skinned()) {
+    pub fn sorts(&self, ahead: u32) -> bool {
+        let every = match (self.sorting, self.skinned) {
             (Sorting::Auto, false) => Some(SORT_EVERY),
             (Sorting::Auto, true) | (Sorting::Never, _) => None,
             (Sorting::Every(k), _) => Some(k),
@@ -100,27 +118,41 @@ impl GridStepper {
         (self.sort_next && ahead == 0 && every.is_some()) || every.is_some_and(due)
     }
 
-    /// The buffers the next step starts from.
-    pub(super) fn turn(&self) -> Turn {
-        Turn {
-            set: self.current,
-            parity: self.parity,
-        }
-    }
-
     /// The buffers the step after one of kind `kind` from `turn` starts from: a sorting step
     /// moves the state into the other set (a step with a skin moves it back); the granular
     /// step's history changes sides at every step.
-    pub(super) fn turn_after(&self, kind: StepKind, turn: Turn) -> Turn {
+    pub fn turn_after(&self, kind: StepKind, turn: Turn) -> Turn {
         Turn {
             set: match kind {
                 StepKind::Sorting => 1 - turn.set,
                 StepKind::Binning | StepKind::Skin => turn.set,
             },
             parity: match self.granular {
-                Some(_) => 1 - turn.parity,
-                None => 0,
+                true => 1 - turn.parity,
+                false => 0,
             },
+        }
+    }
+}
+
+impl GridStepper {
+    /// The schedule of the coming steps, from the step's state now.
+    pub(super) fn schedule(&self) -> Schedule {
+        Schedule {
+            step: self.step,
+            sorting: self.sorting,
+            sort_next: self.sort_next,
+            skinned: self.skinned(),
+            bins_by_index: self.pipelines.bin_index.is_some(),
+            granular: self.granular.is_some(),
+        }
+    }
+
+    /// The buffers the next step starts from.
+    pub(super) fn turn(&self) -> Turn {
+        Turn {
+            set: self.current,
+            parity: self.parity,
         }
     }
 
@@ -148,5 +180,107 @@ mod tests {
         assert_eq!(submissions(Some(&gpu_ms(2.0)), 3.0), None);
         assert_eq!(submissions(Some(&gpu_ms(12.0)), 3.0), None);
         assert_eq!(submissions(None, 3.0), Some(STEPS_A_SUBMISSION));
+    }
+
+    /// The paper's step on the dense build at step 30, no skin, sorting as `sorting` says.
+    fn dense(sorting: Sorting) -> Schedule {
+        Schedule {
+            step: 30,
+            sorting,
+            sort_next: false,
+            skinned: false,
+            bins_by_index: true,
+            granular: false,
+        }
+    }
+
+    /// The kinds of the next `n` steps.
+    fn kinds(s: &Schedule, n: u32) -> Vec<StepKind> {
+        (0..n).map(|ahead| s.kind_of_step(ahead)).collect()
+    }
+
+    #[test]
+    fn the_dense_build_sorts_every_sort_every_steps_and_bins_by_index_between() {
+        let s = dense(Sorting::Auto);
+        let sorting: Vec<u32> = (0..40).filter(|&a| s.sorts(a)).collect();
+        assert_eq!(sorting, [2, 18, 34], "steps 32, 48 and 64");
+        let k = kinds(&s, 4);
+        assert_eq!(
+            k,
+            [
+                StepKind::Binning,
+                StepKind::Binning,
+                StepKind::Sorting,
+                StepKind::Binning
+            ]
+        );
+        // The state written out of order: the next step sorts, the ones after as before.
+        let written = Schedule {
+            sort_next: true,
+            ..s
+        };
+        assert_eq!(kinds(&written, 2), [StepKind::Sorting, StepKind::Binning]);
+        let every = dense(Sorting::Every(5));
+        assert!((0..10).all(|a| every.sorts(a) == ((30 + a) % 5 == 0)));
+        assert_eq!(
+            dense(Sorting::Every(0)).kind_of_step(7),
+            StepKind::Sorting,
+            "k of 0 is 1"
+        );
+        let never = Schedule {
+            sort_next: true,
+            ..dense(Sorting::Never)
+        };
+        assert!((0..40).all(|a| never.kind_of_step(a) == StepKind::Binning));
+    }
+
+    #[test]
+    fn the_sorted_build_sorts_every_step_and_a_skin_skips_what_it_can() {
+        let sorted = Schedule {
+            bins_by_index: false,
+            ..dense(Sorting::Auto)
+        };
+        assert!(kinds(&sorted, 20).iter().all(|&k| k == StepKind::Sorting));
+        let skin = Schedule {
+            skinned: true,
+            ..dense(Sorting::Auto)
+        };
+        assert!(kinds(&skin, 20).iter().all(|&k| k == StepKind::Skin));
+        // With a skin, `auto` never sorts on schedule: a batch's first step re-bins where the
+        // state was written (`encode_steps`), the others where a sphere may have moved the skin.
+        let written = Schedule {
+            sort_next: true,
+            ..skin
+        };
+        assert!((0..40).all(|a| !skin.sorts(a) && !written.sorts(a)));
+        let every = Schedule {
+            sorting: Sorting::Every(4),
+            ..skin
+        };
+        assert_eq!(
+            (0..8).filter(|&a| every.sorts(a)).collect::<Vec<_>>(),
+            [2, 6]
+        );
+    }
+
+    #[test]
+    fn sorting_moves_the_state_to_the_other_set_and_history_alternates_in_the_granular_step() {
+        let start = Turn { set: 0, parity: 1 };
+        let paper = dense(Sorting::Auto);
+        let granular = Schedule {
+            granular: true,
+            ..paper
+        };
+        let after = |s: &Schedule, kind| {
+            let t = s.turn_after(kind, start);
+            (t.set, t.parity)
+        };
+        assert_eq!(after(&paper, StepKind::Sorting), (1, 0));
+        assert_eq!(after(&paper, StepKind::Binning), (0, 0));
+        assert_eq!(after(&paper, StepKind::Skin), (0, 0));
+        assert_eq!(after(&granular, StepKind::Sorting), (1, 0));
+        assert_eq!(after(&granular, StepKind::Binning), (0, 0));
+        let back = granular.turn_after(StepKind::Sorting, Turn { set: 1, parity: 0 });
+        assert_eq!((back.set, back.parity), (0, 1));
     }
 }
