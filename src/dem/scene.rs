@@ -535,38 +535,93 @@ fn box_lo_z(box_lo: Option<[f64; 3]>, default_lo: [f64; 3]) -> f64 {
     box_lo.unwrap_or(default_lo)[2]
 }
 
-/// Scene fields set over a scene file and the flags: one table, from `--set key=value`
-/// assignments ([`Overrides::parse`]) or built whole ([`Overrides::from_table`], as Python's
-/// scene dict is), so a value is read once, by the scene's own deserialization.
+/// Scene fields set over a scene file and the flags, in order: from `--set key=value`
+/// assignments ([`Overrides::parse`]) or from a table of fields ([`Overrides::from_table`], as
+/// Python's scene dict is), so a value is read once, by the scene's own deserialization. A
+/// dotted key reaches into the scene's tables: `inflow.0.rate=3000` sets the rate of the first
+/// `[[inflow]]` table and leaves its other fields as they are.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Overrides(toml::Table);
+pub struct Overrides(Vec<(Vec<String>, toml::Value)>);
 
 impl Overrides {
     /// From `key=value` assignments, in order (`value` in TOML syntax; a bare word is taken as
-    /// a string, so `scene=slab` works).
+    /// a string, so `scene=slab` works; `key` a field, or a dotted path into a table or an
+    /// array of tables by index).
     pub fn parse(assignments: &[impl AsRef<str>]) -> Result<Self> {
-        let mut table = toml::Table::new();
-        for assignment in assignments {
-            apply_override(&mut table, assignment.as_ref())?;
-        }
-        Ok(Overrides(table))
+        assignments
+            .iter()
+            .map(|a| parse_override(a.as_ref()))
+            .collect::<Result<_>>()
+            .map(Overrides)
     }
 
     /// From a table of fields (each key a field of the scene file, each value as the file
     /// would give it).
     pub fn from_table(table: toml::Table) -> Self {
-        Overrides(table)
+        Overrides(table.into_iter().map(|(k, v)| (vec![k], v)).collect())
     }
 
     /// Whether no field is set.
     pub fn is_empty(&self) -> bool {
         self.0.is_empty()
     }
+
+    /// Sets each field in `table` (a scene's), in order: a field replaced whole, a dotted path
+    /// set where it leads (tables on the way made where missing; an index of an array of tables
+    /// must name one of them).
+    fn apply(&self, table: &mut toml::Table) -> Result<()> {
+        for (path, value) in &self.0 {
+            set_at(table, path, &path.join("."), value)?;
+        }
+        Ok(())
+    }
 }
 
-/// Parses a `key=value` override into `table` (`value` in TOML syntax; a bare word is taken as
-/// a string, so `scene=slab` works).
-fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
+/// Sets `value` at `path` (at least one key) under `table`; `key` is the whole path, for errors.
+fn set_at(table: &mut toml::Table, path: &[String], key: &str, value: &toml::Value) -> Result<()> {
+    let bad = |reason: String| Error::InvalidConfig {
+        what: format!("--set {key}"),
+        reason,
+    };
+    let (first, rest) = path.split_first().expect("a key has a name");
+    if rest.is_empty() {
+        table.insert(first.clone(), value.clone());
+        return Ok(());
+    }
+    match table
+        .entry(first.clone())
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+    {
+        toml::Value::Table(inner) => set_at(inner, rest, key, value),
+        toml::Value::Array(items) => {
+            let (index, after) = rest.split_first().expect("rest is not empty");
+            let k: usize = index.parse().map_err(|_| {
+                bad(format!(
+                    "{first} is a list of tables: the part after it is an index, from 0"
+                ))
+            })?;
+            let len = items.len();
+            match items.get_mut(k) {
+                Some(toml::Value::Table(inner)) if !after.is_empty() => {
+                    set_at(inner, after, key, value)
+                }
+                Some(toml::Value::Table(_)) => Err(bad(format!(
+                    "{first}.{k} is a table: name the field of it to set"
+                ))),
+                Some(other) => Err(bad(format!("{first}.{k} is {other}, not a table"))),
+                None => Err(bad(format!(
+                    "there are {len} {first} tables here, {first}.0 to {first}.{}",
+                    len.saturating_sub(1)
+                ))),
+            }
+        }
+        other => Err(bad(format!("{first} is {other}, not a table"))),
+    }
+}
+
+/// Parses a `key=value` override (`value` in TOML syntax; a bare word is taken as a string, so
+/// `scene=slab` works; `key` a field or a dotted path of fields and indices).
+fn parse_override(assignment: &str) -> Result<(Vec<String>, toml::Value)> {
     let bad = |reason: String| Error::InvalidConfig {
         what: format!("--set {assignment:?}"),
         reason,
@@ -575,7 +630,11 @@ fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
         .split_once('=')
         .ok_or_else(|| bad("expected key=value".into()))?;
     let key = key.trim();
-    if key.is_empty() || !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+    let path: Vec<String> = key.split('.').map(str::to_owned).collect();
+    let named = |part: &String| {
+        !part.is_empty() && part.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+    };
+    if !path.iter().all(named) || path[0].chars().all(|c| c.is_ascii_digit()) {
         return Err(bad(format!("{key:?} is not a field name")));
     }
     let value = value.trim();
@@ -590,8 +649,7 @@ fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
         }
         Err(_) => toml::Value::String(value.to_owned()),
     };
-    table.insert(key.to_owned(), parsed);
-    Ok(())
+    Ok((path, parsed))
 }
 
 /// The text of a scene file (`None`: no file).
@@ -781,7 +839,7 @@ impl SceneConfig {
         })?;
         let overridden = !flagged.is_empty() || !overrides.is_empty();
         table.extend(flagged);
-        table.extend(overrides.0.clone());
+        overrides.apply(&mut table)?;
         // Deserialize from text, so that errors quote the offending line: the file's own text
         // when nothing was overridden, else the merged table's.
         let merged;
@@ -1728,6 +1786,53 @@ mod tests {
             e.contains("wall 0") && e.contains("floor.obj") && e.contains("scale"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn dotted_overrides_set_one_field_of_a_table_and_name_what_is_missing() {
+        let text = "scene = \"freefall\"\nspheres = 8\n\n[[inflow]]\ncenter = [0.5, 0.5, 0.9]\n\
+                    radius = 0.1\nrate = 100\nsphere_radius = 0.002\n\n[[inflow]]\n\
+                    lo = [0.1, 0.1, 0.8]\nhi = [0.2, 0.2, 0.9]\nrate = 50\nsphere_radius = 0.003\n";
+        let c = SceneConfig::parse(Some(text), None, &given(&["inflow.1.rate=75"])).unwrap();
+        assert_eq!(
+            (c.inflow[0].rate, c.inflow[1].rate),
+            (Some(100.0), Some(75.0))
+        );
+        assert_eq!(
+            c.inflow[1].sphere_radius,
+            Some(0.003),
+            "the table's other fields stay"
+        );
+        // In order, whole fields and paths alike: the later wins.
+        let c = SceneConfig::parse(Some(text), None, &given(&["inflow.0.rate=7", "spheres=9"]))
+            .unwrap();
+        assert_eq!((c.inflow[0].rate, c.spheres), (Some(7.0), 9));
+        let refused = |sets: &[&str]| {
+            SceneConfig::parse(Some(text), None, &given(sets))
+                .unwrap_err()
+                .to_string()
+        };
+        let e = refused(&["inflow.2.rate=1"]);
+        assert!(
+            e.contains("--set inflow.2.rate") && e.contains("2 inflow tables"),
+            "{e}"
+        );
+        assert!(e.contains("inflow.0 to inflow.1"), "{e}");
+        let e = refused(&["inflow.rate=1"]);
+        assert!(e.contains("the part after it is an index"), "{e}");
+        let e = refused(&["inflow.0=1"]);
+        assert!(e.contains("name the field of it to set"), "{e}");
+        let e = refused(&["spheres.x=1"]);
+        assert!(e.contains("spheres is 8, not a table"), "{e}");
+        // A path into no table of the scene is refused by the scene's fields, as a key is.
+        let e = refused(&["inflow.0.colour=1"]);
+        assert!(e.contains("colour"), "{e}");
+        let e = Overrides::parse(&["0.rate=1"]).unwrap_err().to_string();
+        assert!(e.contains("is not a field name"), "{e}");
+        let e = Overrides::parse(&["inflow..rate=1"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("is not a field name"), "{e}");
     }
 
     #[test]

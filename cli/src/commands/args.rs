@@ -265,7 +265,8 @@ pub struct SimulateArgs {
     #[arg(long, value_enum)]
     pub mode: Option<ProxyMode>,
     /// Set any scene field, as KEY=VALUE in TOML syntax (repeatable), e.g. --set restitution=0.8
-    /// --set 'gravity=[0, 0, -1.62]' --set contact=linear.
+    /// --set 'gravity=[0, 0, -1.62]' --set contact=linear; a dotted key sets one field of a
+    /// table, e.g. --set inflow.0.rate=3000 (the first [[inflow]]).
     ///
     /// Contact and material keys (SI units): contact = "hertz-mindlin" (default) or "linear"
     /// (the paper's law); density [kg/m³] (500); restitution (0.5); young_modulus [Pa] (1e7: a
