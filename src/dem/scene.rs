@@ -588,6 +588,10 @@ fn set_at(table: &mut toml::Table, path: &[String], key: &str, value: &toml::Val
         table.insert(first.clone(), value.clone());
         return Ok(());
     }
+    let indexed = rest[0].parse::<usize>().is_ok();
+    if indexed && !table.contains_key(first) {
+        return Err(bad(format!("there are no {first} tables here to index")));
+    }
     match table
         .entry(first.clone())
         .or_insert_with(|| toml::Value::Table(toml::Table::new()))
@@ -1822,6 +1826,8 @@ mod tests {
         assert!(e.contains("the part after it is an index"), "{e}");
         let e = refused(&["inflow.0=1"]);
         assert!(e.contains("name the field of it to set"), "{e}");
+        let e = refused(&["outflow.0.lo=[0, 0, 0]"]);
+        assert!(e.contains("there are no outflow tables here"), "{e}");
         let e = refused(&["spheres.x=1"]);
         assert!(e.contains("spheres is 8, not a table"), "{e}");
         // A path into no table of the scene is refused by the scene's fields, as a key is.
