@@ -335,8 +335,8 @@ fn render_draws_a_runs_mesh_walls_where_they_are_at_its_frame() {
     let scene = std::fs::read_to_string(d.join("turning/scene.toml")).unwrap();
     let still: String = scene
         .lines()
-        .map(|l| match l.starts_with("drum_omega") {
-            true => "drum_omega = 0.0\n".to_owned(),
+        .map(|l| match l.starts_with("omega = ") {
+            true => "omega = 0.0\n".to_owned(),
             false => format!("{l}\n"),
         })
         .collect();

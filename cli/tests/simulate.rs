@@ -1191,7 +1191,7 @@ fn large_coincident_groups_in_a_file_run_in_the_box_fitted_to_them() {
             let (end, scene) = (saved.particles, saved.scene);
             let scene: toml::Table = toml::from_str(&scene).unwrap();
             let corner = |key: &str| -> Vec<f32> {
-                let values = scene[key].as_array().unwrap();
+                let values = scene["domain"][key].as_array().unwrap();
                 values
                     .iter()
                     .map(|x| x.as_float().unwrap() as f32)

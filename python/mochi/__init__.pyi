@@ -89,14 +89,16 @@ def read_frame(path: str | os.PathLike[str]) -> FrameDict:
 class Simulation:
     """A DEM simulation: a scene's spheres under gravity, walls and contact forces.
 
-    ``scene`` is a dict of scene keys (as in a scene TOML, or ``mochi simulate --set``), a path
-    to a scene TOML, or ``None`` for the default scene (``pour``). A dict value is a TOML table
-    and a list of dicts an array of tables: ``{"inflow": [{"lo": [...], "hi": [...], "rate":
-    2000, "sphere_radius": 0.004}]}`` is ``[[inflow]]``, and a lone dict for ``wall``,
-    ``inflow``, ``outflow``, ``material`` or ``material_pair`` is an array of one. Several
-    materials: ``{"material": [{"name": "glass", "density": 2500}, {"name": "steel",
-    "density": 7800}], "box_material": "steel", "inflow": {..., "material": "glass"}}``; an
-    input file's ``material`` column gives each sphere's (its index in that list, from 0).
+    ``scene`` is a dict of scene keys (as in a scene TOML, in its tables or by their short
+    forms, or ``mochi simulate --set``), a path to a scene TOML, or ``None`` for the default
+    scene (``pour``). A dict value is a TOML table, whose keys are set one by one (``{"material":
+    {"friction": 0.3}}`` keeps the material's other keys), and a list of dicts an array of
+    tables: ``{"inflow": [{"lo": [...], "hi": [...], "rate": 2000, "sphere_radius": 0.004}]}``
+    is ``[[inflow]]``, and a lone dict for ``wall``, ``inflow``, ``outflow``, ``materials`` or
+    ``material_pairs`` (or ``material`` with a ``name``) is an array of one. Several materials:
+    ``{"materials": [{"name": "glass", "density": 2500}, {"name": "steel", "density": 7800}],
+    "box_material": "steel", "inflow": {..., "material": "glass"}}``; an input file's
+    ``material`` column gives each sphere's (its index in that list, from 0).
     NumPy scalars and 0-d arrays count as the
     Python scalars they hold, NumPy arrays as lists. A whole float for a key that takes an
     integer (``"spheres": 3e8``) is refused, as in a scene file: pass an int. Bad keys or values

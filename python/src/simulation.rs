@@ -25,9 +25,23 @@ use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 /// The scene keys whose TOML values are arrays of tables (`[[wall]]`, `[[inflow]]`,
-/// `[[outflow]]`, `[[material]]`, `[[material_pair]]`, as `dem::scene` documents them): a lone
-/// dict given for one is that array's one table.
-const TABLE_ARRAYS: [&str; 5] = ["wall", "inflow", "outflow", "material", "material_pair"];
+/// `[[outflow]]`, `[[materials]]`, `[[material_pairs]]` and its short form, as `dem::scene`
+/// documents them): a lone dict given for one is that array's one table.
+const TABLE_ARRAYS: [&str; 6] = [
+    "wall",
+    "inflow",
+    "outflow",
+    "materials",
+    "material_pairs",
+    "material_pair",
+];
+
+/// Whether the dict `table` given for `key` is one table of a list: a key of
+/// [`TABLE_ARRAYS`], or `material` with a `name` (a named material, `[[material]]`, where the
+/// `[material]` table has no name).
+fn one_of_a_list(key: &str, table: &toml::Table) -> bool {
+    TABLE_ARRAYS.contains(&key) || (key == "material" && table.contains_key("name"))
+}
 
 /// A scene value from Python as TOML: bool, int, float, str, a path, a dict (a table, its keys
 /// str), or a list or tuple of them (an array); a NumPy scalar or 0-d array as the Python scalar
@@ -104,8 +118,8 @@ fn wants_integer(key: &str, x: f64) -> bool {
 }
 
 /// A scene dict as the table of the fields it sets (the scene reads it as it reads a file's);
-/// a dict or a list of dicts as a table or an array of them (a lone dict for a key of
-/// [`TABLE_ARRAYS`] as an array of one). A whole float for a field that takes an integer is
+/// a dict or a list of dicts as a table or an array of them (a lone dict of a list as an array
+/// of one, [`one_of_a_list`]). A whole float for a field that takes an integer is
 /// refused here, naming both, as a scene file's is (`spheres = 3e8`).
 fn overrides(scene: &Bound<'_, PyDict>) -> PyResult<Overrides> {
     let fields = scene
@@ -120,8 +134,8 @@ fn overrides(scene: &Bound<'_, PyDict>) -> PyResult<Overrides> {
                 )));
             }
             let value = match toml_value(&key, &value)? {
-                table @ toml::Value::Table(_) if TABLE_ARRAYS.contains(&key.as_str()) => {
-                    toml::Value::Array(vec![table])
+                toml::Value::Table(table) if one_of_a_list(&key, &table) => {
+                    toml::Value::Array(vec![toml::Value::Table(table)])
                 }
                 toml::Value::Float(x) if wants_integer(&key, x) => {
                     return Err(PyValueError::new_err(format!(
@@ -561,7 +575,7 @@ impl Simulation {
             let run = sim.run_mut();
             Ok(format!(
                 "Simulation(scene={:?}, spheres={}, backend={:?}, step={})",
-                run.config.scene.name(),
+                run.config.scene().name(),
                 spheres,
                 run.backend.name(),
                 step

@@ -142,8 +142,25 @@ def test_a_scene_of_one_material_has_every_sphere_of_it():
     np.testing.assert_array_equal(sim.materials, np.zeros(20, np.uint8))
 
 
+def test_a_dict_of_the_material_table_sets_its_keys_and_a_named_one_is_a_material():
+    sim = mochi.Simulation(
+        {"source": {"scene": "freefall", "spheres": 20}, "material": {"friction": 0.2}},
+        backend="cpu",
+    )
+    assert sim.material_names == ["default"]
+    # The table's keys are the one material's: one of the other law is refused.
+    with pytest.raises(ValueError, match="young_modulus.*hertz-mindlin"):
+        mochi.Simulation(
+            {"scene": "freefall", "spheres": 20, "material": {"contact": "linear", "young_modulus": 1e9}},
+            backend="cpu",
+        )
+    # A lone dict with a name is one [[materials]] table.
+    sim = mochi.Simulation({"scene": "freefall", "spheres": 20, "material": GLASS}, backend="cpu")
+    assert sim.material_names == ["glass"]
+
+
 NOT_A_TABLE = (
-    r': names material "nope", which is not one of the \[\[material\]\] tables '
+    r': names material "nope", which is not one of the \[\[materials\]\] tables '
     r'\("glass", "steel"\)'
 )
 
@@ -153,7 +170,7 @@ NOT_A_TABLE = (
     [
         ({"box_material": "nope"}, "box_material" + NOT_A_TABLE),
         ({"inflow": INFLOW | {"material": "nope"}}, "inflow.material" + NOT_A_TABLE),
-        ({"material_pair": {"materials": ["glass", "nope"]}}, "material_pair.materials" + NOT_A_TABLE),
+        ({"material_pair": {"materials": ["glass", "nope"]}}, "material_pairs.materials" + NOT_A_TABLE),
         ({"material": [GLASS, STEEL, STEEL]}, 'the material name "steel" is given twice'),
         ({"material": [GLASS | {"hardness": 3}, STEEL]}, "unknown field `hardness`"),
         ({"material": [GLASS, STEEL | {"restitution": 0}]}, 'material "steel": .*restitution'),

@@ -1,7 +1,7 @@
 //! The built-in scenes with walls, their meshes made in code: `hopper` (a cylinder with a flat
 //! or conical bottom and a circular orifice, closed by a gate that slides away at
-//! `hopper_open`; the spheres that fall out are removed and counted in `flow.csv`) and `drum`
-//! (a cylinder about the y axis, 40% filled, turning at `drum_omega`; the box's walls close
+//! `open`; the spheres that fall out are removed and counted in `flow.csv`) and `drum`
+//! (a cylinder about the y axis, 40% filled, turning at `omega`; the box's walls close
 //! its ends). Both are sized from the number of spheres, of radii U[0.9, 1.1]·`grain_radius`
 //! on a jittered lattice. [`mass_flow_rate`] and [`free_surface_angle`] measure what each is
 //! for.
@@ -13,6 +13,7 @@ use crate::mesh::{Mesh, revolution};
 use crate::spheres::SphereSet;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
+use serde::{Deserialize, Serialize};
 
 /// Sides of the generated cylinders and cones.
 const SIDES: u32 = 64;
@@ -21,39 +22,73 @@ const MAX_TRIANGLES: u64 = 1 << 24;
 /// Lattice spacing over the largest radius.
 const SPACING: f64 = 2.2;
 
-/// Which built-in scene.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Equipment {
-    /// A hopper draining through its orifice.
-    Hopper,
-    /// A turning drum.
-    Drum,
-}
-
-/// What a built-in scene is made of.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EquipmentSpec {
-    /// Which.
-    pub kind: Equipment,
+/// The `[source]` of scene `hopper`: a cylinder of `orifice` diameter below, filled, then
+/// opened.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Hopper {
     /// Spheres.
-    pub n: usize,
+    pub spheres: usize,
     /// Seed of the radii and the jitter.
     pub seed: u64,
-    /// Mean sphere radius \[m\].
+    /// Mean sphere radius \[m\] (radii U\[0.9, 1.1\] of it).
     pub grain_radius: f64,
-    /// Hopper: orifice diameter \[m\].
+    /// Orifice diameter \[m\] (short form `hopper_orifice`).
     pub orifice: f64,
-    /// Hopper: angle of the bottom from the horizontal \[°\] (0: flat).
+    /// Angle of the bottom from the horizontal \[°\] (0: flat; short form `hopper_angle`).
     pub angle: f64,
-    /// Hopper: time the gate opens \[s\].
+    /// Time the gate under the orifice slides away \[s\] (short form `hopper_open`).
     pub open: f64,
-    /// Drum: angular speed about y \[rad/s\].
-    pub omega: f64,
-    /// Drum: sides of the tube around (at least 3).
-    pub drum_sides: u32,
-    /// Drum: rings of the tube along its length (at least 1).
-    pub drum_rings: u32,
 }
+
+impl Default for Hopper {
+    fn default() -> Self {
+        Hopper {
+            spheres: DEFAULT_SPHERES,
+            seed: 1,
+            grain_radius: DEFAULT_GRAIN_RADIUS,
+            orifice: 0.04,
+            angle: 0.0,
+            open: 0.2,
+        }
+    }
+}
+
+/// The `[source]` of scene `drum`: a tube about the y axis, 40% filled, turning.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Drum {
+    /// Spheres.
+    pub spheres: usize,
+    /// Seed of the radii and the jitter.
+    pub seed: u64,
+    /// Mean sphere radius \[m\] (radii U\[0.9, 1.1\] of it).
+    pub grain_radius: f64,
+    /// Angular speed about y \[rad/s\] (short form `drum_omega`).
+    pub omega: f64,
+    /// Sides of the tube around, at least 3 (short form `drum_sides`).
+    pub sides: u32,
+    /// Rings of the tube along its length, at least 1 (short form `drum_rings`).
+    pub rings: u32,
+}
+
+impl Default for Drum {
+    fn default() -> Self {
+        Drum {
+            spheres: DEFAULT_SPHERES,
+            seed: 1,
+            grain_radius: DEFAULT_GRAIN_RADIUS,
+            omega: 3.0,
+            sides: 64,
+            rings: 1,
+        }
+    }
+}
+
+/// Spheres of a built-in scene when the scene gives no number.
+const DEFAULT_SPHERES: usize = 4_000;
+/// Mean sphere radius of a built-in scene when the scene gives none \[m\].
+const DEFAULT_GRAIN_RADIUS: f64 = 0.004;
 
 /// A built-in scene: its spheres, box, walls (mesh and pose) and outflows.
 #[derive(Debug, Clone)]
@@ -70,47 +105,34 @@ pub struct Built {
     pub outflows: Vec<OutflowConfig>,
 }
 
-impl EquipmentSpec {
-    /// Builds the scene (module docs).
-    pub fn build(&self) -> Result<Built> {
-        let bad = |reason: String| Error::InvalidConfig {
-            what: match self.kind {
-                Equipment::Hopper => "scene \"hopper\"".into(),
-                Equipment::Drum => "scene \"drum\"".into(),
-            },
-            reason,
-        };
-        let r = self.grain_radius;
-        if !(r.is_finite() && r > 0.0) {
-            return Err(bad(format!("grain_radius must be positive, got {r}")));
-        }
-        crate::spheres::check_count(self.n)?;
-        let triangles = 2 * self.drum_sides as u64 * self.drum_rings as u64;
-        if self.kind == Equipment::Drum
-            && (self.drum_sides < 3 || self.drum_rings < 1 || triangles > MAX_TRIANGLES)
-        {
-            return Err(bad(format!(
-                "drum_sides must be at least 3 and drum_rings at least 1, with 2·sides·rings at \
-                 most {MAX_TRIANGLES} triangles; got {} sides and {} rings",
-                self.drum_sides, self.drum_rings
-            )));
-        }
-        let cell = SPACING * 1.1 * r;
-        // The lattice volume the spheres take.
-        let volume = self.n as f64 * cell.powi(3);
-        match self.kind {
-            Equipment::Hopper => self.hopper(r, cell, volume, bad),
-            Equipment::Drum => self.drum(r, cell, volume),
-        }
+/// What the grains of a built-in scene (`what`, for errors) of `n` spheres of mean radius `r`
+/// take: the lattice spacing and the volume of its cells.
+fn grains(what: &str, n: usize, r: f64) -> Result<(f64, f64)> {
+    if !(r.is_finite() && r > 0.0) {
+        return Err(refused(
+            what,
+            format!("grain_radius must be positive, got {r}"),
+        ));
     }
+    crate::spheres::check_count(n)?;
+    let cell = SPACING * 1.1 * r;
+    Ok((cell, n as f64 * cell.powi(3)))
+}
 
-    fn hopper(
-        &self,
-        r: f64,
-        cell: f64,
-        volume: f64,
-        bad: impl Fn(String) -> Error,
-    ) -> Result<Built> {
+/// The error of scene `what`'s parameters.
+fn refused(what: &str, reason: String) -> Error {
+    Error::InvalidConfig {
+        what: format!("scene \"{what}\""),
+        reason,
+    }
+}
+
+impl Hopper {
+    /// Builds the hopper (module docs).
+    pub fn build(&self) -> Result<Built> {
+        let r = self.grain_radius;
+        let (cell, volume) = grains("hopper", self.spheres, r)?;
+        let bad = |reason| refused("hopper", reason);
         let (d, angle) = (self.orifice, self.angle);
         if !(d.is_finite() && d > 2.0 * r) {
             return Err(bad(format!(
@@ -136,7 +158,7 @@ impl EquipmentSpec {
         };
         let lo = [-radius, -radius, 0.0];
         let hi = [radius, radius, height];
-        let spheres = self.lattice(r, cell, lo, hi, inside)?;
+        let spheres = lattice(self.spheres, self.seed, r, cell, [lo, hi], inside)?;
         let body = revolution(&[(d / 2.0, 0.0), (radius, cone), (radius, height)], SIDES);
         // A square plate under the orifice: two triangles (a disc of fan triangles would meet
         // at its centre, every one of them within a sphere's reach there).
@@ -169,24 +191,40 @@ impl EquipmentSpec {
             }],
         })
     }
+}
 
-    fn drum(&self, r: f64, cell: f64, volume: f64) -> Result<Built> {
+impl Drum {
+    /// Builds the drum (module docs).
+    pub fn build(&self) -> Result<Built> {
+        let r = self.grain_radius;
+        let (cell, volume) = grains("drum", self.spheres, r)?;
+        let triangles = 2 * self.sides as u64 * self.rings as u64;
+        if self.sides < 3 || self.rings < 1 || triangles > MAX_TRIANGLES {
+            return Err(refused(
+                "drum",
+                format!(
+                    "drum_sides must be at least 3 and drum_rings at least 1, with 2·sides·rings \
+                     at most {MAX_TRIANGLES} triangles; got {} sides and {} rings",
+                    self.sides, self.rings
+                ),
+            ));
+        }
         // Radius 12 lattice cells at the corners of its polygon; the length holds the spheres
         // at 40% of the polygon's area. The spheres start inside the circle the sides touch.
         let radius = 12.0 * cell;
-        let sides = self.drum_sides as f64;
+        let sides = self.sides as f64;
         let inradius = radius * (std::f64::consts::PI / sides).cos();
         let area = 0.5 * sides * radius * radius * (std::f64::consts::TAU / sides).sin();
         let length = (volume / (0.4 * area)).max(3.0 * cell);
         let inside = |c: [f64; 3]| c[0].hypot(c[2]) < inradius - cell / 2.0;
         let lo = [-radius, -length / 2.0, -radius];
         let hi = [radius, length / 2.0, radius];
-        let spheres = self.lattice(r, cell, lo, hi, inside)?;
-        let rings = self.drum_rings.max(1);
+        let spheres = lattice(self.spheres, self.seed, r, cell, [lo, hi], inside)?;
+        let rings = self.rings;
         let profile: Vec<(f64, f64)> = (0..=rings)
             .map(|j| (radius, -length / 2.0 + length * j as f64 / rings as f64))
             .collect();
-        let tube = revolution(&profile, self.drum_sides);
+        let tube = revolution(&profile, self.sides);
         let config = WallConfig {
             rotate: Some(Rotation {
                 axis: [1.0, 0.0, 0.0],
@@ -205,52 +243,52 @@ impl EquipmentSpec {
             outflows: Vec::new(),
         })
     }
+}
 
-    /// `n` spheres on the lattice of spacing `cell` in `lo..hi`, lowest layers first, at the
-    /// points `inside` keeps, each jittered within its cell.
-    fn lattice(
-        &self,
-        r: f64,
-        cell: f64,
-        lo: [f64; 3],
-        hi: [f64; 3],
-        inside: impl Fn([f64; 3]) -> bool,
-    ) -> Result<SphereSet> {
-        let mut rng = Pcg64::seed_from_u64(self.seed);
-        let counts: [usize; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / cell).floor() as usize);
-        let what = || format!("{} spheres", self.n);
-        let mut centers = try_vec(self.n, what)?;
-        let mut radii = try_vec(self.n, what)?;
-        let room = 0.5 * cell - 1.1 * r;
-        'fill: for k in 0..counts[2] {
-            for j in 0..counts[1] {
-                for i in 0..counts[0] {
-                    if centers.len() == self.n {
-                        break 'fill;
-                    }
-                    let at = [i, j, k].map(|x| x as f64 + 0.5);
-                    let c: [f64; 3] = std::array::from_fn(|a| lo[a] + at[a] * cell);
-                    if !inside(c) {
-                        continue;
-                    }
-                    let c = c.map(|x| (x + rng.random_range(-room..=room)) as f32);
-                    centers.push(c);
-                    radii.push((r * rng.random_range(0.9..=1.1)) as f32);
+/// `n` spheres of mean radius `r` (from `seed`) on the lattice of spacing `cell` in
+/// `lo..hi`, lowest layers first, at the points `inside` keeps, each jittered within its cell.
+fn lattice(
+    n: usize,
+    seed: u64,
+    r: f64,
+    cell: f64,
+    [lo, hi]: [[f64; 3]; 2],
+    inside: impl Fn([f64; 3]) -> bool,
+) -> Result<SphereSet> {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let counts: [usize; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / cell).floor() as usize);
+    let what = || format!("{} spheres", n);
+    let mut centers = try_vec(n, what)?;
+    let mut radii = try_vec(n, what)?;
+    let room = 0.5 * cell - 1.1 * r;
+    'fill: for k in 0..counts[2] {
+        for j in 0..counts[1] {
+            for i in 0..counts[0] {
+                if centers.len() == n {
+                    break 'fill;
                 }
+                let at = [i, j, k].map(|x| x as f64 + 0.5);
+                let c: [f64; 3] = std::array::from_fn(|a| lo[a] + at[a] * cell);
+                if !inside(c) {
+                    continue;
+                }
+                let c = c.map(|x| (x + rng.random_range(-room..=room)) as f32);
+                centers.push(c);
+                radii.push((r * rng.random_range(0.9..=1.1)) as f32);
             }
         }
-        if centers.len() < self.n {
-            return Err(Error::InvalidConfig {
-                what: "scene".into(),
-                reason: format!(
-                    "only {} of the {} spheres fit in the equipment",
-                    centers.len(),
-                    self.n
-                ),
-            });
-        }
-        SphereSet::new(centers, radii)
     }
+    if centers.len() < n {
+        return Err(Error::InvalidConfig {
+            what: "scene".into(),
+            reason: format!(
+                "only {} of the {} spheres fit in the equipment",
+                centers.len(),
+                n
+            ),
+        });
+    }
+    SphereSet::new(centers, radii)
 }
 
 /// The steady mass flow rate \[kg/s\] of a discharge given as (time, mass out so far) samples:

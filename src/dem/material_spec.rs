@@ -1,11 +1,16 @@
-//! The `[[material]]` and `[[material_pair]]` tables of a scene file and the materials they make
-//! (docs/method.md, "Several materials").
+//! The `[[materials]]` and `[[material_pairs]]` tables of a scene file and the materials they
+//! make (docs/method.md, "Several materials"). Their short forms are `[[materials]]` and
+//! `[[material_pairs]]`.
 //!
 //! ```toml
-//! contact = "hertz-mindlin"
-//! friction = 0.4               # top-level keys: the default of every material's missing keys
+//! [domain]
+//! box_material = "steel"       # the box's walls (default: rigid)
 //!
-//! [[material]]                 # material 0: spheres without a material column are of it
+//! [material]
+//! contact = "hertz-mindlin"
+//! friction = 0.4               # the default of every material's missing keys
+//!
+//! [[materials]]                # material 0: spheres without a material column are of it
 //! name = "glass"
 //! young_modulus = 6.3e10       # Pa (hertz-mindlin)
 //! poisson_ratio = 0.24
@@ -14,18 +19,17 @@
 //! friction = 0.3
 //! rolling_friction = 0.01
 //!
-//! [[material]]
+//! [[materials]]
 //! name = "steel"
 //! young_modulus = 2.0e11
 //! poisson_ratio = 0.3
 //! density = 7800
 //!
-//! [[material_pair]]            # overrides the mixing rules for one pair
+//! [[material_pairs]]           # overrides the mixing rules for one pair
 //! materials = ["glass", "steel"]
 //! restitution = 0.8
 //! friction = 0.2
 //!
-//! box_material = "steel"       # the box's walls (default: rigid)
 //! [[wall]]
 //! mesh = "hopper.stl"
 //! material = "steel"           # a mesh wall's (default: rigid)
@@ -33,7 +37,7 @@
 //! material = "glass"           # the spheres an inflow inserts (default: the first material)
 //! ```
 //!
-//! Without `[[material]]` tables the scene has one material, the top-level keys'. Spheres choose
+//! Without `[[materials]]` tables the scene has one material, its `[material]`. Spheres choose
 //! theirs by the `material` column of a CSV input, the 11th column of a `.npy` input (the
 //! index in the order of the tables, from 0).
 
@@ -41,7 +45,7 @@ use super::model::{ContactLaw, MAX_MATERIALS, Material, Materials, PairOverride}
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
-/// One `[[material]]` table: a name and the values that differ from the scene's defaults.
+/// One `[[materials]]` table: a name and the values that differ from the scene's defaults.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialConfig {
@@ -67,7 +71,7 @@ pub struct MaterialConfig {
     pub rolling_friction: Option<f64>,
 }
 
-/// One `[[material_pair]]` table: the coefficients of a pair of materials, where the mixing
+/// One `[[material_pairs]]` table: the coefficients of a pair of materials, where the mixing
 /// rules are not wanted.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -95,10 +99,10 @@ pub fn material_index(tables: &[MaterialConfig], name: &str, user: &str) -> Resu
             what: format!("scene key {user}"),
             reason: match tables.is_empty() {
                 true => {
-                    format!("names material \"{name}\", but the scene has no [[material]] tables")
+                    format!("names material \"{name}\", but the scene has no [[materials]] tables")
                 }
                 false => format!(
-                    "names material \"{name}\", which is not one of the [[material]] tables ({})",
+                    "names material \"{name}\", which is not one of the [[materials]] tables ({})",
                     tables
                         .iter()
                         .map(|m| format!("\"{}\"", m.name))
@@ -119,8 +123,8 @@ pub fn materials(
     if tables.is_empty() {
         if !pairs.is_empty() {
             return Err(Error::InvalidConfig {
-                what: "scene key material_pair".into(),
-                reason: "needs [[material]] tables to name".into(),
+                what: "scene key material_pairs".into(),
+                reason: "needs [[materials]] tables to name".into(),
             });
         }
         return Ok(Materials::one(*base));
@@ -172,8 +176,8 @@ pub fn materials(
         .map(|p| {
             let [a, b] = &p.materials;
             Ok(PairOverride {
-                a: material_index(tables, a, "material_pair.materials")?,
-                b: material_index(tables, b, "material_pair.materials")?,
+                a: material_index(tables, a, "material_pairs.materials")?,
+                b: material_index(tables, b, "material_pairs.materials")?,
                 restitution: p.restitution,
                 friction: p.friction,
                 rolling_friction: p.rolling_friction,

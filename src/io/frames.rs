@@ -6,7 +6,7 @@
 //! (each centre plus its residual, [`crate::particles::position`]: 1e-14 m at 100 m, where
 //! `Float32` would round to 8e-6 m) and the point arrays `radius`, `velocity` (3 components), `speed`, `angular_velocity` (3 components;
 //! all `Float32`), `id` (`UInt32`, the sphere's index) and `material` (`UInt8`, the sphere's
-//! material: its index in the scene's `[[material]]` tables), and, when the run keeps contact
+//! material: its index in the scene's `[[materials]]` tables), and, when the run keeps contact
 //! history (friction or EPSD rolling resistance), `contacts` (`UInt32`: the contacts each sphere
 //! holds in that history, walls included), plus the field data `TimeValue` (`Float64`) and `step`
 //! (`UInt64`). The

@@ -3,7 +3,7 @@
 //! N×7, and angular velocities after them, header `x,y,z,r,vx,vy,vz,wx,wy,wz` or shape N×10. A
 //! CSV may end any of the three headers with `material`, and a `.npy` of N×11 has it as its 11th
 //! column (the frames of `mochi simulate` are such files): each sphere's material, its index in
-//! the order of the scene's `[[material]]` tables, a whole number from 0 to 255. [`read_spheres`]
+//! the order of the scene's `[[materials]]` tables, a whole number from 0 to 255. [`read_spheres`]
 //! ignores the motion and the materials; [`read_particles`] returns them, and each centre as the
 //! file holds it (a CSV's decimal or a float64, read as `f64`): its `f32` centre and the residual
 //! that `f32` drops.
@@ -36,13 +36,13 @@ fn accepted_headers() -> String {
 }
 
 /// A sphere's material as a file gives it: a whole number from 0 to 255 (the index of one of
-/// the scene's `[[material]]` tables, which `SceneConfig::start_from` checks).
+/// the scene's `[[materials]]` tables, which `SceneConfig::start_from` checks).
 fn sphere_material(x: f64) -> std::result::Result<u8, String> {
     match x.fract() == 0.0 && (0.0..=255.0).contains(&x) {
         true => Ok(x as u8),
         false => Err(format!(
             "{MATERIAL} {x} is not a material index (a whole number from 0 to 255, the \
-             [[material]] table's place from 0)"
+             [[materials]] table's place from 0)"
         )),
     }
 }

@@ -355,7 +355,7 @@ impl Particles {
                 index,
                 reason: format!(
                     "material {}, but the scene has {count} material{} (a sphere's material is \
-                     the place of a [[material]] table in the scene, from 0)",
+                     the place of a [[materials]] table in the scene, from 0)",
                     self.materials[index],
                     if count == 1 { "" } else { "s" }
                 ),

@@ -4,7 +4,10 @@ use super::Outcome;
 use super::plan::{DROP_DT, Experiment, MESH_DROP_COPIES, Plan, REBUILD_INTERVALS};
 use super::report::{DemRow, HistorySize, StepRange};
 use super::stats::Spread;
-use mochi::dem::scene::{ContactKind, SceneConfig, SceneKind, Start, Stiffness};
+use mochi::dem::scene::{
+    ContactKind, DomainConfig, MeshFill, RunConfig, SceneConfig, SceneKind, SceneMaterial, Source,
+    Start, Stiffness,
+};
 use mochi::dem::{Clock, Stepper};
 use mochi::engines::open_stepper;
 use mochi::engines::wgpu::compute::{GridBuild, Structure};
@@ -17,29 +20,36 @@ use std::time::Instant;
 /// spheres: the scene's lattice layout and the paper's law (`linear`, frictionless, its default
 /// time step and derived stiffness), as the paper's experiments run it.
 pub fn start(scene: SceneKind, n: usize, seed: u64) -> Result<Start> {
+    unframed(Source::sized(scene, n, seed), ContactKind::Linear).build()
+}
+
+/// The scene of `source` under the `contact` law's default material, writing no frames.
+fn unframed(source: Source, contact: ContactKind) -> SceneConfig {
     SceneConfig {
-        scene,
-        spheres: n,
-        seed,
-        frame_every: 0,
-        contact: ContactKind::Linear,
+        run: RunConfig {
+            frame_every: 0,
+            ..RunConfig::default()
+        },
+        source,
+        material: SceneMaterial {
+            contact,
+            ..SceneMaterial::default()
+        },
         ..SceneConfig::default()
     }
-    .build()
 }
 
 /// The start of experiment 7: the `slab` of `n` spheres under Hertz–Mindlin with the default
 /// material (friction, EPSD rolling resistance, its Rayleigh time step), with the floor raised
 /// to the slab's underside so that it lands within the settling steps.
 pub fn friction_start(n: usize, seed: u64) -> Result<Start> {
+    let slab = Source::sized(SceneKind::Generated(Scene::Slab), n, seed);
     SceneConfig {
-        scene: SceneKind::Generated(Scene::Slab),
-        spheres: n,
-        seed,
-        frame_every: 0,
-        contact: ContactKind::HertzMindlin,
-        box_lo: Some([0.0, 0.0, SLAB_BASE]),
-        ..SceneConfig::default()
+        domain: DomainConfig {
+            box_lo: Some([0.0, 0.0, SLAB_BASE]),
+            ..DomainConfig::default()
+        },
+        ..unframed(slab, ContactKind::HertzMindlin)
     }
     .build()
 }
@@ -47,15 +57,8 @@ pub fn friction_start(n: usize, seed: u64) -> Result<Start> {
 /// The second start of experiment 7: the `polylog` scene of `n` spheres (radii 0.5 mm–6 cm) under
 /// Hertz–Mindlin with the default material and its Rayleigh time step, to be poured.
 pub fn friction_polylog_start(n: usize, seed: u64) -> Result<Start> {
-    SceneConfig {
-        scene: SceneKind::Generated(Scene::Polylog),
-        spheres: n,
-        seed,
-        frame_every: 0,
-        contact: ContactKind::HertzMindlin,
-        ..SceneConfig::default()
-    }
-    .build()
+    let polylog = Source::sized(SceneKind::Generated(Scene::Polylog), n, seed);
+    unframed(polylog, ContactKind::HertzMindlin).build()
 }
 
 /// Time step of experiment 6's `polylog` pile \[s\], the poured pile's of the comparison with
@@ -69,17 +72,13 @@ pub const PILE_DT: f64 = 1e-4;
 /// the lightest pair (about 5 N/m at the scene's own dt 5e-5), would hold a 6 cm sphere's 4 N
 /// on springs that give way by most of a metre: no pile.
 pub fn pile_start(n: usize, seed: u64) -> Result<Start> {
-    SceneConfig {
-        scene: SceneKind::Generated(Scene::Polylog),
-        spheres: n,
-        seed,
-        frame_every: 0,
-        contact: ContactKind::Linear,
-        stiffness: Some(Stiffness::PerPair),
-        dt: Some(PILE_DT),
-        ..SceneConfig::default()
-    }
-    .build()
+    let mut scene = unframed(
+        Source::sized(SceneKind::Generated(Scene::Polylog), n, seed),
+        ContactKind::Linear,
+    );
+    scene.material.stiffness = Some(Stiffness::PerPair);
+    scene.run.dt = Some(PILE_DT);
+    scene.build()
 }
 
 /// Steps that pour `start` into a pile: 1.5 times the time a sphere at the top of the spheres
@@ -122,16 +121,17 @@ const PROBE_RADIUS: f64 = 0.005;
 /// paper's time step [`DROP_DT`] (not the mesh scene's own 2.5e-5: the drop of the comparison
 /// with Taichi, 0.5 s in [`DROP_STEPS`](super::plan::DROP_STEPS) steps).
 pub fn mesh_drop_start(mesh: Option<&std::path::Path>, n: usize, seed: u64) -> Result<Start> {
-    let config = |radius: f64, copies| SceneConfig {
-        scene: SceneKind::Mesh,
-        mesh: mesh.map(std::path::Path::to_path_buf),
-        mesh_radius: radius as f32,
-        mesh_copies: copies,
-        seed,
-        frame_every: 0,
-        contact: ContactKind::Linear,
-        dt: Some(DROP_DT),
-        ..SceneConfig::default()
+    let config = |radius: f64, copies| {
+        let fill = MeshFill {
+            mesh: mesh.map(std::path::Path::to_path_buf),
+            radius: radius as f32,
+            copies,
+            seed,
+            ..MeshFill::default()
+        };
+        let mut scene = unframed(Source::Mesh(fill), ContactKind::Linear);
+        scene.run.dt = Some(DROP_DT);
+        scene
     };
     // Spheres per copy go as 1 / radius³ (a lattice of spacing 2.2 radii).
     let one = config(PROBE_RADIUS, 1).build()?.particles.len().max(1) as f64;

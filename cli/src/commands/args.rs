@@ -245,8 +245,9 @@ pub struct SimulateArgs {
     /// column to any of these: a frame CSV restarts a run) instead of a generated scene.
     #[arg(long, conflicts_with_all = ["scene", "spheres", "seed", "mesh"])]
     pub input: Option<PathBuf>,
-    /// Fill this mesh (OBJ, PLY or STL) with spheres and drop it (scene `mesh`; see the
-    /// mesh_* fields for radius, size and copies).
+    /// Fill this mesh (OBJ, PLY or STL) with spheres and drop it (scene `mesh`; its radius,
+    /// size and copies are the keys of [source], short forms mesh_radius, mesh_size,
+    /// mesh_copies).
     #[arg(long, value_name = "FILE", conflicts_with_all = ["scene", "spheres"])]
     pub mesh: Option<PathBuf>,
     /// Write a frame every M steps (0: none).
@@ -264,22 +265,25 @@ pub struct SimulateArgs {
     /// Grid cells of 2·r_max (mochi) or 4·r_max (nns).
     #[arg(long, value_enum)]
     pub mode: Option<ProxyMode>,
-    /// Set any scene field, as KEY=VALUE in TOML syntax (repeatable), e.g. --set restitution=0.8
-    /// --set 'gravity=[0, 0, -1.62]' --set contact=linear; a dotted key sets one field of a
-    /// table, e.g. --set inflow.0.rate=3000 (the first [[inflow]]).
+    /// Set any scene field, as TABLE.KEY=VALUE in TOML syntax (repeatable), e.g. --set
+    /// material.restitution=0.8 --set 'domain.gravity=[0, 0, -1.62]'; each key has a short
+    /// form, e.g. --set contact=linear; a dotted key into a list of tables sets one field of
+    /// one, e.g. --set inflow.0.rate=3000 (the first [[inflow]]).
     ///
-    /// Contact and material keys (SI units): contact = "hertz-mindlin" (default) or "linear"
-    /// (the paper's law); density [kg/m³] (500); restitution (0.5); young_modulus [Pa] (1e7: a
-    /// soft E, as is normal practice in DEM, since the time step grows as 1/√E) and
-    /// poisson_ratio (0.3), hertz-mindlin only; stiffness [N/m] (derived: a 10-step contact of
-    /// the two lightest spheres) or "per-pair" with contact_time [s] (10·dt), linear only;
-    /// friction μ (0.5 hertz-mindlin, 0 linear); wall_friction (= friction); rolling_friction
-    /// μ_r (0.1 hertz-mindlin, 0 linear); rolling_model = "epsd" (default) or
-    /// "constant-torque"; tangential_model = "mindlin" (default) or "mindlin-deresiewicz"
-    /// (hertz-mindlin only); dt [s] (hertz-mindlin: 0.2 × the Rayleigh time of the smallest
-    /// sphere). The other keys: scene, spheres, seed, steps, box_lo, box_hi [m], gravity
-    /// [m/s²], gravity_spin [rad/s], mode, frame_every, csv, input, mesh, mesh_radius [m],
-    /// mesh_mixed, mesh_size [m], mesh_copies (see mochi::dem::scene).
+    /// [material] (SI units): contact = "hertz-mindlin" (default) or "linear" (the paper's
+    /// law); density [kg/m³] (500); restitution (0.5); young_modulus [Pa] (1e7: a soft E, as
+    /// is normal practice in DEM, since the time step grows as 1/√E) and poisson_ratio (0.3),
+    /// hertz-mindlin only; stiffness [N/m] (derived: a 10-step contact of the two lightest
+    /// spheres) or "per-pair" with contact_time [s] (10·dt), linear only; friction μ (0.5
+    /// hertz-mindlin, 0 linear); wall_friction (= friction); rolling_friction μ_r (0.1
+    /// hertz-mindlin, 0 linear); rolling_model = "epsd" (default) or "constant-torque";
+    /// tangential_model = "mindlin" (default) or "mindlin-deresiewicz" (hertz-mindlin only).
+    /// [run]: steps, dt [s] (hertz-mindlin: 0.2 × the Rayleigh time of the smallest sphere),
+    /// mode, frame_every, csv, flow_every. [domain]: box_lo, box_hi [m], gravity [m/s²],
+    /// gravity_spin [rad/s], box_walls, box_material. [source]: scene, then that scene's keys
+    /// (spheres, seed; a mesh's mesh, radius, mixed, size, copies; input; a hopper's or a
+    /// drum's). Short forms: each key's own name (mesh_radius for source.radius, hopper_orifice
+    /// for source.orifice); see mochi::dem::scene.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// Backend to run on; auto picks the fastest that runs here and says which.

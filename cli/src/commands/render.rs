@@ -237,7 +237,7 @@ impl RunWalls {
         let path = dir.join(io::SCENE_FILE);
         let config = SceneConfig::load(Some(&path), &Overrides::default()).ok()?;
         let built = config.walls().map_err(anyhow::Error::from);
-        match built.and_then(|w| Ok((w, config.dt.context("the scene names no dt")?))) {
+        match built.and_then(|w| Ok((w, config.run.dt.context("the scene names no dt")?))) {
             Ok((walls, _)) if walls.meshes.is_empty() => None,
             Ok((walls, dt)) => Some(Self::new(walls, dt)),
             Err(e) => {
@@ -299,7 +299,7 @@ fn scene_of(dir: &Path) -> Option<SceneConfig> {
 /// The simulation box in the `scene.toml` of `dir`, if there is one that says.
 pub fn box_of(dir: &Path) -> Option<([f64; 3], [f64; 3])> {
     let config = scene_of(dir)?;
-    Some((config.box_lo?, config.box_hi?))
+    Some((config.domain.box_lo?, config.domain.box_hi?))
 }
 
 /// The files a render of the run in `dir` reads besides its frames: the scene, and the files
@@ -307,8 +307,7 @@ pub fn box_of(dir: &Path) -> Option<([f64; 3], [f64; 3])> {
 fn run_inputs(dir: &Path) -> Vec<PathBuf> {
     let mut inputs = vec![dir.join(io::SCENE_FILE), dir.join(SERIES_INDEX)];
     if let Some(config) = scene_of(dir) {
-        let named = [config.input, config.mesh].into_iter().flatten();
-        inputs.extend(named.chain(config.wall.into_iter().map(|w| w.mesh)));
+        inputs.extend(config.files().map(Path::to_path_buf));
     }
     inputs
 }

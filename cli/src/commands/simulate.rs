@@ -63,7 +63,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         Some(path) => RunStart::resume(path, &flags, &overrides)?,
         None => RunStart::new(args.scene_file.as_deref(), &flags, &overrides)?,
     };
-    let total = run_start.config.steps;
+    let total = run_start.config.run.steps;
     let first = run_start.start.particles.step;
     if first > total {
         anyhow::bail!(
@@ -95,7 +95,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let mut pictures = if args.render_every == 0 {
         None
     } else {
-        let sim_box = config.box_lo.zip(config.box_hi);
+        let sim_box = config.domain.box_lo.zip(config.domain.box_hi);
         let mut pictures = FrameRenderer::new(&args.render, sim_box)?;
         // Every picture of the run in one range where it is known from the start; `auto`
         // colours a running simulation by speed.
@@ -109,11 +109,8 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     };
     let inputs: Vec<&Path> = match args.resume {
         Some(_) => Vec::new(),
-        None => [&args.scene_file, &config.input, &config.mesh]
-            .into_iter()
-            .flatten()
-            .chain(config.wall.iter().map(|w| &w.mesh))
-            .map(PathBuf::as_path)
+        None => (args.scene_file.as_deref().into_iter())
+            .chain(config.files())
             .collect(),
     };
     let gif = args.render.gif.as_deref();
@@ -131,7 +128,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     }
     // The index first: on a resume it is read, and may be refused, before the run writes a file.
     let resume_time = args.resume.as_ref().map(|_| first as f64 * p.dt as f64);
-    let mut frames = if config.frame_every == 0 {
+    let mut frames = if config.run.frame_every == 0 {
         None
     } else {
         let series = match args.resume {
@@ -147,11 +144,11 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     // One material's restitution, or the materials (each with its own).
     let material = match config.materials()?.describe() {
         Some(materials) => materials,
-        None => format!("restitution {}", config.restitution),
+        None => format!("restitution {}", config.material.restitution),
     };
     eprintln!(
         "scene {} | {n} spheres | steps {first}..{total} | {} | {material} | backend {}",
-        config.scene,
+        config.scene(),
         p.describe(),
         stepper.describe()
     );
@@ -177,7 +174,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         w.write_all(scene_toml.as_bytes())
     })?;
     let write_frame = |frames: &mut Option<FrameOutputs>, stepper: &mut dyn Stepper| match frames {
-        Some(frames) => frames.write(stepper, &p, config.csv),
+        Some(frames) => frames.write(stepper, &p, config.run.csv),
         None => Ok(()),
     };
     let draw = |pictures: &mut Option<FrameRenderer>, stepper: &mut dyn Stepper| -> Result<()> {
@@ -228,13 +225,17 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let due = |every: u64, s: u64| every > 0 && s.is_multiple_of(every);
     let mut progress_every = FIRST_PROGRESS_STEPS;
     while step < total {
-        let next_stop = [config.frame_every, args.checkpoint_every, args.render_every]
-            .into_iter()
-            .filter(|&e| e > 0)
-            .map(|e| (step / e + 1) * e)
-            .chain([step + progress_every, total])
-            .min()
-            .expect("a stop");
+        let next_stop = [
+            config.run.frame_every,
+            args.checkpoint_every,
+            args.render_every,
+        ]
+        .into_iter()
+        .filter(|&e| e > 0)
+        .map(|e| (step / e + 1) * e)
+        .chain([step + progress_every, total])
+        .min()
+        .expect("a stop");
         let advanced_at = Instant::now();
         let advance = stepper.advance((next_stop - step) as u32)?;
         progress_every = progress_steps(next_stop - step, advanced_at.elapsed());
@@ -242,7 +243,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         times.add(&advance.times);
         clock = advance.clock;
         contacts = advance.contacts;
-        if due(config.frame_every, step) {
+        if due(config.run.frame_every, step) {
             write_frame(&mut frames, stepper.as_mut())?;
         }
         if due(args.render_every, step) {
@@ -258,7 +259,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     bar.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
     let end = stepper.particles()?;
-    let measured = match config.scene {
+    let measured = match config.scene() {
         SceneKind::Hopper => (frames.as_ref().and_then(|f| f.flow.as_ref()))
             .and_then(|log| equipment::mass_flow_rate(log.discharge()))
             .map(|w| format!("hopper: steady mass flow rate {w:.4e} kg/s (see flow.csv)")),

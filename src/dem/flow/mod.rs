@@ -93,7 +93,7 @@ pub struct InflowConfig {
     /// Time the inflow stops \[s\] (default never).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stop: Option<f64>,
-    /// The material of its spheres, a `[[material]]` name (default the first material).
+    /// The material of its spheres, a `[[materials]]` name (default the first material).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub material: Option<String>,
 }

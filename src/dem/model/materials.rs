@@ -2,7 +2,7 @@
 //! (an index into the scene's list), each wall one or none (rigid), and every pair of materials
 //! one contact law, mixed from the two or given by the scene.
 //!
-//! Mixing rules, where the scene gives no `[[material_pair]]` for a pair:
+//! Mixing rules, where the scene gives no `[[material_pairs]]` for a pair:
 //! - E* and G* from both bodies: 1/E* = (1 − ν_a²)/E_a + (1 − ν_b²)/E_b and
 //!   1/G* = 2(2 − ν_a)(1 + ν_a)/E_a + 2(2 − ν_b)(1 + ν_b)/E_b (a rigid wall adds nothing);
 //! - restitution, sliding and rolling friction: the smaller of the two (as Yade mixes friction

@@ -72,7 +72,7 @@ pub struct WallConfig {
     /// `wall_friction` for a wall without a material).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction: Option<f64>,
-    /// The wall's material, a `[[material]]` name (default: none, a rigid wall).
+    /// The wall's material, a `[[materials]]` name (default: none, a rigid wall).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub material: Option<String>,
 }

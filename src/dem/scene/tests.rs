@@ -1,0 +1,711 @@
+//! The scene's reading, overriding, saving and building.
+
+use super::*;
+use crate::dem::model::{ContactLaw, RollingModel, TangentialModel};
+use crate::scenes::Scene;
+use crate::spheres::SphereSet;
+
+/// `assignments` as overrides, which must parse.
+fn given(assignments: &[impl AsRef<str>]) -> Overrides {
+    Overrides::parse(assignments).expect("the overrides parse")
+}
+
+/// Significant digits of the number `token` (leading zeros, sign and exponent aside).
+fn significant_digits(token: &str) -> usize {
+    let mantissa = token.split(['e', 'E']).next().unwrap_or("");
+    let digits: String = mantissa.chars().filter(char::is_ascii_digit).collect();
+    digits.trim_start_matches('0').trim_end_matches('0').len()
+}
+
+#[test]
+fn a_saved_scene_writes_f32_values_by_their_shortest_decimals_and_rebuilds_the_same_step() {
+    let flags = SceneFlags::default();
+    for sets in [
+        &["spheres=300"][..],
+        &["scene=rotating", "contact=linear", "spheres=50", "dt=2e-5"],
+        &["scene=poly12", "contact=linear", "spheres=100"],
+        &[
+            "scene=freefall",
+            "spheres=50",
+            "box_lo=[-0.1, -0.3, -0.7]",
+            "box_hi=[1.3, 1.7, 1.9]",
+        ],
+    ] {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        let config = SceneConfig::load_new(None, &flags, &given(&sets)).unwrap();
+        let start = config.build().unwrap();
+        let saved = config.resolved(&start).to_toml();
+        // No f32 widened to 16 or 17 digits (0.800000011920929): an f32 needs at most 9.
+        let numbers = saved.split(|c: char| !(c.is_ascii_alphanumeric() || "+-.".contains(c)));
+        for token in numbers.filter(|t| t.starts_with(|c: char| c.is_ascii_digit() || c == '-')) {
+            assert!(significant_digits(token) <= 9, "{token} in\n{saved}");
+        }
+        // Read back, the scene builds the same step and saves the same text.
+        let again = SceneConfig::parse(Some(&saved), None, &Overrides::default()).unwrap();
+        let rebuilt = again.build().unwrap();
+        assert_eq!(rebuilt.params, start.params, "{saved}");
+        assert_eq!(again.resolved(&rebuilt).to_toml(), saved);
+    }
+}
+
+#[test]
+fn the_tangential_model_is_mindlin_unless_asked_and_mindlin_deresiewicz_is_for_hertz() {
+    let flags = SceneFlags::default();
+    let new = |sets: &[&str]| {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        SceneConfig::load_new(None, &flags, &given(&sets))
+    };
+    let default = new(&["spheres=10"]).unwrap();
+    assert_eq!(default.material.tangential_model, None);
+    let m = default.material().unwrap();
+    assert_eq!(m.tangential_model, TangentialModel::Mindlin);
+    let md = new(&["spheres=10", "tangential_model=mindlin-deresiewicz"]).unwrap();
+    let m = md.material().unwrap();
+    assert_eq!(m.tangential_model, TangentialModel::MindlinDeresiewicz);
+    let start = md.build().unwrap();
+    assert!(start.params.friction.keeps_load());
+    // Saved with the scene, so a checkpoint resumes under it.
+    let saved = toml::to_string(&md.resolved(&start)).unwrap();
+    assert!(
+        saved.contains("tangential_model = \"mindlin-deresiewicz\""),
+        "{saved}"
+    );
+    // An unknown model names the two.
+    let e = new(&["tangential_model=mindlin-rescale"])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("mindlin-deresiewicz"), "{e}");
+    // The linear laws have no contact radius to follow.
+    let sets = [
+        "contact=linear",
+        "friction=0.3",
+        "tangential_model=mindlin-deresiewicz",
+    ];
+    let e = new(&sets)
+        .and_then(|c| c.build())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("tangential_model") && e.contains("hertz-mindlin"),
+        "{e}"
+    );
+    // Without friction it would act on nothing.
+    let sets = ["friction=0", "tangential_model=mindlin-deresiewicz"];
+    let e = new(&sets).unwrap_err().to_string();
+    assert!(
+        e.contains("tangential_model") && e.contains("friction"),
+        "{e}"
+    );
+}
+
+#[test]
+fn overrides_take_toml_values_and_bare_words() {
+    let c = SceneConfig::load(
+        None,
+        &given(&[
+            "scene=poly12",
+            "spheres = 2000",
+            "gravity=[0, -9.81, 0]",
+            "stiffness=3.5",
+        ]),
+    )
+    .unwrap();
+    assert_eq!(c.scene().name(), "poly12");
+    assert_eq!(c.source.spheres().unwrap(), 2000);
+    assert_eq!(c.domain.gravity, [0.0, -9.81, 0.0]);
+    assert_eq!(c.material.stiffness, Some(Stiffness::Fixed(3.5)));
+}
+
+#[test]
+fn unknown_fields_and_bad_values_are_errors() {
+    let e = SceneConfig::load(None, &given(&["sphers=10"])).unwrap_err();
+    assert!(e.to_string().contains("sphers"), "{e}");
+    let e = SceneConfig::load(None, &given(&["spheres=-3"])).unwrap_err();
+    assert!(
+        e.to_string().contains("spheres") || e.to_string().contains("-3"),
+        "{e}"
+    );
+    let e = Overrides::parse(&["steps=18446744073709551615"]).unwrap_err();
+    assert!(e.to_string().contains("outside the range"), "{e}");
+    let e = Overrides::parse(&["no equals sign"]).unwrap_err();
+    assert!(e.to_string().contains("key=value"), "{e}");
+    let e = SceneConfig::load(None, &given(&["scene=teapot"])).unwrap_err();
+    assert!(e.to_string().contains("teapot"), "{e}");
+}
+
+#[test]
+fn unknown_scenes_and_modes_are_errors_listing_the_names() {
+    let e =
+        SceneConfig::parse(Some("scene = \"teapot\""), None, &Overrides::default()).unwrap_err();
+    let e = e.to_string();
+    assert!(
+        e.contains(
+            "unknown scene \"teapot\": use freefall, slab, poly1.2, poly12, poly120, \
+                 polylog, pour, rotating, mesh, input, hopper or drum"
+        ),
+        "{e}"
+    );
+    let e = SceneConfig::load(None, &given(&["mode=fast"])).unwrap_err();
+    let e = e.to_string();
+    assert!(
+        e.contains("unknown value \"fast\": use mochi or nns"),
+        "{e}"
+    );
+}
+
+#[test]
+fn each_scene_and_mode_has_one_name_in_toml_and_on_the_command_line() {
+    use crate::names::Named;
+    for scene in SceneKind::ALL {
+        let c = SceneConfig::load(None, &given(&[format!("scene={}", scene.name())])).unwrap();
+        assert_eq!(c.scene(), scene);
+        assert!(c.to_toml().contains(&format!("scene = \"{scene}\"")));
+    }
+    let generated = SceneKind::ALL.iter().filter_map(|s| match s {
+        SceneKind::Generated(scene) => Some(*scene),
+        _ => None,
+    });
+    assert!(generated.eq(Scene::ALL.iter().copied()));
+    for &mode in ProxyMode::ALL {
+        let name = mode.name();
+        assert_eq!(serde_json::to_string(&mode).unwrap(), format!("\"{name}\""));
+        let c = SceneConfig::load(None, &given(&[format!("mode={name}")])).unwrap();
+        assert_eq!(c.run.mode, mode);
+        assert!(c.to_toml().contains(&format!("mode = \"{name}\"")));
+    }
+}
+
+#[test]
+fn flags_apply_over_the_file_and_set_over_the_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("s.toml");
+    std::fs::write(&file, "scene = \"poly12\"\nspheres = 300\nsteps = 7\n").unwrap();
+    let flags = SceneFlags {
+        scene: Some(SceneKind::Rotating),
+        spheres: Some(200),
+        mode: Some(ProxyMode::Nns),
+        ..SceneFlags::default()
+    };
+    let c = SceneConfig::load_new(Some(&file), &flags, &given(&["spheres=100"])).unwrap();
+    assert_eq!(
+        (
+            c.scene(),
+            c.source.spheres().unwrap(),
+            c.run.steps,
+            c.run.mode
+        ),
+        (SceneKind::Rotating, 100, 7, ProxyMode::Nns)
+    );
+    // A flag the scene does not use is refused, naming the flag.
+    let flags = SceneFlags {
+        spheres: Some(200),
+        mesh: Some("m.obj".into()),
+        scene: Some(SceneKind::Mesh),
+        ..SceneFlags::default()
+    };
+    let e = SceneConfig::load_new(None, &flags, &Overrides::default()).unwrap_err();
+    assert!(e.to_string().contains("-n/--set spheres"), "{e}");
+}
+
+#[cfg(unix)]
+#[test]
+fn a_path_toml_cannot_hold_is_a_clear_error() {
+    use std::os::unix::ffi::OsStrExt;
+    let flags = SceneFlags {
+        scene: Some(SceneKind::Input),
+        input: Some(std::ffi::OsStr::from_bytes(b"bad\xff.csv").into()),
+        ..SceneFlags::default()
+    };
+    let e = SceneConfig::load_new(None, &flags, &Overrides::default()).unwrap_err();
+    assert!(
+        e.to_string().contains("cannot be written in TOML: path"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_checkpoint_scene_of_the_flat_format_reads_as_saved_and_is_written_in_tables() {
+    let saved = "scene = \"rotating\"\nspheres = 64\nseed = 3\nsteps = 10\ndt = 0.0001\n\
+                 box_lo = [0.0, 0.0, 0.0]\nbox_hi = [1.0, 1.0, 1.0]\n\
+                 gravity = [0.0, 0.0, -9.81]\ngravity_spin = 0.7853981852531433\n\
+                 density = 500.0\nrestitution = 0.5\nstiffness = 2.0\nmode = \"nns\"\n\
+                 frame_every = 5\ncsv = false\nmesh_radius = 0.005\n\
+                 mesh_mixed = false\nmesh_size = 0.818\nmesh_copies = 1\n";
+    let resume = |saved: &str| {
+        SceneConfig::resume(
+            saved,
+            Path::new("c.bin"),
+            &SceneFlags::default(),
+            &Overrides::default(),
+        )
+    };
+    let c = resume(saved).unwrap();
+    assert_eq!(
+        (c.scene(), c.run.mode),
+        (SceneKind::Rotating, ProxyMode::Nns)
+    );
+    assert_eq!((c.source.spheres(), c.run.steps), (Some(64), 10));
+    // Saved before hertz-mindlin became the default, without a contact law: linear, and
+    // written out from now on. The mesh keys that format wrote for every scene say nothing.
+    assert_eq!(c.material.contact, ContactKind::Linear);
+    let tables = "[run]\nsteps = 10\ndt = 0.0001\nmode = \"nns\"\nframe_every = 5\ncsv = false\n\n\
+                  [source]\nscene = \"rotating\"\nspheres = 64\nseed = 3\n\n\
+                  [domain]\nbox_lo = [0.0, 0.0, 0.0]\nbox_hi = [1.0, 1.0, 1.0]\n\
+                  gravity = [0.0, 0.0, -9.81]\ngravity_spin = 0.7853981852531433\n\n\
+                  [material]\ncontact = \"linear\"\ndensity = 500.0\nrestitution = 0.5\n\
+                  stiffness = 2.0\n";
+    assert_eq!(c.to_toml(), tables);
+    assert_eq!(resume(tables).unwrap(), c);
+    // The flat format's keys of another scene: an input scene's spheres and seed too.
+    let input = saved
+        .replace("\"rotating\"", "\"input\"")
+        .replace("gravity_spin", "input = \"in.csv\"\ngravity_spin");
+    let c = resume(&input).unwrap();
+    assert_eq!(c.source.file(), Some(Path::new("in.csv")));
+    // Names were always read in any case.
+    let c = SceneConfig::parse(
+        Some("scene = \"Poly1.2\"\nmode = \"NNS\""),
+        None,
+        &Overrides::default(),
+    )
+    .unwrap();
+    assert_eq!(
+        (c.scene(), c.run.mode),
+        (SceneKind::Generated(Scene::Poly1_2), ProxyMode::Nns)
+    );
+}
+
+#[test]
+fn a_scene_round_trips_through_toml() {
+    let mut c = SceneConfig::default();
+    c.run.dt = Some(2e-5);
+    c.material.stiffness = Some(Stiffness::Fixed(10.0));
+    let back: SceneConfig = toml::from_str(&c.to_toml()).unwrap();
+    assert_eq!(back, c);
+    // Every kind of scene, its own keys and all.
+    for kind in SceneKind::ALL {
+        let c = SceneConfig {
+            source: Source::sized(kind, 7, 3),
+            ..SceneConfig::default()
+        };
+        let back: SceneConfig = toml::from_str(&c.to_toml()).unwrap();
+        assert_eq!(back, c, "{}", c.to_toml());
+    }
+}
+
+#[test]
+fn the_mesh_scene_fills_copies_side_by_side_without_overlaps() {
+    let c = SceneConfig::load(
+        None,
+        &given(&[
+            "scene=mesh",
+            "contact=linear",
+            "mesh_radius=0.02",
+            "mesh_size=0.5",
+            "mesh_copies=3",
+            "mesh_mixed=true",
+        ]),
+    )
+    .unwrap();
+    let s = c.build().unwrap();
+    let n = s.particles.len();
+    assert!(n > 300 && n.is_multiple_of(3), "{n}");
+    let spheres = SphereSet::new(s.particles.positions.clone(), s.particles.radii.clone()).unwrap();
+    assert!(crate::oracle::brute_force_pairs(&spheres).is_empty());
+    assert!(s.particles.radii.contains(&0.01));
+    assert_eq!(s.params.dt, 2.5e-5);
+    let bad = SceneConfig::load(None, &given(&["scene=mesh", "mesh=\"nope.obj\""])).unwrap();
+    assert!(bad.build().unwrap_err().to_string().contains("nope.obj"));
+}
+
+#[test]
+fn new_scenes_are_hertz_mindlin_with_the_documented_material() {
+    let c = SceneConfig::load(None, &Overrides::default()).unwrap();
+    assert_eq!(c.scene(), SceneKind::Generated(Scene::Pour));
+    let m = c.material().unwrap();
+    assert_eq!(
+        m.contact,
+        ContactLaw::HertzMindlin {
+            young_modulus: 1e7,
+            poisson_ratio: 0.3
+        }
+    );
+    assert_eq!((m.friction, m.wall_friction), (0.5, None));
+    assert_eq!(
+        (m.rolling_friction, m.rolling_model),
+        (0.1, RollingModel::Epsd)
+    );
+    // A scene file without `contact` is Hertz–Mindlin too, and says so when saved.
+    let c = SceneConfig::parse(Some("scene = \"slab\""), None, &Overrides::default()).unwrap();
+    assert!(
+        c.to_toml().contains("contact = \"hertz-mindlin\""),
+        "{}",
+        c.to_toml()
+    );
+    let saved = SceneConfig::resume(
+        &c.to_toml(),
+        Path::new("c.bin"),
+        &SceneFlags::default(),
+        &Overrides::default(),
+    )
+    .unwrap();
+    assert_eq!(saved.material.contact, ContactKind::HertzMindlin);
+}
+
+#[test]
+fn rotating_spins_gravity_a_quarter_pi_per_second() {
+    let c = SceneConfig::load(None, &given(&["scene=rotating", "spheres=1000"])).unwrap();
+    let s = c.build().unwrap();
+    assert!((s.params.gravity_spin as f64 - 0.25 * std::f64::consts::PI).abs() < 1e-6);
+}
+
+#[test]
+fn wall_tables_read_their_meshes_and_name_the_file_of_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("floor.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let scene = dir.path().join("scene.toml");
+    let text = "scene = \"freefall\"\nspheres = 8\nbox_walls = false\n\n[[wall]]\n\
+                    mesh = \"floor.obj\"\nscale = 2.0\nrotate = { axis = [1, 0, 0], degrees = 10 }\n\
+                    omega = 1.5\naxis = [0, 1, 0]\n";
+    let c = SceneConfig::parse(Some(text), Some(&scene), &Overrides::default()).unwrap();
+    assert_eq!(c.wall[0].mesh, obj);
+    let start = c.build().unwrap();
+    assert!(!start.walls.box_walls);
+    assert_eq!(start.walls.meshes.len(), 1);
+    assert_eq!(start.walls.meshes[0].motion.omega, 1.5);
+    // Saved and read back (a checkpoint's scene) the same.
+    let back: SceneConfig = toml::from_str(&c.resolved(&start).to_toml()).unwrap();
+    assert_eq!(back.wall, c.wall);
+    assert!(!back.domain.box_walls);
+    // A file that is not there, a key no wall has, a bad scale: one error each, naming it.
+    let missing = text.replace("floor.obj", "nowhere.obj");
+    let e = SceneConfig::parse(Some(&missing), Some(&scene), &Overrides::default())
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("nowhere.obj"), "{e}");
+    let e = SceneConfig::parse(
+        Some(&format!("{text}colour = 1\n")),
+        Some(&scene),
+        &Overrides::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("colour"), "{e}");
+    let e = SceneConfig::parse(
+        Some(&text.replace("2.0", "-1.0")),
+        Some(&scene),
+        &Overrides::default(),
+    )
+    .unwrap()
+    .build()
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("wall 0") && e.contains("floor.obj") && e.contains("scale"),
+        "{e}"
+    );
+}
+
+#[test]
+fn dotted_overrides_set_one_field_of_a_table_and_name_what_is_missing() {
+    let text = "scene = \"freefall\"\nspheres = 8\n\n[[inflow]]\ncenter = [0.5, 0.5, 0.9]\n\
+                    radius = 0.1\nrate = 100\nsphere_radius = 0.002\n\n[[inflow]]\n\
+                    lo = [0.1, 0.1, 0.8]\nhi = [0.2, 0.2, 0.9]\nrate = 50\nsphere_radius = 0.003\n";
+    let c = SceneConfig::parse(Some(text), None, &given(&["inflow.1.rate=75"])).unwrap();
+    assert_eq!(
+        (c.inflow[0].rate, c.inflow[1].rate),
+        (Some(100.0), Some(75.0))
+    );
+    assert_eq!(
+        c.inflow[1].sphere_radius,
+        Some(0.003),
+        "the table's other fields stay"
+    );
+    // In order, whole fields and paths alike: the later wins.
+    let c =
+        SceneConfig::parse(Some(text), None, &given(&["inflow.0.rate=7", "spheres=9"])).unwrap();
+    assert_eq!(
+        (c.inflow[0].rate, c.source.spheres().unwrap()),
+        (Some(7.0), 9)
+    );
+    let refused = |sets: &[&str]| {
+        SceneConfig::parse(Some(text), None, &given(sets))
+            .unwrap_err()
+            .to_string()
+    };
+    let e = refused(&["inflow.2.rate=1"]);
+    assert!(
+        e.contains("--set inflow.2.rate") && e.contains("2 inflow tables"),
+        "{e}"
+    );
+    assert!(e.contains("inflow.0 to inflow.1"), "{e}");
+    let e = refused(&["inflow.rate=1"]);
+    assert!(e.contains("the part after it is an index"), "{e}");
+    let e = refused(&["inflow.0=1"]);
+    assert!(e.contains("name the field of it to set"), "{e}");
+    let e = refused(&["outflow.0.lo=[0, 0, 0]"]);
+    assert!(e.contains("there are no outflow tables here"), "{e}");
+    let e = refused(&["spheres.x=1"]);
+    assert!(e.contains("spheres is 8, not a table"), "{e}");
+    // A path into no table of the scene is refused by the scene's fields, as a key is.
+    let e = refused(&["inflow.0.colour=1"]);
+    assert!(e.contains("colour"), "{e}");
+    let e = Overrides::parse(&["0.rate=1"]).unwrap_err().to_string();
+    assert!(e.contains("is not a field name"), "{e}");
+    let e = Overrides::parse(&["inflow..rate=1"])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("is not a field name"), "{e}");
+}
+
+#[test]
+fn inflow_and_outflow_tables_make_the_flows_and_refuse_what_is_ambiguous() {
+    let text = "scene = \"freefall\"\nspheres = 8\nbox_walls = false\n\n[[inflow]]\n\
+                    center = [0.5, 0.5, 0.9]\nradius = 0.1\nmass_rate = 0.01\n\
+                    sphere_radius = 0.002\n\n[[outflow]]\nlo = [0, 0, 0]\nhi = [1, 1, 0.1]\n";
+    let c = SceneConfig::parse(Some(text), None, &Overrides::default()).unwrap();
+    let start = c.build().unwrap();
+    let flow = &start.flow;
+    assert_eq!((flow.inflows.len(), flow.outflows.len()), (1, 1));
+    // Without the box walls, the floor of the box drains too.
+    assert_eq!(flow.floor, Some(start.params.box_lo[2]));
+    // 0.01 kg/s of 2 mm spheres at 500 kg/m³.
+    let each = 500.0 * 4.0 / 3.0 * std::f64::consts::PI * 0.002f64.powi(3);
+    assert!((flow.inflows[0].rate * each / 0.01 - 1.0).abs() < 1e-9);
+    // The inserted spheres' radius sets the time step when smaller than the scene's.
+    assert!(start.params.dt_limit > 0.0);
+    let both = text.replace("mass_rate = 0.01", "mass_rate = 0.01\nrate = 5");
+    let e = SceneConfig::parse(Some(&both), None, &Overrides::default())
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("inflow 0") && e.contains("one of the two"),
+        "{e}"
+    );
+    let inverted = text.replace("hi = [1, 1, 0.1]", "hi = [1, 1, -0.1]");
+    let e = SceneConfig::parse(Some(&inverted), None, &Overrides::default())
+        .unwrap()
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("outflow 0"), "{e}");
+}
+
+#[test]
+fn the_hopper_and_the_drum_come_with_their_walls_inside_their_box() {
+    for (scene, walls, outflows) in [("hopper", 2, 1), ("drum", 1, 0)] {
+        let over = [format!("scene={scene}"), "spheres=300".into()];
+        let c = SceneConfig::load(None, &given(&over)).unwrap();
+        let start = c.build().unwrap();
+        assert_eq!(start.particles.len(), 300);
+        assert_eq!(start.walls.meshes.len(), walls, "{scene}");
+        assert_eq!(start.flow.outflows.len(), outflows, "{scene}");
+        let set = SphereSet::new(
+            start.particles.positions.clone(),
+            start.particles.radii.clone(),
+        )
+        .unwrap();
+        let pairs = crate::oracle::brute_force_pairs(&set);
+        assert!(pairs.is_empty(), "{scene}: the filled spheres overlap");
+        // No sphere touches a wall at t = 0.
+        let poses = start.walls.poses_at(0.0);
+        for (wall, pose) in start.walls.meshes.iter().zip(&poses) {
+            for (c, &r) in start.particles.positions.iter().zip(&start.particles.radii) {
+                let mut touching = crate::dem::walls::Touches::default();
+                crate::dem::walls::touches(
+                    &wall.triangles,
+                    pose,
+                    glam::Vec3::from(*c),
+                    r,
+                    &mut touching,
+                );
+                assert!(
+                    touching.found.is_empty(),
+                    "{scene}: a sphere at {c:?} touches {}",
+                    wall.name
+                );
+            }
+        }
+    }
+    // A drum of few sides holds its spheres inside its polygon: each lies on the axis's side
+    // of every side's plane, by its radius at least.
+    for sides in 3..=6 {
+        let over = ["scene=drum".into(), format!("drum_sides={sides}")];
+        let start = SceneConfig::load(None, &given(&over))
+            .unwrap()
+            .build()
+            .unwrap();
+        let tube = start.walls.triangles_at(0.0);
+        for (c, &r) in start.particles.positions.iter().zip(&start.particles.radii) {
+            let c = glam::Vec3::from(*c);
+            let axis = glam::Vec3::new(0.0, c.y, 0.0);
+            for [a, b, d] in tube.iter().map(|t| t.map(glam::Vec3::from)) {
+                let n = (b - a).cross(d - a).normalize();
+                let (sphere, centre) = (n.dot(c - a), n.dot(axis - a));
+                assert!(
+                    sphere * centre.signum() >= r,
+                    "{sides} sides: a sphere at {c} is outside the drum"
+                );
+            }
+        }
+    }
+    // However few the spheres or wide the orifice, a hopper has room for them.
+    for over in [
+        ["spheres=10", "hopper_orifice=0.04"],
+        ["spheres=4000", "hopper_orifice=10"],
+    ] {
+        let over: Vec<String> = ["scene=hopper"]
+            .iter()
+            .chain(&over)
+            .map(|s| s.to_string())
+            .collect();
+        let start = SceneConfig::load(None, &given(&over)).unwrap().build();
+        assert!(start.is_ok(), "{over:?}: {:?}", start.err());
+    }
+    let e = SceneConfig::load_new(
+        None,
+        &SceneFlags::default(),
+        &given(&["scene=drum", "hopper_angle=30"]),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("hopper_angle"), "{e}");
+}
+
+/// The `[[material]]` and `[[material_pair]]` tables as a scene reads them (`material_spec`).
+mod material_tables {
+    use crate::dem::model::{ContactLaw, StepParams};
+    use crate::dem::scene::{Overrides, SceneConfig};
+
+    fn scene(text: &str) -> crate::error::Result<SceneConfig> {
+        SceneConfig::parse(Some(text), None, &Overrides::default())
+    }
+
+    const TWO: &str = r#"
+        friction = 0.4
+        [[material]]
+        name = "glass"
+        young_modulus = 6.3e10
+        poisson_ratio = 0.24
+        density = 2500
+        restitution = 0.9
+        rolling_friction = 0.01
+        [[material]]
+        name = "steel"
+        young_modulus = 2.0e11
+        poisson_ratio = 0.3
+        density = 7800
+        friction = 0.3
+        [[material_pair]]
+        materials = ["steel", "glass"]
+        restitution = 0.8
+    "#;
+
+    #[test]
+    fn material_tables_take_the_top_level_keys_as_defaults_and_pairs_override_the_mixing() {
+        let s = scene(TWO).unwrap();
+        let m = s.materials().unwrap();
+        assert_eq!(m.names, ["glass", "steel"]);
+        let (glass, steel) = (&m.list[0], &m.list[1]);
+        assert_eq!((glass.friction, steel.friction), (0.4, 0.3));
+        assert_eq!((glass.density, steel.density), (2500.0, 7800.0));
+        // The scene's default restitution (0.5) where a table gives none.
+        assert_eq!((glass.restitution, steel.restitution), (0.9, 0.5));
+        assert!(matches!(
+            steel.contact,
+            ContactLaw::HertzMindlin { young_modulus, .. } if young_modulus == 2.0e11
+        ));
+        // Restitution: the pair's own; friction and rolling friction: the smaller.
+        // (Steel's rolling friction is the scene's default, 0.1.)
+        assert_eq!(m.coefficients(0, Some(1)), (0.8, 0.3, 0.01));
+        assert_eq!(m.coefficients(1, Some(0)), (0.8, 0.3, 0.01));
+        assert_eq!(m.coefficients(0, Some(0)), (0.9, 0.4, 0.01));
+        // A rigid wall: the sphere's own, friction the scene's wall friction (here μ).
+        assert_eq!(m.coefficients(1, None), (0.5, 0.3, 0.1));
+    }
+
+    #[test]
+    fn the_table_mixes_the_moduli_of_both_bodies_and_the_time_step_follows_the_stiffest() {
+        let s = scene(TWO).unwrap();
+        let m = s.materials().unwrap();
+        let p =
+            StepParams::with_materials(&m, Some(1), 1e-7, [0.0; 3], [1.0; 3], [0.0; 3], 0.0, 0.001)
+                .unwrap();
+        let t = &p.materials;
+        assert_eq!((t.count, t.laws.len(), p.box_column), (2, 6, 1));
+        let c = |e: f64, nu: f64| (1.0 - nu * nu) / e;
+        let mixed = 1.0 / (c(6.3e10, 0.24) + c(2.0e11, 0.3));
+        assert_eq!(t.law(0, 1).e_star, mixed as f32);
+        assert_eq!(t.law(1, 0), t.law(0, 1));
+        assert_eq!(t.law(0, 0).e_star, (1.0 / (2.0 * c(6.3e10, 0.24))) as f32);
+        assert_eq!(
+            t.law(0, 2).e_star,
+            (1.0 / c(6.3e10, 0.24)) as f32,
+            "rigid wall"
+        );
+        assert_eq!((t.law(0, 1).sliding, t.law(0, 0).rolling), (0.3, 0.01));
+        assert_eq!(t.densities, [2500.0, 7800.0]);
+        // The shorter Rayleigh time (glass's, by 1%) sets the limit.
+        let rayleigh = |e: f64, nu: f64, rho: f64| {
+            crate::dem::model::time_step::rayleigh_time(0.001, rho, e, nu)
+        };
+        let limit = 0.5 * rayleigh(6.3e10, 0.24, 2500.0);
+        assert!(rayleigh(6.3e10, 0.24, 2500.0) < rayleigh(2.0e11, 0.3, 7800.0));
+        assert!(
+            (p.dt_limit as f64 / limit - 1.0).abs() < 1e-6,
+            "{} {limit}",
+            p.dt_limit
+        );
+        let e = StepParams::with_materials(
+            &m,
+            None,
+            1.01 * limit,
+            [0.0; 3],
+            [1.0; 3],
+            [0.0; 3],
+            0.0,
+            0.001,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("\"glass\""), "{e}");
+    }
+
+    #[test]
+    fn bad_material_tables_are_one_clear_error() {
+        let err = |text: &str| {
+            let s = scene(text).and_then(|s| s.build().map(|_| s));
+            s.unwrap_err().to_string()
+        };
+        let e = err("[[material]]\nname = \"a\"\n[[material]]\nname = \"a\"\n");
+        assert!(e.contains("\"a\" is given twice"), "{e}");
+        let e = err("box_material = \"b\"\n[[material]]\nname = \"a\"\n");
+        assert!(
+            e.contains("box_material") && e.contains("\"b\"") && e.contains("\"a\""),
+            "{e}"
+        );
+        let e = err("box_material = \"b\"\n");
+        assert!(e.contains("no [[materials]] tables"), "{e}");
+        let e = err("[[material]]\nname = \"a\"\nrestitution = 1.5\n[[material]]\nname = \"b\"\n");
+        assert!(
+            e.contains("material \"a\"") && e.contains("restitution"),
+            "{e}"
+        );
+        let e = err("contact = \"linear\"\n[[material]]\nname = \"a\"\nyoung_modulus = 1e9\n");
+        assert!(e.contains("hertz-mindlin"), "{e}");
+        let e = err("[[material]]\nname = \"a\"\n[[material_pair]]\nmaterials = [\"a\", \"c\"]\n");
+        assert!(e.contains("\"c\""), "{e}");
+        let e = err("[[material]]\nname = \"a\"\ncolour = 3\n");
+        assert!(e.contains("colour"), "{e}");
+        let many: String = (0..257)
+            .map(|k| format!("[[material]]\nname = \"m{k}\"\n"))
+            .collect();
+        assert!(err(&many).contains("at most 256"));
+    }
+}
