@@ -51,10 +51,10 @@ pub(super) fn joined<'a>(
     [own, more].concat()
 }
 
-impl GridStepper {
-    /// Bind groups for binning from set `from` into the other (and, in the granular step,
-    /// moving the angular velocities with the state).
-    pub(super) fn make_binds(&self, from: usize) -> Binds {
+impl Resident {
+    /// Bind groups for binning from set `from` into the other with `sorter` (and, in the
+    /// granular step, moving the angular velocities with the state).
+    pub(super) fn make_binds(&self, sorter: &Sorter, from: usize) -> Binds {
         let a = &self.sets[from];
         let p = &self.pipelines;
         let gpu = &self.gpu;
@@ -74,7 +74,7 @@ impl GridStepper {
             None => (self.skin_rows(), Vec::new()),
         };
         // What the binning's passes and the integration bind of the sorter.
-        let (first, last, counting) = match &self.sorter {
+        let (first, last, counting) = match sorter {
             Sorter::Dense {
                 ranks, cell_table, ..
             } => (
@@ -97,7 +97,7 @@ impl GridStepper {
                 prepared,
                 ..
             } => {
-                let (_, sorted_order) = prepared.as_ref().expect("laid out").sorted();
+                let (_, sorted_order) = prepared.sorted();
                 (
                     vec![
                         (SORT_KEYS, keys),
@@ -124,7 +124,7 @@ impl GridStepper {
                     &[&last[..], &scatter_more[..]].concat(),
                 ),
             ),
-            resolving: self.resolving(1 - from, StepKind::Sorting),
+            resolving: self.resolving(sorter, 1 - from, StepKind::Sorting),
             integrate: gpu.bind(
                 "mochi.dem.integrate",
                 &p.integrate,
@@ -139,7 +139,7 @@ impl GridStepper {
                     (BOUNDS, &self.bounds),
                 ],
             ),
-            binning: self.binning_binds(from),
+            binning: self.binning_binds(sorter, from),
             skin: self.skin_binds(from, &integrate_more),
         }
     }
@@ -229,11 +229,11 @@ impl GridStepper {
     }
 
     /// Bind groups of a binning step on set `on` (`None` where the step has none).
-    pub(super) fn binning_binds(&self, on: usize) -> Option<BinningBinds> {
+    pub(super) fn binning_binds(&self, sorter: &Sorter, on: usize) -> Option<BinningBinds> {
         let bin_index = self.pipelines.bin_index.as_ref()?;
         let Sorter::Dense {
             ranks, cell_table, ..
-        } = &self.sorter
+        } = sorter
         else {
             return None;
         };
@@ -253,20 +253,18 @@ impl GridStepper {
                     (WALK_POS, &places.walk_pos),
                 ],
             ),
-            resolving: self.resolving(on, StepKind::Binning),
+            resolving: self.resolving(sorter, on, StepKind::Binning),
         })
     }
 
     /// The contact pass's bind groups of a step of kind `kind` that resolves state set `on`:
     /// the search's cells, the state, the sorted places (the state itself in a sorting step,
     /// `bin_index`'s in a binning step) and the variant's bindings, by the history's parity.
-    pub(super) fn resolving(&self, on: usize, kind: StepKind) -> ResolveBinds {
+    pub(super) fn resolving(&self, sorter: &Sorter, on: usize, kind: StepKind) -> ResolveBinds {
         let (set, places, gpu) = (&self.sets[on], &self.places, &self.gpu);
-        let cells = match &self.sorter {
+        let cells = match sorter {
             Sorter::Dense { cell_table, .. } => (CELL_START, &cell_table.cell_start),
-            Sorter::Sorted { prepared, .. } => {
-                (CELL_KEYS, prepared.as_ref().expect("laid out").sorted().0)
-            }
+            Sorter::Sorted { prepared, .. } => (CELL_KEYS, prepared.sorted().0),
         };
         let placed = match kind {
             StepKind::Sorting | StepKind::Skin => [(HOME, &places.identity), (WALK_POS, &set.pos)],

@@ -8,10 +8,10 @@ use super::*;
 impl DeviceFlow for GridStepper {
     fn scan(&mut self, query: &FlowQuery) -> Result<Option<Scan>> {
         let set = self.turn().set;
-        let gpu = &self.gpu;
+        let gpu = &self.res.gpu;
         let scan = self.flow_scan.get_or_insert_with(|| FlowScan::new(gpu));
-        let pos = &self.sets[set].pos;
-        let spin = self.granular.as_ref().map(|g| g.omega_of(set));
+        let pos = &self.res.sets[set].pos;
+        let spin = self.res.granular.as_ref().map(|g| g.omega_of(set));
         scan.scan(gpu, pos, spin, self.n, query).map(Some)
     }
 
@@ -51,7 +51,7 @@ impl DeviceFlow for GridStepper {
             .collect();
         let ids: Vec<u32> = (self.next_id..self.next_id + k).collect();
         self.next_id += k;
-        let (q, set) = (&self.gpu.queue, &self.sets[self.current]);
+        let (q, set) = (&self.res.gpu.queue, &self.res.sets[self.current]);
         let at = self.n as u64;
         q.write_buffer(&set.pos, at * 16, bytemuck::cast_slice(&pos));
         // Inserted at their f32 centres: no residual (the rows may hold a removed sphere's).
@@ -60,9 +60,9 @@ impl DeviceFlow for GridStepper {
         q.write_buffer(&set.vel, at * 16, bytemuck::cast_slice(&vel));
         q.write_buffer(&set.ids, at * 4, bytemuck::cast_slice(&ids));
         let next = self.turn();
-        if let Some(g) = &mut self.granular {
+        if let Some(g) = &mut self.res.granular {
             let materials: Vec<u8> = new.iter().map(|s| s.material).collect();
-            g.append(&self.gpu, next, &materials)?;
+            g.append(&self.res.gpu, next, &materials)?;
         }
         self.resize(self.n + k);
         Ok(true)
@@ -80,14 +80,14 @@ impl DeviceFlow for GridStepper {
         let fillers = (kept..self.n).filter(|r| leaving.binary_search(r).is_err());
         let moves: Vec<(u32, u32)> = fillers.zip(holes).collect();
         if !moves.is_empty() {
-            let gpu = &self.gpu;
-            let row_bytes = self.granular.as_ref().map_or(16, |g| g.row_bytes());
+            let gpu = &self.res.gpu;
+            let row_bytes = self.res.granular.as_ref().map_or(16, |g| g.row_bytes());
             let bytes = moves.len() as u64 * row_bytes;
             let none = wgpu::BufferUsages::empty();
             gpu.checked("removing spheres", || {
                 let scratch = gpu.storage("mochi.dem.flow_scratch", bytes, none);
                 let mut encoder = gpu.device.create_command_encoder(&Default::default());
-                let set = &self.sets[self.current];
+                let set = &self.res.sets[self.current];
                 move_rows(&mut encoder, &scratch, &moves, 16, |r| {
                     (&set.pos, r as u64 * 16)
                 });
@@ -100,13 +100,13 @@ impl DeviceFlow for GridStepper {
                 move_rows(&mut encoder, &scratch, &moves, 4, |r| {
                     (&set.ids, r as u64 * 4)
                 });
-                if let Some(g) = &self.granular {
+                if let Some(g) = &self.res.granular {
                     g.move_rows(&mut encoder, self.turn(), &scratch, &moves);
                 }
                 gpu.queue.submit([encoder.finish()]);
             })?;
         }
-        if let Some(g) = &mut self.granular {
+        if let Some(g) = &mut self.res.granular {
             g.shrink(k);
         }
         self.resize(kept);
@@ -121,15 +121,16 @@ impl GridStepper {
         self.n = n;
         self.sort_next = true;
         self.counted = false;
-        self.groups = self.gpu.grid(n, GROUP);
+        self.groups = self.res.gpu.grid(n, GROUP);
         self.write_count();
-        self.laid_out_at = None;
+        self.stale = true;
     }
 
     /// Writes the sphere count and the dispatch rows into the step's parameters.
     pub(super) fn write_count(&mut self) {
         let (n, row) = (self.n, self.groups.0 * GROUP);
-        self.dem_uniform
-            .update(&self.gpu, |p| (p.n, p.row) = (n, row));
+        self.res
+            .dem_uniform
+            .update(&self.res.gpu, |p| (p.n, p.row) = (n, row));
     }
 }

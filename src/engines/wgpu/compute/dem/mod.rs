@@ -12,7 +12,7 @@
 //! reads back only the contact count and timestamps per batch, and the particles when asked.
 //!
 //! The grid's layout (cell size, dense or hashed table over the centres' bounds) is re-derived
-//! from a GPU reduction of the bounds every [`RELAYOUT_EVERY`] steps. Between, spheres that
+//! from a GPU reduction of the bounds every [`RELAYOUT_EVERY`](schedule::RELAYOUT_EVERY) steps. Between, spheres that
 //! leave the layout's region are clamped into its border cells: exact, only slower.
 //! Float atomics add in no fixed order, so GPU runs are not bit-for-bit reproducible.
 //!
@@ -67,8 +67,7 @@ use crate::engines::wgpu::readback::{BatchReadback, InFlight};
 use crate::engines::wgpu::state::{InputOrder, ParamsUniform, move_rows};
 use crate::engines::wgpu::step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
 use crate::engines::wgpu::step::{
-    BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, RedoableBatch, StepTimer, Turn,
-    max_spheres, run_batch,
+    DemModule, GROUP, Granular, KernelSet, MAX_BATCH, StepTimer, Turn, max_spheres,
 };
 use crate::engines::wgpu::walls;
 use crate::error::{Error, Result};
@@ -85,8 +84,7 @@ mod recording;
 mod schedule;
 
 use binds::Binds;
-use laying_out::start_bounds;
-use schedule::RELAYOUT_EVERY;
+use laying_out::{LaidOut, Sizing, start_bounds};
 pub use schedule::Sorting;
 
 /// One set of the ping-ponged state, in sorted order.
@@ -150,31 +148,57 @@ struct NearLists {
     near: wgpu::Buffer,
 }
 
-/// What sorts the spheres by cell between the binning's passes.
+/// What sorts the spheres by cell between the binning's passes, bound to the layout.
 enum Sorter {
     /// The dense build: ranks in each cell, the table of cells scanned.
     Dense {
         ranks: wgpu::Buffer,
         cell_table: CellTable,
         scan: CellScan,
-        /// The scan bound to the current cell table.
-        scan_bind: Option<CellScanBinds>,
+        /// The scan bound to the cell table.
+        scan_bind: CellScanBinds,
     },
     /// The sorted build: each sphere's key and index, radix-sorted.
     Sorted {
         keys: wgpu::Buffer,
         order: wgpu::Buffer,
         sort: RadixSort,
-        /// The sort by the current layout's keys (boxed: it is large).
-        prepared: Option<Box<PreparedSort>>,
+        /// The sort by the layout's keys (boxed: it is large).
+        prepared: Box<PreparedSort>,
     },
+}
+
+/// What the step's bind groups name: the device, the pipelines, the state sets and every other
+/// buffer the kernels bind, and the grid's levels (which choose the contact pass's kernels).
+struct Resident {
+    gpu: Gpu,
+    pipelines: Pipelines,
+    levels: Levels,
+    grid_uniform: wgpu::Buffer,
+    /// The step's parameters (binding `DEM`).
+    dem_uniform: ParamsUniform,
+    sets: [StateSet; 2],
+    places: SortedPlaces,
+    force: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    bounds: wgpu::Buffer,
+    clock: wgpu::Buffer,
+    /// The granular step's state (`None`: a variant of the paper's step).
+    granular: Option<Granular>,
+    /// Its contact pass's lists.
+    near: Option<NearLists>,
+    /// The skin's buffers (the paper's step, whose walk reads the drift in any build; only the
+    /// dense build's steps may skip their binning, where the layout's `skin` says).
+    skin: Option<Skin>,
 }
 
 /// The wgpu-compute DEM step.
 pub struct GridStepper {
-    gpu: Gpu,
-    pipelines: Pipelines,
-    sorter: Sorter,
+    res: Resident,
+    /// The grid as last laid out, with what is bound to it.
+    laid_out: LaidOut,
+    /// Whether the next advance lays the grid out afresh (the count or the structure changed).
+    stale: bool,
     /// Spheres in the state.
     n: u32,
     /// Spheres the buffers have rows for (spheres appended up to it need no new buffers).
@@ -187,17 +211,9 @@ pub struct GridStepper {
     mode_cell: f64,
     /// Smallest and largest radius.
     radii: (f64, f64),
-    levels: Levels,
     params: StepParams,
-    layout: GridParams,
-    /// Step count at the last layout.
-    laid_out_at: Option<u64>,
     step: u64,
     groups: (u32, u32),
-    grid_uniform: wgpu::Buffer,
-    /// The step's parameters (binding `DEM`).
-    dem_uniform: ParamsUniform,
-    sets: [StateSet; 2],
     /// Which set the next step bins from.
     current: usize,
     /// The parity of the next step's history (granular step; 0 in the paper's).
@@ -205,7 +221,6 @@ pub struct GridStepper {
     /// `current`, `parity` and `sort_next` when the last batch was recorded (where a redone
     /// batch starts again).
     batch_start: (usize, usize, bool),
-    places: SortedPlaces,
     /// Whether the next step must sort (the state was written out of order).
     sort_next: bool,
     /// Whether the cell counts and ranks are those of the current state in the current layout
@@ -216,24 +231,12 @@ pub struct GridStepper {
     /// batch in one), from the last such batch (see [`submissions`](schedule::submissions)).
     submit_every: Option<u32>,
     sorting: Sorting,
-    force: wgpu::Buffer,
-    counters: wgpu::Buffer,
-    bounds: wgpu::Buffer,
-    clock: wgpu::Buffer,
-    binds: Option<[Binds; 2]>,
     timer: Option<StepTimer>,
     /// Where the paper's step's batches leave their results (see `advance_paper`).
     readback: BatchReadback,
     /// The bounds' keys at the end of the last batch that finished (paper's step).
     last_bounds: Option<[u32; 6]>,
     atomics: &'static str,
-    /// The granular step's state (`None`: a variant of the paper's step).
-    granular: Option<Granular>,
-    /// Its contact pass's lists.
-    near: Option<NearLists>,
-    /// The skin's buffers (the paper's step, whose walk reads the drift in any build; only the
-    /// dense build's steps may skip their binning, where the layout's `skin` says).
-    skin: Option<Skin>,
     /// Steps run with a skin, and those that re-binned, since the stepper opened.
     rebinned: (u64, u64),
     /// The step before which the skin stays off (a batch re-binned too often: see
@@ -289,7 +292,7 @@ impl GridStepper {
     ) -> Result<Self> {
         let mut step = Self::opening(setup, options, room, || Ok(gpu))?;
         // Compiled now, not in the first flow event.
-        step.flow_scan = Some(FlowScan::new(&step.gpu));
+        step.flow_scan = Some(FlowScan::new(&step.res.gpu));
         Ok(step)
     }
 
@@ -392,54 +395,19 @@ impl GridStepper {
         };
         let none = wgpu::BufferUsages::empty();
         let make = |label: &str, bytes: u64| gpu.storage(label, bytes, none);
-        let stepper = gpu.checked("allocating the DEM buffers", || {
+        let res = gpu.checked("allocating the DEM buffers", || {
             let set = |k: usize| StateSet {
                 pos: make(&format!("mochi.dem.pos{k}"), rows * 16),
                 lo: make(&format!("mochi.dem.pos_lo{k}"), rows * 16),
                 vel: make(&format!("mochi.dem.vel{k}"), rows * 16),
                 ids: make(&format!("mochi.dem.ids{k}"), rows * 4),
             };
-            let timer = StepTimer::new(&gpu);
-            let sorter = match build {
-                BuildKind::Dense => Sorter::Dense {
-                    ranks: make("mochi.dem.ranks", rows * 4),
-                    cell_table: CellTable::new(&gpu, 1),
-                    scan: CellScan::new(&gpu),
-                    scan_bind: None,
-                },
-                BuildKind::Sorted => Sorter::Sorted {
-                    keys: make("mochi.dem.sort_keys", rows * 4),
-                    order: make("mochi.dem.sort_order", rows * 4),
-                    sort: RadixSort::new(&gpu),
-                    prepared: None,
-                },
-            };
-            GridStepper {
-                sorter,
+            Resident {
                 pipelines,
-                n,
-                capacity: rows as u32,
-                next_id: n,
-                flow_scan: None,
-                mode,
-                mode_cell,
-                radii: (r_min as f64, r_max as f64),
-                levels: Structure::Auto.levels_for(mode, r_max as f64 / r_min as f64),
-                params,
-                layout: GridParams::default(),
-                laid_out_at: None,
-                step: particles.step,
-                groups: gpu.grid(n, GROUP),
+                levels: structure.levels_for(mode, r_max as f64 / r_min as f64),
                 grid_uniform: gpu.uniform("mochi.dem.grid", &GridParams::default()),
                 dem_uniform,
                 sets: [set(0), set(1)],
-                current: 0,
-                parity: 0,
-                batch_start: (0, 0, true),
-                near: granular.is_some().then(|| NearLists {
-                    listed: make("mochi.dem.listed", rows * 4),
-                    near: make("mochi.dem.near", rows * NEAR_ROOM * 4),
-                }),
                 places: {
                     let identity = make("mochi.dem.identity", rows * 4);
                     let places: Vec<u32> = (0..rows as u32).collect();
@@ -456,28 +424,58 @@ impl GridStepper {
                         walk_row: make("mochi.dem.walk_row", paper * rows * 4),
                     }
                 },
-                sort_next: true,
-                counted: false,
-                submit_every: None,
-                sorting: Sorting::Auto,
                 force: make("mochi.dem.force", rows * 12),
                 counters: make("mochi.dem.counters", 16),
                 bounds: make("mochi.dem.bounds", 24),
                 clock: make("mochi.dem.clock", 4),
-                binds: None,
-                timer,
-                readback: BatchReadback::new(&gpu),
-                last_bounds: None,
-                atomics,
+                near: granular.is_some().then(|| NearLists {
+                    listed: make("mochi.dem.listed", rows * 4),
+                    near: make("mochi.dem.near", rows * NEAR_ROOM * 4),
+                }),
                 granular,
                 // The paper's walk reads the drift in any build (none without a skin).
                 skin: paper.then(|| Skin::new(&gpu)),
-                rebinned: (0, 0),
-                skin_off_until: 0,
                 gpu: gpu.clone(),
             }
         })?;
-        let mut stepper = stepper.with_structure(structure);
+        let sizing = Sizing {
+            n,
+            row: gpu.grid(n, GROUP).0 * GROUP,
+            build,
+            mode_cell,
+            radii: (r_min as f64, r_max as f64),
+        };
+        // Laid out over the box until the first advance lays it out over the spheres.
+        let layout = sizing.layout(&res, (params.box_lo, params.box_hi), true);
+        let laid_out = LaidOut::new(&res, &sizing, layout, particles.step)?;
+        let mut stepper = GridStepper {
+            res,
+            laid_out,
+            stale: true,
+            n,
+            capacity: rows as u32,
+            next_id: n,
+            flow_scan: None,
+            mode,
+            mode_cell,
+            radii: sizing.radii,
+            params,
+            step: particles.step,
+            groups: gpu.grid(n, GROUP),
+            current: 0,
+            parity: 0,
+            batch_start: (0, 0, true),
+            sort_next: true,
+            counted: false,
+            submit_every: None,
+            sorting: Sorting::Auto,
+            timer: StepTimer::new(&gpu),
+            readback: BatchReadback::new(&gpu),
+            last_bounds: None,
+            atomics,
+            rebinned: (0, 0),
+            skin_off_until: 0,
+        };
         stepper.upload(&particles)?;
         Ok(stepper)
     }
@@ -490,10 +488,10 @@ impl GridStepper {
 
     /// Bins into `structure` from the next step on.
     pub fn with_structure(mut self, structure: Structure) -> Self {
-        self.levels = structure.levels_for(self.mode, self.radii.1 / self.radii.0);
-        self.laid_out_at = None;
+        self.res.levels = structure.levels_for(self.mode, self.radii.1 / self.radii.0);
+        self.stale = true;
         // The granular contact pass's kernels follow the levels.
-        self.binds = None;
+        self.rebind();
         self
     }
 
@@ -502,13 +500,13 @@ impl GridStepper {
         let (pos, vel) = rows(particles, &self.params.materials);
         let lo = residual_rows(particles);
         let ids: Vec<u32> = (0..self.n).collect();
-        let q = &self.gpu.queue;
-        let set = &self.sets[self.current];
+        let q = &self.res.gpu.queue;
+        let set = &self.res.sets[self.current];
         q.write_buffer(&set.pos, 0, bytemuck::cast_slice(&pos));
         q.write_buffer(&set.lo, 0, bytemuck::cast_slice(&lo));
         q.write_buffer(&set.vel, 0, bytemuck::cast_slice(&vel));
         q.write_buffer(&set.ids, 0, bytemuck::cast_slice(&ids));
-        q.write_buffer(&self.clock, 0, bytemuck::bytes_of(&(self.step as u32)));
+        q.write_buffer(&self.res.clock, 0, bytemuck::bytes_of(&(self.step as u32)));
         self.write_count();
         self.sort_next = true;
         self.counted = false;
@@ -518,15 +516,15 @@ impl GridStepper {
     /// The state read back in input order ([`Error::Unstable`] if it is not finite).
     fn state(&self) -> Result<Particles> {
         let n = self.n as usize;
-        let set = &self.sets[self.current];
-        let pos: Vec<[f32; 4]> = self.gpu.read(&set.pos, n)?;
-        let lo: Vec<[f32; 4]> = self.gpu.read(&set.lo, n)?;
-        let vel: Vec<[f32; 4]> = self.gpu.read(&set.vel, n)?;
-        let ids: Vec<u32> = self.gpu.read(&set.ids, n)?;
+        let set = &self.res.sets[self.current];
+        let pos: Vec<[f32; 4]> = self.res.gpu.read(&set.pos, n)?;
+        let lo: Vec<[f32; 4]> = self.res.gpu.read(&set.lo, n)?;
+        let vel: Vec<[f32; 4]> = self.res.gpu.read(&set.vel, n)?;
+        let ids: Vec<u32> = self.res.gpu.read(&set.ids, n)?;
         let order = InputOrder::of(&ids);
         let rotation = || {
-            let g = self.granular.as_ref();
-            g.map(|g| g.read(&self.gpu, self.turn(), Some(&order)))
+            let g = self.res.granular.as_ref();
+            g.map(|g| g.read(&self.res.gpu, self.turn(), Some(&order)))
                 .transpose()
         };
         let rows = StateRows {
@@ -541,7 +539,7 @@ impl GridStepper {
 impl GridStepper {
     /// The build this step bins with.
     pub fn build(&self) -> BuildKind {
-        match self.sorter {
+        match self.laid_out.sorter {
             Sorter::Dense { .. } => BuildKind::Dense,
             Sorter::Sorted { .. } => BuildKind::Sorted,
         }
@@ -550,12 +548,13 @@ impl GridStepper {
 
 impl Stepper for GridStepper {
     fn describe(&self) -> String {
-        let history = self.granular.as_ref().and_then(Granular::describe_history);
+        let history = self
+            .res
+            .granular
+            .as_ref()
+            .and_then(Granular::describe_history);
         // The grid as last laid out (it follows the spheres' bounds through the run).
-        let grid = match self.laid_out_at {
-            Some(_) => describe_layout(&self.layout, self.build()),
-            None => format!("{} build", self.build().name()),
-        };
+        let grid = describe_layout(&self.laid_out.layout, self.build());
         let skin = match self.rebinned {
             (steps, rebins) if steps > 0 => {
                 format!("; skin of {SKIN_CELLS} cell on {steps} steps, re-binned at {rebins}")
@@ -564,7 +563,7 @@ impl Stepper for GridStepper {
         };
         format!(
             "wgpu-compute ({}; {}; {grid}{skin}{})",
-            gpu::describe(&self.gpu.info),
+            gpu::describe(&self.res.gpu.info),
             self.atomics,
             history.map(|h| format!("; {h}")).unwrap_or_default()
         )
@@ -578,26 +577,13 @@ impl Stepper for GridStepper {
                 Ok((left, 0, None))
             });
         }
-        let Some(granular) = &mut self.granular else {
-            return self.advance_paper(steps);
-        };
-        let last = self.step + steps as u64 - 1;
-        granular.mesh_mut().sum_loads_in(&self.gpu, last);
-        let advance = advance_in_batches(steps, self.timer.is_some(), |left| {
-            let due = match self.laid_out_at {
-                None => true,
-                Some(at) => self.step >= at + RELAYOUT_EVERY,
-            };
-            if due {
-                self.relayout()?;
-            }
-            let until_relayout = self.laid_out_at.unwrap_or(self.step) + RELAYOUT_EVERY - self.step;
-            let batch = left.min(MAX_BATCH).min(until_relayout.max(1) as u32);
-            let (contacts, times) = run_batch(self, batch)?;
-            Ok((batch, contacts, times))
-        })?;
-        if let Some(g) = &mut self.granular {
-            g.mesh_mut().read_loads(&self.gpu)?;
+        if let Some(g) = &mut self.res.granular {
+            let last = (self.step + steps as u64).saturating_sub(1);
+            g.mesh_mut().sum_loads_in(&self.res.gpu, last);
+        }
+        let advance = self.advance_batches(steps)?;
+        if let Some(g) = &mut self.res.granular {
+            g.mesh_mut().read_loads(&self.res.gpu)?;
         }
         Ok(advance)
     }
@@ -607,7 +593,8 @@ impl Stepper for GridStepper {
     }
 
     fn wall_loads(&self) -> Vec<WallLoad> {
-        self.granular
+        self.res
+            .granular
             .as_ref()
             .map_or_else(Vec::new, |g| g.mesh().loads().to_vec())
     }

@@ -1,45 +1,9 @@
-//! Recording steps into a compute pass phase by phase, and the batch drivers that submit them.
+//! Recording steps into a compute pass phase by phase, and the batch driver that submits them.
 
 use super::schedule::{
     MAX_REBIN_SHARE, RELAYOUT_EVERY, Rebin, SKIN_RETRY_STEPS, StepKind, submissions,
 };
 use super::*;
-
-impl RedoableBatch for GridStepper {
-    fn batch_parts(&mut self) -> BatchParts<'_> {
-        let (turn, set) = (self.turn(), &self.sets[self.current]);
-        let state = vec![&set.pos, &set.lo, &set.vel, &set.ids, &self.clock];
-        let (granular, params) = (self.granular.as_mut(), &mut self.dem_uniform);
-        (&self.gpu, granular, turn, state, params)
-    }
-
-    fn record_batch(
-        &mut self,
-        mut encoder: wgpu::CommandEncoder,
-        steps: u32,
-    ) -> Result<(u64, Option<StageTimes>)> {
-        let recording = std::time::Instant::now();
-        let profiled = self.encode_steps(&mut encoder, steps, self.submit_every)?;
-        let recorded_ms = recording.elapsed().as_secs_f64() * 1e3;
-        let gpu = &self.gpu;
-        let timer = self.timer.as_ref();
-        gpu.checked("running DEM steps", || gpu.queue.submit([encoder.finish()]))?;
-        let contacts = gpu.read::<u32>(&self.counters, 1)?[0] as u64;
-        let times = timer.map(|t| t.read(gpu, profiled)).transpose()?;
-        self.submit_every = submissions(times.as_ref(), recorded_ms);
-        Ok((contacts, times))
-    }
-
-    fn rewind(&mut self, steps: u32) {
-        self.step -= steps as u64;
-        (self.current, self.parity, self.sort_next) = self.batch_start;
-        self.counted = false;
-    }
-
-    fn rebind(&mut self) {
-        self.binds = Some([self.make_binds(0), self.make_binds(1)]);
-    }
-}
 
 /// The phases of a step, in order.
 #[derive(Debug, Clone, Copy)]
@@ -80,9 +44,9 @@ impl GridStepper {
         if kind == StepKind::Skin {
             return self.record_skin_phase(pass, from.set, rebin, phase);
         }
-        let binds = self.binds.as_ref().expect("laid out");
+        let binds = &self.laid_out.binds;
         let b = &binds[from.set];
-        let p = &self.pipelines;
+        let p = &self.res.pipelines;
         let binning = (kind == StepKind::Binning).then(|| {
             let own = b.binning.as_ref().expect("a step with binning steps");
             let bin_index = p.bin_index.as_ref().expect("a step with binning steps");
@@ -93,7 +57,7 @@ impl GridStepper {
                 if self.build() == BuildKind::Sorted {
                     gpu::record(pass, &p.bin_first, &b.bin_first, self.groups);
                 }
-                self.record_scan(pass, None);
+                self.laid_out.record_scan(pass, None);
                 match binning {
                     Some((own, bin_index)) => {
                         gpu::record(pass, bin_index, &own.bin_index, self.groups)
@@ -140,11 +104,11 @@ impl GridStepper {
         rebin: Rebin,
         phase: Phase,
     ) {
-        let binds = self.binds.as_ref().expect("laid out");
-        let (b, p) = (&binds[on], &self.pipelines);
+        let binds = &self.laid_out.binds;
+        let (b, p) = (&binds[on], &self.res.pipelines);
         let own = b.skin.as_ref().expect("a step with a skin");
         let pipelines = p.skin.as_ref().expect("a step with a skin");
-        let skin = self.skin.as_ref().expect("a step with a skin");
+        let skin = self.res.skin.as_ref().expect("a step with a skin");
         match phase {
             Phase::Build => {
                 let passes = [
@@ -155,14 +119,14 @@ impl GridStepper {
                 if rebin == Rebin::IfMoved {
                     gpu::record(pass, &pipelines.begin_step, &own.begin_step, (1, 1));
                     skin.dispatch_spheres(pass, passes[0].0, passes[0].1);
-                    self.record_scan(pass, Some(skin.blocks_args()));
+                    self.laid_out.record_scan(pass, Some(skin.blocks_args()));
                     for (pipeline, bind) in &passes[1..] {
                         skin.dispatch_spheres(pass, pipeline, bind);
                     }
                 } else {
                     gpu::record(pass, &pipelines.begin_binning, &own.begin_binning, (1, 1));
                     gpu::record(pass, passes[0].0, passes[0].1, self.groups);
-                    self.record_scan(pass, None);
+                    self.laid_out.record_scan(pass, None);
                     for (pipeline, bind) in &passes[1..] {
                         gpu::record(pass, pipeline, bind, self.groups);
                     }
@@ -176,27 +140,6 @@ impl GridStepper {
             Phase::Integrate => {
                 gpu::record(pass, &pipelines.integrate, &own.integrate, self.groups)
             }
-        }
-    }
-
-    /// Records the sorter's pass between the binning's first and last: the scan of the cell
-    /// table (its dispatch read from `indirect` where given), or the sort of the keys.
-    pub(super) fn record_scan(
-        &self,
-        pass: &mut wgpu::ComputePass,
-        indirect: Option<(&wgpu::Buffer, u64)>,
-    ) {
-        match &self.sorter {
-            Sorter::Dense {
-                scan, scan_bind, ..
-            } => {
-                let binds = scan_bind.as_ref().expect("laid out");
-                match indirect {
-                    Some(args) => scan.record_indirect(pass, binds, args),
-                    None => scan.record(pass, binds, &self.layout),
-                }
-            }
-            Sorter::Sorted { prepared, .. } => prepared.as_ref().expect("laid out").record(pass),
         }
     }
 
@@ -230,10 +173,14 @@ impl GridStepper {
             false if schedule.sorts(step) => Rebin::Always,
             false => Rebin::IfMoved,
         };
-        if let Some(skin) = self.skin.as_ref().filter(|_| skinned) {
-            skin.prepare(&self.gpu, self.groups, self.layout.scan_blocks());
+        if let Some(skin) = self.res.skin.as_ref().filter(|_| skinned) {
+            skin.prepare(
+                &self.res.gpu,
+                self.groups,
+                self.laid_out.layout.scan_blocks(),
+            );
         }
-        if let Sorter::Dense { cell_table, .. } = &self.sorter
+        if let Sorter::Dense { cell_table, .. } = &self.laid_out.sorter
             && !self.counted
         {
             // What a step counted before the layout or the state changed is cleared; without a
@@ -245,10 +192,10 @@ impl GridStepper {
                     label: Some("mochi.dem.count"),
                     timestamp_writes: None,
                 });
-                let b = &self.binds.as_ref().expect("laid out")[turn.set];
+                let b = &self.laid_out.binds[turn.set];
                 gpu::record(
                     &mut pass,
-                    &self.pipelines.bin_first,
+                    &self.res.pipelines.bin_first,
                     &b.bin_first,
                     self.groups,
                 );
@@ -286,7 +233,7 @@ impl GridStepper {
             drop(pass);
             k = end;
             if k < steps {
-                let gpu = &self.gpu;
+                let gpu = &self.res.gpu;
                 let next = gpu.device.create_command_encoder(&Default::default());
                 let done = std::mem::replace(encoder, next);
                 gpu.checked("running DEM steps", || gpu.queue.submit([done.finish()]))?;
@@ -303,76 +250,108 @@ impl GridStepper {
         Ok(profiled)
     }
 
-    /// Records a batch of `steps` steps of the paper's step that ends by reducing its bounds
-    /// and copying its results for the host, and submits it.
-    pub(super) fn submit_batch(&mut self, steps: u32) -> Result<InFlight> {
-        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
-        let profiled = self.encode_steps(&mut encoder, steps, None)?;
+    /// Records a batch of `steps` steps that ends by reducing its bounds and copying its
+    /// results for the host, and submits it; with the time its recording took \[ms\]. The
+    /// granular step's batch first keeps what it begins from, for a redo.
+    pub(super) fn submit_batch(&mut self, steps: u32) -> Result<(InFlight, f64)> {
+        let recording = std::time::Instant::now();
+        let mut encoder = self
+            .res
+            .gpu
+            .device
+            .create_command_encoder(&Default::default());
+        let turn = self.turn();
+        let res = &mut self.res;
+        if let Some(g) = &mut res.granular {
+            let set = &res.sets[turn.set];
+            let state = [&set.pos, &set.lo, &set.vel, &set.ids, &res.clock];
+            g.begin_batch(&res.gpu, &mut encoder, turn, &state);
+        }
+        // The granular step's batches, waited for one by one, are split into submissions
+        // where the GPU would otherwise wait for their recording.
+        let submit_every = self.res.granular.as_ref().and(self.submit_every);
+        let profiled = self.encode_steps(&mut encoder, steps, submit_every)?;
         self.record_bounds(&mut encoder);
         let timer = self.timer.as_ref().map(|t| (t, profiled));
-        let skin = self.skin.as_ref().filter(|_| self.skinned());
+        let skin = self.res.skin.as_ref().filter(|_| self.skinned());
         let rebins = skin.map(|s| (&s.state, Skin::REBINS_AT));
         self.readback.record(
             &mut encoder,
-            &self.counters,
+            &self.res.counters,
             rebins,
-            Some(&self.bounds),
+            Some(&self.res.bounds),
             timer,
         );
         let rebinning = skin.map(|_| steps);
-        self.readback
-            .submit(&self.gpu, encoder, profiled, rebinning)
+        let recorded_ms = recording.elapsed().as_secs_f64() * 1e3;
+        let batch = self
+            .readback
+            .submit(&self.res.gpu, encoder, profiled, rebinning)?;
+        Ok((batch, recorded_ms))
     }
 
-    /// The paper's step, `steps` steps in batches kept in flight: batch k + 1 is recorded and
-    /// submitted before the host waits for batch k. A layout falls due at a batch's start; it
-    /// is made from the bounds of the last batch that finished (one batch old while another
-    /// runs: spheres outside a layout are clamped into its border cells, exact, so a layout
-    /// need not be fresh).
-    pub(super) fn advance_paper(&mut self, steps: u32) -> Result<Advance> {
-        if self.laid_out_at.is_none() {
+    /// `steps` steps in batches, every variant's driver. A layout falls due at a batch's start
+    /// and is made from the bounds of the last batch that finished. The paper's step keeps one
+    /// batch in flight while it records the next (its layout's bounds are then one batch old:
+    /// spheres outside a layout are clamped into its border cells, exact, so a layout need not
+    /// be fresh). The granular step waits for each batch: one in which a sphere had more
+    /// contacts than history slots is redone, with more slots, from the state it began from.
+    pub(super) fn advance_batches(&mut self, steps: u32) -> Result<Advance> {
+        if self.stale {
             self.relayout()?;
         }
+        let waits = self.res.granular.is_some();
         let mut times = StageTimes::default();
         let mut timed = self.timer.is_some();
         let mut contacts = 0;
         let mut left = steps;
-        let mut in_flight: Option<InFlight> = None;
+        let mut in_flight = None;
         loop {
-            let next = if left > 0 {
-                let laid_out_at = self.laid_out_at.unwrap_or(self.step);
-                if self.step >= laid_out_at + RELAYOUT_EVERY
-                    && let Some(keys) = self.last_bounds.take()
-                {
-                    let (lo, hi) = self.decode_bounds(&keys)?;
-                    self.layout_over(lo, hi)?;
-                }
-                let batch = left.min(MAX_BATCH).min(RELAYOUT_EVERY as u32);
-                left -= batch;
-                Some(self.submit_batch(batch)?)
-            } else {
-                None
-            };
-            if let Some(done) = in_flight.take() {
-                let results = self.readback.finish(&self.gpu, done)?;
-                contacts = results.contacts;
-                if let Some((steps, rebins)) = results.rebins {
-                    self.rebinned.0 += steps as u64;
-                    self.rebinned.1 += rebins as u64;
-                    // Off from the next layout on where it re-binned too often.
-                    if rebins as f64 > MAX_REBIN_SHARE * steps as f64 {
-                        self.skin_off_until = self.step + SKIN_RETRY_STEPS;
+            let submitted = match left {
+                0 => None,
+                _ => {
+                    if self.step >= self.laid_out.at + RELAYOUT_EVERY
+                        && let Some(keys) = self.last_bounds.take()
+                    {
+                        let (lo, hi) = self.decode_bounds(&keys)?;
+                        self.layout_over(lo, hi)?;
                     }
+                    let batch = left.min(MAX_BATCH).min(RELAYOUT_EVERY as u32);
+                    left -= batch;
+                    Some((self.submit_batch(batch)?, batch))
                 }
-                self.last_bounds = Some(results.bounds);
-                match results.times {
-                    Some(t) => times.add(&t),
-                    None => timed = false,
+            };
+            let finishing = match waits {
+                true => submitted,
+                false => std::mem::replace(&mut in_flight, submitted),
+            };
+            let Some(((done, recorded_ms), batch)) = finishing else {
+                match in_flight {
+                    Some(_) => continue,
+                    None => break,
+                }
+            };
+            let results = self.readback.finish(&self.res.gpu, done)?;
+            if waits && self.redo_grown(batch)? {
+                left += batch;
+                continue;
+            }
+            contacts = results.contacts;
+            if let Some((steps, rebins)) = results.rebins {
+                self.rebinned.0 += steps as u64;
+                self.rebinned.1 += rebins as u64;
+                // Off from the next layout on where it re-binned too often.
+                if rebins as f64 > MAX_REBIN_SHARE * steps as f64 {
+                    self.skin_off_until = self.step + SKIN_RETRY_STEPS;
                 }
             }
-            match next {
-                Some(batch) => in_flight = Some(batch),
-                None => break,
+            self.last_bounds = Some(results.bounds);
+            if waits {
+                self.submit_every = submissions(results.times.as_ref(), recorded_ms);
+            }
+            match results.times {
+                Some(t) => times.add(&t),
+                None => timed = false,
             }
         }
         Ok(Advance {
@@ -381,5 +360,31 @@ impl GridStepper {
             times,
             clock: if timed { Clock::Gpu } else { Clock::None },
         })
+    }
+
+    /// After the granular step's last batch of `steps` steps: where a sphere had more
+    /// contacts than history slots, the batch is undone (the clock, the state set and the
+    /// parity back to its start, its state restored) with more slots, and `true` says to run
+    /// it again.
+    fn redo_grown(&mut self, steps: u32) -> Result<bool> {
+        let need = match &self.res.granular {
+            Some(g) => g.overflow(&self.res.gpu)?,
+            None => None,
+        };
+        let Some(need) = need else {
+            return Ok(false);
+        };
+        self.step -= steps as u64;
+        (self.current, self.parity, self.sort_next) = self.batch_start;
+        self.counted = false;
+        let turn = self.turn();
+        let res = &mut self.res;
+        if let Some(g) = &mut res.granular {
+            let set = &res.sets[turn.set];
+            let state = [&set.pos, &set.lo, &set.vel, &set.ids, &res.clock];
+            g.restore_grown(&res.gpu, (turn, &state), need, &mut res.dem_uniform)?;
+        }
+        self.rebind();
+        Ok(true)
     }
 }

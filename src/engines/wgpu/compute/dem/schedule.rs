@@ -143,8 +143,8 @@ impl GridStepper {
             sorting: self.sorting,
             sort_next: self.sort_next,
             skinned: self.skinned(),
-            bins_by_index: self.pipelines.bin_index.is_some(),
-            granular: self.granular.is_some(),
+            bins_by_index: self.res.pipelines.bin_index.is_some(),
+            granular: self.res.granular.is_some(),
         }
     }
 
@@ -158,7 +158,7 @@ impl GridStepper {
 
     /// Whether the layout has a skin: steps may skip their binning.
     pub(super) fn skinned(&self) -> bool {
-        self.pipelines.skin.is_some() && self.layout.skin > 0.0
+        self.res.pipelines.skin.is_some() && self.laid_out.layout.skin > 0.0
     }
 }
 
