@@ -16,7 +16,7 @@
 
 use crate::dem::flow::FlowCounts;
 use crate::dem::model::StepParams;
-use crate::dem::scene::{Overrides, SceneConfig, SceneFlags, Start};
+use crate::dem::scene::{Overrides, SceneConfig, SceneFlags, SceneKind, Start};
 use crate::dem::stepper::Stepper;
 use crate::dem::walls::WallSet;
 use crate::engines::{BackendChoice, BackendKind, Opened, Options, open_scene};
@@ -148,6 +148,11 @@ impl RunStart {
     ) -> Result<Self> {
         let config = SceneConfig::load_new(scene_file, flags, overrides)?;
         let start = config.build()?;
+        Self::fresh(config, start)
+    }
+
+    /// A new run of `config` from `start`: the scene resolved, the wall meshes' digests taken.
+    fn fresh(config: SceneConfig, start: Start) -> Result<Self> {
         let meshes = config
             .wall
             .iter()
@@ -161,6 +166,19 @@ impl RunStart {
                 ..RunState::default()
             },
         })
+    }
+
+    /// A new run of `particles` given in memory (scene `input` without a file), with
+    /// `overrides` (the scene's other keys: its material, box, walls, …), from the particles'
+    /// step. Refuses particles a sphere file could not hold and keys scene `input` does not use.
+    pub fn of_particles(particles: Particles, overrides: &Overrides) -> Result<Self> {
+        let flags = SceneFlags {
+            scene: Some(SceneKind::Input),
+            ..SceneFlags::default()
+        };
+        let config = SceneConfig::load_new(None, &flags, overrides)?;
+        let start = config.build_from(particles)?;
+        Self::fresh(config, start)
     }
 
     /// A run resumed from `checkpoint`: its particles, and its saved scene with `flags` and

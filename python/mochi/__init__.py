@@ -4,6 +4,14 @@ See ``mochi.detect``, ``mochi.Detector``, ``mochi.backends``, ``mochi.Simulation
 ``mochi.read_frame``.
 """
 
-from ._mochi import Detector, MochiError, Simulation, backends, detect, read_frame
+from ._mochi import Detector, MochiError, Simulation, __version__, backends, detect, read_frame
 
-__all__ = ["Detector", "MochiError", "Simulation", "backends", "detect", "read_frame"]
+__all__ = [
+    "Detector",
+    "MochiError",
+    "Simulation",
+    "__version__",
+    "backends",
+    "detect",
+    "read_frame",
+]

@@ -1,12 +1,15 @@
 """Type hints of mochi's Python API."""
 
 import os
+from types import TracebackType
 from typing import Callable, Literal, TypedDict
 
 import numpy as np
 import numpy.typing as npt
 
 Mode = Literal["mochi", "nns"]
+
+__version__: str
 
 class MochiError(RuntimeError):
     """A device or library failure (bad input raises ValueError instead, and input too large for
@@ -21,14 +24,15 @@ class BackendEntry(TypedDict):
 
 def detect(
     centres: npt.NDArray[np.float32] | npt.NDArray[np.float64],
-    radii: npt.NDArray[np.float32] | npt.NDArray[np.float64],
+    radii: npt.NDArray[np.float32] | npt.NDArray[np.float64] | None = None,
     backend: str = "auto",
     mode: Mode = "mochi",
 ) -> npt.NDArray[np.int64]:
     """Every colliding pair of spheres as a ``(P, 2)`` int64 array, ``i < j``, rows sorted.
 
     ``centres`` is ``(N, 3)`` and ``radii`` ``(N,)``, float32 or float64 in either byte order,
-    any memory order. mochi computes in float32: a float64 value beyond its range is refused,
+    any memory order; or, without ``radii``, one ``(N, 4)`` array of x, y, z, r (as ``mochi
+    generate`` writes a ``.npy``). mochi computes in float32: a float64 value beyond its range is refused,
     naming it. A masked array is read only where no entry is masked (else ``ValueError``: mochi
     takes no mask). Raises ``ValueError`` for bad input (naming the row and the reason),
     ``MemoryError`` (naming what and how many bytes) where the spheres' copies, the backend's
@@ -52,9 +56,10 @@ class Detector:
     def build(
         self,
         centres: npt.NDArray[np.float32] | npt.NDArray[np.float64],
-        radii: npt.NDArray[np.float32] | npt.NDArray[np.float64],
+        radii: npt.NDArray[np.float32] | npt.NDArray[np.float64] | None = None,
     ) -> None:
-        """Builds the structure over these spheres."""
+        """Builds the structure over these spheres (``centres`` ``(N, 3)`` and ``radii``
+        ``(N,)``, or one ``(N, 4)`` array of x, y, z, r)."""
     def update(self, centres: npt.NDArray[np.float32] | npt.NDArray[np.float64]) -> None:
         """Moves the spheres of the last ``build`` (same count, same radii)."""
     def pairs(self) -> npt.NDArray[np.int64]:
@@ -99,24 +104,45 @@ class Simulation:
     ``{"materials": [{"name": "glass", "density": 2500}, {"name": "steel", "density": 7800}],
     "box_material": "steel", "inflow": {..., "material": "glass"}}``; an input file's
     ``material`` column gives each sphere's (its index in that list, from 0).
-    NumPy scalars and 0-d arrays count as the
+    Scene keys may also be keyword arguments (``Simulation(scene="freefall", spheres=500,
+    friction=0.3)``), set over ``scene``. NumPy scalars and 0-d arrays count as the
     Python scalars they hold, NumPy arrays as lists. A whole float for a key that takes an
     integer (``"spheres": 3e8``) is refused, as in a scene file: pass an int. Bad keys or values
-    raise ``ValueError`` naming them; the run's warnings (overlaps, coarse coordinates,
-    coincident centres) are ``UserWarning``s.
+    raise ``ValueError`` naming the key; the run's warnings (overlaps, coarse coordinates,
+    coincident centres) are ``UserWarning``s. ``close()`` (or the end of a ``with`` block)
+    lets the backend and its device memory go.
 
     ``positions`` (float64), ``velocities``, ``angular_velocities`` and ``radii`` (float32) and
     ``materials`` (uint8) are in input order: read-only snapshots of the step they were read at (the same array object until the
     next ``step``; a later step does not change them). Writing into one raises ``ValueError``;
     a simulation's state is changed only by stepping it (``copy()`` an array to change it, and
-    start a new run from the changed spheres with ``{"scene": "input", "input": file}``).
+    start a new run from the changed spheres with ``Simulation.from_arrays``).
     """
 
     def __init__(
         self,
         scene: dict[str, SceneValue] | str | os.PathLike[str] | None = None,
         backend: str = "auto",
+        **keys: SceneValue,
     ) -> None: ...
+    @classmethod
+    def from_arrays(
+        cls,
+        positions: npt.NDArray[np.floating],
+        radii: npt.NDArray[np.floating],
+        *,
+        velocities: npt.NDArray[np.floating] | None = None,
+        angular_velocities: npt.NDArray[np.floating] | None = None,
+        materials: npt.NDArray[np.integer] | None = None,
+        backend: str = "auto",
+        **keys: SceneValue,
+    ) -> Simulation:
+        """A run of these spheres, no file: ``positions`` ``(N, 3)`` [m] (float64 kept to the
+        residual, as ``positions`` returns them) and ``radii`` ``(N,)`` [m], ``velocities`` and
+        ``angular_velocities`` ``(N, 3)`` (zero where not given), ``materials`` ``(N,)``
+        (indices of the scene's ``materials``, 0 where not given); scene keys as keyword
+        arguments (``gravity``, ``box_lo``, ``friction``, ``wall``, ...). Checked as a sphere
+        file is; the box, where not given, is the spheres' bounds with a margin."""
     @classmethod
     def resume(cls, path: str | os.PathLike[str], backend: str = "auto") -> Simulation:
         """Resumes the run saved by ``checkpoint`` at ``path``."""
@@ -173,3 +199,17 @@ class Simulation:
         written in float64, the rest as the float32 they are."""
     def checkpoint(self, path: str | os.PathLike[str]) -> None:
         """Saves the run (particles, contact history, resolved scene) for ``resume``."""
+    def close(self) -> None:
+        """Ends the run and lets its backend (device and buffers) go; every later call but
+        ``close`` raises ``MochiError``."""
+    @property
+    def closed(self) -> bool:
+        """Whether ``close`` was called."""
+    def __enter__(self) -> Simulation: ...
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        value: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> bool:
+        """Closes the simulation; an exception of the block goes on."""

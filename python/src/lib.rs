@@ -23,7 +23,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::{PyDict, PyType};
+use pyo3::types::{PyDict, PySlice, PyType};
 use rayon::prelude::*;
 use std::any::Any;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -303,6 +303,31 @@ fn read_centres_into(centres: &Bound<'_, PyAny>, out: &mut Vec<[f32; 3]>) -> PyR
     )))
 }
 
+/// `centres` and `radii` as given, or, without `radii`, the columns of `centres` as one
+/// `(N, 4)` array of x, y, z, r (as `mochi generate` writes a `.npy`): its first three columns
+/// and its fourth, as views.
+fn columns<'py>(
+    centres: &Bound<'py, PyAny>,
+    radii: Option<&Bound<'py, PyAny>>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    if let Some(radii) = radii {
+        return Ok((centres.clone(), radii.clone()));
+    }
+    let array = plain_array("spheres", centres)?;
+    let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+    if shape.len() != 2 || shape[1] != 4 {
+        return Err(PyValueError::new_err(format!(
+            "without radii, the spheres must be one (N, 4) array of x, y, z, r, not shape \
+             {shape:?} (or give centres (N, 3) and radii (N,))"
+        )));
+    }
+    let py = centres.py();
+    let rows = PySlice::full(py);
+    let xyz = array.get_item((rows.clone(), PySlice::new(py, 0, 3, 1)))?;
+    let r = array.get_item((rows, 3))?;
+    Ok((xyz, r))
+}
+
 /// A library error about the caller's spheres as a Python exception: a usage error (centres
 /// and radii of different counts, a count unlike the build's) is the caller's input,
 /// `ValueError`.
@@ -534,8 +559,10 @@ impl Detector {
         &mut self,
         py: Python<'_>,
         centres: &Bound<'_, PyAny>,
-        radii: &Bound<'_, PyAny>,
+        radii: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
+        let (centres, radii) = columns(centres, radii)?;
+        let (centres, radii) = (&centres, &radii);
         let centres = plain_array("centres", centres)?;
         let radii = plain_array("radii", radii)?;
         let (direct_centres, direct_radii) = (float32_rows(&centres), float32_values(&radii));
@@ -610,11 +637,14 @@ impl Detector {
         self.guarded("Detector.backend", |d| Ok(d.backend_mut().info().name))
     }
 
+    /// Builds over `centres` `(N, 3)` and `radii` `(N,)` (float32 or float64), or one `(N, 4)`
+    /// array of x, y, z, r given alone.
+    #[pyo3(signature = (centres, radii = None))]
     fn build(
         &mut self,
         py: Python<'_>,
         centres: &Bound<'_, PyAny>,
-        radii: &Bound<'_, PyAny>,
+        radii: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         self.guarded("Detector.build", |d| d.build_spheres(py, centres, radii))
     }
@@ -638,16 +668,17 @@ impl Detector {
     }
 }
 
-/// Every colliding pair `(i, j)`, `i < j`, of the spheres, as a sorted `(P, 2)` int64 array.
-/// The backend it opens (its device and buffers) and the memory of the spheres' copies are
+/// Every colliding pair `(i, j)`, `i < j`, of the spheres (`centres` `(N, 3)` and `radii`
+/// `(N,)`, float32 or float64; or one `(N, 4)` array of x, y, z, r given alone), as a sorted
+/// `(P, 2)` int64 array. The backend it opens (its device and buffers) and the memory of the spheres' copies are
 /// kept for the next call with the same `backend`, which opens and allocates nothing; a call
 /// with another `backend` lets them go.
 #[pyfunction]
-#[pyo3(signature = (centres, radii, backend = "auto", mode = "mochi"))]
+#[pyo3(signature = (centres, radii = None, backend = "auto", mode = "mochi"))]
 fn detect<'py>(
     py: Python<'py>,
     centres: &Bound<'py, PyAny>,
-    radii: &Bound<'py, PyAny>,
+    radii: Option<&Bound<'py, PyAny>>,
     backend: &str,
     mode: &str,
 ) -> PyResult<Bound<'py, PyArray2<i64>>> {
@@ -701,6 +732,7 @@ fn backends(py: Python<'_>) -> PyResult<Vec<Bound<'_, PyDict>>> {
 fn _mochi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     install_panic_hook();
     m.add("MochiError", m.py().get_type::<MochiError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(detect, m)?)?;
     m.add_function(wrap_pyfunction!(backends, m)?)?;
     m.add_function(wrap_pyfunction!(panic_for_tests, m)?)?;

@@ -5,15 +5,17 @@
 //! `None` or the particles at `step` (read back once, dropped on every step), and `views` holds
 //! only arrays made from `now` (dropped with it); the arrays handed out are read-only snapshots.
 
-use crate::{Guarded, guard, plain_array, to_py_err};
+use crate::{Guarded, MochiError, guard, plain_array, to_py_err};
+use mochi::SphereSet;
 use mochi::dem::Particles;
-use mochi::dem::scene::{Overrides, SceneConfig, SceneFlags};
+use mochi::dem::scene::{Overrides, SceneConfig, SceneFlags, SceneKind};
 use mochi::engines::{BackendChoice, Options};
 use mochi::io;
 use mochi::run::{FIRST_PROGRESS_STEPS, Run, RunStart, progress_steps};
 use numpy::ndarray::{Array1, Array2, Dimension, Ix1, Ix2};
 use numpy::{
-    Element, IntoPyArray, PyArray, PyArray1, PyArray2, PyUntypedArray, PyUntypedArrayMethods,
+    Element, IntoPyArray, PyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2,
+    PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyMemoryError, PyTypeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
@@ -151,8 +153,29 @@ fn overrides(scene: &Bound<'_, PyDict>) -> PyResult<Overrides> {
     Ok(Overrides::from_table(fields))
 }
 
-/// The start of a new run from `scene`: a dict of scene keys, a TOML file, or `None`.
-fn new_start(py: Python<'_>, scene: Option<&Bound<'_, PyAny>>) -> PyResult<RunStart> {
+/// The overrides of `keys` (a dict of scene keys given as keyword arguments; `None`: none).
+fn keyword_overrides(keys: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
+    keys.map_or(Ok(Overrides::default()), overrides)
+}
+
+/// A library error of a run set up from Python: the scene's own source, where it is the
+/// scene dict or the keyword arguments (which the library calls the command line), named so.
+fn scene_err(error: mochi::Error) -> PyErr {
+    match error {
+        mochi::Error::Parse { path, msg, .. } if path.as_os_str() == "command line" => {
+            PyValueError::new_err(format!("scene: {msg}"))
+        }
+        other => to_py_err(other),
+    }
+}
+
+/// The start of a new run from `scene` (a dict of scene keys, a TOML file, or `None`) and
+/// `keys` (scene keys given as keyword arguments, set over it).
+fn new_start(
+    py: Python<'_>,
+    scene: Option<&Bound<'_, PyAny>>,
+    keys: Option<&Bound<'_, PyDict>>,
+) -> PyResult<RunStart> {
     let flags = SceneFlags::default();
     let (file, overrides) = match scene {
         None => (None, Overrides::default()),
@@ -161,23 +184,147 @@ fn new_start(py: Python<'_>, scene: Option<&Bound<'_, PyAny>>) -> PyResult<RunSt
             Err(_) => {
                 let path: PathBuf = scene.extract().map_err(|_| {
                     PyTypeError::new_err(
-                        "scene must be a dict of scene keys, a path to a scene TOML, or None",
+                        "scene must be a dict of scene keys, a path to a scene TOML, the name \
+                         of a scene (\"pour\", \"hopper\", …) or None",
                     )
                 })?;
-                (Some(path), Overrides::default())
+                // A scene's name where no file has it: `Simulation("hopper", spheres=500)`.
+                let named = path
+                    .to_str()
+                    .and_then(|name| name.parse::<SceneKind>().ok());
+                match named.filter(|_| !path.exists()) {
+                    Some(kind) => {
+                        let scene = toml::Value::String(kind.name().to_owned());
+                        let table = toml::Table::from_iter([("scene".to_owned(), scene)]);
+                        (None, Overrides::from_table(table))
+                    }
+                    None => (Some(path), Overrides::default()),
+                }
             }
         },
     };
+    let overrides = overrides.then(keyword_overrides(keys)?);
     py.detach(|| RunStart::new(file.as_deref(), &flags, &overrides))
-        .map_err(|error| match error {
-            // The library names the source of overrides the command line; here it is the dict.
-            mochi::Error::Parse { path, msg, .. }
-                if file.is_none() && path.as_os_str() == "command line" =>
-            {
-                PyValueError::new_err(format!("scene dict: {msg}"))
-            }
-            other => to_py_err(other),
-        })
+        .map_err(scene_err)
+}
+
+/// The arrays of [`Simulation::from_arrays`].
+struct SphereArrays<'a, 'py> {
+    positions: &'a Bound<'py, PyAny>,
+    radii: &'a Bound<'py, PyAny>,
+    velocities: Option<&'a Bound<'py, PyAny>>,
+    angular_velocities: Option<&'a Bound<'py, PyAny>>,
+    materials: Option<&'a Bound<'py, PyAny>>,
+}
+
+/// `array` as a C-ordered NumPy array of `dtype` (a copy only where it is not one), refused
+/// with `what` named where it is not an array of numbers of `shape` (`None`: any length).
+fn numbers<'py>(
+    array: &Bound<'py, PyAny>,
+    what: &str,
+    dtype: &str,
+    shape: &[Option<usize>],
+) -> PyResult<Bound<'py, PyAny>> {
+    let py = array.py();
+    let plain = plain_array(what, array)?;
+    let numpy = py.import("numpy")?;
+    let converted = numpy
+        .call_method(
+            "ascontiguousarray",
+            (&plain,),
+            Some(&[("dtype", dtype)].into_py_dict(py)?),
+        )
+        .map_err(|e| PyTypeError::new_err(format!("{what}: not an array of numbers ({e})")))?;
+    let got: Vec<usize> = converted.getattr("shape")?.extract()?;
+    let fits = got.len() == shape.len()
+        && got
+            .iter()
+            .zip(shape)
+            .all(|(g, s)| s.is_none_or(|s| s == *g));
+    if !fits {
+        let want: Vec<String> = shape
+            .iter()
+            .map(|s| s.map_or("N".to_owned(), |s| s.to_string()))
+            .collect();
+        return Err(PyValueError::new_err(format!(
+            "{what} must have shape ({}), not {got:?}",
+            want.join(", ")
+        )));
+    }
+    Ok(converted)
+}
+
+impl SphereArrays<'_, '_> {
+    /// The particles the arrays describe, at rest where no velocities are given.
+    fn particles(&self) -> PyResult<Particles> {
+        let positions = numbers(self.positions, "positions", "float64", &[None, Some(3)])?;
+        let positions: PyReadonlyArray2<'_, f64> = positions.extract()?;
+        let positions = positions.as_array();
+        let n = positions.nrows();
+        let radii = numbers(self.radii, "radii", "float32", &[Some(n)])?;
+        let radii: PyReadonlyArray1<'_, f32> = radii.extract()?;
+        let centres: Vec<[f32; 3]> = positions
+            .rows()
+            .into_iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let c = [c[0], c[1], c[2]];
+                match c.iter().any(|x| x.is_finite() && (*x as f32).is_infinite()) {
+                    true => Err(PyValueError::new_err(format!(
+                        "sphere {i}: position {c:?} is outside the range of float32 (magnitudes \
+                         up to {:e}), in which mochi computes",
+                        f32::MAX
+                    ))),
+                    false => Ok(c.map(|x| x as f32)),
+                }
+            })
+            .collect::<PyResult<_>>()?;
+        let spheres = SphereSet::new(centres, radii.as_array().to_vec()).map_err(to_py_err)?;
+        let mut particles = Particles::at_rest(&spheres).map_err(to_py_err)?;
+        for (i, c) in positions.rows().into_iter().enumerate() {
+            particles
+                .set_exact_position(i, [c[0], c[1], c[2]])
+                .map_err(to_py_err)?;
+        }
+        let triples = |array: Option<&Bound<'_, PyAny>>, what: &str| {
+            array
+                .map(|a| {
+                    let a = numbers(a, what, "float32", &[Some(n), Some(3)])?;
+                    let a: PyReadonlyArray2<'_, f32> = a.extract()?;
+                    Ok::<_, PyErr>(
+                        a.as_array()
+                            .rows()
+                            .into_iter()
+                            .map(|r| [r[0], r[1], r[2]])
+                            .collect(),
+                    )
+                })
+                .transpose()
+        };
+        if let Some(v) = triples(self.velocities, "velocities")? {
+            particles.velocities = v;
+        }
+        if let Some(w) = triples(self.angular_velocities, "angular_velocities")? {
+            particles.angular_velocities = w;
+        }
+        if let Some(m) = self.materials {
+            let m = numbers(m, "materials", "int64", &[Some(n)])?;
+            let m: PyReadonlyArray1<'_, i64> = m.extract()?;
+            particles.materials = m
+                .as_array()
+                .iter()
+                .enumerate()
+                .map(|(i, &k)| {
+                    u8::try_from(k).map_err(|_| {
+                        PyValueError::new_err(format!(
+                            "sphere {i}: material {k} is not an index of a material (0 to 255)"
+                        ))
+                    })
+                })
+                .collect::<PyResult<_>>()?;
+        }
+        Ok(particles)
+    }
 }
 
 /// A copy of `values`, allocated fallibly (`MemoryError` naming `what`).
@@ -287,14 +434,21 @@ pub fn read_frame(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>> 
 #[pyclass(module = "mochi")]
 pub struct Simulation {
     /// Only ever reached through `&mut self` (`Mutex::get_mut`, no locking): the mutex only
-    /// makes the class `Sync`, as pyo3 requires.
-    run: Mutex<Run>,
+    /// makes the class `Sync`, as pyo3 requires. `None` once closed.
+    run: Mutex<Option<Run>>,
     step: u64,
     contacts: u64,
     now: Option<Particles>,
     views: Views,
     /// What a call that panicked said ([`Guarded`]).
     broken: Option<String>,
+}
+
+/// The run in `run`, or `MochiError` once the simulation is closed.
+fn open_run(run: &mut Mutex<Option<Run>>) -> PyResult<&mut Run> {
+    let run = run.get_mut().unwrap_or_else(PoisonError::into_inner);
+    run.as_mut()
+        .ok_or_else(|| MochiError::new_err("the simulation is closed (close() was called)"))
 }
 
 impl Guarded for Simulation {
@@ -322,7 +476,7 @@ impl Simulation {
         }
         Ok(Simulation {
             step: run.first_step,
-            run: Mutex::new(run),
+            run: Mutex::new(Some(run)),
             contacts: 0,
             now: None,
             views: Views::default(),
@@ -330,14 +484,15 @@ impl Simulation {
         })
     }
 
-    fn run_mut(&mut self) -> &mut Run {
-        self.run.get_mut().unwrap_or_else(PoisonError::into_inner)
+    /// The run, or `MochiError` once the simulation is closed.
+    fn run_mut(&mut self) -> PyResult<&mut Run> {
+        open_run(&mut self.run)
     }
 
     /// The particles now (read back from the backend once per step).
     fn particles(&mut self, py: Python<'_>) -> PyResult<&Particles> {
         if self.now.is_none() {
-            let stepper = &mut self.run_mut().stepper;
+            let stepper = &mut self.run_mut()?.stepper;
             let now = py.detach(|| stepper.particles()).map_err(to_py_err)?;
             self.now = Some(now);
         }
@@ -346,18 +501,18 @@ impl Simulation {
 
     /// The spheres now: the particles' count where they were read back since the last step,
     /// else the start's count with the flows' insertions and removals since (no read-back).
-    fn spheres_now(&mut self) -> usize {
+    fn spheres_now(&mut self) -> PyResult<usize> {
         if let Some(now) = &self.now {
-            return now.len();
+            return Ok(now.len());
         }
-        let run = self.run_mut();
-        match run.stepper.flow_counts() {
+        let run = self.run_mut()?;
+        Ok(match run.stepper.flow_counts() {
             Some(flows) => {
                 let inserted = run.spheres as u64 + flows.inserted;
                 inserted.saturating_sub(flows.removed) as usize
             }
             None => run.spheres,
-        }
+        })
     }
 
     /// The array in `slot` of [`Self::views`], made by `make` from the particles now and set
@@ -387,12 +542,63 @@ impl Simulation {
 #[pymethods]
 impl Simulation {
     /// Sets a run up from `scene` (a dict of scene keys, as in a scene TOML or `mochi simulate
-    /// --set`; a path to a scene TOML; or `None`, the default scene `pour`) on `backend`.
+    /// --set`; a path to a scene TOML; the name of a scene, `"hopper"`; or `None`, the default
+    /// scene `pour`) and `keys` (scene keys as keyword arguments, set over it) on `backend`.
     #[new]
-    #[pyo3(signature = (scene = None, backend = "auto"))]
-    fn new(py: Python<'_>, scene: Option<&Bound<'_, PyAny>>, backend: &str) -> PyResult<Self> {
+    #[pyo3(signature = (scene = None, backend = "auto", **keys))]
+    fn new(
+        py: Python<'_>,
+        scene: Option<&Bound<'_, PyAny>>,
+        backend: &str,
+        keys: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
         guard("mochi.Simulation()", || {
-            let start = new_start(py, scene)?;
+            let start = new_start(py, scene, keys)?;
+            Simulation::open(py, start, backend)
+        })
+    }
+
+    /// Sets a run up from arrays, no file: `positions` `(N, 3)` \[m\] and `radii` `(N,)` \[m\]
+    /// (float32 or float64), with `velocities` and `angular_velocities` `(N, 3)` (zero where
+    /// not given) and `materials` `(N,)` (indices of the scene's `materials`; 0 where not
+    /// given), and any other scene keys as keyword arguments (the box, gravity, the material,
+    /// walls, flows, …) on `backend`.
+    #[classmethod]
+    #[pyo3(signature = (
+        positions,
+        radii,
+        *,
+        velocities = None,
+        angular_velocities = None,
+        materials = None,
+        backend = "auto",
+        **keys
+    ))]
+    #[allow(clippy::too_many_arguments)]
+    fn from_arrays(
+        _cls: &Bound<'_, pyo3::types::PyType>,
+        py: Python<'_>,
+        positions: &Bound<'_, PyAny>,
+        radii: &Bound<'_, PyAny>,
+        velocities: Option<&Bound<'_, PyAny>>,
+        angular_velocities: Option<&Bound<'_, PyAny>>,
+        materials: Option<&Bound<'_, PyAny>>,
+        backend: &str,
+        keys: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        guard("mochi.Simulation.from_arrays", || {
+            let arrays = SphereArrays {
+                positions,
+                radii,
+                velocities,
+                angular_velocities,
+                materials,
+            };
+            let particles = arrays.particles()?;
+            let overrides = keyword_overrides(keys)?;
+            let start = py
+                .detach(|| RunStart::of_particles(particles, &overrides))
+                .map_err(scene_err)?;
             Simulation::open(py, start, backend)
         })
     }
@@ -425,7 +631,7 @@ impl Simulation {
             let mut next = FIRST_PROGRESS_STEPS;
             while left > 0 {
                 let batch = left.min(next);
-                let stepper = &mut sim.run_mut().stepper;
+                let stepper = &mut sim.run_mut()?.stepper;
                 let began = Instant::now();
                 let advance = py.detach(|| stepper.advance(batch as u32));
                 // Even a failed batch may have moved the state.
@@ -501,7 +707,7 @@ impl Simulation {
     #[getter]
     fn material_names(&mut self) -> PyResult<Vec<String>> {
         self.guarded("Simulation.material_names", |sim| {
-            let materials = sim.run_mut().config.materials().map_err(to_py_err)?;
+            let materials = sim.run_mut()?.config.materials().map_err(to_py_err)?;
             Ok(materials.names)
         })
     }
@@ -510,7 +716,7 @@ impl Simulation {
     #[getter]
     fn time(&mut self) -> PyResult<f64> {
         self.guarded("Simulation.time", |sim| {
-            Ok(sim.step as f64 * sim.run_mut().params.dt as f64)
+            Ok(sim.step as f64 * sim.run_mut()?.params.dt as f64)
         })
     }
 
@@ -529,18 +735,20 @@ impl Simulation {
     /// The backend's name (`cpu`, `wgpu-rq`, …).
     #[getter]
     fn backend(&mut self) -> PyResult<&'static str> {
-        self.guarded("Simulation.backend", |sim| Ok(sim.run_mut().backend.name()))
+        self.guarded("Simulation.backend", |sim| {
+            Ok(sim.run_mut()?.backend.name())
+        })
     }
 
     /// The time step \[s\].
     #[getter]
     fn dt(&mut self) -> PyResult<f64> {
-        self.guarded("Simulation.dt", |sim| Ok(sim.run_mut().params.dt as f64))
+        self.guarded("Simulation.dt", |sim| Ok(sim.run_mut()?.params.dt as f64))
     }
 
     /// Number of spheres now (inflows add spheres, outflows remove them).
     fn __len__(&mut self) -> PyResult<usize> {
-        self.guarded("Simulation.__len__", |sim| Ok(sim.spheres_now()))
+        self.guarded("Simulation.__len__", |sim| sim.spheres_now())
     }
 
     /// Writes the spheres now as a frame, by extension: `.vtu` (ParaView), `.csv` or `.npy`
@@ -549,7 +757,7 @@ impl Simulation {
     fn write_frame(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         self.guarded("Simulation.write_frame", |sim| {
             sim.particles(py)?;
-            let run = sim.run.get_mut().unwrap_or_else(PoisonError::into_inner);
+            let run = open_run(&mut sim.run)?;
             let frame = run.frame(sim.now.as_ref().expect("read back above"));
             py.detach(|| io::write_frame(&path, &frame))
                 .map_err(to_py_err)
@@ -561,7 +769,7 @@ impl Simulation {
     fn checkpoint(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         self.guarded("Simulation.checkpoint", |sim| {
             sim.particles(py)?;
-            let run = sim.run_mut();
+            let run = sim.run_mut()?;
             let (scene, state) = (run.scene_toml(), run.state_toml(None));
             let now = sim.now.as_ref().expect("read back above");
             py.detach(|| io::write_checkpoint(&path, now, &scene, &state))
@@ -571,8 +779,16 @@ impl Simulation {
 
     fn __repr__(&mut self) -> PyResult<String> {
         self.guarded("Simulation.__repr__", |sim| {
-            let (step, spheres) = (sim.step, sim.spheres_now());
-            let run = sim.run_mut();
+            if sim
+                .run
+                .get_mut()
+                .unwrap_or_else(PoisonError::into_inner)
+                .is_none()
+            {
+                return Ok(format!("Simulation(closed, step={})", sim.step));
+            }
+            let (step, spheres) = (sim.step, sim.spheres_now()?);
+            let run = sim.run_mut()?;
             Ok(format!(
                 "Simulation(scene={:?}, spheres={}, backend={:?}, step={})",
                 run.config.scene().name(),
@@ -581,5 +797,36 @@ impl Simulation {
                 step
             ))
         })
+    }
+
+    /// Ends the run and lets its backend go (its device and buffers); every later call but
+    /// `close` raises `MochiError`. A `with` block closes the simulation at its end.
+    fn close(&mut self) {
+        self.stepped();
+        *self.run.get_mut().unwrap_or_else(PoisonError::into_inner) = None;
+    }
+
+    /// Whether `close` was called.
+    #[getter]
+    fn closed(&mut self) -> bool {
+        self.run
+            .get_mut()
+            .unwrap_or_else(PoisonError::into_inner)
+            .is_none()
+    }
+
+    fn __enter__(slf: Py<Self>) -> Py<Self> {
+        slf
+    }
+
+    /// Closes the simulation (exceptions of the block go on).
+    fn __exit__(
+        &mut self,
+        _kind: Option<&Bound<'_, PyAny>>,
+        _value: Option<&Bound<'_, PyAny>>,
+        _traceback: Option<&Bound<'_, PyAny>>,
+    ) -> bool {
+        self.close();
+        false
     }
 }

@@ -552,21 +552,28 @@ impl SceneConfig {
     }
 
     /// The scene of `table` (in the full form), read from `text` when that is what it holds
-    /// (so that errors quote the file's own line), else from the table's own text.
+    /// (so that errors quote the file's own line), else from the table itself (short forms,
+    /// flags or overrides changed it: an error names the key, and its short form).
     fn read(table: &toml::Table, text: Option<&str>, origin: Option<&Path>) -> Result<Self> {
-        let as_written = text.filter(|t| t.parse::<toml::Table>().is_ok_and(|t| &t == table));
-        let merged;
-        let source = match as_written {
-            Some(text) => text,
-            None => {
-                merged = toml::to_string(table).expect("a TOML table serializes");
-                merged.as_str()
-            }
-        };
-        toml::from_str(source).map_err(|e| Error::Parse {
+        let refused = |msg: String| Error::Parse {
             path: origin_of(origin),
             line: None,
-            msg: e.to_string().trim_end().to_owned(),
+            msg,
+        };
+        if let Some(text) = text.filter(|t| t.parse::<toml::Table>().is_ok_and(|t| &t == table)) {
+            return toml::from_str(text).map_err(|e| refused(e.to_string().trim_end().to_owned()));
+        }
+        serde_path_to_error::deserialize(toml::Value::Table(table.clone())).map_err(|e| {
+            let key = e.path().to_string().replace('[', ".").replace(']', "");
+            let message = e.into_inner().message().trim_end().to_owned();
+            let short = key
+                .split_once('.')
+                .and_then(|(table, field)| short_forms::short_form(table, field))
+                .map_or(String::new(), |s| format!(" ({s})"));
+            refused(match key.as_str() {
+                "." => message,
+                key => format!("scene key {key}{short}: {message}"),
+            })
         })
     }
 

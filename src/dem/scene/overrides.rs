@@ -32,6 +32,12 @@ impl Overrides {
         Overrides(fields)
     }
 
+    /// These, then `more` (whose fields win where both set one).
+    pub fn then(mut self, more: Overrides) -> Overrides {
+        self.0.extend(more.0);
+        self
+    }
+
     /// Whether no field is set.
     pub fn is_empty(&self) -> bool {
         self.0.is_empty()

@@ -84,6 +84,16 @@ impl SceneConfig {
         Self::inside_the_box(self.start_with(particles, equipment.as_ref())?, 0.0)
     }
 
+    /// The start of this scene (`input`, without its file) from `particles` given in memory:
+    /// checked as a sphere file's are (finite values, valid radii, materials the scene has, the
+    /// size limits, every centre in the box).
+    pub fn build_from(&self, particles: Particles) -> Result<Start> {
+        particles.validate()?;
+        SphereSet::new(particles.positions.clone(), particles.radii.clone())?;
+        particles.check_materials(self.materials()?.list.len())?;
+        Self::inside_the_box(self.start_with(particles, None)?, 0.0)
+    }
+
     /// The start of a run resumed from a checkpoint of this scene: `particles` pass the checks
     /// of a fresh run's input (finite values, valid radii, the size limits) and the parameters
     /// those of a fresh run. A centre may lie outside the box, as soft walls let spheres sink

@@ -1,0 +1,138 @@
+"""Scripting a run from Python: scene keys as keyword arguments, a run from arrays, closing a
+run, the version, detection of one (N, 4) array, and errors that name the scene key."""
+
+import importlib.metadata
+
+import numpy as np
+import pytest
+
+import mochi
+
+
+def test_scene_keys_as_keyword_arguments_are_set_over_the_scene():
+    a = mochi.Simulation({"scene": "freefall", "spheres": 30}, backend="cpu", spheres=40, friction=0.2)
+    assert len(a) == 40
+    b = mochi.Simulation("freefall", backend="cpu", spheres=40, friction=0.2)
+    a.step(20)
+    b.step(20)
+    np.testing.assert_array_equal(a.positions, b.positions)
+    # In their tables as well as by their short forms.
+    c = mochi.Simulation(backend="cpu", source={"scene": "freefall", "spheres": 40}, material={"friction": 0.2})
+    c.step(20)
+    np.testing.assert_array_equal(a.positions, c.positions)
+
+
+@pytest.mark.parametrize(
+    "keys, words",
+    [
+        ({"friction": "x"}, 'scene: scene key material.friction (friction): invalid type: string "x"'),
+        ({"sphers": 3}, "unknown field `sphers`"),
+        ({"gravity": [0, 0]}, "scene key domain.gravity (gravity): invalid length 2"),
+    ],
+)
+def test_a_bad_scene_key_is_named_without_toml_syntax(keys, words):
+    with pytest.raises(ValueError) as error:
+        mochi.Simulation("freefall", spheres=10, backend="cpu", **keys)
+    message = str(error.value)
+    assert words in message, message
+    assert "TOML" not in message and "^" not in message, message
+
+
+def test_a_run_from_arrays_is_the_run_of_the_same_spheres_from_a_file(tmp_path):
+    poured = mochi.Simulation("pour", spheres=200, backend="cpu")
+    poured.step(300)
+    frame = tmp_path / "frame.npy"
+    poured.write_frame(frame)
+    f = mochi.read_frame(frame)
+    assert np.abs(f["velocities"]).max() > 0, "the spheres move: their velocities are compared"
+    from_file = mochi.Simulation({"scene": "input", "input": str(frame)}, backend="cpu")
+    from_arrays = mochi.Simulation.from_arrays(
+        f["positions"],
+        f["radii"],
+        velocities=f["velocities"],
+        angular_velocities=f["angular_velocities"],
+        materials=f["materials"],
+        backend="cpu",
+    )
+    for name in ["positions", "velocities", "angular_velocities", "radii", "materials"]:
+        np.testing.assert_array_equal(getattr(from_arrays, name), getattr(from_file, name), name)
+    from_file.step(100)
+    from_arrays.step(100)
+    for name in ["positions", "velocities", "angular_velocities"]:
+        np.testing.assert_array_equal(getattr(from_arrays, name), getattr(from_file, name), name)
+    assert repr(from_arrays).startswith("Simulation(scene=\"input\", spheres=200")
+
+
+def test_a_run_from_arrays_takes_scene_keys_and_refuses_bad_arrays():
+    positions = np.array([[0.5, 0.5, 0.5], [0.5, 0.5, 0.53]])
+    radii = np.array([0.01, 0.01])
+    sim = mochi.Simulation.from_arrays(
+        positions, radii, backend="cpu", box_lo=[0, 0, 0], box_hi=[1, 1, 1], gravity=[0, 0, 0]
+    )
+    # float64 positions kept as a float32 centre and its residual.
+    np.testing.assert_allclose(sim.positions, positions, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(sim.velocities, np.zeros((2, 3), np.float32))
+    start = sim.positions
+    sim.step(10)
+    np.testing.assert_array_equal(sim.positions, start)  # no gravity, apart: at rest
+    with pytest.raises(ValueError, match=r"radii must have shape \(2\), not \[3\]"):
+        mochi.Simulation.from_arrays(positions, np.ones(3) * 0.01, backend="cpu")
+    with pytest.raises(ValueError, match=r"velocities must have shape \(2, 3\)"):
+        mochi.Simulation.from_arrays(positions, radii, velocities=np.zeros((2, 2)), backend="cpu")
+    with pytest.raises(ValueError, match="sphere 1: material 300"):
+        mochi.Simulation.from_arrays(positions, radii, materials=np.array([0, 300]), backend="cpu")
+    with pytest.raises(ValueError, match="material 1, but the scene has 1 material"):
+        mochi.Simulation.from_arrays(positions, radii, materials=np.array([0, 1]), backend="cpu")
+    with pytest.raises(ValueError, match="sphere 0"):
+        mochi.Simulation.from_arrays(positions * np.nan, radii, backend="cpu")
+    with pytest.raises(ValueError, match="outside the box"):
+        mochi.Simulation.from_arrays(positions, radii, backend="cpu", box_lo=[0, 0, 0], box_hi=[0.4, 1, 1])
+    # Keys of another scene than a run from arrays (scene `input`).
+    with pytest.raises(ValueError, match="spheres"):
+        mochi.Simulation.from_arrays(positions, radii, backend="cpu", spheres=10)
+
+
+def test_a_closed_run_lets_its_backend_go_and_refuses_every_call():
+    with mochi.Simulation("freefall", spheres=10, backend="cpu") as sim:
+        sim.step(2)
+        assert not sim.closed
+    assert sim.closed
+    assert repr(sim) == "Simulation(closed, step=2)"
+    for call in [lambda: sim.step(1), lambda: sim.positions, lambda: len(sim), lambda: sim.dt]:
+        with pytest.raises(mochi.MochiError, match="closed"):
+            call()
+    sim.close()  # again: nothing happens
+    # An exception of the block goes on, and the run is closed.
+    with pytest.raises(KeyError):
+        with mochi.Simulation("freefall", spheres=10, backend="cpu") as other:
+            raise KeyError("out")
+    assert other.closed
+
+
+def test_a_scene_is_named_where_no_file_has_that_name(tmp_path, monkeypatch):
+    assert mochi.Simulation("hopper", spheres=50, backend="cpu").material_names == ["default"]
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "drum").write_text('scene = "freefall"\nspheres = 7\n')
+    assert len(mochi.Simulation("drum", backend="cpu")) == 7, "the file named drum"
+    with pytest.raises(OSError, match="teapot"):
+        mochi.Simulation("teapot", backend="cpu")
+
+
+def test_the_version_is_the_package_s():
+    assert mochi.__version__ == importlib.metadata.version("mochi")
+
+
+def test_detect_takes_one_array_of_x_y_z_r():
+    rng = np.random.default_rng(3)
+    centres = rng.random((500, 3), dtype=np.float32)
+    radii = rng.uniform(0.01, 0.05, 500).astype(np.float32)
+    rows = np.hstack([centres, radii[:, None]])
+    expected = mochi.detect(centres, radii, backend="cpu")
+    assert len(expected) > 0
+    np.testing.assert_array_equal(mochi.detect(rows, backend="cpu"), expected)
+    np.testing.assert_array_equal(mochi.detect(rows.astype(np.float64), backend="cpu"), expected)
+    detector = mochi.Detector(backend="cpu")
+    detector.build(rows)
+    np.testing.assert_array_equal(detector.pairs(), expected)
+    with pytest.raises(ValueError, match=r"one \(N, 4\) array of x, y, z, r, not shape \[500, 3\]"):
+        mochi.detect(centres, backend="cpu")
