@@ -7,7 +7,7 @@
 
 use crate::{Guarded, MochiError, guard, plain_array, to_py_err};
 use mochi::SphereSet;
-use mochi::dem::Particles;
+use mochi::dem::{Energies, Particles};
 use mochi::dem::scene::{Overrides, SceneConfig, SceneFlags, SceneKind};
 use mochi::engines::{BackendChoice, Options};
 use mochi::io;
@@ -532,6 +532,14 @@ impl Simulation {
         Ok(array)
     }
 
+    /// The spheres' kinetic energy now (read back once per step).
+    fn energies(&mut self, py: Python<'_>) -> PyResult<Energies> {
+        self.particles(py)?;
+        let densities = &self.run_mut()?.params.materials.densities;
+        let densities = densities.clone();
+        Ok(self.now.as_ref().expect("read back above").energies(&densities))
+    }
+
     /// Drops what was read back for the last step.
     fn stepped(&mut self) {
         self.now = None;
@@ -744,6 +752,65 @@ impl Simulation {
     #[getter]
     fn dt(&mut self) -> PyResult<f64> {
         self.guarded("Simulation.dt", |sim| Ok(sim.run_mut()?.params.dt as f64))
+    }
+
+    /// The spheres' translational kinetic energy now, Σ ½ m v² \[J\] (each mass from the
+    /// sphere's radius and its material's density).
+    #[getter]
+    fn kinetic_energy(&mut self, py: Python<'_>) -> PyResult<f64> {
+        self.guarded("Simulation.kinetic_energy", |sim| Ok(sim.energies(py)?.translational))
+    }
+
+    /// The spheres' rotational kinetic energy now, Σ ½ I ω², I = 2/5 m r² \[J\].
+    #[getter]
+    fn rotational_energy(&mut self, py: Python<'_>) -> PyResult<f64> {
+        self.guarded("Simulation.rotational_energy", |sim| Ok(sim.energies(py)?.rotational))
+    }
+
+    /// The force \[N\] and torque \[N·m\] (about its rotation centre) the spheres exerted on
+    /// each mesh wall in the last step taken, in the scene's order of walls: a list of dicts
+    /// `name`, `force`, `torque` (float64 `(3,)` arrays; zero before the first step).
+    #[getter]
+    fn wall_loads<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.guarded("Simulation.wall_loads", |sim| {
+            let run = sim.run_mut()?;
+            let loads = run.stepper.wall_loads();
+            run.walls
+                .meshes
+                .iter()
+                .enumerate()
+                .map(|(k, wall)| {
+                    let load = loads.get(k).copied().unwrap_or_default();
+                    let entry = PyDict::new(py);
+                    entry.set_item("name", &wall.name)?;
+                    entry.set_item("force", Array1::from_vec(load.force.to_vec()).into_pyarray(py))?;
+                    entry.set_item(
+                        "torque",
+                        Array1::from_vec(load.torque.to_vec()).into_pyarray(py),
+                    )?;
+                    Ok(entry)
+                })
+                .collect()
+        })
+    }
+
+    /// The flows so far: spheres `inserted`, `refused` (no room at their inflow), `removed`,
+    /// `present` now, and the masses inserted and removed \[kg\] (`inserted_mass`,
+    /// `removed_mass`); all 0 in a scene without flows.
+    #[getter]
+    fn flow<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        self.guarded("Simulation.flow", |sim| {
+            let present = sim.spheres_now()?;
+            let counts = sim.run_mut()?.stepper.flow_counts().unwrap_or_default();
+            let flow = PyDict::new(py);
+            flow.set_item("inserted", counts.inserted)?;
+            flow.set_item("refused", counts.refused)?;
+            flow.set_item("removed", counts.removed)?;
+            flow.set_item("present", present)?;
+            flow.set_item("inserted_mass", counts.inserted_mass)?;
+            flow.set_item("removed_mass", counts.removed_mass)?;
+            Ok(flow)
+        })
     }
 
     /// Number of spheres now (inflows add spheres, outflows remove them).

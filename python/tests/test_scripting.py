@@ -136,3 +136,63 @@ def test_detect_takes_one_array_of_x_y_z_r():
     np.testing.assert_array_equal(detector.pairs(), expected)
     with pytest.raises(ValueError, match=r"one \(N, 4\) array of x, y, z, r, not shape \[500, 3\]"):
         mochi.detect(centres, backend="cpu")
+
+
+def test_the_kinetic_energy_of_an_elastic_frictionless_impact_is_kept():
+    positions = np.array([[0.4, 0.5, 0.5], [0.6, 0.5, 0.5]])
+    radii = np.array([0.05, 0.05])
+    velocities = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    sim = mochi.Simulation.from_arrays(
+        positions,
+        radii,
+        velocities=velocities,
+        backend="cpu",
+        box_lo=[0, 0, 0],
+        box_hi=[1, 1, 1],
+        gravity=[0, 0, 0],
+        contact="linear",
+        restitution=1.0,
+        dt=1e-4,
+        stiffness=12920.0,  # a contact of 0.01 s: 100 steps, so the integration keeps the energy
+    )
+    mass = 500 * 4 / 3 * np.pi * 0.05**3
+    before = sim.kinetic_energy
+    assert before == pytest.approx(mass * 1.0**2, rel=1e-6)  # two spheres, ½ m v² each
+    sim.step(800)  # they meet after 0.05 s (500 steps) and part again
+    assert sim.velocities[0, 0] < 0 < sim.velocities[1, 0], "they bounced"
+    assert abs(sim.kinetic_energy / before - 1) < 1e-4
+    assert sim.rotational_energy == 0
+
+
+def test_spinning_spheres_carry_rotational_energy():
+    sim = mochi.Simulation.from_arrays(
+        np.array([[0.5, 0.5, 0.5]]),
+        np.array([0.1]),
+        angular_velocities=np.array([[0.0, 0.0, 3.0]]),
+        backend="cpu",
+        gravity=[0, 0, 0],
+    )
+    mass = 500 * 4 / 3 * np.pi * 0.1**3
+    assert sim.rotational_energy == pytest.approx(0.5 * 0.4 * mass * 0.1**2 * 9.0, rel=1e-6)
+    assert sim.kinetic_energy == 0
+
+
+def test_the_walls_loads_and_the_flows_are_read_each_step():
+    drum = mochi.Simulation("drum", spheres=200, backend="cpu")
+    loads = drum.wall_loads
+    assert [w["name"] for w in loads] == ["drum (generated)"]
+    np.testing.assert_array_equal(loads[0]["force"], np.zeros(3))
+    drum.step(1500)  # the grains have fallen onto the tube
+    force = drum.wall_loads[0]["force"]
+    assert force.shape == (3,) and force[2] < 0, force
+    assert drum.flow == {
+        "inserted": 0,
+        "refused": 0,
+        "removed": 0,
+        "present": 200,
+        "inserted_mass": 0.0,
+        "removed_mass": 0.0,
+    }
+    hopper = mochi.Simulation("hopper", spheres=300, backend="cpu")
+    assert [w["name"] for w in hopper.wall_loads] == ["hopper (generated)", "gate (generated)"]
+    assert hopper.flow["present"] == len(hopper) == 300

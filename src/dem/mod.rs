@@ -15,6 +15,8 @@ pub mod walls;
 
 /// Positions as an `f32` centre and its residual ([`Particles::position_residuals`]).
 pub use crate::particles::position;
-pub use crate::particles::{ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles};
+pub use crate::particles::{
+    ContactHistory, Energies, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles,
+};
 pub use model::{Material, StepParams};
 pub use stepper::{Advance, Clock, StageTimes, Stepper};

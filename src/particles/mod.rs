@@ -45,7 +45,31 @@ pub struct Particles {
     pub step: u64,
 }
 
+/// The kinetic energy of a set of spheres \[J\], its two parts.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Energies {
+    /// Σ ½ m v².
+    pub translational: f64,
+    /// Σ ½ I ω², I = 2/5 m r² (solid spheres).
+    pub rotational: f64,
+}
+
 impl Particles {
+    /// The spheres' kinetic energy, each sphere's mass from its radius and the density of its
+    /// material in `densities` (indexed by material), summed in `f64`.
+    pub fn energies(&self, densities: &[f32]) -> Energies {
+        let mut sum = Energies::default();
+        for (i, &r) in self.radii.iter().enumerate() {
+            let density = densities[self.material(i) as usize] as f64;
+            let r = r as f64;
+            let m = density * 4.0 / 3.0 * std::f64::consts::PI * r * r * r;
+            let square = |v: [f32; 3]| v.iter().map(|&x| x as f64 * x as f64).sum::<f64>();
+            sum.translational += 0.5 * m * square(self.velocities[i]);
+            sum.rotational += 0.5 * 0.4 * m * r * r * square(self.angular_velocities[i]);
+        }
+        sum
+    }
+
     /// Spheres at rest at step 0 ([`Error::OutOfMemory`] when their state does not fit).
     pub fn at_rest(spheres: &SphereSet) -> Result<Self> {
         let what = || format!("the state of {} spheres", spheres.len());
@@ -479,6 +503,21 @@ fn lattice_points(n: usize) -> Result<Vec<[i32; 3]>> {
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    #[test]
+    fn the_kinetic_energy_sums_each_sphere_s_translation_and_spin_by_its_material() {
+        let spheres = SphereSet::new(vec![[0.0; 3], [1.0, 0.0, 0.0]], vec![0.5, 0.25]).unwrap();
+        let mut p = Particles::at_rest(&spheres).unwrap();
+        p.velocities = vec![[3.0, 0.0, 4.0], [0.0, 0.0, 0.0]];
+        p.angular_velocities = vec![[0.0, 0.0, 0.0], [0.0, 2.0, 0.0]];
+        p.materials = vec![0, 1];
+        let e = p.energies(&[1000.0, 8000.0]);
+        let volume = |r: f64| 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
+        let (m0, m1) = (1000.0 * volume(0.5), 8000.0 * volume(0.25));
+        assert!((e.translational / (0.5 * m0 * 25.0) - 1.0).abs() < 1e-12, "{e:?}");
+        let spin = 0.5 * 0.4 * m1 * 0.25f64.powi(2) * 4.0;
+        assert!((e.rotational / spin - 1.0).abs() < 1e-12, "{e:?}");
+    }
 
     #[test]
     fn coincident_pairs_are_counted_per_shared_centre() {
