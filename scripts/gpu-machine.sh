@@ -9,7 +9,7 @@
 #   shell  unpack the loaders, then run the command given (a benchmark of the carried binaries)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-tests=(backends_exact dem simulate optix proxy_parity wgpu_compute)
+tests=(backends_exact dem motion simulate optix proxy_parity wgpu_compute)
 case "${1:-}" in
 pack)
     shift

@@ -75,6 +75,19 @@ SceneValue = (
     | list[dict[str, object]]
 )
 
+class WallLoad(TypedDict):
+    name: str
+    force: npt.NDArray[np.float64]
+    torque: npt.NDArray[np.float64]
+
+class FlowCounts(TypedDict):
+    inserted: int
+    refused: int
+    removed: int
+    present: int
+    inserted_mass: float
+    removed_mass: float
+
 class FrameDict(TypedDict):
     positions: npt.NDArray[np.float64]
     radii: npt.NDArray[np.float32]
@@ -115,8 +128,8 @@ class Simulation:
     ``positions`` (float64), ``velocities``, ``angular_velocities`` and ``radii`` (float32) and
     ``materials`` (uint8) are in input order: read-only snapshots of the step they were read at (the same array object until the
     next ``step``; a later step does not change them). Writing into one raises ``ValueError``;
-    a simulation's state is changed only by stepping it (``copy()`` an array to change it, and
-    start a new run from the changed spheres with ``Simulation.from_arrays``).
+    set ``positions``, ``velocities`` or ``angular_velocities`` whole (``sim.velocities = v``)
+    to change the state before the next step.
     """
 
     def __init__(
@@ -159,12 +172,36 @@ class Simulation:
         """Positions ``(N, 3)`` [m]: read-only, this step's. Each is the sphere's float32 centre
         (what the contacts use) plus the residual that keeps every step's displacement, however
         small beside float32's spacing far from the origin."""
+    @positions.setter
+    def positions(self, positions: npt.NDArray[np.floating]) -> None:
+        """Moves the spheres (``(N, 3)``, input order) before the next step; the rest stays."""
     @property
     def velocities(self) -> npt.NDArray[np.float32]:
         """Velocities ``(N, 3)`` [m/s]: read-only, this step's."""
+    @velocities.setter
+    def velocities(self, velocities: npt.NDArray[np.floating]) -> None:
+        """Sets the velocities (``(N, 3)``, input order) before the next step."""
     @property
     def angular_velocities(self) -> npt.NDArray[np.float32]:
         """Angular velocities ``(N, 3)`` [rad/s]: read-only, this step's."""
+    @angular_velocities.setter
+    def angular_velocities(self, angular_velocities: npt.NDArray[np.floating]) -> None:
+        """Sets the angular velocities (``(N, 3)``, input order) before the next step; refused
+        where the step does not turn its spheres (the paper's law on a GPU backend)."""
+    @property
+    def kinetic_energy(self) -> float:
+        """Σ ½ m v² [J] now."""
+    @property
+    def rotational_energy(self) -> float:
+        """Σ ½ I ω² [J] now, I = 2/5 m r²."""
+    @property
+    def wall_loads(self) -> list[WallLoad]:
+        """Each mesh wall's force [N] and torque [N·m] (about its rotation centre) in the last
+        step, in the scene's order of walls."""
+    @property
+    def flow(self) -> FlowCounts:
+        """The flows so far: spheres inserted, refused, removed and present, masses inserted
+        and removed [kg]."""
     @property
     def radii(self) -> npt.NDArray[np.float32]:
         """Radii ``(N,)`` [m]: read-only, this step's."""

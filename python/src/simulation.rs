@@ -3,12 +3,13 @@
 //!
 //! Invariants: `step` counts the steps the stepper has taken (its particles' step); `now` is
 //! `None` or the particles at `step` (read back once, dropped on every step), and `views` holds
-//! only arrays made from `now` (dropped with it); the arrays handed out are read-only snapshots.
+//! only arrays made from `now` (dropped with it, and whenever the state is set); the arrays
+//! handed out are read-only snapshots.
 
 use crate::{Guarded, MochiError, guard, plain_array, to_py_err};
 use mochi::SphereSet;
-use mochi::dem::{Energies, Particles};
 use mochi::dem::scene::{Overrides, SceneConfig, SceneFlags, SceneKind};
+use mochi::dem::{Energies, Motion, Particles};
 use mochi::engines::{BackendChoice, Options};
 use mochi::io;
 use mochi::run::{FIRST_PROGRESS_STEPS, Run, RunStart, progress_steps};
@@ -537,7 +538,36 @@ impl Simulation {
         self.particles(py)?;
         let densities = &self.run_mut()?.params.materials.densities;
         let densities = densities.clone();
-        Ok(self.now.as_ref().expect("read back above").energies(&densities))
+        Ok(self
+            .now
+            .as_ref()
+            .expect("read back above")
+            .energies(&densities))
+    }
+
+    /// `array` as three float32 values per sphere now (`what` names it in errors).
+    fn triples_of(&mut self, array: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f32; 3]>> {
+        let n = self.spheres_now()?;
+        let array = numbers(array, what, "float32", &[Some(n), Some(3)])?;
+        let rows: PyReadonlyArray2<'_, f32> = array.extract()?;
+        Ok(rows
+            .as_array()
+            .rows()
+            .into_iter()
+            .map(|r| [r[0], r[1], r[2]])
+            .collect())
+    }
+
+    /// Writes `motion` into the run's step (the interpreter lock released); what was read back
+    /// is dropped.
+    fn set_motion(&mut self, py: Python<'_>, motion: &Motion<'_>) -> PyResult<()> {
+        let stepper = &mut self.run_mut()?.stepper;
+        let set = py.detach(|| stepper.set_motion(motion));
+        self.stepped();
+        set.map_err(|e| match e {
+            mochi::Error::Usage(msg) => PyValueError::new_err(msg),
+            other => to_py_err(other),
+        })
     }
 
     /// Drops what was read back for the last step.
@@ -680,6 +710,66 @@ impl Simulation {
         })
     }
 
+    /// Moves the spheres to `positions` `(N, 3)` \[m\] (in input order, N the spheres now)
+    /// before the next step; velocities, spins and contact history stay.
+    #[setter]
+    fn set_positions(&mut self, py: Python<'_>, positions: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.guarded("Simulation.positions", |sim| {
+            let n = sim.spheres_now()?;
+            let array = numbers(positions, "positions", "float64", &[Some(n), Some(3)])?;
+            let rows: PyReadonlyArray2<'_, f64> = array.extract()?;
+            let rows: Vec<[f64; 3]> = rows
+                .as_array()
+                .rows()
+                .into_iter()
+                .map(|r| [r[0], r[1], r[2]])
+                .collect();
+            sim.set_motion(
+                py,
+                &Motion {
+                    positions: Some(&rows),
+                    ..Motion::default()
+                },
+            )
+        })
+    }
+
+    /// Sets the spheres' velocities `(N, 3)` \[m/s\] (in input order) before the next step.
+    #[setter]
+    fn set_velocities(&mut self, py: Python<'_>, velocities: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.guarded("Simulation.velocities", |sim| {
+            let rows = sim.triples_of(velocities, "velocities")?;
+            sim.set_motion(
+                py,
+                &Motion {
+                    velocities: Some(&rows),
+                    ..Motion::default()
+                },
+            )
+        })
+    }
+
+    /// Sets the spheres' angular velocities `(N, 3)` \[rad/s\] (in input order) before the
+    /// next step; refused where the run's step does not turn its spheres (the paper's
+    /// frictionless law on a GPU backend).
+    #[setter]
+    fn set_angular_velocities(
+        &mut self,
+        py: Python<'_>,
+        angular_velocities: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        self.guarded("Simulation.angular_velocities", |sim| {
+            let rows = sim.triples_of(angular_velocities, "angular_velocities")?;
+            sim.set_motion(
+                py,
+                &Motion {
+                    angular_velocities: Some(&rows),
+                    ..Motion::default()
+                },
+            )
+        })
+    }
+
     /// Angular velocities `(N, 3)` float32 \[rad/s\], in input order: a read-only snapshot of
     /// this step.
     #[getter]
@@ -758,13 +848,17 @@ impl Simulation {
     /// sphere's radius and its material's density).
     #[getter]
     fn kinetic_energy(&mut self, py: Python<'_>) -> PyResult<f64> {
-        self.guarded("Simulation.kinetic_energy", |sim| Ok(sim.energies(py)?.translational))
+        self.guarded("Simulation.kinetic_energy", |sim| {
+            Ok(sim.energies(py)?.translational)
+        })
     }
 
     /// The spheres' rotational kinetic energy now, Σ ½ I ω², I = 2/5 m r² \[J\].
     #[getter]
     fn rotational_energy(&mut self, py: Python<'_>) -> PyResult<f64> {
-        self.guarded("Simulation.rotational_energy", |sim| Ok(sim.energies(py)?.rotational))
+        self.guarded("Simulation.rotational_energy", |sim| {
+            Ok(sim.energies(py)?.rotational)
+        })
     }
 
     /// The force \[N\] and torque \[N·m\] (about its rotation centre) the spheres exerted on
@@ -783,7 +877,10 @@ impl Simulation {
                     let load = loads.get(k).copied().unwrap_or_default();
                     let entry = PyDict::new(py);
                     entry.set_item("name", &wall.name)?;
-                    entry.set_item("force", Array1::from_vec(load.force.to_vec()).into_pyarray(py))?;
+                    entry.set_item(
+                        "force",
+                        Array1::from_vec(load.force.to_vec()).into_pyarray(py),
+                    )?;
                     entry.set_item(
                         "torque",
                         Array1::from_vec(load.torque.to_vec()).into_pyarray(py),

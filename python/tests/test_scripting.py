@@ -196,3 +196,57 @@ def test_the_walls_loads_and_the_flows_are_read_each_step():
     hopper = mochi.Simulation("hopper", spheres=300, backend="cpu")
     assert [w["name"] for w in hopper.wall_loads] == ["hopper (generated)", "gate (generated)"]
     assert hopper.flow["present"] == len(hopper) == 300
+
+
+def lattice_keys():
+    """A frictionless scene given whole (box, time step, stiffness): a run from arrays of the same
+    spheres has the same step."""
+    return dict(
+        backend="cpu",
+        box_lo=[0, 0, 0],
+        box_hi=[0.3, 0.3, 0.3],
+        contact="linear",
+        dt=1e-4,
+        stiffness=200.0,
+    )
+
+
+def lattice():
+    at = np.stack(np.meshgrid(*[np.arange(4)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    return 0.05 + 0.021 * at, np.full(len(at), 0.01)
+
+
+def test_state_set_between_steps_is_where_the_next_step_starts():
+    positions, radii = lattice()
+    sim = mochi.Simulation.from_arrays(positions, radii, **lattice_keys())
+    sim.step(1200)  # landing: the layers press on each other
+    assert sim.contacts > 0
+    v = sim.velocities.copy()
+    v[:, 0] += 0.05
+    sim.velocities = v
+    np.testing.assert_array_equal(sim.velocities, v)
+    moved = sim.positions + [0.0, 0.0, 0.001]
+    sim.positions = moved
+    np.testing.assert_allclose(sim.positions, moved, rtol=0, atol=1e-15)
+    again = mochi.Simulation.from_arrays(sim.positions, sim.radii, velocities=v, **lattice_keys())
+    sim.step(50)
+    again.step(50)
+    np.testing.assert_array_equal(sim.positions, again.positions)
+    np.testing.assert_array_equal(sim.velocities, again.velocities)
+
+
+def test_bad_state_is_refused_naming_it():
+    positions, radii = lattice()
+    sim = mochi.Simulation.from_arrays(positions, radii, **lattice_keys())
+    before = sim.positions
+    with pytest.raises(ValueError, match=r"velocities must have shape \(64, 3\), not \[3, 3\]"):
+        sim.velocities = np.zeros((3, 3))
+    bad = sim.positions.copy()
+    bad[7, 1] = np.inf
+    with pytest.raises(ValueError, match="sphere 7"):
+        sim.positions = bad
+    np.testing.assert_array_equal(sim.positions, before)  # nothing moved
+    spin = np.zeros((64, 3))
+    spin[0, 2] = 1.0
+    sim.angular_velocities = spin  # the cpu step keeps any spin
+    np.testing.assert_array_equal(sim.angular_velocities, spin.astype(np.float32))

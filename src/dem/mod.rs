@@ -19,4 +19,4 @@ pub use crate::particles::{
     ContactHistory, Energies, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles,
 };
 pub use model::{Material, StepParams};
-pub use stepper::{Advance, Clock, StageTimes, Stepper};
+pub use stepper::{Advance, Clock, Motion, StageTimes, Stepper};

@@ -3,7 +3,7 @@
 use super::flow::FlowCounts;
 use super::model::{NormalLaw, StepParams};
 use super::walls::{WallLoad, WallSet};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::particles::Particles;
 
 /// Time spent per phase of the step, summed over the steps of one [`Stepper::advance`] \[ms\].
@@ -56,6 +56,90 @@ pub struct Advance {
     pub clock: Clock,
 }
 
+/// New motion for the spheres of a step, in input order, one row per sphere the step holds
+/// (`None`: kept as it is). A position is where its sphere is: the step keeps it as an `f32`
+/// centre and the residual of the rest ([`crate::dem::position::split`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Motion<'a> {
+    /// Positions \[m\].
+    pub positions: Option<&'a [[f64; 3]]>,
+    /// Velocities \[m/s\].
+    pub velocities: Option<&'a [[f32; 3]]>,
+    /// Angular velocities \[rad/s\].
+    pub angular_velocities: Option<&'a [[f32; 3]]>,
+}
+
+impl Motion<'_> {
+    /// Refuses motion for other than `n` spheres, values that are not finite and positions
+    /// beyond `f32`'s range, naming the sphere.
+    pub fn check(&self, n: usize) -> Result<()> {
+        let rows: [(&str, Option<Vec<[f64; 3]>>); 3] = [
+            ("positions", self.positions.map(<[_]>::to_vec)),
+            ("velocities", self.velocities.map(widened_rows)),
+            (
+                "angular velocities",
+                self.angular_velocities.map(widened_rows),
+            ),
+        ];
+        for (what, values) in rows {
+            let Some(values) = values else { continue };
+            if values.len() != n {
+                return Err(Error::Usage(format!(
+                    "{what} of {} spheres given to a step of {n}",
+                    values.len()
+                )));
+            }
+            let bad = values.iter().position(|v| {
+                v.iter()
+                    .any(|x| !x.is_finite() || (*x as f32).is_infinite())
+            });
+            if let Some(index) = bad {
+                return Err(Error::InvalidSphere {
+                    index,
+                    reason: format!(
+                        "its {what} {:?} are not finite in single precision",
+                        values[index]
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether nothing changes.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_none() && self.velocities.is_none() && self.angular_velocities.is_none()
+    }
+
+    /// Whether the motion turns some sphere (an angular velocity not zero).
+    pub fn turns(&self) -> bool {
+        self.angular_velocities
+            .is_some_and(|w| w.iter().flatten().any(|&x| x != 0.0))
+    }
+
+    /// Writes the motion into `particles` (in input order; [`check`](Self::check)ed).
+    pub fn apply(&self, particles: &mut Particles) -> Result<()> {
+        self.check(particles.len())?;
+        if let Some(positions) = self.positions {
+            for (i, &x) in positions.iter().enumerate() {
+                particles.set_exact_position(i, x)?;
+            }
+        }
+        if let Some(v) = self.velocities {
+            particles.velocities.copy_from_slice(v);
+        }
+        if let Some(w) = self.angular_velocities {
+            particles.angular_velocities.copy_from_slice(w);
+        }
+        Ok(())
+    }
+}
+
+/// `rows` in `f64`.
+fn widened_rows(rows: &[[f32; 3]]) -> Vec<[f64; 3]> {
+    rows.iter().map(|r| r.map(f64::from)).collect()
+}
+
 /// One backend's DEM step: keeps the particles (on the GPU for GPU backends) and advances them.
 /// `Send`, as the detection `Backend` is, so that a caller may step it on another thread (Python
 /// releases its interpreter lock while it steps).
@@ -68,6 +152,12 @@ pub trait Stepper: Send {
 
     /// The particles now, in input order (a read-back on GPU backends).
     fn particles(&mut self) -> Result<Particles>;
+
+    /// Sets the spheres' positions, velocities or angular velocities before the next step, the
+    /// rest of their state (radii, materials, contact history) kept. A GPU step writes them
+    /// where its state lies, in its own order of the spheres. Refuses an angular velocity in a
+    /// step that does not turn its spheres (the paper's frictionless law).
+    fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()>;
 
     /// The force and torque the spheres exerted on each mesh wall in the last step, in the
     /// scene's order of walls (default: none, for a step without mesh walls).

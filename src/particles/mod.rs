@@ -514,7 +514,10 @@ mod tests {
         let e = p.energies(&[1000.0, 8000.0]);
         let volume = |r: f64| 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
         let (m0, m1) = (1000.0 * volume(0.5), 8000.0 * volume(0.25));
-        assert!((e.translational / (0.5 * m0 * 25.0) - 1.0).abs() < 1e-12, "{e:?}");
+        assert!(
+            (e.translational / (0.5 * m0 * 25.0) - 1.0).abs() < 1e-12,
+            "{e:?}"
+        );
         let spin = 0.5 * 0.4 * m1 * 0.25f64.powi(2) * 4.0;
         assert!((e.rotational / spin - 1.0).abs() < 1e-12, "{e:?}");
     }

@@ -387,7 +387,7 @@ mod tests {
     use super::*;
     use crate::bench::plan::DROP_STEPS;
     use crate::bench::plan::Settings;
-    use mochi::dem::{Advance, Particles, StageTimes};
+    use mochi::dem::{Advance, Motion, Particles, StageTimes};
     use mochi::scenes::Scene;
 
     /// A step that takes 1 ms per phase and refits or not.
@@ -417,6 +417,10 @@ mod tests {
 
         fn particles(&mut self) -> Result<Particles> {
             Ok(self.particles.clone())
+        }
+
+        fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+            motion.apply(&mut self.particles)
         }
 
         fn refits(&self) -> bool {

@@ -12,7 +12,7 @@
 
 use crate::dem::flow::{Event, FlowCounts, FlowSet, NewSphere};
 use crate::dem::model::mass;
-use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, Clock, Motion, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::error::Result;
 use crate::particles::Particles;
@@ -263,6 +263,13 @@ impl Stepper for FlowStep {
         match &mut self.step {
             Some(step) => step.particles(),
             None => Ok(self.idle.clone()),
+        }
+    }
+
+    fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        match &mut self.step {
+            Some(step) => step.set_motion(motion),
+            None => motion.apply(&mut self.idle),
         }
     }
 

@@ -148,3 +148,44 @@ pub(crate) fn advance_in_batches(
         clock: if timed { Clock::Gpu } else { Clock::None },
     })
 }
+
+/// Writes `positions` (in input order) into a step's rows of centres `pos` (x, y, z, r) and
+/// residuals `lo` (x, y, z, 0), row k holding sphere `order[k]` (sphere k where `None`); each
+/// row's `w` kept.
+pub(crate) fn place_positions(
+    positions: &[[f64; 3]],
+    order: Option<&[u32]>,
+    pos: &mut [[f32; 4]],
+    lo: &mut [[f32; 4]],
+) {
+    for (k, (centre, residual)) in pos.iter_mut().zip(lo.iter_mut()).enumerate() {
+        let pairs = positions[sphere_of(order, k)].map(crate::particles::position::split);
+        for a in 0..3 {
+            (centre[a], residual[a]) = pairs[a];
+        }
+    }
+}
+
+/// Writes `values` (three per sphere, in input order) into a step's `rows` (x, y, z, w: a
+/// velocity and its mass, an angular velocity and its material), row k holding sphere
+/// `order[k]` (sphere k where `None`); each row's `w` kept.
+pub(crate) fn place_triples(values: &[[f32; 3]], order: Option<&[u32]>, rows: &mut [[f32; 4]]) {
+    for (k, row) in rows.iter_mut().enumerate() {
+        row[..3].copy_from_slice(&values[sphere_of(order, k)]);
+    }
+}
+
+/// The sphere row `k` holds.
+fn sphere_of(order: Option<&[u32]>, k: usize) -> usize {
+    order.map_or(k, |ids| ids[k] as usize)
+}
+
+/// The error of an angular velocity given to a step that does not turn its spheres.
+pub(crate) fn no_spin() -> Error {
+    Error::Usage(
+        "this run's step does not turn its spheres (the paper's frictionless law, no spin at \
+         its start): start a run whose spheres spin, or with friction or rolling resistance, to \
+         set angular velocities"
+            .into(),
+    )
+}

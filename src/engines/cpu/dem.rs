@@ -14,7 +14,7 @@ use crate::dem::model::contact::{
     wall_contacts,
 };
 use crate::dem::model::{StepParams, integrate};
-use crate::dem::stepper::{Advance, Clock, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, Clock, Motion, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::setup::DemSetup;
 use crate::error::{Error, Result, try_resize, try_vec};
@@ -510,6 +510,10 @@ impl Stepper for CpuStepper {
 
     fn particles(&mut self) -> Result<Particles> {
         self.particles.try_clone()
+    }
+
+    fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        motion.apply(&mut self.particles)
     }
 
     fn flow_counts(&self) -> Option<FlowCounts> {

@@ -23,11 +23,12 @@ use super::engine::{MAX_COORDINATE, morton_order_of, open_device};
 use super::granular::{self, Granular};
 use super::launches::{DemBuffers, DemProgram, Kernels};
 use crate::dem::model::LawParams;
-use crate::dem::stepper::{Advance, StageTimes, Stepper, needs_granular_step};
+use crate::dem::stepper::{Advance, Motion, StageTimes, Stepper, needs_granular_step};
 use crate::dem::walls::WallLoad;
 use crate::engines::RebuildPolicy;
 use crate::engines::common::rows::{
-    StateRows, advance_in_batches, particles_from, residual_rows, rows,
+    StateRows, advance_in_batches, no_spin, particles_from, place_positions, place_triples,
+    residual_rows, rows,
 };
 use crate::engines::setup::DemSetup;
 use crate::error::{Error, OptixError, Result};
@@ -468,6 +469,53 @@ impl Stepper for OptixStepper {
             Physics::Granular(g) => g.loads().to_vec(),
             Physics::Frictionless { .. } => Vec::new(),
         }
+    }
+
+    fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        let n = self.n as usize;
+        motion.check(n)?;
+        let granular = matches!(self.physics, Physics::Granular(_));
+        if motion.turns() && !granular {
+            return Err(no_spin());
+        }
+        if n == 0 || motion.is_empty() {
+            return Ok(());
+        }
+        let stream = self.device.stream.clone();
+        let read = cuda("reading the state to set the spheres' motion");
+        let write = cuda("writing the spheres' motion");
+        let mut ids = stream.clone_dtoh(&self.state.ids).map_err(&read)?;
+        ids.truncate(n);
+        fn rows(flat: &mut [f32], n: usize) -> &mut [[f32; 4]] {
+            bytemuck::cast_slice_mut(&mut flat[..4 * n])
+        }
+        let rewrite = |slice: &mut CudaSlice<f32>, values: &[[f32; 3]]| -> Result<()> {
+            let mut flat = stream.clone_dtoh(slice).map_err(&read)?;
+            place_triples(values, Some(&ids), rows(&mut flat, n));
+            Ok(stream.memcpy_htod(&flat, slice).map_err(&write)?)
+        };
+        if let Some(v) = motion.velocities {
+            rewrite(&mut self.state.vel, v)?;
+        }
+        if let (Some(w), Physics::Granular(g)) = (motion.angular_velocities, &mut self.physics) {
+            rewrite(g.spin_mut(), w)?;
+        }
+        if let Some(positions) = motion.positions {
+            let mut centres = stream.clone_dtoh(&self.state.pos).map_err(&read)?;
+            let mut residuals = stream.clone_dtoh(&self.state.lo).map_err(&read)?;
+            let (at, rest) = (rows(&mut centres, n), rows(&mut residuals, n));
+            place_positions(positions, Some(&ids), at, rest);
+            stream
+                .memcpy_htod(&centres, &mut self.state.pos)
+                .map_err(&write)?;
+            stream
+                .memcpy_htod(&residuals, &mut self.state.lo)
+                .map_err(&write)?;
+            // Moved spheres: the next step builds its acceleration structure afresh.
+            self.maintenance.rebuild_due = true;
+            self.maintenance.cycle_steps = u64::MAX;
+        }
+        Ok(())
     }
 
     fn particles(&mut self) -> Result<Particles> {

@@ -352,6 +352,12 @@ impl Granular {
 
     /// The angular velocities and the materials (in input order, `ids[p]` the input index of
     /// state position p) and the contact history, both sides of each pair.
+    /// The angular velocities on the device: x, y, z and the material's bits per sphere, in
+    /// the step's order.
+    pub(super) fn spin_mut(&mut self) -> &mut CudaSlice<f32> {
+        &mut self.ang
+    }
+
     pub fn read_back(&self, stream: &Arc<CudaStream>, ids: &[u32]) -> Result<ReadBack> {
         let read = cuda("reading the angular velocities back");
         let rows = stream.clone_dtoh(&self.ang).map_err(&read)?;

@@ -1,8 +1,12 @@
 //! What a wgpu engine's DEM step keeps beside its shaders, shared by the paper's step and the
 //! granular one: its parameters on the GPU ([`ParamsUniform`]), how its rows map to input order
-//! ([`InputOrder`]) and moving rows between places ([`move_rows`]).
+//! ([`InputOrder`]), moving rows between places ([`move_rows`]) and writing new motion into
+//! them ([`write_motion`]).
 
 use crate::dem::model::LawParams;
+use crate::dem::stepper::Motion;
+use crate::engines::common::rows::{no_spin, place_positions, place_triples};
+use crate::error::Result;
 use crate::gpu::Gpu;
 use crate::particles::FIRST_MESH_WALL;
 use rayon::prelude::*;
@@ -103,3 +107,55 @@ pub(crate) fn move_rows<'a>(
         encoder.copy_buffer_to_buffer(scratch, k as u64 * bytes, buffer, offset, bytes);
     }
 }
+
+/// Writes `motion` (in input order) into a wgpu step's rows `pos`, `lo` and `vel` of `n`
+/// spheres and its angular velocities `omega` (`None`: a step that does not turn its spheres),
+/// row k holding sphere `order[k]` (sphere k where `None`); returns whether the positions
+/// changed.
+pub(crate) fn write_motion(
+    gpu: &Gpu,
+    (pos, lo, vel, omega): StateBuffers<'_>,
+    n: usize,
+    order: Option<&[u32]>,
+    motion: &Motion<'_>,
+) -> Result<bool> {
+    motion.check(n)?;
+    if motion.turns() && omega.is_none() {
+        return Err(no_spin());
+    }
+    if n == 0 {
+        return Ok(false);
+    }
+    let rewrite = |buffer: &wgpu::Buffer, place: &dyn Fn(&mut [[f32; 4]])| -> Result<()> {
+        let mut rows: Vec<[f32; 4]> = gpu.read(buffer, n)?;
+        place(&mut rows);
+        gpu.queue
+            .write_buffer(buffer, 0, bytemuck::cast_slice(&rows));
+        Ok(())
+    };
+    if let Some(positions) = motion.positions {
+        let mut centres: Vec<[f32; 4]> = gpu.read(pos, n)?;
+        let mut residuals = vec![[0.0f32; 4]; n];
+        place_positions(positions, order, &mut centres, &mut residuals);
+        gpu.queue
+            .write_buffer(pos, 0, bytemuck::cast_slice(&centres));
+        gpu.queue
+            .write_buffer(lo, 0, bytemuck::cast_slice(&residuals));
+    }
+    if let Some(v) = motion.velocities {
+        rewrite(vel, &|rows| place_triples(v, order, rows))?;
+    }
+    if let (Some(w), Some(omega)) = (motion.angular_velocities, omega) {
+        rewrite(omega, &|rows| place_triples(w, order, rows))?;
+    }
+    Ok(motion.positions.is_some())
+}
+
+/// A wgpu step's state buffers [`write_motion`] writes: centres, residuals, velocities and
+/// angular velocities (where the step has them).
+pub(crate) type StateBuffers<'a> = (
+    &'a wgpu::Buffer,
+    &'a wgpu::Buffer,
+    &'a wgpu::Buffer,
+    Option<&'a wgpu::Buffer>,
+);

@@ -13,14 +13,14 @@
 
 use super::accel::Accel;
 use super::shaders::dem_rq::{self, BOXES, COUNTERS, RQ_PARAMS, RqParams, TLAS};
-use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, Motion, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::engines::common::flow::Room;
 use crate::engines::common::rows::{
     StateRows, advance_in_batches, particles_with, residual_rows, rows,
 };
 use crate::engines::setup::DemSetup;
-use crate::engines::wgpu::state::ParamsUniform;
+use crate::engines::wgpu::state::{ParamsUniform, write_motion};
 use crate::engines::wgpu::step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
 use crate::engines::wgpu::step::{
     BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, RedoableBatch, StepTimer, Turn,
@@ -385,6 +385,13 @@ impl Stepper for RqStepper {
             vel: &vel,
         };
         particles_with(rows, None, self.step, rotation)
+    }
+
+    fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        let omega = self.granular.as_ref().map(|g| g.omega_of(0));
+        let buffers = (&self.pos, &self.lo, &self.vel, omega);
+        // The acceleration structure is rebuilt every step, over where the spheres are.
+        write_motion(&self.gpu, buffers, self.n as usize, None, motion).map(|_| ())
     }
 }
 

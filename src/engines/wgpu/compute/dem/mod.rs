@@ -53,7 +53,7 @@ use super::skin::{SKIN_CELLS, Skin, skin_of};
 use crate::dem::flow::NewSphere;
 use crate::dem::model::StepParams;
 use crate::dem::stepper::Clock;
-use crate::dem::stepper::{Advance, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, Motion, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::engines::common::flow::DeviceFlow;
 use crate::engines::common::flow::{FlowQuery, Room, Scan};
@@ -64,7 +64,7 @@ use crate::engines::setup::DemSetup;
 use crate::engines::wgpu::flow::FlowScan;
 use crate::engines::wgpu::granular::shader::OMEGA;
 use crate::engines::wgpu::readback::{BatchReadback, InFlight};
-use crate::engines::wgpu::state::{InputOrder, ParamsUniform, move_rows};
+use crate::engines::wgpu::state::{InputOrder, ParamsUniform, move_rows, write_motion};
 use crate::engines::wgpu::step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
 use crate::engines::wgpu::step::{
     DemModule, GROUP, Granular, KernelSet, MAX_BATCH, StepTimer, Turn, max_spheres,
@@ -590,6 +590,19 @@ impl Stepper for GridStepper {
 
     fn particles(&mut self) -> Result<Particles> {
         self.state()
+    }
+
+    fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        let (res, n) = (&self.res, self.n as usize);
+        let set = &res.sets[self.current];
+        let order: Vec<u32> = res.gpu.read(&set.ids, n)?;
+        let omega = res.granular.as_ref().map(|g| g.omega_of(self.current));
+        let buffers = (&set.pos, &set.lo, &set.vel, omega);
+        if write_motion(&res.gpu, buffers, n, Some(&order), motion)? {
+            // Moved spheres are binned afresh, in a grid laid out over where they are now.
+            (self.sort_next, self.counted, self.stale) = (true, false, true);
+        }
+        Ok(())
     }
 
     fn wall_loads(&self) -> Vec<WallLoad> {
