@@ -157,3 +157,39 @@ fn bad_motion_is_refused_and_changes_nothing() {
         }
     }
 }
+
+#[test]
+fn gravity_set_between_steps_acts_from_the_next_step() {
+    // Spheres apart in the middle of the box: nothing but gravity acts on them.
+    let positions: Vec<[f32; 3]> = (0..8)
+        .map(|i| [0.05 + 0.03 * i as f32, 0.15, 0.15])
+        .collect();
+    let start = common::particles(positions, vec![[0.0; 3]; 8], vec![0.01; 8]);
+    let p = params(&common::granular_material());
+    let dt = p.dt;
+    for kind in common::dem_backends() {
+        let name = kind.name();
+        let mut s = open(kind, &start, &p);
+        s.advance(10).unwrap();
+        let before = s.particles().unwrap().velocities;
+        s.set_gravity([1.0, 0.0, 2.0]).unwrap();
+        s.advance(10).unwrap();
+        let after = s.particles().unwrap().velocities;
+        for (i, (a, b)) in after.iter().zip(&before).enumerate() {
+            let expected = [b[0] + 10.0 * dt * 1.0, b[1], b[2] + 10.0 * dt * 2.0];
+            for k in 0..3 {
+                assert!(
+                    (a[k] - expected[k]).abs() < 1e-6,
+                    "{name}: sphere {i} moves at {a:?}, not {expected:?}"
+                );
+            }
+        }
+    }
+    // A gravity no step could hold is refused before it reaches a step.
+    let e = p
+        .with_gravity([0.0, 0.0, -1e9], 0.01)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("single step"), "{e}");
+    assert!(p.with_gravity([0.0, f64::NAN, 0.0], 0.01).is_err());
+}

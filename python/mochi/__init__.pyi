@@ -189,6 +189,13 @@ class Simulation:
         """Sets the angular velocities (``(N, 3)``, input order) before the next step; refused
         where the step does not turn its spheres (the paper's law on a GPU backend)."""
     @property
+    def gravity(self) -> list[float]:
+        """Gravity now [m/s²] (the scene's, turned by its ``gravity_spin`` since t = 0)."""
+    @gravity.setter
+    def gravity(self, gravity: list[float] | tuple[float, float, float]) -> None:
+        """Sets gravity from the next step on; ``ValueError`` where it would move a sphere
+        farther than the smallest radius in one step."""
+    @property
     def kinetic_energy(self) -> float:
         """Σ ½ m v² [J] now."""
     @property

@@ -844,6 +844,40 @@ impl Simulation {
         self.guarded("Simulation.dt", |sim| Ok(sim.run_mut()?.params.dt as f64))
     }
 
+    /// Gravity now \[m/s²\] (the scene's, turned by its `gravity_spin` since t = 0).
+    #[getter]
+    fn gravity(&mut self) -> PyResult<[f32; 3]> {
+        self.guarded("Simulation.gravity", |sim| {
+            let step = sim.step;
+            Ok(sim.run_mut()?.params.gravity_at(step))
+        })
+    }
+
+    /// Sets gravity \[m/s²\] from the next step on (with a `gravity_spin`, this is gravity
+    /// now, turning on from it); refused where it would move a sphere farther than the
+    /// smallest radius in one step.
+    #[setter]
+    fn set_gravity(&mut self, py: Python<'_>, gravity: [f64; 3]) -> PyResult<()> {
+        self.guarded("Simulation.gravity", |sim| {
+            let step = sim.step;
+            let run = sim.run_mut()?;
+            let p = &run.params;
+            // Back to t = 0: gravity_at turns by gravity_spin · t about y.
+            let angle = p.gravity_spin as f64 * step as f64 * p.dt as f64;
+            let (s, c) = angle.sin_cos();
+            let [gx, gy, gz] = gravity;
+            let at_start = [gx * c - gz * s, gy, gz * c + gx * s];
+            let params = p
+                .with_gravity(at_start, run.radius_range.0)
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let stepper = &mut run.stepper;
+            py.detach(|| stepper.set_gravity(params.gravity))
+                .map_err(to_py_err)?;
+            run.params = params;
+            Ok(())
+        })
+    }
+
     /// The spheres' translational kinetic energy now, Σ ½ m v² \[J\] (each mass from the
     /// sphere's radius and its material's density).
     #[getter]

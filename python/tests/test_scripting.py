@@ -250,3 +250,24 @@ def test_bad_state_is_refused_naming_it():
     spin[0, 2] = 1.0
     sim.angular_velocities = spin  # the cpu step keeps any spin
     np.testing.assert_array_equal(sim.angular_velocities, spin.astype(np.float32))
+
+
+def test_gravity_set_between_steps_acts_from_the_next_step():
+    sim = mochi.Simulation.from_arrays(
+        np.array([[0.5, 0.5, 0.5]]), np.array([0.01]), backend="cpu", box_lo=[0, 0, 0], box_hi=[1, 1, 1]
+    )
+    assert sim.gravity == pytest.approx([0, 0, -9.81])
+    sim.step(10)
+    v = sim.velocities[0].copy()
+    sim.gravity = [2.0, 0.0, 0.0]
+    assert sim.gravity == pytest.approx([2, 0, 0])
+    sim.step(10)
+    np.testing.assert_allclose(sim.velocities[0], v + [20 * sim.dt, 0, 0], rtol=0, atol=1e-6)
+    with pytest.raises(ValueError, match="single step"):
+        sim.gravity = [0, 0, -1e12]
+    assert sim.gravity == pytest.approx([2, 0, 0])  # refused: unchanged
+    # Under a turning gravity it is gravity now, turning on from there.
+    spun = mochi.Simulation("rotating", spheres=50, backend="cpu", contact="linear")
+    spun.step(1000)
+    spun.gravity = [0.0, 0.0, -1.0]
+    assert spun.gravity == pytest.approx([0, 0, -1], abs=1e-6)

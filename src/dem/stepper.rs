@@ -159,6 +159,10 @@ pub trait Stepper: Send {
     /// step that does not turn its spheres (the paper's frictionless law).
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()>;
 
+    /// Sets gravity at t = 0 \[m/s²\] (turned by the scene's gravity spin from there) from the
+    /// next step on ([`StepParams::with_gravity`] checks a value first).
+    fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()>;
+
     /// The force and torque the spheres exerted on each mesh wall in the last step, in the
     /// scene's order of walls (default: none, for a step without mesh walls).
     fn wall_loads(&self) -> Vec<WallLoad> {

@@ -423,6 +423,10 @@ mod tests {
             motion.apply(&mut self.particles)
         }
 
+        fn set_gravity(&mut self, _: [f32; 3]) -> Result<()> {
+            Ok(())
+        }
+
         fn refits(&self) -> bool {
             self.refits
         }

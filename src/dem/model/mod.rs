@@ -227,14 +227,8 @@ impl StepParams {
                 resolved.limited_by, resolved.dt_limit
             ));
         }
-        let g = gravity.iter().map(|x| x * x).sum::<f64>().sqrt();
-        if g * dt * dt > r_min as f64 {
-            return bad(&format!(
-                "gravity of {g:e} m/s² moves a sphere {:e} m in a single step of {dt:e} s, more \
-                 than the smallest radius ({r_min:e} m): no contact or wall could hold it; lower \
-                 the gravity or the time step",
-                g * dt * dt
-            ));
+        if let Err(reason) = check_gravity(gravity, dt, r_min) {
+            return bad(&reason);
         }
         Ok(Self {
             dt: dt as f32,
@@ -350,6 +344,19 @@ impl StepParams {
         )
     }
 
+    /// These parameters with `gravity` at t = 0 (turned by `gravity_spin · t` from there),
+    /// checked as a scene's is for spheres of smallest radius `r_min`.
+    pub fn with_gravity(&self, gravity: [f64; 3], r_min: f32) -> Result<StepParams> {
+        check_gravity(gravity, self.dt as f64, r_min).map_err(|reason| Error::InvalidConfig {
+            what: "gravity".into(),
+            reason,
+        })?;
+        Ok(StepParams {
+            gravity: gravity.map(|g| g as f32),
+            ..self.clone()
+        })
+    }
+
     /// Gravity at step `step` (time `step · dt`), turned about the y axis by `gravity_spin · t`.
     pub fn gravity_at(&self, step: u64) -> [f32; 3] {
         let angle = self.gravity_spin * (step as f32 * self.dt);
@@ -357,6 +364,24 @@ impl StepParams {
         let [gx, gy, gz] = self.gravity;
         [gx * c + gz * s, gy, gz * c - gx * s]
     }
+}
+
+/// Refuses `gravity` that is not finite in `f32`, or that moves a sphere more than the smallest
+/// radius `r_min` in one step of `dt` (no contact or wall could hold it).
+fn check_gravity(gravity: [f64; 3], dt: f64, r_min: f32) -> std::result::Result<(), String> {
+    if gravity.iter().any(|&g| !(g as f32).is_finite()) {
+        return Err(format!("must be finite (in f32), got {gravity:?}"));
+    }
+    let g = gravity.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if g * dt * dt > r_min as f64 {
+        return Err(format!(
+            "gravity of {g:e} m/s² moves a sphere {:e} m in a single step of {dt:e} s, more than \
+             the smallest radius ({r_min:e} m): no contact or wall could hold it; lower the \
+             gravity or the time step",
+            g * dt * dt
+        ));
+    }
+    Ok(())
 }
 
 /// One semi-implicit Euler step of a sphere under `force` and gravity `g`: v += dt·(F/m + g),

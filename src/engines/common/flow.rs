@@ -68,6 +68,9 @@ pub struct FlowStep {
     counts: FlowCounts,
     /// The step's description, kept for the times it has no step.
     described: String,
+    /// Gravity at t = 0 set since the run opened (`None`: the scene's), given to every step
+    /// opened again.
+    gravity: Option<[f32; 3]>,
 }
 
 impl FlowStep {
@@ -94,6 +97,7 @@ impl FlowStep {
             densities,
             r_max: 0.0,
             described: String::new(),
+            gravity: None,
         };
         step.open(particles)?;
         Ok(step)
@@ -124,7 +128,10 @@ impl FlowStep {
         }
         .holding(&parts);
         self.r_max = room.radii.1;
-        let step = (self.reopen)(parts, room)?;
+        let mut step = (self.reopen)(parts, room)?;
+        if let Some(gravity) = self.gravity {
+            step.set_gravity(gravity)?;
+        }
         self.described = step.describe();
         self.step = Some(step);
         Ok(())
@@ -270,6 +277,14 @@ impl Stepper for FlowStep {
         match &mut self.step {
             Some(step) => step.set_motion(motion),
             None => motion.apply(&mut self.idle),
+        }
+    }
+
+    fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()> {
+        self.gravity = Some(gravity);
+        match &mut self.step {
+            Some(step) => step.set_gravity(gravity),
+            None => Ok(()),
         }
     }
 

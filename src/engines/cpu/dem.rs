@@ -516,6 +516,11 @@ impl Stepper for CpuStepper {
         motion.apply(&mut self.particles)
     }
 
+    fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()> {
+        self.params.gravity = gravity;
+        Ok(())
+    }
+
     fn flow_counts(&self) -> Option<FlowCounts> {
         self.flow.as_ref().map(|(_, counts)| *counts)
     }

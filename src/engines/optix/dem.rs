@@ -471,6 +471,14 @@ impl Stepper for OptixStepper {
         }
     }
 
+    fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()> {
+        match &mut self.physics {
+            Physics::Frictionless { dem, .. } => dem.gravity = gravity.into(),
+            Physics::Granular(g) => g.set_gravity(gravity),
+        }
+        Ok(())
+    }
+
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
         let n = self.n as usize;
         motion.check(n)?;

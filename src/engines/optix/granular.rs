@@ -352,6 +352,11 @@ impl Granular {
 
     /// The angular velocities and the materials (in input order, `ids[p]` the input index of
     /// state position p) and the contact history, both sides of each pair.
+    /// Sets gravity at t = 0 from the next step on.
+    pub(super) fn set_gravity(&mut self, gravity: [f32; 3]) {
+        self.params.gravity = gravity.into();
+    }
+
     /// The angular velocities on the device: x, y, z and the material's bits per sphere, in
     /// the step's order.
     pub(super) fn spin_mut(&mut self) -> &mut CudaSlice<f32> {

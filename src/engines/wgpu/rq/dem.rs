@@ -387,6 +387,11 @@ impl Stepper for RqStepper {
         particles_with(rows, None, self.step, rotation)
     }
 
+    fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()> {
+        self.dem.update(&self.gpu, |p| p.gravity = gravity.into());
+        Ok(())
+    }
+
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
         let omega = self.granular.as_ref().map(|g| g.omega_of(0));
         let buffers = (&self.pos, &self.lo, &self.vel, omega);

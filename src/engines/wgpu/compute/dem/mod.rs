@@ -592,6 +592,14 @@ impl Stepper for GridStepper {
         self.state()
     }
 
+    fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()> {
+        self.params.gravity = gravity;
+        let res = &mut self.res;
+        res.dem_uniform
+            .update(&res.gpu, |p| p.gravity = gravity.into());
+        Ok(())
+    }
+
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
         let (res, n) = (&self.res, self.n as usize);
         let set = &res.sets[self.current];
