@@ -104,3 +104,7 @@ venv="$PWD/target/py-venv"
 MATURIN_PEP517_ARGS="--profile dev" \
     "$venv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps ./python
 "$venv/bin/python" -m pytest -q python/tests
+# The type stub (python/mochi/__init__.pyi) against the module as built: every name, parameter
+# and default (mypy's stubtest; PEP 800's disjoint bases left to newer type checkers).
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check mypy
+MYPY_CACHE_DIR="$PWD/target/mypy-cache" "$venv/bin/python" -m mypy.stubtest mochi --ignore-disjoint-bases

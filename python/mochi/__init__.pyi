@@ -2,12 +2,22 @@
 
 import os
 from types import TracebackType
-from typing import Callable, Literal, TypedDict
+from typing import Callable, Literal, TypedDict, final
 
 import numpy as np
 import numpy.typing as npt
 
-Mode = Literal["mochi", "nns"]
+__all__ = [
+    "Detector",
+    "MochiError",
+    "Simulation",
+    "__version__",
+    "backends",
+    "detect",
+    "read_frame",
+]
+
+_Mode = Literal["mochi", "nns"]
 
 __version__: str
 
@@ -17,7 +27,7 @@ class MochiError(RuntimeError):
     and saying it is a bug; a ``Detector`` or ``Simulation`` one of whose calls hit one refuses
     every later call."""
 
-class BackendEntry(TypedDict):
+class _BackendEntry(TypedDict):
     name: str
     available: bool
     reason: str
@@ -26,7 +36,7 @@ def detect(
     centres: npt.NDArray[np.float32] | npt.NDArray[np.float64],
     radii: npt.NDArray[np.float32] | npt.NDArray[np.float64] | None = None,
     backend: str = "auto",
-    mode: Mode = "mochi",
+    mode: _Mode = "mochi",
 ) -> npt.NDArray[np.int64]:
     """Every colliding pair of spheres as a ``(P, 2)`` int64 array, ``i < j``, rows sorted.
 
@@ -43,13 +53,14 @@ def detect(
     a call with another ``backend`` lets them go.
     """
 
-def backends() -> list[BackendEntry]:
+def backends() -> list[_BackendEntry]:
     """Every backend this build knows: its name, whether it runs here, and the device or why not."""
 
+@final
 class Detector:
     """A detection backend kept open between calls (build once, update the centres, ask again)."""
 
-    def __init__(self, backend: str = "auto", mode: Mode = "mochi") -> None: ...
+    def __new__(cls, backend: str = "auto", mode: _Mode = "mochi") -> Detector: ...
     @property
     def backend(self) -> str:
         """The backend's name (``cpu``, ``wgpu-rq``, ...)."""
@@ -65,22 +76,22 @@ class Detector:
     def pairs(self) -> npt.NDArray[np.int64]:
         """The colliding pairs of the current spheres, as ``detect`` returns them."""
 
-Scalar = bool | int | float | str | os.PathLike[str] | np.generic
-SceneValue = (
-    Scalar
+_Scalar = bool | int | float | str | os.PathLike[str] | np.generic
+_SceneValue = (
+    _Scalar
     | npt.NDArray[np.generic]
-    | list[Scalar]
-    | tuple[Scalar, ...]
+    | list[_Scalar]
+    | tuple[_Scalar, ...]
     | dict[str, object]
     | list[dict[str, object]]
 )
 
-class WallLoad(TypedDict):
+class _WallLoad(TypedDict):
     name: str
     force: npt.NDArray[np.float64]
     torque: npt.NDArray[np.float64]
 
-class FlowCounts(TypedDict):
+class _FlowCounts(TypedDict):
     inserted: int
     refused: int
     removed: int
@@ -88,7 +99,7 @@ class FlowCounts(TypedDict):
     inserted_mass: float
     removed_mass: float
 
-class FrameDict(TypedDict):
+class _FrameDict(TypedDict):
     positions: npt.NDArray[np.float64]
     radii: npt.NDArray[np.float32]
     velocities: npt.NDArray[np.float32]
@@ -97,13 +108,14 @@ class FrameDict(TypedDict):
     step: int | None
     time: float | None
 
-def read_frame(path: str | os.PathLike[str]) -> FrameDict:
+def read_frame(path: str | os.PathLike[str]) -> _FrameDict:
     """Reads a frame (``.vtu`` as ``write_frame`` and ``mochi simulate`` write it, or of another
     writer such as meshio or ParaView, ``.csv`` or ``.npy``): positions (float64, as the file holds them), radii, velocities and angular
     velocities (float32), materials (uint8: each sphere's index in the scene's materials, 0 for
     every sphere of a file without them), with its step and time (``None`` where the file does
     not say)."""
 
+@final
 class Simulation:
     """A DEM simulation: a scene's spheres under gravity, walls and contact forces.
 
@@ -132,12 +144,12 @@ class Simulation:
     to change the state before the next step.
     """
 
-    def __init__(
-        self,
-        scene: dict[str, SceneValue] | str | os.PathLike[str] | None = None,
+    def __new__(
+        cls,
+        scene: dict[str, _SceneValue] | str | os.PathLike[str] | None = None,
         backend: str = "auto",
-        **keys: SceneValue,
-    ) -> None: ...
+        **keys: _SceneValue,
+    ) -> Simulation: ...
     @classmethod
     def from_arrays(
         cls,
@@ -148,7 +160,7 @@ class Simulation:
         angular_velocities: npt.NDArray[np.floating] | None = None,
         materials: npt.NDArray[np.integer] | None = None,
         backend: str = "auto",
-        **keys: SceneValue,
+        **keys: _SceneValue,
     ) -> Simulation:
         """A run of these spheres, no file: ``positions`` ``(N, 3)`` [m] (float64 kept to the
         residual, as ``positions`` returns them) and ``radii`` ``(N,)`` [m], ``velocities`` and
@@ -202,11 +214,11 @@ class Simulation:
     def rotational_energy(self) -> float:
         """Σ ½ I ω² [J] now, I = 2/5 m r²."""
     @property
-    def wall_loads(self) -> list[WallLoad]:
+    def wall_loads(self) -> list[_WallLoad]:
         """Each mesh wall's force [N] and torque [N·m] (about its rotation centre) in the last
         step, in the scene's order of walls."""
     @property
-    def flow(self) -> FlowCounts:
+    def flow(self) -> _FlowCounts:
         """The flows so far: spheres inserted, refused, removed and present, masses inserted
         and removed [kg]."""
     @property
