@@ -486,7 +486,7 @@ fn pairs_array(py: Python<'_>, rows: Vec<i64>) -> Bound<'_, PyArray2<i64>> {
         .into_pyarray(py)
 }
 
-/// A detection backend kept open between calls.
+/// A detection backend kept open between calls (build once, update the centres, ask again).
 #[pyclass(module = "mochi")]
 struct Detector {
     /// Only ever reached through `&mut self` (`Mutex::get_mut`, no locking): the mutex only

@@ -432,6 +432,31 @@ pub fn read_frame(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>> 
 }
 
 /// A DEM simulation: a scene's spheres under gravity, walls and contact forces.
+///
+/// `scene` is a dict of scene keys (as in a scene TOML, in its tables or by their short
+/// forms, or `mochi simulate --set`), a path to a scene TOML, or `None` for the default
+/// scene (`pour`). A dict value is a TOML table, whose keys are set one by one (`{"material":
+/// {"friction": 0.3}}` keeps the material's other keys), and a list of dicts an array of
+/// tables: `{"inflow": [{"lo": [...], "hi": [...], "rate": 2000, "sphere_radius": 0.004}]}`
+/// is `[[inflow]]`, and a lone dict for `wall`, `inflow`, `outflow`, `materials` or
+/// `material_pairs` (or `material` with a `name`) is an array of one. Several materials:
+/// `{"materials": [{"name": "glass", "density": 2500}, {"name": "steel", "density": 7800}],
+/// "box_material": "steel", "inflow": {..., "material": "glass"}}`; an input file's
+/// `material` column gives each sphere's (its index in that list, from 0).
+/// Scene keys may also be keyword arguments (`Simulation(scene="freefall", spheres=500,
+/// friction=0.3)`), set over `scene`. NumPy scalars and 0-d arrays count as the
+/// Python scalars they hold, NumPy arrays as lists. A whole float for a key that takes an
+/// integer (`"spheres": 3e8`) is refused, as in a scene file: pass an int. Bad keys or values
+/// raise `ValueError` naming the key; the run's warnings (overlaps, coarse coordinates,
+/// coincident centres) are `UserWarning`s. `close()` (or the end of a `with` block)
+/// lets the backend and its device memory go.
+///
+/// `positions` (float64), `velocities`, `angular_velocities` and `radii` (float32) and
+/// `materials` (uint8) are in input order: read-only snapshots of the step they were read at (the same array object until the
+/// next `step`; a later step does not change them). Writing into one raises `ValueError`;
+/// set `positions`, `velocities` or `angular_velocities` whole (`sim.velocities = v`)
+/// to change the state before the next step.
+///
 #[pyclass(module = "mochi")]
 pub struct Simulation {
     /// Only ever reached through `&mut self` (`Mutex::get_mut`, no locking): the mutex only
@@ -596,7 +621,7 @@ impl Simulation {
         })
     }
 
-    /// Sets a run up from arrays, no file: `positions` `(N, 3)` \[m\] and `radii` `(N,)` \[m\]
+    /// Sets a run up from arrays, no file: `positions` `(N, 3)` [m] and `radii` `(N,)` [m]
     /// (float32 or float64), with `velocities` and `angular_velocities` `(N, 3)` (zero where
     /// not given) and `materials` `(N,)` (indices of the scene's `materials`; 0 where not
     /// given), and any other scene keys as keyword arguments (the box, gravity, the material,
@@ -688,7 +713,7 @@ impl Simulation {
         })
     }
 
-    /// Positions `(N, 3)` float64 \[m\], in input order: a read-only snapshot of this step.
+    /// Positions `(N, 3)` float64 [m], in input order: a read-only snapshot of this step.
     /// Each is where the step keeps its sphere (its `f32` centre plus the residual that holds
     /// what `f32` cannot: every step's displacement, however small, far from the origin).
     #[getter]
@@ -698,7 +723,7 @@ impl Simulation {
         })
     }
 
-    /// Velocities `(N, 3)` float32 \[m/s\], in input order: a read-only snapshot of this step.
+    /// Velocities `(N, 3)` float32 [m/s], in input order: a read-only snapshot of this step.
     #[getter]
     fn velocities<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
         self.guarded("Simulation.velocities", |sim| {
@@ -710,7 +735,7 @@ impl Simulation {
         })
     }
 
-    /// Moves the spheres to `positions` `(N, 3)` \[m\] (in input order, N the spheres now)
+    /// Moves the spheres to `positions` `(N, 3)` [m] (in input order, N the spheres now)
     /// before the next step; velocities, spins and contact history stay.
     #[setter]
     fn set_positions(&mut self, py: Python<'_>, positions: &Bound<'_, PyAny>) -> PyResult<()> {
@@ -734,7 +759,7 @@ impl Simulation {
         })
     }
 
-    /// Sets the spheres' velocities `(N, 3)` \[m/s\] (in input order) before the next step.
+    /// Sets the spheres' velocities `(N, 3)` [m/s] (in input order) before the next step.
     #[setter]
     fn set_velocities(&mut self, py: Python<'_>, velocities: &Bound<'_, PyAny>) -> PyResult<()> {
         self.guarded("Simulation.velocities", |sim| {
@@ -749,7 +774,7 @@ impl Simulation {
         })
     }
 
-    /// Sets the spheres' angular velocities `(N, 3)` \[rad/s\] (in input order) before the
+    /// Sets the spheres' angular velocities `(N, 3)` [rad/s] (in input order) before the
     /// next step; refused where the run's step does not turn its spheres (the paper's
     /// frictionless law on a GPU backend).
     #[setter]
@@ -770,7 +795,7 @@ impl Simulation {
         })
     }
 
-    /// Angular velocities `(N, 3)` float32 \[rad/s\], in input order: a read-only snapshot of
+    /// Angular velocities `(N, 3)` float32 [rad/s], in input order: a read-only snapshot of
     /// this step.
     #[getter]
     fn angular_velocities<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
@@ -783,7 +808,7 @@ impl Simulation {
         })
     }
 
-    /// Radii `(N,)` float32 \[m\], in input order: a read-only snapshot of this step.
+    /// Radii `(N,)` float32 [m], in input order: a read-only snapshot of this step.
     #[getter]
     fn radii<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f32>>> {
         self.guarded("Simulation.radii", |sim| {
@@ -810,7 +835,7 @@ impl Simulation {
         })
     }
 
-    /// Simulated time \[s\]: steps taken times the time step.
+    /// Simulated time [s]: steps taken times the time step.
     #[getter]
     fn time(&mut self) -> PyResult<f64> {
         self.guarded("Simulation.time", |sim| {
@@ -838,13 +863,13 @@ impl Simulation {
         })
     }
 
-    /// The time step \[s\].
+    /// The time step [s].
     #[getter]
     fn dt(&mut self) -> PyResult<f64> {
         self.guarded("Simulation.dt", |sim| Ok(sim.run_mut()?.params.dt as f64))
     }
 
-    /// Gravity now \[m/s²\] (the scene's, turned by its `gravity_spin` since t = 0).
+    /// Gravity now [m/s²] (the scene's, turned by its `gravity_spin` since t = 0).
     #[getter]
     fn gravity(&mut self) -> PyResult<[f32; 3]> {
         self.guarded("Simulation.gravity", |sim| {
@@ -853,7 +878,7 @@ impl Simulation {
         })
     }
 
-    /// Sets gravity \[m/s²\] from the next step on (with a `gravity_spin`, this is gravity
+    /// Sets gravity [m/s²] from the next step on (with a `gravity_spin`, this is gravity
     /// now, turning on from it); refused where it would move a sphere farther than the
     /// smallest radius in one step.
     #[setter]
@@ -878,7 +903,7 @@ impl Simulation {
         })
     }
 
-    /// The spheres' translational kinetic energy now, Σ ½ m v² \[J\] (each mass from the
+    /// The spheres' translational kinetic energy now, Σ ½ m v² [J] (each mass from the
     /// sphere's radius and its material's density).
     #[getter]
     fn kinetic_energy(&mut self, py: Python<'_>) -> PyResult<f64> {
@@ -887,7 +912,7 @@ impl Simulation {
         })
     }
 
-    /// The spheres' rotational kinetic energy now, Σ ½ I ω², I = 2/5 m r² \[J\].
+    /// The spheres' rotational kinetic energy now, Σ ½ I ω², I = 2/5 m r² [J].
     #[getter]
     fn rotational_energy(&mut self, py: Python<'_>) -> PyResult<f64> {
         self.guarded("Simulation.rotational_energy", |sim| {
@@ -895,7 +920,7 @@ impl Simulation {
         })
     }
 
-    /// The force \[N\] and torque \[N·m\] (about its rotation centre) the spheres exerted on
+    /// The force [N] and torque [N·m] (about its rotation centre) the spheres exerted on
     /// each mesh wall in the last step taken, in the scene's order of walls: a list of dicts
     /// `name`, `force`, `torque` (float64 `(3,)` arrays; zero before the first step).
     #[getter]
@@ -926,7 +951,7 @@ impl Simulation {
     }
 
     /// The flows so far: spheres `inserted`, `refused` (no room at their inflow), `removed`,
-    /// `present` now, and the masses inserted and removed \[kg\] (`inserted_mass`,
+    /// `present` now, and the masses inserted and removed [kg] (`inserted_mass`,
     /// `removed_mass`); all 0 in a scene without flows.
     #[getter]
     fn flow<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
