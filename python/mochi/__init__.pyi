@@ -42,7 +42,9 @@ def detect(
 
     ``centres`` is ``(N, 3)`` and ``radii`` ``(N,)``, float32 or float64 in either byte order,
     any memory order; or, without ``radii``, one ``(N, 4)`` array of x, y, z, r (as ``mochi
-    generate`` writes a ``.npy``). mochi computes in float32: a float64 value beyond its range is refused,
+    generate`` writes a ``.npy``). mochi computes in float32: float64 input is rounded to float32 first, and
+    the pairs are exact for the rounded spheres (a pair within float32's rounding of touching,
+    about 1e-7 of the distance, may differ from a float64 brute force); a float64 value beyond its range is refused,
     naming it. A masked array is read only where no entry is masked (else ``ValueError``: mochi
     takes no mask). Raises ``ValueError`` for bad input (naming the row and the reason),
     ``MemoryError`` (naming what and how many bytes) where the spheres' copies, the backend's

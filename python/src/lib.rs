@@ -670,7 +670,8 @@ impl Detector {
 
 /// Every colliding pair `(i, j)`, `i < j`, of the spheres (`centres` `(N, 3)` and `radii`
 /// `(N,)`, float32 or float64; or one `(N, 4)` array of x, y, z, r given alone), as a sorted
-/// `(P, 2)` int64 array. The backend it opens (its device and buffers) and the memory of the spheres' copies are
+/// `(P, 2)` int64 array. mochi computes in float32: float64 input is rounded first, and the
+/// pairs are exact for the rounded spheres. The backend it opens (its device and buffers) and the memory of the spheres' copies are
 /// kept for the next call with the same `backend`, which opens and allocates nothing; a call
 /// with another `backend` lets them go.
 #[pyfunction]
