@@ -1783,3 +1783,57 @@ fn a_sphere_of_a_material_the_scene_lacks_is_refused_naming_the_file_and_sphere(
         "{e}"
     );
 }
+
+#[test]
+fn print_scene_writes_the_scene_in_its_tables_and_that_scene_runs_the_same() {
+    let dir = tempfile::tempdir().unwrap();
+    let given = [
+        "--scene",
+        "hopper",
+        "-n",
+        "200",
+        "--set",
+        "hopper_orifice=0.05",
+        "--set",
+        "friction=0.3",
+    ];
+    let mut args = vec!["simulate"];
+    args.extend(given);
+    args.push("--print-scene");
+    let printed = ok(&args, dir.path());
+    for expected in [
+        "[source]\nscene = \"hopper\"\nspheres = 200\n",
+        "orifice = 0.05\n",
+        "[material]\ncontact = \"hertz-mindlin\"\n",
+        "friction = 0.3\n",
+        "dt = ",
+    ] {
+        assert!(printed.contains(expected), "{expected:?} in\n{printed}");
+    }
+    assert!(
+        !dir.path().join("mochi-out").exists(),
+        "--print-scene writes nothing"
+    );
+    std::fs::write(dir.path().join("printed.toml"), &printed).unwrap();
+    let run = |first: &[&str], out: &str| {
+        let mut args = vec!["simulate"];
+        args.extend(first);
+        args.extend([
+            "--steps",
+            "20",
+            "--frame-every",
+            "20",
+            "--backend",
+            "cpu",
+            "-q",
+            "-o",
+            out,
+        ]);
+        ok(&args, dir.path());
+        std::fs::read(dir.path().join(out).join("frame_00000020.vtu")).unwrap()
+    };
+    assert!(
+        run(&given, "flags") == run(&["printed.toml"], "file"),
+        "the printed scene runs as the flags do"
+    );
+}

@@ -224,6 +224,11 @@ fn toml_integer() -> clap::builder::RangedU64ValueParser {
 pub struct SimulateArgs {
     /// Scene file (TOML; see `mochi::dem::scene`). Without it, the built-in default scene.
     pub scene_file: Option<PathBuf>,
+    /// Print the scene as the run takes it (its tables, every derived value written out: the
+    /// time step, the box, the material) and exit, running and writing nothing; the output is
+    /// a scene file that runs the same.
+    #[arg(long)]
+    pub print_scene: bool,
     /// Scene: pour (the default: a polydisperse column collapsing into a heap), freefall, slab,
     /// poly1.2, poly12, poly120, polylog, rotating, mesh, input, hopper, drum.
     #[arg(long)]

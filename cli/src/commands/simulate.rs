@@ -40,6 +40,15 @@ fn flags(args: &SimulateArgs) -> Result<SceneFlags> {
 }
 
 pub fn simulate(args: SimulateArgs) -> Result<()> {
+    if args.print_scene {
+        let (flags, overrides) = (flags(&args)?, Overrides::parse(&args.set)?);
+        let run_start = match &args.resume {
+            Some(path) => RunStart::resume(path, &flags, &overrides)?,
+            None => RunStart::new(args.scene_file.as_deref(), &flags, &overrides)?,
+        };
+        print!("{}", run_start.config.to_toml());
+        return Ok(());
+    }
     let out = run_folder(&args);
     if let (Some(flag), 0) = (args.render.given().first(), args.render_every) {
         anyhow::bail!(
