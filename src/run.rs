@@ -17,7 +17,7 @@
 use crate::dem::flow::FlowCounts;
 use crate::dem::model::StepParams;
 use crate::dem::scene::{Overrides, SceneConfig, SceneFlags, SceneKind, Start};
-use crate::dem::stepper::Stepper;
+use crate::dem::stepper::{Motion, Stepper};
 use crate::dem::walls::WallSet;
 use crate::engines::{BackendChoice, BackendKind, Opened, Options, open_scene};
 use crate::error::{Error, Result};
@@ -294,6 +294,32 @@ impl Run {
     pub fn overlap_warning(&self) -> Option<String> {
         let (r_min, r_max) = self.radius_range;
         self.params.overlap_warning(r_min, r_max)
+    }
+
+    /// Sets the spheres' motion before the next step ([`Stepper::set_motion`]), refusing a
+    /// position outside the box by more than the box's own extent along an axis (as a resumed
+    /// run's are; no bound without the box's walls, where the box only bounds the grid).
+    pub fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        if let (Some(positions), true) = (motion.positions, self.walls.box_walls) {
+            let (lo, hi) = (self.params.box_lo, self.params.box_hi);
+            let outside = positions.iter().position(|x| {
+                (0..3).any(|a| {
+                    let margin = (hi[a] - lo[a]) as f64;
+                    !(lo[a] as f64 - margin..=hi[a] as f64 + margin).contains(&x[a])
+                })
+            });
+            if let Some(index) = outside {
+                return Err(Error::InvalidSphere {
+                    index,
+                    reason: format!(
+                        "position {:?} is outside the box {lo:?} .. {hi:?} by more than the \
+                         box's own size",
+                        positions[index]
+                    ),
+                });
+            }
+        }
+        self.stepper.set_motion(motion)
     }
 
     /// The resolved scene as TOML, as checkpoints save it.

@@ -586,8 +586,8 @@ impl Simulation {
     /// Writes `motion` into the run's step (the interpreter lock released); what was read back
     /// is dropped.
     fn set_motion(&mut self, py: Python<'_>, motion: &Motion<'_>) -> PyResult<()> {
-        let stepper = &mut self.run_mut()?.stepper;
-        let set = py.detach(|| stepper.set_motion(motion));
+        let run = self.run_mut()?;
+        let set = py.detach(|| run.set_motion(motion));
         self.stepped();
         set.map_err(|e| match e {
             mochi::Error::Usage(msg) => PyValueError::new_err(msg),
@@ -736,7 +736,8 @@ impl Simulation {
     }
 
     /// Moves the spheres to `positions` `(N, 3)` [m] (in input order, N the spheres now)
-    /// before the next step; velocities, spins and contact history stay.
+    /// before the next step; velocities, spins and contact history stay. A position outside
+    /// the box by more than its own size is refused (with the box's walls).
     #[setter]
     fn set_positions(&mut self, py: Python<'_>, positions: &Bound<'_, PyAny>) -> PyResult<()> {
         self.guarded("Simulation.positions", |sim| {

@@ -245,6 +245,10 @@ def test_bad_state_is_refused_naming_it():
     bad[7, 1] = np.inf
     with pytest.raises(ValueError, match="sphere 7"):
         sim.positions = bad
+    far = sim.positions.copy()
+    far[3, 0] = 0.7  # the box is 0.3 wide: 0.4 past its wall
+    with pytest.raises(ValueError, match="sphere 3: position .* outside the box"):
+        sim.positions = far
     np.testing.assert_array_equal(sim.positions, before)  # nothing moved
     spin = np.zeros((64, 3))
     spin[0, 2] = 1.0
