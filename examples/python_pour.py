@@ -11,8 +11,9 @@ import numpy as np
 
 import mochi
 
-# A small pour: a polydisperse column that collapses into a heap (any scene TOML key works).
-sim = mochi.Simulation({"scene": "pour", "spheres": 2000, "seed": 1}, backend="auto")
+# A small pour: a polydisperse column that collapses into a heap (any scene key works, as a
+# keyword argument or in a dict).
+sim = mochi.Simulation("pour", spheres=2000, seed=1, backend="auto")
 print(sim, f"dt = {sim.dt:.3g} s")
 
 steps = 3000

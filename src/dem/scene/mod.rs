@@ -572,6 +572,13 @@ impl SceneConfig {
                 .map_or(String::new(), |s| format!(" ({s})"));
             refused(match key.as_str() {
                 "." => message,
+                // `[source]`'s own struct names its key: `spheres of scene "pour": …`.
+                "source" => {
+                    let (field, rest) = message.split_once(' ').unwrap_or((&message, ""));
+                    let short = short_forms::short_form("source", field)
+                        .map_or(String::new(), |s| format!(" ({s})"));
+                    format!("scene key source.{field}{short} {rest}")
+                }
                 key => format!("scene key {key}{short}: {message}"),
             })
         })

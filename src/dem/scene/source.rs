@@ -342,7 +342,7 @@ impl<'de> Deserialize<'de> for Source {
                 let message = e.into_inner().message().to_owned();
                 match key.as_str() {
                     "." => E::custom(format!("scene \"{kind}\": {message}")),
-                    key => E::custom(format!("scene \"{kind}\", key {key}: {message}")),
+                    key => E::custom(format!("{key} of scene \"{kind}\": {message}")),
                 }
             })
         }
@@ -437,7 +437,7 @@ mod tests {
         let e = toml::from_str::<Source>("spheres = \"many\"")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("key spheres: invalid type"), "{e}");
+        assert!(e.contains("spheres of scene \"pour\": invalid type"), "{e}");
         let pour: Source = toml::from_str("spheres = 30").unwrap();
         assert_eq!(pour.spheres(), Some(30));
         assert_eq!(pour.kind(), SceneKind::Generated(Scene::Pour));
