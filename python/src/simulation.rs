@@ -255,51 +255,53 @@ fn numbers<'py>(
     Ok(converted)
 }
 
+/// `array` as rows of three numbers of `dtype` (`T`), `n` of them where given (`what` names it
+/// in errors).
+fn rows_of<T: Element + Copy>(
+    array: &Bound<'_, PyAny>,
+    what: &str,
+    dtype: &str,
+    n: Option<usize>,
+) -> PyResult<Vec<[T; 3]>> {
+    let array = numbers(array, what, dtype, &[n, Some(3)])?;
+    let rows: PyReadonlyArray2<'_, T> = array.extract()?;
+    Ok(rows
+        .as_array()
+        .rows()
+        .into_iter()
+        .map(|r| [r[0], r[1], r[2]])
+        .collect())
+}
+
 impl SphereArrays<'_, '_> {
     /// The particles the arrays describe, at rest where no velocities are given.
     fn particles(&self) -> PyResult<Particles> {
-        let positions = numbers(self.positions, "positions", "float64", &[None, Some(3)])?;
-        let positions: PyReadonlyArray2<'_, f64> = positions.extract()?;
-        let positions = positions.as_array();
-        let n = positions.nrows();
+        let positions: Vec<[f64; 3]> = rows_of(self.positions, "positions", "float64", None)?;
+        let n = positions.len();
         let radii = numbers(self.radii, "radii", "float32", &[Some(n)])?;
         let radii: PyReadonlyArray1<'_, f32> = radii.extract()?;
         let centres: Vec<[f32; 3]> = positions
-            .rows()
-            .into_iter()
+            .iter()
             .enumerate()
-            .map(|(i, c)| {
-                let c = [c[0], c[1], c[2]];
-                match c.iter().any(|x| x.is_finite() && (*x as f32).is_infinite()) {
+            .map(
+                |(i, &c)| match c.iter().any(|x| x.is_finite() && (*x as f32).is_infinite()) {
                     true => Err(PyValueError::new_err(format!(
                         "sphere {i}: position {c:?} is outside the range of float32 (magnitudes \
                          up to {:e}), in which mochi computes",
                         f32::MAX
                     ))),
                     false => Ok(c.map(|x| x as f32)),
-                }
-            })
+                },
+            )
             .collect::<PyResult<_>>()?;
         let spheres = SphereSet::new(centres, radii.as_array().to_vec()).map_err(to_py_err)?;
         let mut particles = Particles::at_rest(&spheres).map_err(to_py_err)?;
-        for (i, c) in positions.rows().into_iter().enumerate() {
-            particles
-                .set_exact_position(i, [c[0], c[1], c[2]])
-                .map_err(to_py_err)?;
+        for (i, &c) in positions.iter().enumerate() {
+            particles.set_exact_position(i, c).map_err(to_py_err)?;
         }
         let triples = |array: Option<&Bound<'_, PyAny>>, what: &str| {
             array
-                .map(|a| {
-                    let a = numbers(a, what, "float32", &[Some(n), Some(3)])?;
-                    let a: PyReadonlyArray2<'_, f32> = a.extract()?;
-                    Ok::<_, PyErr>(
-                        a.as_array()
-                            .rows()
-                            .into_iter()
-                            .map(|r| [r[0], r[1], r[2]])
-                            .collect(),
-                    )
-                })
+                .map(|a| rows_of::<f32>(a, what, "float32", Some(n)))
                 .transpose()
         };
         if let Some(v) = triples(self.velocities, "velocities")? {
@@ -572,15 +574,7 @@ impl Simulation {
 
     /// `array` as three float32 values per sphere now (`what` names it in errors).
     fn triples_of(&mut self, array: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f32; 3]>> {
-        let n = self.spheres_now()?;
-        let array = numbers(array, what, "float32", &[Some(n), Some(3)])?;
-        let rows: PyReadonlyArray2<'_, f32> = array.extract()?;
-        Ok(rows
-            .as_array()
-            .rows()
-            .into_iter()
-            .map(|r| [r[0], r[1], r[2]])
-            .collect())
+        rows_of(array, what, "float32", Some(self.spheres_now()?))
     }
 
     /// Writes `motion` into the run's step (the interpreter lock released); what was read back
@@ -742,14 +736,7 @@ impl Simulation {
     fn set_positions(&mut self, py: Python<'_>, positions: &Bound<'_, PyAny>) -> PyResult<()> {
         self.guarded("Simulation.positions", |sim| {
             let n = sim.spheres_now()?;
-            let array = numbers(positions, "positions", "float64", &[Some(n), Some(3)])?;
-            let rows: PyReadonlyArray2<'_, f64> = array.extract()?;
-            let rows: Vec<[f64; 3]> = rows
-                .as_array()
-                .rows()
-                .into_iter()
-                .map(|r| [r[0], r[1], r[2]])
-                .collect();
+            let rows: Vec<[f64; 3]> = rows_of(positions, "positions", "float64", Some(n))?;
             sim.set_motion(
                 py,
                 &Motion {
