@@ -8,10 +8,11 @@
 // as bits, and stays there); clears the force and torque accumulators for the next step.
 // Appends the walls' springs to the sphere's new history after those its ray wrote, and where a
 // sphere holds more contacts than its slots (g.dem.slots), raises `need` to its count (the host then grows
-// the slots and redoes the steps).
+// the slots and redoes the steps). Where g.dem.loaded is 1, adds each sphere's external force
+// and torque (`external`, by input index: force at row 2i, torque at 2i + 1) to its contacts'.
 extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* vel,
                                               float4* ang, float* force, float* torque,
-                                              const unsigned int* ids,
+                                              const unsigned int* ids, const float4* external,
                                               const unsigned int* old_count,
                                               const MochiHistoryEntry* old_entries,
                                               unsigned int* new_count,
@@ -107,9 +108,17 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
         torque[3 * p] = 0.0f;
         torque[3 * p + 1] = 0.0f;
         torque[3 * p + 2] = 0.0f;
+        if (g.dem.loaded) {
+            float4 e = external[2u * id + 1u];
+            t = mochi_add(t, mochi_v3(e.x, e.y, e.z));
+        }
         float inertia = mochi_inertia(m, s.w);
         ang[p] = make_float4(w.x + dt * (t.x / inertia), w.y + dt * (t.y / inertia),
                              w.z + dt * (t.z / inertia), w.w);
+    }
+    if (g.dem.loaded) {
+        float4 e = external[2u * id];
+        f = mochi_add(f, mochi_v3(e.x, e.y, e.z));
     }
     float vx = v.x + dt * (f.x / m + g_now.x);
     float vy = v.y + dt * (f.y / m + g_now.y);

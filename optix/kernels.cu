@@ -47,10 +47,12 @@ extern "C" __global__ void dem_boxes(const float4* pos, float* boxes, unsigned i
     mochi_write_box(boxes + 6 * p, pos[p], mode, r_max, pad_rel);
 }
 
-// Walls, gravity at step `step` and one semi-implicit Euler step, in place (the centres with
-// their residuals `lo`); clears the force accumulator for the next step. Keep in sync with
+// Walls, gravity at step `step`, the external force where dem.loaded is 1 (`external`, by
+// input index `ids[p]`: force at row 2i) and one semi-implicit Euler step, in place (the centres
+// with their residuals `lo`); clears the force accumulator for the next step. Keep in sync with
 // `integrate_sphere` in wgsl/dem/dem_integrate.wgsl.
 extern "C" __global__ void dem_integrate(float4* pos, float4* lo, float4* vel, float* force,
+                                         const unsigned int* ids, const float4* external,
                                          LawParams dem, unsigned int step) {
     unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= dem.n) {
@@ -64,6 +66,12 @@ extern "C" __global__ void dem_integrate(float4* pos, float4* lo, float4* vel, f
     float fx = force[3 * p] + w.x;
     float fy = force[3 * p + 1] + w.y;
     float fz = force[3 * p + 2] + w.z;
+    if (dem.loaded) {
+        float4 e = external[2u * ids[p]];
+        fx += e.x;
+        fy += e.y;
+        fz += e.z;
+    }
     force[3 * p] = 0.0f;
     force[3 * p + 1] = 0.0f;
     force[3 * p + 2] = 0.0f;

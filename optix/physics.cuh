@@ -35,7 +35,7 @@ struct LawParams {
     unsigned int columns;        // laws in a row of the material table: the materials and a rigid wall
     unsigned int box_column;     // the box walls' column (their material, or a rigid wall)
     unsigned int _pad0;
-    unsigned int _pad1;
+    unsigned int loaded;         // 1: some sphere has an external load (read by the integrations)
     MochiPairLaw sphere_law;     // the table's row 0, column 0
 };
 

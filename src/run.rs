@@ -14,11 +14,14 @@
 //! # Ok::<(), mochi::Error>(())
 //! ```
 
+use crate::dem::contacts::ContactData;
 use crate::dem::flow::FlowCounts;
 use crate::dem::model::StepParams;
 use crate::dem::scene::{Overrides, SceneConfig, SceneFlags, SceneKind, Start};
-use crate::dem::stepper::{Motion, Stepper};
+use crate::dem::stepper::{ExternalLoads, Motion, Stepper};
 use crate::dem::walls::WallSet;
+use crate::engines::DemSetup;
+use crate::engines::cpu::CpuStepper;
 use crate::engines::{BackendChoice, BackendKind, Opened, Options, open_scene};
 use crate::error::{Error, Result};
 use crate::io::{self, Frame};
@@ -241,6 +244,7 @@ impl RunStart {
             coarse_warning,
             flow_warning,
             coincident_pairs,
+            external: ExternalLoads::default(),
         })
     }
 }
@@ -274,6 +278,8 @@ pub struct Run {
     pub coincident_pairs: u64,
     /// The wall meshes the run reads, as they were at its start ([`RunState::meshes`]).
     pub meshes: Vec<FileDigest>,
+    /// The loads the steps apply besides contacts and gravity ([`Run::set_external_loads`]).
+    external: ExternalLoads,
 }
 
 impl Run {
@@ -320,6 +326,32 @@ impl Run {
             }
         }
         self.stepper.set_motion(motion)
+    }
+
+    /// Applies `loads` every step from the next on, until changed ([`Stepper::set_external_loads`]).
+    pub fn set_external_loads(&mut self, loads: ExternalLoads) -> Result<()> {
+        self.stepper.set_external_loads(&loads)?;
+        self.external = loads;
+        Ok(())
+    }
+
+    /// The external loads the steps apply (none until given).
+    pub fn external_loads(&self) -> &ExternalLoads {
+        &self.external
+    }
+
+    /// The contacts of the state now, as the next step resolves them, on any backend: the
+    /// state read back and evaluated by the cpu step's law, which every backend's law is
+    /// checked against (its sums are then the forces the next step applies, to the rounding
+    /// of the backend's own order of summation).
+    pub fn contact_data(&mut self) -> Result<ContactData> {
+        let setup = DemSetup {
+            particles: self.stepper.particles()?,
+            params: self.params.clone(),
+            mode: self.config.run.mode,
+            walls: self.walls.clone(),
+        };
+        CpuStepper::open(setup)?.contact_data()
     }
 
     /// The resolved scene as TOML, as checkpoints save it.

@@ -210,7 +210,13 @@ struct Expected<S> {
 impl<S: Twin> Case<S> {
     fn expected(&self) -> Expected<S> {
         let mut kept = Vec::new();
-        let walls = wall_contacts(&self.p, &self.i, S::of_wall, |w, s| kept.push((w, s)));
+        let walls = wall_contacts(
+            &self.p,
+            &self.i,
+            S::of_wall,
+            |w, s| kept.push((w, s)),
+            |_, _, _, _| {},
+        );
         Expected {
             from_i: pair_contact(&self.p, &self.i, &self.j, self.old),
             from_j: pair_contact(&self.p, &self.j, &self.i, self.old.negated()),

@@ -1,10 +1,14 @@
-//! Setting the spheres' motion between steps ([`Stepper::set_motion`]) on every backend that runs
-//! here: the state read back is what was set with the rest of it (radii, materials, contact
-//! history) kept, and the next steps start from it as a cpu step opened on that state does.
+//! Setting the spheres' motion, gravity and external loads between steps ([`Stepper::set_motion`],
+//! [`Stepper::set_external_loads`]) on every backend that runs here: the state read back is what
+//! was set with the rest of it (radii, materials, contact history) kept, and the next steps start
+//! from it as a cpu step opened on that state does; and the contacts of a state
+//! (`CpuStepper::contact_data`) are the forces each backend's next step applies.
 
 mod common;
 
-use mochi::dem::{Material, Motion, Particles, StepParams, Stepper};
+use mochi::dem::contacts::box_wall_id;
+use mochi::dem::{ExternalLoads, Material, Motion, Particles, StepParams, Stepper};
+use mochi::engines::cpu::CpuStepper;
 use mochi::engines::{BackendKind, Options};
 
 /// A 3×3×3 lattice of 1 cm spheres 19.9 mm apart (every neighbour pressed a little), in a box
@@ -205,4 +209,205 @@ fn gravity_set_between_steps_acts_from_the_next_step() {
         .to_string();
     assert!(e.contains("single step"), "{e}");
     assert!(p.with_gravity([0.0, f64::NAN, 0.0], 0.01).is_err());
+}
+
+/// Spheres apart in the middle of a 0.3 m box: nothing but gravity and their loads act.
+fn apart() -> Particles {
+    let positions: Vec<[f32; 3]> = (0..8)
+        .map(|i| [0.05 + 0.03 * i as f32, 0.15, 0.15])
+        .collect();
+    common::particles(positions, vec![[0.0; 3]; 8], vec![0.01; 8])
+}
+
+#[test]
+fn external_loads_act_every_step_until_changed() {
+    let p = params(&common::granular_material());
+    let (dt, g) = (p.dt, p.gravity);
+    let m = p.materials.mass(0, 0.01);
+    let inertia = 0.4 * m * 0.01 * 0.01;
+    let forces: Vec<[f32; 3]> = (0..8).map(|i| [1e-3 * i as f32, -2e-3, 5e-4]).collect();
+    let torques: Vec<[f32; 3]> = (0..8).map(|i| [0.0, 1e-7 * i as f32, -2e-7]).collect();
+    let close =
+        |a: [f32; 3], b: [f32; 3], scale: f32| (0..3).all(|k| (a[k] - b[k]).abs() <= 1e-5 * scale);
+    for kind in common::dem_backends() {
+        let name = kind.name();
+        let mut s = open(kind, &apart(), &p);
+        let loads = ExternalLoads {
+            forces: forces.clone(),
+            torques: torques.clone(),
+        };
+        s.set_external_loads(&loads).unwrap();
+        s.advance(10).unwrap();
+        let now = s.particles().unwrap();
+        for i in 0..8 {
+            let v: [f32; 3] = std::array::from_fn(|k| 10.0 * dt * (forces[i][k] / m + g[k]));
+            let w: [f32; 3] = std::array::from_fn(|k| 10.0 * dt * torques[i][k] / inertia);
+            assert!(
+                close(now.velocities[i], v, 1.0),
+                "{name}: sphere {i} moves at {:?}, not {v:?}",
+                now.velocities[i]
+            );
+            assert!(
+                close(now.angular_velocities[i], w, 1.0),
+                "{name}: sphere {i} turns at {:?}, not {w:?}",
+                now.angular_velocities[i]
+            );
+        }
+        // Removed: gravity alone from the next step.
+        s.set_external_loads(&ExternalLoads::default()).unwrap();
+        s.advance(10).unwrap();
+        let later = s.particles().unwrap();
+        for i in 0..8 {
+            let v: [f32; 3] = std::array::from_fn(|k| now.velocities[i][k] + 10.0 * dt * g[k]);
+            assert!(
+                close(later.velocities[i], v, 1.0),
+                "{name}: sphere {i} moves at {:?}, not {v:?}",
+                later.velocities[i]
+            );
+            assert_eq!(
+                later.angular_velocities[i], now.angular_velocities[i],
+                "{name}"
+            );
+        }
+        // Refused, the loads kept: rows of another count, values that are not finite.
+        let short = ExternalLoads {
+            forces: vec![[1.0; 3]; 3],
+            ..ExternalLoads::default()
+        };
+        let e = s.set_external_loads(&short).unwrap_err().to_string();
+        assert!(
+            e.contains("external forces of 3 spheres given to a step of 8"),
+            "{name}: {e}"
+        );
+        let mut bad = forces.clone();
+        bad[2][1] = f32::NAN;
+        let e = s
+            .set_external_loads(&ExternalLoads {
+                forces: bad,
+                ..ExternalLoads::default()
+            })
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sphere 2"), "{name}: {e}");
+    }
+    // The paper's step turns nothing: a torque is refused there, a force acts.
+    let paper = params(&Material::default());
+    for kind in common::dem_backends() {
+        let mut s = open(kind, &apart(), &paper);
+        let e = s
+            .set_external_loads(&ExternalLoads {
+                torques: torques.clone(),
+                ..ExternalLoads::default()
+            })
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("does not turn its spheres"),
+            "{}: {e}",
+            kind.name()
+        );
+        s.set_external_loads(&ExternalLoads {
+            forces: forces.clone(),
+            ..ExternalLoads::default()
+        })
+        .unwrap();
+        s.advance(3).unwrap();
+        let v = s.particles().unwrap().velocities[7];
+        let want: [f32; 3] = std::array::from_fn(|k| 3.0 * dt * (forces[7][k] / m + g[k]));
+        assert!(close(v, want, 1.0), "{}: {v:?}, not {want:?}", kind.name());
+    }
+}
+
+#[test]
+fn contact_data_sums_to_the_forces_the_next_step_applies() {
+    // The lattice pressed together and moving, in contact with the floor: spheres and walls,
+    // normal and friction forces.
+    let p = params(&common::granular_material());
+    let mut start = lattice();
+    for (i, c) in start.positions.iter_mut().enumerate() {
+        c[2] -= 0.0901 + 1e-5 * i as f32;
+    }
+    for (i, v) in start.velocities.iter_mut().enumerate() {
+        *v = [0.02 * (i % 3) as f32, -0.01, 0.0];
+    }
+    let setup = mochi::engines::DemSetup::new(start.clone(), p.clone(), mochi::ProxyMode::Mochi);
+    let data = CpuStepper::open(setup).unwrap().contact_data().unwrap();
+    let floor = box_wall_id(4);
+    assert!(
+        data.pairs.iter().filter(|pair| pair[1] >= 0).count() >= 50,
+        "{:?}",
+        data.pairs
+    );
+    assert_eq!(
+        data.pairs.iter().filter(|pair| pair[1] == floor).count(),
+        9,
+        "the bottom layer on the floor"
+    );
+    // Each pair once, the first partner the lower index; normals push the partners apart.
+    let mut sums = vec![[0.0f64; 3]; 27];
+    for (k, &[i, j]) in data.pairs.iter().enumerate() {
+        let (n, t) = (data.normal_force[k], data.tangential_force[k]);
+        assert!(data.overlap[k] > 0.0, "contact {k}");
+        let apart: [f32; 3] = match j {
+            j if j >= 0 => {
+                assert!(i < j, "{i}, {j}");
+                std::array::from_fn(|a| {
+                    start.positions[i as usize][a] - start.positions[j as usize][a]
+                })
+            }
+            _ => [0.0, 0.0, 1.0],
+        };
+        let along: f32 = (0..3).map(|a| n[a] * apart[a]).sum();
+        assert!(along > 0.0, "contact {k} ({i}, {j}) pulls: {n:?}");
+        for a in 0..3 {
+            let f = (n[a] + t[a]) as f64;
+            sums[i as usize][a] += f;
+            if j >= 0 {
+                sums[j as usize][a] -= f;
+            }
+        }
+    }
+    let largest = data
+        .forces
+        .iter()
+        .flatten()
+        .fold(0.0f32, |m, f| m.max(f.abs()));
+    assert!(
+        data.tangential_force
+            .iter()
+            .flatten()
+            .any(|&f| f.abs() > 1e-3 * largest),
+        "friction acts"
+    );
+    for i in 0..27 {
+        for a in 0..3 {
+            let gap = (sums[i][a] - data.forces[i][a] as f64).abs();
+            assert!(
+                gap <= 1e-5 * largest as f64,
+                "sphere {i}: {:?} vs {:?}",
+                sums[i],
+                data.forces[i]
+            );
+        }
+    }
+    // The forces are what each backend's next step applies: m·Δv/dt − m·g.
+    let m = p.materials.mass(0, 0.01);
+    for kind in common::dem_backends() {
+        let mut s = open(kind, &start, &p);
+        s.advance(1).unwrap();
+        let after = s.particles().unwrap();
+        for i in 0..27 {
+            for a in 0..3 {
+                let applied =
+                    m * (after.velocities[i][a] - start.velocities[i][a]) / p.dt - m * p.gravity[a];
+                let gap = (applied - data.forces[i][a]).abs();
+                assert!(
+                    gap <= 1e-3 * largest,
+                    "{}: sphere {i} gets {applied} along {a}, not {}",
+                    kind.name(),
+                    data.forces[i][a]
+                );
+            }
+        }
+    }
 }

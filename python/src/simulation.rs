@@ -8,6 +8,7 @@
 
 use crate::{Guarded, MochiError, guard, plain_array, to_py_err};
 use mochi::SphereSet;
+use mochi::dem::contacts::ContactData;
 use mochi::dem::scene::{Overrides, SceneConfig, SceneFlags, SceneKind};
 use mochi::dem::{Energies, Motion, Particles};
 use mochi::engines::{BackendChoice, Options};
@@ -330,6 +331,15 @@ impl SphereArrays<'_, '_> {
     }
 }
 
+/// Makes `array` read-only (a snapshot whose writes would be lost).
+fn read_only<T>(array: &Bound<'_, T>) -> PyResult<()> {
+    let py = array.py();
+    array
+        .as_any()
+        .call_method("setflags", (), Some(&[("write", false)].into_py_dict(py)?))?;
+    Ok(())
+}
+
 /// A copy of `values`, allocated fallibly (`MemoryError` naming `what`).
 fn copied<T: Copy>(values: &[T], what: &str) -> PyResult<Vec<T>> {
     let mut copy = Vec::new();
@@ -468,6 +478,8 @@ pub struct Simulation {
     contacts: u64,
     now: Option<Particles>,
     views: Views,
+    /// The contacts of `now`, where asked for since the last step.
+    touching: Option<ContactData>,
     /// What a call that panicked said ([`Guarded`]).
     broken: Option<String>,
 }
@@ -508,6 +520,7 @@ impl Simulation {
             contacts: 0,
             now: None,
             views: Views::default(),
+            touching: None,
             broken: None,
         })
     }
@@ -555,7 +568,7 @@ impl Simulation {
             return Ok(array.bind(py).clone());
         }
         let array = make(py, self.particles(py)?)?;
-        array.call_method("setflags", (), Some(&[("write", false)].into_py_dict(py)?))?;
+        read_only(&array)?;
         *slot(&mut self.views) = Some(array.clone().unbind());
         Ok(array)
     }
@@ -593,6 +606,63 @@ impl Simulation {
     fn stepped(&mut self) {
         self.now = None;
         self.views = Views::default();
+        self.touching = None;
+    }
+
+    /// The contacts now (evaluated once per step, the interpreter lock released).
+    fn touching(&mut self, py: Python<'_>) -> PyResult<&ContactData> {
+        if self.touching.is_none() {
+            let run = self.run_mut()?;
+            let data = py.detach(|| run.contact_data()).map_err(to_py_err)?;
+            self.touching = Some(data);
+        }
+        Ok(self.touching.as_ref().expect("evaluated above"))
+    }
+
+    /// Replaces the run's external forces (`forces`) or torques with `rows` (`None`: none).
+    fn set_loads(
+        &mut self,
+        py: Python<'_>,
+        rows: Option<&Bound<'_, PyAny>>,
+        forces: bool,
+    ) -> PyResult<()> {
+        let what = if forces {
+            "external_forces"
+        } else {
+            "external_torques"
+        };
+        let rows = match rows {
+            Some(array) if !array.is_none() => self.triples_of(array, what)?,
+            _ => Vec::new(),
+        };
+        let run = self.run_mut()?;
+        let mut loads = run.external_loads().clone();
+        match forces {
+            true => loads.forces = rows,
+            false => loads.torques = rows,
+        }
+        py.detach(|| run.set_external_loads(loads))
+            .map_err(|e| match e {
+                mochi::Error::Usage(msg) => PyValueError::new_err(msg),
+                other => to_py_err(other),
+            })
+    }
+
+    /// The run's external forces or torques as an `(N, 3)` float32 array (zeros where none).
+    fn loads<'py>(&mut self, py: Python<'py>, forces: bool) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let n = self.spheres_now()?;
+        let loads = self.run_mut()?.external_loads();
+        let rows = if forces {
+            &loads.forces
+        } else {
+            &loads.torques
+        };
+        let array = match rows.is_empty() {
+            true => triples(py, &vec![[0.0f32; 3]; n])?,
+            false => triples(py, rows)?,
+        };
+        read_only(&array)?;
+        Ok(array)
     }
 }
 
@@ -954,6 +1024,90 @@ impl Simulation {
             flow.set_item("inserted_mass", counts.inserted_mass)?;
             flow.set_item("removed_mass", counts.removed_mass)?;
             Ok(flow)
+        })
+    }
+
+    /// Forces `(N, 3)` float32 [N] added to each sphere's contacts and gravity every step
+    /// until changed (zeros until set): set an `(N, 3)` array before a step, or `None` to
+    /// remove them. Per sphere, so refused in a run whose inflows or outflows change its
+    /// spheres.
+    #[getter]
+    fn external_forces<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        self.guarded("Simulation.external_forces", |sim| sim.loads(py, true))
+    }
+
+    #[setter]
+    fn set_external_forces(
+        &mut self,
+        py: Python<'_>,
+        forces: Option<Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        self.guarded("Simulation.external_forces", |sim| {
+            sim.set_loads(py, forces.as_ref(), true)
+        })
+    }
+
+    /// Torques `(N, 3)` float32 [N·m] about each sphere's centre added every step until
+    /// changed (zeros until set; `None` removes them). Refused where the run's step does not
+    /// turn its spheres (the paper's frictionless law).
+    #[getter]
+    fn external_torques<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        self.guarded("Simulation.external_torques", |sim| sim.loads(py, false))
+    }
+
+    #[setter]
+    fn set_external_torques(
+        &mut self,
+        py: Python<'_>,
+        torques: Option<Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        self.guarded("Simulation.external_torques", |sim| {
+            sim.set_loads(py, torques.as_ref(), false)
+        })
+    }
+
+    /// The contacts now, as the next step resolves them: a dict of arrays `pairs` `(P, 2)`
+    /// int64 (spheres i < j by input index, or a sphere and a wall's negative id: the box's
+    /// walls −1 … −6 for the low and high wall of x, y, z; the scene's mesh walls −7, −8, …,
+    /// one contact per triangle touched), `normal_force` and `tangential_force` `(P, 3)`
+    /// float32 [N] on the first of the pair (the second takes the opposite) and `overlap`
+    /// `(P,)` float32 [m]. Evaluated on every backend by the Rust law that each backend's law
+    /// is checked against, from the state read back (once per step).
+    fn contact_data<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        self.guarded("Simulation.contact_data", |sim| {
+            let data = sim.touching(py)?;
+            let pairs = copied(data.pairs.as_flattened(), "the contacts")?;
+            let pairs = Array2::from_shape_vec((data.pairs.len(), 2), pairs)
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let out = PyDict::new(py);
+            out.set_item("pairs", pairs.into_pyarray(py))?;
+            out.set_item("normal_force", triples(py, &data.normal_force)?)?;
+            out.set_item("tangential_force", triples(py, &data.tangential_force)?)?;
+            out.set_item("overlap", singles(py, &data.overlap)?)?;
+            Ok(out)
+        })
+    }
+
+    /// Each sphere's contact force now `(N, 3)` float32 [N]: the sum of its contacts in
+    /// `contact_data()` (with spheres and walls) as the next step adds it up, before gravity
+    /// and external forces. A read-only snapshot.
+    #[getter]
+    fn forces<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        self.guarded("Simulation.forces", |sim| {
+            let array = triples(py, &sim.touching(py)?.forces)?;
+            read_only(&array)?;
+            Ok(array)
+        })
+    }
+
+    /// Each sphere's contact torque about its centre now `(N, 3)` float32 [N·m], as
+    /// `forces` (zeros where the run's step does not turn its spheres).
+    #[getter]
+    fn torques<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        self.guarded("Simulation.torques", |sim| {
+            let array = triples(py, &sim.touching(py)?.torques)?;
+            read_only(&array)?;
+            Ok(array)
         })
     }
 

@@ -5,6 +5,7 @@
 //! physics, [`scene`] the scene files, [`Stepper`] the step every engine implements
 //! (the `engines` registry opens one, where the backend's data lives).
 
+pub mod contacts;
 pub mod equipment;
 pub mod flow;
 pub mod material_spec;
@@ -19,4 +20,4 @@ pub use crate::particles::{
     ContactHistory, Energies, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles,
 };
 pub use model::{Material, StepParams};
-pub use stepper::{Advance, Clock, Motion, StageTimes, Stepper};
+pub use stepper::{Advance, Clock, ExternalLoads, Motion, StageTimes, Stepper};

@@ -135,6 +135,70 @@ impl Motion<'_> {
     }
 }
 
+/// Forces and torques applied to the spheres every step besides their contacts and gravity, in
+/// input order, until changed: the loads of user code (a fluid's drag, a controller's push).
+/// Each list holds one row per sphere or none (no load of that kind).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ExternalLoads {
+    /// Forces \[N\].
+    pub forces: Vec<[f32; 3]>,
+    /// Torques about the centres \[N·m\].
+    pub torques: Vec<[f32; 3]>,
+}
+
+impl ExternalLoads {
+    /// Refuses lists of other than `n` rows and values that are not finite, naming the sphere.
+    pub fn check(&self, n: usize) -> Result<()> {
+        for (what, rows) in [("forces", &self.forces), ("torques", &self.torques)] {
+            if !rows.is_empty() && rows.len() != n {
+                return Err(Error::Usage(format!(
+                    "external {what} of {} spheres given to a step of {n}",
+                    rows.len()
+                )));
+            }
+            if let Some(index) = rows.iter().position(|r| r.iter().any(|x| !x.is_finite())) {
+                return Err(Error::InvalidSphere {
+                    index,
+                    reason: format!("its external {what} {:?} are not finite", rows[index]),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether no sphere has a load.
+    pub fn is_empty(&self) -> bool {
+        let zero = |rows: &[[f32; 3]]| rows.iter().flatten().all(|&x| x == 0.0);
+        zero(&self.forces) && zero(&self.torques)
+    }
+
+    /// Whether some torque is not zero.
+    pub fn turns(&self) -> bool {
+        self.torques.iter().flatten().any(|&x| x != 0.0)
+    }
+
+    /// The force on sphere `i` (zero where there are none).
+    pub fn force(&self, i: usize) -> [f32; 3] {
+        self.forces.get(i).copied().unwrap_or_default()
+    }
+
+    /// The torque on sphere `i` (zero where there are none).
+    pub fn torque(&self, i: usize) -> [f32; 3] {
+        self.torques.get(i).copied().unwrap_or_default()
+    }
+
+    /// The loads of `n` spheres as GPU rows by input index: sphere i's force at row 2·i and its
+    /// torque at row 2·i + 1, each `vec4(x, y, z, 0)`.
+    pub fn rows(&self, n: usize) -> Vec<[f32; 4]> {
+        (0..n)
+            .flat_map(|i| {
+                let ([fx, fy, fz], [tx, ty, tz]) = (self.force(i), self.torque(i));
+                [[fx, fy, fz, 0.0], [tx, ty, tz, 0.0]]
+            })
+            .collect()
+    }
+}
+
 /// `rows` in `f64`.
 fn widened_rows(rows: &[[f32; 3]]) -> Vec<[f64; 3]> {
     rows.iter().map(|r| r.map(f64::from)).collect()
@@ -162,6 +226,12 @@ pub trait Stepper: Send {
     /// Sets gravity at t = 0 \[m/s²\] (turned by the scene's gravity spin from there) from the
     /// next step on ([`StepParams::with_gravity`] checks a value first).
     fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()>;
+
+    /// Applies `loads` ([`check`](ExternalLoads::check)ed by the caller) every step from the
+    /// next on, until changed; replaces the loads given before. Refuses a torque in a step that
+    /// does not turn its spheres (the paper's frictionless law). A GPU step keeps them on the
+    /// device, read by its integration only while some sphere has a load.
+    fn set_external_loads(&mut self, loads: &ExternalLoads) -> Result<()>;
 
     /// The force and torque the spheres exerted on each mesh wall in the last step, in the
     /// scene's order of walls (default: none, for a step without mesh walls).

@@ -335,9 +335,12 @@ fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
 fn integrate_sphere(p: u32) -> vec4<f32> {
     let s = pos[p];
     let v = vel[p];
-    let f = load_force(p);
+    var f = load_force(p);
     if any(f != vec3(0.0)) {
         clear_force(p);
+    }
+    if dem.loaded != 0u {
+        f += external_load(p, 0u);
     }
     let g = gravity_at(atomicLoad(&clock) - 1u);
     let m = v.w;
@@ -348,11 +351,15 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
     if dem.turns != 0u {
         let inertia = moment_of_inertia(m, s.w);
         let torque = load_torque(p);
-        let o = omega[p];
-        omega[p] = vec4(o.xyz + dem.dt * (torque / inertia), o.w);
         if any(torque != vec3(0.0)) {
             clear_torque(p);
         }
+        var t = torque;
+        if dem.loaded != 0u {
+            t += external_load(p, 1u);
+        }
+        let o = omega[p];
+        omega[p] = vec4(o.xyz + dem.dt * (t / inertia), o.w);
     }
     return moved;
 }

@@ -21,7 +21,10 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
     if any(contacts != vec3(0.0)) {
         clear_force(p);
     }
-    let f = contacts + wall_force(s.xyz, v.xyz, s.w, v.w);
+    var f = contacts + wall_force(s.xyz, v.xyz, s.w, v.w);
+    if dem.loaded != 0u {
+        f += external_load(p, 0u);
+    }
     let g = gravity_at(atomicLoad(&clock) - 1u);
     let m = v.w;
     let v_new = v.xyz + dem.dt * (f / m + g);

@@ -22,7 +22,7 @@ struct LawParams {
     columns: u32,           // laws in a row of the material table: the materials and a rigid wall
     box_column: u32,        // the table's column of the six box walls
     _pad0: u32,
-    _pad1: u32,
+    loaded: u32,            // 1: some sphere has an external load (read by the integrations)
     sphere_law: PairLaw,    // row 0, column 0 of the table: with one material, every pair's law
 }
 
@@ -46,6 +46,15 @@ struct PairLaw {
 @group(0) @binding(34) var<storage, read_write> pos_lo: array<vec4<f32>>;
 // steps begun since t = 0
 @group(0) @binding(16) var<storage, read_write> clock: atomic<u32>;
+// by stable id k (fn stable_id of the step's module): sphere k's external force at row 2k and its
+// torque at row 2k + 1 (x, y, z, 0), read only where dem.loaded is 1 (bound to one empty pair of
+// rows otherwise)
+@group(0) @binding(36) var<storage, read> external_loads: array<vec4<f32>>;
+
+// The external force (`row` 0) or torque (1) of the sphere at state index p.
+fn external_load(p: u32, row: u32) -> vec3<f32> {
+    return external_loads[2u * stable_id(p) + row].xyz;
+}
 
 // The effective value a·b/(a + b) of two positive values (m*, R*, I*) without their product,
 // which underflows f32 for small spheres: lo/(1 + lo/hi), symmetric in a and b. Keep in sync with

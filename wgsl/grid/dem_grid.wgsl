@@ -38,6 +38,12 @@
 @group(0) @binding(26) var<storage, read_write> home: array<u32>;
 @group(0) @binding(27) var<storage, read_write> walk_pos: array<vec4<f32>>;
 
+// The input index the sphere at state index p had when the step opened (ids have gaps where
+// spheres left).
+fn stable_id(p: u32) -> u32 {
+    return ids[p];
+}
+
 fn index(gid: vec3<u32>) -> u32 {
     return gid.x + gid.y * params.row;
 }

@@ -15,10 +15,6 @@ fn carry(i: u32, p: u32) {
     came_from[p] = i;
 }
 
-fn stable_id(p: u32) -> u32 {
-    return ids[p];
-}
-
 fn row_before(p: u32) -> u32 {
     return came_from[p];
 }

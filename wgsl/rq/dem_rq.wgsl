@@ -21,6 +21,11 @@ struct RqParams {
 // counters[0]: touching pairs found in the step
 @group(0) @binding(14) var<storage, read_write> counters: array<atomic<u32>, 4>;
 
+// The state is in input order: a sphere's index is its stable id.
+fn stable_id(p: u32) -> u32 {
+    return p;
+}
+
 // The proxy box of every sphere (half-width 2·r, or 2·r_max in nns mode, padded by a few ulps);
 // starts the step's clock.
 @compute @workgroup_size(256)

@@ -4,10 +4,6 @@
 // proxy rule's choice) resolves it; the walls are resolved by each sphere's own thread in the
 // same pass.
 
-fn stable_id(p: u32) -> u32 {
-    return p;
-}
-
 fn row_before(p: u32) -> u32 {
     return p;
 }

@@ -268,6 +268,8 @@ impl Kept for LoadedSprings {
 pub struct Contact<S = Springs> {
     /// Force on the sphere \[N\].
     pub force: Vec3,
+    /// Its normal part (`force` less the tangential force) \[N\].
+    pub normal: Vec3,
     /// Torque on the sphere about its centre \[N·m\].
     pub torque: Vec3,
     /// Springs to keep for the next step.
@@ -369,6 +371,7 @@ pub fn pair_contact<S: Kept>(p: &StepParams, i: &Body, j: &Body, old: S) -> Opti
     if !p.friction.turns() {
         return Some(Contact {
             force,
+            normal: force,
             torque: Vec3::ZERO,
             springs: S::default(),
         });
@@ -387,6 +390,7 @@ pub fn pair_contact<S: Kept>(p: &StepParams, i: &Body, j: &Body, old: S) -> Opti
     let (f_t, torque, springs) = friction(p, law, &touch, law.sliding, old);
     Some(Contact {
         force: force + f_t,
+        normal: force,
         torque,
         springs,
     })
@@ -409,13 +413,15 @@ pub struct WallContacts {
 
 /// The walls touching sphere `b`: `old(w)` gives the springs it kept of wall `w` (zero for none)
 /// and `keep(w, springs)` receives those to keep, for each touching wall in order, where the
-/// material has history.
+/// material has history; `seen(w, normal, tangential, overlap)` receives each touching wall's
+/// forces on the sphere.
 #[inline(always)]
 pub fn wall_contacts<S: Kept>(
     p: &StepParams,
     b: &Body,
     old: impl Fn(u32) -> S,
     mut keep: impl FnMut(u32, S),
+    mut seen: impl FnMut(u32, Vec3, Vec3, f32),
 ) -> WallContacts {
     let turns = p.friction.turns();
     let keeps = p.friction.has_history();
@@ -438,13 +444,16 @@ pub fn wall_contacts<S: Kept>(
                 0 => f += nf.push,
                 _ => f -= nf.push,
             }
-            if turns {
+            let wall = 2 * a as u32 + side;
+            let pushed = [nf.push, -nf.push][side as usize] * Vec3::AXES[a];
+            if !turns {
+                seen(wall, pushed, Vec3::ZERO, overlap);
+            } else {
                 let n = if side == 0 {
                     -Vec3::AXES[a]
                 } else {
                     Vec3::AXES[a]
                 };
-                let wall = 2 * a as u32 + side;
                 let touch = Touch {
                     n,
                     overlap,
@@ -457,6 +466,7 @@ pub fn wall_contacts<S: Kept>(
                     w_rel: b.w,
                 };
                 let (f_t, t, springs) = friction(p, law, &touch, law.sliding, old(wall));
+                seen(wall, pushed, f_t, overlap);
                 tangential += f_t;
                 torque += t;
                 if keeps {
@@ -501,6 +511,7 @@ pub fn surface_contact<S: Kept>(
     if !p.friction.turns() {
         return Contact {
             force,
+            normal: force,
             torque: Vec3::ZERO,
             springs: S::default(),
         };
@@ -519,6 +530,7 @@ pub fn surface_contact<S: Kept>(
     let (f_t, torque, springs) = friction(p, law, &touch, mu, old);
     Contact {
         force: force + f_t,
+        normal: force,
         torque,
         springs,
     }

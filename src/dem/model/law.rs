@@ -77,8 +77,9 @@ pub struct LawParams {
     pub box_column: u32,
     /// Padding: `sphere_law` starts a 16-byte line, as a struct member of a uniform must.
     pub _pad0: u32,
-    /// Padding, as `_pad0`.
-    pub _pad1: u32,
+    /// 1 while some sphere has an external load ([`ExternalLoads`](crate::dem::stepper::ExternalLoads)):
+    /// the integration reads them only then.
+    pub loaded: u32,
     /// The law of two spheres of the first material (the table's row 0, column 0): with one
     /// material every pair's.
     pub sphere_law: PairLaw,
@@ -110,7 +111,7 @@ macro_rules! law_params_fields {
                 columns,
                 box_column,
                 _pad0,
-                _pad1,
+                loaded,
                 sphere_law,
             }
         )
@@ -141,7 +142,7 @@ impl LawParams {
             columns: p.materials.count as u32 + 1,
             box_column: p.box_column,
             _pad0: 0,
-            _pad1: 0,
+            loaded: 0,
             sphere_law: *p.materials.law(0, 0),
         }
     }

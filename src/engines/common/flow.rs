@@ -12,7 +12,7 @@
 
 use crate::dem::flow::{Event, FlowCounts, FlowSet, NewSphere};
 use crate::dem::model::mass;
-use crate::dem::stepper::{Advance, Clock, Motion, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::error::Result;
 use crate::particles::Particles;
@@ -285,6 +285,14 @@ impl Stepper for FlowStep {
         match &mut self.step {
             Some(step) => step.set_gravity(gravity),
             None => Ok(()),
+        }
+    }
+
+    fn set_external_loads(&mut self, loads: &ExternalLoads) -> Result<()> {
+        // Its spheres enter and leave: no load stays with its sphere.
+        match loads.is_empty() {
+            true => Ok(()),
+            false => Err(super::rows::not_fixed()),
         }
     }
 

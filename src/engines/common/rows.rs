@@ -180,12 +180,22 @@ fn sphere_of(order: Option<&[u32]>, k: usize) -> usize {
     order.map_or(k, |ids| ids[k] as usize)
 }
 
-/// The error of an angular velocity given to a step that does not turn its spheres.
+/// The error of an angular velocity or a torque given to a step that does not turn its
+/// spheres.
 pub(crate) fn no_spin() -> Error {
     Error::Usage(
         "this run's step does not turn its spheres (the paper's frictionless law, no spin at \
          its start): start a run whose spheres spin, or with friction or rolling resistance, to \
-         set angular velocities"
+         set angular velocities or torques"
+            .into(),
+    )
+}
+
+/// The error of external loads given to a step whose spheres enter or leave.
+pub(crate) fn not_fixed() -> Error {
+    Error::Usage(
+        "external loads are given per sphere, and this run's inflows or outflows change its \
+         spheres: run without flows to apply external loads"
             .into(),
     )
 }

@@ -8,14 +8,16 @@
 use super::grid::SortedGrid;
 use super::query::{gather, gather_with_side};
 use super::walls::MeshPass;
+use crate::dem::contacts::{ContactData, box_wall_id, mesh_wall_id};
 use crate::dem::flow::{FlowCounts, FlowSet};
 use crate::dem::model::contact::{
     Body, Kept, LoadedSprings, Springs, integrate_rotation, moment_of_inertia, pair_contact,
     wall_contacts,
 };
 use crate::dem::model::{StepParams, integrate};
-use crate::dem::stepper::{Advance, Clock, Motion, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
+use crate::engines::common::rows;
 use crate::engines::setup::DemSetup;
 use crate::error::{Error, Result, try_resize, try_vec};
 use crate::particles::{FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadedEntry, Particles, Slot};
@@ -77,6 +79,8 @@ pub struct CpuStepper {
     mesh: Option<MeshPass>,
     /// Inflows and outflows (`None`: the spheres stay as they are).
     flow: Option<(FlowSet, FlowCounts)>,
+    /// Loads added every step (`None`: none).
+    external: Option<ExternalLoads>,
 }
 
 impl CpuStepper {
@@ -134,6 +138,7 @@ impl CpuStepper {
             box_walls: true,
             mesh: None,
             flow: None,
+            external: None,
             params,
             particles,
         })
@@ -208,6 +213,111 @@ impl CpuStepper {
         Ok(self)
     }
 
+    /// Bins the spheres: a step's first phase.
+    fn bin(&mut self) -> Result<()> {
+        let parts = &self.particles;
+        let (lo, hi) = match center_bounds(&parts.positions) {
+            Ok(Some(bounds)) => bounds,
+            _ => self.region,
+        };
+        self.grid
+            .bin_within(&parts.positions, &parts.radii, lo, hi, self.cell_size)
+    }
+
+    /// Resolves the spheres' mesh-wall contacts, before their other contacts.
+    fn resolve_mesh(&mut self) -> Result<()> {
+        match &mut self.mesh {
+            Some(mesh) => mesh.resolve(&self.params, &self.particles, &self.masses),
+            None => Ok(()),
+        }
+    }
+
+    /// The contacts of the state now, as the next step resolves them (the state is left as it
+    /// is, but for its contact history: this step's, as a step would leave it).
+    pub fn contact_data(&mut self) -> Result<ContactData> {
+        let n = self.particles.len();
+        self.bin()?;
+        self.resolve_mesh()?;
+        let mut data = match (
+            self.params.friction.has_history(),
+            self.params.friction.keeps_load(),
+        ) {
+            (false, _) | (true, false) => self.contacts_keeping::<Springs>()?,
+            (true, true) => self.contacts_keeping::<LoadedSprings>()?,
+        };
+        self.resolve_contacts()?;
+        data.forces = self.forces.clone();
+        data.torques = match self.torques.len() {
+            0 => vec![[0.0; 3]; n],
+            _ => self.torques.clone(),
+        };
+        Ok(data)
+    }
+
+    /// [`contact_data`](Self::contact_data)'s contacts, with the springs `S` (of the binned
+    /// state, its mesh contacts resolved).
+    fn contacts_keeping<S: Kept>(&self) -> Result<ContactData> {
+        let n = self.grid.keys.len();
+        let pass = ContactPass {
+            grid: &self.grid,
+            params: &self.params,
+            particles: &self.particles,
+            masses: &self.masses,
+            box_walls: self.box_walls,
+            mesh: self.mesh.as_ref(),
+        };
+        let poses = self.mesh.as_ref().map(|m| {
+            let t = self.particles.step as f64 * self.params.dt as f64;
+            m.walls().poses_at(t)
+        });
+        let mut found: Vec<ContactData> = Vec::new();
+        found.try_reserve_exact(n).map_err(|_| Error::OutOfMemory {
+            what: format!("the contacts of {n} spheres"),
+            bytes: (n * std::mem::size_of::<ContactData>()) as u64,
+        })?;
+        found.resize_with(n, ContactData::default);
+        gather(&self.grid, &mut found, |at, runs| {
+            let i = self.grid.ids[at] as usize;
+            let mut data = ContactData::default();
+            let mut record = |partner: i64, normal: Vec3, tangential: Vec3, overlap: f32| {
+                // Each pair once, from its lower index's side.
+                if partner < 0 || partner > i as i64 {
+                    data.push(
+                        [i as i64, partner],
+                        normal.into(),
+                        tangential.into(),
+                        overlap,
+                    );
+                }
+            };
+            pass.sphere::<S>(at, runs, &mut [], &mut record);
+            if let (Some(mesh), Some(poses)) = (&self.mesh, &poses) {
+                let body = pass.body(at);
+                let mut scratch = Default::default();
+                let state = (pass.params, pass.particles);
+                mesh.visit::<S>(state, (i, &body), poses, &mut scratch, |w, c, overlap| {
+                    let partner = mesh_wall_id(w);
+                    record(partner, c.normal, c.force - c.normal, overlap)
+                });
+            }
+            data
+        });
+        // In input order of the first partner.
+        let mut sorted_at = vec![0; n];
+        for (at, &id) in self.grid.ids.iter().enumerate() {
+            sorted_at[id as usize] = at;
+        }
+        let mut all = ContactData::default();
+        for at in sorted_at {
+            let data = std::mem::take(&mut found[at]);
+            all.pairs.extend(data.pairs);
+            all.normal_force.extend(data.normal_force);
+            all.tangential_force.extend(data.tangential_force);
+            all.overlap.extend(data.overlap);
+        }
+        Ok(all)
+    }
+
     /// Sums every sorted sphere's contact forces and torques and writes the new contact
     /// history; returns the number of touching pairs. When a sphere has more contacts with
     /// history than there are slots, grows the slots and resolves the step again (the old
@@ -227,7 +337,7 @@ impl CpuStepper {
         let (grid, sums, slots) = (&self.grid, &mut self.sums, &mut self.slots);
         if !self.params.friction.has_history() {
             gather(grid, sums, |at, runs| {
-                pass.sphere::<Springs>(at, runs, &mut [])
+                pass.sphere::<Springs>(at, runs, &mut [], |_, _, _, _| {})
             });
         } else if self.params.friction.keeps_load() {
             let side = &mut self.sorted_loaded;
@@ -288,7 +398,18 @@ impl CpuStepper {
         let parts = &mut self.particles;
         // Inserted spheres arrive with a residual of 0 (a run may start with none).
         parts.fill_residuals()?;
-        let (forces, masses) = (&self.forces, &self.masses);
+        let (forces, masses) = (&mut self.forces, &self.masses);
+        let torques = &mut self.torques;
+        if let Some(loads) = &self.external {
+            // Contacts first, then the load: the sums of the GPU integrations.
+            let add = |rows: &mut [[f32; 3]], of: &(dyn Fn(usize) -> [f32; 3] + Sync)| {
+                rows.par_iter_mut().enumerate().for_each(|(i, f)| {
+                    *f = (Vec3::from_array(*f) + Vec3::from_array(of(i))).to_array()
+                })
+            };
+            add(forces, &|i| loads.force(i));
+            add(torques, &|i| loads.torque(i));
+        }
         parts
             .positions
             .par_iter_mut()
@@ -300,7 +421,7 @@ impl CpuStepper {
             parts
                 .angular_velocities
                 .par_iter_mut()
-                .zip(&self.torques)
+                .zip(&*torques)
                 .zip(parts.radii.par_iter().zip(masses.par_iter()))
                 .for_each(|((w, t), (&r, &m))| {
                     integrate_rotation(p.dt, w, Vec3::from_array(*t), moment_of_inertia(m, r))
@@ -324,30 +445,37 @@ struct ContactPass<'a> {
 }
 
 impl ContactPass<'_> {
+    /// The sphere at sorted position `q` as the law takes it.
+    #[inline(always)]
+    fn body(&self, q: usize) -> Body {
+        let (grid, parts) = (self.grid, self.particles);
+        let s = grid.spheres[q];
+        let id = grid.ids[q] as usize;
+        Body {
+            c: Vec3::new(s[0], s[1], s[2]),
+            v: Vec3::from_array(parts.velocities[id]),
+            w: Vec3::from_array(parts.angular_velocities[id]),
+            r: s[3],
+            m: self.masses[id],
+            material: parts.material(id),
+        }
+    }
+
     /// The contacts of the sphere at sorted position `at` with the spheres of `runs` and the
     /// walls, keeping `S`; writes those with history to `held` (as many as fit) and counts them
-    /// all.
+    /// all. `seen(partner, normal, tangential, overlap)` receives the forces on the sphere of
+    /// each contact with a sphere (its input index) or a box wall ([`box_wall_id`]).
     #[inline(always)]
     fn sphere<S: Kept>(
         &self,
         at: usize,
         runs: &[std::ops::Range<usize>; 9],
         held: &mut [S::Slot],
+        mut seen: impl FnMut(i64, Vec3, Vec3, f32),
     ) -> SphereSum {
         let (grid, p, parts) = (self.grid, self.params, self.particles);
         let keeps = p.friction.has_history();
-        let body = |q: usize| {
-            let s = grid.spheres[q];
-            let id = grid.ids[q] as usize;
-            Body {
-                c: Vec3::new(s[0], s[1], s[2]),
-                v: Vec3::from_array(parts.velocities[id]),
-                w: Vec3::from_array(parts.angular_velocities[id]),
-                r: s[3],
-                m: self.masses[id],
-                material: parts.material(id),
-            }
-        };
+        let body = |q: usize| self.body(q);
         let s = grid.spheres[at];
         let i = grid.ids[at] as usize;
         let me = body(at);
@@ -384,6 +512,8 @@ impl ContactPass<'_> {
                 let j = grid.ids[q];
                 let springs = if keeps { old(j) } else { S::default() };
                 if let Some(c) = pair_contact(p, &me, &body(q), springs) {
+                    let overlap = reach - (dx * dx + dy * dy + dz * dz).sqrt();
+                    seen(j as i64, c.normal, c.force - c.normal, overlap);
                     touching += 1;
                     force += c.force;
                     torque += c.torque;
@@ -399,6 +529,7 @@ impl ContactPass<'_> {
                 &me,
                 |w| old(FIRST_WALL + w),
                 |w, springs| keep(FIRST_WALL + w, springs),
+                |w, normal, tangential, overlap| seen(box_wall_id(w), normal, tangential, overlap),
             );
             // The paper's law sums exactly as its GPU twins: pairs, then walls.
             force += walls.normal;
@@ -453,7 +584,7 @@ fn resolve_kept<S: Kept>(
         })?;
         side.resize(entries, S::Slot::default());
         gather_with_side(grid, sums, side, k, |at, runs, held| {
-            pass.sphere::<S>(at, runs, held)
+            pass.sphere::<S>(at, runs, held, |_, _, _, _| {})
         });
         let most = sums.iter().map(|s| s.held).max().unwrap_or(0) as usize;
         if most <= k {
@@ -480,18 +611,10 @@ impl Stepper for CpuStepper {
         let ms = |t: Instant| t.elapsed().as_secs_f64() * 1e3;
         for _ in 0..steps {
             let t = Instant::now();
-            let parts = &self.particles;
-            let (lo, hi) = match center_bounds(&parts.positions) {
-                Ok(Some(bounds)) => bounds,
-                _ => self.region,
-            };
-            self.grid
-                .bin_within(&parts.positions, &parts.radii, lo, hi, self.cell_size)?;
+            self.bin()?;
             times.build_ms += ms(t);
             let t = Instant::now();
-            if let Some(mesh) = &mut self.mesh {
-                mesh.resolve(&self.params, &self.particles, &self.masses)?;
-            }
+            self.resolve_mesh()?;
             contacts = self.resolve_contacts()?;
             times.dcd_ms += ms(t);
             let t = Instant::now();
@@ -518,6 +641,18 @@ impl Stepper for CpuStepper {
 
     fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()> {
         self.params.gravity = gravity;
+        Ok(())
+    }
+
+    fn set_external_loads(&mut self, loads: &ExternalLoads) -> Result<()> {
+        loads.check(self.particles.len())?;
+        if loads.turns() && !self.params.friction.turns() {
+            return Err(rows::no_spin());
+        }
+        if self.flow.is_some() && !loads.is_empty() {
+            return Err(rows::not_fixed());
+        }
+        self.external = (!loads.is_empty()).then(|| loads.clone());
         Ok(())
     }
 

@@ -5,7 +5,7 @@
 //! the chunks in order, so they depend on the state alone, not on the threads.
 
 use crate::dem::model::StepParams;
-use crate::dem::model::contact::{Body, Kept, LoadedSprings, Springs, surface_contact};
+use crate::dem::model::contact::{Body, Contact, Kept, LoadedSprings, Springs, surface_contact};
 use crate::dem::walls::{Pose, Touches, WallLoad, WallSet, mesh_partner, touches};
 use crate::error::{Error, Result, try_resize};
 use crate::particles::{HistoryEntry, LoadEntry, LoadedEntry, Particles};
@@ -80,6 +80,27 @@ impl MeshPass {
         }
     }
 
+    /// Calls `seen(w, contact, overlap)` for each contact of sphere `i` of `parts` (as `body`)
+    /// with mesh wall `w` at `poses`, keeping `S`, as [`resolve`](Self::resolve) resolves it;
+    /// `scratch` is the caller's, reused from sphere to sphere.
+    pub fn visit<S: Kept>(
+        &self,
+        (p, parts): (&StepParams, &Particles),
+        (i, body): (usize, &Body),
+        poses: &[Pose],
+        scratch: &mut (Touches, Vec<WallLoad>),
+        seen: impl FnMut(usize, &Contact<S>, f32),
+    ) {
+        let kept = match p.friction.has_history() {
+            true => (parts.history.of(i), parts.history.loads_of(i)),
+            false => (&[][..], &[][..]),
+        };
+        let (touched, loads) = scratch;
+        loads.resize(self.walls.meshes.len(), WallLoad::default());
+        let walls = (&self.walls, poses);
+        sphere::<S>(p, walls, body, kept, &mut [], loads, touched, seen);
+    }
+
     /// Resolves every sphere's mesh contacts in the state of `parts` (before the step).
     pub fn resolve(&mut self, p: &StepParams, parts: &Particles, masses: &[f32]) -> Result<()> {
         match p.friction.keeps_load() {
@@ -145,13 +166,13 @@ impl MeshPass {
                         };
                         *sum = sphere::<S>(
                             p,
-                            walls,
-                            &poses,
+                            (walls, &poses),
                             &body,
                             kept,
                             held,
                             &mut loads,
                             &mut scratch,
+                            |_, _, _| {},
                         );
                     }
                     loads
@@ -182,13 +203,13 @@ impl MeshPass {
 #[inline(always)]
 fn sphere<S: Kept>(
     p: &StepParams,
-    walls: &WallSet,
-    poses: &[Pose],
+    (walls, poses): (&WallSet, &[Pose]),
     b: &Body,
     kept: (&[HistoryEntry], &[LoadEntry]),
     held: &mut [S::Slot],
     loads: &mut [WallLoad],
     scratch: &mut Touches,
+    mut seen: impl FnMut(usize, &Contact<S>, f32),
 ) -> MeshSum {
     let (kept, kept_loads) = kept;
     let keeps = p.friction.has_history();
@@ -211,6 +232,7 @@ fn sphere<S: Kept>(
             let v = pose.velocity_at(t.point);
             let column = wall.column(&p.materials);
             let c = surface_contact(p, b, t.normal, t.overlap, v, column, wall.friction, old);
+            seen(w, &c, t.overlap);
             force += c.force;
             if turns {
                 torque += c.torque;

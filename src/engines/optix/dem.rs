@@ -23,7 +23,9 @@ use super::engine::{MAX_COORDINATE, morton_order_of, open_device};
 use super::granular::{self, Granular};
 use super::launches::{DemBuffers, DemProgram, Kernels};
 use crate::dem::model::LawParams;
-use crate::dem::stepper::{Advance, Motion, StageTimes, Stepper, needs_granular_step};
+use crate::dem::stepper::{
+    Advance, ExternalLoads, Motion, StageTimes, Stepper, needs_granular_step,
+};
 use crate::dem::walls::WallLoad;
 use crate::engines::RebuildPolicy;
 use crate::engines::common::rows::{
@@ -89,6 +91,8 @@ pub struct OptixStepper {
     spare: State,
     boxes: CudaSlice<f32>,
     force: CudaSlice<f32>,
+    /// The external loads by input index (8 floats per sphere; 8 zeros until a load is given).
+    external: CudaSlice<f32>,
     contacts: CudaSlice<u32>,
     candidates: CudaSlice<u64>,
     gas: Option<Gas>,
@@ -195,6 +199,7 @@ impl OptixStepper {
             },
             boxes: zeros_f32(6 * len)?,
             force: zeros_f32(3 * len)?,
+            external: zeros_f32(8)?,
             contacts: stream.alloc_zeros::<u32>(COUNTER_SLOTS).map_err(&alloc)?,
             candidates: stream.alloc_zeros::<u64>(COUNTER_SLOTS).map_err(&alloc)?,
             gas: None,
@@ -295,7 +300,7 @@ impl OptixStepper {
                 let resolved = record_event(&self.device)?;
                 self.kernels.dem_integrate(
                     &mut self.state,
-                    &mut self.force,
+                    (&mut self.force, &self.external),
                     dem,
                     self.step as u32,
                 )?;
@@ -311,7 +316,8 @@ impl OptixStepper {
                     &mut self.candidates,
                 )?;
                 let resolved = record_event(&self.device)?;
-                g.integrate(&mut self.state, &mut self.force, self.step as u32)?;
+                let accumulated = (&mut self.force, &self.external);
+                g.integrate(&mut self.state, accumulated, self.step as u32)?;
                 resolved
             }
         };
@@ -475,6 +481,37 @@ impl Stepper for OptixStepper {
         match &mut self.physics {
             Physics::Frictionless { dem, .. } => dem.gravity = gravity.into(),
             Physics::Granular(g) => g.set_gravity(gravity),
+        }
+        Ok(())
+    }
+
+    fn set_external_loads(&mut self, loads: &ExternalLoads) -> Result<()> {
+        let n = self.n as usize;
+        loads.check(n)?;
+        let turns = match &self.physics {
+            Physics::Granular(g) => g.turns(),
+            Physics::Frictionless { .. } => false,
+        };
+        if loads.turns() && !turns {
+            return Err(no_spin());
+        }
+        let on = !loads.is_empty();
+        if on {
+            let rows = loads.rows(n);
+            let flat: &[f32] = bytemuck::cast_slice(&rows);
+            let write = cuda("writing the external loads");
+            if self.external.len() < flat.len() {
+                self.external = self.device.stream.clone_htod(flat).map_err(write)?;
+            } else {
+                let stream = &self.device.stream;
+                stream
+                    .memcpy_htod(flat, &mut self.external)
+                    .map_err(write)?;
+            }
+        }
+        match &mut self.physics {
+            Physics::Frictionless { dem, .. } => dem.loaded = on as u32,
+            Physics::Granular(g) => g.set_external(on),
         }
         Ok(())
     }

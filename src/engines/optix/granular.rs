@@ -197,7 +197,7 @@ impl Granular {
     pub fn integrate(
         &mut self,
         state: &mut State,
-        force: &mut CudaSlice<f32>,
+        (force, external): (&mut CudaSlice<f32>, &CudaSlice<f32>),
         step: u32,
     ) -> Result<()> {
         let law = self.law();
@@ -211,6 +211,7 @@ impl Granular {
             new,
             need,
             laws: &self.laws,
+            external,
         };
         self.kernels
             .integrate(state, b, &law, step, &mut self.mesh)?;
@@ -355,6 +356,16 @@ impl Granular {
     /// Sets gravity at t = 0 from the next step on.
     pub(super) fn set_gravity(&mut self, gravity: [f32; 3]) {
         self.params.gravity = gravity.into();
+    }
+
+    /// Whether the integration reads the external loads.
+    pub(super) fn set_external(&mut self, on: bool) {
+        self.params.loaded = on as u32;
+    }
+
+    /// Whether the step turns its spheres.
+    pub(super) fn turns(&self) -> bool {
+        self.params.turns != 0
     }
 
     /// The angular velocities on the device: x, y, z and the material's bits per sphere, in

@@ -382,6 +382,9 @@ pub struct GranularIntegration<'a> {
     pub need: &'a mut CudaSlice<u32>,
     /// The material table.
     pub laws: &'a LawTable,
+    /// The external loads by input index (force, then torque: 8 floats per sphere), read
+    /// where the law's `loaded` is 1.
+    pub external: &'a CudaSlice<f32>,
 }
 
 impl GranularKernels {
@@ -430,6 +433,9 @@ impl GranularKernels {
         check_len(LAUNCH, "force", b.force, 3 * n as usize)?;
         check_len(LAUNCH, "torque", b.torque, 3 * n as usize)?;
         check_len(LAUNCH, "need", b.need, 1)?;
+        if law.loaded != 0 {
+            check_len(LAUNCH, "external", b.external, 8 * n as usize)?;
+        }
         let history_n = if law.keeps() { n } else { 0 };
         b.old.check(LAUNCH, history_n, slots, self.loaded)?;
         b.new.check(LAUNCH, history_n, slots, self.loaded)?;
@@ -450,6 +456,7 @@ impl GranularKernels {
             .arg(b.force)
             .arg(b.torque)
             .arg(&state.ids)
+            .arg(b.external)
             .arg(&old.counts)
             .arg(&old.entries)
             .arg(new_counts)
@@ -470,7 +477,7 @@ impl GranularKernels {
             .arg(&mut mesh.loads);
         // SAFETY: the arguments match granular_integrate's signature; the state, ang, force
         // and torque hold g.n() rows, ids g.n() entries below n (a permutation of the input
-        // indices), the history buffers g.n() spheres of `slots` entries where g keeps springs
+        // indices), external two rows per sphere where the law reads it, the history buffers g.n() spheres of `slots` entries where g keeps springs
         // (checked above; the kernel reads them only then), with load histories of as many
         // slots where the kernel was compiled for them (checked above), need one word; the
         // material table has g's columns (checked above) and rows for every material the
@@ -727,12 +734,13 @@ impl Kernels {
         Ok(())
     }
 
-    /// Walls, gravity at `step` and one integration step of the `dem.n` spheres of `state`, in
-    /// place; clears `force` for the next step.
+    /// Walls, gravity at `step`, the external loads (`external`: force, then torque, by input
+    /// index, 8 floats per sphere; read where `dem.loaded` is 1) and one integration step of
+    /// the `dem.n` spheres of `state`, in place; clears `force` for the next step.
     pub fn dem_integrate(
         &self,
         state: &mut State,
-        force: &mut CudaSlice<f32>,
+        (force, external): (&mut CudaSlice<f32>, &CudaSlice<f32>),
         dem: &LawParams,
         step: u32,
     ) -> Result<()> {
@@ -745,16 +753,23 @@ impl Kernels {
         check_len(LAUNCH, "lo", &state.lo, 4 * n as usize)?;
         check_len(LAUNCH, "vel", &state.vel, 4 * n as usize)?;
         check_len(LAUNCH, "force", force, 3 * n as usize)?;
+        check_len(LAUNCH, "ids", &state.ids, n as usize)?;
+        if dem.loaded != 0 {
+            check_len(LAUNCH, "external", external, 8 * n as usize)?;
+        }
         let mut launch = self.stream.launch_builder(&self.dem_integrate);
         launch
             .arg(&mut state.pos)
             .arg(&mut state.lo)
             .arg(&mut state.vel)
             .arg(force)
+            .arg(&state.ids)
+            .arg(external)
             .arg(dem)
             .arg(&step);
         // SAFETY: the arguments match dem_integrate's signature; pos, lo and vel hold dem.n
-        // rows, force 3·dem.n floats (checked above).
+        // rows, force 3·dem.n floats, ids dem.n input indices below dem.n (a permutation),
+        // external 8·dem.n floats where dem.loaded is 1 (checked above; read only then).
         unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching dem_integrate"))?;
         Ok(())
     }

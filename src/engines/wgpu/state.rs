@@ -4,8 +4,8 @@
 //! them ([`write_motion`]).
 
 use crate::dem::model::LawParams;
-use crate::dem::stepper::Motion;
-use crate::engines::common::rows::{no_spin, place_positions, place_triples};
+use crate::dem::stepper::{ExternalLoads, Motion};
+use crate::engines::common::rows::{no_spin, not_fixed, place_positions, place_triples};
 use crate::error::Result;
 use crate::gpu::Gpu;
 use crate::particles::FIRST_MESH_WALL;
@@ -36,6 +36,63 @@ impl ParamsUniform {
     /// The uniform.
     pub fn buffer(&self) -> &wgpu::Buffer {
         &self.buffer
+    }
+}
+
+/// A step's external loads on the GPU (binding `EXTERNAL`): [`ExternalLoads::rows`] by stable
+/// id, or one pair of zero rows until a load is given.
+pub(crate) struct ExternalRows {
+    buffer: wgpu::Buffer,
+    /// Rows the buffer holds.
+    rows: usize,
+}
+
+impl ExternalRows {
+    /// No loads.
+    pub fn new(gpu: &Gpu) -> Self {
+        let none = wgpu::BufferUsages::empty();
+        Self {
+            buffer: gpu.storage("mochi.dem.loaded", 32, none),
+            rows: 2,
+        }
+    }
+
+    /// The buffer.
+    pub fn buffer(&self) -> &wgpu::Buffer {
+        &self.buffer
+    }
+
+    /// Writes `loads` of a step of `n` spheres that turns them or not, whose stable ids are
+    /// their input indices where `fixed` (no sphere entered or left); returns whether the
+    /// buffer is a new one (the bind groups naming it are then made again). Refuses loads
+    /// of other than `n` spheres, values that are not finite, a torque where the step does not
+    /// turn its spheres and any load where the spheres are not fixed.
+    pub fn set(
+        &mut self,
+        gpu: &Gpu,
+        loads: &ExternalLoads,
+        (n, turns, fixed): (u32, bool, bool),
+    ) -> Result<bool> {
+        loads.check(n as usize)?;
+        if loads.turns() && !turns {
+            return Err(no_spin());
+        }
+        if loads.is_empty() {
+            return Ok(false);
+        }
+        if !fixed {
+            return Err(not_fixed());
+        }
+        let rows = loads.rows(n as usize);
+        let grown = rows.len() > self.rows;
+        if grown {
+            let bytes = rows.len() as u64 * 16;
+            self.buffer = gpu.storage("mochi.dem.loaded", bytes, wgpu::BufferUsages::empty());
+            self.rows = rows.len();
+        }
+        gpu.queue
+            .write_buffer(&self.buffer, 0, bytemuck::cast_slice(&rows));
+        Ok(grown)
     }
 }
 

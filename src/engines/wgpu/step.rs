@@ -77,7 +77,9 @@ pub(crate) mod physics {
     /// The residuals of the centres `pos` holds (`Particles::position_residuals`), which only
     /// the integration and the passes that move the state bind.
     pub const POS_LO: Binding = Binding::read_write(34, "pos_lo");
-    pub const BINDINGS: &[Binding] = &[DEM, POS, VEL, FORCE, CLOCK, POS_LO];
+    /// The external loads by stable id, which only the integration binds.
+    pub const EXTERNAL: Binding = Binding::read(36, "external_loads");
+    pub const BINDINGS: &[Binding] = &[DEM, POS, VEL, FORCE, CLOCK, POS_LO, EXTERNAL];
 }
 
 /// Which physics a wgpu engine's DEM step runs, each in a module of its own.

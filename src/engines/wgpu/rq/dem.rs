@@ -13,15 +13,15 @@
 
 use super::accel::Accel;
 use super::shaders::dem_rq::{self, BOXES, COUNTERS, RQ_PARAMS, RqParams, TLAS};
-use crate::dem::stepper::{Advance, Motion, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, ExternalLoads, Motion, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::engines::common::flow::Room;
 use crate::engines::common::rows::{
     StateRows, advance_in_batches, particles_with, residual_rows, rows,
 };
 use crate::engines::setup::DemSetup;
-use crate::engines::wgpu::state::{ParamsUniform, write_motion};
-use crate::engines::wgpu::step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
+use crate::engines::wgpu::state::{ExternalRows, ParamsUniform, write_motion};
+use crate::engines::wgpu::step::physics::{CLOCK, DEM, EXTERNAL, FORCE, POS, POS_LO, VEL};
 use crate::engines::wgpu::step::{
     BatchParts, DemModule, GROUP, Granular, KernelSet, MAX_BATCH, RedoableBatch, StepTimer, Turn,
     max_spheres, run_batch,
@@ -62,6 +62,8 @@ struct Resident {
     clock: wgpu::Buffer,
     force: wgpu::Buffer,
     counters: wgpu::Buffer,
+    /// The external loads (by input index).
+    external: ExternalRows,
     binds: Binds,
 }
 
@@ -86,6 +88,8 @@ pub struct RqStepper {
     dem: ParamsUniform,
     /// Parity of the next step (which history buffer it reads).
     parity: usize,
+    /// Whether the step turns its spheres (integrates their angular velocities).
+    turns: bool,
 }
 
 impl RqStepper {
@@ -178,13 +182,21 @@ impl RqStepper {
                     &force,
                     &counters,
                 );
-                let binds = bind(&gpu, &pipelines, buffers, accel.tlas(), granular.as_ref());
+                let external = ExternalRows::new(&gpu);
+                let binds = bind(
+                    &gpu,
+                    &pipelines,
+                    buffers,
+                    (accel.tlas(), external.buffer()),
+                    granular.as_ref(),
+                );
                 Resident {
                     accel,
                     rq,
                     clock,
                     force,
                     counters,
+                    external,
                     binds,
                 }
             });
@@ -210,6 +222,7 @@ impl RqStepper {
             granular,
             dem,
             parity: 0,
+            turns: params.friction.turns(),
             gpu,
         })
     }
@@ -317,11 +330,12 @@ impl RedoableBatch for RqStepper {
             &r.force,
             &r.counters,
         );
+        let more = (r.accel.tlas(), r.external.buffer());
         r.binds = bind(
             &self.gpu,
             &self.pipelines,
             buffers,
-            r.accel.tlas(),
+            more,
             self.granular.as_ref(),
         );
     }
@@ -398,6 +412,21 @@ impl Stepper for RqStepper {
         // The acceleration structure is rebuilt every step, over where the spheres are.
         write_motion(&self.gpu, buffers, self.n as usize, None, motion).map(|_| ())
     }
+
+    fn set_external_loads(&mut self, loads: &ExternalLoads) -> Result<()> {
+        let Some(r) = &mut self.resident else {
+            return loads.check(0);
+        };
+        // The state is in input order and no sphere enters or leaves it.
+        if r.external
+            .set(&self.gpu, loads, (self.n, self.turns, true))?
+        {
+            RedoableBatch::rebind(self);
+        }
+        let on = !loads.is_empty() as u32;
+        self.dem.update(&self.gpu, |p| p.loaded = on);
+        Ok(())
+    }
 }
 
 /// The step's buffers: positions, their residuals, velocities, the ray-query and step uniforms,
@@ -414,13 +443,13 @@ type StepBuffers<'a> = (
     &'a wgpu::Buffer,
 );
 
-/// The bind groups of the step over `buffers` and `tlas`, with the granular step's where it
-/// has one.
+/// The bind groups of the step over `buffers`, `tlas` and the external loads `external`,
+/// with the granular step's where it has one.
 fn bind(
     gpu: &Gpu,
     p: &Pipelines,
     buffers: StepBuffers,
-    tlas: &wgpu::Tlas,
+    (tlas, external): (&wgpu::Tlas, &wgpu::Buffer),
     granular: Option<&Granular>,
 ) -> Binds {
     let (pos, lo, vel, rq, dem, clock, boxes, force, counters) = buffers;
@@ -445,6 +474,7 @@ fn bind(
         (VEL, vel),
         (FORCE, force),
         (CLOCK, clock),
+        (EXTERNAL, external),
     ];
     if let Some(g) = granular {
         integrate.extend(g.integrate_bindings(0));

@@ -161,15 +161,17 @@ impl Resident {
     }
 
     /// What every integration kernel binds to step state set `on`.
-    pub(super) fn integrated(&self, on: usize) -> [(Binding, &wgpu::Buffer); 6] {
+    pub(super) fn integrated(&self, on: usize) -> [(Binding, &wgpu::Buffer); 8] {
         let set = &self.sets[on];
         [
             (DEM, self.dem_uniform.buffer()),
             (POS, &set.pos),
             (POS_LO, &set.lo),
             (VEL, &set.vel),
+            (IDS, &set.ids),
             (FORCE, &self.force),
             (CLOCK, &self.clock),
+            (EXTERNAL, self.external.buffer()),
         ]
     }
 

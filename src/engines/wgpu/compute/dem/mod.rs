@@ -53,7 +53,7 @@ use super::skin::{SKIN_CELLS, Skin, skin_of};
 use crate::dem::flow::NewSphere;
 use crate::dem::model::StepParams;
 use crate::dem::stepper::Clock;
-use crate::dem::stepper::{Advance, Motion, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, ExternalLoads, Motion, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::engines::common::flow::DeviceFlow;
 use crate::engines::common::flow::{FlowQuery, Room, Scan};
@@ -64,8 +64,10 @@ use crate::engines::setup::DemSetup;
 use crate::engines::wgpu::flow::FlowScan;
 use crate::engines::wgpu::granular::shader::OMEGA;
 use crate::engines::wgpu::readback::{BatchReadback, InFlight};
-use crate::engines::wgpu::state::{InputOrder, ParamsUniform, move_rows, write_motion};
-use crate::engines::wgpu::step::physics::{CLOCK, DEM, FORCE, POS, POS_LO, VEL};
+use crate::engines::wgpu::state::{
+    ExternalRows, InputOrder, ParamsUniform, move_rows, write_motion,
+};
+use crate::engines::wgpu::step::physics::{CLOCK, DEM, EXTERNAL, FORCE, POS, POS_LO, VEL};
 use crate::engines::wgpu::step::{
     DemModule, GROUP, Granular, KernelSet, MAX_BATCH, StepTimer, Turn, max_spheres,
 };
@@ -183,6 +185,8 @@ struct Resident {
     counters: wgpu::Buffer,
     bounds: wgpu::Buffer,
     clock: wgpu::Buffer,
+    /// The external loads by stable id.
+    external: ExternalRows,
     /// The granular step's state (`None`: a variant of the paper's step).
     granular: Option<Granular>,
     /// Its contact pass's lists.
@@ -428,6 +432,7 @@ impl GridStepper {
                 counters: make("mochi.dem.counters", 16),
                 bounds: make("mochi.dem.bounds", 24),
                 clock: make("mochi.dem.clock", 4),
+                external: ExternalRows::new(&gpu),
                 near: granular.is_some().then(|| NearLists {
                     listed: make("mochi.dem.listed", rows * 4),
                     near: make("mochi.dem.near", rows * NEAR_ROOM * 4),
@@ -609,6 +614,20 @@ impl Stepper for GridStepper {
         if write_motion(&res.gpu, buffers, n, Some(&order), motion)? {
             // Moved spheres are binned afresh, in a grid laid out over where they are now.
             (self.sort_next, self.counted, self.stale) = (true, false, true);
+        }
+        Ok(())
+    }
+
+    fn set_external_loads(&mut self, loads: &ExternalLoads) -> Result<()> {
+        let turns = self.params.friction.turns();
+        // A flowing step's stable ids are not input indices (they have gaps).
+        let fixed = self.flow_scan.is_none();
+        let res = &mut self.res;
+        let grown = res.external.set(&res.gpu, loads, (self.n, turns, fixed))?;
+        let on = !loads.is_empty() as u32;
+        res.dem_uniform.update(&res.gpu, |p| p.loaded = on);
+        if grown {
+            self.rebind();
         }
         Ok(())
     }
