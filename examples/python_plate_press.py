@@ -1,10 +1,11 @@
-"""A plate pressing on a bed of spheres: the force–displacement curve of a confined compression,
-read from the plate's wall load at every step of the press.
+"""A plate pressing on a bed of spheres and lifting off again: the force–displacement curve of a
+confined compression and its release, read from the plate's wall load at every step.
 
 The bed is built from arrays (a jittered lattice of 5 mm spheres, no file), settles under
 gravity, then a square plate (a mesh wall of two triangles) comes down at a constant speed.
-`sim.wall_loads` gives the force the spheres exert on it. Prints the curve, and plots it with
-matplotlib if present.
+`sim.wall_loads` gives the force the spheres exert on it; halfway, `sim.set_wall_motion` turns
+the plate back up from where it is. Prints the curve (the bed gives back less than it took), and
+plots it with matplotlib if present.
 
 Run after `pip install ./python`:  python examples/python_plate_press.py [--quick] [--backend B]
 """
@@ -57,18 +58,27 @@ sim.step(round(settle / sim.dt))
 top = (sim.positions[:, 2] + sim.radii).max()
 print(f"settled: the bed's top at {top * 1e3:.1f} mm, {sim.contacts} contacts")
 
-# The press: the plate's height and the force on it, every millisecond.
+# The press, then the release: the plate's depth below the bed's top and the force on it, every
+# millisecond. Halfway the plate turns back up (`set_wall_motion`: from where it is, at +5 cm/s).
 press = 0.2 if args.quick else 0.3
-curve = []
-for _ in range(round(press / 1e-3)):
-    sim.step(round(1e-3 / sim.dt))
-    plate_z = height - speed * (sim.time - settle)
-    force = sim.wall_loads[0]["force"][2]
-    curve.append((top - plate_z, force))
+plate_z, curve = height - speed * (sim.time - settle), []
+for velocity in [-speed, speed]:
+    if velocity > 0:
+        sim.set_wall_motion(0, velocity=[0, 0, velocity])
+    for _ in range(round(press / 1e-3)):
+        sim.step(round(1e-3 / sim.dt))
+        plate_z += velocity * 1e-3
+        curve.append((top - plate_z, sim.wall_loads[0]["force"][2]))
 curve = np.array(curve)
-for depth, force in curve[:: max(1, len(curve) // 10)]:
+loading, unloading = curve[: len(curve) // 2], curve[len(curve) // 2 :]
+for depth, force in curve[:: max(1, len(curve) // 12)]:
     print(f"plate {depth * 1e3:+6.2f} mm into the bed's top: {force:8.3f} N")
-assert curve[-1, 1] > 0, "the bed pushes the plate up"
+assert loading[-1, 1] > 0, "the bed pushes the plate up"
+# The bed gives back less than it took: at the same depth it pushes less on the way up.
+depth = loading[-1, 0] * 0.8
+pushing = [np.interp(depth, *part[np.argsort(part[:, 0])].T) for part in (loading, unloading)]
+assert pushing[1] < pushing[0], f"no hysteresis at {depth * 1e3:.2f} mm: {pushing}"
+print(f"at {depth * 1e3:.2f} mm: {pushing[0]:.3f} N pressing, {pushing[1]:.3f} N releasing")
 
 try:
     import matplotlib.pyplot as plt
@@ -76,6 +86,7 @@ except ImportError:
     pass
 else:
     plt.plot(curve[:, 0] * 1e3, curve[:, 1])
+    plt.axvline(0, color="grey", lw=0.5)
     plt.xlabel("plate below the bed's top [mm]")
     plt.ylabel("force on the plate [N]")
     plt.savefig("plate_press.png", dpi=120)

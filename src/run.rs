@@ -20,6 +20,7 @@ use crate::dem::model::StepParams;
 use crate::dem::scene::{Overrides, SceneConfig, SceneFlags, SceneKind, Start};
 use crate::dem::stepper::{ExternalLoads, Motion, Stepper};
 use crate::dem::walls::WallSet;
+use crate::dem::walls::spec::NewMotion;
 use crate::engines::DemSetup;
 use crate::engines::cpu::CpuStepper;
 use crate::engines::{BackendChoice, BackendKind, Opened, Options, open_scene};
@@ -245,6 +246,7 @@ impl RunStart {
             flow_warning,
             coincident_pairs,
             external: ExternalLoads::default(),
+            options: *options,
         })
     }
 }
@@ -280,6 +282,8 @@ pub struct Run {
     pub meshes: Vec<FileDigest>,
     /// The loads the steps apply besides contacts and gravity ([`Run::set_external_loads`]).
     external: ExternalLoads,
+    /// The backends' settings the run was opened with (and is opened again with).
+    options: Options,
 }
 
 impl Run {
@@ -352,6 +356,81 @@ impl Run {
             walls: self.walls.clone(),
         };
         CpuStepper::open(setup)?.contact_data()
+    }
+
+    /// Sets gravity now \[m/s²\] from the next step on (under a turning gravity, the
+    /// gravity at t = 0 that turns into it now), in the step and in the scene checkpoints save
+    /// ([`StepParams::with_gravity`] checks it first).
+    pub fn set_gravity(&mut self, gravity: [f64; 3]) -> Result<()> {
+        let p = &self.params;
+        // Back to t = 0: gravity_at turns by gravity_spin · t about y.
+        let angle = p.gravity_spin as f64 * self.time();
+        let (s, c) = angle.sin_cos();
+        let [gx, gy, gz] = gravity;
+        let at_start = [gx * c - gz * s, gy, gz * c + gx * s];
+        let params = p.with_gravity(at_start, self.radius_range.0)?;
+        self.stepper.set_gravity(params.gravity)?;
+        self.params = params;
+        self.config.domain.gravity = at_start;
+        Ok(())
+    }
+
+    /// The time now \[s\]: the step's count times the time step.
+    fn time(&self) -> f64 {
+        self.stepper.step() as f64 * self.params.dt as f64
+    }
+
+    /// Changes scene keys between steps ([`SceneConfig::changed`] says which may change: the
+    /// materials, gravity, the walls' friction and material). The step is opened again on
+    /// its backend from the state now (the contact history, gravity and external loads kept),
+    /// at the cost of opening a run; a time step the new contact law cannot keep stable is
+    /// refused, and the run is then as it was.
+    pub fn change(&mut self, overrides: &Overrides) -> Result<()> {
+        let config = self.config.changed(overrides)?;
+        self.reopen(config)
+    }
+
+    /// Moves the scene's mesh wall `index` (its index in [`Run::walls`], as `wall_loads`
+    /// lists them) as `motion` says from now on, from where it is now
+    /// ([`moving_on`](crate::dem::walls::WallConfig::moving_on)); the step is opened again as [`change`](Self::change)
+    /// opens it. The walls a built-in scene makes (a hopper's, a drum's) move as their scene
+    /// says: they are refused.
+    pub fn set_wall_motion(&mut self, index: usize, motion: &NewMotion) -> Result<()> {
+        let walls = self.walls.meshes.len();
+        let made = walls - self.config.wall.len();
+        if index >= walls || index < made {
+            let reason = match index < walls {
+                true => format!(
+                    "it is {}, which moves as its scene says",
+                    self.walls.meshes[index].name
+                ),
+                false => format!("the run has {walls} mesh walls"),
+            };
+            return Err(Error::Usage(format!(
+                "cannot set the motion of wall {index}: {reason}"
+            )));
+        }
+        let mut config = self.config.clone();
+        let wall = &mut config.wall[index - made];
+        *wall = wall.moving_on(self.time(), motion);
+        self.reopen(config)
+    }
+
+    /// Opens the step again on its backend with `config` (a changed scene of this run) from
+    /// the state now, keeping the flows' counts, gravity and the external loads; changes
+    /// nothing where it fails.
+    fn reopen(&mut self, config: SceneConfig) -> Result<()> {
+        let particles = self.stepper.particles()?;
+        let mut start = config.resume_from(particles)?;
+        if let Some(counted) = self.stepper.flow_counts() {
+            start.flow.counted = counted;
+        }
+        let (params, walls) = (start.params.clone(), start.walls.clone());
+        let choice = BackendChoice::Named(self.backend);
+        let mut stepper = open_scene(choice, start, &self.options)?.value;
+        stepper.set_external_loads(&self.external)?;
+        (self.stepper, self.params, self.walls, self.config) = (stepper, params, walls, config);
+        Ok(())
     }
 
     /// The resolved scene as TOML, as checkpoints save it.

@@ -7,9 +7,12 @@
 mod common;
 
 use mochi::dem::contacts::box_wall_id;
+use mochi::dem::scene::Overrides;
+use mochi::dem::walls::spec::NewMotion;
 use mochi::dem::{ExternalLoads, Material, Motion, Particles, StepParams, Stepper};
 use mochi::engines::cpu::CpuStepper;
-use mochi::engines::{BackendKind, Options};
+use mochi::engines::{BackendChoice, BackendKind, Options};
+use mochi::run::RunStart;
 
 /// A 3×3×3 lattice of 1 cm spheres 19.9 mm apart (every neighbour pressed a little), in a box
 /// of 0.3 m under gravity, at rest.
@@ -379,16 +382,12 @@ fn contact_data_sums_to_the_forces_the_next_step_applies() {
             .any(|&f| f.abs() > 1e-3 * largest),
         "friction acts"
     );
-    for i in 0..27 {
-        for a in 0..3 {
-            let gap = (sums[i][a] - data.forces[i][a] as f64).abs();
-            assert!(
-                gap <= 1e-5 * largest as f64,
-                "sphere {i}: {:?} vs {:?}",
-                sums[i],
-                data.forces[i]
-            );
-        }
+    for (i, (sum, force)) in sums.iter().zip(&data.forces).enumerate() {
+        let gap = (0..3).fold(0.0f64, |g, a| g.max((sum[a] - force[a] as f64).abs()));
+        assert!(
+            gap <= 1e-5 * largest as f64,
+            "sphere {i}: {sum:?} vs {force:?}"
+        );
     }
     // The forces are what each backend's next step applies: m·Δv/dt − m·g.
     let m = p.materials.mass(0, 0.01);
@@ -409,5 +408,77 @@ fn contact_data_sums_to_the_forces_the_next_step_applies() {
                 );
             }
         }
+    }
+}
+
+#[test]
+fn a_run_changes_its_friction_and_moves_its_walls_between_steps_on_every_backend() {
+    let dir = tempfile::tempdir().unwrap();
+    let plate = dir.path().join("plate.obj");
+    std::fs::write(
+        &plate,
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n",
+    )
+    .unwrap();
+    for kind in common::dem_backends() {
+        let name = kind.name();
+        // A sphere sliding on the floor, a plate 2 cm above it, at rest.
+        let sliding =
+            common::particles(vec![[0.1, 0.5, 0.0099]], vec![[0.5, 0.0, 0.0]], vec![0.01]);
+        let wall = format!(
+            "wall=[{{mesh = {:?}, translate = [0, 0, 0.04]}}]",
+            plate.display().to_string()
+        );
+        let keys = Overrides::parse(&[
+            "box_lo=[0, 0, 0]",
+            "box_hi=[1, 1, 1]",
+            "dt=1e-5",
+            wall.as_str(),
+        ])
+        .unwrap();
+        let start = RunStart::of_particles(sliding, &keys).unwrap();
+        let mut run = start
+            .open(BackendChoice::Named(kind), &Options::default())
+            .unwrap();
+        run.stepper.advance(200).unwrap();
+        let slowed = run.stepper.particles().unwrap().velocities[0][0];
+        assert!(
+            slowed < 0.49,
+            "{name}: friction slows the sphere to {slowed}"
+        );
+        run.change(&Overrides::parse(&["friction=0", "rolling_friction=0"]).unwrap())
+            .unwrap();
+        run.stepper.advance(200).unwrap();
+        let v = run.stepper.particles().unwrap().velocities[0][0];
+        assert!(
+            (v - slowed).abs() < 1e-5 * slowed,
+            "{name}: {v} after {slowed} without friction"
+        );
+        // The plate comes down 2.1 cm onto the sphere, then stays where it is.
+        let down = NewMotion {
+            velocity: Some([0.0, 0.0, -1.0]),
+            ..NewMotion::default()
+        };
+        run.set_wall_motion(0, &down).unwrap();
+        run.stepper.advance(2100).unwrap();
+        run.set_wall_motion(
+            0,
+            &NewMotion {
+                velocity: Some([0.0; 3]),
+                ..NewMotion::default()
+            },
+        )
+        .unwrap();
+        run.stepper.advance(10).unwrap();
+        let pressed = run.stepper.wall_loads()[0].force[2];
+        assert!(
+            pressed > 0.0,
+            "{name}: the plate presses on the sphere ({pressed} N)"
+        );
+        let e = run
+            .change(&Overrides::parse(&["dt=1e-6"]).unwrap())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("run.dt"), "{name}: {e}");
     }
 }

@@ -101,6 +101,12 @@ class _FlowCounts(TypedDict):
     inserted_mass: float
     removed_mass: float
 
+class _ContactData(TypedDict):
+    pairs: npt.NDArray[np.int64]
+    normal_force: npt.NDArray[np.float32]
+    tangential_force: npt.NDArray[np.float32]
+    overlap: npt.NDArray[np.float32]
+
 class _FrameDict(TypedDict):
     positions: npt.NDArray[np.float64]
     radii: npt.NDArray[np.float32]
@@ -144,6 +150,13 @@ class Simulation:
     next ``step``; a later step does not change them). Writing into one raises ``ValueError``;
     set ``positions``, ``velocities`` or ``angular_velocities`` whole (``sim.velocities = v``)
     to change the state before the next step.
+
+    Between steps a script may also set ``gravity``, ``external_forces`` and
+    ``external_torques`` (``(N, 3)``, added to each sphere every step until changed; GPU backends
+    keep them on the device), the material keys (``change(friction=0.3)``) and a wall's motion
+    (``set_wall_motion``). ``contact_data()`` lists the contacts now (pairs, normal and
+    tangential forces, overlaps), ``forces`` and ``torques`` their sums on each sphere: what the
+    next step applies, evaluated on every backend by the Rust contact law.
     """
 
     def __new__(
@@ -209,12 +222,54 @@ class Simulation:
     def gravity(self, gravity: list[float] | tuple[float, float, float]) -> None:
         """Sets gravity from the next step on; ``ValueError`` where it would move a sphere
         farther than the smallest radius in one step."""
+    def change(self, scene: dict[str, _SceneValue] | None = None, **keys: _SceneValue) -> None:
+        """Changes scene keys between steps: the material keys (``materials`` with their names
+        in their order), ``gravity``, each ``wall``'s ``friction`` and ``material``. The step is
+        opened again from the state now (contact history, gravity and external loads kept); a
+        time step the new law cannot keep stable and any other key raise ``ValueError``."""
+    def set_wall_motion(
+        self,
+        index: int,
+        *,
+        velocity: list[float] | tuple[float, float, float] | None = None,
+        omega: float | None = None,
+        axis: list[float] | tuple[float, float, float] | None = None,
+        center: list[float] | tuple[float, float, float] | None = None,
+    ) -> None:
+        """Moves mesh wall ``index`` (its place in ``wall_loads``) from now on, from where it
+        is: at ``velocity`` [m/s], turning at ``omega`` [rad/s] about ``axis`` through
+        ``center`` [m] (each not given: the wall's own)."""
     @property
     def kinetic_energy(self) -> float:
         """Σ ½ m v² [J] now."""
     @property
     def rotational_energy(self) -> float:
         """Σ ½ I ω² [J] now, I = 2/5 m r²."""
+    @property
+    def external_forces(self) -> npt.NDArray[np.float32]:
+        """Forces ``(N, 3)`` [N] added to each sphere every step until changed (zeros until set;
+        ``None`` removes them); refused in a run whose flows change its spheres."""
+    @external_forces.setter
+    def external_forces(self, forces: npt.NDArray[np.floating] | None) -> None: ...
+    @property
+    def external_torques(self) -> npt.NDArray[np.float32]:
+        """Torques ``(N, 3)`` [N·m] about each centre added every step until changed; refused
+        where the step does not turn its spheres (the paper's frictionless law)."""
+    @external_torques.setter
+    def external_torques(self, torques: npt.NDArray[np.floating] | None) -> None: ...
+    def contact_data(self) -> _ContactData:
+        """The contacts now, as the next step resolves them: ``pairs`` ``(P, 2)`` (spheres i < j,
+        or a sphere and a wall's negative id: box walls −1 … −6, mesh walls −7, −8, …),
+        ``normal_force`` and ``tangential_force`` ``(P, 3)`` [N] on the first of the pair (the
+        second takes the opposite), ``overlap`` ``(P,)`` [m]."""
+    @property
+    def forces(self) -> npt.NDArray[np.float32]:
+        """Each sphere's contact force now ``(N, 3)`` [N]: the sum of its ``contact_data()``
+        contacts, as the next step adds it up (before gravity and external forces)."""
+    @property
+    def torques(self) -> npt.NDArray[np.float32]:
+        """Each sphere's contact torque about its centre now ``(N, 3)`` [N·m] (zeros where the
+        step does not turn its spheres)."""
     @property
     def wall_loads(self) -> list[_WallLoad]:
         """Each mesh wall's force [N] and torque [N·m] (about its rotation centre) in the last

@@ -10,6 +10,7 @@ use crate::{Guarded, MochiError, guard, plain_array, to_py_err};
 use mochi::SphereSet;
 use mochi::dem::contacts::ContactData;
 use mochi::dem::scene::{Overrides, SceneConfig, SceneFlags, SceneKind};
+use mochi::dem::walls::spec::NewMotion;
 use mochi::dem::{Energies, Motion, Particles};
 use mochi::engines::{BackendChoice, Options};
 use mochi::io;
@@ -331,6 +332,14 @@ impl SphereArrays<'_, '_> {
     }
 }
 
+/// A library error of a call with a bad argument: a usage error is a `ValueError` too.
+fn usage_err(error: mochi::Error) -> PyErr {
+    match error {
+        mochi::Error::Usage(msg) => PyValueError::new_err(msg),
+        other => to_py_err(other),
+    }
+}
+
 /// Makes `array` read-only (a snapshot whose writes would be lost).
 fn read_only<T>(array: &Bound<'_, T>) -> PyResult<()> {
     let py = array.py();
@@ -469,6 +478,13 @@ pub fn read_frame(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>> 
 /// set `positions`, `velocities` or `angular_velocities` whole (`sim.velocities = v`)
 /// to change the state before the next step.
 ///
+/// Between steps a script may also set `gravity`, `external_forces` and
+/// `external_torques` (`(N, 3)`, added to each sphere every step until changed; GPU backends
+/// keep them on the device), the material keys (`change(friction=0.3)`) and a wall's motion
+/// (`set_wall_motion`). `contact_data()` lists the contacts now (pairs, normal and
+/// tangential forces, overlaps), `forces` and `torques` their sums on each sphere: what the
+/// next step applies, evaluated on every backend by the Rust contact law.
+///
 #[pyclass(module = "mochi")]
 pub struct Simulation {
     /// Only ever reached through `&mut self` (`Mutex::get_mut`, no locking): the mutex only
@@ -596,10 +612,7 @@ impl Simulation {
         let run = self.run_mut()?;
         let set = py.detach(|| run.set_motion(motion));
         self.stepped();
-        set.map_err(|e| match e {
-            mochi::Error::Usage(msg) => PyValueError::new_err(msg),
-            other => to_py_err(other),
-        })
+        set.map_err(usage_err)
     }
 
     /// Drops what was read back for the last step.
@@ -642,10 +655,7 @@ impl Simulation {
             false => loads.torques = rows,
         }
         py.detach(|| run.set_external_loads(loads))
-            .map_err(|e| match e {
-                mochi::Error::Usage(msg) => PyValueError::new_err(msg),
-                other => to_py_err(other),
-            })
+            .map_err(usage_err)
     }
 
     /// The run's external forces or torques as an `(N, 3)` float32 array (zeros where none).
@@ -942,22 +952,65 @@ impl Simulation {
     #[setter]
     fn set_gravity(&mut self, py: Python<'_>, gravity: [f64; 3]) -> PyResult<()> {
         self.guarded("Simulation.gravity", |sim| {
-            let step = sim.step;
             let run = sim.run_mut()?;
-            let p = &run.params;
-            // Back to t = 0: gravity_at turns by gravity_spin · t about y.
-            let angle = p.gravity_spin as f64 * step as f64 * p.dt as f64;
-            let (s, c) = angle.sin_cos();
-            let [gx, gy, gz] = gravity;
-            let at_start = [gx * c - gz * s, gy, gz * c + gx * s];
-            let params = p
-                .with_gravity(at_start, run.radius_range.0)
-                .map_err(|e| PyValueError::new_err(e.to_string()))?;
-            let stepper = &mut run.stepper;
-            py.detach(|| stepper.set_gravity(params.gravity))
-                .map_err(to_py_err)?;
-            run.params = params;
-            Ok(())
+            py.detach(|| run.set_gravity(gravity)).map_err(usage_err)
+        })
+    }
+
+    /// Changes scene keys between steps, given as a dict or keyword arguments (as
+    /// `Simulation` takes them): the material keys (`friction`, `young_modulus`,
+    /// `restitution`, …; `materials` with their names in their order; `material_pairs`),
+    /// `gravity`, and each `wall`'s `friction` and `material`. The step is opened again on its
+    /// backend from the state now (contact history, gravity and external loads kept), which
+    /// costs what opening the run costs. A time step the new law cannot keep stable, and any
+    /// other key (the spheres, box, walls' geometry, flows, time step), raise `ValueError` and
+    /// change nothing.
+    #[pyo3(signature = (scene = None, **keys))]
+    fn change(
+        &mut self,
+        py: Python<'_>,
+        scene: Option<&Bound<'_, PyDict>>,
+        keys: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<()> {
+        self.guarded("Simulation.change", |sim| {
+            let given = match scene {
+                Some(dict) => overrides(dict)?,
+                None => Overrides::default(),
+            };
+            let given = given.then(keyword_overrides(keys)?);
+            let run = sim.run_mut()?;
+            let changed = py.detach(|| run.change(&given));
+            sim.stepped();
+            changed.map_err(scene_err)
+        })
+    }
+
+    /// Moves mesh wall `index` (its place in `wall_loads`) from now on at `velocity` [m/s],
+    /// turning at `omega` [rad/s] about `axis` through `center` [m] (each not given: the
+    /// wall's own, the centre where the wall has carried it), starting from where it is now.
+    /// The step is opened again as by `change`. The walls a built-in scene makes (a hopper's,
+    /// a drum's) move as their scene says: `ValueError`.
+    #[pyo3(signature = (index, *, velocity = None, omega = None, axis = None, center = None))]
+    fn set_wall_motion(
+        &mut self,
+        py: Python<'_>,
+        index: usize,
+        velocity: Option<[f64; 3]>,
+        omega: Option<f64>,
+        axis: Option<[f64; 3]>,
+        center: Option<[f64; 3]>,
+    ) -> PyResult<()> {
+        self.guarded("Simulation.set_wall_motion", |sim| {
+            let motion = NewMotion {
+                velocity,
+                omega,
+                axis,
+                center,
+            };
+            let run = sim.run_mut()?;
+            let set = py.detach(|| run.set_wall_motion(index, &motion));
+            sim.stepped();
+            set.map_err(usage_err)
         })
     }
 

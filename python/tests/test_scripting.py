@@ -2,6 +2,7 @@
 run, the version, detection of one (N, 4) array, and errors that name the scene key."""
 
 import importlib.metadata
+import os
 
 import numpy as np
 import pytest
@@ -275,3 +276,136 @@ def test_gravity_set_between_steps_acts_from_the_next_step():
     spun.step(1000)
     spun.gravity = [0.0, 0.0, -1.0]
     assert spun.gravity == pytest.approx([0, 0, -1], abs=1e-6)
+
+
+def dem_backends():
+    """Every DEM backend that runs here: cpu, and the wgpu ones where an adapter has them
+    (lavapipe in CI, which must find wgpu-compute: a missing adapter fails there)."""
+    available = {e["name"]: e for e in mochi.backends()}
+    assert available["wgpu-compute"]["available"] or os.environ.get("CI") != "true", (
+        f"CI expects wgpu-compute: {available['wgpu-compute']['reason']}"
+    )
+    return ["cpu"] + [b for b in ["wgpu-compute", "wgpu-rq", "optix"] if available[b]["available"]]
+
+
+@pytest.mark.parametrize("backend", dem_backends())
+def test_external_forces_and_torques_act_every_step_until_removed(backend):
+    positions = np.array([[0.3, 0.5, 0.5], [0.7, 0.5, 0.5]])
+    sim = mochi.Simulation.from_arrays(
+        positions, np.array([0.01, 0.01]), backend=backend, box_lo=[0, 0, 0], box_hi=[1, 1, 1], gravity=[0, 0, 0]
+    )
+    np.testing.assert_array_equal(sim.external_forces, np.zeros((2, 3)))
+    force = np.array([[1e-4, 0.0, -2e-4], [0.0, 3e-4, 0.0]])
+    torque = np.array([[0.0, 0.0, 1e-9], [2e-9, 0.0, 0.0]])
+    sim.external_forces = force
+    sim.external_torques = torque
+    np.testing.assert_array_equal(sim.external_forces, force.astype(np.float32))
+    sim.step(10)
+    mass = 500 * 4 / 3 * np.pi * 0.01**3
+    inertia = 0.4 * mass * 0.01**2
+    np.testing.assert_allclose(sim.velocities, 10 * sim.dt * force / mass, rtol=1e-5, atol=1e-9)
+    np.testing.assert_allclose(sim.angular_velocities, 10 * sim.dt * torque / inertia, rtol=1e-5, atol=1e-9)
+    sim.external_forces = None  # removed; the torques stay
+    np.testing.assert_array_equal(sim.external_forces, np.zeros((2, 3)))
+    v = sim.velocities.copy()
+    sim.step(10)
+    np.testing.assert_array_equal(sim.velocities, v)
+    np.testing.assert_allclose(sim.angular_velocities, 20 * sim.dt * torque / inertia, rtol=1e-5, atol=1e-9)
+    with pytest.raises(ValueError, match=r"external_forces must have shape \(2, 3\)"):
+        sim.external_forces = np.zeros((3, 3))
+    with pytest.raises(ValueError, match="sphere 1"):
+        sim.external_forces = np.array([[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0]])
+    np.testing.assert_array_equal(sim.external_forces, np.zeros((2, 3)))  # refused: unchanged
+
+
+def test_external_loads_are_refused_where_they_cannot_act():
+    # The paper's frictionless step turns nothing.
+    paper = mochi.Simulation("freefall", spheres=10, backend="cpu", contact="linear")
+    with pytest.raises(ValueError, match="does not turn its spheres"):
+        paper.external_torques = np.ones((10, 3))
+    paper.external_forces = np.ones((10, 3))  # a force acts
+    # Outflows change the spheres: a load per sphere cannot follow them.
+    hopper = mochi.Simulation("hopper", spheres=50, backend="cpu")
+    with pytest.raises(ValueError, match="inflows or outflows"):
+        hopper.external_forces = np.ones((len(hopper), 3))
+
+
+@pytest.mark.parametrize("backend", dem_backends())
+def test_contact_forces_are_equal_and_opposite_and_sum_to_what_the_step_applies(backend):
+    at = np.stack(np.meshgrid(*[np.arange(3)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    positions = [0.1, 0.1, 0.0099] + 0.0199 * at  # pressed together, the bottom layer on the floor
+    rng = np.random.default_rng(3)
+    velocities = rng.uniform(-0.02, 0.02, size=(27, 3))
+    sim = mochi.Simulation.from_arrays(
+        positions, np.full(27, 0.01), velocities=velocities, backend=backend,
+        box_lo=[0, 0, 0], box_hi=[0.3, 0.3, 0.3], dt=1e-5,
+    )
+    data = sim.contact_data()
+    pairs, normal, tangential = data["pairs"], data["normal_force"], data["tangential_force"]
+    assert pairs.dtype == np.int64 and pairs.shape == (len(data["overlap"]), 2)
+    assert normal.shape == tangential.shape == (len(pairs), 3)
+    spheres = pairs[:, 1] >= 0
+    assert spheres.sum() >= 50 and np.all(pairs[spheres, 0] < pairs[spheres, 1])
+    assert np.sum(pairs[:, 1] == -5) == 9  # the bottom layer on the floor (the low z wall)
+    assert np.all(data["overlap"] > 0)
+    assert np.abs(tangential).max() > 0, "friction acts"
+    # Equal and opposite: the first partner takes +F, the second −F; the sums are the forces.
+    total = normal + tangential
+    sums = np.zeros((27, 3))
+    np.add.at(sums, pairs[:, 0], total)
+    np.add.at(sums, pairs[spheres, 1], -total[spheres])
+    largest = np.abs(sim.forces).max()
+    np.testing.assert_allclose(sums, sim.forces, rtol=0, atol=1e-5 * largest)
+    assert sim.torques.shape == (27, 3) and np.abs(sim.torques).max() > 0
+    # What the next step applies: m·Δv/dt − m·g.
+    mass = 500 * 4 / 3 * np.pi * 0.01**3
+    forces, v = sim.forces.copy(), sim.velocities.copy()
+    sim.step(1)
+    applied = mass * (sim.velocities - v) / sim.dt - mass * np.array(sim.gravity)
+    np.testing.assert_allclose(applied, forces, rtol=0, atol=1e-3 * largest)
+
+
+def test_material_keys_change_between_steps_and_the_rest_is_refused():
+    # A sphere sliding on the floor: friction slows it; with friction off it keeps its speed.
+    sim = mochi.Simulation.from_arrays(
+        np.array([[0.1, 0.5, 0.0099]]), np.array([0.01]), velocities=np.array([[0.5, 0.0, 0.0]]),
+        backend="cpu", box_lo=[0, 0, 0], box_hi=[1, 1, 1], dt=1e-5,
+    )
+    sim.step(200)
+    assert sim.velocities[0, 0] < 0.49, "friction slows the sliding sphere"
+    sim.change(friction=0.0, rolling_friction=0.0)
+    v = sim.velocities[0, 0]
+    sim.step(200)
+    assert sim.velocities[0, 0] == pytest.approx(v, rel=1e-5), "without friction it slides on"
+    # A time step the new law cannot keep stable is refused, and the run goes on as it was.
+    with pytest.raises(ValueError, match="too large"):
+        sim.change(young_modulus=1e13)
+    with pytest.raises(ValueError, match=r"scene key domain.box_hi \(box_hi\): cannot change between steps"):
+        sim.change({"box_hi": [2, 2, 2]})
+    with pytest.raises(ValueError, match="run.dt"):
+        sim.change(dt=1e-6)
+    sim.step(10)
+    assert sim.velocities[0, 0] == pytest.approx(v, rel=1e-5)
+
+
+def test_a_wall_turned_back_goes_on_from_where_it_is(tmp_path):
+    plate = tmp_path / "plate.obj"
+    plate.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n")
+    # A sphere resting on the floor, a plate above it coming down at 1 m/s.
+    wall = {"mesh": str(plate), "translate": [0, 0, 0.03], "velocity": [0, 0, -1.0]}
+    sim = mochi.Simulation.from_arrays(
+        np.array([[0.5, 0.5, 0.01]]), np.array([0.01]), backend="cpu",
+        box_lo=[0, 0, 0], box_hi=[1, 1, 1], gravity=[0, 0, 0], dt=1e-5, wall=wall,
+    )
+    sim.step(500)  # 5 mm down: the plate is 5 mm above the sphere's top
+    sim.set_wall_motion(0, velocity=[0, 0, 0.0])
+    sim.step(2000)
+    np.testing.assert_array_equal(sim.wall_loads[0]["force"], np.zeros(3))  # held 5 mm above
+    sim.set_wall_motion(0, velocity=[0, 0, -1.0])
+    sim.step(600)  # 6 mm more: it presses 1 mm into the sphere
+    assert sim.wall_loads[0]["force"][2] > 0, sim.wall_loads
+    with pytest.raises(ValueError, match="the run has 1 mesh walls"):
+        sim.set_wall_motion(3, velocity=[0, 0, 1.0])
+    hopper = mochi.Simulation("hopper", spheres=50, backend="cpu")
+    with pytest.raises(ValueError, match="moves as its scene says"):
+        hopper.set_wall_motion(1, velocity=[1.0, 0, 0])

@@ -214,6 +214,9 @@ pub trait Stepper: Send {
     /// Takes `steps` time steps.
     fn advance(&mut self, steps: u32) -> Result<Advance>;
 
+    /// Steps taken since t = 0 (the particles' step).
+    fn step(&self) -> u64;
+
     /// The particles now, in input order (a read-back on GPU backends).
     fn particles(&mut self) -> Result<Particles>;
 

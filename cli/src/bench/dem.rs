@@ -387,7 +387,7 @@ mod tests {
     use super::*;
     use crate::bench::plan::DROP_STEPS;
     use crate::bench::plan::Settings;
-    use mochi::dem::{Advance, Motion, Particles, StageTimes};
+    use mochi::dem::{Advance, ExternalLoads, Motion, Particles, StageTimes};
     use mochi::scenes::Scene;
 
     /// A step that takes 1 ms per phase and refits or not.
@@ -425,6 +425,14 @@ mod tests {
 
         fn set_gravity(&mut self, _: [f32; 3]) -> Result<()> {
             Ok(())
+        }
+
+        fn set_external_loads(&mut self, _: &ExternalLoads) -> Result<()> {
+            Ok(())
+        }
+
+        fn step(&self) -> u64 {
+            self.particles.step
         }
 
         fn refits(&self) -> bool {

@@ -655,6 +655,58 @@ impl SceneConfig {
         Ok(after)
     }
 
+    /// This scene (a run's) with `overrides` applied between the steps of its run: the
+    /// material keys (`material.*`, `[[material_pairs]]`, `[[materials]]` with their names in
+    /// their order), gravity now, each `[[wall]]`'s `friction` and `material`, and what
+    /// [`RESUMABLE`] names. Any other change is refused, naming the key: the spheres, the box,
+    /// the walls' geometry and the flows are the run's, and so is its time step, in which its
+    /// clock counts (the time is the step times the time step).
+    pub fn changed(&self, overrides: &Overrides) -> Result<Self> {
+        let fields = |c: &SceneConfig| toml::Table::try_from(c).expect("a scene serializes");
+        let table = set_over(fields(self), &SceneFlags::default(), overrides)?;
+        let after = Self::read(&table, None, None)?;
+        let (was, now) = (fields(self), fields(&after));
+        let (was, now) = (leaves(&was), leaves(&now));
+        let names = |c: &SceneConfig| {
+            c.materials
+                .iter()
+                .map(|m| m.name.clone())
+                .collect::<Vec<_>>()
+        };
+        let geometry = |c: &SceneConfig| {
+            let fixed = |w: &WallConfig| WallConfig {
+                friction: None,
+                material: None,
+                ..w.clone()
+            };
+            c.wall.iter().map(fixed).collect::<Vec<_>>()
+        };
+        let may_change = |key: &str| match key {
+            "materials" => names(self) == names(&after),
+            "wall" => geometry(self) == geometry(&after),
+            "material_pairs" | "domain.gravity" => true,
+            key => key.starts_with("material.") || RESUMABLE.contains(&key),
+        };
+        let mut keys = was
+            .keys()
+            .chain(now.keys().filter(|k| !was.contains_key(*k)));
+        if let Some(key) = keys.find(|k| was.get(*k) != now.get(*k) && !may_change(k)) {
+            let short = key
+                .split_once('.')
+                .and_then(|(table, field)| short_forms::short_form(table, field));
+            let named = short.map_or(key.clone(), |s| format!("{key} ({s})"));
+            return Err(Error::InvalidConfig {
+                what: format!("scene key {named}"),
+                reason: "cannot change between steps: a run's spheres, box, walls' geometry, \
+                         flows and time step are set at its start (the materials, gravity and \
+                         the walls' friction and material may change, the materials' names \
+                         and order kept); start a new run from the state now to change it"
+                    .into(),
+            });
+        }
+        Ok(after)
+    }
+
     /// This scene as TOML (saved in checkpoints).
     pub fn to_toml(&self) -> String {
         toml::to_string(self).expect("a scene always serializes")

@@ -709,3 +709,38 @@ mod material_tables {
         assert!(err(&many).contains("at most 256"));
     }
 }
+
+#[test]
+fn between_steps_the_materials_and_gravity_change_and_the_rest_is_refused() {
+    let flags = SceneFlags::default();
+    let config =
+        SceneConfig::load_new(None, &flags, &given(&["scene=pour", "spheres=100"])).unwrap();
+    let changed = config
+        .changed(&given(&["friction=0.1", "gravity=[0, 0, -1]", "steps=5"]))
+        .unwrap();
+    assert_eq!(changed.material.friction, Some(0.1));
+    assert_eq!(changed.domain.gravity, [0.0, 0.0, -1.0]);
+    for (set, key) in [
+        ("spheres=50", "scene key source.spheres (spheres)"),
+        ("dt=1e-6", "scene key run.dt (dt)"),
+        ("box_hi=[2, 2, 2]", "scene key domain.box_hi (box_hi)"),
+    ] {
+        let e = config.changed(&given(&[set])).unwrap_err().to_string();
+        assert!(
+            e.contains(key) && e.contains("cannot change between steps"),
+            "{e}"
+        );
+    }
+    // Materials keep their names in their order: the spheres' indices name them.
+    let two = "materials=[{name = \"a\"}, {name = \"b\"}]";
+    let config =
+        SceneConfig::load_new(None, &flags, &given(&["scene=pour", "spheres=100", two])).unwrap();
+    let denser = "materials=[{name = \"a\", density = 900}, {name = \"b\"}]";
+    assert_eq!(
+        config.changed(&given(&[denser])).unwrap().materials[0].density,
+        Some(900.0)
+    );
+    let renamed = "materials=[{name = \"b\"}, {name = \"a\"}]";
+    let e = config.changed(&given(&[renamed])).unwrap_err().to_string();
+    assert!(e.contains("scene key materials"), "{e}");
+}

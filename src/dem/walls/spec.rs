@@ -85,7 +85,55 @@ fn is_one(x: &f64) -> bool {
     *x == 1.0
 }
 
+/// A wall's new motion ([`WallConfig::moving_on`]): each field `None` keeps the wall's own (its
+/// rotation's centre where the wall's translation has carried it).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct NewMotion {
+    /// Velocity \[m/s\].
+    pub velocity: Option<[f64; 3]>,
+    /// Angular speed about `axis` through `center` \[rad/s\].
+    pub omega: Option<f64>,
+    /// Axis of `omega`.
+    pub axis: Option<[f64; 3]>,
+    /// A point of the rotation axis now \[m\].
+    pub center: Option<[f64; 3]>,
+}
+
 impl WallConfig {
+    /// This wall moving as `motion` says from time `t` on, from where it is at `t`: its pose
+    /// then is folded into its rest pose (`rotate` and `translate`) and its motion starts at
+    /// `t`, so it goes on without a jump (and a run resumed later puts it where this one has
+    /// it). The wall's fields are the valid ones of a built wall.
+    pub fn moving_on(&self, t: f64, motion: &NewMotion) -> Self {
+        let velocity = DVec3::from(self.velocity.unwrap_or_default());
+        let omega = self.omega.unwrap_or(0.0);
+        let axis = DVec3::from(self.axis.unwrap_or([0.0, 0.0, 1.0])).normalize_or(DVec3::Z);
+        let centre = DVec3::from(self.center.unwrap_or_default());
+        let tau = (t - self.start.unwrap_or(0.0)).max(0.0);
+        // The pose at t (walls::Motion::pose_at): x = R·x_rest + (centre + v·τ − R·centre).
+        let turn = DQuat::from_axis_angle(axis, omega * tau);
+        let moved_centre = centre + velocity * tau;
+        let offset = moved_centre - turn * centre;
+        let rest = self.rotate.map_or(DQuat::IDENTITY, |r| {
+            DQuat::from_axis_angle(DVec3::from(r.axis).normalize(), r.degrees.to_radians())
+        });
+        let (rotate_axis, angle) = (turn * rest).to_axis_angle();
+        let translate = turn * DVec3::from(self.translate.unwrap_or_default()) + offset;
+        WallConfig {
+            rotate: (angle != 0.0).then(|| Rotation {
+                axis: rotate_axis.into(),
+                degrees: angle.to_degrees(),
+            }),
+            translate: Some(translate.into()),
+            velocity: Some(motion.velocity.unwrap_or(velocity.into())),
+            omega: Some(motion.omega.unwrap_or(omega)),
+            axis: Some(motion.axis.unwrap_or(axis.into())),
+            center: Some(motion.center.unwrap_or(moved_centre.into())),
+            start: Some(t),
+            ..self.clone()
+        }
+    }
+
     /// A wall of `mesh` with every other field at its default.
     pub fn of(mesh: impl Into<PathBuf>) -> Self {
         Self {
@@ -208,5 +256,85 @@ impl WallConfig {
             friction: self.friction.map(|mu| mu as f32),
             material,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tetrahedron a metre across.
+    fn tetrahedron() -> Mesh {
+        Mesh {
+            vertices: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        }
+    }
+
+    /// The wall's triangles at `t`.
+    fn at(wall: &WallConfig, t: f64) -> Vec<[[f32; 3]; 3]> {
+        let built = wall.build_from(0, &tetrahedron(), None).unwrap();
+        built.triangles_at(&built.motion.pose_at(t))
+    }
+
+    /// The largest distance between corresponding corners.
+    fn gap(a: &[[[f32; 3]; 3]], b: &[[[f32; 3]; 3]]) -> f32 {
+        let corners = |t: &[[[f32; 3]; 3]]| t.iter().flatten().copied().collect::<Vec<_>>();
+        let (a, b) = (corners(a), corners(b));
+        a.iter()
+            .zip(&b)
+            .map(|(p, q)| (0..3).map(|k| (p[k] - q[k]).abs()).fold(0.0, f32::max))
+            .fold(0.0, f32::max)
+    }
+
+    #[test]
+    fn a_wall_given_a_new_motion_goes_on_from_where_it_is() {
+        let wall = WallConfig {
+            scale: 0.5,
+            rotate: Some(Rotation {
+                axis: [1.0, 1.0, 0.0],
+                degrees: 30.0,
+            }),
+            translate: Some([0.2, -0.1, 0.3]),
+            velocity: Some([0.1, 0.0, -0.2]),
+            omega: Some(2.0),
+            axis: Some([0.0, 1.0, 1.0]),
+            center: Some([0.5, 0.5, 0.0]),
+            start: Some(0.25),
+            ..WallConfig::of("tetrahedron.obj")
+        };
+        let t = 1.7;
+        let new = NewMotion {
+            velocity: Some([0.0, 0.3, 0.0]),
+            omega: Some(-1.0),
+            ..NewMotion::default()
+        };
+        let moved = wall.moving_on(t, &new);
+        // Where it was at t, and from there as told: translated at the new velocity, turned
+        // about the old axis through the centre where the old motion had carried it.
+        assert!(gap(&at(&moved, t), &at(&wall, t)) < 1e-6);
+        assert!(
+            gap(&at(&moved, 0.0), &at(&wall, t)) < 1e-6,
+            "at rest before t"
+        );
+        let later = at(&moved, t + 0.5);
+        let centre = DVec3::from([0.5, 0.5, 0.0]) + DVec3::from([0.1, 0.0, -0.2]) * (t - 0.25);
+        let axis = DVec3::from([0.0, 1.0, 1.0]).normalize();
+        let turn = DQuat::from_axis_angle(axis, -0.5);
+        let expected: Vec<[[f32; 3]; 3]> = at(&wall, t)
+            .iter()
+            .map(|tri| {
+                tri.map(|p| {
+                    let x = DVec3::from(p.map(f64::from));
+                    (turn * (x - centre) + centre + DVec3::new(0.0, 0.15, 0.0))
+                        .as_vec3()
+                        .to_array()
+                })
+            })
+            .collect();
+        assert!(gap(&later, &expected) < 1e-5, "{later:?} vs {expected:?}");
+        // Nothing given: the same motion, on from t.
+        let same = wall.moving_on(t, &NewMotion::default());
+        assert!(gap(&at(&same, 2.3), &at(&wall, 2.3)) < 1e-5);
     }
 }

@@ -266,6 +266,10 @@ impl Stepper for FlowStep {
         Ok(done)
     }
 
+    fn step(&self) -> u64 {
+        self.now()
+    }
+
     fn particles(&mut self) -> Result<Particles> {
         match &mut self.step {
             Some(step) => step.particles(),

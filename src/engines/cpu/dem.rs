@@ -635,6 +635,10 @@ impl Stepper for CpuStepper {
         self.particles.try_clone()
     }
 
+    fn step(&self) -> u64 {
+        self.particles.step
+    }
+
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
         motion.apply(&mut self.particles)
     }

@@ -563,6 +563,10 @@ impl Stepper for OptixStepper {
         Ok(())
     }
 
+    fn step(&self) -> u64 {
+        self.step
+    }
+
     fn particles(&mut self) -> Result<Particles> {
         let stream = &self.device.stream;
         let n = self.n as usize;

@@ -384,6 +384,10 @@ impl Stepper for RqStepper {
             .map_or_else(Vec::new, |g| g.mesh().loads().to_vec())
     }
 
+    fn step(&self) -> u64 {
+        self.step
+    }
+
     fn particles(&mut self) -> Result<Particles> {
         let n = self.n as usize;
         let pos: Vec<[f32; 4]> = self.gpu.read(&self.pos, n)?;

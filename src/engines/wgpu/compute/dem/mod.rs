@@ -597,6 +597,10 @@ impl Stepper for GridStepper {
         self.state()
     }
 
+    fn step(&self) -> u64 {
+        self.step
+    }
+
     fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()> {
         self.params.gravity = gravity;
         let res = &mut self.res;
