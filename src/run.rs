@@ -381,10 +381,12 @@ impl Run {
     }
 
     /// Changes scene keys between steps ([`SceneConfig::changed`] says which may change: the
-    /// materials, gravity, the walls' friction and material). The step is opened again on
-    /// its backend from the state now (the contact history, gravity and external loads kept),
-    /// at the cost of opening a run; a time step the new contact law cannot keep stable is
-    /// refused, and the run is then as it was.
+    /// materials, gravity, the time step, the walls' friction and material). The step is
+    /// opened again on its backend from the state now (the contact history, gravity and
+    /// external loads kept), at the cost of opening a run; a time step the contact law cannot
+    /// keep stable is refused, and the run is then as it was. The time is the step count times
+    /// the time step: a new time step makes the step count the time now over it, rounded (the
+    /// clock, and what follows it, walls and a turning gravity, moves by less than half a step).
     pub fn change(&mut self, overrides: &Overrides) -> Result<()> {
         let config = self.config.changed(overrides)?;
         self.reopen(config)
@@ -420,7 +422,10 @@ impl Run {
     /// the state now, keeping the flows' counts, gravity and the external loads; changes
     /// nothing where it fails.
     fn reopen(&mut self, config: SceneConfig) -> Result<()> {
-        let particles = self.stepper.particles()?;
+        let mut particles = self.stepper.particles()?;
+        if let Some(dt) = config.run.dt.filter(|&dt| dt as f32 != self.params.dt) {
+            particles.step = (self.time() / dt).round() as u64;
+        }
         let mut start = config.resume_from(particles)?;
         if let Some(counted) = self.stepper.flow_counts() {
             start.flow.counted = counted;

@@ -224,9 +224,10 @@ class Simulation:
         farther than the smallest radius in one step."""
     def change(self, scene: dict[str, _SceneValue] | None = None, **keys: _SceneValue) -> None:
         """Changes scene keys between steps: the material keys (``materials`` with their names
-        in their order), ``gravity``, each ``wall``'s ``friction`` and ``material``. The step is
-        opened again from the state now (contact history, gravity and external loads kept); a
-        time step the new law cannot keep stable and any other key raise ``ValueError``."""
+        in their order), ``gravity``, ``dt``, each ``wall``'s ``friction`` and ``material``. The
+        step is opened again from the state now (contact history, gravity and external loads
+        kept); a time step the contact law cannot keep stable and any other key raise
+        ``ValueError``. A new ``dt`` makes ``step_count`` the time now over it, rounded."""
     def set_wall_motion(
         self,
         index: int,

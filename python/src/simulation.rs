@@ -960,11 +960,12 @@ impl Simulation {
     /// Changes scene keys between steps, given as a dict or keyword arguments (as
     /// `Simulation` takes them): the material keys (`friction`, `young_modulus`,
     /// `restitution`, …; `materials` with their names in their order; `material_pairs`),
-    /// `gravity`, and each `wall`'s `friction` and `material`. The step is opened again on its
-    /// backend from the state now (contact history, gravity and external loads kept), which
-    /// costs what opening the run costs. A time step the new law cannot keep stable, and any
-    /// other key (the spheres, box, walls' geometry, flows, time step), raise `ValueError` and
-    /// change nothing.
+    /// `gravity`, `dt`, and each `wall`'s `friction` and `material`. The step is opened again
+    /// on its backend from the state now (contact history, gravity and external loads kept),
+    /// which costs what opening the run costs. A time step the contact law cannot keep stable,
+    /// and any other key (the spheres, box, walls' geometry, flows), raise `ValueError` and
+    /// change nothing. The time is `step_count · dt`: a new `dt` makes `step_count` the time
+    /// now over it, rounded (the clock moves by less than half a step).
     #[pyo3(signature = (scene = None, **keys))]
     fn change(
         &mut self,
@@ -980,6 +981,8 @@ impl Simulation {
             let given = given.then(keyword_overrides(keys)?);
             let run = sim.run_mut()?;
             let changed = py.detach(|| run.change(&given));
+            // A new time step counts the time now in its steps.
+            sim.step = run.stepper.step();
             sim.stepped();
             changed.map_err(scene_err)
         })

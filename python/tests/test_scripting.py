@@ -398,10 +398,18 @@ def test_material_keys_change_between_steps_and_the_rest_is_refused():
         sim.change(young_modulus=1e13)
     with pytest.raises(ValueError, match=r"scene key domain.box_hi \(box_hi\): cannot change between steps"):
         sim.change({"box_hi": [2, 2, 2]})
-    with pytest.raises(ValueError, match="run.dt"):
-        sim.change(dt=1e-6)
     sim.step(10)
     assert sim.velocities[0, 0] == pytest.approx(v, rel=1e-5)
+    # A smaller time step: the clock goes on from the time now, in steps of the new one.
+    t = sim.time
+    sim.change(dt=4e-6)
+    assert sim.dt == pytest.approx(4e-6) and sim.step_count == round(t / 4e-6)
+    assert abs(sim.time - t) <= 2e-6
+    x = sim.positions[0, 0]
+    sim.step(1000)
+    assert sim.positions[0, 0] - x == pytest.approx(v * 4e-3, rel=1e-4)
+    with pytest.raises(ValueError, match="too large"):
+        sim.change(dt=1e-2)
 
 
 def test_a_wall_turned_back_goes_on_from_where_it_is(tmp_path):

@@ -657,10 +657,9 @@ impl SceneConfig {
 
     /// This scene (a run's) with `overrides` applied between the steps of its run: the
     /// material keys (`material.*`, `[[material_pairs]]`, `[[materials]]` with their names in
-    /// their order), gravity now, each `[[wall]]`'s `friction` and `material`, and what
-    /// [`RESUMABLE`] names. Any other change is refused, naming the key: the spheres, the box,
-    /// the walls' geometry and the flows are the run's, and so is its time step, in which its
-    /// clock counts (the time is the step times the time step).
+    /// their order), gravity now, each `[[wall]]`'s `friction` and `material`, the time step,
+    /// and what [`RESUMABLE`] names. Any other change is refused, naming the key: the spheres,
+    /// the box, the walls' geometry and the flows are the run's.
     pub fn changed(&self, overrides: &Overrides) -> Result<Self> {
         let fields = |c: &SceneConfig| toml::Table::try_from(c).expect("a scene serializes");
         let table = set_over(fields(self), &SceneFlags::default(), overrides)?;
@@ -684,7 +683,7 @@ impl SceneConfig {
         let may_change = |key: &str| match key {
             "materials" => names(self) == names(&after),
             "wall" => geometry(self) == geometry(&after),
-            "material_pairs" | "domain.gravity" => true,
+            "material_pairs" | "domain.gravity" | "run.dt" => true,
             key => key.starts_with("material.") || RESUMABLE.contains(&key),
         };
         let mut keys = was
@@ -697,9 +696,9 @@ impl SceneConfig {
             let named = short.map_or(key.clone(), |s| format!("{key} ({s})"));
             return Err(Error::InvalidConfig {
                 what: format!("scene key {named}"),
-                reason: "cannot change between steps: a run's spheres, box, walls' geometry, \
-                         flows and time step are set at its start (the materials, gravity and \
-                         the walls' friction and material may change, the materials' names \
+                reason: "cannot change between steps: a run's spheres, box, walls' geometry \
+                         and flows are set at its start (the materials, gravity, the time step \
+                         and the walls' friction and material may change, the materials' names \
                          and order kept); start a new run from the state now to change it"
                     .into(),
             });

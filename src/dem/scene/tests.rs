@@ -722,7 +722,7 @@ fn between_steps_the_materials_and_gravity_change_and_the_rest_is_refused() {
     assert_eq!(changed.domain.gravity, [0.0, 0.0, -1.0]);
     for (set, key) in [
         ("spheres=50", "scene key source.spheres (spheres)"),
-        ("dt=1e-6", "scene key run.dt (dt)"),
+        ("mode=\"nns\"", "scene key run.mode (mode)"),
         ("box_hi=[2, 2, 2]", "scene key domain.box_hi (box_hi)"),
     ] {
         let e = config.changed(&given(&[set])).unwrap_err().to_string();
