@@ -77,8 +77,8 @@ pub struct LawParams {
     pub box_column: u32,
     /// Padding: `sphere_law` starts a 16-byte line, as a struct member of a uniform must.
     pub _pad0: u32,
-    /// 1 while some sphere has an external load ([`ExternalLoads`](crate::dem::stepper::ExternalLoads)):
-    /// the integration reads them only then.
+    /// 1 while some sphere has an external load (the stepper's `ExternalLoads`): the
+    /// integration reads them only then.
     pub loaded: u32,
     /// The law of two spheres of the first material (the table's row 0, column 0): with one
     /// material every pair's.
