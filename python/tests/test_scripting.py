@@ -433,3 +433,24 @@ def test_a_wall_turned_back_goes_on_from_where_it_is(tmp_path):
     hopper = mochi.Simulation("hopper", spheres=50, backend="cpu")
     with pytest.raises(ValueError, match="moves as its scene says"):
         hopper.set_wall_motion(1, velocity=[1.0, 0, 0])
+
+
+def test_a_mesh_wall_s_contacts_are_listed_with_its_negative_id(tmp_path):
+    plate = tmp_path / "plate.obj"
+    plate.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n")
+    # A sphere pressed 0.1 mm by a plate above it and 0.1 mm into the floor below.
+    wall = {"mesh": str(plate), "translate": [0, 0, 0.0198]}
+    sim = mochi.Simulation.from_arrays(
+        np.array([[0.5, 0.5, 0.0099]]), np.array([0.01]), backend="cpu",
+        box_lo=[0, 0, 0], box_hi=[1, 1, 1], gravity=[0, 0, 0], dt=1e-5, wall=wall,
+    )
+    data = sim.contact_data()
+    assert sorted(data["pairs"][:, 1].tolist()) == [-7, -5]  # the mesh wall 0, the floor (low z)
+    plate_row = list(data["pairs"][:, 1]).index(-7)
+    normal = data["normal_force"][plate_row]
+    assert normal[2] < 0 and abs(normal[0]) + abs(normal[1]) < 1e-6 * abs(normal[2])  # pushed down
+    assert data["overlap"][plate_row] == pytest.approx(1e-4, rel=1e-3)
+    np.testing.assert_allclose(sim.forces[0], data["normal_force"].sum(axis=0) + data["tangential_force"].sum(axis=0), rtol=1e-5)
+    sim.step(1)
+    # The plate takes the opposite of the force on the sphere.
+    np.testing.assert_allclose(sim.wall_loads[0]["force"], -normal, rtol=1e-4)
