@@ -896,6 +896,8 @@ fn uploads(p: &StepParams, module: &naga::Module) -> Vec<(Binding, Vec<u8>)> {
                 ("spheres_per_part", U(1)),
                 ("columns", U(table.count as u32 + 1)),
                 ("box_column", U(p.box_column)),
+                // The laws read no external loads (the integrations do).
+                ("loaded", U(0)),
                 ("sphere_law", pair_law(table.law(0, 0))),
             ])],
         ),

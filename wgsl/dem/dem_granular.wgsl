@@ -340,7 +340,7 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
         clear_force(p);
     }
     if dem.loaded != 0u {
-        f += external_load(p, 0u);
+        f += external_load(stable_id(p), 0u);
     }
     let g = gravity_at(atomicLoad(&clock) - 1u);
     let m = v.w;
@@ -356,7 +356,7 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
         }
         var t = torque;
         if dem.loaded != 0u {
-            t += external_load(p, 1u);
+            t += external_load(stable_id(p), 1u);
         }
         let o = omega[p];
         omega[p] = vec4(o.xyz + dem.dt * (t / inertia), o.w);

@@ -23,7 +23,7 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
     }
     var f = contacts + wall_force(s.xyz, v.xyz, s.w, v.w);
     if dem.loaded != 0u {
-        f += external_load(p, 0u);
+        f += external_load(stable_id(p), 0u);
     }
     let g = gravity_at(atomicLoad(&clock) - 1u);
     let m = v.w;

@@ -51,9 +51,9 @@ struct PairLaw {
 // rows otherwise)
 @group(0) @binding(36) var<storage, read> external_loads: array<vec4<f32>>;
 
-// The external force (`row` 0) or torque (1) of the sphere at state index p.
-fn external_load(p: u32, row: u32) -> vec3<f32> {
-    return external_loads[2u * stable_id(p) + row].xyz;
+// The external force (`row` 0) or torque (1) of the sphere of stable id `id`.
+fn external_load(id: u32, row: u32) -> vec3<f32> {
+    return external_loads[2u * id + row].xyz;
 }
 
 // The effective value a·b/(a + b) of two positive values (m*, R*, I*) without their product,
