@@ -11,7 +11,7 @@ struct alignas(16) MochiPairLaw {
     float damping_ratio;  // ζ giving the pair's restitution
     float sliding;        // μ
     float rolling;        // μ_r
-    float _pad0;
+    float adhesion;       // Γ of JKR [J/m²] (the optix step runs no cohesion yet)
     float _pad1;
 };
 

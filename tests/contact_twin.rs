@@ -213,13 +213,13 @@ impl<S: Twin> Case<S> {
         let walls = wall_contacts(
             &self.p,
             &self.i,
-            S::of_wall,
+            |w| (S::of_wall(w), true),
             |w, s| kept.push((w, s)),
             |_, _, _, _| {},
         );
         Expected {
-            from_i: pair_contact(&self.p, &self.i, &self.j, self.old),
-            from_j: pair_contact(&self.p, &self.j, &self.i, self.old.negated()),
+            from_i: pair_contact(&self.p, &self.i, &self.j, self.old, false),
+            from_j: pair_contact(&self.p, &self.j, &self.i, self.old.negated(), false),
             walls,
             kept,
             surface: surface_contact(
@@ -315,7 +315,7 @@ fn cases<S: Twin>(
 fn assert_most_touch<S: Twin>(cases: &[Case<S>]) {
     let touching = cases
         .iter()
-        .filter(|c| pair_contact(&c.p, &c.i, &c.j, c.old).is_some())
+        .filter(|c| pair_contact(&c.p, &c.i, &c.j, c.old, false).is_some())
         .count();
     let count = cases.len();
     assert!(

@@ -238,7 +238,17 @@ pub fn open_setup(
     options: &Options,
 ) -> Result<Box<dyn Stepper>> {
     setup.particles.validate()?;
+    runs_the_law(kind, &setup.params)?;
     engine(kind)?.stepper(setup, options)
+}
+
+/// Refuses a scene whose contacts adhere on a backend without the cohesion laws yet (every
+/// backend but the cpu; `auto` then passes over them, saying why).
+fn runs_the_law(kind: BackendKind, params: &StepParams) -> Result<()> {
+    match kind {
+        BackendKind::Cpu => Ok(()),
+        _ => super::common::rows::dry_only(kind.name(), params),
+    }
 }
 
 /// Opens the DEM step the user chose, and names the backend it runs on; `auto` follows the
@@ -287,6 +297,7 @@ pub fn open_scene(
     }
     let open = |kind: BackendKind| -> Result<Box<dyn Stepper>> {
         setup.particles.validate()?;
+        runs_the_law(kind, &setup.params)?;
         engine(kind)?.flowing(setup.clone(), options, flow.clone())
     };
     let mut opened = choosing(choice, &BackendKind::FLOWING, open)?;

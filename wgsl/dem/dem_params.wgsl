@@ -34,7 +34,7 @@ struct PairLaw {
     damping_ratio: f32,   // ζ giving the pair's restitution
     sliding: f32,         // μ
     rolling: f32,         // μ_r
-    _pad0: f32,
+    adhesion: f32,        // Γ of JKR [J/m²] (the GPU steps run no cohesion yet)
     _pad1: f32,
 }
 

@@ -39,6 +39,7 @@ use super::material::{NormalLaw, RollingModel, TangentialModel};
 use super::materials::PairLaw;
 use crate::particles::{HistoryEntry, LoadEntry, LoadedEntry};
 use glam::Vec3;
+use std::f32::consts::PI;
 
 /// 2·√(5/6): Tsuji's damping coefficient over ζ·√(S·m*).
 const TSUJI: f32 = 1.825_741_9;
@@ -277,12 +278,16 @@ pub struct Contact<S = Springs> {
 }
 
 /// The normal force's magnitude (≥ 0: it pushes the bodies apart or does nothing), its elastic
-/// part (no damping) and the normal stiffness.
+/// part (no damping) and the normal stiffness; the load that caps friction and rolling (the
+/// push, or with JKR adhesion the push plus twice the pull-off force) and the contact radius of
+/// JKR (0 for the other laws).
 #[derive(Debug, Clone, Copy)]
 struct Normal {
     push: f32,
     elastic: f32,
     stiffness: f32,
+    load: f32,
+    radius: f32,
 }
 
 /// A touching contact from sphere i's side, as friction needs it.
@@ -303,6 +308,48 @@ struct Touch {
     w_rel: Vec3,
 }
 
+/// The pull-off force of a JKR contact of effective radius `r_eff` and work of adhesion
+/// `adhesion` Γ (load control): 1.5·π·Γ·R* \[N\].
+#[inline(always)]
+pub fn jkr_pull_off(r_eff: f32, adhesion: f32) -> f32 {
+    1.5 * PI * adhesion * r_eff
+}
+
+/// The overlap at which a JKR neck breaks (negative): δ_c = −¾·(π²Γ²R*/E*²)^⅓ \[m\]. A
+/// contact forms at δ = 0 and lasts while δ > δ_c.
+#[inline(always)]
+pub fn jkr_break(r_eff: f32, e_star: f32, adhesion: f32) -> f32 {
+    let g = PI * adhesion / e_star;
+    -0.75 * (g * g * r_eff).cbrt()
+}
+
+/// The contact radius a of a JKR contact with overlap `overlap` (above [`jkr_break`]): the
+/// root of δ = a²/R* − √(2πΓa/E*) on the stable branch, by Newton's method on x = √a, whose
+/// x⁴/R* − c·x − δ (c = √(2πΓ/E*)) is convex: from a start above the root (where
+/// x⁴/R* ≥ 2·max(δ, 0) and ≥ 2c·x) every step stays above it and comes down to it.
+#[inline(always)]
+pub fn jkr_radius(overlap: f32, r_eff: f32, e_star: f32, adhesion: f32) -> f32 {
+    let c = (2.0 * PI * adhesion / e_star).sqrt();
+    let mut x = (2.0 * r_eff * overlap.max(0.0))
+        .sqrt()
+        .sqrt()
+        .max((2.0 * c * r_eff).cbrt());
+    for _ in 0..JKR_ITERATIONS {
+        let x3 = x * x * x;
+        let slope = 4.0 * x3 / r_eff - c;
+        if slope <= 0.0 {
+            break;
+        }
+        x -= (x3 * x / r_eff - c * x - overlap) / slope;
+    }
+    x * x
+}
+
+/// Newton steps of [`jkr_radius`]: from its start within a factor of 2^¼ or so of the root,
+/// enough to reach it in f32 (quadratic convergence), and fixed, so every backend takes the
+/// same steps.
+const JKR_ITERATIONS: usize = 12;
+
 /// The normal force of a contact of law `law` with overlap `overlap` > 0 and normal relative
 /// velocity `vn`.
 #[inline(always)]
@@ -318,20 +365,44 @@ fn normal_force(
         NormalLaw::Linear => {
             let c = 2.0 * law.damping_ratio * root_product(p.stiffness, m_eff);
             let elastic = p.stiffness * overlap;
+            let push = (elastic - c * vn).max(0.0);
             Normal {
-                push: (elastic - c * vn).max(0.0),
+                push,
                 elastic,
                 stiffness: p.stiffness,
+                load: push,
+                radius: 0.0,
             }
         }
         NormalLaw::LinearPerPair { .. } => {
             let k = m_eff * law.rate;
             let c = 2.0 * law.damping_ratio * root_product(k, m_eff);
             let elastic = k * overlap;
+            let push = (elastic - c * vn).max(0.0);
             Normal {
-                push: (elastic - c * vn).max(0.0),
+                push,
                 elastic,
                 stiffness: k,
+                load: push,
+                radius: 0.0,
+            }
+        }
+        NormalLaw::Hertz { .. } if law.adhesion > 0.0 => {
+            // JKR: the contact radius of the overlap (negative on the neck), its force (an
+            // attraction on the neck and at small overlaps) and Tsuji's damping with the
+            // stiffness 2E*a of that radius; no clamp, the neck pulls.
+            let a = jkr_radius(overlap, r_eff, law.e_star, law.adhesion);
+            let s_n = 2.0 * law.e_star * a;
+            let c = TSUJI * law.damping_ratio * root_product(s_n, m_eff);
+            let elastic = 2.0 / 3.0 * s_n * a * a / r_eff
+                - (8.0 * PI * law.adhesion * law.e_star * a * a * a).sqrt();
+            let push = elastic - c * vn;
+            Normal {
+                push,
+                elastic,
+                stiffness: s_n,
+                load: (push + 2.0 * jkr_pull_off(r_eff, law.adhesion)).max(0.0),
+                radius: a,
             }
         }
         NormalLaw::Hertz { .. } => {
@@ -339,10 +410,13 @@ fn normal_force(
             let s_n = 2.0 * law.e_star * (r_eff * overlap).sqrt();
             let c = TSUJI * law.damping_ratio * root_product(s_n, m_eff);
             let elastic = 2.0 / 3.0 * s_n * overlap;
+            let push = (elastic - c * vn).max(0.0);
             Normal {
-                push: (elastic - c * vn).max(0.0),
+                push,
                 elastic,
                 stiffness: s_n,
+                load: push,
+                radius: 0.0,
             }
         }
     }
@@ -350,13 +424,20 @@ fn normal_force(
 
 /// The contact of sphere `i` with sphere `j`, from i's side, given the springs i kept of it
 /// (`old`, of the parameters' tangential model), or `None` when they do not touch (or their
-/// centres coincide: no normal, no force).
+/// centres coincide: no normal, no force). `bonded`: whether they were in contact at the last
+/// step, where a pair adheres (JKR's neck then holds them down to [`jkr_break`]).
 #[inline(always)]
-pub fn pair_contact<S: Kept>(p: &StepParams, i: &Body, j: &Body, old: S) -> Option<Contact<S>> {
+pub fn pair_contact<S: Kept>(
+    p: &StepParams,
+    i: &Body,
+    j: &Body,
+    old: S,
+    bonded: bool,
+) -> Option<Contact<S>> {
     let d = j.c - i.c;
     let d2 = d.dot(d);
     let reach = i.r + j.r;
-    if d2 > reach * reach || d2 == 0.0 {
+    if (d2 > reach * reach && !bonded) || d2 == 0.0 {
         return None;
     }
     let dist = d2.sqrt();
@@ -366,6 +447,9 @@ pub fn pair_contact<S: Kept>(p: &StepParams, i: &Body, j: &Body, old: S) -> Opti
     let m_eff = effective(i.m, j.m);
     let r_eff = effective(i.r, j.r);
     let law = p.materials.law(i.material, j.material);
+    if overlap <= 0.0 && !holds(law, r_eff, overlap) {
+        return None;
+    }
     let normal = normal_force(p, law, overlap, vn, m_eff, r_eff);
     let force = -normal.push * n;
     if !p.friction.turns() {
@@ -396,6 +480,13 @@ pub fn pair_contact<S: Kept>(p: &StepParams, i: &Body, j: &Body, old: S) -> Opti
     })
 }
 
+/// Whether a contact of `law` that touched at the last step and now overlaps by `overlap` ≤ 0
+/// still holds: a JKR neck that has not broken.
+#[inline(always)]
+fn holds(law: &PairLaw, r_eff: f32, overlap: f32) -> bool {
+    law.adhesion > 0.0 && overlap > jkr_break(r_eff, law.e_star, law.adhesion)
+}
+
 /// Partner id of wall `w` in the contact history: walls 0..6 are the low and high walls of x,
 /// y and z (`2·axis + side`).
 pub const WALLS: u32 = 6;
@@ -412,14 +503,14 @@ pub struct WallContacts {
 }
 
 /// The walls touching sphere `b`: `old(w)` gives the springs it kept of wall `w` (zero for none)
-/// and `keep(w, springs)` receives those to keep, for each touching wall in order, where the
-/// material has history; `seen(w, normal, tangential, overlap)` receives each touching wall's
-/// forces on the sphere.
+/// and whether it touched the wall at the last step, and `keep(w, springs)` receives those to
+/// keep, for each touching wall in order, where the material has history;
+/// `seen(w, normal, tangential, overlap)` receives each touching wall's forces on the sphere.
 #[inline(always)]
 pub fn wall_contacts<S: Kept>(
     p: &StepParams,
     b: &Body,
-    old: impl Fn(u32) -> S,
+    old: impl Fn(u32) -> (S, bool),
     mut keep: impl FnMut(u32, S),
     mut seen: impl FnMut(u32, Vec3, Vec3, f32),
 ) -> WallContacts {
@@ -436,7 +527,8 @@ pub fn wall_contacts<S: Kept>(
         let below = b.r - (c[a] - p.box_lo[a]);
         let above = b.r - (p.box_hi[a] - c[a]);
         for (side, overlap, vn) in [(0, below, v[a]), (1, above, -v[a])] {
-            if overlap <= 0.0 {
+            let wall = 2 * a as u32 + side;
+            if overlap <= 0.0 && !(p.friction.cohesive && old(wall).1 && holds(law, b.r, overlap)) {
                 continue;
             }
             let nf = normal_force(p, law, overlap, vn, b.m, b.r);
@@ -444,10 +536,13 @@ pub fn wall_contacts<S: Kept>(
                 0 => f += nf.push,
                 _ => f -= nf.push,
             }
-            let wall = 2 * a as u32 + side;
             let pushed = [nf.push, -nf.push][side as usize] * Vec3::AXES[a];
             if !turns {
                 seen(wall, pushed, Vec3::ZERO, overlap);
+                // An adhering contact is remembered without springs.
+                if keeps {
+                    keep(wall, S::default());
+                }
             } else {
                 let n = if side == 0 {
                     -Vec3::AXES[a]
@@ -465,7 +560,7 @@ pub fn wall_contacts<S: Kept>(
                     v_rel: b.v + b.w.cross(b.r * n),
                     w_rel: b.w,
                 };
-                let (f_t, t, springs) = friction(p, law, &touch, law.sliding, old(wall));
+                let (f_t, t, springs) = friction(p, law, &touch, law.sliding, old(wall).0);
                 seen(wall, pushed, f_t, overlap);
                 tangential += f_t;
                 torque += t;
@@ -671,7 +766,7 @@ fn load_history(
 fn friction<S: Kept>(p: &StepParams, law: &PairLaw, t: &Touch, mu: f32, old: S) -> (Vec3, Vec3, S) {
     debug_assert!(!p.friction.has_history() || p.friction.tangential_model == S::MODEL);
     let n = t.n;
-    let pressing = t.normal.push;
+    let pressing = t.normal.load;
     let mut force = Vec3::ZERO;
     let mut torque = Vec3::ZERO;
     let mut springs = S::default();
@@ -682,7 +777,11 @@ fn friction<S: Kept>(p: &StepParams, law: &PairLaw, t: &Touch, mu: f32, old: S) 
                 (k_t, 2.0 * law.damping_ratio * root_product(k_t, t.m_eff))
             }
             NormalLaw::Hertz { .. } => {
-                let s_t = 8.0 * law.g_star * (t.r_eff * t.overlap).sqrt();
+                let a = match law.adhesion > 0.0 {
+                    true => t.normal.radius,
+                    false => (t.r_eff * t.overlap).sqrt(),
+                };
+                let s_t = 8.0 * law.g_star * a;
                 (s_t, TSUJI * law.damping_ratio * root_product(s_t, t.m_eff))
             }
         };
@@ -831,8 +930,8 @@ mod tests {
                 Vec3::new(-0.1, -side, 0.05),
                 -Vec3::Y,
             );
-            let f = pair_contact(&p, &i, &j, a).unwrap();
-            let g = pair_contact(&p, &j, &i, b).unwrap();
+            let f = pair_contact(&p, &i, &j, a, false).unwrap();
+            let g = pair_contact(&p, &j, &i, b, false).unwrap();
             assert_eq!(f.force, -g.force, "step {k}");
             assert_eq!(f.springs, g.springs.negated());
             assert_eq!(f.springs.springs.tangential, -g.springs.springs.tangential);
@@ -875,8 +974,8 @@ mod tests {
             Vec3::new(-0.5, 0.0, 0.2),
             Vec3::Z / r,
         );
-        let f = pair_contact(&p, &i, &j, Springs::default()).unwrap();
-        let g = pair_contact(&p, &j, &i, Springs::default()).unwrap();
+        let f = pair_contact(&p, &i, &j, Springs::default(), false).unwrap();
+        let g = pair_contact(&p, &j, &i, Springs::default(), false).unwrap();
         assert_eq!(f.force, -g.force);
         assert_eq!(f.springs.rolling, -g.springs.rolling);
         // Closing at 1 m/s: the damping pushes harder than the spring alone.
@@ -885,6 +984,7 @@ mod tests {
             &Body { v: Vec3::ZERO, ..i },
             &Body { v: Vec3::ZERO, ..j },
             Springs::default(),
+            false,
         )
         .unwrap();
         assert!(f.force.x < 1.01 * elastic.force.x && elastic.force.x < 0.0);

@@ -97,6 +97,9 @@ pub struct Material {
     pub rolling_model: RollingModel,
     /// Tangential model (default: Mindlin's no-slip spring).
     pub tangential_model: TangentialModel,
+    /// Work of adhesion Γ of two surfaces of this material \[J/m²\] (JKR cohesion, with
+    /// Hertz–Mindlin; default 0: dry). Two spheres pull off at 1.5·π·Γ·R*.
+    pub adhesion: f64,
 }
 
 impl Default for Material {
@@ -111,6 +114,7 @@ impl Default for Material {
             rolling_friction: 0.0,
             rolling_model: RollingModel::Epsd,
             tangential_model: TangentialModel::Mindlin,
+            adhesion: 0.0,
         }
     }
 }
@@ -177,6 +181,9 @@ pub struct Friction {
     pub rolling_model: RollingModel,
     /// How the tangential force follows the displacement.
     pub tangential_model: TangentialModel,
+    /// Whether some pair adheres (JKR): its contacts outlast their overlap, so every contact
+    /// is remembered from step to step.
+    pub cohesive: bool,
 }
 
 impl Friction {
@@ -187,7 +194,8 @@ impl Friction {
 
     /// Whether contacts carry springs from one step to the next (tangential, or EPSD rolling).
     pub fn has_history(&self) -> bool {
-        self.sliding > 0.0
+        self.cohesive
+            || self.sliding > 0.0
             || self.wall_sliding > 0.0
             || (self.rolling > 0.0 && self.rolling_model == RollingModel::Epsd)
     }

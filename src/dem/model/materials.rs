@@ -225,8 +225,10 @@ pub struct PairLaw {
     pub sliding: f32,
     /// Rolling friction μ_r.
     pub rolling: f32,
-    /// Padding to 32 bytes (two scalars, not an array: a uniform buffer holds this struct too).
-    pub _pad0: f32,
+    /// Work of adhesion Γ of the pair \[J/m²\] (JKR; 0: dry): the geometric mean of the two
+    /// materials', or the sphere's own on a rigid wall. (Two scalars of 32 bytes, not an
+    /// array: a uniform buffer holds this struct too.)
+    pub adhesion: f32,
     /// Padding to 32 bytes.
     pub _pad1: f32,
 }
@@ -324,9 +326,14 @@ impl MaterialTable {
             let ma = &materials.list[a];
             for b in (0..count).map(Some).chain([None]) {
                 let (e, mu, mu_r) = materials.coefficients(a, b);
+                let adhesion = match b {
+                    Some(b) => (ma.adhesion * materials.list[b].adhesion).sqrt(),
+                    None => ma.adhesion,
+                };
                 let mut law = PairLaw {
                     sliding: mu as f32,
                     rolling: mu_r as f32,
+                    adhesion: adhesion as f32,
                     ..PairLaw::default()
                 };
                 let pair = || format!("\"{}\" on {}", materials.names[a], name(b));
@@ -429,7 +436,7 @@ macro_rules! pair_law_fields {
                 damping_ratio,
                 sliding,
                 rolling,
-                _pad0,
+                adhesion,
                 _pad1,
             }
         )

@@ -110,6 +110,18 @@ pub fn smallest_turning_radius(density: f32) -> f32 {
 }
 
 impl StepParams {
+    /// How far beyond touching a contact of spheres of radii up to `r_max` may act \[m\]: the
+    /// widest JKR neck of any adhering pair (0 where none adheres). A pair's neck breaks at
+    /// [`jkr_break`](contact::jkr_break) of its R*, at most `r_max` (a sphere on a wall).
+    pub fn reach_margin(&self, r_max: f32) -> f32 {
+        self.materials
+            .laws
+            .iter()
+            .filter(|l| l.adhesion > 0.0)
+            .map(|l| -contact::jkr_break(r_max, l.e_star, l.adhesion))
+            .fold(0.0, f32::max)
+    }
+
     /// Checks and completes the parameters for spheres of radii from `r_min` up: derives the
     /// stiffness when the material has none, and refuses a time step too large for it, and
     /// spheres too small for the laws in f32 (docs/method.md, "Small spheres in f32"): half
@@ -200,6 +212,19 @@ impl StepParams {
             ));
         }
         let law = m.law(dt, r_min, m_eff)?;
+        if let Some(sticky) = materials.list.iter().find(|m| m.adhesion != 0.0) {
+            if !(sticky.adhesion > 0.0 && (sticky.adhesion as f32).is_normal()) {
+                return bad(&format!(
+                    "surface_energy must be a positive number (J/m²), got {}",
+                    sticky.adhesion
+                ));
+            }
+            if !matches!(law.law, NormalLaw::Hertz { .. }) {
+                return bad(
+                    "cohesion = \"jkr\" (surface_energy) needs contact = \"hertz-mindlin\"",
+                );
+            }
+        }
         let resolved = MaterialTable::resolve(materials, dt, law.stiffness, r_min, m_eff)?;
         let table = resolved.table;
         let friction = Friction {
@@ -208,6 +233,7 @@ impl StepParams {
             rolling: table.largest_rolling(),
             rolling_model: m.rolling_model,
             tangential_model: m.tangential_model,
+            cohesive: table.laws.iter().any(|l| l.adhesion > 0.0),
         };
         if friction.turns() && !inertia_in_range(density, r_min) {
             return bad(&format!(
@@ -462,8 +488,12 @@ mod tests {
         };
         let i = body([0.1, 0.2, 0.3], [0.01, -0.3, 0.2], 0.0005, 2e-7);
         let j = body([0.1007, 0.2003, 0.2996], [-0.2, 0.1, 0.05], 0.0006, 3e-7);
-        let f = pair_contact(&p, &i, &j, Springs::default()).unwrap().force;
-        let g = pair_contact(&p, &j, &i, Springs::default()).unwrap().force;
+        let f = pair_contact(&p, &i, &j, Springs::default(), false)
+            .unwrap()
+            .force;
+        let g = pair_contact(&p, &j, &i, Springs::default(), false)
+            .unwrap()
+            .force;
         assert_eq!(f, -g);
         // Repulsive: pushes i away from j.
         assert!(f.x < 0.0 && f.y < 0.0 && f.z > 0.0);

@@ -322,6 +322,23 @@ pub struct SceneMaterial {
     /// history dependent stiffness; `hertz-mindlin` only); `None`: `mindlin`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tangential_model: Option<TangentialModel>,
+    /// Cohesion between the spheres and with the box's walls: `jkr` (`hertz-mindlin` only,
+    /// with `surface_energy`); `None`: dry.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cohesion: Option<CohesionKind>,
+    /// Work of adhesion Γ of two surfaces of the material \[J/m²\] (`cohesion = "jkr"`: two
+    /// spheres pull off at 1.5·π·Γ·R*).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub surface_energy: Option<f64>,
+}
+
+/// The cohesion of a scene (`cohesion = ...`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CohesionKind {
+    /// Johnson, Kendall and Roberts (1971): Hertz's contact with a surface energy, a neck that
+    /// holds past touching and breaks at a pull-off distance.
+    Jkr,
 }
 
 impl Default for SceneMaterial {
@@ -339,6 +356,8 @@ impl Default for SceneMaterial {
             rolling_friction: None,
             rolling_model: None,
             tangential_model: None,
+            cohesion: None,
+            surface_energy: None,
         }
     }
 }

@@ -7,7 +7,7 @@
 use crate::error::{Error, Result};
 
 /// Each short form, with the table and the key of that table it stands for.
-pub const SHORT_FORMS: [(&str, &str, &str); 40] = [
+pub const SHORT_FORMS: [(&str, &str, &str); 42] = [
     ("scene", "source", "scene"),
     ("spheres", "source", "spheres"),
     ("seed", "source", "seed"),
@@ -48,6 +48,8 @@ pub const SHORT_FORMS: [(&str, &str, &str); 40] = [
     ("rolling_friction", "material", "rolling_friction"),
     ("rolling_model", "material", "rolling_model"),
     ("tangential_model", "material", "tangential_model"),
+    ("cohesion", "material", "cohesion"),
+    ("surface_energy", "material", "surface_energy"),
 ];
 
 /// The tables a scene's fields live in.

@@ -395,6 +395,23 @@ impl SceneConfig {
             true => (DEFAULT_FRICTION, DEFAULT_ROLLING_FRICTION),
             false => (0.0, 0.0),
         };
+        let adhesion = match (this.cohesion, this.surface_energy) {
+            (None, None) => 0.0,
+            (Some(CohesionKind::Jkr), Some(gamma)) if hertz => gamma,
+            (Some(CohesionKind::Jkr), Some(_)) => return refuse("cohesion", "hertz-mindlin"),
+            (Some(_), None) => {
+                return Err(Error::InvalidConfig {
+                    what: "scene key cohesion".into(),
+                    reason: "needs surface_energy, the work of adhesion Γ in J/m²".into(),
+                });
+            }
+            (None, Some(_)) => {
+                return Err(Error::InvalidConfig {
+                    what: "scene key surface_energy".into(),
+                    reason: "applies to a cohesion law: give cohesion = \"jkr\" as well".into(),
+                });
+            }
+        };
         Ok(Material {
             density: this.density,
             restitution: this.restitution,
@@ -405,6 +422,7 @@ impl SceneConfig {
             rolling_friction: this.rolling_friction.unwrap_or(rolling),
             rolling_model: this.rolling_model.unwrap_or_default(),
             tangential_model: this.tangential_model.unwrap_or_default(),
+            adhesion,
         })
     }
 

@@ -199,3 +199,15 @@ pub(crate) fn not_fixed() -> Error {
             .into(),
     )
 }
+
+/// Refuses parameters whose contacts adhere on `backend`, a GPU step without the cohesion laws
+/// yet.
+pub(crate) fn dry_only(backend: &str, params: &crate::dem::model::StepParams) -> Result<()> {
+    match params.friction.cohesive {
+        true => Err(Error::Usage(format!(
+            "cohesion (JKR) runs on the cpu backend so far, not on {backend}: run with \
+             --backend cpu (or auto)"
+        ))),
+        false => Ok(()),
+    }
+}

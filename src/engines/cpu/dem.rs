@@ -50,6 +50,9 @@ pub struct CpuStepper {
     particles: Particles,
     params: StepParams,
     masses: Vec<f32>,
+    /// How far beyond touching a contact may act ([`StepParams::reach_margin`]): the cells
+    /// grow by it.
+    margin: f32,
     cell_size: f32,
     /// The box and a margin of one cell: the region the grid covers in a step where some
     /// centre is not finite or beyond the coordinate limit (centres outside it clamped into
@@ -99,7 +102,8 @@ impl CpuStepper {
     fn new(mut particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
         particles.separate_coincident()?;
         let (_, r_max) = particles.radius_range();
-        let cell_size = mode.cell_size(r_max);
+        let reach_margin = params.reach_margin(r_max);
+        let cell_size = mode.cell_size(r_max) + reach_margin;
         let margin = cell_size;
         let region = (
             params.box_lo.map(|x| x - margin),
@@ -125,6 +129,7 @@ impl CpuStepper {
         }
         Ok(Self {
             masses,
+            margin: reach_margin,
             cell_size,
             region,
             grid: SortedGrid::default(),
@@ -151,7 +156,9 @@ impl CpuStepper {
             return self;
         }
         let (_, r_max) = self.particles.radius_range();
-        let cell_size = mode.cell_size(r_max.max(flow.largest_radius()));
+        let r_max = r_max.max(flow.largest_radius());
+        self.margin = self.params.reach_margin(r_max);
+        let cell_size = mode.cell_size(r_max) + self.margin;
         if cell_size > self.cell_size {
             let margin = cell_size;
             self.cell_size = cell_size;
@@ -207,6 +214,13 @@ impl CpuStepper {
                 got: n as u64,
                 limit: FIRST_MESH_WALL as u64,
             });
+        }
+        if self.params.friction.cohesive && !walls.meshes.is_empty() {
+            return Err(Error::Usage(
+                "cohesion with mesh walls is not there yet (spheres and the box's walls adhere): \
+                 run without mesh walls, or without cohesion"
+                    .into(),
+            ));
         }
         self.box_walls = walls.box_walls;
         self.mesh = (!walls.meshes.is_empty()).then(|| MeshPass::new(walls));
@@ -265,6 +279,7 @@ impl CpuStepper {
             masses: &self.masses,
             box_walls: self.box_walls,
             mesh: self.mesh.as_ref(),
+            margin: self.margin,
         };
         let poses = self.mesh.as_ref().map(|m| {
             let t = self.particles.step as f64 * self.params.dt as f64;
@@ -333,6 +348,7 @@ impl CpuStepper {
             masses: &self.masses,
             box_walls: self.box_walls,
             mesh: self.mesh.as_ref(),
+            margin: self.margin,
         };
         let (grid, sums, slots) = (&self.grid, &mut self.sums, &mut self.slots);
         if !self.params.friction.has_history() {
@@ -442,6 +458,8 @@ struct ContactPass<'a> {
     box_walls: bool,
     /// Each sphere's mesh-wall contacts, resolved before this pass.
     mesh: Option<&'a MeshPass>,
+    /// How far beyond touching a contact may act ([`StepParams::reach_margin`]).
+    margin: f32,
 }
 
 impl ContactPass<'_> {
@@ -484,12 +502,15 @@ impl ContactPass<'_> {
             true => parts.history.loads_of(i),
             false => &[],
         };
-        let old = |partner: u32| -> S {
+        // The springs kept of a partner, and whether there were any (it touched at the last
+        // step).
+        let old = |partner: u32| -> (S, bool) {
             match kept.iter().position(|e| e.partner == partner) {
-                Some(k) => S::of_entry(&kept[k], kept_loads.get(k)),
-                None => S::default(),
+                Some(k) => (S::of_entry(&kept[k], kept_loads.get(k)), true),
+                None => (S::default(), false),
             }
         };
+        let cohesive = p.friction.cohesive;
         let mut count = 0u32;
         let mut keep = |partner: u32, springs: S| {
             if let Some(slot) = held.get_mut(count as usize) {
@@ -506,12 +527,13 @@ impl ContactPass<'_> {
                 let t = grid.spheres[q];
                 let (dx, dy, dz) = (t[0] - s[0], t[1] - s[1], t[2] - s[2]);
                 let reach = s[3] + t[3];
-                if dx * dx + dy * dy + dz * dz > reach * reach || q == at {
+                let within = reach + self.margin;
+                if dx * dx + dy * dy + dz * dz > within * within || q == at {
                     continue;
                 }
                 let j = grid.ids[q];
-                let springs = if keeps { old(j) } else { S::default() };
-                if let Some(c) = pair_contact(p, &me, &body(q), springs) {
+                let (springs, bonded) = if keeps { old(j) } else { (S::default(), false) };
+                if let Some(c) = pair_contact(p, &me, &body(q), springs, bonded && cohesive) {
                     let overlap = reach - (dx * dx + dy * dy + dz * dz).sqrt();
                     seen(j as i64, c.normal, c.force - c.normal, overlap);
                     touching += 1;

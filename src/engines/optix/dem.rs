@@ -115,6 +115,7 @@ impl OptixStepper {
             walls,
         } = setup;
         let walls = &walls;
+        crate::engines::common::rows::dry_only("optix", &params)?;
         particles.separate_coincident()?;
         let device = open_device()?;
         let kernels = Kernels::load(&device)?;

@@ -313,6 +313,7 @@ impl DemModule {
         kernels: KernelSet,
         source: impl FnOnce(Accumulators, Lanes, Variant) -> String,
     ) -> Result<Self> {
+        crate::engines::common::rows::dry_only(backend, params)?;
         let room = room.holding(particles);
         let n = room.spheres as u64;
         if n > limit {
