@@ -863,6 +863,7 @@ fn pair_law(l: &PairLaw) -> Value {
         ("damping_ratio", F(l.damping_ratio)),
         ("sliding", F(l.sliding)),
         ("rolling", F(l.rolling)),
+        ("adhesion", F(l.adhesion)),
     ])
 }
 

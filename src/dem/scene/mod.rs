@@ -42,6 +42,8 @@
 //! rolling_friction = 0.1 # μ_r; default 0.1 (hertz-mindlin), 0 (linear)
 //! rolling_model = "epsd" # or "constant-torque" (default epsd)
 //! tangential_model = "mindlin" # or "mindlin-deresiewicz" (hertz-mindlin only; default mindlin)
+//! cohesion = "jkr"       # JKR adhesion (hertz-mindlin only; cpu backend so far); default: dry
+//! surface_energy = 0.05  # J/m², the work of adhesion Γ: spheres pull off at 1.5·π·Γ·R*
 //!
 //! [[materials]]          # several materials (see `dem::material_spec`)
 //! name = "steel"

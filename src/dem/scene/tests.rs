@@ -744,3 +744,33 @@ fn between_steps_the_materials_and_gravity_change_and_the_rest_is_refused() {
     let e = config.changed(&given(&[renamed])).unwrap_err().to_string();
     assert!(e.contains("scene key materials"), "{e}");
 }
+
+#[test]
+fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
+    let flags = SceneFlags::default();
+    let build = |sets: &[&str]| {
+        let mut all = vec!["scene=freefall", "spheres=20"];
+        all.extend_from_slice(sets);
+        SceneConfig::load_new(None, &flags, &given(&all)).and_then(|c| c.build())
+    };
+    let start = build(&["cohesion=\"jkr\"", "surface_energy=0.05"]).unwrap();
+    assert!(start.params.friction.cohesive && start.params.friction.has_history());
+    assert_eq!(start.params.materials.law(0, 0).adhesion, 0.05);
+    assert!(!build(&[]).unwrap().params.friction.cohesive);
+    for (sets, words) in [
+        (&["cohesion=\"jkr\""][..], "needs surface_energy"),
+        (&["surface_energy=0.05"], "give cohesion = \"jkr\" as well"),
+        (
+            &[
+                "cohesion=\"jkr\"",
+                "surface_energy=0.05",
+                "contact=\"linear\"",
+            ],
+            "hertz-mindlin",
+        ),
+        (&["cohesion=\"jkr\"", "surface_energy=-1"], "positive"),
+    ] {
+        let e = build(sets).err().expect("refused").to_string();
+        assert!(e.contains(words), "{sets:?}: {e}");
+    }
+}
