@@ -195,7 +195,10 @@ fn cohesion_runs_on_the_cpu_and_the_gpu_backends_refuse_it() {
             mochi::ProxyMode::Mochi,
             &Default::default(),
         );
-        let e = opened.err().expect("refused").to_string();
+        let Err(e) = opened else {
+            panic!("{} opened a cohesive scene", kind.name())
+        };
+        let e = e.to_string();
         assert!(e.contains("cohesion (JKR) runs on the cpu backend"), "{e}");
     }
 }

@@ -770,7 +770,7 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
         ),
         (&["cohesion=\"jkr\"", "surface_energy=-1"], "positive"),
     ] {
-        let e = build(sets).err().expect("refused").to_string();
+        let e = build(sets).expect_err("refused").to_string();
         assert!(e.contains(words), "{sets:?}: {e}");
     }
 }
