@@ -1,10 +1,12 @@
-//! JKR adhesion (cohesion = "jkr") against its analytic results, as whole steps: the pull-off
-//! force of two spheres and of a sphere on a wall, 1.5·π·Γ·R*, reached by pulling slowly; a
-//! sphere hanging under a ceiling that holds when 1.5·π·Γ·R exceeds its weight by a tenth and
-//! falls when it is a tenth short. The cpu backend runs cohesion; the GPU backends refuse it.
+//! Cohesion against its analytic results, as whole steps. JKR adhesion (cohesion = "jkr"): the
+//! pull-off force of two spheres and of a sphere on a wall, 1.5·π·Γ·R*, reached by pulling
+//! slowly; a sphere hanging under a ceiling that holds when 1.5·π·Γ·R exceeds its weight by a
+//! tenth and falls when it is a tenth short. Liquid bridges (cohesion = "capillary"): the pull
+//! at contact 2πRγ·cos θ, the rupture at (1 + θ/2)·V^⅓, a wet sphere hanging from a ceiling.
+//! The cpu backend runs cohesion; the GPU backends refuse it.
 
-use mochi::dem::model::contact::{jkr_break, jkr_pull_off, jkr_radius};
-use mochi::dem::model::{ContactLaw, Material};
+use mochi::dem::model::contact::{bridge_pull, jkr_break, jkr_pull_off, jkr_radius};
+use mochi::dem::model::{ContactLaw, LiquidBridge, Material};
 use mochi::dem::{ExternalLoads, Particles, StepParams, Stepper};
 use mochi::engines::DemSetup;
 use mochi::engines::cpu::CpuStepper;
@@ -201,4 +203,96 @@ fn cohesion_runs_on_the_cpu_and_the_gpu_backends_refuse_it() {
         let e = e.to_string();
         assert!(e.contains("cohesion (JKR) runs on the cpu backend"), "{e}");
     }
+}
+
+/// Water (γ = 0.072 N/m, θ = 0) in bridges of `volume` between spheres of [`sticky`]'s
+/// elastic law without adhesion.
+fn wet(volume: f64) -> Material {
+    Material {
+        bridge: Some(LiquidBridge {
+            volume,
+            surface_tension: 0.072,
+            contact_angle: 0.0,
+        }),
+        ..sticky(0.0)
+    }
+}
+
+#[test]
+fn a_liquid_bridge_pulls_with_willetts_force_and_ruptures_at_lians_distance() {
+    let volume = 1e-12; // 1 nl: V^⅓ = 0.1 mm
+    let p = params(&wet(volume), [0.0; 3]);
+    let bridge = p.bridge.expect("a bridge");
+    // At contact 2πRγ cos θ (R = 2R* = r for equal spheres), less across a gap, none beyond
+    // the rupture distance (1 + θ/2)·V^⅓.
+    let at_contact = 2.0 * PI * R * 0.072;
+    assert!((bridge_pull(&bridge, R / 2.0, 0.0) / at_contact - 1.0).abs() < 1e-6);
+    assert!(bridge_pull(&bridge, R / 2.0, -1e-5) < 0.7 * at_contact);
+    assert!((bridge.rupture / 1e-4 - 1.0).abs() < 1e-5);
+    // Pulled apart slowly, two spheres come off at the bridge's force at contact.
+    let start = spheres(vec![
+        [0.005 - R + 1e-7, 0.005, 0.005],
+        [0.005 + R - 1e-7, 0.005, 0.005],
+    ]);
+    let mut s = open(start, &p);
+    s.advance(3000).unwrap();
+    let mut held = 0.0;
+    for k in 0..10_000 {
+        let f = 1e-7 * k as f32;
+        let forces = vec![[-f, 0.0, 0.0], [f, 0.0, 0.0]];
+        let loads = ExternalLoads {
+            forces,
+            ..ExternalLoads::default()
+        };
+        s.set_external_loads(&loads).unwrap();
+        s.advance(10).unwrap();
+        let x = s.particles().unwrap().positions;
+        if x[1][0] - x[0][0] - 2.0 * R > 0.2 * bridge.rupture {
+            break;
+        }
+        held = f;
+    }
+    assert!(
+        (held / at_contact - 1.0).abs() < 0.03,
+        "came off at {held} N, not {at_contact} N"
+    );
+    // Flying apart, the bridge holds until the gap reaches the rupture distance.
+    let mut start = spheres(vec![
+        [0.005 - R + 1e-7, 0.005, 0.005],
+        [0.005 + R - 1e-7, 0.005, 0.005],
+    ]);
+    start.velocities = vec![[-0.3, 0.0, 0.0], [0.3, 0.0, 0.0]];
+    let mut s = open(start, &p);
+    let travel = 0.6 * p.dt;
+    let mut last_gap = 0.0;
+    for _ in 0..1000 {
+        let bridged = s.advance(1).unwrap().contacts > 0;
+        let x = s.particles().unwrap().positions;
+        let gap = x[1][0] - x[0][0] - 2.0 * R;
+        if !bridged {
+            assert!(
+                gap >= bridge.rupture && last_gap < bridge.rupture + travel,
+                "{last_gap}, {gap}"
+            );
+            return;
+        }
+        last_gap = gap;
+    }
+    panic!("the bridge never ruptured (gap {last_gap} m)");
+}
+
+#[test]
+fn a_wet_sphere_hangs_from_a_ceiling_by_its_bridge() {
+    // The bridge on a wall pulls 2π·2r·γ (R = 2R* = 2r): 0.9 mN, 88 times a 1 mm sphere's weight.
+    let mut p = params(&wet(1e-12), [0.0; 3]);
+    p = p.with_gravity([0.0, 0.0, -9.81], R).unwrap();
+    let mut hanging = open(spheres(vec![[0.005, 0.005, 0.01 - R + 1e-7]]), &p);
+    hanging.advance(5000).unwrap();
+    let z = hanging.particles().unwrap().positions[0][2];
+    assert!(z > 0.01 - R - 1e-5, "fell to {z}");
+    // Dry, it falls.
+    let dry = params(&sticky(0.0), [0.0, 0.0, -9.81]);
+    let mut falling = open(spheres(vec![[0.005, 0.005, 0.01 - R + 1e-7]]), &dry);
+    falling.advance(5000).unwrap();
+    assert!(falling.particles().unwrap().positions[0][2] < 0.01 - 2.0 * R);
 }

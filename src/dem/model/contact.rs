@@ -34,9 +34,9 @@
 //! [`super::StepParams::new`]: half the mass of the smallest sphere, and where spheres turn
 //! half its moment of inertia, are normal f32 numbers.
 
-use super::StepParams;
 use super::material::{NormalLaw, RollingModel, TangentialModel};
 use super::materials::PairLaw;
+use super::{Bridge, StepParams};
 use crate::particles::{HistoryEntry, LoadEntry, LoadedEntry};
 use glam::Vec3;
 use std::f32::consts::PI;
@@ -437,7 +437,10 @@ pub fn pair_contact<S: Kept>(
     let d = j.c - i.c;
     let d2 = d.dot(d);
     let reach = i.r + j.r;
-    if (d2 > reach * reach && !bonded) || d2 == 0.0 {
+    // Touching by the squared distance (as every backend's search tests it), whatever the
+    // rounding of the overlap; beyond, a bond may hold.
+    let apart = d2 > reach * reach;
+    if (apart && !bonded) || d2 == 0.0 {
         return None;
     }
     let dist = d2.sqrt();
@@ -447,11 +450,29 @@ pub fn pair_contact<S: Kept>(
     let m_eff = effective(i.m, j.m);
     let r_eff = effective(i.r, j.r);
     let law = p.materials.law(i.material, j.material);
-    if overlap <= 0.0 && !holds(law, r_eff, overlap) {
+    if apart && !holds(p, law, r_eff, overlap) {
         return None;
     }
-    let normal = normal_force(p, law, overlap, vn, m_eff, r_eff);
-    let force = -normal.push * n;
+    let pull = p.bridge.map_or(0.0, |b| bridge_pull(&b, r_eff, overlap));
+    if apart && law.adhesion == 0.0 {
+        // A liquid bridge across a gap: its pull alone.
+        let force = pull * n;
+        return Some(Contact {
+            force,
+            normal: force,
+            torque: Vec3::ZERO,
+            springs: S::default(),
+        });
+    }
+    let mut normal = normal_force(p, law, overlap, vn, m_eff, r_eff);
+    let force = match pull > 0.0 {
+        true => {
+            // The bridge presses the contact as a load does.
+            normal.load += pull;
+            (pull - normal.push) * n
+        }
+        false => -normal.push * n,
+    };
     if !p.friction.turns() {
         return Some(Contact {
             force,
@@ -481,10 +502,22 @@ pub fn pair_contact<S: Kept>(
 }
 
 /// Whether a contact of `law` that touched at the last step and now overlaps by `overlap` ≤ 0
-/// still holds: a JKR neck that has not broken.
+/// still holds: a JKR neck that has not broken, or a liquid bridge that has not ruptured.
 #[inline(always)]
-fn holds(law: &PairLaw, r_eff: f32, overlap: f32) -> bool {
-    law.adhesion > 0.0 && overlap > jkr_break(r_eff, law.e_star, law.adhesion)
+fn holds(p: &StepParams, law: &PairLaw, r_eff: f32, overlap: f32) -> bool {
+    (law.adhesion > 0.0 && overlap > jkr_break(r_eff, law.e_star, law.adhesion))
+        || p.bridge.is_some_and(|b| -overlap < b.rupture)
+}
+
+/// The pull of a liquid bridge `b` between bodies of effective radius `r_eff` (a sphere on a
+/// wall: its radius) overlapping by `overlap` (a gap where negative), in the closed form of
+/// Willett et al. (2000) with the Derjaguin radius R = 2R*: 2πRγ·cos θ/(1 + 2.1·s + 10·s²),
+/// s = (gap/2)·√(R/V) (0 where they overlap) \[N\].
+#[inline(always)]
+pub fn bridge_pull(b: &Bridge, r_eff: f32, overlap: f32) -> f32 {
+    let r = 2.0 * r_eff;
+    let s = 0.5 * (-overlap).max(0.0) * (r / b.volume).sqrt();
+    2.0 * PI * r * b.tension / (1.0 + 2.1 * s + 10.0 * s * s)
 }
 
 /// Partner id of wall `w` in the contact history: walls 0..6 are the low and high walls of x,
@@ -528,16 +561,39 @@ pub fn wall_contacts<S: Kept>(
         let above = b.r - (p.box_hi[a] - c[a]);
         for (side, overlap, vn) in [(0, below, v[a]), (1, above, -v[a])] {
             let wall = 2 * a as u32 + side;
-            if overlap <= 0.0 && !(p.friction.cohesive && old(wall).1 && holds(law, b.r, overlap)) {
+            let held = p.friction.cohesive && old(wall).1 && holds(p, law, b.r, overlap);
+            if overlap <= 0.0 && !held {
                 continue;
             }
-            let nf = normal_force(p, law, overlap, vn, b.m, b.r);
+            let pull = p
+                .bridge
+                .map_or(0.0, |bridge| bridge_pull(&bridge, b.r, overlap));
+            let bridged = overlap <= 0.0 && law.adhesion == 0.0;
+            let mut nf = match bridged {
+                // A liquid bridge across a gap: its pull alone, no friction.
+                true => Normal {
+                    push: 0.0,
+                    elastic: 0.0,
+                    stiffness: 0.0,
+                    load: 0.0,
+                    radius: 0.0,
+                },
+                false => normal_force(p, law, overlap, vn, b.m, b.r),
+            };
+            // The push away from the wall, less a bridge's pull.
+            let push = match pull > 0.0 {
+                true => {
+                    nf.load += pull;
+                    nf.push - pull
+                }
+                false => nf.push,
+            };
             match side {
-                0 => f += nf.push,
-                _ => f -= nf.push,
+                0 => f += push,
+                _ => f -= push,
             }
-            let pushed = [nf.push, -nf.push][side as usize] * Vec3::AXES[a];
-            if !turns {
+            let pushed = [push, -push][side as usize] * Vec3::AXES[a];
+            if !turns || bridged {
                 seen(wall, pushed, Vec3::ZERO, overlap);
                 // An adhering contact is remembered without springs.
                 if keeps {

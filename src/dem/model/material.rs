@@ -100,6 +100,21 @@ pub struct Material {
     /// Work of adhesion Γ of two surfaces of this material \[J/m²\] (JKR cohesion, with
     /// Hertz–Mindlin; default 0: dry). Two spheres pull off at 1.5·π·Γ·R*.
     pub adhesion: f64,
+    /// The liquid bridges between the spheres and with the walls (capillary cohesion; default
+    /// none: dry).
+    pub bridge: Option<LiquidBridge>,
+}
+
+/// Pendular liquid bridges: each contact that forms wets a bridge of one volume, which pulls
+/// the bodies together until it ruptures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LiquidBridge {
+    /// Liquid volume of a bridge V \[m³\].
+    pub volume: f64,
+    /// Surface tension of the liquid γ \[N/m\].
+    pub surface_tension: f64,
+    /// Contact angle θ of the liquid on the solid \[rad\], in [0, π/2).
+    pub contact_angle: f64,
 }
 
 impl Default for Material {
@@ -115,6 +130,7 @@ impl Default for Material {
             rolling_model: RollingModel::Epsd,
             tangential_model: TangentialModel::Mindlin,
             adhesion: 0.0,
+            bridge: None,
         }
     }
 }

@@ -20,7 +20,8 @@ pub mod time_step;
 pub use law::{LawCode, LawParams};
 pub use linear::{STEPS_PER_CONTACT, stable_dt, stiffness_for_duration};
 pub use material::{
-    ContactLaw, Elastic, Friction, MAX_FRICTION, Material, NormalLaw, RollingModel, TangentialModel,
+    ContactLaw, Elastic, Friction, LiquidBridge, MAX_FRICTION, Material, NormalLaw, RollingModel,
+    TangentialModel,
 };
 pub use materials::{MAX_MATERIALS, MaterialTable, Materials, PairLaw, PairOverride};
 
@@ -62,6 +63,30 @@ pub struct StepParams {
     pub dt_limit: f32,
     /// Rayleigh time of the smallest sphere \[s\] (Hertz–Mindlin only).
     pub rayleigh_time: Option<f32>,
+    /// The liquid bridges of capillary cohesion (`None`: none).
+    pub bridge: Option<Bridge>,
+}
+
+/// A liquid bridge as the step computes it ([`LiquidBridge`] in f32).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bridge {
+    /// Liquid volume V \[m³\].
+    pub volume: f32,
+    /// γ·cos θ \[N/m\].
+    pub tension: f32,
+    /// The gap at which a bridge ruptures, (1 + θ/2)·V^⅓ (Lian et al. 1993) \[m\].
+    pub rupture: f32,
+}
+
+impl Bridge {
+    /// `bridge` as the step computes it.
+    pub fn of(bridge: &LiquidBridge) -> Self {
+        Self {
+            volume: bridge.volume as f32,
+            tension: (bridge.surface_tension * bridge.contact_angle.cos()) as f32,
+            rupture: ((1.0 + bridge.contact_angle / 2.0) * bridge.volume.cbrt()) as f32,
+        }
+    }
 }
 /// Mass of a sphere of radius `r` \[kg\].
 pub fn mass(density: f32, r: f32) -> f32 {
@@ -120,6 +145,7 @@ impl StepParams {
             .filter(|l| l.adhesion > 0.0)
             .map(|l| -contact::jkr_break(r_max, l.e_star, l.adhesion))
             .fold(0.0, f32::max)
+            .max(self.bridge.map_or(0.0, |b| b.rupture))
     }
 
     /// Checks and completes the parameters for spheres of radii from `r_min` up: derives the
@@ -225,6 +251,25 @@ impl StepParams {
                 );
             }
         }
+        if let Some(b) = &m.bridge {
+            let positive = |x: f64| x > 0.0 && (x as f32).is_normal();
+            if !(positive(b.volume) && positive(b.surface_tension)) {
+                return bad(&format!(
+                    "a liquid bridge needs a positive liquid_volume and surface_tension (in \
+                     f32), got {:e} m³ and {} N/m",
+                    b.volume, b.surface_tension
+                ));
+            }
+            if !(0.0..std::f64::consts::FRAC_PI_2).contains(&b.contact_angle) {
+                return bad(&format!(
+                    "contact_angle must be from 0 up to (not including) 90°, got {}°",
+                    b.contact_angle.to_degrees()
+                ));
+            }
+            if m.adhesion > 0.0 {
+                return bad("one cohesion law at a time: a liquid bridge or JKR adhesion");
+            }
+        }
         let resolved = MaterialTable::resolve(materials, dt, law.stiffness, r_min, m_eff)?;
         let table = resolved.table;
         let friction = Friction {
@@ -233,7 +278,7 @@ impl StepParams {
             rolling: table.largest_rolling(),
             rolling_model: m.rolling_model,
             tangential_model: m.tangential_model,
-            cohesive: table.laws.iter().any(|l| l.adhesion > 0.0),
+            cohesive: table.laws.iter().any(|l| l.adhesion > 0.0) || m.bridge.is_some(),
         };
         if friction.turns() && !inertia_in_range(density, r_min) {
             return bad(&format!(
@@ -271,6 +316,7 @@ impl StepParams {
             box_column: box_material.map_or(table.column_of_rigid_wall(), |b| b as u32),
             materials: Arc::new(table),
             rayleigh_time: law.rayleigh_time.map(|t| t as f32),
+            bridge: m.bridge.as_ref().map(Bridge::of),
         })
     }
 

@@ -42,8 +42,12 @@
 //! rolling_friction = 0.1 # μ_r; default 0.1 (hertz-mindlin), 0 (linear)
 //! rolling_model = "epsd" # or "constant-torque" (default epsd)
 //! tangential_model = "mindlin" # or "mindlin-deresiewicz" (hertz-mindlin only; default mindlin)
-//! cohesion = "jkr"       # JKR adhesion (hertz-mindlin only; cpu backend so far); default: dry
-//! surface_energy = 0.05  # J/m², the work of adhesion Γ: spheres pull off at 1.5·π·Γ·R*
+//! cohesion = "jkr"       # JKR adhesion (hertz-mindlin only), or "capillary" (liquid bridges);
+//!                        # the cpu backend so far; default: dry
+//! surface_energy = 0.05  # jkr: J/m², the work of adhesion Γ: spheres pull off at 1.5·π·Γ·R*
+//! liquid_volume = 1e-12  # capillary: m³ of liquid in each bridge
+//! surface_tension = 0.072 # capillary: N/m (default: water's)
+//! contact_angle = 0      # capillary: degrees, from 0 up to 90 (default 0)
 //!
 //! [[materials]]          # several materials (see `dem::material_spec`)
 //! name = "steel"
@@ -105,6 +109,8 @@ pub const DEFAULT_YOUNG_MODULUS: f64 = 1e7;
 pub const DEFAULT_POISSON_RATIO: f64 = 0.3;
 /// Friction coefficient μ of `hertz-mindlin` when the scene gives none.
 pub const DEFAULT_FRICTION: f64 = 0.5;
+/// Surface tension of a capillary scene's liquid when it gives none: water's at 20 °C \[N/m\].
+pub const WATER_SURFACE_TENSION: f64 = 0.072;
 /// Rolling friction coefficient μ_r of `hertz-mindlin` when the scene gives none.
 pub const DEFAULT_ROLLING_FRICTION: f64 = 0.1;
 
@@ -332,6 +338,16 @@ pub struct SceneMaterial {
     /// spheres pull off at 1.5·π·Γ·R*).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub surface_energy: Option<f64>,
+    /// Liquid volume of each bridge \[m³\] (`cohesion = "capillary"`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub liquid_volume: Option<f64>,
+    /// Surface tension of the liquid \[N/m\] (`cohesion = "capillary"`; default 0.072, water).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub surface_tension: Option<f64>,
+    /// Contact angle of the liquid on the solid \[°\], from 0 up to 90 (`cohesion =
+    /// "capillary"`; default 0, fully wetting).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact_angle: Option<f64>,
 }
 
 /// The cohesion of a scene (`cohesion = ...`).
@@ -341,6 +357,9 @@ pub enum CohesionKind {
     /// Johnson, Kendall and Roberts (1971): Hertz's contact with a surface energy, a neck that
     /// holds past touching and breaks at a pull-off distance.
     Jkr,
+    /// Pendular liquid bridges (Willett et al. 2000): formed where bodies touch, pulling them
+    /// together until they part by the rupture distance (Lian et al. 1993).
+    Capillary,
 }
 
 impl Default for SceneMaterial {
@@ -360,6 +379,9 @@ impl Default for SceneMaterial {
             tangential_model: None,
             cohesion: None,
             surface_energy: None,
+            liquid_volume: None,
+            surface_tension: None,
+            contact_angle: None,
         }
     }
 }

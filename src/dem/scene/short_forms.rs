@@ -7,7 +7,7 @@
 use crate::error::{Error, Result};
 
 /// Each short form, with the table and the key of that table it stands for.
-pub const SHORT_FORMS: [(&str, &str, &str); 42] = [
+pub const SHORT_FORMS: [(&str, &str, &str); 45] = [
     ("scene", "source", "scene"),
     ("spheres", "source", "spheres"),
     ("seed", "source", "seed"),
@@ -50,6 +50,9 @@ pub const SHORT_FORMS: [(&str, &str, &str); 42] = [
     ("tangential_model", "material", "tangential_model"),
     ("cohesion", "material", "cohesion"),
     ("surface_energy", "material", "surface_energy"),
+    ("liquid_volume", "material", "liquid_volume"),
+    ("surface_tension", "material", "surface_tension"),
+    ("contact_angle", "material", "contact_angle"),
 ];
 
 /// The tables a scene's fields live in.

@@ -7,7 +7,7 @@ use crate::dem::flow::FlowSet;
 use crate::dem::material_spec::{self, material_index};
 use crate::dem::model::contact::moment_of_inertia;
 use crate::dem::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
-use crate::dem::model::{ContactLaw, Material, Materials, mass};
+use crate::dem::model::{ContactLaw, LiquidBridge, Material, Materials, mass};
 use crate::numbers::widened;
 use crate::scenes::{self, Layout, Scene, SceneSpec};
 use crate::spheres::SphereSet;
@@ -395,22 +395,46 @@ impl SceneConfig {
             true => (DEFAULT_FRICTION, DEFAULT_ROLLING_FRICTION),
             false => (0.0, 0.0),
         };
-        let adhesion = match (this.cohesion, this.surface_energy) {
-            (None, None) => 0.0,
-            (Some(CohesionKind::Jkr), Some(gamma)) if hertz => gamma,
-            (Some(CohesionKind::Jkr), Some(_)) => return refuse("cohesion", "hertz-mindlin"),
-            (Some(_), None) => {
-                return Err(Error::InvalidConfig {
-                    what: "scene key cohesion".into(),
-                    reason: "needs surface_energy, the work of adhesion Γ in J/m²".into(),
-                });
+        let of_law = |key: &str, law: &str| {
+            Err(Error::InvalidConfig {
+                what: format!("scene key {key}"),
+                reason: format!("applies to cohesion = \"{law}\": give it as well"),
+            })
+        };
+        let jkr = this.cohesion == Some(CohesionKind::Jkr);
+        let capillary = this.cohesion == Some(CohesionKind::Capillary);
+        if this.surface_energy.is_some() && !jkr {
+            return of_law("surface_energy", "jkr");
+        }
+        for (key, given) in [
+            ("liquid_volume", this.liquid_volume),
+            ("surface_tension", this.surface_tension),
+            ("contact_angle", this.contact_angle),
+        ] {
+            if given.is_some() && !capillary {
+                return of_law(key, "capillary");
             }
-            (None, Some(_)) => {
-                return Err(Error::InvalidConfig {
-                    what: "scene key surface_energy".into(),
-                    reason: "applies to a cohesion law: give cohesion = \"jkr\" as well".into(),
-                });
-            }
+        }
+        let needs = |key: &str, what: &str| {
+            Err(Error::InvalidConfig {
+                what: "scene key cohesion".into(),
+                reason: format!("needs {key}, {what}"),
+            })
+        };
+        let adhesion = match (jkr, this.surface_energy) {
+            (false, _) => 0.0,
+            (true, Some(gamma)) if hertz => gamma,
+            (true, Some(_)) => return refuse("cohesion", "hertz-mindlin"),
+            (true, None) => return needs("surface_energy", "the work of adhesion Γ in J/m²"),
+        };
+        let bridge = match (capillary, this.liquid_volume) {
+            (false, _) => None,
+            (true, None) => return needs("liquid_volume", "the liquid of a bridge in m³"),
+            (true, Some(volume)) => Some(LiquidBridge {
+                volume,
+                surface_tension: this.surface_tension.unwrap_or(WATER_SURFACE_TENSION),
+                contact_angle: this.contact_angle.unwrap_or(0.0).to_radians(),
+            }),
         };
         Ok(Material {
             density: this.density,
@@ -423,6 +447,7 @@ impl SceneConfig {
             rolling_model: this.rolling_model.unwrap_or_default(),
             tangential_model: this.tangential_model.unwrap_or_default(),
             adhesion,
+            bridge,
         })
     }
 

@@ -757,9 +757,23 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
     assert!(start.params.friction.cohesive && start.params.friction.has_history());
     assert_eq!(start.params.materials.law(0, 0).adhesion, 0.05);
     assert!(!build(&[]).unwrap().params.friction.cohesive);
+    let wet = build(&[
+        "cohesion=\"capillary\"",
+        "liquid_volume=1e-12",
+        "contact_angle=60",
+    ])
+    .unwrap();
+    let bridge = wet.params.bridge.expect("a bridge");
+    assert!(
+        (bridge.tension - 0.036).abs() < 1e-6,
+        "water's γ at 60°: {}",
+        bridge.tension
+    );
+    assert!((bridge.rupture - (1.0 + std::f32::consts::PI / 6.0) * 1e-4).abs() < 1e-9);
+    assert!(wet.params.friction.cohesive);
     for (sets, words) in [
         (&["cohesion=\"jkr\""][..], "needs surface_energy"),
-        (&["surface_energy=0.05"], "give cohesion = \"jkr\" as well"),
+        (&["surface_energy=0.05"], "applies to cohesion = \"jkr\""),
         (
             &[
                 "cohesion=\"jkr\"",
@@ -769,6 +783,20 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
             "hertz-mindlin",
         ),
         (&["cohesion=\"jkr\"", "surface_energy=-1"], "positive"),
+        (&["cohesion=\"capillary\""], "needs liquid_volume"),
+        (&["liquid_volume=1e-12"], "give it as well"),
+        (
+            &[
+                "cohesion=\"capillary\"",
+                "liquid_volume=1e-12",
+                "contact_angle=95",
+            ],
+            "90°",
+        ),
+        (
+            &["cohesion=\"jkr\"", "liquid_volume=1e-12"],
+            "cohesion = \"capillary\"",
+        ),
     ] {
         let e = build(sets).expect_err("refused").to_string();
         assert!(e.contains(words), "{sets:?}: {e}");
