@@ -18,6 +18,7 @@ use tempfile::TempDir;
 // ----------------------------------------------------------------------------------------------
 
 /// Owned data behind a [`Frame`].
+#[derive(Clone)]
 struct Spheres {
     positions: Vec<[f32; 3]>,
     /// A residual of 0.3 of the spacing above each coordinate of every other sphere.
@@ -422,6 +423,23 @@ fn vtu_holds_the_contact_count_of_each_sphere() {
     let path = dir.path().join("f.vtu");
     write_vtu(&path, &spheres.frame(3, 0.5)).unwrap();
     check_vtu(&path, &spheres, 3, 0.5);
+    // Read back as the frame's contacts (`mochi render --color-by contacts` colours by them),
+    // of spheres a reader takes (the generator's go to f32's limits).
+    let mut sane = spheres.clone();
+    for (k, c) in sane.positions.iter_mut().enumerate() {
+        *c = [k as f32, 0.0, 0.0];
+    }
+    sane.position_residuals.fill([0.0; 3]);
+    sane.radii.fill(0.4);
+    sane.velocities.fill([0.0; 3]);
+    sane.angular_velocities.fill([0.0; 3]);
+    write_vtu(&path, &sane.frame(3, 0.5)).unwrap();
+    let read = mochi::io::read_frame(&path).unwrap();
+    let counts: Vec<i64> = read.contacts.iter().map(|&c| c as i64).collect();
+    assert_eq!(counts, spheres.contact_counts());
+    sane.history = None;
+    write_vtu(&path, &sane.frame(3, 0.5)).unwrap();
+    assert!(mochi::io::read_frame(&path).unwrap().contacts.is_empty());
 }
 
 #[test]

@@ -144,7 +144,11 @@ fn gpu_paths_draw_the_cpu_picture() {
     })
     .unwrap();
     let radii: Vec<f32> = spheres.radii().iter().map(|r| r * 60.0).collect();
-    let values = ColorBy::Radius.values(spheres.centers(), &radii, &[], &[]);
+    let values = ColorBy::Radius.values(&mochi::render::SphereValues {
+        positions: spheres.centers(),
+        radii: &radii,
+        ..Default::default()
+    });
     let range = mochi::render::value_range(&values);
     let scene = Scene::new(spheres.centers(), &radii, &values, range).unwrap();
     let (lo, hi) = scene.bounds().unwrap();

@@ -35,6 +35,9 @@ pub struct OwnedFrame {
     /// Materials (as [`crate::particles::Particles::materials`]): one per sphere, or empty
     /// where the file has none (every sphere of the first material, 0).
     pub materials: Vec<u8>,
+    /// The contacts each sphere holds (the `contacts` array of a run with contact history),
+    /// or empty where the file has none.
+    pub contacts: Vec<u32>,
 }
 
 /// Reads a frame: a `.vtu` ([`read_vtu`]: mochi's or another writer's), or a sphere file
@@ -63,6 +66,7 @@ pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
         velocities: particles.velocities,
         angular_velocities: particles.angular_velocities,
         materials: particles.materials,
+        contacts: Vec::new(),
     })
 }
 
@@ -125,6 +129,15 @@ fn frame_of_vtu(bytes: &[u8]) -> std::result::Result<OwnedFrame, String> {
         }
         None => Vec::new(),
     };
+    let contacts = match vtu.point_data(&["contacts"])? {
+        Some(counts) => {
+            let name = counts.name.clone();
+            let counts = scalars(counts)?.to_unsigned(u32::MAX.into());
+            let counts = counts.map_err(|e| format!("point data {name:?}: {e}"))?;
+            counts.into_iter().map(|c| c as u32).collect()
+        }
+        None => Vec::new(),
+    };
     let positions: Vec<[f32; 3]> = exact
         .chunks_exact(3)
         .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
@@ -161,6 +174,7 @@ fn frame_of_vtu(bytes: &[u8]) -> std::result::Result<OwnedFrame, String> {
         velocities,
         angular_velocities,
         materials,
+        contacts,
     })
 }
 

@@ -15,15 +15,35 @@ pub enum ColorBy {
     Height,
     /// The material's index (0 for every sphere of a run of one material).
     Material,
+    /// The contacts a sphere holds (the frame's `contacts`, of a run with contact history:
+    /// bonds show where cohesion holds spheres together; 0 for a frame without them).
+    Contacts,
+}
+
+/// The values of a frame's spheres a colouring reads (each one per sphere, or empty where the
+/// frame has none).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SphereValues<'a> {
+    /// Centres \[m\].
+    pub positions: &'a [[f32; 3]],
+    /// Radii \[m\].
+    pub radii: &'a [f32],
+    /// Velocities \[m/s\] (empty: at rest).
+    pub velocities: &'a [[f32; 3]],
+    /// Materials (empty: one material).
+    pub materials: &'a [u8],
+    /// Contacts held (empty: none known).
+    pub contacts: &'a [u32],
 }
 
 impl ColorBy {
     /// Every quantity.
-    pub const ALL: [ColorBy; 4] = [
+    pub const ALL: [ColorBy; 5] = [
         ColorBy::Radius,
         ColorBy::Speed,
         ColorBy::Height,
         ColorBy::Material,
+        ColorBy::Contacts,
     ];
 
     /// The legend's label, with the unit.
@@ -33,26 +53,24 @@ impl ColorBy {
             ColorBy::Speed => "speed [m/s]",
             ColorBy::Height => "height [m]",
             ColorBy::Material => "material",
+            ColorBy::Contacts => "contacts",
         }
     }
 
-    /// The value of each sphere: its radius, its speed (`velocities` may be empty for spheres
-    /// at rest), the height of its centre or its material (`materials` may be empty for one
-    /// material).
-    pub fn values(
-        self,
-        positions: &[[f32; 3]],
-        radii: &[f32],
-        velocities: &[[f32; 3]],
-        materials: &[u8],
-    ) -> Vec<f32> {
+    /// The value of each sphere of `s`: its radius, its speed, the height of its centre, its
+    /// material or its contacts (0 where `s` has none of those).
+    pub fn values(self, s: &SphereValues<'_>) -> Vec<f32> {
+        let n = s.radii.len();
         match self {
-            ColorBy::Radius => radii.to_vec(),
-            ColorBy::Height => positions.iter().map(|p| p[2]).collect(),
-            ColorBy::Material if materials.is_empty() => vec![0.0; radii.len()],
-            ColorBy::Material => materials.iter().map(|&m| f32::from(m)).collect(),
-            ColorBy::Speed if velocities.is_empty() => vec![0.0; radii.len()],
-            ColorBy::Speed => velocities
+            ColorBy::Radius => s.radii.to_vec(),
+            ColorBy::Height => s.positions.iter().map(|p| p[2]).collect(),
+            ColorBy::Material if s.materials.is_empty() => vec![0.0; n],
+            ColorBy::Material => s.materials.iter().map(|&m| f32::from(m)).collect(),
+            ColorBy::Contacts if s.contacts.is_empty() => vec![0.0; n],
+            ColorBy::Contacts => s.contacts.iter().map(|&c| c as f32).collect(),
+            ColorBy::Speed if s.velocities.is_empty() => vec![0.0; n],
+            ColorBy::Speed => s
+                .velocities
                 .iter()
                 .map(|&v| glam::Vec3::from(v).length())
                 .collect(),
@@ -103,6 +121,8 @@ pub enum ColorChoice {
     Height,
     /// The material's index (0 for every sphere of a run of one material).
     Material,
+    /// The contacts a sphere holds (frames of a run with contact history: bonds show).
+    Contacts,
 }
 
 crate::names::named!(ColorChoice {
@@ -111,6 +131,7 @@ crate::names::named!(ColorChoice {
     Speed => "speed",
     Height => "height",
     Material => "material",
+    Contacts => "contacts",
 });
 
 impl From<ColorBy> for ColorChoice {
@@ -121,6 +142,7 @@ impl From<ColorBy> for ColorChoice {
             ColorBy::Speed => ColorChoice::Speed,
             ColorBy::Height => ColorChoice::Height,
             ColorBy::Material => ColorChoice::Material,
+            ColorBy::Contacts => ColorChoice::Contacts,
         }
     }
 }
@@ -145,6 +167,7 @@ impl ColorChoice {
             ColorChoice::Speed => ColorBy::Speed,
             ColorChoice::Height => ColorBy::Height,
             ColorChoice::Material => ColorBy::Material,
+            ColorChoice::Contacts => ColorBy::Contacts,
             ColorChoice::Auto if walls_move || moving(radii, velocities) => ColorBy::Speed,
             ColorChoice::Auto => {
                 let (lo, hi) = value_range(radii);
@@ -281,9 +304,19 @@ mod tests {
 
     #[test]
     fn height_is_the_centres_z() {
-        let values =
-            ColorBy::Height.values(&[[1.0, 2.0, 3.0], [0.0, 0.0, -1.0]], &[1.0; 2], &[], &[]);
-        assert_eq!(values, [3.0, -1.0]);
+        let spheres = SphereValues {
+            positions: &[[1.0, 2.0, 3.0], [0.0, 0.0, -1.0]],
+            radii: &[1.0; 2],
+            ..SphereValues::default()
+        };
+        assert_eq!(ColorBy::Height.values(&spheres), [3.0, -1.0]);
+        // Contacts where the frame has them, else none.
+        assert_eq!(ColorBy::Contacts.values(&spheres), [0.0, 0.0]);
+        let held = SphereValues {
+            contacts: &[3, 0],
+            ..spheres
+        };
+        assert_eq!(ColorBy::Contacts.values(&held), [3.0, 0.0]);
     }
 
     #[test]

@@ -27,10 +27,11 @@
 //! twin is `shade.rs` and `bvh.rs` in this module.
 //!
 //! ```
-//! use mochi::render::{Camera, ColorBy, Picture, RenderChoice, Renderer, Scene};
+//! use mochi::render::{Camera, ColorBy, Picture, RenderChoice, Renderer, Scene, SphereValues};
 //! let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
 //! let radii = [0.5, 0.3];
-//! let values = ColorBy::Radius.values(&positions, &radii, &[], &[]);
+//! let spheres = SphereValues { positions: &positions, radii: &radii, ..Default::default() };
+//! let values = ColorBy::Radius.values(&spheres);
 //! let scene = Scene::new(&positions, &radii, &values, (0.3, 0.5))?;
 //! let (lo, hi) = scene.bounds().expect("not empty");
 //! let picture = Picture::new(64, 48, Camera::framing(lo, hi, 64.0 / 48.0, 40.0));
@@ -53,7 +54,7 @@ mod shade;
 mod shaders;
 
 pub use camera::{Camera, DEFAULT_FOV_DEG, MAX_SIDE, check_size, parse_point, parse_size};
-pub use colour::{ColorBy, ColorChoice, unit, value_range, viridis};
+pub use colour::{ColorBy, ColorChoice, SphereValues, unit, value_range, viridis};
 pub use image::{Gif, Image, read_png};
 pub use legend::Legend;
 pub use scene::Scene;

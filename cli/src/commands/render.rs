@@ -8,7 +8,9 @@ use anyhow::{Context, Result, bail};
 use mochi::dem::scene::{Overrides, SceneConfig};
 use mochi::dem::walls::WallSet;
 use mochi::io::{self, SERIES_INDEX};
-use mochi::render::{ColorBy, ColorChoice, Gif, Legend, Renderer, Scene, parse_point, parse_size};
+use mochi::render::{
+    ColorBy, ColorChoice, Gif, Legend, Renderer, Scene, SphereValues, parse_point, parse_size,
+};
 use std::path::{Path, PathBuf};
 
 /// GIF frame delay [1/100 s].
@@ -50,8 +52,23 @@ pub struct FrameData<'a> {
     pub velocities: &'a [[f32; 3]],
     /// Materials (empty: one material).
     pub materials: &'a [u8],
+    /// Contacts each sphere holds (empty: the frame has none).
+    pub contacts: &'a [u32],
     /// The mesh walls where they are at this frame.
     pub walls: &'a [WallAt],
+}
+
+impl FrameData<'_> {
+    /// What its spheres may be coloured by.
+    fn values(&self) -> SphereValues<'_> {
+        SphereValues {
+            positions: self.positions,
+            radii: self.radii,
+            velocities: self.velocities,
+            materials: self.materials,
+            contacts: self.contacts,
+        }
+    }
 }
 
 impl FrameRenderer {
@@ -131,12 +148,7 @@ impl FrameRenderer {
             survey.color_by = Some(picked);
         }
         for color_by in ColorBy::ALL {
-            let values = color_by.values(
-                frame.positions,
-                frame.radii,
-                frame.velocities,
-                frame.materials,
-            );
+            let values = color_by.values(&frame.values());
             if values.is_empty() {
                 continue;
             }
@@ -175,12 +187,7 @@ impl FrameRenderer {
         let color_by = self
             .color_by
             .resolve(frame.radii, frame.velocities, walls_move);
-        let values = color_by.values(
-            frame.positions,
-            frame.radii,
-            frame.velocities,
-            frame.materials,
-        );
+        let values = color_by.values(&frame.values());
         let range = self.range.unwrap_or_else(|| color_by.range(&values));
         let framed = self.view.frame(frame.positions, frame.radii, frame.walls);
         let scene = Scene::new(frame.positions, frame.radii, &values, range)?;
@@ -273,6 +280,7 @@ fn read_frame_data<'a>(
         radii: &frame.radii,
         velocities: &frame.velocities,
         materials: &frame.materials,
+        contacts: &frame.contacts,
         walls,
     }
 }

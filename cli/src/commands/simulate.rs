@@ -112,7 +112,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             ColorChoice::Radius => pictures.set_range((r_min, r_max)),
             ColorChoice::Material => pictures.set_range((0.0, (p.materials.count - 1) as f32)),
             ColorChoice::Auto => pictures.set_color_by(ColorBy::Speed),
-            ColorChoice::Speed | ColorChoice::Height => {}
+            ColorChoice::Speed | ColorChoice::Height | ColorChoice::Contacts => {}
         }
         Some(pictures)
     };
@@ -190,12 +190,16 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         if let Some(pictures) = pictures {
             let now = stepper.particles()?;
             let walls = walls_at(&walls, now.step as f64 * p.dt as f64);
+            let contacts: Vec<u32> = (0..now.len())
+                .map(|i| now.history.of(i).len() as u32)
+                .collect();
             let frame = FrameData {
                 step: Some(now.step),
                 positions: &now.positions,
                 radii: &now.radii,
                 velocities: &now.velocities,
                 materials: &now.materials,
+                contacts: &contacts,
                 walls: &walls,
             };
             pictures.render(&frame, &png_name(&out, now.step))?;
