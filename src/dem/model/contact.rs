@@ -453,7 +453,14 @@ pub fn pair_contact<S: Kept>(
     if apart && !holds(p, law, r_eff, overlap) {
         return None;
     }
-    let pull = p.bridge.map_or(0.0, |b| bridge_pull(&b, r_eff, overlap));
+    let mut pull = p.bridge.map_or(0.0, |b| bridge_pull(&b, r_eff, overlap));
+    if p.cohesion_density > 0.0 && !apart {
+        // The area of the circle where the two spheres' surfaces meet.
+        let area = -PI / 4.0
+            * ((dist - i.r - j.r) * (dist + i.r - j.r) * (dist - i.r + j.r) * (dist + i.r + j.r))
+            / d2;
+        pull += p.cohesion_density * area.max(0.0);
+    }
     if apart && law.adhesion == 0.0 {
         // A liquid bridge across a gap: its pull alone.
         let force = pull * n;
@@ -565,9 +572,13 @@ pub fn wall_contacts<S: Kept>(
             if overlap <= 0.0 && !held {
                 continue;
             }
-            let pull = p
+            let mut pull = p
                 .bridge
                 .map_or(0.0, |bridge| bridge_pull(&bridge, b.r, overlap));
+            if p.cohesion_density > 0.0 && overlap > 0.0 {
+                // The area of the circle where the sphere meets the wall's plane.
+                pull += p.cohesion_density * PI * overlap * (2.0 * b.r - overlap);
+            }
             let bridged = overlap <= 0.0 && law.adhesion == 0.0;
             let mut nf = match bridged {
                 // A liquid bridge across a gap: its pull alone, no friction.

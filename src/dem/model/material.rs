@@ -103,6 +103,9 @@ pub struct Material {
     /// The liquid bridges between the spheres and with the walls (capillary cohesion; default
     /// none: dry).
     pub bridge: Option<LiquidBridge>,
+    /// Cohesion energy density k \[J/m³\] of LIGGGHTS' simplified JKR (`sjkr`): touching
+    /// bodies attract with k times their contact area (default 0: none).
+    pub cohesion_density: f64,
 }
 
 /// Pendular liquid bridges: each contact that forms wets a bridge of one volume, which pulls
@@ -131,6 +134,7 @@ impl Default for Material {
             tangential_model: TangentialModel::Mindlin,
             adhesion: 0.0,
             bridge: None,
+            cohesion_density: 0.0,
         }
     }
 }

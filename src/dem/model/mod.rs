@@ -65,6 +65,8 @@ pub struct StepParams {
     pub rayleigh_time: Option<f32>,
     /// The liquid bridges of capillary cohesion (`None`: none).
     pub bridge: Option<Bridge>,
+    /// The cohesion energy density of LIGGGHTS' simplified JKR \[J/m³\] (0: none).
+    pub cohesion_density: f32,
 }
 
 /// A liquid bridge as the step computes it ([`LiquidBridge`] in f32).
@@ -135,6 +137,12 @@ pub fn smallest_turning_radius(density: f32) -> f32 {
 }
 
 impl StepParams {
+    /// Whether contacts attract (JKR, liquid bridges or LIGGGHTS' simplified JKR): the laws of
+    /// the cpu step alone so far.
+    pub fn adheres(&self) -> bool {
+        self.friction.cohesive || self.cohesion_density > 0.0
+    }
+
     /// How far beyond touching a contact of spheres of radii up to `r_max` may act \[m\]: the
     /// widest JKR neck of any adhering pair (0 where none adheres). A pair's neck breaks at
     /// [`jkr_break`](contact::jkr_break) of its R*, at most `r_max` (a sphere on a wall).
@@ -270,6 +278,17 @@ impl StepParams {
                 return bad("one cohesion law at a time: a liquid bridge or JKR adhesion");
             }
         }
+        if m.cohesion_density != 0.0 {
+            let k = m.cohesion_density;
+            if !(k > 0.0 && (k as f32).is_normal()) {
+                return bad(&format!(
+                    "cohesion_energy_density must be a positive number (J/m³), got {k}"
+                ));
+            }
+            if m.adhesion > 0.0 || m.bridge.is_some() {
+                return bad("one cohesion law at a time");
+            }
+        }
         let resolved = MaterialTable::resolve(materials, dt, law.stiffness, r_min, m_eff)?;
         let table = resolved.table;
         let friction = Friction {
@@ -317,6 +336,7 @@ impl StepParams {
             materials: Arc::new(table),
             rayleigh_time: law.rayleigh_time.map(|t| t as f32),
             bridge: m.bridge.as_ref().map(Bridge::of),
+            cohesion_density: m.cohesion_density as f32,
         })
     }
 

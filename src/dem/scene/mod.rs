@@ -48,6 +48,7 @@
 //! liquid_volume = 1e-12  # capillary: m³ of liquid in each bridge
 //! surface_tension = 0.072 # capillary: N/m (default: water's)
 //! contact_angle = 0      # capillary: degrees, from 0 up to 90 (default 0)
+//! # cohesion = "sjkr", cohesion_energy_density = 1e5: LIGGGHTS' simplified JKR (J/m³)
 //!
 //! [[materials]]          # several materials (see `dem::material_spec`)
 //! name = "steel"
@@ -348,6 +349,10 @@ pub struct SceneMaterial {
     /// "capillary"`; default 0, fully wetting).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contact_angle: Option<f64>,
+    /// Cohesion energy density k \[J/m³\] (`cohesion = "sjkr"`: touching bodies attract with
+    /// k times their contact area, as LIGGGHTS' `cohesion sjkr`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cohesion_energy_density: Option<f64>,
 }
 
 /// The cohesion of a scene (`cohesion = ...`).
@@ -360,6 +365,9 @@ pub enum CohesionKind {
     /// Pendular liquid bridges (Willett et al. 2000): formed where bodies touch, pulling them
     /// together until they part by the rupture distance (Lian et al. 1993).
     Capillary,
+    /// LIGGGHTS' simplified JKR (`cohesion sjkr`): touching bodies attract with an energy
+    /// density times their contact area, for calibration parity with LIGGGHTS.
+    Sjkr,
 }
 
 impl Default for SceneMaterial {
@@ -382,6 +390,7 @@ impl Default for SceneMaterial {
             liquid_volume: None,
             surface_tension: None,
             contact_angle: None,
+            cohesion_energy_density: None,
         }
     }
 }

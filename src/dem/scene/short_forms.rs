@@ -7,7 +7,7 @@
 use crate::error::{Error, Result};
 
 /// Each short form, with the table and the key of that table it stands for.
-pub const SHORT_FORMS: [(&str, &str, &str); 45] = [
+pub const SHORT_FORMS: [(&str, &str, &str); 46] = [
     ("scene", "source", "scene"),
     ("spheres", "source", "spheres"),
     ("seed", "source", "seed"),
@@ -53,6 +53,11 @@ pub const SHORT_FORMS: [(&str, &str, &str); 45] = [
     ("liquid_volume", "material", "liquid_volume"),
     ("surface_tension", "material", "surface_tension"),
     ("contact_angle", "material", "contact_angle"),
+    (
+        "cohesion_energy_density",
+        "material",
+        "cohesion_energy_density",
+    ),
 ];
 
 /// The tables a scene's fields live in.

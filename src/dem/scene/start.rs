@@ -427,6 +427,20 @@ impl SceneConfig {
             (true, Some(_)) => return refuse("cohesion", "hertz-mindlin"),
             (true, None) => return needs("surface_energy", "the work of adhesion Γ in J/m²"),
         };
+        let sjkr = this.cohesion == Some(CohesionKind::Sjkr);
+        if this.cohesion_energy_density.is_some() && !sjkr {
+            return of_law("cohesion_energy_density", "sjkr");
+        }
+        let cohesion_density = match (sjkr, this.cohesion_energy_density) {
+            (false, _) => 0.0,
+            (true, Some(k)) => k,
+            (true, None) => {
+                return needs(
+                    "cohesion_energy_density",
+                    "the cohesion energy density in J/m³",
+                );
+            }
+        };
         let bridge = match (capillary, this.liquid_volume) {
             (false, _) => None,
             (true, None) => return needs("liquid_volume", "the liquid of a bridge in m³"),
@@ -448,6 +462,7 @@ impl SceneConfig {
             tangential_model: this.tangential_model.unwrap_or_default(),
             adhesion,
             bridge,
+            cohesion_density,
         })
     }
 

@@ -770,6 +770,8 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
         bridge.tension
     );
     assert!((bridge.rupture - (1.0 + std::f32::consts::PI / 6.0) * 1e-4).abs() < 1e-9);
+    let simple = build(&["cohesion=\"sjkr\"", "cohesion_energy_density=1e5"]).unwrap();
+    assert!(simple.params.adheres() && simple.params.cohesion_density == 1e5);
     assert!(wet.params.friction.cohesive);
     for (sets, words) in [
         (&["cohesion=\"jkr\""][..], "needs surface_energy"),
@@ -797,6 +799,8 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
             &["cohesion=\"jkr\"", "liquid_volume=1e-12"],
             "cohesion = \"capillary\"",
         ),
+        (&["cohesion=\"sjkr\""], "needs cohesion_energy_density"),
+        (&["cohesion_energy_density=1e5"], "cohesion = \"sjkr\""),
     ] {
         let e = build(sets).expect_err("refused").to_string();
         assert!(e.contains(words), "{sets:?}: {e}");

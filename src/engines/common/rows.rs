@@ -203,9 +203,9 @@ pub(crate) fn not_fixed() -> Error {
 /// Refuses parameters whose contacts adhere on `backend`, a GPU step without the cohesion laws
 /// yet.
 pub(crate) fn dry_only(backend: &str, params: &crate::dem::model::StepParams) -> Result<()> {
-    match params.friction.cohesive {
+    match params.adheres() {
         true => Err(Error::Usage(format!(
-            "cohesion (JKR) runs on the cpu backend so far, not on {backend}: run with \
+            "cohesion runs on the cpu backend so far, not on {backend}: run with \
              --backend cpu (or auto)"
         ))),
         false => Ok(()),

@@ -215,7 +215,7 @@ impl CpuStepper {
                 limit: FIRST_MESH_WALL as u64,
             });
         }
-        if self.params.friction.cohesive && !walls.meshes.is_empty() {
+        if self.params.adheres() && !walls.meshes.is_empty() {
             return Err(Error::Usage(
                 "cohesion with mesh walls is not there yet (spheres and the box's walls adhere): \
                  run without mesh walls, or without cohesion"
