@@ -3,11 +3,13 @@
 //! slowly; a sphere hanging under a ceiling that holds when 1.5·π·Γ·R exceeds its weight by a
 //! tenth and falls when it is a tenth short. Liquid bridges (cohesion = "capillary"): the pull
 //! at contact 2πRγ·cos θ, the rupture at (1 + θ/2)·V^⅓, a wet sphere hanging from a ceiling.
-//! LIGGGHTS' simplified JKR (cohesion = "sjkr"): the overlap where Hertz balances k·area.
+//! LIGGGHTS' simplified JKR (cohesion = "sjkr"): the overlap where Hertz balances k·area. Mesh
+//! walls adhere as the box's do: spheres hang from a mesh ceiling.
 //! The cpu backend runs cohesion; the GPU backends refuse it.
 
 use mochi::dem::model::contact::{bridge_pull, jkr_break, jkr_pull_off, jkr_radius};
 use mochi::dem::model::{ContactLaw, LiquidBridge, Material};
+use mochi::dem::walls::{WallConfig, WallSet};
 use mochi::dem::{ExternalLoads, Particles, StepParams, Stepper};
 use mochi::engines::DemSetup;
 use mochi::engines::cpu::CpuStepper;
@@ -367,4 +369,63 @@ fn simplified_jkr_holds_two_spheres_at_the_overlap_where_hertz_balances_k_times_
     let mut s = open(apart, &p);
     s.advance(1000).unwrap();
     assert_eq!(s.particles().unwrap().velocities[0], [0.0; 3]);
+}
+
+/// A square plate mesh across the box at height `z`, a rigid wall.
+fn plate_at(z: f64) -> WallSet {
+    let square = mochi::mesh::Mesh {
+        vertices: vec![
+            [0.0; 3],
+            [0.01, 0.0, 0.0],
+            [0.01, 0.01, 0.0],
+            [0.0, 0.01, 0.0],
+        ],
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+    };
+    let config = WallConfig {
+        translate: Some([0.0, 0.0, z]),
+        ..WallConfig::of("plate (generated)")
+    };
+    WallSet::new(true, vec![config.build_from(0, &square, None).unwrap()]).unwrap()
+}
+
+#[test]
+fn spheres_hang_from_a_mesh_ceiling_by_their_neck_or_their_bridge() {
+    // JKR: 1.5·π·Γ·R against the weight, as under the box's ceiling; the plate at 8 mm.
+    let g = 9.81;
+    let mass = DENSITY * 4.0 / 3.0 * std::f64::consts::PI * (R as f64).powi(3);
+    for (ratio, stays) in [(1.1, true), (0.9, false)] {
+        let gamma = ratio * mass * g / (1.5 * std::f64::consts::PI * R as f64);
+        let p = params(&sticky(gamma), [0.0; 3]);
+        let start = spheres(vec![[0.005, 0.005, 0.008 - R + 1e-7]]);
+        let setup = DemSetup::new(start, p, mochi::ProxyMode::Mochi).with_walls(plate_at(0.008));
+        let mut s = CpuStepper::open(setup).unwrap();
+        s.advance(3000).unwrap();
+        for k in 1..=200 {
+            s.set_gravity([0.0, 0.0, -(g * k as f64 / 200.0) as f32])
+                .unwrap();
+            s.advance(20).unwrap();
+        }
+        s.advance(4000).unwrap();
+        let z = s.particles().unwrap().positions[0][2];
+        assert_eq!(
+            z > 0.008 - 1.5 * R,
+            stays,
+            "Γ at {ratio} times the weight: z = {z}"
+        );
+    }
+    // A liquid bridge holds it too; the plate is pulled down by its weight.
+    let mut p = params(&wet(1e-12), [0.0; 3]);
+    p = p.with_gravity([0.0, 0.0, -9.81], R).unwrap();
+    let start = spheres(vec![[0.005, 0.005, 0.008 - R + 1e-7]]);
+    let setup = DemSetup::new(start, p, mochi::ProxyMode::Mochi).with_walls(plate_at(0.008));
+    let mut s = CpuStepper::open(setup).unwrap();
+    s.advance(5000).unwrap();
+    let z = s.particles().unwrap().positions[0][2];
+    assert!(z > 0.008 - R - 1e-5, "fell to {z}");
+    let load = s.wall_loads()[0].force[2];
+    assert!(
+        (-load / (mass * g) - 1.0).abs() < 0.02,
+        "the plate holds {load} N"
+    );
 }

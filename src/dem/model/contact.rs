@@ -645,9 +645,16 @@ pub fn wall_contacts<S: Kept>(
     }
 }
 
+/// Whether a contact of sphere `b` with a surface of column `column` that touched at the last
+/// step and now overlaps by `overlap` ≤ 0 still holds (a JKR neck, a liquid bridge).
+#[inline(always)]
+pub fn surface_holds(p: &StepParams, b: &Body, column: u32, overlap: f32) -> bool {
+    holds(p, p.materials.law(b.material, column), b.r, overlap)
+}
+
 /// The contact of sphere `b` with a surface (a mesh wall) of column `column` in the material
 /// table (its material, or a rigid wall): `n` the unit normal from the centre towards the
-/// contact point, `overlap` > 0, `surface_velocity` the velocity of the surface's material
+/// contact point, `overlap` > 0 (or ≤ 0 where [`surface_holds`]), `surface_velocity` the velocity of the surface's material
 /// point at the contact, `friction` the wall's own sliding coefficient (`None`: the pair's),
 /// `old` the springs the sphere kept of this contact. The same law as a box wall's
 /// ([`wall_contacts`]), with the surface's own velocity subtracted from the sphere's: a moving
@@ -668,8 +675,31 @@ pub fn surface_contact<S: Kept>(
     let mu = friction_given.unwrap_or(law.sliding);
     // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
     let vn = (surface_velocity - b.v).dot(n);
-    let normal = normal_force(p, law, overlap, vn, b.m, b.r);
-    let force = -normal.push * n;
+    let mut pull = p
+        .bridge
+        .map_or(0.0, |bridge| bridge_pull(&bridge, b.r, overlap));
+    if p.cohesion_density > 0.0 && overlap > 0.0 {
+        // The area of the circle where the sphere meets the surface's plane.
+        pull += p.cohesion_density * PI * overlap * (2.0 * b.r - overlap);
+    }
+    if overlap <= 0.0 && law.adhesion == 0.0 {
+        // A liquid bridge across a gap: its pull alone.
+        let force = pull * n;
+        return Contact {
+            force,
+            normal: force,
+            torque: Vec3::ZERO,
+            springs: S::default(),
+        };
+    }
+    let mut normal = normal_force(p, law, overlap, vn, b.m, b.r);
+    let force = match pull > 0.0 {
+        true => {
+            normal.load += pull;
+            (pull - normal.push) * n
+        }
+        false => -normal.push * n,
+    };
     if !p.friction.turns() {
         return Contact {
             force,

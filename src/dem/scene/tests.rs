@@ -522,7 +522,7 @@ fn the_hopper_and_the_drum_come_with_their_walls_inside_their_box() {
                     &wall.triangles,
                     pose,
                     glam::Vec3::from(*c),
-                    r,
+                    (r, 0.0),
                     &mut touching,
                 );
                 assert!(

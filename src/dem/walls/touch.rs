@@ -31,7 +31,8 @@ pub struct SurfaceTouch {
     pub point: Vec3,
     /// Unit normal from the sphere's centre towards the point.
     pub normal: Vec3,
-    /// How far the sphere reaches through the wall: radius − distance \[m\], > 0.
+    /// How far the sphere reaches through the wall: radius − distance \[m\] (> 0 but where a
+    /// reach beyond touching was asked for).
     pub overlap: f32,
 }
 
@@ -47,19 +48,28 @@ pub struct Touches {
 }
 
 /// The contacts of the sphere (centre `c`, radius `r`) with `mesh` in `pose`, nearest first,
-/// each once (module docs), into `at.found` (replacing what was there). A centre exactly on the
-/// surface has no normal and no contact.
-pub fn touches(mesh: &TriangleMesh, pose: &Pose, c: Vec3, r: f32, at: &mut Touches) {
+/// each once (module docs), into `at.found` (replacing what was there): where the surface is
+/// within `r` of the centre, or within `r + reach` (a cohesive contact that may hold past
+/// touching: its overlap is then negative). A centre exactly on the surface has no normal and
+/// no contact.
+pub fn touches(
+    mesh: &TriangleMesh,
+    pose: &Pose,
+    c: Vec3,
+    (r, reach): (f32, f32),
+    at: &mut Touches,
+) {
     let Touches { near, kept, found } = at;
     near.clear();
     kept.clear();
     found.clear();
     let p = pose.to_rest(c);
+    let within = r + reach;
     // In the hierarchy's fixed order.
-    mesh.for_each_near(p, r, |t| {
+    mesh.for_each_near(p, within, |t| {
         let q = t.closest_point(p);
         let d2 = (q - p).length_squared();
-        if d2 < r * r && d2 > 0.0 {
+        if d2 < within * within && d2 > 0.0 {
             near.push((d2, q));
         }
     });

@@ -215,13 +215,6 @@ impl CpuStepper {
                 limit: FIRST_MESH_WALL as u64,
             });
         }
-        if self.params.adheres() && !walls.meshes.is_empty() {
-            return Err(Error::Usage(
-                "cohesion with mesh walls is not there yet (spheres and the box's walls adhere): \
-                 run without mesh walls, or without cohesion"
-                    .into(),
-            ));
-        }
         self.box_walls = walls.box_walls;
         self.mesh = (!walls.meshes.is_empty()).then(|| MeshPass::new(walls));
         Ok(self)

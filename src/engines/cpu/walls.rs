@@ -5,7 +5,9 @@
 //! the chunks in order, so they depend on the state alone, not on the threads.
 
 use crate::dem::model::StepParams;
-use crate::dem::model::contact::{Body, Contact, Kept, LoadedSprings, Springs, surface_contact};
+use crate::dem::model::contact::{
+    Body, Contact, Kept, LoadedSprings, Springs, surface_contact, surface_holds,
+};
 use crate::dem::walls::{Pose, Touches, WallLoad, WallSet, mesh_partner, touches};
 use crate::error::{Error, Result, try_resize};
 use crate::particles::{HistoryEntry, LoadEntry, LoadedEntry, Particles};
@@ -215,22 +217,34 @@ fn sphere<S: Kept>(
     let keeps = p.friction.has_history();
     let turns = p.friction.turns();
     let mut sum = MeshSum::default();
+    // How far past touching a cohesive contact may hold.
+    let reach = match p.friction.cohesive {
+        true => p.reach_margin(b.r),
+        false => 0.0,
+    };
     for (w, (wall, pose)) in walls.meshes.iter().zip(poses).enumerate() {
-        touches(&wall.triangles, pose, b.c, b.r, scratch);
+        touches(&wall.triangles, pose, b.c, (b.r, reach), scratch);
         if scratch.found.is_empty() {
             continue;
         }
         let partner = mesh_partner(w);
+        let column = wall.column(&p.materials);
         // The k-th contact with this wall takes the k-th entry kept of it.
-        let mut olds = (0..kept.len()).filter(|&k| kept[k].partner == partner);
+        let mut olds = (0..kept.len())
+            .filter(|&k| kept[k].partner == partner)
+            .peekable();
         let (mut force, mut torque) = (Vec3::ZERO, Vec3::ZERO);
         for t in &scratch.found {
+            // Past touching, only a contact of the last step that still holds.
+            let bonded = olds.peek().is_some();
+            if t.overlap <= 0.0 && !(bonded && surface_holds(p, b, column, t.overlap)) {
+                continue;
+            }
             let old = match olds.next() {
                 Some(k) => S::of_entry(&kept[k], kept_loads.get(k)),
                 None => S::default(),
             };
             let v = pose.velocity_at(t.point);
-            let column = wall.column(&p.materials);
             let c = surface_contact(p, b, t.normal, t.overlap, v, column, wall.friction, old);
             seen(w, &c, t.overlap);
             force += c.force;
