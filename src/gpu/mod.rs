@@ -289,6 +289,11 @@ impl Gpu {
                 source: wgpu::ShaderSource::Wgsl(source.into()),
             });
         let mut compiled = self.compiled();
+        // Another thread may have compiled the same source meanwhile: its module is the one
+        // (so that the indices, the pipelines' keys, stay one per source).
+        if let Some(module) = compiled.modules.get(source) {
+            return module.clone();
+        }
         let module = Module {
             module,
             index: compiled.modules.len(),
@@ -664,6 +669,34 @@ pub(crate) fn test_gpu(what: &str) -> Option<Gpu> {
 mod tests {
     use super::*;
     use crate::spheres::{SphereSet, Survey};
+
+    #[test]
+    fn modules_compiled_on_many_threads_at_once_keep_one_index_per_source() {
+        // The index keys a module's pipelines: two sources sharing one would hand out each
+        // other's pipelines (a step would run another variant's kernels).
+        let Some(gpu) = test_gpu("compiling modules on several threads") else {
+            return;
+        };
+        let sources: Vec<String> = (0..6)
+            .map(|k| format!("@compute @workgroup_size(1) fn main() {{ let x = {k}u; }}"))
+            .collect();
+        std::thread::scope(|scope| {
+            for _ in 0..8 {
+                scope.spawn(|| {
+                    for source in &sources {
+                        gpu.module("mochi.test", source);
+                    }
+                });
+            }
+        });
+        let mut indices: Vec<usize> = sources
+            .iter()
+            .map(|s| gpu.module("mochi.test", s).index)
+            .collect();
+        indices.sort_unstable();
+        indices.dedup();
+        assert_eq!(indices.len(), sources.len(), "{indices:?}");
+    }
 
     /// Centres spread over several whole pieces and a tail, surveyed while copied into bytes.
     fn surveyed(centers: &[[f32; 3]]) -> (Vec<u8>, Result<Option<crate::spheres::Bounds>>) {
