@@ -392,6 +392,35 @@ impl StepParams {
     /// the Rayleigh time the step follows from, and the friction where there is any (with
     /// several materials, the largest of any pair; [`Materials::describe`] names them).
     pub fn describe(&self) -> String {
+        match self.describe_cohesion() {
+            Some(cohesion) => format!("{} | {cohesion}", self.describe_dry()),
+            None => self.describe_dry(),
+        }
+    }
+
+    /// The cohesion law and its parameters in words (`None`: dry).
+    fn describe_cohesion(&self) -> Option<String> {
+        let adhesion = self
+            .materials
+            .laws
+            .iter()
+            .map(|l| l.adhesion)
+            .fold(0.0, f32::max);
+        if adhesion > 0.0 {
+            return Some(format!("cohesion jkr (Γ up to {adhesion} J/m²)"));
+        }
+        if let Some(b) = self.bridge {
+            return Some(format!(
+                "cohesion capillary (V {:e} m³, γ·cos θ {} N/m, rupture at {:.3e} m)",
+                b.volume, b.tension, b.rupture
+            ));
+        }
+        (self.cohesion_density > 0.0)
+            .then(|| format!("cohesion sjkr (k {:e} J/m³)", self.cohesion_density))
+    }
+
+    /// [`describe`](Self::describe) but for cohesion.
+    fn describe_dry(&self) -> String {
         let dt = crate::numbers::significant(self.dt as f64, 4);
         let law = match self.law {
             NormalLaw::Linear => format!(

@@ -770,6 +770,19 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
         bridge.tension
     );
     assert!((bridge.rupture - (1.0 + std::f32::consts::PI / 6.0) * 1e-4).abs() < 1e-9);
+    // The run's summary line names the law.
+    assert!(
+        start
+            .params
+            .describe()
+            .ends_with("| cohesion jkr (Γ up to 0.05 J/m²)")
+    );
+    assert!(
+        wet.params
+            .describe()
+            .contains("| cohesion capillary (V 1e-12 m³")
+    );
+    assert!(!build(&[]).unwrap().params.describe().contains("cohesion"));
     let simple = build(&["cohesion=\"sjkr\"", "cohesion_energy_density=1e5"]).unwrap();
     assert!(simple.params.adheres() && simple.params.cohesion_density == 1e5);
     assert!(wet.params.friction.cohesive);
