@@ -58,7 +58,14 @@ fn open(particles: Particles, p: &StepParams) -> CpuStepper {
 
 #[test]
 fn the_jkr_contact_radius_and_force_follow_the_analytic_curve() {
-    let (r_eff, e_star, gamma) = (5e-4f32, 5e6f32, 0.1f32);
+    // A soft modulus as the scenes use, and glass's (E* of two glass spheres ≈ 38 GPa).
+    for e_star in [5e6f32, 3.8e10] {
+        jkr_curve_of(5e-4, e_star, 0.1);
+    }
+}
+
+/// [`the_jkr_contact_radius_and_force_follow_the_analytic_curve`] at one R*, E* and Γ.
+fn jkr_curve_of(r_eff: f32, e_star: f32, gamma: f32) {
     let c = (2.0 * PI * gamma / e_star).sqrt();
     let force = |a: f32| {
         4.0 * e_star * a * a * a / (3.0 * r_eff) - (8.0 * PI * gamma * e_star * a * a * a).sqrt()
@@ -183,6 +190,35 @@ fn hangs(ratio: f64) -> bool {
 fn a_sphere_hangs_under_a_ceiling_while_its_neck_outweighs_it() {
     assert!(hangs(1.1), "holds at 1.1 times its weight");
     assert!(!hangs(0.9), "falls at 0.9 times its weight");
+    // At glass's stiffness (E = 70 GPa) this neck breaks 1.4 nm past touching, about one f32
+    // spacing of a centre 9 mm from the origin, which the law reads without its residual: the
+    // law itself is checked at that stiffness by the analytic curve above.
+}
+
+#[test]
+fn a_resumed_cohesive_run_goes_on_bit_for_bit() {
+    // Two spheres bonded by a JKR neck, then one pulled: the bond lives in the history, which
+    // a run opened again from the particles read back (as a checkpoint resumes) continues.
+    let p = params(&sticky(0.1), [0.0; 3]);
+    let start = spheres(vec![
+        [0.005 - R + 1e-7, 0.005, 0.005],
+        [0.005 + R - 1e-7, 0.005, 0.005],
+    ]);
+    let pull = ExternalLoads {
+        forces: vec![[0.0; 3], [2e-4, 0.0, 0.0]],
+        ..ExternalLoads::default()
+    };
+    let mut whole = open(start, &p);
+    whole.advance(500).unwrap();
+    whole.set_external_loads(&pull).unwrap();
+    whole.advance(500).unwrap();
+    let saved = whole.particles().unwrap();
+    assert!(!saved.history.is_empty(), "bonded when saved");
+    let mut resumed = open(saved, &p);
+    resumed.set_external_loads(&pull).unwrap();
+    whole.advance(1500).unwrap();
+    resumed.advance(1500).unwrap();
+    assert!(whole.particles().unwrap() == resumed.particles().unwrap());
 }
 
 #[test]
@@ -300,6 +336,21 @@ fn a_wet_sphere_hangs_from_a_ceiling_by_its_bridge() {
     assert!(falling.particles().unwrap().positions[0][2] < 0.01 - 2.0 * R);
 }
 
+/// The overlap in (1 nm, 0.1 mm) where `unbalanced`, negative below it and positive above,
+/// changes sign (bisected in f64).
+fn root(unbalanced: impl Fn(f64) -> f64) -> f64 {
+    let (mut lo, mut hi) = (1e-9, 1e-4);
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if unbalanced(mid) < 0.0 {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 #[test]
 fn simplified_jkr_holds_two_spheres_at_the_overlap_where_hertz_balances_k_times_the_area() {
     let k = 5e4;
@@ -316,16 +367,7 @@ fn simplified_jkr_holds_two_spheres_at_the_overlap_where_hertz_balances_k_times_
         4.0 / 3.0 * e_star * (r / 2.0).sqrt() * d.powf(1.5)
             - k * std::f64::consts::PI * (r * d - d * d / 4.0)
     };
-    let (mut lo, mut hi) = (1e-9, 1e-4);
-    for _ in 0..100 {
-        let mid = 0.5 * (lo + hi);
-        if unbalanced(mid) < 0.0 {
-            lo = mid
-        } else {
-            hi = mid
-        }
-    }
-    let expected = 0.5 * (lo + hi);
+    let expected = root(unbalanced);
     let start = spheres(vec![
         [0.005 - R + 1e-7, 0.005, 0.005],
         [0.005 + R - 1e-7, 0.005, 0.005],
@@ -344,16 +386,7 @@ fn simplified_jkr_holds_two_spheres_at_the_overlap_where_hertz_balances_k_times_
         4.0 / 3.0 * e_wall * r.sqrt() * d.powf(1.5)
             - k * std::f64::consts::PI * (2.0 * r * d - d * d)
     };
-    let (mut lo, mut hi) = (1e-9, 1e-4);
-    for _ in 0..100 {
-        let mid = 0.5 * (lo + hi);
-        if unbalanced(mid) < 0.0 {
-            lo = mid
-        } else {
-            hi = mid
-        }
-    }
-    let expected = 0.5 * (lo + hi);
+    let expected = root(unbalanced);
     let mut s = open(spheres(vec![[0.005, 0.005, R - 1e-7]]), &p);
     s.advance(20_000).unwrap();
     let overlap = R as f64 - s.particles().unwrap().positions[0][2] as f64;
