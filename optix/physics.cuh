@@ -11,8 +11,16 @@ struct alignas(16) MochiPairLaw {
     float damping_ratio;  // ζ giving the pair's restitution
     float sliding;        // μ
     float rolling;        // μ_r
-    float adhesion;       // Γ of JKR [J/m²] (the optix step runs no cohesion yet)
+    float adhesion;       // Γ of JKR [J/m²] (0: the pair does not adhere)
     float _pad1;
+};
+
+// The cohesion laws that are the step's, not a pair's (CohesionParams in src/dem/model/law.rs).
+struct MochiCohesion {
+    float bridge_volume;   // V of a liquid bridge [m³] (0: no bridges)
+    float bridge_tension;  // γ·cos θ [N/m]
+    float bridge_rupture;  // the gap at which a bridge ruptures [m]
+    float density;         // cohesion energy density of LIGGGHTS' simplified JKR [J/m³] (0: none)
 };
 
 // The step's parameters: the box, gravity, the time step and the contact law (LawParams in
@@ -34,9 +42,10 @@ struct LawParams {
     unsigned int spheres_per_part;  // unused here (wgpu entry bindings)
     unsigned int columns;        // laws in a row of the material table: the materials and a rigid wall
     unsigned int box_column;     // the box walls' column (their material, or a rigid wall)
-    unsigned int _pad0;
+    float reach;                 // how far past touching a contact may hold [m] (0: none adheres)
     unsigned int loaded;         // 1: some sphere has an external load (read by the integrations)
     MochiPairLaw sphere_law;     // the table's row 0, column 0
+    MochiCohesion cohesion;
 };
 
 // The effective value a·b/(a + b) of two positive values (m*, R*, I*) without their product,

@@ -45,8 +45,8 @@ use mochi::dem::model::contact::{
     surface_contact, wall_contacts,
 };
 use mochi::dem::model::{
-    ContactLaw, Material, Materials, NormalLaw, PairLaw, PairOverride, RollingModel, StepParams,
-    TangentialModel, mass,
+    ContactLaw, LiquidBridge, Material, Materials, NormalLaw, PairLaw, PairOverride, RollingModel,
+    StepParams, TangentialModel, mass,
 };
 use mochi::gpu::shader::{Binding, BindingKind};
 use naga::proc::Layouter;
@@ -194,6 +194,9 @@ struct Case<S> {
     moving: Vec3,
     column: u32,
     given: Option<f32>,
+    /// Whether the pair was in contact at the last step (a cohesive pair may hold past touching
+    /// then); the box walls always were.
+    bonded: bool,
 }
 
 /// What the Rust law computes of a case.
@@ -218,8 +221,8 @@ impl<S: Twin> Case<S> {
             |_, _, _, _| {},
         );
         Expected {
-            from_i: pair_contact(&self.p, &self.i, &self.j, self.old, false),
-            from_j: pair_contact(&self.p, &self.j, &self.i, self.old.negated(), false),
+            from_i: pair_contact(&self.p, &self.i, &self.j, self.old, self.bonded),
+            from_j: pair_contact(&self.p, &self.j, &self.i, self.old.negated(), self.bonded),
             walls,
             kept,
             surface: surface_contact(
@@ -307,7 +310,27 @@ fn cases<S: Twin>(
             moving,
             column,
             given,
+            bonded: false,
         });
+    }
+}
+
+/// `cases` made cohesive ones: in most, the pair at a gap from a third of `margin` deep to
+/// 1.2 times it apart (the margin: how far past touching its contacts may hold), most of them
+/// bonded; the sphere at such a gap from a random box wall and the surface at such an overlap.
+fn near_misses<S: Twin>(cases: &mut [Case<S>], rand: &mut impl FnMut() -> f32) {
+    for case in cases {
+        let margin = case.p.reach_margin(case.i.r.max(case.j.r));
+        let gap = |rand: &mut dyn FnMut() -> f32| margin * (1.5 * rand() + 0.45);
+        case.bonded = rand() < 0.3;
+        if rand() < -0.2 {
+            continue;
+        }
+        let axis = (((rand() + 0.5) * 3.0) as usize).min(2);
+        case.i.c[axis] = case.p.box_lo[axis] + case.i.r + gap(rand);
+        let towards = (case.j.c - case.i.c).normalize();
+        case.j.c = case.i.c + towards * (case.i.r + case.j.r + gap(rand));
+        case.overlap = -gap(rand);
     }
 }
 
@@ -407,6 +430,91 @@ fn loaded_cases() -> Vec<Case<LoadedSprings>> {
         }
     }
     assert_most_touch(&out);
+    out
+}
+
+/// Cases of cohesive materials of `S`'s tangential model: JKR (Γ of its own for a pair of
+/// materials), liquid bridges and the simplified JKR, under Hertz–Mindlin
+/// with and without friction and rolling resistance, and (Mindlin's spring) bridges and the
+/// simplified JKR under the linear laws; at the tests' size and at radii of about 1e-8 m.
+fn cohesive_cases<S: Twin>(seed: u64) -> Vec<Case<S>> {
+    let mut rand = common::noise(seed);
+    let hertz = ContactLaw::HertzMindlin {
+        young_modulus: 1e7,
+        poisson_ratio: 0.3,
+    };
+    let per_pair = ContactLaw::LinearPerPair {
+        contact_time: Some(1e-4),
+    };
+    let bridge = |scale: f32| {
+        Some(LiquidBridge {
+            volume: 1e-9 * (scale as f64).powi(3),
+            surface_tension: 0.072,
+            contact_angle: 0.3,
+        })
+    };
+    let mut out = Vec::new();
+    for scale in [1.0f32, 2e-6] {
+        let kinds = [
+            (hertz, 0.5, None, 0.0),
+            (hertz, 0.05, None, 0.0),
+            (hertz, 0.0, bridge(scale), 0.0),
+            (hertz, 0.0, None, 1e5),
+            (per_pair, 0.0, bridge(scale), 0.0),
+            (ContactLaw::Linear, 0.0, None, 1e5),
+        ];
+        for (contact, adhesion, bridge, cohesion_density) in kinds {
+            let hertz = matches!(contact, ContactLaw::HertzMindlin { .. });
+            if S::MODEL == TangentialModel::MindlinDeresiewicz && !hertz {
+                continue;
+            }
+            for (mu, mu_r, rolling_model) in [
+                (0.5, 0.1, RollingModel::Epsd),
+                (0.3, 0.05, RollingModel::ConstantTorque),
+                (0.0, 0.0, RollingModel::Epsd),
+            ] {
+                let material = |k: usize| Material {
+                    density: [DENSITY, 1200.0][k],
+                    contact: match contact {
+                        ContactLaw::HertzMindlin { .. } => ContactLaw::HertzMindlin {
+                            young_modulus: [1e7, 4e7][k],
+                            poisson_ratio: 0.3,
+                        },
+                        other => scaled(other, scale),
+                    },
+                    friction: mu,
+                    rolling_friction: mu_r,
+                    rolling_model,
+                    tangential_model: S::MODEL,
+                    adhesion: [adhesion, 2.0 * adhesion][k],
+                    bridge,
+                    cohesion_density,
+                    ..Material::default()
+                };
+                // One material, or two whose pair adheres with a Γ of its own.
+                let two = Materials {
+                    list: vec![material(0), material(1)],
+                    names: ["a", "b"].map(String::from).to_vec(),
+                    pairs: Vec::new(),
+                };
+                let first = out.len();
+                for materials in [Materials::one(material(0)), two] {
+                    cases(&materials, 1e-6, scale, &mut rand, &mut out);
+                }
+                near_misses(&mut out[first..], &mut rand);
+            }
+        }
+    }
+    assert!(out.iter().all(|c| c.p.adheres()));
+    let held = out.iter().filter(|c| {
+        let gap = c.j.c.distance(c.i.c) - c.i.r - c.j.r;
+        gap > 0.0 && pair_contact(&c.p, &c.i, &c.j, c.old, c.bonded).is_some()
+    });
+    assert!(held.count() > out.len() / 10, "pairs held past touching");
+    let contacts = out
+        .iter()
+        .filter(|c| pair_contact(&c.p, &c.i, &c.j, c.old, c.bonded).is_some());
+    assert!(contacts.count() > out.len() / 3, "contacts");
     out
 }
 
@@ -727,7 +835,7 @@ fn vec_at(k: u32) -> vec3<f32> {
 /// torque and springs; the partner's; the surface's; then a slot for each box wall: whether it
 /// touches, and its force, torque and springs.
 const CONTACT_KERNEL: &str = r#"
-const CASE_WORDS: u32 = 33u + 7u * SPRINGS_WORDS;
+const CASE_WORDS: u32 = 34u + 7u * SPRINGS_WORDS;
 const CONTACT_WORDS: u32 = 6u + SPRINGS_WORDS;
 const WALL_WORDS: u32 = 1u + CONTACT_WORDS;
 const RESULT_WORDS: u32 = 1u + 3u * CONTACT_WORDS + 6u * WALL_WORDS;
@@ -753,14 +861,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = body_at(at);
     let old = springs_at(at + 24u);
     next = k * RESULT_WORDS;
+    let s = at + 24u + 7u * SPRINGS_WORDS;
     // The pair from i's side; the partner's share as contact_with (dem_granular.wgsl) gives it,
     // with the springs the partner reads of i's entry.
-    let c = pair_contact(i, body_at(at + 12u), old);
+    let c = pair_contact(i, body_at(at + 12u), old, cases[s + 9u] != 0.0);
     put(select(0.0, 1.0, c.touching));
     put_contact(c.force, c.torque_i, c.springs);
     put_contact(-c.force, c.torque_j, springs_from(entry_of(0u, c.springs), -1.0));
     // The surface, as wall_contacts (dem_mesh_walls.wgsl) meets a mesh wall's point.
-    let s = at + 24u + 7u * SPRINGS_WORDS;
     let law = law_of(i.material, bitcast<u32>(cases[s + 7u]));
     let own = cases[s + 8u];
     let mu = select(law.sliding, own, own >= 0.0);
@@ -775,7 +883,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let wall = 2u * axis + side;
             next = k * RESULT_WORDS + 1u + 3u * CONTACT_WORDS + wall * WALL_WORDS;
             let overlap = select(below, above, side == 1u);
-            if overlap <= 0.0 {
+            // Every wall of a case touched at the last step.
+            let held = COHESIVE && holds(box_law, i.r, overlap);
+            if overlap <= 0.0 && !held {
                 put(0.0);
                 continue;
             }
@@ -843,6 +953,7 @@ fn contact_words<S: Twin>(case: &Case<S>) -> Vec<f32> {
     words.extend(case.moving.to_array());
     words.push(f32::from_bits(case.column));
     words.push(case.given.unwrap_or(-1.0));
+    words.push(case.bonded as u32 as f32);
     words
 }
 
@@ -899,7 +1010,17 @@ fn uploads(p: &StepParams, module: &naga::Module) -> Vec<(Binding, Vec<u8>)> {
                 ("box_column", U(p.box_column)),
                 // The laws read no external loads (the integrations do).
                 ("loaded", U(0)),
+                ("reach", F(p.search_margin(0.0))),
                 ("sphere_law", pair_law(table.law(0, 0))),
+                (
+                    "cohesion",
+                    Struct(vec![
+                        ("bridge_volume", F(p.bridge.map_or(0.0, |b| b.volume))),
+                        ("bridge_tension", F(p.bridge.map_or(0.0, |b| b.tension))),
+                        ("bridge_rupture", F(p.bridge.map_or(0.0, |b| b.rupture))),
+                        ("density", F(p.cohesion_density)),
+                    ]),
+                ),
             ])],
         ),
         ("material_laws", table.laws.iter().map(pair_law).collect()),
@@ -1142,13 +1263,17 @@ impl SpirvDevice {
             overrides.any(|(_, o)| o.name.as_deref() == Some(name))
         };
         let (one_material, per_pair) = (declares("ONE_MATERIAL"), declares("PER_PAIR"));
-        let pipeline = |(one_material, per_pair): (bool, bool)| {
+        let cohesive = declares("COHESIVE");
+        let pipeline = |(one_material, per_pair, cohesive): (bool, bool, bool)| {
             let mut constants = naga::back::PipelineConstants::default();
-            if one_material {
-                constants.insert("ONE_MATERIAL".into(), 1.0);
-            }
-            if per_pair {
-                constants.insert("PER_PAIR".into(), 1.0);
+            for (name, on) in [
+                ("ONE_MATERIAL", one_material),
+                ("PER_PAIR", per_pair),
+                ("COHESIVE", cohesive),
+            ] {
+                if on {
+                    constants.insert(name.into(), 1.0);
+                }
             }
             let spirv = exact_spirv(&module, &constants, &bindings);
             let entry_point = wgpu::PassthroughShaderEntryPoint {
@@ -1196,6 +1321,7 @@ impl SpirvDevice {
             let key = (
                 one_material && p.materials.count == 1,
                 per_pair && matches!(p.law, NormalLaw::LinearPerPair { .. }),
+                cohesive && p.adheres(),
             );
             let pipeline = pipelines.entry(key).or_insert_with(|| pipeline(key));
             let input: Vec<f32> = group.iter().flat_map(|&k| words(&cases[k])).collect();
@@ -1458,6 +1584,15 @@ fn the_wgsl_law_of_several_materials_computes_the_bits_of_the_rust_one() {
     let (spring, loaded) = several_materials_cases();
     compare_wgsl(&gpu, &spring);
     compare_wgsl(&gpu, &loaded);
+}
+
+#[test]
+fn the_cohesive_wgsl_law_computes_the_bits_of_the_rust_one() {
+    let Some(gpu) = SpirvDevice::open("the cohesive WGSL contact law") else {
+        return;
+    };
+    compare_wgsl(&gpu, &cohesive_cases::<Springs>(11));
+    compare_wgsl(&gpu, &cohesive_cases::<LoadedSprings>(13));
 }
 
 #[test]

@@ -274,6 +274,7 @@ pub fn needs_granular_step(particles: &Particles, params: &StepParams, walls: &W
         || params.friction.turns()
         || particles.spin()
         || !particles.history.is_empty()
+        || params.adheres()
 }
 
 #[cfg(test)]

@@ -25,6 +25,12 @@ pub const MESH_WALLS: u32 = 1 << 16;
 /// scene's wall `w`). A run with mesh walls keeps its sphere ids below it.
 pub const FIRST_MESH_WALL: u32 = FIRST_WALL - MESH_WALLS;
 
+/// The partner of a GPU history slot that holds no contact: the wgpu steps give every candidate
+/// of a sphere's walk a slot, also one that does not touch (or hold), and name no partner there
+/// (`NO_PARTNER` in `wgsl/dem/dem_granular.wgsl`). Reading the history back drops such slots;
+/// sphere ids of a run with history stay below it.
+pub const NO_PARTNER: u32 = FIRST_MESH_WALL - 1;
+
 /// One contact as one of its spheres keeps it.
 #[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]

@@ -7,7 +7,7 @@ use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
 pub use history::{
     ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadEntry, LoadedEntry, MESH_WALLS,
-    Slot,
+    NO_PARTNER, Slot,
 };
 
 /// Spheres with velocities, in the order the user gave them, their contact history and the

@@ -41,6 +41,15 @@ const ROLLING_CONSTANT_TORQUE: u32 = 1u;
 
 // 2·√(5/6): Tsuji's damping coefficient over ζ·√(S·m*).
 const TSUJI: f32 = 1.8257419;
+// π in f32 (typed: products with it are rounded to f32 as the Rust law's are).
+const PI: f32 = 3.1415927;
+// Newton steps of jkr_radius (JKR_ITERATIONS in src/dem/model/contact.rs).
+const JKR_ITERATIONS: u32 = 12u;
+
+// True where some contact adheres (JKR, liquid bridges, simplified JKR; set when the pipeline
+// is made, DemModule::constants): without it the compiler drops the cohesion laws, and a
+// contact is one that touches.
+override COHESIVE: bool = false;
 
 // A sphere as its contacts see it.
 struct Body {
@@ -52,12 +61,16 @@ struct Body {
     material: u32,  // its row of the material table
 }
 
-// The normal force's magnitude (≥ 0: a dry contact pushes or does nothing, it never pulls),
-// its elastic part (no damping) and the normal stiffness.
+// The normal force's magnitude (≥ 0 for a dry contact: it pushes or does nothing; a JKR neck
+// pulls), its elastic part (no damping) and the normal stiffness; the load that caps friction
+// and rolling (the push, or with JKR the push plus twice the pull-off force, plus a bridge's
+// pull) and JKR's contact radius (0 for the other laws).
 struct Normal {
     push: f32,
     elastic: f32,
     stiffness: f32,
+    load: f32,
+    radius: f32,
 }
 
 // A touching contact from its owner i's side, as friction needs it.
@@ -79,7 +92,7 @@ struct Load {
     c_t: f32,       // tangential damping coefficient
     mu: f32,        // sliding friction coefficient
     elastic: f32,   // elastic normal force N
-    pressing: f32,  // the normal force that caps the tangential one (push, ≥ 0)
+    pressing: f32,  // the normal force that caps the tangential one (the load, ≥ 0)
 }
 
 // The tangential force on i and the springs it keeps (their rolling torque zero).
@@ -126,24 +139,117 @@ fn length_of(v: vec3<f32>) -> f32 {
     return 0.0;
 }
 
-// The normal force of a contact of law `law` with overlap `overlap` > 0 and normal relative
-// velocity `vn`.
+// ∛x of a normal x > 0: a start from the bits, then three Newton steps (0 for x ≤ 0). Keep in
+// sync with `cube_root` in src/dem/model/contact.rs.
+fn cube_root(x: f32) -> f32 {
+    if x <= 0.0 {
+        return 0.0;
+    }
+    var y = bitcast<f32>(bitcast<u32>(x) / 3u + 0x2a5137a0u);
+    y = (y + y + x / (y * y)) / 3.0;
+    y = (y + y + x / (y * y)) / 3.0;
+    y = (y + y + x / (y * y)) / 3.0;
+    return y;
+}
+
+// The pull-off force of a JKR contact, 1.5·π·Γ·R* (contact.rs jkr_pull_off).
+fn jkr_pull_off(r_eff: f32, adhesion: f32) -> f32 {
+    return 1.5 * PI * adhesion * r_eff;
+}
+
+// The (negative) overlap at which a JKR neck breaks (contact.rs jkr_break).
+fn jkr_break(r_eff: f32, e_star: f32, adhesion: f32) -> f32 {
+    let g = PI * adhesion / e_star;
+    return -0.75 * cube_root(g * g * r_eff);
+}
+
+// JKR's contact radius at `overlap` by Newton's method on x = √a (contact.rs jkr_radius).
+fn jkr_radius(overlap: f32, r_eff: f32, e_star: f32, adhesion: f32) -> f32 {
+    let c = sqrt(2.0 * PI * adhesion / e_star);
+    var x = max(sqrt(sqrt(2.0 * r_eff * max(overlap, 0.0))), cube_root(2.0 * c * r_eff));
+    for (var k = 0u; k < JKR_ITERATIONS; k += 1u) {
+        let x3 = x * x * x;
+        let slope = 4.0 * x3 / r_eff - c;
+        if slope <= 0.0 {
+            break;
+        }
+        x -= (x3 * x / r_eff - c * x - overlap) / slope;
+    }
+    return x * x;
+}
+
+// Whether a contact of `law` that held at the last step and now overlaps by `overlap` ≤ 0
+// still holds: a JKR neck not yet broken, a liquid bridge not yet ruptured (contact.rs holds).
+fn holds(law: PairLaw, r_eff: f32, overlap: f32) -> bool {
+    return (law.adhesion > 0.0 && overlap > jkr_break(r_eff, law.e_star, law.adhesion))
+        || (dem.cohesion.bridge_volume > 0.0 && -overlap < dem.cohesion.bridge_rupture);
+}
+
+// The pull of a liquid bridge between bodies of effective radius r_eff overlapping by
+// `overlap` (a gap where negative); 0 without bridges (contact.rs bridge_pull).
+fn bridge_pull(r_eff: f32, overlap: f32) -> f32 {
+    let volume = dem.cohesion.bridge_volume;
+    if volume == 0.0 {
+        return 0.0;
+    }
+    let r = 2.0 * r_eff;
+    let s = 0.5 * max(-overlap, 0.0) * sqrt(r / volume);
+    return 2.0 * PI * r * dem.cohesion.bridge_tension / (1.0 + 2.1 * s + 10.0 * s * s);
+}
+
+// The pull of a bridge and of the simplified JKR on a sphere of radius r against a surface it
+// overlaps by `overlap` (the area where they meet a circle in the surface's plane).
+fn surface_pull(r: f32, overlap: f32) -> f32 {
+    var pull = bridge_pull(r, overlap);
+    if dem.cohesion.density > 0.0 && overlap > 0.0 {
+        pull += dem.cohesion.density * PI * overlap * (2.0 * r - overlap);
+    }
+    return pull;
+}
+
+// The normal force of a contact of law `law` with overlap `overlap` (> 0, or ≤ 0 on a JKR neck)
+// and normal relative velocity `vn`.
 fn normal_force(law: PairLaw, overlap: f32, vn: f32, m_eff: f32, r_eff: f32) -> Normal {
     if dem.law == LAW_LINEAR {
         let c = 2.0 * law.damping_ratio * root_product(dem.stiffness, m_eff);
         let elastic = dem.stiffness * overlap;
-        return Normal(max(elastic - c * vn, 0.0), elastic, dem.stiffness);
+        let push = max(elastic - c * vn, 0.0);
+        return Normal(push, elastic, dem.stiffness, push, 0.0);
     }
     if dem.law == LAW_PER_PAIR {
         let k = m_eff * law.rate;
         let c = 2.0 * law.damping_ratio * root_product(k, m_eff);
         let elastic = k * overlap;
-        return Normal(max(elastic - c * vn, 0.0), elastic, k);
+        let push = max(elastic - c * vn, 0.0);
+        return Normal(push, elastic, k, push, 0.0);
+    }
+    if COHESIVE && law.adhesion > 0.0 {
+        // JKR: the contact radius of the overlap, its force (a pull on the neck and at small
+        // overlaps) and Tsuji's damping with the stiffness 2E*a; no clamp, the neck pulls.
+        let a = jkr_radius(overlap, r_eff, law.e_star, law.adhesion);
+        let s_n = 2.0 * law.e_star * a;
+        let c = TSUJI * law.damping_ratio * root_product(s_n, m_eff);
+        let elastic = 2.0 / 3.0 * s_n * a * a / r_eff
+            - sqrt(8.0 * PI * law.adhesion * law.e_star * a * a * a);
+        let push = elastic - c * vn;
+        let load = max(push + 2.0 * jkr_pull_off(r_eff, law.adhesion), 0.0);
+        return Normal(push, elastic, s_n, load, a);
     }
     let s_n = 2.0 * law.e_star * sqrt(r_eff * overlap);
     let c = TSUJI * law.damping_ratio * root_product(s_n, m_eff);
     let elastic = 2.0 / 3.0 * s_n * overlap;
-    return Normal(max(elastic - c * vn, 0.0), elastic, s_n);
+    let push = max(elastic - c * vn, 0.0);
+    return Normal(push, elastic, s_n, push, 0.0);
+}
+
+// The normal force of a contact that also pulls by `pull` ≥ 0 (a bridge, the simplified JKR)
+// along n from i towards its partner: the force on i, the load grown by the pull.
+fn pulled(normal: ptr<function, Normal>, pull: f32, n: vec3<f32>) -> vec3<f32> {
+    if pull > 0.0 {
+        (*normal).load += pull;
+        return (pull - (*normal).push) * n;
+    }
+    return -(*normal).push * n;
 }
 
 // `x` turned into the plane normal to `n`: its normal part removed, its length kept.
@@ -160,14 +266,18 @@ fn into_plane(x: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 // the springs to keep.
 fn friction(t: Touch, law: PairLaw, mu: f32, old: Springs) -> Friction {
     let n = t.n;
-    let pressing = t.normal.push;
+    let pressing = t.normal.load;
     let elastic = t.normal.elastic;
     var out = Friction(vec3(0.0), vec3(0.0), no_springs());
     if mu > 0.0 {
         var k_t: f32;
         var c_t: f32;
         if dem.law == LAW_HERTZ {
-            k_t = 8.0 * law.g_star * sqrt(t.r_eff * t.overlap);
+            var a = t.normal.radius;
+            if !(COHESIVE && law.adhesion > 0.0) {
+                a = sqrt(t.r_eff * t.overlap);
+            }
+            k_t = 8.0 * law.g_star * a;
             c_t = TSUJI * law.damping_ratio * root_product(k_t, t.m_eff);
         } else {
             k_t = 2.0 / 7.0 * t.normal.stiffness;
@@ -203,27 +313,53 @@ fn friction(t: Touch, law: PairLaw, mu: f32, old: Springs) -> Friction {
     return out;
 }
 
-// The contact of sphere i with sphere j from i's side, given the springs i kept of it (`old`).
-fn pair_contact(i: Body, j: Body, old: Springs) -> Contact {
+// The contact of sphere i with sphere j from i's side, given the springs i kept of it (`old`);
+// `bonded`: whether they were in contact at the last step, where a cohesive pair may hold
+// beyond touching (contact.rs pair_contact).
+fn pair_contact(i: Body, j: Body, old: Springs, bonded: bool) -> Contact {
     var out = Contact(false, vec3(0.0), vec3(0.0), vec3(0.0), no_springs());
     let d = j.c - i.c;
     let d2 = d.x * d.x + d.y * d.y + d.z * d.z;
     let reach = i.r + j.r;
-    if d2 > reach * reach || d2 == 0.0 {
+    let apart = d2 > reach * reach;
+    if (apart && !(COHESIVE && bonded)) || d2 == 0.0 {
         return out;
     }
     let dist = sqrt(d2);
     let n = d / dist;
     // GPU square roots may round up by an ulp or two (they are not correctly rounded): a pair
     // just touching could get a negative overlap, whose Hertz √(R·δ) is NaN.
-    let overlap = max(reach - dist, 0.0);
+    var overlap = reach - dist;
+    if !apart {
+        overlap = max(overlap, 0.0);
+    }
     let vn = dot3(j.v - i.v, n);
     let m_eff = effective(i.m, j.m);
     let r_eff = effective(i.r, j.r);
     let law = sphere_law(i.material, j.material);
-    let normal = normal_force(law, overlap, vn, m_eff, r_eff);
+    var pull = 0.0;
+    if COHESIVE {
+        if apart && !holds(law, r_eff, overlap) {
+            return out;
+        }
+        pull = bridge_pull(r_eff, overlap);
+        if dem.cohesion.density > 0.0 && !apart {
+            // The area of the circle where the two spheres' surfaces meet (symmetric in i, j).
+            let spread = abs(i.r - j.r);
+            let area =
+                PI / 4.0 * ((reach - dist) * (reach + dist) * (dist - spread) * (dist + spread)) / d2;
+            pull += dem.cohesion.density * max(area, 0.0);
+        }
+        if apart && law.adhesion == 0.0 {
+            // A liquid bridge across a gap: its pull alone.
+            out.touching = true;
+            out.force = pull * n;
+            return out;
+        }
+    }
+    var normal = normal_force(law, overlap, vn, m_eff, r_eff);
     out.touching = true;
-    out.force = -normal.push * n;
+    out.force = pulled(&normal, pull, n);
     if dem.turns == 0u {
         return out;
     }
@@ -256,8 +392,9 @@ struct SurfaceContact {
 }
 
 // The surface touching b along the unit normal n (from b's centre towards the surface) with
-// overlap `overlap` > 0, its point there moving at `velocity`, of law `law` (b's material's row,
-// the surface's column) and sliding friction `mu`; friction only where spheres turn.
+// overlap `overlap` (> 0, or ≤ 0 for a cohesive contact that holds), its point there moving at
+// `velocity`, of law `law` (b's material's row, the surface's column) and sliding friction `mu`;
+// friction only where spheres turn (contact.rs surface_contact).
 fn surface_contact(
     b: Body,
     n: vec3<f32>,
@@ -267,9 +404,19 @@ fn surface_contact(
     mu: f32,
     old: Springs,
 ) -> SurfaceContact {
+    var out = SurfaceContact(vec3(0.0), vec3(0.0), no_springs());
+    var pull = 0.0;
+    if COHESIVE {
+        pull = surface_pull(b.r, overlap);
+        if overlap <= 0.0 && law.adhesion == 0.0 {
+            // A liquid bridge across a gap: its pull alone.
+            out.force = pull * n;
+            return out;
+        }
+    }
     // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
-    let nf = normal_force(law, overlap, dot3(velocity - b.v, n), b.m, b.r);
-    var out = SurfaceContact(-nf.push * n, vec3(0.0), no_springs());
+    var nf = normal_force(law, overlap, dot3(velocity - b.v, n), b.m, b.r);
+    out.force = pulled(&nf, pull, n);
     if dem.turns == 0u {
         return out;
     }

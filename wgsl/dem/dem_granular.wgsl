@@ -31,6 +31,9 @@
 
 // Partner ids from here on name the walls (src/particles/history.rs).
 const FIRST_WALL: u32 = 0xfffffffau;
+// The partner of a slot that holds no contact: a candidate the walk listed (and gave a slot)
+// that does not touch (NO_PARTNER in src/particles/history.rs; no lookup matches it).
+const NO_PARTNER: u32 = 0xfffefff9u;
 
 // by state index
 @group(0) @binding(18) var<storage, read_write> omega: array<vec4<f32>>;   // ωx, ωy, ωz, material
@@ -189,31 +192,37 @@ fn own_old_springs(w: ptr<function, Walker>, s: u32) -> Springs {
     return springs_of(SlotAt((*w).own_old.part, (*w).own_old.slot + s), 1.0);
 }
 
-// The springs of the walker's contact with sphere q (state index, stable id b): from its own
-// old slots, else from q's (negated); zero for a new contact.
-fn old_springs(w: ptr<function, Walker>, q: u32, b: u32) -> Springs {
+// What a sphere kept of a contact at the last step: its springs, and whether there was one.
+struct Recalled {
+    springs: Springs,
+    held: bool,
+}
+
+// The walker's contact with sphere q (state index, stable id b) at the last step: from its own
+// old slots, else from q's (negated); none for a new contact.
+fn old_contact(w: ptr<function, Walker>, q: u32, b: u32) -> Recalled {
     let own = own_old_slot(w, b);
     if own < (*w).kept {
-        return own_old_springs(w, own);
+        return Recalled(own_old_springs(w, own), true);
     }
     let row = row_before(q);
     let at = slot_at(row, 0u);
     for (var s = 0u; s < held_old[row]; s += 1u) {
         let theirs = SlotAt(at.part, at.slot + s);
         if old_partner(theirs) == (*w).a {
-            return springs_of(theirs, -1.0);
+            return Recalled(springs_of(theirs, -1.0), true);
         }
     }
-    return no_springs();
+    return Recalled(no_springs(), false);
 }
 
-// The springs of the walker's contact with a wall (FIRST_WALL + wall); zero for a new contact.
-fn old_wall_springs(w: ptr<function, Walker>, wall: u32) -> Springs {
+// The walker's contact with a wall (FIRST_WALL + wall) at the last step.
+fn old_wall_contact(w: ptr<function, Walker>, wall: u32) -> Recalled {
     let own = own_old_slot(w, FIRST_WALL + wall);
     if own < (*w).kept {
-        return own_old_springs(w, own);
+        return Recalled(own_old_springs(w, own), true);
     }
-    return no_springs();
+    return Recalled(no_springs(), false);
 }
 
 // Keeps the contact with `partner` in the walker's next slot, where there is one; counts it.
@@ -224,11 +233,15 @@ fn keep_springs(w: ptr<function, Walker>, partner: u32, s: Springs) {
     (*w).held += 1u;
 }
 
-// Whether sphere t (centre, radius) may touch sphere s: the cheap test that rejects most
-// candidates of a walk (they need nothing else of their sphere).
+// Whether sphere t (centre, radius) may touch sphere s, or hold to it (within dem.reach of
+// touching, where contacts adhere): the cheap test that rejects most candidates of a walk (they
+// need nothing else of their sphere).
 fn reaches(s: vec4<f32>, t: vec4<f32>) -> bool {
     let d = t.xyz - s.xyz;
-    let reach = s.w + t.w;
+    var reach = s.w + t.w;
+    if COHESIVE {
+        reach += dem.reach;
+    }
     return d.x * d.x + d.y * d.y + d.z * d.z <= reach * reach;
 }
 
@@ -242,18 +255,18 @@ fn meet(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
 
 // Resolves the walker's sphere against sphere q (state index; t = its centre and radius, within
 // reach): adds q's force and torque there and keeps the springs in the walker's next slot (a pair
-// within reach keeps one also where it does not touch: its centres coincide, or its distance
-// rounds to the sum of the radii; its springs are then zero, as a new contact's). Returns the
-// contact, for the walker to take (`take`).
+// within reach takes one also where it is no contact: its centres coincide, or it is within
+// reach but apart and not held; the slot then names NO_PARTNER). Returns the contact, for the
+// walker to take (`take`).
 fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) -> Contact {
     let other = body_of(t, vel[q], omega[q]);
-    var old = no_springs();
+    var old = Recalled(no_springs(), false);
     var b = 0u;   // q's stable id, where contacts keep history
     if dem.slots > 0u {
         b = stable_id(q);
-        old = old_springs(w, q, b);
+        old = old_contact(w, q, b);
     }
-    let c = pair_contact((*w).me, other, old);
+    let c = pair_contact((*w).me, other, old.springs, old.held);
     if c.touching {
         add_force(q, -c.force);
         if dem.turns != 0u {
@@ -261,7 +274,7 @@ fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) -> Contact {
         }
     }
     if dem.slots > 0u {
-        keep_springs(w, b, c.springs);
+        keep_springs(w, select(NO_PARTNER, b, c.touching), c.springs);
     }
     return c;
 }
@@ -285,17 +298,19 @@ fn finish(w: ptr<function, Walker>) {
             let above = b.r - (dem.box_hi[axis] - b.c[axis]);
             for (var side = 0u; side < 2u; side += 1u) {
                 let overlap = select(below, above, side == 1u);
-                if overlap <= 0.0 {
-                    continue;
-                }
                 let wall = 2u * axis + side;
-                var old = no_springs();
-                if dem.slots > 0u {
-                    old = old_wall_springs(w, wall);
+                var old = Recalled(no_springs(), false);
+                if dem.slots > 0u && (overlap > 0.0 || COHESIVE) {
+                    old = old_wall_contact(w, wall);
+                }
+                // A cohesive contact of the last step holds past touching while its law lets it.
+                let held = COHESIVE && old.held && holds(law, b.r, overlap);
+                if overlap <= 0.0 && !held {
+                    continue;
                 }
                 var n = vec3(0.0);
                 n[axis] = select(-1.0, 1.0, side == 1u);
-                let c = surface_contact(b, n, overlap, vec3(0.0), law, law.sliding, old);
+                let c = surface_contact(b, n, overlap, vec3(0.0), law, law.sliding, old.springs);
                 (*w).force += c.force;
                 (*w).torque += c.torque;
                 if dem.slots > 0u {

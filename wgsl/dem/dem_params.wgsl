@@ -21,9 +21,19 @@ struct LawParams {
     spheres_per_part: u32,  // history rows one entry binding holds (dem_granular.wgsl)
     columns: u32,           // laws in a row of the material table: the materials and a rigid wall
     box_column: u32,        // the table's column of the six box walls
-    _pad0: u32,
+    reach: f32,             // how far past touching a contact may hold [m] (0: none adheres)
     loaded: u32,            // 1: some sphere has an external load (read by the integrations)
     sphere_law: PairLaw,    // row 0, column 0 of the table: with one material, every pair's law
+    cohesion: CohesionParams,
+}
+
+// The cohesion laws that are the step's, not a pair's; twin of CohesionParams in
+// src/dem/model/law.rs.
+struct CohesionParams {
+    bridge_volume: f32,   // V of a liquid bridge [m³] (0: no bridges)
+    bridge_tension: f32,  // γ·cos θ [N/m]
+    bridge_rupture: f32,  // the gap at which a bridge ruptures [m]
+    density: f32,         // cohesion energy density of LIGGGHTS' simplified JKR [J/m³] (0: none)
 }
 
 // The law of one ordered pair of materials; twin of PairLaw in src/dem/model/materials.rs.
@@ -34,7 +44,7 @@ struct PairLaw {
     damping_ratio: f32,   // ζ giving the pair's restitution
     sliding: f32,         // μ
     rolling: f32,         // μ_r
-    adhesion: f32,        // Γ of JKR [J/m²] (the GPU steps run no cohesion yet)
+    adhesion: f32,        // Γ of JKR [J/m²] (0: the pair does not adhere)
     _pad1: f32,
 }
 

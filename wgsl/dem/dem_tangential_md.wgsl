@@ -2,7 +2,8 @@
 // tangential model (docs/method.md, "Friction, rotation and rolling resistance"; Thornton & Yin,
 // Powder Technol. 65 (1991), as Thornton, Cummins & Cleary, Powder Technol. 210 (2011) restate
 // it): the springs a contact keeps, the history entry that holds them and the tangential force.
-// Keep in sync with `load_history` and `cube_root` in src/dem/model/contact.rs, line for line.
+// Keep in sync with `load_history` in src/dem/model/contact.rs, line for line (its cube_root is
+// dem_contact.wgsl's).
 // Composed with dem_contact.wgsl (the alternative: dem_tangential_mindlin.wgsl).
 
 // What a contact carries from one step to the next, as the sphere holding it sees it (the
@@ -42,18 +43,6 @@ fn entry_of(partner: u32, s: Springs) -> Entry {
         vec4(bitcast<vec3<u32>>(s.reversal), 0u),
         vec4(0u),
     );
-}
-
-// ∛x of x in [0, 1]: a start from the bits, then three Newton steps (0 for x ≤ 0).
-fn cube_root(x: f32) -> f32 {
-    if x <= 0.0 {
-        return 0.0;
-    }
-    var y = bitcast<f32>(bitcast<u32>(x) / 3u + 0x2a5137a0u);
-    y = (y + y + x / (y * y)) / 3.0;
-    y = (y + y + x / (y * y)) / 3.0;
-    y = (y + y + x / (y * y)) / 3.0;
-    return y;
 }
 
 // The Mindlin–Deresiewicz tangential force on i (see `load_history` in contact.rs) and the springs

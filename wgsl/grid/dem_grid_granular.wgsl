@@ -23,6 +23,14 @@ fn walk_sphere(q: u32) -> vec4<f32> {
     return walk_pos[q];
 }
 
+// The windows of a walk reach dem.reach further where contacts adhere: a contact may hold that
+// far past touching (the hashed table's cells are grown by it on the host).
+fn widen_windows() {
+    if COHESIVE {
+        window_slack = dem.reach;
+    }
+}
+
 // The granular step re-bins every step: a sphere's cell is that of its centre.
 fn walker_cell(w: ptr<function, Walker>, level: u32) -> vec3<u32> {
     return cell_coords((*w).s.xyz, level);
@@ -163,6 +171,7 @@ fn list_near(@builtin(global_invocation_id) gid: vec3<u32>) {
     if p >= params.n {
         return;
     }
+    widen_windows();
     var w: Walker;
     w.p = p;
     w.s = walk_pos[p];
@@ -185,6 +194,7 @@ fn count_touching(touching: u32, lid: u32) {
 // (`walk`) or by list_near's, added to the step's touching pairs. Every thread of the workgroup
 // calls it (it holds barriers): those past the spheres with nothing to resolve.
 fn resolve_thread(gid: vec3<u32>, lid: u32, lanes: Lanes, walk: bool) {
+    widen_windows();
     let p = index(gid);
     let here = p < params.n;
     var w: Walker;

@@ -26,8 +26,14 @@ fn stable_id(p: u32) -> u32 {
     return p;
 }
 
-// The proxy box of every sphere (half-width 2·r, or 2·r_max in nns mode, padded by a few ulps);
-// starts the step's clock.
+// How much the proxy rule grows each sphere's radius: half the reach past touching at which
+// contacts may hold (0 but where they adhere), so that it finds every pair within that reach.
+fn grown() -> f32 {
+    return 0.5 * dem.reach;
+}
+
+// The proxy box of every sphere (half-width 2·r, or 2·r_max in nns mode, padded by a few ulps;
+// r grown by grown()); starts the step's clock.
 @compute @workgroup_size(256)
 fn proxy_boxes(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = gid.x + gid.y * dem.row;
@@ -38,7 +44,7 @@ fn proxy_boxes(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let s = pos[p];
-    let h = box_half_width(rq.mode, s.w, rq.r_max);
+    let h = box_half_width(rq.mode, s.w + grown(), rq.r_max + grown());
     let pad = (max(max(abs(s.x), abs(s.y)), abs(s.z)) + h) * rq.pad_rel;
     for (var a = 0u; a < 3u; a += 1u) {
         boxes[6u * p + a] = s[a] - (h + pad);

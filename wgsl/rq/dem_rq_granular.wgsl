@@ -14,7 +14,7 @@ fn walk_chunk() -> u32 {
 
 fn visit(w: ptr<function, Walker>, q: u32) {
     let t = pos[q];
-    if !keep_in(rq.mode, (*w).p, (*w).s.xyz, (*w).s.w, q, t.xyz, t.w) {
+    if !keep_in(rq.mode, (*w).p, (*w).s.xyz, (*w).s.w + grown(), q, t.xyz, t.w + grown()) {
         return;
     }
     meet(w, q, t);

@@ -75,16 +75,57 @@ pub struct LawParams {
     pub columns: u32,
     /// The table's column of the six box walls.
     pub box_column: u32,
-    /// Padding: `sphere_law` starts a 16-byte line, as a struct member of a uniform must.
-    pub _pad0: u32,
+    /// How far past touching a contact may hold \[m\] ([`StepParams::search_margin`] of the
+    /// largest radius; 0 where contacts do not adhere): the searches widen by it.
+    pub reach: f32,
     /// 1 while some sphere has an external load (the stepper's `ExternalLoads`): the
     /// integration reads them only then.
     pub loaded: u32,
     /// The law of two spheres of the first material (the table's row 0, column 0): with one
     /// material every pair's.
     pub sphere_law: PairLaw,
+    /// The liquid bridges and LIGGGHTS' simplified JKR (zeros where there are none).
+    pub cohesion: CohesionParams,
 }
-const _: () = assert!(size_of::<LawParams>() == 128, "the device copies' size");
+const _: () = assert!(size_of::<LawParams>() == 144, "the device copies' size");
+
+/// The cohesion laws that are the step's, not a material pair's, as the devices read them:
+/// [`Bridge`](super::Bridge) (a volume of 0: no bridges) and the cohesion energy density.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable, encase::ShaderType)]
+pub struct CohesionParams {
+    /// Liquid volume V of a bridge \[m³\] (0: no liquid bridges).
+    pub bridge_volume: f32,
+    /// γ·cos θ \[N/m\].
+    pub bridge_tension: f32,
+    /// The gap at which a bridge ruptures \[m\].
+    pub bridge_rupture: f32,
+    /// The cohesion energy density of LIGGGHTS' simplified JKR \[J/m³\] (0: none).
+    pub density: f32,
+}
+
+/// `$check!("CohesionParams", CohesionParams { every field })`: the one list of
+/// [`CohesionParams`]' fields, for the WGSL and the CUDA layout checks.
+macro_rules! cohesion_params_fields {
+    ($check:ident, $cuda:literal) => {
+        $check!(
+            $cuda,
+            CohesionParams {
+                bridge_volume,
+                bridge_tension,
+                bridge_rupture,
+                density,
+            }
+        )
+    };
+}
+pub(crate) use cohesion_params_fields;
+
+impl crate::gpu::shader::FirstWord for CohesionParams {
+    fn first_word(&self) -> u32 {
+        self.bridge_volume.to_bits()
+    }
+}
 
 /// `$check!("LawParams", LawParams { every field })`: the one list of [`LawParams`]' fields,
 /// which the WGSL layout check (`shared_struct!`, whose pattern fails to compile for a field
@@ -110,9 +151,10 @@ macro_rules! law_params_fields {
                 spheres_per_part,
                 columns,
                 box_column,
-                _pad0,
+                reach,
                 loaded,
                 sphere_law,
+                cohesion,
             }
         )
     };
@@ -141,9 +183,15 @@ impl LawParams {
             spheres_per_part: 0,
             columns: p.materials.count as u32 + 1,
             box_column: p.box_column,
-            _pad0: 0,
+            reach: 0.0,
             loaded: 0,
             sphere_law: *p.materials.law(0, 0),
+            cohesion: CohesionParams {
+                bridge_volume: p.bridge.map_or(0.0, |b| b.volume),
+                bridge_tension: p.bridge.map_or(0.0, |b| b.tension),
+                bridge_rupture: p.bridge.map_or(0.0, |b| b.rupture),
+                density: p.cohesion_density,
+            },
         }
     }
 
@@ -153,6 +201,15 @@ impl LawParams {
         Self {
             slots,
             spheres_per_part,
+            ..self
+        }
+    }
+
+    /// These parameters for spheres of radii up to `r_max`: with the reach of the contacts
+    /// that adhere ([`StepParams::search_margin`]).
+    pub fn reaching(self, p: &StepParams, r_max: f32) -> Self {
+        Self {
+            reach: p.search_margin(r_max),
             ..self
         }
     }

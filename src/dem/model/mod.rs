@@ -156,6 +156,13 @@ impl StepParams {
             .max(self.bridge.map_or(0.0, |b| b.rupture))
     }
 
+    /// How far past touching the GPU steps search for contacts of spheres of radii up to
+    /// `r_max` \[m\]: [`reach_margin`](Self::reach_margin) and a part in a thousand more, so
+    /// that a search's rounding of r_i + r_j + margin never loses a contact the law holds.
+    pub fn search_margin(&self, r_max: f32) -> f32 {
+        self.reach_margin(r_max) * 1.001
+    }
+
     /// Checks and completes the parameters for spheres of radii from `r_min` up: derives the
     /// stiffness when the material has none, and refuses a time step too large for it, and
     /// spheres too small for the laws in f32 (docs/method.md, "Small spheres in f32"): half

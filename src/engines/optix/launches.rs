@@ -542,7 +542,12 @@ macro_rules! cuda_layout {
 /// they need NVRTC but no GPU.
 pub fn layout_checks(unit: Unit) -> String {
     let pair_law = || crate::dem::model::materials::pair_law_fields!(cuda_layout, "MochiPairLaw");
-    let law_params = || pair_law() + &crate::dem::model::law::law_params_fields!(cuda_layout);
+    let cohesion = || {
+        use crate::dem::model::law::CohesionParams;
+        crate::dem::model::law::cohesion_params_fields!(cuda_layout, "MochiCohesion")
+    };
+    let law_params =
+        || pair_law() + &cohesion() + &crate::dem::model::law::law_params_fields!(cuda_layout);
     let device_law = || law_params() + &cuda_layout!("MochiLaw", DeviceLaw { dem, laws });
     let entry = || {
         cuda_layout!(

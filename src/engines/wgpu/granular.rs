@@ -28,9 +28,7 @@ use crate::engines::wgpu::walls::MeshWalls;
 use crate::error::{Error, Result, try_vec};
 use crate::gpu::Gpu;
 use crate::gpu::shader::Binding;
-use crate::particles::{
-    ContactHistory, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, LoadEntry, Particles,
-};
+use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, NO_PARTNER, Particles};
 use std::ops::Range;
 
 /// What the granular step adds to the paper's (`wgsl/dem/dem_contact.wgsl`, the contact law, and
@@ -477,15 +475,11 @@ impl Granular {
         let rows = room.spheres as u64;
         let f = &params.friction;
         let keeps = f.has_history();
-        let first_wall = match walls.meshes.is_empty() {
-            true => FIRST_WALL,
-            false => FIRST_MESH_WALL,
-        };
-        if keeps && rows > first_wall as u64 {
+        if keeps && rows > NO_PARTNER as u64 {
             return Err(Error::TooLarge {
-                what: "spheres of a run with contact history (ids above are the walls')".into(),
+                what: "spheres of a run with contact history (ids above name the walls)".into(),
                 got: rows,
-                limit: first_wall as u64,
+                limit: NO_PARTNER as u64,
             });
         }
         let slots = match keeps {
@@ -926,14 +920,20 @@ fn lay_out(
 
 /// The owner-only history of the GPU (`held[i]` slots of sphere i from slot i·slots on) in the
 /// cpu's layout ([`ContactHistory::from_owner_rows`]).
+/// Slots that name [`NO_PARTNER`] hold no contact and are dropped.
 fn both_sides(n: usize, slots: usize, held: &[u32], laid_out: &Slots) -> Result<ContactHistory> {
-    let row = |i: usize| (i * slots..i * slots + held[i] as usize).map(|s| laid_out.get(s));
+    let row = |i: usize| {
+        (i * slots..i * slots + held[i] as usize)
+            .map(|s| laid_out.get(s))
+            .filter(|(e, _)| e.partner != NO_PARTNER)
+    };
     ContactHistory::from_owner_rows(n, laid_out.width == LOADED_WORDS, row)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::particles::FIRST_WALL;
 
     fn entry(partner: u32, x: f32) -> HistoryEntry {
         HistoryEntry {

@@ -105,6 +105,7 @@ impl Variant {
             return Variant::Paper;
         }
         let frictionless = !params.friction.turns()
+            && !params.adheres()
             && !particles.spin()
             && particles.history.is_empty()
             && walls.is_box_only()
@@ -129,13 +130,25 @@ pub(crate) const GROUP: u32 = 256;
 pub(crate) const MAX_BATCH: u32 = 200;
 
 /// [`LawParams`] as a [`SharedStruct`] (`LawParams` in `wgsl/dem/dem_params.wgsl`).
-pub(crate) fn law_params() -> SharedStruct {
+fn law_params() -> SharedStruct {
     crate::dem::model::law::law_params_fields!(shared_struct)
+}
+
+/// [`LawParams`] with the structs it holds, as [`SharedStruct`]s: what every DEM module checks.
+pub(crate) fn law_structs() -> [SharedStruct; 3] {
+    [law_params(), pair_law(), cohesion_params()]
+}
+
+/// [`CohesionParams`](crate::dem::model::law::CohesionParams), `LawParams::cohesion`, as a
+/// [`SharedStruct`].
+fn cohesion_params() -> SharedStruct {
+    use crate::dem::model::law::CohesionParams;
+    crate::dem::model::law::cohesion_params_fields!(shared_struct, "CohesionParams")
 }
 
 /// [`PairLaw`](crate::dem::model::PairLaw), a row of the material table (`material_laws` of
 /// `wgsl/dem/dem_contact.wgsl`) and `LawParams::sphere_law`, as a [`SharedStruct`].
-pub(crate) fn pair_law() -> SharedStruct {
+fn pair_law() -> SharedStruct {
     use crate::dem::model::PairLaw;
     crate::dem::model::materials::pair_law_fields!(shared_struct, "PairLaw")
 }
@@ -291,7 +304,7 @@ pub(crate) struct DemModule {
     /// The step's WGSL, compiled.
     pub module: crate::gpu::Module,
     /// The values of its `override` constants its pipelines take ([`Gpu::pipeline_with`]).
-    pub constants: &'static [(&'static str, f64)],
+    pub constants: Vec<(&'static str, f64)>,
 }
 
 impl DemModule {
@@ -313,7 +326,7 @@ impl DemModule {
         kernels: KernelSet,
         source: impl FnOnce(Accumulators, Lanes, Variant) -> String,
     ) -> Result<Self> {
-        crate::engines::common::rows::dry_only(backend, params)?;
+        crate::engines::common::rows::dry_walls_only(backend, params, walls)?;
         let room = room.holding(particles);
         let n = room.spheres as u64;
         if n > limit {
@@ -332,17 +345,24 @@ impl DemModule {
             .transpose()?;
         let mut law = LawParams::new(params, particles.len() as u32, 0);
         if let Some(g) = &granular {
-            law = g.history_layout(law);
+            law = g.history_layout(law).reaching(params, room.radii.1);
         }
         let params_uniform = ParamsUniform::new(gpu, &format!("mochi.dem.{backend}.params"), law);
         let source = source(accumulators, lanes, variant);
         let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
         // The paper's law (wgsl/dem/dem_physics.wgsl) with a stiffness per pair, or the granular
         // step's (wgsl/dem/dem_contact.wgsl) specialised for one material.
-        let constants: &[_] = match variant {
-            Variant::PerPair => &[("PER_PAIR", 1.0)],
-            _ if granular.is_some() && params.materials.count == 1 => &[("ONE_MATERIAL", 1.0)],
-            _ => &[],
+        let constants = match variant {
+            Variant::PerPair => vec![("PER_PAIR", 1.0)],
+            _ if granular.is_some() => [
+                ("ONE_MATERIAL", params.materials.count == 1),
+                ("COHESIVE", params.adheres()),
+            ]
+            .into_iter()
+            .filter(|(_, on)| *on)
+            .map(|(name, _)| (name, 1.0))
+            .collect(),
+            _ => Vec::new(),
         };
         Ok(DemModule {
             atomics,

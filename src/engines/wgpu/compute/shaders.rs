@@ -427,7 +427,7 @@ pub fn modules() -> Vec<WgslModule> {
                 entry_points,
                 &bindings,
             );
-            dem.structs.extend([step::law_params(), step::pair_law()]);
+            dem.structs.extend(step::law_structs());
             all.push(dem);
             for ((lane_suffix, lanes), (model, variant)) in step::Lanes::ALL
                 .into_iter()
@@ -440,9 +440,8 @@ pub fn modules() -> Vec<WgslModule> {
                     granular_entry_points,
                     &bindings,
                 );
+                dem.structs.extend(step::law_structs());
                 dem.structs.extend([
-                    step::law_params(),
-                    step::pair_law(),
                     crate::engines::common::walls::mesh_params(),
                     crate::engines::common::walls::mesh_wall_row(),
                 ]);

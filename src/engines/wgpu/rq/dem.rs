@@ -133,7 +133,7 @@ impl RqStepper {
         let n64 = particles.len() as u64;
         let n = n64 as u32;
         let pipeline = |entry: &str| {
-            gpu.pipeline_with(&format!("mochi.dem.rq.{entry}"), &module, entry, constants)
+            gpu.pipeline_with(&format!("mochi.dem.rq.{entry}"), &module, entry, &constants)
         };
         let pipelines = Pipelines {
             proxy_boxes: pipeline("proxy_boxes"),

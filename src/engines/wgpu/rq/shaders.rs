@@ -230,7 +230,7 @@ pub fn modules() -> Vec<WgslModule> {
             source: dem_rq::source(atomics),
             entry_points: dem_rq::ENTRY_POINTS,
             bindings: dem_rq::bindings(),
-            structs: vec![dem_rq::rq_params(), step::law_params(), step::pair_law()],
+            structs: [vec![dem_rq::rq_params()], step::law_structs().to_vec()].concat(),
         });
         for (model, variant) in [("", Variant::Granular), ("_md", Variant::Loaded)] {
             all.push(WgslModule {
@@ -238,13 +238,15 @@ pub fn modules() -> Vec<WgslModule> {
                 source: dem_rq::granular_source(atomics, variant),
                 entry_points: dem_rq::GRANULAR_ENTRY_POINTS,
                 bindings: dem_rq::granular_bindings(),
-                structs: vec![
-                    dem_rq::rq_params(),
-                    step::law_params(),
-                    step::pair_law(),
-                    crate::engines::common::walls::mesh_params(),
-                    crate::engines::common::walls::mesh_wall_row(),
-                ],
+                structs: [
+                    vec![dem_rq::rq_params()],
+                    step::law_structs().to_vec(),
+                    vec![
+                        crate::engines::common::walls::mesh_params(),
+                        crate::engines::common::walls::mesh_wall_row(),
+                    ],
+                ]
+                .concat(),
             });
         }
     }

@@ -323,7 +323,8 @@ impl GridStepper {
         particles.separate_coincident()?;
         let room = room.holding(&particles);
         let (r_min, r_max) = room.radii;
-        let mode_cell = mode.cell_size(r_max) as f64;
+        // Cells hold every pair within the search's reach: the spheres grown by half of it.
+        let mode_cell = mode.cell_size(r_max + 0.5 * params.search_margin(r_max)) as f64;
         // The build for where the spheres are and where more will come.
         let bounds = match (
             start_bounds(&particles, &params, mode_cell as f32),
@@ -366,7 +367,7 @@ impl GridStepper {
         let paper = granular.is_none();
         let skinned = paper && build == BuildKind::Dense;
         let pipeline = |entry: &str| {
-            gpu.pipeline_with(&format!("mochi.dem.{entry}"), &module, entry, constants)
+            gpu.pipeline_with(&format!("mochi.dem.{entry}"), &module, entry, &constants)
         };
         let (first, last) = match build {
             BuildKind::Dense => ("bin_count", "bin_scatter"),
