@@ -5,15 +5,19 @@
 //! at contact 2πRγ·cos θ, the rupture at (1 + θ/2)·V^⅓, a wet sphere hanging from a ceiling.
 //! LIGGGHTS' simplified JKR (cohesion = "sjkr"): the overlap where Hertz balances k·area. Mesh
 //! walls adhere as the box's do: spheres hang from a mesh ceiling.
-//! The cpu backend runs cohesion; the GPU backends refuse it.
+//! Each runs on every backend that runs cohesion here (cpu; wgpu-compute and wgpu-rq, on
+//! lavapipe under CI), but the mesh walls' (the cpu's alone so far) and the resumed run's (bit
+//! for bit, the cpu's).
 
 use mochi::dem::model::contact::{bridge_pull, jkr_break, jkr_pull_off, jkr_radius};
 use mochi::dem::model::{ContactLaw, LiquidBridge, Material};
 use mochi::dem::walls::{WallConfig, WallSet};
 use mochi::dem::{ExternalLoads, Particles, StepParams, Stepper};
-use mochi::engines::DemSetup;
 use mochi::engines::cpu::CpuStepper;
+use mochi::engines::{BackendKind, DemSetup};
 use std::f32::consts::PI;
+
+mod common;
 
 const E: f64 = 1e7;
 const NU: f64 = 0.3;
@@ -54,6 +58,22 @@ fn spheres(positions: Vec<[f32; 3]>) -> Particles {
 
 fn open(particles: Particles, p: &StepParams) -> CpuStepper {
     CpuStepper::open(DemSetup::new(particles, p.clone(), mochi::ProxyMode::Mochi)).unwrap()
+}
+
+/// The backends whose steps adhere, of those that run here.
+fn cohesive_backends() -> Vec<BackendKind> {
+    let optix = BackendKind::Optix;
+    let mut kinds = common::dem_backends();
+    kinds.retain(|&k| k != optix);
+    kinds
+}
+
+/// Runs `test` with a stepper opener of each backend of [`cohesive_backends`].
+fn on_each(test: impl Fn(&dyn Fn(Particles, &StepParams) -> Box<dyn Stepper>)) {
+    for kind in cohesive_backends() {
+        let _named = common::Naming(kind);
+        test(&|start, p| common::open_dem_shared(kind, &start, p.clone()));
+    }
 }
 
 #[test]
@@ -100,15 +120,15 @@ fn jkr_curve_of(r_eff: f32, e_star: f32, gamma: f32) {
 }
 
 /// Pulls the spheres of `start` apart with forces ±F along x on spheres 0 and 1 (sphere 1 only,
-/// against a wall, where there is one sphere) growing slowly from 0 after they settle; returns
-/// the force at the last step the contact held.
-fn pull_off_of(start: Particles, p: &StepParams) -> f32 {
-    let n = start.len();
-    let mut s = open(start, p);
+/// against a wall, where there is one sphere) growing slowly from 0 to 1.6 times `about` after
+/// they settle; returns the force at the last step the contact held.
+fn pull_off_of(s: &mut dyn Stepper, about: f32) -> f32 {
+    let n = s.particles().unwrap().len();
     s.advance(3000).unwrap(); // the neck forms and settles
     let mut held = 0.0;
-    for k in 0..8000 {
-        let f = 1e-7 * k as f32;
+    let rise = 5e-4 * about;
+    for k in 0..3200 {
+        let f = rise * k as f32;
         let mut forces = vec![[0.0f32; 3]; n];
         forces[n - 1] = [f, 0.0, 0.0];
         if n == 2 {
@@ -119,9 +139,9 @@ fn pull_off_of(start: Particles, p: &StepParams) -> f32 {
             ..ExternalLoads::default()
         })
         .unwrap();
-        let touching = s.advance(10).unwrap().contacts > 0 || n == 1;
-        let bonded = !s.particles().unwrap().history.is_empty();
-        if !(touching && bonded) {
+        // A held pair is a contact; a sphere held by a wall keeps the wall in its history.
+        let touching = s.advance(10).unwrap().contacts > 0;
+        if !touching && (n == 2 || s.particles().unwrap().history.is_empty()) {
             return held;
         }
         held = f;
@@ -132,44 +152,47 @@ fn pull_off_of(start: Particles, p: &StepParams) -> f32 {
 #[test]
 fn two_spheres_pull_off_at_one_and_a_half_pi_gamma_r() {
     let gamma = 0.1;
-    let p = params(&sticky(gamma), [0.0; 3]);
+    let expected = jkr_pull_off(R / 2.0, gamma as f32);
     // Touching (pressed 0.1 µm: in f32 touching exactly may leave a gap), in the middle of the
     // box.
-    let start = spheres(vec![
-        [0.005 - R + 1e-7, 0.005, 0.005],
-        [0.005 + R - 1e-7, 0.005, 0.005],
-    ]);
-    let held = pull_off_of(start, &p);
-    let expected = jkr_pull_off(R / 2.0, gamma as f32);
-    assert!(
-        (held / expected - 1.0).abs() < 0.03,
-        "pulled off at {held} N, not {expected} N"
-    );
-    // A dry pair comes apart at once.
-    let dry = params(&sticky(0.0), [0.0; 3]);
-    let start = spheres(vec![
-        [0.005 - R + 1e-7, 0.005, 0.005],
-        [0.005 + R - 1e-7, 0.005, 0.005],
-    ]);
-    assert!(pull_off_of(start, &dry) < 0.05 * expected);
+    let start = || {
+        spheres(vec![
+            [0.005 - R + 1e-7, 0.005, 0.005],
+            [0.005 + R - 1e-7, 0.005, 0.005],
+        ])
+    };
+    on_each(|open| {
+        let p = params(&sticky(gamma), [0.0; 3]);
+        let held = pull_off_of(&mut *open(start(), &p), expected);
+        assert!(
+            (held / expected - 1.0).abs() < 0.03,
+            "pulled off at {held} N, not {expected} N"
+        );
+        // A dry pair comes apart at once.
+        let dry = params(&sticky(0.0), [0.0; 3]);
+        assert!(pull_off_of(&mut *open(start(), &dry), expected) < 0.05 * expected);
+    });
 }
 
 #[test]
 fn a_sphere_pulls_off_a_wall_at_one_and_a_half_pi_gamma_r() {
     let gamma = 0.1;
-    let p = params(&sticky(gamma), [0.0; 3]);
-    // Touching the low x wall; pulled along +x.
-    let held = pull_off_of(spheres(vec![[R - 1e-7, 0.005, 0.005]]), &p);
     let expected = jkr_pull_off(R, gamma as f32);
-    assert!(
-        (held / expected - 1.0).abs() < 0.03,
-        "pulled off at {held} N, not {expected} N"
-    );
+    on_each(|open| {
+        let p = params(&sticky(gamma), [0.0; 3]);
+        // Touching the low x wall; pulled along +x.
+        let mut s = open(spheres(vec![[R - 1e-7, 0.005, 0.005]]), &p);
+        let held = pull_off_of(&mut *s, expected);
+        assert!(
+            (held / expected - 1.0).abs() < 0.03,
+            "pulled off at {held} N, not {expected} N"
+        );
+    });
 }
 
 /// Whether a sphere touching the ceiling of the box still hangs there once gravity has grown
 /// slowly to −g and held, with a work of adhesion that pulls off at `ratio` times its weight.
-fn hangs(ratio: f64) -> bool {
+fn hangs(open: &dyn Fn(Particles, &StepParams) -> Box<dyn Stepper>, ratio: f64) -> bool {
     let g = 9.81;
     let mass = DENSITY * 4.0 / 3.0 * std::f64::consts::PI * (R as f64).powi(3);
     let gamma = ratio * mass * g / (1.5 * std::f64::consts::PI * R as f64);
@@ -188,8 +211,10 @@ fn hangs(ratio: f64) -> bool {
 
 #[test]
 fn a_sphere_hangs_under_a_ceiling_while_its_neck_outweighs_it() {
-    assert!(hangs(1.1), "holds at 1.1 times its weight");
-    assert!(!hangs(0.9), "falls at 0.9 times its weight");
+    on_each(|open| {
+        assert!(hangs(open, 1.1), "holds at 1.1 times its weight");
+        assert!(!hangs(open, 0.9), "falls at 0.9 times its weight");
+    });
     // At glass's stiffness (E = 70 GPa) this neck breaks 1.4 nm past touching, about one f32
     // spacing of a centre 9 mm from the origin, which the law reads without its residual: the
     // law itself is checked at that stiffness by the analytic curve above.
@@ -222,26 +247,30 @@ fn a_resumed_cohesive_run_goes_on_bit_for_bit() {
 }
 
 #[test]
-fn cohesion_runs_on_the_cpu_and_the_gpu_backends_refuse_it() {
+fn cohesion_with_mesh_walls_runs_on_the_cpu_and_the_gpu_backends_refuse_it() {
     let p = params(&sticky(0.1), [0.0; 3]);
     let start = spheres(vec![[0.004, 0.005, 0.005], [0.006, 0.005, 0.005]]);
-    for kind in [
-        mochi::engines::BackendKind::WgpuCompute,
-        mochi::engines::BackendKind::WgpuRq,
-    ] {
-        let opened = mochi::engines::open_stepper(
-            kind,
-            start.clone(),
-            p.clone(),
-            mochi::ProxyMode::Mochi,
-            &Default::default(),
-        );
+    for kind in [BackendKind::WgpuCompute, BackendKind::WgpuRq] {
+        let setup = DemSetup::new(start.clone(), p.clone(), mochi::ProxyMode::Mochi)
+            .with_walls(plate_at(0.008));
+        let opened = mochi::engines::open_setup(kind, setup, &Default::default());
         let Err(e) = opened else {
-            panic!("{} opened a cohesive scene", kind.name())
+            panic!("{} opened a cohesive scene with mesh walls", kind.name())
         };
         let e = e.to_string();
-        assert!(e.contains("cohesion runs on the cpu backend"), "{e}");
+        assert!(e.contains("cohesion with mesh walls runs on the cpu"), "{e}");
     }
+    let opened = mochi::engines::open_stepper(
+        BackendKind::Optix,
+        start,
+        p,
+        mochi::ProxyMode::Mochi,
+        &Default::default(),
+    );
+    let Err(e) = opened else {
+        panic!("optix opened a cohesive scene")
+    };
+    assert!(e.to_string().contains("cohesion runs on the cpu and wgpu"), "{e}");
 }
 
 /// Water (γ = 0.072 N/m, θ = 0) in bridges of `volume` between spheres of [`sticky`]'s
@@ -268,56 +297,59 @@ fn a_liquid_bridge_pulls_with_willetts_force_and_ruptures_at_lians_distance() {
     assert!((bridge_pull(&bridge, R / 2.0, 0.0) / at_contact - 1.0).abs() < 1e-6);
     assert!(bridge_pull(&bridge, R / 2.0, -1e-5) < 0.7 * at_contact);
     assert!((bridge.rupture / 1e-4 - 1.0).abs() < 1e-5);
-    // Pulled apart slowly, two spheres come off at the bridge's force at contact.
-    let start = spheres(vec![
-        [0.005 - R + 1e-7, 0.005, 0.005],
-        [0.005 + R - 1e-7, 0.005, 0.005],
-    ]);
-    let mut s = open(start, &p);
-    s.advance(3000).unwrap();
-    let mut held = 0.0;
-    for k in 0..10_000 {
-        let f = 1e-7 * k as f32;
-        let forces = vec![[-f, 0.0, 0.0], [f, 0.0, 0.0]];
-        let loads = ExternalLoads {
-            forces,
-            ..ExternalLoads::default()
-        };
-        s.set_external_loads(&loads).unwrap();
-        s.advance(10).unwrap();
-        let x = s.particles().unwrap().positions;
-        if x[1][0] - x[0][0] - 2.0 * R > 0.2 * bridge.rupture {
-            break;
+    on_each(|open| {
+        // Pulled apart slowly, two spheres come off at the bridge's force at contact.
+        let start = spheres(vec![
+            [0.005 - R + 1e-7, 0.005, 0.005],
+            [0.005 + R - 1e-7, 0.005, 0.005],
+        ]);
+        let mut s = open(start, &p);
+        s.advance(3000).unwrap();
+        let mut held = 0.0;
+        let rise = 5e-4 * at_contact;
+        for k in 0..3200 {
+            let f = rise * k as f32;
+            let forces = vec![[-f, 0.0, 0.0], [f, 0.0, 0.0]];
+            let loads = ExternalLoads {
+                forces,
+                ..ExternalLoads::default()
+            };
+            s.set_external_loads(&loads).unwrap();
+            s.advance(10).unwrap();
+            let x = s.particles().unwrap().positions;
+            if x[1][0] - x[0][0] - 2.0 * R > 0.2 * bridge.rupture {
+                break;
+            }
+            held = f;
         }
-        held = f;
-    }
-    assert!(
-        (held / at_contact - 1.0).abs() < 0.03,
-        "came off at {held} N, not {at_contact} N"
-    );
-    // Flying apart, the bridge holds until the gap reaches the rupture distance.
-    let mut start = spheres(vec![
-        [0.005 - R + 1e-7, 0.005, 0.005],
-        [0.005 + R - 1e-7, 0.005, 0.005],
-    ]);
-    start.velocities = vec![[-0.3, 0.0, 0.0], [0.3, 0.0, 0.0]];
-    let mut s = open(start, &p);
-    let travel = 0.6 * p.dt;
-    let mut last_gap = 0.0;
-    for _ in 0..1000 {
-        let bridged = s.advance(1).unwrap().contacts > 0;
-        let x = s.particles().unwrap().positions;
-        let gap = x[1][0] - x[0][0] - 2.0 * R;
-        if !bridged {
-            assert!(
-                gap >= bridge.rupture && last_gap < bridge.rupture + travel,
-                "{last_gap}, {gap}"
-            );
-            return;
+        assert!(
+            (held / at_contact - 1.0).abs() < 0.03,
+            "came off at {held} N, not {at_contact} N"
+        );
+        // Flying apart, the bridge holds until the gap reaches the rupture distance.
+        let mut start = spheres(vec![
+            [0.005 - R + 1e-7, 0.005, 0.005],
+            [0.005 + R - 1e-7, 0.005, 0.005],
+        ]);
+        start.velocities = vec![[-0.3, 0.0, 0.0], [0.3, 0.0, 0.0]];
+        let mut s = open(start, &p);
+        let travel = 0.6 * p.dt;
+        let mut last_gap = 0.0;
+        for _ in 0..1000 {
+            let bridged = s.advance(1).unwrap().contacts > 0;
+            let x = s.particles().unwrap().positions;
+            let gap = x[1][0] - x[0][0] - 2.0 * R;
+            if !bridged {
+                assert!(
+                    gap >= bridge.rupture && last_gap < bridge.rupture + travel,
+                    "{last_gap}, {gap}"
+                );
+                return;
+            }
+            last_gap = gap;
         }
-        last_gap = gap;
-    }
-    panic!("the bridge never ruptured (gap {last_gap} m)");
+        panic!("the bridge never ruptured (gap {last_gap} m)");
+    });
 }
 
 #[test]
@@ -325,15 +357,17 @@ fn a_wet_sphere_hangs_from_a_ceiling_by_its_bridge() {
     // The bridge on a wall pulls 2π·2r·γ (R = 2R* = 2r): 0.9 mN, 88 times a 1 mm sphere's weight.
     let mut p = params(&wet(1e-12), [0.0; 3]);
     p = p.with_gravity([0.0, 0.0, -9.81], R).unwrap();
-    let mut hanging = open(spheres(vec![[0.005, 0.005, 0.01 - R + 1e-7]]), &p);
-    hanging.advance(5000).unwrap();
-    let z = hanging.particles().unwrap().positions[0][2];
-    assert!(z > 0.01 - R - 1e-5, "fell to {z}");
-    // Dry, it falls.
     let dry = params(&sticky(0.0), [0.0, 0.0, -9.81]);
-    let mut falling = open(spheres(vec![[0.005, 0.005, 0.01 - R + 1e-7]]), &dry);
-    falling.advance(5000).unwrap();
-    assert!(falling.particles().unwrap().positions[0][2] < 0.01 - 2.0 * R);
+    on_each(|open| {
+        let mut hanging = open(spheres(vec![[0.005, 0.005, 0.01 - R + 1e-7]]), &p);
+        hanging.advance(5000).unwrap();
+        let z = hanging.particles().unwrap().positions[0][2];
+        assert!(z > 0.01 - R - 1e-5, "fell to {z}");
+        // Dry, it falls.
+        let mut falling = open(spheres(vec![[0.005, 0.005, 0.01 - R + 1e-7]]), &dry);
+        falling.advance(5000).unwrap();
+        assert!(falling.particles().unwrap().positions[0][2] < 0.01 - 2.0 * R);
+    });
 }
 
 /// The overlap in (1 nm, 0.1 mm) where `unbalanced`, negative below it and positive above,
@@ -368,40 +402,42 @@ fn simplified_jkr_holds_two_spheres_at_the_overlap_where_hertz_balances_k_times_
             - k * std::f64::consts::PI * (r * d - d * d / 4.0)
     };
     let expected = root(unbalanced);
-    let start = spheres(vec![
-        [0.005 - R + 1e-7, 0.005, 0.005],
-        [0.005 + R - 1e-7, 0.005, 0.005],
-    ]);
-    let mut s = open(start, &p);
-    s.advance(20_000).unwrap();
-    let x = s.particles().unwrap().positions;
-    let overlap = 2.0 * R as f64 - (x[1][0] - x[0][0]) as f64;
-    assert!(
-        (overlap / expected - 1.0).abs() < 0.01,
-        "{overlap} m, not {expected} m"
-    );
     // A sphere on the floor: 4/3·E*·√r·δ^3/2 (E* of a rigid wall) against k·π·(2rδ − δ²).
     let e_wall = E / (1.0 - NU * NU);
     let unbalanced = |d: f64| {
         4.0 / 3.0 * e_wall * r.sqrt() * d.powf(1.5)
             - k * std::f64::consts::PI * (2.0 * r * d - d * d)
     };
-    let expected = root(unbalanced);
-    let mut s = open(spheres(vec![[0.005, 0.005, R - 1e-7]]), &p);
-    s.advance(20_000).unwrap();
-    let overlap = R as f64 - s.particles().unwrap().positions[0][2] as f64;
-    assert!(
-        (overlap / expected - 1.0).abs() < 0.01,
-        "on the floor {overlap} m, not {expected} m"
-    );
-    // Apart, nothing pulls them (the cohesion acts only in contact).
-    let apart = spheres(vec![
-        [0.005 - R - 1e-6, 0.005, 0.005],
-        [0.005 + R + 1e-6, 0.005, 0.005],
-    ]);
-    let mut s = open(apart, &p);
-    s.advance(1000).unwrap();
-    assert_eq!(s.particles().unwrap().velocities[0], [0.0; 3]);
+    let on_floor = root(unbalanced);
+    on_each(|open| {
+        let start = spheres(vec![
+            [0.005 - R + 1e-7, 0.005, 0.005],
+            [0.005 + R - 1e-7, 0.005, 0.005],
+        ]);
+        let mut s = open(start, &p);
+        s.advance(20_000).unwrap();
+        let x = s.particles().unwrap().positions;
+        let overlap = 2.0 * R as f64 - (x[1][0] - x[0][0]) as f64;
+        assert!(
+            (overlap / expected - 1.0).abs() < 0.01,
+            "{overlap} m, not {expected} m"
+        );
+        let mut s = open(spheres(vec![[0.005, 0.005, R - 1e-7]]), &p);
+        s.advance(20_000).unwrap();
+        let overlap = R as f64 - s.particles().unwrap().positions[0][2] as f64;
+        assert!(
+            (overlap / on_floor - 1.0).abs() < 0.01,
+            "on the floor {overlap} m, not {on_floor} m"
+        );
+        // Apart, nothing pulls them (the cohesion acts only in contact).
+        let apart = spheres(vec![
+            [0.005 - R - 1e-6, 0.005, 0.005],
+            [0.005 + R + 1e-6, 0.005, 0.005],
+        ]);
+        let mut s = open(apart, &p);
+        s.advance(1000).unwrap();
+        assert_eq!(s.particles().unwrap().velocities[0], [0.0; 3]);
+    });
 }
 
 /// A square plate mesh across the box at height `z`, a rigid wall.

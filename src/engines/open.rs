@@ -238,16 +238,17 @@ pub fn open_setup(
     options: &Options,
 ) -> Result<Box<dyn Stepper>> {
     setup.particles.validate()?;
-    runs_the_law(kind, &setup.params)?;
+    runs_the_law(kind, &setup)?;
     engine(kind)?.stepper(setup, options)
 }
 
 /// Refuses a scene whose contacts adhere on a backend without the cohesion laws yet (`auto`
 /// then passes over it, saying why).
-fn runs_the_law(kind: BackendKind, params: &StepParams) -> Result<()> {
+fn runs_the_law(kind: BackendKind, setup: &DemSetup) -> Result<()> {
     match kind {
-        BackendKind::Optix => super::common::rows::dry_only(kind.name(), params),
-        _ => Ok(()),
+        BackendKind::Cpu => Ok(()),
+        BackendKind::Optix => super::common::rows::dry_only(kind.name(), &setup.params),
+        _ => super::common::rows::dry_walls_only(kind.name(), &setup.params, &setup.walls),
     }
 }
 
@@ -297,7 +298,7 @@ pub fn open_scene(
     }
     let open = |kind: BackendKind| -> Result<Box<dyn Stepper>> {
         setup.particles.validate()?;
-        runs_the_law(kind, &setup.params)?;
+        runs_the_law(kind, &setup)?;
         engine(kind)?.flowing(setup.clone(), options, flow.clone())
     };
     let mut opened = choosing(choice, &BackendKind::FLOWING, open)?;
