@@ -21,6 +21,17 @@
 
 // 2·√(5/6): Tsuji's damping coefficient over ζ·√(S·m*) (contact.rs TSUJI).
 #define MOCHI_TSUJI 1.8257419f
+// π in f32 (contact.rs PI).
+#define MOCHI_PI 3.14159265f
+// Newton steps of mochi_jkr_radius (contact.rs JKR_ITERATIONS).
+#define MOCHI_JKR_ITERATIONS 12
+
+// True in the units whose contacts adhere (JKR, liquid bridges, simplified JKR: the cohesive
+// units of src/engines/optix/programs.rs define it so): elsewhere the compiler drops the
+// cohesion laws, and a contact is one that touches.
+#ifndef MOCHI_COHESIVE
+#define MOCHI_COHESIVE false
+#endif
 
 // The law as the granular programs and kernels read it: the step's parameters and the material
 // table (DeviceLaw in src/engines/optix/launches.rs).
@@ -130,12 +141,16 @@ static __forceinline__ __device__ MochiSprings mochi_negated(MochiSprings s) {
     return s;
 }
 
-// The normal force's magnitude (≥ 0: a dry contact pushes or does nothing, it never pulls), its
-// elastic part (no damping) and the normal stiffness.
+// The normal force's magnitude (≥ 0 for a dry contact: it pushes or does nothing; a JKR neck
+// pulls), its elastic part (no damping) and the normal stiffness; the load that caps friction
+// and rolling (the push, or with JKR the push plus twice the pull-off force, plus a bridge's
+// pull) and JKR's contact radius (0 for the other laws). contact.rs Normal.
 struct MochiNormal {
     float push;
     float elastic;
     float stiffness;
+    float load;
+    float radius;
 };
 
 // A touching contact from sphere i's side, as friction needs it (contact.rs Touch).
@@ -151,12 +166,102 @@ struct MochiTouch {
     float3 w_rel;  // ω_i − ω_j (ω_i on a wall)
 };
 
-// The normal force of a contact of law `law` with overlap > 0 and normal relative velocity vn.
+// ∛x of a normal x > 0 by the same operations on every backend: a start from the bits, then
+// three Newton steps (contact.rs cube_root); 0 for x ≤ 0.
+static __forceinline__ __device__ float mochi_cube_root(float x) {
+    if (x <= 0.0f) {
+        return 0.0f;
+    }
+    float y = __uint_as_float(__float_as_uint(x) / 3u + 0x2a5137a0u);
+    for (int k = 0; k < 3; ++k) {
+        y = (y + y + x / (y * y)) / 3.0f;
+    }
+    return y;
+}
+
+// The pull-off force of a JKR contact, 1.5·π·Γ·R* (contact.rs jkr_pull_off).
+static __forceinline__ __device__ float mochi_jkr_pull_off(float r_eff, float adhesion) {
+    return 1.5f * MOCHI_PI * adhesion * r_eff;
+}
+
+// The (negative) overlap at which a JKR neck breaks (contact.rs jkr_break).
+static __forceinline__ __device__ float mochi_jkr_break(float r_eff, float e_star,
+                                                        float adhesion) {
+    float g = MOCHI_PI * adhesion / e_star;
+    return -0.75f * mochi_cube_root(g * g * r_eff);
+}
+
+// JKR's contact radius at `overlap` by Newton's method on x = √a (contact.rs jkr_radius).
+static __forceinline__ __device__ float mochi_jkr_radius(float overlap, float r_eff,
+                                                         float e_star, float adhesion) {
+    float c = sqrtf(2.0f * MOCHI_PI * adhesion / e_star);
+    float x = fmaxf(sqrtf(sqrtf(2.0f * r_eff * fmaxf(overlap, 0.0f))),
+                    mochi_cube_root(2.0f * c * r_eff));
+    for (int k = 0; k < MOCHI_JKR_ITERATIONS; ++k) {
+        float x3 = x * x * x;
+        float slope = 4.0f * x3 / r_eff - c;
+        if (slope <= 0.0f) {
+            break;
+        }
+        x -= (x3 * x / r_eff - c * x - overlap) / slope;
+    }
+    return x * x;
+}
+
+// Whether a contact of `law` that held at the last step and now overlaps by `overlap` ≤ 0 still
+// holds: a JKR neck not yet broken, a liquid bridge not yet ruptured (contact.rs holds).
+static __forceinline__ __device__ bool mochi_holds(const MochiLaw& g, const MochiPairLaw& law,
+                                                   float r_eff, float overlap) {
+    return (law.adhesion > 0.0f && overlap > mochi_jkr_break(r_eff, law.e_star, law.adhesion)) ||
+           (g.dem.cohesion.bridge_volume > 0.0f && -overlap < g.dem.cohesion.bridge_rupture);
+}
+
+// The pull of a liquid bridge between bodies of effective radius r_eff overlapping by `overlap`
+// (a gap where negative); 0 without bridges (contact.rs bridge_pull).
+static __forceinline__ __device__ float mochi_bridge_pull(const MochiLaw& g, float r_eff,
+                                                          float overlap) {
+    float volume = g.dem.cohesion.bridge_volume;
+    if (volume == 0.0f) {
+        return 0.0f;
+    }
+    float r = 2.0f * r_eff;
+    float s = 0.5f * fmaxf(-overlap, 0.0f) * sqrtf(r / volume);
+    return 2.0f * MOCHI_PI * r * g.dem.cohesion.bridge_tension / (1.0f + 2.1f * s + 10.0f * s * s);
+}
+
+// The pull of a bridge and of the simplified JKR on a sphere of radius r against a surface it
+// overlaps by `overlap` (the area where they meet a circle in the surface's plane).
+static __forceinline__ __device__ float mochi_surface_pull(const MochiLaw& g, float r,
+                                                           float overlap) {
+    float pull = mochi_bridge_pull(g, r, overlap);
+    if (g.dem.cohesion.density > 0.0f && overlap > 0.0f) {
+        pull += g.dem.cohesion.density * MOCHI_PI * overlap * (2.0f * r - overlap);
+    }
+    return pull;
+}
+
+// The normal force of a contact of law `law` with overlap `overlap` (> 0, or ≤ 0 on a JKR neck)
+// and normal relative velocity vn (contact.rs normal_force).
 static __forceinline__ __device__ MochiNormal mochi_normal_force(const MochiLaw& g,
                                                                  const MochiPairLaw& law,
                                                                  float overlap, float vn,
                                                                  float m_eff, float r_eff) {
     MochiNormal out;
+    out.radius = 0.0f;
+    if (g.dem.law == MOCHI_LAW_HERTZ && MOCHI_COHESIVE && law.adhesion > 0.0f) {
+        // JKR: the contact radius of the overlap, its force (a pull on the neck and at small
+        // overlaps) and Tsuji's damping with the stiffness 2E*a; no clamp, the neck pulls.
+        float a = mochi_jkr_radius(overlap, r_eff, law.e_star, law.adhesion);
+        float s_n = 2.0f * law.e_star * a;
+        float c = MOCHI_TSUJI * law.damping_ratio * mochi_root_product(s_n, m_eff);
+        out.elastic = 2.0f / 3.0f * s_n * a * a / r_eff -
+                      sqrtf(8.0f * MOCHI_PI * law.adhesion * law.e_star * a * a * a);
+        out.push = out.elastic - c * vn;
+        out.stiffness = s_n;
+        out.load = fmaxf(out.push + 2.0f * mochi_jkr_pull_off(r_eff, law.adhesion), 0.0f);
+        out.radius = a;
+        return out;
+    }
     if (g.dem.law == MOCHI_LAW_HERTZ) {
         float s_n = 2.0f * law.e_star * sqrtf(r_eff * overlap);
         float c = MOCHI_TSUJI * law.damping_ratio * mochi_root_product(s_n, m_eff);
@@ -170,7 +275,18 @@ static __forceinline__ __device__ MochiNormal mochi_normal_force(const MochiLaw&
         out.push = fmaxf(out.elastic - c * vn, 0.0f);
         out.stiffness = k;
     }
+    out.load = out.push;
     return out;
+}
+
+// The normal force of a contact that also pulls by `pull` ≥ 0 (a bridge, the simplified JKR)
+// along n from i towards its partner: the force on i, the load grown by the pull.
+static __forceinline__ __device__ float3 mochi_pulled(MochiNormal& normal, float pull, float3 n) {
+    if (pull > 0.0f) {
+        normal.load += pull;
+        return mochi_scale(pull - normal.push, n);
+    }
+    return mochi_scale(-normal.push, n);
 }
 
 // `x` turned into the plane normal to `n`: its normal part removed, its length kept.
@@ -184,19 +300,6 @@ static __forceinline__ __device__ float3 mochi_into_plane(float3 x, float3 n) {
 }
 
 #ifdef MOCHI_LOAD_HISTORY
-// ∛x of x in [0, 1] by the same operations on every backend: a start from the bits, then three
-// Newton steps (contact.rs cube_root); 0 for x ≤ 0.
-static __forceinline__ __device__ float mochi_cube_root(float x) {
-    if (x <= 0.0f) {
-        return 0.0f;
-    }
-    float y = __uint_as_float(__float_as_uint(x) / 3u + 0x2a5137a0u);
-    for (int k = 0; k < 3; ++k) {
-        y = (y + y + x / (y * y)) / 3.0f;
-    }
-    return y;
-}
-
 // The Mindlin–Deresiewicz tangential force on i with full stiffness k_t, damping c_t, sliding
 // coefficient mu, elastic normal force `elastic` and Coulomb's cap mu·pressing; its springs
 // into `springs` (contact.rs load_history: Thornton & Yin's incremental form in vectors).
@@ -284,7 +387,7 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const MochiLaw& g
                                                                const MochiTouch& t, float mu,
                                                                MochiSprings old) {
     float3 n = t.n;
-    float pressing = t.normal.push;
+    float pressing = t.normal.load;
     MochiFriction out;
     out.force = mochi_zero3();
     out.torque = mochi_zero3();
@@ -294,7 +397,9 @@ static __forceinline__ __device__ MochiFriction mochi_friction(const MochiLaw& g
         float k_t;
         float c_t;
         if (g.dem.law == MOCHI_LAW_HERTZ) {
-            float s_t = 8.0f * law.g_star * sqrtf(t.r_eff * t.overlap);
+            float a = MOCHI_COHESIVE && law.adhesion > 0.0f ? t.normal.radius
+                                                              : sqrtf(t.r_eff * t.overlap);
+            float s_t = 8.0f * law.g_star * a;
             k_t = s_t;
             c_t = MOCHI_TSUJI * law.damping_ratio * mochi_root_product(s_t, t.m_eff);
         } else {
@@ -365,15 +470,17 @@ struct MochiPairContact {
 };
 
 // The contact of sphere i with sphere j given the springs i kept of it (`old`); false when they
-// do not touch (or their centres coincide). contact.rs pair_contact.
+// do not touch (or their centres coincide). `bonded`: whether they were in contact at the last
+// step, where a cohesive pair may hold past touching. contact.rs pair_contact.
 static __forceinline__ __device__ bool mochi_pair_contact(const MochiLaw& g,
                                                           const MochiBody& i, const MochiBody& j,
-                                                          MochiSprings old,
+                                                          MochiSprings old, bool bonded,
                                                           MochiPairContact& out) {
     float3 d = mochi_sub(j.c, i.c);
     float d2 = mochi_dot(d, d);
     float reach = i.r + j.r;
-    if (d2 > reach * reach || d2 == 0.0f) {
+    bool apart = d2 > reach * reach;
+    if ((apart && !(MOCHI_COHESIVE && bonded)) || d2 == 0.0f) {
         return false;
     }
     float dist = sqrtf(d2);
@@ -383,17 +490,39 @@ static __forceinline__ __device__ bool mochi_pair_contact(const MochiLaw& g,
     float m_eff = mochi_effective(i.m, j.m);
     float r_eff = mochi_effective(i.r, j.r);
     MochiPairLaw law = mochi_law(g, i.material, j.material);
-    MochiNormal normal = mochi_normal_force(g, law, overlap, vn, m_eff, r_eff);
-    float3 force = mochi_scale(-normal.push, n);
     out.n = n;
     out.sliding = law.sliding;
     out.rolling_friction = law.rolling;
+    out.torque = mochi_zero3();
+    out.tangential = mochi_zero3();
+    out.rolling = mochi_zero3();
+    out.springs = mochi_no_springs();
+    float pull = 0.0f;
+    if (MOCHI_COHESIVE) {
+        if (apart && !mochi_holds(g, law, r_eff, overlap)) {
+            return false;
+        }
+        pull = mochi_bridge_pull(g, r_eff, overlap);
+        if (g.dem.cohesion.density > 0.0f && !apart) {
+            // The area of the circle where the two spheres' surfaces meet (symmetric in i, j).
+            float spread = fabsf(i.r - j.r);
+            float area = MOCHI_PI / 4.0f *
+                         ((reach - dist) * (reach + dist) * (dist - spread) * (dist + spread)) / d2;
+            pull += g.dem.cohesion.density * fmaxf(area, 0.0f);
+        }
+        if (apart && law.adhesion == 0.0f) {
+            // A liquid bridge across a gap: its pull alone (no friction: the partner's torque
+            // is zero).
+            out.sliding = 0.0f;
+            out.rolling_friction = 0.0f;
+            out.force = mochi_scale(pull, n);
+            return true;
+        }
+    }
+    MochiNormal normal = mochi_normal_force(g, law, overlap, vn, m_eff, r_eff);
+    float3 force = mochi_pulled(normal, pull, n);
     if (!g.dem.turns) {
         out.force = force;
-        out.torque = mochi_zero3();
-        out.tangential = mochi_zero3();
-        out.rolling = mochi_zero3();
-        out.springs = mochi_no_springs();
         return true;
     }
     MochiTouch touch;
@@ -457,9 +586,11 @@ struct MochiWalls {
     float3 torque;      // about the centre
 };
 
-// The walls touching sphere b: `old(w)` gives the springs it kept of wall w (0..6: low and
-// high walls of x, y and z, 2·axis + side) and `keep(w, springs)` receives those to keep, for
-// each touching wall in order, where contacts carry springs. contact.rs wall_contacts.
+// The walls touching sphere b (or held by it past touching, where contacts adhere):
+// `old(w, springs)` tells whether it touched wall w (0..6: low and high walls of x, y and z,
+// 2·axis + side) at the last step, with the springs it kept of it into `springs`, and
+// `keep(w, springs)` receives those to keep, for each wall in contact in order, where contacts
+// carry springs. contact.rs wall_contacts.
 template <class Old, class Keep>
 static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const MochiLaw& g,
                                                                  const MochiBody& b, Old old,
@@ -479,28 +610,59 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const MochiLaw&
         for (unsigned int side = 0; side < 2; ++side) {
             float overlap = side == 0 ? below : above;
             float vn = side == 0 ? v[a] : -v[a];
-            if (overlap <= 0.0f) {
+            unsigned int wall = 2 * a + side;
+            MochiSprings kept = mochi_no_springs();
+            bool touched = false;
+            if (overlap > 0.0f || MOCHI_COHESIVE) {
+                touched = old(wall, kept);
+            }
+            bool held = MOCHI_COHESIVE && touched && mochi_holds(g, law, b.r, overlap);
+            if (overlap <= 0.0f && !held) {
                 continue;
             }
-            MochiNormal nf = mochi_normal_force(g, law, overlap, vn, b.m, b.r);
-            if (side == 0) {
-                f += nf.push;
-            } else {
-                f -= nf.push;
+            float pull = 0.0f;
+            bool bridged = false;
+            if (MOCHI_COHESIVE) {
+                pull = mochi_surface_pull(g, b.r, overlap);
+                bridged = overlap <= 0.0f && law.adhesion == 0.0f;
             }
-            if (g.dem.turns) {
+            MochiNormal nf;
+            if (bridged) {
+                // A liquid bridge across a gap: its pull alone, no friction.
+                nf.push = 0.0f;
+                nf.elastic = 0.0f;
+                nf.stiffness = 0.0f;
+                nf.load = 0.0f;
+                nf.radius = 0.0f;
+            } else {
+                nf = mochi_normal_force(g, law, overlap, vn, b.m, b.r);
+            }
+            // The push away from the wall, less a bridge's pull.
+            float push = nf.push;
+            if (pull > 0.0f) {
+                nf.load += pull;
+                push = nf.push - pull;
+            }
+            if (side == 0) {
+                f += push;
+            } else {
+                f -= push;
+            }
+            if (g.dem.turns && !bridged) {
                 // ±e_a, the low wall's with negative zeros as glam's −Vec3::AXES[a].
                 float s = side == 0 ? -1.0f : 1.0f;
                 float z = side == 0 ? -0.0f : 0.0f;
                 float3 n = mochi_v3(a == 0 ? s : z, a == 1 ? s : z, a == 2 ? s : z);
-                unsigned int wall = 2 * a + side;
                 MochiTouch touch = mochi_wall_touch(b, n, overlap, nf, mochi_zero3());
-                MochiFriction fr = mochi_friction(g, law, touch, law.sliding, old(wall));
+                MochiFriction fr = mochi_friction(g, law, touch, law.sliding, kept);
                 out.tangential = mochi_add(out.tangential, fr.force);
                 out.torque = mochi_add(out.torque, fr.torque);
                 if (mochi_keeps(g)) {
                     keep(wall, fr.springs);
                 }
+            } else if (mochi_keeps(g)) {
+                // An adhering contact is remembered without springs.
+                keep(wall, mochi_no_springs());
             }
         }
         normal[a] = f;
@@ -525,12 +687,21 @@ static __device__ MochiSurface mochi_surface_contact(const MochiLaw& g, const Mo
                                                      MochiSprings old) {
     MochiPairLaw law = mochi_law(g, b.material, column);
     float mu = given < 0.0f ? law.sliding : given;
-    MochiNormal nf =
-        mochi_normal_force(g, law, overlap, mochi_dot(mochi_sub(velocity, b.v), n), b.m, b.r);
     MochiSurface out;
-    out.force = mochi_scale(-nf.push, n);
     out.torque = mochi_zero3();
     out.springs = mochi_no_springs();
+    float pull = 0.0f;
+    if (MOCHI_COHESIVE) {
+        pull = mochi_surface_pull(g, b.r, overlap);
+        if (overlap <= 0.0f && law.adhesion == 0.0f) {
+            // A liquid bridge across a gap: its pull alone.
+            out.force = mochi_scale(pull, n);
+            return out;
+        }
+    }
+    MochiNormal nf =
+        mochi_normal_force(g, law, overlap, mochi_dot(mochi_sub(velocity, b.v), n), b.m, b.r);
+    out.force = mochi_pulled(nf, pull, n);
     if (!g.dem.turns) {
         return out;
     }

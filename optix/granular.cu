@@ -84,21 +84,29 @@ extern "C" __global__ void __intersection__granular() {
     unsigned int i = mochi_launch_index();
     unsigned int j = mochi_primitive_index();
     mochi_set_payload(0u, mochi_get_payload(0u) + 1u);
-    if (!mochi_keep(params.mode, i, params.pos[i], j, params.pos[j])) {
+    const MochiLaw& g = params.g;
+    // The proxy rule on the spheres grown by half the reach past touching at which contacts
+    // may hold (0 but where they adhere): it finds every pair within that reach.
+    float grow = 0.5f * g.dem.reach;
+    float4 s_i = params.pos[i];
+    float4 s_j = params.pos[j];
+    s_i.w += grow;
+    s_j.w += grow;
+    if (!mochi_keep(params.mode, i, s_i, j, s_j)) {
         return;
     }
-    const MochiLaw& g = params.g;
     MochiBody a = mochi_body(i);
     MochiBody b = mochi_body(j);
     unsigned int id_i = params.ids[i];
     unsigned int id_j = params.ids[j];
     MochiSprings old = mochi_no_springs();
+    bool bonded = false;
     if (mochi_keeps(g)) {
         MochiSlots h = {params.old_count, params.old_entries, g.dem.slots, params.old_loads};
-        old = mochi_old_springs(h, id_i, id_j);
+        bonded = mochi_old_contact(h, id_i, id_j, old);
     }
     MochiPairContact c;
-    if (!mochi_pair_contact(g, a, b, old, c)) {
+    if (!mochi_pair_contact(g, a, b, old, bonded, c)) {
         return;
     }
     atomicAdd(&params.force[3 * j], -c.force.x);

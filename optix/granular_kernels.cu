@@ -50,13 +50,9 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
     if (mesh.box_walls) {
         walls = mochi_wall_contacts(
             g, b,
-            [&](unsigned int wall) {
+            [&](unsigned int wall, MochiSprings& springs) {
                 // Only where contacts carry springs (old_slots are empty otherwise).
-                MochiSprings springs = mochi_no_springs();
-                if (mochi_keeps(g)) {
-                    mochi_find(old_slots, id, MOCHI_FIRST_WALL + wall, springs);
-                }
-                return springs;
+                return mochi_keeps(g) && mochi_find(old_slots, id, MOCHI_FIRST_WALL + wall, springs);
             },
             [&](unsigned int wall, MochiSprings springs) {
                 if (held < slots) {

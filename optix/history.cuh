@@ -110,16 +110,17 @@ static __forceinline__ __device__ unsigned int mochi_find_from(const MochiSlots&
     return count;
 }
 
-// The springs sphere `i` had of its contact with sphere `j` (stable ids) at the last step: its
-// own entry, else j's negated, else none (a new contact).
-static __forceinline__ __device__ MochiSprings mochi_old_springs(const MochiSlots& h,
-                                                                 unsigned int i, unsigned int j) {
-    MochiSprings s;
-    if (mochi_find(h, i, j, s)) {
-        return s;
+// Whether sphere `i` had a contact with sphere `j` (stable ids) at the last step, its springs
+// into `out`: its own entry, else j's negated, else none (a new contact).
+static __forceinline__ __device__ bool mochi_old_contact(const MochiSlots& h, unsigned int i,
+                                                         unsigned int j, MochiSprings& out) {
+    if (mochi_find(h, i, j, out)) {
+        return true;
     }
-    if (mochi_find(h, j, i, s)) {
-        return mochi_negated(s);
+    if (mochi_find(h, j, i, out)) {
+        out = mochi_negated(out);
+        return true;
     }
-    return mochi_no_springs();
+    out = mochi_no_springs();
+    return false;
 }

@@ -37,14 +37,17 @@ extern "C" __global__ void proxy_boxes(const float4* spheres_in, const unsigned 
 
 // ---- The DEM step (src/engines/optix/dem.rs) ----------------------------------------------------------
 
-// The proxy box of every sphere of the state, in place.
+// The proxy box of every sphere of the state, in place, its radius grown by `grow` (half the
+// reach past touching at which contacts may hold; 0 but where they adhere).
 extern "C" __global__ void dem_boxes(const float4* pos, float* boxes, unsigned int n,
-                                     unsigned int mode, float r_max, float pad_rel) {
+                                     unsigned int mode, float r_max, float pad_rel, float grow) {
     unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= n) {
         return;
     }
-    mochi_write_box(boxes + 6 * p, pos[p], mode, r_max, pad_rel);
+    float4 s = pos[p];
+    s.w += grow;
+    mochi_write_box(boxes + 6 * p, s, mode, r_max + grow, pad_rel);
 }
 
 // Walls, gravity at step `step`, the external force where dem.loaded is 1 (`external`, by

@@ -3,8 +3,9 @@
 // line per value whose bits differ from what src/dem/model/contact.rs computed (the first 20),
 // then a summary.
 // ±0 count as equal (the partner's negated zero springs). Compiled with -DMOCHI_LOAD_HISTORY for
-// the Mindlin–Deresiewicz law, whose springs carry 4 more values (reversal, normal force). Each
-// case carries its material table; the law reads it as the device reads the uploaded one.
+// the Mindlin–Deresiewicz law, whose springs carry 4 more values (reversal, normal force), and
+// with -DMOCHI_COHESIVE=true for the cohesion laws. Each case carries its material table and
+// cohesion parameters; the law reads them as the device reads the uploaded ones.
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -133,8 +134,9 @@ int main() {
         std::stringstream ss(line);
         std::string section;
         while (std::getline(ss, section, '|')) s.push_back(words(section));
-        // Parameters: law, rolling model, turns, keeps, dt, k, box, then the material table:
-        // its columns, the box walls' column and each law's rate, E*, G*, ζ, μ, μ_r.
+        // Parameters: law, rolling model, turns, keeps, dt, k, box, the material table's
+        // columns and the box walls' column, the bridge's volume, tension and rupture gap and
+        // the cohesion energy density, then each law's rate, E*, G*, ζ, μ, μ_r, Γ.
         const std::vector<std::string>& h = s[0];
         MochiLaw g{};
         g.dem.law = std::stoul(h[0]);
@@ -149,16 +151,21 @@ int main() {
         }
         g.dem.columns = std::stoul(h[12]);
         g.dem.box_column = std::stoul(h[13]);
-        std::vector<MochiPairLaw> laws((h.size() - 14) / 6);
+        g.dem.cohesion.bridge_volume = from_bits(h[14]);
+        g.dem.cohesion.bridge_tension = from_bits(h[15]);
+        g.dem.cohesion.bridge_rupture = from_bits(h[16]);
+        g.dem.cohesion.density = from_bits(h[17]);
+        std::vector<MochiPairLaw> laws((h.size() - 18) / 7);
         for (size_t k = 0; k < laws.size(); ++k) {
             MochiPairLaw& l = laws[k];
-            const std::string* x = &h[14 + 6 * k];
+            const std::string* x = &h[18 + 7 * k];
             l.rate = from_bits(x[0]);
             l.e_star = from_bits(x[1]);
             l.g_star = from_bits(x[2]);
             l.damping_ratio = from_bits(x[3]);
             l.sliding = from_bits(x[4]);
             l.rolling = from_bits(x[5]);
+            l.adhesion = from_bits(x[6]);
         }
         g.laws = laws.data();
         MochiBody i = body(s[1]);
@@ -167,8 +174,10 @@ int main() {
         // From i's side: touching, then force, torque, springs; from j's side the same.
         const std::vector<std::string>& from_i = s[4];
         const std::vector<std::string>& from_j = s[5];
+        // Whether the pair was in contact at the last step (the last section).
+        bool bonded = s[9][0] == "1";
         MochiPairContact c;
-        bool touching = mochi_pair_contact(g, i, j, old, c);
+        bool touching = mochi_pair_contact(g, i, j, old, bonded, c);
         if (touching != (from_i[0] == "1") || touching != (from_j[0] == "1")) {
             std::printf("case %d: touching %d, contact.rs %s and %s\n", line_number, touching,
                         from_i[0].c_str(), from_j[0].c_str());
@@ -178,22 +187,22 @@ int main() {
             float3 t = g.dem.turns ? mochi_partner_torque(j.r, c) : mochi_zero3();
             check_contact("partner's", mochi_neg(c.force), t, mochi_negated(c.springs), from_j);
         }
-        // Walls: normal, tangential, torque, then (wall, springs) kept and their count. The
-        // springs kept of wall w are (w, w, w)·1e-6 and the rolling one their negative.
+        // Walls: normal, tangential, torque, then (wall, springs) kept and their count. Each
+        // touched its wall at the last step; the springs kept of wall w are (w, w, w)·1e-6 and
+        // the rolling one their negative.
         const std::vector<std::string>& walls = s[6];
         std::vector<std::pair<unsigned int, MochiSprings>> kept;
         MochiWalls w = mochi_wall_contacts(
             g, i,
-            [](unsigned int wall) {
+            [](unsigned int wall, MochiSprings& k) {
                 float x = (float)wall * 1e-6f;
-                MochiSprings k;
                 k.tangential = make_float3(x, x, x);
                 k.rolling = make_float3(-x, -x, -x);
 #ifdef MOCHI_LOAD_HISTORY
                 k.reversal = make_float3(x, -x, x);
                 k.normal = x;
 #endif
-                return k;
+                return true;
             },
             [&](unsigned int wall, MochiSprings springs) { kept.push_back({wall, springs}); });
         check3("walls' normal force", w.normal, walls, 0);

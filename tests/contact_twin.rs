@@ -636,8 +636,9 @@ fn vec3(v: Vec3) -> String {
 }
 
 /// The parameters' section of a case (the order `contact_twin.cpp` reads): the law, the
-/// models, dt, k, the box, then the material table (its columns, the box walls' column and
-/// every law's six values, row by row).
+/// models, dt, k, the box, the material table's columns and the box walls' column, the liquid
+/// bridge's volume, tension and rupture gap and the cohesion energy density, then every law's
+/// seven values, row by row.
 fn params_section(p: &StepParams) -> String {
     let law = p.law.code();
     let f = p.friction;
@@ -654,12 +655,21 @@ fn params_section(p: &StepParams) -> String {
                 l.damping_ratio,
                 l.sliding,
                 l.rolling,
+                l.adhesion,
             ]
         })
         .map(bits)
         .collect();
+    let bridge = p
+        .bridge
+        .map_or([0.0; 3], |b| [b.volume, b.tension, b.rupture]);
+    let cohesion: Vec<String> = bridge
+        .into_iter()
+        .chain([p.cohesion_density])
+        .map(bits)
+        .collect();
     format!(
-        "{law} {model} {} {} {} {} {} {} {} {} {}",
+        "{law} {model} {} {} {} {} {} {} {} {} {} {}",
         f.turns() as u32,
         f.has_history() as u32,
         bits(p.dt),
@@ -668,6 +678,7 @@ fn params_section(p: &StepParams) -> String {
         vec3(Vec3::from_array(p.box_hi)),
         table.count + 1,
         p.box_column,
+        cohesion.join(" "),
         laws.join(" "),
     )
 }
@@ -706,7 +717,7 @@ fn table_line<S: Twin>(case: &Case<S>) -> String {
         .map(|(w, s)| format!("{w} {} ", s.section()))
         .collect();
     format!(
-        "{} | {} | {} | {} | {} | {} | {} {} {} {kept}{} | {} {} {} {} {} | {}\n",
+        "{} | {} | {} | {} | {} | {} | {} {} {} {kept}{} | {} {} {} {} {} | {} | {}\n",
         params_section(&case.p),
         body_section(&case.i),
         body_section(&case.j),
@@ -724,18 +735,30 @@ fn table_line<S: Twin>(case: &Case<S>) -> String {
         // No friction of its own: negative, as the device reads it.
         bits(case.given.unwrap_or(-1.0)),
         contact_section(Some(e.surface)),
+        case.bonded as u32,
     )
 }
 
 /// `tests/contact_twin.cpp` compiled into `dir` (with `optix/contact.cuh` of the
 /// Mindlin–Deresiewicz model where `loaded`), or `None` without a C++ compiler (outside CI).
 fn compile_twin(dir: &Path, loaded: bool) -> Option<std::path::PathBuf> {
-    let (name, defines): (_, &[&str]) = match loaded {
-        true => ("contact_twin_md", &["MOCHI_LOAD_HISTORY"]),
-        false => ("contact_twin", &[]),
-    };
+    compile_twin_of(dir, loaded, false)
+}
+
+/// [`compile_twin`], with the cohesion laws compiled in where `cohesive`.
+fn compile_twin_of(dir: &Path, loaded: bool, cohesive: bool) -> Option<std::path::PathBuf> {
+    let mut name = String::from("contact_twin");
+    let mut defines = Vec::new();
+    if loaded {
+        name += "_md";
+        defines.push("MOCHI_LOAD_HISTORY");
+    }
+    if cohesive {
+        name += "_cohesive";
+        defines.push("MOCHI_COHESIVE=true");
+    }
     let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/contact_twin.cpp");
-    common::twin::compile(&source, &dir.join(name), defines, "the CUDA contact law")
+    common::twin::compile(&source, &dir.join(name), &defines, "the CUDA contact law")
 }
 
 /// Runs `binary` on the case table of `cases`: no bit differs.
@@ -789,6 +812,19 @@ fn the_cuda_law_of_several_materials_computes_the_bits_of_the_rust_one() {
     let (spring_cases, loaded_cases) = several_materials_cases();
     compare_cuda(&spring, &spring_cases);
     compare_cuda(&loaded, &loaded_cases);
+}
+
+#[test]
+fn the_cohesive_cuda_law_computes_the_bits_of_the_rust_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (Some(spring), Some(loaded)) = (
+        compile_twin_of(dir.path(), false, true),
+        compile_twin_of(dir.path(), true, true),
+    ) else {
+        return;
+    };
+    compare_cuda(&spring, &cohesive_cases::<Springs>(11));
+    compare_cuda(&loaded, &cohesive_cases::<LoadedSprings>(13));
 }
 
 // ----------------------------------------------------------------------------------------------

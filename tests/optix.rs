@@ -12,7 +12,7 @@ use common::rule_cases::{assert_same_decisions, cases, records};
 use cudarc::driver::{CudaContext, LaunchConfig, PushKernelArg};
 use mochi::ProxyMode;
 use mochi::engines::BackendKind;
-use mochi::engines::optix::programs::{self, Unit};
+use mochi::engines::optix::programs::{self, GranularLaw, Unit};
 
 /// Runs `mochi_keep` of `optix/device.cuh` on each case record (`common::rule_cases::records`).
 const RULE_KERNEL: &str = r#"
@@ -88,7 +88,7 @@ fn device_programs_compile_with_nvrtc() {
         eprintln!("note: NVRTC is not installed here; the device programs are not compiled");
         return;
     }
-    let entries: [(Unit, &[&str]); 7] = [
+    let mut entries: Vec<(Unit, &[&str])> = vec![
         (
             Unit::Detect,
             &["__raygen__detect", "__intersection__detect", "params"],
@@ -101,36 +101,29 @@ fn device_programs_compile_with_nvrtc() {
             Unit::Dem,
             &["__raygen__dem", "__intersection__dem", "params"],
         ),
-        (
-            Unit::Granular,
-            &["__raygen__granular", "__intersection__granular", "params"],
-        ),
-        (
-            Unit::GranularKernels,
-            &["granular_integrate", "permute_rows"],
-        ),
-        (
-            Unit::GranularLoaded,
-            &["__raygen__granular", "__intersection__granular", "params"],
-        ),
-        (
-            Unit::GranularKernelsLoaded,
-            &["granular_integrate", "permute_rows"],
-        ),
     ];
+    for law in GranularLaw::ALL {
+        entries.push((
+            Unit::Granular(law),
+            &["__raygen__granular", "__intersection__granular", "params"],
+        ));
+        entries.push((
+            Unit::GranularKernels(law),
+            &["granular_integrate", "permute_rows"],
+        ));
+    }
+    let mut compiled = Vec::new();
     for (unit, names) in entries {
         let ptx = programs::compile(unit).unwrap_or_else(|e| panic!("{e}"));
         for name in names {
             assert!(ptx.contains(name), "{}: no {name} in the PTX", unit.name());
         }
+        compiled.push(ptx);
     }
-    // The Mindlin–Deresiewicz programs are others than the spring's.
-    for loaded in [true, false] {
-        let [a, b] = [Unit::granular(loaded), Unit::granular_kernels(loaded)]
-            .map(|u| programs::compile(u).unwrap_or_else(|e| panic!("{e}")));
-        let [c, d] = [Unit::granular(!loaded), Unit::granular_kernels(!loaded)]
-            .map(|u| programs::compile(u).unwrap_or_else(|e| panic!("{e}")));
-        assert!(a != c && b != d);
+    // Each law's programs are others than every other law's.
+    let granular = &compiled[3..];
+    for (k, a) in granular.iter().enumerate() {
+        assert!(granular[k + 1..].iter().all(|b| a != b), "unit {k} twice");
     }
 }
 
@@ -150,9 +143,10 @@ fn shared_structs_lie_where_the_device_code_reads_them() {
         programs::compile_with_checks(unit, &checks).unwrap_or_else(|e| panic!("{e}"));
     }
     // A wrong offset is caught.
-    let wrong = mochi::engines::optix::layout_checks(Unit::Granular)
+    let spring = Unit::Granular(GranularLaw::default());
+    let wrong = mochi::engines::optix::layout_checks(spring)
         .replace("LawParams, slots) == ", "LawParams, slots) == 4 + ");
-    let err = programs::compile_with_checks(Unit::Granular, &wrong).expect_err("a wrong offset");
+    let err = programs::compile_with_checks(spring, &wrong).expect_err("a wrong offset");
     assert!(err.to_string().contains("LawParams.slots"), "{err}");
 }
 

@@ -200,18 +200,6 @@ pub(crate) fn not_fixed() -> Error {
     )
 }
 
-/// Refuses parameters whose contacts adhere on `backend`, a GPU step without the cohesion laws
-/// yet.
-pub(crate) fn dry_only(backend: &str, params: &crate::dem::model::StepParams) -> Result<()> {
-    match params.adheres() {
-        true => Err(Error::Usage(format!(
-            "cohesion runs on the cpu and wgpu backends so far, not on {backend}: run with \
-             --backend cpu (or auto)"
-        ))),
-        false => Ok(()),
-    }
-}
-
 /// Refuses contacts that adhere with mesh walls on `backend`, a GPU step whose mesh walls hold
 /// no contact past touching yet.
 pub(crate) fn dry_walls_only(

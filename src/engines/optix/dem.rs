@@ -85,6 +85,9 @@ pub struct OptixStepper {
     n: u32,
     mode: ProxyMode,
     r_max: f32,
+    /// How much the proxy boxes grow each radius: half the reach past touching at which
+    /// contacts may hold (0 but where they adhere).
+    grow: f32,
     policy: RebuildPolicy,
     step: u64,
     state: State,
@@ -115,7 +118,7 @@ impl OptixStepper {
             walls,
         } = setup;
         let walls = &walls;
-        crate::engines::common::rows::dry_only("optix", &params)?;
+        crate::engines::common::rows::dry_walls_only("optix", &params, walls)?;
         particles.separate_coincident()?;
         let device = open_device()?;
         let kernels = Kernels::load(&device)?;
@@ -184,6 +187,7 @@ impl OptixStepper {
             n,
             mode,
             r_max,
+            grow: 0.5 * params.search_margin(r_max),
             policy,
             step: particles.step,
             state: State {
@@ -236,6 +240,7 @@ impl OptixStepper {
             self.mode,
             self.r_max,
             BOX_PADDING,
+            self.grow,
         )?;
         Ok(())
     }

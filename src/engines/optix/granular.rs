@@ -22,6 +22,7 @@ use super::device::{
     Device, Gas, HistorySlots, LawTable, MeshBuffers, Order, SlotsRead, State, cuda,
 };
 use super::launches::{GranularBuffers, GranularIntegration, GranularKernels, GranularProgram};
+use super::programs::GranularLaw;
 use crate::dem::model::{LawParams, StepParams};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::common::walls::{WallTables, wall_loads};
@@ -128,7 +129,12 @@ impl Granular {
         let table = params.materials.clone();
         let laws = LawTable::upload(stream, &table)?;
         let keeps = params.friction.has_history();
-        let params = LawParams::new(params, n, 0);
+        let r_max = particles.radius_range().1;
+        let law = GranularLaw {
+            loaded,
+            cohesive: params.adheres(),
+        };
+        let params = LawParams::new(params, n, 0).reaching(params, r_max);
         let history = if keeps {
             upload_history(device, &particles.history, n, loaded)?
         } else {
@@ -138,13 +144,12 @@ impl Granular {
                 ..History::on_device(device, empty, false)?
             }
         };
-        let r_max = particles.radius_range().1;
         let tables = WallTables::new(walls, &table, r_max, u32::MAX as u64, "optix")?;
         Ok(Self {
             mesh: MeshBuffers::upload(stream, &tables)?,
             loads: vec![WallLoad::default(); walls.meshes.len()],
-            program: GranularProgram::new(device, loaded)?,
-            kernels: GranularKernels::load(device, loaded)?,
+            program: GranularProgram::new(device, law)?,
+            kernels: GranularKernels::load(device, law)?,
             params,
             laws,
             ang_spare: zeros(4 * n as usize)?,

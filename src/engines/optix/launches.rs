@@ -9,7 +9,7 @@ use super::device::{
     COUNTER_SLOTS, Device, Gas, HistorySlots, LAW_WORDS, LaunchParamSets, LaunchParams, LawTable,
     MeshBuffers, Order, Pipeline, Result, State, check_len, cuda, per_sphere,
 };
-use super::programs::{self, Unit};
+use super::programs::{self, GranularLaw, Unit};
 use crate::dem::model::{LawParams, PairLaw};
 use crate::engines::common::walls::MeshWallRow;
 use crate::error::OptixError;
@@ -122,7 +122,7 @@ struct DemLaunch {
     _pad: [u32; 2],
     dem: LawParams,
 }
-const _: () = assert!(size_of::<DemLaunch>() == 192);
+const _: () = assert!(size_of::<DemLaunch>() == 208);
 
 /// The buffers of one DEM contact launch.
 pub struct DemBuffers<'a> {
@@ -201,7 +201,7 @@ struct DeviceLaw {
     /// `MochiLaw` is 16-byte aligned (its parameters' `sphere_law` is): its size, too.
     _pad: u64,
 }
-const _: () = assert!(size_of::<DeviceLaw>() == 144);
+const _: () = assert!(size_of::<DeviceLaw>() == 160);
 
 // SAFETY: `#[repr(C)]` plain data laid out as `MochiLaw` in optix/contact.cuh (checked by
 // `layout_checks`).
@@ -256,7 +256,7 @@ struct GranularLaunch {
     _pad: [u32; 4],
     g: DeviceLaw,
 }
-const _: () = assert!(size_of::<GranularLaunch>() == 288);
+const _: () = assert!(size_of::<GranularLaunch>() == 304);
 
 /// The buffers of one granular contact launch.
 pub struct GranularBuffers<'a> {
@@ -291,10 +291,11 @@ pub struct GranularProgram {
 
 impl GranularProgram {
     /// Compiles (NVRTC, once per process) and links the programs on `device`, those of the
-    /// Mindlin–Deresiewicz model where `loaded` (the history buffers must then hold load
-    /// histories).
-    pub fn new(device: &Arc<Device>, loaded: bool) -> Result<Self> {
-        let ptx = programs::ptx(Unit::granular(loaded))?;
+    /// Mindlin–Deresiewicz model where `law.loaded` (the history buffers must then hold load
+    /// histories), with the cohesion laws where `law.cohesive`.
+    pub fn new(device: &Arc<Device>, law: GranularLaw) -> Result<Self> {
+        let loaded = law.loaded;
+        let ptx = programs::ptx(Unit::Granular(law))?;
         Ok(Self {
             pipeline: Pipeline::new(device, ptx, "granular", 9)?,
             params: LaunchParamSets::default(),
@@ -389,9 +390,11 @@ pub struct GranularIntegration<'a> {
 
 impl GranularKernels {
     /// Compiles (NVRTC, once per process) and loads the kernels on `device`, those of the
-    /// Mindlin–Deresiewicz model where `loaded`.
-    pub fn load(device: &Device, loaded: bool) -> Result<Self> {
-        let ptx = programs::ptx(Unit::granular_kernels(loaded))?;
+    /// Mindlin–Deresiewicz model where `law.loaded`, with the cohesion laws where
+    /// `law.cohesive`.
+    pub fn load(device: &Device, law: GranularLaw) -> Result<Self> {
+        let loaded = law.loaded;
+        let ptx = programs::ptx(Unit::GranularKernels(law))?;
         let module = device
             .cuda
             .load_module(cudarc::nvrtc::Ptx::from_src(ptx))
@@ -597,7 +600,7 @@ pub fn layout_checks(unit: Unit) -> String {
                     }
                 )
         }
-        Unit::Granular | Unit::GranularLoaded => {
+        Unit::Granular(_) => {
             device_law()
                 + &entry()
                 + &cuda_layout!(
@@ -625,7 +628,7 @@ pub fn layout_checks(unit: Unit) -> String {
                     }
                 )
         }
-        Unit::GranularKernels | Unit::GranularKernelsLoaded => {
+        Unit::GranularKernels(_) => {
             // The mesh walls' rows go up as the wgpu engines lay them out (encase).
             let row = <MeshWallRow as encase::ShaderSize>::SHADER_SIZE.get();
             device_law()
@@ -718,6 +721,7 @@ impl Kernels {
         mode: ProxyMode,
         r_max: f32,
         pad_rel: f32,
+        grow: f32,
     ) -> Result<()> {
         const LAUNCH: &str = "dem_boxes";
         if n == 0 {
@@ -733,7 +737,8 @@ impl Kernels {
             .arg(&n)
             .arg(&mode)
             .arg(&r_max)
-            .arg(&pad_rel);
+            .arg(&pad_rel)
+            .arg(&grow);
         // SAFETY: the arguments match dem_boxes' signature; pos holds n rows, boxes 6n floats.
         unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching dem_boxes"))?;
         Ok(())

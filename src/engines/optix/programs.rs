@@ -18,9 +18,54 @@ const MESH_WALLS_CUH: &str = include_str!("../../../optix/mesh_walls.cuh");
 /// What the Mindlin–Deresiewicz units prepend (`optix/contact.cuh`, `optix/history.cuh`).
 const LOAD_HISTORY: &str = "#define MOCHI_LOAD_HISTORY 1\n";
 
+/// What the cohesive units prepend (`optix/contact.cuh`: the cohesion laws compiled in).
+const COHESIVE: &str = "#define MOCHI_COHESIVE true\n";
+
 /// Virtual architecture of the PTX: Turing, the first GPUs with RT cores (the driver compiles
 /// it for the GPU at hand).
 const ARCH: &str = "compute_75";
+
+/// Which contact law a granular unit compiles: the tangential model and whether contacts
+/// adhere.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct GranularLaw {
+    /// The Mindlin–Deresiewicz tangential model (`MOCHI_LOAD_HISTORY`: its law, and the load
+    /// history beside the contact history); else Mindlin's spring.
+    pub loaded: bool,
+    /// The cohesion laws (`MOCHI_COHESIVE`: JKR, liquid bridges, the simplified JKR, contacts
+    /// held past touching).
+    pub cohesive: bool,
+}
+
+impl GranularLaw {
+    /// Every combination.
+    pub const ALL: [GranularLaw; 4] = [
+        GranularLaw {
+            loaded: false,
+            cohesive: false,
+        },
+        GranularLaw {
+            loaded: true,
+            cohesive: false,
+        },
+        GranularLaw {
+            loaded: false,
+            cohesive: true,
+        },
+        GranularLaw {
+            loaded: true,
+            cohesive: true,
+        },
+    ];
+
+    /// What its units prepend.
+    fn defines(self) -> String {
+        [(self.loaded, LOAD_HISTORY), (self.cohesive, COHESIVE)]
+            .into_iter()
+            .filter_map(|(on, define)| on.then_some(define))
+            .collect()
+    }
+}
 
 /// A compilation unit of the device code.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -32,65 +77,58 @@ pub enum Unit {
     /// OptiX programs of the frictionless DEM step (raygen + intersection resolving contacts).
     Dem,
     /// OptiX programs of the granular DEM step (contacts with friction, history and rolling
-    /// resistance).
-    Granular,
+    /// resistance) of a law.
+    Granular(GranularLaw),
     /// Plain CUDA kernels of the granular DEM step (box and mesh walls, integration with
-    /// rotation).
-    GranularKernels,
-    /// [`Unit::Granular`] under the Mindlin–Deresiewicz tangential model (`MOCHI_LOAD_HISTORY`:
-    /// its law, and the load history beside the contact history).
-    GranularLoaded,
-    /// [`Unit::GranularKernels`] under the Mindlin–Deresiewicz tangential model.
-    GranularKernelsLoaded,
+    /// rotation) of a law.
+    GranularKernels(GranularLaw),
 }
 
 impl Unit {
     /// Every unit.
-    pub const ALL: [Unit; 7] = [
-        Unit::Detect,
-        Unit::Kernels,
-        Unit::Dem,
-        Unit::Granular,
-        Unit::GranularKernels,
-        Unit::GranularLoaded,
-        Unit::GranularKernelsLoaded,
-    ];
+    pub const ALL: [Unit; 11] = {
+        let laws = GranularLaw::ALL;
+        [
+            Unit::Detect,
+            Unit::Kernels,
+            Unit::Dem,
+            Unit::Granular(laws[0]),
+            Unit::Granular(laws[1]),
+            Unit::Granular(laws[2]),
+            Unit::Granular(laws[3]),
+            Unit::GranularKernels(laws[0]),
+            Unit::GranularKernels(laws[1]),
+            Unit::GranularKernels(laws[2]),
+            Unit::GranularKernels(laws[3]),
+        ]
+    };
 
-    /// The granular step's OptiX programs, under the Mindlin–Deresiewicz model where `loaded`.
-    pub fn granular(loaded: bool) -> Unit {
-        match loaded {
-            true => Unit::GranularLoaded,
-            false => Unit::Granular,
-        }
-    }
-
-    /// The granular step's kernels, under the Mindlin–Deresiewicz model where `loaded`.
-    pub fn granular_kernels(loaded: bool) -> Unit {
-        match loaded {
-            true => Unit::GranularKernelsLoaded,
-            false => Unit::GranularKernels,
-        }
-    }
-
-    /// File name, for messages.
-    pub fn name(self) -> &'static str {
-        match self {
-            Unit::Detect => "optix/detect.cu",
-            Unit::Kernels => "optix/kernels.cu",
-            Unit::Dem => "optix/dem.cu",
-            Unit::Granular => "optix/granular.cu",
-            Unit::GranularKernels => "optix/granular_kernels.cu",
-            Unit::GranularLoaded => "optix/granular.cu (MOCHI_LOAD_HISTORY)",
-            Unit::GranularKernelsLoaded => "optix/granular_kernels.cu (MOCHI_LOAD_HISTORY)",
+    /// File name and the law it is compiled for, for messages.
+    pub fn name(self) -> String {
+        let (file, law) = match self {
+            Unit::Detect => return "optix/detect.cu".into(),
+            Unit::Kernels => return "optix/kernels.cu".into(),
+            Unit::Dem => return "optix/dem.cu".into(),
+            Unit::Granular(law) => ("optix/granular.cu", law),
+            Unit::GranularKernels(law) => ("optix/granular_kernels.cu", law),
+        };
+        let defines = [
+            (law.loaded, "MOCHI_LOAD_HISTORY"),
+            (law.cohesive, "MOCHI_COHESIVE"),
+        ];
+        let defined: Vec<&str> = defines
+            .into_iter()
+            .filter_map(|(on, name)| on.then_some(name))
+            .collect();
+        match defined.is_empty() {
+            true => file.into(),
+            false => format!("{file} ({})", defined.join(", ")),
         }
     }
 
     /// Whether the unit is an OptiX module (relocatable device code) rather than plain kernels.
     fn is_optix_module(self) -> bool {
-        !matches!(
-            self,
-            Unit::Kernels | Unit::GranularKernels | Unit::GranularKernelsLoaded
-        )
+        !matches!(self, Unit::Kernels | Unit::GranularKernels(_))
     }
 
     /// The full source NVRTC gets.
@@ -99,19 +137,15 @@ impl Unit {
             Unit::Detect => format!("{DEVICE_CUH}\n{DETECT_CU}"),
             Unit::Kernels => format!("{DEVICE_CUH}\n{PHYSICS_CUH}\n{KERNELS_CU}"),
             Unit::Dem => format!("{DEVICE_CUH}\n{PHYSICS_CUH}\n{DEM_CU}"),
-            Unit::Granular => {
-                format!("{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{GRANULAR_CU}")
-            }
-            Unit::GranularKernels => format!(
-                "{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{MESH_WALLS_CUH}\n\
-                 {GRANULAR_KERNELS_CU}"
+            Unit::Granular(law) => format!(
+                "{}{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{GRANULAR_CU}",
+                law.defines()
             ),
-            Unit::GranularLoaded => {
-                format!("{LOAD_HISTORY}{}", Unit::Granular.source())
-            }
-            Unit::GranularKernelsLoaded => {
-                format!("{LOAD_HISTORY}{}", Unit::GranularKernels.source())
-            }
+            Unit::GranularKernels(law) => format!(
+                "{}{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{MESH_WALLS_CUH}\n\
+                 {GRANULAR_KERNELS_CU}",
+                law.defines()
+            ),
         }
     }
 }
@@ -128,14 +162,14 @@ pub fn ptx(unit: Unit) -> Result<&'static str, OptixError> {
 
 /// Compiles `unit` with NVRTC (no fused multiply-adds: the proxy rule rounds as the cpu does).
 pub fn compile(unit: Unit) -> Result<String, OptixError> {
-    compile_source(unit.name(), unit.source(), unit.is_optix_module())
+    compile_source(&unit.name(), unit.source(), unit.is_optix_module())
 }
 
 /// Compiles `unit` followed by `checks` (CUDA `static_assert`s over its types, which emit no
 /// code): the layout test compiles each launch-parameter struct against its Rust twin this way.
 pub fn compile_with_checks(unit: Unit, checks: &str) -> Result<String, OptixError> {
     compile_source(
-        unit.name(),
+        &unit.name(),
         format!("{}\n{checks}", unit.source()),
         unit.is_optix_module(),
     )
