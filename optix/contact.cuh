@@ -23,7 +23,7 @@
 #define MOCHI_TSUJI 1.8257419f
 // π in f32 (contact.rs PI).
 #define MOCHI_PI 3.14159265f
-// Newton steps of mochi_jkr_radius (contact.rs JKR_ITERATIONS).
+// Most Newton steps of mochi_jkr_radius (contact.rs JKR_ITERATIONS).
 #define MOCHI_JKR_ITERATIONS 12
 
 // True in the units whose contacts adhere (JKR, liquid bridges, simplified JKR: the cohesive
@@ -203,7 +203,12 @@ static __forceinline__ __device__ float mochi_jkr_radius(float overlap, float r_
         if (slope <= 0.0f) {
             break;
         }
-        x -= (x3 * x / r_eff - c * x - overlap) / slope;
+        float next = x - (x3 * x / r_eff - c * x - overlap) / slope;
+        // Converged: every later step would repeat this one.
+        if (next == x) {
+            break;
+        }
+        x = next;
     }
     return x * x;
 }
@@ -613,7 +618,8 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const MochiLaw&
             unsigned int wall = 2 * a + side;
             MochiSprings kept = mochi_no_springs();
             bool touched = false;
-            if (overlap > 0.0f || MOCHI_COHESIVE) {
+            // Within reach of the wall, a cohesive contact may hold: only then is it looked up.
+            if (overlap > 0.0f || (MOCHI_COHESIVE && -overlap < g.dem.reach)) {
                 touched = old(wall, kept);
             }
             bool held = MOCHI_COHESIVE && touched && mochi_holds(g, law, b.r, overlap);

@@ -135,8 +135,8 @@ int main() {
         std::string section;
         while (std::getline(ss, section, '|')) s.push_back(words(section));
         // Parameters: law, rolling model, turns, keeps, dt, k, box, the material table's
-        // columns and the box walls' column, the bridge's volume, tension and rupture gap and
-        // the cohesion energy density, then each law's rate, E*, G*, ζ, μ, μ_r, Γ.
+        // columns and the box walls' column, the bridge's volume, tension and rupture gap, the
+        // cohesion energy density and the reach, then each law's rate, E*, G*, ζ, μ, μ_r, Γ.
         const std::vector<std::string>& h = s[0];
         MochiLaw g{};
         g.dem.law = std::stoul(h[0]);
@@ -155,10 +155,11 @@ int main() {
         g.dem.cohesion.bridge_tension = from_bits(h[15]);
         g.dem.cohesion.bridge_rupture = from_bits(h[16]);
         g.dem.cohesion.density = from_bits(h[17]);
-        std::vector<MochiPairLaw> laws((h.size() - 18) / 7);
+        g.dem.reach = from_bits(h[18]);
+        std::vector<MochiPairLaw> laws((h.size() - 19) / 7);
         for (size_t k = 0; k < laws.size(); ++k) {
             MochiPairLaw& l = laws[k];
-            const std::string* x = &h[18 + 7 * k];
+            const std::string* x = &h[19 + 7 * k];
             l.rate = from_bits(x[0]);
             l.e_star = from_bits(x[1]);
             l.g_star = from_bits(x[2]);

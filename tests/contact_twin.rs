@@ -635,10 +635,16 @@ fn vec3(v: Vec3) -> String {
     format!("{} {} {}", bits(v.x), bits(v.y), bits(v.z))
 }
 
+/// How far past touching the cases' contacts may hold: a search margin of spheres as large as
+/// the box (larger than the cases' spheres: it only gates which walls are looked up).
+fn reach(p: &StepParams) -> f32 {
+    p.search_margin(p.box_hi[0])
+}
+
 /// The parameters' section of a case (the order `contact_twin.cpp` reads): the law, the
 /// models, dt, k, the box, the material table's columns and the box walls' column, the liquid
-/// bridge's volume, tension and rupture gap and the cohesion energy density, then every law's
-/// seven values, row by row.
+/// bridge's volume, tension and rupture gap, the cohesion energy density and the reach, then
+/// every law's seven values, row by row.
 fn params_section(p: &StepParams) -> String {
     let law = p.law.code();
     let f = p.friction;
@@ -665,7 +671,7 @@ fn params_section(p: &StepParams) -> String {
         .map_or([0.0; 3], |b| [b.volume, b.tension, b.rupture]);
     let cohesion: Vec<String> = bridge
         .into_iter()
-        .chain([p.cohesion_density])
+        .chain([p.cohesion_density, reach(p)])
         .map(bits)
         .collect();
     format!(
@@ -1046,7 +1052,7 @@ fn uploads(p: &StepParams, module: &naga::Module) -> Vec<(Binding, Vec<u8>)> {
                 ("box_column", U(p.box_column)),
                 // The laws read no external loads (the integrations do).
                 ("loaded", U(0)),
-                ("reach", F(p.search_margin(0.0))),
+                ("reach", F(reach(p))),
                 ("sphere_law", pair_law(table.law(0, 0))),
                 (
                     "cohesion",

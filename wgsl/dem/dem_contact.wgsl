@@ -43,7 +43,7 @@ const ROLLING_CONSTANT_TORQUE: u32 = 1u;
 const TSUJI: f32 = 1.8257419;
 // π in f32 (typed: products with it are rounded to f32 as the Rust law's are).
 const PI: f32 = 3.1415927;
-// Newton steps of jkr_radius (JKR_ITERATIONS in src/dem/model/contact.rs).
+// Most Newton steps of jkr_radius (JKR_ITERATIONS in src/dem/model/contact.rs).
 const JKR_ITERATIONS: u32 = 12u;
 
 // True where some contact adheres (JKR, liquid bridges, simplified JKR; set when the pipeline
@@ -173,7 +173,12 @@ fn jkr_radius(overlap: f32, r_eff: f32, e_star: f32, adhesion: f32) -> f32 {
         if slope <= 0.0 {
             break;
         }
-        x -= (x3 * x / r_eff - c * x - overlap) / slope;
+        let next = x - (x3 * x / r_eff - c * x - overlap) / slope;
+        // Converged: every later step would repeat this one.
+        if next == x {
+            break;
+        }
+        x = next;
     }
     return x * x;
 }

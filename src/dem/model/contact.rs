@@ -340,14 +340,19 @@ pub fn jkr_radius(overlap: f32, r_eff: f32, e_star: f32, adhesion: f32) -> f32 {
         if slope <= 0.0 {
             break;
         }
-        x -= (x3 * x / r_eff - c * x - overlap) / slope;
+        let next = x - (x3 * x / r_eff - c * x - overlap) / slope;
+        // Converged: every later step would repeat this one, on every backend.
+        if next == x {
+            break;
+        }
+        x = next;
     }
     x * x
 }
 
-/// Newton steps of [`jkr_radius`]: from its start within a factor of 2^¼ or so of the root,
-/// enough to reach it in f32 (quadratic convergence), and fixed, so every backend takes the
-/// same steps.
+/// Most Newton steps of [`jkr_radius`]: from its start within a factor of 2^¼ or so of the
+/// root, enough to reach it in f32 (quadratic convergence). A step that changes nothing ends
+/// the iteration, on every backend alike (the same operations give the same bits).
 const JKR_ITERATIONS: usize = 12;
 
 /// The normal force of a contact of law `law` with overlap `overlap` > 0 and normal relative
