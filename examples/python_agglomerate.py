@@ -11,7 +11,7 @@ E_b ≈ ½·2πrγ·(1 + θ/2)·V^⅓ a bridge: v_c = √(z·E_b/m), about 0.1 m
 fifth of it) leaves one piece; the fast one (twenty times it) leaves many.
 
 Run after `pip install ./python`:  python examples/python_agglomerate.py [--quick] [--backend B]
-(cohesion runs on the cpu backend so far: `auto` picks it)
+(cohesion runs on every backend: `auto` picks the fastest)
 """
 
 import argparse

@@ -486,3 +486,52 @@ fn spheres_hang_from_a_mesh_ceiling_by_their_neck_or_their_bridge() {
         "the plate holds {load} N"
     );
 }
+
+/// The pieces (grains joined by bonds, largest first) of the built-in `agglomerate` (`grains`
+/// grains of 1 mm at density 2500, bonded by its default liquid bridges) on backend `kind`,
+/// dropped at `speed` and 20 ms after the impact.
+fn pieces_after_a_drop(kind: BackendKind, grains: usize, speed: f64) -> Vec<usize> {
+    use mochi::dem::scene::{Overrides, SceneConfig};
+    let text = format!(
+        "scene = \"agglomerate\"\nspheres = {grains}\nagglomerate_speed = {speed}\n\
+         density = 2500\n"
+    );
+    let config = SceneConfig::parse(Some(&text), None, &Overrides::default()).unwrap();
+    let start = config.build().unwrap();
+    let dt = start.params.dt as f64;
+    let choice = mochi::engines::BackendChoice::Named(kind);
+    let mut s = mochi::engines::open_scene(choice, start, &Default::default())
+        .unwrap()
+        .value;
+    let before = mochi::dem::equipment::fragments(&s.particles().unwrap().history, grains);
+    assert_eq!(before.len(), grains, "no bond before the first step");
+    // Half a radius to the floor, then 20 ms.
+    s.advance(((0.5e-3 / speed + 0.02) / dt) as u32).unwrap();
+    mochi::dem::equipment::fragments(&s.particles().unwrap().history, grains)
+}
+
+#[test]
+fn an_agglomerate_survives_a_slow_drop_and_breaks_up_in_a_fast_one() {
+    // The criterion, to an order of magnitude: the impact's kinetic energy per grain, ½·m·v²,
+    // against the work of pulling its share of bridges apart, (z/2)·E_b, z = 12 neighbours in
+    // the face-centred cubic packing and E_b ≈ ½·2πrγ·(1 + θ/2)·V^⅓ a bridge (its force at
+    // contact over its rupture distance, halved): v_c = √(z·E_b/m), 0.16 m/s here.
+    let r = 1e-3;
+    let volume = 2.4e-4 * 4.0 / 3.0 * std::f64::consts::PI * r * r * r;
+    let bridge = 0.5 * 2.0 * std::f64::consts::PI * r * 0.072 * volume.cbrt();
+    let mass = 2500.0 * 4.0 / 3.0 * std::f64::consts::PI * r * r * r;
+    let critical = (12.0 * bridge / mass).sqrt();
+    assert!((critical / 0.16 - 1.0).abs() < 0.05, "v_c = {critical} m/s");
+    let grains = 200;
+    for kind in common::dem_backends() {
+        let _named = common::Naming(kind);
+        let slow = pieces_after_a_drop(kind, grains, 0.2 * critical);
+        assert_eq!(slow.len(), 1, "at v_c/5 it broke: {slow:?}");
+        let fast = pieces_after_a_drop(kind, grains, 10.0 * critical);
+        assert!(
+            fast.len() > 5 && fast[0] < grains * 9 / 10,
+            "at 10·v_c it held: {:?}",
+            &fast[..fast.len().min(10)]
+        );
+    }
+}

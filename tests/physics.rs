@@ -743,6 +743,37 @@ fn a_frictional_heap_keeps_its_slope_where_a_frictionless_one_spreads_flat_on(ki
 }
 
 #[test]
+fn a_cohesive_heap_stands_where_a_dry_one_spreads_flat() {
+    on_every_backend(a_cohesive_heap_stands_where_a_dry_one_spreads_flat_on);
+}
+
+fn a_cohesive_heap_stands_where_a_dry_one_spreads_flat_on(kind: BackendKind) {
+    // Frictionless spheres, dry or with JKR adhesion: Γ = 5 J/m² pulls two of them off at
+    // 1.5·π·Γ·R* = 0.059 N, 4.6 times the weight of one. The pyramid settles a hair onto
+    // itself, its contacts form and bond, and bonded spheres (central forces, no friction) hold
+    // the pyramid's close packing: a heap, where the dry one spreads into one layer.
+    let frictionless = |adhesion: f64| Material {
+        contact: ContactLaw::HertzMindlin {
+            young_modulus: 1e6,
+            poisson_ratio: NU,
+        },
+        rolling_friction: 0.0,
+        adhesion,
+        ..hertz(0.3, 0.0)
+    };
+    let r = 0.005f32;
+    let [_, flat] = settle_pyramid(kind, &frictionless(0.0), r, 1.0);
+    let [heap, _] = settle_pyramid(kind, &frictionless(5.0), r, 1.0);
+    assert_eq!(flat.1, 0, "dry: spheres off the floor at the end");
+    assert!(
+        heap.1 >= 25 && heap.0 >= 6.0 * r,
+        "cohesive: {} spheres off the floor, top at {} m",
+        heap.1,
+        heap.0
+    );
+}
+
+#[test]
 fn a_sphere_with_more_contacts_than_history_slots_keeps_every_one() {
     on_every_backend(a_sphere_with_more_contacts_than_history_slots_keeps_every_one_on);
 }

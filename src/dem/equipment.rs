@@ -1,10 +1,11 @@
-//! The built-in scenes with walls, their meshes made in code: `hopper` (a cylinder with a flat
-//! or conical bottom and a circular orifice, closed by a gate that slides away at
+//! The built-in scenes with equipment, their meshes made in code: `hopper` (a cylinder with a
+//! flat or conical bottom and a circular orifice, closed by a gate that slides away at
 //! `open`; the spheres that fall out are removed and counted in `flow.csv`) and `drum`
 //! (a cylinder about the y axis, 40% filled, turning at `omega`; the box's walls close
-//! its ends). Both are sized from the number of spheres, of radii U[0.9, 1.1]·`grain_radius`
-//! on a jittered lattice. [`mass_flow_rate`] and [`free_surface_angle`] measure what each is
-//! for.
+//! its ends), both sized from the number of spheres, of radii U[0.9, 1.1]·`grain_radius`
+//! on a jittered lattice; and `agglomerate` (a ball of bonded grains dropped on the floor at
+//! `speed`). [`mass_flow_rate`] and [`free_surface_angle`] measure what the first two are for,
+//! [`fragments`] what the last one is.
 
 use super::flow::OutflowConfig;
 use super::walls::{Rotation, WallConfig};
@@ -85,6 +86,123 @@ impl Default for Drum {
     }
 }
 
+/// The `[source]` of scene `agglomerate`: a ball of `spheres` grains of radius `grain_radius`,
+/// packed face-centred cubic and pressed a thousandth of a radius into each other (every
+/// neighbour touches, so each contact bonds where the material adheres: with the scene's default
+/// material, by a liquid bridge), its lowest grain half a radius above the floor, all moving
+/// down at `speed`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Agglomerate {
+    /// Grains.
+    pub spheres: usize,
+    /// Grain radius \[m\].
+    pub grain_radius: f64,
+    /// Speed at which the ball moves down at t = 0 \[m/s\] (short form `agglomerate_speed`).
+    pub speed: f64,
+}
+
+impl Default for Agglomerate {
+    fn default() -> Self {
+        Agglomerate {
+            spheres: 500,
+            grain_radius: 0.001,
+            speed: 1.0,
+        }
+    }
+}
+
+impl Agglomerate {
+    /// The liquid of a bridge of the scene's default material \[m³\]: 2.4e-4 of a grain's
+    /// volume (1 nl between 1 mm grains), whose bridges rupture at a tenth of a radius.
+    pub fn liquid_volume(&self) -> f64 {
+        2.4e-4 * 4.0 / 3.0 * std::f64::consts::PI * self.grain_radius.powi(3)
+    }
+
+    /// Builds the agglomerate (the struct's docs).
+    pub fn build(&self) -> Result<Built> {
+        let (n, r) = (self.spheres, self.grain_radius);
+        if !(r.is_finite() && r > 0.0 && self.speed.is_finite()) {
+            return Err(refused(
+                "agglomerate",
+                format!(
+                    "grain_radius must be positive and agglomerate_speed finite, got {r} m and \
+                     {} m/s",
+                    self.speed
+                ),
+            ));
+        }
+        crate::spheres::check_count(n)?;
+        // Neighbours 2r(1 − 1e-3) apart: the sites are the points of a cubic lattice of
+        // spacing `half` whose coordinates sum to an even number, neighbours √2·half apart.
+        let neighbour = 2.0 * r * (1.0 - 1e-3);
+        let half = neighbour / std::f64::consts::SQRT_2;
+        // The points of a cube of the lattice that holds a ball of n of its sites (4 a cube
+        // cell of side 2·half), nearest the centre first (ties in the order made).
+        let ball = (3.0 * n as f64 * (2.0 * half).powi(3) / (16.0 * std::f64::consts::PI)).cbrt();
+        let k = (ball / half).ceil() as i64 + 2;
+        let mut sites = Vec::new();
+        for i in -k..=k {
+            for j in -k..=k {
+                for l in -k..=k {
+                    if (i + j + l).rem_euclid(2) == 0 {
+                        sites.push([i, j, l].map(|x| x as f64 * half));
+                    }
+                }
+            }
+        }
+        let norm = |c: &[f64; 3]| c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+        sites.sort_by(|a, b| norm(a).total_cmp(&norm(b)));
+        sites.truncate(n);
+        let extent = sites.iter().map(|c| norm(c).sqrt()).fold(0.0, f64::max) + r;
+        // A box four balls wide and three tall, the ball above the middle of its floor.
+        let side = 8.0 * extent;
+        let bottom = sites.iter().map(|c| c[2]).fold(0.0, f64::min);
+        let lift = 1.5 * r - bottom;
+        let centers = sites
+            .iter()
+            .map(|c| [c[0] + side / 2.0, c[1] + side / 2.0, c[2] + lift].map(|x| x as f32))
+            .collect();
+        Ok(Built {
+            spheres: SphereSet::new(centers, vec![r as f32; n])?,
+            box_lo: [0.0; 3],
+            box_hi: [side, side, 6.0 * extent],
+            walls: Vec::new(),
+            outflows: Vec::new(),
+            velocity: [0.0, 0.0, -self.speed],
+        })
+    }
+}
+
+/// The pieces of an agglomerate: the sizes of the groups of spheres joined by the contacts of
+/// `history` (bonds: a pair with a history entry), largest first.
+pub fn fragments(history: &crate::particles::ContactHistory, n: usize) -> Vec<usize> {
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for i in 0..n {
+        for e in history.of(i) {
+            let j = e.partner as usize;
+            if j < n {
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                parent[a] = b;
+            }
+        }
+    }
+    let mut sizes = vec![0; n];
+    for i in 0..n {
+        sizes[root(&mut parent, i)] += 1;
+    }
+    sizes.retain(|&s| s > 0);
+    sizes.sort_unstable_by(|a, b| b.cmp(a));
+    sizes
+}
+
 /// Spheres of a built-in scene when the scene gives no number.
 const DEFAULT_SPHERES: usize = 4_000;
 /// Mean sphere radius of a built-in scene when the scene gives none \[m\].
@@ -103,6 +221,8 @@ pub struct Built {
     pub walls: Vec<(WallConfig, Mesh)>,
     /// The outflows.
     pub outflows: Vec<OutflowConfig>,
+    /// Every sphere's velocity at t = 0 \[m/s\].
+    pub velocity: [f64; 3],
 }
 
 /// What the grains of a built-in scene (`what`, for errors) of `n` spheres of mean radius `r`
@@ -189,6 +309,7 @@ impl Hopper {
                 lo: [-radius - margin, -radius - margin, -height],
                 hi: [radius + margin, radius + margin, -0.5 * height],
             }],
+            velocity: [0.0; 3],
         })
     }
 }
@@ -241,6 +362,7 @@ impl Drum {
             box_hi: [radius + margin, length / 2.0, radius + margin],
             walls: vec![(config, tube)],
             outflows: Vec::new(),
+            velocity: [0.0; 3],
         })
     }
 }

@@ -14,7 +14,7 @@
 //!
 //! [source]               # where the spheres come from (`source`: each scene's own keys)
 //! scene = "pour"         # freefall, slab, poly1.2, poly12, poly120, polylog, pour, rotating,
-//!                        # mesh, input, hopper, drum
+//!                        # mesh, input, hopper, drum, agglomerate
 //! spheres = 4000
 //! seed = 1
 //!
@@ -42,8 +42,9 @@
 //! rolling_friction = 0.1 # μ_r; default 0.1 (hertz-mindlin), 0 (linear)
 //! rolling_model = "epsd" # or "constant-torque" (default epsd)
 //! tangential_model = "mindlin" # or "mindlin-deresiewicz" (hertz-mindlin only; default mindlin)
-//! cohesion = "jkr"       # JKR adhesion (hertz-mindlin only), or "capillary" (liquid bridges);
-//!                        # the cpu backend so far; default: dry
+//! cohesion = "jkr"       # JKR adhesion (hertz-mindlin only), "capillary" (liquid bridges) or
+//!                        # "sjkr" (LIGGGHTS' simplified JKR); with mesh walls the cpu
+//!                        # backend so far; default: dry
 //! surface_energy = 0.05  # jkr: J/m², the work of adhesion Γ: spheres pull off at 1.5·π·Γ·R*
 //! liquid_volume = 1e-12  # capillary: m³ of liquid in each bridge
 //! surface_tension = 0.072 # capillary: N/m (default: water's)

@@ -7,7 +7,7 @@
 use crate::error::{Error, Result};
 
 /// Each short form, with the table and the key of that table it stands for.
-pub const SHORT_FORMS: [(&str, &str, &str); 46] = [
+pub const SHORT_FORMS: [(&str, &str, &str); 47] = [
     ("scene", "source", "scene"),
     ("spheres", "source", "spheres"),
     ("seed", "source", "seed"),
@@ -24,6 +24,7 @@ pub const SHORT_FORMS: [(&str, &str, &str); 46] = [
     ("drum_omega", "source", "omega"),
     ("drum_sides", "source", "sides"),
     ("drum_rings", "source", "rings"),
+    ("agglomerate_speed", "source", "speed"),
     ("steps", "run", "steps"),
     ("dt", "run", "dt"),
     ("mode", "run", "mode"),

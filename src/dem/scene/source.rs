@@ -10,9 +10,10 @@
 //! # scene = "input":   input (a sphere file)
 //! # scene = "hopper":  spheres, seed, grain_radius, orifice, angle, open (`dem::equipment`)
 //! # scene = "drum":    spheres, seed, grain_radius, omega, sides, rings (`dem::equipment`)
+//! # scene = "agglomerate": spheres, grain_radius, speed (`dem::equipment`)
 //! ```
 
-use crate::dem::equipment::{Drum, Hopper};
+use crate::dem::equipment::{Agglomerate, Drum, Hopper};
 use crate::scenes::Scene;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -36,11 +37,13 @@ pub enum SceneKind {
     Hopper,
     /// A turning drum (`dem::equipment`).
     Drum,
+    /// A ball of bonded grains dropped on the floor (`dem::equipment`).
+    Agglomerate,
 }
 
 impl SceneKind {
     /// Every scene, in the order errors list them.
-    pub const ALL: [SceneKind; 12] = [
+    pub const ALL: [SceneKind; 13] = [
         SceneKind::Generated(Scene::Freefall),
         SceneKind::Generated(Scene::Slab),
         SceneKind::Generated(Scene::Poly1_2),
@@ -53,6 +56,7 @@ impl SceneKind {
         SceneKind::Input,
         SceneKind::Hopper,
         SceneKind::Drum,
+        SceneKind::Agglomerate,
     ];
 
     /// Name, as in TOML and on the command line.
@@ -64,6 +68,7 @@ impl SceneKind {
             SceneKind::Input => "input",
             SceneKind::Hopper => "hopper",
             SceneKind::Drum => "drum",
+            SceneKind::Agglomerate => "agglomerate",
         }
     }
 }
@@ -101,6 +106,8 @@ impl clap::ValueEnum for SceneKind {
                 .help("a hopper with a circular orifice, filled, then opened (mesh walls and an outflow)"),
             SceneKind::Drum => PossibleValue::new("drum")
                 .help("a drum about a horizontal axis, 40% filled, turning (a mesh wall: cpu, wgpu-compute, wgpu-rq)"),
+            SceneKind::Agglomerate => PossibleValue::new("agglomerate")
+                .help("a ball of grains bonded by liquid bridges dropped on the floor, broken or not"),
         })
     }
 }
@@ -213,6 +220,8 @@ pub enum Source {
     Hopper(Hopper),
     /// A turning drum.
     Drum(Drum),
+    /// A ball of bonded grains dropped on the floor.
+    Agglomerate(Agglomerate),
 }
 
 impl Default for Source {
@@ -231,6 +240,7 @@ impl Source {
             SceneKind::Input => Source::Input(InputFile::default()),
             SceneKind::Hopper => Source::Hopper(Hopper::default()),
             SceneKind::Drum => Source::Drum(Drum::default()),
+            SceneKind::Agglomerate => Source::Agglomerate(Agglomerate::default()),
         }
     }
 
@@ -242,6 +252,7 @@ impl Source {
             Source::Generated(_, g) | Source::Rotating(g) => *g = Generated { spheres, seed },
             Source::Hopper(h) => (h.spheres, h.seed) = (spheres, seed),
             Source::Drum(d) => (d.spheres, d.seed) = (spheres, seed),
+            Source::Agglomerate(a) => a.spheres = spheres,
             Source::Mesh(m) => m.seed = seed,
             Source::Input(_) => {}
         }
@@ -257,6 +268,7 @@ impl Source {
             Source::Input(_) => SceneKind::Input,
             Source::Hopper(_) => SceneKind::Hopper,
             Source::Drum(_) => SceneKind::Drum,
+            Source::Agglomerate(_) => SceneKind::Agglomerate,
         }
     }
 
@@ -266,6 +278,7 @@ impl Source {
             Source::Generated(_, g) | Source::Rotating(g) => Some(g.spheres),
             Source::Hopper(h) => Some(h.spheres),
             Source::Drum(d) => Some(d.spheres),
+            Source::Agglomerate(a) => Some(a.spheres),
             Source::Mesh(_) | Source::Input(_) => None,
         }
     }
@@ -296,6 +309,7 @@ impl Source {
             SceneKind::Input => fields_of::<InputFile>(),
             SceneKind::Hopper => fields_of::<Hopper>(),
             SceneKind::Drum => fields_of::<Drum>(),
+            SceneKind::Agglomerate => fields_of::<Agglomerate>(),
         }
     }
 }
@@ -318,6 +332,7 @@ impl Serialize for Source {
             Source::Input(i) => Tagged { scene, fields: i }.serialize(s),
             Source::Hopper(h) => Tagged { scene, fields: h }.serialize(s),
             Source::Drum(d) => Tagged { scene, fields: d }.serialize(s),
+            Source::Agglomerate(a) => Tagged { scene, fields: a }.serialize(s),
         }
     }
 }
@@ -353,6 +368,7 @@ impl<'de> Deserialize<'de> for Source {
             SceneKind::Input => Source::Input(read(kind, rest)?),
             SceneKind::Hopper => Source::Hopper(read(kind, rest)?),
             SceneKind::Drum => Source::Drum(read(kind, rest)?),
+            SceneKind::Agglomerate => Source::Agglomerate(read(kind, rest)?),
         })
     }
 }

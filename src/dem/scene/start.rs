@@ -61,7 +61,7 @@ impl SceneConfig {
             Source::Generated(scene, g) => generated(*scene, g)?,
             Source::Rotating(g) => generated(Scene::Freefall, g)?,
             Source::Mesh(fill) => fill.spheres()?,
-            Source::Hopper(_) | Source::Drum(_) => {
+            Source::Hopper(_) | Source::Drum(_) | Source::Agglomerate(_) => {
                 equipment.as_ref().expect("built").spheres.clone()
             }
             Source::Input(file) => {
@@ -80,7 +80,11 @@ impl SceneConfig {
                 return Self::inside_the_box(self.start_with(particles, None)?, 0.0);
             }
         };
-        let particles = Particles::at_rest(&spheres)?;
+        let mut particles = Particles::at_rest(&spheres)?;
+        if let Some(built) = &equipment {
+            let v = built.velocity.map(|x| x as f32);
+            particles.velocities.iter_mut().for_each(|u| *u = v);
+        }
         Self::inside_the_box(self.start_with(particles, equipment.as_ref())?, 0.0)
     }
 
@@ -151,7 +155,7 @@ impl SceneConfig {
             Source::Generated(scene, _) => generated_box(*scene, particles.len()),
             Source::Rotating(_) => generated_box(Scene::Freefall, particles.len()),
             Source::Mesh(fill) => ([0.0; 3], [fill.box_side()?; 3]),
-            Source::Hopper(_) | Source::Drum(_) => {
+            Source::Hopper(_) | Source::Drum(_) | Source::Agglomerate(_) => {
                 let built = equipment.expect("a built-in scene's equipment");
                 (built.box_lo, built.box_hi)
             }
@@ -261,6 +265,7 @@ impl SceneConfig {
         match &self.source {
             Source::Hopper(hopper) => hopper.build().map(Some),
             Source::Drum(drum) => drum.build().map(Some),
+            Source::Agglomerate(agglomerate) => agglomerate.build().map(Some),
             _ => Ok(None),
         }
     }
@@ -342,10 +347,24 @@ impl SceneConfig {
         material_spec::materials(&self.material()?, &self.materials, &self.material_pairs)
     }
 
+    /// `[material]` with the defaults of the scene's source: an `agglomerate` whose material
+    /// names no cohesion is bonded by liquid bridges (water, of its grains' `liquid_volume`).
+    fn scene_material(&self) -> SceneMaterial {
+        let mut m = self.material.clone();
+        let dry = m.cohesion.is_none()
+            && m.surface_energy.is_none()
+            && m.cohesion_energy_density.is_none();
+        if let (Source::Agglomerate(a), true) = (&self.source, dry) {
+            m.cohesion = Some(CohesionKind::Capillary);
+            m.liquid_volume = m.liquid_volume.or(Some(a.liquid_volume()));
+        }
+        m
+    }
+
     /// The material the scene describes, its defaults filled in; refuses keys that do not
     /// apply to its contact law (each would be silently ignored).
     pub fn material(&self) -> Result<Material> {
-        let this = &self.material;
+        let this = &self.scene_material();
         let hertz = this.contact == ContactKind::HertzMindlin;
         let refuse = |key: &str, law: &str| {
             Err(Error::InvalidConfig {
@@ -489,7 +508,7 @@ impl SceneConfig {
         };
         // The step's `f32` values by their shortest decimals (box_hi = [0.8, ...], not
         // 0.800000011920929), each of which reads back as the same `f32`.
-        let this = &self.material;
+        let this = &self.scene_material();
         SceneConfig {
             run: RunConfig {
                 dt: Some(widened(p.dt)),

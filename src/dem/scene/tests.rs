@@ -142,7 +142,7 @@ fn unknown_scenes_and_modes_are_errors_listing_the_names() {
     assert!(
         e.contains(
             "unknown scene \"teapot\": use freefall, slab, poly1.2, poly12, poly120, \
-                 polylog, pour, rotating, mesh, input, hopper or drum"
+                 polylog, pour, rotating, mesh, input, hopper, drum or agglomerate"
         ),
         "{e}"
     );
@@ -818,4 +818,53 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
         let e = build(sets).expect_err("refused").to_string();
         assert!(e.contains(words), "{sets:?}: {e}");
     }
+}
+
+#[test]
+fn an_agglomerate_is_a_ball_of_touching_grains_bonded_by_water_moving_down() {
+    let config = SceneConfig::parse(
+        Some("scene = \"agglomerate\"\nspheres = 300\nagglomerate_speed = 0.4"),
+        None,
+        &Overrides::default(),
+    )
+    .unwrap();
+    let start = config.build().unwrap();
+    let p = &start.particles;
+    assert_eq!(p.len(), 300);
+    assert!(p.velocities.iter().all(|v| *v == [0.0, 0.0, -0.4]));
+    // Every grain touches a neighbour (pressed 1e-3 of a radius), and most have 12 or near it.
+    let r = 1e-3f32;
+    let touching = |i: usize| {
+        (0..p.len())
+            .filter(|&j| j != i)
+            .filter(|&j| {
+                let d: f32 = (0..3)
+                    .map(|a| (p.positions[i][a] - p.positions[j][a]).powi(2))
+                    .sum();
+                d.sqrt() < 2.0 * r
+            })
+            .count()
+    };
+    let counts: Vec<usize> = (0..p.len()).map(touching).collect();
+    assert!(counts.iter().all(|&c| c >= 3), "a loose grain: {counts:?}");
+    assert!(counts.iter().filter(|&&c| c == 12).count() > 50);
+    // Its lowest grain half a radius above the floor.
+    let lowest = p.positions.iter().map(|c| c[2]).fold(f32::MAX, f32::min);
+    assert!(
+        (lowest - 1.5 * r).abs() < 1e-6,
+        "the lowest grain half a radius up: {lowest}"
+    );
+    // Bonded by water by default (1 nl between 1 mm grains); a material's own cohesion wins.
+    let bridge = start.params.bridge.expect("liquid bridges");
+    assert!((bridge.volume as f64 / 1.0053e-12 - 1.0).abs() < 1e-3);
+    let resolved = config.resolved(&start);
+    assert_eq!(resolved.material.cohesion, Some(CohesionKind::Capillary));
+    let jkr = SceneConfig::parse(
+        Some("scene = \"agglomerate\"\ncohesion = \"jkr\"\nsurface_energy = 0.1"),
+        None,
+        &Overrides::default(),
+    )
+    .unwrap();
+    let start = jkr.build().unwrap();
+    assert!(start.params.bridge.is_none() && start.params.friction.cohesive);
 }

@@ -713,6 +713,7 @@ impl Kernels {
     }
 
     /// Writes the proxy box of each of the `n` spheres of `pos` in `mode`, padded by `pad_rel`.
+    #[allow(clippy::too_many_arguments)]
     pub fn dem_boxes(
         &self,
         pos: &CudaSlice<f32>,
