@@ -304,7 +304,13 @@ impl Resident {
         let listed = [(NEAR, &lists.near), (LISTED, &lists.listed)];
         let (list_near, resolve) = match (&self.pipelines.listing, self.levels) {
             (Some([list_near, resolve_near]), Levels::Many) => {
-                let walk = [(PARAMS, &self.grid_uniform), cells, placed[1]];
+                // The law's parameters for the reach past touching of cohesive contacts.
+                let walk = [
+                    (PARAMS, &self.grid_uniform),
+                    (DEM, self.dem_uniform.buffer()),
+                    cells,
+                    placed[1],
+                ];
                 let walk = joined(&walk, &listed);
                 let list_near = gpu.bind("mochi.dem.list_near", list_near, &walk);
                 (Some(list_near), resolve_near)
