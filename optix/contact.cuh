@@ -38,6 +38,7 @@
 struct MochiLaw {
     LawParams dem;             // box, gravity, dt, the law and its models, the history's slots
     const MochiPairLaw* laws;  // the material table (MaterialTable::laws), row by row
+    MochiCohesion cohesion;    // the liquid bridges and the simplified JKR (zeros: none)
 };
 
 // Whether contacts carry springs from one step to the next (a contact history).
@@ -218,20 +219,20 @@ static __forceinline__ __device__ float mochi_jkr_radius(float overlap, float r_
 static __forceinline__ __device__ bool mochi_holds(const MochiLaw& g, const MochiPairLaw& law,
                                                    float r_eff, float overlap) {
     return (law.adhesion > 0.0f && overlap > mochi_jkr_break(r_eff, law.e_star, law.adhesion)) ||
-           (g.dem.cohesion.bridge_volume > 0.0f && -overlap < g.dem.cohesion.bridge_rupture);
+           (g.cohesion.bridge_volume > 0.0f && -overlap < g.cohesion.bridge_rupture);
 }
 
 // The pull of a liquid bridge between bodies of effective radius r_eff overlapping by `overlap`
 // (a gap where negative); 0 without bridges (contact.rs bridge_pull).
 static __forceinline__ __device__ float mochi_bridge_pull(const MochiLaw& g, float r_eff,
                                                           float overlap) {
-    float volume = g.dem.cohesion.bridge_volume;
+    float volume = g.cohesion.bridge_volume;
     if (volume == 0.0f) {
         return 0.0f;
     }
     float r = 2.0f * r_eff;
     float s = 0.5f * fmaxf(-overlap, 0.0f) * sqrtf(r / volume);
-    return 2.0f * MOCHI_PI * r * g.dem.cohesion.bridge_tension / (1.0f + 2.1f * s + 10.0f * s * s);
+    return 2.0f * MOCHI_PI * r * g.cohesion.bridge_tension / (1.0f + 2.1f * s + 10.0f * s * s);
 }
 
 // The pull of a bridge and of the simplified JKR on a sphere of radius r against a surface it
@@ -239,8 +240,8 @@ static __forceinline__ __device__ float mochi_bridge_pull(const MochiLaw& g, flo
 static __forceinline__ __device__ float mochi_surface_pull(const MochiLaw& g, float r,
                                                            float overlap) {
     float pull = mochi_bridge_pull(g, r, overlap);
-    if (g.dem.cohesion.density > 0.0f && overlap > 0.0f) {
-        pull += g.dem.cohesion.density * MOCHI_PI * overlap * (2.0f * r - overlap);
+    if (g.cohesion.density > 0.0f && overlap > 0.0f) {
+        pull += g.cohesion.density * MOCHI_PI * overlap * (2.0f * r - overlap);
     }
     return pull;
 }
@@ -508,12 +509,12 @@ static __forceinline__ __device__ bool mochi_pair_contact(const MochiLaw& g,
             return false;
         }
         pull = mochi_bridge_pull(g, r_eff, overlap);
-        if (g.dem.cohesion.density > 0.0f && !apart) {
+        if (g.cohesion.density > 0.0f && !apart) {
             // The area of the circle where the two spheres' surfaces meet (symmetric in i, j).
             float spread = fabsf(i.r - j.r);
             float area = MOCHI_PI / 4.0f *
                          ((reach - dist) * (reach + dist) * (dist - spread) * (dist + spread)) / d2;
-            pull += g.dem.cohesion.density * fmaxf(area, 0.0f);
+            pull += g.cohesion.density * fmaxf(area, 0.0f);
         }
         if (apart && law.adhesion == 0.0f) {
             // A liquid bridge across a gap: its pull alone (no friction: the partner's torque

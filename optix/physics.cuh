@@ -15,7 +15,8 @@ struct alignas(16) MochiPairLaw {
     float _pad1;
 };
 
-// The cohesion laws that are the step's, not a pair's (CohesionParams in src/dem/model/law.rs).
+// The cohesion laws that are the step's, not a pair's (CohesionParams in src/dem/model/law.rs;
+// in MochiLaw, contact.cuh: LawParams keeps the size it has without them).
 struct MochiCohesion {
     float bridge_volume;   // V of a liquid bridge [m³] (0: no bridges)
     float bridge_tension;  // γ·cos θ [N/m]
@@ -45,7 +46,6 @@ struct LawParams {
     float reach;                 // how far past touching a contact may hold [m] (0: none adheres)
     unsigned int loaded;         // 1: some sphere has an external load (read by the integrations)
     MochiPairLaw sphere_law;     // the table's row 0, column 0
-    MochiCohesion cohesion;
 };
 
 // The effective value a·b/(a + b) of two positive values (m*, R*, I*) without their product,

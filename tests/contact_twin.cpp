@@ -151,10 +151,10 @@ int main() {
         }
         g.dem.columns = std::stoul(h[12]);
         g.dem.box_column = std::stoul(h[13]);
-        g.dem.cohesion.bridge_volume = from_bits(h[14]);
-        g.dem.cohesion.bridge_tension = from_bits(h[15]);
-        g.dem.cohesion.bridge_rupture = from_bits(h[16]);
-        g.dem.cohesion.density = from_bits(h[17]);
+        g.cohesion.bridge_volume = from_bits(h[14]);
+        g.cohesion.bridge_tension = from_bits(h[15]);
+        g.cohesion.bridge_rupture = from_bits(h[16]);
+        g.cohesion.density = from_bits(h[17]);
         g.dem.reach = from_bits(h[18]);
         std::vector<MochiPairLaw> laws((h.size() - 19) / 7);
         for (size_t k = 0; k < laws.size(); ++k) {

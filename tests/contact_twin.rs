@@ -1021,10 +1021,10 @@ fn pair_law(l: &PairLaw) -> Value {
 }
 
 /// The blocks the laws read of `p`, for each global of `module` that holds one, with its bytes:
-/// the step's parameters with the law's (`dem`) and the material table
-/// (`material_laws`, row by row), as the engines fill them. Each value lies where naga lays its
-/// member out; a member named here that the WGSL lacks or types otherwise, or one of the WGSL's
-/// (but padding, `_*`) not named here, fails.
+/// the step's parameters with the law's (`dem`), the cohesion laws (`cohesion`) and the
+/// material table (`material_laws`, row by row), as the engines fill them. Each value lies where
+/// naga lays its member out; a member named here that the WGSL lacks or types otherwise, or one
+/// of the WGSL's (but padding, `_*`) not named here, fails.
 fn uploads(p: &StepParams, module: &naga::Module) -> Vec<(Binding, Vec<u8>)> {
     use Value::{F, Struct, U, V};
     let (f, table) = (&p.friction, &p.materials);
@@ -1054,15 +1054,15 @@ fn uploads(p: &StepParams, module: &naga::Module) -> Vec<(Binding, Vec<u8>)> {
                 ("loaded", U(0)),
                 ("reach", F(reach(p))),
                 ("sphere_law", pair_law(table.law(0, 0))),
-                (
-                    "cohesion",
-                    Struct(vec![
-                        ("bridge_volume", F(p.bridge.map_or(0.0, |b| b.volume))),
-                        ("bridge_tension", F(p.bridge.map_or(0.0, |b| b.tension))),
-                        ("bridge_rupture", F(p.bridge.map_or(0.0, |b| b.rupture))),
-                        ("density", F(p.cohesion_density)),
-                    ]),
-                ),
+            ])],
+        ),
+        (
+            "cohesion",
+            vec![Struct(vec![
+                ("bridge_volume", F(p.bridge.map_or(0.0, |b| b.volume))),
+                ("bridge_tension", F(p.bridge.map_or(0.0, |b| b.tension))),
+                ("bridge_rupture", F(p.bridge.map_or(0.0, |b| b.rupture))),
+                ("density", F(p.cohesion_density)),
             ])],
         ),
         ("material_laws", table.laws.iter().map(pair_law).collect()),

@@ -11,6 +11,17 @@
 // own torque (what the cpu computes from the partner's side: its operations see exactly negated
 // inputs).
 
+// The cohesion laws that are the step's, not a pair's; twin of CohesionParams in
+// src/dem/model/law.rs (apart from LawParams, which a dry step keeps as small as it was).
+struct CohesionParams {
+    bridge_volume: f32,   // V of a liquid bridge [m³] (0: no bridges)
+    bridge_tension: f32,  // γ·cos θ [N/m]
+    bridge_rupture: f32,  // the gap at which a bridge ruptures [m]
+    density: f32,         // cohesion energy density of LIGGGHTS' simplified JKR [J/m³] (0: none)
+}
+
+@group(0) @binding(37) var<uniform> cohesion: CohesionParams;
+
 // Row a (a sphere of material a), column b (a sphere or wall of material b; column
 // dem.columns - 1: a rigid wall) at a · dem.columns + b: MaterialTable::laws.
 @group(0) @binding(20) var<storage, read> material_laws: array<PairLaw>;
@@ -187,27 +198,27 @@ fn jkr_radius(overlap: f32, r_eff: f32, e_star: f32, adhesion: f32) -> f32 {
 // still holds: a JKR neck not yet broken, a liquid bridge not yet ruptured (contact.rs holds).
 fn holds(law: PairLaw, r_eff: f32, overlap: f32) -> bool {
     return (law.adhesion > 0.0 && overlap > jkr_break(r_eff, law.e_star, law.adhesion))
-        || (dem.cohesion.bridge_volume > 0.0 && -overlap < dem.cohesion.bridge_rupture);
+        || (cohesion.bridge_volume > 0.0 && -overlap < cohesion.bridge_rupture);
 }
 
 // The pull of a liquid bridge between bodies of effective radius r_eff overlapping by
 // `overlap` (a gap where negative); 0 without bridges (contact.rs bridge_pull).
 fn bridge_pull(r_eff: f32, overlap: f32) -> f32 {
-    let volume = dem.cohesion.bridge_volume;
+    let volume = cohesion.bridge_volume;
     if volume == 0.0 {
         return 0.0;
     }
     let r = 2.0 * r_eff;
     let s = 0.5 * max(-overlap, 0.0) * sqrt(r / volume);
-    return 2.0 * PI * r * dem.cohesion.bridge_tension / (1.0 + 2.1 * s + 10.0 * s * s);
+    return 2.0 * PI * r * cohesion.bridge_tension / (1.0 + 2.1 * s + 10.0 * s * s);
 }
 
 // The pull of a bridge and of the simplified JKR on a sphere of radius r against a surface it
 // overlaps by `overlap` (the area where they meet a circle in the surface's plane).
 fn surface_pull(r: f32, overlap: f32) -> f32 {
     var pull = bridge_pull(r, overlap);
-    if dem.cohesion.density > 0.0 && overlap > 0.0 {
-        pull += dem.cohesion.density * PI * overlap * (2.0 * r - overlap);
+    if cohesion.density > 0.0 && overlap > 0.0 {
+        pull += cohesion.density * PI * overlap * (2.0 * r - overlap);
     }
     return pull;
 }
@@ -348,12 +359,12 @@ fn pair_contact(i: Body, j: Body, old: Springs, bonded: bool) -> Contact {
             return out;
         }
         pull = bridge_pull(r_eff, overlap);
-        if dem.cohesion.density > 0.0 && !apart {
+        if cohesion.density > 0.0 && !apart {
             // The area of the circle where the two spheres' surfaces meet (symmetric in i, j).
             let spread = abs(i.r - j.r);
             let area =
                 PI / 4.0 * ((reach - dist) * (reach + dist) * (dist - spread) * (dist + spread)) / d2;
-            pull += dem.cohesion.density * max(area, 0.0);
+            pull += cohesion.density * max(area, 0.0);
         }
         if apart && law.adhesion == 0.0 {
             // A liquid bridge across a gap: its pull alone.

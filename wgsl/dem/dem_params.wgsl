@@ -24,16 +24,6 @@ struct LawParams {
     reach: f32,             // how far past touching a contact may hold [m] (0: none adheres)
     loaded: u32,            // 1: some sphere has an external load (read by the integrations)
     sphere_law: PairLaw,    // row 0, column 0 of the table: with one material, every pair's law
-    cohesion: CohesionParams,
-}
-
-// The cohesion laws that are the step's, not a pair's; twin of CohesionParams in
-// src/dem/model/law.rs.
-struct CohesionParams {
-    bridge_volume: f32,   // V of a liquid bridge [m³] (0: no bridges)
-    bridge_tension: f32,  // γ·cos θ [N/m]
-    bridge_rupture: f32,  // the gap at which a bridge ruptures [m]
-    density: f32,         // cohesion energy density of LIGGGHTS' simplified JKR [J/m³] (0: none)
 }
 
 // The law of one ordered pair of materials; twin of PairLaw in src/dem/model/materials.rs.

@@ -84,13 +84,16 @@ pub struct LawParams {
     /// The law of two spheres of the first material (the table's row 0, column 0): with one
     /// material every pair's.
     pub sphere_law: PairLaw,
-    /// The liquid bridges and LIGGGHTS' simplified JKR (zeros where there are none).
-    pub cohesion: CohesionParams,
 }
-const _: () = assert!(size_of::<LawParams>() == 144, "the device copies' size");
+// 128 bytes: a uniform that grew to 144 cost the paper's integration on the H200 (the cohesion
+// laws' parameters live apart, in `CohesionParams`).
+const _: () = assert!(size_of::<LawParams>() == 128, "the device copies' size");
 
 /// The cohesion laws that are the step's, not a material pair's, as the devices read them:
-/// [`Bridge`](super::Bridge) (a volume of 0: no bridges) and the cohesion energy density.
+/// [`Bridge`](super::Bridge) (a volume of 0: no bridges) and the cohesion energy density. Apart
+/// from [`LawParams`], so that a dry step's parameters stay as small as they were: the wgpu
+/// granular steps bind it as a uniform of its own (`cohesion` in `wgsl/dem/dem_contact.wgsl`),
+/// the optix step passes it in its law (`MochiLaw` in `optix/contact.cuh`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable, encase::ShaderType)]
 pub struct CohesionParams {
@@ -120,6 +123,18 @@ macro_rules! cohesion_params_fields {
     };
 }
 pub(crate) use cohesion_params_fields;
+
+impl CohesionParams {
+    /// The cohesion laws of `p`.
+    pub fn of(p: &StepParams) -> Self {
+        Self {
+            bridge_volume: p.bridge.map_or(0.0, |b| b.volume),
+            bridge_tension: p.bridge.map_or(0.0, |b| b.tension),
+            bridge_rupture: p.bridge.map_or(0.0, |b| b.rupture),
+            density: p.cohesion_density,
+        }
+    }
+}
 
 impl crate::gpu::shader::FirstWord for CohesionParams {
     fn first_word(&self) -> u32 {
@@ -154,7 +169,6 @@ macro_rules! law_params_fields {
                 reach,
                 loaded,
                 sphere_law,
-                cohesion,
             }
         )
     };
@@ -186,12 +200,6 @@ impl LawParams {
             reach: 0.0,
             loaded: 0,
             sphere_law: *p.materials.law(0, 0),
-            cohesion: CohesionParams {
-                bridge_volume: p.bridge.map_or(0.0, |b| b.volume),
-                bridge_tension: p.bridge.map_or(0.0, |b| b.tension),
-                bridge_rupture: p.bridge.map_or(0.0, |b| b.rupture),
-                density: p.cohesion_density,
-            },
         }
     }
 

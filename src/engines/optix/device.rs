@@ -10,6 +10,7 @@
 //! which is what makes the asynchronous launches sound.
 
 use super::sys::{self, Api};
+use crate::dem::model::law::CohesionParams;
 use crate::dem::model::{MaterialTable, PairLaw};
 use crate::engines::common::walls::WallTables;
 use crate::error::OptixError;
@@ -485,16 +486,23 @@ pub struct LawTable {
     pub(super) words: CudaSlice<u32>,
     /// Laws in a row: the materials and a rigid wall.
     pub(super) columns: u32,
+    /// The cohesion laws that are the step's (passed beside the table's address).
+    pub(super) cohesion: CohesionParams,
 }
 
 impl LawTable {
-    /// Uploads `table`.
-    pub fn upload(stream: &Arc<CudaStream>, table: &MaterialTable) -> Result<Self> {
+    /// Uploads `table`, to be read with the cohesion laws `cohesion`.
+    pub fn upload(
+        stream: &Arc<CudaStream>,
+        table: &MaterialTable,
+        cohesion: CohesionParams,
+    ) -> Result<Self> {
         Ok(Self {
             words: stream
                 .clone_htod(bytemuck::cast_slice::<PairLaw, u32>(&table.laws))
                 .map_err(cuda("uploading the material laws"))?,
             columns: table.count as u32 + 1,
+            cohesion,
         })
     }
 }

@@ -23,6 +23,7 @@ use super::device::{
 };
 use super::launches::{GranularBuffers, GranularIntegration, GranularKernels, GranularProgram};
 use super::programs::GranularLaw;
+use crate::dem::model::law::CohesionParams;
 use crate::dem::model::{LawParams, StepParams};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::common::walls::{WallTables, wall_loads};
@@ -127,7 +128,7 @@ impl Granular {
         let zeros = |len: usize| stream.alloc_zeros::<f32>(len.max(4)).map_err(&alloc);
         let loaded = params.friction.keeps_load();
         let table = params.materials.clone();
-        let laws = LawTable::upload(stream, &table)?;
+        let laws = LawTable::upload(stream, &table, CohesionParams::of(params))?;
         let keeps = params.friction.has_history();
         let r_max = particles.radius_range().1;
         let law = GranularLaw {

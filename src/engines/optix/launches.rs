@@ -10,6 +10,7 @@ use super::device::{
     MeshBuffers, Order, Pipeline, Result, State, check_len, cuda, per_sphere,
 };
 use super::programs::{self, GranularLaw, Unit};
+use crate::dem::model::law::CohesionParams;
 use crate::dem::model::{LawParams, PairLaw};
 use crate::engines::common::walls::MeshWallRow;
 use crate::error::OptixError;
@@ -122,7 +123,7 @@ struct DemLaunch {
     _pad: [u32; 2],
     dem: LawParams,
 }
-const _: () = assert!(size_of::<DemLaunch>() == 208);
+const _: () = assert!(size_of::<DemLaunch>() == 192);
 
 /// The buffers of one DEM contact launch.
 pub struct DemBuffers<'a> {
@@ -198,6 +199,7 @@ impl DemProgram {
 struct DeviceLaw {
     dem: LawParams,
     laws: u64,
+    cohesion: CohesionParams,
     /// `MochiLaw` is 16-byte aligned (its parameters' `sphere_law` is): its size, too.
     _pad: u64,
 }
@@ -226,6 +228,7 @@ impl DeviceLaw {
         Ok(Self {
             dem: *dem,
             laws: table.words.device_ptr(stream).0,
+            cohesion: table.cohesion,
             _pad: 0,
         })
     }
@@ -549,9 +552,19 @@ pub fn layout_checks(unit: Unit) -> String {
         use crate::dem::model::law::CohesionParams;
         crate::dem::model::law::cohesion_params_fields!(cuda_layout, "MochiCohesion")
     };
-    let law_params =
-        || pair_law() + &cohesion() + &crate::dem::model::law::law_params_fields!(cuda_layout);
-    let device_law = || law_params() + &cuda_layout!("MochiLaw", DeviceLaw { dem, laws });
+    let law_params = || pair_law() + &crate::dem::model::law::law_params_fields!(cuda_layout);
+    let device_law = || {
+        law_params()
+            + &cohesion()
+            + &cuda_layout!(
+                "MochiLaw",
+                DeviceLaw {
+                    dem,
+                    laws,
+                    cohesion
+                }
+            )
+    };
     let entry = || {
         cuda_layout!(
             "MochiHistoryEntry",

@@ -15,9 +15,10 @@
 //! from that state with K grown: no contact is ever dropped.
 
 use self::shader::{
-    ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, HELD_NEW, HELD_OLD, HISTORY_NEED, MATERIAL_LAWS, OMEGA,
-    TORQUE,
+    COHESION, ENTRIES_NEW, ENTRIES_OLD, ENTRY_PARTS, HELD_NEW, HELD_OLD, HISTORY_NEED,
+    MATERIAL_LAWS, OMEGA, TORQUE,
 };
+use crate::dem::model::law::CohesionParams;
 use crate::dem::model::{LawParams, StepParams};
 use crate::dem::stepper::StageTimes;
 use crate::dem::walls::WallSet;
@@ -49,6 +50,8 @@ pub(crate) mod shader {
     pub const OMEGA: Binding = Binding::read_write(18, "omega");
     /// The material table's laws (`PairLaw` rows, [`crate::dem::model::MaterialTable::laws`]).
     pub const MATERIAL_LAWS: Binding = Binding::read(20, "material_laws");
+    /// The step's cohesion laws ([`crate::dem::model::law::CohesionParams`]).
+    pub const COHESION: Binding = Binding::uniform(37, "cohesion");
     /// Declared by the torque accumulator (`dem_torque_*.wgsl`).
     pub const TORQUE: Binding = Binding::read_write(19, "torque");
     pub const HELD_OLD: Binding = Binding::read(21, "held_old");
@@ -85,6 +88,7 @@ pub(crate) mod shader {
         [
             OMEGA,
             MATERIAL_LAWS,
+            COHESION,
             TORQUE,
             HELD_OLD,
             HELD_NEW,
@@ -412,6 +416,8 @@ pub(crate) struct Granular {
     omega: Vec<wgpu::Buffer>,
     /// The material table's laws, row by row ([`MATERIAL_LAWS`]).
     laws: wgpu::Buffer,
+    /// The step's cohesion laws ([`COHESION`]).
+    cohesion: wgpu::Buffer,
     /// Torque accumulators in state order (zero between steps).
     torque: wgpu::Buffer,
     /// History slots, `split.slots` per sphere in rows in state order: the old ones of a step
@@ -507,6 +513,7 @@ impl Granular {
                     .write_buffer(&laws, 0, bytemuck::cast_slice(&table.laws));
                 laws
             },
+            cohesion: gpu.uniform(&label("cohesion"), &CohesionParams::of(params)),
             torque: make("torque", rows * 12),
             history: [0, 1].map(|k| History::new(gpu, engine, k, &split)),
             split,
@@ -563,6 +570,7 @@ impl Granular {
         let mut all = vec![
             (OMEGA, self.omega_of(on.set)),
             (MATERIAL_LAWS, &self.laws),
+            (COHESION, &self.cohesion),
             (TORQUE, &self.torque),
             (HELD_OLD, &self.held[parity]),
             (HELD_NEW, &self.held[1 - parity]),

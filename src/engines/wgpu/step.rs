@@ -134,14 +134,14 @@ fn law_params() -> SharedStruct {
     crate::dem::model::law::law_params_fields!(shared_struct)
 }
 
-/// [`LawParams`] with the structs it holds, as [`SharedStruct`]s: what every DEM module checks.
-pub(crate) fn law_structs() -> [SharedStruct; 3] {
-    [law_params(), pair_law(), cohesion_params()]
+/// [`LawParams`] with the struct it holds, as [`SharedStruct`]s: what every DEM module checks.
+pub(crate) fn law_structs() -> [SharedStruct; 2] {
+    [law_params(), pair_law()]
 }
 
-/// [`CohesionParams`](crate::dem::model::law::CohesionParams), `LawParams::cohesion`, as a
-/// [`SharedStruct`].
-fn cohesion_params() -> SharedStruct {
+/// [`CohesionParams`](crate::dem::model::law::CohesionParams), the granular modules'
+/// `cohesion` uniform, as a [`SharedStruct`].
+pub(crate) fn cohesion_params() -> SharedStruct {
     use crate::dem::model::law::CohesionParams;
     crate::dem::model::law::cohesion_params_fields!(shared_struct, "CohesionParams")
 }

@@ -442,6 +442,7 @@ pub fn modules() -> Vec<WgslModule> {
                 );
                 dem.structs.extend(step::law_structs());
                 dem.structs.extend([
+                    step::cohesion_params(),
                     crate::engines::common::walls::mesh_params(),
                     crate::engines::common::walls::mesh_wall_row(),
                 ]);

@@ -242,6 +242,7 @@ pub fn modules() -> Vec<WgslModule> {
                     vec![dem_rq::rq_params()],
                     step::law_structs().to_vec(),
                     vec![
+                        step::cohesion_params(),
                         crate::engines::common::walls::mesh_params(),
                         crate::engines::common::walls::mesh_wall_row(),
                     ],
