@@ -118,8 +118,8 @@ fn pull_off_of(s: &mut dyn Stepper, about: f32) -> f32 {
     let n = s.particles().unwrap().len();
     s.advance(3000).unwrap(); // the neck forms and settles
     let mut held = 0.0;
-    let rise = 5e-4 * about;
-    for k in 0..3200 {
+    let rise = 1e-3 * about;
+    for k in 0..1600 {
         let f = rise * k as f32;
         let mut forces = vec![[0.0f32; 3]; n];
         forces[n - 1] = [f, 0.0, 0.0];
@@ -131,12 +131,16 @@ fn pull_off_of(s: &mut dyn Stepper, about: f32) -> f32 {
             ..ExternalLoads::default()
         })
         .unwrap();
-        // A held pair is a contact; a sphere held by a wall keeps the wall in its history.
-        let touching = s.advance(10).unwrap().contacts > 0;
-        if !touching && (n == 2 || s.particles().unwrap().history.is_empty()) {
+        // A held pair is a contact; a sphere held by a wall keeps the wall in its history
+        // (read every fifth time: half a percent of the force apart).
+        let touching = s.advance(20).unwrap().contacts > 0;
+        let read = n == 1 && k % 5 == 0;
+        if !touching && (n == 2 || (read && s.particles().unwrap().history.is_empty())) {
             return held;
         }
-        held = f;
+        if n == 2 || read {
+            held = f;
+        }
     }
     panic!("the contact held up to {held} N");
 }
@@ -304,6 +308,10 @@ fn a_liquid_bridge_pulls_with_willetts_force_and_ruptures_at_lians_distance() {
             };
             s.set_external_loads(&loads).unwrap();
             s.advance(10).unwrap();
+            // Read every tenth time: half a percent of the force apart.
+            if k % 10 != 0 {
+                continue;
+            }
             let x = s.particles().unwrap().positions;
             if x[1][0] - x[0][0] - 2.0 * R > 0.2 * bridge.rupture {
                 break;
@@ -321,22 +329,23 @@ fn a_liquid_bridge_pulls_with_willetts_force_and_ruptures_at_lians_distance() {
         ]);
         start.velocities = vec![[-0.3, 0.0, 0.0], [0.3, 0.0, 0.0]];
         let mut s = open(start, &p);
+        // The gap grows by at most 0.6 m/s a step: the first step without the bridge is within
+        // a step's travel past the rupture distance.
         let travel = 0.6 * p.dt;
-        let mut last_gap = 0.0;
         for _ in 0..1000 {
-            let bridged = s.advance(1).unwrap().contacts > 0;
+            if s.advance(1).unwrap().contacts > 0 {
+                continue;
+            }
             let x = s.particles().unwrap().positions;
             let gap = x[1][0] - x[0][0] - 2.0 * R;
-            if !bridged {
-                assert!(
-                    gap >= bridge.rupture && last_gap < bridge.rupture + travel,
-                    "{last_gap}, {gap}"
-                );
-                return;
-            }
-            last_gap = gap;
+            assert!(
+                gap >= bridge.rupture && gap < bridge.rupture + 2.0 * travel,
+                "ruptured at a gap of {gap} m, not {} m",
+                bridge.rupture
+            );
+            return;
         }
-        panic!("the bridge never ruptured (gap {last_gap} m)");
+        panic!("the bridge never ruptured");
     });
 }
 
@@ -522,7 +531,7 @@ fn an_agglomerate_survives_a_slow_drop_and_breaks_up_in_a_fast_one() {
     let mass = 2500.0 * 4.0 / 3.0 * std::f64::consts::PI * r * r * r;
     let critical = (12.0 * bridge / mass).sqrt();
     assert!((critical / 0.16 - 1.0).abs() < 0.05, "v_c = {critical} m/s");
-    let grains = 200;
+    let grains = 120;
     for kind in common::dem_backends() {
         let _named = common::Naming(kind);
         let slow = pieces_after_a_drop(kind, grains, 0.2 * critical);

@@ -609,6 +609,7 @@ fn three_materials(
             restitution: Some(0.7),
             friction: Some(0.1),
             rolling_friction: Some(0.2),
+            surface_energy: None,
         }],
     }
 }

@@ -762,10 +762,9 @@ fn a_cohesive_heap_stands_where_a_dry_one_spreads_flat_on(kind: BackendKind) {
         adhesion,
         ..hertz(0.3, 0.0)
     };
+    // The dry one: `a_frictional_heap_keeps_its_slope_where_a_frictionless_one_spreads_flat`.
     let r = 0.005f32;
-    let [_, flat] = settle_pyramid(kind, &frictionless(0.0), r, 1.0);
     let [heap, _] = settle_pyramid(kind, &frictionless(5.0), r, 1.0);
-    assert_eq!(flat.1, 0, "dry: spheres off the floor at the end");
     assert!(
         heap.1 >= 20 && heap.0 >= 6.0 * r,
         "cohesive: {} spheres off the floor, top at {} m",

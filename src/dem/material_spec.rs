@@ -28,6 +28,7 @@
 //! [[material_pairs]]           # overrides the mixing rules for one pair
 //! materials = ["glass", "steel"]
 //! restitution = 0.8
+//! # surface_energy = 0.02      # Γ of the pair (cohesion = "jkr"; each material may give its own)
 //! friction = 0.2
 //!
 //! [[wall]]
@@ -69,6 +70,10 @@ pub struct MaterialConfig {
     /// Rolling friction coefficient of two spheres of it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rolling_friction: Option<f64>,
+    /// Work of adhesion Γ of two surfaces of it \[J/m²\] (`cohesion = "jkr"`; 0: it does not
+    /// adhere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface_energy: Option<f64>,
 }
 
 /// One `[[material_pairs]]` table: the coefficients of a pair of materials, where the mixing
@@ -87,6 +92,19 @@ pub struct MaterialPairConfig {
     /// Rolling friction coefficient of the pair.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rolling_friction: Option<f64>,
+    /// Work of adhesion Γ of the pair \[J/m²\] (`cohesion = "jkr"`; default: the geometric
+    /// mean of the two materials').
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface_energy: Option<f64>,
+}
+
+/// The error of a `surface_energy` in `what` of a scene whose cohesion is not JKR.
+fn jkr_only(what: &str) -> Error {
+    Error::InvalidConfig {
+        what: format!("scene key surface_energy of {what}"),
+        reason: "applies to cohesion = \"jkr\" (with a surface_energy at the top of the scene)"
+            .into(),
+    }
 }
 
 /// The index of the material called `name` in `tables`, or an error naming `user` (the key
@@ -161,8 +179,12 @@ pub fn materials(
                     other
                 }
             };
+            if t.surface_energy.is_some() && base.adhesion == 0.0 {
+                return Err(jkr_only(&format!("material \"{}\"", t.name)));
+            }
             Ok(Material {
                 density: t.density.unwrap_or(base.density),
+                adhesion: t.surface_energy.unwrap_or(base.adhesion),
                 restitution: t.restitution.unwrap_or(base.restitution),
                 friction: t.friction.unwrap_or(base.friction),
                 rolling_friction: t.rolling_friction.unwrap_or(base.rolling_friction),
@@ -181,6 +203,10 @@ pub fn materials(
                 restitution: p.restitution,
                 friction: p.friction,
                 rolling_friction: p.rolling_friction,
+                surface_energy: match (p.surface_energy, base.adhesion) {
+                    (Some(_), 0.0) => return Err(jkr_only("a [[material_pairs]] table")),
+                    (given, _) => given,
+                },
             })
         })
         .collect::<Result<Vec<_>>>()?;

@@ -37,6 +37,8 @@ pub struct PairOverride {
     pub friction: Option<f64>,
     /// Rolling friction coefficient μ_r of the pair.
     pub rolling_friction: Option<f64>,
+    /// Work of adhesion Γ of the pair \[J/m²\] (JKR).
+    pub surface_energy: Option<f64>,
 }
 
 /// The materials of a scene: at least one; all share the contact law's kind, the rolling and
@@ -139,6 +141,8 @@ impl Materials {
             check("restitution", p.restitution, &|e| e > 0.0 && e <= 1.0)?;
             check("friction", p.friction, &coefficient)?;
             check("rolling_friction", p.rolling_friction, &coefficient)?;
+            let energy = |g: f64| g == 0.0 || (g > 0.0 && (g as f32).is_normal());
+            check("surface_energy", p.surface_energy, &energy)?;
         }
         Ok(())
     }
@@ -327,7 +331,10 @@ impl MaterialTable {
             for b in (0..count).map(Some).chain([None]) {
                 let (e, mu, mu_r) = materials.coefficients(a, b);
                 let adhesion = match b {
-                    Some(b) => (ma.adhesion * materials.list[b].adhesion).sqrt(),
+                    Some(b) => materials
+                        .pair_override(a, b)
+                        .surface_energy
+                        .unwrap_or((ma.adhesion * materials.list[b].adhesion).sqrt()),
                     None => ma.adhesion,
                 };
                 let mut law = PairLaw {

@@ -868,3 +868,39 @@ fn an_agglomerate_is_a_ball_of_touching_grains_bonded_by_water_moving_down() {
     let start = jkr.build().unwrap();
     assert!(start.params.bridge.is_none() && start.params.friction.cohesive);
 }
+
+#[test]
+fn each_material_and_pair_of_materials_may_give_its_own_surface_energy() {
+    let scene = |pair: &str| {
+        format!(
+            "scene = \"freefall\"\nspheres = 20\ncohesion = \"jkr\"\nsurface_energy = 0.04\n\
+             [[materials]]\nname = \"a\"\n[[materials]]\nname = \"b\"\nsurface_energy = 0.09\n\
+             [[materials]]\nname = \"c\"\nsurface_energy = 0.0\n{pair}"
+        )
+    };
+    let law = |text: &str| {
+        let config = SceneConfig::parse(Some(text), None, &Overrides::default()).unwrap();
+        config.build().map(|s| s.params.materials)
+    };
+    let t = law(&scene("")).unwrap();
+    // Its own Γ with itself and with a rigid wall; the geometric mean with another material.
+    let wall = t.count as u32;
+    assert_eq!(t.law(0, 0).adhesion, 0.04);
+    assert_eq!(t.law(1, 1).adhesion, 0.09);
+    assert_eq!(t.law(1, wall).adhesion, 0.09);
+    assert!((t.law(0, 1).adhesion - 0.06).abs() < 1e-8);
+    assert_eq!(t.law(2, 0).adhesion, 0.0);
+    // A pair's own Γ, both ways.
+    let paired = "[[material_pairs]]\nmaterials = [\"a\", \"c\"]\nsurface_energy = 0.5\n";
+    let t = law(&scene(paired)).unwrap();
+    assert_eq!((t.law(0, 2).adhesion, t.law(2, 0).adhesion), (0.5, 0.5));
+    assert_eq!(t.law(2, 2).adhesion, 0.0);
+    // Refused without JKR, and out of range.
+    let dry = "scene = \"freefall\"\nspheres = 20\n[[materials]]\nname = \"a\"\n\
+               surface_energy = 0.1\n";
+    let e = law(dry).unwrap_err().to_string();
+    assert!(e.contains("applies to cohesion = \"jkr\""), "{e}");
+    let negative = "[[material_pairs]]\nmaterials = [\"a\", \"b\"]\nsurface_energy = -1\n";
+    let e = law(&scene(negative)).unwrap_err().to_string();
+    assert!(e.contains("surface_energy = -1, out of range"), "{e}");
+}
