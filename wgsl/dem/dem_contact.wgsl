@@ -258,16 +258,6 @@ fn normal_force(law: PairLaw, overlap: f32, vn: f32, m_eff: f32, r_eff: f32) -> 
     return Normal(push, elastic, s_n, push, 0.0);
 }
 
-// The normal force of a contact that also pulls by `pull` ≥ 0 (a bridge, the simplified JKR)
-// along n from i towards its partner: the force on i, the load grown by the pull.
-fn pulled(normal: ptr<function, Normal>, pull: f32, n: vec3<f32>) -> vec3<f32> {
-    if pull > 0.0 {
-        (*normal).load += pull;
-        return (pull - (*normal).push) * n;
-    }
-    return -(*normal).push * n;
-}
-
 // `x` turned into the plane normal to `n`: its normal part removed, its length kept.
 fn into_plane(x: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let t = x - dot3(x, n) * n;
@@ -375,7 +365,12 @@ fn pair_contact(i: Body, j: Body, old: Springs, bonded: bool) -> Contact {
     }
     var normal = normal_force(law, overlap, vn, m_eff, r_eff);
     out.touching = true;
-    out.force = pulled(&normal, pull, n);
+    out.force = -normal.push * n;
+    if COHESIVE && pull > 0.0 {
+        // The pull presses the contact as a load does.
+        normal.load += pull;
+        out.force = (pull - normal.push) * n;
+    }
     if dem.turns == 0u {
         return out;
     }
@@ -432,7 +427,11 @@ fn surface_contact(
     }
     // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
     var nf = normal_force(law, overlap, dot3(velocity - b.v, n), b.m, b.r);
-    out.force = pulled(&nf, pull, n);
+    out.force = -nf.push * n;
+    if COHESIVE && pull > 0.0 {
+        nf.load += pull;
+        out.force = (pull - nf.push) * n;
+    }
     if dem.turns == 0u {
         return out;
     }

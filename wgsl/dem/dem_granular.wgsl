@@ -298,15 +298,18 @@ fn finish(w: ptr<function, Walker>) {
             let above = b.r - (dem.box_hi[axis] - b.c[axis]);
             for (var side = 0u; side < 2u; side += 1u) {
                 let overlap = select(below, above, side == 1u);
-                let wall = 2u * axis + side;
                 // Within reach of the wall, a cohesive contact may hold: only then is it looked up.
                 let near = overlap > 0.0 || (COHESIVE && -overlap < dem.reach);
+                if !near {
+                    continue;
+                }
+                let wall = 2u * axis + side;
                 var old = Recalled(no_springs(), false);
-                if dem.slots > 0u && near {
+                if dem.slots > 0u {
                     old = old_wall_contact(w, wall);
                 }
                 // A cohesive contact of the last step holds past touching while its law lets it.
-                let held = COHESIVE && near && old.held && holds(law, b.r, overlap);
+                let held = COHESIVE && old.held && holds(law, b.r, overlap);
                 if overlap <= 0.0 && !held {
                     continue;
                 }
