@@ -71,7 +71,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
             mesh_force, mesh_torque,
             [&](unsigned int partner, unsigned int first, MochiSprings& springs) {
                 unsigned int s = mochi_find_from(old_slots, id, partner, first, springs);
-                return s < old_count[id] ? s + 1u : old_count[id];
+                return s < old_count[id] ? s : MOCHI_NO_SLOT;
             },
             [&](unsigned int partner, MochiSprings springs) {
                 if (held < slots) {

@@ -136,6 +136,8 @@ static __device__ float3 mochi_closest_point(const MochiMeshes& w, unsigned int 
 }
 
 #define MOCHI_NO_CELL 0xFFFFFFFFu
+// No old history slot of a contact.
+#define MOCHI_NO_SLOT 0xFFFFFFFFu
 
 // The offset in the grid of the cell of wall m's grid that holds the rest point p, or
 // MOCHI_NO_CELL outside the grid (a non-finite centre too).
@@ -190,10 +192,11 @@ static __device__ unsigned int mochi_mesh_candidates(const MochiMeshes& w, unsig
 }
 
 // Sphere b's contacts with every mesh wall at time t: their force and torque added to `force`
-// and `torque`; `old(partner, first)` gives the slot at or after `first` of the sphere's old
-// contact with `partner` and its springs (a slot ≥ its count: none), `keep(partner, springs)`
-// receives the springs to keep in order; in step `summing` the reactions go to the walls' loads
-// (lane `lane`).
+// and `torque`; `old(partner, first, springs)` gives the slot at or after `first` of the
+// sphere's old contact with `partner` and its springs (MOCHI_NO_SLOT: none),
+// `keep(partner, springs)` receives the springs to keep in order; in step `summing` the
+// reactions go to the walls' loads (lane `lane`). Where contacts adhere, a contact of the last
+// step holds past touching while its law lets it (src/engines/cpu/walls.rs).
 template <class Old, class Keep>
 static __device__ void mochi_mesh_contacts(const MochiLaw& g, const MochiMeshes& w,
                                            const MochiBody& b, float t, bool summing,
@@ -208,8 +211,11 @@ static __device__ void mochi_mesh_contacts(const MochiLaw& g, const MochiMeshes&
         if (cell == MOCHI_NO_CELL || w.grid[cell] >= w.grid[cell + 1u]) {
             continue;
         }
+        // Where contacts adhere, a contact of the last step may hold past touching, up to the
+        // reach.
+        float within = MOCHI_COHESIVE ? b.r + g.dem.reach : b.r;
         MochiNear near;
-        unsigned int found = mochi_mesh_candidates(w, cell, p, b.r, near);
+        unsigned int found = mochi_mesh_candidates(w, cell, p, within, near);
         if (found == 0u) {
             continue;
         }
@@ -244,12 +250,24 @@ static __device__ void mochi_mesh_contacts(const MochiLaw& g, const MochiMeshes&
             float3 n = mochi_rotate(pose.q, n_rest);
             float3 surface_velocity = mochi_add(
                 pose.velocity, mochi_cross(pose.spin, mochi_sub(point, pose.centre)));
+            // The k-th contact with this wall takes the k-th old entry of it.
             MochiSprings springs = mochi_no_springs();
+            unsigned int s = MOCHI_NO_SLOT;
             if (mochi_keeps(g)) {
-                next_old = old(partner, next_old, springs);
+                s = old(partner, next_old, springs);
             }
-            // d < r, but the square root may round up.
-            float overlap = fmaxf(b.r - d, 0.0f);
+            bool touching = near.d2[k] < b.r * b.r;
+            // d < r where touching, but the square root may round up.
+            float overlap = touching ? fmaxf(b.r - d, 0.0f) : b.r - d;
+            if (!touching && !(MOCHI_COHESIVE && s != MOCHI_NO_SLOT &&
+                               mochi_holds(g, mochi_law(g, b.material, m.column), b.r, overlap))) {
+                // Past touching, only a contact of the last step that still holds (its entry
+                // is left for the next contact).
+                continue;
+            }
+            if (s != MOCHI_NO_SLOT) {
+                next_old = s + 1u;
+            }
             MochiSurface c = mochi_surface_contact(g, b, n, overlap, surface_velocity, m.column,
                                                    m.own_friction, springs);
             f_wall = mochi_add(f_wall, c.force);

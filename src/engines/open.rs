@@ -238,17 +238,7 @@ pub fn open_setup(
     options: &Options,
 ) -> Result<Box<dyn Stepper>> {
     setup.particles.validate()?;
-    runs_the_law(kind, &setup)?;
     engine(kind)?.stepper(setup, options)
-}
-
-/// Refuses a scene whose contacts adhere with mesh walls on a GPU backend, whose mesh walls hold
-/// no contact past touching yet (`auto` then passes over it, saying why).
-fn runs_the_law(kind: BackendKind, setup: &DemSetup) -> Result<()> {
-    match kind {
-        BackendKind::Cpu => Ok(()),
-        _ => super::common::rows::dry_walls_only(kind.name(), &setup.params, &setup.walls),
-    }
 }
 
 /// Opens the DEM step the user chose, and names the backend it runs on; `auto` follows the
@@ -297,7 +287,6 @@ pub fn open_scene(
     }
     let open = |kind: BackendKind| -> Result<Box<dyn Stepper>> {
         setup.particles.validate()?;
-        runs_the_law(kind, &setup)?;
         engine(kind)?.flowing(setup.clone(), options, flow.clone())
     };
     let mut opened = choosing(choice, &BackendKind::FLOWING, open)?;

@@ -156,9 +156,15 @@ pub fn open_dem_shared(
     particles: &Particles,
     params: StepParams,
 ) -> Box<dyn Stepper> {
+    let setup = mochi::engines::DemSetup::new(particles.clone(), params, ProxyMode::Mochi);
+    open_setup_shared(kind, setup)
+}
+
+/// As [`open_dem_shared`], for a whole setup (walls included).
+pub fn open_setup_shared(kind: BackendKind, setup: mochi::engines::DemSetup) -> Box<dyn Stepper> {
+    use mochi::engines::KernelSet;
     use mochi::engines::wgpu::compute::{GridStepOptions, GridStepper};
     use mochi::engines::wgpu::rq::RqStepper;
-    use mochi::engines::{DemSetup, KernelSet};
     use std::sync::OnceLock;
     static COMPUTE: OnceLock<Gpu> = OnceLock::new();
     static RAY_QUERY: OnceLock<Gpu> = OnceLock::new();
@@ -166,7 +172,6 @@ pub fn open_dem_shared(
         cell.get_or_init(|| Gpu::open(need).expect("a probed adapter opens"))
             .clone()
     };
-    let setup = DemSetup::new(particles.clone(), params, ProxyMode::Mochi);
     let opened: mochi::Result<Box<dyn Stepper>> = match kind {
         BackendKind::WgpuCompute => GridStepper::open_on(
             shared(&COMPUTE, Need::Compute),
@@ -178,7 +183,7 @@ pub fn open_dem_shared(
             RqStepper::open_on(shared(&RAY_QUERY, Need::RayQuery), setup, KernelSet::Auto)
                 .map(|s| Box::new(s) as Box<dyn Stepper>)
         }
-        _ => return open_dem(kind, particles, setup.params, &Options::default()),
+        _ => mochi::engines::open_setup(kind, setup, &Options::default()),
     };
     opened.unwrap_or_else(|e| panic!("{} runs here but does not open: {e}", kind.name()))
 }

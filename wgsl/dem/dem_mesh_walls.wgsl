@@ -219,7 +219,12 @@ fn own_old_slot_from(w: ptr<function, Walker>, partner: u32, first: u32) -> u32 
 // (`summing`) their reactions added to the wall's loads.
 fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, cell: u32, p: vec3<f32>, summing: bool) {
     let b = (*w).me;
-    let found = mesh_candidates(cell, p, b.r);
+    // Where contacts adhere, a contact of the last step may hold past touching, up to the reach.
+    var within = b.r;
+    if COHESIVE {
+        within += dem.reach;
+    }
+    let found = mesh_candidates(cell, p, within);
     if found == 0u {
         return;
     }
@@ -252,18 +257,26 @@ fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, c
         let point = rotate(pose.q, q) + pose.offset;
         let n = rotate(pose.q, n_rest);
         let surface_velocity = pose.velocity + cross(pose.spin, point - pose.centre);
-        var old = no_springs();
+        // The k-th contact with this wall takes the k-th old entry of it.
+        var s = (*w).kept;
         if dem.slots > 0u {
-            let s = own_old_slot_from(w, partner, next_old);
-            if s < (*w).kept {
-                old = own_old_springs(w, s);
-                next_old = s + 1u;
-            } else {
-                next_old = (*w).kept;
-            }
+            s = own_old_slot_from(w, partner, next_old);
         }
-        // d < r, but the GPU's square root may round up (see pair_contact).
-        let overlap = max(b.r - d, 0.0);
+        let touching = near_d2[k] < b.r * b.r;
+        // d < r where touching, but the GPU's square root may round up (see pair_contact).
+        var overlap = b.r - d;
+        if touching {
+            overlap = max(overlap, 0.0);
+        } else if !(COHESIVE && s < (*w).kept && holds(law, b.r, overlap)) {
+            // Past touching, only a contact of the last step that still holds (its entry is
+            // left for the next contact).
+            continue;
+        }
+        var old = no_springs();
+        if s < (*w).kept {
+            old = own_old_springs(w, s);
+            next_old = s + 1u;
+        }
         let c = surface_contact(b, n, overlap, surface_velocity, law, mu, old);
         force += c.force;
         torque += c.torque;

@@ -199,19 +199,3 @@ pub(crate) fn not_fixed() -> Error {
             .into(),
     )
 }
-
-/// Refuses contacts that adhere with mesh walls on `backend`, a GPU step whose mesh walls hold
-/// no contact past touching yet.
-pub(crate) fn dry_walls_only(
-    backend: &str,
-    params: &crate::dem::model::StepParams,
-    walls: &crate::dem::walls::WallSet,
-) -> Result<()> {
-    match params.adheres() && !walls.meshes.is_empty() {
-        true => Err(Error::Usage(format!(
-            "cohesion with mesh walls runs on the cpu backend so far, not on {backend}: run \
-             with --backend cpu (or auto)"
-        ))),
-        false => Ok(()),
-    }
-}

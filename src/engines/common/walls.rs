@@ -94,12 +94,13 @@ struct WallGrid {
     cells: Vec<Vec<u32>>,
 }
 
-/// The grid over `mesh`'s rest geometry grown by the largest sphere radius `r_max`: cells of
-/// the largest diameter, larger where the bounds would need more cells than the budget; each
-/// triangle listed in every cell whose box grown by `r_max` it meets (a sphere's candidates are
-/// then the triangles of the one cell holding its centre, each once). The boxes are grown by
-/// 1 % more of a cell: rounding where the shader finds a centre's cell then never misses one.
-fn wall_grid(mesh: &TriangleMesh, r_max: f32, first_triangle: u32) -> WallGrid {
+/// The grid over `mesh`'s rest geometry grown by `reach`, the farthest a sphere's centre acts
+/// from a wall (the largest radius, plus how far past touching a contact may hold where contacts
+/// adhere): cells of twice that, larger where the bounds would need more cells than the budget;
+/// each triangle listed in every cell whose box grown by `reach` it meets (a sphere's candidates
+/// are then the triangles of the one cell holding its centre, each once). The boxes are grown
+/// by 1 % more of a cell: rounding where the shader finds a centre's cell then never misses one.
+fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
     let triangles = mesh.triangles();
     let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
     for t in triangles {
@@ -108,12 +109,12 @@ fn wall_grid(mesh: &TriangleMesh, r_max: f32, first_triangle: u32) -> WallGrid {
             hi = hi.max(c);
         }
     }
-    let (lo, hi) = (lo - Vec3::splat(r_max), hi + Vec3::splat(r_max));
+    let (lo, hi) = (lo - Vec3::splat(reach), hi + Vec3::splat(reach));
     let budget = CELLS_PER_TRIANGLE * triangles.len();
-    let (cell, dims) = grid_cell(hi - lo, 2.0 * r_max, budget);
+    let (cell, dims) = grid_cell(hi - lo, 2.0 * reach, budget);
     let lo = lo - Vec3::splat(0.5 * cell);
     let mut cells = vec![Vec::new(); dims.iter().map(|&d| d as usize).product()];
-    let grown = 0.5 * cell * 1.01 + r_max;
+    let grown = 0.5 * cell * 1.01 + reach;
     let index = |x: f32| x.floor().max(0.0) as u32;
     for (k, t) in triangles.iter().enumerate() {
         let (tlo, thi) = t
@@ -122,10 +123,10 @@ fn wall_grid(mesh: &TriangleMesh, r_max: f32, first_triangle: u32) -> WallGrid {
             .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &c| {
                 (a.min(c), b.max(c))
             });
-        let from = ((tlo - Vec3::splat(r_max) - lo) / cell - 0.01)
+        let from = ((tlo - Vec3::splat(reach) - lo) / cell - 0.01)
             .to_array()
             .map(index);
-        let to = ((thi + Vec3::splat(r_max) - lo) / cell + 0.01).to_array();
+        let to = ((thi + Vec3::splat(reach) - lo) / cell + 0.01).to_array();
         let to: [u32; 3] = std::array::from_fn(|a| index(to[a]).min(dims[a] - 1));
         for z in from[2]..=to[2] {
             for y in from[1]..=to[1] {
@@ -193,12 +194,13 @@ pub(crate) struct WallTables {
 }
 
 impl WallTables {
-    /// The tables of `walls` for spheres of radius at most `r_max`, refusing grids of more
-    /// than `max_words` words (the `engine` step's limit).
+    /// The tables of `walls` for spheres whose centres act on a wall from at most `reach` away
+    /// (the largest radius, plus the law's search margin where contacts adhere), refusing grids
+    /// of more than `max_words` words (the `engine` step's limit).
     pub fn new(
         walls: &WallSet,
         table: &MaterialTable,
-        r_max: f32,
+        reach: f32,
         max_words: u64,
         engine: &str,
     ) -> Result<Self> {
@@ -216,7 +218,7 @@ impl WallTables {
                         .map(|v| v.extend(0.0).to_array()),
                 );
             }
-            let g = wall_grid(&wall.triangles, r_max, first_triangle);
+            let g = wall_grid(&wall.triangles, reach, first_triangle);
             let m = wall.motion;
             let column = wall.column(table);
             rows.push(MeshWallRow {
@@ -285,8 +287,9 @@ pub(crate) fn wall_loads(
     if most > MESH_NEAR {
         return Err(Error::TooLarge {
             what: format!(
-                "triangles of one mesh wall within a sphere's radius in the {engine} step (a \
-                 mesh much finer than the spheres; the cpu backend takes any number)"
+                "triangles of one mesh wall within a sphere's radius (and its adhesion's reach) \
+                 in the {engine} step (a mesh much finer than the spheres; the cpu backend takes \
+                 any number)"
             ),
             got: most as u64,
             limit: MESH_NEAR as u64,

@@ -118,7 +118,6 @@ impl OptixStepper {
             walls,
         } = setup;
         let walls = &walls;
-        crate::engines::common::rows::dry_walls_only("optix", &params, walls)?;
         particles.separate_coincident()?;
         let device = open_device()?;
         let kernels = Kernels::load(&device)?;

@@ -145,7 +145,8 @@ impl Granular {
                 ..History::on_device(device, empty, false)?
             }
         };
-        let tables = WallTables::new(walls, &table, r_max, u32::MAX as u64, "optix")?;
+        let reach = r_max + params.reach;
+        let tables = WallTables::new(walls, &table, reach, u32::MAX as u64, "optix")?;
         Ok(Self {
             mesh: MeshBuffers::upload(stream, &tables)?,
             loads: vec![WallLoad::default(); walls.meshes.len()],

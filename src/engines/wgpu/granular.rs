@@ -502,7 +502,8 @@ impl Granular {
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
         let make = |what: &str, bytes: u64| gpu.storage(&label(what), bytes, none);
-        let mesh = MeshWalls::new(gpu, walls, table, rows as usize, room.radii.1, engine)?;
+        let reach = room.radii.1 + params.search_margin(room.radii.1);
+        let mesh = MeshWalls::new(gpu, walls, table, rows as usize, reach, engine)?;
         let granular = gpu.checked("allocating the granular step's buffers", || Self {
             omega: (0..sets)
                 .map(|k| make(&format!("omega{k}"), rows * 16))

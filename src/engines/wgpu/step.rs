@@ -326,7 +326,6 @@ impl DemModule {
         kernels: KernelSet,
         source: impl FnOnce(Accumulators, Lanes, Variant) -> String,
     ) -> Result<Self> {
-        crate::engines::common::rows::dry_walls_only(backend, params, walls)?;
         let room = room.holding(particles);
         let n = room.spheres as u64;
         if n > limit {

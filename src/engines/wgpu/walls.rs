@@ -51,18 +51,18 @@ pub(crate) struct MeshWalls {
 }
 
 impl MeshWalls {
-    /// The walls of `walls` for a step of `spheres` spheres of radius at most `r_max`, on
-    /// `gpu`, for the engine `engine`.
+    /// The walls of `walls` for a step of `spheres` spheres whose centres act on a wall from at
+    /// most `reach` away ([`WallTables::new`]), on `gpu`, for the engine `engine`.
     pub fn new(
         gpu: &Gpu,
         walls: &WallSet,
         table: &MaterialTable,
         spheres: usize,
-        r_max: f32,
+        reach: f32,
         engine: &'static str,
     ) -> Result<Self> {
         let max_words = gpu.limits.max_storage_buffer_binding_size / 4;
-        let tables = WallTables::new(walls, table, r_max, max_words, engine)?;
+        let tables = WallTables::new(walls, table, reach, max_words, engine)?;
         let params = tables.params;
         let none = wgpu::BufferUsages::empty();
         let label = |what: &str| format!("mochi.dem.{engine}.{what}");
