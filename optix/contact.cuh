@@ -222,6 +222,22 @@ static __forceinline__ __device__ bool mochi_holds(const MochiLaw& g, const Moch
            (g.cohesion.bridge_volume > 0.0f && -overlap < g.cohesion.bridge_rupture);
 }
 
+// The smallest gap a bridge's lubrication force takes, a fraction of R* (contact.rs).
+#define MOCHI_BRIDGE_MIN_GAP 0.01f
+
+// The lubrication force of a liquid bridge between bodies of effective radius r_eff overlapping
+// by `overlap` whose gap grows at `vn`: 6π·η·R*²·v_n/s, pulling them together where positive; 0
+// without a viscosity (contact.rs bridge_drag).
+static __forceinline__ __device__ float mochi_bridge_drag(const MochiLaw& g, float r_eff,
+                                                          float overlap, float vn) {
+    float eta = g.cohesion.bridge_viscosity;
+    if (eta == 0.0f) {
+        return 0.0f;
+    }
+    float gap = fmaxf(-overlap, MOCHI_BRIDGE_MIN_GAP * r_eff);
+    return 6.0f * MOCHI_PI * eta * r_eff * (r_eff / gap) * vn;
+}
+
 // The pull of a liquid bridge between bodies of effective radius r_eff overlapping by `overlap`
 // (a gap where negative); 0 without bridges (contact.rs bridge_pull).
 static __forceinline__ __device__ float mochi_bridge_pull(const MochiLaw& g, float r_eff,
@@ -285,14 +301,22 @@ static __forceinline__ __device__ MochiNormal mochi_normal_force(const MochiLaw&
     return out;
 }
 
+// `along` with a bridge's `drag` added, where there is one (contact.rs dragged).
+static __forceinline__ __device__ float mochi_dragged(float along, float drag) {
+    return drag != 0.0f ? along + drag : along;
+}
+
 // The normal force of a contact that also pulls by `pull` ≥ 0 (a bridge, the simplified JKR)
-// along n from i towards its partner: the force on i, the load grown by the pull.
-static __forceinline__ __device__ float3 mochi_pulled(MochiNormal& normal, float pull, float3 n) {
+// and a bridge's `drag` along n from i towards its partner: the force on i, the load grown by
+// the pull.
+static __forceinline__ __device__ float3 mochi_pulled(MochiNormal& normal, float pull, float drag,
+                                                      float3 n) {
+    float along = -normal.push;
     if (pull > 0.0f) {
         normal.load += pull;
-        return mochi_scale(pull - normal.push, n);
+        along = pull - normal.push;
     }
-    return mochi_scale(-normal.push, n);
+    return mochi_scale(mochi_dragged(along, drag), n);
 }
 
 // `x` turned into the plane normal to `n`: its normal part removed, its length kept.
@@ -504,11 +528,13 @@ static __forceinline__ __device__ bool mochi_pair_contact(const MochiLaw& g,
     out.rolling = mochi_zero3();
     out.springs = mochi_no_springs();
     float pull = 0.0f;
+    float drag = 0.0f;
     if (MOCHI_COHESIVE) {
         if (apart && !mochi_holds(g, law, r_eff, overlap)) {
             return false;
         }
         pull = mochi_bridge_pull(g, r_eff, overlap);
+        drag = mochi_bridge_drag(g, r_eff, overlap, vn);
         if (g.cohesion.density > 0.0f && !apart) {
             // The area of the circle where the two spheres' surfaces meet (symmetric in i, j).
             float spread = fabsf(i.r - j.r);
@@ -517,16 +543,16 @@ static __forceinline__ __device__ bool mochi_pair_contact(const MochiLaw& g,
             pull += g.cohesion.density * fmaxf(area, 0.0f);
         }
         if (apart && law.adhesion == 0.0f) {
-            // A liquid bridge across a gap: its pull alone (no friction: the partner's torque
-            // is zero).
+            // A liquid bridge across a gap: its pull alone, and its drag (no friction: the
+            // partner's torque is zero).
             out.sliding = 0.0f;
             out.rolling_friction = 0.0f;
-            out.force = mochi_scale(pull, n);
+            out.force = mochi_scale(mochi_dragged(pull, drag), n);
             return true;
         }
     }
     MochiNormal normal = mochi_normal_force(g, law, overlap, vn, m_eff, r_eff);
-    float3 force = mochi_pulled(normal, pull, n);
+    float3 force = mochi_pulled(normal, pull, drag, n);
     if (!g.dem.turns) {
         out.force = force;
         return true;
@@ -628,9 +654,11 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const MochiLaw&
                 continue;
             }
             float pull = 0.0f;
+            float drag = 0.0f;
             bool bridged = false;
             if (MOCHI_COHESIVE) {
                 pull = mochi_surface_pull(g, b.r, overlap);
+                drag = mochi_bridge_drag(g, b.r, overlap, vn);
                 bridged = overlap <= 0.0f && law.adhesion == 0.0f;
             }
             MochiNormal nf;
@@ -644,11 +672,14 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const MochiLaw&
             } else {
                 nf = mochi_normal_force(g, law, overlap, vn, b.m, b.r);
             }
-            // The push away from the wall, less a bridge's pull.
+            // The push away from the wall, less a bridge's pull and drag.
             float push = nf.push;
             if (pull > 0.0f) {
                 nf.load += pull;
                 push = nf.push - pull;
+            }
+            if (drag != 0.0f) {
+                push = push - drag;
             }
             if (side == 0) {
                 f += push;
@@ -697,18 +728,21 @@ static __device__ MochiSurface mochi_surface_contact(const MochiLaw& g, const Mo
     MochiSurface out;
     out.torque = mochi_zero3();
     out.springs = mochi_no_springs();
+    // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
+    float vn = mochi_dot(mochi_sub(velocity, b.v), n);
     float pull = 0.0f;
+    float drag = 0.0f;
     if (MOCHI_COHESIVE) {
         pull = mochi_surface_pull(g, b.r, overlap);
+        drag = mochi_bridge_drag(g, b.r, overlap, vn);
         if (overlap <= 0.0f && law.adhesion == 0.0f) {
-            // A liquid bridge across a gap: its pull alone.
-            out.force = mochi_scale(pull, n);
+            // A liquid bridge across a gap: its pull alone, and its drag.
+            out.force = mochi_scale(mochi_dragged(pull, drag), n);
             return out;
         }
     }
-    MochiNormal nf =
-        mochi_normal_force(g, law, overlap, mochi_dot(mochi_sub(velocity, b.v), n), b.m, b.r);
-    out.force = mochi_pulled(nf, pull, n);
+    MochiNormal nf = mochi_normal_force(g, law, overlap, vn, b.m, b.r);
+    out.force = mochi_pulled(nf, pull, drag, n);
     if (!g.dem.turns) {
         return out;
     }

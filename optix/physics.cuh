@@ -22,6 +22,7 @@ struct MochiCohesion {
     float bridge_tension;  // γ·cos θ [N/m]
     float bridge_rupture;  // the gap at which a bridge ruptures [m]
     float density;         // cohesion energy density of LIGGGHTS' simplified JKR [J/m³] (0: none)
+    float bridge_viscosity; // the bridges' liquid viscosity η [Pa·s] (0: no lubrication force)
 };
 
 // The step's parameters: the box, gravity, the time step and the contact law (LawParams in

@@ -2,7 +2,8 @@
 //! pull-off force of two spheres and of a sphere on a wall, 1.5·π·Γ·R*, reached by pulling
 //! slowly; a sphere hanging under a ceiling that holds when 1.5·π·Γ·R exceeds its weight by a
 //! tenth and falls when it is a tenth short. Liquid bridges (cohesion = "capillary"): the pull
-//! at contact 2πRγ·cos θ, the rupture at (1 + θ/2)·V^⅓, a wet sphere hanging from a ceiling.
+//! at contact 2πRγ·cos θ, the rupture at (1 + θ/2)·V^⅓, a wet sphere hanging from a ceiling,
+//! the lubrication impulse of a viscous bridge on spheres flying apart.
 //! LIGGGHTS' simplified JKR (cohesion = "sjkr"): the overlap where Hertz balances k·area. Mesh
 //! walls adhere as the box's do: spheres hang from a mesh ceiling.
 //! Each runs on every backend that runs here (cpu; wgpu-compute and wgpu-rq, on lavapipe under
@@ -249,11 +250,17 @@ fn a_resumed_cohesive_run_goes_on_bit_for_bit() {
 /// Water (γ = 0.072 N/m, θ = 0) in bridges of `volume` between spheres of [`sticky`]'s
 /// elastic law without adhesion.
 fn wet(volume: f64) -> Material {
+    wet_with(volume, 0.0)
+}
+
+/// [`wet`] with a liquid of viscosity `viscosity` \[Pa·s\].
+fn wet_with(volume: f64, viscosity: f64) -> Material {
     Material {
         bridge: Some(LiquidBridge {
             volume,
             surface_tension: 0.072,
             contact_angle: 0.0,
+            viscosity,
         }),
         ..sticky(0.0)
     }
@@ -327,6 +334,57 @@ fn a_liquid_bridge_pulls_with_willetts_force_and_ruptures_at_lians_distance() {
             return;
         }
         panic!("the bridge never ruptured");
+    });
+}
+
+/// The speed of each of two spheres flying apart at 0.3 m/s from touching, once their bridge of
+/// 1e-12 m³ of a liquid of viscosity `viscosity` has ruptured, at a time step of 0.1 µs (the gap
+/// grows by 0.6 µm a step: the drag's sum over the steps is its integral to within a percent).
+fn speed_after_rupture(
+    open: &dyn Fn(Particles, &StepParams) -> Box<dyn Stepper>,
+    viscosity: f64,
+) -> f32 {
+    let material = wet_with(1e-12, viscosity);
+    let p = StepParams::new(&material, 1e-7, [0.0; 3], [0.01; 3], [0.0; 3], 0.0, R).unwrap();
+    let mut start = spheres(vec![
+        [0.005 - R + 1e-7, 0.005, 0.005],
+        [0.005 + R - 1e-7, 0.005, 0.005],
+    ]);
+    start.velocities = vec![[-0.3, 0.0, 0.0], [0.3, 0.0, 0.0]];
+    let mut s = open(start, &p);
+    for _ in 0..200 {
+        if s.advance(20).unwrap().contacts == 0 {
+            return s.particles().unwrap().velocities[1][0];
+        }
+    }
+    panic!("the bridge never ruptured");
+}
+
+#[test]
+fn a_viscous_bridge_takes_the_lubrication_impulse_from_spheres_flying_apart() {
+    // The drag 6π·η·R*²·v/s, s the gap (at least s_min = R*/100), takes from each sphere the
+    // impulse 6π·η·R*²·∫ds/max(s, s_min) = 6π·η·R*²·(1 + δ₀/s_min + ln(s_r/s_min)) while the gap
+    // s goes from the overlap −δ₀ to the rupture distance s_r = V^⅓, whatever the speed on the
+    // way: the speed at rupture drops by that over the mass, against the same run without it.
+    let eta = 0.01;
+    let r_eff = (R / 2.0) as f64;
+    let s_min = 0.01 * r_eff;
+    let rupture = 1e-12f64.cbrt();
+    let overlap = 2e-7;
+    let mass = DENSITY * 4.0 / 3.0 * std::f64::consts::PI * (R as f64).powi(3);
+    let impulse = 6.0
+        * std::f64::consts::PI
+        * eta
+        * r_eff
+        * r_eff
+        * (1.0 + overlap / s_min + (rupture / s_min).ln());
+    let expected = impulse / mass;
+    on_each(|open| {
+        let lost = (speed_after_rupture(open, 0.0) - speed_after_rupture(open, eta)) as f64;
+        assert!(
+            (lost / expected - 1.0).abs() < 0.03,
+            "the drag took {lost} m/s, not {expected} m/s"
+        );
     });
 }
 

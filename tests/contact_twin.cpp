@@ -136,7 +136,8 @@ int main() {
         while (std::getline(ss, section, '|')) s.push_back(words(section));
         // Parameters: law, rolling model, turns, keeps, dt, k, box, the material table's
         // columns and the box walls' column, the bridge's volume, tension and rupture gap, the
-        // cohesion energy density and the reach, then each law's rate, E*, G*, ζ, μ, μ_r, Γ.
+        // cohesion energy density, the reach and the bridge's viscosity, then each law's rate,
+        // E*, G*, ζ, μ, μ_r, Γ.
         const std::vector<std::string>& h = s[0];
         MochiLaw g{};
         g.dem.law = std::stoul(h[0]);
@@ -156,10 +157,11 @@ int main() {
         g.cohesion.bridge_rupture = from_bits(h[16]);
         g.cohesion.density = from_bits(h[17]);
         g.dem.reach = from_bits(h[18]);
-        std::vector<MochiPairLaw> laws((h.size() - 19) / 7);
+        g.cohesion.bridge_viscosity = from_bits(h[19]);
+        std::vector<MochiPairLaw> laws((h.size() - 20) / 7);
         for (size_t k = 0; k < laws.size(); ++k) {
             MochiPairLaw& l = laws[k];
-            const std::string* x = &h[19 + 7 * k];
+            const std::string* x = &h[20 + 7 * k];
             l.rate = from_bits(x[0]);
             l.e_star = from_bits(x[1]);
             l.g_star = from_bits(x[2]);

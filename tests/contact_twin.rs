@@ -434,7 +434,7 @@ fn loaded_cases() -> Vec<Case<LoadedSprings>> {
 }
 
 /// Cases of cohesive materials of `S`'s tangential model: JKR (Γ of its own for a pair of
-/// materials), liquid bridges and the simplified JKR, under Hertz–Mindlin
+/// materials), liquid bridges (with and without a viscosity) and the simplified JKR, under Hertz–Mindlin
 /// with and without friction and rolling resistance, and (Mindlin's spring) bridges and the
 /// simplified JKR under the linear laws; at the tests' size and at radii of about 1e-8 m.
 fn cohesive_cases<S: Twin>(seed: u64) -> Vec<Case<S>> {
@@ -446,21 +446,27 @@ fn cohesive_cases<S: Twin>(seed: u64) -> Vec<Case<S>> {
     let per_pair = ContactLaw::LinearPerPair {
         contact_time: Some(1e-4),
     };
-    let bridge = |scale: f32| {
+    let bridge_of = |scale: f32, viscosity: f64| {
         Some(LiquidBridge {
             volume: 1e-9 * (scale as f64).powi(3),
             surface_tension: 0.072,
             contact_angle: 0.3,
+            viscosity,
         })
     };
+    let bridge = |scale: f32| bridge_of(scale, 0.0);
+    // A viscous liquid: the bridges' lubrication force too.
+    let viscous = |scale: f32| bridge_of(scale, 0.1);
     let mut out = Vec::new();
     for scale in [1.0f32, 2e-6] {
         let kinds = [
             (hertz, 0.5, None, 0.0),
             (hertz, 0.05, None, 0.0),
             (hertz, 0.0, bridge(scale), 0.0),
+            (hertz, 0.0, viscous(scale), 0.0),
             (hertz, 0.0, None, 1e5),
             (per_pair, 0.0, bridge(scale), 0.0),
+            (per_pair, 0.0, viscous(scale), 0.0),
             (ContactLaw::Linear, 0.0, None, 1e5),
         ];
         for (contact, adhesion, bridge, cohesion_density) in kinds {
@@ -672,7 +678,11 @@ fn params_section(p: &StepParams) -> String {
         .map_or([0.0; 3], |b| [b.volume, b.tension, b.rupture]);
     let cohesion: Vec<String> = bridge
         .into_iter()
-        .chain([p.cohesion_density, reach(p)])
+        .chain([
+            p.cohesion_density,
+            reach(p),
+            p.bridge.map_or(0.0, |b| b.viscosity),
+        ])
         .map(bits)
         .collect();
     format!(
@@ -1064,6 +1074,7 @@ fn uploads(p: &StepParams, module: &naga::Module) -> Vec<(Binding, Vec<u8>)> {
                 ("bridge_tension", F(p.bridge.map_or(0.0, |b| b.tension))),
                 ("bridge_rupture", F(p.bridge.map_or(0.0, |b| b.rupture))),
                 ("density", F(p.cohesion_density)),
+                ("bridge_viscosity", F(p.bridge.map_or(0.0, |b| b.viscosity))),
             ])],
         ),
         ("material_laws", table.laws.iter().map(pair_law).collect()),

@@ -18,6 +18,7 @@ struct CohesionParams {
     bridge_tension: f32,  // γ·cos θ [N/m]
     bridge_rupture: f32,  // the gap at which a bridge ruptures [m]
     density: f32,         // cohesion energy density of LIGGGHTS' simplified JKR [J/m³] (0: none)
+    bridge_viscosity: f32,// the bridges' liquid viscosity η [Pa·s] (0: no lubrication force)
 }
 
 @group(0) @binding(37) var<uniform> cohesion: CohesionParams;
@@ -213,6 +214,29 @@ fn bridge_pull(r_eff: f32, overlap: f32) -> f32 {
     return 2.0 * PI * r * cohesion.bridge_tension / (1.0 + 2.1 * s + 10.0 * s * s);
 }
 
+// The smallest gap a bridge's lubrication force takes, a fraction of R* (contact.rs BRIDGE_MIN_GAP).
+const BRIDGE_MIN_GAP: f32 = 0.01;
+
+// The lubrication force of a liquid bridge between bodies of effective radius r_eff overlapping
+// by `overlap` whose gap grows at `vn`: 6π·η·R*²·v_n/s, pulling them together where positive; 0
+// without a viscosity (contact.rs bridge_drag).
+fn bridge_drag(r_eff: f32, overlap: f32, vn: f32) -> f32 {
+    let eta = cohesion.bridge_viscosity;
+    if eta == 0.0 {
+        return 0.0;
+    }
+    let gap = max(-overlap, BRIDGE_MIN_GAP * r_eff);
+    return 6.0 * PI * eta * r_eff * (r_eff / gap) * vn;
+}
+
+// `along` with a bridge's `drag` added, where there is one (contact.rs dragged).
+fn dragged(along: f32, drag: f32) -> f32 {
+    if drag != 0.0 {
+        return along + drag;
+    }
+    return along;
+}
+
 // The pull of a bridge and of the simplified JKR on a sphere of radius r against a surface it
 // overlaps by `overlap` (the area where they meet a circle in the surface's plane).
 fn surface_pull(r: f32, overlap: f32) -> f32 {
@@ -344,11 +368,13 @@ fn pair_contact(i: Body, j: Body, old: Springs, bonded: bool) -> Contact {
     let r_eff = effective(i.r, j.r);
     let law = sphere_law(i.material, j.material);
     var pull = 0.0;
+    var drag = 0.0;
     if COHESIVE {
         if apart && !holds(law, r_eff, overlap) {
             return out;
         }
         pull = bridge_pull(r_eff, overlap);
+        drag = bridge_drag(r_eff, overlap, vn);
         if cohesion.density > 0.0 && !apart {
             // The area of the circle where the two spheres' surfaces meet (symmetric in i, j).
             let spread = abs(i.r - j.r);
@@ -357,19 +383,23 @@ fn pair_contact(i: Body, j: Body, old: Springs, bonded: bool) -> Contact {
             pull += cohesion.density * max(area, 0.0);
         }
         if apart && law.adhesion == 0.0 {
-            // A liquid bridge across a gap: its pull alone.
+            // A liquid bridge across a gap: its pull alone, and its drag.
             out.touching = true;
-            out.force = pull * n;
+            out.force = dragged(pull, drag) * n;
             return out;
         }
     }
     var normal = normal_force(law, overlap, vn, m_eff, r_eff);
     out.touching = true;
     out.force = -normal.push * n;
-    if COHESIVE && pull > 0.0 {
-        // The pull presses the contact as a load does.
-        normal.load += pull;
-        out.force = (pull - normal.push) * n;
+    if COHESIVE {
+        var along = -normal.push;
+        if pull > 0.0 {
+            // The pull presses the contact as a load does.
+            normal.load += pull;
+            along = pull - normal.push;
+        }
+        out.force = dragged(along, drag) * n;
     }
     if dem.turns == 0u {
         return out;
@@ -416,21 +446,28 @@ fn surface_contact(
     old: Springs,
 ) -> SurfaceContact {
     var out = SurfaceContact(vec3(0.0), vec3(0.0), no_springs());
+    // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
+    let vn = dot3(velocity - b.v, n);
     var pull = 0.0;
+    var drag = 0.0;
     if COHESIVE {
         pull = surface_pull(b.r, overlap);
+        drag = bridge_drag(b.r, overlap, vn);
         if overlap <= 0.0 && law.adhesion == 0.0 {
-            // A liquid bridge across a gap: its pull alone.
-            out.force = pull * n;
+            // A liquid bridge across a gap: its pull alone, and its drag.
+            out.force = dragged(pull, drag) * n;
             return out;
         }
     }
-    // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
-    var nf = normal_force(law, overlap, dot3(velocity - b.v, n), b.m, b.r);
+    var nf = normal_force(law, overlap, vn, b.m, b.r);
     out.force = -nf.push * n;
-    if COHESIVE && pull > 0.0 {
-        nf.load += pull;
-        out.force = (pull - nf.push) * n;
+    if COHESIVE {
+        var along = -nf.push;
+        if pull > 0.0 {
+            nf.load += pull;
+            along = pull - nf.push;
+        }
+        out.force = dragged(along, drag) * n;
     }
     if dem.turns == 0u {
         return out;

@@ -459,6 +459,9 @@ pub fn pair_contact<S: Kept>(
         return None;
     }
     let mut pull = p.bridge.map_or(0.0, |b| bridge_pull(&b, r_eff, overlap));
+    let drag = p
+        .bridge
+        .map_or(0.0, |b| bridge_drag(&b, r_eff, overlap, vn));
     if p.cohesion_density > 0.0 && !apart {
         // The area of the circle where the two spheres' surfaces meet, in terms symmetric in
         // i and j (the partner's side computes the same bits).
@@ -468,8 +471,8 @@ pub fn pair_contact<S: Kept>(
         pull += p.cohesion_density * area.max(0.0);
     }
     if apart && law.adhesion == 0.0 {
-        // A liquid bridge across a gap: its pull alone.
-        let force = pull * n;
+        // A liquid bridge across a gap: its pull alone, and its drag.
+        let force = dragged(pull, drag) * n;
         return Some(Contact {
             force,
             normal: force,
@@ -478,14 +481,15 @@ pub fn pair_contact<S: Kept>(
         });
     }
     let mut normal = normal_force(p, law, overlap, vn, m_eff, r_eff);
-    let force = match pull > 0.0 {
+    let along = match pull > 0.0 {
         true => {
             // The bridge presses the contact as a load does.
             normal.load += pull;
-            (pull - normal.push) * n
+            pull - normal.push
         }
-        false => -normal.push * n,
+        false => -normal.push,
     };
+    let force = dragged(along, drag) * n;
     if !p.friction.turns() {
         return Some(Contact {
             force,
@@ -531,6 +535,33 @@ pub fn bridge_pull(b: &Bridge, r_eff: f32, overlap: f32) -> f32 {
     let r = 2.0 * r_eff;
     let s = 0.5 * (-overlap).max(0.0) * (r / b.volume).sqrt();
     2.0 * PI * r * b.tension / (1.0 + 2.1 * s + 10.0 * s * s)
+}
+
+/// `along` with a bridge's `drag` added, where there is one (no drag: `along`'s own bits).
+#[inline(always)]
+fn dragged(along: f32, drag: f32) -> f32 {
+    match drag != 0.0 {
+        true => along + drag,
+        false => along,
+    }
+}
+
+/// The smallest gap the lubrication force of a bridge takes, as a fraction of the bodies'
+/// effective radius (the surfaces' roughness: the force is finite at contact).
+pub const BRIDGE_MIN_GAP: f32 = 0.01;
+
+/// The lubrication force of a liquid bridge `b` between bodies of effective radius `r_eff`
+/// overlapping by `overlap` (a gap where negative) whose gap grows at `vn` (negative where they
+/// approach): 6π·η·R*²·v_n/s (Reynolds' thin film between spheres; Adams & Perchard 1985), s the
+/// gap but at least [`BRIDGE_MIN_GAP`]·R*, positive where it pulls the bodies together \[N\];
+/// 0 without a viscosity.
+#[inline(always)]
+pub fn bridge_drag(b: &Bridge, r_eff: f32, overlap: f32, vn: f32) -> f32 {
+    if b.viscosity == 0.0 {
+        return 0.0;
+    }
+    let gap = (-overlap).max(BRIDGE_MIN_GAP * r_eff);
+    6.0 * PI * b.viscosity * r_eff * (r_eff / gap) * vn
 }
 
 /// Partner id of wall `w` in the contact history: walls 0..6 are the low and high walls of x,
@@ -581,6 +612,9 @@ pub fn wall_contacts<S: Kept>(
             let mut pull = p
                 .bridge
                 .map_or(0.0, |bridge| bridge_pull(&bridge, b.r, overlap));
+            let drag = p
+                .bridge
+                .map_or(0.0, |bridge| bridge_drag(&bridge, b.r, overlap, vn));
             if p.cohesion_density > 0.0 && overlap > 0.0 {
                 // The area of the circle where the sphere meets the wall's plane.
                 pull += p.cohesion_density * PI * overlap * (2.0 * b.r - overlap);
@@ -597,13 +631,17 @@ pub fn wall_contacts<S: Kept>(
                 },
                 false => normal_force(p, law, overlap, vn, b.m, b.r),
             };
-            // The push away from the wall, less a bridge's pull.
+            // The push away from the wall, less a bridge's pull and drag.
             let push = match pull > 0.0 {
                 true => {
                     nf.load += pull;
                     nf.push - pull
                 }
                 false => nf.push,
+            };
+            let push = match drag != 0.0 {
+                true => push - drag,
+                false => push,
             };
             match side {
                 0 => f += push,
@@ -684,13 +722,16 @@ pub fn surface_contact<S: Kept>(
     let mut pull = p
         .bridge
         .map_or(0.0, |bridge| bridge_pull(&bridge, b.r, overlap));
+    let drag = p
+        .bridge
+        .map_or(0.0, |bridge| bridge_drag(&bridge, b.r, overlap, vn));
     if p.cohesion_density > 0.0 && overlap > 0.0 {
         // The area of the circle where the sphere meets the surface's plane.
         pull += p.cohesion_density * PI * overlap * (2.0 * b.r - overlap);
     }
     if overlap <= 0.0 && law.adhesion == 0.0 {
-        // A liquid bridge across a gap: its pull alone.
-        let force = pull * n;
+        // A liquid bridge across a gap: its pull alone, and its drag.
+        let force = dragged(pull, drag) * n;
         return Contact {
             force,
             normal: force,
@@ -699,13 +740,14 @@ pub fn surface_contact<S: Kept>(
         };
     }
     let mut normal = normal_force(p, law, overlap, vn, b.m, b.r);
-    let force = match pull > 0.0 {
+    let along = match pull > 0.0 {
         true => {
             normal.load += pull;
-            (pull - normal.push) * n
+            pull - normal.push
         }
-        false => -normal.push * n,
+        false => -normal.push,
     };
+    let force = dragged(along, drag) * n;
     if !p.friction.turns() {
         return Contact {
             force,

@@ -105,6 +105,8 @@ pub struct CohesionParams {
     pub bridge_rupture: f32,
     /// The cohesion energy density of LIGGGHTS' simplified JKR \[J/m³\] (0: none).
     pub density: f32,
+    /// The bridges' liquid viscosity η \[Pa·s\] (0: no lubrication force).
+    pub bridge_viscosity: f32,
 }
 
 /// `$check!("CohesionParams", CohesionParams { every field })`: the one list of
@@ -118,6 +120,7 @@ macro_rules! cohesion_params_fields {
                 bridge_tension,
                 bridge_rupture,
                 density,
+                bridge_viscosity,
             }
         )
     };
@@ -132,6 +135,7 @@ impl CohesionParams {
             bridge_tension: p.bridge.map_or(0.0, |b| b.tension),
             bridge_rupture: p.bridge.map_or(0.0, |b| b.rupture),
             density: p.cohesion_density,
+            bridge_viscosity: p.bridge.map_or(0.0, |b| b.viscosity),
         }
     }
 }

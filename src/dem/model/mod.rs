@@ -78,6 +78,8 @@ pub struct Bridge {
     pub tension: f32,
     /// The gap at which a bridge ruptures, (1 + θ/2)·V^⅓ (Lian et al. 1993) \[m\].
     pub rupture: f32,
+    /// The liquid's dynamic viscosity η \[Pa·s\] (0: no lubrication force).
+    pub viscosity: f32,
 }
 
 impl Bridge {
@@ -87,6 +89,7 @@ impl Bridge {
             volume: bridge.volume as f32,
             tension: (bridge.surface_tension * bridge.contact_angle.cos()) as f32,
             rupture: ((1.0 + bridge.contact_angle / 2.0) * bridge.volume.cbrt()) as f32,
+            viscosity: bridge.viscosity as f32,
         }
     }
 }
@@ -275,6 +278,12 @@ impl StepParams {
                     b.volume, b.surface_tension
                 ));
             }
+            let eta = b.viscosity;
+            if !(eta == 0.0 || (eta > 0.0 && (eta as f32).is_normal())) {
+                return bad(&format!(
+                    "liquid_viscosity must be 0 or a positive number (Pa·s), got {eta}"
+                ));
+            }
             if !(0.0..std::f64::consts::FRAC_PI_2).contains(&b.contact_angle) {
                 return bad(&format!(
                     "contact_angle must be from 0 up to (not including) 90°, got {}°",
@@ -417,8 +426,12 @@ impl StepParams {
             return Some(format!("cohesion jkr (Γ up to {adhesion} J/m²)"));
         }
         if let Some(b) = self.bridge {
+            let viscous = match b.viscosity > 0.0 {
+                true => format!(", η {} Pa·s", b.viscosity),
+                false => String::new(),
+            };
             return Some(format!(
-                "cohesion capillary (V {:e} m³, γ·cos θ {} N/m, rupture at {:.3e} m)",
+                "cohesion capillary (V {:e} m³, γ·cos θ {} N/m, rupture at {:.3e} m{viscous})",
                 b.volume, b.tension, b.rupture
             ));
         }

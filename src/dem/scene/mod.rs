@@ -43,12 +43,12 @@
 //! rolling_model = "epsd" # or "constant-torque" (default epsd)
 //! tangential_model = "mindlin" # or "mindlin-deresiewicz" (hertz-mindlin only; default mindlin)
 //! cohesion = "jkr"       # JKR adhesion (hertz-mindlin only), "capillary" (liquid bridges) or
-//!                        # "sjkr" (LIGGGHTS' simplified JKR); with mesh walls the cpu
-//!                        # backend so far; default: dry
+//!                        # "sjkr" (LIGGGHTS' simplified JKR); default: dry
 //! surface_energy = 0.05  # jkr: J/m², the work of adhesion Γ: spheres pull off at 1.5·π·Γ·R*
 //! liquid_volume = 1e-12  # capillary: m³ of liquid in each bridge
 //! surface_tension = 0.072 # capillary: N/m (default: water's)
 //! contact_angle = 0      # capillary: degrees, from 0 up to 90 (default 0)
+//! liquid_viscosity = 1e-3 # capillary: Pa·s, the bridges' lubrication force (default 0: none)
 //! # cohesion = "sjkr", cohesion_energy_density = 1e5: LIGGGHTS' simplified JKR (J/m³)
 //!
 //! [[materials]]          # several materials (see `dem::material_spec`)
@@ -350,6 +350,10 @@ pub struct SceneMaterial {
     /// "capillary"`; default 0, fully wetting).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contact_angle: Option<f64>,
+    /// Dynamic viscosity of the liquid \[Pa·s\] (`cohesion = "capillary"`; default 0: the
+    /// bridges pull but do not resist motion).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub liquid_viscosity: Option<f64>,
     /// Cohesion energy density k \[J/m³\] (`cohesion = "sjkr"`: touching bodies attract with
     /// k times their contact area, as LIGGGHTS' `cohesion sjkr`).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -391,6 +395,7 @@ impl Default for SceneMaterial {
             liquid_volume: None,
             surface_tension: None,
             contact_angle: None,
+            liquid_viscosity: None,
             cohesion_energy_density: None,
         }
     }

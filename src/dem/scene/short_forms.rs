@@ -7,7 +7,7 @@
 use crate::error::{Error, Result};
 
 /// Each short form, with the table and the key of that table it stands for.
-pub const SHORT_FORMS: [(&str, &str, &str); 47] = [
+pub const SHORT_FORMS: [(&str, &str, &str); 48] = [
     ("scene", "source", "scene"),
     ("spheres", "source", "spheres"),
     ("seed", "source", "seed"),
@@ -54,6 +54,7 @@ pub const SHORT_FORMS: [(&str, &str, &str); 47] = [
     ("liquid_volume", "material", "liquid_volume"),
     ("surface_tension", "material", "surface_tension"),
     ("contact_angle", "material", "contact_angle"),
+    ("liquid_viscosity", "material", "liquid_viscosity"),
     (
         "cohesion_energy_density",
         "material",

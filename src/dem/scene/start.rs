@@ -429,6 +429,7 @@ impl SceneConfig {
             ("liquid_volume", this.liquid_volume),
             ("surface_tension", this.surface_tension),
             ("contact_angle", this.contact_angle),
+            ("liquid_viscosity", this.liquid_viscosity),
         ] {
             if given.is_some() && !capillary {
                 return of_law(key, "capillary");
@@ -467,6 +468,7 @@ impl SceneConfig {
                 volume,
                 surface_tension: this.surface_tension.unwrap_or(WATER_SURFACE_TENSION),
                 contact_angle: this.contact_angle.unwrap_or(0.0).to_radians(),
+                viscosity: this.liquid_viscosity.unwrap_or(0.0),
             }),
         };
         Ok(Material {

@@ -770,6 +770,15 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
         bridge.tension
     );
     assert!((bridge.rupture - (1.0 + std::f32::consts::PI / 6.0) * 1e-4).abs() < 1e-9);
+    assert_eq!(bridge.viscosity, 0.0);
+    let viscous = build(&[
+        "cohesion=\"capillary\"",
+        "liquid_volume=1e-12",
+        "liquid_viscosity=0.001",
+    ])
+    .unwrap();
+    assert_eq!(viscous.params.bridge.expect("a bridge").viscosity, 0.001);
+    assert!(viscous.params.describe().contains(", η 0.001 Pa·s)"));
     // The run's summary line names the law.
     assert!(
         start
@@ -811,6 +820,15 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
         (
             &["cohesion=\"jkr\"", "liquid_volume=1e-12"],
             "cohesion = \"capillary\"",
+        ),
+        (&["liquid_viscosity=0.001"], "cohesion = \"capillary\""),
+        (
+            &[
+                "cohesion=\"capillary\"",
+                "liquid_volume=1e-12",
+                "liquid_viscosity=-1",
+            ],
+            "liquid_viscosity must be 0 or a positive",
         ),
         (&["cohesion=\"sjkr\""], "needs cohesion_energy_density"),
         (&["cohesion_energy_density=1e5"], "cohesion = \"sjkr\""),

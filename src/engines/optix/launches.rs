@@ -201,7 +201,7 @@ struct DeviceLaw {
     laws: u64,
     cohesion: CohesionParams,
     /// `MochiLaw` is 16-byte aligned (its parameters' `sphere_law` is): its size, too.
-    _pad: u64,
+    _pad: u32,
 }
 const _: () = assert!(size_of::<DeviceLaw>() == 160);
 
