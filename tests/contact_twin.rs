@@ -1317,13 +1317,14 @@ impl SpirvDevice {
             overrides.any(|(_, o)| o.name.as_deref() == Some(name))
         };
         let (one_material, per_pair) = (declares("ONE_MATERIAL"), declares("PER_PAIR"));
-        let cohesive = declares("COHESIVE");
-        let pipeline = |(one_material, per_pair, cohesive): (bool, bool, bool)| {
+        let (cohesive, viscous) = (declares("COHESIVE"), declares("VISCOUS"));
+        let pipeline = |(one_material, per_pair, cohesive, viscous): (bool, bool, bool, bool)| {
             let mut constants = naga::back::PipelineConstants::default();
             for (name, on) in [
                 ("ONE_MATERIAL", one_material),
                 ("PER_PAIR", per_pair),
                 ("COHESIVE", cohesive),
+                ("VISCOUS", viscous),
             ] {
                 if on {
                     constants.insert(name.into(), 1.0);
@@ -1376,6 +1377,7 @@ impl SpirvDevice {
                 one_material && p.materials.count == 1,
                 per_pair && matches!(p.law, NormalLaw::LinearPerPair { .. }),
                 cohesive && p.adheres(),
+                viscous && p.bridge.is_some_and(|b| b.viscosity > 0.0),
             );
             let pipeline = pipelines.entry(key).or_insert_with(|| pipeline(key));
             let input: Vec<f32> = group.iter().flat_map(|&k| words(&cases[k])).collect();

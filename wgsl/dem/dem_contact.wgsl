@@ -217,12 +217,16 @@ fn bridge_pull(r_eff: f32, overlap: f32) -> f32 {
 // The smallest gap a bridge's lubrication force takes, a fraction of R* (contact.rs BRIDGE_MIN_GAP).
 const BRIDGE_MIN_GAP: f32 = 0.01;
 
+// Set where the bridges' liquid has a viscosity (its lubrication force compiled in: the other
+// cohesive steps keep their registers).
+override VISCOUS: bool = false;
+
 // The lubrication force of a liquid bridge between bodies of effective radius r_eff overlapping
 // by `overlap` whose gap grows at `vn`: 6π·η·R*²·v_n/s, pulling them together where positive; 0
 // without a viscosity (contact.rs bridge_drag).
 fn bridge_drag(r_eff: f32, overlap: f32, vn: f32) -> f32 {
     let eta = cohesion.bridge_viscosity;
-    if eta == 0.0 {
+    if !VISCOUS || eta == 0.0 {
         return 0.0;
     }
     let gap = max(-overlap, BRIDGE_MIN_GAP * r_eff);

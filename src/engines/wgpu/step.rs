@@ -356,6 +356,7 @@ impl DemModule {
             _ if granular.is_some() => [
                 ("ONE_MATERIAL", params.materials.count == 1),
                 ("COHESIVE", params.adheres()),
+                ("VISCOUS", params.bridge.is_some_and(|b| b.viscosity > 0.0)),
             ]
             .into_iter()
             .filter(|(_, on)| *on)
