@@ -93,6 +93,17 @@ impl Bridge {
         }
     }
 }
+/// The largest time step at which the lubrication force of bridges `bridge` damps the lightest
+/// spheres (mass `m`, radius `r`) stably: m*/c at the largest damping coefficient c =
+/// 6π·η·R*/[`BRIDGE_MIN_GAP`](contact::BRIDGE_MIN_GAP) (the gap at its least), half the explicit
+/// step's limit of 2m*/c; the same for two such spheres and for one on a wall \[s\]. `None`
+/// without a viscosity.
+pub fn drag_dt_limit(bridge: &LiquidBridge, m: f64, r: f64) -> Option<f64> {
+    (bridge.viscosity > 0.0).then(|| {
+        m * contact::BRIDGE_MIN_GAP as f64 / (6.0 * std::f64::consts::PI * bridge.viscosity * r)
+    })
+}
+
 /// Mass of a sphere of radius `r` \[kg\].
 pub fn mass(density: f32, r: f32) -> f32 {
     density * (4.0 / 3.0 * std::f32::consts::PI) * r * r * r
@@ -331,6 +342,17 @@ impl StepParams {
             return bad(&format!(
                 "time step {dt:e} s is too large for {}: the stable limit is {:e} s",
                 resolved.limited_by, resolved.dt_limit
+            ));
+        }
+        if let Some(limit) = m
+            .bridge
+            .and_then(|b| drag_dt_limit(&b, 2.0 * m_eff, r_min as f64))
+            && dt > limit
+        {
+            return bad(&format!(
+                "time step {dt:e} s is too large for the bridges' lubrication force (liquid_viscosity \
+                 {} Pa·s on spheres of r = {r_min:e} m): the stable limit is {limit:.3e} s",
+                m.bridge.map_or(0.0, |b| b.viscosity)
             ));
         }
         if let Err(reason) = check_gravity(gravity, dt, r_min) {

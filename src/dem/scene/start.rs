@@ -7,7 +7,7 @@ use crate::dem::flow::FlowSet;
 use crate::dem::material_spec::{self, material_index};
 use crate::dem::model::contact::moment_of_inertia;
 use crate::dem::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
-use crate::dem::model::{ContactLaw, LiquidBridge, Material, Materials, mass};
+use crate::dem::model::{ContactLaw, LiquidBridge, Material, Materials, drag_dt_limit, mass};
 use crate::numbers::widened;
 use crate::scenes::{self, Layout, Scene, SceneSpec};
 use crate::spheres::SphereSet;
@@ -221,6 +221,14 @@ impl SceneConfig {
                 Source::Mesh(_) => 2.5e-5,
                 _ => 1e-4,
             },
+        };
+        // A default time step stays (a thousandth) under the viscous bridges' limit too.
+        let lightest = mass(materials.lightest_density() as f32, r_min) as f64;
+        let dt = match (self.run.dt, material.bridge) {
+            (None, Some(b)) => {
+                drag_dt_limit(&b, lightest, r_min as f64).map_or(dt, |limit| dt.min(0.999 * limit))
+            }
+            _ => dt,
         };
         let spin =
             self.domain

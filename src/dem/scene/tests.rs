@@ -779,6 +779,25 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
     .unwrap();
     assert_eq!(viscous.params.bridge.expect("a bridge").viscosity, 0.001);
     assert!(viscous.params.describe().contains(", η 0.001 Pa·s)"));
+    // A viscous liquid's lubrication force limits the time step: the default stays under it,
+    // a larger one given is refused.
+    let thick = [
+        "cohesion=\"capillary\"",
+        "liquid_volume=1e-12",
+        "liquid_viscosity=50",
+    ];
+    let rule = build(&thick[..2]).unwrap().params.dt;
+    let limited = build(&thick).unwrap().params.dt;
+    assert!(
+        limited < 0.1 * rule,
+        "dt {limited} s, the Rayleigh rule's {rule} s"
+    );
+    let too_large = format!("dt={}", 2.0 * limited);
+    let refused = build(&[thick[0], thick[1], thick[2], &too_large]).expect_err("refused");
+    assert!(
+        refused.to_string().contains("lubrication force"),
+        "{refused}"
+    );
     // The run's summary line names the law.
     assert!(
         start
