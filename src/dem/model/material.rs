@@ -118,8 +118,8 @@ pub struct LiquidBridge {
     pub surface_tension: f64,
     /// Contact angle θ of the liquid on the solid \[rad\], in [0, π/2).
     pub contact_angle: f64,
-    /// Dynamic viscosity η of the liquid \[Pa·s\]: the bridge's lubrication force resists the
-    /// bodies' normal motion ([`bridge_drag`](super::contact::bridge_drag)); 0: none.
+    /// Dynamic viscosity η of the liquid \[Pa·s\]: the bridge's lubrication force (the contact
+    /// law's `bridge_drag`) resists the bodies' normal motion; 0: none.
     pub viscosity: f64,
 }
 
