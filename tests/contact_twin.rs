@@ -455,8 +455,9 @@ fn cohesive_cases<S: Twin>(seed: u64) -> Vec<Case<S>> {
         })
     };
     let bridge = |scale: f32| bridge_of(scale, 0.0);
-    // A viscous liquid: the bridges' lubrication force too.
-    let viscous = |scale: f32| bridge_of(scale, 0.1);
+    // A viscous liquid: the bridges' lubrication force too (its viscosity scaled with the size,
+    // so that the time step stays within the drag's limit, `drag_dt_limit`).
+    let viscous = |scale: f32| bridge_of(scale, 0.1 * scale as f64);
     let mut out = Vec::new();
     for scale in [1.0f32, 2e-6] {
         let kinds = [
