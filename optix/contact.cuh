@@ -37,7 +37,7 @@
 // table (DeviceLaw in src/engines/optix/launches.rs).
 struct MochiLaw {
     LawParams dem;             // box, gravity, dt, the law and its models, the history's slots
-    const MochiPairLaw* laws;  // the material table (MaterialTable::laws), row by row
+    const MochiTableLaw* laws; // the material table (MaterialTable::device_laws), row by row
     MochiCohesion cohesion;    // the liquid bridges and the simplified JKR (zeros: none)
 };
 
@@ -49,7 +49,13 @@ static __forceinline__ __device__ bool mochi_keeps(const MochiLaw& g) {
 // The law of a sphere of material a against a sphere or wall of column b (MaterialTable::law).
 static __forceinline__ __device__ MochiPairLaw mochi_law(const MochiLaw& g, unsigned int a,
                                                          unsigned int b) {
-    return g.laws[a * g.dem.columns + b];
+    return g.laws[a * g.dem.columns + b].law;
+}
+
+// The liquid bridge of a sphere of material a against column b (MaterialTable::bridge).
+static __forceinline__ __device__ MochiPairBridge mochi_bridge(const MochiLaw& g, unsigned int a,
+                                                               unsigned int b) {
+    return g.laws[a * g.dem.columns + b].bridge;
 }
 
 // ---- glam's Vec3 operations, component by component -------------------------------------------
@@ -214,12 +220,14 @@ static __forceinline__ __device__ float mochi_jkr_radius(float overlap, float r_
     return x * x;
 }
 
-// Whether a contact of `law` that held at the last step and now overlaps by `overlap` ≤ 0 still
-// holds: a JKR neck not yet broken, a liquid bridge not yet ruptured (contact.rs holds).
+// Whether a contact of `law` and bridge `wet` that held at the last step and now overlaps by
+// `overlap` ≤ 0 still holds: a JKR neck not yet broken, a liquid bridge not yet ruptured
+// (contact.rs holds).
 static __forceinline__ __device__ bool mochi_holds(const MochiLaw& g, const MochiPairLaw& law,
-                                                   float r_eff, float overlap) {
+                                                   const MochiPairBridge& wet, float r_eff,
+                                                   float overlap) {
     return (law.adhesion > 0.0f && overlap > mochi_jkr_break(r_eff, law.e_star, law.adhesion)) ||
-           (g.cohesion.bridge_volume > 0.0f && -overlap < g.cohesion.bridge_rupture);
+           (g.cohesion.bridge_volume > 0.0f && -overlap < wet.rupture);
 }
 
 // The smallest gap a bridge's lubrication force takes, a fraction of R* (contact.rs).
@@ -238,9 +246,11 @@ static __forceinline__ __device__ float mochi_bridge_drag(const MochiLaw& g, flo
     return 6.0f * MOCHI_PI * eta * r_eff * (r_eff / gap) * vn;
 }
 
-// The pull of a liquid bridge between bodies of effective radius r_eff overlapping by `overlap`
-// (a gap where negative); 0 without bridges (contact.rs bridge_pull).
-static __forceinline__ __device__ float mochi_bridge_pull(const MochiLaw& g, float r_eff,
+// The pull of a liquid bridge wetting the pair as `wet` says between bodies of effective radius
+// r_eff overlapping by `overlap` (a gap where negative); 0 without bridges (contact.rs
+// bridge_pull).
+static __forceinline__ __device__ float mochi_bridge_pull(const MochiLaw& g,
+                                                          const MochiPairBridge& wet, float r_eff,
                                                           float overlap) {
     float volume = g.cohesion.bridge_volume;
     if (volume == 0.0f) {
@@ -248,14 +258,15 @@ static __forceinline__ __device__ float mochi_bridge_pull(const MochiLaw& g, flo
     }
     float r = 2.0f * r_eff;
     float s = 0.5f * fmaxf(-overlap, 0.0f) * sqrtf(r / volume);
-    return 2.0f * MOCHI_PI * r * g.cohesion.bridge_tension / (1.0f + 2.1f * s + 10.0f * s * s);
+    return 2.0f * MOCHI_PI * r * wet.tension / (1.0f + 2.1f * s + 10.0f * s * s);
 }
 
 // The pull of a bridge and of the simplified JKR on a sphere of radius r against a surface it
 // overlaps by `overlap` (the area where they meet a circle in the surface's plane).
-static __forceinline__ __device__ float mochi_surface_pull(const MochiLaw& g, float r,
+static __forceinline__ __device__ float mochi_surface_pull(const MochiLaw& g,
+                                                           const MochiPairBridge& wet, float r,
                                                            float overlap) {
-    float pull = mochi_bridge_pull(g, r, overlap);
+    float pull = mochi_bridge_pull(g, wet, r, overlap);
     if (g.cohesion.density > 0.0f && overlap > 0.0f) {
         pull += g.cohesion.density * MOCHI_PI * overlap * (2.0f * r - overlap);
     }
@@ -530,10 +541,11 @@ static __forceinline__ __device__ bool mochi_pair_contact(const MochiLaw& g,
     float pull = 0.0f;
     float drag = 0.0f;
     if (MOCHI_COHESIVE) {
-        if (apart && !mochi_holds(g, law, r_eff, overlap)) {
+        MochiPairBridge wet = mochi_bridge(g, i.material, j.material);
+        if (apart && !mochi_holds(g, law, wet, r_eff, overlap)) {
             return false;
         }
-        pull = mochi_bridge_pull(g, r_eff, overlap);
+        pull = mochi_bridge_pull(g, wet, r_eff, overlap);
         drag = mochi_bridge_drag(g, r_eff, overlap, vn);
         if (g.cohesion.density > 0.0f && !apart) {
             // The area of the circle where the two spheres' surfaces meet (symmetric in i, j).
@@ -631,6 +643,7 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const MochiLaw&
     float v[3] = {b.v.x, b.v.y, b.v.z};
     float normal[3] = {0.0f, 0.0f, 0.0f};
     MochiPairLaw law = mochi_law(g, b.material, g.dem.box_column);
+    MochiPairBridge wet = mochi_bridge(g, b.material, g.dem.box_column);
     MochiWalls out;
     out.tangential = mochi_zero3();
     out.torque = mochi_zero3();
@@ -649,7 +662,7 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const MochiLaw&
             if (overlap > 0.0f || (MOCHI_COHESIVE && -overlap < g.dem.reach)) {
                 touched = old(wall, kept);
             }
-            bool held = MOCHI_COHESIVE && touched && mochi_holds(g, law, b.r, overlap);
+            bool held = MOCHI_COHESIVE && touched && mochi_holds(g, law, wet, b.r, overlap);
             if (overlap <= 0.0f && !held) {
                 continue;
             }
@@ -657,7 +670,7 @@ static __forceinline__ __device__ MochiWalls mochi_wall_contacts(const MochiLaw&
             float drag = 0.0f;
             bool bridged = false;
             if (MOCHI_COHESIVE) {
-                pull = mochi_surface_pull(g, b.r, overlap);
+                pull = mochi_surface_pull(g, wet, b.r, overlap);
                 drag = mochi_bridge_drag(g, b.r, overlap, vn);
                 bridged = overlap <= 0.0f && law.adhesion == 0.0f;
             }
@@ -733,7 +746,7 @@ static __device__ MochiSurface mochi_surface_contact(const MochiLaw& g, const Mo
     float pull = 0.0f;
     float drag = 0.0f;
     if (MOCHI_COHESIVE) {
-        pull = mochi_surface_pull(g, b.r, overlap);
+        pull = mochi_surface_pull(g, mochi_bridge(g, b.material, column), b.r, overlap);
         drag = mochi_bridge_drag(g, b.r, overlap, vn);
         if (overlap <= 0.0f && law.adhesion == 0.0f) {
             // A liquid bridge across a gap: its pull alone, and its drag.

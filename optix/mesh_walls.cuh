@@ -259,8 +259,10 @@ static __device__ void mochi_mesh_contacts(const MochiLaw& g, const MochiMeshes&
             bool touching = near.d2[k] < b.r * b.r;
             // d < r where touching, but the square root may round up.
             float overlap = touching ? fmaxf(b.r - d, 0.0f) : b.r - d;
-            if (!touching && !(MOCHI_COHESIVE && s != MOCHI_NO_SLOT &&
-                               mochi_holds(g, mochi_law(g, b.material, m.column), b.r, overlap))) {
+            if (!touching &&
+                !(MOCHI_COHESIVE && s != MOCHI_NO_SLOT &&
+                  mochi_holds(g, mochi_law(g, b.material, m.column),
+                              mochi_bridge(g, b.material, m.column), b.r, overlap))) {
                 // Past touching, only a contact of the last step that still holds (its entry
                 // is left for the next contact).
                 continue;

@@ -15,12 +15,28 @@ struct alignas(16) MochiPairLaw {
     float _pad1;
 };
 
+// The liquid bridge of one ordered pair of materials (PairBridge in src/dem/model/materials.rs).
+struct MochiPairBridge {
+    float tension;  // γ·cos θ of the pair [N/m]
+    float rupture;  // the gap at which the bridge ruptures [m]
+    float _pad0;
+    float _pad1;
+};
+
+// One entry of the material table: a pair's law and its bridge (TableLaw in
+// src/dem/model/materials.rs).
+struct alignas(16) MochiTableLaw {
+    MochiPairLaw law;
+    MochiPairBridge bridge;
+};
+
 // The cohesion laws that are the step's, not a pair's (CohesionParams in src/dem/model/law.rs;
 // in MochiLaw, contact.cuh: LawParams keeps the size it has without them).
 struct MochiCohesion {
     float bridge_volume;   // V of a liquid bridge [m³] (0: no bridges)
-    float bridge_tension;  // γ·cos θ [N/m]
-    float bridge_rupture;  // the gap at which a bridge ruptures [m]
+    float bridge_tension;  // γ·cos θ of two spheres of the first material [N/m] (the wgpu steps'
+                           // with one material; these programs read each pair's in the table)
+    float bridge_rupture;  // the gap at which their bridge ruptures [m]
     float density;         // cohesion energy density of LIGGGHTS' simplified JKR [J/m³] (0: none)
     float bridge_viscosity; // the bridges' liquid viscosity η [Pa·s] (0: no lubrication force)
 };

@@ -10,7 +10,7 @@
 //! CI; optix where it is expected), but the resumed run's (bit for bit, the cpu's).
 
 use mochi::dem::model::contact::{bridge_pull, jkr_break, jkr_pull_off, jkr_radius};
-use mochi::dem::model::{ContactLaw, LiquidBridge, Material};
+use mochi::dem::model::{ContactLaw, LiquidBridge, Material, Materials};
 use mochi::dem::walls::{WallConfig, WallSet};
 use mochi::dem::{ExternalLoads, Particles, StepParams, Stepper};
 use mochi::engines::cpu::CpuStepper;
@@ -194,14 +194,25 @@ fn hangs(
     ceiling: f32,
     ratio: f64,
 ) -> bool {
-    let g = 9.81;
     let mass = DENSITY * 4.0 / 3.0 * std::f64::consts::PI * (R as f64).powi(3);
-    let gamma = ratio * mass * g / (1.5 * std::f64::consts::PI * R as f64);
-    let p = params(&sticky(gamma), [0.0; 3]);
-    let mut s = open(spheres(vec![[0.005, 0.005, ceiling - R + 1e-7]]), &p);
+    let gamma = ratio * mass * G / (1.5 * std::f64::consts::PI * R as f64);
+    hangs_with(open, &params(&sticky(gamma), [0.0; 3]), ceiling)
+}
+
+/// Gravity's pull \[m/s²\].
+const G: f64 = 9.81;
+
+/// Whether a sphere (material 0 of `p`) touching a ceiling at height `ceiling` still hangs
+/// there once gravity has grown slowly to −[`G`] and held.
+fn hangs_with(
+    open: &dyn Fn(Particles, &StepParams) -> Box<dyn Stepper>,
+    p: &StepParams,
+    ceiling: f32,
+) -> bool {
+    let mut s = open(spheres(vec![[0.005, 0.005, ceiling - R + 1e-7]]), p);
     s.advance(3000).unwrap();
     for k in 1..=200 {
-        s.set_gravity([0.0, 0.0, -(g * k as f64 / 200.0) as f32])
+        s.set_gravity([0.0, 0.0, -(G * k as f64 / 200.0) as f32])
             .unwrap();
         s.advance(20).unwrap();
     }
@@ -270,12 +281,12 @@ fn wet_with(volume: f64, viscosity: f64) -> Material {
 fn a_liquid_bridge_pulls_with_willetts_force_and_ruptures_at_lians_distance() {
     let volume = 1e-12; // 1 nl: V^⅓ = 0.1 mm
     let p = params(&wet(volume), [0.0; 3]);
-    let bridge = p.bridge.expect("a bridge");
+    let (liquid, bridge) = (p.bridge.expect("a bridge"), *p.materials.bridge(0, 0));
     // At contact 2πRγ cos θ (R = 2R* = r for equal spheres), less across a gap, none beyond
     // the rupture distance (1 + θ/2)·V^⅓.
     let at_contact = 2.0 * PI * R * 0.072;
-    assert!((bridge_pull(&bridge, R / 2.0, 0.0) / at_contact - 1.0).abs() < 1e-6);
-    assert!(bridge_pull(&bridge, R / 2.0, -1e-5) < 0.7 * at_contact);
+    assert!((bridge_pull(&liquid, &bridge, R / 2.0, 0.0) / at_contact - 1.0).abs() < 1e-6);
+    assert!(bridge_pull(&liquid, &bridge, R / 2.0, -1e-5) < 0.7 * at_contact);
     assert!((bridge.rupture / 1e-4 - 1.0).abs() < 1e-5);
     on_each(|open| {
         // Pulled apart slowly, two spheres come off at the bridge's force at contact.
@@ -283,29 +294,7 @@ fn a_liquid_bridge_pulls_with_willetts_force_and_ruptures_at_lians_distance() {
             [0.005 - R + 1e-7, 0.005, 0.005],
             [0.005 + R - 1e-7, 0.005, 0.005],
         ]);
-        let mut s = open(start, &p);
-        s.advance(3000).unwrap();
-        let mut held = 0.0;
-        let rise = 5e-4 * at_contact;
-        for k in 0..3200 {
-            let f = rise * k as f32;
-            let forces = vec![[-f, 0.0, 0.0], [f, 0.0, 0.0]];
-            let loads = ExternalLoads {
-                forces,
-                ..ExternalLoads::default()
-            };
-            s.set_external_loads(&loads).unwrap();
-            s.advance(10).unwrap();
-            // Read every tenth time: half a percent of the force apart.
-            if k % 10 != 0 {
-                continue;
-            }
-            let x = s.particles().unwrap().positions;
-            if x[1][0] - x[0][0] - 2.0 * R > 0.2 * bridge.rupture {
-                break;
-            }
-            held = f;
-        }
+        let held = bridge_lets_go_at(&mut *open(start, &p), at_contact, bridge.rupture);
         assert!(
             (held / at_contact - 1.0).abs() < 0.03,
             "came off at {held} N, not {at_contact} N"
@@ -334,6 +323,98 @@ fn a_liquid_bridge_pulls_with_willetts_force_and_ruptures_at_lians_distance() {
             return;
         }
         panic!("the bridge never ruptured");
+    });
+}
+
+/// The force ±F along x on two touching spheres bonded by a bridge that ruptures at a gap of
+/// `rupture`, growing slowly from 0 to 1.6 times `about` after they settle, at which the bridge
+/// lets them go (their gap passes a fifth of the rupture distance).
+fn bridge_lets_go_at(s: &mut dyn Stepper, about: f32, rupture: f32) -> f32 {
+    s.advance(3000).unwrap();
+    let mut held = 0.0;
+    let rise = 5e-4 * about;
+    for k in 0..3200 {
+        let f = rise * k as f32;
+        let forces = vec![[-f, 0.0, 0.0], [f, 0.0, 0.0]];
+        let loads = ExternalLoads {
+            forces,
+            ..ExternalLoads::default()
+        };
+        s.set_external_loads(&loads).unwrap();
+        s.advance(10).unwrap();
+        // Read every tenth time: half a percent of the force apart.
+        if k % 10 != 0 {
+            continue;
+        }
+        let x = s.particles().unwrap().positions;
+        if x[1][0] - x[0][0] - 2.0 * R > 0.2 * rupture {
+            return held;
+        }
+        held = f;
+    }
+    panic!("the bridge held up to {held} N");
+}
+
+#[test]
+fn unlike_surfaces_pull_with_the_mean_of_their_contact_angles_cosines() {
+    // A liquid (γ = 0.02 N/m) that wets material 0 fully (θ = 0) and material 1 poorly (70°):
+    // between the two, or on a ceiling of material 1, a bridge pulls at contact with
+    // 2π·2R*·γ·(cos 0 + cos 70°)/2, two thirds of what it pulls between two of material 0.
+    let (gamma, theta) = (0.02, 70f64.to_radians());
+    let mixed = (1.0 + theta.cos()) / 2.0;
+    let wetting = |angle: f64, density: f64| Material {
+        density,
+        bridge: Some(LiquidBridge {
+            volume: 1e-12,
+            surface_tension: gamma,
+            contact_angle: angle,
+            viscosity: 0.0,
+        }),
+        ..sticky(0.0)
+    };
+    let materials = |density: f64| Materials {
+        list: vec![wetting(0.0, density), wetting(theta, DENSITY)],
+        names: ["grain", "plate"].map(String::from).to_vec(),
+        pairs: Vec::new(),
+    };
+    let with = |m: &Materials, box_material| {
+        let side = [0.01; 3];
+        let probe =
+            StepParams::with_materials(m, box_material, 1e-9, [0.0; 3], side, [0.0; 3], 0.0, R)
+                .unwrap();
+        let dt = 0.5 * probe.dt_limit as f64;
+        StepParams::with_materials(m, box_material, dt, [0.0; 3], side, [0.0; 3], 0.0, R).unwrap()
+    };
+    let p = with(&materials(DENSITY), None);
+    let rupture = p.materials.bridge(0, 1).rupture;
+    // Lian's rupture distance at the mean angle, (1 + 35°/2)·V^⅓.
+    let mean = (1.0 + theta / 4.0) * 1e-4;
+    assert!((rupture as f64 / mean - 1.0).abs() < 1e-6, "{rupture} m");
+    let at_contact = (2.0 * std::f64::consts::PI * R as f64 * gamma * mixed) as f32;
+    // The grain's bridge on its own kind: the sphere's own angle (as on a rigid wall).
+    assert!(p.materials.bridge(0, 0).tension == gamma as f32);
+    assert!(p.materials.bridge(0, 2).tension == gamma as f32);
+    // A grain's weight against the pull at contact on the plate's material: 2π·R·γ·(1 + cos θ)
+    // at ratio·m·g.
+    let density = |ratio: f64| {
+        let volume = 4.0 / 3.0 * std::f64::consts::PI * (R as f64).powi(3);
+        2.0 * at_contact as f64 / (ratio * G * volume)
+    };
+    on_each(|open| {
+        let mut pair = spheres(vec![
+            [0.005 - R + 1e-7, 0.005, 0.005],
+            [0.005 + R - 1e-7, 0.005, 0.005],
+        ]);
+        pair.materials = vec![0, 1];
+        let held = bridge_lets_go_at(&mut *open(pair, &p), at_contact, rupture);
+        assert!(
+            (held / at_contact - 1.0).abs() < 0.03,
+            "came off at {held} N, not {at_contact} N"
+        );
+        // Under the box's ceiling of the plate's material.
+        let under = |ratio: f64| hangs_with(open, &with(&materials(density(ratio)), Some(1)), 0.01);
+        assert!(under(1.1), "holds at 1.1 times its weight");
+        assert!(!under(0.9), "falls at 0.9 times its weight");
     });
 }
 
@@ -534,7 +615,6 @@ fn hang_from_a_mesh_ceiling(open: &dyn Fn(Particles, &StepParams, f64) -> Box<dy
         !hangs(&under_plate, 0.008, 0.9),
         "falls at 0.9 times its weight"
     );
-    let g = 9.81;
     let mass = DENSITY * 4.0 / 3.0 * std::f64::consts::PI * (R as f64).powi(3);
     // A liquid bridge holds it too; the plate is pulled down by its weight.
     let mut p = params(&wet(1e-12), [0.0; 3]);
@@ -546,7 +626,7 @@ fn hang_from_a_mesh_ceiling(open: &dyn Fn(Particles, &StepParams, f64) -> Box<dy
     assert!(z > 0.008 - R - 1e-5, "fell to {z}");
     let load = s.wall_loads()[0].force[2];
     assert!(
-        (-load / (mass * g) - 1.0).abs() < 0.02,
+        (-load / (mass * G) - 1.0).abs() < 0.02,
         "the plate holds {load} N"
     );
 }

@@ -136,8 +136,8 @@ int main() {
         while (std::getline(ss, section, '|')) s.push_back(words(section));
         // Parameters: law, rolling model, turns, keeps, dt, k, box, the material table's
         // columns and the box walls' column, the bridge's volume, tension and rupture gap, the
-        // cohesion energy density, the reach and the bridge's viscosity, then each law's rate,
-        // E*, G*, ζ, μ, μ_r, Γ.
+        // cohesion energy density, the reach and the bridge's viscosity, then each entry of the
+        // table: its law's rate, E*, G*, ζ, μ, μ_r, Γ and its bridge's tension and rupture gap.
         const std::vector<std::string>& h = s[0];
         MochiLaw g{};
         g.dem.law = std::stoul(h[0]);
@@ -158,10 +158,10 @@ int main() {
         g.cohesion.density = from_bits(h[17]);
         g.dem.reach = from_bits(h[18]);
         g.cohesion.bridge_viscosity = from_bits(h[19]);
-        std::vector<MochiPairLaw> laws((h.size() - 20) / 7);
+        std::vector<MochiTableLaw> laws((h.size() - 20) / 9);
         for (size_t k = 0; k < laws.size(); ++k) {
-            MochiPairLaw& l = laws[k];
-            const std::string* x = &h[20 + 7 * k];
+            MochiPairLaw& l = laws[k].law;
+            const std::string* x = &h[20 + 9 * k];
             l.rate = from_bits(x[0]);
             l.e_star = from_bits(x[1]);
             l.g_star = from_bits(x[2]);
@@ -169,6 +169,8 @@ int main() {
             l.sliding = from_bits(x[4]);
             l.rolling = from_bits(x[5]);
             l.adhesion = from_bits(x[6]);
+            laws[k].bridge.tension = from_bits(x[7]);
+            laws[k].bridge.rupture = from_bits(x[8]);
         }
         g.laws = laws.data();
         MochiBody i = body(s[1]);

@@ -434,9 +434,10 @@ fn loaded_cases() -> Vec<Case<LoadedSprings>> {
 }
 
 /// Cases of cohesive materials of `S`'s tangential model: JKR (Γ of its own for a pair of
-/// materials), liquid bridges (with and without a viscosity) and the simplified JKR, under Hertz–Mindlin
-/// with and without friction and rolling resistance, and (Mindlin's spring) bridges and the
-/// simplified JKR under the linear laws; at the tests' size and at radii of about 1e-8 m.
+/// materials), liquid bridges (a contact angle of its own for a pair; with and without a
+/// viscosity) and the simplified JKR, under Hertz–Mindlin with and without friction and rolling
+/// resistance, and (Mindlin's spring) bridges and the simplified JKR under the linear laws; at
+/// the tests' size and at radii of about 1e-8 m.
 fn cohesive_cases<S: Twin>(seed: u64) -> Vec<Case<S>> {
     let mut rand = common::noise(seed);
     let hertz = ContactLaw::HertzMindlin {
@@ -494,11 +495,17 @@ fn cohesive_cases<S: Twin>(seed: u64) -> Vec<Case<S>> {
                     rolling_model,
                     tangential_model: S::MODEL,
                     adhesion: [adhesion, 2.0 * adhesion][k],
-                    bridge,
+                    // The second material wets less: its pairs' bridges pull less and
+                    // rupture farther.
+                    bridge: bridge.map(|b| LiquidBridge {
+                        contact_angle: [b.contact_angle, 1.2][k],
+                        ..b
+                    }),
                     cohesion_density,
                     ..Material::default()
                 };
-                // One material, or two whose pair adheres with a Γ of its own.
+                // One material, or two whose pair adheres with a Γ and wets with a contact angle
+                // of its own.
                 let two = Materials {
                     list: vec![material(0), material(1)],
                     names: ["a", "b"].map(String::from).to_vec(),
@@ -616,7 +623,7 @@ fn three_materials(
             restitution: Some(0.7),
             friction: Some(0.1),
             rolling_friction: Some(0.2),
-            surface_energy: None,
+            ..PairOverride::default()
         }],
     }
 }
@@ -652,7 +659,7 @@ fn reach(p: &StepParams) -> f32 {
 /// The parameters' section of a case (the order `contact_twin.cpp` reads): the law, the
 /// models, dt, k, the box, the material table's columns and the box walls' column, the liquid
 /// bridge's volume, tension and rupture gap, the cohesion energy density and the reach, then
-/// every law's seven values, row by row.
+/// every entry's nine values (its law's seven, its bridge's two), row by row.
 fn params_section(p: &StepParams) -> String {
     let law = p.law.code();
     let f = p.friction;
@@ -661,7 +668,8 @@ fn params_section(p: &StepParams) -> String {
     let laws: Vec<String> = table
         .laws
         .iter()
-        .flat_map(|l| {
+        .zip(&table.bridges)
+        .flat_map(|(l, b)| {
             [
                 l.rate,
                 l.e_star,
@@ -670,13 +678,18 @@ fn params_section(p: &StepParams) -> String {
                 l.sliding,
                 l.rolling,
                 l.adhesion,
+                b.tension,
+                b.rupture,
             ]
         })
         .map(bits)
         .collect();
-    let bridge = p
-        .bridge
-        .map_or([0.0; 3], |b| [b.volume, b.tension, b.rupture]);
+    let first = table.bridge(0, 0);
+    let bridge = [
+        p.bridge.map_or(0.0, |b| b.volume),
+        first.tension,
+        first.rupture,
+    ];
     let cohesion: Vec<String> = bridge
         .into_iter()
         .chain([
@@ -923,13 +936,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     put_contact(c.force, c.torque_i, c.springs);
     put_contact(-c.force, c.torque_j, springs_from(entry_of(0u, c.springs), -1.0));
     // The surface, as wall_contacts (dem_mesh_walls.wgsl) meets a mesh wall's point.
-    let law = law_of(i.material, bitcast<u32>(cases[s + 7u]));
+    let column = bitcast<u32>(cases[s + 7u]);
+    let law = law_of(i.material, column);
     let own = cases[s + 8u];
     let mu = select(law.sliding, own, own >= 0.0);
-    let m = surface_contact(i, vec_at(s), cases[s + 3u], vec_at(s + 4u), law, mu, old);
+    let wet = bridge_of(i.material, column);
+    let m = surface_contact(i, vec_at(s), cases[s + 3u], vec_at(s + 4u), law, wet, mu, old);
     put_contact(m.force, m.torque, m.springs);
     // The box walls, as finish (dem_granular.wgsl) meets them.
     let box_law = law_of(i.material, dem.box_column);
+    let box_wet = bridge_of(i.material, dem.box_column);
     for (var axis = 0u; axis < 3u; axis += 1u) {
         let below = i.r - (i.c[axis] - dem.box_lo[axis]);
         let above = i.r - (dem.box_hi[axis] - i.c[axis]);
@@ -938,7 +954,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             next = k * RESULT_WORDS + 1u + 3u * CONTACT_WORDS + wall * WALL_WORDS;
             let overlap = select(below, above, side == 1u);
             // Every wall of a case touched at the last step.
-            let held = COHESIVE && holds(box_law, i.r, overlap);
+            let held = COHESIVE && holds(box_law, box_wet, i.r, overlap);
             if overlap <= 0.0 && !held {
                 put(0.0);
                 continue;
@@ -949,7 +965,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             var n = vec3(0.0);
             n[axis] = select(-1.0, 1.0, side == 1u);
-            let w = surface_contact(i, n, overlap, vec3(0.0), box_law, box_law.sliding, kept);
+            let w =
+                surface_contact(i, n, overlap, vec3(0.0), box_law, box_wet, box_law.sliding, kept);
             put(1.0);
             put_contact(w.force, w.torque, w.springs);
         }
@@ -1072,13 +1089,29 @@ fn uploads(p: &StepParams, module: &naga::Module) -> Vec<(Binding, Vec<u8>)> {
             "cohesion",
             vec![Struct(vec![
                 ("bridge_volume", F(p.bridge.map_or(0.0, |b| b.volume))),
-                ("bridge_tension", F(p.bridge.map_or(0.0, |b| b.tension))),
-                ("bridge_rupture", F(p.bridge.map_or(0.0, |b| b.rupture))),
+                ("bridge_tension", F(table.bridge(0, 0).tension)),
+                ("bridge_rupture", F(table.bridge(0, 0).rupture)),
                 ("density", F(p.cohesion_density)),
                 ("bridge_viscosity", F(p.bridge.map_or(0.0, |b| b.viscosity))),
             ])],
         ),
-        ("material_laws", table.laws.iter().map(pair_law).collect()),
+        (
+            "material_laws",
+            table
+                .laws
+                .iter()
+                .zip(&table.bridges)
+                .map(|(l, b)| {
+                    Struct(vec![
+                        ("law", pair_law(l)),
+                        (
+                            "bridge",
+                            Struct(vec![("tension", F(b.tension)), ("rupture", F(b.rupture))]),
+                        ),
+                    ])
+                })
+                .collect(),
+        ),
     ];
     let mut layouter = Layouter::default();
     layouter.update(module.to_ctx()).unwrap();

@@ -585,7 +585,7 @@ fn several_materials_follow_the_cpu_step() {
             restitution: Some(0.6),
             friction: Some(0.2),
             rolling_friction: Some(0.02),
-            surface_energy: None,
+            ..PairOverride::default()
         }],
     };
     let dt = 0.2

@@ -29,6 +29,8 @@
 //! materials = ["glass", "steel"]
 //! restitution = 0.8
 //! # surface_energy = 0.02      # Γ of the pair (cohesion = "jkr"; each material may give its own)
+//! # contact_angle = 30         # θ of the liquid on the pair, degrees (cohesion = "capillary";
+//! #                            # each material may give its own, the walls' too)
 //! friction = 0.2
 //!
 //! [[wall]]
@@ -42,7 +44,7 @@
 //! theirs by the `material` column of a CSV input, the 11th column of a `.npy` input (the
 //! index in the order of the tables, from 0).
 
-use super::model::{ContactLaw, MAX_MATERIALS, Material, Materials, PairOverride};
+use super::model::{ContactLaw, LiquidBridge, MAX_MATERIALS, Material, Materials, PairOverride};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -74,6 +76,9 @@ pub struct MaterialConfig {
     /// adhere).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub surface_energy: Option<f64>,
+    /// Contact angle of the bridges' liquid on it \[degrees\] (`cohesion = "capillary"`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_angle: Option<f64>,
 }
 
 /// One `[[material_pairs]]` table: the coefficients of a pair of materials, where the mixing
@@ -96,6 +101,21 @@ pub struct MaterialPairConfig {
     /// mean of the two materials').
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub surface_energy: Option<f64>,
+    /// Contact angle of the bridges' liquid on the pair \[degrees\] (`cohesion = "capillary"`;
+    /// default: mixed from the two materials', see
+    /// [`PairBridge::mixed`](super::model::PairBridge::mixed)).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_angle: Option<f64>,
+}
+
+/// The error of a `contact_angle` in `what` of a scene whose cohesion is not capillary.
+fn capillary_only(what: &str) -> Error {
+    Error::InvalidConfig {
+        what: format!("scene key contact_angle of {what}"),
+        reason: "applies to cohesion = \"capillary\" (with a liquid_volume at the top of the \
+                 scene)"
+            .into(),
+    }
 }
 
 /// The error of a `surface_energy` in `what` of a scene whose cohesion is not JKR.
@@ -182,7 +202,16 @@ pub fn materials(
             if t.surface_energy.is_some() && base.adhesion == 0.0 {
                 return Err(jkr_only(&format!("material \"{}\"", t.name)));
             }
+            let bridge = match (base.bridge, t.contact_angle) {
+                (Some(liquid), Some(degrees)) => Some(LiquidBridge {
+                    contact_angle: degrees.to_radians(),
+                    ..liquid
+                }),
+                (None, Some(_)) => return Err(capillary_only(&format!("material \"{}\"", t.name))),
+                (liquid, None) => liquid,
+            };
             Ok(Material {
+                bridge,
                 density: t.density.unwrap_or(base.density),
                 adhesion: t.surface_energy.unwrap_or(base.adhesion),
                 restitution: t.restitution.unwrap_or(base.restitution),
@@ -206,6 +235,10 @@ pub fn materials(
                 surface_energy: match (p.surface_energy, base.adhesion) {
                     (Some(_), 0.0) => return Err(jkr_only("a [[material_pairs]] table")),
                     (given, _) => given,
+                },
+                contact_angle: match (p.contact_angle, base.bridge) {
+                    (Some(_), None) => return Err(capillary_only("a [[material_pairs]] table")),
+                    (given, _) => given.map(f64::to_radians),
                 },
             })
         })

@@ -15,21 +15,36 @@
 // src/dem/model/law.rs (apart from LawParams, which a dry step keeps as small as it was).
 struct CohesionParams {
     bridge_volume: f32,   // V of a liquid bridge [m³] (0: no bridges)
-    bridge_tension: f32,  // γ·cos θ [N/m]
-    bridge_rupture: f32,  // the gap at which a bridge ruptures [m]
+    bridge_tension: f32,  // γ·cos θ of two spheres of the first material [N/m] (bridge_of)
+    bridge_rupture: f32,  // the gap at which their bridge ruptures [m]
     density: f32,         // cohesion energy density of LIGGGHTS' simplified JKR [J/m³] (0: none)
     bridge_viscosity: f32,// the bridges' liquid viscosity η [Pa·s] (0: no lubrication force)
 }
 
 @group(0) @binding(37) var<uniform> cohesion: CohesionParams;
 
+// The liquid bridge of one ordered pair of materials; twin of PairBridge in
+// src/dem/model/materials.rs.
+struct PairBridge {
+    tension: f32,   // γ·cos θ of the pair [N/m]
+    rupture: f32,   // the gap at which the bridge ruptures [m]
+    _pad0: f32,
+    _pad1: f32,
+}
+
+// One entry of the material table; twin of TableLaw in src/dem/model/materials.rs.
+struct TableLaw {
+    law: PairLaw,
+    bridge: PairBridge,
+}
+
 // Row a (a sphere of material a), column b (a sphere or wall of material b; column
-// dem.columns - 1: a rigid wall) at a · dem.columns + b: MaterialTable::laws.
-@group(0) @binding(20) var<storage, read> material_laws: array<PairLaw>;
+// dem.columns - 1: a rigid wall) at a · dem.columns + b: MaterialTable::device_laws.
+@group(0) @binding(20) var<storage, read> material_laws: array<TableLaw>;
 
 // The law of a sphere of material a against column b of the table (MaterialTable::law).
 fn law_of(a: u32, b: u32) -> PairLaw {
-    return material_laws[a * dem.columns + b];
+    return material_laws[a * dem.columns + b].law;
 }
 
 // True where the scene has one material (set when the pipeline is made, DemModule::constants):
@@ -43,6 +58,15 @@ fn sphere_law(a: u32, b: u32) -> PairLaw {
         return dem.sphere_law;
     }
     return law_of(a, b);
+}
+
+// The liquid bridge of a sphere of material a against column b of the table
+// (MaterialTable::bridge); with one material every pair's is the cohesion uniform's.
+fn bridge_of(a: u32, b: u32) -> PairBridge {
+    if ONE_MATERIAL {
+        return PairBridge(cohesion.bridge_tension, cohesion.bridge_rupture, 0.0, 0.0);
+    }
+    return material_laws[a * dem.columns + b].bridge;
 }
 
 const LAW_LINEAR: u32 = 0u;
@@ -195,23 +219,25 @@ fn jkr_radius(overlap: f32, r_eff: f32, e_star: f32, adhesion: f32) -> f32 {
     return x * x;
 }
 
-// Whether a contact of `law` that held at the last step and now overlaps by `overlap` ≤ 0
-// still holds: a JKR neck not yet broken, a liquid bridge not yet ruptured (contact.rs holds).
-fn holds(law: PairLaw, r_eff: f32, overlap: f32) -> bool {
+// Whether a contact of `law` and bridge `wet` that held at the last step and now overlaps by
+// `overlap` ≤ 0 still holds: a JKR neck not yet broken, a liquid bridge not yet ruptured
+// (contact.rs holds).
+fn holds(law: PairLaw, wet: PairBridge, r_eff: f32, overlap: f32) -> bool {
     return (law.adhesion > 0.0 && overlap > jkr_break(r_eff, law.e_star, law.adhesion))
-        || (cohesion.bridge_volume > 0.0 && -overlap < cohesion.bridge_rupture);
+        || (cohesion.bridge_volume > 0.0 && -overlap < wet.rupture);
 }
 
-// The pull of a liquid bridge between bodies of effective radius r_eff overlapping by
-// `overlap` (a gap where negative); 0 without bridges (contact.rs bridge_pull).
-fn bridge_pull(r_eff: f32, overlap: f32) -> f32 {
+// The pull of a liquid bridge wetting the pair as `wet` says between bodies of effective
+// radius r_eff overlapping by `overlap` (a gap where negative); 0 without bridges (contact.rs
+// bridge_pull).
+fn bridge_pull(wet: PairBridge, r_eff: f32, overlap: f32) -> f32 {
     let volume = cohesion.bridge_volume;
     if volume == 0.0 {
         return 0.0;
     }
     let r = 2.0 * r_eff;
     let s = 0.5 * max(-overlap, 0.0) * sqrt(r / volume);
-    return 2.0 * PI * r * cohesion.bridge_tension / (1.0 + 2.1 * s + 10.0 * s * s);
+    return 2.0 * PI * r * wet.tension / (1.0 + 2.1 * s + 10.0 * s * s);
 }
 
 // The smallest gap a bridge's lubrication force takes, a fraction of R* (contact.rs BRIDGE_MIN_GAP).
@@ -243,8 +269,8 @@ fn dragged(along: f32, drag: f32) -> f32 {
 
 // The pull of a bridge and of the simplified JKR on a sphere of radius r against a surface it
 // overlaps by `overlap` (the area where they meet a circle in the surface's plane).
-fn surface_pull(r: f32, overlap: f32) -> f32 {
-    var pull = bridge_pull(r, overlap);
+fn surface_pull(wet: PairBridge, r: f32, overlap: f32) -> f32 {
+    var pull = bridge_pull(wet, r, overlap);
     if cohesion.density > 0.0 && overlap > 0.0 {
         pull += cohesion.density * PI * overlap * (2.0 * r - overlap);
     }
@@ -374,10 +400,11 @@ fn pair_contact(i: Body, j: Body, old: Springs, bonded: bool) -> Contact {
     var pull = 0.0;
     var drag = 0.0;
     if COHESIVE {
-        if apart && !holds(law, r_eff, overlap) {
+        let wet = bridge_of(i.material, j.material);
+        if apart && !holds(law, wet, r_eff, overlap) {
             return out;
         }
-        pull = bridge_pull(r_eff, overlap);
+        pull = bridge_pull(wet, r_eff, overlap);
         drag = bridge_drag(r_eff, overlap, vn);
         if cohesion.density > 0.0 && !apart {
             // The area of the circle where the two spheres' surfaces meet (symmetric in i, j).
@@ -438,14 +465,15 @@ struct SurfaceContact {
 
 // The surface touching b along the unit normal n (from b's centre towards the surface) with
 // overlap `overlap` (> 0, or ≤ 0 for a cohesive contact that holds), its point there moving at
-// `velocity`, of law `law` (b's material's row, the surface's column) and sliding friction `mu`;
-// friction only where spheres turn (contact.rs surface_contact).
+// `velocity`, of law `law` and bridge `wet` (b's material's row, the surface's column) and
+// sliding friction `mu`; friction only where spheres turn (contact.rs surface_contact).
 fn surface_contact(
     b: Body,
     n: vec3<f32>,
     overlap: f32,
     velocity: vec3<f32>,
     law: PairLaw,
+    wet: PairBridge,
     mu: f32,
     old: Springs,
 ) -> SurfaceContact {
@@ -455,7 +483,7 @@ fn surface_contact(
     var pull = 0.0;
     var drag = 0.0;
     if COHESIVE {
-        pull = surface_pull(b.r, overlap);
+        pull = surface_pull(wet, b.r, overlap);
         drag = bridge_drag(b.r, overlap, vn);
         if overlap <= 0.0 && law.adhesion == 0.0 {
             // A liquid bridge across a gap: its pull alone, and its drag.

@@ -293,6 +293,7 @@ fn finish(w: ptr<function, Walker>) {
     let b = (*w).me;
     if mesh.box_walls != 0u {
         let law = law_of(b.material, dem.box_column);
+        let wet = bridge_of(b.material, dem.box_column);
         for (var axis = 0u; axis < 3u; axis += 1u) {
             let below = b.r - (b.c[axis] - dem.box_lo[axis]);
             let above = b.r - (dem.box_hi[axis] - b.c[axis]);
@@ -309,13 +310,13 @@ fn finish(w: ptr<function, Walker>) {
                     old = old_wall_contact(w, wall);
                 }
                 // A cohesive contact of the last step holds past touching while its law lets it.
-                let held = COHESIVE && old.held && holds(law, b.r, overlap);
+                let held = COHESIVE && old.held && holds(law, wet, b.r, overlap);
                 if overlap <= 0.0 && !held {
                     continue;
                 }
                 var n = vec3(0.0);
                 n[axis] = select(-1.0, 1.0, side == 1u);
-                let c = surface_contact(b, n, overlap, vec3(0.0), law, law.sliding, old.springs);
+                let c = surface_contact(b, n, overlap, vec3(0.0), law, wet, law.sliding, old.springs);
                 (*w).force += c.force;
                 (*w).torque += c.torque;
                 if dem.slots > 0u {

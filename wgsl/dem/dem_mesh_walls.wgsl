@@ -239,6 +239,7 @@ fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, c
     var next_old = 0u;
     let slack = ON_PLANE * b.r;
     let law = law_of(b.material, m.column);
+    let wet = bridge_of(b.material, m.column);
     let mu = select(law.sliding, m.own_friction, m.own_friction >= 0.0);
     for (var k = 0u; k < min(found, MESH_NEAR); k += 1u) {
         let q = closest_point(near_tri[k], p);
@@ -267,7 +268,7 @@ fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, c
         var overlap = b.r - d;
         if touching {
             overlap = max(overlap, 0.0);
-        } else if !(COHESIVE && s < (*w).kept && holds(law, b.r, overlap)) {
+        } else if !(COHESIVE && s < (*w).kept && holds(law, wet, b.r, overlap)) {
             // Past touching, only a contact of the last step that still holds (its entry is
             // left for the next contact).
             continue;
@@ -277,7 +278,7 @@ fn wall_contacts(w: ptr<function, Walker>, wall: u32, m: MeshWall, pose: Pose, c
             old = own_old_springs(w, s);
             next_old = s + 1u;
         }
-        let c = surface_contact(b, n, overlap, surface_velocity, law, mu, old);
+        let c = surface_contact(b, n, overlap, surface_velocity, law, wet, mu, old);
         force += c.force;
         torque += c.torque;
         if dem.slots > 0u {

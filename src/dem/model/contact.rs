@@ -35,7 +35,7 @@
 //! half its moment of inertia, are normal f32 numbers.
 
 use super::material::{NormalLaw, RollingModel, TangentialModel};
-use super::materials::PairLaw;
+use super::materials::{PairBridge, PairLaw};
 use super::{Bridge, StepParams};
 use crate::particles::{HistoryEntry, LoadEntry, LoadedEntry};
 use glam::Vec3;
@@ -455,10 +455,13 @@ pub fn pair_contact<S: Kept>(
     let m_eff = effective(i.m, j.m);
     let r_eff = effective(i.r, j.r);
     let law = p.materials.law(i.material, j.material);
-    if apart && !holds(p, law, r_eff, overlap) {
+    let wet = p.materials.bridge(i.material, j.material);
+    if apart && !holds(p, law, wet, r_eff, overlap) {
         return None;
     }
-    let mut pull = p.bridge.map_or(0.0, |b| bridge_pull(&b, r_eff, overlap));
+    let mut pull = p
+        .bridge
+        .map_or(0.0, |b| bridge_pull(&b, wet, r_eff, overlap));
     let drag = p
         .bridge
         .map_or(0.0, |b| bridge_drag(&b, r_eff, overlap, vn));
@@ -518,23 +521,24 @@ pub fn pair_contact<S: Kept>(
     })
 }
 
-/// Whether a contact of `law` that touched at the last step and now overlaps by `overlap` ≤ 0
-/// still holds: a JKR neck that has not broken, or a liquid bridge that has not ruptured.
+/// Whether a contact of `law` and bridge `wet` that touched at the last step and now overlaps
+/// by `overlap` ≤ 0 still holds: a JKR neck that has not broken, or a liquid bridge that has not
+/// ruptured.
 #[inline(always)]
-fn holds(p: &StepParams, law: &PairLaw, r_eff: f32, overlap: f32) -> bool {
+fn holds(p: &StepParams, law: &PairLaw, wet: &PairBridge, r_eff: f32, overlap: f32) -> bool {
     (law.adhesion > 0.0 && overlap > jkr_break(r_eff, law.e_star, law.adhesion))
-        || p.bridge.is_some_and(|b| -overlap < b.rupture)
+        || (p.bridge.is_some() && -overlap < wet.rupture)
 }
 
-/// The pull of a liquid bridge `b` between bodies of effective radius `r_eff` (a sphere on a
-/// wall: its radius) overlapping by `overlap` (a gap where negative), in the closed form of
-/// Willett et al. (2000) with the Derjaguin radius R = 2R*: 2πRγ·cos θ/(1 + 2.1·s + 10·s²),
-/// s = (gap/2)·√(R/V) (0 where they overlap) \[N\].
+/// The pull of a bridge of liquid `b` wetting the pair as `wet` says, between bodies of
+/// effective radius `r_eff` (a sphere on a wall: its radius) overlapping by `overlap` (a gap
+/// where negative), in the closed form of Willett et al. (2000) with the Derjaguin radius
+/// R = 2R*: 2πRγ·cos θ/(1 + 2.1·s + 10·s²), s = (gap/2)·√(R/V) (0 where they overlap) \[N\].
 #[inline(always)]
-pub fn bridge_pull(b: &Bridge, r_eff: f32, overlap: f32) -> f32 {
+pub fn bridge_pull(b: &Bridge, wet: &PairBridge, r_eff: f32, overlap: f32) -> f32 {
     let r = 2.0 * r_eff;
     let s = 0.5 * (-overlap).max(0.0) * (r / b.volume).sqrt();
-    2.0 * PI * r * b.tension / (1.0 + 2.1 * s + 10.0 * s * s)
+    2.0 * PI * r * wet.tension / (1.0 + 2.1 * s + 10.0 * s * s)
 }
 
 /// `along` with a bridge's `drag` added, where there is one (no drag: `along`'s own bits).
@@ -594,6 +598,7 @@ pub fn wall_contacts<S: Kept>(
     let turns = p.friction.turns();
     let keeps = p.friction.has_history();
     let law = p.materials.law(b.material, p.box_column);
+    let wet = p.materials.bridge(b.material, p.box_column);
     let (c, v) = (b.c.to_array(), b.v.to_array());
     let mut normal = [0.0f32; 3];
     let mut tangential = Vec3::ZERO;
@@ -605,13 +610,13 @@ pub fn wall_contacts<S: Kept>(
         let above = b.r - (p.box_hi[a] - c[a]);
         for (side, overlap, vn) in [(0, below, v[a]), (1, above, -v[a])] {
             let wall = 2 * a as u32 + side;
-            let held = p.friction.cohesive && old(wall).1 && holds(p, law, b.r, overlap);
+            let held = p.friction.cohesive && old(wall).1 && holds(p, law, wet, b.r, overlap);
             if overlap <= 0.0 && !held {
                 continue;
             }
             let mut pull = p
                 .bridge
-                .map_or(0.0, |bridge| bridge_pull(&bridge, b.r, overlap));
+                .map_or(0.0, |bridge| bridge_pull(&bridge, wet, b.r, overlap));
             let drag = p
                 .bridge
                 .map_or(0.0, |bridge| bridge_drag(&bridge, b.r, overlap, vn));
@@ -693,7 +698,11 @@ pub fn wall_contacts<S: Kept>(
 /// step and now overlaps by `overlap` ≤ 0 still holds (a JKR neck, a liquid bridge).
 #[inline(always)]
 pub fn surface_holds(p: &StepParams, b: &Body, column: u32, overlap: f32) -> bool {
-    holds(p, p.materials.law(b.material, column), b.r, overlap)
+    let (law, wet) = (
+        p.materials.law(b.material, column),
+        p.materials.bridge(b.material, column),
+    );
+    holds(p, law, wet, b.r, overlap)
 }
 
 /// The contact of sphere `b` with a surface (a mesh wall) of column `column` in the material
@@ -716,12 +725,13 @@ pub fn surface_contact<S: Kept>(
     old: S,
 ) -> Contact<S> {
     let law = p.materials.law(b.material, column);
+    let wet = p.materials.bridge(b.material, column);
     let mu = friction_given.unwrap_or(law.sliding);
     // v_n as for a pair: the partner's (the surface's) velocity minus b's, along n.
     let vn = (surface_velocity - b.v).dot(n);
     let mut pull = p
         .bridge
-        .map_or(0.0, |bridge| bridge_pull(&bridge, b.r, overlap));
+        .map_or(0.0, |bridge| bridge_pull(&bridge, wet, b.r, overlap));
     let drag = p
         .bridge
         .map_or(0.0, |bridge| bridge_drag(&bridge, b.r, overlap, vn));

@@ -99,9 +99,11 @@ const _: () = assert!(size_of::<LawParams>() == 128, "the device copies' size");
 pub struct CohesionParams {
     /// Liquid volume V of a bridge \[m³\] (0: no liquid bridges).
     pub bridge_volume: f32,
-    /// γ·cos θ \[N/m\].
+    /// γ·cos θ of two spheres of the first material \[N/m\] (the table's first
+    /// [`PairBridge`](super::materials::PairBridge): with one material every pair's, which the
+    /// wgpu steps then read here rather than in the table).
     pub bridge_tension: f32,
-    /// The gap at which a bridge ruptures \[m\].
+    /// The gap at which their bridge ruptures \[m\] (as `bridge_tension`).
     pub bridge_rupture: f32,
     /// The cohesion energy density of LIGGGHTS' simplified JKR \[J/m³\] (0: none).
     pub density: f32,
@@ -132,8 +134,8 @@ impl CohesionParams {
     pub fn of(p: &StepParams) -> Self {
         Self {
             bridge_volume: p.bridge.map_or(0.0, |b| b.volume),
-            bridge_tension: p.bridge.map_or(0.0, |b| b.tension),
-            bridge_rupture: p.bridge.map_or(0.0, |b| b.rupture),
+            bridge_tension: p.materials.bridge(0, 0).tension,
+            bridge_rupture: p.materials.bridge(0, 0).rupture,
             density: p.cohesion_density,
             bridge_viscosity: p.bridge.map_or(0.0, |b| b.viscosity),
         }

@@ -123,6 +123,21 @@ pub struct LiquidBridge {
     pub viscosity: f64,
 }
 
+/// Refuses a contact angle `angle` \[rad\] outside [0, π/2): a liquid that does not wet the
+/// solid makes no pendular bridge that pulls.
+pub(super) fn check_contact_angle(angle: f64) -> Result<()> {
+    match (0.0..std::f64::consts::FRAC_PI_2).contains(&angle) {
+        true => Ok(()),
+        false => Err(Error::InvalidConfig {
+            what: "scene key contact_angle".into(),
+            reason: format!(
+                "must be from 0 up to (not including) 90°, got {}°",
+                angle.to_degrees()
+            ),
+        }),
+    }
+}
+
 impl Default for Material {
     fn default() -> Self {
         Self {
@@ -317,6 +332,9 @@ impl Material {
                     format!("must be a coefficient from 0 to {MAX_FRICTION:e}, got {mu}"),
                 );
             }
+        }
+        if let Some(angle) = self.bridge.map(|b| b.contact_angle) {
+            check_contact_angle(angle)?;
         }
         Ok(())
     }

@@ -10,12 +10,15 @@
 //! - a sphere on a wall without a material (rigid): the sphere's own restitution and rolling
 //!   friction, and the scene's `wall_friction` (else the sphere's friction).
 //!
-//! The step reads a contact's coefficients from [`MaterialTable`], one [`PairLaw`] per ordered
-//! pair (sphere material, partner material or rigid wall); the GPU engines upload the same
-//! table as it is (its layout is [`PairLaw`]'s, 32 bytes an entry).
+//! - a liquid bridge: the mean of the two contact angles' cosines for its pull, of the angles for
+//!   its rupture distance ([`PairBridge::mixed`]); on a rigid wall, the sphere's own angle.
+//!
+//! The step reads a contact's coefficients from [`MaterialTable`], one [`PairLaw`] and one
+//! [`PairBridge`] per ordered pair (sphere material, partner material or rigid wall); the GPU
+//! engines upload the two side by side ([`TableLaw`], 48 bytes an entry).
 
 use super::linear::{stable_dt, stiffness_for_duration};
-use super::material::{ContactLaw, Material};
+use super::material::{ContactLaw, LiquidBridge, Material, check_contact_angle};
 use super::restitution::{hertz_damping, linear_damping};
 use super::time_step::{RAYLEIGH_LIMIT, rayleigh_time};
 use crate::error::{Error, Result};
@@ -39,6 +42,9 @@ pub struct PairOverride {
     pub rolling_friction: Option<f64>,
     /// Work of adhesion Γ of the pair \[J/m²\] (JKR).
     pub surface_energy: Option<f64>,
+    /// Contact angle θ of the liquid on the pair \[rad\] (capillary; default: the materials'
+    /// mixed by [`PairBridge::mixed`]).
+    pub contact_angle: Option<f64>,
 }
 
 /// The materials of a scene: at least one; all share the contact law's kind, the rolling and
@@ -101,6 +107,16 @@ impl Materials {
                     reason: e.to_string(),
                 })?,
             }
+            // A bridge's liquid is the scene's: each material differs only in how it wets.
+            let liquid =
+                |m: &Material| m.bridge.map(|b| (b.volume, b.surface_tension, b.viscosity));
+            if liquid(m) != liquid(first) {
+                return bad(format!(
+                    "material \"{name}\" has a liquid other than the first's: give \
+                     liquid_volume, surface_tension and liquid_viscosity once, at the top of \
+                     the scene (each material may give its own contact_angle)"
+                ));
+            }
             let same_kind = std::mem::discriminant(&m.contact)
                 == std::mem::discriminant(&first.contact)
                 && match (m.contact, first.contact) {
@@ -143,6 +159,19 @@ impl Materials {
             check("rolling_friction", p.rolling_friction, &coefficient)?;
             let energy = |g: f64| g == 0.0 || (g > 0.0 && (g as f32).is_normal());
             check("surface_energy", p.surface_energy, &energy)?;
+            if let Some(angle) = p.contact_angle {
+                if first.bridge.is_none() {
+                    return bad(format!(
+                        "the pair \"{}\"–\"{}\" has a contact_angle, which applies to \
+                         cohesion = \"capillary\"",
+                        self.names[p.a], self.names[p.b]
+                    ));
+                }
+                check_contact_angle(angle).map_err(|e| Error::InvalidConfig {
+                    what: format!("the pair \"{}\"–\"{}\"", self.names[p.a], self.names[p.b]),
+                    reason: e.to_string(),
+                })?;
+            }
         }
         Ok(())
     }
@@ -237,6 +266,48 @@ pub struct PairLaw {
     pub _pad1: f32,
 }
 
+/// The liquid bridge of one ordered pair of materials as the step computes it (f32; zeros
+/// where the scene has no bridges), the layout the GPU engines upload beside [`PairLaw`]
+/// ([`TableLaw`]).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, encase::ShaderType)]
+pub struct PairBridge {
+    /// γ·cos θ of the pair \[N/m\]: the bridge's pull at contact is 2π·2R*·γ·cos θ.
+    pub tension: f32,
+    /// The gap at which the bridge ruptures, (1 + θ/2)·V^⅓ (Lian et al. 1993) \[m\].
+    pub rupture: f32,
+    /// Padding to 16 bytes.
+    pub _pad0: f32,
+    /// Padding to 16 bytes.
+    pub _pad1: f32,
+}
+
+impl PairBridge {
+    /// The bridge of liquid `liquid` between two surfaces it wets at angles `a` and `b` \[rad\]:
+    /// the pull's γ·cos θ the mean of the two, γ·(cos θ_a + cos θ_b)/2 (the Derjaguin
+    /// approximation of a bridge between unlike surfaces, which Willett et al.'s closed form
+    /// takes for equal ones), and the rupture gap at the mean angle, (1 + (θ_a + θ_b)/4)·V^⅓.
+    /// Of one angle (a = b), exactly γ·cos θ and (1 + θ/2)·V^⅓.
+    pub fn mixed(liquid: &LiquidBridge, a: f64, b: f64) -> Self {
+        Self {
+            tension: (liquid.surface_tension * ((a.cos() + b.cos()) / 2.0)) as f32,
+            rupture: ((1.0 + (a + b) / 2.0 / 2.0) * liquid.volume.cbrt()) as f32,
+            ..Self::default()
+        }
+    }
+}
+
+/// One entry of the material table as the GPU engines upload it: a pair's law and its bridge
+/// (`TableLaw` in wgsl/dem/dem_contact.wgsl and `MochiTableLaw` in optix/physics.cuh).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable, encase::ShaderType)]
+pub struct TableLaw {
+    /// The pair's law.
+    pub law: PairLaw,
+    /// The pair's liquid bridge.
+    pub bridge: PairBridge,
+}
+
 /// Every pair's law: row a (a sphere of material a), column b < count (a sphere or a wall of
 /// material b) or column `count` (a rigid wall); and each material's density.
 #[derive(Debug, Clone, PartialEq)]
@@ -245,6 +316,8 @@ pub struct MaterialTable {
     pub count: usize,
     /// count × (count + 1) laws, row by row.
     pub laws: Vec<PairLaw>,
+    /// The pairs' liquid bridges, as `laws` (zeros where the scene has no bridges).
+    pub bridges: Vec<PairBridge>,
     /// Density of each material \[kg/m³\].
     pub densities: Vec<f32>,
 }
@@ -270,6 +343,26 @@ impl MaterialTable {
     #[inline(always)]
     pub fn law(&self, a: u32, b: u32) -> &PairLaw {
         &self.laws[a as usize * (self.count + 1) + b as usize]
+    }
+
+    /// The liquid bridge of a sphere of material `a` against column `b` (as [`Self::law`]).
+    #[inline(always)]
+    pub fn bridge(&self, a: u32, b: u32) -> &PairBridge {
+        &self.bridges[a as usize * (self.count + 1) + b as usize]
+    }
+
+    /// The table as the GPU engines upload it: each pair's law beside its bridge.
+    pub fn device_laws(&self) -> Vec<TableLaw> {
+        self.laws
+            .iter()
+            .zip(&self.bridges)
+            .map(|(&law, &bridge)| TableLaw { law, bridge })
+            .collect()
+    }
+
+    /// The widest gap at which any pair's bridge holds \[m\] (0 without bridges).
+    pub fn widest_rupture(&self) -> f32 {
+        self.bridges.iter().map(|b| b.rupture).fold(0.0, f32::max)
     }
 
     /// Mass of a sphere of material `a` and radius `r` \[kg\].
@@ -314,6 +407,7 @@ impl MaterialTable {
     ) -> Result<Resolved> {
         let count = materials.list.len();
         let mut laws = Vec::with_capacity(count * (count + 1));
+        let mut bridges = Vec::with_capacity(count * (count + 1));
         let mut dt_limit = f64::INFINITY;
         let mut limited_by = String::new();
         let mut limit = |t: f64, why: &dyn Fn() -> String| {
@@ -337,6 +431,19 @@ impl MaterialTable {
                         .unwrap_or((ma.adhesion * materials.list[b].adhesion).sqrt()),
                     None => ma.adhesion,
                 };
+                let angle = |m: &Material| m.bridge.map_or(0.0, |b| b.contact_angle);
+                bridges.push(match ma.bridge {
+                    None => PairBridge::default(),
+                    Some(liquid) => match b {
+                        Some(b) => match materials.pair_override(a, b).contact_angle {
+                            Some(theta) => PairBridge::mixed(&liquid, theta, theta),
+                            None => {
+                                PairBridge::mixed(&liquid, angle(ma), angle(&materials.list[b]))
+                            }
+                        },
+                        None => PairBridge::mixed(&liquid, angle(ma), angle(ma)),
+                    },
+                });
                 let mut law = PairLaw {
                     sliding: mu as f32,
                     rolling: mu_r as f32,
@@ -422,6 +529,7 @@ impl MaterialTable {
             table: MaterialTable {
                 count,
                 laws,
+                bridges,
                 densities: materials.list.iter().map(|m| m.density as f32).collect(),
             },
             dt_limit,
@@ -451,8 +559,40 @@ macro_rules! pair_law_fields {
 }
 pub(crate) use pair_law_fields;
 
+/// `$check!("PairBridge", PairBridge { every field })`: the one list of [`PairBridge`]'s
+/// fields, for the WGSL and the CUDA layout checks (`MochiPairBridge`).
+macro_rules! pair_bridge_fields {
+    ($check:ident, $cuda:literal) => {
+        $check!(
+            $cuda,
+            PairBridge {
+                tension,
+                rupture,
+                _pad0,
+                _pad1,
+            }
+        )
+    };
+}
+pub(crate) use pair_bridge_fields;
+
+/// `$check!("TableLaw", TableLaw { every field })`: the one list of [`TableLaw`]'s fields, for
+/// the WGSL and the CUDA layout checks (`MochiTableLaw`).
+macro_rules! table_law_fields {
+    ($check:ident, $cuda:literal) => {
+        $check!($cuda, TableLaw { law, bridge })
+    };
+}
+pub(crate) use table_law_fields;
+
 impl crate::gpu::shader::FirstWord for PairLaw {
     fn first_word(&self) -> u32 {
         self.rate.to_bits()
+    }
+}
+
+impl crate::gpu::shader::FirstWord for PairBridge {
+    fn first_word(&self) -> u32 {
+        self.tension.to_bits()
     }
 }

@@ -23,7 +23,9 @@ pub use material::{
     ContactLaw, Elastic, Friction, LiquidBridge, MAX_FRICTION, Material, NormalLaw, RollingModel,
     TangentialModel,
 };
-pub use materials::{MAX_MATERIALS, MaterialTable, Materials, PairLaw, PairOverride};
+pub use materials::{
+    MAX_MATERIALS, MaterialTable, Materials, PairBridge, PairLaw, PairOverride, TableLaw,
+};
 
 use crate::error::{Error, Result};
 use std::f64::consts::PI;
@@ -69,30 +71,27 @@ pub struct StepParams {
     pub cohesion_density: f32,
 }
 
-/// A liquid bridge as the step computes it ([`LiquidBridge`] in f32).
+/// The liquid of the bridges as the step computes it ([`LiquidBridge`]'s liquid in f32; how
+/// each pair of surfaces it wets pulls, and where its bridge ruptures, is the pair's
+/// [`PairBridge`](materials::PairBridge) in the material table).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Bridge {
     /// Liquid volume V \[m³\].
     pub volume: f32,
-    /// γ·cos θ \[N/m\].
-    pub tension: f32,
-    /// The gap at which a bridge ruptures, (1 + θ/2)·V^⅓ (Lian et al. 1993) \[m\].
-    pub rupture: f32,
     /// The liquid's dynamic viscosity η \[Pa·s\] (0: no lubrication force).
     pub viscosity: f32,
 }
 
 impl Bridge {
-    /// `bridge` as the step computes it.
+    /// The liquid of `bridge` as the step computes it.
     pub fn of(bridge: &LiquidBridge) -> Self {
         Self {
             volume: bridge.volume as f32,
-            tension: (bridge.surface_tension * bridge.contact_angle.cos()) as f32,
-            rupture: ((1.0 + bridge.contact_angle / 2.0) * bridge.volume.cbrt()) as f32,
             viscosity: bridge.viscosity as f32,
         }
     }
 }
+
 /// The largest time step at which the lubrication force of bridges `bridge` damps the lightest
 /// spheres (mass `m`, radius `r`) stably: m*/c at the largest damping coefficient c =
 /// 6π·η·R*/[`BRIDGE_MIN_GAP`](contact::BRIDGE_MIN_GAP) (the gap at its least), half the explicit
@@ -167,7 +166,7 @@ impl StepParams {
             .filter(|l| l.adhesion > 0.0)
             .map(|l| -contact::jkr_break(r_max, l.e_star, l.adhesion))
             .fold(0.0, f32::max)
-            .max(self.bridge.map_or(0.0, |b| b.rupture))
+            .max(self.materials.widest_rupture())
     }
 
     /// How far past touching the GPU steps search for contacts of spheres of radii up to
@@ -293,12 +292,6 @@ impl StepParams {
             if !(eta == 0.0 || (eta > 0.0 && (eta as f32).is_normal())) {
                 return bad(&format!(
                     "liquid_viscosity must be 0 or a positive number (Pa·s), got {eta}"
-                ));
-            }
-            if !(0.0..std::f64::consts::FRAC_PI_2).contains(&b.contact_angle) {
-                return bad(&format!(
-                    "contact_angle must be from 0 up to (not including) 90°, got {}°",
-                    b.contact_angle.to_degrees()
                 ));
             }
             if m.adhesion > 0.0 {
@@ -452,9 +445,33 @@ impl StepParams {
                 true => format!(", η {} Pa·s", b.viscosity),
                 false => String::new(),
             };
+            // Two spheres of the first material's; where the materials wet differently, the
+            // range over every pair.
+            let first = self.materials.bridge(0, 0);
+            let wetting = match self.materials.bridges.iter().all(|w| w == first) {
+                true => format!(
+                    "γ·cos θ {} N/m, rupture at {:.3e} m",
+                    first.tension, first.rupture
+                ),
+                false => {
+                    let (lo, hi) = self.materials.bridges.iter().fold(
+                        ((f32::INFINITY, f32::INFINITY), (0.0f32, 0.0f32)),
+                        |(lo, hi), w| {
+                            (
+                                (lo.0.min(w.tension), lo.1.min(w.rupture)),
+                                (hi.0.max(w.tension), hi.1.max(w.rupture)),
+                            )
+                        },
+                    );
+                    format!(
+                        "γ·cos θ {}–{} N/m, rupture at {:.3e}–{:.3e} m by pair",
+                        lo.0, hi.0, lo.1, hi.1
+                    )
+                }
+            };
             return Some(format!(
-                "cohesion capillary (V {:e} m³, γ·cos θ {} N/m, rupture at {:.3e} m{viscous})",
-                b.volume, b.tension, b.rupture
+                "cohesion capillary (V {:e} m³, {wetting}{viscous})",
+                b.volume
             ));
         }
         (self.cohesion_density > 0.0)

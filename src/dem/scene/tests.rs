@@ -764,12 +764,16 @@ fn cohesion_takes_a_surface_energy_with_hertz_mindlin_and_nothing_else() {
     ])
     .unwrap();
     let bridge = wet.params.bridge.expect("a bridge");
-    assert!(
-        (bridge.tension - 0.036).abs() < 1e-6,
-        "water's γ at 60°: {}",
-        bridge.tension
-    );
-    assert!((bridge.rupture - (1.0 + std::f32::consts::PI / 6.0) * 1e-4).abs() < 1e-9);
+    // Two spheres and a sphere on a rigid wall alike.
+    for column in [0, 1] {
+        let pair = wet.params.materials.bridge(0, column);
+        assert!(
+            (pair.tension - 0.036).abs() < 1e-6,
+            "water's γ at 60°: {}",
+            pair.tension
+        );
+        assert!((pair.rupture - (1.0 + std::f32::consts::PI / 6.0) * 1e-4).abs() < 1e-9);
+    }
     assert_eq!(bridge.viscosity, 0.0);
     let viscous = build(&[
         "cohesion=\"capillary\"",
@@ -940,4 +944,65 @@ fn each_material_and_pair_of_materials_may_give_its_own_surface_energy() {
     let negative = "[[material_pairs]]\nmaterials = [\"a\", \"b\"]\nsurface_energy = -1\n";
     let e = law(&scene(negative)).unwrap_err().to_string();
     assert!(e.contains("surface_energy = -1, out of range"), "{e}");
+}
+
+#[test]
+fn each_material_and_pair_of_materials_may_give_its_own_contact_angle() {
+    let scene = |pair: &str| {
+        format!(
+            "scene = \"freefall\"\nspheres = 20\ncohesion = \"capillary\"\n\
+             liquid_volume = 1e-12\nsurface_tension = 0.05\ncontact_angle = 20\n\
+             [[materials]]\nname = \"a\"\n[[materials]]\nname = \"b\"\ncontact_angle = 60\n\
+             [[materials]]\nname = \"c\"\ncontact_angle = 0\n{pair}"
+        )
+    };
+    let table = |text: &str| {
+        let config = SceneConfig::parse(Some(text), None, &Overrides::default()).unwrap();
+        config.build().map(|s| s.params.materials)
+    };
+    let t = table(&scene("")).unwrap();
+    let wall = t.count as u32;
+    let (gamma, v3) = (0.05f64, 1e-4f64);
+    let expect = |a: f64, b: f64| {
+        let (a, b) = (a.to_radians(), b.to_radians());
+        (
+            (gamma * (a.cos() + b.cos()) / 2.0) as f32,
+            ((1.0 + (a + b) / 4.0) * v3) as f32,
+        )
+    };
+    let of = |a: u32, b: u32| (t.bridge(a, b).tension, t.bridge(a, b).rupture);
+    // Its own angle with itself and with a rigid wall (the scene's where it gives none).
+    assert_eq!(of(0, 0), expect(20.0, 20.0));
+    assert_eq!(of(1, 1), expect(60.0, 60.0));
+    assert_eq!(of(1, wall), expect(60.0, 60.0));
+    assert_eq!(of(2, 2), (0.05, 1e-4));
+    // Two materials: the mean of the cosines pulls, the mean angle ruptures; both ways alike.
+    assert_eq!(of(1, 2), expect(60.0, 0.0));
+    assert_eq!(of(2, 1), of(1, 2));
+    assert!((t.bridge(1, 2).tension - 0.0375).abs() < 1e-8);
+    // The widest rupture sets how far the searches reach.
+    assert_eq!(t.widest_rupture(), expect(60.0, 60.0).1);
+    // A pair's own angle, both ways, for its pull and its rupture.
+    let paired = "[[material_pairs]]\nmaterials = [\"a\", \"c\"]\ncontact_angle = 80\n";
+    let t = table(&scene(paired)).unwrap();
+    let own = expect(80.0, 80.0);
+    assert_eq!((t.bridge(0, 2).tension, t.bridge(0, 2).rupture), own);
+    assert_eq!((t.bridge(2, 0).tension, t.bridge(2, 0).rupture), own);
+    assert_eq!(t.bridge(2, 2).tension, 0.05);
+    // Refused without a liquid, and out of range (a material's and a pair's).
+    let dry = "scene = \"freefall\"\nspheres = 20\n[[materials]]\nname = \"a\"\n\
+               contact_angle = 10\n";
+    let e = table(dry).unwrap_err().to_string();
+    assert!(e.contains("applies to cohesion = \"capillary\""), "{e}");
+    let dry_pair = "scene = \"freefall\"\nspheres = 20\n[[materials]]\nname = \"a\"\n\
+                    [[material_pairs]]\nmaterials = [\"a\", \"a\"]\ncontact_angle = 10\n";
+    let e = table(dry_pair).unwrap_err().to_string();
+    assert!(e.contains("applies to cohesion = \"capillary\""), "{e}");
+    let e = table(&scene("[[materials]]\nname = \"d\"\ncontact_angle = 95\n"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("\"d\"") && e.contains("90°"), "{e}");
+    let steep = "[[material_pairs]]\nmaterials = [\"a\", \"b\"]\ncontact_angle = 90\n";
+    let e = table(&scene(steep)).unwrap_err().to_string();
+    assert!(e.contains("\"a\"–\"b\"") && e.contains("90°"), "{e}");
 }

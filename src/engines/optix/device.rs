@@ -11,7 +11,7 @@
 
 use super::sys::{self, Api};
 use crate::dem::model::law::CohesionParams;
-use crate::dem::model::{MaterialTable, PairLaw};
+use crate::dem::model::{MaterialTable, TableLaw};
 use crate::engines::common::walls::WallTables;
 use crate::error::OptixError;
 use crate::gpu::shader::storage_bytes;
@@ -475,12 +475,13 @@ impl<P: bytemuck::Pod> LaunchParamSets<P> {
     }
 }
 
-/// Words of one law on the device ([`PairLaw`], `MochiPairLaw` in `optix/contact.cuh`).
-pub(super) const LAW_WORDS: usize = size_of::<PairLaw>() / size_of::<u32>();
-const _: () = assert!(LAW_WORDS == 8);
+/// Words of one entry of the table on the device ([`TableLaw`], `MochiTableLaw` in
+/// `optix/physics.cuh`).
+pub(super) const LAW_WORDS: usize = size_of::<TableLaw>() / size_of::<u32>();
+const _: () = assert!(LAW_WORDS == 12);
 
-/// The material table on the device (`MaterialTable::laws` as they are, row by row: the laws
-/// of a sphere of each material against each material and a rigid wall). Every material index
+/// The material table on the device (`MaterialTable::device_laws`, row by row: the laws and
+/// bridges of a sphere of each material against each material and a rigid wall). Every material index
 /// the step reads (the spheres', the walls' columns) is checked on the host against it.
 pub struct LawTable {
     pub(super) words: CudaSlice<u32>,
@@ -499,7 +500,7 @@ impl LawTable {
     ) -> Result<Self> {
         Ok(Self {
             words: stream
-                .clone_htod(bytemuck::cast_slice::<PairLaw, u32>(&table.laws))
+                .clone_htod(bytemuck::cast_slice::<TableLaw, u32>(&table.device_laws()))
                 .map_err(cuda("uploading the material laws"))?,
             columns: table.count as u32 + 1,
             cohesion,

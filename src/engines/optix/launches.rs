@@ -11,7 +11,7 @@ use super::device::{
 };
 use super::programs::{self, GranularLaw, Unit};
 use crate::dem::model::law::CohesionParams;
-use crate::dem::model::{LawParams, PairLaw};
+use crate::dem::model::{LawParams, PairBridge, PairLaw, TableLaw};
 use crate::engines::common::walls::MeshWallRow;
 use crate::error::OptixError;
 use crate::particles::{HistoryEntry, LoadEntry};
@@ -553,8 +553,13 @@ pub fn layout_checks(unit: Unit) -> String {
         crate::dem::model::law::cohesion_params_fields!(cuda_layout, "MochiCohesion")
     };
     let law_params = || pair_law() + &crate::dem::model::law::law_params_fields!(cuda_layout);
+    let table_law = || {
+        crate::dem::model::materials::pair_bridge_fields!(cuda_layout, "MochiPairBridge")
+            + &crate::dem::model::materials::table_law_fields!(cuda_layout, "MochiTableLaw")
+    };
     let device_law = || {
         law_params()
+            + &table_law()
             + &cohesion()
             + &cuda_layout!(
                 "MochiLaw",

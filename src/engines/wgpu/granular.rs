@@ -509,9 +509,10 @@ impl Granular {
                 .map(|k| make(&format!("omega{k}"), rows * 16))
                 .collect(),
             laws: {
-                let laws = make("material_laws", size_of_val(&table.laws[..]) as u64);
+                let entries = table.device_laws();
+                let laws = make("material_laws", size_of_val(&entries[..]) as u64);
                 gpu.queue
-                    .write_buffer(&laws, 0, bytemuck::cast_slice(&table.laws));
+                    .write_buffer(&laws, 0, bytemuck::cast_slice(&entries));
                 laws
             },
             cohesion: gpu.uniform(&label("cohesion"), &CohesionParams::of(params)),

@@ -146,8 +146,19 @@ pub(crate) fn cohesion_params() -> SharedStruct {
     crate::dem::model::law::cohesion_params_fields!(shared_struct, "CohesionParams")
 }
 
-/// [`PairLaw`](crate::dem::model::PairLaw), a row of the material table (`material_laws` of
-/// `wgsl/dem/dem_contact.wgsl`) and `LawParams::sphere_law`, as a [`SharedStruct`].
+/// The material table's entries as the granular modules bind them (`material_laws` of
+/// `wgsl/dem/dem_contact.wgsl`): [`TableLaw`](crate::dem::model::TableLaw) and the
+/// [`PairBridge`](crate::dem::model::PairBridge) it holds, as [`SharedStruct`]s.
+pub(crate) fn material_table() -> [SharedStruct; 2] {
+    use crate::dem::model::{PairBridge, TableLaw};
+    [
+        crate::dem::model::materials::pair_bridge_fields!(shared_struct, "PairBridge"),
+        crate::dem::model::materials::table_law_fields!(shared_struct, "TableLaw"),
+    ]
+}
+
+/// [`PairLaw`](crate::dem::model::PairLaw), the law of an entry of the material table and
+/// `LawParams::sphere_law`, as a [`SharedStruct`].
 fn pair_law() -> SharedStruct {
     use crate::dem::model::PairLaw;
     crate::dem::model::materials::pair_law_fields!(shared_struct, "PairLaw")

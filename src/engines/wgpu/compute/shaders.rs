@@ -441,6 +441,7 @@ pub fn modules() -> Vec<WgslModule> {
                     &bindings,
                 );
                 dem.structs.extend(step::law_structs());
+                dem.structs.extend(step::material_table());
                 dem.structs.extend([
                     step::cohesion_params(),
                     crate::engines::common::walls::mesh_params(),

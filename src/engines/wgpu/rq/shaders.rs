@@ -241,6 +241,7 @@ pub fn modules() -> Vec<WgslModule> {
                 structs: [
                     vec![dem_rq::rq_params()],
                     step::law_structs().to_vec(),
+                    step::material_table().to_vec(),
                     vec![
                         step::cohesion_params(),
                         crate::engines::common::walls::mesh_params(),
