@@ -73,7 +73,7 @@ pub struct StepParams {
 
 /// The liquid of the bridges as the step computes it ([`LiquidBridge`]'s liquid in f32; how
 /// each pair of surfaces it wets pulls, and where its bridge ruptures, is the pair's
-/// [`PairBridge`](materials::PairBridge) in the material table).
+/// [`PairBridge`] in the material table).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Bridge {
     /// Liquid volume V \[m³\].
