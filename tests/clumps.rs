@@ -1,0 +1,298 @@
+//! Clumps against their closed forms: the mass properties of a union of spheres (a sphere,
+//! dimers apart, touching and overlapping, against a one-dimensional integration of their
+//! profile), the principal frame of an asymmetric clump turned anywhere, and the rigid-body step:
+//! a torque-free asymmetric body keeping its angular momentum and energy, turning as a
+//! symmetric top must, and tumbling about its intermediate axis but not about the others; a
+//! constant force and torque giving the momenta they must.
+
+use glam::{DMat3, DQuat, DVec3};
+use mochi::dem::clump::{ClumpTemplate, Component, MassProperties, PrincipalInertia, RigidBody};
+use std::f64::consts::PI;
+
+fn template(spheres: &[([f64; 3], f64)]) -> ClumpTemplate {
+    let components = spheres
+        .iter()
+        .map(|&(c, r)| Component {
+            centre: DVec3::from_array(c),
+            radius: r,
+        })
+        .collect();
+    ClumpTemplate::new("test", components).unwrap()
+}
+
+fn close(got: f64, want: f64, tolerance: f64, what: &str) {
+    assert!(
+        (got - want).abs() <= tolerance * want.abs(),
+        "{what}: {got}, not {want} (within {tolerance:e})"
+    );
+}
+
+#[test]
+fn a_sphere_has_the_volume_and_moments_of_a_sphere_wherever_it_lies() {
+    let r = 0.5;
+    let m = template(&[([0.3, -0.2, 0.1], r)]).mass_properties();
+    let volume = 4.0 / 3.0 * PI * r * r * r;
+    close(m.volume, volume, 1e-5, "volume");
+    assert!((m.centre - DVec3::new(0.3, -0.2, 0.1)).length() < 1e-6 * r);
+    for k in 0..3 {
+        close(m.moments[k], 0.4 * volume * r * r, 1e-4, "moment");
+    }
+}
+
+/// The volume and the moments about the axis and across it (about the centre) of the union of
+/// two spheres of radius `r` whose centres lie `d` apart on the z axis, by the midpoint rule on
+/// its profile ρ(z) with a million slices: ∫πρ² dz, ∫πρ⁴/2 dz, ∫(πρ⁴/4 + πρ²z²) dz.
+fn dimer_by_slices(r: f64, d: f64) -> (f64, f64, f64) {
+    let (lo, hi) = (-d / 2.0 - r, d / 2.0 + r);
+    let slices = 1_000_000;
+    let h = (hi - lo) / slices as f64;
+    let (mut volume, mut axial, mut across) = (0.0, 0.0, 0.0);
+    for k in 0..slices {
+        let z = lo + (k as f64 + 0.5) * h;
+        let rho2 = [-d / 2.0, d / 2.0]
+            .map(|c| r * r - (z - c) * (z - c))
+            .into_iter()
+            .fold(0.0, f64::max);
+        volume += PI * rho2 * h;
+        axial += PI * rho2 * rho2 / 2.0 * h;
+        across += (PI * rho2 * rho2 / 4.0 + PI * rho2 * z * z) * h;
+    }
+    (volume, axial, across)
+}
+
+#[test]
+fn dimers_apart_touching_and_overlapping_have_the_mass_properties_of_their_union() {
+    let r = 1e-3;
+    for d in [3.0 * r, 2.0 * r, 1.2 * r, 0.4 * r] {
+        // Along z, with their centre away from the origin.
+        let at = DVec3::new(2e-3, -1e-3, 5e-4);
+        let m = template(&[
+            ((at - DVec3::Z * d / 2.0).to_array(), r),
+            ((at + DVec3::Z * d / 2.0).to_array(), r),
+        ])
+        .mass_properties();
+        let (volume, axial, across) = dimer_by_slices(r, d);
+        close(m.volume, volume, 1e-4, &format!("volume at d = {d}"));
+        assert!((m.centre - at).length() < 1e-5 * r, "centre at d = {d}");
+        // The axial moment is the smallest (a dimer is longer than wide).
+        close(
+            m.moments[0],
+            axial,
+            2e-4,
+            &format!("axial moment at d = {d}"),
+        );
+        close(
+            m.moments[1],
+            across,
+            2e-4,
+            &format!("moment across at d = {d}"),
+        );
+        close(
+            m.moments[2],
+            across,
+            2e-4,
+            &format!("moment across at d = {d}"),
+        );
+        assert!(m.axes.col(0).z.abs() > 1.0 - 1e-9, "the axis is z");
+        // Apart, each sphere on its own: 2·(2/5)·m·r² and the parallel axes' m·(d/2)².
+        if d >= 2.0 * r {
+            let one = 4.0 / 3.0 * PI * r * r * r;
+            close(m.volume, 2.0 * one, 1e-4, "two spheres' volume");
+            close(
+                m.moments[0],
+                2.0 * 0.4 * one * r * r,
+                2e-4,
+                "two spheres' axial moment",
+            );
+            let parallel = 2.0 * (0.4 * one * r * r + one * d * d / 4.0);
+            close(m.moments[1], parallel, 2e-4, "two spheres' moment across");
+        }
+    }
+}
+
+/// Three unequal spheres off any line: three distinct principal moments.
+fn asymmetric() -> ClumpTemplate {
+    template(&[
+        ([0.0, 0.0, 0.0], 1.0),
+        ([1.4, 0.2, 0.0], 0.7),
+        ([-0.3, 1.1, 0.5], 0.5),
+    ])
+}
+
+#[test]
+fn a_clump_turned_and_moved_anywhere_has_the_same_principal_moments_and_its_frame() {
+    let base = asymmetric().mass_properties();
+    assert!(base.moments.x < base.moments.y && base.moments.y < base.moments.z);
+    let turn = DQuat::from_axis_angle(DVec3::new(0.3, -0.8, 0.5).normalize(), 2.1);
+    let shift = DVec3::new(10.0, -4.0, 3.0);
+    let mut moved = asymmetric();
+    for c in &mut moved.components {
+        c.centre = turn * c.centre + shift;
+    }
+    let m = moved.mass_properties();
+    close(m.volume, base.volume, 1e-4, "volume");
+    assert!((m.centre - (turn * base.centre + shift)).length() < 1e-4);
+    for k in 0..3 {
+        close(m.moments[k], base.moments[k], 1e-3, "moment");
+        // The same axes, turned (up to their sign).
+        let axis = turn * base.axes.col(k);
+        assert!(m.axes.col(k).dot(axis).abs() > 1.0 - 1e-6, "axis {k}");
+    }
+    assert!((m.axes.determinant() - 1.0).abs() < 1e-12, "a rotation");
+    // In its principal frame its centre is the origin and its inertia diagonal.
+    let (principal, said) = moved.in_principal_frame();
+    let again: MassProperties = principal.mass_properties();
+    assert!(again.centre.length() < 1e-4);
+    let off = again.inertia - DMat3::from_diagonal(again.moments);
+    let largest = off
+        .to_cols_array()
+        .into_iter()
+        .fold(0.0, |a: f64, x| a.max(x.abs()));
+    assert!(
+        largest < 1e-4 * again.moments.z,
+        "off the diagonal: {largest}"
+    );
+    for k in 0..3 {
+        close(
+            again.moments[k],
+            said.moments[k],
+            1e-3,
+            "moment in the principal frame",
+        );
+        assert!(again.inertia.col(k)[k] > 0.0);
+    }
+}
+
+#[test]
+fn a_template_without_spheres_or_with_a_bad_one_is_refused() {
+    let none = ClumpTemplate::new("empty", Vec::new())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        none.contains("clump \"empty\"") && none.contains("no component"),
+        "{none}"
+    );
+    for (centre, radius) in [
+        ([f64::NAN, 0.0, 0.0], 1.0),
+        ([0.0; 3], 0.0),
+        ([0.0; 3], -1.0),
+    ] {
+        let bad = Component {
+            centre: DVec3::from_array(centre),
+            radius,
+        };
+        let e = ClumpTemplate::new("bad", vec![bad])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("component 0"), "{e}");
+    }
+}
+
+/// An asymmetric body (principal moments 1, 2 and 3 kg·m²) of 1 kg at the origin.
+fn body(angular_velocity: DVec3) -> (RigidBody, PrincipalInertia) {
+    let inertia = PrincipalInertia {
+        mass: 1.0,
+        moments: DVec3::new(1.0, 2.0, 3.0),
+    };
+    let q = DQuat::from_axis_angle(DVec3::new(1.0, 2.0, -0.5).normalize(), 0.7);
+    let b = RigidBody::new(DVec3::ZERO, q, DVec3::ZERO, q * angular_velocity, &inertia);
+    (b, inertia)
+}
+
+#[test]
+fn a_torque_free_asymmetric_body_keeps_its_angular_momentum_and_energy() {
+    let (mut b, inertia) = body(DVec3::new(0.4, 0.9, -0.6));
+    let (l0, e0) = (b.angular_momentum, b.kinetic_energy(&inertia));
+    let dt = 1e-2;
+    let mut turned = 0.0f64;
+    for _ in 0..10_000 {
+        let before = b.orientation;
+        b.advance(&inertia, DVec3::ZERO, DVec3::ZERO, dt);
+        turned += before.angle_between(b.orientation);
+        close(b.kinetic_energy(&inertia), e0, 1e-4, "energy");
+    }
+    assert!((b.angular_momentum - l0).length() < 1e-12 * l0.length());
+    assert!(turned > 50.0, "turned by {turned} rad in all");
+    // The angular momentum in the body frame moves (on its polhode): a step that does
+    // nothing would keep it.
+    let (start, _) = body(DVec3::new(0.4, 0.9, -0.6));
+    let drift = (b.orientation.inverse() * l0 - start.orientation.inverse() * l0).length();
+    assert!(
+        drift > 0.1 * l0.length(),
+        "the body frame's L moved by {drift}"
+    );
+}
+
+#[test]
+fn a_body_spinning_about_a_principal_axis_turns_at_its_rate() {
+    let inertia = PrincipalInertia {
+        mass: 2.0,
+        moments: DVec3::new(1.0, 2.0, 3.0),
+    };
+    for axis in 0..3 {
+        let mut spin = DVec3::ZERO;
+        spin[axis] = 3.0;
+        let mut b = RigidBody::new(DVec3::ZERO, DQuat::IDENTITY, DVec3::ZERO, spin, &inertia);
+        let dt = 1e-3;
+        for _ in 0..500 {
+            b.advance(&inertia, DVec3::ZERO, DVec3::ZERO, dt);
+        }
+        // 1.5 rad about the axis, exactly the rotation by ω·t.
+        let want = DQuat::from_axis_angle(spin.normalize(), 1.5);
+        assert!(b.orientation.angle_between(want) < 1e-9, "axis {axis}");
+        assert!((b.angular_velocity(&inertia) - spin).length() < 1e-12);
+    }
+}
+
+#[test]
+fn a_body_tumbles_about_its_intermediate_axis_and_not_about_the_others() {
+    // A spin about one principal axis, perturbed by a thousandth about the others: about the
+    // smallest and the largest axis the body's spin stays; about the intermediate one it flips
+    // (the tennis racket's, or Dzhanibekov's, instability), within a few of its periods.
+    let dt = 1e-3;
+    for axis in 0..3 {
+        let mut w = DVec3::splat(1e-3);
+        w[axis] = 1.0;
+        let (mut b, inertia) = body(w);
+        let mut least = f64::INFINITY;
+        for _ in 0..60_000 {
+            b.advance(&inertia, DVec3::ZERO, DVec3::ZERO, dt);
+            least = least.min(b.body_angular_velocity(&inertia)[axis]);
+        }
+        match axis {
+            1 => assert!(least < -0.9, "about the intermediate axis: {least}"),
+            _ => assert!(least > 0.99, "about axis {axis}: {least}"),
+        }
+    }
+}
+
+#[test]
+fn a_force_and_a_torque_change_the_momenta_as_newton_and_euler_say() {
+    let inertia = PrincipalInertia {
+        mass: 2.0,
+        moments: DVec3::new(1.0, 2.0, 3.0),
+    };
+    let (v0, force, torque) = (
+        DVec3::new(0.1, 0.0, -0.2),
+        DVec3::new(0.0, 0.0, -19.62),
+        DVec3::new(0.3, -0.1, 0.2),
+    );
+    let mut b = RigidBody::new(DVec3::ONE, DQuat::IDENTITY, v0, DVec3::ZERO, &inertia);
+    let (dt, n) = (1e-3, 1000);
+    for _ in 0..n {
+        b.advance(&inertia, force, torque, dt);
+    }
+    let t = n as f64 * dt;
+    let a = force / inertia.mass;
+    assert!((b.velocity - (v0 + a * t)).length() < 1e-12);
+    // The kick before the drift: x = x0 + v0·t + a·dt²·n(n+1)/2.
+    let x = DVec3::ONE + v0 * t + a * dt * dt * (n * (n + 1)) as f64 / 2.0;
+    assert!((b.position - x).length() < 1e-12);
+    assert!((b.angular_momentum - torque * t).length() < 1e-12);
+    // A component's velocity is the centre's plus ω × its arm.
+    let arm = DVec3::new(0.1, 0.2, 0.0);
+    let w = b.angular_velocity(&inertia);
+    let want = b.velocity + w.cross(b.orientation * arm);
+    assert!((b.point_velocity(&inertia, arm) - want).length() < 1e-15);
+    assert!((b.world_point(arm) - (b.position + b.orientation * arm)).length() < 1e-15);
+}
