@@ -296,3 +296,97 @@ fn a_force_and_a_torque_change_the_momenta_as_newton_and_euler_say() {
     assert!((b.point_velocity(&inertia, arm) - want).length() < 1e-15);
     assert!((b.world_point(arm) - (b.position + b.orientation * arm)).length() < 1e-15);
 }
+
+#[test]
+fn the_built_in_shapes_have_the_symmetries_and_volumes_of_their_spheres() {
+    let r = 1e-3;
+    let one = 4.0 / 3.0 * PI * r * r * r;
+    // Two spheres r apart: a lens of π(4r + d)(2r − d)²/12 counted once.
+    let lens = |d: f64| PI * (4.0 * r + d) * (2.0 * r - d).powi(2) / 12.0;
+    let dimer = ClumpTemplate::dimer(r).unwrap().mass_properties();
+    close(dimer.volume, 2.0 * one - lens(r), 1e-4, "dimer's volume");
+    let (_, axial, across) = dimer_by_slices(r, r);
+    close(dimer.moments[0], axial, 2e-4, "dimer's axial moment");
+    close(dimer.moments[2], across, 2e-4, "dimer's moment across");
+    assert!(
+        dimer.axes.col(0).x.abs() > 1.0 - 1e-9,
+        "the dimer lies along x"
+    );
+    // A rod of n: n spheres less n − 1 lenses (only neighbours overlap), along x.
+    let rod = ClumpTemplate::rod(5, r).unwrap();
+    assert_eq!(rod.name, "rod 5");
+    let m = rod.mass_properties();
+    close(m.volume, 5.0 * one - 4.0 * lens(r), 1e-4, "rod's volume");
+    assert!(m.centre.length() < 1e-6 * r);
+    assert!(
+        m.moments[2] > 5.0 * m.moments[0],
+        "a rod is long: {:?}",
+        m.moments
+    );
+    // A trimer is a symmetric top: its two moments in its plane are equal, the third (about the
+    // normal, z) the largest.
+    let m = ClumpTemplate::trimer(r).unwrap().mass_properties();
+    close(
+        m.moments[0],
+        m.moments[1],
+        1e-3,
+        "trimer's moments in its plane",
+    );
+    assert!(m.moments[2] > 1.1 * m.moments[1]);
+    assert!(
+        m.axes.col(2).z.abs() > 1.0 - 1e-6,
+        "the trimer's normal is z"
+    );
+    // A regular tetrahedron's inertia is the same about every axis.
+    let m = ClumpTemplate::tetrahedron(r).unwrap().mass_properties();
+    close(m.moments[0], m.moments[2], 1e-3, "tetrahedron's moments");
+    assert!(m.centre.length() < 1e-6 * r);
+    let t = ClumpTemplate::tetrahedron(r).unwrap();
+    for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+        let edge = t.components[a].centre.distance(t.components[b].centre);
+        close(edge, r, 1e-12, "tetrahedron's edge");
+    }
+    assert!(ClumpTemplate::rod(0, r).is_err());
+    assert!(ClumpTemplate::dimer(-r).is_err());
+}
+
+#[test]
+fn a_grain_from_a_mesh_is_its_volume_filled_with_touching_spheres() {
+    // A cube of 4 mm filled at a spacing of 1 mm: 4³ spheres of 0.5 mm, touching, not
+    // overlapping (the union is their sum), its inertia a cube's, the same about every axis.
+    let s = 4e-3;
+    let vertices = (0..8)
+        .map(|k| {
+            [
+                (k & 1) as f64 * s,
+                ((k >> 1) & 1) as f64 * s,
+                (k >> 2) as f64 * s,
+            ]
+        })
+        .collect();
+    let faces = [
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    let cube = mochi::mesh::Mesh {
+        vertices,
+        triangles: faces.to_vec(),
+    };
+    let grain = ClumpTemplate::from_mesh("cube", &cube, 1e-3).unwrap();
+    assert_eq!(grain.components.len(), 64);
+    let m = grain.mass_properties();
+    let one = 4.0 / 3.0 * PI * 0.5e-3f64.powi(3);
+    close(m.volume, 64.0 * one, 1e-4, "the grain's volume");
+    assert!((m.centre - DVec3::splat(s / 2.0)).length() < 1e-6 * s);
+    close(m.moments[0], m.moments[2], 1e-3, "a cube's moments");
+}
