@@ -390,3 +390,182 @@ fn a_grain_from_a_mesh_is_its_volume_filled_with_touching_spheres() {
     assert!((m.centre - DVec3::splat(s / 2.0)).length() < 1e-6 * s);
     close(m.moments[0], m.moments[2], 1e-3, "a cube's moments");
 }
+
+// ---- Clumps moved by their components' contacts ---------------------------------------------
+
+use mochi::dem::StepParams;
+use mochi::dem::clump::{Clump, ClumpKind, ClumpSet, ComponentState};
+use mochi::dem::model::contact::{Body, Springs, pair_contact, wall_contacts};
+use mochi::dem::model::{ContactLaw, Material};
+use std::collections::HashMap;
+
+const DENSITY: f64 = 2500.0;
+
+/// Hertz–Mindlin (E 1e7 Pa) with sliding friction `mu` in a 10 cm box, at a fifth of the
+/// Rayleigh time of spheres of 1 mm.
+fn law(mu: f64) -> StepParams {
+    let material = Material {
+        contact: ContactLaw::HertzMindlin {
+            young_modulus: 1e7,
+            poisson_ratio: 0.3,
+        },
+        density: DENSITY,
+        restitution: 0.5,
+        friction: mu,
+        rolling_friction: 0.0,
+        ..Material::default()
+    };
+    let side = [0.1; 3];
+    let probe = StepParams::new(&material, 1e-9, [0.0; 3], side, [0.0; 3], 0.0, 1e-3).unwrap();
+    let dt = 0.5 * probe.dt_limit as f64;
+    StepParams::new(&material, dt, [0.0; 3], side, [0.0; 3], 0.0, 1e-3).unwrap()
+}
+
+/// A component as the contact laws take it (in f32).
+fn as_body(c: &ComponentState) -> Body {
+    Body {
+        c: c.centre.as_vec3(),
+        v: c.velocity.as_vec3(),
+        w: c.angular_velocity.as_vec3(),
+        r: c.radius as f32,
+        m: c.mass as f32,
+        material: 0,
+    }
+}
+
+/// One step of `set` under gravity −z on the box's floor and walls: each component's wall
+/// contacts (their springs kept in `springs` by component and wall), then the clumps moved.
+fn step_on_floor(set: &mut ClumpSet, p: &StepParams, springs: &mut HashMap<(usize, u32), Springs>) {
+    let parts = set.components();
+    let mut forces = vec![DVec3::ZERO; parts.len()];
+    let mut torques = vec![DVec3::ZERO; parts.len()];
+    let mut kept = HashMap::new();
+    for (k, c) in parts.iter().enumerate() {
+        let walls = wall_contacts(
+            p,
+            &as_body(c),
+            |w| {
+                springs
+                    .get(&(k, w))
+                    .map_or((Springs::default(), false), |&s| (s, true))
+            },
+            |w, s| {
+                kept.insert((k, w), s);
+            },
+            |_, _, _, _| {},
+        );
+        forces[k] = (walls.normal + walls.tangential).as_dvec3();
+        torques[k] = walls.torque.as_dvec3();
+    }
+    *springs = kept;
+    set.advance(&forces, &torques, DVec3::new(0.0, 0.0, -9.81), p.dt as f64);
+}
+
+#[test]
+fn a_dimer_dropped_flat_or_tilted_comes_to_rest_on_both_spheres() {
+    let r = 1e-3;
+    let p = law(0.5);
+    let kind = ClumpKind::new(&ClumpTemplate::dimer(r).unwrap(), DENSITY);
+    for tilt in [0.0f64, 30f64.to_radians()] {
+        // Its axis along x, turned by `tilt` about y; its lowest point 0.5 mm above the floor.
+        let orientation = DQuat::from_rotation_y(tilt);
+        let lowest = r + 0.5 * r * tilt.sin();
+        let body = RigidBody::new(
+            DVec3::new(0.05, 0.05, lowest + 0.5e-3),
+            orientation,
+            DVec3::ZERO,
+            DVec3::ZERO,
+            &kind.inertia,
+        );
+        let mut set = ClumpSet {
+            kinds: vec![kind.clone()],
+            clumps: vec![Clump { kind: 0, body }],
+        };
+        let mut springs = HashMap::new();
+        let steps = (0.4 / p.dt as f64) as usize;
+        for _ in 0..steps {
+            step_on_floor(&mut set, &p, &mut springs);
+        }
+        // Both spheres on the floor, pressed by half the weight each (a Hertz overlap well
+        // under a micrometre), at rest.
+        for c in set.components() {
+            assert!(
+                (c.centre.z - r).abs() < 2e-6,
+                "tilt {tilt}: a sphere at z = {}",
+                c.centre.z
+            );
+            assert!(
+                c.velocity.length() < 1e-4,
+                "tilt {tilt}: moving at {}",
+                c.velocity
+            );
+        }
+        let w = set.clumps[0].body.angular_velocity(&kind.inertia);
+        assert!(w.length() < 0.1, "tilt {tilt}: turning at {w}");
+    }
+}
+
+#[test]
+fn two_frictionless_dimers_colliding_off_centre_keep_their_momenta_and_start_to_spin() {
+    let r = 1e-3;
+    let p = law(0.0);
+    let kind = ClumpKind::new(&ClumpTemplate::dimer(r).unwrap(), DENSITY);
+    // Two dimers along x flying at each other along y, off centre: the first's right sphere
+    // meets the second's left one.
+    let body = |x: f64, y: f64, vy: f64| RigidBody {
+        position: DVec3::new(x, y, 0.05),
+        orientation: DQuat::IDENTITY,
+        velocity: DVec3::new(0.0, vy, 0.0),
+        angular_momentum: DVec3::ZERO,
+    };
+    let mut set = ClumpSet {
+        kinds: vec![kind.clone()],
+        clumps: vec![
+            Clump {
+                kind: 0,
+                body: body(0.05, 0.05 - 1.5 * r, 0.2),
+            },
+            Clump {
+                kind: 0,
+                body: body(0.05 + r, 0.05 + 1.5 * r, -0.2),
+            },
+        ],
+    };
+    let owners = set.owners();
+    let (p0, l0) = set.momenta();
+    let scale = kind.inertia.mass * 0.2 * r;
+    for _ in 0..4000 {
+        let parts = set.components();
+        let mut forces = vec![DVec3::ZERO; parts.len()];
+        // Each pair of components of different clumps, from both sides (as the cpu step).
+        for (a, ca) in parts.iter().enumerate() {
+            for (b, cb) in parts.iter().enumerate() {
+                if owners[a] == owners[b] {
+                    continue;
+                }
+                if let Some(c) =
+                    pair_contact(&p, &as_body(ca), &as_body(cb), Springs::default(), false)
+                {
+                    forces[a] += c.force.as_dvec3();
+                }
+            }
+        }
+        let torques = vec![DVec3::ZERO; parts.len()];
+        set.advance(&forces, &torques, DVec3::ZERO, p.dt as f64);
+    }
+    let (p1, l1) = set.momenta();
+    assert!(
+        (p1 - p0).length() < 1e-9 * kind.inertia.mass * 0.2,
+        "momentum {p0} → {p1}"
+    );
+    assert!(
+        (l1 - l0).length() < 1e-5 * scale,
+        "angular momentum {l0} → {l1}"
+    );
+    // They met and turned each other: each now spins about z.
+    for c in &set.clumps {
+        let w = c.body.angular_velocity(&kind.inertia);
+        assert!(w.z.abs() > 1.0, "spin {w}");
+        assert!(c.body.velocity.y.abs() < 0.2, "{}", c.body.velocity);
+    }
+}

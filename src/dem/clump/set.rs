@@ -1,0 +1,137 @@
+//! Clumps in motion: the bodies of a run, each of a kind (a template in its principal frame at a
+//! density), and the coupling of their component spheres to the rigid-body step. The contact
+//! laws see each component as a sphere; what they give it (a force, and a torque about its own
+//! centre) moves the clump: the force acts at the component's centre, so about the clump's
+//! centre it adds the arm's moment, (c_k − x) × f_k, to the torque.
+
+use super::rigid::{PrincipalInertia, RigidBody};
+use super::template::ClumpTemplate;
+use glam::DVec3;
+
+/// A kind of clump: a template in its principal frame and the inertia it has at its density.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClumpKind {
+    /// The template, its centre the origin and its principal axes x, y and z.
+    pub template: ClumpTemplate,
+    /// Mass and principal moments at the kind's density.
+    pub inertia: PrincipalInertia,
+}
+
+impl ClumpKind {
+    /// Clumps of `template` at `density` \[kg/m³\] (the union of the components, overlaps
+    /// counted once).
+    pub fn new(template: &ClumpTemplate, density: f64) -> Self {
+        let (template, properties) = template.in_principal_frame();
+        Self {
+            template,
+            inertia: PrincipalInertia {
+                mass: density * properties.volume,
+                moments: density * properties.moments,
+            },
+        }
+    }
+}
+
+/// One clump: its kind (an index into [`ClumpSet::kinds`]) and its rigid-body state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Clump {
+    /// Its kind.
+    pub kind: usize,
+    /// Its centre, orientation and momenta.
+    pub body: RigidBody,
+}
+
+/// A component sphere of a clump as the contact laws see it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ComponentState {
+    /// Centre in the world \[m\].
+    pub centre: DVec3,
+    /// Radius \[m\].
+    pub radius: f64,
+    /// Velocity of the clump's material at the centre \[m/s\].
+    pub velocity: DVec3,
+    /// The clump's angular velocity \[rad/s\].
+    pub angular_velocity: DVec3,
+    /// The clump's mass \[kg\]: the mass the laws damp a component's contacts with.
+    pub mass: f64,
+}
+
+/// The clumps of a run and their kinds. Their components are numbered clump by clump, each
+/// clump's in its template's order ([`Self::components`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ClumpSet {
+    /// The kinds the clumps are of.
+    pub kinds: Vec<ClumpKind>,
+    /// The clumps.
+    pub clumps: Vec<Clump>,
+}
+
+impl ClumpSet {
+    /// Every clump's components, clump by clump.
+    pub fn components(&self) -> Vec<ComponentState> {
+        let mut out = Vec::with_capacity(self.component_count());
+        for clump in &self.clumps {
+            let kind = &self.kinds[clump.kind];
+            let w = clump.body.angular_velocity(&kind.inertia);
+            out.extend(kind.template.components.iter().map(|c| ComponentState {
+                centre: clump.body.world_point(c.centre),
+                radius: c.radius,
+                velocity: clump.body.point_velocity(&kind.inertia, c.centre),
+                angular_velocity: w,
+                mass: kind.inertia.mass,
+            }));
+        }
+        out
+    }
+
+    /// The number of component spheres of all the clumps.
+    pub fn component_count(&self) -> usize {
+        self.clumps
+            .iter()
+            .map(|c| self.kinds[c.kind].template.components.len())
+            .sum()
+    }
+
+    /// The clump each component belongs to, in the order of [`Self::components`].
+    pub fn owners(&self) -> Vec<u32> {
+        let mut out = Vec::with_capacity(self.component_count());
+        for (k, clump) in self.clumps.iter().enumerate() {
+            let n = self.kinds[clump.kind].template.components.len();
+            out.extend(std::iter::repeat_n(k as u32, n));
+        }
+        out
+    }
+
+    /// One step of `dt` for every clump under gravity `gravity` and the forces `forces` and
+    /// torques `torques` (each about its component's centre) on its components, in the order
+    /// of [`Self::components`].
+    pub fn advance(&mut self, forces: &[DVec3], torques: &[DVec3], gravity: DVec3, dt: f64) {
+        let mut next = 0;
+        for clump in &mut self.clumps {
+            let kind = &self.kinds[clump.kind];
+            let mut force = gravity * kind.inertia.mass;
+            let mut torque = DVec3::ZERO;
+            for c in &kind.template.components {
+                let arm = clump.body.orientation * c.centre;
+                force += forces[next];
+                torque += arm.cross(forces[next]) + torques[next];
+                next += 1;
+            }
+            clump.body.advance(&kind.inertia, force, torque, dt);
+        }
+    }
+
+    /// The clumps' linear momentum \[kg·m/s\] and angular momentum about the origin \[kg·m²/s\].
+    pub fn momenta(&self) -> (DVec3, DVec3) {
+        self.clumps
+            .iter()
+            .fold((DVec3::ZERO, DVec3::ZERO), |(p, l), c| {
+                let m = self.kinds[c.kind].inertia.mass;
+                let b = &c.body;
+                (
+                    p + m * b.velocity,
+                    l + b.position.cross(m * b.velocity) + b.angular_momentum,
+                )
+            })
+    }
+}
