@@ -42,6 +42,7 @@
 //! ```
 #![deny(unsafe_code)]
 
+pub mod clump;
 pub mod dem;
 mod detect;
 pub mod engines;

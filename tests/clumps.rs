@@ -6,7 +6,7 @@
 //! constant force and torque giving the momenta they must.
 
 use glam::{DMat3, DQuat, DVec3};
-use mochi::dem::clump::{ClumpTemplate, Component, MassProperties, PrincipalInertia, RigidBody};
+use mochi::clump::{ClumpTemplate, Component, MassProperties, PrincipalInertia, RigidBody};
 use std::f64::consts::PI;
 
 fn template(spheres: &[([f64; 3], f64)]) -> ClumpTemplate {
@@ -394,7 +394,7 @@ fn a_grain_from_a_mesh_is_its_volume_filled_with_touching_spheres() {
 // ---- Clumps moved by their components' contacts ---------------------------------------------
 
 use mochi::dem::StepParams;
-use mochi::dem::clump::{Clump, ClumpKind, ClumpSet, ComponentState};
+use mochi::clump::{Clump, ClumpKind, ClumpSet, ComponentState};
 use mochi::dem::model::contact::{Body, Springs, pair_contact, wall_contacts};
 use mochi::dem::model::{ContactLaw, Material};
 use std::collections::HashMap;

@@ -5,7 +5,6 @@
 //! physics, [`scene`] the scene files, [`Stepper`] the step every engine implements
 //! (the `engines` registry opens one, where the backend's data lives).
 
-pub mod clump;
 pub mod contacts;
 pub mod equipment;
 pub mod flow;
