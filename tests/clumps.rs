@@ -393,8 +393,8 @@ fn a_grain_from_a_mesh_is_its_volume_filled_with_touching_spheres() {
 
 // ---- Clumps moved by their components' contacts ---------------------------------------------
 
-use mochi::dem::StepParams;
 use mochi::clump::{Clump, ClumpKind, ClumpSet, ComponentState};
+use mochi::dem::StepParams;
 use mochi::dem::model::contact::{Body, Springs, pair_contact, wall_contacts};
 use mochi::dem::model::{ContactLaw, Material};
 use std::collections::HashMap;
@@ -568,4 +568,158 @@ fn two_frictionless_dimers_colliding_off_centre_keep_their_momenta_and_start_to_
         assert!(w.z.abs() > 1.0, "spin {w}");
         assert!(c.body.velocity.y.abs() < 0.2, "{}", c.body.velocity);
     }
+}
+
+// ---- Clumps in the cpu step ------------------------------------------------------------------
+
+use mochi::ProxyMode;
+use mochi::dem::{Particles, Stepper};
+use mochi::engines::cpu::CpuStepper;
+use mochi::engines::{BackendKind, DemSetup};
+
+/// A dimer of spheres of 1 mm in `orientation` with its centre at `at`, at rest, as a run's
+/// clumps, then the free spheres of `free`.
+fn dimer_run(at: DVec3, orientation: DQuat, free: Particles) -> Particles {
+    let kind = ClumpKind::new(&ClumpTemplate::dimer(1e-3).unwrap(), DENSITY);
+    let body = RigidBody::new(at, orientation, DVec3::ZERO, DVec3::ZERO, &kind.inertia);
+    let clumps = ClumpSet {
+        kinds: vec![kind],
+        clumps: vec![Clump { kind: 0, body }],
+    };
+    Particles::with_clumps(clumps, free).unwrap()
+}
+
+/// The cpu step of `particles` under gravity −z in [`law`]'s box.
+fn cpu(particles: Particles, mu: f64) -> CpuStepper {
+    let p = law(mu).with_gravity([0.0, 0.0, -9.81], 1e-3).unwrap();
+    CpuStepper::open(DemSetup::new(particles, p, ProxyMode::Mochi)).unwrap()
+}
+
+#[test]
+fn a_dimer_in_the_cpu_step_lands_on_both_spheres_and_its_spheres_are_never_a_pair() {
+    let r = 1e-3;
+    // Tilted 30°, its lower sphere 0.5 mm above the floor.
+    let tilt = 30f64.to_radians();
+    let at = DVec3::new(0.05, 0.05, r + 0.5 * r * tilt.sin() + 0.5e-3);
+    let mut s = cpu(
+        dimer_run(at, DQuat::from_rotation_y(tilt), Particles::default()),
+        0.5,
+    );
+    let dt = law(0.5).dt as f64;
+    for _ in 0..((0.4 / dt) as u32 / 100) {
+        // Its two spheres overlap by a radius, but are one body: no pair, ever.
+        assert_eq!(s.advance(100).unwrap().contacts, 0);
+    }
+    let end = s.particles().unwrap();
+    for k in 0..2 {
+        let z = end.exact_position(k)[2];
+        assert!((z - r).abs() < 2e-6, "a sphere at z = {z}");
+        let v = DVec3::from_array(end.velocities[k].map(f64::from));
+        assert!(v.length() < 1e-4, "moving at {v}");
+    }
+    // The state carries the clump; its components are where it puts them.
+    let clump = end.clumps.clumps[0].body;
+    let c = end.clumps.components();
+    assert!((clump.position.z - r).abs() < 2e-6);
+    assert!((DVec3::from_array(end.exact_position(1)) - c[1].centre).length() < 1e-12);
+}
+
+#[test]
+fn a_sphere_dropped_on_a_dimer_comes_to_rest_on_it() {
+    let r = 1e-3;
+    // The dimer flat on the floor along x; a free sphere of 1 mm 0.5 mm above its middle.
+    let mut free = Particles::default();
+    free.push(
+        [0.05, 0.05, (r + r * 3.75f64.sqrt() + 0.5e-3) as f32],
+        [0.0; 3],
+        1e-3,
+    )
+    .unwrap();
+    let run = dimer_run(DVec3::new(0.05, 0.05, r), DQuat::IDENTITY, free);
+    let mut s = cpu(run, 0.5);
+    let dt = law(0.5).dt as f64;
+    let contacts = s.advance((0.4 / dt) as u32).unwrap().contacts;
+    // It rests on both of the dimer's spheres, in the groove between them: 2r from each
+    // centre, r/2 from each along x.
+    assert_eq!(contacts, 2);
+    let end = s.particles().unwrap();
+    let z = end.exact_position(2)[2];
+    assert!(
+        (z - (r + r * 3.75f64.sqrt())).abs() < 1e-5,
+        "the sphere at z = {z}"
+    );
+    assert!(end.velocities[2].iter().all(|v| v.abs() < 1e-3));
+}
+
+#[test]
+fn a_run_of_clumps_resumed_from_its_checkpoint_goes_on_bit_for_bit() {
+    let r = 1e-3;
+    let at = DVec3::new(0.05, 0.05, 3.0 * r);
+    let turn = DQuat::from_axis_angle(DVec3::new(1.0, 1.0, 0.0).normalize(), 0.4);
+    let mut free = Particles::default();
+    free.push([0.052, 0.05, 0.006], [0.0; 3], 1e-3).unwrap();
+    let mut whole = cpu(dimer_run(at, turn, free), 0.5);
+    whole.advance(3000).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("c.bin");
+    mochi::io::write_checkpoint(&path, &whole.particles().unwrap(), "x", "").unwrap();
+    let saved = mochi::io::read_checkpoint(&path).unwrap().particles;
+    assert!(!saved.clumps.clumps.is_empty());
+    let mut resumed = cpu(saved, 0.5);
+    whole.advance(3000).unwrap();
+    resumed.advance(3000).unwrap();
+    assert!(whole.particles().unwrap() == resumed.particles().unwrap());
+}
+
+#[test]
+fn the_gpu_steps_refuse_clumps_by_name() {
+    let run = dimer_run(DVec3::splat(0.05), DQuat::IDENTITY, Particles::default());
+    let mut kinds = vec![BackendKind::WgpuCompute, BackendKind::WgpuRq];
+    if cfg!(feature = "optix") {
+        kinds.push(BackendKind::Optix);
+    }
+    for kind in kinds {
+        let p = law(0.5);
+        let e = match mochi::engines::open_stepper(
+            kind,
+            run.clone(),
+            p,
+            ProxyMode::Mochi,
+            &Default::default(),
+        ) {
+            Ok(_) => panic!("{} opened a run of clumps", kind.name()),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains("clumps"), "{}: {e}", kind.name());
+    }
+}
+
+#[test]
+fn a_runs_kinetic_energy_counts_each_clump_once_as_a_rigid_body() {
+    let mut free = Particles::default();
+    free.push([0.02, 0.02, 0.02], [0.0, 0.0, -1.0], 1e-3)
+        .unwrap();
+    let mut run = dimer_run(DVec3::splat(0.05), DQuat::IDENTITY, free);
+    let kind = run.clumps.kinds[0].clone();
+    run.clumps.clumps[0].body = RigidBody::new(
+        DVec3::splat(0.05),
+        DQuat::IDENTITY,
+        DVec3::X,
+        DVec3::Z * 3.0,
+        &kind.inertia,
+    );
+    let e = run.energies(&[DENSITY as f32]);
+    let sphere = DENSITY * 4.0 / 3.0 * PI * 1e-9;
+    close(
+        e.translational,
+        0.5 * kind.inertia.mass + 0.5 * sphere,
+        1e-6,
+        "translational",
+    );
+    close(
+        e.rotational,
+        0.5 * kind.inertia.moments.z * 9.0,
+        1e-12,
+        "rotational",
+    );
 }

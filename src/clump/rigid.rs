@@ -66,9 +66,13 @@ impl RigidBody {
 
     /// Kinetic energy, translational and rotational \[J\].
     pub fn kinetic_energy(&self, inertia: &PrincipalInertia) -> f64 {
+        0.5 * inertia.mass * self.velocity.length_squared() + self.rotational_energy(inertia)
+    }
+
+    /// Kinetic energy of the rotation, Σ L_k²/(2I_k) in the principal frame \[J\].
+    pub fn rotational_energy(&self, inertia: &PrincipalInertia) -> f64 {
         let body = self.orientation.inverse() * self.angular_momentum;
-        0.5 * inertia.mass * self.velocity.length_squared()
-            + 0.5 * (body * body / inertia.moments).element_sum()
+        0.5 * (body * body / inertia.moments).element_sum()
     }
 
     /// Where the point `body_point` of the body's principal frame is in the world \[m\].

@@ -96,6 +96,13 @@ impl Engine for CpuEngine {
     }
 
     fn flowing(&self, setup: DemSetup, _: &Options, flow: FlowSet) -> Result<Box<dyn Stepper>> {
+        if !setup.particles.clumps.clumps.is_empty() {
+            return Err(Error::Usage(
+                "spheres flowing in or out of a run of clumps: not yet (a clump's components \
+                 are its first spheres, which an outflow would take one by one)"
+                    .into(),
+            ));
+        }
         let mode = setup.mode;
         Ok(Box::new(
             cpu::CpuStepper::open(setup)?.with_flow(flow, mode),

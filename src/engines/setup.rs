@@ -3,6 +3,7 @@
 
 use crate::dem::model::StepParams;
 use crate::dem::walls::WallSet;
+use crate::error::{Error, Result};
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
@@ -21,6 +22,20 @@ pub struct DemSetup {
 }
 
 impl DemSetup {
+    /// Refuses clumps on the step of `backend`, which carries none yet (the cpu step does).
+    pub(crate) fn refuse_clumps(&self, backend: &'static str) -> Result<()> {
+        match self.particles.clumps.clumps.is_empty() {
+            true => Ok(()),
+            false => Err(Error::BackendUnavailable {
+                backend,
+                reason: format!(
+                    "its step carries no clumps yet ({} here): run them on the cpu backend",
+                    self.particles.clumps.clumps.len()
+                ),
+            }),
+        }
+    }
+
     /// `particles` stepped with `params` in `mode`, in the box.
     pub fn new(particles: Particles, params: StepParams, mode: ProxyMode) -> Self {
         DemSetup {

@@ -3,7 +3,7 @@
 //! reads) in one little-endian binary file, written atomically so the file on disk is always a
 //! whole checkpoint.
 //!
-//! Layout (version 7): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
+//! Layout (version 8): `MOCHICKP`, version u32, step u64, n u64, scene length u64, scene TOML
 //! (UTF-8), state length u64, state TOML (UTF-8), then n·3 f32 positions (the `f32` centres),
 //! n·3 f32 velocities, n·3 f32 angular velocities, n f32 radii, n·3 f32 position residuals
 //! (each centre plus its residual is the sphere's position, as [`Particles`] holds it: saved as
@@ -12,20 +12,28 @@
 //! order), the number of load histories u64 (0, or that of the entries: the
 //! Mindlin–Deresiewicz model's) and each as 3 f32 reversal force, f32 normal force (in the
 //! entries' order), the number of materials u64 (0: every sphere of the first material, or n)
-//! and each sphere's material as a u8 (as [`Particles::materials`] holds them), and last the
-//! CRC-32 (u32) of every byte before it: a damaged file is refused rather than resumed.
-//! Version 6 (no materials) is still read without them (every sphere of the first material),
+//! and each sphere's material as a u8 (as [`Particles::materials`] holds them), the clumps
+//! ([`Particles::clumps`]: the number of kinds u64 and each kind as its name's length u64, its
+//! name (UTF-8), its component count u64, each component as 4 f64 (centre, radius), its mass
+//! f64 and 3 f64 principal moments; the number of clumps u64 and each as its kind u64, 3 f64
+//! centre, 4 f64 orientation (x, y, z, w), 3 f64 velocity, 3 f64 angular momentum), and last
+//! the CRC-32 (u32) of every byte before it: a damaged file is refused rather than resumed.
+//! Version 7 (no clumps) is still read without them, version 6 (no materials) is still read without them (every sphere of the first material),
 //! version 5 (no load histories either) without those, version 4 (no residuals either) with
 //! residuals of 0, version 3 (no state either) with an empty state, and version 2 (no angular
 //! velocities, no history) as spheres at rest in rotation without history.
 
 use super::{io_error, write_atomically};
+use crate::clump::{
+    Clump, ClumpKind, ClumpSet, ClumpTemplate, Component, PrincipalInertia, RigidBody,
+};
 use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, Particles};
+use glam::{DQuat, DVec3};
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"MOCHICKP";
-const VERSION: u32 = 7;
+const VERSION: u32 = 8;
 /// The oldest version this mochi reads.
 const OLDEST: u32 = 2;
 /// Bytes of one history entry: owner, partner and six f32.
@@ -102,9 +110,104 @@ pub fn write_checkpoint(
     }
     bytes.extend_from_slice(&(particles.materials.len() as u64).to_le_bytes());
     bytes.extend_from_slice(&particles.materials);
+    write_clumps(&mut bytes, &particles.clumps);
     let crc = crc32fast::hash(&bytes);
     bytes.extend_from_slice(&crc.to_le_bytes());
     write_atomically(path, |out| out.write_all(&bytes))
+}
+
+/// Appends `set` as the checkpoint holds it.
+fn write_clumps(bytes: &mut Vec<u8>, set: &ClumpSet) {
+    let f64s = |bytes: &mut Vec<u8>, xs: &[f64]| {
+        for x in xs {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+    };
+    bytes.extend_from_slice(&(set.kinds.len() as u64).to_le_bytes());
+    for kind in &set.kinds {
+        let t = &kind.template;
+        bytes.extend_from_slice(&(t.name.len() as u64).to_le_bytes());
+        bytes.extend_from_slice(t.name.as_bytes());
+        bytes.extend_from_slice(&(t.components.len() as u64).to_le_bytes());
+        for c in &t.components {
+            f64s(bytes, &[c.centre.x, c.centre.y, c.centre.z, c.radius]);
+        }
+        f64s(bytes, &[kind.inertia.mass]);
+        f64s(bytes, &kind.inertia.moments.to_array());
+    }
+    bytes.extend_from_slice(&(set.clumps.len() as u64).to_le_bytes());
+    for c in &set.clumps {
+        let b = &c.body;
+        bytes.extend_from_slice(&(c.kind as u64).to_le_bytes());
+        f64s(bytes, &b.position.to_array());
+        f64s(bytes, &b.orientation.to_array());
+        f64s(bytes, &b.velocity.to_array());
+        f64s(bytes, &b.angular_momentum.to_array());
+    }
+}
+
+/// Reads the clumps `write_clumps` wrote, taking their bytes with `take`.
+fn read_clumps<'a>(take: &mut impl FnMut(usize, &str) -> Result<&'a [u8]>) -> Result<ClumpSet> {
+    // A count of things of `bytes_each` bytes (refused where they cannot be held).
+    fn count<'a>(
+        take: &mut impl FnMut(usize, &str) -> Result<&'a [u8]>,
+        what: &str,
+        bytes_each: usize,
+    ) -> Result<usize> {
+        let n = u64::from_le_bytes(take(8, what)?.try_into().expect("8 bytes"));
+        usize::try_from(n)
+            .ok()
+            .filter(|&n| n.checked_mul(bytes_each).is_some())
+            .ok_or_else(|| Error::Usage(format!("{n} {what} cannot fit in memory")))
+    }
+    let kinds_len = count(take, "clump kinds", 1)?;
+    let mut kinds = Vec::new();
+    for _ in 0..kinds_len {
+        let name_len = count(take, "clump name bytes", 1)?;
+        let name = String::from_utf8(take(name_len, "clump name")?.to_vec())
+            .map_err(|_| Error::Usage("a clump's name is not UTF-8".into()))?;
+        let components = count(take, "clump components", 32)?;
+        let values = f64s_from(take(32 * components, "clump components")?);
+        let components = values
+            .chunks_exact(4)
+            .map(|c| Component {
+                centre: DVec3::new(c[0], c[1], c[2]),
+                radius: c[3],
+            })
+            .collect();
+        let inertia = f64s_from(take(32, "clump inertia")?);
+        kinds.push(ClumpKind {
+            template: ClumpTemplate::new(&name, components)?,
+            inertia: PrincipalInertia {
+                mass: inertia[0],
+                moments: DVec3::new(inertia[1], inertia[2], inertia[3]),
+            },
+        });
+    }
+    let clumps_len = count(take, "clumps", 112)?;
+    let mut clumps = Vec::new();
+    for _ in 0..clumps_len {
+        let kind = count(take, "clump kind", 1)?;
+        let x = f64s_from(take(104, "clump state")?);
+        clumps.push(Clump {
+            kind,
+            body: RigidBody {
+                position: DVec3::new(x[0], x[1], x[2]),
+                orientation: DQuat::from_xyzw(x[3], x[4], x[5], x[6]),
+                velocity: DVec3::new(x[7], x[8], x[9]),
+                angular_momentum: DVec3::new(x[10], x[11], x[12]),
+            },
+        });
+    }
+    Ok(ClumpSet { kinds, clumps })
+}
+
+/// Little-endian `f64`s of `bytes`.
+fn f64s_from(bytes: &[u8]) -> Vec<f64> {
+    bytes
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+        .collect()
 }
 
 /// Reads a checkpoint.
@@ -194,6 +297,10 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
     } else {
         &[][..]
     };
+    let clumps = match version >= 8 {
+        true => read_clumps(&mut take)?,
+        false => ClumpSet::default(),
+    };
     let stored = u32::from_le_bytes(take(4, "checksum")?.try_into().expect("4 bytes"));
     if at != bytes.len() {
         return Err(bad(format!(
@@ -261,6 +368,7 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         materials: materials.to_vec(),
         history: ContactHistory::from_contacts_with_loads(n, &contacts, &loads)
             .map_err(|e| bad(e.to_string()))?,
+        clumps,
         step,
     };
     particles.validate().map_err(|e| bad(e.to_string()))?;
@@ -308,6 +416,7 @@ mod tests {
                 ],
             )
             .unwrap(),
+            clumps: ClumpSet::default(),
             step: 1234,
         }
     }
@@ -391,14 +500,17 @@ mod tests {
         let whole = std::fs::read(&path).unwrap();
         // The step, the scene, the state, the sphere data, the history, the materials and the
         // checksum (damage to the magic, version or a length or count reads as a foreign,
-        // older or truncated file).
+        // older or truncated file; the sample has no clumps, two counts of 0 before the
+        // checksum).
         let state_length = 36 + scene.len();
         let history_length = state_length + 8 + state.len() + 52 * sample().len();
-        let materials = whole.len() - 4 - sample().len();
+        let clumps = whole.len() - 4 - 16;
+        let materials = clumps - sample().len();
         let data = (36..state_length)
             .chain(state_length + 8..history_length)
             .chain(history_length + 8..materials - 16)
-            .chain(materials..whole.len());
+            .chain(materials..clumps)
+            .chain(whole.len() - 4..whole.len());
         for at in (12..20).chain(data) {
             let mut flipped = whole.clone();
             flipped[at] ^= 0x10;
@@ -442,13 +554,24 @@ mod tests {
         assert_eq!(read.particles, expected);
     }
 
-    /// The checkpoint of [`sample`] (scene `x`, empty state) as version 6 wrote it: no
-    /// materials' count before the checksum (the materials lost).
-    fn version_6() -> Vec<u8> {
+    /// The checkpoint of [`sample`] of one material (scene `x`, empty state) as version 7
+    /// wrote it: no clumps' counts before the checksum.
+    fn version_7() -> Vec<u8> {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.bin");
         write_checkpoint(&path, &without_materials(), "x", "").unwrap();
-        let v7 = std::fs::read(&path).unwrap();
+        let v8 = std::fs::read(&path).unwrap();
+        let mut v7 = v8[..v8.len() - 20].to_vec();
+        v7[8..12].copy_from_slice(&7u32.to_le_bytes());
+        let crc = crc32fast::hash(&v7);
+        v7.extend_from_slice(&crc.to_le_bytes());
+        v7
+    }
+
+    /// The checkpoint of [`sample`] (scene `x`, empty state) as version 6 wrote it: no
+    /// materials' count before the checksum (the materials lost).
+    fn version_6() -> Vec<u8> {
+        let v7 = version_7();
         let mut v6 = v7[..v7.len() - 12].to_vec();
         v6[8..12].copy_from_slice(&6u32.to_le_bytes());
         let crc = crc32fast::hash(&v6);
@@ -579,6 +702,61 @@ mod tests {
                 .history
                 .has_loads()
         );
+    }
+
+    #[test]
+    fn a_version_7_checkpoint_reads_without_clumps() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        std::fs::write(&path, version_7()).unwrap();
+        assert_reads_as_sample_without_materials(&path);
+    }
+
+    /// [`sample`] whose first sphere is a clump's component: a dimer's (the second sphere,
+    /// free, is of another radius; the clump's state need not match the spheres' to be saved).
+    fn with_a_clump() -> Particles {
+        let kind = ClumpKind::new(&ClumpTemplate::dimer(0.01).unwrap(), 2500.0);
+        let mut p = sample();
+        // Two components: the dimer's, then the free sphere.
+        p.positions.insert(0, [0.3, 0.2, 0.1]);
+        p.position_residuals.insert(0, [0.0; 3]);
+        p.velocities.insert(0, [0.0; 3]);
+        p.angular_velocities.insert(0, [0.0; 3]);
+        p.radii.insert(0, 0.01);
+        p.radii[1] = 0.01;
+        p.materials.insert(0, 0);
+        p.history = ContactHistory::default();
+        p.clumps = ClumpSet {
+            clumps: vec![Clump {
+                kind: 0,
+                body: RigidBody {
+                    position: DVec3::new(0.1, 0.2, 0.3 + 1e-12),
+                    orientation: DQuat::from_rotation_z(0.3),
+                    velocity: DVec3::new(1e-9, 0.0, -2.0),
+                    angular_momentum: DVec3::new(0.0, 3e-11, 1e-13),
+                },
+            }],
+            kinds: vec![kind],
+        };
+        p
+    }
+
+    #[test]
+    fn clumps_round_trip_bit_for_bit() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.bin");
+        let p = with_a_clump();
+        p.validate().unwrap();
+        write_checkpoint(&path, &p, "x", "").unwrap();
+        let read = read_checkpoint(&path).unwrap().particles;
+        assert_eq!(read.clumps, p.clumps);
+        assert_eq!(read, p);
+        assert_ne!(read, sample());
+        // Cut inside the clumps: refused.
+        let whole = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &whole[..whole.len() - 40]).unwrap();
+        let e = read_checkpoint(&path).unwrap_err().to_string();
+        assert!(e.contains("truncated"), "{e}");
     }
 
     #[test]

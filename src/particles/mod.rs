@@ -3,6 +3,7 @@
 pub mod history;
 pub mod position;
 
+use crate::clump::ClumpSet;
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
 pub use history::{
@@ -41,6 +42,12 @@ pub struct Particles {
     pub materials: Vec<u8>,
     /// The springs of the contacts that have friction or rolling resistance (empty without).
     pub history: ContactHistory,
+    /// The clumps, rigid bodies of component spheres (empty: none). The first
+    /// [`ClumpSet::component_count`] spheres are their components, clump by clump in each
+    /// template's order: a component's centre, velocity and angular velocity are its clump's at
+    /// its place ([`Self::place_clump_components`]), and the step moves it with its clump. The
+    /// other spheres are free.
+    pub clumps: ClumpSet,
     /// Steps taken since t = 0 (the time is `step · dt`).
     pub step: u64,
 }
@@ -48,18 +55,26 @@ pub struct Particles {
 /// The kinetic energy of a set of spheres \[J\], its two parts.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Energies {
-    /// Σ ½ m v².
+    /// Σ ½ m v² (a clump's m its mass, v its centre's velocity).
     pub translational: f64,
-    /// Σ ½ I ω², I = 2/5 m r² (solid spheres).
+    /// Σ ½ I ω², I = 2/5 m r² (solid spheres; a clump's Σ L_k²/(2I_k)).
     pub rotational: f64,
 }
 
 impl Particles {
-    /// The spheres' kinetic energy, each sphere's mass from its radius and the density of its
-    /// material in `densities` (indexed by material), summed in `f64`.
+    /// The kinetic energy of the free spheres, each sphere's mass from its radius and the
+    /// density of its material in `densities` (indexed by material), and of the clumps (their
+    /// rigid bodies'), summed in `f64`.
     pub fn energies(&self, densities: &[f32]) -> Energies {
         let mut sum = Energies::default();
-        for (i, &r) in self.radii.iter().enumerate() {
+        for clump in &self.clumps.clumps {
+            let inertia = &self.clumps.kinds[clump.kind].inertia;
+            let b = &clump.body;
+            sum.translational += 0.5 * inertia.mass * b.velocity.length_squared();
+            sum.rotational += b.rotational_energy(inertia);
+        }
+        let components = self.clumps.component_count();
+        for (i, &r) in self.radii.iter().enumerate().skip(components) {
             let density = densities[self.material(i) as usize] as f64;
             let r = r as f64;
             let m = density * 4.0 / 3.0 * std::f64::consts::PI * r * r * r;
@@ -89,6 +104,7 @@ impl Particles {
             radii,
             materials: Vec::new(),
             history: ContactHistory::default(),
+            clumps: ClumpSet::default(),
             step: 0,
         })
     }
@@ -115,6 +131,7 @@ impl Particles {
                 m
             },
             history: self.history.try_clone()?,
+            clumps: self.clumps.clone(),
             step: self.step,
         })
     }
@@ -156,8 +173,8 @@ impl Particles {
             .zip(&self.velocities)
             .zip(&self.angular_velocities)
             .position(|((c, v), w)| c.iter().chain(v).chain(w).any(|x| !x.is_finite()));
-        match bad {
-            Some(index) => Err(Error::InvalidSphere {
+        if let Some(index) = bad {
+            return Err(Error::InvalidSphere {
                 index,
                 reason: format!(
                     "non-finite position {:?}, velocity {:?} or angular velocity {:?} at step {}",
@@ -166,9 +183,115 @@ impl Particles {
                     self.angular_velocities[index],
                     self.step
                 ),
-            }),
-            None => self.validate_residuals(),
+            });
         }
+        self.validate_residuals()?;
+        self.validate_clumps()
+    }
+
+    /// Checks the clumps: their components are spheres of these particles, of their templates'
+    /// radii, and their bodies' states are finite.
+    fn validate_clumps(&self) -> Result<()> {
+        let set = &self.clumps;
+        let components = set.component_count();
+        if components > self.len() {
+            return Err(Error::Usage(format!(
+                "particles: {} clumps of {components} component spheres, but {} spheres",
+                set.clumps.len(),
+                self.len()
+            )));
+        }
+        if let Some(k) = set.clumps.iter().position(|c| c.kind >= set.kinds.len()) {
+            return Err(Error::Usage(format!(
+                "particles: clump {k} is of kind {}, but there are {} kinds",
+                set.clumps[k].kind,
+                set.kinds.len()
+            )));
+        }
+        let radii = set.clumps.iter().flat_map(|c| {
+            set.kinds[c.kind]
+                .template
+                .components
+                .iter()
+                .map(|t| t.radius as f32)
+        });
+        if let Some(index) = radii.zip(&self.radii).position(|(want, &r)| want != r) {
+            return Err(Error::InvalidSphere {
+                index,
+                reason: format!(
+                    "a clump's component of radius {}, but its template's is {}",
+                    self.radii[index],
+                    set.components()[index].radius
+                ),
+            });
+        }
+        let finite = |b: &crate::clump::RigidBody| {
+            b.position.is_finite()
+                && b.orientation.is_finite()
+                && b.velocity.is_finite()
+                && b.angular_momentum.is_finite()
+        };
+        match set.clumps.iter().position(|c| !finite(&c.body)) {
+            Some(k) => Err(Error::Usage(format!(
+                "particles: clump {k} has a state that is not finite: {:?}",
+                set.clumps[k].body
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// The clumps of `clumps` (their components first, of the first material, placed by their
+    /// clumps) and then the free spheres of `free` (which may have no contact history yet: its
+    /// partners would be renumbered).
+    pub fn with_clumps(clumps: ClumpSet, free: Particles) -> Result<Self> {
+        if !free.history.is_empty() || !free.clumps.clumps.is_empty() {
+            return Err(Error::Usage(
+                "clumps join free spheres without contact history or clumps of their own".into(),
+            ));
+        }
+        let components = clumps.components();
+        let k = components.len();
+        let mut out = Particles {
+            positions: vec![[0.0; 3]; k],
+            position_residuals: Vec::new(),
+            velocities: vec![[0.0; 3]; k],
+            angular_velocities: vec![[0.0; 3]; k],
+            radii: components.iter().map(|c| c.radius as f32).collect(),
+            materials: Vec::new(),
+            history: ContactHistory::default(),
+            clumps,
+            step: free.step,
+        };
+        out.place_clump_components()?;
+        out.fill_residuals()?;
+        out.positions.extend_from_slice(&free.positions);
+        out.position_residuals
+            .extend((0..free.len()).map(|i| free.residual(i)));
+        out.velocities.extend_from_slice(&free.velocities);
+        out.angular_velocities
+            .extend_from_slice(&free.angular_velocities);
+        out.radii.extend_from_slice(&free.radii);
+        if !free.materials.is_empty() {
+            out.materials = vec![0; k];
+            out.materials.extend_from_slice(&free.materials);
+        }
+        out.validate()?;
+        Ok(out)
+    }
+
+    /// Writes each clump's components (the first spheres) where their clump puts them: centre
+    /// (split into an `f32` centre and its residual), velocity and angular velocity.
+    pub fn place_clump_components(&mut self) -> Result<()> {
+        if self.clumps.clumps.is_empty() {
+            return Ok(());
+        }
+        let components = self.clumps.components();
+        for (k, c) in components.iter().enumerate() {
+            self.set_exact_position(k, c.centre.to_array())?;
+            self.velocities[k] = c.velocity.as_vec3().to_array();
+            self.angular_velocities[k] = c.angular_velocity.as_vec3().to_array();
+        }
+        Ok(())
     }
 
     /// Checks that every centre is its position rounded to `f32` (its pair is normalised), then
@@ -466,6 +589,7 @@ impl PartialEq for Particles {
             && materials(self) == materials(other)
             && self.materials.len().max(self.len()) == other.materials.len().max(other.len())
             && self.history == other.history
+            && self.clumps == other.clumps
             && self.step == other.step
     }
 }

@@ -99,6 +99,8 @@ pub(crate) fn particles_with(
         // Filled below where some sphere is of another material than the first.
         materials: Vec::new(),
         history: rotation.history,
+        // The GPU steps run no clumps (`open_setup` refuses them).
+        clumps: Default::default(),
         step,
     };
     let spins = rotation.angular_velocities;

@@ -49,7 +49,10 @@ struct SphereSum {
 pub struct CpuStepper {
     particles: Particles,
     params: StepParams,
+    /// Each sphere's mass as its contacts see it (a clump's component: its clump's).
     masses: Vec<f32>,
+    /// The clump of each component (the first spheres; empty without clumps).
+    owners: Vec<u32>,
     /// How far beyond touching a contact may act ([`StepParams::reach_margin`]): the cells
     /// grow by it.
     margin: f32,
@@ -100,6 +103,7 @@ impl CpuStepper {
 
     /// A stepper over `particles` in the box (validated by the caller).
     fn new(mut particles: Particles, params: StepParams, mode: ProxyMode) -> Result<Self> {
+        particles.place_clump_components()?;
         particles.separate_coincident()?;
         let (_, r_max) = particles.radius_range();
         let reach_margin = params.reach_margin(r_max);
@@ -120,6 +124,11 @@ impl CpuStepper {
         let mut masses = try_vec(n, || format!("the masses of {n} spheres"))?;
         let table = &params.materials;
         masses.extend((0..n).map(|i| table.mass(particles.material(i), particles.radii[i])));
+        let owners = particles.clumps.owners();
+        let clumps = &particles.clumps;
+        for (m, &k) in masses.iter_mut().zip(&owners) {
+            *m = clumps.kinds[clumps.clumps[k as usize].kind].inertia.mass as f32;
+        }
         let slots = match params.friction.has_history() {
             true => FIRST_SLOTS.max(particles.history.most()),
             false => 0,
@@ -129,6 +138,7 @@ impl CpuStepper {
         }
         Ok(Self {
             masses,
+            owners,
             margin: reach_margin,
             cell_size,
             region,
@@ -270,6 +280,7 @@ impl CpuStepper {
             params: &self.params,
             particles: &self.particles,
             masses: &self.masses,
+            owners: &self.owners,
             box_walls: self.box_walls,
             mesh: self.mesh.as_ref(),
             margin: self.margin,
@@ -339,6 +350,7 @@ impl CpuStepper {
             params: &self.params,
             particles: &self.particles,
             masses: &self.masses,
+            owners: &self.owners,
             box_walls: self.box_walls,
             mesh: self.mesh.as_ref(),
             margin: self.margin,
@@ -436,6 +448,19 @@ impl CpuStepper {
                     integrate_rotation(p.dt, w, Vec3::from_array(*t), moment_of_inertia(m, r))
                 });
         }
+        if !parts.clumps.clumps.is_empty() {
+            // The components move with their clumps (over what the loops above did to them).
+            let of = |rows: &[[f32; 3]], k: usize| {
+                rows.get(k)
+                    .map_or(glam::DVec3::ZERO, |f| Vec3::from_array(*f).as_dvec3())
+            };
+            let n = self.owners.len();
+            let f: Vec<_> = (0..n).map(|k| of(forces, k)).collect();
+            let t: Vec<_> = (0..n).map(|k| of(torques, k)).collect();
+            let gravity = Vec3::from_array(g).as_dvec3();
+            parts.clumps.advance(&f, &t, gravity, p.dt as f64);
+            parts.place_clump_components()?;
+        }
         parts.step += 1;
         Ok(())
     }
@@ -447,6 +472,8 @@ struct ContactPass<'a> {
     params: &'a StepParams,
     particles: &'a Particles,
     masses: &'a [f32],
+    /// The clump of each component (the first spheres).
+    owners: &'a [u32],
     /// Whether the six walls of the box act.
     box_walls: bool,
     /// Each sphere's mesh-wall contacts, resolved before this pass.
@@ -456,6 +483,13 @@ struct ContactPass<'a> {
 }
 
 impl ContactPass<'_> {
+    /// Whether spheres `i` and `j` are components of one clump: never a pair.
+    #[inline(always)]
+    fn one_clump(&self, i: usize, j: usize) -> bool {
+        let o = self.owners;
+        i < o.len() && j < o.len() && o[i] == o[j]
+    }
+
     /// The sphere at sorted position `q` as the law takes it.
     #[inline(always)]
     fn body(&self, q: usize) -> Body {
@@ -525,6 +559,9 @@ impl ContactPass<'_> {
                     continue;
                 }
                 let j = grid.ids[q];
+                if self.one_clump(i, j as usize) {
+                    continue;
+                }
                 let (springs, bonded) = if keeps { old(j) } else { (S::default(), false) };
                 if let Some(c) = pair_contact(p, &me, &body(q), springs, bonded && cohesive) {
                     let overlap = reach - (dx * dx + dy * dy + dz * dz).sqrt();

@@ -111,6 +111,7 @@ impl OptixStepper {
     /// Uploads `particles` to GPU 0 (in Morton order) and builds the acceleration structure,
     /// for a step inside `walls`.
     pub fn open(setup: DemSetup, policy: RebuildPolicy) -> Result<Self> {
+        setup.refuse_clumps("optix")?;
         let DemSetup {
             mut particles,
             params,

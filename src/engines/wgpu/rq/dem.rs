@@ -95,12 +95,14 @@ pub struct RqStepper {
 impl RqStepper {
     /// The step of `setup` running `kernels` on the best adapter with ray queries.
     pub fn open(setup: DemSetup, kernels: KernelSet) -> Result<Self> {
+        setup.refuse_clumps("wgpu-rq")?;
         Self::open_on(Gpu::open(Need::RayQuery)?, setup, kernels)
     }
 
     /// The step of `setup` running `kernels` on `gpu` (opened with ray queries): a step
     /// reopened on the device of the last, whose compiled pipelines it reuses.
     pub fn open_on(gpu: Gpu, setup: DemSetup, kernels: KernelSet) -> Result<Self> {
+        setup.refuse_clumps("wgpu-rq")?;
         let DemSetup {
             mut particles,
             params,

@@ -308,6 +308,7 @@ impl GridStepper {
         room: Room,
         open: impl FnOnce() -> Result<Gpu>,
     ) -> Result<Self> {
+        setup.refuse_clumps("wgpu-compute")?;
         let DemSetup {
             mut particles,
             params,
