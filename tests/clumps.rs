@@ -723,3 +723,31 @@ fn a_runs_kinetic_energy_counts_each_clump_once_as_a_rigid_body() {
         "rotational",
     );
 }
+
+#[test]
+fn a_frame_of_a_run_of_clumps_names_each_spheres_clump() {
+    let mut free = Particles::default();
+    free.push([0.02, 0.02, 0.02], [0.0; 3], 1e-3).unwrap();
+    let run = dimer_run(DVec3::splat(0.05), DQuat::IDENTITY, free);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("f.vtu");
+    mochi::io::write_vtu(&path, &mochi::io::Frame::of(&run, 1e-5, false)).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let text = String::from_utf8_lossy(&bytes);
+    let tag = r#"<DataArray type="Int32" Name="clump" format="appended" offset=""#;
+    let at = text.find(tag).expect("a clump array") + tag.len();
+    let offset: usize = text[at..].split('"').next().unwrap().parse().unwrap();
+    let data = bytes.windows(2).position(|w| w == b" _").unwrap() + 2 + offset;
+    let length = u64::from_le_bytes(bytes[data..data + 8].try_into().unwrap());
+    let clumps: Vec<i32> = bytes[data + 8..data + 8 + length as usize]
+        .chunks_exact(4)
+        .map(|c| i32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    // The dimer's two spheres are clump 0's; the free sphere is none's.
+    assert_eq!(clumps, [0, 0, -1]);
+    // A run without clumps has no such array.
+    let mut plain = Particles::default();
+    plain.push([0.02, 0.02, 0.02], [0.0; 3], 1e-3).unwrap();
+    mochi::io::write_vtu(&path, &mochi::io::Frame::of(&plain, 1e-5, false)).unwrap();
+    assert!(!String::from_utf8_lossy(&std::fs::read(&path).unwrap()).contains("Name=\"clump\""));
+}

@@ -146,6 +146,7 @@ impl Spheres {
             angular_velocities: &self.angular_velocities,
             materials: &self.materials,
             contacts: self.history.as_ref(),
+            clumps: None,
         }
     }
 }

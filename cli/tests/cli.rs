@@ -1182,6 +1182,7 @@ fn render_of_a_frame_with_a_nan_radius_names_the_file() {
             angular_velocities: &velocities,
             materials: &[],
             contacts: None,
+            clumps: None,
         },
     )
     .unwrap();

@@ -132,8 +132,9 @@ class Simulation:
     scene (``pour``). A dict value is a TOML table, whose keys are set one by one (``{"material":
     {"friction": 0.3}}`` keeps the material's other keys), and a list of dicts an array of
     tables: ``{"inflow": [{"lo": [...], "hi": [...], "rate": 2000, "sphere_radius": 0.004}]}``
-    is ``[[inflow]]``, and a lone dict for ``wall``, ``inflow``, ``outflow``, ``materials`` or
-    ``material_pairs`` (or ``material`` with a ``name``) is an array of one. Several materials:
+    is ``[[inflow]]``, and a lone dict for ``wall``, ``inflow``, ``outflow``, ``materials``,
+    ``material_pairs`` or ``clump`` (or ``material`` with a ``name``) is an array of one (grains
+    of clumps of spheres: ``{"clump": {"shape": "tetrahedron"}}``). Several materials:
     ``{"materials": [{"name": "glass", "density": 2500}, {"name": "steel", "density": 7800}],
     "box_material": "steel", "inflow": {..., "material": "glass"}}``; an input file's
     ``material`` column gives each sphere's (its index in that list, from 0).

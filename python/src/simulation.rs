@@ -30,15 +30,16 @@ use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 /// The scene keys whose TOML values are arrays of tables (`[[wall]]`, `[[inflow]]`,
-/// `[[outflow]]`, `[[materials]]`, `[[material_pairs]]` and its short form, as `dem::scene`
-/// documents them): a lone dict given for one is that array's one table.
-const TABLE_ARRAYS: [&str; 6] = [
+/// `[[outflow]]`, `[[materials]]`, `[[material_pairs]]` and its short form, `[[clump]]`, as
+/// `dem::scene` documents them): a lone dict given for one is that array's one table.
+const TABLE_ARRAYS: [&str; 7] = [
     "wall",
     "inflow",
     "outflow",
     "materials",
     "material_pairs",
     "material_pair",
+    "clump",
 ];
 
 /// Whether the dict `table` given for `key` is one table of a list: a key of
@@ -459,8 +460,9 @@ pub fn read_frame(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>> 
 /// scene (`pour`). A dict value is a TOML table, whose keys are set one by one (`{"material":
 /// {"friction": 0.3}}` keeps the material's other keys), and a list of dicts an array of
 /// tables: `{"inflow": [{"lo": [...], "hi": [...], "rate": 2000, "sphere_radius": 0.004}]}`
-/// is `[[inflow]]`, and a lone dict for `wall`, `inflow`, `outflow`, `materials` or
-/// `material_pairs` (or `material` with a `name`) is an array of one. Several materials:
+/// is `[[inflow]]`, and a lone dict for `wall`, `inflow`, `outflow`, `materials`,
+/// `material_pairs` or `clump` (or `material` with a `name`) is an array of one (grains of
+/// clumps of spheres: `{"clump": {"shape": "tetrahedron"}}`). Several materials:
 /// `{"materials": [{"name": "glass", "density": 2500}, {"name": "steel", "density": 7800}],
 /// "box_material": "steel", "inflow": {..., "material": "glass"}}`; an input file's
 /// `material` column gives each sphere's (its index in that list, from 0).

@@ -5,6 +5,7 @@
 //! physics, [`scene`] the scene files, [`Stepper`] the step every engine implements
 //! (the `engines` registry opens one, where the backend's data lives).
 
+pub mod clump_spec;
 pub mod contacts;
 pub mod equipment;
 pub mod flow;

@@ -250,6 +250,7 @@ mod tests {
             angular_velocities: &SPIN,
             materials,
             contacts: None,
+            clumps: None,
         }
     }
 

@@ -8,7 +8,8 @@
 //! all `Float32`), `id` (`UInt32`, the sphere's index) and `material` (`UInt8`, the sphere's
 //! material: its index in the scene's `[[materials]]` tables), and, when the run keeps contact
 //! history (friction or EPSD rolling resistance), `contacts` (`UInt32`: the contacts each sphere
-//! holds in that history, walls included), plus the field data `TimeValue` (`Float64`) and `step`
+//! holds in that history, walls included), and when it has clumps, `clump` (`Int32`: the clump
+//! a sphere is a component of, −1 for a free sphere), plus the field data `TimeValue` (`Float64`) and `step`
 //! (`UInt64`). The
 //! arrays are stored as raw little-endian binary in one `<AppendedData encoding="raw">` block, each
 //! preceded by its length in bytes as a `UInt64` (`header_type="UInt64"`). In ParaView, open
@@ -27,6 +28,7 @@
 //! index either whole or as it was, and a frame is always written before the index that names it.
 
 use super::{collection, io_error, parse_error, write_atomically};
+use crate::clump::ClumpSet;
 use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, Particles, position};
 use npyz::WriterBuilder;
@@ -59,6 +61,9 @@ pub struct Frame<'a> {
     /// The contact history of a run that keeps one: the `.vtu` then holds each sphere's number
     /// of contacts in it (`None`: a run without friction keeps none, and the array is left out).
     pub contacts: Option<&'a ContactHistory>,
+    /// The clumps of a run that has any ([`Particles::clumps`]: the first spheres are their
+    /// components): the `.vtu` then holds each sphere's clump (`None`: the array is left out).
+    pub clumps: Option<&'a ClumpSet>,
 }
 
 impl<'a> Frame<'a> {
@@ -76,6 +81,7 @@ impl<'a> Frame<'a> {
             angular_velocities: &particles.angular_velocities,
             materials: &particles.materials,
             contacts: keeps_history.then_some(&particles.history),
+            clumps: (!particles.clumps.clumps.is_empty()).then_some(&particles.clumps),
         }
     }
 }
@@ -167,6 +173,7 @@ enum Block {
     Id,
     Material,
     Contacts,
+    Clump,
     Points,
     Connectivity,
     Offsets,
@@ -183,6 +190,7 @@ fn blocks(frame: &Frame) -> Vec<Block> {
         Block::Id,
         Block::Material,
         Block::Contacts,
+        Block::Clump,
         Block::Points,
         Block::Connectivity,
         Block::Offsets,
@@ -190,6 +198,7 @@ fn blocks(frame: &Frame) -> Vec<Block> {
     ]
     .into_iter()
     .filter(|&b| b != Block::Contacts || frame.contacts.is_some())
+    .filter(|&b| b != Block::Clump || frame.clumps.is_some())
     .collect()
 }
 
@@ -201,7 +210,7 @@ impl Block {
             Block::Points => "Float64",
             Block::Id | Block::Contacts => "UInt32",
             Block::Connectivity | Block::Offsets if wide => "Int64",
-            Block::Connectivity | Block::Offsets => "Int32",
+            Block::Connectivity | Block::Offsets | Block::Clump => "Int32",
             Block::Material | Block::Types => "UInt8",
         }
     }
@@ -215,6 +224,7 @@ impl Block {
             Block::Id => "id",
             Block::Material => "material",
             Block::Contacts => "contacts",
+            Block::Clump => "clump",
             Block::Points => "Points",
             Block::Connectivity => "connectivity",
             Block::Offsets => "offsets",
@@ -231,7 +241,8 @@ impl Block {
             | Block::AngularVelocity
             | Block::Id
             | Block::Material
-            | Block::Contacts => "PointData",
+            | Block::Contacts
+            | Block::Clump => "PointData",
             Block::Points => "Points",
             Block::Connectivity | Block::Offsets | Block::Types => "Cells",
         }
@@ -370,6 +381,14 @@ fn write_block(
         Block::Contacts => {
             let history = frame.contacts.expect("the block is written with a history");
             (0..n).try_for_each(|i| out.put((history.of(i).len() as u32).to_le_bytes()))?
+        }
+        Block::Clump => {
+            let set = frame.clumps.expect("the block is written with clumps");
+            let owners = set.owners();
+            (0..n).try_for_each(|i| {
+                let clump = owners.get(i).map_or(-1, |&k| k as i32);
+                out.put(clump.to_le_bytes())
+            })?
         }
         Block::Points => frame
             .exact_positions()

@@ -80,6 +80,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         );
     }
     let flow_logged = run_start.state.flow_logged;
+    let clumps = match run_start.start.particles.clumps.describe() {
+        Some(clumps) => format!(" in {clumps}"),
+        None => String::new(),
+    };
     let run = run_start.open(args.backend, &backend_flags.options())?;
     if let Some(reason) = &run.auto_reason {
         eprintln!("{reason}");
@@ -156,7 +160,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         None => format!("restitution {}", config.material.restitution),
     };
     eprintln!(
-        "scene {} | {n} spheres | steps {first}..{total} | {} | {material} | backend {}",
+        "scene {} | {n} spheres{clumps} | steps {first}..{total} | {} | {material} | backend {}",
         config.scene(),
         p.describe(),
         stepper.describe()

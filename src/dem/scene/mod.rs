@@ -65,6 +65,8 @@
 //! [[outflow]]            # spheres removed (and, without box walls, below the box)
 //! lo = [0, 0, 0]
 //! hi = [1, 1, 0.05]
+//! [[clump]]              # grains of clumps of spheres (see `dem::clump_spec`)
+//! shape = "tetrahedron"
 //! ```
 //!
 //! Each key of the four tables has a short form, a flat key (`steps`, `spheres`, `friction`;
@@ -81,6 +83,7 @@ mod tests;
 pub use overrides::Overrides;
 pub use source::{Generated, InputFile, MeshFill, SceneKind, Source};
 
+use super::clump_spec::ClumpConfig;
 use super::flow::{InflowConfig, OutflowConfig};
 use super::material_spec::{MaterialConfig, MaterialPairConfig};
 use super::model::{RollingModel, StepParams, TangentialModel};
@@ -211,6 +214,10 @@ pub struct SceneConfig {
     /// Outflows, the `[[outflow]]` tables (`dem::flow`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub outflow: Vec<OutflowConfig>,
+    /// The shapes of the grains, the `[[clump]]` tables (`dem::clump_spec`): where there are
+    /// any, the generated spheres become clumps of them.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub clump: Vec<ClumpConfig>,
 }
 
 /// The `[run]` table: how far a run goes, its time step and what it writes.

@@ -65,6 +65,9 @@ impl SceneConfig {
                 equipment.as_ref().expect("built").spheres.clone()
             }
             Source::Input(file) => {
+                if !self.clump.is_empty() {
+                    return Err(self.no_clumps_of("input"));
+                }
                 let input = file.input.as_ref().ok_or_else(|| Error::InvalidConfig {
                     what: "scene \"input\"".into(),
                     reason: "needs input = \"FILE\" (--input)".into(),
@@ -85,7 +88,48 @@ impl SceneConfig {
             let v = built.velocity.map(|x| x as f32);
             particles.velocities.iter_mut().for_each(|u| *u = v);
         }
+        if !self.clump.is_empty() {
+            particles = self.clumps_of(&particles)?;
+        }
         Self::inside_the_box(self.start_with(particles, equipment.as_ref())?, 0.0)
+    }
+
+    /// The error of `[[clump]]` tables in a scene of kind `scene`, whose spheres are not
+    /// generated.
+    fn no_clumps_of(&self, scene: &str) -> Error {
+        Error::InvalidConfig {
+            what: "scene table [[clump]]".into(),
+            reason: format!(
+                "makes clumps of generated spheres (freefall, slab, poly*, pour, rotating, \
+                 mesh): not of scene \"{scene}\"'s yet"
+            ),
+        }
+    }
+
+    /// The generated `spheres` made clumps of the `[[clump]]` tables (`dem::clump_spec`):
+    /// scenes whose spheres are generated, as long as nothing flows.
+    fn clumps_of(&self, spheres: &Particles) -> Result<Particles> {
+        let seed = match &self.source {
+            Source::Generated(_, g) | Source::Rotating(g) => g.seed,
+            Source::Mesh(fill) => fill.seed,
+            Source::Hopper(_) => return Err(self.no_clumps_of("hopper")),
+            Source::Drum(_) => return Err(self.no_clumps_of("drum")),
+            Source::Agglomerate(_) => return Err(self.no_clumps_of("agglomerate")),
+            Source::Input(_) => return Err(self.no_clumps_of("input")),
+        };
+        if !(self.inflow.is_empty() && self.outflow.is_empty()) {
+            return Err(Error::InvalidConfig {
+                what: "scene table [[clump]]".into(),
+                reason: "with [[inflow]] or [[outflow]]: not yet".into(),
+            });
+        }
+        let densities: Vec<f32> = self
+            .materials()?
+            .list
+            .iter()
+            .map(|m| m.density as f32)
+            .collect();
+        crate::dem::clump_spec::clumps_in_place_of(spheres, &self.clump, &densities, seed)
     }
 
     /// The start of this scene (`input`, without its file) from `particles` given in memory:

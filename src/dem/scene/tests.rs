@@ -4,6 +4,7 @@ use super::*;
 use crate::dem::model::{ContactLaw, RollingModel, TangentialModel};
 use crate::scenes::Scene;
 use crate::spheres::SphereSet;
+use glam::DVec3;
 
 /// `assignments` as overrides, which must parse.
 fn given(assignments: &[impl AsRef<str>]) -> Overrides {
@@ -1005,4 +1006,102 @@ fn each_material_and_pair_of_materials_may_give_its_own_contact_angle() {
     let steep = "[[material_pairs]]\nmaterials = [\"a\", \"b\"]\ncontact_angle = 90\n";
     let e = table(&scene(steep)).unwrap_err().to_string();
     assert!(e.contains("\"a\"–\"b\"") && e.contains("90°"), "{e}");
+}
+
+#[test]
+fn clump_tables_make_the_generated_spheres_clumps_of_their_shapes() {
+    let scene = |extra: &str| {
+        format!("scene = \"freefall\"\nspheres = 400\nseed = 3\ndensity = 2000\n{extra}")
+    };
+    let build = |text: &str| {
+        SceneConfig::parse(Some(text), None, &Overrides::default()).and_then(|c| c.build())
+    };
+    let spheres = build(&scene("")).unwrap().particles;
+    let tables = "[[clump]]\nshape = \"tetrahedron\"\nfraction = 3\n\
+                  [[clump]]\nname = \"bean\"\nspheres = [[0, 0, 0, 1], [1.2, 0, 0, 0.8]]\n";
+    let start = build(&scene(tables)).unwrap();
+    let p = &start.particles;
+    let set = &p.clumps;
+    assert_eq!(set.clumps.len(), 400);
+    // Drawn by weight: about three tetrahedra to a bean.
+    let tetrahedra = set
+        .clumps
+        .iter()
+        .filter(|c| set.kinds[c.kind].template.name == "tetrahedron")
+        .count();
+    assert!((270..330).contains(&tetrahedra), "{tetrahedra} tetrahedra");
+    assert_eq!(p.len(), 4 * tetrahedra + 2 * (400 - tetrahedra));
+    for (k, c) in set.clumps.iter().enumerate() {
+        // Each in the place of its sphere: its centre the sphere's, its bounding sphere the
+        // sphere's, so no two clumps overlap (the spheres did not).
+        let at = DVec3::from_array(spheres.exact_position(k));
+        assert!((c.body.position - at).length() < 1e-12);
+        let kind = &set.kinds[c.kind];
+        let bound = kind
+            .template
+            .components
+            .iter()
+            .map(|t| t.centre.length() + t.radius)
+            .fold(0.0, f64::max);
+        assert!(
+            (bound / spheres.radii[k] as f64 - 1.0).abs() < 1e-6,
+            "bound {bound}"
+        );
+        // At the material's density.
+        let volume = kind.inertia.mass / 2000.0;
+        assert!(volume < 4.0 / 3.0 * std::f64::consts::PI * bound.powi(3));
+    }
+    // The same seed, the same clumps; turned at random.
+    assert_eq!(build(&scene(tables)).unwrap().particles.clumps, *set);
+    assert_ne!(
+        set.clumps[0].body.orientation,
+        set.clumps[1].body.orientation
+    );
+    // The resolved scene keeps its tables.
+    let config = SceneConfig::parse(Some(&scene(tables)), None, &Overrides::default()).unwrap();
+    let saved = toml::to_string(&config.resolved(&start)).unwrap();
+    let again = SceneConfig::parse(Some(&saved), None, &Overrides::default()).unwrap();
+    assert_eq!(again.build().unwrap().particles.clumps, *set);
+}
+
+#[test]
+fn bad_clump_tables_are_one_clear_error() {
+    let build = |text: &str| {
+        SceneConfig::parse(Some(text), None, &Overrides::default())
+            .and_then(|c| c.build())
+            .map(|_| ())
+            .unwrap_err()
+            .to_string()
+    };
+    let freefall = "scene = \"freefall\"\nspheres = 20\n";
+    for (table, expect) in [
+        ("[[clump]]\nfraction = 1\n", "needs a shape"),
+        ("[[clump]]\nshape = \"cube\"\n", "not one of dimer"),
+        (
+            "[[clump]]\nshape = \"dimer\"\nspheres = [[0, 0, 0, 1]]\n",
+            "give one",
+        ),
+        (
+            "[[clump]]\nshape = \"dimer\"\ncount = 3\n",
+            "count is the spheres",
+        ),
+        ("[[clump]]\nshape = \"rod\"\ncount = 0\n", "count ≥ 1"),
+        (
+            "[[clump]]\nshape = \"dimer\"\nfraction = 0\n",
+            "positive weight",
+        ),
+        ("[[clump]]\nspheres = [[0, 0, 0, -1]]\n", "positive radius"),
+        ("[[clump]]\nspheres = []\n", "no component"),
+    ] {
+        let e = build(&format!("{freefall}{table}"));
+        assert!(e.contains("clump") && e.contains(expect), "{table}: {e}");
+    }
+    let hopper = "scene = \"hopper\"\nspheres = 100\n[[clump]]\nshape = \"dimer\"\n";
+    let e = build(hopper);
+    assert!(e.contains("not of scene \"hopper\"'s yet"), "{e}");
+    let flowing = format!(
+        "{freefall}[[clump]]\nshape = \"dimer\"\n[[outflow]]\nlo = [0, 0, 0]\nhi = [1, 1, 0.1]\n"
+    );
+    let e = build(&flowing);
+    assert!(e.contains("[[outflow]]") && e.contains("not yet"), "{e}");
 }

@@ -1,0 +1,200 @@
+//! The `[[clump]]` tables of a scene file: the shapes its grains take (docs/method.md,
+//! "Clumps"). Where a scene has any, each sphere its source generates becomes a clump of one of
+//! them, drawn by `fraction`, scaled so that its bounding sphere is the generated sphere (clumps
+//! overlap no more than their spheres did), turned at random (seeded by the source's seed) and
+//! moving as the sphere did; the clump's density is its sphere's material's.
+//!
+//! ```toml
+//! [source]
+//! scene = "pour"
+//! spheres = 2000            # 2000 clumps
+//!
+//! [[clump]]
+//! shape = "tetrahedron"     # dimer, trimer, tetrahedron, rod
+//! fraction = 0.7            # of the clumps (default 1; the fractions are weights)
+//!
+//! [[clump]]
+//! name = "bean"             # a shape of its own: spheres [x, y, z, r] in its frame (any unit:
+//! spheres = [[0, 0, 0, 1], [1.2, 0, 0, 0.8]] # it is scaled to each generated sphere)
+//! fraction = 0.3
+//! # shape = "rod" takes count = 4 (its spheres, default 4)
+//! ```
+
+use crate::clump::{Clump, ClumpKind, ClumpSet, ClumpTemplate, Component, RigidBody};
+use crate::error::{Error, Result};
+use crate::particles::Particles;
+use glam::{DQuat, DVec3};
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+
+/// One `[[clump]]` table: a shape (built in, or spheres of its own) and how often it is drawn.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClumpConfig {
+    /// What the summary calls it (default: the shape's name).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// A built-in shape: `dimer`, `trimer`, `tetrahedron` or `rod`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shape: Option<String>,
+    /// Spheres of a rod (default 4).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub count: Option<usize>,
+    /// A shape of its own: its spheres `[x, y, z, r]` in its frame (any unit).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spheres: Option<Vec<[f64; 4]>>,
+    /// How often this shape is drawn, a weight > 0 (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fraction: Option<f64>,
+}
+
+/// Built-in shapes' names, as errors list them.
+const SHAPES: &str = "dimer, trimer, tetrahedron, rod";
+
+impl ClumpConfig {
+    /// The template this table describes, refused where it gives no shape or two, an unknown
+    /// one, or spheres no template can have.
+    pub fn template(&self) -> Result<ClumpTemplate> {
+        let bad = |reason: String| {
+            Err(Error::InvalidConfig {
+                what: format!(
+                    "scene table [[clump]]{}",
+                    self.name
+                        .as_ref()
+                        .map_or(String::new(), |n| format!(" \"{n}\""))
+                ),
+                reason,
+            })
+        };
+        if self.count.is_some() && self.shape.as_deref() != Some("rod") {
+            return bad("count is the spheres of shape = \"rod\"".into());
+        }
+        let template = match (&self.shape, &self.spheres) {
+            (Some(_), Some(_)) => return bad("gives a shape and spheres: give one".into()),
+            (None, None) => return bad(format!("needs a shape ({SHAPES}) or spheres")),
+            (Some(shape), None) => match shape.as_str() {
+                "dimer" => ClumpTemplate::dimer(1.0),
+                "trimer" => ClumpTemplate::trimer(1.0),
+                "tetrahedron" => ClumpTemplate::tetrahedron(1.0),
+                "rod" => match self.count.unwrap_or(4) {
+                    0 => return bad("a rod needs count ≥ 1".into()),
+                    n => ClumpTemplate::rod(n, 1.0),
+                },
+                other => return bad(format!("has shape \"{other}\", not one of {SHAPES}")),
+            }?,
+            (None, Some(spheres)) => {
+                let components = spheres
+                    .iter()
+                    .map(|&[x, y, z, r]| Component {
+                        centre: DVec3::new(x, y, z),
+                        radius: r,
+                    })
+                    .collect();
+                ClumpTemplate::new(self.name.as_deref().unwrap_or("clump"), components)?
+            }
+        };
+        let name = self.name.clone().unwrap_or(template.name.clone());
+        Ok(ClumpTemplate { name, ..template })
+    }
+
+    /// This table's weight among the others.
+    fn weight(&self) -> Result<f64> {
+        match self.fraction.unwrap_or(1.0) {
+            w if w > 0.0 && w.is_finite() => Ok(w),
+            w => Err(Error::InvalidConfig {
+                what: "scene key clump.fraction".into(),
+                reason: format!("must be a positive weight, got {w}"),
+            }),
+        }
+    }
+}
+
+/// A shape at unit scale, in its principal frame, with its bounding radius.
+struct Shape {
+    /// At density 1 and the template's own size.
+    kind: ClumpKind,
+    /// The largest |c| + r of its components (its centre the union's).
+    bound: f64,
+}
+
+/// `spheres` (at rest or moving, each of a material whose density is `densities`' entry) made
+/// clumps of `tables` as the module says, turned at random by `seed`; refuses tables with no
+/// valid shape.
+pub fn clumps_in_place_of(
+    spheres: &Particles,
+    tables: &[ClumpConfig],
+    densities: &[f32],
+    seed: u64,
+) -> Result<Particles> {
+    let shapes = tables
+        .iter()
+        .map(|t| {
+            let kind = ClumpKind::new(&t.template()?, 1.0);
+            let bound = kind
+                .template
+                .components
+                .iter()
+                .map(|c| c.centre.length() + c.radius)
+                .fold(0.0, f64::max);
+            Ok(Shape { kind, bound })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let weights = tables
+        .iter()
+        .map(ClumpConfig::weight)
+        .collect::<Result<Vec<_>>>()?;
+    let total: f64 = weights.iter().sum();
+    // A stream of its own, so that the spheres' generator and this one do not correlate.
+    let mut rand = Pcg64::seed_from_u64(seed ^ 0x636c_756d_7073);
+    let mut set = ClumpSet::default();
+    let mut kinds: HashMap<(usize, u32, u32), usize> = HashMap::new();
+    let mut materials = Vec::new();
+    for i in 0..spheres.len() {
+        let mut pick = rand.random::<f64>() * total;
+        let shape = weights
+            .iter()
+            .position(|&w| {
+                pick -= w;
+                pick < 0.0
+            })
+            .unwrap_or(weights.len() - 1);
+        let r = spheres.radii[i];
+        let material = spheres.material(i);
+        let kind = *kinds
+            .entry((shape, r.to_bits(), material))
+            .or_insert_with(|| {
+                let s = &shapes[shape];
+                set.kinds.push(
+                    s.kind
+                        .scaled(r as f64 / s.bound, densities[material as usize] as f64),
+                );
+                set.kinds.len() - 1
+            });
+        // A uniform random rotation (Shoemake 1992).
+        let (u1, u2, u3): (f64, f64, f64) = (rand.random(), rand.random(), rand.random());
+        let tau = 2.0 * std::f64::consts::PI;
+        let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+        let orientation = DQuat::from_xyzw(
+            a * (tau * u2).sin(),
+            a * (tau * u2).cos(),
+            b * (tau * u3).sin(),
+            b * (tau * u3).cos(),
+        )
+        .normalize();
+        let v = DVec3::from_array(spheres.velocities[i].map(f64::from));
+        let at = DVec3::from_array(spheres.exact_position(i));
+        let inertia = &set.kinds[kind].inertia;
+        let body = RigidBody::new(at, orientation, v, DVec3::ZERO, inertia);
+        set.clumps.push(Clump { kind, body });
+        let n = set.kinds[kind].template.components.len();
+        materials.extend(std::iter::repeat_n(material as u8, n));
+    }
+    let mut out = Particles::with_clumps(set, Particles::default())?;
+    if materials.iter().any(|&m| m != 0) {
+        out.materials = materials;
+    }
+    out.step = spheres.step;
+    Ok(out)
+}
