@@ -798,3 +798,35 @@ fn a_heap_of_tetrahedra_stands_steeper_than_a_heap_of_spheres() {
     );
     assert!(tetrahedra > 10.0, "tetrahedra {tetrahedra}°");
 }
+
+#[test]
+fn a_clumps_spheres_keep_the_motion_of_their_clump() {
+    let mut free = Particles::default();
+    free.push([0.02, 0.02, 0.02], [0.0; 3], 1e-3).unwrap();
+    let mut s = cpu(dimer_run(DVec3::splat(0.05), DQuat::IDENTITY, free), 0.5);
+    let p = s.particles().unwrap();
+    // The free sphere's velocity may change, the components' rows given as they are.
+    let mut v = p.velocities.clone();
+    v[2] = [0.0, 0.0, 1.0];
+    fn motion(v: &[[f32; 3]]) -> mochi::dem::Motion<'_> {
+        mochi::dem::Motion {
+            velocities: Some(v),
+            ..Default::default()
+        }
+    }
+    s.set_motion(&motion(&v)).unwrap();
+    assert_eq!(s.particles().unwrap().velocities[2], [0.0, 0.0, 1.0]);
+    v[0] = [1.0, 0.0, 0.0];
+    let e = s.set_motion(&motion(&v)).unwrap_err().to_string();
+    assert!(e.contains("clump"), "{e}");
+    let mut x: Vec<[f64; 3]> = (0..3).map(|i| p.exact_position(i)).collect();
+    x[1][2] += 1e-3;
+    let e = s
+        .set_motion(&mochi::dem::Motion {
+            positions: Some(&x),
+            ..Default::default()
+        })
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("clump"), "{e}");
+}

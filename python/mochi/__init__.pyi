@@ -2,7 +2,7 @@
 
 import os
 from types import TracebackType
-from typing import Callable, Literal, TypedDict, final
+from typing import Any, Callable, Literal, TypedDict, final
 
 import numpy as np
 import numpy.typing as npt
@@ -287,6 +287,12 @@ class Simulation:
     def materials(self) -> npt.NDArray[np.uint8]:
         """Materials ``(N,)``: each sphere's index in ``material_names``; read-only, this
         step's."""
+    @property
+    def clumps(self) -> dict[str, npt.NDArray[Any]]:
+        """The clumps now (empty arrays without ``clump`` tables): ``positions`` ``(M, 3)``
+        float64 [m] (centres of mass), ``orientations`` ``(M, 4)`` float64 (unit quaternions w,
+        x, y, z: principal frame to world), ``velocities`` and ``angular_velocities`` ``(M, 3)``
+        float64, ``spheres`` ``(N,)`` int32 (each sphere's clump, -1 for a free sphere)."""
     @property
     def material_names(self) -> list[str]:
         """The scene's material names in order (``["default"]`` without ``material`` tables)."""

@@ -895,6 +895,60 @@ impl Simulation {
         })
     }
 
+    /// The clumps now, a dict of NumPy arrays (empty without `clump` tables): `positions`
+    /// `(M, 3)` float64 [m] (their centres of mass), `orientations` `(M, 4)` float64 (unit
+    /// quaternions w, x, y, z: each clump's principal frame to the world), `velocities` `(M, 3)`
+    /// and `angular_velocities` `(M, 3)` float64 [m/s, rad/s], and `spheres` `(N,)` int32 (each
+    /// sphere's clump, -1 for a free sphere).
+    #[getter]
+    fn clumps<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        self.guarded("Simulation.clumps", |sim| {
+            let p = sim.particles(py)?;
+            let set = &p.clumps;
+            let rows = |f: &dyn Fn(&mochi::clump::Clump) -> Vec<f64>, width: usize| {
+                let flat: Vec<f64> = set.clumps.iter().flat_map(f).collect();
+                Array2::from_shape_vec((set.clumps.len(), width), flat)
+                    .map(|a| a.into_pyarray(py))
+                    .map_err(|e| PyValueError::new_err(e.to_string()))
+            };
+            let owners = set.owners();
+            let spheres: Vec<i32> = (0..p.len())
+                .map(|i| owners.get(i).map_or(-1, |&k| k as i32))
+                .collect();
+            let out = PyDict::new(py);
+            out.set_item(
+                "positions",
+                rows(&|c| c.body.position.to_array().to_vec(), 3)?,
+            )?;
+            out.set_item(
+                "orientations",
+                rows(
+                    &|c| {
+                        let q = c.body.orientation;
+                        vec![q.w, q.x, q.y, q.z]
+                    },
+                    4,
+                )?,
+            )?;
+            out.set_item(
+                "velocities",
+                rows(&|c| c.body.velocity.to_array().to_vec(), 3)?,
+            )?;
+            out.set_item(
+                "angular_velocities",
+                rows(
+                    &|c| {
+                        let inertia = &set.kinds[c.kind].inertia;
+                        c.body.angular_velocity(inertia).to_array().to_vec()
+                    },
+                    3,
+                )?,
+            )?;
+            out.set_item("spheres", Array1::from_vec(spheres).into_pyarray(py))?;
+            Ok(out)
+        })
+    }
+
     /// The scene's material names, in order (`["default"]` for a scene without `material`
     /// tables): `materials` indexes them.
     #[getter]

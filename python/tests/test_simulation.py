@@ -403,6 +403,17 @@ def test_a_pour_of_clumps_runs_and_resumes_bit_for_bit(tmp_path):
     resumed.step(400)
     for name in ["positions", "velocities", "angular_velocities", "radii"]:
         np.testing.assert_array_equal(getattr(resumed, name), getattr(straight, name), name)
+    clumps = straight.clumps
+    assert clumps["positions"].shape == (100, 3) and clumps["orientations"].shape == (100, 4)
+    np.testing.assert_allclose(np.linalg.norm(clumps["orientations"], axis=1), 1.0, atol=1e-12)
+    # Each sphere's clump: the clumps' spheres first, in order; each centre within its clump.
+    owners = clumps["spheres"]
+    assert owners.shape == (n,) and owners[0] == 0 and owners[-1] == 99
+    assert (np.diff(owners) >= 0).all()
+    reach = np.linalg.norm(straight.positions - clumps["positions"][owners], axis=1)
+    assert (reach < 2 * straight.radii).all()
+    for name in clumps:
+        np.testing.assert_array_equal(resumed.clumps[name], clumps[name], name)
     # A lone dict is the array of one table; a bad shape is refused naming it.
     rods = mochi.Simulation({"scene": "freefall", "spheres": 10, "clump": {"shape": "rod"}})
     assert len(rods) == 40

@@ -692,6 +692,25 @@ impl Stepper for CpuStepper {
     }
 
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        // A clump's components move with it: their rows must be as they are.
+        let parts = &self.particles;
+        let components = parts.clumps.component_count().min(parts.len());
+        let same = |given: Option<&[[f32; 3]]>, now: &[[f32; 3]]| {
+            given.is_none_or(|g| g.len() < components || g[..components] == now[..components])
+        };
+        let placed = motion.positions.is_none_or(|g| {
+            g.len() < components || (0..components).all(|k| g[k] == parts.exact_position(k))
+        });
+        if !(placed
+            && same(motion.velocities, &parts.velocities)
+            && same(motion.angular_velocities, &parts.angular_velocities))
+        {
+            return Err(Error::Usage(
+                "the motion of a clump's spheres (the first spheres of a run of clumps) is its \
+                 clump's: they keep the rows they have (setting a clump's motion: not yet)"
+                    .into(),
+            ));
+        }
         motion.apply(&mut self.particles)
     }
 
