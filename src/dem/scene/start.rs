@@ -101,7 +101,7 @@ impl SceneConfig {
             what: "scene table [[clump]]".into(),
             reason: format!(
                 "makes clumps of generated spheres (freefall, slab, poly*, pour, rotating, \
-                 mesh): not of scene \"{scene}\"'s yet"
+                 mesh, drum): not of scene \"{scene}\"'s yet"
             ),
         }
     }
@@ -112,8 +112,8 @@ impl SceneConfig {
         let seed = match &self.source {
             Source::Generated(_, g) | Source::Rotating(g) => g.seed,
             Source::Mesh(fill) => fill.seed,
+            Source::Drum(drum) => drum.seed,
             Source::Hopper(_) => return Err(self.no_clumps_of("hopper")),
-            Source::Drum(_) => return Err(self.no_clumps_of("drum")),
             Source::Agglomerate(_) => return Err(self.no_clumps_of("agglomerate")),
             Source::Input(_) => return Err(self.no_clumps_of("input")),
         };
