@@ -18,6 +18,8 @@
 //! spheres = [[0, 0, 0, 1], [1.2, 0, 0, 0.8]] # it is scaled to each generated sphere)
 //! fraction = 0.3
 //! # shape = "rod" takes count = 4 (its spheres, default 4)
+//! # mesh = "grain.stl": a closed mesh filled with touching spheres on a cubic lattice of
+//! #   spacing = … (in the mesh's units; default a sixth of its bounding box's longest side)
 //! ```
 
 use crate::clump::{Clump, ClumpKind, ClumpSet, ClumpTemplate, Component, RigidBody};
@@ -28,6 +30,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
+use std::path::PathBuf;
 
 /// One `[[clump]]` table: a shape (built in, or spheres of its own) and how often it is drawn.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -45,6 +48,14 @@ pub struct ClumpConfig {
     /// A shape of its own: its spheres `[x, y, z, r]` in its frame (any unit).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spheres: Option<Vec<[f64; 4]>>,
+    /// A shape of a closed mesh (OBJ, PLY or STL, relative to the scene file), filled with
+    /// touching spheres (`ClumpTemplate::from_mesh`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<PathBuf>,
+    /// The lattice spacing of `mesh`'s fill, in the mesh's units (default: a sixth of its
+    /// bounding box's longest side).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spacing: Option<f64>,
     /// How often this shape is drawn, a weight > 0 (default 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fraction: Option<f64>,
@@ -71,10 +82,35 @@ impl ClumpConfig {
         if self.count.is_some() && self.shape.as_deref() != Some("rod") {
             return bad("count is the spheres of shape = \"rod\"".into());
         }
+        if self.spacing.is_some() && self.mesh.is_none() {
+            return bad("spacing is the fill's of a mesh".into());
+        }
+        let given = [
+            self.shape.is_some(),
+            self.spheres.is_some(),
+            self.mesh.is_some(),
+        ];
+        if given.iter().filter(|&&g| g).count() > 1 {
+            return bad("gives more than one of shape, spheres and mesh: give one".into());
+        }
+        if let Some(path) = &self.mesh {
+            let mesh = crate::mesh::load(path)?;
+            let spacing = match self.spacing {
+                Some(s) => s,
+                None => mesh.bounds().map_or(1.0, |(lo, hi)| {
+                    (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max) / 6.0
+                }),
+            };
+            let name = self.name.clone().unwrap_or_else(|| {
+                path.file_stem()
+                    .map_or("mesh".into(), |s| s.to_string_lossy().into_owned())
+            });
+            return ClumpTemplate::from_mesh(&name, &mesh, spacing);
+        }
+        // At most one of shape and spheres is given (refused above).
         let template = match (&self.shape, &self.spheres) {
-            (Some(_), Some(_)) => return bad("gives a shape and spheres: give one".into()),
-            (None, None) => return bad(format!("needs a shape ({SHAPES}) or spheres")),
-            (Some(shape), None) => match shape.as_str() {
+            (None, None) => return bad(format!("needs a shape ({SHAPES}), spheres or a mesh")),
+            (Some(shape), _) => match shape.as_str() {
                 "dimer" => ClumpTemplate::dimer(1.0),
                 "trimer" => ClumpTemplate::trimer(1.0),
                 "tetrahedron" => ClumpTemplate::tetrahedron(1.0),

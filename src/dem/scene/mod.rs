@@ -649,16 +649,22 @@ impl SceneConfig {
         })
     }
 
-    /// The files the scene reads: its sphere file or mesh, and its walls' meshes.
+    /// The files the scene reads: its sphere file or mesh, its walls' meshes and its clumps'.
     pub fn files(&self) -> impl Iterator<Item = &Path> {
         let walls = self.wall.iter().map(|w| w.mesh.as_path());
-        self.source.file().into_iter().chain(walls)
+        let clumps = self.clump.iter().filter_map(|c| c.mesh.as_deref());
+        self.source.file().into_iter().chain(walls).chain(clumps)
     }
 
     /// The scene's input and mesh paths.
     fn paths_mut(&mut self) -> impl Iterator<Item = &mut PathBuf> {
         let walls = self.wall.iter_mut().map(|w| &mut w.mesh);
-        self.source.file_mut().into_iter().chain(walls)
+        let clumps = self.clump.iter_mut().filter_map(|c| c.mesh.as_mut());
+        self.source
+            .file_mut()
+            .into_iter()
+            .chain(walls)
+            .chain(clumps)
     }
 
     /// Takes relative input and mesh paths from the folder of `origin`.

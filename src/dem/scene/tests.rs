@@ -1105,3 +1105,41 @@ fn bad_clump_tables_are_one_clear_error() {
     let e = build(&flowing);
     assert!(e.contains("[[outflow]]") && e.contains("not yet"), "{e}");
 }
+
+#[test]
+fn a_clump_table_may_take_its_shape_from_a_mesh_beside_the_scene() {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let origin = data.join("scene.toml");
+    let text =
+        "scene = \"freefall\"\nspheres = 12\n[[clump]]\nmesh = \"box.obj\"\nspacing = 0.25\n";
+    let config = SceneConfig::parse(Some(text), Some(&origin), &Overrides::default()).unwrap();
+    assert!(config.files().any(|f| f == data.join("box.obj")));
+    let set = config.build().unwrap().particles.clumps;
+    assert_eq!(set.clumps.len(), 12);
+    // The box (1.75 × 2 × 0.75) filled at a spacing of 0.25: 7 × 8 × 3 touching spheres.
+    let kind = &set.kinds[set.clumps[0].kind];
+    assert_eq!(kind.template.name, "box");
+    assert_eq!(kind.template.components.len(), 7 * 8 * 3);
+    let bad = |table: &str| {
+        SceneConfig::parse(
+            Some(&format!(
+                "scene = \"freefall\"\nspheres = 12\n[[clump]]\n{table}"
+            )),
+            Some(&origin),
+            &Overrides::default(),
+        )
+        .and_then(|c| c.build())
+        .map(|_| ())
+        .unwrap_err()
+        .to_string()
+    };
+    let e = bad("shape = \"dimer\"\nmesh = \"box.obj\"\n");
+    assert!(
+        e.contains("more than one of shape, spheres and mesh"),
+        "{e}"
+    );
+    let e = bad("shape = \"dimer\"\nspacing = 0.1\n");
+    assert!(e.contains("spacing is the fill's of a mesh"), "{e}");
+    let e = bad("mesh = \"nowhere.obj\"\n");
+    assert!(e.contains("nowhere.obj"), "{e}");
+}
