@@ -876,3 +876,78 @@ fn a_dimer_on_its_side_rolls_down_an_incline_as_a_rigid_body_must() {
         body.velocity
     );
 }
+
+#[test]
+fn a_clump_file_places_each_clump_of_its_template_where_its_row_says() {
+    use mochi::dem::scene::{Overrides, SceneConfig};
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("clumps.csv");
+    // A bean (its spheres given about an origin that is not its centre), turned 90° about z,
+    // moving, and a rod of three at rest.
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    std::fs::write(
+        &input,
+        format!(
+            "{}\n0.05,0.05,0.02,{s},0,0,{s},0.1,0,0,0,0,2,bean\n\n\
+             0.03,0.04,0.01,1,0,0,0,0,0,0,0,0,0,rod 3\n",
+            mochi::io::CLUMP_HEADER
+        ),
+    )
+    .unwrap();
+    let scene = format!(
+        "scene = \"input\"\ninput = {:?}\n[[clump]]\nname = \"bean\"\n\
+         spheres = [[0.001, 0, 0, 0.001], [0.0022, 0, 0, 0.0008]]\n\
+         [[clump]]\nshape = \"rod\"\ncount = 3\nradius = 0.002\n",
+        input.to_str().unwrap()
+    );
+    let config = SceneConfig::parse(Some(&scene), None, &Overrides::default()).unwrap();
+    let start = config.build().unwrap();
+    let p = &start.particles;
+    assert_eq!(p.clumps.clumps.len(), 2);
+    assert_eq!(p.len(), 5);
+    // The bean's spheres where its row puts them: its origin at (0.05, 0.05, 0.02), its x
+    // axis along y.
+    let bean = [[0.05, 0.051, 0.02], [0.05, 0.0522, 0.02]];
+    for (k, want) in bean.iter().enumerate() {
+        let got = DVec3::from_array(p.exact_position(k));
+        assert!(
+            (got - DVec3::from_array(*want)).length() < 1e-12,
+            "sphere {k}: {got}"
+        );
+        assert_eq!(p.radii[k], [0.001, 0.0008][k]);
+    }
+    // Its origin moves at 0.1 m/s along x and it turns at 2 rad/s about z: a sphere 1 mm out
+    // along y moves at v − ω·1 mm along x.
+    let v = p.velocities[0];
+    assert!((v[0] as f64 - (0.1 - 2.0 * 0.001)).abs() < 1e-7, "{v:?}");
+    // A rod of three spheres of its table's radius (at its own size: scaled by nothing).
+    assert_eq!(p.radii[2..], [0.002; 3]);
+    // An unknown template is refused naming it and the tables.
+    std::fs::write(
+        &input,
+        format!(
+            "{}\n0,0,0,1,0,0,0,0,0,0,0,0,0,pebble\n",
+            mochi::io::CLUMP_HEADER
+        ),
+    )
+    .unwrap();
+    let e = config.build().map(|_| ()).unwrap_err().to_string();
+    assert!(
+        e.contains("\"pebble\"") && e.contains("\"bean\", \"rod 3\""),
+        "{e}"
+    );
+    // A sphere file where a clump file is wanted, a bad row: one error each.
+    std::fs::write(&input, "x,y,z,r\n0,0,0,1\n").unwrap();
+    let e = config.build().map(|_| ()).unwrap_err().to_string();
+    assert!(e.contains("clump file"), "{e}");
+    std::fs::write(
+        &input,
+        format!(
+            "{}\n0,0,0,0,0,0,0,0,0,0,0,0,0,bean\n",
+            mochi::io::CLUMP_HEADER
+        ),
+    )
+    .unwrap();
+    let e = config.build().map(|_| ()).unwrap_err().to_string();
+    assert!(e.contains("clumps.csv:2:") && e.contains("length 0"), "{e}");
+}

@@ -17,7 +17,8 @@
 //! name = "bean"             # a shape of its own: spheres [x, y, z, r] in its frame (any unit:
 //! spheres = [[0, 0, 0, 1], [1.2, 0, 0, 0.8]] # it is scaled to each generated sphere)
 //! fraction = 0.3
-//! # shape = "rod" takes count = 4 (its spheres, default 4)
+//! # shape = "rod" takes count = 4 (its spheres, default 4); a built-in shape takes radius =
+//! #   (its spheres' at its own size, as a clump file places it: `crate::io::read_clumps`)
 //! # mesh = "grain.stl": a closed mesh filled with touching spheres on a cubic lattice of
 //! #   spacing = … (in the mesh's units; default a sixth of its bounding box's longest side)
 //! ```
@@ -45,6 +46,10 @@ pub struct ClumpConfig {
     /// Spheres of a rod (default 4).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub count: Option<usize>,
+    /// The radius of a built-in shape's spheres \[m\] at its own size, as a clump file places
+    /// it (default 1; a generated scene scales every shape to its spheres).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
     /// A shape of its own: its spheres `[x, y, z, r]` in its frame (any unit).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spheres: Option<Vec<[f64; 4]>>,
@@ -82,6 +87,9 @@ impl ClumpConfig {
         if self.count.is_some() && self.shape.as_deref() != Some("rod") {
             return bad("count is the spheres of shape = \"rod\"".into());
         }
+        if self.radius.is_some() && self.shape.is_none() {
+            return bad("radius is the spheres' of a built-in shape".into());
+        }
         if self.spacing.is_some() && self.mesh.is_none() {
             return bad("spacing is the fill's of a mesh".into());
         }
@@ -110,15 +118,15 @@ impl ClumpConfig {
         // At most one of shape and spheres is given (refused above).
         let template = match (&self.shape, &self.spheres) {
             (None, None) => return bad(format!("needs a shape ({SHAPES}), spheres or a mesh")),
-            (Some(shape), _) => match shape.as_str() {
-                "dimer" => ClumpTemplate::dimer(1.0),
-                "trimer" => ClumpTemplate::trimer(1.0),
-                "tetrahedron" => ClumpTemplate::tetrahedron(1.0),
-                "rod" => match self.count.unwrap_or(4) {
+            (Some(shape), _) => match (shape.as_str(), self.radius.unwrap_or(1.0)) {
+                ("dimer", r) => ClumpTemplate::dimer(r),
+                ("trimer", r) => ClumpTemplate::trimer(r),
+                ("tetrahedron", r) => ClumpTemplate::tetrahedron(r),
+                ("rod", r) => match self.count.unwrap_or(4) {
                     0 => return bad("a rod needs count ≥ 1".into()),
-                    n => ClumpTemplate::rod(n, 1.0),
+                    n => ClumpTemplate::rod(n, r),
                 },
-                other => return bad(format!("has shape \"{other}\", not one of {SHAPES}")),
+                (other, _) => return bad(format!("has shape \"{other}\", not one of {SHAPES}")),
             }?,
             (None, Some(spheres)) => {
                 let components = spheres
@@ -145,6 +153,58 @@ impl ClumpConfig {
             }),
         }
     }
+}
+
+/// The clumps of the rows of a clump file `path` (`crate::io::read_clumps`), each of the table
+/// its `template` names (a table's `name`, else its shape's) at the table's own size and the
+/// first material's density `density`: a row places and moves its template's frame, which
+/// becomes the clump's principal frame at its centre of mass.
+pub fn clumps_of_rows(
+    path: &std::path::Path,
+    rows: &[crate::io::ClumpRow],
+    tables: &[ClumpConfig],
+    density: f64,
+) -> Result<Particles> {
+    let templates = tables
+        .iter()
+        .map(ClumpConfig::template)
+        .collect::<Result<Vec<_>>>()?;
+    let mut set = ClumpSet::default();
+    // Each template's centre and principal axes in its own frame, as its kind is made.
+    let mut frames = Vec::new();
+    for t in &templates {
+        let m = t.mass_properties();
+        frames.push((m.centre, DQuat::from_mat3(&m.axes)));
+        set.kinds.push(ClumpKind::new(t, density));
+    }
+    for (k, row) in rows.iter().enumerate() {
+        let Some(kind) = templates.iter().position(|t| t.name == row.template) else {
+            let names: Vec<String> = templates
+                .iter()
+                .map(|t| format!("\"{}\"", t.name))
+                .collect();
+            return Err(Error::Parse {
+                path: path.to_owned(),
+                line: None,
+                msg: format!(
+                    "clump {k}: template \"{}\" is not one of the [[clump]] tables ({})",
+                    row.template,
+                    names.join(", ")
+                ),
+            });
+        };
+        let (centre, axes) = frames[kind];
+        let arm = row.orientation * centre;
+        let body = RigidBody::new(
+            row.position + arm,
+            row.orientation * axes,
+            row.velocity + row.angular_velocity.cross(arm),
+            row.angular_velocity,
+            &set.kinds[kind].inertia,
+        );
+        set.clumps.push(Clump { kind, body });
+    }
+    Particles::with_clumps(set, Particles::default())
 }
 
 /// A shape at unit scale, in its principal frame, with its bounding radius.

@@ -10,6 +10,7 @@
 
 mod atomic;
 mod checkpoint;
+mod clumps;
 mod collection;
 mod frame_read;
 mod frames;
@@ -23,6 +24,7 @@ mod walls;
 
 pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};
 pub use checkpoint::{Checkpoint, read_checkpoint, write_checkpoint};
+pub use clumps::{CLUMP_HEADER, ClumpRow, is_clump_file, read_clumps};
 pub use collection::{append_entries, entry_line, write_collection};
 pub use frame_read::{OwnedFrame, read_frame, read_vtu};
 pub use frames::{

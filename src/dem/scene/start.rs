@@ -65,13 +65,16 @@ impl SceneConfig {
                 equipment.as_ref().expect("built").spheres.clone()
             }
             Source::Input(file) => {
-                if !self.clump.is_empty() {
-                    return Err(self.no_clumps_of("input"));
-                }
                 let input = file.input.as_ref().ok_or_else(|| Error::InvalidConfig {
                     what: "scene \"input\"".into(),
                     reason: "needs input = \"FILE\" (--input)".into(),
                 })?;
+                if !self.clump.is_empty() {
+                    return Self::inside_the_box(
+                        self.start_with(self.clumps_in(input)?, None)?,
+                        0.0,
+                    );
+                }
                 let particles = crate::io::read_particles(input)?;
                 // The file's materials index the scene's: an error names the file.
                 let count = self.materials()?.list.len();
@@ -104,6 +107,24 @@ impl SceneConfig {
                  mesh, drum): not of scene \"{scene}\"'s yet"
             ),
         }
+    }
+
+    /// The clumps of the clump file `input` (`crate::io::read_clumps`), of the `[[clump]]`
+    /// tables at their own size, of the first material.
+    fn clumps_in(&self, input: &std::path::Path) -> Result<Particles> {
+        if !crate::io::is_clump_file(input) {
+            return Err(Error::Parse {
+                path: input.to_owned(),
+                line: None,
+                msg: format!(
+                    "with [[clump]] tables the input is a clump file, its header {}",
+                    crate::io::CLUMP_HEADER
+                ),
+            });
+        }
+        let rows = crate::io::read_clumps(input)?;
+        let density = self.materials()?.list[0].density;
+        crate::dem::clump_spec::clumps_of_rows(input, &rows, &self.clump, density)
     }
 
     /// The generated `spheres` made clumps of the `[[clump]]` tables (`dem::clump_spec`):
