@@ -207,6 +207,22 @@ pub fn clumps_of_rows(
     Particles::with_clumps(set, Particles::default())
 }
 
+/// The `gravel` scene's grains where it gives no `[[clump]]` tables: tetrahedra (0.4), trimers
+/// (0.3) and rods of three spheres (0.3).
+pub fn gravel() -> Vec<ClumpConfig> {
+    let shape = |name: &str, count: Option<usize>, fraction: f64| ClumpConfig {
+        shape: Some(name.into()),
+        count,
+        fraction: Some(fraction),
+        ..ClumpConfig::default()
+    };
+    vec![
+        shape("tetrahedron", None, 0.4),
+        shape("trimer", None, 0.3),
+        shape("rod", Some(3), 0.3),
+    ]
+}
+
 /// A shape at unit scale, in its principal frame, with its bounding radius.
 struct Shape {
     /// At density 1 and the template's own size.

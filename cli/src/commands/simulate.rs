@@ -280,8 +280,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         SceneKind::Hopper => (frames.as_ref().and_then(|f| f.flow.as_ref()))
             .and_then(|log| equipment::mass_flow_rate(log.discharge()))
             .map(|w| format!("hopper: steady mass flow rate {w:.4e} kg/s (see flow.csv)")),
-        SceneKind::Drum => equipment::free_surface_angle(&end.positions, &end.radii)
-            .map(|a| format!("drum: free surface at {a:.1}° to the horizontal")),
+        SceneKind::Drum | SceneKind::Gravel => {
+            equipment::free_surface_angle(&end.positions, &end.radii)
+                .map(|a| format!("drum: free surface at {a:.1}° to the horizontal"))
+        }
         _ => None,
     };
     let state = state_toml(stepper.as_ref(), &frames, &meshes);

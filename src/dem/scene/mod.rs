@@ -14,7 +14,7 @@
 //!
 //! [source]               # where the spheres come from (`source`: each scene's own keys)
 //! scene = "pour"         # freefall, slab, poly1.2, poly12, poly120, polylog, pour, rotating,
-//!                        # mesh, input, hopper, drum, agglomerate
+//!                        # mesh, input, hopper, drum, agglomerate, gravel
 //! spheres = 4000
 //! seed = 1
 //!

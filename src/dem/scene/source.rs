@@ -11,6 +11,7 @@
 //! # scene = "hopper":  spheres, seed, grain_radius, orifice, angle, open (`dem::equipment`)
 //! # scene = "drum":    spheres, seed, grain_radius, omega, sides, rings (`dem::equipment`)
 //! # scene = "agglomerate": spheres, grain_radius, speed (`dem::equipment`)
+//! # scene = "gravel":  the drum's keys; its grains clumps (`dem::clump_spec::gravel`)
 //! ```
 
 use crate::dem::equipment::{Agglomerate, Drum, Hopper};
@@ -39,11 +40,14 @@ pub enum SceneKind {
     Drum,
     /// A ball of bonded grains dropped on the floor (`dem::equipment`).
     Agglomerate,
+    /// The drum of [`Drum`](SceneKind::Drum) turning clumps of mixed shapes, one where each
+    /// of its spheres was (`dem::clump_spec`).
+    Gravel,
 }
 
 impl SceneKind {
     /// Every scene, in the order errors list them.
-    pub const ALL: [SceneKind; 13] = [
+    pub const ALL: [SceneKind; 14] = [
         SceneKind::Generated(Scene::Freefall),
         SceneKind::Generated(Scene::Slab),
         SceneKind::Generated(Scene::Poly1_2),
@@ -57,6 +61,7 @@ impl SceneKind {
         SceneKind::Hopper,
         SceneKind::Drum,
         SceneKind::Agglomerate,
+        SceneKind::Gravel,
     ];
 
     /// Name, as in TOML and on the command line.
@@ -69,6 +74,7 @@ impl SceneKind {
             SceneKind::Hopper => "hopper",
             SceneKind::Drum => "drum",
             SceneKind::Agglomerate => "agglomerate",
+            SceneKind::Gravel => "gravel",
         }
     }
 }
@@ -108,6 +114,8 @@ impl clap::ValueEnum for SceneKind {
                 .help("a drum about a horizontal axis, 40% filled, turning (a mesh wall: cpu, wgpu-compute, wgpu-rq)"),
             SceneKind::Agglomerate => PossibleValue::new("agglomerate")
                 .help("a ball of grains bonded by liquid bridges dropped on the floor, broken or not"),
+            SceneKind::Gravel => PossibleValue::new("gravel")
+                .help("the drum turning clumps of tetrahedra, trimers and rods of three (cpu)"),
         })
     }
 }
@@ -222,6 +230,8 @@ pub enum Source {
     Drum(Drum),
     /// A ball of bonded grains dropped on the floor.
     Agglomerate(Agglomerate),
+    /// The drum turning clumps.
+    Gravel(Drum),
 }
 
 impl Default for Source {
@@ -241,6 +251,7 @@ impl Source {
             SceneKind::Hopper => Source::Hopper(Hopper::default()),
             SceneKind::Drum => Source::Drum(Drum::default()),
             SceneKind::Agglomerate => Source::Agglomerate(Agglomerate::default()),
+            SceneKind::Gravel => Source::Gravel(Drum::default()),
         }
     }
 
@@ -251,7 +262,7 @@ impl Source {
         match &mut source {
             Source::Generated(_, g) | Source::Rotating(g) => *g = Generated { spheres, seed },
             Source::Hopper(h) => (h.spheres, h.seed) = (spheres, seed),
-            Source::Drum(d) => (d.spheres, d.seed) = (spheres, seed),
+            Source::Drum(d) | Source::Gravel(d) => (d.spheres, d.seed) = (spheres, seed),
             Source::Agglomerate(a) => a.spheres = spheres,
             Source::Mesh(m) => m.seed = seed,
             Source::Input(_) => {}
@@ -269,6 +280,7 @@ impl Source {
             Source::Hopper(_) => SceneKind::Hopper,
             Source::Drum(_) => SceneKind::Drum,
             Source::Agglomerate(_) => SceneKind::Agglomerate,
+            Source::Gravel(_) => SceneKind::Gravel,
         }
     }
 
@@ -277,7 +289,7 @@ impl Source {
         match self {
             Source::Generated(_, g) | Source::Rotating(g) => Some(g.spheres),
             Source::Hopper(h) => Some(h.spheres),
-            Source::Drum(d) => Some(d.spheres),
+            Source::Drum(d) | Source::Gravel(d) => Some(d.spheres),
             Source::Agglomerate(a) => Some(a.spheres),
             Source::Mesh(_) | Source::Input(_) => None,
         }
@@ -308,7 +320,7 @@ impl Source {
             SceneKind::Mesh => fields_of::<MeshFill>(),
             SceneKind::Input => fields_of::<InputFile>(),
             SceneKind::Hopper => fields_of::<Hopper>(),
-            SceneKind::Drum => fields_of::<Drum>(),
+            SceneKind::Drum | SceneKind::Gravel => fields_of::<Drum>(),
             SceneKind::Agglomerate => fields_of::<Agglomerate>(),
         }
     }
@@ -331,7 +343,7 @@ impl Serialize for Source {
             Source::Mesh(m) => Tagged { scene, fields: m }.serialize(s),
             Source::Input(i) => Tagged { scene, fields: i }.serialize(s),
             Source::Hopper(h) => Tagged { scene, fields: h }.serialize(s),
-            Source::Drum(d) => Tagged { scene, fields: d }.serialize(s),
+            Source::Drum(d) | Source::Gravel(d) => Tagged { scene, fields: d }.serialize(s),
             Source::Agglomerate(a) => Tagged { scene, fields: a }.serialize(s),
         }
     }
@@ -369,6 +381,7 @@ impl<'de> Deserialize<'de> for Source {
             SceneKind::Hopper => Source::Hopper(read(kind, rest)?),
             SceneKind::Drum => Source::Drum(read(kind, rest)?),
             SceneKind::Agglomerate => Source::Agglomerate(read(kind, rest)?),
+            SceneKind::Gravel => Source::Gravel(read(kind, rest)?),
         })
     }
 }

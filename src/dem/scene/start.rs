@@ -61,7 +61,7 @@ impl SceneConfig {
             Source::Generated(scene, g) => generated(*scene, g)?,
             Source::Rotating(g) => generated(Scene::Freefall, g)?,
             Source::Mesh(fill) => fill.spheres()?,
-            Source::Hopper(_) | Source::Drum(_) | Source::Agglomerate(_) => {
+            Source::Hopper(_) | Source::Drum(_) | Source::Agglomerate(_) | Source::Gravel(_) => {
                 equipment.as_ref().expect("built").spheres.clone()
             }
             Source::Input(file) => {
@@ -91,7 +91,7 @@ impl SceneConfig {
             let v = built.velocity.map(|x| x as f32);
             particles.velocities.iter_mut().for_each(|u| *u = v);
         }
-        if !self.clump.is_empty() {
+        if !self.clump.is_empty() || self.scene() == SceneKind::Gravel {
             particles = self.clumps_of(&particles)?;
         }
         Self::inside_the_box(self.start_with(particles, equipment.as_ref())?, 0.0)
@@ -133,7 +133,7 @@ impl SceneConfig {
         let seed = match &self.source {
             Source::Generated(_, g) | Source::Rotating(g) => g.seed,
             Source::Mesh(fill) => fill.seed,
-            Source::Drum(drum) => drum.seed,
+            Source::Drum(drum) | Source::Gravel(drum) => drum.seed,
             Source::Hopper(_) => return Err(self.no_clumps_of("hopper")),
             Source::Agglomerate(_) => return Err(self.no_clumps_of("agglomerate")),
             Source::Input(_) => return Err(self.no_clumps_of("input")),
@@ -150,7 +150,12 @@ impl SceneConfig {
             .iter()
             .map(|m| m.density as f32)
             .collect();
-        crate::dem::clump_spec::clumps_in_place_of(spheres, &self.clump, &densities, seed)
+        // The gravel scene's own mix, where it gives no tables.
+        let tables = match self.clump.is_empty() {
+            true => crate::dem::clump_spec::gravel(),
+            false => self.clump.clone(),
+        };
+        crate::dem::clump_spec::clumps_in_place_of(spheres, &tables, &densities, seed)
     }
 
     /// The start of this scene (`input`, without its file) from `particles` given in memory:
@@ -220,7 +225,7 @@ impl SceneConfig {
             Source::Generated(scene, _) => generated_box(*scene, particles.len()),
             Source::Rotating(_) => generated_box(Scene::Freefall, particles.len()),
             Source::Mesh(fill) => ([0.0; 3], [fill.box_side()?; 3]),
-            Source::Hopper(_) | Source::Drum(_) | Source::Agglomerate(_) => {
+            Source::Hopper(_) | Source::Drum(_) | Source::Agglomerate(_) | Source::Gravel(_) => {
                 let built = equipment.expect("a built-in scene's equipment");
                 (built.box_lo, built.box_hi)
             }
@@ -337,7 +342,7 @@ impl SceneConfig {
     fn equipment(&self) -> Result<Option<Built>> {
         match &self.source {
             Source::Hopper(hopper) => hopper.build().map(Some),
-            Source::Drum(drum) => drum.build().map(Some),
+            Source::Drum(drum) | Source::Gravel(drum) => drum.build().map(Some),
             Source::Agglomerate(agglomerate) => agglomerate.build().map(Some),
             _ => Ok(None),
         }

@@ -143,7 +143,7 @@ fn unknown_scenes_and_modes_are_errors_listing_the_names() {
     assert!(
         e.contains(
             "unknown scene \"teapot\": use freefall, slab, poly1.2, poly12, poly120, \
-                 polylog, pour, rotating, mesh, input, hopper, drum or agglomerate"
+                 polylog, pour, rotating, mesh, input, hopper, drum, agglomerate or gravel"
         ),
         "{e}"
     );
@@ -1142,4 +1142,39 @@ fn a_clump_table_may_take_its_shape_from_a_mesh_beside_the_scene() {
     assert!(e.contains("spacing is the fill's of a mesh"), "{e}");
     let e = bad("mesh = \"nowhere.obj\"\n");
     assert!(e.contains("nowhere.obj"), "{e}");
+}
+
+#[test]
+fn the_gravel_scene_is_the_drum_turning_clumps_of_its_mix() {
+    let build = |text: &str| {
+        SceneConfig::parse(Some(text), None, &Overrides::default())
+            .and_then(|c| c.build())
+            .unwrap()
+    };
+    let gravel = build("scene = \"gravel\"\nspheres = 300\nseed = 4\n");
+    let set = &gravel.particles.clumps;
+    assert_eq!(set.clumps.len(), 300);
+    let mut names: Vec<&str> = set.kinds.iter().map(|k| k.template.name.as_str()).collect();
+    names.sort();
+    names.dedup();
+    assert_eq!(names, ["rod 3", "tetrahedron", "trimer"]);
+    // The drum's walls, box and grains, as the drum with the same tables.
+    let drum = build(
+        "scene = \"drum\"\nspheres = 300\nseed = 4\n\
+         [[clump]]\nshape = \"tetrahedron\"\nfraction = 0.4\n\
+         [[clump]]\nshape = \"trimer\"\nfraction = 0.3\n\
+         [[clump]]\nshape = \"rod\"\ncount = 3\nfraction = 0.3\n",
+    );
+    assert_eq!(drum.particles.clumps, *set);
+    assert_eq!(drum.params.box_hi, gravel.params.box_hi);
+    assert_eq!(drum.walls.meshes.len(), gravel.walls.meshes.len());
+    // Tables of its own replace the mix.
+    let own = build("scene = \"gravel\"\nspheres = 50\n[[clump]]\nshape = \"dimer\"\n");
+    assert!(
+        own.particles
+            .clumps
+            .kinds
+            .iter()
+            .all(|k| k.template.name == "dimer")
+    );
 }
