@@ -1837,3 +1837,30 @@ fn print_scene_writes_the_scene_in_its_tables_and_that_scene_runs_the_same() {
         "the printed scene runs as the flags do"
     );
 }
+
+#[test]
+fn a_run_of_clumps_names_them_and_its_frames_carry_each_spheres_clump() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "simulate",
+        "--scene",
+        "gravel",
+        "-n",
+        "30",
+        "--steps",
+        "40",
+        "--frame-every",
+        "40",
+        "-o",
+        "out",
+    ];
+    // `auto` picks the cpu backend: the GPU steps carry no clumps yet.
+    let (code, _, stderr) = mochi(&args, dir.path());
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stderr.contains("in 30 clumps ("), "{stderr}");
+    assert!(stderr.contains("backend cpu"), "{stderr}");
+    let frame = std::fs::read(dir.path().join("out/frame_00000040.vtu")).unwrap();
+    assert!(String::from_utf8_lossy(&frame).contains("Name=\"clump\""));
+    let saved = read_checkpoint(&dir.path().join("out/checkpoint.bin")).unwrap();
+    assert_eq!(saved.particles.clumps.clumps.len(), 30);
+}
