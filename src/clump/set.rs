@@ -122,6 +122,20 @@ impl ClumpSet {
         out
     }
 
+    /// The mass of each component's clump, in the order of [`Self::components`]: the mass its
+    /// contacts see \[kg\].
+    pub fn component_masses(&self) -> Vec<f64> {
+        let mut out = Vec::with_capacity(self.component_count());
+        for clump in &self.clumps {
+            let kind = &self.kinds[clump.kind];
+            out.extend(std::iter::repeat_n(
+                kind.inertia.mass,
+                kind.template.components.len(),
+            ));
+        }
+        out
+    }
+
     /// One step of `dt` for every clump under gravity `gravity` and the forces `forces` and
     /// torques `torques` (each about its component's centre) on its components, in the order
     /// of [`Self::components`].

@@ -70,6 +70,32 @@ pub struct Motion<'a> {
 }
 
 impl Motion<'_> {
+    /// Refuses motion that changes a clump's component (the first spheres of a run of
+    /// clumps, as `now` holds them): its motion is its clump's, so its rows must be as they are.
+    pub fn check_clumps(&self, now: &Particles) -> Result<()> {
+        let components = now.clumps.component_count().min(now.len());
+        if components == 0 {
+            return Ok(());
+        }
+        let same = |given: Option<&[[f32; 3]]>, now: &[[f32; 3]]| {
+            given.is_none_or(|g| g.len() < components || g[..components] == now[..components])
+        };
+        let placed = self.positions.is_none_or(|g| {
+            g.len() < components || (0..components).all(|k| g[k] == now.exact_position(k))
+        });
+        match placed
+            && same(self.velocities, &now.velocities)
+            && same(self.angular_velocities, &now.angular_velocities)
+        {
+            true => Ok(()),
+            false => Err(Error::Usage(
+                "the motion of a clump's spheres (the first spheres of a run of clumps) is its \
+                 clump's: they keep the rows they have (setting a clump's motion: not yet)"
+                    .into(),
+            )),
+        }
+    }
+
     /// Refuses motion for other than `n` spheres, values that are not finite and positions
     /// beyond `f32`'s range, naming the sphere.
     pub fn check(&self, n: usize) -> Result<()> {
@@ -264,7 +290,7 @@ pub trait Stepper: Send {
 
 /// Whether a run needs more than the paper's step (the engines' granular step): anything beyond
 /// the paper's law (linear, one stiffness, one material, no friction, no rolling resistance, no
-/// spin, no history) or the box walls alone. Without, the paper's kernels run it with the same
+/// spin, no history, no clumps) or the box walls alone. Without, the paper's kernels run it with the same
 /// work as before the granular step existed (they read one law: a scene of several materials
 /// needs the granular step, which reads each contact's from the material table).
 pub fn needs_granular_step(particles: &Particles, params: &StepParams, walls: &WallSet) -> bool {
@@ -275,6 +301,7 @@ pub fn needs_granular_step(particles: &Particles, params: &StepParams, walls: &W
         || particles.spin()
         || !particles.history.is_empty()
         || params.adheres()
+        || !particles.clumps.clumps.is_empty()
 }
 
 #[cfg(test)]

@@ -40,6 +40,7 @@ trait Engine: Sync {
         options: &Options,
         flow: FlowSet,
     ) -> Result<Box<dyn Stepper>> {
+        setup.refuse_flowing_clumps()?;
         let (dt, densities) = (setup.params.dt, setup.params.materials.densities.clone());
         let (particles, rest) = setup.split();
         let reopen = self.reopener(rest, options)?;
@@ -96,13 +97,7 @@ impl Engine for CpuEngine {
     }
 
     fn flowing(&self, setup: DemSetup, _: &Options, flow: FlowSet) -> Result<Box<dyn Stepper>> {
-        if !setup.particles.clumps.clumps.is_empty() {
-            return Err(Error::Usage(
-                "spheres flowing in or out of a run of clumps: not yet (a clump's components \
-                 are its first spheres, which an outflow would take one by one)"
-                    .into(),
-            ));
-        }
+        setup.refuse_flowing_clumps()?;
         let mode = setup.mode;
         Ok(Box::new(
             cpu::CpuStepper::open(setup)?.with_flow(flow, mode),

@@ -163,6 +163,11 @@ pub(crate) use wgsl;
 #[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Vec3f(pub [f32; 3]);
 
+/// A WGSL `vec4<f32>`; as plain `#[repr(C)]` data, four floats.
+#[repr(transparent)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Vec4f(pub [f32; 4]);
+
 /// A WGSL `vec3<u32>` (16-byte aligned; a scalar may follow in its last 4 bytes).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Vec3u(pub [u32; 3]);
@@ -205,6 +210,7 @@ impl std::ops::Deref for Vec3f {
         &self.0
     }
 }
+vector_parts!(Vec4f, f32, 4);
 vector_parts!(Vec3u, u32, 3);
 vector_parts!(Vec4u, u32, 4);
 
@@ -265,6 +271,12 @@ impl FirstWord for f32 {
 }
 
 impl FirstWord for Vec3f {
+    fn first_word(&self) -> u32 {
+        self.0[0].to_bits()
+    }
+}
+
+impl FirstWord for Vec4f {
     fn first_word(&self) -> u32 {
         self.0[0].to_bits()
     }

@@ -288,7 +288,7 @@ fn take(w: ptr<function, Walker>, c: Contact) {
 
 // The box walls touching the walker's sphere (each axis low wall first, as the cpu step), then
 // its force and torque into the accumulators and its history count (the mesh walls' kernel,
-// dem_mesh_walls.wgsl, appends to both after this pass).
+// dem_mesh_walls.wgsl, appends to both after this pass); a clump's component notes its row.
 fn finish(w: ptr<function, Walker>) {
     let b = (*w).me;
     if mesh.box_walls != 0u {
@@ -332,6 +332,9 @@ fn finish(w: ptr<function, Walker>) {
     if dem.turns != 0u && any((*w).torque != vec3(0.0)) {
         add_torque((*w).h, (*w).torque);
     }
+    if CLUMPED {
+        note_row(stable_id((*w).h), (*w).h);
+    }
     if dem.slots > 0u {
         held_new[(*w).h] = min((*w).held, dem.slots);
         if (*w).held > dem.slots {
@@ -352,8 +355,12 @@ fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
     integrate_sphere(p);
 }
 
-// Integrates sphere p (state index); returns its new centre and radius.
+// Integrates sphere p (state index); returns its new centre and radius. A clump's component was
+// placed by its clump's step (dem_clumps.wgsl, before this kernel): it stays as it is.
 fn integrate_sphere(p: u32) -> vec4<f32> {
+    if is_component(stable_id(p)) {
+        return pos[p];
+    }
     let s = pos[p];
     let v = vel[p];
     var f = load_force(p);

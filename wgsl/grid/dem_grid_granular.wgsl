@@ -51,7 +51,8 @@ const NEAR_ROOM: u32 = 16u;
 @group(0) @binding(31) var<storage, read_write> near: array<u32>;
 
 fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
-    if !reaches((*w).s, t) {
+    // Two components of one clump are never a pair (dem_clumps.wgsl).
+    if !reaches((*w).s, t) || one_clump(stable_id(home[(*w).p]), stable_id(home[q])) {
         return;
     }
     let k = (*w).waiting - (*w).list_from;

@@ -17,6 +17,10 @@ fn visit(w: ptr<function, Walker>, q: u32) {
     if !keep_in(rq.mode, (*w).p, (*w).s.xyz, (*w).s.w + grown(), q, t.xyz, t.w + grown()) {
         return;
     }
+    // Two components of one clump are never a pair (dem_clumps.wgsl).
+    if one_clump(stable_id((*w).h), stable_id(q)) {
+        return;
+    }
     meet(w, q, t);
 }
 

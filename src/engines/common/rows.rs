@@ -17,7 +17,8 @@ pub(crate) struct Rotation {
 }
 
 /// `vec4(x, y, z, r)` and `vec4(vx, vy, vz, mass)` rows of `particles`, in input order, each
-/// mass by the density of the sphere's material in `table` (as the cpu step's).
+/// mass by the density of the sphere's material in `table`, a clump's component's its clump's
+/// (as the cpu step's).
 pub(crate) fn rows(particles: &Particles, table: &MaterialTable) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
     let pos = particles
         .positions
@@ -25,12 +26,19 @@ pub(crate) fn rows(particles: &Particles, table: &MaterialTable) -> (Vec<[f32; 4
         .zip(&particles.radii)
         .map(|(c, &r)| [c[0], c[1], c[2], r])
         .collect();
+    let clumps = particles.clumps.component_masses();
     let vel = particles
         .velocities
         .iter()
         .zip(&particles.radii)
         .enumerate()
-        .map(|(i, (v, &r))| [v[0], v[1], v[2], table.mass(particles.material(i), r)])
+        .map(|(i, (v, &r))| {
+            let m = match clumps.get(i) {
+                Some(&m) => m as f32,
+                None => table.mass(particles.material(i), r),
+            };
+            [v[0], v[1], v[2], m]
+        })
         .collect();
     (pos, vel)
 }
@@ -99,7 +107,7 @@ pub(crate) fn particles_with(
         // Filled below where some sphere is of another material than the first.
         materials: Vec::new(),
         history: rotation.history,
-        // The GPU steps run no clumps (`open_setup` refuses them).
+        // The engine that runs clumps reads them apart.
         clumps: Default::default(),
         step,
     };

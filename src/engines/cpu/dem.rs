@@ -125,9 +125,8 @@ impl CpuStepper {
         let table = &params.materials;
         masses.extend((0..n).map(|i| table.mass(particles.material(i), particles.radii[i])));
         let owners = particles.clumps.owners();
-        let clumps = &particles.clumps;
-        for (m, &k) in masses.iter_mut().zip(&owners) {
-            *m = clumps.kinds[clumps.clumps[k as usize].kind].inertia.mass as f32;
+        for (m, clump) in masses.iter_mut().zip(particles.clumps.component_masses()) {
+            *m = clump as f32;
         }
         let slots = match params.friction.has_history() {
             true => FIRST_SLOTS.max(particles.history.most()),
@@ -692,25 +691,7 @@ impl Stepper for CpuStepper {
     }
 
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
-        // A clump's components move with it: their rows must be as they are.
-        let parts = &self.particles;
-        let components = parts.clumps.component_count().min(parts.len());
-        let same = |given: Option<&[[f32; 3]]>, now: &[[f32; 3]]| {
-            given.is_none_or(|g| g.len() < components || g[..components] == now[..components])
-        };
-        let placed = motion.positions.is_none_or(|g| {
-            g.len() < components || (0..components).all(|k| g[k] == parts.exact_position(k))
-        });
-        if !(placed
-            && same(motion.velocities, &parts.velocities)
-            && same(motion.angular_velocities, &parts.angular_velocities))
-        {
-            return Err(Error::Usage(
-                "the motion of a clump's spheres (the first spheres of a run of clumps) is its \
-                 clump's: they keep the rows they have (setting a clump's motion: not yet)"
-                    .into(),
-            ));
-        }
+        motion.check_clumps(&self.particles)?;
         motion.apply(&mut self.particles)
     }
 

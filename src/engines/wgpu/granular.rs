@@ -24,6 +24,7 @@ use crate::dem::stepper::StageTimes;
 use crate::dem::walls::WallSet;
 use crate::engines::common::flow::Room;
 use crate::engines::common::rows::Rotation;
+use crate::engines::wgpu::clumps::DeviceClumps;
 use crate::engines::wgpu::state::{InputOrder, ParamsUniform, move_rows};
 use crate::engines::wgpu::walls::MeshWalls;
 use crate::error::{Error, Result, try_vec};
@@ -98,6 +99,7 @@ pub(crate) mod shader {
         .chain(ENTRIES_OLD)
         .chain(ENTRIES_NEW)
         .chain(crate::engines::wgpu::walls::bindings())
+        .chain(crate::engines::wgpu::clumps::shader::BINDINGS)
         .collect()
     }
 }
@@ -179,8 +181,8 @@ const FIRST_SLOTS: u32 = 16;
 /// Storage buffers the granular resolve kernel binds (wgpu-compute's: the state, the cell
 /// table, the ids, the rows the spheres came from, the sorted places' rows and spheres, forces,
 /// counters, spins, the material table, torques, two counts of the history, [`ENTRY_PARTS`]
-/// entry bindings of each history, the need, and the mesh walls' four).
-const STORAGE_BUFFERS: u32 = 17 + 2 * ENTRY_PARTS as u32;
+/// entry bindings of each history, the need, the mesh walls' four and the clumps' two).
+const STORAGE_BUFFERS: u32 = 19 + 2 * ENTRY_PARTS as u32;
 
 /// Words of a slot of the history as the GPU holds it (`Entry` of `wgsl/dem_tangential_*.wgsl`),
 /// as bits: ξ x, y, z and the partner's stable id, then the rolling torque's x, y, z and 0;
@@ -437,14 +439,16 @@ pub(crate) struct Granular {
     /// The most contacts with history any sphere had in the batch.
     need: wgpu::Buffer,
     /// Copies of the state at the start of the batch (with history only): the old history's
-    /// buffers (as [`History::parts`]) and its counts, the angular velocities, then the
-    /// engine's own buffers.
+    /// buffers (as [`History::parts`]) and its counts, the angular velocities, the engine's own
+    /// buffers, then the clumps' states (where there are clumps).
     saved: Vec<wgpu::Buffer>,
     /// The history as given, returned as it is where contacts keep no springs (as the cpu
     /// step does).
     given: ContactHistory,
     /// The mesh walls (and whether the box's hold the spheres in).
     mesh: MeshWalls,
+    /// The clumps (none: one unread row each).
+    clumps: DeviceClumps,
     n: u32,
     /// The engine's backend name, for labels and errors.
     engine: &'static str,
@@ -504,6 +508,7 @@ impl Granular {
         let make = |what: &str, bytes: u64| gpu.storage(&label(what), bytes, none);
         let reach = room.radii.1 + params.search_margin(room.radii.1);
         let mesh = MeshWalls::new(gpu, walls, table, rows as usize, reach, engine)?;
+        let clumps = DeviceClumps::new(gpu, &particles.clumps, engine)?;
         let granular = gpu.checked("allocating the granular step's buffers", || Self {
             omega: (0..sets)
                 .map(|k| make(&format!("omega{k}"), rows * 16))
@@ -533,6 +538,7 @@ impl Granular {
                 particles.history.clone()
             },
             mesh,
+            clumps,
             n,
             engine,
         })?;
@@ -598,8 +604,36 @@ impl Granular {
     }
 
     /// Bindings of the integration kernel of a step that integrates state set `set`.
-    pub fn integrate_bindings(&self, set: usize) -> [(Binding, &wgpu::Buffer); 2] {
-        [(OMEGA, self.omega_of(set)), (TORQUE, &self.torque)]
+    pub fn integrate_bindings(&self, set: usize) -> [(Binding, &wgpu::Buffer); 3] {
+        [
+            (OMEGA, self.omega_of(set)),
+            (TORQUE, &self.torque),
+            self.clumps.of_binding(),
+        ]
+    }
+
+    /// What the contact pass binds beside [`resolve_bindings`](Self::resolve_bindings): the
+    /// clumps' (no two components of one clump are a pair; each component notes its row).
+    pub fn contact_bindings(&self) -> [(Binding, &wgpu::Buffer); 2] {
+        self.clumps.contact_bindings()
+    }
+
+    /// What a walk that only lists candidates binds of the clumps.
+    pub fn listing_binding(&self) -> (Binding, &wgpu::Buffer) {
+        self.clumps.of_binding()
+    }
+
+    /// The clumps.
+    pub fn clumps(&self) -> &DeviceClumps {
+        &self.clumps
+    }
+
+    /// Bindings of `advance_clumps` on state set `set` beside the state's and the forces'
+    /// (`None` without clumps: the kernel is not dispatched).
+    pub fn advance_bindings(&self, set: usize) -> Option<Vec<(Binding, &wgpu::Buffer)>> {
+        let own = [(OMEGA, self.omega_of(set)), (TORQUE, &self.torque)];
+        let clumps = self.clumps.advance_bindings();
+        self.clumps.any().then(|| [&own[..], &clumps[..]].concat())
     }
 
     /// The angular velocities a step that re-sorts the state moves from set `from` (first) to
@@ -670,7 +704,7 @@ impl Granular {
 
     /// Records, ahead of a batch whose first step starts from `first`, the clearing of the
     /// history count and (with history) the copy of the state it starts from: the old history,
-    /// the angular velocities and the engine's buffers `state`.
+    /// the angular velocities, the engine's buffers `state` and the clumps' states.
     pub fn begin_batch(
         &mut self,
         gpu: &Gpu,
@@ -691,6 +725,7 @@ impl Granular {
                 &self.omega[first.set % self.omega.len()],
             ])
             .chain(state.iter().copied())
+            .chain(self.clumps.any().then(|| self.clumps.bodies()))
             .collect();
         let fits = self.saved.len() == sources.len()
             && self
@@ -760,7 +795,8 @@ impl Granular {
         encoder.copy_buffer_to_buffer(&self.saved[fields], 0, &self.held[parity], 0, n as u64 * 4);
         let targets = [self.omega_of(first.set)]
             .into_iter()
-            .chain(state.iter().copied());
+            .chain(state.iter().copied())
+            .chain(self.clumps.any().then(|| self.clumps.bodies()));
         for (from, to) in self.saved[fields + 1..].iter().zip(targets) {
             encoder.copy_buffer_to_buffer(from, 0, to, 0, from.size());
         }

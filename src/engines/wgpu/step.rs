@@ -62,8 +62,9 @@ pub(crate) mod physics {
             _ => shader::SPRING,
         };
         let walls = crate::engines::wgpu::walls::SOURCE;
+        let clumps = crate::engines::wgpu::clumps::shader::SOURCE;
         format!(
-            "{PARAMS}{tangential}{contact}{state}{walls}{}{}",
+            "{PARAMS}{tangential}{contact}{state}{walls}{clumps}{}{}",
             atomics.force, atomics.torque
         )
     }
@@ -368,6 +369,7 @@ impl DemModule {
                 ("ONE_MATERIAL", params.materials.count == 1),
                 ("COHESIVE", params.adheres()),
                 ("VISCOUS", params.bridge.is_some_and(|b| b.viscosity > 0.0)),
+                ("CLUMPED", !particles.clumps.clumps.is_empty()),
             ]
             .into_iter()
             .filter(|(_, on)| *on)

@@ -262,6 +262,7 @@ pub(crate) mod dem_grid {
         "resolve_near",
         "mesh_walls_near",
         "mesh_wall_contacts",
+        "advance_clumps",
         "reduce_bounds",
         "integrate",
         "integrate_and_count",
@@ -279,6 +280,7 @@ pub(crate) mod dem_grid {
         "resolve_near",
         "mesh_walls_near",
         "mesh_wall_contacts",
+        "advance_clumps",
         "reduce_bounds",
         "integrate",
         "integrate_and_count",
@@ -442,6 +444,8 @@ pub fn modules() -> Vec<WgslModule> {
                 );
                 dem.structs.extend(step::law_structs());
                 dem.structs.extend(step::material_table());
+                dem.structs
+                    .extend(crate::engines::common::clumps::clump_structs());
                 dem.structs.extend([
                     step::cohesion_params(),
                     crate::engines::common::walls::mesh_params(),

@@ -20,6 +20,7 @@ use crate::engines::common::rows::{
     StateRows, advance_in_batches, particles_with, residual_rows, rows,
 };
 use crate::engines::setup::DemSetup;
+use crate::engines::wgpu::clumps::shader::ENTRY as CLUMPS_ENTRY;
 use crate::engines::wgpu::state::{ExternalRows, ParamsUniform, write_motion};
 use crate::engines::wgpu::step::physics::{CLOCK, DEM, EXTERNAL, FORCE, POS, POS_LO, VEL};
 use crate::engines::wgpu::step::{
@@ -42,6 +43,8 @@ struct Pipelines {
     /// The mesh walls' kernels (granular step with mesh walls only), in the order of
     /// `walls::ENTRY_POINTS`.
     mesh: Option<[wgpu::ComputePipeline; 2]>,
+    /// The clumps' step (before the integration; with clumps only) and its workgroups.
+    clumps: Option<(wgpu::ComputePipeline, (u32, u32))>,
     integrate: wgpu::ComputePipeline,
 }
 
@@ -52,6 +55,8 @@ struct Binds {
     resolve: [wgpu::BindGroup; 2],
     /// The mesh walls' kernels', by parity as `resolve`, each in the order of `Pipelines::mesh`.
     mesh: Option<[[wgpu::BindGroup; 2]; 2]>,
+    /// The clumps' step's (with clumps only).
+    clumps: Option<wgpu::BindGroup>,
     integrate: wgpu::BindGroup,
 }
 
@@ -95,14 +100,12 @@ pub struct RqStepper {
 impl RqStepper {
     /// The step of `setup` running `kernels` on the best adapter with ray queries.
     pub fn open(setup: DemSetup, kernels: KernelSet) -> Result<Self> {
-        setup.refuse_clumps("wgpu-rq")?;
         Self::open_on(Gpu::open(Need::RayQuery)?, setup, kernels)
     }
 
     /// The step of `setup` running `kernels` on `gpu` (opened with ray queries): a step
     /// reopened on the device of the last, whose compiled pipelines it reuses.
     pub fn open_on(gpu: Gpu, setup: DemSetup, kernels: KernelSet) -> Result<Self> {
-        setup.refuse_clumps("wgpu-rq")?;
         let DemSetup {
             mut particles,
             params,
@@ -144,6 +147,11 @@ impl RqStepper {
                 .as_ref()
                 .is_some_and(|g| g.mesh().any())
                 .then(|| walls::ENTRY_POINTS.map(pipeline)),
+            clumps: granular
+                .as_ref()
+                .map(|g| g.clumps())
+                .filter(|c| c.any())
+                .map(|c| (pipeline(CLUMPS_ENTRY), gpu.grid(c.count(), GROUP))),
             integrate: pipeline("integrate"),
         };
         let groups = gpu.grid(n, GROUP);
@@ -292,6 +300,10 @@ impl RedoableBatch for RqStepper {
             }
             parity = 1 - parity;
             StepTimer::mark(timer, &mut encoder, s, 2);
+            if let (Some((pipeline, groups)), Some(bind)) = (&p.clumps, &r.binds.clumps) {
+                let label = "mochi.dem.rq.advance_clumps";
+                gpu.dispatch(&mut encoder, label, pipeline, bind, *groups);
+            }
             gpu.dispatch(
                 &mut encoder,
                 "mochi.dem.rq.integrate",
@@ -404,7 +416,11 @@ impl Stepper for RqStepper {
             lo: &lo,
             vel: &vel,
         };
-        particles_with(rows, None, self.step, rotation)
+        let mut particles = particles_with(rows, None, self.step, rotation)?;
+        if let Some(g) = &self.granular {
+            particles.clumps = g.clumps().read(&self.gpu)?;
+        }
+        Ok(particles)
     }
 
     fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()> {
@@ -413,6 +429,9 @@ impl Stepper for RqStepper {
     }
 
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        if self.granular.as_ref().is_some_and(|g| g.clumps().any()) {
+            motion.check_clumps(&self.particles()?)?;
+        }
         let omega = self.granular.as_ref().map(|g| g.omega_of(0));
         let buffers = (&self.pos, &self.lo, &self.vel, omega);
         // The acceleration structure is rebuilt every step, over where the spheres are.
@@ -470,6 +489,7 @@ fn bind(
         ];
         if let Some(g) = granular {
             all.extend(g.resolve_bindings(Turn { set: 0, parity }));
+            all.extend(g.contact_bindings());
         }
         gpu.bind_with_tlas("mochi.dem.rq.resolve", &p.resolve, &all, (TLAS, tlas))
     };
@@ -482,6 +502,12 @@ fn bind(
         (CLOCK, clock),
         (EXTERNAL, external),
     ];
+    let clumps = granular
+        .zip(p.clumps.as_ref())
+        .and_then(|(g, (pipeline, _))| {
+            let all = [&integrate[..], &g.advance_bindings(0)?].concat();
+            Some(gpu.bind("mochi.dem.rq.advance_clumps", pipeline, &all))
+        });
     if let Some(g) = granular {
         integrate.extend(g.integrate_bindings(0));
     }
@@ -523,6 +549,7 @@ fn bind(
             };
             Some([bind(0)?, bind(1)?])
         }),
+        clumps,
         integrate: gpu.bind("mochi.dem.rq.integrate", &p.integrate, &integrate),
     }
 }

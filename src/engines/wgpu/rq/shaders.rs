@@ -159,6 +159,7 @@ pub(crate) mod dem_rq {
         "resolve",
         "mesh_walls_near",
         "mesh_wall_contacts",
+        "advance_clumps",
         "integrate",
     ];
 
@@ -242,6 +243,7 @@ pub fn modules() -> Vec<WgslModule> {
                     vec![dem_rq::rq_params()],
                     step::law_structs().to_vec(),
                     step::material_table().to_vec(),
+                    crate::engines::common::clumps::clump_structs().to_vec(),
                     vec![
                         step::cohesion_params(),
                         crate::engines::common::walls::mesh_params(),

@@ -10,6 +10,8 @@ pub(super) struct Binds {
     /// The sorting step's, on the other set.
     pub(super) resolving: ResolveBinds,
     pub(super) integrate: wgpu::BindGroup,
+    /// The clumps' step's, on the set `integrate` integrates (with clumps only).
+    pub(super) clumps: Option<wgpu::BindGroup>,
     pub(super) reduce_bounds: wgpu::BindGroup,
     /// A binning step's own bind groups on set `from` (where the step has binning steps).
     pub(super) binning: Option<BinningBinds>,
@@ -130,6 +132,7 @@ impl Resident {
                 &p.integrate,
                 &[&self.integrated(1 - from)[..], &integrate_more, &counting].concat(),
             ),
+            clumps: self.clumps_binds(1 - from),
             reduce_bounds: gpu.bind(
                 "mochi.dem.reduce_bounds",
                 &p.reduce_bounds,
@@ -173,6 +176,27 @@ impl Resident {
             (CLOCK, &self.clock),
             (EXTERNAL, self.external.buffer()),
         ]
+    }
+
+    /// The bind group of the clumps' step on state set `on` (`None` without clumps).
+    pub(super) fn clumps_binds(&self, on: usize) -> Option<wgpu::BindGroup> {
+        let (pipeline, _) = self.pipelines.clumps.as_ref()?;
+        let own = self.granular.as_ref()?.advance_bindings(on)?;
+        let set = &self.sets[on];
+        let state = [
+            (DEM, self.dem_uniform.buffer()),
+            (POS, &set.pos),
+            (POS_LO, &set.lo),
+            (VEL, &set.vel),
+            (FORCE, &self.force),
+            (CLOCK, &self.clock),
+            (EXTERNAL, self.external.buffer()),
+        ];
+        let bindings = joined(&state, &own);
+        Some(
+            self.gpu
+                .bind("mochi.dem.advance_clumps", pipeline, &bindings),
+        )
     }
 
     /// What the paper's scatter writes for its skin (the binned rows), none in the granular
@@ -305,11 +329,15 @@ impl Resident {
         let (list_near, resolve) = match (&self.pipelines.listing, self.levels) {
             (Some([list_near, resolve_near]), Levels::Many) => {
                 // The law's parameters for the reach past touching of cohesive contacts.
+                // And the stable ids by sorted place: no two components of one clump are a pair.
                 let walk = [
                     (PARAMS, &self.grid_uniform),
                     (DEM, self.dem_uniform.buffer()),
                     cells,
                     placed[1],
+                    placed[0],
+                    (IDS, &set.ids),
+                    g.listing_binding(),
                 ];
                 let walk = joined(&walk, &listed);
                 let list_near = gpu.bind("mochi.dem.list_near", list_near, &walk);
@@ -356,7 +384,8 @@ impl Resident {
                 .iter()
                 .map(|&turn| {
                     let more = [(IDS, &set.ids), (CAME_FROM, came_from)];
-                    let all = [&own[..], &g.resolve_bindings(turn), &more].concat();
+                    let clumps = g.contact_bindings();
+                    let all = [&own[..], &g.resolve_bindings(turn), &more, &clumps].concat();
                     gpu.bind("mochi.dem.resolve", resolve, &all)
                 })
                 .collect(),

@@ -61,6 +61,7 @@ use crate::engines::common::rows::{
     StateRows, advance_in_batches, particles_with, residual_rows, rows,
 };
 use crate::engines::setup::DemSetup;
+use crate::engines::wgpu::clumps::shader::ENTRY as CLUMPS_ENTRY;
 use crate::engines::wgpu::flow::FlowScan;
 use crate::engines::wgpu::granular::shader::OMEGA;
 use crate::engines::wgpu::readback::{BatchReadback, InFlight};
@@ -111,6 +112,9 @@ struct Pipelines {
     /// The mesh walls' kernels (granular step with mesh walls only), in the order of
     /// `walls::ENTRY_POINTS`.
     mesh: Option<[wgpu::ComputePipeline; 2]>,
+    /// The clumps' step (`advance_clumps`, before the integration; runs with clumps only) and
+    /// its workgroups, one thread a clump.
+    clumps: Option<(wgpu::ComputePipeline, (u32, u32))>,
     integrate: wgpu::ComputePipeline,
     reduce_bounds: wgpu::ComputePipeline,
     /// The binning step's last pass, where the step has binning steps.
@@ -308,7 +312,6 @@ impl GridStepper {
         room: Room,
         open: impl FnOnce() -> Result<Gpu>,
     ) -> Result<Self> {
-        setup.refuse_clumps("wgpu-compute")?;
         let DemSetup {
             mut particles,
             params,
@@ -385,6 +388,11 @@ impl GridStepper {
                 .as_ref()
                 .is_some_and(|g| g.mesh().any())
                 .then(|| walls::ENTRY_POINTS.map(pipeline)),
+            clumps: granular
+                .as_ref()
+                .map(|g| g.clumps())
+                .filter(|c| c.any())
+                .map(|c| (pipeline(CLUMPS_ENTRY), gpu.grid(c.count(), GROUP))),
             // The dense build counts the spheres for the next step as it integrates them.
             integrate: pipeline(match build {
                 BuildKind::Dense => "integrate_and_count",
@@ -539,7 +547,11 @@ impl GridStepper {
             lo: &lo,
             vel: &vel,
         };
-        particles_with(rows, Some(&order.rank), self.step, rotation)
+        let mut particles = particles_with(rows, Some(&order.rank), self.step, rotation)?;
+        if let Some(g) = &self.res.granular {
+            particles.clumps = g.clumps().read(&self.res.gpu)?;
+        }
+        Ok(particles)
     }
 }
 
@@ -612,6 +624,9 @@ impl Stepper for GridStepper {
     }
 
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        if self.res.granular.as_ref().is_some_and(|g| g.clumps().any()) {
+            motion.check_clumps(&self.state()?)?;
+        }
         let (res, n) = (&self.res, self.n as usize);
         let set = &res.sets[self.current];
         let order: Vec<u32> = res.gpu.read(&set.ids, n)?;

@@ -12,8 +12,8 @@ pub(super) enum Phase {
     Build,
     /// Detection with the contact forces.
     Resolve,
-    /// Walls, gravity and integration (the dense build's also counts the spheres into their
-    /// cells for the next step).
+    /// The clumps' step, walls, gravity and integration (the dense build's also counts the
+    /// spheres into their cells for the next step).
     Integrate,
 }
 
@@ -83,12 +83,16 @@ impl GridStepper {
             }
             // A binning step integrates the set it is on, as the sorting step from the other
             // set does.
+            // The clumps' step places their components first (the integration leaves them).
             Phase::Integrate => {
-                let integrate = match kind {
-                    StepKind::Binning => &binds[1 - from.set].integrate,
-                    _ => &b.integrate,
+                let on = match kind {
+                    StepKind::Binning => &binds[1 - from.set],
+                    _ => b,
                 };
-                gpu::record(pass, &p.integrate, integrate, self.groups)
+                if let (Some((pipeline, groups)), Some(bind)) = (&p.clumps, &on.clumps) {
+                    gpu::record(pass, pipeline, bind, *groups);
+                }
+                gpu::record(pass, &p.integrate, &on.integrate, self.groups)
             }
         }
     }
