@@ -24,9 +24,11 @@ struct GranularLaunch {
     const MochiLoadEntry* old_loads;  // beside old_entries (MOCHI_LOAD_HISTORY; else unused)
     MochiLoadEntry* new_loads;        // beside new_entries (MOCHI_LOAD_HISTORY; else unused)
     unsigned long long handle;       // the acceleration structure
+    const unsigned int* clump_of;    // by stable id below `components`: its clump
     unsigned int n;
     unsigned int mode;       // MOCHI_MODE_MOCHI or MOCHI_MODE_NNS
-    unsigned int _pad[4];    // g starts a 16-byte line (its sphere_law's alignment)
+    unsigned int components; // the clumps' component spheres: the first stable ids
+    unsigned int _pad[1];    // g starts a 16-byte line (its sphere_law's alignment)
     MochiLaw g;              // with the history's slots (g.dem.slots)
 };
 
@@ -99,6 +101,11 @@ extern "C" __global__ void __intersection__granular() {
     MochiBody b = mochi_body(j);
     unsigned int id_i = params.ids[i];
     unsigned int id_j = params.ids[j];
+    // Two components of one clump are never a pair (clumps.cuh).
+    if (id_j < params.components && id_i < params.components &&
+        params.clump_of[id_i] == params.clump_of[id_j]) {
+        return;
+    }
     MochiSprings old = mochi_no_springs();
     bool bonded = false;
     if (mochi_keeps(g)) {

@@ -10,6 +10,8 @@
 // sphere holds more contacts than its slots (g.dem.slots), raises `need` to its count (the host then grows
 // the slots and redoes the steps). Where g.dem.loaded is 1, adds each sphere's external force
 // and torque (`external`, by input index: force at row 2i, torque at 2i + 1) to its contacts'.
+// The first `components` stable ids are clumps' components: their walls go into their
+// accumulators and their rows into `clump_rows`, and they are left for advance_clumps.
 extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* vel,
                                               float4* ang, float* force, float* torque,
                                               const unsigned int* ids, const float4* external,
@@ -23,7 +25,9 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
                                               unsigned int step, MochiMeshParams mesh,
                                               const MochiMeshWall* mesh_walls,
                                               const unsigned int* mesh_grid,
-                                              const float4* mesh_tris, float* mesh_loads) {
+                                              const float4* mesh_tris, float* mesh_loads,
+                                              unsigned int* clump_rows,
+                                              unsigned int components) {
     unsigned int p = blockIdx.x * blockDim.x + threadIdx.x;
     if (p >= g.dem.n) {
         return;
@@ -89,6 +93,22 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
         if (held > slots) {
             atomicMax(need, held);
         }
+    }
+    if (id < components) {
+        // A clump's component: its walls join its contacts for its clump's step
+        // (advance_clumps, clumps.cuh), which places it.
+        clump_rows[id] = p;
+        float3 f = walls.normal;
+        if (g.dem.turns) {
+            f = mochi_add(f, walls.tangential);
+            torque[3 * p] += walls.torque.x;
+            torque[3 * p + 1] += walls.torque.y;
+            torque[3 * p + 2] += walls.torque.z;
+        }
+        force[3 * p] += f.x;
+        force[3 * p + 1] += f.y;
+        force[3 * p + 2] += f.z;
+        return;
     }
     float3 f = mochi_add(mochi_v3(force[3 * p], force[3 * p + 1], force[3 * p + 2]), walls.normal);
     force[3 * p] = 0.0f;

@@ -22,21 +22,6 @@ pub struct DemSetup {
 }
 
 impl DemSetup {
-    /// Refuses clumps on the step of `backend`, which carries none yet.
-    #[cfg(feature = "optix")]
-    pub(crate) fn refuse_clumps(&self, backend: &'static str) -> Result<()> {
-        match self.particles.clumps.clumps.is_empty() {
-            true => Ok(()),
-            false => Err(Error::BackendUnavailable {
-                backend,
-                reason: format!(
-                    "its step carries no clumps yet ({} here): run them on another backend",
-                    self.particles.clumps.clumps.len()
-                ),
-            }),
-        }
-    }
-
     /// Refuses clumps in a run whose spheres flow in or out (a clump's components are its first
     /// spheres, which an outflow would take one by one).
     pub(crate) fn refuse_flowing_clumps(&self) -> Result<()> {

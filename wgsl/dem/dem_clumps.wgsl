@@ -4,16 +4,20 @@
 // component's state row is (`note_row`); `advance_clumps`, one thread a clump, after the contact
 // pass and the walls, sums its components' forces and torques (each force acting at its
 // component's centre adds its arm's moment), kicks the momenta, moves the centre, turns the body
-// and places its components; the integration then leaves the components where they are
-// (`is_component`). The step is the cpu's, src/clump/rigid.rs (`RigidBody::advance`), in f32: the
+// and places its components; the integration of a run with clumps (`integrate_clumped`, and
+// the dense grid's `integrate_and_count_clumped`) then leaves the components where they are. The step is the cpu's, src/clump/rigid.rs (`RigidBody::advance`), in f32: the
 // centre as a rounded value and its residual (as a sphere's, dem_params.wgsl), the free rotation
 // by the symmetric splitting of Dullweber, Leimkuhler & McLachlan (J. Chem. Phys. 107 (1997)
-// 5840). Everything here runs only with CLUMPED (a run with clumps): without, clump_of and
-// clump_rows are bound to one unread row each. Appended to the granular step's physics; needs
+// 5840). Everything here runs only with CLUMPED (a run with clumps): without, the contact
+// pass binds clump_of and clump_rows to one unread row each, and every call site tests CLUMPED
+// before it computes the stable ids it passes (arguments are evaluated before a call: a dead
+// call's would still be read). Appended to the granular step's physics; needs
 // dem_params.wgsl, dem_granular.wgsl and the force and torque accumulators.
 
-// True where the run has clumps (DemModule::constants).
+// True where the run has clumps, and the number of their components (DemModule::constants):
+// the integration tells a component by its stable id alone, without a binding of its own.
 override CLUMPED: bool = false;
+override COMPONENTS: u32 = 0u;
 
 // One clump's rigid-body state; twin of ClumpBodyRow in src/engines/common/clumps.rs.
 struct ClumpBody {
@@ -49,12 +53,9 @@ struct ClumpShape {
 // the components of each shape: centre in the principal frame, radius
 @group(0) @binding(84) var<storage, read> clump_parts: array<vec4<f32>>;
 
-// clump_of's entry past the components (its rows are padded to whole 16 bytes with it).
-const NO_CLUMP: u32 = 0xffffffffu;
-
 // Whether the sphere of stable id a is a clump's component.
 fn is_component(a: u32) -> bool {
-    return CLUMPED && a < arrayLength(&clump_of) && clump_of[a] != NO_CLUMP;
+    return CLUMPED && a < COMPONENTS;
 }
 
 // Whether the spheres of stable ids a and b are components of one clump: never a pair.
@@ -161,4 +162,24 @@ fn advance_clumps(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wo
         vel[p] = vec4(b.velocity + cross(w, arm), shape.mass);
         omega[p] = vec4(w, omega[p].w);
     }
+}
+
+// The integration of sphere p of a run with clumps: a component stays where its clump's step
+// put it; returns its centre and radius.
+fn integrate_or_keep(p: u32) -> vec4<f32> {
+    if is_component(stable_id(p)) {
+        return pos[p];
+    }
+    return integrate_sphere(p);
+}
+
+// The integration kernel of a run with clumps (a run without them runs dem_granular.wgsl's
+// `integrate` as it was: it pays nothing for them).
+@compute @workgroup_size(256)
+fn integrate_clumped(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x + gid.y * dem.row;
+    if p >= dem.n {
+        return;
+    }
+    integrate_or_keep(p);
 }

@@ -355,12 +355,8 @@ fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
     integrate_sphere(p);
 }
 
-// Integrates sphere p (state index); returns its new centre and radius. A clump's component was
-// placed by its clump's step (dem_clumps.wgsl, before this kernel): it stays as it is.
+// Integrates sphere p (state index); returns its new centre and radius.
 fn integrate_sphere(p: u32) -> vec4<f32> {
-    if is_component(stable_id(p)) {
-        return pos[p];
-    }
     let s = pos[p];
     let v = vel[p];
     var f = load_force(p);

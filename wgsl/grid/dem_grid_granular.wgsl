@@ -36,6 +36,17 @@ fn walker_cell(w: ptr<function, Walker>, level: u32) -> vec3<u32> {
     return cell_coords((*w).s.xyz, level);
 }
 
+// dem_grid.wgsl's `integrate_and_count` for a run with clumps (dem_clumps.wgsl): a component
+// stays where its clump's step put it, and is counted there.
+@compute @workgroup_size(256)
+fn integrate_and_count_clumped(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = gid.x + gid.y * dem.row;
+    if p >= dem.n {
+        return;
+    }
+    ranks[p] = atomicAdd(&counts[cell_key(integrate_or_keep(p))], 1u);
+}
+
 // The walk lists the candidates that reach its sphere by sorted place, the first NEAR_ROOM
 // of them at near[k · params.n + p] (the k-th of place p: a warp's lanes write and read side by
 // side), and they are resolved once the walk is done, the subgroup's lists shared among its
@@ -51,8 +62,9 @@ const NEAR_ROOM: u32 = 16u;
 @group(0) @binding(31) var<storage, read_write> near: array<u32>;
 
 fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
-    // Two components of one clump are never a pair (dem_clumps.wgsl).
-    if !reaches((*w).s, t) || one_clump(stable_id(home[(*w).p]), stable_id(home[q])) {
+    // Two components of one clump are never a pair (dem_clumps.wgsl; CLUMPED first: without
+    // clumps, no id is read).
+    if !reaches((*w).s, t) || (CLUMPED && one_clump(stable_id(home[(*w).p]), stable_id(home[q]))) {
         return;
     }
     let k = (*w).waiting - (*w).list_from;

@@ -18,7 +18,7 @@ fn visit(w: ptr<function, Walker>, q: u32) {
         return;
     }
     // Two components of one clump are never a pair (dem_clumps.wgsl).
-    if one_clump(stable_id((*w).h), stable_id(q)) {
+    if CLUMPED && one_clump(stable_id((*w).h), stable_id(q)) {
         return;
     }
     meet(w, q, t);

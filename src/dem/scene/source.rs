@@ -115,7 +115,7 @@ impl clap::ValueEnum for SceneKind {
             SceneKind::Agglomerate => PossibleValue::new("agglomerate")
                 .help("a ball of grains bonded by liquid bridges dropped on the floor, broken or not"),
             SceneKind::Gravel => PossibleValue::new("gravel")
-                .help("the drum turning clumps of tetrahedra, trimers and rods of three (cpu)"),
+                .help("the drum turning clumps of tetrahedra, trimers and rods of three"),
         })
     }
 }

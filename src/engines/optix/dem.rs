@@ -111,7 +111,6 @@ impl OptixStepper {
     /// Uploads `particles` to GPU 0 (in Morton order) and builds the acceleration structure,
     /// for a step inside `walls`.
     pub fn open(setup: DemSetup, policy: RebuildPolicy) -> Result<Self> {
-        setup.refuse_clumps("optix")?;
         let DemSetup {
             mut particles,
             params,
@@ -525,6 +524,9 @@ impl Stepper for OptixStepper {
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
         let n = self.n as usize;
         motion.check(n)?;
+        if matches!(&self.physics, Physics::Granular(g) if g.has_clumps()) {
+            motion.check_clumps(&self.particles()?)?;
+        }
         let granular = matches!(self.physics, Physics::Granular(_));
         if motion.turns() && !granular {
             return Err(no_spin());
@@ -595,6 +597,7 @@ impl Stepper for OptixStepper {
         };
         let mut out = particles_from(rows, Some(&ids), self.step)?;
         if let Physics::Granular(g) = &self.physics {
+            out.clumps = g.read_clumps(stream)?;
             let back = g.read_back(stream, &ids)?;
             out.angular_velocities = back.angular_velocities;
             out.check_stable()?;

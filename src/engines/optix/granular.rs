@@ -18,11 +18,15 @@
 //! (`optix/mesh_walls.cuh`), from the tables the wgpu engines upload too
 //! ([`WallTables`]), and sums the walls' loads in the last step of an advance.
 
+use super::clumps::DeviceClumps;
 use super::device::{
     Device, Gas, HistorySlots, LawTable, MeshBuffers, Order, SlotsRead, State, cuda,
 };
-use super::launches::{GranularBuffers, GranularIntegration, GranularKernels, GranularProgram};
+use super::launches::{
+    ClumpStep, GranularBuffers, GranularIntegration, GranularKernels, GranularProgram,
+};
 use super::programs::GranularLaw;
+use crate::clump::ClumpSet;
 use crate::dem::model::law::CohesionParams;
 use crate::dem::model::{LawParams, StepParams};
 use crate::dem::walls::{WallLoad, WallSet};
@@ -56,6 +60,8 @@ pub(super) struct Granular {
     mesh: MeshBuffers,
     /// The loads on the mesh walls in the last step of the last advance.
     loads: Vec<WallLoad>,
+    /// The clumps (none: one unread entry each).
+    clumps: DeviceClumps,
 }
 
 /// The contact history on the GPU: three buffers, of which a step reads `current` and writes
@@ -158,6 +164,7 @@ impl Granular {
             torque: zeros(3 * n as usize)?,
             ang,
             history,
+            clumps: DeviceClumps::upload(stream, &particles.clumps)?,
         })
     }
 
@@ -194,13 +201,15 @@ impl Granular {
             old,
             new,
             laws: &self.laws,
+            clumps: (&self.clumps.of, self.clumps.components()),
         };
         self.program.launch(gas, mode, law, buffers)?;
         Ok(())
     }
 
     /// Walls, gravity at `step` and one integration step of `state` and the angular
-    /// velocities; completes the new history, which the next step reads.
+    /// velocities (each clump's, which places its components); completes the new history,
+    /// which the next step reads.
     pub fn integrate(
         &mut self,
         state: &mut State,
@@ -208,6 +217,7 @@ impl Granular {
         step: u32,
     ) -> Result<()> {
         let law = self.law();
+        let components = self.clumps.components();
         let written = self.history.next();
         let (old, new, need) = self.history.step_buffers();
         let b = GranularIntegration {
@@ -219,9 +229,29 @@ impl Granular {
             need,
             laws: &self.laws,
             external,
+            clump_rows: (&mut self.clumps.rows, components),
         };
         self.kernels
             .integrate(state, b, &law, step, &mut self.mesh)?;
+        if self.clumps.any() {
+            let c = &mut self.clumps;
+            let clumps = ClumpStep {
+                count: c.count(),
+                bodies: &mut c.bodies,
+                shapes: &c.shapes,
+                parts: &c.parts,
+                rows: &c.rows,
+            };
+            let accumulators = (&mut self.ang, force, &mut self.torque);
+            self.kernels.advance_clumps(
+                state,
+                accumulators,
+                (external, &self.laws),
+                clumps,
+                &law,
+                step,
+            )?;
+        }
         self.history.current = written;
         Ok(())
     }
@@ -289,6 +319,7 @@ impl Granular {
         stream
             .memcpy_dtod(&self.ang, &mut self.ang_spare)
             .map_err(&copy)?;
+        self.clumps.keep_start(stream)?;
         stream.memset_zeros(&mut self.history.need).map_err(&copy)?;
         if self.mesh.params.walls > 0 {
             // A batch redone sums the loads of its steps once.
@@ -330,6 +361,7 @@ impl Granular {
         stream
             .memcpy_dtod(&self.ang_spare, &mut self.ang)
             .map_err(&copy)?;
+        self.clumps.restore_start(stream)?;
         let h = &mut self.history;
         let (old_slots, loaded) = (h.slots(), h.loaded);
         let SlotsRead {
@@ -368,6 +400,16 @@ impl Granular {
     /// Whether the integration reads the external loads.
     pub(super) fn set_external(&mut self, on: bool) {
         self.params.loaded = on as u32;
+    }
+
+    /// The clumps as the device holds them now.
+    pub(super) fn read_clumps(&self, stream: &Arc<CudaStream>) -> Result<ClumpSet> {
+        self.clumps.read(stream)
+    }
+
+    /// Whether the run has clumps.
+    pub(super) fn has_clumps(&self) -> bool {
+        self.clumps.any()
     }
 
     /// Whether the step turns its spheres.

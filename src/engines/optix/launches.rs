@@ -12,6 +12,7 @@ use super::device::{
 use super::programs::{self, GranularLaw, Unit};
 use crate::dem::model::law::CohesionParams;
 use crate::dem::model::{LawParams, PairBridge, PairLaw, TableLaw};
+use crate::engines::common::clumps::{ClumpBodyRow, ClumpShapeRow, clump_rows_fields};
 use crate::engines::common::walls::MeshWallRow;
 use crate::error::OptixError;
 use crate::particles::{HistoryEntry, LoadEntry};
@@ -253,10 +254,12 @@ struct GranularLaunch {
     old_loads: u64,
     new_loads: u64,
     handle: u64,
+    clump_of: u64,
     n: u32,
     mode: u32,
+    components: u32,
     /// `g` starts a 16-byte line, as `MochiLaw`'s alignment asks.
-    _pad: [u32; 4],
+    _pad: [u32; 1],
     g: DeviceLaw,
 }
 const _: () = assert!(size_of::<GranularLaunch>() == 304);
@@ -281,6 +284,8 @@ pub struct GranularBuffers<'a> {
     pub new: &'a mut HistorySlots,
     /// The material table.
     pub laws: &'a LawTable,
+    /// Each component's clump by stable id, below the components' count.
+    pub clumps: (&'a CudaSlice<u32>, u32),
 }
 
 /// The granular DEM programs of `optix/granular.cu`: one point ray per sphere that resolves
@@ -346,9 +351,11 @@ impl GranularProgram {
             old_loads: b.old.loads_ptr(device),
             new_loads: b.new.loads_ptr_mut(device),
             handle: gas.handle,
+            clump_of: device.ptr(b.clumps.0),
             n,
             mode: mode.code(),
-            _pad: [0; 4],
+            components: b.clumps.1,
+            _pad: [0; 1],
             g: DeviceLaw::reading(LAUNCH, &device.stream, &law, b.laws)?,
         };
         let on_device = self.params.set(device, params)?;
@@ -366,6 +373,7 @@ pub struct GranularKernels {
     stream: Arc<CudaStream>,
     integrate: CudaFunction,
     permute_rows: CudaFunction,
+    advance_clumps: CudaFunction,
     /// Compiled for the Mindlin–Deresiewicz model (its history buffers hold load histories).
     loaded: bool,
 }
@@ -389,6 +397,23 @@ pub struct GranularIntegration<'a> {
     /// The external loads by input index (force, then torque: 8 floats per sphere), read
     /// where the law's `loaded` is 1.
     pub external: &'a CudaSlice<f32>,
+    /// Where each clump's component (the first stable ids, as many as the second) is noted.
+    pub clump_rows: (&'a mut CudaSlice<u32>, u32),
+}
+
+/// What the clumps' step reads and writes besides the state.
+pub struct ClumpStep<'a> {
+    /// The clumps' states ([`ClumpBodyRow`](crate::engines::common::clumps::ClumpBodyRow)s
+    /// as words), advanced.
+    pub bodies: &'a mut CudaSlice<u32>,
+    /// The kinds' rows as words.
+    pub shapes: &'a CudaSlice<u32>,
+    /// The kinds' components (4 floats each).
+    pub parts: &'a CudaSlice<f32>,
+    /// Each component's state row, by stable id.
+    pub rows: &'a CudaSlice<u32>,
+    /// The clumps.
+    pub count: u32,
 }
 
 impl GranularKernels {
@@ -411,6 +436,7 @@ impl GranularKernels {
             stream: device.stream.clone(),
             integrate: function("granular_integrate")?,
             permute_rows: function("permute_rows")?,
+            advance_clumps: function("advance_clumps")?,
             loaded,
         })
     }
@@ -442,6 +468,8 @@ impl GranularKernels {
         if law.loaded != 0 {
             check_len(LAUNCH, "external", b.external, 8 * n as usize)?;
         }
+        let (clump_rows, components) = b.clump_rows;
+        check_len(LAUNCH, "clump_rows", clump_rows, components as usize)?;
         let history_n = if law.keeps() { n } else { 0 };
         b.old.check(LAUNCH, history_n, slots, self.loaded)?;
         b.new.check(LAUNCH, history_n, slots, self.loaded)?;
@@ -480,7 +508,9 @@ impl GranularKernels {
             .arg(&mesh.walls)
             .arg(&mesh.grid)
             .arg(&mesh.tris)
-            .arg(&mut mesh.loads);
+            .arg(&mut mesh.loads)
+            .arg(clump_rows)
+            .arg(&components);
         // SAFETY: the arguments match granular_integrate's signature; the state, ang, force
         // and torque hold g.n() rows, ids g.n() entries below n (a permutation of the input
         // indices), external two rows per sphere where the law reads it, the history buffers g.n() spheres of `slots` entries where g keeps springs
@@ -490,8 +520,71 @@ impl GranularKernels {
         // angular velocity rows name, its columns every wall's (checked when they were
         // uploaded); the mesh buffers hold what MeshBuffers::upload made of one WallTables
         // (rows, grids whose offsets and triangle indices stay within them, triangles, and the
-        // loads of every lane and wall).
+        // loads of every lane and wall); clump_rows an entry for each of the first
+        // `components` stable ids (checked above).
         unsafe { launch.launch(per_sphere(n)) }.map_err(cuda("launching granular_integrate"))?;
+        Ok(())
+    }
+
+    /// One step of each clump of `c` after [`integrate`](Self::integrate) of the same step
+    /// (`step`, the same `law`): its components' forces and torques summed (and cleared), its
+    /// body advanced, its components placed in `state` and given its motion (`ang`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn advance_clumps(
+        &self,
+        state: &mut State,
+        (ang, force, torque): (
+            &mut CudaSlice<f32>,
+            &mut CudaSlice<f32>,
+            &mut CudaSlice<f32>,
+        ),
+        (external, laws): (&CudaSlice<f32>, &LawTable),
+        c: ClumpStep<'_>,
+        law: &LawParams,
+        step: u32,
+    ) -> Result<()> {
+        const LAUNCH: &str = "advance_clumps";
+        let (n, count) = (law.n, c.count);
+        if count == 0 {
+            return Ok(());
+        }
+        let rows = 4 * n as usize;
+        check_len(LAUNCH, "pos", &state.pos, rows)?;
+        check_len(LAUNCH, "lo", &state.lo, rows)?;
+        check_len(LAUNCH, "vel", &state.vel, rows)?;
+        check_len(LAUNCH, "ang", ang, rows)?;
+        check_len(LAUNCH, "force", force, 3 * n as usize)?;
+        check_len(LAUNCH, "torque", torque, 3 * n as usize)?;
+        if law.loaded != 0 {
+            check_len(LAUNCH, "external", external, 8 * n as usize)?;
+        }
+        let words = size_of::<ClumpBodyRow>() / 4;
+        check_len(LAUNCH, "bodies", c.bodies, words * count as usize)?;
+        let g = DeviceLaw::reading(LAUNCH, &self.stream, law, laws)?;
+        let mut launch = self.stream.launch_builder(&self.advance_clumps);
+        launch
+            .arg(c.bodies)
+            .arg(c.shapes)
+            .arg(c.parts)
+            .arg(c.rows)
+            .arg(&mut state.pos)
+            .arg(&mut state.lo)
+            .arg(&mut state.vel)
+            .arg(ang)
+            .arg(force)
+            .arg(torque)
+            .arg(external)
+            .arg(&g)
+            .arg(&step)
+            .arg(&count);
+        // SAFETY: the arguments match advance_clumps' signature; bodies hold `count` rows
+        // (checked above), each naming a shape of `shapes` and its first component's stable
+        // id, the shapes parts within `parts`, and the components' stable ids below the rows'
+        // length (ClumpRows::of made them all of one ClumpSet, which Particles::validate
+        // checked); the rows, written by this step's integration, are state rows below n, and
+        // the state, ang, force and torque hold n rows, external two per sphere where read
+        // (checked above).
+        unsafe { launch.launch(per_sphere(count)) }.map_err(cuda("launching advance_clumps"))?;
         Ok(())
     }
 
@@ -639,8 +732,10 @@ pub fn layout_checks(unit: Unit) -> String {
                         old_loads,
                         new_loads,
                         handle,
+                        clump_of,
                         n,
                         mode,
+                        components,
                         _pad,
                         g
                     }
@@ -655,6 +750,7 @@ pub fn layout_checks(unit: Unit) -> String {
                     "static_assert(sizeof(MochiMeshWall) == {row}, \"MochiMeshWall has the size \
                      of MeshWallRow\");\n"
                 )
+                + &clump_rows_fields!(cuda_layout, "MochiClumpBody", "MochiClumpShape").concat()
         }
     };
     format!("{offset_of}{checks}")

@@ -15,10 +15,11 @@
 //! types: device, pipelines, acceleration structure, state, history and tables; `launches.rs`
 //! one typed, length-checked launch per device program and CUDA kernel, with the launch
 //! parameters the device code reads); `engine.rs` (the one probe and opened device, limits,
-//! Morton order), `detect.rs` (`impl Backend`) and `dem.rs` (`impl Stepper`) are safe code over
-//! it. Only `sys.rs`, `device.rs` and `launches.rs` may use `unsafe`, each block with its
-//! reason.
+//! Morton order), `detect.rs` (`impl Backend`), `dem.rs` (`impl Stepper`), `granular.rs` and
+//! `clumps.rs` (the granular step's state and its clumps') are safe code over it. Only
+//! `sys.rs`, `device.rs` and `launches.rs` may use `unsafe`, each block with its reason.
 
+mod clumps;
 mod dem;
 mod detect;
 #[allow(unsafe_code)]

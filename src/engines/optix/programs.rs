@@ -14,6 +14,7 @@ const HISTORY_CUH: &str = include_str!("../../../optix/history.cuh");
 const GRANULAR_CU: &str = include_str!("../../../optix/granular.cu");
 const GRANULAR_KERNELS_CU: &str = include_str!("../../../optix/granular_kernels.cu");
 const MESH_WALLS_CUH: &str = include_str!("../../../optix/mesh_walls.cuh");
+const CLUMPS_CUH: &str = include_str!("../../../optix/clumps.cuh");
 
 /// What the Mindlin–Deresiewicz units prepend (`optix/contact.cuh`, `optix/history.cuh`).
 const LOAD_HISTORY: &str = "#define MOCHI_LOAD_HISTORY 1\n";
@@ -143,7 +144,7 @@ impl Unit {
             ),
             Unit::GranularKernels(law) => format!(
                 "{}{DEVICE_CUH}\n{PHYSICS_CUH}\n{CONTACT_CUH}\n{HISTORY_CUH}\n{MESH_WALLS_CUH}\n\
-                 {GRANULAR_KERNELS_CU}",
+                 {CLUMPS_CUH}\n{GRANULAR_KERNELS_CU}",
                 law.defines()
             ),
         }

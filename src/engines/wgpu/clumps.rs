@@ -62,22 +62,14 @@ impl DeviceClumps {
             gpu.queue.write_buffer(&buffer, 0, bytes);
             buffer
         };
-        // Past the components, whole 16-byte rows of NO_CLUMP (the shader's).
-        let mut of = rows.of.clone();
-        of.resize(of.len().max(1).next_multiple_of(4), u32::MAX);
         gpu.checked("allocating the clumps' buffers", || Self {
-            of: make("clump_of", bytemuck::cast_slice(&of)),
+            of: make("clump_of", bytemuck::cast_slice(&rows.of)),
             rows: make("clump_rows", &vec![0; rows.of.len() * 4]),
             bodies: make("clump_bodies", bytemuck::cast_slice(&rows.bodies)),
             shapes: make("clump_shapes", bytemuck::cast_slice(&rows.shapes)),
             parts: make("clump_parts", bytemuck::cast_slice(&rows.parts)),
             set: set.clone(),
         })
-    }
-
-    /// Whether the run has clumps (the step then runs `advance_clumps`).
-    pub fn any(&self) -> bool {
-        !self.set.clumps.is_empty()
     }
 
     /// The number of clumps.
@@ -90,9 +82,14 @@ impl DeviceClumps {
         [(CLUMP_OF, &self.of), (CLUMP_ROWS, &self.rows)]
     }
 
-    /// What a walk that only lists candidates binds: each component's clump.
-    pub fn of_binding(&self) -> (Binding, &wgpu::Buffer) {
-        (CLUMP_OF, &self.of)
+    /// The constants of the shader's pipelines: whether the run has clumps and their
+    /// components (each pipeline is made for its run's count).
+    pub fn constants(set: &ClumpSet) -> [(&'static str, f64); 2] {
+        let components = set.component_count();
+        [
+            ("CLUMPED", (components > 0) as u32 as f64),
+            ("COMPONENTS", components as f64),
+        ]
     }
 
     /// What `advance_clumps` binds of the clumps (besides the state's and accumulators').
@@ -112,9 +109,6 @@ impl DeviceClumps {
 
     /// The clumps as the GPU holds them now (the kinds as given).
     pub fn read(&self, gpu: &Gpu) -> Result<ClumpSet> {
-        if !self.any() {
-            return Ok(ClumpSet::default());
-        }
         let rows: Vec<ClumpBodyRow> = gpu.read(&self.bodies, self.set.clumps.len())?;
         Ok(ClumpRows::bodies_into(&self.set, &rows))
     }

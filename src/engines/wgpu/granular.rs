@@ -25,6 +25,7 @@ use crate::dem::walls::WallSet;
 use crate::engines::common::flow::Room;
 use crate::engines::common::rows::Rotation;
 use crate::engines::wgpu::clumps::DeviceClumps;
+use crate::engines::wgpu::clumps::shader::{CLUMP_OF, CLUMP_ROWS};
 use crate::engines::wgpu::state::{InputOrder, ParamsUniform, move_rows};
 use crate::engines::wgpu::walls::MeshWalls;
 use crate::error::{Error, Result, try_vec};
@@ -447,8 +448,9 @@ pub(crate) struct Granular {
     given: ContactHistory,
     /// The mesh walls (and whether the box's hold the spheres in).
     mesh: MeshWalls,
-    /// The clumps (none: one unread row each).
-    clumps: DeviceClumps,
+    /// The clumps (`None`: the contact pass binds other buffers of the step in their place, which
+    /// it never reads or writes there).
+    clumps: Option<DeviceClumps>,
     n: u32,
     /// The engine's backend name, for labels and errors.
     engine: &'static str,
@@ -508,7 +510,10 @@ impl Granular {
         let make = |what: &str, bytes: u64| gpu.storage(&label(what), bytes, none);
         let reach = room.radii.1 + params.search_margin(room.radii.1);
         let mesh = MeshWalls::new(gpu, walls, table, rows as usize, reach, engine)?;
-        let clumps = DeviceClumps::new(gpu, &particles.clumps, engine)?;
+        let clumps = match particles.clumps.clumps.is_empty() {
+            true => None,
+            false => Some(DeviceClumps::new(gpu, &particles.clumps, engine)?),
+        };
         let granular = gpu.checked("allocating the granular step's buffers", || Self {
             omega: (0..sets)
                 .map(|k| make(&format!("omega{k}"), rows * 16))
@@ -604,36 +609,35 @@ impl Granular {
     }
 
     /// Bindings of the integration kernel of a step that integrates state set `set`.
-    pub fn integrate_bindings(&self, set: usize) -> [(Binding, &wgpu::Buffer); 3] {
-        [
-            (OMEGA, self.omega_of(set)),
-            (TORQUE, &self.torque),
-            self.clumps.of_binding(),
-        ]
+    pub fn integrate_bindings(&self, set: usize) -> [(Binding, &wgpu::Buffer); 2] {
+        [(OMEGA, self.omega_of(set)), (TORQUE, &self.torque)]
     }
 
     /// What the contact pass binds beside [`resolve_bindings`](Self::resolve_bindings): the
     /// clumps' (no two components of one clump are a pair; each component notes its row).
     pub fn contact_bindings(&self) -> [(Binding, &wgpu::Buffer); 2] {
-        self.clumps.contact_bindings()
+        match &self.clumps {
+            Some(c) => c.contact_bindings(),
+            None => [(CLUMP_OF, &self.laws), (CLUMP_ROWS, &self.need)],
+        }
     }
 
     /// What a walk that only lists candidates binds of the clumps.
     pub fn listing_binding(&self) -> (Binding, &wgpu::Buffer) {
-        self.clumps.of_binding()
+        self.contact_bindings()[0]
     }
 
-    /// The clumps.
-    pub fn clumps(&self) -> &DeviceClumps {
-        &self.clumps
+    /// The clumps (`None`: the run has none).
+    pub fn clumps(&self) -> Option<&DeviceClumps> {
+        self.clumps.as_ref()
     }
 
     /// Bindings of `advance_clumps` on state set `set` beside the state's and the forces'
     /// (`None` without clumps: the kernel is not dispatched).
     pub fn advance_bindings(&self, set: usize) -> Option<Vec<(Binding, &wgpu::Buffer)>> {
         let own = [(OMEGA, self.omega_of(set)), (TORQUE, &self.torque)];
-        let clumps = self.clumps.advance_bindings();
-        self.clumps.any().then(|| [&own[..], &clumps[..]].concat())
+        let clumps = self.clumps.as_ref()?.advance_bindings();
+        Some([&own[..], &clumps[..]].concat())
     }
 
     /// The angular velocities a step that re-sorts the state moves from set `from` (first) to
@@ -725,7 +729,7 @@ impl Granular {
                 &self.omega[first.set % self.omega.len()],
             ])
             .chain(state.iter().copied())
-            .chain(self.clumps.any().then(|| self.clumps.bodies()))
+            .chain(self.clumps.as_ref().map(DeviceClumps::bodies))
             .collect();
         let fits = self.saved.len() == sources.len()
             && self
@@ -796,7 +800,7 @@ impl Granular {
         let targets = [self.omega_of(first.set)]
             .into_iter()
             .chain(state.iter().copied())
-            .chain(self.clumps.any().then(|| self.clumps.bodies()));
+            .chain(self.clumps.as_ref().map(DeviceClumps::bodies));
         for (from, to) in self.saved[fields + 1..].iter().zip(targets) {
             encoder.copy_buffer_to_buffer(from, 0, to, 0, from.size());
         }

@@ -8,6 +8,7 @@ use crate::dem::model::{LawParams, NormalLaw, StepParams};
 use crate::dem::stepper::{StageTimes, needs_granular_step};
 use crate::dem::walls::WallSet;
 use crate::engines::common::flow::Room;
+use crate::engines::wgpu::clumps::DeviceClumps;
 pub(crate) use crate::engines::wgpu::granular::{
     BatchParts, Granular, RedoableBatch, Turn, run_batch,
 };
@@ -369,11 +370,15 @@ impl DemModule {
                 ("ONE_MATERIAL", params.materials.count == 1),
                 ("COHESIVE", params.adheres()),
                 ("VISCOUS", params.bridge.is_some_and(|b| b.viscosity > 0.0)),
-                ("CLUMPED", !particles.clumps.clumps.is_empty()),
             ]
             .into_iter()
             .filter(|(_, on)| *on)
             .map(|(name, _)| (name, 1.0))
+            .chain(
+                DeviceClumps::constants(&particles.clumps)
+                    .into_iter()
+                    .filter(|&(_, value)| value != 0.0),
+            )
             .collect(),
             _ => Vec::new(),
         };

@@ -149,10 +149,13 @@ impl RqStepper {
                 .then(|| walls::ENTRY_POINTS.map(pipeline)),
             clumps: granular
                 .as_ref()
-                .map(|g| g.clumps())
-                .filter(|c| c.any())
+                .and_then(|g| g.clumps())
                 .map(|c| (pipeline(CLUMPS_ENTRY), gpu.grid(c.count(), GROUP))),
-            integrate: pipeline("integrate"),
+            // A run with clumps leaves their components to them.
+            integrate: pipeline(match particles.clumps.clumps.is_empty() {
+                true => "integrate",
+                false => "integrate_clumped",
+            }),
         };
         let groups = gpu.grid(n, GROUP);
         dem.update(&gpu, |p| p.row = groups.0 * GROUP);
@@ -417,8 +420,8 @@ impl Stepper for RqStepper {
             vel: &vel,
         };
         let mut particles = particles_with(rows, None, self.step, rotation)?;
-        if let Some(g) = &self.granular {
-            particles.clumps = g.clumps().read(&self.gpu)?;
+        if let Some(c) = self.granular.as_ref().and_then(|g| g.clumps()) {
+            particles.clumps = c.read(&self.gpu)?;
         }
         Ok(particles)
     }
@@ -429,7 +432,7 @@ impl Stepper for RqStepper {
     }
 
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
-        if self.granular.as_ref().is_some_and(|g| g.clumps().any()) {
+        if self.granular.as_ref().is_some_and(|g| g.clumps().is_some()) {
             motion.check_clumps(&self.particles()?)?;
         }
         let omega = self.granular.as_ref().map(|g| g.omega_of(0));

@@ -160,6 +160,7 @@ pub(crate) mod dem_rq {
         "mesh_walls_near",
         "mesh_wall_contacts",
         "advance_clumps",
+        "integrate_clumped",
         "integrate",
     ];
 

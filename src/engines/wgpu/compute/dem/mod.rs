@@ -373,6 +373,7 @@ impl GridStepper {
         let pipeline = |entry: &str| {
             gpu.pipeline_with(&format!("mochi.dem.{entry}"), &module, entry, &constants)
         };
+        let clumped = !particles.clumps.clumps.is_empty();
         let (first, last) = match build {
             BuildKind::Dense => ("bin_count", "bin_scatter"),
             BuildKind::Sorted => ("bin_keys", "bin_gather"),
@@ -390,13 +391,15 @@ impl GridStepper {
                 .then(|| walls::ENTRY_POINTS.map(pipeline)),
             clumps: granular
                 .as_ref()
-                .map(|g| g.clumps())
-                .filter(|c| c.any())
+                .and_then(|g| g.clumps())
                 .map(|c| (pipeline(CLUMPS_ENTRY), gpu.grid(c.count(), GROUP))),
-            // The dense build counts the spheres for the next step as it integrates them.
-            integrate: pipeline(match build {
-                BuildKind::Dense => "integrate_and_count",
-                BuildKind::Sorted => "integrate",
+            // The dense build counts the spheres for the next step as it integrates them; a
+            // run with clumps leaves their components to them.
+            integrate: pipeline(match (build, clumped) {
+                (BuildKind::Dense, false) => "integrate_and_count",
+                (BuildKind::Dense, true) => "integrate_and_count_clumped",
+                (BuildKind::Sorted, false) => "integrate",
+                (BuildKind::Sorted, true) => "integrate_clumped",
             }),
             reduce_bounds: pipeline("reduce_bounds"),
             bin_index: (build == BuildKind::Dense).then(|| pipeline("bin_index")),
@@ -548,8 +551,8 @@ impl GridStepper {
             vel: &vel,
         };
         let mut particles = particles_with(rows, Some(&order.rank), self.step, rotation)?;
-        if let Some(g) = &self.res.granular {
-            particles.clumps = g.clumps().read(&self.res.gpu)?;
+        if let Some(c) = self.res.granular.as_ref().and_then(|g| g.clumps()) {
+            particles.clumps = c.read(&self.res.gpu)?;
         }
         Ok(particles)
     }
@@ -624,7 +627,12 @@ impl Stepper for GridStepper {
     }
 
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
-        if self.res.granular.as_ref().is_some_and(|g| g.clumps().any()) {
+        if self
+            .res
+            .granular
+            .as_ref()
+            .is_some_and(|g| g.clumps().is_some())
+        {
             motion.check_clumps(&self.state()?)?;
         }
         let (res, n) = (&self.res, self.n as usize);
