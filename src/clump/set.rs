@@ -5,7 +5,7 @@
 //! centre it adds the arm's moment, (c_k − x) × f_k, to the torque.
 
 use super::rigid::{PrincipalInertia, RigidBody};
-use super::template::ClumpTemplate;
+use super::template::{ClumpTemplate, MassProperties};
 use glam::DVec3;
 
 /// A kind of clump: a template in its principal frame and the inertia it has at its density.
@@ -21,7 +21,13 @@ impl ClumpKind {
     /// Clumps of `template` at `density` \[kg/m³\] (the union of the components, overlaps
     /// counted once).
     pub fn new(template: &ClumpTemplate, density: f64) -> Self {
-        let (template, properties) = template.in_principal_frame();
+        Self::with_properties(template, &template.mass_properties(), density)
+    }
+
+    /// [`new`](Self::new) with the template's mass properties `m` (its
+    /// [`ClumpTemplate::mass_properties`]) given.
+    pub fn with_properties(template: &ClumpTemplate, m: &MassProperties, density: f64) -> Self {
+        let (template, properties) = template.moved_to_principal_frame(m);
         Self {
             template,
             inertia: PrincipalInertia {

@@ -180,7 +180,12 @@ impl ClumpTemplate {
     /// is the origin and its principal axes (smallest moment first) are x, y and z; with the
     /// mass properties there (`inertia` diagonal, `axes` the identity).
     pub fn in_principal_frame(&self) -> (ClumpTemplate, MassProperties) {
-        let m = self.mass_properties();
+        self.moved_to_principal_frame(&self.mass_properties())
+    }
+
+    /// [`in_principal_frame`](Self::in_principal_frame) with the template's mass properties
+    /// `m` (its [`mass_properties`](Self::mass_properties)) given.
+    pub fn moved_to_principal_frame(&self, m: &MassProperties) -> (ClumpTemplate, MassProperties) {
         let to_principal = m.axes.transpose();
         let components = self
             .components
@@ -198,7 +203,7 @@ impl ClumpTemplate {
             centre: DVec3::ZERO,
             inertia: DMat3::from_diagonal(m.moments),
             axes: DMat3::IDENTITY,
-            ..m
+            ..*m
         };
         (moved, properties)
     }

@@ -21,6 +21,8 @@
 //! #   (its spheres' at its own size, as a clump file places it: `crate::io::read_clumps`)
 //! # mesh = "grain.stl": a closed mesh filled with touching spheres on a cubic lattice of
 //! #   spacing = … (in the mesh's units; default a sixth of its bounding box's longest side)
+//! # file = "grain.csv": its spheres from a sphere file (x,y,z,r; relative to the scene file)
+//! # density = 2650: its clumps' density [kg/m³] (default: their spheres' material's)
 //! ```
 
 use crate::clump::{Clump, ClumpKind, ClumpSet, ClumpTemplate, Component, RigidBody};
@@ -61,6 +63,13 @@ pub struct ClumpConfig {
     /// bounding box's longest side).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spacing: Option<f64>,
+    /// A shape of its own from a sphere file (CSV `x,y,z,r` or `.npy`, relative to the scene
+    /// file): its spheres in its frame (any unit).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<PathBuf>,
+    /// The density of its clumps \[kg/m³\] (default: their spheres' material's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub density: Option<f64>,
     /// How often this shape is drawn, a weight > 0 (default 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fraction: Option<f64>,
@@ -97,9 +106,24 @@ impl ClumpConfig {
             self.shape.is_some(),
             self.spheres.is_some(),
             self.mesh.is_some(),
+            self.file.is_some(),
         ];
         if given.iter().filter(|&&g| g).count() > 1 {
-            return bad("gives more than one of shape, spheres and mesh: give one".into());
+            return bad("gives more than one of shape, spheres, mesh and file: give one".into());
+        }
+        if let Some(path) = &self.file {
+            let spheres = crate::io::read_particles(path)?;
+            let components = (0..spheres.len())
+                .map(|i| Component {
+                    centre: DVec3::from_array(spheres.exact_position(i)),
+                    radius: spheres.radii[i] as f64,
+                })
+                .collect();
+            let name = self.name.clone().unwrap_or_else(|| {
+                path.file_stem()
+                    .map_or("clump".into(), |s| s.to_string_lossy().into_owned())
+            });
+            return ClumpTemplate::new(&name, components);
         }
         if let Some(path) = &self.mesh {
             let mesh = crate::mesh::load(path)?;
@@ -117,7 +141,11 @@ impl ClumpConfig {
         }
         // At most one of shape and spheres is given (refused above).
         let template = match (&self.shape, &self.spheres) {
-            (None, None) => return bad(format!("needs a shape ({SHAPES}), spheres or a mesh")),
+            (None, None) => {
+                return bad(format!(
+                    "needs a shape ({SHAPES}), spheres, a mesh or a file"
+                ));
+            }
             (Some(shape), _) => match (shape.as_str(), self.radius.unwrap_or(1.0)) {
                 ("dimer", r) => ClumpTemplate::dimer(r),
                 ("trimer", r) => ClumpTemplate::trimer(r),
@@ -143,6 +171,18 @@ impl ClumpConfig {
         Ok(ClumpTemplate { name, ..template })
     }
 
+    /// The density of this table's clumps: its own, else `material`'s (their spheres').
+    fn density_or(&self, material: f64) -> Result<f64> {
+        match self.density {
+            None => Ok(material),
+            Some(d) if d > 0.0 && d.is_finite() => Ok(d),
+            Some(d) => Err(Error::InvalidConfig {
+                what: "scene key clump.density".into(),
+                reason: format!("must be a positive density [kg/m³], got {d}"),
+            }),
+        }
+    }
+
     /// This table's weight among the others.
     fn weight(&self) -> Result<f64> {
         match self.fraction.unwrap_or(1.0) {
@@ -156,9 +196,9 @@ impl ClumpConfig {
 }
 
 /// The clumps of the rows of a clump file `path` (`crate::io::read_clumps`), each of the table
-/// its `template` names (a table's `name`, else its shape's) at the table's own size and the
-/// first material's density `density`: a row places and moves its template's frame, which
-/// becomes the clump's principal frame at its centre of mass.
+/// its `template` names (a table's `name`, else its shape's) at the table's own size and its
+/// `density`, else the first material's `density`: a row places and moves its template's frame,
+/// which becomes the clump's principal frame at its centre of mass.
 pub fn clumps_of_rows(
     path: &std::path::Path,
     rows: &[crate::io::ClumpRow],
@@ -172,10 +212,11 @@ pub fn clumps_of_rows(
     let mut set = ClumpSet::default();
     // Each template's centre and principal axes in its own frame, as its kind is made.
     let mut frames = Vec::new();
-    for t in &templates {
+    for (t, table) in templates.iter().zip(tables) {
         let m = t.mass_properties();
         frames.push((m.centre, DQuat::from_mat3(&m.axes)));
-        set.kinds.push(ClumpKind::new(t, density));
+        let density = table.density_or(density)?;
+        set.kinds.push(ClumpKind::with_properties(t, &m, density));
     }
     for (k, row) in rows.iter().enumerate() {
         let Some(kind) = templates.iter().position(|t| t.name == row.template) else {
@@ -257,6 +298,10 @@ pub fn clumps_in_place_of(
         .iter()
         .map(ClumpConfig::weight)
         .collect::<Result<Vec<_>>>()?;
+    // Each table's density where it gives one (checked now, before any clump is made).
+    for t in tables {
+        t.density_or(1.0)?;
+    }
     let total: f64 = weights.iter().sum();
     // A stream of its own, so that the spheres' generator and this one do not correlate.
     let mut rand = Pcg64::seed_from_u64(seed ^ 0x636c_756d_7073);
@@ -278,10 +323,9 @@ pub fn clumps_in_place_of(
             .entry((shape, r.to_bits(), material))
             .or_insert_with(|| {
                 let s = &shapes[shape];
-                set.kinds.push(
-                    s.kind
-                        .scaled(r as f64 / s.bound, densities[material as usize] as f64),
-                );
+                let of_material = densities[material as usize] as f64;
+                let density = tables[shape].density.unwrap_or(of_material);
+                set.kinds.push(s.kind.scaled(r as f64 / s.bound, density));
                 set.kinds.len() - 1
             });
         // A uniform random rotation (Shoemake 1992).

@@ -652,14 +652,19 @@ impl SceneConfig {
     /// The files the scene reads: its sphere file or mesh, its walls' meshes and its clumps'.
     pub fn files(&self) -> impl Iterator<Item = &Path> {
         let walls = self.wall.iter().map(|w| w.mesh.as_path());
-        let clumps = self.clump.iter().filter_map(|c| c.mesh.as_deref());
+        let clumps = self.clump.iter().flat_map(|c| [&c.mesh, &c.file]);
+        let clumps = clumps.filter_map(|path| path.as_deref());
         self.source.file().into_iter().chain(walls).chain(clumps)
     }
 
     /// The scene's input and mesh paths.
     fn paths_mut(&mut self) -> impl Iterator<Item = &mut PathBuf> {
         let walls = self.wall.iter_mut().map(|w| &mut w.mesh);
-        let clumps = self.clump.iter_mut().filter_map(|c| c.mesh.as_mut());
+        let clumps = self
+            .clump
+            .iter_mut()
+            .flat_map(|c| [&mut c.mesh, &mut c.file]);
+        let clumps = clumps.filter_map(|path| path.as_mut());
         self.source
             .file_mut()
             .into_iter()

@@ -1065,6 +1065,49 @@ fn clump_tables_make_the_generated_spheres_clumps_of_their_shapes() {
 }
 
 #[test]
+fn a_clump_table_takes_its_spheres_from_a_file_and_may_give_its_density() {
+    let dir = tempfile::tempdir().unwrap();
+    // A bean's two spheres, as the `spheres` key of the test above gives them.
+    std::fs::write(
+        dir.path().join("bean.csv"),
+        "x,y,z,r\n0,0,0,1\n1.2,0,0,0.8\n",
+    )
+    .unwrap();
+    let scene = dir.path().join("scene.toml");
+    let build = |table: &str| {
+        let text = format!("scene = \"freefall\"\nspheres = 50\nseed = 3\n{table}");
+        SceneConfig::parse(Some(&text), Some(&scene), &Overrides::default())
+            .and_then(|c| c.build())
+            .unwrap()
+            .particles
+            .clumps
+    };
+    let given = build("[[clump]]\nname = \"bean\"\nspheres = [[0, 0, 0, 1], [1.2, 0, 0, 0.8]]\n");
+    // The file's stem names it; its spheres (read relative to the scene file; their radii
+    // as a sphere file's, in f32) are the same.
+    let read = build("[[clump]]\nfile = \"bean.csv\"\n");
+    assert_eq!(read.clumps.len(), given.clumps.len());
+    for (a, b) in read.kinds.iter().zip(&given.kinds) {
+        assert_eq!(a.template.name, "bean");
+        assert!((a.inertia.mass / b.inertia.mass - 1.0).abs() < 1e-6);
+        assert!((a.inertia.moments / b.inertia.moments - 1.0).abs().max_element() < 1e-6);
+    }
+    // Its own density scales every mass and moment.
+    let dense = build("[[clump]]\nfile = \"bean.csv\"\ndensity = 4000\n");
+    let default_density = 500.0;
+    for (a, b) in dense.kinds.iter().zip(&read.kinds) {
+        let ratio = a.inertia.mass / b.inertia.mass;
+        assert!((ratio - 4000.0 / default_density).abs() < 1e-9, "{ratio}");
+        assert!(
+            (a.inertia.moments / b.inertia.moments - ratio)
+                .abs()
+                .max_element()
+                < 1e-9
+        );
+    }
+}
+
+#[test]
 fn bad_clump_tables_are_one_clear_error() {
     let build = |text: &str| {
         SceneConfig::parse(Some(text), None, &Overrides::default())
@@ -1092,6 +1135,14 @@ fn bad_clump_tables_are_one_clear_error() {
         ),
         ("[[clump]]\nspheres = [[0, 0, 0, -1]]\n", "positive radius"),
         ("[[clump]]\nspheres = []\n", "no component"),
+        (
+            "[[clump]]\nshape = \"dimer\"\nfile = \"grain.csv\"\n",
+            "give one",
+        ),
+        (
+            "[[clump]]\nshape = \"dimer\"\ndensity = -2\n",
+            "positive density",
+        ),
     ] {
         let e = build(&format!("{freefall}{table}"));
         assert!(e.contains("clump") && e.contains(expect), "{table}: {e}");
@@ -1135,7 +1186,7 @@ fn a_clump_table_may_take_its_shape_from_a_mesh_beside_the_scene() {
     };
     let e = bad("shape = \"dimer\"\nmesh = \"box.obj\"\n");
     assert!(
-        e.contains("more than one of shape, spheres and mesh"),
+        e.contains("more than one of shape, spheres, mesh and file"),
         "{e}"
     );
     let e = bad("shape = \"dimer\"\nspacing = 0.1\n");
