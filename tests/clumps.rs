@@ -854,6 +854,73 @@ fn a_frame_of_a_run_of_clumps_names_each_spheres_clump() {
     assert!(!String::from_utf8_lossy(&std::fs::read(&path).unwrap()).contains("Name=\"clump\""));
 }
 
+/// The bytes of the appended array `name` of the `.vtu` `bytes` (after its length header).
+fn appended<'a>(bytes: &'a [u8], name: &str) -> &'a [u8] {
+    let text = String::from_utf8_lossy(bytes);
+    let tag = format!("Name=\"{name}\"");
+    let at = text.find(&tag).expect("the array") + tag.len();
+    let offset: usize = text[at..]
+        .split("offset=\"")
+        .nth(1)
+        .unwrap()
+        .split('"')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let data = bytes.windows(2).position(|w| w == b" _").unwrap() + 2 + offset;
+    let length = u64::from_le_bytes(bytes[data..data + 8].try_into().unwrap()) as usize;
+    &bytes[data + 8..data + 8 + length]
+}
+
+fn f64s(bytes: &[u8]) -> Vec<f64> {
+    bytes
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect()
+}
+
+#[test]
+fn a_series_of_a_run_of_clumps_writes_each_clumps_pose_beside_its_frame() {
+    let mut free = Particles::default();
+    free.push([0.02, 0.02, 0.02], [0.0; 3], 1e-3).unwrap();
+    let turn = DQuat::from_rotation_z(0.3);
+    let run = dimer_run(DVec3::new(0.05, 0.04, 0.03), turn, free);
+    let dir = tempfile::tempdir().unwrap();
+    let mut series = mochi::io::FrameSeries::create(dir.path()).unwrap();
+    for step in [10, 20] {
+        let mut p = run.clone();
+        p.step = step;
+        series
+            .write(&mochi::io::Frame::of(&p, 1e-5, false), false)
+            .unwrap();
+    }
+    let bytes = std::fs::read(dir.path().join("clumps_00000020.vtu")).unwrap();
+    let body = run.clumps.clumps[0].body;
+    assert_eq!(f64s(appended(&bytes, "Points")), body.position.to_array());
+    let q = body.orientation;
+    assert_eq!(f64s(appended(&bytes, "orientation")), [q.w, q.x, q.y, q.z]);
+    let mass = run.clumps.kinds[0].inertia.mass;
+    assert_eq!(f64s(appended(&bytes, "mass")), [mass]);
+    assert_eq!(appended(&bytes, "spheres"), 2u32.to_le_bytes());
+    // Their collection lists each frame's; a run resumed from step 10 forgets step 20's.
+    let index = dir.path().join(mochi::io::CLUMPS_INDEX);
+    let text = std::fs::read_to_string(&index).unwrap();
+    assert!(text.contains("clumps_00000010.vtu") && text.contains("clumps_00000020.vtu"));
+    mochi::io::FrameSeries::open_for_resume(dir.path(), 10).unwrap();
+    let text = std::fs::read_to_string(&index).unwrap();
+    assert!(text.contains("clumps_00000010.vtu") && !text.contains("clumps_00000020.vtu"));
+    // A run without clumps writes neither.
+    let plain = tempfile::tempdir().unwrap();
+    let mut series = mochi::io::FrameSeries::create(plain.path()).unwrap();
+    let mut p = Particles::default();
+    p.push([0.02, 0.02, 0.02], [0.0; 3], 1e-3).unwrap();
+    series
+        .write(&mochi::io::Frame::of(&p, 1e-5, false), false)
+        .unwrap();
+    assert!(!plain.path().join(mochi::io::CLUMPS_INDEX).exists());
+}
+
 /// The angle of repose \[°\] of the heap the scene `pour` of `grains` grains (spheres, or clumps
 /// of `[[clump]]` table `clump`) makes on the floor without rolling resistance, 0.42 s after
 /// they start to fall: atan(top / base), the base the radius that holds 95 % of the spheres

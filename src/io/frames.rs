@@ -27,6 +27,7 @@
 //! Every file is written through [`write_atomically`]: a killed run leaves each frame and the
 //! index either whole or as it was, and a frame is always written before the index that names it.
 
+use super::clump_frames::{CLUMPS_INDEX, clump_frame_name, write_clumps_vtu};
 use super::{collection, io_error, parse_error, write_atomically};
 use crate::clump::ClumpSet;
 use crate::error::{Error, Result};
@@ -538,6 +539,11 @@ impl SeriesEntry {
     fn line(&self) -> String {
         collection::entry_line(self.time, 0, &self.file_name())
     }
+
+    /// The frame's clumps' line in their index ([`CLUMPS_INDEX`]).
+    fn clumps_line(&self) -> String {
+        collection::entry_line(self.time, 0, &clump_frame_name(self.step))
+    }
 }
 
 fn frame_stem(step: u64) -> String {
@@ -586,13 +592,19 @@ impl FrameSeries {
         entries.sort_by_key(|e| e.step);
         entries.dedup_by_key(|e| e.step);
         write_index(&index, &entries)?;
+        let clumps = dir.join(CLUMPS_INDEX);
+        if clumps.exists() {
+            let lines: String = entries.iter().map(SeriesEntry::clumps_line).collect();
+            collection::write_collection(&clumps, &lines)?;
+        }
         Ok(Self { entries, ..series })
     }
 
-    /// Writes `frame` as `frame_{step:08}.vtu` (and `.csv` when `csv`), then adds it to the
-    /// index: its entry appended after the last (a frame of the last step or before rewrites
-    /// the index with the frame in its place). Returns the `.vtu` path. On an error
-    /// the index and [`FrameSeries::entries`] are as before.
+    /// Writes `frame` as `frame_{step:08}.vtu` (and `.csv` when `csv`, and its clumps as
+    /// `clumps_{step:08}.vtu` where it has any), then adds it to the index: its entry appended
+    /// after the last (a frame of the last step or before rewrites the index with the frame in
+    /// its place), and to the clumps' index ([`CLUMPS_INDEX`]). Returns the `.vtu` path. On an
+    /// error the index and [`FrameSeries::entries`] are as before.
     pub fn write(&mut self, frame: &Frame, csv: bool) -> Result<PathBuf> {
         let stem = frame_stem(frame.step);
         let vtu = self.dir.join(format!("{stem}.vtu"));
@@ -600,6 +612,21 @@ impl FrameSeries {
         if csv {
             write_frame_csv(&self.dir.join(format!("{stem}.csv")), frame)?;
         }
+        if let Some(set) = frame.clumps {
+            let clumps = self.dir.join(clump_frame_name(frame.step));
+            write_clumps_vtu(&clumps, set, frame.time, frame.step)?;
+        }
+        self.index(frame)?;
+        if frame.clumps.is_some() {
+            // A run's frames either all have clumps or none do: its clumps' index lists them all.
+            let lines: String = self.entries.iter().map(SeriesEntry::clumps_line).collect();
+            collection::write_collection(&self.dir.join(CLUMPS_INDEX), &lines)?;
+        }
+        Ok(vtu)
+    }
+
+    /// Adds `frame` (written) to the index.
+    fn index(&mut self, frame: &Frame) -> Result<()> {
         let entry = SeriesEntry {
             step: frame.step,
             time: frame.time,
@@ -612,7 +639,7 @@ impl FrameSeries {
             // The usual case, a frame after the last: only its entry is written.
             collection::append_entries(&self.index_path(), &entry.line())?;
             self.entries.push(entry);
-            return Ok(vtu);
+            return Ok(());
         }
         let mut entries = self.entries.clone();
         entries.retain(|e| e.step != frame.step);
@@ -620,7 +647,7 @@ impl FrameSeries {
         entries.insert(at, entry);
         write_index(&self.index_path(), &entries)?;
         self.entries = entries;
-        Ok(vtu)
+        Ok(())
     }
 
     /// The series directory.

@@ -1,8 +1,8 @@
 //! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4, optionally with velocities,
 //! angular velocities and materials), pairs (CSV `i,j`), simulation
 //! frames for ParaView (`.vtu` files indexed by a `.pvd` collection, see [`FrameSeries`]) and
-//! checkpoints; mesh walls' surfaces and loads (`walls.pvd`, `walls.csv`); the logs a run appends to
-//! per frame.
+//! checkpoints; the clumps of a run of clumps at each frame (`clumps.pvd`); mesh walls' surfaces
+//! and loads (`walls.pvd`, `walls.csv`); the logs a run appends to per frame.
 //!
 //! Every reader names the file, the line (CSV) or row (`.npy`) and the problem in its error.
 //! Every writer goes through [`write_atomically`] (or [`AtomicFile`]): a failed write leaves no
@@ -10,6 +10,7 @@
 
 mod atomic;
 mod checkpoint;
+mod clump_frames;
 mod clumps;
 mod collection;
 mod frame_read;
@@ -24,6 +25,7 @@ mod walls;
 
 pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};
 pub use checkpoint::{Checkpoint, read_checkpoint, write_checkpoint};
+pub use clump_frames::{CLUMPS_INDEX, clump_frame_name, is_clump_frame_name, write_clumps_vtu};
 pub use clumps::{CLUMP_HEADER, ClumpRow, is_clump_file, read_clumps};
 pub use collection::{append_entries, entry_line, write_collection};
 pub use frame_read::{OwnedFrame, read_frame, read_vtu};

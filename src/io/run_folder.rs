@@ -2,8 +2,8 @@
 //! from a folder that holds an earlier run.
 
 use super::{
-    FLOW_LOG, SERIES_INDEX, WALL_LOADS, WALLS_INDEX, io_error, is_wall_file_name,
-    remove_stale_temp_files,
+    CLUMPS_INDEX, FLOW_LOG, SERIES_INDEX, WALL_LOADS, WALLS_INDEX, io_error, is_clump_frame_name,
+    is_wall_file_name, remove_stale_temp_files,
 };
 use crate::error::{Error, Result};
 use std::fs::{File, TryLockError};
@@ -21,13 +21,14 @@ pub const SCENE_FILE: &str = "scene.toml";
 pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 
 /// Whether `name` is the name of a file `mochi simulate` writes into its output folder: the
-/// index, the scene, the checkpoint, a frame `frame_<step>.vtu`, `.csv` or `.png`, the walls'
-/// surfaces, index and loads, or the flows' log.
+/// index, the scene, the checkpoint, a frame `frame_<step>.vtu`, `.csv` or `.png`, the clumps'
+/// frames and index, the walls' surfaces, index and loads, or the flows' log.
 pub fn is_run_file_name(name: &str) -> bool {
     let logs = [WALLS_INDEX, WALL_LOADS, FLOW_LOG];
-    if [SERIES_INDEX, SCENE_FILE, CHECKPOINT_FILE].contains(&name)
+    if [SERIES_INDEX, SCENE_FILE, CHECKPOINT_FILE, CLUMPS_INDEX].contains(&name)
         || logs.contains(&name)
         || is_wall_file_name(name)
+        || is_clump_frame_name(name)
     {
         return true;
     }
@@ -175,6 +176,8 @@ mod tests {
             "flow.csv",
             "wall_00000100_0.vtp",
             "wall_2.vtp",
+            "clumps.pvd",
+            "clumps_00000300.vtu",
         ] {
             assert!(is_run_file_name(name), "{name}");
         }
@@ -186,6 +189,8 @@ mod tests {
             "run.gif",
             ".mochi.lock",
             "scene.toml.bak",
+            "clumps_.vtu",
+            "clumps_00000300.csv",
         ] {
             assert!(!is_run_file_name(name), "{name}");
         }

@@ -311,12 +311,13 @@ pub struct SimulateArgs {
     pub rebuild: Option<RebuildPolicy>,
     /// Output folder for frames, checkpoints and the summary (default: mochi-out, or with
     /// --resume the checkpoint's folder). A folder that holds another run (series.pvd,
-    /// scene.toml, checkpoint.bin, frame_* files, the walls' and flows' files) is refused unless
+    /// scene.toml, checkpoint.bin, frame_* files, the clumps', walls' and flows' files) is refused unless
     /// --overwrite or --resume; a folder another run is writing into is refused.
     #[arg(short, long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Replace the run in --out: first remove its files (series.pvd, scene.toml,
-    /// checkpoint.bin, frame_*.vtu/.csv/.png, walls.pvd, wall_*.vtp, walls.csv, flow.csv);
+    /// checkpoint.bin, frame_*.vtu/.csv/.png, clumps.pvd, clumps_*.vtu, walls.pvd, wall_*.vtp,
+    /// walls.csv, flow.csv);
     /// other files in the folder stay.
     #[arg(long, conflicts_with = "resume")]
     pub overwrite: bool,

@@ -1090,7 +1090,12 @@ fn a_clump_table_takes_its_spheres_from_a_file_and_may_give_its_density() {
     for (a, b) in read.kinds.iter().zip(&given.kinds) {
         assert_eq!(a.template.name, "bean");
         assert!((a.inertia.mass / b.inertia.mass - 1.0).abs() < 1e-6);
-        assert!((a.inertia.moments / b.inertia.moments - 1.0).abs().max_element() < 1e-6);
+        assert!(
+            (a.inertia.moments / b.inertia.moments - 1.0)
+                .abs()
+                .max_element()
+                < 1e-6
+        );
     }
     // Its own density scales every mass and moment.
     let dense = build("[[clump]]\nfile = \"bean.csv\"\ndensity = 4000\n");
