@@ -96,18 +96,32 @@ impl ClumpSet {
     /// Every clump's components, clump by clump.
     pub fn components(&self) -> Vec<ComponentState> {
         let mut out = Vec::with_capacity(self.component_count());
+        self.for_each_component(|_, c| out.push(c));
+        out
+    }
+
+    /// Calls `visit` with each component's index and state, in the order of
+    /// [`Self::components`] (without gathering them).
+    pub fn for_each_component(&self, mut visit: impl FnMut(usize, ComponentState)) {
+        let mut k = 0;
         for clump in &self.clumps {
             let kind = &self.kinds[clump.kind];
             let w = clump.body.angular_velocity(&kind.inertia);
-            out.extend(kind.template.components.iter().map(|c| ComponentState {
-                centre: clump.body.world_point(c.centre),
-                radius: c.radius,
-                velocity: clump.body.point_velocity(&kind.inertia, c.centre),
-                angular_velocity: w,
-                mass: kind.inertia.mass,
-            }));
+            for c in &kind.template.components {
+                let arm = clump.body.orientation * c.centre;
+                visit(
+                    k,
+                    ComponentState {
+                        centre: clump.body.position + arm,
+                        radius: c.radius,
+                        velocity: clump.body.velocity + w.cross(arm),
+                        angular_velocity: w,
+                        mass: kind.inertia.mass,
+                    },
+                );
+                k += 1;
+            }
         }
-        out
     }
 
     /// The number of component spheres of all the clumps.
@@ -146,18 +160,30 @@ impl ClumpSet {
     /// torques `torques` (each about its component's centre) on its components, in the order
     /// of [`Self::components`].
     pub fn advance(&mut self, forces: &[DVec3], torques: &[DVec3], gravity: DVec3, dt: f64) {
+        self.advance_by(|k| forces[k], |k| torques[k], gravity, dt);
+    }
+
+    /// [`advance`](Self::advance) with component k's force `force(k)` and torque `torque(k)`.
+    pub fn advance_by(
+        &mut self,
+        force: impl Fn(usize) -> DVec3,
+        torque: impl Fn(usize) -> DVec3,
+        gravity: DVec3,
+        dt: f64,
+    ) {
         let mut next = 0;
         for clump in &mut self.clumps {
             let kind = &self.kinds[clump.kind];
-            let mut force = gravity * kind.inertia.mass;
-            let mut torque = DVec3::ZERO;
+            let mut sum = gravity * kind.inertia.mass;
+            let mut moment = DVec3::ZERO;
             for c in &kind.template.components {
                 let arm = clump.body.orientation * c.centre;
-                force += forces[next];
-                torque += arm.cross(forces[next]) + torques[next];
+                let f = force(next);
+                sum += f;
+                moment += arm.cross(f) + torque(next);
                 next += 1;
             }
-            clump.body.advance(&kind.inertia, force, torque, dt);
+            clump.body.advance(&kind.inertia, sum, moment, dt);
         }
     }
 

@@ -285,12 +285,22 @@ impl Particles {
         if self.clumps.clumps.is_empty() {
             return Ok(());
         }
-        let components = self.clumps.components();
-        for (k, c) in components.iter().enumerate() {
-            self.set_exact_position(k, c.centre.to_array())?;
-            self.velocities[k] = c.velocity.as_vec3().to_array();
-            self.angular_velocities[k] = c.angular_velocity.as_vec3().to_array();
-        }
+        self.fill_residuals()?;
+        let Self {
+            clumps,
+            positions,
+            position_residuals,
+            velocities,
+            angular_velocities,
+            ..
+        } = self;
+        clumps.for_each_component(|k, c| {
+            let halves = c.centre.to_array().map(position::split);
+            positions[k] = halves.map(|h| h.0);
+            position_residuals[k] = halves.map(|h| h.1);
+            velocities[k] = c.velocity.as_vec3().to_array();
+            angular_velocities[k] = c.angular_velocity.as_vec3().to_array();
+        });
         Ok(())
     }
 

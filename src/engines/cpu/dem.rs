@@ -453,11 +453,10 @@ impl CpuStepper {
                 rows.get(k)
                     .map_or(glam::DVec3::ZERO, |f| Vec3::from_array(*f).as_dvec3())
             };
-            let n = self.owners.len();
-            let f: Vec<_> = (0..n).map(|k| of(forces, k)).collect();
-            let t: Vec<_> = (0..n).map(|k| of(torques, k)).collect();
             let gravity = Vec3::from_array(g).as_dvec3();
-            parts.clumps.advance(&f, &t, gravity, p.dt as f64);
+            let (forces, torques) = (&*forces, &*torques);
+            let (force, torque) = (|k| of(forces, k), |k| of(torques, k));
+            parts.clumps.advance_by(force, torque, gravity, p.dt as f64);
             parts.place_clump_components()?;
         }
         parts.step += 1;
