@@ -387,6 +387,7 @@ impl Run {
     /// keep stable is refused, and the run is then as it was. The time is the step count times
     /// the time step: a new time step makes the step count the time now over it, rounded (the
     /// clock, and what follows it, walls and a turning gravity, moves by less than half a step).
+    /// A run of clumps keeps its materials' densities (its clumps' masses are made of them).
     pub fn change(&mut self, overrides: &Overrides) -> Result<()> {
         let config = self.config.changed(overrides)?;
         self.reopen(config)
@@ -427,6 +428,16 @@ impl Run {
             particles.step = (self.time() / dt).round() as u64;
         }
         let mut start = config.resume_from(particles)?;
+        let densities = &start.params.materials.densities;
+        if !start.particles.clumps.clumps.is_empty()
+            && *densities != self.params.materials.densities
+        {
+            return Err(Error::Usage(
+                "a run of clumps keeps the masses its clumps were made with: a material's \
+                 density changes with clumps only in a new run (set it in the scene)"
+                    .into(),
+            ));
+        }
         if let Some(counted) = self.stepper.flow_counts() {
             start.flow.counted = counted;
         }

@@ -1133,3 +1133,29 @@ fn a_clump_file_places_each_clump_of_its_template_where_its_row_says() {
     let e = config.build().map(|_| ()).unwrap_err().to_string();
     assert!(e.contains("clumps.csv:2:") && e.contains("length 0"), "{e}");
 }
+
+#[test]
+fn a_run_of_clumps_changes_its_friction_between_steps_but_not_its_density() {
+    use mochi::dem::scene::Overrides;
+    use mochi::engines::{BackendChoice, Options};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    let text = "[source]\nscene = \"freefall\"\nspheres = 8\n[[clump]]\nshape = \"dimer\"\n";
+    std::fs::write(&scene, text).unwrap();
+    let none = Overrides::default();
+    let start = mochi::run::RunStart::new(Some(&scene), &Default::default(), &none).unwrap();
+    let mut run = start
+        .open(BackendChoice::Named(BackendKind::Cpu), &Options::default())
+        .unwrap();
+    run.stepper.advance(10).unwrap();
+    run.change(&Overrides::parse(&["friction=0.2"]).unwrap())
+        .unwrap();
+    let e = run
+        .change(&Overrides::parse(&["density=5000"]).unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("clumps") && e.contains("density"), "{e}");
+    // And the run goes on as it was.
+    run.stepper.advance(10).unwrap();
+    assert_eq!(run.stepper.particles().unwrap().clumps.clumps.len(), 8);
+}
