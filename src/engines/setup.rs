@@ -1,6 +1,7 @@
 //! What opening any engine's DEM step takes ([`DemSetup`]): the engines' constructors take it
 //! with the few settings of their own, and `open.rs` opens every backend's step from it.
 
+use crate::dem::flow::FlowSet;
 use crate::dem::model::StepParams;
 use crate::dem::walls::WallSet;
 use crate::error::{Error, Result};
@@ -22,14 +23,14 @@ pub struct DemSetup {
 }
 
 impl DemSetup {
-    /// Refuses clumps in a run whose spheres flow in or out (a clump's components are its first
-    /// spheres, which an outflow would take one by one).
-    pub(crate) fn refuse_flowing_clumps(&self) -> Result<()> {
-        match self.particles.clumps.clumps.is_empty() {
+    /// Refuses clumps in a run with inflows (which insert spheres, not clumps, so far); clumps
+    /// leave by outflows whole.
+    pub(crate) fn refuse_inflowing_clumps(&self, flow: &FlowSet) -> Result<()> {
+        match self.particles.clumps.clumps.is_empty() || flow.inflows.is_empty() {
             true => Ok(()),
             false => Err(Error::Usage(
-                "spheres flowing in or out of a run of clumps: not yet (a clump's components \
-                 are its first spheres, which an outflow would take one by one)"
+                "inflows into a run of clumps: not yet (they insert spheres; clumps leave by \
+                 outflows)"
                     .into(),
             )),
         }

@@ -472,7 +472,7 @@ impl Particles {
 
     /// Keeps the spheres `i` with `keep[i]`, in order: later spheres move up and take new
     /// numbers (their contact history follows them; contacts with removed spheres are
-    /// dropped).
+    /// dropped). A clump goes with its components, which are kept or removed together.
     pub fn retain(&mut self, keep: &[bool]) -> Result<()> {
         if keep.len() != self.len() {
             return Err(Error::Usage(format!(
@@ -480,6 +480,26 @@ impl Particles {
                 keep.len(),
                 self.len()
             )));
+        }
+        if !self.clumps.clumps.is_empty() {
+            let owners = self.clumps.owners();
+            let mut kept = vec![None; self.clumps.clumps.len()];
+            for (i, &k) in owners.iter().enumerate() {
+                match kept[k as usize] {
+                    None => kept[k as usize] = Some(keep[i]),
+                    Some(whole) if whole != keep[i] => {
+                        return Err(Error::Usage(format!(
+                            "clump {k} keeps some of its spheres and not others: a clump is \
+                             kept or removed whole"
+                        )));
+                    }
+                    Some(_) => {}
+                }
+            }
+            let mut kept = kept.into_iter();
+            self.clumps
+                .clumps
+                .retain(|_| kept.next().flatten().unwrap_or(true));
         }
         fn kept<T: Copy>(v: &mut Vec<T>, keep: &[bool]) {
             let mut k = keep.iter();

@@ -210,7 +210,7 @@ pub struct FlowCounts {
     pub inserted: u64,
     /// Spheres an inflow found no room for.
     pub refused: u64,
-    /// Spheres removed.
+    /// Spheres removed (a clump counts once).
     pub removed: u64,
     /// Their mass \[kg\].
     pub removed_mass: f64,
@@ -547,8 +547,8 @@ impl FlowSet {
 
     /// The flow event after step `parts.step − 1` (taken with time step `dt`), closing the
     /// `every` steps since the last: removes the spheres in an outflow (or below the floor),
-    /// then inserts what each inflow owes for those steps; `densities` (of each material) give
-    /// the masses counted.
+    /// a clump whole where its centre is (counted once, at its mass), then inserts what each
+    /// inflow owes for those steps; `densities` (of each material) give the masses counted.
     /// Returns whether any sphere came or went.
     pub fn apply(
         &self,
@@ -559,13 +559,27 @@ impl FlowSet {
         counts: &mut FlowCounts,
     ) -> Result<bool> {
         let before = (counts.inserted, counts.removed);
-        let keep: Vec<bool> = parts
+        let mut keep: Vec<bool> = parts
             .positions
             .iter()
             .map(|c| !self.leaves(Vec3::from(*c)))
             .collect();
+        // A clump's components go where its centre goes.
+        let clumps = &parts.clumps;
+        let mut first = 0;
+        for clump in &clumps.clumps {
+            let kind = &clumps.kinds[clump.kind];
+            let n = kind.template.components.len();
+            let leaves = self.leaves(clump.body.position.as_vec3());
+            keep[first..first + n].fill(!leaves);
+            if leaves {
+                counts.removed += 1;
+                counts.removed_mass += kind.inertia.mass;
+            }
+            first += n;
+        }
         if keep.iter().any(|k| !k) {
-            for (i, _) in keep.iter().enumerate().filter(|(_, k)| !**k) {
+            for (i, _) in keep.iter().enumerate().skip(first).filter(|(_, k)| !**k) {
                 let density = densities[parts.material(i) as usize];
                 counts.removed += 1;
                 counts.removed_mass += mass(density, parts.radii[i]) as f64;

@@ -104,7 +104,7 @@ impl SceneConfig {
             what: "scene table [[clump]]".into(),
             reason: format!(
                 "makes clumps of generated spheres (freefall, slab, poly*, pour, rotating, \
-                 mesh, drum): not of scene \"{scene}\"'s yet"
+                 mesh, drum, hopper): not of scene \"{scene}\"'s yet"
             ),
         }
     }
@@ -128,20 +128,20 @@ impl SceneConfig {
     }
 
     /// The generated `spheres` made clumps of the `[[clump]]` tables (`dem::clump_spec`):
-    /// scenes whose spheres are generated, as long as nothing flows.
+    /// scenes whose spheres are generated, as long as no inflow inserts more.
     fn clumps_of(&self, spheres: &Particles) -> Result<Particles> {
         let seed = match &self.source {
             Source::Generated(_, g) | Source::Rotating(g) => g.seed,
             Source::Mesh(fill) => fill.seed,
             Source::Drum(drum) | Source::Gravel(drum) => drum.seed,
-            Source::Hopper(_) => return Err(self.no_clumps_of("hopper")),
+            Source::Hopper(hopper) => hopper.seed,
             Source::Agglomerate(_) => return Err(self.no_clumps_of("agglomerate")),
             Source::Input(_) => return Err(self.no_clumps_of("input")),
         };
-        if !(self.inflow.is_empty() && self.outflow.is_empty()) {
+        if !self.inflow.is_empty() {
             return Err(Error::InvalidConfig {
                 what: "scene table [[clump]]".into(),
-                reason: "with [[inflow]] or [[outflow]]: not yet".into(),
+                reason: "with [[inflow]]: not yet (clumps leave by outflows whole)".into(),
             });
         }
         let densities: Vec<f32> = self

@@ -1152,14 +1152,14 @@ fn bad_clump_tables_are_one_clear_error() {
         let e = build(&format!("{freefall}{table}"));
         assert!(e.contains("clump") && e.contains(expect), "{table}: {e}");
     }
-    let hopper = "scene = \"hopper\"\nspheres = 100\n[[clump]]\nshape = \"dimer\"\n";
-    let e = build(hopper);
-    assert!(e.contains("not of scene \"hopper\"'s yet"), "{e}");
+    let agglomerate = "scene = \"agglomerate\"\n[[clump]]\nshape = \"dimer\"\n";
+    let e = build(agglomerate);
+    assert!(e.contains("not of scene \"agglomerate\"'s yet"), "{e}");
     let flowing = format!(
-        "{freefall}[[clump]]\nshape = \"dimer\"\n[[outflow]]\nlo = [0, 0, 0]\nhi = [1, 1, 0.1]\n"
+        "{freefall}[[clump]]\nshape = \"dimer\"\n[[inflow]]\nlo = [0, 0, 0.5]\nhi = [1, 1, 0.6]\nrate = 100\n"
     );
     let e = build(&flowing);
-    assert!(e.contains("[[outflow]]") && e.contains("not yet"), "{e}");
+    assert!(e.contains("[[inflow]]") && e.contains("not yet"), "{e}");
 }
 
 #[test]

@@ -30,17 +30,28 @@ pub(crate) fn rows(particles: &Particles, table: &MaterialTable) -> (Vec<[f32; 4
     let vel = particles
         .velocities
         .iter()
-        .zip(&particles.radii)
         .enumerate()
-        .map(|(i, (v, &r))| {
-            let m = match clumps.get(i) {
-                Some(&m) => m as f32,
-                None => table.mass(particles.material(i), r),
-            };
-            [v[0], v[1], v[2], m]
-        })
+        .map(|(i, v)| [v[0], v[1], v[2], mass_of(particles, table, &clumps, i)])
         .collect();
     (pos, vel)
+}
+
+/// Each sphere's mass as its contacts see it: by its material's density in `table`, a clump's
+/// component's its clump's ([`Error::OutOfMemory`] where they do not fit).
+pub(crate) fn contact_masses(particles: &Particles, table: &MaterialTable) -> Result<Vec<f32>> {
+    let n = particles.len();
+    let clumps = particles.clumps.component_masses();
+    let mut masses = crate::error::try_vec(n, || format!("the masses of {n} spheres"))?;
+    masses.extend((0..n).map(|i| mass_of(particles, table, &clumps, i)));
+    Ok(masses)
+}
+
+/// Sphere `i`'s mass: its clump's (`clumps`: each component's) or its own by its material.
+fn mass_of(particles: &Particles, table: &MaterialTable, clumps: &[f64], i: usize) -> f32 {
+    match clumps.get(i) {
+        Some(&m) => m as f32,
+        None => table.mass(particles.material(i), particles.radii[i]),
+    }
 }
 
 /// `vec4(lo_x, lo_y, lo_z, 0)` rows of the residuals of the centres of `particles`, in input

@@ -121,13 +121,8 @@ impl CpuStepper {
                 limit: FIRST_WALL as u64,
             });
         }
-        let mut masses = try_vec(n, || format!("the masses of {n} spheres"))?;
-        let table = &params.materials;
-        masses.extend((0..n).map(|i| table.mass(particles.material(i), particles.radii[i])));
+        let masses = rows::contact_masses(&particles, &params.materials)?;
         let owners = particles.clumps.owners();
-        for (m, clump) in masses.iter_mut().zip(particles.clumps.component_masses()) {
-            *m = clump as f32;
-        }
         let slots = match params.friction.has_history() {
             true => FIRST_SLOTS.max(particles.history.most()),
             false => 0,
@@ -201,10 +196,8 @@ impl CpuStepper {
         counts.events += 1;
         counts.event_ms += started.elapsed().as_secs_f64() * 1e3;
         if changed {
-            self.masses.clear();
-            let (parts, table) = (&self.particles, &p.materials);
-            self.masses
-                .extend((0..parts.len()).map(|i| table.mass(parts.material(i), parts.radii[i])));
+            self.masses = rows::contact_masses(&self.particles, &p.materials)?;
+            self.owners = self.particles.clumps.owners();
         }
         Ok(())
     }

@@ -7,6 +7,15 @@ use super::*;
 /// for them at opening ([`GridStepper::flowing_on`]).
 impl DeviceFlow for GridStepper {
     fn scan(&mut self, query: &FlowQuery) -> Result<Option<Scan>> {
+        // A clump leaves whole, where its centre is: the host's flows take it.
+        if self
+            .res
+            .granular
+            .as_ref()
+            .is_some_and(|g| g.clumps().is_some())
+        {
+            return Ok(None);
+        }
         let set = self.turn().set;
         let gpu = &self.res.gpu;
         let scan = self.flow_scan.get_or_insert_with(|| FlowScan::new(gpu));
