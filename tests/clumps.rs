@@ -1207,3 +1207,47 @@ fn clumps_drain_from_a_hopper_whole_through_its_outflow() {
         }
     });
 }
+
+#[test]
+fn an_inflow_of_a_scene_with_clump_tables_pours_clumps_that_never_overlap_as_they_come() {
+    on_every_backend(|kind| {
+        use mochi::dem::scene::{Overrides, SceneConfig};
+        // One trimer falling; trimers rain in from above at 4000 a second.
+        let text = "[source]\nscene = \"freefall\"\nspheres = 1\n[[clump]]\nshape = \"trimer\"\n\
+                    [[inflow]]\nlo = [0.05, 0.05, 0.25]\nhi = [0.25, 0.25, 0.3]\nrate = 4000\n\
+                    sphere_radius = 0.004\n[run]\nflow_every = 100\n";
+        let config = SceneConfig::parse(Some(text), None, &Overrides::default()).unwrap();
+        let start = config.build().unwrap();
+        let dt = start.params.dt as f64;
+        let choice = mochi::engines::BackendChoice::Named(kind);
+        let mut s = mochi::engines::open_scene(choice, start, &Default::default())
+            .unwrap()
+            .value;
+        let steps = (0.01 / dt) as u32 / 100 * 100;
+        s.advance(steps).unwrap();
+        let counts = s.flow_counts().unwrap();
+        let end = s.particles().unwrap();
+        let set = &end.clumps;
+        assert!(counts.inserted >= 20, "{} inserted", counts.inserted);
+        // Every inserted sphere a clump of three spheres, after the first clump's.
+        assert_eq!(set.clumps.len() as u64, 1 + counts.inserted);
+        assert_eq!(end.len(), 3 * set.clumps.len());
+        assert!(set.kinds.iter().all(|k| k.template.name == "trimer"));
+        let mass: f64 = set.clumps[1..]
+            .iter()
+            .map(|c| set.kinds[c.kind].inertia.mass)
+            .sum();
+        assert!(
+            (counts.inserted_mass / mass - 1.0).abs() < 1e-9,
+            "{} kg counted, {mass} kg in",
+            counts.inserted_mass
+        );
+        // Falling in their own time, apart: no two clumps touch yet (each came where its
+        // bounding sphere overlapped nothing).
+        assert_eq!(s.advance(1).unwrap().contacts, 0);
+        for (k, c) in set.components().iter().enumerate() {
+            let off = (DVec3::from_array(end.exact_position(k)) - c.centre).length();
+            assert!(off < placed_within(kind), "sphere {k} {off} m off");
+        }
+    });
+}

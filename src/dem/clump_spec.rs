@@ -265,11 +265,108 @@ pub fn gravel() -> Vec<ClumpConfig> {
 }
 
 /// A shape at unit scale, in its principal frame, with its bounding radius.
+#[derive(Debug, Clone, PartialEq)]
 struct Shape {
     /// At density 1 and the template's own size.
     kind: ClumpKind,
     /// The largest |c| + r of its components (its centre the union's).
     bound: f64,
+}
+
+/// What makes a sphere a clump of a scene's `[[clump]]` tables: their shapes at unit scale,
+/// their weights and densities (the generated spheres' clumps, and an inflow's).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClumpMaker {
+    shapes: Vec<Shape>,
+    weights: Vec<f64>,
+    /// Each table's own density, if it gives one.
+    densities: Vec<Option<f64>>,
+}
+
+impl ClumpMaker {
+    /// The maker of `tables`' clumps; refuses tables with no valid shape, weight or density.
+    pub fn new(tables: &[ClumpConfig]) -> Result<Self> {
+        let shapes = tables
+            .iter()
+            .map(|t| {
+                let kind = ClumpKind::new(&t.template()?, 1.0);
+                let bound = kind
+                    .template
+                    .components
+                    .iter()
+                    .map(|c| c.centre.length() + c.radius)
+                    .fold(0.0, f64::max);
+                Ok(Shape { kind, bound })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let weights = tables
+            .iter()
+            .map(ClumpConfig::weight)
+            .collect::<Result<Vec<_>>>()?;
+        let densities = tables
+            .iter()
+            .map(|t| t.density_or(1.0).map(|_| t.density))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Self {
+            shapes,
+            weights,
+            densities,
+        })
+    }
+
+    /// A table drawn by weight.
+    fn pick(&self, rand: &mut Pcg64) -> usize {
+        let total: f64 = self.weights.iter().sum();
+        let mut pick = rand.random::<f64>() * total;
+        self.weights
+            .iter()
+            .position(|&w| {
+                pick -= w;
+                pick < 0.0
+            })
+            .unwrap_or(self.weights.len() - 1)
+    }
+
+    /// The kind of table `shape`'s clumps in a sphere of radius `r` of a material of density
+    /// `material` \[kg/m³\] (the table's own where it gives one).
+    fn kind(&self, shape: usize, r: f32, material: f64) -> ClumpKind {
+        let s = &self.shapes[shape];
+        let density = self.densities[shape].unwrap_or(material);
+        s.kind.scaled(r as f64 / s.bound, density)
+    }
+
+    /// A clump drawn by `rand` in the place of a sphere at `at` of radius `r` moving at `v`, of
+    /// a material of density `material`: its kind and its body, turned at random.
+    pub fn make(
+        &self,
+        rand: &mut Pcg64,
+        (at, r, v): (DVec3, f32, DVec3),
+        material: f64,
+    ) -> (ClumpKind, RigidBody) {
+        let kind = self.kind(self.pick(rand), r, material);
+        let body = RigidBody::new(at, random_turn(rand), v, DVec3::ZERO, &kind.inertia);
+        (kind, body)
+    }
+}
+
+/// A uniform random rotation (Shoemake 1992).
+fn random_turn(rand: &mut Pcg64) -> DQuat {
+    let (u1, u2, u3): (f64, f64, f64) = (rand.random(), rand.random(), rand.random());
+    let tau = 2.0 * std::f64::consts::PI;
+    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+    DQuat::from_xyzw(
+        a * (tau * u2).sin(),
+        a * (tau * u2).cos(),
+        b * (tau * u3).sin(),
+        b * (tau * u3).cos(),
+    )
+    .normalize()
+}
+
+/// The random stream of the clumps made of generated spheres of seed `seed` (a stream of its
+/// own, so that the spheres' generator and this one do not correlate).
+pub fn clump_stream(seed: u64) -> Pcg64 {
+    Pcg64::seed_from_u64(seed ^ 0x636c_756d_7073)
 }
 
 /// `spheres` (at rest or moving, each of a material whose density is `densities`' entry) made
@@ -281,64 +378,23 @@ pub fn clumps_in_place_of(
     densities: &[f32],
     seed: u64,
 ) -> Result<Particles> {
-    let shapes = tables
-        .iter()
-        .map(|t| {
-            let kind = ClumpKind::new(&t.template()?, 1.0);
-            let bound = kind
-                .template
-                .components
-                .iter()
-                .map(|c| c.centre.length() + c.radius)
-                .fold(0.0, f64::max);
-            Ok(Shape { kind, bound })
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let weights = tables
-        .iter()
-        .map(ClumpConfig::weight)
-        .collect::<Result<Vec<_>>>()?;
-    // Each table's density where it gives one (checked now, before any clump is made).
-    for t in tables {
-        t.density_or(1.0)?;
-    }
-    let total: f64 = weights.iter().sum();
-    // A stream of its own, so that the spheres' generator and this one do not correlate.
-    let mut rand = Pcg64::seed_from_u64(seed ^ 0x636c_756d_7073);
+    let maker = ClumpMaker::new(tables)?;
+    let mut rand = clump_stream(seed);
     let mut set = ClumpSet::default();
     let mut kinds: HashMap<(usize, u32, u32), usize> = HashMap::new();
     let mut materials = Vec::new();
     for i in 0..spheres.len() {
-        let mut pick = rand.random::<f64>() * total;
-        let shape = weights
-            .iter()
-            .position(|&w| {
-                pick -= w;
-                pick < 0.0
-            })
-            .unwrap_or(weights.len() - 1);
+        let shape = maker.pick(&mut rand);
         let r = spheres.radii[i];
         let material = spheres.material(i);
         let kind = *kinds
             .entry((shape, r.to_bits(), material))
             .or_insert_with(|| {
-                let s = &shapes[shape];
                 let of_material = densities[material as usize] as f64;
-                let density = tables[shape].density.unwrap_or(of_material);
-                set.kinds.push(s.kind.scaled(r as f64 / s.bound, density));
+                set.kinds.push(maker.kind(shape, r, of_material));
                 set.kinds.len() - 1
             });
-        // A uniform random rotation (Shoemake 1992).
-        let (u1, u2, u3): (f64, f64, f64) = (rand.random(), rand.random(), rand.random());
-        let tau = 2.0 * std::f64::consts::PI;
-        let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-        let orientation = DQuat::from_xyzw(
-            a * (tau * u2).sin(),
-            a * (tau * u2).cos(),
-            b * (tau * u3).sin(),
-            b * (tau * u3).cos(),
-        )
-        .normalize();
+        let orientation = random_turn(&mut rand);
         let v = DVec3::from_array(spheres.velocities[i].map(f64::from));
         let at = DVec3::from_array(spheres.exact_position(i));
         let inertia = &set.kinds[kind].inertia;

@@ -40,7 +40,6 @@ trait Engine: Sync {
         options: &Options,
         flow: FlowSet,
     ) -> Result<Box<dyn Stepper>> {
-        setup.refuse_inflowing_clumps(&flow)?;
         let (dt, densities) = (setup.params.dt, setup.params.materials.densities.clone());
         let (particles, rest) = setup.split();
         let reopen = self.reopener(rest, options)?;
@@ -97,7 +96,6 @@ impl Engine for CpuEngine {
     }
 
     fn flowing(&self, setup: DemSetup, _: &Options, flow: FlowSet) -> Result<Box<dyn Stepper>> {
-        setup.refuse_inflowing_clumps(&flow)?;
         let mode = setup.mode;
         Ok(Box::new(
             cpu::CpuStepper::open(setup)?.with_flow(flow, mode),

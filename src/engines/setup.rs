@@ -1,10 +1,9 @@
 //! What opening any engine's DEM step takes ([`DemSetup`]): the engines' constructors take it
 //! with the few settings of their own, and `open.rs` opens every backend's step from it.
 
-use crate::dem::flow::FlowSet;
 use crate::dem::model::StepParams;
 use crate::dem::walls::WallSet;
-use crate::error::{Error, Result};
+
 use crate::particles::Particles;
 use crate::proxy::ProxyMode;
 
@@ -23,19 +22,6 @@ pub struct DemSetup {
 }
 
 impl DemSetup {
-    /// Refuses clumps in a run with inflows (which insert spheres, not clumps, so far); clumps
-    /// leave by outflows whole.
-    pub(crate) fn refuse_inflowing_clumps(&self, flow: &FlowSet) -> Result<()> {
-        match self.particles.clumps.clumps.is_empty() || flow.inflows.is_empty() {
-            true => Ok(()),
-            false => Err(Error::Usage(
-                "inflows into a run of clumps: not yet (they insert spheres; clumps leave by \
-                 outflows)"
-                    .into(),
-            )),
-        }
-    }
-
     /// `particles` stepped with `params` in `mode`, in the box.
     pub fn new(particles: Particles, params: StepParams, mode: ProxyMode) -> Self {
         DemSetup {

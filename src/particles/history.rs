@@ -403,6 +403,41 @@ impl ContactHistory {
         Ok(())
     }
 
+    /// Makes room for `m` spheres with no contacts at number `at`: the spheres from `at` on
+    /// take numbers `m` higher, their partners renamed with them (walls stay as they are).
+    pub fn insert_empty(&mut self, at: usize, m: usize) -> Result<()> {
+        if self.counts.is_empty() || m == 0 {
+            return Ok(());
+        }
+        let n = self.counts.len();
+        for e in &mut self.entries {
+            if !is_wall(e.partner, n) && e.partner as usize >= at {
+                e.partner += m as u32;
+            }
+        }
+        let slots = self.slots;
+        let what = || format!("the contact history of {} spheres", n + m);
+        let grow = |len: usize| (len + m * slots) as u64;
+        self.counts.try_reserve(m).map_err(|_| Error::OutOfMemory {
+            what: what(),
+            bytes: 4 * (n + m) as u64,
+        })?;
+        self.counts.splice(at..at, std::iter::repeat_n(0, m));
+        self.entries
+            .try_reserve(m * slots)
+            .map_err(|_| Error::OutOfMemory {
+                what: what(),
+                bytes: 32 * grow(self.entries.len()),
+            })?;
+        let empty = std::iter::repeat_n(HistoryEntry::default(), m * slots);
+        self.entries.splice(at * slots..at * slots, empty);
+        if !self.loads.is_empty() {
+            let empty = std::iter::repeat_n(LoadEntry::default(), m * slots);
+            self.loads.splice(at * slots..at * slots, empty);
+        }
+        Ok(())
+    }
+
     /// Keeps the spheres `i` with `keep[i]` (one flag per sphere), renumbered in order: the
     /// partners are renamed to the new numbers and the contacts with removed spheres dropped;
     /// walls stay as they are.

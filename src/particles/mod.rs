@@ -3,7 +3,7 @@
 pub mod history;
 pub mod position;
 
-use crate::clump::ClumpSet;
+use crate::clump::{Clump, ClumpKind, ClumpSet, RigidBody};
 use crate::error::{Error, Result, try_vec};
 use crate::spheres::SphereSet;
 pub use history::{
@@ -277,6 +277,40 @@ impl Particles {
         }
         out.validate()?;
         Ok(out)
+    }
+
+    /// Adds the clumps `new` (each of its kind, with its body, of its material): their kinds
+    /// and bodies after the others', their components after the other clumps' (the free
+    /// spheres after them take numbers that much higher, their contact history with them),
+    /// placed where their clumps put them.
+    pub fn insert_clumps(&mut self, new: Vec<(ClumpKind, RigidBody, u8)>) -> Result<()> {
+        let at = self.clumps.component_count();
+        let mut radii = Vec::new();
+        let mut materials = Vec::new();
+        for (kind, body, material) in new {
+            let count = kind.template.components.len();
+            radii.extend(kind.template.components.iter().map(|c| c.radius as f32));
+            materials.extend(std::iter::repeat_n(material, count));
+            self.clumps.kinds.push(kind);
+            let kind = self.clumps.kinds.len() - 1;
+            self.clumps.clumps.push(Clump { kind, body });
+        }
+        let m = radii.len();
+        let zeros = || std::iter::repeat_n([0.0f32; 3], m);
+        self.fill_residuals()?;
+        self.positions.splice(at..at, zeros());
+        self.position_residuals.splice(at..at, zeros());
+        self.velocities.splice(at..at, zeros());
+        self.angular_velocities.splice(at..at, zeros());
+        self.radii.splice(at..at, radii);
+        if self.materials.is_empty() && materials.iter().any(|&k| k != 0) {
+            self.materials = vec![0; self.positions.len() - m];
+        }
+        if !self.materials.is_empty() {
+            self.materials.splice(at..at, materials);
+        }
+        self.history.insert_empty(at, m)?;
+        self.place_clump_components()
     }
 
     /// Writes each clump's components (the first spheres) where their clump puts them: centre

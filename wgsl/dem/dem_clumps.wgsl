@@ -14,10 +14,9 @@
 // call's would still be read). Appended to the granular step's physics; needs
 // dem_params.wgsl, dem_granular.wgsl and the force and torque accumulators.
 
-// True where the run has clumps, and the number of their components (DemModule::constants):
-// the integration tells a component by its stable id alone, without a binding of its own.
+// True where the run has clumps (DemModule::constants; a constant of the pipelines, which a
+// flow event that inserts clumps does not change).
 override CLUMPED: bool = false;
-override COMPONENTS: u32 = 0u;
 
 // One clump's rigid-body state; twin of ClumpBodyRow in src/engines/common/clumps.rs.
 struct ClumpBody {
@@ -53,9 +52,12 @@ struct ClumpShape {
 // the components of each shape: centre in the principal frame, radius
 @group(0) @binding(84) var<storage, read> clump_parts: array<vec4<f32>>;
 
+// clump_of's entry past the components (its rows are padded to whole 16 bytes with it).
+const NO_CLUMP: u32 = 0xffffffffu;
+
 // Whether the sphere of stable id a is a clump's component.
 fn is_component(a: u32) -> bool {
-    return CLUMPED && a < COMPONENTS;
+    return CLUMPED && a < arrayLength(&clump_of) && clump_of[a] != NO_CLUMP;
 }
 
 // Whether the spheres of stable ids a and b are components of one clump: never a pair.

@@ -199,6 +199,9 @@ pub struct FlowSet {
     /// What the flows did before the step opened: nothing for a new run, a checkpoint's
     /// totals for a resumed one. A step's [`FlowCounts`] go on from them.
     pub counted: FlowCounts,
+    /// The clumps the inflows insert in the place of their spheres (a scene's `[[clump]]`
+    /// tables: each scaled into its sphere, turned at random; `None`: spheres).
+    pub clumps: Option<crate::dem::clump_spec::ClumpMaker>,
 }
 
 /// What the flows did, summed since the run started (a resumed run goes on from its
@@ -548,7 +551,8 @@ impl FlowSet {
     /// The flow event after step `parts.step − 1` (taken with time step `dt`), closing the
     /// `every` steps since the last: removes the spheres in an outflow (or below the floor),
     /// a clump whole where its centre is (counted once, at its mass), then inserts what each
-    /// inflow owes for those steps; `densities` (of each material) give the masses counted.
+    /// inflow owes for those steps (each a clump in its place where [`Self::clumps`] says, at
+    /// its mass); `densities` (of each material) give the masses counted.
     /// Returns whether any sphere came or went.
     pub fn apply(
         &self,
@@ -601,8 +605,27 @@ impl FlowSet {
             every,
             dt,
         };
-        for s in self.insert(step, r_max, near, counts) {
-            parts.push_of(s.centre, s.velocity, s.radius, s.material)?;
+        let new = self.insert(step, r_max, near, counts);
+        match &self.clumps {
+            None => {
+                for s in new {
+                    parts.push_of(s.centre, s.velocity, s.radius, s.material)?;
+                }
+            }
+            Some(maker) => {
+                let mut rand = crate::dem::clump_spec::clump_stream(step_seed(0, 0, step.step));
+                let mut clumps = Vec::with_capacity(new.len());
+                for s in new {
+                    let density = densities[s.material as usize];
+                    let at = DVec3::from_array(s.centre.map(f64::from));
+                    let v = DVec3::from_array(s.velocity.map(f64::from));
+                    let (kind, body) = maker.make(&mut rand, (at, s.radius, v), density as f64);
+                    // Counted as a clump at its mass, not as the sphere it replaces.
+                    counts.inserted_mass += kind.inertia.mass - mass(density, s.radius) as f64;
+                    clumps.push((kind, body, s.material));
+                }
+                parts.insert_clumps(clumps)?;
+            }
         }
         Ok((counts.inserted, counts.removed) != before)
     }

@@ -128,7 +128,7 @@ impl SceneConfig {
     }
 
     /// The generated `spheres` made clumps of the `[[clump]]` tables (`dem::clump_spec`):
-    /// scenes whose spheres are generated, as long as no inflow inserts more.
+    /// scenes whose spheres are generated.
     fn clumps_of(&self, spheres: &Particles) -> Result<Particles> {
         let seed = match &self.source {
             Source::Generated(_, g) | Source::Rotating(g) => g.seed,
@@ -138,12 +138,6 @@ impl SceneConfig {
             Source::Agglomerate(_) => return Err(self.no_clumps_of("agglomerate")),
             Source::Input(_) => return Err(self.no_clumps_of("input")),
         };
-        if !self.inflow.is_empty() {
-            return Err(Error::InvalidConfig {
-                what: "scene table [[clump]]".into(),
-                reason: "with [[inflow]]: not yet (clumps leave by outflows whole)".into(),
-            });
-        }
         let densities: Vec<f32> = self
             .materials()?
             .list
@@ -383,12 +377,21 @@ impl SceneConfig {
                 reason: "flow_every must be at least 1 step, got 0".into(),
             });
         }
+        // The inflows of a scene with clumps insert clumps (of its tables, or the gravel's).
+        let tables = match (&self.source, self.clump.is_empty()) {
+            (Source::Gravel(_), true) => crate::dem::clump_spec::gravel(),
+            _ => self.clump.clone(),
+        };
+        let clumps = (!tables.is_empty() && !inflows.is_empty())
+            .then(|| crate::dem::clump_spec::ClumpMaker::new(&tables))
+            .transpose()?;
         Ok(FlowSet {
             inflows,
             outflows,
             floor: (!self.domain.box_walls).then_some(floor as f32),
             every: self.run.flow_every,
             counted: Default::default(),
+            clumps,
         })
     }
 

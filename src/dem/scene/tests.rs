@@ -1155,11 +1155,6 @@ fn bad_clump_tables_are_one_clear_error() {
     let agglomerate = "scene = \"agglomerate\"\n[[clump]]\nshape = \"dimer\"\n";
     let e = build(agglomerate);
     assert!(e.contains("not of scene \"agglomerate\"'s yet"), "{e}");
-    let flowing = format!(
-        "{freefall}[[clump]]\nshape = \"dimer\"\n[[inflow]]\nlo = [0, 0, 0.5]\nhi = [1, 1, 0.6]\nrate = 100\n"
-    );
-    let e = build(&flowing);
-    assert!(e.contains("[[inflow]]") && e.contains("not yet"), "{e}");
 }
 
 #[test]

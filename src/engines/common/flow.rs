@@ -166,6 +166,10 @@ impl FlowStep {
         let Some(step) = &mut self.step else {
             return self.round_trip();
         };
+        // Inflowing clumps are made on the host.
+        if self.flow.clumps.is_some() {
+            return self.round_trip();
+        }
         if query == FlowQuery::default() {
             return Ok(());
         }

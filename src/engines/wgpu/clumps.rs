@@ -62,8 +62,11 @@ impl DeviceClumps {
             gpu.queue.write_buffer(&buffer, 0, bytes);
             buffer
         };
+        // Past the components, whole 16-byte rows of NO_CLUMP (the shader's).
+        let mut of = rows.of.clone();
+        of.resize(of.len().max(1).next_multiple_of(4), u32::MAX);
         gpu.checked("allocating the clumps' buffers", || Self {
-            of: make("clump_of", bytemuck::cast_slice(&rows.of)),
+            of: make("clump_of", bytemuck::cast_slice(&of)),
             rows: make("clump_rows", &vec![0; rows.of.len() * 4]),
             bodies: make("clump_bodies", bytemuck::cast_slice(&rows.bodies)),
             shapes: make("clump_shapes", bytemuck::cast_slice(&rows.shapes)),
@@ -82,14 +85,9 @@ impl DeviceClumps {
         [(CLUMP_OF, &self.of), (CLUMP_ROWS, &self.rows)]
     }
 
-    /// The constants of the shader's pipelines: whether the run has clumps and their
-    /// components (each pipeline is made for its run's count).
-    pub fn constants(set: &ClumpSet) -> [(&'static str, f64); 2] {
-        let components = set.component_count();
-        [
-            ("CLUMPED", (components > 0) as u32 as f64),
-            ("COMPONENTS", components as f64),
-        ]
+    /// Each component's clump, as the integration of a run with clumps binds it.
+    pub fn of_binding(&self) -> (Binding, &wgpu::Buffer) {
+        (CLUMP_OF, &self.of)
     }
 
     /// What `advance_clumps` binds of the clumps (besides the state's and accumulators').

@@ -608,9 +608,12 @@ impl Granular {
         self.mesh.any().then_some([near, contacts])
     }
 
-    /// Bindings of the integration kernel of a step that integrates state set `set`.
-    pub fn integrate_bindings(&self, set: usize) -> [(Binding, &wgpu::Buffer); 2] {
-        [(OMEGA, self.omega_of(set)), (TORQUE, &self.torque)]
+    /// Bindings of the integration kernel of a step that integrates state set `set` (a run
+    /// with clumps: each component's clump too).
+    pub fn integrate_bindings(&self, set: usize) -> Vec<(Binding, &wgpu::Buffer)> {
+        let own = [(OMEGA, self.omega_of(set)), (TORQUE, &self.torque)];
+        let clumps = self.clumps.as_ref().map(DeviceClumps::of_binding);
+        own.into_iter().chain(clumps).collect()
     }
 
     /// What the contact pass binds beside [`resolve_bindings`](Self::resolve_bindings): the

@@ -8,7 +8,6 @@ use crate::dem::model::{LawParams, NormalLaw, StepParams};
 use crate::dem::stepper::{StageTimes, needs_granular_step};
 use crate::dem::walls::WallSet;
 use crate::engines::common::flow::Room;
-use crate::engines::wgpu::clumps::DeviceClumps;
 pub(crate) use crate::engines::wgpu::granular::{
     BatchParts, Granular, RedoableBatch, Turn, run_batch,
 };
@@ -373,12 +372,9 @@ impl DemModule {
             ]
             .into_iter()
             .filter(|(_, on)| *on)
+            .chain([("CLUMPED", !particles.clumps.clumps.is_empty())])
+            .filter(|(_, on)| *on)
             .map(|(name, _)| (name, 1.0))
-            .chain(
-                DeviceClumps::constants(&particles.clumps)
-                    .into_iter()
-                    .filter(|&(_, value)| value != 0.0),
-            )
             .collect(),
             _ => Vec::new(),
         };
