@@ -6,6 +6,7 @@
 //! run's clumps, `Int32`); and their ParaView collection, `clumps.pvd`, listing them as
 //! `series.pvd` lists the frames.
 
+use super::frames::vtu_opening;
 use super::write_atomically;
 use crate::clump::ClumpSet;
 use crate::error::Result;
@@ -110,17 +111,7 @@ pub fn write_clumps_vtu(path: &Path, set: &ClumpSet, time: f64, step: u64) -> Re
         ("Points", "", std::slice::from_ref(&points)),
         ("Cells", "", &cells),
     ];
-    let mut xml = format!(
-        r#"<?xml version="1.0"?>
-<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">
-  <UnstructuredGrid>
-    <FieldData>
-      <DataArray type="Float64" Name="TimeValue" NumberOfTuples="1" format="ascii">{time}</DataArray>
-      <DataArray type="UInt64" Name="step" NumberOfTuples="1" format="ascii">{step}</DataArray>
-    </FieldData>
-    <Piece NumberOfPoints="{n}" NumberOfCells="{n}">
-"#
-    );
+    let mut xml = vtu_opening(time, step, n);
     let mut offset = 0u64;
     for (section, attributes, arrays) in sections {
         xml += &format!("      <{section}{attributes}>\n");

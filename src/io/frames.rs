@@ -299,19 +299,7 @@ fn vtu_header(frame: &Frame, blocks: &[Block], n: usize, wide: bool) -> String {
         offsets[k] = at;
         at += 8 + block.data_bytes(n, wide);
     }
-    let mut xml = format!(
-        r#"<?xml version="1.0"?>
-<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">
-  <UnstructuredGrid>
-    <FieldData>
-      <DataArray type="Float64" Name="TimeValue" NumberOfTuples="1" format="ascii">{time}</DataArray>
-      <DataArray type="UInt64" Name="step" NumberOfTuples="1" format="ascii">{step}</DataArray>
-    </FieldData>
-    <Piece NumberOfPoints="{n}" NumberOfCells="{n}">
-"#,
-        time = frame.time,
-        step = frame.step,
-    );
+    let mut xml = vtu_opening(frame.time, frame.step, n);
     let sections = [
         ("PointData", r#" Scalars="radius" Vectors="velocity""#),
         ("Points", ""),
@@ -339,6 +327,21 @@ fn vtu_header(frame: &Frame, blocks: &[Block], n: usize, wide: bool) -> String {
     }
     xml += "    </Piece>\n  </UnstructuredGrid>\n  <AppendedData encoding=\"raw\">\n   _";
     xml
+}
+
+/// The XML of a `.vtu` of `n` vertices at `time` and `step` up to its `<Piece>`'s first section.
+pub(super) fn vtu_opening(time: f64, step: u64, n: usize) -> String {
+    format!(
+        r#"<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">
+  <UnstructuredGrid>
+    <FieldData>
+      <DataArray type="Float64" Name="TimeValue" NumberOfTuples="1" format="ascii">{time}</DataArray>
+      <DataArray type="UInt64" Name="step" NumberOfTuples="1" format="ascii">{step}</DataArray>
+    </FieldData>
+    <Piece NumberOfPoints="{n}" NumberOfCells="{n}">
+"#
+    )
 }
 
 /// Writes the data of one block (its length header is already out).
