@@ -6,7 +6,7 @@
 //! run's clumps, `Int32`); and their ParaView collection, `clumps.pvd`, listing them as
 //! `series.pvd` lists the frames.
 
-use super::frames::vtu_opening;
+use super::vtu_write::vtu_opening;
 use super::write_atomically;
 use crate::clump::ClumpSet;
 use crate::error::Result;

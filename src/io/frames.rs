@@ -28,6 +28,7 @@
 //! index either whole or as it was, and a frame is always written before the index that names it.
 
 use super::clump_frames::{CLUMPS_INDEX, clump_frame_name, write_clumps_vtu};
+use super::vtu_write::vtu_opening;
 use super::{collection, io_error, parse_error, write_atomically};
 use crate::clump::ClumpSet;
 use crate::error::{Error, Result};
@@ -327,21 +328,6 @@ fn vtu_header(frame: &Frame, blocks: &[Block], n: usize, wide: bool) -> String {
     }
     xml += "    </Piece>\n  </UnstructuredGrid>\n  <AppendedData encoding=\"raw\">\n   _";
     xml
-}
-
-/// The XML of a `.vtu` of `n` vertices at `time` and `step` up to its `<Piece>`'s first section.
-pub(super) fn vtu_opening(time: f64, step: u64, n: usize) -> String {
-    format!(
-        r#"<?xml version="1.0"?>
-<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">
-  <UnstructuredGrid>
-    <FieldData>
-      <DataArray type="Float64" Name="TimeValue" NumberOfTuples="1" format="ascii">{time}</DataArray>
-      <DataArray type="UInt64" Name="step" NumberOfTuples="1" format="ascii">{step}</DataArray>
-    </FieldData>
-    <Piece NumberOfPoints="{n}" NumberOfCells="{n}">
-"#
-    )
 }
 
 /// Writes the data of one block (its length header is already out).

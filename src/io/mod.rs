@@ -21,6 +21,7 @@ mod run_folder;
 mod spheres;
 mod vtk_arrays;
 mod vtu_read;
+mod vtu_write;
 mod walls;
 
 pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};
