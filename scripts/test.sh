@@ -82,6 +82,11 @@ if [ ! -e "$nvrtc_dir/nvidia/cu13/lib/libnvrtc.so.13" ]; then
 fi
 export LD_LIBRARY_PATH="$nvrtc_dir/nvidia/cu13/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 
+# lavapipe runs each dispatch in the submitting thread rather than waking a pool of its own: the
+# tests' scenes are small, their dispatches many, and the test harness already runs one test per
+# core (no effect on a real GPU's driver).
+export LP_NUM_THREADS="${LP_NUM_THREADS:-0}"
+
 # A clean clone gains nothing from incremental caches, which would double the debug build's size.
 if [ "${CI:-}" = true ]; then
     export CARGO_INCREMENTAL=0
