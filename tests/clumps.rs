@@ -1135,6 +1135,82 @@ fn a_clump_file_places_each_clump_of_its_template_where_its_row_says() {
 }
 
 #[test]
+fn a_clump_table_gives_its_spheres_material_and_may_give_its_mass_and_inertia() {
+    use mochi::dem::clump_spec::{ClumpConfig, ClumpMaker};
+    use mochi::dem::material_spec::MaterialConfig;
+    use mochi::dem::scene::{Overrides, SceneConfig};
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("clumps.csv");
+    // A bean at rest, unturned, and a rod of three.
+    std::fs::write(
+        &input,
+        format!(
+            "{}\n0.05,0.05,0.02,1,0,0,0,0,0,0,0,0,0,bean\n\
+             0.03,0.04,0.01,1,0,0,0,0,0,0,0,0,0,rod 3\n",
+            mochi::io::CLUMP_HEADER
+        ),
+    )
+    .unwrap();
+    let materials = "[[materials]]\nname = \"glass\"\ndensity = 2500\n\
+                     [[materials]]\nname = \"steel\"\ndensity = 7800\n";
+    // The bean's own mass and inertia: the tensor's principal moments 2, 4 and 5 (×1e-11),
+    // its axes (1, −1, 0), (1, 1, 0) and z; of steel. The rod of the first material.
+    let bean = "[[clump]]\nname = \"bean\"\nspheres = [[0.001, 0, 0, 0.001], [0.0022, 0, 0, 0.0008]]\n\
+                mass = 2e-5\ninertia = [3e-11, 3e-11, 5e-11, 1e-11, 0, 0]\nmaterial = \"steel\"\n";
+    let rod = "[[clump]]\nshape = \"rod\"\ncount = 3\nradius = 0.002\n";
+    let scene = format!(
+        "scene = \"input\"\ninput = {:?}\n{materials}{bean}{rod}",
+        input.to_str().unwrap()
+    );
+    let config = SceneConfig::parse(Some(&scene), None, &Overrides::default()).unwrap();
+    let p = config.build().unwrap().particles;
+    assert_eq!(p.materials, [1, 1, 0, 0, 0]);
+    let kinds = &p.clumps.kinds;
+    let inertia = kinds[0].inertia;
+    assert_eq!(inertia.mass, 2e-5);
+    let moments = inertia.moments / 1e-11;
+    assert!(
+        (moments - DVec3::new(2.0, 4.0, 5.0)).abs().max_element() < 1e-9,
+        "{moments}"
+    );
+    // In its principal frame the bean's axis (x as given) lies along (1, ±1, 0).
+    let axis = kinds[0].template.components[1].centre - kinds[0].template.components[0].centre;
+    assert!(
+        (axis.x.abs() - axis.y.abs()).abs() < 1e-12 && axis.z.abs() < 1e-12,
+        "{axis}"
+    );
+    // Placed where its row says whatever its principal frame.
+    for (k, x) in [0.051, 0.0522].into_iter().enumerate() {
+        let got = DVec3::from_array(p.exact_position(k));
+        assert!((got - DVec3::new(x, 0.05, 0.02)).length() < 1e-12, "{got}");
+    }
+    // The rod: its union's mass at the first material's density.
+    let volume = ClumpTemplate::rod(3, 0.002)
+        .unwrap()
+        .mass_properties()
+        .volume;
+    assert!((kinds[1].inertia.mass / (2500.0 * volume) - 1.0).abs() < 1e-9);
+
+    // Generated and inflowing clumps take their table's material and its density.
+    let table = ClumpConfig {
+        shape: Some("dimer".into()),
+        material: Some("steel".into()),
+        ..ClumpConfig::default()
+    };
+    let named = |name: &str| MaterialConfig {
+        name: name.into(),
+        ..MaterialConfig::default()
+    };
+    let maker = ClumpMaker::new(&[table], &[named("glass"), named("steel")]).unwrap();
+    let mut rand = mochi::dem::clump_spec::clump_stream(1);
+    let at = (DVec3::ZERO, 0.002f32, DVec3::ZERO);
+    let (kind, _, material) = maker.make(&mut rand, at, 0, &[2500.0, 7800.0]);
+    assert_eq!(material, 1);
+    let volume = kind.template.mass_properties().volume;
+    assert!((kind.inertia.mass / (7800.0 * volume) - 1.0).abs() < 1e-6);
+}
+
+#[test]
 fn a_run_of_clumps_changes_its_friction_between_steps_but_not_its_density() {
     use mochi::dem::scene::Overrides;
     use mochi::engines::{BackendChoice, Options};

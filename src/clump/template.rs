@@ -47,6 +47,21 @@ pub struct MassProperties {
     pub axes: DMat3,
 }
 
+impl MassProperties {
+    /// These properties with the inertia tensor `inertia` \[m⁵\] (at unit density, about
+    /// `centre`, in the template's frame) in place of the union's, and its principal moments
+    /// and axes: a grain whose spheres only approximate its shape keeps its own inertia.
+    pub fn with_inertia(self, inertia: DMat3) -> Self {
+        let (moments, axes) = principal(&inertia);
+        Self {
+            inertia,
+            moments,
+            axes,
+            ..self
+        }
+    }
+}
+
 /// Columns along the longer side of the bounding box's base in [`ClumpTemplate::mass_properties`].
 pub const DEFAULT_COLUMNS: usize = 600;
 

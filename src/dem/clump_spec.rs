@@ -23,12 +23,21 @@
 //! #   spacing = … (in the mesh's units; default a sixth of its bounding box's longest side)
 //! # file = "grain.csv": its spheres from a sphere file (x,y,z,r; relative to the scene file)
 //! # density = 2650: its clumps' density [kg/m³] (default: their spheres' material's)
+//! # mass = 2.1e-5, inertia = [Ixx, Iyy, Izz] or [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]: one clump's
+//! #   mass [kg] (in place of density) and inertia tensor [kg·m²] about its centre of mass, in
+//! #   place of the union's, for the shape as given in metres; a clump scaled by s has s³ times
+//! #   the mass and s⁵ times the inertia
+//! # material = "glass": its spheres' material (a [[materials]] name; default: the sphere's
+//! #   it replaces, the inflow's, or the first for a clump file's rows)
 //! ```
 
-use crate::clump::{Clump, ClumpKind, ClumpSet, ClumpTemplate, Component, RigidBody};
+use super::material_spec::{MaterialConfig, material_index};
+use crate::clump::{
+    Clump, ClumpKind, ClumpSet, ClumpTemplate, Component, MassProperties, RigidBody,
+};
 use crate::error::{Error, Result};
 use crate::particles::Particles;
-use glam::{DQuat, DVec3};
+use glam::{DMat3, DQuat, DVec3};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::{Deserialize, Serialize};
@@ -70,6 +79,21 @@ pub struct ClumpConfig {
     /// The density of its clumps \[kg/m³\] (default: their spheres' material's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub density: Option<f64>,
+    /// The mass of one clump of the shape as given (its spheres read in metres) \[kg\], in
+    /// place of `density`: the clumps' density is this over the union's volume.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass: Option<f64>,
+    /// The inertia tensor of one clump of the shape as given \[kg·m²\], about its centre of
+    /// mass in the shape's frame, in place of the union's (with `mass`): `[Ixx, Iyy, Izz]` or
+    /// `[Ixx, Iyy, Izz, Ixy, Ixz, Iyz]`, the entries of I = ∫(|r|²·1 − r rᵀ) dm (so
+    /// Ixy = −∫xy dm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inertia: Option<Vec<f64>>,
+    /// The material of its spheres, a `[[materials]]` name (default: the sphere's it
+    /// replaces, the inflow's, or the first for a clump file's rows); its density is the
+    /// clumps' unless `density` or `mass` gives theirs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<String>,
     /// How often this shape is drawn, a weight > 0 (default 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fraction: Option<f64>,
@@ -171,16 +195,81 @@ impl ClumpConfig {
         Ok(ClumpTemplate { name, ..template })
     }
 
-    /// The density of this table's clumps: its own, else `material`'s (their spheres').
-    fn density_or(&self, material: f64) -> Result<f64> {
-        match self.density {
-            None => Ok(material),
-            Some(d) if d > 0.0 && d.is_finite() => Ok(d),
-            Some(d) => Err(Error::InvalidConfig {
-                what: "scene key clump.density".into(),
-                reason: format!("must be a positive density [kg/m³], got {d}"),
-            }),
+    /// The mass properties of `template` (this table's shape) at unit density, with the
+    /// table's `inertia` in place of the union's where it gives one, and the density its
+    /// clumps have where the table sets it (`density`, or `mass` over the union's volume).
+    fn mass_properties(&self, template: &ClumpTemplate) -> Result<(MassProperties, Option<f64>)> {
+        let bad = |key: &str, reason: String| Error::InvalidConfig {
+            what: format!("scene key clump.{key}"),
+            reason,
+        };
+        let positive = |key: &str, value: f64, unit: &str| match value {
+            v if v > 0.0 && v.is_finite() => Ok(v),
+            v => Err(bad(key, format!("must be a positive {unit}, got {v}"))),
+        };
+        let m = template.mass_properties();
+        let density = match (self.density, self.mass) {
+            (Some(_), Some(_)) => {
+                return Err(bad(
+                    "mass",
+                    "gives the density as density does: give one".into(),
+                ));
+            }
+            (Some(d), None) => Some(positive("density", d, "density [kg/m³]")?),
+            (None, Some(mass)) => Some(positive("mass", mass, "mass [kg]")? / m.volume),
+            (None, None) => None,
+        };
+        let Some(given) = &self.inertia else {
+            return Ok((m, density));
+        };
+        let Some(density) = density.filter(|_| self.mass.is_some()) else {
+            return Err(bad(
+                "inertia",
+                "is a clump's of the mass given with it: give mass".into(),
+            ));
+        };
+        let tensor = match given.as_slice() {
+            &[xx, yy, zz] => DMat3::from_diagonal(DVec3::new(xx, yy, zz)),
+            &[xx, yy, zz, xy, xz, yz] => DMat3::from_cols(
+                DVec3::new(xx, xy, xz),
+                DVec3::new(xy, yy, yz),
+                DVec3::new(xz, yz, zz),
+            ),
+            other => {
+                return Err(bad(
+                    "inertia",
+                    format!(
+                        "takes [Ixx, Iyy, Izz] or [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], got {} values",
+                        other.len()
+                    ),
+                ));
+            }
+        };
+        let own = m.with_inertia(tensor * (1.0 / density));
+        // A rigid body's principal moments are positive and none exceeds the other two
+        // together (the body's mass lies off no more than two of its axes at once).
+        let [a, b, c] = own.moments.to_array();
+        let rigid = given.iter().all(|v| v.is_finite()) && a > 0.0 && c <= (a + b) * (1.0 + 1e-9);
+        if !rigid {
+            let moments = own.moments * density;
+            return Err(bad(
+                "inertia",
+                format!(
+                    "is not a rigid body's: its principal moments {:.6e}, {:.6e}, {:.6e} kg·m² \
+                     must be positive and none larger than the other two together",
+                    moments.x, moments.y, moments.z
+                ),
+            ));
         }
+        Ok((own, Some(density)))
+    }
+
+    /// The index of this table's material among the scene's `materials`, where it names one.
+    fn material_index(&self, materials: &[MaterialConfig]) -> Result<Option<u8>> {
+        self.material
+            .as_deref()
+            .map(|name| material_index(materials, name, "clump.material").map(|k| k as u8))
+            .transpose()
     }
 
     /// This table's weight among the others.
@@ -196,28 +285,35 @@ impl ClumpConfig {
 }
 
 /// The clumps of the rows of a clump file `path` (`crate::io::read_clumps`), each of the table
-/// its `template` names (a table's `name`, else its shape's) at the table's own size and its
-/// `density`, else the first material's `density`: a row places and moves its template's frame,
-/// which becomes the clump's principal frame at its centre of mass.
+/// its `template` names (a table's `name`, else its shape's) at the table's own size, of the
+/// table's material (else the first of `materials`, whose densities are `densities`) and
+/// density: a row places and moves its template's frame, which becomes the clump's principal
+/// frame at its centre of mass.
 pub fn clumps_of_rows(
     path: &std::path::Path,
     rows: &[crate::io::ClumpRow],
     tables: &[ClumpConfig],
-    density: f64,
+    materials: &[MaterialConfig],
+    densities: &[f32],
 ) -> Result<Particles> {
     let templates = tables
         .iter()
         .map(ClumpConfig::template)
         .collect::<Result<Vec<_>>>()?;
     let mut set = ClumpSet::default();
-    // Each template's centre and principal axes in its own frame, as its kind is made.
+    // Each template's centre and principal axes in its own frame, as its kind is made, and
+    // its spheres' material.
     let mut frames = Vec::new();
+    let mut kind_materials = Vec::new();
     for (t, table) in templates.iter().zip(tables) {
-        let m = t.mass_properties();
+        let (m, density) = table.mass_properties(t)?;
+        let material = table.material_index(materials)?.unwrap_or(0);
         frames.push((m.centre, DQuat::from_mat3(&m.axes)));
-        let density = table.density_or(density)?;
+        let density = density.unwrap_or(densities[material as usize] as f64);
         set.kinds.push(ClumpKind::with_properties(t, &m, density));
+        kind_materials.push(material);
     }
+    let mut materials_of_spheres = Vec::new();
     for (k, row) in rows.iter().enumerate() {
         let Some(kind) = templates.iter().position(|t| t.name == row.template) else {
             let names: Vec<String> = templates
@@ -244,8 +340,14 @@ pub fn clumps_of_rows(
             &set.kinds[kind].inertia,
         );
         set.clumps.push(Clump { kind, body });
+        let n = set.kinds[kind].template.components.len();
+        materials_of_spheres.extend(std::iter::repeat_n(kind_materials[kind], n));
     }
-    Particles::with_clumps(set, Particles::default())
+    let mut out = Particles::with_clumps(set, Particles::default())?;
+    if materials_of_spheres.iter().any(|&m| m != 0) {
+        out.materials = materials_of_spheres;
+    }
+    Ok(out)
 }
 
 /// The `gravel` scene's grains where it gives no `[[clump]]` tables: tetrahedra (0.4), trimers
@@ -264,88 +366,100 @@ pub fn gravel() -> Vec<ClumpConfig> {
     ]
 }
 
-/// A shape at unit scale, in its principal frame, with its bounding radius.
+/// A table's shape at unit scale, in its principal frame, with its bounding radius and what
+/// the table says of its clumps.
 #[derive(Debug, Clone, PartialEq)]
 struct Shape {
     /// At density 1 and the template's own size.
     kind: ClumpKind,
     /// The largest |c| + r of its components (its centre the union's).
     bound: f64,
+    /// How often it is drawn, a weight > 0.
+    weight: f64,
+    /// The table's own density, if it sets one.
+    density: Option<f64>,
+    /// The table's material, if it names one.
+    material: Option<u8>,
 }
 
 /// What makes a sphere a clump of a scene's `[[clump]]` tables: their shapes at unit scale,
-/// their weights and densities (the generated spheres' clumps, and an inflow's).
+/// their weights, densities and materials (the generated spheres' clumps, and an inflow's).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClumpMaker {
     shapes: Vec<Shape>,
-    weights: Vec<f64>,
-    /// Each table's own density, if it gives one.
-    densities: Vec<Option<f64>>,
 }
 
 impl ClumpMaker {
-    /// The maker of `tables`' clumps; refuses tables with no valid shape, weight or density.
-    pub fn new(tables: &[ClumpConfig]) -> Result<Self> {
+    /// The maker of `tables`' clumps, their materials named among `materials`; refuses tables
+    /// with no valid shape, weight, mass properties or material.
+    pub fn new(tables: &[ClumpConfig], materials: &[MaterialConfig]) -> Result<Self> {
         let shapes = tables
             .iter()
-            .map(|t| {
-                let kind = ClumpKind::new(&t.template()?, 1.0);
+            .map(|table| {
+                let template = table.template()?;
+                let (m, density) = table.mass_properties(&template)?;
+                let kind = ClumpKind::with_properties(&template, &m, 1.0);
                 let bound = kind
                     .template
                     .components
                     .iter()
                     .map(|c| c.centre.length() + c.radius)
                     .fold(0.0, f64::max);
-                Ok(Shape { kind, bound })
+                Ok(Shape {
+                    kind,
+                    bound,
+                    weight: table.weight()?,
+                    density,
+                    material: table.material_index(materials)?,
+                })
             })
             .collect::<Result<Vec<_>>>()?;
-        let weights = tables
-            .iter()
-            .map(ClumpConfig::weight)
-            .collect::<Result<Vec<_>>>()?;
-        let densities = tables
-            .iter()
-            .map(|t| t.density_or(1.0).map(|_| t.density))
-            .collect::<Result<Vec<_>>>()?;
-        Ok(Self {
-            shapes,
-            weights,
-            densities,
-        })
+        Ok(Self { shapes })
     }
 
     /// A table drawn by weight.
     fn pick(&self, rand: &mut Pcg64) -> usize {
-        let total: f64 = self.weights.iter().sum();
+        let total: f64 = self.shapes.iter().map(|s| s.weight).sum();
         let mut pick = rand.random::<f64>() * total;
-        self.weights
+        self.shapes
             .iter()
-            .position(|&w| {
-                pick -= w;
+            .position(|s| {
+                pick -= s.weight;
                 pick < 0.0
             })
-            .unwrap_or(self.weights.len() - 1)
+            .unwrap_or(self.shapes.len() - 1)
     }
 
-    /// The kind of table `shape`'s clumps in a sphere of radius `r` of a material of density
-    /// `material` \[kg/m³\] (the table's own where it gives one).
-    fn kind(&self, shape: usize, r: f32, material: f64) -> ClumpKind {
+    /// The material of table `shape`'s clumps in the place of a sphere of `material`: the
+    /// table's, where it names one.
+    fn material(&self, shape: usize, material: u8) -> u8 {
+        self.shapes[shape].material.unwrap_or(material)
+    }
+
+    /// The kind of table `shape`'s clumps in a sphere of radius `r`, of `material` (its
+    /// [`material`](Self::material)) whose density is `densities`' entry, unless the table
+    /// sets its own.
+    fn kind(&self, shape: usize, r: f32, material: u8, densities: &[f32]) -> ClumpKind {
         let s = &self.shapes[shape];
-        let density = self.densities[shape].unwrap_or(material);
+        let density = s.density.unwrap_or(densities[material as usize] as f64);
         s.kind.scaled(r as f64 / s.bound, density)
     }
 
-    /// A clump drawn by `rand` in the place of a sphere at `at` of radius `r` moving at `v`, of
-    /// a material of density `material`: its kind and its body, turned at random.
+    /// A clump drawn by `rand` in the place of a sphere at `at` of radius `r` moving at `v`,
+    /// of `material` (the materials' densities `densities`): its kind, its body, turned at
+    /// random, and its spheres' material.
     pub fn make(
         &self,
         rand: &mut Pcg64,
         (at, r, v): (DVec3, f32, DVec3),
-        material: f64,
-    ) -> (ClumpKind, RigidBody) {
-        let kind = self.kind(self.pick(rand), r, material);
+        material: u8,
+        densities: &[f32],
+    ) -> (ClumpKind, RigidBody, u8) {
+        let shape = self.pick(rand);
+        let material = self.material(shape, material);
+        let kind = self.kind(shape, r, material, densities);
         let body = RigidBody::new(at, random_turn(rand), v, DVec3::ZERO, &kind.inertia);
-        (kind, body)
+        (kind, body, material)
     }
 }
 
@@ -370,28 +484,28 @@ pub fn clump_stream(seed: u64) -> Pcg64 {
 }
 
 /// `spheres` (at rest or moving, each of a material whose density is `densities`' entry) made
-/// clumps of `tables` as the module says, turned at random by `seed`; refuses tables with no
-/// valid shape.
+/// clumps of `tables` (their materials named among `materials`) as the module says, turned at
+/// random by `seed`; refuses tables with no valid shape.
 pub fn clumps_in_place_of(
     spheres: &Particles,
     tables: &[ClumpConfig],
+    materials: &[MaterialConfig],
     densities: &[f32],
     seed: u64,
 ) -> Result<Particles> {
-    let maker = ClumpMaker::new(tables)?;
+    let maker = ClumpMaker::new(tables, materials)?;
     let mut rand = clump_stream(seed);
     let mut set = ClumpSet::default();
-    let mut kinds: HashMap<(usize, u32, u32), usize> = HashMap::new();
-    let mut materials = Vec::new();
+    let mut kinds: HashMap<(usize, u32, u8), usize> = HashMap::new();
+    let mut materials_of_spheres = Vec::new();
     for i in 0..spheres.len() {
         let shape = maker.pick(&mut rand);
         let r = spheres.radii[i];
-        let material = spheres.material(i);
+        let material = maker.material(shape, spheres.material(i) as u8);
         let kind = *kinds
             .entry((shape, r.to_bits(), material))
             .or_insert_with(|| {
-                let of_material = densities[material as usize] as f64;
-                set.kinds.push(maker.kind(shape, r, of_material));
+                set.kinds.push(maker.kind(shape, r, material, densities));
                 set.kinds.len() - 1
             });
         let orientation = random_turn(&mut rand);
@@ -401,11 +515,11 @@ pub fn clumps_in_place_of(
         let body = RigidBody::new(at, orientation, v, DVec3::ZERO, inertia);
         set.clumps.push(Clump { kind, body });
         let n = set.kinds[kind].template.components.len();
-        materials.extend(std::iter::repeat_n(material as u8, n));
+        materials_of_spheres.extend(std::iter::repeat_n(material, n));
     }
     let mut out = Particles::with_clumps(set, Particles::default())?;
-    if materials.iter().any(|&m| m != 0) {
-        out.materials = materials;
+    if materials_of_spheres.iter().any(|&m| m != 0) {
+        out.materials = materials_of_spheres;
     }
     out.step = spheres.step;
     Ok(out)

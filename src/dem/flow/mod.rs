@@ -616,13 +616,14 @@ impl FlowSet {
                 let mut rand = crate::dem::clump_spec::clump_stream(step_seed(0, 0, step.step));
                 let mut clumps = Vec::with_capacity(new.len());
                 for s in new {
-                    let density = densities[s.material as usize];
                     let at = DVec3::from_array(s.centre.map(f64::from));
                     let v = DVec3::from_array(s.velocity.map(f64::from));
-                    let (kind, body) = maker.make(&mut rand, (at, s.radius, v), density as f64);
+                    let (kind, body, material) =
+                        maker.make(&mut rand, (at, s.radius, v), s.material, densities);
                     // Counted as a clump at its mass, not as the sphere it replaces.
-                    counts.inserted_mass += kind.inertia.mass - mass(density, s.radius) as f64;
-                    clumps.push((kind, body, s.material));
+                    let sphere = mass(densities[s.material as usize], s.radius) as f64;
+                    counts.inserted_mass += kind.inertia.mass - sphere;
+                    clumps.push((kind, body, material));
                 }
                 parts.insert_clumps(clumps)?;
             }

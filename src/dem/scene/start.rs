@@ -123,8 +123,14 @@ impl SceneConfig {
             });
         }
         let rows = crate::io::read_clumps(input)?;
-        let density = self.materials()?.list[0].density;
-        crate::dem::clump_spec::clumps_of_rows(input, &rows, &self.clump, density)
+        let densities = self.densities()?;
+        crate::dem::clump_spec::clumps_of_rows(
+            input,
+            &rows,
+            &self.clump,
+            &self.materials,
+            &densities,
+        )
     }
 
     /// The generated `spheres` made clumps of the `[[clump]]` tables (`dem::clump_spec`):
@@ -138,18 +144,25 @@ impl SceneConfig {
             Source::Agglomerate(_) => return Err(self.no_clumps_of("agglomerate")),
             Source::Input(_) => return Err(self.no_clumps_of("input")),
         };
-        let densities: Vec<f32> = self
-            .materials()?
-            .list
-            .iter()
-            .map(|m| m.density as f32)
-            .collect();
+        let densities = self.densities()?;
         // The gravel scene's own mix, where it gives no tables.
         let tables = match self.clump.is_empty() {
             true => crate::dem::clump_spec::gravel(),
             false => self.clump.clone(),
         };
-        crate::dem::clump_spec::clumps_in_place_of(spheres, &tables, &densities, seed)
+        crate::dem::clump_spec::clumps_in_place_of(
+            spheres,
+            &tables,
+            &self.materials,
+            &densities,
+            seed,
+        )
+    }
+
+    /// The density of each of the scene's materials \[kg/m³\], in their order.
+    fn densities(&self) -> Result<Vec<f32>> {
+        let materials = self.materials()?;
+        Ok(materials.list.iter().map(|m| m.density as f32).collect())
     }
 
     /// The start of this scene (`input`, without its file) from `particles` given in memory:
@@ -383,7 +396,7 @@ impl SceneConfig {
             _ => self.clump.clone(),
         };
         let clumps = (!tables.is_empty() && !inflows.is_empty())
-            .then(|| crate::dem::clump_spec::ClumpMaker::new(&tables))
+            .then(|| crate::dem::clump_spec::ClumpMaker::new(&tables, &self.materials))
             .transpose()?;
         Ok(FlowSet {
             inflows,

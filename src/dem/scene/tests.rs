@@ -1148,6 +1148,31 @@ fn bad_clump_tables_are_one_clear_error() {
             "[[clump]]\nshape = \"dimer\"\ndensity = -2\n",
             "positive density",
         ),
+        (
+            "[[clump]]\nshape = \"dimer\"\ndensity = 2\nmass = 1\n",
+            "give one",
+        ),
+        ("[[clump]]\nshape = \"dimer\"\nmass = 0\n", "positive mass"),
+        (
+            "[[clump]]\nshape = \"dimer\"\ninertia = [1, 1, 1]\n",
+            "give mass",
+        ),
+        (
+            "[[clump]]\nshape = \"dimer\"\nmass = 1\ninertia = [1, 1]\n",
+            "got 2 values",
+        ),
+        (
+            "[[clump]]\nshape = \"dimer\"\nmass = 1\ninertia = [1, 1, 3]\n",
+            "not a rigid body's",
+        ),
+        (
+            "[[clump]]\nshape = \"dimer\"\nmass = 1\ninertia = [1, 1, 1, 2, 0, 0]\n",
+            "not a rigid body's",
+        ),
+        (
+            "[[clump]]\nshape = \"dimer\"\nmaterial = \"steel\"\n",
+            "no [[materials]] tables",
+        ),
     ] {
         let e = build(&format!("{freefall}{table}"));
         assert!(e.contains("clump") && e.contains(expect), "{table}: {e}");
