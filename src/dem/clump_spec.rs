@@ -100,7 +100,7 @@ pub struct ClumpConfig {
 }
 
 /// Built-in shapes' names, as errors list them.
-const SHAPES: &str = "dimer, trimer, tetrahedron, rod";
+pub(crate) const SHAPES: &str = "dimer, trimer, tetrahedron, rod";
 
 impl ClumpConfig {
     /// The template this table describes, refused where it gives no shape or two, an unknown

@@ -17,6 +17,8 @@
 //!                        # mesh, input, hopper, drum, agglomerate, gravel
 //! spheres = 4000
 //! seed = 1
+//! particle = "tetrahedron" # every grain a clump of one shape, or a mixture: particles =
+//!                        # [{ clump = "bean", fraction = 0.3 }, …] (see `particle_mix`)
 //!
 //! [domain]
 //! box_lo = [0, 0, 0]     # default: the scene's box
@@ -74,6 +76,7 @@
 //! which files written before the tables keep using.
 
 mod overrides;
+mod particle_mix;
 mod short_forms;
 mod source;
 mod start;
@@ -620,6 +623,7 @@ impl SceneConfig {
     /// (so that errors quote the file's own line), else from the table itself (short forms,
     /// flags or overrides changed it: an error names the key, and its short form).
     fn read(table: &toml::Table, text: Option<&str>, origin: Option<&Path>) -> Result<Self> {
+        let table = &particle_mix::into_clump_tables(table.clone())?;
         let refused = |msg: String| Error::Parse {
             path: origin_of(origin),
             line: None,

@@ -7,9 +7,11 @@
 use crate::error::{Error, Result};
 
 /// Each short form, with the table and the key of that table it stands for.
-pub const SHORT_FORMS: [(&str, &str, &str); 48] = [
+pub const SHORT_FORMS: [(&str, &str, &str); 50] = [
     ("scene", "source", "scene"),
     ("spheres", "source", "spheres"),
+    ("particle", "source", "particle"),
+    ("particles", "source", "particles"),
     ("seed", "source", "seed"),
     ("input", "source", "input"),
     ("mesh", "source", "mesh"),

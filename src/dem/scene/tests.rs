@@ -1065,6 +1065,83 @@ fn clump_tables_make_the_generated_spheres_clumps_of_their_shapes() {
 }
 
 #[test]
+fn a_source_names_its_grains_by_particle_or_a_mixture_by_particles() {
+    let build = |text: &str| {
+        SceneConfig::parse(Some(text), None, &Overrides::default()).and_then(|c| c.build())
+    };
+    let clumps = |text: &str| build(text).unwrap().particles.clumps;
+    let source = "scene = \"freefall\"\nspheres = 200\nseed = 3\n";
+    let bean = "[[clump]]\nname = \"bean\"\nspheres = [[0, 0, 0, 1], [1.2, 0, 0, 0.8]]\n";
+    // A built-in shape needs no table.
+    let tetrahedra = clumps(&format!("{source}particle = \"tetrahedron\"\n"));
+    let tables = format!("{source}[[clump]]\nshape = \"tetrahedron\"\n");
+    assert_eq!(tetrahedra, clumps(&tables));
+    // A mixture is the tables it names with its fractions, in its order; a table it does not
+    // name is not drawn.
+    let rod = "[[clump]]\nshape = \"rod\"\ncount = 3\n";
+    let mixed = clumps(&format!(
+        "[source]\n{source}particles = [{{ clump = \"bean\", fraction = 0.3 }}, \
+         {{ clump = \"dimer\", fraction = 0.7 }}]\n{rod}{bean}"
+    ));
+    let weighted = clumps(&format!(
+        "{source}{bean}fraction = 0.3\n[[clump]]\nshape = \"dimer\"\nfraction = 0.7\n"
+    ));
+    assert_eq!(mixed, weighted);
+    let names: std::collections::HashSet<_> = mixed
+        .kinds
+        .iter()
+        .map(|k| k.template.name.as_str())
+        .collect();
+    assert_eq!(names, ["bean", "dimer"].into_iter().collect());
+    // A rod of three is named as its table makes it; its flat key is the source's.
+    let rods = clumps(&format!("{source}particle = \"rod 3\"\n{rod}{bean}"));
+    assert!(rods.kinds.iter().all(|k| k.template.components.len() == 3));
+    // Refused, each with one error naming the key.
+    for (extra, expect) in [
+        (
+            "particle = \"dimer\"\nparticles = [{ clump = \"dimer\" }]\n".to_string(),
+            "give one",
+        ),
+        (
+            format!("particle = \"pebble\"\n{bean}"),
+            "\"pebble\": not one of the [[clump]] tables (\"bean\")",
+        ),
+        ("particle = \"pebble\"\n".into(), "no [[clump]] tables"),
+        ("particle = 3\n".into(), "must be the name"),
+        (
+            format!("particles = [{{ clump = \"bean\", fraction = 1 }}]\n{bean}fraction = 2\n"),
+            "in one place",
+        ),
+        (
+            "particles = [{ clump = \"dimer\" }, { clump = \"dimer\" }]\n".into(),
+            "twice",
+        ),
+        (
+            "particles = [{ shape = \"dimer\" }]\n".into(),
+            "takes entries",
+        ),
+        (
+            "particles = [{ clump = \"dimer\", fraction = -1 }]\n".into(),
+            "positive weight",
+        ),
+    ] {
+        let e = build(&format!("{source}{extra}"))
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(expect), "{extra}: {e}");
+    }
+    let e = build("scene = \"input\"\ninput = \"clumps.csv\"\nparticle = \"dimer\"\n")
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("source.particles") && e.contains("file's rows"),
+        "{e}"
+    );
+}
+
+#[test]
 fn a_clump_table_takes_its_spheres_from_a_file_and_may_give_its_density() {
     let dir = tempfile::tempdir().unwrap();
     // A bean's two spheres, as the `spheres` key of the test above gives them.
