@@ -45,6 +45,7 @@
 pub mod clump;
 pub mod dem;
 mod detect;
+pub mod distributed;
 pub mod engines;
 mod error;
 pub mod gpu;

@@ -159,8 +159,18 @@ impl CpuStepper {
         if flow.is_empty() {
             return self;
         }
-        let (_, r_max) = self.particles.radius_range();
-        let r_max = r_max.max(flow.largest_radius());
+        let r_max = flow.largest_radius();
+        let counted = flow.counted;
+        self.flow = Some((flow, counted));
+        self.sized_for(r_max, mode)
+    }
+
+    /// This stepper with its cells and its reach sized for spheres up to `r_max` as well as
+    /// its own (`mode` sizes the cells): a part of a run stepped apart bins on the lattice of
+    /// the whole, whose largest sphere it may not hold.
+    pub(crate) fn sized_for(mut self, r_max: f32, mode: ProxyMode) -> Self {
+        let (_, own) = self.particles.radius_range();
+        let r_max = r_max.max(own);
         self.margin = self.params.reach_margin(r_max);
         let cell_size = mode.cell_size(r_max) + self.margin;
         if cell_size > self.cell_size {
@@ -171,8 +181,6 @@ impl CpuStepper {
                 self.params.box_hi.map(|x| x + margin),
             );
         }
-        let counted = flow.counted;
-        self.flow = Some((flow, counted));
         self
     }
 
@@ -222,15 +230,24 @@ impl CpuStepper {
         Ok(self)
     }
 
-    /// Bins the spheres: a step's first phase.
+    /// Bins the spheres, on the lattice of cells anchored at the box's corner: a step's first
+    /// phase. Each sphere meets its neighbours in an order that the spheres' places and
+    /// their order in the input alone decide (not the bounds of the others), so a part of the
+    /// spheres stepped apart, in the same order, sums each force as the whole does.
     fn bin(&mut self) -> Result<()> {
         let parts = &self.particles;
-        let (lo, hi) = match center_bounds(&parts.positions) {
+        let bounds = match center_bounds(&parts.positions) {
             Ok(Some(bounds)) => bounds,
             _ => self.region,
         };
-        self.grid
-            .bin_within(&parts.positions, &parts.radii, lo, hi, self.cell_size)
+        let anchor = self.params.box_lo.map(f64::from);
+        self.grid.bin_within(
+            &parts.positions,
+            &parts.radii,
+            bounds,
+            anchor,
+            self.cell_size,
+        )
     }
 
     /// Resolves the spheres' mesh-wall contacts, before their other contacts.

@@ -63,29 +63,39 @@ impl SortedGrid {
     pub fn bin(&mut self, spheres: Spheres<'_>, cell_size: f32) -> Result<()> {
         match spheres.bounds() {
             Some((lo, hi)) => {
-                self.bin_within(spheres.centers(), spheres.radii(), lo, hi, cell_size)
+                let anchor = lo.map(f64::from);
+                self.bin_within(
+                    spheres.centers(),
+                    spheres.radii(),
+                    (lo, hi),
+                    anchor,
+                    cell_size,
+                )
             }
-            None => self.bin_within(&[], &[], [0.0; 3], [0.0; 3], cell_size),
+            None => self.bin_within(&[], &[], ([0.0; 3], [0.0; 3]), [0.0; 3], cell_size),
         }
     }
 
     /// Bins spheres whose centres lie within `lo..=hi` (finite; centres outside are clamped to
-    /// the nearest cell, which keeps the search exact, only slower). Every allocation is
-    /// fallible, as for [`Self::bin`].
+    /// the nearest cell, which keeps the search exact, only slower) into the cells of a lattice
+    /// with a corner at `anchor`: a sphere's cell is a function of its centre, the anchor and
+    /// the cell size alone, whatever the bounds (so the order in which a sphere meets its
+    /// neighbours is too, while the lattice has fewer than 2²¹ cells along each axis). Every
+    /// allocation is fallible, as for [`Self::bin`].
     pub fn bin_within(
         &mut self,
         centers: &[[f32; 3]],
         radii: &[f32],
-        lo: [f32; 3],
-        hi: [f32; 3],
+        (lo, hi): ([f32; 3], [f32; 3]),
+        anchor: [f64; 3],
         cell_size: f32,
     ) -> Result<()> {
-        let cells = cell_layout(lo, hi, cell_size);
+        let cells = cell_layout(lo, hi, anchor, cell_size);
         let [nx, ny] = [cells.counts[0] + 2, cells.counts[1] + 2];
         self.dims = [nx, ny];
 
         let all_cells = nx * ny * (cells.counts[2] + 2);
-        let key = |c: &[f32; 3]| cells.key(c, lo, nx, ny);
+        let key = |c: &[f32; 3]| cells.key(c, nx, ny);
         match all_cells <= DENSE_CELLS_PER_SPHERE * (centers.len() as u64).max(1) {
             true => self.sort_by_counting(centers, radii, all_cells as usize, key),
             false => self.sort_by_radix(centers, radii, key),
@@ -307,33 +317,42 @@ fn split_by<'a, T>(all: &'a mut [T], sizes: &[usize]) -> Vec<&'a mut [T]> {
         .collect()
 }
 
-/// Cell size and counts for centres within `lo..=hi`.
+/// The cells of a lattice that cover centres within `lo..=hi`.
 struct CellLayout {
     inv_size: f64,
+    /// The lattice's corner.
+    anchor: [f64; 3],
+    /// The lattice cell of the first cell along each axis.
+    first: [i64; 3],
     /// Occupied-range cells per axis (margin excluded).
     counts: [u64; 3],
 }
 
 impl CellLayout {
     #[inline(always)]
-    fn key(&self, c: &[f32; 3], lo: [f32; 3], nx: u64, ny: u64) -> u64 {
+    fn key(&self, c: &[f32; 3], nx: u64, ny: u64) -> u64 {
         let cell = |a: usize| {
-            let u = (c[a] as f64 - lo[a] as f64) * self.inv_size;
-            (u as i64).clamp(0, self.counts[a] as i64 - 1) as u64 + 1
+            let u = ((c[a] as f64 - self.anchor[a]) * self.inv_size).floor() as i64;
+            (u - self.first[a]).clamp(0, self.counts[a] as i64 - 1) as u64 + 1
         };
         cell(0) + nx * (cell(1) + ny * cell(2))
     }
 }
 
-fn cell_layout(lo: [f32; 3], hi: [f32; 3], cell_size: f32) -> CellLayout {
+fn cell_layout(lo: [f32; 3], hi: [f32; 3], anchor: [f64; 3], cell_size: f32) -> CellLayout {
     let extent = std::array::from_fn::<f64, 3, _>(|a| hi[a] as f64 - lo[a] as f64);
     let widest = extent.iter().copied().fold(0.0, f64::max);
     let mut size = cell_size as f64 * (1.0 + CELL_PADDING);
     // Larger cells stay exact (only slower); they keep the keys within 63 bits.
-    size = size.max(widest / (MAX_AXIS_CELLS - 3) as f64);
-    let counts = std::array::from_fn(|a| (extent[a] / size) as u64 + 1);
+    size = size.max(widest / (MAX_AXIS_CELLS - 4) as f64);
+    let inv_size = 1.0 / size;
+    let lattice = |x: f32, a: usize| ((x as f64 - anchor[a]) * inv_size).floor() as i64;
+    let first = std::array::from_fn(|a| lattice(lo[a], a));
+    let counts = std::array::from_fn(|a| (lattice(hi[a], a) - first[a]).max(0) as u64 + 1);
     CellLayout {
-        inv_size: 1.0 / size,
+        inv_size,
+        anchor,
+        first,
         counts,
     }
 }
@@ -374,7 +393,9 @@ pub(crate) mod tests {
         let (centers, radii) = random_set(n, 99, 20.0, 0.2..0.5);
         let (lo, hi) = ([0.0; 3], [20.0; 3]);
         let mut counted = SortedGrid::default();
-        counted.bin_within(&centers, &radii, lo, hi, 1.0).unwrap();
+        counted
+            .bin_within(&centers, &radii, (lo, hi), [-0.3, 0.1, 0.7], 1.0)
+            .unwrap();
         assert!(
             !counted.starts.is_empty(),
             "a dense layout is sorted by counting"
@@ -382,9 +403,9 @@ pub(crate) mod tests {
         assert!(n > 2 * MIN_PIECE, "several pieces");
 
         // The reference: a stable comparison sort of (key, input index) by key.
-        let cells = cell_layout(lo, hi, 1.0);
+        let cells = cell_layout(lo, hi, [-0.3, 0.1, 0.7], 1.0);
         let [nx, ny] = counted.dims;
-        let key = |c: &[f32; 3]| cells.key(c, lo, nx, ny);
+        let key = |c: &[f32; 3]| cells.key(c, nx, ny);
         let mut expected: Vec<(u64, u32)> = (0..n).map(|i| (key(&centers[i]), i as u32)).collect();
         expected.sort_by_key(|e| e.0);
         let keys: Vec<u64> = expected.iter().map(|e| e.0).collect();

@@ -1,0 +1,13 @@
+//! A run decomposed over ranks: the box cut into slabs ([`Slabs`]), one a rank, each rank
+//! stepping the spheres of its slab with the ghosts of its neighbours' ([`RankStepper`]), the
+//! ranks joined by a communicator ([`Comm`]: threads of one process, [`LocalComm`]). On the
+//! cpu backend a decomposed run is the whole run bit for bit, on any number of ranks: every
+//! sphere sums its contacts in an order that its place and the spheres' ids alone decide.
+
+mod comm;
+mod rank;
+mod slabs;
+
+pub use comm::{Comm, LocalComm};
+pub use rank::RankStepper;
+pub use slabs::Slabs;

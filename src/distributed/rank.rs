@@ -1,0 +1,364 @@
+//! One rank of a decomposed run on the cpu backend. It holds the spheres whose centres lie in
+//! its slab (in the order of their ids in the whole run, their contact history naming partners
+//! by id) and takes each step as
+//!
+//! 1. **ghosts**: every rank sends each other rank the spheres within the halo of its slab (a
+//!    cell of the whole run's lattice: the reach of any pair);
+//! 2. **step**: its own spheres and the ghosts, merged in the order of their ids, take one step
+//!    of the cpu engine on the lattice of the whole run; each sphere sums its own contacts
+//!    (the engine's full-neighbourhood gather, in an order its place and the ids decide), so
+//!    an own sphere's force is the one the whole run gives it, bit for bit; the ghosts' new
+//!    states are dropped (their owners have them);
+//! 3. **migration**: a sphere whose centre left the slab goes to the rank that owns it now,
+//!    with its contact history.
+//!
+//! Each pair is computed on both of its sides (the engine does so in any run), so no force
+//! crosses ranks: only states do.
+
+use super::comm::Comm;
+use super::slabs::Slabs;
+use crate::dem::StepParams;
+use crate::dem::stepper::Stepper;
+use crate::dem::walls::WallSet;
+use crate::engines::DemSetup;
+use crate::engines::cpu::CpuStepper;
+use crate::error::{Error, Result};
+use crate::particles::{ContactHistory, FIRST_MESH_WALL, HistoryEntry, Particles};
+use crate::proxy::ProxyMode;
+
+/// A sphere as a rank sends it: its id in the whole run and its state, followed in a message
+/// by `contacts` history entries (a migrating sphere's; none for a ghost).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+struct SphereRecord {
+    id: u32,
+    material: u32,
+    radius: f32,
+    position: [f32; 3],
+    residual: [f32; 3],
+    velocity: [f32; 3],
+    spin: [f32; 3],
+    contacts: u32,
+}
+
+/// A sphere a rank owns: its state and its contacts (partners by id).
+#[derive(Debug, Clone)]
+struct Held {
+    sphere: SphereRecord,
+    contacts: Vec<HistoryEntry>,
+}
+
+impl Held {
+    /// Where its centre is, in `f64`.
+    fn exact_position(&self) -> [f64; 3] {
+        let s = &self.sphere;
+        std::array::from_fn(|a| crate::particles::position::join(s.position[a], s.residual[a]))
+    }
+}
+
+/// One rank's part of a run on the cpu backend, decomposed into slabs.
+pub struct RankStepper<C: Comm> {
+    comm: C,
+    slabs: Slabs,
+    params: StepParams,
+    mode: ProxyMode,
+    walls: WallSet,
+    /// The largest sphere of the whole run: every rank bins on the lattice its cells make.
+    r_max: f32,
+    /// How far beyond its slab a rank holds spheres as ghosts \[m\].
+    halo: f64,
+    /// This rank's spheres, by ascending id.
+    own: Vec<Held>,
+    /// Steps taken since t = 0.
+    step: u64,
+}
+
+impl<C: Comm> RankStepper<C> {
+    /// This rank's part of `setup` (the whole run's start, which every rank is given): the
+    /// spheres in its slab of the box cut into `comm.size()` slabs along its longest axis.
+    /// Refuses what the decomposition does not carry yet: clumps, inflows and outflows, the
+    /// Mindlin–Deresiewicz load history.
+    pub fn new(comm: C, setup: &DemSetup) -> Result<Self> {
+        let DemSetup {
+            particles: whole,
+            params,
+            mode,
+            walls,
+        } = setup;
+        let refused = |what: &str| {
+            Err(Error::Usage(format!(
+                "a run decomposed over ranks does not carry {what} yet"
+            )))
+        };
+        if whole.clumps.component_count() > 0 {
+            return refused("clumps");
+        }
+        if params.friction.keeps_load() {
+            return refused("the Mindlin–Deresiewicz load history");
+        }
+        whole.validate()?;
+        let lo = params.box_lo.map(f64::from);
+        let hi = params.box_hi.map(f64::from);
+        let slabs = Slabs::along_longest(lo, hi, comm.size())?;
+        let (_, r_max) = whole.radius_range();
+        // A cell of the whole run's lattice reaches as far as any pair does; the pad covers
+        // the f32 rounding of the centres the narrow phase compares.
+        let cell = mode.cell_size(r_max) + params.reach_margin(r_max);
+        let far = lo.iter().chain(&hi).fold(0.0f64, |m, x| m.max(x.abs()));
+        let halo = cell as f64 * (1.0 + 1e-4) + 1e-6 * far;
+        let mut own = Vec::new();
+        for i in 0..whole.len() {
+            if slabs.owner(whole.exact_position(i)) == comm.rank() {
+                own.push(Held {
+                    sphere: record_of(whole, i, i as u32),
+                    contacts: whole.history.of(i).to_vec(),
+                });
+            }
+        }
+        Ok(Self {
+            comm,
+            slabs,
+            params: params.clone(),
+            mode: *mode,
+            walls: walls.clone(),
+            r_max,
+            halo,
+            own,
+            step: whole.step,
+        })
+    }
+
+    /// The spheres this rank owns now.
+    pub fn own_spheres(&self) -> usize {
+        self.own.len()
+    }
+
+    /// Takes `steps` steps (every rank of the group together).
+    pub fn advance(&mut self, steps: u32) -> Result<()> {
+        for _ in 0..steps {
+            self.take_step()?;
+        }
+        Ok(())
+    }
+
+    /// One step: ghosts, the step, migration (the module's three phases).
+    fn take_step(&mut self) -> Result<()> {
+        let ranks = self.comm.size();
+        let mut outgoing = vec![Vec::new(); ranks];
+        for held in &self.own {
+            let x = held.exact_position();
+            let owner = self.comm.rank();
+            for r in self.slabs.ghost_ranks(x, owner, self.halo) {
+                put(&mut outgoing[r], &held.sphere, &[]);
+            }
+        }
+        let mut ghosts = Vec::new();
+        for message in self.comm.exchange(outgoing)? {
+            ghosts.extend(read(&message)?.into_iter().map(|h| h.sphere));
+        }
+        ghosts.sort_by_key(|s| s.id);
+
+        let (local, ids, own_at) = self.merged(&ghosts)?;
+        let setup = DemSetup {
+            particles: local,
+            params: self.params.clone(),
+            mode: self.mode,
+            walls: self.walls.clone(),
+        };
+        let mut stepper = CpuStepper::open(setup)?.sized_for(self.r_max, self.mode);
+        stepper.advance(1)?;
+        let after = stepper.particles()?;
+        self.step = after.step;
+
+        let n = ids.len() as u32;
+        let by_id = |e: &HistoryEntry| HistoryEntry {
+            partner: match e.partner < n {
+                true => ids[e.partner as usize],
+                false => e.partner,
+            },
+            ..*e
+        };
+        let mut outgoing = vec![Vec::new(); ranks];
+        let mut staying = Vec::with_capacity(self.own.len());
+        for &at in &own_at {
+            let held = Held {
+                sphere: record_of(&after, at, ids[at]),
+                contacts: after.history.of(at).iter().map(by_id).collect(),
+            };
+            match self.slabs.owner(held.exact_position()) {
+                r if r == self.comm.rank() => staying.push(held),
+                r => put(&mut outgoing[r], &held.sphere, &held.contacts),
+            }
+        }
+        for message in self.comm.exchange(outgoing)? {
+            staying.extend(read(&message)?);
+        }
+        staying.sort_by_key(|h| h.sphere.id);
+        self.own = staying;
+        Ok(())
+    }
+
+    /// This rank's spheres and `ghosts` (by ascending id) merged in the order of their ids, as
+    /// one set of spheres whose history names partners by their place in it; with the id of
+    /// each sphere of it and the places of the own ones.
+    fn merged(&self, ghosts: &[SphereRecord]) -> Result<(Particles, Vec<u32>, Vec<usize>)> {
+        let n = self.own.len() + ghosts.len();
+        let mut spheres: Vec<(&SphereRecord, Option<&Held>)> = Vec::with_capacity(n);
+        let (mut a, mut b) = (0, 0);
+        while a < self.own.len() || b < ghosts.len() {
+            let own_first =
+                b == ghosts.len() || (a < self.own.len() && self.own[a].sphere.id < ghosts[b].id);
+            match own_first {
+                true => {
+                    spheres.push((&self.own[a].sphere, Some(&self.own[a])));
+                    a += 1;
+                }
+                false => {
+                    spheres.push((&ghosts[b], None));
+                    b += 1;
+                }
+            }
+        }
+        let ids: Vec<u32> = spheres.iter().map(|(s, _)| s.id).collect();
+        if ids.windows(2).any(|w| w[0] == w[1]) {
+            return Err(Error::Usage(
+                "a sphere is both owned and a ghost here".into(),
+            ));
+        }
+        let mut local = Particles {
+            positions: spheres.iter().map(|(s, _)| s.position).collect(),
+            position_residuals: spheres.iter().map(|(s, _)| s.residual).collect(),
+            velocities: spheres.iter().map(|(s, _)| s.velocity).collect(),
+            angular_velocities: spheres.iter().map(|(s, _)| s.spin).collect(),
+            radii: spheres.iter().map(|(s, _)| s.radius).collect(),
+            materials: spheres.iter().map(|(s, _)| s.material as u8).collect(),
+            step: self.step,
+            ..Particles::default()
+        };
+        if local.materials.iter().all(|&m| m == 0) {
+            local.materials.clear();
+        }
+        // The own spheres' contacts, partners by place; a partner sphere beyond the ghosts
+        // is beyond reach (the step would drop it).
+        let mut contacts = Vec::new();
+        let mut own_at = Vec::with_capacity(self.own.len());
+        for (at, (_, held)) in spheres.iter().enumerate() {
+            let Some(held) = held else { continue };
+            own_at.push(at);
+            for e in &held.contacts {
+                let partner = match e.partner >= FIRST_MESH_WALL {
+                    true => Some(e.partner),
+                    false => ids.binary_search(&e.partner).ok().map(|k| k as u32),
+                };
+                if let Some(partner) = partner {
+                    contacts.push((at as u32, HistoryEntry { partner, ..*e }));
+                }
+            }
+        }
+        if self.params.friction.has_history() {
+            local.history = ContactHistory::from_contacts(n, &contacts)?;
+        }
+        Ok((local, ids, own_at))
+    }
+
+    /// The whole run's spheres, on rank 0 (`None` on the others): every rank sends its own.
+    pub fn gather(&self) -> Result<Option<Particles>> {
+        let mut outgoing = vec![Vec::new(); self.comm.size()];
+        for held in &self.own {
+            put(&mut outgoing[0], &held.sphere, &held.contacts);
+        }
+        let received = self.comm.exchange(outgoing)?;
+        if self.comm.rank() != 0 {
+            return Ok(None);
+        }
+        let mut all = Vec::new();
+        for message in &received {
+            all.extend(read(message)?);
+        }
+        all.sort_by_key(|h| h.sphere.id);
+        if all
+            .iter()
+            .enumerate()
+            .any(|(k, h)| h.sphere.id as usize != k)
+        {
+            return Err(Error::Usage("the ranks' spheres are not the run's".into()));
+        }
+        let mut whole = Particles {
+            positions: all.iter().map(|h| h.sphere.position).collect(),
+            position_residuals: all.iter().map(|h| h.sphere.residual).collect(),
+            velocities: all.iter().map(|h| h.sphere.velocity).collect(),
+            angular_velocities: all.iter().map(|h| h.sphere.spin).collect(),
+            radii: all.iter().map(|h| h.sphere.radius).collect(),
+            materials: all.iter().map(|h| h.sphere.material as u8).collect(),
+            step: self.step,
+            ..Particles::default()
+        };
+        if whole.materials.iter().all(|&m| m == 0) {
+            whole.materials.clear();
+        }
+        let contacts: Vec<(u32, HistoryEntry)> = all
+            .iter()
+            .flat_map(|h| h.contacts.iter().map(move |&e| (h.sphere.id, e)))
+            .collect();
+        if self.params.friction.has_history() {
+            whole.history = ContactHistory::from_contacts(all.len(), &contacts)?;
+        }
+        Ok(Some(whole))
+    }
+}
+
+/// Sphere `i` of `p` as a record of id `id` (no contacts counted yet).
+fn record_of(p: &Particles, i: usize, id: u32) -> SphereRecord {
+    SphereRecord {
+        id,
+        material: p.material(i),
+        radius: p.radii[i],
+        position: p.positions[i],
+        residual: p.residual(i),
+        velocity: p.velocities[i],
+        spin: p.angular_velocities[i],
+        contacts: 0,
+    }
+}
+
+/// Appends `sphere` and its `contacts` to `message`.
+fn put(message: &mut Vec<u8>, sphere: &SphereRecord, contacts: &[HistoryEntry]) {
+    let record = SphereRecord {
+        contacts: contacts.len() as u32,
+        ..*sphere
+    };
+    message.extend_from_slice(bytemuck::bytes_of(&record));
+    message.extend_from_slice(bytemuck::cast_slice(contacts));
+}
+
+/// The spheres of a message [`put`] wrote.
+fn read(message: &[u8]) -> Result<Vec<Held>> {
+    let mut out = Vec::new();
+    let mut rest = message;
+    let cut = |rest: &mut &[u8], bytes: usize| -> Result<Vec<u8>> {
+        if rest.len() < bytes {
+            return Err(Error::Usage("a rank's message ends inside a sphere".into()));
+        }
+        let (head, tail) = rest.split_at(bytes);
+        *rest = tail;
+        Ok(head.to_vec())
+    };
+    while !rest.is_empty() {
+        let head = cut(&mut rest, std::mem::size_of::<SphereRecord>())?;
+        let sphere: SphereRecord = bytemuck::pod_read_unaligned(&head);
+        let entry = std::mem::size_of::<HistoryEntry>();
+        let body = cut(&mut rest, sphere.contacts as usize * entry)?;
+        let contacts = body
+            .chunks_exact(entry)
+            .map(bytemuck::pod_read_unaligned)
+            .collect();
+        out.push(Held {
+            sphere: SphereRecord {
+                contacts: 0,
+                ..sphere
+            },
+            contacts,
+        });
+    }
+    Ok(out)
+}

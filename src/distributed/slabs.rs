@@ -1,0 +1,104 @@
+//! The box cut into slabs along its longest axis, one a rank: which rank owns a sphere (the
+//! slab its centre lies in) and which others hold it as a ghost (those whose slab lies within
+//! the halo of its centre).
+
+use crate::error::{Error, Result};
+
+/// Slabs of equal width along one axis of the box.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Slabs {
+    /// The axis they are cut along (0, 1, 2: x, y, z).
+    pub axis: usize,
+    /// The faces along the axis, from the box's low side to its high side: slab r lies
+    /// between faces r and r + 1.
+    pub faces: Vec<f64>,
+}
+
+impl Slabs {
+    /// `ranks` slabs of equal width along the longest axis of the box `lo..hi` (the first
+    /// such axis where two are as long).
+    pub fn along_longest(lo: [f64; 3], hi: [f64; 3], ranks: usize) -> Result<Self> {
+        let cut = lo.iter().zip(&hi).all(|(l, h)| l < h);
+        if ranks == 0 || !cut {
+            return Err(Error::Usage(format!(
+                "cannot cut the box {lo:?}..{hi:?} into {ranks} slabs"
+            )));
+        }
+        let axis = (0..3).fold(0, |a, b| if hi[b] - lo[b] > hi[a] - lo[a] { b } else { a });
+        let width = (hi[axis] - lo[axis]) / ranks as f64;
+        let faces = (0..=ranks)
+            .map(|k| match k == ranks {
+                true => hi[axis],
+                false => lo[axis] + width * k as f64,
+            })
+            .collect();
+        Ok(Self { axis, faces })
+    }
+
+    /// The slabs (ranks).
+    pub fn ranks(&self) -> usize {
+        self.faces.len() - 1
+    }
+
+    /// The rank whose slab holds `x` (a centre beyond the box: the nearest slab's; one on a
+    /// face: the slab above it).
+    pub fn owner(&self, x: [f64; 3]) -> usize {
+        let along = x[self.axis];
+        // Faces 1..ranks are the inner ones: the owner is how many of them lie at or below.
+        let inner = &self.faces[1..self.ranks()];
+        inner.partition_point(|&face| face <= along)
+    }
+
+    /// The ranks other than `owner` whose slab lies within `halo` of `x` along the axis (the
+    /// ranks that hold the sphere at `x` as a ghost), in order.
+    pub fn ghost_ranks(&self, x: [f64; 3], owner: usize, halo: f64) -> impl Iterator<Item = usize> {
+        let along = x[self.axis];
+        let last = self.ranks() - 1;
+        (0..self.ranks()).filter(move |&r| {
+            // The outer slabs reach beyond the box: their sides there are open.
+            let below = if r == 0 {
+                f64::NEG_INFINITY
+            } else {
+                self.faces[r]
+            };
+            let above = if r == last {
+                f64::INFINITY
+            } else {
+                self.faces[r + 1]
+            };
+            r != owner && along >= below - halo && along <= above + halo
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slabs_cut_the_longest_axis_and_own_each_centre_once() {
+        let slabs = Slabs::along_longest([0.0; 3], [1.0, 4.0, 2.0], 4).unwrap();
+        assert_eq!(slabs.axis, 1);
+        assert_eq!(slabs.faces, [0.0, 1.0, 2.0, 3.0, 4.0]);
+        assert_eq!(slabs.owner([0.5, -3.0, 0.0]), 0);
+        assert_eq!(slabs.owner([0.5, 0.99, 0.0]), 0);
+        assert_eq!(slabs.owner([0.5, 1.0, 0.0]), 1);
+        assert_eq!(slabs.owner([0.5, 3.5, 0.0]), 3);
+        assert_eq!(slabs.owner([0.5, 9.0, 0.0]), 3);
+        let ghosts = |y: f64| -> Vec<usize> {
+            let x = [0.0, y, 0.0];
+            slabs.ghost_ranks(x, slabs.owner(x), 0.1).collect()
+        };
+        assert_eq!(ghosts(0.5), Vec::<usize>::new());
+        assert_eq!(ghosts(0.95), [1]);
+        assert_eq!(ghosts(1.05), [0]);
+        assert_eq!(ghosts(2.0), [1]);
+        assert_eq!(ghosts(-5.0), Vec::<usize>::new());
+        // Wider than a slab: beyond the next.
+        let x = [0.0, 1.5, 0.0];
+        let wide: Vec<usize> = slabs.ghost_ranks(x, 1, 1.6).collect();
+        assert_eq!(wide, [0, 2, 3]);
+        assert!(Slabs::along_longest([0.0; 3], [1.0; 3], 0).is_err());
+        assert!(Slabs::along_longest([0.0; 3], [1.0, 0.0, 1.0], 2).is_err());
+    }
+}
