@@ -4,7 +4,8 @@
 # Ubuntu, as root) Mesa's lavapipe Vulkan driver with ray queries (Mesa >= 25), so the GPU
 # backends are tested on the CPU when the machine has no GPU. With CI=true, GPU tests fail
 # rather than skip when no adapter is found. Also installs NVRTC 13.0 from PyPI into target/nvrtc
-# and compiles the optix feature's device programs with it (no GPU needed).
+# and compiles the optix feature's device programs with it (no GPU needed), and Open MPI, with
+# which a run decomposed over processes is checked (the mpi feature).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -67,6 +68,19 @@ SOURCES
     fi
 fi
 
+# Open MPI (with libclang, which the `mpi` feature's bindings are generated with), so a run
+# decomposed over processes is checked under mpirun.
+if ! command -v mpicc >/dev/null || ! ls /usr/lib/llvm-*/lib/libclang.so >/dev/null 2>&1; then
+    if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null; then
+        echo "warning: cannot install Open MPI and libclang (needs root and apt-get)" >&2
+    else
+        echo "installing Open MPI and libclang for the mpi feature's checks"
+        apt-get update -qq
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq openmpi-bin libopenmpi-dev \
+            libclang-dev >/dev/null
+    fi
+fi
+
 # NVRTC 13.0 from PyPI, so the optix feature's device programs are compiled here too (no GPU
 # needed): a broken .cu cannot land.
 nvrtc_dir="$PWD/target/nvrtc"
@@ -94,10 +108,20 @@ fi
 
 cargo fmt --all -- --check
 cargo clippy --all-targets --locked -- -D warnings
-cargo clippy --all-targets --features optix --locked -- -D warnings
+cargo clippy --all-targets --features optix,mpi --locked -- -D warnings
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --locked --quiet
 cargo test --locked
-cargo test --locked --features optix --test optix
+cargo test --locked --features optix,mpi --test optix
+
+# A run decomposed over 2 and 4 processes under mpirun is the whole run bit for bit (Open MPI
+# oversubscribes the cores it is given; as root it must be told that is meant).
+cargo build --locked --features optix,mpi --example mpi_pour
+if [ "$(id -u)" = 0 ]; then
+    export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+fi
+for ranks in 2 4; do
+    mpirun --oversubscribe -np "$ranks" target/debug/examples/mpi_pour 400 2000 --check
+done
 
 # The Python package (python/, a member of the workspace): a debug build of the extension into
 # the workspace's target/ (so the library and its dependencies built above are reused), installed

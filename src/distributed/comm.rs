@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use std::sync::{Arc, Barrier, Mutex};
 
 /// One rank's end of a group of ranks.
-pub trait Comm: Send {
+pub trait Comm {
     /// This rank, from 0.
     fn rank(&self) -> usize;
     /// The ranks of the group.

@@ -5,9 +5,13 @@
 //! sphere sums its contacts in an order that its place and the spheres' ids alone decide.
 
 mod comm;
+#[cfg(feature = "mpi")]
+mod mpi_comm;
 mod rank;
 mod slabs;
 
 pub use comm::{Comm, LocalComm};
+#[cfg(feature = "mpi")]
+pub use mpi_comm::MpiComm;
 pub use rank::RankStepper;
 pub use slabs::Slabs;

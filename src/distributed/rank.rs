@@ -69,6 +69,8 @@ pub struct RankStepper<C: Comm> {
     halo: f64,
     /// This rank's spheres, by ascending id.
     own: Vec<Held>,
+    /// The ghosts of the last step.
+    ghosts: usize,
     /// Steps taken since t = 0.
     step: u64,
 }
@@ -124,6 +126,7 @@ impl<C: Comm> RankStepper<C> {
             r_max,
             halo,
             own,
+            ghosts: 0,
             step: whole.step,
         })
     }
@@ -131,6 +134,16 @@ impl<C: Comm> RankStepper<C> {
     /// The spheres this rank owns now.
     pub fn own_spheres(&self) -> usize {
         self.own.len()
+    }
+
+    /// The ghosts this rank held in its last step.
+    pub fn ghost_spheres(&self) -> usize {
+        self.ghosts
+    }
+
+    /// This rank and the ranks of its group.
+    pub fn comm(&self) -> &C {
+        &self.comm
     }
 
     /// Takes `steps` steps (every rank of the group together).
@@ -157,6 +170,7 @@ impl<C: Comm> RankStepper<C> {
             ghosts.extend(read(&message)?.into_iter().map(|h| h.sphere));
         }
         ghosts.sort_by_key(|s| s.id);
+        self.ghosts = ghosts.len();
 
         let (local, ids, own_at) = self.merged(&ghosts)?;
         let setup = DemSetup {

@@ -1,0 +1,89 @@
+//! The ranks of a run under `mpirun`: one process each, joined by MPI's world communicator.
+
+use super::comm::Comm;
+use crate::error::{Error, Result};
+use mpi::datatype::{Partition, PartitionMut};
+use mpi::topology::{Communicator, SimpleCommunicator};
+use mpi::traits::CommunicatorCollectives;
+
+/// This process's rank of MPI's world. MPI is finalised when the universe it holds is
+/// dropped.
+pub struct MpiComm {
+    _universe: mpi::environment::Universe,
+    world: SimpleCommunicator,
+}
+
+impl MpiComm {
+    /// Initialises MPI (once a process) and takes its world; `None` where MPI was initialised
+    /// already.
+    pub fn world() -> Option<Self> {
+        let universe = mpi::initialize()?;
+        let world = universe.world();
+        Some(Self {
+            _universe: universe,
+            world,
+        })
+    }
+}
+
+impl Comm for MpiComm {
+    fn rank(&self) -> usize {
+        self.world.rank() as usize
+    }
+
+    fn size(&self) -> usize {
+        self.world.size() as usize
+    }
+
+    fn exchange(&self, outgoing: Vec<Vec<u8>>) -> Result<Vec<Vec<u8>>> {
+        let n = self.size();
+        if outgoing.len() != n {
+            return Err(Error::Usage(format!(
+                "{} messages for a group of {n} ranks",
+                outgoing.len()
+            )));
+        }
+        // MPI counts in i32: a message of 2 GiB or more is refused.
+        let count = |bytes: usize| {
+            i32::try_from(bytes).map_err(|_| Error::TooLarge {
+                what: "bytes a rank sends another in one exchange".into(),
+                got: bytes as u64,
+                limit: i32::MAX as u64,
+            })
+        };
+        let send_counts = outgoing
+            .iter()
+            .map(|m| count(m.len()))
+            .collect::<Result<Vec<i32>>>()?;
+        let mut recv_counts = vec![0i32; n];
+        self.world
+            .all_to_all_into(&send_counts[..], &mut recv_counts[..]);
+        let offsets = |counts: &[i32]| -> Result<Vec<i32>> {
+            let mut at = 0usize;
+            counts
+                .iter()
+                .map(|&c| {
+                    let here = count(at)?;
+                    at += c as usize;
+                    Ok(here)
+                })
+                .collect()
+        };
+        let (send_at, recv_at) = (offsets(&send_counts)?, offsets(&recv_counts)?);
+        // Buffers of at least a byte: MPI refuses the dangling pointer of an empty one.
+        let mut flat: Vec<u8> = outgoing.concat();
+        flat.push(0);
+        let total: usize = recv_counts.iter().map(|&c| c as usize).sum();
+        let mut received = vec![0u8; total + 1];
+        {
+            let send = Partition::new(&flat[..], &send_counts[..], &send_at[..]);
+            let mut recv = PartitionMut::new(&mut received[..], &recv_counts[..], &recv_at[..]);
+            self.world.all_to_all_varcount_into(&send, &mut recv);
+        }
+        Ok(recv_at
+            .iter()
+            .zip(&recv_counts)
+            .map(|(&at, &c)| received[at as usize..at as usize + c as usize].to_vec())
+            .collect())
+    }
+}
