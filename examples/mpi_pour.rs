@@ -23,7 +23,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let spheres: usize = numbers.next().map_or(Ok(2000), |a| a.parse())?;
     let steps: u32 = numbers.next().map_or(Ok(2000), |a| a.parse())?;
 
-    let comm = MpiComm::world().ok_or("MPI was initialised already")?;
+    let comm = MpiComm::world()?;
     let scene = format!("scene = \"pour\"\nspheres = {spheres}\nseed = 7\n");
     let start = SceneConfig::parse(Some(&scene), None, &Overrides::default())?.build()?;
     let setup = DemSetup {
@@ -34,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let mut rank = RankStepper::new(comm, &setup)?;
     let began = Instant::now();
-    rank.advance(steps)?;
+    let decomposed_contacts = rank.advance(steps)?.contacts;
     let ms = began.elapsed().as_secs_f64() * 1e3 / steps.max(1) as f64;
 
     // Each rank's share, to rank 0.
@@ -74,6 +74,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         bits(&decomposed) != bits(&expected) || decomposed.history.of(i) != expected.history.of(i)
     });
+    if decomposed_contacts != contacts {
+        eprintln!("{decomposed_contacts} contacts, where the whole run has {contacts}");
+        std::process::exit(1);
+    }
     match differ {
         None => {
             println!(

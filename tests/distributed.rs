@@ -1,9 +1,10 @@
 //! A run decomposed over ranks (threads of this process, `LocalComm`) is the whole run bit for
 //! bit on the cpu backend: a poured pile with friction, rolling resistance and its history,
-//! spheres crossing the slabs' faces, on 2, 3 and 4 ranks.
+//! spheres crossing the slabs' faces, on 2, 3 and 4 ranks; the contacts each counts; new
+//! motion (a sphere put in another rank's slab), external loads and gravity between steps.
 
-use mochi::dem::Stepper;
 use mochi::dem::scene::{Overrides, SceneConfig};
+use mochi::dem::{Particles, Stepper};
 use mochi::distributed::{LocalComm, RankStepper, Slabs};
 use mochi::engines::DemSetup;
 use mochi::engines::cpu::CpuStepper;
@@ -47,13 +48,25 @@ fn landing() -> DemSetup {
 /// The steps each run takes from the landing.
 const STEPS: u32 = 400;
 
-/// `setup` stepped `steps` steps on `ranks` ranks, gathered; with the spheres each rank owned
-/// at the start and at the end.
+/// What a test does to a step (every rank of a decomposed run does the same): the contacts
+/// each of its advances reported.
+type Script = fn(&mut dyn Stepper, &DemSetup) -> Vec<u64>;
+
+/// `script` run on the whole of `setup` alone: the particles after, the contacts.
+fn alone(setup: &DemSetup, script: Script) -> (Particles, Vec<u64>) {
+    let mut whole = CpuStepper::open(setup.clone()).unwrap();
+    let contacts = script(&mut whole, setup);
+    (whole.particles().unwrap(), contacts)
+}
+
+/// `script` run on `ranks` ranks: the particles after (gathered on rank 0; every rank's own
+/// read of them is the same), the contacts, and the spheres each rank owned at the start and
+/// at the end.
 fn decomposed(
     setup: &DemSetup,
     ranks: usize,
-    steps: u32,
-) -> (mochi::dem::Particles, Vec<[usize; 2]>) {
+    script: Script,
+) -> (Particles, Vec<u64>, Vec<[usize; 2]>) {
     let group = LocalComm::group(ranks).unwrap();
     let results: Vec<_> = std::thread::scope(|scope| {
         let handles: Vec<_> = group
@@ -62,55 +75,125 @@ fn decomposed(
                 scope.spawn(move || {
                     let mut rank = RankStepper::new(comm, setup).unwrap();
                     let first = rank.own_spheres();
-                    rank.advance(steps).unwrap();
-                    (rank.gather().unwrap(), [first, rank.own_spheres()])
+                    let contacts = script(&mut rank, setup);
+                    let gathered = rank.gather().unwrap();
+                    let everywhere = rank.particles().unwrap();
+                    let owned = [first, rank.own_spheres()];
+                    (gathered, everywhere, contacts, owned)
                 })
             })
             .collect();
         handles.into_iter().map(|h| h.join().unwrap()).collect()
     });
-    let owned = results.iter().map(|(_, o)| *o).collect();
-    let whole = results.into_iter().find_map(|(p, _)| p).unwrap();
-    (whole, owned)
+    let owned = results.iter().map(|r| r.3).collect();
+    let contacts = results[0].2.clone();
+    assert!(
+        results.iter().all(|r| r.2 == contacts),
+        "every rank counts alike"
+    );
+    assert!(
+        results[1..].iter().all(|r| r.0.is_none()),
+        "gathered on rank 0"
+    );
+    let gathered = results[0].0.clone().expect("gathered on rank 0");
+    for r in &results {
+        assert_eq!(
+            r.1.positions, gathered.positions,
+            "every rank reads the run"
+        );
+    }
+    (gathered, contacts, owned)
+}
+
+/// Whether `got` is `expected` bit for bit: every centre, residual, velocity, spin and
+/// contact history entry.
+fn assert_same(got: &Particles, expected: &Particles, ranks: usize) {
+    assert_eq!(got.len(), expected.len());
+    assert_eq!(got.step, expected.step);
+    for i in 0..expected.len() {
+        let bits = |p: &Particles| {
+            let x = p.exact_position(i).map(f64::to_bits);
+            let v = p.velocities[i].map(f32::to_bits);
+            let w = p.angular_velocities[i].map(f32::to_bits);
+            (x, v, w)
+        };
+        assert_eq!(bits(got), bits(expected), "{ranks} ranks, sphere {i}");
+        assert_eq!(
+            got.history.of(i),
+            expected.history.of(i),
+            "{ranks} ranks, the contacts of sphere {i}"
+        );
+    }
 }
 
 #[test]
 fn a_run_on_several_ranks_is_the_whole_run_bit_for_bit() {
     let setup = landing();
-    let steps = STEPS;
-    let mut whole = CpuStepper::open(setup.clone()).unwrap();
-    let advanced = whole.advance(steps).unwrap();
-    assert!(
-        advanced.contacts > 50,
-        "{} contacts at the end",
-        advanced.contacts
-    );
-    let expected = whole.particles().unwrap();
+    let script: Script = |s, _| vec![s.advance(STEPS).unwrap().contacts];
+    let (expected, contacts) = alone(&setup, script);
+    assert!(contacts[0] > 50, "{contacts:?} contacts at the end");
     for ranks in [2, 3, 4] {
-        let (got, owned) = decomposed(&setup, ranks, steps);
-        let n = expected.len();
-        assert_eq!(got.len(), n);
+        let (got, got_contacts, owned) = decomposed(&setup, ranks, script);
         // Each sphere held once, and some crossed a face.
         let held = |k: usize| owned.iter().map(|o| o[k]).sum::<usize>();
-        assert_eq!((held(0), held(1)), (n, n), "{owned:?}");
+        assert_eq!(
+            (held(0), held(1)),
+            (expected.len(), expected.len()),
+            "{owned:?}"
+        );
         assert!(
             owned.iter().any(|o| o[0] != o[1]),
             "none moved across: {owned:?}"
         );
-        assert_eq!(got.step, expected.step);
-        for i in 0..n {
-            let bits = |p: &mochi::dem::Particles| {
-                let x = p.exact_position(i).map(f64::to_bits);
-                let v = p.velocities[i].map(f32::to_bits);
-                let w = p.angular_velocities[i].map(f32::to_bits);
-                (x, v, w)
-            };
-            assert_eq!(bits(&got), bits(&expected), "{ranks} ranks, sphere {i}");
-            assert_eq!(
-                got.history.of(i),
-                expected.history.of(i),
-                "{ranks} ranks, the contacts of sphere {i}"
-            );
+        assert_eq!(got_contacts, contacts, "{ranks} ranks");
+        assert_same(&got, &expected, ranks);
+    }
+}
+
+#[test]
+fn a_decomposed_run_takes_new_motion_loads_and_gravity_as_the_whole_run_does() {
+    let setup = landing();
+    let script: Script = |s, setup| {
+        let mut contacts = vec![s.advance(100).unwrap().contacts];
+        // Sphere 0 put on the sphere farthest along the slabs' axis (in another rank's slab,
+        // beyond the halo of its own: it meets that sphere only where it migrates), every
+        // sphere slowed to half its speed.
+        let mut now = s.particles().unwrap();
+        let p = &setup.params;
+        let axis = Slabs::along_longest(p.box_lo.map(f64::from), p.box_hi.map(f64::from), 2)
+            .unwrap()
+            .axis;
+        let mut x = now.exact_positions().unwrap();
+        let far = (0..x.len())
+            .max_by(|&a, &b| x[a][axis].total_cmp(&x[b][axis]))
+            .unwrap();
+        x[0] = x[far];
+        x[0][2] += 0.95 * (now.radii[0] + now.radii[far]) as f64;
+        for v in &mut now.velocities {
+            *v = v.map(|c| 0.5 * c);
         }
+        let motion = mochi::dem::Motion {
+            positions: Some(&x),
+            velocities: Some(&now.velocities),
+            ..Default::default()
+        };
+        s.set_motion(&motion).unwrap();
+        // A push along the axis on every sphere, and a twist.
+        let n = now.len();
+        let loads = mochi::dem::ExternalLoads {
+            forces: (0..n).map(|i| [1e-6 * (i % 7) as f32, 0.0, 2e-6]).collect(),
+            torques: vec![[0.0, 0.0, 1e-10]; n],
+        };
+        s.set_external_loads(&loads).unwrap();
+        contacts.push(s.advance(100).unwrap().contacts);
+        s.set_gravity([0.0, 0.0, -5.0]).unwrap();
+        contacts.push(s.advance(100).unwrap().contacts);
+        contacts
+    };
+    let (expected, contacts) = alone(&setup, script);
+    for ranks in [2, 4] {
+        let (got, got_contacts, _) = decomposed(&setup, ranks, script);
+        assert_eq!(got_contacts, contacts, "{ranks} ranks");
+        assert_same(&got, &expected, ranks);
     }
 }

@@ -2,24 +2,37 @@
 
 use super::comm::Comm;
 use crate::error::{Error, Result};
+use mpi::Threading;
 use mpi::datatype::{Partition, PartitionMut};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::traits::CommunicatorCollectives;
 
 /// This process's rank of MPI's world. MPI is finalised when the universe it holds is
-/// dropped.
+/// dropped (on the thread that made it, as MPI asks).
 pub struct MpiComm {
     _universe: mpi::environment::Universe,
     world: SimpleCommunicator,
 }
 
+// SAFETY: MPI was initialised with `MPI_THREAD_SERIALIZED` or more (`world` checks), so any
+// thread may call it while no two call at once; `MpiComm` is not `Sync` and its calls take
+// `&self`, so only the one thread that holds it calls MPI through it.
+#[allow(unsafe_code)]
+unsafe impl Send for MpiComm {}
+
 impl MpiComm {
-    /// Initialises MPI (once a process) and takes its world; `None` where MPI was initialised
-    /// already.
-    pub fn world() -> Option<Self> {
-        let universe = mpi::initialize()?;
+    /// Initialises MPI (once a process) with calls from any one thread at a time allowed,
+    /// and takes its world. Refuses where MPI was initialised already or cannot allow that.
+    pub fn world() -> Result<Self> {
+        let (universe, threading) = mpi::initialize_with_threading(Threading::Serialized)
+            .ok_or_else(|| Error::Usage("MPI was initialised already".into()))?;
+        if threading < Threading::Serialized {
+            return Err(Error::Usage(format!(
+                "this MPI allows calls from {threading:?} threads, not from any one at a time"
+            )));
+        }
         let world = universe.world();
-        Some(Self {
+        Ok(Self {
             _universe: universe,
             world,
         })

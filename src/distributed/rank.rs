@@ -18,13 +18,14 @@
 use super::comm::Comm;
 use super::slabs::Slabs;
 use crate::dem::StepParams;
-use crate::dem::stepper::Stepper;
+use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, StageTimes, Stepper};
 use crate::dem::walls::WallSet;
 use crate::engines::DemSetup;
 use crate::engines::cpu::CpuStepper;
 use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, FIRST_MESH_WALL, HistoryEntry, Particles};
 use crate::proxy::ProxyMode;
+use std::time::Instant;
 
 /// A sphere as a rank sends it: its id in the whole run and its state, followed in a message
 /// by `contacts` history entries (a migrating sphere's; none for a ghost).
@@ -71,6 +72,10 @@ pub struct RankStepper<C: Comm> {
     own: Vec<Held>,
     /// The ghosts of the last step.
     ghosts: usize,
+    /// The spheres of the whole run.
+    total: usize,
+    /// The loads on the spheres of the whole run, by id (empty lists: none).
+    loads: ExternalLoads,
     /// Steps taken since t = 0.
     step: u64,
 }
@@ -127,6 +132,8 @@ impl<C: Comm> RankStepper<C> {
             halo,
             own,
             ghosts: 0,
+            total: whole.len(),
+            loads: ExternalLoads::default(),
             step: whole.step,
         })
     }
@@ -146,16 +153,11 @@ impl<C: Comm> RankStepper<C> {
         &self.comm
     }
 
-    /// Takes `steps` steps (every rank of the group together).
-    pub fn advance(&mut self, steps: u32) -> Result<()> {
-        for _ in 0..steps {
-            self.take_step()?;
-        }
-        Ok(())
-    }
-
-    /// One step: ghosts, the step, migration (the module's three phases).
-    fn take_step(&mut self) -> Result<()> {
+    /// One step: ghosts, the step, migration (the module's three phases); returns the
+    /// contacts of its own spheres with spheres (each own sphere's count) and the step's
+    /// phase times (the exchanges counted as the build's).
+    fn take_step(&mut self) -> Result<(u64, StageTimes)> {
+        let started = Instant::now();
         let ranks = self.comm.size();
         let mut outgoing = vec![Vec::new(); ranks];
         for held in &self.own {
@@ -180,10 +182,22 @@ impl<C: Comm> RankStepper<C> {
             walls: self.walls.clone(),
         };
         let mut stepper = CpuStepper::open(setup)?.sized_for(self.r_max, self.mode);
-        stepper.advance(1)?;
+        if !self.loads.is_empty() {
+            let rows = |all: &[[f32; 3]]| match all.is_empty() {
+                true => Vec::new(),
+                false => ids.iter().map(|&id| all[id as usize]).collect(),
+            };
+            stepper.set_external_loads(&ExternalLoads {
+                forces: rows(&self.loads.forces),
+                torques: rows(&self.loads.torques),
+            })?;
+        }
+        let mut times = stepper.advance(1)?.times;
+        let touching = stepper.touching();
         let after = stepper.particles()?;
         self.step = after.step;
 
+        let exchanged = Instant::now();
         let n = ids.len() as u32;
         let by_id = |e: &HistoryEntry| HistoryEntry {
             partner: match e.partner < n {
@@ -192,13 +206,27 @@ impl<C: Comm> RankStepper<C> {
             },
             ..*e
         };
-        let mut outgoing = vec![Vec::new(); ranks];
-        let mut staying = Vec::with_capacity(self.own.len());
-        for &at in &own_at {
-            let held = Held {
+        self.own = own_at
+            .iter()
+            .map(|&at| Held {
                 sphere: record_of(&after, at, ids[at]),
                 contacts: after.history.of(at).iter().map(by_id).collect(),
-            };
+            })
+            .collect();
+        self.migrate()?;
+        let own_touching = own_at.iter().map(|&at| touching[at] as u64).sum();
+        let ms = |from: Instant, to: Instant| (to - from).as_secs_f64() * 1e3;
+        let stepped = ms(started, exchanged) - times.total_ms();
+        times.build_ms += stepped.max(0.0) + exchanged.elapsed().as_secs_f64() * 1e3;
+        Ok((own_touching, times))
+    }
+
+    /// Sends each own sphere whose centre lies beyond this rank's slab, with its contacts, to
+    /// the rank that owns it, and takes those sent here (every rank together).
+    fn migrate(&mut self) -> Result<()> {
+        let mut outgoing = vec![Vec::new(); self.comm.size()];
+        let mut staying = Vec::with_capacity(self.own.len());
+        for held in std::mem::take(&mut self.own) {
             match self.slabs.owner(held.exact_position()) {
                 r if r == self.comm.rank() => staying.push(held),
                 r => put(&mut outgoing[r], &held.sphere, &held.contacts),
@@ -210,6 +238,20 @@ impl<C: Comm> RankStepper<C> {
         staying.sort_by_key(|h| h.sphere.id);
         self.own = staying;
         Ok(())
+    }
+
+    /// The sum of `x` over the ranks (every rank together).
+    fn sum_over_ranks(&self, x: u64) -> Result<u64> {
+        let outgoing = vec![x.to_le_bytes().to_vec(); self.comm.size()];
+        let mut sum = 0u64;
+        for message in self.comm.exchange(outgoing)? {
+            let bytes: [u8; 8] = message
+                .as_slice()
+                .try_into()
+                .map_err(|_| Error::Usage("a rank's count is not 8 bytes".into()))?;
+            sum += u64::from_le_bytes(bytes);
+        }
+        Ok(sum)
     }
 
     /// This rank's spheres and `ghosts` (by ascending id) merged in the order of their ids, as
@@ -277,12 +319,21 @@ impl<C: Comm> RankStepper<C> {
 
     /// The whole run's spheres, on rank 0 (`None` on the others): every rank sends its own.
     pub fn gather(&self) -> Result<Option<Particles>> {
+        self.collect(false)
+    }
+
+    /// The whole run's spheres on rank 0, or on every rank where `everywhere`.
+    fn collect(&self, everywhere: bool) -> Result<Option<Particles>> {
         let mut outgoing = vec![Vec::new(); self.comm.size()];
-        for held in &self.own {
-            put(&mut outgoing[0], &held.sphere, &held.contacts);
+        for (r, message) in outgoing.iter_mut().enumerate() {
+            if everywhere || r == 0 {
+                for held in &self.own {
+                    put(message, &held.sphere, &held.contacts);
+                }
+            }
         }
         let received = self.comm.exchange(outgoing)?;
-        if self.comm.rank() != 0 {
+        if !everywhere && self.comm.rank() != 0 {
             return Ok(None);
         }
         let mut all = Vec::new();
@@ -318,6 +369,83 @@ impl<C: Comm> RankStepper<C> {
             whole.history = ContactHistory::from_contacts(all.len(), &contacts)?;
         }
         Ok(Some(whole))
+    }
+}
+
+/// Every rank of a group steps together: a call of one is a call of all, with the same
+/// arguments (the rows of the whole run, by id).
+impl<C: Comm + Send> Stepper for RankStepper<C> {
+    fn describe(&self) -> String {
+        format!(
+            "cpu, rank {} of {} (slabs along {})",
+            self.comm.rank(),
+            self.comm.size(),
+            ["x", "y", "z"][self.slabs.axis]
+        )
+    }
+
+    fn advance(&mut self, steps: u32) -> Result<Advance> {
+        let mut times = StageTimes::default();
+        let mut touching = 0;
+        for _ in 0..steps {
+            let (own, step_times) = self.take_step()?;
+            touching = own;
+            times.add(&step_times);
+        }
+        // Each contact of two spheres is counted by both.
+        let contacts = match steps {
+            0 => 0,
+            _ => self.sum_over_ranks(touching)? / 2,
+        };
+        Ok(Advance {
+            steps,
+            contacts,
+            times,
+            clock: Clock::Wall,
+        })
+    }
+
+    fn step(&self) -> u64 {
+        self.step
+    }
+
+    fn particles(&mut self) -> Result<Particles> {
+        self.collect(true)?
+            .ok_or_else(|| Error::Usage("the run was not gathered here".into()))
+    }
+
+    fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        motion.check(self.total)?;
+        for held in &mut self.own {
+            let (i, s) = (held.sphere.id as usize, &mut held.sphere);
+            if let Some(x) = motion.positions {
+                let parts = x[i].map(crate::particles::position::split);
+                s.position = parts.map(|p| p.0);
+                s.residual = parts.map(|p| p.1);
+            }
+            if let Some(v) = motion.velocities {
+                s.velocity = v[i];
+            }
+            if let Some(w) = motion.angular_velocities {
+                s.spin = w[i];
+            }
+        }
+        // A sphere put in another rank's slab goes there before the next step.
+        self.migrate()
+    }
+
+    fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()> {
+        self.params.gravity = gravity;
+        Ok(())
+    }
+
+    fn set_external_loads(&mut self, loads: &ExternalLoads) -> Result<()> {
+        loads.check(self.total)?;
+        if loads.turns() && !self.params.friction.turns() {
+            return Err(crate::engines::common::rows::no_spin());
+        }
+        self.loads = loads.clone();
+        Ok(())
     }
 }
 

@@ -4,7 +4,7 @@
 //! engines this build has, which can run here, and the one `auto` rule that detection,
 //! simulation and rendering share (docs/ARCHITECTURE.md).
 
-mod common;
+pub(crate) mod common;
 pub mod cpu;
 mod open;
 #[cfg(feature = "optix")]

@@ -230,6 +230,16 @@ impl CpuStepper {
         Ok(self)
     }
 
+    /// How many spheres each sphere touched in the last step, in input order (none before the
+    /// first step).
+    pub(crate) fn touching(&self) -> Vec<u32> {
+        let mut out = vec![0; self.particles.len()];
+        for (sum, &id) in self.sums.iter().zip(&self.grid.ids) {
+            out[id as usize] = sum.touching;
+        }
+        out
+    }
+
     /// Bins the spheres, on the lattice of cells anchored at the box's corner: a step's first
     /// phase. Each sphere meets its neighbours in an order that the spheres' places and
     /// their order in the input alone decide (not the bounds of the others), so a part of the
