@@ -113,15 +113,8 @@ RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --locked --quiet
 cargo test --locked
 cargo test --locked --features optix,mpi --test optix
 
-# A run decomposed over 2 and 4 processes under mpirun is the whole run bit for bit (Open MPI
-# oversubscribes the cores it is given; as root it must be told that is meant).
-cargo build --locked --features optix,mpi --example mpi_pour
-if [ "$(id -u)" = 0 ]; then
-    export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-fi
-for ranks in 2 4; do
-    mpirun --oversubscribe -np "$ranks" target/debug/examples/mpi_pour 400 2000 --check
-done
+# Runs decomposed over processes under mpirun equal the runs of one process bit for bit.
+bash scripts/mpi-check.sh
 
 # The Python package (python/, a member of the workspace): a debug build of the extension into
 # the workspace's target/ (so the library and its dependencies built above are reused), installed

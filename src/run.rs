@@ -215,38 +215,125 @@ impl RunStart {
     /// the reason it passed over faster backends in [`Run::auto_reason`]). Spheres that share a
     /// centre are counted here; the backend moves them apart as it opens.
     pub fn open(self, choice: BackendChoice, options: &Options) -> Result<Run> {
-        let particles = &self.start.particles;
-        let spheres = particles.len();
-        let first_step = particles.step;
-        let radius_range = particles.radius_range();
-        let coincident_pairs = particles.coincident_pairs()?;
-        let coarse_warning = crate::coarse_coordinates(&particles.positions, &particles.radii);
-        let params = self.start.params.clone();
-        let walls = self.start.walls.clone();
+        let facts = StartFacts::of(&self.start)?;
         let flow = self.start.flow.clone();
+        let RunStart {
+            config,
+            start,
+            state,
+        } = self;
         let Opened {
             value: stepper,
             kind: backend,
             reason: auto_reason,
-        } = open_scene(choice, self.start, options)?;
+        } = open_scene(choice, start, options)?;
         let every = flow.every(backend != BackendKind::Cpu);
-        let flow_warning = flow.rate_warning(params.dt as f64, every);
-        Ok(Run {
-            config: self.config,
-            meshes: self.state.meshes,
-            params,
-            walls,
+        let flow_warning = flow.rate_warning(facts.params.dt as f64, every);
+        let chosen = (backend, auto_reason);
+        Ok(into_run(
+            (config, state),
+            facts,
             stepper,
-            backend,
-            auto_reason,
-            spheres,
-            first_step,
-            radius_range,
-            coarse_warning,
+            chosen,
             flow_warning,
-            coincident_pairs,
-            external: ExternalLoads::default(),
-            options: *options,
+            options,
+        ))
+    }
+
+    /// Opens the run decomposed over the ranks of `comm` (the cpu backend, the box cut into
+    /// slabs: `crate::distributed`): on rank 0 the run, whose step every other rank follows;
+    /// on the others `None`, once rank 0's run is over (they write nothing). Refuses what a
+    /// run over ranks does not carry yet (flows, clumps, the load history).
+    pub fn open_on_ranks<C>(self, comm: C, options: &Options) -> Result<Option<Run>>
+    where
+        C: crate::distributed::Comm + Send + 'static,
+    {
+        if !self.start.flow.is_empty() {
+            return Err(Error::Usage(
+                "a run over several ranks does not carry inflows and outflows yet".into(),
+            ));
+        }
+        let facts = StartFacts::of(&self.start)?;
+        let start = &self.start;
+        let setup = DemSetup {
+            particles: start.particles.try_clone()?,
+            params: start.params.clone(),
+            mode: start.mode,
+            walls: start.walls.clone(),
+        };
+        let rank = crate::distributed::RankStepper::new(comm, &setup)?;
+        if rank.comm().rank() != 0 {
+            crate::distributed::follow(rank)?;
+            return Ok(None);
+        }
+        let stepper = Box::new(crate::distributed::Leader::new(rank)?);
+        let scene = (self.config, self.state);
+        let chosen = (BackendKind::Cpu, None);
+        Ok(Some(into_run(scene, facts, stepper, chosen, None, options)))
+    }
+}
+
+/// The run of a scene and its state, stepped by `stepper` on `backend` (chosen for
+/// `auto_reason`).
+fn into_run(
+    (config, state): (SceneConfig, RunState),
+    facts: StartFacts,
+    stepper: Box<dyn Stepper>,
+    (backend, auto_reason): (BackendKind, Option<String>),
+    flow_warning: Option<String>,
+    options: &Options,
+) -> Run {
+    let StartFacts {
+        params,
+        walls,
+        spheres,
+        first_step,
+        radius_range,
+        coincident_pairs,
+        coarse_warning,
+    } = facts;
+    Run {
+        config,
+        meshes: state.meshes,
+        params,
+        walls,
+        stepper,
+        backend,
+        auto_reason,
+        spheres,
+        first_step,
+        radius_range,
+        coarse_warning,
+        flow_warning,
+        coincident_pairs,
+        external: ExternalLoads::default(),
+        options: *options,
+    }
+}
+
+/// What a run keeps and reports of its start.
+struct StartFacts {
+    params: StepParams,
+    walls: WallSet,
+    spheres: usize,
+    first_step: u64,
+    radius_range: (f32, f32),
+    /// Pairs of spheres that share their centre (the backend moves them apart as it opens).
+    coincident_pairs: u64,
+    coarse_warning: Option<String>,
+}
+
+impl StartFacts {
+    fn of(start: &Start) -> Result<Self> {
+        let particles = &start.particles;
+        Ok(Self {
+            params: start.params.clone(),
+            walls: start.walls.clone(),
+            spheres: particles.len(),
+            first_step: particles.step,
+            radius_range: particles.radius_range(),
+            coincident_pairs: particles.coincident_pairs()?,
+            coarse_warning: crate::coarse_coordinates(&particles.positions, &particles.radii),
         })
     }
 }

@@ -5,12 +5,14 @@
 //! sphere sums its contacts in an order that its place and the spheres' ids alone decide.
 
 mod comm;
+mod lead;
 #[cfg(feature = "mpi")]
 mod mpi_comm;
 mod rank;
 mod slabs;
 
 pub use comm::{Comm, LocalComm};
+pub use lead::{Leader, follow};
 #[cfg(feature = "mpi")]
 pub use mpi_comm::MpiComm;
 pub use rank::RankStepper;

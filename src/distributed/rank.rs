@@ -122,6 +122,16 @@ impl<C: Comm> RankStepper<C> {
                 });
             }
         }
+        // Every rank opens the same run (and none goes on before all have opened it).
+        let mut outgoing = vec![(whole.len() as u64).to_le_bytes().to_vec(); comm.size()];
+        outgoing[comm.rank()].clear();
+        let counts = comm.exchange(outgoing)?;
+        let same = |m: &Vec<u8>| m.is_empty() || m[..] == (whole.len() as u64).to_le_bytes();
+        if !counts.iter().all(same) {
+            return Err(Error::Usage(
+                "the ranks opened runs of different spheres: every rank must open the same".into(),
+            ));
+        }
         Ok(Self {
             comm,
             slabs,

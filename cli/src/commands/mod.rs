@@ -5,6 +5,7 @@ mod args;
 mod backend_options;
 mod bench;
 mod output;
+mod ranks;
 mod render;
 mod run;
 mod simulate;

@@ -333,7 +333,8 @@ impl CellLayout {
     fn key(&self, c: &[f32; 3], nx: u64, ny: u64) -> u64 {
         let cell = |a: usize| {
             let u = ((c[a] as f64 - self.anchor[a]) * self.inv_size).floor() as i64;
-            (u - self.first[a]).clamp(0, self.counts[a] as i64 - 1) as u64 + 1
+            // Saturated where a centre lies beyond i64's cells (an exploding run's).
+            (u.saturating_sub(self.first[a])).clamp(0, self.counts[a] as i64 - 1) as u64 + 1
         };
         cell(0) + nx * (cell(1) + ny * cell(2))
     }
@@ -348,7 +349,10 @@ fn cell_layout(lo: [f32; 3], hi: [f32; 3], anchor: [f64; 3], cell_size: f32) -> 
     let inv_size = 1.0 / size;
     let lattice = |x: f32, a: usize| ((x as f64 - anchor[a]) * inv_size).floor() as i64;
     let first = std::array::from_fn(|a| lattice(lo[a], a));
-    let counts = std::array::from_fn(|a| (lattice(hi[a], a) - first[a]).max(0) as u64 + 1);
+    let counts = std::array::from_fn(|a| {
+        let cells = lattice(hi[a], a).saturating_sub(first[a]).max(0) as u64;
+        cells.min(MAX_AXIS_CELLS - 3) + 1
+    });
     CellLayout {
         inv_size,
         anchor,

@@ -1,0 +1,36 @@
+//! Whether this process is one of several that `mpirun` (or another MPI launcher) started,
+//! as its environment says, and the ranks they form: with the `mpi` feature, a run decomposed
+//! over them; without it, a refusal (each process would run the whole scene).
+
+use anyhow::Result;
+
+/// The processes the launcher started, as the environment of Open MPI, MPICH (Hydra) or
+/// MVAPICH gives them (1 where none does).
+fn launched_processes() -> usize {
+    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "MV2_COMM_WORLD_SIZE"]
+        .iter()
+        .find_map(|name| std::env::var(name).ok()?.parse().ok())
+        .unwrap_or(1)
+}
+
+/// The ranks of the processes `mpirun` started, where it started several.
+#[cfg(feature = "mpi")]
+pub fn launched() -> Result<Option<mochi::distributed::MpiComm>> {
+    match launched_processes() {
+        0 | 1 => Ok(None),
+        _ => Ok(Some(mochi::distributed::MpiComm::world()?)),
+    }
+}
+
+/// Refuses to run as one of several processes: this build cannot share a run between them.
+#[cfg(not(feature = "mpi"))]
+pub fn launched() -> Result<Option<mochi::distributed::LocalComm>> {
+    match launched_processes() {
+        0 | 1 => Ok(None),
+        n => anyhow::bail!(
+            "this mochi was built without the mpi feature, so under mpirun each of the {n} \
+             processes would run the whole scene: build it with `cargo build --release \
+             --features mpi`, or run one process"
+        ),
+    }
+}
