@@ -197,3 +197,22 @@ fn a_decomposed_run_takes_new_motion_loads_and_gravity_as_the_whole_run_does() {
         assert_same(&got, &expected, ranks);
     }
 }
+
+#[test]
+fn what_a_decomposed_run_does_not_carry_yet_is_refused() {
+    // The drum turns a mesh wall: a rank's mesh pass would count its ghosts' loads too.
+    let scene = "scene = \"drum\"\nspheres = 200\n";
+    let start = SceneConfig::parse(Some(scene), None, &Overrides::default())
+        .and_then(|c| c.build())
+        .unwrap();
+    assert!(!start.walls.meshes.is_empty());
+    let setup = DemSetup {
+        particles: start.particles,
+        params: start.params,
+        mode: start.mode,
+        walls: start.walls,
+    };
+    let comm = LocalComm::group(1).unwrap().pop().unwrap();
+    let e = RankStepper::new(comm, &setup).err().unwrap().to_string();
+    assert!(e.contains("mesh walls"), "{e}");
+}

@@ -83,8 +83,8 @@ pub struct RankStepper<C: Comm> {
 impl<C: Comm> RankStepper<C> {
     /// This rank's part of `setup` (the whole run's start, which every rank is given): the
     /// spheres in its slab of the box cut into `comm.size()` slabs along its longest axis.
-    /// Refuses what the decomposition does not carry yet: clumps, inflows and outflows, the
-    /// Mindlin–Deresiewicz load history.
+    /// Refuses what the decomposition does not carry yet: clumps, mesh walls, the
+    /// Mindlin–Deresiewicz load history (and the caller, inflows and outflows).
     pub fn new(comm: C, setup: &DemSetup) -> Result<Self> {
         let DemSetup {
             particles: whole,
@@ -102,6 +102,10 @@ impl<C: Comm> RankStepper<C> {
         }
         if params.friction.keeps_load() {
             return refused("the Mindlin–Deresiewicz load history");
+        }
+        // A rank's mesh pass sums its ghosts' loads on the walls too.
+        if !walls.meshes.is_empty() {
+            return refused("mesh walls");
         }
         whole.validate()?;
         let lo = params.box_lo.map(f64::from);
