@@ -1878,3 +1878,22 @@ fn a_run_of_clumps_names_them_and_its_frames_carry_each_spheres_clump() {
     let saved = read_checkpoint(&dir.path().join("out/checkpoint.bin")).unwrap();
     assert_eq!(saved.particles.clumps.clumps.len(), 30);
 }
+
+#[test]
+fn one_of_several_mpi_processes_without_the_mpi_feature_is_refused_before_it_writes() {
+    // As `mpirun -np 2 mochi simulate` starts it, in a build without the mpi feature (the
+    // test build): each process would run the whole scene.
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(BIN)
+        .args([
+            "simulate", "--scene", "pour", "-n", "50", "--steps", "10", "-o", "run",
+        ])
+        .env("OMPI_COMM_WORLD_SIZE", "2")
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("built without the mpi feature"), "{stderr}");
+    assert!(!dir.path().join("run").exists());
+}

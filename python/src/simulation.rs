@@ -519,6 +519,15 @@ impl Simulation {
     /// Opens `start` on `backend` and issues the run's warnings as Python warnings.
     fn open(py: Python<'_>, start: RunStart, backend: &str) -> PyResult<Self> {
         let choice: BackendChoice = backend.parse().map_err(PyValueError::new_err)?;
+        let processes = mochi::distributed::launched_processes();
+        if processes > 1 {
+            return Err(MochiError::new_err(format!(
+                "this Python process is one of {processes} that an MPI launcher started, and \
+                 mochi's Python package runs a simulation in one process (each of them would \
+                 run the whole scene): run Python without mpirun, or run the scene with \
+                 `mpirun -np {processes} mochi simulate` (mochi built with the mpi feature)"
+            )));
+        }
         let run = py
             .detach(|| start.open(choice, &Options::default()))
             .map_err(to_py_err)?;

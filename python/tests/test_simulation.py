@@ -419,3 +419,13 @@ def test_a_pour_of_clumps_runs_and_resumes_bit_for_bit(tmp_path):
     assert len(rods) == 40
     with pytest.raises(ValueError, match="cube"):
         mochi.Simulation({"scene": "freefall", "spheres": 10, "clump": {"shape": "cube"}})
+
+
+@pytest.mark.parametrize("variable", ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE"])
+def test_one_of_several_mpi_processes_is_told_to_run_one(monkeypatch, variable):
+    # Each process of `mpirun -np 2 python …` would run the whole scene: refused, saying so.
+    monkeypatch.setenv(variable, "2")
+    with pytest.raises(mochi.MochiError, match="one of 2 that an MPI launcher started"):
+        mochi.Simulation({"scene": "pour", "spheres": 50})
+    monkeypatch.setenv(variable, "1")
+    assert len(mochi.Simulation({"scene": "pour", "spheres": 50})) == 50

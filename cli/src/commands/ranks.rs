@@ -3,15 +3,7 @@
 //! over them; without it, a refusal (each process would run the whole scene).
 
 use anyhow::Result;
-
-/// The processes the launcher started, as the environment of Open MPI, MPICH (Hydra) or
-/// MVAPICH gives them (1 where none does).
-fn launched_processes() -> usize {
-    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "MV2_COMM_WORLD_SIZE"]
-        .iter()
-        .find_map(|name| std::env::var(name).ok()?.parse().ok())
-        .unwrap_or(1)
-}
+use mochi::distributed::launched_processes;
 
 /// The ranks of the processes `mpirun` started, where it started several.
 #[cfg(feature = "mpi")]
