@@ -76,6 +76,9 @@ pub struct RankStepper<C: Comm> {
     total: usize,
     /// The loads on the spheres of the whole run, by id (empty lists: none).
     loads: ExternalLoads,
+    /// The cpu step of its spheres and their ghosts, opened at the first step and given each
+    /// step's spheres since (its cells and scratch kept).
+    stepper: Option<CpuStepper>,
     /// Steps taken since t = 0.
     step: u64,
 }
@@ -148,6 +151,7 @@ impl<C: Comm> RankStepper<C> {
             ghosts: 0,
             total: whole.len(),
             loads: ExternalLoads::default(),
+            stepper: None,
             step: whole.step,
         })
     }
@@ -189,23 +193,31 @@ impl<C: Comm> RankStepper<C> {
         self.ghosts = ghosts.len();
 
         let (local, ids, own_at) = self.merged(&ghosts)?;
-        let setup = DemSetup {
-            particles: local,
-            params: self.params.clone(),
-            mode: self.mode,
-            walls: self.walls.clone(),
+        let stepper = match self.stepper.take() {
+            Some(mut stepper) => {
+                stepper.replace_particles(local)?;
+                self.stepper.insert(stepper)
+            }
+            None => {
+                let setup = DemSetup {
+                    particles: local,
+                    params: self.params.clone(),
+                    mode: self.mode,
+                    walls: self.walls.clone(),
+                };
+                let opened = CpuStepper::open(setup)?.sized_for(self.r_max, self.mode);
+                self.stepper.insert(opened)
+            }
         };
-        let mut stepper = CpuStepper::open(setup)?.sized_for(self.r_max, self.mode);
-        if !self.loads.is_empty() {
-            let rows = |all: &[[f32; 3]]| match all.is_empty() {
-                true => Vec::new(),
-                false => ids.iter().map(|&id| all[id as usize]).collect(),
-            };
-            stepper.set_external_loads(&ExternalLoads {
-                forces: rows(&self.loads.forces),
-                torques: rows(&self.loads.torques),
-            })?;
-        }
+        stepper.set_gravity(self.params.gravity)?;
+        let rows = |all: &[[f32; 3]]| match all.is_empty() {
+            true => Vec::new(),
+            false => ids.iter().map(|&id| all[id as usize]).collect(),
+        };
+        stepper.set_external_loads(&ExternalLoads {
+            forces: rows(&self.loads.forces),
+            torques: rows(&self.loads.torques),
+        })?;
         let mut times = stepper.advance(1)?.times;
         let touching = stepper.touching();
         let after = stepper.particles()?;

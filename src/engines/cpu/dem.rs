@@ -230,6 +230,23 @@ impl CpuStepper {
         Ok(self)
     }
 
+    /// Puts `particles` in place of its spheres, its cells, scratch and settings kept: as
+    /// opening a stepper over them would (a decomposed run's own and ghost spheres of its
+    /// next step), but that spheres sharing a centre are not moved apart (as a run's are only
+    /// when it opens).
+    pub(crate) fn replace_particles(&mut self, mut particles: Particles) -> Result<()> {
+        self.masses = rows::contact_masses(&particles, &self.params.materials)?;
+        self.owners = particles.clumps.owners();
+        if self.params.friction.has_history() {
+            self.slots = self.slots.max(FIRST_SLOTS.max(particles.history.most()));
+        }
+        if self.params.friction.keeps_load() {
+            particles.history.keep_loads()?;
+        }
+        self.particles = particles;
+        Ok(())
+    }
+
     /// How many spheres each sphere touched in the last step, in input order (none before the
     /// first step).
     pub(crate) fn touching(&self) -> Vec<u32> {
