@@ -62,12 +62,7 @@ impl Comm for LocalComm {
 
     fn exchange(&self, outgoing: Vec<Vec<u8>>) -> Result<Vec<Vec<u8>>> {
         let n = self.size();
-        if outgoing.len() != n {
-            return Err(Error::Usage(format!(
-                "{} messages for a group of {n} ranks",
-                outgoing.len()
-            )));
-        }
+        one_message_a_rank(&outgoing, n)?;
         let lock = || {
             self.shared
                 .boxes
@@ -87,5 +82,16 @@ impl Comm for LocalComm {
         lock()?[self.rank] = vec![Vec::new(); n];
         self.shared.barrier.wait();
         Ok(received)
+    }
+}
+
+/// Refuses `outgoing` unless it holds one message for each of `ranks` ranks.
+pub(super) fn one_message_a_rank(outgoing: &[Vec<u8>], ranks: usize) -> Result<()> {
+    match outgoing.len() == ranks {
+        true => Ok(()),
+        false => Err(Error::Usage(format!(
+            "{} messages for a group of {ranks} ranks",
+            outgoing.len()
+        ))),
     }
 }

@@ -1,6 +1,6 @@
 //! The ranks of a run under `mpirun`: one process each, joined by MPI's world communicator.
 
-use super::comm::Comm;
+use super::comm::{Comm, one_message_a_rank};
 use crate::error::{Error, Result};
 use mpi::Threading;
 use mpi::datatype::{Partition, PartitionMut};
@@ -50,12 +50,7 @@ impl Comm for MpiComm {
 
     fn exchange(&self, outgoing: Vec<Vec<u8>>) -> Result<Vec<Vec<u8>>> {
         let n = self.size();
-        if outgoing.len() != n {
-            return Err(Error::Usage(format!(
-                "{} messages for a group of {n} ranks",
-                outgoing.len()
-            )));
-        }
+        one_message_a_rank(&outgoing, n)?;
         // MPI counts in i32: a message of 2 GiB or more is refused.
         let count = |bytes: usize| {
             i32::try_from(bytes).map_err(|_| Error::TooLarge {

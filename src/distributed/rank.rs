@@ -307,19 +307,7 @@ impl<C: Comm> RankStepper<C> {
                 "a sphere is both owned and a ghost here".into(),
             ));
         }
-        let mut local = Particles {
-            positions: spheres.iter().map(|(s, _)| s.position).collect(),
-            position_residuals: spheres.iter().map(|(s, _)| s.residual).collect(),
-            velocities: spheres.iter().map(|(s, _)| s.velocity).collect(),
-            angular_velocities: spheres.iter().map(|(s, _)| s.spin).collect(),
-            radii: spheres.iter().map(|(s, _)| s.radius).collect(),
-            materials: spheres.iter().map(|(s, _)| s.material as u8).collect(),
-            step: self.step,
-            ..Particles::default()
-        };
-        if local.materials.iter().all(|&m| m == 0) {
-            local.materials.clear();
-        }
+        let mut local = spheres_of(spheres.iter().map(|(s, _)| *s), self.step);
         // The own spheres' contacts, partners by place; a partner sphere beyond the ghosts
         // is beyond reach (the step would drop it).
         let mut contacts = Vec::new();
@@ -374,19 +362,7 @@ impl<C: Comm> RankStepper<C> {
         {
             return Err(Error::Usage("the ranks' spheres are not the run's".into()));
         }
-        let mut whole = Particles {
-            positions: all.iter().map(|h| h.sphere.position).collect(),
-            position_residuals: all.iter().map(|h| h.sphere.residual).collect(),
-            velocities: all.iter().map(|h| h.sphere.velocity).collect(),
-            angular_velocities: all.iter().map(|h| h.sphere.spin).collect(),
-            radii: all.iter().map(|h| h.sphere.radius).collect(),
-            materials: all.iter().map(|h| h.sphere.material as u8).collect(),
-            step: self.step,
-            ..Particles::default()
-        };
-        if whole.materials.iter().all(|&m| m == 0) {
-            whole.materials.clear();
-        }
+        let mut whole = spheres_of(all.iter().map(|h| &h.sphere), self.step);
         let contacts: Vec<(u32, HistoryEntry)> = all
             .iter()
             .flat_map(|h| h.contacts.iter().map(move |&e| (h.sphere.id, e)))
@@ -473,6 +449,26 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
         self.loads = loads.clone();
         Ok(())
     }
+}
+
+/// The spheres of `records`, in their order, at step `step` (no contact history yet).
+fn spheres_of<'a>(records: impl Iterator<Item = &'a SphereRecord> + Clone, step: u64) -> Particles {
+    let column = |of: fn(&SphereRecord) -> [f32; 3]| records.clone().map(of).collect();
+    let mut p = Particles {
+        positions: column(|s| s.position),
+        position_residuals: column(|s| s.residual),
+        velocities: column(|s| s.velocity),
+        angular_velocities: column(|s| s.spin),
+        radii: records.clone().map(|s| s.radius).collect(),
+        materials: records.map(|s| s.material as u8).collect(),
+        step,
+        ..Particles::default()
+    };
+    // Every sphere of the first material: the list left empty, as a run of one keeps it.
+    if p.materials.iter().all(|&m| m == 0) {
+        p.materials.clear();
+    }
+    p
 }
 
 /// Sphere `i` of `p` as a record of id `id` (no contacts counted yet).
