@@ -50,6 +50,7 @@ pub mod engines;
 mod error;
 pub mod gpu;
 pub mod io;
+mod launcher;
 pub mod mesh;
 mod morton;
 pub mod names;

@@ -240,11 +240,18 @@ impl RunStart {
         ))
     }
 
-    /// Opens the run decomposed over the ranks of `comm` (the cpu backend, the box cut into
-    /// slabs: `crate::distributed`): on rank 0 the run, whose step every other rank follows;
-    /// on the others `None`, once rank 0's run is over (they write nothing). Refuses what a
-    /// run over ranks does not carry yet (flows, clumps, the load history).
-    pub fn open_on_ranks<C>(self, comm: C, options: &Options) -> Result<Option<Run>>
+    /// Opens the run decomposed over the ranks of `comm` (the box cut into slabs:
+    /// `crate::distributed`), each rank stepping on the backend of `choice` (`auto`: the
+    /// registry's one rule; a GPU backend on the GPU of the process's local rank): on rank 0
+    /// the run, whose step every other rank follows; on the others `None`, once rank 0's run is
+    /// over (they write nothing). Refuses what a run over ranks does not carry yet (flows,
+    /// clumps, mesh walls, the load history).
+    pub fn open_on_ranks<C>(
+        self,
+        comm: C,
+        choice: BackendChoice,
+        options: &Options,
+    ) -> Result<Option<Run>>
     where
         C: crate::distributed::Comm + Send + 'static,
     {
@@ -261,15 +268,25 @@ impl RunStart {
             mode: start.mode,
             walls: start.walls.clone(),
         };
-        let rank = crate::distributed::RankStepper::new(comm, &setup)?;
+        let Opened {
+            value: rank,
+            kind,
+            reason,
+        } = crate::distributed::RankStepper::new(comm, &setup)?.on_backend(choice, options)?;
         if rank.comm().rank() != 0 {
             crate::distributed::follow(rank)?;
             return Ok(None);
         }
         let stepper = Box::new(crate::distributed::Leader::new(rank)?);
         let scene = (self.config, self.state);
-        let chosen = (BackendKind::Cpu, None);
-        Ok(Some(into_run(scene, facts, stepper, chosen, None, options)))
+        Ok(Some(into_run(
+            scene,
+            facts,
+            stepper,
+            (kind, reason),
+            None,
+            options,
+        )))
     }
 }
 

@@ -1,13 +1,17 @@
 //! A run decomposed over ranks (threads of this process, `LocalComm`) is the whole run bit for
 //! bit on the cpu backend: a poured pile with friction, rolling resistance and its history,
-//! spheres crossing the slabs' faces, on 2, 3 and 4 ranks; the contacts each counts; new
-//! motion (a sphere put in another rank's slab), external loads and gravity between steps.
+//! spheres crossing the slabs' faces, on 2, 3 and 4 ranks, ghosts exchanged every step or every
+//! few steps; the contacts each counts; new motion (a sphere put in another rank's slab),
+//! external loads and gravity between steps. On a GPU backend it matches the whole run on it.
+
+mod common;
 
 use mochi::dem::scene::{Overrides, SceneConfig};
 use mochi::dem::{Particles, Stepper};
 use mochi::distributed::{LocalComm, RankStepper, Slabs};
-use mochi::engines::DemSetup;
+use mochi::engines::BackendChoice::Named;
 use mochi::engines::cpu::CpuStepper;
+use mochi::engines::{BackendKind, DemSetup, Options, open_setup};
 
 /// A poured pile of polydisperse spheres in mid-fall and landing: contacts with history,
 /// walls, and spheres moving across the box.
@@ -64,7 +68,7 @@ fn alone(setup: &DemSetup, script: Script) -> (Particles, Vec<u64>) {
 /// at the end.
 fn decomposed(
     setup: &DemSetup,
-    ranks: usize,
+    (ranks, every): (usize, u32),
     script: Script,
 ) -> (Particles, Vec<u64>, Vec<[usize; 2]>) {
     let group = LocalComm::group(ranks).unwrap();
@@ -73,7 +77,9 @@ fn decomposed(
             .into_iter()
             .map(|comm| {
                 scope.spawn(move || {
-                    let mut rank = RankStepper::new(comm, setup).unwrap();
+                    let mut rank = RankStepper::new(comm, setup)
+                        .and_then(|rank| rank.exchanging_every(every))
+                        .unwrap();
                     let first = rank.own_spheres();
                     let contacts = script(&mut rank, setup);
                     let gathered = rank.gather().unwrap();
@@ -132,8 +138,9 @@ fn a_run_on_several_ranks_is_the_whole_run_bit_for_bit() {
     let script: Script = |s, _| vec![s.advance(STEPS).unwrap().contacts];
     let (expected, contacts) = alone(&setup, script);
     assert!(contacts[0] > 50, "{contacts:?} contacts at the end");
-    for ranks in [2, 3, 4] {
-        let (got, got_contacts, owned) = decomposed(&setup, ranks, script);
+    // Ghosts exchanged every step, or every 5 or 8 (their halo that many cells deep).
+    for (ranks, every) in [(2, 1), (3, 1), (4, 1), (2, 5), (3, 8)] {
+        let (got, got_contacts, owned) = decomposed(&setup, (ranks, every), script);
         // Each sphere held once, and some crossed a face.
         let held = |k: usize| owned.iter().map(|o| o[k]).sum::<usize>();
         assert_eq!(
@@ -145,7 +152,7 @@ fn a_run_on_several_ranks_is_the_whole_run_bit_for_bit() {
             owned.iter().any(|o| o[0] != o[1]),
             "none moved across: {owned:?}"
         );
-        assert_eq!(got_contacts, contacts, "{ranks} ranks");
+        assert_eq!(got_contacts, contacts, "{ranks} ranks, every {every} steps");
         assert_same(&got, &expected, ranks);
     }
 }
@@ -191,8 +198,8 @@ fn a_decomposed_run_takes_new_motion_loads_and_gravity_as_the_whole_run_does() {
         contacts
     };
     let (expected, contacts) = alone(&setup, script);
-    for ranks in [2, 4] {
-        let (got, got_contacts, _) = decomposed(&setup, ranks, script);
+    for (ranks, every) in [(2, 1), (4, 1), (2, 7)] {
+        let (got, got_contacts, _) = decomposed(&setup, (ranks, every), script);
         assert_eq!(got_contacts, contacts, "{ranks} ranks");
         assert_same(&got, &expected, ranks);
     }
@@ -215,4 +222,77 @@ fn what_a_decomposed_run_does_not_carry_yet_is_refused() {
     let comm = LocalComm::group(1).unwrap().pop().unwrap();
     let e = RankStepper::new(comm, &setup).err().unwrap().to_string();
     assert!(e.contains("mesh walls"), "{e}");
+}
+
+/// The kinetic energy of translation of `p` (unit density) \[J·m⁻³\].
+fn kinetic(p: &Particles) -> f64 {
+    (0..p.len())
+        .map(|i| {
+            let v2: f32 = p.velocities[i].iter().map(|c| c * c).sum();
+            (p.radii[i] as f64).powi(3) * v2 as f64
+        })
+        .sum()
+}
+
+#[test]
+fn a_run_on_two_ranks_of_each_backend_matches_the_whole_run_on_it() {
+    let setup = landing();
+    let options = Options::default();
+    common::on_every_backend(|kind| {
+        let mut whole = open_setup(kind, setup.clone(), &options).unwrap();
+        let contacts = whole.advance(STEPS).unwrap().contacts;
+        let expected = whole.particles().unwrap();
+        let group = LocalComm::group(2).unwrap();
+        let ranks: Vec<_> = std::thread::scope(|scope| {
+            let handles: Vec<_> = group
+                .into_iter()
+                .map(|comm| {
+                    let (setup, options) = (&setup, &options);
+                    scope.spawn(move || {
+                        let opened = RankStepper::new(comm, setup)
+                            .and_then(|rank| rank.on_backend(Named(kind), options))
+                            .unwrap();
+                        assert_eq!(opened.kind, kind);
+                        let mut rank = opened.value;
+                        let (mut contacts, mut ghosts) = (0, 0);
+                        for _ in 0..4 {
+                            contacts = rank.advance(STEPS / 4).unwrap().contacts;
+                            ghosts = ghosts.max(rank.ghost_spheres());
+                        }
+                        let every = rank.steps_between_exchanges();
+                        (contacts, rank.particles().unwrap(), every, ghosts)
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        let (got_contacts, got, every, _) = &ranks[0];
+        assert!(
+            ranks
+                .iter()
+                .all(|r| r.0 == *got_contacts && r.1.positions == got.positions)
+        );
+        let ghosts: usize = ranks.iter().map(|r| r.3).sum();
+        assert!(ghosts > 0, "no ghosts");
+        // The same sphere a thousandth of the smallest radius from where the whole run has it
+        // (the two runs sum their forces in other orders), the same contacts and energy.
+        let (r_min, _) = expected.radius_range();
+        let gap = common::largest_gap(got, &expected);
+        let energy = kinetic(got) / kinetic(&expected) - 1.0;
+        let more = *got_contacts as f64 / contacts as f64 - 1.0;
+        eprintln!(
+            "{}: ghosts exchanged every {every} step(s), {ghosts} at most; largest gap {gap:.3e} m (r_min \
+             {r_min:.3e}), energy {energy:+.2e}, contacts {got_contacts} against {contacts}",
+            kind.name()
+        );
+        if kind == BackendKind::Cpu {
+            assert_same(got, &expected, 2);
+        }
+        assert!(gap < 1e-3 * r_min, "largest gap {gap} m");
+        assert!(energy.abs() < 1e-3, "kinetic energy {energy:+.2e}");
+        assert!(
+            more.abs() < 0.01,
+            "{got_contacts} contacts against {contacts}"
+        );
+    });
 }

@@ -4,7 +4,7 @@
 //! communicator joins processes.
 
 use crate::error::{Error, Result};
-use std::sync::{Arc, Barrier, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
 
 /// One rank's end of a group of ranks.
 pub trait Comm {
@@ -28,7 +28,68 @@ pub struct LocalComm {
 /// The mailboxes of a group of [`LocalComm`]s: `boxes[to][from]`.
 struct Shared {
     boxes: Mutex<Vec<Vec<Vec<u8>>>>,
-    barrier: Barrier,
+    gate: Gate,
+}
+
+/// A barrier that a rank leaving the group breaks: a rank waiting at it then gets an error
+/// rather than waiting for ever.
+struct Gate {
+    ranks: usize,
+    state: Mutex<GateState>,
+    opened: Condvar,
+}
+
+#[derive(Default)]
+struct GateState {
+    /// Ranks waiting for the gate to open.
+    arrived: usize,
+    /// Times the gate has opened.
+    openings: u64,
+    /// Whether a rank has left the group.
+    broken: bool,
+}
+
+impl Gate {
+    /// Waits until every rank of the group has come (the gate opens), or a rank has left.
+    fn pass(&self) -> Result<()> {
+        let left = || Error::Usage("a rank left its group in the middle of the run".into());
+        let mut state = self.state.lock().map_err(|_| left())?;
+        if state.broken {
+            return Err(left());
+        }
+        state.arrived += 1;
+        if state.arrived == self.ranks {
+            state.arrived = 0;
+            state.openings += 1;
+            self.opened.notify_all();
+            return Ok(());
+        }
+        let opening = state.openings;
+        while state.openings == opening && !state.broken {
+            state = self.opened.wait(state).map_err(|_| left())?;
+        }
+        match state.openings == opening {
+            true => Err(left()),
+            false => Ok(()),
+        }
+    }
+
+    /// Breaks the gate: a rank left.
+    fn break_open(&self) {
+        if let Ok(mut state) = self.state.lock() {
+            state.broken = true;
+        }
+        self.opened.notify_all();
+    }
+}
+
+/// A rank leaving its group (done, failed or panicked) leaves the others no exchange to
+/// make: those that wait at one get an error. (A rank done with the run leaves after the
+/// others have passed its last exchange.)
+impl Drop for LocalComm {
+    fn drop(&mut self) {
+        self.shared.gate.break_open();
+    }
 }
 
 impl LocalComm {
@@ -39,7 +100,11 @@ impl LocalComm {
         }
         let shared = Arc::new(Shared {
             boxes: Mutex::new(vec![vec![Vec::new(); ranks]; ranks]),
-            barrier: Barrier::new(ranks),
+            gate: Gate {
+                ranks,
+                state: Mutex::default(),
+                opened: Condvar::new(),
+            },
         });
         Ok((0..ranks)
             .map(|rank| LocalComm {
@@ -77,10 +142,10 @@ impl Comm for LocalComm {
         }
         // Every message is in its box before any is taken, and every rank has taken its own
         // before the next exchange fills the boxes again.
-        self.shared.barrier.wait();
+        self.shared.gate.pass()?;
         let received = std::mem::take(&mut lock()?[self.rank]);
         lock()?[self.rank] = vec![Vec::new(); n];
-        self.shared.barrier.wait();
+        self.shared.gate.pass()?;
         Ok(received)
     }
 }

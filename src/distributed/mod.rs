@@ -18,11 +18,4 @@ pub use mpi_comm::MpiComm;
 pub use rank::RankStepper;
 pub use slabs::Slabs;
 
-/// The processes an MPI launcher (`mpirun`, `mpiexec`, `srun`) started this one among, as the
-/// environment of Open MPI, MPICH (Hydra) or MVAPICH says (1 where none does).
-pub fn launched_processes() -> usize {
-    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "MV2_COMM_WORLD_SIZE"]
-        .iter()
-        .find_map(|name| std::env::var(name).ok()?.parse().ok())
-        .unwrap_or(1)
-}
+pub use crate::launcher::launched_processes;

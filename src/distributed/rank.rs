@@ -1,27 +1,35 @@
-//! One rank of a decomposed run on the cpu backend. It holds the spheres whose centres lie in
-//! its slab (in the order of their ids in the whole run, their contact history naming partners
-//! by id) and takes each step as
+//! One rank of a decomposed run. It holds the spheres whose centres lie in its slab (in the
+//! order of their ids in the whole run, their contact history naming partners by id) and takes
+//! the steps in rounds of k steps (k = 1 unless set), each round as
 //!
-//! 1. **ghosts**: every rank sends each other rank the spheres within the halo of its slab (a
-//!    cell of the whole run's lattice: the reach of any pair);
-//! 2. **step**: its own spheres and the ghosts, merged in the order of their ids, take one step
-//!    of the cpu engine on the lattice of the whole run; each sphere sums its own contacts
-//!    (the engine's full-neighbourhood gather, in an order its place and the ids decide), so
-//!    an own sphere's force is the one the whole run gives it, bit for bit; the ghosts' new
-//!    states are dropped (their owners have them);
+//! 1. **ghosts**: every rank sends each other rank the spheres within the halo of its slab: k
+//!    cells of the whole run's lattice (a cell is the reach of any pair), and for k > 1 twice
+//!    the farthest any sphere can travel in k steps at the fastest sphere's speed and gravity;
+//! 2. **steps**: its own spheres and the ghosts, merged in the order of their ids, take k steps
+//!    of its engine. A step's force on a sphere depends only on the spheres within a cell of
+//!    it, so the ghosts' errors (they miss the spheres beyond the halo) creep inwards by at
+//!    most a cell (and their travel) a step and never reach an own sphere within the round.
+//!    On the cpu, on the lattice of the whole run, each sphere sums its contacts in an order
+//!    its place and the ids decide, so an own sphere's state is the whole run's bit for bit;
+//!    a GPU backend's step (opened again over each round's spheres, on the rank's GPU) sums in
+//!    its own order, so its run matches the whole run as two runs of one GPU match. The
+//!    ghosts' new states are dropped (their owners have them);
 //! 3. **migration**: a sphere whose centre left the slab goes to the rank that owns it now,
 //!    with its contact history.
 //!
-//! Each pair is computed on both of its sides (the engine does so in any run), so no force
+//! Each pair is computed on both of its sides (every engine does so in any run), so no force
 //! crosses ranks: only states do.
 
 use super::comm::Comm;
 use super::slabs::Slabs;
+use crate::Spheres;
 use crate::dem::StepParams;
 use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, StageTimes, Stepper};
 use crate::dem::walls::WallSet;
-use crate::engines::DemSetup;
-use crate::engines::cpu::CpuStepper;
+use crate::detect::Backend;
+use crate::engines::common::flow::{Reopen, Room};
+use crate::engines::cpu::{CpuBackend, CpuStepper};
+use crate::engines::{BackendChoice, DemSetup, Opened, Options, open_rank_step};
 use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, FIRST_MESH_WALL, HistoryEntry, Particles};
 use crate::proxy::ProxyMode;
@@ -57,7 +65,19 @@ impl Held {
     }
 }
 
-/// One rank's part of a run on the cpu backend, decomposed into slabs.
+/// How a rank steps its spheres and their ghosts.
+enum LocalStep {
+    /// The cpu step, opened at the first round and given each round's spheres since (its cells
+    /// and scratch kept).
+    Cpu(Option<Box<CpuStepper>>),
+    /// A GPU backend's step, opened again over each round's spheres on the rank's GPU.
+    Device {
+        reopen: Reopen,
+        backend: &'static str,
+    },
+}
+
+/// One rank's part of a run decomposed into slabs.
 pub struct RankStepper<C: Comm> {
     comm: C,
     slabs: Slabs,
@@ -66,8 +86,11 @@ pub struct RankStepper<C: Comm> {
     walls: WallSet,
     /// The largest sphere of the whole run: every rank bins on the lattice its cells make.
     r_max: f32,
-    /// How far beyond its slab a rank holds spheres as ghosts \[m\].
-    halo: f64,
+    /// How far a step looks for a sphere's partners: a cell of the whole run's lattice,
+    /// padded for the rounding of the centres \[m\].
+    reach: f64,
+    /// Steps a round (between two exchanges of ghosts).
+    round: u32,
     /// This rank's spheres, by ascending id.
     own: Vec<Held>,
     /// The ghosts of the last step.
@@ -76,16 +99,16 @@ pub struct RankStepper<C: Comm> {
     total: usize,
     /// The loads on the spheres of the whole run, by id (empty lists: none).
     loads: ExternalLoads,
-    /// The cpu step of its spheres and their ghosts, opened at the first step and given each
-    /// step's spheres since (its cells and scratch kept).
-    stepper: Option<CpuStepper>,
+    /// The step of its spheres and their ghosts.
+    local: LocalStep,
     /// Steps taken since t = 0.
     step: u64,
 }
 
 impl<C: Comm> RankStepper<C> {
     /// This rank's part of `setup` (the whole run's start, which every rank is given): the
-    /// spheres in its slab of the box cut into `comm.size()` slabs along its longest axis.
+    /// spheres in its slab of the box cut into `comm.size()` slabs along its longest axis,
+    /// stepped on the cpu, ghosts exchanged every step.
     /// Refuses what the decomposition does not carry yet: clumps, mesh walls, the
     /// Mindlin–Deresiewicz load history (and the caller, inflows and outflows).
     pub fn new(comm: C, setup: &DemSetup) -> Result<Self> {
@@ -119,7 +142,7 @@ impl<C: Comm> RankStepper<C> {
         // the f32 rounding of the centres the narrow phase compares.
         let cell = mode.cell_size(r_max) + params.reach_margin(r_max);
         let far = lo.iter().chain(&hi).fold(0.0f64, |m, x| m.max(x.abs()));
-        let halo = cell as f64 * (1.0 + 1e-4) + 1e-6 * far;
+        let reach = cell as f64 * (1.0 + 1e-4) + 1e-6 * far;
         let mut own = Vec::new();
         for i in 0..whole.len() {
             if slabs.owner(whole.exact_position(i)) == comm.rank() {
@@ -146,14 +169,59 @@ impl<C: Comm> RankStepper<C> {
             mode: *mode,
             walls: walls.clone(),
             r_max,
-            halo,
+            reach,
+            round: 1,
             own,
             ghosts: 0,
             total: whole.len(),
             loads: ExternalLoads::default(),
-            stepper: None,
+            local: LocalStep::Cpu(None),
             step: whole.step,
         })
+    }
+
+    /// The same rank exchanging ghosts every `steps` steps (at least 1), its halo that many
+    /// cells deep and more (the module's rounds): fewer exchanges, more ghosts. Every rank of
+    /// a group takes the same.
+    pub fn exchanging_every(mut self, steps: u32) -> Result<Self> {
+        if steps == 0 {
+            return Err(Error::Usage(
+                "ranks exchange their ghosts every 1 or more steps".into(),
+            ));
+        }
+        self.round = steps;
+        Ok(self)
+    }
+
+    /// The same rank stepping on the backend of `choice` (`auto`: the registry's one rule; a
+    /// GPU backend on the GPU of the process's local rank), with the backend it runs on. On a
+    /// GPU backend it exchanges ghosts as seldom as a halo of a quarter of the thinnest slab
+    /// allows (at most every 32 steps): each round pays an upload and a read-back of the
+    /// rank's spheres, so a round is as long as its ghosts let it be.
+    pub fn on_backend(mut self, choice: BackendChoice, options: &Options) -> Result<Opened<Self>> {
+        let setup = DemSetup {
+            particles: Particles::default(),
+            params: self.params.clone(),
+            mode: self.mode,
+            walls: self.walls.clone(),
+        };
+        let opened = open_rank_step(choice, setup, options)?;
+        if let Some(reopen) = opened.value {
+            let thinnest = self.slabs.thinnest();
+            self.round = ((thinnest / (4.0 * self.reach)) as u32).clamp(1, 32);
+            let backend = opened.kind.name();
+            self.local = LocalStep::Device { reopen, backend };
+        }
+        Ok(Opened {
+            value: self,
+            kind: opened.kind,
+            reason: opened.reason,
+        })
+    }
+
+    /// Steps a round (between two exchanges of ghosts).
+    pub fn steps_between_exchanges(&self) -> u32 {
+        self.round
     }
 
     /// The spheres this rank owns now.
@@ -171,56 +239,103 @@ impl<C: Comm> RankStepper<C> {
         &self.comm
     }
 
-    /// One step: ghosts, the step, migration (the module's three phases); returns the
-    /// contacts of its own spheres with spheres (each own sphere's count) and the step's
-    /// phase times (the exchanges counted as the build's).
-    fn take_step(&mut self) -> Result<(u64, StageTimes)> {
+    /// How far beyond its slab a rank holds ghosts for a round of `steps` steps (the module's
+    /// first phase; every rank together).
+    fn halo(&self, steps: u32) -> Result<f64> {
+        if steps == 1 {
+            return Ok(self.reach);
+        }
+        let speed = |h: &Held| glam::Vec3::from(h.sphere.velocity).length() as f64;
+        let fastest = self.max_over_ranks(self.own.iter().map(speed).fold(0.0, f64::max))?;
+        let gravity = glam::Vec3::from(self.params.gravity).length() as f64;
+        let round = steps as f64 * self.params.dt as f64;
+        let travel = round * (fastest + gravity * round);
+        Ok(steps as f64 * self.reach + 2.0 * travel)
+    }
+
+    /// One round of `steps` steps: ghosts, the steps, migration (the module's three phases);
+    /// returns each own sphere's contacts with spheres after it, summed (each contact of two
+    /// own spheres counted by both), and the round's phase times (the exchanges and the
+    /// opening of a GPU step counted as the build's).
+    fn take_round(&mut self, steps: u32) -> Result<(u64, StageTimes)> {
         let started = Instant::now();
+        let halo = self.halo(steps)?;
         let ranks = self.comm.size();
         let mut outgoing = vec![Vec::new(); ranks];
         for held in &self.own {
             let x = held.exact_position();
             let owner = self.comm.rank();
-            for r in self.slabs.ghost_ranks(x, owner, self.halo) {
-                put(&mut outgoing[r], &held.sphere, &[]);
+            // A ghost's state after its first step is dropped unless the round goes on; then
+            // its contacts must be its own.
+            let contacts = match steps {
+                1 => &[][..],
+                _ => &held.contacts,
+            };
+            for r in self.slabs.ghost_ranks(x, owner, halo) {
+                put(&mut outgoing[r], &held.sphere, contacts);
             }
         }
         let mut ghosts = Vec::new();
         for message in self.comm.exchange(outgoing)? {
-            ghosts.extend(read(&message)?.into_iter().map(|h| h.sphere));
+            ghosts.extend(read(&message)?);
         }
-        ghosts.sort_by_key(|s| s.id);
+        ghosts.sort_by_key(|h| h.sphere.id);
         self.ghosts = ghosts.len();
 
         let (local, ids, own_at) = self.merged(&ghosts)?;
-        let stepper = match self.stepper.take() {
-            Some(mut stepper) => {
-                stepper.replace_particles(local)?;
-                self.stepper.insert(stepper)
-            }
-            None => {
-                let setup = DemSetup {
-                    particles: local,
-                    params: self.params.clone(),
-                    mode: self.mode,
-                    walls: self.walls.clone(),
-                };
-                let opened = CpuStepper::open(setup)?.sized_for(self.r_max, self.mode);
-                self.stepper.insert(opened)
-            }
-        };
-        stepper.set_gravity(self.params.gravity)?;
         let rows = |all: &[[f32; 3]]| match all.is_empty() {
             true => Vec::new(),
             false => ids.iter().map(|&id| all[id as usize]).collect(),
         };
-        stepper.set_external_loads(&ExternalLoads {
+        let loads = ExternalLoads {
             forces: rows(&self.loads.forces),
             torques: rows(&self.loads.torques),
-        })?;
-        let mut times = stepper.advance(1)?.times;
-        let touching = stepper.touching();
-        let after = stepper.particles()?;
+        };
+        let gravity = self.params.gravity;
+        let (after, mut times, touching) = match &mut self.local {
+            // No sphere here: nothing to step.
+            _ if local.is_empty() => {
+                let after = Particles {
+                    step: local.step + steps as u64,
+                    ..local
+                };
+                (after, StageTimes::default(), 0)
+            }
+            LocalStep::Cpu(kept) => {
+                let stepper = match kept.take() {
+                    Some(mut stepper) => {
+                        stepper.replace_particles(local)?;
+                        kept.insert(stepper)
+                    }
+                    None => {
+                        let setup = DemSetup {
+                            particles: local,
+                            params: self.params.clone(),
+                            mode: self.mode,
+                            walls: self.walls.clone(),
+                        };
+                        let opened = CpuStepper::open(setup)?.sized_for(self.r_max, self.mode);
+                        kept.insert(Box::new(opened))
+                    }
+                };
+                stepper.set_gravity(gravity)?;
+                stepper.set_external_loads(&loads)?;
+                let times = stepper.advance(steps)?.times;
+                let touching = stepper.touching();
+                let own_touching = own_at.iter().map(|&at| touching[at] as u64).sum();
+                (stepper.particles()?, times, own_touching)
+            }
+            LocalStep::Device { reopen, .. } => {
+                let room = Room::of(&local);
+                let mut stepper = reopen(local, room)?;
+                stepper.set_gravity(gravity)?;
+                stepper.set_external_loads(&loads)?;
+                let times = stepper.advance(steps)?.times;
+                let after = stepper.particles()?;
+                let own_touching = own_pair_ends(&after, &own_at, self.mode)?;
+                (after, times, own_touching)
+            }
+        };
         self.step = after.step;
 
         let exchanged = Instant::now();
@@ -240,11 +355,10 @@ impl<C: Comm> RankStepper<C> {
             })
             .collect();
         self.migrate()?;
-        let own_touching = own_at.iter().map(|&at| touching[at] as u64).sum();
         let ms = |from: Instant, to: Instant| (to - from).as_secs_f64() * 1e3;
         let stepped = ms(started, exchanged) - times.total_ms();
         times.build_ms += stepped.max(0.0) + exchanged.elapsed().as_secs_f64() * 1e3;
-        Ok((own_touching, times))
+        Ok((touching, times))
     }
 
     /// Sends each own sphere whose centre lies beyond this rank's slab, with its contacts, to
@@ -266,55 +380,73 @@ impl<C: Comm> RankStepper<C> {
         Ok(())
     }
 
-    /// The sum of `x` over the ranks (every rank together).
-    fn sum_over_ranks(&self, x: u64) -> Result<u64> {
-        let outgoing = vec![x.to_le_bytes().to_vec(); self.comm.size()];
-        let mut sum = 0u64;
+    /// The 8 bytes of `x` from every other rank (every rank together).
+    fn of_other_ranks(&self, x: [u8; 8]) -> Result<Vec<[u8; 8]>> {
+        let mut outgoing = vec![x.to_vec(); self.comm.size()];
+        outgoing[self.comm.rank()].clear();
+        let mut values = Vec::new();
         for message in self.comm.exchange(outgoing)? {
-            let bytes: [u8; 8] = message
+            if message.is_empty() {
+                continue;
+            }
+            let bytes = message
                 .as_slice()
                 .try_into()
-                .map_err(|_| Error::Usage("a rank's count is not 8 bytes".into()))?;
-            sum += u64::from_le_bytes(bytes);
+                .map_err(|_| Error::Usage("a rank's number is not 8 bytes".into()))?;
+            values.push(bytes);
         }
-        Ok(sum)
+        Ok(values)
+    }
+
+    /// The sum of `x` over the ranks (every rank together).
+    fn sum_over_ranks(&self, x: u64) -> Result<u64> {
+        let others = self.of_other_ranks(x.to_le_bytes())?;
+        Ok(x + others.into_iter().map(u64::from_le_bytes).sum::<u64>())
+    }
+
+    /// The largest `x` of the ranks (every rank together).
+    fn max_over_ranks(&self, x: f64) -> Result<f64> {
+        let others = self.of_other_ranks(x.to_le_bytes())?;
+        Ok(others.into_iter().map(f64::from_le_bytes).fold(x, f64::max))
     }
 
     /// This rank's spheres and `ghosts` (by ascending id) merged in the order of their ids, as
     /// one set of spheres whose history names partners by their place in it; with the id of
     /// each sphere of it and the places of the own ones.
-    fn merged(&self, ghosts: &[SphereRecord]) -> Result<(Particles, Vec<u32>, Vec<usize>)> {
+    fn merged(&self, ghosts: &[Held]) -> Result<(Particles, Vec<u32>, Vec<usize>)> {
         let n = self.own.len() + ghosts.len();
-        let mut spheres: Vec<(&SphereRecord, Option<&Held>)> = Vec::with_capacity(n);
+        // Each sphere, and whether it is an own one.
+        let mut spheres: Vec<(&Held, bool)> = Vec::with_capacity(n);
         let (mut a, mut b) = (0, 0);
         while a < self.own.len() || b < ghosts.len() {
-            let own_first =
-                b == ghosts.len() || (a < self.own.len() && self.own[a].sphere.id < ghosts[b].id);
+            let own_first = b == ghosts.len()
+                || (a < self.own.len() && self.own[a].sphere.id < ghosts[b].sphere.id);
             match own_first {
                 true => {
-                    spheres.push((&self.own[a].sphere, Some(&self.own[a])));
+                    spheres.push((&self.own[a], true));
                     a += 1;
                 }
                 false => {
-                    spheres.push((&ghosts[b], None));
+                    spheres.push((&ghosts[b], false));
                     b += 1;
                 }
             }
         }
-        let ids: Vec<u32> = spheres.iter().map(|(s, _)| s.id).collect();
+        let ids: Vec<u32> = spheres.iter().map(|(h, _)| h.sphere.id).collect();
         if ids.windows(2).any(|w| w[0] == w[1]) {
             return Err(Error::Usage(
                 "a sphere is both owned and a ghost here".into(),
             ));
         }
-        let mut local = spheres_of(spheres.iter().map(|(s, _)| *s), self.step);
-        // The own spheres' contacts, partners by place; a partner sphere beyond the ghosts
-        // is beyond reach (the step would drop it).
+        let mut local = spheres_of(spheres.iter().map(|(h, _)| &h.sphere), self.step);
+        // The spheres' contacts, partners by place; a partner sphere beyond the ghosts is
+        // beyond reach (the step would drop it).
         let mut contacts = Vec::new();
         let mut own_at = Vec::with_capacity(self.own.len());
-        for (at, (_, held)) in spheres.iter().enumerate() {
-            let Some(held) = held else { continue };
-            own_at.push(at);
+        for (at, &(held, own)) in spheres.iter().enumerate() {
+            if own {
+                own_at.push(at);
+            }
             for e in &held.contacts {
                 let partner = match e.partner >= FIRST_MESH_WALL {
                     true => Some(e.partner),
@@ -378,8 +510,16 @@ impl<C: Comm> RankStepper<C> {
 /// arguments (the rows of the whole run, by id).
 impl<C: Comm + Send> Stepper for RankStepper<C> {
     fn describe(&self) -> String {
+        let backend = match &self.local {
+            LocalStep::Cpu(_) => "cpu",
+            LocalStep::Device { backend, .. } => backend,
+        };
+        let every = match self.round {
+            1 => "every step".to_string(),
+            k => format!("every {k} steps"),
+        };
         format!(
-            "cpu, rank {} of {} (slabs along {})",
+            "{backend}, rank {} of {} (slabs along {}, ghosts exchanged {every})",
             self.comm.rank(),
             self.comm.size(),
             ["x", "y", "z"][self.slabs.axis]
@@ -389,10 +529,13 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
     fn advance(&mut self, steps: u32) -> Result<Advance> {
         let mut times = StageTimes::default();
         let mut touching = 0;
-        for _ in 0..steps {
-            let (own, step_times) = self.take_step()?;
+        let mut left = steps;
+        while left > 0 {
+            let round = left.min(self.round);
+            let (own, round_times) = self.take_round(round)?;
             touching = own;
-            times.add(&step_times);
+            times.add(&round_times);
+            left -= round;
         }
         // Each contact of two spheres is counted by both.
         let contacts = match steps {
@@ -449,6 +592,17 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
         self.loads = loads.clone();
         Ok(())
     }
+}
+
+/// The contacts of the own spheres of `p` (at the places `own_at`, ascending) with any sphere
+/// of it, as the cpu step's per-sphere counts sum them (a contact of two own spheres counted by
+/// both): its touching pairs, found on the host.
+fn own_pair_ends(p: &Particles, own_at: &[usize], mode: ProxyMode) -> Result<u64> {
+    let mut backend = CpuBackend::new();
+    backend.build(Spheres::check(&p.positions, &p.radii)?, mode)?;
+    let (pairs, _) = backend.find_pairs()?;
+    let own = |at: u32| own_at.binary_search(&(at as usize)).is_ok() as u64;
+    Ok(pairs.iter().map(|pair| own(pair.i) + own(pair.j)).sum())
 }
 
 /// The spheres of `records`, in their order, at step `step` (no contact history yet).

@@ -40,6 +40,14 @@ impl Slabs {
         self.faces.len() - 1
     }
 
+    /// The width of the thinnest slab \[m\].
+    pub fn thinnest(&self) -> f64 {
+        self.faces
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// The rank whose slab holds `x` (a centre beyond the box: the nearest slab's; one on a
     /// face: the slab above it).
     pub fn owner(&self, x: [f64; 3]) -> usize {

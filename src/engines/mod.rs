@@ -13,6 +13,7 @@ mod registry;
 mod setup;
 pub mod wgpu;
 
+pub(crate) use open::open_rank_step;
 pub use open::{open, open_choice, open_scene, open_setup, open_stepper};
 pub(crate) use registry::open_auto;
 pub use registry::{BackendChoice, BackendKind, Opened, Options, RebuildPolicy};

@@ -265,6 +265,28 @@ fn choose(
     })
 }
 
+/// How each rank of a run decomposed over ranks (`crate::distributed`) steps its spheres and
+/// their ghosts on the backend the user chose (`auto`: the registry's one rule): `None` for
+/// the cpu, whose step the rank keeps and gives each round's spheres itself; for a GPU backend,
+/// its step opened again over each round's spheres on the device opened now (under an MPI
+/// launcher, the GPU of the process's local rank). `setup`'s own spheres are not used.
+pub(crate) fn open_rank_step(
+    choice: BackendChoice,
+    setup: DemSetup,
+    options: &Options,
+) -> Result<Opened<Option<Reopen>>> {
+    choosing(choice, &BackendKind::ALL, |kind| {
+        kind.probe().map_err(|reason| Error::BackendUnavailable {
+            backend: kind.name(),
+            reason,
+        })?;
+        match kind {
+            BackendKind::Cpu => Ok(None),
+            _ => engine(kind)?.reopener(setup.clone(), options).map(Some),
+        }
+    })
+}
+
 /// Opens the DEM step the user chose for the scene `start` (`auto`: in the order of
 /// [`BackendKind::FLOWING`] where spheres flow). The box walls, mesh walls and a box switched
 /// off run on every backend; spheres flowing in and out on every backend, the GPU ones through

@@ -108,9 +108,12 @@ fn instance() -> &'static wgpu::Instance {
     })
 }
 
-/// Every adapter of this machine, best first (discrete, integrated, virtual, other, CPU).
-/// Enumerated once per process: probing a backend, `auto` and opening a device all read this
-/// list, so none of them asks the drivers again (an adapter that appears later is not seen).
+/// Every adapter of this machine, best first (discrete, integrated, virtual, other, CPU); of
+/// several discrete GPUs, a process an MPI launcher started puts the one of its local rank
+/// first (local rank L: the (L mod G)-th of G), so the processes of a run over ranks on one
+/// machine each open their own. Enumerated once per process: probing a backend, `auto` and
+/// opening a device all read this list, so none of them asks the drivers again (an adapter
+/// that appears later is not seen).
 fn all_adapters() -> &'static [wgpu::Adapter] {
     static ADAPTERS: OnceLock<Vec<wgpu::Adapter>> = OnceLock::new();
     ADAPTERS.get_or_init(|| {
@@ -122,6 +125,13 @@ fn all_adapters() -> &'static [wgpu::Adapter] {
             wgpu::DeviceType::Other => 3,
             wgpu::DeviceType::Cpu => 4,
         });
+        let discrete = found
+            .iter()
+            .take_while(|a| a.get_info().device_type == wgpu::DeviceType::DiscreteGpu)
+            .count();
+        if discrete > 1 {
+            found[..discrete].rotate_left(crate::launcher::local_rank() % discrete);
+        }
         found
     })
 }

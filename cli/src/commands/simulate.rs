@@ -10,8 +10,6 @@ use anyhow::Result;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use mochi::dem::scene::{Overrides, SceneFlags, SceneKind};
 use mochi::dem::{Clock, StageTimes, StepParams, Stepper, equipment};
-use mochi::engines::BackendChoice::{Auto, Named};
-use mochi::engines::BackendKind;
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::numbers::significant;
 use mochi::render::{ColorBy, ColorChoice};
@@ -90,15 +88,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let run = match super::ranks::launched()? {
         None => run_start.open(args.backend, &options)?,
         // One of several processes of mpirun: rank 0 runs and writes, the others follow.
-        Some(ranks) => {
-            if !matches!(args.backend, Auto | Named(BackendKind::Cpu)) {
-                anyhow::bail!("a run over several processes steps on the cpu backend (for now)");
-            }
-            match run_start.open_on_ranks(ranks, &options)? {
-                Some(run) => run,
-                None => return Ok(()),
-            }
-        }
+        Some(ranks) => match run_start.open_on_ranks(ranks, args.backend, &options)? {
+            Some(run) => run,
+            None => return Ok(()),
+        },
     };
     if let Some(reason) = &run.auto_reason {
         eprintln!("{reason}");

@@ -81,7 +81,9 @@ unsafe impl Send for Device {}
 unsafe impl Sync for Device {}
 
 impl Device {
-    /// Opens GPU 0, or says why it cannot ([`OptixError::Unavailable`] without a driver).
+    /// Opens GPU 0 (under an MPI launcher, the GPU of the process's local rank L: the
+    /// (L mod G)-th of G), or says why it cannot ([`OptixError::Unavailable`] without a
+    /// driver).
     pub fn open() -> Result<Device> {
         if !sys::cuda_present() {
             return Err(OptixError::Unavailable(
@@ -89,7 +91,10 @@ impl Device {
             ));
         }
         let api = Api::get()?;
-        let context_cuda = CudaContext::new(0).map_err(cuda("opening GPU 0"))?;
+        let gpus = CudaContext::device_count().map_err(cuda("counting the GPUs"))?;
+        let ordinal = crate::launcher::local_rank() % gpus.max(1) as usize;
+        let context_cuda =
+            CudaContext::new(ordinal).map_err(cuda("opening the GPU of this process"))?;
         let name = context_cuda.name().map_err(cuda("reading the GPU name"))?;
         let stream = context_cuda.default_stream();
         let options = sys::DeviceContextOptions {
