@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Runs mochi's GPU checks on a lent GPU machine that has no Rust: binaries built elsewhere are
 # carried in .bin/ (made by `scripts/gpu-machine.sh pack` on the build machine), Vulkan's loader
-# and glvnd as .deb files in .gl/. Usage there: `bash scripts/gpu-machine.sh run [TEST...]`.
+# and glvnd as .deb files in .gl/, Open MPI's in .mpi/ where runs over ranks are measured
+# (`apt-get download` of openmpi-bin and its libraries). Usage there:
+# `bash scripts/gpu-machine.sh run [TEST...]`.
 #   pack   build the release binary and the named test binaries (--features optix) into .bin/
 #          (in $CARGO_TARGET_DIR where set; PROFILE=dist for the profile of published builds)
 #   run    unpack the loaders, then run each carried test binary with optix expected (TEST_ARGS:
@@ -39,6 +41,14 @@ run | shell)
     what=$1
     shift
     for f in .gl/*.deb; do dpkg -x "$f" /; done
+    # Open MPI for runs over ranks: the machine's own where it has one (its libraries must not
+    # be mixed with another release's), else the one carried in .mpi/; shared memory between
+    # the processes of one machine, none of the network transports probed.
+    if ! command -v mpirun > /dev/null && compgen -G ".mpi/*.deb" > /dev/null; then
+        for f in .mpi/*.deb; do dpkg -x "$f" /; done
+    fi
+    export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+    export OMPI_MCA_pml=ob1 OMPI_MCA_btl=self,vader OMPI_MCA_mtl=^ofi,psm,psm2
     ldconfig
     export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
     export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json

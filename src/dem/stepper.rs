@@ -31,6 +31,38 @@ impl StageTimes {
     }
 }
 
+/// One rank's share of a run decomposed over ranks (`crate::distributed`), since it opened:
+/// its spheres and ghosts, and where its wall time went.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct RankShare {
+    /// The spheres it owns now.
+    pub spheres: u64,
+    /// Its ghosts in its last round.
+    pub ghosts: u64,
+    /// Rounds taken (one exchange of ghosts each).
+    pub rounds: u64,
+    /// Steps taken.
+    pub steps: u64,
+    /// Exchanging ghosts and handing on the spheres that left its slab \[ms\].
+    pub exchange_ms: f64,
+    /// Laying its spheres and ghosts out and giving them to its engine (on a GPU, opening it
+    /// over them: an upload) \[ms\].
+    pub open_ms: f64,
+    /// Its engine's steps \[ms\].
+    pub step_ms: f64,
+    /// Reading its spheres back from its engine and counting their contacts \[ms\].
+    pub read_back_ms: f64,
+}
+
+impl RankShare {
+    /// Its wall time a step, all phases \[ms\].
+    pub fn ms_a_step(&self) -> f64 {
+        let total = self.exchange_ms + self.open_ms + self.step_ms + self.read_back_ms;
+        total / self.steps.max(1) as f64
+    }
+}
+
 /// How the stage times were taken.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -285,6 +317,18 @@ pub trait Stepper: Send {
     /// choice (`wgpu-compute`); default `None`.
     fn grid_build(&self) -> Option<&'static str> {
         None
+    }
+
+    /// Each rank's share of a run decomposed over ranks, by rank (default: none, a run of one
+    /// process). Every rank of the run calls it alike.
+    fn rank_shares(&mut self) -> Result<Vec<RankShare>> {
+        Ok(Vec::new())
+    }
+
+    /// The steps that one exchange of a run over ranks covers (default 1): a caller that
+    /// advances in calls of a multiple of it lets each call end where a round does.
+    fn steps_a_round(&self) -> u32 {
+        1
     }
 }
 

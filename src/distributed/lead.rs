@@ -7,7 +7,7 @@
 
 use super::comm::Comm;
 use super::rank::RankStepper;
-use crate::dem::stepper::{Advance, ExternalLoads, Motion, Stepper};
+use crate::dem::stepper::{Advance, ExternalLoads, Motion, RankShare, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::error::{Error, Result};
 use crate::particles::Particles;
@@ -24,6 +24,7 @@ enum Call {
     },
     Gravity([f32; 3]),
     Loads(ExternalLoads),
+    Shares,
     Stop,
 }
 
@@ -68,6 +69,7 @@ impl Call {
                 rows(&mut out, Some(bytemuck::cast_slice(&loads.torques)));
             }
             Call::Stop => out.push(5),
+            Call::Shares => out.push(6),
         }
         out
     }
@@ -123,6 +125,7 @@ impl Call {
                 Call::Gravity(g)
             }
             5 => Call::Stop,
+            6 => Call::Shares,
             _ => return Err(bad()),
         };
         Ok(call)
@@ -144,6 +147,7 @@ impl Call {
             }),
             Call::Gravity(g) => rank.set_gravity(*g),
             Call::Loads(loads) => rank.set_external_loads(loads),
+            Call::Shares => rank.rank_shares().map(|_| ()),
             Call::Stop => Ok(()),
         }
     }
@@ -235,6 +239,14 @@ impl<C: Comm + Send> Stepper for Leader<C> {
 
     fn wall_loads(&self) -> Vec<WallLoad> {
         Vec::new()
+    }
+
+    fn rank_shares(&mut self) -> Result<Vec<RankShare>> {
+        self.lead(Call::Shares, |r| r.rank_shares())
+    }
+
+    fn steps_a_round(&self) -> u32 {
+        self.rank.steps_a_round()
     }
 }
 

@@ -24,7 +24,7 @@ use super::comm::Comm;
 use super::slabs::Slabs;
 use crate::Spheres;
 use crate::dem::StepParams;
-use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, RankShare, StageTimes, Stepper};
 use crate::dem::walls::WallSet;
 use crate::detect::Backend;
 use crate::engines::common::flow::{Reopen, Room};
@@ -103,6 +103,8 @@ pub struct RankStepper<C: Comm> {
     local: LocalStep,
     /// Steps taken since t = 0.
     step: u64,
+    /// This rank's share of the run so far.
+    share: RankShare,
 }
 
 impl<C: Comm> RankStepper<C> {
@@ -162,6 +164,7 @@ impl<C: Comm> RankStepper<C> {
                 "the ranks opened runs of different spheres: every rank must open the same".into(),
             ));
         }
+        let own_count = own.len() as u64;
         Ok(Self {
             comm,
             slabs,
@@ -177,6 +180,10 @@ impl<C: Comm> RankStepper<C> {
             loads: ExternalLoads::default(),
             local: LocalStep::Cpu(None),
             step: whole.step,
+            share: RankShare {
+                spheres: own_count,
+                ..RankShare::default()
+            },
         })
     }
 
@@ -282,6 +289,7 @@ impl<C: Comm> RankStepper<C> {
         ghosts.sort_by_key(|h| h.sphere.id);
         self.ghosts = ghosts.len();
 
+        let ghosts_in = Instant::now();
         let (local, ids, own_at) = self.merged(&ghosts)?;
         let rows = |all: &[[f32; 3]]| match all.is_empty() {
             true => Vec::new(),
@@ -292,6 +300,8 @@ impl<C: Comm> RankStepper<C> {
             torques: rows(&self.loads.torques),
         };
         let gravity = self.params.gravity;
+        // When the engine had the round's spheres, and when it had stepped them.
+        let (mut opened, mut stepped) = (Instant::now(), Instant::now());
         let (after, mut times, touching) = match &mut self.local {
             // No sphere here: nothing to step.
             _ if local.is_empty() => {
@@ -320,7 +330,9 @@ impl<C: Comm> RankStepper<C> {
                 };
                 stepper.set_gravity(gravity)?;
                 stepper.set_external_loads(&loads)?;
+                opened = Instant::now();
                 let times = stepper.advance(steps)?.times;
+                stepped = Instant::now();
                 let touching = stepper.touching();
                 let own_touching = own_at.iter().map(|&at| touching[at] as u64).sum();
                 (stepper.particles()?, times, own_touching)
@@ -330,7 +342,9 @@ impl<C: Comm> RankStepper<C> {
                 let mut stepper = reopen(local, room)?;
                 stepper.set_gravity(gravity)?;
                 stepper.set_external_loads(&loads)?;
+                opened = Instant::now();
                 let times = stepper.advance(steps)?.times;
+                stepped = Instant::now();
                 let after = stepper.particles()?;
                 let own_touching = own_pair_ends(&after, &own_at, self.mode)?;
                 (after, times, own_touching)
@@ -354,10 +368,21 @@ impl<C: Comm> RankStepper<C> {
                 contacts: after.history.of(at).iter().map(by_id).collect(),
             })
             .collect();
+        let read_back = Instant::now();
         self.migrate()?;
         let ms = |from: Instant, to: Instant| (to - from).as_secs_f64() * 1e3;
-        let stepped = ms(started, exchanged) - times.total_ms();
-        times.build_ms += stepped.max(0.0) + exchanged.elapsed().as_secs_f64() * 1e3;
+        let share = &mut self.share;
+        share.rounds += 1;
+        share.steps += steps as u64;
+        share.ghosts = self.ghosts as u64;
+        share.spheres = self.own.len() as u64;
+        share.exchange_ms += ms(started, ghosts_in) + read_back.elapsed().as_secs_f64() * 1e3;
+        share.open_ms += ms(ghosts_in, opened);
+        share.step_ms += ms(opened, stepped);
+        share.read_back_ms += ms(stepped, read_back);
+        // The stage times of the engine's steps, and all else of the round as the build's.
+        let engine = ms(started, exchanged) - times.total_ms();
+        times.build_ms += engine.max(0.0) + exchanged.elapsed().as_secs_f64() * 1e3;
         Ok((touching, times))
     }
 
@@ -552,6 +577,24 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
 
     fn step(&self) -> u64 {
         self.step
+    }
+
+    fn rank_shares(&mut self) -> Result<Vec<RankShare>> {
+        let mut outgoing = vec![bytemuck::bytes_of(&self.share).to_vec(); self.comm.size()];
+        outgoing[self.comm.rank()].clear();
+        let mut shares = Vec::with_capacity(self.comm.size());
+        for (r, message) in self.comm.exchange(outgoing)?.into_iter().enumerate() {
+            shares.push(match r == self.comm.rank() {
+                true => self.share,
+                false => bytemuck::try_pod_read_unaligned(&message)
+                    .map_err(|_| Error::Usage("a rank's share is not one".into()))?,
+            });
+        }
+        Ok(shares)
+    }
+
+    fn steps_a_round(&self) -> u32 {
+        self.round
     }
 
     fn particles(&mut self) -> Result<Particles> {

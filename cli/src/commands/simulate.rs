@@ -9,7 +9,7 @@ use super::walls::{FlowLog, WallOutputs};
 use anyhow::Result;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use mochi::dem::scene::{Overrides, SceneFlags, SceneKind};
-use mochi::dem::{Clock, StageTimes, StepParams, Stepper, equipment};
+use mochi::dem::{Clock, RankShare, StageTimes, StepParams, Stepper, equipment};
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::numbers::significant;
 use mochi::render::{ColorBy, ColorChoice};
@@ -248,7 +248,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     let mut contacts = 0;
     let mut step = first;
     let due = |every: u64, s: u64| every > 0 && s.is_multiple_of(every);
-    let mut progress_every = FIRST_PROGRESS_STEPS;
+    // A run over ranks exchanges its ghosts once a round: calls of whole rounds.
+    let round = stepper.steps_a_round().max(1) as u64;
+    let mut progress_every = FIRST_PROGRESS_STEPS.next_multiple_of(round);
     while step < total {
         let next_stop = [
             config.run.frame_every,
@@ -263,7 +265,8 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         .expect("a stop");
         let advanced_at = Instant::now();
         let advance = stepper.advance((next_stop - step) as u32)?;
-        progress_every = progress_steps(next_stop - step, advanced_at.elapsed());
+        progress_every =
+            progress_steps(next_stop - step, advanced_at.elapsed()).next_multiple_of(round);
         step = next_stop;
         times.add(&advance.times);
         clock = advance.clock;
@@ -308,6 +311,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     if let Some(counts) = stepper.flow_counts() {
         println!("{}", counts.describe());
     }
+    rank_table(&stepper.rank_shares()?);
     if let Some(line) = measured {
         println!("{line}");
     }
@@ -401,6 +405,34 @@ fn summary(s: &SummaryLine) {
         per(s.times.update_ms),
         per(s.times.total_ms())
     );
+}
+
+/// Prints each rank's share of a run over ranks (nothing for a run of one process): its
+/// spheres and ghosts, and its wall time a step by phase.
+fn rank_table(shares: &[RankShare]) {
+    if shares.is_empty() {
+        return;
+    }
+    println!();
+    println!(
+        "| rank | spheres | ghosts | rounds | per step [ms] (wall clock): exchange | lay out, open | \
+         step | read back | total |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    for (r, s) in shares.iter().enumerate() {
+        let per = |ms: f64| ms / s.steps.max(1) as f64;
+        println!(
+            "| {r} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} |",
+            s.spheres,
+            s.ghosts,
+            s.rounds,
+            per(s.exchange_ms),
+            per(s.open_ms),
+            per(s.step_ms),
+            per(s.read_back_ms),
+            s.ms_a_step()
+        );
+    }
 }
 
 /// Where the run writes: `--out`, else the folder of the checkpoint it resumes, else
