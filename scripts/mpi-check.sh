@@ -2,7 +2,8 @@
 # Checks runs decomposed over processes under mpirun (the mpi feature) against the same runs
 # in one process, bit for bit: examples/mpi_pour on 2 and 4 ranks (--check compares with the
 # whole run), and `mochi simulate` on 3 ranks, new and resumed on 2, whose files must equal
-# those of one process byte for byte. Needs Open MPI (scripts/test.sh installs it).
+# those of one process byte for byte; and a run on wgpu-compute (lavapipe) over 2 processes. Needs
+# Open MPI (scripts/test.sh installs it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --locked --features optix,mpi --example mpi_pour
@@ -31,4 +32,10 @@ for pair in "one ranks" "one-resumed ranks-resumed"; do
     done
 done
 echo "mochi simulate on 3 processes (and resumed on 2) wrote one process's files byte for byte"
+# On a GPU backend (lavapipe here) each process steps its slab on its own device: the run must
+# finish and report each rank's share.
+shares=$(mpirun --oversubscribe -np 2 target/debug/mochi simulate --scene pour -n 400 \
+    --backend wgpu-compute --steps 200 --frame-every 0 -q -o "$work/gpu")
+grep -q "^| 1 | " <<< "$shares" || { echo "no share of rank 1 in: $shares" >&2; exit 1; }
+echo "mochi simulate on 2 processes of wgpu-compute reported each rank's share"
 rm -rf "$work"

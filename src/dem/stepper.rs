@@ -31,7 +31,7 @@ impl StageTimes {
     }
 }
 
-/// One rank's share of a run decomposed over ranks (`crate::distributed`), since it opened:
+/// One rank's share of a run decomposed over ranks (the `distributed` module), since it opened:
 /// its spheres and ghosts, and where its wall time went.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]

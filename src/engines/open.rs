@@ -265,7 +265,7 @@ fn choose(
     })
 }
 
-/// How each rank of a run decomposed over ranks (`crate::distributed`) steps its spheres and
+/// How each rank of a run decomposed over ranks (the `distributed` module) steps its spheres and
 /// their ghosts on the backend the user chose (`auto`: the registry's one rule): `None` for
 /// the cpu, whose step the rank keeps and gives each round's spheres itself; for a GPU backend,
 /// its step opened again over each round's spheres on the device opened now (under an MPI
