@@ -272,7 +272,9 @@ impl RunStart {
             value: rank,
             kind,
             reason,
-        } = crate::distributed::RankStepper::new(comm, &setup)?.on_backend(choice, options)?;
+        } = crate::distributed::RankStepper::new(comm, &setup)?
+            .rebalancing_every(crate::distributed::REBALANCE_STEPS)
+            .on_backend(choice, options)?;
         if rank.comm().rank() != 0 {
             crate::distributed::follow(rank)?;
             return Ok(None);

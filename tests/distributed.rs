@@ -68,7 +68,7 @@ fn alone(setup: &DemSetup, script: Script) -> (Particles, Vec<u64>) {
 /// at the end.
 fn decomposed(
     setup: &DemSetup,
-    (ranks, every): (usize, u32),
+    (ranks, every, rebalance): (usize, u32, u64),
     script: Script,
 ) -> (Particles, Vec<u64>, Vec<[usize; 2]>) {
     let group = LocalComm::group(ranks).unwrap();
@@ -79,9 +79,13 @@ fn decomposed(
                 scope.spawn(move || {
                     let mut rank = RankStepper::new(comm, setup)
                         .and_then(|rank| rank.exchanging_every(every))
-                        .unwrap();
+                        .unwrap()
+                        .rebalancing_every(rebalance);
                     let first = rank.own_spheres();
+                    let faces = rank.slabs().faces.clone();
                     let contacts = script(&mut rank, setup);
+                    // Rebalanced, the faces moved.
+                    assert_eq!(rank.slabs().faces != faces, rebalance > 0);
                     let gathered = rank.gather().unwrap();
                     let everywhere = rank.particles().unwrap();
                     let owned = [first, rank.own_spheres()];
@@ -138,9 +142,19 @@ fn a_run_on_several_ranks_is_the_whole_run_bit_for_bit() {
     let script: Script = |s, _| vec![s.advance(STEPS).unwrap().contacts];
     let (expected, contacts) = alone(&setup, script);
     assert!(contacts[0] > 50, "{contacts:?} contacts at the end");
-    // Ghosts exchanged every step, or every 5 or 8 (their halo that many cells deep).
-    for (ranks, every) in [(2, 1), (3, 1), (4, 1), (2, 5), (3, 8)] {
-        let (got, got_contacts, owned) = decomposed(&setup, (ranks, every), script);
+    // Ghosts exchanged every step, or every 5 or 8 (their halo that many cells deep); the
+    // faces moved every 50 or 40 steps to balance the ranks' work.
+    let runs = [
+        (2, 1, 0),
+        (3, 1, 0),
+        (4, 1, 0),
+        (2, 5, 0),
+        (3, 8, 0),
+        (3, 1, 50),
+        (4, 5, 40),
+    ];
+    for (ranks, every, rebalance) in runs {
+        let (got, got_contacts, owned) = decomposed(&setup, (ranks, every, rebalance), script);
         // Each sphere held once, and some crossed a face.
         let held = |k: usize| owned.iter().map(|o| o[k]).sum::<usize>();
         assert_eq!(
@@ -152,7 +166,8 @@ fn a_run_on_several_ranks_is_the_whole_run_bit_for_bit() {
             owned.iter().any(|o| o[0] != o[1]),
             "none moved across: {owned:?}"
         );
-        assert_eq!(got_contacts, contacts, "{ranks} ranks, every {every} steps");
+        let how = format!("{ranks} ranks, every {every} steps, rebalanced every {rebalance}");
+        assert_eq!(got_contacts, contacts, "{how}");
         assert_same(&got, &expected, ranks);
     }
 }
@@ -198,8 +213,8 @@ fn a_decomposed_run_takes_new_motion_loads_and_gravity_as_the_whole_run_does() {
         contacts
     };
     let (expected, contacts) = alone(&setup, script);
-    for (ranks, every) in [(2, 1), (4, 1), (2, 7)] {
-        let (got, got_contacts, _) = decomposed(&setup, (ranks, every), script);
+    for (ranks, every, rebalance) in [(2, 1, 0), (4, 1, 0), (2, 7, 0), (3, 1, 60)] {
+        let (got, got_contacts, _) = decomposed(&setup, (ranks, every, rebalance), script);
         assert_eq!(got_contacts, contacts, "{ranks} ranks");
         assert_same(&got, &expected, ranks);
     }

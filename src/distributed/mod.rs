@@ -19,3 +19,7 @@ pub use rank::RankStepper;
 pub use slabs::Slabs;
 
 pub use crate::launcher::launched_processes;
+
+/// Steps between two moves of the slabs' faces in a run that `mochi simulate` (or
+/// `RunStart::open_on_ranks`) opens over ranks ([`RankStepper::rebalancing_every`]).
+pub const REBALANCE_STEPS: u64 = 500;

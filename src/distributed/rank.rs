@@ -105,6 +105,11 @@ pub struct RankStepper<C: Comm> {
     step: u64,
     /// This rank's share of the run so far.
     share: RankShare,
+    /// Steps between two moves of the slabs' faces (0: never).
+    rebalance_every: u64,
+    /// Steps since the faces last moved, and this rank's time stepping its spheres since
+    /// \[ms\] (laying out, stepping, reading back: not waiting for the others).
+    since_rebalance: (u64, f64),
 }
 
 impl<C: Comm> RankStepper<C> {
@@ -184,6 +189,8 @@ impl<C: Comm> RankStepper<C> {
                 spheres: own_count,
                 ..RankShare::default()
             },
+            rebalance_every: 0,
+            since_rebalance: (0, 0.0),
         })
     }
 
@@ -229,6 +236,46 @@ impl<C: Comm> RankStepper<C> {
     /// Steps a round (between two exchanges of ghosts).
     pub fn steps_between_exchanges(&self) -> u32 {
         self.round
+    }
+
+    /// The same rank moving the slabs' faces at the end of the first round `steps` steps or
+    /// more after the last move (0: never), so that each slab holds an equal part of the work:
+    /// each rank's time stepping its spheres since the last move, spread evenly over them,
+    /// summed over their places along the axis by every rank alike. On the cpu any faces give
+    /// the whole run bit for bit. Every rank of a group takes the same.
+    pub fn rebalancing_every(mut self, steps: u64) -> Self {
+        self.rebalance_every = steps;
+        self
+    }
+
+    /// The slabs now.
+    pub fn slabs(&self) -> &Slabs {
+        &self.slabs
+    }
+
+    /// Moves the faces ([`rebalancing_every`](Self::rebalancing_every)) and hands on the
+    /// spheres whose slab changed (every rank together).
+    fn rebalance(&mut self) -> Result<()> {
+        let busy = std::mem::take(&mut self.since_rebalance).1;
+        let per_sphere = busy / self.own.len().max(1) as f64;
+        let mut work = vec![0.0f64; Slabs::BINS];
+        for held in &self.own {
+            work[self.slabs.bin(held.exact_position())] += per_sphere;
+        }
+        // Every rank sums the same histograms in the order of the ranks: the same faces.
+        let outgoing = vec![bytemuck::cast_slice(&work).to_vec(); self.comm.size()];
+        let mut total = vec![0.0f64; Slabs::BINS];
+        for message in self.comm.exchange(outgoing)? {
+            if message.len() != Slabs::BINS * 8 {
+                return Err(Error::Usage("a rank's work is not a histogram".into()));
+            }
+            let theirs: Vec<f64> = bytemuck::pod_collect_to_vec(&message);
+            total.iter_mut().zip(theirs).for_each(|(t, w)| *t += w);
+        }
+        self.slabs = self.slabs.balanced(&total);
+        self.migrate()?;
+        self.share.spheres = self.own.len() as u64;
+        Ok(())
     }
 
     /// The spheres this rank owns now.
@@ -380,6 +427,8 @@ impl<C: Comm> RankStepper<C> {
         share.open_ms += ms(ghosts_in, opened);
         share.step_ms += ms(opened, stepped);
         share.read_back_ms += ms(stepped, read_back);
+        self.since_rebalance.0 += steps as u64;
+        self.since_rebalance.1 += ms(ghosts_in, read_back);
         // The stage times of the engine's steps, and all else of the round as the build's.
         let engine = ms(started, exchanged) - times.total_ms();
         times.build_ms += engine.max(0.0) + exchanged.elapsed().as_secs_f64() * 1e3;
@@ -561,6 +610,9 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
             touching = own;
             times.add(&round_times);
             left -= round;
+            if self.rebalance_every > 0 && self.since_rebalance.0 >= self.rebalance_every {
+                self.rebalance()?;
+            }
         }
         // Each contact of two spheres is counted by both.
         let contacts = match steps {

@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 
-/// Slabs of equal width along one axis of the box.
+/// Slabs along one axis of the box (of equal width as cut; of equal work once balanced).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Slabs {
     /// The axis they are cut along (0, 1, 2: x, y, z).
@@ -33,6 +33,49 @@ impl Slabs {
             })
             .collect();
         Ok(Self { axis, faces })
+    }
+
+    /// Bins a histogram of [`balanced`](Self::balanced) has.
+    pub const BINS: usize = 1024;
+
+    /// The bin of [`BINS`](Self::BINS) equal ones between the outer faces that holds `x`
+    /// (a centre beyond them: the nearest end's).
+    pub fn bin(&self, x: [f64; 3]) -> usize {
+        let (lo, hi) = (self.faces[0], self.faces[self.ranks()]);
+        let at = (x[self.axis] - lo) / (hi - lo) * Self::BINS as f64;
+        (at.max(0.0) as usize).min(Self::BINS - 1)
+    }
+
+    /// The same number of slabs along the same axis, their inner faces moved so that each
+    /// holds an equal part of `work` (the work in each [`bin`](Self::bin), spread evenly over
+    /// it); the same slabs where there is none.
+    pub fn balanced(&self, work: &[f64]) -> Slabs {
+        let total: f64 = work.iter().sum();
+        if total <= 0.0 || work.len() != Self::BINS {
+            return self.clone();
+        }
+        let (lo, hi) = (self.faces[0], self.faces[self.ranks()]);
+        let width = (hi - lo) / Self::BINS as f64;
+        let mut faces = vec![lo];
+        let (mut below, mut bin) = (0.0, 0);
+        for k in 1..self.ranks() {
+            let wanted = total * k as f64 / self.ranks() as f64;
+            while bin < Self::BINS - 1 && below + work[bin] < wanted {
+                below += work[bin];
+                bin += 1;
+            }
+            let inside = match work[bin] > 0.0 {
+                true => ((wanted - below) / work[bin]).clamp(0.0, 1.0),
+                false => 0.0,
+            };
+            let face = lo + width * (bin as f64 + inside);
+            faces.push(face.max(faces[k - 1]));
+        }
+        faces.push(hi);
+        Slabs {
+            axis: self.axis,
+            faces,
+        }
     }
 
     /// The slabs (ranks).
@@ -108,5 +151,33 @@ mod tests {
         assert_eq!(wide, [0, 2, 3]);
         assert!(Slabs::along_longest([0.0; 3], [1.0; 3], 0).is_err());
         assert!(Slabs::along_longest([0.0; 3], [1.0, 0.0, 1.0], 2).is_err());
+    }
+
+    #[test]
+    fn balanced_slabs_hold_equal_work() {
+        let slabs = Slabs::along_longest([0.0; 3], [4.0, 1.0, 1.0], 4).unwrap();
+        assert_eq!(slabs.bin([-1.0, 0.0, 0.0]), 0);
+        assert_eq!(slabs.bin([1.0, 0.0, 0.0]), Slabs::BINS / 4);
+        assert_eq!(slabs.bin([9.0, 0.0, 0.0]), Slabs::BINS - 1);
+        // All the work in the lowest quarter, evenly: four slabs of it.
+        let mut work = vec![0.0; Slabs::BINS];
+        work[..Slabs::BINS / 4].fill(1.0);
+        let balanced = slabs.balanced(&work);
+        assert_eq!(balanced.axis, 0);
+        assert_eq!(balanced.faces, [0.0, 0.25, 0.5, 0.75, 4.0]);
+        // Twice the work in the upper half of the box: its faces there twice as close.
+        let mut work = vec![1.0; Slabs::BINS];
+        work[Slabs::BINS / 2..].fill(2.0);
+        let faces = slabs.balanced(&work).faces;
+        let expected = [0.0, 1.5, 2.5, 3.25, 4.0];
+        for (f, e) in faces.iter().zip(expected) {
+            assert!((f - e).abs() < 1e-9, "{faces:?}");
+        }
+        // No work: the same slabs; and work in one bin: slabs of no width there.
+        assert_eq!(slabs.balanced(&vec![0.0; Slabs::BINS]), slabs);
+        let mut work = vec![0.0; Slabs::BINS];
+        work[10] = 3.0;
+        let faces = slabs.balanced(&work).faces;
+        assert!(faces.windows(2).all(|w| w[0] <= w[1]), "{faces:?}");
     }
 }
