@@ -244,8 +244,8 @@ impl RunStart {
     /// `crate::distributed`), each rank stepping on the backend of `choice` (`auto`: the
     /// registry's one rule; a GPU backend on the GPU of the process's local rank): on rank 0
     /// the run, whose step every other rank follows; on the others `None`, once rank 0's run is
-    /// over (they write nothing). Refuses what a run over ranks does not carry yet (flows,
-    /// clumps, mesh walls, the load history).
+    /// over (they write nothing). Refuses what a run over ranks does not carry yet (clumps,
+    /// mesh walls, the load history).
     pub fn open_on_ranks<C>(
         self,
         comm: C,
@@ -255,11 +255,6 @@ impl RunStart {
     where
         C: crate::distributed::Comm + Send + 'static,
     {
-        if !self.start.flow.is_empty() {
-            return Err(Error::Usage(
-                "a run over several ranks does not carry inflows and outflows yet".into(),
-            ));
-        }
         let facts = StartFacts::of(&self.start)?;
         let start = &self.start;
         let setup = DemSetup {
@@ -275,6 +270,10 @@ impl RunStart {
         } = crate::distributed::RankStepper::new(comm, &setup)?
             .rebalancing_every(crate::distributed::REBALANCE_STEPS)
             .on_backend(choice, options)?;
+        let flow = &self.start.flow;
+        let every = flow.every(kind != BackendKind::Cpu);
+        let flow_warning = flow.rate_warning(facts.params.dt as f64, every);
+        let rank = rank.with_flow(flow.clone())?;
         if rank.comm().rank() != 0 {
             crate::distributed::follow(rank)?;
             return Ok(None);
@@ -286,7 +285,7 @@ impl RunStart {
             facts,
             stepper,
             (kind, reason),
-            None,
+            flow_warning,
             options,
         )))
     }

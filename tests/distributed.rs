@@ -2,10 +2,12 @@
 //! bit on the cpu backend: a poured pile with friction, rolling resistance and its history,
 //! spheres crossing the slabs' faces, on 2, 3 and 4 ranks, ghosts exchanged every step or every
 //! few steps; the contacts each counts; new motion (a sphere put in another rank's slab),
-//! external loads and gravity between steps. On a GPU backend it matches the whole run on it.
+//! external loads and gravity between steps; spheres pouring in and leaving; the faces moved to
+//! balance the work. On a GPU backend it matches the whole run on it.
 
 mod common;
 
+use mochi::dem::flow::{FlowSet, InflowConfig, OutflowConfig};
 use mochi::dem::scene::{Overrides, SceneConfig};
 use mochi::dem::{Particles, Stepper};
 use mochi::distributed::{LocalComm, RankStepper, Slabs};
@@ -57,8 +59,10 @@ const STEPS: u32 = 400;
 type Script = fn(&mut dyn Stepper, &DemSetup) -> Vec<u64>;
 
 /// `script` run on the whole of `setup` alone: the particles after, the contacts.
-fn alone(setup: &DemSetup, script: Script) -> (Particles, Vec<u64>) {
-    let mut whole = CpuStepper::open(setup.clone()).unwrap();
+fn alone(setup: &DemSetup, flow: &FlowSet, script: Script) -> (Particles, Vec<u64>) {
+    let mut whole = CpuStepper::open(setup.clone())
+        .unwrap()
+        .with_flow(flow.clone(), setup.mode);
     let contacts = script(&mut whole, setup);
     (whole.particles().unwrap(), contacts)
 }
@@ -69,6 +73,7 @@ fn alone(setup: &DemSetup, script: Script) -> (Particles, Vec<u64>) {
 fn decomposed(
     setup: &DemSetup,
     (ranks, every, rebalance): (usize, u32, u64),
+    flow: &FlowSet,
     script: Script,
 ) -> (Particles, Vec<u64>, Vec<[usize; 2]>) {
     let group = LocalComm::group(ranks).unwrap();
@@ -79,6 +84,7 @@ fn decomposed(
                 scope.spawn(move || {
                     let mut rank = RankStepper::new(comm, setup)
                         .and_then(|rank| rank.exchanging_every(every))
+                        .and_then(|rank| rank.with_flow(flow.clone()))
                         .unwrap()
                         .rebalancing_every(rebalance);
                     let first = rank.own_spheres();
@@ -140,7 +146,7 @@ fn assert_same(got: &Particles, expected: &Particles, ranks: usize) {
 fn a_run_on_several_ranks_is_the_whole_run_bit_for_bit() {
     let setup = landing();
     let script: Script = |s, _| vec![s.advance(STEPS).unwrap().contacts];
-    let (expected, contacts) = alone(&setup, script);
+    let (expected, contacts) = alone(&setup, &FlowSet::default(), script);
     assert!(contacts[0] > 50, "{contacts:?} contacts at the end");
     // Ghosts exchanged every step, or every 5 or 8 (their halo that many cells deep); the
     // faces moved every 50 or 40 steps to balance the ranks' work.
@@ -154,7 +160,12 @@ fn a_run_on_several_ranks_is_the_whole_run_bit_for_bit() {
         (4, 5, 40),
     ];
     for (ranks, every, rebalance) in runs {
-        let (got, got_contacts, owned) = decomposed(&setup, (ranks, every, rebalance), script);
+        let (got, got_contacts, owned) = decomposed(
+            &setup,
+            (ranks, every, rebalance),
+            &FlowSet::default(),
+            script,
+        );
         // Each sphere held once, and some crossed a face.
         let held = |k: usize| owned.iter().map(|o| o[k]).sum::<usize>();
         assert_eq!(
@@ -212,10 +223,61 @@ fn a_decomposed_run_takes_new_motion_loads_and_gravity_as_the_whole_run_does() {
         contacts.push(s.advance(100).unwrap().contacts);
         contacts
     };
-    let (expected, contacts) = alone(&setup, script);
+    let (expected, contacts) = alone(&setup, &FlowSet::default(), script);
     for (ranks, every, rebalance) in [(2, 1, 0), (4, 1, 0), (2, 7, 0), (3, 1, 60)] {
-        let (got, got_contacts, _) = decomposed(&setup, (ranks, every, rebalance), script);
+        let (got, got_contacts, _) = decomposed(
+            &setup,
+            (ranks, every, rebalance),
+            &FlowSet::default(),
+            script,
+        );
         assert_eq!(got_contacts, contacts, "{ranks} ranks");
+        assert_same(&got, &expected, ranks);
+    }
+}
+
+#[test]
+fn a_decomposed_run_with_an_inflow_and_an_outflow_is_the_whole_run_bit_for_bit() {
+    // Spheres pour in over the whole width of the box, across the slabs, and an outflow in
+    // one corner of the floor takes those that land there.
+    let setup = landing();
+    let p = &setup.params;
+    let at = |a: usize, f: f64| p.box_lo[a] as f64 + f * (p.box_hi[a] - p.box_lo[a]) as f64;
+    let (r_min, r_max) = setup.particles.radius_range();
+    let inflow = InflowConfig {
+        lo: Some([at(0, 0.05), at(1, 0.05), at(2, 0.8)]),
+        hi: Some([at(0, 0.95), at(1, 0.95), at(2, 0.95)]),
+        rate: Some(1.5e4),
+        sphere_radii: Some([r_min as f64, r_max as f64]),
+        velocity: Some([0.0, 0.0, -0.5]),
+        seed: Some(3),
+        ..InflowConfig::default()
+    };
+    let outflow = OutflowConfig {
+        lo: [at(0, 0.0), at(1, 0.0), at(2, 0.0)],
+        hi: [at(0, 0.4), at(1, 1.0), at(2, 0.15)],
+    };
+    let density = p.materials.densities[0] as f64;
+    let flow = FlowSet {
+        inflows: vec![inflow.build(0, density, 0).unwrap()],
+        outflows: vec![outflow.build(0).unwrap()],
+        ..FlowSet::default()
+    };
+    let script: Script = |s, _| {
+        let contacts = s.advance(STEPS).unwrap().contacts;
+        let c = s.flow_counts().unwrap();
+        vec![contacts, c.inserted, c.removed, c.refused, c.events]
+    };
+    let (expected, counts) = alone(&setup, &flow, script);
+    assert!(
+        counts[1] > 50 && counts[2] > 5,
+        "inserted, removed: {counts:?}"
+    );
+    assert_ne!(expected.len(), setup.particles.len());
+    for (ranks, every, rebalance) in [(2, 1, 0), (3, 4, 0), (3, 1, 50)] {
+        let (got, got_counts, _) = decomposed(&setup, (ranks, every, rebalance), &flow, script);
+        let how = format!("{ranks} ranks, every {every} steps, rebalanced every {rebalance}");
+        assert_eq!(got_counts, counts, "{how}");
         assert_same(&got, &expected, ranks);
     }
 }

@@ -7,6 +7,7 @@
 
 use super::comm::Comm;
 use super::rank::RankStepper;
+use crate::dem::flow::FlowCounts;
 use crate::dem::stepper::{Advance, ExternalLoads, Motion, RankShare, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::error::{Error, Result};
@@ -247,6 +248,10 @@ impl<C: Comm + Send> Stepper for Leader<C> {
 
     fn steps_a_round(&self) -> u32 {
         self.rank.steps_a_round()
+    }
+
+    fn flow_counts(&self) -> Option<FlowCounts> {
+        self.rank.flow_counts()
     }
 }
 

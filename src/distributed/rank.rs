@@ -24,6 +24,7 @@ use super::comm::Comm;
 use super::slabs::Slabs;
 use crate::Spheres;
 use crate::dem::StepParams;
+use crate::dem::flow::{FlowCounts, FlowSet};
 use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, RankShare, StageTimes, Stepper};
 use crate::dem::walls::WallSet;
 use crate::detect::Backend;
@@ -105,6 +106,8 @@ pub struct RankStepper<C: Comm> {
     step: u64,
     /// This rank's share of the run so far.
     share: RankShare,
+    /// The spheres' ways in and out, with what they did since t = 0 (the same on every rank).
+    flow: Option<(FlowSet, FlowCounts)>,
     /// Steps between two moves of the slabs' faces (0: never).
     rebalance_every: u64,
     /// Steps since the faces last moved, and this rank's time stepping its spheres since
@@ -145,20 +148,8 @@ impl<C: Comm> RankStepper<C> {
         let hi = params.box_hi.map(f64::from);
         let slabs = Slabs::along_longest(lo, hi, comm.size())?;
         let (_, r_max) = whole.radius_range();
-        // A cell of the whole run's lattice reaches as far as any pair does; the pad covers
-        // the f32 rounding of the centres the narrow phase compares.
-        let cell = mode.cell_size(r_max) + params.reach_margin(r_max);
-        let far = lo.iter().chain(&hi).fold(0.0f64, |m, x| m.max(x.abs()));
-        let reach = cell as f64 * (1.0 + 1e-4) + 1e-6 * far;
-        let mut own = Vec::new();
-        for i in 0..whole.len() {
-            if slabs.owner(whole.exact_position(i)) == comm.rank() {
-                own.push(Held {
-                    sphere: record_of(whole, i, i as u32),
-                    contacts: whole.history.of(i).to_vec(),
-                });
-            }
-        }
+        let reach = reach_of(r_max, params, *mode);
+        let own = own_of(whole, &slabs, comm.rank());
         // Every rank opens the same run (and none goes on before all have opened it).
         let mut outgoing = vec![(whole.len() as u64).to_le_bytes().to_vec(); comm.size()];
         outgoing[comm.rank()].clear();
@@ -189,6 +180,7 @@ impl<C: Comm> RankStepper<C> {
                 spheres: own_count,
                 ..RankShare::default()
             },
+            flow: None,
             rebalance_every: 0,
             since_rebalance: (0, 0.0),
         })
@@ -276,6 +268,67 @@ impl<C: Comm> RankStepper<C> {
         self.migrate()?;
         self.share.spheres = self.own.len() as u64;
         Ok(())
+    }
+
+    /// The same rank with spheres entering and leaving by `flow` (from its counts on), as
+    /// the cpu step's flows do it: at each flow event every rank gathers the whole run, takes
+    /// the same event on it and keeps the spheres of its slab (ids renumbered as the event
+    /// leaves the spheres: in their order), so that the run stays the whole run bit for bit
+    /// on the cpu. Every rank of a group takes the same.
+    pub fn with_flow(mut self, flow: FlowSet) -> Result<Self> {
+        if flow.is_empty() {
+            return Ok(self);
+        }
+        if flow.clumps.is_some() {
+            return Err(Error::Usage(
+                "a run decomposed over ranks does not carry clumps yet".into(),
+            ));
+        }
+        // The lattice of the whole run, sized for what the inflows bring as well.
+        self.r_max = self.r_max.max(flow.largest_radius());
+        self.reach = reach_of(self.r_max, &self.params, self.mode).max(self.reach);
+        let counted = flow.counted;
+        self.flow = Some((flow, counted));
+        Ok(self)
+    }
+
+    /// The flow event after the round that brought the run to its step, where one is due
+    /// ([`with_flow`](Self::with_flow); every rank together).
+    fn flow_event(&mut self) -> Result<()> {
+        let gpu = matches!(self.local, LocalStep::Device { .. });
+        let Some(every) = self.flow.as_ref().map(|(flow, _)| flow.every(gpu)) else {
+            return Ok(());
+        };
+        if !FlowSet::due_after(self.step, every) {
+            return Ok(());
+        }
+        let started = Instant::now();
+        let mut whole = self
+            .collect(true)?
+            .ok_or_else(|| Error::Usage("the run was not gathered here".into()))?;
+        let Some((flow, counts)) = &mut self.flow else {
+            return Ok(());
+        };
+        let (dt, densities) = (self.params.dt, &self.params.materials.densities);
+        flow.apply(&mut whole, every, dt, densities, counts)?;
+        counts.events += 1;
+        counts.event_ms += started.elapsed().as_secs_f64() * 1e3;
+        self.total = whole.len();
+        self.own = own_of(&whole, &self.slabs, self.comm.rank());
+        self.share.spheres = self.own.len() as u64;
+        Ok(())
+    }
+
+    /// Steps to the next flow event (none: `u32::MAX`).
+    fn steps_to_flow_event(&self) -> u32 {
+        let gpu = matches!(self.local, LocalStep::Device { .. });
+        match &self.flow {
+            Some((flow, _)) => {
+                let every = flow.every(gpu) as u64;
+                (every - self.step % every) as u32
+            }
+            None => u32::MAX,
+        }
     }
 
     /// The spheres this rank owns now.
@@ -605,11 +658,12 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
         let mut touching = 0;
         let mut left = steps;
         while left > 0 {
-            let round = left.min(self.round);
+            let round = left.min(self.round).min(self.steps_to_flow_event());
             let (own, round_times) = self.take_round(round)?;
             touching = own;
             times.add(&round_times);
             left -= round;
+            self.flow_event()?;
             if self.rebalance_every > 0 && self.since_rebalance.0 >= self.rebalance_every {
                 self.rebalance()?;
             }
@@ -649,6 +703,10 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
         self.round
     }
 
+    fn flow_counts(&self) -> Option<FlowCounts> {
+        self.flow.as_ref().map(|(_, counts)| *counts)
+    }
+
     fn particles(&mut self) -> Result<Particles> {
         self.collect(true)?
             .ok_or_else(|| Error::Usage("the run was not gathered here".into()))
@@ -684,9 +742,34 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
         if loads.turns() && !self.params.friction.turns() {
             return Err(crate::engines::common::rows::no_spin());
         }
+        if self.flow.is_some() && !loads.is_empty() {
+            return Err(crate::engines::common::rows::not_fixed());
+        }
         self.loads = loads.clone();
         Ok(())
     }
+}
+
+/// How far a step looks for a sphere's partners in a run of spheres up to `r_max`: a cell of
+/// the whole run's lattice (as far as any pair reaches), padded for the `f32` rounding of the
+/// centres the narrow phase compares \[m\].
+fn reach_of(r_max: f32, params: &StepParams, mode: ProxyMode) -> f64 {
+    let cell = mode.cell_size(r_max) + params.reach_margin(r_max);
+    let (lo, hi) = (params.box_lo, params.box_hi);
+    let far = lo.iter().chain(&hi).fold(0.0f32, |m, x| m.max(x.abs()));
+    cell as f64 * (1.0 + 1e-4) + 1e-6 * far as f64
+}
+
+/// The spheres of `whole` whose centres lie in slab `rank` of `slabs`, with their contacts,
+/// by ascending id (their places in `whole`).
+fn own_of(whole: &Particles, slabs: &Slabs, rank: usize) -> Vec<Held> {
+    (0..whole.len())
+        .filter(|&i| slabs.owner(whole.exact_position(i)) == rank)
+        .map(|i| Held {
+            sphere: record_of(whole, i, i as u32),
+            contacts: whole.history.of(i).to_vec(),
+        })
+        .collect()
 }
 
 /// The contacts of the own spheres of `p` (at the places `own_at`, ascending) with any sphere
