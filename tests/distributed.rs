@@ -283,8 +283,9 @@ fn a_decomposed_run_with_an_inflow_and_an_outflow_is_the_whole_run_bit_for_bit()
 }
 
 #[test]
-fn what_a_decomposed_run_does_not_carry_yet_is_refused() {
-    // The drum turns a mesh wall: a rank's mesh pass would count its ghosts' loads too.
+fn a_decomposed_run_in_a_turning_drum_is_the_whole_run_bit_for_bit_and_loads_the_drum_alike() {
+    // The drum is a mesh wall turning about its axis: every rank turns its own copy, steps its
+    // spheres' contacts with it, and counts its own spheres' loads on it (not its ghosts').
     let scene = "scene = \"drum\"\nspheres = 200\n";
     let start = SceneConfig::parse(Some(scene), None, &Overrides::default())
         .and_then(|c| c.build())
@@ -296,9 +297,90 @@ fn what_a_decomposed_run_does_not_carry_yet_is_refused() {
         mode: start.mode,
         walls: start.walls,
     };
+    // Into the run, till the spheres lie in the drum and it lifts them.
+    let mut whole = CpuStepper::open(setup.clone()).unwrap();
+    let mut contacts = 0;
+    for _ in 0..40 {
+        contacts = whole.advance(500).unwrap().contacts;
+        if contacts > 100 {
+            break;
+        }
+    }
+    assert!(contacts > 100, "{contacts} contacts");
+    let setup = DemSetup {
+        particles: whole.particles().unwrap(),
+        ..setup
+    };
+    let script: Script = |s, _| {
+        let contacts = s.advance(STEPS).unwrap().contacts;
+        let load = s.wall_loads()[0];
+        let mut out = vec![contacts];
+        out.extend(load.force.iter().chain(&load.torque).map(|x| x.to_bits()));
+        out
+    };
+    let (expected, counts) = alone(&setup, &FlowSet::default(), script);
+    let load = |c: &[u64]| -> Vec<f64> { c[1..].iter().map(|&b| f64::from_bits(b)).collect() };
+    let wall = load(&counts);
+    let largest = wall.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    assert!(counts[0] > 50 && largest > 0.0, "{counts:?}");
+    for (ranks, every, rebalance) in [(2, 1, 0), (3, 3, 40)] {
+        let (got, got_counts, owned) = decomposed(
+            &setup,
+            (ranks, every, rebalance),
+            &FlowSet::default(),
+            script,
+        );
+        assert!(owned.iter().all(|o| o[1] > 0), "{owned:?}");
+        assert_eq!(got_counts[0], counts[0], "{ranks} ranks");
+        assert_same(&got, &expected, ranks);
+        // The same loads on the drum, summed in another order.
+        for (g, w) in load(&got_counts).iter().zip(&wall) {
+            assert!(
+                (g - w).abs() <= 1e-9 * largest,
+                "{ranks} ranks: {g} against {w}"
+            );
+        }
+    }
+}
+
+#[test]
+fn what_a_decomposed_run_does_not_carry_yet_is_refused() {
+    // Clumps; and on a GPU backend, mesh walls (its step would count the ghosts' loads).
+    let scene = "scene = \"pour\"\nspheres = 50\nparticle = \"dimer\"\n";
+    let start = SceneConfig::parse(Some(scene), None, &Overrides::default())
+        .and_then(|c| c.build())
+        .unwrap();
+    let setup = DemSetup {
+        particles: start.particles,
+        params: start.params,
+        mode: start.mode,
+        walls: start.walls,
+    };
     let comm = LocalComm::group(1).unwrap().pop().unwrap();
     let e = RankStepper::new(comm, &setup).err().unwrap().to_string();
-    assert!(e.contains("mesh walls"), "{e}");
+    assert!(e.contains("clumps"), "{e}");
+    let scene = "scene = \"drum\"\nspheres = 200\n";
+    let start = SceneConfig::parse(Some(scene), None, &Overrides::default())
+        .and_then(|c| c.build())
+        .unwrap();
+    let setup = DemSetup {
+        particles: start.particles,
+        params: start.params,
+        mode: start.mode,
+        walls: start.walls,
+    };
+    for kind in common::dem_backends() {
+        let comm = LocalComm::group(1).unwrap().pop().unwrap();
+        let rank = RankStepper::new(comm, &setup).unwrap();
+        let opened = rank.on_backend(Named(kind), &Options::default());
+        match kind {
+            BackendKind::Cpu => assert!(opened.is_ok()),
+            _ => {
+                let e = opened.err().unwrap().to_string();
+                assert!(e.contains("mesh walls"), "{}: {e}", kind.name());
+            }
+        }
+    }
 }
 
 /// The kinetic energy of translation of `p` (unit density) \[J·m⁻³\].

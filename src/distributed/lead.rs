@@ -239,7 +239,7 @@ impl<C: Comm + Send> Stepper for Leader<C> {
     }
 
     fn wall_loads(&self) -> Vec<WallLoad> {
-        Vec::new()
+        self.rank.wall_loads()
     }
 
     fn rank_shares(&mut self) -> Result<Vec<RankShare>> {

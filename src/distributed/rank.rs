@@ -26,7 +26,7 @@ use crate::Spheres;
 use crate::dem::StepParams;
 use crate::dem::flow::{FlowCounts, FlowSet};
 use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, RankShare, StageTimes, Stepper};
-use crate::dem::walls::WallSet;
+use crate::dem::walls::{WallLoad, WallSet};
 use crate::detect::Backend;
 use crate::engines::common::flow::{Reopen, Room};
 use crate::engines::cpu::{CpuBackend, CpuStepper};
@@ -106,6 +106,9 @@ pub struct RankStepper<C: Comm> {
     step: u64,
     /// This rank's share of the run so far.
     share: RankShare,
+    /// The loads of every rank's own spheres on each mesh wall in the last step, summed over
+    /// the ranks.
+    wall_loads: Vec<WallLoad>,
     /// The spheres' ways in and out, with what they did since t = 0 (the same on every rank).
     flow: Option<(FlowSet, FlowCounts)>,
     /// Steps between two moves of the slabs' faces (0: never).
@@ -138,10 +141,6 @@ impl<C: Comm> RankStepper<C> {
         }
         if params.friction.keeps_load() {
             return refused("the Mindlin–Deresiewicz load history");
-        }
-        // A rank's mesh pass sums its ghosts' loads on the walls too.
-        if !walls.meshes.is_empty() {
-            return refused("mesh walls");
         }
         whole.validate()?;
         let lo = params.box_lo.map(f64::from);
@@ -180,6 +179,7 @@ impl<C: Comm> RankStepper<C> {
                 spheres: own_count,
                 ..RankShare::default()
             },
+            wall_loads: vec![WallLoad::default(); walls.meshes.len()],
             flow: None,
             rebalance_every: 0,
             since_rebalance: (0, 0.0),
@@ -212,6 +212,13 @@ impl<C: Comm> RankStepper<C> {
             walls: self.walls.clone(),
         };
         let opened = open_rank_step(choice, setup, options)?;
+        if opened.value.is_some() && !self.walls.meshes.is_empty() {
+            return Err(Error::Usage(format!(
+                "a run decomposed over ranks of {} does not carry mesh walls yet (its step \
+                 would count the ghosts' loads on them); the cpu backend does",
+                opened.kind.name()
+            )));
+        }
         if let Some(reopen) = opened.value {
             let thinnest = self.slabs.thinnest();
             self.round = ((thinnest / (4.0 * self.reach)) as u32).clamp(1, 32);
@@ -364,7 +371,7 @@ impl<C: Comm> RankStepper<C> {
     /// returns each own sphere's contacts with spheres after it, summed (each contact of two
     /// own spheres counted by both), and the round's phase times (the exchanges and the
     /// opening of a GPU step counted as the build's).
-    fn take_round(&mut self, steps: u32) -> Result<(u64, StageTimes)> {
+    fn take_round(&mut self, steps: u32) -> Result<(u64, StageTimes, Vec<WallLoad>)> {
         let started = Instant::now();
         let halo = self.halo(steps)?;
         let ranks = self.comm.size();
@@ -402,14 +409,16 @@ impl<C: Comm> RankStepper<C> {
         let gravity = self.params.gravity;
         // When the engine had the round's spheres, and when it had stepped them.
         let (mut opened, mut stepped) = (Instant::now(), Instant::now());
-        let (after, mut times, touching) = match &mut self.local {
+        let meshes = self.walls.meshes.len();
+        let (after, mut times, touching, wall_loads) = match &mut self.local {
             // No sphere here: nothing to step.
             _ if local.is_empty() => {
                 let after = Particles {
                     step: local.step + steps as u64,
                     ..local
                 };
-                (after, StageTimes::default(), 0)
+                let loads = vec![WallLoad::default(); meshes];
+                (after, StageTimes::default(), 0, loads)
             }
             LocalStep::Cpu(kept) => {
                 let stepper = match kept.take() {
@@ -430,12 +439,16 @@ impl<C: Comm> RankStepper<C> {
                 };
                 stepper.set_gravity(gravity)?;
                 stepper.set_external_loads(&loads)?;
+                let mut counted = vec![false; ids.len()];
+                own_at.iter().for_each(|&at| counted[at] = true);
+                stepper.count_wall_loads_of(Some(counted));
                 opened = Instant::now();
                 let times = stepper.advance(steps)?.times;
                 stepped = Instant::now();
                 let touching = stepper.touching();
                 let own_touching = own_at.iter().map(|&at| touching[at] as u64).sum();
-                (stepper.particles()?, times, own_touching)
+                let wall_loads = stepper.wall_loads();
+                (stepper.particles()?, times, own_touching, wall_loads)
             }
             LocalStep::Device { reopen, .. } => {
                 let room = Room::of(&local);
@@ -447,7 +460,12 @@ impl<C: Comm> RankStepper<C> {
                 stepped = Instant::now();
                 let after = stepper.particles()?;
                 let own_touching = own_pair_ends(&after, &own_at, self.mode)?;
-                (after, times, own_touching)
+                (
+                    after,
+                    times,
+                    own_touching,
+                    vec![WallLoad::default(); meshes],
+                )
             }
         };
         self.step = after.step;
@@ -485,7 +503,7 @@ impl<C: Comm> RankStepper<C> {
         // The stage times of the engine's steps, and all else of the round as the build's.
         let engine = ms(started, exchanged) - times.total_ms();
         times.build_ms += engine.max(0.0) + exchanged.elapsed().as_secs_f64() * 1e3;
-        Ok((touching, times))
+        Ok((touching, times, wall_loads))
     }
 
     /// Sends each own sphere whose centre lies beyond this rank's slab, with its contacts, to
@@ -529,6 +547,29 @@ impl<C: Comm> RankStepper<C> {
     fn sum_over_ranks(&self, x: u64) -> Result<u64> {
         let others = self.of_other_ranks(x.to_le_bytes())?;
         Ok(x + others.into_iter().map(u64::from_le_bytes).sum::<u64>())
+    }
+
+    /// `loads` summed over the ranks, in the order of the ranks (every rank together).
+    fn loads_over_ranks(&self, loads: &[WallLoad]) -> Result<Vec<WallLoad>> {
+        let rows: Vec<[f64; 6]> = loads
+            .iter()
+            .map(|l| std::array::from_fn(|k| if k < 3 { l.force[k] } else { l.torque[k - 3] }))
+            .collect();
+        let outgoing = vec![bytemuck::cast_slice(&rows).to_vec(); self.comm.size()];
+        let mut sum = vec![WallLoad::default(); loads.len()];
+        for message in self.comm.exchange(outgoing)? {
+            if message.len() != rows.len() * 48 {
+                return Err(Error::Usage("a rank's wall loads are not the run's".into()));
+            }
+            let theirs: Vec<[f64; 6]> = bytemuck::pod_collect_to_vec(&message);
+            for (s, t) in sum.iter_mut().zip(theirs) {
+                s.add(&WallLoad {
+                    force: [t[0], t[1], t[2]],
+                    torque: [t[3], t[4], t[5]],
+                });
+            }
+        }
+        Ok(sum)
     }
 
     /// The largest `x` of the ranks (every rank together).
@@ -657,10 +698,12 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
         let mut times = StageTimes::default();
         let mut touching = 0;
         let mut left = steps;
+        let mut loads = Vec::new();
         while left > 0 {
             let round = left.min(self.round).min(self.steps_to_flow_event());
-            let (own, round_times) = self.take_round(round)?;
+            let (own, round_times, round_loads) = self.take_round(round)?;
             touching = own;
+            loads = round_loads;
             times.add(&round_times);
             left -= round;
             self.flow_event()?;
@@ -673,6 +716,9 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
             0 => 0,
             _ => self.sum_over_ranks(touching)? / 2,
         };
+        if steps > 0 && !loads.is_empty() {
+            self.wall_loads = self.loads_over_ranks(&loads)?;
+        }
         Ok(Advance {
             steps,
             contacts,
@@ -705,6 +751,10 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
 
     fn flow_counts(&self) -> Option<FlowCounts> {
         self.flow.as_ref().map(|(_, counts)| *counts)
+    }
+
+    fn wall_loads(&self) -> Vec<WallLoad> {
+        self.wall_loads.clone()
     }
 
     fn particles(&mut self) -> Result<Particles> {

@@ -230,6 +230,15 @@ impl CpuStepper {
         Ok(self)
     }
 
+    /// Sums into its [`wall_loads`](Stepper::wall_loads) the reactions of the spheres
+    /// `counted` marks only (`None`: of every sphere), from the next step on: a decomposed
+    /// run's own spheres, not their ghosts.
+    pub(crate) fn count_wall_loads_of(&mut self, counted: Option<Vec<bool>>) {
+        if let Some(mesh) = &mut self.mesh {
+            mesh.count_loads_of(counted);
+        }
+    }
+
     /// Puts `particles` in place of its spheres, its cells, scratch and settings kept: as
     /// opening a stepper over them would (a decomposed run's own and ghost spheres of its
     /// next step), but that spheres sharing a centre are not moved apart (as a run's are only

@@ -46,6 +46,8 @@ pub(super) struct MeshPass {
     loaded: Vec<LoadedEntry>,
     /// Per wall, of the last step.
     loads: Vec<WallLoad>,
+    /// The spheres whose reactions [`loads`](Self::loads) sums (`None`: every sphere).
+    counted: Option<Vec<bool>>,
 }
 
 impl MeshPass {
@@ -57,7 +59,14 @@ impl MeshPass {
             sums: Vec::new(),
             entries: Vec::new(),
             loaded: Vec::new(),
+            counted: None,
         }
+    }
+
+    /// Sums into [`loads`](Self::loads) the reactions of the spheres `counted` marks only
+    /// (`None`: of every sphere), from the next step on.
+    pub fn count_loads_of(&mut self, counted: Option<Vec<bool>>) {
+        self.counted = counted;
     }
 
     pub fn walls(&self) -> &WallSet {
@@ -142,7 +151,7 @@ impl MeshPass {
             let mut held_entries = std::mem::take(side(self));
             held_entries.clear();
             try_resize(&mut held_entries, entries, S::Slot::default(), of_n)?;
-            let walls = &self.walls;
+            let (walls, counted) = (&self.walls, &self.counted);
             let chunks: Vec<Vec<WallLoad>> = self
                 .sums
                 .par_chunks_mut(CHUNK)
@@ -150,6 +159,7 @@ impl MeshPass {
                 .enumerate()
                 .map(|(k, (sums, entries))| {
                     let mut loads = vec![WallLoad::default(); walls.meshes.len()];
+                    let mut uncounted = loads.clone();
                     let mut scratch = Touches::default();
                     for (j, sum) in sums.iter_mut().enumerate() {
                         let i = k * CHUNK + j;
@@ -166,13 +176,17 @@ impl MeshPass {
                             true => (parts.history.of(i), parts.history.loads_of(i)),
                             false => (&[][..], &[][..]),
                         };
+                        let into = match counted.as_ref().is_none_or(|c| c[i]) {
+                            true => &mut loads,
+                            false => &mut uncounted,
+                        };
                         *sum = sphere::<S>(
                             p,
                             (walls, &poses),
                             &body,
                             kept,
                             held,
-                            &mut loads,
+                            into,
                             &mut scratch,
                             |_, _, _| {},
                         );
