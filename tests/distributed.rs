@@ -18,7 +18,13 @@ use mochi::engines::{BackendKind, DemSetup, Options, open_setup};
 /// A poured pile of polydisperse spheres in mid-fall and landing: contacts with history,
 /// walls, and spheres moving across the box.
 fn landing() -> DemSetup {
-    let scene = "scene = \"pour\"\nspheres = 400\nseed = 5\n";
+    landing_with("")
+}
+
+/// [`landing`] of the scene with `more` lines.
+fn landing_with(more: &str) -> DemSetup {
+    let scene = format!("scene = \"pour\"\nspheres = 400\nseed = 5\n{more}");
+    let scene = scene.as_str();
     let start = SceneConfig::parse(Some(scene), None, &Overrides::default())
         .and_then(|c| c.build())
         .unwrap();
@@ -233,6 +239,28 @@ fn a_decomposed_run_takes_new_motion_loads_and_gravity_as_the_whole_run_does() {
         );
         assert_eq!(got_contacts, contacts, "{ranks} ranks");
         assert_same(&got, &expected, ranks);
+    }
+}
+
+#[test]
+fn a_decomposed_run_keeps_each_contacts_load_history() {
+    // The Mindlin–Deresiewicz model keeps each contact's load history beside its spring: it
+    // crosses the faces with its sphere, and with a ghost for a round of several steps.
+    let setup = landing_with("tangential_model = \"mindlin-deresiewicz\"\n");
+    assert!(setup.params.friction.keeps_load());
+    let script: Script = |s, _| vec![s.advance(STEPS).unwrap().contacts];
+    let (expected, contacts) = alone(&setup, &FlowSet::default(), script);
+    assert!(expected.history.has_loads());
+    assert!(expected.history.contact_loads().any(|l| l.normal > 0.0));
+    for (ranks, every, rebalance) in [(2, 1, 0), (3, 5, 60)] {
+        let no_flow = &FlowSet::default();
+        let (got, got_contacts, _) = decomposed(&setup, (ranks, every, rebalance), no_flow, script);
+        assert_eq!(got_contacts, contacts, "{ranks} ranks");
+        assert_same(&got, &expected, ranks);
+        for i in 0..expected.len() {
+            let (g, e) = (got.history.loads_of(i), expected.history.loads_of(i));
+            assert_eq!(g, e, "{ranks} ranks, the load histories of sphere {i}");
+        }
     }
 }
 

@@ -32,12 +32,13 @@ use crate::engines::common::flow::{Reopen, Room};
 use crate::engines::cpu::{CpuBackend, CpuStepper};
 use crate::engines::{BackendChoice, DemSetup, Opened, Options, open_rank_step};
 use crate::error::{Error, Result};
-use crate::particles::{ContactHistory, FIRST_MESH_WALL, HistoryEntry, Particles};
+use crate::particles::{ContactHistory, FIRST_MESH_WALL, HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;
 use std::time::Instant;
 
 /// A sphere as a rank sends it: its id in the whole run and its state, followed in a message
-/// by `contacts` history entries (a migrating sphere's; none for a ghost).
+/// by `contacts` history entries and `loads` load histories (none, or one a contact: the
+/// Mindlin–Deresiewicz model's).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct SphereRecord {
@@ -49,16 +50,33 @@ struct SphereRecord {
     velocity: [f32; 3],
     spin: [f32; 3],
     contacts: u32,
+    loads: u32,
 }
 
-/// A sphere a rank owns: its state and its contacts (partners by id).
+/// A sphere a rank owns: its state and its contacts (partners by id), with their load
+/// histories where the run keeps them.
 #[derive(Debug, Clone)]
 struct Held {
     sphere: SphereRecord,
     contacts: Vec<HistoryEntry>,
+    loads: Vec<LoadEntry>,
 }
 
 impl Held {
+    /// Sphere `at` of `p` as sphere `id` of the whole run, its partners renamed by `rename`.
+    fn of(
+        p: &Particles,
+        at: usize,
+        id: u32,
+        rename: impl Fn(&HistoryEntry) -> HistoryEntry,
+    ) -> Self {
+        Held {
+            sphere: record_of(p, at, id),
+            contacts: p.history.of(at).iter().map(rename).collect(),
+            loads: p.history.loads_of(at).to_vec(),
+        }
+    }
+
     /// Where its centre is, in `f64`.
     fn exact_position(&self) -> [f64; 3] {
         let s = &self.sphere;
@@ -122,8 +140,7 @@ impl<C: Comm> RankStepper<C> {
     /// This rank's part of `setup` (the whole run's start, which every rank is given): the
     /// spheres in its slab of the box cut into `comm.size()` slabs along its longest axis,
     /// stepped on the cpu, ghosts exchanged every step.
-    /// Refuses what the decomposition does not carry yet: clumps, mesh walls, the
-    /// Mindlin–Deresiewicz load history (and the caller, inflows and outflows).
+    /// Refuses what the decomposition does not carry yet: clumps.
     pub fn new(comm: C, setup: &DemSetup) -> Result<Self> {
         let DemSetup {
             particles: whole,
@@ -138,9 +155,6 @@ impl<C: Comm> RankStepper<C> {
         };
         if whole.clumps.component_count() > 0 {
             return refused("clumps");
-        }
-        if params.friction.keeps_load() {
-            return refused("the Mindlin–Deresiewicz load history");
         }
         whole.validate()?;
         let lo = params.box_lo.map(f64::from);
@@ -381,12 +395,12 @@ impl<C: Comm> RankStepper<C> {
             let owner = self.comm.rank();
             // A ghost's state after its first step is dropped unless the round goes on; then
             // its contacts must be its own.
-            let contacts = match steps {
-                1 => &[][..],
-                _ => &held.contacts,
+            let history = match steps {
+                1 => (&[][..], &[][..]),
+                _ => (&held.contacts[..], &held.loads[..]),
             };
             for r in self.slabs.ghost_ranks(x, owner, halo) {
-                put(&mut outgoing[r], &held.sphere, contacts);
+                put(&mut outgoing[r], &held.sphere, history);
             }
         }
         let mut ghosts = Vec::new();
@@ -481,10 +495,7 @@ impl<C: Comm> RankStepper<C> {
         };
         self.own = own_at
             .iter()
-            .map(|&at| Held {
-                sphere: record_of(&after, at, ids[at]),
-                contacts: after.history.of(at).iter().map(by_id).collect(),
-            })
+            .map(|&at| Held::of(&after, at, ids[at], by_id))
             .collect();
         let read_back = Instant::now();
         self.migrate()?;
@@ -514,7 +525,11 @@ impl<C: Comm> RankStepper<C> {
         for held in std::mem::take(&mut self.own) {
             match self.slabs.owner(held.exact_position()) {
                 r if r == self.comm.rank() => staying.push(held),
-                r => put(&mut outgoing[r], &held.sphere, &held.contacts),
+                r => put(
+                    &mut outgoing[r],
+                    &held.sphere,
+                    (&held.contacts, &held.loads),
+                ),
             }
         }
         for message in self.comm.exchange(outgoing)? {
@@ -609,24 +624,25 @@ impl<C: Comm> RankStepper<C> {
         let mut local = spheres_of(spheres.iter().map(|(h, _)| &h.sphere), self.step);
         // The spheres' contacts, partners by place; a partner sphere beyond the ghosts is
         // beyond reach (the step would drop it).
-        let mut contacts = Vec::new();
+        let (mut contacts, mut loads) = (Vec::new(), Vec::new());
         let mut own_at = Vec::with_capacity(self.own.len());
         for (at, &(held, own)) in spheres.iter().enumerate() {
             if own {
                 own_at.push(at);
             }
-            for e in &held.contacts {
+            for (k, e) in held.contacts.iter().enumerate() {
                 let partner = match e.partner >= FIRST_MESH_WALL {
                     true => Some(e.partner),
                     false => ids.binary_search(&e.partner).ok().map(|k| k as u32),
                 };
                 if let Some(partner) = partner {
                     contacts.push((at as u32, HistoryEntry { partner, ..*e }));
+                    loads.extend(held.loads.get(k));
                 }
             }
         }
         if self.params.friction.has_history() {
-            local.history = ContactHistory::from_contacts(n, &contacts)?;
+            local.history = ContactHistory::from_contacts_with_loads(n, &contacts, &loads)?;
         }
         Ok((local, ids, own_at))
     }
@@ -642,7 +658,7 @@ impl<C: Comm> RankStepper<C> {
         for (r, message) in outgoing.iter_mut().enumerate() {
             if everywhere || r == 0 {
                 for held in &self.own {
-                    put(message, &held.sphere, &held.contacts);
+                    put(message, &held.sphere, (&held.contacts, &held.loads));
                 }
             }
         }
@@ -667,8 +683,9 @@ impl<C: Comm> RankStepper<C> {
             .iter()
             .flat_map(|h| h.contacts.iter().map(move |&e| (h.sphere.id, e)))
             .collect();
+        let loads: Vec<LoadEntry> = all.iter().flat_map(|h| h.loads.iter().copied()).collect();
         if self.params.friction.has_history() {
-            whole.history = ContactHistory::from_contacts(all.len(), &contacts)?;
+            whole.history = ContactHistory::from_contacts_with_loads(all.len(), &contacts, &loads)?;
         }
         Ok(Some(whole))
     }
@@ -815,10 +832,7 @@ fn reach_of(r_max: f32, params: &StepParams, mode: ProxyMode) -> f64 {
 fn own_of(whole: &Particles, slabs: &Slabs, rank: usize) -> Vec<Held> {
     (0..whole.len())
         .filter(|&i| slabs.owner(whole.exact_position(i)) == rank)
-        .map(|i| Held {
-            sphere: record_of(whole, i, i as u32),
-            contacts: whole.history.of(i).to_vec(),
-        })
+        .map(|i| Held::of(whole, i, i as u32, |e| *e))
         .collect()
 }
 
@@ -864,17 +878,24 @@ fn record_of(p: &Particles, i: usize, id: u32) -> SphereRecord {
         velocity: p.velocities[i],
         spin: p.angular_velocities[i],
         contacts: 0,
+        loads: 0,
     }
 }
 
-/// Appends `sphere` and its `contacts` to `message`.
-fn put(message: &mut Vec<u8>, sphere: &SphereRecord, contacts: &[HistoryEntry]) {
+/// Appends `sphere`, its contacts and their load histories to `message`.
+fn put(
+    message: &mut Vec<u8>,
+    sphere: &SphereRecord,
+    (contacts, loads): (&[HistoryEntry], &[LoadEntry]),
+) {
     let record = SphereRecord {
         contacts: contacts.len() as u32,
+        loads: loads.len() as u32,
         ..*sphere
     };
     message.extend_from_slice(bytemuck::bytes_of(&record));
     message.extend_from_slice(bytemuck::cast_slice(contacts));
+    message.extend_from_slice(bytemuck::cast_slice(loads));
 }
 
 /// The spheres of a message [`put`] wrote.
@@ -898,12 +919,20 @@ fn read(message: &[u8]) -> Result<Vec<Held>> {
             .chunks_exact(entry)
             .map(bytemuck::pod_read_unaligned)
             .collect();
+        let load = std::mem::size_of::<LoadEntry>();
+        let body = cut(&mut rest, sphere.loads as usize * load)?;
+        let loads = body
+            .chunks_exact(load)
+            .map(bytemuck::pod_read_unaligned)
+            .collect();
         out.push(Held {
             sphere: SphereRecord {
                 contacts: 0,
+                loads: 0,
                 ..sphere
             },
             contacts,
+            loads,
         });
     }
     Ok(out)
