@@ -94,10 +94,10 @@ fn decomposed(
                         .unwrap()
                         .rebalancing_every(rebalance);
                     let first = rank.own_spheres();
-                    let faces = rank.slabs().faces.clone();
+                    let faces = rank.grid().clone();
                     let contacts = script(&mut rank, setup);
                     // Rebalanced, the faces moved.
-                    assert_eq!(rank.slabs().faces != faces, rebalance > 0);
+                    assert_eq!(*rank.grid() != faces, rebalance > 0);
                     let gathered = rank.gather().unwrap();
                     let everywhere = rank.particles().unwrap();
                     let owned = [first, rank.own_spheres()];

@@ -21,6 +21,7 @@
 //! crosses ranks: only states do.
 
 use super::comm::Comm;
+use super::grid::Grid;
 use super::slabs::Slabs;
 use crate::Spheres;
 use crate::dem::StepParams;
@@ -96,10 +97,10 @@ enum LocalStep {
     },
 }
 
-/// One rank's part of a run decomposed into slabs.
+/// One rank's part of a run decomposed into boxes.
 pub struct RankStepper<C: Comm> {
     comm: C,
-    slabs: Slabs,
+    grid: Grid,
     params: StepParams,
     mode: ProxyMode,
     walls: WallSet,
@@ -129,7 +130,7 @@ pub struct RankStepper<C: Comm> {
     wall_loads: Vec<WallLoad>,
     /// The spheres' ways in and out, with what they did since t = 0 (the same on every rank).
     flow: Option<(FlowSet, FlowCounts)>,
-    /// Steps between two moves of the slabs' faces (0: never).
+    /// Steps between two moves of the grid's faces (0: never).
     rebalance_every: u64,
     /// Steps since the faces last moved, and this rank's time stepping its spheres since
     /// \[ms\] (laying out, stepping, reading back: not waiting for the others).
@@ -159,10 +160,10 @@ impl<C: Comm> RankStepper<C> {
         whole.validate()?;
         let lo = params.box_lo.map(f64::from);
         let hi = params.box_hi.map(f64::from);
-        let slabs = Slabs::along_longest(lo, hi, comm.size())?;
+        let grid = Grid::cut(lo, hi, comm.size())?;
         let (_, r_max) = whole.radius_range();
         let reach = reach_of(r_max, params, *mode);
-        let own = own_of(whole, &slabs, comm.rank());
+        let own = own_of(whole, &grid, comm.rank());
         // Every rank opens the same run (and none goes on before all have opened it).
         let mut outgoing = vec![(whole.len() as u64).to_le_bytes().to_vec(); comm.size()];
         outgoing[comm.rank()].clear();
@@ -176,7 +177,7 @@ impl<C: Comm> RankStepper<C> {
         let own_count = own.len() as u64;
         Ok(Self {
             comm,
-            slabs,
+            grid,
             params: params.clone(),
             mode: *mode,
             walls: walls.clone(),
@@ -234,7 +235,7 @@ impl<C: Comm> RankStepper<C> {
             )));
         }
         if let Some(reopen) = opened.value {
-            let thinnest = self.slabs.thinnest();
+            let thinnest = self.grid.thinnest();
             self.round = ((thinnest / (4.0 * self.reach)) as u32).clamp(1, 32);
             let backend = opened.kind.name();
             self.local = LocalStep::Device { reopen, backend };
@@ -261,9 +262,9 @@ impl<C: Comm> RankStepper<C> {
         self
     }
 
-    /// The slabs now.
-    pub fn slabs(&self) -> &Slabs {
-        &self.slabs
+    /// The grid of the ranks' boxes now.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
     }
 
     /// Moves the faces ([`rebalancing_every`](Self::rebalancing_every)) and hands on the
@@ -271,21 +272,26 @@ impl<C: Comm> RankStepper<C> {
     fn rebalance(&mut self) -> Result<()> {
         let busy = std::mem::take(&mut self.since_rebalance).1;
         let per_sphere = busy / self.own.len().max(1) as f64;
-        let mut work = vec![0.0f64; Slabs::BINS];
+        // The work along each axis, one histogram after the other.
+        let mut work = vec![0.0f64; 3 * Slabs::BINS];
         for held in &self.own {
-            work[self.slabs.bin(held.exact_position())] += per_sphere;
+            let x = held.exact_position();
+            for (a, axis) in self.grid.axes.iter().enumerate() {
+                work[a * Slabs::BINS + axis.bin(x)] += per_sphere;
+            }
         }
         // Every rank sums the same histograms in the order of the ranks: the same faces.
         let outgoing = vec![bytemuck::cast_slice(&work).to_vec(); self.comm.size()];
-        let mut total = vec![0.0f64; Slabs::BINS];
+        let mut total = vec![0.0f64; 3 * Slabs::BINS];
         for message in self.comm.exchange(outgoing)? {
-            if message.len() != Slabs::BINS * 8 {
+            if message.len() != total.len() * 8 {
                 return Err(Error::Usage("a rank's work is not a histogram".into()));
             }
             let theirs: Vec<f64> = bytemuck::pod_collect_to_vec(&message);
             total.iter_mut().zip(theirs).for_each(|(t, w)| *t += w);
         }
-        self.slabs = self.slabs.balanced(&total);
+        let along = |a: usize| total[a * Slabs::BINS..(a + 1) * Slabs::BINS].to_vec();
+        self.grid = self.grid.balanced(&[along(0), along(1), along(2)]);
         self.migrate()?;
         self.share.spheres = self.own.len() as u64;
         Ok(())
@@ -335,7 +341,7 @@ impl<C: Comm> RankStepper<C> {
         counts.events += 1;
         counts.event_ms += started.elapsed().as_secs_f64() * 1e3;
         self.total = whole.len();
-        self.own = own_of(&whole, &self.slabs, self.comm.rank());
+        self.own = own_of(&whole, &self.grid, self.comm.rank());
         self.share.spheres = self.own.len() as u64;
         Ok(())
     }
@@ -399,7 +405,7 @@ impl<C: Comm> RankStepper<C> {
                 1 => (&[][..], &[][..]),
                 _ => (&held.contacts[..], &held.loads[..]),
             };
-            for r in self.slabs.ghost_ranks(x, owner, halo) {
+            for r in self.grid.ghost_ranks(x, owner, halo) {
                 put(&mut outgoing[r], &held.sphere, history);
             }
         }
@@ -523,7 +529,7 @@ impl<C: Comm> RankStepper<C> {
         let mut outgoing = vec![Vec::new(); self.comm.size()];
         let mut staying = Vec::with_capacity(self.own.len());
         for held in std::mem::take(&mut self.own) {
-            match self.slabs.owner(held.exact_position()) {
+            match self.grid.owner(held.exact_position()) {
                 r if r == self.comm.rank() => staying.push(held),
                 r => put(
                     &mut outgoing[r],
@@ -704,10 +710,10 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
             k => format!("every {k} steps"),
         };
         format!(
-            "{backend}, rank {} of {} (slabs along {}, ghosts exchanged {every})",
+            "{backend}, rank {} of {} ({}, ghosts exchanged {every})",
             self.comm.rank(),
             self.comm.size(),
-            ["x", "y", "z"][self.slabs.axis]
+            self.grid.describe()
         )
     }
 
@@ -827,11 +833,11 @@ fn reach_of(r_max: f32, params: &StepParams, mode: ProxyMode) -> f64 {
     cell as f64 * (1.0 + 1e-4) + 1e-6 * far as f64
 }
 
-/// The spheres of `whole` whose centres lie in slab `rank` of `slabs`, with their contacts,
-/// by ascending id (their places in `whole`).
-fn own_of(whole: &Particles, slabs: &Slabs, rank: usize) -> Vec<Held> {
+/// The spheres of `whole` whose centres lie in box `rank` of `grid`, with their contacts, by
+/// ascending id (their places in `whole`).
+fn own_of(whole: &Particles, grid: &Grid, rank: usize) -> Vec<Held> {
     (0..whole.len())
-        .filter(|&i| slabs.owner(whole.exact_position(i)) == rank)
+        .filter(|&i| grid.owner(whole.exact_position(i)) == rank)
         .map(|i| Held::of(whole, i, i as u32, |e| *e))
         .collect()
 }

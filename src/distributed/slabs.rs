@@ -1,6 +1,6 @@
-//! The box cut into slabs along its longest axis, one a rank: which rank owns a sphere (the
-//! slab its centre lies in) and which others hold it as a ghost (those whose slab lies within
-//! the halo of its centre).
+//! The box cut into slabs along one axis (its longest, for a run of slabs; each axis of a
+//! [`Grid`](super::Grid)): which slab holds a centre, which lie within a halo of it, and where
+//! the faces go to share out the work.
 
 use crate::error::{Error, Result};
 
@@ -25,14 +25,20 @@ impl Slabs {
             )));
         }
         let axis = (0..3).fold(0, |a, b| if hi[b] - lo[b] > hi[a] - lo[a] { b } else { a });
-        let width = (hi[axis] - lo[axis]) / ranks as f64;
-        let faces = (0..=ranks)
-            .map(|k| match k == ranks {
-                true => hi[axis],
-                false => lo[axis] + width * k as f64,
+        Ok(Self::along(axis, (lo[axis], hi[axis]), ranks))
+    }
+
+    /// `count` slabs (at least 1) of equal width along `axis` of a box from `lo` to `hi` on it.
+    pub fn along(axis: usize, (lo, hi): (f64, f64), count: usize) -> Self {
+        let count = count.max(1);
+        let width = (hi - lo) / count as f64;
+        let faces = (0..=count)
+            .map(|k| match k == count {
+                true => hi,
+                false => lo + width * k as f64,
             })
             .collect();
-        Ok(Self { axis, faces })
+        Self { axis, faces }
     }
 
     /// Bins a histogram of [`balanced`](Self::balanced) has.
@@ -100,9 +106,8 @@ impl Slabs {
         inner.partition_point(|&face| face <= along)
     }
 
-    /// The ranks other than `owner` whose slab lies within `halo` of `x` along the axis (the
-    /// ranks that hold the sphere at `x` as a ghost), in order.
-    pub fn ghost_ranks(&self, x: [f64; 3], owner: usize, halo: f64) -> impl Iterator<Item = usize> {
+    /// The slabs that lie within `halo` of `x` along the axis (its own among them), in order.
+    pub fn within(&self, x: [f64; 3], halo: f64) -> impl Iterator<Item = usize> {
         let along = x[self.axis];
         let last = self.ranks() - 1;
         (0..self.ranks()).filter(move |&r| {
@@ -117,7 +122,7 @@ impl Slabs {
             } else {
                 self.faces[r + 1]
             };
-            r != owner && along >= below - halo && along <= above + halo
+            along >= below - halo && along <= above + halo
         })
     }
 }
@@ -138,7 +143,8 @@ mod tests {
         assert_eq!(slabs.owner([0.5, 9.0, 0.0]), 3);
         let ghosts = |y: f64| -> Vec<usize> {
             let x = [0.0, y, 0.0];
-            slabs.ghost_ranks(x, slabs.owner(x), 0.1).collect()
+            let owner = slabs.owner(x);
+            slabs.within(x, 0.1).filter(|&r| r != owner).collect()
         };
         assert_eq!(ghosts(0.5), Vec::<usize>::new());
         assert_eq!(ghosts(0.95), [1]);
@@ -147,8 +153,8 @@ mod tests {
         assert_eq!(ghosts(-5.0), Vec::<usize>::new());
         // Wider than a slab: beyond the next.
         let x = [0.0, 1.5, 0.0];
-        let wide: Vec<usize> = slabs.ghost_ranks(x, 1, 1.6).collect();
-        assert_eq!(wide, [0, 2, 3]);
+        let wide: Vec<usize> = slabs.within(x, 1.6).collect();
+        assert_eq!(wide, [0, 1, 2, 3]);
         assert!(Slabs::along_longest([0.0; 3], [1.0; 3], 0).is_err());
         assert!(Slabs::along_longest([0.0; 3], [1.0, 0.0, 1.0], 2).is_err());
     }
