@@ -240,7 +240,7 @@ impl RunStart {
         ))
     }
 
-    /// Opens the run decomposed over the ranks of `comm` (the box cut into slabs:
+    /// Opens the run decomposed over the ranks of `comm` (the box cut into a grid of boxes:
     /// `crate::distributed`), each rank stepping on the backend of `choice` (`auto`: the
     /// registry's one rule; a GPU backend on the GPU of the process's local rank): on rank 0
     /// the run, whose step every other rank follows; on the others `None`, once rank 0's run is

@@ -23,6 +23,6 @@ pub use slabs::Slabs;
 
 pub use crate::launcher::launched_processes;
 
-/// Steps between two moves of the slabs' faces in a run that `mochi simulate` (or
+/// Steps between two moves of the grid's faces in a run that `mochi simulate` (or
 /// `RunStart::open_on_ranks`) opens over ranks ([`RankStepper::rebalancing_every`]).
 pub const REBALANCE_STEPS: u64 = 500;

@@ -1,8 +1,8 @@
-//! One rank of a decomposed run. It holds the spheres whose centres lie in its slab (in the
+//! One rank of a decomposed run. It holds the spheres whose centres lie in its box (in the
 //! order of their ids in the whole run, their contact history naming partners by id) and takes
 //! the steps in rounds of k steps (k = 1 unless set), each round as
 //!
-//! 1. **ghosts**: every rank sends each other rank the spheres within the halo of its slab: k
+//! 1. **ghosts**: every rank sends each other rank the spheres within the halo of its box: k
 //!    cells of the whole run's lattice (a cell is the reach of any pair), and for k > 1 twice
 //!    the farthest any sphere can travel in k steps at the fastest sphere's speed and gravity;
 //! 2. **steps**: its own spheres and the ghosts, merged in the order of their ids, take k steps
@@ -14,7 +14,7 @@
 //!    a GPU backend's step (opened again over each round's spheres, on the rank's GPU) sums in
 //!    its own order, so its run matches the whole run as two runs of one GPU match. The
 //!    ghosts' new states are dropped (their owners have them);
-//! 3. **migration**: a sphere whose centre left the slab goes to the rank that owns it now,
+//! 3. **migration**: a sphere whose centre left the box goes to the rank that owns it now,
 //!    with its contact history.
 //!
 //! Each pair is computed on both of its sides (every engine does so in any run), so no force
@@ -139,7 +139,7 @@ pub struct RankStepper<C: Comm> {
 
 impl<C: Comm> RankStepper<C> {
     /// This rank's part of `setup` (the whole run's start, which every rank is given): the
-    /// spheres in its slab of the box cut into `comm.size()` slabs along its longest axis,
+    /// spheres in its box of the run's box cut into a grid of `comm.size()` boxes ([`Grid`]),
     /// stepped on the cpu, ghosts exchanged every step.
     /// Refuses what the decomposition does not carry yet: clumps.
     pub fn new(comm: C, setup: &DemSetup) -> Result<Self> {
@@ -216,7 +216,7 @@ impl<C: Comm> RankStepper<C> {
 
     /// The same rank stepping on the backend of `choice` (`auto`: the registry's one rule; a
     /// GPU backend on the GPU of the process's local rank), with the backend it runs on. On a
-    /// GPU backend it exchanges ghosts as seldom as a halo of a quarter of the thinnest slab
+    /// GPU backend it exchanges ghosts as seldom as a halo of a quarter of the thinnest box
     /// allows (at most every 32 steps): each round pays an upload and a read-back of the
     /// rank's spheres, so a round is as long as its ghosts let it be.
     pub fn on_backend(mut self, choice: BackendChoice, options: &Options) -> Result<Opened<Self>> {
@@ -252,11 +252,11 @@ impl<C: Comm> RankStepper<C> {
         self.round
     }
 
-    /// The same rank moving the slabs' faces at the end of the first round `steps` steps or
-    /// more after the last move (0: never), so that each slab holds an equal part of the work:
-    /// each rank's time stepping its spheres since the last move, spread evenly over them,
-    /// summed over their places along the axis by every rank alike. On the cpu any faces give
-    /// the whole run bit for bit. Every rank of a group takes the same.
+    /// The same rank moving the grid's faces at the end of the first round `steps` steps or
+    /// more after the last move (0: never), so that each slab of each axis cut holds an equal
+    /// part of the work: each rank's time stepping its spheres since the last move, spread
+    /// evenly over them, summed over their places along each axis by every rank alike. On the
+    /// cpu any faces give the whole run bit for bit. Every rank of a group takes the same.
     pub fn rebalancing_every(mut self, steps: u64) -> Self {
         self.rebalance_every = steps;
         self
@@ -268,7 +268,7 @@ impl<C: Comm> RankStepper<C> {
     }
 
     /// Moves the faces ([`rebalancing_every`](Self::rebalancing_every)) and hands on the
-    /// spheres whose slab changed (every rank together).
+    /// spheres whose box changed (every rank together).
     fn rebalance(&mut self) -> Result<()> {
         let busy = std::mem::take(&mut self.since_rebalance).1;
         let per_sphere = busy / self.own.len().max(1) as f64;
@@ -299,7 +299,7 @@ impl<C: Comm> RankStepper<C> {
 
     /// The same rank with spheres entering and leaving by `flow` (from its counts on), as
     /// the cpu step's flows do it: at each flow event every rank gathers the whole run, takes
-    /// the same event on it and keeps the spheres of its slab (ids renumbered as the event
+    /// the same event on it and keeps the spheres of its box (ids renumbered as the event
     /// leaves the spheres: in their order), so that the run stays the whole run bit for bit
     /// on the cpu. Every rank of a group takes the same.
     pub fn with_flow(mut self, flow: FlowSet) -> Result<Self> {
@@ -373,7 +373,7 @@ impl<C: Comm> RankStepper<C> {
         &self.comm
     }
 
-    /// How far beyond its slab a rank holds ghosts for a round of `steps` steps (the module's
+    /// How far beyond its box a rank holds ghosts for a round of `steps` steps (the module's
     /// first phase; every rank together).
     fn halo(&self, steps: u32) -> Result<f64> {
         if steps == 1 {
@@ -523,7 +523,7 @@ impl<C: Comm> RankStepper<C> {
         Ok((touching, times, wall_loads))
     }
 
-    /// Sends each own sphere whose centre lies beyond this rank's slab, with its contacts, to
+    /// Sends each own sphere whose centre lies beyond this rank's box, with its contacts, to
     /// the rank that owns it, and takes those sent here (every rank together).
     fn migrate(&mut self) -> Result<()> {
         let mut outgoing = vec![Vec::new(); self.comm.size()];
@@ -801,7 +801,7 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
                 s.spin = w[i];
             }
         }
-        // A sphere put in another rank's slab goes there before the next step.
+        // A sphere put in another rank's box goes there before the next step.
         self.migrate()
     }
 
