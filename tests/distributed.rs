@@ -15,6 +15,19 @@ use mochi::engines::BackendChoice::Named;
 use mochi::engines::cpu::CpuStepper;
 use mochi::engines::{BackendKind, DemSetup, Options, open_setup};
 
+/// The start of the scene of `scene` (flat keys), as a step opens it.
+fn setup_of(scene: &str) -> DemSetup {
+    let start = SceneConfig::parse(Some(scene), None, &Overrides::default())
+        .and_then(|c| c.build())
+        .unwrap();
+    DemSetup {
+        particles: start.particles,
+        params: start.params,
+        mode: start.mode,
+        walls: start.walls,
+    }
+}
+
 /// A poured pile of polydisperse spheres in mid-fall and landing: contacts with history,
 /// walls, and spheres moving across the box.
 fn landing() -> DemSetup {
@@ -25,15 +38,7 @@ fn landing() -> DemSetup {
 fn landing_with(more: &str) -> DemSetup {
     let scene = format!("scene = \"pour\"\nspheres = 400\nseed = 5\n{more}");
     let scene = scene.as_str();
-    let start = SceneConfig::parse(Some(scene), None, &Overrides::default())
-        .and_then(|c| c.build())
-        .unwrap();
-    let setup = DemSetup {
-        particles: start.particles,
-        params: start.params,
-        mode: start.mode,
-        walls: start.walls,
-    };
+    let setup = setup_of(scene);
     // Into the pour, till the first spheres have landed.
     let mut whole = CpuStepper::open(setup.clone()).unwrap();
     let mut contacts = 0;
@@ -315,16 +320,8 @@ fn a_decomposed_run_in_a_turning_drum_is_the_whole_run_bit_for_bit_and_loads_the
     // The drum is a mesh wall turning about its axis: every rank turns its own copy, steps its
     // spheres' contacts with it, and counts its own spheres' loads on it (not its ghosts').
     let scene = "scene = \"drum\"\nspheres = 200\n";
-    let start = SceneConfig::parse(Some(scene), None, &Overrides::default())
-        .and_then(|c| c.build())
-        .unwrap();
-    assert!(!start.walls.meshes.is_empty());
-    let setup = DemSetup {
-        particles: start.particles,
-        params: start.params,
-        mode: start.mode,
-        walls: start.walls,
-    };
+    let setup = setup_of(scene);
+    assert!(!setup.walls.meshes.is_empty());
     // Into the run, till the spheres lie in the drum and it lifts them.
     let mut whole = CpuStepper::open(setup.clone()).unwrap();
     let mut contacts = 0;
@@ -375,28 +372,12 @@ fn a_decomposed_run_in_a_turning_drum_is_the_whole_run_bit_for_bit_and_loads_the
 fn what_a_decomposed_run_does_not_carry_yet_is_refused() {
     // Clumps; and on a GPU backend, mesh walls (its step would count the ghosts' loads).
     let scene = "scene = \"pour\"\nspheres = 50\nparticle = \"dimer\"\n";
-    let start = SceneConfig::parse(Some(scene), None, &Overrides::default())
-        .and_then(|c| c.build())
-        .unwrap();
-    let setup = DemSetup {
-        particles: start.particles,
-        params: start.params,
-        mode: start.mode,
-        walls: start.walls,
-    };
+    let setup = setup_of(scene);
     let comm = LocalComm::group(1).unwrap().pop().unwrap();
     let e = RankStepper::new(comm, &setup).err().unwrap().to_string();
     assert!(e.contains("clumps"), "{e}");
     let scene = "scene = \"drum\"\nspheres = 200\n";
-    let start = SceneConfig::parse(Some(scene), None, &Overrides::default())
-        .and_then(|c| c.build())
-        .unwrap();
-    let setup = DemSetup {
-        particles: start.particles,
-        params: start.params,
-        mode: start.mode,
-        walls: start.walls,
-    };
+    let setup = setup_of(scene);
     for kind in common::dem_backends() {
         let comm = LocalComm::group(1).unwrap().pop().unwrap();
         let rank = RankStepper::new(comm, &setup).unwrap();

@@ -916,21 +916,24 @@ fn read(message: &[u8]) -> Result<Vec<Held>> {
         *rest = tail;
         Ok(head.to_vec())
     };
+    // The next `count` values of type T.
+    fn values<T: bytemuck::Pod>(
+        cut: impl Fn(&mut &[u8], usize) -> Result<Vec<u8>>,
+        rest: &mut &[u8],
+        count: u32,
+    ) -> Result<Vec<T>> {
+        let size = std::mem::size_of::<T>();
+        let body = cut(rest, count as usize * size)?;
+        Ok(body
+            .chunks_exact(size)
+            .map(bytemuck::pod_read_unaligned)
+            .collect())
+    }
     while !rest.is_empty() {
         let head = cut(&mut rest, std::mem::size_of::<SphereRecord>())?;
         let sphere: SphereRecord = bytemuck::pod_read_unaligned(&head);
-        let entry = std::mem::size_of::<HistoryEntry>();
-        let body = cut(&mut rest, sphere.contacts as usize * entry)?;
-        let contacts = body
-            .chunks_exact(entry)
-            .map(bytemuck::pod_read_unaligned)
-            .collect();
-        let load = std::mem::size_of::<LoadEntry>();
-        let body = cut(&mut rest, sphere.loads as usize * load)?;
-        let loads = body
-            .chunks_exact(load)
-            .map(bytemuck::pod_read_unaligned)
-            .collect();
+        let contacts = values(cut, &mut rest, sphere.contacts)?;
+        let loads = values(cut, &mut rest, sphere.loads)?;
         out.push(Held {
             sphere: SphereRecord {
                 contacts: 0,
