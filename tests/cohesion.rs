@@ -326,6 +326,25 @@ fn a_liquid_bridge_pulls_with_willetts_force_and_ruptures_at_lians_distance() {
     });
 }
 
+/// Whether two touching spheres bonded by a bridge that ruptures at a gap of `rupture` stay
+/// within a tenth of it of each other for 20,000 steps after they settle and are pulled apart
+/// by ±`force` along x (a pull short of the bridge's at contact keeps them touching). Under a
+/// pull that exceeds the bridge's by a tenth, spheres of 1 mm and 2500 kg/m³ pass a tenth of
+/// the rupture distance of 0.1 mm within 4 ms.
+fn bridge_holds(s: &mut dyn Stepper, force: f32, rupture: f32) -> bool {
+    s.advance(3000).unwrap();
+    let loads = ExternalLoads {
+        forces: vec![[-force, 0.0, 0.0], [force, 0.0, 0.0]],
+        ..ExternalLoads::default()
+    };
+    s.set_external_loads(&loads).unwrap();
+    (0..40).all(|_| {
+        s.advance(500).unwrap();
+        let x = s.particles().unwrap().exact_positions().unwrap();
+        x[1][0] - x[0][0] - 2.0 * R as f64 <= 0.1 * rupture as f64
+    })
+}
+
 /// The force ±F along x on two touching spheres bonded by a bridge that ruptures at a gap of
 /// `rupture`, growing slowly from 0 to 1.6 times `about` after they settle, at which the bridge
 /// lets them go (their gap passes a fifth of the rupture distance).
@@ -362,7 +381,7 @@ fn unlike_surfaces_pull_with_the_mean_of_their_contact_angles_cosines() {
     // 2π·2R*·γ·(cos 0 + cos 70°)/2, two thirds of what it pulls between two of material 0.
     let (gamma, theta) = (0.02, 70f64.to_radians());
     let mixed = (1.0 + theta.cos()) / 2.0;
-    let wetting = |angle: f64, density: f64| Material {
+    let wetting = |angle: f64, density: f64, young_modulus: f64| Material {
         density,
         bridge: Some(LiquidBridge {
             volume: 1e-12,
@@ -370,13 +389,21 @@ fn unlike_surfaces_pull_with_the_mean_of_their_contact_angles_cosines() {
             contact_angle: angle,
             viscosity: 0.0,
         }),
+        contact: ContactLaw::HertzMindlin {
+            young_modulus,
+            poisson_ratio: NU,
+        },
         ..sticky(0.0)
     };
-    let materials = |density: f64| Materials {
-        list: vec![wetting(0.0, density), wetting(theta, DENSITY)],
+    let materials_of = |density: f64, young_modulus: f64| Materials {
+        list: vec![
+            wetting(0.0, density, young_modulus),
+            wetting(theta, DENSITY, young_modulus),
+        ],
         names: ["grain", "plate"].map(String::from).to_vec(),
         pairs: Vec::new(),
     };
+    let materials = |density: f64| materials_of(density, E);
     let with = |m: &Materials, box_material| {
         let side = [0.01; 3];
         let probe =
@@ -400,17 +427,29 @@ fn unlike_surfaces_pull_with_the_mean_of_their_contact_angles_cosines() {
         let volume = 4.0 / 3.0 * std::f64::consts::PI * (R as f64).powi(3);
         2.0 * at_contact as f64 / (ratio * G * volume)
     };
+    // At glass's modulus (7e10 Pa: a step 84 times shorter, too short for the slow pull) the
+    // pull is the same: the bridge holds the spheres against 0.9 times it and lets them go
+    // under 1.1 times it.
+    let glass = with(&materials_of(DENSITY, 7e10), None);
     on_each(|open| {
-        let mut pair = spheres(vec![
-            [0.005 - R + 1e-7, 0.005, 0.005],
-            [0.005 + R - 1e-7, 0.005, 0.005],
-        ]);
-        pair.materials = vec![0, 1];
-        let held = bridge_lets_go_at(&mut *open(pair, &p), at_contact, rupture);
+        // Overlapping by `overlap` (at glass's modulus 0.2 µm would fire them apart).
+        let pair = |overlap: f32| {
+            let mut pair = spheres(vec![
+                [0.005 - R + overlap / 2.0, 0.005, 0.005],
+                [0.005 + R - overlap / 2.0, 0.005, 0.005],
+            ]);
+            pair.materials = vec![0, 1];
+            pair
+        };
+        let held = bridge_lets_go_at(&mut *open(pair(2e-7), &p), at_contact, rupture);
         assert!(
             (held / at_contact - 1.0).abs() < 0.03,
             "came off at {held} N, not {at_contact} N"
         );
+        let holds =
+            |ratio: f32| bridge_holds(&mut *open(pair(2e-9), &glass), ratio * at_contact, rupture);
+        assert!(holds(0.9), "glass: let go under 0.9 times its pull");
+        assert!(!holds(1.1), "glass: held against 1.1 times its pull");
         // Under the box's ceiling of the plate's material.
         let under = |ratio: f64| hangs_with(open, &with(&materials(density(ratio)), Some(1)), 0.01);
         assert!(under(1.1), "holds at 1.1 times its weight");
