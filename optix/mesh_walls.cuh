@@ -19,6 +19,7 @@ struct MochiMeshParams {
     unsigned int box_walls;   // 1: the six walls of the box hold the spheres in
     unsigned int loads_step;  // the step whose loads on the walls are summed
     unsigned int load_lanes;  // partial sums of each load (sphere p adds to lane p mod lanes)
+    unsigned int summed_below;// the loads sum the spheres of id below it (a rank's own)
 };
 
 struct MochiMeshWall {

@@ -227,13 +227,6 @@ impl<C: Comm> RankStepper<C> {
             walls: self.walls.clone(),
         };
         let opened = open_rank_step(choice, setup, options)?;
-        if opened.value.is_some() && !self.walls.meshes.is_empty() {
-            return Err(Error::Usage(format!(
-                "a run decomposed over ranks of {} does not carry mesh walls yet (its step \
-                 would count the ghosts' loads on them); the cpu backend does",
-                opened.kind.name()
-            )));
-        }
         if let Some(reopen) = opened.value {
             let thinnest = self.grid.thinnest();
             self.round = ((thinnest / (4.0 * self.reach)) as u32).clamp(1, 32);
@@ -388,10 +381,11 @@ impl<C: Comm> RankStepper<C> {
     }
 
     /// One round of `steps` steps: ghosts, the steps, migration (the module's three phases);
-    /// returns each own sphere's contacts with spheres after it, summed (each contact of two
-    /// own spheres counted by both), and the round's phase times (the exchanges and the
-    /// opening of a GPU step counted as the build's).
-    fn take_round(&mut self, steps: u32) -> Result<(u64, StageTimes, Vec<WallLoad>)> {
+    /// returns, where `count` asks, each own sphere's contacts with spheres after it, summed
+    /// (each contact of two own spheres counted by both; 0 where not asked: a GPU step's are
+    /// found on the host), and the round's phase times (the exchanges and the opening of a GPU
+    /// step counted as the build's).
+    fn take_round(&mut self, steps: u32, count: bool) -> Result<(u64, StageTimes, Vec<WallLoad>)> {
         let started = Instant::now();
         let halo = self.halo(steps)?;
         let ranks = self.comm.size();
@@ -417,7 +411,8 @@ impl<C: Comm> RankStepper<C> {
         self.ghosts = ghosts.len();
 
         let ghosts_in = Instant::now();
-        let (local, ids, own_at) = self.merged(&ghosts)?;
+        let device = matches!(self.local, LocalStep::Device { .. });
+        let (local, ids, own_at) = self.merged(&ghosts, device)?;
         let rows = |all: &[[f32; 3]]| match all.is_empty() {
             true => Vec::new(),
             false => ids.iter().map(|&id| all[id as usize]).collect(),
@@ -473,19 +468,19 @@ impl<C: Comm> RankStepper<C> {
             LocalStep::Device { reopen, .. } => {
                 let room = Room::of(&local);
                 let mut stepper = reopen(local, room)?;
+                stepper.sum_wall_loads_below(own_at.len() as u32);
                 stepper.set_gravity(gravity)?;
                 stepper.set_external_loads(&loads)?;
                 opened = Instant::now();
                 let times = stepper.advance(steps)?.times;
                 stepped = Instant::now();
                 let after = stepper.particles()?;
-                let own_touching = own_pair_ends(&after, &own_at, self.mode)?;
-                (
-                    after,
-                    times,
-                    own_touching,
-                    vec![WallLoad::default(); meshes],
-                )
+                let own_touching = match count {
+                    true => own_pair_ends(&after, &own_at, self.mode)?,
+                    false => 0,
+                };
+                let wall_loads = stepper.wall_loads();
+                (after, times, own_touching, wall_loads)
             }
         };
         self.step = after.step;
@@ -599,18 +594,25 @@ impl<C: Comm> RankStepper<C> {
         Ok(others.into_iter().map(f64::from_le_bytes).fold(x, f64::max))
     }
 
-    /// This rank's spheres and `ghosts` (by ascending id) merged in the order of their ids, as
-    /// one set of spheres whose history names partners by their place in it; with the id of
-    /// each sphere of it and the places of the own ones.
-    fn merged(&self, ghosts: &[Held]) -> Result<(Particles, Vec<u32>, Vec<usize>)> {
+    /// This rank's spheres and `ghosts` (by ascending id) as one set of spheres whose history
+    /// names partners by their place in it, in the order of their ids (the cpu's: a sphere
+    /// meets its neighbours in the order the whole run's step does) or, where `own_first`, the
+    /// own spheres before the ghosts (a GPU step's: it sums the walls' loads of the first);
+    /// with the id of each sphere of it and the places of the own ones.
+    fn merged(
+        &self,
+        ghosts: &[Held],
+        own_first: bool,
+    ) -> Result<(Particles, Vec<u32>, Vec<usize>)> {
         let n = self.own.len() + ghosts.len();
         // Each sphere, and whether it is an own one.
         let mut spheres: Vec<(&Held, bool)> = Vec::with_capacity(n);
         let (mut a, mut b) = (0, 0);
         while a < self.own.len() || b < ghosts.len() {
-            let own_first = b == ghosts.len()
-                || (a < self.own.len() && self.own[a].sphere.id < ghosts[b].sphere.id);
-            match own_first {
+            let take_own = b == ghosts.len()
+                || (a < self.own.len()
+                    && (own_first || self.own[a].sphere.id < ghosts[b].sphere.id));
+            match take_own {
                 true => {
                     spheres.push((&self.own[a], true));
                     a += 1;
@@ -622,11 +624,18 @@ impl<C: Comm> RankStepper<C> {
             }
         }
         let ids: Vec<u32> = spheres.iter().map(|(h, _)| h.sphere.id).collect();
-        if ids.windows(2).any(|w| w[0] == w[1]) {
+        // The place of each id, by ascending id.
+        let mut places: Vec<(u32, u32)> = (0..n as u32).map(|at| (ids[at as usize], at)).collect();
+        places.sort_unstable();
+        if places.windows(2).any(|w| w[0].0 == w[1].0) {
             return Err(Error::Usage(
                 "a sphere is both owned and a ghost here".into(),
             ));
         }
+        let place_of = |id: u32| {
+            let k = places.binary_search_by_key(&id, |&(id, _)| id).ok()?;
+            Some(places[k].1)
+        };
         let mut local = spheres_of(spheres.iter().map(|(h, _)| &h.sphere), self.step);
         // The spheres' contacts, partners by place; a partner sphere beyond the ghosts is
         // beyond reach (the step would drop it).
@@ -639,7 +648,7 @@ impl<C: Comm> RankStepper<C> {
             for (k, e) in held.contacts.iter().enumerate() {
                 let partner = match e.partner >= FIRST_MESH_WALL {
                     true => Some(e.partner),
-                    false => ids.binary_search(&e.partner).ok().map(|k| k as u32),
+                    false => place_of(e.partner),
                 };
                 if let Some(partner) = partner {
                     contacts.push((at as u32, HistoryEntry { partner, ..*e }));
@@ -724,7 +733,9 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
         let mut loads = Vec::new();
         while left > 0 {
             let round = left.min(self.round).min(self.steps_to_flow_event());
-            let (own, round_times, round_loads) = self.take_round(round)?;
+            // The call's contacts are its last step's.
+            let last = round == left;
+            let (own, round_times, round_loads) = self.take_round(round, last)?;
             touching = own;
             loads = round_loads;
             times.add(&round_times);

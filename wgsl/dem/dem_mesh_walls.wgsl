@@ -24,6 +24,7 @@ struct MeshParams {
     box_walls: u32,     // 1: the six walls of the box hold the spheres in
     loads_step: u32,    // the step whose loads on the walls are summed into mesh_loads
     load_lanes: u32,    // partial sums of each load (sphere p adds to lane p mod load_lanes)
+    summed_below: u32,  // the loads sum the spheres of stable id below it (a rank's own)
 }
 
 struct MeshWall {
@@ -390,7 +391,8 @@ fn mesh_wall_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
         // Past the slots the batch is redone anyway (history_need is raised already).
         w.held = held_new[p];
     }
-    mesh_contacts(&w, f32(step) * dem.dt, step == mesh.loads_step);
+    let summing = step == mesh.loads_step && stable_id(p) < mesh.summed_below;
+    mesh_contacts(&w, f32(step) * dem.dt, summing);
     add_force(p, w.force);
     if dem.turns != 0u {
         add_torque(p, w.torque);

@@ -41,6 +41,11 @@ pub(crate) trait DeviceFlow: Stepper {
     fn remove(&mut self, _rows: &[u32]) -> Result<bool> {
         Ok(false)
     }
+
+    /// Sums the loads on the mesh walls over the spheres of input index below `spheres` only:
+    /// a rank's own spheres, which it places before its ghosts (the ghosts' loads are their
+    /// owners'). The others touch the walls as before.
+    fn sum_wall_loads_below(&mut self, spheres: u32);
 }
 
 /// Opens a backend's step over the spheres given with the room given for more (where it keeps

@@ -30,6 +30,9 @@ pub struct MeshParams {
     pub box_walls: u32,
     pub loads_step: u32,
     pub load_lanes: u32,
+    /// The loads sum the spheres whose input index (stable id) is below this (`u32::MAX`:
+    /// every sphere; a rank's step: its own spheres, before its ghosts).
+    pub summed_below: u32,
 }
 
 pub fn mesh_params() -> SharedStruct {
@@ -39,7 +42,8 @@ pub fn mesh_params() -> SharedStruct {
             walls,
             box_walls,
             loads_step,
-            load_lanes
+            load_lanes,
+            summed_below
         }
     )
 }
@@ -259,6 +263,7 @@ impl WallTables {
             box_walls: walls.box_walls as u32,
             loads_step: u32::MAX,
             load_lanes,
+            summed_below: u32::MAX,
         };
         Ok(Self {
             params,

@@ -438,7 +438,13 @@ impl OptixStepper {
 }
 
 /// Flow events read the state back and reopen the step.
-impl crate::engines::common::flow::DeviceFlow for OptixStepper {}
+impl crate::engines::common::flow::DeviceFlow for OptixStepper {
+    fn sum_wall_loads_below(&mut self, spheres: u32) {
+        if let Physics::Granular(g) = &mut self.physics {
+            g.sum_loads_below(spheres);
+        }
+    }
+}
 
 impl Stepper for OptixStepper {
     fn describe(&self) -> String {

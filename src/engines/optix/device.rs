@@ -532,6 +532,7 @@ pub struct MeshLaunch {
     pub box_walls: u32,
     pub loads_step: u32,
     pub load_lanes: u32,
+    pub summed_below: u32,
 }
 
 // SAFETY: `#[repr(C)]` plain data laid out as `MochiMeshParams` in optix/mesh_walls.cuh.
@@ -569,6 +570,7 @@ impl MeshBuffers {
                 box_walls: p.box_walls,
                 loads_step: p.loads_step,
                 load_lanes: p.load_lanes,
+                summed_below: p.summed_below,
             },
             walls: upload_u32(bytemuck::cast_slice(&rows))?,
             grid: upload_u32(&tables.grid)?,

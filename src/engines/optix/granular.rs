@@ -266,6 +266,11 @@ impl Granular {
         Ok(())
     }
 
+    /// Sums the loads of the spheres of input index below `spheres` only (a rank's own).
+    pub fn sum_loads_below(&mut self, spheres: u32) {
+        self.mesh.params.summed_below = spheres;
+    }
+
     /// Reads the loads summed in the last advance, refusing one in which some sphere came
     /// within its radius of more triangles of one wall than the step keeps.
     pub fn read_loads(&mut self, stream: &Arc<CudaStream>) -> Result<()> {

@@ -129,6 +129,14 @@ impl MeshWalls {
         }
     }
 
+    /// Sums the loads of the spheres of input index below `spheres` only (a rank's own).
+    pub fn sum_loads_below(&mut self, gpu: &Gpu, spheres: u32) {
+        if self.any() {
+            self.params.summed_below = spheres;
+            gpu.write_uniform(&self.uniform, &self.params);
+        }
+    }
+
     /// Records the clearing of the loads and of the near lists' counts ahead of a batch.
     pub fn clear_sums(&self, encoder: &mut wgpu::CommandEncoder) {
         if self.any() {

@@ -359,7 +359,13 @@ impl RedoableBatch for RqStepper {
 }
 
 /// Flow events read the state back and reopen the step.
-impl crate::engines::common::flow::DeviceFlow for RqStepper {}
+impl crate::engines::common::flow::DeviceFlow for RqStepper {
+    fn sum_wall_loads_below(&mut self, spheres: u32) {
+        if let Some(g) = &mut self.granular {
+            g.mesh_mut().sum_loads_below(&self.gpu, spheres);
+        }
+    }
+}
 
 impl Stepper for RqStepper {
     fn describe(&self) -> String {

@@ -77,6 +77,12 @@ impl DeviceFlow for GridStepper {
         Ok(true)
     }
 
+    fn sum_wall_loads_below(&mut self, spheres: u32) {
+        if let Some(g) = &mut self.res.granular {
+            g.mesh_mut().sum_loads_below(&self.res.gpu, spheres);
+        }
+    }
+
     fn remove(&mut self, rows: &[u32]) -> Result<bool> {
         let k = rows.len() as u32;
         let Some(kept) = self.n.checked_sub(k) else {
