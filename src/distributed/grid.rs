@@ -89,6 +89,14 @@ impl Grid {
     /// ranks that hold the sphere at `x` as a ghost; a box within `halo` of it is among them),
     /// in order.
     pub fn ghost_ranks(&self, x: [f64; 3], owner: usize, halo: f64) -> Vec<usize> {
+        let mut ranks = self.ranks_within(x, halo);
+        ranks.retain(|&r| r != owner);
+        ranks
+    }
+
+    /// The ranks whose box lies within `halo` of `x` along every axis (its owner's among
+    /// them), in order.
+    pub fn ranks_within(&self, x: [f64; 3], halo: f64) -> Vec<usize> {
         let [a, b, c] = self
             .axes
             .each_ref()
@@ -97,10 +105,7 @@ impl Grid {
         for &k in &c {
             for &j in &b {
                 for &i in &a {
-                    let r = self.rank_of([i, j, k]);
-                    if r != owner {
-                        ranks.push(r);
-                    }
+                    ranks.push(self.rank_of([i, j, k]));
                 }
             }
         }

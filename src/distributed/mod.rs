@@ -11,6 +11,8 @@ mod lead;
 #[cfg(feature = "mpi")]
 mod mpi_comm;
 mod rank;
+mod record;
+mod resident;
 mod slabs;
 
 pub use comm::{Comm, LocalComm};

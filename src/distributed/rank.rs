@@ -22,78 +22,33 @@
 
 use super::comm::Comm;
 use super::grid::Grid;
+use super::record::{Held, SphereRecord, own_pair_ends, put, read};
+use super::resident::Resident;
 use super::slabs::Slabs;
-use crate::Spheres;
 use crate::dem::StepParams;
 use crate::dem::flow::{FlowCounts, FlowSet};
 use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, RankShare, StageTimes, Stepper};
 use crate::dem::walls::{WallLoad, WallSet};
-use crate::detect::Backend;
 use crate::engines::common::flow::{Reopen, Room};
-use crate::engines::cpu::{CpuBackend, CpuStepper};
+use crate::engines::cpu::CpuStepper;
 use crate::engines::{BackendChoice, DemSetup, Opened, Options, open_rank_step};
 use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, FIRST_MESH_WALL, HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;
 use std::time::Instant;
 
-/// A sphere as a rank sends it: its id in the whole run and its state, followed in a message
-/// by `contacts` history entries and `loads` load histories (none, or one a contact: the
-/// Mindlin–Deresiewicz model's).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-struct SphereRecord {
-    id: u32,
-    material: u32,
-    radius: f32,
-    position: [f32; 3],
-    residual: [f32; 3],
-    velocity: [f32; 3],
-    spin: [f32; 3],
-    contacts: u32,
-    loads: u32,
-}
-
-/// A sphere a rank owns: its state and its contacts (partners by id), with their load
-/// histories where the run keeps them.
-#[derive(Debug, Clone)]
-struct Held {
-    sphere: SphereRecord,
-    contacts: Vec<HistoryEntry>,
-    loads: Vec<LoadEntry>,
-}
-
-impl Held {
-    /// Sphere `at` of `p` as sphere `id` of the whole run, its partners renamed by `rename`.
-    fn of(
-        p: &Particles,
-        at: usize,
-        id: u32,
-        rename: impl Fn(&HistoryEntry) -> HistoryEntry,
-    ) -> Self {
-        Held {
-            sphere: record_of(p, at, id),
-            contacts: p.history.of(at).iter().map(rename).collect(),
-            loads: p.history.loads_of(at).to_vec(),
-        }
-    }
-
-    /// Where its centre is, in `f64`.
-    fn exact_position(&self) -> [f64; 3] {
-        let s = &self.sphere;
-        std::array::from_fn(|a| crate::particles::position::join(s.position[a], s.residual[a]))
-    }
-}
-
 /// How a rank steps its spheres and their ghosts.
 enum LocalStep {
     /// The cpu step, opened at the first round and given each round's spheres since (its cells
     /// and scratch kept).
     Cpu(Option<Box<CpuStepper>>),
-    /// A GPU backend's step, opened again over each round's spheres on the rank's GPU.
+    /// A GPU backend's step, opened again over each round's spheres on the rank's GPU, or
+    /// kept there from round to round where the backend can and the run has no mesh walls
+    /// (`resident`; the rank's own spheres are then read from it when asked).
     Device {
         reopen: Reopen,
         backend: &'static str,
+        resident: Option<Resident>,
     },
 }
 
@@ -106,6 +61,8 @@ pub struct RankStepper<C: Comm> {
     walls: WallSet,
     /// The largest sphere of the whole run: every rank bins on the lattice its cells make.
     r_max: f32,
+    /// The smallest and largest radius of the whole run and its inflows \[m\].
+    radii: (f32, f32),
     /// How far a step looks for a sphere's partners: a cell of the whole run's lattice,
     /// padded for the rounding of the centres \[m\].
     reach: f64,
@@ -161,7 +118,8 @@ impl<C: Comm> RankStepper<C> {
         let lo = params.box_lo.map(f64::from);
         let hi = params.box_hi.map(f64::from);
         let grid = Grid::cut(lo, hi, comm.size())?;
-        let (_, r_max) = whole.radius_range();
+        let radii = whole.radius_range();
+        let r_max = radii.1;
         let reach = reach_of(r_max, params, *mode);
         let own = own_of(whole, &grid, comm.rank());
         // Every rank opens the same run (and none goes on before all have opened it).
@@ -182,6 +140,7 @@ impl<C: Comm> RankStepper<C> {
             mode: *mode,
             walls: walls.clone(),
             r_max,
+            radii,
             reach,
             round: 1,
             own,
@@ -231,7 +190,11 @@ impl<C: Comm> RankStepper<C> {
             let thinnest = self.grid.thinnest();
             self.round = ((thinnest / (4.0 * self.reach)) as u32).clamp(1, 32);
             let backend = opened.kind.name();
-            self.local = LocalStep::Device { reopen, backend };
+            self.local = LocalStep::Device {
+                reopen,
+                backend,
+                resident: None,
+            };
         }
         Ok(Opened {
             value: self,
@@ -263,6 +226,7 @@ impl<C: Comm> RankStepper<C> {
     /// Moves the faces ([`rebalancing_every`](Self::rebalancing_every)) and hands on the
     /// spheres whose box changed (every rank together).
     fn rebalance(&mut self) -> Result<()> {
+        self.settle()?;
         let busy = std::mem::take(&mut self.since_rebalance).1;
         let per_sphere = busy / self.own.len().max(1) as f64;
         // The work along each axis, one histogram after the other.
@@ -306,6 +270,8 @@ impl<C: Comm> RankStepper<C> {
         }
         // The lattice of the whole run, sized for what the inflows bring as well.
         self.r_max = self.r_max.max(flow.largest_radius());
+        let smallest = flow.smallest_radius().unwrap_or(self.radii.0);
+        self.radii = (self.radii.0.min(smallest), self.r_max);
         self.reach = reach_of(self.r_max, &self.params, self.mode).max(self.reach);
         let counted = flow.counted;
         self.flow = Some((flow, counted));
@@ -353,7 +319,12 @@ impl<C: Comm> RankStepper<C> {
 
     /// The spheres this rank owns now.
     pub fn own_spheres(&self) -> usize {
-        self.own.len()
+        match &self.local {
+            LocalStep::Device {
+                resident: Some(r), ..
+            } => r.own.len(),
+            _ => self.own.len(),
+        }
     }
 
     /// The ghosts this rank held in its last step.
@@ -369,15 +340,102 @@ impl<C: Comm> RankStepper<C> {
     /// How far beyond its box a rank holds ghosts for a round of `steps` steps (the module's
     /// first phase; every rank together).
     fn halo(&self, steps: u32) -> Result<f64> {
+        let fastest = self
+            .own
+            .iter()
+            .map(|h| h.sphere.speed())
+            .fold(0.0, f64::max);
+        self.halo_at(steps, fastest)
+    }
+
+    /// [`halo`](Self::halo) where this rank's fastest sphere moves at `fastest` \[m/s\].
+    fn halo_at(&self, steps: u32, fastest: f64) -> Result<f64> {
         if steps == 1 {
             return Ok(self.reach);
         }
-        let speed = |h: &Held| glam::Vec3::from(h.sphere.velocity).length() as f64;
-        let fastest = self.max_over_ranks(self.own.iter().map(speed).fold(0.0, f64::max))?;
+        let fastest = self.max_over_ranks(fastest)?;
         let gravity = glam::Vec3::from(self.params.gravity).length() as f64;
         let round = steps as f64 * self.params.dt as f64;
         let travel = round * (fastest + gravity * round);
         Ok(steps as f64 * self.reach + 2.0 * travel)
+    }
+
+    /// The step kept on the device, taken out of the rank (none: the rank holds its spheres).
+    fn take_resident(&mut self) -> Option<Resident> {
+        match &mut self.local {
+            LocalStep::Device { resident, .. } => resident.take(),
+            LocalStep::Cpu(_) => None,
+        }
+    }
+
+    /// Reads the rank's own spheres, with their contacts, from a step kept on the device, which
+    /// is then let go (the next round opens one again): before anything but a round reads or
+    /// changes them.
+    fn settle(&mut self) -> Result<()> {
+        if let Some(mut resident) = self.take_resident() {
+            self.own = resident.held(&Default::default())?;
+        }
+        Ok(())
+    }
+
+    /// A round of `steps` steps of the step kept on the device, which holds the round's own
+    /// spheres and ghosts: its steps, then the exchange that leaves it holding the next round's
+    /// ([`Resident::exchange`]: the ghosts and the migration of the module's phases, by
+    /// states alone). Returns as [`take_round`](Self::take_round).
+    fn resident_round(
+        &mut self,
+        mut resident: Resident,
+        steps: u32,
+        count: bool,
+        started: Instant,
+    ) -> Result<(u64, StageTimes, Vec<WallLoad>)> {
+        let ids = resident.ids();
+        let rows = |all: &[[f32; 3]]| match all.is_empty() {
+            true => Vec::new(),
+            false => ids.iter().map(|&id| all[id as usize]).collect(),
+        };
+        let loads = ExternalLoads {
+            forces: rows(&self.loads.forces),
+            torques: rows(&self.loads.torques),
+        };
+        let step = &mut resident.step;
+        step.set_gravity(self.params.gravity)?;
+        step.set_external_loads(&loads)?;
+        let opened = Instant::now();
+        let mut times = step.advance(steps)?.times;
+        let stepped = Instant::now();
+        self.step = step.step();
+        self.share.spheres = resident.own.len() as u64;
+        self.share.ghosts = resident.ghosts as u64;
+        self.ghosts = resident.ghosts;
+        let count = count.then_some(self.mode);
+        let read_back = Instant::now();
+        // The next round's halo, at the speeds the round ends with.
+        let round = self.round;
+        let halo = |fastest: f64| self.halo_at(round, fastest);
+        let exchanged = resident.exchange(&self.comm, &self.grid, halo, count)?;
+        let touching = exchanged.touching.unwrap_or(0);
+        match exchanged.settled {
+            Some(own) => self.own = own,
+            None => {
+                if let LocalStep::Device { resident: kept, .. } = &mut self.local {
+                    *kept = Some(resident);
+                }
+            }
+        }
+        let ms = |from: Instant, to: Instant| (to - from).as_secs_f64() * 1e3;
+        let share = &mut self.share;
+        share.rounds += 1;
+        share.steps += steps as u64;
+        share.open_ms += ms(started, opened);
+        share.step_ms += ms(opened, stepped);
+        share.read_back_ms += ms(stepped, read_back);
+        share.exchange_ms += read_back.elapsed().as_secs_f64() * 1e3;
+        self.since_rebalance.0 += steps as u64;
+        self.since_rebalance.1 += ms(started, read_back);
+        let engine = times.total_ms();
+        times.build_ms += (started.elapsed().as_secs_f64() * 1e3 - engine).max(0.0);
+        Ok((touching, times, Vec::new()))
     }
 
     /// One round of `steps` steps: ghosts, the steps, migration (the module's three phases);
@@ -387,6 +445,9 @@ impl<C: Comm> RankStepper<C> {
     /// step counted as the build's).
     fn take_round(&mut self, steps: u32, count: bool) -> Result<(u64, StageTimes, Vec<WallLoad>)> {
         let started = Instant::now();
+        if let Some(resident) = self.take_resident() {
+            return self.resident_round(resident, steps, count, started);
+        }
         let halo = self.halo(steps)?;
         let ranks = self.comm.size();
         let mut outgoing = vec![Vec::new(); ranks];
@@ -466,8 +527,21 @@ impl<C: Comm> RankStepper<C> {
                 (stepper.particles()?, times, own_touching, wall_loads)
             }
             LocalStep::Device { reopen, .. } => {
-                let room = Room::of(&local);
+                // Kept on the device from now on, room made for the ghosts to come.
+                let keep = meshes == 0;
+                let room = Room {
+                    spheres: local.len() + local.len() / 2 + 1024,
+                    radii: self.radii,
+                    region: None,
+                }
+                .holding(&local);
                 let mut stepper = reopen(local, room)?;
+                if keep && stepper.resident().is_some() {
+                    let own = own_at.iter().map(|&at| ids[at]).collect();
+                    let resident = Resident::new(stepper, &ids, own);
+                    self.own.clear();
+                    return self.resident_round(resident, steps, count, started);
+                }
                 stepper.sum_wall_loads_below(own_at.len() as u32);
                 stepper.set_gravity(gravity)?;
                 stepper.set_external_loads(&loads)?;
@@ -663,12 +737,13 @@ impl<C: Comm> RankStepper<C> {
     }
 
     /// The whole run's spheres, on rank 0 (`None` on the others): every rank sends its own.
-    pub fn gather(&self) -> Result<Option<Particles>> {
+    pub fn gather(&mut self) -> Result<Option<Particles>> {
         self.collect(false)
     }
 
     /// The whole run's spheres on rank 0, or on every rank where `everywhere`.
-    fn collect(&self, everywhere: bool) -> Result<Option<Particles>> {
+    fn collect(&mut self, everywhere: bool) -> Result<Option<Particles>> {
+        self.settle()?;
         let mut outgoing = vec![Vec::new(); self.comm.size()];
         for (r, message) in outgoing.iter_mut().enumerate() {
             if everywhere || r == 0 {
@@ -798,6 +873,7 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
 
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
         motion.check(self.total)?;
+        self.settle()?;
         for held in &mut self.own {
             let (i, s) = (held.sphere.id as usize, &mut held.sphere);
             if let Some(x) = motion.positions {
@@ -853,17 +929,6 @@ fn own_of(whole: &Particles, grid: &Grid, rank: usize) -> Vec<Held> {
         .collect()
 }
 
-/// The contacts of the own spheres of `p` (at the places `own_at`, ascending) with any sphere
-/// of it, as the cpu step's per-sphere counts sum them (a contact of two own spheres counted by
-/// both): its touching pairs, found on the host.
-fn own_pair_ends(p: &Particles, own_at: &[usize], mode: ProxyMode) -> Result<u64> {
-    let mut backend = CpuBackend::new();
-    backend.build(Spheres::check(&p.positions, &p.radii)?, mode)?;
-    let (pairs, _) = backend.find_pairs()?;
-    let own = |at: u32| own_at.binary_search(&(at as usize)).is_ok() as u64;
-    Ok(pairs.iter().map(|pair| own(pair.i) + own(pair.j)).sum())
-}
-
 /// The spheres of `records`, in their order, at step `step` (no contact history yet).
 fn spheres_of<'a>(records: impl Iterator<Item = &'a SphereRecord> + Clone, step: u64) -> Particles {
     let column = |of: fn(&SphereRecord) -> [f32; 3]| records.clone().map(of).collect();
@@ -882,78 +947,4 @@ fn spheres_of<'a>(records: impl Iterator<Item = &'a SphereRecord> + Clone, step:
         p.materials.clear();
     }
     p
-}
-
-/// Sphere `i` of `p` as a record of id `id` (no contacts counted yet).
-fn record_of(p: &Particles, i: usize, id: u32) -> SphereRecord {
-    SphereRecord {
-        id,
-        material: p.material(i),
-        radius: p.radii[i],
-        position: p.positions[i],
-        residual: p.residual(i),
-        velocity: p.velocities[i],
-        spin: p.angular_velocities[i],
-        contacts: 0,
-        loads: 0,
-    }
-}
-
-/// Appends `sphere`, its contacts and their load histories to `message`.
-fn put(
-    message: &mut Vec<u8>,
-    sphere: &SphereRecord,
-    (contacts, loads): (&[HistoryEntry], &[LoadEntry]),
-) {
-    let record = SphereRecord {
-        contacts: contacts.len() as u32,
-        loads: loads.len() as u32,
-        ..*sphere
-    };
-    message.extend_from_slice(bytemuck::bytes_of(&record));
-    message.extend_from_slice(bytemuck::cast_slice(contacts));
-    message.extend_from_slice(bytemuck::cast_slice(loads));
-}
-
-/// The spheres of a message [`put`] wrote.
-fn read(message: &[u8]) -> Result<Vec<Held>> {
-    let mut out = Vec::new();
-    let mut rest = message;
-    let cut = |rest: &mut &[u8], bytes: usize| -> Result<Vec<u8>> {
-        if rest.len() < bytes {
-            return Err(Error::Usage("a rank's message ends inside a sphere".into()));
-        }
-        let (head, tail) = rest.split_at(bytes);
-        *rest = tail;
-        Ok(head.to_vec())
-    };
-    // The next `count` values of type T.
-    fn values<T: bytemuck::Pod>(
-        cut: impl Fn(&mut &[u8], usize) -> Result<Vec<u8>>,
-        rest: &mut &[u8],
-        count: u32,
-    ) -> Result<Vec<T>> {
-        let size = std::mem::size_of::<T>();
-        let body = cut(rest, count as usize * size)?;
-        Ok(body
-            .chunks_exact(size)
-            .map(bytemuck::pod_read_unaligned)
-            .collect())
-    }
-    while !rest.is_empty() {
-        let head = cut(&mut rest, std::mem::size_of::<SphereRecord>())?;
-        let sphere: SphereRecord = bytemuck::pod_read_unaligned(&head);
-        let contacts = values(cut, &mut rest, sphere.contacts)?;
-        let loads = values(cut, &mut rest, sphere.loads)?;
-        out.push(Held {
-            sphere: SphereRecord {
-                contacts: 0,
-                loads: 0,
-                ..sphere
-            },
-            contacts,
-            loads,
-        });
-    }
-    Ok(out)
 }

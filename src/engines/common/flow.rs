@@ -46,6 +46,28 @@ pub(crate) trait DeviceFlow: Stepper {
     /// a rank's own spheres, which it places before its ghosts (the ghosts' loads are their
     /// owners'). The others touch the walls as before.
     fn sum_wall_loads_below(&mut self, spheres: u32);
+
+    /// This step as one a rank keeps on its device from round to round, where the backend can
+    /// (the defaults: it cannot, and a rank opens it again each round).
+    fn resident(&mut self) -> Option<&mut dyn ResidentStep> {
+        None
+    }
+}
+
+/// A step that a rank of a run decomposed over ranks (the `distributed` module) keeps on its
+/// device from round to round: it reads its spheres' states back without their contact
+/// history, and takes spheres out and in by stable id, the history of those that stay kept on
+/// the device (a contact's springs live where the step put them, not with one sphere).
+pub(crate) trait ResidentStep {
+    /// The spheres' states in input order (no contact history), and their stable ids in that
+    /// order (ascending).
+    fn states(&mut self) -> Result<(Particles, Vec<u32>)>;
+
+    /// Removes the spheres of the stable ids `leaving` (ascending) and appends `coming` with no
+    /// spin and no history (their state set after with `set_motion`); returns the stable id of
+    /// the first appended (the others follow it), or `None`, with nothing changed, where the
+    /// step has no room for them.
+    fn replace(&mut self, leaving: &[u32], coming: &[NewSphere]) -> Result<Option<u32>>;
 }
 
 /// Opens a backend's step over the spheres given with the room given for more (where it keeps

@@ -1,7 +1,9 @@
 //! Flow events on the device: the state scanned for spheres leaving, spheres appended into the
-//! rows kept for them, leaving ones removed by moving the last rows over theirs.
+//! rows kept for them, leaving ones removed by moving the last rows over theirs. The same
+//! removal and appending keep a rank's step on its device from round to round.
 
 use super::*;
+use crate::engines::common::flow::ResidentStep;
 
 /// Flow events scan the state on the device and append inserted spheres to it, in rows kept
 /// for them at opening ([`GridStepper::flowing_on`]).
@@ -26,17 +28,7 @@ impl DeviceFlow for GridStepper {
 
     fn append(&mut self, new: &[NewSphere]) -> Result<bool> {
         let k = new.len() as u32;
-        let (r_min, r_max) = new.iter().fold((f32::MAX, 0.0f32), |(a, b), s| {
-            (a.min(s.radius), b.max(s.radius))
-        });
-        // The grid's cells and levels were chosen for the radii present.
-        let radii_fit = k == 0 || (r_min as f64 >= self.radii.0 && r_max as f64 <= self.radii.1);
-        // Stable ids stay below the walls' (a reopening numbers the spheres afresh).
-        let ids_fit = self
-            .next_id
-            .checked_add(k)
-            .is_some_and(|end| end <= FIRST_MESH_WALL);
-        if self.n.checked_add(k).is_none_or(|n| n > self.capacity) || !radii_fit || !ids_fit {
+        if !self.room_for(new, 0) {
             return Ok(false);
         }
         if k == 0 {
@@ -81,6 +73,10 @@ impl DeviceFlow for GridStepper {
         if let Some(g) = &mut self.res.granular {
             g.mesh_mut().sum_loads_below(&self.res.gpu, spheres);
         }
+    }
+
+    fn resident(&mut self) -> Option<&mut dyn ResidentStep> {
+        Some(self)
     }
 
     fn remove(&mut self, rows: &[u32]) -> Result<bool> {
@@ -129,7 +125,51 @@ impl DeviceFlow for GridStepper {
     }
 }
 
+/// A rank's step: its spheres read back without their history, replaced by stable id.
+impl ResidentStep for GridStepper {
+    fn states(&mut self) -> Result<(Particles, Vec<u32>)> {
+        let (particles, order) = self.read_state(false)?;
+        Ok((particles, order.ascending()))
+    }
+
+    fn replace(&mut self, leaving: &[u32], coming: &[NewSphere]) -> Result<Option<u32>> {
+        if !self.room_for(coming, leaving.len() as u32) {
+            return Ok(None);
+        }
+        let set = &self.res.sets[self.current];
+        let ids: Vec<u32> = self.res.gpu.read(&set.ids, self.n as usize)?;
+        let rows: Vec<u32> = (0..self.n)
+            .filter(|&row| leaving.binary_search(&ids[row as usize]).is_ok())
+            .collect();
+        if rows.len() != leaving.len() {
+            return Err(Error::Usage(
+                "a rank's step was asked to remove spheres it does not hold".into(),
+            ));
+        }
+        let first = self.next_id;
+        let done = self.remove(&rows)? && self.append(coming)?;
+        Ok(done.then_some(first))
+    }
+}
+
 impl GridStepper {
+    /// Whether the spheres `new` fit after those there less `leaving` of them: rows kept, the
+    /// radii the grid's cells and levels were chosen for, stable ids below the walls' (a
+    /// reopening numbers the spheres afresh).
+    fn room_for(&self, new: &[NewSphere], leaving: u32) -> bool {
+        let k = new.len() as u32;
+        let (r_min, r_max) = new.iter().fold((f32::MAX, 0.0f32), |(a, b), s| {
+            (a.min(s.radius), b.max(s.radius))
+        });
+        let radii_fit = k == 0 || (r_min as f64 >= self.radii.0 && r_max as f64 <= self.radii.1);
+        let ids_fit = self
+            .next_id
+            .checked_add(k)
+            .is_some_and(|end| end <= FIRST_MESH_WALL);
+        let rows = (self.n.saturating_sub(leaving)).checked_add(k);
+        rows.is_some_and(|n| n <= self.capacity) && radii_fit && ids_fit
+    }
+
     /// The state now holds `n` spheres: the dispatch and the uniform follow, and the next
     /// advance lays the grid out again, over the new bounds and count.
     pub(super) fn resize(&mut self, n: u32) {

@@ -533,6 +533,12 @@ impl GridStepper {
 
     /// The state read back in input order ([`Error::Unstable`] if it is not finite).
     fn state(&self) -> Result<Particles> {
+        self.read_state(true).map(|(particles, _)| particles)
+    }
+
+    /// The state read back in input order, with its contact history where `history` asks (the
+    /// clumps' too), and the order of the rows.
+    fn read_state(&self, history: bool) -> Result<(Particles, InputOrder)> {
         let n = self.n as usize;
         let set = &self.res.sets[self.current];
         let pos: Vec<[f32; 4]> = self.res.gpu.read(&set.pos, n)?;
@@ -541,9 +547,13 @@ impl GridStepper {
         let ids: Vec<u32> = self.res.gpu.read(&set.ids, n)?;
         let order = InputOrder::of(&ids);
         let rotation = || {
+            let (gpu, next) = (&self.res.gpu, self.turn());
             let g = self.res.granular.as_ref();
-            g.map(|g| g.read(&self.res.gpu, self.turn(), Some(&order)))
-                .transpose()
+            g.map(|g| match history {
+                true => g.read(gpu, next, Some(&order)),
+                false => g.read_spins(gpu, next),
+            })
+            .transpose()
         };
         let rows = StateRows {
             pos: &pos,
@@ -551,10 +561,12 @@ impl GridStepper {
             vel: &vel,
         };
         let mut particles = particles_with(rows, Some(&order.rank), self.step, rotation)?;
-        if let Some(c) = self.res.granular.as_ref().and_then(|g| g.clumps()) {
+        if let Some(c) = self.res.granular.as_ref().and_then(|g| g.clumps())
+            && history
+        {
             particles.clumps = c.read(&self.res.gpu)?;
         }
-        Ok(particles)
+        Ok((particles, order))
     }
 }
 
@@ -637,7 +649,8 @@ impl Stepper for GridStepper {
         }
         let (res, n) = (&self.res, self.n as usize);
         let set = &res.sets[self.current];
-        let order: Vec<u32> = res.gpu.read(&set.ids, n)?;
+        // Each row's sphere in input order (stable ids have gaps where spheres left).
+        let order = InputOrder::of(&res.gpu.read::<u32>(&set.ids, n)?).rank;
         let omega = res.granular.as_ref().map(|g| g.omega_of(self.current));
         let buffers = (&set.pos, &set.lo, &set.vel, omega);
         if write_motion(&res.gpu, buffers, n, Some(&order), motion)? {
