@@ -1,7 +1,8 @@
 //! Inflow and outflow (`dem::flow`) on every backend: an inflow inserts ⌊rate·t⌋ spheres, each
 //! where it overlaps nothing; mass is conserved (initial + inserted = present + removed);
-//! without the box walls a sphere that falls below the box is removed; every backend's flow events with the same `flow_every` insert
-//! and remove what the cpu's do; a run with both resumes from a checkpoint bit for bit on cpu.
+//! without the box walls a sphere that falls below the box is removed, and the run takes new
+//! motion after; every backend's flow events with the same `flow_every` insert and remove what
+//! the cpu's do; a run with both resumes from a checkpoint bit for bit on cpu.
 
 mod common;
 
@@ -11,7 +12,7 @@ use mochi::dem::flow::{FlowCounts, FlowSet, InflowConfig, OutflowConfig};
 use mochi::dem::model::{Material, mass};
 use mochi::dem::scene::Start;
 use mochi::dem::walls::WallSet;
-use mochi::dem::{Particles, StepParams, Stepper};
+use mochi::dem::{Motion, Particles, StepParams, Stepper};
 use mochi::engines::{BackendChoice, BackendKind, Options, open_scene};
 
 const DT: f64 = 1e-4;
@@ -195,6 +196,43 @@ fn without_box_walls_a_sphere_below_the_box_is_removed() {
         // With no sphere left the run goes on, waiting for an inflow.
         s.advance(50).unwrap();
         assert_eq!(s.particles().unwrap().step, 350);
+    });
+}
+
+#[test]
+fn a_run_takes_new_motion_after_a_sphere_left_it() {
+    // Sphere 0 falls out through the floor; sphere 1, left alone, is then given a new place and
+    // velocity: the run's first sphere now, whichever rows the step keeps it in.
+    let two = Particles {
+        positions: vec![[0.1, 0.1, 0.02], [0.1, 0.1, 0.1]],
+        velocities: vec![[0.0, 0.0, -1.0], [0.0; 3]],
+        angular_velocities: vec![[0.0; 3]; 2],
+        radii: vec![0.005; 2],
+        ..Particles::default()
+    };
+    let flow = FlowSet {
+        floor: Some(0.0),
+        ..FlowSet::default()
+    };
+    on_every_backend(|kind| {
+        let mut s = stepper(kind, two.clone(), params(0.0), flow.clone(), false);
+        s.advance(300).unwrap();
+        assert_eq!(s.flow_counts().unwrap().removed, 1);
+        let (place, speed) = ([[0.05, 0.06, 0.07]], [[0.1, 0.0, 0.0]]);
+        s.set_motion(&Motion {
+            positions: Some(&place),
+            velocities: Some(&speed),
+            angular_velocities: None,
+        })
+        .unwrap();
+        let now = s.particles().unwrap();
+        let at = now.exact_positions().unwrap();
+        assert_eq!(at.len(), 1);
+        assert!(
+            (0..3).all(|a| (at[0][a] - place[0][a]).abs() < 1e-12),
+            "{at:?}"
+        );
+        assert_eq!(now.velocities, speed);
     });
 }
 
