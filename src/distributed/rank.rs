@@ -11,11 +11,15 @@
 //!    most a cell (and their travel) a step and never reach an own sphere within the round.
 //!    On the cpu, on the lattice of the whole run, each sphere sums its contacts in an order
 //!    its place and the ids decide, so an own sphere's state is the whole run's bit for bit;
-//!    a GPU backend's step (opened again over each round's spheres, on the rank's GPU) sums in
-//!    its own order, so its run matches the whole run as two runs of one GPU match. The
-//!    ghosts' new states are dropped (their owners have them);
+//!    a GPU backend's step (on the rank's GPU) sums in its own order, so its run matches the
+//!    whole run as two runs of one GPU match. The ghosts' new states are dropped (their owners
+//!    have them);
 //! 3. **migration**: a sphere whose centre left the box goes to the rank that owns it now,
 //!    with its contact history.
+//!
+//! A GPU step that can stay on its device from round to round (`resident`) takes the three
+//! phases there instead, exchanging states alone; other GPU steps are opened again over each
+//! round's spheres.
 //!
 //! Each pair is computed on both of its sides (every engine does so in any run), so no force
 //! crosses ranks: only states do.
@@ -176,8 +180,9 @@ impl<C: Comm> RankStepper<C> {
     /// The same rank stepping on the backend of `choice` (`auto`: the registry's one rule; a
     /// GPU backend on the GPU of the process's local rank), with the backend it runs on. On a
     /// GPU backend it exchanges ghosts as seldom as a halo of a quarter of the thinnest box
-    /// allows (at most every 32 steps): each round pays an upload and a read-back of the
-    /// rank's spheres, so a round is as long as its ghosts let it be.
+    /// allows (at most every 32 steps): each round pays a read-back of the rank's spheres (their
+    /// states, where its step stays on the device) and a write, so a round is as long as its
+    /// ghosts let it be.
     pub fn on_backend(mut self, choice: BackendChoice, options: &Options) -> Result<Opened<Self>> {
         let setup = DemSetup {
             particles: Particles::default(),
