@@ -94,6 +94,20 @@ impl Grid {
         ranks
     }
 
+    /// The one rank whose box lies within `halo` of `x`, where only one does (a point deep in
+    /// its box).
+    pub fn alone_within(&self, x: [f64; 3], halo: f64) -> Option<usize> {
+        let mut at = [0; 3];
+        for (a, axis) in self.axes.iter().enumerate() {
+            let mut within = axis.within(x, halo);
+            at[a] = within.next()?;
+            if within.next().is_some() {
+                return None;
+            }
+        }
+        Some(self.rank_of(at))
+    }
+
     /// The ranks whose box lies within `halo` of `x` along every axis (its owner's among
     /// them), in order.
     pub fn ranks_within(&self, x: [f64; 3], halo: f64) -> Vec<usize> {

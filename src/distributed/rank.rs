@@ -327,7 +327,7 @@ impl<C: Comm> RankStepper<C> {
         match &self.local {
             LocalStep::Device {
                 resident: Some(r), ..
-            } => r.own.len(),
+            } => r.own_spheres(),
             _ => self.own.len(),
         }
     }
@@ -378,7 +378,7 @@ impl<C: Comm> RankStepper<C> {
     /// changes them.
     fn settle(&mut self) -> Result<()> {
         if let Some(mut resident) = self.take_resident() {
-            self.own = resident.held(&Default::default())?;
+            self.own = resident.held()?;
         }
         Ok(())
     }
@@ -410,9 +410,9 @@ impl<C: Comm> RankStepper<C> {
         let mut times = step.advance(steps)?.times;
         let stepped = Instant::now();
         self.step = step.step();
-        self.share.spheres = resident.own.len() as u64;
-        self.share.ghosts = resident.ghosts as u64;
-        self.ghosts = resident.ghosts;
+        self.ghosts = resident.ghosts();
+        self.share.spheres = resident.own_spheres() as u64;
+        self.share.ghosts = self.ghosts as u64;
         let count = count.then_some(self.mode);
         let read_back = Instant::now();
         // The next round's halo, at the speeds the round ends with.
@@ -542,8 +542,7 @@ impl<C: Comm> RankStepper<C> {
                 .holding(&local);
                 let mut stepper = reopen(local, room)?;
                 if keep && stepper.resident().is_some() {
-                    let own = own_at.iter().map(|&at| ids[at]).collect();
-                    let resident = Resident::new(stepper, &ids, own);
+                    let resident = Resident::new(stepper, &ids, &own_at);
                     self.own.clear();
                     return self.resident_round(resident, steps, count, started);
                 }

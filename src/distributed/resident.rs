@@ -18,18 +18,19 @@ use crate::engines::common::flow::{DeviceFlow, ResidentStep};
 use crate::error::{Error, Result};
 use crate::particles::HistoryEntry;
 use crate::proxy::ProxyMode;
-use std::collections::{BTreeMap, HashMap};
+use rustc_hash::FxHashMap;
 
 /// A rank's step on its device between rounds, and whose its spheres are.
 pub(super) struct Resident {
     pub step: Box<dyn DeviceFlow>,
-    /// The whole run's id of each sphere of the step, by its stable id there (in the step's
-    /// input order).
-    global: BTreeMap<u32, u32>,
-    /// The whole run's ids of this rank's own spheres, ascending.
-    pub own: Vec<u32>,
-    /// The step's spheres that are ghosts.
-    pub ghosts: usize,
+    /// The step's stable ids of its spheres, ascending (its input order).
+    stable: Vec<u32>,
+    /// The whole run's id of each, in that order.
+    global: Vec<u32>,
+    /// Whether each is this rank's own (else a ghost), in that order.
+    own: Vec<bool>,
+    /// The stable id of each sphere of the step, by its id in the whole run.
+    stable_of: FxHashMap<u32, u32>,
 }
 
 /// What a round's exchange found and left.
@@ -45,12 +46,16 @@ pub(super) struct Exchanged {
 
 impl Resident {
     /// `step`, opened over the spheres of the whole run's ids `ids` (in its input order, its
-    /// stable ids `0..`), of which those of `own` (ascending) are the rank's.
-    pub fn new(step: Box<dyn DeviceFlow>, ids: &[u32], own: Vec<u32>) -> Self {
+    /// stable ids `0..`), of which those at the places `own_at` (ascending) are the rank's.
+    pub fn new(step: Box<dyn DeviceFlow>, ids: &[u32], own_at: &[usize]) -> Self {
+        let mut own = vec![false; ids.len()];
+        own_at.iter().for_each(|&at| own[at] = true);
+        let stable: Vec<u32> = (0..ids.len() as u32).collect();
         Resident {
             step,
-            global: (0..).zip(ids.iter().copied()).collect(),
-            ghosts: ids.len() - own.len(),
+            stable_of: ids.iter().copied().zip(stable.iter().copied()).collect(),
+            stable,
+            global: ids.to_vec(),
             own,
         }
     }
@@ -62,26 +67,42 @@ impl Resident {
             .ok_or_else(|| Error::Usage("a rank's step is not kept on its device".into()))
     }
 
-    /// The whole run's ids of the step's spheres of stable ids `stable`.
-    fn globals(&self, stable: &[u32]) -> Result<Vec<u32>> {
-        let unknown = || Error::Usage("a rank's step holds a sphere the rank does not know".into());
-        stable
-            .iter()
-            .map(|k| self.global.get(k).copied().ok_or_else(unknown))
-            .collect()
+    /// The whole run's ids of the step's spheres, in its input order.
+    pub fn ids(&self) -> &[u32] {
+        &self.global
     }
 
-    /// The whole run's ids of the step's spheres, in its input order.
-    pub fn ids(&self) -> Vec<u32> {
-        self.global.values().copied().collect()
+    /// The rank's own spheres.
+    pub fn own_spheres(&self) -> usize {
+        self.own.iter().filter(|&&own| own).count()
+    }
+
+    /// The step's ghosts.
+    pub fn ghosts(&self) -> usize {
+        self.own.len() - self.own_spheres()
     }
 
     /// The rank's own spheres with their contacts (partners by the whole run's id), by
-    /// ascending id, with the states of `given` in place of the step's where it has them.
-    pub fn held(&mut self, given: &HashMap<u32, SphereRecord>) -> Result<Vec<Held>> {
-        let (_, stable) = self.resident()?.states()?;
-        let ids = self.globals(&stable)?;
+    /// ascending id.
+    pub fn held(&mut self) -> Result<Vec<Held>> {
+        let own: Vec<u32> = (0..self.own.len())
+            .filter(|&at| self.own[at])
+            .map(|at| self.global[at])
+            .collect();
+        self.held_of(own, &FxHashMap::default())
+    }
+
+    /// The spheres of the whole run's ids `own` with their contacts as the step keeps them,
+    /// by ascending id, each in the state of `given` where it has one (one the step does not
+    /// hold must have one).
+    fn held_of(
+        &mut self,
+        mut own: Vec<u32>,
+        given: &FxHashMap<u32, SphereRecord>,
+    ) -> Result<Vec<Held>> {
+        own.sort_unstable();
         let whole = self.step.particles()?;
+        let ids = &self.global;
         let n = ids.len() as u32;
         // Partners by place to partners by id (a wall keeps its own).
         let rename = |e: &HistoryEntry| HistoryEntry {
@@ -91,11 +112,14 @@ impl Resident {
             },
             ..*e
         };
-        let place: HashMap<u32, usize> = ids.iter().enumerate().map(|(at, &g)| (g, at)).collect();
-        let mut held = Vec::with_capacity(self.own.len());
-        for &g in &self.own {
-            let mut h = match (place.get(&g), given.get(&g)) {
-                (Some(&at), _) => Held::of(&whole, at, g, rename),
+        let place = |g: u32| {
+            let k = self.stable_of.get(&g)?;
+            self.stable.binary_search(k).ok()
+        };
+        let mut held = Vec::with_capacity(own.len());
+        for g in own {
+            let mut h = match (place(g), given.get(&g)) {
+                (Some(at), _) => Held::of(&whole, at, g, rename),
                 (None, Some(&sphere)) => Held {
                     sphere,
                     contacts: Vec::new(),
@@ -130,59 +154,64 @@ impl Resident {
     ) -> Result<Exchanged> {
         let me = comm.rank();
         let (now, stable) = self.resident()?.states()?;
-        let ids = self.globals(&stable)?;
-        if ids.len() != self.global.len() {
+        if stable != self.stable {
             return Err(Error::Usage(
                 "a rank's step does not hold the spheres the rank gave it".into(),
             ));
         }
-        // The own spheres' places, and their contacts where asked.
-        let own_at: Vec<usize> = (0..ids.len())
-            .filter(|&at| self.own.binary_search(&ids[at]).is_ok())
-            .collect();
+        let n = stable.len();
+        let own_at: Vec<usize> = (0..n).filter(|&at| self.own[at]).collect();
         let touching = count
             .map(|mode| own_pair_ends(&now, &own_at, mode))
             .transpose()?;
-        let fastest = own_at
-            .iter()
-            .map(|&at| record_of(&now, at, ids[at]).speed())
-            .fold(0.0, f64::max);
-        let halo = halo(fastest)?;
+        let speed = |at: usize| glam::Vec3::from(now.velocities[at]).length() as f64;
+        let halo = halo(own_at.iter().map(|&at| speed(at)).fold(0.0, f64::max))?;
 
-        // Each own sphere's state goes to every rank whose box is within the halo of it.
+        // Each own sphere near a face goes to every other rank whose box is within the halo
+        // of it; those deep in the box stay as they are.
         let mut outgoing = vec![Vec::new(); comm.size()];
-        let mut given: HashMap<u32, SphereRecord> = HashMap::with_capacity(ids.len());
+        let mut keep = vec![false; n];
+        let mut own_next = vec![false; n];
         for &at in &own_at {
-            let record = record_of(&now, at, ids[at]);
             let x = now.exact_position(at);
+            if grid.alone_within(x, halo) == Some(me) {
+                (keep[at], own_next[at]) = (true, true);
+                continue;
+            }
+            let record = record_of(&now, at, self.global[at]);
             for r in grid.ranks_within(x, halo) {
                 match r == me {
-                    true => {
-                        given.insert(record.id, record);
-                    }
+                    true => keep[at] = true,
                     false => put(&mut outgoing[r], &record, (&[], &[])),
                 }
             }
+            own_next[at] = grid.owner(x) == me;
         }
+        // Those sent here: states of spheres held (ghosts, or spheres moving in), or new ones.
+        let mut updated = Vec::new();
+        let mut coming = Vec::new();
         for message in comm.exchange(outgoing)? {
             for h in read(&message)? {
-                given.insert(h.sphere.id, h.sphere);
+                let s = h.sphere;
+                let at = self
+                    .stable_of
+                    .get(&s.id)
+                    .map(|k| self.stable.binary_search(k));
+                match at {
+                    Some(Ok(at)) => {
+                        (keep[at], own_next[at]) = (true, grid.owner(s.exact_position()) == me);
+                        updated.push((at, s));
+                    }
+                    _ => coming.push(s),
+                }
             }
         }
-
-        // Out: the spheres given none; in: those given and not held.
-        let held: HashMap<u32, u32> = stable.iter().zip(&ids).map(|(&k, &g)| (g, k)).collect();
-        let leaving: Vec<u32> = stable
-            .iter()
-            .zip(&ids)
-            .filter(|(_, g)| !given.contains_key(g))
-            .map(|(&k, _)| k)
-            .collect();
-        let mut coming: Vec<&SphereRecord> = given
-            .values()
-            .filter(|s| !held.contains_key(&s.id))
-            .collect();
         coming.sort_unstable_by_key(|s| s.id);
+
+        let leaving: Vec<u32> = (0..n)
+            .filter(|&at| !keep[at])
+            .map(|at| stable[at])
+            .collect();
         let new: Vec<NewSphere> = coming
             .iter()
             .map(|s| NewSphere {
@@ -192,35 +221,70 @@ impl Resident {
                 material: s.material as u8,
             })
             .collect();
-        let mut own: Vec<u32> = given
-            .values()
-            .filter(|s| grid.owner(s.exact_position()) == me)
-            .map(|s| s.id)
-            .collect();
-        own.sort_unstable();
         let Some(first) = self.resident()?.replace(&leaving, &new)? else {
-            self.own = own;
-            let settled = Some(self.held(&given)?);
+            // Opened again by the rank: its own spheres as the next round has them.
+            let given: FxHashMap<u32, SphereRecord> = (updated.iter().map(|(_, s)| *s))
+                .chain(coming.iter().copied())
+                .map(|s| (s.id, s))
+                .collect();
+            let own = (0..n)
+                .filter(|&at| keep[at] && own_next[at])
+                .map(|at| self.global[at])
+                .chain(
+                    coming
+                        .iter()
+                        .filter(|s| grid.owner(s.exact_position()) == me)
+                        .map(|s| s.id),
+                )
+                .collect();
+            let settled = Some(self.held_of(own, &given)?);
             return Ok(Exchanged { touching, settled });
         };
-        for k in &leaving {
-            self.global.remove(k);
-        }
-        self.global
-            .extend((first..).zip(coming.iter().map(|s| s.id)));
 
-        // Every sphere's state as given, in the step's input order (ascending stable id).
-        let states: Vec<&SphereRecord> = self.global.values().map(|g| &given[g]).collect();
-        let positions: Vec<[f64; 3]> = states.iter().map(|s| s.exact_position()).collect();
-        let velocities: Vec<[f32; 3]> = states.iter().map(|s| s.velocity).collect();
-        let spins: Vec<[f32; 3]> = states.iter().map(|s| s.spin).collect();
+        // Every sphere's state as given, in the step's new input order: the kept, then the
+        // appended.
+        let mut positions = now.exact_positions()?;
+        let (mut velocities, mut spins) = (now.velocities, now.angular_velocities);
+        for (at, s) in &updated {
+            positions[*at] = s.exact_position();
+            (velocities[*at], spins[*at]) = (s.velocity, s.spin);
+        }
+        let mut order: Vec<usize> = Vec::with_capacity(n);
+        for (at, &kept) in keep.iter().enumerate() {
+            match kept {
+                true => order.push(at),
+                false => _ = self.stable_of.remove(&self.global[at]),
+            }
+        }
+        self.stable = order.iter().map(|&at| stable[at]).collect();
+        self.global = order.iter().map(|&at| self.global[at]).collect();
+        self.own = order.iter().map(|&at| own_next[at]).collect();
+        let positions: Vec<[f64; 3]> = order
+            .iter()
+            .map(|&at| positions[at])
+            .chain(coming.iter().map(|s| s.exact_position()))
+            .collect();
+        let velocities: Vec<[f32; 3]> = order
+            .iter()
+            .map(|&at| velocities[at])
+            .chain(coming.iter().map(|s| s.velocity))
+            .collect();
+        let spins: Vec<[f32; 3]> = order
+            .drain(..)
+            .map(|at| spins[at])
+            .chain(coming.iter().map(|s| s.spin))
+            .collect();
+        for (k, s) in (first..).zip(&coming) {
+            self.stable.push(k);
+            self.global.push(s.id);
+            self.own.push(grid.owner(s.exact_position()) == me);
+            self.stable_of.insert(s.id, k);
+        }
         self.step.set_motion(&Motion {
             positions: Some(&positions),
             velocities: Some(&velocities),
             angular_velocities: Some(&spins),
         })?;
-        self.ghosts = states.len() - own.len();
-        self.own = own;
         Ok(Exchanged {
             touching,
             settled: None,
