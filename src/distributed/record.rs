@@ -21,8 +21,9 @@ pub(super) struct SphereRecord {
     pub residual: [f32; 3],
     pub velocity: [f32; 3],
     pub spin: [f32; 3],
-    contacts: u32,
-    loads: u32,
+    /// History entries and load histories following it in a message.
+    pub contacts: u32,
+    pub loads: u32,
 }
 
 impl SphereRecord {

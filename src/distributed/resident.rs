@@ -11,25 +11,26 @@
 
 use super::comm::Comm;
 use super::grid::Grid;
-use super::record::{Held, SphereRecord, own_pair_ends, put, read, record_of};
+use super::record::{Held, SphereRecord, own_pair_ends, put, read};
 use crate::dem::flow::NewSphere;
-use crate::dem::stepper::Motion;
-use crate::engines::common::flow::{DeviceFlow, ResidentStep};
+use crate::engines::common::flow::{Arriving, DeviceFlow, DeviceRows, ResidentStep};
 use crate::error::{Error, Result};
-use crate::particles::HistoryEntry;
+use crate::particles::position::join;
+use crate::particles::{HistoryEntry, Particles};
 use crate::proxy::ProxyMode;
 use rustc_hash::FxHashMap;
+
+/// Marks a stable id whose sphere the step no longer holds.
+const GONE: u32 = u32::MAX;
 
 /// A rank's step on its device between rounds, and whose its spheres are.
 pub(super) struct Resident {
     pub step: Box<dyn DeviceFlow>,
-    /// The step's stable ids of its spheres, ascending (its input order).
-    stable: Vec<u32>,
-    /// The whole run's id of each, in that order.
+    /// The whole run's id of the sphere of each stable id of the step ([`GONE`]: none now).
     global: Vec<u32>,
-    /// Whether each is this rank's own (else a ghost), in that order.
+    /// Whether the sphere of each stable id is this rank's own (else a ghost).
     own: Vec<bool>,
-    /// The stable id of each sphere of the step, by its id in the whole run.
+    /// The stable id of each sphere of the step, by its whole-run id.
     stable_of: FxHashMap<u32, u32>,
 }
 
@@ -50,11 +51,9 @@ impl Resident {
     pub fn new(step: Box<dyn DeviceFlow>, ids: &[u32], own_at: &[usize]) -> Self {
         let mut own = vec![false; ids.len()];
         own_at.iter().for_each(|&at| own[at] = true);
-        let stable: Vec<u32> = (0..ids.len() as u32).collect();
         Resident {
             step,
-            stable_of: ids.iter().copied().zip(stable.iter().copied()).collect(),
-            stable,
+            stable_of: ids.iter().copied().zip(0..).collect(),
             global: ids.to_vec(),
             own,
         }
@@ -67,9 +66,9 @@ impl Resident {
             .ok_or_else(|| Error::Usage("a rank's step is not kept on its device".into()))
     }
 
-    /// The whole run's ids of the step's spheres, in its input order.
-    pub fn ids(&self) -> &[u32] {
-        &self.global
+    /// The whole run's ids of the step's spheres, in its input order (ascending stable id).
+    pub fn ids(&self) -> Vec<u32> {
+        self.global.iter().copied().filter(|&g| g != GONE).collect()
     }
 
     /// The rank's own spheres.
@@ -79,15 +78,15 @@ impl Resident {
 
     /// The step's ghosts.
     pub fn ghosts(&self) -> usize {
-        self.own.len() - self.own_spheres()
+        self.stable_of.len() - self.own_spheres()
     }
 
     /// The rank's own spheres with their contacts (partners by the whole run's id), by
     /// ascending id.
     pub fn held(&mut self) -> Result<Vec<Held>> {
-        let own: Vec<u32> = (0..self.own.len())
-            .filter(|&at| self.own[at])
-            .map(|at| self.global[at])
+        let own = (self.global.iter().zip(&self.own))
+            .filter(|(_, own)| **own)
+            .map(|(&g, _)| g)
             .collect();
         self.held_of(own, &FxHashMap::default())
     }
@@ -102,7 +101,8 @@ impl Resident {
     ) -> Result<Vec<Held>> {
         own.sort_unstable();
         let whole = self.step.particles()?;
-        let ids = &self.global;
+        // The step's input order: ascending stable id.
+        let ids = self.ids();
         let n = ids.len() as u32;
         // Partners by place to partners by id (a wall keeps its own).
         let rename = |e: &HistoryEntry| HistoryEntry {
@@ -112,14 +112,11 @@ impl Resident {
             },
             ..*e
         };
-        let place = |g: u32| {
-            let k = self.stable_of.get(&g)?;
-            self.stable.binary_search(k).ok()
-        };
+        let place: FxHashMap<u32, usize> = ids.iter().enumerate().map(|(at, &g)| (g, at)).collect();
         let mut held = Vec::with_capacity(own.len());
         for g in own {
-            let mut h = match (place(g), given.get(&g)) {
-                (Some(at), _) => Held::of(&whole, at, g, rename),
+            let mut h = match (place.get(&g), given.get(&g)) {
+                (Some(&at), _) => Held::of(&whole, at, g, rename),
                 (None, Some(&sphere)) => Held {
                     sphere,
                     contacts: Vec::new(),
@@ -153,83 +150,87 @@ impl Resident {
         count: Option<ProxyMode>,
     ) -> Result<Exchanged> {
         let me = comm.rank();
-        let (now, stable) = self.resident()?.states()?;
-        if stable != self.stable {
+        let mut rows = self.resident()?.rows()?;
+        let n = rows.ids.len();
+        if n != self.stable_of.len() {
             return Err(Error::Usage(
                 "a rank's step does not hold the spheres the rank gave it".into(),
             ));
         }
-        let n = stable.len();
-        let own_at: Vec<usize> = (0..n).filter(|&at| self.own[at]).collect();
+        let own_rows: Vec<usize> = (0..n).filter(|&r| self.own[rows.ids[r] as usize]).collect();
         let touching = count
-            .map(|mode| own_pair_ends(&now, &own_at, mode))
+            .map(|mode| own_pair_ends(&spheres_of(&rows), &own_rows, mode))
             .transpose()?;
-        let speed = |at: usize| glam::Vec3::from(now.velocities[at]).length() as f64;
-        let halo = halo(own_at.iter().map(|&at| speed(at)).fold(0.0, f64::max))?;
+        let speed = |r: usize| glam::Vec4::from(rows.vel[r]).truncate().length() as f64;
+        let halo = halo(own_rows.iter().map(|&r| speed(r)).fold(0.0, f64::max))?;
 
         // Each own sphere near a face goes to every other rank whose box is within the halo
         // of it; those deep in the box stay as they are.
         let mut outgoing = vec![Vec::new(); comm.size()];
         let mut keep = vec![false; n];
         let mut own_next = vec![false; n];
-        for &at in &own_at {
-            let x = now.exact_position(at);
+        for &r in &own_rows {
+            let x = exact(&rows, r);
             if grid.alone_within(x, halo) == Some(me) {
-                (keep[at], own_next[at]) = (true, true);
+                (keep[r], own_next[r]) = (true, true);
                 continue;
             }
-            let record = record_of(&now, at, self.global[at]);
-            for r in grid.ranks_within(x, halo) {
-                match r == me {
-                    true => keep[at] = true,
-                    false => put(&mut outgoing[r], &record, (&[], &[])),
+            let record = record_of_row(&rows, r, self.global[rows.ids[r] as usize]);
+            for rank in grid.ranks_within(x, halo) {
+                match rank == me {
+                    true => keep[r] = true,
+                    false => put(&mut outgoing[rank], &record, (&[], &[])),
                 }
             }
-            own_next[at] = grid.owner(x) == me;
+            own_next[r] = grid.owner(x) == me;
         }
-        // Those sent here: states of spheres held (ghosts, or spheres moving in), or new ones.
+        // Those sent here: states of spheres held (ghosts, or spheres moving in), written
+        // into their rows, or new ones.
+        let mut row_of = vec![GONE; self.global.len()];
+        for (r, &k) in rows.ids.iter().enumerate() {
+            row_of[k as usize] = r as u32;
+        }
         let mut updated = Vec::new();
         let mut coming = Vec::new();
         for message in comm.exchange(outgoing)? {
             for h in read(&message)? {
                 let s = h.sphere;
-                let at = self
-                    .stable_of
-                    .get(&s.id)
-                    .map(|k| self.stable.binary_search(k));
-                match at {
-                    Some(Ok(at)) => {
-                        (keep[at], own_next[at]) = (true, grid.owner(s.exact_position()) == me);
-                        updated.push((at, s));
+                match self.stable_of.get(&s.id) {
+                    Some(&k) => {
+                        let r = row_of[k as usize] as usize;
+                        place_in_row(&mut rows, r, &s);
+                        (keep[r], own_next[r]) = (true, grid.owner(s.exact_position()) == me);
+                        updated.push(s);
                     }
-                    _ => coming.push(s),
+                    None => coming.push(s),
                 }
             }
         }
         coming.sort_unstable_by_key(|s| s.id);
 
-        let leaving: Vec<u32> = (0..n)
-            .filter(|&at| !keep[at])
-            .map(|at| stable[at])
-            .collect();
-        let new: Vec<NewSphere> = coming
+        let mut leaving: Vec<u32> = (0..n).filter(|&r| !keep[r]).map(|r| rows.ids[r]).collect();
+        leaving.sort_unstable();
+        let arriving: Vec<Arriving> = coming
             .iter()
-            .map(|s| NewSphere {
-                centre: s.position,
-                velocity: s.velocity,
-                radius: s.radius,
-                material: s.material as u8,
+            .map(|s| Arriving {
+                sphere: NewSphere {
+                    centre: s.position,
+                    velocity: s.velocity,
+                    radius: s.radius,
+                    material: s.material as u8,
+                },
+                residual: s.residual,
+                spin: s.spin,
             })
             .collect();
-        let Some(first) = self.resident()?.replace(&leaving, &new)? else {
+        let Some(first) = self.resident()?.rewrite(&rows, &leaving, &arriving)? else {
             // Opened again by the rank: its own spheres as the next round has them.
-            let given: FxHashMap<u32, SphereRecord> = (updated.iter().map(|(_, s)| *s))
-                .chain(coming.iter().copied())
-                .map(|s| (s.id, s))
+            let given: FxHashMap<u32, SphereRecord> = (updated.iter().chain(&coming))
+                .map(|s| (s.id, *s))
                 .collect();
             let own = (0..n)
-                .filter(|&at| keep[at] && own_next[at])
-                .map(|at| self.global[at])
+                .filter(|&r| keep[r] && own_next[r])
+                .map(|r| self.global[rows.ids[r] as usize])
                 .chain(
                     coming
                         .iter()
@@ -241,53 +242,66 @@ impl Resident {
             return Ok(Exchanged { touching, settled });
         };
 
-        // Every sphere's state as given, in the step's new input order: the kept, then the
-        // appended.
-        let mut positions = now.exact_positions()?;
-        let (mut velocities, mut spins) = (now.velocities, now.angular_velocities);
-        for (at, s) in &updated {
-            positions[*at] = s.exact_position();
-            (velocities[*at], spins[*at]) = (s.velocity, s.spin);
-        }
-        let mut order: Vec<usize> = Vec::with_capacity(n);
-        for (at, &kept) in keep.iter().enumerate() {
-            match kept {
-                true => order.push(at),
-                false => _ = self.stable_of.remove(&self.global[at]),
+        for r in 0..n {
+            let k = rows.ids[r] as usize;
+            match keep[r] {
+                true => self.own[k] = own_next[r],
+                false => {
+                    self.stable_of.remove(&self.global[k]);
+                    (self.global[k], self.own[k]) = (GONE, false);
+                }
             }
         }
-        self.stable = order.iter().map(|&at| stable[at]).collect();
-        self.global = order.iter().map(|&at| self.global[at]).collect();
-        self.own = order.iter().map(|&at| own_next[at]).collect();
-        let positions: Vec<[f64; 3]> = order
-            .iter()
-            .map(|&at| positions[at])
-            .chain(coming.iter().map(|s| s.exact_position()))
-            .collect();
-        let velocities: Vec<[f32; 3]> = order
-            .iter()
-            .map(|&at| velocities[at])
-            .chain(coming.iter().map(|s| s.velocity))
-            .collect();
-        let spins: Vec<[f32; 3]> = order
-            .drain(..)
-            .map(|at| spins[at])
-            .chain(coming.iter().map(|s| s.spin))
-            .collect();
+        let appended = first as usize;
+        self.global.resize(appended, GONE);
+        self.own.resize(appended, false);
         for (k, s) in (first..).zip(&coming) {
-            self.stable.push(k);
             self.global.push(s.id);
             self.own.push(grid.owner(s.exact_position()) == me);
             self.stable_of.insert(s.id, k);
         }
-        self.step.set_motion(&Motion {
-            positions: Some(&positions),
-            velocities: Some(&velocities),
-            angular_velocities: Some(&spins),
-        })?;
         Ok(Exchanged {
             touching,
             settled: None,
         })
+    }
+}
+
+/// Where the centre of row `r` is, in `f64`.
+fn exact(rows: &DeviceRows, r: usize) -> [f64; 3] {
+    std::array::from_fn(|a| join(rows.pos[r][a], rows.lo[r][a]))
+}
+
+/// Row `r` of `rows` as a record of the whole run's id `id`.
+fn record_of_row(rows: &DeviceRows, r: usize, id: u32) -> SphereRecord {
+    let triple = |v: &[f32; 4]| [v[0], v[1], v[2]];
+    SphereRecord {
+        id,
+        material: rows.omega[r][3] as u32,
+        radius: rows.pos[r][3],
+        position: triple(&rows.pos[r]),
+        residual: triple(&rows.lo[r]),
+        velocity: triple(&rows.vel[r]),
+        spin: triple(&rows.omega[r]),
+        contacts: 0,
+        loads: 0,
+    }
+}
+
+/// Writes the state of `s` into row `r` (its radius, mass and material as they are).
+fn place_in_row(rows: &mut DeviceRows, r: usize, s: &SphereRecord) {
+    let put = |row: &mut [f32; 4], v: [f32; 3]| row[..3].copy_from_slice(&v);
+    put(&mut rows.pos[r], s.position);
+    put(&mut rows.lo[r], s.residual);
+    put(&mut rows.vel[r], s.velocity);
+    put(&mut rows.omega[r], s.spin);
+}
+
+/// The rows' spheres (centres and radii), for finding their contacts.
+fn spheres_of(rows: &DeviceRows) -> Particles {
+    Particles {
+        positions: rows.pos.iter().map(|p| [p[0], p[1], p[2]]).collect(),
+        radii: rows.pos.iter().map(|p| p[3]).collect(),
+        ..Particles::default()
     }
 }

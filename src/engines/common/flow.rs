@@ -55,19 +55,48 @@ pub(crate) trait DeviceFlow: Stepper {
 }
 
 /// A step that a rank of a run decomposed over ranks (the `distributed` module) keeps on its
-/// device from round to round: it reads its spheres' states back without their contact
-/// history, and takes spheres out and in by stable id, the history of those that stay kept on
-/// the device (a contact's springs live where the step put them, not with one sphere).
+/// device from round to round: it reads its spheres' states back row by row as it holds them
+/// (not their contact history), and takes states back, spheres out and spheres in, the history
+/// of those that stay kept on the device (a contact's springs live where the step put them,
+/// not with one sphere).
 pub(crate) trait ResidentStep {
-    /// The spheres' states in input order (no contact history), and their stable ids in that
-    /// order (ascending).
-    fn states(&mut self) -> Result<(Particles, Vec<u32>)>;
+    /// The spheres' states in the order of the step's rows now.
+    fn rows(&mut self) -> Result<DeviceRows>;
 
-    /// Removes the spheres of the stable ids `leaving` (ascending) and appends `coming` with no
-    /// spin and no history (their state set after with `set_motion`); returns the stable id of
-    /// the first appended (the others follow it), or `None`, with nothing changed, where the
-    /// step has no room for them.
-    fn replace(&mut self, leaving: &[u32], coming: &[NewSphere]) -> Result<Option<u32>>;
+    /// Writes `rows` back (the rows [`rows`](Self::rows) read, no step between, some of their
+    /// states changed; their stable ids as read), removes the spheres of the stable ids
+    /// `leaving` and appends `coming` with no history; returns the stable id of the first
+    /// appended (the others follow it), or `None`, with nothing changed, where the step has no
+    /// room for them.
+    fn rewrite(
+        &mut self,
+        rows: &DeviceRows,
+        leaving: &[u32],
+        coming: &[Arriving],
+    ) -> Result<Option<u32>>;
+}
+
+/// A step's spheres row by row: `[x, y, z, r]` (the `f32` centre and radius), the residuals
+/// of the centres `[x, y, z, 0]`, `[vx, vy, vz, m]` (the mass as the step's contacts see it),
+/// `[ωx, ωy, ωz, material]` and the stable id.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct DeviceRows {
+    pub pos: Vec<[f32; 4]>,
+    pub lo: Vec<[f32; 4]>,
+    pub vel: Vec<[f32; 4]>,
+    pub omega: Vec<[f32; 4]>,
+    pub ids: Vec<u32>,
+}
+
+/// A sphere appended to a step with its state: where it is to the residual, how it moves and
+/// turns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Arriving {
+    pub sphere: NewSphere,
+    /// The residual of its centre \[m\].
+    pub residual: [f32; 3],
+    /// Its angular velocity \[rad/s\].
+    pub spin: [f32; 3],
 }
 
 /// Opens a backend's step over the spheres given with the room given for more (where it keeps

@@ -852,12 +852,10 @@ impl Granular {
     /// step (`next`) reads; `order` maps the rows of state set `next.set` to input order
     /// (`None`: the state is in input order).
     pub fn read(&self, gpu: &Gpu, next: Turn, order: Option<&InputOrder>) -> Result<Rotation> {
-        let Rotation {
-            angular_velocities,
-            materials,
-            ..
-        } = self.read_spins(gpu, next)?;
         let (n, parity) = (self.n as usize, next.parity);
+        let omega: Vec<[f32; 4]> = gpu.read(self.omega_of(next.set), n)?;
+        let angular_velocities = omega.iter().map(|w| [w[0], w[1], w[2]]).collect();
+        let materials = omega.iter().map(|w| w[3] as u8).collect();
         let history = if self.keeps_history() {
             let k = self.split.slots as usize;
             let mut held: Vec<u32> = gpu.read(&self.held[parity], n)?;
@@ -883,17 +881,6 @@ impl Granular {
             angular_velocities,
             materials,
             history,
-        })
-    }
-
-    /// The angular velocities and the materials that the next step (`next`) reads, in the
-    /// order of state set `next.set`, without the history.
-    pub fn read_spins(&self, gpu: &Gpu, next: Turn) -> Result<Rotation> {
-        let omega: Vec<[f32; 4]> = gpu.read(self.omega_of(next.set), self.n as usize)?;
-        Ok(Rotation {
-            angular_velocities: omega.iter().map(|w| [w[0], w[1], w[2]]).collect(),
-            materials: omega.iter().map(|w| w[3] as u8).collect(),
-            history: Default::default(),
         })
     }
 }

@@ -128,14 +128,6 @@ impl InputOrder {
         }
     }
 
-    /// The stable ids, ascending (input order).
-    pub fn ascending(&self) -> Vec<u32> {
-        match &self.sorted {
-            Some(sorted) => sorted.clone(),
-            None => (0..self.rank.len() as u32).collect(),
-        }
-    }
-
     /// Whether the ids have gaps (history partners are then renamed).
     pub fn renames(&self) -> bool {
         self.sorted.is_some()

@@ -3,7 +3,7 @@
 //! removal and appending keep a rank's step on its device from round to round.
 
 use super::*;
-use crate::engines::common::flow::ResidentStep;
+use crate::engines::common::flow::{Arriving, DeviceRows, ResidentStep};
 
 /// Flow events scan the state on the device and append inserted spheres to it, in rows kept
 /// for them at opening ([`GridStepper::flowing_on`]).
@@ -125,30 +125,91 @@ impl DeviceFlow for GridStepper {
     }
 }
 
-/// A rank's step: its spheres read back without their history, replaced by stable id.
+/// A rank's step: its spheres read back row by row without their history, written back,
+/// taken out and appended.
 impl ResidentStep for GridStepper {
-    fn states(&mut self) -> Result<(Particles, Vec<u32>)> {
-        let (particles, order) = self.read_state(false)?;
-        Ok((particles, order.ascending()))
+    fn rows(&mut self) -> Result<DeviceRows> {
+        let (gpu, n) = (&self.res.gpu, self.n as usize);
+        let set = &self.res.sets[self.current];
+        let omega = match &self.res.granular {
+            Some(g) => gpu.read(g.omega_of(self.turn().set), n)?,
+            None => vec![[0.0; 4]; n],
+        };
+        Ok(DeviceRows {
+            pos: gpu.read(&set.pos, n)?,
+            lo: gpu.read(&set.lo, n)?,
+            vel: gpu.read(&set.vel, n)?,
+            omega,
+            ids: gpu.read(&set.ids, n)?,
+        })
     }
 
-    fn replace(&mut self, leaving: &[u32], coming: &[NewSphere]) -> Result<Option<u32>> {
-        if !self.room_for(coming, leaving.len() as u32) {
+    fn rewrite(
+        &mut self,
+        rows: &DeviceRows,
+        leaving: &[u32],
+        coming: &[Arriving],
+    ) -> Result<Option<u32>> {
+        let new: Vec<NewSphere> = coming.iter().map(|a| a.sphere).collect();
+        if rows.ids.len() != self.n as usize {
+            return Err(Error::Usage(
+                "a rank's step was given other rows than it holds".into(),
+            ));
+        }
+        if !self.room_for(&new, leaving.len() as u32) {
             return Ok(None);
         }
-        let set = &self.res.sets[self.current];
-        let ids: Vec<u32> = self.res.gpu.read(&set.ids, self.n as usize)?;
-        let rows: Vec<u32> = (0..self.n)
-            .filter(|&row| leaving.binary_search(&ids[row as usize]).is_ok())
+        let (q, set) = (&self.res.gpu.queue, &self.res.sets[self.current]);
+        q.write_buffer(&set.pos, 0, bytemuck::cast_slice(&rows.pos));
+        q.write_buffer(&set.lo, 0, bytemuck::cast_slice(&rows.lo));
+        q.write_buffer(&set.vel, 0, bytemuck::cast_slice(&rows.vel));
+        if let Some(g) = &self.res.granular {
+            q.write_buffer(
+                g.omega_of(self.turn().set),
+                0,
+                bytemuck::cast_slice(&rows.omega),
+            );
+        }
+        // Moved spheres are binned afresh, in a grid laid out over where they are now.
+        (self.sort_next, self.counted, self.stale) = (true, false, true);
+        let gone: Vec<u32> = (0..self.n)
+            .filter(|&row| leaving.binary_search(&rows.ids[row as usize]).is_ok())
             .collect();
-        if rows.len() != leaving.len() {
+        if gone.len() != leaving.len() {
             return Err(Error::Usage(
                 "a rank's step was asked to remove spheres it does not hold".into(),
             ));
         }
         let first = self.next_id;
-        let done = self.remove(&rows)? && self.append(coming)?;
-        Ok(done.then_some(first))
+        if !(self.remove(&gone)? && self.append(&new)?) {
+            return Err(Error::Usage("a rank's step lost room it had".into()));
+        }
+        // The appended rows' residuals and spins (appending gives them none).
+        let at = (self.n as usize - coming.len()) as u64;
+        let lo: Vec<[f32; 4]> = coming
+            .iter()
+            .map(|a| {
+                let [x, y, z] = a.residual;
+                [x, y, z, 0.0]
+            })
+            .collect();
+        let (q, set) = (&self.res.gpu.queue, &self.res.sets[self.current]);
+        q.write_buffer(&set.lo, at * 16, bytemuck::cast_slice(&lo));
+        if let Some(g) = &self.res.granular {
+            let omega: Vec<[f32; 4]> = coming
+                .iter()
+                .map(|a| {
+                    let [x, y, z] = a.spin;
+                    [x, y, z, a.sphere.material as f32]
+                })
+                .collect();
+            q.write_buffer(
+                g.omega_of(self.turn().set),
+                at * 16,
+                bytemuck::cast_slice(&omega),
+            );
+        }
+        Ok(Some(first))
     }
 }
 

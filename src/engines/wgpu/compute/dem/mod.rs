@@ -533,12 +533,6 @@ impl GridStepper {
 
     /// The state read back in input order ([`Error::Unstable`] if it is not finite).
     fn state(&self) -> Result<Particles> {
-        self.read_state(true).map(|(particles, _)| particles)
-    }
-
-    /// The state read back in input order, with its contact history where `history` asks (the
-    /// clumps' too), and the order of the rows.
-    fn read_state(&self, history: bool) -> Result<(Particles, InputOrder)> {
         let n = self.n as usize;
         let set = &self.res.sets[self.current];
         let pos: Vec<[f32; 4]> = self.res.gpu.read(&set.pos, n)?;
@@ -547,13 +541,9 @@ impl GridStepper {
         let ids: Vec<u32> = self.res.gpu.read(&set.ids, n)?;
         let order = InputOrder::of(&ids);
         let rotation = || {
-            let (gpu, next) = (&self.res.gpu, self.turn());
             let g = self.res.granular.as_ref();
-            g.map(|g| match history {
-                true => g.read(gpu, next, Some(&order)),
-                false => g.read_spins(gpu, next),
-            })
-            .transpose()
+            g.map(|g| g.read(&self.res.gpu, self.turn(), Some(&order)))
+                .transpose()
         };
         let rows = StateRows {
             pos: &pos,
@@ -561,12 +551,10 @@ impl GridStepper {
             vel: &vel,
         };
         let mut particles = particles_with(rows, Some(&order.rank), self.step, rotation)?;
-        if let Some(c) = self.res.granular.as_ref().and_then(|g| g.clumps())
-            && history
-        {
+        if let Some(c) = self.res.granular.as_ref().and_then(|g| g.clumps()) {
             particles.clumps = c.read(&self.res.gpu)?;
         }
-        Ok((particles, order))
+        Ok(particles)
     }
 }
 
