@@ -414,7 +414,6 @@ impl<C: Comm> RankStepper<C> {
         self.share.spheres = resident.own_spheres() as u64;
         self.share.ghosts = self.ghosts as u64;
         let count = count.then_some(self.mode);
-        let read_back = Instant::now();
         // The next round's halo, at the speeds the round ends with.
         let round = self.round;
         let halo = |fastest: f64| self.halo_at(round, fastest);
@@ -434,10 +433,10 @@ impl<C: Comm> RankStepper<C> {
         share.steps += steps as u64;
         share.open_ms += ms(started, opened);
         share.step_ms += ms(opened, stepped);
-        share.read_back_ms += ms(stepped, read_back);
-        share.exchange_ms += read_back.elapsed().as_secs_f64() * 1e3;
+        share.read_back_ms += exchanged.read_ms;
+        share.exchange_ms += stepped.elapsed().as_secs_f64() * 1e3 - exchanged.read_ms;
         self.since_rebalance.0 += steps as u64;
-        self.since_rebalance.1 += ms(started, read_back);
+        self.since_rebalance.1 += ms(started, stepped) + exchanged.read_ms;
         let engine = times.total_ms();
         times.build_ms += (started.elapsed().as_secs_f64() * 1e3 - engine).max(0.0);
         Ok((touching, times, Vec::new()))

@@ -117,20 +117,17 @@ pub(super) fn put(
 pub(super) fn read(message: &[u8]) -> Result<Vec<Held>> {
     let mut out = Vec::new();
     let mut rest = message;
-    let cut = |rest: &mut &[u8], bytes: usize| -> Result<Vec<u8>> {
+    // The next `bytes` bytes of the message.
+    fn cut<'a>(rest: &mut &'a [u8], bytes: usize) -> Result<&'a [u8]> {
         if rest.len() < bytes {
             return Err(Error::Usage("a rank's message ends inside a sphere".into()));
         }
         let (head, tail) = rest.split_at(bytes);
         *rest = tail;
-        Ok(head.to_vec())
-    };
+        Ok(head)
+    }
     // The next `count` values of type T.
-    fn values<T: bytemuck::Pod>(
-        cut: impl Fn(&mut &[u8], usize) -> Result<Vec<u8>>,
-        rest: &mut &[u8],
-        count: u32,
-    ) -> Result<Vec<T>> {
+    fn values<T: bytemuck::Pod>(rest: &mut &[u8], count: u32) -> Result<Vec<T>> {
         let size = std::mem::size_of::<T>();
         let body = cut(rest, count as usize * size)?;
         Ok(body
@@ -140,9 +137,9 @@ pub(super) fn read(message: &[u8]) -> Result<Vec<Held>> {
     }
     while !rest.is_empty() {
         let head = cut(&mut rest, std::mem::size_of::<SphereRecord>())?;
-        let sphere: SphereRecord = bytemuck::pod_read_unaligned(&head);
-        let contacts = values(cut, &mut rest, sphere.contacts)?;
-        let loads = values(cut, &mut rest, sphere.loads)?;
+        let sphere: SphereRecord = bytemuck::pod_read_unaligned(head);
+        let contacts = values(&mut rest, sphere.contacts)?;
+        let loads = values(&mut rest, sphere.loads)?;
         out.push(Held {
             sphere: SphereRecord {
                 contacts: 0,

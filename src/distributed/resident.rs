@@ -18,6 +18,7 @@ use crate::error::{Error, Result};
 use crate::particles::position::join;
 use crate::particles::{HistoryEntry, Particles};
 use crate::proxy::ProxyMode;
+use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 /// Marks a stable id whose sphere the step no longer holds.
@@ -43,6 +44,8 @@ pub(super) struct Exchanged {
     /// their contacts, by ascending id (the rank opens a step again); `None`: the step holds
     /// the next round's spheres.
     pub settled: Option<Vec<Held>>,
+    /// The time reading the step's rows back took \[ms\].
+    pub read_ms: f64,
 }
 
 impl Resident {
@@ -150,39 +153,53 @@ impl Resident {
         count: Option<ProxyMode>,
     ) -> Result<Exchanged> {
         let me = comm.rank();
+        let started = std::time::Instant::now();
         let mut rows = self.resident()?.rows()?;
+        let read_ms = started.elapsed().as_secs_f64() * 1e3;
         let n = rows.ids.len();
         if n != self.stable_of.len() {
             return Err(Error::Usage(
                 "a rank's step does not hold the spheres the rank gave it".into(),
             ));
         }
-        let own_rows: Vec<usize> = (0..n).filter(|&r| self.own[rows.ids[r] as usize]).collect();
+        let own = &self.own;
+        let own_rows: Vec<usize> = (0..n)
+            .into_par_iter()
+            .filter(|&r| own[rows.ids[r] as usize])
+            .collect();
         let touching = count
             .map(|mode| own_pair_ends(&spheres_of(&rows), &own_rows, mode))
             .transpose()?;
         let speed = |r: usize| glam::Vec4::from(rows.vel[r]).truncate().length() as f64;
-        let halo = halo(own_rows.iter().map(|&r| speed(r)).fold(0.0, f64::max))?;
+        let fastest = own_rows
+            .par_iter()
+            .map(|&r| speed(r))
+            .reduce(|| 0.0, f64::max);
+        let halo = halo(fastest)?;
 
         // Each own sphere near a face goes to every other rank whose box is within the halo
         // of it; those deep in the box stay as they are.
+        let near: Vec<(usize, Vec<usize>)> = own_rows
+            .par_iter()
+            .filter_map(|&r| {
+                let x = exact(&rows, r);
+                let alone = grid.alone_within(x, halo) == Some(me);
+                (!alone).then(|| (r, grid.ranks_within(x, halo)))
+            })
+            .collect();
         let mut outgoing = vec![Vec::new(); comm.size()];
         let mut keep = vec![false; n];
         let mut own_next = vec![false; n];
-        for &r in &own_rows {
-            let x = exact(&rows, r);
-            if grid.alone_within(x, halo) == Some(me) {
-                (keep[r], own_next[r]) = (true, true);
-                continue;
-            }
+        own_rows
+            .iter()
+            .for_each(|&r| (keep[r], own_next[r]) = (true, true));
+        for (r, ranks) in near {
             let record = record_of_row(&rows, r, self.global[rows.ids[r] as usize]);
-            for rank in grid.ranks_within(x, halo) {
-                match rank == me {
-                    true => keep[r] = true,
-                    false => put(&mut outgoing[rank], &record, (&[], &[])),
-                }
+            keep[r] = ranks.contains(&me);
+            own_next[r] = grid.owner(record.exact_position()) == me;
+            for rank in ranks.into_iter().filter(|&rank| rank != me) {
+                put(&mut outgoing[rank], &record, (&[], &[]));
             }
-            own_next[r] = grid.owner(x) == me;
         }
         // Those sent here: states of spheres held (ghosts, or spheres moving in), written
         // into their rows, or new ones.
@@ -239,7 +256,11 @@ impl Resident {
                 )
                 .collect();
             let settled = Some(self.held_of(own, &given)?);
-            return Ok(Exchanged { touching, settled });
+            return Ok(Exchanged {
+                touching,
+                settled,
+                read_ms,
+            });
         };
 
         for r in 0..n {
@@ -263,6 +284,7 @@ impl Resident {
         Ok(Exchanged {
             touching,
             settled: None,
+            read_ms,
         })
     }
 }
