@@ -93,6 +93,9 @@ pub struct RankStepper<C: Comm> {
     flow: Option<(FlowSet, FlowCounts)>,
     /// Steps between two moves of the grid's faces (0: never).
     rebalance_every: u64,
+    /// Rows a GPU step kept from round to round keeps for spheres to come (`None`: half as many
+    /// as it opened over, and 1024 more).
+    spare_rows: Option<usize>,
     /// Steps since the faces last moved, and this rank's time stepping its spheres since
     /// \[ms\] (laying out, stepping, reading back: not waiting for the others).
     since_rebalance: (u64, f64),
@@ -160,6 +163,7 @@ impl<C: Comm> RankStepper<C> {
             wall_loads: vec![WallLoad::default(); walls.meshes.len()],
             flow: None,
             rebalance_every: 0,
+            spare_rows: None,
             since_rebalance: (0, 0.0),
         })
     }
@@ -220,6 +224,15 @@ impl<C: Comm> RankStepper<C> {
     /// cpu any faces give the whole run bit for bit. Every rank of a group takes the same.
     pub fn rebalancing_every(mut self, steps: u64) -> Self {
         self.rebalance_every = steps;
+        self
+    }
+
+    /// The same rank keeping, on a GPU step it keeps from round to round, rows for `spheres`
+    /// more spheres than it opened it over (default: half as many and 1024 more): spheres
+    /// that enter its box or its halo take them; where they run out, the rank opens its step
+    /// again.
+    pub fn keeping_rows_for(mut self, spheres: usize) -> Self {
+        self.spare_rows = Some(spheres);
         self
     }
 
@@ -531,10 +544,11 @@ impl<C: Comm> RankStepper<C> {
                 (stepper.particles()?, times, own_touching, wall_loads)
             }
             LocalStep::Device { reopen, .. } => {
-                // Kept on the device from now on, room made for the ghosts to come.
+                // Kept on the device from now on, room made for the spheres to come.
                 let keep = meshes == 0;
+                let spare = self.spare_rows.unwrap_or(local.len() / 2 + 1024);
                 let room = Room {
-                    spheres: local.len() + local.len() / 2 + 1024,
+                    spheres: local.len() + spare,
                     radii: self.radii,
                     region: None,
                 }

@@ -240,8 +240,11 @@ impl Resident {
                 spin: s.spin,
             })
             .collect();
-        let Some(first) = self.resident()?.rewrite(&rows, &leaving, &arriving)? else {
-            // Opened again by the rank: its own spheres as the next round has them.
+        // Where some rank's step has no room, every rank opens its step again (they exchange
+        // alike), from its own spheres as the next round has them.
+        let fits = self.resident()?.fits(leaving.len(), &arriving);
+        let everywhere = comm.exchange(vec![vec![fits as u8]; comm.size()])?;
+        if !(fits && everywhere.iter().all(|m| m.iter().all(|&b| b == 1))) {
             let given: FxHashMap<u32, SphereRecord> = (updated.iter().chain(&coming))
                 .map(|s| (s.id, *s))
                 .collect();
@@ -261,7 +264,8 @@ impl Resident {
                 settled,
                 read_ms,
             });
-        };
+        }
+        let first = self.resident()?.rewrite(&rows, &leaving, &arriving)?;
 
         for r in 0..n {
             let k = rows.ids[r] as usize;

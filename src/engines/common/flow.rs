@@ -63,17 +63,15 @@ pub(crate) trait ResidentStep {
     /// The spheres' states in the order of the step's rows now.
     fn rows(&mut self) -> Result<DeviceRows>;
 
+    /// Whether the step has room for `coming` once `leaving` spheres have left (rows kept,
+    /// radii its grid was chosen for, stable ids).
+    fn fits(&self, leaving: usize, coming: &[Arriving]) -> bool;
+
     /// Writes `rows` back (the rows [`rows`](Self::rows) read, no step between, some of their
     /// states changed; their stable ids as read), removes the spheres of the stable ids
-    /// `leaving` and appends `coming` with no history; returns the stable id of the first
-    /// appended (the others follow it), or `None`, with nothing changed, where the step has no
-    /// room for them.
-    fn rewrite(
-        &mut self,
-        rows: &DeviceRows,
-        leaving: &[u32],
-        coming: &[Arriving],
-    ) -> Result<Option<u32>>;
+    /// `leaving` and appends `coming` with no history, where it [`fits`](Self::fits) them;
+    /// returns the stable id of the first appended (the others follow it).
+    fn rewrite(&mut self, rows: &DeviceRows, leaving: &[u32], coming: &[Arriving]) -> Result<u32>;
 }
 
 /// A step's spheres row by row: `[x, y, z, r]` (the `f32` centre and radius), the residuals

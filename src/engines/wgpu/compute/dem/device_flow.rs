@@ -144,12 +144,12 @@ impl ResidentStep for GridStepper {
         })
     }
 
-    fn rewrite(
-        &mut self,
-        rows: &DeviceRows,
-        leaving: &[u32],
-        coming: &[Arriving],
-    ) -> Result<Option<u32>> {
+    fn fits(&self, leaving: usize, coming: &[Arriving]) -> bool {
+        let new: Vec<NewSphere> = coming.iter().map(|a| a.sphere).collect();
+        self.room_for(&new, leaving as u32)
+    }
+
+    fn rewrite(&mut self, rows: &DeviceRows, leaving: &[u32], coming: &[Arriving]) -> Result<u32> {
         let new: Vec<NewSphere> = coming.iter().map(|a| a.sphere).collect();
         if rows.ids.len() != self.n as usize {
             return Err(Error::Usage(
@@ -157,7 +157,9 @@ impl ResidentStep for GridStepper {
             ));
         }
         if !self.room_for(&new, leaving.len() as u32) {
-            return Ok(None);
+            return Err(Error::Usage(
+                "a rank's step has no room for its spheres".into(),
+            ));
         }
         let (q, set) = (&self.res.gpu.queue, &self.res.sets[self.current]);
         q.write_buffer(&set.pos, 0, bytemuck::cast_slice(&rows.pos));
@@ -182,7 +184,9 @@ impl ResidentStep for GridStepper {
         }
         let first = self.next_id;
         if !(self.remove(&gone)? && self.append(&new)?) {
-            return Err(Error::Usage("a rank's step lost room it had".into()));
+            return Err(Error::Usage(
+                "a rank's step has no room for its spheres".into(),
+            ));
         }
         // The appended rows' residuals and spins (appending gives them none).
         let at = (self.n as usize - coming.len()) as u64;
@@ -209,7 +213,7 @@ impl ResidentStep for GridStepper {
                 bytemuck::cast_slice(&omega),
             );
         }
-        Ok(Some(first))
+        Ok(first)
     }
 }
 
