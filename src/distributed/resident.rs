@@ -277,9 +277,12 @@ impl Resident {
                 }
             }
         }
-        let appended = first as usize;
-        self.global.resize(appended, GONE);
-        self.own.resize(appended, false);
+        // The step numbers the spheres it appends after every one it was given.
+        if first as usize != self.global.len() {
+            return Err(Error::Usage(
+                "a rank's step numbered the spheres it took other than the rank did".into(),
+            ));
+        }
         for (k, s) in (first..).zip(&coming) {
             self.global.push(s.id);
             self.own.push(grid.owner(s.exact_position()) == me);
