@@ -72,7 +72,7 @@ extern "C" __global__ void granular_integrate(float4* pos, float4* lo, float4* v
         float3 mesh_torque = mochi_zero3();
         mochi_mesh_contacts(
             g, meshes, b, (float)step * g.dem.dt,
-            step == mesh.loads_step && id < mesh.summed_below, p % mesh.load_lanes,
+            step == mesh.loads_step && mochi_loads_own(mesh, b.c), p % mesh.load_lanes,
             mesh_force, mesh_torque,
             [&](unsigned int partner, unsigned int first, MochiSprings& springs) {
                 unsigned int s = mochi_find_from(old_slots, id, partner, first, springs);

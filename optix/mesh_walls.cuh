@@ -19,8 +19,15 @@ struct MochiMeshParams {
     unsigned int box_walls;   // 1: the six walls of the box hold the spheres in
     unsigned int loads_step;  // the step whose loads on the walls are summed
     unsigned int load_lanes;  // partial sums of each load (sphere p adds to lane p mod lanes)
-    unsigned int summed_below;// the loads sum the spheres of id below it (a rank's own)
+    float own_lo[3];          // the loads sum the spheres whose centre c has own_lo <= c <
+    float own_hi[3];          // own_hi (infinite: every sphere; a rank's step: its box)
 };
+
+// Whether centre c lies in the box whose spheres' loads on the walls are summed.
+static __device__ bool mochi_loads_own(const MochiMeshParams& m, float3 c) {
+    return c.x >= m.own_lo[0] && c.y >= m.own_lo[1] && c.z >= m.own_lo[2] &&
+           c.x < m.own_hi[0] && c.y < m.own_hi[1] && c.z < m.own_hi[2];
+}
 
 struct MochiMeshWall {
     float lo[3];              // the rest-geometry grid's lower corner [m]

@@ -79,6 +79,18 @@ impl Grid {
         at[0] + n[0] * (at[1] + n[1] * at[2])
     }
 
+    /// The box of `rank` as it owns centres: `lo <= x < hi` along every axis, the outer sides
+    /// open (infinite).
+    pub fn bounds_of(&self, rank: usize) -> ([f64; 3], [f64; 3]) {
+        let n = self.counts();
+        let at = [rank % n[0], (rank / n[0]) % n[1], rank / (n[0] * n[1])];
+        let (mut lo, mut hi) = ([0.0; 3], [0.0; 3]);
+        for (a, axis) in self.axes.iter().enumerate() {
+            (lo[a], hi[a]) = axis.sides(at[a]);
+        }
+        (lo, hi)
+    }
+
     /// The rank whose box holds `x` (a centre beyond the box: the nearest box's; one on a
     /// face: the box above it).
     pub fn owner(&self, x: [f64; 3]) -> usize {
@@ -191,6 +203,23 @@ mod tests {
         let x = [0.5, 0.5, 0.5];
         assert!(grid.ghost_ranks(x, grid.owner(x), 0.1).is_empty());
         assert_eq!(grid.thinnest(), 1.0);
+        // A rank's bounds hold exactly the centres it owns, the outer sides open.
+        assert_eq!(
+            grid.bounds_of(1).0,
+            [1.0, f64::NEG_INFINITY, f64::NEG_INFINITY]
+        );
+        assert_eq!(grid.bounds_of(2).1, [1.0, f64::INFINITY, f64::INFINITY]);
+        for x in [
+            [0.5, 0.5, 0.5],
+            [1.0, 1.0, 0.2],
+            [-5.0, 7.0, 0.5],
+            [1.5, 0.99, 9.0],
+        ] {
+            let inside =
+                |(lo, hi): ([f64; 3], [f64; 3])| (0..3).all(|a| lo[a] <= x[a] && x[a] < hi[a]);
+            let holding: Vec<usize> = (0..4).filter(|&r| inside(grid.bounds_of(r))).collect();
+            assert_eq!(holding, [grid.owner(x)], "{x:?}");
+        }
     }
 
     #[test]

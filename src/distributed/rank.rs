@@ -47,8 +47,9 @@ enum LocalStep {
     /// and scratch kept).
     Cpu(Option<Box<CpuStepper>>),
     /// A GPU backend's step, opened again over each round's spheres on the rank's GPU, or
-    /// kept there from round to round where the backend can and the run has no mesh walls
-    /// (`resident`; the rank's own spheres are then read from it when asked).
+    /// kept there from round to round where the backend can (`resident`; the rank's own
+    /// spheres are then read from it when asked). Either sums the walls' loads of the spheres
+    /// in the rank's box alone.
     Device {
         reopen: Reopen,
         backend: &'static str,
@@ -423,6 +424,7 @@ impl<C: Comm> RankStepper<C> {
         let mut times = step.advance(steps)?.times;
         let stepped = Instant::now();
         self.step = step.step();
+        let wall_loads = step.wall_loads();
         self.ghosts = resident.ghosts();
         self.share.spheres = resident.own_spheres() as u64;
         self.share.ghosts = self.ghosts as u64;
@@ -452,7 +454,7 @@ impl<C: Comm> RankStepper<C> {
         self.since_rebalance.1 += ms(started, stepped) + exchanged.read_ms;
         let engine = times.total_ms();
         times.build_ms += (started.elapsed().as_secs_f64() * 1e3 - engine).max(0.0);
-        Ok((touching, times, Vec::new()))
+        Ok((touching, times, wall_loads))
     }
 
     /// One round of `steps` steps: ghosts, the steps, migration (the module's three phases);
@@ -489,8 +491,7 @@ impl<C: Comm> RankStepper<C> {
         self.ghosts = ghosts.len();
 
         let ghosts_in = Instant::now();
-        let device = matches!(self.local, LocalStep::Device { .. });
-        let (local, ids, own_at) = self.merged(&ghosts, device)?;
+        let (local, ids, own_at) = self.merged(&ghosts)?;
         let rows = |all: &[[f32; 3]]| match all.is_empty() {
             true => Vec::new(),
             false => ids.iter().map(|&id| all[id as usize]).collect(),
@@ -545,7 +546,6 @@ impl<C: Comm> RankStepper<C> {
             }
             LocalStep::Device { reopen, .. } => {
                 // Kept on the device from now on, room made for the spheres to come.
-                let keep = meshes == 0;
                 let spare = self.spare_rows.unwrap_or(local.len() / 2 + 1024);
                 let room = Room {
                     spheres: local.len() + spare,
@@ -554,12 +554,14 @@ impl<C: Comm> RankStepper<C> {
                 }
                 .holding(&local);
                 let mut stepper = reopen(local, room)?;
-                if keep && stepper.resident().is_some() {
+                // The walls' loads of the spheres this rank owns, not of its ghosts.
+                let (lo, hi) = self.grid.bounds_of(self.comm.rank());
+                stepper.sum_wall_loads_within((lo.map(|x| x as f32), hi.map(|x| x as f32)));
+                if stepper.resident().is_some() {
                     let resident = Resident::new(stepper, &ids, &own_at);
                     self.own.clear();
                     return self.resident_round(resident, steps, count, started);
                 }
-                stepper.sum_wall_loads_below(own_at.len() as u32);
                 stepper.set_gravity(gravity)?;
                 stepper.set_external_loads(&loads)?;
                 opened = Instant::now();
@@ -685,24 +687,18 @@ impl<C: Comm> RankStepper<C> {
         Ok(others.into_iter().map(f64::from_le_bytes).fold(x, f64::max))
     }
 
-    /// This rank's spheres and `ghosts` (by ascending id) as one set of spheres whose history
-    /// names partners by their place in it, in the order of their ids (the cpu's: a sphere
-    /// meets its neighbours in the order the whole run's step does) or, where `own_first`, the
-    /// own spheres before the ghosts (a GPU step's: it sums the walls' loads of the first);
-    /// with the id of each sphere of it and the places of the own ones.
-    fn merged(
-        &self,
-        ghosts: &[Held],
-        own_first: bool,
-    ) -> Result<(Particles, Vec<u32>, Vec<usize>)> {
+    /// This rank's spheres and `ghosts` (by ascending id) merged in the order of their ids (a
+    /// sphere then meets its neighbours in the order the whole run's step does), as one set of
+    /// spheres whose history names partners by their place in it; with the id of each sphere of
+    /// it and the places of the own ones.
+    fn merged(&self, ghosts: &[Held]) -> Result<(Particles, Vec<u32>, Vec<usize>)> {
         let n = self.own.len() + ghosts.len();
         // Each sphere, and whether it is an own one.
         let mut spheres: Vec<(&Held, bool)> = Vec::with_capacity(n);
         let (mut a, mut b) = (0, 0);
         while a < self.own.len() || b < ghosts.len() {
             let take_own = b == ghosts.len()
-                || (a < self.own.len()
-                    && (own_first || self.own[a].sphere.id < ghosts[b].sphere.id));
+                || (a < self.own.len() && self.own[a].sphere.id < ghosts[b].sphere.id);
             match take_own {
                 true => {
                     spheres.push((&self.own[a], true));

@@ -109,21 +109,24 @@ impl Slabs {
     /// The slabs that lie within `halo` of `x` along the axis (its own among them), in order.
     pub fn within(&self, x: [f64; 3], halo: f64) -> impl Iterator<Item = usize> {
         let along = x[self.axis];
-        let last = self.ranks() - 1;
         (0..self.ranks()).filter(move |&r| {
-            // The outer slabs reach beyond the box: their sides there are open.
-            let below = if r == 0 {
-                f64::NEG_INFINITY
-            } else {
-                self.faces[r]
-            };
-            let above = if r == last {
-                f64::INFINITY
-            } else {
-                self.faces[r + 1]
-            };
+            let (below, above) = self.sides(r);
             along >= below - halo && along <= above + halo
         })
+    }
+
+    /// Where slab `r` begins and ends along the axis: its faces, but for the outer slabs'
+    /// outer sides, which are open (they reach beyond the box).
+    pub fn sides(&self, r: usize) -> (f64, f64) {
+        let below = match r {
+            0 => f64::NEG_INFINITY,
+            _ => self.faces[r],
+        };
+        let above = match r + 1 == self.ranks() {
+            true => f64::INFINITY,
+            false => self.faces[r + 1],
+        };
+        (below, above)
     }
 }
 

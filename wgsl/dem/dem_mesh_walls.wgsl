@@ -24,7 +24,8 @@ struct MeshParams {
     box_walls: u32,     // 1: the six walls of the box hold the spheres in
     loads_step: u32,    // the step whose loads on the walls are summed into mesh_loads
     load_lanes: u32,    // partial sums of each load (sphere p adds to lane p mod load_lanes)
-    summed_below: u32,  // the loads sum the spheres of stable id below it (a rank's own)
+    own_lo: vec3<f32>,  // the loads sum the spheres whose centre c has own_lo <= c < own_hi
+    own_hi: vec3<f32>,  // (infinite: every sphere; a rank's step: its box, not its ghosts)
 }
 
 struct MeshWall {
@@ -391,7 +392,9 @@ fn mesh_wall_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
         // Past the slots the batch is redone anyway (history_need is raised already).
         w.held = held_new[p];
     }
-    let summing = step == mesh.loads_step && stable_id(p) < mesh.summed_below;
+    let c = w.me.c;
+    let own = all(c >= mesh.own_lo) && all(c < mesh.own_hi);
+    let summing = step == mesh.loads_step && own;
     mesh_contacts(&w, f32(step) * dem.dt, summing);
     add_force(p, w.force);
     if dem.turns != 0u {

@@ -42,10 +42,10 @@ pub(crate) trait DeviceFlow: Stepper {
         Ok(false)
     }
 
-    /// Sums the loads on the mesh walls over the spheres of input index below `spheres` only:
-    /// a rank's own spheres, which it places before its ghosts (the ghosts' loads are their
-    /// owners'). The others touch the walls as before.
-    fn sum_wall_loads_below(&mut self, spheres: u32);
+    /// Sums the loads on the mesh walls over the spheres whose centres c lie in `lo <= c < hi`
+    /// only: a rank's box, the spheres it owns (its ghosts' loads are their owners'). The
+    /// others touch the walls as before.
+    fn sum_wall_loads_within(&mut self, bounds: ([f32; 3], [f32; 3]));
 
     /// This step as one a rank keeps on its device from round to round, where the backend can
     /// (the defaults: it cannot, and a rank opens it again each round).

@@ -30,9 +30,10 @@ pub struct MeshParams {
     pub box_walls: u32,
     pub loads_step: u32,
     pub load_lanes: u32,
-    /// The loads sum the spheres whose input index (stable id) is below this (`u32::MAX`:
-    /// every sphere; a rank's step: its own spheres, before its ghosts).
-    pub summed_below: u32,
+    /// The loads sum the spheres whose centre c lies in `own_lo <= c < own_hi` (infinite:
+    /// every sphere; a rank's step: its box, the spheres it owns, not its ghosts).
+    pub own_lo: Vec3f,
+    pub own_hi: Vec3f,
 }
 
 pub fn mesh_params() -> SharedStruct {
@@ -43,7 +44,8 @@ pub fn mesh_params() -> SharedStruct {
             box_walls,
             loads_step,
             load_lanes,
-            summed_below
+            own_lo,
+            own_hi
         }
     )
 }
@@ -263,7 +265,8 @@ impl WallTables {
             box_walls: walls.box_walls as u32,
             loads_step: u32::MAX,
             load_lanes,
-            summed_below: u32::MAX,
+            own_lo: Vec3f([f32::NEG_INFINITY; 3]),
+            own_hi: Vec3f([f32::INFINITY; 3]),
         };
         Ok(Self {
             params,

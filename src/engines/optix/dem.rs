@@ -439,9 +439,9 @@ impl OptixStepper {
 
 /// Flow events read the state back and reopen the step.
 impl crate::engines::common::flow::DeviceFlow for OptixStepper {
-    fn sum_wall_loads_below(&mut self, spheres: u32) {
+    fn sum_wall_loads_within(&mut self, bounds: ([f32; 3], [f32; 3])) {
         if let Physics::Granular(g) = &mut self.physics {
-            g.sum_loads_below(spheres);
+            g.sum_loads_within(bounds);
         }
     }
 }

@@ -532,7 +532,8 @@ pub struct MeshLaunch {
     pub box_walls: u32,
     pub loads_step: u32,
     pub load_lanes: u32,
-    pub summed_below: u32,
+    pub own_lo: [f32; 3],
+    pub own_hi: [f32; 3],
 }
 
 // SAFETY: `#[repr(C)]` plain data laid out as `MochiMeshParams` in optix/mesh_walls.cuh.
@@ -570,7 +571,8 @@ impl MeshBuffers {
                 box_walls: p.box_walls,
                 loads_step: p.loads_step,
                 load_lanes: p.load_lanes,
-                summed_below: p.summed_below,
+                own_lo: p.own_lo.0,
+                own_hi: p.own_hi.0,
             },
             walls: upload_u32(bytemuck::cast_slice(&rows))?,
             grid: upload_u32(&tables.grid)?,

@@ -266,9 +266,9 @@ impl Granular {
         Ok(())
     }
 
-    /// Sums the loads of the spheres of input index below `spheres` only (a rank's own).
-    pub fn sum_loads_below(&mut self, spheres: u32) {
-        self.mesh.params.summed_below = spheres;
+    /// Sums the loads of the spheres whose centres lie in `lo <= c < hi` only (a rank's box).
+    pub fn sum_loads_within(&mut self, (lo, hi): ([f32; 3], [f32; 3])) {
+        (self.mesh.params.own_lo, self.mesh.params.own_hi) = (lo, hi);
     }
 
     /// Reads the loads summed in the last advance, refusing one in which some sphere came

@@ -8,7 +8,7 @@ use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::common::walls::{MeshParams, WallTables, wall_loads};
 use crate::error::Result;
 use crate::gpu::Gpu;
-use crate::gpu::shader::{Binding, storage_bytes, wgsl};
+use crate::gpu::shader::{Binding, Vec3f, storage_bytes, wgsl};
 
 /// `wgsl/dem/dem_mesh_walls.wgsl`.
 pub const SOURCE: &str = wgsl!("dem/dem_mesh_walls.wgsl");
@@ -129,10 +129,10 @@ impl MeshWalls {
         }
     }
 
-    /// Sums the loads of the spheres of input index below `spheres` only (a rank's own).
-    pub fn sum_loads_below(&mut self, gpu: &Gpu, spheres: u32) {
+    /// Sums the loads of the spheres whose centres lie in `lo <= c < hi` only (a rank's box).
+    pub fn sum_loads_within(&mut self, gpu: &Gpu, (lo, hi): ([f32; 3], [f32; 3])) {
         if self.any() {
-            self.params.summed_below = spheres;
+            (self.params.own_lo, self.params.own_hi) = (Vec3f(lo), Vec3f(hi));
             gpu.write_uniform(&self.uniform, &self.params);
         }
     }

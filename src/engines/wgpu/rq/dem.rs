@@ -360,9 +360,9 @@ impl RedoableBatch for RqStepper {
 
 /// Flow events read the state back and reopen the step.
 impl crate::engines::common::flow::DeviceFlow for RqStepper {
-    fn sum_wall_loads_below(&mut self, spheres: u32) {
+    fn sum_wall_loads_within(&mut self, bounds: ([f32; 3], [f32; 3])) {
         if let Some(g) = &mut self.granular {
-            g.mesh_mut().sum_loads_below(&self.gpu, spheres);
+            g.mesh_mut().sum_loads_within(&self.gpu, bounds);
         }
     }
 }

@@ -69,9 +69,9 @@ impl DeviceFlow for GridStepper {
         Ok(true)
     }
 
-    fn sum_wall_loads_below(&mut self, spheres: u32) {
+    fn sum_wall_loads_within(&mut self, bounds: ([f32; 3], [f32; 3])) {
         if let Some(g) = &mut self.res.granular {
-            g.mesh_mut().sum_loads_below(&self.res.gpu, spheres);
+            g.mesh_mut().sum_loads_within(&self.res.gpu, bounds);
         }
     }
 
