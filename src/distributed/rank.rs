@@ -26,7 +26,7 @@
 
 use super::comm::Comm;
 use super::grid::Grid;
-use super::record::{Held, SphereRecord, own_pair_ends, put, read};
+use super::record::{Held, SphereRecord, own_pair_ends, partners_by_id, put, read};
 use super::resident::Resident;
 use super::slabs::Slabs;
 use crate::dem::StepParams;
@@ -379,6 +379,18 @@ impl<C: Comm> RankStepper<C> {
         Ok(steps as f64 * self.reach + 2.0 * travel)
     }
 
+    /// The external loads on the spheres of the whole run's ids `ids`, in that order.
+    fn loads_of(&self, ids: &[u32]) -> ExternalLoads {
+        let rows = |all: &[[f32; 3]]| match all.is_empty() {
+            true => Vec::new(),
+            false => ids.iter().map(|&id| all[id as usize]).collect(),
+        };
+        ExternalLoads {
+            forces: rows(&self.loads.forces),
+            torques: rows(&self.loads.torques),
+        }
+    }
+
     /// The step kept on the device, taken out of the rank (none: the rank holds its spheres).
     fn take_resident(&mut self) -> Option<Resident> {
         match &mut self.local {
@@ -408,14 +420,9 @@ impl<C: Comm> RankStepper<C> {
         count: bool,
         started: Instant,
     ) -> Result<(u64, StageTimes, Vec<WallLoad>)> {
-        let ids = resident.ids();
-        let rows = |all: &[[f32; 3]]| match all.is_empty() {
-            true => Vec::new(),
-            false => ids.iter().map(|&id| all[id as usize]).collect(),
-        };
-        let loads = ExternalLoads {
-            forces: rows(&self.loads.forces),
-            torques: rows(&self.loads.torques),
+        let loads = match self.loads.is_empty() {
+            true => ExternalLoads::default(),
+            false => self.loads_of(&resident.ids()),
         };
         let step = &mut resident.step;
         step.set_gravity(self.params.gravity)?;
@@ -492,14 +499,7 @@ impl<C: Comm> RankStepper<C> {
 
         let ghosts_in = Instant::now();
         let (local, ids, own_at) = self.merged(&ghosts)?;
-        let rows = |all: &[[f32; 3]]| match all.is_empty() {
-            true => Vec::new(),
-            false => ids.iter().map(|&id| all[id as usize]).collect(),
-        };
-        let loads = ExternalLoads {
-            forces: rows(&self.loads.forces),
-            torques: rows(&self.loads.torques),
-        };
+        let loads = self.loads_of(&ids);
         let gravity = self.params.gravity;
         // When the engine had the round's spheres, and when it had stepped them.
         let (mut opened, mut stepped) = (Instant::now(), Instant::now());
@@ -579,14 +579,7 @@ impl<C: Comm> RankStepper<C> {
         self.step = after.step;
 
         let exchanged = Instant::now();
-        let n = ids.len() as u32;
-        let by_id = |e: &HistoryEntry| HistoryEntry {
-            partner: match e.partner < n {
-                true => ids[e.partner as usize],
-                false => e.partner,
-            },
-            ..*e
-        };
+        let by_id = partners_by_id(&ids);
         self.own = own_at
             .iter()
             .map(|&at| Held::of(&after, at, ids[at], by_id))

@@ -82,6 +82,19 @@ pub(super) fn own_pair_ends(p: &Particles, own_at: &[usize], mode: ProxyMode) ->
     Ok(pairs.iter().map(|pair| own(pair.i) + own(pair.j)).sum())
 }
 
+/// A history entry of spheres whose whole-run ids are `ids` (by place) with its partner
+/// named by its whole-run id instead of its place (a wall keeps its own).
+pub(super) fn partners_by_id(ids: &[u32]) -> impl Fn(&HistoryEntry) -> HistoryEntry + Copy + '_ {
+    let n = ids.len() as u32;
+    move |e| HistoryEntry {
+        partner: match e.partner < n {
+            true => ids[e.partner as usize],
+            false => e.partner,
+        },
+        ..*e
+    }
+}
+
 /// Sphere `i` of `p` as a record of id `id` (no contacts counted yet).
 pub(super) fn record_of(p: &Particles, i: usize, id: u32) -> SphereRecord {
     SphereRecord {

@@ -11,12 +11,12 @@
 
 use super::comm::Comm;
 use super::grid::Grid;
-use super::record::{Held, SphereRecord, own_pair_ends, put, read};
+use super::record::{Held, SphereRecord, own_pair_ends, partners_by_id, put, read};
 use crate::dem::flow::NewSphere;
 use crate::engines::common::flow::{Arriving, DeviceFlow, DeviceRows, ResidentStep};
 use crate::error::{Error, Result};
+use crate::particles::Particles;
 use crate::particles::position::join;
-use crate::particles::{HistoryEntry, Particles};
 use crate::proxy::ProxyMode;
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
@@ -106,15 +106,7 @@ impl Resident {
         let whole = self.step.particles()?;
         // The step's input order: ascending stable id.
         let ids = self.ids();
-        let n = ids.len() as u32;
-        // Partners by place to partners by id (a wall keeps its own).
-        let rename = |e: &HistoryEntry| HistoryEntry {
-            partner: match e.partner < n {
-                true => ids[e.partner as usize],
-                false => e.partner,
-            },
-            ..*e
-        };
+        let rename = partners_by_id(&ids);
         let place: FxHashMap<u32, usize> = ids.iter().enumerate().map(|(at, &g)| (g, at)).collect();
         let mut held = Vec::with_capacity(own.len());
         for g in own {

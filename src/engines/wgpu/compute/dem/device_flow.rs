@@ -28,7 +28,7 @@ impl DeviceFlow for GridStepper {
 
     fn append(&mut self, new: &[NewSphere]) -> Result<bool> {
         let k = new.len() as u32;
-        if !self.room_for(new, 0) {
+        if !self.room_for(new.iter().map(|s| s.radius), 0) {
             return Ok(false);
         }
         if k == 0 {
@@ -145,8 +145,7 @@ impl ResidentStep for GridStepper {
     }
 
     fn fits(&self, leaving: usize, coming: &[Arriving]) -> bool {
-        let new: Vec<NewSphere> = coming.iter().map(|a| a.sphere).collect();
-        self.room_for(&new, leaving as u32)
+        self.room_for(coming.iter().map(|a| a.sphere.radius), leaving as u32)
     }
 
     fn rewrite(&mut self, rows: &DeviceRows, leaving: &[u32], coming: &[Arriving]) -> Result<u32> {
@@ -156,7 +155,7 @@ impl ResidentStep for GridStepper {
                 "a rank's step was given other rows than it holds".into(),
             ));
         }
-        if !self.room_for(&new, leaving.len() as u32) {
+        if !self.fits(leaving.len(), coming) {
             return Err(Error::Usage(
                 "a rank's step has no room for its spheres".into(),
             ));
@@ -218,13 +217,12 @@ impl ResidentStep for GridStepper {
 }
 
 impl GridStepper {
-    /// Whether the spheres `new` fit after those there less `leaving` of them: rows kept, the
-    /// radii the grid's cells and levels were chosen for, stable ids below the walls' (a
-    /// reopening numbers the spheres afresh).
-    fn room_for(&self, new: &[NewSphere], leaving: u32) -> bool {
-        let k = new.len() as u32;
-        let (r_min, r_max) = new.iter().fold((f32::MAX, 0.0f32), |(a, b), s| {
-            (a.min(s.radius), b.max(s.radius))
+    /// Whether spheres of the radii `new` fit after those there less `leaving` of them: rows
+    /// kept, the radii the grid's cells and levels were chosen for, stable ids below the walls'
+    /// (a reopening numbers the spheres afresh).
+    fn room_for(&self, new: impl Iterator<Item = f32>, leaving: u32) -> bool {
+        let (k, r_min, r_max) = new.fold((0u32, f32::MAX, 0.0f32), |(k, a, b), r| {
+            (k + 1, a.min(r), b.max(r))
         });
         let radii_fit = k == 0 || (r_min as f64 >= self.radii.0 && r_max as f64 <= self.radii.1);
         let ids_fit = self
