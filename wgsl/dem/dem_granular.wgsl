@@ -5,6 +5,10 @@
 //   fn stable_id(p: u32) -> u32    the input index of the sphere at state index p
 //   fn row_before(p: u32) -> u32   the state index the sphere at state index p had in the
 //                                  previous step (its row of the old history)
+//   fn held_apart(w: ptr<function, Walker>, b: u32, t: vec4<f32>)   the walker's contact with
+//                                  sphere b (stable id; t: centre and radius) holds this step
+//                                  (a cohesive step's, maybe across a gap)
+//   fn moved_by(p: u32, v: vec3<f32>)   sphere p (state index) moved by dem.dt·v in the integration
 //
 // Angular velocities and torques are in state order, as pos and vel (the engine permutes ω with
 // them wherever it re-sorts the state), so every kernel reads them where it reads pos and vel.
@@ -101,6 +105,8 @@ struct Walker {
     held: u32,           // contacts with history (spheres it owns and walls)
     waiting: u32,        // candidates within reach met (dem_grid_granular.wgsl)
     list_from: u32,      // the first of them its list holds (dem_grid_granular.wgsl)
+    marks: u32,          // its contacts held across a gap at the last step (dem_grid_bonds.wgsl)
+    slack: f32,          // how far apart a candidate may be that touched it then (dem_grid_bonds.wgsl)
 }
 
 // The walker of the sphere at place p of the walk, state index h, centre and radius s.
@@ -118,7 +124,7 @@ fn walker(p: u32, h: u32, s: vec4<f32>) -> Walker {
         own_new = slot_at(h, 0u);
     }
     let me = body_of(s, vel[h], omega[h]);
-    return Walker(p, h, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u, 0u);
+    return Walker(p, h, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u, 0u, 0u, -1.0);
 }
 
 // The old entry at `at`.
@@ -267,6 +273,9 @@ fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) -> Contact {
         old = old_contact(w, q, b);
     }
     let c = pair_contact((*w).me, other, old.springs, old.held);
+    if COHESIVE && c.touching {
+        held_apart(w, b, t);
+    }
     if c.touching {
         add_force(q, -c.force);
         if dem.turns != 0u {
@@ -372,6 +381,7 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
     vel[p] = vec4(v_new, m);
     let moved = vec4(advance_position(p, s.xyz, dem.dt * v_new), s.w);
     pos[p] = moved;
+    moved_by(p, v_new);
     if dem.turns != 0u {
         let inertia = moment_of_inertia(m, s.w);
         let torque = load_torque(p);

@@ -63,8 +63,10 @@ const NEAR_ROOM: u32 = 16u;
 
 fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     // Two components of one clump are never a pair (dem_clumps.wgsl; CLUMPED first: without
-    // clumps, no id is read).
-    if !reaches((*w).s, t) || (CLUMPED && one_clump(stable_id(home[(*w).p]), stable_id(home[q]))) {
+    // clumps, no id is read); a candidate apart that held no contact at the last step is none
+    // (dem_grid_bonds.wgsl).
+    if !reaches((*w).s, t) || (CLUMPED && one_clump(stable_id(home[(*w).p]), stable_id(home[q])))
+        || unbonded(w, q, t) {
         return;
     }
     let k = (*w).waiting - (*w).list_from;
@@ -188,6 +190,7 @@ fn list_near(@builtin(global_invocation_id) gid: vec3<u32>) {
     var w: Walker;
     w.p = p;
     w.s = walk_pos[p];
+    see_bonds(&w, stable_id(home[p]));
     stencil_walk(&w);
     listed[p] = w.waiting;
 }
@@ -208,12 +211,14 @@ fn count_touching(touching: u32, lid: u32) {
 // calls it (it holds barriers): those past the spheres with nothing to resolve.
 fn resolve_thread(gid: vec3<u32>, lid: u32, lanes: Lanes, walk: bool) {
     widen_windows();
+    see_clock();
     let p = index(gid);
     let here = p < params.n;
     var w: Walker;
     var count = 0u;
     if here {
         w = walker(p, home[p], walk_pos[p]);
+        see_bonds(&w, w.a);
         if walk {
             stencil_walk(&w);
             count = w.waiting;

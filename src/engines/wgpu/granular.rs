@@ -182,8 +182,9 @@ const FIRST_SLOTS: u32 = 16;
 /// Storage buffers the granular resolve kernel binds (wgpu-compute's: the state, the cell
 /// table, the ids, the rows the spheres came from, the sorted places' rows and spheres, forces,
 /// counters, spins, the material table, torques, two counts of the history, [`ENTRY_PARTS`]
-/// entry bindings of each history, the need, the mesh walls' four and the clumps' two).
-const STORAGE_BUFFERS: u32 = 19 + 2 * ENTRY_PARTS as u32;
+/// entry bindings of each history, the need, the marks of contacts held across a gap and the
+/// clock, the mesh walls' four and the clumps' two).
+const STORAGE_BUFFERS: u32 = 21 + 2 * ENTRY_PARTS as u32;
 
 /// Words of a slot of the history as the GPU holds it (`Entry` of `wgsl/dem_tangential_*.wgsl`),
 /// as bits: ξ x, y, z and the partner's stable id, then the rolling torque's x, y, z and 0;

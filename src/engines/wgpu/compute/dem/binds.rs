@@ -60,20 +60,22 @@ impl Resident {
         let a = &self.sets[from];
         let p = &self.pipelines;
         let gpu = &self.gpu;
-        let (scatter_more, integrate_more) = match &self.granular {
-            Some(g) => {
+        let (scatter_more, integrate_more) = match (&self.granular, &self.near) {
+            (Some(g), Some(lists)) => {
                 let [omega_a, omega] = g.sorted_omega(from);
+                let mut integrate = g.integrate_bindings(1 - from);
+                integrate.push((BONDS, &lists.bonds));
                 (
                     vec![
                         (OMEGA_A, omega_a),
                         (OMEGA, omega),
                         (CAME_FROM, g.came_from()),
                     ],
-                    g.integrate_bindings(1 - from).to_vec(),
+                    integrate,
                 )
             }
             // The paper's scatter notes the binned rows for the steps that may skip their binning.
-            None => (self.skin_rows(), Vec::new()),
+            _ => (self.skin_rows(), Vec::new()),
         };
         // What the binning's passes and the integration bind of the sorter.
         let (first, last, counting) = match sorter {
@@ -323,11 +325,13 @@ impl Resident {
             };
         };
         let lists = self.near.as_ref().expect("the granular step's lists");
-        // A multi-level grid's walk is long: it runs in a kernel of its own, without the
-        // contact law's registers.
+        // A multi-level grid's walk is long, a filtered walk holds the marks: it runs in a
+        // kernel of its own, without the contact law's registers.
         let listed = [(NEAR, &lists.near), (LISTED, &lists.listed)];
-        let (list_near, resolve) = match (&self.pipelines.listing, self.levels) {
-            (Some([list_near, resolve_near]), Levels::Many) => {
+        let marks = [(BONDS, &lists.bonds), (CLOCK, &self.clock)];
+        let apart = matches!(self.levels, Levels::Many) || lists.filtered;
+        let (list_near, resolve) = match &self.pipelines.listing {
+            Some([list_near, resolve_near]) if apart => {
                 // The law's parameters for the reach past touching of cohesive contacts.
                 // And the stable ids by sorted place: no two components of one clump are a pair.
                 let walk = [
@@ -339,7 +343,7 @@ impl Resident {
                     (IDS, &set.ids),
                     g.listing_binding(),
                 ];
-                let walk = joined(&walk, &listed);
+                let walk = [&walk[..], &listed, &marks].concat();
                 let list_near = gpu.bind("mochi.dem.list_near", list_near, &walk);
                 (Some(list_near), resolve_near)
             }
@@ -383,7 +387,7 @@ impl Resident {
             resolve: turns
                 .iter()
                 .map(|&turn| {
-                    let more = [(IDS, &set.ids), (CAME_FROM, came_from)];
+                    let more = [(IDS, &set.ids), (CAME_FROM, came_from), marks[0], marks[1]];
                     let clumps = g.contact_bindings();
                     let all = [&own[..], &g.resolve_bindings(turn), &more, &clumps].concat();
                     gpu.bind("mochi.dem.resolve", resolve, &all)

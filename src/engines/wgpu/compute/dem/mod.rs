@@ -45,9 +45,9 @@ use super::layout::{
 };
 use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
-    self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, HOME, IDS, IDS_A, LISTED, NEAR,
-    NEAR_ROOM, OMEGA_A, PARAMS, POS_A, POS_LO_A, RANKS, SKIN, SKIN_LIMIT, SORT_KEYS, SORT_ORDER,
-    VEL_A, WALK_POS, WALK_ROW,
+    self, BOND_WORDS, BONDS, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, HOME, IDS, IDS_A,
+    LISTED, NEAR, NEAR_ROOM, OMEGA_A, PARAMS, POS_A, POS_LO_A, RANKS, SKIN, SKIN_LIMIT, SORT_KEYS,
+    SORT_ORDER, VEL_A, WALK_POS, WALK_ROW,
 };
 use super::skin::{SKIN_CELLS, Skin, skin_of};
 use crate::dem::flow::NewSphere;
@@ -107,7 +107,8 @@ struct Pipelines {
     resolve: wgpu::ComputePipeline,
     /// The granular step's contact pass in two kernels (the walk listing each sphere's
     /// candidates within reach, `list_near`, then their contacts, `resolve_near`), which a
-    /// multi-level grid's long walks run.
+    /// multi-level grid's long walks run, and a walk that skips the unbonded candidates apart
+    /// (`NearLists::filtered`): each kernel then holds its own registers.
     listing: Option<[wgpu::ComputePipeline; 2]>,
     /// The mesh walls' kernels (granular step with mesh walls only), in the order of
     /// `walls::ENTRY_POINTS`.
@@ -146,12 +147,24 @@ struct SortedPlaces {
     walk_row: wgpu::Buffer,
 }
 
+/// A cohesive walk skips the candidates apart that held no contact at the last step where
+/// contacts hold at least this fraction of the smallest radius past touching
+/// (`wgsl/grid/dem_grid_bonds.wgsl`); closer, few candidates within reach are apart, and the
+/// marks cost more than the walk saves.
+const FILTERED_REACH: f32 = 0.005;
+
 /// The granular contact pass's lists of candidates within reach (`wgsl/grid/dem_grid_granular.wgsl`).
 struct NearLists {
     /// By sorted place, the candidates within reach its walk met (the two-kernel pass).
     listed: wgpu::Buffer,
     /// [`NEAR_ROOM`] places a sphere.
     near: wgpu::Buffer,
+    /// The marks of contacts held across a gap and the largest speed ([`BONDS`]), zeroed at
+    /// every batch's start.
+    bonds: wgpu::Buffer,
+    /// Whether the walk skips the candidates apart that held nothing at the last step
+    /// (`FILTERS_BONDS`).
+    filtered: bool,
 }
 
 /// What sorts the spheres by cell between the binning's passes, bound to the layout.
@@ -350,7 +363,7 @@ impl GridStepper {
             granular,
             params: dem_uniform,
             module,
-            constants,
+            mut constants,
         } = DemModule::open(
             &gpu,
             "wgpu-compute",
@@ -367,13 +380,22 @@ impl GridStepper {
         )?;
         let n = particles.len() as u32;
         let rows = room.spheres as u64;
+        let clumped = !particles.clumps.clumps.is_empty();
+        // A cohesive walk skips the candidates apart that held nothing at the last step, where
+        // contacts hold far enough past touching (a clump's components move with their clump, not by
+        // their own speed, which bounds how far a pair that touched can have parted).
+        let holds_apart = params.adheres() && params.search_margin(r_max) >= FILTERED_REACH * r_min;
+        let filtered =
+            holds_apart && !clumped && granular.as_ref().is_some_and(Granular::keeps_history);
+        if filtered {
+            constants.push(("FILTERS_BONDS", 1.0));
+        }
         // The paper's step on the dense build may skip its binning (the skin).
         let paper = granular.is_none();
         let skinned = paper && build == BuildKind::Dense;
         let pipeline = |entry: &str| {
             gpu.pipeline_with(&format!("mochi.dem.{entry}"), &module, entry, &constants)
         };
-        let clumped = !particles.clumps.clumps.is_empty();
         let (first, last) = match build {
             BuildKind::Dense => ("bin_count", "bin_scatter"),
             BuildKind::Sorted => ("bin_keys", "bin_gather"),
@@ -449,6 +471,11 @@ impl GridStepper {
                 near: granular.is_some().then(|| NearLists {
                     listed: make("mochi.dem.listed", rows * 4),
                     near: make("mochi.dem.near", rows * NEAR_ROOM * 4),
+                    bonds: make(
+                        "mochi.dem.bonds",
+                        (rows.next_power_of_two() + BOND_WORDS) * 4,
+                    ),
+                    filtered,
                 }),
                 granular,
                 // The paper's walk reads the drift in any build (none without a skin).

@@ -271,6 +271,11 @@ impl GridStepper {
             let state = [&set.pos, &set.lo, &set.vel, &set.ids, &res.clock];
             g.begin_batch(&res.gpu, &mut encoder, turn, &state);
         }
+        // A batch's first step lists every candidate (the host may have moved the spheres or
+        // their rows since the last): its marks start from nothing.
+        if let Some(lists) = &res.near {
+            encoder.clear_buffer(&lists.bonds, 0, None);
+        }
         // The granular step's batches, waited for one by one, are split into submissions
         // where the GPU would otherwise wait for their recording.
         let submit_every = self.res.granular.as_ref().and(self.submit_every);
