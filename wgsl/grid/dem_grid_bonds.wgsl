@@ -118,8 +118,9 @@ fn held_apart(w: ptr<function, Walker>, b: u32, t: vec4<f32>) {
     atomicOr(&bonds[marks_word(b)], mark_bit(a) << written_shift);
 }
 
-// After sphere p (state index) moved by dt·v (dem_granular.wgsl's hook): its speed into the next step's largest, its
-// marks of the last step cleared (the next step writes there), the marks and speed whole.
+// After sphere p (state index) moved by dt·v (dem_granular.wgsl's hook): its speed into the
+// next step's largest, its marks of the last step cleared (the next step writes there), the
+// marks and speed whole.
 fn moved_by(p: u32, v: vec3<f32>) {
     if !FILTERS_BONDS {
         return;
