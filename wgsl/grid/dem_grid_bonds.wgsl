@@ -34,6 +34,7 @@ fn marks_word(id: u32) -> u32 {
     return id & (arrayLength(&bonds) - HEADER_WORDS - 1u);
 }
 
+// The k-th word after the marks.
 fn header_word(k: u32) -> u32 {
     return arrayLength(&bonds) - HEADER_WORDS + k;
 }
@@ -58,7 +59,7 @@ fn see_clock() {
 
 // The walker's view of the last step: its sphere's marks and the slack within which an apart
 // candidate may have touched then (negative: the marks are not whole, every candidate is
-// listed). The walker's stable id `a` is read first.
+// listed); `a` is the walker's stable id.
 fn see_bonds(w: ptr<function, Walker>, a: u32) {
     (*w).slack = -1.0;
     if !FILTERS_BONDS {
