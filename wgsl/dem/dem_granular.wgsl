@@ -8,7 +8,8 @@
 //   fn held_apart(w: ptr<function, Walker>, b: u32, t: vec4<f32>)   the walker's contact with
 //                                  sphere b (stable id; t: centre and radius) holds this step
 //                                  (a cohesive step's, maybe across a gap)
-//   fn moved_by(p: u32, v: vec3<f32>)   sphere p (state index) moved by dem.dt·v in the integration
+//   fn moved_by(p: u32, v: vec3<f32>)   sphere p (state index) moved by dem.dt·v in the
+//                                  integration
 //
 // Angular velocities and torques are in state order, as pos and vel (the engine permutes ω with
 // them wherever it re-sorts the state), so every kernel reads them where it reads pos and vel.

@@ -160,7 +160,7 @@ struct NearLists {
     /// [`NEAR_ROOM`] places a sphere.
     near: wgpu::Buffer,
     /// The marks of contacts held across a gap and the largest speed ([`BONDS`]), zeroed at
-    /// every batch's start.
+    /// every batch's start where the walk filters (no marks otherwise).
     bonds: wgpu::Buffer,
     /// Whether the walk skips the candidates apart that held nothing at the last step
     /// (`FILTERS_BONDS`).
@@ -382,8 +382,8 @@ impl GridStepper {
         let rows = room.spheres as u64;
         let clumped = !particles.clumps.clumps.is_empty();
         // A cohesive walk skips the candidates apart that held nothing at the last step, where
-        // contacts hold far enough past touching (a clump's components move with their clump, not by
-        // their own speed, which bounds how far a pair that touched can have parted).
+        // contacts hold far enough past touching (a clump's components move with their clump,
+        // not by their own speed, which bounds how far a pair that touched can have parted).
         let holds_apart = params.adheres() && params.search_margin(r_max) >= FILTERED_REACH * r_min;
         let filtered =
             holds_apart && !clumped && granular.as_ref().is_some_and(Granular::keeps_history);
@@ -471,9 +471,10 @@ impl GridStepper {
                 near: granular.is_some().then(|| NearLists {
                     listed: make("mochi.dem.listed", rows * 4),
                     near: make("mochi.dem.near", rows * NEAR_ROOM * 4),
+                    // Bound but never read where the walk does not filter.
                     bonds: make(
                         "mochi.dem.bonds",
-                        (rows.next_power_of_two() + BOND_WORDS) * 4,
+                        (filtered as u64 * rows.next_power_of_two() + BOND_WORDS) * 4,
                     ),
                     filtered,
                 }),

@@ -273,7 +273,7 @@ impl GridStepper {
         }
         // A batch's first step lists every candidate (the host may have moved the spheres or
         // their rows since the last): its marks start from nothing.
-        if let Some(lists) = &res.near {
+        if let Some(lists) = res.near.as_ref().filter(|lists| lists.filtered) {
             encoder.clear_buffer(&lists.bonds, 0, None);
         }
         // The granular step's batches, waited for one by one, are split into submissions
