@@ -16,7 +16,8 @@ use crate::particles::Particles;
 /// What rank 0 asks of the others.
 #[derive(Debug, Clone, PartialEq)]
 enum Call {
-    Advance(u32),
+    /// Steps, and whether the call counts its contacts.
+    Advance(u32, bool),
     Particles,
     Motion {
         positions: Option<Vec<[f64; 3]>>,
@@ -42,9 +43,10 @@ impl Call {
             }
         };
         match self {
-            Call::Advance(steps) => {
+            Call::Advance(steps, counted) => {
                 out.push(0);
                 out.extend_from_slice(&steps.to_le_bytes());
+                out.push(*counted as u8);
             }
             Call::Particles => out.push(1),
             Call::Motion {
@@ -89,7 +91,10 @@ impl Call {
         };
         let tag = take(1)?[0];
         let call = match tag {
-            0 => Call::Advance(u32::from_le_bytes(take(4)?.try_into().map_err(|_| bad())?)),
+            0 => {
+                let steps = u32::from_le_bytes(take(4)?.try_into().map_err(|_| bad())?);
+                Call::Advance(steps, take(1)?[0] != 0)
+            }
             1 => Call::Particles,
             2 | 4 => {
                 let mut lists: Vec<Option<Vec<u8>>> = Vec::new();
@@ -135,7 +140,8 @@ impl Call {
     /// Makes this call on `rank`.
     fn make<C: Comm + Send>(&self, rank: &mut RankStepper<C>) -> Result<()> {
         match self {
-            Call::Advance(steps) => rank.advance(*steps).map(|_| ()),
+            Call::Advance(steps, true) => rank.advance(*steps).map(|_| ()),
+            Call::Advance(steps, false) => rank.advance_uncounted(*steps).map(|_| ()),
             Call::Particles => rank.particles().map(|_| ()),
             Call::Motion {
                 positions,
@@ -210,7 +216,11 @@ impl<C: Comm + Send> Stepper for Leader<C> {
     }
 
     fn advance(&mut self, steps: u32) -> Result<Advance> {
-        self.lead(Call::Advance(steps), |r| r.advance(steps))
+        self.lead(Call::Advance(steps, true), |r| r.advance(steps))
+    }
+
+    fn advance_uncounted(&mut self, steps: u32) -> Result<Advance> {
+        self.lead(Call::Advance(steps, false), |r| r.advance_uncounted(steps))
     }
 
     fn step(&self) -> u64 {

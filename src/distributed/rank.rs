@@ -100,6 +100,8 @@ pub struct RankStepper<C: Comm> {
     /// Steps since the faces last moved, and this rank's time stepping its spheres since
     /// \[ms\] (laying out, stepping, reading back: not waiting for the others).
     since_rebalance: (u64, f64),
+    /// The contacts of the last call that counted them (each contact once).
+    counted: u64,
 }
 
 impl<C: Comm> RankStepper<C> {
@@ -166,6 +168,7 @@ impl<C: Comm> RankStepper<C> {
             rebalance_every: 0,
             spare_rows: None,
             since_rebalance: (0, 0.0),
+            counted: 0,
         })
     }
 
@@ -558,7 +561,7 @@ impl<C: Comm> RankStepper<C> {
                 let (lo, hi) = self.grid.bounds_of(self.comm.rank());
                 stepper.sum_wall_loads_within((lo.map(|x| x as f32), hi.map(|x| x as f32)));
                 if stepper.resident().is_some() {
-                    let resident = Resident::new(stepper, &ids, &own_at);
+                    let resident = Resident::new(stepper, &ids, &own_at)?;
                     self.own.clear();
                     return self.resident_round(resident, steps, count, started);
                 }
@@ -787,6 +790,45 @@ impl<C: Comm> RankStepper<C> {
     }
 }
 
+impl<C: Comm + Send> RankStepper<C> {
+    /// [`Stepper::advance`], the contacts of its last step counted where `count` says (else
+    /// those counted last: a GPU rank counts them from every sphere read back).
+    fn advance_counting(&mut self, steps: u32, count: bool) -> Result<Advance> {
+        let mut times = StageTimes::default();
+        let mut touching = 0;
+        let mut left = steps;
+        let mut loads = Vec::new();
+        while left > 0 {
+            let round = left.min(self.round).min(self.steps_to_flow_event());
+            // The call's contacts are its last step's.
+            let last = count && round == left;
+            let (own, round_times, round_loads) = self.take_round(round, last)?;
+            touching = own;
+            loads = round_loads;
+            times.add(&round_times);
+            left -= round;
+            self.flow_event()?;
+            if self.rebalance_every > 0 && self.since_rebalance.0 >= self.rebalance_every {
+                self.rebalance()?;
+            }
+        }
+        // Each contact of two spheres is counted by both.
+        if count && steps > 0 {
+            self.counted = self.sum_over_ranks(touching)? / 2;
+        }
+        let contacts = self.counted;
+        if steps > 0 && !loads.is_empty() {
+            self.wall_loads = self.loads_over_ranks(&loads)?;
+        }
+        Ok(Advance {
+            steps,
+            contacts,
+            times,
+            clock: Clock::Wall,
+        })
+    }
+}
+
 /// Every rank of a group steps together: a call of one is a call of all, with the same
 /// arguments (the rows of the whole run, by id).
 impl<C: Comm + Send> Stepper for RankStepper<C> {
@@ -808,38 +850,11 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
     }
 
     fn advance(&mut self, steps: u32) -> Result<Advance> {
-        let mut times = StageTimes::default();
-        let mut touching = 0;
-        let mut left = steps;
-        let mut loads = Vec::new();
-        while left > 0 {
-            let round = left.min(self.round).min(self.steps_to_flow_event());
-            // The call's contacts are its last step's.
-            let last = round == left;
-            let (own, round_times, round_loads) = self.take_round(round, last)?;
-            touching = own;
-            loads = round_loads;
-            times.add(&round_times);
-            left -= round;
-            self.flow_event()?;
-            if self.rebalance_every > 0 && self.since_rebalance.0 >= self.rebalance_every {
-                self.rebalance()?;
-            }
-        }
-        // Each contact of two spheres is counted by both.
-        let contacts = match steps {
-            0 => 0,
-            _ => self.sum_over_ranks(touching)? / 2,
-        };
-        if steps > 0 && !loads.is_empty() {
-            self.wall_loads = self.loads_over_ranks(&loads)?;
-        }
-        Ok(Advance {
-            steps,
-            contacts,
-            times,
-            clock: Clock::Wall,
-        })
+        self.advance_counting(steps, true)
+    }
+
+    fn advance_uncounted(&mut self, steps: u32) -> Result<Advance> {
+        self.advance_counting(steps, false)
     }
 
     fn step(&self) -> u64 {

@@ -1,8 +1,8 @@
-// A flow event on the device (src/engines/gpu_flow.rs): one pass over the state lists the
+// A flow event on the device (src/engines/wgpu/flow.rs): one pass over the state lists the
 // spheres that leave (centre in an outflow box or below the floor) and the others whose centres
 // lie in a box around an inflow, so that the event reads back these alone, in one read.
 
-// Twin of FlowParams in src/engines/gpu_flow.rs (tests/bindings.rs compares the layouts).
+// Twin of FlowParams in src/engines/wgpu/flow.rs (tests/bindings.rs compares the layouts).
 struct FlowParams {
     n: u32,          // spheres in the state
     row: u32,        // invocations per dispatch row

@@ -55,23 +55,70 @@ pub(crate) trait DeviceFlow: Stepper {
 }
 
 /// A step that a rank of a run decomposed over ranks (the `distributed` module) keeps on its
-/// device from round to round: it reads its spheres' states back row by row as it holds them
-/// (not their contact history), and takes states back, spheres out and spheres in, the history
-/// of those that stay kept on the device (a contact's springs live where the step put them,
-/// not with one sphere).
+/// device from round to round: it lists its own spheres near the faces of the rank's box with
+/// their states and its ghosts' rows, takes states into rows, spheres out and spheres in, the
+/// history of those that stay kept on the device (a contact's springs live where the step put
+/// them, not with one sphere). Which spheres are the rank's own it learns from the rank.
 pub(crate) trait ResidentStep {
     /// The spheres' states in the order of the step's rows now.
     fn rows(&mut self) -> Result<DeviceRows>;
+
+    /// Marks the spheres of the stable ids of `marks` as the rank's own (`true`) or ghosts; a
+    /// sphere never marked is a ghost.
+    fn mark_own(&mut self, marks: &[(u32, bool)]) -> Result<()>;
+
+    /// The own spheres whose centres lie outside `inner` (`lo <= c < hi` along every axis, an
+    /// infinite side holding any), the ghosts' rows and the own spheres' largest speed.
+    fn near_faces(&mut self, inner: ([f32; 3], [f32; 3])) -> Result<NearFaces>;
 
     /// Whether the step has room for `coming` once `leaving` spheres have left (rows kept,
     /// radii its grid was chosen for, stable ids).
     fn fits(&self, leaving: usize, coming: &[Arriving]) -> bool;
 
-    /// Writes `rows` back (the rows [`rows`](Self::rows) read, no step between, some of their
-    /// states changed; their stable ids as read), removes the spheres of the stable ids
-    /// `leaving` and appends `coming` with no history, where it [`fits`](Self::fits) them;
-    /// returns the stable id of the first appended (the others follow it).
-    fn rewrite(&mut self, rows: &DeviceRows, leaving: &[u32], coming: &[Arriving]) -> Result<u32>;
+    /// Writes `states` into their rows (no step since [`near_faces`](Self::near_faces) listed
+    /// them), removes the spheres of the rows `leaving` (distinct) and appends `coming` with
+    /// no history, where it [`fits`](Self::fits) them; returns the stable id of the first
+    /// appended (the others follow it).
+    fn update(&mut self, states: &[RowState], leaving: &[u32], coming: &[Arriving]) -> Result<u32>;
+}
+
+/// What a step kept on its device holds near the faces of its rank's box
+/// ([`ResidentStep::near_faces`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct NearFaces {
+    /// The spheres in the step.
+    pub rows: u32,
+    /// The own spheres outside the box shrunk by the halo, in no order.
+    pub near: Vec<NearRow>,
+    /// The ghosts' rows and stable ids, in no order.
+    pub ghosts: Vec<[u32; 2]>,
+    /// The own spheres' largest speed \[m/s\].
+    pub fastest: f32,
+}
+
+/// An own sphere near a face of its rank's box as its step holds it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct NearRow {
+    pub row: u32,
+    pub stable: u32,
+    /// `[x, y, z, r]`: the `f32` centre and radius.
+    pub pos: [f32; 4],
+    /// The residual of the centre.
+    pub lo: [f32; 3],
+    pub vel: [f32; 3],
+    /// `[ωx, ωy, ωz, material]`.
+    pub omega: [f32; 4],
+}
+
+/// A state written into a row of a step: where its sphere is, to the residual, and how it
+/// moves and turns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct RowState {
+    pub row: u32,
+    pub position: [f32; 3],
+    pub residual: [f32; 3],
+    pub velocity: [f32; 3],
+    pub spin: [f32; 3],
 }
 
 /// A step's spheres row by row: `[x, y, z, r]` (the `f32` centre and radius), the residuals

@@ -476,5 +476,7 @@ pub fn modules() -> Vec<WgslModule> {
     }
     // The flow events' scan of the state (`engines/wgpu/flow.rs`).
     all.push(crate::engines::wgpu::flow::module());
+    // A rank's exchange of ghosts (`engines/wgpu/halo.rs`).
+    all.push(crate::engines::wgpu::halo::module());
     all
 }

@@ -3,7 +3,8 @@
 //! removal and appending keep a rank's step on its device from round to round.
 
 use super::*;
-use crate::engines::common::flow::{Arriving, DeviceRows, ResidentStep};
+use crate::engines::common::flow::{Arriving, DeviceRows, NearFaces, ResidentStep, RowState};
+use crate::engines::wgpu::halo::{HaloExchange, StateBuffers};
 
 /// Flow events scan the state on the device and append inserted spheres to it, in rows kept
 /// for them at opening ([`GridStepper::flowing_on`]).
@@ -125,8 +126,9 @@ impl DeviceFlow for GridStepper {
     }
 }
 
-/// A rank's step: its spheres read back row by row without their history, written back,
-/// taken out and appended.
+/// A rank's step: its spheres near the faces of the rank's box listed and its ghosts' rows
+/// (`halo.wgsl`), states written into rows, spheres taken out and appended; every row read
+/// back where the rank counts its contacts.
 impl ResidentStep for GridStepper {
     fn rows(&mut self) -> Result<DeviceRows> {
         let (gpu, n) = (&self.res.gpu, self.n as usize);
@@ -144,45 +146,32 @@ impl ResidentStep for GridStepper {
         })
     }
 
+    fn mark_own(&mut self, marks: &[(u32, bool)]) -> Result<()> {
+        let gpu = &self.res.gpu;
+        let halo = self.halo.get_or_insert_with(|| HaloExchange::new(gpu));
+        halo.mark(gpu, marks)
+    }
+
+    fn near_faces(&mut self, inner: ([f32; 3], [f32; 3])) -> Result<NearFaces> {
+        self.with_halo(|step, halo, state| halo.gather(&step.res.gpu, state, inner))
+    }
+
     fn fits(&self, leaving: usize, coming: &[Arriving]) -> bool {
         self.room_for(coming.iter().map(|a| a.sphere.radius), leaving as u32)
     }
 
-    fn rewrite(&mut self, rows: &DeviceRows, leaving: &[u32], coming: &[Arriving]) -> Result<u32> {
-        let new: Vec<NewSphere> = coming.iter().map(|a| a.sphere).collect();
-        if rows.ids.len() != self.n as usize {
-            return Err(Error::Usage(
-                "a rank's step was given other rows than it holds".into(),
-            ));
-        }
+    fn update(&mut self, states: &[RowState], leaving: &[u32], coming: &[Arriving]) -> Result<u32> {
         if !self.fits(leaving.len(), coming) {
             return Err(Error::Usage(
                 "a rank's step has no room for its spheres".into(),
             ));
         }
-        let (q, set) = (&self.res.gpu.queue, &self.res.sets[self.current]);
-        q.write_buffer(&set.pos, 0, bytemuck::cast_slice(&rows.pos));
-        q.write_buffer(&set.lo, 0, bytemuck::cast_slice(&rows.lo));
-        q.write_buffer(&set.vel, 0, bytemuck::cast_slice(&rows.vel));
-        if let Some(g) = &self.res.granular {
-            q.write_buffer(
-                g.omega_of(self.turn().set),
-                0,
-                bytemuck::cast_slice(&rows.omega),
-            );
-        }
+        self.with_halo(|step, halo, state| halo.scatter(&step.res.gpu, state, states))?;
         // Moved spheres are binned afresh, in a grid laid out over where they are now.
         (self.sort_next, self.counted, self.stale) = (true, false, true);
-        let gone: Vec<u32> = (0..self.n)
-            .filter(|&row| leaving.binary_search(&rows.ids[row as usize]).is_ok())
-            .collect();
-        if gone.len() != leaving.len() {
-            return Err(Error::Usage(
-                "a rank's step was asked to remove spheres it does not hold".into(),
-            ));
-        }
+        let new: Vec<NewSphere> = coming.iter().map(|a| a.sphere).collect();
         let first = self.next_id;
-        if !(self.remove(&gone)? && self.append(&new)?) {
+        if !(self.remove(leaving)? && self.append(&new)?) {
             return Err(Error::Usage(
                 "a rank's step has no room for its spheres".into(),
             ));
@@ -217,6 +206,26 @@ impl ResidentStep for GridStepper {
 }
 
 impl GridStepper {
+    /// `work` with a rank's exchange (made at the first) and the state as it binds it.
+    fn with_halo<R>(
+        &mut self,
+        work: impl FnOnce(&Self, &mut HaloExchange, &StateBuffers) -> Result<R>,
+    ) -> Result<R> {
+        let mut halo = (self.halo.take()).unwrap_or_else(|| HaloExchange::new(&self.res.gpu));
+        let set = &self.res.sets[self.current];
+        let state = StateBuffers {
+            pos: &set.pos,
+            lo: &set.lo,
+            vel: &set.vel,
+            omega: (self.res.granular.as_ref()).map(|g| g.omega_of(self.turn().set)),
+            ids: &set.ids,
+            n: self.n,
+        };
+        let done = work(self, &mut halo, &state);
+        self.halo = Some(halo);
+        done
+    }
+
     /// Whether spheres of the radii `new` fit after those there less `leaving` of them: rows
     /// kept, the radii the grid's cells and levels were chosen for, stable ids below the walls'
     /// (a reopening numbers the spheres afresh).

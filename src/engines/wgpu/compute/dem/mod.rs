@@ -64,6 +64,7 @@ use crate::engines::setup::DemSetup;
 use crate::engines::wgpu::clumps::shader::ENTRY as CLUMPS_ENTRY;
 use crate::engines::wgpu::flow::FlowScan;
 use crate::engines::wgpu::granular::shader::OMEGA;
+use crate::engines::wgpu::halo::HaloExchange;
 use crate::engines::wgpu::readback::{BatchReadback, InFlight};
 use crate::engines::wgpu::state::{
     ExternalRows, InputOrder, ParamsUniform, move_rows, write_motion,
@@ -228,6 +229,8 @@ pub struct GridStepper {
     next_id: u32,
     /// The flow events' scan of the state (made at the first).
     flow_scan: Option<FlowScan>,
+    /// A rank's exchange of ghosts on the device (made at the first).
+    halo: Option<HaloExchange>,
     mode: ProxyMode,
     mode_cell: f64,
     /// Smallest and largest radius.
@@ -502,6 +505,7 @@ impl GridStepper {
             capacity: rows as u32,
             next_id: n,
             flow_scan: None,
+            halo: None,
             mode,
             mode_cell,
             radii: sizing.radii,
