@@ -188,9 +188,9 @@ impl<C: Comm> RankStepper<C> {
     /// The same rank stepping on the backend of `choice` (`auto`: the registry's one rule; a
     /// GPU backend on the GPU of the process's local rank), with the backend it runs on. On a
     /// GPU backend it exchanges ghosts as seldom as a halo of a quarter of the thinnest box
-    /// allows (at most every 32 steps): each round pays a read-back of the rank's spheres (their
-    /// states, where its step stays on the device) and a write, so a round is as long as its
-    /// ghosts let it be.
+    /// allows (at most every 32 steps): each round pays a read-back and a write (of the spheres
+    /// near the box's faces, where its step stays on the device; else of every sphere), so a
+    /// round is as long as its ghosts let it be.
     pub fn on_backend(mut self, choice: BackendChoice, options: &Options) -> Result<Opened<Self>> {
         let setup = DemSetup {
             particles: Particles::default(),
