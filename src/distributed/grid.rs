@@ -79,6 +79,20 @@ impl Grid {
         at[0] + n[0] * (at[1] + n[1] * at[2])
     }
 
+    /// The rank of the box next to `rank`'s by `d` boxes along each axis (each of -1, 0, 1),
+    /// where there is one.
+    pub fn neighbour(&self, rank: usize, d: [i32; 3]) -> Option<usize> {
+        let n = self.counts();
+        let at = [rank % n[0], (rank / n[0]) % n[1], rank / (n[0] * n[1])];
+        let mut next = [0; 3];
+        for a in 0..3 {
+            next[a] = at[a]
+                .checked_add_signed(d[a] as isize)
+                .filter(|&i| i < n[a])?;
+        }
+        Some(self.rank_of(next))
+    }
+
     /// The box of `rank` as it owns centres: `lo <= x < hi` along every axis, the outer sides
     /// open (infinite).
     pub fn bounds_of(&self, rank: usize) -> ([f64; 3], [f64; 3]) {
@@ -203,6 +217,10 @@ mod tests {
         let x = [0.5, 0.5, 0.5];
         assert!(grid.ghost_ranks(x, grid.owner(x), 0.1).is_empty());
         assert_eq!(grid.thinnest(), 1.0);
+        assert_eq!(grid.neighbour(0, [1, 1, 0]), Some(3));
+        assert_eq!(grid.neighbour(3, [-1, 0, 0]), Some(2));
+        assert_eq!(grid.neighbour(3, [1, 0, 0]), None);
+        assert_eq!(grid.neighbour(0, [0, 0, -1]), None);
         // A rank's bounds hold exactly the centres it owns, the outer sides open.
         assert_eq!(
             grid.bounds_of(1).0,

@@ -505,6 +505,58 @@ impl Gpu {
         Ok(taken)
     }
 
+    /// The bytes of each of `ranges` of `buffer` (each a whole number of 4-byte words), copied
+    /// back in one read through `staging` (as [`read_through`](Self::read_through); waits for the
+    /// GPU).
+    pub fn read_ranges(
+        &self,
+        staging: &mut Staging,
+        buffer: &wgpu::Buffer,
+        ranges: &[Range<u64>],
+    ) -> Result<Vec<Vec<u8>>> {
+        let total: u64 = ranges.iter().map(|r| r.end - r.start).sum();
+        if total == 0 {
+            return Ok(vec![Vec::new(); ranges.len()]);
+        }
+        let kept = staging.0.take();
+        let buffer_back = match kept {
+            Some(b) if b.size() >= total => b,
+            _ => self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("mochi.readback"),
+                size: total,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        };
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let mut at = 0;
+        for r in ranges {
+            encoder.copy_buffer_to_buffer(buffer, r.start, &buffer_back, at, r.end - r.start);
+            at += r.end - r.start;
+        }
+        self.queue.submit([encoder.finish()]);
+        self.map(&buffer_back, 0..total, wgpu::MapMode::Read, "read-back")?;
+        let taken = match buffer_back.get_mapped_range(..total) {
+            Ok(view) => {
+                let mut at = 0;
+                let parts = ranges.iter().map(|r| {
+                    let bytes = (r.end - r.start) as usize;
+                    at += bytes;
+                    &view[at - bytes..at]
+                });
+                Ok(parts
+                    .collect::<Vec<_>>()
+                    .par_iter()
+                    .map(|p| p.to_vec())
+                    .collect())
+            }
+            Err(e) => Err(Error::Gpu(format!("read-back failed: {e}"))),
+        };
+        buffer_back.unmap();
+        staging.0 = Some(buffer_back);
+        taken
+    }
+
     /// A buffer the host writes (mapped) and the GPU copies from, of `bytes` bytes, kept by its
     /// owner between uploads ([`fill_upload`](Self::fill_upload)).
     pub fn upload_buffer(&self, label: &str, bytes: u64) -> wgpu::Buffer {

@@ -55,70 +55,129 @@ pub(crate) trait DeviceFlow: Stepper {
 }
 
 /// A step that a rank of a run decomposed over ranks (the `distributed` module) keeps on its
-/// device from round to round: it lists its own spheres near the faces of the rank's box with
-/// their states and its ghosts' rows, takes states into rows, spheres out and spheres in, the
-/// history of those that stay kept on the device (a contact's springs live where the step put
-/// them, not with one sphere). Which spheres are the rank's own it learns from the rank.
+/// device from round to round. After a round it writes, on the device, the records of its own
+/// spheres near the faces of the rank's box for the neighbouring boxes ([`gather_layer`]); it
+/// places the records the neighbours sent ([`place_layer`]: ghosts' states into their rows,
+/// ownership as the centres lie now) and lists the spheres that leave and the records of
+/// spheres it does not hold; then it takes those out and appends these ([`update`]). The
+/// history of the spheres that stay is kept on the device (a contact's springs live where the
+/// step put them, not with one sphere). Which sphere each stable id is in the whole run, and
+/// whether it is the rank's own, the step holds as the rank names them ([`name`]).
+///
+/// [`gather_layer`]: Self::gather_layer
+/// [`place_layer`]: Self::place_layer
+/// [`update`]: Self::update
+/// [`name`]: Self::name
 pub(crate) trait ResidentStep {
     /// The spheres' states in the order of the step's rows now.
     fn rows(&mut self) -> Result<DeviceRows>;
 
-    /// Marks the spheres of the stable ids of `marks` as the rank's own (`true`) or ghosts; a
-    /// sphere never marked is a ghost.
-    fn mark_own(&mut self, marks: &[(u32, bool)]) -> Result<()>;
+    /// Names the spheres of stable ids: each one's whole-run id and whether it is the rank's
+    /// own.
+    fn name(&mut self, names: &[Named]) -> Result<()>;
 
-    /// The own spheres whose centres lie outside `inner` (`lo <= c < hi` along every axis, an
-    /// infinite side holding any), the ghosts' rows and the own spheres' largest speed.
-    fn near_faces(&mut self, inner: ([f32; 3], [f32; 3])) -> Result<NearFaces>;
+    /// Forgets the whole-run ids of spheres the step no longer holds.
+    fn forget(&mut self, wholes: &[u32]) -> Result<()>;
+
+    /// Whether each stable id's sphere is the rank's own (1) or a ghost (0), up to the last
+    /// stable id given.
+    fn own_marks(&mut self) -> Result<Vec<u32>>;
+
+    /// The records of the own spheres near the faces of `bounds`, by direction of the
+    /// neighbouring box, and the own spheres' largest speed.
+    fn gather_layer(&mut self, bounds: &LayerBounds) -> Result<Layer>;
+
+    /// Places the records of `received` ([`LayerRecord`]s, as [`gather_layer`](Self::gather_layer)
+    /// writes them): the states of spheres the step holds into their rows, each the rank's own
+    /// where its centre lies in the box of `bounds`; then lists the spheres that leave (ghosts
+    /// no record came for, own spheres beyond the box grown by the halo) and marks the own
+    /// spheres beyond the box as ghosts.
+    fn place_layer(&mut self, bounds: &LayerBounds, received: &[Vec<u8>]) -> Result<Placed>;
 
     /// Whether the step has room for `coming` once `leaving` spheres have left (rows kept,
     /// radii its grid was chosen for, stable ids).
     fn fits(&self, leaving: usize, coming: &[Arriving]) -> bool;
 
-    /// Writes `states` into their rows (no step since [`near_faces`](Self::near_faces) listed
-    /// them), removes the spheres of the rows `leaving` (distinct) and appends `coming` with
-    /// no history, where it [`fits`](Self::fits) them; returns the stable id of the first
+    /// Removes the spheres of the rows `leaving` (distinct) and appends `coming` with no
+    /// history, where it [`fits`](Self::fits) them; returns the stable id of the first
     /// appended (the others follow it).
-    fn update(&mut self, states: &[RowState], leaving: &[u32], coming: &[Arriving]) -> Result<u32>;
+    fn update(&mut self, leaving: &[u32], coming: &[Arriving]) -> Result<u32>;
 }
 
-/// What a step kept on its device holds near the faces of its rank's box
-/// ([`ResidentStep::near_faces`]).
+/// A stable id's sphere as a rank names it ([`ResidentStep::name`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Named {
+    pub stable: u32,
+    /// Its id in the whole run.
+    pub whole: u32,
+    pub own: bool,
+}
+
+/// Where a rank's box and its halo lie, in `f32` (infinite where no box lies beyond).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct LayerBounds {
+    /// A centre at or below `near.0` (at or above `near.1`) along an axis lies within the halo
+    /// of the box below (above) along it.
+    pub near: ([f32; 3], [f32; 3]),
+    /// The rank's box: `lo <= c < hi` along every axis.
+    pub own: ([f32; 3], [f32; 3]),
+    /// The box grown by the halo: an own sphere beyond it leaves the rank.
+    pub keep: ([f32; 3], [f32; 3]),
+}
+
+impl LayerBounds {
+    /// Whether the centre `pos + lo` (summed in `f32`, as the device sums it) lies in the box.
+    pub fn owns(&self, pos: [f32; 3], lo: [f32; 3]) -> bool {
+        (0..3).all(|a| {
+            let c = pos[a] + lo[a];
+            c >= self.own.0[a] && c < self.own.1[a]
+        })
+    }
+}
+
+/// The index of the direction `d` (each of -1, 0, 1) of a neighbouring box among
+/// [`DIRECTIONS`].
+pub(crate) fn direction(d: [i32; 3]) -> usize {
+    ((d[0] + 1) + 3 * (d[1] + 1) + 9 * (d[2] + 1)) as usize
+}
+
+/// The directions of the neighbouring boxes, one index each ([`direction`]; 13: the box itself).
+pub(crate) const DIRECTIONS: usize = 27;
+
+/// A round's records for the neighbouring boxes ([`ResidentStep::gather_layer`]).
 #[derive(Debug, Clone, Default, PartialEq)]
-pub(crate) struct NearFaces {
-    /// The spheres in the step.
-    pub rows: u32,
-    /// The own spheres outside the box shrunk by the halo, in no order.
-    pub near: Vec<NearRow>,
-    /// The ghosts' rows and stable ids, in no order.
-    pub ghosts: Vec<[u32; 2]>,
+pub(crate) struct Layer {
+    /// Each direction's [`LayerRecord`]s as bytes.
+    pub lists: Vec<Vec<u8>>,
     /// The own spheres' largest speed \[m/s\].
     pub fastest: f32,
 }
 
-/// An own sphere near a face of its rank's box as its step holds it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct NearRow {
-    pub row: u32,
-    pub stable: u32,
-    /// `[x, y, z, r]`: the `f32` centre and radius.
+/// A sphere as one rank's step sends it to another's: `[x, y, z, r]`, the residual of the
+/// centre and the whole-run id, the velocity, `[ωx, ωy, ωz, material]`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct LayerRecord {
     pub pos: [f32; 4],
-    /// The residual of the centre.
     pub lo: [f32; 3],
+    pub whole: u32,
     pub vel: [f32; 3],
-    /// `[ωx, ωy, ωz, material]`.
+    pub pad: u32,
     pub omega: [f32; 4],
 }
 
-/// A state written into a row of a step: where its sphere is, to the residual, and how it
-/// moves and turns.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct RowState {
-    pub row: u32,
-    pub position: [f32; 3],
-    pub residual: [f32; 3],
-    pub velocity: [f32; 3],
-    pub spin: [f32; 3],
+/// What placing a round's records left ([`ResidentStep::place_layer`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct Placed {
+    /// Each sphere that leaves: its row, stable id and 1 where it was the rank's own.
+    pub leaving: Vec<[u32; 3]>,
+    /// The records of spheres the step does not hold, by their place among those received
+    /// (the messages one after the other).
+    pub coming: Vec<u32>,
+    /// Ghosts that became the rank's own.
+    pub made_own: u32,
+    /// Own spheres that became ghosts.
+    pub made_ghosts: u32,
 }
 
 /// A step's spheres row by row: `[x, y, z, r]` (the `f32` centre and radius), the residuals

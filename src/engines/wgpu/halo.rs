@@ -1,24 +1,27 @@
 //! A rank's exchange of ghosts on the device (`wgsl/dem/halo.wgsl`), so that a round of a run
-//! over ranks reads back and writes the spheres near its box's faces, not every sphere of the
-//! rank: one pass lists the own spheres outside the box shrunk by the halo (with their states)
-//! and the ghosts' rows, and finds the own spheres' largest speed; another writes the states
-//! the owners sent into the ghosts' rows. Which spheres are the rank's own the pass reads from
-//! marks by stable id, which the rank sets as ownership changes.
+//! over ranks moves the layer near its box's faces as records written and placed by the GPUs,
+//! none of its spheres handled one by one on the host: one pass writes the records of the own
+//! spheres near the faces into a list for each neighbouring box and finds the own spheres'
+//! largest speed; three place the records that came (each stable id's row; the ghosts' states,
+//! the spheres now in the box made the rank's own; the spheres that leave listed, the own ones
+//! beyond the box made ghosts). The device keeps, by stable id, each sphere's whole-run id and
+//! whether it is the rank's own, and by whole-run id the stable id, as the rank names them.
 
-use crate::engines::common::flow::{NearFaces, NearRow, RowState};
-use crate::error::{Error, Result};
+use crate::engines::common::flow::{DIRECTIONS, Layer, LayerBounds, LayerRecord, Named, Placed};
+use crate::error::Result;
 use crate::gpu::shader::{Binding, Vec3f, WgslModule, shared_struct, wgsl};
 use crate::gpu::{Gpu, Staging};
-use rayon::prelude::*;
 
 /// The shader, embedded.
 const SOURCE: &str = wgsl!("dem/halo.wgsl");
 const GATHER: &str = "halo_gather";
-const SCATTER: &str = "halo_scatter";
+const ROWS: &str = "halo_rows";
+const PLACE: &str = "halo_place";
+const LEAVING_PASS: &str = "halo_leaving";
 /// Workgroup size (as in the shader).
 const GROUP: u32 = 256;
-/// Entries of each list at first (they grow to what a round needs).
-const FIRST_ROOM: u32 = 4096;
+/// Records of each direction's list at first (they grow to what a round needs).
+const FIRST_ROOM: u32 = 1024;
 
 const PARAMS: Binding = Binding::uniform(0, "params");
 const POS: Binding = Binding::read_write(1, "pos");
@@ -26,32 +29,55 @@ const LO: Binding = Binding::read_write(2, "lo");
 const VEL: Binding = Binding::read_write(3, "vel");
 const OMEGA: Binding = Binding::read_write(4, "omega");
 const IDS: Binding = Binding::read(5, "ids");
-const OWN: Binding = Binding::read(6, "own");
-const COUNTS: Binding = Binding::read_write(7, "counts");
-const NEAR: Binding = Binding::read_write(8, "near");
-const GHOSTS: Binding = Binding::read_write(9, "ghosts");
-const INCOMING: Binding = Binding::read(10, "incoming");
+const OWN: Binding = Binding::read_write(6, "own");
+const WHOLE: Binding = Binding::read(7, "whole");
+const STABLE_OF: Binding = Binding::read(8, "stable_of");
+const ROW_OF: Binding = Binding::read_write(9, "row_of");
+const TOUCHED: Binding = Binding::read_write(10, "touched");
+const COUNTS: Binding = Binding::read_write(11, "counts");
+const RECORDS: Binding = Binding::read_write(12, "records");
+const INCOMING: Binding = Binding::read(13, "incoming");
+const LEAVING: Binding = Binding::read_write(14, "leaving");
+const COMING: Binding = Binding::read_write(15, "coming");
+
+/// Words of the counts: one a direction, then the largest speed, the leaving, the coming, the
+/// ghosts made own and the own spheres made ghosts (as in the shader).
+const COUNT_WORDS: usize = 32;
+const FASTEST: usize = 27;
+const LEAVING_AT: usize = 28;
+const COMING_AT: usize = 29;
+const MADE_OWN: usize = 30;
+const MADE_GHOSTS: usize = 31;
 
 /// The exchange's WGSL module, exactly as the device gets it.
 pub fn module() -> WgslModule {
     WgslModule::new(
         "halo",
         SOURCE,
-        &[GATHER, SCATTER],
+        &[GATHER, ROWS, PLACE, LEAVING_PASS],
         &[
-            PARAMS, POS, LO, VEL, OMEGA, IDS, OWN, COUNTS, NEAR, GHOSTS, INCOMING,
+            PARAMS, POS, LO, VEL, OMEGA, IDS, OWN, WHOLE, STABLE_OF, ROW_OF, TOUCHED, COUNTS,
+            RECORDS, INCOMING, LEAVING, COMING,
         ],
         vec![shared_struct!(
             "HaloParams",
             HaloParams {
                 n,
                 row,
-                near_room,
-                ghost_room,
-                inner_lo,
-                spins,
-                inner_hi,
+                room,
                 count,
+                near_lo,
+                stamp,
+                near_hi,
+                spins,
+                box_lo,
+                leave_room,
+                box_hi,
+                coming_room,
+                keep_lo,
+                pad0,
+                keep_hi,
+                pad1,
             }
         )],
     )
@@ -62,16 +88,24 @@ pub fn module() -> WgslModule {
 struct HaloParams {
     n: u32,
     row: u32,
-    near_room: u32,
-    ghost_room: u32,
-    inner_lo: Vec3f,
-    spins: u32,
-    inner_hi: Vec3f,
+    room: u32,
     count: u32,
+    near_lo: Vec3f,
+    stamp: u32,
+    near_hi: Vec3f,
+    spins: u32,
+    box_lo: Vec3f,
+    leave_room: u32,
+    box_hi: Vec3f,
+    coming_room: u32,
+    keep_lo: Vec3f,
+    pad0: u32,
+    keep_hi: Vec3f,
+    pad1: u32,
 }
 
-/// Words (`vec4<u32>`) of a near sphere's entry and of a state written.
-const ENTRY_VECS: u32 = 4;
+/// Bytes of a record.
+const RECORD: u64 = size_of::<LayerRecord>() as u64;
 
 /// A step's state as the exchange binds it: rows `0..n` of each buffer (`omega`: the spins and
 /// materials of the granular step, `None` in the paper's).
@@ -84,250 +118,343 @@ pub(crate) struct StateBuffers<'a> {
     pub n: u32,
 }
 
-/// The exchange's pipelines and buffers (lists and marks grown on demand).
+/// The exchange's pipelines and buffers (grown on demand).
 pub(crate) struct HaloExchange {
     gather: wgpu::ComputePipeline,
-    scatter: wgpu::ComputePipeline,
+    rows: wgpu::ComputePipeline,
+    place: wgpu::ComputePipeline,
+    leaving_pass: wgpu::ComputePipeline,
     params: wgpu::Buffer,
     counts: wgpu::Buffer,
-    near: wgpu::Buffer,
-    ghosts: wgpu::Buffer,
-    incoming: wgpu::Buffer,
-    /// By stable id, 1 where the sphere is the rank's own (ids past its end: ghosts).
+    /// By stable id: own marks, whole-run ids, rows, stamps (`stables` words each).
     own: wgpu::Buffer,
+    whole: wgpu::Buffer,
+    row_of: wgpu::Buffer,
+    touched: wgpu::Buffer,
+    stables: u64,
+    /// By whole-run id: the stable id + 1 (`wholes` words).
+    stable_of: wgpu::Buffer,
+    wholes: u64,
+    /// `room` records a direction.
+    records: wgpu::Buffer,
+    room: u32,
+    incoming: wgpu::Buffer,
+    leaving: wgpu::Buffer,
+    coming: wgpu::Buffer,
     /// Bound as the spins where the state has none; never read.
     no_spin: wgpu::Buffer,
-    near_room: u32,
-    ghost_room: u32,
-    staging: [Staging; 3],
+    /// The stable ids named so far (the own marks read back cover them).
+    named: u32,
+    /// The round's stamp of the ghosts it placed.
+    stamp: u32,
+    staging: [Staging; 4],
 }
 
 impl HaloExchange {
     /// The pipelines (compiled once per device) and first buffers.
     pub fn new(gpu: &Gpu) -> Self {
         let module = gpu.module("mochi.halo", SOURCE);
-        let none = wgpu::BufferUsages::empty();
-        let vec4 = 16 * ENTRY_VECS as u64;
+        let words = |label, n: u64| gpu.storage(label, n * 4, wgpu::BufferUsages::empty());
+        let first = FIRST_ROOM as u64;
         HaloExchange {
             gather: gpu.pipeline("mochi.halo.gather", &module, GATHER),
-            scatter: gpu.pipeline("mochi.halo.scatter", &module, SCATTER),
+            rows: gpu.pipeline("mochi.halo.rows", &module, ROWS),
+            place: gpu.pipeline("mochi.halo.place", &module, PLACE),
+            leaving_pass: gpu.pipeline("mochi.halo.leaving", &module, LEAVING_PASS),
             params: gpu.uniform("mochi.halo.params", &HaloParams::default()),
-            counts: gpu.storage("mochi.halo.counts", 16, none),
-            near: gpu.storage("mochi.halo.near", FIRST_ROOM as u64 * vec4, none),
-            ghosts: gpu.storage("mochi.halo.ghosts", FIRST_ROOM as u64 * 8, none),
-            incoming: gpu.storage("mochi.halo.incoming", FIRST_ROOM as u64 * vec4, none),
-            own: gpu.storage("mochi.halo.own", FIRST_ROOM as u64 * 4, none),
-            no_spin: gpu.storage("mochi.halo.no_spin", 16, none),
-            near_room: FIRST_ROOM,
-            ghost_room: FIRST_ROOM,
+            counts: words("mochi.halo.counts", COUNT_WORDS as u64),
+            own: words("mochi.halo.own", first),
+            whole: words("mochi.halo.whole", first),
+            row_of: words("mochi.halo.row_of", first),
+            touched: words("mochi.halo.touched", first),
+            stables: first,
+            stable_of: words("mochi.halo.stable_of", first),
+            wholes: first,
+            records: words("mochi.halo.records", DIRECTIONS as u64 * first * RECORD / 4),
+            room: FIRST_ROOM,
+            incoming: words("mochi.halo.incoming", first * RECORD / 4),
+            leaving: words("mochi.halo.leaving", first * 4),
+            coming: words("mochi.halo.coming", first),
+            no_spin: words("mochi.halo.no_spin", 4),
+            named: 0,
+            stamp: 0,
             staging: Default::default(),
         }
     }
 
-    /// Marks each stable id of `marks` as the rank's own sphere (`true`) or a ghost.
-    pub fn mark(&mut self, gpu: &Gpu, marks: &[(u32, bool)]) -> Result<()> {
-        let Some(last) = marks.iter().map(|&(k, _)| k).max() else {
+    /// Names the spheres of `names`' stable ids ([`Named`]).
+    pub fn name(&mut self, gpu: &Gpu, names: &[Named]) -> Result<()> {
+        let (Some(stable), Some(whole)) = (
+            names.iter().map(|n| n.stable).max(),
+            names.iter().map(|n| n.whole).max(),
+        ) else {
             return Ok(());
         };
-        let words = last as u64 + 1;
-        if self.own.size() < words * 4 {
-            // Grown with the marks set so far; new words are zero (ghosts).
-            let bytes = (words * 4).next_power_of_two();
-            let grown = gpu.checked("growing a rank's marks of its own spheres", || {
-                gpu.storage("mochi.halo.own", bytes, wgpu::BufferUsages::empty())
-            })?;
-            let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            encoder.copy_buffer_to_buffer(&self.own, 0, &grown, 0, self.own.size());
-            gpu.queue.submit([encoder.finish()]);
-            self.own = grown;
+        self.grow_stables(gpu, stable as u64 + 1)?;
+        self.grow_wholes(gpu, whole as u64 + 1)?;
+        self.named = self.named.max(stable + 1);
+        let mut by_stable = names.to_vec();
+        by_stable.sort_unstable_by_key(|n| n.stable);
+        for run in by_stable.chunk_by(|a, b| b.stable == a.stable + 1) {
+            let at = run[0].stable as u64 * 4;
+            let own: Vec<u32> = run.iter().map(|n| n.own as u32).collect();
+            let whole: Vec<u32> = run.iter().map(|n| n.whole).collect();
+            gpu.queue
+                .write_buffer(&self.own, at, bytemuck::cast_slice(&own));
+            gpu.queue
+                .write_buffer(&self.whole, at, bytemuck::cast_slice(&whole));
         }
-        let mut sorted = marks.to_vec();
-        sorted.sort_unstable_by_key(|&(k, _)| k);
-        // Runs of consecutive ids, one write each.
-        for run in sorted.chunk_by(|a, b| b.0 == a.0 + 1) {
-            let values: Vec<u32> = run.iter().map(|&(_, own)| own as u32).collect();
+        let stable_of: Vec<(u32, u32)> = names.iter().map(|n| (n.whole, n.stable + 1)).collect();
+        self.write_stable_of(gpu, stable_of);
+        Ok(())
+    }
+
+    /// Forgets the whole-run ids `wholes`.
+    pub fn forget(&mut self, gpu: &Gpu, wholes: &[u32]) {
+        let gone = wholes.iter().map(|&w| (w, 0)).collect();
+        self.write_stable_of(gpu, gone);
+    }
+
+    /// Writes each `(whole, value)` into `stable_of`, a run of consecutive ids at a time.
+    fn write_stable_of(&self, gpu: &Gpu, mut entries: Vec<(u32, u32)>) {
+        entries.sort_unstable_by_key(|e| e.0);
+        for run in entries.chunk_by(|a, b| b.0 == a.0 + 1) {
+            let values: Vec<u32> = run.iter().map(|e| e.1).collect();
             gpu.queue.write_buffer(
-                &self.own,
+                &self.stable_of,
                 run[0].0 as u64 * 4,
                 bytemuck::cast_slice(&values),
             );
         }
+    }
+
+    /// The own marks of the stable ids named so far.
+    pub fn own_marks(&mut self, gpu: &Gpu) -> Result<Vec<u32>> {
+        gpu.read_through(&mut self.staging[0], &self.own, self.named as usize)
+    }
+
+    /// The buffers by stable id grown to hold `words` ids, what they hold kept.
+    fn grow_stables(&mut self, gpu: &Gpu, words: u64) -> Result<()> {
+        if words <= self.stables {
+            return Ok(());
+        }
+        let size = words.next_power_of_two();
+        for buffer in [
+            &mut self.own,
+            &mut self.whole,
+            &mut self.row_of,
+            &mut self.touched,
+        ] {
+            *buffer = grown(gpu, buffer, size * 4)?;
+        }
+        self.stables = size;
         Ok(())
     }
 
-    /// The own spheres of `state` whose centres lie outside `inner` (`lo <= c < hi` along every
-    /// axis; an infinite side never holds one outside), the rows of its ghosts and its own
-    /// spheres' largest speed.
+    /// `stable_of` grown to hold `words` whole-run ids, what it holds kept.
+    fn grow_wholes(&mut self, gpu: &Gpu, words: u64) -> Result<()> {
+        if words > self.wholes {
+            let size = words.next_power_of_two();
+            self.stable_of = grown(gpu, &self.stable_of, size * 4)?;
+            self.wholes = size;
+        }
+        Ok(())
+    }
+
+    /// Writes the uniform for `state` within `bounds` and `count` records received; returns
+    /// the workgroups of every pass (each checks its own bound).
+    fn params(
+        &self,
+        gpu: &Gpu,
+        state: &StateBuffers,
+        bounds: &LayerBounds,
+        count: u32,
+    ) -> (u32, u32) {
+        let groups = gpu.grid(state.n.max(count), GROUP);
+        let params = HaloParams {
+            n: state.n,
+            row: groups.0 * GROUP,
+            room: self.room,
+            count,
+            near_lo: Vec3f(bounds.near.0),
+            stamp: self.stamp,
+            near_hi: Vec3f(bounds.near.1),
+            spins: state.omega.is_some() as u32,
+            box_lo: Vec3f(bounds.own.0),
+            leave_room: (self.leaving.size() / 16) as u32,
+            box_hi: Vec3f(bounds.own.1),
+            coming_room: (self.coming.size() / 4) as u32,
+            keep_lo: Vec3f(bounds.keep.0),
+            pad0: 0,
+            keep_hi: Vec3f(bounds.keep.1),
+            pad1: 0,
+        };
+        gpu.write_uniform(&self.params, &params);
+        groups
+    }
+
+    /// Every buffer the passes bind, `state`'s among them.
+    fn bindings<'a>(&'a self, state: &StateBuffers<'a>) -> [(Binding, &'a wgpu::Buffer); 16] {
+        [
+            (PARAMS, &self.params),
+            (POS, state.pos),
+            (LO, state.lo),
+            (VEL, state.vel),
+            (OMEGA, state.omega.unwrap_or(&self.no_spin)),
+            (IDS, state.ids),
+            (OWN, &self.own),
+            (WHOLE, &self.whole),
+            (STABLE_OF, &self.stable_of),
+            (ROW_OF, &self.row_of),
+            (TOUCHED, &self.touched),
+            (COUNTS, &self.counts),
+            (RECORDS, &self.records),
+            (INCOMING, &self.incoming),
+            (LEAVING, &self.leaving),
+            (COMING, &self.coming),
+        ]
+    }
+
+    /// Records a pass of `pipeline` over the workgroups `groups`, with the bindings its entry
+    /// uses.
+    fn pass(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        (pipeline, uses): (&wgpu::ComputePipeline, &[Binding]),
+        state: &StateBuffers,
+        groups: (u32, u32),
+    ) {
+        let bound: Vec<(Binding, &wgpu::Buffer)> = (self.bindings(state).into_iter())
+            .filter(|(b, _)| uses.contains(b))
+            .collect();
+        gpu.pass(encoder, "mochi.halo", pipeline, &bound, groups);
+    }
+
+    /// The records of the own spheres of `state` near the faces of `bounds`, by direction,
+    /// and the own spheres' largest speed.
     pub fn gather(
         &mut self,
         gpu: &Gpu,
         state: &StateBuffers,
-        inner: ([f32; 3], [f32; 3]),
-    ) -> Result<NearFaces> {
-        let groups = gpu.grid(state.n, GROUP);
+        bounds: &LayerBounds,
+    ) -> Result<Layer> {
         loop {
-            let params = HaloParams {
-                n: state.n,
-                row: groups.0 * GROUP,
-                near_room: self.near_room,
-                ghost_room: self.ghost_room,
-                inner_lo: Vec3f(inner.0),
-                spins: state.omega.is_some() as u32,
-                inner_hi: Vec3f(inner.1),
-                count: 0,
-            };
-            gpu.write_uniform(&self.params, &params);
-            let bind = gpu.bind(
-                "mochi.halo.gather",
-                &self.gather,
-                &[
-                    (PARAMS, &self.params),
-                    (POS, state.pos),
-                    (LO, state.lo),
-                    (VEL, state.vel),
-                    (OMEGA, state.omega.unwrap_or(&self.no_spin)),
-                    (IDS, state.ids),
-                    (OWN, &self.own),
-                    (COUNTS, &self.counts),
-                    (NEAR, &self.near),
-                    (GHOSTS, &self.ghosts),
-                ],
-            );
+            let groups = self.params(gpu, state, bounds, 0);
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             encoder.clear_buffer(&self.counts, 0, None);
-            gpu.dispatch(
-                &mut encoder,
-                "mochi.halo.gather",
-                &self.gather,
-                &bind,
-                groups,
-            );
+            let uses = [
+                PARAMS, POS, LO, VEL, OMEGA, IDS, OWN, WHOLE, COUNTS, RECORDS,
+            ];
+            self.pass(gpu, &mut encoder, (&self.gather, &uses), state, groups);
             gpu.queue.submit([encoder.finish()]);
-            let [staging_counts, staging_near, staging_ghosts] = &mut self.staging;
-            let counts: Vec<u32> = gpu.read_through(staging_counts, &self.counts, 4)?;
-            let (near, ghosts) = (counts[0], counts[1]);
-            if near > self.near_room || ghosts > self.ghost_room {
+            let counts: Vec<u32> =
+                gpu.read_through(&mut self.staging[1], &self.counts, COUNT_WORDS)?;
+            let most = counts[..DIRECTIONS].iter().copied().max().unwrap_or(0);
+            if most > self.room {
                 // A list overflowed: again with room for all.
-                let none = wgpu::BufferUsages::empty();
-                if near > self.near_room {
-                    self.near_room = near.next_power_of_two();
-                    let bytes = self.near_room as u64 * 16 * ENTRY_VECS as u64;
-                    self.near = gpu
-                        .checked("growing a rank's list of spheres near its faces", || {
-                            gpu.storage("mochi.halo.near", bytes, none)
-                        })?;
-                }
-                if ghosts > self.ghost_room {
-                    self.ghost_room = ghosts.next_power_of_two();
-                    let bytes = self.ghost_room as u64 * 8;
-                    self.ghosts = gpu.checked("growing a rank's list of ghosts", || {
-                        gpu.storage("mochi.halo.ghosts", bytes, none)
-                    })?;
-                }
+                self.room = most.next_power_of_two();
+                let bytes = DIRECTIONS as u64 * self.room as u64 * RECORD;
+                self.records = gpu.checked("growing a rank's lists of records", || {
+                    gpu.storage("mochi.halo.records", bytes, wgpu::BufferUsages::empty())
+                })?;
                 continue;
             }
-            let entries = (near * ENTRY_VECS) as usize;
-            let near = gpu.read_through_with(
-                staging_near,
-                &self.near,
-                entries,
-                |words: &[[u32; 4]]| words.chunks_exact(4).map(near_row).collect(),
-            )?;
-            let ghosts: Vec<[u32; 2]> =
-                gpu.read_through(staging_ghosts, &self.ghosts, ghosts as usize)?;
-            let fastest = f32::from_bits(counts[2]);
-            if !fastest.is_finite() {
-                return Err(Error::Usage(
-                    "a rank's sphere moves at a speed that is not finite".into(),
-                ));
-            }
-            return Ok(NearFaces {
-                rows: state.n,
-                near,
-                ghosts,
-                fastest,
+            let ranges: Vec<std::ops::Range<u64>> = (0..DIRECTIONS)
+                .map(|d| {
+                    let start = d as u64 * self.room as u64 * RECORD;
+                    start..start + counts[d] as u64 * RECORD
+                })
+                .collect();
+            let lists = gpu.read_ranges(&mut self.staging[2], &self.records, &ranges)?;
+            return Ok(Layer {
+                lists,
+                fastest: f32::from_bits(counts[FASTEST]),
             });
         }
     }
 
-    /// Writes each of `states` into its row of `state` (radius, mass and material as they are).
-    pub fn scatter(&mut self, gpu: &Gpu, state: &StateBuffers, states: &[RowState]) -> Result<()> {
-        let count = states.len() as u32;
-        if count == 0 {
-            return Ok(());
-        }
-        if states.iter().any(|s| s.row >= state.n) {
-            return Err(Error::Usage(
-                "a ghost's state was sent to a row its step does not hold".into(),
-            ));
-        }
-        let bytes = count as u64 * 16 * ENTRY_VECS as u64;
+    /// Places the records of `received` in `state` within `bounds` ([`Placed`]).
+    pub fn place(
+        &mut self,
+        gpu: &Gpu,
+        state: &StateBuffers,
+        bounds: &LayerBounds,
+        received: &[Vec<u8>],
+    ) -> Result<Placed> {
+        let bytes: u64 = received.iter().map(|m| m.len() as u64).sum();
+        let count = (bytes / RECORD) as u32;
+        let none = wgpu::BufferUsages::empty();
         if self.incoming.size() < bytes {
-            self.incoming = gpu.checked("growing a rank's list of ghosts' states", || {
-                let size = bytes.next_power_of_two();
-                gpu.storage("mochi.halo.incoming", size, wgpu::BufferUsages::empty())
+            let size = bytes.next_power_of_two();
+            self.incoming = gpu.checked("growing a rank's records received", || {
+                gpu.storage("mochi.halo.incoming", size, none)
             })?;
         }
-        let entries: Vec<[[u32; 4]; 4]> = states.par_iter().map(entry_of).collect();
-        gpu.queue
-            .write_buffer(&self.incoming, 0, bytemuck::cast_slice(&entries));
-        let groups = gpu.grid(count, GROUP);
-        let params = HaloParams {
-            n: state.n,
-            row: groups.0 * GROUP,
-            spins: state.omega.is_some() as u32,
-            count,
-            ..HaloParams::default()
-        };
-        gpu.write_uniform(&self.params, &params);
-        let bind = gpu.bind(
-            "mochi.halo.scatter",
-            &self.scatter,
-            &[
-                (PARAMS, &self.params),
-                (POS, state.pos),
-                (LO, state.lo),
-                (VEL, state.vel),
-                (OMEGA, state.omega.unwrap_or(&self.no_spin)),
-                (INCOMING, &self.incoming),
-            ],
-        );
+        // Room for every row leaving and every record coming: the lists never overflow.
+        if self.leaving.size() < state.n as u64 * 16 {
+            let size = (state.n as u64 * 16).next_power_of_two();
+            self.leaving = gpu.checked("growing a rank's list of leaving spheres", || {
+                gpu.storage("mochi.halo.leaving", size, none)
+            })?;
+        }
+        if self.coming.size() < count as u64 * 4 {
+            let size = (count as u64 * 4).next_power_of_two();
+            self.coming = gpu.checked("growing a rank's list of coming spheres", || {
+                gpu.storage("mochi.halo.coming", size, none)
+            })?;
+        }
+        let mut at = 0;
+        for message in received {
+            gpu.queue.write_buffer(&self.incoming, at, message);
+            at += message.len() as u64;
+        }
+        self.stamp = self.stamp.wrapping_add(1).max(1);
+        let groups = self.params(gpu, state, bounds, count);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        gpu.dispatch(
+        encoder.clear_buffer(&self.counts, LEAVING_AT as u64 * 4, None);
+        let rows = [PARAMS, IDS, ROW_OF];
+        self.pass(gpu, &mut encoder, (&self.rows, &rows), state, groups);
+        let place = [
+            PARAMS, POS, LO, VEL, OMEGA, OWN, STABLE_OF, ROW_OF, TOUCHED, COUNTS, INCOMING, COMING,
+        ];
+        self.pass(gpu, &mut encoder, (&self.place, &place), state, groups);
+        let leaving = [PARAMS, POS, LO, IDS, OWN, TOUCHED, COUNTS, LEAVING];
+        self.pass(
+            gpu,
             &mut encoder,
-            "mochi.halo.scatter",
-            &self.scatter,
-            &bind,
+            (&self.leaving_pass, &leaving),
+            state,
             groups,
         );
         gpu.queue.submit([encoder.finish()]);
-        Ok(())
+        let counts: Vec<u32> = gpu.read_through(&mut self.staging[1], &self.counts, COUNT_WORDS)?;
+        let left: Vec<[u32; 4]> = gpu.read_through(
+            &mut self.staging[3],
+            &self.leaving,
+            counts[LEAVING_AT] as usize,
+        )?;
+        let coming: Vec<u32> = gpu.read_through(
+            &mut self.staging[0],
+            &self.coming,
+            counts[COMING_AT] as usize,
+        )?;
+        Ok(Placed {
+            leaving: left.into_iter().map(|[r, k, own, _]| [r, k, own]).collect(),
+            coming,
+            made_own: counts[MADE_OWN],
+            made_ghosts: counts[MADE_GHOSTS],
+        })
     }
 }
 
-/// A near sphere's entry (four `vec4<u32>`, as the shader writes it) read.
-fn near_row(words: &[[u32; 4]]) -> NearRow {
-    let f = |w: [u32; 4]| w.map(f32::from_bits);
-    let [pos, lo, vel, omega] = [words[0], words[1], words[2], words[3]];
-    let [lx, ly, lz, _] = f(lo);
-    let [vx, vy, vz, _] = f(vel);
-    NearRow {
-        row: lo[3],
-        stable: vel[3],
-        pos: f(pos),
-        lo: [lx, ly, lz],
-        vel: [vx, vy, vz],
-        omega: f(omega),
-    }
-}
-
-/// A state's entry as the shader reads it: the centre with the row, residual, velocity, spin.
-fn entry_of(s: &RowState) -> [[u32; 4]; 4] {
-    let bits = |v: [f32; 3], w: u32| [v[0].to_bits(), v[1].to_bits(), v[2].to_bits(), w];
-    [
-        bits(s.position, s.row),
-        bits(s.residual, 0),
-        bits(s.velocity, 0),
-        bits(s.spin, 0),
-    ]
+/// A buffer of `size` bytes holding what `old` holds, the rest zero.
+fn grown(gpu: &Gpu, old: &wgpu::Buffer, size: u64) -> Result<wgpu::Buffer> {
+    let new = gpu.checked("growing a rank's marks of its spheres", || {
+        gpu.storage("mochi.halo.by_id", size, wgpu::BufferUsages::empty())
+    })?;
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(old, 0, &new, 0, old.size());
+    gpu.queue.submit([encoder.finish()]);
+    Ok(new)
 }

@@ -3,7 +3,9 @@
 //! removal and appending keep a rank's step on its device from round to round.
 
 use super::*;
-use crate::engines::common::flow::{Arriving, DeviceRows, NearFaces, ResidentStep, RowState};
+use crate::engines::common::flow::{
+    Arriving, DeviceRows, Layer, LayerBounds, Named, Placed, ResidentStep,
+};
 use crate::engines::wgpu::halo::{HaloExchange, StateBuffers};
 
 /// Flow events scan the state on the device and append inserted spheres to it, in rows kept
@@ -126,9 +128,9 @@ impl DeviceFlow for GridStepper {
     }
 }
 
-/// A rank's step: its spheres near the faces of the rank's box listed and its ghosts' rows
-/// (`halo.wgsl`), states written into rows, spheres taken out and appended; every row read
-/// back where the rank counts its contacts.
+/// A rank's step: the records of its spheres near the faces of the rank's box written and
+/// those sent here placed on the device (`halo.wgsl`), spheres taken out and appended; every
+/// row read back where the rank counts its contacts.
 impl ResidentStep for GridStepper {
     fn rows(&mut self) -> Result<DeviceRows> {
         let (gpu, n) = (&self.res.gpu, self.n as usize);
@@ -146,29 +148,41 @@ impl ResidentStep for GridStepper {
         })
     }
 
-    fn mark_own(&mut self, marks: &[(u32, bool)]) -> Result<()> {
-        let gpu = &self.res.gpu;
-        let halo = self.halo.get_or_insert_with(|| HaloExchange::new(gpu));
-        halo.mark(gpu, marks)
+    fn name(&mut self, names: &[Named]) -> Result<()> {
+        self.with_halo(|step, halo, _| halo.name(&step.res.gpu, names))
     }
 
-    fn near_faces(&mut self, inner: ([f32; 3], [f32; 3])) -> Result<NearFaces> {
-        self.with_halo(|step, halo, state| halo.gather(&step.res.gpu, state, inner))
+    fn forget(&mut self, wholes: &[u32]) -> Result<()> {
+        self.with_halo(|step, halo, _| {
+            halo.forget(&step.res.gpu, wholes);
+            Ok(())
+        })
+    }
+
+    fn own_marks(&mut self) -> Result<Vec<u32>> {
+        self.with_halo(|step, halo, _| halo.own_marks(&step.res.gpu))
+    }
+
+    fn gather_layer(&mut self, bounds: &LayerBounds) -> Result<Layer> {
+        self.with_halo(|step, halo, state| halo.gather(&step.res.gpu, state, bounds))
+    }
+
+    fn place_layer(&mut self, bounds: &LayerBounds, received: &[Vec<u8>]) -> Result<Placed> {
+        // Moved spheres are binned afresh, in a grid laid out over where they are now.
+        (self.sort_next, self.counted, self.stale) = (true, false, true);
+        self.with_halo(|step, halo, state| halo.place(&step.res.gpu, state, bounds, received))
     }
 
     fn fits(&self, leaving: usize, coming: &[Arriving]) -> bool {
         self.room_for(coming.iter().map(|a| a.sphere.radius), leaving as u32)
     }
 
-    fn update(&mut self, states: &[RowState], leaving: &[u32], coming: &[Arriving]) -> Result<u32> {
+    fn update(&mut self, leaving: &[u32], coming: &[Arriving]) -> Result<u32> {
         if !self.fits(leaving.len(), coming) {
             return Err(Error::Usage(
                 "a rank's step has no room for its spheres".into(),
             ));
         }
-        self.with_halo(|step, halo, state| halo.scatter(&step.res.gpu, state, states))?;
-        // Moved spheres are binned afresh, in a grid laid out over where they are now.
-        (self.sort_next, self.counted, self.stale) = (true, false, true);
         let new: Vec<NewSphere> = coming.iter().map(|a| a.sphere).collect();
         let first = self.next_id;
         if !(self.remove(leaving)? && self.append(&new)?) {
