@@ -401,11 +401,12 @@ fn what_a_decomposed_run_does_not_carry_yet_is_refused() {
 }
 
 /// `run` on each of two ranks (threads) of `setup` stepping on backend `kind` (keeping rows
-/// for `spare` spheres to come where given), rank 0's first.
+/// for `spare` spheres to come where given, the faces moved every `rebalance` steps where not
+/// 0), rank 0's first.
 fn on_two_ranks<T: Send>(
     kind: BackendKind,
     setup: &DemSetup,
-    spare: Option<usize>,
+    (spare, rebalance): (Option<usize>, u64),
     run: impl Fn(&mut RankStepper<LocalComm>) -> T + Sync,
 ) -> Vec<T> {
     let options = Options::default();
@@ -417,6 +418,7 @@ fn on_two_ranks<T: Send>(
                 let (options, run) = (&options, &run);
                 scope.spawn(move || {
                     let opened = RankStepper::new(comm, setup)
+                        .map(|rank| rank.rebalancing_every(rebalance))
                         .map(|rank| match spare {
                             Some(spare) => rank.keeping_rows_for(spare),
                             None => rank,
@@ -452,7 +454,7 @@ fn a_run_in_a_turning_drum_on_two_ranks_of_each_gpu_backend_loads_it_as_the_whol
         let expected = components(&*whole);
         let largest = expected.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         assert!(largest > 0.0, "{expected:?}");
-        let ranks = on_two_ranks(kind, &setup, None, |rank| {
+        let ranks = on_two_ranks(kind, &setup, (None, 0), |rank| {
             rank.advance(STEPS).unwrap();
             (components(rank), rank.ghost_spheres())
         });
@@ -489,9 +491,12 @@ fn a_run_on_two_ranks_of_each_backend_matches_the_whole_run_on_it() {
         // wgpu-compute keeps each rank's step from round to round, with rows to spare for the
         // spheres that come; with none to spare, and the spheres swept across the box, the
         // ranks open their steps again whenever more come than leave.
-        let mut cases = vec![(landing.clone(), None)];
+        // Faces moved every 8 steps as well: a kept step stays where they move less than the
+        // halo.
+        let mut cases = vec![(landing.clone(), (None, 0))];
         if kind == BackendKind::WgpuCompute {
-            cases.push((tilted(landing.clone()), Some(0)));
+            cases.push((tilted(landing.clone()), (Some(0), 0)));
+            cases.push((landing.clone(), (None, 8)));
         }
         for (setup, spare) in cases {
             let mut whole = open_setup(kind, setup.clone(), &options).unwrap();
@@ -529,7 +534,7 @@ fn a_run_on_two_ranks_of_each_backend_matches_the_whole_run_on_it() {
             let energy = kinetic(got) / kinetic(&expected) - 1.0;
             let more = *got_contacts as f64 / contacts as f64 - 1.0;
             eprintln!(
-                "{} (rows to spare: {spare:?}): ghosts exchanged every {every} step(s), {ghosts} at \
+                "{} (rows to spare, steps between rebalancings: {spare:?}): ghosts exchanged every {every} step(s), {ghosts} at \
                  most; largest gap {gap:.3e} m (r_min {r_min:.3e}), energy {energy:+.2e}, \
                  contacts {got_contacts} against {contacts}",
                 kind.name()

@@ -160,6 +160,15 @@ impl Grid {
         }
     }
 
+    /// Whether every face of this grid lies within `by` of the same face of `other` (a grid of
+    /// as many boxes along each axis).
+    pub fn moved_within(&self, other: &Grid, by: f64) -> bool {
+        (self.axes.iter().zip(&other.axes)).all(|(a, b)| {
+            a.faces.len() == b.faces.len()
+                && (a.faces.iter().zip(&b.faces)).all(|(x, y)| (x - y).abs() <= by)
+        })
+    }
+
     /// The width of the thinnest box along an axis that is cut (infinite where none is) \[m\].
     pub fn thinnest(&self) -> f64 {
         self.axes
@@ -250,5 +259,8 @@ mod tests {
         assert_eq!(balanced.axes[0].faces, [0.0, 0.25, 1.0]);
         assert_eq!(balanced.axes[1].faces, [0.0, 0.5, 1.0]);
         assert_eq!(balanced.axes[2].faces, [0.0, 1.0]);
+        assert!(balanced.moved_within(&grid, 0.25));
+        assert!(!balanced.moved_within(&grid, 0.2));
+        assert!(!grid.moved_within(&Grid::cut([0.0; 3], [1.0; 3], 2).unwrap(), 1.0));
     }
 }

@@ -246,15 +246,23 @@ impl<C: Comm> RankStepper<C> {
     }
 
     /// Moves the faces ([`rebalancing_every`](Self::rebalancing_every)) and hands on the
-    /// spheres whose box changed (every rank together).
+    /// spheres whose box changed (every rank together). A step kept on the device stays where
+    /// no face moved farther than the halo: every sphere entering a box is a ghost there, and
+    /// the next round's exchange, over the new boxes, hands it on with the springs its new
+    /// owner kept for it.
     fn rebalance(&mut self) -> Result<()> {
-        self.settle()?;
         let busy = std::mem::take(&mut self.since_rebalance).1;
-        let per_sphere = busy / self.own.len().max(1) as f64;
+        let centres: Vec<[f64; 3]> = match self.resident_mut() {
+            Some(resident) => resident.own_centres()?,
+            None => {
+                self.settle()?;
+                self.own.iter().map(Held::exact_position).collect()
+            }
+        };
+        let per_sphere = busy / centres.len().max(1) as f64;
         // The work along each axis, one histogram after the other.
         let mut work = vec![0.0f64; 3 * Slabs::BINS];
-        for held in &self.own {
-            let x = held.exact_position();
+        for &x in &centres {
             for (a, axis) in self.grid.axes.iter().enumerate() {
                 work[a * Slabs::BINS + axis.bin(x)] += per_sphere;
             }
@@ -270,9 +278,15 @@ impl<C: Comm> RankStepper<C> {
             total.iter_mut().zip(theirs).for_each(|(t, w)| *t += w);
         }
         let along = |a: usize| total[a * Slabs::BINS..(a + 1) * Slabs::BINS].to_vec();
-        self.grid = self.grid.balanced(&[along(0), along(1), along(2)]);
-        self.migrate()?;
-        self.share.spheres = self.own.len() as u64;
+        let grid = self.grid.balanced(&[along(0), along(1), along(2)]);
+        let halo = self.resident_mut().map(|r| r.halo());
+        let kept = halo.is_some_and(|halo| grid.moved_within(&self.grid, halo));
+        self.grid = grid;
+        if !kept {
+            self.settle()?;
+            self.migrate()?;
+            self.share.spheres = self.own.len() as u64;
+        }
         Ok(())
     }
 
@@ -394,6 +408,14 @@ impl<C: Comm> RankStepper<C> {
         }
     }
 
+    /// The step kept on the device (none: the rank holds its spheres).
+    fn resident_mut(&mut self) -> Option<&mut Resident> {
+        match &mut self.local {
+            LocalStep::Device { resident, .. } => resident.as_mut(),
+            LocalStep::Cpu(_) => None,
+        }
+    }
+
     /// The step kept on the device, taken out of the rank (none: the rank holds its spheres).
     fn take_resident(&mut self) -> Option<Resident> {
         match &mut self.local {
@@ -447,6 +469,10 @@ impl<C: Comm> RankStepper<C> {
         match exchanged.settled {
             Some(own) => self.own = own,
             None => {
+                // The walls' loads of the spheres in the box, as the exchange left them (the
+                // faces may have moved since the last).
+                let (lo, hi) = self.grid.bounds_of(self.comm.rank());
+                (resident.step).sum_wall_loads_within((lo.map(|x| x as f32), hi.map(|x| x as f32)));
                 if let LocalStep::Device { resident: kept, .. } = &mut self.local {
                     *kept = Some(resident);
                 }

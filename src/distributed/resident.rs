@@ -22,6 +22,7 @@ use crate::engines::common::flow::{
 };
 use crate::error::{Error, Result};
 use crate::particles::Particles;
+use crate::particles::position::join;
 use crate::proxy::ProxyMode;
 use rayon::prelude::*;
 use rustc_hash::{FxHashMap, FxHashSet};
@@ -112,6 +113,22 @@ impl Resident {
             .filter(|&(&own, k)| own == 1 && !not.contains(&k))
             .map(|(_, k)| self.global[k as usize])
             .filter(|&g| g != GONE)
+            .collect())
+    }
+
+    /// The halo of the last round's exchange (0 before the first) \[m\].
+    pub fn halo(&self) -> f64 {
+        self.depth / GATHER_MARGIN
+    }
+
+    /// Where the rank's own spheres' centres are, in no order (every row read back).
+    pub fn own_centres(&mut self) -> Result<Vec<[f64; 3]>> {
+        let rows = self.resident()?.rows()?;
+        let marks = self.resident()?.own_marks()?;
+        Ok((0..rows.ids.len())
+            .into_par_iter()
+            .filter(|&r| marks.get(rows.ids[r] as usize) == Some(&1))
+            .map(|r| std::array::from_fn(|a| join(rows.pos[r][a], rows.lo[r][a])))
             .collect())
     }
 
