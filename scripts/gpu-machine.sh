@@ -43,12 +43,14 @@ run | shell)
     for f in .gl/*.deb; do dpkg -x "$f" /; done
     # Open MPI for runs over ranks: the machine's own where it has one (its libraries must not
     # be mixed with another release's), else the one carried in .mpi/; shared memory between
-    # the processes of one machine, none of the network transports probed.
+    # the processes of one machine (large messages copied once, process to process: `cma`),
+    # none of the network transports probed.
     if ! command -v mpirun > /dev/null && compgen -G ".mpi/*.deb" > /dev/null; then
         for f in .mpi/*.deb; do dpkg -x "$f" /; done
     fi
     export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
     export OMPI_MCA_pml=ob1 OMPI_MCA_btl=self,vader OMPI_MCA_mtl=^ofi,psm,psm2
+    export OMPI_MCA_btl_vader_single_copy_mechanism=${OMPI_MCA_btl_vader_single_copy_mechanism:-cma}
     ldconfig
     export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
     export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json

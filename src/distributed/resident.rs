@@ -57,7 +57,8 @@ pub(super) struct Exchanged {
     /// their contacts, by ascending id (the rank opens a step again); `None`: the step holds
     /// the next round's spheres.
     pub settled: Option<Vec<Held>>,
-    /// The time writing and reading back the records near the faces took \[ms\].
+    /// The time counting the contacts and writing and reading back the records near the faces
+    /// took \[ms\] (not waiting for the other ranks).
     pub read_ms: f64,
 }
 
@@ -192,15 +193,17 @@ impl Resident {
         let me = comm.rank();
         let started = std::time::Instant::now();
         let touching = count.map(|mode| self.own_pair_ends(mode)).transpose()?;
-        let mut depth = self.depth;
-        let mut layer = self.resident()?.gather_layer(&bounds(grid, me, depth))?;
+        let first = bounds(grid, me, self.depth);
+        let mut layer = self.resident()?.gather_layer(&first)?;
+        let mut read_ms = started.elapsed().as_secs_f64() * 1e3;
+        // Every rank's speed: the wait for the others is not this rank's work.
         let halo = halo(layer.fastest as f64)?;
-        if halo > depth {
-            depth = halo;
-            layer = self.resident()?.gather_layer(&bounds(grid, me, depth))?;
+        if halo > self.depth {
+            let again = std::time::Instant::now();
+            layer = self.resident()?.gather_layer(&bounds(grid, me, halo))?;
+            read_ms += again.elapsed().as_secs_f64() * 1e3;
         }
         self.depth = halo * GATHER_MARGIN;
-        let read_ms = started.elapsed().as_secs_f64() * 1e3;
 
         // Each direction's records go to the box that lies that way, as they are.
         let mut outgoing = vec![Vec::new(); comm.size()];
