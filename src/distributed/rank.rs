@@ -223,9 +223,10 @@ impl<C: Comm> RankStepper<C> {
 
     /// The same rank moving the grid's faces at the end of the first round `steps` steps or
     /// more after the last move (0: never), so that each slab of each axis cut holds an equal
-    /// part of the work: each rank's time stepping its spheres since the last move, spread
-    /// evenly over them, summed over their places along each axis by every rank alike. On the
-    /// cpu any faces give the whole run bit for bit. Every rank of a group takes the same.
+    /// part of the work: on the cpu each rank's time stepping its spheres since the last move,
+    /// spread evenly over them, on a GPU backend the spheres themselves, summed over their
+    /// places along each axis by every rank alike. On the cpu any faces give the whole run bit
+    /// for bit. Every rank of a group takes the same.
     pub fn rebalancing_every(mut self, steps: u64) -> Self {
         self.rebalance_every = steps;
         self
@@ -259,7 +260,13 @@ impl<C: Comm> RankStepper<C> {
                 self.own.iter().map(Held::exact_position).collect()
             }
         };
-        let per_sphere = busy / centres.len().max(1) as f64;
+        // A GPU rank's time is mostly its round's fixed costs (the exchange, the launches),
+        // which spread over its spheres would give the rank with fewer fewer still: GPU ranks
+        // balance their spheres.
+        let per_sphere = match self.local {
+            LocalStep::Device { .. } => 1.0,
+            LocalStep::Cpu(_) => busy / centres.len().max(1) as f64,
+        };
         // The work along each axis, one histogram after the other.
         let mut work = vec![0.0f64; 3 * Slabs::BINS];
         for &x in &centres {
