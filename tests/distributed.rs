@@ -406,12 +406,23 @@ fn what_a_decomposed_run_does_not_carry_yet_is_refused() {
 fn on_two_ranks<T: Send>(
     kind: BackendKind,
     setup: &DemSetup,
+    how: (Option<usize>, u64),
+    run: impl Fn(&mut RankStepper<LocalComm>) -> T + Sync,
+) -> Vec<T> {
+    on_ranks(2, kind, setup, how, run)
+}
+
+/// [`on_two_ranks`] on `ranks` ranks.
+fn on_ranks<T: Send>(
+    ranks: usize,
+    kind: BackendKind,
+    setup: &DemSetup,
     (spare, rebalance): (Option<usize>, u64),
     run: impl Fn(&mut RankStepper<LocalComm>) -> T + Sync,
 ) -> Vec<T> {
     let options = Options::default();
     std::thread::scope(|scope| {
-        let handles: Vec<_> = LocalComm::group(2)
+        let handles: Vec<_> = LocalComm::group(ranks)
             .unwrap()
             .into_iter()
             .map(|comm| {
@@ -484,7 +495,7 @@ fn kinetic(p: &Particles) -> f64 {
 }
 
 #[test]
-fn a_run_on_two_ranks_of_each_backend_matches_the_whole_run_on_it() {
+fn a_run_over_ranks_of_each_backend_matches_the_whole_run_on_it() {
     let landing = landing();
     let options = Options::default();
     common::on_every_backend(|kind| {
@@ -493,16 +504,18 @@ fn a_run_on_two_ranks_of_each_backend_matches_the_whole_run_on_it() {
         // ranks open their steps again whenever more come than leave.
         // Faces moved every 8 steps as well: a kept step stays where they move less than the
         // halo.
-        let mut cases = vec![(landing.clone(), (None, 0))];
+        // On wgpu-compute four ranks too: a grid of 2 x 2 boxes, whose corners go to three.
+        let mut cases = vec![(landing.clone(), (None, 0), 2)];
         if kind == BackendKind::WgpuCompute {
-            cases.push((tilted(landing.clone()), (Some(0), 0)));
-            cases.push((landing.clone(), (None, 8)));
+            cases.push((tilted(landing.clone()), (Some(0), 0), 2));
+            cases.push((landing.clone(), (None, 8), 2));
+            cases.push((landing.clone(), (None, 0), 4));
         }
-        for (setup, spare) in cases {
+        for (setup, spare, ranks) in cases {
             let mut whole = open_setup(kind, setup.clone(), &options).unwrap();
             let contacts = whole.advance(STEPS).unwrap().contacts;
             let expected = whole.particles().unwrap();
-            let ranks = on_two_ranks(kind, &setup, spare, |rank| {
+            let ranks = on_ranks(ranks, kind, &setup, spare, |rank| {
                 let (mut contacts, mut ghosts) = (0, 0);
                 for call in 0..4 {
                     // Calls that need not their contacts report those counted last: none yet.
@@ -517,9 +530,10 @@ fn a_run_on_two_ranks_of_each_backend_matches_the_whole_run_on_it() {
                     ghosts = ghosts.max(rank.ghost_spheres());
                 }
                 let every = rank.steps_between_exchanges();
-                (contacts, rank.particles().unwrap(), every, ghosts)
+                let grid = rank.grid().describe();
+                (contacts, rank.particles().unwrap(), (every, grid), ghosts)
             });
-            let (got_contacts, got, every, _) = &ranks[0];
+            let (got_contacts, got, (every, grid), _) = &ranks[0];
             assert!(
                 ranks
                     .iter()
@@ -534,8 +548,8 @@ fn a_run_on_two_ranks_of_each_backend_matches_the_whole_run_on_it() {
             let energy = kinetic(got) / kinetic(&expected) - 1.0;
             let more = *got_contacts as f64 / contacts as f64 - 1.0;
             eprintln!(
-                "{} (rows to spare, steps between rebalancings: {spare:?}): ghosts exchanged every {every} step(s), {ghosts} at \
-                 most; largest gap {gap:.3e} m (r_min {r_min:.3e}), energy {energy:+.2e}, \
+                "{} on {grid} (rows to spare, steps between rebalancings: {spare:?}): ghosts \
+                 exchanged every {every} step(s), {ghosts} at most; largest gap {gap:.3e} m (r_min {r_min:.3e}), energy {energy:+.2e}, \
                  contacts {got_contacts} against {contacts}",
                 kind.name()
             );

@@ -211,8 +211,7 @@ impl Resident {
             if list.is_empty() {
                 continue;
             }
-            let step = [d % 3, d / 3 % 3, d / 9].map(|i| i as i32 - 1);
-            let rank = (grid.neighbour(me, step))
+            let rank = (grid.neighbour(me, way(d)))
                 .filter(|&r| r != me && d != direction([0; 3]))
                 .ok_or_else(|| {
                     Error::Usage("a rank's step wrote records for a box that is not there".into())
@@ -339,7 +338,15 @@ fn bounds(grid: &Grid, me: usize, halo: f64) -> LayerBounds {
         near: (lo.map(|x| moved(x, 1.0)), hi.map(|x| moved(x, -1.0))),
         own: (lo.map(|x| x as f32), hi.map(|x| x as f32)),
         keep: (lo.map(|x| moved(x, -1.0)), hi.map(|x| moved(x, 1.0))),
+        ways: std::array::from_fn(|d| {
+            d != direction([0; 3]) && grid.neighbour(me, way(d)).is_some()
+        }),
     }
+}
+
+/// The direction of index `d` ([`direction`]).
+fn way(d: usize) -> [i32; 3] {
+    [d % 3, d / 3 % 3, d / 9].map(|i| i as i32 - 1)
 }
 
 /// The first three of four.

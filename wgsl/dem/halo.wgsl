@@ -1,7 +1,7 @@
 // A rank's exchange of ghosts on the device (src/engines/wgpu/halo.rs), so that a round moves
 // the layer near its box's faces as records, and no sphere passes through the host one by one.
 // `halo_gather` writes a record of each own sphere near a face into the list of every
-// neighbouring box within the halo of it (27 lists: the directions of the grid of boxes) and
+// neighbouring box within the halo of it (one list a box that lies next to the rank's) and
 // finds the own spheres' largest speed. The records that came are placed by `halo_rows` (each
 // stable id's row) and `halo_place` (a ghost's new state into its row, the sphere the rank's
 // own where it is in the box now; records of spheres the step does not hold listed as
@@ -50,11 +50,12 @@ struct HaloParams {
 // By stable id: the row it is in (`halo_rows`), and the stamp of the round that placed it.
 @group(0) @binding(9) var<storage, read_write> row_of: array<u32>;
 @group(0) @binding(10) var<storage, read_write> touched: array<u32>;
-// Words 0..27: records in each direction's list; then the largest own speed (as bits: speeds
+// Words 0..27: records in each list; then the largest own speed (as bits: speeds
 // are not negative, so their bits order as they do), the leaving, the coming, the ghosts made
 // own and the own spheres made ghosts.
 @group(0) @binding(11) var<storage, read_write> counts: array<atomic<u32>, 32>;
-// `room` records a direction, four vec4 a record: pos; lo with the whole-run id; vel; omega.
+// `room` records a list (one a neighbouring box), four vec4 a record: pos; lo with the
+// whole-run id; vel; omega.
 @group(0) @binding(12) var<storage, read_write> records: array<vec4<u32>>;
 // The records that came, as `records` holds them.
 @group(0) @binding(13) var<storage, read> incoming: array<vec4<u32>>;
@@ -62,8 +63,10 @@ struct HaloParams {
 @group(0) @binding(14) var<storage, read_write> leaving: array<vec4<u32>>;
 // The records that came for spheres the step does not hold, by their place in `incoming`.
 @group(0) @binding(15) var<storage, read_write> coming: array<u32>;
+// By direction: the list of `records` for the box that lies that way (NO_BOX: none does).
+@group(0) @binding(16) var<storage, read> list_of: array<u32, 27>;
 
-const DIRECTIONS: u32 = 27u;
+const NO_BOX: u32 = 0xffffffffu;
 const FASTEST: u32 = 27u;
 const LEAVING: u32 = 28u;
 const COMING: u32 = 29u;
@@ -109,7 +112,10 @@ fn gather_row(r: u32) {
                 if any(skip) || all(d == vec3<i32>(0)) {
                     continue;
                 }
-                let list = direction(d);
+                let list = list_of[direction(d)];
+                if list == NO_BOX {
+                    continue;
+                }
                 let at = atomicAdd(&counts[list], 1u);
                 if at < params.room {
                     let e = 4u * (list * params.room + at);

@@ -123,6 +123,8 @@ pub(crate) struct LayerBounds {
     pub own: ([f32; 3], [f32; 3]),
     /// The box grown by the halo: an own sphere beyond it leaves the rank.
     pub keep: ([f32; 3], [f32; 3]),
+    /// Whether a box lies next to the rank's each way ([`direction`]).
+    pub ways: [bool; DIRECTIONS],
 }
 
 impl LayerBounds {

@@ -39,8 +39,9 @@ const RECORDS: Binding = Binding::read_write(12, "records");
 const INCOMING: Binding = Binding::read(13, "incoming");
 const LEAVING: Binding = Binding::read_write(14, "leaving");
 const COMING: Binding = Binding::read_write(15, "coming");
+const LIST_OF: Binding = Binding::read(16, "list_of");
 
-/// Words of the counts: one a direction, then the largest speed, the leaving, the coming, the
+/// Words of the counts: one a list, then the largest speed, the leaving, the coming, the
 /// ghosts made own and the own spheres made ghosts (as in the shader).
 const COUNT_WORDS: usize = 32;
 const FASTEST: usize = 27;
@@ -57,7 +58,7 @@ pub fn module() -> WgslModule {
         &[GATHER, ROWS, PLACE, LEAVING_PASS],
         &[
             PARAMS, POS, LO, VEL, OMEGA, IDS, OWN, WHOLE, STABLE_OF, ROW_OF, TOUCHED, COUNTS,
-            RECORDS, INCOMING, LEAVING, COMING,
+            RECORDS, INCOMING, LEAVING, COMING, LIST_OF,
         ],
         vec![shared_struct!(
             "HaloParams",
@@ -104,6 +105,9 @@ struct HaloParams {
     pad1: u32,
 }
 
+/// A direction no box lies in (as in the shader).
+const NO_BOX: u32 = u32::MAX;
+
 /// Bytes of a record.
 const RECORD: u64 = size_of::<LayerRecord>() as u64;
 
@@ -135,9 +139,11 @@ pub(crate) struct HaloExchange {
     /// By whole-run id: the stable id + 1 (`wholes` words).
     stable_of: wgpu::Buffer,
     wholes: u64,
-    /// `room` records a direction.
+    /// `room` records a list, one list a neighbouring box.
     records: wgpu::Buffer,
     room: u32,
+    /// By direction, the list of the box that lies that way ([`NO_BOX`]: none does).
+    list_of: wgpu::Buffer,
     incoming: wgpu::Buffer,
     leaving: wgpu::Buffer,
     coming: wgpu::Buffer,
@@ -170,8 +176,9 @@ impl HaloExchange {
             stables: first,
             stable_of: words("mochi.halo.stable_of", first),
             wholes: first,
-            records: words("mochi.halo.records", DIRECTIONS as u64 * first * RECORD / 4),
+            records: words("mochi.halo.records", first * RECORD / 4),
             room: FIRST_ROOM,
+            list_of: words("mochi.halo.list_of", DIRECTIONS as u64),
             incoming: words("mochi.halo.incoming", first * RECORD / 4),
             leaving: words("mochi.halo.leaving", first * 4),
             coming: words("mochi.halo.coming", first),
@@ -294,7 +301,7 @@ impl HaloExchange {
     }
 
     /// Every buffer the passes bind, `state`'s among them.
-    fn bindings<'a>(&'a self, state: &StateBuffers<'a>) -> [(Binding, &'a wgpu::Buffer); 16] {
+    fn bindings<'a>(&'a self, state: &StateBuffers<'a>) -> [(Binding, &'a wgpu::Buffer); 17] {
         [
             (PARAMS, &self.params),
             (POS, state.pos),
@@ -312,6 +319,7 @@ impl HaloExchange {
             (INCOMING, &self.incoming),
             (LEAVING, &self.leaving),
             (COMING, &self.coming),
+            (LIST_OF, &self.list_of),
         ]
     }
 
@@ -339,36 +347,48 @@ impl HaloExchange {
         state: &StateBuffers,
         bounds: &LayerBounds,
     ) -> Result<Layer> {
+        // One list a box that lies next to the rank's.
+        let mut list_of = [NO_BOX; DIRECTIONS];
+        let mut lists = 0;
+        for (list, _) in list_of.iter_mut().zip(bounds.ways).filter(|(_, way)| *way) {
+            *list = lists;
+            lists += 1;
+        }
+        gpu.queue
+            .write_buffer(&self.list_of, 0, bytemuck::cast_slice(&list_of));
         loop {
             let groups = self.params(gpu, state, bounds, 0);
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             encoder.clear_buffer(&self.counts, 0, None);
             let uses = [
-                PARAMS, POS, LO, VEL, OMEGA, IDS, OWN, WHOLE, COUNTS, RECORDS,
+                PARAMS, POS, LO, VEL, OMEGA, IDS, OWN, WHOLE, COUNTS, RECORDS, LIST_OF,
             ];
             self.pass(gpu, &mut encoder, (&self.gather, &uses), state, groups);
             gpu.queue.submit([encoder.finish()]);
             let counts: Vec<u32> =
                 gpu.read_through(&mut self.staging[1], &self.counts, COUNT_WORDS)?;
-            let most = counts[..DIRECTIONS].iter().copied().max().unwrap_or(0);
-            if most > self.room {
-                // A list overflowed: again with room for all.
-                self.room = most.next_power_of_two();
-                let bytes = DIRECTIONS as u64 * self.room as u64 * RECORD;
+            let most = counts[..lists as usize].iter().copied().max().unwrap_or(0);
+            let bytes = lists.max(1) as u64 * most.max(self.room) as u64 * RECORD;
+            if most > self.room || self.records.size() < bytes {
+                // A list overflowed (or a box more lies next to the rank's): again with room.
+                self.room = self.room.max(most.next_power_of_two());
+                let bytes = lists.max(1) as u64 * self.room as u64 * RECORD;
                 self.records = gpu.checked("growing a rank's lists of records", || {
                     gpu.storage("mochi.halo.records", bytes, wgpu::BufferUsages::empty())
                 })?;
                 continue;
             }
-            let ranges: Vec<std::ops::Range<u64>> = (0..DIRECTIONS)
-                .map(|d| {
-                    let start = d as u64 * self.room as u64 * RECORD;
-                    start..start + counts[d] as u64 * RECORD
+            let ranges: Vec<std::ops::Range<u64>> = (list_of.iter())
+                .map(|&list| match list {
+                    NO_BOX => 0..0,
+                    _ => {
+                        let start = list as u64 * self.room as u64 * RECORD;
+                        start..start + counts[list as usize] as u64 * RECORD
+                    }
                 })
                 .collect();
-            let lists = gpu.read_ranges(&mut self.staging[2], &self.records, &ranges)?;
             return Ok(Layer {
-                lists,
+                lists: gpu.read_ranges(&mut self.staging[2], &self.records, &ranges)?,
                 fastest: f32::from_bits(counts[FASTEST]),
             });
         }
