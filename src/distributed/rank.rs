@@ -332,6 +332,8 @@ impl<C: Comm> RankStepper<C> {
             return Ok(());
         }
         let started = Instant::now();
+        // The event changes the spheres on the host: a step kept on the device is let go.
+        self.settle()?;
         let mut whole = self
             .collect(true)?
             .ok_or_else(|| Error::Usage("the run was not gathered here".into()))?;
@@ -783,13 +785,15 @@ impl<C: Comm> RankStepper<C> {
         self.collect(false)
     }
 
-    /// The whole run's spheres on rank 0, or on every rank where `everywhere`.
+    /// The whole run's spheres on rank 0, or on every rank where `everywhere`. A step kept on
+    /// the device is read, not let go.
     fn collect(&mut self, everywhere: bool) -> Result<Option<Particles>> {
-        self.settle()?;
+        let kept = self.resident_mut().map(|r| r.held()).transpose()?;
+        let own = kept.as_deref().unwrap_or(&self.own);
         let mut outgoing = vec![Vec::new(); self.comm.size()];
         for (r, message) in outgoing.iter_mut().enumerate() {
             if everywhere || r == 0 {
-                for held in &self.own {
+                for held in own {
                     put(message, &held.sphere, (&held.contacts, &held.loads));
                 }
             }
