@@ -26,7 +26,7 @@ use crate::engines::common::flow::Room;
 use crate::engines::common::rows::Rotation;
 use crate::engines::wgpu::clumps::DeviceClumps;
 use crate::engines::wgpu::clumps::shader::{CLUMP_OF, CLUMP_ROWS};
-use crate::engines::wgpu::state::{InputOrder, ParamsUniform, move_rows};
+use crate::engines::wgpu::state::{InputOrder, ParamsUniform, RowMover};
 use crate::engines::wgpu::walls::MeshWalls;
 use crate::error::{Error, Result, try_vec};
 use crate::gpu::Gpu;
@@ -814,34 +814,26 @@ impl Granular {
         Ok(())
     }
 
-    /// Records the move of the rows of `moves` (as [`move_rows`]) of the angular velocities and
-    /// the history that the next step (`next`) reads, through `scratch`.
+    /// Moves the rows of `moves` (as [`RowMover::run`]) of the angular velocities and the
+    /// history that the next step (`next`) reads.
     pub fn move_rows(
         &self,
-        encoder: &mut wgpu::CommandEncoder,
+        gpu: &Gpu,
+        mover: &mut RowMover,
         next: Turn,
-        scratch: &wgpu::Buffer,
         moves: &[(u32, u32)],
-    ) {
+    ) -> Result<()> {
         let (omega, parity) = (self.omega_of(next.set), next.parity);
-        move_rows(encoder, scratch, moves, 16, |r| (omega, r as u64 * 16));
+        mover.run(gpu, moves, 4, |r| (omega, r))?;
         if !self.keeps_history() {
-            return;
+            return Ok(());
         }
         let held = &self.held[parity];
-        move_rows(encoder, scratch, moves, 4, |r| (held, r as u64 * 4));
+        mover.run(gpu, moves, 1, |r| (held, r))?;
         let (per, k) = (self.split.spheres_per_part, self.split.slots as u64);
         let parts = &self.history[parity].parts;
-        let entry = self.split.entry_bytes;
-        move_rows(encoder, scratch, moves, k * entry, |r| {
-            let part = (r / per) as usize;
-            (&parts[part], (r % per) as u64 * k * entry)
-        });
-    }
-
-    /// Bytes of the longest row [`move_rows`](Self::move_rows) moves.
-    pub fn row_bytes(&self) -> u64 {
-        (self.split.slots as u64 * self.split.entry_bytes).max(16)
+        let words = (k * self.split.entry_bytes / 4) as u32;
+        mover.run(gpu, moves, words, |r| (&parts[(r / per) as usize], r % per))
     }
 
     /// Forgets the last `k` rows (the engine moved the rows it keeps before them).

@@ -1,6 +1,6 @@
 //! What a wgpu engine's DEM step keeps beside its shaders, shared by the paper's step and the
 //! granular one: its parameters on the GPU ([`ParamsUniform`]), how its rows map to input order
-//! ([`InputOrder`]), moving rows between places ([`move_rows`]) and writing new motion into
+//! ([`InputOrder`]), moving rows between places ([`RowMover`]) and writing new motion into
 //! them ([`write_motion`]).
 
 use crate::dem::model::LawParams;
@@ -8,6 +8,7 @@ use crate::dem::stepper::{ExternalLoads, Motion};
 use crate::engines::common::rows::{no_spin, not_fixed, place_positions, place_triples};
 use crate::error::Result;
 use crate::gpu::Gpu;
+use crate::gpu::shader::{Binding, WgslModule, shared_struct, wgsl};
 use crate::particles::FIRST_MESH_WALL;
 use rayon::prelude::*;
 
@@ -145,23 +146,140 @@ impl InputOrder {
     }
 }
 
-/// Records the move of rows within buffers through `scratch` (at least `moves.len() · bytes`
-/// bytes): each `(from, to)` of `moves` copies the row `from` over the row `to` (no row is both
-/// a source and a target); `at(row)` is the buffer and byte offset of a row of `bytes` bytes.
-pub(crate) fn move_rows<'a>(
-    encoder: &mut wgpu::CommandEncoder,
-    scratch: &wgpu::Buffer,
-    moves: &[(u32, u32)],
-    bytes: u64,
-    at: impl Fn(u32) -> (&'a wgpu::Buffer, u64),
-) {
-    for (k, &(from, _)) in moves.iter().enumerate() {
-        let (buffer, offset) = at(from);
-        encoder.copy_buffer_to_buffer(buffer, offset, scratch, k as u64 * bytes, bytes);
+/// Moves rows of a step's buffers to other places on the GPU (`wgsl/dem/move_rows.wgsl`): one
+/// pass a buffer (or a pair of buffers, where rows move from one part of a buffer split in
+/// parts to another), one thread a word, where copying row by row took a command a row.
+pub(crate) struct RowMover {
+    within: wgpu::ComputePipeline,
+    across: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    pairs: wgpu::Buffer,
+}
+
+/// The mover's shader, embedded.
+const MOVE_SOURCE: &str = wgsl!("dem/move_rows.wgsl");
+const MOVE_PARAMS: Binding = Binding::uniform(0, "params");
+const MOVE_PAIRS: Binding = Binding::read(1, "pairs");
+const MOVE_ROWS: Binding = Binding::read_write(2, "rows");
+const MOVE_FROM: Binding = Binding::read(3, "from_rows");
+const MOVE_TO: Binding = Binding::read_write(4, "to_rows");
+/// Workgroup size (as in the shader).
+const MOVE_GROUP: u32 = 256;
+
+/// The mover's WGSL module, exactly as the device gets it.
+pub fn move_module() -> WgslModule {
+    WgslModule::new(
+        "move_rows",
+        MOVE_SOURCE,
+        &["move_within", "move_across"],
+        &[MOVE_PARAMS, MOVE_PAIRS, MOVE_ROWS, MOVE_FROM, MOVE_TO],
+        vec![shared_struct!(
+            "MoveParams",
+            MoveParams {
+                moves,
+                words,
+                row,
+                pad,
+            }
+        )],
+    )
+}
+
+/// WGSL twin: `MoveParams` in `wgsl/dem/move_rows.wgsl`.
+#[derive(Debug, Clone, Copy, Default, encase::ShaderType)]
+struct MoveParams {
+    moves: u32,
+    words: u32,
+    row: u32,
+    pad: u32,
+}
+
+impl RowMover {
+    /// The pipelines (compiled once per device) and first buffers.
+    pub fn new(gpu: &Gpu) -> Self {
+        let module = gpu.module("mochi.move_rows", MOVE_SOURCE);
+        RowMover {
+            within: gpu.pipeline("mochi.move_rows.within", &module, "move_within"),
+            across: gpu.pipeline("mochi.move_rows.across", &module, "move_across"),
+            params: gpu.uniform("mochi.move_rows.params", &MoveParams::default()),
+            pairs: gpu.storage(
+                "mochi.move_rows.pairs",
+                8 * 1024,
+                wgpu::BufferUsages::empty(),
+            ),
+        }
     }
-    for (k, &(_, to)) in moves.iter().enumerate() {
-        let (buffer, offset) = at(to);
-        encoder.copy_buffer_to_buffer(scratch, k as u64 * bytes, buffer, offset, bytes);
+
+    /// Moves rows of `words` 4-byte words: each `(from, to)` of `moves` copies the row `from`
+    /// over the row `to` (no row is both a source and a target); `at(row)` is the buffer that
+    /// holds a row and the row's place in it. Submitted before it returns, one submission a pair
+    /// of buffers.
+    pub fn run<'a>(
+        &mut self,
+        gpu: &Gpu,
+        moves: &[(u32, u32)],
+        words: u32,
+        at: impl Fn(u32) -> (&'a wgpu::Buffer, u32),
+    ) -> Result<()> {
+        // The moves by the buffers they move between (a buffer split in parts has several).
+        let mut groups: Vec<(&wgpu::Buffer, &wgpu::Buffer, Vec<[u32; 2]>)> = Vec::new();
+        for &(from, to) in moves {
+            let ((source, from), (target, to)) = (at(from), at(to));
+            let same = |g: &&mut (&wgpu::Buffer, &wgpu::Buffer, Vec<[u32; 2]>)| {
+                std::ptr::eq(g.0, source) && std::ptr::eq(g.1, target)
+            };
+            match groups.iter_mut().find(same) {
+                Some(group) => group.2.push([from, to]),
+                None => groups.push((source, target, vec![[from, to]])),
+            }
+        }
+        for (source, target, pairs) in groups {
+            let bytes = pairs.len() as u64 * 8;
+            if self.pairs.size() < bytes {
+                self.pairs = gpu.checked("growing the list of rows to move", || {
+                    let size = bytes.next_power_of_two();
+                    gpu.storage("mochi.move_rows.pairs", size, wgpu::BufferUsages::empty())
+                })?;
+            }
+            gpu.queue
+                .write_buffer(&self.pairs, 0, bytemuck::cast_slice(&pairs));
+            let threads = u32::try_from(pairs.len() as u64 * words as u64)
+                .map_err(|_| crate::error::Error::Usage("too many rows to move at once".into()))?;
+            let groups = gpu.grid(threads, MOVE_GROUP);
+            let params = MoveParams {
+                moves: pairs.len() as u32,
+                words,
+                row: groups.0 * MOVE_GROUP,
+                pad: 0,
+            };
+            gpu.write_uniform(&self.params, &params);
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            let both = [(MOVE_PARAMS, &self.params), (MOVE_PAIRS, &self.pairs)];
+            match std::ptr::eq(source, target) {
+                true => {
+                    let bound = [&both[..], &[(MOVE_ROWS, source)]].concat();
+                    gpu.pass(
+                        &mut encoder,
+                        "mochi.move_rows",
+                        &self.within,
+                        &bound,
+                        groups,
+                    );
+                }
+                false => {
+                    let bound = [&both[..], &[(MOVE_FROM, source), (MOVE_TO, target)]].concat();
+                    gpu.pass(
+                        &mut encoder,
+                        "mochi.move_rows",
+                        &self.across,
+                        &bound,
+                        groups,
+                    );
+                }
+            }
+            gpu.queue.submit([encoder.finish()]);
+        }
+        Ok(())
     }
 }
 

@@ -478,5 +478,7 @@ pub fn modules() -> Vec<WgslModule> {
     all.push(crate::engines::wgpu::flow::module());
     // A rank's exchange of ghosts (`engines/wgpu/halo.rs`).
     all.push(crate::engines::wgpu::halo::module());
+    // Rows moved where spheres leave (`engines/wgpu/state.rs`).
+    all.push(crate::engines::wgpu::state::move_module());
     all
 }

@@ -7,6 +7,7 @@ use crate::engines::common::flow::{
     Arriving, DeviceRows, Layer, LayerBounds, Named, Placed, ResidentStep,
 };
 use crate::engines::wgpu::halo::{HaloExchange, StateBuffers};
+use crate::engines::wgpu::state::RowMover;
 
 /// Flow events scan the state on the device and append inserted spheres to it, in rows kept
 /// for them at opening ([`GridStepper::flowing_on`]).
@@ -94,31 +95,17 @@ impl DeviceFlow for GridStepper {
         let fillers = (kept..self.n).filter(|r| leaving.binary_search(r).is_err());
         let moves: Vec<(u32, u32)> = fillers.zip(holes).collect();
         if !moves.is_empty() {
+            let next = self.turn();
             let gpu = &self.res.gpu;
-            let row_bytes = self.res.granular.as_ref().map_or(16, |g| g.row_bytes());
-            let bytes = moves.len() as u64 * row_bytes;
-            let none = wgpu::BufferUsages::empty();
-            gpu.checked("removing spheres", || {
-                let scratch = gpu.storage("mochi.dem.flow_scratch", bytes, none);
-                let mut encoder = gpu.device.create_command_encoder(&Default::default());
-                let set = &self.res.sets[self.current];
-                move_rows(&mut encoder, &scratch, &moves, 16, |r| {
-                    (&set.pos, r as u64 * 16)
-                });
-                move_rows(&mut encoder, &scratch, &moves, 16, |r| {
-                    (&set.lo, r as u64 * 16)
-                });
-                move_rows(&mut encoder, &scratch, &moves, 16, |r| {
-                    (&set.vel, r as u64 * 16)
-                });
-                move_rows(&mut encoder, &scratch, &moves, 4, |r| {
-                    (&set.ids, r as u64 * 4)
-                });
-                if let Some(g) = &self.res.granular {
-                    g.move_rows(&mut encoder, self.turn(), &scratch, &moves);
-                }
-                gpu.queue.submit([encoder.finish()]);
-            })?;
+            let mover = self.row_mover.get_or_insert_with(|| RowMover::new(gpu));
+            let set = &self.res.sets[self.current];
+            for rows in [&set.pos, &set.lo, &set.vel] {
+                mover.run(gpu, &moves, 4, |r| (rows, r))?;
+            }
+            mover.run(gpu, &moves, 1, |r| (&set.ids, r))?;
+            if let Some(g) = &self.res.granular {
+                g.move_rows(gpu, mover, next, &moves)?;
+            }
         }
         if let Some(g) = &mut self.res.granular {
             g.shrink(k);

@@ -67,7 +67,7 @@ use crate::engines::wgpu::granular::shader::OMEGA;
 use crate::engines::wgpu::halo::HaloExchange;
 use crate::engines::wgpu::readback::{BatchReadback, InFlight};
 use crate::engines::wgpu::state::{
-    ExternalRows, InputOrder, ParamsUniform, move_rows, write_motion,
+    ExternalRows, InputOrder, ParamsUniform, RowMover, write_motion,
 };
 use crate::engines::wgpu::step::physics::{CLOCK, DEM, EXTERNAL, FORCE, POS, POS_LO, VEL};
 use crate::engines::wgpu::step::{
@@ -231,6 +231,8 @@ pub struct GridStepper {
     flow_scan: Option<FlowScan>,
     /// A rank's exchange of ghosts on the device (made at the first).
     halo: Option<HaloExchange>,
+    /// Moves rows where spheres leave (made at the first removal).
+    row_mover: Option<RowMover>,
     mode: ProxyMode,
     mode_cell: f64,
     /// Smallest and largest radius.
@@ -506,6 +508,7 @@ impl GridStepper {
             next_id: n,
             flow_scan: None,
             halo: None,
+            row_mover: None,
             mode,
             mode_cell,
             radii: sizing.radii,
