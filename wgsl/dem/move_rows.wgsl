@@ -18,24 +18,35 @@ struct MoveParams {
 @group(0) @binding(3) var<storage, read> from_rows: array<u32>;
 @group(0) @binding(4) var<storage, read_write> to_rows: array<u32>;
 
-@compute @workgroup_size(256)
-fn move_within(@builtin(global_invocation_id) gid: vec3<u32>) {
+// The word a thread moves: where it is and where it goes (`valid` false past the last).
+struct Word {
+    at: u32,
+    goes: u32,
+    valid: bool,
+}
+
+fn word_of(gid: vec3<u32>) -> Word {
     let t = gid.x + gid.y * params.row;
     if t >= params.moves * params.words {
-        return;
+        return Word(0u, 0u, false);
     }
     let p = pairs[t / params.words];
     let w = t % params.words;
-    rows[p.y * params.words + w] = rows[p.x * params.words + w];
+    return Word(p.x * params.words + w, p.y * params.words + w, true);
+}
+
+@compute @workgroup_size(256)
+fn move_within(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let m = word_of(gid);
+    if m.valid {
+        rows[m.goes] = rows[m.at];
+    }
 }
 
 @compute @workgroup_size(256)
 fn move_across(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let t = gid.x + gid.y * params.row;
-    if t >= params.moves * params.words {
-        return;
+    let m = word_of(gid);
+    if m.valid {
+        to_rows[m.goes] = from_rows[m.at];
     }
-    let p = pairs[t / params.words];
-    let w = t % params.words;
-    to_rows[p.y * params.words + w] = from_rows[p.x * params.words + w];
 }
