@@ -3,7 +3,8 @@
 use super::comm::{Comm, one_message_a_rank};
 use crate::error::{Error, Result};
 use mpi::Threading;
-use mpi::datatype::{Partition, PartitionMut};
+use mpi::point_to_point::{Destination, Source};
+use mpi::request::WaitGuard;
 use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::traits::CommunicatorCollectives;
 
@@ -48,50 +49,47 @@ impl Comm for MpiComm {
         self.world.size() as usize
     }
 
-    fn exchange(&self, outgoing: Vec<Vec<u8>>) -> Result<Vec<Vec<u8>>> {
-        let n = self.size();
+    fn exchange(&self, mut outgoing: Vec<Vec<u8>>) -> Result<Vec<Vec<u8>>> {
+        let (n, me) = (self.size(), self.rank());
         one_message_a_rank(&outgoing, n)?;
         // MPI counts in i32: a message of 2 GiB or more is refused.
-        let count = |bytes: usize| {
-            i32::try_from(bytes).map_err(|_| Error::TooLarge {
-                what: "bytes a rank sends another in one exchange".into(),
-                got: bytes as u64,
-                limit: i32::MAX as u64,
-            })
-        };
         let send_counts = outgoing
             .iter()
-            .map(|m| count(m.len()))
+            .map(|m| {
+                i32::try_from(m.len()).map_err(|_| Error::TooLarge {
+                    what: "bytes a rank sends another in one exchange".into(),
+                    got: m.len() as u64,
+                    limit: i32::MAX as u64,
+                })
+            })
             .collect::<Result<Vec<i32>>>()?;
         let mut recv_counts = vec![0i32; n];
         self.world
             .all_to_all_into(&send_counts[..], &mut recv_counts[..]);
-        let offsets = |counts: &[i32]| -> Result<Vec<i32>> {
-            let mut at = 0usize;
-            counts
-                .iter()
-                .map(|&c| {
-                    let here = count(at)?;
-                    at += c as usize;
-                    Ok(here)
-                })
-                .collect()
-        };
-        let (send_at, recv_at) = (offsets(&send_counts)?, offsets(&recv_counts)?);
-        // Buffers of at least a byte: MPI refuses the dangling pointer of an empty one.
-        let mut flat: Vec<u8> = outgoing.concat();
-        flat.push(0);
-        let total: usize = recv_counts.iter().map(|&c| c as usize).sum();
-        let mut received = vec![0u8; total + 1];
-        {
-            let send = Partition::new(&flat[..], &send_counts[..], &send_at[..]);
-            let mut recv = PartitionMut::new(&mut received[..], &recv_counts[..], &recv_at[..]);
-            self.world.all_to_all_varcount_into(&send, &mut recv);
-        }
-        Ok(recv_at
-            .iter()
-            .zip(&recv_counts)
-            .map(|(&at, &c)| received[at as usize..at as usize + c as usize].to_vec())
-            .collect())
+        // Each message straight into its own buffer, each sent from where it lies; this rank's
+        // own kept as it is.
+        let mut received: Vec<Vec<u8>> = (recv_counts.iter())
+            .map(|&c| vec![0u8; c.max(0) as usize])
+            .collect();
+        received[me] = std::mem::take(&mut outgoing[me]);
+        mpi::request::scope(|scope| {
+            let mut pending = Vec::new();
+            for (r, buffer) in received.iter_mut().enumerate() {
+                if r != me && !buffer.is_empty() {
+                    let from = self.world.process_at_rank(r as i32);
+                    pending.push(WaitGuard::from(
+                        from.immediate_receive_into(scope, &mut buffer[..]),
+                    ));
+                }
+            }
+            for (r, message) in outgoing.iter().enumerate() {
+                if r != me && !message.is_empty() {
+                    let to = self.world.process_at_rank(r as i32);
+                    pending.push(WaitGuard::from(to.immediate_send(scope, &message[..])));
+                }
+            }
+            // Dropping the guards waits for every send and receive.
+        });
+        Ok(received)
     }
 }
