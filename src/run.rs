@@ -570,14 +570,12 @@ impl Run {
         .to_toml()
     }
 
-    /// `particles` (of this run) as a frame: its time from the step and the time step, and the
-    /// contact counts where the run keeps a contact history.
-    pub fn frame<'a>(&self, particles: &'a Particles) -> Frame<'a> {
-        Frame::of(
-            particles,
-            self.params.dt,
-            self.params.friction.has_history(),
-        )
+    /// `particles` (of this run) as a frame: its time from the step and the time step, and
+    /// each sphere's `contacts` where the run keeps a contact history
+    /// ([`Snapshot::contacts`](crate::dem::Snapshot::contacts)).
+    pub fn frame<'a>(&self, particles: &'a Particles, contacts: &'a [u32]) -> Frame<'a> {
+        let kept = self.params.friction.has_history().then_some(contacts);
+        Frame::of(particles, self.params.dt, kept)
     }
 }
 

@@ -833,7 +833,7 @@ fn a_frame_of_a_run_of_clumps_names_each_spheres_clump() {
     let run = dimer_run(DVec3::splat(0.05), DQuat::IDENTITY, free);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("f.vtu");
-    mochi::io::write_vtu(&path, &mochi::io::Frame::of(&run, 1e-5, false)).unwrap();
+    mochi::io::write_vtu(&path, &mochi::io::Frame::of(&run, 1e-5, None)).unwrap();
     let bytes = std::fs::read(&path).unwrap();
     let text = String::from_utf8_lossy(&bytes);
     let tag = r#"<DataArray type="Int32" Name="clump" format="appended" offset=""#;
@@ -850,7 +850,7 @@ fn a_frame_of_a_run_of_clumps_names_each_spheres_clump() {
     // A run without clumps has no such array.
     let mut plain = Particles::default();
     plain.push([0.02, 0.02, 0.02], [0.0; 3], 1e-3).unwrap();
-    mochi::io::write_vtu(&path, &mochi::io::Frame::of(&plain, 1e-5, false)).unwrap();
+    mochi::io::write_vtu(&path, &mochi::io::Frame::of(&plain, 1e-5, None)).unwrap();
     assert!(!String::from_utf8_lossy(&std::fs::read(&path).unwrap()).contains("Name=\"clump\""));
 }
 
@@ -892,7 +892,7 @@ fn a_series_of_a_run_of_clumps_writes_each_clumps_pose_beside_its_frame() {
         let mut p = run.clone();
         p.step = step;
         series
-            .write(&mochi::io::Frame::of(&p, 1e-5, false), false)
+            .write(&mochi::io::Frame::of(&p, 1e-5, None), false)
             .unwrap();
     }
     let bytes = std::fs::read(dir.path().join("clumps_00000020.vtu")).unwrap();
@@ -916,7 +916,7 @@ fn a_series_of_a_run_of_clumps_writes_each_clumps_pose_beside_its_frame() {
     let mut p = Particles::default();
     p.push([0.02, 0.02, 0.02], [0.0; 3], 1e-3).unwrap();
     series
-        .write(&mochi::io::Frame::of(&p, 1e-5, false), false)
+        .write(&mochi::io::Frame::of(&p, 1e-5, None), false)
         .unwrap();
     assert!(!plain.path().join(mochi::io::CLUMPS_INDEX).exists());
 }

@@ -10,7 +10,7 @@ mod common;
 use mochi::dem::flow::{FlowSet, InflowConfig, OutflowConfig};
 use mochi::dem::scene::{Overrides, SceneConfig};
 use mochi::dem::{Particles, Stepper};
-use mochi::distributed::{LocalComm, RankStepper, Slabs};
+use mochi::distributed::{Comm, LocalComm, RankStepper, Slabs};
 use mochi::engines::BackendChoice::Named;
 use mochi::engines::cpu::CpuStepper;
 use mochi::engines::{BackendKind, DemSetup, Options, open_setup};
@@ -515,6 +515,11 @@ fn a_run_over_ranks_of_each_backend_matches_the_whole_run_on_it() {
             let mut whole = open_setup(kind, setup.clone(), &options).unwrap();
             let contacts = whole.advance(STEPS).unwrap().contacts;
             let expected = whole.particles().unwrap();
+            let snapshot = whole.snapshot().unwrap();
+            assert_eq!(snapshot.contacts, expected.history.counts(expected.len()));
+            assert!(snapshot.particles.history.is_empty());
+            assert_eq!(snapshot.particles.positions, expected.positions);
+            assert_eq!(snapshot.particles.radii, expected.radii);
             let ranks = on_ranks(ranks, kind, &setup, spare, |rank| {
                 let (mut contacts, mut ghosts) = (0, 0);
                 for call in 0..4 {
@@ -535,7 +540,29 @@ fn a_run_over_ranks_of_each_backend_matches_the_whole_run_on_it() {
                 }
                 let every = rank.steps_between_exchanges();
                 let grid = rank.grid().describe();
-                (contacts, rank.particles().unwrap(), (every, grid), ghosts)
+                // What frames show: the same spheres, each sphere's contacts those of the
+                // history, gathered without it on rank 0 alone.
+                let snapshot = rank.snapshot().unwrap();
+                let now = rank.particles().unwrap();
+                assert_eq!(snapshot.contacts, now.history.counts(now.len()));
+                assert!(
+                    snapshot.contacts.iter().any(|&c| c > 0),
+                    "no contacts counted"
+                );
+                assert!(snapshot.particles.history.is_empty());
+                assert_eq!(snapshot.particles.positions, now.positions);
+                assert_eq!(
+                    snapshot.particles.position_residuals,
+                    now.position_residuals
+                );
+                assert_eq!(snapshot.particles.velocities, now.velocities);
+                assert_eq!(
+                    snapshot.particles.angular_velocities,
+                    now.angular_velocities
+                );
+                let on_zero = rank.gather_snapshot().unwrap();
+                assert_eq!(on_zero.is_some(), rank.comm().rank() == 0);
+                (contacts, now, (every, grid), ghosts)
             });
             let (got_contacts, got, (every, grid), _) = &ranks[0];
             assert!(

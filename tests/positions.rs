@@ -158,7 +158,7 @@ fn frames_hold_the_positions_with_the_digits_to_tell() {
     for ext in ["vtu", "csv", "npy"] {
         let read = |p: &Particles, name: &str| {
             let path = dir.path().join(format!("{name}.{ext}"));
-            mochi::io::write_frame(&path, &Frame::of(p, DT as f32, false)).unwrap();
+            mochi::io::write_frame(&path, &Frame::of(p, DT as f32, None)).unwrap();
             (read_frame(&path).unwrap(), path)
         };
         let (a, _) = read(&first, "start");

@@ -1244,7 +1244,9 @@ impl Simulation {
         self.guarded("Simulation.write_frame", |sim| {
             sim.particles(py)?;
             let run = open_run(&mut sim.run)?;
-            let frame = run.frame(sim.now.as_ref().expect("read back above"));
+            let now = sim.now.as_ref().expect("read back above");
+            let contacts = now.history.counts(now.len());
+            let frame = run.frame(now, &contacts);
             py.detach(|| io::write_frame(&path, &frame))
                 .map_err(to_py_err)
         })

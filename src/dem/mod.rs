@@ -21,4 +21,6 @@ pub use crate::particles::{
     ContactHistory, Energies, FIRST_MESH_WALL, FIRST_WALL, HistoryEntry, Particles,
 };
 pub use model::{Material, StepParams};
-pub use stepper::{Advance, Clock, ExternalLoads, Motion, RankShare, StageTimes, Stepper};
+pub use stepper::{
+    Advance, Clock, ExternalLoads, Motion, RankShare, Snapshot, StageTimes, Stepper,
+};

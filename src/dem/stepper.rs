@@ -262,6 +262,29 @@ fn widened_rows(rows: &[[f32; 3]]) -> Vec<[f64; 3]> {
     rows.iter().map(|r| r.map(f64::from)).collect()
 }
 
+/// What a frame or a picture shows of a run ([`Stepper::snapshot`]): its particles without
+/// their springs, and the contacts each sphere holds.
+#[derive(Debug, Clone, Default)]
+pub struct Snapshot {
+    /// The particles, in input order, their history empty.
+    pub particles: Particles,
+    /// The contacts each sphere holds in the run's history, by sphere (all zero where the run
+    /// keeps none).
+    pub contacts: Vec<u32>,
+}
+
+impl Snapshot {
+    /// The snapshot of `particles`: their history's counts, the history dropped.
+    pub fn of(mut particles: Particles) -> Self {
+        let contacts = particles.history.counts(particles.len());
+        particles.history = Default::default();
+        Self {
+            particles,
+            contacts,
+        }
+    }
+}
+
 /// One backend's DEM step: keeps the particles (on the GPU for GPU backends) and advances them.
 /// `Send`, as the detection `Backend` is, so that a caller may step it on another thread (Python
 /// releases its interpreter lock while it steps).
@@ -284,6 +307,13 @@ pub trait Stepper: Send {
 
     /// The particles now, in input order (a read-back on GPU backends).
     fn particles(&mut self) -> Result<Particles>;
+
+    /// The particles now without their springs, each sphere's contacts counted: what frames
+    /// and pictures show. Default: [`particles`](Self::particles), counted; a GPU step reads no
+    /// springs back, a run over ranks gathers none.
+    fn snapshot(&mut self) -> Result<Snapshot> {
+        Ok(Snapshot::of(self.particles()?))
+    }
 
     /// Sets the spheres' positions, velocities or angular velocities before the next step, the
     /// rest of their state (radii, materials, contact history) kept. A GPU step writes them

@@ -8,7 +8,7 @@
 use super::comm::Comm;
 use super::rank::RankStepper;
 use crate::dem::flow::FlowCounts;
-use crate::dem::stepper::{Advance, ExternalLoads, Motion, RankShare, Stepper};
+use crate::dem::stepper::{Advance, ExternalLoads, Motion, RankShare, Snapshot, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::error::{Error, Result};
 use crate::particles::Particles;
@@ -19,6 +19,7 @@ enum Call {
     /// Steps, and whether the call counts its contacts.
     Advance(u32, bool),
     Particles,
+    Snapshot,
     Motion {
         positions: Option<Vec<[f64; 3]>>,
         velocities: Option<Vec<[f32; 3]>>,
@@ -73,6 +74,7 @@ impl Call {
             }
             Call::Stop => out.push(5),
             Call::Shares => out.push(6),
+            Call::Snapshot => out.push(7),
         }
         out
     }
@@ -132,6 +134,7 @@ impl Call {
             }
             5 => Call::Stop,
             6 => Call::Shares,
+            7 => Call::Snapshot,
             _ => return Err(bad()),
         };
         Ok(call)
@@ -142,7 +145,8 @@ impl Call {
         match self {
             Call::Advance(steps, true) => rank.advance(*steps).map(|_| ()),
             Call::Advance(steps, false) => rank.advance_uncounted(*steps).map(|_| ()),
-            Call::Particles => rank.particles().map(|_| ()),
+            Call::Particles => rank.gather().map(|_| ()),
+            Call::Snapshot => rank.gather_snapshot().map(|_| ()),
             Call::Motion {
                 positions,
                 velocities,
@@ -228,7 +232,13 @@ impl<C: Comm + Send> Stepper for Leader<C> {
     }
 
     fn particles(&mut self) -> Result<Particles> {
-        self.lead(Call::Particles, |r| r.particles())
+        self.lead(Call::Particles, |r| r.gather()?.ok_or_else(not_gathered))
+    }
+
+    fn snapshot(&mut self) -> Result<Snapshot> {
+        self.lead(Call::Snapshot, |r| {
+            r.gather_snapshot()?.ok_or_else(not_gathered)
+        })
     }
 
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
@@ -263,6 +273,11 @@ impl<C: Comm + Send> Stepper for Leader<C> {
     fn flow_counts(&self) -> Option<FlowCounts> {
         self.rank.flow_counts()
     }
+}
+
+/// Rank 0's refusal where a gathered run did not come to it.
+fn not_gathered() -> Error {
+    Error::Usage("the run was not gathered on rank 0".into())
 }
 
 /// Makes on `rank` (not rank 0) each call rank 0's [`Leader`] sends, until it stops.

@@ -31,7 +31,9 @@ use super::resident::Resident;
 use super::slabs::Slabs;
 use crate::dem::StepParams;
 use crate::dem::flow::{FlowCounts, FlowSet};
-use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, RankShare, StageTimes, Stepper};
+use crate::dem::stepper::{
+    Advance, Clock, ExternalLoads, Motion, RankShare, Snapshot, StageTimes, Stepper,
+};
 use crate::dem::walls::{WallLoad, WallSet};
 use crate::engines::common::flow::{Reopen, Room};
 use crate::engines::cpu::CpuStepper;
@@ -828,6 +830,52 @@ impl<C: Comm> RankStepper<C> {
 }
 
 impl<C: Comm + Send> RankStepper<C> {
+    /// The whole run's spheres without their springs, each with its contacts counted, on rank
+    /// 0 (`None` on the others): every rank sends its own spheres' records alone.
+    pub fn gather_snapshot(&mut self) -> Result<Option<Snapshot>> {
+        self.collect_snapshot(false)
+    }
+
+    /// [`gather_snapshot`](Self::gather_snapshot) on rank 0, or on every rank where
+    /// `everywhere`. A step kept on the device is read, not let go.
+    fn collect_snapshot(&mut self, everywhere: bool) -> Result<Option<Snapshot>> {
+        let own: Vec<SphereRecord> = match self.resident_mut() {
+            Some(resident) => resident.seen()?,
+            None => (self.own.iter())
+                .map(|h| SphereRecord {
+                    contacts: h.contacts.len() as u32,
+                    ..h.sphere
+                })
+                .collect(),
+        };
+        let size = self.comm.size();
+        let outgoing = (0..size)
+            .map(|r| match everywhere || r == 0 {
+                true => bytemuck::cast_slice(&own).to_vec(),
+                false => Vec::new(),
+            })
+            .collect();
+        let received = self.comm.exchange(outgoing)?;
+        if !everywhere && self.comm.rank() != 0 {
+            return Ok(None);
+        }
+        let record = std::mem::size_of::<SphereRecord>();
+        if received.iter().any(|m| m.len() % record != 0) {
+            return Err(Error::Usage("a rank's message ends inside a sphere".into()));
+        }
+        let mut all: Vec<SphereRecord> = (received.iter())
+            .flat_map(|m| m.chunks_exact(record).map(bytemuck::pod_read_unaligned))
+            .collect();
+        all.sort_unstable_by_key(|s| s.id);
+        if all.iter().enumerate().any(|(k, s)| s.id as usize != k) {
+            return Err(Error::Usage("the ranks' spheres are not the run's".into()));
+        }
+        Ok(Some(Snapshot {
+            particles: spheres_of(all.iter(), self.step),
+            contacts: all.iter().map(|s| s.contacts).collect(),
+        }))
+    }
+
     /// [`Stepper::advance`], the contacts of its last step counted where `count` says (else
     /// those counted last: a GPU rank counts them from every sphere read back).
     fn advance_counting(&mut self, steps: u32, count: bool) -> Result<Advance> {
@@ -926,6 +974,11 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
 
     fn particles(&mut self) -> Result<Particles> {
         self.collect(true)?
+            .ok_or_else(|| Error::Usage("the run was not gathered here".into()))
+    }
+
+    fn snapshot(&mut self) -> Result<Snapshot> {
+        self.collect_snapshot(true)?
             .ok_or_else(|| Error::Usage("the run was not gathered here".into()))
     }
 

@@ -140,6 +140,29 @@ impl Resident {
         self.held_of(own, &FxHashMap::default())
     }
 
+    /// The rank's own spheres as records, by ascending id, each with the contacts it holds
+    /// counted in [`SphereRecord::contacts`] (no springs read back).
+    pub fn seen(&mut self) -> Result<Vec<SphereRecord>> {
+        let mut own = self.own_ids(&FxHashSet::default())?;
+        own.sort_unstable();
+        let now = self.step.snapshot()?;
+        // The step's input order: ascending stable id.
+        let place: FxHashMap<u32, usize> = (self.ids().into_iter().enumerate())
+            .map(|(at, g)| (g, at))
+            .collect();
+        own.into_iter()
+            .map(|g| {
+                let &at = place.get(&g).ok_or_else(|| {
+                    Error::Usage(format!("rank's own sphere {g} is not in its step"))
+                })?;
+                Ok(SphereRecord {
+                    contacts: now.contacts[at],
+                    ..super::record::record_of(&now.particles, at, g)
+                })
+            })
+            .collect()
+    }
+
     /// The spheres of the whole run's ids `own` with their contacts as the step keeps them,
     /// by ascending id, each in the state of `given` where it has one (one the step does not
     /// hold must have one).

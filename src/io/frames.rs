@@ -32,7 +32,7 @@ use super::vtu_write::vtu_opening;
 use super::{collection, io_error, parse_error, write_atomically};
 use crate::clump::ClumpSet;
 use crate::error::{Error, Result};
-use crate::particles::{ContactHistory, Particles, position};
+use crate::particles::{Particles, position};
 use npyz::WriterBuilder;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -60,19 +60,20 @@ pub struct Frame<'a> {
     /// Materials ([`Particles::materials`]): empty (every sphere of the first material, 0) or
     /// one per sphere.
     pub materials: &'a [u8],
-    /// The contact history of a run that keeps one: the `.vtu` then holds each sphere's number
-    /// of contacts in it (`None`: a run without friction keeps none, and the array is left out).
-    pub contacts: Option<&'a ContactHistory>,
+    /// The contacts each sphere holds in the history of a run that keeps one (`None`: a run
+    /// without friction keeps none, and the `.vtu` leaves the array out).
+    pub contacts: Option<&'a [u32]>,
     /// The clumps of a run that has any ([`Particles::clumps`]: the first spheres are their
     /// components): the `.vtu` then holds each sphere's clump (`None`: the array is left out).
     pub clumps: Option<&'a ClumpSet>,
 }
 
 impl<'a> Frame<'a> {
-    /// The frame of `particles` at time `step · dt`, with the contact counts of their history
-    /// when `keeps_history` (the step's contacts carry springs: friction or EPSD rolling
-    /// resistance).
-    pub fn of(particles: &'a Particles, dt: f32, keeps_history: bool) -> Self {
+    /// The frame of `particles` at time `step · dt`, with each sphere's `contacts` where the
+    /// run keeps a history (the step's contacts carry springs: friction or EPSD rolling
+    /// resistance: a stepper's snapshot counts them, as
+    /// [`ContactHistory::counts`](crate::particles::ContactHistory::counts) does).
+    pub fn of(particles: &'a Particles, dt: f32, contacts: Option<&'a [u32]>) -> Self {
         Self {
             time: particles.step as f64 * dt as f64,
             step: particles.step,
@@ -82,7 +83,7 @@ impl<'a> Frame<'a> {
             velocities: &particles.velocities,
             angular_velocities: &particles.angular_velocities,
             materials: &particles.materials,
-            contacts: keeps_history.then_some(&particles.history),
+            contacts,
             clumps: (!particles.clumps.clumps.is_empty()).then_some(&particles.clumps),
         }
     }
@@ -112,10 +113,14 @@ impl Frame<'_> {
                 self.angular_velocities.len()
             )));
         }
-        if let Some(history) = self.contacts {
-            history
-                .validate(n)
-                .map_err(|e| Error::Usage(format!("frame at step {}: {e}", self.step)))?;
+        if let Some(contacts) = self.contacts
+            && contacts.len() != n
+        {
+            return Err(Error::Usage(format!(
+                "frame at step {}: {} contact counts for {n} spheres",
+                self.step,
+                contacts.len()
+            )));
         }
         if !self.time.is_finite() {
             return Err(Error::Usage(format!(
@@ -369,8 +374,8 @@ fn write_block(
         Block::Id => (0..n as u32).try_for_each(|i| out.put(i.to_le_bytes()))?,
         Block::Material => frame.materials().try_for_each(|m| out.put([m]))?,
         Block::Contacts => {
-            let history = frame.contacts.expect("the block is written with a history");
-            (0..n).try_for_each(|i| out.put((history.of(i).len() as u32).to_le_bytes()))?
+            let contacts = frame.contacts.expect("the block is written with a history");
+            contacts.iter().try_for_each(|c| out.put(c.to_le_bytes()))?
         }
         Block::Clump => {
             let set = frame.clumps.expect("the block is written with clumps");

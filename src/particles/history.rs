@@ -318,6 +318,33 @@ impl ContactHistory {
         (0..self.counts.len()).flat_map(move |i| self.of(i).iter().map(move |e| (i as u32, e)))
     }
 
+    /// The contacts each of `n` spheres holds (zero for those beyond the history's).
+    pub fn counts(&self, n: usize) -> Vec<u32> {
+        (0..n).map(|i| self.of(i).len() as u32).collect()
+    }
+
+    /// The contacts each of `n` spheres holds in the history [`from_owner_rows`](Self::from_owner_rows)
+    /// builds from the same rows (`row(i)`: the partners sphere i holds), without building it:
+    /// its own row's, and those of the rows that name it where its own does not name them back.
+    pub fn counts_of_owner_rows<R>(n: usize, row: impl Fn(usize) -> R + Sync) -> Vec<u32>
+    where
+        R: Iterator<Item = u32>,
+    {
+        use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+        let counts: Vec<AtomicU32> = (0..n).map(|_| AtomicU32::new(0)).collect();
+        (0..n).into_par_iter().for_each(|i| {
+            let owner = i as u32;
+            for partner in row(i) {
+                counts[i].fetch_add(1, Relaxed);
+                let j = partner as usize;
+                if j < n && !row(j).any(|back| back == owner) {
+                    counts[j].fetch_add(1, Relaxed);
+                }
+            }
+        });
+        counts.into_iter().map(AtomicU32::into_inner).collect()
+    }
+
     /// The most contacts any sphere holds.
     pub fn most(&self) -> usize {
         self.counts.iter().copied().max().unwrap_or(0) as usize
@@ -610,6 +637,13 @@ mod tests {
             ContactHistory::from_owner_rows(3, false, both).unwrap(),
             plain
         );
+        // The counts without the history: those of the history built.
+        let partners = |i: usize| rows[i].iter().map(|(e, _)| e.partner);
+        assert_eq!(
+            ContactHistory::counts_of_owner_rows(3, partners),
+            h.counts(3)
+        );
+        assert_eq!(h.counts(4), [2, 1, 2, 0]);
         // A partner that is neither a sphere nor a wall.
         let stray = [vec![(entry(7, 1.0), load)]];
         assert!(ContactHistory::from_owner_rows(1, true, |i| stray[i].iter().copied()).is_err());

@@ -9,7 +9,7 @@ use super::walls::{FlowLog, WallOutputs};
 use anyhow::Result;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use mochi::dem::scene::{Overrides, SceneFlags, SceneKind};
-use mochi::dem::{Clock, RankShare, StageTimes, StepParams, Stepper, equipment};
+use mochi::dem::{Clock, RankShare, Snapshot, StageTimes, StepParams, Stepper, equipment};
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::numbers::significant;
 use mochi::render::{ColorBy, ColorChoice};
@@ -204,11 +204,11 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     };
     let draw = |pictures: &mut Option<FrameRenderer>, stepper: &mut dyn Stepper| -> Result<()> {
         if let Some(pictures) = pictures {
-            let now = stepper.particles()?;
+            let Snapshot {
+                particles: now,
+                contacts,
+            } = stepper.snapshot()?;
             let walls = walls_at(&walls, now.step as f64 * p.dt as f64);
-            let contacts: Vec<u32> = (0..now.len())
-                .map(|i| now.history.of(i).len() as u32)
-                .collect();
             let frame = FrameData {
                 step: Some(now.step),
                 positions: &now.positions,
@@ -351,9 +351,13 @@ impl FrameOutputs {
     /// Writes the frame of the particles of `stepper` (and CSV beside it where `csv`), with the
     /// walls and the flows then.
     fn write(&mut self, stepper: &mut dyn Stepper, p: &StepParams, csv: bool) -> Result<()> {
-        let now = stepper.particles()?;
+        let Snapshot {
+            particles: now,
+            contacts,
+        } = stepper.snapshot()?;
+        let kept = p.friction.has_history().then_some(&contacts[..]);
         let series = &mut self.series;
-        series.write(&Frame::of(&now, p.dt, p.friction.has_history()), csv)?;
+        series.write(&Frame::of(&now, p.dt, kept), csv)?;
         if let Some(walls) = &mut self.walls {
             walls.write(series.entries(), now.step, p.dt, &stepper.wall_loads())?;
         }

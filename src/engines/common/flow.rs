@@ -12,7 +12,7 @@
 
 use crate::dem::flow::{Event, FlowCounts, FlowSet, NewSphere};
 use crate::dem::model::mass;
-use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, Clock, ExternalLoads, Motion, Snapshot, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::error::Result;
 use crate::particles::Particles;
@@ -440,6 +440,13 @@ impl Stepper for FlowStep {
         match &mut self.step {
             Some(step) => step.particles(),
             None => Ok(self.idle.clone()),
+        }
+    }
+
+    fn snapshot(&mut self) -> Result<Snapshot> {
+        match &mut self.step {
+            Some(step) => step.snapshot(),
+            None => Ok(Snapshot::of(self.idle.clone())),
         }
     }
 

@@ -841,15 +841,23 @@ impl Granular {
         self.n -= k;
     }
 
-    /// The angular velocities, the materials and the history in the cpu's layout that the next
-    /// step (`next`) reads; `order` maps the rows of state set `next.set` to input order
-    /// (`None`: the state is in input order).
-    pub fn read(&self, gpu: &Gpu, next: Turn, order: Option<&InputOrder>) -> Result<Rotation> {
+    /// The angular velocities, the materials and (where `springs`; else none) the history in
+    /// the cpu's layout that the next step (`next`) reads; `order` maps the rows of state set
+    /// `next.set` to input order (`None`: the state is in input order).
+    pub fn read(
+        &self,
+        gpu: &Gpu,
+        next: Turn,
+        order: Option<&InputOrder>,
+        springs: bool,
+    ) -> Result<Rotation> {
         let (n, parity) = (self.n as usize, next.parity);
         let omega: Vec<[f32; 4]> = gpu.read(self.omega_of(next.set), n)?;
         let angular_velocities = omega.iter().map(|w| [w[0], w[1], w[2]]).collect();
         let materials = omega.iter().map(|w| w[3] as u8).collect();
-        let history = if self.keeps_history() {
+        let history = if !springs {
+            ContactHistory::default()
+        } else if self.keeps_history() {
             let k = self.split.slots as usize;
             let mut held: Vec<u32> = gpu.read(&self.held[parity], n)?;
             let mut slots = read_slots(gpu, &self.history[parity].parts, &self.split, self.n)?;
@@ -875,6 +883,42 @@ impl Granular {
             materials,
             history,
         })
+    }
+
+    /// The contacts each sphere holds in the history [`read`](Self::read) gives for `next` and
+    /// `order`, in input order, counted from the slots' partners alone.
+    pub fn contact_counts(
+        &self,
+        gpu: &Gpu,
+        next: Turn,
+        order: Option<&InputOrder>,
+    ) -> Result<Vec<u32>> {
+        let n = self.n as usize;
+        if !self.keeps_history() {
+            return Ok(self.given.counts(n));
+        }
+        let k = self.split.slots as usize;
+        let held: Vec<u32> = gpu.read(&self.held[next.parity], n)?;
+        let slots = read_slots(gpu, &self.history[next.parity].parts, &self.split, self.n)?;
+        // The row of each sphere in input order.
+        let row_of = match order {
+            Some(order) => {
+                let mut row_of = vec![0u32; n];
+                for (row, &rank) in order.rank.iter().enumerate() {
+                    row_of[rank as usize] = row as u32;
+                }
+                row_of
+            }
+            None => (0..n as u32).collect(),
+        };
+        let partners = |i: usize| {
+            let row = row_of[i] as usize;
+            (row * k..row * k + held[row] as usize)
+                .map(|s| slots.words[s * slots.width + 3])
+                .filter(|&p| p != NO_PARTNER)
+                .filter_map(|p| order.map_or(Some(p), |o| o.partner(p)))
+        };
+        Ok(ContactHistory::counts_of_owner_rows(n, partners))
     }
 }
 

@@ -13,7 +13,7 @@
 
 use super::accel::Accel;
 use super::shaders::dem_rq::{self, BOXES, COUNTERS, RQ_PARAMS, RqParams, TLAS};
-use crate::dem::stepper::{Advance, ExternalLoads, Motion, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, ExternalLoads, Motion, Snapshot, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::engines::common::flow::Room;
 use crate::engines::common::rows::{
@@ -249,6 +249,38 @@ impl RqStepper {
             parity: self.parity,
         }
     }
+
+    /// The state read back in input order ([`Error::Unstable`] if it is not finite), with
+    /// the history where `springs` (else each sphere's contacts counted).
+    fn state(&self, springs: bool) -> Result<Snapshot> {
+        let n = self.n as usize;
+        let pos: Vec<[f32; 4]> = self.gpu.read(&self.pos, n)?;
+        let lo: Vec<[f32; 4]> = self.gpu.read(&self.lo, n)?;
+        let vel: Vec<[f32; 4]> = self.gpu.read(&self.vel, n)?;
+        let rotation = || {
+            let g = self.granular.as_ref();
+            g.map(|g| g.read(&self.gpu, self.turn(), None, springs))
+                .transpose()
+        };
+        let rows = StateRows {
+            pos: &pos,
+            lo: &lo,
+            vel: &vel,
+        };
+        let mut particles = particles_with(rows, None, self.step, rotation)?;
+        let granular = self.granular.as_ref();
+        if let Some(c) = granular.and_then(|g| g.clumps()) {
+            particles.clumps = c.read(&self.gpu)?;
+        }
+        let contacts = match (springs, granular) {
+            (false, Some(g)) => g.contact_counts(&self.gpu, self.turn(), None)?,
+            _ => particles.history.counts(n),
+        };
+        Ok(Snapshot {
+            particles,
+            contacts,
+        })
+    }
 }
 
 impl RedoableBatch for RqStepper {
@@ -412,24 +444,11 @@ impl Stepper for RqStepper {
     }
 
     fn particles(&mut self) -> Result<Particles> {
-        let n = self.n as usize;
-        let pos: Vec<[f32; 4]> = self.gpu.read(&self.pos, n)?;
-        let lo: Vec<[f32; 4]> = self.gpu.read(&self.lo, n)?;
-        let vel: Vec<[f32; 4]> = self.gpu.read(&self.vel, n)?;
-        let rotation = || {
-            let g = self.granular.as_ref();
-            g.map(|g| g.read(&self.gpu, self.turn(), None)).transpose()
-        };
-        let rows = StateRows {
-            pos: &pos,
-            lo: &lo,
-            vel: &vel,
-        };
-        let mut particles = particles_with(rows, None, self.step, rotation)?;
-        if let Some(c) = self.granular.as_ref().and_then(|g| g.clumps()) {
-            particles.clumps = c.read(&self.gpu)?;
-        }
-        Ok(particles)
+        Ok(self.state(true)?.particles)
+    }
+
+    fn snapshot(&mut self) -> Result<Snapshot> {
+        self.state(false)
     }
 
     fn set_gravity(&mut self, gravity: [f32; 3]) -> Result<()> {

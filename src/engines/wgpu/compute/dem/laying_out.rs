@@ -239,7 +239,7 @@ impl GridStepper {
         let hi = [value(keys[3]), value(keys[4]), value(keys[5])];
         if lo.iter().chain(&hi).any(|x| !x.is_finite()) {
             // A position is not finite: the state read back names the sphere (Error::Unstable).
-            self.state()?;
+            self.state(false)?;
             return Err(Error::Gpu(format!(
                 "the bounds at step {} are not finite, yet every sphere is",
                 self.step

@@ -53,7 +53,7 @@ use super::skin::{SKIN_CELLS, Skin, skin_of};
 use crate::dem::flow::NewSphere;
 use crate::dem::model::StepParams;
 use crate::dem::stepper::Clock;
-use crate::dem::stepper::{Advance, ExternalLoads, Motion, StageTimes, Stepper};
+use crate::dem::stepper::{Advance, ExternalLoads, Motion, Snapshot, StageTimes, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::engines::common::flow::DeviceFlow;
 use crate::engines::common::flow::{FlowQuery, Room, Scan};
@@ -566,8 +566,9 @@ impl GridStepper {
         Ok(())
     }
 
-    /// The state read back in input order ([`Error::Unstable`] if it is not finite).
-    fn state(&self) -> Result<Particles> {
+    /// The state read back in input order ([`Error::Unstable`] if it is not finite), with
+    /// the history where `springs` (else each sphere's contacts counted).
+    fn state(&self, springs: bool) -> Result<Snapshot> {
         let n = self.n as usize;
         let set = &self.res.sets[self.current];
         let pos: Vec<[f32; 4]> = self.res.gpu.read(&set.pos, n)?;
@@ -577,7 +578,7 @@ impl GridStepper {
         let order = InputOrder::of(&ids);
         let rotation = || {
             let g = self.res.granular.as_ref();
-            g.map(|g| g.read(&self.res.gpu, self.turn(), Some(&order)))
+            g.map(|g| g.read(&self.res.gpu, self.turn(), Some(&order), springs))
                 .transpose()
         };
         let rows = StateRows {
@@ -586,10 +587,18 @@ impl GridStepper {
             vel: &vel,
         };
         let mut particles = particles_with(rows, Some(&order.rank), self.step, rotation)?;
-        if let Some(c) = self.res.granular.as_ref().and_then(|g| g.clumps()) {
+        let granular = self.res.granular.as_ref();
+        if let Some(c) = granular.and_then(|g| g.clumps()) {
             particles.clumps = c.read(&self.res.gpu)?;
         }
-        Ok(particles)
+        let contacts = match (springs, granular) {
+            (false, Some(g)) => g.contact_counts(&self.res.gpu, self.turn(), Some(&order))?,
+            _ => particles.history.counts(n),
+        };
+        Ok(Snapshot {
+            particles,
+            contacts,
+        })
     }
 }
 
@@ -646,7 +655,11 @@ impl Stepper for GridStepper {
     }
 
     fn particles(&mut self) -> Result<Particles> {
-        self.state()
+        Ok(self.state(true)?.particles)
+    }
+
+    fn snapshot(&mut self) -> Result<Snapshot> {
+        self.state(false)
     }
 
     fn step(&self) -> u64 {
@@ -668,7 +681,7 @@ impl Stepper for GridStepper {
             .as_ref()
             .is_some_and(|g| g.clumps().is_some())
         {
-            motion.check_clumps(&self.state()?)?;
+            motion.check_clumps(&self.state(true)?.particles)?;
         }
         let (res, n) = (&self.res, self.n as usize);
         let set = &res.sets[self.current];
