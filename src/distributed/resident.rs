@@ -140,27 +140,21 @@ impl Resident {
         self.held_of(own, &FxHashMap::default())
     }
 
-    /// The rank's own spheres as records, by ascending id, each with the contacts it holds
-    /// counted in [`SphereRecord::contacts`] (no springs read back).
+    /// The rank's own spheres as records, in no order, each with the contacts it holds counted
+    /// in [`SphereRecord::contacts`] (no springs read back).
     pub fn seen(&mut self) -> Result<Vec<SphereRecord>> {
-        let mut own = self.own_ids(&FxHashSet::default())?;
-        own.sort_unstable();
+        let marks = self.resident()?.own_marks()?;
         let now = self.step.snapshot()?;
-        // The step's input order: ascending stable id.
-        let place: FxHashMap<u32, usize> = (self.ids().into_iter().enumerate())
-            .map(|(at, g)| (g, at))
-            .collect();
-        own.into_iter()
-            .map(|g| {
-                let &at = place.get(&g).ok_or_else(|| {
-                    Error::Usage(format!("rank's own sphere {g} is not in its step"))
-                })?;
-                Ok(SphereRecord {
-                    contacts: now.contacts[at],
-                    ..super::record::record_of(&now.particles, at, g)
-                })
+        // The step's input order is ascending stable id: the place of a held sphere is its
+        // stable id's among those held.
+        let held = (self.global.iter().zip(0..)).filter(|&(&g, _)| g != GONE);
+        Ok((held.enumerate())
+            .filter(|&(_, (_, k))| marks.get(k) == Some(&1))
+            .map(|(at, (&g, _))| SphereRecord {
+                contacts: now.contacts[at],
+                ..super::record::record_of(&now.particles, at, g)
             })
-            .collect()
+            .collect())
     }
 
     /// The spheres of the whole run's ids `own` with their contacts as the step keeps them,

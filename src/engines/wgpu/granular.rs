@@ -26,6 +26,7 @@ use crate::engines::common::flow::Room;
 use crate::engines::common::rows::Rotation;
 use crate::engines::wgpu::clumps::DeviceClumps;
 use crate::engines::wgpu::clumps::shader::{CLUMP_OF, CLUMP_ROWS};
+use crate::engines::wgpu::partners::PartnerPicker;
 use crate::engines::wgpu::state::{InputOrder, ParamsUniform, RowMover};
 use crate::engines::wgpu::walls::MeshWalls;
 use crate::error::{Error, Result, try_vec};
@@ -33,6 +34,7 @@ use crate::gpu::Gpu;
 use crate::gpu::shader::Binding;
 use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, NO_PARTNER, Particles};
 use std::ops::Range;
+use std::sync::OnceLock;
 
 /// What the granular step adds to the paper's (`wgsl/dem/dem_contact.wgsl`, the contact law, and
 /// `wgsl/dem/dem_granular.wgsl`, angular velocities, torques, contact history and integration):
@@ -452,6 +454,8 @@ pub(crate) struct Granular {
     /// The clumps (`None`: the contact pass binds other buffers of the step in their place, which
     /// it never reads or writes there).
     clumps: Option<DeviceClumps>,
+    /// Picks the history's partners for a snapshot's counts (made at the first).
+    picker: OnceLock<PartnerPicker>,
     n: u32,
     /// The engine's backend name, for labels and errors.
     engine: &'static str,
@@ -545,6 +549,7 @@ impl Granular {
             },
             mesh,
             clumps,
+            picker: OnceLock::new(),
             n,
             engine,
         })?;
@@ -899,7 +904,17 @@ impl Granular {
         }
         let k = self.split.slots as usize;
         let held: Vec<u32> = gpu.read(&self.held[next.parity], n)?;
-        let slots = read_slots(gpu, &self.history[next.parity].parts, &self.split, self.n)?;
+        // The slots of the rows in use, part by part.
+        let used = n.min(self.split.n as usize) * k;
+        let parts: Vec<(&wgpu::Buffer, Range<usize>)> = (self.history[next.parity].parts.iter())
+            .enumerate()
+            .map(|(part, buffer)| {
+                let slots = self.split.slots_of(part);
+                (buffer, slots.start.min(used)..slots.end.min(used))
+            })
+            .collect();
+        let picker = self.picker.get_or_init(|| PartnerPicker::new(gpu));
+        let slot_partners = picker.pick(gpu, &parts, self.split.width())?;
         // The row of each sphere in input order.
         let row_of = match order {
             Some(order) => {
@@ -913,8 +928,8 @@ impl Granular {
         };
         let partners = |i: usize| {
             let row = row_of[i] as usize;
-            (row * k..row * k + held[row] as usize)
-                .map(|s| slots.words[s * slots.width + 3])
+            (slot_partners[row * k..row * k + held[row] as usize].iter())
+                .copied()
                 .filter(|&p| p != NO_PARTNER)
                 .filter_map(|p| order.map_or(Some(p), |o| o.partner(p)))
         };

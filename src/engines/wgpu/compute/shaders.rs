@@ -480,5 +480,7 @@ pub fn modules() -> Vec<WgslModule> {
     all.push(crate::engines::wgpu::halo::module());
     // Rows moved where spheres leave (`engines/wgpu/state.rs`).
     all.push(crate::engines::wgpu::state::move_module());
+    // A snapshot's pick of the history's partners (`engines/wgpu/partners.rs`).
+    all.push(crate::engines::wgpu::partners::module());
     all
 }
