@@ -17,9 +17,53 @@ use mochi::run::{FIRST_PROGRESS_STEPS, FileDigest, Run, RunStart, RunState, prog
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-/// The longest a progress line shows contacts counted before (a step that counts them at a
-/// cost, a run over GPU ranks, counts them at most this often, and at the end).
+/// The longest a progress line shows contacts counted before, where counting them costs little
+/// (a step that counts them at a cost, a run over GPU ranks, counts them at most this often,
+/// and at the end).
 const CONTACTS_PERIOD: Duration = Duration::from_secs(5);
+
+/// At most this share of a run's wall time goes to counting its contacts for the progress line:
+/// where a count costs more than this share of [`CONTACTS_PERIOD`], the counts come further
+/// apart.
+const COUNTING_SHARE: f64 = 0.05;
+
+/// When the progress line's contacts are counted again: every [`CONTACTS_PERIOD`], or less
+/// often where a count costs more than [`COUNTING_SHARE`] of the time between counts (what a
+/// counted call took beyond its steps at the pace of the calls that did not count).
+#[derive(Debug, Default)]
+struct ContactCounts {
+    /// When the last count was made.
+    counted_at: Option<Instant>,
+    /// Seconds a step of the last call that did not count.
+    pace: Option<f64>,
+    /// What the last count cost \[s\].
+    cost: f64,
+}
+
+impl ContactCounts {
+    /// Whether the next call counts.
+    fn due(&self) -> bool {
+        let period = CONTACTS_PERIOD
+            .as_secs_f64()
+            .max(self.cost / COUNTING_SHARE);
+        self.counted_at
+            .is_none_or(|t| t.elapsed().as_secs_f64() >= period)
+    }
+
+    /// A call of `steps` steps that took `took`, and counted where `counted`.
+    fn called(&mut self, steps: u64, took: Duration, counted: bool) {
+        let took = took.as_secs_f64();
+        match counted {
+            true => {
+                self.counted_at = Some(Instant::now());
+                if let Some(pace) = self.pace {
+                    self.cost = (took - pace * steps as f64).max(0.0);
+                }
+            }
+            false => self.pace = Some(took / steps.max(1) as f64),
+        }
+    }
+}
 
 /// The scene fields the named flags give.
 fn flags(args: &SimulateArgs) -> Result<SceneFlags> {
@@ -255,7 +299,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     // A run over ranks exchanges its ghosts once a round: calls of whole rounds.
     let round = stepper.steps_a_round().max(1) as u64;
     let mut progress_every = FIRST_PROGRESS_STEPS.next_multiple_of(round);
-    let mut counted_at: Option<Instant> = None;
+    let mut counts = ContactCounts::default();
     while step < total {
         let next_stop = [
             config.run.frame_every,
@@ -269,15 +313,13 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         .min()
         .expect("a stop");
         let advanced_at = Instant::now();
-        // The contacts shown are at most CONTACTS_PERIOD old; the last call's are counted.
-        let count = next_stop == total || counted_at.is_none_or(|t| t.elapsed() >= CONTACTS_PERIOD);
+        // The contacts shown are counted now and then; the last call's are counted.
+        let count = next_stop == total || counts.due();
         let advance = match count {
-            true => {
-                counted_at = Some(Instant::now());
-                stepper.advance((next_stop - step) as u32)?
-            }
+            true => stepper.advance((next_stop - step) as u32)?,
             false => stepper.advance_uncounted((next_stop - step) as u32)?,
         };
+        counts.called(next_stop - step, advanced_at.elapsed(), count);
         progress_every =
             progress_steps(next_stop - step, advanced_at.elapsed()).next_multiple_of(round);
         step = next_stop;
@@ -462,5 +504,33 @@ fn run_folder(args: &SimulateArgs) -> PathBuf {
             _ => PathBuf::from("."),
         },
         (None, None) => PathBuf::from("mochi-out"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_that_cost_more_than_their_share_come_further_apart() {
+        let mut counts = ContactCounts::default();
+        assert!(counts.due(), "the first call counts");
+        // 100 steps at 1 ms each, then a count of 100 steps that took 2 s more.
+        counts.called(100, Duration::from_millis(100), false);
+        counts.called(100, Duration::from_millis(2100), true);
+        assert!((counts.cost - 2.0).abs() < 1e-9, "cost {}", counts.cost);
+        let ago = |s| Instant::now().checked_sub(Duration::from_secs(s));
+        // Due after 2 s / COUNTING_SHARE = 40 s, not after CONTACTS_PERIOD.
+        counts.counted_at = ago(10);
+        assert!(!counts.due());
+        counts.counted_at = ago(41);
+        assert!(counts.due());
+        // A count that costs nothing: every CONTACTS_PERIOD.
+        counts.called(100, Duration::from_millis(100), true);
+        assert_eq!(counts.cost, 0.0);
+        counts.counted_at = ago(6);
+        assert!(counts.due());
+        counts.counted_at = ago(4);
+        assert!(!counts.due());
     }
 }
