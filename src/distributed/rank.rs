@@ -877,7 +877,7 @@ impl<C: Comm + Send> RankStepper<C> {
     }
 
     /// [`Stepper::advance`], the contacts of its last step counted where `count` says (else
-    /// those counted last: a GPU rank counts them from every sphere read back).
+    /// those counted last: a GPU rank reads its history's partners, or every sphere back).
     fn advance_counting(&mut self, steps: u32, count: bool) -> Result<Advance> {
         let mut times = StageTimes::default();
         let mut touching = 0;

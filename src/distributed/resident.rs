@@ -143,17 +143,25 @@ impl Resident {
     /// The rank's own spheres as records, in no order, each with the contacts it holds counted
     /// in [`SphereRecord::contacts`] (no springs read back).
     pub fn seen(&mut self) -> Result<Vec<SphereRecord>> {
-        let marks = self.resident()?.own_marks()?;
+        let own = self.own_places()?;
         let now = self.step.snapshot()?;
+        Ok((own.into_iter())
+            .map(|(at, g)| SphereRecord {
+                contacts: now.contacts[at],
+                ..super::record::record_of(&now.particles, at, g)
+            })
+            .collect())
+    }
+
+    /// Each own sphere's place in the step's input order and its whole-run id.
+    fn own_places(&mut self) -> Result<Vec<(usize, u32)>> {
+        let marks = self.resident()?.own_marks()?;
         // The step's input order is ascending stable id: the place of a held sphere is its
         // stable id's among those held.
         let held = (self.global.iter().zip(0..)).filter(|&(&g, _)| g != GONE);
         Ok((held.enumerate())
             .filter(|&(_, (_, k))| marks.get(k) == Some(&1))
-            .map(|(at, (&g, _))| SphereRecord {
-                contacts: now.contacts[at],
-                ..super::record::record_of(&now.particles, at, g)
-            })
+            .map(|(at, (&g, _))| (at, g))
             .collect())
     }
 
@@ -199,7 +207,8 @@ impl Resident {
     /// the step this rank's spheres (those in its box) and its ghosts (within the halo of it),
     /// each in the state its owner of the round gave it; `halo` gives the halo from the fastest
     /// own sphere's speed (every rank together); where `count` gives the proxy mode, the own
-    /// spheres' contacts are found too (every row read back). Every rank exchanges together.
+    /// spheres' contacts are counted too ([`own_pair_ends`](Self::own_pair_ends)). Every rank
+    /// exchanges together.
     pub fn exchange<C: Comm>(
         &mut self,
         comm: &C,
@@ -329,8 +338,13 @@ impl Resident {
     }
 
     /// The own spheres' contacts with any sphere, summed (each contact of two own spheres
-    /// counted by both), found on the host from every row read back.
+    /// counted by both): as the step's history holds them where it keeps one, else found on
+    /// the host from every row read back.
     fn own_pair_ends(&mut self, mode: ProxyMode) -> Result<u64> {
+        if let Some(counts) = self.resident()?.sphere_contacts()? {
+            let own = self.own_places()?;
+            return Ok(own.iter().map(|&(at, _)| counts[at] as u64).sum());
+        }
         let rows = self.resident()?.rows()?;
         let marks = self.resident()?.own_marks()?;
         let own_rows: Vec<usize> = (0..rows.ids.len())

@@ -83,6 +83,10 @@ pub(crate) trait ResidentStep {
     /// stable id given.
     fn own_marks(&mut self) -> Result<Vec<u32>>;
 
+    /// Each sphere's contacts with other spheres as the step's history holds them after its
+    /// last step, in its input order (ascending stable id); `None` where it keeps no history.
+    fn sphere_contacts(&mut self) -> Result<Option<Vec<u32>>>;
+
     /// The records of the own spheres near the faces of `bounds`, by direction of the
     /// neighbouring box, and the own spheres' largest speed.
     fn gather_layer(&mut self, bounds: &LayerBounds) -> Result<Layer>;

@@ -891,16 +891,25 @@ impl Granular {
     }
 
     /// The contacts each sphere holds in the history [`read`](Self::read) gives for `next` and
-    /// `order`, in input order, counted from the slots' partners alone.
+    /// `order` (its contacts with walls too where `walls`), in input order, counted from the
+    /// slots' partners alone.
     pub fn contact_counts(
         &self,
         gpu: &Gpu,
         next: Turn,
         order: Option<&InputOrder>,
+        walls: bool,
     ) -> Result<Vec<u32>> {
         let n = self.n as usize;
         if !self.keeps_history() {
-            return Ok(self.given.counts(n));
+            // The history as given holds both sides of each contact.
+            let kept = |i: usize| {
+                self.given
+                    .of(i)
+                    .iter()
+                    .filter(|e| walls || (e.partner as usize) < n)
+            };
+            return Ok((0..n).map(|i| kept(i).count() as u32).collect());
         }
         let k = self.split.slots as usize;
         let held: Vec<u32> = gpu.read(&self.held[next.parity], n)?;
@@ -932,6 +941,7 @@ impl Granular {
                 .copied()
                 .filter(|&p| p != NO_PARTNER)
                 .filter_map(|p| order.map_or(Some(p), |o| o.partner(p)))
+                .filter(|&p| walls || (p as usize) < n)
         };
         Ok(ContactHistory::counts_of_owner_rows(n, partners))
     }

@@ -273,7 +273,7 @@ impl RqStepper {
             particles.clumps = c.read(&self.gpu)?;
         }
         let contacts = match (springs, granular) {
-            (false, Some(g)) => g.contact_counts(&self.gpu, self.turn(), None)?,
+            (false, Some(g)) => g.contact_counts(&self.gpu, self.turn(), None, true)?,
             _ => particles.history.counts(n),
         };
         Ok(Snapshot {

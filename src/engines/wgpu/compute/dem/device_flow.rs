@@ -116,8 +116,8 @@ impl DeviceFlow for GridStepper {
 }
 
 /// A rank's step: the records of its spheres near the faces of the rank's box written and
-/// those sent here placed on the device (`halo.wgsl`), spheres taken out and appended; every
-/// row read back where the rank counts its contacts.
+/// those sent here placed on the device (`halo.wgsl`), spheres taken out and appended; the
+/// history's partners read back where the rank counts its contacts.
 impl ResidentStep for GridStepper {
     fn rows(&mut self) -> Result<DeviceRows> {
         let (gpu, n) = (&self.res.gpu, self.n as usize);
@@ -148,6 +148,17 @@ impl ResidentStep for GridStepper {
 
     fn own_marks(&mut self) -> Result<Vec<u32>> {
         self.with_halo(|step, halo, _| halo.own_marks(&step.res.gpu))
+    }
+
+    fn sphere_contacts(&mut self) -> Result<Option<Vec<u32>>> {
+        let Some(g) = self.res.granular.as_ref().filter(|g| g.keeps_history()) else {
+            return Ok(None);
+        };
+        let gpu = &self.res.gpu;
+        let ids: Vec<u32> = gpu.read(&self.res.sets[self.current].ids, self.n as usize)?;
+        let order = InputOrder::of(&ids);
+        g.contact_counts(gpu, self.turn(), Some(&order), false)
+            .map(Some)
     }
 
     fn gather_layer(&mut self, bounds: &LayerBounds) -> Result<Layer> {

@@ -592,7 +592,7 @@ impl GridStepper {
             particles.clumps = c.read(&self.res.gpu)?;
         }
         let contacts = match (springs, granular) {
-            (false, Some(g)) => g.contact_counts(&self.res.gpu, self.turn(), Some(&order))?,
+            (false, Some(g)) => g.contact_counts(&self.res.gpu, self.turn(), Some(&order), true)?,
             _ => particles.history.counts(n),
         };
         Ok(Snapshot {
