@@ -937,7 +937,9 @@ impl Granular {
         };
         let partners = |i: usize| {
             let row = row_of[i] as usize;
-            (slot_partners[row * k..row * k + held[row] as usize].iter())
+            // A step that met more contacts than its slots is redone with more (`need`).
+            let held = (held[row] as usize).min(k);
+            (slot_partners[row * k..row * k + held].iter())
                 .copied()
                 .filter(|&p| p != NO_PARTNER)
                 .filter_map(|p| order.map_or(Some(p), |o| o.partner(p)))
