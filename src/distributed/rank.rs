@@ -863,11 +863,20 @@ impl<C: Comm + Send> RankStepper<C> {
         if received.iter().any(|m| m.len() % record != 0) {
             return Err(Error::Usage("a rank's message ends inside a sphere".into()));
         }
-        let mut all: Vec<SphereRecord> = (received.iter())
-            .flat_map(|m| m.chunks_exact(record).map(bytemuck::pod_read_unaligned))
-            .collect();
-        all.sort_unstable_by_key(|s| s.id);
-        if all.iter().enumerate().any(|(k, s)| s.id as usize != k) {
+        // Each record in the place of its id: every id of the run once.
+        let mut all = vec![<SphereRecord as bytemuck::Zeroable>::zeroed(); self.total];
+        let mut seen = vec![false; self.total];
+        for m in &received {
+            for bytes in m.chunks_exact(record) {
+                let s: SphereRecord = bytemuck::pod_read_unaligned(bytes);
+                let id = s.id as usize;
+                if seen.get(id) != Some(&false) {
+                    return Err(Error::Usage("the ranks' spheres are not the run's".into()));
+                }
+                (all[id], seen[id]) = (s, true);
+            }
+        }
+        if seen.contains(&false) {
             return Err(Error::Usage("the ranks' spheres are not the run's".into()));
         }
         Ok(Some(Snapshot {
