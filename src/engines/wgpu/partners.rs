@@ -1,6 +1,7 @@
 //! The partners of a wgpu step's history slots read back without their springs: the GPU picks
-//! each slot's partner into one list (`wgsl/dem/slot_partners.wgsl`), a word a slot where a
-//! slot is 8 or 16, so a snapshot counts each sphere's contacts from a fraction of the history.
+//! each slot's partner into one list (`wgsl/dem/slot_partners.wgsl`), one word of a slot's 8
+//! (16 with the load history), so that a snapshot or a rank's count of its contacts reads an
+//! eighth of the history or less.
 
 use crate::error::{Error, Result};
 use crate::gpu::Gpu;
@@ -43,7 +44,7 @@ struct PickParams {
     row: u32,
 }
 
-/// The pipeline that picks the partners (compiled once per step).
+/// The pipeline that picks the partners (made at a step's first pick).
 pub(crate) struct PartnerPicker {
     pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
