@@ -2,7 +2,8 @@
 //! simulate` uses), stepped from Python.
 //!
 //! Invariants: `step` counts the steps the stepper has taken (its particles' step); `now` is
-//! `None` or the particles at `step` (read back once, dropped on every step), and `views` holds
+//! `None` or the snapshot at `step` (the particles without their springs, each sphere's
+//! contacts counted: read back once, dropped on every step), and `views` holds
 //! only arrays made from `now` (dropped with it, and whenever the state is set); the arrays
 //! handed out are read-only snapshots.
 
@@ -11,7 +12,7 @@ use mochi::SphereSet;
 use mochi::dem::contacts::ContactData;
 use mochi::dem::scene::{Overrides, SceneConfig, SceneFlags, SceneKind};
 use mochi::dem::walls::spec::NewMotion;
-use mochi::dem::{Energies, Motion, Particles};
+use mochi::dem::{Energies, Motion, Particles, Snapshot};
 use mochi::engines::{BackendChoice, Options};
 use mochi::io;
 use mochi::run::{FIRST_PROGRESS_STEPS, Run, RunStart, progress_steps};
@@ -494,7 +495,7 @@ pub struct Simulation {
     run: Mutex<Option<Run>>,
     step: u64,
     contacts: u64,
-    now: Option<Particles>,
+    now: Option<Snapshot>,
     views: Views,
     /// The contacts of `now`, where asked for since the last step.
     touching: Option<ContactData>,
@@ -561,17 +562,17 @@ impl Simulation {
     fn particles(&mut self, py: Python<'_>) -> PyResult<&Particles> {
         if self.now.is_none() {
             let stepper = &mut self.run_mut()?.stepper;
-            let now = py.detach(|| stepper.particles()).map_err(to_py_err)?;
+            let now = py.detach(|| stepper.snapshot()).map_err(to_py_err)?;
             self.now = Some(now);
         }
-        Ok(self.now.as_ref().expect("read back above"))
+        Ok(&self.now.as_ref().expect("read back above").particles)
     }
 
     /// The spheres now: the particles' count where they were read back since the last step,
     /// else the start's count with the flows' insertions and removals since (no read-back).
     fn spheres_now(&mut self) -> PyResult<usize> {
         if let Some(now) = &self.now {
-            return Ok(now.len());
+            return Ok(now.particles.len());
         }
         let run = self.run_mut()?;
         Ok(match run.stepper.flow_counts() {
@@ -609,6 +610,7 @@ impl Simulation {
             .now
             .as_ref()
             .expect("read back above")
+            .particles
             .energies(&densities))
     }
 
@@ -1245,23 +1247,25 @@ impl Simulation {
             sim.particles(py)?;
             let run = open_run(&mut sim.run)?;
             let now = sim.now.as_ref().expect("read back above");
-            let contacts = now.history.counts(now.len());
-            let frame = run.frame(now, &contacts);
+            let frame = run.frame(&now.particles, &now.contacts);
             py.detach(|| io::write_frame(&path, &frame))
                 .map_err(to_py_err)
         })
     }
 
     /// Saves the run (particles, contact history and resolved scene) for
-    /// `Simulation.resume`; atomically.
+    /// `Simulation.resume`; atomically. Reads the springs back too, which the arrays of the
+    /// spheres now do not.
     fn checkpoint(&mut self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         self.guarded("Simulation.checkpoint", |sim| {
-            sim.particles(py)?;
             let run = sim.run_mut()?;
             let (scene, state) = (run.scene_toml(), run.state_toml(None));
-            let now = sim.now.as_ref().expect("read back above");
-            py.detach(|| io::write_checkpoint(&path, now, &scene, &state))
-                .map_err(to_py_err)
+            let stepper = &mut run.stepper;
+            py.detach(|| {
+                let now = stepper.particles()?;
+                io::write_checkpoint(&path, &now, &scene, &state)
+            })
+            .map_err(to_py_err)
         })
     }
 
