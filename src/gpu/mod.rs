@@ -71,7 +71,8 @@ pub struct Gpu {
 /// whose spheres come and go reopens its step) compiles nothing.
 #[derive(Default)]
 struct Compiled {
-    modules: HashMap<String, Module>,
+    /// By loops' bounding and source.
+    modules: HashMap<(bool, String), Module>,
     pipelines: HashMap<(usize, String), wgpu::ComputePipeline>,
 }
 
@@ -287,28 +288,59 @@ impl Gpu {
         pipeline
     }
 
-    /// Compiles a WGSL module, once per device and source.
+    /// Compiles a WGSL module with every check wgpu makes of a shader, once per device and
+    /// source.
     pub fn module(&self, label: &str, source: &str) -> Module {
-        if let Some(module) = self.compiled().modules.get(source) {
+        self.compile(label, source, true)
+    }
+
+    /// Compiles one of the crate's own WGSL modules, once per device and source: every check
+    /// wgpu makes of a shader but the bound it puts on each loop (a counter a loop, there so
+    /// that a driver cannot compile a loop that never ends as unreachable), which costs the
+    /// walks of the DEM steps a few percent. The crate's shaders end every loop on the counts
+    /// and sizes the host gives them; a loop that did not would hang the step with the bound
+    /// too (it allows 2^64 passes).
+    pub(crate) fn own_module(&self, label: &str, source: &str) -> Module {
+        self.compile(label, source, false)
+    }
+
+    /// Compiles `source`, its loops bounded by wgpu where `bounded`, once per device, source
+    /// and bounding.
+    fn compile(&self, label: &str, source: &str, bounded: bool) -> Module {
+        let key = (bounded, source.to_owned());
+        if let Some(module) = self.compiled().modules.get(&key) {
             return module.clone();
         }
-        let module = self
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            });
+        let desc = wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        };
+        let module = match bounded {
+            true => self.device.create_shader_module(desc),
+            false => {
+                let checks = wgpu::ShaderRuntimeChecks {
+                    force_loop_bounding: false,
+                    ..wgpu::ShaderRuntimeChecks::checked()
+                };
+                // SAFETY: only `own_module` asks for no bound, for the crate's shaders, whose
+                // every loop ends.
+                #[allow(unsafe_code)]
+                unsafe {
+                    self.device.create_shader_module_trusted(desc, checks)
+                }
+            }
+        };
         let mut compiled = self.compiled();
         // Another thread may have compiled the same source meanwhile: its module is the one
-        // (so that the indices, the pipelines' keys, stay one per source).
-        if let Some(module) = compiled.modules.get(source) {
+        // (so that the indices, the pipelines' keys, stay one per source and bounding).
+        if let Some(module) = compiled.modules.get(&key) {
             return module.clone();
         }
         let module = Module {
             module,
             index: compiled.modules.len(),
         };
-        compiled.modules.insert(source.to_owned(), module.clone());
+        compiled.modules.insert(key, module.clone());
         module
     }
 
@@ -746,14 +778,14 @@ mod tests {
             for _ in 0..8 {
                 scope.spawn(|| {
                     for source in &sources {
-                        gpu.module("mochi.test", source);
+                        gpu.own_module("mochi.test", source);
                     }
                 });
             }
         });
         let mut indices: Vec<usize> = sources
             .iter()
-            .map(|s| gpu.module("mochi.test", s).index)
+            .map(|s| gpu.own_module("mochi.test", s).index)
             .collect();
         indices.sort_unstable();
         indices.dedup();

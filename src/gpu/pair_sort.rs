@@ -96,7 +96,7 @@ pub struct PairSort {
 impl PairSort {
     /// Compiles the shaders and builds the pipelines.
     pub fn new(gpu: &Gpu) -> Self {
-        let module = gpu.module("mochi.pair_sort", SOURCE);
+        let module = gpu.own_module("mochi.pair_sort", SOURCE);
         PairSort {
             count: gpu.pipeline("mochi.pair_sort.count", &module, "count"),
             place: gpu.pipeline("mochi.pair_sort.place", &module, "place"),

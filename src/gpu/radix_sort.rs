@@ -112,7 +112,7 @@ impl RadixSort {
                 bind_group_layouts: &[Some(&layout)],
                 immediate_size: 0,
             });
-        let module = gpu.module("mochi.sort.module", SOURCE);
+        let module = gpu.own_module("mochi.sort.module", SOURCE);
         let make = |label, entry| pipeline(gpu, &pipeline_layout, &module, label, entry);
         RadixSort {
             histogram: make("mochi.sort.histogram", "histogram"),

@@ -205,7 +205,7 @@ impl ExclusiveScan {
                 bind_group_layouts: &[Some(&layout)],
                 immediate_size: 0,
             });
-        let module = gpu.module("mochi.scan.module", SOURCE);
+        let module = gpu.own_module("mochi.scan.module", SOURCE);
         let make = |label, entry| {
             gpu.device
                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {

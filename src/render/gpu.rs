@@ -35,7 +35,7 @@ impl GpuRenderer {
         };
         let gpu = Gpu::open(need)?;
         let pipeline = gpu.checked("compiling the render shader", || {
-            let module = gpu.module(label, source);
+            let module = gpu.own_module(label, source);
             gpu.pipeline(label, &module, ENTRY_POINT)
         })?;
         Ok(Self {

@@ -80,7 +80,7 @@ pub(crate) struct FlowScan {
 impl FlowScan {
     /// The pipeline (compiled once per device) and first buffers.
     pub fn new(gpu: &Gpu) -> Self {
-        let module = gpu.module("mochi.flow_scan", SOURCE);
+        let module = gpu.own_module("mochi.flow_scan", SOURCE);
         let none = wgpu::BufferUsages::empty();
         FlowScan {
             pipeline: gpu.pipeline("mochi.flow_scan", &module, ENTRY_POINT),

@@ -159,7 +159,7 @@ pub(crate) struct HaloExchange {
 impl HaloExchange {
     /// The pipelines (compiled once per device) and first buffers.
     pub fn new(gpu: &Gpu) -> Self {
-        let module = gpu.module("mochi.halo", SOURCE);
+        let module = gpu.own_module("mochi.halo", SOURCE);
         let words = |label, n: u64| gpu.storage(label, n * 4, wgpu::BufferUsages::empty());
         let first = FIRST_ROOM as u64;
         HaloExchange {

@@ -52,7 +52,7 @@ pub(crate) struct PartnerPicker {
 
 impl PartnerPicker {
     pub fn new(gpu: &Gpu) -> Self {
-        let module = gpu.module("mochi.slot_partners", SOURCE);
+        let module = gpu.own_module("mochi.slot_partners", SOURCE);
         PartnerPicker {
             pipeline: gpu.pipeline("mochi.slot_partners", &module, "pick_partners"),
             params: gpu.uniform("mochi.slot_partners.params", &PickParams::default()),

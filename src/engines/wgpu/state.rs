@@ -197,7 +197,7 @@ struct MoveParams {
 impl RowMover {
     /// The pipelines (compiled once per device) and first buffers.
     pub fn new(gpu: &Gpu) -> Self {
-        let module = gpu.module("mochi.move_rows", MOVE_SOURCE);
+        let module = gpu.own_module("mochi.move_rows", MOVE_SOURCE);
         RowMover {
             within: gpu.pipeline("mochi.move_rows.within", &module, "move_within"),
             across: gpu.pipeline("mochi.move_rows.across", &module, "move_across"),

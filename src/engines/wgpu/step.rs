@@ -360,7 +360,7 @@ impl DemModule {
         }
         let params_uniform = ParamsUniform::new(gpu, &format!("mochi.dem.{backend}.params"), law);
         let source = source(accumulators, lanes, variant);
-        let module = gpu.module(&format!("mochi.dem.{backend}"), &source);
+        let module = gpu.own_module(&format!("mochi.dem.{backend}"), &source);
         // The paper's law (wgsl/dem/dem_physics.wgsl) with a stiffness per pair, or the granular
         // step's (wgsl/dem/dem_contact.wgsl) specialised for one material.
         let constants = match variant {

@@ -57,7 +57,7 @@ impl CellScan {
         } else {
             cell_scan::PLAIN_SOURCE
         };
-        let module = gpu.module("mochi.cells.scan", source);
+        let module = gpu.own_module("mochi.cells.scan", source);
         CellScan {
             reduce_blocks: gpu.pipeline("mochi.cells.reduce_blocks", &module, "reduce_blocks"),
             scan_cells: gpu.pipeline("mochi.cells.scan_cells", &module, "scan_cells"),

@@ -155,10 +155,10 @@ impl WgpuComputeBackend {
     /// Opens the best adapter with compute shaders.
     pub fn new() -> Result<Self> {
         let gpu = Gpu::open(Need::Compute)?;
-        let build = gpu.module("mochi.grid.build", grid_build::SOURCE);
-        let pairs = gpu.module("mochi.grid.pairs", grid_pairs::DENSE_SOURCE);
-        let sort = gpu.module("mochi.grid.sort", grid_sort::SOURCE);
-        let pairs_sorted = gpu.module("mochi.grid.pairs_sorted", grid_pairs::SORTED_SOURCE);
+        let build = gpu.own_module("mochi.grid.build", grid_build::SOURCE);
+        let pairs = gpu.own_module("mochi.grid.pairs", grid_pairs::DENSE_SOURCE);
+        let sort = gpu.own_module("mochi.grid.sort", grid_sort::SOURCE);
+        let pairs_sorted = gpu.own_module("mochi.grid.pairs_sorted", grid_pairs::SORTED_SOURCE);
         Ok(Self {
             scan: CellScan::new(&gpu),
             join_spheres: gpu.pipeline("mochi.grid.join_spheres", &build, "join_spheres"),

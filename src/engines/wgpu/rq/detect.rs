@@ -36,8 +36,8 @@ impl WgpuRqBackend {
     /// Opens the best adapter with ray queries.
     pub fn new() -> Result<Self> {
         let gpu = Gpu::open(Need::RayQuery)?;
-        let build = gpu.module("mochi.rq.build", rq_build::SOURCE);
-        let pairs = gpu.module("mochi.rq.pairs", rq_pairs::SOURCE);
+        let build = gpu.own_module("mochi.rq.build", rq_build::SOURCE);
+        let pairs = gpu.own_module("mochi.rq.pairs", rq_pairs::SOURCE);
         Ok(Self {
             sort: RadixSort::new(&gpu),
             morton_keys: gpu.pipeline("mochi.rq.morton_keys", &build, "morton_keys"),

@@ -293,7 +293,7 @@ mod tests {
         let order = gpu.storage("test.morton.order", u64::from(n) * 4, none);
         gpu.queue
             .write_buffer(&spheres, 0, bytemuck::cast_slice(&rows));
-        let module = gpu.module("test.morton", rq_build::SOURCE);
+        let module = gpu.own_module("test.morton", rq_build::SOURCE);
         let pipeline = gpu.pipeline("test.morton", &module, "morton_keys");
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         gpu.pass(
