@@ -345,6 +345,47 @@ fn bridge_holds(s: &mut dyn Stepper, force: f32, rupture: f32) -> bool {
     })
 }
 
+#[test]
+fn a_bridge_across_a_gap_pulls_alike_after_its_run_is_read_back_and_reopened() {
+    // A run read back holds each contact on both sides of its history, which a GPU step opened
+    // from it lays out again: a bridge across a gap then pulls as in a run never read back.
+    let p = params(&wet(1e-12), [0.0; 3]);
+    let rupture = p.materials.bridge(0, 0).rupture;
+    on_each(|open| {
+        let mut start = spheres(vec![
+            [0.005 - R + 1e-7, 0.005, 0.005],
+            [0.005 + R - 1e-7, 0.005, 0.005],
+        ]);
+        start.velocities = vec![[-0.3, 0.0, 0.0], [0.3, 0.0, 0.0]];
+        // The steps until the gap is a third of the rupture distance, read back after each.
+        let gap = |x: &[[f32; 3]]| x[1][0] - x[0][0] - 2.0 * R;
+        let mut read = open(start.clone(), &p);
+        let mut mid = start.clone();
+        let mut steps = 0;
+        while gap(&mid.positions) < rupture / 3.0 {
+            assert!(
+                read.advance(1).unwrap().contacts > 0,
+                "the bridge ruptured early"
+            );
+            mid = read.particles().unwrap();
+            steps += 1;
+        }
+        let mut reopened = open(mid.clone(), &p);
+        let mut whole = open(start, &p);
+        whole.advance(steps).unwrap();
+        whole.advance(50).unwrap();
+        reopened.advance(50).unwrap();
+        let pulled =
+            |s: &mut dyn Stepper| s.particles().unwrap().velocities[1][0] - mid.velocities[1][0];
+        let (went_on, read_back) = (pulled(&mut *whole), pulled(&mut *reopened));
+        assert!(went_on < 0.0, "the bridge did not pull: {went_on} m/s");
+        assert!(
+            (read_back / went_on - 1.0).abs() < 1e-3,
+            "reopened, the bridge took {read_back} m/s, not {went_on} m/s"
+        );
+    });
+}
+
 /// The force ±F along x on two touching spheres bonded by a bridge that ruptures at a gap of
 /// `rupture`, growing slowly from 0 to 1.6 times `about` after they settle, at which the bridge
 /// lets them go (their gap passes a fifth of the rupture distance).

@@ -5,11 +5,6 @@
 //   fn stable_id(p: u32) -> u32    the input index of the sphere at state index p
 //   fn row_before(p: u32) -> u32   the state index the sphere at state index p had in the
 //                                  previous step (its row of the old history)
-//   fn held_apart(w: ptr<function, Walker>, b: u32, t: vec4<f32>)   the walker's contact with
-//                                  sphere b (stable id; t: centre and radius) holds this step
-//                                  (a cohesive step's, maybe across a gap)
-//   fn moved_by(p: u32, v: vec3<f32>)   sphere p (state index) moved by dem.dt·v in the
-//                                  integration
 //
 // Angular velocities and torques are in state order, as pos and vel (the engine permutes ω with
 // them wherever it re-sorts the state), so every kernel reads them where it reads pos and vel.
@@ -26,7 +21,8 @@
 // element (r mod P)·K + s, P = dem.spheres_per_part (every row in part 0 where the
 // entries fit one binding; the bindings past the parts in use hold a spare buffer and are
 // never read).
-// A pair is resolved once, by its owner (the sphere whose thread finds it); the owner looks the
+// A pair is resolved once, by its owner (the sphere whose thread finds it, or, where the grid's
+// walk lists only touching spheres, the one whose old row holds a pair now apart); the owner looks the
 // pair up in its own old slots, then in the partner's (whose springs are the negatives: the
 // owner of a pair changes when the order or the proxy rule's case changes, and an uploaded
 // history holds both sides), and writes it to its own new slots. Only the owner writes its
@@ -106,8 +102,6 @@ struct Walker {
     held: u32,           // contacts with history (spheres it owns and walls)
     waiting: u32,        // candidates within reach met (dem_grid_granular.wgsl)
     list_from: u32,      // the first of them its list holds (dem_grid_granular.wgsl)
-    marks: u32,          // its contacts held across a gap at the last step (dem_grid_bonds.wgsl)
-    slack: f32,          // how far apart a candidate may be that touched it then (dem_grid_bonds.wgsl)
 }
 
 // The walker of the sphere at place p of the walk, state index h, centre and radius s.
@@ -125,7 +119,7 @@ fn walker(p: u32, h: u32, s: vec4<f32>) -> Walker {
         own_new = slot_at(h, 0u);
     }
     let me = body_of(s, vel[h], omega[h]);
-    return Walker(p, h, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u, 0u, 0u, -1.0);
+    return Walker(p, h, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u, 0u);
 }
 
 // The old entry at `at`.
@@ -274,9 +268,6 @@ fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) -> Contact {
         old = old_contact(w, q, b);
     }
     let c = pair_contact((*w).me, other, old.springs, old.held);
-    if COHESIVE && c.touching {
-        held_apart(w, b, t);
-    }
     if c.touching {
         add_force(q, -c.force);
         if dem.turns != 0u {
@@ -382,7 +373,6 @@ fn integrate_sphere(p: u32) -> vec4<f32> {
     vel[p] = vec4(v_new, m);
     let moved = vec4(advance_position(p, s.xyz, dem.dt * v_new), s.w);
     pos[p] = moved;
-    moved_by(p, v_new);
     if dem.turns != 0u {
         let inertia = moment_of_inertia(m, s.w);
         let torque = load_torque(p);

@@ -1,144 +1,72 @@
-// Which candidates within reach a cohesive walk lists (wgpu-compute's granular step where
-// contacts hold past touching: FILTERS_BONDS). A candidate apart from the walker's sphere is a
-// contact only where the pair held one at the last step; every other apart candidate is skipped
-// by the walk, before its slot, its lookup in both spheres' old history and its law, which would
-// all find nothing. A pair that held a contact at the last step either touched then, and is now
-// apart by at most what its two spheres moved in one step (the walker's `slack`: twice the
-// step's length at the largest speed, and rounding), or was held across a gap, which the step
-// that held it marked in both spheres' bits (`held_apart`).
-//
-// `bonds`: each sphere's marks, a 16-bit hash set of its partners' stable ids, in the word of its
-// stable id modulo a power of two (spheres sharing a word share their marks: more is listed,
-// nothing lost); a word's half of the clock's parity is the last step's marks, which a step
-// reads, the other half the step's own, which it writes (and the integration of the next step
-// clears). After the words: the largest speed the integration gave, by the clock's parity, and
-// whether this batch's marks and speed are whole (the host zeroes the buffer at every batch's
-// start: a batch's first step lists every candidate within reach, and makes them whole).
+// Contacts held across a gap, found from the history (wgpu-compute's granular step where
+// contacts hold past touching and keep history: APART_FROM_HISTORY). A pair apart is a contact
+// only where the last step held one, and then one of its spheres' old history rows names the
+// other; so the walk lists only the candidates that touch its sphere (its windows no wider than
+// a dry walk's), and after it each walker resolves the contacts of its own old row whose spheres
+// are now apart. The two tests are one comparison and its negation, on the same words (the
+// walk's sorted centres; a difference negated rounds alike), so each pair that touches is the
+// walk's and each pair apart the history's. A pair is in one of its spheres' old rows only (its
+// owner's: a step writes only the owner's row, and a history the host lays out keeps one side,
+// src/engines/wgpu/granular.rs `owned`), so it is resolved once.
+// `name_places` writes, before the contact pass, each stable id's sorted place.
 // Needs dem_grid_granular.wgsl's walk and dem_granular.wgsl's walker.
 
-override FILTERS_BONDS: bool = false;
+override APART_FROM_HISTORY: bool = false;
 
-@group(0) @binding(39) var<storage, read_write> bonds: array<atomic<u32>>;
+// by stable id: the sorted place of the sphere with that id in this step (an id no sphere has
+// holds a place of an earlier step, which `resolve_apart` tells apart)
+@group(0) @binding(39) var<storage, read_write> place_of_id: array<u32>;
 
-// Words after the marks: the largest speed (f32 bits) of the clock's parity 0 and 1, and the
-// batch's marks and speed being whole (1).
-const WHOLE_WORD: u32 = 2u;
-const HEADER_WORDS: u32 = 4u;
-
-// The shift of the half of the marks' words this step writes, as the walker saw the clock
-// (`see_bonds`): the marking needs no load of its own.
-var<private> written_shift: u32;
-
-// The word of the marks of the sphere of stable id `id`.
-fn marks_word(id: u32) -> u32 {
-    return id & (arrayLength(&bonds) - HEADER_WORDS - 1u);
-}
-
-// The k-th word after the marks.
-fn header_word(k: u32) -> u32 {
-    return arrayLength(&bonds) - HEADER_WORDS + k;
-}
-
-// The bit of stable id `id` in a sphere's 16 marks.
-fn mark_bit(id: u32) -> u32 {
-    return 1u << ((id * 0x9e3779b1u) >> 28u);
-}
-
-// The shift of the half of a word that a step of clock `c` writes (the other half it reads).
-fn written_half(c: u32) -> u32 {
-    return 16u * ((c + 1u) & 1u);
-}
-
-// Every thread of a contact pass, first: the half of the marks it writes (a thread may resolve
-// other walkers' contacts).
-fn see_clock() {
-    if FILTERS_BONDS {
-        written_shift = written_half(atomicLoad(&clock));
-    }
-}
-
-// The walker's view of the last step: its sphere's marks and the slack within which an apart
-// candidate may have touched then (negative: the marks are not whole, every candidate is
-// listed); `a` is the walker's stable id.
-fn see_bonds(w: ptr<function, Walker>, a: u32) {
-    (*w).slack = -1.0;
-    if !FILTERS_BONDS {
+// Each sorted place under its sphere's stable id, for the contact pass after it.
+@compute @workgroup_size(256)
+fn name_places(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = index(gid);
+    if p >= params.n {
         return;
     }
-    let c = atomicLoad(&clock);
-    if (*w).p == 0u {
-        // The integration of this step takes the next step's largest speed here.
-        atomicStore(&bonds[header_word((c + 1u) & 1u)], 0u);
-    }
-    if atomicLoad(&bonds[header_word(WHOLE_WORD)]) == 0u {
-        return;
-    }
-    // No speed past the largest finite one (an infinite or NaN speed lists every candidate).
-    let fastest = atomicLoad(&bonds[header_word(c & 1u)]);
-    if fastest >= 0x7f800000u {
-        return;
-    }
-    (*w).marks = (atomicLoad(&bonds[marks_word(a)]) >> (16u - written_half(c))) & 0xffffu;
-    let speed = bitcast<f32>(fastest);
-    let s = (*w).s;
-    let far = max(max(abs(s.x), abs(s.y)), abs(s.z));
-    // Each centre moved by dt·v and its rounding (a few units in the last place of the larger
-    // coordinate); the pair's distance has rounding of its own (the factor in `unbonded`).
-    (*w).slack = 2.0 * dem.dt * speed * (1.0 + 1.0 / 1024.0) + far / 65536.0;
+    place_of_id[stable_id(home[p])] = p;
 }
 
-// Whether candidate q (sorted place; t its centre and radius, within reach) is apart from the
-// walker's sphere and held no contact with it at the last step: then the walk skips it.
-fn unbonded(w: ptr<function, Walker>, q: u32, t: vec4<f32>) -> bool {
-    if !FILTERS_BONDS || (*w).slack < 0.0 {
-        return false;
-    }
-    let d = t.xyz - (*w).s.xyz;
-    let touch = (*w).s.w + t.w;
-    let beyond = touch * (1.0 + 1.0 / 65536.0) + (*w).slack;
-    if d.x * d.x + d.y * d.y + d.z * d.z <= beyond * beyond {
-        return false;
-    }
-    return (*w).marks == 0u || ((*w).marks & mark_bit(stable_id(home[q]))) == 0u;
-}
-
-// Marks, for the next step, the walker's contact with sphere b (stable id; t its centre and
-// radius) that holds this step, where they are apart (dem_granular.wgsl's hook).
-fn held_apart(w: ptr<function, Walker>, b: u32, t: vec4<f32>) {
-    if !FILTERS_BONDS {
-        return;
-    }
-    let a = (*w).a;
-    let s = (*w).s;
+// Whether spheres s and t (centre, radius) touch: a pair the walk lists.
+fn touches(s: vec4<f32>, t: vec4<f32>) -> bool {
     let d = t.xyz - s.xyz;
     let touch = s.w + t.w;
-    if d.x * d.x + d.y * d.y + d.z * d.z <= touch * touch {
-        return;
-    }
-    atomicOr(&bonds[marks_word(a)], mark_bit(b) << written_shift);
-    atomicOr(&bonds[marks_word(b)], mark_bit(a) << written_shift);
+    return d.x * d.x + d.y * d.y + d.z * d.z <= touch * touch;
 }
 
-// After sphere p (state index) moved by dt·v (dem_granular.wgsl's hook): its speed into the
-// next step's largest, its marks of the last step cleared (the next step writes there), the
-// marks and speed whole.
-fn moved_by(p: u32, v: vec3<f32>) {
-    if !FILTERS_BONDS {
+// Whether candidate t (centre, radius) of a walk from sphere s is listed: where contacts are
+// found from the history apart, one that touches; else one within reach.
+fn walk_lists(s: vec4<f32>, t: vec4<f32>) -> bool {
+    if APART_FROM_HISTORY {
+        return touches(s, t);
+    }
+    return reaches(s, t);
+}
+
+// The walker's contacts of the last step, from its own old row, whose spheres are now apart
+// (after its walk, which met those that touch).
+fn resolve_apart(w: ptr<function, Walker>) {
+    if !APART_FROM_HISTORY {
         return;
     }
-    let c = atomicLoad(&clock);
-    let top = header_word((c + 1u) & 1u);
-    let speed = bitcast<u32>(length(v));
-    if speed > atomicLoad(&bonds[top]) {
-        atomicMax(&bonds[top], speed);
-    }
-    let at = marks_word(stable_id(p));
-    let kept = 0xffffu << written_half(c);
-    let word = atomicLoad(&bonds[at]);
-    if (word & ~kept) != 0u {
-        atomicAnd(&bonds[at], kept);
-    }
-    if p == 0u {
-        atomicStore(&bonds[header_word(WHOLE_WORD)], 1u);
+    let at = (*w).own_old;
+    for (var s = 0u; s < (*w).kept; s += 1u) {
+        let b = old_partner(SlotAt(at.part, at.slot + s));
+        // Walls (ids past NO_PARTNER) are `finish`'s and the mesh walls' kernel's; NO_PARTNER
+        // names no contact.
+        if b >= NO_PARTNER || b >= arrayLength(&place_of_id) {
+            continue;
+        }
+        // The place named by an id whose sphere left holds another sphere (or none): no
+        // contact, skipped here where it touches, below where not.
+        let q = place_of_id[b];
+        if q >= params.n {
+            continue;
+        }
+        let t = walk_pos[q];
+        if touches((*w).s, t) || stable_id(home[q]) != b {
+            continue;
+        }
+        take(w, contact_with(w, home[q], t));
     }
 }

@@ -23,10 +23,11 @@ fn walk_sphere(q: u32) -> vec4<f32> {
     return walk_pos[q];
 }
 
-// The windows of a walk reach dem.reach further where contacts adhere: a contact may hold that
-// far past touching (the hashed table's cells are grown by it on the host).
+// The windows of a walk reach dem.reach further where contacts adhere and the walk lists those
+// apart: a contact may hold that far past touching (the hashed table's cells are grown by it on
+// the host).
 fn widen_windows() {
-    if COHESIVE {
+    if COHESIVE && !APART_FROM_HISTORY {
         window_slack = dem.reach;
     }
 }
@@ -63,10 +64,9 @@ const NEAR_ROOM: u32 = 16u;
 
 fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     // Two components of one clump are never a pair (dem_clumps.wgsl; CLUMPED first: without
-    // clumps, no id is read); a candidate apart that held no contact at the last step is none
-    // (dem_grid_bonds.wgsl).
-    if !reaches((*w).s, t) || (CLUMPED && one_clump(stable_id(home[(*w).p]), stable_id(home[q])))
-        || unbonded(w, q, t) {
+    // clumps, no id is read); where contacts apart come from the history, the walk lists only
+    // those that touch (dem_grid_bonds.wgsl).
+    if !walk_lists((*w).s, t) || (CLUMPED && one_clump(stable_id(home[(*w).p]), stable_id(home[q]))) {
         return;
     }
     let k = (*w).waiting - (*w).list_from;
@@ -190,7 +190,6 @@ fn list_near(@builtin(global_invocation_id) gid: vec3<u32>) {
     var w: Walker;
     w.p = p;
     w.s = walk_pos[p];
-    see_bonds(&w, stable_id(home[p]));
     stencil_walk(&w);
     listed[p] = w.waiting;
 }
@@ -211,14 +210,12 @@ fn count_touching(touching: u32, lid: u32) {
 // calls it (it holds barriers): those past the spheres with nothing to resolve.
 fn resolve_thread(gid: vec3<u32>, lid: u32, lanes: Lanes, walk: bool) {
     widen_windows();
-    see_clock();
     let p = index(gid);
     let here = p < params.n;
     var w: Walker;
     var count = 0u;
     if here {
         w = walker(p, home[p], walk_pos[p]);
-        see_bonds(&w, w.a);
         if walk {
             stencil_walk(&w);
             count = w.waiting;
@@ -235,6 +232,7 @@ fn resolve_thread(gid: vec3<u32>, lid: u32, lanes: Lanes, walk: bool) {
     storageBarrier();
     if here {
         resolve_rest(&w, count);
+        resolve_apart(&w);
         finish(&w);
         touching += w.touching;
     }

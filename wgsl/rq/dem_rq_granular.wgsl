@@ -8,11 +8,6 @@ fn row_before(p: u32) -> u32 {
     return p;
 }
 
-// The ray walk lists no candidate apart from its sphere that it could skip: nothing to note.
-fn held_apart(w: ptr<function, Walker>, b: u32, t: vec4<f32>) {}
-
-fn moved_by(p: u32, v: vec3<f32>) {}
-
 fn walk_chunk() -> u32 {
     return rq.chunk;
 }

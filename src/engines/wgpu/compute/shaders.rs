@@ -261,6 +261,7 @@ pub(crate) mod dem_grid {
         "bin_count",
         "bin_scatter",
         "bin_index",
+        "name_places",
         "list_near",
         "resolve",
         "resolve_near",
@@ -281,6 +282,7 @@ pub(crate) mod dem_grid {
         "bin_index",
         "bin_keys",
         "bin_gather",
+        "name_places",
         "list_near",
         "resolve",
         "resolve_near",
@@ -324,11 +326,9 @@ pub(crate) mod dem_grid {
     pub const NEAR: Binding = Binding::read_write(31, "near");
     /// Twin of `NEAR_ROOM` in `wgsl/grid/dem_grid_granular.wgsl`.
     pub const NEAR_ROOM: u64 = 16;
-    /// The cohesive granular step's marks of contacts held across a gap, by stable id, and the
-    /// largest speed (`wgsl/grid/dem_grid_bonds.wgsl`): [`BOND_WORDS`] words after a power of two.
-    pub const BONDS: Binding = Binding::read_write(39, "bonds");
-    /// Twin of `HEADER_WORDS` in `wgsl/grid/dem_grid_bonds.wgsl`.
-    pub const BOND_WORDS: u64 = 4;
+    /// Where the granular step's contacts apart come from the history: by stable id, the
+    /// sorted place of its sphere (`wgsl/grid/dem_grid_bonds.wgsl`).
+    pub const PLACE_OF_ID: Binding = Binding::read_write(39, "place_of_id");
 
     /// The paper's step's skin (`wgsl/grid/dem_grid_frictionless.wgsl`): by sorted place the row of
     /// the cell its sphere was binned in, and the words the GPU decides in whether a step
@@ -362,7 +362,7 @@ pub(crate) mod dem_grid {
         shared_bindings()
             .into_iter()
             .chain(granular::bindings())
-            .chain([OMEGA_A, CAME_FROM, LISTED, NEAR, BONDS])
+            .chain([OMEGA_A, CAME_FROM, LISTED, NEAR, PLACE_OF_ID])
             .collect()
     }
 
@@ -372,12 +372,6 @@ pub(crate) mod dem_grid {
         fn the_lists_room_is_the_shaders() {
             // The host sizes `near` by NEAR_ROOM; the kernels index it by their own.
             let declared = format!("const NEAR_ROOM: u32 = {}u;", super::NEAR_ROOM);
-            assert!(super::GRANULAR.contains(&declared), "{declared}");
-        }
-
-        #[test]
-        fn the_marks_header_is_the_shaders() {
-            let declared = format!("const HEADER_WORDS: u32 = {}u;", super::BOND_WORDS);
             assert!(super::GRANULAR.contains(&declared), "{declared}");
         }
     }

@@ -40,6 +40,8 @@ pub(super) struct ResolveBinds {
     /// The walk's where the granular contact pass runs in two kernels (`Pipelines::listing`);
     /// `resolve` then binds the second.
     pub(super) list_near: Option<wgpu::BindGroup>,
+    /// `name_places`', where contacts apart come from the history (`Pipelines::name_places`).
+    pub(super) name_places: Option<wgpu::BindGroup>,
     pub(super) resolve: Vec<wgpu::BindGroup>,
     /// The mesh walls' kernels', as `Pipelines::mesh` (granular step with mesh walls).
     pub(super) mesh: Option<Vec<[wgpu::BindGroup; 2]>>,
@@ -61,10 +63,9 @@ impl Resident {
         let p = &self.pipelines;
         let gpu = &self.gpu;
         let (scatter_more, integrate_more) = match (&self.granular, &self.near) {
-            (Some(g), Some(lists)) => {
+            (Some(g), Some(_)) => {
                 let [omega_a, omega] = g.sorted_omega(from);
-                let mut integrate = g.integrate_bindings(1 - from);
-                integrate.push((BONDS, &lists.bonds));
+                let integrate = g.integrate_bindings(1 - from);
                 (
                     vec![
                         (OMEGA_A, omega_a),
@@ -320,18 +321,27 @@ impl Resident {
             );
             return ResolveBinds {
                 list_near: None,
+                name_places: None,
                 resolve: vec![resolve],
                 mesh: None,
             };
         };
         let lists = self.near.as_ref().expect("the granular step's lists");
-        // A multi-level grid's walk is long, a filtered walk holds the marks: it runs in a
-        // kernel of its own, without the contact law's registers.
+        // A multi-level grid's walk is long: it runs in a kernel of its own, without the
+        // contact law's registers.
         let listed = [(NEAR, &lists.near), (LISTED, &lists.listed)];
-        let marks = [(BONDS, &lists.bonds), (CLOCK, &self.clock)];
-        let apart = matches!(self.levels, Levels::Many) || lists.filtered;
+        let place_of_id = (PLACE_OF_ID, &lists.place_of_id);
+        let name_places = self.pipelines.name_places.as_ref().map(|pipeline| {
+            let names = [
+                (PARAMS, &self.grid_uniform),
+                placed[0],
+                (IDS, &set.ids),
+                place_of_id,
+            ];
+            gpu.bind("mochi.dem.name_places", pipeline, &names)
+        });
         let (list_near, resolve) = match &self.pipelines.listing {
-            Some([list_near, resolve_near]) if apart => {
+            Some([list_near, resolve_near]) if matches!(self.levels, Levels::Many) => {
                 // The law's parameters for the reach past touching of cohesive contacts.
                 // And the stable ids by sorted place: no two components of one clump are a pair.
                 let walk = [
@@ -343,7 +353,7 @@ impl Resident {
                     (IDS, &set.ids),
                     g.listing_binding(),
                 ];
-                let walk = [&walk[..], &listed, &marks].concat();
+                let walk = [&walk[..], &listed].concat();
                 let list_near = gpu.bind("mochi.dem.list_near", list_near, &walk);
                 (Some(list_near), resolve_near)
             }
@@ -384,10 +394,11 @@ impl Resident {
         });
         ResolveBinds {
             list_near,
+            name_places,
             resolve: turns
                 .iter()
                 .map(|&turn| {
-                    let more = [(IDS, &set.ids), (CAME_FROM, came_from), marks[0], marks[1]];
+                    let more = [(IDS, &set.ids), (CAME_FROM, came_from), place_of_id];
                     let clumps = g.contact_bindings();
                     let all = [&own[..], &g.resolve_bindings(turn), &more, &clumps].concat();
                     gpu.bind("mochi.dem.resolve", resolve, &all)

@@ -56,6 +56,7 @@ impl DeviceFlow for GridStepper {
             .collect();
         let ids: Vec<u32> = (self.next_id..self.next_id + k).collect();
         self.next_id += k;
+        self.name_ids_below(self.next_id);
         let (q, set) = (&self.res.gpu.queue, &self.res.sets[self.current]);
         let at = self.n as u64;
         q.write_buffer(&set.pos, at * 16, bytemuck::cast_slice(&pos));
@@ -218,6 +219,22 @@ impl ResidentStep for GridStepper {
 }
 
 impl GridStepper {
+    /// Grows the sorted places by stable id (where contacts apart come from the history) to
+    /// hold every id below `end`, at least doubled, and binds the contact pass to them.
+    fn name_ids_below(&mut self, end: u32) {
+        let Some(lists) = self.res.near.as_mut().filter(|l| l.apart_from_history) else {
+            return;
+        };
+        let held = lists.place_of_id.size() / 4;
+        if u64::from(end) <= held {
+            return;
+        }
+        let words = u64::from(end).max(2 * held);
+        let none = wgpu::BufferUsages::empty();
+        lists.place_of_id = (self.res.gpu).storage("mochi.dem.place_of_id", words * 4, none);
+        self.rebind();
+    }
+
     /// `work` with a rank's exchange (made at the first) and the state as it binds it.
     fn with_halo<R>(
         &mut self,

@@ -45,8 +45,8 @@ use super::layout::{
 };
 use super::shaders::CELL_KEYS;
 use super::shaders::dem_grid::{
-    self, BOND_WORDS, BONDS, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, HOME, IDS, IDS_A,
-    LISTED, NEAR, NEAR_ROOM, OMEGA_A, PARAMS, POS_A, POS_LO_A, RANKS, SKIN, SKIN_LIMIT, SORT_KEYS,
+    self, BOUNDS, CAME_FROM, CELL_START, COUNTERS, COUNTS, HOME, IDS, IDS_A, LISTED, NEAR,
+    NEAR_ROOM, OMEGA_A, PARAMS, PLACE_OF_ID, POS_A, POS_LO_A, RANKS, SKIN, SKIN_LIMIT, SORT_KEYS,
     SORT_ORDER, VEL_A, WALK_POS, WALK_ROW,
 };
 use super::skin::{SKIN_CELLS, Skin, skin_of};
@@ -108,9 +108,11 @@ struct Pipelines {
     resolve: wgpu::ComputePipeline,
     /// The granular step's contact pass in two kernels (the walk listing each sphere's
     /// candidates within reach, `list_near`, then their contacts, `resolve_near`), which a
-    /// multi-level grid's long walks run, and a walk that skips the unbonded candidates apart
-    /// (`NearLists::filtered`): each kernel then holds its own registers.
+    /// multi-level grid's long walks run: each kernel then holds its own registers.
     listing: Option<[wgpu::ComputePipeline; 2]>,
+    /// Each stable id's sorted place written before the contact pass, where contacts apart
+    /// come from the history (`NearLists::place_of_id`).
+    name_places: Option<wgpu::ComputePipeline>,
     /// The mesh walls' kernels (granular step with mesh walls only), in the order of
     /// `walls::ENTRY_POINTS`.
     mesh: Option<[wgpu::ComputePipeline; 2]>,
@@ -148,25 +150,26 @@ struct SortedPlaces {
     walk_row: wgpu::Buffer,
 }
 
-/// A cohesive walk skips the candidates apart that held no contact at the last step where
-/// contacts hold at least this fraction of the smallest radius past touching
-/// (`wgsl/grid/dem_grid_bonds.wgsl`); closer, few candidates within reach are apart, and the
-/// marks cost more than the walk saves.
-const FILTERED_REACH: f32 = 0.005;
-
 /// The granular contact pass's lists of candidates within reach (`wgsl/grid/dem_grid_granular.wgsl`).
 struct NearLists {
     /// By sorted place, the candidates within reach its walk met (the two-kernel pass).
     listed: wgpu::Buffer,
     /// [`NEAR_ROOM`] places a sphere.
     near: wgpu::Buffer,
-    /// The marks of contacts held across a gap and the largest speed ([`BONDS`]), zeroed at
-    /// every batch's start where the walk filters (no marks otherwise).
-    bonds: wgpu::Buffer,
-    /// Whether the walk skips the candidates apart that held nothing at the last step
-    /// (`FILTERS_BONDS`).
-    filtered: bool,
+    /// Where contacts apart come from the history (`APART_FROM_HISTORY`,
+    /// `wgsl/grid/dem_grid_bonds.wgsl`): by stable id, the sorted place of its sphere in the
+    /// step ([`PLACE_OF_ID`]), a word for every id below [`GridStepper::next_id`] (one word,
+    /// never read, otherwise).
+    place_of_id: wgpu::Buffer,
+    /// Whether the walk lists only the candidates that touch, and the contacts apart come
+    /// from the history.
+    apart_from_history: bool,
 }
+
+/// Contacts apart come from the history where contacts hold at least this fraction of the
+/// smallest radius past touching (`wgsl/grid/dem_grid_bonds.wgsl`); closer, few candidates
+/// within reach are apart, and the walk that lists them costs less than the lookups.
+const APART_REACH: f32 = 0.005;
 
 /// What sorts the spheres by cell between the binning's passes, bound to the layout.
 enum Sorter {
@@ -386,14 +389,13 @@ impl GridStepper {
         let n = particles.len() as u32;
         let rows = room.spheres as u64;
         let clumped = !particles.clumps.clumps.is_empty();
-        // A cohesive walk skips the candidates apart that held nothing at the last step, where
-        // contacts hold far enough past touching (a clump's components move with their clump,
-        // not by their own speed, which bounds how far a pair that touched can have parted).
-        let holds_apart = params.adheres() && params.search_margin(r_max) >= FILTERED_REACH * r_min;
-        let filtered =
-            holds_apart && !clumped && granular.as_ref().is_some_and(Granular::keeps_history);
-        if filtered {
-            constants.push(("FILTERS_BONDS", 1.0));
+        // Where contacts hold far past touching, the walk lists only the candidates that touch
+        // and the contacts apart come from the history, which every cohesive step keeps.
+        let holds_apart = params.adheres() && params.search_margin(r_max) >= APART_REACH * r_min;
+        let apart_from_history =
+            holds_apart && granular.as_ref().is_some_and(Granular::keeps_history);
+        if apart_from_history {
+            constants.push(("APART_FROM_HISTORY", 1.0));
         }
         // The paper's step on the dense build may skip its binning (the skin).
         let paper = granular.is_none();
@@ -412,6 +414,7 @@ impl GridStepper {
             listing: granular
                 .is_some()
                 .then(|| ["list_near", "resolve_near"].map(pipeline)),
+            name_places: apart_from_history.then(|| pipeline("name_places")),
             mesh: granular
                 .as_ref()
                 .is_some_and(|g| g.mesh().any())
@@ -476,12 +479,16 @@ impl GridStepper {
                 near: granular.is_some().then(|| NearLists {
                     listed: make("mochi.dem.listed", rows * 4),
                     near: make("mochi.dem.near", rows * NEAR_ROOM * 4),
-                    // Bound but never read where the walk does not filter.
-                    bonds: make(
-                        "mochi.dem.bonds",
-                        (filtered as u64 * rows.next_power_of_two() + BOND_WORDS) * 4,
+                    // Bound but never read where contacts apart come from the walk.
+                    place_of_id: make(
+                        "mochi.dem.place_of_id",
+                        4 * if apart_from_history {
+                            rows.max(n as u64)
+                        } else {
+                            1
+                        },
                     ),
-                    filtered,
+                    apart_from_history,
                 }),
                 granular,
                 // The paper's walk reads the drift in any build (none without a skin).

@@ -67,6 +67,9 @@ impl GridStepper {
             }
             Phase::Resolve => {
                 let r = binning.map_or(&b.resolving, |(own, _)| &own.resolving);
+                if let (Some(pipeline), Some(bind)) = (&p.name_places, &r.name_places) {
+                    gpu::record(pass, pipeline, bind, self.groups);
+                }
                 let resolve = match (&p.listing, &r.list_near) {
                     (Some([list_near, resolve_near]), Some(bind)) => {
                         gpu::record(pass, list_near, bind, self.groups);
@@ -270,11 +273,6 @@ impl GridStepper {
             let set = &res.sets[turn.set];
             let state = [&set.pos, &set.lo, &set.vel, &set.ids, &res.clock];
             g.begin_batch(&res.gpu, &mut encoder, turn, &state);
-        }
-        // A batch's first step lists every candidate (the host may have moved the spheres or
-        // their rows since the last): its marks start from nothing.
-        if let Some(lists) = res.near.as_ref().filter(|lists| lists.filtered) {
-            encoder.clear_buffer(&lists.bonds, 0, None);
         }
         // The granular step's batches, waited for one by one, are split into submissions
         // where the GPU would otherwise wait for their recording.
