@@ -348,8 +348,18 @@ impl GridStepper {
         particles.separate_coincident()?;
         let room = room.holding(&particles);
         let (r_min, r_max) = room.radii;
-        // Cells hold every pair within the search's reach: the spheres grown by half of it.
-        let mode_cell = mode.cell_size(r_max + 0.5 * params.search_margin(r_max)) as f64;
+        // Where contacts hold far past touching, the walk lists only the candidates that touch
+        // and the contacts apart come from the history, which every cohesive step keeps.
+        let apart_from_history = params.adheres()
+            && params.friction.has_history()
+            && params.search_margin(r_max) >= APART_REACH * r_min;
+        // Cells hold every pair the walk lists: those within the search's reach (the spheres
+        // grown by half of it), or those that touch.
+        let searched = match apart_from_history {
+            true => 0.0,
+            false => params.search_margin(r_max),
+        };
+        let mode_cell = mode.cell_size(r_max + 0.5 * searched) as f64;
         // The build for where the spheres are and where more will come.
         let bounds = match (
             start_bounds(&particles, &params, mode_cell as f32),
@@ -389,11 +399,6 @@ impl GridStepper {
         let n = particles.len() as u32;
         let rows = room.spheres as u64;
         let clumped = !particles.clumps.clumps.is_empty();
-        // Where contacts hold far past touching, the walk lists only the candidates that touch
-        // and the contacts apart come from the history, which every cohesive step keeps.
-        let holds_apart = params.adheres() && params.search_margin(r_max) >= APART_REACH * r_min;
-        let apart_from_history =
-            holds_apart && granular.as_ref().is_some_and(Granular::keeps_history);
         if apart_from_history {
             constants.push(("APART_FROM_HISTORY", 1.0));
         }
