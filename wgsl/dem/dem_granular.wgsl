@@ -22,10 +22,10 @@
 // entries fit one binding; the bindings past the parts in use hold a spare buffer and are
 // never read).
 // A pair is resolved once, by its owner (the sphere whose thread finds it, or, where the grid's
-// walk lists only touching spheres, the one whose old row holds a pair now apart); the owner looks the
-// pair up in its own old slots, then in the partner's (whose springs are the negatives: the
-// owner of a pair changes when the order or the proxy rule's case changes, and an uploaded
-// history holds both sides), and writes it to its own new slots. Only the owner writes its
+// walk lists only touching spheres, the one whose old row holds a pair now apart); the owner
+// looks the pair up in its own old slots, then in the partner's (whose springs are the
+// negatives: the owner of a pair changes when the order or the proxy rule's case changes), and
+// writes it to its own new slots. Only the owner writes its
 // slots: no atomics. Every contact is counted, also those that do not fit, and a sphere that
 // needs more than K raises history_need to its count: the host then grows K and redoes the
 // steps.

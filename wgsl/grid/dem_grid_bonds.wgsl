@@ -1,9 +1,9 @@
 // Contacts held across a gap, found from the history (wgpu-compute's granular step where
-// contacts hold past touching and keep history: APART_FROM_HISTORY). A pair apart is a contact
-// only where the last step held one, and then one of its spheres' old history rows names the
-// other; so the walk lists only the candidates that touch its sphere (its windows no wider than
-// a dry walk's), and after it each walker resolves the contacts of its own old row whose spheres
-// are now apart. The two tests are one comparison and its negation, on the same words (the
+// contacts hold at least 0.5 % of the smallest radius past touching and keep history:
+// APART_FROM_HISTORY, the host's `APART_REACH`). A pair apart is a contact only where the last
+// step held one, and then one of its spheres' old history rows names the other; so the walk
+// lists only the candidates that touch its sphere (its cells and windows a dry walk's), and
+// after it each walker resolves the contacts of its own old row whose spheres are now apart. The two tests are one comparison and its negation, on the same words (the
 // walk's sorted centres; a difference negated rounds alike), so each pair that touches is the
 // walk's and each pair apart the history's. A pair is in one of its spheres' old rows only (its
 // owner's: a step writes only the owner's row, and a history the host lays out keeps one side,

@@ -467,8 +467,7 @@ impl Granular {
     /// that re-sorts the state moving it from one into the other) with `room` (for spheres
     /// appended later, see [`append`](Self::append)); the angular velocities go
     /// into set 0, in input order, the history as the old history of a step of parity 0 (rows
-    /// in input order; the cpu's layout, both sides of each pair, is usable as it is: each owner
-    /// finds its own entry first).
+    /// in input order; of each pair the cpu's layout holds on both sides, one side: [`owned`]).
     pub fn new(
         gpu: &Gpu,
         particles: &Particles,
