@@ -542,12 +542,11 @@ fn flying_apart(
 
 #[test]
 fn a_bridge_holds_to_its_rupture_distance_at_every_step_of_a_long_call() {
-    // From a call's second step on, the GPU walk skips a candidate apart from its sphere that
-    // held no contact at the last step (wgsl/grid/dem_grid_bonds.wgsl): it must still meet a
-    // pair that touched then (parted by at most twice a step's travel at the largest speed)
-    // and a bridge held across a gap. Spheres flying apart at ±3 m/s (0.6 µm a step) from
-    // three overlaps (their first gap a different part of a step's travel) stay bonded until
-    // the gap reaches the rupture distance, seen after every call of 20 steps.
+    // Where the GPU walk lists only touching spheres, a bridge across a gap comes from the
+    // history of the sphere that held it (wgsl/grid/dem_grid_bonds.wgsl), at every step of a
+    // call, its first included. Spheres flying apart at ±3 m/s (0.6 µm a step) from three
+    // overlaps (their first gap a different part of a step's travel) stay bonded until the gap
+    // reaches the rupture distance, seen after every call of 20 steps.
     let rupture = 1e-4;
     let travel = 20.0 * 0.6e-6;
     on_each(|open| {

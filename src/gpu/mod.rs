@@ -71,8 +71,9 @@ pub struct Gpu {
 /// whose spheres come and go reopens its step) compiles nothing.
 #[derive(Default)]
 struct Compiled {
-    /// By loops' bounding and source.
-    modules: HashMap<(bool, String), Module>,
+    /// By source: those whose loops wgpu bounds ([`Gpu::module`]), then the crate's own
+    /// ([`Gpu::own_module`]).
+    modules: [HashMap<String, Module>; 2],
     pipelines: HashMap<(usize, String), wgpu::ComputePipeline>,
 }
 
@@ -307,8 +308,8 @@ impl Gpu {
     /// Compiles `source`, its loops bounded by wgpu where `bounded`, once per device, source
     /// and bounding.
     fn compile(&self, label: &str, source: &str, bounded: bool) -> Module {
-        let key = (bounded, source.to_owned());
-        if let Some(module) = self.compiled().modules.get(&key) {
+        let kind = usize::from(!bounded);
+        if let Some(module) = self.compiled().modules[kind].get(source) {
             return module.clone();
         }
         let desc = wgpu::ShaderModuleDescriptor {
@@ -333,14 +334,14 @@ impl Gpu {
         let mut compiled = self.compiled();
         // Another thread may have compiled the same source meanwhile: its module is the one
         // (so that the indices, the pipelines' keys, stay one per source and bounding).
-        if let Some(module) = compiled.modules.get(&key) {
+        if let Some(module) = compiled.modules[kind].get(source) {
             return module.clone();
         }
         let module = Module {
             module,
-            index: compiled.modules.len(),
+            index: compiled.modules.iter().map(HashMap::len).sum(),
         };
-        compiled.modules.insert(key, module.clone());
+        compiled.modules[kind].insert(source.to_owned(), module.clone());
         module
     }
 

@@ -487,11 +487,7 @@ impl GridStepper {
                     // Bound but never read where contacts apart come from the walk.
                     place_of_id: make(
                         "mochi.dem.place_of_id",
-                        4 * if apart_from_history {
-                            rows.max(n as u64)
-                        } else {
-                            1
-                        },
+                        4 * if apart_from_history { rows } else { 1 },
                     ),
                     apart_from_history,
                 }),
