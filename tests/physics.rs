@@ -13,7 +13,7 @@ use common::on_every_backend;
 use mochi::dem::model::contact::moment_of_inertia;
 use mochi::dem::model::time_step::{hertz_contact_time, hertz_peak_overlap};
 use mochi::dem::model::{ContactLaw, Material, RollingModel, TangentialModel, mass};
-use mochi::dem::{Particles, StepParams, Stepper};
+use mochi::dem::{ContactHistory, Particles, StepParams, Stepper};
 use mochi::engines::wgpu::compute::{GridBuild, GridStepOptions, GridStepper};
 use mochi::engines::{BackendKind, DemSetup, Options, open_stepper};
 use mochi::proxy::ProxyMode;
@@ -819,6 +819,116 @@ fn a_sphere_with_more_contacts_than_history_slots_keeps_every_one_on(kind: Backe
         assert_eq!(back[0].tangential, e.tangential.map(|x| -x));
         assert!(e.tangential.iter().any(|&x| x != 0.0));
     }
+}
+
+#[test]
+fn a_batch_redone_with_more_slots_starts_from_the_springs_it_began_with() {
+    on_every_backend(a_batch_redone_with_more_slots_starts_from_the_springs_it_began_with_on);
+}
+
+fn a_batch_redone_with_more_slots_starts_from_the_springs_it_began_with_on(kind: BackendKind) {
+    // 40 spheres of 5 mm on a shell of 8.6 mm about one point (on a Fibonacci spiral), each
+    // closing in on it at 200 m/s and sliding at 1 m/s across: in a first call of 5 steps each
+    // touches up to about 14 others, in the second up to about 20 (more than the 16 slots a run
+    // starts with), so a GPU step redoes that call's batch from the springs held at its start.
+    // Each spring at the end is the cpu step's, which grows its slots without a redo.
+    let centre = [0.5f32; 3];
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    let (mut c, mut v) = (Vec::new(), Vec::new());
+    for k in 0..40 {
+        let z = 1.0 - 2.0 * (k as f32 + 0.5) / 40.0;
+        let (s, t) = ((1.0 - z * z).sqrt(), golden * k as f32);
+        let u = [s * t.cos(), s * t.sin(), z];
+        c.push(std::array::from_fn(|a| centre[a] + 0.0086 * u[a]));
+        let w = [u[1], -u[0], 0.0];
+        let len = (w[0] * w[0] + w[1] * w[1]).sqrt().max(1e-3);
+        v.push(std::array::from_fn(|a| -200.0 * u[a] + w[a] / len));
+    }
+    let start = spheres(c, v, vec![0.005; 40]);
+    // Every word of a slot is kept: the rolling torque's, and the load history's where the
+    // tangential law has one.
+    for model in [
+        TangentialModel::Mindlin,
+        TangentialModel::MindlinDeresiewicz,
+    ] {
+        let material = Material {
+            rolling_friction: 0.1,
+            tangential_model: model,
+            ..hertz(0.5, 0.5)
+        };
+        let p = params(&material, 1e-6, 1.0, [0.0; 3], 0.005);
+        redone_batch_keeps_its_springs(kind, &start, &p, &format!("{}, {model:?}", kind.name()));
+    }
+}
+
+/// `start` stepped by `p` on `kind` in two calls of 5 steps, the first held in 16 slots and the
+/// second redone with more: each sphere's contacts and springs at the end are the cpu step's.
+fn redone_batch_keeps_its_springs(
+    kind: BackendKind,
+    start: &Particles,
+    p: &StepParams,
+    what: &str,
+) {
+    let run = |kind| {
+        let mut s = open(kind, start.clone(), p.clone());
+        s.advance(5).unwrap();
+        let first = s.describe();
+        s.advance(5).unwrap();
+        (first, s.describe(), s.particles().unwrap())
+    };
+    let (first, then, got) = run(kind);
+    if kind != BackendKind::Cpu {
+        assert!(first.contains("history 16 slots"), "{what}: {first}");
+        assert!(!then.contains("history 16 slots"), "{what}: {then}");
+    }
+    let want = run(BackendKind::Cpu).2;
+    assert_eq!(
+        got.history.has_loads(),
+        want.history.has_loads(),
+        "{what}: load history"
+    );
+    let names = springs_of(&want.history, 0, 0).len();
+    let scale: Vec<f32> = (0..names)
+        .map(|k| {
+            (0..want.len())
+                .flat_map(|i| (0..want.history.of(i).len()).map(move |c| (i, c)))
+                .flat_map(|(i, c)| springs_of(&want.history, i, c)[k].1)
+                .fold(0.0f32, |m, x| m.max(x.abs()))
+        })
+        .collect();
+    for i in 0..want.len() {
+        let (held, wanted) = (got.history.of(i), want.history.of(i));
+        assert_eq!(held.len(), wanted.len(), "{what}: sphere {i}'s contacts");
+        for (c, e) in held.iter().enumerate() {
+            let w = wanted.iter().position(|w| w.partner == e.partner).unwrap();
+            let pairs =
+                springs_of(&got.history, i, c)
+                    .into_iter()
+                    .zip(springs_of(&want.history, i, w));
+            for (((name, a), (_, b)), scale) in pairs.zip(&scale) {
+                assert!(*scale > 0.0, "{what}: no {name} spring on the cpu");
+                let gap = (0..3).fold(0.0f32, |m, k| m.max((a[k] - b[k]).abs()));
+                assert!(
+                    gap <= 1e-3 * scale,
+                    "{what}: the {name} spring of spheres {i} and {} is {a:?}, the cpu step's {b:?}",
+                    e.partner
+                );
+            }
+        }
+    }
+}
+
+/// The springs of sphere `i`'s `c`-th contact in `h`: the tangential and rolling ones and, where
+/// `h` keeps the load history, the force at the last reversal and the normal force.
+fn springs_of(h: &ContactHistory, i: usize, c: usize) -> Vec<(&'static str, [f32; 3])> {
+    let e = &h.of(i)[c];
+    let mut springs = vec![("tangential", e.tangential), ("rolling", e.rolling)];
+    if h.has_loads() {
+        let load = &h.loads_of(i)[c];
+        springs.push(("reversal", load.reversal));
+        springs.push(("normal", [load.normal, 0.0, 0.0]));
+    }
+    springs
 }
 
 /// A small polydisperse pile pressed into the corner of a box: `n`³ spheres of radii between 4.5

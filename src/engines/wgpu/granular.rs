@@ -26,6 +26,7 @@ use crate::engines::common::flow::Room;
 use crate::engines::common::rows::Rotation;
 use crate::engines::wgpu::clumps::DeviceClumps;
 use crate::engines::wgpu::clumps::shader::{CLUMP_OF, CLUMP_ROWS};
+use crate::engines::wgpu::held_saver::{HeldSaver, SavedPart};
 use crate::engines::wgpu::partners::PartnerPicker;
 use crate::engines::wgpu::state::{InputOrder, ParamsUniform, RowMover};
 use crate::engines::wgpu::walls::MeshWalls;
@@ -443,8 +444,9 @@ pub(crate) struct Granular {
     /// The most contacts with history any sphere had in the batch.
     need: wgpu::Buffer,
     /// Copies of the state at the start of the batch (with history only): the old history's
-    /// buffers (as [`History::parts`]) and its counts, the angular velocities, the engine's own
-    /// buffers, then the clumps' states (where there are clumps).
+    /// buffers (as [`History::parts`]; each row's held slots, the rest left as they were) and
+    /// its counts, the angular velocities, the engine's own buffers, then the clumps' states
+    /// (where there are clumps).
     saved: Vec<wgpu::Buffer>,
     /// The history as given, returned as it is where contacts keep no springs (as the cpu
     /// step does).
@@ -456,6 +458,8 @@ pub(crate) struct Granular {
     clumps: Option<DeviceClumps>,
     /// Picks the history's partners for a snapshot's counts (made at the first).
     picker: OnceLock<PartnerPicker>,
+    /// Saves the held slots a batch begins from (made at the first batch with history).
+    saver: Option<HeldSaver>,
     n: u32,
     /// The engine's backend name, for labels and errors.
     engine: &'static str,
@@ -549,6 +553,7 @@ impl Granular {
             mesh,
             clumps,
             picker: OnceLock::new(),
+            saver: None,
             n,
             engine,
         })?;
@@ -715,8 +720,9 @@ impl Granular {
     }
 
     /// Records, ahead of a batch whose first step starts from `first`, the clearing of the
-    /// history count and (with history) the copy of the state it starts from: the old history,
-    /// the angular velocities, the engine's buffers `state` and the clumps' states.
+    /// history count and (with history) the copy of the state it starts from: the old history's
+    /// held slots and counts, the angular velocities, the engine's buffers `state` and the
+    /// clumps' states.
     pub fn begin_batch(
         &mut self,
         gpu: &Gpu,
@@ -755,7 +761,21 @@ impl Granular {
                 })
                 .collect();
         }
-        for (from, to) in sources.iter().zip(&self.saved) {
+        // The history's parts: each row's held slots alone; the rest whole.
+        let fields = self.split.parts();
+        let per = self.split.spheres_per_part;
+        let parts: Vec<SavedPart> = (sources[..fields].iter().zip(&self.saved))
+            .zip(0u32..)
+            .map(|((from, to), k)| SavedPart {
+                from,
+                to,
+                rows: (k * per).min(self.n)..((k + 1) * per).min(self.n),
+            })
+            .collect();
+        let slot = (self.split.slots, self.split.entry_bytes);
+        let saver = self.saver.get_or_insert_with(|| HeldSaver::new(gpu));
+        saver.record(gpu, encoder, &self.held[first.parity], &parts, slot);
+        for (from, to) in sources[fields..].iter().zip(&self.saved[fields..]) {
             encoder.copy_buffer_to_buffer(from, 0, to, 0, from.size());
         }
     }
