@@ -242,7 +242,11 @@ impl Resident {
                 .ok_or_else(|| {
                     Error::Usage("a rank's step wrote records for a box that is not there".into())
                 })?;
-            outgoing[rank].extend_from_slice(&list);
+            // Moved as it is where it is the first list for its rank (as it is with slabs).
+            match outgoing[rank].is_empty() {
+                true => outgoing[rank] = list,
+                false => outgoing[rank].extend_from_slice(&list),
+            }
         }
         let received = comm.exchange(outgoing)?;
         if received

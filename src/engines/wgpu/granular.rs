@@ -26,7 +26,7 @@ use crate::engines::common::flow::Room;
 use crate::engines::common::rows::Rotation;
 use crate::engines::wgpu::clumps::DeviceClumps;
 use crate::engines::wgpu::clumps::shader::{CLUMP_OF, CLUMP_ROWS};
-use crate::engines::wgpu::held_saver::{HeldSaver, SavedPart};
+use crate::engines::wgpu::held_slots::{HeldSlots, Part, Shape};
 use crate::engines::wgpu::partners::PartnerPicker;
 use crate::engines::wgpu::state::{InputOrder, ParamsUniform, RowMover};
 use crate::engines::wgpu::walls::MeshWalls;
@@ -373,24 +373,6 @@ impl Slots {
         (entry, load)
     }
 
-    /// Each row's partners renamed by `name` (`k` slots a row, `held` of them in use), the
-    /// entries of a partner with no name dropped.
-    fn rename(&mut self, held: &mut [u32], k: usize, name: impl Fn(u32) -> Option<u32>) {
-        let w = self.width;
-        for (i, count) in held.iter_mut().enumerate() {
-            let mut kept = 0;
-            for s in 0..*count as usize {
-                let from = (i * k + s) * w;
-                if let Some(partner) = name(self.words[from + 3]) {
-                    self.words[from + 3] = partner;
-                    self.words.copy_within(from..from + w, (i * k + kept) * w);
-                    kept += 1;
-                }
-            }
-            *count = kept as u32;
-        }
-    }
-
     /// The first `held[i]` of the `from` slots of each row i moved to the first of `to` slots
     /// of row `row(i)`.
     fn moved(
@@ -458,8 +440,9 @@ pub(crate) struct Granular {
     clumps: Option<DeviceClumps>,
     /// Picks the history's partners for a snapshot's counts (made at the first).
     picker: OnceLock<PartnerPicker>,
-    /// Saves the held slots a batch begins from (made at the first batch with history).
-    saver: Option<HeldSaver>,
+    /// Saves the held slots a batch begins from and packs them for a read-back (made at the
+    /// first use).
+    held_slots: OnceLock<HeldSlots>,
     n: u32,
     /// The engine's backend name, for labels and errors.
     engine: &'static str,
@@ -553,7 +536,7 @@ impl Granular {
             mesh,
             clumps,
             picker: OnceLock::new(),
-            saver: None,
+            held_slots: OnceLock::new(),
             n,
             engine,
         })?;
@@ -699,6 +682,30 @@ impl Granular {
         Ok(())
     }
 
+    /// The parts of the history of parity `parity`, with their rows of the spheres there are.
+    fn parts(&self, parity: usize) -> Vec<Part<'_>> {
+        let (per, n) = (self.split.spheres_per_part, self.n);
+        (self.history[parity].parts.iter().zip(0u32..))
+            .map(|(entries, k)| Part {
+                entries,
+                rows: (k * per).min(n)..((k + 1) * per).min(n),
+            })
+            .collect()
+    }
+
+    /// The history's slots a row and bytes a slot.
+    fn shape(&self) -> Shape {
+        Shape {
+            slots: self.split.slots,
+            entry_bytes: self.split.entry_bytes,
+        }
+    }
+
+    /// The kernels on the held slots, made at the first use.
+    fn kernels(&self, gpu: &Gpu) -> &HeldSlots {
+        self.held_slots.get_or_init(|| HeldSlots::new(gpu))
+    }
+
     /// Whether contacts keep springs (then batches are saved and may be redone).
     pub fn keeps_history(&self) -> bool {
         self.split.slots > 0
@@ -763,18 +770,10 @@ impl Granular {
         }
         // The history's parts: each row's held slots alone; the rest whole.
         let fields = self.split.parts();
-        let per = self.split.spheres_per_part;
-        let parts: Vec<SavedPart> = (sources[..fields].iter().zip(&self.saved))
-            .zip(0u32..)
-            .map(|((from, to), k)| SavedPart {
-                from,
-                to,
-                rows: (k * per).min(self.n)..((k + 1) * per).min(self.n),
-            })
-            .collect();
-        let slot = (self.split.slots, self.split.entry_bytes);
-        let saver = self.saver.get_or_insert_with(|| HeldSaver::new(gpu));
-        saver.record(gpu, encoder, &self.held[first.parity], &parts, slot);
+        let parts = self.parts(first.parity);
+        let saved = (&parts[..], &self.saved[..fields]);
+        let held = &self.held[first.parity];
+        (self.kernels(gpu)).save(gpu, encoder, held, saved, self.shape());
         for (from, to) in sources[fields..].iter().zip(&self.saved[fields..]) {
             encoder.copy_buffer_to_buffer(from, 0, to, 0, from.size());
         }
@@ -882,23 +881,25 @@ impl Granular {
         let history = if !springs {
             ContactHistory::default()
         } else if self.keeps_history() {
-            let k = self.split.slots as usize;
-            let mut held: Vec<u32> = gpu.read(&self.held[parity], n)?;
-            let mut slots = read_slots(gpu, &self.history[parity].parts, &self.split, self.n)?;
+            let held: Vec<u32> = gpu.read(&self.held[parity], n)?;
+            let held_rows = (&held[..], &self.held[parity]);
+            let parts = self.parts(parity);
+            let words = (self.kernels(gpu)).pack(gpu, held_rows, &parts, self.shape())?;
+            let packed = Slots {
+                words,
+                width: self.split.width(),
+            };
+            // Each sphere's row: its input index's place in the state.
+            let mut rows = Vec::new();
             if let Some(order) = order {
-                // Rows in state order to rows in input order.
-                let rank = &order.rank;
-                slots = slots.moved(&held, k, k, |row| rank[row] as usize)?;
-                let mut by_rank = vec![0; n];
-                for (row, &c) in held.iter().enumerate() {
-                    by_rank[rank[row] as usize] = c;
-                }
-                held = by_rank;
-                if order.renames() {
-                    slots.rename(&mut held, k, |id| order.partner(id));
+                rows.resize(n, 0);
+                for (row, &i) in order.rank.iter().enumerate() {
+                    rows[i as usize] = row as u32;
                 }
             }
-            both_sides(n, k, &held, &slots)?
+            let renames = order.filter(|o| o.renames());
+            let partner = |id| renames.map_or(Some(id), |o| o.partner(id));
+            both_sides(n, &packed, &HeldRows::packed(&held, rows), partner)?
         } else {
             self.given.clone()
         };
@@ -1054,14 +1055,63 @@ fn lay_out(
     Ok((laid_out, held))
 }
 
-/// The owner-only history of the GPU (`held[i]` slots of sphere i from slot i·slots on) in the
-/// cpu's layout ([`ContactHistory::from_owner_rows`]).
-/// Slots that name [`NO_PARTNER`] hold no contact and are dropped.
-fn both_sides(n: usize, slots: usize, held: &[u32], laid_out: &Slots) -> Result<ContactHistory> {
+/// Where each sphere's held slots lie among slots laid out: sphere i's are the `held[r]` from
+/// slot `first[r]` on, r its row `rows[i]` (each sphere its own where `rows` is empty).
+struct HeldRows<'a> {
+    held: &'a [u32],
+    first: Vec<usize>,
+    rows: Vec<u32>,
+}
+
+impl<'a> HeldRows<'a> {
+    /// Rows of `slots` slots each, row r from slot r·`slots` on (the history's layout), each
+    /// sphere its own row.
+    #[cfg(test)]
+    fn strided(held: &'a [u32], slots: usize) -> Self {
+        let first = (0..held.len()).map(|r| r * slots).collect();
+        HeldRows {
+            held,
+            first,
+            rows: Vec::new(),
+        }
+    }
+
+    /// The held slots of the rows alone, one row after the other, sphere i's row `rows[i]`.
+    fn packed(held: &'a [u32], rows: Vec<u32>) -> Self {
+        let mut at = 0;
+        let first = (held.iter())
+            .map(|&c| {
+                let first = at;
+                at += c as usize;
+                first
+            })
+            .collect();
+        HeldRows { held, first, rows }
+    }
+
+    /// The slots sphere `i` holds.
+    fn of(&self, i: usize) -> Range<usize> {
+        let r = self.rows.get(i).map_or(i, |&r| r as usize);
+        self.first[r]..self.first[r] + self.held[r] as usize
+    }
+}
+
+/// The history of `n` spheres from the slots `laid_out` that `rows` places, each contact held by
+/// one side (its owner) or both, as [`ContactHistory::from_owner_rows`] takes it: each partner
+/// named by `partner` (`None`: one that left, whose contacts are dropped).
+fn both_sides(
+    n: usize,
+    laid_out: &Slots,
+    rows: &HeldRows,
+    partner: impl Fn(u32) -> Option<u32>,
+) -> Result<ContactHistory> {
     let row = |i: usize| {
-        (i * slots..i * slots + held[i] as usize)
-            .map(|s| laid_out.get(s))
+        (rows.of(i).map(|s| laid_out.get(s)))
             .filter(|(e, _)| e.partner != NO_PARTNER)
+            .filter_map(|(mut e, load)| {
+                e.partner = partner(e.partner)?;
+                Some((e, load))
+            })
     };
     ContactHistory::from_owner_rows(n, laid_out.width == LOADED_WORDS, row)
 }
@@ -1180,7 +1230,7 @@ mod tests {
             normal: 3.0,
         };
         laid_out.set(0, &entry(1, 1.0), &load);
-        let h = both_sides(2, 1, &[1, 0], &laid_out).unwrap();
+        let h = both_sides(2, &laid_out, &HeldRows::strided(&[1, 0], 1), Some).unwrap();
         assert_eq!(h.loads_of(0), &[load]);
         let mirrored = LoadEntry {
             reversal: [-0.5, 0.25, -0.0],
@@ -1203,7 +1253,13 @@ mod tests {
         entries[1] = entry(FIRST_WALL + 4, 2.0);
         entries[slots] = entry(2, 3.0);
         entries[2 * slots] = entry(1, -3.0);
-        let h = both_sides(3, slots, &[2, 1, 1], &laid_out(&entries)).unwrap();
+        let h = both_sides(
+            3,
+            &laid_out(&entries),
+            &HeldRows::strided(&[2, 1, 1], slots),
+            Some,
+        )
+        .unwrap();
         assert_eq!(h.of(0), &[entry(2, 1.0), entry(FIRST_WALL + 4, 2.0)]);
         assert_eq!(h.of(1), &[entry(2, 3.0)]);
         // Mirrored entries come in the order of their owners.
@@ -1223,7 +1279,9 @@ mod tests {
         );
         assert_eq!(laid_out.get(6).0, HistoryEntry::default());
         assert_eq!(
-            both_sides(2, 4, &held, &laid_out).unwrap().of(0),
+            both_sides(2, &laid_out, &HeldRows::strided(&held, 4), Some)
+                .unwrap()
+                .of(0),
             &[entry(1, -1.0)]
         );
     }
@@ -1254,7 +1312,7 @@ mod tests {
             [entry(0, -1.0), entry(2, -2.0), entry(FIRST_WALL, 3.0)]
         );
         // Read back, each sphere holds what it was given (in another order).
-        let back = both_sides(3, 3, &held, &laid_out).unwrap();
+        let back = both_sides(3, &laid_out, &HeldRows::strided(&held, 3), Some).unwrap();
         for i in 0..3 {
             let by_partner = |h: &ContactHistory| {
                 let mut held = h.of(i).to_vec();

@@ -476,7 +476,7 @@ pub fn modules() -> Vec<WgslModule> {
     all.push(crate::engines::wgpu::state::move_module());
     // A snapshot's pick of the history's partners (`engines/wgpu/partners.rs`).
     all.push(crate::engines::wgpu::partners::module());
-    // The held slots a granular batch begins from (`engines/wgpu/held_saver.rs`).
-    all.push(crate::engines::wgpu::held_saver::module());
+    // The history's held slots saved and packed (`engines/wgpu/held_slots.rs`).
+    all.push(crate::engines::wgpu::held_slots::module());
     all
 }
