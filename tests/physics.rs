@@ -877,9 +877,11 @@ fn redone_batch_keeps_its_springs(
         (first, s.describe(), s.particles().unwrap())
     };
     let (first, then, got) = run(kind);
+    // The GPU backends name their slots a sphere in their description.
+    let sixteen = |d: &str| d.contains("history 16 slots") || d.contains("16 history slots");
     if kind != BackendKind::Cpu {
-        assert!(first.contains("history 16 slots"), "{what}: {first}");
-        assert!(!then.contains("history 16 slots"), "{what}: {then}");
+        assert!(sixteen(&first), "{what}: {first}");
+        assert!(!sixteen(&then), "{what}: {then}");
     }
     let want = run(BackendKind::Cpu).2;
     assert_eq!(
