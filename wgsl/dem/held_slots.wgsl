@@ -2,7 +2,9 @@
 // held_slots.rs, `HeldSlots`), one thread a slot; a row's held slots are its first `held`
 // (dem_granular.wgsl). `save_held` copies them to the same places of the saved part that a
 // batch's redo begins from (the slots past them are left as they were: a redo reads only the held
-// ones); `pack_held` packs them, row after row, into a list the host reads back.
+// ones); `pack_held` packs them, row after row, into a list the host reads back, and `pick_held`
+// their partners alone (a slot's first vector's w), for the host to count each sphere's
+// contacts without reading the springs.
 
 // Twin of SlotParams in src/engines/wgpu/held_slots.rs (tests/bindings.rs compares the layouts).
 struct SlotParams {
@@ -21,8 +23,10 @@ struct SlotParams {
 @group(0) @binding(1) var<storage, read> held: array<u32>;
 @group(0) @binding(2) var<storage, read> from_slots: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read_write> to_slots: array<vec4<u32>>;
-// `pack_held`, by history row: the place of the row's first slot in its part's list
+// `pack_held`, `pick_held`, by history row: the place of the row's first slot in its part's list
 @group(0) @binding(4) var<storage, read> packed_at: array<u32>;
+// `pick_held`: each held slot's partner, at its place in the list
+@group(0) @binding(5) var<storage, read_write> partners: array<u32>;
 
 // The slot of the part a thread takes, and its place in its row (`held` false: none held).
 struct Slot {
@@ -52,14 +56,27 @@ fn save_held(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
+// The place in its part's list of the held slot `slot`.
+fn packed_place(slot: Slot) -> u32 {
+    return packed_at[params.first + slot.at / params.slots] + slot.k;
+}
+
 @compute @workgroup_size(256)
 fn pack_held(@builtin(global_invocation_id) gid: vec3<u32>) {
     let slot = slot_of(gid);
     if !slot.held {
         return;
     }
-    let to = packed_at[params.first + slot.at / params.slots] + slot.k;
+    let to = packed_place(slot);
     for (var v = 0u; v < params.vectors; v += 1u) {
         to_slots[to * params.vectors + v] = from_slots[slot.at * params.vectors + v];
+    }
+}
+
+@compute @workgroup_size(256)
+fn pick_held(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let slot = slot_of(gid);
+    if slot.held {
+        partners[packed_place(slot)] = from_slots[slot.at * params.vectors].w;
     }
 }

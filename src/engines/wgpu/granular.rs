@@ -26,8 +26,7 @@ use crate::engines::common::flow::Room;
 use crate::engines::common::rows::Rotation;
 use crate::engines::wgpu::clumps::DeviceClumps;
 use crate::engines::wgpu::clumps::shader::{CLUMP_OF, CLUMP_ROWS};
-use crate::engines::wgpu::held_slots::{HeldSlots, Part, Shape};
-use crate::engines::wgpu::partners::PartnerPicker;
+use crate::engines::wgpu::held_slots::{HeldSlots, Part, Shape, Take};
 use crate::engines::wgpu::state::{InputOrder, ParamsUniform, RowMover};
 use crate::engines::wgpu::walls::MeshWalls;
 use crate::error::{Error, Result, try_vec};
@@ -438,10 +437,8 @@ pub(crate) struct Granular {
     /// The clumps (`None`: the contact pass binds other buffers of the step in their place, which
     /// it never reads or writes there).
     clumps: Option<DeviceClumps>,
-    /// Picks the history's partners for a snapshot's counts (made at the first).
-    picker: OnceLock<PartnerPicker>,
-    /// Saves the held slots a batch begins from and packs them for a read-back (made at the
-    /// first use).
+    /// Saves the held slots a batch begins from and packs them, or their partners, for a
+    /// read-back (made at the first use).
     held_slots: OnceLock<HeldSlots>,
     n: u32,
     /// The engine's backend name, for labels and errors.
@@ -535,7 +532,6 @@ impl Granular {
             },
             mesh,
             clumps,
-            picker: OnceLock::new(),
             held_slots: OnceLock::new(),
             n,
             engine,
@@ -704,6 +700,21 @@ impl Granular {
     /// The kernels on the held slots, made at the first use.
     fn kernels(&self, gpu: &Gpu) -> &HeldSlots {
         self.held_slots.get_or_init(|| HeldSlots::new(gpu))
+    }
+
+    /// Each row's count of held slots in the history of parity `parity`, and what `take` asks
+    /// of those slots, row after row.
+    fn pack_held(&self, gpu: &Gpu, parity: usize, take: Take) -> Result<(Vec<u32>, Vec<u32>)> {
+        let counts = &self.held[parity];
+        // A step that met more contacts than its slots is redone with more (`need`): a row
+        // holds at most its slots.
+        let mut held: Vec<u32> = gpu.read(counts, self.n as usize)?;
+        held.iter_mut()
+            .for_each(|c| *c = (*c).min(self.split.slots));
+        let parts = self.parts(parity);
+        let packed =
+            (self.kernels(gpu)).pack(gpu, (&held, counts), &parts, (self.shape(), take))?;
+        Ok((held, packed))
     }
 
     /// Whether contacts keep springs (then batches are saved and may be redone).
@@ -881,25 +892,13 @@ impl Granular {
         let history = if !springs {
             ContactHistory::default()
         } else if self.keeps_history() {
-            let held: Vec<u32> = gpu.read(&self.held[parity], n)?;
-            let held_rows = (&held[..], &self.held[parity]);
-            let parts = self.parts(parity);
-            let words = (self.kernels(gpu)).pack(gpu, held_rows, &parts, self.shape())?;
+            let (held, words) = self.pack_held(gpu, parity, Take::Slots)?;
             let packed = Slots {
                 words,
                 width: self.split.width(),
             };
-            // Each sphere's row: its input index's place in the state.
-            let mut rows = Vec::new();
-            if let Some(order) = order {
-                rows.resize(n, 0);
-                for (row, &i) in order.rank.iter().enumerate() {
-                    rows[i as usize] = row as u32;
-                }
-            }
-            let renames = order.filter(|o| o.renames());
-            let partner = |id| renames.map_or(Some(id), |o| o.partner(id));
-            both_sides(n, &packed, &HeldRows::packed(&held, rows), partner)?
+            let rows = HeldRows::packed(&held, rows_of(order, n));
+            both_sides(n, &packed, &rows, |id| partner_of(order, id))?
         } else {
             self.given.clone()
         };
@@ -931,38 +930,12 @@ impl Granular {
             };
             return Ok((0..n).map(|i| kept(i).count() as u32).collect());
         }
-        let k = self.split.slots as usize;
-        let held: Vec<u32> = gpu.read(&self.held[next.parity], n)?;
-        // The slots of the rows in use, part by part.
-        let used = n.min(self.split.n as usize) * k;
-        let parts: Vec<(&wgpu::Buffer, Range<usize>)> = (self.history[next.parity].parts.iter())
-            .enumerate()
-            .map(|(part, buffer)| {
-                let slots = self.split.slots_of(part);
-                (buffer, slots.start.min(used)..slots.end.min(used))
-            })
-            .collect();
-        let picker = self.picker.get_or_init(|| PartnerPicker::new(gpu));
-        let slot_partners = picker.pick(gpu, &parts, self.split.width())?;
-        // The row of each sphere in input order.
-        let row_of = match order {
-            Some(order) => {
-                let mut row_of = vec![0u32; n];
-                for (row, &rank) in order.rank.iter().enumerate() {
-                    row_of[rank as usize] = row as u32;
-                }
-                row_of
-            }
-            None => (0..n as u32).collect(),
-        };
+        let (held, slot_partners) = self.pack_held(gpu, next.parity, Take::Partners)?;
+        let rows = HeldRows::packed(&held, rows_of(order, n));
         let partners = |i: usize| {
-            let row = row_of[i] as usize;
-            // A step that met more contacts than its slots is redone with more (`need`).
-            let held = (held[row] as usize).min(k);
-            (slot_partners[row * k..row * k + held].iter())
-                .copied()
-                .filter(|&p| p != NO_PARTNER)
-                .filter_map(|p| order.map_or(Some(p), |o| o.partner(p)))
+            (slot_partners[rows.of(i)].iter())
+                .filter(|&&p| p != NO_PARTNER)
+                .filter_map(|&p| partner_of(order, p))
                 .filter(|&p| walls || (p as usize) < n)
         };
         Ok(ContactHistory::counts_of_owner_rows(n, partners))
@@ -1053,6 +1026,25 @@ fn lay_out(
         held.push(count);
     }
     Ok((laid_out, held))
+}
+
+/// Each sphere's row, by its input index (as `order` gives each row's; empty: each its own).
+fn rows_of(order: Option<&InputOrder>, n: usize) -> Vec<u32> {
+    let mut rows = Vec::new();
+    if let Some(order) = order {
+        rows.resize(n, 0);
+        for (row, &i) in order.rank.iter().enumerate() {
+            rows[i as usize] = row as u32;
+        }
+    }
+    rows
+}
+
+/// A slot's partner `id` in input order (`order`, where it renames; `None`: one that left).
+fn partner_of(order: Option<&InputOrder>, id: u32) -> Option<u32> {
+    order
+        .filter(|o| o.renames())
+        .map_or(Some(id), |o| o.partner(id))
 }
 
 /// Where each sphere's held slots lie among slots laid out: sphere i's are the `held[r]` from

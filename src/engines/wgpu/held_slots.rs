@@ -1,7 +1,8 @@
 //! The slots each sphere holds of a granular step's history, apart from the empty ones
 //! (`wgsl/dem/held_slots.wgsl`): copied to the saved history a batch's redo begins from, or
-//! packed row after row for the host to read back, where whole buffers moved every slot of every
-//! row, most of them empty.
+//! packed row after row for the host to read back (whole, or their partners alone, one word of a
+//! slot's 8 or 16, for a snapshot's or a rank's count of its contacts), where whole buffers moved
+//! every slot of every row, most of them empty.
 
 use crate::error::Result;
 use crate::gpu::Gpu;
@@ -16,6 +17,7 @@ const HELD: Binding = Binding::read(1, "held");
 const FROM: Binding = Binding::read(2, "from_slots");
 const TO: Binding = Binding::read_write(3, "to_slots");
 const PACKED_AT: Binding = Binding::read(4, "packed_at");
+const PARTNERS: Binding = Binding::read_write(5, "partners");
 /// Workgroup size (as in the shader).
 const GROUP: u32 = 256;
 
@@ -24,8 +26,8 @@ pub fn module() -> WgslModule {
     WgslModule::new(
         "held_slots",
         SOURCE,
-        &["save_held", "pack_held"],
-        &[PARAMS, HELD, FROM, TO, PACKED_AT],
+        &["save_held", "pack_held", "pick_held"],
+        &[PARAMS, HELD, FROM, TO, PACKED_AT, PARTNERS],
         vec![shared_struct!(
             "SlotParams",
             SlotParams {
@@ -69,11 +71,21 @@ pub(crate) struct Shape {
     pub entry_bytes: u64,
 }
 
+/// What a read-back of the held slots takes of each.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Take {
+    /// Every word.
+    Slots,
+    /// The partner's stable id alone.
+    Partners,
+}
+
 /// The kernels (made at a step's first use) and the saves' parameters, one uniform a part (a
 /// batch records every part's pass before it is submitted).
 pub(crate) struct HeldSlots {
     save: wgpu::ComputePipeline,
     pack: wgpu::ComputePipeline,
+    pick: wgpu::ComputePipeline,
     saving: Mutex<Vec<(wgpu::Buffer, SlotParams)>>,
 }
 
@@ -83,6 +95,7 @@ impl HeldSlots {
         HeldSlots {
             save: gpu.pipeline("mochi.held_slots.save", &module, "save_held"),
             pack: gpu.pipeline("mochi.held_slots.pack", &module, "pack_held"),
+            pick: gpu.pipeline("mochi.held_slots.pick", &module, "pick_held"),
             saving: Mutex::new(Vec::new()),
         }
     }
@@ -118,14 +131,14 @@ impl HeldSlots {
         }
     }
 
-    /// The words of the held slots of `parts` (`held`: each row's count, as on the device in
-    /// `held_rows`), row after row, read back.
+    /// What `take` asks of the held slots of `parts` (`held`: each row's count, at most a
+    /// row's slots, as on the device in `held_rows`), row after row, read back.
     pub fn pack(
         &self,
         gpu: &Gpu,
         (held, held_rows): (&[u32], &wgpu::Buffer),
         parts: &[Part<'_>],
-        shape: Shape,
+        (shape, take): (Shape, Take),
     ) -> Result<Vec<u32>> {
         // Each row's first slot in its part's list, and each list's length.
         let mut packed_at = Vec::with_capacity(held.len());
@@ -141,7 +154,10 @@ impl HeldSlots {
             lengths.push(at as u64);
         }
         let total: u64 = lengths.iter().sum();
-        let words = (shape.entry_bytes / 4) as usize;
+        let words = match take {
+            Take::Slots => (shape.entry_bytes / 4) as usize,
+            Take::Partners => 1,
+        };
         let mut packed = crate::error::try_vec(total as usize * words, || {
             format!("the contact history's {total} held slots")
         })?;
@@ -160,21 +176,25 @@ impl HeldSlots {
                 continue;
             };
             let list = gpu.checked("the list of the held slots", || {
-                gpu.storage("mochi.held_slots.list", length * shape.entry_bytes, none)
+                gpu.storage("mochi.held_slots.list", length * words as u64 * 4, none)
             })?;
             let uniform = gpu.uniform("mochi.held_slots.pack", &params);
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            let (pipeline, list_binding) = match take {
+                Take::Slots => (&self.pack, TO),
+                Take::Partners => (&self.pick, PARTNERS),
+            };
             let bound = [
                 (PARAMS, &uniform),
                 (HELD, held_rows),
                 (FROM, part.entries),
-                (TO, &list),
+                (list_binding, &list),
                 (PACKED_AT, &places),
             ];
             gpu.pass(
                 &mut encoder,
                 "mochi.held_slots.pack",
-                &self.pack,
+                pipeline,
                 &bound,
                 groups,
             );

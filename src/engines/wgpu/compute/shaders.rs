@@ -474,9 +474,7 @@ pub fn modules() -> Vec<WgslModule> {
     all.push(crate::engines::wgpu::halo::module());
     // Rows moved where spheres leave (`engines/wgpu/state.rs`).
     all.push(crate::engines::wgpu::state::move_module());
-    // A snapshot's pick of the history's partners (`engines/wgpu/partners.rs`).
-    all.push(crate::engines::wgpu::partners::module());
-    // The history's held slots saved and packed (`engines/wgpu/held_slots.rs`).
+    // The history's held slots saved, packed, their partners picked (`engines/wgpu/held_slots.rs`).
     all.push(crate::engines::wgpu::held_slots::module());
     all
 }
