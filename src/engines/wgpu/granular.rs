@@ -684,7 +684,7 @@ impl Granular {
         (self.history[parity].parts.iter().zip(0u32..))
             .map(|(entries, k)| Part {
                 entries,
-                rows: (k * per).min(n)..((k + 1) * per).min(n),
+                rows: (k.saturating_mul(per)).min(n)..((k + 1).saturating_mul(per)).min(n),
             })
             .collect()
     }

@@ -4,7 +4,7 @@
 //! slot's 8 or 16, for a snapshot's or a rank's count of its contacts), where whole buffers moved
 //! every slot of every row, most of them empty.
 
-use crate::error::Result;
+use crate::error::{Result, try_vec};
 use crate::gpu::Gpu;
 use crate::gpu::shader::{Binding, WgslModule, shared_struct, wgsl};
 use std::ops::Range;
@@ -158,7 +158,7 @@ impl HeldSlots {
             Take::Slots => (shape.entry_bytes / 4) as usize,
             Take::Partners => 1,
         };
-        let mut packed = crate::error::try_vec(total as usize * words, || {
+        let mut packed = try_vec(total as usize * words, || {
             format!("the contact history's {total} held slots")
         })?;
         let none = wgpu::BufferUsages::empty();
