@@ -828,10 +828,11 @@ fn a_batch_redone_with_more_slots_starts_from_the_springs_it_began_with() {
 
 fn a_batch_redone_with_more_slots_starts_from_the_springs_it_began_with_on(kind: BackendKind) {
     // 40 spheres of 5 mm on a shell of 8.6 mm about one point (on a Fibonacci spiral), each
-    // closing in on it at 200 m/s and sliding at 1 m/s across: in a first call of 5 steps each
-    // touches up to about 14 others, in the second up to about 20 (more than the 16 slots a run
-    // starts with), so a GPU step redoes that call's batch from the springs held at its start.
-    // Each spring at the end is the cpu step's, which grows its slots without a redo.
+    // closing in on it at 200 m/s and sliding at 1 m/s across: through a first call of 5 steps
+    // the contacts a sphere keeps fit the 16 slots a run starts with, in the second call's they
+    // do not (the GPU steps' descriptions say so), so a GPU step redoes that call's batch from
+    // the springs held at its start. Each spring at the end is the cpu step's, which grows its
+    // slots without a redo.
     let centre = [0.5f32; 3];
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
     let (mut c, mut v) = (Vec::new(), Vec::new());
