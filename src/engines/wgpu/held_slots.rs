@@ -5,8 +5,8 @@
 //! every slot of every row, most of them empty.
 
 use crate::error::{Result, try_vec};
-use crate::gpu::Gpu;
 use crate::gpu::shader::{Binding, WgslModule, shared_struct, wgsl};
+use crate::gpu::{Gpu, Staging};
 use std::ops::Range;
 use std::sync::Mutex;
 
@@ -171,6 +171,8 @@ impl HeldSlots {
         })?;
         gpu.queue
             .write_buffer(&places, 0, bytemuck::cast_slice(&packed_at));
+        // One staging buffer for every part's list, replaced where a later list is longer.
+        let mut staging = Staging::default();
         for (part, &length) in parts.iter().zip(&lengths) {
             let Some((params, groups)) = params_of(gpu, part, shape).filter(|_| length > 0) else {
                 continue;
@@ -200,7 +202,6 @@ impl HeldSlots {
             );
             gpu.queue.submit([encoder.finish()]);
             let count = length as usize * words;
-            let mut staging = Default::default();
             gpu.read_through_with(&mut staging, &list, count, |values: &[u32]| {
                 packed.extend_from_slice(values)
             })?;
