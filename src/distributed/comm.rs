@@ -16,6 +16,15 @@ pub trait Comm {
     /// and returns what each rank sent this one, by rank. Every rank of the group calls it
     /// the same number of times.
     fn exchange(&self, outgoing: Vec<Vec<u8>>) -> Result<Vec<Vec<u8>>>;
+
+    /// [`exchange`](Self::exchange) of large messages from buffers the caller keeps: what each
+    /// rank sent this one lands in `received` (one vector a rank, resized, their buffers reused
+    /// where the communicator can); the messages are left in `outgoing` for the caller to
+    /// reuse, or taken out of it (this rank's own always is).
+    fn exchange_into(&self, outgoing: &mut [Vec<u8>], received: &mut Vec<Vec<u8>>) -> Result<()> {
+        *received = self.exchange(outgoing.iter_mut().map(std::mem::take).collect())?;
+        Ok(())
+    }
 }
 
 /// The ranks of a group of threads of one process.

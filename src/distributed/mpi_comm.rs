@@ -50,8 +50,14 @@ impl Comm for MpiComm {
     }
 
     fn exchange(&self, mut outgoing: Vec<Vec<u8>>) -> Result<Vec<Vec<u8>>> {
+        let mut received = Vec::new();
+        self.exchange_into(&mut outgoing, &mut received)?;
+        Ok(received)
+    }
+
+    fn exchange_into(&self, outgoing: &mut [Vec<u8>], received: &mut Vec<Vec<u8>>) -> Result<()> {
         let (n, me) = (self.size(), self.rank());
-        one_message_a_rank(&outgoing, n)?;
+        one_message_a_rank(outgoing, n)?;
         // MPI counts in i32: a message of 2 GiB or more is refused.
         let send_counts = outgoing
             .iter()
@@ -66,11 +72,12 @@ impl Comm for MpiComm {
         let mut recv_counts = vec![0i32; n];
         self.world
             .all_to_all_into(&send_counts[..], &mut recv_counts[..]);
-        // Each message straight into its own buffer, each sent from where it lies; this rank's
-        // own kept as it is.
-        let mut received: Vec<Vec<u8>> = (recv_counts.iter())
-            .map(|&c| vec![0u8; c.max(0) as usize])
-            .collect();
+        // Each message straight into its own buffer (kept from exchange to exchange: only
+        // what one grows by is zeroed), each sent from where it lies; this rank's own moved.
+        received.resize_with(n, Vec::new);
+        for (buffer, &count) in received.iter_mut().zip(&recv_counts) {
+            buffer.resize(count.max(0) as usize, 0);
+        }
         received[me] = std::mem::take(&mut outgoing[me]);
         mpi::request::scope(|scope| {
             let mut pending = Vec::new();
@@ -90,6 +97,6 @@ impl Comm for MpiComm {
             }
             // Dropping the guards waits for every send and receive.
         });
-        Ok(received)
+        Ok(())
     }
 }

@@ -18,7 +18,8 @@ use super::grid::Grid;
 use super::record::{Held, SphereRecord, own_pair_ends, partners_by_id};
 use crate::dem::flow::NewSphere;
 use crate::engines::common::flow::{
-    Arriving, DeviceFlow, DeviceRows, LayerBounds, LayerRecord, Named, ResidentStep, direction,
+    Arriving, DeviceFlow, DeviceRows, Layer, LayerBounds, LayerRecord, Named, ResidentStep,
+    direction,
 };
 use crate::error::{Error, Result};
 use crate::particles::Particles;
@@ -46,6 +47,11 @@ pub(super) struct Resident {
     owned: usize,
     /// How far inside the box the next round gathers the spheres near its faces \[m\].
     depth: f64,
+    /// The buffers of a round's records, kept from round to round: as the step gathers them
+    /// (by direction), as sent and as received (by rank).
+    layer: Layer,
+    outgoing: Vec<Vec<u8>>,
+    received: Vec<Vec<u8>>,
 }
 
 /// What a round's exchange found and left.
@@ -80,6 +86,9 @@ impl Resident {
             held: ids.len(),
             owned: own_at.len(),
             depth: 0.0,
+            layer: Layer::default(),
+            outgoing: Vec::new(),
+            received: Vec::new(),
         };
         resident.resident()?.name(&names)?;
         Ok(resident)
@@ -220,20 +229,25 @@ impl Resident {
         let started = std::time::Instant::now();
         let touching = count.map(|mode| self.own_pair_ends(mode)).transpose()?;
         let first = bounds(grid, me, self.depth);
-        let mut layer = self.resident()?.gather_layer(&first)?;
+        let mut layer = std::mem::take(&mut self.layer);
+        self.resident()?.gather_layer(&first, &mut layer)?;
         let mut read_ms = started.elapsed().as_secs_f64() * 1e3;
         // Every rank's speed: the wait for the others is not this rank's work.
         let halo = halo(layer.fastest as f64)?;
         if halo > self.depth {
             let again = std::time::Instant::now();
-            layer = self.resident()?.gather_layer(&bounds(grid, me, halo))?;
+            self.resident()?
+                .gather_layer(&bounds(grid, me, halo), &mut layer)?;
             read_ms += again.elapsed().as_secs_f64() * 1e3;
         }
         self.depth = halo * GATHER_MARGIN;
 
-        // Each direction's records go to the box that lies that way, as they are.
-        let mut outgoing = vec![Vec::new(); comm.size()];
-        for (d, list) in layer.lists.into_iter().enumerate() {
+        // Each direction's records go to the box that lies that way, as they are: the first
+        // list for a rank swapped into its message (the list keeps the buffer sent last round,
+        // whose bytes the next gathering overwrites), any other appended.
+        self.outgoing.resize_with(comm.size(), Vec::new);
+        let mut filled = vec![false; comm.size()];
+        for (d, list) in layer.lists.iter_mut().enumerate() {
             if list.is_empty() {
                 continue;
             }
@@ -242,13 +256,18 @@ impl Resident {
                 .ok_or_else(|| {
                     Error::Usage("a rank's step wrote records for a box that is not there".into())
                 })?;
-            // Moved as it is where it is the first list for its rank (as it is with slabs).
-            match outgoing[rank].is_empty() {
-                true => outgoing[rank] = list,
-                false => outgoing[rank].extend_from_slice(&list),
+            match filled[rank] {
+                false => std::mem::swap(&mut self.outgoing[rank], list),
+                true => self.outgoing[rank].extend_from_slice(list),
             }
+            filled[rank] = true;
         }
-        let received = comm.exchange(outgoing)?;
+        self.layer = layer;
+        (self.outgoing.iter_mut().zip(&filled))
+            .filter(|(_, filled)| !**filled)
+            .for_each(|(message, _)| message.clear());
+        let mut received = std::mem::take(&mut self.received);
+        comm.exchange_into(&mut self.outgoing, &mut received)?;
         if received
             .iter()
             .any(|m| !m.len().is_multiple_of(size_of::<LayerRecord>()))
@@ -278,6 +297,7 @@ impl Resident {
             .map(|&at| record(at))
             .collect::<Result<_>>()?;
         coming.sort_unstable_by_key(|r| r.whole);
+        self.received = received;
         let arriving: Vec<Arriving> = coming.iter().map(arriving_of).collect();
         let mut leaving: Vec<u32> = placed.leaving.iter().map(|&[row, _, _]| row).collect();
         leaving.sort_unstable();

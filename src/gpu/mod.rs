@@ -539,17 +539,24 @@ impl Gpu {
     }
 
     /// The bytes of each of `ranges` of `buffer` (each a whole number of 4-byte words), copied
-    /// back in one read through `staging` (as [`read_through`](Self::read_through); waits for the
-    /// GPU).
+    /// back in one read through `staging` into `into`, one vector a range (as
+    /// [`read_through`](Self::read_through); waits for the GPU). The vectors are reused: a
+    /// caller that keeps them from read to read allocates nothing once they are large enough.
     pub fn read_ranges(
         &self,
         staging: &mut Staging,
         buffer: &wgpu::Buffer,
         ranges: &[Range<u64>],
-    ) -> Result<Vec<Vec<u8>>> {
+        into: &mut Vec<Vec<u8>>,
+    ) -> Result<()> {
+        into.resize_with(ranges.len(), Vec::new);
+        // Each vector as long as its range (only what it grows by is zeroed first).
+        for (part, r) in into.iter_mut().zip(ranges) {
+            part.resize((r.end - r.start) as usize, 0);
+        }
         let total: u64 = ranges.iter().map(|r| r.end - r.start).sum();
         if total == 0 {
-            return Ok(vec![Vec::new(); ranges.len()]);
+            return Ok(());
         }
         let kept = staging.0.take();
         let buffer_back = match kept {
@@ -571,17 +578,16 @@ impl Gpu {
         self.map(&buffer_back, 0..total, wgpu::MapMode::Read, "read-back")?;
         let taken = match buffer_back.get_mapped_range(..total) {
             Ok(view) => {
-                let mut at = 0;
-                let parts = ranges.iter().map(|r| {
-                    let bytes = (r.end - r.start) as usize;
-                    at += bytes;
-                    &view[at - bytes..at]
-                });
-                Ok(parts
-                    .collect::<Vec<_>>()
-                    .par_iter()
-                    .map(|p| p.to_vec())
-                    .collect())
+                let mut rest = &view[..];
+                for part in into.iter_mut() {
+                    let (from, after) = rest.split_at(part.len());
+                    // On every core, a piece at a time.
+                    (part.par_chunks_mut(PIECE_BYTES))
+                        .zip(from.par_chunks(PIECE_BYTES))
+                        .for_each(|(to, from)| to.copy_from_slice(from));
+                    rest = after;
+                }
+                Ok(())
             }
             Err(e) => Err(Error::Gpu(format!("read-back failed: {e}"))),
         };

@@ -6,7 +6,8 @@
 // stable id's row) and `halo_place` (a ghost's new state into its row, the sphere the rank's
 // own where it is in the box now; records of spheres the step does not hold listed as
 // coming); `halo_leaving` then lists the spheres that leave (ghosts no owner sent, own spheres
-// beyond the halo) and marks the own spheres that left the box as ghosts.
+// beyond the halo) and marks the own spheres that left the box as ghosts. `halo_name` writes
+// the stable ids of the whole-run ids the rank names or forgets.
 //
 // Every test of where a centre lies is made in f32 on the record's own words (the centre plus
 // its residual) against the faces in f32, on both ranks of a face alike, so that the rank that
@@ -17,7 +18,7 @@ struct HaloParams {
     n: u32,           // rows in the state
     row: u32,         // invocations per dispatch row
     room: u32,        // records of each direction's list
-    count: u32,       // records that came (`halo_place`)
+    count: u32,       // records that came (`halo_place`), ids named (`halo_name`)
     near_lo: vec3<f32>, // a centre at or below it along an axis is within the halo of the box below
     stamp: u32,       // the round's mark of the ghosts it placed
     near_hi: vec3<f32>, // at or above: of the box above
@@ -46,7 +47,7 @@ struct HaloParams {
 // By stable id: its sphere's whole-run id.
 @group(0) @binding(7) var<storage, read> whole: array<u32>;
 // By whole-run id: its sphere's stable id + 1 (0: the step does not hold it).
-@group(0) @binding(8) var<storage, read> stable_of: array<u32>;
+@group(0) @binding(8) var<storage, read_write> stable_of: array<u32>;
 // By stable id: the row it is in (`halo_rows`), and the stamp of the round that placed it.
 @group(0) @binding(9) var<storage, read_write> row_of: array<u32>;
 @group(0) @binding(10) var<storage, read_write> touched: array<u32>;
@@ -65,6 +66,8 @@ struct HaloParams {
 @group(0) @binding(15) var<storage, read_write> coming: array<u32>;
 // By direction: the list of `records` for the box that lies that way (NO_BOX: none does).
 @group(0) @binding(16) var<storage, read> list_of: array<u32, 27>;
+// Each whole-run id named or forgotten and its stable id + 1 (0: forgotten), distinct ids.
+@group(0) @binding(17) var<storage, read> named: array<vec2<u32>>;
 
 const NO_BOX: u32 = 0xffffffffu;
 const FASTEST: u32 = 27u;
@@ -218,5 +221,14 @@ fn halo_leaving(@builtin(global_invocation_id) gid: vec3<u32>) {
         atomicAdd(&counts[MADE_GHOSTS], 1u);
     } else {
         leave(r, k, 1u);
+    }
+}
+
+@compute @workgroup_size(256)
+fn halo_name(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let e = gid.x + gid.y * params.row;
+    if e < params.count {
+        let entry = named[e];
+        stable_of[entry.x] = entry.y;
     }
 }

@@ -88,8 +88,9 @@ pub(crate) trait ResidentStep {
     fn sphere_contacts(&mut self) -> Result<Option<Vec<u32>>>;
 
     /// The records of the own spheres near the faces of `bounds`, by direction of the
-    /// neighbouring box, and the own spheres' largest speed.
-    fn gather_layer(&mut self, bounds: &LayerBounds) -> Result<Layer>;
+    /// neighbouring box, and the own spheres' largest speed, into `layer` (its lists' buffers
+    /// reused).
+    fn gather_layer(&mut self, bounds: &LayerBounds, layer: &mut Layer) -> Result<()>;
 
     /// Places the records of `received` ([`LayerRecord`]s, as [`gather_layer`](Self::gather_layer)
     /// writes them): the states of spheres the step holds into their rows, each the rank's own

@@ -10,7 +10,7 @@
 use crate::engines::common::flow::{DIRECTIONS, Layer, LayerBounds, LayerRecord, Named, Placed};
 use crate::error::Result;
 use crate::gpu::shader::{Binding, Vec3f, WgslModule, shared_struct, wgsl};
-use crate::gpu::{Gpu, Staging};
+use crate::gpu::{Gpu, Staging, copy_into};
 
 /// The shader, embedded.
 const SOURCE: &str = wgsl!("dem/halo.wgsl");
@@ -18,6 +18,7 @@ const GATHER: &str = "halo_gather";
 const ROWS: &str = "halo_rows";
 const PLACE: &str = "halo_place";
 const LEAVING_PASS: &str = "halo_leaving";
+const NAME: &str = "halo_name";
 /// Workgroup size (as in the shader).
 const GROUP: u32 = 256;
 /// Records of each direction's list at first (they grow to what a round needs).
@@ -31,7 +32,7 @@ const OMEGA: Binding = Binding::read_write(4, "omega");
 const IDS: Binding = Binding::read(5, "ids");
 const OWN: Binding = Binding::read_write(6, "own");
 const WHOLE: Binding = Binding::read(7, "whole");
-const STABLE_OF: Binding = Binding::read(8, "stable_of");
+const STABLE_OF: Binding = Binding::read_write(8, "stable_of");
 const ROW_OF: Binding = Binding::read_write(9, "row_of");
 const TOUCHED: Binding = Binding::read_write(10, "touched");
 const COUNTS: Binding = Binding::read_write(11, "counts");
@@ -40,6 +41,7 @@ const INCOMING: Binding = Binding::read(13, "incoming");
 const LEAVING: Binding = Binding::read_write(14, "leaving");
 const COMING: Binding = Binding::read_write(15, "coming");
 const LIST_OF: Binding = Binding::read(16, "list_of");
+const NAMED: Binding = Binding::read(17, "named");
 
 /// Words of the counts: one a list, then the largest speed, the leaving, the coming, the
 /// ghosts made own and the own spheres made ghosts (as in the shader).
@@ -55,10 +57,10 @@ pub fn module() -> WgslModule {
     WgslModule::new(
         "halo",
         SOURCE,
-        &[GATHER, ROWS, PLACE, LEAVING_PASS],
+        &[GATHER, ROWS, PLACE, LEAVING_PASS, NAME],
         &[
             PARAMS, POS, LO, VEL, OMEGA, IDS, OWN, WHOLE, STABLE_OF, ROW_OF, TOUCHED, COUNTS,
-            RECORDS, INCOMING, LEAVING, COMING, LIST_OF,
+            RECORDS, INCOMING, LEAVING, COMING, LIST_OF, NAMED,
         ],
         vec![shared_struct!(
             "HaloParams",
@@ -128,6 +130,7 @@ pub(crate) struct HaloExchange {
     rows: wgpu::ComputePipeline,
     place: wgpu::ComputePipeline,
     leaving_pass: wgpu::ComputePipeline,
+    name: wgpu::ComputePipeline,
     params: wgpu::Buffer,
     counts: wgpu::Buffer,
     /// By stable id: own marks, whole-run ids, rows, stamps (`stables` words each).
@@ -139,12 +142,17 @@ pub(crate) struct HaloExchange {
     /// By whole-run id: the stable id + 1 (`wholes` words).
     stable_of: wgpu::Buffer,
     wholes: u64,
+    /// The `(whole-run id, stable id + 1)` pairs `halo_name` writes into `stable_of`.
+    named_pairs: wgpu::Buffer,
     /// `room` records a list, one list a neighbouring box.
     records: wgpu::Buffer,
     room: u32,
     /// By direction, the list of the box that lies that way ([`NO_BOX`]: none does).
     list_of: wgpu::Buffer,
     incoming: wgpu::Buffer,
+    /// The host's copy of the records that came, copied into `incoming` (kept from round to
+    /// round, grown on demand).
+    upload: Option<wgpu::Buffer>,
     leaving: wgpu::Buffer,
     coming: wgpu::Buffer,
     /// Bound as the spins where the state has none; never read.
@@ -167,6 +175,7 @@ impl HaloExchange {
             rows: gpu.pipeline("mochi.halo.rows", &module, ROWS),
             place: gpu.pipeline("mochi.halo.place", &module, PLACE),
             leaving_pass: gpu.pipeline("mochi.halo.leaving", &module, LEAVING_PASS),
+            name: gpu.pipeline("mochi.halo.name", &module, NAME),
             params: gpu.uniform("mochi.halo.params", &HaloParams::default()),
             counts: words("mochi.halo.counts", COUNT_WORDS as u64),
             own: words("mochi.halo.own", first),
@@ -176,10 +185,12 @@ impl HaloExchange {
             stables: first,
             stable_of: words("mochi.halo.stable_of", first),
             wholes: first,
+            named_pairs: words("mochi.halo.named", first * 2),
             records: words("mochi.halo.records", first * RECORD / 4),
             room: FIRST_ROOM,
             list_of: words("mochi.halo.list_of", DIRECTIONS as u64),
             incoming: words("mochi.halo.incoming", first * RECORD / 4),
+            upload: None,
             leaving: words("mochi.halo.leaving", first * 4),
             coming: words("mochi.halo.coming", first),
             no_spin: words("mochi.halo.no_spin", 4),
@@ -190,7 +201,7 @@ impl HaloExchange {
     }
 
     /// Names the spheres of `names`' stable ids ([`Named`]).
-    pub fn name(&mut self, gpu: &Gpu, names: &[Named]) -> Result<()> {
+    pub fn name(&mut self, gpu: &Gpu, state: &StateBuffers, names: &[Named]) -> Result<()> {
         let (Some(stable), Some(whole)) = (
             names.iter().map(|n| n.stable).max(),
             names.iter().map(|n| n.whole).max(),
@@ -211,28 +222,49 @@ impl HaloExchange {
             gpu.queue
                 .write_buffer(&self.whole, at, bytemuck::cast_slice(&whole));
         }
-        let stable_of: Vec<(u32, u32)> = names.iter().map(|n| (n.whole, n.stable + 1)).collect();
-        self.write_stable_of(gpu, stable_of);
-        Ok(())
+        let stable_of: Vec<[u32; 2]> = names.iter().map(|n| [n.whole, n.stable + 1]).collect();
+        self.write_stable_of(gpu, state, &stable_of)
     }
 
-    /// Forgets the whole-run ids `wholes`.
-    pub fn forget(&mut self, gpu: &Gpu, wholes: &[u32]) {
-        let gone = wholes.iter().map(|&w| (w, 0)).collect();
-        self.write_stable_of(gpu, gone);
+    /// Forgets the whole-run ids `wholes` (distinct, each named before).
+    pub fn forget(&mut self, gpu: &Gpu, state: &StateBuffers, wholes: &[u32]) -> Result<()> {
+        let gone: Vec<[u32; 2]> = wholes.iter().map(|&w| [w, 0]).collect();
+        self.write_stable_of(gpu, state, &gone)
     }
 
-    /// Writes each `(whole, value)` into `stable_of`, a run of consecutive ids at a time.
-    fn write_stable_of(&self, gpu: &Gpu, mut entries: Vec<(u32, u32)>) {
-        entries.sort_unstable_by_key(|e| e.0);
-        for run in entries.chunk_by(|a, b| b.0 == a.0 + 1) {
-            let values: Vec<u32> = run.iter().map(|e| e.1).collect();
-            gpu.queue.write_buffer(
-                &self.stable_of,
-                run[0].0 as u64 * 4,
-                bytemuck::cast_slice(&values),
-            );
+    /// Writes each `[whole, value]` of `entries` (distinct whole-run ids, within
+    /// `stable_of`) into `stable_of`, on the GPU (the ids lie anywhere in it).
+    fn write_stable_of(
+        &mut self,
+        gpu: &Gpu,
+        state: &StateBuffers,
+        entries: &[[u32; 2]],
+    ) -> Result<()> {
+        if entries.is_empty() {
+            return Ok(());
         }
+        let bytes = size_of_val(entries) as u64;
+        if self.named_pairs.size() < bytes {
+            let size = bytes.next_power_of_two();
+            self.named_pairs = gpu.checked("growing a rank's list of named spheres", || {
+                gpu.storage("mochi.halo.named", size, wgpu::BufferUsages::empty())
+            })?;
+        }
+        gpu.queue
+            .write_buffer(&self.named_pairs, 0, bytemuck::cast_slice(entries));
+        let count = entries.len() as u32;
+        let groups = gpu.grid(count, GROUP);
+        let params = HaloParams {
+            row: groups.0 * GROUP,
+            count,
+            ..HaloParams::default()
+        };
+        gpu.write_uniform(&self.params, &params);
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        let uses = [PARAMS, STABLE_OF, NAMED];
+        self.pass(gpu, &mut encoder, (&self.name, &uses), state, groups);
+        gpu.queue.submit([encoder.finish()]);
+        Ok(())
     }
 
     /// The own marks of the stable ids named so far.
@@ -301,7 +333,7 @@ impl HaloExchange {
     }
 
     /// Every buffer the passes bind, `state`'s among them.
-    fn bindings<'a>(&'a self, state: &StateBuffers<'a>) -> [(Binding, &'a wgpu::Buffer); 17] {
+    fn bindings<'a>(&'a self, state: &StateBuffers<'a>) -> [(Binding, &'a wgpu::Buffer); 18] {
         [
             (PARAMS, &self.params),
             (POS, state.pos),
@@ -320,6 +352,7 @@ impl HaloExchange {
             (LEAVING, &self.leaving),
             (COMING, &self.coming),
             (LIST_OF, &self.list_of),
+            (NAMED, &self.named_pairs),
         ]
     }
 
@@ -340,13 +373,14 @@ impl HaloExchange {
     }
 
     /// The records of the own spheres of `state` near the faces of `bounds`, by direction,
-    /// and the own spheres' largest speed.
+    /// and the own spheres' largest speed, into `layer` (its lists' buffers reused).
     pub fn gather(
         &mut self,
         gpu: &Gpu,
         state: &StateBuffers,
         bounds: &LayerBounds,
-    ) -> Result<Layer> {
+        layer: &mut Layer,
+    ) -> Result<()> {
         // One list a box that lies next to the rank's.
         let mut list_of = [NO_BOX; DIRECTIONS];
         let mut lists = 0;
@@ -387,10 +421,14 @@ impl HaloExchange {
                     }
                 })
                 .collect();
-            return Ok(Layer {
-                lists: gpu.read_ranges(&mut self.staging[2], &self.records, &ranges)?,
-                fastest: f32::from_bits(counts[FASTEST]),
-            });
+            gpu.read_ranges(
+                &mut self.staging[2],
+                &self.records,
+                &ranges,
+                &mut layer.lists,
+            )?;
+            layer.fastest = f32::from_bits(counts[FASTEST]);
+            return Ok(());
         }
     }
 
@@ -424,14 +462,27 @@ impl HaloExchange {
                 gpu.storage("mochi.halo.coming", size, none)
             })?;
         }
-        let mut at = 0;
-        for message in received {
-            gpu.queue.write_buffer(&self.incoming, at, message);
-            at += message.len() as u64;
-        }
+        let upload = match self.upload.take() {
+            Some(kept) if kept.size() >= bytes => kept,
+            _ => gpu.upload_buffer("mochi.halo.upload", bytes.next_power_of_two()),
+        };
+        // Every message copied on the rayon pool into one mapped buffer, one after the other.
+        let filled = gpu.fill_upload(&upload, 0..bytes, |mut view| {
+            for message in received {
+                let (head, rest) = view.split_at(message.len());
+                copy_into(head, message);
+                view = rest;
+            }
+            Ok(())
+        });
+        self.upload = Some(upload);
+        filled?;
         self.stamp = self.stamp.wrapping_add(1).max(1);
         let groups = self.params(gpu, state, bounds, count);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        if let Some(upload) = self.upload.as_ref().filter(|_| bytes > 0) {
+            encoder.copy_buffer_to_buffer(upload, 0, &self.incoming, 0, bytes);
+        }
         encoder.clear_buffer(&self.counts, LEAVING_AT as u64 * 4, None);
         let rows = [PARAMS, IDS, ROW_OF];
         self.pass(gpu, &mut encoder, (&self.rows, &rows), state, groups);

@@ -137,14 +137,11 @@ impl ResidentStep for GridStepper {
     }
 
     fn name(&mut self, names: &[Named]) -> Result<()> {
-        self.with_halo(|step, halo, _| halo.name(&step.res.gpu, names))
+        self.with_halo(|step, halo, state| halo.name(&step.res.gpu, state, names))
     }
 
     fn forget(&mut self, wholes: &[u32]) -> Result<()> {
-        self.with_halo(|step, halo, _| {
-            halo.forget(&step.res.gpu, wholes);
-            Ok(())
-        })
+        self.with_halo(|step, halo, state| halo.forget(&step.res.gpu, state, wholes))
     }
 
     fn own_marks(&mut self) -> Result<Vec<u32>> {
@@ -162,8 +159,8 @@ impl ResidentStep for GridStepper {
             .map(Some)
     }
 
-    fn gather_layer(&mut self, bounds: &LayerBounds) -> Result<Layer> {
-        self.with_halo(|step, halo, state| halo.gather(&step.res.gpu, state, bounds))
+    fn gather_layer(&mut self, bounds: &LayerBounds, layer: &mut Layer) -> Result<()> {
+        self.with_halo(|step, halo, state| halo.gather(&step.res.gpu, state, bounds, layer))
     }
 
     fn place_layer(&mut self, bounds: &LayerBounds, received: &[Vec<u8>]) -> Result<Placed> {
