@@ -41,6 +41,7 @@ use crate::engines::{BackendChoice, DemSetup, Opened, Options, open_rank_step};
 use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, FIRST_MESH_WALL, HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// How a rank steps its spheres and their ghosts.
@@ -756,7 +757,7 @@ impl<C: Comm> RankStepper<C> {
             let k = places.binary_search_by_key(&id, |&(id, _)| id).ok()?;
             Some(places[k].1)
         };
-        let mut local = spheres_of(spheres.iter().map(|(h, _)| &h.sphere), self.step);
+        let mut local = spheres_of(&spheres, |(h, _)| &h.sphere, self.step);
         // The spheres' contacts, partners by place; a partner sphere beyond the ghosts is
         // beyond reach (the step would drop it).
         let (mut contacts, mut loads) = (Vec::new(), Vec::new());
@@ -804,24 +805,24 @@ impl<C: Comm> RankStepper<C> {
         if !everywhere && self.comm.rank() != 0 {
             return Ok(None);
         }
-        let mut all = Vec::new();
-        for message in &received {
-            all.extend(read(message)?);
-        }
-        all.sort_by_key(|h| h.sphere.id);
-        if all
-            .iter()
-            .enumerate()
-            .any(|(k, h)| h.sphere.id as usize != k)
-        {
+        // Each rank's message read on a thread of its own, then all sorted by id on every core.
+        let parts: Vec<Vec<Held>> = received
+            .par_iter()
+            .map(|m| read(m))
+            .collect::<Result<_>>()?;
+        let mut all = Vec::with_capacity(parts.iter().map(Vec::len).sum());
+        parts.into_iter().for_each(|part| all.extend(part));
+        all.par_sort_unstable_by_key(|h| h.sphere.id);
+        if (all.par_iter().enumerate()).any(|(k, h)| h.sphere.id as usize != k) {
             return Err(Error::Usage("the ranks' spheres are not the run's".into()));
         }
-        let mut whole = spheres_of(all.iter().map(|h| &h.sphere), self.step);
-        let contacts: Vec<(u32, HistoryEntry)> = all
-            .iter()
-            .flat_map(|h| h.contacts.iter().map(move |&e| (h.sphere.id, e)))
+        let mut whole = spheres_of(&all, |h| &h.sphere, self.step);
+        let contacts: Vec<(u32, HistoryEntry)> = (all.par_iter())
+            .flat_map_iter(|h| h.contacts.iter().map(move |&e| (h.sphere.id, e)))
             .collect();
-        let loads: Vec<LoadEntry> = all.iter().flat_map(|h| h.loads.iter().copied()).collect();
+        let loads: Vec<LoadEntry> = (all.par_iter())
+            .flat_map_iter(|h| h.loads.iter().copied())
+            .collect();
         if self.params.friction.has_history() {
             whole.history = ContactHistory::from_contacts_with_loads(all.len(), &contacts, &loads)?;
         }
@@ -880,7 +881,7 @@ impl<C: Comm + Send> RankStepper<C> {
             return Err(Error::Usage("the ranks' spheres are not the run's".into()));
         }
         Ok(Some(Snapshot {
-            particles: spheres_of(all.iter(), self.step),
+            particles: spheres_of(&all, |s| s, self.step),
             contacts: all.iter().map(|s| s.contacts).collect(),
         }))
     }
@@ -1049,16 +1050,22 @@ fn own_of(whole: &Particles, grid: &Grid, rank: usize) -> Vec<Held> {
         .collect()
 }
 
-/// The spheres of `records`, in their order, at step `step` (no contact history yet).
-fn spheres_of<'a>(records: impl Iterator<Item = &'a SphereRecord> + Clone, step: u64) -> Particles {
-    let column = |of: fn(&SphereRecord) -> [f32; 3]| records.clone().map(of).collect();
+/// The spheres of `items` (each one's record by `sphere`), in their order, at step `step` (no
+/// contact history yet).
+fn spheres_of<T: Sync>(
+    items: &[T],
+    sphere: impl Fn(&T) -> &SphereRecord + Sync,
+    step: u64,
+) -> Particles {
+    let column =
+        |of: fn(&SphereRecord) -> [f32; 3]| items.par_iter().map(|t| of(sphere(t))).collect();
     let mut p = Particles {
         positions: column(|s| s.position),
         position_residuals: column(|s| s.residual),
         velocities: column(|s| s.velocity),
         angular_velocities: column(|s| s.spin),
-        radii: records.clone().map(|s| s.radius).collect(),
-        materials: records.map(|s| s.material as u8).collect(),
+        radii: items.par_iter().map(|t| sphere(t).radius).collect(),
+        materials: items.par_iter().map(|t| sphere(t).material as u8).collect(),
         step,
         ..Particles::default()
     };

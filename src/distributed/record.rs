@@ -128,7 +128,8 @@ pub(super) fn put(
 
 /// The spheres of a message [`put`] wrote.
 pub(super) fn read(message: &[u8]) -> Result<Vec<Held>> {
-    let mut out = Vec::new();
+    // At most a sphere a record's bytes: room for every one at once.
+    let mut out = Vec::with_capacity(message.len() / std::mem::size_of::<SphereRecord>());
     let mut rest = message;
     // The next `bytes` bytes of the message.
     fn cut<'a>(rest: &mut &'a [u8], bytes: usize) -> Result<&'a [u8]> {

@@ -187,28 +187,33 @@ impl Resident {
         // The step's input order: ascending stable id.
         let ids = self.ids();
         let rename = partners_by_id(&ids);
-        let place: FxHashMap<u32, usize> = ids.iter().enumerate().map(|(at, &g)| (g, at)).collect();
-        let mut held = Vec::with_capacity(own.len());
-        for g in own {
-            let mut h = match (place.get(&g), given.get(&g)) {
-                (Some(&at), _) => Held::of(&whole, at, g, rename),
-                (None, Some(&sphere)) => Held {
-                    sphere,
-                    contacts: Vec::new(),
-                    loads: Vec::new(),
-                },
-                (None, None) => {
-                    return Err(Error::Usage(format!(
-                        "rank's own sphere {g} is neither in its step nor given"
-                    )));
+        // The place of each whole-run id the step holds ([`GONE`]: none).
+        let top = ids.iter().chain(&own).max().map_or(0, |&g| g as usize + 1);
+        let mut place = vec![GONE; top];
+        ids.iter()
+            .zip(0..)
+            .for_each(|(&g, at)| place[g as usize] = at);
+        (own.into_par_iter())
+            .map(|g| {
+                let mut h = match (place[g as usize], given.get(&g)) {
+                    (GONE, Some(&sphere)) => Held {
+                        sphere,
+                        contacts: Vec::new(),
+                        loads: Vec::new(),
+                    },
+                    (GONE, None) => {
+                        return Err(Error::Usage(format!(
+                            "rank's own sphere {g} is neither in its step nor given"
+                        )));
+                    }
+                    (at, _) => Held::of(&whole, at as usize, g, rename),
+                };
+                if let Some(record) = given.get(&g) {
+                    h.sphere = *record;
                 }
-            };
-            if let Some(record) = given.get(&g) {
-                h.sphere = *record;
-            }
-            held.push(h);
-        }
-        Ok(held)
+                Ok(h)
+            })
+            .collect()
     }
 
     /// After a round: writes the records of the own spheres near the faces of the rank's box
