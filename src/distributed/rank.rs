@@ -517,25 +517,38 @@ impl<C: Comm> RankStepper<C> {
         }
         let halo = self.halo(steps)?;
         let ranks = self.comm.size();
-        let mut outgoing = vec![Vec::new(); ranks];
-        for held in &self.own {
-            let x = held.exact_position();
-            let owner = self.comm.rank();
-            // A ghost's state after its first step is dropped unless the round goes on; then
-            // its contacts must be its own.
-            let history = match steps {
-                1 => (&[][..], &[][..]),
-                _ => (&held.contacts[..], &held.loads[..]),
-            };
-            for r in self.grid.ghost_ranks(x, owner, halo) {
-                put(&mut outgoing[r], &held.sphere, history);
-            }
-        }
-        let mut ghosts = Vec::new();
-        for message in self.comm.exchange(outgoing)? {
-            ghosts.extend(read(&message)?);
-        }
-        ghosts.sort_by_key(|h| h.sphere.id);
+        let owner = self.comm.rank();
+        // Each thread's messages for the ranks whose halos its spheres lie in, then joined
+        // (the ghosts are sorted by id where they come).
+        let outgoing = (self.own.par_iter())
+            .fold(
+                || vec![Vec::new(); ranks],
+                |mut outgoing, held| {
+                    // A ghost's state after its first step is dropped unless the round goes
+                    // on; then its contacts must be its own.
+                    let history = match steps {
+                        1 => (&[][..], &[][..]),
+                        _ => (&held.contacts[..], &held.loads[..]),
+                    };
+                    let x = held.exact_position();
+                    for r in self.grid.ghost_ranks(x, owner, halo) {
+                        put(&mut outgoing[r], &held.sphere, history);
+                    }
+                    outgoing
+                },
+            )
+            .reduce(
+                || vec![Vec::new(); ranks],
+                |mut all, more| {
+                    all.iter_mut().zip(more).for_each(|(a, m)| a.extend(m));
+                    all
+                },
+            );
+        let parts: Vec<Vec<Held>> = (self.comm.exchange(outgoing)?.par_iter())
+            .map(|m| read(m))
+            .collect::<Result<_>>()?;
+        let mut ghosts: Vec<Held> = parts.into_iter().flatten().collect();
+        ghosts.par_sort_unstable_by_key(|h| h.sphere.id);
         self.ghosts = ghosts.len();
 
         let ghosts_in = Instant::now();
@@ -747,7 +760,7 @@ impl<C: Comm> RankStepper<C> {
         let ids: Vec<u32> = spheres.iter().map(|(h, _)| h.sphere.id).collect();
         // The place of each id, by ascending id.
         let mut places: Vec<(u32, u32)> = (0..n as u32).map(|at| (ids[at as usize], at)).collect();
-        places.sort_unstable();
+        places.par_sort_unstable();
         if places.windows(2).any(|w| w[0].0 == w[1].0) {
             return Err(Error::Usage(
                 "a sphere is both owned and a ghost here".into(),
@@ -758,25 +771,26 @@ impl<C: Comm> RankStepper<C> {
             Some(places[k].1)
         };
         let mut local = spheres_of(&spheres, |(h, _)| &h.sphere, self.step);
-        // The spheres' contacts, partners by place; a partner sphere beyond the ghosts is
-        // beyond reach (the step would drop it).
-        let (mut contacts, mut loads) = (Vec::new(), Vec::new());
-        let mut own_at = Vec::with_capacity(self.own.len());
-        for (at, &(held, own)) in spheres.iter().enumerate() {
-            if own {
-                own_at.push(at);
-            }
-            for (k, e) in held.contacts.iter().enumerate() {
-                let partner = match e.partner >= FIRST_MESH_WALL {
-                    true => Some(e.partner),
-                    false => place_of(e.partner),
-                };
-                if let Some(partner) = partner {
-                    contacts.push((at as u32, HistoryEntry { partner, ..*e }));
-                    loads.extend(held.loads.get(k));
-                }
-            }
-        }
+        // The spheres' contacts, partners by place, each with its load history where it has
+        // one; a partner sphere beyond the ghosts is beyond reach (the step would drop it).
+        let kept: Vec<((u32, HistoryEntry), Option<LoadEntry>)> = (spheres.par_iter().enumerate())
+            .flat_map_iter(|(at, &(held, _))| {
+                held.contacts.iter().enumerate().filter_map(move |(k, e)| {
+                    let partner = match e.partner >= FIRST_MESH_WALL {
+                        true => Some(e.partner),
+                        false => place_of(e.partner),
+                    }?;
+                    let contact = (at as u32, HistoryEntry { partner, ..*e });
+                    Some((contact, held.loads.get(k).copied()))
+                })
+            })
+            .collect();
+        let contacts: Vec<(u32, HistoryEntry)> = kept.iter().map(|&(c, _)| c).collect();
+        let loads: Vec<LoadEntry> = kept.iter().filter_map(|&(_, l)| l).collect();
+        let own_at: Vec<usize> = (spheres.iter().enumerate())
+            .filter(|(_, (_, own))| *own)
+            .map(|(at, _)| at)
+            .collect();
         if self.params.friction.has_history() {
             local.history = ContactHistory::from_contacts_with_loads(n, &contacts, &loads)?;
         }
@@ -1045,6 +1059,7 @@ fn reach_of(r_max: f32, params: &StepParams, mode: ProxyMode) -> f64 {
 /// ascending id (their places in `whole`).
 fn own_of(whole: &Particles, grid: &Grid, rank: usize) -> Vec<Held> {
     (0..whole.len())
+        .into_par_iter()
         .filter(|&i| grid.owner(whole.exact_position(i)) == rank)
         .map(|i| Held::of(whole, i, i as u32, |e| *e))
         .collect()
