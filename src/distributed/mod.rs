@@ -13,6 +13,8 @@ mod mpi_comm;
 mod rank;
 mod record;
 mod resident;
+#[cfg(feature = "mpi")]
+mod shared_mail;
 mod slabs;
 
 pub use comm::{Comm, LocalComm};
