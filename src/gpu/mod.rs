@@ -813,6 +813,43 @@ mod tests {
     }
 
     #[test]
+    fn ranges_read_into_kept_vectors_hold_each_range_alone_as_the_ranges_shrink_and_grow() {
+        // A rank reads its lists back into the vectors of the last round: each must end up
+        // exactly its range, whether it was longer or shorter before (more than a copy's
+        // piece, so that the copy runs on several threads).
+        let Some(gpu) = test_gpu("reading ranges into kept vectors") else {
+            return;
+        };
+        let words: Vec<u32> = (0..300_000u32)
+            .map(|k| k.wrapping_mul(2_654_435_761))
+            .collect();
+        let buffer = gpu.storage(
+            "mochi.test.ranges",
+            4 * words.len() as u64,
+            wgpu::BufferUsages::empty(),
+        );
+        gpu.queue
+            .write_buffer(&buffer, 0, bytemuck::cast_slice(&words));
+        let bytes: &[u8] = bytemuck::cast_slice(&words);
+        let mut staging = Staging::default();
+        let mut kept = Vec::new();
+        let rounds: [&[Range<u64>]; 4] = [
+            &[0..400_000, 400_000..400_000, 800_000..1_200_000],
+            &[4..8, 1_000_000..1_199_996],
+            &[12..1_000_012, 0..0, 0..0],
+            &[],
+        ];
+        for ranges in rounds {
+            gpu.read_ranges(&mut staging, &buffer, ranges, &mut kept)
+                .unwrap();
+            assert_eq!(kept.len(), ranges.len());
+            for (got, r) in kept.iter().zip(ranges) {
+                assert!(got[..] == bytes[r.start as usize..r.end as usize], "{r:?}");
+            }
+        }
+    }
+
+    #[test]
     fn a_surveyed_copy_copies_every_centre_and_finds_the_bounds_and_the_first_bad_one() {
         let per_piece = PIECE_BYTES / 12;
         let n = 3 * per_piece + 1234;
