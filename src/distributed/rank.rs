@@ -26,7 +26,7 @@
 
 use super::comm::Comm;
 use super::grid::Grid;
-use super::record::{Held, SphereRecord, own_pair_ends, partners_by_id, put, read};
+use super::record::{Held, SphereRecord, own_pair_ends, partners_by_id, put, read_all};
 use super::resident::Resident;
 use super::slabs::Slabs;
 use crate::dem::StepParams;
@@ -544,10 +544,7 @@ impl<C: Comm> RankStepper<C> {
                     all
                 },
             );
-        let parts: Vec<Vec<Held>> = (self.comm.exchange(outgoing)?.par_iter())
-            .map(|m| read(m))
-            .collect::<Result<_>>()?;
-        let mut ghosts: Vec<Held> = parts.into_iter().flatten().collect();
+        let mut ghosts = read_all(&self.comm.exchange(outgoing)?)?;
         ghosts.par_sort_unstable_by_key(|h| h.sphere.id);
         self.ghosts = ghosts.len();
 
@@ -673,10 +670,8 @@ impl<C: Comm> RankStepper<C> {
                 ),
             }
         }
-        for message in self.comm.exchange(outgoing)? {
-            staying.extend(read(&message)?);
-        }
-        staying.sort_by_key(|h| h.sphere.id);
+        staying.extend(read_all(&self.comm.exchange(outgoing)?)?);
+        staying.par_sort_unstable_by_key(|h| h.sphere.id);
         self.own = staying;
         Ok(())
     }
@@ -819,13 +814,7 @@ impl<C: Comm> RankStepper<C> {
         if !everywhere && self.comm.rank() != 0 {
             return Ok(None);
         }
-        // Each rank's message read on a thread of its own, then all sorted by id on every core.
-        let parts: Vec<Vec<Held>> = received
-            .par_iter()
-            .map(|m| read(m))
-            .collect::<Result<_>>()?;
-        let mut all = Vec::with_capacity(parts.iter().map(Vec::len).sum());
-        parts.into_iter().for_each(|part| all.extend(part));
+        let mut all = read_all(&received)?;
         all.par_sort_unstable_by_key(|h| h.sphere.id);
         if (all.par_iter().enumerate()).any(|(k, h)| h.sphere.id as usize != k) {
             return Err(Error::Usage("the ranks' spheres are not the run's".into()));

@@ -7,6 +7,7 @@ use crate::engines::cpu::CpuBackend;
 use crate::error::{Error, Result};
 use crate::particles::{HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;
+use rayon::prelude::*;
 
 /// A sphere as a rank sends it: its id in the whole run and its state, followed in a message
 /// by `contacts` history entries and `loads` load histories (none, or one a contact: the
@@ -124,6 +125,17 @@ pub(super) fn put(
     message.extend_from_slice(bytemuck::bytes_of(&record));
     message.extend_from_slice(bytemuck::cast_slice(contacts));
     message.extend_from_slice(bytemuck::cast_slice(loads));
+}
+
+/// The spheres of every message of `messages` ([`read`]), each message read on a thread of its
+/// own, one message's after the other's.
+pub(super) fn read_all(messages: &[Vec<u8>]) -> Result<Vec<Held>> {
+    let parts: Vec<Vec<Held>> = (messages.par_iter())
+        .map(|m| read(m))
+        .collect::<Result<_>>()?;
+    let mut all = Vec::with_capacity(parts.iter().map(Vec::len).sum());
+    parts.into_iter().for_each(|part| all.extend(part));
+    Ok(all)
 }
 
 /// The spheres of a message [`put`] wrote.
