@@ -464,7 +464,9 @@ impl HaloExchange {
         }
         let upload = match self.upload.take() {
             Some(kept) if kept.size() >= bytes => kept,
-            _ => gpu.upload_buffer("mochi.halo.upload", bytes.next_power_of_two()),
+            _ => gpu.checked("growing a rank's upload of records", || {
+                gpu.upload_buffer("mochi.halo.upload", bytes.next_power_of_two())
+            })?,
         };
         // Every message copied on the rayon pool into one mapped buffer, one after the other.
         let filled = gpu.fill_upload(&upload, 0..bytes, |mut view| {
