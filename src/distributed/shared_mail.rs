@@ -93,8 +93,7 @@ impl SharedMail {
             return Ok(());
         }
         let size = end.next_power_of_two();
-        rustix::fs::fallocate(&self.own.0, rustix::fs::FallocateFlags::empty(), 0, size)
-            .map_err(|e| shared_error("grow", e.into()))?;
+        reserve_file(&self.own.0, size).map_err(|e| shared_error("grow", e))?;
         self.own.1 = map_write(&self.own.0)?;
         Ok(())
     }
@@ -150,9 +149,19 @@ fn make_own(path: &PathBuf) -> Option<(File, MmapMut)> {
     let file = (OpenOptions::new().read(true).write(true).create_new(true))
         .open(path)
         .ok()?;
-    rustix::fs::fallocate(&file, rustix::fs::FallocateFlags::empty(), 0, FIRST_BYTES).ok()?;
+    reserve_file(&file, FIRST_BYTES).ok()?;
     let map = map_write(&file).ok()?;
     Some((file, map))
+}
+
+/// `file` grown to `size` bytes, its memory reserved where the system can (on unix; a
+/// mapping of memory the host has not got fails at its first write, with no error to return).
+fn reserve_file(file: &File, size: u64) -> std::io::Result<()> {
+    #[cfg(unix)]
+    return rustix::fs::fallocate(file, rustix::fs::FallocateFlags::empty(), 0, size)
+        .map_err(Into::into);
+    #[cfg(not(unix))]
+    file.set_len(size)
 }
 
 /// `file` mapped for this rank to write.
