@@ -9,11 +9,13 @@ mod common;
 
 use mochi::dem::flow::{FlowSet, InflowConfig, OutflowConfig};
 use mochi::dem::scene::{Overrides, SceneConfig};
-use mochi::dem::{Particles, Stepper};
-use mochi::distributed::{Comm, LocalComm, RankStepper, Slabs};
+use mochi::dem::{Particles, Snapshot, Stepper};
+use mochi::distributed::{Comm, Leader, LocalComm, RankStepper, Slabs, follow};
 use mochi::engines::BackendChoice::Named;
 use mochi::engines::cpu::CpuStepper;
 use mochi::engines::{BackendKind, DemSetup, Options, open_setup};
+use mochi::io::{Frame, FrameSeries, OwnedFrame, read_frame, write_vtu};
+use std::path::Path;
 
 /// The start of the scene of `scene` (flat keys), as a step opens it.
 fn setup_of(scene: &str) -> DemSetup {
@@ -494,6 +496,80 @@ fn kinetic(p: &Particles) -> f64 {
         .sum()
 }
 
+/// The frame of `snapshot` of a run of `setup`, as a `.vtu` holds it (written, read back).
+fn frame_of(snapshot: &Snapshot, setup: &DemSetup) -> OwnedFrame {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("whole.vtu");
+    let kept = setup.params.friction.has_history();
+    let contacts = kept.then_some(&snapshot.contacts[..]);
+    let frame = Frame::of(&snapshot.particles, setup.params.dt, contacts);
+    write_vtu(&path, &frame).unwrap();
+    read_frame(&path).unwrap()
+}
+
+/// The frame the ranks wrote in `pieces` into `dir` at their last step, named by a `.pvtu`
+/// (written here, as rank 0 writes it), read back.
+fn read_pieces(dir: &Path, pieces: &[u64], setup: &DemSetup) -> OwnedFrame {
+    let mut series = FrameSeries::create(dir).unwrap();
+    let step = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| {
+            e.unwrap()
+                .file_name()
+                .to_str()?
+                .strip_prefix("frame_")?
+                .parse()
+                .ok()
+        })
+        .max()
+        .expect("a folder of pieces");
+    let time = step as f64 * setup.params.dt as f64;
+    let kept = setup.params.friction.has_history();
+    let pvtu = series.add_pieces(step, time, pieces.len(), kept).unwrap();
+    read_frame(&pvtu).unwrap()
+}
+
+#[test]
+fn a_frame_in_pieces_over_ranks_led_from_rank_0_is_the_whole_runs_frame() {
+    let setup = landing();
+    let mut whole = CpuStepper::open(setup.clone()).unwrap();
+    whole.advance(STEPS).unwrap();
+    let expected = frame_of(&whole.snapshot().unwrap(), &setup);
+    assert!(expected.contacts.iter().any(|&c| c > 0), "no contacts");
+    let out = tempfile::tempdir().unwrap();
+    let pieces = std::thread::scope(|scope| {
+        let handles: Vec<_> = LocalComm::group(3)
+            .unwrap()
+            .into_iter()
+            .map(|comm| {
+                let (setup, out) = (&setup, out.path());
+                scope.spawn(move || {
+                    let rank = RankStepper::new(comm, setup).unwrap();
+                    if rank.comm().rank() != 0 {
+                        return follow(rank).map(|()| None).unwrap();
+                    }
+                    // Rank 0 leads: each call goes to the others, which make it too.
+                    let mut lead = Leader::new(rank).unwrap();
+                    lead.advance(STEPS).unwrap();
+                    lead.write_pieces(out).unwrap()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap())
+            .collect::<Vec<_>>()
+    });
+    let [Some(pieces), None, None] = &pieces[..] else {
+        panic!("the pieces' spheres on rank 0 alone: {pieces:?}");
+    };
+    assert_eq!(pieces.len(), 3);
+    assert_eq!(pieces.iter().sum::<u64>() as usize, expected.radii.len());
+    assert!(pieces.iter().filter(|&&n| n > 0).count() > 1, "{pieces:?}");
+    // The same spheres bit for bit, in the order of their ids.
+    assert_eq!(read_pieces(out.path(), pieces, &setup), expected);
+}
+
 #[test]
 fn a_run_over_ranks_of_each_backend_matches_the_whole_run_on_it() {
     let landing = landing();
@@ -512,6 +588,7 @@ fn a_run_over_ranks_of_each_backend_matches_the_whole_run_on_it() {
             cases.push((landing.clone(), (None, 0), 4));
         }
         for (setup, spare, ranks) in cases {
+            let out = tempfile::tempdir().unwrap();
             let mut whole = open_setup(kind, setup.clone(), &options).unwrap();
             let contacts = whole.advance(STEPS).unwrap().contacts;
             let expected = whole.particles().unwrap();
@@ -562,6 +639,15 @@ fn a_run_over_ranks_of_each_backend_matches_the_whole_run_on_it() {
                 );
                 let on_zero = rank.gather_snapshot().unwrap();
                 assert_eq!(on_zero.is_some(), rank.comm().rank() == 0);
+                // The frame in pieces, one a rank, none gathered: the gathered frame.
+                let pieces = rank.write_pieces(out.path()).unwrap().expect("pieces");
+                assert_eq!(pieces.iter().sum::<u64>() as usize, now.len());
+                if let Some(whole) = on_zero {
+                    assert_eq!(
+                        read_pieces(out.path(), &pieces, &setup),
+                        frame_of(&whole, &setup)
+                    );
+                }
                 (contacts, now, (every, grid), ghosts)
             });
             let (got_contacts, got, (every, grid), _) = &ranks[0];

@@ -149,6 +149,7 @@ impl Spheres {
             materials: &self.materials,
             contacts: self.contacts.as_deref(),
             clumps: None,
+            ids: None,
         }
     }
 }
@@ -581,6 +582,10 @@ fn mismatched_lengths_and_bad_times_are_usage_errors_and_write_nothing() {
             ..spheres.frame(1, 0.1)
         },
         Frame {
+            ids: Some(&[0, 1, 2]),
+            ..spheres.frame(1, 0.1)
+        },
+        Frame {
             positions: &spheres.positions[..0],
             position_residuals: &[],
             ..spheres.frame(1, 0.1)
@@ -629,7 +634,11 @@ fn the_index_lists_frames_in_step_order_with_their_times() {
     assert_eq!(listed, want_listed);
     let entries: Vec<SeriesEntry> = want
         .iter()
-        .map(|&(time, step)| SeriesEntry { step, time })
+        .map(|&(time, step)| SeriesEntry {
+            step,
+            time,
+            pieces: false,
+        })
         .collect();
     assert_eq!(series.entries(), entries);
     for (_, file) in &listed {
@@ -1025,4 +1034,137 @@ fn a_material_that_is_not_a_whole_number_from_0_to_255_is_one_clear_error() {
     write_npy(&npy, &[vec![0.0, 0.0, 0.0, 1.0, 0.0]]);
     let e = mochi::io::read_particles(&npy).unwrap_err().to_string();
     assert!(e.contains("N×11 (and the material)"), "{e}");
+}
+
+#[test]
+fn a_frame_in_pieces_reads_back_as_the_whole_frame_in_the_order_of_its_ids() {
+    use mochi::io::{piece_folder, piece_path, read_frame, read_series_index};
+    let dir = TempDir::new().unwrap();
+    let n = 11;
+    let positions: Vec<[f32; 3]> = (0..n)
+        .map(|i| [i as f32 * 0.1, 0.5 - i as f32 * 0.01, 0.25])
+        .collect();
+    let residuals: Vec<[f32; 3]> = (0..n).map(|i| [1e-9 * i as f32, 0.0, -2e-9]).collect();
+    let radii: Vec<f32> = (0..n).map(|i| 0.01 + 0.001 * i as f32).collect();
+    let velocities: Vec<[f32; 3]> = (0..n).map(|i| [i as f32, -1.5, 0.0]).collect();
+    let spins: Vec<[f32; 3]> = (0..n).map(|i| [0.0, 2.0, -(i as f32)]).collect();
+    let materials: Vec<u8> = (0..n).map(|i| (i % 3) as u8).collect();
+    let contacts: Vec<u32> = (0..n).map(|i| (i % 4) as u32).collect();
+    let whole = Frame {
+        time: 0.5,
+        step: 40,
+        positions: &positions,
+        position_residuals: &residuals,
+        radii: &radii,
+        velocities: &velocities,
+        angular_velocities: &spins,
+        materials: &materials,
+        contacts: Some(&contacts),
+        clumps: None,
+        ids: None,
+    };
+    let one = dir.path().join("whole.vtu");
+    write_vtu(&one, &whole).unwrap();
+    // Three processes' pieces, the spheres dealt out (the third holds none); an earlier write
+    // of the step over four left a fourth.
+    let out = dir.path().join("run");
+    let mut series = FrameSeries::create(&out).unwrap();
+    let owned: [Vec<u32>; 3] = [
+        (0..n as u32).filter(|i| i % 3 != 1).rev().collect(),
+        (0..n as u32).filter(|i| i % 3 == 1).collect(),
+        Vec::new(),
+    ];
+    std::fs::create_dir_all(piece_folder(&out, 40)).unwrap();
+    for (k, ids) in owned.iter().enumerate() {
+        fn pick<T: Copy>(all: &[T], ids: &[u32]) -> Vec<T> {
+            ids.iter().map(|&i| all[i as usize]).collect()
+        }
+        let (p, r, v) = (
+            pick(&positions, ids),
+            pick(&radii, ids),
+            pick(&velocities, ids),
+        );
+        let (w, m, c) = (
+            pick(&spins, ids),
+            pick(&materials, ids),
+            pick(&contacts, ids),
+        );
+        let lo = pick(&residuals, ids);
+        let piece = Frame {
+            positions: &p,
+            position_residuals: &lo,
+            radii: &r,
+            velocities: &v,
+            angular_velocities: &w,
+            materials: &m,
+            contacts: Some(&c),
+            ids: Some(ids),
+            ..whole
+        };
+        write_vtu(&piece_path(&out, 40, k), &piece).unwrap();
+    }
+    std::fs::write(piece_path(&out, 40, 3), b"stale").unwrap();
+    let pvtu = series.add_pieces(40, 0.5, 3, true).unwrap();
+    assert_eq!(pvtu, out.join("frame_00000040.pvtu"));
+    assert!(
+        !piece_path(&out, 40, 3).exists(),
+        "the stale piece is removed"
+    );
+    let entry = SeriesEntry {
+        step: 40,
+        time: 0.5,
+        pieces: true,
+    };
+    assert_eq!(read_series_index(&out.join(SERIES_INDEX)).unwrap(), [entry]);
+    assert_eq!(entry.file_name(), "frame_00000040.pvtu");
+    // The parallel file declares the pieces' arrays and names the pieces.
+    let text = std::fs::read_to_string(&pvtu).unwrap();
+    let document = roxmltree::Document::parse(&text).unwrap();
+    let declared: Vec<&str> = (document.descendants())
+        .filter(|n| n.has_tag_name("PDataArray"))
+        .filter_map(|n| n.attribute("Name"))
+        .collect();
+    let want = [
+        "radius",
+        "velocity",
+        "speed",
+        "angular_velocity",
+        "id",
+        "material",
+        "contacts",
+        "Points",
+    ];
+    assert_eq!(declared, want);
+    let sources: Vec<&str> = (document.descendants())
+        .filter_map(|n| n.attribute("Source"))
+        .collect();
+    let names = (0..3).map(|k| format!("frame_00000040/frame_00000040_{k}.vtu"));
+    assert_eq!(sources, names.collect::<Vec<_>>());
+    // Read back: the whole frame, every array, in the order of the ids.
+    let got = read_frame(&pvtu).unwrap();
+    let expected = read_frame(&one).unwrap();
+    assert_eq!(got.ids, (0..n as u32).collect::<Vec<_>>());
+    assert_eq!(got, expected);
+    assert_eq!(got.contacts, contacts);
+    let exact =
+        (positions.iter().zip(&residuals)).map(|(c, r)| std::array::from_fn(|k| join(c[k], r[k])));
+    assert_eq!(got.exact_positions, exact.collect::<Vec<[f64; 3]>>());
+    // A sphere in two pieces, and a piece missing, are errors naming the file.
+    let first = std::fs::read(piece_path(&out, 40, 0)).unwrap();
+    std::fs::write(piece_path(&out, 40, 2), &first).unwrap();
+    let e = read_frame(&pvtu).unwrap_err().to_string();
+    assert!(
+        e.contains("frame_00000040.pvtu") && e.contains("twice"),
+        "{e}"
+    );
+    std::fs::remove_file(piece_path(&out, 40, 1)).unwrap();
+    let e = read_frame(&pvtu).unwrap_err().to_string();
+    assert!(e.contains("frame_00000040_1.vtu"), "{e}");
+    std::fs::write(
+        &pvtu,
+        "<VTKFile type=\"PUnstructuredGrid\"><PUnstructuredGrid/></VTKFile>",
+    )
+    .unwrap();
+    let e = read_frame(&pvtu).unwrap_err().to_string();
+    assert!(e.contains("no pieces"), "{e}");
 }

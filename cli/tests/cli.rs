@@ -1183,6 +1183,7 @@ fn render_of_a_frame_with_a_nan_radius_names_the_file() {
             materials: &[],
             contacts: None,
             clumps: None,
+            ids: None,
         },
     )
     .unwrap();

@@ -367,6 +367,16 @@ pub trait Stepper: Send {
     fn steps_a_round(&self) -> u32 {
         1
     }
+
+    /// Where this is a run over ranks: writes the frame of the spheres now in pieces in the
+    /// series folder `dir`, each rank the piece of its own spheres
+    /// ([`crate::io::piece_path`]), none gathered, and returns each piece's spheres, by rank
+    /// (the `.pvtu` that names them is [`crate::io::FrameSeries::add_pieces`]'s). Every rank
+    /// of the run calls it alike. Default: `None`, a run of one process, which writes whole
+    /// frames.
+    fn write_pieces(&mut self, _dir: &std::path::Path) -> Result<Option<Vec<u64>>> {
+        Ok(None)
+    }
 }
 
 /// Whether a run needs more than the paper's step (the engines' granular step): anything beyond

@@ -12,6 +12,7 @@ use crate::dem::stepper::{Advance, ExternalLoads, Motion, RankShare, Snapshot, S
 use crate::dem::walls::WallLoad;
 use crate::error::{Error, Result};
 use crate::particles::Particles;
+use std::path::Path;
 
 /// What rank 0 asks of the others.
 #[derive(Debug, Clone, PartialEq)]
@@ -28,6 +29,8 @@ enum Call {
     Gravity([f32; 3]),
     Loads(ExternalLoads),
     Shares,
+    /// Write the frame's pieces into this series folder (an absolute path).
+    Pieces(String),
     Stop,
 }
 
@@ -75,6 +78,10 @@ impl Call {
             Call::Stop => out.push(5),
             Call::Shares => out.push(6),
             Call::Snapshot => out.push(7),
+            Call::Pieces(dir) => {
+                out.push(8);
+                out.extend_from_slice(dir.as_bytes());
+            }
         }
         out
     }
@@ -135,6 +142,7 @@ impl Call {
             5 => Call::Stop,
             6 => Call::Shares,
             7 => Call::Snapshot,
+            8 => Call::Pieces(String::from_utf8(rest.to_vec()).map_err(|_| bad())?),
             _ => return Err(bad()),
         };
         Ok(call)
@@ -159,6 +167,7 @@ impl Call {
             Call::Gravity(g) => rank.set_gravity(*g),
             Call::Loads(loads) => rank.set_external_loads(loads),
             Call::Shares => rank.rank_shares().map(|_| ()),
+            Call::Pieces(dir) => rank.write_pieces(Path::new(dir)).map(|_| ()),
             Call::Stop => Ok(()),
         }
     }
@@ -268,6 +277,21 @@ impl<C: Comm + Send> Stepper for Leader<C> {
 
     fn steps_a_round(&self) -> u32 {
         self.rank.steps_a_round()
+    }
+
+    fn write_pieces(&mut self, dir: &Path) -> Result<Option<Vec<u64>>> {
+        // The other ranks may not share this one's working folder.
+        let dir = std::path::absolute(dir).map_err(|error| Error::Io {
+            path: dir.to_owned(),
+            error,
+        })?;
+        let text = dir.to_str().ok_or_else(|| {
+            let shown = dir.display();
+            Error::Usage(format!(
+                "a run over ranks writes frames in pieces into a folder named in UTF-8, not {shown}"
+            ))
+        })?;
+        self.lead(Call::Pieces(text.to_owned()), |r| r.write_pieces(&dir))
     }
 
     fn flow_counts(&self) -> Option<FlowCounts> {

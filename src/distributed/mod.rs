@@ -10,6 +10,7 @@ mod grid;
 mod lead;
 #[cfg(feature = "mpi")]
 mod mpi_comm;
+mod pieces;
 mod rank;
 mod record;
 mod resident;

@@ -42,6 +42,7 @@ use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, FIRST_MESH_WALL, HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;
 use rayon::prelude::*;
+use std::path::Path;
 use std::time::Instant;
 
 /// How a rank steps its spheres and their ghosts.
@@ -834,6 +835,25 @@ impl<C: Comm> RankStepper<C> {
 }
 
 impl<C: Comm + Send> RankStepper<C> {
+    /// This rank's own spheres, each with its contacts counted (in `contacts`), in no set
+    /// order. A step kept on the device is read, not let go.
+    pub(super) fn own_records(&mut self) -> Result<Vec<SphereRecord>> {
+        match self.resident_mut() {
+            Some(resident) => resident.seen(),
+            None => Ok((self.own.iter())
+                .map(|h| SphereRecord {
+                    contacts: h.contacts.len() as u32,
+                    ..h.sphere
+                })
+                .collect()),
+        }
+    }
+
+    /// The step's parameters.
+    pub(super) fn params(&self) -> &StepParams {
+        &self.params
+    }
+
     /// The whole run's spheres without their springs, each with its contacts counted, on rank
     /// 0 (`None` on the others): every rank sends its own spheres' records alone.
     pub fn gather_snapshot(&mut self) -> Result<Option<Snapshot>> {
@@ -843,15 +863,7 @@ impl<C: Comm + Send> RankStepper<C> {
     /// [`gather_snapshot`](Self::gather_snapshot) on rank 0, or on every rank where
     /// `everywhere`. A step kept on the device is read, not let go.
     fn collect_snapshot(&mut self, everywhere: bool) -> Result<Option<Snapshot>> {
-        let own: Vec<SphereRecord> = match self.resident_mut() {
-            Some(resident) => resident.seen()?,
-            None => (self.own.iter())
-                .map(|h| SphereRecord {
-                    contacts: h.contacts.len() as u32,
-                    ..h.sphere
-                })
-                .collect(),
-        };
+        let own = self.own_records()?;
         let size = self.comm.size();
         let outgoing = (0..size)
             .map(|r| match everywhere || r == 0 {
@@ -977,6 +989,10 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
         self.round
     }
 
+    fn write_pieces(&mut self, dir: &Path) -> Result<Option<Vec<u64>>> {
+        super::pieces::write_pieces(self, dir).map(Some)
+    }
+
     fn flow_counts(&self) -> Option<FlowCounts> {
         self.flow.as_ref().map(|(_, counts)| *counts)
     }
@@ -1056,7 +1072,7 @@ fn own_of(whole: &Particles, grid: &Grid, rank: usize) -> Vec<Held> {
 
 /// The spheres of `items` (each one's record by `sphere`), in their order, at step `step` (no
 /// contact history yet).
-fn spheres_of<T: Sync>(
+pub(super) fn spheres_of<T: Sync>(
     items: &[T],
     sphere: impl Fn(&T) -> &SphereRecord + Sync,
     step: u64,

@@ -192,6 +192,11 @@ pub fn remove_stale_temp_files(dir: &Path) -> Vec<PathBuf> {
 }
 
 /// The process id in a temporary file's name `.mochi-<pid>-<random>`.
+/// Whether `name` is the name of a temporary file of this module's.
+pub(super) fn is_temp_file_name(name: &str) -> bool {
+    writer_pid(name).is_some()
+}
+
 fn writer_pid(name: &str) -> Option<u32> {
     let (pid, random) = name.strip_prefix(TEMP_PREFIX)?.split_once('-')?;
     let all_digits = !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit());

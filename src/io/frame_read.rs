@@ -38,17 +38,22 @@ pub struct OwnedFrame {
     /// The contacts each sphere holds (the `contacts` array of a run with contact history),
     /// or empty where the file has none.
     pub contacts: Vec<u32>,
+    /// Each sphere's id (a `.vtu`'s integer array `id`, 0 to 2³²−1; a `.pvtu`'s spheres are
+    /// in its order), or empty where the file has none (or one of other values).
+    pub ids: Vec<u32>,
 }
 
-/// Reads a frame: a `.vtu` ([`read_vtu`]: mochi's or another writer's), or a sphere file
-/// (`.csv`, `.npy`) with or without velocities. Every problem is an error naming the file.
+/// Reads a frame: a `.vtu` ([`read_vtu`]: mochi's or another writer's), a `.pvtu` of pieces
+/// ([`read_pvtu`](super::read_pvtu)), or a sphere file (`.csv`, `.npy`) with or without
+/// velocities. Every problem is an error naming the file.
 pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
-    let is_vtu = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("vtu"));
-    if is_vtu {
+    let extension = path.extension().and_then(|e| e.to_str());
+    let is = |ext: &str| extension.is_some_and(|e| e.eq_ignore_ascii_case(ext));
+    if is("vtu") {
         return read_vtu(path);
+    }
+    if is("pvtu") {
+        return super::read_pvtu(path);
     }
     Format::of(path)?;
     let (particles, exact_positions) = read_particles_as_written(path)?;
@@ -67,6 +72,7 @@ pub fn read_frame(path: &Path) -> Result<OwnedFrame> {
         angular_velocities: particles.angular_velocities,
         materials: particles.materials,
         contacts: Vec::new(),
+        ids: Vec::new(),
     })
 }
 
@@ -138,6 +144,12 @@ fn frame_of_vtu(bytes: &[u8]) -> std::result::Result<OwnedFrame, String> {
         }
         None => Vec::new(),
     };
+    let ids = match vtu.point_data(&["id"])? {
+        Some(ids) if ids.components == 1 => (ids.values.to_unsigned(u32::MAX.into()))
+            .map(|ids| ids.into_iter().map(|id| id as u32).collect())
+            .unwrap_or_default(),
+        _ => Vec::new(),
+    };
     let positions: Vec<[f32; 3]> = exact
         .chunks_exact(3)
         .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
@@ -175,6 +187,7 @@ fn frame_of_vtu(bytes: &[u8]) -> std::result::Result<OwnedFrame, String> {
         angular_velocities,
         materials,
         contacts,
+        ids,
     })
 }
 
@@ -251,6 +264,7 @@ mod tests {
             materials,
             contacts: None,
             clumps: None,
+            ids: None,
         }
     }
 

@@ -66,6 +66,9 @@ pub struct Frame<'a> {
     /// The clumps of a run that has any ([`Particles::clumps`]: the first spheres are their
     /// components): the `.vtu` then holds each sphere's clump (`None`: the array is left out).
     pub clumps: Option<&'a ClumpSet>,
+    /// Each sphere's id in the whole run, where the frame is a piece of it (one process's
+    /// spheres: [`FrameSeries::add_pieces`]); `None`: each sphere's id is its index.
+    pub ids: Option<&'a [u32]>,
 }
 
 impl<'a> Frame<'a> {
@@ -85,6 +88,7 @@ impl<'a> Frame<'a> {
             materials: &particles.materials,
             contacts,
             clumps: (!particles.clumps.clumps.is_empty()).then_some(&particles.clumps),
+            ids: None,
         }
     }
 }
@@ -111,6 +115,15 @@ impl Frame<'_> {
                 self.radii.len(),
                 self.velocities.len(),
                 self.angular_velocities.len()
+            )));
+        }
+        if let Some(ids) = self.ids
+            && ids.len() != n
+        {
+            return Err(Error::Usage(format!(
+                "frame at step {}: {} ids for {n} spheres",
+                self.step,
+                ids.len()
             )));
         }
         if let Some(contacts) = self.contacts
@@ -172,7 +185,7 @@ const VTK_VERTEX: u8 = 1;
 
 /// The appended arrays.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Block {
+pub(super) enum Block {
     Radius,
     Velocity,
     Speed,
@@ -189,6 +202,12 @@ enum Block {
 
 /// The blocks of `frame`, in the order they are written (`contacts` only with a history).
 fn blocks(frame: &Frame) -> Vec<Block> {
+    blocks_with(frame.contacts.is_some(), frame.clumps.is_some())
+}
+
+/// The blocks of a frame with a history's `contacts` or not, with `clumps` or not, in the
+/// order they are written.
+pub(super) fn blocks_with(contacts: bool, clumps: bool) -> Vec<Block> {
     [
         Block::Radius,
         Block::Velocity,
@@ -204,14 +223,14 @@ fn blocks(frame: &Frame) -> Vec<Block> {
         Block::Types,
     ]
     .into_iter()
-    .filter(|&b| b != Block::Contacts || frame.contacts.is_some())
-    .filter(|&b| b != Block::Clump || frame.clumps.is_some())
+    .filter(|&b| b != Block::Contacts || contacts)
+    .filter(|&b| b != Block::Clump || clumps)
     .collect()
 }
 
 impl Block {
     /// `wide`: cell indices need 64 bits (more than `i32::MAX` spheres).
-    fn vtk_type(self, wide: bool) -> &'static str {
+    pub(super) fn vtk_type(self, wide: bool) -> &'static str {
         match self {
             Block::Radius | Block::Velocity | Block::Speed | Block::AngularVelocity => "Float32",
             Block::Points => "Float64",
@@ -222,7 +241,7 @@ impl Block {
         }
     }
 
-    fn name(self) -> &'static str {
+    pub(super) fn name(self) -> &'static str {
         match self {
             Block::Radius => "radius",
             Block::Velocity => "velocity",
@@ -240,7 +259,7 @@ impl Block {
     }
 
     /// The element of the `<Piece>` that lists the array.
-    fn section(self) -> &'static str {
+    pub(super) fn section(self) -> &'static str {
         match self {
             Block::Radius
             | Block::Velocity
@@ -255,7 +274,7 @@ impl Block {
         }
     }
 
-    fn components(self) -> usize {
+    pub(super) fn components(self) -> usize {
         match self {
             Block::Velocity | Block::AngularVelocity | Block::Points => 3,
             _ => 1,
@@ -371,7 +390,10 @@ fn write_block(
             .iter()
             .flatten()
             .try_for_each(|x| out.put(x.to_le_bytes()))?,
-        Block::Id => (0..n as u32).try_for_each(|i| out.put(i.to_le_bytes()))?,
+        Block::Id => match frame.ids {
+            Some(ids) => ids.iter().try_for_each(|i| out.put(i.to_le_bytes()))?,
+            None => (0..n as u32).try_for_each(|i| out.put(i.to_le_bytes()))?,
+        },
         Block::Material => frame.materials().try_for_each(|m| out.put([m]))?,
         Block::Contacts => {
             let contacts = frame.contacts.expect("the block is written with a history");
@@ -521,12 +543,17 @@ pub struct SeriesEntry {
     pub step: u64,
     /// Simulated time \[s\].
     pub time: f64,
+    /// Whether the frame is a `.pvtu` of pieces, one a process of a run over several
+    /// ([`FrameSeries::add_pieces`]); else a `.vtu`.
+    pub pieces: bool,
 }
 
 impl SeriesEntry {
-    /// The frame's `.vtu` file name, relative to the series directory.
+    /// The frame's file name (`.vtu`, or `.pvtu` where it is of pieces), relative to the series
+    /// directory.
     pub fn file_name(&self) -> String {
-        frame_stem(self.step) + ".vtu"
+        let extension = if self.pieces { "pvtu" } else { "vtu" };
+        format!("{}.{extension}", frame_stem(self.step))
     }
 
     /// The frame's line in the index.
@@ -540,7 +567,7 @@ impl SeriesEntry {
     }
 }
 
-fn frame_stem(step: u64) -> String {
+pub(super) fn frame_stem(step: u64) -> String {
     format!("frame_{step:08}")
 }
 
@@ -610,7 +637,11 @@ impl FrameSeries {
             let clumps = self.dir.join(clump_frame_name(frame.step));
             write_clumps_vtu(&clumps, set, frame.time, frame.step)?;
         }
-        self.index(frame)?;
+        self.index(SeriesEntry {
+            step: frame.step,
+            time: frame.time,
+            pieces: false,
+        })?;
         if frame.clumps.is_some() {
             // A run's frames either all have clumps or none do: its clumps' index lists them all.
             let lines: String = self.entries.iter().map(SeriesEntry::clumps_line).collect();
@@ -619,25 +650,39 @@ impl FrameSeries {
         Ok(vtu)
     }
 
-    /// Adds `frame` (written) to the index.
-    fn index(&mut self, frame: &Frame) -> Result<()> {
-        let entry = SeriesEntry {
-            step: frame.step,
-            time: frame.time,
-        };
-        if self
-            .entries
-            .last()
-            .is_none_or(|last| last.step < frame.step)
-        {
+    /// Adds the frame of step `step` at `time` whose `pieces` processes each wrote the piece
+    /// of its own spheres ([`super::piece_path`]; the pieces hold a history's `contacts` array
+    /// where `contacts` says) as `frame_{step:08}.pvtu`, which names them, then to the index as
+    /// [`write`](Self::write) adds a frame; the pieces an earlier write of the step left beyond
+    /// these are removed. Returns the `.pvtu` path. On an error the index and
+    /// [`FrameSeries::entries`] are as before.
+    pub fn add_pieces(
+        &mut self,
+        step: u64,
+        time: f64,
+        pieces: usize,
+        contacts: bool,
+    ) -> Result<PathBuf> {
+        let pvtu = self.dir.join(format!("{}.pvtu", frame_stem(step)));
+        super::pieces::write_pvtu(&pvtu, step, pieces, contacts)?;
+        super::pieces::remove_pieces_beyond(&self.dir, step, pieces)?;
+        let pieces = true;
+        self.index(SeriesEntry { step, time, pieces })?;
+        Ok(pvtu)
+    }
+
+    /// Adds the frame of `entry` (written) to the index.
+    fn index(&mut self, entry: SeriesEntry) -> Result<()> {
+        let step = entry.step;
+        if self.entries.last().is_none_or(|last| last.step < step) {
             // The usual case, a frame after the last: only its entry is written.
             collection::append_entries(&self.index_path(), &entry.line())?;
             self.entries.push(entry);
             return Ok(());
         }
         let mut entries = self.entries.clone();
-        entries.retain(|e| e.step != frame.step);
-        let at = entries.partition_point(|e| e.step < frame.step);
+        entries.retain(|e| e.step != step);
+        let at = entries.partition_point(|e| e.step < step);
         entries.insert(at, entry);
         write_index(&self.index_path(), &entries)?;
         self.entries = entries;
@@ -671,8 +716,9 @@ pub fn read_series_index(path: &Path) -> Result<Vec<SeriesEntry>> {
     parse_index(path, &text)
 }
 
-/// Reads the `<DataSet timestep=".." file="frame_N.vtu"/>` entries of an index this module wrote
-/// (the step comes from the file name), with an XML parser: an error names the line.
+/// Reads the `<DataSet timestep=".." file="frame_N.vtu"/>` entries (`.pvtu` for a frame of
+/// pieces) of an index this module wrote (the step comes from the file name), with an XML
+/// parser: an error names the line.
 fn parse_index(path: &Path, text: &str) -> Result<Vec<SeriesEntry>> {
     let document = roxmltree::Document::parse(text).map_err(|e| {
         let line = Some(u64::from(e.pos().row));
@@ -704,13 +750,20 @@ fn parse_index(path: &Path, text: &str) -> Result<Vec<SeriesEntry>> {
                 .ok()
                 .filter(|t: &f64| t.is_finite())
                 .ok_or_else(|| bad(format!("timestep {timestep:?} is not a finite number")))?;
-            let step = file
-                .strip_prefix("frame_")
-                .and_then(|f| f.strip_suffix(".vtu"))
+            let stem = file.strip_prefix("frame_");
+            let (digits, pieces) = match stem.and_then(|f| f.strip_suffix(".pvtu")) {
+                Some(digits) => (Some(digits), true),
+                None => (stem.and_then(|f| f.strip_suffix(".vtu")), false),
+            };
+            let step = digits
                 .filter(|digits| digits.bytes().all(|b| b.is_ascii_digit()))
                 .and_then(|digits| digits.parse().ok())
-                .ok_or_else(|| bad(format!("file {file:?} is not a frame_<step>.vtu name")))?;
-            Ok(SeriesEntry { step, time })
+                .ok_or_else(|| {
+                    bad(format!(
+                        "file {file:?} is not a frame_<step>.vtu (or .pvtu) name"
+                    ))
+                })?;
+            Ok(SeriesEntry { step, time, pieces })
         })
         .collect()
 }
@@ -729,16 +782,13 @@ mod tests {
                     <Collection><DataSet part='0' file='frame_00000010.vtu' group=''\n \
                     timestep='0.5'/>\n<!-- <DataSet timestep=\"9\" file=\"frame_9.vtu\"/> -->\n\
                     <DataSet timestep=\"1e0\" file=\"frame_00000020.vtu\"></DataSet>\
+                    <DataSet timestep='2' file='frame_00000030.pvtu'/>\
                     </Collection></VTKFile>";
+        let entry = |step, time, pieces| SeriesEntry { step, time, pieces };
         let want = vec![
-            SeriesEntry {
-                step: 10,
-                time: 0.5,
-            },
-            SeriesEntry {
-                step: 20,
-                time: 1.0,
-            },
+            entry(10, 0.5, false),
+            entry(20, 1.0, false),
+            entry(30, 2.0, true),
         ];
         assert_eq!(parsed(text), Ok(want));
     }

@@ -1,6 +1,7 @@
 //! Files: spheres (CSV `x,y,z,r` or NumPy `.npy` float32 N×4, optionally with velocities,
 //! angular velocities and materials), pairs (CSV `i,j`), simulation
-//! frames for ParaView (`.vtu` files indexed by a `.pvd` collection, see [`FrameSeries`]) and
+//! frames for ParaView (`.vtu` files indexed by a `.pvd` collection, see [`FrameSeries`]; a run
+//! over several processes may write each frame in pieces, one a process, named by a `.pvtu`) and
 //! checkpoints; the clumps of a run of clumps at each frame (`clumps.pvd`); mesh walls' surfaces
 //! and loads (`walls.pvd`, `walls.csv`); the logs a run appends to per frame.
 //!
@@ -17,6 +18,7 @@ mod frame_read;
 mod frames;
 mod log;
 mod pairs;
+mod pieces;
 mod run_folder;
 mod spheres;
 mod vtk_arrays;
@@ -36,6 +38,7 @@ pub use frames::{
 };
 pub use log::{FLOW_LOG, FLOW_LOG_HEADER, append_log, start_log};
 pub use pairs::{read_pairs, write_pairs};
+pub use pieces::{piece_folder, piece_path, read_pvtu};
 pub use run_folder::{
     CHECKPOINT_FILE, LOCK_FILE, RunFolder, SCENE_FILE, is_run_file_name, is_run_file_of,
     run_files_in, same_file,

@@ -1,6 +1,7 @@
 //! The output folder of a simulation run: locked while the run writes into it, and told apart
 //! from a folder that holds an earlier run.
 
+use super::pieces::{holds_only_pieces, is_piece_folder_name};
 use super::{
     CLUMPS_INDEX, FLOW_LOG, SERIES_INDEX, WALL_LOADS, WALLS_INDEX, io_error, is_clump_frame_name,
     is_wall_file_name, remove_stale_temp_files,
@@ -21,8 +22,9 @@ pub const SCENE_FILE: &str = "scene.toml";
 pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 
 /// Whether `name` is the name of a file `mochi simulate` writes into its output folder: the
-/// index, the scene, the checkpoint, a frame `frame_<step>.vtu`, `.csv` or `.png`, the clumps'
-/// frames and index, the walls' surfaces, index and loads, or the flows' log.
+/// index, the scene, the checkpoint, a frame `frame_<step>.vtu`, `.pvtu` (of pieces, which lie
+/// in the folder `frame_<step>`), `.csv` or `.png`, the clumps' frames and index, the walls'
+/// surfaces, index and loads, or the flows' log.
 pub fn is_run_file_name(name: &str) -> bool {
     let logs = [WALLS_INDEX, WALL_LOADS, FLOW_LOG];
     if [SERIES_INDEX, SCENE_FILE, CHECKPOINT_FILE, CLUMPS_INDEX].contains(&name)
@@ -34,6 +36,7 @@ pub fn is_run_file_name(name: &str) -> bool {
     }
     let step = name.strip_prefix("frame_").and_then(|rest| {
         rest.strip_suffix(".vtu")
+            .or_else(|| rest.strip_suffix(".pvtu"))
             .or_else(|| rest.strip_suffix(".csv"))
             .or_else(|| rest.strip_suffix(".png"))
     });
@@ -94,6 +97,21 @@ pub fn run_files_in(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
+/// The folders of frames' pieces in `dir` that hold nothing but pieces (see
+/// [`super::pieces`]).
+fn piece_folders_in(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut folders = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io_error(dir))? {
+        let entry = entry.map_err(io_error(dir))?;
+        let named = entry.file_name().to_str().is_some_and(is_piece_folder_name);
+        if named && entry.file_type().is_ok_and(|t| t.is_dir()) && holds_only_pieces(&entry.path())?
+        {
+            folders.push(entry.path());
+        }
+    }
+    Ok(folders)
+}
+
 /// A run's output folder, locked for as long as this value lives.
 #[derive(Debug)]
 pub struct RunFolder {
@@ -148,13 +166,18 @@ impl RunFolder {
         run_files_in(&self.dir)
     }
 
-    /// Removes the run files of an earlier run (every other file stays); returns how many.
+    /// Removes the run files of an earlier run, and its frames' folders of pieces where they
+    /// hold nothing else (every other file stays); returns how many files and folders.
     pub fn clear(&self) -> Result<usize> {
         let files = self.run_files()?;
         for file in &files {
             std::fs::remove_file(file).map_err(io_error(file))?;
         }
-        Ok(files.len())
+        let folders = piece_folders_in(&self.dir)?;
+        for folder in &folders {
+            std::fs::remove_dir_all(folder).map_err(io_error(folder))?;
+        }
+        Ok(files.len() + folders.len())
     }
 }
 
@@ -169,6 +192,7 @@ mod tests {
             "scene.toml",
             "checkpoint.bin",
             "frame_00000000.vtu",
+            "frame_00000100.pvtu",
             "frame_00012345.csv",
             "frame_123456789.png",
             "walls.pvd",
@@ -213,6 +237,7 @@ mod tests {
         let run = [
             "series.pvd",
             "frame_00000010.vtu",
+            "frame_00000020.pvtu",
             "walls.pvd",
             "wall_0.vtp",
             "flow.csv",
@@ -220,9 +245,21 @@ mod tests {
         for name in run.iter().chain(&["notes.txt", "start.csv"]) {
             std::fs::write(d.join(name), b"x").unwrap();
         }
+        // A frame's folder of pieces goes; one that holds something else, or is named
+        // otherwise, stays.
+        for (folder, file) in [
+            ("frame_00000020", "frame_00000020_1.vtu"),
+            ("frame_00000030", "notes.txt"),
+            ("pieces", "frame_00000030_0.vtu"),
+        ] {
+            std::fs::create_dir(d.join(folder)).unwrap();
+            std::fs::write(d.join(folder).join(file), b"x").unwrap();
+        }
         let folder = RunFolder::lock(d).unwrap();
-        assert_eq!(folder.clear().unwrap(), run.len());
+        assert_eq!(folder.clear().unwrap(), run.len() + 1);
         assert!(run.iter().all(|name| !d.join(name).exists()));
+        assert!(!d.join("frame_00000020").exists());
+        assert!(d.join("frame_00000030/notes.txt").exists() && d.join("pieces").exists());
         assert!(d.join("notes.txt").exists() && d.join("start.csv").exists());
     }
 }

@@ -6,7 +6,7 @@ use super::output;
 use super::render::{FrameData, FrameRenderer, png_name};
 use super::view::walls_at;
 use super::walls::{FlowLog, WallOutputs};
-use anyhow::Result;
+use anyhow::{Result, bail};
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use mochi::dem::scene::{Overrides, SceneFlags, SceneKind};
 use mochi::dem::{Clock, RankShare, Snapshot, StageTimes, StepParams, Stepper, equipment};
@@ -182,6 +182,12 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             .chain(config.files())
             .collect(),
     };
+    if config.run.csv && config.run.frame_pieces && config.run.frame_every > 0 {
+        bail!(
+            "csv = true and frame_pieces = true: a CSV frame holds the whole run, and frames \
+             in pieces are never gathered; leave one of them out"
+        );
+    }
     let gif = args.render.gif.as_deref();
     output::check_run_outputs(&out, &inputs, gif)?;
     if let Some(gif) = gif {
@@ -243,7 +249,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         w.write_all(scene_toml.as_bytes())
     })?;
     let write_frame = |frames: &mut Option<FrameOutputs>, stepper: &mut dyn Stepper| match frames {
-        Some(frames) => frames.write(stepper, &p, config.run.csv),
+        Some(frames) => frames.write(stepper, &p, (config.run.csv, config.run.frame_pieces)),
         None => Ok(()),
     };
     let draw = |pictures: &mut Option<FrameRenderer>, stepper: &mut dyn Stepper| -> Result<()> {
@@ -390,21 +396,43 @@ struct FrameOutputs {
 }
 
 impl FrameOutputs {
-    /// Writes the frame of the particles of `stepper` (and CSV beside it where `csv`), with the
-    /// walls and the flows then.
-    fn write(&mut self, stepper: &mut dyn Stepper, p: &StepParams, csv: bool) -> Result<()> {
-        let Snapshot {
-            particles: now,
-            contacts,
-        } = stepper.snapshot()?;
-        let kept = p.friction.has_history().then_some(&contacts[..]);
+    /// Writes the frame of the particles of `stepper` (and CSV beside it where `csv`; in
+    /// pieces, one a process, where `pieces` and the run is over several), with the walls and
+    /// the flows then.
+    fn write(
+        &mut self,
+        stepper: &mut dyn Stepper,
+        p: &StepParams,
+        (csv, pieces): (bool, bool),
+    ) -> Result<()> {
         let series = &mut self.series;
-        series.write(&Frame::of(&now, p.dt, kept), csv)?;
+        let written = match pieces {
+            true => stepper.write_pieces(series.dir())?,
+            false => None,
+        };
+        let (step, spheres) = match written {
+            Some(counts) => {
+                let step = stepper.step();
+                let time = step as f64 * p.dt as f64;
+                let history = p.friction.has_history();
+                series.add_pieces(step, time, counts.len(), history)?;
+                (step, counts.iter().sum::<u64>() as usize)
+            }
+            None => {
+                let Snapshot {
+                    particles: now,
+                    contacts,
+                } = stepper.snapshot()?;
+                let kept = p.friction.has_history().then_some(&contacts[..]);
+                series.write(&Frame::of(&now, p.dt, kept), csv)?;
+                (now.step, now.len())
+            }
+        };
         if let Some(walls) = &mut self.walls {
-            walls.write(series.entries(), now.step, p.dt, &stepper.wall_loads())?;
+            walls.write(series.entries(), step, p.dt, &stepper.wall_loads())?;
         }
         if let (Some(log), Some(counts)) = (&mut self.flow, stepper.flow_counts()) {
-            log.write(now.step as f64 * p.dt as f64, now.len(), counts)?;
+            log.write(step as f64 * p.dt as f64, spheres, counts)?;
         }
         Ok(())
     }

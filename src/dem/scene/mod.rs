@@ -10,6 +10,8 @@
 //! mode = "mochi"         # or "nns"
 //! frame_every = 1000     # 0: no frames
 //! csv = false            # CSV frames beside the VTK ones
+//! frame_pieces = false   # over several processes: each frame one .vtu piece a process and
+//!                        # a .pvtu naming them, none gathered (not with csv)
 //! flow_every = 100       # steps between inflow/outflow events (default 1 on cpu, 100 on GPUs)
 //!
 //! [source]               # where the spheres come from (`source`: each scene's own keys)
@@ -239,6 +241,10 @@ pub struct RunConfig {
     pub frame_every: u64,
     /// Also write each frame as CSV.
     pub csv: bool,
+    /// In a run over several processes, write each frame in pieces, each process the piece of
+    /// its own spheres, named by a `.pvtu` (instead of gathering every sphere on process 0 for
+    /// one `.vtu`). Not with `csv`.
+    pub frame_pieces: bool,
     /// Steps between flow events (default: 1 on the cpu backend, 100 on the GPU backends;
     /// `dem::flow`).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -253,6 +259,7 @@ impl Default for RunConfig {
             mode: ProxyMode::Mochi,
             frame_every: 1_000,
             csv: false,
+            frame_pieces: false,
             flow_every: None,
         }
     }
@@ -413,7 +420,12 @@ impl Default for SceneMaterial {
 
 /// The fields a resumed run may change: how far it runs and what it writes. Every other field
 /// is part of the run's identity and stays as its checkpoint saved it.
-pub const RESUMABLE: [&str; 3] = ["run.steps", "run.frame_every", "run.csv"];
+pub const RESUMABLE: [&str; 4] = [
+    "run.steps",
+    "run.frame_every",
+    "run.csv",
+    "run.frame_pieces",
+];
 
 /// Everything a run starts from.
 #[derive(Debug, Clone)]
@@ -726,7 +738,7 @@ impl SceneConfig {
                 what: format!("--set {}", short.unwrap_or(key)),
                 reason: format!(
                     "a resumed run keeps the scene of its checkpoint ({key} = {saved}); only \
-                     steps, frame_every and csv ({}) may change on --resume. To change {key}, \
+                     steps, frame_every, csv and frame_pieces ({}) may change on --resume. To change {key}, \
                      start a new run from the last frame (--input OUT/frame_<step>.csv)",
                     RESUMABLE.join(", ")
                 ),

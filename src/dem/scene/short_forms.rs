@@ -7,7 +7,7 @@
 use crate::error::{Error, Result};
 
 /// Each short form, with the table and the key of that table it stands for.
-pub const SHORT_FORMS: [(&str, &str, &str); 50] = [
+pub const SHORT_FORMS: [(&str, &str, &str); 51] = [
     ("scene", "source", "scene"),
     ("spheres", "source", "spheres"),
     ("particle", "source", "particle"),
@@ -32,6 +32,7 @@ pub const SHORT_FORMS: [(&str, &str, &str); 50] = [
     ("mode", "run", "mode"),
     ("frame_every", "run", "frame_every"),
     ("csv", "run", "csv"),
+    ("frame_pieces", "run", "frame_pieces"),
     ("flow_every", "run", "flow_every"),
     ("box_lo", "domain", "box_lo"),
     ("box_hi", "domain", "box_hi"),
