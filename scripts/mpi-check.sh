@@ -2,7 +2,8 @@
 # Checks runs decomposed over processes under mpirun (the mpi feature) against the same runs
 # in one process, bit for bit: examples/mpi_pour on 2 and 4 ranks (--check compares with the
 # whole run), and `mochi simulate` on 3 ranks, new and resumed on 2, whose files must equal
-# those of one process byte for byte; and a run on wgpu-compute (lavapipe) over 2 processes. Needs
+# those of one process byte for byte, and whose frames in pieces draw as one process's; and a
+# run on wgpu-compute (lavapipe) over 2 processes. Needs
 # Open MPI (scripts/test.sh installs it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -32,6 +33,20 @@ for pair in "one ranks" "one-resumed ranks-resumed"; do
     done
 done
 echo "mochi simulate on 3 processes (and resumed on 2) wrote one process's files byte for byte"
+# Frames in pieces (frame_pieces): each process writes its own spheres' piece and no frame is
+# gathered; drawn, the pieces of each frame are one process's frame, pixel for pixel.
+mpirun --oversubscribe -np 3 target/debug/mochi "${run[@]}" --steps 1000 \
+    --set frame_pieces=true -o "$work/pieces"
+mpirun --oversubscribe -np 2 target/debug/mochi simulate \
+    --resume "$work/pieces/checkpoint.bin" --steps 1500 -q
+draw=(render --renderer cpu --size 160x120 --color-by speed)
+target/debug/mochi "${draw[@]}" "$work/one-resumed" -o "$work/one-pictures" > /dev/null
+target/debug/mochi "${draw[@]}" "$work/pieces" -o "$work/pieces-pictures" > /dev/null
+test "$(ls "$work/pieces"/frame_*.pvtu | wc -l)" = 4
+for f in "$work/one-pictures"/*.png; do
+    cmp "$f" "$work/pieces-pictures/$(basename "$f")"
+done
+echo "mochi simulate on 3 processes (resumed on 2) wrote frames in pieces that draw as one process's"
 # On a GPU backend (lavapipe here) each process steps its slab on its own device: the run must
 # finish and report each rank's share.
 shares=$(mpirun --oversubscribe -np 2 target/debug/mochi simulate --scene pour -n 400 \

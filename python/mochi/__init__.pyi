@@ -118,7 +118,8 @@ class _FrameDict(TypedDict):
 
 def read_frame(path: str | os.PathLike[str]) -> _FrameDict:
     """Reads a frame (``.vtu`` as ``write_frame`` and ``mochi simulate`` write it, or of another
-    writer such as meshio or ParaView, ``.csv`` or ``.npy``): positions (float64, as the file holds them), radii, velocities and angular
+    writer such as meshio or ParaView, a ``.pvtu`` of pieces (a run over processes with
+    ``frame_pieces``; its spheres in the order of their ids), ``.csv`` or ``.npy``): positions (float64, as the file holds them), radii, velocities and angular
     velocities (float32), materials (uint8: each sphere's index in the scene's materials, 0 for
     every sphere of a file without them), with its step and time (``None`` where the file does
     not say)."""

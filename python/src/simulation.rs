@@ -426,7 +426,7 @@ struct Views {
 }
 
 /// Reads a frame (`.vtu` as `write_frame` and `mochi simulate` write it or of another writer,
-/// `.csv` or `.npy`) into
+/// a `.pvtu` of pieces, its spheres in the order of their ids, `.csv` or `.npy`) into
 /// a dict of NumPy arrays (`positions`, float64, `radii`, `velocities`, `angular_velocities`,
 /// float32, `materials`, uint8: 0 for every sphere of a file without them) with its `step` and
 /// `time` (`None` where the file does not say).

@@ -3,27 +3,28 @@
 //! return alike.
 
 use super::comm::Comm;
-use super::rank::{RankStepper, spheres_of};
-use crate::dem::stepper::Stepper;
+use super::record::{SphereRecord, spheres_of};
+use crate::dem::StepParams;
 use crate::error::{Error, Result};
 use crate::io::{self, Frame};
 use rayon::prelude::*;
 use std::path::Path;
 
-/// Writes the frame of `rank`'s run now in pieces in the series folder `dir` (this rank's own
-/// spheres, with their ids in the whole run) and returns each piece's spheres, by rank. Every
-/// rank calls it alike; where a rank could not write its piece, every rank returns an error
-/// (that rank its own).
-pub(super) fn write_pieces<C: Comm + Send>(
-    rank: &mut RankStepper<C>,
+/// Writes the piece of `own`, this rank's spheres (each with its contacts counted), of the
+/// frame at `step` of a run of `params` in the series folder `dir`, and returns each piece's
+/// spheres, by rank. Every rank of `comm` calls it alike; where a rank could not write its
+/// piece, every rank returns an error (that rank its own).
+pub(super) fn write_pieces<C: Comm>(
+    comm: &C,
+    own: Vec<SphereRecord>,
+    (step, params): (u64, &StepParams),
     dir: &Path,
 ) -> Result<Vec<u64>> {
-    let written = write_piece(rank, dir);
+    let written = write_piece(own, (step, params), dir, comm.rank());
     let status = match &written {
         Ok(spheres) => [&[0], &spheres.to_le_bytes()[..]].concat(),
         Err(e) => [&[1], e.to_string().as_bytes()].concat(),
     };
-    let (comm, here) = (rank.comm(), rank.comm().rank());
     let received = comm.exchange(vec![status; comm.size()])?;
     let mut spheres = Vec::with_capacity(received.len());
     for (r, message) in received.iter().enumerate() {
@@ -33,7 +34,7 @@ pub(super) fn write_pieces<C: Comm + Send>(
             }
             Some((1, what)) => {
                 return Err(match written {
-                    Err(e) if r == here => e,
+                    Err(e) if r == comm.rank() => e,
                     _ => Error::Usage(format!(
                         "process {r} could not write its piece of the frame: {}",
                         String::from_utf8_lossy(what)
@@ -46,26 +47,27 @@ pub(super) fn write_pieces<C: Comm + Send>(
     Ok(spheres)
 }
 
-/// Writes the piece of `rank`'s own spheres, in the order of their ids; returns how many.
-fn write_piece<C: Comm + Send>(rank: &mut RankStepper<C>, dir: &Path) -> Result<u64> {
-    let mut own = rank.own_records()?;
+/// Writes `own` as piece `piece`, in the order of their ids; returns how many.
+fn write_piece(
+    mut own: Vec<SphereRecord>,
+    (step, params): (u64, &StepParams),
+    dir: &Path,
+    piece: usize,
+) -> Result<u64> {
     own.par_sort_unstable_by_key(|s| s.id);
-    let step = rank.step();
     let spheres = spheres_of(&own, |s| s, step);
     let ids: Vec<u32> = own.par_iter().map(|s| s.id).collect();
     let contacts: Vec<u32> = own.par_iter().map(|s| s.contacts).collect();
-    let params = rank.params();
     let kept = params.friction.has_history().then_some(&contacts[..]);
     let frame = Frame {
         ids: Some(&ids),
         ..Frame::of(&spheres, params.dt, kept)
     };
-    let path = io::piece_path(dir, step, rank.comm().rank());
     let folder = io::piece_folder(dir, step);
     std::fs::create_dir_all(&folder).map_err(|error| Error::Io {
         path: folder,
         error,
     })?;
-    io::write_vtu(&path, &frame)?;
+    io::write_vtu(&io::piece_path(dir, step, piece), &frame)?;
     Ok(own.len() as u64)
 }

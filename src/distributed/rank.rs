@@ -26,7 +26,7 @@
 
 use super::comm::Comm;
 use super::grid::Grid;
-use super::record::{Held, SphereRecord, own_pair_ends, partners_by_id, put, read_all};
+use super::record::{Held, SphereRecord, own_pair_ends, partners_by_id, put, read_all, spheres_of};
 use super::resident::Resident;
 use super::slabs::Slabs;
 use crate::dem::StepParams;
@@ -837,7 +837,7 @@ impl<C: Comm> RankStepper<C> {
 impl<C: Comm + Send> RankStepper<C> {
     /// This rank's own spheres, each with its contacts counted (in `contacts`), in no set
     /// order. A step kept on the device is read, not let go.
-    pub(super) fn own_records(&mut self) -> Result<Vec<SphereRecord>> {
+    fn own_records(&mut self) -> Result<Vec<SphereRecord>> {
         match self.resident_mut() {
             Some(resident) => resident.seen(),
             None => Ok((self.own.iter())
@@ -847,11 +847,6 @@ impl<C: Comm + Send> RankStepper<C> {
                 })
                 .collect()),
         }
-    }
-
-    /// The step's parameters.
-    pub(super) fn params(&self) -> &StepParams {
-        &self.params
     }
 
     /// The whole run's spheres without their springs, each with its contacts counted, on rank
@@ -990,7 +985,9 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
     }
 
     fn write_pieces(&mut self, dir: &Path) -> Result<Option<Vec<u64>>> {
-        super::pieces::write_pieces(self, dir).map(Some)
+        let own = self.own_records()?;
+        let at = (self.step, &self.params);
+        super::pieces::write_pieces(&self.comm, own, at, dir).map(Some)
     }
 
     fn flow_counts(&self) -> Option<FlowCounts> {
@@ -1068,30 +1065,4 @@ fn own_of(whole: &Particles, grid: &Grid, rank: usize) -> Vec<Held> {
         .filter(|&i| grid.owner(whole.exact_position(i)) == rank)
         .map(|i| Held::of(whole, i, i as u32, |e| *e))
         .collect()
-}
-
-/// The spheres of `items` (each one's record by `sphere`), in their order, at step `step` (no
-/// contact history yet).
-pub(super) fn spheres_of<T: Sync>(
-    items: &[T],
-    sphere: impl Fn(&T) -> &SphereRecord + Sync,
-    step: u64,
-) -> Particles {
-    let column =
-        |of: fn(&SphereRecord) -> [f32; 3]| items.par_iter().map(|t| of(sphere(t))).collect();
-    let mut p = Particles {
-        positions: column(|s| s.position),
-        position_residuals: column(|s| s.residual),
-        velocities: column(|s| s.velocity),
-        angular_velocities: column(|s| s.spin),
-        radii: items.par_iter().map(|t| sphere(t).radius).collect(),
-        materials: items.par_iter().map(|t| sphere(t).material as u8).collect(),
-        step,
-        ..Particles::default()
-    };
-    // Every sphere of the first material: the list left empty, as a run of one keeps it.
-    if p.materials.iter().all(|&m| m == 0) {
-        p.materials.clear();
-    }
-    p
 }

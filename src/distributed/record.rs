@@ -178,3 +178,29 @@ pub(super) fn read(message: &[u8]) -> Result<Vec<Held>> {
     }
     Ok(out)
 }
+
+/// The spheres of `items` (each one's record by `sphere`), in their order, at step `step` (no
+/// contact history yet).
+pub(super) fn spheres_of<T: Sync>(
+    items: &[T],
+    sphere: impl Fn(&T) -> &SphereRecord + Sync,
+    step: u64,
+) -> Particles {
+    let column =
+        |of: fn(&SphereRecord) -> [f32; 3]| items.par_iter().map(|t| of(sphere(t))).collect();
+    let mut p = Particles {
+        positions: column(|s| s.position),
+        position_residuals: column(|s| s.residual),
+        velocities: column(|s| s.velocity),
+        angular_velocities: column(|s| s.spin),
+        radii: items.par_iter().map(|t| sphere(t).radius).collect(),
+        materials: items.par_iter().map(|t| sphere(t).material as u8).collect(),
+        step,
+        ..Particles::default()
+    };
+    // Every sphere of the first material: the list left empty, as a run of one keeps it.
+    if p.materials.iter().all(|&m| m == 0) {
+        p.materials.clear();
+    }
+    p
+}

@@ -28,6 +28,7 @@
 //! index either whole or as it was, and a frame is always written before the index that names it.
 
 use super::clump_frames::{CLUMPS_INDEX, clump_frame_name, write_clumps_vtu};
+use super::frame_layout::{Block, blocks_with, frame_stem};
 use super::vtu_write::vtu_opening;
 use super::{collection, io_error, parse_error, write_atomically};
 use crate::clump::ClumpSet;
@@ -183,118 +184,9 @@ fn speed(v: [f32; 3]) -> f32 {
 /// VTK's cell type code of a single point (`VTK_VERTEX`).
 const VTK_VERTEX: u8 = 1;
 
-/// The appended arrays.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) enum Block {
-    Radius,
-    Velocity,
-    Speed,
-    AngularVelocity,
-    Id,
-    Material,
-    Contacts,
-    Clump,
-    Points,
-    Connectivity,
-    Offsets,
-    Types,
-}
-
 /// The blocks of `frame`, in the order they are written (`contacts` only with a history).
 fn blocks(frame: &Frame) -> Vec<Block> {
     blocks_with(frame.contacts.is_some(), frame.clumps.is_some())
-}
-
-/// The blocks of a frame with a history's `contacts` or not, with `clumps` or not, in the
-/// order they are written.
-pub(super) fn blocks_with(contacts: bool, clumps: bool) -> Vec<Block> {
-    [
-        Block::Radius,
-        Block::Velocity,
-        Block::Speed,
-        Block::AngularVelocity,
-        Block::Id,
-        Block::Material,
-        Block::Contacts,
-        Block::Clump,
-        Block::Points,
-        Block::Connectivity,
-        Block::Offsets,
-        Block::Types,
-    ]
-    .into_iter()
-    .filter(|&b| b != Block::Contacts || contacts)
-    .filter(|&b| b != Block::Clump || clumps)
-    .collect()
-}
-
-impl Block {
-    /// `wide`: cell indices need 64 bits (more than `i32::MAX` spheres).
-    pub(super) fn vtk_type(self, wide: bool) -> &'static str {
-        match self {
-            Block::Radius | Block::Velocity | Block::Speed | Block::AngularVelocity => "Float32",
-            Block::Points => "Float64",
-            Block::Id | Block::Contacts => "UInt32",
-            Block::Connectivity | Block::Offsets if wide => "Int64",
-            Block::Connectivity | Block::Offsets | Block::Clump => "Int32",
-            Block::Material | Block::Types => "UInt8",
-        }
-    }
-
-    pub(super) fn name(self) -> &'static str {
-        match self {
-            Block::Radius => "radius",
-            Block::Velocity => "velocity",
-            Block::Speed => "speed",
-            Block::AngularVelocity => "angular_velocity",
-            Block::Id => "id",
-            Block::Material => "material",
-            Block::Contacts => "contacts",
-            Block::Clump => "clump",
-            Block::Points => "Points",
-            Block::Connectivity => "connectivity",
-            Block::Offsets => "offsets",
-            Block::Types => "types",
-        }
-    }
-
-    /// The element of the `<Piece>` that lists the array.
-    pub(super) fn section(self) -> &'static str {
-        match self {
-            Block::Radius
-            | Block::Velocity
-            | Block::Speed
-            | Block::AngularVelocity
-            | Block::Id
-            | Block::Material
-            | Block::Contacts
-            | Block::Clump => "PointData",
-            Block::Points => "Points",
-            Block::Connectivity | Block::Offsets | Block::Types => "Cells",
-        }
-    }
-
-    pub(super) fn components(self) -> usize {
-        match self {
-            Block::Velocity | Block::AngularVelocity | Block::Points => 3,
-            _ => 1,
-        }
-    }
-
-    /// Bytes of one value, as [`Block::vtk_type`] says.
-    fn value_bytes(self, wide: bool) -> usize {
-        match self {
-            Block::Connectivity | Block::Offsets if wide => 8,
-            Block::Points => 8,
-            Block::Material | Block::Types => 1,
-            _ => 4,
-        }
-    }
-
-    /// Bytes of data (without the length header) for `n` spheres.
-    fn data_bytes(self, n: usize, wide: bool) -> u64 {
-        (n * self.components() * self.value_bytes(wide)) as u64
-    }
 }
 
 /// Writes `frame` as a VTK XML UnstructuredGrid (`.vtu`, raw appended binary), atomically.
@@ -565,10 +457,6 @@ impl SeriesEntry {
     fn clumps_line(&self) -> String {
         collection::entry_line(self.time, 0, &clump_frame_name(self.step))
     }
-}
-
-pub(super) fn frame_stem(step: u64) -> String {
-    format!("frame_{step:08}")
 }
 
 /// A directory of frames (`frame_{step:08}.vtu`, optionally `.csv`) and their index

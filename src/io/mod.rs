@@ -14,6 +14,7 @@ mod checkpoint;
 mod clump_frames;
 mod clumps;
 mod collection;
+mod frame_layout;
 mod frame_read;
 mod frames;
 mod log;
@@ -31,14 +32,14 @@ pub use checkpoint::{Checkpoint, read_checkpoint, write_checkpoint};
 pub use clump_frames::{CLUMPS_INDEX, clump_frame_name, is_clump_frame_name, write_clumps_vtu};
 pub use clumps::{CLUMP_HEADER, ClumpRow, is_clump_file, read_clumps};
 pub use collection::{append_entries, entry_line, write_collection};
-pub use frame_read::{OwnedFrame, read_frame, read_vtu};
+pub use frame_read::{OwnedFrame, read_frame, read_pvtu, read_vtu};
 pub use frames::{
     Frame, FrameSeries, SERIES_INDEX, SeriesEntry, read_series_index, write_frame, write_frame_csv,
     write_frame_npy, write_vtu,
 };
 pub use log::{FLOW_LOG, FLOW_LOG_HEADER, append_log, start_log};
 pub use pairs::{read_pairs, write_pairs};
-pub use pieces::{piece_folder, piece_path, read_pvtu};
+pub use pieces::{piece_folder, piece_path};
 pub use run_folder::{
     CHECKPOINT_FILE, LOCK_FILE, RunFolder, SCENE_FILE, is_run_file_name, is_run_file_of,
     run_files_in, same_file,

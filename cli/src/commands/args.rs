@@ -37,8 +37,9 @@ pub enum Command {
 
 #[derive(Debug, Args)]
 pub struct RenderCommandArgs {
-    /// A frame (.vtu as `mochi simulate` writes, or .csv/.npy spheres with or without
-    /// velocities), or a folder: every frame of its series.pvd (else its frame_*.vtu files).
+    /// A frame (.vtu as `mochi simulate` writes, a .pvtu of pieces, or .csv/.npy spheres with
+    /// or without velocities), or a folder: every frame of its series.pvd (else its
+    /// frame_*.vtu files).
     pub input: PathBuf,
     /// Output: the PNG of a single frame (default: next to it, .png), or the folder of the
     /// pictures of a folder (default: the same folder), named frame_<step>.png.

@@ -250,7 +250,8 @@ fn a_checkpoint_scene_of_the_flat_format_reads_as_saved_and_is_written_in_tables
     // Saved before hertz-mindlin became the default, without a contact law: linear, and
     // written out from now on. The mesh keys that format wrote for every scene say nothing.
     assert_eq!(c.material.contact, ContactKind::Linear);
-    let tables = "[run]\nsteps = 10\ndt = 0.0001\nmode = \"nns\"\nframe_every = 5\ncsv = false\n\n\
+    let tables = "[run]\nsteps = 10\ndt = 0.0001\nmode = \"nns\"\nframe_every = 5\ncsv = false\n\
+                  frame_pieces = false\n\n\
                   [source]\nscene = \"rotating\"\nspheres = 64\nseed = 3\n\n\
                   [domain]\nbox_lo = [0.0, 0.0, 0.0]\nbox_hi = [1.0, 1.0, 1.0]\n\
                   gravity = [0.0, 0.0, -9.81]\ngravity_spin = 0.7853981852531433\n\n\
