@@ -154,7 +154,7 @@ impl Resident {
     pub fn seen(&mut self) -> Result<Vec<SphereRecord>> {
         let own = self.own_places()?;
         let now = self.step.snapshot()?;
-        Ok((own.into_iter())
+        Ok((own.into_par_iter())
             .map(|(at, g)| SphereRecord {
                 contacts: now.contacts[at],
                 ..super::record::record_of(&now.particles, at, g)

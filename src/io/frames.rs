@@ -35,7 +35,9 @@ use crate::clump::ClumpSet;
 use crate::error::{Error, Result};
 use crate::particles::{Particles, position};
 use npyz::WriterBuilder;
+use rayon::prelude::*;
 use std::io::Write;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 /// The state of every sphere at one step of a simulation. The slices are parallel: sphere `i` is
@@ -198,11 +200,13 @@ pub fn write_vtu(path: &Path, frame: &Frame) -> Result<()> {
     let wide = n > i32::MAX as usize;
     let blocks = blocks(frame);
     let header = vtu_header(frame, &blocks, n, wide);
+    // The pieces' bytes, encoded into the same vectors block after block.
+    let mut encoded = vec![Vec::new(); ENCODED_AT_ONCE];
     write_atomically(path, |out| {
         out.write_all(header.as_bytes())?;
         for &block in &blocks {
             out.write_all(&block.data_bytes(n, wide).to_le_bytes())?;
-            write_block(out, block, frame, wide)?;
+            write_block(out, block, frame, wide, &mut encoded)?;
         }
         out.write_all(b"\n  </AppendedData>\n</VTKFile>\n")
     })
@@ -246,68 +250,112 @@ fn vtu_header(frame: &Frame, blocks: &[Block], n: usize, wide: bool) -> String {
     xml
 }
 
-/// Writes the data of one block (its length header is already out).
+/// Spheres a block encodes as one piece of work, and pieces encoded at once (on every core)
+/// before they are written in order: at most `ENCODED_AT_ONCE · SPHERES_A_PIECE · 24` bytes
+/// (the points) held at a time.
+const SPHERES_A_PIECE: usize = 1 << 16;
+const ENCODED_AT_ONCE: usize = 64;
+
+/// Writes the data of one block (its length header is already out): its pieces encoded on
+/// every core into `encoded` (at most [`ENCODED_AT_ONCE`] vectors), written in order.
 fn write_block(
     out: &mut dyn Write,
     block: Block,
     frame: &Frame,
     wide: bool,
+    encoded: &mut [Vec<u8>],
 ) -> std::io::Result<()> {
+    if let Some(bytes) = as_stored(block, frame) {
+        return out.write_all(bytes);
+    }
     let n = frame.radii.len();
-    let index = |i: usize, out: &mut Chunked| {
-        if wide {
-            out.put((i as i64).to_le_bytes())
-        } else {
-            out.put((i as i32).to_le_bytes())
+    // Each component's clump, where the block is theirs.
+    let owners = match (block, frame.clumps) {
+        (Block::Clump, Some(set)) => set.owners(),
+        _ => Vec::new(),
+    };
+    let pieces: Vec<usize> = (0..n).step_by(SPHERES_A_PIECE).collect();
+    for group in pieces.chunks(encoded.len()) {
+        let encoded = &mut encoded[..group.len()];
+        (group.par_iter().zip(encoded.par_iter_mut())).for_each(|(&first, bytes)| {
+            let spheres = first..n.min(first + SPHERES_A_PIECE);
+            encode(block, (frame, &owners), wide, spheres, bytes);
+        });
+        for bytes in encoded.iter() {
+            out.write_all(bytes)?;
+        }
+    }
+    Ok(())
+}
+
+/// The bytes of `block` where the frame holds them as the file does (little-endian values of
+/// the file's type): written as they lie.
+fn as_stored<'f>(block: Block, frame: &Frame<'f>) -> Option<&'f [u8]> {
+    if cfg!(target_endian = "big") {
+        return None;
+    }
+    match block {
+        Block::Radius => Some(bytemuck::cast_slice(frame.radii)),
+        Block::Velocity => Some(bytemuck::cast_slice(frame.velocities)),
+        Block::AngularVelocity => Some(bytemuck::cast_slice(frame.angular_velocities)),
+        Block::Contacts => frame.contacts.map(bytemuck::cast_slice),
+        Block::Id => frame.ids.map(bytemuck::cast_slice),
+        _ => None,
+    }
+}
+
+/// The bytes of `block` of the spheres `spheres` of `frame` (whose components' clumps are
+/// `owners`, where the block is theirs), into `out` (emptied first).
+fn encode(
+    block: Block,
+    (frame, owners): (&Frame, &[u32]),
+    wide: bool,
+    spheres: Range<usize>,
+    out: &mut Vec<u8>,
+) {
+    out.clear();
+    let index = |i: usize, out: &mut Vec<u8>| match wide {
+        true => out.extend_from_slice(&(i as i64).to_le_bytes()),
+        false => out.extend_from_slice(&(i as i32).to_le_bytes()),
+    };
+    let triples = |rows: &[[f32; 3]], out: &mut Vec<u8>| {
+        for x in rows.iter().flatten() {
+            out.extend_from_slice(&x.to_le_bytes());
         }
     };
-    let mut chunked = Chunked::new(out);
-    let out = &mut chunked;
+    let range = spheres.clone();
     match block {
-        Block::Radius => frame
-            .radii
-            .iter()
-            .try_for_each(|r| out.put(r.to_le_bytes()))?,
-        Block::Velocity => frame
-            .velocities
-            .iter()
-            .flatten()
-            .try_for_each(|x| out.put(x.to_le_bytes()))?,
-        Block::Speed => frame
-            .velocities
-            .iter()
-            .try_for_each(|&v| out.put(speed(v).to_le_bytes()))?,
-        Block::AngularVelocity => frame
-            .angular_velocities
-            .iter()
-            .flatten()
-            .try_for_each(|x| out.put(x.to_le_bytes()))?,
+        Block::Radius => (frame.radii[range].iter()).for_each(|r| out.extend(r.to_le_bytes())),
+        Block::Velocity => triples(&frame.velocities[range], out),
+        Block::Speed => (frame.velocities[range].iter())
+            .for_each(|&v| out.extend_from_slice(&speed(v).to_le_bytes())),
+        Block::AngularVelocity => triples(&frame.angular_velocities[range], out),
         Block::Id => match frame.ids {
-            Some(ids) => ids.iter().try_for_each(|i| out.put(i.to_le_bytes()))?,
-            None => (0..n as u32).try_for_each(|i| out.put(i.to_le_bytes()))?,
+            Some(ids) => (ids[range].iter()).for_each(|i| out.extend_from_slice(&i.to_le_bytes())),
+            None => range.for_each(|i| out.extend_from_slice(&(i as u32).to_le_bytes())),
         },
-        Block::Material => frame.materials().try_for_each(|m| out.put([m]))?,
+        Block::Material => {
+            range.for_each(|i| out.push(frame.materials.get(i).copied().unwrap_or(0)));
+        }
         Block::Contacts => {
             let contacts = frame.contacts.expect("the block is written with a history");
-            contacts.iter().try_for_each(|c| out.put(c.to_le_bytes()))?
+            (contacts[range].iter()).for_each(|c| out.extend_from_slice(&c.to_le_bytes()));
         }
         Block::Clump => {
-            let set = frame.clumps.expect("the block is written with clumps");
-            let owners = set.owners();
-            (0..n).try_for_each(|i| {
+            range.for_each(|i| {
                 let clump = owners.get(i).map_or(-1, |&k| k as i32);
-                out.put(clump.to_le_bytes())
-            })?
+                out.extend_from_slice(&clump.to_le_bytes());
+            });
         }
-        Block::Points => frame
-            .exact_positions()
-            .flatten()
-            .try_for_each(|x| out.put(x.to_le_bytes()))?,
-        Block::Connectivity => (0..n).try_for_each(|i| index(i, out))?,
-        Block::Offsets => (1..=n).try_for_each(|i| index(i, out))?,
-        Block::Types => (0..n).try_for_each(|_| out.put([VTK_VERTEX]))?,
+        Block::Points => range.for_each(|i| {
+            for x in frame.exact_position(i) {
+                out.extend_from_slice(&x.to_le_bytes());
+            }
+        }),
+        Block::Connectivity => range.for_each(|i| index(i, out)),
+        Block::Offsets => range.for_each(|i| index(i + 1, out)),
+        Block::Types => out.resize(spheres.len(), VTK_VERTEX),
     }
-    chunked.flush()
 }
 
 /// Gathers small values into 64 KiB writes (one dynamic call per chunk, not per value).

@@ -5,6 +5,7 @@ use crate::dem::model::MaterialTable;
 use crate::dem::stepper::{Advance, Clock, StageTimes};
 use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, Particles};
+use rayon::prelude::*;
 
 /// What the granular step adds to the particles a GPU step reads back.
 pub(crate) struct Rotation {
@@ -93,7 +94,8 @@ pub(crate) fn particles_with(
     let n = pos.len();
     // A run that blew up says so by its state before its history says anything.
     let finite = |row: &[f32; 4]| row.iter().all(|x| x.is_finite());
-    if let Some(k) = (0..n).find(|&k| !(finite(&pos[k]) && finite(&vel[k]))) {
+    let unstable = (0..n).into_par_iter();
+    if let Some(k) = unstable.find_first(|&k| !(finite(&pos[k]) && finite(&vel[k]))) {
         return Err(Error::Unstable {
             step,
             sphere: ids.map_or(k, |ids| ids[k] as usize),
@@ -109,34 +111,36 @@ pub(crate) fn particles_with(
         materials: Vec::new(),
         history: Default::default(),
     });
+    // The row of each sphere (of input index i): the rows gathered into input order on every
+    // core.
+    let row_of: Option<Vec<u32>> = ids.map(|ids| {
+        let mut rows = vec![0; n];
+        for (k, &i) in ids.iter().enumerate() {
+            rows[i as usize] = k as u32;
+        }
+        rows
+    });
+    let row = |i: usize| row_of.as_ref().map_or(i, |rows| rows[i] as usize);
+    let column = |of: &(dyn Fn(usize) -> [f32; 3] + Sync)| -> Vec<[f32; 3]> {
+        (0..n).into_par_iter().map(|i| of(row(i))).collect()
+    };
+    let spins = rotation.angular_velocities;
+    let materials = rotation.materials;
     let mut out = Particles {
-        positions: vec![[0.0; 3]; n],
-        position_residuals: vec![[0.0; 3]; n],
-        velocities: vec![[0.0; 3]; n],
-        angular_velocities: vec![[0.0; 3]; n],
-        radii: vec![0.0; n],
-        // Filled below where some sphere is of another material than the first.
+        positions: column(&|k| [pos[k][0], pos[k][1], pos[k][2]]),
+        position_residuals: column(&|k| [lo[k][0], lo[k][1], lo[k][2]]),
+        velocities: column(&|k| [vel[k][0], vel[k][1], vel[k][2]]),
+        angular_velocities: column(&|k| spins[k]),
+        radii: (0..n).into_par_iter().map(|i| pos[row(i)][3]).collect(),
+        // Every sphere of the first material: none listed.
         materials: Vec::new(),
         history: rotation.history,
         // The engine that runs clumps reads them apart.
         clumps: Default::default(),
         step,
     };
-    let spins = rotation.angular_velocities;
-    for (k, (((p, l), v), w)) in pos.iter().zip(lo).zip(vel).zip(spins).enumerate() {
-        let i = ids.map_or(k, |ids| ids[k] as usize);
-        out.positions[i] = [p[0], p[1], p[2]];
-        out.position_residuals[i] = [l[0], l[1], l[2]];
-        out.velocities[i] = [v[0], v[1], v[2]];
-        out.angular_velocities[i] = w;
-        out.radii[i] = p[3];
-    }
-    let materials = rotation.materials;
-    if materials.iter().any(|&m| m != 0) {
-        out.materials = vec![0; n];
-        for (k, m) in materials.into_iter().enumerate() {
-            out.materials[ids.map_or(k, |ids| ids[k] as usize)] = m;
-        }
+    if materials.par_iter().any(|&m| m != 0) {
+        out.materials = (0..n).into_par_iter().map(|i| materials[row(i)]).collect();
     }
     out.check_stable()?;
     Ok(out)
