@@ -214,6 +214,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             walls: WallOutputs::start(&out, &walls, series.entries(), resume_time)?,
             flow: FlowLog::start(&out, stepper.flow_counts(), resume_time, flow_logged)?,
             series,
+            gathered: Duration::ZERO,
         })
     };
     // One material's restitution, or the materials (each with its own).
@@ -372,7 +373,18 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     if let Some(counts) = stepper.flow_counts() {
         println!("{}", counts.describe());
     }
-    rank_table(&stepper.rank_shares()?);
+    let shares = stepper.rank_shares()?;
+    rank_table(&shares);
+    if let Some(frames) = &frames
+        && !shares.is_empty()
+        && frames.gathered.as_secs_f64() > GATHER_NOTE_SHARE * wall
+    {
+        eprintln!(
+            "note: gathering the frames on process 0 took {:.1} s of the run's {wall:.1} s; \
+             --set frame_pieces=true writes each frame in pieces, one a process, none gathered",
+            frames.gathered.as_secs_f64()
+        );
+    }
     if let Some(line) = measured {
         println!("{line}");
     }
@@ -393,7 +405,13 @@ struct FrameOutputs {
     series: FrameSeries,
     walls: Option<WallOutputs>,
     flow: Option<FlowLog>,
+    /// The time whole frames took (gathered on process 0 in a run over several).
+    gathered: Duration,
 }
+
+/// The share of a run over processes that gathered frames may take before the run's end notes
+/// that frames in pieces gather nothing.
+const GATHER_NOTE_SHARE: f64 = 0.1;
 
 impl FrameOutputs {
     /// Writes the frame of the particles of `stepper` (and CSV beside it where `csv`; in
@@ -419,12 +437,14 @@ impl FrameOutputs {
                 (step, counts.iter().sum::<u64>() as usize)
             }
             None => {
+                let started = Instant::now();
                 let Snapshot {
                     particles: now,
                     contacts,
                 } = stepper.snapshot()?;
                 let kept = p.friction.has_history().then_some(&contacts[..]);
                 series.write(&Frame::of(&now, p.dt, kept), csv)?;
+                self.gathered += started.elapsed();
                 (now.step, now.len())
             }
         };
