@@ -121,17 +121,14 @@ pub(crate) fn particles_with(
         rows
     });
     let row = |i: usize| row_of.as_ref().map_or(i, |rows| rows[i] as usize);
-    let column = |of: &(dyn Fn(usize) -> [f32; 3] + Sync)| -> Vec<[f32; 3]> {
-        (0..n).into_par_iter().map(|i| of(row(i))).collect()
-    };
     let spins = rotation.angular_velocities;
     let materials = rotation.materials;
     let mut out = Particles {
-        positions: column(&|k| [pos[k][0], pos[k][1], pos[k][2]]),
-        position_residuals: column(&|k| [lo[k][0], lo[k][1], lo[k][2]]),
-        velocities: column(&|k| [vel[k][0], vel[k][1], vel[k][2]]),
-        angular_velocities: column(&|k| spins[k]),
-        radii: (0..n).into_par_iter().map(|i| pos[row(i)][3]).collect(),
+        positions: vec![[0.0; 3]; n],
+        position_residuals: vec![[0.0; 3]; n],
+        velocities: vec![[0.0; 3]; n],
+        angular_velocities: vec![[0.0; 3]; n],
+        radii: vec![0.0; n],
         // Every sphere of the first material: none listed.
         materials: Vec::new(),
         history: rotation.history,
@@ -139,6 +136,22 @@ pub(crate) fn particles_with(
         clumps: Default::default(),
         step,
     };
+    // Each sphere's row read once for all its columns, a piece of the spheres a task.
+    const PIECE: usize = 1 << 14;
+    let triple = |r: &[f32; 4]| [r[0], r[1], r[2]];
+    (out.positions.par_chunks_mut(PIECE))
+        .zip(out.position_residuals.par_chunks_mut(PIECE))
+        .zip(out.velocities.par_chunks_mut(PIECE))
+        .zip(out.angular_velocities.par_chunks_mut(PIECE))
+        .zip(out.radii.par_chunks_mut(PIECE))
+        .enumerate()
+        .for_each(|(piece, ((((x, l), v), w), r))| {
+            for j in 0..x.len() {
+                let k = row(piece * PIECE + j);
+                (x[j], l[j], v[j]) = (triple(&pos[k]), triple(&lo[k]), triple(&vel[k]));
+                (w[j], r[j]) = (spins[k], pos[k][3]);
+            }
+        });
     if materials.par_iter().any(|&m| m != 0) {
         out.materials = (0..n).into_par_iter().map(|i| materials[row(i)]).collect();
     }
