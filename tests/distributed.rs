@@ -571,6 +571,42 @@ fn a_frame_in_pieces_over_ranks_led_from_rank_0_is_the_whole_runs_frame() {
 }
 
 #[test]
+fn a_piece_one_rank_cannot_write_fails_the_frame_on_every_rank_naming_it() {
+    let setup = landing();
+    let out = tempfile::tempdir().unwrap();
+    // Where rank 1's piece of the first frame goes lies a folder: its write fails.
+    let blocked = mochi::io::piece_path(out.path(), setup.particles.step, 1);
+    std::fs::create_dir_all(&blocked).unwrap();
+    let said: Vec<String> = std::thread::scope(|scope| {
+        let handles: Vec<_> = LocalComm::group(3)
+            .unwrap()
+            .into_iter()
+            .map(|comm| {
+                let (setup, out) = (&setup, out.path());
+                scope.spawn(move || {
+                    let mut rank = RankStepper::new(comm, setup).unwrap();
+                    rank.write_pieces(out).unwrap_err().to_string()
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    // Rank 1 says what failed; the others that it was process 1.
+    assert!(
+        said[1].contains(&blocked.display().to_string()),
+        "{}",
+        said[1]
+    );
+    for k in [0, 2] {
+        assert!(
+            said[k].contains("process 1 could not write its piece"),
+            "{}",
+            said[k]
+        );
+    }
+}
+
+#[test]
 fn a_run_over_ranks_of_each_backend_matches_the_whole_run_on_it() {
     let landing = landing();
     let options = Options::default();
