@@ -529,6 +529,25 @@ fn read_pieces(dir: &Path, pieces: &[u64], setup: &DemSetup) -> OwnedFrame {
     read_frame(&pvtu).unwrap()
 }
 
+/// `run` on each of `ranks` cpu ranks (threads) of `setup`, rank 0's result first.
+fn on_cpu_ranks<T: Send>(
+    ranks: usize,
+    setup: &DemSetup,
+    run: impl Fn(RankStepper<LocalComm>) -> T + Sync,
+) -> Vec<T> {
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = LocalComm::group(ranks)
+            .unwrap()
+            .into_iter()
+            .map(|comm| {
+                let run = &run;
+                scope.spawn(move || run(RankStepper::new(comm, setup).unwrap()))
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    })
+}
+
 #[test]
 fn a_frame_in_pieces_over_ranks_led_from_rank_0_is_the_whole_runs_frame() {
     let setup = landing();
@@ -537,28 +556,14 @@ fn a_frame_in_pieces_over_ranks_led_from_rank_0_is_the_whole_runs_frame() {
     let expected = frame_of(&whole.snapshot().unwrap(), &setup);
     assert!(expected.contacts.iter().any(|&c| c > 0), "no contacts");
     let out = tempfile::tempdir().unwrap();
-    let pieces = std::thread::scope(|scope| {
-        let handles: Vec<_> = LocalComm::group(3)
-            .unwrap()
-            .into_iter()
-            .map(|comm| {
-                let (setup, out) = (&setup, out.path());
-                scope.spawn(move || {
-                    let rank = RankStepper::new(comm, setup).unwrap();
-                    if rank.comm().rank() != 0 {
-                        return follow(rank).map(|()| None).unwrap();
-                    }
-                    // Rank 0 leads: each call goes to the others, which make it too.
-                    let mut lead = Leader::new(rank).unwrap();
-                    lead.advance(STEPS).unwrap();
-                    lead.write_pieces(out).unwrap()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().unwrap())
-            .collect::<Vec<_>>()
+    let pieces = on_cpu_ranks(3, &setup, |rank| {
+        if rank.comm().rank() != 0 {
+            return follow(rank).map(|()| None).unwrap();
+        }
+        // Rank 0 leads: each call goes to the others, which make it too.
+        let mut lead = Leader::new(rank).unwrap();
+        lead.advance(STEPS).unwrap();
+        lead.write_pieces(out.path()).unwrap()
     });
     let [Some(pieces), None, None] = &pieces[..] else {
         panic!("the pieces' spheres on rank 0 alone: {pieces:?}");
@@ -577,19 +582,8 @@ fn a_piece_one_rank_cannot_write_fails_the_frame_on_every_rank_naming_it() {
     // Where rank 1's piece of the first frame goes lies a folder: its write fails.
     let blocked = mochi::io::piece_path(out.path(), setup.particles.step, 1);
     std::fs::create_dir_all(&blocked).unwrap();
-    let said: Vec<String> = std::thread::scope(|scope| {
-        let handles: Vec<_> = LocalComm::group(3)
-            .unwrap()
-            .into_iter()
-            .map(|comm| {
-                let (setup, out) = (&setup, out.path());
-                scope.spawn(move || {
-                    let mut rank = RankStepper::new(comm, setup).unwrap();
-                    rank.write_pieces(out).unwrap_err().to_string()
-                })
-            })
-            .collect();
-        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    let said = on_cpu_ranks(3, &setup, |mut rank| {
+        rank.write_pieces(out.path()).unwrap_err().to_string()
     });
     // Rank 1 says what failed; the others that it was process 1.
     assert!(
