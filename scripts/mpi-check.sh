@@ -2,7 +2,8 @@
 # Checks runs decomposed over processes under mpirun (the mpi feature) against the same runs
 # in one process, bit for bit: examples/mpi_pour on 2 and 4 ranks (--check compares with the
 # whole run), and `mochi simulate` on 3 ranks, new and resumed on 2, whose files must equal
-# those of one process byte for byte, and whose frames in pieces draw as one process's; and a
+# those of one process byte for byte, whose frames in pieces draw as one process's and whose
+# checkpoints in pieces resume as one process's; and a
 # run on wgpu-compute (lavapipe) over 2 processes. Needs
 # Open MPI (scripts/test.sh installs it).
 set -euo pipefail
@@ -33,12 +34,16 @@ for pair in "one ranks" "one-resumed ranks-resumed"; do
     done
 done
 echo "mochi simulate on 3 processes (and resumed on 2) wrote one process's files byte for byte"
-# Frames in pieces (frame_pieces): each process writes its own spheres' piece and no frame is
-# gathered; drawn, the pieces of each frame are one process's frame, pixel for pixel.
+# Frames and checkpoints in pieces (frame_pieces, checkpoint_pieces): each process writes its
+# own spheres' piece and nothing is gathered; drawn, the pieces of each frame are one process's
+# frame, pixel for pixel; resumed on 2 processes from the checkpoint in pieces, and on one to
+# write it whole, the checkpoint is one process's byte for byte.
 mpirun --oversubscribe -np 3 target/debug/mochi "${run[@]}" --steps 1000 \
-    --set frame_pieces=true -o "$work/pieces"
+    --set frame_pieces=true --set checkpoint_pieces=true -o "$work/pieces"
+test -d "$work/pieces/checkpoint_00001000"
 mpirun --oversubscribe -np 2 target/debug/mochi simulate \
     --resume "$work/pieces/checkpoint.bin" --steps 1500 -q
+test -d "$work/pieces/checkpoint_00001500" && test ! -e "$work/pieces/checkpoint_00001000"
 draw=(render --renderer cpu --size 160x120 --color-by speed)
 target/debug/mochi "${draw[@]}" "$work/one-resumed" -o "$work/one-pictures" > /dev/null
 target/debug/mochi "${draw[@]}" "$work/pieces" -o "$work/pieces-pictures" > /dev/null
@@ -46,7 +51,12 @@ test "$(ls "$work/pieces"/frame_*.pvtu | wc -l)" = 4
 for f in "$work/one-pictures"/*.png; do
     cmp "$f" "$work/pieces-pictures/$(basename "$f")"
 done
+target/debug/mochi simulate --resume "$work/pieces/checkpoint.bin" --steps 1500 -q \
+    --set frame_pieces=false --set checkpoint_pieces=false
+cmp "$work/pieces/checkpoint.bin" "$work/one-resumed/checkpoint.bin"
+test ! -e "$work/pieces/checkpoint_00001500"
 echo "mochi simulate on 3 processes (resumed on 2) wrote frames in pieces that draw as one process's"
+echo "and checkpoints in pieces that resume as one process's"
 # On a GPU backend (lavapipe here) each process steps its slab on its own device: the run must
 # finish and report each rank's share.
 shares=$(mpirun --oversubscribe -np 2 target/debug/mochi simulate --scene pour -n 400 \

@@ -14,7 +14,10 @@ use mochi::distributed::{Comm, Leader, LocalComm, RankStepper, Slabs, follow};
 use mochi::engines::BackendChoice::Named;
 use mochi::engines::cpu::CpuStepper;
 use mochi::engines::{BackendKind, DemSetup, Options, open_setup};
-use mochi::io::{Frame, FrameSeries, OwnedFrame, read_frame, write_vtu};
+use mochi::io::{
+    Frame, FrameSeries, OwnedFrame, piece_folder_for, read_checkpoint, read_frame,
+    write_checkpoint_index, write_vtu,
+};
 use std::path::Path;
 
 /// The start of the scene of `scene` (flat keys), as a step opens it.
@@ -576,6 +579,57 @@ fn a_frame_in_pieces_over_ranks_led_from_rank_0_is_the_whole_runs_frame() {
 }
 
 #[test]
+fn a_checkpoint_in_pieces_over_ranks_is_the_gathered_one_and_resumes_on_other_ranks_exactly() {
+    // Each contact with its spring and its load history (Mindlin–Deresiewicz).
+    let setup = landing_with("tangential_model = \"mindlin-deresiewicz\"\n");
+    let out = tempfile::tempdir().unwrap();
+    let checkpoint = out.path().join("checkpoint.bin");
+    let folder = piece_folder_for(&checkpoint, setup.particles.step + STEPS as u64);
+    let gathered = on_cpu_ranks(3, &setup, |rank| {
+        if rank.comm().rank() != 0 {
+            return follow(rank).map(|()| None).unwrap();
+        }
+        let mut lead = Leader::new(rank).unwrap();
+        lead.advance(STEPS).unwrap();
+        let pieces = lead
+            .write_checkpoint_pieces(&folder)
+            .unwrap()
+            .expect("pieces");
+        assert_eq!(pieces.len(), 3);
+        assert!(
+            pieces.iter().filter(|p| p.spheres > 0).count() > 1,
+            "{pieces:?}"
+        );
+        let at = (folder.as_path(), lead.step());
+        write_checkpoint_index(&checkpoint, at, ("scene", "state"), &pieces).unwrap();
+        Some(lead.particles().unwrap())
+    });
+    let [Some(gathered), None, None] = &gathered[..] else {
+        panic!("gathered on rank 0 alone");
+    };
+    assert!(gathered.history.contact_loads().any(|l| l.normal > 0.0));
+    let read = read_checkpoint(&checkpoint).unwrap();
+    assert_eq!(
+        (read.scene.as_str(), read.state.as_str()),
+        ("scene", "state")
+    );
+    assert_eq!(&read.particles, gathered);
+    // Resumed on two ranks, the run goes on as the whole run does, bit for bit.
+    let resumed = DemSetup {
+        particles: read.particles,
+        ..setup.clone()
+    };
+    let script: Script = |s, _| vec![s.advance(STEPS).unwrap().contacts];
+    let (expected, contacts) = alone(&resumed, &FlowSet::default(), script);
+    let mut whole = CpuStepper::open(setup.clone()).unwrap();
+    whole.advance(2 * STEPS).unwrap();
+    assert_same(&whole.particles().unwrap(), &expected, 1);
+    let (got, got_contacts, _) = decomposed(&resumed, (2, 1, 0), &FlowSet::default(), script);
+    assert_eq!(got_contacts, contacts);
+    assert_same(&got, &expected, 2);
+}
+
+#[test]
 fn a_piece_one_rank_cannot_write_fails_the_frame_on_every_rank_naming_it() {
     let setup = landing();
     let out = tempfile::tempdir().unwrap();
@@ -619,6 +673,9 @@ fn a_run_over_ranks_of_each_backend_matches_the_whole_run_on_it() {
         }
         for (setup, spare, ranks) in cases {
             let out = tempfile::tempdir().unwrap();
+            // Named once for every rank, as rank 0 names it in a run it leads.
+            let checkpoint = out.path().join("checkpoint.bin");
+            let folder = piece_folder_for(&checkpoint, STEPS as u64);
             let mut whole = open_setup(kind, setup.clone(), &options).unwrap();
             let contacts = whole.advance(STEPS).unwrap().contacts;
             let expected = whole.particles().unwrap();
@@ -677,6 +734,19 @@ fn a_run_over_ranks_of_each_backend_matches_the_whole_run_on_it() {
                         read_pieces(out.path(), &pieces, &setup),
                         frame_of(&whole, &setup)
                     );
+                }
+                // The checkpoint in pieces, one a rank, none gathered: the gathered spheres
+                // with their history, bit for bit.
+                let pieces = rank.write_checkpoint_pieces(&folder).unwrap();
+                let pieces = pieces.expect("pieces");
+                assert_eq!(
+                    pieces.iter().map(|p| p.spheres).sum::<u64>() as usize,
+                    now.len()
+                );
+                if rank.comm().rank() == 0 {
+                    let at = (folder.as_path(), now.step);
+                    write_checkpoint_index(&checkpoint, at, ("", ""), &pieces).unwrap();
+                    assert_eq!(read_checkpoint(&checkpoint).unwrap().particles, now);
                 }
                 (contacts, now, (every, grid), ghosts)
             });

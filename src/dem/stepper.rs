@@ -377,6 +377,19 @@ pub trait Stepper: Send {
     fn write_pieces(&mut self, _dir: &std::path::Path) -> Result<Option<Vec<u64>>> {
         Ok(None)
     }
+
+    /// Where this is a run over ranks: writes the checkpoint of the spheres now (their contact
+    /// history with them) in pieces into the checkpoint's folder of pieces `folder`
+    /// ([`crate::io::piece_folder_for`]), each rank the piece of its own spheres, none
+    /// gathered, and returns what the index names of each piece, by rank (the index is
+    /// [`crate::io::write_checkpoint_index`]'s). Every rank of the run calls it alike.
+    /// Default: `None`, a run of one process, which writes whole checkpoints.
+    fn write_checkpoint_pieces(
+        &mut self,
+        _folder: &std::path::Path,
+    ) -> Result<Option<Vec<crate::io::CheckpointPiece>>> {
+        Ok(None)
+    }
 }
 
 /// Whether a run needs more than the paper's step (the engines' granular step): anything beyond

@@ -11,6 +11,7 @@ use crate::dem::flow::FlowCounts;
 use crate::dem::stepper::{Advance, ExternalLoads, Motion, RankShare, Snapshot, Stepper};
 use crate::dem::walls::WallLoad;
 use crate::error::{Error, Result};
+use crate::io::CheckpointPiece;
 use crate::particles::Particles;
 use std::path::Path;
 
@@ -31,6 +32,8 @@ enum Call {
     Shares,
     /// Write the frame's pieces into this series folder (an absolute path).
     Pieces(String),
+    /// Write the checkpoint's pieces into this folder of pieces (an absolute path).
+    CheckpointPieces(String),
     Stop,
 }
 
@@ -81,6 +84,10 @@ impl Call {
             Call::Pieces(dir) => {
                 out.push(8);
                 out.extend_from_slice(dir.as_bytes());
+            }
+            Call::CheckpointPieces(folder) => {
+                out.push(9);
+                out.extend_from_slice(folder.as_bytes());
             }
         }
         out
@@ -142,7 +149,13 @@ impl Call {
             5 => Call::Stop,
             6 => Call::Shares,
             7 => Call::Snapshot,
-            8 => Call::Pieces(String::from_utf8(rest.to_vec()).map_err(|_| bad())?),
+            8 | 9 => {
+                let path = String::from_utf8(rest.to_vec()).map_err(|_| bad())?;
+                match tag {
+                    8 => Call::Pieces(path),
+                    _ => Call::CheckpointPieces(path),
+                }
+            }
             _ => return Err(bad()),
         };
         Ok(call)
@@ -168,6 +181,9 @@ impl Call {
             Call::Loads(loads) => rank.set_external_loads(loads),
             Call::Shares => rank.rank_shares().map(|_| ()),
             Call::Pieces(dir) => rank.write_pieces(Path::new(dir)).map(|_| ()),
+            Call::CheckpointPieces(folder) => {
+                rank.write_checkpoint_pieces(Path::new(folder)).map(|_| ())
+            }
             Call::Stop => Ok(()),
         }
     }
@@ -280,23 +296,36 @@ impl<C: Comm + Send> Stepper for Leader<C> {
     }
 
     fn write_pieces(&mut self, dir: &Path) -> Result<Option<Vec<u64>>> {
-        // The other ranks may not share this one's working folder.
-        let dir = std::path::absolute(dir).map_err(|error| Error::Io {
-            path: dir.to_owned(),
-            error,
-        })?;
-        let text = dir.to_str().ok_or_else(|| {
-            let shown = dir.display();
-            Error::Usage(format!(
-                "a run over ranks writes frames in pieces into a folder named in UTF-8, not {shown}"
-            ))
-        })?;
-        self.lead(Call::Pieces(text.to_owned()), |r| r.write_pieces(&dir))
+        let (dir, text) = absolute_utf8(dir, "frames")?;
+        self.lead(Call::Pieces(text), |r| r.write_pieces(&dir))
+    }
+
+    fn write_checkpoint_pieces(&mut self, folder: &Path) -> Result<Option<Vec<CheckpointPiece>>> {
+        let (folder, text) = absolute_utf8(folder, "checkpoints")?;
+        self.lead(Call::CheckpointPieces(text), |r| {
+            r.write_checkpoint_pieces(&folder)
+        })
     }
 
     fn flow_counts(&self) -> Option<FlowCounts> {
         self.rank.flow_counts()
     }
+}
+
+/// `path` made absolute (the other ranks may not share this one's working folder), and as
+/// UTF-8, which the other ranks are sent; refused, naming the run's `files`, where it is not.
+fn absolute_utf8(path: &Path, files: &str) -> Result<(std::path::PathBuf, String)> {
+    let path = std::path::absolute(path).map_err(|error| Error::Io {
+        path: path.to_owned(),
+        error,
+    })?;
+    let text = path.to_str().map(str::to_owned).ok_or_else(|| {
+        let shown = path.display();
+        Error::Usage(format!(
+            "a run over ranks writes {files} in pieces into a folder named in UTF-8, not {shown}"
+        ))
+    })?;
+    Ok((path, text))
 }
 
 /// Rank 0's refusal where a gathered run did not come to it.

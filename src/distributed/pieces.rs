@@ -1,12 +1,13 @@
-//! A frame of a run over ranks written in pieces ([`crate::io::piece_path`]): each rank writes
-//! the piece of its own spheres, then every rank hears what every other wrote, so that all
-//! return alike.
+//! A frame or a checkpoint of a run over ranks written in pieces ([`crate::io::piece_path`],
+//! [`crate::io::checkpoint_piece_path`]): each rank writes the piece of its own spheres, then
+//! every rank hears what every other wrote, so that all return alike.
 
 use super::comm::Comm;
-use super::record::{SphereRecord, spheres_of};
+use super::record::{Held, SphereRecord, spheres_of};
 use crate::dem::StepParams;
 use crate::error::{Error, Result};
 use crate::io::{self, Frame};
+use crate::particles::{HistoryEntry, LoadEntry};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -21,30 +22,86 @@ pub(super) fn write_pieces<C: Comm>(
     dir: &Path,
 ) -> Result<Vec<u64>> {
     let written = write_piece(own, (step, params), dir, comm.rank());
+    hear_every_piece(comm, written, "piece of the frame")
+}
+
+/// Writes the piece of `own`, this rank's spheres with their contact history, of the
+/// checkpoint at `step` into the checkpoint's folder of pieces `folder`, and returns what the
+/// index names of each piece, by rank. Every rank of `comm` calls it alike; where a rank could
+/// not write its piece, every rank returns an error (that rank its own).
+pub(super) fn write_checkpoint_pieces<C: Comm>(
+    comm: &C,
+    own: &[Held],
+    step: u64,
+    folder: &Path,
+) -> Result<Vec<io::CheckpointPiece>> {
+    let written = write_checkpoint_piece(own, step, folder, comm.rank());
+    hear_every_piece(comm, written, "piece of the checkpoint")
+}
+
+/// Writes `own` (sphere records with their history) as piece `piece` of the checkpoint at
+/// `step` in `folder`, in the order of their ids.
+fn write_checkpoint_piece(
+    own: &[Held],
+    step: u64,
+    folder: &Path,
+    piece: usize,
+) -> Result<io::CheckpointPiece> {
+    let mut sorted: Vec<&Held> = own.iter().collect();
+    sorted.par_sort_unstable_by_key(|h| h.sphere.id);
+    let spheres = spheres_of(&sorted, |h| &h.sphere, step);
+    let ids: Vec<u32> = sorted.par_iter().map(|h| h.sphere.id).collect();
+    let contacts: Vec<(u32, HistoryEntry)> = (sorted.par_iter().enumerate())
+        .flat_map_iter(|(at, h)| h.contacts.iter().map(move |&e| (at as u32, e)))
+        .collect();
+    let loads: Vec<LoadEntry> = (sorted.par_iter())
+        .flat_map_iter(|h| h.loads.iter().copied())
+        .collect();
+    let share = io::PieceSpheres {
+        ids: &ids,
+        spheres: &spheres,
+        contacts: &contacts,
+        loads: &loads,
+    };
+    io::write_checkpoint_piece(folder, piece, &share)
+}
+
+/// Every rank's word on the piece of `what` it wrote (`written`: what it tells of the piece,
+/// `T`'s bytes, or its error), by rank: where a rank could not write, an error on every rank
+/// (that rank its own, the others naming it).
+fn hear_every_piece<C: Comm, T: bytemuck::Pod>(
+    comm: &C,
+    written: Result<T>,
+    what: &str,
+) -> Result<Vec<T>> {
     let status = match &written {
-        Ok(spheres) => [&[0], &spheres.to_le_bytes()[..]].concat(),
+        Ok(told) => [&[0], bytemuck::bytes_of(told)].concat(),
         Err(e) => [&[1], e.to_string().as_bytes()].concat(),
     };
     let received = comm.exchange(vec![status; comm.size()])?;
-    let mut spheres = Vec::with_capacity(received.len());
-    for (r, message) in received.iter().enumerate() {
+    let mut told = Vec::with_capacity(received.len());
+    for (r, message) in received.into_iter().enumerate() {
         match message.split_first() {
-            Some((0, count)) if count.len() == 8 => {
-                spheres.push(u64::from_le_bytes(count.try_into().expect("8 bytes")));
+            Some((0, word)) if word.len() == std::mem::size_of::<T>() => {
+                told.push(bytemuck::pod_read_unaligned(word))
             }
-            Some((1, what)) => {
+            Some((1, why)) => {
                 return Err(match written {
                     Err(e) if r == comm.rank() => e,
                     _ => Error::Usage(format!(
-                        "process {r} could not write its piece of the frame: {}",
-                        String::from_utf8_lossy(what)
+                        "process {r} could not write its {what}: {}",
+                        String::from_utf8_lossy(why)
                     )),
                 });
             }
-            _ => return Err(Error::Usage("a rank's word on its piece is not one".into())),
+            _ => {
+                return Err(Error::Usage(format!(
+                    "a rank's word on its {what} is not one"
+                )));
+            }
         }
     }
-    Ok(spheres)
+    Ok(told)
 }
 
 /// Writes `own` as piece `piece`, in the order of their ids; returns how many.

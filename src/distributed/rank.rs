@@ -39,6 +39,7 @@ use crate::engines::common::flow::{Reopen, Room};
 use crate::engines::cpu::CpuStepper;
 use crate::engines::{BackendChoice, DemSetup, Opened, Options, open_rank_step};
 use crate::error::{Error, Result};
+use crate::io::CheckpointPiece;
 use crate::particles::{ContactHistory, FIRST_MESH_WALL, HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;
 use rayon::prelude::*;
@@ -988,6 +989,12 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
         let own = self.own_records()?;
         let at = (self.step, &self.params);
         super::pieces::write_pieces(&self.comm, own, at, dir).map(Some)
+    }
+
+    fn write_checkpoint_pieces(&mut self, folder: &Path) -> Result<Option<Vec<CheckpointPiece>>> {
+        let kept = self.resident_mut().map(|r| r.held()).transpose()?;
+        let own = kept.as_deref().unwrap_or(&self.own);
+        super::pieces::write_checkpoint_pieces(&self.comm, own, self.step, folder).map(Some)
     }
 
     fn flow_counts(&self) -> Option<FlowCounts> {

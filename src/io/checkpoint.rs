@@ -210,9 +210,13 @@ fn f64s_from(bytes: &[u8]) -> Vec<f64> {
         .collect()
 }
 
-/// Reads a checkpoint.
+/// Reads a checkpoint: a whole one, or the index of one in pieces (read with its pieces as
+/// the whole, see [`super::write_checkpoint_index`]).
 pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
     let bytes = std::fs::read(path).map_err(io_error(path))?;
+    if bytes.starts_with(super::checkpoint_pieces::INDEX_MAGIC) {
+        return super::checkpoint_pieces::read_checkpoint_pieces(path, &bytes);
+    }
     let bad = |msg: String| Error::Parse {
         path: path.to_owned(),
         line: None,

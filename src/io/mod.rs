@@ -3,7 +3,8 @@
 //! frames for ParaView (`.vtu` files indexed by a `.pvd` collection, see [`FrameSeries`]; a run
 //! over several processes may write each frame in pieces, one a process, named by a `.pvtu`) and
 //! checkpoints; the clumps of a run of clumps at each frame (`clumps.pvd`); mesh walls' surfaces
-//! and loads (`walls.pvd`, `walls.csv`); the logs a run appends to per frame.
+//! and loads (`walls.pvd`, `walls.csv`); the logs a run appends to per frame; checkpoints, whole
+//! or (over several processes) in pieces.
 //!
 //! Every reader names the file, the line (CSV) or row (`.npy`) and the problem in its error.
 //! Every writer goes through [`write_atomically`] (or [`AtomicFile`]): a failed write leaves no
@@ -11,6 +12,7 @@
 
 mod atomic;
 mod checkpoint;
+mod checkpoint_pieces;
 mod clump_frames;
 mod clumps;
 mod collection;
@@ -29,6 +31,10 @@ mod walls;
 
 pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};
 pub use checkpoint::{Checkpoint, read_checkpoint, write_checkpoint};
+pub use checkpoint_pieces::{
+    CheckpointPiece, PieceSpheres, checkpoint_piece_path, piece_folder_for,
+    remove_other_piece_folders, write_checkpoint_index, write_checkpoint_piece,
+};
 pub use clump_frames::{CLUMPS_INDEX, clump_frame_name, is_clump_frame_name, write_clumps_vtu};
 pub use clumps::{CLUMP_HEADER, ClumpRow, is_clump_file, read_clumps};
 pub use collection::{append_entries, entry_line, write_collection};

@@ -99,7 +99,12 @@ pub(super) fn holds_only_pieces(folder: &Path) -> Result<bool> {
     let Some(stem) = folder.file_name().and_then(|n| n.to_str()) else {
         return Ok(false);
     };
-    let prefix = format!("{stem}_");
+    holds_only_files(folder, &format!("{stem}_"), ".vtu")
+}
+
+/// Whether the folder `folder` holds nothing but files named `<prefix><k><suffix>` (`k` a
+/// number) and the temporary files of killed writers.
+pub(super) fn holds_only_files(folder: &Path, prefix: &str, suffix: &str) -> Result<bool> {
     let listing = std::fs::read_dir(folder).map_err(io_error(folder))?;
     for entry in listing {
         let entry = entry.map_err(io_error(folder))?;
@@ -107,8 +112,8 @@ pub(super) fn holds_only_pieces(folder: &Path) -> Result<bool> {
         let Some(name) = name.to_str() else {
             return Ok(false);
         };
-        let piece = (name.strip_prefix(&prefix))
-            .and_then(|k| k.strip_suffix(".vtu"))
+        let piece = (name.strip_prefix(prefix))
+            .and_then(|k| k.strip_suffix(suffix))
             .is_some_and(|k| !k.is_empty() && k.bytes().all(|b| b.is_ascii_digit()));
         if !(piece || super::atomic::is_temp_file_name(name)) {
             return Ok(false);

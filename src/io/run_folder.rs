@@ -97,9 +97,16 @@ pub fn run_files_in(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// The folders of frames' pieces in `dir` that hold nothing but pieces (see
-/// [`super::pieces`]).
+/// The folders of frames' and checkpoints' pieces in `dir` that hold nothing but pieces (see
+/// [`super::pieces`], [`super::checkpoint_pieces`]).
 fn piece_folders_in(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut folders = frame_piece_folders_in(dir)?;
+    folders.extend(super::checkpoint_pieces::piece_folders_in(dir)?);
+    Ok(folders)
+}
+
+/// The folders of frames' pieces in `dir` that hold nothing but pieces.
+fn frame_piece_folders_in(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut folders = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(io_error(dir))? {
         let entry = entry.map_err(io_error(dir))?;
@@ -166,8 +173,8 @@ impl RunFolder {
         run_files_in(&self.dir)
     }
 
-    /// Removes the run files of an earlier run, and its frames' folders of pieces where they
-    /// hold nothing else (every other file stays); returns how many files and folders.
+    /// Removes the run files of an earlier run, and its frames' and checkpoints' folders of
+    /// pieces where they hold nothing else (every other file stays); returns how many files and folders.
     pub fn clear(&self) -> Result<usize> {
         let files = self.run_files()?;
         for file in &files {
@@ -245,20 +252,33 @@ mod tests {
         for name in run.iter().chain(&["notes.txt", "start.csv"]) {
             std::fs::write(d.join(name), b"x").unwrap();
         }
-        // A frame's folder of pieces goes; one that holds something else, or is named
-        // otherwise, stays.
+        // A frame's or checkpoint's folder of pieces goes; one that holds something else, or
+        // is named otherwise, stays.
         for (folder, file) in [
             ("frame_00000020", "frame_00000020_1.vtu"),
+            ("checkpoint_00000020", "checkpoint_00000020_0.bin"),
+            ("checkpoint_00000020-2", "checkpoint_00000020_3.bin"),
             ("frame_00000030", "notes.txt"),
+            ("checkpoint_00000030", "checkpoint_00000020_0.bin"),
             ("pieces", "frame_00000030_0.vtu"),
         ] {
             std::fs::create_dir(d.join(folder)).unwrap();
             std::fs::write(d.join(folder).join(file), b"x").unwrap();
         }
         let folder = RunFolder::lock(d).unwrap();
-        assert_eq!(folder.clear().unwrap(), run.len() + 1);
+        assert_eq!(folder.clear().unwrap(), run.len() + 3);
         assert!(run.iter().all(|name| !d.join(name).exists()));
-        assert!(!d.join("frame_00000020").exists());
+        for gone in [
+            "frame_00000020",
+            "checkpoint_00000020",
+            "checkpoint_00000020-2",
+        ] {
+            assert!(!d.join(gone).exists(), "{gone}");
+        }
+        assert!(
+            d.join("checkpoint_00000030/checkpoint_00000020_0.bin")
+                .exists()
+        );
         assert!(d.join("frame_00000030/notes.txt").exists() && d.join("pieces").exists());
         assert!(d.join("notes.txt").exists() && d.join("start.csv").exists());
     }

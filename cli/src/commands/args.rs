@@ -286,8 +286,9 @@ pub struct SimulateArgs {
     /// tangential_model = "mindlin" (default) or "mindlin-deresiewicz" (hertz-mindlin only).
     /// [run]: steps, dt [s] (hertz-mindlin: 0.2 × the Rayleigh time of the smallest sphere),
     /// mode, frame_every, csv, frame_pieces (under mpirun: each frame one .vtu piece a process
-    /// and a .pvtu naming them, none gathered), flow_every. [domain]: box_lo, box_hi [m],
-    /// gravity [m/s²],
+    /// and a .pvtu naming them, none gathered), checkpoint_pieces (under mpirun: each
+    /// checkpoint one piece a process and checkpoint.bin naming them, none gathered),
+    /// flow_every. [domain]: box_lo, box_hi [m], gravity [m/s²],
     /// gravity_spin [rad/s], box_walls, box_material. [source]: scene, then that scene's keys
     /// (spheres, seed; a mesh's mesh, radius, mixed, size, copies; input; a hopper's or a
     /// drum's). Short forms: each key's own name (mesh_radius for source.radius, hopper_orifice

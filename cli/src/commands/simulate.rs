@@ -9,9 +9,12 @@ use super::walls::{FlowLog, WallOutputs};
 use anyhow::{Result, bail};
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 use mochi::dem::scene::{Overrides, SceneFlags, SceneKind};
-use mochi::dem::{Clock, RankShare, Snapshot, StageTimes, StepParams, Stepper, equipment};
+use mochi::dem::{
+    Clock, Particles, RankShare, Snapshot, StageTimes, StepParams, Stepper, equipment,
+};
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::numbers::significant;
+
 use mochi::render::{ColorBy, ColorChoice};
 use mochi::run::{FIRST_PROGRESS_STEPS, FileDigest, Run, RunStart, RunState, progress_steps};
 use std::path::{Path, PathBuf};
@@ -296,7 +299,12 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             },
         ),
     );
-    let checkpoint = out.join("checkpoint.bin");
+    let checkpoint = out.join(io::CHECKPOINT_FILE);
+    let mut saved = Checkpoints {
+        path: checkpoint.clone(),
+        in_pieces: config.run.checkpoint_pieces,
+        gathered: Duration::ZERO,
+    };
     let started = Instant::now();
     let mut times = StageTimes::default();
     let mut clock = Clock::None;
@@ -341,26 +349,29 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         }
         if due(args.checkpoint_every, step) {
             let state = state_toml(stepper.as_ref(), &frames, &meshes);
-            io::write_checkpoint(&checkpoint, &stepper.particles()?, &scene_toml, &state)?;
+            saved.write(stepper.as_mut(), (&scene_toml, &state))?;
         }
         bar.set_message(format!("{contacts} contacts"));
         bar.set_position(step - first);
     }
     bar.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
-    let end = stepper.particles()?;
+    let state = state_toml(stepper.as_ref(), &frames, &meshes);
+    let end = saved.write(stepper.as_mut(), (&scene_toml, &state))?;
     let measured = match config.scene() {
         SceneKind::Hopper => (frames.as_ref().and_then(|f| f.flow.as_ref()))
             .and_then(|log| equipment::mass_flow_rate(log.discharge()))
             .map(|w| format!("hopper: steady mass flow rate {w:.4e} kg/s (see flow.csv)")),
         SceneKind::Drum | SceneKind::Gravel => {
+            let end = match end {
+                Some(end) => end,
+                None => stepper.snapshot()?.particles,
+            };
             equipment::free_surface_angle(&end.positions, &end.radii)
                 .map(|a| format!("drum: free surface at {a:.1}° to the horizontal"))
         }
         _ => None,
     };
-    let state = state_toml(stepper.as_ref(), &frames, &meshes);
-    io::write_checkpoint(&checkpoint, &end, &scene_toml, &state)?;
     summary(&SummaryLine {
         backend: stepper.describe(),
         n,
@@ -383,6 +394,14 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
             "note: gathering the frames on process 0 took {:.1} s of the run's {wall:.1} s; \
              --set frame_pieces=true writes each frame in pieces, one a process, none gathered",
             frames.gathered.as_secs_f64()
+        );
+    }
+    if !shares.is_empty() && saved.gathered.as_secs_f64() > GATHER_NOTE_SHARE * wall {
+        eprintln!(
+            "note: gathering the checkpoints on process 0 took {:.1} s of the run's {wall:.1} s; \
+             --set checkpoint_pieces=true writes each checkpoint in pieces, one a process, none \
+             gathered",
+            saved.gathered.as_secs_f64()
         );
     }
     if let Some(line) = measured {
@@ -455,6 +474,43 @@ impl FrameOutputs {
             log.write(step as f64 * p.dt as f64, spheres, counts)?;
         }
         Ok(())
+    }
+}
+
+/// Where a run saves its checkpoints, and how.
+struct Checkpoints {
+    path: PathBuf,
+    /// In pieces, one a process, where the run is over several.
+    in_pieces: bool,
+    /// The time whole checkpoints took (gathered on process 0 in a run over several).
+    gathered: Duration,
+}
+
+impl Checkpoints {
+    /// Writes the checkpoint of `stepper` now, of the run of `scene` with its `state` (both
+    /// TOML): in pieces where asked and the run is over several processes, else whole; a whole
+    /// checkpoint's particles are returned. The folders of pieces of the checkpoints before
+    /// are removed once the new one is on disk.
+    fn write(
+        &mut self,
+        stepper: &mut dyn Stepper,
+        (scene, state): (&str, &str),
+    ) -> Result<Option<Particles>> {
+        if self.in_pieces {
+            let step = stepper.step();
+            let folder = io::piece_folder_for(&self.path, step);
+            if let Some(pieces) = stepper.write_checkpoint_pieces(&folder)? {
+                io::write_checkpoint_index(&self.path, (&folder, step), (scene, state), &pieces)?;
+                io::remove_other_piece_folders(&self.path, Some(&folder))?;
+                return Ok(None);
+            }
+        }
+        let started = Instant::now();
+        let now = stepper.particles()?;
+        io::write_checkpoint(&self.path, &now, scene, state)?;
+        self.gathered += started.elapsed();
+        io::remove_other_piece_folders(&self.path, None)?;
+        Ok(Some(now))
     }
 }
 

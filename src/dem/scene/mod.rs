@@ -12,6 +12,8 @@
 //! csv = false            # CSV frames beside the VTK ones
 //! frame_pieces = false   # over several processes: each frame one .vtu piece a process and
 //!                        # a .pvtu naming them, none gathered (not with csv)
+//! checkpoint_pieces = false # over several processes: each checkpoint one piece a process
+//!                        # and an index naming them, none gathered
 //! flow_every = 100       # steps between inflow/outflow events (default 1 on cpu, 100 on GPUs)
 //!
 //! [source]               # where the spheres come from (`source`: each scene's own keys)
@@ -245,6 +247,11 @@ pub struct RunConfig {
     /// its own spheres, named by a `.pvtu` (instead of gathering every sphere on process 0 for
     /// one `.vtu`). Not with `csv`.
     pub frame_pieces: bool,
+    /// In a run over several processes, write each checkpoint in pieces, each process the
+    /// piece of its own spheres with their contact history, named by the index written in the
+    /// checkpoint's place (instead of gathering every sphere on process 0 for one file); a run
+    /// resumes from it on any number of processes.
+    pub checkpoint_pieces: bool,
     /// Steps between flow events (default: 1 on the cpu backend, 100 on the GPU backends;
     /// `dem::flow`).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -260,6 +267,7 @@ impl Default for RunConfig {
             frame_every: 1_000,
             csv: false,
             frame_pieces: false,
+            checkpoint_pieces: false,
             flow_every: None,
         }
     }
@@ -420,11 +428,12 @@ impl Default for SceneMaterial {
 
 /// The fields a resumed run may change: how far it runs and what it writes. Every other field
 /// is part of the run's identity and stays as its checkpoint saved it.
-pub const RESUMABLE: [&str; 4] = [
+pub const RESUMABLE: [&str; 5] = [
     "run.steps",
     "run.frame_every",
     "run.csv",
     "run.frame_pieces",
+    "run.checkpoint_pieces",
 ];
 
 /// Everything a run starts from.
@@ -738,7 +747,7 @@ impl SceneConfig {
                 what: format!("--set {}", short.unwrap_or(key)),
                 reason: format!(
                     "a resumed run keeps the scene of its checkpoint ({key} = {saved}); only \
-                     steps, frame_every, csv and frame_pieces ({}) may change on --resume. To change {key}, \
+                     steps, frame_every, csv, frame_pieces and checkpoint_pieces ({}) may change on --resume. To change {key}, \
                      start a new run from the last frame (--input OUT/frame_<step>.csv)",
                     RESUMABLE.join(", ")
                 ),

@@ -7,7 +7,7 @@
 use crate::error::{Error, Result};
 
 /// Each short form, with the table and the key of that table it stands for.
-pub const SHORT_FORMS: [(&str, &str, &str); 51] = [
+pub const SHORT_FORMS: [(&str, &str, &str); 52] = [
     ("scene", "source", "scene"),
     ("spheres", "source", "spheres"),
     ("particle", "source", "particle"),
@@ -33,6 +33,7 @@ pub const SHORT_FORMS: [(&str, &str, &str); 51] = [
     ("frame_every", "run", "frame_every"),
     ("csv", "run", "csv"),
     ("frame_pieces", "run", "frame_pieces"),
+    ("checkpoint_pieces", "run", "checkpoint_pieces"),
     ("flow_every", "run", "flow_every"),
     ("box_lo", "domain", "box_lo"),
     ("box_hi", "domain", "box_hi"),

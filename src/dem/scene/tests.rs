@@ -251,7 +251,7 @@ fn a_checkpoint_scene_of_the_flat_format_reads_as_saved_and_is_written_in_tables
     // written out from now on. The mesh keys that format wrote for every scene say nothing.
     assert_eq!(c.material.contact, ContactKind::Linear);
     let tables = "[run]\nsteps = 10\ndt = 0.0001\nmode = \"nns\"\nframe_every = 5\ncsv = false\n\
-                  frame_pieces = false\n\n\
+                  frame_pieces = false\ncheckpoint_pieces = false\n\n\
                   [source]\nscene = \"rotating\"\nspheres = 64\nseed = 3\n\n\
                   [domain]\nbox_lo = [0.0, 0.0, 0.0]\nbox_hi = [1.0, 1.0, 1.0]\n\
                   gravity = [0.0, 0.0, -9.81]\ngravity_spin = 0.7853981852531433\n\n\
