@@ -23,7 +23,8 @@
 //! residuals of 0, version 3 (no state either) with an empty state, and version 2 (no angular
 //! velocities, no history) as spheres at rest in rotation without history.
 
-use super::{io_error, write_atomically};
+use super::checkpoint_bytes::{SphereBytes, entry_of, from_le_words, load_of, write_with_checksum};
+use super::io_error;
 use crate::clump::{
     Clump, ClumpKind, ClumpSet, ClumpTemplate, Component, PrincipalInertia, RigidBody,
 };
@@ -60,60 +61,25 @@ pub fn write_checkpoint(
     scene: &str,
     state: &str,
 ) -> Result<()> {
-    let residuals = (0..particles.positions.len()).flat_map(|i| particles.residual(i));
-    let floats = particles
-        .positions
-        .iter()
-        .flatten()
-        .chain(particles.velocities.iter().flatten())
-        .chain(particles.angular_velocities.iter().flatten())
-        .chain(&particles.radii)
-        .copied()
-        .chain(residuals);
-    let history = &particles.history;
-    let loads = match history.has_loads() {
-        true => history.len(),
-        false => 0,
-    };
-    let mut bytes = Vec::with_capacity(
-        64 + scene.len()
-            + state.len()
-            + 52 * particles.len()
-            + ENTRY_BYTES * history.len()
-            + LOAD_BYTES * loads
-            + 8
-            + particles.materials.len()
-            + 4,
-    );
-    bytes.extend_from_slice(MAGIC);
-    bytes.extend_from_slice(&VERSION.to_le_bytes());
-    bytes.extend_from_slice(&particles.step.to_le_bytes());
-    bytes.extend_from_slice(&(particles.len() as u64).to_le_bytes());
-    bytes.extend_from_slice(&(scene.len() as u64).to_le_bytes());
-    bytes.extend_from_slice(scene.as_bytes());
-    bytes.extend_from_slice(&(state.len() as u64).to_le_bytes());
-    bytes.extend_from_slice(state.as_bytes());
-    bytes.extend(floats.flat_map(|x| x.to_le_bytes()));
-    bytes.extend_from_slice(&(history.len() as u64).to_le_bytes());
-    for (owner, e) in history.contacts() {
-        bytes.extend_from_slice(&owner.to_le_bytes());
-        bytes.extend_from_slice(&e.partner.to_le_bytes());
-        for x in e.tangential.iter().chain(&e.rolling) {
-            bytes.extend_from_slice(&x.to_le_bytes());
-        }
-    }
-    bytes.extend_from_slice(&(loads as u64).to_le_bytes());
-    for load in history.contact_loads() {
-        for x in load.reversal.iter().chain([&load.normal]) {
-            bytes.extend_from_slice(&x.to_le_bytes());
-        }
-    }
-    bytes.extend_from_slice(&(particles.materials.len() as u64).to_le_bytes());
-    bytes.extend_from_slice(&particles.materials);
-    write_clumps(&mut bytes, &particles.clumps);
-    let crc = crc32fast::hash(&bytes);
-    bytes.extend_from_slice(&crc.to_le_bytes());
-    write_atomically(path, |out| out.write_all(&bytes))
+    let mut head = Vec::with_capacity(44 + scene.len() + state.len());
+    head.extend_from_slice(MAGIC);
+    head.extend_from_slice(&VERSION.to_le_bytes());
+    head.extend_from_slice(&particles.step.to_le_bytes());
+    head.extend_from_slice(&(particles.len() as u64).to_le_bytes());
+    head.extend_from_slice(&(scene.len() as u64).to_le_bytes());
+    head.extend_from_slice(scene.as_bytes());
+    head.extend_from_slice(&(state.len() as u64).to_le_bytes());
+    head.extend_from_slice(state.as_bytes());
+    let spheres = SphereBytes::of_particles(particles);
+    let mut clumps = Vec::new();
+    write_clumps(&mut clumps, &particles.clumps);
+    let body = spheres.sections();
+    let sections: Vec<&[u8]> = [&head[..]]
+        .into_iter()
+        .chain(body.iter().map(|s| &s[..]))
+        .chain([&clumps[..]])
+        .collect();
+    write_with_checksum(path, &sections).map(|_| ())
 }
 
 /// Appends `set` as the checkpoint holds it.
@@ -323,9 +289,7 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
     let state = std::str::from_utf8(state)
         .map_err(|_| bad("the run's state is not UTF-8".into()))?
         .to_owned();
-    let f32_at = |c: &[u8]| f32::from_le_bytes(c.try_into().expect("4 bytes"));
-    let u32_at = |c: &[u8]| u32::from_le_bytes(c.try_into().expect("4 bytes"));
-    let values: Vec<f32> = data.chunks_exact(4).map(f32_at).collect();
+    let values: Vec<f32> = from_le_words(data);
     let n = n as usize;
     let triples = |s: &[f32]| s.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
     let (angular_velocities, radii) = if spins {
@@ -340,28 +304,12 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         true => triples(&values[10 * n..]),
         false => Vec::new(),
     };
-    let contacts: Vec<(u32, HistoryEntry)> = history
-        .chunks_exact(ENTRY_BYTES)
-        .map(|e| {
-            let f: Vec<f32> = e[8..].chunks_exact(4).map(f32_at).collect();
-            let entry = HistoryEntry {
-                partner: u32_at(&e[4..8]),
-                tangential: [f[0], f[1], f[2]],
-                rolling: [f[3], f[4], f[5]],
-            };
-            (u32_at(&e[..4]), entry)
-        })
+    let contacts: Vec<(u32, HistoryEntry)> = (from_le_words::<[u32; 8]>(history).iter())
+        .map(entry_of)
         .collect();
     debug_assert_eq!(contacts.len(), history_len);
-    let loads: Vec<LoadEntry> = loads
-        .chunks_exact(LOAD_BYTES)
-        .map(|l| {
-            let f: Vec<f32> = l.chunks_exact(4).map(f32_at).collect();
-            LoadEntry {
-                reversal: [f[0], f[1], f[2]],
-                normal: f[3],
-            }
-        })
+    let loads: Vec<LoadEntry> = (from_le_words::<[f32; 4]>(loads).iter())
+        .map(load_of)
         .collect();
     let particles = Particles {
         positions: triples(&values[..3 * n]),

@@ -22,6 +22,9 @@
 //! force, materials u64 (0 or m) and each as a u8, then the CRC-32 of every byte before it
 //! (the checksum the index names).
 
+use super::checkpoint_bytes::{
+    SphereBytes, entry_of, from_le_words, le_words, load_of, write_with_checksum,
+};
 use super::{Checkpoint, io_error, write_atomically};
 use crate::error::{Error, Result};
 use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, Particles};
@@ -120,85 +123,26 @@ pub fn write_checkpoint_piece(
         ));
     }
     std::fs::create_dir_all(folder).map_err(io_error(folder))?;
-    let residuals: Vec<[f32; 3]> = (0..m).into_par_iter().map(|i| p.residual(i)).collect();
-    let entries: Vec<[u32; 8]> = (share.contacts.par_iter())
-        .map(|(owner, e)| {
-            let t = e.tangential.iter().chain(&e.rolling).map(|x| x.to_bits());
-            let mut words = [*owner, e.partner, 0, 0, 0, 0, 0, 0];
-            for (w, x) in words[2..].iter_mut().zip(t) {
-                *w = x;
-            }
-            words
-        })
-        .collect();
-    let loads: Vec<[f32; 4]> = (share.loads.par_iter())
-        .map(|l| [l.reversal[0], l.reversal[1], l.reversal[2], l.normal])
-        .collect();
     let mut head = Vec::with_capacity(36);
     head.extend_from_slice(PIECE_MAGIC);
     head.extend_from_slice(&VERSION.to_le_bytes());
     head.extend_from_slice(&p.step.to_le_bytes());
     head.extend_from_slice(&(piece as u64).to_le_bytes());
     head.extend_from_slice(&(m as u64).to_le_bytes());
-    let count = |n: usize| (n as u64).to_le_bytes();
-    let sections: [&[u8]; 13] = [
-        &head,
-        &le_words(share.ids),
-        &le_words(&p.positions),
-        &le_words(&p.velocities),
-        &le_words(&p.angular_velocities),
-        &le_words(&p.radii),
-        &le_words(&residuals),
-        &count(entries.len()),
-        &le_words(&entries),
-        &count(loads.len()),
-        &le_words(&loads),
-        &count(p.materials.len()),
-        &p.materials,
-    ];
-    let mut crc = crc32fast::Hasher::new();
-    for section in sections {
-        crc.update(section);
-    }
-    let checksum = crc.finalize();
+    let ids = le_words(share.ids);
+    let spheres = SphereBytes::with_contacts(p, share.contacts, share.loads);
+    let body = spheres.sections();
+    let sections: Vec<&[u8]> = [&head[..], &ids[..]]
+        .into_iter()
+        .chain(body.iter().map(|s| &s[..]))
+        .collect();
     let path = checkpoint_piece_path(folder, p.step, piece);
-    write_atomically(&path, |out| {
-        for section in sections {
-            out.write_all(section)?;
-        }
-        out.write_all(&checksum.to_le_bytes())
-    })?;
+    let checksum = write_with_checksum(&path, &sections)?;
     Ok(CheckpointPiece {
         spheres: m as u64,
         checksum,
         padding: 0,
     })
-}
-
-/// The little-endian bytes of `values`, words of four bytes each: as they lie on a
-/// little-endian machine, each word turned on a big-endian one.
-fn le_words<T: bytemuck::Pod>(values: &[T]) -> std::borrow::Cow<'_, [u8]> {
-    let bytes: &[u8] = bytemuck::cast_slice(values);
-    match cfg!(target_endian = "little") {
-        true => bytes.into(),
-        false => (bytes.chunks_exact(4))
-            .flat_map(|w| [w[3], w[2], w[1], w[0]])
-            .collect::<Vec<u8>>()
-            .into(),
-    }
-}
-
-/// The values of the little-endian words `bytes` ([`le_words`]'s inverse).
-fn from_le_words<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
-    match cfg!(target_endian = "little") {
-        true => bytemuck::pod_collect_to_vec(bytes),
-        false => {
-            let turned: Vec<u8> = (bytes.chunks_exact(4))
-                .flat_map(|w| [w[3], w[2], w[1], w[0]])
-                .collect();
-            bytemuck::pod_collect_to_vec(&turned)
-        }
-    }
 }
 
 /// Writes the index of a checkpoint in pieces at `index` (in the checkpoint's place),
@@ -297,6 +241,13 @@ impl<'a> Fields<'a> {
         Ok(u64::from_le_bytes(
             self.take(8, what)?.try_into().expect("8 bytes"),
         ))
+    }
+
+    /// The bytes of `m` things of `each` bytes.
+    fn each(&mut self, m: usize, each: usize, what: &str) -> Result<&'a [u8]> {
+        let len = (m.checked_mul(each))
+            .ok_or_else(|| self.bad(format!("{m} {what} cannot fit in memory")))?;
+        self.take(len, what)
     }
 
     /// A count of things of `each` bytes, and their bytes.
@@ -416,18 +367,12 @@ fn read_piece(path: &Path, (step, k): (u64, usize), (m, checksum): (u64, u32)) -
         )));
     }
     let m = usize::try_from(m).map_err(|_| f.bad(format!("{m} spheres cannot fit in memory")))?;
-    let words = |f: &mut Fields, each: usize, what: &str| -> Result<Vec<u8>> {
-        let len = m
-            .checked_mul(each)
-            .ok_or_else(|| f.bad(format!("{what} cannot fit")))?;
-        Ok(f.take(len, what)?.to_vec())
-    };
-    let ids = words(&mut f, 4, "ids")?;
-    let positions = words(&mut f, 12, "positions")?;
-    let velocities = words(&mut f, 12, "velocities")?;
-    let spins = words(&mut f, 12, "angular velocities")?;
-    let radii = words(&mut f, 4, "radii")?;
-    let residuals = words(&mut f, 12, "position residuals")?;
+    let ids = f.each(m, 4, "ids")?;
+    let positions = f.each(m, 12, "positions")?;
+    let velocities = f.each(m, 12, "velocities")?;
+    let spins = f.each(m, 12, "angular velocities")?;
+    let radii = f.each(m, 4, "radii")?;
+    let residuals = f.each(m, 12, "position residuals")?;
     let (entries, entry_bytes) = f.counted(32, "history entries")?;
     let (loads, load_bytes) = f.counted(16, "load histories")?;
     let (materials, material_bytes) = f.counted(1, "materials")?;
@@ -448,12 +393,12 @@ fn read_piece(path: &Path, (step, k): (u64, usize), (m, checksum): (u64, u32)) -
         ));
     }
     Ok(Piece {
-        ids: from_le_words(&ids),
-        positions: from_le_words(&positions),
-        velocities: from_le_words(&velocities),
-        angular_velocities: from_le_words(&spins),
-        radii: from_le_words(&radii),
-        residuals: from_le_words(&residuals),
+        ids: from_le_words(ids),
+        positions: from_le_words(positions),
+        velocities: from_le_words(velocities),
+        angular_velocities: from_le_words(spins),
+        radii: from_le_words(radii),
+        residuals: from_le_words(residuals),
         entries: from_le_words(entry_bytes),
         loads: from_le_words(load_bytes),
         materials: material_bytes.to_vec(),
@@ -500,22 +445,14 @@ fn join(pieces: Vec<Piece>, n: usize, step: u64) -> Result<Particles> {
             }
         }
         for w in &piece.entries {
-            let owner = *piece.ids.get(w[0] as usize).ok_or_else(|| {
-                Error::Usage(format!("a history entry of sphere {} of a piece", w[0]))
+            let (at, entry) = entry_of(w);
+            let owner = *piece.ids.get(at as usize).ok_or_else(|| {
+                Error::Usage(format!("a history entry of sphere {at} of a piece"))
             })?;
-            let f = w.map(f32::from_bits);
-            let entry = HistoryEntry {
-                partner: w[1],
-                tangential: [f[2], f[3], f[4]],
-                rolling: [f[5], f[6], f[7]],
-            };
             contacts.push((owner, entry));
         }
         if !piece.loads.is_empty() || piece.entries.is_empty() {
-            loads.extend(piece.loads.iter().map(|l| LoadEntry {
-                reversal: [l[0], l[1], l[2]],
-                normal: l[3],
-            }));
+            loads.extend(piece.loads.iter().map(load_of));
         } else if pieces.iter().any(|q| !q.loads.is_empty()) {
             return Err(Error::Usage(
                 "some pieces keep load histories and some do not".into(),

@@ -12,6 +12,7 @@
 
 mod atomic;
 mod checkpoint;
+mod checkpoint_bytes;
 mod checkpoint_pieces;
 mod clump_frames;
 mod clumps;

@@ -1,0 +1,160 @@
+//! The bytes checkpoints share, whole ([`super::checkpoint`]) and in pieces
+//! ([`super::checkpoint_pieces`]): the spheres and their history as both hold them after their
+//! heads (positions to materials), made on every core and written as they lie, and the
+//! little-endian words they are made of.
+
+use super::write_atomically;
+use crate::error::Result;
+use crate::particles::{HistoryEntry, LoadEntry, Particles};
+use rayon::prelude::*;
+use std::borrow::Cow;
+use std::path::Path;
+
+/// The spheres of a checkpoint and their history as its file holds them after its head: n·3
+/// f32 positions, velocities and angular velocities, n f32 radii, n·3 f32 position residuals,
+/// the history entries' count u64 and each as owner u32, partner u32, 3 f32 tangential and 3
+/// f32 rolling spring, the load histories' count u64 (0 or the entries') and each as 3 f32
+/// reversal force and f32 normal force, the materials' count u64 (0 or n) and each a u8.
+pub(super) struct SphereBytes<'a> {
+    spheres: &'a Particles,
+    residuals: Vec<[f32; 3]>,
+    entries: Vec<[u32; 8]>,
+    loads: Vec<[f32; 4]>,
+    counts: [[u8; 8]; 3],
+}
+
+impl<'a> SphereBytes<'a> {
+    /// `spheres` with their own contact history.
+    pub fn of_particles(spheres: &'a Particles) -> Self {
+        let history = &spheres.history;
+        let owners = 0..spheres.len();
+        let entries = (owners.clone().into_par_iter())
+            .flat_map_iter(|i| history.of(i).iter().map(move |e| entry_words(i as u32, e)))
+            .collect();
+        let loads = match history.has_loads() {
+            true => (owners.into_par_iter())
+                .flat_map_iter(|i| history.loads_of(i).iter().map(load_words))
+                .collect(),
+            false => Vec::new(),
+        };
+        Self::with(spheres, entries, loads)
+    }
+
+    /// `spheres` (whose own history is not read) with `contacts` (owners, places in `spheres`)
+    /// and their `loads` (none, or one a contact).
+    pub fn with_contacts(
+        spheres: &'a Particles,
+        contacts: &[(u32, HistoryEntry)],
+        loads: &[LoadEntry],
+    ) -> Self {
+        let entries = (contacts.par_iter())
+            .map(|(o, e)| entry_words(*o, e))
+            .collect();
+        Self::with(spheres, entries, loads.par_iter().map(load_words).collect())
+    }
+
+    fn with(spheres: &'a Particles, entries: Vec<[u32; 8]>, loads: Vec<[f32; 4]>) -> Self {
+        let residuals = (0..spheres.len())
+            .into_par_iter()
+            .map(|i| spheres.residual(i))
+            .collect();
+        let counts =
+            [entries.len(), loads.len(), spheres.materials.len()].map(|c| (c as u64).to_le_bytes());
+        Self {
+            spheres,
+            residuals,
+            entries,
+            loads,
+            counts,
+        }
+    }
+
+    /// The sections in the file's order.
+    pub fn sections(&self) -> [Cow<'_, [u8]>; 11] {
+        let p = self.spheres;
+        [
+            le_words(&p.positions),
+            le_words(&p.velocities),
+            le_words(&p.angular_velocities),
+            le_words(&p.radii),
+            le_words(&self.residuals),
+            Cow::Borrowed(&self.counts[0]),
+            le_words(&self.entries),
+            Cow::Borrowed(&self.counts[1]),
+            le_words(&self.loads),
+            Cow::Borrowed(&self.counts[2]),
+            Cow::Borrowed(&p.materials),
+        ]
+    }
+}
+
+/// A history entry as a checkpoint holds it: owner, partner, then the springs' bits.
+fn entry_words(owner: u32, e: &HistoryEntry) -> [u32; 8] {
+    let [t, r] = [e.tangential, e.rolling].map(|s| s.map(f32::to_bits));
+    [owner, e.partner, t[0], t[1], t[2], r[0], r[1], r[2]]
+}
+
+/// The history entry of `words` ([`entry_words`]) and its owner.
+pub(super) fn entry_of(w: &[u32; 8]) -> (u32, HistoryEntry) {
+    let f = w.map(f32::from_bits);
+    let entry = HistoryEntry {
+        partner: w[1],
+        tangential: [f[2], f[3], f[4]],
+        rolling: [f[5], f[6], f[7]],
+    };
+    (w[0], entry)
+}
+
+fn load_words(l: &LoadEntry) -> [f32; 4] {
+    [l.reversal[0], l.reversal[1], l.reversal[2], l.normal]
+}
+
+/// The load history of `words` ([`load_words`]).
+pub(super) fn load_of(l: &[f32; 4]) -> LoadEntry {
+    LoadEntry {
+        reversal: [l[0], l[1], l[2]],
+        normal: l[3],
+    }
+}
+
+/// The little-endian bytes of `values`, words of four bytes each: as they lie on a
+/// little-endian machine, each word turned on a big-endian one.
+pub(super) fn le_words<T: bytemuck::Pod>(values: &[T]) -> Cow<'_, [u8]> {
+    let bytes: &[u8] = bytemuck::cast_slice(values);
+    match cfg!(target_endian = "little") {
+        true => bytes.into(),
+        false => turned(bytes).into(),
+    }
+}
+
+/// The values of the little-endian words `bytes` ([`le_words`]'s inverse).
+pub(super) fn from_le_words<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
+    match cfg!(target_endian = "little") {
+        true => bytemuck::pod_collect_to_vec(bytes),
+        false => bytemuck::pod_collect_to_vec(&turned(bytes)),
+    }
+}
+
+/// `bytes` with each word of four turned end for end.
+fn turned(bytes: &[u8]) -> Vec<u8> {
+    (bytes.chunks_exact(4))
+        .flat_map(|w| [w[3], w[2], w[1], w[0]])
+        .collect()
+}
+
+/// Writes `sections` and then the CRC-32 of their bytes to `path`, atomically; returns the
+/// CRC-32.
+pub(super) fn write_with_checksum(path: &Path, sections: &[&[u8]]) -> Result<u32> {
+    let mut crc = crc32fast::Hasher::new();
+    for section in sections {
+        crc.update(section);
+    }
+    let checksum = crc.finalize();
+    write_atomically(path, |out| {
+        for section in sections {
+            out.write_all(section)?;
+        }
+        out.write_all(&checksum.to_le_bytes())
+    })?;
+    Ok(checksum)
+}
