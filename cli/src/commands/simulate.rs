@@ -304,6 +304,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         path: checkpoint.clone(),
         in_pieces: config.run.checkpoint_pieces,
         gathered: Duration::ZERO,
+        last: None,
     };
     let started = Instant::now();
     let mut times = StageTimes::default();
@@ -486,20 +487,28 @@ struct Checkpoints {
     in_pieces: bool,
     /// The time whole checkpoints took (gathered on process 0 in a run over several).
     gathered: Duration,
+    /// The step and the run's state of the last checkpoint written.
+    last: Option<(u64, String)>,
 }
 
 impl Checkpoints {
     /// Writes the checkpoint of `stepper` now, of the run of `scene` with its `state` (both
     /// TOML): in pieces where asked and the run is over several processes, else whole; a whole
     /// checkpoint's particles are returned. The folders of pieces of the checkpoints before
-    /// are removed once the new one is on disk.
+    /// are removed once the new one is on disk. The checkpoint written last is not written
+    /// again (the run's end at the step of its last checkpoint).
     fn write(
         &mut self,
         stepper: &mut dyn Stepper,
         (scene, state): (&str, &str),
     ) -> Result<Option<Particles>> {
+        let step = stepper.step();
+        let now = Some((step, state.to_owned()));
+        if self.last == now {
+            return Ok(None);
+        }
+        self.last = now;
         if self.in_pieces {
-            let step = stepper.step();
             let folder = io::piece_folder_for(&self.path, step);
             if let Some(pieces) = stepper.write_checkpoint_pieces(&folder)? {
                 io::write_checkpoint_index(&self.path, (&folder, step), (scene, state), &pieces)?;
