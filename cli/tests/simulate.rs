@@ -688,12 +688,14 @@ fn step_counts_beyond_the_scene_range_get_a_range_error() {
 }
 
 #[test]
-fn a_run_of_zero_steps_claims_no_clock() {
+fn a_run_of_zero_steps_claims_no_clock_and_no_contacts() {
     let dir = tempfile::tempdir().unwrap();
     let mut args = SMALL.to_vec();
     args.extend(["--steps", "0", "-o", "out"]);
     let stdout = ok(&args, dir.path());
-    assert!(stdout.contains("(not measured)"), "{stdout}");
+    // No step taken: nothing counted, nothing timed.
+    assert!(stdout.contains("| 0 | 0.00 | 0.0 | — |"), "{stdout}");
+    assert!(!stdout.contains("per step"), "{stdout}");
     assert!(!stdout.contains("GPU timestamps"), "{stdout}");
 }
 

@@ -558,17 +558,25 @@ fn summary(s: &SummaryLine) {
         Clock::Wall => "wall clock",
         Clock::None => "not measured",
     };
+    // A run that took no step (a resume at its last step, to rewrite its checkpoint) counted
+    // no contacts and timed nothing.
+    let contacts = match s.steps {
+        0 => "—".to_string(),
+        _ => s.contacts.to_string(),
+    };
     println!("| backend | spheres | steps | wall [s] | steps/s | contacts (last step) |");
     println!("| --- | --- | --- | --- | --- | --- |");
     println!(
-        "| {} | {} | {} | {:.2} | {:.1} | {} |",
+        "| {} | {} | {} | {:.2} | {:.1} | {contacts} |",
         s.backend,
         s.n,
         s.steps,
         s.wall,
         s.steps as f64 / s.wall.max(1e-9),
-        s.contacts
     );
+    if s.steps == 0 {
+        return;
+    }
     println!();
     println!("| per step [ms] ({clock}) | build | DCD | update | total |");
     println!("| --- | --- | --- | --- | --- |");
