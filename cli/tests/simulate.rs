@@ -89,6 +89,42 @@ fn resuming_the_cpu_backend_continues_bit_for_bit() {
 }
 
 #[test]
+fn one_process_writes_whole_checkpoints_where_pieces_are_asked() {
+    // Pieces are one a process of a run over several: one process's checkpoint is one file.
+    let dir = tempfile::tempdir().unwrap();
+    let mut run = SMALL.to_vec();
+    let pieces = [
+        "--set",
+        "checkpoint_pieces=true",
+        "--checkpoint-every",
+        "10",
+    ];
+    run.extend(
+        pieces
+            .iter()
+            .chain(&["--steps", "20", "--frame-every", "0", "-o", "out"]),
+    );
+    ok(&run, dir.path());
+    let out = dir.path().join("out");
+    let bytes = std::fs::read(out.join("checkpoint.bin")).unwrap();
+    assert!(bytes.starts_with(b"MOCHICKP"));
+    let saved = read_checkpoint(&out.join("checkpoint.bin")).unwrap();
+    assert_eq!(saved.particles.step, 20);
+    assert!(
+        saved.scene.contains("checkpoint_pieces = true"),
+        "{}",
+        saved.scene
+    );
+    let names: Vec<_> = (std::fs::read_dir(&out).unwrap())
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert!(
+        !names.iter().any(|n| n.starts_with("checkpoint_")),
+        "{names:?}"
+    );
+}
+
+#[test]
 fn resuming_a_frictional_cpu_run_continues_bit_for_bit() {
     resumes_bit_for_bit("mindlin");
 }
