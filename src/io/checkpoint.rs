@@ -23,7 +23,9 @@
 //! residuals of 0, version 3 (no state either) with an empty state, and version 2 (no angular
 //! velocities, no history) as spheres at rest in rotation without history.
 
-use super::checkpoint_bytes::{SphereBytes, entry_of, from_le_words, load_of, write_with_checksum};
+use super::checkpoint_bytes::{
+    Fields, SphereBytes, entry_of, from_le_words, load_of, write_with_checksum,
+};
 use super::io_error;
 use crate::clump::{
     Clump, ClumpKind, ClumpSet, ClumpTemplate, Component, PrincipalInertia, RigidBody,
@@ -113,27 +115,23 @@ fn write_clumps(bytes: &mut Vec<u8>, set: &ClumpSet) {
 }
 
 /// Reads the clumps `write_clumps` wrote, taking their bytes with `take`.
-fn read_clumps<'a>(take: &mut impl FnMut(usize, &str) -> Result<&'a [u8]>) -> Result<ClumpSet> {
+fn read_clumps(f: &mut Fields) -> Result<ClumpSet> {
     // A count of things of `bytes_each` bytes (refused where they cannot be held).
-    fn count<'a>(
-        take: &mut impl FnMut(usize, &str) -> Result<&'a [u8]>,
-        what: &str,
-        bytes_each: usize,
-    ) -> Result<usize> {
-        let n = u64::from_le_bytes(take(8, what)?.try_into().expect("8 bytes"));
+    fn count(f: &mut Fields, what: &str, bytes_each: usize) -> Result<usize> {
+        let n = f.u64(what)?;
         usize::try_from(n)
             .ok()
             .filter(|&n| n.checked_mul(bytes_each).is_some())
             .ok_or_else(|| Error::Usage(format!("{n} {what} cannot fit in memory")))
     }
-    let kinds_len = count(take, "clump kinds", 1)?;
+    let kinds_len = count(f, "clump kinds", 1)?;
     let mut kinds = Vec::new();
     for _ in 0..kinds_len {
-        let name_len = count(take, "clump name bytes", 1)?;
-        let name = String::from_utf8(take(name_len, "clump name")?.to_vec())
+        let name_len = count(f, "clump name bytes", 1)?;
+        let name = String::from_utf8(f.take(name_len, "clump name")?.to_vec())
             .map_err(|_| Error::Usage("a clump's name is not UTF-8".into()))?;
-        let components = count(take, "clump components", 32)?;
-        let values = f64s_from(take(32 * components, "clump components")?);
+        let components = count(f, "clump components", 32)?;
+        let values = f64s_from(f.take(32 * components, "clump components")?);
         let components = values
             .chunks_exact(4)
             .map(|c| Component {
@@ -141,7 +139,7 @@ fn read_clumps<'a>(take: &mut impl FnMut(usize, &str) -> Result<&'a [u8]>) -> Re
                 radius: c[3],
             })
             .collect();
-        let inertia = f64s_from(take(32, "clump inertia")?);
+        let inertia = f64s_from(f.take(32, "clump inertia")?);
         kinds.push(ClumpKind {
             template: ClumpTemplate::new(&name, components)?,
             inertia: PrincipalInertia {
@@ -150,11 +148,11 @@ fn read_clumps<'a>(take: &mut impl FnMut(usize, &str) -> Result<&'a [u8]>) -> Re
             },
         });
     }
-    let clumps_len = count(take, "clumps", 112)?;
+    let clumps_len = count(f, "clumps", 112)?;
     let mut clumps = Vec::new();
     for _ in 0..clumps_len {
-        let kind = count(take, "clump kind", 1)?;
-        let x = f64s_from(take(104, "clump state")?);
+        let kind = count(f, "clump kind", 1)?;
+        let x = f64s_from(f.take(104, "clump state")?);
         clumps.push(Clump {
             kind,
             body: RigidBody {
@@ -183,47 +181,33 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
     if bytes.starts_with(super::checkpoint_pieces::INDEX_MAGIC) {
         return super::checkpoint_pieces::read_checkpoint_pieces(path, &bytes);
     }
-    let bad = |msg: String| Error::Parse {
-        path: path.to_owned(),
-        line: None,
-        msg,
-    };
-    let mut at = 0usize;
-    let mut take = |len: usize, what: &str| -> Result<&[u8]> {
-        let end = at
-            .checked_add(len)
-            .filter(|&e| e <= bytes.len())
-            .ok_or_else(|| bad(format!("truncated checkpoint: {what} missing")))?;
-        let s = &bytes[at..end];
-        at = end;
-        Ok(s)
-    };
-    if take(8, "header")? != MAGIC {
-        return Err(bad("not a mochi checkpoint".into()));
+    let mut f = Fields::new(path, &bytes);
+    if f.take(8, "header")? != MAGIC {
+        return Err(f.bad("not a mochi checkpoint".into()));
     }
     let u64_at = |s: &[u8]| u64::from_le_bytes(s.try_into().expect("8 bytes"));
-    let version = u32::from_le_bytes(take(4, "version")?.try_into().expect("4 bytes"));
+    let version = u32::from_le_bytes(f.take(4, "version")?.try_into().expect("4 bytes"));
     if !(OLDEST..=VERSION).contains(&version) {
         let age = if version < VERSION {
             "an older"
         } else {
             "a newer"
         };
-        return Err(bad(format!(
+        return Err(f.bad(format!(
             "checkpoint version {version} is from {age} mochi; this one reads versions \
              {OLDEST} to {VERSION} (restart from the run's last frame with --input)"
         )));
     }
     let spins = version >= 3;
     let residuals = version >= 5;
-    let step = u64_at(take(8, "step")?);
-    let n = u64_at(take(8, "sphere count")?);
-    let scene_len = u64_at(take(8, "scene length")?);
-    let scene = take(scene_len.try_into().unwrap_or(usize::MAX), "scene")?;
+    let step = u64_at(f.take(8, "step")?);
+    let n = u64_at(f.take(8, "sphere count")?);
+    let scene_len = u64_at(f.take(8, "scene length")?);
+    let scene = f.take(scene_len.try_into().unwrap_or(usize::MAX), "scene")?;
     let state = match version >= 4 {
         true => {
-            let len = u64_at(take(8, "state length")?);
-            take(len.try_into().unwrap_or(usize::MAX), "state")?
+            let len = u64_at(f.take(8, "state length")?);
+            f.take(len.try_into().unwrap_or(usize::MAX), "state")?
         }
         false => &[][..],
     };
@@ -235,59 +219,48 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
     let floats = n
         .checked_mul(per_sphere * 4)
         .and_then(|b| usize::try_from(b).ok())
-        .ok_or_else(|| bad(format!("{n} spheres cannot fit in memory")))?;
-    let data = take(floats, "sphere data")?;
+        .ok_or_else(|| f.bad(format!("{n} spheres cannot fit in memory")))?;
+    let data = f.take(floats, "sphere data")?;
     let (history_len, history) = if spins {
-        let len = u64_at(take(8, "history length")?);
+        let len = u64_at(f.take(8, "history length")?);
         let size = len
             .checked_mul(ENTRY_BYTES as u64)
             .and_then(|b| usize::try_from(b).ok())
-            .ok_or_else(|| bad(format!("{len} history entries cannot fit in memory")))?;
-        (len as usize, take(size, "contact history")?)
+            .ok_or_else(|| f.bad(format!("{len} history entries cannot fit in memory")))?;
+        (len as usize, f.take(size, "contact history")?)
     } else {
         (0, &[][..])
     };
     let loads = if version >= 6 {
-        let len = u64_at(take(8, "load history length")?);
+        let len = u64_at(f.take(8, "load history length")?);
         if len != 0 && len != history_len as u64 {
-            return Err(bad(format!(
+            return Err(f.bad(format!(
                 "{len} load histories for {history_len} history entries"
             )));
         }
-        take(len as usize * LOAD_BYTES, "load history")?
+        f.take(len as usize * LOAD_BYTES, "load history")?
     } else {
         &[][..]
     };
     let materials = if version >= 7 {
-        let len = u64_at(take(8, "material count")?);
+        let len = u64_at(f.take(8, "material count")?);
         if len != 0 && len != n {
-            return Err(bad(format!("{len} materials for {n} spheres")));
+            return Err(f.bad(format!("{len} materials for {n} spheres")));
         }
-        take(len as usize, "materials")?
+        f.take(len as usize, "materials")?
     } else {
         &[][..]
     };
     let clumps = match version >= 8 {
-        true => read_clumps(&mut take)?,
+        true => read_clumps(&mut f)?,
         false => ClumpSet::default(),
     };
-    let stored = u32::from_le_bytes(take(4, "checksum")?.try_into().expect("4 bytes"));
-    if at != bytes.len() {
-        return Err(bad(format!(
-            "{} unexpected bytes at the end",
-            bytes.len() - at
-        )));
-    }
-    if crc32fast::hash(&bytes[..at - 4]) != stored {
-        return Err(bad(
-            "checksum mismatch: the checkpoint is damaged (resume from an intact copy)".into(),
-        ));
-    }
+    f.checksum()?;
     let scene = std::str::from_utf8(scene)
-        .map_err(|_| bad("the scene is not UTF-8".into()))?
+        .map_err(|_| f.bad("the scene is not UTF-8".into()))?
         .to_owned();
     let state = std::str::from_utf8(state)
-        .map_err(|_| bad("the run's state is not UTF-8".into()))?
+        .map_err(|_| f.bad("the run's state is not UTF-8".into()))?
         .to_owned();
     let values: Vec<f32> = from_le_words(data);
     let n = n as usize;
@@ -319,17 +292,17 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         radii,
         materials: materials.to_vec(),
         history: ContactHistory::from_contacts_with_loads(n, &contacts, &loads)
-            .map_err(|e| bad(e.to_string()))?,
+            .map_err(|e| f.bad(e.to_string()))?,
         clumps,
         step,
     };
-    particles.validate().map_err(|e| bad(e.to_string()))?;
+    particles.validate().map_err(|e| f.bad(e.to_string()))?;
     if let Some(i) = particles
         .radii
         .iter()
         .position(|&r| !(r > 0.0 && r.is_finite()))
     {
-        return Err(bad(format!("sphere {i} has radius {}", particles.radii[i])));
+        return Err(f.bad(format!("sphere {i} has radius {}", particles.radii[i])));
     }
     Ok(Checkpoint {
         particles,

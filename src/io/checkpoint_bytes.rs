@@ -1,10 +1,10 @@
 //! The bytes checkpoints share, whole ([`super::checkpoint`]) and in pieces
 //! ([`super::checkpoint_pieces`]): the spheres and their history as both hold them after their
-//! heads (positions to materials), made on every core and written as they lie, and the
-//! little-endian words they are made of.
+//! heads (positions to materials), made on every core and written as they lie, the
+//! little-endian words they are made of, and a reader of their fields.
 
 use super::write_atomically;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::particles::{HistoryEntry, LoadEntry, Particles};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -157,4 +157,81 @@ pub(super) fn write_with_checksum(path: &Path, sections: &[&[u8]]) -> Result<u32
         out.write_all(&checksum.to_le_bytes())
     })?;
     Ok(checksum)
+}
+
+/// Reads a little-endian file field by field, each error naming the file.
+pub(super) struct Fields<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    path: &'a Path,
+}
+
+impl<'a> Fields<'a> {
+    /// The fields of `bytes`, the file at `path`, from its first.
+    pub fn new(path: &'a Path, bytes: &'a [u8]) -> Self {
+        Self { bytes, at: 0, path }
+    }
+
+    /// An error of this file saying `msg`.
+    pub fn bad(&self, msg: String) -> Error {
+        Error::Parse {
+            path: self.path.to_owned(),
+            line: None,
+            msg,
+        }
+    }
+
+    /// The next `len` bytes, `what` the file holds there.
+    pub fn take(&mut self, len: usize, what: &str) -> Result<&'a [u8]> {
+        let end = (self.at.checked_add(len))
+            .filter(|&e| e <= self.bytes.len())
+            .ok_or_else(|| self.bad(format!("truncated checkpoint: {what} missing")))?;
+        let s = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+
+    /// The next u64.
+    pub fn u64(&mut self, what: &str) -> Result<u64> {
+        Ok(u64::from_le_bytes(
+            self.take(8, what)?.try_into().expect("8 bytes"),
+        ))
+    }
+
+    /// The bytes of `m` things of `each` bytes.
+    pub fn each(&mut self, m: usize, each: usize, what: &str) -> Result<&'a [u8]> {
+        let len = (m.checked_mul(each))
+            .ok_or_else(|| self.bad(format!("{m} {what} cannot fit in memory")))?;
+        self.take(len, what)
+    }
+
+    /// A count of things of `each` bytes, and their bytes.
+    pub fn counted(&mut self, each: usize, what: &str) -> Result<(usize, &'a [u8])> {
+        let n = self.u64(what)?;
+        let len = (n.checked_mul(each as u64))
+            .and_then(|b| usize::try_from(b).ok())
+            .ok_or_else(|| self.bad(format!("{n} {what} cannot fit in memory")))?;
+        Ok((n as usize, self.take(len, what)?))
+    }
+
+    /// A length u64 and the UTF-8 text of that many bytes.
+    pub fn text(&mut self, what: &str) -> Result<String> {
+        let (_, bytes) = self.counted(1, what)?;
+        String::from_utf8(bytes.to_vec()).map_err(|_| self.bad(format!("the {what} is not UTF-8")))
+    }
+
+    /// Checks the CRC-32 that ends the file; returns it.
+    pub fn checksum(&mut self) -> Result<u32> {
+        let stored = u32::from_le_bytes(self.take(4, "checksum")?.try_into().expect("4 bytes"));
+        if self.at != self.bytes.len() {
+            let extra = self.bytes.len() - self.at;
+            return Err(self.bad(format!("{extra} unexpected bytes at the end")));
+        }
+        if crc32fast::hash(&self.bytes[..self.at - 4]) != stored {
+            return Err(self.bad(
+                "checksum mismatch: the checkpoint is damaged (resume from an intact copy)".into(),
+            ));
+        }
+        Ok(stored)
+    }
 }

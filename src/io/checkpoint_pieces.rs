@@ -23,7 +23,7 @@
 //! (the checksum the index names).
 
 use super::checkpoint_bytes::{
-    SphereBytes, entry_of, from_le_words, le_words, load_of, write_with_checksum,
+    Fields, SphereBytes, entry_of, from_le_words, le_words, load_of, write_with_checksum,
 };
 use super::{Checkpoint, io_error, write_atomically};
 use crate::error::{Error, Result};
@@ -200,97 +200,22 @@ pub fn remove_other_piece_folders(index: &Path, keep: Option<&Path>) -> Result<(
 
 /// The folders of checkpoints' pieces in `dir` that hold nothing but pieces.
 pub(super) fn piece_folders_in(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut folders = Vec::new();
-    for entry in std::fs::read_dir(dir).map_err(io_error(dir))? {
-        let entry = entry.map_err(io_error(dir))?;
-        let named = entry.file_name().to_str().is_some_and(is_piece_folder_name);
-        if named && entry.file_type().is_ok_and(|t| t.is_dir()) && holds_only_pieces(&entry.path())?
-        {
-            folders.push(entry.path());
-        }
-    }
-    Ok(folders)
+    super::pieces::folders_in(dir, is_piece_folder_name, holds_only_pieces)
 }
 
-/// Reads a little-endian file field by field, each error naming the file.
-struct Fields<'a> {
-    bytes: &'a [u8],
-    at: usize,
-    path: &'a Path,
-}
-
-impl<'a> Fields<'a> {
-    fn bad(&self, msg: String) -> Error {
-        Error::Parse {
-            path: self.path.to_owned(),
-            line: None,
-            msg,
-        }
+/// Reads the head of a file of this format (`magic`, then its version) from `f`, naming the
+/// file `what` where it is not one.
+fn check_version(f: &mut Fields, magic: &[u8; 8], what: &str) -> Result<()> {
+    if f.take(8, "header")? != magic {
+        return Err(f.bad(format!("not a {what}")));
     }
-
-    fn take(&mut self, len: usize, what: &str) -> Result<&'a [u8]> {
-        let end = (self.at.checked_add(len))
-            .filter(|&e| e <= self.bytes.len())
-            .ok_or_else(|| self.bad(format!("truncated checkpoint: {what} missing")))?;
-        let s = &self.bytes[self.at..end];
-        self.at = end;
-        Ok(s)
+    let version = u32::from_le_bytes(f.take(4, "version")?.try_into().expect("4 bytes"));
+    if version != VERSION {
+        return Err(f.bad(format!(
+            "{what} version {version}; this mochi reads version {VERSION}"
+        )));
     }
-
-    fn u64(&mut self, what: &str) -> Result<u64> {
-        Ok(u64::from_le_bytes(
-            self.take(8, what)?.try_into().expect("8 bytes"),
-        ))
-    }
-
-    /// The bytes of `m` things of `each` bytes.
-    fn each(&mut self, m: usize, each: usize, what: &str) -> Result<&'a [u8]> {
-        let len = (m.checked_mul(each))
-            .ok_or_else(|| self.bad(format!("{m} {what} cannot fit in memory")))?;
-        self.take(len, what)
-    }
-
-    /// A count of things of `each` bytes, and their bytes.
-    fn counted(&mut self, each: usize, what: &str) -> Result<(usize, &'a [u8])> {
-        let n = self.u64(what)?;
-        let len = (n.checked_mul(each as u64))
-            .and_then(|b| usize::try_from(b).ok())
-            .ok_or_else(|| self.bad(format!("{n} {what} cannot fit in memory")))?;
-        Ok((n as usize, self.take(len, what)?))
-    }
-
-    fn text(&mut self, what: &str) -> Result<String> {
-        let (_, bytes) = self.counted(1, what)?;
-        String::from_utf8(bytes.to_vec()).map_err(|_| self.bad(format!("the {what} is not UTF-8")))
-    }
-
-    /// Checks the CRC-32 that ends the file; returns it.
-    fn checksum(&mut self) -> Result<u32> {
-        let stored = u32::from_le_bytes(self.take(4, "checksum")?.try_into().expect("4 bytes"));
-        if self.at != self.bytes.len() {
-            let extra = self.bytes.len() - self.at;
-            return Err(self.bad(format!("{extra} unexpected bytes at the end")));
-        }
-        if crc32fast::hash(&self.bytes[..self.at - 4]) != stored {
-            return Err(self.bad(
-                "checksum mismatch: the checkpoint is damaged (resume from an intact copy)".into(),
-            ));
-        }
-        Ok(stored)
-    }
-
-    fn version(&mut self, magic: &[u8; 8], what: &str) -> Result<()> {
-        if self.take(8, "header")? != magic {
-            return Err(self.bad(format!("not a {what}")));
-        }
-        let version = u32::from_le_bytes(self.take(4, "version")?.try_into().expect("4 bytes"));
-        if version != VERSION {
-            return Err(self.bad(format!(
-                "{what} version {version}; this mochi reads version {VERSION}"
-            )));
-        }
-        Ok(())
-    }
+    Ok(())
 }
 
 /// One piece as read.
@@ -308,8 +233,8 @@ struct Piece {
 
 /// Reads the index of a checkpoint in pieces at `path` and its pieces, joined.
 pub(super) fn read_checkpoint_pieces(path: &Path, bytes: &[u8]) -> Result<Checkpoint> {
-    let mut f = Fields { bytes, at: 0, path };
-    f.version(INDEX_MAGIC, "mochi checkpoint index")?;
+    let mut f = Fields::new(path, bytes);
+    check_version(&mut f, INDEX_MAGIC, "mochi checkpoint index")?;
     let step = f.u64("step")?;
     let n = f.u64("sphere count")?;
     let scene = f.text("scene")?;
@@ -353,12 +278,8 @@ pub(super) fn read_checkpoint_pieces(path: &Path, bytes: &[u8]) -> Result<Checkp
 /// and the checksum `checksum`.
 fn read_piece(path: &Path, (step, k): (u64, usize), (m, checksum): (u64, u32)) -> Result<Piece> {
     let bytes = std::fs::read(path).map_err(io_error(path))?;
-    let mut f = Fields {
-        bytes: &bytes,
-        at: 0,
-        path,
-    };
-    f.version(PIECE_MAGIC, "piece of a mochi checkpoint")?;
+    let mut f = Fields::new(path, &bytes);
+    check_version(&mut f, PIECE_MAGIC, "piece of a mochi checkpoint")?;
     let (at_step, piece, spheres) = (f.u64("step")?, f.u64("piece")?, f.u64("sphere count")?);
     if (at_step, piece, spheres) != (step, k as u64, m) {
         return Err(f.bad(format!(

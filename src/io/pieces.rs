@@ -121,3 +121,21 @@ pub(super) fn holds_only_files(folder: &Path, prefix: &str, suffix: &str) -> Res
     }
     Ok(true)
 }
+
+/// The folders in `dir` whose names `named` accepts and which `holds_only` finds holding nothing
+/// but their pieces.
+pub(super) fn folders_in(
+    dir: &Path,
+    named: impl Fn(&str) -> bool,
+    holds_only: impl Fn(&Path) -> Result<bool>,
+) -> Result<Vec<PathBuf>> {
+    let mut folders = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io_error(dir))? {
+        let entry = entry.map_err(io_error(dir))?;
+        let is_named = entry.file_name().to_str().is_some_and(&named);
+        if is_named && entry.file_type().is_ok_and(|t| t.is_dir()) && holds_only(&entry.path())? {
+            folders.push(entry.path());
+        }
+    }
+    Ok(folders)
+}

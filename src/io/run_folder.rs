@@ -1,7 +1,7 @@
 //! The output folder of a simulation run: locked while the run writes into it, and told apart
 //! from a folder that holds an earlier run.
 
-use super::pieces::{holds_only_pieces, is_piece_folder_name};
+use super::pieces::{folders_in, holds_only_pieces, is_piece_folder_name};
 use super::{
     CLUMPS_INDEX, FLOW_LOG, SERIES_INDEX, WALL_LOADS, WALLS_INDEX, io_error, is_clump_frame_name,
     is_wall_file_name, remove_stale_temp_files,
@@ -100,22 +100,8 @@ pub fn run_files_in(dir: &Path) -> Result<Vec<PathBuf>> {
 /// The folders of frames' and checkpoints' pieces in `dir` that hold nothing but pieces (see
 /// [`super::pieces`], [`super::checkpoint_pieces`]).
 fn piece_folders_in(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut folders = frame_piece_folders_in(dir)?;
+    let mut folders = folders_in(dir, is_piece_folder_name, holds_only_pieces)?;
     folders.extend(super::checkpoint_pieces::piece_folders_in(dir)?);
-    Ok(folders)
-}
-
-/// The folders of frames' pieces in `dir` that hold nothing but pieces.
-fn frame_piece_folders_in(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut folders = Vec::new();
-    for entry in std::fs::read_dir(dir).map_err(io_error(dir))? {
-        let entry = entry.map_err(io_error(dir))?;
-        let named = entry.file_name().to_str().is_some_and(is_piece_folder_name);
-        if named && entry.file_type().is_ok_and(|t| t.is_dir()) && holds_only_pieces(&entry.path())?
-        {
-            folders.push(entry.path());
-        }
-    }
     Ok(folders)
 }
 
