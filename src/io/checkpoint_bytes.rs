@@ -1,5 +1,4 @@
-//! The bytes checkpoints share, whole ([`super::checkpoint`]) and in pieces
-//! ([`super::checkpoint_pieces`]): the spheres and their history as both hold them after their
+//! The bytes checkpoints share, whole and in pieces: the spheres and their history as both hold them after their
 //! heads (positions to materials), made on every core and written as they lie, the
 //! little-endian words they are made of, and a reader of their fields.
 
