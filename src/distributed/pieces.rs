@@ -7,7 +7,7 @@ use super::record::{Held, SphereRecord, spheres_of};
 use crate::dem::StepParams;
 use crate::error::{Error, Result};
 use crate::io::{self, Frame};
-use crate::particles::{HistoryEntry, LoadEntry};
+use crate::particles::{HistoryEntry, LoadEntry, Particles};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -25,45 +25,86 @@ pub(super) fn write_pieces<C: Comm>(
     hear_every_piece(comm, written, "piece of the frame")
 }
 
-/// Writes the piece of `own`, this rank's spheres with their contact history, of the
-/// checkpoint at `step` into the checkpoint's folder of pieces `folder`, and returns what the
-/// index names of each piece, by rank. Every rank of `comm` calls it alike; where a rank could
-/// not write its piece, every rank returns an error (that rank its own).
+/// Writes `own`, this rank's piece of the checkpoint, into the checkpoint's folder of pieces
+/// `folder`, and returns what the index names of each piece, by rank. Every rank of `comm`
+/// calls it alike; where a rank could not write its piece, every rank returns an error (that
+/// rank its own).
 pub(super) fn write_checkpoint_pieces<C: Comm>(
     comm: &C,
-    own: &[Held],
-    step: u64,
+    own: &OwnPiece,
     folder: &Path,
 ) -> Result<Vec<io::CheckpointPiece>> {
-    let written = write_checkpoint_piece(own, step, folder, comm.rank());
+    let share = io::PieceSpheres {
+        ids: &own.ids,
+        spheres: &own.spheres,
+        contacts: &own.contacts,
+        loads: &own.loads,
+    };
+    let written = io::write_checkpoint_piece(folder, comm.rank(), &share);
     hear_every_piece(comm, written, "piece of the checkpoint")
 }
 
-/// Writes `own` (sphere records with their history) as piece `piece` of the checkpoint at
-/// `step` in `folder`, in the order of their ids.
-fn write_checkpoint_piece(
-    own: &[Held],
-    step: u64,
-    folder: &Path,
-    piece: usize,
-) -> Result<io::CheckpointPiece> {
-    let mut sorted: Vec<&Held> = own.iter().collect();
-    sorted.par_sort_unstable_by_key(|h| h.sphere.id);
-    let spheres = spheres_of(&sorted, |h| &h.sphere, step);
-    let ids: Vec<u32> = sorted.par_iter().map(|h| h.sphere.id).collect();
-    let contacts: Vec<(u32, HistoryEntry)> = (sorted.par_iter().enumerate())
-        .flat_map_iter(|(at, h)| h.contacts.iter().map(move |&e| (at as u32, e)))
-        .collect();
-    let loads: Vec<LoadEntry> = (sorted.par_iter())
-        .flat_map_iter(|h| h.loads.iter().copied())
-        .collect();
-    let share = io::PieceSpheres {
-        ids: &ids,
-        spheres: &spheres,
-        contacts: &contacts,
-        loads: &loads,
-    };
-    io::write_checkpoint_piece(folder, piece, &share)
+/// A rank's own spheres as its piece of a checkpoint holds them: their whole-run ids
+/// (ascending), their state (no history), their contacts (each owner a place in the piece,
+/// each partner a whole-run id or a wall's) and the contacts' load histories.
+pub(super) struct OwnPiece {
+    pub ids: Vec<u32>,
+    pub spheres: Particles,
+    pub contacts: Vec<(u32, HistoryEntry)>,
+    pub loads: Vec<LoadEntry>,
+}
+
+impl OwnPiece {
+    /// The spheres of `own` (in any order) at `step`.
+    pub fn of_held(own: &[Held], step: u64) -> Self {
+        let mut sorted: Vec<&Held> = own.iter().collect();
+        sorted.par_sort_unstable_by_key(|h| h.sphere.id);
+        Self {
+            ids: sorted.par_iter().map(|h| h.sphere.id).collect(),
+            spheres: spheres_of(&sorted, |h| &h.sphere, step),
+            contacts: (sorted.par_iter().enumerate())
+                .flat_map_iter(|(at, h)| h.contacts.iter().map(move |&e| (at as u32, e)))
+                .collect(),
+            loads: (sorted.par_iter())
+                .flat_map_iter(|h| h.loads.iter().copied())
+                .collect(),
+        }
+    }
+
+    /// The spheres of `p` at `places`, of the whole-run ids `ids` (ascending, one a place),
+    /// their contacts' partners renamed by `rename`.
+    pub fn of_places(
+        p: &Particles,
+        (ids, places): (Vec<u32>, &[usize]),
+        rename: impl Fn(&HistoryEntry) -> HistoryEntry + Sync,
+    ) -> Self {
+        let column = |c: &[[f32; 3]]| places.par_iter().map(|&at| c[at]).collect();
+        let mut spheres = Particles {
+            positions: column(&p.positions),
+            position_residuals: places.par_iter().map(|&at| p.residual(at)).collect(),
+            velocities: column(&p.velocities),
+            angular_velocities: column(&p.angular_velocities),
+            radii: places.par_iter().map(|&at| p.radii[at]).collect(),
+            materials: places.par_iter().map(|&at| p.material(at) as u8).collect(),
+            step: p.step,
+            ..Particles::default()
+        };
+        // Every sphere of the first material: the list left empty, as a run of one keeps it.
+        if spheres.materials.iter().all(|&m| m == 0) {
+            spheres.materials.clear();
+        }
+        let (history, rename) = (&p.history, &rename);
+        Self {
+            ids,
+            spheres,
+            contacts: (places.par_iter().enumerate())
+                .flat_map_iter(|(j, &at)| history.of(at).iter().map(move |e| (j as u32, rename(e))))
+                .collect(),
+            loads: (places.par_iter())
+                .flat_map_iter(|&at| history.loads_of(at).iter().copied())
+                .collect(),
+        }
+    }
 }
 
 /// Every rank's word on the piece of `what` it wrote (`written`: what it tells of the piece,

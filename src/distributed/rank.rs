@@ -26,6 +26,7 @@
 
 use super::comm::Comm;
 use super::grid::Grid;
+use super::pieces::OwnPiece;
 use super::record::{Held, SphereRecord, own_pair_ends, partners_by_id, put, read_all, spheres_of};
 use super::resident::Resident;
 use super::slabs::Slabs;
@@ -992,9 +993,12 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
     }
 
     fn write_checkpoint_pieces(&mut self, folder: &Path) -> Result<Option<Vec<CheckpointPiece>>> {
-        let kept = self.resident_mut().map(|r| r.held()).transpose()?;
-        let own = kept.as_deref().unwrap_or(&self.own);
-        super::pieces::write_checkpoint_pieces(&self.comm, own, self.step, folder).map(Some)
+        let kept = self.resident_mut().map(|r| r.own_piece()).transpose()?;
+        let own = match kept {
+            Some(piece) => piece,
+            None => OwnPiece::of_held(&self.own, self.step),
+        };
+        super::pieces::write_checkpoint_pieces(&self.comm, &own, folder).map(Some)
     }
 
     fn flow_counts(&self) -> Option<FlowCounts> {

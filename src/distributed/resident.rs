@@ -15,6 +15,7 @@
 
 use super::comm::Comm;
 use super::grid::Grid;
+use super::pieces::OwnPiece;
 use super::record::{Held, SphereRecord, own_pair_ends, partners_by_id};
 use crate::dem::flow::NewSphere;
 use crate::engines::common::flow::{
@@ -187,12 +188,7 @@ impl Resident {
         // The step's input order: ascending stable id.
         let ids = self.ids();
         let rename = partners_by_id(&ids);
-        // The place of each whole-run id the step holds ([`GONE`]: none).
-        let top = ids.iter().chain(&own).max().map_or(0, |&g| g as usize + 1);
-        let mut place = vec![GONE; top];
-        ids.iter()
-            .zip(0..)
-            .for_each(|(&g, at)| place[g as usize] = at);
+        let place = place_by_id(&ids, &own);
         (own.into_par_iter())
             .map(|g| {
                 let mut h = match (place[g as usize], given.get(&g)) {
@@ -214,6 +210,29 @@ impl Resident {
                 Ok(h)
             })
             .collect()
+    }
+
+    /// The rank's own spheres as its piece of a checkpoint holds them (their contacts'
+    /// partners by the whole run's id).
+    pub fn own_piece(&mut self) -> Result<OwnPiece> {
+        let mut own = self.own_ids(&FxHashSet::default())?;
+        own.par_sort_unstable();
+        let whole = self.step.particles()?;
+        let ids = self.ids();
+        let place = place_by_id(&ids, &own);
+        let places = (own.par_iter())
+            .map(|&g| match place[g as usize] {
+                GONE => Err(Error::Usage(format!(
+                    "rank's own sphere {g} is not in its step"
+                ))),
+                at => Ok(at as usize),
+            })
+            .collect::<Result<Vec<usize>>>()?;
+        Ok(OwnPiece::of_places(
+            &whole,
+            (own, &places),
+            partners_by_id(&ids),
+        ))
     }
 
     /// After a round: writes the records of the own spheres near the faces of the rank's box
@@ -444,6 +463,17 @@ fn arriving_of(r: &LayerRecord) -> Arriving {
 }
 
 /// The rows' spheres (centres and radii), for finding their contacts.
+/// The place in the step (the step's input order, `ids` its whole-run ids) of each whole-run
+/// id up to the largest of `ids` and `also` ([`GONE`]: none).
+fn place_by_id(ids: &[u32], also: &[u32]) -> Vec<u32> {
+    let top = ids.iter().chain(also).max().map_or(0, |&g| g as usize + 1);
+    let mut place = vec![GONE; top];
+    ids.iter()
+        .zip(0..)
+        .for_each(|(&g, at)| place[g as usize] = at);
+    place
+}
+
 fn spheres_of(rows: &DeviceRows) -> Particles {
     Particles {
         positions: rows.pos.iter().map(|p| [p[0], p[1], p[2]]).collect(),
