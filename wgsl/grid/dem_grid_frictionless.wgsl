@@ -54,8 +54,15 @@ fn carry(i: u32, p: u32) {
     }
 }
 
+// Read-only views of walk_pos (27), home (26), vel (11) and walk_row (28) for the resolve
+// kernel, which only reads them: no kernel reads one buffer through both.
+@group(0) @binding(27) var<storage, read> walk_pos_ro: array<vec4<f32>>;
+@group(0) @binding(26) var<storage, read> home_ro: array<u32>;
+@group(0) @binding(11) var<storage, read> vel_ro: array<vec4<f32>>;
+@group(0) @binding(28) var<storage, read> walk_row_ro: array<u32>;
+
 fn walk_sphere(q: u32) -> vec4<f32> {
-    return walk_pos[q];
+    return walk_pos_ro[q];
 }
 
 // The cell the walker's sphere was binned in at its own level (its y and z: the walk needs no
@@ -64,7 +71,7 @@ fn walker_cell(w: ptr<function, Walker>, level: u32) -> vec3<u32> {
     if params.skin == 0.0 {
         return cell_coords((*w).s.xyz, level);
     }
-    let row = walk_row[(*w).p];
+    let row = walk_row_ro[(*w).p];
     return vec3(0u, row & 0xffffu, row >> 16u);
 }
 
@@ -185,19 +192,19 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocat
         window_slack = skin_limit[1];
     }
     if p < params.n {
-        let h = home[p];
-        let s = walk_pos[p];
+        let h = home_ro[p];
+        let s = walk_pos_ro[p];
         var skip = 0u;
         loop {
             var w = Walker(p, h, s, lid * ROOM, 0u, 0u, skip);
             stencil_walk(&w);
             if w.listed > 0u {
-                let v = vel[h];
+                let v = vel_ro[h];
                 for (var k = 0u; k < w.listed; k += 1u) {
                     let q = near_slots[w.base + k];
-                    let t = walk_pos[q];
-                    let row = home[q];
-                    let u = vel[row];
+                    let t = walk_pos_ro[q];
+                    let row = home_ro[q];
+                    let u = vel_ro[row];
                     let f = contact_force(s.xyz, v.xyz, s.w, v.w, t.xyz, u.xyz, t.w, u.w);
                     if f.w != 0.0 {
                         add_force(row, -f.xyz);
