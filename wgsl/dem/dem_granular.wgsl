@@ -38,6 +38,10 @@ const NO_PARTNER: u32 = 0xfffefff9u;
 
 // by state index
 @group(0) @binding(18) var<storage, read_write> omega: array<vec4<f32>>;   // ωx, ωy, ωz, material
+// Read-only views of vel (11) and omega (18) for the kernels that resolve contacts, which only
+// read them: no kernel reads one buffer through both.
+@group(0) @binding(11) var<storage, read> vel_ro: array<vec4<f32>>;
+@group(0) @binding(18) var<storage, read> omega_ro: array<vec4<f32>>;
 // by history row: contacts held
 @group(0) @binding(21) var<storage, read> held_old: array<u32>;
 @group(0) @binding(23) var<storage, read_write> held_new: array<u32>;
@@ -118,7 +122,7 @@ fn walker(p: u32, h: u32, s: vec4<f32>) -> Walker {
         own_old = slot_at(row_old, 0u);
         own_new = slot_at(h, 0u);
     }
-    let me = body_of(s, vel[h], omega[h]);
+    let me = body_of(s, vel_ro[h], omega_ro[h]);
     return Walker(p, h, s, a, row_old, kept, own_old, own_new, me, vec3(0.0), vec3(0.0), 0u, 0u, 0u, 0u);
 }
 
@@ -260,7 +264,7 @@ fn meet(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
 // reach but apart and not held; the slot then names NO_PARTNER). Returns the contact, for the
 // walker to take (`take`).
 fn contact_with(w: ptr<function, Walker>, q: u32, t: vec4<f32>) -> Contact {
-    let other = body_of(t, vel[q], omega[q]);
+    let other = body_of(t, vel_ro[q], omega_ro[q]);
     var old = Recalled(no_springs(), false);
     var b = 0u;   // q's stable id, where contacts keep history
     if dem.slots > 0u {

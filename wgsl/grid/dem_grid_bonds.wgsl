@@ -24,7 +24,7 @@ fn name_places(@builtin(global_invocation_id) gid: vec3<u32>) {
     if p >= params.n {
         return;
     }
-    place_of_id[stable_id(home[p])] = p;
+    place_of_id[stable_id(home_ro[p])] = p;
 }
 
 // Whether spheres s and t (centre, radius) touch: a pair the walk lists.
@@ -63,10 +63,10 @@ fn resolve_apart(w: ptr<function, Walker>) {
         if q >= params.n {
             continue;
         }
-        let t = walk_pos[q];
-        if touches((*w).s, t) || stable_id(home[q]) != b {
+        let t = walk_pos_ro[q];
+        if touches((*w).s, t) || stable_id(home_ro[q]) != b {
             continue;
         }
-        take(w, contact_with(w, home[q], t));
+        take(w, contact_with(w, home_ro[q], t));
     }
 }

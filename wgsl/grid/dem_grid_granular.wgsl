@@ -19,8 +19,13 @@ fn row_before(p: u32) -> u32 {
     return came_from[p];
 }
 
+// Read-only views of walk_pos (27) and home (26) for the kernels that walk, which only read
+// them: no kernel reads one buffer through both.
+@group(0) @binding(27) var<storage, read> walk_pos_ro: array<vec4<f32>>;
+@group(0) @binding(26) var<storage, read> home_ro: array<u32>;
+
 fn walk_sphere(q: u32) -> vec4<f32> {
-    return walk_pos[q];
+    return walk_pos_ro[q];
 }
 
 // The windows of a walk reach dem.reach further where contacts adhere and the walk lists those
@@ -66,7 +71,7 @@ fn visit(w: ptr<function, Walker>, q: u32, t: vec4<f32>) {
     // Two components of one clump are never a pair (dem_clumps.wgsl; CLUMPED first: without
     // clumps, no id is read); where contacts apart come from the history, the walk lists only
     // those that touch (dem_grid_bonds.wgsl).
-    if !walk_lists((*w).s, t) || (CLUMPED && one_clump(stable_id(home[(*w).p]), stable_id(home[q]))) {
+    if !walk_lists((*w).s, t) || (CLUMPED && one_clump(stable_id(home_ro[(*w).p]), stable_id(home_ro[q]))) {
         return;
     }
     let k = (*w).waiting - (*w).list_from;
@@ -88,7 +93,7 @@ fn resolve_rest(w: ptr<function, Walker>, count: u32) {
         let listed_now = min(count - (*w).list_from, NEAR_ROOM);
         for (var k = 0u; k < listed_now; k += 1u) {
             let q = near[k * params.n + (*w).p];
-            take(w, contact_with(w, home[q], walk_pos[q]));
+            take(w, contact_with(w, home_ro[q], walk_pos_ro[q]));
         }
         (*w).list_from += NEAR_ROOM;
     }
@@ -149,7 +154,7 @@ fn share_listed(w: ptr<function, Walker>, count: u32, lanes: Lanes) -> u32 {
         var torque = vec3(0.0);
         if j < total {
             let q = near[k * params.n + theirs.p];
-            let c = contact_with(&theirs, home[q], walk_pos[q]);
+            let c = contact_with(&theirs, home_ro[q], walk_pos_ro[q]);
             force = c.force;
             torque = c.torque_i;
             touching += u32(c.touching);
@@ -189,7 +194,7 @@ fn list_near(@builtin(global_invocation_id) gid: vec3<u32>) {
     widen_windows();
     var w: Walker;
     w.p = p;
-    w.s = walk_pos[p];
+    w.s = walk_pos_ro[p];
     stencil_walk(&w);
     listed[p] = w.waiting;
 }
@@ -215,7 +220,7 @@ fn resolve_thread(gid: vec3<u32>, lid: u32, lanes: Lanes, walk: bool) {
     var w: Walker;
     var count = 0u;
     if here {
-        w = walker(p, home[p], walk_pos[p]);
+        w = walker(p, home_ro[p], walk_pos_ro[p]);
         if walk {
             stencil_walk(&w);
             count = w.waiting;
