@@ -3,7 +3,9 @@
 //! spheres crossing the slabs' faces, on 2, 3 and 4 ranks, ghosts exchanged every step or every
 //! few steps; the contacts each counts; new motion (a sphere put in another rank's slab),
 //! external loads and gravity between steps; spheres pouring in and leaving; the faces moved to
-//! balance the work. On a GPU backend it matches the whole run on it.
+//! balance the work; frames and checkpoints written in pieces, one a rank, read back as the
+//! gathered ones, and a checkpoint in pieces resumed on another number of ranks. On a GPU
+//! backend it matches the whole run on it.
 
 mod common;
 

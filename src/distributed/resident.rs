@@ -462,7 +462,6 @@ fn arriving_of(r: &LayerRecord) -> Arriving {
     }
 }
 
-/// The rows' spheres (centres and radii), for finding their contacts.
 /// The place in the step (the step's input order, `ids` its whole-run ids) of each whole-run
 /// id up to the largest of `ids` and `also` ([`GONE`]: none).
 fn place_by_id(ids: &[u32], also: &[u32]) -> Vec<u32> {
@@ -474,6 +473,7 @@ fn place_by_id(ids: &[u32], also: &[u32]) -> Vec<u32> {
     place
 }
 
+/// The rows' spheres (centres and radii), for finding their contacts.
 fn spheres_of(rows: &DeviceRows) -> Particles {
     Particles {
         positions: rows.pos.iter().map(|p| [p[0], p[1], p[2]]).collect(),

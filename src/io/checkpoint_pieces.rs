@@ -45,7 +45,7 @@ pub struct CheckpointPiece {
     /// The CRC-32 its file ends with.
     pub checksum: u32,
     /// Zero (the record's padding).
-    pub padding: u32,
+    padding: u32,
 }
 
 /// One process's spheres as its piece holds them: the whole-run ids (ascending) of the spheres
@@ -53,9 +53,13 @@ pub struct CheckpointPiece {
 /// `spheres` and each partner a whole-run id (or a wall's), with their load histories (none, or
 /// one a contact).
 pub struct PieceSpheres<'a> {
+    /// The whole-run id of each sphere, ascending.
     pub ids: &'a [u32],
+    /// The spheres, in the order of `ids` (their history is not read).
     pub spheres: &'a Particles,
+    /// Their contacts: the owner's place in `spheres`, the entry (partner by whole-run id).
     pub contacts: &'a [(u32, HistoryEntry)],
+    /// The contacts' load histories: none, or one a contact.
     pub loads: &'a [LoadEntry],
 }
 

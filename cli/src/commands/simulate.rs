@@ -14,7 +14,6 @@ use mochi::dem::{
 };
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::numbers::significant;
-
 use mochi::render::{ColorBy, ColorChoice};
 use mochi::run::{FIRST_PROGRESS_STEPS, FileDigest, Run, RunStart, RunState, progress_steps};
 use std::path::{Path, PathBuf};
