@@ -52,6 +52,10 @@ pub(crate) mod shader {
     pub const LOAD_HISTORY: &str = wgsl!("dem/dem_tangential_md.wgsl");
 
     pub const OMEGA: Binding = Binding::read_write(18, "omega");
+    /// Read-only views of `vel` and [`OMEGA`] for the kernels that resolve contacts (the same
+    /// bindings; naga refuses a kernel that uses a buffer through both).
+    pub const VEL_RO: Binding = Binding::read(11, "vel_ro");
+    pub const OMEGA_RO: Binding = Binding::read(18, "omega_ro");
     /// The material table's laws (`PairLaw` rows, [`crate::dem::model::MaterialTable::laws`]).
     pub const MATERIAL_LAWS: Binding = Binding::read(20, "material_laws");
     /// The step's cohesion laws ([`crate::dem::model::law::CohesionParams`]).
@@ -91,6 +95,8 @@ pub(crate) mod shader {
     pub fn bindings() -> Vec<Binding> {
         [
             OMEGA,
+            VEL_RO,
+            OMEGA_RO,
             MATERIAL_LAWS,
             COHESION,
             TORQUE,

@@ -320,6 +320,10 @@ pub(crate) mod dem_grid {
     /// By sorted place: the state row of the sphere there, and its centre and radius.
     pub const HOME: Binding = Binding::read_write(26, "home");
     pub const WALK_POS: Binding = Binding::read_write(27, "walk_pos");
+    /// Read-only views of [`HOME`] and [`WALK_POS`] for the kernels that walk (the same
+    /// bindings; naga refuses a kernel that uses a buffer through both).
+    pub const HOME_RO: Binding = Binding::read(26, "home_ro");
+    pub const WALK_POS_RO: Binding = Binding::read(27, "walk_pos_ro");
     /// The granular step's candidates within reach (`wgsl/grid/dem_grid_granular.wgsl`): by sorted
     /// place their count, and [`NEAR_ROOM`] places a sphere.
     pub const LISTED: Binding = Binding::read_write(30, "listed");
@@ -334,6 +338,9 @@ pub(crate) mod dem_grid {
     /// the cell its sphere was binned in, and the words the GPU decides in whether a step
     /// re-bins (`skin.rs`).
     pub const WALK_ROW: Binding = Binding::read_write(28, "walk_row");
+    /// Read-only views of [`WALK_ROW`] and of the velocities for the paper's resolve kernel.
+    pub const WALK_ROW_RO: Binding = Binding::read(28, "walk_row_ro");
+    pub const VEL_RO: Binding = Binding::read(11, "vel_ro");
     pub const SKIN: Binding = Binding::read_write(32, "skin_state");
     pub const SKIN_LIMIT: Binding = Binding::read_write(33, "skin_limit");
 
@@ -354,6 +361,7 @@ pub(crate) mod dem_grid {
         shared_bindings()
             .into_iter()
             .chain([WALK_ROW, SKIN, SKIN_LIMIT])
+            .chain([HOME_RO, WALK_POS_RO, WALK_ROW_RO, VEL_RO])
             .collect()
     }
 
@@ -363,6 +371,7 @@ pub(crate) mod dem_grid {
             .into_iter()
             .chain(granular::bindings())
             .chain([OMEGA_A, CAME_FROM, LISTED, NEAR, PLACE_OF_ID])
+            .chain([HOME_RO, WALK_POS_RO])
             .collect()
     }
 
