@@ -24,7 +24,7 @@
 //! velocities, no history) as spheres at rest in rotation without history.
 
 use super::checkpoint_bytes::{
-    Fields, SphereBytes, entry_of, from_le_words, load_of, write_with_checksum,
+    Fields, SphereBytes, check_read, entry_of, from_le_words, load_of, write_with_checksum,
 };
 use super::io_error;
 use crate::clump::{
@@ -296,14 +296,7 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         clumps,
         step,
     };
-    particles.validate().map_err(|e| f.bad(e.to_string()))?;
-    if let Some(i) = particles
-        .radii
-        .iter()
-        .position(|&r| !(r > 0.0 && r.is_finite()))
-    {
-        return Err(f.bad(format!("sphere {i} has radius {}", particles.radii[i])));
-    }
+    check_read(&particles).map_err(|e| f.bad(e.to_string()))?;
     Ok(Checkpoint {
         particles,
         scene,

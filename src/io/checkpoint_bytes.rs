@@ -141,6 +141,19 @@ fn turned(bytes: &[u8]) -> Vec<u8> {
         .collect()
 }
 
+/// Checks the spheres a checkpoint was read into: their columns one a sphere, their values
+/// finite, their radii positive.
+pub(super) fn check_read(p: &Particles) -> Result<()> {
+    p.validate()?;
+    match p.radii.iter().position(|&r| !(r > 0.0 && r.is_finite())) {
+        Some(i) => Err(Error::Usage(format!(
+            "sphere {i} has radius {}",
+            p.radii[i]
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// Writes `sections` and then the CRC-32 of their bytes to `path`, atomically; returns the
 /// CRC-32.
 pub(super) fn write_with_checksum(path: &Path, sections: &[&[u8]]) -> Result<u32> {

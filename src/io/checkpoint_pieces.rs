@@ -23,7 +23,8 @@
 //! (the checksum the index names).
 
 use super::checkpoint_bytes::{
-    Fields, SphereBytes, entry_of, from_le_words, le_words, load_of, write_with_checksum,
+    Fields, SphereBytes, check_read, entry_of, from_le_words, le_words, load_of,
+    write_with_checksum,
 };
 use super::{Checkpoint, io_error, write_atomically};
 use crate::error::{Error, Result};
@@ -385,13 +386,7 @@ fn join(pieces: Vec<Piece>, n: usize, step: u64) -> Result<Particles> {
         }
     }
     p.history = ContactHistory::from_contacts_with_loads(n, &contacts, &loads)?;
-    p.validate()?;
-    if let Some(i) = p.radii.iter().position(|&r| !(r > 0.0 && r.is_finite())) {
-        return Err(Error::Usage(format!(
-            "sphere {i} has radius {}",
-            p.radii[i]
-        )));
-    }
+    check_read(&p)?;
     Ok(p)
 }
 
