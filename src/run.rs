@@ -244,8 +244,7 @@ impl RunStart {
     /// `crate::distributed`), each rank stepping on the backend of `choice` (`auto`: the
     /// registry's one rule; a GPU backend on the GPU of the process's local rank): on rank 0
     /// the run, whose step every other rank follows; on the others `None`, once rank 0's run is
-    /// over (they write nothing). Refuses what a run over ranks does not carry yet (clumps;
-    /// mesh walls on a GPU backend).
+    /// over (they write nothing).
     pub fn open_on_ranks<C>(
         self,
         comm: C,

@@ -4,11 +4,12 @@
 //! few steps; the contacts each counts; new motion (a sphere put in another rank's slab),
 //! external loads and gravity between steps; spheres pouring in and leaving; the faces moved to
 //! balance the work; frames and checkpoints written in pieces, one a rank, read back as the
-//! gathered ones, and a checkpoint in pieces resumed on another number of ranks. On a GPU
-//! backend it matches the whole run on it.
+//! gathered ones, and a checkpoint in pieces resumed on another number of ranks; clumps among
+//! spheres, and clumps pouring in. On a GPU backend it matches the whole run on it.
 
 mod common;
 
+use mochi::clump::{Clump, ClumpKind, ClumpSet, ClumpTemplate, RigidBody};
 use mochi::dem::flow::{FlowSet, InflowConfig, OutflowConfig};
 use mochi::dem::scene::{Overrides, SceneConfig};
 use mochi::dem::{Particles, Snapshot, Stepper};
@@ -397,14 +398,299 @@ fn a_decomposed_run_in_a_turning_drum_is_the_whole_run_bit_for_bit_and_loads_the
     }
 }
 
+/// The grains of the clumps' pour and the clumps it makes of them (`[[clump]]` tables).
+const GRAINS: &str = "[source]\nscene = \"pour\"\nspheres = 160\nseed = 7\n";
+const SHAPES: &str = "[[clump]]\nshape = \"tetrahedron\"\n[[clump]]\nshape = \"rod\"\n";
+
+/// Dimers and tetrahedra among free spheres, landing: the pour of [`GRAINS`] with its first
+/// half of grains clumps of [`SHAPES`] (each in its grain's place) and its second half spheres,
+/// run till they touch, then every grain swept along the axis two slabs would cut by a fifth
+/// of the box over the test's steps (clumps and spheres cross the faces).
+fn clumps_among_spheres() -> DemSetup {
+    let clumped = setup_of(&format!("{GRAINS}{SHAPES}"));
+    let spheres = setup_of(GRAINS).particles;
+    let mut set = clumped.particles.clumps.clone();
+    let half = set.clumps.len() / 2;
+    set.clumps.truncate(half);
+    let mut free = Particles::default();
+    for k in half..spheres.len() {
+        let (c, v, r) = (
+            spheres.positions[k],
+            spheres.velocities[k],
+            spheres.radii[k],
+        );
+        free.push(c, v, r).unwrap();
+    }
+    let particles = Particles::with_clumps(set, free).unwrap();
+    let setup = DemSetup {
+        particles,
+        ..clumped
+    };
+    let mut whole = CpuStepper::open(setup.clone()).unwrap();
+    let mut contacts = 0;
+    for _ in 0..40 {
+        contacts = whole.advance(250).unwrap().contacts;
+        if contacts > 30 {
+            break;
+        }
+    }
+    assert!(contacts > 30, "{contacts} contacts");
+    let mut particles = whole.particles().unwrap();
+    let p = &setup.params;
+    let (lo, hi) = (p.box_lo.map(f64::from), p.box_hi.map(f64::from));
+    let axis = Slabs::along_longest(lo, hi, 2).unwrap().axis;
+    let speed = 0.2 * (hi[axis] - lo[axis]) / (STEPS as f64 * p.dt as f64);
+    for clump in &mut particles.clumps.clumps {
+        clump.body.velocity[axis] += speed;
+    }
+    let components = particles.clumps.component_count();
+    for v in &mut particles.velocities[components..] {
+        v[axis] += speed as f32;
+    }
+    particles.place_clump_components().unwrap();
+    DemSetup { particles, ..setup }
+}
+
 #[test]
-fn what_a_decomposed_run_does_not_carry_yet_is_refused() {
-    // Clumps.
-    let scene = "scene = \"pour\"\nspheres = 50\nparticle = \"dimer\"\n";
-    let setup = setup_of(scene);
-    let comm = LocalComm::group(1).unwrap().pop().unwrap();
-    let e = RankStepper::new(comm, &setup).err().unwrap().to_string();
-    assert!(e.contains("clumps"), "{e}");
+fn a_run_of_clumps_among_spheres_on_several_ranks_is_the_whole_run_bit_for_bit() {
+    // A clump is stepped by the rank that holds its centre, with all its components; as a
+    // ghost it goes whole, with every component, to each rank within whose halo one lies.
+    let setup = clumps_among_spheres();
+    let clumps = setup.particles.clumps.clumps.len();
+    assert!(clumps > 50 && setup.particles.len() > setup.particles.clumps.component_count());
+    let script: Script = |s, _| vec![s.advance(STEPS).unwrap().contacts];
+    let (expected, contacts) = alone(&setup, &FlowSet::default(), script);
+    assert!(contacts[0] > 20, "{contacts:?} contacts at the end");
+    let runs = [
+        (2, 1, 0),
+        (3, 1, 0),
+        (4, 1, 0),
+        (2, 6, 0),
+        (3, 1, 50),
+        (4, 5, 40),
+    ];
+    for (ranks, every, rebalance) in runs {
+        let (got, got_contacts, owned) = decomposed(
+            &setup,
+            (ranks, every, rebalance),
+            &FlowSet::default(),
+            script,
+        );
+        let how = format!("{ranks} ranks, every {every} steps, rebalanced every {rebalance}");
+        assert!(
+            owned.iter().any(|o| o[0] != o[1]),
+            "none moved across: {owned:?}"
+        );
+        assert_eq!(got_contacts, contacts, "{how}");
+        assert_same(&got, &expected, ranks);
+        assert!(got.clumps == expected.clumps, "{how}: the clumps differ");
+    }
+}
+
+#[test]
+fn a_run_of_clumps_pouring_in_on_several_ranks_is_the_whole_run_bit_for_bit() {
+    // The inflow inserts clumps across the slabs over the clumps and spheres there; an outflow
+    // in a corner of the floor takes what lands there.
+    let setup = clumps_among_spheres();
+    let p = &setup.params;
+    let at = |a: usize, f: f64| p.box_lo[a] as f64 + f * (p.box_hi[a] - p.box_lo[a]) as f64;
+    let (r_min, r_max) = setup.particles.radius_range();
+    let scene = format!(
+        "{GRAINS}{SHAPES}[[inflow]]\nlo = [{}, {}, {}]\nhi = [{}, {}, {}]\nrate = 1e4\n\
+         sphere_radii = [{r_min}, {r_max}]\nvelocity = [0, 0, -0.5]\nseed = 3\n\
+         [[outflow]]\nlo = [{}, {}, {}]\nhi = [{}, {}, {}]\n",
+        at(0, 0.05),
+        at(1, 0.05),
+        at(2, 0.8),
+        at(0, 0.95),
+        at(1, 0.95),
+        at(2, 0.95),
+        at(0, 0.0),
+        at(1, 0.0),
+        at(2, 0.0),
+        at(0, 0.3),
+        at(1, 0.5),
+        at(2, 0.15),
+    );
+    let flow = SceneConfig::parse(Some(&scene), None, &Overrides::default())
+        .and_then(|c| c.build())
+        .unwrap()
+        .flow;
+    assert!(flow.clumps.is_some());
+    let script: Script = |s, _| {
+        let contacts = s.advance(STEPS).unwrap().contacts;
+        let c = s.flow_counts().unwrap();
+        vec![contacts, c.inserted, c.removed, c.events]
+    };
+    let (expected, counts) = alone(&setup, &flow, script);
+    assert!(
+        counts[1] > 20 && counts[2] > 0,
+        "inserted, removed: {counts:?}"
+    );
+    // What comes in are clumps: the free spheres do not grow in number.
+    let free = |p: &Particles| p.len() - p.clumps.component_count();
+    assert!(free(&expected) <= free(&setup.particles));
+    for (ranks, every, rebalance) in [(2, 1, 0), (3, 4, 50)] {
+        let (got, got_counts, _) = decomposed(&setup, (ranks, every, rebalance), &flow, script);
+        let how = format!("{ranks} ranks, every {every} steps, rebalanced every {rebalance}");
+        assert_eq!(got_counts, counts, "{how}");
+        assert_same(&got, &expected, ranks);
+        assert!(got.clumps == expected.clumps, "{how}: the clumps differ");
+    }
+}
+
+#[test]
+fn a_clump_across_a_face_feels_the_spheres_its_far_end_touches() {
+    // Rods of eight spheres lie across the face of two slabs, each centre on one side, and a
+    // sphere of the other side touches each rod's far end: farther from the face than any
+    // sphere's partners reach (a cell), so the halo holds the rods' span beyond a cell.
+    let setup = setup_of(GRAINS);
+    let p = &setup.params;
+    let (lo, hi) = (p.box_lo.map(f64::from), p.box_hi.map(f64::from));
+    let slabs = Slabs::along_longest(lo, hi, 2).unwrap();
+    let axis = slabs.axis;
+    let face = 0.5 * (lo[axis] + hi[axis]);
+    let r = 0.5 * setup.particles.radius_range().0 as f64;
+    let density = p.materials.densities[0] as f64;
+    let rod = ClumpKind::new(&ClumpTemplate::rod(8, r).unwrap(), density);
+    let along = |k: usize| glam::DVec3::from_array(std::array::from_fn(|a| (a == k) as u8 as f64));
+    // The template's long axis, turned onto the slabs' axis.
+    let long = (0..3)
+        .max_by(|&a, &b| {
+            let extent = |a: usize| {
+                rod.template
+                    .components
+                    .iter()
+                    .map(|c| c.centre[a].abs())
+                    .fold(0.0, f64::max)
+            };
+            extent(a).total_cmp(&extent(b))
+        })
+        .unwrap();
+    let turn = glam::DQuat::from_rotation_arc(along(long), along(axis));
+    let span = 3.5 * r;
+    let mut clumps = Vec::new();
+    let mut free = Particles::default();
+    let across = (axis + 1) % 3;
+    for k in 0..6 {
+        // Alternately on the low side of the face and on the high.
+        let side = if k % 2 == 0 { -1.0 } else { 1.0 };
+        let mut centre = [0.0; 3];
+        centre[2] = lo[2] + 0.3 * (hi[2] - lo[2]);
+        centre[across] = lo[across] + (k as f64 + 1.0) / 7.0 * (hi[across] - lo[across]);
+        centre[axis] = face + side * 0.5 * r;
+        let mut touching = centre;
+        touching[axis] = face + side * (0.5 * r - span - 1.9 * r);
+        let at = glam::DVec3::from_array(centre);
+        let body = RigidBody::new(at, turn, glam::DVec3::ZERO, glam::DVec3::ZERO, &rod.inertia);
+        clumps.push(Clump { kind: 0, body });
+        free.push(touching.map(|x| x as f32), [0.0; 3], r as f32)
+            .unwrap();
+    }
+    let set = ClumpSet {
+        kinds: vec![rod],
+        clumps,
+    };
+    let particles = Particles::with_clumps(set, free).unwrap();
+    let setup = DemSetup { particles, ..setup };
+    let script: Script = |s, _| {
+        let first = s.advance(4).unwrap().contacts;
+        vec![first, s.advance(16).unwrap().contacts]
+    };
+    let (expected, contacts) = alone(&setup, &FlowSet::default(), script);
+    assert_eq!(contacts[0], 6, "each rod touches its sphere: {contacts:?}");
+    for (ranks, every) in [(2, 1), (2, 4)] {
+        let (got, got_contacts, owned) =
+            decomposed(&setup, (ranks, every, 0), &FlowSet::default(), script);
+        assert!(owned.iter().all(|o| o[0] == 3 * 8 + 3), "{owned:?}");
+        assert_eq!(got_contacts, contacts);
+        assert_same(&got, &expected, ranks);
+        assert!(
+            got.clumps == expected.clumps,
+            "every {every} steps: the rods differ"
+        );
+    }
+}
+
+#[test]
+fn a_run_of_clumps_on_two_ranks_of_each_gpu_backend_matches_the_whole_run_on_it() {
+    // A GPU rank with clumps opens its step again each round (its kept step exchanges spheres
+    // alone), and writes whole frames and checkpoints: the same clumps as the whole run on
+    // that backend, to its sums' order.
+    let setup = clumps_among_spheres();
+    let gpus = common::dem_backends()
+        .into_iter()
+        .filter(|&k| k != BackendKind::Cpu);
+    for kind in gpus {
+        let _named = common::Naming(kind);
+        let mut whole = open_setup(kind, setup.clone(), &Options::default()).unwrap();
+        let contacts = whole.advance(STEPS).unwrap().contacts;
+        let expected = whole.particles().unwrap();
+        let out = tempfile::tempdir().unwrap();
+        let ranks = on_two_ranks(kind, &setup, (None, 0), |rank| {
+            let contacts = rank.advance(STEPS).unwrap().contacts;
+            assert!(rank.write_pieces(out.path()).unwrap().is_none());
+            let folder = piece_folder_for(&out.path().join("checkpoint.bin"), STEPS as u64);
+            assert!(rank.write_checkpoint_pieces(&folder).unwrap().is_none());
+            let snapshot = rank.snapshot().unwrap();
+            (
+                contacts,
+                rank.particles().unwrap(),
+                snapshot,
+                rank.ghost_spheres(),
+            )
+        });
+        let (got_contacts, got, snapshot, _) = &ranks[0];
+        assert!(ranks.iter().any(|r| r.3 > 0), "no ghosts");
+        assert!(
+            snapshot.particles.clumps == got.clumps,
+            "frames show the clumps"
+        );
+        let clumps = |p: &Particles| p.clumps.clumps.len();
+        assert_eq!(clumps(got), clumps(&expected));
+        let (r_min, _) = expected.radius_range();
+        let gap = common::largest_gap(got, &expected);
+        let more = *got_contacts as f64 / contacts as f64 - 1.0;
+        eprintln!(
+            "{}: largest gap {gap:.3e} m (r_min {r_min:.3e}), contacts {got_contacts} against \
+             {contacts}",
+            kind.name()
+        );
+        assert!(gap < 1e-3 * r_min, "largest gap {gap} m");
+        assert!(
+            more.abs() < 0.02,
+            "{got_contacts} contacts against {contacts}"
+        );
+    }
+}
+
+#[test]
+fn new_motion_for_a_clumps_sphere_is_refused_on_every_rank() {
+    let setup = clumps_among_spheres();
+    let refused = on_cpu_ranks(3, &setup, |mut rank| {
+        rank.advance(10).unwrap();
+        let now = rank.particles().unwrap();
+        let mut v = now.velocities.clone();
+        // The last clump's last component: its rank alone sees it changed.
+        v[now.clumps.component_count() - 1][0] += 1.0;
+        let motion = mochi::dem::Motion {
+            velocities: Some(&v),
+            ..Default::default()
+        };
+        let e = rank.set_motion(&motion).unwrap_err().to_string();
+        // A free sphere's new motion is taken.
+        let mut v = now.velocities.clone();
+        v[now.len() - 1][0] += 1.0;
+        let motion = mochi::dem::Motion {
+            velocities: Some(&v),
+            ..Default::default()
+        };
+        rank.set_motion(&motion).unwrap();
+        e
+    });
+    for e in refused {
+        assert!(e.contains("clump"), "{e}");
+    }
 }
 
 /// `run` on each of two ranks (threads) of `setup` stepping on backend `kind` (keeping rows

@@ -88,6 +88,15 @@ pub struct Advance {
     pub clock: Clock,
 }
 
+/// The refusal of new motion for a clump's component sphere.
+pub(crate) fn clump_motion_refused() -> Error {
+    Error::Usage(
+        "the motion of a clump's spheres (the first spheres of a run of clumps) is its clump's: \
+         they keep the rows they have (setting a clump's motion: not yet)"
+            .into(),
+    )
+}
+
 /// New motion for the spheres of a step, in input order, one row per sphere the step holds
 /// (`None`: kept as it is). A position is where its sphere is: the step keeps it as an `f32`
 /// centre and the residual of the rest ([`crate::dem::position::split`]).
@@ -120,11 +129,7 @@ impl Motion<'_> {
             && same(self.angular_velocities, &now.angular_velocities)
         {
             true => Ok(()),
-            false => Err(Error::Usage(
-                "the motion of a clump's spheres (the first spheres of a run of clumps) is its \
-                 clump's: they keep the rows they have (setting a clump's motion: not yet)"
-                    .into(),
-            )),
+            false => Err(clump_motion_refused()),
         }
     }
 

@@ -1,10 +1,12 @@
 //! A run decomposed over ranks: the box cut into a grid of boxes ([`Grid`]: [`Slabs`] along
 //! one axis or more), one a rank, each rank stepping the spheres of its box with the ghosts of
-//! its neighbours' ([`RankStepper`]), the
-//! ranks joined by a communicator ([`Comm`]: threads of one process, [`LocalComm`]). On the
-//! cpu backend a decomposed run is the whole run bit for bit, on any number of ranks: every
-//! sphere sums its contacts in an order that its place and the spheres' ids alone decide.
+//! its neighbours' ([`RankStepper`]; a clump with all its components on the rank whose box
+//! holds its centre), the ranks joined by a communicator ([`Comm`]: threads of one process,
+//! [`LocalComm`]). On the cpu backend a decomposed run is the whole run bit for bit, on any
+//! number of ranks: every sphere sums its contacts in an order that its place and the
+//! spheres' ids alone decide.
 
+mod clumps;
 mod comm;
 mod grid;
 mod lead;

@@ -24,12 +24,14 @@
 //! Each pair is computed on both of its sides (every engine does so in any run), so no force
 //! crosses ranks: only states do.
 
+use super::clumps::{RankClumps, read_clumps};
 use super::comm::Comm;
 use super::grid::Grid;
 use super::pieces::OwnPiece;
 use super::record::{Held, SphereRecord, own_pair_ends, partners_by_id, put, read_all, spheres_of};
 use super::resident::Resident;
 use super::slabs::Slabs;
+use crate::clump::ClumpSet;
 use crate::dem::StepParams;
 use crate::dem::flow::{FlowCounts, FlowSet};
 use crate::dem::stepper::{
@@ -81,6 +83,8 @@ pub struct RankStepper<C: Comm> {
     round: u32,
     /// This rank's spheres, by ascending id.
     own: Vec<Held>,
+    /// The run's clumps and this rank's (`None`: the run has none).
+    clumps: Option<RankClumps>,
     /// The ghosts of the last step.
     ghosts: usize,
     /// The spheres of the whole run.
@@ -114,7 +118,6 @@ impl<C: Comm> RankStepper<C> {
     /// This rank's part of `setup` (the whole run's start, which every rank is given): the
     /// spheres in its box of the run's box cut into a grid of `comm.size()` boxes ([`Grid`]),
     /// stepped on the cpu, ghosts exchanged every step.
-    /// Refuses what the decomposition does not carry yet: clumps.
     pub fn new(comm: C, setup: &DemSetup) -> Result<Self> {
         let DemSetup {
             particles: whole,
@@ -122,14 +125,6 @@ impl<C: Comm> RankStepper<C> {
             mode,
             walls,
         } = setup;
-        let refused = |what: &str| {
-            Err(Error::Usage(format!(
-                "a run decomposed over ranks does not carry {what} yet"
-            )))
-        };
-        if whole.clumps.component_count() > 0 {
-            return refused("clumps");
-        }
         whole.validate()?;
         let lo = params.box_lo.map(f64::from);
         let hi = params.box_hi.map(f64::from);
@@ -138,6 +133,7 @@ impl<C: Comm> RankStepper<C> {
         let r_max = radii.1;
         let reach = reach_of(r_max, params, *mode);
         let own = own_of(whole, &grid, comm.rank());
+        let clumps = RankClumps::of(whole, &grid, comm.rank());
         // Every rank opens the same run (and none goes on before all have opened it).
         let mut outgoing = vec![(whole.len() as u64).to_le_bytes().to_vec(); comm.size()];
         outgoing[comm.rank()].clear();
@@ -160,6 +156,7 @@ impl<C: Comm> RankStepper<C> {
             reach,
             round: 1,
             own,
+            clumps,
             ghosts: 0,
             total: whole.len(),
             loads: ExternalLoads::default(),
@@ -312,11 +309,6 @@ impl<C: Comm> RankStepper<C> {
         if flow.is_empty() {
             return Ok(self);
         }
-        if flow.clumps.is_some() {
-            return Err(Error::Usage(
-                "a run decomposed over ranks does not carry clumps yet".into(),
-            ));
-        }
         // The lattice of the whole run, sized for what the inflows bring as well.
         self.r_max = self.r_max.max(flow.largest_radius());
         let smallest = flow.smallest_radius().unwrap_or(self.radii.0);
@@ -352,6 +344,7 @@ impl<C: Comm> RankStepper<C> {
         counts.event_ms += started.elapsed().as_secs_f64() * 1e3;
         self.total = whole.len();
         self.own = own_of(&whole, &self.grid, self.comm.rank());
+        self.clumps = RankClumps::of(&whole, &self.grid, self.comm.rank());
         self.share.spheres = self.own.len() as u64;
         Ok(())
     }
@@ -400,15 +393,20 @@ impl<C: Comm> RankStepper<C> {
     }
 
     /// [`halo`](Self::halo) where this rank's fastest sphere moves at `fastest` \[m/s\].
+    /// A clump's components lie up to its span beyond its owner's box, and a ghost clump
+    /// missing a contact is wrong at once in all its components: with clumps the halo is a
+    /// span deeper, and each step of the round two spans more.
     fn halo_at(&self, steps: u32, fastest: f64) -> Result<f64> {
+        let span = self.clumps.as_ref().map_or(0.0, |c| c.span);
+        let reach = steps as f64 * (self.reach + 2.0 * span) + span;
         if steps == 1 {
-            return Ok(self.reach);
+            return Ok(reach);
         }
         let fastest = self.max_over_ranks(fastest)?;
         let gravity = glam::Vec3::from(self.params.gravity).length() as f64;
         let round = steps as f64 * self.params.dt as f64;
         let travel = round * (fastest + gravity * round);
-        Ok(steps as f64 * self.reach + 2.0 * travel)
+        Ok(reach + 2.0 * travel)
     }
 
     /// The external loads on the spheres of the whole run's ids `ids`, in that order.
@@ -519,40 +517,25 @@ impl<C: Comm> RankStepper<C> {
             return self.resident_round(resident, steps, count, started);
         }
         let halo = self.halo(steps)?;
-        let ranks = self.comm.size();
-        let owner = self.comm.rank();
-        // Each thread's messages for the ranks whose halos its spheres lie in, then joined
-        // (the ghosts are sorted by id where they come).
-        let outgoing = (self.own.par_iter())
-            .fold(
-                || vec![Vec::new(); ranks],
-                |mut outgoing, held| {
-                    // A ghost's state after its first step is dropped unless the round goes
-                    // on; then its contacts must be its own.
-                    let history = match steps {
-                        1 => (&[][..], &[][..]),
-                        _ => (&held.contacts[..], &held.loads[..]),
-                    };
-                    let x = held.exact_position();
-                    for r in self.grid.ghost_ranks(x, owner, halo) {
-                        put(&mut outgoing[r], &held.sphere, history);
-                    }
-                    outgoing
-                },
-            )
-            .reduce(
-                || vec![Vec::new(); ranks],
-                |mut all, more| {
-                    all.iter_mut().zip(more).for_each(|(a, m)| a.extend(m));
-                    all
-                },
-            );
+        let (outgoing, clumps_out) = self.ghosts_out(steps, halo);
         let mut ghosts = read_all(&self.comm.exchange(outgoing)?)?;
         ghosts.par_sort_unstable_by_key(|h| h.sphere.id);
         self.ghosts = ghosts.len();
+        let ghost_clumps = match self.clumps.is_some() {
+            true => read_clumps(&self.comm.exchange(clumps_out)?)?,
+            false => Vec::new(),
+        };
 
         let ghosts_in = Instant::now();
-        let (local, ids, own_at) = self.merged(&ghosts)?;
+        let (mut local, ids, own_at) = self.merged(&ghosts)?;
+        let local_clumps = match &self.clumps {
+            Some(clumps) => {
+                let found = clumps.local(&ghost_clumps, &ids)?;
+                local.clumps = found.set.clone();
+                Some(found)
+            }
+            None => None,
+        };
         let loads = self.loads_of(&ids);
         let gravity = self.params.gravity;
         // When the engine had the round's spheres, and when it had stepped them.
@@ -611,7 +594,8 @@ impl<C: Comm> RankStepper<C> {
                 // The walls' loads of the spheres this rank owns, not of its ghosts.
                 let (lo, hi) = self.grid.bounds_of(self.comm.rank());
                 stepper.sum_wall_loads_within((lo.map(|x| x as f32), hi.map(|x| x as f32)));
-                if stepper.resident().is_some() {
+                // A step kept on the device exchanges spheres alone, not clumps.
+                if stepper.resident().is_some() && local_clumps.is_none() {
                     let resident = Resident::new(stepper, &ids, &own_at)?;
                     self.own.clear();
                     return self.resident_round(resident, steps, count, started);
@@ -638,6 +622,9 @@ impl<C: Comm> RankStepper<C> {
             .iter()
             .map(|&at| Held::of(&after, at, ids[at], by_id))
             .collect();
+        if let (Some(clumps), Some(local)) = (&mut self.clumps, &local_clumps) {
+            clumps.take_own(&after.clumps, local);
+        }
         let read_back = Instant::now();
         self.migrate()?;
         let ms = |from: Instant, to: Instant| (to - from).as_secs_f64() * 1e3;
@@ -658,14 +645,91 @@ impl<C: Comm> RankStepper<C> {
         Ok((touching, times, wall_loads))
     }
 
+    /// The messages of the module's first phase, one a rank: the own spheres within `halo` of
+    /// its box for a round of `steps` steps, and the own clumps any of whose components are
+    /// (each with every component).
+    fn ghosts_out(&self, steps: u32, halo: f64) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
+        let ranks = self.comm.size();
+        let owner = self.comm.rank();
+        let components = self.clumps.as_ref().map_or(0, RankClumps::components);
+        let (in_clumps, free) =
+            (self.own).split_at(self.own.partition_point(|h| h.sphere.id < components));
+        // A ghost's state after its first step is dropped unless the round goes on; then its
+        // contacts must be its own.
+        let put_ghost = |message: &mut Vec<u8>, held: &Held| {
+            let history = match steps {
+                1 => (&[][..], &[][..]),
+                _ => (&held.contacts[..], &held.loads[..]),
+            };
+            put(message, &held.sphere, history);
+        };
+        // The own clumps, each with its components (consecutive in the own spheres).
+        let mut groups = Vec::with_capacity(self.clumps.as_ref().map_or(0, |c| c.own.len()));
+        if let Some(clumps) = &self.clumps {
+            let mut at = 0;
+            for clump in &clumps.own {
+                let n = clumps.ids_of(clump.index).len();
+                groups.push((Some(clump), &in_clumps[at..at + n]));
+                at += n;
+            }
+        }
+        groups.extend(free.iter().map(|held| (None, std::slice::from_ref(held))));
+        // Each thread's messages for the ranks whose halos its spheres lie in, then joined
+        // (the ghosts are sorted by id where they come).
+        let empty = || (vec![Vec::new(); ranks], vec![Vec::new(); ranks]);
+        let grid = &self.grid;
+        (groups.par_iter())
+            .fold(empty, |(mut spheres, mut clumps), &(clump, group)| {
+                let mut to: Vec<usize> = (group.iter())
+                    .flat_map(|h| grid.ghost_ranks(h.exact_position(), owner, halo))
+                    .collect();
+                if group.len() > 1 {
+                    to.sort_unstable();
+                    to.dedup();
+                }
+                for r in to {
+                    group
+                        .iter()
+                        .for_each(|held| put_ghost(&mut spheres[r], held));
+                    if let Some(c) = clump {
+                        clumps[r].extend_from_slice(bytemuck::bytes_of(c));
+                    }
+                }
+                (spheres, clumps)
+            })
+            .reduce(empty, |(mut s, mut c), (more_s, more_c)| {
+                s.iter_mut().zip(more_s).for_each(|(a, m)| a.extend(m));
+                c.iter_mut().zip(more_c).for_each(|(a, m)| a.extend(m));
+                (s, c)
+            })
+    }
+
     /// Sends each own sphere whose centre lies beyond this rank's box, with its contacts, to
     /// the rank that owns it, and takes those sent here (every rank together).
     fn migrate(&mut self) -> Result<()> {
+        let rank = self.comm.rank();
+        // Where each own clump goes (by ascending index): its components go with it.
+        let clumps_to: Vec<(u32, usize)> = (self.clumps.iter())
+            .flat_map(|c| c.own.iter().map(|c| (c.index, self.grid.owner(c.position))))
+            .collect();
+        let goes_to = |held: &Held| match self
+            .clumps
+            .as_ref()
+            .and_then(|c| c.clump_of(held.sphere.id))
+        {
+            None => Ok(self.grid.owner(held.exact_position())),
+            Some(k) => match clumps_to.binary_search_by_key(&k, |&(index, _)| index) {
+                Ok(at) => Ok(clumps_to[at].1),
+                Err(_) => Err(Error::Usage(
+                    "a clump's sphere is on a rank without its clump".into(),
+                )),
+            },
+        };
         let mut outgoing = vec![Vec::new(); self.comm.size()];
         let mut staying = Vec::with_capacity(self.own.len());
         for held in std::mem::take(&mut self.own) {
-            match self.grid.owner(held.exact_position()) {
-                r if r == self.comm.rank() => staying.push(held),
+            match goes_to(&held)? {
+                r if r == rank => staying.push(held),
                 r => put(
                     &mut outgoing[r],
                     &held.sphere,
@@ -676,6 +740,19 @@ impl<C: Comm> RankStepper<C> {
         staying.extend(read_all(&self.comm.exchange(outgoing)?)?);
         staying.par_sort_unstable_by_key(|h| h.sphere.id);
         self.own = staying;
+        if let Some(clumps) = &mut self.clumps {
+            let mut outgoing = vec![Vec::new(); self.comm.size()];
+            let mut staying = Vec::with_capacity(clumps.own.len());
+            for (clump, &(_, r)) in std::mem::take(&mut clumps.own).iter().zip(&clumps_to) {
+                match r == rank {
+                    true => staying.push(*clump),
+                    false => outgoing[r].extend_from_slice(bytemuck::bytes_of(clump)),
+                }
+            }
+            staying.extend(read_clumps(&self.comm.exchange(outgoing)?)?);
+            staying.sort_unstable_by_key(|c| c.index);
+            clumps.own = staying;
+        }
         Ok(())
     }
 
@@ -814,6 +891,7 @@ impl<C: Comm> RankStepper<C> {
             }
         }
         let received = self.comm.exchange(outgoing)?;
+        let clumps = self.collect_clumps(everywhere)?;
         if !everywhere && self.comm.rank() != 0 {
             return Ok(None);
         }
@@ -832,7 +910,33 @@ impl<C: Comm> RankStepper<C> {
         if self.params.friction.has_history() {
             whole.history = ContactHistory::from_contacts_with_loads(all.len(), &contacts, &loads)?;
         }
+        whole.clumps = clumps.unwrap_or_default();
         Ok(Some(whole))
+    }
+
+    /// The run's clumps on rank 0, or on every rank where `everywhere` (`None` on the others,
+    /// and where the run has none): every rank sends its own (every rank together).
+    fn collect_clumps(&self, everywhere: bool) -> Result<Option<ClumpSet>> {
+        let Some(clumps) = &self.clumps else {
+            return Ok(None);
+        };
+        let own: &[u8] = bytemuck::cast_slice(&clumps.own);
+        let outgoing = (0..self.comm.size())
+            .map(|r| match everywhere || r == 0 {
+                true => own.to_vec(),
+                false => Vec::new(),
+            })
+            .collect();
+        let received = self.comm.exchange(outgoing)?;
+        if !everywhere && self.comm.rank() != 0 {
+            return Ok(None);
+        }
+        let all = read_clumps(&received)?;
+        let each_once = all.iter().enumerate().all(|(k, c)| c.index as usize == k);
+        if !each_once || all.len() != clumps.count() {
+            return Err(Error::Usage("the ranks' clumps are not the run's".into()));
+        }
+        Ok(Some(clumps.set_of(all.iter())))
     }
 }
 
@@ -869,6 +973,7 @@ impl<C: Comm + Send> RankStepper<C> {
             })
             .collect();
         let received = self.comm.exchange(outgoing)?;
+        let clumps = self.collect_clumps(everywhere)?;
         if !everywhere && self.comm.rank() != 0 {
             return Ok(None);
         }
@@ -892,8 +997,10 @@ impl<C: Comm + Send> RankStepper<C> {
         if seen.contains(&false) {
             return Err(Error::Usage("the ranks' spheres are not the run's".into()));
         }
+        let mut particles = spheres_of(&all, |s| s, self.step);
+        particles.clumps = clumps.unwrap_or_default();
         Ok(Some(Snapshot {
-            particles: spheres_of(&all, |s| s, self.step),
+            particles,
             contacts: all.iter().map(|s| s.contacts).collect(),
         }))
     }
@@ -986,13 +1093,21 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
         self.round
     }
 
+    /// A run of clumps writes whole frames (its clumps' frame beside its spheres').
     fn write_pieces(&mut self, dir: &Path) -> Result<Option<Vec<u64>>> {
+        if self.clumps.is_some() {
+            return Ok(None);
+        }
         let own = self.own_records()?;
         let at = (self.step, &self.params);
         super::pieces::write_pieces(&self.comm, own, at, dir).map(Some)
     }
 
+    /// A run of clumps writes whole checkpoints (a piece holds spheres alone).
     fn write_checkpoint_pieces(&mut self, folder: &Path) -> Result<Option<Vec<CheckpointPiece>>> {
+        if self.clumps.is_some() {
+            return Ok(None);
+        }
         let kept = self.resident_mut().map(|r| r.own_piece()).transpose()?;
         let own = match kept {
             Some(piece) => piece,
@@ -1022,6 +1137,17 @@ impl<C: Comm + Send> Stepper for RankStepper<C> {
     fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
         motion.check(self.total)?;
         self.settle()?;
+        // A clump's components keep the motion they have (as a run of one process checks).
+        let components = self.clumps.as_ref().map_or(0, RankClumps::components);
+        let changed = (self.own.iter().take_while(|h| h.sphere.id < components)).any(|h| {
+            let (i, s) = (h.sphere.id as usize, &h.sphere);
+            motion.positions.is_some_and(|x| x[i] != h.exact_position())
+                || motion.velocities.is_some_and(|v| v[i] != s.velocity)
+                || motion.angular_velocities.is_some_and(|w| w[i] != s.spin)
+        });
+        if self.sum_over_ranks(changed as u64)? > 0 {
+            return Err(crate::dem::stepper::clump_motion_refused());
+        }
         for held in &mut self.own {
             let (i, s) = (held.sphere.id as usize, &mut held.sphere);
             if let Some(x) = motion.positions {
@@ -1068,12 +1194,20 @@ fn reach_of(r_max: f32, params: &StepParams, mode: ProxyMode) -> f64 {
     cell as f64 * (1.0 + 1e-4) + 1e-6 * far as f64
 }
 
-/// The spheres of `whole` whose centres lie in box `rank` of `grid`, with their contacts, by
-/// ascending id (their places in `whole`).
+/// The spheres of `whole` whose centres lie in box `rank` of `grid` (a clump's component: whose
+/// clump's centre does), with their contacts, by ascending id (their places in `whole`).
 fn own_of(whole: &Particles, grid: &Grid, rank: usize) -> Vec<Held> {
+    let clump_of = whole.clumps.owners();
+    let clumps = &whole.clumps.clumps;
     (0..whole.len())
         .into_par_iter()
-        .filter(|&i| grid.owner(whole.exact_position(i)) == rank)
+        .filter(|&i| {
+            let x = match clump_of.get(i) {
+                Some(&k) => clumps[k as usize].body.position.to_array(),
+                None => whole.exact_position(i),
+            };
+            grid.owner(x) == rank
+        })
         .map(|i| Held::of(whole, i, i as u32, |e| *e))
         .collect()
 }

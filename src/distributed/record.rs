@@ -74,13 +74,22 @@ impl Held {
 
 /// The contacts of the own spheres of `p` (at the places `own_at`, ascending) with any sphere
 /// of it, as the cpu step's per-sphere counts sum them (a contact of two own spheres counted by
-/// both): its touching pairs, found on the host.
+/// both; two components of one clump are never a contact): its touching pairs, found on the
+/// host.
 pub(super) fn own_pair_ends(p: &Particles, own_at: &[usize], mode: ProxyMode) -> Result<u64> {
     let mut backend = CpuBackend::new();
     backend.build(Spheres::check(&p.positions, &p.radii)?, mode)?;
     let (pairs, _) = backend.find_pairs()?;
+    let clump_of = p.clumps.owners();
+    let one_clump = |i: u32, j: u32| match (clump_of.get(i as usize), clump_of.get(j as usize)) {
+        (Some(a), Some(b)) => a == b,
+        _ => false,
+    };
     let own = |at: u32| own_at.binary_search(&(at as usize)).is_ok() as u64;
-    Ok(pairs.iter().map(|pair| own(pair.i) + own(pair.j)).sum())
+    Ok((pairs.iter())
+        .filter(|pair| !one_clump(pair.i, pair.j))
+        .map(|pair| own(pair.i) + own(pair.j))
+        .sum())
 }
 
 /// A history entry of spheres whose whole-run ids are `ids` (by place) with its partner

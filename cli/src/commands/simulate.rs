@@ -386,8 +386,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     }
     let shares = stepper.rank_shares()?;
     rank_table(&shares);
+    // (A run of clumps gathers its frames and checkpoints whatever the keys say.)
     if let Some(frames) = &frames
         && !shares.is_empty()
+        && !config.run.frame_pieces
         && frames.gathered.as_secs_f64() > GATHER_NOTE_SHARE * wall
     {
         eprintln!(
@@ -398,7 +400,10 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     }
     // The run's end checkpoint is the run's too.
     let whole = started.elapsed().as_secs_f64();
-    if !shares.is_empty() && saved.gathered.as_secs_f64() > GATHER_NOTE_SHARE * whole {
+    if !shares.is_empty()
+        && !saved.in_pieces
+        && saved.gathered.as_secs_f64() > GATHER_NOTE_SHARE * whole
+    {
         eprintln!(
             "note: gathering the checkpoints on process 0 took {:.1} s of the run's {whole:.1} s; \
              --set checkpoint_pieces=true writes each checkpoint in pieces, one a process, none \
