@@ -255,30 +255,42 @@ impl RunStart {
         C: crate::distributed::Comm + Send + 'static,
     {
         let facts = StartFacts::of(&self.start)?;
-        let start = &self.start;
+        let RunStart {
+            config,
+            start,
+            state,
+        } = self;
+        let Start {
+            particles,
+            params,
+            mode,
+            walls,
+            flow,
+        } = start;
         let setup = DemSetup {
-            particles: start.particles.try_clone()?,
-            params: start.params.clone(),
-            mode: start.mode,
-            walls: start.walls.clone(),
+            particles,
+            params,
+            mode,
+            walls,
         };
+        let rank = crate::distributed::RankStepper::new(comm, &setup)?;
+        // The whole run's spheres are let go: a rank holds its own from now on.
+        drop(setup);
         let Opened {
             value: rank,
             kind,
             reason,
-        } = crate::distributed::RankStepper::new(comm, &setup)?
-            .rebalancing_every(crate::distributed::REBALANCE_STEPS)
+        } = (rank.rebalancing_every(crate::distributed::REBALANCE_STEPS))
             .on_backend(choice, options)?;
-        let flow = &self.start.flow;
         let every = flow.every(kind != BackendKind::Cpu);
         let flow_warning = flow.rate_warning(facts.params.dt as f64, every);
-        let rank = rank.with_flow(flow.clone())?;
+        let rank = rank.with_flow(flow)?;
         if rank.comm().rank() != 0 {
             crate::distributed::follow(rank)?;
             return Ok(None);
         }
         let stepper = Box::new(crate::distributed::Leader::new(rank)?);
-        let scene = (self.config, self.state);
+        let scene = (config, state);
         Ok(Some(into_run(
             scene,
             facts,
