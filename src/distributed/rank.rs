@@ -17,9 +17,13 @@
 //! 3. **migration**: a sphere whose centre left the box goes to the rank that owns it now,
 //!    with its contact history.
 //!
+//! A clump's spheres are the rank's whose box holds the clump's centre, wherever they lie;
+//! they go with their clump, which goes whole, as a ghost too (the `clumps` module), and the
+//! halo is deeper by the clumps' span.
+//!
 //! A GPU step that can stay on its device from round to round (`resident`) takes the three
-//! phases there instead, exchanging states alone; other GPU steps are opened again over each
-//! round's spheres.
+//! phases there instead, exchanging states alone (not in a run of clumps); other GPU steps are
+//! opened again over each round's spheres.
 //!
 //! Each pair is computed on both of its sides (every engine does so in any run), so no force
 //! crosses ranks: only states do.
