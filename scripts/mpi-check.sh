@@ -3,9 +3,9 @@
 # in one process, bit for bit: examples/mpi_pour on 2 and 4 ranks (--check compares with the
 # whole run), and `mochi simulate` on 3 ranks, new and resumed on 2, whose files must equal
 # those of one process byte for byte, whose frames in pieces draw as one process's and whose
-# checkpoints in pieces resume as one process's; a run of clumps on 3 processes; and a
-# run on wgpu-compute (lavapipe) over 2 processes. Needs
-# Open MPI (scripts/test.sh installs it).
+# checkpoints in pieces resume as one process's; a run of clumps on 3 processes, resumed on 2,
+# byte for byte too; and a run on wgpu-compute (lavapipe) over 2 processes. Needs Open MPI
+# (scripts/test.sh installs it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --locked --features optix,mpi --example mpi_pour
@@ -65,11 +65,14 @@ clumps=(simulate --scene gravel -n 120 --steps 600 --frame-every 300 --backend c
     --set frame_pieces=true --set checkpoint_pieces=true)
 target/debug/mochi "${clumps[@]}" -o "$work/clumps-one" > /dev/null
 mpirun --oversubscribe -np 3 target/debug/mochi "${clumps[@]}" -o "$work/clumps-ranks" > /dev/null
-test -e "$work/clumps-one/clumps_00000600.vtu"
+target/debug/mochi simulate --resume "$work/clumps-one/checkpoint.bin" --steps 900 -q > /dev/null
+mpirun --oversubscribe -np 2 target/debug/mochi simulate \
+    --resume "$work/clumps-ranks/checkpoint.bin" --steps 900 -q > /dev/null
+test -e "$work/clumps-one/clumps_00000900.vtu"
 for f in "$work/clumps-one"/*; do
     cmp "$f" "$work/clumps-ranks/$(basename "$f")"
 done
-echo "mochi simulate of clumps on 3 processes wrote one process's files byte for byte"
+echo "mochi simulate of clumps on 3 processes (resumed on 2) wrote one process's files byte for byte"
 # On a GPU backend (lavapipe here) each process steps its slab on its own device: the run must
 # finish and report each rank's share.
 shares=$(mpirun --oversubscribe -np 2 target/debug/mochi simulate --scene pour -n 400 \
