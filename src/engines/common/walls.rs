@@ -9,6 +9,7 @@ use crate::dem::walls::{TriangleMesh, WallLoad, WallSet};
 use crate::error::{Error, Result};
 use crate::gpu::shader::{SharedStruct, Vec3f, Vec3u, shared_struct};
 use glam::Vec3;
+use rayon::prelude::*;
 
 /// Candidates within a sphere's radius kept per wall (`MESH_NEAR` in the shader).
 const MESH_NEAR: u32 = 16;
@@ -119,33 +120,38 @@ fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
     let budget = CELLS_PER_TRIANGLE * triangles.len();
     let (cell, dims) = grid_cell(hi - lo, 2.0 * reach, budget);
     let lo = lo - Vec3::splat(0.5 * cell);
-    let mut cells = vec![Vec::new(); dims.iter().map(|&d| d as usize).product()];
     let grown = 0.5 * cell * 1.01 + reach;
     let index = |x: f32| x.floor().max(0.0) as u32;
-    for (k, t) in triangles.iter().enumerate() {
-        let (tlo, thi) = t
-            .corners
-            .iter()
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &c| {
-                (a.min(c), b.max(c))
+    // Each triangle's cells, found on every core, as (cell, triangle) pairs.
+    let mut hits: Vec<(usize, u32)> = (triangles.par_iter().enumerate())
+        .flat_map_iter(|(k, t)| {
+            let (tlo, thi) = t
+                .corners
+                .iter()
+                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &c| {
+                    (a.min(c), b.max(c))
+                });
+            let from = ((tlo - Vec3::splat(reach) - lo) / cell - 0.01)
+                .to_array()
+                .map(index);
+            let to = ((thi + Vec3::splat(reach) - lo) / cell + 0.01).to_array();
+            let to: [u32; 3] = std::array::from_fn(|a| index(to[a]).min(dims[a] - 1));
+            let boxes = (from[2]..=to[2]).flat_map(move |z| {
+                (from[1]..=to[1]).flat_map(move |y| (from[0]..=to[0]).map(move |x| [x, y, z]))
             });
-        let from = ((tlo - Vec3::splat(reach) - lo) / cell - 0.01)
-            .to_array()
-            .map(index);
-        let to = ((thi + Vec3::splat(reach) - lo) / cell + 0.01).to_array();
-        let to: [u32; 3] = std::array::from_fn(|a| index(to[a]).min(dims[a] - 1));
-        for z in from[2]..=to[2] {
-            for y in from[1]..=to[1] {
-                for x in from[0]..=to[0] {
-                    let centre = lo + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * cell;
-                    if meets_box(&t.corners, centre, grown) {
-                        let at = x as usize
-                            + dims[0] as usize * (y as usize + dims[1] as usize * z as usize);
-                        cells[at].push(first_triangle + k as u32);
-                    }
-                }
-            }
-        }
+            boxes.filter_map(move |[x, y, z]| {
+                let centre = lo + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * cell;
+                let at =
+                    x as usize + dims[0] as usize * (y as usize + dims[1] as usize * z as usize);
+                meets_box(&t.corners, centre, grown).then_some((at, first_triangle + k as u32))
+            })
+        })
+        .collect();
+    // Each cell lists its triangles in their order.
+    hits.par_sort_unstable();
+    let mut cells = vec![Vec::new(); dims.iter().map(|&d| d as usize).product()];
+    for (at, triangle) in hits {
+        cells[at].push(triangle);
     }
     WallGrid {
         lo,
@@ -381,6 +387,10 @@ mod tests {
                 );
             }
         }
+        // Each cell lists its triangles once, in the mesh's order (the order the steps sum
+        // them in).
+        assert!(g.cells.iter().all(|l| l.windows(2).all(|w| w[0] < w[1])));
+        assert!(g.cells.iter().filter(|l| l.len() == 2).count() > 10);
         // A triangle off to the side of a cell is not listed in it.
         let far = [
             Vec3::new(1.0, 1.0, 0.0),
