@@ -93,12 +93,22 @@ pub fn mesh_wall_row() -> SharedStruct {
     )
 }
 
-/// A wall's grid: its rest-geometry corner, cell side, cells per axis and each cell's triangles.
+/// A wall's grid: its rest-geometry corner, cell side, cells per axis and each cell's triangles
+/// (cell c's are `listed[starts[c]..starts[c + 1]]`).
 struct WallGrid {
     lo: Vec3,
     cell: f32,
     dims: [u32; 3],
-    cells: Vec<Vec<u32>>,
+    starts: Vec<u32>,
+    listed: Vec<u32>,
+}
+
+impl WallGrid {
+    /// The triangles cell `at` lists.
+    #[cfg(test)]
+    fn cell(&self, at: usize) -> &[u32] {
+        &self.listed[self.starts[at] as usize..self.starts[at + 1] as usize]
+    }
 }
 
 /// The grid over `mesh`'s rest geometry grown by `reach`, the farthest a sphere's centre acts
@@ -147,17 +157,23 @@ fn wall_grid(mesh: &TriangleMesh, reach: f32, first_triangle: u32) -> WallGrid {
             })
         })
         .collect();
-    // Each cell lists its triangles in their order.
+    // Each cell lists its triangles in their order, cell after cell.
     hits.par_sort_unstable();
-    let mut cells = vec![Vec::new(); dims.iter().map(|&d| d as usize).product()];
-    for (at, triangle) in hits {
-        cells[at].push(triangle);
+    let cells: usize = dims.iter().map(|&d| d as usize).product();
+    let mut starts = vec![0u32; cells + 1];
+    for &(at, _) in &hits {
+        starts[at + 1] += 1;
     }
+    for c in 0..cells {
+        starts[c + 1] += starts[c];
+    }
+    let listed = hits.into_iter().map(|(_, triangle)| triangle).collect();
     WallGrid {
         lo,
         cell,
         dims,
-        cells,
+        starts,
+        listed,
     }
 }
 
@@ -246,10 +262,9 @@ impl WallTables {
                 column,
                 own_friction: wall.friction.unwrap_or(NO_FRICTION),
             });
-            for cell in g.cells {
-                offsets.push(listed.len() as u32);
-                listed.extend(cell);
-            }
+            let first = listed.len() as u32;
+            offsets.extend(g.starts[..g.starts.len() - 1].iter().map(|&s| first + s));
+            listed.extend(g.listed);
         }
         // Offsets past the cells' own words (and the end of the last cell).
         let head = offsets.len() as u64 + 1;
@@ -361,7 +376,7 @@ mod tests {
             let p = on + off * r_max;
             for (k, t) in triangles.iter().enumerate() {
                 if t.closest_point(p).distance(p) < r_max {
-                    let listed = &g.cells[cell_of(p)];
+                    let listed = g.cell(cell_of(p));
                     assert!(listed.contains(&(7 + k as u32)), "{p} lacks {k}");
                     checked += 1;
                 }
@@ -371,7 +386,8 @@ mod tests {
         // A cell lists a triangle only where its box grown by r_max meets it (its centre then
         // within √3 times the grown half side).
         let reach = 3f32.sqrt() * (0.5 * g.cell * 1.01 + r_max);
-        for (at, listed) in g.cells.iter().enumerate() {
+        let cells = g.starts.len() - 1;
+        for (at, listed) in (0..cells).map(|at| (at, g.cell(at))) {
             let d = g.dims.map(|d| d as usize);
             let c = Vec3::new(
                 (at % d[0]) as f32,
@@ -389,8 +405,9 @@ mod tests {
         }
         // Each cell lists its triangles once, in the mesh's order (the order the steps sum
         // them in).
-        assert!(g.cells.iter().all(|l| l.windows(2).all(|w| w[0] < w[1])));
-        assert!(g.cells.iter().filter(|l| l.len() == 2).count() > 10);
+        let lists = || (0..cells).map(|at| g.cell(at));
+        assert!(lists().all(|l| l.windows(2).all(|w| w[0] < w[1])));
+        assert!(lists().filter(|l| l.len() == 2).count() > 10);
         // A triangle off to the side of a cell is not listed in it.
         let far = [
             Vec3::new(1.0, 1.0, 0.0),
