@@ -260,19 +260,7 @@ impl RunStart {
             start,
             state,
         } = self;
-        let Start {
-            particles,
-            params,
-            mode,
-            walls,
-            flow,
-        } = start;
-        let setup = DemSetup {
-            particles,
-            params,
-            mode,
-            walls,
-        };
+        let (setup, flow) = DemSetup::of_start(start);
         let rank = crate::distributed::RankStepper::new(comm, &setup)?;
         // The whole run's spheres are let go: a rank holds its own from now on.
         drop(setup);

@@ -158,11 +158,15 @@ fn decomposed(
     (gathered, contacts, owned)
 }
 
-/// Whether `got` is `expected` bit for bit: every centre, residual, velocity, spin and
-/// contact history entry.
+/// Whether `got` is `expected` bit for bit: every centre, residual, velocity, spin, contact
+/// history entry and clump.
 fn assert_same(got: &Particles, expected: &Particles, ranks: usize) {
     assert_eq!(got.len(), expected.len());
     assert_eq!(got.step, expected.step);
+    assert!(
+        got.clumps == expected.clumps,
+        "{ranks} ranks: the clumps differ"
+    );
     for i in 0..expected.len() {
         let bits = |p: &Particles| {
             let x = p.exact_position(i).map(f64::to_bits);
@@ -177,6 +181,26 @@ fn assert_same(got: &Particles, expected: &Particles, ranks: usize) {
             "{ranks} ranks, the contacts of sphere {i}"
         );
     }
+}
+
+/// `script` on `setup` with `flow` decomposed each way of `runs` (ranks, steps between
+/// exchanges, steps between rebalancings): each the whole run's `expected` particles and its
+/// `reported` numbers bit for bit. Returns the spheres each rank owned at the start and at the
+/// end, by run.
+fn each_is_the_whole_run(
+    (setup, flow, script): (&DemSetup, &FlowSet, Script),
+    runs: &[(usize, u32, u64)],
+    (expected, reported): (&Particles, &[u64]),
+) -> Vec<Vec<[usize; 2]>> {
+    let mut owned = Vec::new();
+    for &(ranks, every, rebalance) in runs {
+        let (got, got_reported, each) = decomposed(setup, (ranks, every, rebalance), flow, script);
+        let how = format!("{ranks} ranks, every {every} steps, rebalanced every {rebalance}");
+        assert_eq!(got_reported, reported, "{how}");
+        assert_same(&got, expected, ranks);
+        owned.push(each);
+    }
+    owned
 }
 
 #[test]
@@ -196,13 +220,8 @@ fn a_run_on_several_ranks_is_the_whole_run_bit_for_bit() {
         (3, 1, 50),
         (4, 5, 40),
     ];
-    for (ranks, every, rebalance) in runs {
-        let (got, got_contacts, owned) = decomposed(
-            &setup,
-            (ranks, every, rebalance),
-            &FlowSet::default(),
-            script,
-        );
+    let how = (&setup, &FlowSet::default(), script);
+    for owned in each_is_the_whole_run(how, &runs, (&expected, &contacts)) {
         // Each sphere held once, and some crossed a face.
         let held = |k: usize| owned.iter().map(|o| o[k]).sum::<usize>();
         assert_eq!(
@@ -214,9 +233,6 @@ fn a_run_on_several_ranks_is_the_whole_run_bit_for_bit() {
             owned.iter().any(|o| o[0] != o[1]),
             "none moved across: {owned:?}"
         );
-        let how = format!("{ranks} ranks, every {every} steps, rebalanced every {rebalance}");
-        assert_eq!(got_contacts, contacts, "{how}");
-        assert_same(&got, &expected, ranks);
     }
 }
 
@@ -333,12 +349,8 @@ fn a_decomposed_run_with_an_inflow_and_an_outflow_is_the_whole_run_bit_for_bit()
         "inserted, removed: {counts:?}"
     );
     assert_ne!(expected.len(), setup.particles.len());
-    for (ranks, every, rebalance) in [(2, 1, 0), (3, 4, 0), (3, 1, 50)] {
-        let (got, got_counts, _) = decomposed(&setup, (ranks, every, rebalance), &flow, script);
-        let how = format!("{ranks} ranks, every {every} steps, rebalanced every {rebalance}");
-        assert_eq!(got_counts, counts, "{how}");
-        assert_same(&got, &expected, ranks);
-    }
+    let runs = [(2, 1, 0), (3, 4, 0), (3, 1, 50)];
+    each_is_the_whole_run((&setup, &flow, script), &runs, (&expected, &counts));
 }
 
 /// The `drum` scene of 200 spheres run till they lie in the drum and it lifts them.
@@ -469,73 +481,63 @@ fn a_run_of_clumps_among_spheres_on_several_ranks_is_the_whole_run_bit_for_bit()
         (3, 1, 50),
         (4, 5, 40),
     ];
-    for (ranks, every, rebalance) in runs {
-        let (got, got_contacts, owned) = decomposed(
-            &setup,
-            (ranks, every, rebalance),
-            &FlowSet::default(),
-            script,
-        );
-        let how = format!("{ranks} ranks, every {every} steps, rebalanced every {rebalance}");
+    let how = (&setup, &FlowSet::default(), script);
+    for owned in each_is_the_whole_run(how, &runs, (&expected, &contacts)) {
         assert!(
             owned.iter().any(|o| o[0] != o[1]),
             "none moved across: {owned:?}"
         );
-        assert_eq!(got_contacts, contacts, "{how}");
-        assert_same(&got, &expected, ranks);
-        assert!(got.clumps == expected.clumps, "{how}: the clumps differ");
     }
 }
 
 #[test]
 fn a_run_of_clumps_pouring_in_on_several_ranks_is_the_whole_run_bit_for_bit() {
     // The inflow inserts clumps across the slabs over the clumps and spheres there; an outflow
-    // in a corner of the floor takes what lands there.
+    // in a corner of the floor takes what lands there, or one over the lower three quarters of
+    // the box takes every clump there is at once (the clumps poured in after take kinds after
+    // the kinds of those that left).
     let setup = clumps_among_spheres();
     let p = &setup.params;
     let at = |a: usize, f: f64| p.box_lo[a] as f64 + f * (p.box_hi[a] - p.box_lo[a]) as f64;
     let (r_min, r_max) = setup.particles.radius_range();
-    let scene = format!(
-        "{GRAINS}{SHAPES}[[inflow]]\nlo = [{}, {}, {}]\nhi = [{}, {}, {}]\nrate = 1e4\n\
-         sphere_radii = [{r_min}, {r_max}]\nvelocity = [0, 0, -0.5]\nseed = 3\n\
-         [[outflow]]\nlo = [{}, {}, {}]\nhi = [{}, {}, {}]\n",
-        at(0, 0.05),
-        at(1, 0.05),
-        at(2, 0.8),
-        at(0, 0.95),
-        at(1, 0.95),
-        at(2, 0.95),
-        at(0, 0.0),
-        at(1, 0.0),
-        at(2, 0.0),
-        at(0, 0.3),
-        at(1, 0.5),
-        at(2, 0.15),
-    );
-    let flow = SceneConfig::parse(Some(&scene), None, &Overrides::default())
-        .and_then(|c| c.build())
-        .unwrap()
-        .flow;
-    assert!(flow.clumps.is_some());
-    let script: Script = |s, _| {
-        let contacts = s.advance(STEPS).unwrap().contacts;
-        let c = s.flow_counts().unwrap();
-        vec![contacts, c.inserted, c.removed, c.events]
-    };
-    let (expected, counts) = alone(&setup, &flow, script);
-    assert!(
-        counts[1] > 20 && counts[2] > 0,
-        "inserted, removed: {counts:?}"
-    );
-    // What comes in are clumps: the free spheres do not grow in number.
-    let free = |p: &Particles| p.len() - p.clumps.component_count();
-    assert!(free(&expected) <= free(&setup.particles));
-    for (ranks, every, rebalance) in [(2, 1, 0), (3, 4, 50)] {
-        let (got, got_counts, _) = decomposed(&setup, (ranks, every, rebalance), &flow, script);
-        let how = format!("{ranks} ranks, every {every} steps, rebalanced every {rebalance}");
-        assert_eq!(got_counts, counts, "{how}");
-        assert_same(&got, &expected, ranks);
-        assert!(got.clumps == expected.clumps, "{how}: the clumps differ");
+    for outflow_hi in [[0.3, 0.5, 0.15], [1.0, 1.0, 0.75]] {
+        let scene = format!(
+            "{GRAINS}{SHAPES}[[inflow]]\nlo = [{}, {}, {}]\nhi = [{}, {}, {}]\nrate = 1e4\n\
+             sphere_radii = [{r_min}, {r_max}]\nvelocity = [0, 0, -0.5]\nseed = 3\n\
+             [[outflow]]\nlo = [{}, {}, {}]\nhi = [{}, {}, {}]\n",
+            at(0, 0.05),
+            at(1, 0.05),
+            at(2, 0.8),
+            at(0, 0.95),
+            at(1, 0.95),
+            at(2, 0.95),
+            at(0, 0.0),
+            at(1, 0.0),
+            at(2, 0.0),
+            at(0, outflow_hi[0]),
+            at(1, outflow_hi[1]),
+            at(2, outflow_hi[2]),
+        );
+        let flow = SceneConfig::parse(Some(&scene), None, &Overrides::default())
+            .and_then(|c| c.build())
+            .unwrap()
+            .flow;
+        assert!(flow.clumps.is_some());
+        let script: Script = |s, _| {
+            let contacts = s.advance(STEPS).unwrap().contacts;
+            let c = s.flow_counts().unwrap();
+            vec![contacts, c.inserted, c.removed, c.events]
+        };
+        let (expected, counts) = alone(&setup, &flow, script);
+        assert!(
+            counts[1] > 20 && counts[2] > 0,
+            "inserted, removed: {counts:?}"
+        );
+        // What comes in are clumps: the free spheres do not grow in number.
+        let free = |p: &Particles| p.len() - p.clumps.component_count();
+        assert!(free(&expected) <= free(&setup.particles));
+        let runs = [(2, 1, 0), (3, 4, 50)];
+        each_is_the_whole_run((&setup, &flow, script), &runs, (&expected, &counts));
     }
 }
 
@@ -605,10 +607,6 @@ fn a_clump_across_a_face_feels_the_spheres_its_far_end_touches() {
         assert!(owned.iter().all(|o| o[0] == 3 * 8 + 3), "{owned:?}");
         assert_eq!(got_contacts, contacts);
         assert_same(&got, &expected, ranks);
-        assert!(
-            got.clumps == expected.clumps,
-            "every {every} steps: the rods differ"
-        );
     }
 }
 

@@ -296,14 +296,7 @@ pub fn open_scene(
     start: Start,
     options: &Options,
 ) -> Result<Opened<Box<dyn Stepper>>> {
-    let Start {
-        particles,
-        params,
-        mode,
-        walls,
-        flow,
-    } = start;
-    let setup = DemSetup::new(particles, params, mode).with_walls(walls);
+    let (setup, flow) = DemSetup::of_start(start);
     if flow.is_empty() {
         return choose(choice, setup, options);
     }

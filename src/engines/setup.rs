@@ -37,6 +37,23 @@ impl DemSetup {
         DemSetup { walls, ..self }
     }
 
+    /// The setup of a scene's start, and the start's flows.
+    pub(crate) fn of_start(
+        start: crate::dem::scene::Start,
+    ) -> (DemSetup, crate::dem::flow::FlowSet) {
+        let crate::dem::scene::Start {
+            particles,
+            params,
+            mode,
+            walls,
+            flow,
+        } = start;
+        (
+            DemSetup::new(particles, params, mode).with_walls(walls),
+            flow,
+        )
+    }
+
     /// The spheres, and the rest of the setup (its spheres none).
     pub(crate) fn split(self) -> (Particles, DemSetup) {
         let particles = self.particles;
