@@ -287,7 +287,8 @@ pub struct SimulateArgs {
     /// [run]: steps, dt [s] (hertz-mindlin: 0.2 × the Rayleigh time of the smallest sphere),
     /// mode, frame_every, csv, frame_pieces (under mpirun: each frame one .vtu piece a process
     /// and a .pvtu naming them, none gathered), checkpoint_pieces (under mpirun: each
-    /// checkpoint one piece a process and checkpoint.bin naming them, none gathered),
+    /// checkpoint one piece a process and checkpoint.bin naming them, none gathered; a run of
+    /// clumps gathers both),
     /// flow_every. [domain]: box_lo, box_hi [m], gravity [m/s²],
     /// gravity_spin [rad/s], box_walls, box_material. [source]: scene, then that scene's keys
     /// (spheres, seed; a mesh's mesh, radius, mixed, size, copies; input; a hopper's or a
