@@ -25,7 +25,7 @@ use crate::engines::DemSetup;
 use crate::engines::cpu::CpuStepper;
 use crate::engines::{BackendChoice, BackendKind, Opened, Options, open_scene};
 use crate::error::{Error, Result};
-use crate::io::{self, Frame};
+use crate::io::{self, Frame, KeptHistory};
 use crate::particles::Particles;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -139,6 +139,10 @@ pub struct RunStart {
     /// The run's state besides the particles: at its start, or as its checkpoint saved it
     /// (its files checked against it).
     pub state: RunState,
+    /// Where the run was resumed for one rank of several ([`Self::resume_on_rank`]): the rank,
+    /// the ranks, and the contact history of the spheres it owns as it opens (`start`'s
+    /// particles then come without theirs).
+    own_history: Option<(usize, usize, KeptHistory)>,
 }
 
 impl RunStart {
@@ -169,6 +173,7 @@ impl RunStart {
                 meshes,
                 ..RunState::default()
             },
+            own_history: None,
         })
     }
 
@@ -192,6 +197,37 @@ impl RunStart {
     /// naming the checkpoint. The flows go on from the checkpoint's counts.
     pub fn resume(checkpoint: &Path, flags: &SceneFlags, overrides: &Overrides) -> Result<Self> {
         let saved = io::read_checkpoint(checkpoint)?;
+        Self::resumed(checkpoint, saved, (flags, overrides))
+    }
+
+    /// [`Self::resume`] for rank `rank` of `ranks` of a run opened over them
+    /// ([`Self::open_on_ranks`]), reading the contact history only of the spheres the rank owns
+    /// as it opens: each rank then holds the whole run's spheres until it has its own, but
+    /// never the whole run's history (at hundreds of millions of frictional spheres, the
+    /// larger part). Such a start opens only on that rank of that many.
+    pub fn resume_on_rank(
+        checkpoint: &Path,
+        flags: &SceneFlags,
+        overrides: &Overrides,
+        (rank, ranks): (usize, usize),
+    ) -> Result<Self> {
+        let owned = |scene: &str, p: &Particles| {
+            let config = SceneConfig::resume(scene, checkpoint, flags, overrides)?;
+            let (lo, hi) = config.resumed_box()?;
+            crate::distributed::owned_at_opening(p, (lo, hi), (rank, ranks))
+        };
+        let (saved, kept) = io::read_checkpoint_keeping_history(checkpoint, &owned)?;
+        let mut run = Self::resumed(checkpoint, saved, (flags, overrides))?;
+        run.own_history = Some((rank, ranks, kept));
+        Ok(run)
+    }
+
+    /// The run resumed from `saved`, read from `checkpoint`, with `flags` and `overrides`.
+    fn resumed(
+        checkpoint: &Path,
+        saved: io::Checkpoint,
+        (flags, overrides): (&SceneFlags, &Overrides),
+    ) -> Result<Self> {
         let state = RunState::parse(&saved.state, checkpoint)?;
         let resuming = |error| Error::Resuming {
             checkpoint: checkpoint.to_owned(),
@@ -208,6 +244,7 @@ impl RunStart {
             config,
             start,
             state,
+            own_history: None,
         })
     }
 
@@ -215,12 +252,19 @@ impl RunStart {
     /// the reason it passed over faster backends in [`Run::auto_reason`]). Spheres that share a
     /// centre are counted here; the backend moves them apart as it opens.
     pub fn open(self, choice: BackendChoice, options: &Options) -> Result<Run> {
+        if let Some((rank, ranks, _)) = &self.own_history {
+            return Err(Error::Usage(format!(
+                "this run was resumed for rank {rank} of {ranks}, with that rank's contact \
+                 history alone: it opens only there (RunStart::open_on_ranks)"
+            )));
+        }
         let facts = StartFacts::of(&self.start)?;
         let flow = self.start.flow.clone();
         let RunStart {
             config,
             start,
             state,
+            own_history: _,
         } = self;
         let Opened {
             value: stepper,
@@ -254,14 +298,33 @@ impl RunStart {
     where
         C: crate::distributed::Comm + Send + 'static,
     {
-        let facts = StartFacts::of(&self.start)?;
+        // Only rank 0 reports the start (the others follow its run).
+        let facts = match comm.rank() {
+            0 => Some(StartFacts::of(&self.start)?),
+            _ => None,
+        };
         let RunStart {
             config,
             start,
             state,
+            own_history,
         } = self;
         let (setup, flow) = DemSetup::of_start(start);
-        let rank = crate::distributed::RankStepper::new(comm, &setup)?;
+        let dt = setup.params.dt as f64;
+        let rank = match own_history {
+            None => crate::distributed::RankStepper::new(comm, &setup)?,
+            Some((rank, ranks, kept)) => {
+                if (rank, ranks) != (comm.rank(), comm.size()) {
+                    return Err(Error::Usage(format!(
+                        "this run was resumed for rank {rank} of {ranks}, and opened on rank {} \
+                         of {}",
+                        comm.rank(),
+                        comm.size()
+                    )));
+                }
+                crate::distributed::RankStepper::with_own_history(comm, &setup, &kept)?
+            }
+        };
         // The whole run's spheres are let go: a rank holds its own from now on.
         drop(setup);
         let Opened {
@@ -271,12 +334,12 @@ impl RunStart {
         } = (rank.rebalancing_every(crate::distributed::REBALANCE_STEPS))
             .on_backend(choice, options)?;
         let every = flow.every(kind != BackendKind::Cpu);
-        let flow_warning = flow.rate_warning(facts.params.dt as f64, every);
+        let flow_warning = flow.rate_warning(dt, every);
         let rank = rank.with_flow(flow)?;
-        if rank.comm().rank() != 0 {
+        let Some(facts) = facts else {
             crate::distributed::follow(rank)?;
             return Ok(None);
-        }
+        };
         let stepper = Box::new(crate::distributed::Leader::new(rank)?);
         let scene = (config, state);
         Ok(Some(into_run(

@@ -4,7 +4,8 @@
 //! few steps; the contacts each counts; new motion (a sphere put in another rank's slab),
 //! external loads and gravity between steps; spheres pouring in and leaving; the faces moved to
 //! balance the work; frames and checkpoints written in pieces, one a rank, read back as the
-//! gathered ones, and a checkpoint in pieces resumed on another number of ranks; clumps among
+//! gathered ones, and a checkpoint in pieces resumed on another number of ranks (each rank
+//! reading the whole history, or its own spheres' alone); clumps among
 //! spheres, and clumps pouring in. On a GPU backend it matches the whole run on it.
 
 mod common;
@@ -13,13 +14,13 @@ use mochi::clump::{Clump, ClumpKind, ClumpSet, ClumpTemplate, RigidBody};
 use mochi::dem::flow::{FlowSet, InflowConfig, OutflowConfig};
 use mochi::dem::scene::{Overrides, SceneConfig};
 use mochi::dem::{Particles, Snapshot, Stepper};
-use mochi::distributed::{Comm, Leader, LocalComm, RankStepper, Slabs, follow};
+use mochi::distributed::{Comm, Leader, LocalComm, RankStepper, Slabs, follow, owned_at_opening};
 use mochi::engines::BackendChoice::Named;
 use mochi::engines::cpu::CpuStepper;
 use mochi::engines::{BackendKind, DemSetup, Options, open_setup};
 use mochi::io::{
-    Frame, FrameSeries, OwnedFrame, piece_folder_for, read_checkpoint, read_frame,
-    write_checkpoint_index, write_vtu,
+    Frame, FrameSeries, OwnedFrame, piece_folder_for, read_checkpoint,
+    read_checkpoint_keeping_history, read_frame, write_checkpoint_index, write_vtu,
 };
 use std::path::Path;
 
@@ -913,6 +914,52 @@ fn a_checkpoint_in_pieces_over_ranks_is_the_gathered_one_and_resumes_on_other_ra
     let (got, got_contacts, _) = decomposed(&resumed, (2, 1, 0), &FlowSet::default(), script);
     assert_eq!(got_contacts, contacts);
     assert_same(&got, &expected, 2);
+    // Each of three ranks reading the contact history of its own spheres alone (two of them
+    // some) goes on alike.
+    let (lo, hi) = (setup.params.box_lo, setup.params.box_hi);
+    let own_history = |at: (usize, usize)| {
+        let owned = |_: &str, p: &Particles| owned_at_opening(p, (lo, hi), at);
+        read_checkpoint_keeping_history(&checkpoint, &owned).unwrap()
+    };
+    let total = resumed.particles.history.len();
+    let mut read_by_ranks = Vec::new();
+    let group = LocalComm::group(3).unwrap();
+    let results: Vec<_> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (group.into_iter())
+            .map(|comm| {
+                let (read, kept) = own_history((comm.rank(), comm.size()));
+                read_by_ranks.push(kept.contacts.len());
+                let setup = DemSetup {
+                    particles: read.particles,
+                    ..resumed.clone()
+                };
+                scope.spawn(move || {
+                    let mut rank = RankStepper::with_own_history(comm, &setup, &kept).unwrap();
+                    let contacts = script(&mut rank, &setup);
+                    (rank.gather().unwrap(), contacts)
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert_eq!(read_by_ranks.iter().sum::<usize>(), total);
+    assert!(
+        read_by_ranks.iter().all(|&n| n < total),
+        "{read_by_ranks:?}"
+    );
+    assert_eq!(results[0].1, contacts);
+    assert_same(results[0].0.as_ref().expect("gathered"), &expected, 3);
+    // A rank given another's history is refused before it opens.
+    let (read, kept) = own_history((0, 3));
+    let setup = DemSetup {
+        particles: read.particles,
+        ..resumed.clone()
+    };
+    let other = LocalComm::group(3).unwrap().remove(1);
+    let e = RankStepper::with_own_history(other, &setup, &kept)
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("is rank 1's"), "{e}");
 }
 
 #[test]

@@ -26,6 +26,7 @@ pub use lead::{Leader, follow};
 #[cfg(feature = "mpi")]
 pub use mpi_comm::MpiComm;
 pub use rank::RankStepper;
+pub use rank::owned_at_opening;
 pub use slabs::Slabs;
 
 pub use crate::launcher::launched_processes;

@@ -46,7 +46,7 @@ use crate::engines::common::flow::{Reopen, Room};
 use crate::engines::cpu::CpuStepper;
 use crate::engines::{BackendChoice, DemSetup, Opened, Options, open_rank_step};
 use crate::error::{Error, Result};
-use crate::io::CheckpointPiece;
+use crate::io::{CheckpointPiece, KeptHistory};
 use crate::particles::{ContactHistory, FIRST_MESH_WALL, HistoryEntry, LoadEntry, Particles};
 use crate::proxy::ProxyMode;
 use rayon::prelude::*;
@@ -108,8 +108,8 @@ pub struct RankStepper<C: Comm> {
     flow: Option<(FlowSet, FlowCounts)>,
     /// Steps between two moves of the grid's faces (0: never).
     rebalance_every: u64,
-    /// Rows a GPU step kept from round to round keeps for spheres to come (`None`: half as many
-    /// as it opened over, and 1024 more).
+    /// Rows a GPU step kept from round to round keeps for spheres to come (`None`: as many as
+    /// its ghosts, at least a sixteenth of its own spheres, and 1024 more).
     spare_rows: Option<usize>,
     /// Steps since the faces last moved, and this rank's time stepping its spheres since
     /// \[ms\] (laying out, stepping, reading back: not waiting for the others).
@@ -123,6 +123,17 @@ impl<C: Comm> RankStepper<C> {
     /// spheres in its box of the run's box cut into a grid of `comm.size()` boxes ([`Grid`]),
     /// stepped on the cpu, ghosts exchanged every step.
     pub fn new(comm: C, setup: &DemSetup) -> Result<Self> {
+        Self::opened(comm, setup, None)
+    }
+
+    /// [`Self::new`] where `setup`'s spheres come without their contact history, and `kept`
+    /// holds the history of those this rank owns as it opens ([`owned_at_opening`]; a sphere
+    /// of its own without is an error): a resumed run's rank reads no other history.
+    pub fn with_own_history(comm: C, setup: &DemSetup, kept: &KeptHistory) -> Result<Self> {
+        Self::opened(comm, setup, Some(kept))
+    }
+
+    fn opened(comm: C, setup: &DemSetup, kept: Option<&KeptHistory>) -> Result<Self> {
         let DemSetup {
             particles: whole,
             params,
@@ -136,7 +147,7 @@ impl<C: Comm> RankStepper<C> {
         let radii = whole.radius_range();
         let r_max = radii.1;
         let reach = reach_of(r_max, params, *mode);
-        let own = own_of(whole, &grid, comm.rank());
+        let own = own_of(whole, &grid, comm.rank(), kept)?;
         let clumps = RankClumps::of(whole, &grid, comm.rank());
         // Every rank opens the same run (and none goes on before all have opened it).
         let mut outgoing = vec![(whole.len() as u64).to_le_bytes().to_vec(); comm.size()];
@@ -240,9 +251,11 @@ impl<C: Comm> RankStepper<C> {
     }
 
     /// The same rank keeping, on a GPU step it keeps from round to round, rows for `spheres`
-    /// more spheres than it opened it over (default: half as many and 1024 more): spheres
-    /// that enter its box or its halo take them; where they run out, the rank opens its step
-    /// again.
+    /// more spheres than it opened it over (default: as many as its ghosts, at least a
+    /// sixteenth of its own spheres, and 1024 more: the spheres a round brings come in through
+    /// the halo, and every row holds a sphere's whole state and contact history on the
+    /// device): spheres that enter its box or its halo take them; where they run out, the rank
+    /// opens its step again.
     pub fn keeping_rows_for(mut self, spheres: usize) -> Self {
         self.spare_rows = Some(spheres);
         self
@@ -347,7 +360,7 @@ impl<C: Comm> RankStepper<C> {
         counts.events += 1;
         counts.event_ms += started.elapsed().as_secs_f64() * 1e3;
         self.total = whole.len();
-        self.own = own_of(&whole, &self.grid, self.comm.rank());
+        self.own = own_of(&whole, &self.grid, self.comm.rank(), None)?;
         self.clumps = RankClumps::of(&whole, &self.grid, self.comm.rank());
         self.share.spheres = self.own.len() as u64;
         Ok(())
@@ -586,8 +599,13 @@ impl<C: Comm> RankStepper<C> {
                 (stepper.particles()?, times, own_touching, wall_loads)
             }
             LocalStep::Device { reopen, .. } => {
-                // Kept on the device from now on, room made for the spheres to come.
-                let spare = self.spare_rows.unwrap_or(local.len() / 2 + 1024);
+                // Kept on the device from now on, room made for the spheres to come (a step
+                // of clumps is opened again each round: no room to spare).
+                let ghosts = local.len() - own_at.len();
+                let spare = match local_clumps {
+                    Some(_) => 0,
+                    None => (self.spare_rows).unwrap_or(ghosts.max(own_at.len() / 16) + 1024),
+                };
                 let room = Room {
                     spheres: local.len() + spare,
                     radii: self.radii,
@@ -1198,20 +1216,71 @@ fn reach_of(r_max: f32, params: &StepParams, mode: ProxyMode) -> f64 {
     cell as f64 * (1.0 + 1e-4) + 1e-6 * far as f64
 }
 
-/// The spheres of `whole` whose centres lie in box `rank` of `grid` (a clump's component: whose
-/// clump's centre does), with their contacts, by ascending id (their places in `whole`).
-fn own_of(whole: &Particles, grid: &Grid, rank: usize) -> Vec<Held> {
+/// Whether each sphere of `whole` lies in box `rank` of `grid` (a clump's component: whether
+/// its clump's centre does), by place.
+fn owned_by(whole: &Particles, grid: &Grid, rank: usize) -> Vec<bool> {
     let clump_of = whole.clumps.owners();
     let clumps = &whole.clumps.clumps;
     (0..whole.len())
         .into_par_iter()
-        .filter(|&i| {
+        .map(|i| {
             let x = match clump_of.get(i) {
                 Some(&k) => clumps[k as usize].body.position.to_array(),
                 None => whole.exact_position(i),
             };
             grid.owner(x) == rank
         })
-        .map(|i| Held::of(whole, i, i as u32, |e| *e))
         .collect()
+}
+
+/// Which spheres of `whole`, stepped in the box `box_lo`..`box_hi`, rank `rank` of `ranks` owns
+/// as it opens the run ([`RankStepper::new`]), by place: the spheres whose contact history it
+/// needs (those of the others come with them as ghosts).
+pub fn owned_at_opening(
+    whole: &Particles,
+    (box_lo, box_hi): ([f32; 3], [f32; 3]),
+    (rank, ranks): (usize, usize),
+) -> Result<Vec<bool>> {
+    let grid = Grid::cut(box_lo.map(f64::from), box_hi.map(f64::from), ranks)?;
+    Ok(owned_by(whole, &grid, rank))
+}
+
+/// The spheres of `whole` whose centres lie in box `rank` of `grid` (a clump's component: whose
+/// clump's centre does), with their contacts (`whole`'s, or those of `kept`, read for the
+/// spheres this rank owns), by ascending id (their places in `whole`).
+fn own_of(
+    whole: &Particles,
+    grid: &Grid,
+    rank: usize,
+    kept: Option<&KeptHistory>,
+) -> Result<Vec<Held>> {
+    let owned = owned_by(whole, grid, rank);
+    let places = (0..whole.len()).into_par_iter().filter(|&i| owned[i]);
+    let Some(kept) = kept else {
+        return Ok(places
+            .map(|i| Held::of(whole, i, i as u32, |e| *e))
+            .collect());
+    };
+    if let Some(i) =
+        (0..whole.len()).position(|i| owned[i] && !kept.kept.get(i).copied().unwrap_or(false))
+    {
+        return Err(Error::Usage(format!(
+            "sphere {i} is rank {rank}'s, but the contact history read for it was not its own"
+        )));
+    }
+    // Each owner's contacts, in their order, at the places `order` lists from `first[owner]`.
+    let mut order: Vec<u32> = (0..kept.contacts.len() as u32).collect();
+    order.par_sort_by_key(|&k| kept.contacts[k as usize].0);
+    let first = |i: usize| order.partition_point(|&k| (kept.contacts[k as usize].0 as usize) < i);
+    Ok(places
+        .map(|i| {
+            let ks = &order[first(i)..first(i + 1)];
+            let contacts = ks.iter().map(|&k| kept.contacts[k as usize].1).collect();
+            let loads = match kept.loads.is_empty() {
+                true => Vec::new(),
+                false => ks.iter().map(|&k| kept.loads[k as usize]).collect(),
+            };
+            Held::with_history(whole, i, contacts, loads)
+        })
+        .collect())
 }

@@ -66,6 +66,21 @@ impl Held {
         }
     }
 
+    /// Sphere `at` of `p` as the sphere of that id in the whole run, with `contacts` and their
+    /// `loads` (none, or one a contact) for its history.
+    pub fn with_history(
+        p: &Particles,
+        at: usize,
+        contacts: Vec<HistoryEntry>,
+        loads: Vec<LoadEntry>,
+    ) -> Self {
+        Held {
+            sphere: record_of(p, at, at as u32),
+            contacts,
+            loads,
+        }
+    }
+
     /// Where its centre is, in `f64`.
     pub fn exact_position(&self) -> [f64; 3] {
         self.sphere.exact_position()

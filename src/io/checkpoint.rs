@@ -24,7 +24,8 @@
 //! velocities, no history) as spheres at rest in rotation without history.
 
 use super::checkpoint_bytes::{
-    Fields, SphereBytes, check_read, entry_of, from_le_words, load_of, write_with_checksum,
+    Decoded, Fields, SphereBytes, check_read, decode_history, from_le_words, le_word_array,
+    write_with_checksum,
 };
 use super::io_error;
 use crate::clump::{
@@ -54,6 +55,48 @@ pub struct Checkpoint {
     /// The run's state besides the particles, as TOML (empty in checkpoints of version 3 and
     /// older).
     pub state: String,
+}
+
+/// Which spheres' contact history a read keeps ([`read_checkpoint_keeping_history`]): from the
+/// checkpoint's scene (TOML) and its spheres read without their history, a flag a sphere (by
+/// place).
+pub type HistoryFilter<'a> = &'a (dyn Fn(&str, &Particles) -> Result<Vec<bool>> + Sync);
+
+/// The contact history of the spheres a read kept ([`read_checkpoint_keeping_history`]), as
+/// [`ContactHistory::from_contacts_with_loads`] takes it, checked as it checks it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct KeptHistory {
+    /// Which spheres' history was kept, by place.
+    pub kept: Vec<bool>,
+    /// Their contacts, each with its owner's place, in the checkpoint's order.
+    pub contacts: Vec<(u32, HistoryEntry)>,
+    /// The load history of each contact (none: the run keeps none).
+    pub loads: Vec<LoadEntry>,
+}
+
+impl KeptHistory {
+    /// The history `keep` asks of the contacts and load histories of `n` spheres read (owners
+    /// `keep` does not name are kept, so that the check refuses them).
+    pub(super) fn checked(n: usize, kept: Vec<bool>, (contacts, loads): Decoded) -> Result<Self> {
+        if kept.len() != n {
+            return Err(Error::Usage(format!(
+                "a history filter named {} spheres of {n}",
+                kept.len()
+            )));
+        }
+        ContactHistory::check_contacts(n, &contacts, &loads)?;
+        Ok(Self {
+            kept,
+            contacts,
+            loads,
+        })
+    }
+}
+
+/// Whether the history of the sphere at `at` is read where `kept` flags the spheres whose is
+/// (`None`: every sphere's; a place beyond the flags is read, for the checks to refuse).
+pub(super) fn is_kept(kept: Option<&[bool]>, at: u32) -> bool {
+    kept.is_none_or(|k| k.get(at as usize).copied().unwrap_or(true))
 }
 
 /// Writes `particles`, `scene` (TOML) and the run's `state` (TOML) to `path`, atomically.
@@ -177,9 +220,30 @@ fn f64s_from(bytes: &[u8]) -> Vec<f64> {
 /// Reads a checkpoint: a whole one, or the index of one in pieces (read with its pieces as
 /// the whole, see [`super::write_checkpoint_index`]).
 pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
+    read_checkpoint_with(path, None).map(|(checkpoint, _)| checkpoint)
+}
+
+/// Reads a checkpoint as [`read_checkpoint`] does, but the contact history only of the spheres
+/// `keep` flags, beside the particles (whose own history is left empty): a process that steps
+/// some of a large run's spheres never holds the whole run's history. The same checks, the
+/// same errors.
+pub fn read_checkpoint_keeping_history(
+    path: &Path,
+    keep: HistoryFilter,
+) -> Result<(Checkpoint, KeptHistory)> {
+    let (checkpoint, kept) = read_checkpoint_with(path, Some(keep))?;
+    Ok((checkpoint, kept.unwrap_or_default()))
+}
+
+/// Reads a checkpoint, every sphere's history into its particles (`keep`: `None`), or the
+/// history of the spheres `keep` flags beside them.
+fn read_checkpoint_with(
+    path: &Path,
+    keep: Option<HistoryFilter>,
+) -> Result<(Checkpoint, Option<KeptHistory>)> {
     let bytes = std::fs::read(path).map_err(io_error(path))?;
     if bytes.starts_with(super::checkpoint_pieces::INDEX_MAGIC) {
-        return super::checkpoint_pieces::read_checkpoint_pieces(path, &bytes);
+        return super::checkpoint_pieces::read_checkpoint_pieces(path, &bytes, keep);
     }
     let mut f = Fields::new(path, &bytes);
     if f.take(8, "header")? != MAGIC {
@@ -277,31 +341,48 @@ pub fn read_checkpoint(path: &Path) -> Result<Checkpoint> {
         true => triples(&values[10 * n..]),
         false => Vec::new(),
     };
-    let contacts: Vec<(u32, HistoryEntry)> = (from_le_words::<[u32; 8]>(history).iter())
-        .map(entry_of)
-        .collect();
-    debug_assert_eq!(contacts.len(), history_len);
-    let loads: Vec<LoadEntry> = (from_le_words::<[f32; 4]>(loads).iter())
-        .map(load_of)
-        .collect();
-    let particles = Particles {
+    let mut particles = Particles {
         positions: triples(&values[..3 * n]),
         position_residuals,
         velocities: triples(&values[3 * n..6 * n]),
         angular_velocities,
         radii,
         materials: materials.to_vec(),
-        history: ContactHistory::from_contacts_with_loads(n, &contacts, &loads)
-            .map_err(|e| f.bad(e.to_string()))?,
+        history: ContactHistory::default(),
         clumps,
         step,
     };
-    check_read(&particles).map_err(|e| f.bad(e.to_string()))?;
-    Ok(Checkpoint {
+    drop(values);
+    let bad = |e: Error| f.bad(e.to_string());
+    check_read(&particles).map_err(bad)?;
+    let kept = match keep {
+        Some(keep) => Some(keep(&scene, &particles)?),
+        None => None,
+    };
+    let entry = |k: usize| le_word_array::<8>(&history[ENTRY_BYTES * k..]);
+    let load = |k: usize| le_word_array::<4>(&loads[LOAD_BYTES * k..]).map(f32::from_bits);
+    let decoded = decode_history(
+        history_len,
+        entry,
+        (!loads.is_empty()).then_some(&load),
+        Ok,
+        |at| is_kept(kept.as_deref(), at),
+    )?;
+    let kept = match kept {
+        Some(kept) => Some(KeptHistory::checked(n, kept, decoded).map_err(bad)?),
+        None => {
+            let (contacts, loads) = decoded;
+            particles.history =
+                ContactHistory::from_contacts_with_loads(n, &contacts, &loads).map_err(bad)?;
+            None
+        }
+    };
+    let checkpoint = Checkpoint {
         particles,
         scene,
         state,
-    })
+    };
+    Ok((checkpoint, kept))
 }
 
 #[cfg(test)]

@@ -116,6 +116,39 @@ pub(super) fn load_of(l: &[f32; 4]) -> LoadEntry {
     }
 }
 
+/// Contacts (each with its owner's place) and their load histories (none, or one each).
+pub(super) type Decoded = (Vec<(u32, HistoryEntry)>, Vec<LoadEntry>);
+
+/// The contacts (the owner's place, the entry) of the `count` history entries `entry(k)` gives
+/// ([`entry_words`]) whose owners `wanted` keeps, with the load history `load(k)` of each where
+/// given, decoded on every core in their order; `place` maps an entry's owner word to its
+/// sphere's place.
+pub(super) fn decode_history(
+    count: usize,
+    entry: impl Fn(usize) -> [u32; 8] + Sync,
+    load: Option<&(dyn Fn(usize) -> [f32; 4] + Sync)>,
+    place: impl Fn(u32) -> Result<u32> + Sync,
+    wanted: impl Fn(u32) -> bool + Sync,
+) -> Result<Decoded> {
+    let picked = ((0..count).into_par_iter())
+        .filter_map(|k| {
+            let (owner, e) = entry_of(&entry(k));
+            match place(owner) {
+                Err(error) => Some(Err(error)),
+                Ok(at) => wanted(at).then(|| Ok(((at, e), load.map(|l| load_of(&l(k)))))),
+            }
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let loads = picked.iter().filter_map(|&(_, l)| l).collect();
+    let contacts = picked.into_iter().map(|(c, _)| c).collect();
+    Ok((contacts, loads))
+}
+
+/// The `N` little-endian words of four bytes at the start of `bytes`.
+pub(super) fn le_word_array<const N: usize>(bytes: &[u8]) -> [u32; N] {
+    std::array::from_fn(|k| u32::from_le_bytes(bytes[4 * k..4 * k + 4].try_into().expect("4")))
+}
+
 /// The little-endian bytes of `values`, words of four bytes each: as they lie on a
 /// little-endian machine, each word turned on a big-endian one.
 pub(super) fn le_words<T: bytemuck::Pod>(values: &[T]) -> Cow<'_, [u8]> {

@@ -22,9 +22,9 @@
 //! force, materials u64 (0 or m) and each as a u8, then the CRC-32 of every byte before it
 //! (the checksum the index names).
 
+use super::checkpoint::{HistoryFilter, KeptHistory, is_kept};
 use super::checkpoint_bytes::{
-    Fields, SphereBytes, check_read, entry_of, from_le_words, le_words, load_of,
-    write_with_checksum,
+    Fields, SphereBytes, check_read, decode_history, from_le_words, le_words, write_with_checksum,
 };
 use super::{Checkpoint, io_error, write_atomically};
 use crate::error::{Error, Result};
@@ -237,7 +237,11 @@ struct Piece {
 }
 
 /// Reads the index of a checkpoint in pieces at `path` and its pieces, joined.
-pub(super) fn read_checkpoint_pieces(path: &Path, bytes: &[u8]) -> Result<Checkpoint> {
+pub(super) fn read_checkpoint_pieces(
+    path: &Path,
+    bytes: &[u8],
+    keep: Option<HistoryFilter>,
+) -> Result<(Checkpoint, Option<KeptHistory>)> {
     let mut f = Fields::new(path, bytes);
     check_version(&mut f, INDEX_MAGIC, "mochi checkpoint index")?;
     let step = f.u64("step")?;
@@ -271,12 +275,18 @@ pub(super) fn read_checkpoint_pieces(path: &Path, bytes: &[u8]) -> Result<Checkp
             )
         })
         .collect::<Result<Vec<Piece>>>()?;
-    let particles = join(pieces, n as usize, step).map_err(|e| f.bad(e.to_string()))?;
-    Ok(Checkpoint {
+    let bad = |e: Error| f.bad(e.to_string());
+    let (particles, kept) = join(pieces, n as usize, step, |p| match keep {
+        Some(keep) => keep(&scene, p).map(Some),
+        None => Ok(None),
+    })
+    .map_err(bad)?;
+    let checkpoint = Checkpoint {
         particles,
         scene,
         state,
-    })
+    };
+    Ok((checkpoint, kept))
 }
 
 /// Reads piece `k` of the checkpoint of step `step` at `path`, whose index names `m` spheres
@@ -331,8 +341,15 @@ fn read_piece(path: &Path, (step, k): (u64, usize), (m, checksum): (u64, u32)) -
     })
 }
 
-/// The `n` spheres of `pieces` in the order of their ids, each id once, with their history.
-fn join(pieces: Vec<Piece>, n: usize, step: u64) -> Result<Particles> {
+/// The `n` spheres of `pieces` in the order of their ids, each id once, with their history:
+/// every sphere's, or, where `keep` flags the spheres whose history to keep (given the spheres
+/// without it), theirs beside them.
+fn join(
+    pieces: Vec<Piece>,
+    n: usize,
+    step: u64,
+    keep: impl FnOnce(&Particles) -> Result<Option<Vec<bool>>>,
+) -> Result<(Particles, Option<KeptHistory>)> {
     let mut place = vec![u32::MAX; n];
     for (k, piece) in pieces.iter().enumerate() {
         for &id in &piece.ids {
@@ -356,8 +373,6 @@ fn join(pieces: Vec<Piece>, n: usize, step: u64) -> Result<Particles> {
     if materials {
         p.materials = vec![0; n];
     }
-    let mut contacts = Vec::with_capacity(pieces.iter().map(|p| p.entries.len()).sum());
-    let mut loads = Vec::new();
     for piece in &pieces {
         for (j, &id) in piece.ids.iter().enumerate() {
             let i = id as usize;
@@ -370,30 +385,50 @@ fn join(pieces: Vec<Piece>, n: usize, step: u64) -> Result<Particles> {
                 p.materials[i] = m;
             }
         }
-        for w in &piece.entries {
-            let (at, entry) = entry_of(w);
-            let owner = *piece.ids.get(at as usize).ok_or_else(|| {
-                Error::Usage(format!("a history entry of sphere {at} of a piece"))
-            })?;
-            contacts.push((owner, entry));
-        }
-        if !piece.loads.is_empty() || piece.entries.is_empty() {
-            loads.extend(piece.loads.iter().map(load_of));
-        } else if pieces.iter().any(|q| !q.loads.is_empty()) {
+        if piece.loads.is_empty()
+            && !piece.entries.is_empty()
+            && pieces.iter().any(|q| !q.loads.is_empty())
+        {
             return Err(Error::Usage(
                 "some pieces keep load histories and some do not".into(),
             ));
         }
     }
-    p.history = ContactHistory::from_contacts_with_loads(n, &contacts, &loads)?;
     check_read(&p)?;
-    Ok(p)
+    let kept = keep(&p)?;
+    let (mut contacts, mut loads) = (Vec::new(), Vec::new());
+    for piece in &pieces {
+        let load = |k: usize| piece.loads[k];
+        let place = |at: u32| match piece.ids.get(at as usize) {
+            Some(&id) => Ok(id),
+            None => Err(Error::Usage(format!(
+                "a history entry of sphere {at} of a piece"
+            ))),
+        };
+        let (c, l) = decode_history(
+            piece.entries.len(),
+            |k| piece.entries[k],
+            (!piece.loads.is_empty()).then_some(&load),
+            place,
+            |at| is_kept(kept.as_deref(), at),
+        )?;
+        contacts.extend(c);
+        loads.extend(l);
+    }
+    drop(pieces);
+    match kept {
+        Some(kept) => Ok((p, Some(KeptHistory::checked(n, kept, (contacts, loads))?))),
+        None => {
+            p.history = ContactHistory::from_contacts_with_loads(n, &contacts, &loads)?;
+            Ok((p, None))
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::{read_checkpoint, write_checkpoint};
+    use crate::io::{read_checkpoint, read_checkpoint_keeping_history, write_checkpoint};
     use crate::particles::FIRST_WALL;
 
     fn entry(partner: u32, x: f32) -> HistoryEntry {
@@ -479,6 +514,54 @@ mod tests {
             .collect();
         write_checkpoint_index(&index, (&folder, p.step), ("scene", "[flow]\n"), &written).unwrap();
         index
+    }
+
+    #[test]
+    fn a_read_keeping_some_spheres_history_keeps_theirs_alone_whole_or_in_pieces() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = whole();
+        let index = write_in_pieces(&p, &[1, 0, 1, 0, 2, 0, 1], 3, dir.path());
+        let path = dir.path().join("whole.bin");
+        write_checkpoint(&path, &p, "scene", "[flow]\n").unwrap();
+        // Spheres 1, 3 and 5 (a contact with a sphere, two, one with a wall), told by the
+        // spheres read without their history.
+        let odd = |scene: &str, q: &Particles| {
+            assert_eq!(scene, "scene");
+            assert_eq!(q.history.slots(), 0);
+            Ok((0..q.len()).map(|i| i % 2 == 1).collect())
+        };
+        let wanted: Vec<(u32, HistoryEntry)> = (0..p.len())
+            .filter(|i| i % 2 == 1)
+            .flat_map(|i| p.history.of(i).iter().map(move |&e| (i as u32, e)))
+            .collect();
+        let wanted_loads: Vec<LoadEntry> = (0..p.len())
+            .filter(|i| i % 2 == 1)
+            .flat_map(|i| p.history.loads_of(i).to_vec())
+            .collect();
+        assert_eq!(wanted.len(), 4);
+        for at in [&path, &index] {
+            let (read, kept) = read_checkpoint_keeping_history(at, &odd).unwrap();
+            let without = Particles {
+                history: ContactHistory::default(),
+                ..p.clone()
+            };
+            assert_eq!(read.particles, without);
+            assert_eq!(
+                kept.kept,
+                (0..p.len()).map(|i| i % 2 == 1).collect::<Vec<_>>()
+            );
+            // Each owner's contacts in its order, with their loads (the pieces deal the
+            // owners out).
+            let mut both: Vec<_> = kept.contacts.into_iter().zip(kept.loads).collect();
+            both.sort_by_key(|(c, _)| c.0);
+            let (contacts, loads): (Vec<_>, Vec<_>) = both.into_iter().unzip();
+            assert_eq!(contacts, wanted);
+            assert_eq!(loads, wanted_loads);
+            // A filter that does not name every sphere is refused.
+            let short = |_: &str, q: &Particles| Ok(vec![true; q.len() - 1]);
+            let e = read_checkpoint_keeping_history(at, &short).unwrap_err();
+            assert!(e.to_string().contains("6 spheres of 7"), "{e}");
+        }
     }
 
     #[test]

@@ -185,13 +185,15 @@ impl ContactHistory {
         Self::from_contacts_with_loads(n, contacts, &[])
     }
 
-    /// [`from_contacts`](Self::from_contacts) with the load history of each contact, `loads`
-    /// beside `contacts` (empty: none kept).
-    pub fn from_contacts_with_loads(
+    /// Refuses `contacts` (each with its owner) of `n` spheres that
+    /// [`Self::from_contacts_with_loads`] would refuse: owners or partners out of range, a
+    /// sphere its own partner, values that are not finite, load histories that are not one a
+    /// contact or not valid.
+    pub fn check_contacts(
         n: usize,
         contacts: &[(u32, HistoryEntry)],
         loads: &[LoadEntry],
-    ) -> Result<Self> {
+    ) -> Result<()> {
         if !loads.is_empty() && loads.len() != contacts.len() {
             return Err(Error::Usage(format!(
                 "{} load histories for {} contacts",
@@ -199,12 +201,25 @@ impl ContactHistory {
                 contacts.len()
             )));
         }
-        let mut per = vec![0usize; n];
         for (k, &(owner, entry)) in contacts.iter().enumerate() {
             check_entry(n, owner as usize, &entry)?;
             if let Some(load) = loads.get(k) {
                 check_load(owner as usize, load)?;
             }
+        }
+        Ok(())
+    }
+
+    /// [`from_contacts`](Self::from_contacts) with the load history of each contact, `loads`
+    /// beside `contacts` (empty: none kept).
+    pub fn from_contacts_with_loads(
+        n: usize,
+        contacts: &[(u32, HistoryEntry)],
+        loads: &[LoadEntry],
+    ) -> Result<Self> {
+        Self::check_contacts(n, contacts, loads)?;
+        let mut per = vec![0usize; n];
+        for &(owner, _) in contacts {
             per[owner as usize] += 1;
         }
         let slots = per.iter().copied().max().unwrap_or(0);

@@ -12,6 +12,7 @@ use mochi::dem::scene::{Overrides, SceneFlags, SceneKind};
 use mochi::dem::{
     Clock, Particles, RankShare, Snapshot, StageTimes, StepParams, Stepper, equipment,
 };
+use mochi::distributed::Comm;
 use mochi::io::{self, Frame, FrameSeries};
 use mochi::numbers::significant;
 use mochi::render::{ColorBy, ColorChoice};
@@ -118,9 +119,15 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     }
     let flags = flags(&args)?;
     let overrides = Overrides::parse(&args.set)?;
-    let run_start = match &args.resume {
-        Some(path) => RunStart::resume(path, &flags, &overrides)?,
-        None => RunStart::new(args.scene_file.as_deref(), &flags, &overrides)?,
+    let ranks = super::ranks::launched()?;
+    let run_start = match (&args.resume, &ranks) {
+        // A rank of several reads the contact history of its own spheres alone.
+        (Some(path), Some(ranks)) => {
+            let rank = (ranks.rank(), ranks.size());
+            RunStart::resume_on_rank(path, &flags, &overrides, rank)?
+        }
+        (Some(path), None) => RunStart::resume(path, &flags, &overrides)?,
+        (None, _) => RunStart::new(args.scene_file.as_deref(), &flags, &overrides)?,
     };
     let total = run_start.config.run.steps;
     let first = run_start.start.particles.step;
@@ -135,7 +142,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         None => String::new(),
     };
     let options = backend_flags.options();
-    let run = match super::ranks::launched()? {
+    let run = match ranks {
         None => run_start.open(args.backend, &options)?,
         // One of several processes of mpirun: rank 0 runs and writes, the others follow.
         Some(ranks) => match run_start.open_on_ranks(ranks, args.backend, &options)? {

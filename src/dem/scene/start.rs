@@ -186,6 +186,18 @@ impl SceneConfig {
         Self::inside_the_box(self.start_from(particles)?, 1.0)
     }
 
+    /// The box a run resumed from a checkpoint of this scene steps in, in `f32` as its step
+    /// parameters hold it (a checkpoint's scene names its box: [`Self::resolved`]).
+    pub(crate) fn resumed_box(&self) -> Result<([f32; 3], [f32; 3])> {
+        match (self.domain.box_lo, self.domain.box_hi) {
+            (Some(lo), Some(hi)) => Ok((lo.map(|x| x as f32), hi.map(|x| x as f32))),
+            _ => Err(Error::InvalidConfig {
+                what: "the checkpoint's scene".into(),
+                reason: "it names no box (box_lo and box_hi)".into(),
+            }),
+        }
+    }
+
     /// `start`, if every centre lies in its box widened by `slack` times its extent on every
     /// side (0 at t = 0; a resumed scene without box walls is not checked).
     fn inside_the_box(start: Start, slack: f32) -> Result<Start> {
