@@ -327,6 +327,7 @@ impl RunStart {
         };
         // The whole run's spheres are let go: a rank holds its own from now on.
         drop(setup);
+        crate::distributed::give_back_freed_memory();
         let Opened {
             value: rank,
             kind,

@@ -26,6 +26,7 @@ pub use lead::{Leader, follow};
 #[cfg(feature = "mpi")]
 pub use mpi_comm::MpiComm;
 pub use rank::RankStepper;
+pub(crate) use rank::give_back_freed_memory;
 pub use rank::owned_at_opening;
 pub use slabs::Slabs;
 

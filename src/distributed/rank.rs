@@ -612,6 +612,7 @@ impl<C: Comm> RankStepper<C> {
                     region: None,
                 }
                 .holding(&local);
+                give_back_freed_memory();
                 let mut stepper = reopen(local, room)?;
                 // The walls' loads of the spheres this rank owns, not of its ghosts.
                 let (lo, hi) = self.grid.bounds_of(self.comm.rank());
@@ -1216,6 +1217,20 @@ fn reach_of(r_max: f32, params: &StepParams, mode: ProxyMode) -> f64 {
     cell as f64 * (1.0 + 1e-4) + 1e-6 * far as f64
 }
 
+/// Hands the memory this process freed back to the system (glibc keeps freed blocks, and
+/// raises the size it maps on its own once large blocks are freed, so a rank that let the whole
+/// run go or a round's spheres go would open its step on top of them): a rank's peak is its
+/// step's opening, which then starts from what the rank holds. Nothing elsewhere.
+pub(crate) fn give_back_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `malloc_trim` only returns free memory of the allocator to the system; it
+    // touches no block in use.
+    #[allow(unsafe_code)]
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
 /// Whether each sphere of `whole` lies in box `rank` of `grid` (a clump's component: whether
 /// its clump's centre does), by place.
 fn owned_by(whole: &Particles, grid: &Grid, rank: usize) -> Vec<bool> {
@@ -1255,7 +1270,11 @@ fn own_of(
     kept: Option<&KeptHistory>,
 ) -> Result<Vec<Held>> {
     let owned = owned_by(whole, grid, rank);
-    let places = (0..whole.len()).into_par_iter().filter(|&i| owned[i]);
+    // The own places, then their records, each collected into a vector of its length (a
+    // rank's records are the larger part of its memory once it has let the whole run go).
+    let mut places = Vec::with_capacity(owned.iter().filter(|&&o| o).count());
+    places.extend((0..whole.len()).filter(|&i| owned[i]));
+    let places = places.into_par_iter();
     let Some(kept) = kept else {
         return Ok(places
             .map(|i| Held::of(whole, i, i as u32, |e| *e))

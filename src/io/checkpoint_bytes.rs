@@ -119,10 +119,14 @@ pub(super) fn load_of(l: &[f32; 4]) -> LoadEntry {
 /// Contacts (each with its owner's place) and their load histories (none, or one each).
 pub(super) type Decoded = (Vec<(u32, HistoryEntry)>, Vec<LoadEntry>);
 
+/// Entries a task of [`decode_history`] decodes.
+const DECODED_A_TASK: usize = 1 << 16;
+
 /// The contacts (the owner's place, the entry) of the `count` history entries `entry(k)` gives
 /// ([`entry_words`]) whose owners `wanted` keeps, with the load history `load(k)` of each where
 /// given, decoded on every core in their order; `place` maps an entry's owner word to its
-/// sphere's place.
+/// sphere's place. The kept entries are counted first and written into vectors of their
+/// length: no task leaves a vector of its own behind.
 pub(super) fn decode_history(
     count: usize,
     entry: impl Fn(usize) -> [u32; 8] + Sync,
@@ -130,17 +134,44 @@ pub(super) fn decode_history(
     place: impl Fn(u32) -> Result<u32> + Sync,
     wanted: impl Fn(u32) -> bool + Sync,
 ) -> Result<Decoded> {
-    let picked = ((0..count).into_par_iter())
-        .filter_map(|k| {
-            let (owner, e) = entry_of(&entry(k));
-            match place(owner) {
-                Err(error) => Some(Err(error)),
-                Ok(at) => wanted(at).then(|| Ok(((at, e), load.map(|l| load_of(&l(k)))))),
-            }
+    let tasks = count.div_ceil(DECODED_A_TASK);
+    let span = |t: usize| t * DECODED_A_TASK..count.min((t + 1) * DECODED_A_TASK);
+    let kept_by_task = ((0..tasks).into_par_iter())
+        .map(|t| {
+            span(t).try_fold(0, |kept, k| {
+                let at = place(entry(k)[0])?;
+                Ok(kept + usize::from(wanted(at)))
+            })
         })
-        .collect::<Result<Vec<_>>>()?;
-    let loads = picked.iter().filter_map(|&(_, l)| l).collect();
-    let contacts = picked.into_iter().map(|(c, _)| c).collect();
+        .collect::<Result<Vec<usize>>>()?;
+    let total = kept_by_task.iter().sum();
+    let mut contacts = vec![(0, HistoryEntry::default()); total];
+    let mut loads = vec![LoadEntry::default(); if load.is_some() { total } else { 0 }];
+    let mut contacts_rest = &mut contacts[..];
+    let mut loads_rest = &mut loads[..];
+    let mut slices = Vec::with_capacity(tasks);
+    for &kept in &kept_by_task {
+        let (c, more) = contacts_rest.split_at_mut(kept);
+        let (l, more_loads) = loads_rest.split_at_mut(kept.min(loads_rest.len()));
+        slices.push((c, l));
+        (contacts_rest, loads_rest) = (more, more_loads);
+    }
+    (slices.into_par_iter().enumerate()).for_each(|(t, (c, l))| {
+        let mut j = 0;
+        for k in span(t) {
+            let (owner, e) = entry_of(&entry(k));
+            // Every place was found in the count above.
+            let Ok(at) = place(owner) else { continue };
+            if !wanted(at) {
+                continue;
+            }
+            c[j] = (at, e);
+            if let (Some(load), Some(slot)) = (load, l.get_mut(j)) {
+                *slot = load_of(&load(k));
+            }
+            j += 1;
+        }
+    });
     Ok((contacts, loads))
 }
 
