@@ -24,15 +24,15 @@
 //! velocities, no history) as spheres at rest in rotation without history.
 
 use super::checkpoint_bytes::{
-    Decoded, Fields, SphereBytes, check_read, decode_history, from_le_words, le_word_array,
-    write_with_checksum,
+    Fields, HistoryFilter, KeptHistory, SphereBytes, check_read, decode_history, from_le_words,
+    is_kept, le_word_array, write_with_checksum,
 };
 use super::io_error;
 use crate::clump::{
     Clump, ClumpKind, ClumpSet, ClumpTemplate, Component, PrincipalInertia, RigidBody,
 };
 use crate::error::{Error, Result};
-use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, Particles};
+use crate::particles::{ContactHistory, Particles};
 use glam::{DQuat, DVec3};
 use std::path::Path;
 
@@ -55,48 +55,6 @@ pub struct Checkpoint {
     /// The run's state besides the particles, as TOML (empty in checkpoints of version 3 and
     /// older).
     pub state: String,
-}
-
-/// Which spheres' contact history a read keeps ([`read_checkpoint_keeping_history`]): from the
-/// checkpoint's scene (TOML) and its spheres read without their history, a flag a sphere (by
-/// place).
-pub type HistoryFilter<'a> = &'a (dyn Fn(&str, &Particles) -> Result<Vec<bool>> + Sync);
-
-/// The contact history of the spheres a read kept ([`read_checkpoint_keeping_history`]), as
-/// [`ContactHistory::from_contacts_with_loads`] takes it, checked as it checks it.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct KeptHistory {
-    /// Which spheres' history was kept, by place.
-    pub kept: Vec<bool>,
-    /// Their contacts, each with its owner's place, in the checkpoint's order.
-    pub contacts: Vec<(u32, HistoryEntry)>,
-    /// The load history of each contact (none: the run keeps none).
-    pub loads: Vec<LoadEntry>,
-}
-
-impl KeptHistory {
-    /// The history `keep` asks of the contacts and load histories of `n` spheres read (owners
-    /// `keep` does not name are kept, so that the check refuses them).
-    pub(super) fn checked(n: usize, kept: Vec<bool>, (contacts, loads): Decoded) -> Result<Self> {
-        if kept.len() != n {
-            return Err(Error::Usage(format!(
-                "a history filter named {} spheres of {n}",
-                kept.len()
-            )));
-        }
-        ContactHistory::check_contacts(n, &contacts, &loads)?;
-        Ok(Self {
-            kept,
-            contacts,
-            loads,
-        })
-    }
-}
-
-/// Whether the history of the sphere at `at` is read where `kept` flags the spheres whose is
-/// (`None`: every sphere's; a place beyond the flags is read, for the checks to refuse).
-pub(super) fn is_kept(kept: Option<&[bool]>, at: u32) -> bool {
-    kept.is_none_or(|k| k.get(at as usize).copied().unwrap_or(true))
 }
 
 /// Writes `particles`, `scene` (TOML) and the run's `state` (TOML) to `path`, atomically.
@@ -388,7 +346,7 @@ fn read_checkpoint_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::particles::FIRST_WALL;
+    use crate::particles::{FIRST_WALL, HistoryEntry, LoadEntry};
 
     fn contact(partner: u32, x: f32) -> HistoryEntry {
         HistoryEntry {

@@ -4,7 +4,7 @@
 
 use super::write_atomically;
 use crate::error::{Error, Result};
-use crate::particles::{HistoryEntry, LoadEntry, Particles};
+use crate::particles::{ContactHistory, HistoryEntry, LoadEntry, Particles};
 use rayon::prelude::*;
 use std::borrow::Cow;
 use std::path::Path;
@@ -118,6 +118,48 @@ pub(super) fn load_of(l: &[f32; 4]) -> LoadEntry {
 
 /// Contacts (each with its owner's place) and their load histories (none, or one each).
 pub(super) type Decoded = (Vec<(u32, HistoryEntry)>, Vec<LoadEntry>);
+
+/// Which spheres' contact history a read keeps ([`super::read_checkpoint_keeping_history`]): from the
+/// checkpoint's scene (TOML) and its spheres read without their history, a flag a sphere (by
+/// place).
+pub type HistoryFilter<'a> = &'a (dyn Fn(&str, &Particles) -> Result<Vec<bool>> + Sync);
+
+/// The contact history of the spheres a read kept ([`super::read_checkpoint_keeping_history`]), as
+/// [`ContactHistory::from_contacts_with_loads`] takes it, checked as it checks it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct KeptHistory {
+    /// Which spheres' history was kept, by place.
+    pub kept: Vec<bool>,
+    /// Their contacts, each with its owner's place, in the checkpoint's order.
+    pub contacts: Vec<(u32, HistoryEntry)>,
+    /// The load history of each contact (none: the run keeps none).
+    pub loads: Vec<LoadEntry>,
+}
+
+impl KeptHistory {
+    /// The history `keep` asks of the contacts and load histories of `n` spheres read (owners
+    /// `keep` does not name are kept, so that the check refuses them).
+    pub(super) fn checked(n: usize, kept: Vec<bool>, (contacts, loads): Decoded) -> Result<Self> {
+        if kept.len() != n {
+            return Err(Error::Usage(format!(
+                "a history filter named {} spheres of {n}",
+                kept.len()
+            )));
+        }
+        ContactHistory::check_contacts(n, &contacts, &loads)?;
+        Ok(Self {
+            kept,
+            contacts,
+            loads,
+        })
+    }
+}
+
+/// Whether the history of the sphere at `at` is read where `kept` flags the spheres whose is
+/// (`None`: every sphere's; a place beyond the flags is read, for the checks to refuse).
+pub(super) fn is_kept(kept: Option<&[bool]>, at: u32) -> bool {
+    kept.is_none_or(|k| k.get(at as usize).copied().unwrap_or(true))
+}
 
 /// Entries a task of [`decode_history`] decodes.
 const DECODED_A_TASK: usize = 1 << 16;

@@ -22,9 +22,9 @@
 //! force, materials u64 (0 or m) and each as a u8, then the CRC-32 of every byte before it
 //! (the checksum the index names).
 
-use super::checkpoint::{HistoryFilter, KeptHistory, is_kept};
 use super::checkpoint_bytes::{
-    Fields, SphereBytes, check_read, decode_history, from_le_words, le_words, write_with_checksum,
+    Fields, HistoryFilter, KeptHistory, SphereBytes, check_read, decode_history, from_le_words,
+    is_kept, le_words, write_with_checksum,
 };
 use super::{Checkpoint, io_error, write_atomically};
 use crate::error::{Error, Result};

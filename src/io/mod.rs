@@ -32,9 +32,9 @@ mod walls;
 
 pub use atomic::{AtomicFile, remove_stale_temp_files, write_atomically};
 pub use checkpoint::{
-    Checkpoint, HistoryFilter, KeptHistory, read_checkpoint, read_checkpoint_keeping_history,
-    write_checkpoint,
+    Checkpoint, read_checkpoint, read_checkpoint_keeping_history, write_checkpoint,
 };
+pub use checkpoint_bytes::{HistoryFilter, KeptHistory};
 pub use checkpoint_pieces::{
     CheckpointPiece, PieceSpheres, checkpoint_piece_path, piece_folder_for,
     remove_other_piece_folders, write_checkpoint_index, write_checkpoint_piece,
