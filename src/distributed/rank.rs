@@ -127,8 +127,8 @@ impl<C: Comm> RankStepper<C> {
     }
 
     /// [`Self::new`] where `setup`'s spheres come without their contact history, and `kept`
-    /// holds the history of those this rank owns as it opens ([`owned_at_opening`]; a sphere
-    /// of its own without is an error): a resumed run's rank reads no other history.
+    /// holds the history of those this rank owns as it opens ([`owned_at_opening`]; a history
+    /// read for another rank is an error): a resumed run's rank reads no other history.
     pub fn with_own_history(comm: C, setup: &DemSetup, kept: &KeptHistory) -> Result<Self> {
         Self::opened(comm, setup, Some(kept))
     }
@@ -1284,7 +1284,7 @@ fn own_of(
         (0..whole.len()).position(|i| owned[i] && !kept.kept.get(i).copied().unwrap_or(false))
     {
         return Err(Error::Usage(format!(
-            "sphere {i} is rank {rank}'s, but the contact history read for it was not its own"
+            "sphere {i} is rank {rank}'s, but its contact history was read for another rank"
         )));
     }
     // Each owner's contacts, in their order, at the places `order` lists from `first[owner]`.
