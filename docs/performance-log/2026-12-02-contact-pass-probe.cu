@@ -1,0 +1,295 @@
+// The probe of performance-log/2026-12-02-h200.md (not part of mochi): the dense slab's contact
+// pass (the half-stencil walk of a dense cell table, the per-pair linear law, the partner's share
+// added with float atomics) written in CUDA, in the variants the log names, timed on a bed read
+// from a binary file (int32 n, then n rows of float32 x, y, z, r, vx, vy, vz: a frame's first
+// seven columns). Build: nvcc -O3 -arch=sm_90 -std=c++17 [-use_fast_math] -o probe this file.
+#include <cstdio>
+#include <cstdlib>
+#include <vector>
+#include <cmath>
+#include <initializer_list>
+#include <thrust/device_vector.h>
+#include <thrust/sort.h>
+#include <thrust/sequence.h>
+#include <thrust/binary_search.h>
+#include <thrust/gather.h>
+#include <thrust/iterator/counting_iterator.h>
+#include <thrust/extrema.h>
+#define CK(x) do { cudaError_t e = (x); if (e != cudaSuccess) { printf("%s: %s\n", #x, cudaGetErrorString(e)); exit(1);} } while (0)
+
+struct P { float3 lo; float inv; int nx, ny, nz; float rmax; float slack; float rate; float zeta; int n; };
+
+__device__ __forceinline__ int3 cellc(float3 c, const P& p) {
+  float ux = fmaxf((c.x - p.lo.x) * p.inv, 0.f), uy = fmaxf((c.y - p.lo.y) * p.inv, 0.f), uz = fmaxf((c.z - p.lo.z) * p.inv, 0.f);
+  return make_int3(min((int)ux, p.nx - 3) + 1, min((int)uy, p.ny - 3) + 1, min((int)uz, p.nz - 3) + 1);
+}
+__global__ void keys_k(const float4* pos, unsigned* key, P p) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; if (i >= p.n) return;
+  float4 s = pos[i]; int3 c = cellc(make_float3(s.x, s.y, s.z), p);
+  key[i] = c.x + p.nx * (c.y + p.ny * c.z);
+}
+__device__ __forceinline__ float4 law(float4 s, float4 v, float4 t, float4 u, const P& p) {
+  float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z;
+  float d2 = dx*dx + dy*dy + dz*dz; float reach = s.w + t.w;
+  if (d2 > reach*reach || d2 == 0.f) return make_float4(0,0,0,0);
+  float dist = sqrtf(d2); float nx = dx/dist, ny = dy/dist, nz = dz/dist;
+  float ov = reach - dist;
+  float vn = (u.x-v.x)*nx + (u.y-v.y)*ny + (u.z-v.z)*nz;
+  float me = v.w*u.w/(v.w+u.w); float k = me*p.rate; float c = 2.f*p.zeta*sqrtf(k*me);
+  float push = fmaxf(k*ov - c*vn, 0.f);
+  return make_float4(-push*nx, -push*ny, -push*nz, 1.f);
+}
+struct Win { int first, width, ny, count, dx, dy; int3 lo; };
+__device__ __forceinline__ Win window(float4 s, const P& p) {
+  float reach = (s.w + p.rmax + p.slack) * p.inv + 1.f/256.f;
+  float ux = (s.x - p.lo.x)*p.inv, uy = (s.y - p.lo.y)*p.inv, uz = (s.z - p.lo.z)*p.inv;
+  int lx = (int)fminf(fmaxf(floorf(ux - reach), 0.f), p.nx-3) + 1, hx = (int)fminf(fmaxf(floorf(ux + reach), 0.f), p.nx-3) + 1;
+  int ly = (int)fminf(fmaxf(floorf(uy - reach), 0.f), p.ny-3) + 1, hy = (int)fminf(fmaxf(floorf(uy + reach), 0.f), p.ny-3) + 1;
+  int lz = (int)fminf(fmaxf(floorf(uz - reach), 0.f), p.nz-3) + 1, hz = (int)fminf(fmaxf(floorf(uz + reach), 0.f), p.nz-3) + 1;
+  Win w; w.lo = make_int3(lx, ly, lz); w.width = hx-lx+1; w.ny = hy-ly+1; w.count = w.ny*(hz-lz+1);
+  w.dx = p.nx; w.dy = p.ny; w.first = lx + p.nx*(ly + p.ny*lz); return w;
+}
+// Variant A: resolve each candidate as the walk meets it.
+template <bool RESOLVE, bool PARTNER>
+__global__ void __launch_bounds__(256) resolve_inline(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x;
+  unsigned mine = 0;
+  if (i < p.n) {
+    float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
+    Win w = window(s, p); int3 c = cellc(make_float3(s.x, s.y, s.z), p);
+    int y = c.y - w.lo.y, z = c.z - w.lo.z; int k = y + w.ny*z;
+    int row = w.first + w.dx*(y + w.dy*z); int next_plane = w.dx*(w.dy - w.ny + 1);
+    float fx = 0, fy = 0, fz = 0; float walked = 0;
+    for (; k < w.count; k++) {
+      unsigned a = __ldg(&cs[row]), b = __ldg(&cs[row + w.width]);
+      if (a < (unsigned)i + 1) a = i + 1;
+      for (unsigned q = a; q < b; q++) {
+        float4 t = __ldg(&pos[q]);
+        if (RESOLVE) {
+          float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
+          if (dx*dx+dy*dy+dz*dz > reach*reach) continue;
+          float4 u = __ldg(&vel[q]);
+          float4 f = law(s, v, t, u, p);
+          if (f.w != 0.f) {
+            if (PARTNER) { atomicAdd(&force[3*q], -f.x); atomicAdd(&force[3*q+1], -f.y); atomicAdd(&force[3*q+2], -f.z); }
+            fx += f.x; fy += f.y; fz += f.z; mine++;
+          }
+        } else {
+          float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
+          walked += (dx*dx+dy*dy+dz*dz <= reach*reach) ? 1.f : 0.f;
+        }
+      }
+      y++; if (y == w.ny) { y = 0; row += next_plane; } else row += w.dx;
+    }
+    if (!RESOLVE) mine = (unsigned)walked;
+    if (mine) { atomicAdd(&force[3*i], fx); atomicAdd(&force[3*i+1], fy); atomicAdd(&force[3*i+2], fz); }
+  }
+  // warp-aggregated count
+  unsigned tot = __reduce_add_sync(0xffffffff, mine);
+  if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
+}
+// Variant B: as the WGSL pass: list up to ROOM candidates within reach in shared memory, resolve them, walk again for more.
+#define ROOM 8
+__global__ void __launch_bounds__(256) resolve_listed(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
+  __shared__ unsigned near[ROOM*256];
+  int i = blockIdx.x * blockDim.x + threadIdx.x; unsigned mine = 0;
+  if (i < p.n) {
+    float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
+    float fx = 0, fy = 0, fz = 0;
+    unsigned skip = 0; unsigned base = threadIdx.x*ROOM;
+    for (;;) {
+      unsigned found = 0, listed = 0;
+      Win w = window(s, p); int3 c = cellc(make_float3(s.x, s.y, s.z), p);
+      int y = c.y - w.lo.y, z = c.z - w.lo.z; int k = y + w.ny*z;
+      int row = w.first + w.dx*(y + w.dy*z); int next_plane = w.dx*(w.dy - w.ny + 1);
+      for (; k < w.count; k++) {
+        unsigned a = __ldg(&cs[row]), b = __ldg(&cs[row + w.width]);
+        if (a < (unsigned)i + 1) a = i + 1;
+        for (unsigned q = a; q < b; q++) {
+          float4 t = __ldg(&pos[q]);
+          float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
+          if (dx*dx+dy*dy+dz*dz > reach*reach) continue;
+          unsigned f = found++;
+          if (f >= skip && listed < ROOM) near[base + listed++] = q;
+        }
+        y++; if (y == w.ny) { y = 0; row += next_plane; } else row += w.dx;
+      }
+      for (unsigned kk = 0; kk < listed; kk++) {
+        unsigned q = near[base + kk]; float4 t = __ldg(&pos[q]); float4 u = __ldg(&vel[q]);
+        float4 f = law(s, v, t, u, p);
+        if (f.w != 0.f) { atomicAdd(&force[3*q], -f.x); atomicAdd(&force[3*q+1], -f.y); atomicAdd(&force[3*q+2], -f.z); fx += f.x; fy += f.y; fz += f.z; mine++; }
+      }
+      if (found <= skip + ROOM) break; skip += ROOM;
+    }
+    if (mine) { atomicAdd(&force[3*i], fx); atomicAdd(&force[3*i+1], fy); atomicAdd(&force[3*i+2], fz); }
+  }
+  unsigned tot = __reduce_add_sync(0xffffffff, mine);
+  if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
+}
+// Variant C: every sphere walks its whole window and sums its own force alone (each pair's law
+// twice, no atomics, one plain store).
+__global__ void __launch_bounds__(256) resolve_full(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; unsigned mine = 0;
+  if (i < p.n) {
+    float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
+    Win w = window(s, p);
+    float fx = 0, fy = 0, fz = 0; int y = 0; int row = w.first; int next_plane = w.dx*(w.dy - w.ny + 1);
+    for (int k = 0; k < w.count; k++) {
+      unsigned a = __ldg(&cs[row]), b = __ldg(&cs[row + w.width]);
+      for (unsigned q = a; q < b; q++) {
+        float4 t = __ldg(&pos[q]);
+        float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
+        if (dx*dx+dy*dy+dz*dz > reach*reach || q == (unsigned)i) continue;
+        float4 u = __ldg(&vel[q]);
+        float4 f = law(s, v, t, u, p);
+        if (f.w != 0.f) { fx += f.x; fy += f.y; fz += f.z; mine++; }
+      }
+      y++; if (y == w.ny) { y = 0; row += next_plane; } else row += w.dx;
+    }
+    force[3*i] = fx; force[3*i+1] = fy; force[3*i+2] = fz;
+  }
+  unsigned tot = __reduce_add_sync(0xffffffff, mine);
+  if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
+}
+// Variant D: as the inline resolve, each force added with one vector atomic (Hopper's
+// red.global.add.v4.f32) to a float4 a sphere.
+__global__ void __launch_bounds__(256) resolve_v4(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float4* force, unsigned* contacts, P p) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x;
+  unsigned mine = 0;
+  if (i < p.n) {
+    float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
+    Win w = window(s, p); int3 c = cellc(make_float3(s.x, s.y, s.z), p);
+    int y = c.y - w.lo.y, z = c.z - w.lo.z; int k = y + w.ny*z;
+    int row = w.first + w.dx*(y + w.dy*z); int next_plane = w.dx*(w.dy - w.ny + 1);
+    float4 tot = make_float4(0, 0, 0, 0);
+    for (; k < w.count; k++) {
+      unsigned a = __ldg(&cs[row]), b = __ldg(&cs[row + w.width]);
+      if (a < (unsigned)i + 1) a = i + 1;
+      for (unsigned q = a; q < b; q++) {
+        float4 t = __ldg(&pos[q]);
+        float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
+        if (dx*dx+dy*dy+dz*dz > reach*reach) continue;
+        float4 u = __ldg(&vel[q]);
+        float4 f = law(s, v, t, u, p);
+        if (f.w != 0.f) {
+          atomicAdd(&force[q], make_float4(-f.x, -f.y, -f.z, 0.f));
+          tot.x += f.x; tot.y += f.y; tot.z += f.z; mine++;
+        }
+      }
+      y++; if (y == w.ny) { y = 0; row += next_plane; } else row += w.dx;
+    }
+    if (mine) atomicAdd(&force[i], tot);
+  }
+  unsigned tot = __reduce_add_sync(0xffffffff, mine);
+  if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
+}
+// Variant E: the partner's share into an inbox (one returning atomic for a slot, one 16-byte
+// store), the own sum stored plainly; `inbox_sum` adds each sphere's inbox and clears its count.
+#define SLOTS 16
+template <int MODE> // 0: inbox; 1: own plain store, partner atomics into a second buffer
+__global__ void __launch_bounds__(256) resolve_inbox(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float4* own, unsigned* count, float4* inbox, float* partner, unsigned* contacts, P p) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x;
+  unsigned mine = 0;
+  if (i < p.n) {
+    float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
+    Win w = window(s, p); int3 c = cellc(make_float3(s.x, s.y, s.z), p);
+    int y = c.y - w.lo.y, z = c.z - w.lo.z; int k = y + w.ny*z;
+    int row = w.first + w.dx*(y + w.dy*z); int next_plane = w.dx*(w.dy - w.ny + 1);
+    float4 tot = make_float4(0, 0, 0, 0);
+    for (; k < w.count; k++) {
+      unsigned a = __ldg(&cs[row]), b = __ldg(&cs[row + w.width]);
+      if (a < (unsigned)i + 1) a = i + 1;
+      for (unsigned q = a; q < b; q++) {
+        float4 t = __ldg(&pos[q]);
+        float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
+        if (dx*dx+dy*dy+dz*dz > reach*reach) continue;
+        float4 u = __ldg(&vel[q]);
+        float4 f = law(s, v, t, u, p);
+        if (f.w != 0.f) {
+          if (MODE == 0) {
+            unsigned at = atomicAdd(&count[q], 1u);
+            if (at < SLOTS) inbox[(size_t)q*SLOTS + at] = make_float4(-f.x, -f.y, -f.z, 0.f);
+          } else {
+            atomicAdd(&partner[3*q], -f.x); atomicAdd(&partner[3*q+1], -f.y); atomicAdd(&partner[3*q+2], -f.z);
+          }
+          tot.x += f.x; tot.y += f.y; tot.z += f.z; mine++;
+        }
+      }
+      y++; if (y == w.ny) { y = 0; row += next_plane; } else row += w.dx;
+    }
+    own[i] = tot;
+  }
+  unsigned tt = __reduce_add_sync(0xffffffff, mine);
+  if ((threadIdx.x & 31) == 0 && tt) atomicAdd(contacts, tt);
+}
+__global__ void inbox_sum(float4* own, unsigned* count, const float4* inbox, int n) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; if (i >= n) return;
+  unsigned c = min(count[i], (unsigned)SLOTS); float4 f = own[i];
+  for (unsigned k = 0; k < c; k++) { float4 g = inbox[(size_t)i*SLOTS + k]; f.x += g.x; f.y += g.y; f.z += g.z; }
+  own[i] = f; count[i] = 0;
+}
+__global__ void partner_sum(float4* own, float* partner, int n) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; if (i >= n) return;
+  float4 f = own[i]; f.x += partner[3*i]; f.y += partner[3*i+1]; f.z += partner[3*i+2];
+  own[i] = f; partner[3*i] = 0; partner[3*i+1] = 0; partner[3*i+2] = 0;
+}
+// Integration as the update: pos, vel, force read; pos, vel written; force cleared.
+__global__ void integrate(float4* pos, float4* vel, float* force, int n, float dt) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; if (i >= n) return;
+  float4 s = pos[i], v = vel[i]; float m = v.w;
+  float ax = force[3*i]/m, ay = force[3*i+1]/m, az = force[3*i+2]/m - 9.81f;
+  v.x += ax*dt; v.y += ay*dt; v.z += az*dt; s.x += v.x*dt; s.y += v.y*dt; s.z += v.z*dt;
+  vel[i] = v; pos[i] = s; force[3*i] = 0; force[3*i+1] = 0; force[3*i+2] = 0;
+}
+
+int main(int argc, char** argv) {
+  FILE* f = fopen(argv[1], "rb"); int n; if (fread(&n, 4, 1, f) != 1) return 1;
+  std::vector<float> h(7*(size_t)n); if (fread(h.data(), 4, h.size(), f) != h.size()) return 1; fclose(f);
+  std::vector<float4> hp(n), hv(n); float rmax = 0; float3 lo = make_float3(1e30,1e30,1e30), hi = make_float3(-1e30,-1e30,-1e30);
+  const float dens = 2500.f;
+  for (int i = 0; i < n; i++) { float* r = &h[7*(size_t)i]; hp[i] = make_float4(r[0], r[1], r[2], r[3]); hv[i] = make_float4(r[4], r[5], r[6], dens*4.f/3.f*3.14159265f*r[3]*r[3]*r[3]);
+    rmax = fmaxf(rmax, r[3]); lo.x = fminf(lo.x, r[0]); lo.y = fminf(lo.y, r[1]); lo.z = fminf(lo.z, r[2]); hi.x = fmaxf(hi.x, r[0]); hi.y = fmaxf(hi.y, r[1]); hi.z = fmaxf(hi.z, r[2]); }
+  P p; p.lo = lo; float cell = 2.f*rmax*1.001f; p.inv = 1.f/cell; p.nx = (int)((hi.x-lo.x)*p.inv)+3; p.ny = (int)((hi.y-lo.y)*p.inv)+3; p.nz = (int)((hi.z-lo.z)*p.inv)+3;
+  p.rmax = rmax*1.001f; p.slack = 0; p.n = n; p.zeta = 0.3f; float dt = 1e-4f; p.rate = (3.14159265f/(10*dt))*(3.14159265f/(10*dt));
+  size_t cells = (size_t)p.nx*p.ny*p.nz; printf("n %d rmax %g grid %d x %d x %d (%zu cells)\n", n, rmax, p.nx, p.ny, p.nz, cells);
+  thrust::device_vector<float4> dpos(hp.begin(), hp.end()), dvel(hv.begin(), hv.end()), spos(n), svel(n);
+  thrust::device_vector<unsigned> key(n), idx(n), cs(cells + 1);
+  keys_k<<<(n+255)/256, 256>>>(thrust::raw_pointer_cast(dpos.data()), thrust::raw_pointer_cast(key.data()), p);
+  thrust::sequence(idx.begin(), idx.end()); thrust::sort_by_key(key.begin(), key.end(), idx.begin());
+  thrust::gather(idx.begin(), idx.end(), dpos.begin(), spos.begin()); thrust::gather(idx.begin(), idx.end(), dvel.begin(), svel.begin());
+  thrust::lower_bound(key.begin(), key.end(), thrust::counting_iterator<unsigned>(0), thrust::counting_iterator<unsigned>(cells + 1), cs.begin());
+  thrust::device_vector<float> force(3*(size_t)n); thrust::device_vector<unsigned> cnt(1);
+  float4* P_ = thrust::raw_pointer_cast(spos.data()); float4* V_ = thrust::raw_pointer_cast(svel.data());
+  unsigned* C_ = thrust::raw_pointer_cast(cs.data()); float* F_ = thrust::raw_pointer_cast(force.data()); unsigned* K_ = thrust::raw_pointer_cast(cnt.data());
+  thrust::device_vector<float4> force4(n); float4* F4 = thrust::raw_pointer_cast(force4.data());
+  thrust::device_vector<float4> own4(n), inbox4((size_t)n*SLOTS); thrust::device_vector<unsigned> cnt4(n); thrust::device_vector<float> part(3*(size_t)n);
+  float4* OWN = thrust::raw_pointer_cast(own4.data()); float4* INB = thrust::raw_pointer_cast(inbox4.data()); unsigned* CNT = thrust::raw_pointer_cast(cnt4.data()); float* PART = thrust::raw_pointer_cast(part.data());
+  cudaEvent_t e0, e1; cudaEventCreate(&e0); cudaEventCreate(&e1);
+  int blocks = (n+255)/256; const int R = 200;
+  auto bench = [&](const char* name, auto launch) {
+    for (int w = 0; w < 10; w++) launch();
+    cudaMemset(K_, 0, 4); launch(); unsigned c; cudaMemcpy(&c, K_, 4, cudaMemcpyDeviceToHost);
+    CK(cudaDeviceSynchronize()); cudaEventRecord(e0);
+    for (int r = 0; r < R; r++) launch();
+    cudaEventRecord(e1); CK(cudaEventSynchronize(e1)); float ms; cudaEventElapsedTime(&ms, e0, e1);
+    printf("%-40s %8.2f us  (count %u)\n", name, 1000.f*ms/R, c);
+  };
+  for (float slack : {0.f, 0.1f, 0.2f}) {
+    p.slack = slack*cell; printf("-- slack %.1f cell\n", slack);
+    bench("walk only", [&]{ resolve_inline<false,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
+    bench("inline resolve, no partner atomics", [&]{ resolve_inline<true,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
+    bench("inline resolve", [&]{ resolve_inline<true,true><<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
+    bench("inline resolve, float4 atomics", [&]{ resolve_v4<<<blocks,256>>>(P_, V_, C_, (float4*)F4, K_, p); });
+    bench("inbox: resolve", [&]{ resolve_inbox<0><<<blocks,256>>>(P_, V_, C_, OWN, CNT, INB, PART, K_, p); cudaMemsetAsync(CNT, 0, 4*(size_t)n); });
+    bench("inbox: resolve + sum", [&]{ resolve_inbox<0><<<blocks,256>>>(P_, V_, C_, OWN, CNT, INB, PART, K_, p); inbox_sum<<<blocks,256>>>(OWN, CNT, INB, n); });
+    bench("own store + partner atomics", [&]{ resolve_inbox<1><<<blocks,256>>>(P_, V_, C_, OWN, CNT, INB, PART, K_, p); });
+    bench("own store + partner atomics + sum", [&]{ resolve_inbox<1><<<blocks,256>>>(P_, V_, C_, OWN, CNT, INB, PART, K_, p); partner_sum<<<blocks,256>>>(OWN, PART, n); });
+    bench("full window, no atomics (count 2x)", [&]{ resolve_full<<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
+    bench("listed (as the WGSL pass)", [&]{ resolve_listed<<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
+  }
+  bench("memset force", [&]{ cudaMemsetAsync(F_, 0, 12*(size_t)n); });
+  thrust::device_vector<float4> p2 = spos, v2 = svel;
+  float4* P2 = thrust::raw_pointer_cast(p2.data()); float4* V2 = thrust::raw_pointer_cast(v2.data());
+  bench("integrate (pos, vel, force)", [&]{ integrate<<<blocks,256>>>(P2, V2, F_, n, 1e-9f); });
+  return 0;
+}
