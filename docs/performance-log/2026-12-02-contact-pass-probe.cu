@@ -10,6 +10,7 @@
 #include <initializer_list>
 #include <thrust/device_vector.h>
 #include <thrust/sort.h>
+#include <thrust/scan.h>
 #include <thrust/sequence.h>
 #include <thrust/binary_search.h>
 #include <thrust/gather.h>
@@ -233,6 +234,84 @@ __global__ void partner_sum(float4* own, float* partner, int n) {
   float4 f = own[i]; f.x += partner[3*i]; f.y += partner[3*i+1]; f.z += partner[3*i+2];
   own[i] = f; partner[3*i] = 0; partner[3*i+1] = 0; partner[3*i+2] = 0;
 }
+// Lists: at a re-binning, every pair within r_i + r_j + 2 skin (each sphere may move a skin
+// before the next), half (the walk's), as a CSR by first sphere: counted, scanned, written.
+template <bool WRITE>
+__global__ void __launch_bounds__(256) list_pairs(const float4* __restrict__ pos, const unsigned* __restrict__ cs, unsigned* counts, const unsigned* offsets, unsigned* pi, unsigned* pj, P p, float extra) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= p.n) return;
+  float4 s = __ldg(&pos[i]);
+  Win w = window(s, p); int3 c = cellc(make_float3(s.x, s.y, s.z), p);
+  int y = c.y - w.lo.y, z = c.z - w.lo.z; int k = y + w.ny*z;
+  int row = w.first + w.dx*(y + w.dy*z); int next_plane = w.dx*(w.dy - w.ny + 1);
+  unsigned m = 0; unsigned at = WRITE ? offsets[i] : 0;
+  for (; k < w.count; k++) {
+    unsigned a = __ldg(&cs[row]), b = __ldg(&cs[row + w.width]);
+    if (a < (unsigned)i + 1) a = i + 1;
+    for (unsigned q = a; q < b; q++) {
+      float4 t = __ldg(&pos[q]);
+      float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w + extra;
+      if (dx*dx+dy*dy+dz*dz > reach*reach) continue;
+      if (WRITE) { pi[at + m] = i; pj[at + m] = q; }
+      m++;
+    }
+    y++; if (y == w.ny) { y = 0; row += next_plane; } else row += w.dx;
+  }
+  if (!WRITE) counts[i] = m;
+}
+// One thread a listed pair. SEG: the first sphere's share summed over its run of pairs in the
+// warp (they are consecutive) and added once; else added with atomics as the partner's.
+template <bool SEG>
+__global__ void __launch_bounds__(256) pair_forces(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ pi, const unsigned* __restrict__ pj, unsigned npairs, float* force, unsigned* contacts, P p) {
+  unsigned t = blockIdx.x * blockDim.x + threadIdx.x;
+  int lane = threadIdx.x & 31;
+  int key = -1; float fx = 0, fy = 0, fz = 0; unsigned mine = 0;
+  if (t < npairs) {
+    unsigned i = __ldg(&pi[t]), j = __ldg(&pj[t]); key = (int)i;
+    float4 s = __ldg(&pos[i]), tt = __ldg(&pos[j]);
+    float dx = tt.x - s.x, dy = tt.y - s.y, dz = tt.z - s.z; float reach = s.w + tt.w;
+    if (dx*dx+dy*dy+dz*dz <= reach*reach) {
+      float4 v = __ldg(&vel[i]), u = __ldg(&vel[j]);
+      float4 f = law(s, v, tt, u, p);
+      if (f.w != 0.f) {
+        atomicAdd(&force[3*j], -f.x); atomicAdd(&force[3*j+1], -f.y); atomicAdd(&force[3*j+2], -f.z);
+        fx = f.x; fy = f.y; fz = f.z; mine = 1;
+        if (!SEG) { atomicAdd(&force[3*i], fx); atomicAdd(&force[3*i+1], fy); atomicAdd(&force[3*i+2], fz); }
+      }
+    }
+  }
+  if (SEG) {
+    for (int off = 1; off < 32; off <<= 1) {
+      float ox = __shfl_up_sync(0xffffffff, fx, off), oy = __shfl_up_sync(0xffffffff, fy, off), oz = __shfl_up_sync(0xffffffff, fz, off);
+      int ko = __shfl_up_sync(0xffffffff, key, off);
+      if (lane >= off && ko == key) { fx += ox; fy += oy; fz += oz; }
+    }
+    int kn = __shfl_down_sync(0xffffffff, key, 1);
+    if (key >= 0 && (lane == 31 || kn != key) && (fx != 0.f || fy != 0.f || fz != 0.f)) {
+      atomicAdd(&force[3*key], fx); atomicAdd(&force[3*key+1], fy); atomicAdd(&force[3*key+2], fz);
+    }
+  }
+  unsigned tot = __reduce_add_sync(0xffffffff, mine);
+  if (lane == 0 && tot) atomicAdd(contacts, tot);
+}
+// One thread a sphere over its listed pairs (the lists of 2026-11-28, as a CSR).
+__global__ void __launch_bounds__(256) list_forces(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ offsets, const unsigned* __restrict__ pj, float* force, unsigned* contacts, P p) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; unsigned mine = 0;
+  if (i < p.n) {
+    float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]); float fx = 0, fy = 0, fz = 0;
+    unsigned a = offsets[i], b = offsets[i + 1];
+    for (unsigned k = a; k < b; k++) {
+      unsigned j = __ldg(&pj[k]); float4 tt = __ldg(&pos[j]);
+      float dx = tt.x - s.x, dy = tt.y - s.y, dz = tt.z - s.z; float reach = s.w + tt.w;
+      if (dx*dx+dy*dy+dz*dz > reach*reach) continue;
+      float4 u = __ldg(&vel[j]); float4 f = law(s, v, tt, u, p);
+      if (f.w != 0.f) { atomicAdd(&force[3*j], -f.x); atomicAdd(&force[3*j+1], -f.y); atomicAdd(&force[3*j+2], -f.z); fx += f.x; fy += f.y; fz += f.z; mine++; }
+    }
+    if (mine) { atomicAdd(&force[3*i], fx); atomicAdd(&force[3*i+1], fy); atomicAdd(&force[3*i+2], fz); }
+  }
+  unsigned tot = __reduce_add_sync(0xffffffff, mine);
+  if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
+}
 // Integration as the update: pos, vel, force read; pos, vel written; force cleared.
 __global__ void integrate(float4* pos, float4* vel, float* force, int n, float dt) {
   int i = blockIdx.x * blockDim.x + threadIdx.x; if (i >= n) return;
@@ -286,6 +365,23 @@ int main(int argc, char** argv) {
     bench("own store + partner atomics + sum", [&]{ resolve_inbox<1><<<blocks,256>>>(P_, V_, C_, OWN, CNT, INB, PART, K_, p); partner_sum<<<blocks,256>>>(OWN, PART, n); });
     bench("full window, no atomics (count 2x)", [&]{ resolve_full<<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
     bench("listed (as the WGSL pass)", [&]{ resolve_listed<<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
+  }
+  for (float skin : {0.1f, 0.2f}) {
+    float extra = 2.f*skin*cell; p.slack = 0;
+    thrust::device_vector<unsigned> counts(n + 1, 0), offsets(n + 1);
+    unsigned* CN = thrust::raw_pointer_cast(counts.data()); unsigned* OF = thrust::raw_pointer_cast(offsets.data());
+    list_pairs<false><<<blocks,256>>>(P_, C_, CN, OF, nullptr, nullptr, p, extra);
+    thrust::exclusive_scan(counts.begin(), counts.end(), offsets.begin());
+    unsigned npairs = offsets[n];
+    thrust::device_vector<unsigned> pi(npairs), pj(npairs);
+    unsigned* PI = thrust::raw_pointer_cast(pi.data()); unsigned* PJ = thrust::raw_pointer_cast(pj.data());
+    printf("-- lists within reach + 2 x %.1f cell: %u pairs\n", skin, npairs);
+    bench("lists: count pass", [&]{ list_pairs<false><<<blocks,256>>>(P_, C_, CN, OF, PI, PJ, p, extra); });
+    bench("lists: write pass", [&]{ list_pairs<true><<<blocks,256>>>(P_, C_, CN, OF, PI, PJ, p, extra); });
+    int pblocks = (npairs + 255)/256;
+    bench("pairs: thread a pair, atomics both", [&]{ pair_forces<false><<<pblocks,256>>>(P_, V_, PI, PJ, npairs, F_, K_, p); });
+    bench("pairs: thread a pair, warp-summed first", [&]{ pair_forces<true><<<pblocks,256>>>(P_, V_, PI, PJ, npairs, F_, K_, p); });
+    bench("lists: thread a sphere over its list", [&]{ list_forces<<<blocks,256>>>(P_, V_, OF, PJ, F_, K_, p); });
   }
   bench("memset force", [&]{ cudaMemsetAsync(F_, 0, 12*(size_t)n); });
   thrust::device_vector<float4> p2 = spos, v2 = svel;
