@@ -5,8 +5,9 @@
 # times STEPS more steps (default 2000) from its own settled state and from the first binary's
 # (the same state for all: a later binary reads an earlier one's checkpoint). With SETTLE=0 (or a
 # BENCH/settle file that says 0) every
-# binary times the scene's own steps from its start (STEPS=N: that many). ROUNDS times (default
-# 2), alternating binaries. Prints one line per timed run: binary, start, contacts at the end,
+# binary times the scene's own steps from its start (STEPS=N: that many; PHASES=K: in runs of K
+# steps, each resumed from the last one's checkpoint, a line each, to show where a run's time
+# goes as it changes). ROUNDS times (default 2), alternating binaries. Prints one line per timed run: binary, start, contacts at the end,
 # and the summary's ms per step (build / DCD / update / total; GPU timestamps where the backend
 # has them).
 #
@@ -43,13 +44,28 @@ header() {
 
 if [ "$settled" = 0 ]; then
     steps=${STEPS:-$scene_steps}
+    phase=${PHASES:-$steps}
+    [ "$phase" -gt 0 ] || { echo "PHASES must be a positive number of steps" >&2; exit 2; }
     header
     for round in $(seq 1 "$rounds"); do
         for bin in "$@"; do
             out="$work/timed-$(label "$bin")"
-            summary=$("$bin" simulate "$work/scene.toml" --backend "$backend" -q --overwrite \
-                --steps "$steps" -o "$out" 2>/dev/null)
-            row "$round" "$(label "$bin")" "scene" "$summary"
+            at=0
+            while [ "$at" -lt "$steps" ]; do
+                next=$((at + phase < steps ? at + phase : steps))
+                from=(simulate "$work/scene.toml")
+                start="scene"
+                if [ "$at" -gt 0 ]; then
+                    from=(simulate --resume "$out-$at/checkpoint.bin")
+                    start="step $at"
+                fi
+                rm -rf "$out-$next"
+                summary=$("$bin" "${from[@]}" --backend "$backend" -q --steps "$next" \
+                    -o "$out-$next" 2>/dev/null)
+                [ "$phase" -lt "$steps" ] && start="$start to $next"
+                row "$round" "$(label "$bin")" "$start" "$summary"
+                at=$next
+            done
         done
     done
     exit 0
@@ -72,7 +88,7 @@ for round in $(seq 1 "$rounds"); do
             out="$work/timed-$own-on-$bed"
             rm -rf "$out"
             summary=$("$bin" simulate --resume "$work/settled-$bed/checkpoint.bin" \
-                --steps $((settled + steps)) -q -o "$out" 2>/dev/null)
+                --backend "$backend" --steps $((settled + steps)) -q -o "$out" 2>/dev/null)
             row "$round" "$own" "settled by $bed" "$summary"
         done
     done
