@@ -7,9 +7,9 @@
 # BENCH/settle file that says 0) every
 # binary times the scene's own steps from its start (STEPS=N: that many; PHASES=K: in runs of K
 # steps, each resumed from the last one's checkpoint, a line each, to show where a run's time
-# goes as it changes). ROUNDS times (default 2), alternating binaries. Prints one line per timed run: binary, start, contacts at the end,
-# and the summary's ms per step (build / DCD / update / total; GPU timestamps where the backend
-# has them).
+# goes as it changes). ROUNDS times (default 2), alternating binaries. Prints one line per timed
+# run: binary, start, contacts at the end, and the summary's ms per step (build / DCD / update /
+# total; GPU timestamps where the backend has them).
 #
 # Usage: benches/run.sh BENCH WORK_DIR MOCHI [MOCHI ...]
 #   e.g. benches/run.sh benches/hcp_block /tmp/hcp target/release/mochi
