@@ -5,10 +5,12 @@
 // (the half-stencil walk), the partner's share by shared-memory atomics, the tile's sums then
 // added to the forces with global atomics; 1: every sphere walks its whole window and stores its
 // own force (each law twice, no atomics); 2: as 1 with the positions alone staged (velocities
-// read from global memory). Beside them the tree's form (the global walk, the partner's share by
-// global atomics) and its whole-window twin, on the same bed and grid; every variant's forces are
-// compared with the first's. Bed: int32 n, then n rows of float32 x, y, z, r, vx, vy, vz (a
-// frame's first seven columns). Build: nvcc -O3 -arch=sm_90 -std=c++17 -use_fast_math.
+// read from global memory). Beside them: the tree's form (the global walk, the partner's share
+// by global atomics), its whole-window twin, and the whole-window pass with the integration
+// fused in against the tree's form followed by an integration; every variant's forces are
+// compared with the first's. With a second argument, the tree's form on cells finer than the
+// diameter instead. Bed: int32 n, then n rows of float32 x, y, z, r, vx, vy, vz (a frame's
+// first seven columns). Build: nvcc -O3 -arch=sm_90 -std=c++17 -use_fast_math.
 #include <cstdio>
 #include <cstdlib>
 #include <vector>
@@ -213,6 +215,42 @@ __global__ void __launch_bounds__(256) resolve_global_full(const float4* __restr
   if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
 }
 
+// The whole-window pass with the integration fused in: each sphere's whole force, then one
+// semi-implicit Euler step written to a second state (the first is read by the other threads).
+__global__ void __launch_bounds__(256) resolve_fused(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float4* pos2, float4* vel2, unsigned* contacts, P p, float dt) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; unsigned mine = 0;
+  if (i < p.n) {
+    float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
+    Win w = window(s, p);
+    float fx = 0, fy = 0, fz = 0;
+    for (int z = w.lo.z; z <= w.hi.z; z++) for (int y = w.lo.y; y <= w.hi.y; y++) {
+      int row = p.nx * (y + p.ny * z);
+      unsigned a = __ldg(&cs[row + w.lo.x]), b = __ldg(&cs[row + w.hi.x + 1]);
+      for (unsigned q = a; q < b; q++) {
+        float4 t = __ldg(&pos[q]);
+        float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
+        if (dx*dx+dy*dy+dz*dz > reach*reach || q == (unsigned)i) continue;
+        float4 u = __ldg(&vel[q]); float4 f = law(s, v, t, u, p);
+        if (f.w != 0.f) { fx += f.x; fy += f.y; fz += f.z; mine++; }
+      }
+    }
+    float m = v.w;
+    v.x += dt*fx/m; v.y += dt*fy/m; v.z += dt*(fz/m - 9.81f);
+    s.x += dt*v.x; s.y += dt*v.y; s.z += dt*v.z;
+    vel2[i] = v; pos2[i] = s;
+  }
+  unsigned tot = __reduce_add_sync(0xffffffff, mine);
+  if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
+}
+// The tree's update after the pass: forces read and cleared, the state read and written in place.
+__global__ void integrate(float4* pos, float4* vel, float* force, int n, float dt) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; if (i >= n) return;
+  float4 s = pos[i], v = vel[i]; float m = v.w;
+  v.x += dt*force[3*i]/m; v.y += dt*force[3*i+1]/m; v.z += dt*(force[3*i+2]/m - 9.81f);
+  s.x += dt*v.x; s.y += dt*v.y; s.z += dt*v.z;
+  vel[i] = v; pos[i] = s; force[3*i] = 0; force[3*i+1] = 0; force[3*i+2] = 0;
+}
+
 int main(int argc, char** argv) {
   FILE* f = fopen(argv[1], "rb"); int n; if (fread(&n, 4, 1, f) != 1) return 1;
   std::vector<float> h(7*(size_t)n); if (fread(h.data(), 4, h.size(), f) != h.size()) return 1; fclose(f);
@@ -223,13 +261,18 @@ int main(int argc, char** argv) {
   cudaEvent_t e0, e1; cudaEventCreate(&e0); cudaEventCreate(&e1);
   thrust::device_vector<float4> dpos(hp.begin(), hp.end()), dvel(hv.begin(), hv.end());
   thrust::device_vector<float> ref;
-  for (float slackc : {0.f, 0.2f}) for (int big : {0, 1}) {
-    P p; p.lo = lo; float base = 2.f*rmax*1.001f; float slack = slackc*base; float cell = big ? base + 2.f*slack : base;
-    if (slackc == 0.f && big) continue;
+  // Configurations {slack, cell} in diameters (cell 0: the diameter plus twice the slack).
+  // `probe BED` times the tiles; `probe BED cells` the tree's form on finer cells.
+  const bool cells_only = argc > 2;
+  const std::vector<std::pair<float, float>> tiles_cfg = {{0.f, 1.f}, {0.2f, 1.f}, {0.2f, 0.f}};
+  const std::vector<std::pair<float, float>> cells_cfg = {{0.f, 1.f}, {0.2f, 1.f}, {0.2f, 0.8f}, {0.2f, 0.667f}, {0.2f, 0.5f}, {0.2f, 0.4f}, {0.f, 0.5f}};
+  for (auto [slackc, cellf] : cells_only ? cells_cfg : tiles_cfg) {
+    P p; p.lo = lo; float base = 2.f*rmax*1.001f; float slack = slackc*base; bool big = cellf == 0.f;
+    float cell = big ? base + 2.f*slack : base*cellf;
     p.inv = 1.f/cell; p.nx = (int)((hi.x-lo.x)*p.inv)+3; p.ny = (int)((hi.y-lo.y)*p.inv)+3; p.nz = (int)((hi.z-lo.z)*p.inv)+3;
     p.rmax = rmax*1.001f; p.slack = slack; p.n = n; p.zeta = 0.3f; float dt = 1e-4f; p.rate = (3.14159265f/(10*dt))*(3.14159265f/(10*dt));
     size_t cells = (size_t)p.nx*p.ny*p.nz;
-    printf("== slack %.1f cell, cells %s: %g m, grid %d x %d x %d\n", slackc, big ? "diameter + 2 slack" : "diameter", cell, p.nx, p.ny, p.nz);
+    printf("== slack %.1f diameter, cells %s %.3f diameter: %g m, grid %d x %d x %d\n", slackc, big ? "2 slack +" : "", big ? 1.f : cellf, cell, p.nx, p.ny, p.nz);
     thrust::device_vector<float4> spos(n), svel(n); thrust::device_vector<unsigned> key(n), idx(n), cs(cells + 1);
     keys_k<<<(n+255)/256, 256>>>(thrust::raw_pointer_cast(dpos.data()), thrust::raw_pointer_cast(key.data()), p);
     thrust::sequence(idx.begin(), idx.end()); thrust::sort_by_key(key.begin(), key.end(), idx.begin());
@@ -246,11 +289,11 @@ int main(int argc, char** argv) {
       double num = 0, den = 0; for (size_t k = 0; k < fh.size(); k++) { double d = fh[k] - fref[k]; num += d*d; den += (double)fref[k]*fref[k]; }
       printf("   %-44s rel. force difference %.2e\n", name, sqrt(num/den));
     };
-    auto bench = [&](const char* name, bool zero, auto launch) {
+    auto bench = [&](const char* name, bool zero, auto launch, bool compare = true) {
       const int R = 200;
       for (int w = 0; w < 5; w++) launch();
       cudaMemset(K_, 0, 8); thrust::fill(force.begin(), force.end(), 0.f); launch(); unsigned c[2]; cudaMemcpy(c, K_, 8, cudaMemcpyDeviceToHost);
-      CK(cudaDeviceSynchronize()); check(name);
+      CK(cudaDeviceSynchronize()); if (compare) check(name);
       cudaEventRecord(e0);
       for (int r = 0; r < R; r++) { if (zero) cudaMemsetAsync(F_, 0, 12*(size_t)n); launch(); }
       cudaEventRecord(e1); CK(cudaEventSynchronize(e1)); float ms; cudaEventElapsedTime(&ms, e0, e1);
@@ -263,7 +306,17 @@ int main(int argc, char** argv) {
       bench(name, zero, [&]{ kern<<<tnx*tny*tnz, threads>>>(P_, V_, C_, F_, K_, K_ + 1, p, tnx, tny); });
     };
     bench("global full window, no atomics", false, [&]{ resolve_global_full<<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
-    if (big || slackc == 0.f) {
+    if (!cells_only) {
+      // dt 1e-9 s: the state stays the bed's over the repeats (to 1e-9 of a radius).
+      thrust::device_vector<float4> pos2 = spos, vel2 = svel, pos3 = spos, vel3 = svel, pos4 = spos, vel4 = svel;
+      float4* P2 = thrust::raw_pointer_cast(pos2.data()); float4* V2 = thrust::raw_pointer_cast(vel2.data());
+      float4* P3 = thrust::raw_pointer_cast(pos3.data()); float4* V3 = thrust::raw_pointer_cast(vel3.data());
+      float4* P4 = thrust::raw_pointer_cast(pos4.data()); float4* V4 = thrust::raw_pointer_cast(vel4.data());
+      bench("global walk + atomics, then integrate", false, [&]{ resolve_global<<<blocks,256>>>(P3, V3, C_, F_, K_, p); integrate<<<blocks,256>>>(P3, V3, F_, n, 1e-9f); }, false);
+      bool flip = false;
+      bench("whole windows + integration fused", false, [&]{ if (flip) resolve_fused<<<blocks,256>>>(P2, V2, C_, P4, V4, K_, p, 1e-9f); else resolve_fused<<<blocks,256>>>(P4, V4, C_, P2, V2, K_, p, 1e-9f); flip = !flip; }, false);
+    }
+    if (!cells_only && (big || slackc == 0.f)) {
       tiled(resolve_tiled<8,8,4,1024,0>, 8,8,4, 128, "tiles 8x8x4 half, shared atomics (+ clear)", true);
       tiled(resolve_tiled<16,8,4,960,0>, 16,8,4, 256, "tiles 16x8x4 half, shared atomics (+ clear)", true);
       tiled(resolve_tiled<8,8,4,1024,1>, 8,8,4, 128, "tiles 8x8x4 full, no atomics", false);
