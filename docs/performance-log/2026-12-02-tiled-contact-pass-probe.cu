@@ -8,14 +8,18 @@
 // read from global memory). Beside them: the tree's form (the global walk, the partner's share
 // by global atomics), its whole-window twin, and the whole-window pass with the integration
 // fused in against the tree's form followed by an integration; every variant's forces are
-// compared with the first's. With a second argument, the tree's form on cells finer than the
-// diameter instead. Bed: int32 n, then n rows of float32 x, y, z, r, vx, vy, vz (a frame's
-// first seven columns). Build: nvcc -O3 -arch=sm_90 -std=c++17 -use_fast_math.
+// compared with the first's. With `cells` after the bed, the tree's form on cells finer than
+// the diameter instead; with `compact`, the tree's form with its candidates read first from a
+// compact copy of 8 bytes a sphere (centre and radius as 16-bit units of the bed's extent: a
+// conservative test there, the exact one on the float4 centres of the few that pass). Bed:
+// int32 n, then n rows of float32 x, y, z, r, vx, vy, vz (a frame's first seven columns).
+// Build: nvcc -O3 -arch=sm_90 -std=c++17 -use_fast_math.
 #include <cstdio>
 #include <cstdlib>
 #include <vector>
 #include <cmath>
 #include <initializer_list>
+#include <string>
 #include <thrust/device_vector.h>
 #include <thrust/sort.h>
 #include <thrust/sequence.h>
@@ -251,6 +255,48 @@ __global__ void integrate(float4* pos, float4* vel, float* force, int n, float d
   vel[i] = v; pos[i] = s; force[3*i] = 0; force[3*i+1] = 0; force[3*i+2] = 0;
 }
 
+// Compact centres: each coordinate and the radius as 16-bit units of `unit` metres from `lo`.
+struct Q { float3 lo; float inv_unit; };
+__global__ void compact_k(const float4* pos, ushort4* cpos, Q q, int n) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; if (i >= n) return;
+  float4 s = pos[i];
+  cpos[i] = make_ushort4((unsigned short)__float2uint_rn((s.x - q.lo.x) * q.inv_unit), (unsigned short)__float2uint_rn((s.y - q.lo.y) * q.inv_unit),
+                         (unsigned short)__float2uint_rn((s.z - q.lo.z) * q.inv_unit), (unsigned short)__float2uint_ru(s.w * q.inv_unit));
+}
+// MODE 0: walk only (count pairs within reach); 1: the whole pass. COMPACT: candidates tested
+// first on the compact centres (reach + 2 units: rounding of both centres), then exactly.
+template <int MODE, bool COMPACT>
+__global__ void __launch_bounds__(256) pass_k(const float4* __restrict__ pos, const ushort4* __restrict__ cpos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; unsigned mine = 0;
+  if (i < p.n) {
+    float4 s = __ldg(&pos[i]); float4 v = MODE ? __ldg(&vel[i]) : make_float4(0, 0, 0, 0);
+    ushort4 c = COMPACT ? __ldg(&cpos[i]) : make_ushort4(0, 0, 0, 0);
+    Win w = window(s, p); int3 cc = cellc(make_float3(s.x, s.y, s.z), p);
+    float fx = 0, fy = 0, fz = 0;
+    for (int z = cc.z; z <= w.hi.z; z++) for (int y = (z == cc.z ? cc.y : w.lo.y); y <= w.hi.y; y++) {
+      int row = p.nx * (y + p.ny * z);
+      unsigned a = __ldg(&cs[row + w.lo.x]), b = __ldg(&cs[row + w.hi.x + 1]);
+      if (a < (unsigned)i + 1) a = i + 1;
+      for (unsigned q = a; q < b; q++) {
+        if (COMPACT) {
+          ushort4 t = __ldg(&cpos[q]);
+          int dx = (int)t.x - (int)c.x, dy = (int)t.y - (int)c.y, dz = (int)t.z - (int)c.z; int reach = (int)t.w + (int)c.w + 2;
+          if (dx*dx + dy*dy + dz*dz > reach*reach) continue;
+        }
+        float4 t = __ldg(&pos[q]);
+        float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
+        if (dx*dx+dy*dy+dz*dz > reach*reach) continue;
+        if (MODE == 0) { mine++; continue; }
+        float4 u = __ldg(&vel[q]); float4 f = law(s, v, t, u, p);
+        if (f.w != 0.f) { atomicAdd(&force[3*q], -f.x); atomicAdd(&force[3*q+1], -f.y); atomicAdd(&force[3*q+2], -f.z); fx += f.x; fy += f.y; fz += f.z; mine++; }
+      }
+    }
+    if (MODE && mine) { atomicAdd(&force[3*i], fx); atomicAdd(&force[3*i+1], fy); atomicAdd(&force[3*i+2], fz); }
+  }
+  unsigned tot = __reduce_add_sync(0xffffffff, mine);
+  if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
+}
+
 int main(int argc, char** argv) {
   FILE* f = fopen(argv[1], "rb"); int n; if (fread(&n, 4, 1, f) != 1) return 1;
   std::vector<float> h(7*(size_t)n); if (fread(h.data(), 4, h.size(), f) != h.size()) return 1; fclose(f);
@@ -262,11 +308,14 @@ int main(int argc, char** argv) {
   thrust::device_vector<float4> dpos(hp.begin(), hp.end()), dvel(hv.begin(), hv.end());
   thrust::device_vector<float> ref;
   // Configurations {slack, cell} in diameters (cell 0: the diameter plus twice the slack).
-  // `probe BED` times the tiles; `probe BED cells` the tree's form on finer cells.
-  const bool cells_only = argc > 2;
+  // `probe BED` times the tiles; `probe BED cells` the tree's form on finer cells; `probe BED
+  // compact` the tree's form with its candidates read from a compact copy first.
+  const bool compact = argc > 2 && std::string(argv[2]) == "compact";
+  const bool cells_only = argc > 2 && !compact;
   const std::vector<std::pair<float, float>> tiles_cfg = {{0.f, 1.f}, {0.2f, 1.f}, {0.2f, 0.f}};
   const std::vector<std::pair<float, float>> cells_cfg = {{0.f, 1.f}, {0.2f, 1.f}, {0.2f, 0.8f}, {0.2f, 0.667f}, {0.2f, 0.5f}, {0.2f, 0.4f}, {0.f, 0.5f}};
-  for (auto [slackc, cellf] : cells_only ? cells_cfg : tiles_cfg) {
+  const std::vector<std::pair<float, float>> compact_cfg = {{0.f, 1.f}, {0.2f, 1.f}};
+  for (auto [slackc, cellf] : compact ? compact_cfg : cells_only ? cells_cfg : tiles_cfg) {
     P p; p.lo = lo; float base = 2.f*rmax*1.001f; float slack = slackc*base; bool big = cellf == 0.f;
     float cell = big ? base + 2.f*slack : base*cellf;
     p.inv = 1.f/cell; p.nx = (int)((hi.x-lo.x)*p.inv)+3; p.ny = (int)((hi.y-lo.y)*p.inv)+3; p.nz = (int)((hi.z-lo.z)*p.inv)+3;
@@ -300,6 +349,18 @@ int main(int argc, char** argv) {
       printf("%-44s %8.2f us  (contacts %u, tiles overflowed %u)\n", name, 1000.f*ms/R, c[0], c[1]);
     };
     int blocks = (n+255)/256;
+    if (compact) {
+      float extent = fmaxf(fmaxf(hi.x - lo.x, hi.y - lo.y), hi.z - lo.z) + 2.f*rmax;
+      Q qz; qz.lo = make_float3(lo.x - rmax, lo.y - rmax, lo.z - rmax); qz.inv_unit = 65000.f / extent;
+      printf("compact unit %g m\n", 1.f/qz.inv_unit);
+      thrust::device_vector<ushort4> cpos(n); ushort4* C8 = thrust::raw_pointer_cast(cpos.data());
+      bench("compact copy written (8 bytes a sphere)", false, [&]{ compact_k<<<blocks,256>>>(P_, C8, qz, n); }, false);
+      bench("walk only, float4 centres", false, [&]{ pass_k<0,false><<<blocks,256>>>(P_, C8, V_, C_, F_, K_, p); }, false);
+      bench("walk only, compact centres first", false, [&]{ pass_k<0,true><<<blocks,256>>>(P_, C8, V_, C_, F_, K_, p); }, false);
+      bench("whole pass, float4 centres (+ clear)", true, [&]{ pass_k<1,false><<<blocks,256>>>(P_, C8, V_, C_, F_, K_, p); });
+      bench("whole pass, compact centres first (+ clear)", true, [&]{ pass_k<1,true><<<blocks,256>>>(P_, C8, V_, C_, F_, K_, p); });
+      continue;
+    }
     bench("global walk + atomics (+ clear)", true, [&]{ resolve_global<<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
     auto tiled = [&](auto kern, int TX, int TY, int TZ, int threads, const char* name, bool zero) {
       int tnx = (p.nx - 2 + TX - 1)/TX, tny = (p.ny - 2 + TY - 1)/TY, tnz = (p.nz - 2 + TZ - 1)/TZ;
