@@ -3,11 +3,8 @@
 // added with float atomics) written in CUDA, in the variants the log names, timed on a bed read
 // from a binary file (int32 n, then n rows of float32 x, y, z, r, vx, vy, vz: a frame's first
 // seven columns). Build: nvcc -O3 -arch=sm_90 -std=c++17 [-use_fast_math] -o probe this file.
-#include <cstdio>
-#include <cstdlib>
-#include <vector>
-#include <cmath>
 #include <initializer_list>
+#include "2026-12-02-probe-common.cuh"
 #include <thrust/device_vector.h>
 #include <thrust/sort.h>
 #include <thrust/scan.h>
@@ -16,30 +13,6 @@
 #include <thrust/gather.h>
 #include <thrust/iterator/counting_iterator.h>
 #include <thrust/extrema.h>
-#define CK(x) do { cudaError_t e = (x); if (e != cudaSuccess) { printf("%s: %s\n", #x, cudaGetErrorString(e)); exit(1);} } while (0)
-
-struct P { float3 lo; float inv; int nx, ny, nz; float rmax; float slack; float rate; float zeta; int n; };
-
-__device__ __forceinline__ int3 cellc(float3 c, const P& p) {
-  float ux = fmaxf((c.x - p.lo.x) * p.inv, 0.f), uy = fmaxf((c.y - p.lo.y) * p.inv, 0.f), uz = fmaxf((c.z - p.lo.z) * p.inv, 0.f);
-  return make_int3(min((int)ux, p.nx - 3) + 1, min((int)uy, p.ny - 3) + 1, min((int)uz, p.nz - 3) + 1);
-}
-__global__ void keys_k(const float4* pos, unsigned* key, P p) {
-  int i = blockIdx.x * blockDim.x + threadIdx.x; if (i >= p.n) return;
-  float4 s = pos[i]; int3 c = cellc(make_float3(s.x, s.y, s.z), p);
-  key[i] = c.x + p.nx * (c.y + p.ny * c.z);
-}
-__device__ __forceinline__ float4 law(float4 s, float4 v, float4 t, float4 u, const P& p) {
-  float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z;
-  float d2 = dx*dx + dy*dy + dz*dz; float reach = s.w + t.w;
-  if (d2 > reach*reach || d2 == 0.f) return make_float4(0,0,0,0);
-  float dist = sqrtf(d2); float nx = dx/dist, ny = dy/dist, nz = dz/dist;
-  float ov = reach - dist;
-  float vn = (u.x-v.x)*nx + (u.y-v.y)*ny + (u.z-v.z)*nz;
-  float me = v.w*u.w/(v.w+u.w); float k = me*p.rate; float c = 2.f*p.zeta*sqrtf(k*me);
-  float push = fmaxf(k*ov - c*vn, 0.f);
-  return make_float4(-push*nx, -push*ny, -push*nz, 1.f);
-}
 struct Win { int first, width, ny, count, dx, dy; int3 lo; };
 __device__ __forceinline__ Win window(float4 s, const P& p) {
   float reach = (s.w + p.rmax + p.slack) * p.inv + 1.f/256.f;
@@ -322,12 +295,9 @@ __global__ void integrate(float4* pos, float4* vel, float* force, int n, float d
 }
 
 int main(int argc, char** argv) {
-  FILE* f = fopen(argv[1], "rb"); int n; if (fread(&n, 4, 1, f) != 1) return 1;
-  std::vector<float> h(7*(size_t)n); if (fread(h.data(), 4, h.size(), f) != h.size()) return 1; fclose(f);
-  std::vector<float4> hp(n), hv(n); float rmax = 0; float3 lo = make_float3(1e30,1e30,1e30), hi = make_float3(-1e30,-1e30,-1e30);
-  const float dens = 2500.f;
-  for (int i = 0; i < n; i++) { float* r = &h[7*(size_t)i]; hp[i] = make_float4(r[0], r[1], r[2], r[3]); hv[i] = make_float4(r[4], r[5], r[6], dens*4.f/3.f*3.14159265f*r[3]*r[3]*r[3]);
-    rmax = fmaxf(rmax, r[3]); lo.x = fminf(lo.x, r[0]); lo.y = fminf(lo.y, r[1]); lo.z = fminf(lo.z, r[2]); hi.x = fmaxf(hi.x, r[0]); hi.y = fmaxf(hi.y, r[1]); hi.z = fmaxf(hi.z, r[2]); }
+  Bed bed; if (argc < 2 || !load_bed(argv[1], bed)) { printf("usage: probe BED\n"); return 1; }
+  const int n = bed.n; const std::vector<float4>& hp = bed.pos; const std::vector<float4>& hv = bed.vel;
+  const float rmax = bed.rmax; const float3 lo = bed.lo, hi = bed.hi;
   P p; p.lo = lo; float cell = 2.f*rmax*1.001f; p.inv = 1.f/cell; p.nx = (int)((hi.x-lo.x)*p.inv)+3; p.ny = (int)((hi.y-lo.y)*p.inv)+3; p.nz = (int)((hi.z-lo.z)*p.inv)+3;
   p.rmax = rmax*1.001f; p.slack = 0; p.n = n; p.zeta = 0.3f; float dt = 1e-4f; p.rate = (3.14159265f/(10*dt))*(3.14159265f/(10*dt));
   size_t cells = (size_t)p.nx*p.ny*p.nz; printf("n %d rmax %g grid %d x %d x %d (%zu cells)\n", n, rmax, p.nx, p.ny, p.nz, cells);

@@ -14,11 +14,8 @@
 // conservative test there, the exact one on the float4 centres of the few that pass). Bed:
 // int32 n, then n rows of float32 x, y, z, r, vx, vy, vz (a frame's first seven columns).
 // Build: nvcc -O3 -arch=sm_90 -std=c++17 -use_fast_math.
-#include <cstdio>
-#include <cstdlib>
-#include <vector>
-#include <cmath>
 #include <initializer_list>
+#include "2026-12-02-probe-common.cuh"
 #include <string>
 #include <thrust/device_vector.h>
 #include <thrust/sort.h>
@@ -26,30 +23,6 @@
 #include <thrust/binary_search.h>
 #include <thrust/gather.h>
 #include <thrust/iterator/counting_iterator.h>
-#define CK(x) do { cudaError_t e = (x); if (e != cudaSuccess) { printf("%s: %s\n", #x, cudaGetErrorString(e)); exit(1);} } while (0)
-
-struct P { float3 lo; float inv; int nx, ny, nz; float rmax; float slack; float rate; float zeta; int n; };
-
-__device__ __forceinline__ int3 cellc(float3 c, const P& p) {
-  float ux = fmaxf((c.x - p.lo.x) * p.inv, 0.f), uy = fmaxf((c.y - p.lo.y) * p.inv, 0.f), uz = fmaxf((c.z - p.lo.z) * p.inv, 0.f);
-  return make_int3(min((int)ux, p.nx - 3) + 1, min((int)uy, p.ny - 3) + 1, min((int)uz, p.nz - 3) + 1);
-}
-__global__ void keys_k(const float4* pos, unsigned* key, P p) {
-  int i = blockIdx.x * blockDim.x + threadIdx.x; if (i >= p.n) return;
-  float4 s = pos[i]; int3 c = cellc(make_float3(s.x, s.y, s.z), p);
-  key[i] = c.x + p.nx * (c.y + p.ny * c.z);
-}
-__device__ __forceinline__ float4 law(float4 s, float4 v, float4 t, float4 u, const P& p) {
-  float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z;
-  float d2 = dx*dx + dy*dy + dz*dz; float reach = s.w + t.w;
-  if (d2 > reach*reach || d2 == 0.f) return make_float4(0,0,0,0);
-  float dist = sqrtf(d2); float nx = dx/dist, ny = dy/dist, nz = dz/dist;
-  float ov = reach - dist;
-  float vn = (u.x-v.x)*nx + (u.y-v.y)*ny + (u.z-v.z)*nz;
-  float me = v.w*u.w/(v.w+u.w); float k = me*p.rate; float c = 2.f*p.zeta*sqrtf(k*me);
-  float push = fmaxf(k*ov - c*vn, 0.f);
-  return make_float4(-push*nx, -push*ny, -push*nz, 1.f);
-}
 struct Win { int3 lo, hi; };
 __device__ __forceinline__ Win window(float4 s, const P& p) {
   float reach = (s.w + p.rmax + p.slack) * p.inv + 1.f/256.f;
@@ -59,30 +32,6 @@ __device__ __forceinline__ Win window(float4 s, const P& p) {
   w.lo.y = (int)fminf(fmaxf(floorf(uy - reach), 0.f), p.ny-3) + 1; w.hi.y = (int)fminf(fmaxf(floorf(uy + reach), 0.f), p.ny-3) + 1;
   w.lo.z = (int)fminf(fmaxf(floorf(uz - reach), 0.f), p.nz-3) + 1; w.hi.z = (int)fminf(fmaxf(floorf(uz + reach), 0.f), p.nz-3) + 1;
   return w;
-}
-// Baseline: the global walk (own row on), the law inline, partner's share by global atomics.
-__global__ void __launch_bounds__(256) resolve_global(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
-  int i = blockIdx.x * blockDim.x + threadIdx.x; unsigned mine = 0;
-  if (i < p.n) {
-    float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
-    Win w = window(s, p); int3 c = cellc(make_float3(s.x, s.y, s.z), p);
-    float fx = 0, fy = 0, fz = 0;
-    for (int z = c.z; z <= w.hi.z; z++) for (int y = (z == c.z ? c.y : w.lo.y); y <= w.hi.y; y++) {
-      int row = p.nx * (y + p.ny * z);
-      unsigned a = __ldg(&cs[row + w.lo.x]), b = __ldg(&cs[row + w.hi.x + 1]);
-      if (a < (unsigned)i + 1) a = i + 1;
-      for (unsigned q = a; q < b; q++) {
-        float4 t = __ldg(&pos[q]);
-        float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
-        if (dx*dx+dy*dy+dz*dz > reach*reach) continue;
-        float4 u = __ldg(&vel[q]); float4 f = law(s, v, t, u, p);
-        if (f.w != 0.f) { atomicAdd(&force[3*q], -f.x); atomicAdd(&force[3*q+1], -f.y); atomicAdd(&force[3*q+2], -f.z); fx += f.x; fy += f.y; fz += f.z; mine++; }
-      }
-    }
-    if (mine) { atomicAdd(&force[3*i], fx); atomicAdd(&force[3*i+1], fy); atomicAdd(&force[3*i+2], fz); }
-  }
-  unsigned tot = __reduce_add_sync(0xffffffff, mine);
-  if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
 }
 // Tiles of TX x TY x TZ cells, a halo of one; CAP spheres staged at most (else the tile's own
 // spheres walk global memory).
@@ -195,25 +144,30 @@ __global__ void __launch_bounds__(256) resolve_tiled(const float4* __restrict__ 
   unsigned tot = __reduce_add_sync(0xffffffff, mine);
   if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
 }
+// Sphere i's own force from every contact in its whole window (each pair's law evaluated by both
+// its spheres), and the contacts counted into `mine`.
+__device__ __forceinline__ float3 whole_window_force(int i, float4 s, float4 v, const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, const P& p, unsigned& mine) {
+  Win w = window(s, p);
+  float fx = 0, fy = 0, fz = 0;
+  for (int z = w.lo.z; z <= w.hi.z; z++) for (int y = w.lo.y; y <= w.hi.y; y++) {
+    int row = p.nx * (y + p.ny * z);
+    unsigned a = __ldg(&cs[row + w.lo.x]), b = __ldg(&cs[row + w.hi.x + 1]);
+    for (unsigned q = a; q < b; q++) {
+      float4 t = __ldg(&pos[q]);
+      float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
+      if (dx*dx+dy*dy+dz*dz > reach*reach || q == (unsigned)i) continue;
+      float4 u = __ldg(&vel[q]); float4 f = law(s, v, t, u, p);
+      if (f.w != 0.f) { fx += f.x; fy += f.y; fz += f.z; mine++; }
+    }
+  }
+  return make_float3(fx, fy, fz);
+}
 // Global, every sphere its whole window, own force stored (no atomics).
 __global__ void __launch_bounds__(256) resolve_global_full(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
   int i = blockIdx.x * blockDim.x + threadIdx.x; unsigned mine = 0;
   if (i < p.n) {
-    float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
-    Win w = window(s, p);
-    float fx = 0, fy = 0, fz = 0;
-    for (int z = w.lo.z; z <= w.hi.z; z++) for (int y = w.lo.y; y <= w.hi.y; y++) {
-      int row = p.nx * (y + p.ny * z);
-      unsigned a = __ldg(&cs[row + w.lo.x]), b = __ldg(&cs[row + w.hi.x + 1]);
-      for (unsigned q = a; q < b; q++) {
-        float4 t = __ldg(&pos[q]);
-        float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
-        if (dx*dx+dy*dy+dz*dz > reach*reach || q == (unsigned)i) continue;
-        float4 u = __ldg(&vel[q]); float4 f = law(s, v, t, u, p);
-        if (f.w != 0.f) { fx += f.x; fy += f.y; fz += f.z; mine++; }
-      }
-    }
-    force[3*i] = fx; force[3*i+1] = fy; force[3*i+2] = fz;
+    float3 f = whole_window_force(i, __ldg(&pos[i]), __ldg(&vel[i]), pos, vel, cs, p, mine);
+    force[3*i] = f.x; force[3*i+1] = f.y; force[3*i+2] = f.z;
   }
   unsigned tot = __reduce_add_sync(0xffffffff, mine);
   if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
@@ -225,19 +179,8 @@ __global__ void __launch_bounds__(256) resolve_fused(const float4* __restrict__ 
   int i = blockIdx.x * blockDim.x + threadIdx.x; unsigned mine = 0;
   if (i < p.n) {
     float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
-    Win w = window(s, p);
-    float fx = 0, fy = 0, fz = 0;
-    for (int z = w.lo.z; z <= w.hi.z; z++) for (int y = w.lo.y; y <= w.hi.y; y++) {
-      int row = p.nx * (y + p.ny * z);
-      unsigned a = __ldg(&cs[row + w.lo.x]), b = __ldg(&cs[row + w.hi.x + 1]);
-      for (unsigned q = a; q < b; q++) {
-        float4 t = __ldg(&pos[q]);
-        float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
-        if (dx*dx+dy*dy+dz*dz > reach*reach || q == (unsigned)i) continue;
-        float4 u = __ldg(&vel[q]); float4 f = law(s, v, t, u, p);
-        if (f.w != 0.f) { fx += f.x; fy += f.y; fz += f.z; mine++; }
-      }
-    }
+    float3 f = whole_window_force(i, s, v, pos, vel, cs, p, mine);
+    float fx = f.x, fy = f.y, fz = f.z;
     float m = v.w;
     v.x += dt*fx/m; v.y += dt*fy/m; v.z += dt*(fz/m - 9.81f);
     s.x += dt*v.x; s.y += dt*v.y; s.z += dt*v.z;
@@ -298,12 +241,9 @@ __global__ void __launch_bounds__(256) pass_k(const float4* __restrict__ pos, co
 }
 
 int main(int argc, char** argv) {
-  FILE* f = fopen(argv[1], "rb"); int n; if (fread(&n, 4, 1, f) != 1) return 1;
-  std::vector<float> h(7*(size_t)n); if (fread(h.data(), 4, h.size(), f) != h.size()) return 1; fclose(f);
-  std::vector<float4> hp(n), hv(n); float rmax = 0; float3 lo = make_float3(1e30,1e30,1e30), hi = make_float3(-1e30,-1e30,-1e30);
-  const float dens = 2500.f;
-  for (int i = 0; i < n; i++) { float* r = &h[7*(size_t)i]; hp[i] = make_float4(r[0], r[1], r[2], r[3]); hv[i] = make_float4(r[4], r[5], r[6], dens*4.f/3.f*3.14159265f*r[3]*r[3]*r[3]);
-    rmax = fmaxf(rmax, r[3]); lo.x = fminf(lo.x, r[0]); lo.y = fminf(lo.y, r[1]); lo.z = fminf(lo.z, r[2]); hi.x = fmaxf(hi.x, r[0]); hi.y = fmaxf(hi.y, r[1]); hi.z = fmaxf(hi.z, r[2]); }
+  Bed bed; if (argc < 2 || !load_bed(argv[1], bed)) { printf("usage: probe BED\n"); return 1; }
+  const int n = bed.n; const std::vector<float4>& hp = bed.pos; const std::vector<float4>& hv = bed.vel;
+  const float rmax = bed.rmax; const float3 lo = bed.lo, hi = bed.hi;
   cudaEvent_t e0, e1; cudaEventCreate(&e0); cudaEventCreate(&e1);
   thrust::device_vector<float4> dpos(hp.begin(), hp.end()), dvel(hv.begin(), hv.end());
   thrust::device_vector<float> ref;
@@ -361,7 +301,7 @@ int main(int argc, char** argv) {
       bench("whole pass, compact centres first (+ clear)", true, [&]{ pass_k<1,true><<<blocks,256>>>(P_, C8, V_, C_, F_, K_, p); });
       continue;
     }
-    bench("global walk + atomics (+ clear)", true, [&]{ resolve_global<<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
+    bench("global walk + atomics (+ clear)", true, [&]{ pass_k<1,false><<<blocks,256>>>(P_, nullptr, V_, C_, F_, K_, p); });
     auto tiled = [&](auto kern, int TX, int TY, int TZ, int threads, const char* name, bool zero) {
       int tnx = (p.nx - 2 + TX - 1)/TX, tny = (p.ny - 2 + TY - 1)/TY, tnz = (p.nz - 2 + TZ - 1)/TZ;
       bench(name, zero, [&]{ kern<<<tnx*tny*tnz, threads>>>(P_, V_, C_, F_, K_, K_ + 1, p, tnx, tny); });
@@ -373,7 +313,7 @@ int main(int argc, char** argv) {
       float4* P2 = thrust::raw_pointer_cast(pos2.data()); float4* V2 = thrust::raw_pointer_cast(vel2.data());
       float4* P3 = thrust::raw_pointer_cast(pos3.data()); float4* V3 = thrust::raw_pointer_cast(vel3.data());
       float4* P4 = thrust::raw_pointer_cast(pos4.data()); float4* V4 = thrust::raw_pointer_cast(vel4.data());
-      bench("global walk + atomics, then integrate", false, [&]{ resolve_global<<<blocks,256>>>(P3, V3, C_, F_, K_, p); integrate<<<blocks,256>>>(P3, V3, F_, n, 1e-9f); }, false);
+      bench("global walk + atomics, then integrate", false, [&]{ pass_k<1,false><<<blocks,256>>>(P3, nullptr, V3, C_, F_, K_, p); integrate<<<blocks,256>>>(P3, V3, F_, n, 1e-9f); }, false);
       bool flip = false;
       bench("whole windows + integration fused", false, [&]{ if (flip) resolve_fused<<<blocks,256>>>(P2, V2, C_, P4, V4, K_, p, 1e-9f); else resolve_fused<<<blocks,256>>>(P4, V4, C_, P2, V2, K_, p, 1e-9f); flip = !flip; }, false);
     }
