@@ -3,7 +3,11 @@
 // added with float atomics) written in CUDA, in the variants the log names, timed on a bed read
 // from a binary file (int32 n, then n rows of float32 x, y, z, r, vx, vy, vz: a frame's first
 // seven columns). Build: nvcc -O3 -arch=sm_90 -std=c++17 [-use_fast_math] -o probe this file.
+// Run: probe BED (the variants of session 21); probe BED queued (session 23: the tree's form
+// beside the queued law and the form with more loads in flight, forces checked against the
+// tree's); probe BED once (those kernels launched once each, for Nsight Compute).
 #include <initializer_list>
+#include <string>
 #include "2026-12-02-probe-common.cuh"
 #include <thrust/device_vector.h>
 #include <thrust/sort.h>
@@ -153,6 +157,127 @@ __global__ void __launch_bounds__(256) resolve_v4(const float4* __restrict__ pos
       y++; if (y == w.ny) { y = 0; row += next_plane; } else row += w.dx;
     }
     if (mine) atomicAdd(&force[i], tot);
+  }
+  unsigned tot = __reduce_add_sync(0xffffffff, mine);
+  if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
+}
+// Variant F: the law for a warp's 32 contacts at once. Every lane steps its own walk one
+// candidate an iteration (the rows flattened, so the warp stays converged); the lanes within
+// reach append (partner, own lane) to the warp's queue in shared memory, and each time 32 are
+// queued every lane resolves one of them. The own share goes to the owner's slot in shared
+// memory (OWN_SHARED) or with global atomics as the partner's.
+template <bool OWN_SHARED>
+__global__ void __launch_bounds__(256) resolve_queued(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
+  __shared__ unsigned queued[8][64];
+  __shared__ float own[8][32][3];
+  const unsigned FULL = 0xffffffffu;
+  int lane = threadIdx.x & 31, wp = threadIdx.x >> 5;
+  int i = blockIdx.x * blockDim.x + threadIdx.x;
+  bool alive = i < p.n;
+  own[wp][lane][0] = 0.f; own[wp][lane][1] = 0.f; own[wp][lane][2] = 0.f;
+  float4 s = make_float4(0, 0, 0, 0), v = s;
+  int k = 0, count = 0, y = 0, row = 0, width = 0, ny = 1, dx = 0, next_plane = 0;
+  if (alive) {
+    s = __ldg(&pos[i]); v = __ldg(&vel[i]);
+    Win w = window(s, p); int3 c = cellc(make_float3(s.x, s.y, s.z), p);
+    y = c.y - w.lo.y; int z = c.z - w.lo.z; k = y + w.ny*z; count = w.count; ny = w.ny;
+    row = w.first + w.dx*(y + w.dy*z); next_plane = w.dx*(w.dy - w.ny + 1); width = w.width; dx = w.dx;
+  }
+  unsigned q = 0, b = 0, mine = 0; int queue = 0;
+  auto resolve = [&](unsigned entry, bool take) {
+    unsigned j = entry >> 5; int o = entry & 31;
+    float4 so, vo;
+    so.x = __shfl_sync(FULL, s.x, o); so.y = __shfl_sync(FULL, s.y, o); so.z = __shfl_sync(FULL, s.z, o); so.w = __shfl_sync(FULL, s.w, o);
+    vo.x = __shfl_sync(FULL, v.x, o); vo.y = __shfl_sync(FULL, v.y, o); vo.z = __shfl_sync(FULL, v.z, o); vo.w = __shfl_sync(FULL, v.w, o);
+    if (!take) return;
+    float4 t = __ldg(&pos[j]); float4 u = __ldg(&vel[j]);
+    float4 f = law(so, vo, t, u, p);
+    if (f.w != 0.f) {
+      atomicAdd(&force[3*j], -f.x); atomicAdd(&force[3*j+1], -f.y); atomicAdd(&force[3*j+2], -f.z);
+      if (OWN_SHARED) { atomicAdd(&own[wp][o][0], f.x); atomicAdd(&own[wp][o][1], f.y); atomicAdd(&own[wp][o][2], f.z); }
+      else { unsigned io = i - lane + o; atomicAdd(&force[3*io], f.x); atomicAdd(&force[3*io+1], f.y); atomicAdd(&force[3*io+2], f.z); }
+      mine++;
+    }
+  };
+  for (;;) {
+    while (q >= b && k < count) {
+      unsigned a = __ldg(&cs[row]); b = __ldg(&cs[row + width]);
+      q = a < (unsigned)i + 1 ? (unsigned)i + 1 : a;
+      k++; y++; if (y == ny) { y = 0; row += next_plane; } else row += dx;
+    }
+    bool more = alive && q < b;
+    if (!__any_sync(FULL, more)) break;
+    bool hit = false;
+    if (more) {
+      float4 t = __ldg(&pos[q]);
+      float ex = t.x - s.x, ey = t.y - s.y, ez = t.z - s.z; float reach = s.w + t.w;
+      hit = ex*ex + ey*ey + ez*ez <= reach*reach;
+    }
+    unsigned ballot = __ballot_sync(FULL, hit);
+    if (hit) queued[wp][queue + __popc(ballot & ((1u << lane) - 1u))] = (q << 5) | lane;
+    if (more) q++;
+    queue += __popc(ballot);
+    if (queue >= 32) {
+      __syncwarp();
+      queue -= 32;
+      resolve(queued[wp][queue + lane], true);
+      __syncwarp();
+    }
+  }
+  __syncwarp();
+  unsigned last = lane < queue ? queued[wp][lane] : 0u;
+  resolve(last, lane < queue);
+  __syncwarp();
+  if (OWN_SHARED && alive) {
+    float fx = own[wp][lane][0], fy = own[wp][lane][1], fz = own[wp][lane][2];
+    if (fx != 0.f || fy != 0.f || fz != 0.f) { atomicAdd(&force[3*i], fx); atomicAdd(&force[3*i+1], fy); atomicAdd(&force[3*i+2], fz); }
+  }
+  unsigned tot = __reduce_add_sync(FULL, mine);
+  if (lane == 0 && tot) atomicAdd(contacts, tot);
+}
+// Variant G: the tree's form with more loads in flight: the next row's bounds read before the
+// current row's candidates, and U candidates of a row read together before any is tested (and
+// the velocities of those within reach read together before any law); MINB > 1 asks the
+// compiler for registers enough to keep MINB blocks on an SM.
+template <int U, int MINB>
+__global__ void __launch_bounds__(256, MINB) resolve_rows(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x;
+  unsigned mine = 0;
+  if (i < p.n) {
+    float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
+    Win w = window(s, p); int3 c = cellc(make_float3(s.x, s.y, s.z), p);
+    int y = c.y - w.lo.y, z = c.z - w.lo.z; int k = y + w.ny*z;
+    int row = w.first + w.dx*(y + w.dy*z); int next_plane = w.dx*(w.dy - w.ny + 1);
+    float fx = 0, fy = 0, fz = 0;
+    unsigned a = 0, b = 0;
+    if (k < w.count) { a = __ldg(&cs[row]); b = __ldg(&cs[row + w.width]); }
+    while (k < w.count) {
+      unsigned qa = a < (unsigned)i + 1 ? (unsigned)i + 1 : a, qb = b;
+      k++; y++; if (y == w.ny) { y = 0; row += next_plane; } else row += w.dx;
+      if (k < w.count) { a = __ldg(&cs[row]); b = __ldg(&cs[row + w.width]); }
+      for (unsigned q = qa; q < qb; q += U) {
+        float4 t[U], u[U]; bool hit[U];
+#pragma unroll
+        for (int e = 0; e < U; e++) t[e] = q + e < qb ? __ldg(&pos[q + e]) : make_float4(1e30f, 1e30f, 1e30f, 0.f);
+#pragma unroll
+        for (int e = 0; e < U; e++) {
+          float dx = t[e].x - s.x, dy = t[e].y - s.y, dz = t[e].z - s.z; float reach = s.w + t[e].w;
+          hit[e] = dx*dx + dy*dy + dz*dz <= reach*reach;
+          if (hit[e]) u[e] = __ldg(&vel[q + e]);
+        }
+#pragma unroll
+        for (int e = 0; e < U; e++) {
+          if (!hit[e]) continue;
+          float4 f = law(s, v, t[e], u[e], p);
+          if (f.w != 0.f) {
+            unsigned j = q + e;
+            atomicAdd(&force[3*j], -f.x); atomicAdd(&force[3*j+1], -f.y); atomicAdd(&force[3*j+2], -f.z);
+            fx += f.x; fy += f.y; fz += f.z; mine++;
+          }
+        }
+      }
+    }
+    if (mine) { atomicAdd(&force[3*i], fx); atomicAdd(&force[3*i+1], fy); atomicAdd(&force[3*i+2], fz); }
   }
   unsigned tot = __reduce_add_sync(0xffffffff, mine);
   if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
@@ -323,6 +448,51 @@ int main(int argc, char** argv) {
     cudaEventRecord(e1); CK(cudaEventSynchronize(e1)); float ms; cudaEventElapsedTime(&ms, e0, e1);
     printf("%-40s %8.2f us  (count %u)\n", name, 1000.f*ms/R, c);
   };
+  const std::string mode = argc > 2 ? argv[2] : "";
+  // The queued form beside the tree's (`queued`), its forces checked against the tree's; `once`:
+  // each of those kernels launched once (for Nsight Compute).
+  if (mode == "queued" || mode == "once") {
+    auto forces = [&](auto launch) {
+      cudaMemset(F_, 0, 12*(size_t)n); launch(); CK(cudaDeviceSynchronize());
+      std::vector<float> h(3*(size_t)n); cudaMemcpy(h.data(), F_, 12*(size_t)n, cudaMemcpyDeviceToHost); return h;
+    };
+    for (float slack : {0.f, 0.2f}) {
+      p.slack = slack*cell;
+      auto walk = [&]{ resolve_inline<false,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto nopartner = [&]{ resolve_inline<true,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto tree = [&]{ resolve_inline<true,true><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto qshared = [&]{ resolve_queued<true><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto qglobal = [&]{ resolve_queued<false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto rows1 = [&]{ resolve_rows<1,1><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto rows2 = [&]{ resolve_rows<2,1><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto rows4 = [&]{ resolve_rows<4,1><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto rows1o = [&]{ resolve_rows<1,8><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto rows2o = [&]{ resolve_rows<2,8><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      if (mode == "once") { if (slack > 0.f) { walk(); nopartner(); tree(); qshared(); qglobal(); rows1(); rows2(); rows4(); rows1o(); rows2o(); CK(cudaDeviceSynchronize()); } continue; }
+      printf("-- slack %.1f cell\n", slack);
+      std::vector<float> ref = forces(tree);
+      auto against_tree = [&](const char* name, const std::vector<float>& h) {
+        double d2 = 0, r2 = 0; for (size_t e = 0; e < h.size(); e++) { d2 += double(h[e]-ref[e])*(h[e]-ref[e]); r2 += double(ref[e])*ref[e]; }
+        printf("%s: forces against the tree's, RMS relative %.2e\n", name, std::sqrt(d2/r2));
+      };
+      against_tree("queued, own in shared", forces(qshared));
+      against_tree("queued, own global", forces(qglobal));
+      against_tree("rows, 1 at a time", forces(rows1));
+      against_tree("rows, 4 at a time", forces(rows4));
+      against_tree("rows, 2 at a time, 8 blocks", forces(rows2o));
+      bench("walk only", walk);
+      bench("inline resolve, no partner atomics", nopartner);
+      bench("inline resolve (the tree's form)", tree);
+      bench("queued, own share in shared memory", qshared);
+      bench("queued, own share by global atomics", qglobal);
+      bench("next row's bounds early, 1 candidate", rows1);
+      bench("next row's bounds early, 2 candidates", rows2);
+      bench("next row's bounds early, 4 candidates", rows4);
+      bench("the same, 1 candidate, 8 blocks an SM", rows1o);
+      bench("the same, 2 candidates, 8 blocks an SM", rows2o);
+    }
+    return 0;
+  }
   for (float slack : {0.f, 0.1f, 0.2f}) {
     p.slack = slack*cell; printf("-- slack %.1f cell\n", slack);
     bench("walk only", [&]{ resolve_inline<false,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
