@@ -9,6 +9,7 @@
 #include <initializer_list>
 #include <string>
 #include "2026-12-02-probe-common.cuh"
+#include <cub/block/block_scan.cuh>
 #include <thrust/device_vector.h>
 #include <thrust/sort.h>
 #include <thrust/scan.h>
@@ -282,6 +283,73 @@ __global__ void __launch_bounds__(256, MINB) resolve_rows(const float4* __restri
   unsigned tot = __reduce_add_sync(0xffffffff, mine);
   if ((threadIdx.x & 31) == 0 && tot) atomicAdd(contacts, tot);
 }
+// Variant H: the listed form with the laws shared out over the block. Each thread walks and lists
+// up to ROOM candidates within reach (as variant B); the block then numbers the listed entries
+// (a scan of the counts) and resolves them 256 at a time, every thread one entry: its owner by a
+// binary search of the counts' prefix, the partner's share by atomics, the entry's force to
+// shared memory, which each owner then sums over its own entries of the round (no atomics for
+// the own share). Threads with more than ROOM walk again while any thread of the block does.
+__global__ void __launch_bounds__(256) resolve_block_laws(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
+  typedef cub::BlockScan<unsigned, 256> Scan;
+  __shared__ typename Scan::TempStorage scan_room;
+  __shared__ unsigned near[ROOM*256];
+  __shared__ unsigned first[257];
+  __shared__ float4 share[256], own_pos[256], own_vel[256];
+  int lid = threadIdx.x, i = blockIdx.x * blockDim.x + lid;
+  bool alive = i < p.n;
+  float4 s = make_float4(0, 0, 0, 0), v = s;
+  if (alive) { s = __ldg(&pos[i]); v = __ldg(&vel[i]); }
+  own_pos[lid] = s; own_vel[lid] = v;
+  float fx = 0, fy = 0, fz = 0; unsigned mine = 0, skip = 0; bool walking = alive;
+  for (;;) {
+    unsigned found = 0, listed = 0;
+    if (walking) {
+      Win w = window(s, p); int3 c = cellc(make_float3(s.x, s.y, s.z), p);
+      int y = c.y - w.lo.y, z = c.z - w.lo.z; int k = y + w.ny*z;
+      int row = w.first + w.dx*(y + w.dy*z); int next_plane = w.dx*(w.dy - w.ny + 1);
+      for (; k < w.count; k++) {
+        unsigned a = __ldg(&cs[row]), b = __ldg(&cs[row + w.width]);
+        if (a < (unsigned)i + 1) a = i + 1;
+        for (unsigned q = a; q < b; q++) {
+          float4 t = __ldg(&pos[q]);
+          float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
+          if (dx*dx+dy*dy+dz*dz > reach*reach) continue;
+          unsigned f = found++;
+          if (f >= skip && listed < ROOM) near[lid*ROOM + listed++] = q;
+        }
+        y++; if (y == w.ny) { y = 0; row += next_plane; } else row += w.dx;
+      }
+    }
+    unsigned at, total;
+    Scan(scan_room).ExclusiveSum(listed, at, total);
+    first[lid] = at;
+    if (lid == 0) first[256] = total;
+    __syncthreads();
+    for (unsigned r0 = 0; r0 < total; r0 += 256) {
+      unsigned e = r0 + lid;
+      float4 f = make_float4(0, 0, 0, 0);
+      if (e < total) {
+        int lo = 0, hi = 255;
+        while (lo < hi) { int mid = (lo + hi + 1) >> 1; if (first[mid] <= e) lo = mid; else hi = mid - 1; }
+        unsigned q = near[lo*ROOM + (e - first[lo])];
+        float4 t = __ldg(&pos[q]), u = __ldg(&vel[q]);
+        f = law(own_pos[lo], own_vel[lo], t, u, p);
+        if (f.w != 0.f) { atomicAdd(&force[3*q], -f.x); atomicAdd(&force[3*q+1], -f.y); atomicAdd(&force[3*q+2], -f.z); mine++; }
+      }
+      share[lid] = f;
+      __syncthreads();
+      unsigned a = max(at, r0), b = min(at + listed, r0 + 256);
+      for (unsigned k = a; k < b; k++) { float4 g = share[k - r0]; fx += g.x; fy += g.y; fz += g.z; }
+      __syncthreads();
+    }
+    walking = walking && found > skip + ROOM;
+    if (!__syncthreads_or(walking)) break;
+    skip += ROOM;
+  }
+  if (fx != 0.f || fy != 0.f || fz != 0.f) { atomicAdd(&force[3*i], fx); atomicAdd(&force[3*i+1], fy); atomicAdd(&force[3*i+2], fz); }
+  unsigned tot = __reduce_add_sync(0xffffffff, mine);
+  if ((lid & 31) == 0 && tot) atomicAdd(contacts, tot);
+}
 // Variant E: the partner's share into an inbox (one returning atomic for a slot, one 16-byte
 // store), the own sum stored plainly; `inbox_sum` adds each sphere's inbox and clears its count.
 #define SLOTS 16
@@ -468,7 +536,9 @@ int main(int argc, char** argv) {
       auto rows4 = [&]{ resolve_rows<4,1><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto rows1o = [&]{ resolve_rows<1,8><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto rows2o = [&]{ resolve_rows<2,8><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
-      if (mode == "once") { if (slack > 0.f) { walk(); nopartner(); tree(); qshared(); qglobal(); rows1(); rows2(); rows4(); rows1o(); rows2o(); CK(cudaDeviceSynchronize()); } continue; }
+      auto listed = [&]{ resolve_listed<<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto blocklaws = [&]{ resolve_block_laws<<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      if (mode == "once") { if (slack > 0.f) { walk(); nopartner(); tree(); qshared(); qglobal(); rows1(); rows2(); rows4(); rows1o(); rows2o(); listed(); blocklaws(); CK(cudaDeviceSynchronize()); } continue; }
       printf("-- slack %.1f cell\n", slack);
       std::vector<float> ref = forces(tree);
       auto against_tree = [&](const char* name, const std::vector<float>& h) {
@@ -480,6 +550,7 @@ int main(int argc, char** argv) {
       against_tree("rows, 1 at a time", forces(rows1));
       against_tree("rows, 4 at a time", forces(rows4));
       against_tree("rows, 2 at a time, 8 blocks", forces(rows2o));
+      against_tree("listed, laws shared over the block", forces(blocklaws));
       bench("walk only", walk);
       bench("inline resolve, no partner atomics", nopartner);
       bench("inline resolve (the tree's form)", tree);
@@ -490,6 +561,8 @@ int main(int argc, char** argv) {
       bench("next row's bounds early, 4 candidates", rows4);
       bench("the same, 1 candidate, 8 blocks an SM", rows1o);
       bench("the same, 2 candidates, 8 blocks an SM", rows2o);
+      bench("listed (as the WGSL pass)", listed);
+      bench("listed, laws shared over the block", blocklaws);
     }
     return 0;
   }
