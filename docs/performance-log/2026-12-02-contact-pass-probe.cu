@@ -28,8 +28,37 @@ __device__ __forceinline__ Win window(float4 s, const P& p) {
   Win w; w.lo = make_int3(lx, ly, lz); w.width = hx-lx+1; w.ny = hy-ly+1; w.count = w.ny*(hz-lz+1);
   w.dx = p.nx; w.dy = p.ny; w.first = lx + p.nx*(ly + p.ny*lz); return w;
 }
-// Variant A: resolve each candidate as the walk meets it.
-template <bool RESOLVE, bool PARTNER>
+// The tree's per-pair law as wgsl/dem/dem_physics.wgsl writes it: the effective mass without the
+// product (two divisions), the damping's √(k·m*) as √k·√m* (two square roots), the normal as
+// three divisions by the distance.
+__device__ __forceinline__ float effective(float a, float b) { float lo = fminf(a, b), hi = fmaxf(a, b); return lo / (1.f + lo / hi); }
+__device__ __forceinline__ float4 law_tree(float4 s, float4 v, float4 t, float4 u, const P& p) {
+  float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z;
+  float d2 = dx*dx + dy*dy + dz*dz; float reach = s.w + t.w;
+  if (d2 > reach*reach || d2 == 0.f) return make_float4(0,0,0,0);
+  float dist = sqrtf(d2); float nx = dx/dist, ny = dy/dist, nz = dz/dist;
+  float ov = reach - dist;
+  float vn = (u.x-v.x)*nx + (u.y-v.y)*ny + (u.z-v.z)*nz;
+  float me = effective(v.w, u.w); float k = me*p.rate; float c = 2.f*p.zeta*(sqrtf(k)*sqrtf(me));
+  float push = fmaxf(k*ov - c*vn, 0.f);
+  return make_float4(-push*nx, -push*ny, -push*nz, 1.f);
+}
+// The same law trimmed: the damping 2ζ·m*·√rate (√rate once for all, as k = m*·rate), the normal
+// as the offset times one reciprocal of the distance.
+__device__ __forceinline__ float4 law_trimmed(float4 s, float4 v, float4 t, float4 u, const P& p) {
+  float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z;
+  float d2 = dx*dx + dy*dy + dz*dz; float reach = s.w + t.w;
+  if (d2 > reach*reach || d2 == 0.f) return make_float4(0,0,0,0);
+  float dist = sqrtf(d2); float inv = 1.f/dist; float nx = dx*inv, ny = dy*inv, nz = dz*inv;
+  float ov = reach - dist;
+  float vn = (u.x-v.x)*nx + (u.y-v.y)*ny + (u.z-v.z)*nz;
+  float me = effective(v.w, u.w); float k = me*p.rate; float c = (2.f*p.zeta*sqrtf(p.rate))*me;
+  float push = fmaxf(k*ov - c*vn, 0.f);
+  return make_float4(-push*nx, -push*ny, -push*nz, 1.f);
+}
+// Variant A: resolve each candidate as the walk meets it (LAW 0: the probe's law; 1: the tree's;
+// 2: the tree's trimmed).
+template <bool RESOLVE, bool PARTNER, int LAW = 0>
 __global__ void __launch_bounds__(256) resolve_inline(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
   int i = blockIdx.x * blockDim.x + threadIdx.x;
   unsigned mine = 0;
@@ -48,7 +77,7 @@ __global__ void __launch_bounds__(256) resolve_inline(const float4* __restrict__
           float dx = t.x - s.x, dy = t.y - s.y, dz = t.z - s.z; float reach = s.w + t.w;
           if (dx*dx+dy*dy+dz*dz > reach*reach) continue;
           float4 u = __ldg(&vel[q]);
-          float4 f = law(s, v, t, u, p);
+          float4 f = LAW == 1 ? law_tree(s, v, t, u, p) : LAW == 2 ? law_trimmed(s, v, t, u, p) : law(s, v, t, u, p);
           if (f.w != 0.f) {
             if (PARTNER) { atomicAdd(&force[3*q], -f.x); atomicAdd(&force[3*q+1], -f.y); atomicAdd(&force[3*q+2], -f.z); }
             fx += f.x; fy += f.y; fz += f.z; mine++;
@@ -536,9 +565,11 @@ int main(int argc, char** argv) {
       auto rows4 = [&]{ resolve_rows<4,1><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto rows1o = [&]{ resolve_rows<1,8><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto rows2o = [&]{ resolve_rows<2,8><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto tree_law = [&]{ resolve_inline<true,true,1><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto trimmed_law = [&]{ resolve_inline<true,true,2><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto listed = [&]{ resolve_listed<<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto blocklaws = [&]{ resolve_block_laws<<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
-      if (mode == "once") { if (slack > 0.f) { walk(); nopartner(); tree(); qshared(); qglobal(); rows1(); rows2(); rows4(); rows1o(); rows2o(); listed(); blocklaws(); CK(cudaDeviceSynchronize()); } continue; }
+      if (mode == "once") { if (slack > 0.f) { walk(); nopartner(); tree(); qshared(); qglobal(); rows1(); rows2(); rows4(); rows1o(); rows2o(); listed(); blocklaws(); tree_law(); trimmed_law(); CK(cudaDeviceSynchronize()); } continue; }
       printf("-- slack %.1f cell\n", slack);
       std::vector<float> ref = forces(tree);
       auto against_tree = [&](const char* name, const std::vector<float>& h) {
@@ -551,6 +582,9 @@ int main(int argc, char** argv) {
       against_tree("rows, 4 at a time", forces(rows4));
       against_tree("rows, 2 at a time, 8 blocks", forces(rows2o));
       against_tree("listed, laws shared over the block", forces(blocklaws));
+      std::vector<float> tree_forces = forces(tree_law);
+      ref = tree_forces;
+      against_tree("the tree's law trimmed, against the tree's law", forces(trimmed_law));
       bench("walk only", walk);
       bench("inline resolve, no partner atomics", nopartner);
       bench("inline resolve (the tree's form)", tree);
@@ -563,6 +597,8 @@ int main(int argc, char** argv) {
       bench("the same, 2 candidates, 8 blocks an SM", rows2o);
       bench("listed (as the WGSL pass)", listed);
       bench("listed, laws shared over the block", blocklaws);
+      bench("inline, the tree's law", tree_law);
+      bench("inline, the tree's law trimmed", trimmed_law);
     }
     return 0;
   }
