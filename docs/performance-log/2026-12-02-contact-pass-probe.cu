@@ -5,7 +5,8 @@
 // seven columns). Build: nvcc -O3 -arch=sm_90 -std=c++17 [-use_fast_math] -o probe this file.
 // Run: probe BED (the variants of session 21); probe BED queued (session 23: the tree's form
 // beside the queued law and the form with more loads in flight, forces checked against the
-// tree's); probe BED once (those kernels launched once each, for Nsight Compute).
+// tree's); probe BED once (those kernels launched once each, for Nsight Compute); probe BED order
+// (session 24: the tree's form with its threads taking the spheres tile by tile).
 #include <initializer_list>
 #include <string>
 #include "2026-12-02-probe-common.cuh"
@@ -58,9 +59,11 @@ __device__ __forceinline__ float4 law_trimmed(float4 s, float4 v, float4 t, floa
 }
 // Variant A: resolve each candidate as the walk meets it (LAW 0: the probe's law; 1: the tree's;
 // 2: the tree's trimmed).
+// `order`: the sphere each thread takes (nullptr: thread i takes sphere i, as the tree does).
 template <bool RESOLVE, bool PARTNER, int LAW = 0>
-__global__ void __launch_bounds__(256) resolve_inline(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p) {
+__global__ void __launch_bounds__(256) resolve_inline(const float4* __restrict__ pos, const float4* __restrict__ vel, const unsigned* __restrict__ cs, float* force, unsigned* contacts, P p, const unsigned* __restrict__ order) {
   int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (order && i < p.n) i = (int)__ldg(&order[i]);
   unsigned mine = 0;
   if (i < p.n) {
     float4 s = __ldg(&pos[i]); float4 v = __ldg(&vel[i]);
@@ -516,6 +519,15 @@ __global__ void integrate(float4* pos, float4* vel, float* force, int n, float d
   vel[i] = v; pos[i] = s; force[3*i] = 0; force[3*i+1] = 0; force[3*i+2] = 0;
 }
 
+// The key of sphere i's tile of tx × ty × tz cells (tiles x fastest): threads taking the
+// spheres tile by tile walk neighbouring windows at once in every direction, not along x alone.
+__global__ void tile_keys(const float4* pos, unsigned* key, P p, int tx, int ty, int tz) {
+  int i = blockIdx.x * blockDim.x + threadIdx.x; if (i >= p.n) return;
+  float4 s = pos[i]; int3 c = cellc(make_float3(s.x, s.y, s.z), p);
+  int ntx = p.nx / tx + 1, nty = p.ny / ty + 1;
+  key[i] = c.x / tx + ntx * (c.y / ty + nty * (c.z / tz));
+}
+
 int main(int argc, char** argv) {
   Bed bed; if (argc < 2 || !load_bed(argv[1], bed)) { printf("usage: probe BED\n"); return 1; }
   const int n = bed.n; const std::vector<float4>& hp = bed.pos; const std::vector<float4>& hv = bed.vel;
@@ -546,6 +558,42 @@ int main(int argc, char** argv) {
     printf("%-40s %8.2f us  (count %u)\n", name, 1000.f*ms/R, c);
   };
   const std::string mode = argc > 2 ? argv[2] : "";
+  // Session 24 (`order`): the tree's form with its threads taking the sorted spheres tile by
+  // tile instead of in the cells' order, the state left where it is; forces checked against the
+  // tree's order.
+  if (mode == "order") {
+    auto forces = [&](auto launch) {
+      cudaMemset(F_, 0, 12*(size_t)n); launch(); CK(cudaDeviceSynchronize());
+      std::vector<float> h(3*(size_t)n); cudaMemcpy(h.data(), F_, 12*(size_t)n, cudaMemcpyDeviceToHost); return h;
+    };
+    const int tiles[][3] = {{4, 4, 64}, {8, 8, 64}, {16, 16, 64}, {32, 8, 64}, {8, 8, 2}, {16, 4, 64}, {64, 4, 64}};
+    std::vector<thrust::device_vector<unsigned>> orders;
+    for (auto& t : tiles) {
+      thrust::device_vector<unsigned> tk(n), ord(n);
+      tile_keys<<<blocks,256>>>(P_, thrust::raw_pointer_cast(tk.data()), p, t[0], t[1], t[2]);
+      thrust::sequence(ord.begin(), ord.end()); thrust::stable_sort_by_key(tk.begin(), tk.end(), ord.begin());
+      orders.push_back(ord);
+    }
+    for (float slack : {0.f, 0.2f}) {
+      p.slack = slack*cell; printf("-- slack %.1f cell\n", slack);
+      auto tree = [&]{ resolve_inline<true,true><<<blocks,256>>>(P_, V_, C_, F_, K_, p, nullptr); };
+      std::vector<float> ref = forces(tree);
+      bench("walk only, cells' order", [&]{ resolve_inline<false,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p, nullptr); });
+      bench("the tree's form, cells' order", tree);
+      for (size_t k = 0; k < orders.size(); k++) {
+        const unsigned* O = thrust::raw_pointer_cast(orders[k].data());
+        auto ordered = [&]{ resolve_inline<true,true><<<blocks,256>>>(P_, V_, C_, F_, K_, p, O); };
+        std::vector<float> h = forces(ordered);
+        double d2 = 0, r2 = 0; for (size_t e = 0; e < h.size(); e++) { d2 += double(h[e]-ref[e])*(h[e]-ref[e]); r2 += double(ref[e])*ref[e]; }
+        char name[96]; snprintf(name, sizeof name, "tiles %dx%dx%d: walk only", tiles[k][0], tiles[k][1], tiles[k][2]);
+        bench(name, [&]{ resolve_inline<false,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p, O); });
+        snprintf(name, sizeof name, "tiles %dx%dx%d: the tree's form", tiles[k][0], tiles[k][1], tiles[k][2]);
+        bench(name, ordered);
+        printf("   forces against the cells' order, RMS relative %.2e\n", std::sqrt(d2/r2));
+      }
+    }
+    return 0;
+  }
   // The queued form beside the tree's (`queued`), its forces checked against the tree's; `once`:
   // each of those kernels launched once (for Nsight Compute).
   if (mode == "queued" || mode == "once") {
@@ -555,9 +603,9 @@ int main(int argc, char** argv) {
     };
     for (float slack : {0.f, 0.2f}) {
       p.slack = slack*cell;
-      auto walk = [&]{ resolve_inline<false,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
-      auto nopartner = [&]{ resolve_inline<true,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
-      auto tree = [&]{ resolve_inline<true,true><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto walk = [&]{ resolve_inline<false,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p, nullptr); };
+      auto nopartner = [&]{ resolve_inline<true,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p, nullptr); };
+      auto tree = [&]{ resolve_inline<true,true><<<blocks,256>>>(P_, V_, C_, F_, K_, p, nullptr); };
       auto qshared = [&]{ resolve_queued<true><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto qglobal = [&]{ resolve_queued<false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto rows1 = [&]{ resolve_rows<1,1><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
@@ -565,8 +613,8 @@ int main(int argc, char** argv) {
       auto rows4 = [&]{ resolve_rows<4,1><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto rows1o = [&]{ resolve_rows<1,8><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto rows2o = [&]{ resolve_rows<2,8><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
-      auto tree_law = [&]{ resolve_inline<true,true,1><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
-      auto trimmed_law = [&]{ resolve_inline<true,true,2><<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
+      auto tree_law = [&]{ resolve_inline<true,true,1><<<blocks,256>>>(P_, V_, C_, F_, K_, p, nullptr); };
+      auto trimmed_law = [&]{ resolve_inline<true,true,2><<<blocks,256>>>(P_, V_, C_, F_, K_, p, nullptr); };
       auto listed = [&]{ resolve_listed<<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       auto blocklaws = [&]{ resolve_block_laws<<<blocks,256>>>(P_, V_, C_, F_, K_, p); };
       if (mode == "once") { if (slack > 0.f) { walk(); nopartner(); tree(); qshared(); qglobal(); rows1(); rows2(); rows4(); rows1o(); rows2o(); listed(); blocklaws(); tree_law(); trimmed_law(); CK(cudaDeviceSynchronize()); } continue; }
@@ -604,9 +652,9 @@ int main(int argc, char** argv) {
   }
   for (float slack : {0.f, 0.1f, 0.2f}) {
     p.slack = slack*cell; printf("-- slack %.1f cell\n", slack);
-    bench("walk only", [&]{ resolve_inline<false,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
-    bench("inline resolve, no partner atomics", [&]{ resolve_inline<true,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
-    bench("inline resolve", [&]{ resolve_inline<true,true><<<blocks,256>>>(P_, V_, C_, F_, K_, p); });
+    bench("walk only", [&]{ resolve_inline<false,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p, nullptr); });
+    bench("inline resolve, no partner atomics", [&]{ resolve_inline<true,false><<<blocks,256>>>(P_, V_, C_, F_, K_, p, nullptr); });
+    bench("inline resolve", [&]{ resolve_inline<true,true><<<blocks,256>>>(P_, V_, C_, F_, K_, p, nullptr); });
     bench("inline resolve, float4 atomics", [&]{ resolve_v4<<<blocks,256>>>(P_, V_, C_, (float4*)F4, K_, p); });
     bench("inbox: resolve", [&]{ resolve_inbox<0><<<blocks,256>>>(P_, V_, C_, OWN, CNT, INB, PART, K_, p); cudaMemsetAsync(CNT, 0, 4*(size_t)n); });
     bench("inbox: resolve + sum", [&]{ resolve_inbox<0><<<blocks,256>>>(P_, V_, C_, OWN, CNT, INB, PART, K_, p); inbox_sum<<<blocks,256>>>(OWN, CNT, INB, n); });
