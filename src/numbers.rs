@@ -9,6 +9,20 @@
 /// digits), else in Rust's scientific notation (`2.322e-5`, `1e20`). Zero, infinities and NaN
 /// as Rust writes them.
 pub fn significant(x: f64, digits: usize) -> String {
+    to_digits(x, digits, -3..15)
+}
+
+/// `x` to four significant digits, plain from 0.001 up to 1e5 and in scientific notation
+/// beyond (`5.806e-5`, `0.003`, `1e7`, `-1`): how a message shows a measured, derived or given
+/// value, a modulus or a limit readable at a glance.
+pub fn shown(x: impl Into<f64>) -> String {
+    to_digits(x.into(), 4, -3..5)
+}
+
+/// `x` to `digits` significant digits, trailing zeros dropped: plain where its decimal exponent
+/// (after rounding) is in `plain`, an integer part keeping all its digits, else in Rust's
+/// scientific notation.
+fn to_digits(x: f64, digits: usize, plain: std::ops::Range<i32>) -> String {
     if x == 0.0 || !x.is_finite() {
         return x.to_string();
     }
@@ -19,7 +33,7 @@ pub fn significant(x: f64, digits: usize) -> String {
         .split_once('e')
         .expect("Rust's scientific notation has an exponent");
     let exponent: i32 = exponent.parse().expect("an integer exponent");
-    if (-3..15).contains(&exponent) {
+    if plain.contains(&exponent) {
         let decimals = (digits as i32 - 1 - exponent).max(0) as usize;
         without_trailing_zeros(&format!("{x:.decimals$}")).to_owned()
     } else {
@@ -70,6 +84,19 @@ mod tests {
         assert_eq!(significant(0.0, 4), "0");
         assert_eq!(significant(f64::INFINITY, 4), "inf");
         assert_eq!(significant(2.6, 0), "3");
+    }
+
+    #[test]
+    fn shown_numbers_are_plain_up_to_1e5_and_scientific_beyond() {
+        assert_eq!(shown(5.805583434051664e-5), "5.806e-5");
+        assert_eq!(shown(3.0001628e-3_f32), "0.003");
+        assert_eq!(shown(1e7), "1e7");
+        assert_eq!(shown(12345.6), "12346");
+        assert_eq!(shown(99999.7), "1e5");
+        assert_eq!(shown(-1.0), "-1");
+        assert_eq!(shown(500.0_f32), "500");
+        assert_eq!(shown(f64::NAN), "NaN");
+        assert_eq!(shown(f32::MAX), "3.403e38");
     }
 
     #[test]

@@ -247,6 +247,25 @@ const SLAB_RANDOM: [&str; 8] = [
 // ----------------------------------------------------------------------------------------------
 
 #[test]
+fn simulate_help_names_every_scene() {
+    let run = mochi(["simulate", "--help"]);
+    assert_eq!(run.code, Some(0), "{}", run.describe());
+    let help = run
+        .stdout
+        .split("--scene")
+        .nth(1)
+        .expect("the help of --scene");
+    let help = help.split("\n  -").next().unwrap();
+    for kind in mochi::dem::scene::SceneKind::ALL {
+        assert!(
+            help.contains(kind.name()),
+            "--scene's help lacks {}:\n{help}",
+            kind.name()
+        );
+    }
+}
+
+#[test]
 fn csv_nan_coordinate_is_rejected_with_its_line() {
     csv_rejected(
         "x,y,z,r\n0,0,0,1\nNaN,0,0,1\n",

@@ -27,7 +27,7 @@ def test_scene_keys_as_keyword_arguments_are_set_over_the_scene():
     "keys, words",
     [
         ({"friction": "x"}, 'scene: scene key material.friction (friction): invalid type: string "x"'),
-        ({"sphers": 3}, "unknown field `sphers`"),
+        ({"sphers": 3}, "scene key sphers: is not a key of a scene: did you mean spheres?"),
         ({"gravity": [0, 0]}, "scene key domain.gravity (gravity): invalid length 2"),
     ],
 )

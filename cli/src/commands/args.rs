@@ -231,7 +231,8 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub print_scene: bool,
     /// Scene: pour (the default: a polydisperse column collapsing into a heap), freefall, slab,
-    /// poly1.2, poly12, poly120, polylog, rotating, mesh, input, hopper, drum.
+    /// poly1.2, poly12, poly120, polylog, rotating, mesh, input, hopper, drum, agglomerate,
+    /// gravel.
     #[arg(long)]
     pub scene: Option<String>,
     /// Number of spheres of a generated scene.
@@ -244,7 +245,7 @@ pub struct SimulateArgs {
     #[arg(long, value_parser = toml_integer())]
     pub steps: Option<u64>,
     /// Time step [s] (default: the scene's).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub dt: Option<f64>,
     /// Start from a sphere file (CSV x,y,z,r or .npy N×4, optionally with vx,vy,vz, then
     /// wx,wy,wz, then each sphere's material, N×7, N×10 or N×11; a CSV may add a `material`

@@ -5,6 +5,7 @@
 use super::linear::{STEPS_PER_CONTACT, stiffness_for_duration};
 use super::time_step::rayleigh_time;
 use crate::error::{Error, Result};
+use crate::numbers::shown;
 use serde::{Deserialize, Serialize};
 
 /// The normal contact law and where its stiffness comes from.
@@ -289,11 +290,11 @@ impl Material {
             return bad(
                 "density",
                 format!(
-                    "must be positive and within single precision's range ({:e} .. {:e} \
-                     kg/m³), got {:e}",
-                    f32::MIN_POSITIVE,
-                    f32::MAX,
-                    self.density
+                    "must be positive and within single precision's range ({} .. {} kg/m³), \
+                     got {}",
+                    shown(f32::MIN_POSITIVE),
+                    shown(f32::MAX),
+                    shown(self.density)
                 ),
             );
         }
@@ -306,10 +307,11 @@ impl Material {
                 return bad(
                     "young_modulus",
                     format!(
-                        "must be positive and within single precision's range ({:e} .. {:e} \
-                         Pa), got {young_modulus:e}",
-                        f32::MIN_POSITIVE,
-                        f32::MAX
+                        "must be positive and within single precision's range ({} .. {} Pa), \
+                         got {}",
+                        shown(f32::MIN_POSITIVE),
+                        shown(f32::MAX),
+                        shown(young_modulus)
                     ),
                 );
             }
@@ -370,7 +372,8 @@ impl Material {
                     Some(k) if normal_f32(k) => k,
                     Some(k) => {
                         return bad(format!(
-                            "stiffness must be positive and within f32's range, got {k:e}"
+                            "stiffness must be positive and within f32's range, got {}",
+                            shown(k)
                         ));
                     }
                     None => {
@@ -378,9 +381,12 @@ impl Material {
                             stiffness_for_duration(m_eff, self.restitution, STEPS_PER_CONTACT * dt);
                         if !normal_f32(k) {
                             return bad(format!(
-                                "the derived stiffness {k:e} N/m (a {STEPS_PER_CONTACT}-step \
-                                 contact at dt {dt:e} s for spheres of r = {r_min:e} m) is \
-                                 outside f32's range: choose a larger dt, or give a stiffness"
+                                "the derived stiffness {} N/m (a {STEPS_PER_CONTACT}-step \
+                                 contact at dt {} s for spheres of r = {} m) is outside f32's \
+                                 range: choose a larger dt, or give a stiffness",
+                                shown(k),
+                                shown(dt),
+                                shown(r_min)
                             ));
                         }
                         k
@@ -398,23 +404,28 @@ impl Material {
                 let t_c = contact_time.unwrap_or(STEPS_PER_CONTACT * dt);
                 if !normal_f32(t_c) {
                     return bad(format!(
-                        "contact_time must be positive and within f32's range, got {t_c:e} s"
+                        "contact_time must be positive and within f32's range, got {} s",
+                        shown(t_c)
                     ));
                 }
                 // k/m* is the same for every contact.
                 let rate = stiffness_for_duration(1.0, self.restitution, t_c);
                 if !normal_f32(rate) {
                     return bad(format!(
-                        "contact_time {t_c:e} s gives k/m* = {rate:e} 1/s², outside f32's range"
+                        "contact_time {} s gives k/m* = {} 1/s², outside f32's range",
+                        shown(t_c),
+                        shown(rate)
                     ));
                 }
                 // The lightest pair's k = m*·rate, as the step computes it.
                 let k = m_eff as f32 * rate as f32;
                 if !k.is_normal() {
                     return bad(format!(
-                        "contact_time {t_c:e} s gives the lightest spheres (r = {r_min:e} m) a \
-                         stiffness of {k:e} N/m, outside f32's range: choose a shorter contact \
-                         time"
+                        "contact_time {} s gives the lightest spheres (r = {} m) a stiffness \
+                         of {} N/m, outside f32's range: choose a shorter contact time",
+                        shown(t_c),
+                        shown(r_min),
+                        shown(k)
                     ));
                 }
                 Ok(ResolvedLaw {
@@ -437,8 +448,8 @@ impl Material {
                 );
                 if !(pair.e_star.is_normal() && wall.g_star.is_normal()) {
                     return bad(format!(
-                        "young_modulus {young_modulus:e} Pa gives effective moduli outside \
-                         f32's range"
+                        "young_modulus {} Pa gives effective moduli outside f32's range",
+                        shown(young_modulus)
                     ));
                 }
                 Ok(ResolvedLaw {

@@ -22,6 +22,7 @@ use super::material::{ContactLaw, LiquidBridge, Material, check_contact_angle};
 use super::restitution::{hertz_damping, linear_damping};
 use super::time_step::{RAYLEIGH_LIMIT, rayleigh_time};
 use crate::error::{Error, Result};
+use crate::numbers::shown;
 use bytemuck::{Pod, Zeroable};
 
 /// The most materials a scene may have: a sphere's material is one byte.
@@ -457,9 +458,11 @@ impl MaterialTable {
                         law.damping_ratio = zeta as f32;
                         limit(stable_dt(stiffness, m_eff, zeta), &|| {
                             format!(
-                                "stiffness {stiffness:e} N/m, the lightest spheres (r = \
-                                 {r_min:e} m, density {}) and {} (e = {e})",
-                                materials.lightest_density(),
+                                "stiffness {} N/m, the lightest spheres (r = {} m, density \
+                                 {}) and {} (e = {e})",
+                                shown(stiffness),
+                                shown(r_min),
+                                shown(materials.lightest_density()),
                                 pair()
                             )
                         });
@@ -472,7 +475,8 @@ impl MaterialTable {
                         law.damping_ratio = zeta as f32;
                         limit(stable_dt(rate, 1.0, zeta), &|| {
                             format!(
-                                "a per-pair stiffness with contact time {t_c:e} s ({}, e = {e})",
+                                "a per-pair stiffness with contact time {} s ({}, e = {e})",
+                                shown(t_c),
                                 pair()
                             )
                         });
@@ -497,8 +501,9 @@ impl MaterialTable {
                             return Err(Error::InvalidConfig {
                                 what: format!("material \"{}\"", materials.names[a]),
                                 reason: format!(
-                                    "young_modulus {young_modulus:e} Pa gives effective moduli \
-                                     outside f32's range with {}",
+                                    "young_modulus {} Pa gives effective moduli outside \
+                                     f32's range with {}",
+                                    shown(young_modulus),
                                     name(b)
                                 ),
                             });
@@ -512,11 +517,15 @@ impl MaterialTable {
                             );
                             limit(RAYLEIGH_LIMIT * t_r, &|| {
                                 format!(
-                                    "Hertz–Mindlin with E = {young_modulus:e} Pa, ν = \
-                                     {poisson_ratio}, density {} (material \"{}\") and the \
-                                     smallest spheres (r = {r_min:e} m, Rayleigh time {t_r:.4e} \
-                                     s; the limit is {RAYLEIGH_LIMIT} of it)",
-                                    ma.density, materials.names[a]
+                                    "Hertz–Mindlin with E = {} Pa, ν = {poisson_ratio}, \
+                                     density {} (material \"{}\") and the smallest spheres (r \
+                                     = {} m, Rayleigh time {} s; the limit is \
+                                     {RAYLEIGH_LIMIT} of it)",
+                                    shown(young_modulus),
+                                    shown(ma.density),
+                                    materials.names[a],
+                                    shown(r_min),
+                                    shown(t_r)
                                 )
                             });
                         }

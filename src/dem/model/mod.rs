@@ -28,6 +28,7 @@ pub use materials::{
 };
 
 use crate::error::{Error, Result};
+use crate::numbers::shown;
 use std::f64::consts::PI;
 use std::sync::Arc;
 
@@ -230,9 +231,10 @@ impl StepParams {
         let normal = |x: f64| x > 0.0 && (x as f32).is_normal();
         if !normal(dt) {
             return bad(&format!(
-                "time step must be positive and within f32's range ({:e} .. {:e} s), got {dt:e}",
-                f32::MIN_POSITIVE,
-                f32::MAX
+                "time step must be positive and within f32's range ({} .. {} s), got {}",
+                shown(f32::MIN_POSITIVE),
+                shown(f32::MAX),
+                shown(dt)
             ));
         }
         // The time step as a saved scene gives it back (its f32 by the shortest decimal), so
@@ -257,12 +259,13 @@ impl StepParams {
         let m_eff = mass(density, r_min) as f64 / 2.0;
         if !mass_in_range(density, r_min) {
             return bad(&format!(
-                "the lightest spheres (r = {r_min:e} m, density {:e} kg/m³) have mass {:e} kg, \
-                 outside f32's range for the contact laws (half of it must be a normal f32 \
-                 number; the smallest radius at this density is {:e} m)",
-                lightest,
-                2.0 * m_eff,
-                smallest_radius(density)
+                "the lightest spheres (r = {} m, density {} kg/m³) have mass {} kg, outside \
+                 f32's range for the contact laws (half of it must be a normal f32 number; the \
+                 smallest radius at this density is {} m)",
+                shown(r_min),
+                shown(lightest),
+                shown(2.0 * m_eff),
+                shown(smallest_radius(density))
             ));
         }
         let law = m.law(dt, r_min, m_eff)?;
@@ -284,8 +287,9 @@ impl StepParams {
             if !(positive(b.volume) && positive(b.surface_tension)) {
                 return bad(&format!(
                     "a liquid bridge needs a positive liquid_volume and surface_tension (in \
-                     f32), got {:e} m³ and {} N/m",
-                    b.volume, b.surface_tension
+                     f32), got {} m³ and {} N/m",
+                    shown(b.volume),
+                    shown(b.surface_tension)
                 ));
             }
             let eta = b.viscosity;
@@ -321,20 +325,23 @@ impl StepParams {
         };
         if friction.turns() && !inertia_in_range(density, r_min) {
             return bad(&format!(
-                "the smallest spheres (r = {r_min:e} m, density {:e} kg/m³) have moment of \
-                 inertia {:e} kg·m², outside f32's range (half of it must be a normal f32 \
-                 number): with friction or rolling resistance the spheres turn, and the smallest \
-                 radius that can turn at this density is {:e} m; use larger spheres, a higher \
-                 density, or no friction and no rolling resistance",
-                lightest,
-                contact::moment_of_inertia(mass(density, r_min), r_min),
-                smallest_turning_radius(density)
+                "the smallest spheres (r = {} m, density {} kg/m³) have moment of inertia {} \
+                 kg·m², outside f32's range (half of it must be a normal f32 number): with \
+                 friction or rolling resistance the spheres turn, and the smallest radius that \
+                 can turn at this density is {} m; use larger spheres, a higher density, or no \
+                 friction and no rolling resistance",
+                shown(r_min),
+                shown(lightest),
+                shown(contact::moment_of_inertia(mass(density, r_min), r_min)),
+                shown(smallest_turning_radius(density))
             ));
         }
         if dt > resolved.dt_limit {
             return bad(&format!(
-                "time step {dt:e} s is too large for {}: the stable limit is {:e} s",
-                resolved.limited_by, resolved.dt_limit
+                "time step {} s is too large for {}: the stable limit is {} s",
+                shown(dt),
+                resolved.limited_by,
+                shown(resolved.dt_limit)
             ));
         }
         if let Some(limit) = m
@@ -343,9 +350,12 @@ impl StepParams {
             && dt > limit
         {
             return bad(&format!(
-                "time step {dt:e} s is too large for the bridges' lubrication force (liquid_viscosity \
-                 {} Pa·s on spheres of r = {r_min:e} m): the stable limit is {limit:.3e} s",
-                m.bridge.map_or(0.0, |b| b.viscosity)
+                "time step {} s is too large for the bridges' lubrication force \
+                 (liquid_viscosity {} Pa·s on spheres of r = {} m): the stable limit is {} s",
+                shown(dt),
+                shown(m.bridge.map_or(0.0, |b| b.viscosity)),
+                shown(r_min),
+                shown(limit)
             ));
         }
         if let Err(reason) = check_gravity(gravity, dt, r_min) {
@@ -412,10 +422,11 @@ impl StepParams {
             )
         };
         Some(format!(
-            "the heaviest spheres (r = {r_max:e} m) would sink {:.0}% of their radius into what \
-             they rest on at stiffness {:e} N/m; {advice}",
+            "the heaviest spheres (r = {} m) would sink {:.0}% of their radius into what they \
+             rest on at stiffness {} N/m; {advice}",
+            shown(r_max),
             100.0 * sink / r_max as f64,
-            self.stiffness,
+            shown(self.stiffness),
         ))
     }
 
@@ -555,10 +566,13 @@ fn check_gravity(gravity: [f64; 3], dt: f64, r_min: f32) -> std::result::Result<
     let g = gravity.iter().map(|x| x * x).sum::<f64>().sqrt();
     if g * dt * dt > r_min as f64 {
         return Err(format!(
-            "gravity of {g:e} m/s² moves a sphere {:e} m in a single step of {dt:e} s, more than \
-             the smallest radius ({r_min:e} m): no contact or wall could hold it; lower the \
-             gravity or the time step",
-            g * dt * dt
+            "gravity of {} m/s² moves a sphere {} m in a single step of {} s, more than the \
+             smallest radius ({} m): no contact or wall could hold it; lower the gravity or the \
+             time step",
+            shown(g),
+            shown(g * dt * dt),
+            shown(dt),
+            shown(r_min)
         ));
     }
     Ok(())
@@ -719,7 +733,10 @@ mod tests {
         assert!((1e-11..1e-10).contains(&r), "{r:e}");
         assert_eq!(new(&light, r), Ok(()));
         let e = new(&light, r.next_down()).unwrap_err();
-        assert!(e.contains("mass") && e.contains(&format!("{r:e} m")), "{e}");
+        assert!(
+            e.contains("mass") && e.contains(&format!("{} m", shown(r))),
+            "{e}"
+        );
         // Turning spheres: the moment of inertia sets the limit, 7.8e-9 m at 500 kg/m³.
         let r = smallest_turning_radius(500.0);
         assert!((7.7e-9..7.9e-9).contains(&r), "{r:e}");
@@ -740,7 +757,7 @@ mod tests {
             assert_eq!(new(&turning, r), Ok(()));
             let e = new(&turning, r.next_down()).unwrap_err();
             assert!(
-                e.contains("moment of inertia") && e.contains(&format!("{r:e} m")),
+                e.contains("moment of inertia") && e.contains(&format!("{} m", shown(r))),
                 "{e}"
             );
             // Where it does not turn, the same radius is accepted.

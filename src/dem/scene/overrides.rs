@@ -1,6 +1,6 @@
 //! Scene fields set over a scene file: `--set key=value` assignments and Python's dicts.
 
-use super::short_forms::full_path;
+use super::short_forms::{full_path, known_at_top};
 use crate::error::{Error, Result};
 
 /// Scene fields set over a scene file and the flags, in order: from `--set key=value`
@@ -48,7 +48,9 @@ impl Overrides {
     /// must name one of them).
     pub(super) fn apply(&self, table: &mut toml::Table) -> Result<()> {
         for (path, value) in &self.0 {
-            set_at(table, &full_path(path, value), &path.join("."), value)?;
+            let full = full_path(path, value);
+            known_at_top(&full[0])?;
+            set_at(table, &full, &path.join("."), value)?;
         }
         Ok(())
     }

@@ -69,6 +69,21 @@ pub const SHORT_FORMS: [(&str, &str, &str); 52] = [
 /// The tables a scene's fields live in.
 const TABLES: [&str; 4] = ["run", "source", "domain", "material"];
 
+/// The keys a scene file holds at its top (`SceneConfig`'s fields), once short forms are
+/// expanded.
+const TOP_LEVEL: [&str; 10] = [
+    "run",
+    "source",
+    "domain",
+    "material",
+    "materials",
+    "material_pairs",
+    "wall",
+    "inflow",
+    "outflow",
+    "clump",
+];
+
 /// Lists of tables by their short and full names. `material` is the `[material]` table too:
 /// it stands for `materials` only as a list (or indexed, `material.0.friction`).
 const LISTS: [(&str, &str); 2] = [
@@ -129,6 +144,7 @@ pub fn nest(flat: toml::Table) -> Result<toml::Table> {
                     put(&mut nested, name, &field, value, &given)?;
                 }
             }
+            ([name], _) if !TOP_LEVEL.contains(&name.as_str()) => return Err(unknown(name)),
             ([name], value) => {
                 if nested.insert(name.clone(), value).is_some() {
                     return Err(twice(name, &key));
@@ -157,6 +173,39 @@ fn put(
     match fields.insert(field.to_owned(), value) {
         Some(_) => Err(twice(&format!("{table}.{field}"), given)),
         None => Ok(()),
+    }
+}
+
+/// Refuses `key` (the first key of a full path, short forms expanded) where it is not a key a
+/// scene holds at its top.
+pub(super) fn known_at_top(key: &str) -> Result<()> {
+    match TOP_LEVEL.contains(&key) {
+        true => Ok(()),
+        false => Err(unknown(key)),
+    }
+}
+
+/// The error of `key`, which is neither a table of a scene nor a short form: names the nearest
+/// key that is, where one is near.
+fn unknown(key: &str) -> Error {
+    let known = TOP_LEVEL
+        .iter()
+        .copied()
+        .chain(SHORT_FORMS.iter().map(|(short, _, _)| *short))
+        .chain(LISTS.iter().map(|(short, _)| *short));
+    let nearest = known
+        .map(|k| (strsim::normalized_damerau_levenshtein(key, k), k))
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .filter(|(likeness, _)| *likeness >= 0.6);
+    let hint = match nearest {
+        Some((_, k)) => format!("did you mean {k}?"),
+        None => "a key is one of the tables (run, source, domain, material, …) or a short form of \
+                 one of their keys (spheres, dt, friction, …; docs/guide/simulate.md lists them)"
+            .to_owned(),
+    };
+    Error::InvalidConfig {
+        what: format!("scene key {key}"),
+        reason: format!("is not a key of a scene: {hint}"),
     }
 }
 
@@ -252,5 +301,33 @@ mod tests {
             e.contains("material.friction") && e.contains("twice"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn an_unknown_key_is_refused_with_the_nearest_known_one() {
+        let refused = |text: &str| nest(text.parse().unwrap()).unwrap_err().to_string();
+        let e = refused("frcition = 0.2\n");
+        assert!(
+            e.contains("frcition") && e.contains("did you mean friction?"),
+            "{e}"
+        );
+        let e = refused("[domian]\ngravity = [0.0, 0.0, -9.81]\n");
+        assert!(e.contains("did you mean domain?"), "{e}");
+        let e = refused("steps = 3\nnosuchkey = 1\n");
+        assert!(e.contains("nosuchkey") && e.contains("short form"), "{e}");
+        assert!(!e.contains("did you mean"), "{e}");
+        // Every table, list and short form is known.
+        let mut every = String::new();
+        for key in TOP_LEVEL.iter().filter(|k| !TABLES.contains(k)) {
+            every += &format!("{key} = []\n");
+        }
+        for (short, _, _) in SHORT_FORMS {
+            every += &format!("{short} = 1\n");
+        }
+        for table in TABLES.iter().filter(|t| **t != "material") {
+            every += &format!("[{table}]\n");
+        }
+        let nested = nest(every.parse().unwrap()).unwrap();
+        assert!(nested.keys().all(|k| TOP_LEVEL.contains(&k.as_str())));
     }
 }

@@ -8,6 +8,7 @@ use crate::dem::material_spec::{self, material_index};
 use crate::dem::model::contact::moment_of_inertia;
 use crate::dem::model::time_step::{RAYLEIGH_FRACTION, rayleigh_time};
 use crate::dem::model::{ContactLaw, LiquidBridge, Material, Materials, drag_dt_limit, mass};
+use crate::numbers::shown;
 use crate::numbers::widened;
 use crate::scenes::{self, Layout, Scene, SceneSpec};
 use crate::spheres::SphereSet;
@@ -39,10 +40,13 @@ fn check_heaviest(density: f64, r_max: f32) -> Result<()> {
         .powf(0.2)
         .min((f32::MAX as f64 / (density * 4.0 / 3.0 * std::f64::consts::PI)).cbrt());
     Err(Error::InvalidConfig {
-        what: format!("spheres of radius {r_max:e} m"),
+        what: format!("spheres of radius {} m", shown(r_max)),
         reason: format!(
-            "at density {density:e} kg/m³ their mass ({m:e} kg) or moment of inertia is beyond \
-             single precision (3.4e38); the largest radius this density allows is {largest:.3e} m"
+            "at density {} kg/m³ their mass ({} kg) or moment of inertia is beyond single \
+             precision (3.4e38); the largest radius this density allows is {} m",
+            shown(density),
+            shown(m),
+            shown(largest)
         ),
     })
 }

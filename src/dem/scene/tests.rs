@@ -133,6 +133,15 @@ fn unknown_fields_and_bad_values_are_errors() {
     assert!(e.to_string().contains("key=value"), "{e}");
     let e = SceneConfig::load(None, &given(&["scene=teapot"])).unwrap_err();
     assert!(e.to_string().contains("teapot"), "{e}");
+    let e = SceneConfig::load(None, &given(&["frcition=0.2"])).unwrap_err();
+    assert!(e.to_string().contains("did you mean friction?"), "{e}");
+    let e = SceneConfig::load(None, &given(&["sourse.spheres=10"])).unwrap_err();
+    assert!(e.to_string().contains("did you mean source?"), "{e}");
+    let e = SceneConfig::load(None, &given(&["material.frcition=0.2"])).unwrap_err();
+    assert!(e.to_string().contains("unknown field `frcition`"), "{e}");
+    let set = Overrides::from_table(toml::toml! { frcition = 0.2 });
+    let e = SceneConfig::load(None, &set).unwrap_err();
+    assert!(e.to_string().contains("did you mean friction?"), "{e}");
 }
 
 #[test]
