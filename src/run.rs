@@ -478,6 +478,17 @@ impl Run {
     /// position outside the box by more than the box's own extent along an axis (as a resumed
     /// run's are; no bound without the box's walls, where the box only bounds the grid).
     pub fn set_motion(&mut self, motion: &Motion<'_>) -> Result<()> {
+        // A position that is not finite is named as such, not measured against the box.
+        if let Some(positions) = motion.positions
+            && let Some(index) = positions
+                .iter()
+                .position(|x| x.iter().any(|v| !v.is_finite()))
+        {
+            return Err(Error::InvalidSphere {
+                index,
+                reason: format!("its position {:?} is not finite", positions[index]),
+            });
+        }
         if let (Some(positions), true) = (motion.positions, self.walls.box_walls) {
             let (lo, hi) = (self.params.box_lo, self.params.box_hi);
             let outside = positions.iter().position(|x| {

@@ -497,7 +497,10 @@ fn check_center(c: &[f32; 3]) -> Result<(), String> {
             return Err(format!("{axis} is {x}, not a finite number"));
         }
         if x.abs() > MAX_MAGNITUDE {
-            return Err(format!("{axis} = {x} exceeds ±{MAX_MAGNITUDE:e}"));
+            return Err(format!(
+                "{axis} = {} exceeds ±{MAX_MAGNITUDE:e}",
+                crate::numbers::shown(x)
+            ));
         }
     }
     Ok(())
@@ -518,7 +521,10 @@ pub(crate) fn check_sphere(c: &[f32; 3], r: f32) -> Result<(), String> {
         ));
     }
     if r > MAX_MAGNITUDE {
-        return Err(format!("radius {r} exceeds {MAX_MAGNITUDE:e}"));
+        return Err(format!(
+            "radius {} exceeds {MAX_MAGNITUDE:e}",
+            crate::numbers::shown(r)
+        ));
     }
     Ok(())
 }

@@ -284,9 +284,10 @@ fn read_centres_into(centres: &Bound<'_, PyAny>, out: &mut Vec<[f32; 3]>) -> PyR
                 .find(|(_, x): &(_, f64)| (*x as f32).is_infinite())
                 .unwrap_or(("x", r[0].into()));
             return Err(PyValueError::new_err(format!(
-                "sphere {k}: {axis} = {x:e} is outside the range of float32 (magnitudes up to \
-                 {:e}), in which mochi computes",
-                f32::MAX
+                "sphere {k}: {axis} = {} is outside the range of float32 (magnitudes up to \
+                 {}), in which mochi computes",
+                mochi::numbers::shown(x),
+                mochi::numbers::shown(f32::MAX)
             )));
         }
         Ok(())
@@ -418,10 +419,11 @@ fn read_radii_into(radii: &Bound<'_, PyAny>, out: &mut Vec<f32>) -> PyResult<()>
         if let Some(k) = unheld.first() {
             let r: f64 = view[k].into();
             return Err(PyValueError::new_err(format!(
-                "sphere {k}: radius {r:e} is outside the range of float32 ({:e} to {:e}), in \
-                 which mochi computes",
-                f32::from_bits(1),
-                f32::MAX
+                "sphere {k}: radius {} is outside the range of float32 ({} to {}), in which \
+                 mochi computes",
+                mochi::numbers::shown(r),
+                mochi::numbers::shown(f32::from_bits(1)),
+                mochi::numbers::shown(f32::MAX)
             )));
         }
         Ok(())

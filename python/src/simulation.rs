@@ -193,17 +193,22 @@ fn new_start(
                          of a scene (\"pour\", \"hopper\", …) or None",
                     )
                 })?;
-                // A scene's name where no file has it: `Simulation("hopper", spheres=500)`.
-                let named = path
-                    .to_str()
-                    .and_then(|name| name.parse::<SceneKind>().ok());
-                match named.filter(|_| !path.exists()) {
-                    Some(kind) => {
+                // A scene's name where no file has it: `Simulation("hopper", spheres=500)`; a
+                // bare word that names neither is refused as an unknown scene.
+                let bare = path.extension().is_none() && path.components().count() == 1;
+                match path.to_str().map(str::parse::<SceneKind>) {
+                    Some(Ok(kind)) if !path.exists() => {
                         let scene = toml::Value::String(kind.name().to_owned());
                         let table = toml::Table::from_iter([("scene".to_owned(), scene)]);
                         (None, Overrides::from_table(table))
                     }
-                    None => (Some(path), Overrides::default()),
+                    Some(Err(unknown)) if bare && !path.exists() => {
+                        return Err(PyValueError::new_err(format!(
+                            "{unknown}; nor is there a scene file {}",
+                            path.display()
+                        )));
+                    }
+                    _ => (Some(path), Overrides::default()),
                 }
             }
         },
@@ -775,7 +780,10 @@ impl Simulation {
     /// called with the number of steps the batch took (an increment, as `tqdm`'s `update`
     /// takes it).
     #[pyo3(signature = (n, progress = None))]
-    fn step(&mut self, py: Python<'_>, n: u64, progress: Option<Bound<'_, PyAny>>) -> PyResult<()> {
+    fn step(&mut self, py: Python<'_>, n: i64, progress: Option<Bound<'_, PyAny>>) -> PyResult<()> {
+        let n = u64::try_from(n).map_err(|_| {
+            PyValueError::new_err(format!("step takes a number of steps from 0, got {n}"))
+        })?;
         self.guarded("Simulation.step", |sim| {
             let mut left = n;
             let mut next = FIRST_PROGRESS_STEPS;
@@ -1064,12 +1072,18 @@ impl Simulation {
     fn set_wall_motion(
         &mut self,
         py: Python<'_>,
-        index: usize,
+        index: i64,
         velocity: Option<[f64; 3]>,
         omega: Option<f64>,
         axis: Option<[f64; 3]>,
         center: Option<[f64; 3]>,
     ) -> PyResult<()> {
+        let index = usize::try_from(index).map_err(|_| {
+            PyValueError::new_err(format!(
+                "cannot set the motion of wall {index}: walls are numbered from 0, as wall_loads \
+                 lists them"
+            ))
+        })?;
         self.guarded("Simulation.set_wall_motion", |sim| {
             let motion = NewMotion {
                 velocity,

@@ -115,8 +115,23 @@ def test_a_scene_is_named_where_no_file_has_that_name(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "drum").write_text('scene = "freefall"\nspheres = 7\n')
     assert len(mochi.Simulation("drum", backend="cpu")) == 7, "the file named drum"
-    with pytest.raises(OSError, match="teapot"):
+    with pytest.raises(ValueError, match=r'unknown scene "teapot": use freefall, .*; nor is there a scene file teapot'):
         mochi.Simulation("teapot", backend="cpu")
+    with pytest.raises(OSError, match="teapot.toml"):
+        mochi.Simulation("teapot.toml", backend="cpu")
+
+
+def test_steps_walls_and_positions_out_of_range_are_value_errors():
+    sim = mochi.Simulation("pour", spheres=50, backend="cpu")
+    with pytest.raises(ValueError, match="step takes a number of steps from 0, got -1"):
+        sim.step(-1)
+    with pytest.raises(ValueError, match="cannot set the motion of wall -1: walls are numbered from 0"):
+        sim.set_wall_motion(-1, velocity=[1.0, 0.0, 0.0])
+    nan = sim.positions.copy()
+    nan[3] = np.nan
+    with pytest.raises(ValueError, match=r"sphere 3: its position \[NaN, NaN, NaN\] is not finite"):
+        sim.positions = nan
+    assert sim.step_count == 0
 
 
 def test_the_version_is_the_package_s():
