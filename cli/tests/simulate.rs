@@ -1935,3 +1935,37 @@ fn one_of_several_mpi_processes_without_the_mpi_feature_is_refused_before_it_wri
     assert!(stderr.contains("built without the mpi feature"), "{stderr}");
     assert!(!dir.path().join("run").exists());
 }
+
+/// Every scene file of the guide's simulate chapter (its ```toml blocks) is one the tool takes as
+/// written, with stand-ins for the files it names (a sphere file, meshes).
+#[test]
+fn the_guides_scene_files_load_as_written() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let guide = std::fs::read_to_string(root.join("docs/guide/simulate.md")).unwrap();
+    let blocks: Vec<&str> = guide
+        .split("```toml\n")
+        .skip(1)
+        .map(|rest| rest.split("```").next().expect("a closed block"))
+        .collect();
+    assert!(
+        blocks.len() >= 5,
+        "the chapter's scene files: {}",
+        blocks.len()
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = root.join("tests/data/box_ascii.stl");
+    for name in ["hopper.stl", "drum.stl"] {
+        std::fs::copy(&mesh, dir.path().join(name)).unwrap();
+    }
+    std::fs::write(
+        dir.path().join("spheres.csv"),
+        "x,y,z,r,material\n0.3,0.3,0.1,0.004,0\n0.5,0.5,0.1,0.005,1\n",
+    )
+    .unwrap();
+    for (k, block) in blocks.iter().enumerate() {
+        let file = format!("scene_{k}.toml");
+        std::fs::write(dir.path().join(&file), block).unwrap();
+        let printed = ok(&["simulate", &file, "--print-scene"], dir.path());
+        assert!(printed.contains("[source]"), "{block}\nprinted\n{printed}");
+    }
+}
