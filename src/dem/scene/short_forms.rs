@@ -144,8 +144,8 @@ pub fn nest(flat: toml::Table) -> Result<toml::Table> {
                     put(&mut nested, name, &field, value, &given)?;
                 }
             }
-            ([name], _) if !TOP_LEVEL.contains(&name.as_str()) => return Err(unknown(name)),
             ([name], value) => {
+                known_at_top(name)?;
                 if nested.insert(name.clone(), value).is_some() {
                     return Err(twice(name, &key));
                 }
